@@ -1,0 +1,15 @@
+"""Photon mapping render engine (Jensen; Yu, Lowther & Shene 2005) on Embree.
+
+Pure Python on numpy, embreex and scipy; never imports bpy.
+
+    from engine import render, RenderSettings
+    from engine.api import PaperScene
+"""
+from .film import Film
+from .render import render
+from .scene import Camera, Light, Material, Mesh, Scene, SceneError
+from .settings import RenderSettings
+
+__all__ = ["render", "RenderSettings", "Film", "Scene", "Mesh", "Material", "Light",
+           "Camera", "SceneError"]
+__version__ = "0.1.0"

@@ -1,0 +1,173 @@
+"""A scene-building API that reads like the paper's Figures 3-4.
+
+    from engine.api import PaperScene
+    scene = PaperScene(width=400, height=300)
+    scene.add_plane((0, 0, 0), (0, 0, 1), size=10, material="white_plastic_dull")
+    scene.add_sphere((0, 0, 1), 1.0, material="red_plastic")
+    scene.add_rect_area_light((0, 0, 4), size=(1, 1), power=500)
+    scene.set_camera(position=(0, -8, 3), look_at=(0, 0, 1), up=(0, 0, 1),
+                     view_angle=40)
+    film = scene.render(photons=100_000, spp=8)
+    write_image(film.combined, "out.png")
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .scene import AREA, POINT, SPOT, SUN, Camera, Light, Material, Mesh, Scene, SceneError
+from .scene import predefined_materials
+from .settings import RenderSettings
+
+
+def _frame(normal):
+    n = np.asarray(normal, np.float64)
+    n = n / np.linalg.norm(n)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(helper, n)
+    u /= np.linalg.norm(u)
+    return u, np.cross(n, u), n
+
+
+def sphere_mesh(center, radius, segments=48, rings=24):
+    """UV sphere with smooth per-vertex normals."""
+    theta = np.linspace(0, math.pi, rings + 1)
+    phi = np.linspace(0, 2 * math.pi, segments + 1)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    n = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
+    v = np.asarray(center, np.float64) + radius * n
+    uv = np.stack([p / (2 * math.pi), 1 - t / math.pi], axis=-1).reshape(-1, 2)
+    faces = []
+    cols = segments + 1
+    r, c = np.meshgrid(np.arange(rings), np.arange(segments), indexing="ij")
+    a = r * cols + c
+    b = a + cols
+    quad = np.stack([a, b, b + 1, a + 1], axis=-1).reshape(-1, 4)
+    faces = np.concatenate([quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]])
+    return v, faces, n, uv
+
+
+def box_mesh(center, size):
+    """Axis-aligned box with outward normals (flat shading)."""
+    c = np.asarray(center, np.float64)
+    s = np.broadcast_to(np.asarray(size, np.float64), (3,)) / 2
+    corners = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], np.float64)
+    v = c + corners * s
+    faces = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
+                      [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]])
+    return v, faces
+
+
+class PaperScene(Scene):
+    """Scene with the paper's predefined materials and convenience builders."""
+
+    def __init__(self, width=400, height=300, background=(0, 0, 0), **kw):
+        super().__init__(width=width, height=height, background=background, **kw)
+        self.materials.update(predefined_materials())
+
+    def _material(self, material) -> str:
+        if isinstance(material, Material):
+            self.materials[material.name] = material
+            return material.name
+        if material not in self.materials:
+            raise SceneError(f"unknown material '{material}'; known: {', '.join(self.materials)}")
+        return material
+
+    def _name(self, base):
+        return f"{base}.{len(self.meshes):03d}"
+
+    def add_sphere(self, center, radius, material="white_plastic_dull", name=None, segments=48):
+        if not radius > 0:
+            raise SceneError(f"sphere radius must be > 0, got {radius}")
+        v, f, n, uv = sphere_mesh(center, radius, segments, max(3, segments // 2))
+        return self.add_mesh(Mesh(name or self._name("sphere"), v, f, normals=n, uvs=uv,
+                                  materials=[self._material(material)]))
+
+    def add_plane(self, center, normal=(0, 0, 1), size=10.0, material="white_plastic_dull",
+                  name=None, up=None):
+        """A square (or size=(w, h) rectangle) facing `normal`."""
+        sx, sy = (size, size) if np.isscalar(size) else size
+        u, v, n = _frame(normal)
+        if up is not None:
+            v = np.asarray(up, np.float64) - n * np.dot(up, n)
+            v /= np.linalg.norm(v)
+            u = np.cross(v, n)
+        c = np.asarray(center, np.float64)
+        verts = np.array([c - u * sx / 2 - v * sy / 2, c + u * sx / 2 - v * sy / 2,
+                          c + u * sx / 2 + v * sy / 2, c - u * sx / 2 + v * sy / 2])
+        faces = np.array([[0, 1, 2], [0, 2, 3]])
+        uvs = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float64)
+        return self.add_mesh(Mesh(name or self._name("plane"), verts, faces, uvs=uvs,
+                                  materials=[self._material(material)]))
+
+    def add_box(self, center, size, material="white_plastic_dull", name=None):
+        v, f = box_mesh(center, size)
+        return self.add_mesh(Mesh(name or self._name("box"), v, f,
+                                  materials=[self._material(material)]))
+
+    def add_triangles(self, vertices, faces, material="white_plastic_dull", name=None, normals=None):
+        return self.add_mesh(Mesh(name or self._name("mesh"), vertices, faces, normals=normals,
+                                  materials=[self._material(material)]))
+
+    def add_rect_area_light(self, center, size=(1.0, 1.0), power=100.0, color=(1, 1, 1),
+                            direction=(0, 0, -1), name=None, disk=False):
+        """One-sided area light facing `direction` (Blender: the light's -Z)."""
+        sx, sy = (size, size) if np.isscalar(size) else size
+        u, _, _ = _frame(direction)
+        return self.add_light(Light(name or f"area.{len(self.lights):03d}", AREA, power, color,
+                                    center, direction, axis_u=u, size_x=sx, size_y=sy,
+                                    shape="DISK" if disk else "RECTANGLE"))
+
+    def add_point_light(self, position, power=100.0, color=(1, 1, 1), radius=0.0, name=None):
+        return self.add_light(Light(name or f"point.{len(self.lights):03d}", POINT, power, color,
+                                    position, radius=radius))
+
+    def add_spot_light(self, position, look_at, power=100.0, color=(1, 1, 1),
+                       spot_size_degrees=45.0, blend=0.15, radius=0.0, name=None):
+        d = np.asarray(look_at, np.float64) - np.asarray(position, np.float64)
+        return self.add_light(Light(name or f"spot.{len(self.lights):03d}", SPOT, power, color,
+                                    position, d, radius=radius,
+                                    spot_size=math.radians(spot_size_degrees), spot_blend=blend))
+
+    def add_sun(self, direction=(0, 0, -1), strength=1.0, color=(1, 1, 1), angle_degrees=0.0,
+                name=None):
+        return self.add_light(Light(name or f"sun.{len(self.lights):03d}", SUN, strength, color,
+                                    direction=direction, angle=math.radians(angle_degrees)))
+
+    def set_camera(self, position, look_at, up=(0, 0, 1), view_angle=40.0, aspect=None, **kw):
+        """The paper's camera. view_angle in degrees across the wider image side; aspect
+        (width / height) adjusts the height of the image if given."""
+        if aspect is not None:
+            self.height = max(1, int(round(self.width / float(aspect))))
+        self.camera = Camera.look_at(position, look_at, up, view_angle, **kw)
+        return self.camera
+
+    def render(self, settings: RenderSettings | None = None, **overrides):
+        from .render import render
+        if settings is None:
+            settings = RenderSettings(**overrides)
+        elif overrides:
+            raise TypeError("pass either a RenderSettings or keyword settings, not both")
+        return render(self, settings)
+
+
+def cornell_box(width=160, height=120, glass_sphere=True, block=True, light_power=60.0,
+                green_wall=True) -> PaperScene:
+    """The paper's Figure 6 scene: a 4 m box, green left wall, block, glass sphere,
+    area light under the ceiling. Z is up (Blender)."""
+    s = PaperScene(width=width, height=height)
+    L = 4.0
+    s.add_plane((0, 0, 0), (0, 0, 1), L, "white_diffuse", name="floor")
+    s.add_plane((0, 0, L), (0, 0, -1), L, "white_diffuse", name="ceiling")
+    s.add_plane((0, L / 2, L / 2), (0, -1, 0), L, "white_diffuse", name="back")
+    s.add_plane((-L / 2, 0, L / 2), (1, 0, 0), L, "green_diffuse" if green_wall else "white_diffuse",
+                name="left")
+    s.add_plane((L / 2, 0, L / 2), (-1, 0, 0), L, "red_diffuse", name="right")
+    if block:
+        s.add_box((0.8, 0.7, 0.7), (1.0, 1.0, 1.4), "white_diffuse", name="block")
+    if glass_sphere:
+        s.add_sphere((-0.7, -0.4, 0.7), 0.7, "glass", name="glass_sphere")
+    s.add_rect_area_light((0, 0, L - 0.01), (1.0, 1.0), power=light_power, name="ceiling_light")
+    s.set_camera((0, -7.0, L / 2), (0, 0, L / 2), (0, 0, 1), view_angle=38.0)
+    return s

@@ -1,0 +1,166 @@
+"""Surface scattering: the lobes of our Principled-like material, Fresnel, sampling.
+
+At a hit the material splits into lobes with RGB weights that sum to at most 1:
+  diffuse (Lambert, base colour)        -> photon storage / radiance estimate
+  metal, glass reflect, glass transmit, coat reflect, pass-through (alpha)
+                                        -> specular continuation (perfect or rough)
+The camera pass evaluates the diffuse lobe at the hit and continues one specular lobe;
+the photon pass picks one lobe by Russian roulette (absorb with what is left).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import Geometry, MaterialTable
+from .sampling import dot, normalize, reflect, to_world
+
+SPEC_LOBES = ("pass", "metal", "glass_r", "glass_t", "coat")
+
+
+def fresnel_dielectric(cos_i: np.ndarray, eta: np.ndarray) -> np.ndarray:
+    """Unpolarised Fresnel reflectance; eta = n_transmitted / n_incident; 1 under TIR."""
+    cos_i = np.clip(cos_i, 0.0, 1.0)
+    eta = np.maximum(eta, 1e-6)
+    sin2_t = (1.0 - cos_i * cos_i) / (eta * eta)
+    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+    rs = (cos_i - eta * cos_t) / np.maximum(cos_i + eta * cos_t, 1e-300)
+    rp = (eta * cos_i - cos_t) / np.maximum(eta * cos_i + cos_t, 1e-300)
+    f = 0.5 * (rs * rs + rp * rp)
+    return np.where(sin2_t >= 1.0, 1.0, np.clip(f, 0.0, 1.0))
+
+
+def refract(d: np.ndarray, n: np.ndarray, eta_ratio: np.ndarray):
+    """Refract unit d through a surface with unit normal n facing against d.
+    eta_ratio = n_incident / n_transmitted. Returns (direction, total_internal_reflection)."""
+    cos_i = -dot(d, n)
+    sin2_t = eta_ratio * eta_ratio * np.maximum(0.0, 1.0 - cos_i * cos_i)
+    tir = sin2_t >= 1.0
+    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+    t = eta_ratio[:, None] * d + (eta_ratio * cos_i - cos_t)[:, None] * n
+    return normalize(t), tir
+
+
+def sample_texture(tex: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup with repeat wrapping; uv (0,0) is the image's bottom-left (Blender)."""
+    h, w = tex.shape[:2]
+    x = (uv[:, 0] % 1.0) * w - 0.5
+    y = (1.0 - (uv[:, 1] % 1.0)) * h - 0.5
+    x0 = np.floor(x).astype(np.int64); y0 = np.floor(y).astype(np.int64)
+    fx = (x - x0)[:, None]; fy = (y - y0)[:, None]
+    x1 = (x0 + 1) % w; y1 = (y0 + 1) % h; x0 %= w; y0 %= h
+    top = tex[y0, x0] * (1 - fx) + tex[y0, x1] * fx
+    bot = tex[y1, x0] * (1 - fx) + tex[y1, x1] * fx
+    return (top * (1 - fy) + bot * fy).astype(np.float64)
+
+
+@dataclass
+class SurfaceHit:
+    """Everything the integrators need to know about a batch of ray hits."""
+
+    p: np.ndarray         # (N,3) position
+    ng: np.ndarray        # geometric normal facing the incoming ray
+    ns: np.ndarray        # shading normal on the same side
+    wo: np.ndarray        # direction back towards the ray origin
+    front: np.ndarray     # ray arrived on the side the winding order calls outside
+    mat: np.ndarray       # material index
+    base: np.ndarray      # (N,3) base colour (texture applied)
+    prim: np.ndarray
+
+
+def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHit:
+    p = geo.hit_points(prim, u, v)
+    ng = geo.ng[prim]
+    front = dot(d, ng) < 0.0
+    sign = np.where(front, 1.0, -1.0)[:, None]
+    ng = ng * sign
+    ns = geo.shading_normals(prim, u, v) * sign
+    wo = -d
+    # Shading normals that put the viewer below the surface would make black rings:
+    # fall back to the geometric normal there (Veach's guard, simplified).
+    bad = dot(ns, wo) <= 1e-6
+    if bad.any():
+        ns[bad] = ng[bad]
+    mat = geo.material[prim]
+    base = table.base_color[mat]
+    for mi, tex in enumerate(table.textures):
+        if tex is None:
+            continue
+        sel = np.nonzero(mat == mi)[0]
+        if len(sel):
+            base[sel] = base[sel] * sample_texture(tex, geo.uvs(prim[sel], u[sel], v[sel]))
+    return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim)
+
+
+def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]:
+    """RGB weight of each lobe for the incoming direction (sums to <= 1 per channel)."""
+    m = hit.mat
+    a = table.alpha[m][:, None]
+    metal = table.metallic[m][:, None]
+    trans = table.transmission[m][:, None]
+    spec = table.specular[m][:, None]
+    ior = table.ior[m]
+    cos_i = np.clip(dot(hit.ns, hit.wo), 0.0, 1.0)
+    eta_glass = np.where(hit.front, ior, 1.0 / ior)
+    f_glass = fresnel_dielectric(cos_i, eta_glass)[:, None]
+    f_coat = fresnel_dielectric(cos_i, ior)[:, None]
+    schlick = hit.base + (1.0 - hit.base) * ((1.0 - cos_i) ** 5)[:, None]
+    dielectric = a * (1.0 - metal) * (1.0 - trans)
+    ones = np.ones_like(hit.base)
+    return {
+        "diffuse": dielectric * (1.0 - spec * f_coat) * hit.base,
+        "pass": (1.0 - a) * ones,
+        "metal": a * metal * schlick,
+        "glass_r": a * (1.0 - metal) * trans * f_glass * ones,
+        "glass_t": a * (1.0 - metal) * trans * (1.0 - f_glass) * hit.base,
+        "coat": dielectric * spec * f_coat * ones,
+    }
+
+
+def _microfacet_normal(ns: np.ndarray, roughness: np.ndarray, rng: np.random.Generator):
+    """GGX normal (alpha = roughness^2) around ns; exactly ns where roughness is 0."""
+    alpha = roughness * roughness
+    rough = alpha > 1e-4
+    if not rough.any():
+        return ns
+    m = ns.copy()
+    idx = np.nonzero(rough)[0]
+    u1 = rng.random(len(idx)); u2 = rng.random(len(idx))
+    a2 = alpha[idx] ** 2
+    cos_t = np.sqrt((1.0 - u1) / np.maximum(1.0 + (a2 - 1.0) * u1, 1e-12))
+    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    phi = 2.0 * np.pi * u2
+    local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
+    m[idx] = to_world(local, ns[idx])
+    return m
+
+
+def sample_specular(table: MaterialTable, hit: SurfaceHit, lobe: np.ndarray,
+                    rng: np.random.Generator):
+    """New directions for the chosen specular lobe index (into SPEC_LOBES).
+    Returns (direction, valid, transmitted). Invalid = the sampled direction went to the
+    wrong side of the surface (rough lobes): that energy is absorbed."""
+    n = len(lobe)
+    d_in = -hit.wo
+    rough = table.roughness[hit.mat]
+    m = _microfacet_normal(hit.ns, np.where(lobe == 0, 0.0, rough), rng)
+    # Microfacet normals must face the viewer.
+    flip = dot(m, hit.wo) < 0
+    m[flip] = hit.ns[flip]
+    out = reflect(d_in, m)
+    transmitted = np.zeros(n, bool)
+    passing = lobe == 0
+    out[passing] = d_in[passing]
+    transmitted |= passing
+    refr = lobe == 3
+    if refr.any():
+        ior = table.ior[hit.mat[refr]]
+        eta_ratio = np.where(hit.front[refr], 1.0 / ior, ior)
+        t_dir, tir = refract(d_in[refr], m[refr], eta_ratio)
+        r_dir = out[refr]
+        out[refr] = np.where(tir[:, None], r_dir, t_dir)
+        transmitted[np.nonzero(refr)[0][~tir]] = True
+    side = dot(out, hit.ng)
+    valid = np.where(transmitted, side < 0, side > 0) & np.isfinite(out).all(axis=1)
+    return normalize(out), valid, transmitted

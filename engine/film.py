@@ -1,0 +1,54 @@
+"""Film: per-effect radiance buffers whose sum is the combined image.
+
+Rows run top to bottom (image convention); Blender's bottom-to-top rows are the add-on's
+business. All buffers are linear float32.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+EFFECTS = ("direct", "indirect", "caustic", "specular", "emission")
+
+
+@dataclass
+class Film:
+    width: int
+    height: int
+    direct: np.ndarray = None
+    indirect: np.ndarray = None
+    caustic: np.ndarray = None
+    specular: np.ndarray = None     # everything seen through mirrors and glass
+    emission: np.ndarray = None     # emitters and background seen directly
+    photon_hits: np.ndarray = None  # photon positions splatted into the image (Fig. 6 left)
+    alpha: np.ndarray = None        # coverage: 1 where a camera ray hit geometry
+    depth: np.ndarray = None        # camera distance to the first hit (inf = nothing)
+    normal: np.ndarray = None       # world-space shading normal of the first hit
+    show_photons: bool = False
+    stats: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+    def __post_init__(self):
+        shape3 = (self.height, self.width, 3)
+        for name in EFFECTS + ("photon_hits", "normal"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.zeros(shape3, np.float32))
+        if self.alpha is None:
+            self.alpha = np.zeros((self.height, self.width), np.float32)
+        if self.depth is None:
+            self.depth = np.full((self.height, self.width), np.inf, np.float32)
+
+    @property
+    def combined(self) -> np.ndarray:
+        """Sum of the effect buffers; in photon-view mode the photon dots are drawn over it."""
+        img = sum(getattr(self, name) for name in EFFECTS).astype(np.float32)
+        if self.show_photons:
+            hit = np.any(self.photon_hits > 0, axis=2)
+            img[hit] = self.photon_hits[hit]
+        return img
+
+    def passes(self) -> dict[str, np.ndarray]:
+        return {"combined": self.combined, **{n: getattr(self, n) for n in EFFECTS},
+                "photon_hits": self.photon_hits, "depth": self.depth,
+                "normal": self.normal, "alpha": self.alpha}

@@ -1,0 +1,183 @@
+"""Scene preparation: all meshes merged into flat triangle tables, re-centred near the origin.
+
+Re-centring matters because Embree works in float32: at 1e5 m the spacing of float32 is
+~8 mm, so a scene far from the origin would show acne and leaks (DESIGN.md §4).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sampling import dot, luminance, normalize
+from .scene import Material, Scene
+
+# Material table columns (one row per material).
+MAT_FIELDS = ("metallic", "roughness", "transmission", "ior", "specular", "alpha")
+
+
+@dataclass
+class MaterialTable:
+    names: list
+    base_color: np.ndarray    # (M,3)
+    emission: np.ndarray      # (M,3)
+    metallic: np.ndarray      # (M,)
+    roughness: np.ndarray
+    transmission: np.ndarray
+    ior: np.ndarray
+    specular: np.ndarray
+    alpha: np.ndarray
+    textures: list            # per material: HxWx3 array or None
+
+    @classmethod
+    def build(cls, materials: list[Material]) -> "MaterialTable":
+        cols = {f: np.array([getattr(m, f) for m in materials], np.float64) for f in MAT_FIELDS}
+        return cls(names=[m.name for m in materials],
+                   base_color=np.array([m.base_color for m in materials], np.float64).reshape(-1, 3),
+                   emission=np.array([m.emission for m in materials], np.float64).reshape(-1, 3),
+                   textures=[m.texture for m in materials], **cols)
+
+    @property
+    def has_diffuse(self) -> np.ndarray:
+        return ((1 - self.metallic) * (1 - self.transmission) * self.alpha
+                * self.base_color.max(axis=1)) > 0
+
+    @property
+    def has_specular(self) -> np.ndarray:
+        """Materials with a mirror-like or refractive lobe (caustic casters)."""
+        dielectric = (1 - self.metallic) * (1 - self.transmission)
+        return ((self.metallic * self.base_color.max(axis=1) > 0) | (self.transmission > 0)
+                | (dielectric * self.specular > 0) | (self.alpha < 1)) & True
+
+
+@dataclass
+class Geometry:
+    """Merged triangles in re-centred world space (world = local + offset)."""
+
+    offset: np.ndarray        # (3,) translation removed from everything
+    extent: float             # bounding-box diagonal (scene size)
+    eps: float                # ray-origin offset distance
+    v0: np.ndarray            # (T,3) triangle corners, float64
+    e1: np.ndarray            # v1 - v0
+    e2: np.ndarray            # v2 - v0
+    ng: np.ndarray            # (T,3) unit geometric normals (winding order)
+    corner_normals: np.ndarray  # (T,3,3) unit shading normals at the corners
+    smooth: np.ndarray        # (T,) bool: shading normals differ from the geometric one
+    corner_uvs: np.ndarray    # (T,3,2)
+    area: np.ndarray          # (T,)
+    material: np.ndarray      # (T,) int32 index into the material table
+    object_id: np.ndarray     # (T,) int32 index into object_names
+    object_names: list
+    vertices32: np.ndarray    # (3T,3) float32 for Embree
+    faces32: np.ndarray       # (T,3) int32
+    bounds: np.ndarray        # (2,3) re-centred bounding box
+
+    @property
+    def count(self) -> int:
+        return len(self.v0)
+
+    def hit_points(self, prim: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Positions from barycentrics in float64: more exact than origin + t*dir."""
+        return self.v0[prim] + u[:, None] * self.e1[prim] + v[:, None] * self.e2[prim]
+
+    def shading_normals(self, prim, u, v) -> np.ndarray:
+        cn = self.corner_normals[prim]
+        w = 1.0 - u - v
+        n = w[:, None] * cn[:, 0] + u[:, None] * cn[:, 1] + v[:, None] * cn[:, 2]
+        n = normalize(n)
+        bad = ~np.isfinite(n).all(axis=1) | (np.abs(n).sum(axis=1) < 0.5)
+        if bad.any():
+            n[bad] = self.ng[prim[bad]]
+        return n
+
+    def uvs(self, prim, u, v) -> np.ndarray:
+        cu = self.corner_uvs[prim]
+        w = 1.0 - u - v
+        return w[:, None] * cu[:, 0] + u[:, None] * cu[:, 1] + v[:, None] * cu[:, 2]
+
+
+def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
+    """Merge the scene's meshes into one triangle table and re-centre it."""
+    mat_names = list(scene.materials.keys())
+    mat_index = {n: i for i, n in enumerate(mat_names)}
+    table = MaterialTable.build([scene.materials[n] for n in mat_names])
+
+    v0s, v1s, v2s, cns, cuvs, mats, objs, names = [], [], [], [], [], [], [], []
+    for oi, mesh in enumerate(scene.meshes):
+        names.append(mesh.name)
+        f = mesh.faces
+        if len(f) == 0:
+            continue
+        tri = mesh.vertices[f]  # (F,3,3)
+        v0s.append(tri[:, 0]); v1s.append(tri[:, 1]); v2s.append(tri[:, 2])
+        if mesh.normals is None:
+            cns.append(None)
+        elif mesh.normals.ndim == 2:
+            cns.append(mesh.normals[f])
+        else:
+            cns.append(mesh.normals)
+        if mesh.uvs is None:
+            cuvs.append(np.zeros((len(f), 3, 2)))
+        elif mesh.uvs.ndim == 2:
+            cuvs.append(mesh.uvs[f])
+        else:
+            cuvs.append(mesh.uvs)
+        remap = np.array([mat_index[n] for n in mesh.materials], np.int32)
+        mats.append(remap[mesh.material_ids])
+        objs.append(np.full(len(f), oi, np.int32))
+
+    if v0s:
+        v0 = np.concatenate(v0s); v1 = np.concatenate(v1s); v2 = np.concatenate(v2s)
+    else:
+        v0 = v1 = v2 = np.zeros((0, 3))
+    allv = np.concatenate([v0, v1, v2]) if len(v0) else np.zeros((0, 3))
+    if len(allv):
+        lo, hi = allv.min(axis=0), allv.max(axis=0)
+    else:
+        c = scene.camera.position if scene.camera is not None else np.zeros(3)
+        lo, hi = c - 1.0, c + 1.0
+    offset = (lo + hi) / 2.0
+    extent = float(np.linalg.norm(hi - lo))
+    if not np.isfinite(extent) or extent <= 0:
+        extent = 1.0
+    v0 = v0 - offset; v1 = v1 - offset; v2 = v2 - offset
+    e1, e2 = v1 - v0, v2 - v0
+    cross = np.cross(e1, e2)
+    area2 = np.linalg.norm(cross, axis=1)
+    ng = cross / np.maximum(area2, 1e-300)[:, None]
+
+    T = len(v0)
+    corner_normals = np.repeat(ng[:, None, :], 3, axis=1)
+    start = 0
+    for cn, vv in zip(cns, v0s):
+        n = len(vv)
+        if cn is not None:
+            cn = normalize(np.asarray(cn, np.float64))
+            bad = ~(np.linalg.norm(cn, axis=2) > 0.5)
+            cn = np.where(bad[:, :, None], corner_normals[start:start + n], cn)
+            corner_normals[start:start + n] = cn
+        start += n
+    smooth = np.any(np.abs(dot(corner_normals, ng[:, None, :]) - 1.0) > 1e-6, axis=1)
+    corner_uvs = np.concatenate(cuvs) if cuvs else np.zeros((0, 3, 2))
+    # Offset: 1e-5 of the scene size is ~100x float32's spacing at the scene's scale, and
+    # far thinner than any wall a user models.
+    eps = 1e-5 * extent
+    verts32 = np.stack([v0, v1, v2], axis=1).reshape(-1, 3).astype(np.float32)
+    faces32 = np.arange(3 * T, dtype=np.int32).reshape(T, 3)
+    geo = Geometry(
+        offset=offset, extent=extent, eps=eps, v0=v0, e1=e1, e2=e2, ng=ng,
+        corner_normals=corner_normals, smooth=smooth, corner_uvs=corner_uvs,
+        area=area2 / 2.0,
+        material=np.concatenate(mats).astype(np.int32) if mats else np.zeros(0, np.int32),
+        object_id=np.concatenate(objs) if objs else np.zeros(0, np.int32),
+        object_names=names, vertices32=verts32, faces32=faces32,
+        bounds=np.stack([lo - offset, hi - offset]),
+    )
+    return geo, table
+
+
+def emissive_triangles(geo: Geometry, table: MaterialTable):
+    """Indices, radiance and area of triangles whose material emits (mesh lights)."""
+    em = table.emission[geo.material] if geo.count else np.zeros((0, 3))
+    idx = np.nonzero(luminance(em) > 0)[0] if len(em) else np.zeros(0, np.int64)
+    return idx, em[idx], geo.area[idx]

@@ -1,0 +1,280 @@
+"""Pass 2: camera rays, specular chains, and the radiance at each diffuse hit.
+
+At every camera-path hit the diffuse lobe is evaluated as
+    direct   shadow rays to every light (area lights sampled: soft shadows)
+    caustic  caustic map estimate (L S+ D light)
+    indirect final gather into precomputed photon irradiance, or the global map directly
+and one specular lobe (mirror, glass, coat, pass-through) is continued, chosen at random
+in proportion to its weight. Contributions after a specular bounce go to the `specular`
+pass, so the passes add up to the combined image.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
+from .photons import Cancelled, _subset
+from .sampling import cosine_hemisphere, dot, offset_origin, to_world
+
+
+@dataclass
+class Counters:
+    camera_rays: int = 0
+    shadow_rays: int = 0
+    gather_rays: int = 0
+    specular_rays: int = 0
+    diffuse_hits: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def camera_rays(camera, offset, width, height, px, py, jx, jy):
+    """World rays (re-centred) through image positions (px + jx, py + jy); rows top-down.
+    Returns origins, unit directions, and the distance limits (clip start / end)."""
+    hw, hh = camera.half_extents(width, height)
+    sx = (px + jx) / width * 2.0 - 1.0
+    sy = 1.0 - (py + jy) / height * 2.0
+    big = 2.0 * max(hw, hh)
+    x = sx * hw + camera.shift_x * big
+    y = sy * hh + camera.shift_y * big
+    R = camera.rotation
+    pos = camera.position - offset
+    n = len(px)
+    if camera.kind == "ORTHO":
+        o = pos + x[:, None] * R[:, 0] + y[:, None] * R[:, 1]
+        d = np.broadcast_to(-R[:, 2], (n, 3)).copy()
+        scale = np.ones(n)
+    else:
+        local = np.stack([x, y, -np.ones(n)], axis=1)
+        d = local @ R.T
+        scale = np.linalg.norm(d, axis=1)
+        d = d / scale[:, None]
+        o = np.broadcast_to(pos, (n, 3)).copy()
+    # Blender clips by depth along the view axis: convert to distances along each ray.
+    t_start = camera.clip_start * scale
+    t_end = camera.clip_end * scale
+    o = o + t_start[:, None] * d
+    return o, d, t_end - t_start
+
+
+def direct_irradiance(ctx, hit, rng, counters: Counters) -> np.ndarray:
+    """Irradiance from all lights by shadow rays (one ray per sample, tested for occlusion)."""
+    E = np.zeros((len(hit.p), 3))
+    for light in ctx.lights:
+        samples = ctx.settings.light_samples if light.has_size else 1
+        for _ in range(samples):
+            ls = light.sample(hit.p, hit.ns, hit.ng, rng)
+            lit = np.nonzero(ls.E.max(axis=1) > 0)[0]
+            if len(lit) == 0:
+                continue
+            o = offset_origin(hit.p[lit], hit.ng[lit], ls.wi[lit], ctx.geo.eps)
+            dist = ls.dist[lit]
+            tmax = np.where(np.isfinite(dist), dist * (1.0 - 1e-6) - 2.0 * ctx.geo.eps, np.inf)
+            blocked = ctx.accel.occluded(o, ls.wi[lit], np.maximum(tmax, 0.0))
+            counters.shadow_rays += len(lit)
+            E[lit] += ls.E[lit] * (~blocked)[:, None] / samples
+    return E
+
+
+def gather_indirect(ctx, hit, rng, counters: Counters) -> np.ndarray:
+    """Indirect irradiance by final gathering: cosine-distributed rays, radiance at their
+    diffuse hits from the precomputed photon irradiance (mean L times pi = E)."""
+    n = len(hit.p)
+    E = np.zeros((n, 3))
+    G = ctx.settings.gather_rays
+    for _ in range(G):
+        d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), hit.ns)
+        ok = dot(d, hit.ng) > 0
+        idx = np.nonzero(ok)[0]
+        if len(idx) == 0:
+            continue
+        o = offset_origin(hit.p[idx], hit.ng[idx], d[idx], ctx.geo.eps)
+        _, prim, u, v = ctx.accel.intersect(o, d[idx])
+        counters.gather_rays += len(idx)
+        got = prim >= 0
+        if not got.any():
+            continue
+        sel = idx[got]
+        y = surface_hit(ctx.geo, ctx.table, prim[got], u[got], v[got], d[sel])
+        wd = lobe_weights(ctx.table, y)["diffuse"]
+        Ey = ctx.gather_map.lookup(y.p, y.ng)
+        E[sel] += math.pi * (wd / math.pi) * Ey / G
+    return E
+
+
+def shade_diffuse(ctx, hit, wd, rng, counters):
+    """Radiance from the diffuse lobe, split into (direct, caustic, indirect)."""
+    s = ctx.settings
+    f = wd / math.pi
+    counters.diffuse_hits += len(hit.p)
+    direct = f * direct_irradiance(ctx, hit, rng, counters)
+    caustic = np.zeros_like(direct)
+    indirect = np.zeros_like(direct)
+    if s.photon_mapping:
+        if ctx.caustic_map is not None and len(ctx.caustic_map):
+            caustic = f * ctx.caustic_map.irradiance(hit.p, hit.ng, ctx.caustic_radius,
+                                                     s.k_nearest, s.min_photons, s.estimator)
+        if ctx.gather_map is not None:
+            indirect = f * gather_indirect(ctx, hit, rng, counters)
+        elif ctx.global_map is not None and len(ctx.global_map):
+            indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
+                                                     s.k_nearest, s.min_photons, s.estimator)
+    return direct, caustic, indirect
+
+
+class Accumulator:
+    """Per-pixel sums for each pass; np.bincount is the fast vectorised scatter-add."""
+
+    NAMES = ("direct", "indirect", "caustic", "specular", "emission")
+
+    def __init__(self, npix):
+        self.npix = npix
+        self.buf = {k: np.zeros((npix, 3)) for k in self.NAMES}
+        self.alpha = np.zeros(npix)
+        self.depth_sum = np.zeros(npix)
+        self.depth_n = np.zeros(npix)
+        self.normal = np.zeros((npix, 3))
+
+    def add(self, name, pix, rgb):
+        if len(pix) == 0:
+            return
+        b = self.buf[name]
+        for c in range(3):
+            b[:, c] += np.bincount(pix, weights=rgb[:, c], minlength=self.npix)
+
+    def add_scalar(self, arr, pix, w):
+        arr += np.bincount(pix, weights=w, minlength=self.npix)
+
+
+def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Counters:
+    s = ctx.settings
+    cam = ctx.scene.camera
+    W, H = ctx.scene.width, ctx.scene.height
+    x0, y0, x1, y1 = region
+    rw, rh = x1 - x0, y1 - y0
+    npix = rw * rh
+    spp = s.spp
+    total = npix * spp
+    acc = Accumulator(npix)
+    counters = Counters()
+    strata = int(math.ceil(math.sqrt(spp)))
+    forward = -cam.rotation[:, 2]
+    cam_pos = cam.position - ctx.geo.offset
+    chunk = s.chunk_size
+    for ci, start in enumerate(range(0, total, chunk)):
+        if should_cancel is not None and should_cancel():
+            raise Cancelled()
+        rng = np.random.default_rng([s.seed, 7, ci])
+        sample = np.arange(start, min(total, start + chunk))
+        pix = sample // spp
+        sub = sample % spp
+        cell = sub % (strata * strata)
+        jx = (cell % strata + rng.random(len(sample))) / strata
+        jy = (cell // strata + rng.random(len(sample))) / strata
+        px = x0 + pix % rw
+        py = y0 + pix // rw
+        o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
+        counters.camera_rays += len(o)
+        tp = np.ones((len(o), 3))
+        _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
+                     should_cancel)
+        if progress is not None:
+            done = min(total, start + chunk)
+            progress("render", done / total, f"Rendering {100.0 * done / total:.0f}%")
+    inv = 1.0 / spp
+    for name in Accumulator.NAMES:
+        getattr(film, name)[...] = (acc.buf[name] * inv).reshape(rh, rw, 3).astype(np.float32)
+    film.alpha[...] = (acc.alpha * inv).reshape(rh, rw)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        depth = np.where(acc.depth_n > 0, acc.depth_sum / np.maximum(acc.depth_n, 1), np.inf)
+        nrm = acc.normal / np.maximum(np.linalg.norm(acc.normal, axis=1), 1e-300)[:, None]
+    film.depth[...] = depth.reshape(rh, rw)
+    film.normal[...] = nrm.reshape(rh, rw, 3)
+    return counters
+
+
+def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
+                 should_cancel):
+    s = ctx.settings
+    bg = np.asarray(ctx.scene.background, np.float64)
+    for bounce in range(s.max_depth + 1):
+        if len(o) == 0:
+            return
+        if should_cancel is not None and bounce > 0 and should_cancel():
+            raise Cancelled()
+        target = "emission" if bounce == 0 else "specular"
+        t, prim, u, v = ctx.accel.intersect(o, d, tmax)
+        # Light surfaces: invisible to camera rays unless asked, seen in mirrors and glass.
+        for light in ctx.lights:
+            if bounce == 0 and not light.visible_camera:
+                continue
+            mask, tl, L = light.intersect(o, d, t)
+            if L is not None and mask.any():
+                acc.add(target, pix[mask], tp[mask] * L[mask])
+                t = np.where(mask, tl, t)
+                prim = np.where(mask, -2, prim)  # ends at the light
+        miss = prim == -1
+        if miss.any():
+            if not (bounce == 0 and s.film_transparent):
+                radiance = np.broadcast_to(bg, (int(miss.sum()), 3))
+                for light in ctx.lights:
+                    if bounce > 0:
+                        sun = light.seen_at_infinity(d[miss])
+                        if sun is not None:
+                            radiance = radiance + sun
+                acc.add(target, pix[miss], tp[miss] * radiance)
+        hitm = prim >= 0
+        if bounce == 0:
+            acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
+        if not hitm.any():
+            return
+        o, d, tp, pix, prim, u, v, t = (a[hitm] for a in (o, d, tp, pix, prim, u, v, t))
+        hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+        if bounce == 0:
+            acc.add_scalar(acc.depth_sum, pix, dot(hit.p - cam_pos, forward))
+            acc.add_scalar(acc.depth_n, pix, np.ones(len(pix)))
+            for c in range(3):
+                acc.normal[:, c] += np.bincount(pix, weights=hit.ns[:, c] * np.where(hit.front, 1, -1),
+                                                minlength=acc.npix)
+        Le = ctx.table.emission[hit.mat]
+        if np.any(Le > 0):
+            acc.add(target, pix, tp * Le)
+        w = lobe_weights(ctx.table, hit)
+        wd = w["diffuse"]
+        dsel = np.nonzero(wd.max(axis=1) > 0)[0]
+        if len(dsel):
+            sub = _subset(hit, dsel)
+            direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters)
+            tpd = tp[dsel]
+            if bounce == 0:
+                acc.add("direct", pix[dsel], tpd * direct)
+                acc.add("caustic", pix[dsel], tpd * caustic)
+                acc.add("indirect", pix[dsel], tpd * indirect)
+            else:
+                acc.add("specular", pix[dsel], tpd * (direct + caustic + indirect))
+        if bounce == s.max_depth:
+            return
+        # Continue one specular lobe, chosen in proportion to its weight.
+        ws = np.stack([w[k] for k in SPEC_LOBES], axis=1)  # (N,5,3)
+        p = ws.max(axis=2)
+        psum = p.sum(axis=1)
+        q = np.sqrt(np.clip((ws.sum(axis=1)).max(axis=1), 0.0, 1.0))  # continue probability
+        go = (psum > 0) & (rng.random(len(p)) < q)
+        idx = np.nonzero(go)[0]
+        if len(idx) == 0:
+            return
+        cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
+        lobe = np.minimum((rng.random(len(idx))[:, None] >= cdf).sum(axis=1), len(SPEC_LOBES) - 1)
+        prob = p[idx, lobe] / psum[idx] * q[idx]
+        new_tp = tp[idx] * ws[idx, lobe] / np.maximum(prob, 1e-300)[:, None]
+        sub = _subset(hit, idx)
+        nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
+        keep = valid & np.isfinite(new_tp).all(axis=1) & (new_tp.max(axis=1) > 0)
+        o = offset_origin(sub.p[keep], sub.ng[keep], nd[keep], ctx.geo.eps)
+        d = nd[keep]
+        tp = new_tp[keep]
+        pix = pix[idx][keep]
+        tmax = None
+        counters.specular_rays += len(o)

@@ -1,0 +1,271 @@
+"""Lights in Cycles units: sampling for shadow rays, photon emission, visibility in mirrors.
+
+Conventions (docs/units.md, DESIGN.md §3): a point light of power P has intensity
+P/(4*pi) W/sr; a spot is that point light masked by Cycles' smoothstep cone; an area light
+emits one-sided uniform radiance P/(pi*A) along its -Z axis; a sun gives irradiance
+`strength` W/m^2; emissive meshes emit their radiance from both sides; a non-black
+background is a uniform environment.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import Geometry, MaterialTable, emissive_triangles
+from .sampling import (concentric_disk, cosine_hemisphere, dot, luminance, normalize,
+                       orthonormal_basis, to_world, uniform_cone, uniform_sphere,
+                       uniform_triangle)
+from .scene import AREA, DISK, POINT, SPOT, SUN, Light, Scene, spot_mask
+
+MESH, WORLD = "MESH", "WORLD"
+
+
+@dataclass
+class LightSample:
+    wi: np.ndarray      # (N,3) unit direction from the shading point to the light sample
+    dist: np.ndarray    # (N,) distance to the sample (inf for sun / world)
+    E: np.ndarray       # (N,3) irradiance estimate ignoring visibility (cos at receiver in)
+
+
+class PreparedLight:
+    """One light, re-centred, with everything sampling needs precomputed."""
+
+    def __init__(self, name, kind, **kw):
+        self.name = name
+        self.kind = kind
+        self.__dict__.update(kw)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def has_size(self) -> bool:
+        """Needs several shadow samples (soft shadows)."""
+        if self.kind in (POINT, SPOT):
+            return self.radius > 0
+        if self.kind == SUN:
+            return self.cos_half_angle < 1.0
+        return True
+
+    # ------------------------------------------------------------------ shadow rays
+    def sample(self, p, ns, ng, rng) -> LightSample:
+        n = len(p)
+        u1, u2 = rng.random(n), rng.random(n)
+        if self.kind == SUN:
+            local = uniform_cone(u1, u2, self.cos_half_angle)
+            wi = to_world(local, np.broadcast_to(-self.dir, (n, 3)))
+            cos_r = np.maximum(dot(wi, ns), 0.0) * (dot(wi, ng) > 0)
+            return LightSample(wi, np.full(n, np.inf), self.irradiance[None, :] * cos_r[:, None])
+        if self.kind == WORLD:
+            wi = to_world(cosine_hemisphere(u1, u2), ns)
+            ok = dot(wi, ng) > 0
+            E = math.pi * self.radiance[None, :] * ok[:, None]
+            return LightSample(wi, np.full(n, np.inf), E)
+        if self.kind == MESH:
+            tri = np.searchsorted(self.cdf, rng.random(n), side="right").clip(0, len(self.cdf) - 1)
+            b1, b2 = uniform_triangle(u1, u2)
+            y = self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri]
+            return self._finish_area(p, ns, ng, y, self.tri_ng[tri],
+                                     self.tri_L[tri] * (self.tri_area[tri] / self.prob[tri])[:, None],
+                                     two_sided=True)
+        if self.kind == AREA:
+            if self.shape == DISK:
+                x, yy = concentric_disk(u1, u2)
+                x, yy = x * self.size_x / 2, yy * self.size_y / 2
+            else:
+                x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
+            y = self.pos + x[:, None] * self.u + yy[:, None] * self.v
+            return self._finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (n, 3)),
+                                     np.broadcast_to(self.radiance * self.area, (n, 3)),
+                                     two_sided=False)
+        # POINT / SPOT, optionally with a radius: sample the disk facing the point.
+        to_p = p - self.pos
+        d_c = np.linalg.norm(to_p, axis=1)
+        axis = to_p / np.maximum(d_c, 1e-300)[:, None]
+        if self.radius > 0:
+            x, yy = concentric_disk(u1, u2)
+            t, b = orthonormal_basis(axis)
+            y = self.pos + self.radius * (x[:, None] * t + yy[:, None] * b)
+        else:
+            y = np.broadcast_to(self.pos, (n, 3))
+        w = y - p
+        dist = np.linalg.norm(w, axis=1)
+        wi = w / np.maximum(dist, 1e-300)[:, None]
+        cos_r = np.maximum(dot(wi, ns), 0.0) * (dot(wi, ng) > 0)
+        cos_l = np.maximum(dot(-wi, axis), 0.0) if self.radius > 0 else 1.0
+        # Guard: a light touching the surface must not produce inf (min distance = eps).
+        d2 = np.maximum(dist * dist, self.min_dist2)
+        E = self.intensity[None, :] * (cos_r * cos_l / d2)[:, None]
+        if self.kind == SPOT:
+            E = E * spot_mask(dot(axis, self.dir), self.spot_size, self.spot_blend)[:, None]
+        return LightSample(wi, dist, E)
+
+    def _finish_area(self, p, ns, ng, y, ny, L_times_area, two_sided):
+        w = y - p
+        dist = np.linalg.norm(w, axis=1)
+        wi = w / np.maximum(dist, 1e-300)[:, None]
+        cos_r = np.maximum(dot(wi, ns), 0.0) * (dot(wi, ng) > 0)
+        cos_l = dot(-wi, ny)
+        cos_l = np.abs(cos_l) if two_sided else np.maximum(cos_l, 0.0)
+        d2 = np.maximum(dist * dist, self.min_dist2)
+        return LightSample(wi, dist, L_times_area * (cos_r * cos_l / d2)[:, None])
+
+    # ------------------------------------------------------------------ photons
+    def emit(self, n: int, rng):
+        """n photons: origins, unit directions, RGB power (W each); sum of power = flux."""
+        u1, u2, u3, u4 = (rng.random(n) for _ in range(4))
+        if self.kind in (SUN, WORLD):
+            if self.kind == SUN:
+                local = uniform_cone(u1, u2, self.cos_half_angle)
+                d = to_world(local, np.broadcast_to(self.dir, (n, 3)))
+            else:
+                d = uniform_sphere(u1, u2)
+            x, yy = concentric_disk(u3, u4)
+            t, b = orthonormal_basis(d)
+            o = (self.center - 2.0 * self.scene_radius * d
+                 + self.scene_radius * (x[:, None] * t + yy[:, None] * b))
+            return o, d, np.broadcast_to(self.photon_flux / n, (n, 3)).copy()
+        if self.kind == MESH:
+            tri = np.searchsorted(self.cdf, rng.random(n), side="right").clip(0, len(self.cdf) - 1)
+            b1, b2 = uniform_triangle(u1, u2)
+            o = self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri]
+            side = np.where(rng.random(n) < 0.5, 1.0, -1.0)[:, None]
+            nrm = self.tri_ng[tri] * side
+            d = to_world(cosine_hemisphere(u3, u4), nrm)
+            power = (2.0 * math.pi * self.tri_area[tri] / (self.prob[tri] * n))[:, None] * self.tri_L[tri]
+            return o, d, power
+        if self.kind == AREA:
+            if self.shape == DISK:
+                x, yy = concentric_disk(u1, u2)
+                x, yy = x * self.size_x / 2, yy * self.size_y / 2
+            else:
+                x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
+            o = self.pos + x[:, None] * self.u + yy[:, None] * self.v
+            d = to_world(cosine_hemisphere(u3, u4), np.broadcast_to(self.dir, (n, 3)))
+            return o, d, np.broadcast_to(self.flux / n, (n, 3)).copy()
+        if self.kind == SPOT:
+            cos_half = math.cos(self.spot_size / 2)
+            local = uniform_cone(u1, u2, cos_half)
+            d = to_world(local, np.broadcast_to(self.dir, (n, 3)))
+            solid = 2.0 * math.pi * (1.0 - cos_half)
+            mask = spot_mask(local[:, 2], self.spot_size, self.spot_blend)
+            power = self.intensity[None, :] * (mask * solid / n)[:, None]
+            o = np.broadcast_to(self.pos, (n, 3)).copy()
+            if self.radius > 0:
+                x, yy = concentric_disk(u3, u4)
+                t, b = orthonormal_basis(d)
+                o = o + self.radius * (x[:, None] * t + yy[:, None] * b)
+            return o, d, power
+        # POINT
+        if self.radius > 0:
+            s = uniform_sphere(u1, u2)
+            o = self.pos + self.radius * s
+            d = to_world(cosine_hemisphere(u3, u4), s)
+        else:
+            o = np.broadcast_to(self.pos, (n, 3)).copy()
+            d = uniform_sphere(u1, u2)
+        return o, d, np.broadcast_to(self.flux / n, (n, 3)).copy()
+
+    # ------------------------------------------------------------------ seen in mirrors
+    def intersect(self, o, d, tmax):
+        """Rays that hit this light's emitting surface before tmax: (mask, t, radiance).
+        Only area lights and point/spot lights with a radius have a surface."""
+        n = len(o)
+        none = (np.zeros(n, bool), np.full(n, np.inf), None)
+        if self.kind == AREA:
+            denom = dot(d, self.dir)
+            facing = denom < -1e-12  # one-sided: the ray must travel against the emission
+            t = np.where(facing, dot(self.pos - o, self.dir) / np.where(facing, denom, -1.0), np.inf)
+            hitp = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d - self.pos
+            x, y = dot(hitp, self.u) / (self.size_x / 2), dot(hitp, self.v) / (self.size_y / 2)
+            inside = (x * x + y * y <= 1.0) if self.shape == DISK else ((np.abs(x) <= 1) & (np.abs(y) <= 1))
+            mask = facing & inside & (t > 0) & (t < tmax)
+            return mask, t, np.broadcast_to(self.radiance, (n, 3))
+        if self.kind in (POINT, SPOT) and self.radius > 0:
+            oc = o - self.pos
+            b = dot(oc, d)
+            c = dot(oc, oc) - self.radius ** 2
+            disc = b * b - c
+            sq = np.sqrt(np.maximum(disc, 0.0))
+            t0 = -b - sq
+            t = np.where(t0 > 0, t0, -b + sq)
+            mask = (disc > 0) & (t > 0) & (t < tmax) & (c > 0)
+            L = np.broadcast_to(self.intensity / (math.pi * self.radius ** 2), (n, 3))
+            if self.kind == SPOT:
+                L = L * spot_mask(dot(-d, self.dir), self.spot_size, self.spot_blend)[:, None]
+            return mask, t, L
+        return none
+
+    def seen_at_infinity(self, d):
+        """Radiance of a sun disk (angle > 0) seen along escaping directions d."""
+        if self.kind != SUN or self.cos_half_angle >= 1.0:
+            return None
+        inside = dot(d, -self.dir) >= self.cos_half_angle
+        return inside[:, None] * self.sun_radiance[None, :]
+
+
+def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable) -> list[PreparedLight]:
+    """Re-centre the scene's lights and add mesh and world lights."""
+    out = []
+    center = (geo.bounds[0] + geo.bounds[1]) / 2.0
+    radius = max(geo.extent / 2.0, 1e-6) * 1.01
+    min_dist2 = (geo.eps * 10) ** 2
+    common = dict(center=center, scene_radius=radius, min_dist2=min_dist2)
+    for light in scene.lights:
+        rgb = light.power * light.color
+        kw = dict(common, pos=light.position - geo.offset, dir=light.direction, u=light.axis_u,
+                  v=light.axis_v, radius=light.radius, spot_size=light.spot_size,
+                  spot_blend=light.spot_blend, shape=light.shape, size_x=light.size_x,
+                  size_y=light.size_y, visible_camera=light.visible_camera,
+                  cos_half_angle=1.0, source=light)
+        if light.kind in (POINT, SPOT):
+            intensity = rgb / (4.0 * math.pi)
+            kw.update(intensity=intensity, flux=light.flux, photon_flux=light.flux)
+        elif light.kind == AREA:
+            if light.area <= 0:
+                continue
+            flux = light.flux
+            kw.update(area=light.area, flux=flux, radiance=flux / (math.pi * light.area),
+                      photon_flux=flux)
+        elif light.kind == SUN:
+            half = light.angle / 2.0
+            cos_half = math.cos(half)
+            solid = 2.0 * math.pi * (1.0 - cos_half)
+            kw.update(irradiance=rgb, cos_half_angle=cos_half,
+                      sun_radiance=rgb / max(math.pi * math.sin(half) ** 2, 1e-300) if half > 0 else rgb,
+                      photon_flux=rgb * math.pi * radius ** 2, solid_angle=solid)
+        out.append(PreparedLight(light.name, light.kind, **kw))
+
+    idx, L, area = emissive_triangles(geo, table)
+    if len(idx):
+        weight = area * luminance(L)
+        if weight.sum() <= 0:
+            weight = area.copy()
+        prob = weight / weight.sum()
+        cdf = np.cumsum(prob)
+        cdf[-1] = 1.0
+        flux = (2.0 * math.pi * area[:, None] * L).sum(axis=0)
+        out.append(PreparedLight(
+            "emissive meshes", MESH, v0=geo.v0[idx], e1=geo.e1[idx], e2=geo.e2[idx],
+            tri_ng=geo.ng[idx], tri_L=L, tri_area=area, prob=prob, cdf=cdf,
+            tri_index=idx, photon_flux=flux, flux=flux, radius=0.0, visible_camera=True,
+            cos_half_angle=1.0, **common))
+    bg = np.asarray(scene.background, np.float64)
+    if scene.background_is_light and np.any(bg > 0):
+        out.append(PreparedLight(
+            "world", WORLD, radiance=bg, photon_flux=bg * math.pi * radius ** 2 * 4.0 * math.pi,
+            radius=0.0, visible_camera=True, cos_half_angle=1.0, **common))
+    return out
+
+
+def allocate_photons(lights: list[PreparedLight], total: int) -> list[int]:
+    """Photons per light, proportional to emitted power (the paper: power-proportional)."""
+    w = np.array([float(luminance(np.asarray(li.photon_flux))) for li in lights])
+    if total <= 0 or len(w) == 0 or w.sum() <= 0:
+        return [0] * len(lights)
+    share = w / w.sum() * total
+    counts = np.floor(share).astype(int)
+    rest = total - counts.sum()
+    order = np.argsort(-(share - counts))
+    counts[order[:rest]] += 1
+    return counts.tolist()

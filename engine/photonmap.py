@@ -1,0 +1,138 @@
+"""Photon maps: a kd-tree over stored photons and the irradiance estimators.
+
+Estimators (irradiance E in W/m^2; the caller multiplies by the diffuse albedo / pi):
+  classic      the paper's: all photons within a fixed radius r, each weighted by
+               max(-d.N, 0), divided by pi r^2; ignored when fewer than the minimum.
+               (The cosine weight is the paper's; it darkens light arriving at grazing
+               angles, so it is not the default.)
+  knn_simpson  k nearest photons within the max radius, Simpson kernel 3/(pi r^2)(1-d^2/r^2)^2
+  knn_cone     k nearest, Jensen's cone filter (k=1), normalised by (1 - 2/3) pi r^2
+Photons that arrive from behind the query's surface (d.N >= 0) or lie on a surface facing
+another way (photon normal . N < 0.5, e.g. round a corner or the other side of a thin
+wall) are ignored: that is what keeps light from leaking.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .photons import Photons
+from .sampling import dot
+
+NORMAL_AGREEMENT = 0.5
+MAX_CLASSIC_K = 4096
+QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
+
+
+class PhotonMap:
+    def __init__(self, photons: Photons, workers: int = 1):
+        self.photons = photons
+        self.workers = workers
+        self.tree = None
+        if len(photons):
+            # Unbalanced build: many identical points (a focused caustic) make the
+            # balanced median build pathological (DESIGN.md §5).
+            self.tree = cKDTree(photons.position.astype(np.float64), balanced_tree=False,
+                                compact_nodes=False)
+
+    def __len__(self):
+        return len(self.photons)
+
+    def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
+                   min_photons: int, estimator: str) -> np.ndarray:
+        """Irradiance estimate at points p with unit normals n (facing the viewer)."""
+        out = np.zeros((len(p), 3))
+        if self.tree is None or len(p) == 0 or radius <= 0:
+            return out
+        if estimator == "classic":
+            counts = self.tree.query_ball_point(p, radius, return_length=True,
+                                                workers=self.workers)
+            kq = int(min(max(int(counts.max()), 1), MAX_CLASSIC_K, len(self.photons)))
+        else:
+            kq = int(min(k, len(self.photons)))
+        rows = max(1, QUERY_BUDGET // kq)
+        for a in range(0, len(p), rows):
+            b = min(len(p), a + rows)
+            out[a:b] = self._estimate(p[a:b], n[a:b], radius, kq, k, min_photons, estimator)
+        return out
+
+    def _estimate(self, p, n, radius, kq, k, min_photons, estimator):
+        dist, idx = self.tree.query(p, k=kq, distance_upper_bound=radius, workers=self.workers)
+        if kq == 1:
+            dist, idx = dist[:, None], idx[:, None]
+        found = idx < len(self.photons)
+        safe = np.where(found, idx, 0)
+        ph = self.photons
+        pdir = ph.direction[safe].astype(np.float64)
+        pn = ph.normal[safe].astype(np.float64)
+        cos_in = -np.einsum("nkc,nc->nk", pdir, n)
+        ok = found & (cos_in > 0) & (np.einsum("nkc,nc->nk", pn, n) > NORMAL_AGREEMENT)
+        count = ok.sum(axis=1)
+        power = ph.power[safe].astype(np.float64)
+        if estimator == "classic":
+            weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
+        else:
+            # r: distance to the k-th neighbour when k were found, else the search radius.
+            full = found[:, -1] & (kq >= k)
+            r = np.where(full, dist[:, -1], radius)
+            r = np.maximum(r, 1e-300)[:, None]
+            d = np.where(found, dist, 0.0)
+            if estimator == "knn_simpson":
+                x = np.clip(1.0 - (d / r) ** 2, 0.0, 1.0)
+                weight = np.where(ok, 3.0 / (math.pi * r * r) * x * x, 0.0)
+            else:  # knn_cone
+                weight = np.where(ok, np.clip(1.0 - d / r, 0.0, 1.0), 0.0)
+                weight = weight / ((1.0 - 2.0 / 3.0) * math.pi * r * r)
+        E = np.einsum("nk,nkc->nc", weight, power)
+        E[count < min_photons] = 0.0
+        return E
+
+
+class GatherMap:
+    """Precomputed irradiance at a subset of photon positions (Christensen 1999), so a
+    final-gather ray needs only a nearest-neighbour lookup instead of a k-NN estimate."""
+
+    def __init__(self, photon_map: PhotonMap, radius: float, k: int, min_photons: int,
+                 estimator: str, max_points: int = 60_000, seed: int = 0):
+        ph = photon_map.photons
+        self.workers = photon_map.workers
+        self.tree = None
+        if len(ph) == 0:
+            return
+        step = max(1, int(math.ceil(len(ph) / max_points)))
+        sel = np.arange(0, len(ph), step)
+        self.position = ph.position[sel].astype(np.float64)
+        self.normal = ph.normal[sel].astype(np.float64)
+        self.E = photon_map.irradiance(self.position, self.normal, radius, k, min_photons,
+                                       estimator)
+        self.radius = radius
+        self.tree = cKDTree(self.position, balanced_tree=False, compact_nodes=False)
+
+    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8) -> np.ndarray:
+        out = np.zeros((len(p), 3))
+        if self.tree is None or len(p) == 0:
+            return out
+        kq = min(candidates, len(self.position))
+        dist, idx = self.tree.query(p, k=kq, distance_upper_bound=self.radius,
+                                    workers=self.workers)
+        if kq == 1:
+            dist, idx = dist[:, None], idx[:, None]
+        found = idx < len(self.position)
+        safe = np.where(found, idx, 0)
+        agree = found & (np.einsum("nkc,nc->nk", self.normal[safe], n) > 0.7)
+        first = np.argmax(agree, axis=1)
+        anyok = agree.any(axis=1)
+        chosen = safe[np.arange(len(p)), first]
+        out[anyok] = self.E[chosen[anyok]]
+        return out
+
+
+def auto_radius(diffuse_area: float, stored: int, k: int, extent: float) -> float:
+    """Max search radius from scene size and photon density: twice the radius of a disk
+    that would hold k photons if the stored photons covered the diffuse area evenly."""
+    if stored <= 0 or diffuse_area <= 0:
+        return 0.05 * extent
+    r = 2.0 * math.sqrt(k * diffuse_area / (math.pi * stored))
+    return float(min(max(r, 1e-4 * extent), 0.1 * extent))

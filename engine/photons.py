@@ -1,0 +1,154 @@
+"""Pass 1: shoot photons from the lights, scatter them with Russian roulette, store hits.
+
+Whole chunks of photons go through each bounce as arrays. At every hit on a surface with
+a diffuse lobe the incoming photon is recorded with the kind of path that brought it:
+  DIRECT   light -> this surface                  (direct light comes from shadow rays;
+                                                   these photons serve final gathering)
+  CAUSTIC  light -> specular+ -> this surface     (L S+ D: the caustic map)
+  INDIRECT light -> ... diffuse ... -> surface    (the global map)
+Russian roulette picks one lobe (diffuse, mirror, glass reflect / transmit, coat, pass)
+with probability = the lobe's largest RGB weight, or absorbs; power is divided by that
+probability, so the expected power is kept (the paper's scheme with pbrt's max rule,
+which never increases a photon's power).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bsdf import lobe_weights, sample_specular, surface_hit
+from .sampling import cosine_hemisphere, dot, offset_origin, to_world
+
+DIRECT, CAUSTIC, INDIRECT = 0, 1, 2
+LOBES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "coat")
+
+
+class Cancelled(Exception):
+    """Raised inside the passes when the caller asked to stop."""
+
+
+@dataclass
+class Photons:
+    position: np.ndarray   # (N,3) float32, re-centred world space
+    power: np.ndarray      # (N,3) float32 watts
+    direction: np.ndarray  # (N,3) float32 travel direction when it arrived
+    normal: np.ndarray     # (N,3) float32 surface normal on the side it arrived from
+    kind: np.ndarray       # (N,) uint8 DIRECT / CAUSTIC / INDIRECT
+    emitted: int = 0       # photons emitted to produce these (for statistics)
+
+    @classmethod
+    def empty(cls):
+        z = np.zeros((0, 3), np.float32)
+        return cls(z, z.copy(), z.copy(), z.copy(), np.zeros(0, np.uint8))
+
+    def __len__(self):
+        return len(self.position)
+
+    def select(self, mask) -> "Photons":
+        return Photons(self.position[mask], self.power[mask], self.direction[mask],
+                       self.normal[mask], self.kind[mask], self.emitted)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in (self.position, self.power, self.direction,
+                                      self.normal, self.kind))
+
+
+def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
+                  should_cancel=None) -> Photons:
+    """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
+    paths only and stop a photon as soon as it scatters diffusely (the caustic shot)."""
+    geo, table, accel, settings = ctx.geo, ctx.table, ctx.accel, ctx.settings
+    chunk = settings.chunk_size
+    total = int(sum(counts))
+    parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
+    done = 0
+    for li, (light, count) in enumerate(zip(lights, counts)):
+        for ci, start in enumerate(range(0, count, chunk)):
+            n = min(chunk, count - start)
+            rng = np.random.default_rng([settings.seed, stream, li, ci])
+            o, d, power = light.emit(n, rng)
+            had_diffuse = np.zeros(n, bool)
+            had_specular = np.zeros(n, bool)
+            for bounce in range(settings.max_photon_depth):
+                if should_cancel is not None and should_cancel():
+                    raise Cancelled()
+                if len(o) == 0:
+                    break
+                _, prim, u, v = accel.intersect(o, d)
+                alive = prim >= 0
+                if not alive.all():
+                    o, d, power, prim, u, v = o[alive], d[alive], power[alive], prim[alive], u[alive], v[alive]
+                    had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
+                if len(o) == 0:
+                    break
+                hit = surface_hit(geo, table, prim, u, v, d)
+                w = lobe_weights(table, hit)
+                kind = np.where(had_diffuse, INDIRECT, np.where(had_specular, CAUSTIC, DIRECT))
+                store = w["diffuse"].max(axis=1) > 0
+                if caustic_only:
+                    store &= kind == CAUSTIC
+                if store.any():
+                    parts["position"].append(hit.p[store].astype(np.float32))
+                    parts["power"].append(power[store].astype(np.float32))
+                    parts["direction"].append(d[store].astype(np.float32))
+                    parts["normal"].append(hit.ng[store].astype(np.float32))
+                    parts["kind"].append(kind[store].astype(np.uint8))
+                # Russian roulette over the lobes.
+                probs = np.stack([w[k].max(axis=1) for k in LOBES], axis=1)
+                s = probs.sum(axis=1)
+                probs = probs / np.maximum(s, 1.0)[:, None]
+                cdf = np.cumsum(probs, axis=1)
+                xi = rng.random(len(o))
+                lobe = (xi[:, None] >= cdf).sum(axis=1)  # len(LOBES) = absorbed
+                survive = lobe < len(LOBES)
+                if caustic_only:
+                    survive &= lobe != 0
+                idx = np.nonzero(survive)[0]
+                lobe = lobe[idx]
+                p_sel = probs[idx, lobe]
+                w_sel = np.stack([w[k][idx] for k in LOBES], axis=1)[np.arange(len(idx)), lobe]
+                new_power = power[idx] * w_sel / np.maximum(p_sel, 1e-300)[:, None]
+                sub = _subset(hit, idx)
+                new_d = np.empty((len(idx), 3))
+                ok = np.ones(len(idx), bool)
+                diff = lobe == 0
+                if diff.any():
+                    nd = to_world(cosine_hemisphere(rng.random(int(diff.sum())),
+                                                    rng.random(int(diff.sum()))), sub.ns[diff])
+                    new_d[diff] = nd
+                    ok[diff] = dot(nd, sub.ng[diff]) > 0
+                spec = ~diff
+                if spec.any():
+                    sd, valid, _ = sample_specular(table, _subset(sub, np.nonzero(spec)[0]),
+                                                   lobe[spec] - 1, rng)
+                    new_d[spec] = sd
+                    ok[spec] = valid
+                had_diffuse = had_diffuse[idx] | diff
+                had_specular = had_specular[idx] | spec
+                keep = ok & np.isfinite(new_power).all(axis=1) & (new_power.max(axis=1) > 0)
+                new_d, new_power = new_d[keep], new_power[keep]
+                had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
+                o = offset_origin(sub.p[keep], sub.ng[keep], new_d, geo.eps)
+                d, power = new_d, new_power
+            done += n
+            if progress is not None:
+                label = "caustic photons" if caustic_only else "photons"
+                progress("photons", done / max(total, 1),
+                         f"Tracing {label} {_k(done)}/{_k(total)}")
+    if not parts["position"]:
+        out = Photons.empty()
+    else:
+        out = Photons(**{k: np.concatenate(v) for k, v in parts.items()})
+    out.emitted = total
+    return out
+
+
+def _subset(hit, idx):
+    from .bsdf import SurfaceHit
+    return SurfaceHit(**{k: getattr(hit, k)[idx] for k in hit.__dataclass_fields__})
+
+
+def _k(n: int) -> str:
+    return f"{n / 1000:.0f}k" if n >= 1000 else str(n)

@@ -1,0 +1,192 @@
+"""render(): scene -> photon pass -> photon maps -> camera pass -> Film."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .accel import Accel
+from .film import Film
+from .geometry import Geometry, MaterialTable, prepare
+from .integrator import render_camera
+from .lights import allocate_photons, prepare_lights
+from .photonmap import GatherMap, PhotonMap, auto_radius
+from .photons import CAUSTIC, INDIRECT, Cancelled, Photons, trace_photons
+from .scene import Scene
+from .settings import RenderSettings
+
+
+@dataclass
+class Context:
+    scene: Scene
+    settings: RenderSettings
+    geo: Geometry
+    table: MaterialTable
+    accel: Accel
+    lights: list
+    global_map: PhotonMap | None = None
+    caustic_map: PhotonMap | None = None
+    gather_map: GatherMap | None = None
+    global_radius: float = 0.0
+    caustic_radius: float = 0.0
+
+
+def _check_region(region, width, height):
+    if region is None:
+        return (0, 0, width, height)
+    try:
+        x0, y0, x1, y1 = (int(v) for v in region)
+    except (TypeError, ValueError):
+        raise ValueError(f"region must be (x0, y0, x1, y1) pixels, got {region!r}") from None
+    x0, x1 = max(0, min(x0, width)), max(0, min(x1, width))
+    y0, y1 = max(0, min(y0, height)), max(0, min(y1, height))
+    if x1 <= x0 or y1 <= y0:
+        raise ValueError(f"region {region!r} is empty inside the {width}x{height} image")
+    return (x0, y0, x1, y1)
+
+
+def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
+           should_cancel=None, region=None) -> Film:
+    """Render `scene`. progress(stage, fraction, text) is called as work advances;
+    should_cancel() is polled and, when it returns True, the partial Film is returned
+    with film.stats['cancelled'] = True. region=(x0, y0, x1, y1) renders only that window
+    (top-left origin, exclusive max) and the Film has its size."""
+    settings = settings or RenderSettings()
+    t_start = time.perf_counter()
+    scene.validate()
+    x0, y0, x1, y1 = _check_region(region, scene.width, scene.height)
+    film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
+    stats = film.stats
+    stats["cancelled"] = False
+
+    def phase(name, t0):
+        stats[f"time_{name}"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    geo, table = prepare(scene)
+    accel = Accel(geo.vertices32, geo.faces32, threads=settings.threads)
+    lights = prepare_lights(scene, geo, table)
+    ctx = Context(scene, settings, geo, table, accel, lights)
+    phase("prepare", t0)
+    stats.update(triangles=geo.count, lights=len(lights), extent=geo.extent)
+    try:
+        all_photons = Photons.empty()
+        if settings.photon_mapping and lights:
+            all_photons = _photon_pass(ctx, stats, progress, should_cancel)
+        t0 = time.perf_counter()
+        render_region = (x0, y0, x1, y1)
+        counters = render_camera(ctx, render_region, film, progress, should_cancel)
+        phase("camera", t0)
+        stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
+                     gather_rays=counters.gather_rays, specular_rays=counters.specular_rays)
+        if settings.show_photons:
+            _draw_photons(ctx, film, all_photons, render_region)
+    except Cancelled:
+        stats["cancelled"] = True
+    finally:
+        accel.close()
+    stats["time_total"] = time.perf_counter() - t_start
+    film.warnings = scene.all_warnings()
+    return film
+
+
+def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
+    s, geo, table = ctx.settings, ctx.geo, ctx.table
+    t0 = time.perf_counter()
+    counts = allocate_photons(ctx.lights, s.photons)
+    shot = trace_photons(ctx, ctx.lights, counts, caustic_only=False, stream=1,
+                         progress=progress, should_cancel=should_cancel)
+    has_specular = bool(np.any(table.has_specular[geo.material])) if geo.count else False
+    use_caustic_shot = s.caustics and has_specular and s.caustic_photons > 0
+    caustic = Photons.empty()
+    if use_caustic_shot:
+        ccounts = allocate_photons(ctx.lights, s.caustic_photons)
+        caustic = trace_photons(ctx, ctx.lights, ccounts, caustic_only=True, stream=2,
+                                progress=progress, should_cancel=should_cancel)
+        # Caustic-map power is per caustic photon emitted: scale is already in the power.
+    stats["time_photons"] = time.perf_counter() - t0
+    if progress is not None:
+        progress("photon_map", 0.0, "Building photon map")
+    t0 = time.perf_counter()
+    diffuse_tris = table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
+    diffuse_area = float(geo.area[diffuse_tris].sum())
+    k = s.k_nearest
+    workers = s.threads
+    if s.final_gather:
+        # Final gathering needs all light at the gathered point: every stored photon.
+        gmap = PhotonMap(shot, workers)
+        r = s.radius or auto_radius(diffuse_area, len(shot), k, geo.extent)
+        ctx.gather_map = GatherMap(gmap, r, k, s.min_photons, s.estimator, seed=s.seed)
+        ctx.global_radius = r
+        stats["global_photons"] = len(shot)
+    else:
+        ctx.global_map = PhotonMap(shot.select(shot.kind == INDIRECT), workers)
+        ctx.global_radius = s.radius or auto_radius(diffuse_area, len(ctx.global_map), k, geo.extent)
+        stats["global_photons"] = len(ctx.global_map)
+    if not s.caustics:
+        ctx.caustic_map = None  # the user switched caustic light off
+    elif use_caustic_shot:
+        ctx.caustic_map = PhotonMap(caustic, workers)
+    else:
+        # No separate shot: L S+ D photons of the global shot still carry caustic light.
+        ctx.caustic_map = PhotonMap(shot.select(shot.kind == CAUSTIC), workers)
+    ctx.caustic_radius = s.radius or auto_radius(diffuse_area, max(len(shot), 1), k, geo.extent)
+    stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
+    stats["radius_global"] = ctx.global_radius
+    stats["radius_caustic"] = ctx.caustic_radius
+    stats["time_photon_map"] = time.perf_counter() - t0
+    stats["photon_bytes"] = shot.nbytes + caustic.nbytes
+    both = Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
+                     for f in ("position", "power", "direction", "normal", "kind")))
+    return both
+
+
+def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
+    """Splat visible photon hits into film.photon_hits (the paper's Fig. 6, left)."""
+    if len(photons) == 0:
+        return
+    cam = ctx.scene.camera
+    W, H = ctx.scene.width, ctx.scene.height
+    x0, y0, x1, y1 = region
+    p = photons.position.astype(np.float64)
+    pos = cam.position - ctx.geo.offset
+    rel = p - pos
+    R = cam.rotation
+    local = rel @ R  # camera coordinates
+    hw, hh = cam.half_extents(W, H)
+    big = 2.0 * max(hw, hh)
+    if cam.kind == "ORTHO":
+        z = -local[:, 2]
+        x, y = local[:, 0], local[:, 1]
+    else:
+        z = -local[:, 2]
+        x = local[:, 0] / np.maximum(z, 1e-300)
+        y = local[:, 1] / np.maximum(z, 1e-300)
+    sx = (x - cam.shift_x * big) / hw
+    sy = (y - cam.shift_y * big) / hh
+    px = np.floor((sx + 1.0) / 2.0 * W).astype(np.int64)
+    py = np.floor((1.0 - sy) / 2.0 * H).astype(np.int64)
+    inside = (z > 0) & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
+    idx = np.nonzero(inside)[0]
+    if len(idx) == 0:
+        return
+    # Visible only if nothing lies between the camera and the photon.
+    to = p[idx] - (pos if cam.kind != "ORTHO" else p[idx] + local[idx, 2:3] * R[:, 2])
+    dist = np.linalg.norm(to, axis=1)
+    d = to / np.maximum(dist, 1e-300)[:, None]
+    origin = p[idx] - to
+    blocked = ctx.accel.occluded(origin, d, np.maximum(dist - 4 * ctx.geo.eps, 0.0))
+    idx = idx[~blocked]
+    if len(idx) == 0:
+        return
+    rw = x1 - x0
+    flat = (py[idx] - y0) * rw + (px[idx] - x0)
+    colour = photons.power[idx].astype(np.float64)
+    colour = colour / np.maximum(colour.max(axis=1, keepdims=True), 1e-300)
+    buf = np.zeros((film.height * film.width, 3))
+    for c in range(3):
+        buf[:, c] = np.bincount(flat, weights=colour[:, c], minlength=len(buf))
+    peak = buf.max(axis=1, keepdims=True)
+    buf = np.where(peak > 0, buf / np.maximum(peak, 1e-300), 0.0)
+    film.photon_hits[...] = buf.reshape(film.height, film.width, 3).astype(np.float32)

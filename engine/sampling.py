@@ -1,0 +1,86 @@
+"""Vectorised sampling helpers: frames, hemispheres, disks, cones, Fresnel-free geometry."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def normalize(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(n, 1e-300)
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
+
+
+def orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two tangents t, b with (t, b, n) right-handed (Duff et al. 2017, branchless)."""
+    sign = np.where(n[..., 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + n[..., 2])
+    b = n[..., 0] * n[..., 1] * a
+    t = np.stack([1.0 + sign * n[..., 0] ** 2 * a, sign * b, -sign * n[..., 0]], axis=-1)
+    bt = np.stack([b, sign + n[..., 1] ** 2 * a, -n[..., 1]], axis=-1)
+    return t, bt
+
+
+def to_world(local: np.ndarray, n: np.ndarray) -> np.ndarray:
+    t, b = orthonormal_basis(n)
+    return local[..., :1] * t + local[..., 1:2] * b + local[..., 2:3] * n
+
+
+def cosine_hemisphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Local directions with pdf cos(theta)/pi around +z."""
+    r = np.sqrt(u1)
+    phi = 2.0 * np.pi * u2
+    z = np.sqrt(np.maximum(0.0, 1.0 - u1))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+
+
+def uniform_sphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    z = 1.0 - 2.0 * u1
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u2
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+
+
+def uniform_cone(u1: np.ndarray, u2: np.ndarray, cos_max: float | np.ndarray) -> np.ndarray:
+    """Local directions uniform in solid angle within angle acos(cos_max) of +z."""
+    z = 1.0 - u1 * (1.0 - cos_max)
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u2
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+
+
+def concentric_disk(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Uniform points on the unit disk (Shirley-Chiu), low distortion for jittered input."""
+    a = 2.0 * u1 - 1.0
+    b = 2.0 * u2 - 1.0
+    use_a = np.abs(a) > np.abs(b)
+    r = np.where(use_a, a, b)
+    safe_a = np.where(a == 0, 1e-300, a)
+    safe_b = np.where(b == 0, 1e-300, b)
+    phi = np.where(use_a, (np.pi / 4.0) * (b / safe_a), np.pi / 2.0 - (np.pi / 4.0) * (a / safe_b))
+    return r * np.cos(phi), r * np.sin(phi)
+
+
+def uniform_triangle(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric (b1, b2) uniform over a triangle."""
+    s = np.sqrt(u1)
+    return 1.0 - s, u2 * s
+
+
+def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
+    return d - 2.0 * dot(d, n)[..., None] * n
+
+
+def offset_origin(p: np.ndarray, ng: np.ndarray, direction: np.ndarray, eps: float) -> np.ndarray:
+    """Move p off its surface along the geometric normal, to the side `direction` leaves.
+
+    Offsetting along the normal (not the ray) is what keeps float32 Embree from hitting the
+    same triangle again (DESIGN.md §4)."""
+    side = np.where(dot(direction, ng) >= 0.0, 1.0, -1.0)
+    return p + (side * eps)[..., None] * ng

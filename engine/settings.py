@@ -1,0 +1,69 @@
+"""Render settings: the paper's parameters keep their names and meaning."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, fields
+
+ESTIMATORS = ("knn_simpson", "knn_cone", "classic")
+
+
+@dataclass
+class RenderSettings:
+    # Pass 1 (photons)
+    photons: int = 200_000          # global photons emitted (paper: MaxRayPerLightSrc x lights)
+    caustic_photons: int = 100_000  # photons emitted for the caustic map
+    max_photon_depth: int = 8       # bounces a photon may take
+    # Radiance estimate
+    estimator: str = "knn_simpson"  # knn_simpson | knn_cone | classic (paper, fixed radius)
+    radius: float | None = None     # max search radius; None = auto from scene size and density
+    min_photons: int = 8            # fewer photons found -> no estimate (paper)
+    k_nearest: int = 64             # photons per k-NN estimate
+    final_gather: bool = True       # indirect light by gather rays into the global map
+    gather_rays: int = 1            # final-gather rays per camera sample
+    # Pass 2 (camera)
+    spp: int = 16                   # camera samples per pixel (jittered, antialiasing)
+    max_depth: int = 8              # max specular bounces along a camera path (paper)
+    light_samples: int = 1          # shadow rays per light with size, per camera sample
+    # Modes
+    photon_mapping: bool = True     # False = the paper's plain ray tracer (Fig. 5b)
+    caustics: bool = True
+    show_photons: bool = False      # draw photon hits over the image (Fig. 6 left)
+    film_transparent: bool = False  # background not drawn (alpha 0), as Blender's option
+    # Reproducibility and resources
+    seed: int = 0
+    workers: int = 0                # threads for Embree/kd-tree; 0 = all cores
+    chunk_size: int = 1 << 17       # rays per wavefront chunk (bounds memory)
+
+    def __post_init__(self):
+        def positive_int(name, lo=0):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int,)) and not float(v).is_integer():
+                raise ValueError(f"setting '{name}' must be a whole number, got {v!r}")
+            v = int(v)
+            if v < lo:
+                raise ValueError(f"setting '{name}' must be >= {lo}, got {v}")
+            setattr(self, name, v)
+
+        for name, lo in (("photons", 0), ("caustic_photons", 0), ("max_photon_depth", 1),
+                         ("min_photons", 1), ("k_nearest", 1), ("spp", 1), ("max_depth", 0),
+                         ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
+                         ("gather_rays", 1)):
+            positive_int(name, lo)
+        if self.estimator not in ESTIMATORS:
+            raise ValueError(f"setting 'estimator' must be one of {', '.join(ESTIMATORS)}, "
+                             f"got {self.estimator!r}")
+        if self.radius is not None:
+            r = float(self.radius)
+            if not (r > 0 and r < float("inf")):
+                raise ValueError(f"setting 'radius' must be a positive number or None (auto), "
+                                 f"got {self.radius!r}")
+            self.radius = r
+        self.min_photons = min(self.min_photons, self.k_nearest)
+
+    @property
+    def threads(self) -> int:
+        return self.workers if self.workers > 0 else max(1, os.cpu_count() or 1)
+
+    @classmethod
+    def names(cls) -> list[str]:
+        return [f.name for f in fields(cls)]
