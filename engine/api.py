@@ -44,7 +44,9 @@ def sphere_mesh(center, radius, segments=48, rings=24):
     a = r * cols + c
     b = a + cols
     quad = np.stack([a, b, b + 1, a + 1], axis=-1).reshape(-1, 4)
-    faces = np.concatenate([quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]])
+    lower = quad[:, [0, 1, 2]][(r.reshape(-1) != rings - 1)]  # skip collapsed pole triangles
+    upper = quad[:, [0, 2, 3]][(r.reshape(-1) != 0)]
+    faces = np.concatenate([lower, upper])
     return v, faces, n, uv
 
 

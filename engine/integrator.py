@@ -260,7 +260,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         ws = np.stack([w[k] for k in SPEC_LOBES], axis=1)  # (N,5,3)
         p = ws.max(axis=2)
         psum = p.sum(axis=1)
-        q = np.sqrt(np.clip((ws.sum(axis=1)).max(axis=1), 0.0, 1.0))  # continue probability
+        # Russian roulette only for paths that would contribute little (< 10 % weight).
+        q = np.clip(10.0 * (tp * ws.sum(axis=1)).max(axis=1), 0.0, 1.0)
         go = (psum > 0) & (rng.random(len(p)) < q)
         idx = np.nonzero(go)[0]
         if len(idx) == 0:

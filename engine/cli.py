@@ -1,0 +1,143 @@
+"""Command line: `photonmap render SCENE.toml -o out.png [options]`.
+
+Errors are one line naming the argument or file, with a non-zero exit status."""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from .settings import ESTIMATORS, RenderSettings
+
+
+def _positive_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got '{text}'") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
+    return v
+
+
+def _positive_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got '{text}'") from None
+    if not v > 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="photonmap", description="Photon mapping renderer")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("render", help="render a TOML scene file to an image")
+    r.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
+    r.add_argument("-o", "--output", required=True,
+                   help="output image: .png (sRGB), .exr (linear float), .ppm, .npy")
+    r.add_argument("--photons", type=_positive_int, help="global photons to emit")
+    r.add_argument("--caustic-photons", type=_positive_int, help="caustic photons to emit")
+    r.add_argument("--radius", type=_positive_float, help="max photon search radius (default: auto)")
+    r.add_argument("--min-photons", type=_positive_int, help="fewer photons found -> no estimate")
+    r.add_argument("--k", dest="k_nearest", type=_positive_int, help="photons per k-NN estimate")
+    r.add_argument("--estimator", choices=ESTIMATORS, help="radiance estimator")
+    r.add_argument("--spp", type=_positive_int, help="camera samples per pixel")
+    r.add_argument("--max-depth", type=_positive_int, help="max specular bounces of camera rays")
+    r.add_argument("--max-photon-depth", type=_positive_int, help="max photon bounces")
+    r.add_argument("--light-samples", type=_positive_int, help="shadow rays per area light")
+    r.add_argument("--seed", type=_positive_int, help="random seed (same seed, same image)")
+    r.add_argument("--workers", type=_positive_int, help="threads (0 = all cores)")
+    r.add_argument("--width", type=_positive_int, help="image width (overrides the file)")
+    r.add_argument("--height", type=_positive_int, help="image height (overrides the file)")
+    r.add_argument("--no-photon-mapping", action="store_true",
+                   help="plain ray tracing: direct light and mirrors only (paper Fig. 5b)")
+    r.add_argument("--no-caustics", action="store_true", help="skip the caustic map")
+    r.add_argument("--no-final-gather", action="store_true",
+                   help="show the global photon map directly (faster, blotchier)")
+    r.add_argument("--show-photons", action="store_true",
+                   help="draw photon hits over the image (paper Fig. 6, left)")
+    r.add_argument("--passes", action="store_true",
+                   help="also write each effect pass next to the output (name.direct.png ...)")
+    r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for PNG/PPM")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return _render(args)
+    except KeyboardInterrupt:
+        print("photonmap: interrupted", file=sys.stderr)
+        return 130
+    except (ValueError, OSError) as e:
+        print(f"photonmap: error: {e}", file=sys.stderr)
+        return 1
+
+
+def _render(args) -> int:
+    from .imageio import FORMATS, write_image
+    from .render import render
+    from .scenefile import load_scene
+
+    ext = os.path.splitext(args.output)[1].lower()
+    if ext not in FORMATS:
+        raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
+                         f"(use {', '.join(FORMATS)})")
+    scene, overrides = load_scene(args.scene)
+    if args.width:
+        scene.width = args.width
+    if args.height:
+        scene.height = args.height
+    for name in ("photons", "caustic_photons", "radius", "min_photons", "k_nearest", "estimator",
+                 "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers"):
+        v = getattr(args, name)
+        if v is not None:
+            overrides[name] = v
+    if args.no_photon_mapping:
+        overrides["photon_mapping"] = False
+    if args.no_caustics:
+        overrides["caustics"] = False
+    if args.no_final_gather:
+        overrides["final_gather"] = False
+    if args.show_photons:
+        overrides["show_photons"] = True
+    settings = RenderSettings(**overrides)
+
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+        bar = tqdm(total=1000, desc="Preparing", unit="", bar_format="{desc:<34}{bar}| {elapsed}",
+                   file=sys.stderr)
+
+    def progress(stage, fraction, text):
+        if bar is not None:
+            bar.set_description_str(text)
+            bar.n = int(1000 * fraction)
+            bar.refresh()
+
+    try:
+        film = render(scene, settings, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    for w in film.warnings:
+        print(f"photonmap: warning: {w}", file=sys.stderr)
+    write_image(film.combined, args.output, args.exposure)
+    if args.passes:
+        root, ext = os.path.splitext(args.output)
+        for name, img in film.passes().items():
+            if name in ("combined", "depth", "alpha", "normal"):
+                continue
+            write_image(img, f"{root}.{name}{ext}", args.exposure)
+    st = film.stats
+    if not args.quiet:
+        print(f"wrote {args.output} ({scene.width}x{scene.height}, {settings.spp} spp, "
+              f"{st.get('time_total', 0):.1f} s)", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,37 @@
+"""Small scene builders shared by the engine tests."""
+import math
+
+import numpy as np
+
+from engine.api import PaperScene
+from engine.scene import Camera, Material
+
+
+def top_down_plane(albedo=0.5, size=8.0, res=64, view=4.0):
+    """A diffuse plane at z=0 seen by an orthographic camera looking straight down.
+    Pixel (i, j) centre maps to world (x, y) returned by pixel_to_world."""
+    s = PaperScene(width=res, height=res)
+    s.add_material(Material("matte", (albedo,) * 3))
+    s.add_plane((0, 0, 0), (0, 0, 1), size, "matte", name="plane")
+    s.camera = Camera(position=(0, 0, 5), rotation=np.eye(3), kind="ORTHO", ortho_scale=view)
+    return s
+
+
+def pixel_to_world(scene, view):
+    res = scene.width
+    c = (np.arange(res) + 0.5) / res * view - view / 2
+    x = np.tile(c, (res, 1))
+    y = np.tile(-c[:, None], (1, res))  # row 0 is the top of the image (+y)
+    return x, y
+
+
+def rel_err(a, b):
+    return abs(float(a) - float(b)) / max(abs(float(b)), 1e-12)
+
+
+def rect_corner_factor(a, b, h):
+    """Irradiance / radiance at a point under one corner of a parallel a x b rectangle at
+    height h (closed-form differential-area form factor times pi)."""
+    X, Y = a / h, b / h
+    return 0.5 * (X / math.sqrt(1 + X * X) * math.atan(Y / math.sqrt(1 + X * X))
+                  + Y / math.sqrt(1 + Y * Y) * math.atan(X / math.sqrt(1 + Y * Y)))

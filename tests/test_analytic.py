@@ -1,0 +1,85 @@
+"""Direct lighting against closed-form values (Cycles units, DESIGN.md §3)."""
+import math
+
+import numpy as np
+import pytest
+
+from engine import RenderSettings
+from engine.scene import Light
+from helpers import pixel_to_world, rect_corner_factor, rel_err, top_down_plane
+
+DIRECT_ONLY = dict(photon_mapping=False, max_depth=0)
+
+
+def test_point_light_over_plane_matches_inverse_square_law():
+    rho, P, h, view = 0.5, 1000.0, 2.0, 4.0
+    s = top_down_plane(rho, view=view)
+    s.add_point_light((0.3, -0.2, h), power=P)
+    film = s.render(RenderSettings(spp=4, **DIRECT_ONLY))
+    x, y = pixel_to_world(s, view)
+    r2 = (x - 0.3) ** 2 + (y + 0.2) ** 2 + h * h
+    cos = h / np.sqrt(r2)
+    expected = rho * (P / (4 * math.pi)) * cos / r2 / math.pi  # L = rho I cos / (pi d^2)
+    img = film.combined[..., 1]
+    for (i, j) in [(32, 32), (10, 50), (60, 5), (0, 0), (45, 20)]:
+        assert rel_err(img[i, j], expected[i, j]) < 0.01, (i, j, img[i, j], expected[i, j])
+    assert np.isfinite(film.combined).all()
+
+
+def test_sun_on_plane_gives_rho_E_cos_over_pi():
+    rho, E = 0.6, 3.0
+    s = top_down_plane(rho)
+    theta = math.radians(30)
+    s.add_sun(direction=(math.sin(theta), 0, -math.cos(theta)), strength=E)
+    film = s.render(RenderSettings(spp=1, **DIRECT_ONLY))
+    expected = rho * E * math.cos(theta) / math.pi
+    assert np.allclose(film.combined, expected, rtol=1e-3)
+
+
+def test_spot_light_inside_cone_and_in_blend_region():
+    rho, P, h, view = 0.5, 1000.0, 2.0, 4.0
+    s = top_down_plane(rho, view=view)
+    size, blend = math.radians(60), 0.5
+    s.add_light(Light("spot", "SPOT", P, position=(0, 0, h), direction=(0, 0, -1),
+                      spot_size=size, spot_blend=blend))
+    film = s.render(RenderSettings(spp=4, **DIRECT_ONLY))
+    x, y = pixel_to_world(s, view)
+    r2 = x * x + y * y + h * h
+    cos = h / np.sqrt(r2)
+    cos_half = math.cos(size / 2)
+    f = np.clip((cos - cos_half) / ((1 - cos_half) * blend), 0, 1)
+    mask = f * f * (3 - 2 * f)
+    expected = rho * P / (4 * math.pi) * cos / r2 / math.pi * mask
+    img = film.combined[..., 0]
+    centre = (32, 32)
+    assert rel_err(img[centre], expected[centre]) < 0.01
+    # A pixel in the blend region (0 < mask < 1) and one outside the cone.
+    blend_px = np.argwhere((mask > 0.3) & (mask < 0.7))[0]
+    assert rel_err(img[tuple(blend_px)], expected[tuple(blend_px)]) < 0.03
+    outside = np.argwhere(mask == 0)[0]
+    assert img[tuple(outside)] < 1e-3 * img[centre]
+
+
+@pytest.mark.parametrize("disk", [False, True])
+def test_area_light_irradiance_matches_form_factor(disk):
+    rho, P, h, a = 0.5, 200.0, 1.0, 1.0
+    s = top_down_plane(rho, res=16, view=0.1)  # a small patch under the light's centre
+    s.add_rect_area_light((0, 0, h), (a, a), power=P, disk=disk)
+    film = s.render(RenderSettings(spp=256, light_samples=4, seed=3, **DIRECT_ONLY))
+    if disk:
+        area = math.pi * a * a / 4
+        R = a / 2
+        E_over_L = math.pi * R * R / (R * R + h * h)
+    else:
+        area = a * a
+        E_over_L = 4 * rect_corner_factor(a / 2, a / 2, h)
+    L = P / (math.pi * area)
+    expected = rho / math.pi * L * E_over_L
+    assert rel_err(film.combined.mean(), expected) < 0.01
+
+
+def test_area_light_is_one_sided():
+    s = top_down_plane(0.5)
+    s.add_rect_area_light((0, 0, 1), (1, 1), power=100, direction=(0, 0, 1))  # faces away
+    film = s.render(RenderSettings(spp=2, **DIRECT_ONLY))
+    assert film.combined.max() == 0.0
