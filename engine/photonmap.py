@@ -46,16 +46,24 @@ class PhotonMap:
         out = np.zeros((len(p), 3))
         if self.tree is None or len(p) == 0 or radius <= 0:
             return out
+        # A cheap query for the min_photons nearest tells which points have enough photons
+        # in range; only those pay for the k-NN query (most queries of a sparse caustic map).
+        m = int(min(min_photons, len(self.photons)))
+        dm, _ = self.tree.query(p, k=m, distance_upper_bound=radius, workers=self.workers)
+        dm = dm.reshape(len(p), -1)
+        busy = np.nonzero(np.isfinite(dm[:, -1]) & (len(self.photons) >= min_photons))[0]
+        if len(busy) == 0:
+            return out
         if estimator == "classic":
-            counts = self.tree.query_ball_point(p, radius, return_length=True,
+            counts = self.tree.query_ball_point(p[busy], radius, return_length=True,
                                                 workers=self.workers)
             kq = int(min(max(int(counts.max()), 1), MAX_CLASSIC_K, len(self.photons)))
         else:
             kq = int(min(k, len(self.photons)))
         rows = max(1, QUERY_BUDGET // kq)
-        for a in range(0, len(p), rows):
-            b = min(len(p), a + rows)
-            out[a:b] = self._estimate(p[a:b], n[a:b], radius, kq, k, min_photons, estimator)
+        for a in range(0, len(busy), rows):
+            sel = busy[a:a + rows]
+            out[sel] = self._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator)
         return out
 
     def _estimate(self, p, n, radius, kq, k, min_photons, estimator):
@@ -65,17 +73,16 @@ class PhotonMap:
         found = idx < len(self.photons)
         safe = np.where(found, idx, 0)
         ph = self.photons
-        pdir = ph.direction[safe].astype(np.float64)
-        pn = ph.normal[safe].astype(np.float64)
-        cos_in = -np.einsum("nkc,nc->nk", pdir, n)
-        ok = found & (cos_in > 0) & (np.einsum("nkc,nc->nk", pn, n) > NORMAL_AGREEMENT)
+        n32 = n.astype(np.float32)
+        cos_in = -np.einsum("nkc,nc->nk", ph.direction[safe], n32)
+        ok = found & (cos_in > 0) & (np.einsum("nkc,nc->nk", ph.normal[safe], n32) > NORMAL_AGREEMENT)
         count = ok.sum(axis=1)
-        power = ph.power[safe].astype(np.float64)
+        power = ph.power[safe]
         if estimator == "classic":
             weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
         else:
             # r: distance to the k-th neighbour when k were found, else the search radius.
-            full = found[:, -1] & (kq >= k)
+            full = found[:, -1] & (kq >= k)  # k found inside the radius
             r = np.where(full, dist[:, -1], radius)
             r = np.maximum(r, 1e-300)[:, None]
             d = np.where(found, dist, 0.0)
@@ -85,7 +92,7 @@ class PhotonMap:
             else:  # knn_cone
                 weight = np.where(ok, np.clip(1.0 - d / r, 0.0, 1.0), 0.0)
                 weight = weight / ((1.0 - 2.0 / 3.0) * math.pi * r * r)
-        E = np.einsum("nk,nkc->nc", weight, power)
+        E = np.einsum("nk,nkc->nc", weight.astype(np.float32), power).astype(np.float64)
         E[count < min_photons] = 0.0
         return E
 

@@ -1,0 +1,159 @@
+"""Core benchmark on the paper's Figure 6 box (default 400x300).
+
+Prints: photons traced per second, camera+shadow rays per second through the engine next
+to raw embreex on exactly the same rays, kd-tree build and gather times, total render
+time. Run from the repo root:
+
+    .venv/bin/python bench/bench_core.py [--width 400 --height 300] [--json out.json]
+                                         [--plot out.png]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from engine import RenderSettings  # noqa: E402
+from engine.accel import Accel  # noqa: E402
+from engine.api import cornell_box  # noqa: E402
+from engine.film import Film  # noqa: E402
+from engine.geometry import prepare  # noqa: E402
+from engine.integrator import render_camera  # noqa: E402
+from engine.lights import allocate_photons, prepare_lights  # noqa: E402
+from engine.photonmap import PhotonMap  # noqa: E402
+from engine.photons import trace_photons  # noqa: E402
+from engine.render import Context, render  # noqa: E402
+
+
+class RecordingAccel(Accel):
+    """Accel that keeps a copy of every query so the same rays can be replayed raw."""
+
+    def __init__(self, *a, **kw):
+        super().__init__(*a, **kw)
+        self.log = []
+
+    def intersect(self, o, d, tmax=None):
+        self.log.append(("INTERSECT", *self._prepare(o, d, tmax)))
+        return super().intersect(o, d, tmax)
+
+    def occluded(self, o, d, tmax=None):
+        self.log.append(("OCCLUDED", *self._prepare(o, d, tmax)))
+        return super().occluded(o, d, tmax)
+
+
+def raw_embree_time(accel: Accel, log) -> float:
+    """Replay logged queries straight through embreex, split over the same threads."""
+    scene = accel._scene
+    t0 = time.perf_counter()
+    for query, o, d, t in log:
+        def work(a, b):
+            if query == "INTERSECT":
+                scene.run(o[a:b], d[a:b], dists=t[a:b].copy(), output=True)
+            else:
+                scene.run(o[a:b], d[a:b], dists=t[a:b].copy(), query="OCCLUDED")
+        accel._run(work, len(o))
+    return time.perf_counter() - t0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--width", type=int, default=400)
+    ap.add_argument("--height", type=int, default=300)
+    ap.add_argument("--photons", type=int, default=RenderSettings.photons)
+    ap.add_argument("--spp", type=int, default=RenderSettings.spp)
+    ap.add_argument("--workers", type=int, default=0)
+    ap.add_argument("--json", help="write the results as JSON")
+    ap.add_argument("--plot", help="write a bar chart of stage times (PNG)")
+    args = ap.parse_args(argv)
+
+    scene = cornell_box(args.width, args.height)
+    settings = RenderSettings(photons=args.photons, spp=args.spp, workers=args.workers)
+    scene.validate()
+    rows = []
+
+    geo, table = prepare(scene)
+    accel = RecordingAccel(geo.vertices32, geo.faces32, threads=settings.threads)
+    lights = prepare_lights(scene, geo, table)
+    ctx = Context(scene, settings, geo, table, accel, lights)
+
+    # Photon tracing.
+    t0 = time.perf_counter()
+    shot = trace_photons(ctx, lights, allocate_photons(lights, settings.photons), False, 1)
+    t_ph = time.perf_counter() - t0
+    rows.append(("photon pass", f"{settings.photons:,} photons", t_ph,
+                 f"{settings.photons / t_ph / 1e6:.2f} M photons/s emitted, "
+                 f"{len(shot):,} stored ({len(shot) / t_ph / 1e6:.2f} M/s)"))
+    rays_photon = sum(len(entry[1]) for entry in accel.log)
+    raw = raw_embree_time(accel, accel.log)
+    rows.append(("  raw embreex, same rays", f"{rays_photon:,} rays", raw,
+                 f"engine at {100 * raw / t_ph:.0f} % of Embree's ceiling"))
+    accel.log.clear()
+
+    # kd-tree build and gather.
+    t0 = time.perf_counter()
+    pm = PhotonMap(shot, settings.threads)
+    t_build = time.perf_counter() - t0
+    rows.append(("kd-tree build", f"{len(shot):,} photons", t_build, ""))
+    q = 200_000
+    rng = np.random.default_rng(0)
+    idx = rng.integers(0, len(shot), q)
+    t0 = time.perf_counter()
+    pm.irradiance(shot.position[idx].astype(float), shot.normal[idx].astype(float),
+                  0.2, settings.k_nearest, settings.min_photons, settings.estimator)
+    t_gather = time.perf_counter() - t0
+    rows.append(("k-NN gather", f"{q:,} queries k={settings.k_nearest}", t_gather,
+                 f"{t_gather / q * 1e6:.2f} s per million queries"))
+
+    # Camera + shadow rays (direct light and mirrors: the ray-bound part of pass 2).
+    direct = RenderSettings(photon_mapping=False, spp=settings.spp, workers=args.workers)
+    ctx_d = Context(scene, direct, geo, table, accel, lights)
+    film = Film(args.width, args.height)
+    t0 = time.perf_counter()
+    counters = render_camera(ctx_d, (0, 0, args.width, args.height), film)
+    t_cam = time.perf_counter() - t0
+    n_rays = sum(len(entry[1]) for entry in accel.log)
+    raw = raw_embree_time(accel, accel.log)
+    rows.append(("camera+shadow rays", f"{n_rays:,} rays", t_cam,
+                 f"{n_rays / t_cam / 1e6:.2f} M rays/s through the engine"))
+    rows.append(("  raw embreex, same rays", f"{n_rays:,} rays", raw,
+                 f"{n_rays / raw / 1e6:.2f} M rays/s; engine at {100 * raw / t_cam:.0f} %"))
+    accel.log.clear()
+    accel.close()
+
+    # Whole default render.
+    t0 = time.perf_counter()
+    full = render(scene, settings)
+    t_total = time.perf_counter() - t0
+    st = full.stats
+    rows.append(("full render (defaults)", f"{args.width}x{args.height}, {settings.spp} spp",
+                 t_total, f"photons {st.get('time_photons', 0):.2f} s, maps "
+                 f"{st.get('time_photon_map', 0):.2f} s, camera {st.get('time_camera', 0):.2f} s"))
+
+    print(f"\nFigure 6 box, {geo.count:,} triangles, {settings.threads} worker(s)\n")
+    print(f"| stage | work | seconds | note |\n|---|---|---:|---|")
+    for name, work, secs, note in rows:
+        print(f"| {name} | {work} | {secs:.3f} | {note} |")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump([dict(stage=r[0], work=r[1], seconds=r[2], note=r[3]) for r in rows], f, indent=1)
+    if args.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(figsize=(7, 3.5))
+        ax.barh([r[0] for r in rows][::-1], [r[2] for r in rows][::-1])
+        ax.set_xlabel("seconds")
+        ax.set_title(f"Figure 6 box {args.width}x{args.height}")
+        fig.tight_layout()
+        fig.savefig(args.plot, dpi=100)
+    return rows
+
+
+if __name__ == "__main__":
+    main()
