@@ -69,6 +69,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
             n = min(chunk, count - start)
             rng = np.random.default_rng([settings.seed, stream, li, ci])
             o, d, power = light.emit(n, rng)
+            power *= n / count  # emit() spreads the light's whole flux over this chunk
             had_diffuse = np.zeros(n, bool)
             had_specular = np.zeros(n, bool)
             for bounce in range(settings.max_photon_depth):

@@ -32,7 +32,9 @@ def shoot(scene, settings):
 
 def test_stored_power_is_bounded_by_emitted_power():
     albedo, P = 0.8, 100.0
-    ph = shoot(closed_box(albedo, P), RenderSettings(photons=20000, max_photon_depth=50))
+    # chunk_size < photons: power must not depend on how the photons are batched.
+    ph = shoot(closed_box(albedo, P), RenderSettings(photons=20000, max_photon_depth=50,
+                                                      chunk_size=3000))
     first_hits = ph.power[ph.kind == DIRECT].astype(np.float64).sum(axis=0)
     # Every photon of a closed box lands once as a first hit: exactly the emitted power.
     assert np.allclose(first_hits, P, rtol=1e-6)
