@@ -79,29 +79,64 @@ def direct_irradiance(ctx, hit, rng, counters: Counters) -> np.ndarray:
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters) -> np.ndarray:
-    """Indirect irradiance by final gathering: cosine-distributed rays, radiance at their
-    diffuse hits from the precomputed photon irradiance (mean L times pi = E)."""
+    """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
+    (or their mirror / glass continuations) meet a diffuse surface comes from the
+    precomputed photon irradiance. Mean radiance times pi = irradiance."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     G = ctx.settings.gather_rays
     for _ in range(G):
         d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), hit.ns)
-        ok = dot(d, hit.ng) > 0
-        idx = np.nonzero(ok)[0]
-        if len(idx) == 0:
-            continue
+        idx = np.nonzero(dot(d, hit.ng) > 0)[0]
         o = offset_origin(hit.p[idx], hit.ng[idx], d[idx], ctx.geo.eps)
-        _, prim, u, v = ctx.accel.intersect(o, d[idx])
-        counters.gather_rays += len(idx)
-        got = prim >= 0
-        if not got.any():
-            continue
-        sel = idx[got]
-        y = surface_hit(ctx.geo, ctx.table, prim[got], u[got], v[got], d[sel])
-        wd = lobe_weights(ctx.table, y)["diffuse"]
-        Ey = ctx.gather_map.lookup(y.p, y.ng)
-        E[sel] += math.pi * (wd / math.pi) * Ey / G
+        d = d[idx]
+        tp = np.ones((len(idx), 3))
+        for depth in range(ctx.settings.max_depth + 1):
+            if len(idx) == 0:
+                break
+            _, prim, u, v = ctx.accel.intersect(o, d)
+            counters.gather_rays += len(idx)
+            got = prim >= 0
+            if not got.all():
+                o, d, tp, idx, prim, u, v = (a[got] for a in (o, d, tp, idx, prim, u, v))
+            if len(idx) == 0:
+                break
+            y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            w = lobe_weights(ctx.table, y)
+            wd = w["diffuse"]
+            dsel = np.nonzero(wd.max(axis=1) > 0)[0]
+            if len(dsel):
+                Ey = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel])
+                np.add.at(E, idx[dsel], tp[dsel] * wd[dsel] * Ey / G)
+            if depth == ctx.settings.max_depth:
+                break
+            keep, o, d, tp = continue_specular(ctx, y, w, tp, rng)
+            idx = idx[keep]
     return E
+
+
+def continue_specular(ctx, hit, w, tp, rng):
+    """Pick one specular lobe per ray in proportion to its weight (Russian roulette for
+    paths that would add little). Returns (kept indices, origins, directions, throughput)."""
+    ws = np.stack([w[k] for k in SPEC_LOBES], axis=1)  # (N,5,3)
+    p = ws.max(axis=2)
+    psum = p.sum(axis=1)
+    # Russian roulette only for paths that would contribute little (< 10 % weight).
+    q = np.clip(10.0 * (tp * ws.sum(axis=1)).max(axis=1), 0.0, 1.0)
+    go = (psum > 0) & (rng.random(len(p)) < q)
+    idx = np.nonzero(go)[0]
+    empty = np.zeros((0, 3))
+    if len(idx) == 0:
+        return idx, empty, empty, empty
+    cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
+    lobe = np.minimum((rng.random(len(idx))[:, None] >= cdf).sum(axis=1), len(SPEC_LOBES) - 1)
+    prob = p[idx, lobe] / psum[idx] * q[idx]
+    new_tp = tp[idx] * ws[idx, lobe] / np.maximum(prob, 1e-300)[:, None]
+    sub = _subset(hit, idx)
+    nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
+    keep = valid & np.isfinite(new_tp).all(axis=1) & (new_tp.max(axis=1) > 0)
+    o = offset_origin(sub.p[keep], sub.ng[keep], nd[keep], ctx.geo.eps)
+    return idx[keep], o, nd[keep], new_tp[keep]
 
 
 def shade_diffuse(ctx, hit, wd, rng, counters):
@@ -257,25 +292,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if bounce == s.max_depth:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
-        ws = np.stack([w[k] for k in SPEC_LOBES], axis=1)  # (N,5,3)
-        p = ws.max(axis=2)
-        psum = p.sum(axis=1)
-        # Russian roulette only for paths that would contribute little (< 10 % weight).
-        q = np.clip(10.0 * (tp * ws.sum(axis=1)).max(axis=1), 0.0, 1.0)
-        go = (psum > 0) & (rng.random(len(p)) < q)
-        idx = np.nonzero(go)[0]
-        if len(idx) == 0:
-            return
-        cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
-        lobe = np.minimum((rng.random(len(idx))[:, None] >= cdf).sum(axis=1), len(SPEC_LOBES) - 1)
-        prob = p[idx, lobe] / psum[idx] * q[idx]
-        new_tp = tp[idx] * ws[idx, lobe] / np.maximum(prob, 1e-300)[:, None]
-        sub = _subset(hit, idx)
-        nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
-        keep = valid & np.isfinite(new_tp).all(axis=1) & (new_tp.max(axis=1) > 0)
-        o = offset_origin(sub.p[keep], sub.ng[keep], nd[keep], ctx.geo.eps)
-        d = nd[keep]
-        tp = new_tp[keep]
-        pix = pix[idx][keep]
+        keep, o, d, tp = continue_specular(ctx, hit, w, tp, rng)
+        pix = pix[keep]
         tmax = None
         counters.specular_rays += len(o)
