@@ -17,7 +17,7 @@ import numpy as np
 
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .photons import Cancelled, _subset
-from .sampling import cosine_hemisphere, dot, offset_origin, to_world
+from .sampling import StratifiedSampler, cosine_hemisphere, dot, offset_origin, to_world
 
 
 @dataclass
@@ -59,13 +59,14 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
     return o, d, t_end - t_start
 
 
-def direct_irradiance(ctx, hit, rng, counters: Counters) -> np.ndarray:
+def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarray:
     """Irradiance from all lights by shadow rays (one ray per sample, tested for occlusion)."""
     E = np.zeros((len(hit.p), 3))
-    for light in ctx.lights:
+    for li, light in enumerate(ctx.lights):
         samples = ctx.settings.light_samples if light.has_size else 1
-        for _ in range(samples):
-            ls = light.sample(hit.p, hit.ns, hit.ng, rng)
+        for si in range(samples):
+            uv = sampler.uv(2 + 64 * li + si) if sampler is not None else None
+            ls = light.sample(hit.p, hit.ns, hit.ng, rng, uv)
             lit = np.nonzero(ls.E.max(axis=1) > 0)[0]
             if len(lit) == 0:
                 continue
@@ -78,15 +79,16 @@ def direct_irradiance(ctx, hit, rng, counters: Counters) -> np.ndarray:
     return E
 
 
-def gather_indirect(ctx, hit, rng, counters: Counters) -> np.ndarray:
+def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     G = ctx.settings.gather_rays
-    for _ in range(G):
-        d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), hit.ns)
+    for g in range(G):
+        u1, u2 = sampler.uv(1 + 64 * g) if sampler is not None else (rng.random(n), rng.random(n))
+        d = to_world(cosine_hemisphere(u1, u2), hit.ns)
         idx = np.nonzero(dot(d, hit.ng) > 0)[0]
         o = offset_origin(hit.p[idx], hit.ng[idx], d[idx], ctx.geo.eps)
         d = d[idx]
@@ -139,12 +141,12 @@ def continue_specular(ctx, hit, w, tp, rng):
     return idx[keep], o, nd[keep], new_tp[keep]
 
 
-def shade_diffuse(ctx, hit, wd, rng, counters):
+def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect)."""
     s = ctx.settings
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p)
-    direct = f * direct_irradiance(ctx, hit, rng, counters)
+    direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
     caustic = np.zeros_like(direct)
     indirect = np.zeros_like(direct)
     if s.photon_mapping:
@@ -152,7 +154,7 @@ def shade_diffuse(ctx, hit, wd, rng, counters):
             caustic = f * ctx.caustic_map.irradiance(hit.p, hit.ng, ctx.caustic_radius,
                                                      s.k_nearest, s.min_photons, s.estimator)
         if ctx.gather_map is not None:
-            indirect = f * gather_indirect(ctx, hit, rng, counters)
+            indirect = f * gather_indirect(ctx, hit, rng, counters, sampler)
         elif ctx.global_map is not None and len(ctx.global_map):
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
                                                      s.k_nearest, s.min_photons, s.estimator)
@@ -213,8 +215,9 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
         o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
         counters.camera_rays += len(o)
         tp = np.ones((len(o), 3))
+        sampler = StratifiedSampler(sub, pix, spp, rng)
         _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                     should_cancel)
+                     should_cancel, sampler)
         if progress is not None:
             done = min(total, start + chunk)
             progress("render", done / total, f"Rendering {100.0 * done / total:.0f}%")
@@ -231,7 +234,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
 
 
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel):
+                 should_cancel, sampler=None):
     s = ctx.settings
     bg = np.asarray(ctx.scene.background, np.float64)
     for bounce in range(s.max_depth + 1):
@@ -266,6 +269,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if not hitm.any():
             return
         o, d, tp, pix, prim, u, v, t = (a[hitm] for a in (o, d, tp, pix, prim, u, v, t))
+        if sampler is not None and bounce == 0:
+            sampler = sampler.subset(np.nonzero(hitm)[0])
         hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
         if bounce == 0:
             acc.add_scalar(acc.depth_sum, pix, dot(hit.p - cam_pos, forward))
@@ -281,7 +286,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         dsel = np.nonzero(wd.max(axis=1) > 0)[0]
         if len(dsel):
             sub = _subset(hit, dsel)
-            direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters)
+            # Stratification pays off at the first hit; deeper hits use plain random numbers.
+            strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
+            direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat)
             tpd = tp[dsel]
             if bounce == 0:
                 acc.add("direct", pix[dsel], tpd * direct)

@@ -48,9 +48,10 @@ class PreparedLight:
         return True
 
     # ------------------------------------------------------------------ shadow rays
-    def sample(self, p, ns, ng, rng) -> LightSample:
+    def sample(self, p, ns, ng, rng, uv=None) -> LightSample:
+        """One light sample per point; uv = optional stratified (u1, u2) in [0,1)."""
         n = len(p)
-        u1, u2 = rng.random(n), rng.random(n)
+        u1, u2 = uv if uv is not None else (rng.random(n), rng.random(n))
         if self.kind == SUN:
             local = uniform_cone(u1, u2, self.cos_half_angle)
             wi = to_world(local, np.broadcast_to(-self.dir, (n, 3)))

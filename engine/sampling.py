@@ -84,3 +84,37 @@ def offset_origin(p: np.ndarray, ng: np.ndarray, direction: np.ndarray, eps: flo
     same triangle again (DESIGN.md §4)."""
     side = np.where(dot(direction, ng) >= 0.0, 1.0, -1.0)
     return p + (side * eps)[..., None] * ng
+
+
+class StratifiedSampler:
+    """2-D sample points stratified across the samples of one pixel.
+
+    Sample `sub` of a pixel takes cell (sub + shift) mod m^2 of an m x m grid
+    (m = floor(sqrt(spp))), jittered inside the cell. The shift is a hash of pixel and
+    dimension, so dimensions (light position, gather direction, ...) are not correlated
+    with each other or with the pixel jitter. Over the spp samples of a pixel every
+    cell is visited once, which cuts noise in soft shadows and final gathering."""
+
+    def __init__(self, sub: np.ndarray, pix: np.ndarray, spp: int, rng: np.random.Generator):
+        self.sub = sub
+        self.pix = pix
+        self.m = max(1, int(np.sqrt(spp)))
+        self.rng = rng
+
+    def subset(self, idx) -> "StratifiedSampler":
+        s = StratifiedSampler.__new__(StratifiedSampler)
+        s.sub, s.pix, s.m, s.rng = self.sub[idx], self.pix[idx], self.m, self.rng
+        return s
+
+    def uv(self, dim: int) -> tuple[np.ndarray, np.ndarray]:
+        n = len(self.sub)
+        cells = self.m * self.m
+        if cells < 2:
+            return self.rng.random(n), self.rng.random(n)
+        shift = (self.pix.astype(np.uint64) * np.uint64(2654435761)
+                 + np.uint64(dim * 40503 + 12345)) % np.uint64(cells)
+        cell = (self.sub.astype(np.uint64) + shift) % np.uint64(cells)
+        cell = cell.astype(np.int64)
+        u1 = (cell % self.m + self.rng.random(n)) / self.m
+        u2 = (cell // self.m + self.rng.random(n)) / self.m
+        return u1, u2
