@@ -21,7 +21,7 @@ class RenderSettings:
     final_gather: bool = True       # indirect light by gather rays into the global map
     gather_rays: int = 1            # final-gather rays per camera sample
     # Pass 2 (camera)
-    spp: int = 16                   # camera samples per pixel (jittered, antialiasing)
+    spp: int = 64                   # camera samples per pixel (jittered, stratified)
     max_depth: int = 8              # max specular bounces along a camera path (paper)
     light_samples: int = 1          # shadow rays per light with size, per camera sample
     # Modes
