@@ -22,6 +22,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from engine import RenderSettings  # noqa: E402
 from engine.accel import Accel  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
+from engine.effects import analyse  # noqa: E402
 from engine.film import Film  # noqa: E402
 from engine.geometry import prepare  # noqa: E402
 from engine.integrator import render_camera  # noqa: E402
@@ -81,6 +82,7 @@ def main(argv=None):
     accel = RecordingAccel(geo.vertices32, geo.faces32, threads=settings.threads)
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights)
+    ctx.plan = analyse(scene, geo, table, lights, accel, settings)
 
     # Photon tracing.
     t0 = time.perf_counter()
@@ -113,6 +115,7 @@ def main(argv=None):
     # Camera + shadow rays (direct light and mirrors: the ray-bound part of pass 2).
     direct = RenderSettings(photon_mapping=False, spp=settings.spp, workers=args.workers)
     ctx_d = Context(scene, direct, geo, table, accel, lights)
+    ctx_d.plan = analyse(scene, geo, table, lights, accel, direct)
     film = Film(args.width, args.height)
     t0 = time.perf_counter()
     counters = render_camera(ctx_d, (0, 0, args.width, args.height), film)

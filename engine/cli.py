@@ -54,6 +54,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-photon-mapping", action="store_true",
                    help="plain ray tracing: direct light and mirrors only (paper Fig. 5b)")
     r.add_argument("--no-caustics", action="store_true", help="skip the caustic map")
+    for name in ("caustics", "indirect", "specular", "soft-shadows"):
+        r.add_argument(f"--{name}", choices=("auto", "on", "off"),
+                       help=f"force {name.replace('-', ' ')} on or off (default: auto, decided "
+                            "from the scene)")
     r.add_argument("--no-final-gather", action="store_true",
                    help="show the global photon map directly (faster, blotchier)")
     r.add_argument("--show-photons", action="store_true",
@@ -98,8 +102,11 @@ def _render(args) -> int:
             overrides[name] = v
     if args.no_photon_mapping:
         overrides["photon_mapping"] = False
+    for name in ("caustics", "indirect", "specular", "soft_shadows"):
+        if getattr(args, name) is not None:
+            overrides[name] = getattr(args, name)
     if args.no_caustics:
-        overrides["caustics"] = False
+        overrides["caustics"] = "off"
     if args.no_final_gather:
         overrides["final_gather"] = False
     if args.show_photons:
@@ -125,6 +132,9 @@ def _render(args) -> int:
             bar.close()
     for w in film.warnings:
         print(f"photonmap: warning: {w}", file=sys.stderr)
+    if not args.quiet:
+        for line in film.stats.get("effects", []):
+            print(f"  {line}", file=sys.stderr)
     write_image(film.combined, args.output, args.exposure)
     if args.passes:
         root, ext = os.path.splitext(args.output)

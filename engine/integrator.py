@@ -62,8 +62,10 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarray:
     """Irradiance from all lights by shadow rays (one ray per sample, tested for occlusion)."""
     E = np.zeros((len(hit.p), 3))
+    plan = ctx.plan
     for li, light in enumerate(ctx.lights):
-        samples = ctx.settings.light_samples if light.has_size else 1
+        samples = plan.light_samples.get(light.name, 1)
+        trace_shadows = plan.shadows.get(light.name, True)
         for si in range(samples):
             uv = sampler.uv(2 + 64 * li + si) if sampler is not None else None
             ls = light.sample(hit.p, hit.ns, hit.ng, rng, uv)
@@ -73,8 +75,11 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None) -> np.nda
             o = offset_origin(hit.p[lit], hit.ng[lit], ls.wi[lit], ctx.geo.eps)
             dist = ls.dist[lit]
             tmax = np.where(np.isfinite(dist), dist * (1.0 - 1e-6) - 2.0 * ctx.geo.eps, np.inf)
-            blocked = ctx.accel.occluded(o, ls.wi[lit], np.maximum(tmax, 0.0))
-            counters.shadow_rays += len(lit)
+            if trace_shadows:
+                blocked = ctx.accel.occluded(o, ls.wi[lit], np.maximum(tmax, 0.0))
+                counters.shadow_rays += len(lit)
+            else:
+                blocked = np.zeros(len(lit), bool)
             E[lit] += ls.E[lit] * (~blocked)[:, None] / samples
     return E
 
@@ -141,7 +146,12 @@ def continue_specular(ctx, hit, w, tp, rng):
     return idx[keep], o, nd[keep], new_tp[keep]
 
 
-def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None):
+# The caustic estimate is already a smooth kernel average, so it varies little between the
+# samples of one pixel: evaluate it for at most this many samples per pixel (weighted up).
+CAUSTIC_SAMPLES_PER_PIXEL = 16
+
+
+def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect)."""
     s = ctx.settings
     f = wd / math.pi
@@ -151,8 +161,13 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None):
     indirect = np.zeros_like(direct)
     if s.photon_mapping:
         if ctx.caustic_map is not None and len(ctx.caustic_map):
-            caustic = f * ctx.caustic_map.irradiance(hit.p, hit.ng, ctx.caustic_radius,
-                                                     s.k_nearest, s.min_photons, s.estimator)
+            stride = max(1, -(-s.spp // CAUSTIC_SAMPLES_PER_PIXEL))
+            if sample_id is None:
+                stride = 1
+            sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
+            E = ctx.caustic_map.irradiance(hit.p[sel], hit.ng[sel], ctx.caustic_radius,
+                                           s.k_nearest, s.min_photons, s.estimator)
+            caustic[sel] = stride * f[sel] * E
         if ctx.gather_map is not None:
             indirect = f * gather_indirect(ctx, hit, rng, counters, sampler)
         elif ctx.global_map is not None and len(ctx.global_map):
@@ -217,7 +232,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
         tp = np.ones((len(o), 3))
         sampler = StratifiedSampler(sub, pix, spp, rng)
         _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                     should_cancel, sampler)
+                     should_cancel, sampler, sub)
         if progress is not None:
             done = min(total, start + chunk)
             progress("render", done / total, f"Rendering {100.0 * done / total:.0f}%")
@@ -234,10 +249,11 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
 
 
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler=None):
+                 should_cancel, sampler=None, sample_id=None):
     s = ctx.settings
     bg = np.asarray(ctx.scene.background, np.float64)
-    for bounce in range(s.max_depth + 1):
+    depth_limit = ctx.plan.specular_depth
+    for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
         if should_cancel is not None and bounce > 0 and should_cancel():
@@ -268,7 +284,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():
             return
-        o, d, tp, pix, prim, u, v, t = (a[hitm] for a in (o, d, tp, pix, prim, u, v, t))
+        o, d, tp, pix, prim, u, v, t, sample_id = (a[hitm] for a in (o, d, tp, pix, prim, u, v, t,
+                                                                     sample_id))
         if sampler is not None and bounce == 0:
             sampler = sampler.subset(np.nonzero(hitm)[0])
         hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
@@ -288,7 +305,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             sub = _subset(hit, dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
-            direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat)
+            direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
+                                                      sample_id[dsel])
             tpd = tp[dsel]
             if bounce == 0:
                 acc.add("direct", pix[dsel], tpd * direct)
@@ -296,10 +314,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 acc.add("indirect", pix[dsel], tpd * indirect)
             else:
                 acc.add("specular", pix[dsel], tpd * (direct + caustic + indirect))
-        if bounce == s.max_depth:
+        if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
         keep, o, d, tp = continue_specular(ctx, hit, w, tp, rng)
         pix = pix[keep]
+        sample_id = sample_id[keep]
         tmax = None
         counters.specular_rays += len(o)

@@ -167,6 +167,103 @@ class PreparedLight:
             d = uniform_sphere(u1, u2)
         return o, d, np.broadcast_to(self.flux / n, (n, 3)).copy()
 
+    # ------------------------------------------------------------------ aimed photons
+    def emit_towards(self, n: int, rng, centers: np.ndarray, radii: np.ndarray):
+        """n photons aimed at bounding spheres (caustic casters), weighted so the expected
+        power arriving anywhere inside the spheres equals that of emit(): power = natural
+        power x natural pdf / aimed pdf (POV-Ray-style photon targets)."""
+        K = len(centers)
+        if K == 0 or n == 0:
+            z = np.zeros((0, 3))
+            return z, z.copy(), z.copy()
+        u1, u2, u3, u4 = (rng.random(n) for _ in range(4))
+        if self.kind in (SUN, WORLD):
+            if self.kind == SUN:
+                d = to_world(uniform_cone(u1, u2, self.cos_half_angle), np.broadcast_to(self.dir, (n, 3)))
+            else:
+                d = uniform_sphere(u1, u2)
+            probs = radii ** 2 / np.sum(radii ** 2)
+            j = rng.choice(K, size=n, p=probs)
+            x, yy = concentric_disk(u3, u4)
+            t, b = orthonormal_basis(d)
+            R = self.scene_radius
+            start = self.center - 2.0 * R * d  # the natural disk's centre for direction d
+            c = centers[j]
+            # Centre of caster j's shadow disk in the plane through `start` normal to d.
+            c_proj = c - dot(c - start, d)[:, None] * d
+            o = c_proj + radii[j][:, None] * (x[:, None] * t + yy[:, None] * b)
+            aimed = np.zeros(n)
+            for k in range(K):
+                ck = centers[k] - dot(centers[k] - start, d)[:, None] * d
+                inside = np.linalg.norm(o - ck, axis=1) <= radii[k]
+                aimed += probs[k] * inside / (math.pi * radii[k] ** 2)
+            natural = (np.linalg.norm(o - start, axis=1) <= R) / (math.pi * R * R)
+            ratio = natural / np.maximum(aimed, 1e-300)
+            return o, d, (self.photon_flux / n)[None, :] * ratio[:, None]
+        # Origins as the light emits them.
+        normal = None
+        if self.kind == MESH:
+            tri = np.searchsorted(self.cdf, rng.random(n), side="right").clip(0, len(self.cdf) - 1)
+            b1, b2 = uniform_triangle(u1, u2)
+            o = self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri]
+            normal = self.tri_ng[tri]
+            anchor = self.v0.mean(axis=0)
+        elif self.kind == AREA:
+            if self.shape == DISK:
+                x, yy = concentric_disk(u1, u2)
+                x, yy = x * self.size_x / 2, yy * self.size_y / 2
+            else:
+                x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
+            o = self.pos + x[:, None] * self.u + yy[:, None] * self.v
+            anchor = self.pos
+        elif self.kind == POINT and self.radius > 0:
+            normal = uniform_sphere(u1, u2)
+            o = self.pos + self.radius * normal
+            anchor = self.pos
+        else:
+            o = np.broadcast_to(self.pos, (n, 3)).copy()
+            anchor = self.pos
+        # Choose a target per photon in proportion to its solid angle seen from the light.
+        dist_a = np.linalg.norm(centers - anchor, axis=1)
+        sin_a = np.clip(radii / np.maximum(dist_a, 1e-300), 0.0, 1.0)
+        omega_a = 2.0 * math.pi * (1.0 - np.sqrt(1.0 - sin_a ** 2))
+        probs = np.maximum(omega_a, 1e-12) / np.maximum(omega_a, 1e-12).sum()
+        j = rng.choice(K, size=n, p=probs)
+        to_c = centers[j] - o
+        dist = np.linalg.norm(to_c, axis=1)
+        axis = to_c / np.maximum(dist, 1e-300)[:, None]
+        cos_max = np.sqrt(np.maximum(0.0, 1.0 - (radii[j] / np.maximum(dist, 1e-300)) ** 2))
+        cos_max = np.where(dist <= radii[j], -1.0, cos_max)  # inside: whole sphere
+        d = to_world(uniform_cone(u3, u4, cos_max), axis)
+        aimed = np.zeros(n)
+        for k in range(K):
+            to_k = centers[k] - o
+            dk = np.linalg.norm(to_k, axis=1)
+            cos_k = np.sqrt(np.maximum(0.0, 1.0 - (radii[k] / np.maximum(dk, 1e-300)) ** 2))
+            cos_k = np.where(dk <= radii[k], -1.0, cos_k)
+            inside = dot(d, to_k) >= cos_k * dk
+            aimed += probs[k] * inside / (2.0 * math.pi * (1.0 - cos_k))
+        aimed = np.maximum(aimed, 1e-300)
+        if self.kind == MESH:
+            cos = np.abs(dot(d, normal))
+            scale = self.tri_area[tri] * cos / (self.prob[tri] * n * aimed)
+            return o, d, self.tri_L[tri] * scale[:, None]
+        if self.kind == AREA:
+            pdf_nat = np.maximum(dot(d, self.dir), 0.0) / math.pi
+            return o, d, (self.flux / n)[None, :] * (pdf_nat / aimed)[:, None]
+        if self.kind == SPOT:
+            mask = spot_mask(dot(d, self.dir), self.spot_size, self.spot_blend)
+            if self.radius > 0:
+                x, yy = concentric_disk(rng.random(n), rng.random(n))
+                t, b = orthonormal_basis(d)
+                o = o + self.radius * (x[:, None] * t + yy[:, None] * b)
+            return o, d, self.intensity[None, :] * (mask / (n * aimed))[:, None]
+        if normal is not None:  # point light with a radius
+            pdf_nat = np.maximum(dot(d, normal), 0.0) / math.pi
+        else:
+            pdf_nat = np.full(n, 1.0 / (4.0 * math.pi))
+        return o, d, (self.flux / n)[None, :] * (pdf_nat / aimed)[:, None]
+
     # ------------------------------------------------------------------ seen in mirrors
     def intersect(self, o, d, tmax):
         """Rays that hit this light's emitting surface before tmax: (mask, t, radiance).

@@ -102,9 +102,15 @@ class GatherMap:
     final-gather ray needs only a nearest-neighbour lookup instead of a k-NN estimate."""
 
     def __init__(self, photon_map: PhotonMap, radius: float, k: int, min_photons: int,
-                 estimator: str, max_points: int = 60_000, seed: int = 0):
+                 estimator: str, max_points: int = 60_000, seed: int = 0, accel=None,
+                 eps: float = 0.0):
         ph = photon_map.photons
         self.workers = photon_map.workers
+        # With an Accel, a lookup only takes a gather point it can see: a point on the
+        # other side of a wall (e.g. the ground outside a room, coplanar with the floor
+        # inside) would otherwise leak light under the wall (docs/stability.md).
+        self.accel = accel
+        self.eps = float(eps)
         self.tree = None
         if len(ph) == 0:
             return
@@ -129,11 +135,35 @@ class GatherMap:
         found = idx < len(self.position)
         safe = np.where(found, idx, 0)
         agree = found & (np.einsum("nkc,nc->nk", self.normal[safe], n) > 0.7)
+        if self.accel is not None:
+            agree = self._visible_first(p, n, safe, agree)
         first = np.argmax(agree, axis=1)
         anyok = agree.any(axis=1)
         chosen = safe[np.arange(len(p)), first]
         out[anyok] = self.E[chosen[anyok]]
         return out
+
+    def _visible_first(self, p, n, safe, agree):
+        """Drop candidates hidden from p by geometry, nearest first, until each row's first
+        remaining candidate is visible (usually one occlusion ray per lookup)."""
+        agree = agree.copy()
+        todo = np.nonzero(agree.any(axis=1))[0]
+        for _ in range(agree.shape[1]):
+            if len(todo) == 0:
+                break
+            first = np.argmax(agree[todo], axis=1)
+            q = self.position[safe[todo, first]]
+            # Both ends lifted off their surfaces along the normal (shared by agreement).
+            a = p[todo] + self.eps * n[todo]
+            b = q + self.eps * self.normal[safe[todo, first]]
+            w = b - a
+            dist = np.linalg.norm(w, axis=1)
+            d = w / np.maximum(dist, 1e-300)[:, None]
+            # Full length: a gather point a hair outside a wall is still behind it.
+            blocked = self.accel.occluded(a, d, dist)
+            agree[todo[blocked], first[blocked]] = False
+            todo = todo[blocked & agree[todo].any(axis=1)]
+        return agree
 
 
 def auto_radius(diffuse_area: float, stored: int, k: int, extent: float) -> float:

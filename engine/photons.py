@@ -56,9 +56,10 @@ class Photons:
 
 
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
-                  should_cancel=None) -> Photons:
+                  should_cancel=None, targets=None) -> Photons:
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
-    paths only and stop a photon as soon as it scatters diffusely (the caustic shot)."""
+    paths only and stop a photon as soon as it scatters diffusely (the caustic shot).
+    targets=(centers, radii): aim the photons at these bounding spheres (caustic casters)."""
     geo, table, accel, settings = ctx.geo, ctx.table, ctx.accel, ctx.settings
     chunk = settings.chunk_size
     total = int(sum(counts))
@@ -68,10 +69,16 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
         for ci, start in enumerate(range(0, count, chunk)):
             n = min(chunk, count - start)
             rng = np.random.default_rng([settings.seed, stream, li, ci])
-            o, d, power = light.emit(n, rng)
+            if targets is None:
+                o, d, power = light.emit(n, rng)
+            else:
+                o, d, power = light.emit_towards(n, rng, *targets)
             power *= n / count  # emit() spreads the light's whole flux over this chunk
-            had_diffuse = np.zeros(n, bool)
-            had_specular = np.zeros(n, bool)
+            live = power.max(axis=1) > 0  # e.g. aimed outside a one-sided light's hemisphere
+            if not live.all():
+                o, d, power = o[live], d[live], power[live]
+            had_diffuse = np.zeros(len(o), bool)
+            had_specular = np.zeros(len(o), bool)
             for bounce in range(settings.max_photon_depth):
                 if should_cancel is not None and should_cancel():
                     raise Cancelled()

@@ -8,10 +8,12 @@ import numpy as np
 
 from .accel import Accel
 from .film import Film
+from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, prepare
 from .integrator import render_camera
 from .lights import allocate_photons, prepare_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
+from .sampling import luminance
 from .photons import CAUSTIC, INDIRECT, Cancelled, Photons, trace_photons
 from .scene import Scene
 from .settings import RenderSettings
@@ -28,6 +30,7 @@ class Context:
     global_map: PhotonMap | None = None
     caustic_map: PhotonMap | None = None
     gather_map: GatherMap | None = None
+    plan: EffectPlan | None = None
     global_radius: float = 0.0
     caustic_radius: float = 0.0
 
@@ -68,11 +71,13 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     accel = Accel(geo.vertices32, geo.faces32, threads=settings.threads)
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights)
+    ctx.plan = analyse(scene, geo, table, lights, accel, settings)
+    stats["effects"] = ctx.plan.report()
     phase("prepare", t0)
     stats.update(triangles=geo.count, lights=len(lights), extent=geo.extent)
     try:
         all_photons = Photons.empty()
-        if settings.photon_mapping and lights:
+        if settings.photon_mapping and lights and (ctx.plan.indirect or ctx.plan.caustics):
             all_photons = _photon_pass(ctx, stats, progress, should_cancel)
         t0 = time.perf_counter()
         render_region = (x0, y0, x1, y1)
@@ -92,20 +97,28 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
 
 
 def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
-    s, geo, table = ctx.settings, ctx.geo, ctx.table
+    s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
     t0 = time.perf_counter()
-    counts = allocate_photons(ctx.lights, s.photons)
-    shot = trace_photons(ctx, ctx.lights, counts, caustic_only=False, stream=1,
-                         progress=progress, should_cancel=should_cancel)
-    has_specular = bool(np.any(table.has_specular[geo.material])) if geo.count else False
-    use_caustic_shot = s.caustics and has_specular and s.caustic_photons > 0
+    shot = Photons.empty()
+    # The global shot is needed for indirect light; without a separate caustic shot it
+    # also carries the caustic (L S+ D) photons.
+    if plan.indirect or (plan.caustics and s.caustic_photons == 0):
+        counts = allocate_photons(ctx.lights, s.photons)
+        shot = trace_photons(ctx, ctx.lights, counts, caustic_only=False, stream=1,
+                             progress=progress, should_cancel=should_cancel)
     caustic = Photons.empty()
+    use_caustic_shot = plan.caustics and s.caustic_photons > 0
     if use_caustic_shot:
-        ccounts = allocate_photons(ctx.lights, s.caustic_photons)
+        targets = plan.caster_spheres if (s.aim_caustics and len(plan.caster_spheres[1])) else None
+        if targets is None:
+            ccounts = allocate_photons(ctx.lights, s.caustic_photons)
+        else:
+            ccounts = _allocate_aimed(ctx, targets, s.caustic_photons)
         caustic = trace_photons(ctx, ctx.lights, ccounts, caustic_only=True, stream=2,
-                                progress=progress, should_cancel=should_cancel)
-        # Caustic-map power is per caustic photon emitted: scale is already in the power.
+                                progress=progress, should_cancel=should_cancel, targets=targets)
     stats["time_photons"] = time.perf_counter() - t0
+    stats["photons_emitted"] = shot.emitted
+    stats["caustic_photons_emitted"] = caustic.emitted
     if progress is not None:
         progress("photon_map", 0.0, "Building photon map")
     t0 = time.perf_counter()
@@ -113,33 +126,47 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     diffuse_area = float(geo.area[diffuse_tris].sum())
     k = s.k_nearest
     workers = s.threads
-    if s.final_gather:
-        # Final gathering needs all light at the gathered point: every stored photon.
-        gmap = PhotonMap(shot, workers)
-        r = s.radius or auto_radius(diffuse_area, len(shot), k, geo.extent)
-        ctx.gather_map = GatherMap(gmap, r, k, s.min_photons, s.estimator, seed=s.seed)
-        ctx.global_radius = r
-        stats["global_photons"] = len(shot)
-    else:
-        ctx.global_map = PhotonMap(shot.select(shot.kind == INDIRECT), workers)
-        ctx.global_radius = s.radius or auto_radius(diffuse_area, len(ctx.global_map), k, geo.extent)
-        stats["global_photons"] = len(ctx.global_map)
-    if not s.caustics:
-        ctx.caustic_map = None  # the user switched caustic light off
-    elif use_caustic_shot:
-        ctx.caustic_map = PhotonMap(caustic, workers)
-    else:
-        # No separate shot: L S+ D photons of the global shot still carry caustic light.
-        ctx.caustic_map = PhotonMap(shot.select(shot.kind == CAUSTIC), workers)
-    ctx.caustic_radius = s.radius or auto_radius(diffuse_area, max(len(shot), 1), k, geo.extent)
+    r_auto = auto_radius(diffuse_area, max(len(shot), len(caustic), 1), k, geo.extent)
+    ctx.global_radius = s.radius or auto_radius(diffuse_area, len(shot), k, geo.extent)
+    if plan.indirect:
+        if s.final_gather:
+            # Final gathering needs all light at the gathered point: every stored photon.
+            ctx.gather_map = GatherMap(PhotonMap(shot, workers), ctx.global_radius, k,
+                                       s.min_photons, s.estimator, seed=s.seed)
+            stats["global_photons"] = len(shot)
+        else:
+            ctx.global_map = PhotonMap(shot.select(shot.kind == INDIRECT), workers)
+            ctx.global_radius = s.radius or auto_radius(diffuse_area, len(ctx.global_map), k,
+                                                        geo.extent)
+            stats["global_photons"] = len(ctx.global_map)
+    if plan.caustics:
+        ctx.caustic_map = PhotonMap(caustic if use_caustic_shot
+                                    else shot.select(shot.kind == CAUSTIC), workers)
+    ctx.caustic_radius = s.radius or r_auto
     stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
     stats["radius_global"] = ctx.global_radius
     stats["radius_caustic"] = ctx.caustic_radius
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
-    both = Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
+    return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
                      for f in ("position", "power", "direction", "normal", "kind")))
-    return both
+
+
+def _allocate_aimed(ctx, targets, total):
+    """Caustic photons per light in proportion to the power each sends at the casters
+    (estimated with a small pilot batch of aimed photons)."""
+    rng = np.random.default_rng([ctx.settings.seed, 98])
+    weights = []
+    for light in ctx.lights:
+        _, _, power = light.emit_towards(256, rng, *targets)
+        weights.append(float(luminance(power.sum(axis=0))))
+    w = np.array(weights)
+    if w.sum() <= 0:
+        return [0] * len(ctx.lights)
+    share = w / w.sum() * total
+    counts = np.floor(share).astype(int)
+    counts[np.argsort(-(share - counts))[: total - counts.sum()]] += 1
+    return counts.tolist()
 
 
 def _draw_photons(ctx: Context, film: Film, photons: Photons, region):

@@ -5,6 +5,7 @@ import os
 from dataclasses import dataclass, fields
 
 ESTIMATORS = ("knn_simpson", "knn_cone", "classic")
+EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
 
 
 @dataclass
@@ -26,7 +27,13 @@ class RenderSettings:
     light_samples: int = 1          # shadow rays per light with size, per camera sample
     # Modes
     photon_mapping: bool = True     # False = the paper's plain ray tracer (Fig. 5b)
-    caustics: bool = True
+    # Effects: "auto" lets engine.effects decide from the scene (and say why); "on" / "off"
+    # force them. True / False are accepted for "on" / "off".
+    caustics: str = "auto"          # caustic map (L S+ D light)
+    indirect: str = "auto"          # global map / final gathering (diffuse interreflection)
+    specular: str = "auto"          # camera rays through mirrors and glass
+    soft_shadows: str = "auto"      # several shadow rays for lights with a size
+    aim_caustics: bool = True       # shoot caustic photons only towards mirrors and glass
     show_photons: bool = False      # draw photon hits over the image (Fig. 6 left)
     film_transparent: bool = False  # background not drawn (alpha 0), as Blender's option
     # Reproducibility and resources
@@ -49,6 +56,14 @@ class RenderSettings:
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
                          ("gather_rays", 1)):
             positive_int(name, lo)
+        for name in EFFECT_SWITCHES:
+            v = getattr(self, name)
+            if isinstance(v, bool) or v is None:
+                v = {True: "on", False: "off", None: "auto"}[v]
+            v = str(v).lower()
+            if v not in ("auto", "on", "off"):
+                raise ValueError(f"setting '{name}' must be auto, on or off, got {v!r}")
+            setattr(self, name, v)
         if self.estimator not in ESTIMATORS:
             raise ValueError(f"setting 'estimator' must be one of {', '.join(ESTIMATORS)}, "
                              f"got {self.estimator!r}")
