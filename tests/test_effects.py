@@ -1,0 +1,91 @@
+"""Simulate only the effects a scene calls for, and say why (engine/effects.py)."""
+import numpy as np
+
+from engine import RenderSettings
+from engine.api import PaperScene, cornell_box
+from engine.scene import Material
+from test_scenes import caustic_scene
+
+
+def effects(film):
+    return "\n".join(film.stats["effects"])
+
+
+def relmse(x, ref):
+    return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
+
+
+def test_diffuse_only_scene_traces_no_caustic_photons():
+    s = cornell_box(40, 30, glass_sphere=False)
+    auto = s.render(RenderSettings(photons=20000, spp=4, seed=1))
+    forced = s.render(RenderSettings(photons=20000, spp=4, seed=1, caustics="on"))
+    assert "caustics: off - no specular or refractive materials" in effects(auto)
+    assert auto.stats.get("caustic_photons_emitted", 0) == 0
+    assert "forced on" in effects(forced)
+    assert forced.caustic.max() == 0.0  # nothing to focus light: the forced map stays empty
+    assert relmse(auto.combined, forced.combined) < 0.01
+
+
+def test_mirror_that_no_light_reaches_skips_the_caustic_map():
+    s = PaperScene(width=32, height=24)
+    s.add_plane((0, 0, 0), (0, 0, 1), 10, "white_diffuse", name="floor")
+    s.add_box((0, 0, 2), (3, 3, 0.1), "white_diffuse", name="roof")   # shades the mirror
+    s.add_plane((0, 0, 0.5), (0, 0, 1), 1.0, "mirror", name="hidden_mirror")
+    s.add_rect_area_light((0, 0, 3), (1, 1), power=100)                # faces down onto the roof
+    s.set_camera((0, -6, 3), (0, 0, 0.5))
+    film = s.render(RenderSettings(photons=5000, spp=1))
+    assert "caustics: off - no light reaches the mirror / glass object(s) 'hidden_mirror'" in effects(film)
+    assert film.stats.get("caustic_photons_emitted", 0) == 0
+
+
+def test_black_room_skips_indirect_light():
+    s = PaperScene(width=24, height=24)
+    s.add_material(Material("soot", (0, 0, 0)))
+    s.add_box((0, 0, 1), (4, 4, 2), "soot", name="room")
+    s.add_point_light((0, 0, 1.5), power=100)
+    s.set_camera((0, -1.5, 1), (0, 0, 1), view_angle=70)
+    film = s.render(RenderSettings(photons=5000, spp=1))
+    assert "indirect light (global map): off - no diffuse surface with non-zero albedo" in effects(film)
+    assert film.stats.get("photons_emitted", 0) == 0
+
+
+def test_point_light_and_sun_get_a_single_shadow_ray():
+    s = PaperScene(width=16, height=16)
+    s.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
+    s.add_sphere((0, 0, 1), 0.5, "white_diffuse", name="ball")
+    s.add_point_light((0, 0, 3), power=10, name="Bulb")
+    s.add_sun(strength=1, name="Sun")
+    s.add_rect_area_light((1, 0, 3), (1, 1), power=10, name="Panel")
+    s.set_camera((0, -5, 2), (0, 0, 0.5))
+    text = effects(s.render(RenderSettings(photons=2000, spp=2, light_samples=3)))
+    assert "soft shadows 'Bulb': off - 'Bulb' is a point light of radius 0: one shadow ray" in text
+    assert "soft shadows 'Sun': off" in text
+    assert "soft shadows 'Panel': on - 6 shadow rays per pixel" in text
+
+
+def test_single_plane_needs_no_shadow_rays_and_no_indirect():
+    s = PaperScene(width=16, height=16)
+    s.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
+    s.add_point_light((0, 0, 2), power=10)
+    s.set_camera((0, -3, 2), (0, 0, 0))
+    film = s.render(RenderSettings(photons=2000, spp=1))
+    assert "shadow rays: off" in effects(film) and film.stats["shadow_rays"] == 0
+    assert "cannot light itself" in effects(film)
+    assert film.direct.max() > 0
+
+
+def test_aimed_caustic_photons_are_more_accurate_for_fewer_photons():
+    """Same caustic as uniform emission (unbiased), far less noise per photon."""
+    scene = caustic_scene(48)
+    base = dict(photons=2000, spp=4, seed=3, indirect="off")
+    ref = scene.render(RenderSettings(caustic_photons=400_000, aim_caustics=True, **base)).caustic
+    mask = ref.mean(axis=2) > 0.2 * ref.mean(axis=2).max()  # where the caustic is
+    aimed = scene.render(RenderSettings(caustic_photons=10_000, aim_caustics=True, **base)).caustic
+    uniform = scene.render(RenderSettings(caustic_photons=40_000, aim_caustics=False, **base)).caustic
+    err_aimed = relmse(aimed[mask], ref[mask])
+    err_uniform = relmse(uniform[mask], ref[mask])
+    assert err_aimed <= err_uniform
+    # Unbiased: the caustic's total power agrees with uniform emission (blur moves power
+    # around a little, it does not create or destroy it).
+    ratio = aimed.sum() / uniform.sum()
+    assert 0.9 < ratio < 1.1
