@@ -215,27 +215,34 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     chunk = s.chunk_size
-    for ci, start in enumerate(range(0, total, chunk)):
-        if should_cancel is not None and should_cancel():
-            raise Cancelled()
-        rng = np.random.default_rng([s.seed, 7, ci])
-        sample = np.arange(start, min(total, start + chunk))
-        pix = sample // spp
-        sub = sample % spp
-        cell = sub % (strata * strata)
-        jx = (cell % strata + rng.random(len(sample))) / strata
-        jy = (cell // strata + rng.random(len(sample))) / strata
-        px = x0 + pix % rw
-        py = y0 + pix // rw
-        o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
-        counters.camera_rays += len(o)
-        tp = np.ones((len(o), 3))
-        sampler = StratifiedSampler(sub, pix, spp, rng)
-        _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                     should_cancel, sampler, sub)
-        if progress is not None:
-            done = min(total, start + chunk)
-            progress("render", done / total, f"Rendering {100.0 * done / total:.0f}%")
+    try:
+        for ci, start in enumerate(range(0, total, chunk)):
+            if should_cancel is not None and should_cancel():
+                raise Cancelled()
+            rng = np.random.default_rng([s.seed, 7, ci])
+            sample = np.arange(start, min(total, start + chunk))
+            pix = sample // spp
+            sub = sample % spp
+            cell = sub % (strata * strata)
+            jx = (cell % strata + rng.random(len(sample))) / strata
+            jy = (cell // strata + rng.random(len(sample))) / strata
+            px = x0 + pix % rw
+            py = y0 + pix // rw
+            o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
+            counters.camera_rays += len(o)
+            tp = np.ones((len(o), 3))
+            sampler = StratifiedSampler(sub, pix, spp, rng)
+            _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
+                         should_cancel, sampler, sub)
+            if progress is not None:
+                done = min(total, start + chunk)
+                progress("render", done / total, f"Rendering {100.0 * done / total:.0f}%")
+    finally:
+        _write_film(film, acc, spp, rh, rw)
+    return counters
+
+
+def _write_film(film, acc, spp, rh, rw):
     inv = 1.0 / spp
     for name in Accumulator.NAMES:
         getattr(film, name)[...] = (acc.buf[name] * inv).reshape(rh, rw, 3).astype(np.float32)
@@ -245,7 +252,6 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
         nrm = acc.normal / np.maximum(np.linalg.norm(acc.normal, axis=1), 1e-300)[:, None]
     film.depth[...] = depth.reshape(rh, rw)
     film.normal[...] = nrm.reshape(rh, rw, 3)
-    return counters
 
 
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,

@@ -64,6 +64,12 @@ class PhotonMap:
         for a in range(0, len(busy), rows):
             sel = busy[a:a + rows]
             out[sel] = self._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator)
+            if estimator == "classic":
+                # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius;
+                # the query returned the nearest kq of them. Scale by all / gathered so the
+                # fixed-radius estimate is not capped (stand-in for the missing photons).
+                c = counts[a:a + rows].astype(np.float64)
+                out[sel] *= np.maximum(c / kq, 1.0)[:, None]
         return out
 
     def _estimate(self, p, n, radius, kq, k, min_photons, estimator):
@@ -84,7 +90,11 @@ class PhotonMap:
             # r: distance to the k-th neighbour when k were found, else the search radius.
             full = found[:, -1] & (kq >= k)  # k found inside the radius
             r = np.where(full, dist[:, -1], radius)
-            r = np.maximum(r, 1e-300)[:, None]
+            # k photons on (nearly) the query point, as a focusing lens makes: the k-th
+            # distance is 0 and 1/r^2 would be inf. Floor r at a resolution the float32
+            # photon positions can represent (and far below any useful radius).
+            r_min = np.maximum(1e-6 * np.abs(p).max(axis=1), max(1e-9 * radius, 1e-15))
+            r = np.maximum(r, r_min)[:, None]
             d = np.where(found, dist, 0.0)
             if estimator == "knn_simpson":
                 x = np.clip(1.0 - (d / r) ** 2, 0.0, 1.0)
@@ -92,7 +102,8 @@ class PhotonMap:
             else:  # knn_cone
                 weight = np.where(ok, np.clip(1.0 - d / r, 0.0, 1.0), 0.0)
                 weight = weight / ((1.0 - 2.0 / 3.0) * math.pi * r * r)
-        E = np.einsum("nk,nkc->nc", weight.astype(np.float32), power).astype(np.float64)
+        # float64: weights near a focus exceed float32's range.
+        E = np.einsum("nk,nkc->nc", weight, power.astype(np.float64))
         E[count < min_photons] = 0.0
         return E
 

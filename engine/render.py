@@ -49,6 +49,42 @@ def _check_region(region, width, height):
     return (x0, y0, x1, y1)
 
 
+def prepare_context(scene: Scene, settings: RenderSettings) -> Context:
+    """Validate the scene, merge and re-centre geometry, build the BVH, prepare lights and
+    decide which effects to simulate. One Context serves several passes."""
+    scene.validate()
+    geo, table = prepare(scene)
+    accel = Accel(geo.vertices32, geo.faces32, threads=settings.threads)
+    lights = prepare_lights(scene, geo, table)
+    ctx = Context(scene, settings, geo, table, accel, lights)
+    ctx.plan = analyse(scene, geo, table, lights, accel, settings)
+    return ctx
+
+
+def render_pass(ctx: Context, region, progress=None, should_cancel=None) -> Film:
+    """Photon pass + camera pass with ctx.settings into a new Film (raises Cancelled)."""
+    settings = ctx.settings
+    x0, y0, x1, y1 = region
+    film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
+    stats = film.stats
+    stats["cancelled"] = False
+    ctx.global_map = ctx.caustic_map = ctx.gather_map = None
+    try:
+        all_photons = Photons.empty()
+        if settings.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
+            all_photons = _photon_pass(ctx, stats, progress, should_cancel)
+        t0 = time.perf_counter()
+        counters = render_camera(ctx, region, film, progress, should_cancel)
+        stats["time_camera"] = time.perf_counter() - t0
+        stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
+                     gather_rays=counters.gather_rays, specular_rays=counters.specular_rays)
+        if settings.show_photons:
+            _draw_photons(ctx, film, all_photons, region)
+    except Cancelled:
+        stats["cancelled"] = True  # the film holds what was finished
+    return film
+
+
 def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
            should_cancel=None, region=None) -> Film:
     """Render `scene`. progress(stage, fraction, text) is called as work advances;
@@ -58,40 +94,16 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     settings = settings or RenderSettings()
     t_start = time.perf_counter()
     scene.validate()
-    x0, y0, x1, y1 = _check_region(region, scene.width, scene.height)
-    film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
-    stats = film.stats
-    stats["cancelled"] = False
-
-    def phase(name, t0):
-        stats[f"time_{name}"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    geo, table = prepare(scene)
-    accel = Accel(geo.vertices32, geo.faces32, threads=settings.threads)
-    lights = prepare_lights(scene, geo, table)
-    ctx = Context(scene, settings, geo, table, accel, lights)
-    ctx.plan = analyse(scene, geo, table, lights, accel, settings)
-    stats["effects"] = ctx.plan.report()
-    phase("prepare", t0)
-    stats.update(triangles=geo.count, lights=len(lights), extent=geo.extent)
+    region = _check_region(region, scene.width, scene.height)
+    ctx = prepare_context(scene, settings)
+    t_prepare = time.perf_counter() - t_start
     try:
-        all_photons = Photons.empty()
-        if settings.photon_mapping and lights and (ctx.plan.indirect or ctx.plan.caustics):
-            all_photons = _photon_pass(ctx, stats, progress, should_cancel)
-        t0 = time.perf_counter()
-        render_region = (x0, y0, x1, y1)
-        counters = render_camera(ctx, render_region, film, progress, should_cancel)
-        phase("camera", t0)
-        stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
-                     gather_rays=counters.gather_rays, specular_rays=counters.specular_rays)
-        if settings.show_photons:
-            _draw_photons(ctx, film, all_photons, render_region)
-    except Cancelled:
-        stats["cancelled"] = True
+        film = render_pass(ctx, region, progress, should_cancel)
     finally:
-        accel.close()
-    stats["time_total"] = time.perf_counter() - t_start
+        ctx.accel.close()
+    film.stats.update(effects=ctx.plan.report(), triangles=ctx.geo.count, lights=len(ctx.lights),
+                      extent=ctx.geo.extent, time_prepare=t_prepare,
+                      time_total=time.perf_counter() - t_start)
     film.warnings = scene.all_warnings()
     return film
 
