@@ -5,6 +5,8 @@ Estimators (irradiance E in W/m^2; the caller multiplies by the diffuse albedo /
                max(-d.N, 0), divided by pi r^2; ignored when fewer than the minimum.
                (The cosine weight is the paper's; it darkens light arriving at grazing
                angles, so it is not the default.)
+  radius       all photons within a fixed radius r, Simpson kernel (no cosine weight):
+               the estimator of progressive passes, whose radius shrinks pass by pass
   knn_simpson  k nearest photons within the max radius, Simpson kernel 3/(pi r^2)(1-d^2/r^2)^2
   knn_cone     k nearest, Jensen's cone filter (k=1), normalised by (1 - 2/3) pi r^2
 Photons that arrive from behind the query's surface (d.N >= 0) or lie on a surface facing
@@ -54,7 +56,7 @@ class PhotonMap:
         busy = np.nonzero(np.isfinite(dm[:, -1]) & (len(self.photons) >= min_photons))[0]
         if len(busy) == 0:
             return out
-        if estimator == "classic":
+        if estimator in ("classic", "radius"):
             counts = self.tree.query_ball_point(p[busy], radius, return_length=True,
                                                 workers=self.workers)
             kq = int(min(max(int(counts.max()), 1), MAX_CLASSIC_K, len(self.photons)))
@@ -64,7 +66,7 @@ class PhotonMap:
         for a in range(0, len(busy), rows):
             sel = busy[a:a + rows]
             out[sel] = self._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator)
-            if estimator == "classic":
+            if estimator in ("classic", "radius"):
                 # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius;
                 # the query returned the nearest kq of them. Scale by all / gathered so the
                 # fixed-radius estimate is not capped (stand-in for the missing photons).
@@ -86,6 +88,9 @@ class PhotonMap:
         power = ph.power[safe]
         if estimator == "classic":
             weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
+        elif estimator == "radius":
+            x = np.clip(1.0 - (np.where(found, dist, radius) / radius) ** 2, 0.0, 1.0)
+            weight = np.where(ok, 3.0 / (math.pi * radius * radius) * x * x, 0.0)
         else:
             # r: distance to the k-th neighbour when k were found, else the search radius.
             full = found[:, -1] & (kq >= k)  # k found inside the radius

@@ -144,7 +144,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
         if s.final_gather:
             # Final gathering needs all light at the gathered point: every stored photon.
             ctx.gather_map = GatherMap(PhotonMap(shot, workers), ctx.global_radius, k,
-                                       s.min_photons, s.estimator, seed=s.seed)
+                                       s.min_photons, s.estimator, seed=s.seed,
+                                       accel=ctx.accel, eps=geo.eps)
             stats["global_photons"] = len(shot)
         else:
             ctx.global_map = PhotonMap(shot.select(shot.kind == INDIRECT), workers)

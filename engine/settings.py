@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, fields
 
-ESTIMATORS = ("knn_simpson", "knn_cone", "classic")
+ESTIMATORS = ("knn_simpson", "knn_cone", "classic", "radius")
 EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
 
 
@@ -15,7 +15,7 @@ class RenderSettings:
     caustic_photons: int = 100_000  # photons emitted for the caustic map
     max_photon_depth: int = 8       # bounces a photon may take
     # Radiance estimate
-    estimator: str = "knn_simpson"  # knn_simpson | knn_cone | classic (paper, fixed radius)
+    estimator: str = "knn_simpson"  # knn_simpson | knn_cone | classic (paper) | radius
     radius: float | None = None     # max search radius; None = auto from scene size and density
     min_photons: int = 8            # fewer photons found -> no estimate (paper)
     k_nearest: int = 64             # photons per k-NN estimate

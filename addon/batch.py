@@ -1,0 +1,143 @@
+"""Render a .blend with the Photon Mapping engine from the command line (bpy wheel).
+
+    python -m addon.batch FILE.blend -o out.png [--samples N] [--photons N]
+        [--caustic-photons N] [--resolution-percentage P] [--width W --height H]
+        [--no-photon-mapping] [--show-photons] [--seed S] [--frame F]
+
+The equivalent of `blender --background FILE.blend -E PHOTONMAP -o out -f 1`: opens the
+file, registers the add-on, selects the engine, renders with write_still. The output
+format follows the file extension (.png, .exr, .jpg, .tif). Errors are reported in one
+line on stderr with a non-zero exit status.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
+           ".tif": "TIFF", ".tiff": "TIFF", ".bmp": "BMP"}
+
+
+class BatchError(Exception):
+    pass
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="python -m addon.batch",
+                                description="Render a .blend with the Photon Mapping engine.")
+    p.add_argument("blend", help="the .blend file to render")
+    p.add_argument("-o", "--output", required=True, help="output image (.png, .exr, ...)")
+    p.add_argument("--samples", type=int, help="camera samples per pixel")
+    p.add_argument("--photons", type=int, help="global photons")
+    p.add_argument("--caustic-photons", type=int, help="caustic photons")
+    p.add_argument("--max-depth", type=int, help="max specular ray depth")
+    p.add_argument("--seed", type=int, help="random seed")
+    p.add_argument("--threads", type=int, help="threads (0 = all cores)")
+    p.add_argument("--resolution-percentage", type=int, help="resolution scale in percent")
+    p.add_argument("--width", type=int, help="image width in pixels (before percentage)")
+    p.add_argument("--height", type=int, help="image height in pixels (before percentage)")
+    p.add_argument("--no-photon-mapping", action="store_true",
+                   help="plain ray tracing (direct light only)")
+    p.add_argument("--show-photons", action="store_true", help="draw photon hits")
+    p.add_argument("--frame", type=int, help="frame to render")
+    p.add_argument("--quiet", action="store_true", help="less Blender output")
+    return p.parse_args(argv)
+
+
+def _positive(name, value, lo=1):
+    if value is not None and value < lo:
+        raise BatchError(f"--{name} must be >= {lo}, got {value}")
+
+
+def render_file(args) -> str:
+    blend = os.path.abspath(args.blend)
+    if not os.path.isfile(blend):
+        raise BatchError(f"blend file not found: {args.blend}")
+    out = os.path.abspath(args.output)
+    ext = os.path.splitext(out)[1].lower()
+    if ext not in FORMATS:
+        raise BatchError(f"unsupported output extension '{ext or '(none)'}' "
+                         f"(use one of {', '.join(sorted(FORMATS))})")
+    for name in ("samples", "photons", "caustic_photons", "width", "height",
+                 "resolution_percentage"):
+        _positive(name.replace("_", "-"), getattr(args, name),
+                  0 if "photons" in name else 1)
+    _positive("max-depth", args.max_depth, 0)
+    _positive("seed", args.seed, 0)
+    _positive("threads", args.threads, 0)
+    os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
+
+    try:
+        import bpy
+    except ImportError as exc:
+        raise BatchError(f"cannot import bpy (Blender as a Python module): {exc}") from None
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    if root not in sys.path:
+        sys.path.insert(0, root)
+    import addon
+    from addon.engine import ENGINE_ID
+    if not hasattr(bpy.types.Scene, "photonmap"):
+        addon.register()
+    try:
+        bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
+    except RuntimeError as exc:
+        raise BatchError(f"cannot open {args.blend}: {str(exc).strip()}") from None
+    scene = bpy.context.scene
+    r = scene.render
+    r.engine = ENGINE_ID
+    pm = scene.photonmap
+    if args.samples is not None:
+        pm.spp = args.samples
+    if args.photons is not None:
+        pm.photons = args.photons
+    if args.caustic_photons is not None:
+        pm.caustic_photons = args.caustic_photons
+    if args.max_depth is not None:
+        pm.max_depth = args.max_depth
+    if args.seed is not None:
+        pm.seed = args.seed
+    if args.threads is not None:
+        pm.threads = args.threads
+    if args.no_photon_mapping:
+        pm.photon_mapping = False
+    if args.show_photons:
+        pm.show_photons = True
+    if args.width is not None:
+        r.resolution_x = args.width
+    if args.height is not None:
+        r.resolution_y = args.height
+    if args.resolution_percentage is not None:
+        r.resolution_percentage = args.resolution_percentage
+    if args.frame is not None:
+        scene.frame_set(args.frame)
+    r.image_settings.file_format = FORMATS[ext]
+    r.filepath = out
+    r.use_file_extension = False
+    if scene.camera is None:
+        raise BatchError(f"{args.blend}: the scene has no active camera")
+    try:
+        bpy.ops.render.render(write_still=True)
+    except RuntimeError as exc:
+        msg = " ".join(str(exc).replace("Error:", "").split())
+        raise BatchError(f"render failed: {msg}") from None
+    if not os.path.isfile(out):
+        raise BatchError(f"render finished but {out} was not written")
+    return out
+
+
+def main(argv=None) -> int:
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    t0 = time.perf_counter()
+    try:
+        out = render_file(args)
+    except BatchError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    print(f"wrote {out} ({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,226 @@
+"""The RenderEngine: depsgraph -> export -> engine.render -> Blender render result."""
+from __future__ import annotations
+
+import time
+import traceback
+
+import bpy
+import numpy as np
+
+from . import export
+from .core import load_engine
+
+ENGINE_ID = "PHOTONMAP"
+
+# (Blender pass name, Film attribute, channels, chan_id, type)
+EFFECT_PASSES = (
+    ("Direct", "direct"),
+    ("Indirect", "indirect"),
+    ("Caustic", "caustic"),
+    ("Specular", "specular"),
+    ("Emission", "emission"),
+)
+PHOTON_PASS = ("Photon Hits", "photon_hits")
+MAX_REPORTED_WARNINGS = 20
+BACKGROUND_DEPTH = 1e10  # what Cycles writes for "nothing hit"
+
+# Test hook: a callable polled together with RenderEngine.test_break() (Esc). Headless
+# Blender cannot press Esc, so tests set this to simulate it. None in normal use.
+test_break_hook = None
+# Summary of the most recent render in this process (size, region, stats, warnings):
+# for tests and scripts; the image itself is in Blender's render result.
+last_render: dict = {}
+
+
+def _overall_fraction(stage: str, fraction: float, photon_mapping: bool) -> float:
+    if not photon_mapping:
+        spans = {"export": (0.0, 0.05), "render": (0.05, 0.95)}
+    else:
+        spans = {"export": (0.0, 0.05), "photons": (0.05, 0.30),
+                 "photon_map": (0.35, 0.05), "render": (0.40, 0.60)}
+    base, span = spans.get(stage, (0.0, 1.0))
+    return min(1.0, max(0.0, base + span * min(max(fraction, 0.0), 1.0)))
+
+
+class PhotonMapRenderEngine(bpy.types.RenderEngine):
+    bl_idname = ENGINE_ID
+    bl_label = "Photon Mapping"
+    bl_use_preview = False          # material previews would cost a full photon pass
+    bl_use_postprocess = True
+    bl_use_eevee_viewport = True    # Material Preview shading uses EEVEE
+    bl_use_shading_nodes_custom = False  # standard shader nodes in the node editor
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._last_stats = 0.0
+
+    # --- passes ---------------------------------------------------------------------
+    def update_render_passes(self, scene=None, renderlayer=None):
+        if scene is None or renderlayer is None:
+            return
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        settings = getattr(renderlayer, "photonmap", None)
+        effects = settings is None or settings.use_pass_effects
+        hits = settings is None or settings.use_pass_photon_hits
+        if effects:
+            for name, _ in EFFECT_PASSES:
+                self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
+        if hits:
+            self.register_pass(scene, renderlayer, PHOTON_PASS[0], 3, "RGB", "COLOR")
+        if renderlayer.use_pass_z:
+            self.register_pass(scene, renderlayer, "Depth", 1, "Z", "VALUE")
+        if renderlayer.use_pass_normal:
+            self.register_pass(scene, renderlayer, "Normal", 3, "XYZ", "VECTOR")
+
+    # --- render ---------------------------------------------------------------------
+    def render(self, depsgraph):
+        try:
+            self._render(depsgraph)
+        except Exception as exc:  # noqa: BLE001 - never a traceback dialog
+            traceback.print_exc()
+            msg = _user_message(exc)
+            self.report({"ERROR"}, msg)
+            try:
+                self.error_set(msg)
+            except Exception:  # noqa: BLE001 - older Blender
+                pass
+
+    def _should_cancel(self) -> bool:
+        if self.test_break():
+            return True
+        hook = test_break_hook
+        return bool(hook is not None and hook())
+
+    def _render(self, depsgraph):
+        scene = depsgraph.scene
+        props = scene.photonmap
+        render = scene.render
+        view_layer = depsgraph.view_layer
+        self.update_stats("", "Loading engine")
+        pm = load_engine()
+
+        width, height = export.render_size(render)
+        region = export.border_region(render, width, height)
+
+        def export_progress(done, total):
+            self.update_stats("", f"Exporting {done}/{total} objects")
+            self.update_progress(_overall_fraction("export", done / max(total, 1), True))
+
+        try:
+            pm_scene, info = export.export_scene(
+                pm, depsgraph, camera=self.camera_override, width=width, height=height,
+                progress=export_progress, should_cancel=self._should_cancel)
+        except export.ExportCancelled:
+            last_render.clear()
+            last_render.update(cancelled=True, stats={"cancelled": True}, warnings=[])
+            self.report({"INFO"}, "Photon Mapping: render cancelled during export")
+            return
+
+        settings = pm.RenderSettings(**props.to_settings_kwargs(render.film_transparent))
+
+        def progress(stage, fraction, text):
+            self.update_progress(_overall_fraction(stage, fraction, settings.photon_mapping))
+            now = time.perf_counter()
+            if now - self._last_stats > 0.1 or fraction >= 1.0:
+                self._last_stats = now
+                self.update_stats("", text)
+
+        t0 = time.perf_counter()
+        film = pm.render(pm_scene, settings, progress=progress,
+                         should_cancel=self._should_cancel, region=region)
+        elapsed = time.perf_counter() - t0
+        self._write_result(film, view_layer, render.film_transparent)
+        cancelled = bool(film.stats.get("cancelled"))
+        last_render.clear()
+        last_render.update(width=film.width, height=film.height, full_size=(width, height),
+                           region=region, stats=dict(film.stats), warnings=list(film.warnings),
+                           export=dict(info), cancelled=cancelled, time=elapsed)
+        self.update_progress(1.0)
+        for line in film.stats.get("effects", []) or []:
+            print(f"Photon Mapping: {line}")  # why each effect is on or off
+        warnings = list(film.warnings)
+        for w in warnings[:MAX_REPORTED_WARNINGS]:
+            self.report({"WARNING"}, f"Photon Mapping: {w}")
+        if len(warnings) > MAX_REPORTED_WARNINGS:
+            self.report({"WARNING"}, f"Photon Mapping: {len(warnings) - MAX_REPORTED_WARNINGS}"
+                        " more warnings (see the system console)")
+            for w in warnings[MAX_REPORTED_WARNINGS:]:
+                print(f"Photon Mapping warning: {w}")
+        summary = (f"{info['triangles']} triangles, {info['lights']} lights, "
+                   f"{elapsed:.1f} s")
+        if cancelled:
+            self.report({"INFO"}, f"Photon Mapping: render cancelled ({summary})")
+            self.update_stats("", "Cancelled")
+        else:
+            self.update_stats("", f"Done: {summary}")
+
+    def _add_passes(self, view_layer):
+        """Allocate our passes in the render result (update_render_passes only tells the
+        compositor which sockets exist)."""
+        layer = view_layer.name
+        settings = getattr(view_layer, "photonmap", None)
+        if settings is None or settings.use_pass_effects:
+            for name, _ in EFFECT_PASSES:
+                self.add_pass(name, 3, "RGB", layer=layer)
+        if settings is None or settings.use_pass_photon_hits:
+            self.add_pass(PHOTON_PASS[0], 3, "RGB", layer=layer)
+        if view_layer.use_pass_z:
+            self.add_pass("Depth", 1, "Z", layer=layer)
+        if view_layer.use_pass_normal:
+            self.add_pass("Normal", 3, "XYZ", layer=layer)
+
+    def _write_result(self, film, view_layer, transparent: bool):
+        h, w = film.height, film.width
+        self._add_passes(view_layer)
+        result = self.begin_result(0, 0, w, h, layer=view_layer.name)
+        try:
+            layer = result.layers[0]
+            rgb = film.combined
+            alpha = film.alpha if transparent else np.ones((h, w), np.float32)
+            rgba = np.concatenate([rgb, alpha[:, :, None]], axis=2)
+            buffers = {"Combined": rgba}
+            for name, attr in EFFECT_PASSES + (PHOTON_PASS,):
+                buffers[name] = getattr(film, attr)
+            depth = np.where(np.isfinite(film.depth), film.depth, BACKGROUND_DEPTH)
+            buffers["Depth"] = depth[:, :, None]
+            buffers["Normal"] = film.normal
+            written = set()
+            for p in layer.passes:
+                data = buffers.get(p.name)
+                if data is None or (p.name, p.fullname) in written:
+                    continue
+                written.add((p.name, p.fullname))
+                data = np.asarray(data, dtype=np.float32)
+                if data.shape[2] != p.channels:
+                    continue
+                # Film rows run top to bottom, Blender's bottom to top.
+                flat = np.ascontiguousarray(data[::-1]).reshape(-1)
+                if flat.size != len(p.rect) * p.channels:
+                    raise RuntimeError(f"pass '{p.name}' has {len(p.rect)} pixels, the "
+                                       f"engine produced {w}x{h}")
+                p.rect.foreach_set(flat)
+        finally:
+            self.end_result(result)
+
+
+def _user_message(exc: Exception) -> str:
+    name = type(exc).__name__
+    if isinstance(exc, ModuleNotFoundError):
+        return (f"Photon Mapping could not load '{exc.name}'. The extension bundles it for "
+                "each platform: reinstall the build of the extension for this system.")
+    if isinstance(exc, export.ExportError):
+        return f"Photon Mapping: {exc}"
+    if name == "SceneError":
+        return f"Photon Mapping: the scene cannot be rendered: {exc}"
+    if isinstance(exc, MemoryError):
+        return ("Photon Mapping ran out of memory: lower the photon counts, samples or "
+                "resolution")
+    return f"Photon Mapping failed: {exc} ({name}; details in the system console)"
+
+
+def register():
+    bpy.utils.register_class(PhotonMapRenderEngine)
+
+
+def unregister():
+    bpy.utils.unregister_class(PhotonMapRenderEngine)

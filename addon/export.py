@@ -1,0 +1,325 @@
+"""Evaluated depsgraph -> engine Scene (meshes, instances, lights, camera, world).
+
+Everything is read with foreach_get into numpy arrays; there is no per-vertex Python.
+Geometry of an object that is instanced many times is extracted once and transformed
+per instance.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .materials import MaterialConverter, world_background
+
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+
+
+class ExportCancelled(Exception):
+    """The user pressed Esc while the scene was being exported."""
+
+
+class ExportError(Exception):
+    """The scene cannot be rendered; the message is meant for the user."""
+
+
+# --- geometry -----------------------------------------------------------------------
+
+class LocalGeometry:
+    """Triangles of one evaluated object in its local space."""
+
+    __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles")
+
+    def __init__(self, co, faces, normals, uvs, material_index):
+        self.co = co                    # (V,3) float64
+        self.faces = faces              # (F,3) int64
+        self.normals = normals          # None (flat), (V,3) or (F,3,3)
+        self.uvs = uvs                  # None or (F,3,2)
+        self.material_index = material_index  # (F,) int32
+        self.triangles = len(faces)
+
+
+def _foreach(collection, attr, count, width, dtype):
+    buf = np.empty(count * width, dtype=dtype)
+    if count:
+        collection.foreach_get(attr, buf)
+    return buf.reshape(count, width) if width > 1 else buf
+
+
+def extract_geometry(obj) -> LocalGeometry | None:
+    """Loop triangles, normals, UVs and material indices of an evaluated object."""
+    try:
+        me = obj.to_mesh()
+    except RuntimeError:
+        return None
+    try:
+        if me is None:
+            return None
+        tris = me.loop_triangles
+        nt = len(tris)
+        if nt == 0:
+            return None
+        nv = len(me.vertices)
+        co = _foreach(me.vertices, "co", nv, 3, np.float32).astype(np.float64)
+        faces = _foreach(tris, "vertices", nt, 3, np.int32).astype(np.int64)
+        loops = _foreach(tris, "loops", nt, 3, np.int32)
+        mat_index = _foreach(tris, "material_index", nt, 1, np.int32)
+        domain = getattr(me, "normals_domain", "CORNER")
+        if domain == "FACE":
+            normals = None  # all faces flat: the engine uses geometric normals
+        elif domain == "POINT":
+            normals = _foreach(me.vertex_normals, "vector", nv, 3, np.float32).astype(np.float64)
+        else:
+            if hasattr(me, "corner_normals"):
+                corner = _foreach(me.corner_normals, "vector", len(me.loops), 3, np.float32)
+                normals = corner[loops].astype(np.float64)
+            else:  # Blender < 4.1
+                normals = _foreach(tris, "split_normals", nt, 9, np.float32)
+                normals = normals.reshape(nt, 3, 3).astype(np.float64)
+        uvs = None
+        layers = me.uv_layers
+        if len(layers):
+            layer = next((lay for lay in layers if lay.active_render), None) or layers.active
+            if layer is not None:
+                data = layer.uv if hasattr(layer, "uv") else layer.data
+                attr = "vector" if hasattr(layer, "uv") else "uv"
+                uv = _foreach(data, attr, len(me.loops), 2, np.float32)
+                uvs = uv[loops].astype(np.float64)
+        return LocalGeometry(co, faces, normals, uvs, mat_index)
+    finally:
+        obj.to_mesh_clear()
+
+
+def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
+    """World-space vertices, faces, normals, uvs for one instance."""
+    R = matrix[:3, :3]
+    t = matrix[:3, 3]
+    verts = g.co @ R.T + t
+    faces, normals, uvs = g.faces, g.normals, g.uvs
+    det = np.linalg.det(R)
+    if normals is not None:
+        try:
+            N = np.linalg.inv(R)  # n' = inv(R)^T n  ->  row form: n @ inv(R)
+        except np.linalg.LinAlgError:
+            N = None
+        if N is None:
+            normals = None
+        else:
+            normals = normals @ N
+            length = np.linalg.norm(normals, axis=-1, keepdims=True)
+            normals = normals / np.maximum(length, 1e-30)
+    if det < 0:
+        # Mirrored instance: keep the winding (outside) consistent with the normals.
+        faces = faces[:, [0, 2, 1]]
+        if normals is not None and normals.ndim == 3:
+            normals = normals[:, [0, 2, 1]]
+        if uvs is not None:
+            uvs = uvs[:, [0, 2, 1]]
+    return verts, faces, normals, uvs
+
+
+# --- lights -------------------------------------------------------------------------
+
+def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
+    """Blender light object -> engine Light with Cycles' units (DESIGN.md section 3)."""
+    L = obj.data
+    kind = L.type
+    if kind not in ("POINT", "SPOT", "AREA", "SUN"):
+        warnings.append(f"light '{name}': type {kind} is not supported and skipped")
+        return None
+    color = np.asarray(tuple(L.color)[:3], dtype=np.float64)
+    if getattr(L, "use_temperature", False):
+        color = color * np.asarray(tuple(L.temperature_color)[:3], dtype=np.float64)
+    power = float(L.energy) * 2.0 ** float(getattr(L, "exposure", 0.0))
+    if power <= 0 or not np.any(color > 0):
+        return None
+    R = matrix[:3, :3]
+    pos = matrix[:3, 3]
+    direction = -R[:, 2]
+    axis_u = R[:, 0]
+    if np.linalg.norm(direction) < 1e-12:
+        warnings.append(f"light '{name}': zero scale, skipped")
+        return None
+    kw = dict(name=name, kind=kind, power=power, color=color, position=pos,
+              direction=direction, axis_u=axis_u if np.linalg.norm(axis_u) > 1e-12 else (1, 0, 0),
+              visible_camera=bool(getattr(obj, "visible_camera", False)))
+    if kind in ("POINT", "SPOT"):
+        kw["radius"] = float(L.shadow_soft_size)
+    if kind == "SPOT":
+        kw["spot_size"] = float(L.spot_size)
+        kw["spot_blend"] = float(L.spot_blend)
+    if kind == "AREA":
+        sx = float(np.linalg.norm(R[:, 0]))
+        sy = float(np.linalg.norm(R[:, 1]))
+        shape = L.shape
+        size_y = L.size_y if shape in ("RECTANGLE", "ELLIPSE") else L.size
+        kw.update(shape=shape, size_x=float(L.size) * sx, size_y=float(size_y) * sy)
+        spread = float(getattr(L, "spread", math.pi))
+        if spread < math.pi - 1e-4:
+            warnings.append(f"light '{name}': area light spread "
+                            f"{math.degrees(spread):.0f} deg is not supported; using 180 deg")
+    if kind == "SUN":
+        kw["angle"] = float(L.angle)
+    if hasattr(L, "normalize"):
+        kw["normalize"] = bool(L.normalize)
+    if getattr(L, "use_nodes", False) and L.node_tree is not None:
+        warnings.append(f"light '{name}': light node trees are not supported; using the "
+                        "light's colour and power")
+    if not getattr(L, "use_shadow", True):
+        warnings.append(f"light '{name}': 'cast shadow' off is not supported; it casts shadows")
+    return pm.Light(**kw)
+
+
+# --- camera -------------------------------------------------------------------------
+
+def convert_camera(pm, cam_obj, width: int, height: int, render, warnings: list):
+    if cam_obj is None:
+        raise ExportError("The scene has no active camera: add one and make it active "
+                          "(Ctrl+Numpad 0)")
+    cd = cam_obj.data
+    M = np.array(cam_obj.matrix_world, dtype=np.float64)
+    fit = cd.sensor_fit
+    sensor = cd.sensor_height if fit == "VERTICAL" else cd.sensor_width
+    kind = cd.type
+    if kind == "PANO":
+        warnings.append(f"camera '{cam_obj.name}': panoramic cameras are not supported; "
+                        "rendering as perspective")
+        kind = "PERSP"
+    fov = 2.0 * math.atan(sensor / (2.0 * cd.lens))
+    # Blender's shift is in units of the sensor-fit dimension; the engine's in units of
+    # the larger image dimension.
+    fit_dim = {"HORIZONTAL": width, "VERTICAL": height}.get(fit, max(width, height))
+    shift_scale = fit_dim / max(width, height)
+    if getattr(cd, "dof", None) is not None and cd.dof.use_dof:
+        warnings.append(f"camera '{cam_obj.name}': depth of field is not supported; "
+                        "everything is in focus")
+    if abs(render.pixel_aspect_x - render.pixel_aspect_y) > 1e-6:
+        warnings.append("non-square pixel aspect is not supported; using square pixels")
+    return pm.Camera(position=M[:3, 3], rotation=M[:3, :3], fov=fov, kind=kind,
+                     ortho_scale=cd.ortho_scale, shift_x=cd.shift_x * shift_scale,
+                     shift_y=cd.shift_y * shift_scale, sensor_fit=fit,
+                     clip_start=cd.clip_start, clip_end=cd.clip_end)
+
+
+# --- scene --------------------------------------------------------------------------
+
+def render_size(render) -> tuple[int, int]:
+    """Output size in pixels with the resolution percentage applied."""
+    pct = render.resolution_percentage / 100.0
+    return max(1, int(render.resolution_x * pct)), max(1, int(render.resolution_y * pct))
+
+
+def border_region(render, width: int, height: int):
+    """Render border as engine region (x0, y0, x1, y1), top-left origin, or None.
+
+    Same rounding as Blender (render_init_from_main: border * size, truncated)."""
+    if not render.use_border:
+        return None
+    x0 = int(render.border_min_x * width)
+    x1 = int(render.border_max_x * width)
+    yb0 = int(render.border_min_y * height)
+    yb1 = int(render.border_max_y * height)
+    if x1 <= x0 or yb1 <= yb0:
+        return None
+    if (x0, yb0, x1, yb1) == (0, 0, width, height):
+        return None
+    return (x0, height - yb1, x1, height - yb0)
+
+
+def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=None,
+                 should_cancel=None):
+    """Build an engine Scene from an evaluated depsgraph.
+
+    progress(done, total) is called per object; should_cancel() is polled and raises
+    ExportCancelled when it returns True. Returns (scene, info dict)."""
+    scene_eval = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
+    scene_orig = depsgraph.scene
+    render = scene_orig.render
+    if width is None or height is None:
+        width, height = render_size(render)
+    warnings: list[str] = []
+    converter = MaterialConverter(pm)
+    materials: dict = {}
+    meshes = []
+    lights = []
+    cache: dict = {}
+    info = dict(objects=0, instances=0, triangles=0, lights=0, export_time=0.0)
+    t0 = time.perf_counter()
+
+    # Instance handles are only valid while iterating: count first, then convert.
+    total = sum(1 for _ in depsgraph.object_instances)
+    last_poll = time.perf_counter()
+    hair_warned = set()
+    for i, inst in enumerate(depsgraph.object_instances):
+        now = time.perf_counter()
+        if should_cancel is not None and now - last_poll > 0.2:
+            last_poll = now
+            if should_cancel():
+                raise ExportCancelled()
+        if progress is not None and (i % 16 == 0 or i == total - 1):
+            progress(i + 1, total)
+        obj = inst.object
+        otype = obj.type
+        if not inst.is_instance and not getattr(inst, "show_self", True):
+            continue
+        if otype == "LIGHT":
+            matrix = np.array(inst.matrix_world, dtype=np.float64)
+            name = obj.name if not inst.is_instance else \
+                f"{inst.parent.name}/{obj.name}.{len(lights)}"
+            light = convert_light(pm, obj, matrix, name, warnings)
+            if light is not None:
+                lights.append(light)
+            continue
+        if otype == "CURVES" and obj.name not in hair_warned:
+            hair_warned.add(obj.name)
+            warnings.append(f"object '{obj.name}': hair curves are not supported and skipped")
+            continue
+        if otype not in GEOMETRY_TYPES:
+            continue
+        if getattr(obj, "is_holdout", False):
+            warnings.append(f"object '{obj.name}': holdout is not supported; rendered normally")
+        data = getattr(obj, "data", None)
+        key = (obj.name, data.as_pointer() if data is not None else 0)
+        if key not in cache:
+            cache[key] = extract_geometry(obj)
+        geo = cache[key]
+        if geo is None:
+            continue
+        # Materials per slot (object- or data-linked), as the evaluated object sees them.
+        slot_mats = [slot.material for slot in obj.material_slots]
+        if not slot_mats:
+            slot_mats = [None]
+        names = []
+        for mat in slot_mats:
+            m = converter.convert(mat)
+            materials[m.name] = m
+            names.append(m.name)
+        mids = np.clip(geo.material_index, 0, len(names) - 1)
+        matrix = np.array(inst.matrix_world, dtype=np.float64)
+        verts, faces, normals, uvs = transform_geometry(geo, matrix)
+        if inst.is_instance:
+            parent = inst.parent.name if inst.parent is not None else "instance"
+            name = f"{parent}/{obj.name}#{info['instances']}"
+            info["instances"] += 1
+        else:
+            name = obj.name
+        info["objects"] += 1
+        meshes.append(pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
+                              uvs=uvs, materials=names, material_ids=mids))
+        info["triangles"] += len(faces)
+
+    cam_obj = camera if camera is not None else scene_eval.camera
+    if cam_obj is not None:
+        cam_obj = cam_obj.evaluated_get(depsgraph)
+    camera_out = convert_camera(pm, cam_obj, width, height, render, warnings)
+    background = world_background(scene_eval.world, warnings)
+    if render.use_motion_blur:
+        warnings.append("motion blur is not supported and ignored")
+    scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
+                     width=width, height=height, background=background,
+                     background_is_light=True)
+    scene.warnings.extend(warnings)
+    info["lights"] = len(lights)
+    info["export_time"] = time.perf_counter() - t0
+    return scene, info

@@ -1,0 +1,403 @@
+"""Blender materials (shader node trees) -> engine materials.
+
+Supported: Principled BSDF, Diffuse, Glossy, Glass, Refraction, Emission, Transparent,
+Mix Shader and Add Shader of those, an Image Texture (or RGB / Value node, through
+reroutes) on colour inputs. Anything else falls back to its nearest approximation (the
+material's viewport colour when nothing else is known) and is reported once per material
+and node in a warning that names both.
+"""
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
+                     "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
+                     "MIX_SHADER", "ADD_SHADER")
+MAX_NODE_DEPTH = 32
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    c = np.asarray(c, dtype=np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+class Closure:
+    """Engine material parameters gathered from a shader sub-tree."""
+
+    __slots__ = ("base_color", "metallic", "roughness", "transmission", "ior", "specular",
+                 "emission", "alpha", "texture", "has_bsdf")
+
+    def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
+                 transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
+                 alpha=1.0, texture=None, has_bsdf=True):
+        self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
+        self.metallic = float(metallic)
+        self.roughness = float(roughness)
+        self.transmission = float(transmission)
+        self.ior = float(ior)
+        self.specular = float(specular)
+        self.emission = np.asarray(emission, dtype=np.float64)[:3]
+        self.alpha = float(alpha)
+        self.texture = texture
+        self.has_bsdf = has_bsdf
+
+
+def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
+    """Mix two closures with weights wa, wb (wa + wb = 1 for Mix Shader).
+
+    Alpha and emission mix linearly; the surface (BSDF) parameters are weighted by each
+    side's opacity, so mixing with a Transparent BSDF only changes coverage."""
+    out = Closure()
+    out.alpha = wa * a.alpha + wb * b.alpha
+    out.emission = wa * a.emission + wb * b.emission
+    sa = wa * a.alpha if a.has_bsdf else 0.0
+    sb = wb * b.alpha if b.has_bsdf else 0.0
+    # An emission-only closure is black as a surface: it dilutes the BSDF's colour.
+    da = wa * a.alpha if not a.has_bsdf else 0.0
+    db = wb * b.alpha if not b.has_bsdf else 0.0
+    total = sa + sb
+    if total <= 0:
+        out.base_color = np.zeros(3)
+        out.has_bsdf = False
+        out.texture = a.texture if a.texture is not None else b.texture
+        return out
+    ta, tb = sa / total, sb / total
+    for name in ("metallic", "roughness", "transmission", "ior", "specular"):
+        setattr(out, name, ta * getattr(a, name) + tb * getattr(b, name))
+    out.base_color = (ta * a.base_color + tb * b.base_color) * (total / (total + da + db))
+    out.texture = a.texture if (a.texture is not None and sa > 0) else (
+        b.texture if sb > 0 else None)
+    return out
+
+
+class MaterialConverter:
+    """Converts Blender materials once each; keeps loaded images in a cache."""
+
+    def __init__(self, pm):
+        self.pm = pm            # the engine package
+        self.images = {}        # image name -> HxWx3 float32 (or None)
+        self.cache = {}         # material name -> engine Material
+
+    # --- public -------------------------------------------------------------------
+    def convert(self, mat) -> "pm.Material":
+        """Engine Material for a Blender material (None = engine default)."""
+        key = mat.name if mat is not None else "default"
+        if key in self.cache:
+            return self.cache[key]
+        warnings: list[str] = []
+        if mat is None:
+            closure = Closure()
+        else:
+            closure = self._material_closure(mat, warnings)
+        m = self.pm.Material(
+            name=key,
+            base_color=np.clip(closure.base_color, 0.0, None),
+            metallic=closure.metallic, roughness=closure.roughness,
+            transmission=closure.transmission, ior=closure.ior if closure.ior > 0 else 1.5,
+            specular=closure.specular, emission=np.clip(closure.emission, 0.0, None),
+            alpha=closure.alpha, texture=closure.texture)
+        m.warnings[:0] = warnings
+        self.cache[key] = m
+        return m
+
+    # --- internals ----------------------------------------------------------------
+    def _viewport(self, mat) -> Closure:
+        return Closure(base_color=tuple(mat.diffuse_color)[:3], metallic=mat.metallic,
+                       roughness=mat.roughness, specular=0.0)
+
+    def _material_closure(self, mat, warnings) -> Closure:
+        self._mat = mat
+        self._warnings = warnings
+        self._warned = set()
+        nt = mat.node_tree
+        # Blender 5 always uses the node tree (use_nodes is deprecated there).
+        use_nodes = bpy.app.version >= (5, 0, 0) or getattr(mat, "use_nodes", True)
+        if nt is None or not use_nodes:
+            return Closure(base_color=tuple(mat.diffuse_color)[:3], roughness=mat.roughness)
+        out = None
+        for target in ("CYCLES", "ALL", "EEVEE"):
+            try:
+                out = nt.get_output_node(target)
+            except Exception:  # noqa: BLE001 - older API
+                out = None
+            if out is not None:
+                break
+        if out is None:
+            outs = [n for n in nt.nodes if n.type == "OUTPUT_MATERIAL"]
+            out = outs[0] if outs else None
+        if out is None:
+            self._warn(f"material '{mat.name}': no Material Output node; "
+                       "using the viewport colour")
+            return self._viewport(mat)
+        surface = out.inputs.get("Surface")
+        if surface is None or not surface.is_linked:
+            # Cycles renders an unconnected surface black.
+            return Closure(base_color=(0.0, 0.0, 0.0))
+        if out.inputs.get("Displacement") is not None and out.inputs["Displacement"].is_linked:
+            self._warn(f"material '{mat.name}': displacement is not supported and ignored")
+        if out.inputs.get("Volume") is not None and out.inputs["Volume"].is_linked:
+            self._warn(f"material '{mat.name}': volume shaders are not supported and ignored")
+        return self._shader(self._source(surface), 0)
+
+    def _warn(self, text):
+        if text not in self._warned:
+            self._warned.add(text)
+            self._warnings.append(text)
+
+    def _unsupported(self, node, what="node"):
+        self._warn(f"material '{self._mat.name}': {what} '{node.name}' ({node.type}) is not "
+                   "supported; using the material's viewport colour")
+
+    @staticmethod
+    def _source(socket):
+        """(node, output socket) feeding an input socket, following reroutes."""
+        if not socket.is_linked or not socket.links:
+            return None
+        link = socket.links[0]
+        if not getattr(link, "is_valid", True) or getattr(link, "is_muted", False):
+            return None
+        node, out = link.from_node, link.from_socket
+        depth = 0
+        while node.type == "REROUTE" and depth < MAX_NODE_DEPTH:
+            inp = node.inputs[0]
+            if not inp.is_linked:
+                return None
+            link = inp.links[0]
+            node, out = link.from_node, link.from_socket
+            depth += 1
+        return (node, out)
+
+    def _shader(self, src, depth) -> Closure:
+        if src is None:
+            return Closure(base_color=(0.0, 0.0, 0.0), has_bsdf=False)
+        node, _ = src
+        if depth > MAX_NODE_DEPTH:
+            self._warn(f"material '{self._mat.name}': shader tree too deep at node "
+                       f"'{node.name}'")
+            return self._viewport(self._mat)
+        if getattr(node, "mute", False):
+            # A muted shader node passes its first shader input through (or nothing).
+            for inp in node.inputs:
+                if inp.type == "SHADER":
+                    return self._shader(self._source(inp), depth + 1)
+            return Closure(base_color=(0.0, 0.0, 0.0), has_bsdf=False)
+        t = node.type
+        inp = node.inputs
+        if t == "BSDF_PRINCIPLED":
+            base, tex = self._color(node, "Base Color")
+            c = Closure(base_color=base, texture=tex,
+                        metallic=self._float(node, "Metallic"),
+                        roughness=self._float(node, "Roughness"),
+                        transmission=self._float(node, "Transmission Weight"),
+                        ior=self._float(node, "IOR", 1.5),
+                        specular=min(1.0, 2.0 * self._float(node, "Specular IOR Level", 0.5)),
+                        alpha=self._float(node, "Alpha", 1.0))
+            strength = self._float(node, "Emission Strength", 0.0)
+            if strength > 0:
+                ecol, etex = self._color(node, "Emission Color")
+                if etex is not None:
+                    self._warn(f"material '{self._mat.name}': texture on 'Emission Color' of "
+                               f"node '{node.name}' is not supported; using white")
+                c.emission = np.asarray(ecol) * strength
+            for name in ("Subsurface Weight", "Coat Weight", "Sheen Weight"):
+                if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
+                    self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
+                               "is not supported and ignored")
+            self._check_normal(node)
+            return c
+        if t == "BSDF_DIFFUSE":
+            base, tex = self._color(node, "Color")
+            self._check_normal(node)
+            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0)
+        if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
+            base, tex = self._color(node, "Color")
+            self._check_normal(node)
+            return Closure(base_color=base, texture=tex, metallic=1.0,
+                           roughness=self._float(node, "Roughness"))
+        if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
+            base, tex = self._color(node, "Color")
+            self._check_normal(node)
+            return Closure(base_color=base, texture=tex, transmission=1.0, specular=1.0,
+                           roughness=self._float(node, "Roughness"),
+                           ior=self._float(node, "IOR", 1.5))
+        if t == "EMISSION":
+            col, tex = self._color(node, "Color")
+            if tex is not None:
+                self._warn(f"material '{self._mat.name}': texture on 'Color' of node "
+                           f"'{node.name}' is not supported; using white")
+            strength = self._float(node, "Strength", 1.0)
+            return Closure(base_color=(0.0, 0.0, 0.0), emission=np.asarray(col) * strength,
+                           has_bsdf=False)
+        if t == "BSDF_TRANSPARENT":
+            col, _ = self._color(node, "Color")
+            if np.any(np.abs(np.asarray(col) - 1.0) > 1e-3):
+                self._warn(f"material '{self._mat.name}': tinted Transparent BSDF "
+                           f"'{node.name}' is treated as clear")
+            return Closure(alpha=0.0)
+        if t == "MIX_SHADER":
+            fac = self._float_socket(node, inp[0], 0.5)
+            fac = min(max(fac, 0.0), 1.0)
+            a = self._shader(self._source(inp[1]), depth + 1)
+            b = self._shader(self._source(inp[2]), depth + 1)
+            return _blend(a, b, 1.0 - fac, fac)
+        if t == "ADD_SHADER":
+            a = self._shader(self._source(inp[0]), depth + 1)
+            b = self._shader(self._source(inp[1]), depth + 1)
+            if a.has_bsdf and b.has_bsdf:
+                self._warn(f"material '{self._mat.name}': Add Shader '{node.name}' of two "
+                           "surfaces is approximated by an even mix")
+                out = _blend(a, b, 0.5, 0.5)
+                out.emission = a.emission + b.emission
+                return out
+            out = a if a.has_bsdf else b
+            other = b if a.has_bsdf else a
+            res = Closure(base_color=out.base_color, metallic=out.metallic,
+                          roughness=out.roughness, transmission=out.transmission,
+                          ior=out.ior, specular=out.specular,
+                          emission=a.emission + b.emission,
+                          alpha=max(out.alpha, other.alpha), texture=out.texture,
+                          has_bsdf=out.has_bsdf)
+            return res
+        self._unsupported(node)
+        return self._viewport(self._mat)
+
+    def _check_normal(self, node):
+        s = node.inputs.get("Normal")
+        if s is not None and s.is_linked:
+            self._warn(f"material '{self._mat.name}': 'Normal' input of node '{node.name}' "
+                       "(bump/normal map) is not supported and ignored")
+
+    def _float(self, node, name, default=0.0) -> float:
+        s = node.inputs.get(name)
+        if s is None:
+            return float(default)
+        return self._float_socket(node, s, default)
+
+    def _float_socket(self, node, socket, default) -> float:
+        src = self._source(socket)
+        if src is not None:
+            n, out = src
+            if n.type == "VALUE":
+                return float(out.default_value)
+            self._warn(f"material '{self._mat.name}': input '{socket.name}' of node "
+                       f"'{node.name}' is driven by node '{n.name}' ({n.type}), which is not "
+                       "supported; using the input's own value")
+        try:
+            v = socket.default_value
+            return float(v if np.ndim(v) == 0 else np.mean(tuple(v)[:3]))
+        except (AttributeError, TypeError):
+            return float(default)
+
+    def _color(self, node, name):
+        """(rgb, texture or None) for a colour input."""
+        s = node.inputs.get(name)
+        if s is None:
+            return np.array([0.8, 0.8, 0.8]), None
+        src = self._source(s)
+        if src is not None:
+            n, out = src
+            if n.type == "RGB":
+                return np.asarray(tuple(out.default_value)[:3], dtype=np.float64), None
+            if n.type == "TEX_IMAGE":
+                tex = self._image(n)
+                if tex is not None:
+                    if n.inputs.get("Vector") is not None and n.inputs["Vector"].is_linked:
+                        self._warn(f"material '{self._mat.name}': the 'Vector' input of image "
+                                   f"node '{n.name}' is ignored; the active UV map is used")
+                    if out.name == "Alpha":
+                        self._warn(f"material '{self._mat.name}': the 'Alpha' output of image "
+                                   f"node '{n.name}' is not supported; using its colour")
+                    return np.ones(3), tex
+            else:
+                self._warn(f"material '{self._mat.name}': input '{name}' of node "
+                           f"'{node.name}' is driven by node '{n.name}' ({n.type}), which is "
+                           "not supported; using the input's own colour")
+        try:
+            return np.asarray(tuple(s.default_value)[:3], dtype=np.float64), None
+        except (AttributeError, TypeError):
+            return np.array([0.8, 0.8, 0.8]), None
+
+    def _image(self, node):
+        img = node.image
+        if img is None:
+            self._warn(f"material '{self._mat.name}': image node '{node.name}' has no image")
+            return None
+        if img.name in self.images:
+            return self.images[img.name]
+        tex = None
+        try:
+            w, h = img.size
+            ch = img.channels
+            if w * h == 0 or ch == 0:
+                raise ValueError("image has no pixels (missing file?)")
+            buf = np.empty(w * h * ch, dtype=np.float32)
+            img.pixels.foreach_get(buf)
+            buf = buf.reshape(h, w, ch)[::-1]  # Blender rows run bottom to top
+            if ch >= 3:
+                rgb = buf[:, :, :3]
+            else:
+                rgb = np.repeat(buf[:, :, :1], 3, axis=2)
+            space = img.colorspace_settings.name
+            if not img.is_float:
+                # Byte buffers hold the file's encoded values: decode sRGB here.
+                if space in ("sRGB", "sRGB EOTF", "Filmic sRGB", "AgX Base sRGB"):
+                    rgb = srgb_to_linear(rgb)
+                elif space not in ("Non-Color", "Linear Rec.709", "Linear", "Raw",
+                                   "Linear CIE-XYZ E", "Linear Rec.2020"):
+                    self._warn(f"material '{self._mat.name}': image '{img.name}' colour "
+                               f"space '{space}' is treated as sRGB")
+                    rgb = srgb_to_linear(rgb)
+            tex = np.ascontiguousarray(rgb, dtype=np.float32)
+        except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
+            self._warn(f"material '{self._mat.name}': image '{img.name}' in node "
+                       f"'{node.name}' could not be read ({exc}); using the input colour")
+            tex = None
+        self.images[img.name] = tex
+        return tex
+
+
+def world_background(world, warnings: list) -> np.ndarray:
+    """Constant background radiance from the world (Background colour x strength)."""
+    if world is None:
+        return np.zeros(3)
+    use_nodes = bpy.app.version >= (5, 0, 0) or getattr(world, "use_nodes", True)
+    nt = world.node_tree if use_nodes else None
+    if nt is None:
+        return np.asarray(tuple(world.color)[:3], dtype=np.float64)
+    out = None
+    for target in ("CYCLES", "ALL", "EEVEE"):
+        try:
+            out = nt.get_output_node(target)
+        except Exception:  # noqa: BLE001
+            out = None
+        if out is not None:
+            break
+    if out is None:
+        outs = [n for n in nt.nodes if n.type == "OUTPUT_WORLD"]
+        out = outs[0] if outs else None
+    if out is None or not out.inputs["Surface"].is_linked:
+        return np.zeros(3)
+    node = out.inputs["Surface"].links[0].from_node
+    while node.type == "REROUTE" and node.inputs[0].is_linked:
+        node = node.inputs[0].links[0].from_node
+    if node.type != "BACKGROUND":
+        warnings.append(f"world '{world.name}': surface node '{node.name}' ({node.type}) is "
+                        "not supported; using the world viewport colour as background")
+        return np.asarray(tuple(world.color)[:3], dtype=np.float64)
+    col_socket = node.inputs["Color"]
+    color = np.asarray(tuple(col_socket.default_value)[:3], dtype=np.float64)
+    if col_socket.is_linked:
+        src = col_socket.links[0].from_node
+        if src.type == "RGB":
+            color = np.asarray(tuple(src.outputs[0].default_value)[:3], dtype=np.float64)
+        else:
+            warnings.append(f"world '{world.name}': node '{src.name}' ({src.type}) plugged "
+                            f"into the Background colour is not supported (only a constant "
+                            f"background is); using the colour {color.round(3).tolist()}")
+    strength_socket = node.inputs["Strength"]
+    strength = float(strength_socket.default_value)
+    if strength_socket.is_linked:
+        warnings.append(f"world '{world.name}': a node plugged into the Background strength "
+                        f"is not supported; using {strength:g}")
+    return np.clip(color * strength, 0.0, None)

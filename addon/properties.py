@@ -1,0 +1,143 @@
+"""Render settings stored on the scene (scene.photonmap) and on each view layer.
+
+Defaults mirror engine.settings.RenderSettings so a .blend renders like the CLI.
+"""
+import bpy
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty,
+                       PointerProperty)
+
+ESTIMATOR_ITEMS = (
+    ("knn_simpson", "k-NN (Simpson kernel)",
+     "Gather the k nearest photons and weight them with a smooth Simpson kernel "
+     "(least blotchy)"),
+    ("knn_cone", "k-NN (cone filter)",
+     "Gather the k nearest photons and weight them with Jensen's cone filter"),
+    ("classic", "Classic (paper)",
+     "The paper's estimate: all photons inside the search radius, divided by pi r^2"),
+    ("radius", "Fixed Radius (Simpson)",
+     "All photons inside the search radius, weighted with the Simpson kernel"),
+)
+EFFECT_ITEMS = (
+    ("auto", "Auto", "Let the engine decide from the scene (the render log says why)"),
+    ("on", "On", "Always compute this effect"),
+    ("off", "Off", "Never compute this effect"),
+)
+
+
+class PhotonMapRenderSettings(bpy.types.PropertyGroup):
+    # Pass 1: photons
+    photons: IntProperty(
+        name="Photons", default=200_000, min=0, soft_max=5_000_000,
+        description="Photons emitted for the global photon map (shared by all lights in "
+                    "proportion to their power)")
+    caustic_photons: IntProperty(
+        name="Caustic Photons", default=100_000, min=0, soft_max=5_000_000,
+        description="Photons emitted towards glass and mirrors for the caustic map")
+    max_photon_depth: IntProperty(
+        name="Max Photon Depth", default=8, min=1, max=128,
+        description="Bounces a photon may take before it is dropped")
+    # Radiance estimate
+    estimator: EnumProperty(
+        name="Estimator", items=ESTIMATOR_ITEMS, default="knn_simpson",
+        description="How photons near a point are turned into radiance")
+    use_auto_radius: BoolProperty(
+        name="Auto Radius", default=True,
+        description="Derive the maximum photon search radius from scene size and photon "
+                    "density")
+    radius: FloatProperty(
+        name="Search Radius", default=0.1, min=1e-6, soft_max=10.0, subtype="DISTANCE",
+        unit="LENGTH", precision=4,
+        description="Maximum photon search radius (used when Auto Radius is off)")
+    min_photons: IntProperty(
+        name="Min Photons", default=8, min=1, max=10_000,
+        description="Fewer photons than this in range: no estimate (as in the paper)")
+    k_nearest: IntProperty(
+        name="Nearest Photons", default=64, min=1, max=10_000,
+        description="Photons gathered per k-nearest estimate")
+    final_gather: BoolProperty(
+        name="Final Gather", default=True,
+        description="Estimate indirect light by gather rays into the global map "
+                    "(smoother) instead of reading the map directly")
+    gather_rays: IntProperty(
+        name="Gather Rays", default=1, min=1, max=256,
+        description="Final-gather rays per camera sample")
+    # Pass 2: camera
+    spp: IntProperty(
+        name="Samples", default=64, min=1, soft_max=1024, max=65536,
+        description="Camera samples per pixel (jittered, anti-aliasing)")
+    max_depth: IntProperty(
+        name="Max Ray Depth", default=8, min=0, max=128,
+        description="Maximum specular bounces (mirror, glass) along a camera path")
+    light_samples: IntProperty(
+        name="Light Samples", default=1, min=1, max=256,
+        description="Shadow rays per light with a size, per camera sample (soft shadows)")
+    # Modes
+    photon_mapping: BoolProperty(
+        name="Photon Mapping", default=True,
+        description="Off: plain ray tracing with direct light only (the paper's Fig. 5b)")
+    caustics: EnumProperty(
+        name="Caustics", items=EFFECT_ITEMS, default="auto",
+        description="Light focused by glass and mirrors onto diffuse surfaces (caustic map)")
+    indirect: EnumProperty(
+        name="Indirect Light", items=EFFECT_ITEMS, default="auto",
+        description="Diffuse interreflection from the global photon map / final gathering")
+    specular: EnumProperty(
+        name="Specular", items=EFFECT_ITEMS, default="auto",
+        description="Camera rays continued through mirrors and glass")
+    soft_shadows: EnumProperty(
+        name="Soft Shadows", items=EFFECT_ITEMS, default="auto",
+        description="Several shadow rays for lights with a size")
+    aim_caustics: BoolProperty(
+        name="Aim Caustic Photons", default=True,
+        description="Shoot caustic photons only towards mirrors and glass")
+    show_photons: BoolProperty(
+        name="Show Photon Hits", default=False,
+        description="Draw the stored photon hits over the image (the paper's Fig. 6, left)")
+    seed: IntProperty(
+        name="Seed", default=0, min=0,
+        description="Random seed: the same seed and settings give the same image")
+    threads: IntProperty(
+        name="Threads", default=0, min=0, max=1024,
+        description="Threads for ray tracing and photon search; 0 = all cores")
+
+    def to_settings_kwargs(self, film_transparent=False):
+        """Keyword arguments for engine.settings.RenderSettings."""
+        return dict(
+            photons=self.photons, caustic_photons=self.caustic_photons,
+            max_photon_depth=self.max_photon_depth, estimator=self.estimator,
+            radius=None if self.use_auto_radius else float(self.radius),
+            min_photons=self.min_photons, k_nearest=self.k_nearest,
+            final_gather=self.final_gather, gather_rays=self.gather_rays,
+            spp=self.spp, max_depth=self.max_depth, light_samples=self.light_samples,
+            photon_mapping=self.photon_mapping, caustics=self.caustics,
+            indirect=self.indirect, specular=self.specular, soft_shadows=self.soft_shadows,
+            aim_caustics=self.aim_caustics,
+            show_photons=self.show_photons, seed=self.seed, workers=self.threads,
+            film_transparent=bool(film_transparent))
+
+
+class PhotonMapViewLayerSettings(bpy.types.PropertyGroup):
+    use_pass_effects: BoolProperty(
+        name="Effect Passes", default=True,
+        description="Write Direct, Indirect, Caustic, Specular and Emission passes "
+                    "(they sum to Combined)")
+    use_pass_photon_hits: BoolProperty(
+        name="Photon Hits", default=True,
+        description="Write a pass with the stored photon hits drawn as dots")
+
+
+classes = (PhotonMapRenderSettings, PhotonMapViewLayerSettings)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.photonmap = PointerProperty(type=PhotonMapRenderSettings)
+    bpy.types.ViewLayer.photonmap = PointerProperty(type=PhotonMapViewLayerSettings)
+
+
+def unregister():
+    del bpy.types.ViewLayer.photonmap
+    del bpy.types.Scene.photonmap
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

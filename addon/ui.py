@@ -1,0 +1,178 @@
+"""Panels: our settings in Render / View Layer Properties, and Blender's standard panels
+(format, output, camera, light, material, world) enabled for our engine."""
+import bpy
+
+from .engine import ENGINE_ID
+
+# Standard panels written for EEVEE that also describe what we render.
+EXTRA_COMPAT_PANELS = (
+    "DATA_PT_EEVEE_light",
+    "EEVEE_MATERIAL_PT_context_material",
+    "EEVEE_MATERIAL_PT_surface",
+    "EEVEE_WORLD_PT_surface",
+)
+# BLENDER_RENDER panels that make no sense for us.
+EXCLUDED_PANELS = {
+    "DATA_PT_camera_dof", "DATA_PT_camera_dof_aperture", "DATA_PT_falloff_curve",
+    "DATA_PT_light", "DATA_PT_preview", "DATA_PT_area",
+    "DATA_PT_sunsky", "DATA_PT_shadow", "DATA_PT_lightprobe", "DATA_PT_lightprobe_display",
+    "DATA_PT_lightprobe_parallax", "DATA_PT_lightprobe_visibility",
+    "DATA_PT_context_lightprobe", "MATERIAL_PT_freestyle_line",
+    "EEVEE_MATERIAL_PT_viewport_settings",
+}
+
+
+def get_panels():
+    panels = []
+    for panel in bpy.types.Panel.__subclasses__():
+        compat = getattr(panel, "COMPAT_ENGINES", None)
+        if compat is None:
+            continue
+        name = panel.__name__
+        if name in EXCLUDED_PANELS:
+            continue
+        if "BLENDER_RENDER" in compat or name in EXTRA_COMPAT_PANELS:
+            panels.append(panel)
+    return panels
+
+
+class PhotonMapButtonsPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class PHOTONMAP_PT_sampling(PhotonMapButtonsPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        pm = context.scene.photonmap
+        col = layout.column()
+        col.prop(pm, "spp")
+        col.prop(pm, "light_samples")
+        col.prop(pm, "max_depth")
+        col.prop(pm, "seed")
+
+
+class PHOTONMAP_PT_photons(PhotonMapButtonsPanel, bpy.types.Panel):
+    bl_label = "Photon Mapping"
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.photonmap, "photon_mapping", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        pm = context.scene.photonmap
+        layout.active = pm.photon_mapping
+        col = layout.column()
+        col.prop(pm, "photons")
+        col.prop(pm, "max_photon_depth")
+        col.separator()
+        col.prop(pm, "caustics")
+        sub = col.column()
+        sub.active = pm.caustics != "off"
+        sub.prop(pm, "caustic_photons")
+        sub.prop(pm, "aim_caustics")
+        col.separator()
+        col.prop(pm, "indirect")
+        col.prop(pm, "specular")
+        col.prop(pm, "soft_shadows")
+
+
+class PHOTONMAP_PT_estimate(PhotonMapButtonsPanel, bpy.types.Panel):
+    bl_label = "Radiance Estimate"
+    bl_parent_id = "PHOTONMAP_PT_photons"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        pm = context.scene.photonmap
+        layout.active = pm.photon_mapping
+        col = layout.column()
+        col.prop(pm, "estimator")
+        col.prop(pm, "use_auto_radius")
+        sub = col.column()
+        sub.active = not pm.use_auto_radius
+        sub.prop(pm, "radius")
+        col.prop(pm, "min_photons")
+        sub = col.column()
+        sub.active = pm.estimator not in ("classic", "radius")
+        sub.prop(pm, "k_nearest")
+        col.separator()
+        col.prop(pm, "final_gather")
+        sub = col.column()
+        sub.active = pm.final_gather
+        sub.prop(pm, "gather_rays")
+
+
+class PHOTONMAP_PT_display(PhotonMapButtonsPanel, bpy.types.Panel):
+    bl_label = "Film"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        col = layout.column()
+        col.prop(context.scene.render, "film_transparent", text="Transparent")
+        col.prop(context.scene.photonmap, "show_photons")
+
+
+class PHOTONMAP_PT_performance(PhotonMapButtonsPanel, bpy.types.Panel):
+    bl_label = "Performance"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.scene.photonmap, "threads")
+
+
+class PHOTONMAP_PT_passes(PhotonMapButtonsPanel, bpy.types.Panel):
+    bl_label = "Passes"
+    bl_context = "view_layer"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        vl = context.view_layer
+        col = layout.column(heading="Include")
+        col.prop(vl.photonmap, "use_pass_effects")
+        col.prop(vl.photonmap, "use_pass_photon_hits")
+        col.prop(vl, "use_pass_z")
+        col.prop(vl, "use_pass_normal")
+
+
+classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
+           PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_passes)
+
+_patched = []
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    for panel in get_panels():
+        if ENGINE_ID not in panel.COMPAT_ENGINES:
+            panel.COMPAT_ENGINES.add(ENGINE_ID)
+            _patched.append(panel)
+
+
+def unregister():
+    for panel in _patched:
+        panel.COMPAT_ENGINES.discard(ENGINE_ID)
+    _patched.clear()
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

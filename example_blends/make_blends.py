@@ -1,0 +1,298 @@
+"""Build the paper's example scenes as .blend files (run: make blends).
+
+    .venv/bin/python example_blends/make_blends.py [OUTPUT_DIR]
+
+Figure 3: red sphere on a white floor, rectangular area light.
+Figure 6: box with a green and a red wall, a block and a glass sphere, area light on the
+          ceiling.
+Figure 7: box with a blocker between the light and the left wall (the wall is lit only
+          indirectly), reflective floor.
+Figure 8: spot light focused through a glass sphere onto the floor: a strong caustic.
+
+Each file is saved compressed at 320x240 with the Photon Mapping engine selected and the
+add-on's default settings, so it renders in well under a minute on two cores.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+
+import bpy  # noqa: E402  (must come first: it provides bmesh and mathutils)
+import bmesh  # noqa: E402
+from mathutils import Vector  # noqa: E402
+
+WIDTH, HEIGHT = 320, 240
+
+
+# --- helpers ------------------------------------------------------------------------
+
+def reset():
+    for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials, bpy.data.lights,
+                 bpy.data.cameras, bpy.data.worlds, bpy.data.images):
+        for block in list(coll):
+            coll.remove(block)
+    for c in list(bpy.data.collections):
+        bpy.data.collections.remove(c)
+    scene = bpy.context.scene
+    scene.name = "Scene"
+    r = scene.render
+    try:
+        r.engine = "PHOTONMAP"
+    except TypeError:
+        pass
+    r.resolution_x, r.resolution_y, r.resolution_percentage = WIDTH, HEIGHT, 100
+    r.film_transparent = False
+    r.image_settings.file_format = "PNG"
+    scene.view_settings.view_transform = "Standard"
+    world = bpy.data.worlds.new("World")
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+    set_world((0.0, 0.0, 0.0))  # new worlds default to a 0.05 grey background
+    return scene
+
+
+def set_world(color, strength=1.0):
+    world = bpy.context.scene.world
+    nt = world.node_tree if world.node_tree is not None else None
+    if nt is None:
+        world.use_nodes = True  # Blender < 5 only: 5.x worlds always have a node tree
+        nt = world.node_tree
+    bg = next((n for n in nt.nodes if n.type == "BACKGROUND"), None)
+    if bg is None:
+        bg = nt.nodes.new("ShaderNodeBackground")
+        out = nt.nodes.new("ShaderNodeOutputWorld")
+        nt.links.new(bg.outputs[0], out.inputs["Surface"])
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+    world.color = color
+
+
+def material(name, kind="diffuse", color=(0.8, 0.8, 0.8), roughness=0.5, ior=1.5,
+             metallic=0.0, mix=0.5):
+    """kind: diffuse | principled | glass | glossy_mix (diffuse + glossy mix shader)."""
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    nt = m.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300, 0)
+    rgba = (*color, 1.0)
+    if kind == "diffuse":
+        n = nt.nodes.new("ShaderNodeBsdfDiffuse")
+        n.inputs["Color"].default_value = rgba
+        nt.links.new(n.outputs[0], out.inputs["Surface"])
+    elif kind == "principled":
+        n = nt.nodes.new("ShaderNodeBsdfPrincipled")
+        n.inputs["Base Color"].default_value = rgba
+        n.inputs["Roughness"].default_value = roughness
+        n.inputs["Metallic"].default_value = metallic
+        nt.links.new(n.outputs[0], out.inputs["Surface"])
+    elif kind == "glass":
+        n = nt.nodes.new("ShaderNodeBsdfGlass")
+        n.inputs["Color"].default_value = rgba
+        n.inputs["Roughness"].default_value = 0.0
+        n.inputs["IOR"].default_value = ior
+        nt.links.new(n.outputs[0], out.inputs["Surface"])
+    elif kind == "glossy_mix":
+        d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+        d.inputs["Color"].default_value = rgba
+        g = nt.nodes.new("ShaderNodeBsdfGlossy")
+        g.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1.0)
+        g.inputs["Roughness"].default_value = roughness
+        mx = nt.nodes.new("ShaderNodeMixShader")
+        mx.inputs[0].default_value = mix
+        nt.links.new(d.outputs[0], mx.inputs[1])
+        nt.links.new(g.outputs[0], mx.inputs[2])
+        nt.links.new(mx.outputs[0], out.inputs["Surface"])
+    else:
+        raise ValueError(kind)
+    m.diffuse_color = rgba
+    return m
+
+
+def add_object(name, mesh, mat=None, location=(0, 0, 0), rotation=(0, 0, 0),
+               scale=(1, 1, 1)):
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location, obj.rotation_euler, obj.scale = location, rotation, scale
+    if mat is not None:
+        mesh.materials.append(mat)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def plane(name, size_x, size_y, mat, location=(0, 0, 0), rotation=(0, 0, 0)):
+    hx, hy = size_x / 2, size_y / 2
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], [],
+                   [(0, 1, 2, 3)])
+    me.update()
+    return add_object(name, me, mat, location, rotation)
+
+
+def box(name, sx, sy, sz, mat, location=(0, 0, 0), rotation=(0, 0, 0)):
+    me = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_cube(bm, size=1.0)
+    bmesh.ops.scale(bm, vec=(sx, sy, sz), verts=bm.verts)
+    bm.to_mesh(me)
+    bm.free()
+    return add_object(name, me, mat, location, rotation)
+
+
+def sphere(name, radius, mat, location, segments=48, rings=24):
+    me = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius)
+    bm.to_mesh(me)
+    bm.free()
+    me.shade_smooth()
+    return add_object(name, me, mat, location)
+
+
+def camera(location, look_at, fov_deg=40.0):
+    cd = bpy.data.cameras.new("Camera")
+    cd.sensor_fit = "AUTO"
+    cd.sensor_width = 36.0
+    cd.lens = cd.sensor_width / (2.0 * math.tan(math.radians(fov_deg) / 2.0))
+    cd.clip_start, cd.clip_end = 0.05, 100.0
+    obj = bpy.data.objects.new("Camera", cd)
+    obj.location = location
+    direction = Vector(look_at) - Vector(location)
+    obj.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.scene.camera = obj
+    return obj
+
+
+def light(name, kind, location, power, look_at=None, rotation=None, color=(1, 1, 1),
+          **props):
+    ld = bpy.data.lights.new(name, kind)
+    ld.energy = power
+    ld.color = color
+    for k, v in props.items():
+        setattr(ld, k, v)
+    obj = bpy.data.objects.new(name, ld)
+    obj.location = location
+    if look_at is not None:
+        direction = Vector(look_at) - Vector(location)
+        obj.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
+    elif rotation is not None:
+        obj.rotation_euler = rotation
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def cornell_box(white, left, right, size=4.0):
+    """Open-front box: x, y in [-s/2, s/2], z in [0, s]; the camera looks along +y."""
+    h = size / 2
+    plane("Floor", size, size, white, (0, 0, 0))
+    plane("Ceiling", size, size, white, (0, 0, size), (math.pi, 0, 0))
+    plane("Back", size, size, white, (0, h, h), (math.pi / 2, 0, 0))
+    plane("LeftWall", size, size, left, (-h, 0, h), (0, math.pi / 2, 0))
+    plane("RightWall", size, size, right, (h, 0, h), (0, -math.pi / 2, 0))
+
+
+def save(path):
+    bpy.context.view_layer.update()
+    bpy.ops.wm.save_as_mainfile(filepath=path, compress=True, check_existing=False)
+    print(f"wrote {path} ({os.path.getsize(path) // 1024} KiB)")
+
+
+# --- the paper's scenes -------------------------------------------------------------
+
+def figure3(path):
+    reset()
+    red = material("red_plastic", "principled", (0.8, 0.05, 0.05), roughness=0.1)
+    white = material("white_plastic_dull", "diffuse", (0.75, 0.75, 0.75))
+    plane("Floor", 10, 10, white)
+    sphere("Sphere", 1.0, red, (0, 0, 1))
+    light("AreaLight", "AREA", (0, 0, 4), 400.0, rotation=(0, 0, 0), shape="RECTANGLE",
+          size=2.0, size_y=1.0)
+    camera((0, -6, 2.5), (0, 0, 0.8), 40.0)
+    save(path)
+
+
+def figure6(path):
+    reset()
+    white = material("white", "diffuse", (0.75, 0.75, 0.75))
+    red = material("red", "diffuse", (0.75, 0.1, 0.1))
+    green = material("green", "diffuse", (0.1, 0.6, 0.1))
+    glass = material("glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    cornell_box(white, red, green)
+    box("Block", 1.1, 1.1, 2.2, white, (-0.8, 0.7, 1.1), (0, 0, math.radians(20)))
+    sphere("GlassSphere", 0.7, glass, (0.85, -0.5, 0.7))
+    lamp = light("CeilingLight", "AREA", (0, 0, 3.98), 120.0, rotation=(0, 0, 0),
+                 shape="SQUARE", size=1.0)
+    lamp.visible_camera = True
+    camera((0, -7.6, 2.0), (0, 0, 2.0), 38.0)
+    save(path)
+
+
+def figure7(path):
+    reset()
+    white = material("white", "diffuse", (0.75, 0.75, 0.75))
+    blue = material("blue", "diffuse", (0.15, 0.2, 0.7))
+    floor = material("reflective_floor", "glossy_mix", (0.6, 0.6, 0.6), roughness=0.05,
+                     mix=0.5)
+    h = 2.0
+    plane("Floor", 4, 4, floor, (0, 0, 0))
+    plane("Ceiling", 4, 4, white, (0, 0, 4), (math.pi, 0, 0))
+    plane("Back", 4, 4, white, (0, h, h), (math.pi / 2, 0, 0))
+    plane("LeftWall", 4, 4, white, (-h, 0, h), (0, math.pi / 2, 0))
+    plane("RightWall", 4, 4, blue, (h, 0, h), (0, -math.pi / 2, 0))
+    # A tall panel between the light (right of centre) and the left wall: the left wall
+    # gets no direct light, only what bounces off the floor, ceiling and walls.
+    box("Blocker", 0.1, 2.6, 3.0, white, (-0.3, 0.2, 1.5))
+    light("Light", "AREA", (0.9, 0.0, 3.0), 60.0, look_at=(0.9, 0.0, 0.0), shape="DISK",
+          size=0.6)
+    camera((0, -7.6, 2.0), (0, 0, 1.8), 38.0)
+    save(path)
+
+
+def figure8(path):
+    reset()
+    white = material("white", "diffuse", (0.8, 0.8, 0.8))
+    glass = material("glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    plane("Floor", 8, 8, white)
+    plane("Back", 8, 4, white, (0, 3, 2), (math.pi / 2, 0, 0))
+    # Ball lens: effective focal length n*D / (4*(n-1)) = 0.9 m from the centre; with the
+    # spot 2.73 m above the centre the image lands 1.27 m below it: on the floor.
+    sphere("GlassSphere", 0.6, glass, (0, 0, 1.27), segments=64, rings=32)
+    light("Spot", "SPOT", (0, 0, 4.0), 500.0, look_at=(0, 0, 0),
+          spot_size=math.radians(30.0), spot_blend=0.1, shadow_soft_size=0.0)
+    light("Fill", "POINT", (-2.0, -3.0, 3.5), 60.0, shadow_soft_size=0.5)
+    camera((0, -6, 1.6), (0, 0, 0.5), 40.0)
+    save(path)
+
+
+SCENES = {
+    "figure3_sphere.blend": figure3,
+    "figure6_box.blend": figure6,
+    "figure7_blocker.blend": figure7,
+    "figure8_caustic.blend": figure8,
+}
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    out_dir = argv[0] if argv else HERE
+    os.makedirs(out_dir, exist_ok=True)
+    import addon
+    try:
+        addon.register()
+    except ValueError:
+        pass  # already registered in this process
+    for name, build in SCENES.items():
+        build(os.path.join(out_dir, name))
+
+
+if __name__ == "__main__":
+    main()

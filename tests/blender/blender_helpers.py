@@ -1,0 +1,139 @@
+"""Helpers and fixtures for the Blender (bpy wheel) tests (imported by conftest.py).
+
+bpy can be imported once per process; the add-on is registered once per session (the
+register test unregisters and re-registers it itself). Heavy work (the extension install)
+runs in subprocesses with their own Blender user directory.
+"""
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+BLENDS = os.path.join(ROOT, "example_blends")
+PYTHON = sys.executable
+
+
+def blender_ext_path():
+    """Blender's extension tool inside the bpy wheel (site-packages/bpy/<ver>/scripts/...)."""
+    import glob
+    import site
+    for sp in site.getsitepackages():
+        hits = glob.glob(os.path.join(sp, "bpy", "*", "scripts", "addons_core", "bl_pkg",
+                                      "cli", "blender_ext.py"))
+        if hits:
+            return sorted(hits)[-1]
+    pytest.skip("blender_ext.py not found in the bpy wheel")
+
+
+@pytest.fixture(scope="session")
+def bpy_addon():
+    bpy = pytest.importorskip("bpy")
+    import addon
+    if not hasattr(bpy.types.Scene, "photonmap"):
+        addon.register()
+    return bpy
+
+
+@pytest.fixture()
+def fresh_scene(bpy_addon):
+    """Empty scene with our engine selected and cheap settings."""
+    bpy = bpy_addon
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene)
+    return scene
+
+
+def cheap(scene, width=None, height=None, pct=None, spp=2, photons=20_000,
+          caustic_photons=10_000):
+    pm = scene.photonmap
+    pm.spp = spp
+    pm.photons = photons
+    pm.caustic_photons = caustic_photons
+    if width is not None:
+        scene.render.resolution_x = width
+    if height is not None:
+        scene.render.resolution_y = height
+    if pct is not None:
+        scene.render.resolution_percentage = pct
+
+
+def open_blend(bpy, name):
+    bpy.ops.wm.open_mainfile(filepath=os.path.join(BLENDS, name), load_ui=False)
+    scene = bpy.context.scene
+    assert scene.render.engine == "PHOTONMAP"
+    return scene
+
+
+def render_exr(bpy, scene, path, multilayer=False):
+    """Render with write_still to a linear float EXR; returns the file path."""
+    s = scene.render.image_settings
+    if hasattr(s, "media_type"):  # Blender 5.0+
+        s.media_type = "MULTI_LAYER_IMAGE" if multilayer else "IMAGE"
+        s.file_format = "OPEN_EXR_MULTILAYER" if multilayer else "OPEN_EXR"
+    else:
+        s.file_format = "OPEN_EXR_MULTILAYER" if multilayer else "OPEN_EXR"
+    s.color_depth = "32"
+    if not multilayer:
+        s.color_mode = "RGBA"
+    scene.render.filepath = str(path)
+    scene.render.use_file_extension = False
+    bpy.ops.render.render(write_still=True)
+    assert os.path.isfile(path), f"render did not write {path}"
+    return str(path)
+
+
+def read_rgba(bpy, path):
+    """EXR -> (H, W, 4) float32, rows top to bottom."""
+    img = bpy.data.images.load(str(path), check_existing=False)
+    try:
+        w, h = img.size
+        buf = np.empty(w * h * 4, np.float32)
+        img.pixels.foreach_get(buf)
+        return buf.reshape(h, w, 4)[::-1].copy()
+    finally:
+        bpy.data.images.remove(img)
+
+
+def read_layers(path):
+    """Multilayer EXR -> {pass name: (H, W, C) array} for the first view layer."""
+    import OpenEXR
+    f = OpenEXR.File(str(path), separate_channels=True)
+    chans = {}
+    for part in f.parts:  # Blender 5 writes one part per pass
+        chans.update(part.channels)
+    passes = {}
+    for full, ch in chans.items():
+        parts = full.split(".")
+        name = parts[-2] if len(parts) >= 3 else parts[0]
+        passes.setdefault(name, []).append((parts[-1], ch.pixels))
+    out = {}
+    order = "RGBAXYZV"
+    for name, lst in passes.items():
+        lst.sort(key=lambda t: order.index(t[0]) if t[0] in order else 99)
+        out[name] = np.stack([np.asarray(p, dtype=np.float32) for _, p in lst], axis=2)
+    return out
+
+
+def project(bpy, scene, point):
+    """World point -> (row, col) pixel of the rendered image (rows top to bottom)."""
+    from bpy_extras.object_utils import world_to_camera_view
+    from mathutils import Vector
+    co = world_to_camera_view(scene, scene.camera, Vector(point))
+    r = scene.render
+    w = int(r.resolution_x * r.resolution_percentage / 100)
+    h = int(r.resolution_y * r.resolution_percentage / 100)
+    col = int(math.floor(co.x * w))
+    row = int(math.floor((1.0 - co.y) * h))
+    return row, col
+
+
+def luminance(rgb):
+    rgb = np.asarray(rgb)
+    return 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]

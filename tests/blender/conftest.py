@@ -1,0 +1,8 @@
+"""Fixtures for the Blender tests; the helpers live in blender_helpers.py (a unique module
+name, so it cannot collide with tests/conftest.py)."""
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from blender_helpers import bpy_addon, fresh_scene  # noqa: E402,F401

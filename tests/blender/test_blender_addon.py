@@ -1,0 +1,109 @@
+"""Add-on lifecycle, settings, manifest and the command-line batch path."""
+import dataclasses
+import os
+import subprocess
+
+import pytest
+
+from blender_helpers import BLENDS, PYTHON, ROOT, blender_ext_path
+
+pytestmark = pytest.mark.blender
+
+OUR_PANELS = ("PHOTONMAP_PT_sampling", "PHOTONMAP_PT_photons", "PHOTONMAP_PT_estimate",
+              "PHOTONMAP_PT_display", "PHOTONMAP_PT_performance", "PHOTONMAP_PT_passes")
+
+
+def _state(bpy):
+    from addon.engine import PhotonMapRenderEngine
+    compat = sorted(p.__name__ for p in bpy.types.Panel.__subclasses__()
+                    if "PHOTONMAP" in getattr(p, "COMPAT_ENGINES", ()))
+    return dict(
+        engine=PhotonMapRenderEngine.is_registered,
+        scene_props=hasattr(bpy.types.Scene, "photonmap"),
+        layer_props=hasattr(bpy.types.ViewLayer, "photonmap"),
+        panels=[n for n in OUR_PANELS if hasattr(bpy.types, n)],
+        compat=[c for c in compat if not c.startswith("PHOTONMAP_")],
+    )
+
+
+def test_register_unregister_twice(bpy_addon):
+    bpy = bpy_addon
+    import addon
+    addon.unregister()
+    try:
+        for _ in range(2):
+            off = _state(bpy)
+            assert not off["engine"] and not off["scene_props"] and not off["layer_props"]
+            assert off["panels"] == [] and off["compat"] == [], off
+            addon.register()
+            on = _state(bpy)
+            assert on["engine"] and on["scene_props"] and on["layer_props"]
+            assert on["panels"] == list(OUR_PANELS)
+            # Standard panels enabled for us: output format, camera lens, light, material.
+            for name in ("RENDER_PT_format", "RENDER_PT_output", "DATA_PT_lens",
+                         "DATA_PT_EEVEE_light", "EEVEE_MATERIAL_PT_surface"):
+                assert name in on["compat"], name
+            scene = bpy.context.scene
+            scene.render.engine = "PHOTONMAP"
+            assert scene.render.engine == "PHOTONMAP"
+            addon.unregister()
+        assert _state(bpy)["compat"] == []
+    finally:
+        if not hasattr(bpy.types.Scene, "photonmap"):
+            addon.register()
+
+
+def test_property_defaults_match_engine(bpy_addon):
+    bpy = bpy_addon
+    from engine.settings import RenderSettings
+    pm = bpy.context.scene.photonmap
+    kwargs = pm.to_settings_kwargs()
+    defaults = {f.name: f.default for f in dataclasses.fields(RenderSettings)}
+    for name, value in kwargs.items():
+        assert name in defaults, f"unknown setting {name}"
+        if name == "workers":
+            continue
+        assert value == defaults[name], f"{name}: add-on {value!r} != engine {defaults[name]!r}"
+    RenderSettings(**kwargs)  # accepted by the engine
+
+
+def test_manifest_validates(bpy_addon):
+    res = subprocess.run([PYTHON, blender_ext_path(), "validate", ROOT],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stdout + res.stderr
+    import tomllib
+    with open(os.path.join(ROOT, "blender_manifest.toml"), "rb") as f:
+        m = tomllib.load(f)
+    assert m["blender_version_min"] == "4.2.0" and m["type"] == "add-on"
+    assert {"windows-x64", "macos-arm64", "macos-x64", "linux-x64"} <= set(m["platforms"])
+    names = " ".join(m["wheels"])
+    assert "embreex-4.4.0.post1" in names and "scipy-1.17.1" in names
+    excl = m["build"]["paths_exclude_pattern"]
+    for p in ("/tests/", "/bench/", "/example_blends/"):
+        assert p in excl
+
+
+def test_batch_writes_image(tmp_path):
+    out = tmp_path / "sub" / "fig3.png"
+    res = subprocess.run(
+        [PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure3_sphere.blend"),
+         "-o", str(out), "--samples", "1", "--photons", "5000", "--caustic-photons", "2000",
+         "--resolution-percentage", "25"],
+        cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert out.is_file()
+    from PIL import Image
+    with Image.open(out) as im:
+        assert im.size == (80, 60)
+        import numpy as np
+        assert np.asarray(im.convert("L")).max() > 20  # not black
+
+
+def test_batch_missing_file_is_one_line_error(tmp_path):
+    res = subprocess.run([PYTHON, "-m", "addon.batch", str(tmp_path / "nope.blend"),
+                          "-o", str(tmp_path / "x.png")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert res.returncode != 0
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "not found" in lines[0] and "nope.blend" in lines[0], res.stderr
+    assert not (tmp_path / "x.png").exists()

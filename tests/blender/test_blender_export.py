@@ -1,0 +1,190 @@
+"""Export round trip: depsgraph -> engine Scene (geometry, instances, lights, materials)."""
+import math
+
+import numpy as np
+import pytest
+
+from blender_helpers import cheap
+
+pytestmark = pytest.mark.blender
+
+
+def _mesh_object(bpy, name, verts, faces, location=(0, 0, 0), collection=None):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts, [], faces)
+    me.update()
+    obj = bpy.data.objects.new(name, me)
+    obj.location = location
+    (collection or bpy.context.scene.collection).objects.link(obj)
+    return obj
+
+
+def _cube(bpy, name, location):
+    v = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    f = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return _mesh_object(bpy, name, v, f, location)
+
+
+def _light(bpy, name, kind, location, rotation=(0, 0, 0), scale=(1, 1, 1), **props):
+    ld = bpy.data.lights.new(name, kind)
+    for k, v in props.items():
+        setattr(ld, k, v)
+    obj = bpy.data.objects.new(name, ld)
+    obj.location, obj.rotation_euler, obj.scale = location, rotation, scale
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def _material(bpy, name, shader, viewport=(0.1, 0.2, 0.3, 1.0)):
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    n = nt.nodes.new(shader)
+    nt.links.new(n.outputs[0], out.inputs["Surface"])
+    m.diffuse_color = viewport
+    return m, n
+
+
+def build_scene(bpy):
+    scene = bpy.context.scene
+    # 1. A cube with a Subdivision modifier: 6 quads -> 24 quads -> 48 triangles.
+    cube = _cube(bpy, "Cube", (1.0, 2.0, 3.0))
+    mod = cube.modifiers.new("Subdiv", "SUBSURF")
+    mod.levels = mod.render_levels = 1
+    toon, node = _material(bpy, "ToonMat", "ShaderNodeBsdfToon")
+    node.name = "My Toon"
+    cube.data.materials.append(toon)
+    # 2. A collection (not in the scene) holding a 1x1 quad, instanced twice.
+    coll = bpy.data.collections.new("Inst")
+    _mesh_object(bpy, "Quad", [(-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0)],
+                 [(0, 1, 2, 3)], collection=coll)
+    for name, loc, scale in (("EmptyA", (5, 0, 0), 2.0), ("EmptyB", (-5, 0, 0), 1.0)):
+        e = bpy.data.objects.new(name, None)
+        e.instance_type = "COLLECTION"
+        e.instance_collection = coll
+        e.location = loc
+        e.scale = (scale, scale, scale)
+        scene.collection.objects.link(e)
+    # 3. Lights: scaled rectangle, disk, spot.
+    _light(bpy, "Rect", "AREA", (0, 0, 5), scale=(2, 3, 1), energy=100.0, shape="RECTANGLE",
+           size=1.0, size_y=0.5)
+    _light(bpy, "Disk", "AREA", (0, 3, 5), energy=50.0, shape="DISK", size=0.8)
+    _light(bpy, "Spot", "SPOT", (0, -3, 4), rotation=(math.radians(30), 0, 0), energy=300.0,
+           spot_size=math.radians(40), spot_blend=0.2, shadow_soft_size=0.1,
+           color=(1.0, 0.5, 0.25))
+    cd = bpy.data.cameras.new("Cam")
+    cam = bpy.data.objects.new("Cam", cd)
+    cam.location = (0, -10, 3)
+    cam.rotation_euler = (math.radians(80), 0, 0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return scene
+
+
+def test_export_round_trip(fresh_scene, bpy_addon):
+    bpy = bpy_addon
+    scene = build_scene(bpy)
+    from addon import export
+    from addon.core import load_engine
+    pm = load_engine()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    out, info = export.export_scene(pm, depsgraph, width=64, height=48)
+
+    meshes = {m.name: m for m in out.meshes}
+    assert sum(len(m.faces) for m in out.meshes) == 48 + 2 + 2 == info["triangles"]
+    cube = meshes["Cube"]
+    assert len(cube.faces) == 48
+    np.testing.assert_allclose(cube.vertices.mean(axis=0), (1, 2, 3), atol=1e-5)
+    inst = sorted((m for m in out.meshes if m.name != "Cube"), key=lambda m: m.vertices[0, 0])
+    assert len(inst) == 2 and all("Quad" in m.name for m in inst)
+    b, a = inst  # x < 0 first
+    np.testing.assert_allclose(a.vertices.min(axis=0), (4, -1, 0), atol=1e-6)
+    np.testing.assert_allclose(a.vertices.max(axis=0), (6, 1, 0), atol=1e-6)
+    np.testing.assert_allclose(b.vertices.mean(axis=0), (-5, 0, 0), atol=1e-6)
+
+    lights = {light.name: light for light in out.lights}
+    rect, disk, spot = lights["Rect"], lights["Disk"], lights["Spot"]
+    assert rect.kind == "AREA" and rect.shape == "RECTANGLE"
+    assert rect.size_x == pytest.approx(2.0) and rect.size_y == pytest.approx(1.5)
+    assert rect.power == pytest.approx(100.0)
+    np.testing.assert_allclose(rect.direction, (0, 0, -1), atol=1e-6)
+    np.testing.assert_allclose(rect.flux, (100, 100, 100), rtol=1e-6)  # Cycles: P = flux
+    assert disk.shape == "DISK" and disk.size_x == pytest.approx(0.8)
+    assert disk.area == pytest.approx(math.pi / 4 * 0.64)
+    assert spot.kind == "SPOT" and spot.power == pytest.approx(300.0)
+    assert spot.spot_size == pytest.approx(math.radians(40))
+    assert spot.spot_blend == pytest.approx(0.2) and spot.radius == pytest.approx(0.1)
+    np.testing.assert_allclose(spot.color, (1.0, 0.5, 0.25))
+    np.testing.assert_allclose(spot.direction, (0, math.sin(math.radians(30)),
+                                                -math.cos(math.radians(30))), atol=1e-6)
+    np.testing.assert_allclose(spot.position, (0, -3, 4))
+
+    cam = out.camera
+    np.testing.assert_allclose(cam.position, (0, -10, 3))
+    assert cam.fov == pytest.approx(2 * math.atan(36 / (2 * 50)))
+
+    warnings = out.all_warnings()
+    hits = [w for w in warnings if "ToonMat" in w and "My Toon" in w]
+    assert len(hits) == 1, warnings
+    np.testing.assert_allclose(out.materials["ToonMat"].base_color, (0.1, 0.2, 0.3), atol=1e-6)
+
+
+def test_render_reports_export_warning(fresh_scene, bpy_addon):
+    bpy = bpy_addon
+    scene = build_scene(bpy)
+    cheap(scene, width=40, height=30, pct=100, spp=1, photons=2000, caustic_photons=500)
+    from addon import engine
+    bpy.ops.render.render()
+    assert engine.last_render["width"] == 40 and engine.last_render["height"] == 30
+    assert any("My Toon" in w for w in engine.last_render["warnings"])
+
+
+def test_materials_and_texture(fresh_scene, bpy_addon):
+    bpy = bpy_addon
+    scene = fresh_scene
+    quad = _mesh_object(bpy, "Q", [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [(0, 1, 2, 3)])
+    quad.data.uv_layers.new(name="UVMap")
+    m, p = _material(bpy, "Tex", "ShaderNodeBsdfPrincipled")
+    img = bpy.data.images.new("checker", 4, 2)  # byte image, sRGB
+    px = np.zeros((2, 4, 4), np.float32)
+    px[0, :, :] = (1.0, 0.0, 0.0, 1.0)   # bottom row red
+    px[1, :, :] = (0.5, 0.5, 0.5, 1.0)   # top row sRGB 0.5
+    img.pixels.foreach_set(px.reshape(-1))
+    tex = m.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    m.node_tree.links.new(tex.outputs["Color"], p.inputs["Base Color"])
+    p.inputs["Metallic"].default_value = 0.25
+    p.inputs["Roughness"].default_value = 0.3
+    p.inputs["Emission Strength"].default_value = 2.0
+    p.inputs["Emission Color"].default_value = (1.0, 0.5, 0.0, 1.0)
+    quad.data.materials.append(m)
+    # A glass / transparent mix and an emission material.
+    g = bpy.data.materials.new("GlassMix")
+    nt = g.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    glass = nt.nodes.new("ShaderNodeBsdfGlass")
+    glass.inputs["IOR"].default_value = 1.33
+    transp = nt.nodes.new("ShaderNodeBsdfTransparent")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.25
+    nt.links.new(glass.outputs[0], mix.inputs[1])
+    nt.links.new(transp.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+
+    from addon.core import load_engine
+    from addon.materials import MaterialConverter
+    conv = MaterialConverter(load_engine())
+    t = conv.convert(m)
+    assert t.texture.shape == (2, 4, 3)
+    np.testing.assert_allclose(t.texture[1, 0], (1, 0, 0), atol=1e-3)  # bottom row last
+    np.testing.assert_allclose(t.texture[0, 0], (0.2140,) * 3, atol=2e-3)  # sRGB decoded
+    assert t.metallic == pytest.approx(0.25) and t.roughness == pytest.approx(0.3)
+    np.testing.assert_allclose(t.emission, (2.0, 1.0, 0.0), atol=1e-6)
+    gm = conv.convert(g)
+    assert gm.transmission == pytest.approx(1.0) and gm.ior == pytest.approx(1.33)
+    assert gm.alpha == pytest.approx(0.75)
+    assert not t.warnings and not gm.warnings

@@ -1,0 +1,176 @@
+"""Rendering through bpy.ops.render.render with the Photon Mapping engine."""
+import os
+import time
+
+import numpy as np
+import pytest
+
+from blender_helpers import (cheap, luminance, open_blend, project, read_layers, read_rgba,
+                      render_exr)
+
+pytestmark = pytest.mark.blender
+
+PASSES = ("Combined", "Direct", "Indirect", "Caustic", "Specular", "Emission", "Photon Hits",
+          "Depth", "Normal")
+
+
+def test_passes_and_film_transparent(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    cheap(scene, pct=25)
+    scene.render.film_transparent = True
+    vl = scene.view_layers[0]
+    vl.use_pass_z = vl.use_pass_normal = True
+    layers = read_layers(render_exr(bpy, scene, tmp_path / "f3.exr", multilayer=True))
+    for name in PASSES:
+        assert name in layers, f"missing pass {name}: {sorted(layers)}"
+        assert layers[name].shape[:2] == (60, 80)
+        assert np.all(np.isfinite(layers[name])), name
+    comb = layers["Combined"]
+    effects = sum(layers[n] for n in ("Direct", "Indirect", "Caustic", "Specular", "Emission"))
+    np.testing.assert_allclose(effects, comb[..., :3], rtol=1e-4, atol=1e-5)
+    alpha, depth = comb[..., 3], layers["Depth"][..., 0]
+    assert alpha[0].max() == 0.0          # top row: background, transparent
+    assert alpha[-1].min() == 1.0         # bottom row: floor
+    assert np.all(depth[0] >= 1e9) and np.all(depth[-1] < 20)
+    n = layers["Normal"][-1, 40]          # floor below the sphere faces up
+    np.testing.assert_allclose(n, (0, 0, 1), atol=1e-3)
+    assert comb[..., :3].max() > 0.1
+    assert layers["Direct"].mean() > 0 and layers["Indirect"].mean() > 0
+
+
+def test_resolution_percentage_and_border(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    from addon import engine
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    cheap(scene, pct=50, spp=1, photons=5000, caustic_photons=2000)
+    r = scene.render
+    r.use_border = True
+    r.border_min_x, r.border_max_x = 0.25, 0.75
+    r.border_min_y, r.border_max_y = 0.0, 0.5      # bottom half (Blender: y up)
+    r.use_crop_to_border = False
+    img = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "border.exr"))
+    assert engine.last_render["region"] == (40, 60, 120, 120)
+    assert (engine.last_render["width"], engine.last_render["height"]) == (80, 60)
+    assert img.shape == (120, 160, 4)
+    inside = img[60:, 40:120]
+    assert inside[..., 3].min() == 1.0 and inside[..., :3].max() > 0.05
+    assert img[:60].max() == 0.0 and img[:, :40].max() == 0.0 and img[:, 120:].max() == 0.0
+    r.use_crop_to_border = True
+    img2 = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "crop.exr"))
+    assert img2.shape == (60, 80, 4)
+    r.use_border = False
+
+
+def _caustic_contrast(bpy, scene, img):
+    lum = luminance(img[..., :3])
+    r0, c0 = project(bpy, scene, (0, 0, 0))
+    spot = lum[r0 - 1:r0 + 2, c0 - 1:c0 + 2].mean()
+    ring = []
+    for x in (-0.45, 0.45):  # inside the sphere's shadow, outside the focus
+        r1, c1 = project(bpy, scene, (x, 0, 0))
+        ring.append(lum[r1 - 1:r1 + 2, c1 - 1:c1 + 2].mean())
+    return spot, max(ring)
+
+
+def test_caustic_fast(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene = open_blend(bpy, "figure8_caustic.blend")
+    cheap(scene, pct=50, spp=4, photons=50_000, caustic_photons=50_000)
+    layers = read_layers(render_exr(bpy, scene, tmp_path / "f8.exr", multilayer=True))
+    spot, ring = _caustic_contrast(bpy, scene, layers["Combined"])
+    assert spot > 5 * ring, (spot, ring)
+    r0, c0 = project(bpy, scene, (0, 0, 0))
+    assert layers["Caustic"][r0 - 1:r0 + 2, c0 - 1:c0 + 2].mean() > 1.0
+
+
+def test_cancel_stops_early(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    from addon import engine
+    scene = open_blend(bpy, "figure6_box.blend")   # ~10 s at its saved settings
+    calls = {"n": 0}
+
+    def hook():
+        calls["n"] += 1
+        return calls["n"] > 3   # "Esc" shortly after the render started
+
+    engine.test_break_hook = hook
+    try:
+        t0 = time.perf_counter()
+        bpy.ops.render.render()  # no exception: a cancelled render is not an error
+        elapsed = time.perf_counter() - t0
+    finally:
+        engine.test_break_hook = None
+    assert engine.last_render["cancelled"] is True
+    assert elapsed < 3.0, elapsed
+
+
+# --- the full example set at the saved settings (make test-all) ---------------------
+
+def _check_figure3(bpy, scene, layers):
+    img = layers["Combined"]
+    r, c = project(bpy, scene, (0, -0.7, 1.3))  # front of the red sphere
+    px = img[r - 1:r + 2, c - 1:c + 2, :3].mean(axis=(0, 1))
+    assert px[0] > 3 * px[1] and px[0] > 3 * px[2], px
+
+
+def _check_figure6(bpy, scene, layers):
+    ind = layers["Indirect"]
+    # Colour bleeding: the ceiling next to the red wall is redder than next to the green.
+    rl, cl = project(bpy, scene, (-1.7, 0.5, 3.99))
+    rr, cr = project(bpy, scene, (1.7, 0.5, 3.99))
+    left = ind[rl - 1:rl + 2, cl - 1:cl + 2].mean(axis=(0, 1))
+    right = ind[rr - 1:rr + 2, cr - 1:cr + 2].mean(axis=(0, 1))
+    assert left[0] / left[1] > 1.2 * right[0] / right[1], (left, right)
+
+
+def _check_figure7(bpy, scene, layers):
+    # The left wall behind the blocker gets no direct light, only indirect.
+    r, c = project(bpy, scene, (-1.99, -1.5, 1.5))
+    direct = layers["Direct"][r - 1:r + 2, c - 1:c + 2].mean()
+    indirect = layers["Indirect"][r - 1:r + 2, c - 1:c + 2].mean()
+    assert indirect > 0.01 and direct < 0.1 * indirect, (direct, indirect)
+
+
+def _check_figure8(bpy, scene, layers):
+    spot, ring = _caustic_contrast(bpy, scene, layers["Combined"])
+    assert spot > 5 * ring, (spot, ring)
+
+
+EXAMPLES = {
+    "figure3_sphere.blend": _check_figure3,
+    "figure6_box.blend": _check_figure6,
+    "figure7_blocker.blend": _check_figure7,
+    "figure8_caustic.blend": _check_figure8,
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_example_blend_renders(bpy_addon, tmp_path, name):
+    bpy = bpy_addon
+    from addon import engine
+    scene = open_blend(bpy, name)
+    r = scene.render
+    assert (r.resolution_x, r.resolution_y, r.resolution_percentage) == (320, 240, 100)
+    t0 = time.perf_counter()
+    layers = read_layers(render_exr(bpy, scene, tmp_path / "out.exr", multilayer=True))
+    elapsed = time.perf_counter() - t0
+    img = layers["Combined"]
+    assert img.shape == (240, 320, 4) and np.all(np.isfinite(img))
+    assert img[..., :3].mean() > 0.01
+    assert not engine.last_render["cancelled"]
+    engine_time = engine.last_render["stats"]["time_total"]  # excludes file I/O
+    assert engine_time < 60.0, f"{name}: engine took {engine_time:.1f} s ({elapsed:.1f} s total)"
+    EXAMPLES[name](bpy, scene, layers)
+
+
+@pytest.mark.slow
+def test_ray_tracing_only_has_no_indirect(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene = open_blend(bpy, "figure7_blocker.blend")
+    cheap(scene, pct=50, spp=4)
+    scene.photonmap.photon_mapping = False
+    layers = read_layers(render_exr(bpy, scene, tmp_path / "rt.exr", multilayer=True))
+    assert layers["Indirect"].max() == 0.0 and layers["Caustic"].max() == 0.0
+    assert layers["Direct"].max() > 0.1
