@@ -151,6 +151,21 @@ def continue_specular(ctx, hit, w, tp, rng):
 CAUSTIC_SAMPLES_PER_PIXEL = 16
 
 
+def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id):
+    """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
+    secondary caustic): evaluated for at most CAUSTIC_SAMPLES_PER_PIXEL samples per pixel
+    and weighted up accordingly."""
+    out = np.zeros_like(f)
+    if pmap is None or len(pmap) == 0:
+        return out
+    s = ctx.settings
+    stride = max(1, -(-s.spp // CAUSTIC_SAMPLES_PER_PIXEL)) if sample_id is not None else 1
+    sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
+    E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, s.min_photons, s.estimator)
+    out[sel] = stride * f[sel] * E
+    return out
+
+
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect)."""
     s = ctx.settings
@@ -160,16 +175,11 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None):
     caustic = np.zeros_like(direct)
     indirect = np.zeros_like(direct)
     if s.photon_mapping:
-        if ctx.caustic_map is not None and len(ctx.caustic_map):
-            stride = max(1, -(-s.spp // CAUSTIC_SAMPLES_PER_PIXEL))
-            if sample_id is None:
-                stride = 1
-            sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
-            E = ctx.caustic_map.irradiance(hit.p[sel], hit.ng[sel], ctx.caustic_radius,
-                                           s.k_nearest, s.min_photons, s.estimator)
-            caustic[sel] = stride * f[sel] * E
+        caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id)
         if ctx.gather_map is not None:
             indirect = f * gather_indirect(ctx, hit, rng, counters, sampler)
+            indirect += _smooth_estimate(ctx, ctx.secondary_map, ctx.global_radius, hit, f,
+                                         sample_id)
         elif ctx.global_map is not None and len(ctx.global_map):
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
                                                      s.k_nearest, s.min_photons, s.estimator)

@@ -6,6 +6,10 @@ a diffuse lobe the incoming photon is recorded with the kind of path that brough
                                                    these photons serve final gathering)
   CAUSTIC  light -> specular+ -> this surface     (L S+ D: the caustic map)
   INDIRECT light -> ... diffuse ... -> surface    (the global map)
+  CAUSTIC_DIFFUSE  light -> specular+ -> diffuse -> specular* -> surface: light from a
+                   caustic, one diffuse bounce later. Final gathering would see the bright
+                   caustic through few gather rays (fireflies), so these photons are
+                   estimated directly instead and kept out of the gather map.
 Russian roulette picks one lobe (diffuse, mirror, glass reflect / transmit, coat, pass)
 with probability = the lobe's largest RGB weight, or absorbs; power is divided by that
 probability, so the expected power is kept (the paper's scheme with pbrt's max rule,
@@ -20,7 +24,7 @@ import numpy as np
 from .bsdf import lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, offset_origin, to_world
 
-DIRECT, CAUSTIC, INDIRECT = 0, 1, 2
+DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
 LOBES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "coat")
 
 
@@ -79,6 +83,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                 o, d, power = o[live], d[live], power[live]
             had_diffuse = np.zeros(len(o), bool)
             had_specular = np.zeros(len(o), bool)
+            caustic_then_diffuse = np.zeros(len(o), bool)  # path so far: L S+ D S*
             for bounce in range(settings.max_photon_depth):
                 if should_cancel is not None and should_cancel():
                     raise Cancelled()
@@ -89,11 +94,13 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                 if not alive.all():
                     o, d, power, prim, u, v = o[alive], d[alive], power[alive], prim[alive], u[alive], v[alive]
                     had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
+                    caustic_then_diffuse = caustic_then_diffuse[alive]
                 if len(o) == 0:
                     break
                 hit = surface_hit(geo, table, prim, u, v, d)
                 w = lobe_weights(table, hit)
-                kind = np.where(had_diffuse, INDIRECT, np.where(had_specular, CAUSTIC, DIRECT))
+                kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
+                                np.where(had_specular, CAUSTIC, DIRECT))
                 store = w["diffuse"].max(axis=1) > 0
                 if caustic_only:
                     store &= kind == CAUSTIC
@@ -133,11 +140,17 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                                                    lobe[spec] - 1, rng)
                     new_d[spec] = sd
                     ok[spec] = valid
+                ctd = caustic_then_diffuse[idx]
+                first_diffuse = diff & ~had_diffuse[idx]
+                # The first diffuse bounce after a caustic path starts L S+ D; any further
+                # diffuse bounce makes it ordinary indirect light.
+                caustic_then_diffuse = np.where(diff, first_diffuse & had_specular[idx], ctd)
                 had_diffuse = had_diffuse[idx] | diff
                 had_specular = had_specular[idx] | spec
                 keep = ok & np.isfinite(new_power).all(axis=1) & (new_power.max(axis=1) > 0)
                 new_d, new_power = new_d[keep], new_power[keep]
                 had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
+                caustic_then_diffuse = caustic_then_diffuse[keep]
                 o = offset_origin(sub.p[keep], sub.ng[keep], new_d, geo.eps)
                 d, power = new_d, new_power
             done += n

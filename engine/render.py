@@ -14,7 +14,7 @@ from .integrator import render_camera
 from .lights import allocate_photons, prepare_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .sampling import luminance
-from .photons import CAUSTIC, INDIRECT, Cancelled, Photons, trace_photons
+from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Cancelled, Photons, trace_photons
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -30,6 +30,7 @@ class Context:
     global_map: PhotonMap | None = None
     caustic_map: PhotonMap | None = None
     gather_map: GatherMap | None = None
+    secondary_map: PhotonMap | None = None  # caustic light after one diffuse bounce
     plan: EffectPlan | None = None
     global_radius: float = 0.0
     caustic_radius: float = 0.0
@@ -68,7 +69,7 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None) -> Film
     film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
     stats = film.stats
     stats["cancelled"] = False
-    ctx.global_map = ctx.caustic_map = ctx.gather_map = None
+    ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     try:
         all_photons = Photons.empty()
         if settings.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
@@ -143,12 +144,18 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     if plan.indirect:
         if s.final_gather:
             # Final gathering needs all light at the gathered point: every stored photon.
-            ctx.gather_map = GatherMap(PhotonMap(shot, workers), ctx.global_radius, k,
+            # Photons that arrived straight from a caustic are left out: seen through a
+            # few gather rays a bright caustic makes fireflies. Their light one bounce
+            # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
+            gathered = shot.select(shot.kind != CAUSTIC)
+            ctx.gather_map = GatherMap(PhotonMap(gathered, workers), ctx.global_radius, k,
                                        s.min_photons, s.estimator, seed=s.seed,
                                        accel=ctx.accel, eps=geo.eps)
+            ctx.secondary_map = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
             stats["global_photons"] = len(shot)
         else:
-            ctx.global_map = PhotonMap(shot.select(shot.kind == INDIRECT), workers)
+            ctx.global_map = PhotonMap(shot.select(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE))),
+                                       workers)
             ctx.global_radius = s.radius or auto_radius(diffuse_area, len(ctx.global_map), k,
                                                         geo.extent)
             stats["global_photons"] = len(ctx.global_map)
