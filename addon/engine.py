@@ -126,8 +126,12 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 self.update_stats("", text)
 
         t0 = time.perf_counter()
-        film = pm.render(pm_scene, settings, progress=progress,
-                         should_cancel=self._should_cancel, region=region)
+        if props.progressive:
+            film = self._render_progressive(pm, pm_scene, settings, props, progress, region,
+                                            view_layer, render.film_transparent)
+        else:
+            film = pm.render(pm_scene, settings, progress=progress,
+                             should_cancel=self._should_cancel, region=region)
         elapsed = time.perf_counter() - t0
         self._write_result(film, view_layer, render.film_transparent)
         cancelled = bool(film.stats.get("cancelled"))
@@ -153,6 +157,40 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.update_stats("", "Cancelled")
         else:
             self.update_stats("", f"Done: {summary}")
+
+    def _render_progressive(self, pm, pm_scene, settings, props, progress, region, view_layer,
+                            transparent):
+        """Passes until the budget is spent; the image is updated after every pass and the
+        stats line shows pass, photons so far, elapsed time and the error estimate."""
+        budget = pm.Budget(passes=props.max_passes or None, seconds=props.time_limit or None,
+                           target_error=props.target_error or None)
+
+        def pass_progress(stage, fraction, text):
+            now = time.perf_counter()
+            if now - self._last_stats > 0.1:
+                self._last_stats = now
+                self.update_stats("", text)
+
+        def on_pass(film, info):
+            self._write_result(film, view_layer, transparent)
+            err = info["error_estimate"]
+            err_text = f"error ~{err:.4f}" if err == err else "error: after pass 2"
+            self.update_stats("", f"Pass {info['passes']} | {info['photons'] / 1e6:.2f} M photons"
+                                  f" | {info['elapsed']:.1f} s | {err_text}")
+            done = []
+            if budget.passes:
+                done.append(info["passes"] / budget.passes)
+            if budget.seconds:
+                done.append(info["elapsed"] / budget.seconds)
+            if budget.target_error and err == err:
+                done.append(min(1.0, budget.target_error / max(err, 1e-12)))
+            if not done:
+                done.append(info["passes"] / pm.progressive.DEFAULT_MAX_PASSES)
+            self.update_progress(min(1.0, max(done)))
+
+        return pm.render_progressive(pm_scene, settings, budget, progress=pass_progress,
+                                     should_cancel=self._should_cancel, on_pass=on_pass,
+                                     region=region)
 
     def _add_passes(self, view_layer):
         """Allocate our passes in the render result (update_render_passes only tells the

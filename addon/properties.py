@@ -24,7 +24,49 @@ EFFECT_ITEMS = (
 )
 
 
+def _preset_items(self, context):
+    """Preset labels carry measured cost and error (engine/presets_measured.json)."""
+    try:
+        from .core import load_engine
+        presets = load_engine().presets
+        items = [(n, presets.label(n), f"Apply the {n} preset (photons, samples, neighbours)")
+                 for n in presets.PRESETS]
+    except Exception:  # noqa: BLE001 - engine not loadable: still show the choices
+        items = [(n, n.capitalize(), "") for n in ("preview", "medium", "high", "reference")]
+    # Blender keeps only references to the strings: hold them for the enum's lifetime.
+    _preset_items.cache = items + [("custom", "Custom", "Settings edited by hand")]
+    return _preset_items.cache
+
+
+def _apply_preset(self, context):
+    if self.quality_preset == "custom":
+        return
+    from .core import load_engine
+    for key, value in load_engine().presets.PRESETS[self.quality_preset].items():
+        setattr(self, key, value)
+
+
 class PhotonMapRenderSettings(bpy.types.PropertyGroup):
+    quality_preset: EnumProperty(
+        name="Quality", items=_preset_items, update=_apply_preset, default=2,  # "high"
+        description="Settings bundles; the label shows time and error measured on the "
+                    "Figure 6 box (bench/bench_accuracy.py)")
+    # Progressive rendering
+    progressive: BoolProperty(
+        name="Progressive", default=False,
+        description="Render passes of fresh photons with a shrinking search area and show "
+                    "the image after every pass; stop at the budget below")
+    max_passes: IntProperty(
+        name="Passes", default=16, min=0, soft_max=1000,
+        description="Stop after this many passes (0 = no pass limit)")
+    time_limit: FloatProperty(
+        name="Time Limit", default=0.0, min=0.0, soft_max=3600.0, subtype="TIME_ABSOLUTE",
+        unit="TIME_ABSOLUTE",
+        description="Stop before a pass would end after this many seconds (0 = no limit)")
+    target_error: FloatProperty(
+        name="Target Error", default=0.0, min=0.0, soft_max=0.1, precision=4,
+        description="Stop when the estimated relative MSE (from two independent "
+                    "half-images) falls below this (0 = no target)")
     # Pass 1: photons
     photons: IntProperty(
         name="Photons", default=200_000, min=0, soft_max=5_000_000,

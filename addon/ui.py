@@ -55,8 +55,9 @@ class PHOTONMAP_PT_sampling(PhotonMapButtonsPanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         pm = context.scene.photonmap
+        layout.prop(pm, "quality_preset")
         col = layout.column()
-        col.prop(pm, "spp")
+        col.prop(pm, "spp", text="Samples per Pass" if pm.progressive else "Samples")
         col.prop(pm, "light_samples")
         col.prop(pm, "max_depth")
         col.prop(pm, "seed")
@@ -155,7 +156,45 @@ class PHOTONMAP_PT_passes(PhotonMapButtonsPanel, bpy.types.Panel):
         col.prop(vl, "use_pass_normal")
 
 
-classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
+class PHOTONMAP_PT_progressive(PhotonMapButtonsPanel, bpy.types.Panel):
+    bl_label = "Progressive"
+    bl_parent_id = "PHOTONMAP_PT_sampling"
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.photonmap, "progressive", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        pm = context.scene.photonmap
+        col = layout.column()
+        col.active = pm.progressive
+        col.prop(pm, "max_passes")
+        col.prop(pm, "time_limit")
+        col.prop(pm, "target_error")
+
+
+class PHOTONMAP_PT_effects(PhotonMapButtonsPanel, bpy.types.Panel):
+    """What the last render decided to simulate, and why (engine/effects.py)."""
+    bl_label = "Effects of Last Render"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        from .engine import last_render
+        lines = (last_render.get("stats") or {}).get("effects") or []
+        col = self.layout.column(align=True)
+        if not lines:
+            col.label(text="Render once to see which effects the scene needs")
+        for line in lines:
+            effect, _, why = line.partition(" - ")
+            col.label(text=effect, icon="CHECKMARK" if effect.endswith(": on") else "X")
+            if why:
+                col.label(text="    " + why)
+
+
+classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_effects,
+           PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
            PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_passes)
 
 _patched = []

@@ -5,11 +5,13 @@ Pure Python on numpy, embreex and scipy; never imports bpy.
     from engine import render, RenderSettings
     from engine.api import PaperScene
 """
+from . import presets
 from .film import Film
+from .progressive import Budget, render_progressive
 from .render import render
 from .scene import Camera, Light, Material, Mesh, Scene, SceneError
 from .settings import RenderSettings
 
-__all__ = ["render", "RenderSettings", "Film", "Scene", "Mesh", "Material", "Light",
+__all__ = ["render", "render_progressive", "Budget", "presets", "RenderSettings", "Film", "Scene", "Mesh", "Material", "Light",
            "Camera", "SceneError"]
 __version__ = "0.1.0"

@@ -71,7 +71,7 @@ class SurfaceHit:
 
 def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHit:
     p = geo.hit_points(prim, u, v)
-    ng = geo.ng[prim]
+    ng = np.take(geo.ng, prim, axis=0)
     front = dot(d, ng) < 0.0
     sign = np.where(front, 1.0, -1.0)[:, None]
     ng = ng * sign
@@ -82,8 +82,8 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     bad = dot(ns, wo) <= 1e-6
     if bad.any():
         ns[bad] = ng[bad]
-    mat = geo.material[prim]
-    base = table.base_color[mat]
+    mat = np.take(geo.material, prim)
+    base = np.take(table.base_color, mat, axis=0)
     for mi, tex in enumerate(table.textures):
         if tex is None:
             continue
@@ -94,26 +94,46 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
 
 
 def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]:
-    """RGB weight of each lobe for the incoming direction (sums to <= 1 per channel)."""
+    """RGB weight of each lobe for the incoming direction (sums to <= 1 per channel).
+
+    Fresnel terms are evaluated only on rows whose material has a glass or coat lobe:
+    elsewhere they are multiplied by an exact 0 (1 - 0*f = 1), so the result is bitwise
+    the same as evaluating them everywhere."""
     m = hit.mat
-    a = table.alpha[m][:, None]
-    metal = table.metallic[m][:, None]
-    trans = table.transmission[m][:, None]
-    spec = table.specular[m][:, None]
-    ior = table.ior[m]
+    n = len(m)
+    a1 = np.take(table.alpha, m)
+    metal1 = np.take(table.metallic, m)
+    trans1 = np.take(table.transmission, m)
+    spec1 = np.take(table.specular, m)
+    a, metal, trans, spec = a1[:, None], metal1[:, None], trans1[:, None], spec1[:, None]
     cos_i = np.clip(dot(hit.ns, hit.wo), 0.0, 1.0)
-    eta_glass = np.where(hit.front, ior, 1.0 / ior)
-    f_glass = fresnel_dielectric(cos_i, eta_glass)[:, None]
-    f_coat = fresnel_dielectric(cos_i, ior)[:, None]
-    schlick = hit.base + (1.0 - hit.base) * ((1.0 - cos_i) ** 5)[:, None]
-    dielectric = a * (1.0 - metal) * (1.0 - trans)
-    ones = np.ones_like(hit.base)
+    f_glass1 = np.zeros(n)
+    f_coat1 = np.zeros(n)
+    gl = np.nonzero(trans1 != 0)[0]
+    if len(gl):
+        ior = np.take(table.ior, m[gl])
+        f_glass1[gl] = fresnel_dielectric(cos_i[gl], np.where(hit.front[gl], ior, 1.0 / ior))
+    ct = np.nonzero(spec1 != 0)[0]
+    if len(ct):
+        f_coat1[ct] = fresnel_dielectric(cos_i[ct], np.take(table.ior, m[ct]))
+    f_glass, f_coat = f_glass1[:, None], f_coat1[:, None]
+    base = hit.base
+    not_metal = 1.0 - metal
+    dielectric = a * not_metal * (1.0 - trans)
+    ones = np.ones_like(base)
+    if np.any(metal1 != 0):
+        c5 = (1.0 - cos_i) ** 5
+        schlick = base + (1.0 - base) * c5[:, None]
+        metal_w = a * metal * schlick
+    else:
+        metal_w = np.zeros_like(base)  # a * 0 * schlick: schlick is finite (base in [0,1])
+    glass = a * not_metal * trans
     return {
-        "diffuse": dielectric * (1.0 - spec * f_coat) * hit.base,
+        "diffuse": dielectric * (1.0 - spec * f_coat) * base,
         "pass": (1.0 - a) * ones,
-        "metal": a * metal * schlick,
-        "glass_r": a * (1.0 - metal) * trans * f_glass * ones,
-        "glass_t": a * (1.0 - metal) * trans * (1.0 - f_glass) * hit.base,
+        "metal": metal_w,
+        "glass_r": glass * f_glass * ones,
+        "glass_t": glass * (1.0 - f_glass) * base,
         "coat": dielectric * spec * f_coat * ones,
     }
 

@@ -37,6 +37,16 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
     r.add_argument("-o", "--output", required=True,
                    help="output image: .png (sRGB), .exr (linear float), .ppm, .npy")
+    r.add_argument("--preset", choices=("preview", "medium", "high", "reference"),
+                   help="quality preset (docs/accuracy_time.md has its measured time and error); "
+                        "other options override it")
+    r.add_argument("--progressive", action="store_true",
+                   help="render passes of fresh photons with a shrinking search area until "
+                        "a budget (--passes / --time-limit / --target-error) is reached")
+    r.add_argument("--passes", type=_positive_int, help="progressive: stop after N passes")
+    r.add_argument("--time-limit", type=_positive_float, help="progressive: stop within T seconds")
+    r.add_argument("--target-error", type=_positive_float,
+                   help="progressive: stop when the estimated relMSE is below this")
     r.add_argument("--photons", type=_positive_int, help="global photons to emit")
     r.add_argument("--caustic-photons", type=_positive_int, help="caustic photons to emit")
     r.add_argument("--radius", type=_positive_float, help="max photon search radius (default: auto)")
@@ -62,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="show the global photon map directly (faster, blotchier)")
     r.add_argument("--show-photons", action="store_true",
                    help="draw photon hits over the image (paper Fig. 6, left)")
-    r.add_argument("--passes", action="store_true",
+    r.add_argument("--save-passes", action="store_true",
                    help="also write each effect pass next to the output (name.direct.png ...)")
     r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for PNG/PPM")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -82,7 +92,9 @@ def main(argv=None) -> int:
 
 
 def _render(args) -> int:
+    from . import presets
     from .imageio import FORMATS, write_image
+    from .progressive import Budget, render_progressive
     from .render import render
     from .scenefile import load_scene
 
@@ -90,7 +102,9 @@ def _render(args) -> int:
     if ext not in FORMATS:
         raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
                          f"(use {', '.join(FORMATS)})")
-    scene, overrides = load_scene(args.scene)
+    scene, file_overrides = load_scene(args.scene)
+    overrides = presets.apply(args.preset) if args.preset else {}
+    overrides.update(file_overrides)
     if args.width:
         scene.width = args.width
     if args.height:
@@ -125,8 +139,20 @@ def _render(args) -> int:
             bar.n = int(1000 * fraction)
             bar.refresh()
 
+    progressive = args.progressive or any(v is not None for v in (args.passes, args.time_limit,
+                                                                   args.target_error))
     try:
-        film = render(scene, settings, progress=progress)
+        if progressive:
+            budget = Budget(args.passes or None, args.time_limit, args.target_error)
+
+            def on_pass(film, info):
+                if bar is not None:
+                    bar.write(f"pass {info['passes']}: {info['photons']:,} photons, "
+                              f"{info['elapsed']:.1f} s, estimated relMSE "
+                              f"{info['error_estimate']:.4f}")
+            film = render_progressive(scene, settings, budget, progress=progress, on_pass=on_pass)
+        else:
+            film = render(scene, settings, progress=progress)
     finally:
         if bar is not None:
             bar.close()
@@ -135,8 +161,10 @@ def _render(args) -> int:
     if not args.quiet:
         for line in film.stats.get("effects", []):
             print(f"  {line}", file=sys.stderr)
-    write_image(film.combined, args.output, args.exposure)
-    if args.passes:
+    meta = {"photonmap:effects": "\n".join(film.stats.get("effects", [])),
+            "photonmap:settings": repr(settings)}
+    write_image(film.combined, args.output, args.exposure, metadata=meta)
+    if args.save_passes:
         root, ext = os.path.splitext(args.output)
         for name, img in film.passes().items():
             if name in ("combined", "depth", "alpha", "normal"):

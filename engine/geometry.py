@@ -78,20 +78,26 @@ class Geometry:
 
     def hit_points(self, prim: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Positions from barycentrics in float64: more exact than origin + t*dir."""
-        return self.v0[prim] + u[:, None] * self.e1[prim] + v[:, None] * self.e2[prim]
+        # np.take(axis=0) gathers rows ~4x faster than fancy indexing (same values).
+        return (np.take(self.v0, prim, axis=0) + u[:, None] * np.take(self.e1, prim, axis=0)
+                + v[:, None] * np.take(self.e2, prim, axis=0))
 
     def shading_normals(self, prim, u, v) -> np.ndarray:
-        cn = self.corner_normals[prim]
-        w = 1.0 - u - v
-        n = w[:, None] * cn[:, 0] + u[:, None] * cn[:, 1] + v[:, None] * cn[:, 2]
+        cn = np.take(self.corner_normals, prim, axis=0)
+        w = (1.0 - u - v)[:, None]
+        n = w * cn[:, 0] + u[:, None] * cn[:, 1] + v[:, None] * cn[:, 2]
         n = normalize(n)
-        bad = ~np.isfinite(n).all(axis=1) | (np.abs(n).sum(axis=1) < 0.5)
+        # Same tests as isfinite(n).all(axis=1) and abs(n).sum(axis=1), written per component
+        # (short-axis reductions are slow in numpy); |n| <= 1 here so the sum cannot overflow.
+        a = np.abs(n)
+        s = a[:, 0] + a[:, 1] + a[:, 2]
+        bad = ~np.isfinite(s) | (s < 0.5)
         if bad.any():
-            n[bad] = self.ng[prim[bad]]
+            n[bad] = np.take(self.ng, prim[bad], axis=0)
         return n
 
     def uvs(self, prim, u, v) -> np.ndarray:
-        cu = self.corner_uvs[prim]
+        cu = np.take(self.corner_uvs, prim, axis=0)
         w = 1.0 - u - v
         return w[:, None] * cu[:, 0] + u[:, None] * cu[:, 1] + v[:, None] * cu[:, 2]
 

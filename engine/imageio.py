@@ -26,8 +26,12 @@ def to_8bit(rgb: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     return np.round(linear_to_srgb(scaled) * 255.0).astype(np.uint8)
 
 
-def write_image(rgb: np.ndarray, path: str, exposure: float = 0.0, alpha: np.ndarray | None = None):
-    """Write an HxWx3 linear image; the format follows the file extension."""
+def write_image(rgb: np.ndarray, path: str, exposure: float = 0.0, alpha: np.ndarray | None = None,
+                metadata: dict | None = None):
+    """Write an HxWx3 linear image; the format follows the file extension. `metadata`
+    (str -> str) goes into PNG text chunks / EXR header attributes (e.g. which effects the
+    render simulated and why)."""
+    metadata = {str(k): str(v) for k, v in (metadata or {}).items()}
     ext = os.path.splitext(path)[1].lower()
     if ext not in FORMATS:
         raise ValueError(f"output '{path}': unsupported format '{ext or '(none)'}'; "
@@ -44,17 +48,24 @@ def write_image(rgb: np.ndarray, path: str, exposure: float = 0.0, alpha: np.nda
         channels = {"RGB": np.ascontiguousarray(rgb)}
         if alpha is not None:
             channels["A"] = np.ascontiguousarray(np.asarray(alpha, np.float32))
-        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
+                  **metadata}
         with OpenEXR.File(header, channels) as f:
             f.write(path)
     else:
-        from PIL import Image
+        from PIL import Image, PngImagePlugin
         img8 = to_8bit(rgb, exposure)
+        extra = {}
+        if ext == ".png" and metadata:
+            info = PngImagePlugin.PngInfo()
+            for k, v in metadata.items():
+                info.add_itxt(k, v)
+            extra["pnginfo"] = info
         if ext == ".png" and alpha is not None:
             a8 = np.round(np.clip(alpha, 0, 1) * 255).astype(np.uint8)
-            Image.fromarray(np.dstack([img8, a8]), "RGBA").save(path)
+            Image.fromarray(np.dstack([img8, a8]), "RGBA").save(path, **extra)
         else:
-            Image.fromarray(img8, "RGB").save(path)
+            Image.fromarray(img8, "RGB").save(path, **extra)
     return path
 
 

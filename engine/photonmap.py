@@ -21,11 +21,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .photons import Photons
-from .sampling import dot
+from .sampling import dot, max3
 
 NORMAL_AGREEMENT = 0.5
 MAX_CLASSIC_K = 4096
 QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
+DENSE_FRACTION = 0.8   # skip the min-photons pre-query when this share of a sample is busy
 
 
 class PhotonMap:
@@ -33,6 +34,7 @@ class PhotonMap:
         self.photons = photons
         self.workers = workers
         self.tree = None
+        self._pack = None
         if len(photons):
             # Unbalanced build: many identical points (a focused caustic) make the
             # balanced median build pathological (DESIGN.md §5).
@@ -51,9 +53,25 @@ class PhotonMap:
         # A cheap query for the min_photons nearest tells which points have enough photons
         # in range; only those pay for the k-NN query (most queries of a sparse caustic map).
         m = int(min(min_photons, len(self.photons)))
-        dm, _ = self.tree.query(p, k=m, distance_upper_bound=radius, workers=self.workers)
-        dm = dm.reshape(len(p), -1)
-        busy = np.nonzero(np.isfinite(dm[:, -1]) & (len(self.photons) >= min_photons))[0]
+        if len(self.photons) < min_photons:
+            return out
+        # Where nearly every point is busy (a global map, the gather-map build) the cheap
+        # query is pure overhead (~25 % of the k-NN query): a strided sample decides.
+        # Skipping it changes nothing: a row with fewer than m photons in range gets
+        # count < min_photons in _estimate and is zeroed there too.
+        step = 32
+        if len(p) >= 8 * step:
+            ds, _ = self.tree.query(p[::step], k=m, distance_upper_bound=radius,
+                                    workers=self.workers)
+            dense = np.isfinite(ds.reshape(len(ds), -1)[:, -1]).mean() > DENSE_FRACTION
+        else:
+            dense = False
+        if dense:
+            busy = np.arange(len(p))
+        else:
+            dm, _ = self.tree.query(p, k=m, distance_upper_bound=radius, workers=self.workers)
+            dm = dm.reshape(len(p), -1)
+            busy = np.nonzero(np.isfinite(dm[:, -1]))[0]
         if len(busy) == 0:
             return out
         if estimator in ("classic", "radius"):
@@ -74,18 +92,33 @@ class PhotonMap:
                 out[sel] *= np.maximum(c / kq, 1.0)[:, None]
         return out
 
+    def _packed(self):
+        """Direction, normal and power of every photon in one (P+1, 9) float32 table whose
+        last row is a sentinel (all zero) for 'not found': one row gather (np.take) per
+        neighbour instead of three fancy-index gathers and an np.where."""
+        if self._pack is None:
+            ph = self.photons
+            pk = np.zeros((len(ph) + 1, 9), np.float32)
+            pk[:-1, 0:3] = ph.direction
+            pk[:-1, 3:6] = ph.normal
+            pk[:-1, 6:9] = ph.power
+            self._pack = pk
+        return self._pack
+
     def _estimate(self, p, n, radius, kq, k, min_photons, estimator):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=radius, workers=self.workers)
         if kq == 1:
             dist, idx = dist[:, None], idx[:, None]
-        found = idx < len(self.photons)
-        safe = np.where(found, idx, 0)
-        ph = self.photons
+        found = idx < len(self.photons)  # scipy returns idx = P where nothing was found
+        g = np.take(self._packed(), idx, axis=0)  # (N,k,9); row P is the zero sentinel
         n32 = n.astype(np.float32)
-        cos_in = -np.einsum("nkc,nc->nk", ph.direction[safe], n32)
-        ok = found & (cos_in > 0) & (np.einsum("nkc,nc->nk", ph.normal[safe], n32) > NORMAL_AGREEMENT)
-        count = ok.sum(axis=1)
-        power = ph.power[safe]
+        nx, ny, nz = n32[:, None, 0], n32[:, None, 1], n32[:, None, 2]
+        # Dot products per component on the strided views (no (N,k,3) copies; same float32
+        # products and left-to-right sums as the einsum they replace).
+        cos_in = -(g[..., 0] * nx + g[..., 1] * ny + g[..., 2] * nz)
+        ok = found & (cos_in > 0) & ((g[..., 3] * nx + g[..., 4] * ny + g[..., 5] * nz)
+                                     > NORMAL_AGREEMENT)
+        count = np.count_nonzero(ok, axis=1)
         if estimator == "classic":
             weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
         elif estimator == "radius":
@@ -98,7 +131,7 @@ class PhotonMap:
             # k photons on (nearly) the query point, as a focusing lens makes: the k-th
             # distance is 0 and 1/r^2 would be inf. Floor r at a resolution the float32
             # photon positions can represent (and far below any useful radius).
-            r_min = np.maximum(1e-6 * np.abs(p).max(axis=1), max(1e-9 * radius, 1e-15))
+            r_min = np.maximum(1e-6 * max3(np.abs(p)), max(1e-9 * radius, 1e-15))
             r = np.maximum(r, r_min)[:, None]
             d = np.where(found, dist, 0.0)
             if estimator == "knn_simpson":
@@ -108,7 +141,7 @@ class PhotonMap:
                 weight = np.where(ok, np.clip(1.0 - d / r, 0.0, 1.0), 0.0)
                 weight = weight / ((1.0 - 2.0 / 3.0) * math.pi * r * r)
         # float64: weights near a focus exceed float32's range.
-        E = np.einsum("nk,nkc->nc", weight, power.astype(np.float64))
+        E = np.einsum("nk,nkc->nc", weight, g[..., 6:9].astype(np.float64))
         E[count < min_photons] = 0.0
         return E
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bsdf import lobe_weights, sample_specular, surface_hit
-from .sampling import cosine_hemisphere, dot, offset_origin, to_world
+from .sampling import cosine_hemisphere, dot, max3, offset_origin, to_world
 
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
 LOBES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "coat")
@@ -78,7 +78,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
             else:
                 o, d, power = light.emit_towards(n, rng, *targets)
             power *= n / count  # emit() spreads the light's whole flux over this chunk
-            live = power.max(axis=1) > 0  # e.g. aimed outside a one-sided light's hemisphere
+            live = max3(power) > 0  # e.g. aimed outside a one-sided light's hemisphere
             if not live.all():
                 o, d, power = o[live], d[live], power[live]
             had_diffuse = np.zeros(len(o), bool)
@@ -101,7 +101,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                 w = lobe_weights(table, hit)
                 kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
                                 np.where(had_specular, CAUSTIC, DIRECT))
-                store = w["diffuse"].max(axis=1) > 0
+                store = max3(w["diffuse"]) > 0
                 if caustic_only:
                     store &= kind == CAUSTIC
                 if store.any():
@@ -111,19 +111,24 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                     parts["normal"].append(hit.ng[store].astype(np.float32))
                     parts["kind"].append(kind[store].astype(np.uint8))
                 # Russian roulette over the lobes.
-                probs = np.stack([w[k].max(axis=1) for k in LOBES], axis=1)
-                s = probs.sum(axis=1)
+                probs = np.stack([max3(w[k]) for k in LOBES], axis=1)
+                s = ((((probs[:, 0] + probs[:, 1]) + probs[:, 2]) + probs[:, 3]) + probs[:, 4]) + probs[:, 5]
                 probs = probs / np.maximum(s, 1.0)[:, None]
                 cdf = np.cumsum(probs, axis=1)
                 xi = rng.random(len(o))
-                lobe = (xi[:, None] >= cdf).sum(axis=1)  # len(LOBES) = absorbed
+                lobe = np.count_nonzero(xi[:, None] >= cdf, axis=1)  # len(LOBES) = absorbed
                 survive = lobe < len(LOBES)
                 if caustic_only:
                     survive &= lobe != 0
                 idx = np.nonzero(survive)[0]
                 lobe = lobe[idx]
                 p_sel = probs[idx, lobe]
-                w_sel = np.stack([w[k][idx] for k in LOBES], axis=1)[np.arange(len(idx)), lobe]
+                # The chosen lobe's weight, row by row, without an (n,6,3) stack.
+                w_sel = np.zeros((len(idx), 3))
+                for li, k in enumerate(LOBES):
+                    rows = np.nonzero(lobe == li)[0]
+                    if len(rows):
+                        w_sel[rows] = np.take(w[k], idx[rows], axis=0)
                 new_power = power[idx] * w_sel / np.maximum(p_sel, 1e-300)[:, None]
                 sub = _subset(hit, idx)
                 new_d = np.empty((len(idx), 3))
@@ -147,7 +152,10 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                 caustic_then_diffuse = np.where(diff, first_diffuse & had_specular[idx], ctd)
                 had_diffuse = had_diffuse[idx] | diff
                 had_specular = had_specular[idx] | spec
-                keep = ok & np.isfinite(new_power).all(axis=1) & (new_power.max(axis=1) > 0)
+                # isfinite(all) and max > 0 per row in one pass: max3 propagates NaN
+                # (NaN > 0 is False) and inf is caught by isfinite of the row sum.
+                mx = max3(new_power)
+                keep = ok & np.isfinite(new_power[:, 0] + new_power[:, 1] + new_power[:, 2]) & (mx > 0)
                 new_d, new_power = new_d[keep], new_power[keep]
                 had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
                 caustic_then_diffuse = caustic_then_diffuse[keep]
@@ -168,7 +176,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 
 def _subset(hit, idx):
     from .bsdf import SurfaceHit
-    return SurfaceHit(**{k: getattr(hit, k)[idx] for k in hit.__dataclass_fields__})
+    # np.take(axis=0) is ~4x faster than fancy indexing for row gathers.
+    return SurfaceHit(**{k: np.take(getattr(hit, k), idx, axis=0) for k in hit.__dataclass_fields__})
 
 
 def _k(n: int) -> str:

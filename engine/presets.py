@@ -1,0 +1,45 @@
+"""Quality presets: settings bundles whose labels carry measured cost and error.
+
+The numbers come from `bench/bench_accuracy.py`, which renders its reference scene (the
+paper's Figure 6 box with a glass ball, 160x120) with every preset, measures wall time,
+relMSE and HDR-FLIP against a converged Cycles reference, and writes them to
+presets_measured.json next to this file. Labels are never typed in by hand.
+"""
+from __future__ import annotations
+
+import json
+import os
+
+PRESETS = {
+    "preview": dict(photons=50_000, caustic_photons=25_000, spp=8, k_nearest=48),
+    "medium": dict(photons=100_000, caustic_photons=50_000, spp=24, k_nearest=64),
+    "high": dict(photons=200_000, caustic_photons=100_000, spp=64, k_nearest=64),
+    "reference": dict(photons=500_000, caustic_photons=300_000, spp=256, k_nearest=96),
+}
+MEASURED_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "presets_measured.json")
+
+
+def measured() -> dict:
+    """{preset: {"seconds": s, "relmse": e, "flip": f, "scene": text}} or {} if not measured."""
+    try:
+        with open(MEASURED_FILE) as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return {}
+
+
+def label(name: str) -> str:
+    """'High (~10 s, FLIP 0.049)' from the measurements; the bare name if unmeasured."""
+    m = measured().get(name)
+    title = name.capitalize()
+    if not m:
+        return title
+    return f"{title} (~{m['seconds']:.0f} s, FLIP {m['flip']:.3f})"
+
+
+def apply(name: str, overrides: dict | None = None) -> dict:
+    if name not in PRESETS:
+        raise ValueError(f"unknown quality preset '{name}' (choose {', '.join(PRESETS)})")
+    out = dict(PRESETS[name])
+    out.update(overrides or {})
+    return out

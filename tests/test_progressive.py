@@ -1,0 +1,70 @@
+"""Progressive photon mapping: convergence, budgets, and the error estimate."""
+import time
+
+import numpy as np
+import pytest
+
+from engine import RenderSettings
+from engine.api import cornell_box
+from engine.progressive import Budget, half_error, relmse, render_progressive
+
+CHEAP = dict(spp=1, photons=3000, caustic_photons=1500)
+
+
+@pytest.fixture(scope="module")
+def box_reference():
+    """A long progressive run of the small box (converged well beyond the test runs)."""
+    s = cornell_box(32, 24)
+    return s, render_progressive(s, RenderSettings(spp=8, photons=40000, caustic_photons=20000,
+                                                   seed=99), Budget(passes=16)).combined
+
+
+def test_error_decreases_with_passes(box_reference):
+    scene, ref = box_reference
+    errors = []
+    render_progressive(scene, RenderSettings(seed=1, **CHEAP), Budget(passes=8),
+                       on_pass=lambda film, info: errors.append(relmse(film.combined, ref)))
+    assert len(errors) == 8
+    assert errors[-1] < 0.5 * errors[0]
+    assert errors[3] < errors[0] and errors[7] < errors[3]
+
+
+def test_pass_budget_is_exact():
+    s = cornell_box(16, 12)
+    film = render_progressive(s, RenderSettings(**CHEAP), Budget(passes=3))
+    assert film.stats["passes"] == 3 and len(film.stats["pass_log"]) == 3
+
+
+def test_time_budget_stops_in_time():
+    s = cornell_box(16, 12)
+    t0 = time.perf_counter()
+    film = render_progressive(s, RenderSettings(**CHEAP), Budget(seconds=3.0))
+    elapsed = time.perf_counter() - t0
+    assert film.stats["passes"] >= 1
+    assert elapsed < 3.0 * 1.5 + 1.0  # generous: the last pass is predicted, not interrupted
+
+
+def test_target_error_stops_when_the_estimate_is_reached():
+    s = cornell_box(16, 12)
+    film = render_progressive(s, RenderSettings(**CHEAP), Budget(target_error=0.05, passes=40))
+    est = film.stats["error_estimate"]
+    assert est <= 0.05 or film.stats["passes"] == 40
+    assert film.stats["passes"] >= 2
+
+
+def test_half_error_formula():
+    """For independent halves, E[(A-B)^2] = 4 Var((A+B)/2): check on synthetic noise."""
+    rng = np.random.default_rng(0)
+    truth = np.full((64, 64, 3), 0.5)
+    a = truth + rng.normal(0, 0.05, truth.shape)
+    b = truth + rng.normal(0, 0.05, truth.shape)
+    est = half_error(a, b)
+    true = relmse((a + b) / 2, truth)
+    assert 0.8 < est / true < 1.25
+
+
+def test_budget_validation():
+    with pytest.raises(ValueError, match="passes"):
+        Budget(passes=0)
+    with pytest.raises(ValueError, match="seconds"):
+        Budget(seconds=-1)
