@@ -183,7 +183,7 @@ class GatherMap:
             dist, idx = dist[:, None], idx[:, None]
         found = idx < len(self.position)
         safe = np.where(found, idx, 0)
-        agree = found & (np.einsum("nkc,nc->nk", self.normal[safe], n) > 0.7)
+        agree = found & (np.einsum("nkc,nc->nk", np.take(self.normal, safe, axis=0), n) > 0.7)
         if self.accel is not None:
             agree = self._visible_first(p, n, safe, agree)
         first = np.argmax(agree, axis=1)
