@@ -1,10 +1,10 @@
 # Every target creates .venv from pinned versions first (Python 3.11 required: bpy 5.0.1).
-PYTHON ?= python3.11
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 PY := $(VENV)/bin/python
 OUT := out
 
-.PHONY: venv render test test-all bench extension blends references clean
+.PHONY: venv render test test-all bench bench-accuracy extension blends references docs-images clean
 
 $(VENV)/.stamp: requirements.txt pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -29,6 +29,18 @@ test-all: venv
 
 bench: venv
 	$(PY) bench/bench_core.py
+
+# Error vs time of every setting against Cycles (writes docs/accuracy_time.*, preset labels).
+bench-accuracy: venv
+	$(PY) bench/bench_accuracy.py
+
+# Cycles reference images for the accuracy tests (tests/references/, a few minutes).
+references: venv
+	$(PY) tools/make_references.py
+
+# README images: each example blend with and without photon mapping.
+docs-images: venv
+	$(PY) tools/render_docs_images.py
 
 extension: venv
 	$(PY) tools/build_extension.py

@@ -221,7 +221,8 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     total = npix * spp
     acc = Accumulator(npix)
     counters = Counters()
-    strata = int(math.ceil(math.sqrt(spp)))
+    strata = max(1, int(math.sqrt(spp)))
+    full_rounds = (spp // (strata * strata)) * strata * strata
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     chunk = s.chunk_size
@@ -236,6 +237,11 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
             cell = sub % (strata * strata)
             jx = (cell % strata + rng.random(len(sample))) / strata
             jy = (cell // strata + rng.random(len(sample))) / strata
+            # Pixel jitter: a grid of floor(sqrt(spp))^2 cells, the rest uniform (see
+            # StratifiedSampler: never visit some cells twice).
+            rest = sub >= full_rounds
+            jx[rest] = rng.random(int(rest.sum()))
+            jy[rest] = rng.random(int(rest.sum()))
             px = x0 + pix % rw
             py = y0 + pix // rw
             o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)

@@ -34,7 +34,6 @@ class PhotonMap:
         self.photons = photons
         self.workers = workers
         self.tree = None
-        self._pack = None
         if len(photons):
             # Unbalanced build: many identical points (a focused caustic) make the
             # balanced median build pathological (DESIGN.md §5).
@@ -92,32 +91,26 @@ class PhotonMap:
                 out[sel] *= np.maximum(c / kq, 1.0)[:, None]
         return out
 
-    def _packed(self):
-        """Direction, normal and power of every photon in one (P+1, 9) float32 table whose
-        last row is a sentinel (all zero) for 'not found': one row gather (np.take) per
-        neighbour instead of three fancy-index gathers and an np.where."""
-        if self._pack is None:
-            ph = self.photons
-            pk = np.zeros((len(ph) + 1, 9), np.float32)
-            pk[:-1, 0:3] = ph.direction
-            pk[:-1, 3:6] = ph.normal
-            pk[:-1, 6:9] = ph.power
-            self._pack = pk
-        return self._pack
-
     def _estimate(self, p, n, radius, kq, k, min_photons, estimator):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=radius, workers=self.workers)
         if kq == 1:
             dist, idx = dist[:, None], idx[:, None]
-        found = idx < len(self.photons)  # scipy returns idx = P where nothing was found
-        g = np.take(self._packed(), idx, axis=0)  # (N,k,9); row P is the zero sentinel
+        P = len(self.photons)
+        found = idx < P  # scipy returns idx = P where nothing was found
+        # Any valid row stands in for 'not found' (masked below); np.take(axis=0) gathers
+        # rows ~4x faster than fancy indexing.
+        safe = np.minimum(idx, P - 1)
+        ph = self.photons
+        gd = np.take(ph.direction, safe, axis=0)
+        gn = np.take(ph.normal, safe, axis=0)
         n32 = n.astype(np.float32)
         nx, ny, nz = n32[:, None, 0], n32[:, None, 1], n32[:, None, 2]
-        # Dot products per component on the strided views (no (N,k,3) copies; same float32
-        # products and left-to-right sums as the einsum they replace).
-        cos_in = -(g[..., 0] * nx + g[..., 1] * ny + g[..., 2] * nz)
-        ok = found & (cos_in > 0) & ((g[..., 3] * nx + g[..., 4] * ny + g[..., 5] * nz)
+        # Dot products per component (same float32 products and left-to-right sums as the
+        # einsum they replace: bitwise equal, no (N,k,3) temporaries).
+        cos_in = -(gd[..., 0] * nx + gd[..., 1] * ny + gd[..., 2] * nz)
+        ok = found & (cos_in > 0) & ((gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz)
                                      > NORMAL_AGREEMENT)
+        del gd, gn
         count = np.count_nonzero(ok, axis=1)
         if estimator == "classic":
             weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
@@ -141,7 +134,7 @@ class PhotonMap:
                 weight = np.where(ok, np.clip(1.0 - d / r, 0.0, 1.0), 0.0)
                 weight = weight / ((1.0 - 2.0 / 3.0) * math.pi * r * r)
         # float64: weights near a focus exceed float32's range.
-        E = np.einsum("nk,nkc->nc", weight, g[..., 6:9].astype(np.float64))
+        E = np.einsum("nk,nkc->nc", weight, np.take(ph.power, safe, axis=0).astype(np.float64))
         E[count < min_photons] = 0.0
         return E
 

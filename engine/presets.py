@@ -12,7 +12,7 @@ import os
 
 PRESETS = {
     "preview": dict(photons=50_000, caustic_photons=25_000, spp=8, k_nearest=48),
-    "medium": dict(photons=100_000, caustic_photons=50_000, spp=24, k_nearest=64),
+    "medium": dict(photons=100_000, caustic_photons=50_000, spp=16, k_nearest=64),
     "high": dict(photons=200_000, caustic_photons=100_000, spp=64, k_nearest=64),
     "reference": dict(photons=500_000, caustic_photons=300_000, spp=256, k_nearest=96),
 }

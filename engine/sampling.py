@@ -126,11 +126,14 @@ class StratifiedSampler:
         self.sub = sub
         self.pix = pix
         self.m = max(1, int(np.sqrt(spp)))
+        # Samples beyond the last whole round of m*m cells stay unstratified: a partly
+        # visited grid would weight some cells twice, a per-pixel bias pattern.
+        self.full = (spp // (self.m * self.m)) * self.m * self.m
         self.rng = rng
 
     def subset(self, idx) -> "StratifiedSampler":
         s = StratifiedSampler.__new__(StratifiedSampler)
-        s.sub, s.pix, s.m, s.rng = self.sub[idx], self.pix[idx], self.m, self.rng
+        s.sub, s.pix, s.m, s.full, s.rng = self.sub[idx], self.pix[idx], self.m, self.full, self.rng
         return s
 
     def uv(self, dim: int) -> tuple[np.ndarray, np.ndarray]:
@@ -144,4 +147,8 @@ class StratifiedSampler:
         cell = cell.astype(np.int64)
         u1 = (cell % self.m + self.rng.random(n)) / self.m
         u2 = (cell // self.m + self.rng.random(n)) / self.m
+        rest = self.sub >= self.full
+        if rest.any():
+            u1[rest] = self.rng.random(int(rest.sum()))
+            u2[rest] = self.rng.random(int(rest.sum()))
         return u1, u2
