@@ -145,7 +145,7 @@ class GatherMap:
 
     def __init__(self, photon_map: PhotonMap, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, seed: int = 0, accel=None,
-                 eps: float = 0.0):
+                 eps: float = 0.0, indirect_map: PhotonMap | None = None):
         ph = photon_map.photons
         self.workers = photon_map.workers
         # With an Accel, a lookup only takes a gather point it can see: a point on the
@@ -162,10 +162,19 @@ class GatherMap:
         self.normal = ph.normal[sel].astype(np.float64)
         self.E = photon_map.irradiance(self.position, self.normal, radius, k, min_photons,
                                        estimator)
+        # Irradiance without the direct photons: for gather rays that end so close that the
+        # lookup's resolution would show (corners), direct light is traced there instead.
+        self.E_indirect = self.E
+        if indirect_map is not None:
+            self.E_indirect = indirect_map.irradiance(self.position, self.normal, radius, k,
+                                                      min_photons, estimator)
         self.radius = radius
         self.tree = cKDTree(self.position, balanced_tree=False, compact_nodes=False)
 
-    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8) -> np.ndarray:
+    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
+               indirect_only: np.ndarray | None = None) -> np.ndarray:
+        """Irradiance at the nearest visible gather point facing the same way; rows where
+        `indirect_only` is True get the irradiance without direct photons."""
         out = np.zeros((len(p), 3))
         if self.tree is None or len(p) == 0:
             return out
@@ -182,7 +191,10 @@ class GatherMap:
         first = np.argmax(agree, axis=1)
         anyok = agree.any(axis=1)
         chosen = safe[np.arange(len(p)), first]
-        out[anyok] = self.E[chosen[anyok]]
+        E = self.E[chosen]
+        if indirect_only is not None:
+            E = np.where(indirect_only[:, None], self.E_indirect[chosen], E)
+        out[anyok] = E[anyok]
         return out
 
     def _visible_first(self, p, n, safe, agree):
