@@ -26,7 +26,25 @@ pytestmark = pytest.mark.blender
 # Scenes whose default render takes more than ~20 s on 2 cores (measured): slow.
 SLOW = set()
 # Known misses at default settings, with the measured cause (see the reason strings).
-KNOWN_FLIP_MISSES = {}
+# Measured 2026-11-23 (docs/accuracy.md): ours vs Cycles-256 mean HDR-FLIP.
+_NOISE = ("default final gather (1 gather ray x 64 spp) leaves per-pixel grain on the "
+          "indirect-lit walls and a dashed bright line along the floor/wall seam; Cycles-256 "
+          "is cleaner on this simple, mostly direct-lit scene")
+KNOWN_FLIP_MISSES = {
+    "figure3_sphere": "FLIP 0.037 vs 0.027: " + _NOISE + "; the umbra under the sphere is "
+                      "11 % too dark (k-NN bias at the contact)",
+    "diffuse_box_rect": "FLIP 0.033 vs 0.029: " + _NOISE,
+    "sun_point": "FLIP 0.016 vs 0.008: " + _NOISE,
+    "disk_spot": "FLIP 0.029 vs 0.019: " + _NOISE,
+    "ellipse_scaled": "FLIP 0.024 vs 0.015: " + _NOISE,
+}
+# Cycles cannot render this scene right: the spot has radius 0 (a delta light) and shines
+# through a smooth glass ball, so Cycles' paths never connect floor -> glass -> light; it
+# loses the caustic and the light it bounces. Ours with caustics off: brightness 1.061 (the
+# rest is global-map light that also went through the glass); with caustics: 1.58.
+CYCLES_WRONG = {
+    "figure8_caustic": "Cycles misses L S+ D light from a radius-0 spot through smooth glass",
+}
 
 
 def _meta():
@@ -73,6 +91,8 @@ def test_references_are_stored():
 @pytest.mark.parametrize("name", _params())
 def test_matches_cycles(acc, name):
     m = META[name]
+    if name in CYCLES_WRONG:
+        pytest.xfail(CYCLES_WRONG[name])
     ref = acc.load_reference(name)
     ours, seconds = acc.render_ours(name)
     assert ours.shape == ref.shape

@@ -1,0 +1,265 @@
+"""Scenes and render helpers for the Cycles accuracy comparison (issue 4).
+
+Shared by tools/make_references.py (Cycles references), bench/bench_accuracy_cycles.py
+(docs/accuracy.md) and tests/test_accuracy_cycles.py. Needs the bpy wheel.
+
+Every scene is set up in the current bpy session by `setup(name)`: the four example blends
+(their camera, lights and materials) and extra scenes built here with bpy. All render at
+WIDTH x HEIGHT (small: references stay tiny, tests stay fast).
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+BLENDS = os.path.join(ROOT, "example_blends")
+REF_DIR = os.path.join(ROOT, "tests", "references")
+WIDTH, HEIGHT = 96, 72
+
+import bpy  # noqa: E402
+
+sys.path.insert(0, BLENDS)
+import make_blends as mb  # noqa: E402  (bpy helpers: material, plane, box, sphere, light...)
+
+sys.path.pop(0)
+
+
+def ensure_addon():
+    import addon
+    if not hasattr(bpy.types.Scene, "photonmap"):
+        addon.register()
+
+
+# --- scenes ----------------------------------------------------------------------------
+# kind: "diffuse" = only diffuse surfaces (targets: brightness 2 %, relMSE 0.02),
+#       "specular" = glass / mirrors / glossy (target: brightness 5 %).
+
+def _blend(name):
+    def build():
+        bpy.ops.wm.open_mainfile(filepath=os.path.join(BLENDS, name + ".blend"),
+                                 load_ui=False)
+    return build
+
+
+def _diffuse_box():
+    mb.reset()
+    white = mb.material("white", "diffuse", (0.75, 0.75, 0.75))
+    red = mb.material("red", "diffuse", (0.7, 0.12, 0.1))
+    green = mb.material("green", "diffuse", (0.12, 0.55, 0.15))
+    mb.cornell_box(white, red, green)
+    mb.box("TallBlock", 1.0, 1.0, 2.0, white, (-0.7, 0.6, 1.0), (0, 0, math.radians(20)))
+    mb.box("ShortBlock", 1.0, 1.0, 1.0, white, (0.8, -0.4, 0.5), (0, 0, math.radians(-15)))
+    mb.light("RectLight", "AREA", (0, 0, 3.98), 150.0, rotation=(0, 0, 0),
+             shape="RECTANGLE", size=1.2, size_y=0.6)
+    mb.camera((0, -7.6, 2.0), (0, 0, 2.0), 38.0)
+
+
+def _sun_point():
+    mb.reset()
+    white = mb.material("white", "diffuse", (0.8, 0.8, 0.8))
+    blue = mb.material("blue", "diffuse", (0.15, 0.25, 0.7))
+    orange = mb.material("orange", "diffuse", (0.8, 0.4, 0.1))
+    mb.plane("Floor", 12, 12, white)
+    mb.plane("Back", 12, 5, white, (0, 3, 2.5), (math.pi / 2, 0, 0))
+    mb.box("Cube", 1.2, 1.2, 1.2, blue, (-1.0, 0.5, 0.6), (0, 0, math.radians(30)))
+    mb.sphere("Ball", 0.7, orange, (1.2, -0.2, 0.7), segments=32, rings=16)
+    mb.light("Sun", "SUN", (0, 0, 5), 2.0, rotation=(math.radians(40), 0,
+                                                     math.radians(30)), angle=0.0)
+    mb.light("Point", "POINT", (0.5, -2.0, 2.5), 150.0, color=(1.0, 0.9, 0.8),
+             shadow_soft_size=0.2)
+    mb.camera((0, -7.0, 3.0), (0, 0, 0.8), 45.0)
+
+
+def _disk_spot():
+    mb.reset()
+    white = mb.material("white", "diffuse", (0.8, 0.8, 0.8))
+    red = mb.material("red", "diffuse", (0.8, 0.1, 0.1))
+    green = mb.material("green", "diffuse", (0.1, 0.7, 0.2))
+    yellow = mb.material("yellow", "diffuse", (0.8, 0.7, 0.1))
+    mb.plane("Floor", 10, 10, white)
+    mb.plane("Back", 10, 5, white, (0, 2.5, 2.5), (math.pi / 2, 0, 0))
+    mb.box("RedBox", 1.0, 1.0, 1.0, red, (-1.4, 0.5, 0.5), (0, 0, math.radians(15)))
+    mb.sphere("GreenBall", 0.6, green, (0.2, 0.0, 0.6), segments=32, rings=16)
+    mb.box("YellowBox", 0.7, 1.4, 0.5, yellow, (1.6, 0.3, 0.25), (0, 0, math.radians(-25)))
+    mb.light("Disk", "AREA", (-1.0, -0.5, 3.0), 200.0, look_at=(-0.8, 0.3, 0.0),
+             shape="DISK", size=1.0)
+    # spot aimed so the floor and the green ball see both the full cone and its blend ring
+    mb.light("Spot", "SPOT", (1.5, -1.5, 3.5), 400.0, look_at=(0.8, 0.2, 0.0),
+             spot_size=math.radians(45.0), spot_blend=0.3, shadow_soft_size=0.1)
+    mb.camera((0, -7.0, 3.2), (0, 0, 0.7), 42.0)
+
+
+def _ellipse_scaled():
+    mb.reset()
+    white = mb.material("white", "diffuse", (0.8, 0.8, 0.8))
+    teal = mb.material("teal", "diffuse", (0.1, 0.6, 0.6))
+    purple = mb.material("purple", "diffuse", (0.5, 0.2, 0.7))
+    mb.plane("Floor", 10, 10, white)
+    mb.plane("Back", 10, 5, white, (0, 2.5, 2.5), (math.pi / 2, 0, 0))
+    cube = mb.box("ScaledCube", 1.0, 1.0, 1.0, teal, (-0.9, 0.3, 0.75),
+                  (0, 0, math.radians(25)))
+    cube.scale = (1.6, 0.6, 1.5)  # non-uniform object scale (normals must follow)
+    ball = mb.sphere("Ellipsoid", 0.5, purple, (1.2, -0.3, 0.5), segments=32, rings=16)
+    ball.scale = (1.5, 1.0, 1.0)
+    lamp = mb.light("Ellipse", "AREA", (0.0, -0.8, 3.2), 250.0, look_at=(0.2, 0.0, 0.0),
+                    shape="ELLIPSE", size=1.0, size_y=0.5)
+    lamp.scale = (1.5, 0.8, 1.0)  # object scale on the light: area = pi/4 * 1.5 * 0.4
+    mb.camera((0, -7.0, 3.0), (0, 0, 0.8), 42.0)
+
+
+def _mirror_glass():
+    mb.reset()
+    white = mb.material("white", "diffuse", (0.75, 0.75, 0.75))
+    red = mb.material("red", "diffuse", (0.7, 0.12, 0.1))
+    blue = mb.material("blue", "diffuse", (0.12, 0.2, 0.7))
+    mirror = mb.material("mirror", "principled", (0.9, 0.9, 0.9), roughness=0.0,
+                         metallic=1.0)
+    glass = mb.material("glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    mb.cornell_box(white, red, blue)
+    mb.box("MirrorPanel", 1.6, 0.05, 2.2, mirror, (-0.8, 1.3, 1.1),
+           (0, 0, math.radians(25)))
+    mb.box("GlassBlock", 0.8, 0.8, 1.0, glass, (0.9, -0.3, 0.5), (0, 0, math.radians(30)))
+    mb.sphere("GlassBall", 0.45, glass, (-0.5, -0.8, 0.45), segments=48, rings=24)
+    mb.light("CeilingLight", "AREA", (0, 0, 3.98), 150.0, rotation=(0, 0, 0),
+             shape="SQUARE", size=1.0)
+    mb.camera((0, -7.6, 2.0), (0, 0, 2.0), 38.0)
+
+
+SCENES = {
+    "figure3_sphere": (_blend("figure3_sphere"), "specular"),
+    "figure6_box": (_blend("figure6_box"), "specular"),
+    "figure7_blocker": (_blend("figure7_blocker"), "specular"),
+    "figure8_caustic": (_blend("figure8_caustic"), "specular"),
+    "diffuse_box_rect": (_diffuse_box, "diffuse"),
+    "sun_point": (_sun_point, "diffuse"),
+    "disk_spot": (_disk_spot, "diffuse"),
+    "ellipse_scaled": (_ellipse_scaled, "diffuse"),
+    "mirror_glass": (_mirror_glass, "specular"),
+}
+
+
+def setup(name, width=WIDTH, height=HEIGHT):
+    """Build / open scene `name` in the current bpy session; returns bpy.context.scene."""
+    ensure_addon()
+    SCENES[name][0]()
+    scene = bpy.context.scene
+    r = scene.render
+    r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
+    r.film_transparent = False
+    r.use_border = False
+    return scene
+
+
+# --- renderers -------------------------------------------------------------------------
+
+def set_cycles(scene, samples, seed=0):
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = samples
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    c.caustics_reflective = True
+    c.caustics_refractive = True
+    for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                 "volume_bounces", "transparent_max_bounces"):
+        setattr(c, attr, 32)
+    c.pixel_filter_type = "BOX"
+    scene.cycles.filter_width = 1.0
+    c.seed = seed
+    scene.render.threads_mode = "AUTO"
+
+
+def set_photonmap_defaults(scene):
+    """Our engine at its default settings (every scene.photonmap property unset)."""
+    ensure_addon()
+    scene.render.engine = "PHOTONMAP"
+    pm = scene.photonmap
+    for prop in pm.bl_rna.properties:
+        if prop.identifier != "rna_type":
+            pm.property_unset(prop.identifier)
+
+
+def render_rgb(scene):
+    """Render to a 32-bit linear EXR; returns ((H, W, 3) float32 top-to-bottom, seconds)."""
+    s = scene.render.image_settings
+    if hasattr(s, "media_type"):  # Blender 5.0+
+        s.media_type = "IMAGE"
+    s.file_format = "OPEN_EXR"
+    s.color_depth = "32"
+    s.color_mode = "RGBA"
+    fd, path = tempfile.mkstemp(suffix=".exr", prefix="acc_")
+    os.close(fd)
+    try:
+        scene.render.filepath = path
+        scene.render.use_file_extension = False
+        t0 = time.perf_counter()
+        bpy.ops.render.render(write_still=True)
+        elapsed = time.perf_counter() - t0
+        img = bpy.data.images.load(path, check_existing=False)
+        try:
+            w, h = img.size
+            buf = np.empty(w * h * 4, np.float32)
+            img.pixels.foreach_get(buf)
+        finally:
+            bpy.data.images.remove(img)
+    finally:
+        os.unlink(path)
+    return buf.reshape(h, w, 4)[::-1, :, :3].copy(), elapsed
+
+
+def render_cycles(name, samples, seed=0):
+    scene = setup(name)
+    set_cycles(scene, samples, seed)
+    return render_rgb(scene)
+
+
+def render_ours(name, **overrides):
+    scene = setup(name)
+    set_photonmap_defaults(scene)
+    for k, v in overrides.items():
+        setattr(scene.photonmap, k, v)
+    return render_rgb(scene)
+
+
+# --- metrics ---------------------------------------------------------------------------
+
+def relmse(x, ref):
+    x = np.asarray(x, np.float64)
+    ref = np.asarray(ref, np.float64)
+    return float(np.mean((x - ref) ** 2 / (ref * ref + 0.01)))
+
+
+def flip(x, ref, return_map=False):
+    import flip_evaluator
+    res = flip_evaluator.evaluate(np.ascontiguousarray(ref, np.float32),
+                                  np.ascontiguousarray(x, np.float32), "HDR")
+    return (float(res[1]), res[0]) if return_map else float(res[1])
+
+
+def brightness(x, ref):
+    return float(np.mean(x) / np.mean(ref))
+
+
+def load_reference(name):
+    return np.load(os.path.join(REF_DIR, name + ".npy")).astype(np.float32)
+
+
+def load_meta():
+    import json
+    path = os.path.join(REF_DIR, "references.json")
+    if not os.path.isfile(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)
