@@ -36,7 +36,7 @@ bench-accuracy: venv
 
 # Cycles reference images for the accuracy tests (tests/references/, a few minutes).
 references: venv
-	$(PY) tools/make_references.py
+	$(PY) tools/make_references.py --samples 2048
 
 # README images: each example blend with and without photon mapping.
 docs-images: venv

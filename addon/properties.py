@@ -76,7 +76,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         name="Caustic Photons", default=100_000, min=0, soft_max=5_000_000,
         description="Photons emitted towards glass and mirrors for the caustic map")
     max_photon_depth: IntProperty(
-        name="Max Photon Depth", default=8, min=1, max=128,
+        name="Max Photon Depth", default=32, min=1, max=1000,
         description="Bounces a photon may take before it is dropped")
     # Radiance estimate
     estimator: EnumProperty(

@@ -13,7 +13,7 @@ class RenderSettings:
     # Pass 1 (photons)
     photons: int = 200_000          # global photons emitted (paper: MaxRayPerLightSrc x lights)
     caustic_photons: int = 100_000  # photons emitted for the caustic map
-    max_photon_depth: int = 8       # bounces a photon may take
+    max_photon_depth: int = 32      # bounces a photon may take (Russian roulette ends most sooner)
     # Radiance estimate
     estimator: str = "knn_simpson"  # knn_simpson | knn_cone | classic (paper) | radius
     radius: float | None = None     # max search radius; None = auto from scene size and density
