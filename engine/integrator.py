@@ -17,7 +17,7 @@ import numpy as np
 
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .photons import Cancelled, _subset
-from .sampling import StratifiedSampler, cosine_hemisphere, dot, offset_origin, to_world
+from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, offset_origin, to_world
 
 
 @dataclass
@@ -69,7 +69,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None) -> np.nda
         for si in range(samples):
             uv = sampler.uv(2 + 64 * li + si) if sampler is not None else None
             ls = light.sample(hit.p, hit.ns, hit.ng, rng, uv)
-            lit = np.nonzero(ls.E.max(axis=1) > 0)[0]
+            lit = np.nonzero(max3(ls.E) > 0)[0]
             if len(lit) == 0:
                 continue
             o = offset_origin(hit.p[lit], hit.ng[lit], ls.wi[lit], ctx.geo.eps)
@@ -111,7 +111,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarr
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             w = lobe_weights(ctx.table, y)
             wd = w["diffuse"]
-            dsel = np.nonzero(wd.max(axis=1) > 0)[0]
+            dsel = np.nonzero(max3(wd) > 0)[0]
             if len(dsel):
                 # Gather rays that end within the lookup's resolution (corners, contact
                 # shadows) trace direct light at their end and look up only the indirect
@@ -132,24 +132,31 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarr
 
 def continue_specular(ctx, hit, w, tp, rng):
     """Pick one specular lobe per ray in proportion to its weight (Russian roulette for
-    paths that would add little). Returns (kept indices, origins, directions, throughput)."""
-    ws = np.stack([w[k] for k in SPEC_LOBES], axis=1)  # (N,5,3)
-    p = ws.max(axis=2)
-    psum = p.sum(axis=1)
+    paths that would add little). Returns (kept indices, origins, directions, throughput).
+    Written lobe by lobe: numpy reductions over a 3-wide axis are slow (bench/)."""
+    cols = [w[k] for k in SPEC_LOBES]
+    p = np.stack([max3(c) for c in cols], axis=1)
+    psum = (((p[:, 0] + p[:, 1]) + p[:, 2]) + p[:, 3]) + p[:, 4]
+    wsum = (((cols[0] + cols[1]) + cols[2]) + cols[3]) + cols[4]
     # Russian roulette only for paths that would contribute little (< 10 % weight).
-    q = np.clip(10.0 * (tp * ws.sum(axis=1)).max(axis=1), 0.0, 1.0)
+    q = np.clip(10.0 * max3(tp * wsum), 0.0, 1.0)
     go = (psum > 0) & (rng.random(len(p)) < q)
     idx = np.nonzero(go)[0]
     empty = np.zeros((0, 3))
     if len(idx) == 0:
         return idx, empty, empty, empty
     cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
-    lobe = np.minimum((rng.random(len(idx))[:, None] >= cdf).sum(axis=1), len(SPEC_LOBES) - 1)
+    lobe = np.minimum(np.count_nonzero(rng.random(len(idx))[:, None] >= cdf, axis=1),
+                      len(SPEC_LOBES) - 1)
     prob = p[idx, lobe] / psum[idx] * q[idx]
-    new_tp = tp[idx] * ws[idx, lobe] / np.maximum(prob, 1e-300)[:, None]
+    wsel = np.empty((len(idx), 3))
+    for li, c in enumerate(cols):
+        r = np.nonzero(lobe == li)[0]
+        wsel[r] = np.take(c, idx[r], axis=0)
+    new_tp = tp[idx] * wsel / np.maximum(prob, 1e-300)[:, None]
     sub = _subset(hit, idx)
     nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
-    keep = valid & np.isfinite(new_tp).all(axis=1) & (new_tp.max(axis=1) > 0)
+    keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
     o = offset_origin(sub.p[keep], sub.ng[keep], nd[keep], ctx.geo.eps)
     return idx[keep], o, nd[keep], new_tp[keep]
 
@@ -334,7 +341,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add(target, pix, tp * Le)
         w = lobe_weights(ctx.table, hit)
         wd = w["diffuse"]
-        dsel = np.nonzero(wd.max(axis=1) > 0)[0]
+        dsel = np.nonzero(max3(wd) > 0)[0]
         if len(dsel):
             sub = _subset(hit, dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.

@@ -177,6 +177,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     stats["radius_caustic"] = ctx.caustic_radius
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
+    if not s.show_photons:
+        return Photons.empty()  # only the photon-hit view needs them after this point
     return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
                      for f in ("position", "power", "direction", "normal", "kind")))
 

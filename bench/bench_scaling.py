@@ -1,0 +1,334 @@
+"""Performance suite for issue 8: ceiling ratios, kd-tree, scaling, memory, workers.
+
+Everything runs in this one process (ratios are computed between runs made side by side,
+best of --repeat), except peak RSS, which is measured in a fresh child process per case.
+
+    .venv/bin/python bench/bench_scaling.py --quick            # < 2 minutes
+    .venv/bin/python bench/bench_scaling.py                    # full (1M triangles, 5M photons)
+    .venv/bin/python bench/bench_scaling.py --only kdtree --json out/bench.json
+
+Sections: rays (engine vs raw embreex on the same rays), photons (per bounce), kdtree
+(build / gather per million queries), scaling (pixels, photons, triangles, lights),
+memory (peak RSS, bytes per photon), workers (1 vs 2, same image).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(HERE))
+sys.path.insert(0, HERE)
+
+from engine import RenderSettings  # noqa: E402
+from engine.api import cornell_box, sphere_mesh  # noqa: E402
+from engine.effects import analyse  # noqa: E402
+from engine.film import Film  # noqa: E402
+from engine.geometry import prepare  # noqa: E402
+from engine.integrator import render_camera  # noqa: E402
+from engine.lights import allocate_photons, prepare_lights  # noqa: E402
+from engine.photonmap import PhotonMap  # noqa: E402
+from engine.photons import Photons, trace_photons  # noqa: E402
+from engine.render import Context, render  # noqa: E402
+
+from bench_core import RecordingAccel, raw_embree_time  # noqa: E402
+
+TABLES: dict[str, list[dict]] = {}
+
+
+def table(name, rows):
+    TABLES[name] = rows
+    if not rows:
+        return
+    keys = list(rows[0].keys())
+    print(f"\n### {name}\n")
+    print("| " + " | ".join(keys) + " |")
+    print("|" + "|".join("---:" if isinstance(rows[0][k], (int, float)) else "---" for k in keys) + "|")
+    for r in rows:
+        cells = []
+        for k in keys:
+            v = r[k]
+            cells.append(f"{v:,.3f}" if isinstance(v, float) else (f"{v:,}" if isinstance(v, int) else str(v)))
+        print("| " + " | ".join(cells) + " |")
+    sys.stdout.flush()
+
+
+def best_of(n, fn):
+    best, out = float("inf"), None
+    for _ in range(n):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def box(width, height, sphere_tris=None, lights=1):
+    """Figure 6 box; sphere_tris replaces the glass sphere by a subdivided diffuse sphere
+    of about that many triangles; lights > 1 adds small point lights."""
+    s = cornell_box(width, height, glass_sphere=sphere_tris is None)
+    if sphere_tris is not None:
+        seg = max(4, int(round(np.sqrt(sphere_tris))))
+        v, f, n, _ = sphere_mesh((-0.7, -0.4, 0.7), 0.7, segments=seg, rings=max(3, seg // 2))
+        s.add_triangles(v, f, "white_diffuse", name="sphere", normals=n)
+    for i in range(lights - 1):
+        a = 2 * np.pi * i / max(1, lights - 1)
+        s.add_point_light((1.2 * np.cos(a), 1.2 * np.sin(a) - 0.5, 3.2), power=20.0, radius=0.05)
+    return s
+
+
+def make_ctx(scene, settings):
+    """Context over a RecordingAccel: every query is logged for a raw replay."""
+    scene.validate()
+    geo, tab = prepare(scene)
+    accel = RecordingAccel(geo.vertices32, geo.faces32, threads=settings.threads)
+    lights = prepare_lights(scene, geo, tab)
+    ctx = Context(scene, settings, geo, tab, accel, lights)
+    ctx.plan = analyse(scene, geo, tab, lights, accel, settings)
+    return ctx
+
+
+# --------------------------------------------------------------------------- sections
+
+def sec_rays(a):
+    """Engine vs raw embreex, same rays: photon pass and camera + shadow (direct light)."""
+    rows = []
+    scene = box(a.width, a.height)
+    st = RenderSettings(photons=a.photons, workers=a.workers)
+    ctx = make_ctx(scene, st)
+    t_ph, shot = best_of(a.repeat, lambda: (ctx.accel.log.clear(),
+                         trace_photons(ctx, ctx.lights, allocate_photons(ctx.lights, st.photons), False, 1))[1])
+    log = list(ctx.accel.log)
+    n = sum(len(e[1]) for e in log)
+    raw, _ = best_of(a.repeat, lambda: raw_embree_time(ctx.accel, log))
+    rows.append(dict(stage="photon pass", rays=n, engine_s=t_ph, raw_embree_s=raw,
+                     engine_Mrays_s=n / t_ph / 1e6, ceiling_pct=100 * raw / t_ph))
+    direct = RenderSettings(photon_mapping=False, spp=a.spp, workers=a.workers)
+    ctx.settings = direct
+    ctx.plan = analyse(scene, ctx.geo, ctx.table, ctx.lights, ctx.accel, direct)
+
+    def cam():
+        ctx.accel.log.clear()
+        render_camera(ctx, (0, 0, a.width, a.height), Film(a.width, a.height))
+    t_cam, _ = best_of(a.repeat, cam)
+    log = list(ctx.accel.log)
+    n = sum(len(e[1]) for e in log)
+    raw, _ = best_of(a.repeat, lambda: raw_embree_time(ctx.accel, log))
+    rows.append(dict(stage=f"camera+shadow {a.width}x{a.height} {a.spp} spp", rays=n, engine_s=t_cam,
+                     raw_embree_s=raw, engine_Mrays_s=n / t_cam / 1e6, ceiling_pct=100 * raw / t_cam))
+    ctx.accel.close()
+    table("rays: engine vs raw embreex (same rays, same threads)", rows)
+
+
+def sec_photons(a):
+    """Photons per second and rays per bounce (from the recorded intersect calls)."""
+    scene = box(a.width, a.height)
+    st = RenderSettings(photons=a.photons, workers=a.workers)
+    ctx = make_ctx(scene, st)
+    counts = allocate_photons(ctx.lights, st.photons)
+    t, shot = best_of(a.repeat, lambda: (ctx.accel.log.clear(), trace_photons(ctx, ctx.lights, counts, False, 1))[1])
+    # Each chunk issues one intersect per bounce, in order: bounce b = b-th call of a chunk.
+    per_bounce = {}
+    calls = [len(e[1]) for e in ctx.accel.log if e[0] == "INTERSECT"]
+    chunk_first = [i for i, c in enumerate(calls) if i == 0 or c > calls[i - 1]]
+    for ci, start in enumerate(chunk_first):
+        end = chunk_first[ci + 1] if ci + 1 < len(chunk_first) else len(calls)
+        for b, c in enumerate(calls[start:end]):
+            per_bounce[b] = per_bounce.get(b, 0) + c
+    total_rays = sum(per_bounce.values())
+    rows = [dict(bounce=b, rays=c, share_pct=100 * c / total_rays,
+                 est_M_per_s=c / (t * c / total_rays) / 1e6) for b, c in sorted(per_bounce.items())]
+    rows.append(dict(bounce="all", rays=total_rays, share_pct=100.0,
+                     est_M_per_s=total_rays / t / 1e6))
+    print(f"\nphoton pass: {st.photons:,} emitted, {len(shot):,} stored in {t:.3f} s = "
+          f"{st.photons / t / 1e6:.3f} M emitted/s, {len(shot) / t / 1e6:.3f} M stored/s")
+    ctx.accel.close()
+    table("photons per bounce (time split in proportion to rays)", rows)
+
+
+def synthetic_photons(n, seed=0):
+    """n photons on the six walls of a 4 m box, with plausible directions and normals."""
+    rng = np.random.default_rng(seed)
+    face = rng.integers(0, 6, n)
+    ax = face % 3
+    sgn = np.where(face < 3, -1.0, 1.0)
+    pos = np.zeros((n, 3), np.float32)
+    nrm = np.zeros((n, 3), np.float32)
+    uv = rng.random((n, 2)) * 4 - 2
+    for k in range(3):
+        m = ax == k
+        pos[m, k] = 2 * sgn[m]
+        pos[m, (k + 1) % 3] = uv[m, 0]
+        pos[m, (k + 2) % 3] = uv[m, 1]
+        nrm[m, k] = -sgn[m]
+    d = -nrm + rng.normal(0, 0.4, (n, 3)).astype(np.float32)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    power = np.full((n, 3), 1e-4, np.float32)
+    return Photons(pos, power, d.astype(np.float32), nrm, np.zeros(n, np.uint8))
+
+
+def sec_kdtree(a):
+    rows = []
+    sizes = [100_000, 1_000_000] if a.quick else [100_000, 1_000_000, 5_000_000]
+    q = 20_000 if a.quick else 100_000
+    for n in sizes:
+        ph = synthetic_photons(n)
+        t_build, pm = best_of(a.repeat, lambda: PhotonMap(ph, a.threads))
+        # k-NN radius from the density (as auto_radius does): 96 m^2 of walls.
+        r = 2.0 * np.sqrt(64 * 96.0 / (np.pi * n))
+        rng = np.random.default_rng(1)
+        sel = np.sort(rng.integers(0, n, q))
+        p = ph.position[sel].astype(np.float64)
+        nn = ph.normal[sel].astype(np.float64)
+        o = np.lexsort((p[:, 2], p[:, 1], p[:, 0]))  # coherent order, as camera queries
+        p, nn = p[o], nn[o]
+        row = dict(photons=n, build_s=t_build)
+        for est, rad in (("knn_simpson", r), ("radius", r / 2)):
+            t, _ = best_of(a.repeat, lambda: pm.irradiance(p, nn, rad, 64, 8, est))
+            row[f"{est}_s_per_Mq"] = t / q * 1e6
+        t, _ = best_of(a.repeat, lambda: pm.tree.query(p, k=64, distance_upper_bound=r, workers=a.threads))
+        row["raw_query_k64_s_per_Mq"] = t / q * 1e6
+        row["tree_MB"] = _tree_bytes(pm) / 1e6
+        rows.append(row)
+        del pm, ph
+    table(f"photon map: build and gather (k=64, {q:,} queries, {a.threads} worker(s))", rows)
+
+
+def _tree_bytes(pm):
+    t = pm.tree
+    b = t.data.nbytes + t.indices.nbytes
+    b += t.size * 64  # cKDTree node: ~64 bytes (split dim/value, children, bounds of counts)
+    return b
+
+
+def sec_scaling(a):
+    base = dict(spp=a.spp, photons=a.photons, caustic_photons=a.photons // 2, workers=a.workers)
+
+    def run(scene, **kw):
+        s = RenderSettings(**{**base, **kw})
+        t, f = best_of(1 if a.quick else a.repeat, lambda: render(scene, s))
+        st = f.stats
+        return dict(total_s=t, photons_s=st.get("time_photons", 0.0),
+                    maps_s=st.get("time_photon_map", 0.0), camera_s=st.get("time_camera", 0.0))
+    pix = [(40, 30), (80, 60), (160, 120)] if a.quick else [(80, 60), (160, 120), (320, 240)]
+    table("scaling: pixels", [dict(pixels=f"{w}x{h}", **run(box(w, h))) for w, h in pix])
+    ph = [25_000, 100_000, 400_000] if a.quick else [50_000, 200_000, 800_000, 3_200_000]
+    table("scaling: photons", [dict(photons=n, **run(box(a.width, a.height), photons=n,
+                                                    caustic_photons=n // 2)) for n in ph])
+    tris = [1_000, 10_000, 100_000] if a.quick else [1_000, 10_000, 100_000, 1_000_000]
+    rows = []
+    for n in tris:
+        t0 = time.perf_counter()
+        scene = box(a.width, a.height, sphere_tris=n)
+        geo, _ = prepare(scene)
+        rows.append(dict(triangles=geo.count, prepare_s=time.perf_counter() - t0, **run(scene)))
+    table("scaling: triangles (subdivided sphere in the box)", rows)
+    table("scaling: lights", [dict(lights=n, **run(box(a.width, a.height, lights=n)))
+                              for n in ([1, 4, 16] if a.quick else [1, 4, 16, 64])])
+
+
+CHILD = r"""
+import sys, json, numpy as np
+sys.path.insert(0, {root!r})
+from engine import RenderSettings
+from engine.api import cornell_box
+from engine.render import render
+def hwm():  # VmHWM is per address space (ru_maxrss survives exec and reports the parent's)
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1])
+base = hwm()
+s = RenderSettings(photons={photons}, caustic_photons={cphotons}, spp={spp}, workers={workers})
+f = render(cornell_box({w}, {h}), s)
+peak = hwm()
+st = f.stats
+print(json.dumps(dict(base_kb=base, peak_kb=peak, photon_bytes=st.get("photon_bytes", 0),
+      stored=st.get("global_photons", 0) + st.get("caustic_photons", 0))))
+"""
+
+
+def sec_memory(a):
+    rows = []
+    for n in ([100_000, 400_000] if a.quick else [200_000, 1_000_000, 3_000_000]):
+        code = CHILD.format(root=os.path.dirname(HERE), photons=n, cphotons=n // 2, spp=4,
+                            workers=a.workers, w=80, h=60)
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+        d = json.loads(out.stdout.strip().splitlines()[-1])
+        stored = max(d["stored"], 1)
+        rows.append(dict(photons_emitted=n, stored=d["stored"], peak_rss_MB=d["peak_kb"] / 1024,
+                         over_import_MB=(d["peak_kb"] - d["base_kb"]) / 1024,
+                         photon_arrays_B_per_photon=d["photon_bytes"] / stored))
+    # Bytes per stored photon including the kd-tree and the gather pack.
+    ph = synthetic_photons(1_000_000)
+    pm = PhotonMap(ph, 1)
+    rows_b = [dict(item="Photons arrays (pos, power, dir, normal f32 + kind u8)",
+                   bytes_per_photon=ph.nbytes / len(ph)),
+              dict(item="+ cKDTree (float64 copy, int64 indices, nodes)",
+                   bytes_per_photon=(ph.nbytes + _tree_bytes(pm)) / len(ph))]
+    table("memory: peak RSS (child process per case, 80x60, 4 spp)", rows)
+    table("memory: bytes per stored photon", rows_b)
+
+
+def sec_workers(a):
+    rows = []
+    cases = [("full render", dict()), ("direct only", dict(photon_mapping=False))]
+    for name, kw in cases:
+        res = {}
+        for rep in range(a.repeat):
+            for w in (1, 2):
+                s = RenderSettings(spp=a.spp, photons=a.photons, workers=w, **kw)
+                t0 = time.perf_counter()
+                f = render(box(a.width, a.height), s)
+                dt = time.perf_counter() - t0
+                if w not in res or dt < res[w][0]:
+                    res[w] = (dt, f.combined.copy())
+        same = bool(np.array_equal(res[1][1], res[2][1]))
+        rows.append(dict(case=f"{name} {a.width}x{a.height} {a.spp} spp", workers1_s=res[1][0],
+                         workers2_s=res[2][0], speedup=res[1][0] / res[2][0], same_image=same))
+    table("workers: 1 vs 2 threads (Embree + kd-tree)", rows)
+
+
+SECTIONS = dict(rays=sec_rays, photons=sec_photons, kdtree=sec_kdtree, scaling=sec_scaling,
+                memory=sec_memory, workers=sec_workers)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="small sizes, best of 1-2 (< 2 min)")
+    ap.add_argument("--only", nargs="*", choices=list(SECTIONS), help="run only these sections")
+    ap.add_argument("--width", type=int, default=None)
+    ap.add_argument("--height", type=int, default=None)
+    ap.add_argument("--spp", type=int, default=None)
+    ap.add_argument("--photons", type=int, default=None)
+    ap.add_argument("--workers", type=int, default=0, help="0 = all cores")
+    ap.add_argument("--repeat", type=int, default=None, help="best of N (default 3, quick 1)")
+    ap.add_argument("--json", help="write all tables as JSON")
+    a = ap.parse_args(argv)
+    q = a.quick
+    a.width = a.width or (80 if q else 160)
+    a.height = a.height or (60 if q else 120)
+    a.spp = a.spp or (8 if q else 64)
+    a.photons = a.photons or (50_000 if q else 200_000)
+    a.repeat = a.repeat or (1 if q else 3)
+    a.threads = a.workers if a.workers > 0 else (os.cpu_count() or 1)
+    print(f"# bench_scaling ({'quick' if q else 'full'}), {os.cpu_count()} cores, "
+          f"load {os.getloadavg()[0]:.1f}, numpy {np.__version__}")
+    t0 = time.perf_counter()
+    for name in (a.only or list(SECTIONS)):
+        SECTIONS[name](a)
+    print(f"\n(total {time.perf_counter() - t0:.1f} s, peak RSS "
+          f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB)")
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(TABLES, f, indent=1, default=str)
+    return TABLES
+
+
+if __name__ == "__main__":
+    main()
