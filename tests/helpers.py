@@ -1,10 +1,13 @@
 """Small scene builders shared by the engine tests."""
 import math
+import os
 
 import numpy as np
 
 from engine.api import PaperScene
 from engine.scene import Camera, Material
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def top_down_plane(albedo=0.5, size=8.0, res=64, view=4.0):

@@ -5,7 +5,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from helpers import ROOT
 from engine import Camera, Light, Material, Mesh, RenderSettings, Scene, SceneError
 from engine.imageio import read_image, write_image
 from engine.scenefile import SceneFileError, load_scene

@@ -72,7 +72,7 @@ def test_budget_validation():
 
 def _figure3_small():
     from engine.scenefile import load_scene
-    from conftest import ROOT
+    from helpers import ROOT
     s, _ = load_scene(f"{ROOT}/scenes/figure3.toml")
     s.width, s.height = 32, 24
     return s

@@ -7,7 +7,7 @@ import pytest
 from engine import RenderSettings
 from engine.api import PaperScene, cornell_box
 from engine.scenefile import load_scene
-from conftest import ROOT
+from helpers import ROOT
 
 FAST = dict(photons=40000, caustic_photons=40000, spp=4)
 
