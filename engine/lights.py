@@ -47,6 +47,22 @@ class PreparedLight:
             return self.cos_half_angle < 1.0
         return True
 
+    # ------------------------------------------------------------------ points on lights
+    def _area_point(self, u1, u2):
+        """Uniform points on an area light's rectangle or ellipse."""
+        if self.shape == DISK:
+            x, yy = concentric_disk(u1, u2)
+            x, yy = x * self.size_x / 2, yy * self.size_y / 2
+        else:
+            x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
+        return self.pos + x[:, None] * self.u + yy[:, None] * self.v
+
+    def _mesh_point(self, rng, u1, u2):
+        """(triangle index, point) on the emissive triangles, chosen by area x brightness."""
+        tri = np.searchsorted(self.cdf, rng.random(len(u1)), side="right").clip(0, len(self.cdf) - 1)
+        b1, b2 = uniform_triangle(u1, u2)
+        return tri, self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri]
+
     # ------------------------------------------------------------------ shadow rays
     def sample(self, p, ns, ng, rng, uv=None) -> LightSample:
         """One light sample per point; uv = optional stratified (u1, u2) in [0,1)."""
@@ -63,19 +79,12 @@ class PreparedLight:
             E = math.pi * self.radiance[None, :] * ok[:, None]
             return LightSample(wi, np.full(n, np.inf), E)
         if self.kind == MESH:
-            tri = np.searchsorted(self.cdf, rng.random(n), side="right").clip(0, len(self.cdf) - 1)
-            b1, b2 = uniform_triangle(u1, u2)
-            y = self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri]
+            tri, y = self._mesh_point(rng, u1, u2)
             return self._finish_area(p, ns, ng, y, self.tri_ng[tri],
                                      self.tri_L[tri] * (self.tri_area[tri] / self.prob[tri])[:, None],
                                      two_sided=True)
         if self.kind == AREA:
-            if self.shape == DISK:
-                x, yy = concentric_disk(u1, u2)
-                x, yy = x * self.size_x / 2, yy * self.size_y / 2
-            else:
-                x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
-            y = self.pos + x[:, None] * self.u + yy[:, None] * self.v
+            y = self._area_point(u1, u2)
             return self._finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (n, 3)),
                                      np.broadcast_to(self.radiance * self.area, (n, 3)),
                                      two_sided=False)
@@ -127,21 +136,14 @@ class PreparedLight:
                  + self.scene_radius * (x[:, None] * t + yy[:, None] * b))
             return o, d, np.broadcast_to(self.photon_flux / n, (n, 3)).copy()
         if self.kind == MESH:
-            tri = np.searchsorted(self.cdf, rng.random(n), side="right").clip(0, len(self.cdf) - 1)
-            b1, b2 = uniform_triangle(u1, u2)
-            o = self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri]
+            tri, o = self._mesh_point(rng, u1, u2)
             side = np.where(rng.random(n) < 0.5, 1.0, -1.0)[:, None]
             nrm = self.tri_ng[tri] * side
             d = to_world(cosine_hemisphere(u3, u4), nrm)
             power = (2.0 * math.pi * self.tri_area[tri] / (self.prob[tri] * n))[:, None] * self.tri_L[tri]
             return o, d, power
         if self.kind == AREA:
-            if self.shape == DISK:
-                x, yy = concentric_disk(u1, u2)
-                x, yy = x * self.size_x / 2, yy * self.size_y / 2
-            else:
-                x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
-            o = self.pos + x[:, None] * self.u + yy[:, None] * self.v
+            o = self._area_point(u1, u2)
             d = to_world(cosine_hemisphere(u3, u4), np.broadcast_to(self.dir, (n, 3)))
             return o, d, np.broadcast_to(self.flux / n, (n, 3)).copy()
         if self.kind == SPOT:
@@ -203,18 +205,11 @@ class PreparedLight:
         # Origins as the light emits them.
         normal = None
         if self.kind == MESH:
-            tri = np.searchsorted(self.cdf, rng.random(n), side="right").clip(0, len(self.cdf) - 1)
-            b1, b2 = uniform_triangle(u1, u2)
-            o = self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri]
+            tri, o = self._mesh_point(rng, u1, u2)
             normal = self.tri_ng[tri]
             anchor = self.v0.mean(axis=0)
         elif self.kind == AREA:
-            if self.shape == DISK:
-                x, yy = concentric_disk(u1, u2)
-                x, yy = x * self.size_x / 2, yy * self.size_y / 2
-            else:
-                x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
-            o = self.pos + x[:, None] * self.u + yy[:, None] * self.v
+            o = self._area_point(u1, u2)
             anchor = self.pos
         elif self.kind == POINT and self.radius > 0:
             normal = uniform_sphere(u1, u2)
