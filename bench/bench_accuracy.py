@@ -128,21 +128,23 @@ def main(argv=None):
     return rows
 
 
-def write_report(rows, ref_secs, args):
+def write_report(rows, ref_secs, args, suffix="", title=None):
     os.makedirs(DOCS, exist_ok=True)
-    with open(os.path.join(DOCS, "accuracy_time.csv"), "w", newline="") as f:
+    with open(os.path.join(DOCS, f"accuracy_time{suffix}.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    scene_text = title or "the paper's Figure 6 box with a glass ball (engine.api.cornell_box)"
+    command = ("bench/bench_accuracy_blends.py" if suffix else "bench/bench_accuracy.py")
     lines = [
-        "# Accuracy vs time",
+        f"# Accuracy vs time: {title or 'Figure 6 box'}",
         "",
-        f"Scene: the paper's Figure 6 box with a glass ball, {args.width}x{args.height}, 2 cores. "
+        f"Scene: {scene_text}, {args.width}x{args.height}, 2 cores. "
         f"Reference: Cycles {args.ref_samples} spp ({ref_secs:.0f} s), box filter, no "
-        "denoising or clamping. relMSE and mean HDR-FLIP (DESIGN.md §7); lower is better.",
+        "denoising or clamping. relMSE and mean HDR-FLIP (DESIGN.md §7); lower is better. "
+        "Cycles rows are Cycles itself at fewer samples, timed on the same machine.",
         "",
-        "Regenerate: `.venv/bin/python bench/bench_accuracy.py` (writes this file, "
-        "accuracy_time.csv / .png, figure6_ladder.png and the preset labels).",
+        f"Regenerate: `.venv/bin/python {command}`.",
         "",
         "| renderer | setting | seconds | relMSE | FLIP | brightness | note |",
         "|---|---|---:|---:|---:|---:|---|",
@@ -150,12 +152,14 @@ def write_report(rows, ref_secs, args):
     for r in rows:
         lines.append(f"| {r['kind']} | {r['setting']} | {r['seconds']:.1f} | {r['relmse']:.4f} | "
                      f"{r['flip']:.4f} | {r['brightness']:.3f} | {r['note']} |")
-    lines += ["", "![error vs time](accuracy_time.png)", "", "![Figure 6 ladder](figure6_ladder.png)", ""]
-    with open(os.path.join(DOCS, "accuracy_time.md"), "w") as f:
+    lines += ["", f"![error vs time](accuracy_time{suffix}.png)", ""]
+    if not suffix:
+        lines += ["![Figure 6 ladder](figure6_ladder.png)", ""]
+    with open(os.path.join(DOCS, f"accuracy_time{suffix}.md"), "w") as f:
         f.write("\n".join(lines))
 
 
-def write_plot(rows, args):
+def write_plot(rows, args, suffix="", title=None):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -173,9 +177,10 @@ def write_plot(rows, args):
         ax.set_ylabel("relMSE" if metric == "relmse" else "mean HDR-FLIP")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
-    fig.suptitle(f"Figure 6 box {args.width}x{args.height}: error vs time (2 cores)")
+    fig.suptitle(f"{title or 'Figure 6 box'} {args.width}x{args.height}: error vs time (2 cores)")
     fig.tight_layout()
-    fig.savefig(os.path.join(DOCS, "accuracy_time.png"), dpi=90)
+    fig.savefig(os.path.join(DOCS, f"accuracy_time{suffix}.png"), dpi=90)
+    plt.close(fig)
 
 
 def write_strip(strip, ref):
