@@ -63,8 +63,19 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
         out.texture = a.texture if a.texture is not None else b.texture
         return out
     ta, tb = sa / total, sb / total
-    for name in ("metallic", "roughness", "transmission", "ior", "specular"):
+    for name in ("metallic", "transmission", "specular"):
         setattr(out, name, ta * getattr(a, name) + tb * getattr(b, name))
+    # Roughness and IOR belong to the reflective / refractive lobes: weight them by how much
+    # of those lobes each side brings (a Diffuse BSDF's roughness is Oren-Nayar's, which
+    # must not blur a mixed-in mirror: Diffuse + Glossy(0.05) came out at roughness 0.525).
+    ga = ta * (a.metallic + a.transmission + a.specular)
+    gb = tb * (b.metallic + b.transmission + b.specular)
+    if ga + gb > 0:
+        out.roughness = (ga * a.roughness + gb * b.roughness) / (ga + gb)
+        out.ior = (ga * a.ior + gb * b.ior) / (ga + gb)
+    else:
+        out.roughness = ta * a.roughness + tb * b.roughness
+        out.ior = ta * a.ior + tb * b.ior
     out.base_color = (ta * a.base_color + tb * b.base_color) * (total / (total + da + db))
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
         b.texture if sb > 0 else None)
