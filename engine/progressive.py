@@ -15,6 +15,13 @@ before (a fixed radius turned out 2-10x slower on dense caustics). Photon noise 
 radius bias both shrink as passes accumulate; the running average converges (down to
 the K_MIN floor).
 
+Known limitation (measured on the Figure 6 box against Cycles): brightness drifts up by
+about 1.5 % over 16 passes. The final-gather map estimates irradiance at photon
+positions, so each estimate includes its own photon at the kernel's peak (+2/(k-1));
+at k=64 that happens to cancel the k-NN's underestimate at corners (the default render
+matches Cycles to 1 %), at k=20 it no longer does. Leaving the photon out makes both
+biases visible (-2 % at k=64); fixing the corner bias is the real cure.
+
 Error estimate: passes alternate between two independent halves A and B; for the average
 C = (A + B) / 2, E[(A - B)^2] = 4 Var(C), so relMSE(C) ~ mean((A - B)^2 / 4 / (S^2 + 0.01))
 with S = C blurred over 5x5 pixels standing in for the unknown reference. It measures
