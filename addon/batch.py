@@ -88,28 +88,19 @@ def render_file(args) -> str:
     r = scene.render
     r.engine = ENGINE_ID
     pm = scene.photonmap
-    if args.samples is not None:
-        pm.spp = args.samples
-    if args.photons is not None:
-        pm.photons = args.photons
-    if args.caustic_photons is not None:
-        pm.caustic_photons = args.caustic_photons
-    if args.max_depth is not None:
-        pm.max_depth = args.max_depth
-    if args.seed is not None:
-        pm.seed = args.seed
-    if args.threads is not None:
-        pm.threads = args.threads
+    # (command-line option, object, property) for the options that set a property as given
+    for option, target, prop in (("samples", pm, "spp"), ("photons", pm, "photons"),
+                                 ("caustic_photons", pm, "caustic_photons"),
+                                 ("max_depth", pm, "max_depth"), ("seed", pm, "seed"),
+                                 ("threads", pm, "threads"), ("width", r, "resolution_x"),
+                                 ("height", r, "resolution_y"),
+                                 ("resolution_percentage", r, "resolution_percentage")):
+        if getattr(args, option) is not None:
+            setattr(target, prop, getattr(args, option))
     if args.no_photon_mapping:
         pm.photon_mapping = False
     if args.show_photons:
         pm.show_photons = True
-    if args.width is not None:
-        r.resolution_x = args.width
-    if args.height is not None:
-        r.resolution_y = args.height
-    if args.resolution_percentage is not None:
-        r.resolution_percentage = args.resolution_percentage
     if args.frame is not None:
         scene.frame_set(args.frame)
     r.image_settings.file_format = FORMATS[ext]

@@ -91,7 +91,7 @@ class MaterialConverter:
         self.cache = {}         # material name -> engine Material
 
     # --- public -------------------------------------------------------------------
-    def convert(self, mat) -> "pm.Material":
+    def convert(self, mat):
         """Engine Material for a Blender material (None = engine default)."""
         key = mat.name if mat is not None else "default"
         if key in self.cache:

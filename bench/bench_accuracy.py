@@ -28,7 +28,7 @@ sys.path.insert(0, ROOT)
 
 from engine import RenderSettings, render  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
-from engine.imageio import to_8bit, write_image  # noqa: E402
+from engine.imageio import to_8bit  # noqa: E402
 from engine.presets import MEASURED_FILE, PRESETS  # noqa: E402
 from engine.progressive import Budget, relmse, render_progressive  # noqa: E402
 
@@ -43,6 +43,16 @@ PAPER_SCALE = 0.2
 def flip(ref, x):
     import flip_evaluator
     return float(flip_evaluator.evaluate(ref.astype(np.float32), x.astype(np.float32), "HDR")[1])
+
+
+def score(ref, kind, label, img, secs, note="", prefix=""):
+    """One table row: time and errors of `img` against `ref` (printed as it is measured)."""
+    row = dict(kind=kind, setting=label, seconds=round(secs, 2),
+               relmse=round(relmse(img, ref), 5), flip=round(flip(ref, img), 4),
+               brightness=round(float(img.mean() / ref.mean()), 4), note=note)
+    print(f"{prefix}{kind:12s} {label:34s} {secs:7.1f} s  relMSE {row['relmse']:.4f}  "
+          f"FLIP {row['flip']:.4f}  brightness {row['brightness']:.3f}", flush=True)
+    return row
 
 
 def reference(scene, samples):
@@ -70,12 +80,8 @@ def main(argv=None):
     ref, ref_secs = reference(scene, args.ref_samples)
     rows, strip = [], []
 
-    def measure(kind, label, img, secs, extra=""):
-        rows.append(dict(kind=kind, setting=label, seconds=round(secs, 2),
-                         relmse=round(relmse(img, ref), 5), flip=round(flip(ref, img), 4),
-                         brightness=round(float(img.mean() / ref.mean()), 4), note=extra))
-        print(f"{kind:12s} {label:34s} {secs:7.1f} s  relMSE {rows[-1]['relmse']:.4f}  "
-              f"FLIP {rows[-1]['flip']:.4f}  brightness {rows[-1]['brightness']:.3f}", flush=True)
+    def measure(kind, label, img, secs, note=""):
+        rows.append(score(ref, kind, label, img, secs, note))
 
     # Cycles curve on the same scene.
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))

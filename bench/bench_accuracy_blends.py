@@ -20,9 +20,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import accuracy_scenes as A  # noqa: E402  (needs the bpy wheel)
-from bench_accuracy import PAPER_LADDER, PAPER_SCALE, flip, write_plot, write_report  # noqa: E402
+from bench_accuracy import PAPER_LADDER, PAPER_SCALE, score, write_plot, write_report  # noqa: E402
 from engine.presets import PRESETS  # noqa: E402
-from engine.progressive import relmse  # noqa: E402
 
 BLENDS = ("figure3_sphere", "figure6_box", "figure7_blocker", "figure8_caustic")
 
@@ -33,11 +32,7 @@ def run(name, quick=False):
     rows = []
 
     def measure(kind, label, img, secs, note=""):
-        rows.append(dict(kind=kind, setting=label, seconds=round(secs, 2),
-                         relmse=round(relmse(img, ref), 5), flip=round(flip(ref, img), 4),
-                         brightness=round(float(img.mean() / ref.mean()), 4), note=note))
-        print(f"{name:16s} {kind:12s} {label:30s} {secs:6.1f} s relMSE {rows[-1]['relmse']:.4f} "
-              f"FLIP {rows[-1]['flip']:.4f}", flush=True)
+        rows.append(score(ref, kind, label, img, secs, note, prefix=f"{name:16s} "))
 
     for spp in ([16, 64] if quick else [16, 64, 256, 1024]):
         img, secs = A.render_cycles(name, spp, seed=1)

@@ -24,12 +24,11 @@ from engine.accel import Accel  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
 from engine.effects import analyse  # noqa: E402
 from engine.film import Film  # noqa: E402
-from engine.geometry import prepare  # noqa: E402
 from engine.integrator import render_camera  # noqa: E402
-from engine.lights import allocate_photons, prepare_lights  # noqa: E402
+from engine.lights import allocate_photons  # noqa: E402
 from engine.photonmap import PhotonMap  # noqa: E402
 from engine.photons import trace_photons  # noqa: E402
-from engine.render import Context, render  # noqa: E402
+from engine.render import Context, prepare_context, render  # noqa: E402
 
 
 class RecordingAccel(Accel):
@@ -75,14 +74,9 @@ def main(argv=None):
 
     scene = cornell_box(args.width, args.height)
     settings = RenderSettings(photons=args.photons, spp=args.spp, workers=args.workers)
-    scene.validate()
     rows = []
-
-    geo, table = prepare(scene)
-    accel = RecordingAccel(geo.vertices32, geo.faces32, threads=settings.threads)
-    lights = prepare_lights(scene, geo, table)
-    ctx = Context(scene, settings, geo, table, accel, lights)
-    ctx.plan = analyse(scene, geo, table, lights, accel, settings)
+    ctx = prepare_context(scene, settings, RecordingAccel)
+    geo, table, accel, lights = ctx.geo, ctx.table, ctx.accel, ctx.lights
 
     # Photon tracing.
     t0 = time.perf_counter()
@@ -118,7 +112,7 @@ def main(argv=None):
     ctx_d.plan = analyse(scene, geo, table, lights, accel, direct)
     film = Film(args.width, args.height)
     t0 = time.perf_counter()
-    counters = render_camera(ctx_d, (0, 0, args.width, args.height), film)
+    render_camera(ctx_d, (0, 0, args.width, args.height), film)
     t_cam = time.perf_counter() - t0
     n_rays = sum(len(entry[1]) for entry in accel.log)
     raw = raw_embree_time(accel, accel.log)
@@ -139,7 +133,7 @@ def main(argv=None):
                  f"{st.get('time_photon_map', 0):.2f} s, camera {st.get('time_camera', 0):.2f} s"))
 
     print(f"\nFigure 6 box, {geo.count:,} triangles, {settings.threads} worker(s)\n")
-    print(f"| stage | work | seconds | note |\n|---|---|---:|---|")
+    print("| stage | work | seconds | note |\n|---|---|---:|---|")
     for name, work, secs, note in rows:
         print(f"| {name} | {work} | {secs:.3f} | {note} |")
     if args.json:

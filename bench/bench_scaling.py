@@ -33,10 +33,10 @@ from engine.effects import analyse  # noqa: E402
 from engine.film import Film  # noqa: E402
 from engine.geometry import prepare  # noqa: E402
 from engine.integrator import render_camera  # noqa: E402
-from engine.lights import allocate_photons, prepare_lights  # noqa: E402
+from engine.lights import allocate_photons  # noqa: E402
 from engine.photonmap import PhotonMap  # noqa: E402
 from engine.photons import Photons, trace_photons  # noqa: E402
-from engine.render import Context, render  # noqa: E402
+from engine.render import prepare_context, render  # noqa: E402
 
 from bench_core import RecordingAccel, raw_embree_time  # noqa: E402
 
@@ -85,13 +85,7 @@ def box(width, height, sphere_tris=None, lights=1):
 
 def make_ctx(scene, settings):
     """Context over a RecordingAccel: every query is logged for a raw replay."""
-    scene.validate()
-    geo, tab = prepare(scene)
-    accel = RecordingAccel(geo.vertices32, geo.faces32, threads=settings.threads)
-    lights = prepare_lights(scene, geo, tab)
-    ctx = Context(scene, settings, geo, tab, accel, lights)
-    ctx.plan = analyse(scene, geo, tab, lights, accel, settings)
-    return ctx
+    return prepare_context(scene, settings, RecordingAccel)
 
 
 # --------------------------------------------------------------------------- sections

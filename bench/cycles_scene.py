@@ -7,7 +7,6 @@ the Blender tests compare through the add-on instead.
 """
 from __future__ import annotations
 
-import math
 import os
 import tempfile
 import time

@@ -68,6 +68,11 @@ class SurfaceHit:
     base: np.ndarray      # (N,3) base colour (texture applied)
     prim: np.ndarray
 
+    def take(self, idx) -> "SurfaceHit":
+        """The hits at rows idx (np.take(axis=0) is ~4x faster than fancy indexing)."""
+        return SurfaceHit(*(np.take(getattr(self, k), idx, axis=0)
+                            for k in self.__dataclass_fields__))
+
 
 def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHit:
     p = geo.hit_points(prim, u, v)

@@ -13,8 +13,8 @@ import numpy as np
 
 from .geometry import Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
-from .sampling import dot, luminance, normalize
-from .scene import AREA, SPOT, SUN
+from .sampling import luminance
+from .scene import AREA, SUN
 
 PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can reach it
 
@@ -164,7 +164,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         if li.kind == WORLD:
             plan.light_samples[li.name] = s.light_samples
             plan.shadows[li.name] = has_tris
-            plan.add(f"world light", True, "non-black background lights the scene "
+            plan.add("world light", True, "non-black background lights the scene "
                      "(cosine-weighted shadow rays)")
             continue
         sized = li.has_size
@@ -197,10 +197,9 @@ def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:
     if not mask.any():
         return True
     n = geo.ng[mask]
-    if np.any(np.abs(dot(n, n[:1].repeat(len(n), axis=0))) < 1.0 - 1e-9):
+    if np.any(np.abs(n @ n[0]) < 1.0 - 1e-9):
         return False
-    offsets = dot(geo.v0[mask], n[0][None, :].repeat(mask.sum(), axis=0))
-    return bool(np.ptp(offsets) <= 10 * geo.eps)
+    return bool(np.ptp(geo.v0[mask] @ n[0]) <= 10 * geo.eps)
 
 
 def _visible_specular(scene, geo, table, accel, probe=96) -> list:

@@ -11,12 +11,12 @@ pass, so the passes add up to the combined image.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
-from .photons import Cancelled, _subset
+from .photons import Cancelled
 from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, offset_origin, to_world
 
 
@@ -27,7 +27,6 @@ class Counters:
     gather_rays: int = 0
     specular_rays: int = 0
     diffuse_hits: int = 0
-    extra: dict = field(default_factory=dict)
 
 
 def camera_rays(camera, offset, width, height, px, py, jx, jy):
@@ -120,9 +119,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarr
                 Ey = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel], indirect_only=short)
                 if short.any():
                     ss = np.nonzero(short)[0]
-                    ysub = _subset(y, dsel[ss])
+                    ysub = y.take(dsel[ss])
                     Ey[ss] += direct_irradiance(ctx, ysub, rng, counters)
-                np.add.at(E, idx[dsel], tp[dsel] * wd[dsel] * Ey / G)
+                E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G  # one ray per row: no repeats
             if depth == ctx.settings.max_depth:
                 break
             keep, o, d, tp = continue_specular(ctx, y, w, tp, rng)
@@ -154,7 +153,7 @@ def continue_specular(ctx, hit, w, tp, rng):
         r = np.nonzero(lobe == li)[0]
         wsel[r] = np.take(c, idx[r], axis=0)
     new_tp = tp[idx] * wsel / np.maximum(prob, 1e-300)[:, None]
-    sub = _subset(hit, idx)
+    sub = hit.take(idx)
     nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
     keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
     o = offset_origin(sub.p[keep], sub.ng[keep], nd[keep], ctx.geo.eps)
@@ -343,7 +342,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         wd = w["diffuse"]
         dsel = np.nonzero(max3(wd) > 0)[0]
         if len(dsel):
-            sub = _subset(hit, dsel)
+            sub = hit.take(dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
             direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,

@@ -14,10 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import Geometry, MaterialTable, emissive_triangles
-from .sampling import (concentric_disk, cosine_hemisphere, dot, luminance, normalize,
-                       orthonormal_basis, to_world, uniform_cone, uniform_sphere,
+from .sampling import (concentric_disk, cosine_hemisphere, dot, luminance, orthonormal_basis, to_world, uniform_cone, uniform_sphere,
                        uniform_triangle)
-from .scene import AREA, DISK, POINT, SPOT, SUN, Light, Scene, spot_mask
+from .scene import AREA, DISK, POINT, SPOT, SUN, Scene, spot_mask
 
 MESH, WORLD = "MESH", "WORLD"
 

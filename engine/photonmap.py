@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .photons import Photons
-from .sampling import dot, max3
+from .sampling import max3
 
 NORMAL_AGREEMENT = 0.5
 MAX_CLASSIC_K = 4096
@@ -144,7 +144,7 @@ class GatherMap:
     final-gather ray needs only a nearest-neighbour lookup instead of a k-NN estimate."""
 
     def __init__(self, photon_map: PhotonMap, radius: float, k: int, min_photons: int,
-                 estimator: str, max_points: int = 60_000, seed: int = 0, accel=None,
+                 estimator: str, max_points: int = 60_000, accel=None,
                  eps: float = 0.0, indirect_map: PhotonMap | None = None):
         ph = photon_map.photons
         self.workers = photon_map.workers

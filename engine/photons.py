@@ -130,7 +130,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                     if len(rows):
                         w_sel[rows] = np.take(w[k], idx[rows], axis=0)
                 new_power = power[idx] * w_sel / np.maximum(p_sel, 1e-300)[:, None]
-                sub = _subset(hit, idx)
+                sub = hit.take(idx)
                 new_d = np.empty((len(idx), 3))
                 ok = np.ones(len(idx), bool)
                 diff = lobe == 0
@@ -141,7 +141,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                     ok[diff] = dot(nd, sub.ng[diff]) > 0
                 spec = ~diff
                 if spec.any():
-                    sd, valid, _ = sample_specular(table, _subset(sub, np.nonzero(spec)[0]),
+                    sd, valid, _ = sample_specular(table, sub.take(np.nonzero(spec)[0]),
                                                    lobe[spec] - 1, rng)
                     new_d[spec] = sd
                     ok[spec] = valid
@@ -172,12 +172,6 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
         out = Photons(**{k: np.concatenate(v) for k, v in parts.items()})
     out.emitted = total
     return out
-
-
-def _subset(hit, idx):
-    from .bsdf import SurfaceHit
-    # np.take(axis=0) is ~4x faster than fancy indexing for row gathers.
-    return SurfaceHit(**{k: np.take(getattr(hit, k), idx, axis=0) for k in hit.__dataclass_fields__})
 
 
 def _k(n: int) -> str:

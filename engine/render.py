@@ -51,12 +51,13 @@ def _check_region(region, width, height):
     return (x0, y0, x1, y1)
 
 
-def prepare_context(scene: Scene, settings: RenderSettings) -> Context:
+def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel) -> Context:
     """Validate the scene, merge and re-centre geometry, build the BVH, prepare lights and
-    decide which effects to simulate. One Context serves several passes."""
+    decide which effects to simulate. One Context serves several passes. accel_class lets
+    the benchmarks record every ray query (bench/)."""
     scene.validate()
     geo, table = prepare(scene)
-    accel = Accel(geo.vertices32, geo.faces32, threads=settings.threads)
+    accel = accel_class(geo.vertices32, geo.faces32, threads=settings.threads)
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights)
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
@@ -95,9 +96,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     (top-left origin, exclusive max) and the Film has its size."""
     settings = settings or RenderSettings()
     t_start = time.perf_counter()
-    scene.validate()
-    region = _check_region(region, scene.width, scene.height)
     ctx = prepare_context(scene, settings)
+    region = _check_region(region, scene.width, scene.height)
     t_prepare = time.perf_counter() - t_start
     try:
         film = render_pass(ctx, region, progress, should_cancel)
@@ -158,7 +158,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
             gathered = shot.select(shot.kind != CAUSTIC)
             indirect_only = PhotonMap(gathered.select(gathered.kind != DIRECT), workers)
             ctx.gather_map = GatherMap(PhotonMap(gathered, workers), ctx.global_radius, k,
-                                       s.min_photons, s.estimator, seed=s.seed,
+                                       s.min_photons, s.estimator,
                                        accel=ctx.accel, eps=geo.eps, indirect_map=indirect_only)
             ctx.secondary_map = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
             stats["global_photons"] = len(shot)

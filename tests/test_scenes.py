@@ -1,5 +1,4 @@
 """The paper's scenes render with the effects they are about."""
-import math
 
 import numpy as np
 import pytest

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from engine.api import PaperScene, box_mesh, sphere_mesh
+from engine.api import PaperScene, box_mesh
 from engine.scene import Camera, Material, Mesh
 
 from test_stability_common import box_room, relmse, run

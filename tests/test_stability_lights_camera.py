@@ -4,9 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from engine import RenderSettings
 from engine.api import PaperScene, box_mesh, cornell_box
-from engine.scene import Camera, Light, Material, spot_cone_fraction
+from engine.scene import Camera, Material, spot_cone_fraction
 
 from test_stability_common import run, shoot_photons
 

@@ -4,10 +4,10 @@ import math
 import numpy as np
 import pytest
 
-from engine.api import PaperScene, sphere_mesh
+from engine.api import PaperScene
 from engine.bsdf import fresnel_dielectric, lobe_weights, refract, SurfaceHit
 from engine.geometry import MaterialTable
-from engine.scene import Camera, Material, Mesh
+from engine.scene import Material
 
 from test_stability_common import relmse, run, shoot_photons
 

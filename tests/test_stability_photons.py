@@ -9,7 +9,7 @@ import pytest
 
 from engine.api import PaperScene, box_mesh
 from engine.photonmap import GatherMap, PhotonMap, auto_radius
-from engine.photons import DIRECT, Photons
+from engine.photons import Photons
 from engine.scene import Camera, Material
 
 from test_stability_common import run, shoot_photons

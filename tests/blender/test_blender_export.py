@@ -86,7 +86,7 @@ def build_scene(bpy):
 
 def test_export_round_trip(fresh_scene, bpy_addon):
     bpy = bpy_addon
-    scene = build_scene(bpy)
+    build_scene(bpy)
     from addon import export
     from addon.core import load_engine
     pm = load_engine()
@@ -144,7 +144,6 @@ def test_render_reports_export_warning(fresh_scene, bpy_addon):
 
 def test_materials_and_texture(fresh_scene, bpy_addon):
     bpy = bpy_addon
-    scene = fresh_scene
     quad = _mesh_object(bpy, "Q", [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [(0, 1, 2, 3)])
     quad.data.uv_layers.new(name="UVMap")
     m, p = _material(bpy, "Tex", "ShaderNodeBsdfPrincipled")

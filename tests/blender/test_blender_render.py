@@ -1,5 +1,4 @@
 """Rendering through bpy.ops.render.render with the Photon Mapping engine."""
-import os
 import time
 
 import numpy as np
@@ -87,7 +86,7 @@ def test_caustic_fast(bpy_addon, tmp_path):
 def test_cancel_stops_early(bpy_addon, tmp_path):
     bpy = bpy_addon
     from addon import engine
-    scene = open_blend(bpy, "figure6_box.blend")   # ~10 s at its saved settings
+    open_blend(bpy, "figure6_box.blend")   # ~10 s at its saved settings
     calls = {"n": 0}
 
     def hook():
