@@ -6,6 +6,7 @@ crash the process. Queries are split across threads: embreex releases the GIL.
 """
 from __future__ import annotations
 
+import copy
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -44,6 +45,14 @@ class Accel:
             # Commit the BVH now, single-threaded, before threads share the scene.
             one = np.zeros((1, 3), np.float32)
             self._scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
+
+    def serial(self) -> "Accel":
+        """A view of the same BVH that answers on the calling thread: for work that is
+        already split over threads chunk by chunk (engine/parallel.py)."""
+        view = copy.copy(self)
+        view.threads = 1
+        view._pool = None
+        return view
 
     def close(self):
         if self._pool is not None:

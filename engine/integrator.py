@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
-from .photons import Cancelled
+from .parallel import Cancelled, ordered_map
 from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, offset_origin, to_world
 
 
@@ -27,6 +27,10 @@ class Counters:
     gather_rays: int = 0
     specular_rays: int = 0
     diffuse_hits: int = 0
+
+    def add(self, other: "Counters"):
+        for name in self.__dataclass_fields__:
+            setattr(self, name, getattr(self, name) + getattr(other, name))
 
 
 def camera_rays(camera, offset, width, height, px, py, jx, jy):
@@ -201,33 +205,52 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None):
 
 
 class Accumulator:
-    """Per-pixel sums for each pass; np.bincount is the fast vectorised scatter-add."""
+    """Per-pixel sums for each pass over pixels [lo, lo + npix) of the region; np.bincount
+    is the fast vectorised scatter-add."""
 
     NAMES = ("direct", "indirect", "caustic", "specular", "emission")
 
-    def __init__(self, npix):
+    def __init__(self, npix, lo=0):
         self.npix = npix
+        self.lo = lo
         self.buf = {k: np.zeros((npix, 3)) for k in self.NAMES}
         self.alpha = np.zeros(npix)
         self.depth_sum = np.zeros(npix)
         self.depth_n = np.zeros(npix)
         self.normal = np.zeros((npix, 3))
 
+    def _bins(self, pix, w):
+        return np.bincount(pix - self.lo, weights=w, minlength=self.npix)
+
     def add(self, name, pix, rgb):
         if len(pix) == 0:
             return
         b = self.buf[name]
         for c in range(3):
-            b[:, c] += np.bincount(pix, weights=rgb[:, c], minlength=self.npix)
+            b[:, c] += self._bins(pix, rgb[:, c])
 
     def add_scalar(self, arr, pix, w):
-        arr += np.bincount(pix, weights=w, minlength=self.npix)
+        arr += self._bins(pix, w)
+
+    def merge(self, part: "Accumulator"):
+        """Add a chunk's sums (its pixels are a window of this accumulator's)."""
+        a, b = part.lo - self.lo, part.lo - self.lo + part.npix
+        for name in self.NAMES:
+            self.buf[name][a:b] += part.buf[name]
+        for mine, theirs in ((self.alpha, part.alpha), (self.depth_sum, part.depth_sum),
+                             (self.depth_n, part.depth_n), (self.normal, part.normal)):
+            mine[a:b] += theirs
+
+
+# Chunks per camera pass at least: lets small images use both cores. The chunk size
+# depends on the image and the settings only, never on the number of threads, so each
+# chunk's random stream, and so the image, is the same for any thread count.
+MIN_CHUNKS = 8
+MIN_CHUNK = 4096
 
 
 def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Counters:
     s = ctx.settings
-    cam = ctx.scene.camera
-    W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
     rw, rh = x1 - x0, y1 - y0
     npix = rw * rh
@@ -235,45 +258,67 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     total = npix * spp
     acc = Accumulator(npix)
     counters = Counters()
+    chunk = max(1, min(s.chunk_size, max(MIN_CHUNK, -(-total // MIN_CHUNKS))))
+    jobs = list(enumerate(range(0, total, chunk)))
+    threads = s.threads
+    # Chunks on worker threads ask Embree and the kd-trees on their own thread.
+    wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
+
+    def job(item, stop):
+        ci, start = item
+        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop)
+
+    try:
+        for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel):
+            acc.merge(part)
+            counters.add(part_counters)
+            if progress is not None:
+                progress("render", end / total, f"Rendering {100.0 * end / total:.0f}%")
+    finally:
+        _write_film(film, acc, spp, rh, rw)
+    return counters
+
+
+def _render_chunk(ctx, region, ci, start, end, should_cancel):
+    """Camera samples [start, end) of the region (sample = pixel * spp + sub-sample):
+    returns their sums over the pixels they touch, the ray counters, and `end`."""
+    s = ctx.settings
+    cam = ctx.scene.camera
+    W, H = ctx.scene.width, ctx.scene.height
+    x0, y0, x1, y1 = region
+    rw = x1 - x0
+    spp = s.spp
     m = max(1, int(math.sqrt(spp)))
     cells = m * m
     full_rounds = (spp // cells) * cells
     jitter_order = np.random.default_rng(0x5EED).permutation(cells)
+    rng = np.random.default_rng([s.seed, 7, ci])
+    sample = np.arange(start, end)
+    pix = sample // spp
+    sub = sample % spp
+    acc = Accumulator(int(pix[-1] - pix[0]) + 1, int(pix[0]))
+    counters = Counters()
+    # Pixel jitter: stratified over the same m x m grid, but visited in a scrambled
+    # order. With the plain order, jitter cell and light / gather cells were paired
+    # by a fixed offset, so a pixel split by an edge saw only part of the gather
+    # hemisphere on each side (a dashed line along a floor-wall seam, measured).
+    cell = jitter_order[sub % cells]
+    jx = (cell % m + rng.random(len(sample))) / m
+    jy = (cell // m + rng.random(len(sample))) / m
+    rest = sub >= full_rounds  # beyond whole rounds of the grid: uniform
+    jx[rest] = rng.random(int(rest.sum()))
+    jy[rest] = rng.random(int(rest.sum()))
+    px = x0 + pix % rw
+    py = y0 + pix // rw
+    o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
+    counters.camera_rays += len(o)
+    tp = np.ones((len(o), 3))
+    sampler = StratifiedSampler(sub, pix, spp, rng)
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
-    chunk = s.chunk_size
-    try:
-        for ci, start in enumerate(range(0, total, chunk)):
-            if should_cancel is not None and should_cancel():
-                raise Cancelled()
-            rng = np.random.default_rng([s.seed, 7, ci])
-            sample = np.arange(start, min(total, start + chunk))
-            pix = sample // spp
-            sub = sample % spp
-            # Pixel jitter: stratified over the same m x m grid, but visited in a scrambled
-            # order. With the plain order, jitter cell and light / gather cells were paired
-            # by a fixed offset, so a pixel split by an edge saw only part of the gather
-            # hemisphere on each side (a dashed line along a floor-wall seam, measured).
-            cell = jitter_order[sub % cells]
-            jx = (cell % m + rng.random(len(sample))) / m
-            jy = (cell // m + rng.random(len(sample))) / m
-            rest = sub >= full_rounds  # beyond whole rounds of the grid: uniform
-            jx[rest] = rng.random(int(rest.sum()))
-            jy[rest] = rng.random(int(rest.sum()))
-            px = x0 + pix % rw
-            py = y0 + pix // rw
-            o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
-            counters.camera_rays += len(o)
-            tp = np.ones((len(o), 3))
-            sampler = StratifiedSampler(sub, pix, spp, rng)
-            _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                         should_cancel, sampler, sub)
-            if progress is not None:
-                done = min(total, start + chunk)
-                progress("render", done / total, f"Rendering {100.0 * done / total:.0f}%")
-    finally:
-        _write_film(film, acc, spp, rh, rw)
-    return counters
+    _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
+                 should_cancel, sampler, sub)
+    return acc, counters, end
 
 
 def _write_film(film, acc, spp, rh, rw):
@@ -332,9 +377,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if bounce == 0:
             acc.add_scalar(acc.depth_sum, pix, dot(hit.p - cam_pos, forward))
             acc.add_scalar(acc.depth_n, pix, np.ones(len(pix)))
+            facing = np.where(hit.front, 1.0, -1.0)
             for c in range(3):
-                acc.normal[:, c] += np.bincount(pix, weights=hit.ns[:, c] * np.where(hit.front, 1, -1),
-                                                minlength=acc.npix)
+                acc.normal[:, c] += acc._bins(pix, hit.ns[:, c] * facing)
         Le = ctx.table.emission[hit.mat]
         if np.any(Le > 0):
             acc.add(target, pix, tp * Le)

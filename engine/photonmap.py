@@ -15,11 +15,13 @@ wall) are ignored: that is what keeps light from leaking.
 """
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .parallel import ordered_map
 from .photons import Photons
 from .sampling import max3
 
@@ -42,6 +44,13 @@ class PhotonMap:
 
     def __len__(self):
         return len(self.photons)
+
+    def serial(self) -> "PhotonMap":
+        """The same map, queried on the calling thread only (the caller runs chunks on
+        threads already, engine/parallel.py)."""
+        view = copy.copy(self)
+        view.workers = 1
+        return view
 
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                    min_photons: int, estimator: str) -> np.ndarray:
@@ -80,15 +89,27 @@ class PhotonMap:
         else:
             kq = int(min(k, len(self.photons)))
         rows = max(1, QUERY_BUDGET // kq)
-        for a in range(0, len(busy), rows):
+        if self.workers > 1:
+            # Blocks on worker threads (the numpy part of the estimate too). Rows are
+            # independent, so the block size does not change any result.
+            rows = min(rows, max(1024, -(-len(busy) // (2 * self.workers))))
+        blocks = range(0, len(busy), rows)
+        threads = self.workers if len(blocks) > 1 else 1
+        pm = self.serial() if threads > 1 else self
+
+        def job(a, stop):
             sel = busy[a:a + rows]
-            out[sel] = self._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator)
+            E = pm._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator)
             if estimator in ("classic", "radius"):
                 # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius;
-                # the query returned the nearest kq of them. Scale by all / gathered so the
-                # fixed-radius estimate is not capped (stand-in for the missing photons).
+                # the query returned the nearest kq of them. Scale by all / gathered so
+                # the fixed-radius estimate is not capped (stand-in for the missing ones).
                 c = counts[a:a + rows].astype(np.float64)
-                out[sel] *= np.maximum(c / kq, 1.0)[:, None]
+                E *= np.maximum(c / kq, 1.0)[:, None]
+            return sel, E
+
+        for sel, E in ordered_map(job, blocks, threads):
+            out[sel] = E
         return out
 
     def _estimate(self, p, n, radius, kq, k, min_photons, estimator):
@@ -170,6 +191,14 @@ class GatherMap:
                                                       min_photons, estimator)
         self.radius = radius
         self.tree = cKDTree(self.position, balanced_tree=False, compact_nodes=False)
+
+    def serial(self) -> "GatherMap":
+        """The same map, queried on the calling thread only (see PhotonMap.serial)."""
+        view = copy.copy(self)
+        view.workers = 1
+        if self.accel is not None:
+            view.accel = self.accel.serial()
+        return view
 
     def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
                indirect_only: np.ndarray | None = None) -> np.ndarray:

@@ -21,15 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .parallel import Cancelled, ordered_map
 from .bsdf import lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, max3, offset_origin, to_world
 
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
 LOBES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "coat")
-
-
-class Cancelled(Exception):
-    """Raised inside the passes when the caller asked to stop."""
 
 
 @dataclass
@@ -64,114 +61,138 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
     paths only and stop a photon as soon as it scatters diffusely (the caustic shot).
     targets=(centers, radii): aim the photons at these bounding spheres (caustic casters)."""
-    geo, table, accel, settings = ctx.geo, ctx.table, ctx.accel, ctx.settings
-    chunk = settings.chunk_size
+    settings = ctx.settings
     total = int(sum(counts))
+    jobs = []
+    for li, count in enumerate(counts):
+        # Chunk size from the photon count and settings only (never the thread count), so
+        # every chunk's random stream, and so the photon map, is the same on any machine.
+        chunk = max(1, min(settings.chunk_size, max(MIN_CHUNK, -(-count // MIN_CHUNKS))))
+        jobs += [(li, ci, start, min(chunk, count - start), count)
+                 for ci, start in enumerate(range(0, count, chunk))]
+    threads = settings.threads
+    accel = ctx.accel.serial() if threads > 1 and len(jobs) > 1 else ctx.accel
+
+    def job(item, stop):
+        li, ci, start, n, count = item
+        rng = np.random.default_rng([settings.seed, stream, li, ci])
+        return _trace_chunk(ctx, accel, lights[li], n, count, rng, caustic_only, targets, stop)
+
     parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
     done = 0
-    for li, (light, count) in enumerate(zip(lights, counts)):
-        for ci, start in enumerate(range(0, count, chunk)):
-            n = min(chunk, count - start)
-            rng = np.random.default_rng([settings.seed, stream, li, ci])
-            if targets is None:
-                o, d, power = light.emit(n, rng)
-            else:
-                o, d, power = light.emit_towards(n, rng, *targets)
-            power *= n / count  # emit() spreads the light's whole flux over this chunk
-            live = max3(power) > 0  # e.g. aimed outside a one-sided light's hemisphere
-            if not live.all():
-                o, d, power = o[live], d[live], power[live]
-            had_diffuse = np.zeros(len(o), bool)
-            had_specular = np.zeros(len(o), bool)
-            caustic_then_diffuse = np.zeros(len(o), bool)  # path so far: L S+ D S*
-            for bounce in range(settings.max_photon_depth):
-                if should_cancel is not None and should_cancel():
-                    raise Cancelled()
-                if len(o) == 0:
-                    break
-                _, prim, u, v = accel.intersect(o, d)
-                alive = prim >= 0
-                if not alive.all():
-                    o, d, power, prim, u, v = o[alive], d[alive], power[alive], prim[alive], u[alive], v[alive]
-                    had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
-                    caustic_then_diffuse = caustic_then_diffuse[alive]
-                if len(o) == 0:
-                    break
-                hit = surface_hit(geo, table, prim, u, v, d)
-                w = lobe_weights(table, hit)
-                kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
-                                np.where(had_specular, CAUSTIC, DIRECT))
-                store = max3(w["diffuse"]) > 0
-                if caustic_only:
-                    store &= kind == CAUSTIC
-                if store.any():
-                    parts["position"].append(hit.p[store].astype(np.float32))
-                    parts["power"].append(power[store].astype(np.float32))
-                    parts["direction"].append(d[store].astype(np.float32))
-                    parts["normal"].append(hit.ng[store].astype(np.float32))
-                    parts["kind"].append(kind[store].astype(np.uint8))
-                # Russian roulette over the lobes.
-                probs = np.stack([max3(w[k]) for k in LOBES], axis=1)
-                s = ((((probs[:, 0] + probs[:, 1]) + probs[:, 2]) + probs[:, 3]) + probs[:, 4]) + probs[:, 5]
-                probs = probs / np.maximum(s, 1.0)[:, None]
-                cdf = np.cumsum(probs, axis=1)
-                xi = rng.random(len(o))
-                lobe = np.count_nonzero(xi[:, None] >= cdf, axis=1)  # len(LOBES) = absorbed
-                survive = lobe < len(LOBES)
-                if caustic_only:
-                    survive &= lobe != 0
-                idx = np.nonzero(survive)[0]
-                lobe = lobe[idx]
-                p_sel = probs[idx, lobe]
-                # The chosen lobe's weight, row by row, without an (n,6,3) stack.
-                w_sel = np.zeros((len(idx), 3))
-                for li, k in enumerate(LOBES):
-                    rows = np.nonzero(lobe == li)[0]
-                    if len(rows):
-                        w_sel[rows] = np.take(w[k], idx[rows], axis=0)
-                new_power = power[idx] * w_sel / np.maximum(p_sel, 1e-300)[:, None]
-                sub = hit.take(idx)
-                new_d = np.empty((len(idx), 3))
-                ok = np.ones(len(idx), bool)
-                diff = lobe == 0
-                if diff.any():
-                    nd = to_world(cosine_hemisphere(rng.random(int(diff.sum())),
-                                                    rng.random(int(diff.sum()))), sub.ns[diff])
-                    new_d[diff] = nd
-                    ok[diff] = dot(nd, sub.ng[diff]) > 0
-                spec = ~diff
-                if spec.any():
-                    sd, valid, _ = sample_specular(table, sub.take(np.nonzero(spec)[0]),
-                                                   lobe[spec] - 1, rng)
-                    new_d[spec] = sd
-                    ok[spec] = valid
-                ctd = caustic_then_diffuse[idx]
-                first_diffuse = diff & ~had_diffuse[idx]
-                # The first diffuse bounce after a caustic path starts L S+ D; any further
-                # diffuse bounce makes it ordinary indirect light.
-                caustic_then_diffuse = np.where(diff, first_diffuse & had_specular[idx], ctd)
-                had_diffuse = had_diffuse[idx] | diff
-                had_specular = had_specular[idx] | spec
-                # isfinite(all) and max > 0 per row in one pass: max3 propagates NaN
-                # (NaN > 0 is False) and inf is caught by isfinite of the row sum.
-                mx = max3(new_power)
-                keep = ok & np.isfinite(new_power[:, 0] + new_power[:, 1] + new_power[:, 2]) & (mx > 0)
-                new_d, new_power = new_d[keep], new_power[keep]
-                had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
-                caustic_then_diffuse = caustic_then_diffuse[keep]
-                o = offset_origin(sub.p[keep], sub.ng[keep], new_d, geo.eps)
-                d, power = new_d, new_power
-            done += n
-            if progress is not None:
-                label = "caustic photons" if caustic_only else "photons"
-                progress("photons", done / max(total, 1),
-                         f"Tracing {label} {_k(done)}/{_k(total)}")
+    for item, chunk_parts in zip(jobs, ordered_map(job, jobs, threads, should_cancel)):
+        for k, v in chunk_parts.items():
+            parts[k] += v
+        done += item[3]
+        if progress is not None:
+            label = "caustic photons" if caustic_only else "photons"
+            progress("photons", done / max(total, 1), f"Tracing {label} {_k(done)}/{_k(total)}")
     if not parts["position"]:
         out = Photons.empty()
     else:
         out = Photons(**{k: np.concatenate(v) for k, v in parts.items()})
     out.emitted = total
     return out
+
+
+MIN_CHUNKS = 8     # photon chunks per light at least, so both cores get work
+MIN_CHUNK = 4096   # photons per chunk at least: below this, per-call overhead dominates
+
+
+def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel):
+    """Emit n of the light's `count` photons and trace them; returns the stored hits as
+    lists of arrays, bounce by bounce."""
+    geo, table, settings = ctx.geo, ctx.table, ctx.settings
+    parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
+    if targets is None:
+        o, d, power = light.emit(n, rng)
+    else:
+        o, d, power = light.emit_towards(n, rng, *targets)
+    power *= n / count  # emit() spreads the light's whole flux over this chunk
+    live = max3(power) > 0  # e.g. aimed outside a one-sided light's hemisphere
+    if not live.all():
+        o, d, power = o[live], d[live], power[live]
+    had_diffuse = np.zeros(len(o), bool)
+    had_specular = np.zeros(len(o), bool)
+    caustic_then_diffuse = np.zeros(len(o), bool)  # path so far: L S+ D S*
+    for bounce in range(settings.max_photon_depth):
+        if should_cancel is not None and should_cancel():
+            raise Cancelled()
+        if len(o) == 0:
+            break
+        _, prim, u, v = accel.intersect(o, d)
+        alive = prim >= 0
+        if not alive.all():
+            o, d, power, prim, u, v = o[alive], d[alive], power[alive], prim[alive], u[alive], v[alive]
+            had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
+            caustic_then_diffuse = caustic_then_diffuse[alive]
+        if len(o) == 0:
+            break
+        hit = surface_hit(geo, table, prim, u, v, d)
+        w = lobe_weights(table, hit)
+        kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
+                        np.where(had_specular, CAUSTIC, DIRECT))
+        store = max3(w["diffuse"]) > 0
+        if caustic_only:
+            store &= kind == CAUSTIC
+        if store.any():
+            parts["position"].append(hit.p[store].astype(np.float32))
+            parts["power"].append(power[store].astype(np.float32))
+            parts["direction"].append(d[store].astype(np.float32))
+            parts["normal"].append(hit.ng[store].astype(np.float32))
+            parts["kind"].append(kind[store].astype(np.uint8))
+        # Russian roulette over the lobes.
+        probs = np.stack([max3(w[k]) for k in LOBES], axis=1)
+        s = ((((probs[:, 0] + probs[:, 1]) + probs[:, 2]) + probs[:, 3]) + probs[:, 4]) + probs[:, 5]
+        probs = probs / np.maximum(s, 1.0)[:, None]
+        cdf = np.cumsum(probs, axis=1)
+        xi = rng.random(len(o))
+        lobe = np.count_nonzero(xi[:, None] >= cdf, axis=1)  # len(LOBES) = absorbed
+        survive = lobe < len(LOBES)
+        if caustic_only:
+            survive &= lobe != 0
+        idx = np.nonzero(survive)[0]
+        lobe = lobe[idx]
+        p_sel = probs[idx, lobe]
+        # The chosen lobe's weight, row by row, without an (n,6,3) stack.
+        w_sel = np.zeros((len(idx), 3))
+        for li, k in enumerate(LOBES):
+            rows = np.nonzero(lobe == li)[0]
+            if len(rows):
+                w_sel[rows] = np.take(w[k], idx[rows], axis=0)
+        new_power = power[idx] * w_sel / np.maximum(p_sel, 1e-300)[:, None]
+        sub = hit.take(idx)
+        new_d = np.empty((len(idx), 3))
+        ok = np.ones(len(idx), bool)
+        diff = lobe == 0
+        if diff.any():
+            nd = to_world(cosine_hemisphere(rng.random(int(diff.sum())),
+                                            rng.random(int(diff.sum()))), sub.ns[diff])
+            new_d[diff] = nd
+            ok[diff] = dot(nd, sub.ng[diff]) > 0
+        spec = ~diff
+        if spec.any():
+            sd, valid, _ = sample_specular(table, sub.take(np.nonzero(spec)[0]),
+                                           lobe[spec] - 1, rng)
+            new_d[spec] = sd
+            ok[spec] = valid
+        ctd = caustic_then_diffuse[idx]
+        first_diffuse = diff & ~had_diffuse[idx]
+        # The first diffuse bounce after a caustic path starts L S+ D; any further
+        # diffuse bounce makes it ordinary indirect light.
+        caustic_then_diffuse = np.where(diff, first_diffuse & had_specular[idx], ctd)
+        had_diffuse = had_diffuse[idx] | diff
+        had_specular = had_specular[idx] | spec
+        # isfinite(all) and max > 0 per row in one pass: max3 propagates NaN
+        # (NaN > 0 is False) and inf is caught by isfinite of the row sum.
+        mx = max3(new_power)
+        keep = ok & np.isfinite(new_power[:, 0] + new_power[:, 1] + new_power[:, 2]) & (mx > 0)
+        new_d, new_power = new_d[keep], new_power[keep]
+        had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
+        caustic_then_diffuse = caustic_then_diffuse[keep]
+        o = offset_origin(sub.p[keep], sub.ng[keep], new_d, geo.eps)
+        d, power = new_d, new_power
+    return parts
 
 
 def _k(n: int) -> str:

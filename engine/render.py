@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -14,7 +14,8 @@ from .integrator import render_camera
 from .lights import MESH, allocate_photons, prepare_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .sampling import luminance
-from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Cancelled, Photons, trace_photons
+from .parallel import Cancelled
+from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -35,6 +36,16 @@ class Context:
     plan: EffectPlan | None = None
     global_radius: float = 0.0
     caustic_radius: float = 0.0
+
+
+    def serial(self) -> "Context":
+        """This context with every Embree and kd-tree query answered on the calling
+        thread, for chunks that already run on worker threads (engine/parallel.py)."""
+        def one(m):
+            return None if m is None else m.serial()
+        return replace(self, accel=self.accel.serial(), global_map=one(self.global_map),
+                       caustic_map=one(self.caustic_map), gather_map=one(self.gather_map),
+                       secondary_map=one(self.secondary_map))
 
 
 def _check_region(region, width, height):

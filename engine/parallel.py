@@ -1,0 +1,69 @@
+"""Chunks of a pass run on worker threads; results come back in chunk order.
+
+Embree, scipy's kd-tree and numpy's array kernels release the GIL, so whole chunks
+(camera samples, photons) running on two threads keep both cores busy, also through the
+numpy shading between the Embree calls. Each chunk owns its random stream (seeded by
+its index) and its results are merged in chunk order on the calling thread, so the image
+does not depend on the number of threads.
+
+Callbacks (progress, should_cancel) are only ever called on the calling thread: Blender's
+RenderEngine API must not be touched from other threads. Worker chunks poll a
+threading.Event instead.
+"""
+from __future__ import annotations
+
+import threading
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor, wait
+
+
+
+
+class Cancelled(Exception):
+    """Raised inside the passes when the caller asked to stop."""
+
+
+POLL_SECONDS = 0.1  # how often the calling thread asks should_cancel while chunks run
+
+
+def ordered_map(job, items, threads: int, should_cancel=None):
+    """Yield job(item, stop) for each item, in order. stop() tells a running job that the
+    caller cancelled (it should raise Cancelled). With threads <= 1 the jobs run inline
+    and stop is should_cancel itself. At most 2 x threads chunks are in flight, which
+    bounds memory. Raises Cancelled when should_cancel() returns True."""
+    items = list(items)
+    if threads <= 1 or len(items) <= 1:
+        stop = should_cancel if should_cancel is not None else (lambda: False)
+        for item in items:
+            if stop():
+                raise Cancelled()
+            yield job(item, stop)
+        return
+    event = threading.Event()
+    pending = deque()
+    todo = iter(items)
+    with ThreadPoolExecutor(threads) as pool:
+        try:
+            for item in todo:
+                pending.append(pool.submit(job, item, event.is_set))
+                if len(pending) >= 2 * threads:
+                    break
+            while pending:
+                head = pending[0]
+                while not wait([head], timeout=POLL_SECONDS).done:
+                    if should_cancel is not None and should_cancel():
+                        raise Cancelled()
+                pending.popleft()
+                result = head.result()  # re-raises a worker's exception here
+                for item in todo:
+                    pending.append(pool.submit(job, item, event.is_set))
+                    break
+                if should_cancel is not None and should_cancel():
+                    raise Cancelled()
+                yield result
+        finally:
+            # Cancelled, an error, or the consumer stopped early: let running chunks stop
+            # at their next check and drop the ones not started.
+            event.set()
+            for f in pending:
+                f.cancel()

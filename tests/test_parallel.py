@@ -1,0 +1,87 @@
+"""Chunks on worker threads (engine/parallel.py): order, cancellation, errors, and the
+image does not depend on the number of threads."""
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from engine import RenderSettings
+from engine.api import cornell_box
+from engine.parallel import Cancelled, ordered_map
+from engine.render import render
+
+
+def _slow_square(x, stop):
+    time.sleep(0.002 * ((7 * x) % 5))  # finish out of order
+    return x * x
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_results_come_back_in_order(threads):
+    assert list(ordered_map(_slow_square, range(20), threads)) == [x * x for x in range(20)]
+
+
+def test_callbacks_stay_on_the_calling_thread_and_cancel_stops_the_workers():
+    caller = threading.current_thread()
+    asked_from = set()
+    seen_stop = []
+    started = threading.Event()
+
+    def job(x, stop):
+        started.set()
+        t0 = time.perf_counter()
+        while not stop() and time.perf_counter() - t0 < 10:
+            time.sleep(0.005)
+        seen_stop.append(stop())
+        raise Cancelled()
+
+    def should_cancel():
+        asked_from.add(threading.current_thread())
+        return started.is_set()
+
+    t0 = time.perf_counter()
+    with pytest.raises(Cancelled):
+        list(ordered_map(job, range(8), 2, should_cancel))
+    assert time.perf_counter() - t0 < 5, "workers did not see the stop flag"
+    assert asked_from == {caller}
+    assert seen_stop and all(seen_stop)
+
+
+def test_a_worker_error_reaches_the_caller():
+    def job(x, stop):
+        if x == 3:
+            raise ValueError("chunk 3 broke")
+        return x
+
+    with pytest.raises(ValueError, match="chunk 3 broke"):
+        list(ordered_map(job, range(6), 2))
+
+
+def test_thread_count_does_not_change_the_image_over_many_chunks():
+    # 64x48 x 8 spp = 24,576 samples: 8 camera chunks; 20k photons: 8 photon chunks.
+    s = cornell_box(64, 48)
+    st = dict(photons=20000, caustic_photons=10000, spp=8, seed=3)
+    images = [s.render(RenderSettings(workers=w, **st)).combined for w in (1, 2, 3)]
+    np.testing.assert_array_equal(images[0], images[1])
+    np.testing.assert_array_equal(images[0], images[2])
+
+
+def test_cancel_during_the_camera_pass_returns_the_finished_part():
+    scene = cornell_box(64, 48)
+    calls = {"render": 0}
+
+    def progress(stage, fraction, text):
+        if stage == "render":
+            calls["render"] += 1
+
+    def should_cancel():
+        return calls["render"] >= 2  # after two camera chunks
+
+    film = render(scene, RenderSettings(photons=5000, caustic_photons=0, spp=8, workers=2),
+                  progress=progress, should_cancel=should_cancel)
+    assert film.stats["cancelled"]
+    img = film.combined
+    assert np.isfinite(img).all()
+    rows_done = (img.sum(axis=(1, 2)) > 0).sum()
+    assert 0 < rows_done < img.shape[0]  # top rows rendered, the rest left black
