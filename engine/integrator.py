@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .lights import MESH
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, ordered_map
 from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, offset_origin, to_world
@@ -62,11 +63,16 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
     return o, d, t_end - t_start
 
 
-def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarray:
-    """Irradiance from all lights by shadow rays (one ray per sample, tested for occlusion)."""
+def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
+                      skip_mesh_lights=False) -> np.ndarray:
+    """Irradiance from all lights by shadow rays (one ray per sample, tested for occlusion).
+    skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
+    by its own rays, which stays calm right next to the emitter)."""
     E = np.zeros((len(hit.p), 3))
     plan = ctx.plan
     for li, light in enumerate(ctx.lights):
+        if skip_mesh_lights and light.kind == MESH:
+            continue
         samples = plan.light_samples.get(light.name, 1)
         trace_shadows = plan.shadows.get(light.name, True)
         for si in range(samples):
@@ -87,13 +93,24 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None) -> np.nda
     return E
 
 
-def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarray:
+# Gather rays that end near a corner or contact, where the precomputed irradiance is cut
+# off and biased dark (or, closer than its resolution, could come from round the corner),
+# gather once more from their end, up to this many levels deep (Jensen's advice for
+# short gather rays). Deeper, the lookup is used as it is.
+MAX_GATHER_LEVEL = 2
+
+
+def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
+                    level=0) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
-    precomputed photon irradiance. Mean radiance times pi = irradiance."""
+    precomputed photon irradiance. Mean radiance times pi = irradiance.
+    level > 0: a recursive gather from a corner; it also counts the emission of the
+    emissive meshes its rays hit (direct light there comes from shadow rays to the other
+    lights only)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
-    G = ctx.settings.gather_rays
+    G = rays or ctx.settings.gather_rays
     for g in range(G):
         u1, u2 = sampler.uv(1 + 64 * g) if sampler is not None else (rng.random(n), rng.random(n))
         d = to_world(cosine_hemisphere(u1, u2), hit.ns)
@@ -112,19 +129,23 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None) -> np.ndarr
             if len(idx) == 0:
                 break
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            if level > 0 and depth == 0:
+                Le = ctx.table.emission[y.mat]
+                if np.any(Le > 0):
+                    E[idx] += tp * math.pi * Le / G
             w = lobe_weights(ctx.table, y)
             wd = w["diffuse"]
             dsel = np.nonzero(max3(wd) > 0)[0]
             if len(dsel):
-                # Gather rays that end within the lookup's resolution (corners, contact
-                # shadows) trace direct light at their end and look up only the indirect
-                # part: the nearest gather point could lie round the corner.
-                short = t[dsel] < ctx.gather_short
-                Ey = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel], indirect_only=short)
-                if short.any():
-                    ss = np.nonzero(short)[0]
-                    ysub = y.take(dsel[ss])
-                    Ey[ss] += direct_irradiance(ctx, ysub, rng, counters)
+                Ey, boundary = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel])
+                if level < MAX_GATHER_LEVEL:
+                    again = np.nonzero(boundary | (t[dsel] < ctx.gather_short))[0]
+                    if len(again):
+                        ysub = y.take(dsel[again])
+                        Ey[again] = (direct_irradiance(ctx, ysub, rng, counters,
+                                                       skip_mesh_lights=True)
+                                     + gather_indirect(ctx, ysub, rng, counters, rays=1,
+                                                       level=level + 1))
                 E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G  # one ray per row: no repeats
             if depth == ctx.settings.max_depth:
                 break

@@ -27,6 +27,7 @@ from .sampling import max3
 
 NORMAL_AGREEMENT = 0.5
 MAX_CLASSIC_K = 4096
+MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accepted ones
 QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
 DENSE_FRACTION = 0.8   # skip the min-photons pre-query when this share of a sample is busy
 
@@ -53,16 +54,21 @@ class PhotonMap:
         return view
 
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
-                   min_photons: int, estimator: str) -> np.ndarray:
-        """Irradiance estimate at points p with unit normals n (facing the viewer)."""
+                   min_photons: int, estimator: str, return_mixed: bool = False):
+        """Irradiance estimate at points p with unit normals n (facing the viewer).
+        return_mixed: also return, per point, whether photons of another surface lay
+        inside the estimate's disc (a corner or contact: the disc is cut off there and
+        the estimate is biased dark)."""
         out = np.zeros((len(p), 3))
+        mixed = np.zeros(len(p), bool)
+        result = (out, mixed) if return_mixed else out
         if self.tree is None or len(p) == 0 or radius <= 0:
-            return out
+            return result
         # A cheap query for the min_photons nearest tells which points have enough photons
         # in range; only those pay for the k-NN query (most queries of a sparse caustic map).
         m = int(min(min_photons, len(self.photons)))
         if len(self.photons) < min_photons:
-            return out
+            return result
         # Where nearly every point is busy (a global map, the gather-map build) the cheap
         # query is pure overhead (~25 % of the k-NN query): a strided sample decides.
         # Skipping it changes nothing: a row with fewer than m photons in range gets
@@ -81,7 +87,7 @@ class PhotonMap:
             dm = dm.reshape(len(p), -1)
             busy = np.nonzero(np.isfinite(dm[:, -1]))[0]
         if len(busy) == 0:
-            return out
+            return result
         if estimator in ("classic", "radius"):
             counts = self.tree.query_ball_point(p[busy], radius, return_length=True,
                                                 workers=self.workers)
@@ -99,20 +105,43 @@ class PhotonMap:
 
         def job(a, stop):
             sel = busy[a:a + rows]
-            E = pm._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator)
+            E, mix = pm._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator)
             if estimator in ("classic", "radius"):
                 # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius;
                 # the query returned the nearest kq of them. Scale by all / gathered so
                 # the fixed-radius estimate is not capped (stand-in for the missing ones).
                 c = counts[a:a + rows].astype(np.float64)
                 E *= np.maximum(c / kq, 1.0)[:, None]
-            return sel, E
+            return sel, E, mix
 
-        for sel, E in ordered_map(job, blocks, threads):
+        for sel, E, mix in ordered_map(job, blocks, threads):
             out[sel] = E
-        return out
+            mixed[sel] = mix
+        return result
 
     def _estimate(self, p, n, radius, kq, k, min_photons, estimator):
+        """Estimate at rows p. k-NN estimators use the k nearest *accepted* photons (facing
+        the query's surface): where photons of another surface crowd the k nearest (a
+        corner, an object resting on the floor) the query widens, up to MAX_WIDEN_K."""
+        out = np.zeros((len(p), 3))
+        mixed = np.zeros(len(p), bool)
+        todo = np.arange(len(p))
+        P = len(self.photons)
+        knn = estimator not in ("classic", "radius")
+        while len(todo):
+            E, widen, mix = self._estimate_rows(p[todo], n[todo], radius, kq, k, min_photons,
+                                                estimator)
+            last = not knn or not widen.any() or kq >= min(P, MAX_WIDEN_K)
+            done = np.ones(len(todo), bool) if last else ~widen
+            out[todo[done]] = E[done]
+            mixed[todo[done]] = mix[done]
+            if last:
+                break
+            todo = todo[widen]
+            kq = min(4 * kq, P, MAX_WIDEN_K)
+        return out, mixed
+
+    def _estimate_rows(self, p, n, radius, kq, k, min_photons, estimator):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=radius, workers=self.workers)
         if kq == 1:
             dist, idx = dist[:, None], idx[:, None]
@@ -126,22 +155,30 @@ class PhotonMap:
         gn = np.take(ph.normal, safe, axis=0)
         n32 = n.astype(np.float32)
         nx, ny, nz = n32[:, None, 0], n32[:, None, 1], n32[:, None, 2]
-        # Dot products per component (same float32 products and left-to-right sums as the
-        # einsum they replace: bitwise equal, no (N,k,3) temporaries).
+        # Dot products per component (same float32 products and left-to-right sums as an
+        # einsum, no (N,k,3) temporaries).
         cos_in = -(gd[..., 0] * nx + gd[..., 1] * ny + gd[..., 2] * nz)
-        ok = found & (cos_in > 0) & ((gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz)
-                                     > NORMAL_AGREEMENT)
+        other_surface = found & ((gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz)
+                                 <= NORMAL_AGREEMENT)
+        ok = found & (cos_in > 0) & ~other_surface
         del gd, gn
-        count = np.count_nonzero(ok, axis=1)
+        widen = np.zeros(len(p), bool)
+        d_max = np.full((len(p), 1), radius)
         if estimator == "classic":
             weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
         elif estimator == "radius":
             x = np.clip(1.0 - (np.where(found, dist, radius) / radius) ** 2, 0.0, 1.0)
             weight = np.where(ok, 3.0 / (math.pi * radius * radius) * x * x, 0.0)
         else:
-            # r: distance to the k-th neighbour when k were found, else the search radius.
-            full = found[:, -1] & (kq >= k)  # k found inside the radius
-            r = np.where(full, dist[:, -1], radius)
+            # r: distance to the k-th accepted photon; with fewer accepted, the radius of
+            # the disc the query has seen completely (its last photon, or the max radius).
+            accepted = np.cumsum(ok, axis=1)
+            have_k = accepted[:, -1] >= k
+            kth = np.argmax(accepted >= k, axis=1)
+            full = found[:, -1]  # the query stopped at kq photons: more may lie beyond
+            widen = ~have_k & full
+            rows = np.arange(len(p))
+            r = np.where(have_k, dist[rows, kth], np.where(full, dist[:, -1], radius))
             # k photons on (nearly) the query point, as a focusing lens makes: the k-th
             # distance is 0 and 1/r^2 would be inf. Floor r at a resolution the float32
             # photon positions can represent (and far below any useful radius).
@@ -154,41 +191,51 @@ class PhotonMap:
             else:  # knn_cone
                 weight = np.where(ok, np.clip(1.0 - d / r, 0.0, 1.0), 0.0)
                 weight = weight / ((1.0 - 2.0 / 3.0) * math.pi * r * r)
+            ok &= d <= r  # accepted photons beyond the k-th do not count towards the minimum
+            d_max = r
+        count = np.count_nonzero(ok, axis=1)
         # float64: weights near a focus exceed float32's range.
         E = np.einsum("nk,nkc->nc", weight, np.take(ph.power, safe, axis=0).astype(np.float64))
         E[count < min_photons] = 0.0
-        return E
+        mixed = (other_surface & (dist <= d_max)).any(axis=1)
+        return E, widen, mixed
 
 
 class GatherMap:
     """Precomputed irradiance at a subset of photon positions (Christensen 1999), so a
-    final-gather ray needs only a nearest-neighbour lookup instead of a k-NN estimate."""
+    final-gather ray needs only a nearest-neighbour lookup instead of a k-NN estimate.
 
-    def __init__(self, photon_map: PhotonMap, radius: float, k: int, min_photons: int,
+    The gather points are every step-th photon and their irradiance is estimated from the
+    *other* photons (power scaled up by all / others). Estimated from all photons, a
+    lookup would be biased: a point in a locally sparse patch has both a large Voronoi
+    cell (picked by more lookups) and a large k-NN radius (a low estimate), which darkened
+    a furnace room's indirect light by 4 %; counting the point's own photon instead
+    brightens every estimate by +3 photons of the Simpson kernel (+4.8 % at k = 64).
+    The two thinned sets are independent, so neither bias appears (tests/test_furnace.py).
+    """
+
+    def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
-                 eps: float = 0.0, indirect_map: PhotonMap | None = None):
-        ph = photon_map.photons
-        self.workers = photon_map.workers
+                 eps: float = 0.0, workers: int = 1):
+        ph = photons
+        self.workers = workers
         # With an Accel, a lookup only takes a gather point it can see: a point on the
         # other side of a wall (e.g. the ground outside a room, coplanar with the floor
         # inside) would otherwise leak light under the wall (docs/stability.md).
         self.accel = accel
         self.eps = float(eps)
         self.tree = None
-        if len(ph) == 0:
+        if len(ph) < 2:
             return
-        step = max(1, int(math.ceil(len(ph) / max_points)))
-        sel = np.arange(0, len(ph), step)
-        self.position = ph.position[sel].astype(np.float64)
-        self.normal = ph.normal[sel].astype(np.float64)
-        self.E = photon_map.irradiance(self.position, self.normal, radius, k, min_photons,
-                                       estimator)
-        # Irradiance without the direct photons: for gather rays that end so close that the
-        # lookup's resolution would show (corners), direct light is traced there instead.
-        self.E_indirect = self.E
-        if indirect_map is not None:
-            self.E_indirect = indirect_map.irradiance(self.position, self.normal, radius, k,
-                                                      min_photons, estimator)
+        step = max(4, int(math.ceil(len(ph) / max_points)))
+        is_point = np.zeros(len(ph), bool)
+        is_point[::step] = True
+        others = ph.select(~is_point)
+        others.power = others.power * np.float32(len(ph) / len(others))
+        self.position = ph.position[is_point].astype(np.float64)
+        self.normal = ph.normal[is_point].astype(np.float64)
+        self.E, self.boundary = PhotonMap(others, workers).irradiance(
+            self.position, self.normal, radius, k, min_photons, estimator, return_mixed=True)
         self.radius = radius
         self.tree = cKDTree(self.position, balanced_tree=False, compact_nodes=False)
 
@@ -200,13 +247,14 @@ class GatherMap:
             view.accel = self.accel.serial()
         return view
 
-    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
-               indirect_only: np.ndarray | None = None) -> np.ndarray:
-        """Irradiance at the nearest visible gather point facing the same way; rows where
-        `indirect_only` is True get the irradiance without direct photons."""
+    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8):
+        """(irradiance, boundary) at the nearest visible gather point facing the same way;
+        boundary: that point's estimate met another surface (a corner or contact), where
+        the estimate is biased dark. Rows with no gather point in range get (0, False)."""
         out = np.zeros((len(p), 3))
+        boundary = np.zeros(len(p), bool)
         if self.tree is None or len(p) == 0:
-            return out
+            return out, boundary
         kq = min(candidates, len(self.position))
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=self.radius,
                                     workers=self.workers)
@@ -220,11 +268,9 @@ class GatherMap:
         first = np.argmax(agree, axis=1)
         anyok = agree.any(axis=1)
         chosen = safe[np.arange(len(p)), first]
-        E = self.E[chosen]
-        if indirect_only is not None:
-            E = np.where(indirect_only[:, None], self.E_indirect[chosen], E)
-        out[anyok] = E[anyok]
-        return out
+        out[anyok] = self.E[chosen[anyok]]
+        boundary[anyok] = self.boundary[chosen[anyok]]
+        return out, boundary
 
     def _visible_first(self, p, n, safe, agree):
         """Drop candidates hidden from p by geometry, nearest first, until each row's first

@@ -11,11 +11,11 @@ from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, prepare
 from .integrator import render_camera
-from .lights import MESH, allocate_photons, prepare_lights
+from .lights import allocate_photons, prepare_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .sampling import luminance
 from .parallel import Cancelled
-from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
+from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Photons, trace_photons
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -32,7 +32,7 @@ class Context:
     caustic_map: PhotonMap | None = None
     gather_map: GatherMap | None = None
     secondary_map: PhotonMap | None = None  # caustic light after one diffuse bounce
-    gather_short: float = 0.0  # gather rays shorter than this trace direct light at their end
+    gather_short: float = 0.0  # gather rays shorter than this gather again from their end
     plan: EffectPlan | None = None
     global_radius: float = 0.0
     caustic_radius: float = 0.0
@@ -153,13 +153,9 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     workers = s.threads
     r_auto = auto_radius(diffuse_area, max(len(shot), len(caustic), 1), k, geo.extent)
     ctx.global_radius = s.radius or auto_radius(diffuse_area, len(shot), k, geo.extent)
-    # The precomputed irradiance is blurred over about the k-NN radius: closer than that, a
-    # gather ray's end is traced for direct light rather than looked up. Not with emissive
-    # meshes: sampled by area without MIS, their direct light at a point right next to
-    # them is heavy-tailed (measured in the furnace room), and the lookup is the calmer
-    # estimate there.
-    has_mesh_lights = any(li.kind == MESH for li in ctx.lights)
-    ctx.gather_short = 0.0 if has_mesh_lights else ctx.global_radius
+    # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
+    # ends closer than that gathers once more from its end (integrator.gather_indirect).
+    ctx.gather_short = ctx.global_radius
     if plan.indirect:
         if s.final_gather:
             # Final gathering needs all light at the gathered point: every stored photon.
@@ -167,10 +163,9 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
             # few gather rays a bright caustic makes fireflies. Their light one bounce
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
             gathered = shot.select(shot.kind != CAUSTIC)
-            indirect_only = PhotonMap(gathered.select(gathered.kind != DIRECT), workers)
-            ctx.gather_map = GatherMap(PhotonMap(gathered, workers), ctx.global_radius, k,
-                                       s.min_photons, s.estimator,
-                                       accel=ctx.accel, eps=geo.eps, indirect_map=indirect_only)
+            ctx.gather_map = GatherMap(gathered, ctx.global_radius, k, s.min_photons,
+                                       s.estimator, accel=ctx.accel, eps=geo.eps,
+                                       workers=workers)
             ctx.secondary_map = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
             stats["global_photons"] = len(shot)
         else:
