@@ -26,6 +26,7 @@ from .photons import Photons
 from .sampling import max3
 
 NORMAL_AGREEMENT = 0.5
+BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
 MAX_CLASSIC_K = 4096
 MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accepted ones
 QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
@@ -54,14 +55,14 @@ class PhotonMap:
         return view
 
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
-                   min_photons: int, estimator: str, return_mixed: bool = False):
+                   min_photons: int, estimator: str, return_boundary: bool = False):
         """Irradiance estimate at points p with unit normals n (facing the viewer).
-        return_mixed: also return, per point, whether photons of another surface lay
-        inside the estimate's disc (a corner or contact: the disc is cut off there and
-        the estimate is biased dark)."""
+        return_boundary: also return, per point, whether the estimate's disc is not whole:
+        photons of another surface lay inside it (a corner or contact) or its photons lie
+        off to one side (an open edge). There the estimate is biased dark."""
         out = np.zeros((len(p), 3))
-        mixed = np.zeros(len(p), bool)
-        result = (out, mixed) if return_mixed else out
+        boundary = np.zeros(len(p), bool)
+        result = (out, boundary) if return_boundary else out
         if self.tree is None or len(p) == 0 or radius <= 0:
             return result
         # A cheap query for the min_photons nearest tells which points have enough photons
@@ -105,7 +106,8 @@ class PhotonMap:
 
         def job(a, stop):
             sel = busy[a:a + rows]
-            E, mix = pm._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator)
+            E, mix = pm._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator,
+                                  return_boundary)
             if estimator in ("classic", "radius"):
                 # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius;
                 # the query returned the nearest kq of them. Scale by all / gathered so
@@ -116,32 +118,33 @@ class PhotonMap:
 
         for sel, E, mix in ordered_map(job, blocks, threads):
             out[sel] = E
-            mixed[sel] = mix
+            boundary[sel] = mix
         return result
 
-    def _estimate(self, p, n, radius, kq, k, min_photons, estimator):
+    def _estimate(self, p, n, radius, kq, k, min_photons, estimator, want_boundary=False):
         """Estimate at rows p. k-NN estimators use the k nearest *accepted* photons (facing
         the query's surface): where photons of another surface crowd the k nearest (a
         corner, an object resting on the floor) the query widens, up to MAX_WIDEN_K."""
         out = np.zeros((len(p), 3))
-        mixed = np.zeros(len(p), bool)
+        boundary = np.zeros(len(p), bool)
         todo = np.arange(len(p))
         P = len(self.photons)
         knn = estimator not in ("classic", "radius")
         while len(todo):
             E, widen, mix = self._estimate_rows(p[todo], n[todo], radius, kq, k, min_photons,
-                                                estimator)
+                                                estimator, want_boundary)
             last = not knn or not widen.any() or kq >= min(P, MAX_WIDEN_K)
             done = np.ones(len(todo), bool) if last else ~widen
             out[todo[done]] = E[done]
-            mixed[todo[done]] = mix[done]
+            if want_boundary:
+                boundary[todo[done]] = mix[done]
             if last:
                 break
             todo = todo[widen]
             kq = min(4 * kq, P, MAX_WIDEN_K)
-        return out, mixed
+        return out, boundary
 
-    def _estimate_rows(self, p, n, radius, kq, k, min_photons, estimator):
+    def _estimate_rows(self, p, n, radius, kq, k, min_photons, estimator, want_boundary):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=radius, workers=self.workers)
         if kq == 1:
             dist, idx = dist[:, None], idx[:, None]
@@ -197,8 +200,23 @@ class PhotonMap:
         # float64: weights near a focus exceed float32's range.
         E = np.einsum("nk,nkc->nc", weight, np.take(ph.power, safe, axis=0).astype(np.float64))
         E[count < min_photons] = 0.0
-        mixed = (other_surface & (dist <= d_max)).any(axis=1)
-        return E, widen, mixed
+        if not want_boundary:
+            return E, widen, None
+        inside = dist <= d_max
+        boundary = (other_surface & inside).any(axis=1)
+        # An open edge (a table's rim, the end of a floor) leaves no other surface's
+        # photons, but the accepted ones lie off to one side: their centroid, in the
+        # tangent plane, is more than BOUNDARY_OFFSET x r from the point (a half disc
+        # gives 0.42 r; 64 photons of a whole disc scatter it by ~0.08 r; a gradient
+        # needs a 100 % change across r to reach it).
+        use = ok & inside
+        m = np.maximum(np.count_nonzero(use, axis=1), 1)[:, None]
+        rel = (np.take(ph.position, safe, axis=0) - p[:, None, :].astype(np.float32))
+        c = np.einsum("nk,nkc->nc", use.astype(np.float32), rel) / m
+        c -= np.einsum("nc,nc->n", c, n)[:, None] * n
+        offset = np.sqrt(np.einsum("nc,nc->n", c, c)) / d_max[:, 0]
+        boundary |= offset > BOUNDARY_OFFSET
+        return E, widen, boundary
 
 
 class GatherMap:
@@ -235,7 +253,7 @@ class GatherMap:
         self.position = ph.position[is_point].astype(np.float64)
         self.normal = ph.normal[is_point].astype(np.float64)
         self.E, self.boundary = PhotonMap(others, workers).irradiance(
-            self.position, self.normal, radius, k, min_photons, estimator, return_mixed=True)
+            self.position, self.normal, radius, k, min_photons, estimator, return_boundary=True)
         self.radius = radius
         self.tree = cKDTree(self.position, balanced_tree=False, compact_nodes=False)
 
@@ -248,14 +266,27 @@ class GatherMap:
         return view
 
     def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8):
-        """(irradiance, boundary) at the nearest visible gather point facing the same way;
+        """(irradiance, boundary) at the nearest visible gather point facing the same way.
         boundary: that point's estimate met another surface (a corner or contact), where
-        the estimate is biased dark. Rows with no gather point in range get (0, False)."""
+        the estimate is biased dark, or no such point was found in range (a sparsely lit
+        patch crowded by another surface's gather points, e.g. the underside of a ball
+        resting on a lit floor); those rows get irradiance 0 and should gather again."""
         out = np.zeros((len(p), 3))
-        boundary = np.zeros(len(p), bool)
+        boundary = np.ones(len(p), bool)
         if self.tree is None or len(p) == 0:
             return out, boundary
-        kq = min(candidates, len(self.position))
+        todo = np.arange(len(p))
+        for kq in (candidates, 8 * candidates):
+            kq = min(kq, len(self.position))
+            chosen, found = self._nearest_agreeing(p[todo], n[todo], kq)
+            out[todo[found]] = self.E[chosen[found]]
+            boundary[todo[found]] = self.boundary[chosen[found]]
+            todo = todo[~found]
+            if len(todo) == 0 or kq == len(self.position):
+                break
+        return out, boundary
+
+    def _nearest_agreeing(self, p, n, kq):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=self.radius,
                                     workers=self.workers)
         if kq == 1:
@@ -267,10 +298,7 @@ class GatherMap:
             agree = self._visible_first(p, n, safe, agree)
         first = np.argmax(agree, axis=1)
         anyok = agree.any(axis=1)
-        chosen = safe[np.arange(len(p)), first]
-        out[anyok] = self.E[chosen[anyok]]
-        boundary[anyok] = self.boundary[chosen[anyok]]
-        return out, boundary
+        return safe[np.arange(len(p)), first], anyok
 
     def _visible_first(self, p, n, safe, agree):
         """Drop candidates hidden from p by geometry, nearest first, until each row's first

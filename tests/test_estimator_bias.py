@@ -77,14 +77,14 @@ def test_photons_of_a_crowded_neighbour_surface_do_not_starve_the_estimate():
     n = np.tile([0.0, 0.0, 1.0], (m, 1))
     alone = PhotonMap(floor, workers=2).irradiance(q, n, 0.2, 64, 8, "knn_simpson")
     pm = PhotonMap(_join(floor, wall), workers=2)
-    E, mixed = pm.irradiance(q, n, 0.2, 64, 8, "knn_simpson", return_mixed=True)
+    E, boundary = pm.irradiance(q, n, 0.2, 64, 8, "knn_simpson", return_boundary=True)
     # The same 64 floor photons are found with or without the wall: the same estimate.
     np.testing.assert_allclose(E, alone, rtol=1e-6)
     assert np.count_nonzero(E[:, 0] == 0) == 0
-    assert mixed[gap < 0.005].mean() > 0.95  # these estimates met the wall
+    assert boundary[gap < 0.005].mean() > 0.95  # these estimates met the wall
     far = np.c_[rng.uniform(0.1, 0.3, m), rng.uniform(0.2, 0.8, m), np.zeros(m)]
-    _, mixed_far = pm.irradiance(far, n, 0.2, 64, 8, "knn_simpson", return_mixed=True)
-    assert mixed_far.mean() < 0.01
+    _, boundary_far = pm.irradiance(far, n, 0.2, 64, 8, "knn_simpson", return_boundary=True)
+    assert boundary_far.mean() < 0.01
 
 
 def test_gather_map_lookups_are_unbiased():
@@ -98,7 +98,11 @@ def test_gather_map_lookups_are_unbiased():
     E, boundary = g.lookup(q, np.tile([0.0, 0.0, 1.0], (len(q), 1)))
     inner = _interior(q)
     assert abs(E[inner, 0].mean() - 1.0) < 0.005, E[inner, 0].mean()
-    assert not boundary[inner].any()
+    # Inside the plane an estimate is flagged only when its photons happen to lie off to
+    # one side (noise of the centroid test); near the open edges most are.
+    assert boundary[inner].mean() < 0.02
+    edge = q[:, 0] < 0.003
+    assert boundary[edge].mean() > 0.9
 
 
 def _emitting_box(rho):
@@ -127,3 +131,21 @@ def test_emissive_meshes_do_not_hit_themselves_and_the_photon_power_balances(rho
     area = 6 * 2.0 * 2.0
     E = photons.power[:, 0].astype(np.float64).sum() / area
     assert abs(E / (math.pi / (1 - rho)) - 1) < 0.03
+
+
+def test_a_sparse_surface_next_to_a_dense_one_still_finds_its_gather_points():
+    """The underside of a ball resting on a lit floor holds few gather points, and the
+    floor's crowd them out of a lookup's 8 nearest: the lookup widens instead of returning
+    0 (that made the contact umbra under the Figure 3 sphere 20 % dark). A point with no
+    gather point of its own surface in range is flagged for gathering again."""
+    rng = np.random.default_rng(5)
+    floor = _plane(N, rng)
+    wall = _wall(2000, rng, x=0.5, power=0.01)  # sparse: 100x fewer per area than the floor
+    g = GatherMap(_join(floor, wall), 0.2, 16, 1, "knn_simpson", workers=2)
+    q = np.c_[np.full(200, 0.5), rng.uniform(0.3, 0.7, 200), rng.uniform(0.0, 0.01, 200)]
+    E, boundary = g.lookup(q, np.tile([-1.0, 0.0, 0.0], (200, 1)))
+    assert (E[:, 0] > 0).mean() > 0.7  # 8 candidates alone found 0.4 of them
+    assert ((E[:, 0] > 0) | boundary).all()  # the rest gather again
+    lone = np.array([[0.5, 0.5, 0.05]])
+    E, boundary = g.lookup(lone, np.array([[0.0, 1.0, 0.0]]))  # no surface faces +y here
+    assert E.max() == 0.0 and boundary.all()
