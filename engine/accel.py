@@ -78,8 +78,7 @@ class Accel:
 
     def _split(self, n):
         parts = min(self.threads, max(1, n // MIN_PER_THREAD))
-        bounds = np.linspace(0, n, parts + 1).astype(int)
-        return [(bounds[i], bounds[i + 1]) for i in range(parts)]
+        return [(n * i // parts, n * (i + 1) // parts) for i in range(parts)]
 
     def intersect(self, origins, directions, tmax=None):
         """Closest hits. Returns (t, prim, u, v); prim = -1 where the ray misses.
