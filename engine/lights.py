@@ -180,6 +180,11 @@ class PreparedLight:
         if K == 0 or n == 0:
             z = np.zeros((0, 3))
             return z, z.copy(), z.copy()
+        if self.kind == SPOT and self.radius > 0:
+            # A spot's photons leave from a disk round its centre, shifted after their
+            # direction is drawn: aim at spheres grown by that radius, or the directions
+            # that reach a caster only from the disk's rim are never drawn (caustic lost).
+            radii = radii + self.radius
         u1, u2, u3, u4 = (rng.random(n) for _ in range(4))
         if self.kind in (SUN, WORLD):
             if self.kind == SUN:
