@@ -69,11 +69,11 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
                     "half-images) falls below this (0 = no target)")
     # Pass 1: photons
     photons: IntProperty(
-        name="Photons", default=200_000, min=0, soft_max=5_000_000,
+        name="Photons", default=400_000, min=0, soft_max=5_000_000,
         description="Photons emitted for the global photon map (shared by all lights in "
                     "proportion to their power)")
     caustic_photons: IntProperty(
-        name="Caustic Photons", default=100_000, min=0, soft_max=5_000_000,
+        name="Caustic Photons", default=200_000, min=0, soft_max=5_000_000,
         description="Photons emitted towards glass and mirrors for the caustic map")
     max_photon_depth: IntProperty(
         name="Max Photon Depth", default=32, min=1, max=1000,
@@ -101,11 +101,11 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         description="Estimate indirect light by gather rays into the global map "
                     "(smoother) instead of reading the map directly")
     gather_rays: IntProperty(
-        name="Gather Rays", default=1, min=1, max=256,
+        name="Gather Rays", default=2, min=1, max=256,
         description="Final-gather rays per camera sample")
     # Pass 2: camera
     spp: IntProperty(
-        name="Samples", default=64, min=1, soft_max=1024, max=65536,
+        name="Samples", default=128, min=1, soft_max=1024, max=65536,
         description="Camera samples per pixel (jittered, anti-aliasing)")
     max_depth: IntProperty(
         name="Max Ray Depth", default=8, min=0, max=128,

@@ -11,8 +11,8 @@ EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
 @dataclass
 class RenderSettings:
     # Pass 1 (photons)
-    photons: int = 200_000          # global photons emitted (paper: MaxRayPerLightSrc x lights)
-    caustic_photons: int = 100_000  # photons emitted for the caustic map
+    photons: int = 400_000          # global photons emitted (paper: MaxRayPerLightSrc x lights)
+    caustic_photons: int = 200_000  # photons emitted for the caustic map
     max_photon_depth: int = 32      # bounces a photon may take (Russian roulette ends most sooner)
     # Radiance estimate
     estimator: str = "knn_simpson"  # knn_simpson | knn_cone | classic (paper) | radius
@@ -20,9 +20,9 @@ class RenderSettings:
     min_photons: int = 8            # fewer photons found -> no estimate (paper)
     k_nearest: int = 64             # photons per k-NN estimate
     final_gather: bool = True       # indirect light by gather rays into the global map
-    gather_rays: int = 1            # final-gather rays per camera sample
+    gather_rays: int = 2            # final-gather rays per camera sample
     # Pass 2 (camera)
-    spp: int = 64                   # camera samples per pixel (jittered, stratified)
+    spp: int = 128                  # camera samples per pixel (jittered, stratified)
     max_depth: int = 8              # max specular bounces along a camera path (paper)
     light_samples: int = 1          # shadow rays per light with size, per camera sample
     # Modes

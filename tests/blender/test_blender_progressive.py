@@ -34,6 +34,12 @@ def test_quality_preset_sets_the_engine_settings(bpy_addon):
     bpy.ops.wm.read_homefile(use_empty=True)
     pm = bpy.context.scene.photonmap
     assert pm.quality_preset == "high"
+    # The default preset is the engine's defaults, and the add-on's properties start there.
+    from engine import RenderSettings
+    defaults = RenderSettings()
+    for key, value in PRESETS["high"].items():
+        assert getattr(defaults, key) == value, key
+        assert getattr(pm, key) == value, key
     pm.quality_preset = "preview"
     for key, value in PRESETS["preview"].items():
         assert getattr(pm, key) == value, key
