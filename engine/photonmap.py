@@ -99,7 +99,7 @@ class PhotonMap:
         if self.workers > 1:
             # Blocks on worker threads (the numpy part of the estimate too). Rows are
             # independent, so the block size does not change any result.
-            rows = min(rows, max(1024, -(-len(busy) // (2 * self.workers))))
+            rows = min(rows, max(4096, -(-len(busy) // (2 * self.workers))))
         blocks = range(0, len(busy), rows)
         threads = self.workers if len(blocks) > 1 else 1
         pm = self.serial() if threads > 1 else self

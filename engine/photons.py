@@ -95,8 +95,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     return out
 
 
-MIN_CHUNKS = 8     # photon chunks per light at least, so both cores get work
-MIN_CHUNK = 4096   # photons per chunk at least: below this, per-call overhead dominates
+MIN_CHUNKS = 4     # photon chunks per light at least, so both cores get work
+MIN_CHUNK = 16384  # photons per chunk at least: smaller chunks fight over the GIL
 
 
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel):

@@ -59,16 +59,16 @@ def test_a_worker_error_reaches_the_caller():
 
 
 def test_thread_count_does_not_change_the_image_over_many_chunks():
-    # 64x48 x 8 spp = 24,576 samples: 8 camera chunks; 20k photons: 8 photon chunks.
-    s = cornell_box(64, 48)
-    st = dict(photons=20000, caustic_photons=10000, spp=8, seed=3)
+    # 96x72 x 16 spp = 110,592 samples: 4 camera chunks; 80k photons: 4 photon chunks.
+    s = cornell_box(96, 72)
+    st = dict(photons=80000, caustic_photons=40000, spp=16, seed=3)
     images = [s.render(RenderSettings(workers=w, **st)).combined for w in (1, 2, 3)]
     np.testing.assert_array_equal(images[0], images[1])
     np.testing.assert_array_equal(images[0], images[2])
 
 
 def test_cancel_during_the_camera_pass_returns_the_finished_part():
-    scene = cornell_box(64, 48)
+    scene = cornell_box(96, 72)  # x 16 spp: 4 camera chunks
     calls = {"render": 0}
 
     def progress(stage, fraction, text):
@@ -78,7 +78,7 @@ def test_cancel_during_the_camera_pass_returns_the_finished_part():
     def should_cancel():
         return calls["render"] >= 2  # after two camera chunks
 
-    film = render(scene, RenderSettings(photons=5000, caustic_photons=0, spp=8, workers=2),
+    film = render(scene, RenderSettings(photons=5000, caustic_photons=0, spp=16, workers=2),
                   progress=progress, should_cancel=should_cancel)
     assert film.stats["cancelled"]
     img = film.combined
