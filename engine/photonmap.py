@@ -29,6 +29,12 @@ NORMAL_AGREEMENT = 0.5
 BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
 MAX_CLASSIC_K = 4096
 MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accepted ones
+# The k-NN radius never shrinks below this share of the search radius. A lens focusing a
+# point light piles k photons onto a point; a smaller disc makes the estimate there huge,
+# and the few camera samples that land on it become fireflies (the Figure 8 focus, seen
+# magnified through the ball: one pixel at 939 x the image mean). Light is only spread over
+# a disc this small, never lost.
+MIN_RADIUS_FRACTION = 0.01
 QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
 DENSE_FRACTION = 0.8   # skip the min-photons pre-query when this share of a sample is busy
 
@@ -183,9 +189,9 @@ class PhotonMap:
             rows = np.arange(len(p))
             r = np.where(have_k, dist[rows, kth], np.where(full, dist[:, -1], radius))
             # k photons on (nearly) the query point, as a focusing lens makes: the k-th
-            # distance is 0 and 1/r^2 would be inf. Floor r at a resolution the float32
-            # photon positions can represent (and far below any useful radius).
-            r_min = np.maximum(1e-6 * max3(np.abs(p)), max(1e-9 * radius, 1e-15))
+            # distance is 0 and 1/r^2 would be inf. Floor r (MIN_RADIUS_FRACTION), and at
+            # a resolution the float32 photon positions can represent.
+            r_min = np.maximum(1e-6 * max3(np.abs(p)), max(MIN_RADIUS_FRACTION * radius, 1e-15))
             r = np.maximum(r, r_min)[:, None]
             d = np.where(found, dist, 0.0)
             if estimator == "knn_simpson":
