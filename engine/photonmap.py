@@ -130,7 +130,8 @@ class PhotonMap:
     def _estimate(self, p, n, radius, kq, k, min_photons, estimator, want_boundary=False):
         """Estimate at rows p. k-NN estimators use the k nearest *accepted* photons (facing
         the query's surface): where photons of another surface crowd the k nearest (a
-        corner, an object resting on the floor) the query widens, up to MAX_WIDEN_K."""
+        corner, an object resting on the floor) the query widens, up to MAX_WIDEN_K,
+        while fewer than k / 2 of them are left."""
         out = np.zeros((len(p), 3))
         boundary = np.zeros(len(p), bool)
         todo = np.arange(len(p))
@@ -185,7 +186,12 @@ class PhotonMap:
             have_k = accepted[:, -1] >= k
             kth = np.argmax(accepted >= k, axis=1)
             full = found[:, -1]  # the query stopped at kq photons: more may lie beyond
-            widen = ~have_k & full
+            # Fewer than k accepted: the disc the query has seen (radius of its last
+            # photon) still gives an unbiased estimate from the accepted photons in it,
+            # only a noisier one. Widen only when fewer than half are left (a crowded
+            # neighbour surface); a few photons arriving from behind are not worth a 4x
+            # query.
+            widen = (accepted[:, -1] < k // 2) & full
             rows = np.arange(len(p))
             r = np.where(have_k, dist[rows, kth], np.where(full, dist[:, -1], radius))
             # k photons on (nearly) the query point, as a focusing lens makes: the k-th

@@ -78,9 +78,12 @@ def test_photons_of_a_crowded_neighbour_surface_do_not_starve_the_estimate():
     alone = PhotonMap(floor, workers=2).irradiance(q, n, 0.2, 64, 8, "knn_simpson")
     pm = PhotonMap(_join(floor, wall), workers=2)
     E, boundary = pm.irradiance(q, n, 0.2, 64, 8, "knn_simpson", return_boundary=True)
-    # The same 64 floor photons are found with or without the wall: the same estimate.
-    np.testing.assert_allclose(E, alone, rtol=1e-6)
+    # With the wall the query widens while fewer than 32 floor photons are among the
+    # nearest; where 32-63 are, it uses the disc it has seen (unbiased, a little noisier).
+    # Either way the floor's estimate does not depend on the wall.
     assert np.count_nonzero(E[:, 0] == 0) == 0
+    assert abs(E[:, 0].mean() / alone[:, 0].mean() - 1) < 0.01
+    assert np.median(np.abs(E[:, 0] / alone[:, 0] - 1)) < 0.1
     assert boundary[gap < 0.005].mean() > 0.95  # these estimates met the wall
     far = np.c_[rng.uniform(0.1, 0.3, m), rng.uniform(0.2, 0.8, m), np.zeros(m)]
     _, boundary_far = pm.irradiance(far, n, 0.2, 64, 8, "knn_simpson", return_boundary=True)
