@@ -107,18 +107,9 @@ def test_lights_only_behind_the_camera():
 # ---------------------------------------------------------------- 8. camera
 
 
-def _gather_map_sees_walls():
-    import importlib
-    import inspect
-    return "accel=ctx.accel" in inspect.getsource(importlib.import_module("engine.render"))
-
-
 @pytest.mark.parametrize("where", [
     "floating_box",
-    pytest.param("block_on_floor", marks=pytest.mark.xfail(
-        not _gather_map_sees_walls(), strict=True,
-        reason="block's bottom is coplanar with the floor: final gather leaks floor light "
-               "inside until render.py passes accel=ctx.accel to GatherMap")),
+    "block_on_floor",  # bottom coplanar with the floor: GatherMap's visibility test
 ])
 def test_camera_inside_an_opaque_object(where):
     s = _stage()
