@@ -15,12 +15,12 @@ before (a fixed radius turned out 2-10x slower on dense caustics). Photon noise 
 radius bias both shrink as passes accumulate; the running average converges (down to
 the K_MIN floor).
 
-Known limitation (measured on the Figure 6 box against Cycles): brightness drifts up by
-about 1.5 % over 16 passes. The final-gather map estimates irradiance at photon
-positions, so each estimate includes its own photon at the kernel's peak (+2/(k-1));
-at k=64 that happens to cancel the k-NN's underestimate at corners (the default render
-matches Cycles to 1 %), at k=20 it no longer does. Leaving the photon out makes both
-biases visible (-2 % at k=64); fixing the corner bias is the real cure.
+Brightness holds over the passes (Figure 6 box against Cycles at 4096 spp,
+bench/bench_accuracy.py): 0.997-0.999 from pass 1 to 16, and FLIP keeps falling (0.075,
+0.047, 0.039, 0.033 at 1, 4, 8, 16 passes). Before the gather-map estimates were made
+unbiased (docs/estimator_bias.md), each one counted its own photon (+3 photons' worth of
+the kernel). At k=64 that happened to cancel the corners' deficit; at the smaller k of
+later passes it no longer did, and the image drifted 1.6 % bright over 16 passes.
 
 Error estimate: passes alternate between two independent halves A and B; for the average
 C = (A + B) / 2, E[(A - B)^2] = 4 Var(C), so relMSE(C) ~ mean((A - B)^2 / 4 / (S^2 + 0.01))
