@@ -21,6 +21,25 @@ sys.path.insert(0, ROOT)
 
 import accuracy_scenes as A  # noqa: E402  (needs the bpy wheel)
 
+READING = """## Reading the table
+
+On these scenes the analysis saves little time, and the differences above are within the
+±15 % timing noise of this shared 2-core machine: the example blends need every effect
+they have (the analysis turns on exactly what forcing does, so the images are identical),
+and in the diffuse-only scenes a forced-on effect is nearly free (the caustic shot finds no
+mirror or glass and its photons die at their first hit; specular chains find no specular
+lobe). Where the analysis does pay:
+
+- **Caustic photons aimed at the casters** instead of emitted everywhere: in
+  `tests/test_effects.py::test_aimed_caustic_photons_are_more_accurate_for_fewer_photons`
+  10k aimed photons give a lower caustic error than 40k uniform ones (a 0.5 m glass ball
+  4.5 m from a point light catches 0.3 % of uniformly emitted photons).
+- **Scenes where an effect is absent but expensive**: a black room skips the whole photon
+  pass (`test_black_room_skips_indirect_light`), a mirror no light reaches skips the caustic
+  shot, a flat scene skips shadow rays, and hard lights get one shadow ray instead of
+  `light_samples`.
+"""
+
 FORCED = dict(caustics="on", indirect="on", specular="on", soft_shadows="on")
 
 
@@ -71,6 +90,7 @@ def main(argv=None):
     for name, ta, tf, diff, skipped in rows:
         lines.append(f"| {name} | {ta:.1f} | {tf:.1f} | {100 * (1 - ta / tf):.0f} % | {diff:.4f} | "
                      f"{skipped} |")
+    lines += ["", READING]
     with open(os.path.join(ROOT, "docs", "effects.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
 

@@ -50,7 +50,8 @@ def main(argv=None):
     meta = acc.load_meta()
     t_all = time.perf_counter()
     for name in names:
-        ref, t_ref = acc.render_cycles(name, args.samples, seed=0)
+        samples = max(args.samples, acc.REFERENCE_SAMPLES.get(name, 0))
+        ref, t_ref = acc.render_cycles(name, samples, seed=0)
         if not np.isfinite(ref).all():
             raise SystemExit(f"{name}: Cycles reference has NaN/Inf")
         low, t_low = acc.render_cycles(name, args.samples_256, seed=1)
@@ -59,7 +60,7 @@ def main(argv=None):
         meta[name] = {
             "kind": acc.SCENES[name][1],
             "width": int(ref.shape[1]), "height": int(ref.shape[0]),
-            "cycles_samples": args.samples, "cycles_time_s": round(t_ref, 2),
+            "cycles_samples": samples, "cycles_time_s": round(t_ref, 2),
             "cycles_low_samples": args.samples_256, "cycles_low_time_s": round(t_low, 2),
             "cycles_low_relmse": round(acc.relmse(low, ref16), 6),
             "cycles_low_flip": round(acc.flip(low, ref16), 5),
@@ -67,7 +68,7 @@ def main(argv=None):
             "mean": round(float(ref.mean()), 6),
             "date": time.strftime("%Y-%m-%d"),
         }
-        print(f"{name:18s} ref {args.samples} spp {t_ref:6.1f} s | "
+        print(f"{name:18s} ref {samples} spp {t_ref:6.1f} s | "
               f"{args.samples_256} spp {t_low:5.1f} s: relMSE {meta[name]['cycles_low_relmse']:.4f}"
               f" FLIP {meta[name]['cycles_low_flip']:.4f}", flush=True)
         with open(os.path.join(acc.REF_DIR, "references.json"), "w") as f:
