@@ -145,16 +145,29 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     again = np.nonzero(boundary | (t[dsel] < ctx.gather_short))[0]
                     if len(again):
                         ysub = y.take(dsel[again])
+                        # The lookup held light from caustics one bounce back (the
+                        # CAUSTIC_DIFFUSE photons); the gather below cannot see caustics
+                        # (kept out of the gather map), so add that light here.
                         Ey[again] = (direct_irradiance(ctx, ysub, rng, counters,
                                                        skip_mesh_lights=True)
                                      + gather_indirect(ctx, ysub, rng, counters, rays=1,
-                                                       level=level + 1))
+                                                       level=level + 1)
+                                     + _secondary_irradiance(ctx, ysub))
                 E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G  # one ray per row: no repeats
             if depth == ctx.settings.max_depth:
                 break
             keep, o, d, tp = continue_specular(ctx, y, w, tp, rng)
             idx = idx[keep]
     return E
+
+
+def _secondary_irradiance(ctx, hit):
+    """Irradiance from caustic light one diffuse bounce back (CAUSTIC_DIFFUSE photons)."""
+    pmap, s = ctx.secondary_map, ctx.settings
+    if pmap is None or len(pmap) == 0:
+        return np.zeros((len(hit.p), 3))
+    return pmap.irradiance(hit.p, hit.ng, ctx.global_radius, s.k_nearest, s.min_photons,
+                           s.estimator)
 
 
 def continue_specular(ctx, hit, w, tp, rng):
@@ -193,22 +206,24 @@ def continue_specular(ctx, hit, w, tp, rng):
 CAUSTIC_SAMPLES_PER_PIXEL = 16
 
 
-def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id):
+def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most CAUSTIC_SAMPLES_PER_PIXEL samples per pixel
-    and weighted up accordingly."""
+    and weighted up accordingly. footprint: the pixel's radius on the surface; a focus is
+    spread over at least that (a point focus hit by few samples makes fireflies)."""
     out = np.zeros_like(f)
     if pmap is None or len(pmap) == 0:
         return out
     s = ctx.settings
     stride = max(1, -(-s.spp // CAUSTIC_SAMPLES_PER_PIXEL)) if sample_id is not None else 1
     sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
-    E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, s.min_photons, s.estimator)
+    E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, s.min_photons, s.estimator,
+                        r_floor=None if footprint is None else footprint[sel])
     out[sel] = stride * f[sel] * E
     return out
 
 
-def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None):
+def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect)."""
     s = ctx.settings
     f = wd / math.pi
@@ -217,11 +232,12 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None):
     caustic = np.zeros_like(direct)
     indirect = np.zeros_like(direct)
     if s.photon_mapping:
-        caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id)
+        caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
+                                   footprint)
         if ctx.gather_map is not None:
             indirect = f * gather_indirect(ctx, hit, rng, counters, sampler)
             indirect += _smooth_estimate(ctx, ctx.secondary_map, ctx.global_radius, hit, f,
-                                         sample_id)
+                                         sample_id, footprint)
         elif ctx.global_map is not None and len(ctx.global_map):
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
                                                      s.k_nearest, s.min_photons, s.estimator)
@@ -365,6 +381,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     s = ctx.settings
     bg = np.asarray(ctx.scene.background, np.float64)
     depth_limit = ctx.plan.specular_depth
+    # A pixel's radius on the surface it sees: half a pixel's width at the distance the
+    # path has travelled (orthographic: the pixel's half width).
+    cam = ctx.scene.camera
+    hw, _ = cam.half_extents(ctx.scene.width, ctx.scene.height)
+    pixel = 2.0 * hw / ctx.scene.width
+    ortho = cam.kind == "ORTHO"
+    travelled = np.zeros(len(o))
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -396,8 +419,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():
             return
-        o, d, tp, pix, prim, u, v, t, sample_id = (a[hitm] for a in (o, d, tp, pix, prim, u, v, t,
-                                                                     sample_id))
+        o, d, tp, pix, prim, u, v, t, sample_id, travelled = (
+            a[hitm] for a in (o, d, tp, pix, prim, u, v, t, sample_id, travelled))
+        travelled = travelled + t
+        footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
         if sampler is not None and bounce == 0:
             sampler = sampler.subset(np.nonzero(hitm)[0])
         hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
@@ -418,7 +443,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
             direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
-                                                      sample_id[dsel])
+                                                      sample_id[dsel], footprint[dsel])
             tpd = tp[dsel]
             if bounce == 0:
                 acc.add("direct", pix[dsel], tpd * direct)
@@ -432,5 +457,6 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         keep, o, d, tp = continue_specular(ctx, hit, w, tp, rng)
         pix = pix[keep]
         sample_id = sample_id[keep]
+        travelled = travelled[keep]
         tmax = None
         counters.specular_rays += len(o)

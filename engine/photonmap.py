@@ -32,8 +32,8 @@ MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accep
 # The k-NN radius never shrinks below this share of the search radius. A lens focusing a
 # point light piles k photons onto a point; a smaller disc makes the estimate there huge,
 # and the few camera samples that land on it become fireflies (the Figure 8 focus, seen
-# magnified through the ball: one pixel at 939 x the image mean). Light is only spread over
-# a disc this small, never lost.
+# magnified through the ball: one pixel at 939 x the image mean). The photons inside the
+# floor disc are all counted (_estimate_rows), so light is spread over it, never lost.
 MIN_RADIUS_FRACTION = 0.01
 QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
 DENSE_FRACTION = 0.8   # skip the min-photons pre-query when this share of a sample is busy
@@ -61,13 +61,17 @@ class PhotonMap:
         return view
 
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
-                   min_photons: int, estimator: str, return_boundary: bool = False):
+                   min_photons: int, estimator: str, return_boundary: bool = False,
+                   r_floor: np.ndarray | None = None):
         """Irradiance estimate at points p with unit normals n (facing the viewer).
         return_boundary: also return, per point, whether the estimate's disc is not whole:
         photons of another surface lay inside it (a corner or contact) or its photons lie
-        off to one side (an open edge). There the estimate is biased dark."""
+        off to one side (an open edge), or it had too few photons for an estimate (0).
+        There the estimate is biased dark.
+        r_floor: per point, the smallest k-NN radius (a camera sample's pixel footprint):
+        a focus is spread over at least that disc instead of a point."""
         out = np.zeros((len(p), 3))
-        boundary = np.zeros(len(p), bool)
+        boundary = np.ones(len(p), bool)  # rows with no estimate keep True
         result = (out, boundary) if return_boundary else out
         if self.tree is None or len(p) == 0 or radius <= 0:
             return result
@@ -113,7 +117,8 @@ class PhotonMap:
         def job(a, stop):
             sel = busy[a:a + rows]
             E, mix = pm._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator,
-                                  return_boundary)
+                                  return_boundary,
+                                  None if r_floor is None else r_floor[sel])
             if estimator in ("classic", "radius"):
                 # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius;
                 # the query returned the nearest kq of them. Scale by all / gathered so
@@ -127,7 +132,8 @@ class PhotonMap:
             boundary[sel] = mix
         return result
 
-    def _estimate(self, p, n, radius, kq, k, min_photons, estimator, want_boundary=False):
+    def _estimate(self, p, n, radius, kq, k, min_photons, estimator, want_boundary=False,
+                  r_floor=None):
         """Estimate at rows p. k-NN estimators use the k nearest *accepted* photons (facing
         the query's surface): where photons of another surface crowd the k nearest (a
         corner, an object resting on the floor) the query widens, up to MAX_WIDEN_K,
@@ -139,7 +145,8 @@ class PhotonMap:
         knn = estimator not in ("classic", "radius")
         while len(todo):
             E, widen, mix = self._estimate_rows(p[todo], n[todo], radius, kq, k, min_photons,
-                                                estimator, want_boundary)
+                                                estimator, want_boundary,
+                                                None if r_floor is None else r_floor[todo])
             last = not knn or not widen.any() or kq >= min(P, MAX_WIDEN_K)
             done = np.ones(len(todo), bool) if last else ~widen
             out[todo[done]] = E[done]
@@ -151,7 +158,8 @@ class PhotonMap:
             kq = min(4 * kq, P, MAX_WIDEN_K)
         return out, boundary
 
-    def _estimate_rows(self, p, n, radius, kq, k, min_photons, estimator, want_boundary):
+    def _estimate_rows(self, p, n, radius, kq, k, min_photons, estimator, want_boundary,
+                       r_floor=None):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=radius, workers=self.workers)
         if kq == 1:
             dist, idx = dist[:, None], idx[:, None]
@@ -173,6 +181,7 @@ class PhotonMap:
         ok = found & (cos_in > 0) & ~other_surface
         del gd, gn
         widen = np.zeros(len(p), bool)
+        knn = estimator not in ("classic", "radius")
         d_max = np.full((len(p), 1), radius)
         if estimator == "classic":
             weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
@@ -198,6 +207,9 @@ class PhotonMap:
             # distance is 0 and 1/r^2 would be inf. Floor r (MIN_RADIUS_FRACTION), and at
             # a resolution the float32 photon positions can represent.
             r_min = np.maximum(1e-6 * max3(np.abs(p)), max(MIN_RADIUS_FRACTION * radius, 1e-15))
+            if r_floor is not None:
+                r_min = np.maximum(r_min, np.minimum(r_floor, radius))
+            floored = full & (r < r_min)  # the floor disc may hold more than the kq fetched
             r = np.maximum(r, r_min)[:, None]
             d = np.where(found, dist, 0.0)
             if estimator == "knn_simpson":
@@ -211,11 +223,25 @@ class PhotonMap:
         count = np.count_nonzero(ok, axis=1)
         # float64: weights near a focus exceed float32's range.
         E = np.einsum("nk,nkc->nc", weight, np.take(ph.power, safe, axis=0).astype(np.float64))
+        if knn and floored.any():
+            # A focus: more photons lie inside the floored disc than the query fetched.
+            # There the estimate is the disc's photon count times the fetched photons'
+            # mean accepted power, over pi r^2 (a box kernel): every photon spreads its
+            # power over a disc of r, so the focus's light is spread, never dropped.
+            f = np.nonzero(floored)[0]
+            inside = self.tree.query_ball_point(p[f], r[f, 0], return_length=True,
+                                                workers=self.workers)
+            fetched = np.count_nonzero(found[f] & (dist[f] <= r[f]), axis=1)
+            accepted_power = np.einsum("nk,nkc->nc", ok[f].astype(np.float64),
+                                       np.take(ph.power, safe[f], axis=0).astype(np.float64))
+            E[f] = (inside / np.maximum(fetched, 1))[:, None] * accepted_power / (
+                math.pi * r[f] * r[f])
         E[count < min_photons] = 0.0
         if not want_boundary:
             return E, widen, None
         inside = dist <= d_max
-        boundary = (other_surface & inside).any(axis=1)
+        # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
+        boundary = (other_surface & inside).any(axis=1) | (count < min_photons)
         # An open edge (a table's rim, the end of a floor) leaves no other surface's
         # photons, but the accepted ones lie off to one side: their centroid, in the
         # tangent plane, is more than BOUNDARY_OFFSET x r from the point (a half disc
