@@ -104,7 +104,7 @@ MAX_GATHER_LEVEL = 2
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
-                    level=0) -> np.ndarray:
+                    level=0, should_cancel=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -124,6 +124,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         for depth in range(ctx.settings.max_depth + 1):
             if len(idx) == 0:
                 break
+            # Most of a camera chunk's time is spent here: poll the stop flag per step.
+            if should_cancel is not None and should_cancel():
+                raise Cancelled()
             t, prim, u, v = ctx.accel.intersect(o, d)
             counters.gather_rays += len(idx)
             got = prim >= 0
@@ -151,7 +154,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                         Ey[again] = (direct_irradiance(ctx, ysub, rng, counters,
                                                        skip_mesh_lights=True)
                                      + gather_indirect(ctx, ysub, rng, counters, rays=1,
-                                                       level=level + 1)
+                                                       level=level + 1,
+                                                       should_cancel=should_cancel)
                                      + _secondary_irradiance(ctx, ysub))
                 E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G  # one ray per row: no repeats
             if depth == ctx.settings.max_depth:
@@ -223,7 +227,8 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
     return out
 
 
-def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None):
+def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
+                  should_cancel=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect)."""
     s = ctx.settings
     f = wd / math.pi
@@ -235,7 +240,8 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
         caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
                                    footprint)
         if ctx.gather_map is not None:
-            indirect = f * gather_indirect(ctx, hit, rng, counters, sampler)
+            indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
+                                           should_cancel=should_cancel)
             indirect += _smooth_estimate(ctx, ctx.secondary_map, ctx.global_radius, hit, f,
                                          sample_id, footprint)
         elif ctx.global_map is not None and len(ctx.global_map):
@@ -443,7 +449,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
             direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
-                                                      sample_id[dsel], footprint[dsel])
+                                                      sample_id[dsel], footprint[dsel],
+                                                      should_cancel)
             tpd = tp[dsel]
             if bounce == 0:
                 acc.add("direct", pix[dsel], tpd * direct)

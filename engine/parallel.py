@@ -49,6 +49,10 @@ def ordered_map(job, items, threads: int, should_cancel=None):
                 if len(pending) >= 2 * threads:
                     break
             while pending:
+                # Checked before each chunk is awaited, after the one before it was
+                # handed over: a finished chunk is never dropped (as inline).
+                if should_cancel is not None and should_cancel():
+                    raise Cancelled()
                 head = pending[0]
                 while not wait([head], timeout=POLL_SECONDS).done:
                     if should_cancel is not None and should_cancel():
@@ -58,8 +62,6 @@ def ordered_map(job, items, threads: int, should_cancel=None):
                 for item in todo:
                     pending.append(pool.submit(job, item, event.is_set))
                     break
-                if should_cancel is not None and should_cancel():
-                    raise Cancelled()
                 yield result
         finally:
             # Cancelled, an error, or the consumer stopped early: let running chunks stop

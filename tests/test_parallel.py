@@ -85,3 +85,37 @@ def test_cancel_during_the_camera_pass_returns_the_finished_part():
     assert np.isfinite(img).all()
     rows_done = (img.sum(axis=(1, 2)) > 0).sum()
     assert 0 < rows_done < img.shape[0]  # top rows rendered, the rest left black
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_cancel_keeps_every_chunk_handed_over_before_it(threads):
+    """The caller cancels after taking three results: it has exactly those three, on one
+    thread or two (a finished chunk is never dropped)."""
+    got = []
+
+    def should_cancel():
+        return len(got) >= 3
+
+    with pytest.raises(Cancelled):
+        for r in ordered_map(_slow_square, range(10), threads, should_cancel):
+            got.append(r)
+    assert got == [0, 1, 4]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_cancel_is_noticed_inside_a_chunk(workers):
+    """One camera chunk of a final-gather render holds seconds of work; the stop flag is
+    polled inside final gathering, so a cancel does not wait for whole chunks (no hang)."""
+    scene = cornell_box(120, 90)
+    t_cancel = []
+
+    def should_cancel():
+        if not t_cancel:
+            t_cancel.append(time.perf_counter() + 1.0)  # cancel 1 s into the render
+        return time.perf_counter() > t_cancel[0]
+
+    film = render(scene, RenderSettings(photons=20000, caustic_photons=0, spp=128,
+                                        workers=workers), should_cancel=should_cancel)
+    late = time.perf_counter() - t_cancel[0]
+    assert film.stats["cancelled"]
+    assert late < 3.0, late  # a full render takes far longer (~10 s)
