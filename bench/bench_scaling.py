@@ -29,7 +29,6 @@ sys.path.insert(0, HERE)
 
 from engine import RenderSettings  # noqa: E402
 from engine.api import cornell_box, sphere_mesh  # noqa: E402
-from engine.effects import analyse  # noqa: E402
 from engine.film import Film  # noqa: E402
 from engine.geometry import prepare  # noqa: E402
 from engine.integrator import render_camera  # noqa: E402

@@ -17,7 +17,7 @@ import numpy as np
 
 from .lights import MESH
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
-from .parallel import Cancelled, ordered_map
+from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, offset_origin, to_world
 
 
@@ -288,14 +288,6 @@ class Accumulator:
             mine[a:b] += theirs
 
 
-# Chunks per camera pass at least: lets small images use both cores. Not smaller than
-# MIN_CHUNK samples: two threads running numpy on small arrays spend their time handing
-# the GIL back and forth (measured: 8 chunks of 5k samples ran slower on 2 threads than
-# on 1; 4 chunks of >= 16k gave 1.73x on a 160x120 render). The chunk size depends on
-# the image and the settings only, never on the number of threads, so each chunk's
-# random stream, and so the image, is the same for any thread count.
-MIN_CHUNKS = 4
-MIN_CHUNK = 16384
 
 
 def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Counters:
@@ -307,7 +299,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     total = npix * spp
     acc = Accumulator(npix)
     counters = Counters()
-    chunk = max(1, min(s.chunk_size, max(MIN_CHUNK, -(-total // MIN_CHUNKS))))
+    chunk = chunk_length(total, s.chunk_size)
     jobs = list(enumerate(range(0, total, chunk)))
     threads = s.threads
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.

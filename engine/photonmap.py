@@ -229,12 +229,12 @@ class PhotonMap:
             # mean accepted power, over pi r^2 (a box kernel): every photon spreads its
             # power over a disc of r, so the focus's light is spread, never dropped.
             f = np.nonzero(floored)[0]
-            inside = self.tree.query_ball_point(p[f], r[f, 0], return_length=True,
-                                                workers=self.workers)
+            in_disc = self.tree.query_ball_point(p[f], r[f, 0], return_length=True,
+                                                 workers=self.workers)
             fetched = np.count_nonzero(found[f] & (dist[f] <= r[f]), axis=1)
             accepted_power = np.einsum("nk,nkc->nc", ok[f].astype(np.float64),
                                        np.take(ph.power, safe[f], axis=0).astype(np.float64))
-            E[f] = (inside / np.maximum(fetched, 1))[:, None] * accepted_power / (
+            E[f] = (in_disc / np.maximum(fetched, 1))[:, None] * accepted_power / (
                 math.pi * r[f] * r[f])
         E[count < min_photons] = 0.0
         if not want_boundary:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .parallel import Cancelled, ordered_map
+from .parallel import Cancelled, chunk_length, ordered_map
 from .bsdf import lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, max3, offset_origin, to_world
 
@@ -65,9 +65,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     total = int(sum(counts))
     jobs = []
     for li, count in enumerate(counts):
-        # Chunk size from the photon count and settings only (never the thread count), so
-        # every chunk's random stream, and so the photon map, is the same on any machine.
-        chunk = max(1, min(settings.chunk_size, max(MIN_CHUNK, -(-count // MIN_CHUNKS))))
+        chunk = chunk_length(count, settings.chunk_size)  # same for any thread count
         jobs += [(li, ci, start, min(chunk, count - start), count)
                  for ci, start in enumerate(range(0, count, chunk))]
     threads = settings.threads
@@ -93,10 +91,6 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
         out = Photons(**{k: np.concatenate(v) for k, v in parts.items()})
     out.emitted = total
     return out
-
-
-MIN_CHUNKS = 4     # photon chunks per light at least, so both cores get work
-MIN_CHUNK = 16384  # photons per chunk at least: smaller chunks fight over the GIL
 
 
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel):
