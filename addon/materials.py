@@ -141,14 +141,15 @@ class MaterialConverter:
             self._warn(f"material '{mat.name}': no Material Output node; "
                        "using the viewport colour")
             return self._viewport(mat)
-        surface = out.inputs.get("Surface")
-        if surface is None or not surface.is_linked:
-            # Cycles renders an unconnected surface black.
-            return Closure(base_color=(0.0, 0.0, 0.0))
+        # Warn before anything else: a volume-only material (fog in a box) has no surface.
         if out.inputs.get("Displacement") is not None and out.inputs["Displacement"].is_linked:
             self._warn(f"material '{mat.name}': displacement is not supported and ignored")
         if out.inputs.get("Volume") is not None and out.inputs["Volume"].is_linked:
             self._warn(f"material '{mat.name}': volume shaders are not supported and ignored")
+        surface = out.inputs.get("Surface")
+        if surface is None or not surface.is_linked:
+            # Cycles renders an unconnected surface black.
+            return Closure(base_color=(0.0, 0.0, 0.0))
         return self._shader(self._source(surface), 0)
 
     def _warn(self, text):
