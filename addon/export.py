@@ -155,10 +155,7 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
         shape = L.shape
         size_y = L.size_y if shape in ("RECTANGLE", "ELLIPSE") else L.size
         kw.update(shape=shape, size_x=float(L.size) * sx, size_y=float(size_y) * sy)
-        spread = float(getattr(L, "spread", math.pi))
-        if spread < math.pi - 1e-4:
-            warnings.append(f"light '{name}': area light spread "
-                            f"{math.degrees(spread):.0f} deg is not supported; using 180 deg")
+        kw["spread"] = min(max(float(getattr(L, "spread", math.pi)), 0.0), math.pi)
     if kind == "SUN":
         kw["angle"] = float(L.angle)
     if hasattr(L, "normalize"):

@@ -23,6 +23,7 @@ __all__ = [
 
 POINT, SPOT, AREA, SUN = "POINT", "SPOT", "AREA", "SUN"
 RECTANGLE, DISK = "RECTANGLE", "DISK"  # area shapes; SQUARE/ELLIPSE map onto these
+MIN_SPREAD = math.radians(1.0)  # narrowest area-light spread sampled (see Light)
 
 
 class SceneError(ValueError):
@@ -235,6 +236,8 @@ class Light:
               multiplied by object scale); axis_u gives the local +X direction
     angle     sun angular diameter in radians
     normalize area light power divided by area (Blender default True)
+    spread    area light: full angle in radians of its emission cone (Blender `spread`,
+              default pi = Lambertian); narrower spreads attenuate as Cycles' soft-box grid
     visible_camera  lights are invisible to camera rays by default in Blender
     """
 
@@ -253,6 +256,7 @@ class Light:
     size_y: float = 1.0
     angle: float = 0.0
     normalize: bool = True
+    spread: float = math.pi
     visible_camera: bool = False
     warnings: list = field(default_factory=list, repr=False)
 
@@ -281,7 +285,8 @@ class Light:
             if np.linalg.norm(u) < 1e-6:
                 u = np.cross(self.direction, [0.0, 1.0, 0.0])
         self.axis_u = u / np.linalg.norm(u)
-        for attr in ("power", "radius", "spot_size", "spot_blend", "size_x", "size_y", "angle"):
+        for attr in ("power", "radius", "spot_size", "spot_blend", "size_x", "size_y", "angle",
+                     "spread"):
             setattr(self, attr, _finite(getattr(self, attr), f"{who} {attr}"))
         if self.power < 0:
             raise SceneError(f"{who} power: must be >= 0, got {self.power}")
@@ -290,6 +295,16 @@ class Light:
         self.spot_size = min(max(self.spot_size, 1e-4), math.pi)
         self.spot_blend = min(max(self.spot_blend, 0.0), 1.0)
         self.angle = min(max(self.angle, 0.0), math.pi)
+        if not 0.0 <= self.spread <= math.pi + 1e-6:
+            raise SceneError(f"{who} spread: must be in [0, 180] degrees, got "
+                             f"{math.degrees(self.spread):.1f}")
+        if self.spread < MIN_SPREAD:
+            # Cycles' spread 0 is a collimated beam (a delta in direction) that no shadow
+            # ray can find; the narrowest cone we sample keeps the power and the look.
+            self.warnings.append(f"{who}: spread {math.degrees(self.spread):.2f} deg is "
+                                 f"rendered as {math.degrees(MIN_SPREAD):.1f} deg")
+            self.spread = MIN_SPREAD
+        self.spread = min(self.spread, math.pi)
         if self.kind == AREA and self.size_x * self.size_y <= 0:
             self.warnings.append(f"{who}: area light of zero size emits nothing")
 
@@ -314,6 +329,24 @@ class Light:
         if self.kind == AREA and not self.normalize:
             return p * self.area  # power given per unit area
         return p
+
+
+def spread_attenuation(cos_a, spread: float):
+    """Cycles' area-light spread (kernel/light/area.h, area_light_spread_attenuation; the
+    soft-box grid of Blender D10594): radiance leaving at angle a from the light's axis is
+    scaled by max((tan h - tan a) * N, 0), h = spread / 2, N = 1 / (tan h - h) (3 / h^3 for
+    small h, as Cycles' scene/light.cpp). N makes the emitted flux independent of the
+    spread: integral over the hemisphere of f(a) cos a dw = pi. Returns an array like cos_a
+    (1 where spread is pi)."""
+    cos_a = np.asarray(cos_a, np.float64)
+    if spread >= math.pi - 1e-6:
+        return np.ones_like(cos_a)
+    h = 0.5 * spread
+    tan_h = math.tan(h)
+    norm = 1.0 / (tan_h - h) if h > 0.05 else 3.0 / h ** 3
+    c = np.maximum(cos_a, 1e-12)
+    tan_a = np.sqrt(np.maximum(1.0 - c * c, 0.0)) / c
+    return np.where(cos_a > 0, np.maximum((tan_h - tan_a) * norm, 0.0), 0.0)
 
 
 def spot_mask(cos_theta, spot_size: float, spot_blend: float):

@@ -185,7 +185,7 @@ def _light(scene, spec, i):
     kind = str(spec.get("type", "")).lower()
     where = f"lights[{i}] ({spec.get('name', kind or '?')})"
     allowed = {"type", "name", "position", "direction", "look_at", "power", "strength", "color",
-               "radius", "spot_size", "blend", "size", "shape", "angle", "visible"}
+               "radius", "spot_size", "blend", "size", "shape", "angle", "spread", "visible"}
     _take(spec, where, allowed)
     direction = spec.get("direction", (0, 0, -1))
     if "look_at" in spec:
@@ -204,4 +204,5 @@ def _light(scene, spec, i):
                           spot_blend=float(spec.get("blend", 0.15)),
                           shape=str(spec.get("shape", "rectangle")).upper(), size_x=float(sx),
                           size_y=float(sy), angle=math.radians(float(spec.get("angle", 0.0))),
+                          spread=math.radians(float(spec.get("spread", 180.0))),
                           visible_camera=bool(spec.get("visible", False))))

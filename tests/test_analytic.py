@@ -83,3 +83,54 @@ def test_area_light_is_one_sided():
     s.add_rect_area_light((0, 0, 1), (1, 1), power=100, direction=(0, 0, 1))  # faces away
     film = s.render(RenderSettings(spp=2, **DIRECT_ONLY))
     assert film.combined.max() == 0.0
+
+
+def _spread_irradiance_reference(P, a, h, spread, xs):
+    """Irradiance at floor points (x, 0, 0) under an a x a area light at height h facing
+    down, by midpoint quadrature over the light (200 x 200 cells) of
+    L f(angle) cos_r cos_l / d^2 (Cycles' spread, docs/units.md)."""
+    from engine.scene import spread_attenuation
+    m = 200
+    c = (np.arange(m) + 0.5) / m * a - a / 2
+    ly, lx = np.meshgrid(c, c, indexing="ij")
+    L = P / (math.pi * a * a)
+    out = []
+    for x in xs:
+        dx, dy, dz = lx - x, ly, np.full_like(lx, h)
+        d2 = dx * dx + dy * dy + dz * dz
+        cos = dz / np.sqrt(d2)       # same at receiver (normal +z) and light (normal -z)
+        f = spread_attenuation(cos, spread)
+        out.append(float((L * f * cos * cos / d2).sum() * (a / m) ** 2))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("spread_deg", [30.0, 90.0])
+def test_area_light_spread_matches_cycles_soft_box(spread_deg):
+    """Blender's area `spread`: radiance scaled by Cycles' soft-box attenuation; lit patch
+    narrower and brighter on the axis, same flux."""
+    rho, P, h, a, view, res = 0.5, 100.0, 1.0, 0.5, 2.0, 32
+    s = top_down_plane(rho, res=res, view=view)
+    s.add_light(Light("soft box", "AREA", P, position=(0, 0, h), direction=(0, 0, -1),
+                      size_x=a, size_y=a, spread=math.radians(spread_deg)))
+    film = s.render(RenderSettings(spp=64, light_samples=4, seed=2, **DIRECT_ONLY))
+    px = view / res
+    row = res // 2  # the row just below the axis
+    for j in (16, 18, 20, 23, 26, 30):
+        # The film averages over the pixel: so does the reference (5 x 5 points).
+        sub = (np.arange(5) + 0.5) / 5 * px
+        xs, ys = np.meshgrid(j * px - view / 2 + sub, view / 2 - row * px - sub)
+        e = rho / math.pi * _spread_irradiance_reference(
+            P, a, h, math.radians(spread_deg), np.hypot(xs, ys).ravel()).mean()
+        g = float(film.combined[row, j, 1])
+        assert abs(g - e) <= 0.03 * e + 0.005 * P / (a * a), (j, g, e)
+
+
+def test_spread_attenuation_keeps_the_flux():
+    """f(a) integrated with cos a over the hemisphere is pi for every spread (Cycles'
+    normalisation), so the light's power does not depend on its spread."""
+    from engine.scene import spread_attenuation
+    a = (np.arange(200000) + 0.5) / 200000 * (math.pi / 2)
+    for deg in (2.0, 10.0, 45.0, 120.0, 180.0):
+        f = spread_attenuation(np.cos(a), math.radians(deg))
+        integral = float((f * np.cos(a) * np.sin(a)).sum() * (math.pi / 2) / len(a) * 2 * math.pi)
+        assert rel_err(integral, math.pi) < 2e-3, (deg, integral)

@@ -1,4 +1,6 @@
 """Energy bookkeeping of the photon pass and the renderer."""
+import math
+
 import numpy as np
 
 from engine import RenderSettings
@@ -57,3 +59,20 @@ def test_doubling_light_power_doubles_the_image():
     b = closed_box(0.5, 100.0).render(RenderSettings(photons=5000, spp=2, seed=4))
     assert a.combined.mean() > 0
     np.testing.assert_allclose(b.combined, 2 * a.combined, rtol=1e-4, atol=1e-7)
+
+
+def test_area_light_spread_emits_its_flux():
+    """Photons of an area light with a narrow spread carry the same total power, all
+    inside the spread cone."""
+    from engine.geometry import prepare
+    from engine.lights import prepare_lights
+    from engine.scene import Light
+    from helpers import top_down_plane
+    s = top_down_plane(0.5)
+    s.add_light(Light("soft box", "AREA", 80.0, position=(0, 0, 1), direction=(0, 0, -1),
+                      size_x=0.5, size_y=0.5, spread=math.radians(40)))
+    geo, table = prepare(s.scene if hasattr(s, "scene") else s)
+    light = prepare_lights(s.scene if hasattr(s, "scene") else s, geo, table)[0]
+    o, d, power = light.emit(200_000, np.random.default_rng(1))
+    np.testing.assert_allclose(power.sum(axis=0), light.flux, rtol=0.01)
+    assert np.all(-d[:, 2] >= math.cos(math.radians(20)) - 1e-9)

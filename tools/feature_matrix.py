@@ -184,8 +184,7 @@ def light_area_ellipse():
              size=2.0, size_y=0.5)
 
 
-@case("lights", status="warned", how="area light spread is ignored (180 deg, full "
-      "hemisphere)", warning="spread")
+@case("lights")
 def light_area_spread():
     _stage(back=False)
     mb.light("Area", "AREA", (0, 0, 2.0), 300.0, rotation=(0, 0, 0), shape="SQUARE",
