@@ -13,7 +13,6 @@ import numpy as np
 
 from .materials import MaterialConverter, world_background
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 
 
 class ExportCancelled(Exception):
@@ -275,7 +274,11 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             hair_warned.add(obj.name)
             warnings.append(f"object '{obj.name}': hair curves are not supported and skipped")
             continue
-        if otype not in GEOMETRY_TYPES:
+        if otype != "MESH":
+            # Curve, surface, text and metaball objects: the depsgraph also yields their
+            # evaluated geometry as MESH instances (parent = the object). Like Cycles
+            # (blender/object.cpp, object_is_geometry: only Mesh data is geometry), the
+            # object itself is skipped, or its geometry would be exported twice.
             continue
         if getattr(obj, "is_holdout", False):
             warnings.append(f"object '{obj.name}': holdout is not supported; rendered normally")
@@ -305,9 +308,10 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         else:
             name = obj.name
         info["objects"] += 1
-        meshes.append(pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
-                              uvs=uvs, materials=names, material_ids=mids))
-        info["triangles"] += len(faces)
+        mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
+                       uvs=uvs, materials=names, material_ids=mids)
+        meshes.append(mesh)
+        info["triangles"] += len(mesh.faces)  # after dropping degenerate faces
 
     cam_obj = camera if camera is not None else scene_eval.camera
     if cam_obj is not None:
