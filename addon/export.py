@@ -121,7 +121,11 @@ def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
 # --- lights -------------------------------------------------------------------------
 
 def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
-    """Blender light object -> engine Light with Cycles' units (DESIGN.md section 3)."""
+    """Blender light object -> engine Light with Cycles' units (docs/units.md) and Cycles'
+    reading of the object matrix: position = translation, direction = -Z axis (normalised),
+    area size = size x length of the X / Y axes (so negative scale flips only what it
+    flips in Cycles), point radius and sun strength / angle unscaled, spot cone stretched
+    by the scale (measured against Cycles 5.0 in tests/blender/test_blender_fidelity.py)."""
     L = obj.data
     kind = L.type
     if kind not in ("POINT", "SPOT", "AREA", "SUN"):
@@ -148,12 +152,25 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     if kind == "SPOT":
         kw["spot_size"] = float(L.spot_size)
         kw["spot_blend"] = float(L.spot_blend)
+        # Cycles (>= 3.5) stretches the cone by the object's scale and shear: a direction
+        # goes into cone space through the inverse object matrix (kernel/light/spot.h,
+        # spot_light_to_local; with orthogonal axes its rows are X/|X|^2, Y/|Y|^2,
+        # Z/|Z|^2; a sheared spot matched Cycles 5.0 only with the inverse), local -Z
+        # being the cone's axis.
+        try:
+            inv = np.linalg.inv(R)
+        except np.linalg.LinAlgError:
+            inv = None
+        if inv is not None and np.all(np.isfinite(inv)):
+            kw["spot_frame"] = np.stack([inv[0], inv[1], -inv[2]])
     if kind == "AREA":
         sx = float(np.linalg.norm(R[:, 0]))
         sy = float(np.linalg.norm(R[:, 1]))
         shape = L.shape
         size_y = L.size_y if shape in ("RECTANGLE", "ELLIPSE") else L.size
         kw.update(shape=shape, size_x=float(L.size) * sx, size_y=float(size_y) * sy)
+        if sx > 1e-12 and sy > 1e-12 and abs(np.dot(R[:, 0], R[:, 1])) > 1e-6 * sx * sy:
+            kw["skew_axis_v"] = R[:, 1]  # sheared object matrix (a parent's scale)
         spread = float(getattr(L, "spread", math.pi))
         if spread < math.pi - 1e-4:
             warnings.append(f"light '{name}': area light spread "
