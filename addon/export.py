@@ -118,6 +118,55 @@ def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
     return verts, faces, normals, uvs
 
 
+# --- ray visibility -----------------------------------------------------------------
+
+VISIBILITY_FLAGS = ("visible_camera", "visible_diffuse", "visible_glossy",
+                    "visible_transmission", "visible_shadow")
+
+
+def _layer_flag(ob, getter: str, view_layer) -> bool:
+    """holdout_get / indirect_only_get: they answer for the original object in the
+    original view layer (the evaluated copy says False)."""
+    ob = getattr(ob, "original", None) or ob
+    fn = getattr(ob, getter, None)
+    if fn is None or view_layer is None:
+        return False
+    try:
+        return bool(fn(view_layer=view_layer))
+    except (TypeError, RuntimeError):
+        return False
+
+
+def ray_visibility(obj, inst, view_layer) -> dict:
+    """Mesh keyword arguments for an instance's ray visibility, holdout and indirect-only,
+    read as Cycles does (blender/object.cpp sync_object): the object's own flags, ANDed
+    with the instancer's for instanced geometry; holdout from the object or its
+    collection (view layer); an indirect-only collection hides it from camera rays."""
+    parent = inst.parent if inst.is_instance and inst.parent is not None else None
+    out = {}
+    for flag in VISIBILITY_FLAGS:
+        on = bool(getattr(obj, flag, True))
+        if parent is not None:
+            on = on and bool(getattr(parent, flag, True))
+        out[flag] = on
+    owner = parent if parent is not None else obj
+    out["holdout"] = (bool(getattr(obj, "is_holdout", False))
+                      or bool(getattr(owner, "is_holdout", False))
+                      or _layer_flag(owner, "holdout_get", view_layer))
+    if _layer_flag(owner, "indirect_only_get", view_layer):
+        out["visible_camera"] = False
+    return out
+
+
+def _warn_light_visibility(obj, warnings: list):
+    """Light objects' ray visibility is not honoured (only camera visibility is)."""
+    off = [f.replace("visible_", "") for f in VISIBILITY_FLAGS[1:4]
+           if not getattr(obj, f, True)]
+    if off:
+        warnings.append(f"light '{obj.name}': ray visibility {', '.join(off)} off is not "
+                        "supported; the light reaches every surface")
+
+
 # --- lights -------------------------------------------------------------------------
 
 def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
@@ -267,6 +316,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     total = sum(1 for _ in depsgraph.object_instances)
     last_poll = time.perf_counter()
     hair_warned = set()
+    view_layer = getattr(depsgraph, "view_layer", None)
     for i, inst in enumerate(depsgraph.object_instances):
         now = time.perf_counter()
         if should_cancel is not None and now - last_poll > 0.2:
@@ -286,6 +336,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             light = convert_light(pm, obj, matrix, name, warnings)
             if light is not None:
                 lights.append(light)
+                _warn_light_visibility(obj, warnings)
             continue
         if otype == "CURVES" and obj.name not in hair_warned:
             hair_warned.add(obj.name)
@@ -297,8 +348,6 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             # (blender/object.cpp, object_is_geometry: only Mesh data is geometry), the
             # object itself is skipped, or its geometry would be exported twice.
             continue
-        if getattr(obj, "is_holdout", False):
-            warnings.append(f"object '{obj.name}': holdout is not supported; rendered normally")
         data = getattr(obj, "data", None)
         key = (obj.name, data.as_pointer() if data is not None else 0)
         if key not in cache:
@@ -326,7 +375,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             name = obj.name
         info["objects"] += 1
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
-                       uvs=uvs, materials=names, material_ids=mids)
+                       uvs=uvs, materials=names, material_ids=mids,
+                       **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)  # after dropping degenerate faces
 

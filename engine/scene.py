@@ -133,6 +133,15 @@ class Mesh:
               normals); None = flat shading
     uvs       optional (V,2) per vertex or (F,3,2) per face corner
     material  one material name, or material_ids (F,) int indexing `materials` (names)
+    visible_camera, visible_diffuse, visible_glossy, visible_transmission, visible_shadow
+              ray visibility with Cycles' meaning (Object > Visibility > Ray Visibility):
+              a ray of that kind passes through the mesh as if it were not there. Camera
+              rays and the rays that continue them through transparent surfaces are
+              camera rays; shadow rays are the rays to lights; final-gather rays are
+              diffuse rays; mirror / coat reflections are glossy, refractions transmission
+              rays (docs/scene_format.md, "Ray visibility", also for photons).
+    holdout   the mesh cuts a hole in the image: camera rays that hit it give alpha 0 and
+              no colour; to every other ray it is a black surface (Cycles' holdout)
     """
 
     name: str
@@ -142,10 +151,30 @@ class Mesh:
     uvs: np.ndarray | None = None
     materials: list[str] = field(default_factory=lambda: ["default"])
     material_ids: np.ndarray | None = None
+    visible_camera: bool = True
+    visible_diffuse: bool = True
+    visible_glossy: bool = True
+    visible_transmission: bool = True
+    visible_shadow: bool = True
+    holdout: bool = False
     warnings: list = field(default_factory=list, repr=False)
+
+    @property
+    def visibility(self) -> int:
+        """Ray-class bits (engine.geometry CAMERA | DIFFUSE | GLOSSY | TRANSMISSION |
+        SHADOW) of the rays that see this mesh."""
+        bits = 0
+        for bit, flag in ((1, self.visible_camera), (2, self.visible_diffuse),
+                          (4, self.visible_glossy), (8, self.visible_transmission),
+                          (16, self.visible_shadow)):
+            bits |= bit if flag else 0
+        return bits
 
     def __post_init__(self):
         who = f"mesh '{self.name}'"
+        for attr in ("visible_camera", "visible_diffuse", "visible_glossy",
+                     "visible_transmission", "visible_shadow", "holdout"):
+            setattr(self, attr, bool(getattr(self, attr)))
         if isinstance(self.materials, str):
             self.materials = [self.materials]
         v = np.asarray(self.vertices, dtype=np.float64)

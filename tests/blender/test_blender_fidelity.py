@@ -327,3 +327,115 @@ def test_sheared_area_light_seen_as_cycles_shows_it(fresh_scene, bpy_addon, tmp_
     assert mr.sum() > 200 and (mo != mr).sum() <= 0.04 * mr.sum(), ((mo != mr).sum(), mr.sum())
     inner = mr & mo
     assert abs(lo[inner].mean() / lr[inner].mean() - 1.0) < 0.03
+
+
+# --- item 1: ray visibility, holdout, indirect-only -----------------------------------
+
+def _cube_on_floor(bpy, color=(0.8, 0.02, 0.02), size=(48, 36)):
+    """A red 1 m cube 0.5 m above a white floor, a sun from above (slightly tilted, so
+    the shadow falls beside the cube), a camera looking down at 45 degrees."""
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    bpy.ops.mesh.primitive_plane_add(size=12)
+    bpy.context.object.data.materials.append(_principled(bpy, "White", (0.8, 0.8, 0.8)))
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, 1.0))
+    cube = bpy.context.object
+    cube.data.materials.append(_principled(bpy, "Red", color))
+    _light(bpy, "SUN", (0, 0, 5), rotation=(0.0, math.radians(35), 0.0), energy=3.0, angle=0.0)
+    _camera(bpy, (0, -6, 6), (math.radians(45), 0, 0), lens=35)
+    world = bpy.data.worlds.new("Black")
+    scene.world = world
+    for n in world.node_tree.nodes:
+        if n.type == "BACKGROUND":
+            n.inputs["Strength"].default_value = 0.0
+    return scene, cube
+
+
+def _region(bpy, scene, center, half=1):
+    from blender_helpers import project
+    bpy.context.view_layer.update()  # matrix_world of objects made this test
+    r, c = project(bpy, scene, center)
+    return np.s_[r - half:r + half + 1, c - half:c + half + 1]
+
+
+def _redness(img, sl):
+    rgb = img[sl][..., :3].reshape(-1, 3).mean(axis=0)
+    return rgb[0] / max(rgb[1], 1e-6), rgb
+
+
+def test_camera_invisible_cube_shows_floor_and_shadow(fresh_scene, bpy_addon, tmp_path):
+    """The issue's scene: a red cube with Visibility > Camera off is not drawn; its shadow
+    is (Cycles: the floor behind the cube, and the shadow beside it)."""
+    bpy = bpy_addon
+    scene, cube = _cube_on_floor(bpy)
+    cube.visible_camera = False
+    top = _region(bpy, scene, (0, 0, 1.5))
+    shadow = _region(bpy, scene, (-1.05, 0, 0.0))   # sun tilted 35 deg towards -x
+    lit = _region(bpy, scene, (1.5, -1.0, 0.0))
+    for engine, spp in (("CYCLES", 16), ("PHOTONMAP", 4)):
+        img = _render(bpy, scene, tmp_path / f"{engine}.exr", engine=engine, spp=spp)
+        red, rgb = _redness(img, top)
+        assert red < 1.2, (engine, rgb)  # white floor, not the red cube
+        s = img[shadow][..., :3].mean()
+        f = img[lit][..., :3].mean()
+        assert s < 0.2 * f, (engine, s, f)  # the invisible cube still casts its shadow
+
+
+def test_shadow_invisible_cube_casts_no_shadow(fresh_scene, bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene, cube = _cube_on_floor(bpy)
+    cube.visible_shadow = False
+    top = _region(bpy, scene, (0, 0, 1.5))
+    shadow = _region(bpy, scene, (-1.05, 0, 0.0))
+    lit = _region(bpy, scene, (1.5, -1.0, 0.0))
+    for engine, spp in (("CYCLES", 16), ("PHOTONMAP", 4)):
+        img = _render(bpy, scene, tmp_path / f"{engine}.exr", engine=engine, spp=spp)
+        assert _redness(img, top)[0] > 5.0  # the cube is drawn
+        s = img[shadow][..., :3].mean()
+        f = img[lit][..., :3].mean()
+        assert s > 0.85 * f, (engine, s, f)  # but casts no shadow
+
+
+@pytest.mark.parametrize("how", ["object", "collection"])
+def test_holdout_gives_alpha_zero(fresh_scene, bpy_addon, tmp_path, how):
+    """Holdout (object or view-layer collection): with Film > Transparent the cube's
+    pixels have alpha 0 and no colour; the rest of the image is unchanged."""
+    bpy = bpy_addon
+    scene, cube = _cube_on_floor(bpy)
+    if how == "object":
+        cube.is_holdout = True
+    else:
+        coll = bpy.data.collections.new("Held out")
+        scene.collection.children.link(coll)
+        for c in cube.users_collection:
+            c.objects.unlink(cube)
+        coll.objects.link(cube)
+        bpy.context.view_layer.layer_collection.children["Held out"].holdout = True
+    scene.render.film_transparent = True
+    top = _region(bpy, scene, (0, 0, 1.5))
+    lit = _region(bpy, scene, (1.5, -1.0, 0.0))
+    for engine, spp in (("CYCLES", 16), ("PHOTONMAP", 4)):
+        img = _render(bpy, scene, tmp_path / f"{engine}.exr", engine=engine, spp=spp)
+        assert img[top][..., 3].max() < 0.05, (engine, img[top][..., 3])
+        assert img[top][..., :3].max() < 0.05, (engine, img[top][..., :3])
+        assert img[lit][..., 3].min() > 0.95 and img[lit][..., :3].mean() > 0.1
+
+
+def test_indirect_only_collection(fresh_scene, bpy_addon, tmp_path):
+    """An indirect-only collection is invisible to the camera but casts its shadow."""
+    bpy = bpy_addon
+    scene, cube = _cube_on_floor(bpy)
+    coll = bpy.data.collections.new("Indirect")
+    scene.collection.children.link(coll)
+    for c in cube.users_collection:
+        c.objects.unlink(cube)
+    coll.objects.link(cube)
+    bpy.context.view_layer.layer_collection.children["Indirect"].indirect_only = True
+    top = _region(bpy, scene, (0, 0, 1.5))
+    shadow = _region(bpy, scene, (-1.05, 0, 0.0))
+    lit = _region(bpy, scene, (1.5, -1.0, 0.0))
+    for engine, spp in (("CYCLES", 16), ("PHOTONMAP", 4)):
+        img = _render(bpy, scene, tmp_path / f"{engine}.exr", engine=engine, spp=spp)
+        assert _redness(img, top)[0] < 1.2, engine
+        assert img[shadow][..., :3].mean() < 0.2 * img[lit][..., :3].mean(), engine
