@@ -439,3 +439,92 @@ def test_indirect_only_collection(fresh_scene, bpy_addon, tmp_path):
         img = _render(bpy, scene, tmp_path / f"{engine}.exr", engine=engine, spp=spp)
         assert _redness(img, top)[0] < 1.2, engine
         assert img[shadow][..., :3].mean() < 0.2 * img[lit][..., :3].mean(), engine
+
+
+def _node_material(bpy, name, shader, **inputs):
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    node = nt.nodes.new(shader)
+    for k, v in inputs.items():
+        node.inputs[k].default_value = v
+    nt.links.new(node.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def _glowing_cube_scene(bpy, floor_material):
+    """An emissive red cube above a floor of the given material, grey world light."""
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 48, 36
+    scene.render.resolution_percentage = 100
+    bpy.ops.mesh.primitive_plane_add(size=12)
+    bpy.context.object.data.materials.append(floor_material)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, 1.0))
+    cube = bpy.context.object
+    cube.data.materials.append(_node_material(bpy, "Glow", "ShaderNodeEmission",
+                                              Color=(1.0, 0.02, 0.02, 1.0), Strength=4.0))
+    _camera(bpy, (0, -6, 6), (math.radians(45), 0, 0), lens=35)
+    world = bpy.data.worlds.new("Grey")
+    scene.world = world
+    for n in world.node_tree.nodes:
+        if n.type == "BACKGROUND":
+            n.inputs["Color"].default_value = (0.2, 0.2, 0.2, 1.0)
+            n.inputs["Strength"].default_value = 1.0
+    return scene, cube
+
+
+def test_glossy_invisible_cube_not_in_mirror(fresh_scene, bpy_addon, tmp_path):
+    """A mirror floor does not reflect a cube with Visibility > Glossy off; the camera
+    still sees the cube itself."""
+    bpy = bpy_addon
+    mirror = _node_material(bpy, "Mirror", "ShaderNodeBsdfGlossy", Roughness=0.0,
+                            Color=(0.9, 0.9, 0.9, 1.0))
+    scene, cube = _glowing_cube_scene(bpy, mirror)
+    cube.visible_glossy = False
+    direct = _region(bpy, scene, (0, -0.5, 1.0))
+    mirrored = _region(bpy, scene, (0, -0.5, -1.0))  # the cube's mirror image
+    for engine, spp in (("CYCLES", 16), ("PHOTONMAP", 4)):
+        img = _render(bpy, scene, tmp_path / f"{engine}.exr", engine=engine, spp=spp, bounces=4)
+        assert _redness(img, direct)[0] > 5.0, engine
+        red, rgb = _redness(img, mirrored)
+        assert red < 1.3, (engine, rgb)  # the grey sky, not the red cube
+
+
+def test_transmission_invisible_cube_not_through_glass(fresh_scene, bpy_addon, tmp_path):
+    """Seen through a glass slab, a cube with Visibility > Transmission off is absent."""
+    bpy = bpy_addon
+    scene, cube = _glowing_cube_scene(bpy, _principled(bpy, "White", (0.8, 0.8, 0.8)))
+    cube.visible_transmission = False
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, 2.2), scale=(6.0, 6.0, 0.05))
+    bpy.context.object.data.materials.append(
+        _node_material(bpy, "Glass", "ShaderNodeBsdfGlass", IOR=1.45, Roughness=0.0))
+    top = _region(bpy, scene, (0, 0, 1.5))
+    for engine, spp in (("CYCLES", 16), ("PHOTONMAP", 4)):
+        img = _render(bpy, scene, tmp_path / f"{engine}.exr", engine=engine, spp=spp, bounces=8)
+        # The cube would show its emission (red 4 W/m^2/sr less ~10 % Fresnel loss); the
+        # floor it lights glows ~0.3 red.
+        red = img[top][..., 0].mean()
+        assert red < 1.0, (engine, red)
+
+
+def test_diffuse_invisible_wall_bleeds_no_colour(fresh_scene, bpy_addon, tmp_path):
+    """A sunlit red wall with Visibility > Diffuse off bleeds no red onto the floor
+    beside it (final gathering and photons skip it), yet still casts its shadow."""
+    bpy = bpy_addon
+    scene, cube = _cube_on_floor(bpy)
+    cube.scale = (0.1, 3.0, 2.0)     # a red wall, 0.1 m thick, 2 m high
+    cube.location = (0.0, 0.0, 1.0)
+    floor_near = _region(bpy, scene, (0.6, -0.8, 0.0))   # sunlit floor beside the wall
+    ratios = {}
+    for flag in (True, False):
+        cube.visible_diffuse = flag
+        for engine, spp in (("CYCLES", 32), ("PHOTONMAP", 4)):
+            img = _render(bpy, scene, tmp_path / f"{engine}{flag}.exr", engine=engine,
+                          spp=spp, bounces=1)
+            ratios[engine, flag] = _redness(img, floor_near)[0]
+    for engine in ("CYCLES", "PHOTONMAP"):
+        assert ratios[engine, True] > 1.1, ratios    # colour bleeding when visible
+        assert ratios[engine, False] < 1.03, ratios  # none when invisible to diffuse
