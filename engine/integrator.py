@@ -269,6 +269,7 @@ class Accumulator:
         self.lo = lo
         self.buf = {k: np.zeros((npix, 3)) for k in self.NAMES}
         self.alpha = np.zeros(npix)
+        self.holdout = np.zeros(npix)
         self.depth_sum = np.zeros(npix)
         self.depth_n = np.zeros(npix)
         self.normal = np.zeros((npix, 3))
@@ -291,7 +292,8 @@ class Accumulator:
         a, b = part.lo - self.lo, part.lo - self.lo + part.npix
         for name in self.NAMES:
             self.buf[name][a:b] += part.buf[name]
-        for mine, theirs in ((self.alpha, part.alpha), (self.depth_sum, part.depth_sum),
+        for mine, theirs in ((self.alpha, part.alpha), (self.holdout, part.holdout),
+                             (self.depth_sum, part.depth_sum),
                              (self.depth_n, part.depth_n), (self.normal, part.normal)):
             mine[a:b] += theirs
 
@@ -375,6 +377,7 @@ def _write_film(film, acc, spp, rh, rw):
     for name in Accumulator.NAMES:
         getattr(film, name)[...] = (acc.buf[name] * inv).reshape(rh, rw, 3).astype(np.float32)
     film.alpha[...] = (acc.alpha * inv).reshape(rh, rw)
+    film.holdout[...] = (acc.holdout * inv).reshape(rh, rw)
     with np.errstate(invalid="ignore", divide="ignore"):
         depth = np.where(acc.depth_n > 0, acc.depth_sum / np.maximum(acc.depth_n, 1), np.inf)
         nrm = acc.normal / np.maximum(np.linalg.norm(acc.normal, axis=1), 1e-300)[:, None]
@@ -429,6 +432,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if hole.any():
                 prim = np.where(hole, -3, prim)
                 hitm &= ~hole
+                acc.add_scalar(acc.holdout, pix[hole], np.ones(int(hole.sum())))
         if bounce == 0:
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():

@@ -397,10 +397,11 @@ def test_shadow_invisible_cube_casts_no_shadow(fresh_scene, bpy_addon, tmp_path)
         assert s > 0.85 * f, (engine, s, f)  # but casts no shadow
 
 
-@pytest.mark.parametrize("how", ["object", "collection"])
-def test_holdout_gives_alpha_zero(fresh_scene, bpy_addon, tmp_path, how):
-    """Holdout (object or view-layer collection): with Film > Transparent the cube's
-    pixels have alpha 0 and no colour; the rest of the image is unchanged."""
+@pytest.mark.parametrize("how,transparent", [("object", True), ("collection", True),
+                                             ("object", False)])
+def test_holdout_gives_alpha_zero(fresh_scene, bpy_addon, tmp_path, how, transparent):
+    """Holdout (object or view-layer collection): the cube's pixels have alpha 0 and no
+    colour, with Film > Transparent or without (as Cycles); the rest is opaque."""
     bpy = bpy_addon
     scene, cube = _cube_on_floor(bpy)
     if how == "object":
@@ -412,7 +413,7 @@ def test_holdout_gives_alpha_zero(fresh_scene, bpy_addon, tmp_path, how):
             c.objects.unlink(cube)
         coll.objects.link(cube)
         bpy.context.view_layer.layer_collection.children["Held out"].holdout = True
-    scene.render.film_transparent = True
+    scene.render.film_transparent = transparent
     top = _region(bpy, scene, (0, 0, 1.5))
     lit = _region(bpy, scene, (1.5, -1.0, 0.0))
     for engine, spp in (("CYCLES", 16), ("PHOTONMAP", 4)):
