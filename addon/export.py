@@ -158,6 +158,13 @@ def ray_visibility(obj, inst, view_layer) -> dict:
     return out
 
 
+def warn_unsupported_visibility(obj, warnings: list):
+    """Options of Object > Visibility this engine cannot honour, once per object."""
+    if getattr(obj, "is_shadow_catcher", False):
+        warnings.append(f"object '{obj.name}': shadow catcher is not supported; "
+                        "rendered as an ordinary object")
+
+
 def _warn_light_visibility(obj, warnings: list):
     """Light objects' ray visibility is not honoured (only camera visibility is)."""
     off = [f.replace("visible_", "") for f in VISIBILITY_FLAGS[1:4]
@@ -374,6 +381,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         else:
             name = obj.name
         info["objects"] += 1
+        warn_unsupported_visibility(obj, warnings)
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
                        uvs=uvs, materials=names, material_ids=mids,
                        **ray_visibility(obj, inst, view_layer))

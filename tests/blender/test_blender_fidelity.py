@@ -529,3 +529,18 @@ def test_diffuse_invisible_wall_bleeds_no_colour(fresh_scene, bpy_addon, tmp_pat
     for engine in ("CYCLES", "PHOTONMAP"):
         assert ratios[engine, True] > 1.1, ratios    # colour bleeding when visible
         assert ratios[engine, False] < 1.03, ratios  # none when invisible to diffuse
+
+
+def test_visibility_we_cannot_honour_warns_once(fresh_scene, bpy_addon):
+    bpy = bpy_addon
+    scene, cube = _cube_on_floor(bpy)
+    cube.is_shadow_catcher = True
+    sun = next(o for o in scene.objects if o.type == "LIGHT")
+    sun.visible_diffuse = False
+    out, _ = _export(bpy)
+    warnings = out.all_warnings()
+    catcher = [w for w in warnings if cube.name in w and "shadow catcher" in w]
+    light = [w for w in warnings if sun.name in w and "diffuse" in w]
+    assert len(catcher) == 1 and len(light) == 1, warnings
+    meshes = {m.name: m for m in out.meshes}
+    assert meshes[cube.name].visible_camera and not meshes[cube.name].holdout
