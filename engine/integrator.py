@@ -398,6 +398,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ortho = cam.kind == "ORTHO"
     travelled = np.zeros(len(o))
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
+    has_holdout = bool(ctx.geo.holdout.any())
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -425,7 +426,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                             radiance = radiance + sun
                 acc.add(target, pix[miss], tp[miss] * radiance)
         hitm = prim >= 0
-        if hitm.any() and ctx.geo.holdout.any():
+        if has_holdout and hitm.any():
             # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
             hole = np.zeros(len(prim), bool)
             hole[hitm] = np.take(ctx.geo.holdout, prim[hitm]) & (ray_cls[hitm] == CAMERA)
