@@ -544,3 +544,34 @@ def test_visibility_we_cannot_honour_warns_once(fresh_scene, bpy_addon):
     assert len(catcher) == 1 and len(light) == 1, warnings
     meshes = {m.name: m for m in out.meshes}
     assert meshes[cube.name].visible_camera and not meshes[cube.name].holdout
+
+
+def test_shadow_invisible_plane_photons_pass_through(fresh_scene, bpy_addon, tmp_path):
+    """A sunlit plane 0.6 m over the floor, invisible to shadow and camera rays: the
+    floor under it is lit directly, and indirectly by its own light bounced off the
+    plane's underside. Photons must both land on the plane and pass through it (else
+    the floor under it gets no photons and its indirect light drops by a third)."""
+    bpy = bpy_addon
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 40, 30
+    scene.render.resolution_percentage = 100
+    for size, z in ((12, 0.0), (4, 0.6)):
+        bpy.ops.mesh.primitive_plane_add(size=size, location=(0, 0, z))
+        bpy.context.object.data.materials.append(_principled(bpy, f"White{z}", (0.8,) * 3))
+    plane = bpy.context.object
+    plane.visible_shadow = plane.visible_camera = False
+    _light(bpy, "SUN", (0, 0, 5), rotation=(0.3, 0, 0), energy=3.0, angle=0.0)
+    _camera(bpy, (0, -6, 6), (math.radians(45), 0, 0), lens=35)
+    world = bpy.data.worlds.new("Black")
+    scene.world = world
+    for n in world.node_tree.nodes:
+        if n.type == "BACKGROUND":
+            n.inputs["Strength"].default_value = 0.0
+    under = _region(bpy, scene, (0, 0, 0), half=3)
+    indirect = {}
+    for engine, spp in (("CYCLES", 128), ("PHOTONMAP", 8)):
+        lum = [_render(bpy, scene, tmp_path / f"{engine}{b}.exr", engine=engine, spp=spp,
+                       bounces=b)[under][..., :3].mean() for b in (0, 4)]
+        indirect[engine] = lum[1] - lum[0]
+    assert indirect["CYCLES"] > 0.4, indirect  # the underside's light is most of it
+    assert abs(indirect["PHOTONMAP"] / indirect["CYCLES"] - 1) < 0.2, indirect
