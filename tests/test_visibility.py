@@ -142,3 +142,28 @@ def test_scene_file_flags(tmp_path):
                  '[[objects]]\ntype = "box"\ncenter = [0, 0, 0.5]\nvisible_camera = "no"\n')
     with pytest.raises(SceneFileError, match="visible_camera must be true or false"):
         load_scene(str(f))
+
+
+def test_photons_from_diffuse_invisible_surface_are_not_stored():
+    """Without final gathering the floor reads the global photon map directly. Its only
+    indirect light is what a red wall bounces onto it; with the wall invisible to diffuse
+    rays that light is gone (Cycles: the floor's diffuse rays do not see the wall), so
+    the photons that left the wall must not be stored."""
+    def floor_indirect(flags):
+        s = PaperScene(width=24, height=24)
+        s.add_material(Material("white", (0.8, 0.8, 0.8)))
+        s.add_material(Material("red", (0.9, 0.05, 0.05)))
+        s.add_plane((0, 0, 0), (0, 0, 1), 4.0, "white", name="floor")
+        wall = s.add_plane((0, 0.6, 1.0), (0, -1, 0), (4.0, 2.0), "red", name="wall")
+        for k, v in flags.items():
+            setattr(wall, k, v)
+        s.add_point_light((0, -0.5, 1.5), power=200.0)
+        s.set_camera((0, -0.3, 4), (0, -0.3, 0), up=(0, 1, 0), view_angle=30)
+        film = s.render(RenderSettings(spp=4, photons=60_000, caustic_photons=0, seed=3,
+                                       final_gather=False))
+        floor = (film.depth > 3.9) & (film.depth < 10)  # the wall is nearer the camera
+        return film.indirect[floor].reshape(-1, 3).mean(axis=0)
+    seen = floor_indirect({})
+    assert seen[0] > 1.3 * seen[1] and seen[0] > 0.01
+    hidden = floor_indirect({"visible_diffuse": False})
+    assert hidden.max() < 0.01 * seen[0], (hidden, seen)
