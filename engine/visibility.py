@@ -9,7 +9,7 @@ embreex has no per-ray masks or filter callbacks, so each distinct set of visibl
 triangles gets its own BVH (usually there is one set: every query goes to the one BVH at
 no cost). The alternative, re-tracing from just past each invisible hit, costs a traversal
 and an origin offset per invisible layer crossed. Measured (bench/bench_visibility.py,
-500k rays, 2 shared cores): 1 / 3 camera-invisible layers of 141k triangles over a floor
+500k rays, 2 shared cores): 1 / 3 camera-invisible layers (141k triangles each) over a floor
 of spheres: per-class BVH 0.50 / 0.51 s per million rays, re-tracing 3.5 / 7.4 s; the
 extra BVH took 0.53 / 1.08 s to build once.
 
