@@ -214,7 +214,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         try:
             layer = result.layers[0]
             rgb = film.combined
-            alpha = film.alpha if transparent else np.ones((h, w), np.float32)
+            # Holdout surfaces make alpha 0 with or without a transparent film (Cycles).
+            alpha = film.alpha if transparent else 1.0 - film.holdout
             rgba = np.concatenate([rgb, alpha[:, :, None]], axis=2)
             buffers = {"Combined": rgba}
             for name, attr in EFFECT_PASSES + (PHOTON_PASS,):

@@ -13,7 +13,6 @@ import numpy as np
 
 from .materials import MaterialConverter, world_background
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 
 
 class ExportCancelled(Exception):
@@ -119,10 +118,70 @@ def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
     return verts, faces, normals, uvs
 
 
+# --- ray visibility -----------------------------------------------------------------
+
+VISIBILITY_FLAGS = ("visible_camera", "visible_diffuse", "visible_glossy",
+                    "visible_transmission", "visible_shadow")
+
+
+def _layer_flag(ob, getter: str, view_layer) -> bool:
+    """holdout_get / indirect_only_get: they answer for the original object in the
+    original view layer (the evaluated copy says False)."""
+    ob = getattr(ob, "original", None) or ob
+    fn = getattr(ob, getter, None)
+    if fn is None or view_layer is None:
+        return False
+    try:
+        return bool(fn(view_layer=view_layer))
+    except (TypeError, RuntimeError):
+        return False
+
+
+def ray_visibility(obj, inst, view_layer) -> dict:
+    """Mesh keyword arguments for an instance's ray visibility, holdout and indirect-only,
+    read as Cycles does (blender/object.cpp sync_object): the object's own flags, ANDed
+    with the instancer's for instanced geometry; holdout from the object or its
+    collection (view layer); an indirect-only collection hides it from camera rays."""
+    parent = inst.parent if inst.is_instance and inst.parent is not None else None
+    out = {}
+    for flag in VISIBILITY_FLAGS:
+        on = bool(getattr(obj, flag, True))
+        if parent is not None:
+            on = on and bool(getattr(parent, flag, True))
+        out[flag] = on
+    owner = parent if parent is not None else obj
+    out["holdout"] = (bool(getattr(obj, "is_holdout", False))
+                      or bool(getattr(owner, "is_holdout", False))
+                      or _layer_flag(owner, "holdout_get", view_layer))
+    if _layer_flag(owner, "indirect_only_get", view_layer):
+        out["visible_camera"] = False
+    return out
+
+
+def warn_unsupported_visibility(obj, warnings: list):
+    """Options of Object > Visibility this engine cannot honour, once per object."""
+    if getattr(obj, "is_shadow_catcher", False):
+        warnings.append(f"object '{obj.name}': shadow catcher is not supported; "
+                        "rendered as an ordinary object")
+
+
+def _warn_light_visibility(obj, warnings: list):
+    """Light objects' ray visibility is not honoured (only camera visibility is)."""
+    off = [f.replace("visible_", "") for f in VISIBILITY_FLAGS[1:4]
+           if not getattr(obj, f, True)]
+    if off:
+        warnings.append(f"light '{obj.name}': ray visibility {', '.join(off)} off is not "
+                        "supported; the light reaches every surface")
+
+
 # --- lights -------------------------------------------------------------------------
 
 def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
-    """Blender light object -> engine Light with Cycles' units (DESIGN.md section 3)."""
+    """Blender light object -> engine Light with Cycles' units (docs/units.md) and Cycles'
+    reading of the object matrix: position = translation, direction = -Z axis (normalised),
+    area size = size x length of the X / Y axes (so negative scale flips only what it
+    flips in Cycles), point radius and sun strength / angle unscaled, spot cone stretched
+    by the scale (measured against Cycles 5.0 in tests/blender/test_blender_fidelity.py)."""
     L = obj.data
     kind = L.type
     if kind not in ("POINT", "SPOT", "AREA", "SUN"):
@@ -149,12 +208,25 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     if kind == "SPOT":
         kw["spot_size"] = float(L.spot_size)
         kw["spot_blend"] = float(L.spot_blend)
+        # Cycles (>= 3.5) stretches the cone by the object's scale and shear: a direction
+        # goes into cone space through the inverse object matrix (kernel/light/spot.h,
+        # spot_light_to_local; with orthogonal axes its rows are X/|X|^2, Y/|Y|^2,
+        # Z/|Z|^2; a sheared spot matched Cycles 5.0 only with the inverse), local -Z
+        # being the cone's axis.
+        try:
+            inv = np.linalg.inv(R)
+        except np.linalg.LinAlgError:
+            inv = None
+        if inv is not None and np.all(np.isfinite(inv)):
+            kw["spot_frame"] = np.stack([inv[0], inv[1], -inv[2]])
     if kind == "AREA":
         sx = float(np.linalg.norm(R[:, 0]))
         sy = float(np.linalg.norm(R[:, 1]))
         shape = L.shape
         size_y = L.size_y if shape in ("RECTANGLE", "ELLIPSE") else L.size
         kw.update(shape=shape, size_x=float(L.size) * sx, size_y=float(size_y) * sy)
+        if sx > 1e-12 and sy > 1e-12 and abs(np.dot(R[:, 0], R[:, 1])) > 1e-6 * sx * sy:
+            kw["skew_axis_v"] = R[:, 1]  # sheared object matrix (a parent's scale)
         kw["spread"] = min(max(float(getattr(L, "spread", math.pi)), 0.0), math.pi)
     if kind == "SUN":
         kw["angle"] = float(L.angle)
@@ -248,6 +320,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     total = sum(1 for _ in depsgraph.object_instances)
     last_poll = time.perf_counter()
     hair_warned = set()
+    view_layer = getattr(depsgraph, "view_layer", None)
     for i, inst in enumerate(depsgraph.object_instances):
         now = time.perf_counter()
         if should_cancel is not None and now - last_poll > 0.2:
@@ -267,15 +340,18 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             light = convert_light(pm, obj, matrix, name, warnings)
             if light is not None:
                 lights.append(light)
+                _warn_light_visibility(obj, warnings)
             continue
         if otype == "CURVES" and obj.name not in hair_warned:
             hair_warned.add(obj.name)
             warnings.append(f"object '{obj.name}': hair curves are not supported and skipped")
             continue
-        if otype not in GEOMETRY_TYPES:
+        if otype != "MESH":
+            # Curve, surface, text and metaball objects: the depsgraph also yields their
+            # evaluated geometry as MESH instances (parent = the object). Like Cycles
+            # (blender/object.cpp, object_is_geometry: only Mesh data is geometry), the
+            # object itself is skipped, or its geometry would be exported twice.
             continue
-        if getattr(obj, "is_holdout", False):
-            warnings.append(f"object '{obj.name}': holdout is not supported; rendered normally")
         data = getattr(obj, "data", None)
         key = (obj.name, data.as_pointer() if data is not None else 0)
         if key not in cache:
@@ -302,9 +378,12 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         else:
             name = obj.name
         info["objects"] += 1
-        meshes.append(pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
-                              uvs=uvs, materials=names, material_ids=mids))
-        info["triangles"] += len(faces)
+        warn_unsupported_visibility(obj, warnings)
+        mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
+                       uvs=uvs, materials=names, material_ids=mids,
+                       **ray_visibility(obj, inst, view_layer))
+        meshes.append(mesh)
+        info["triangles"] += len(mesh.faces)  # after dropping degenerate faces
 
     cam_obj = camera if camera is not None else scene_eval.camera
     if cam_obj is not None:

@@ -23,6 +23,7 @@ class Film:
     emission: np.ndarray = None     # emitters and background seen directly
     photon_hits: np.ndarray = None  # photon positions splatted into the image (Fig. 6 left)
     alpha: np.ndarray = None        # coverage: 1 where a camera ray hit geometry
+    holdout: np.ndarray = None      # fraction of camera samples that met a holdout surface
     depth: np.ndarray = None        # camera distance to the first hit (inf = nothing)
     normal: np.ndarray = None       # world-space shading normal of the first hit
     show_photons: bool = False
@@ -36,6 +37,8 @@ class Film:
                 setattr(self, name, np.zeros(shape3, np.float32))
         if self.alpha is None:
             self.alpha = np.zeros((self.height, self.width), np.float32)
+        if self.holdout is None:
+            self.holdout = np.zeros((self.height, self.width), np.float32)
         if self.depth is None:
             self.depth = np.full((self.height, self.width), np.inf, np.float32)
 

@@ -12,6 +12,11 @@ import numpy as np
 from .sampling import dot, luminance, normalize
 from .scene import Material, Scene
 
+# Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
+CAMERA, DIFFUSE, GLOSSY, TRANSMISSION, SHADOW = 1, 2, 4, 8, 16
+ALL_RAYS = CAMERA | DIFFUSE | GLOSSY | TRANSMISSION | SHADOW
+HOLDOUT_MATERIAL = "holdout (black)"
+
 # Material table columns (one row per material).
 MAT_FIELDS = ("metallic", "roughness", "transmission", "ior", "specular", "alpha")
 
@@ -68,6 +73,8 @@ class Geometry:
     material: np.ndarray      # (T,) int32 index into the material table
     object_id: np.ndarray     # (T,) int32 index into object_names
     object_names: list
+    visibility: np.ndarray    # (T,) uint8 ray-class bits of the rays that see the triangle
+    holdout: np.ndarray       # (T,) bool: camera rays that hit it give alpha 0
     vertices32: np.ndarray    # (3T,3) float32 for Embree
     faces32: np.ndarray       # (T,3) int32
     bounds: np.ndarray        # (2,3) re-centred bounding box
@@ -105,10 +112,15 @@ class Geometry:
 def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
     """Merge the scene's meshes into one triangle table and re-centre it."""
     mat_names = list(scene.materials.keys())
+    mats_list = [scene.materials[n] for n in mat_names]
+    if any(m.holdout for m in scene.meshes):
+        # Holdout surfaces are black to every ray but the camera's (which sees a hole).
+        mats_list.append(Material(HOLDOUT_MATERIAL, (0.0, 0.0, 0.0)))
     mat_index = {n: i for i, n in enumerate(mat_names)}
-    table = MaterialTable.build([scene.materials[n] for n in mat_names])
+    table = MaterialTable.build(mats_list)
 
     v0s, v1s, v2s, cns, cuvs, mats, objs, names = [], [], [], [], [], [], [], []
+    vis, holdout = [], []
     for oi, mesh in enumerate(scene.meshes):
         names.append(mesh.name)
         f = mesh.faces
@@ -129,8 +141,12 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         else:
             cuvs.append(mesh.uvs)
         remap = np.array([mat_index[n] for n in mesh.materials], np.int32)
+        if mesh.holdout:
+            remap[:] = len(mats_list) - 1
         mats.append(remap[mesh.material_ids])
         objs.append(np.full(len(f), oi, np.int32))
+        vis.append(np.full(len(f), mesh.visibility, np.uint8))
+        holdout.append(np.full(len(f), mesh.holdout, bool))
 
     if v0s:
         v0 = np.concatenate(v0s); v1 = np.concatenate(v1s); v2 = np.concatenate(v2s)
@@ -177,13 +193,18 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         material=np.concatenate(mats).astype(np.int32) if mats else np.zeros(0, np.int32),
         object_id=np.concatenate(objs) if objs else np.zeros(0, np.int32),
         object_names=names, vertices32=verts32, faces32=faces32,
+        visibility=np.concatenate(vis) if vis else np.zeros(0, np.uint8),
+        holdout=np.concatenate(holdout) if holdout else np.zeros(0, bool),
         bounds=np.stack([lo - offset, hi - offset]),
     )
     return geo, table
 
 
 def emissive_triangles(geo: Geometry, table: MaterialTable):
-    """Indices, radiance and area of triangles whose material emits (mesh lights)."""
+    """Indices, radiance and area of triangles whose material emits (mesh lights).
+    Emitters invisible to diffuse rays light no diffuse surface (Cycles), so they are left
+    out; camera, mirror and glass rays still see them glow."""
     em = table.emission[geo.material] if geo.count else np.zeros((0, 3))
-    idx = np.nonzero(luminance(em) > 0)[0] if len(em) else np.zeros(0, np.int64)
+    lit = (luminance(em) > 0) & ((geo.visibility & DIFFUSE) != 0) if len(em) else None
+    idx = np.nonzero(lit)[0] if len(em) else np.zeros(0, np.int64)
     return idx, em[idx], geo.area[idx]

@@ -19,6 +19,7 @@ from .lights import MESH
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, offset_origin, to_world
+from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
 
 
 @dataclass
@@ -88,7 +89,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             dist = ls.dist[lit]
             tmax = np.where(np.isfinite(dist), dist * (1.0 - 1e-6) - 2.0 * ctx.geo.eps, np.inf)
             if trace_shadows:
-                blocked = ctx.accel.occluded(o, ls.wi[lit], np.maximum(tmax, 0.0))
+                blocked = ctx.accel.occluded(o, ls.wi[lit], np.maximum(tmax, 0.0), cls=SHADOW)
                 counters.shadow_rays += len(lit)
             else:
                 blocked = np.zeros(len(lit), bool)
@@ -121,17 +122,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         o = offset_origin(hit.p[idx], hit.ng[idx], d[idx], ctx.geo.eps)
         d = d[idx]
         tp = np.ones((len(idx), 3))
+        ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         for depth in range(ctx.settings.max_depth + 1):
             if len(idx) == 0:
                 break
             # Most of a camera chunk's time is spent here: poll the stop flag per step.
             if should_cancel is not None and should_cancel():
                 raise Cancelled()
-            t, prim, u, v = ctx.accel.intersect(o, d)
+            t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
             counters.gather_rays += len(idx)
             got = prim >= 0
             if not got.all():
                 o, d, tp, idx, prim, u, v, t = (a[got] for a in (o, d, tp, idx, prim, u, v, t))
+                if np.ndim(ray_cls):
+                    ray_cls = ray_cls[got]
             if len(idx) == 0:
                 break
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
@@ -160,7 +164,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G  # one ray per row: no repeats
             if depth == ctx.settings.max_depth:
                 break
-            keep, o, d, tp = continue_specular(ctx, y, w, tp, rng)
+            keep, o, d, tp, ray_cls = continue_specular(ctx, y, w, tp, rng, ray_cls)
             idx = idx[keep]
     return E
 
@@ -174,10 +178,12 @@ def _secondary_irradiance(ctx, hit):
                            s.estimator)
 
 
-def continue_specular(ctx, hit, w, tp, rng):
+def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
     """Pick one specular lobe per ray in proportion to its weight (Russian roulette for
-    paths that would add little). Returns (kept indices, origins, directions, throughput).
-    Written lobe by lobe: numpy reductions over a 3-wide axis are slow (bench/)."""
+    paths that would add little). Returns (kept indices, origins, directions, throughput,
+    ray class of the continued rays: glossy, transmission, or ray_cls (the incoming class,
+    scalar or per ray) through a transparent pass). Written lobe by lobe: numpy reductions
+    over a 3-wide axis are slow (bench/)."""
     cols = [w[k] for k in SPEC_LOBES]
     p = np.stack([max3(c) for c in cols], axis=1)
     psum = (((p[:, 0] + p[:, 1]) + p[:, 2]) + p[:, 3]) + p[:, 4]
@@ -188,7 +194,7 @@ def continue_specular(ctx, hit, w, tp, rng):
     idx = np.nonzero(go)[0]
     empty = np.zeros((0, 3))
     if len(idx) == 0:
-        return idx, empty, empty, empty
+        return idx, empty, empty, empty, np.zeros(0, np.int64)
     cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
     lobe = np.minimum(np.count_nonzero(rng.random(len(idx))[:, None] >= cdf, axis=1),
                       len(SPEC_LOBES) - 1)
@@ -202,7 +208,9 @@ def continue_specular(ctx, hit, w, tp, rng):
     nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
     keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
     o = offset_origin(sub.p[keep], sub.ng[keep], nd[keep], ctx.geo.eps)
-    return idx[keep], o, nd[keep], new_tp[keep]
+    inc = ray_cls if np.ndim(ray_cls) == 0 else np.asarray(ray_cls)[idx]
+    new_cls = continued_class(lobe, inc)[keep]
+    return idx[keep], o, nd[keep], new_tp[keep], new_cls
 
 
 # The caustic estimate is already a smooth kernel average, so it varies little between the
@@ -261,6 +269,7 @@ class Accumulator:
         self.lo = lo
         self.buf = {k: np.zeros((npix, 3)) for k in self.NAMES}
         self.alpha = np.zeros(npix)
+        self.holdout = np.zeros(npix)
         self.depth_sum = np.zeros(npix)
         self.depth_n = np.zeros(npix)
         self.normal = np.zeros((npix, 3))
@@ -283,7 +292,8 @@ class Accumulator:
         a, b = part.lo - self.lo, part.lo - self.lo + part.npix
         for name in self.NAMES:
             self.buf[name][a:b] += part.buf[name]
-        for mine, theirs in ((self.alpha, part.alpha), (self.depth_sum, part.depth_sum),
+        for mine, theirs in ((self.alpha, part.alpha), (self.holdout, part.holdout),
+                             (self.depth_sum, part.depth_sum),
                              (self.depth_n, part.depth_n), (self.normal, part.normal)):
             mine[a:b] += theirs
 
@@ -367,6 +377,7 @@ def _write_film(film, acc, spp, rh, rw):
     for name in Accumulator.NAMES:
         getattr(film, name)[...] = (acc.buf[name] * inv).reshape(rh, rw, 3).astype(np.float32)
     film.alpha[...] = (acc.alpha * inv).reshape(rh, rw)
+    film.holdout[...] = (acc.holdout * inv).reshape(rh, rw)
     with np.errstate(invalid="ignore", divide="ignore"):
         depth = np.where(acc.depth_n > 0, acc.depth_sum / np.maximum(acc.depth_n, 1), np.inf)
         nrm = acc.normal / np.maximum(np.linalg.norm(acc.normal, axis=1), 1e-300)[:, None]
@@ -386,13 +397,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     pixel = 2.0 * hw / ctx.scene.width
     ortho = cam.kind == "ORTHO"
     travelled = np.zeros(len(o))
+    ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
+    has_holdout = bool(ctx.geo.holdout.any())
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
         if should_cancel is not None and bounce > 0 and should_cancel():
             raise Cancelled()
         target = "emission" if bounce == 0 else "specular"
-        t, prim, u, v = ctx.accel.intersect(o, d, tmax)
+        t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         # Light surfaces: invisible to camera rays unless asked, seen in mirrors and glass.
         for light in ctx.lights:
             if bounce == 0 and not light.visible_camera:
@@ -413,12 +426,20 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                             radiance = radiance + sun
                 acc.add(target, pix[miss], tp[miss] * radiance)
         hitm = prim >= 0
+        if has_holdout and hitm.any():
+            # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
+            hole = np.zeros(len(prim), bool)
+            hole[hitm] = np.take(ctx.geo.holdout, prim[hitm]) & (ray_cls[hitm] == CAMERA)
+            if hole.any():
+                prim = np.where(hole, -3, prim)
+                hitm &= ~hole
+                acc.add_scalar(acc.holdout, pix[hole], np.ones(int(hole.sum())))
         if bounce == 0:
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():
             return
-        o, d, tp, pix, prim, u, v, t, sample_id, travelled = (
-            a[hitm] for a in (o, d, tp, pix, prim, u, v, t, sample_id, travelled))
+        o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls = (
+            a[hitm] for a in (o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls))
         travelled = travelled + t
         footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
         if sampler is not None and bounce == 0:
@@ -453,7 +474,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
-        keep, o, d, tp = continue_specular(ctx, hit, w, tp, rng)
+        keep, o, d, tp, ray_cls = continue_specular(ctx, hit, w, tp, rng, ray_cls)
         pix = pix[keep]
         sample_id = sample_id[keep]
         travelled = travelled[keep]

@@ -16,7 +16,8 @@ import numpy as np
 from .geometry import Geometry, MaterialTable, emissive_triangles
 from .sampling import (concentric_disk, cosine_hemisphere, dot, luminance, offset_origin, orthonormal_basis, to_world, uniform_cone, uniform_sphere,
                        uniform_triangle)
-from .scene import AREA, DISK, POINT, SPOT, SUN, Scene, spot_mask, spread_attenuation
+from .scene import (AREA, DISK, POINT, SPOT, SUN, Scene, spot_bounding_cos, spot_cone_cos,
+                    spot_mask, spread_attenuation)
 
 MESH, WORLD = "MESH", "WORLD"
 
@@ -46,6 +47,11 @@ class PreparedLight:
             return self.cos_half_angle < 1.0
         return True
 
+    def _spot(self, w):
+        """Spot mask for world directions w (N,3) leaving the light; the cone is
+        stretched by the light object's scale (Light.spot_frame)."""
+        return spot_mask(spot_cone_cos(w, self.spot_frame), self.spot_size, self.spot_blend)
+
     # ------------------------------------------------------------------ points on lights
     def _area_point(self, u1, u2):
         """Uniform points on an area light's rectangle or ellipse."""
@@ -54,7 +60,9 @@ class PreparedLight:
             x, yy = x * self.size_x / 2, yy * self.size_y / 2
         else:
             x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
-        return self.pos + x[:, None] * self.u + yy[:, None] * self.v
+        # du, dv: the dual basis of (u, v) in the light's plane (= u, v unless sheared),
+        # so that p.u and p.v span the region the intersection test accepts.
+        return self.pos + x[:, None] * self.du + yy[:, None] * self.dv
 
     def _mesh_point(self, rng, u1, u2):
         """(triangle index, point) on the emissive triangles, chosen by area x brightness."""
@@ -83,7 +91,8 @@ class PreparedLight:
                                      self.tri_L[tri] * (self.tri_area[tri] / self.prob[tri])[:, None],
                                      two_sided=True)
         if self.kind == AREA:
-            if self.spread < math.pi and self.shape != DISK:
+            if (self.spread < math.pi and self.shape != DISK and np.allclose(self.du, self.u)
+                    and np.allclose(self.dv, self.v)):  # a sheared light samples it whole
                 return self._sample_spread_rect(p, ns, ng, u1, u2)
             y = self._area_point(u1, u2)
             ls = self._finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (n, 3)),
@@ -111,7 +120,7 @@ class PreparedLight:
         d2 = np.maximum(dist * dist, self.min_dist2)
         E = self.intensity[None, :] * (cos_r * cos_l / d2)[:, None]
         if self.kind == SPOT:
-            E = E * spot_mask(dot(axis, self.dir), self.spot_size, self.spot_blend)[:, None]
+            E = E * self._spot(axis)[:, None]
         return LightSample(wi, dist, E)
 
     def _sample_spread_rect(self, p, ns, ng, u1, u2):
@@ -187,11 +196,11 @@ class PreparedLight:
             d = to_world(cosine_hemisphere(u3, u4), np.broadcast_to(self.dir, (n, 3)))
             return o, d, np.broadcast_to(self.flux / n, (n, 3)).copy()
         if self.kind == SPOT:
-            cos_half = math.cos(self.spot_size / 2)
-            local = uniform_cone(u1, u2, cos_half)
+            cos_bound = self.spot_cos_bound  # holds the whole (scaled) cone
+            local = uniform_cone(u1, u2, cos_bound)
             d = to_world(local, np.broadcast_to(self.dir, (n, 3)))
-            solid = 2.0 * math.pi * (1.0 - cos_half)
-            mask = spot_mask(local[:, 2], self.spot_size, self.spot_blend)
+            solid = 2.0 * math.pi * (1.0 - cos_bound)
+            mask = self._spot(d)
             power = self.intensity[None, :] * (mask * solid / n)[:, None]
             o = np.broadcast_to(self.pos, (n, 3)).copy()
             if self.radius > 0:
@@ -293,7 +302,7 @@ class PreparedLight:
             pdf_nat = np.maximum(cos, 0.0) / math.pi * spread_attenuation(cos, self.spread)
             return o, d, (self.flux / n)[None, :] * (pdf_nat / aimed)[:, None]
         if self.kind == SPOT:
-            mask = spot_mask(dot(d, self.dir), self.spot_size, self.spot_blend)
+            mask = self._spot(d)
             if self.radius > 0:
                 x, yy = concentric_disk(rng.random(n), rng.random(n))
                 t, b = orthonormal_basis(d)
@@ -334,7 +343,7 @@ class PreparedLight:
             mask = (disc > 0) & (t > 0) & (t < tmax) & (c > 0)
             L = np.broadcast_to(self.intensity / (math.pi * self.radius ** 2), (n, 3))
             if self.kind == SPOT:
-                L = L * spot_mask(dot(-d, self.dir), self.spot_size, self.spot_blend)[:, None]
+                L = L * self._spot(-d)[:, None]
             return mask, t, L
         return none
 
@@ -355,11 +364,18 @@ def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable) -> list[Pr
     common = dict(center=center, scene_radius=radius, min_dist2=min_dist2)
     for light in scene.lights:
         rgb = light.power * light.color
+        c = float(np.dot(light.axis_u, light.axis_v))
+        du = (light.axis_u - c * light.axis_v) / (1.0 - c * c)
+        dv = (light.axis_v - c * light.axis_u) / (1.0 - c * c)
         kw = dict(common, pos=light.position - geo.offset, dir=light.direction, u=light.axis_u,
-                  v=light.axis_v, radius=light.radius, spot_size=light.spot_size,
+                  v=light.axis_v, du=du, dv=dv, radius=light.radius, spot_size=light.spot_size,
                   spot_blend=light.spot_blend, shape=light.shape, size_x=light.size_x,
                   size_y=light.size_y, spread=light.spread, visible_camera=light.visible_camera,
                   cos_half_angle=1.0, source=light)
+        if light.kind == SPOT:
+            frame = light.cone_frame
+            kw.update(spot_frame=frame,
+                      spot_cos_bound=spot_bounding_cos(light.spot_size, frame, light.direction))
         if light.kind in (POINT, SPOT):
             intensity = rgb / (4.0 * math.pi)
             kw.update(intensity=intensity, flux=light.flux, photon_flux=light.flux)

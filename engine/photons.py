@@ -24,6 +24,7 @@ import numpy as np
 from .parallel import Cancelled, chunk_length, ordered_map
 from .bsdf import lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, max3, offset_origin, to_world
+from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class, visible_to
 
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
 LOBES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "coat")
@@ -109,6 +110,12 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     had_diffuse = np.zeros(len(o), bool)
     had_specular = np.zeros(len(o), bool)
     caustic_then_diffuse = np.zeros(len(o), bool)  # path so far: L S+ D S*
+    # Ray visibility (docs/scene_format.md, "Ray visibility"): a segment has the class of
+    # the event that started it (shadow from the light, then diffuse / glossy /
+    # transmission); `source` holds the visibility bits of the surface it left.
+    vis_on = bool(getattr(accel, "has_invisible", False))
+    ray_cls = np.full(len(o), SHADOW, np.int64)
+    source = np.full(len(o), ALL_RAYS, np.int64)
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -120,15 +127,30 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             o, d, power, prim, u, v = o[alive], d[alive], power[alive], prim[alive], u[alive], v[alive]
             had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
             caustic_then_diffuse = caustic_then_diffuse[alive]
+            ray_cls, source = ray_cls[alive], source[alive]
         if len(o) == 0:
             break
         hit = surface_hit(geo, table, prim, u, v, d)
+        carry = None
+        if vis_on:
+            # A surface this segment's class does not see is both there and not there:
+            # light arrives on it (it is the origin of the camera-side ray, which never
+            # tests itself) and passes on to what lies behind it. Split the photon.
+            thru = np.nonzero(~visible_to(geo, prim, ray_cls))[0]
+            if len(thru):
+                carry = (offset_origin(hit.p[thru], hit.ng[thru], d[thru], geo.eps), d[thru],
+                         power[thru], had_diffuse[thru], had_specular[thru],
+                         caustic_then_diffuse[thru], ray_cls[thru], source[thru])
         w = lobe_weights(table, hit)
         kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
                         np.where(had_specular, CAUSTIC, DIRECT))
         store = max3(w["diffuse"]) > 0
         if caustic_only:
             store &= kind == CAUSTIC
+        if vis_on:
+            # Looked up by diffuse rays from here: the surface it came from must be
+            # visible to diffuse rays (a light always is).
+            store &= (source & DIFFUSE) != 0
         if store.any():
             parts["position"].append(hit.p[store].astype(np.float32))
             parts["power"].append(power[store].astype(np.float32))
@@ -170,6 +192,19 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                                            lobe[spec] - 1, rng)
             new_d[spec] = sd
             ok[spec] = valid
+        if vis_on:
+            # The continued segment's class; the camera-side ray of that class, leaving
+            # this surface backwards, must see the surface the photon came from.
+            new_cls = np.full(len(idx), DIFFUSE, np.int64)
+            if spec.any():
+                new_cls[spec] = continued_class(lobe[spec] - 1, ray_cls[idx][spec])
+            passing = lobe == 1
+            ok &= passing | ((source[idx] & new_cls) != 0)
+            new_source = np.where(passing, source[idx],
+                                  np.take(geo.visibility, prim[idx]).astype(np.int64))
+        else:
+            new_cls = ray_cls[idx]
+            new_source = source[idx]
         ctd = caustic_then_diffuse[idx]
         first_diffuse = diff & ~had_diffuse[idx]
         # The first diffuse bounce after a caustic path starts L S+ D; any further
@@ -184,8 +219,14 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         new_d, new_power = new_d[keep], new_power[keep]
         had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
         caustic_then_diffuse = caustic_then_diffuse[keep]
+        ray_cls, source = new_cls[keep], new_source[keep]
         o = offset_origin(sub.p[keep], sub.ng[keep], new_d, geo.eps)
         d, power = new_d, new_power
+        if carry is not None:
+            o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls, source = (
+                np.concatenate([a, b]) for a, b in zip(
+                    (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls,
+                     source), carry))
     return parts
 
 

@@ -96,7 +96,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     sums = {name: np.zeros((h, w, 3)) for name in EFFECTS}
     halves = [np.zeros((h, w, 3)), np.zeros((h, w, 3))]
     counts = [0, 0]
-    extra = {"alpha": np.zeros((h, w)), "normal": np.zeros((h, w, 3)), "photon_hits": np.zeros((h, w, 3))}
+    extra = {"alpha": np.zeros((h, w)), "holdout": np.zeros((h, w)), "normal": np.zeros((h, w, 3)), "photon_hits": np.zeros((h, w, 3))}
     depth = np.full((h, w), np.inf)
     log = []
     film = Film(w, h, show_photons=settings.show_photons)
@@ -162,6 +162,7 @@ def _fill(film: Film, sums, extra, depth, n):
     for name, total in sums.items():
         getattr(film, name)[...] = (total / n).astype(np.float32)
     film.alpha[...] = extra["alpha"] / n
+    film.holdout[...] = extra["holdout"] / n
     film.photon_hits[...] = np.clip(extra["photon_hits"] / n, 0, None)
     nrm = extra["normal"]
     film.normal[...] = nrm / np.maximum(np.linalg.norm(nrm, axis=2, keepdims=True), 1e-300)

@@ -18,6 +18,7 @@ from .parallel import Cancelled
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Photons, trace_photons
 from .scene import Scene
 from .settings import RenderSettings
+from .visibility import VisibilityAccel
 
 
 @dataclass
@@ -26,7 +27,7 @@ class Context:
     settings: RenderSettings
     geo: Geometry
     table: MaterialTable
-    accel: Accel
+    accel: VisibilityAccel
     lights: list
     global_map: PhotonMap | None = None
     caustic_map: PhotonMap | None = None
@@ -68,7 +69,9 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel) -
     the benchmarks record every ray query (bench/)."""
     scene.validate()
     geo, table = prepare(scene)
-    accel = accel_class(geo.vertices32, geo.faces32, threads=settings.threads)
+    # One BVH per distinct set of triangles a ray class sees (usually one in all).
+    accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
+                            threads=settings.threads)
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights)
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)

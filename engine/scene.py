@@ -134,6 +134,15 @@ class Mesh:
               normals); None = flat shading
     uvs       optional (V,2) per vertex or (F,3,2) per face corner
     material  one material name, or material_ids (F,) int indexing `materials` (names)
+    visible_camera, visible_diffuse, visible_glossy, visible_transmission, visible_shadow
+              ray visibility with Cycles' meaning (Object > Visibility > Ray Visibility):
+              a ray of that kind passes through the mesh as if it were not there. Camera
+              rays and the rays that continue them through transparent surfaces are
+              camera rays; shadow rays are the rays to lights; final-gather rays are
+              diffuse rays; mirror / coat reflections are glossy, refractions transmission
+              rays (docs/scene_format.md, "Ray visibility", also for photons).
+    holdout   the mesh cuts a hole in the image: camera rays that hit it give alpha 0 and
+              no colour; to every other ray it is a black surface (Cycles' holdout)
     """
 
     name: str
@@ -143,10 +152,30 @@ class Mesh:
     uvs: np.ndarray | None = None
     materials: list[str] = field(default_factory=lambda: ["default"])
     material_ids: np.ndarray | None = None
+    visible_camera: bool = True
+    visible_diffuse: bool = True
+    visible_glossy: bool = True
+    visible_transmission: bool = True
+    visible_shadow: bool = True
+    holdout: bool = False
     warnings: list = field(default_factory=list, repr=False)
+
+    @property
+    def visibility(self) -> int:
+        """Ray-class bits (engine.geometry CAMERA | DIFFUSE | GLOSSY | TRANSMISSION |
+        SHADOW) of the rays that see this mesh."""
+        bits = 0
+        for bit, flag in ((1, self.visible_camera), (2, self.visible_diffuse),
+                          (4, self.visible_glossy), (8, self.visible_transmission),
+                          (16, self.visible_shadow)):
+            bits |= bit if flag else 0
+        return bits
 
     def __post_init__(self):
         who = f"mesh '{self.name}'"
+        for attr in ("visible_camera", "visible_diffuse", "visible_glossy",
+                     "visible_transmission", "visible_shadow", "holdout"):
+            setattr(self, attr, bool(getattr(self, attr)))
         if isinstance(self.materials, str):
             self.materials = [self.materials]
         v = np.asarray(self.vertices, dtype=np.float64)
@@ -234,11 +263,22 @@ class Light:
     spot_size full cone angle in radians; spot_blend 0..1
     shape     RECTANGLE or DISK for area lights; size_x, size_y in world units (already
               multiplied by object scale); axis_u gives the local +X direction
+    skew_axis_v  optional local +Y direction of a sheared area light (not perpendicular to
+              axis_u). As in Cycles, the emitter is then the region |p.u| <= size_x/2,
+              |p.v| <= size_y/2 of its plane (a parallelogram; for DISK the ellipse
+              (2 p.u / size_x)^2 + (2 p.v / size_y)^2 <= 1), of area size_x size_y / sin(u, v),
+              and its radiance stays P / (pi size_x size_y) as Cycles computes it.
     angle     sun angular diameter in radians
     normalize area light power divided by area (Blender default True)
     spread    area light: full angle in radians of its emission cone (Blender `spread`,
               default pi = Lambertian); narrower spreads attenuate as Cycles' soft-box grid
     visible_camera  lights are invisible to camera rays by default in Blender
+    spot_frame optional (3,3): rows map a world direction leaving a spot light into its
+              cone space, where the cone is round: Cycles' scaled_axis_u, scaled_axis_v and
+              dir * inv_len_z (the light object's X and Y axes divided by their squared
+              length, its -Z axis divided by its length). An object scale (2, 0.5, 1) thus
+              stretches the lit spot 2x along X and halves it along Y (Cycles >= 3.5,
+              kernel/light/spot.h). None: the round cone of (axis_u, axis_v, direction).
     """
 
     name: str = "light"
@@ -258,6 +298,8 @@ class Light:
     normalize: bool = True
     spread: float = math.pi
     visible_camera: bool = False
+    spot_frame: np.ndarray | None = None
+    skew_axis_v: tuple | np.ndarray | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -285,6 +327,13 @@ class Light:
             if np.linalg.norm(u) < 1e-6:
                 u = np.cross(self.direction, [0.0, 1.0, 0.0])
         self.axis_u = u / np.linalg.norm(u)
+        if self.skew_axis_v is not None:
+            v = _vec3(self.skew_axis_v, f"{who} skew_axis_v")
+            v = v - self.direction * np.dot(v, self.direction)
+            if np.linalg.norm(np.cross(self.axis_u, v)) < 1e-6 * max(np.linalg.norm(v), 1e-300):
+                raise SceneError(f"{who} skew_axis_v: parallel to axis_u (degenerate shear)")
+            v = v / np.linalg.norm(v)
+            self.skew_axis_v = None if abs(np.dot(v, self.axis_u)) < 1e-9 else v
         for attr in ("power", "radius", "spot_size", "spot_blend", "size_x", "size_y", "angle",
                      "spread"):
             setattr(self, attr, _finite(getattr(self, attr), f"{who} {attr}"))
@@ -305,17 +354,41 @@ class Light:
                                  f"rendered as {math.degrees(MIN_SPREAD):.1f} deg")
             self.spread = MIN_SPREAD
         self.spread = min(self.spread, math.pi)
+        if self.spot_frame is not None:
+            frame = np.asarray(self.spot_frame, dtype=np.float64)
+            if frame.shape != (3, 3) or not np.all(np.isfinite(frame)):
+                raise SceneError(f"{who} spot_frame: expected a finite 3x3 matrix, "
+                                 f"got shape {frame.shape}")
+            if abs(np.linalg.det(frame)) < 1e-12 * max(np.abs(frame).max(), 1e-300) ** 3:
+                raise SceneError(f"{who} spot_frame: singular matrix (zero scale?)")
+            self.spot_frame = frame
         if self.kind == AREA and self.size_x * self.size_y <= 0:
             self.warnings.append(f"{who}: area light of zero size emits nothing")
 
     @property
+    def cone_frame(self) -> np.ndarray:
+        """(3,3) rows taking world directions into the spot's round-cone space."""
+        if self.spot_frame is not None:
+            return self.spot_frame
+        return np.stack([self.axis_u, self.axis_v, self.direction])
+
+    @property
     def axis_v(self) -> np.ndarray:
+        if self.skew_axis_v is not None:
+            return self.skew_axis_v
         # Right-handed local frame: u x v = +Z = -direction.
         return np.cross(-self.direction, self.axis_u)
 
     @property
+    def sin_uv(self) -> float:
+        """Sine of the angle between axis_u and axis_v (1 unless sheared)."""
+        if self.skew_axis_v is None:
+            return 1.0
+        return float(np.linalg.norm(np.cross(self.axis_u, self.skew_axis_v)))
+
+    @property
     def area(self) -> float:
-        a = self.size_x * self.size_y
+        a = self.size_x * self.size_y / self.sin_uv
         return a * math.pi / 4.0 if self.shape == DISK else a
 
     @property
@@ -325,9 +398,16 @@ class Light:
         if self.kind == SPOT:
             # Cycles spot = point light masked by the cone (no renormalisation):
             # flux = I * solid angle with smoothstep falloff, integrated numerically.
-            return p * spot_cone_fraction(self.spot_size, self.spot_blend)
+            if self.spot_frame is None:
+                return p * spot_cone_fraction(self.spot_size, self.spot_blend)
+            return p * spot_cone_fraction_frame(self.spot_size, self.spot_blend,
+                                                self.cone_frame, self.direction)
         if self.kind == AREA and not self.normalize:
             return p * self.area  # power given per unit area
+        if self.kind == AREA:
+            # Cycles divides the power by size_x * size_y even when shear makes the
+            # emitter larger (scene/light.cpp: invarea from len_u * len_v).
+            return p / self.sin_uv
         return p
 
 
@@ -367,6 +447,60 @@ def spot_cone_fraction(spot_size: float, spot_blend: float) -> float:
     m = spot_mask(c, spot_size, spot_blend)
     # Solid angle element 2*pi*d(cos); fraction of the 4*pi sphere.
     return float(np.trapz(m, c) * 2.0 * math.pi / (4.0 * math.pi))
+
+
+def spot_cone_cos(w, frame: np.ndarray) -> np.ndarray:
+    """Cosine to the axis of the round cone, for world directions w (N,3) leaving the
+    light, after the spot's frame (Light.cone_frame) has undone its object scale: the
+    z component of normalize(frame @ w), as Cycles' spot_light_to_local."""
+    local = np.asarray(w, dtype=np.float64) @ np.asarray(frame, dtype=np.float64).T
+    length = np.sqrt(local[:, 0] ** 2 + local[:, 1] ** 2 + local[:, 2] ** 2)
+    return local[:, 2] / np.maximum(length, 1e-300)
+
+
+def spot_bounding_cos(spot_size: float, frame: np.ndarray, direction: np.ndarray) -> float:
+    """Cosine of a cone round `direction` that holds the whole (elliptical) lit cone."""
+    frame = np.asarray(frame, dtype=np.float64)
+    d = np.asarray(direction, dtype=np.float64)
+    gram = frame @ frame.T
+    if (np.allclose(gram, np.eye(3) * gram[0, 0], rtol=0, atol=1e-9 * gram[0, 0])
+            and np.allclose(frame[2] / np.linalg.norm(frame[2]), d / np.linalg.norm(d),
+                            rtol=0, atol=1e-9)):
+        return math.cos(spot_size / 2.0)  # round cone: exact
+    h = min(spot_size / 2.0, math.pi / 2.0)
+    phi = np.linspace(0.0, 2.0 * math.pi, 721)
+    # Boundary directions in cone space, taken back to world space.
+    edge = np.stack([math.sin(h) * np.cos(phi), math.sin(h) * np.sin(phi),
+                     np.full_like(phi, math.cos(h))], axis=1)
+    w = edge @ np.linalg.inv(frame).T
+    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    c = float(np.min(w @ (d / np.linalg.norm(d))))
+    if c <= 0.0:
+        return -1.0  # the cone reaches behind the light: bound it by the whole sphere
+    # Widen by 1 % in tan so the bound holds between the 721 boundary samples.
+    tan = math.sqrt(max(1.0 - c * c, 0.0)) / c * 1.01
+    return 1.0 / math.sqrt(1.0 + tan * tan)
+
+
+def spot_cone_fraction_frame(spot_size: float, spot_blend: float, frame: np.ndarray,
+                             direction: np.ndarray) -> float:
+    """spot_cone_fraction for a scaled (elliptical) cone: 2-D quadrature of the mask over
+    the bounding cone (midpoint rule, 1024 x 256 cells)."""
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    t = np.cross(d, [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0])
+    t /= np.linalg.norm(t)
+    b = np.cross(d, t)
+    c0 = spot_bounding_cos(spot_size, frame, d)
+    nc, nphi = 1024, 256
+    c = c0 + (np.arange(nc) + 0.5) / nc * (1.0 - c0)
+    phi = (np.arange(nphi) + 0.5) / nphi * 2.0 * math.pi
+    s = np.sqrt(np.maximum(1.0 - c * c, 0.0))
+    w = (c[:, None, None] * d + (s[:, None] * np.cos(phi))[:, :, None] * t
+         + (s[:, None] * np.sin(phi))[:, :, None] * b).reshape(-1, 3)
+    m = spot_mask(spot_cone_cos(w, frame), spot_size, spot_blend)
+    solid = 2.0 * math.pi * (1.0 - c0)
+    return float(m.mean() * solid / (4.0 * math.pi))
 
 
 @dataclass

@@ -123,10 +123,15 @@ def _build(data: dict, base: str):
     return scene, render
 
 
+# Ray visibility and holdout per object (engine.scene.Mesh; docs/scene_format.md).
+VISIBILITY_KEYS = ("visible_camera", "visible_diffuse", "visible_glossy",
+                   "visible_transmission", "visible_shadow", "holdout")
+
+
 def _object(scene, obj, i, base):
     kind = str(obj.get("type", "")).lower()
     where = f"objects[{i}] ({obj.get('name', kind or '?')})"
-    common = {"type", "name", "material", "translate", "scale", "rotate"}
+    common = {"type", "name", "material", "translate", "scale", "rotate"} | set(VISIBILITY_KEYS)
     mat = obj.get("material", "white_plastic_dull")
     name = obj.get("name")
     if kind == "sphere":
@@ -152,6 +157,11 @@ def _object(scene, obj, i, base):
                                               scene._material(mat)))
     else:
         raise SceneFileError(f"{where}: type must be sphere, plane, box, mesh or file, got '{kind}'")
+    for key in VISIBILITY_KEYS:
+        if key in obj:
+            if not isinstance(obj[key], bool):
+                raise SceneFileError(f"{where}: {key} must be true or false, got {obj[key]!r}")
+            setattr(mesh, key, obj[key])
     if any(k in obj for k in ("translate", "scale", "rotate")):
         M = _rotation(obj.get("rotate", (0, 0, 0))) * np.asarray(obj.get("scale", 1.0), float)
         t = np.asarray(obj.get("translate", (0, 0, 0)), float)

@@ -1,0 +1,169 @@
+"""Ray visibility and holdout in the engine (docs/scene_format.md, "Ray visibility").
+
+The Blender tests (tests/blender/test_blender_fidelity.py) compare each flag with Cycles;
+these check the engine's own invariants without bpy.
+"""
+import numpy as np
+import pytest
+
+from engine import RenderSettings
+from engine.api import PaperScene
+from engine.geometry import ALL_RAYS, CAMERA, DIFFUSE, SHADOW, prepare
+from engine.scene import Material
+from engine.scenefile import SceneFileError, load_scene
+from engine.visibility import VisibilityAccel
+from engine.accel import Accel
+
+FLAGS = ("visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
+         "visible_shadow")
+
+
+def _room(ghost=None):
+    """A floor and a back wall under a point light, seen at an angle; `ghost`: flags of
+    a large plane between the light and the floor (None: no plane)."""
+    s = PaperScene(width=40, height=30)
+    s.add_material(Material("white", (0.8, 0.8, 0.8)))
+    s.add_material(Material("red", (0.8, 0.1, 0.1)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 6.0, "white", name="floor")
+    s.add_plane((0, 2, 1.5), (0, -1, 0), (6.0, 3.0), "red", name="wall")
+    s.add_point_light((0, 0, 2.5), power=300.0)
+    if ghost is not None:
+        mesh = s.add_plane((0, 0, 1.5), (0, 0, 1), 2.0, "white", name="ghost")
+        for k, v in ghost.items():
+            setattr(mesh, k, v)
+    s.set_camera((0, -5, 3), (0, 0, 0.5), view_angle=50)
+    return s
+
+
+def _grow(mask):
+    out = mask.copy()
+    out[1:] |= mask[:-1]
+    out[:-1] |= mask[1:]
+    out[:, 1:] |= mask[:, :-1]
+    out[:, :-1] |= mask[:, 1:]
+    return out
+
+
+def _inside(mask):
+    """Pixels of mask whose 4 neighbours are in it too (no partly covered edge pixels)."""
+    return ~_grow(~mask)
+
+
+def _settings(**kw):
+    return RenderSettings(spp=4, photons=40_000, caustic_photons=0, seed=3, **kw)
+
+
+def test_mesh_invisible_to_every_ray_changes_nothing():
+    """A plane no ray sees leaves direct light, indirect light (gathering and photons:
+    they land on it and pass on, and none leave it) and the image as they were."""
+    base = _room().render(_settings())
+    ghost = _room({f: False for f in FLAGS}).render(_settings())
+    solid = _room({}).render(_settings())
+    for name in ("direct", "indirect"):
+        a, b = getattr(base, name).mean(), getattr(ghost, name).mean()
+        assert abs(b / a - 1) < 0.04, (name, a, b)
+    # The control: a visible plane there changes the image a lot.
+    assert abs(solid.direct.mean() / base.direct.mean() - 1) > 0.15
+
+
+def test_camera_invisible_mesh_keeps_shadow_and_gathered_light():
+    """visible_camera off: the camera sees through the plane, its shadow stays."""
+    base = _room().render(_settings())
+    hidden = _room({"visible_camera": False}).render(_settings())
+    solid = _room({}).render(_settings())
+    # Where the solid plane hides the floor, the hidden one shows the floor in its shadow.
+    closer = _inside(solid.depth < base.depth - 0.5)
+    assert closer.sum() > 20
+    np.testing.assert_allclose(hidden.depth[closer], base.depth[closer], rtol=1e-4)
+    # Its shadow (a 2 m plane 1 m under the light) darkens the floor as the solid one's.
+    assert hidden.direct.mean() < 0.8 * base.direct.mean()
+    seen = ~_grow(_grow(solid.depth < base.depth - 0.5))
+    np.testing.assert_allclose(hidden.direct[seen].mean(), solid.direct[seen].mean(), rtol=0.02)
+
+
+def test_shadow_invisible_mesh_casts_no_shadow():
+    base = _room().render(_settings(photon_mapping=False))
+    unshadowed = _room({"visible_shadow": False, "visible_camera": False}).render(
+        _settings(photon_mapping=False))
+    np.testing.assert_allclose(unshadowed.direct, base.direct, rtol=1e-4, atol=1e-6)
+
+
+def test_holdout_cuts_alpha_and_colour():
+    s = _room({"holdout": True})
+    film = s.render(_settings(film_transparent=True))
+    solid = _room({}).render(_settings(film_transparent=True))
+    base = _room().render(_settings(film_transparent=True))
+    hole = _inside(solid.depth < base.depth - 0.5)
+    assert hole.sum() > 20
+    outside = ~_grow(_grow(solid.depth < base.depth - 0.5))
+    assert film.alpha[hole].max() == 0.0 and film.combined[hole].max() == 0.0
+    np.testing.assert_array_equal(film.alpha[outside], base.alpha[outside])
+    # To other rays the holdout is a black surface: it still shadows the floor.
+    assert film.direct[outside].mean() < base.direct[outside].mean()
+
+
+def test_one_bvh_unless_flags_differ():
+    s = _room({"visible_camera": False})
+    s.validate()
+    geo, _ = prepare(s)
+    acc = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, Accel)
+    assert acc.has_invisible and acc.for_class(SHADOW) is acc.full
+    assert acc.for_class(CAMERA) is not acc.full
+    assert acc.for_class(DIFFUSE) is acc.full
+    ghost = np.nonzero(geo.visibility != ALL_RAYS)[0]
+    # A ray straight down through the ghost plane: camera rays reach the floor (and
+    # report the floor's triangle index in the full table), shadow rays the ghost.
+    o = np.array([[0.1, 0.1, 2.0]]) - geo.offset
+    d = np.array([[0.0, 0.0, -1.0]])
+    _, prim_cam, _, _ = acc.intersect(o, d, cls=CAMERA)
+    _, prim_sh, _, _ = acc.intersect(o, d, cls=SHADOW)
+    _, prim_mix, _, _ = acc.intersect(np.repeat(o, 2, 0), np.repeat(d, 2, 0),
+                                      cls=np.array([CAMERA, SHADOW]))
+    assert prim_sh[0] in ghost and prim_cam[0] not in ghost and prim_cam[0] >= 0
+    assert list(prim_mix) == [prim_cam[0], prim_sh[0]]
+    plain = _room()
+    plain.validate()
+    geo2, _ = prepare(plain)
+    acc2 = VisibilityAccel(geo2.vertices32, geo2.faces32, geo2.visibility, Accel)
+    assert not acc2.has_invisible
+    assert all(acc2.for_class(c) is acc2.full for c in (CAMERA, DIFFUSE, SHADOW))
+
+
+def test_scene_file_flags(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text('[camera]\nposition = [0, -5, 2]\nlook_at = [0, 0, 0]\n'
+                 '[[objects]]\ntype = "box"\ncenter = [0, 0, 0.5]\n'
+                 'visible_camera = false\nvisible_shadow = false\nholdout = true\n')
+    scene, _ = load_scene(str(f))
+    m = scene.meshes[0]
+    assert not m.visible_camera and not m.visible_shadow and m.holdout and m.visible_diffuse
+    assert m.visibility == ALL_RAYS & ~CAMERA & ~SHADOW
+    f.write_text('[camera]\nposition = [0, -5, 2]\nlook_at = [0, 0, 0]\n'
+                 '[[objects]]\ntype = "box"\ncenter = [0, 0, 0.5]\nvisible_camera = "no"\n')
+    with pytest.raises(SceneFileError, match="visible_camera must be true or false"):
+        load_scene(str(f))
+
+
+def test_photons_from_diffuse_invisible_surface_are_not_stored():
+    """Without final gathering the floor reads the global photon map directly. Its only
+    indirect light is what a red wall bounces onto it; with the wall invisible to diffuse
+    rays that light is gone (Cycles: the floor's diffuse rays do not see the wall), so
+    the photons that left the wall must not be stored."""
+    def floor_indirect(flags):
+        s = PaperScene(width=24, height=24)
+        s.add_material(Material("white", (0.8, 0.8, 0.8)))
+        s.add_material(Material("red", (0.9, 0.05, 0.05)))
+        s.add_plane((0, 0, 0), (0, 0, 1), 4.0, "white", name="floor")
+        wall = s.add_plane((0, 0.6, 1.0), (0, -1, 0), (4.0, 2.0), "red", name="wall")
+        for k, v in flags.items():
+            setattr(wall, k, v)
+        s.add_point_light((0, -0.5, 1.5), power=200.0)
+        s.set_camera((0, -0.3, 4), (0, -0.3, 0), up=(0, 1, 0), view_angle=30)
+        film = s.render(RenderSettings(spp=4, photons=60_000, caustic_photons=0, seed=3,
+                                       final_gather=False))
+        floor = (film.depth > 3.9) & (film.depth < 10)  # the wall is nearer the camera
+        return film.indirect[floor].reshape(-1, 3).mean(axis=0)
+    seen = floor_indirect({})
+    assert seen[0] > 1.3 * seen[1] and seen[0] > 0.01
+    hidden = floor_indirect({"visible_diffuse": False})
+    assert hidden.max() < 0.01 * seen[0], (hidden, seen)
