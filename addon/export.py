@@ -122,7 +122,7 @@ def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
 # --- lights -------------------------------------------------------------------------
 
 def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
-    """Blender light object -> engine Light with Cycles' units (DESIGN.md section 3)."""
+    """Blender light object -> engine Light with Cycles' units (docs/design.md, Units (Cycles))."""
     L = obj.data
     kind = L.type
     if kind not in ("POINT", "SPOT", "AREA", "SUN"):

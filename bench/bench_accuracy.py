@@ -147,7 +147,8 @@ def write_report(rows, ref_secs, args, suffix="", title=None):
         "",
         f"Scene: {scene_text}, {args.width}x{args.height}, 2 cores. "
         f"Reference: Cycles {args.ref_samples} spp ({ref_secs:.0f} s), box filter, no "
-        "denoising or clamping. relMSE and mean HDR-FLIP (DESIGN.md §7); lower is better. "
+        "denoising or clamping. relMSE and mean HDR-FLIP (docs/design.md, Measuring "
+        "accuracy); lower is better. "
         "Cycles rows are Cycles itself at fewer samples, timed on the same machine.",
         "",
         f"Regenerate: `.venv/bin/python {command}`.",

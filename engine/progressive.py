@@ -3,8 +3,9 @@
 Every pass is an independent render with fresh photons (a new seed) and a few camera
 samples per pixel. The photon search area shrinks pass by pass as in Knaus & Zwicker 2011
 ("Progressive photon mapping: a probabilistic approach"): r_i^2 ~ i^(alpha - 1) with
-alpha = 2/3, the same schedule as SPPM (DESIGN.md §2) but memoryless: no per-pixel
-statistics, each pass stands alone, which fits the wavefront passes we already have.
+alpha = 2/3, the same schedule as SPPM (docs/design.md, Photon mapping model) but
+memoryless: no per-pixel statistics, each pass stands alone, which fits the wavefront
+passes we already have.
 We shrink the area through the number of neighbours of the k-NN estimate,
 
     k_i = max(K_MIN, k_1 * i^(alpha - 1))
@@ -64,7 +65,8 @@ class Budget:
 
 
 def relmse(x: np.ndarray, ref: np.ndarray) -> float:
-    """DESIGN.md §7: mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01)."""
+    """Mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01) (docs/design.md,
+    Measuring accuracy)."""
     return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
 
 
