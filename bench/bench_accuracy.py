@@ -28,7 +28,7 @@ sys.path.insert(0, ROOT)
 
 from engine import RenderSettings, render  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
-from engine.imageio import to_8bit  # noqa: E402
+from engine.imageio import replacing, to_8bit  # noqa: E402
 from engine.presets import MEASURED_FILE, PRESETS  # noqa: E402
 from engine.progressive import Budget, relmse, render_progressive  # noqa: E402
 
@@ -186,7 +186,8 @@ def write_plot(rows, args, suffix="", title=None):
         ax.legend()
     fig.suptitle(f"{title or 'Figure 6 box'} {args.width}x{args.height}: error vs time (2 cores)")
     fig.tight_layout()
-    fig.savefig(os.path.join(DOCS, f"accuracy_time{suffix}.png"), dpi=90)
+    with replacing(os.path.join(DOCS, f"accuracy_time{suffix}.png")) as tmp:
+        fig.savefig(tmp, dpi=90)
     plt.close(fig)
 
 
@@ -197,8 +198,8 @@ def write_strip(strip, ref):
     top = np.concatenate([to_8bit(hits) for _, hits, _ in strip], axis=1)
     bottom = np.concatenate([to_8bit(img) for _, _, img in strip], axis=1)
     from PIL import Image
-    Image.fromarray(np.concatenate([top, bottom], axis=0)).save(
-        os.path.join(DOCS, "figure6_ladder.png"))
+    with replacing(os.path.join(DOCS, "figure6_ladder.png")) as tmp:
+        Image.fromarray(np.concatenate([top, bottom], axis=0)).save(tmp)
 
 
 if __name__ == "__main__":
