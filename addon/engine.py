@@ -110,7 +110,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             last_render.update(cancelled=True, error="interrupted")
             self._fail(msg, "cancelled")
         except Exception as exc:  # noqa: BLE001 - never a traceback dialog
-            traceback.print_exc()
+            if not _expected(exc):
+                traceback.print_exc()
             msg = _user_message(exc)
             last_render.update(error=msg)
             self._fail(msg, f"error: {msg}")
@@ -158,6 +159,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             return
 
         settings = pm.RenderSettings(**props.to_settings_kwargs(render.film_transparent))
+        # Refuse what cannot fit before anything big is allocated (Blender's render result
+        # included); raises ResourceError with the setting and the estimate.
+        pm.resources.check_resources(pm_scene, settings, region, progressive=props.progressive,
+                                     in_blender=True)
 
         def progress(stage, fraction, text):
             self._progress(_overall_fraction(stage, fraction, settings.photon_mapping))
@@ -288,6 +293,12 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.end_result(result)
 
 
+def _expected(exc: Exception) -> bool:
+    """Refusals with a complete message of their own: no traceback in the console."""
+    return (isinstance(exc, export.ExportError)
+            or type(exc).__name__ in ("SceneError", "ResourceError"))
+
+
 def _user_message(exc: Exception) -> str:
     name = type(exc).__name__
     if isinstance(exc, ModuleNotFoundError):
@@ -297,6 +308,8 @@ def _user_message(exc: Exception) -> str:
         return f"Photon Mapping: {exc}"
     if name == "SceneError":
         return f"Photon Mapping: the scene cannot be rendered: {exc}"
+    if name == "ResourceError":
+        return f"Photon Mapping: not rendered: {exc}"
     if isinstance(exc, MemoryError):
         return ("Photon Mapping ran out of memory: lower the photon counts, samples or "
                 "resolution")

@@ -163,6 +163,11 @@ def _render(args) -> int:
     if args.show_photons:
         overrides["show_photons"] = True
     settings = RenderSettings(**overrides)
+    progressive = args.progressive or any(v is not None for v in (args.passes, args.time_limit,
+                                                                   args.target_error))
+    from .resources import check_resources
+    scene.validate()
+    check_resources(scene, settings, progressive=progressive)  # before the progress bar
 
     bar = None
     if not args.quiet:
@@ -179,8 +184,6 @@ def _render(args) -> int:
             bar.n = int(1000 * fraction)
             bar.refresh()
 
-    progressive = args.progressive or any(v is not None for v in (args.passes, args.time_limit,
-                                                                   args.target_error))
     interrupt = _Interrupt()
     should_cancel = (lambda: interrupt.requested)
     try:

@@ -38,6 +38,7 @@ import numpy as np
 
 from .film import EFFECTS, Film
 from .render import _check_region, prepare_context, render_pass
+from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -92,8 +93,10 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     budget = budget or Budget()
     max_passes = budget.passes or (None if (budget.seconds or budget.target_error) else DEFAULT_MAX_PASSES)
     t_start = time.perf_counter()
-    ctx = prepare_context(scene, settings)
+    scene.validate()
     region = _check_region(region, scene.width, scene.height)
+    check_resources(scene, settings, region, progressive=True)
+    ctx = prepare_context(scene, settings)
     w, h = region[2] - region[0], region[3] - region[1]
     sums = {name: np.zeros((h, w, 3)) for name in EFFECTS}
     halves = [np.zeros((h, w, 3)), np.zeros((h, w, 3))]

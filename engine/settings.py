@@ -7,6 +7,17 @@ from dataclasses import dataclass, fields
 ESTIMATORS = ("knn_simpson", "knn_cone", "classic", "radius")
 EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
 
+# Hard upper limits, Blender's own where it has them: Cycles' samples <= 65536 and the
+# add-on's light samples <= 256; photon counts fit Blender's 32-bit int properties (and
+# no product of them overflows int64); bounces as Cycles' max_bounces (1024). Memory is
+# checked separately, against the machine, before a render (engine/resources.py).
+LIMITS = {
+    "photons": 2**31 - 1, "caustic_photons": 2**31 - 1, "max_photon_depth": 1024,
+    "min_photons": 10_000, "k_nearest": 10_000, "gather_rays": 256, "spp": 65536,
+    "max_depth": 1024, "light_samples": 256, "seed": 2**63 - 1, "workers": 1024,
+    "chunk_size": 1 << 24,
+}
+
 
 @dataclass
 class RenderSettings:
@@ -44,11 +55,17 @@ class RenderSettings:
     def __post_init__(self):
         def positive_int(name, lo=0):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int,)) and not float(v).is_integer():
+            try:
+                whole = not isinstance(v, bool) and (isinstance(v, int) or float(v).is_integer())
+            except (TypeError, ValueError, OverflowError):
+                whole = False
+            if not whole:
                 raise ValueError(f"setting '{name}' must be a whole number, got {v!r}")
             v = int(v)
             if v < lo:
                 raise ValueError(f"setting '{name}' must be >= {lo}, got {v}")
+            if v > LIMITS[name]:
+                raise ValueError(f"setting '{name}' must be <= {LIMITS[name]:,}, got {v:,}")
             setattr(self, name, v)
 
         for name, lo in (("photons", 0), ("caustic_photons", 0), ("max_photon_depth", 1),
