@@ -27,6 +27,16 @@ def _positive_int(text):
     return v
 
 
+def _finite_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got '{text}'") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return v
+
+
 def _positive_float(text):
     try:
         v = float(text)
@@ -81,7 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="draw photon hits over the image (paper Fig. 6, left)")
     r.add_argument("--save-passes", action="store_true",
                    help="also write each effect pass next to the output (name.direct.png ...)")
-    r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for PNG/PPM")
+    r.add_argument("--exposure", type=_finite_float, default=0.0,
+                   help="exposure in stops for PNG/PPM")
     r.add_argument("--keep-partial", action="store_true",
                    help="on Ctrl-C, write the part of the image finished so far (marked "
                         "partial in its metadata) instead of leaving the output untouched")

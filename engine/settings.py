@@ -1,8 +1,11 @@
 """Render settings: the paper's parameters keep their names and meaning."""
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, fields
+
+import numpy as np
 
 ESTIMATORS = ("knn_simpson", "knn_cone", "classic", "radius")
 EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
@@ -73,6 +76,12 @@ class RenderSettings:
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
                          ("gather_rays", 1)):
             positive_int(name, lo)
+        for name in ("final_gather", "photon_mapping", "aim_caustics", "show_photons",
+                     "film_transparent"):
+            v = getattr(self, name)
+            if not isinstance(v, (bool, np.bool_)):  # "no" is a true string
+                raise ValueError(f"setting '{name}' must be true or false, got {v!r}")
+            setattr(self, name, bool(v))
         for name in EFFECT_SWITCHES:
             v = getattr(self, name)
             if isinstance(v, bool) or v is None:
@@ -81,12 +90,14 @@ class RenderSettings:
             if v not in ("auto", "on", "off"):
                 raise ValueError(f"setting '{name}' must be auto, on or off, got {v!r}")
             setattr(self, name, v)
-        if self.estimator not in ESTIMATORS:
+        if not isinstance(self.estimator, str) or self.estimator not in ESTIMATORS:
             raise ValueError(f"setting 'estimator' must be one of {', '.join(ESTIMATORS)}, "
                              f"got {self.estimator!r}")
         if self.radius is not None:
-            r = float(self.radius)
-            if not (r > 0 and r < float("inf")):
+            ok = isinstance(self.radius, (int, float, np.floating, np.integer)) \
+                and not isinstance(self.radius, bool)
+            r = float(self.radius) if ok else float("nan")
+            if not (r > 0 and math.isfinite(r)):
                 raise ValueError(f"setting 'radius' must be a positive number or None (auto), "
                                  f"got {self.radius!r}")
             self.radius = r
