@@ -39,6 +39,15 @@ class Watched:
             time.sleep(0.05)
         return False
 
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        if self.proc.poll() is None:  # a failed assertion must not leave it running
+            self.proc.kill()
+            self.proc.wait()
+        return False
+
     def finish(self, timeout=120.0) -> int:
         try:
             rc = self.proc.wait(timeout)

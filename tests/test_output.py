@@ -121,13 +121,13 @@ def _interrupted_cli(tmp_path, *extra):
     assert "0.2, 0.2, 0.2" in text
     scene = tmp_path / "grey.toml"
     scene.write_text(text, encoding="utf-8")
-    w = Watched([sys.executable, "-m", "engine.cli", "render", str(scene), "-o", str(target),
-                 "--width", "160", "--height", "120", "--spp", "256", "--photons", "20000",
-                 "--caustic-photons", "10000", *extra], cwd=ROOT)
-    # Interrupt once some of the camera pass is finished (the bar shows 'Rendering N%').
-    assert w.wait_for(r"Rendering [1-9]\d?%"), w.stderr[-2000:]
-    w.proc.send_signal(signal.SIGINT)
-    return target, w.finish(), w.stderr
+    with Watched([sys.executable, "-m", "engine.cli", "render", str(scene), "-o", str(target),
+                  "--width", "160", "--height", "120", "--spp", "256", "--photons", "20000",
+                  "--caustic-photons", "10000", *extra], cwd=ROOT) as w:
+        # Interrupt once some of the camera pass is finished (the bar shows 'Rendering N%').
+        assert w.wait_for(r"Rendering [1-9]\d?%"), w.stderr[-2000:]
+        w.proc.send_signal(signal.SIGINT)
+        return target, w.finish(), w.stderr
 
 
 def test_cli_ctrl_c_leaves_the_target_untouched(tmp_path):
@@ -153,3 +153,24 @@ def test_cli_ctrl_c_with_keep_partial_writes_the_finished_part_marked(tmp_path):
     # Finished pixels run row by row from the top: rows above `rows` are complete (no
     # black pixel), rows below it untouched (black).
     assert img[:rows].sum(axis=2).min() > 0 and img[rows + 1:].max() == 0
+
+
+def test_cli_ctrl_c_in_a_progressive_render_keeps_the_finished_passes(tmp_path):
+    from PIL import Image
+    target = tmp_path / "prog.png"
+    target.write_bytes(OLD)
+    with Watched([sys.executable, "-m", "engine.cli", "render", SCENE, "-o", str(target),
+                  "--width", "64", "--height", "48", "--spp", "2", "--photons", "20000",
+                  "--caustic-photons", "5000", "--passes", "500", "--keep-partial"],
+                 cwd=ROOT) as w:
+        assert w.wait_for(r"Pass 3: "), w.stderr[-2000:]  # passes 1 and 2 are finished
+        w.proc.send_signal(signal.SIGINT)
+        rc = w.finish()
+    assert rc == 130, w.stderr[-2000:]
+    with Image.open(target) as im:
+        note = im.text.get("photonmap:partial", "")
+        img = np.asarray(im.convert("RGB"))
+    assert note.startswith("interrupted: ") and "complete pass(es)" in note, note
+    passes = int(note.split()[1])
+    assert 2 <= passes < 500
+    assert img.max() > 0  # the average of the finished passes, not a black frame

@@ -50,12 +50,12 @@ def test_batch_quiet_prints_no_bar(tmp_path):
 def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path):
     out = tmp_path / "f6.png"
     out.write_bytes(OLD)
-    w = Watched([PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure6_box.blend"),
-                 "-o", str(out), "--samples", "256", "--resolution-percentage", "25"],
-                cwd=ROOT)
-    assert w.wait_for(r"Tracing|Rendering"), w.stderr[-2000:]
-    w.proc.send_signal(signal.SIGINT)
-    rc = w.finish()
+    with Watched([PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure6_box.blend"),
+                  "-o", str(out), "--samples", "256", "--resolution-percentage", "25"],
+                 cwd=ROOT) as w:
+        assert w.wait_for(r"Tracing|Rendering"), w.stderr[-2000:]
+        w.proc.send_signal(signal.SIGINT)
+        rc = w.finish()
     err = w.stderr
     assert rc == 130, err[-3000:]
     assert out.read_bytes() == OLD
