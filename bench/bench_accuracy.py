@@ -64,10 +64,10 @@ def reference(scene, samples):
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import cycles_scene
     img, secs = cycles_scene.render(scene, samples)
+    with open(path + ".json", "w") as f:  # first: the .npy marks a complete cache entry
+        json.dump({"seconds": secs, "samples": samples}, f)
     with replacing(path) as tmp:  # an interrupted run must not leave a truncated reference
         np.save(tmp, img.astype(np.float32))
-    with open(path + ".json", "w") as f:
-        json.dump({"seconds": secs, "samples": samples}, f)
     return img, secs
 
 
