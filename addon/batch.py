@@ -23,6 +23,7 @@ import argparse
 import os
 import signal
 import sys
+import threading
 import time
 
 FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
@@ -102,11 +103,14 @@ class _Interrupt:
               file=self.stream, flush=True)
 
     def __enter__(self):
-        self._previous = signal.signal(signal.SIGINT, self._handler)
+        if threading.current_thread() is threading.main_thread():  # signals: main only
+            self._previous = signal.signal(signal.SIGINT, self._handler)
         return self
 
     def __exit__(self, *exc):
-        signal.signal(signal.SIGINT, self._previous)
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
         return False
 
 
