@@ -18,7 +18,6 @@ venv: $(VENV)/.stamp
 # Main job: render an example .blend through the Blender add-on to a PNG.
 render: venv
 	$(PY) -m addon.batch example_blends/figure6_box.blend -o $(OUT)/figure6_box.png
-	@echo "wrote $(OUT)/figure6_box.png"
 
 # Default test run (fast); slow reference renders are marked and run by test-all.
 test: venv

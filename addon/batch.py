@@ -5,15 +5,25 @@
         [--no-photon-mapping] [--show-photons] [--seed S] [--frame F]
 
 The equivalent of `blender --background FILE.blend -E PHOTONMAP -o out -f 1`: opens the
-file, registers the add-on, selects the engine, renders with write_still. The output
-format follows the file extension (.png, .exr, .jpg, .tif). Errors are reported in one
-line on stderr with a non-zero exit status.
+file, registers the add-on, selects the engine and renders. The output format follows the
+file extension (.png, .exr, .jpg, .tif). On stderr: the render's phase and a progress bar
+with ETA (the bpy module prints no stats line of its own, so the engine's status is read
+from addon.engine.status_listeners), then the effect report, as the CLI shows them.
+
+Output integrity: the output path is checked for writability before the file is opened;
+the image is saved only after a complete render, to a temporary file beside the target
+that then replaces it (os.replace). A render that fails, or is interrupted (Ctrl-C /
+SIGINT: the render is cancelled at its next poll), writes nothing and leaves an existing
+file as it was. Errors are one line on stderr; exit status 1 for errors, 130 when
+interrupted.
 """
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 import time
 
 FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
@@ -22,6 +32,86 @@ FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
 
 class BatchError(Exception):
     pass
+
+
+class BatchInterrupted(BatchError):
+    pass
+
+
+class _StatusPrinter:
+    """Listener for addon.engine.status_listeners: a tqdm bar on stderr with the phase,
+    the fraction of the whole render and the ETA, then the effect report and warnings."""
+
+    def __init__(self, quiet=False, stream=None):
+        self.quiet = quiet
+        self.stream = stream or sys.stderr
+        self.bar = None
+        self.status = None  # the engine's "finished" value
+        self.effects = []
+        self.warnings = []
+
+    def _ensure_bar(self):
+        if self.bar is None and not self.quiet:
+            from tqdm import tqdm
+            self.bar = tqdm(total=1000, desc="Starting", file=self.stream, unit="",
+                            bar_format="{desc:<40.40}{bar}| {percentage:3.0f}% "
+                                       "[{elapsed}<{remaining}]")
+        return self.bar
+
+    def __call__(self, event, value):
+        if event == "finished":
+            self.status = value
+        elif event == "effects":
+            self.effects = list(value)
+        elif event == "warning":
+            self.warnings.append(str(value))
+        elif not self.quiet:
+            bar = self._ensure_bar()
+            if event == "stats":
+                bar.set_description_str(str(value), refresh=True)
+            elif event == "progress":
+                n = int(round(1000 * min(max(float(value), 0.0), 1.0)))
+                if n > bar.n:
+                    bar.update(n - bar.n)  # update(), not n =: tqdm's ETA follows the rate
+
+    def close(self):
+        """Close the bar, then print the warnings and the effect report under it."""
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+        if not self.quiet:
+            for w in self.warnings:
+                print(f"warning: {w}", file=self.stream)
+            for line in self.effects:
+                print(f"  {line}", file=self.stream)
+
+
+class _Interrupt:
+    """The first SIGINT only asks the render to cancel (polled through the engine's
+    test_break_hook); a second one raises KeyboardInterrupt at once."""
+
+    def __init__(self, stream=None):
+        self.requested = False
+        self.stream = stream or sys.stderr
+        self._previous = None
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+        print("\ninterrupt: cancelling the render (Ctrl-C again to stop at once)",
+              file=self.stream, flush=True)
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():  # signals: main only
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+        return False
 
 
 def parse_args(argv):
@@ -42,7 +132,8 @@ def parse_args(argv):
                    help="plain ray tracing (direct light only)")
     p.add_argument("--show-photons", action="store_true", help="draw photon hits")
     p.add_argument("--frame", type=int, help="frame to render")
-    p.add_argument("--quiet", action="store_true", help="less Blender output")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar or effect report")
     return p.parse_args(argv)
 
 
@@ -67,16 +158,21 @@ def render_file(args) -> str:
     _positive("max-depth", args.max_depth, 0)
     _positive("seed", args.seed, 0)
     _positive("threads", args.threads, 0)
-    os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    if root not in sys.path:
+        sys.path.insert(0, root)
+    from engine.imageio import check_writable, replacing
+    try:
+        check_writable(out)  # before the render, not after it
+    except OSError as exc:
+        raise BatchError(str(exc)) from None
 
     try:
         import bpy
     except ImportError as exc:
         raise BatchError(f"cannot import bpy (Blender as a Python module): {exc}") from None
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    if root not in sys.path:
-        sys.path.insert(0, root)
     import addon
+    from addon import engine
     from addon.engine import ENGINE_ID
     if not hasattr(bpy.types.Scene, "photonmap"):
         addon.register()
@@ -108,14 +204,42 @@ def render_file(args) -> str:
     r.use_file_extension = False
     if scene.camera is None:
         raise BatchError(f"{args.blend}: the scene has no active camera")
+    # write_still=True would save whatever the render result holds, also after an error
+    # or a cancel (an all-black frame over a good one): save it here, only when complete.
+    printer = _StatusPrinter(quiet=args.quiet)
+    previous_hook = engine.test_break_hook
+    interrupt = _Interrupt()
+    engine.test_break_hook = lambda: interrupt.requested or bool(previous_hook and previous_hook())
+    engine.status_listeners.append(printer)
     try:
-        bpy.ops.render.render(write_still=True)
+        with interrupt:
+            bpy.ops.render.render(write_still=False)
     except RuntimeError as exc:
         msg = " ".join(str(exc).replace("Error:", "").split())
-        raise BatchError(f"render failed: {msg}") from None
-    if not os.path.isfile(out):
-        raise BatchError(f"render finished but {out} was not written")
+        raise BatchError(f"render failed: {msg}; {_untouched(out)}") from None
+    finally:
+        engine.status_listeners.remove(printer)
+        engine.test_break_hook = previous_hook
+        printer.close()
+    status = printer.status
+    if interrupt.requested and status != "done":
+        raise BatchInterrupted(f"interrupted: render cancelled; {_untouched(out)}")
+    if status is None or status.startswith("error"):
+        msg = engine.last_render.get("error") or "the engine did not render the scene"
+        raise BatchError(f"render failed: {msg}; {_untouched(out)}")
+    if status == "cancelled":
+        raise BatchInterrupted(f"render cancelled; {_untouched(out)}")
+    try:
+        with replacing(out) as tmp:
+            bpy.data.images["Render Result"].save_render(filepath=tmp, scene=scene)
+    except (OSError, RuntimeError) as exc:
+        raise BatchError(f"cannot write {out}: {str(exc).strip()}; "
+                         f"{_untouched(out)}") from None
     return out
+
+
+def _untouched(out):
+    return f"{out} left as it was" if os.path.exists(out) else f"{out} not written"
 
 
 def main(argv=None) -> int:
@@ -123,6 +247,13 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     try:
         out = render_file(args)
+    except BatchInterrupted as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"error: interrupted; {_untouched(os.path.abspath(args.output))}",
+              file=sys.stderr)
+        return 130
     except BatchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1

@@ -27,9 +27,16 @@ BACKGROUND_DEPTH = 1e10  # what Cycles writes for "nothing hit"
 # Test hook: a callable polled together with RenderEngine.test_break() (Esc). Headless
 # Blender cannot press Esc, so tests set this to simulate it. None in normal use.
 test_break_hook = None
-# Summary of the most recent render in this process (size, region, stats, warnings):
-# for tests and scripts; the image itself is in Blender's render result.
+# Summary of the most recent render in this process (size, region, stats, warnings, and
+# 'error' when it failed): for tests and scripts; the image is in Blender's render result.
 last_render: dict = {}
+# Callables listener(event, value) told what Blender's stats line and progress bar show,
+# for scripts that run through the bpy module, which prints neither (addon/batch.py draws
+# its progress bar from them). Events: ("stats", text), ("progress", fraction 0..1 of the
+# whole render), ("effects", [lines]), ("warning", text), ("finished", "done" |
+# "cancelled" | "error: <message>"). Called on Blender's main thread; a listener that
+# raises is dropped from this render with a printed traceback, never stops the render.
+status_listeners: list = []
 
 
 def _overall_fraction(stage: str, fraction: float, photon_mapping: bool) -> float:
@@ -53,6 +60,24 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self._last_stats = 0.0
+        self._listeners = []
+
+    # --- status: Blender's stats line / progress bar, and the script listeners ---------
+    def _emit(self, event, value):
+        for listener in list(self._listeners):
+            try:
+                listener(event, value)
+            except Exception:  # noqa: BLE001 - a broken listener must not stop the render
+                traceback.print_exc()
+                self._listeners.remove(listener)
+
+    def _stats(self, text):
+        self.update_stats("", text)
+        self._emit("stats", text)
+
+    def _progress(self, fraction):
+        self.update_progress(fraction)
+        self._emit("progress", fraction)
 
     # --- passes ---------------------------------------------------------------------
     def update_render_passes(self, scene=None, renderlayer=None):
@@ -74,16 +99,32 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
 
     # --- render ---------------------------------------------------------------------
     def render(self, depsgraph):
+        self._listeners = list(status_listeners)
+        last_render.clear()
         try:
             self._render(depsgraph)
+        except KeyboardInterrupt:
+            # Ctrl-C in a script or terminal: a cancel, not a crash; the caller decides
+            # what to keep (addon/batch.py keeps the old file).
+            msg = "Photon Mapping: render interrupted"
+            last_render.update(cancelled=True, error="interrupted")
+            self._fail(msg, "cancelled")
         except Exception as exc:  # noqa: BLE001 - never a traceback dialog
-            traceback.print_exc()
+            if not _expected(exc):
+                traceback.print_exc()
             msg = _user_message(exc)
-            self.report({"ERROR"}, msg)
-            try:
-                self.error_set(msg)
-            except Exception:  # noqa: BLE001 - older Blender
-                pass
+            last_render.update(error=msg)
+            self._fail(msg, f"error: {msg}")
+        finally:
+            self._listeners = []
+
+    def _fail(self, msg, status):
+        self.report({"ERROR"}, msg)
+        try:
+            self.error_set(msg)
+        except Exception:  # noqa: BLE001 - older Blender
+            pass
+        self._emit("finished", status)
 
     def _should_cancel(self) -> bool:
         if self.test_break():
@@ -96,15 +137,15 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         props = scene.photonmap
         render = scene.render
         view_layer = depsgraph.view_layer
-        self.update_stats("", "Loading engine")
+        self._stats("Loading engine")
         pm = load_engine()
 
         width, height = export.render_size(render)
         region = export.border_region(render, width, height)
 
         def export_progress(done, total):
-            self.update_stats("", f"Exporting {done}/{total} objects")
-            self.update_progress(_overall_fraction("export", done / max(total, 1), True))
+            self._stats(f"Exporting {done}/{total} objects")
+            self._progress(_overall_fraction("export", done / max(total, 1), True))
 
         try:
             pm_scene, info = export.export_scene(
@@ -114,16 +155,21 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             last_render.clear()
             last_render.update(cancelled=True, stats={"cancelled": True}, warnings=[])
             self.report({"INFO"}, "Photon Mapping: render cancelled during export")
+            self._emit("finished", "cancelled")
             return
 
         settings = pm.RenderSettings(**props.to_settings_kwargs(render.film_transparent))
+        # Refuse what cannot fit before anything big is allocated (Blender's render result
+        # included); raises ResourceError with the setting and the estimate.
+        pm.resources.check_resources(pm_scene, settings, region, progressive=props.progressive,
+                                     in_blender=True)
 
         def progress(stage, fraction, text):
-            self.update_progress(_overall_fraction(stage, fraction, settings.photon_mapping))
+            self._progress(_overall_fraction(stage, fraction, settings.photon_mapping))
             now = time.perf_counter()
             if now - self._last_stats > 0.1 or fraction >= 1.0:
                 self._last_stats = now
-                self.update_stats("", text)
+                self._stats(text)
 
         t0 = time.perf_counter()
         if props.progressive:
@@ -139,10 +185,15 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         last_render.update(width=film.width, height=film.height, full_size=(width, height),
                            region=region, stats=dict(film.stats), warnings=list(film.warnings),
                            export=dict(info), cancelled=cancelled, time=elapsed)
-        self.update_progress(1.0)
-        for line in film.stats.get("effects", []) or []:
-            print(f"Photon Mapping: {line}")  # why each effect is on or off
+        self._progress(1.0)
+        effects = list(film.stats.get("effects", []) or [])
+        self._emit("effects", effects)
+        if not self._listeners:  # a listener prints them itself
+            for line in effects:
+                print(f"Photon Mapping: {line}")  # why each effect is on or off
         warnings = list(film.warnings)
+        for w in warnings:
+            self._emit("warning", w)
         for w in warnings[:MAX_REPORTED_WARNINGS]:
             self.report({"WARNING"}, f"Photon Mapping: {w}")
         if len(warnings) > MAX_REPORTED_WARNINGS:
@@ -154,9 +205,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                    f"{elapsed:.1f} s")
         if cancelled:
             self.report({"INFO"}, f"Photon Mapping: render cancelled ({summary})")
-            self.update_stats("", "Cancelled")
+            self._stats("Cancelled")
         else:
-            self.update_stats("", f"Done: {summary}")
+            self._stats(f"Done: {summary}")
+        self._emit("finished", "cancelled" if cancelled else "done")
 
     def _render_progressive(self, pm, pm_scene, settings, props, progress, region, view_layer,
                             transparent):
@@ -169,14 +221,14 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             now = time.perf_counter()
             if now - self._last_stats > 0.1:
                 self._last_stats = now
-                self.update_stats("", text)
+                self._stats(text)
 
         def on_pass(film, info):
             self._write_result(film, view_layer, transparent)
             err = info["error_estimate"]
             err_text = f"error ~{err:.4f}" if err == err else "error: after pass 2"
-            self.update_stats("", f"Pass {info['passes']} | {info['photons'] / 1e6:.2f} M photons"
-                                  f" | {info['elapsed']:.1f} s | {err_text}")
+            self._stats(f"Pass {info['passes']} | {info['photons'] / 1e6:.2f} M photons"
+                        f" | {info['elapsed']:.1f} s | {err_text}")
             done = []
             if budget.passes:
                 done.append(info["passes"] / budget.passes)
@@ -186,7 +238,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 done.append(min(1.0, budget.target_error / max(err, 1e-12)))
             if not done:
                 done.append(info["passes"] / pm.progressive.DEFAULT_MAX_PASSES)
-            self.update_progress(min(1.0, max(done)))
+            self._progress(min(1.0, max(done)))
 
         return pm.render_progressive(pm_scene, settings, budget, progress=pass_progress,
                                      should_cancel=self._should_cancel, on_pass=on_pass,
@@ -242,6 +294,12 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.end_result(result)
 
 
+def _expected(exc: Exception) -> bool:
+    """Refusals with a complete message of their own: no traceback in the console."""
+    return (isinstance(exc, export.ExportError)
+            or type(exc).__name__ in ("SceneError", "ResourceError"))
+
+
 def _user_message(exc: Exception) -> str:
     name = type(exc).__name__
     if isinstance(exc, ModuleNotFoundError):
@@ -251,6 +309,8 @@ def _user_message(exc: Exception) -> str:
         return f"Photon Mapping: {exc}"
     if name == "SceneError":
         return f"Photon Mapping: the scene cannot be rendered: {exc}"
+    if name == "ResourceError":
+        return f"Photon Mapping: not rendered: {exc}"
     if isinstance(exc, MemoryError):
         return ("Photon Mapping ran out of memory: lower the photon counts, samples or "
                 "resolution")

@@ -69,11 +69,11 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
                     "half-images) falls below this (0 = no target)")
     # Pass 1: photons
     photons: IntProperty(
-        name="Photons", default=400_000, min=0, soft_max=5_000_000,
+        name="Photons", default=400_000, min=0, soft_max=5_000_000, max=2**31 - 1,
         description="Photons emitted for the global photon map (shared by all lights in "
                     "proportion to their power)")
     caustic_photons: IntProperty(
-        name="Caustic Photons", default=200_000, min=0, soft_max=5_000_000,
+        name="Caustic Photons", default=200_000, min=0, soft_max=5_000_000, max=2**31 - 1,
         description="Photons emitted towards glass and mirrors for the caustic map")
     max_photon_depth: IntProperty(
         name="Max Photon Depth", default=32, min=1, max=1000,

@@ -28,7 +28,7 @@ sys.path.insert(0, ROOT)
 
 from engine import RenderSettings, render  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
-from engine.imageio import to_8bit  # noqa: E402
+from engine.imageio import replacing, to_8bit  # noqa: E402
 from engine.presets import MEASURED_FILE, PRESETS  # noqa: E402
 from engine.progressive import Budget, relmse, render_progressive  # noqa: E402
 
@@ -64,8 +64,10 @@ def reference(scene, samples):
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import cycles_scene
     img, secs = cycles_scene.render(scene, samples)
-    np.save(path, img.astype(np.float32))
-    json.dump({"seconds": secs, "samples": samples}, open(path + ".json", "w"))
+    with open(path + ".json", "w") as f:  # first: the .npy marks a complete cache entry
+        json.dump({"seconds": secs, "samples": samples}, f)
+    with replacing(path) as tmp:  # an interrupted run must not leave a truncated reference
+        np.save(tmp, img.astype(np.float32))
     return img, secs
 
 
@@ -147,7 +149,8 @@ def write_report(rows, ref_secs, args, suffix="", title=None):
         "",
         f"Scene: {scene_text}, {args.width}x{args.height}, 2 cores. "
         f"Reference: Cycles {args.ref_samples} spp ({ref_secs:.0f} s), box filter, no "
-        "denoising or clamping. relMSE and mean HDR-FLIP (DESIGN.md §7); lower is better. "
+        "denoising or clamping. relMSE and mean HDR-FLIP (docs/design.md, Measuring "
+        "accuracy); lower is better. "
         "Cycles rows are Cycles itself at fewer samples, timed on the same machine.",
         "",
         f"Regenerate: `.venv/bin/python {command}`.",
@@ -185,7 +188,8 @@ def write_plot(rows, args, suffix="", title=None):
         ax.legend()
     fig.suptitle(f"{title or 'Figure 6 box'} {args.width}x{args.height}: error vs time (2 cores)")
     fig.tight_layout()
-    fig.savefig(os.path.join(DOCS, f"accuracy_time{suffix}.png"), dpi=90)
+    with replacing(os.path.join(DOCS, f"accuracy_time{suffix}.png")) as tmp:
+        fig.savefig(tmp, dpi=90)
     plt.close(fig)
 
 
@@ -196,8 +200,8 @@ def write_strip(strip, ref):
     top = np.concatenate([to_8bit(hits) for _, hits, _ in strip], axis=1)
     bottom = np.concatenate([to_8bit(img) for _, _, img in strip], axis=1)
     from PIL import Image
-    Image.fromarray(np.concatenate([top, bottom], axis=0)).save(
-        os.path.join(DOCS, "figure6_ladder.png"))
+    with replacing(os.path.join(DOCS, "figure6_ladder.png")) as tmp:
+        Image.fromarray(np.concatenate([top, bottom], axis=0)).save(tmp)
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@
 For every scene with a stored reference (tests/references/, made by
 tools/make_references.py) renders our engine through the add-on at its default settings and
 the reference's resolution, and scores it against the Cycles reference: brightness ratio
-(mean ours / mean Cycles), relMSE, mean HDR-FLIP (DESIGN.md §7). Cycles at 256 spp is
+(mean ours / mean Cycles), relMSE, mean HDR-FLIP (docs/design.md, Measuring accuracy). Cycles at 256 spp is
 scored the same way (from references.json, or re-rendered with --rerender-cycles) for the
 "no worse than Cycles at 256 samples" comparison. Strips: ours | Cycles | FLIP error map.
 """

@@ -23,6 +23,7 @@ from engine import RenderSettings  # noqa: E402
 from engine.accel import Accel  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
 from engine.effects import analyse  # noqa: E402
+from engine.imageio import replacing  # noqa: E402
 from engine.film import Film  # noqa: E402
 from engine.integrator import render_camera  # noqa: E402
 from engine.lights import allocate_photons  # noqa: E402
@@ -148,7 +149,8 @@ def main(argv=None):
         ax.set_xlabel("seconds")
         ax.set_title(f"Figure 6 box {args.width}x{args.height}")
         fig.tight_layout()
-        fig.savefig(args.plot, dpi=100)
+        with replacing(args.plot) as tmp:
+            fig.savefig(tmp, dpi=100)
     return rows
 
 

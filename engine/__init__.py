@@ -5,13 +5,14 @@ Pure Python on numpy, embreex and scipy; never imports bpy.
     from engine import render, RenderSettings
     from engine.api import PaperScene
 """
-from . import presets
+from . import presets, resources
 from .film import Film
 from .progressive import Budget, render_progressive
 from .render import render
+from .resources import ResourceError
 from .scene import Camera, Light, Material, Mesh, Scene, SceneError
 from .settings import RenderSettings
 
-__all__ = ["render", "render_progressive", "Budget", "presets", "RenderSettings", "Film", "Scene", "Mesh", "Material", "Light",
-           "Camera", "SceneError"]
+__all__ = ["render", "render_progressive", "Budget", "presets", "resources", "RenderSettings",
+           "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError"]
 __version__ = "0.1.0"

@@ -112,7 +112,8 @@ class Accel:
             return out
 
         def work(a, b):
-            # OCCLUDED must be called without output (DESIGN.md §4): 0 = blocked, -1 = clear.
+            # OCCLUDED must be called without output (docs/design.md, Embree (embreex)
+            # facts): 0 = blocked, -1 = clear.
             res = self._scene.run(o[a:b], d[a:b], dists=tf[a:b].copy(), query="OCCLUDED")
             out[a:b] = np.asarray(res) == 0
 

@@ -1,11 +1,18 @@
 """Command line: `photonmap render SCENE.toml -o out.png [options]`.
 
-Errors are one line naming the argument or file, with a non-zero exit status."""
+Errors are one line naming the argument or file, with a non-zero exit status. The output
+path is checked before the render starts, and the image replaces the target only once it
+is completely written (engine/imageio.py). Ctrl-C cancels the render: the target is left
+untouched (exit status 130), or with --keep-partial the finished part is written, marked
+partial in its metadata. A second Ctrl-C stops at once."""
 from __future__ import annotations
 
 import argparse
+import math
 import os
+import signal
 import sys
+import threading
 
 from .settings import ESTIMATORS, RenderSettings
 
@@ -17,6 +24,16 @@ def _positive_int(text):
         raise argparse.ArgumentTypeError(f"expected a whole number, got '{text}'") from None
     if v < 0:
         raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
+    return v
+
+
+def _finite_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got '{text}'") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
     return v
 
 
@@ -74,9 +91,38 @@ def build_parser() -> argparse.ArgumentParser:
                    help="draw photon hits over the image (paper Fig. 6, left)")
     r.add_argument("--save-passes", action="store_true",
                    help="also write each effect pass next to the output (name.direct.png ...)")
-    r.add_argument("--exposure", type=float, default=0.0, help="exposure in stops for PNG/PPM")
+    r.add_argument("--exposure", type=_finite_float, default=0.0,
+                   help="exposure in stops for PNG/PPM")
+    r.add_argument("--keep-partial", action="store_true",
+                   help="on Ctrl-C, write the part of the image finished so far (marked "
+                        "partial in its metadata) instead of leaving the output untouched")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
+
+
+class _Interrupt:
+    """While active, the first Ctrl-C (SIGINT) only sets `requested`, which the render
+    polls as its should_cancel; a second one raises KeyboardInterrupt at once."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def _handler(self, signum, frame):
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+        return False
 
 
 def main(argv=None) -> int:
@@ -102,6 +148,8 @@ def _render(args) -> int:
     if ext not in FORMATS:
         raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
                          f"(use {', '.join(FORMATS)})")
+    from .imageio import check_writable
+    check_writable(args.output)  # before the render, not after it
     scene, file_overrides = load_scene(args.scene)
     overrides = presets.apply(args.preset) if args.preset else {}
     overrides.update(file_overrides)
@@ -126,6 +174,11 @@ def _render(args) -> int:
     if args.show_photons:
         overrides["show_photons"] = True
     settings = RenderSettings(**overrides)
+    progressive = args.progressive or any(v is not None for v in (args.passes, args.time_limit,
+                                                                   args.target_error))
+    from .resources import check_resources
+    scene.validate()
+    check_resources(scene, settings, progressive=progressive)  # before the progress bar
 
     bar = None
     if not args.quiet:
@@ -133,14 +186,17 @@ def _render(args) -> int:
         bar = tqdm(total=1000, desc="Preparing", unit="", bar_format="{desc:<34}{bar}| {elapsed}",
                    file=sys.stderr)
 
+    where = {"stage": "preparing", "fraction": 0.0}
+
     def progress(stage, fraction, text):
+        where["stage"], where["fraction"] = stage, fraction
         if bar is not None:
             bar.set_description_str(text)
             bar.n = int(1000 * fraction)
             bar.refresh()
 
-    progressive = args.progressive or any(v is not None for v in (args.passes, args.time_limit,
-                                                                   args.target_error))
+    interrupt = _Interrupt()
+    should_cancel = (lambda: interrupt.requested)
     try:
         if progressive:
             budget = Budget(args.passes or None, args.time_limit, args.target_error)
@@ -150,12 +206,26 @@ def _render(args) -> int:
                     bar.write(f"pass {info['passes']}: {info['photons']:,} photons, "
                               f"{info['elapsed']:.1f} s, estimated relMSE "
                               f"{info['error_estimate']:.4f}")
-            film = render_progressive(scene, settings, budget, progress=progress, on_pass=on_pass)
+            with interrupt:
+                film = render_progressive(scene, settings, budget, progress=progress,
+                                          on_pass=on_pass, should_cancel=should_cancel)
         else:
-            film = render(scene, settings, progress=progress)
+            with interrupt:
+                film = render(scene, settings, progress=progress, should_cancel=should_cancel)
     finally:
         if bar is not None:
             bar.close()
+    partial = None
+    # A Ctrl-C that came after the last poll left a complete image: write it as usual.
+    if film.stats.get("cancelled"):
+        partial = _finished_part(film, progressive, where)
+        if not args.keep_partial or partial is None:
+            kept = ("nothing was finished to keep; " if args.keep_partial else "")
+            print(f"photonmap: interrupted while {_stage_text(where)}: {kept}"
+                  f"'{args.output}' left untouched"
+                  + ("" if args.keep_partial else " (--keep-partial writes the finished part)"),
+                  file=sys.stderr)
+            return 130
     for w in film.warnings:
         print(f"photonmap: warning: {w}", file=sys.stderr)
     if not args.quiet:
@@ -163,7 +233,13 @@ def _render(args) -> int:
             print(f"  {line}", file=sys.stderr)
     meta = {"photonmap:effects": "\n".join(film.stats.get("effects", [])),
             "photonmap:settings": repr(settings)}
+    if partial is not None:
+        meta["photonmap:partial"] = f"interrupted: {partial}"
     write_image(film.combined, args.output, args.exposure, metadata=meta)
+    if partial is not None:
+        print(f"photonmap: interrupted: wrote the partial image to '{args.output}' ({partial}; "
+              "marked 'photonmap:partial' in its metadata)", file=sys.stderr)
+        return 130
     if args.save_passes:
         root, ext = os.path.splitext(args.output)
         for name, img in film.passes().items():
@@ -175,6 +251,26 @@ def _render(args) -> int:
         print(f"wrote {args.output} ({scene.width}x{scene.height}, {settings.spp} spp, "
               f"{st.get('time_total', 0):.1f} s)", file=sys.stderr)
     return 0
+
+
+def _stage_text(where) -> str:
+    names = {"photons": "tracing photons", "photon_map": "building the photon map",
+             "render": "rendering"}
+    return f"{names.get(where['stage'], where['stage'])} ({100 * where['fraction']:.0f} %)"
+
+
+def _finished_part(film, progressive: bool, where) -> str | None:
+    """What of a cancelled render is finished, in words, or None if nothing is. Camera
+    samples run pixel by pixel from the top row (engine/integrator.py), so a camera pass
+    cancelled at fraction f has the top f of the image's pixels finished."""
+    if progressive:
+        passes = int(film.stats.get("passes", 0))
+        return f"{passes} complete pass(es)" if passes > 0 else None
+    if where["stage"] != "render" or where["fraction"] <= 0:
+        return None
+    rows = math.floor(where["fraction"] * film.height)
+    return (f"{100 * where['fraction']:.0f} % of the camera samples: the top {rows} of "
+            f"{film.height} rows")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """Scene preparation: all meshes merged into flat triangle tables, re-centred near the origin.
 
 Re-centring matters because Embree works in float32: at 1e5 m the spacing of float32 is
-~8 mm, so a scene far from the origin would show acne and leaks (DESIGN.md §4).
+~8 mm, so a scene far from the origin would show acne and leaks (docs/design.md, Embree
+(embreex) facts).
 """
 from __future__ import annotations
 

@@ -1,9 +1,16 @@
 """Image files: PNG (sRGB, via Pillow), OpenEXR (linear float, via OpenEXR), PPM (the
 paper's format, via Pillow). These libraries are needed only for writing files, so they
-are imported lazily: the Blender add-on never needs them."""
+are imported lazily: the Blender add-on never needs them.
+
+Every image is written to a temporary file in the target's folder and moved over the
+target with os.replace (`replacing`), so a failed write (disk full, `ulimit -f`, an
+exception, Ctrl-C) leaves the previous file as it was, never a truncated one. Callers
+check the output path with `check_writable` before a render starts."""
 from __future__ import annotations
 
+import contextlib
 import os
+import secrets
 
 import numpy as np
 
@@ -26,11 +33,80 @@ def to_8bit(rgb: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     return np.round(linear_to_srgb(scaled) * 255.0).astype(np.uint8)
 
 
+def check_writable(path: str) -> str:
+    """Make sure an image can be written at `path` before the work that produces it starts:
+    creates missing folders, then creates and removes a probe file beside the target.
+    Returns the absolute path. Raises OSError naming the path and the reason."""
+    full = os.path.abspath(path)
+    if os.path.isdir(full):
+        raise OSError(f"output '{path}' is a folder, not a file")
+    if os.path.exists(full) and not os.access(full, os.W_OK):
+        raise OSError(f"output '{path}' is read-only")
+    folder = os.path.dirname(full)
+    up = folder
+    while not os.path.isdir(up):
+        if os.path.exists(up):
+            raise OSError(f"output '{path}' cannot be written: '{up}' is a file, not a folder")
+        up = os.path.dirname(up)
+    try:
+        os.makedirs(folder, exist_ok=True)
+        with _temporary_beside(full) as probe:
+            with open(probe, "wb") as f:
+                f.write(b"\0")
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise OSError(f"output '{path}' cannot be written: {reason} ({folder})") from None
+    return full
+
+
+@contextlib.contextmanager
+def _temporary_beside(full: str):
+    """A fresh, not yet existing file name in full's folder, ending in full's extension
+    (Pillow and numpy pick the format from it); removed on exit if it still exists."""
+    folder, name = os.path.split(full)
+    ext = os.path.splitext(name)[1]
+    while True:
+        tmp = os.path.join(folder, f".{name}.{secrets.token_hex(4)}.tmp{ext}")
+        try:  # O_EXCL: never reuse another writer's file; mode 0666 & umask, as a new file
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            break
+        except FileExistsError:
+            continue
+    try:
+        yield tmp
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def replacing(path: str):
+    """Context manager yielding a temporary path in `path`'s folder to write the new file
+    to; on a clean exit the file is flushed to disk and moved over `path` with os.replace
+    (atomic on POSIX and Windows). On any exception the temporary file is removed and
+    `path` is left as it was.
+
+        with replacing("out.png") as tmp:
+            image.save(tmp)
+    """
+    full = os.path.abspath(path)
+    os.makedirs(os.path.dirname(full), exist_ok=True)
+    with _temporary_beside(full) as tmp:
+        yield tmp
+        if not os.path.isfile(tmp) or os.path.getsize(tmp) == 0:
+            raise OSError(f"writing '{path}' produced no data")
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, full)
+
+
 def write_image(rgb: np.ndarray, path: str, exposure: float = 0.0, alpha: np.ndarray | None = None,
                 metadata: dict | None = None):
     """Write an HxWx3 linear image; the format follows the file extension. `metadata`
     (str -> str) goes into PNG text chunks / EXR header attributes (e.g. which effects the
-    render simulated and why)."""
+    render simulated and why). The file is written beside the target and moved over it
+    (`replacing`): if writing fails, an existing file at `path` is left intact. Raises
+    ValueError for an unknown extension or image shape, OSError when writing fails."""
     metadata = {str(k): str(v) for k, v in (metadata or {}).items()}
     ext = os.path.splitext(path)[1].lower()
     if ext not in FORMATS:
@@ -39,8 +115,19 @@ def write_image(rgb: np.ndarray, path: str, exposure: float = 0.0, alpha: np.nda
     rgb = np.asarray(rgb, np.float32)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"write_image: expected an HxWx3 image, got {rgb.shape}")
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
+    existed = os.path.exists(path)
+    try:
+        with replacing(path) as tmp:
+            _write(rgb, tmp, ext, exposure, alpha, metadata)
+    except OSError as exc:
+        # e.g. numpy's "9216 requested and 2016 written" when the disk or ulimit is full
+        kept = "the previous file is unchanged" if existed else "nothing was written"
+        raise OSError(f"writing '{path}' failed: {exc.strerror or exc} "
+                      f"(disk full or file size limit?); {kept}") from exc
+    return path
+
+
+def _write(rgb, path, ext, exposure, alpha, metadata):
     if ext == ".npy":
         np.save(path, rgb)
     elif ext == ".exr":
@@ -66,7 +153,6 @@ def write_image(rgb: np.ndarray, path: str, exposure: float = 0.0, alpha: np.nda
             Image.fromarray(np.dstack([img8, a8]), "RGBA").save(path, **extra)
         else:
             Image.fromarray(img8, "RGB").save(path, **extra)
-    return path
 
 
 def read_image(path: str) -> np.ndarray:

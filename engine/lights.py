@@ -1,7 +1,7 @@
 """Lights in Cycles units: sampling for shadow rays, photon emission, visibility in mirrors.
 
-Conventions (docs/units.md, DESIGN.md §3): a point light of power P has intensity
-P/(4*pi) W/sr; a spot is that point light masked by Cycles' smoothstep cone; an area light
+Conventions (docs/units.md; docs/design.md, Units (Cycles)): a point light of power P has
+intensity P/(4*pi) W/sr; a spot is that point light masked by Cycles' smoothstep cone; an area light
 emits one-sided uniform radiance P/(pi*A) along its -Z axis; a sun gives irradiance
 `strength` W/m^2; emissive meshes emit their radiance from both sides; a non-black
 background is a uniform environment.

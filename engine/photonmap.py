@@ -46,7 +46,7 @@ class PhotonMap:
         self.tree = None
         if len(photons):
             # Unbalanced build: many identical points (a focused caustic) make the
-            # balanced median build pathological (DESIGN.md §5).
+            # balanced median build pathological (docs/design.md, kd-tree (scipy) facts).
             self.tree = cKDTree(photons.position.astype(np.float64), balanced_tree=False,
                                 compact_nodes=False)
 

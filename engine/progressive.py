@@ -3,8 +3,9 @@
 Every pass is an independent render with fresh photons (a new seed) and a few camera
 samples per pixel. The photon search area shrinks pass by pass as in Knaus & Zwicker 2011
 ("Progressive photon mapping: a probabilistic approach"): r_i^2 ~ i^(alpha - 1) with
-alpha = 2/3, the same schedule as SPPM (DESIGN.md §2) but memoryless: no per-pixel
-statistics, each pass stands alone, which fits the wavefront passes we already have.
+alpha = 2/3, the same schedule as SPPM (docs/design.md, Photon mapping model) but
+memoryless: no per-pixel statistics, each pass stands alone, which fits the wavefront
+passes we already have.
 We shrink the area through the number of neighbours of the k-NN estimate,
 
     k_i = max(K_MIN, k_1 * i^(alpha - 1))
@@ -37,6 +38,7 @@ import numpy as np
 
 from .film import EFFECTS, Film
 from .render import _check_region, prepare_context, render_pass
+from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -64,7 +66,8 @@ class Budget:
 
 
 def relmse(x: np.ndarray, ref: np.ndarray) -> float:
-    """DESIGN.md §7: mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01)."""
+    """Mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01) (docs/design.md,
+    Measuring accuracy)."""
     return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
 
 
@@ -90,8 +93,10 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     budget = budget or Budget()
     max_passes = budget.passes or (None if (budget.seconds or budget.target_error) else DEFAULT_MAX_PASSES)
     t_start = time.perf_counter()
-    ctx = prepare_context(scene, settings)
+    scene.validate()
     region = _check_region(region, scene.width, scene.height)
+    check_resources(scene, settings, region, progressive=True)
+    ctx = prepare_context(scene, settings)
     w, h = region[2] - region[0], region[3] - region[1]
     sums = {name: np.zeros((h, w, 3)) for name in EFFECTS}
     halves = [np.zeros((h, w, 3)), np.zeros((h, w, 3))]

@@ -16,6 +16,7 @@ from .photonmap import GatherMap, PhotonMap, auto_radius
 from .sampling import luminance
 from .parallel import Cancelled
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Photons, trace_photons
+from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
 from .visibility import VisibilityAccel
@@ -107,11 +108,15 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     """Render `scene`. progress(stage, fraction, text) is called as work advances;
     should_cancel() is polled and, when it returns True, the partial Film is returned
     with film.stats['cancelled'] = True. region=(x0, y0, x1, y1) renders only that window
-    (top-left origin, exclusive max) and the Film has its size."""
+    (top-left origin, exclusive max) and the Film has its size. Raises SceneError for a
+    scene that cannot render, ResourceError (engine/resources.py) for one that would not
+    fit in the available memory - both before anything big is allocated."""
     settings = settings or RenderSettings()
     t_start = time.perf_counter()
-    ctx = prepare_context(scene, settings)
+    scene.validate()
     region = _check_region(region, scene.width, scene.height)
+    check_resources(scene, settings, region)
+    ctx = prepare_context(scene, settings)
     t_prepare = time.perf_counter() - t_start
     try:
         film = render_pass(ctx, region, progress, should_cancel)

@@ -108,7 +108,7 @@ def offset_origin(p: np.ndarray, ng: np.ndarray, direction: np.ndarray, eps: flo
     """Move p off its surface along the geometric normal, to the side `direction` leaves.
 
     Offsetting along the normal (not the ray) is what keeps float32 Embree from hitting the
-    same triangle again (DESIGN.md §4)."""
+    same triangle again (docs/design.md, Embree (embreex) facts)."""
     side = np.where(dot(direction, ng) >= 0.0, 1.0, -1.0)
     return p + (side * eps)[..., None] * ng
 

@@ -1,11 +1,25 @@
 """Render settings: the paper's parameters keep their names and meaning."""
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, fields
 
+import numpy as np
+
 ESTIMATORS = ("knn_simpson", "knn_cone", "classic", "radius")
 EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
+
+# Hard upper limits, Blender's own where it has them: Cycles' samples <= 65536 and the
+# add-on's light samples <= 256; photon counts fit Blender's 32-bit int properties (and
+# no product of them overflows int64); bounces as Cycles' max_bounces (1024). Memory is
+# checked separately, against the machine, before a render (engine/resources.py).
+LIMITS = {
+    "photons": 2**31 - 1, "caustic_photons": 2**31 - 1, "max_photon_depth": 1024,
+    "min_photons": 10_000, "k_nearest": 10_000, "gather_rays": 256, "spp": 65536,
+    "max_depth": 1024, "light_samples": 256, "seed": 2**63 - 1, "workers": 1024,
+    "chunk_size": 1 << 24,
+}
 
 
 @dataclass
@@ -44,11 +58,17 @@ class RenderSettings:
     def __post_init__(self):
         def positive_int(name, lo=0):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int,)) and not float(v).is_integer():
+            try:
+                whole = not isinstance(v, bool) and (isinstance(v, int) or float(v).is_integer())
+            except (TypeError, ValueError, OverflowError):
+                whole = False
+            if not whole:
                 raise ValueError(f"setting '{name}' must be a whole number, got {v!r}")
             v = int(v)
             if v < lo:
                 raise ValueError(f"setting '{name}' must be >= {lo}, got {v}")
+            if v > LIMITS[name]:
+                raise ValueError(f"setting '{name}' must be <= {LIMITS[name]:,}, got {v:,}")
             setattr(self, name, v)
 
         for name, lo in (("photons", 0), ("caustic_photons", 0), ("max_photon_depth", 1),
@@ -56,6 +76,12 @@ class RenderSettings:
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
                          ("gather_rays", 1)):
             positive_int(name, lo)
+        for name in ("final_gather", "photon_mapping", "aim_caustics", "show_photons",
+                     "film_transparent"):
+            v = getattr(self, name)
+            if not isinstance(v, (bool, np.bool_)):  # "no" is a true string
+                raise ValueError(f"setting '{name}' must be true or false, got {v!r}")
+            setattr(self, name, bool(v))
         for name in EFFECT_SWITCHES:
             v = getattr(self, name)
             if isinstance(v, bool) or v is None:
@@ -64,12 +90,14 @@ class RenderSettings:
             if v not in ("auto", "on", "off"):
                 raise ValueError(f"setting '{name}' must be auto, on or off, got {v!r}")
             setattr(self, name, v)
-        if self.estimator not in ESTIMATORS:
+        if not isinstance(self.estimator, str) or self.estimator not in ESTIMATORS:
             raise ValueError(f"setting 'estimator' must be one of {', '.join(ESTIMATORS)}, "
                              f"got {self.estimator!r}")
         if self.radius is not None:
-            r = float(self.radius)
-            if not (r > 0 and r < float("inf")):
+            ok = isinstance(self.radius, (int, float, np.floating, np.integer)) \
+                and not isinstance(self.radius, bool)
+            r = float(self.radius) if ok else float("nan")
+            if not (r > 0 and math.isfinite(r)):
                 raise ValueError(f"setting 'radius' must be a positive number or None (auto), "
                                  f"got {self.radius!r}")
             self.radius = r

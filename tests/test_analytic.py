@@ -1,4 +1,4 @@
-"""Direct lighting against closed-form values (Cycles units, DESIGN.md §3)."""
+"""Direct lighting against closed-form values (Cycles units, docs/design.md, Units (Cycles))."""
 import math
 
 import numpy as np

@@ -28,6 +28,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import accuracy_scenes as acc  # noqa: E402
+from engine.imageio import replacing  # noqa: E402
 
 
 def main(argv=None):
@@ -55,7 +56,8 @@ def main(argv=None):
         if not np.isfinite(ref).all():
             raise SystemExit(f"{name}: Cycles reference has NaN/Inf")
         low, t_low = acc.render_cycles(name, args.samples_256, seed=1)
-        np.save(os.path.join(acc.REF_DIR, name + ".npy"), ref.astype(np.float16))
+        with replacing(os.path.join(acc.REF_DIR, name + ".npy")) as tmp:
+            np.save(tmp, ref.astype(np.float16))
         ref16 = ref.astype(np.float16).astype(np.float32)
         meta[name] = {
             "kind": acc.SCENES[name][1],

@@ -1,0 +1,208 @@
+"""Resources checked before they are committed: a render's peak memory is estimated from
+its settings and scene size and compared with the memory the machine has available, so
+a render that cannot fit is refused in one line instead of growing until the machine
+dies (issue 16). The settings' hard limits live in engine/settings.py (LIMITS).
+
+The per-item costs are measured peak resident memory (ru_maxrss) of renders that vary
+one size at a time, rounded up; `bench/bench_memory.py` prints the estimate beside the
+measured peak for a set of renders. What each part counts:
+
+- photons: each stored photon (49 B of arrays) with its copies, the kd-trees over it and
+  the gather map. A global shot stores a photon at every diffuse hit until Russian
+  roulette ends it: measured 2.1 stored per emitted photon in the closed Figure 6 box,
+  0.7 in the open Figure 3 scene; the estimate takes STORES_PER_PHOTON. A caustic shot
+  stores at most one per emitted photon.
+- photon chunks / camera chunks: the arrays of the photons or camera samples that are
+  being traced at the same time (one chunk per worker thread, engine/parallel.py).
+- image: the per-pixel accumulators (float64), the Film (float32 per pass) and, for a
+  progressive render, the running sums; Blender's render result when rendering there.
+- triangles: the scene's arrays, the merged tables and Embree's BVH.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+from .parallel import chunk_length
+from .settings import RenderSettings
+
+MAX_RESOLUTION = 65536  # pixels per side, as Blender's resolution_x / resolution_y
+
+BYTES_PER_STORED_PHOTON = 320   # measured 278 (figure3.toml) and 285 (Figure 6 box)
+STORES_PER_PHOTON = 2.5         # global-shot photons stored per emitted (see above)
+BYTES_PER_TRACED_PHOTON = 400   # in flight in a chunk; measured 324
+BYTES_PER_CAMERA_SAMPLE = 1900  # in flight in a chunk; measured 1.5-1.7 K (1-16 light
+#                                 samples, 1-8 gather rays: they are traced in sub-batches)
+BYTES_PER_PIXEL = 300           # accumulators 168 B + Film 92 B + write-out copies
+BYTES_PER_PIXEL_PROGRESSIVE = 350  # running sums, halves, one pass's Film
+BYTES_PER_PIXEL_BLENDER = 260   # render result passes (float32) and the copies written
+BYTES_PER_TRIANGLE = 640        # measured (issue 16); scene arrays + tables + BVH
+
+
+class ResourceError(ValueError):
+    """A render that would exceed a limit or the available memory (one-line message)."""
+
+
+@dataclass
+class MemoryEstimate:
+    """Estimated peak bytes of a render, by part. `drivers` names, for each part, the
+    setting that controls it (for the refusal message)."""
+
+    parts: dict = field(default_factory=dict)
+    drivers: dict = field(default_factory=dict)
+
+    @property
+    def total(self) -> int:
+        return int(sum(self.parts.values()))
+
+    def largest(self) -> str:
+        return max(self.parts, key=self.parts.get)
+
+    def summary(self) -> str:
+        ordered = sorted(self.parts.items(), key=lambda kv: -kv[1])
+        return ", ".join(f"{name} {format_bytes(b)}" for name, b in ordered if b > 0)
+
+
+def format_bytes(n: float) -> str:
+    n = float(n)
+    for unit in ("B", "KB", "MB", "GB", "TB", "PB"):
+        if abs(n) < 1024 or unit == "PB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024.0
+    return f"{n:.1f} PB"  # pragma: no cover
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to this process without swapping, or None if unknown.
+    Linux: MemAvailable of /proc/meminfo, lowered to the cgroup (container) limit if
+    one is set; else psutil if installed; else os.sysconf; Windows: GlobalMemoryStatusEx."""
+    avail = None
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    avail = int(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        avail = None
+    if avail is not None:
+        cg = _cgroup_room()
+        return min(avail, cg) if cg is not None else avail
+    try:
+        import psutil  # optional: not a dependency
+        return int(psutil.virtual_memory().available)
+    except Exception:  # noqa: BLE001 - not installed or not supported here
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        pass
+    if os.name == "nt":  # pragma: no cover - Windows only
+        try:
+            import ctypes
+
+            class _Status(ctypes.Structure):
+                _fields_ = [("dwLength", ctypes.c_ulong), ("dwMemoryLoad", ctypes.c_ulong),
+                            ("ullTotalPhys", ctypes.c_ulonglong),
+                            ("ullAvailPhys", ctypes.c_ulonglong),
+                            ("ullTotalPageFile", ctypes.c_ulonglong),
+                            ("ullAvailPageFile", ctypes.c_ulonglong),
+                            ("ullTotalVirtual", ctypes.c_ulonglong),
+                            ("ullAvailVirtual", ctypes.c_ulonglong),
+                            ("ullAvailExtendedVirtual", ctypes.c_ulonglong)]
+            st = _Status()
+            st.dwLength = ctypes.sizeof(_Status)
+            if ctypes.windll.kernel32.GlobalMemoryStatusEx(ctypes.byref(st)):
+                return int(st.ullAvailPhys)
+        except Exception:  # noqa: BLE001
+            pass
+    return None
+
+
+def _cgroup_room() -> int | None:
+    """Bytes left under a cgroup v2 memory limit (containers), or None without a limit."""
+    try:
+        with open("/sys/fs/cgroup/memory.max", encoding="ascii") as f:
+            limit = f.read().strip()
+        if limit == "max":
+            return None
+        with open("/sys/fs/cgroup/memory.current", encoding="ascii") as f:
+            current = int(f.read().strip())
+        return max(0, int(limit) - current)
+    except (OSError, ValueError):
+        return None
+
+
+def _triangles(scene) -> int:
+    return int(sum(len(mesh.faces) for mesh in scene.meshes))
+
+
+def estimate_memory(scene, settings: RenderSettings, region=None, progressive=False,
+                    in_blender=False) -> MemoryEstimate:
+    """Peak memory of rendering `scene` with `settings` (bytes, by part). region =
+    (x0, y0, x1, y1) pixels or None for the whole image."""
+    s = settings
+    if region is None:
+        w, h = int(scene.width), int(scene.height)
+    else:
+        w, h = int(region[2]) - int(region[0]), int(region[3]) - int(region[1])
+    pixels = max(0, w) * max(0, h)
+    tris = _triangles(scene)
+    threads = s.threads
+    est = MemoryEstimate()
+
+    if s.photon_mapping and (s.photons or s.caustic_photons):
+        stores = min(float(s.max_photon_depth), STORES_PER_PHOTON)
+        stored = s.photons * stores + s.caustic_photons
+        est.parts["photon maps"] = int(stored * BYTES_PER_STORED_PHOTON)
+        est.drivers["photon maps"] = ("photons" if s.photons * stores >= s.caustic_photons
+                                      else "caustic_photons")
+        biggest = max(s.photons, s.caustic_photons)
+        in_flight = min(threads, -(-biggest // chunk_length(biggest, s.chunk_size)))
+        est.parts["photon chunks"] = int(in_flight * chunk_length(biggest, s.chunk_size)
+                                         * BYTES_PER_TRACED_PHOTON)
+        est.drivers["photon chunks"] = "chunk_size"
+
+    samples = pixels * s.spp
+    if samples:
+        chunk = chunk_length(samples, s.chunk_size)
+        in_flight = min(threads, -(-samples // chunk))
+        est.parts["camera chunks"] = int(in_flight * chunk * BYTES_PER_CAMERA_SAMPLE)
+        est.drivers["camera chunks"] = "chunk_size"
+    per_pixel = BYTES_PER_PIXEL + (BYTES_PER_PIXEL_PROGRESSIVE if progressive else 0) \
+        + (BYTES_PER_PIXEL_BLENDER if in_blender else 0)
+    est.parts["image"] = pixels * per_pixel
+    est.drivers["image"] = "resolution"
+    est.parts["triangles"] = tris * BYTES_PER_TRIANGLE
+    est.drivers["triangles"] = "the scene's triangle count"
+    return est
+
+
+def _setting_text(name, scene, settings) -> str:
+    if name == "resolution":
+        return f"resolution {scene.width}x{scene.height}"
+    if name == "the scene's triangle count":
+        return name
+    return f"setting '{name}' = {getattr(settings, name):,}"
+
+
+def check_resources(scene, settings: RenderSettings, region=None, progressive=False,
+                    in_blender=False, available: int | None = None) -> MemoryEstimate:
+    """Refuse a render that cannot fit before anything is allocated. Raises ResourceError
+    naming the resolution when a side exceeds MAX_RESOLUTION, or the setting behind the
+    largest part of the estimate when the estimate exceeds the available memory
+    (`available` bytes, default: available_memory(); no check when that is unknown).
+    Returns the estimate."""
+    w, h = int(scene.width), int(scene.height)
+    if w > MAX_RESOLUTION or h > MAX_RESOLUTION:
+        raise ResourceError(f"resolution {w}x{h}: at most {MAX_RESOLUTION} pixels per side "
+                            "(Blender's limit)")
+    est = estimate_memory(scene, settings, region, progressive, in_blender)
+    room = available_memory() if available is None else int(available)
+    if room is not None and est.total > room:
+        part = est.largest()
+        what = _setting_text(est.drivers[part], scene, settings)
+        raise ResourceError(
+            f"{what}: the render would need about {format_bytes(est.total)} of memory "
+            f"({est.summary()}) but {format_bytes(room)} is available; lower it")
+    return est

@@ -1,0 +1,100 @@
+"""The batch command (`python -m addon.batch`, make render): progress on stderr, and no
+broken frame written when the render is interrupted or fails (issues 12 item 7, 16)."""
+import os
+import re
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from blender_helpers import BLENDS, PYTHON, ROOT
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from process_helpers import Watched  # noqa: E402
+
+pytestmark = pytest.mark.blender
+OLD = b"the previous frame, which must survive"
+SMALL = ["--samples", "2", "--photons", "5000", "--caustic-photons", "2000",
+         "--resolution-percentage", "25"]
+
+
+def _batch(*args):
+    return subprocess.run([PYTHON, "-m", "addon.batch", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
+    out = tmp_path / "f3.png"
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), *SMALL)
+    assert res.returncode == 0, res.stderr[-2000:]
+    err = res.stderr
+    for phase in ("Exporting", "Tracing photons", "Rendering"):
+        assert phase in err, err[-2000:]
+    assert re.search(r"\d+% \[\d\d:\d\d<\d\d:\d\d\]", err), err[-2000:]  # bar with ETA
+    assert "100%" in err
+    assert re.search(r"^  indirect light .*: on", err, re.M), err[-2000:]  # effect report
+    assert re.search(r"^  caustics: on", err, re.M)
+    assert "wrote" in res.stdout and out.is_file()
+
+
+def test_batch_quiet_prints_no_bar(tmp_path):
+    out = tmp_path / "f3.png"
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), *SMALL,
+                 "--quiet")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "Rendering" not in res.stderr and "indirect light" not in res.stderr
+    assert out.is_file()
+
+
+def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path):
+    out = tmp_path / "f6.png"
+    out.write_bytes(OLD)
+    with Watched([PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure6_box.blend"),
+                  "-o", str(out), "--samples", "256", "--resolution-percentage", "25"],
+                 cwd=ROOT) as w:
+        assert w.wait_for(r"Tracing|Rendering"), w.stderr[-2000:]
+        w.proc.send_signal(signal.SIGINT)
+        rc = w.finish()
+    err = w.stderr
+    assert rc == 130, err[-3000:]
+    assert out.read_bytes() == OLD
+    assert "interrupted" in err and "left as it was" in err, err[-2000:]
+    assert "Traceback" not in err
+    assert sorted(os.listdir(tmp_path)) == [out.name]  # no temporary file left behind
+
+
+def test_batch_engine_error_writes_nothing(bpy_addon, tmp_path, monkeypatch):
+    """Any exception in the engine: exit status 1, the message, the old file intact
+    (write_still saved a black frame over it and reported success)."""
+    from addon import batch, export
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("simulated engine failure")
+
+    monkeypatch.setattr(export, "export_scene", broken)
+    out = tmp_path / "f3.png"
+    out.write_bytes(OLD)
+    args = batch.parse_args([os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out),
+                             *SMALL, "--quiet"])
+    try:
+        with pytest.raises(batch.BatchError, match="simulated engine failure.*left as it was"):
+            batch.render_file(args)
+        assert out.read_bytes() == OLD
+        assert sorted(os.listdir(tmp_path)) == [out.name]
+        assert batch.main([os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out),
+                           *SMALL, "--quiet"]) == 1
+        assert out.read_bytes() == OLD
+    finally:
+        bpy_addon.ops.wm.read_homefile(use_empty=True)  # later tests expect default settings
+
+
+def test_batch_checks_the_output_path_before_rendering(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_bytes(b"x")
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o",
+                 str(blocker / "out.png"), *SMALL)
+    assert res.returncode == 1
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "not a folder" in lines[0], res.stderr
+    assert "Read blend" not in res.stdout  # refused before the file was even opened

@@ -1,0 +1,176 @@
+"""Output integrity (issue 16): images replace the target only when completely written,
+the output path is checked before the render starts, and Ctrl-C never leaves a broken
+frame (the CLI keeps the finished part only with --keep-partial)."""
+import os
+import resource
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from helpers import ROOT
+from process_helpers import Watched
+from engine.imageio import check_writable, read_image, replacing, write_image
+
+SCENE = os.path.join(ROOT, "scenes", "figure3.toml")
+OLD = b"the previous frame, which must survive"
+
+
+def _cli(*args, **kwargs):
+    return subprocess.run([sys.executable, "-m", "engine.cli", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300, **kwargs)
+
+
+def _leftovers(folder, keep):
+    return sorted(n for n in os.listdir(folder) if n not in keep)
+
+
+@pytest.mark.parametrize("ext", [".png", ".exr", ".npy", ".ppm"])
+def test_failed_write_leaves_the_previous_file(tmp_path, monkeypatch, ext):
+    """A writer that dies half way (disk full) leaves the old file byte for byte."""
+    target = tmp_path / f"out{ext}"
+    target.write_bytes(OLD)
+    import engine.imageio as imageio
+    real = imageio._write
+
+    def dies_mid_write(rgb, path, *args):
+        real(rgb, path, *args)  # the new image lands in the temporary file ...
+        with open(path, "r+b") as f:
+            f.truncate(10)  # ... and the disk fills up
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(imageio, "_write", dies_mid_write)
+    with pytest.raises(OSError, match="No space"):
+        write_image(np.ones((4, 5, 3)), str(target))
+    assert target.read_bytes() == OLD
+    assert _leftovers(tmp_path, {target.name}) == []
+
+
+def test_successful_write_replaces_and_keeps_nothing_else(tmp_path):
+    target = tmp_path / "out.npy"
+    target.write_bytes(OLD)
+    img = np.random.default_rng(1).random((6, 7, 3)).astype(np.float32)
+    write_image(img, str(target))
+    assert np.array_equal(read_image(str(target)), img)
+    assert _leftovers(tmp_path, {target.name}) == []
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (target.stat().st_mode & 0o777) == (0o666 & ~umask)  # as a new file, not 0600
+
+
+def test_replacing_removes_the_temporary_file_on_an_exception(tmp_path):
+    target = tmp_path / "a.png"
+    target.write_bytes(OLD)
+    with pytest.raises(KeyboardInterrupt):
+        with replacing(str(target)) as tmp:
+            with open(tmp, "wb") as f:
+                f.write(b"half")
+            raise KeyboardInterrupt
+    assert target.read_bytes() == OLD
+    assert _leftovers(tmp_path, {target.name}) == []
+
+
+def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path):
+    """`ulimit -f`: the CLI's write fails with EFBIG; the old image stays, one-line error."""
+    target = tmp_path / "out.npy"  # 64x48x3 float32 = 36 KB, over the 8 KB limit
+    target.write_bytes(OLD)
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of being killed
+        resource.setrlimit(resource.RLIMIT_FSIZE, (8192, 8192))
+
+    res = _cli("render", SCENE, "-o", str(target), "--width", "64", "--height", "48",
+               "--spp", "1", "--photons", "2000", "--caustic-photons", "1000", "--quiet",
+               preexec_fn=limit)
+    assert res.returncode == 1, res.stderr
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "out.npy" in lines[0] and "unchanged" in lines[0], res.stderr
+    assert target.read_bytes() == OLD
+    assert _leftovers(tmp_path, {target.name}) == []
+
+
+def test_check_writable_refuses_before_anything_is_written(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_bytes(b"x")
+    with pytest.raises(OSError, match="is a file, not a folder"):
+        check_writable(str(blocker / "sub" / "out.png"))
+    with pytest.raises(OSError, match="is a folder"):
+        check_writable(str(tmp_path))
+    ok = tmp_path / "new" / "dir" / "out.png"
+    assert check_writable(str(ok)) == str(ok)
+    assert ok.parent.is_dir() and os.listdir(ok.parent) == []  # the probe is gone
+
+
+def test_cli_checks_the_output_path_before_rendering(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_bytes(b"x")
+    res = _cli("render", SCENE, "-o", str(blocker / "out.png"), "--spp", "64")
+    assert res.returncode == 1
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and str(blocker) in lines[0], res.stderr  # no progress bar first
+
+
+def _interrupted_cli(tmp_path, *extra):
+    target = tmp_path / "out.png"
+    target.write_bytes(OLD)
+    # A grey background: every finished pixel is non-zero, every unfinished one zero.
+    with open(SCENE, encoding="utf-8") as f:
+        text = f.read().replace("background = [0, 0, 0]", "background = [0.2, 0.2, 0.2]")
+    assert "0.2, 0.2, 0.2" in text
+    scene = tmp_path / "grey.toml"
+    scene.write_text(text, encoding="utf-8")
+    with Watched([sys.executable, "-m", "engine.cli", "render", str(scene), "-o", str(target),
+                  "--width", "160", "--height", "120", "--spp", "256", "--photons", "20000",
+                  "--caustic-photons", "10000", *extra], cwd=ROOT) as w:
+        # Interrupt once some of the camera pass is finished (the bar shows 'Rendering N%').
+        assert w.wait_for(r"Rendering [1-9]\d?%"), w.stderr[-2000:]
+        w.proc.send_signal(signal.SIGINT)
+        return target, w.finish(), w.stderr
+
+
+def test_cli_ctrl_c_leaves_the_target_untouched(tmp_path):
+    target, rc, err = _interrupted_cli(tmp_path)
+    assert rc == 130, err[-2000:]
+    assert target.read_bytes() == OLD
+    assert "interrupted while rendering" in err and "left untouched" in err
+    assert "Traceback" not in err
+    assert _leftovers(tmp_path, {target.name, "grey.toml"}) == []
+
+
+def test_cli_ctrl_c_with_keep_partial_writes_the_finished_part_marked(tmp_path):
+    from PIL import Image
+    target, rc, err = _interrupted_cli(tmp_path, "--keep-partial")
+    assert rc == 130, err[-2000:]
+    assert "wrote the partial image" in err and "Traceback" not in err
+    with Image.open(target) as im:
+        note = im.text.get("photonmap:partial", "")
+        img = np.asarray(im.convert("RGB"), np.float64)
+    assert note.startswith("interrupted:") and "rows" in note, note
+    rows = int(note.split("the top ")[1].split(" of ")[0])
+    assert 0 < rows < 120
+    # Finished pixels run row by row from the top: rows above `rows` are complete (no
+    # black pixel), rows below it untouched (black).
+    assert img[:rows].sum(axis=2).min() > 0 and img[rows + 1:].max() == 0
+
+
+def test_cli_ctrl_c_in_a_progressive_render_keeps_the_finished_passes(tmp_path):
+    from PIL import Image
+    target = tmp_path / "prog.png"
+    target.write_bytes(OLD)
+    with Watched([sys.executable, "-m", "engine.cli", "render", SCENE, "-o", str(target),
+                  "--width", "64", "--height", "48", "--spp", "2", "--photons", "20000",
+                  "--caustic-photons", "5000", "--passes", "500", "--keep-partial"],
+                 cwd=ROOT) as w:
+        assert w.wait_for(r"Pass 3: "), w.stderr[-2000:]  # passes 1 and 2 are finished
+        w.proc.send_signal(signal.SIGINT)
+        rc = w.finish()
+    assert rc == 130, w.stderr[-2000:]
+    with Image.open(target) as im:
+        note = im.text.get("photonmap:partial", "")
+        img = np.asarray(im.convert("RGB"))
+    assert note.startswith("interrupted: ") and "complete pass(es)" in note, note
+    passes = int(note.split()[1])
+    assert 2 <= passes < 500
+    assert img.max() > 0  # the average of the finished passes, not a black frame

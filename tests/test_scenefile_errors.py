@@ -1,0 +1,128 @@
+"""Bad scene files get one clear line naming the key, never a traceback and never a
+silent guess (issue 16): each case measured in the issue is refused here."""
+import subprocess
+import sys
+
+import pytest
+
+from helpers import ROOT
+from engine.scenefile import SceneFileError, load_scene
+
+CAMERA = '[camera]\nposition = [0, -6, 2]\nlook_at = [0, 0, 1]\n'
+SPHERE = '[[objects]]\ntype = "sphere"\nname = "ball"\n'
+LIGHT = '[[lights]]\ntype = "spot"\nname = "key"\nposition = [0, 0, 4]\n'
+
+
+def _load(tmp_path, text):
+    path = tmp_path / "scene.toml"
+    path.write_text(text, encoding="utf-8")
+    return load_scene(str(path))
+
+
+def test_a_valid_scene_still_loads(tmp_path):
+    scene, settings = _load(tmp_path, '[render]\nwidth = 32\nheight = 24\nfinal_gather = false\n'
+                            + CAMERA + SPHERE + 'translate = [0, 0, 1]\nscale = 2\nsegments = 8\n'
+                            + LIGHT + 'spot_size = 30\nvisible = true\n')
+    assert (scene.width, scene.height) == (32, 24) and settings == {"final_gather": False}
+    assert scene.lights[0].visible_camera is True
+
+
+CASES = [
+    # (what the issue measured, scene text, expected fragment of the one-line error)
+    ("translate nan", CAMERA + SPHERE + "translate = [nan, 0, 0]\n",
+     "objects[0] (ball): 'translate' must be 3 finite numbers"),
+    ("scale inf", CAMERA + SPHERE + "scale = inf\n", "'scale' must be a finite, non-zero"),
+    ("clip_start nan", CAMERA + "clip_start = nan\n", "[camera]: 'clip_start' must be a finite"),
+    ("width inf", "[render]\nwidth = inf\n" + CAMERA, "[render]: 'width' must be a whole number"),
+    ("width 1e6", "[render]\nwidth = 1000000\nheight = 1000000\n" + CAMERA,
+     "'width' must be a number >= 1 and <= 65536"),
+    ("width float", "[render]\nwidth = 1e6\n" + CAMERA, "'width' must be a whole number"),
+    ("lights string", 'lights = "x"\n' + CAMERA, "'lights' must be an array of tables"),
+    ("objects string", 'objects = 3\n' + CAMERA, "'objects' must be an array of tables"),
+    ("segments huge", CAMERA + SPHERE + "segments = 100000\n",
+     "'segments' must be a number >= 3 and <= 2048"),
+    ("segments fraction", CAMERA + SPHERE + "segments = 2.7\n",
+     "'segments' must be a whole number, got 2.7"),
+    ("visible no", CAMERA + LIGHT + 'visible = "no"\n',
+     "lights[0] (key): 'visible' must be true or false"),
+    ("final_gather no", '[render]\nfinal_gather = "no"\n' + CAMERA,
+     "[render]: setting 'final_gather' must be true or false"),
+    ("fov true", CAMERA + "fov = true\n", "'fov' must be a finite number, got True"),
+    ("fov 180", CAMERA + "fov = 180\n", "'fov' must be a number > 0 and < 180"),
+    ("negative radius", CAMERA + SPHERE + "radius = -1\n", "'radius' must be a number > 0"),
+    ("negative plane size", CAMERA + '[[objects]]\ntype = "plane"\nsize = -4\n',
+     "'size' must be a number > 0"),
+    ("negative box size", CAMERA + '[[objects]]\ntype = "box"\nsize = [1, -1, 1]\n',
+     "'size' must be a number > 0 or 3 numbers > 0"),
+    ("spot size negative", CAMERA + LIGHT + "spot_size = -30\n",
+     "'spot_size' must be a number > 0 and <= 180"),
+    ("negative power", CAMERA + LIGHT + "power = -5\n", "'power' must be a number >= 0"),
+    ("power string", CAMERA + LIGHT + 'power = "bright"\n', "'power' must be a finite number"),
+    ("light type", CAMERA + '[[lights]]\ntype = "laser"\n', "'type' must be point, spot"),
+    ("light direction zero", CAMERA + LIGHT + "direction = [0, 0, 0]\n",
+     "'direction' must be a non-zero vector"),
+    ("material colour", CAMERA + '[materials.red]\nbase_color = [1, 0, "x"]\n',
+     "[materials.red]: 'base_color' must be 3 finite numbers"),
+    ("material range", CAMERA + '[materials.red]\nmetallic = 2\n',
+     "'metallic' must be a number >= 0 and <= 1"),
+    ("background", 'background = [0, 0]\n' + CAMERA, "'background' must be 3 finite numbers"),
+    ("camera type", CAMERA + 'type = "fisheye"\n', "'type' must be one of persp, ortho"),
+    ("camera at look_at", '[camera]\nposition = [1, 1, 1]\nlook_at = [1, 1, 1]\n',
+     "'look_at' must differ from 'position'"),
+    ("camera missing", SPHERE, "[camera]: 'position' is required"),
+    ("clip_end before start", CAMERA + "clip_start = 2\nclip_end = 1\n", "'clip_end' must be"),
+    ("material name type", CAMERA + SPHERE + "material = 3\n", "'material' must be a string"),
+    ("unknown key", CAMERA + SPHERE + "radios = 1\n", "unknown key(s) radios"),
+    ("spp float", '[render]\nspp = 2.5\n' + CAMERA, "setting 'spp' must be a whole number"),
+]
+
+
+@pytest.mark.parametrize("label, text, expected", CASES, ids=[c[0] for c in CASES])
+def test_bad_scene_file_is_refused_in_one_line_naming_the_key(tmp_path, label, text,
+                                                              expected):
+    with pytest.raises(SceneFileError) as info:
+        _load(tmp_path, text)
+    msg = str(info.value)
+    assert "\n" not in msg, msg
+    assert expected in msg, msg
+    assert "scene.toml" in msg  # names the file too
+
+
+def _with_file(tmp_path, name, content: bytes):
+    (tmp_path / name).write_bytes(content)
+    return _load(tmp_path, CAMERA + f'[[objects]]\ntype = "file"\npath = "{name}"\n')
+
+
+def test_ply_header_claiming_too_many_vertices_is_refused_before_loading(tmp_path):
+    header = (b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n"
+              b"property float x\nproperty float y\nproperty float z\nend_header\n")
+    with pytest.raises(SceneFileError, match=r"claims 1,000,000,000,000 vertex elements "
+                                             r"but the file has \d+ bytes"):
+        _with_file(tmp_path, "huge.ply", header + b"\0" * 36)
+
+
+@pytest.mark.parametrize("name, content", [
+    ("empty.obj", b""),
+    ("garbage.obj", b"this is not a mesh\n\x00\x01 nothing here\n"),
+    ("points.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\n"),
+])
+def test_empty_or_garbage_mesh_files_are_refused(tmp_path, name, content):
+    with pytest.raises(SceneFileError, match=f"{name}.*no triangles found"):
+        _with_file(tmp_path, name, content)
+
+
+def test_cli_reports_a_bad_scene_and_a_nan_exposure_in_one_line(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(CAMERA + SPHERE + "translate = [nan, 0, 0]\n", encoding="utf-8")
+    for args, expected in (([str(bad)], "'translate' must be 3 finite numbers"),
+                           (["scenes/figure3.toml", "--exposure", "nan"],
+                            "--exposure: must be a finite number")):
+        res = subprocess.run([sys.executable, "-m", "engine.cli", "render", *args, "-o",
+                              str(tmp_path / "x.png")],
+                             cwd=ROOT, capture_output=True, text=True, timeout=120)
+        assert res.returncode != 0
+        lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+        assert expected in lines[-1] and "Traceback" not in res.stderr, res.stderr
+        if "exposure" not in expected:
+            assert len(lines) == 1
+        assert not (tmp_path / "x.png").exists()
