@@ -140,7 +140,7 @@ def test_scene_file_flags(tmp_path):
     assert m.visibility == ALL_RAYS & ~CAMERA & ~SHADOW
     f.write_text('[camera]\nposition = [0, -5, 2]\nlook_at = [0, 0, 0]\n'
                  '[[objects]]\ntype = "box"\ncenter = [0, 0, 0.5]\nvisible_camera = "no"\n')
-    with pytest.raises(SceneFileError, match="visible_camera must be true or false"):
+    with pytest.raises(SceneFileError, match="'visible_camera' must be true or false"):
         load_scene(str(f))
 
 
