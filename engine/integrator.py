@@ -18,7 +18,8 @@ import numpy as np
 from .lights import MESH
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
-from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, offset_origin, to_world
+from .rayoffset import segment_to
+from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, to_world
 
 
 @dataclass
@@ -84,16 +85,29 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             lit = np.nonzero(max3(ls.E) > 0)[0]
             if len(lit) == 0:
                 continue
-            o = offset_origin(hit.p[lit], hit.ng[lit], ls.wi[lit], ctx.geo.eps)
-            dist = ls.dist[lit]
-            tmax = np.where(np.isfinite(dist), dist * (1.0 - 1e-6) - 2.0 * ctx.geo.eps, np.inf)
             if trace_shadows:
-                blocked = ctx.accel.occluded(o, ls.wi[lit], np.maximum(tmax, 0.0))
+                o, wi, tmax = shadow_rays(hit, ls, lit)
+                blocked = ctx.accel.occluded(o, wi, tmax)
                 counters.shadow_rays += len(lit)
             else:
                 blocked = np.zeros(len(lit), bool)
             E[lit] += ls.E[lit] * (~blocked)[:, None] / samples
     return E
+
+
+def shadow_rays(hit, ls, rows):
+    """Shadow rays from hits[rows] to their light samples: (origins, unit directions,
+    tmax). Both ends are kept off their surfaces by rounding-error bounds (pbrt-v4's
+    SpawnRayTo; engine/rayoffset.py): the origin is lifted off the hit's triangle, and a
+    ray to a point on an emitting surface ends before that surface's plane, at any angle,
+    so the emitter never shadows itself."""
+    o = hit.clear(rows, ls.wi[rows])
+    if ls.y is None:  # sun, world: nothing lies beyond
+        return o, ls.wi[rows], np.full(len(rows), np.inf)
+    ny = None if ls.ny is None else ls.ny[rows]
+    gap = None if ls.end_gap is None else ls.end_gap[rows]
+    wi, tmax = segment_to(o, ls.y[rows], ny, gap)
+    return o, wi, tmax
 
 
 # Gather rays that end near a corner or contact, where the precomputed irradiance is cut
@@ -118,7 +132,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         u1, u2 = sampler.uv(1 + 64 * g) if sampler is not None else (rng.random(n), rng.random(n))
         d = to_world(cosine_hemisphere(u1, u2), hit.ns)
         idx = np.nonzero(dot(d, hit.ng) > 0)[0]
-        o = offset_origin(hit.p[idx], hit.ng[idx], d[idx], ctx.geo.eps)
+        o = hit.clear(idx, d[idx])
         d = d[idx]
         tp = np.ones((len(idx), 3))
         for depth in range(ctx.settings.max_depth + 1):
@@ -143,7 +157,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             wd = w["diffuse"]
             dsel = np.nonzero(max3(wd) > 0)[0]
             if len(dsel):
-                Ey, boundary = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel])
+                Ey, boundary = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel],
+                                                     offset=y.offset[dsel])
                 if level < MAX_GATHER_LEVEL:
                     again = np.nonzero(boundary | (t[dsel] < ctx.gather_short))[0]
                     if len(again):
@@ -201,7 +216,7 @@ def continue_specular(ctx, hit, w, tp, rng):
     sub = hit.take(idx)
     nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
     keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
-    o = offset_origin(sub.p[keep], sub.ng[keep], nd[keep], ctx.geo.eps)
+    o = sub.clear(keep, nd[keep])
     return idx[keep], o, nd[keep], new_tp[keep]
 
 

@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from .parallel import ordered_map
 from .photons import Photons
+from .rayoffset import G32_PLANE, ulp32
 from .sampling import max3
 
 NORMAL_AGREEMENT = 0.5
@@ -272,14 +273,13 @@ class GatherMap:
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
-                 eps: float = 0.0, workers: int = 1):
+                 workers: int = 1):
         ph = photons
         self.workers = workers
         # With an Accel, a lookup only takes a gather point it can see: a point on the
         # other side of a wall (e.g. the ground outside a room, coplanar with the floor
         # inside) would otherwise leak light under the wall (docs/stability.md).
         self.accel = accel
-        self.eps = float(eps)
         self.tree = None
         if len(ph) < 2:
             return
@@ -303,12 +303,15 @@ class GatherMap:
             view.accel = self.accel.serial()
         return view
 
-    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8):
+    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
+               offset: np.ndarray | None = None):
         """(irradiance, boundary) at the nearest visible gather point facing the same way.
         boundary: that point's estimate met another surface (a corner or contact), where
         the estimate is biased dark, or no such point was found in range (a sparsely lit
         patch crowded by another surface's gather points, e.g. the underside of a ball
-        resting on a lit floor); those rows get irradiance 0 and should gather again."""
+        resting on a lit floor); those rows get irradiance 0 and should gather again.
+        offset: (N,) distance along n that takes a ray from p clear of p's surface
+        (SurfaceHit.offset); default: the float32 resolution at p."""
         out = np.zeros((len(p), 3))
         boundary = np.ones(len(p), bool)
         if self.tree is None or len(p) == 0:
@@ -319,7 +322,8 @@ class GatherMap:
         # agreeing, visible candidate in distance order is the same either way.
         for kq in (1, candidates, 8 * candidates):
             kq = min(kq, len(self.position))
-            chosen, found = self._nearest_agreeing(p[todo], n[todo], kq)
+            chosen, found = self._nearest_agreeing(p[todo], n[todo], kq,
+                                                   None if offset is None else offset[todo])
             out[todo[found]] = self.E[chosen[found]]
             boundary[todo[found]] = self.boundary[chosen[found]]
             todo = todo[~found]
@@ -327,7 +331,7 @@ class GatherMap:
                 break
         return out, boundary
 
-    def _nearest_agreeing(self, p, n, kq):
+    def _nearest_agreeing(self, p, n, kq, offset=None):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=self.radius,
                                     workers=self.workers)
         if kq == 1:
@@ -336,12 +340,12 @@ class GatherMap:
         safe = np.where(found, idx, 0)
         agree = found & (np.einsum("nkc,nc->nk", np.take(self.normal, safe, axis=0), n) > 0.7)
         if self.accel is not None:
-            agree = self._visible_first(p, n, safe, agree)
+            agree = self._visible_first(p, n, safe, agree, offset)
         first = np.argmax(agree, axis=1)
         anyok = agree.any(axis=1)
         return safe[np.arange(len(p)), first], anyok
 
-    def _visible_first(self, p, n, safe, agree):
+    def _visible_first(self, p, n, safe, agree, offset=None):
         """Drop candidates hidden from p by geometry, nearest first, until each row's first
         remaining candidate is visible (usually one occlusion ray per lookup)."""
         agree = agree.copy()
@@ -351,9 +355,16 @@ class GatherMap:
                 break
             first = np.argmax(agree[todo], axis=1)
             q = self.position[safe[todo, first]]
-            # Both ends lifted off their surfaces along the normal (shared by agreement).
-            a = p[todo] + self.eps * n[todo]
-            b = q + self.eps * self.normal[safe[todo, first]]
+            # Both ends lifted off their surfaces along the normal (shared by agreement),
+            # by bounds on their rounding error (engine/rayoffset.py): the query point's
+            # own offset, and for the gather point (a float32 photon position, triangle
+            # unknown) its float32 resolution plus the float32 error of the ray's length.
+            lift_a = (4.0 * ulp32(max3(np.abs(p[todo]))) if offset is None
+                      else offset[todo])
+            a = p[todo] + lift_a[:, None] * n[todo]
+            dist0 = np.linalg.norm(q - a, axis=1)
+            lift_b = 4.0 * ulp32(max3(np.abs(q))) + 2.0 * G32_PLANE * dist0
+            b = q + lift_b[:, None] * self.normal[safe[todo, first]]
             w = b - a
             dist = np.linalg.norm(w, axis=1)
             d = w / np.maximum(dist, 1e-300)[:, None]

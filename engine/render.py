@@ -13,7 +13,8 @@ from .geometry import Geometry, MaterialTable, prepare
 from .integrator import render_camera
 from .lights import allocate_photons, prepare_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
-from .sampling import luminance
+from .rayoffset import G32_T, ulp32
+from .sampling import luminance, max3
 from .parallel import Cancelled
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Photons, trace_photons
 from .scene import Scene
@@ -164,7 +165,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
             gathered = shot.select(shot.kind != CAUSTIC)
             ctx.gather_map = GatherMap(gathered, ctx.global_radius, k, s.min_photons,
-                                       s.estimator, accel=ctx.accel, eps=geo.eps,
+                                       s.estimator, accel=ctx.accel,
                                        workers=workers)
             ctx.secondary_map = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
             stats["global_photons"] = len(shot)
@@ -240,7 +241,10 @@ def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
     dist = np.linalg.norm(to, axis=1)
     d = to / np.maximum(dist, 1e-300)[:, None]
     origin = p[idx] - to
-    blocked = ctx.accel.occluded(origin, d, np.maximum(dist - 4 * ctx.geo.eps, 0.0))
+    # Stop short of the photon's surface by the float32 resolution there (photon
+    # positions are float32) plus the float32 error of the ray's length.
+    gap = 4.0 * ulp32(max3(np.abs(p[idx]))) + G32_T * dist
+    blocked = ctx.accel.occluded(origin, d, np.maximum(dist - gap, 0.0))
     idx = idx[~blocked]
     if len(idx) == 0:
         return
