@@ -375,10 +375,29 @@ class GatherMap:
         return agree
 
 
-def auto_radius(diffuse_area: float, stored: int, k: int, extent: float) -> float:
-    """Max search radius from scene size and photon density: twice the radius of a disk
-    that would hold k photons if the stored photons covered the diffuse area evenly."""
+# Photons whose k-NN distance sets the automatic radius (a strided sample: enough for a
+# median, a few ms).
+RADIUS_SAMPLE = 4096
+
+
+def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
+                positions: np.ndarray | None = None) -> float:
+    """Max search radius (m) from the photons' own density: twice the median distance from
+    a stored photon to its k-th nearest neighbour (positions: (N,3) the stored photons).
+    Where photons gather (the lit part of a huge ground plane) this is the local spacing,
+    not the spacing they would have if spread over all diffuse area. Without positions,
+    or where that median is 0 (photons piled on a point), twice the radius of a disc that
+    would hold k photons if the stored photons covered the diffuse area evenly. Never
+    more than 0.1 x the scene's diagonal `extent`; no floor tied to the scene's size."""
     if stored <= 0 or diffuse_area <= 0:
         return 0.05 * extent
-    r = 2.0 * math.sqrt(k * diffuse_area / (math.pi * stored))
-    return float(min(max(r, 1e-4 * extent), 0.1 * extent))
+    r = 0.0
+    if positions is not None and len(positions) > k:
+        pts = np.asarray(positions, np.float64)
+        step = max(1, len(pts) // RADIUS_SAMPLE)
+        tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)
+        d, _ = tree.query(pts[::step], k=k + 1)  # the nearest is the photon itself
+        r = 2.0 * float(np.median(d[:, -1]))
+    if not r > 0:
+        r = 2.0 * math.sqrt(k * diffuse_area / (math.pi * stored))
+    return float(min(r, 0.1 * extent))

@@ -152,8 +152,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     diffuse_area = float(geo.area[diffuse_tris].sum())
     k = s.k_nearest
     workers = s.threads
+    # The caustic radius as if the larger shot covered the diffuse area evenly (aimed
+    # caustic photons pile up: their own spacing would make it tiny); the global radius
+    # from the global photons' own spacing (local: not the spacing they would have if
+    # spread over a huge ground plane they barely light).
     r_auto = auto_radius(diffuse_area, max(len(shot), len(caustic), 1), k, geo.extent)
-    ctx.global_radius = s.radius or auto_radius(diffuse_area, len(shot), k, geo.extent)
+    ctx.global_radius = s.radius or auto_radius(diffuse_area, len(shot), k, geo.extent,
+                                                shot.position)
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
     # ends closer than that gathers once more from its end (integrator.gather_indirect).
     ctx.gather_short = ctx.global_radius
@@ -173,7 +178,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
             ctx.global_map = PhotonMap(shot.select(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE))),
                                        workers)
             ctx.global_radius = s.radius or auto_radius(diffuse_area, len(ctx.global_map), k,
-                                                        geo.extent)
+                                                        geo.extent,
+                                                        ctx.global_map.photons.position)
             stats["global_photons"] = len(ctx.global_map)
     if plan.caustics:
         ctx.caustic_map = PhotonMap(caustic if use_caustic_shot

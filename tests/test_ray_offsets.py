@@ -240,3 +240,30 @@ def test_area_light_irradiance_matches_lambert_at_any_tilt(tilt):
         front = np.dot(x3 - np.array([0, 0, h]), direction) > 0  # one-sided
         ref = L * _lambert_polygon(x3, np.array([0.0, 0.0, 1.0]), sq) if front else 0.0
         assert abs(E[i] - ref) <= 0.03 * ref + 1e-4, (tilt, x, y, E[i], ref)
+
+
+def _contact_scene(floor):
+    """Issue 12 item 5: a 10 cm cube and a 3 cm slab on a ground plane of `floor` metres
+    under an area light, seen close up."""
+    s = PaperScene(width=64, height=48)
+    s.add_material(Material("grey", (0.8, 0.8, 0.8)))
+    s.add_plane((0, 0, 0), (0, 0, 1), floor, "grey", name="ground")
+    s.add_box((0.0, 0.0, 0.05), 0.1, "grey", name="cube")
+    s.add_box((0.16, 0.0, 0.015), (0.12, 0.12, 0.03), "grey", name="slab")
+    s.add_rect_area_light((-0.25, 0.1, 0.5), (0.3, 0.3), power=4.0, direction=(0.45, -0.15, -1))
+    s.set_camera((0.05, -0.3, 0.4), (0.05, 0.02, 0.0), view_angle=45)
+    return s
+
+
+def test_contact_shadows_do_not_change_with_the_size_of_the_ground():
+    """Floors of 1 m .. 100 km: the same image, contact shadows included (was: 141 mm
+    offsets and a 14 m photon radius floor at 10 km, the cube's shadow gone)."""
+    settings = RenderSettings(spp=16, photons=40000, seed=3)
+    imgs = {f: _contact_scene(f).render(settings).combined.mean(axis=-1)
+            for f in (1.0, 1e3, 1e5)}
+    ref = imgs[1.0]
+    contact = ref[26:34, 30:44].mean()
+    assert contact < 0.6 * ref.mean()  # the region is in shadow
+    for f, img in imgs.items():
+        assert abs(img[26:34, 30:44].mean() - contact) < 0.03 * contact, f
+        assert np.mean((img - ref) ** 2 / (ref ** 2 + 0.01)) < 0.03, f  # photon noise only
