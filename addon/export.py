@@ -227,6 +227,19 @@ def border_region(render, width: int, height: int):
     return (x0, height - yb1, x1, height - yb0)
 
 
+def terminator_offset(obj, warnings) -> float:
+    """Cycles' Object > Shadow Terminator > Geometry Offset (default 0.1). The Normal
+    Offset beside it is EEVEE's (Cycles ignores it), and the Shading Offset is not
+    simulated: a non-zero one is named in a warning."""
+    if float(getattr(obj, "shadow_terminator_shading_offset", 0.0) or 0.0) > 0:
+        msg = (f"object '{obj.name}': Shadow Terminator > Shading Offset is not supported; "
+               "ignored")
+        if msg not in warnings:  # once per object, however many instances
+            warnings.append(msg)
+    value = float(getattr(obj, "shadow_terminator_geometry_offset", 0.1))
+    return value if value >= 0 else 0.0
+
+
 def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=None,
                  should_cancel=None):
     """Build an engine Scene from an evaluated depsgraph.
@@ -306,7 +319,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             name = obj.name
         info["objects"] += 1
         meshes.append(pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
-                              uvs=uvs, materials=names, material_ids=mids))
+                              uvs=uvs, materials=names, material_ids=mids,
+                              shadow_terminator_offset=terminator_offset(obj, warnings)))
         info["triangles"] += len(faces)
 
     cam_obj = camera if camera is not None else scene_eval.camera

@@ -70,6 +70,7 @@ class SurfaceHit:
     prim: np.ndarray
     offset: np.ndarray | None = None  # (N,) distance along ng that takes a ray origin
                           # clear of p's triangle (a rounding-error bound, engine/rayoffset.py)
+    bary: np.ndarray | None = None    # (N,2) barycentric weights of corners 1 and 2
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -105,7 +106,8 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         if len(sel):
             base[sel] = base[sel] * sample_texture(tex, geo.uvs(prim[sel], u[sel], v[sel]))
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
-                      offset=geo.origin_offset(prim, u, v, p, ng))
+                      offset=geo.origin_offset(prim, u, v, p, ng),
+                      bary=np.stack([u, v], axis=1))
 
 
 def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]:

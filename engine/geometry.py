@@ -73,6 +73,7 @@ class Geometry:
     vertices32: np.ndarray    # (3T,3) float32 for Embree
     round32: np.ndarray       # (T,3,3) bound on |float32 corner - float64 corner|
     tilt32: np.ndarray        # (T,) bound on the float32 plane's tilt, radians
+    terminator: np.ndarray    # (T,) Cycles' shadow terminator geometry offset (Mesh)
     faces32: np.ndarray       # (T,3) int32
     bounds: np.ndarray        # (2,3) re-centred bounding box
 
@@ -123,6 +124,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
     table = MaterialTable.build([scene.materials[n] for n in mat_names])
 
     v0s, v1s, v2s, cns, cuvs, mats, objs, names = [], [], [], [], [], [], [], []
+    terms = []
     for oi, mesh in enumerate(scene.meshes):
         names.append(mesh.name)
         f = mesh.faces
@@ -145,6 +147,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         remap = np.array([mat_index[n] for n in mesh.materials], np.int32)
         mats.append(remap[mesh.material_ids])
         objs.append(np.full(len(f), oi, np.int32))
+        terms.append(np.full(len(f), float(getattr(mesh, "shadow_terminator_offset", 0.1))))
 
     if v0s:
         v0 = np.concatenate(v0s); v1 = np.concatenate(v1s); v2 = np.concatenate(v2s)
@@ -192,6 +195,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         object_id=np.concatenate(objs) if objs else np.zeros(0, np.int32),
         object_names=names, vertices32=verts32, round32=round32,
         tilt32=triangle_tilt(verts32.reshape(-1, 3, 3)), faces32=faces32,
+        terminator=np.concatenate(terms) if terms else np.zeros(0),
         bounds=np.stack([lo - offset, hi - offset]),
     )
     return geo, table

@@ -133,6 +133,10 @@ class Mesh:
               normals); None = flat shading
     uvs       optional (V,2) per vertex or (F,3,2) per face corner
     material  one material name, or material_ids (F,) int indexing `materials` (names)
+    shadow_terminator_offset  Cycles' object setting Shadow Terminator > Geometry Offset
+              (`shadow_terminator_geometry_offset`, >= 0, Blender's default 0.1): shadow
+              rays from smooth-shaded triangles at grazing light leave from the smooth
+              surface the normals describe, not the flat facet (engine/rayoffset.py)
     """
 
     name: str
@@ -142,10 +146,19 @@ class Mesh:
     uvs: np.ndarray | None = None
     materials: list[str] = field(default_factory=lambda: ["default"])
     material_ids: np.ndarray | None = None
+    shadow_terminator_offset: float = 0.1
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
         who = f"mesh '{self.name}'"
+        try:
+            sto = float(self.shadow_terminator_offset)
+        except (TypeError, ValueError):
+            sto = float("nan")
+        if not (math.isfinite(sto) and sto >= 0):
+            raise SceneError(f"{who}: shadow_terminator_offset must be a number >= 0, "
+                             f"got {self.shadow_terminator_offset!r}")
+        self.shadow_terminator_offset = sto
         if isinstance(self.materials, str):
             self.materials = [self.materials]
         v = np.asarray(self.vertices, dtype=np.float64)
