@@ -18,7 +18,7 @@ from engine.bsdf import surface_hit
 from engine.geometry import prepare
 from engine.integrator import Counters, direct_irradiance, shadow_rays
 from engine.render import prepare_context
-from engine.sampling import dot, uniform_sphere
+from engine.sampling import uniform_sphere
 from engine.scene import Camera, Material, Mesh, Scene
 
 DIRECT_ONLY = dict(photon_mapping=False, max_depth=0, spp=1)
