@@ -1,6 +1,7 @@
 """render(): scene -> photon pass -> photon maps -> camera pass -> Film."""
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 
@@ -152,13 +153,18 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     diffuse_area = float(geo.area[diffuse_tris].sum())
     k = s.k_nearest
     workers = s.threads
-    # The caustic radius as if the larger shot covered the diffuse area evenly (aimed
-    # caustic photons pile up: their own spacing would make it tiny); the global radius
-    # from the global photons' own spacing (local: not the spacing they would have if
-    # spread over a huge ground plane they barely light).
-    r_auto = auto_radius(diffuse_area, max(len(shot), len(caustic), 1), k, geo.extent)
-    ctx.global_radius = s.radius or auto_radius(diffuse_area, len(shot), k, geo.extent,
-                                                shot.position)
+    # The global radius from the global photons' own spacing (local: not the spacing they
+    # would have if spread over a huge ground plane they barely light). The caustic
+    # radius from the same spacing, scaled to the larger shot's count (aimed caustic
+    # photons pile up on a focus: their own spacing would make it tiny); without a
+    # global shot, as if the caustic photons covered the diffuse area evenly.
+    r_global = auto_radius(diffuse_area, len(shot), k, geo.extent, shot.position)
+    dense = max(len(shot), len(caustic), 1)
+    if len(shot) > k:
+        r_auto = r_global * math.sqrt(len(shot) / dense)
+    else:
+        r_auto = auto_radius(diffuse_area, dense, k, geo.extent)
+    ctx.global_radius = s.radius or r_global
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
     # ends closer than that gathers once more from its end (integrator.gather_indirect).
     ctx.gather_short = ctx.global_radius

@@ -311,3 +311,23 @@ def test_shadow_terminator_offset_must_be_non_negative():
     from engine.scene import SceneError
     with pytest.raises(SceneError, match="ball.*shadow_terminator_offset"):
         Mesh("ball", np.eye(3), [[0, 1, 2]], shadow_terminator_offset=-1.0)
+
+
+def test_caustic_does_not_change_with_the_size_of_the_ground():
+    """A glass ball's caustic on 4 m and 10 km ground: the caustic radius follows the
+    photons' own spacing (it was their spacing if spread over all 1e8 m^2: 642 m, and the
+    caustic vanished)."""
+    out = {}
+    for floor in (4.0, 1e4):
+        s = PaperScene(width=48, height=36)
+        s.add_material(Material("grey", (0.8, 0.8, 0.8)))
+        s.add_plane((0, 0, 0), (0, 0, 1), floor, "grey", name="ground")
+        s.add_sphere((0, 0, 0.3), 0.2, "glass", name="ball", segments=32)
+        s.add_point_light((0.2, 0.1, 1.5), power=200.0)
+        s.set_camera((0.0, -1.2, 1.0), (0.0, 0.0, 0.1), view_angle=45)
+        film = s.render(RenderSettings(spp=8, photons=40000, caustic_photons=100000, seed=2))
+        out[floor] = (film.caustic.mean(), film.direct.mean())
+    (c4, d4), (c10k, d10k) = out[4.0], out[1e4]
+    assert c4 > 0.05 * d4
+    assert abs(c10k - c4) < 0.05 * c4, out
+    assert abs(d10k - d4) < 0.01 * d4, out
