@@ -227,17 +227,18 @@ def border_region(render, width: int, height: int):
     return (x0, height - yb1, x1, height - yb0)
 
 
-def terminator_offset(obj, warnings) -> float:
-    """Cycles' Object > Shadow Terminator > Geometry Offset (default 0.1). The Normal
-    Offset beside it is EEVEE's (Cycles ignores it), and the Shading Offset is not
-    simulated: a non-zero one is named in a warning."""
-    if float(getattr(obj, "shadow_terminator_shading_offset", 0.0) or 0.0) > 0:
-        msg = (f"object '{obj.name}': Shadow Terminator > Shading Offset is not supported; "
-               "ignored")
-        if msg not in warnings:  # once per object, however many instances
-            warnings.append(msg)
+def terminator_offset(obj) -> float:
+    """Cycles' Object > Shadow Terminator > Geometry Offset (default 0.1). (The Normal
+    Offset beside it is EEVEE's; Cycles ignores it, and so do we.)"""
     value = float(getattr(obj, "shadow_terminator_geometry_offset", 0.1))
     return value if value >= 0 else 0.0
+
+
+def terminator_shading(obj) -> float:
+    """Cycles' Object > Shadow Terminator > Shading Offset (default 0; Cycles' formula
+    divides by 1 - offset / 2, so values are kept below 2)."""
+    value = float(getattr(obj, "shadow_terminator_shading_offset", 0.0))
+    return min(max(value, 0.0), 1.999)
 
 
 def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=None,
@@ -320,7 +321,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         info["objects"] += 1
         meshes.append(pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
                               uvs=uvs, materials=names, material_ids=mids,
-                              shadow_terminator_offset=terminator_offset(obj, warnings)))
+                              shadow_terminator_offset=terminator_offset(obj),
+                              shadow_terminator_shading_offset=terminator_shading(obj)))
         info["triangles"] += len(faces)
 
     cam_obj = camera if camera is not None else scene_eval.camera

@@ -74,6 +74,7 @@ class Geometry:
     round32: np.ndarray       # (T,3,3) bound on |float32 corner - float64 corner|
     tilt32: np.ndarray        # (T,) bound on the float32 plane's tilt, radians
     terminator: np.ndarray    # (T,) Cycles' shadow terminator geometry offset (Mesh)
+    terminator_shading: np.ndarray  # (T,) Cycles' shadow terminator shading offset (Mesh)
     faces32: np.ndarray       # (T,3) int32
     bounds: np.ndarray        # (2,3) re-centred bounding box
 
@@ -124,7 +125,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
     table = MaterialTable.build([scene.materials[n] for n in mat_names])
 
     v0s, v1s, v2s, cns, cuvs, mats, objs, names = [], [], [], [], [], [], [], []
-    terms = []
+    terms, shading_terms = [], []
     for oi, mesh in enumerate(scene.meshes):
         names.append(mesh.name)
         f = mesh.faces
@@ -148,6 +149,8 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         mats.append(remap[mesh.material_ids])
         objs.append(np.full(len(f), oi, np.int32))
         terms.append(np.full(len(f), float(getattr(mesh, "shadow_terminator_offset", 0.1))))
+        shading_terms.append(np.full(len(f), float(getattr(
+            mesh, "shadow_terminator_shading_offset", 0.0))))
 
     if v0s:
         v0 = np.concatenate(v0s); v1 = np.concatenate(v1s); v2 = np.concatenate(v2s)
@@ -196,6 +199,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         object_names=names, vertices32=verts32, round32=round32,
         tilt32=triangle_tilt(verts32.reshape(-1, 3, 3)), faces32=faces32,
         terminator=np.concatenate(terms) if terms else np.zeros(0),
+        terminator_shading=np.concatenate(shading_terms) if shading_terms else np.zeros(0),
         bounds=np.stack([lo - offset, hi - offset]),
     )
     return geo, table

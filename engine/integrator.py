@@ -18,7 +18,7 @@ import numpy as np
 from .lights import MESH
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
-from .rayoffset import (offset_along_normal, segment_to, smooth_surface_lift,
+from .rayoffset import (offset_along_normal, segment_to, shift_cos_in, smooth_surface_lift,
                         terminator_amount)
 from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, to_world
 
@@ -76,6 +76,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     E = np.zeros((len(hit.p), 3))
     plan = ctx.plan
     gate = _lit_side_normals(ctx.geo, hit)
+    shading_offset = (np.take(ctx.geo.terminator_shading, hit.prim)
+                      if len(hit.prim) else np.zeros(0))
+    shift = np.nonzero(shading_offset > 0)[0]
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
             continue
@@ -84,6 +87,10 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         for si in range(samples):
             uv = sampler.uv(2 + 64 * li + si) if sampler is not None else None
             ls = light.sample(hit.p, hit.ns, gate, rng, uv)
+            if len(shift):
+                # Cycles' shading offset: direct light towards the terminator dimmed.
+                ls.E[shift] *= shift_cos_in(dot(ls.wi[shift], hit.ns[shift]),
+                                            shading_offset[shift])[:, None]
             lit = np.nonzero(max3(ls.E) > 0)[0]
             if len(lit) == 0:
                 continue

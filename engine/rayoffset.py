@@ -196,6 +196,17 @@ def smooth_surface_lift(v0, e1, e2, corner_normals, b1, b2, ng) -> np.ndarray:
     return n * h[:, None]
 
 
+def shift_cos_in(cos_in, shading_offset) -> np.ndarray:
+    """(N,) factor on direct light for Cycles' Shadow Terminator > Shading Offset:
+    max(cos(f acos(cos_in)), 0) / cos_in with f = 1 / (1 - offset / 2) (Cycles'
+    shift_cos_in in kernel/closure/bsdf.h, from appleseed; f as in scene/object.cpp).
+    1 where the offset is 0; 0 where cos_in <= 0."""
+    f = 1.0 / (1.0 - 0.5 * np.asarray(shading_offset, np.float64))
+    c = np.clip(cos_in, 0.0, 1.0)
+    val = np.maximum(np.cos(np.arccos(c) * f), 0.0) / np.maximum(c, 1e-300)
+    return np.where(f > 1.0, np.where(c > 0, val, 0.0), 1.0)
+
+
 def terminator_amount(cutoff, cos_ns, cos_ng) -> np.ndarray:
     """(N,) how much of the smooth-surface lift a shadow ray takes (Cycles'
     shadow_ray_offset(): the rays within `cutoff` (the object's geometry offset) of

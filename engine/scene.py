@@ -137,6 +137,9 @@ class Mesh:
               (`shadow_terminator_geometry_offset`, >= 0, Blender's default 0.1): shadow
               rays from smooth-shaded triangles at grazing light leave from the smooth
               surface the normals describe, not the flat facet (engine/rayoffset.py)
+    shadow_terminator_shading_offset  Cycles' Shadow Terminator > Shading Offset (>= 0,
+              < 2, default 0): pushes the terminator of direct light towards the light
+              (Cycles' shift_cos_in, appleseed's fix)
     """
 
     name: str
@@ -147,6 +150,7 @@ class Mesh:
     materials: list[str] = field(default_factory=lambda: ["default"])
     material_ids: np.ndarray | None = None
     shadow_terminator_offset: float = 0.1
+    shadow_terminator_shading_offset: float = 0.0
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -159,6 +163,14 @@ class Mesh:
             raise SceneError(f"{who}: shadow_terminator_offset must be a number >= 0, "
                              f"got {self.shadow_terminator_offset!r}")
         self.shadow_terminator_offset = sto
+        try:
+            sso = float(self.shadow_terminator_shading_offset)
+        except (TypeError, ValueError):
+            sso = float("nan")
+        if not (math.isfinite(sso) and 0 <= sso < 2):
+            raise SceneError(f"{who}: shadow_terminator_shading_offset must be a number in "
+                             f"[0, 2), got {self.shadow_terminator_shading_offset!r}")
+        self.shadow_terminator_shading_offset = sso
         if isinstance(self.materials, str):
             self.materials = [self.materials]
         v = np.asarray(self.vertices, dtype=np.float64)

@@ -331,3 +331,22 @@ def test_caustic_does_not_change_with_the_size_of_the_ground():
     assert c4 > 0.05 * d4
     assert abs(c10k - c4) < 0.05 * c4, out
     assert abs(d10k - d4) < 0.01 * d4, out
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.5, 1.0])
+def test_shadow_terminator_shading_offset_dims_grazing_direct_light_as_cycles(offset):
+    """Cycles' Shading Offset multiplies direct light by max(cos(f theta), 0) / cos(theta),
+    f = 1 / (1 - offset / 2): a plane under a sun at 30 .. 80 degrees."""
+    for theta_deg in (30.0, 60.0, 80.0):
+        s = PaperScene(width=8, height=8)
+        s.add_material(Material("matte", (0.5, 0.5, 0.5)))
+        v = np.array([[-4, -4, 0], [4, -4, 0], [4, 4, 0], [-4, 4, 0]], float)
+        s.add_mesh(Mesh("plane", v, np.array([[0, 1, 2], [0, 2, 3]]), materials=["matte"],
+                        shadow_terminator_shading_offset=offset))
+        t = math.radians(theta_deg)
+        s.add_sun(direction=(math.sin(t), 0, -math.cos(t)), strength=2.0)
+        s.camera = Camera(position=(0, 0, 5), rotation=np.eye(3), kind="ORTHO", ortho_scale=2.0)
+        film = s.render(RenderSettings(**DIRECT_ONLY))
+        f = 1.0 / (1.0 - 0.5 * offset)
+        expected = 0.5 / math.pi * 2.0 * max(math.cos(f * t), 0.0)
+        np.testing.assert_allclose(film.combined, expected, rtol=1e-4, atol=1e-7)
