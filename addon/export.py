@@ -296,6 +296,20 @@ def border_region(render, width: int, height: int):
     return (x0, height - yb1, x1, height - yb0)
 
 
+def terminator_offset(obj) -> float:
+    """Cycles' Object > Shadow Terminator > Geometry Offset (default 0.1). (The Normal
+    Offset beside it is EEVEE's; Cycles ignores it, and so do we.)"""
+    value = float(getattr(obj, "shadow_terminator_geometry_offset", 0.1))
+    return value if value >= 0 else 0.0
+
+
+def terminator_shading(obj) -> float:
+    """Cycles' Object > Shadow Terminator > Shading Offset (default 0; Cycles' formula
+    divides by 1 - offset / 2, so values are kept below 2)."""
+    value = float(getattr(obj, "shadow_terminator_shading_offset", 0.0))
+    return min(max(value, 0.0), 1.999)
+
+
 def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=None,
                  should_cancel=None):
     """Build an engine Scene from an evaluated depsgraph.
@@ -381,6 +395,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         warn_unsupported_visibility(obj, warnings)
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
                        uvs=uvs, materials=names, material_ids=mids,
+                       shadow_terminator_offset=terminator_offset(obj),
+                       shadow_terminator_shading_offset=terminator_shading(obj),
                        **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)  # after dropping degenerate faces

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import Geometry, MaterialTable
+from .rayoffset import offset_along_normal
 from .sampling import dot, normalize, reflect, to_world
 
 SPEC_LOBES = ("pass", "metal", "glass_r", "glass_t", "coat")
@@ -67,10 +68,19 @@ class SurfaceHit:
     mat: np.ndarray       # material index
     base: np.ndarray      # (N,3) base colour (texture applied)
     prim: np.ndarray
+    offset: np.ndarray | None = None  # (N,) distance along ng that takes a ray origin
+                          # clear of p's triangle (a rounding-error bound, engine/rayoffset.py)
+    bary: np.ndarray | None = None    # (N,2) barycentric weights of corners 1 and 2
+
+    def clear(self, rows, d) -> np.ndarray:
+        """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
+        along ng by `offset`, to the side d leaves (pbrt-v4's OffsetRayOrigin)."""
+        return offset_along_normal(self.p[rows], self.ng[rows], d, self.offset[rows])
 
     def take(self, idx) -> "SurfaceHit":
         """The hits at rows idx (np.take(axis=0) is ~4x faster than fancy indexing)."""
-        return SurfaceHit(*(np.take(getattr(self, k), idx, axis=0)
+        return SurfaceHit(*(None if getattr(self, k) is None else
+                            np.take(getattr(self, k), idx, axis=0)
                             for k in self.__dataclass_fields__))
 
 
@@ -95,7 +105,9 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         sel = np.nonzero(mat == mi)[0]
         if len(sel):
             base[sel] = base[sel] * sample_texture(tex, geo.uvs(prim[sel], u[sel], v[sel]))
-    return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim)
+    return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
+                      offset=geo.origin_offset(prim, u, v, p, ng),
+                      bary=np.stack([u, v], axis=1))
 
 
 def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]:

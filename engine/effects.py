@@ -13,6 +13,7 @@ import numpy as np
 
 from .geometry import Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
+from .rayoffset import ulp32
 from .sampling import luminance
 from .scene import AREA, SUN
 
@@ -67,7 +68,9 @@ def _object_spheres(geo: Geometry, tri_mask: np.ndarray):
         sel = np.nonzero(tri_mask & (geo.object_id == oid))[0]
         pts = np.concatenate([geo.v0[sel], geo.v0[sel] + geo.e1[sel], geo.v0[sel] + geo.e2[sel]])
         c = (pts.min(axis=0) + pts.max(axis=0)) / 2.0
-        r = float(np.linalg.norm(pts - c, axis=1).max()) * 1.001 + geo.eps
+        # 0.1 % margin, and at least the float32 resolution at the sphere's coordinates.
+        r = float(np.linalg.norm(pts - c, axis=1).max()) * 1.001 + 16.0 * float(
+            ulp32(np.abs(pts).max()))
         centers.append(c)
         radii.append(r)
         names.append(geo.object_names[oid])
@@ -199,7 +202,10 @@ def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:
     n = geo.ng[mask]
     if np.any(np.abs(n @ n[0]) < 1.0 - 1e-9):
         return False
-    return bool(np.ptp(geo.v0[mask] @ n[0]) <= 10 * geo.eps)
+    # Flat to within what float32 (Embree's precision) resolves at these coordinates.
+    corners = np.concatenate([geo.v0[mask], geo.v0[mask] + geo.e1[mask], geo.v0[mask] + geo.e2[mask]])
+    h = corners @ n[0]
+    return bool(np.ptp(h) <= 16.0 * float(ulp32(np.abs(corners).max())))
 
 
 def _visible_specular(scene, geo, table, accel, probe=96) -> list:

@@ -3,6 +3,8 @@
 Re-centring matters because Embree works in float32: at 1e5 m the spacing of float32 is
 ~8 mm, so a scene far from the origin would show acne and leaks (docs/design.md, Embree
 (embreex) facts).
+Ray offsets are not set here: they are bounds on each point's rounding error
+(engine/rayoffset.py), never a share of the scene's size.
 """
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .rayoffset import origin_offset, triangle_point_error, triangle_tilt, ulp32
 from .sampling import dot, luminance, normalize
 from .scene import Material, Scene
 
@@ -61,8 +64,7 @@ class Geometry:
     """Merged triangles in re-centred world space (world = local + offset)."""
 
     offset: np.ndarray        # (3,) translation removed from everything
-    extent: float             # bounding-box diagonal (scene size)
-    eps: float                # ray-origin offset distance
+    extent: float             # bounding-box diagonal (scene size; never a length floor)
     v0: np.ndarray            # (T,3) triangle corners, float64
     e1: np.ndarray            # v1 - v0
     e2: np.ndarray            # v2 - v0
@@ -77,6 +79,10 @@ class Geometry:
     visibility: np.ndarray    # (T,) uint8 ray-class bits of the rays that see the triangle
     holdout: np.ndarray       # (T,) bool: camera rays that hit it give alpha 0
     vertices32: np.ndarray    # (3T,3) float32 for Embree
+    round32: np.ndarray       # (T,3,3) bound on |float32 corner - float64 corner|
+    tilt32: np.ndarray        # (T,) bound on the float32 plane's tilt, radians
+    terminator: np.ndarray    # (T,) Cycles' shadow terminator geometry offset (Mesh)
+    terminator_shading: np.ndarray  # (T,) Cycles' shadow terminator shading offset (Mesh)
     faces32: np.ndarray       # (T,3) int32
     bounds: np.ndarray        # (2,3) re-centred bounding box
 
@@ -89,6 +95,16 @@ class Geometry:
         # np.take(axis=0) gathers rows ~4x faster than fancy indexing (same values).
         return (np.take(self.v0, prim, axis=0) + u[:, None] * np.take(self.e1, prim, axis=0)
                 + v[:, None] * np.take(self.e2, prim, axis=0))
+
+    def origin_offset(self, prim, u, v, p, n) -> np.ndarray:
+        """(N,) distance along the unit geometric normal n that takes ray origins at hit
+        points p clear of their own triangles (engine/rayoffset.py: the float64 and float32
+        rounding error of p plus Embree's float32 plane test)."""
+        v0 = np.take(self.v0, prim, axis=0)
+        e1 = np.take(self.e1, prim, axis=0)
+        e2 = np.take(self.e2, prim, axis=0)
+        err = triangle_point_error(v0, e1, e2, np.take(self.round32, prim, axis=0), u, v, p)
+        return origin_offset(err, v0, e1, e2, n, p, np.take(self.tilt32, prim))
 
     def shading_normals(self, prim, u, v) -> np.ndarray:
         cn = np.take(self.corner_normals, prim, axis=0)
@@ -122,6 +138,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
 
     v0s, v1s, v2s, cns, cuvs, mats, objs, names = [], [], [], [], [], [], [], []
     vis, holdout = [], []
+    terms, shading_terms = [], []
     for oi, mesh in enumerate(scene.meshes):
         names.append(mesh.name)
         f = mesh.faces
@@ -148,6 +165,9 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         objs.append(np.full(len(f), oi, np.int32))
         vis.append(np.full(len(f), mesh.visibility, np.uint8))
         holdout.append(np.full(len(f), mesh.holdout, bool))
+        terms.append(np.full(len(f), float(getattr(mesh, "shadow_terminator_offset", 0.1))))
+        shading_terms.append(np.full(len(f), float(getattr(
+            mesh, "shadow_terminator_shading_offset", 0.0))))
 
     if v0s:
         v0 = np.concatenate(v0s); v1 = np.concatenate(v1s); v2 = np.concatenate(v2s)
@@ -182,18 +202,21 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         start += n
     smooth = np.any(np.abs(dot(corner_normals, ng[:, None, :]) - 1.0) > 1e-6, axis=1)
     corner_uvs = np.concatenate(cuvs) if cuvs else np.zeros((0, 3, 2))
-    # Offset: 1e-5 of the scene size is ~100x float32's spacing at the scene's scale, and
-    # far thinner than any wall a user models.
-    eps = 1e-5 * extent
-    verts32 = np.stack([v0, v1, v2], axis=1).reshape(-1, 3).astype(np.float32)
+    corners = np.stack([v0, v1, v2], axis=1)
+    verts32 = corners.reshape(-1, 3).astype(np.float32)
+    # Half a float32 spacing, as a bound continuous in the coordinates (rayoffset.ulp32).
+    round32 = 0.5 * ulp32(corners)
     faces32 = np.arange(3 * T, dtype=np.int32).reshape(T, 3)
     geo = Geometry(
-        offset=offset, extent=extent, eps=eps, v0=v0, e1=e1, e2=e2, ng=ng,
+        offset=offset, extent=extent, v0=v0, e1=e1, e2=e2, ng=ng,
         corner_normals=corner_normals, smooth=smooth, corner_uvs=corner_uvs,
         area=area2 / 2.0,
         material=np.concatenate(mats).astype(np.int32) if mats else np.zeros(0, np.int32),
         object_id=np.concatenate(objs) if objs else np.zeros(0, np.int32),
-        object_names=names, vertices32=verts32, faces32=faces32,
+        object_names=names, vertices32=verts32, round32=round32,
+        tilt32=triangle_tilt(verts32.reshape(-1, 3, 3)), faces32=faces32,
+        terminator=np.concatenate(terms) if terms else np.zeros(0),
+        terminator_shading=np.concatenate(shading_terms) if shading_terms else np.zeros(0),
         visibility=np.concatenate(vis) if vis else np.zeros(0, np.uint8),
         holdout=np.concatenate(holdout) if holdout else np.zeros(0, bool),
         bounds=np.stack([lo - offset, hi - offset]),

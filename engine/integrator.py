@@ -18,7 +18,9 @@ import numpy as np
 from .lights import MESH
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
-from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, offset_origin, to_world
+from .rayoffset import (offset_along_normal, segment_to, shift_cos_in, smooth_surface_lift,
+                        terminator_amount)
+from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, to_world
 from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
 
 
@@ -74,6 +76,10 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     by its own rays, which stays calm right next to the emitter)."""
     E = np.zeros((len(hit.p), 3))
     plan = ctx.plan
+    gate = _lit_side_normals(ctx.geo, hit)
+    shading_offset = (np.take(ctx.geo.terminator_shading, hit.prim)
+                      if len(hit.prim) else np.zeros(0))
+    shift = np.nonzero(shading_offset > 0)[0]
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
             continue
@@ -81,20 +87,88 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         trace_shadows = plan.shadows.get(light.name, True)
         for si in range(samples):
             uv = sampler.uv(2 + 64 * li + si) if sampler is not None else None
-            ls = light.sample(hit.p, hit.ns, hit.ng, rng, uv)
+            ls = light.sample(hit.p, hit.ns, gate, rng, uv)
+            if len(shift):
+                # Cycles' shading offset: direct light towards the terminator dimmed.
+                ls.E[shift] *= shift_cos_in(dot(ls.wi[shift], hit.ns[shift]),
+                                            shading_offset[shift])[:, None]
             lit = np.nonzero(max3(ls.E) > 0)[0]
             if len(lit) == 0:
                 continue
-            o = offset_origin(hit.p[lit], hit.ng[lit], ls.wi[lit], ctx.geo.eps)
-            dist = ls.dist[lit]
-            tmax = np.where(np.isfinite(dist), dist * (1.0 - 1e-6) - 2.0 * ctx.geo.eps, np.inf)
             if trace_shadows:
-                blocked = ctx.accel.occluded(o, ls.wi[lit], np.maximum(tmax, 0.0), cls=SHADOW)
+                o, wi, tmax = shadow_rays(hit, ls, lit, ctx.geo)
+                blocked = ctx.accel.occluded(o, wi, tmax, cls=SHADOW)
                 counters.shadow_rays += len(lit)
             else:
                 blocked = np.zeros(len(lit), bool)
             E[lit] += ls.E[lit] * (~blocked)[:, None] / samples
     return E
+
+
+def shadow_rays(hit, ls, rows, geo=None):
+    """Shadow rays from hits[rows] to their light samples: (origins, unit directions,
+    tmax). Both ends are kept off their surfaces by rounding-error bounds (pbrt-v4's
+    SpawnRayTo; engine/rayoffset.py): the origin is lifted off the hit's triangle, and a
+    ray to a point on an emitting surface ends before that surface's plane, at any angle,
+    so the emitter never shadows itself. With geo, rays from smooth-shaded triangles at
+    grazing light first move to the smooth surface (Cycles' shadow terminator offset)."""
+    wi = ls.wi[rows]
+    p = hit.p[rows]
+    if geo is not None and hit.bary is not None:
+        p = _terminator_origins(geo, hit, rows, wi, p)
+    ng = hit.ng[rows]
+    # A ray below the facet (only from the smooth surface above it, see
+    # _lit_side_normals) starts on the facet's lit side all the same.
+    o = offset_along_normal(p, ng, np.where((dot(wi, ng) >= 0)[:, None], wi, ng),
+                            hit.offset[rows])
+    if ls.y is None:  # sun, world: nothing lies beyond
+        return o, ls.wi[rows], np.full(len(rows), np.inf)
+    ny = None if ls.ny is None else ls.ny[rows]
+    gap = None if ls.end_gap is None else ls.end_gap[rows]
+    wi, tmax = segment_to(o, ls.y[rows], ny, gap)
+    return o, wi, tmax
+
+
+def _lit_side_normals(geo, hit):
+    """The normal whose hemisphere decides which light directions a hit can receive:
+    the geometric normal, except on smooth-shaded triangles with a shadow terminator
+    offset, where (as in Cycles) light the shading normal faces is traced even when it
+    arrives just below the flat facet: its shadow ray leaves from the smooth surface
+    (_terminator_origins) and is shadowed only if it really meets geometry, the facet
+    itself included (Cycles skips the own triangle only when NgL > 0)."""
+    if hit.bary is None or not len(hit.prim):
+        return hit.ng
+    smooth = np.take(geo.smooth, hit.prim) & (np.take(geo.terminator, hit.prim) > 0)
+    if not smooth.any():
+        return hit.ng
+    return np.where(smooth[:, None], hit.ns, hit.ng)
+
+
+def _terminator_origins(geo, hit, rows, wi, p):
+    """Shadow-ray start points moved from the flat facet towards the smooth surface its
+    normals describe, by Cycles' amount for the light direction wi (shadow_ray_offset in
+    intern/cycles/kernel/light/sample.h): no black facet notches along the terminator of
+    a coarse smooth mesh."""
+    prim = hit.prim[rows]
+    cutoff = np.take(geo.terminator, prim)
+    cand = np.nonzero(np.take(geo.smooth, prim) & (cutoff > 0))[0]
+    if len(cand) == 0:
+        return p
+    ng = hit.ng[rows[cand]]
+    amount = terminator_amount(cutoff[cand], dot(hit.ns[rows[cand]], wi[cand]),
+                               dot(ng, wi[cand]))
+    go = np.nonzero(amount > 0)[0]
+    if len(go) == 0:
+        return p
+    sel = cand[go]
+    t = prim[sel]
+    b = hit.bary[rows[sel]]
+    lift = smooth_surface_lift(np.take(geo.v0, t, axis=0), np.take(geo.e1, t, axis=0),
+                               np.take(geo.e2, t, axis=0), np.take(geo.corner_normals, t, axis=0),
+                               b[:, 0], b[:, 1], ng[go])
+    p = p.copy()
+    p[sel] += lift * amount[go][:, None]
+    return p
 
 
 # Gather rays that end near a corner or contact, where the precomputed irradiance is cut
@@ -119,7 +193,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         u1, u2 = sampler.uv(1 + 64 * g) if sampler is not None else (rng.random(n), rng.random(n))
         d = to_world(cosine_hemisphere(u1, u2), hit.ns)
         idx = np.nonzero(dot(d, hit.ng) > 0)[0]
-        o = offset_origin(hit.p[idx], hit.ng[idx], d[idx], ctx.geo.eps)
+        o = hit.clear(idx, d[idx])
         d = d[idx]
         tp = np.ones((len(idx), 3))
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
@@ -147,7 +221,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             wd = w["diffuse"]
             dsel = np.nonzero(max3(wd) > 0)[0]
             if len(dsel):
-                Ey, boundary = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel])
+                Ey, boundary = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel],
+                                                     offset=y.offset[dsel])
                 if level < MAX_GATHER_LEVEL:
                     again = np.nonzero(boundary | (t[dsel] < ctx.gather_short))[0]
                     if len(again):
@@ -207,7 +282,7 @@ def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
     sub = hit.take(idx)
     nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
     keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
-    o = offset_origin(sub.p[keep], sub.ng[keep], nd[keep], ctx.geo.eps)
+    o = sub.clear(keep, nd[keep])
     inc = ray_cls if np.ndim(ray_cls) == 0 else np.asarray(ray_cls)[idx]
     new_cls = continued_class(lobe, inc)[keep]
     return idx[keep], o, nd[keep], new_tp[keep], new_cls

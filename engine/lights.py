@@ -14,7 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .geometry import Geometry, MaterialTable, emissive_triangles
-from .sampling import (concentric_disk, cosine_hemisphere, dot, luminance, offset_origin, orthonormal_basis, to_world, uniform_cone, uniform_sphere,
+from .rayoffset import (G64, embree_plane_error, origin_offset, tilt_error,
+                        triangle_point_error, ulp32)
+from .sampling import (concentric_disk, cosine_hemisphere, dot, luminance, max3,
+                       offset_origin,
+                       orthonormal_basis, to_world, uniform_cone, uniform_sphere,
                        uniform_triangle)
 from .scene import (AREA, DISK, POINT, SPOT, SUN, Scene, spot_bounding_cos, spot_cone_cos,
                     spot_mask, spread_attenuation)
@@ -27,6 +31,10 @@ class LightSample:
     wi: np.ndarray      # (N,3) unit direction from the shading point to the light sample
     dist: np.ndarray    # (N,) distance to the sample (inf for sun / world)
     E: np.ndarray       # (N,3) irradiance estimate ignoring visibility (cos at receiver in)
+    y: np.ndarray | None = None        # (N,3) the sampled point; None at infinity
+    ny: np.ndarray | None = None       # (N,3) unit normal of the emitting surface at y
+    end_gap: np.ndarray | None = None  # (N,) rounding-error bound of y along ny: a shadow
+                                       # ray must end at least this far before the surface
 
 
 class PreparedLight:
@@ -65,10 +73,22 @@ class PreparedLight:
         return self.pos + x[:, None] * self.du + yy[:, None] * self.dv
 
     def _mesh_point(self, rng, u1, u2):
-        """(triangle index, point) on the emissive triangles, chosen by area x brightness."""
+        """(triangle index, point, barycentrics b1, b2) on the emissive triangles, chosen
+        by area x brightness."""
         tri = np.searchsorted(self.cdf, rng.random(len(u1)), side="right").clip(0, len(self.cdf) - 1)
         b1, b2 = uniform_triangle(u1, u2)
-        return tri, self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri]
+        return tri, self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri], b1, b2
+
+    def _mesh_error(self, tri, b1, b2, y):
+        """(N,3) rounding-error bound of points y on emissive triangles (engine/rayoffset.py)."""
+        return triangle_point_error(self.v0[tri], self.e1[tri], self.e2[tri], self.round32[tri],
+                                    b1, b2, y)
+
+    def _mesh_offset(self, tri, b1, b2, y):
+        """(N,) distance along the normal that takes a ray leaving y clear of its triangle
+        (engine/rayoffset.py)."""
+        return origin_offset(self._mesh_error(tri, b1, b2, y), self.v0[tri], self.e1[tri],
+                             self.e2[tri], self.tri_ng[tri], y, self.tilt32[tri])
 
     # ------------------------------------------------------------------ shadow rays
     def sample(self, p, ns, ng, rng, uv=None) -> LightSample:
@@ -86,18 +106,27 @@ class PreparedLight:
             E = math.pi * self.radiance[None, :] * ok[:, None]
             return LightSample(wi, np.full(n, np.inf), E)
         if self.kind == MESH:
-            tri, y = self._mesh_point(rng, u1, u2)
-            return self._finish_area(p, ns, ng, y, self.tri_ng[tri],
+            tri, y, b1, b2 = self._mesh_point(rng, u1, u2)
+            ny = self.tri_ng[tri]
+            # The ray must end before the emitting triangle as Embree (float32, from the
+            # shading point) places it: the point's own error plus Embree's plane error.
+            err = self._mesh_error(tri, b1, b2, y)
+            an = np.abs(ny)
+            gap = (an[:, 0] * err[:, 0] + an[:, 1] * err[:, 1] + an[:, 2] * err[:, 2]
+                   + embree_plane_error(self.v0[tri], self.e1[tri], self.e2[tri], ny, p)
+                   + tilt_error(self.v0[tri], self.e1[tri], self.e2[tri], self.tilt32[tri], p))
+            return self._finish_area(p, ns, ng, y, ny,
                                      self.tri_L[tri] * (self.tri_area[tri] / self.prob[tri])[:, None],
-                                     two_sided=True)
+                                     two_sided=True, gap=gap)
         if self.kind == AREA:
             if (self.spread < math.pi and self.shape != DISK and np.allclose(self.du, self.u)
                     and np.allclose(self.dv, self.v)):  # a sheared light samples it whole
                 return self._sample_spread_rect(p, ns, ng, u1, u2)
             y = self._area_point(u1, u2)
+            y = self._area_point(u1, u2)
             ls = self._finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (n, 3)),
                                    np.broadcast_to(self.radiance * self.area, (n, 3)),
-                                   two_sided=False)
+                                   two_sided=False, gap=self._area_gap(y))
             if self.spread < math.pi:
                 ls.E = ls.E * spread_attenuation(dot(-ls.wi, self.dir), self.spread)[:, None]
             return ls
@@ -116,12 +145,11 @@ class PreparedLight:
         wi = w / np.maximum(dist, 1e-300)[:, None]
         cos_r = np.maximum(dot(wi, ns), 0.0) * (dot(wi, ng) > 0)
         cos_l = np.maximum(dot(-wi, axis), 0.0) if self.radius > 0 else 1.0
-        # Guard: a light touching the surface must not produce inf (min distance = eps).
-        d2 = np.maximum(dist * dist, self.min_dist2)
+        d2 = np.maximum(dist * dist, _min_dist2(p, y))
         E = self.intensity[None, :] * (cos_r * cos_l / d2)[:, None]
         if self.kind == SPOT:
             E = E * self._spot(axis)[:, None]
-        return LightSample(wi, dist, E)
+        return LightSample(wi, dist, E, y=y)
 
     def _sample_spread_rect(self, p, ns, ng, u1, u2):
         """A rectangle with a narrow spread lights p only from the part of it within
@@ -141,19 +169,28 @@ class PreparedLight:
         y = self.pos + x[:, None] * self.u + yy[:, None] * self.v
         area = (wx * wy)[:, None]               # the sampled part: pdf 1 / area
         ls = self._finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (len(p), 3)),
-                               self.radiance[None, :] * area, two_sided=False)
+                               self.radiance[None, :] * area, two_sided=False,
+                               gap=self._area_gap(y))
         ls.E = ls.E * spread_attenuation(dot(-ls.wi, self.dir), self.spread)[:, None]
         return ls
 
-    def _finish_area(self, p, ns, ng, y, ny, L_times_area, two_sided):
+    def _area_gap(self, y):
+        """How far before an area light's plane a shadow ray to its point y must end: y is
+        pos + x u + y v in float64, then rounded to float32 as a ray end."""
+        err = G64 * (np.abs(self.pos) + np.abs(y - self.pos)) + ulp32(y)
+        an = np.abs(self.dir)
+        return an[0] * err[:, 0] + an[1] * err[:, 1] + an[2] * err[:, 2]
+
+    def _finish_area(self, p, ns, ng, y, ny, L_times_area, two_sided, gap):
         w = y - p
         dist = np.linalg.norm(w, axis=1)
         wi = w / np.maximum(dist, 1e-300)[:, None]
         cos_r = np.maximum(dot(wi, ns), 0.0) * (dot(wi, ng) > 0)
         cos_l = dot(-wi, ny)
         cos_l = np.abs(cos_l) if two_sided else np.maximum(cos_l, 0.0)
-        d2 = np.maximum(dist * dist, self.min_dist2)
-        return LightSample(wi, dist, L_times_area * (cos_r * cos_l / d2)[:, None])
+        d2 = np.maximum(dist * dist, _min_dist2(p, y))
+        return LightSample(wi, dist, L_times_area * (cos_r * cos_l / d2)[:, None],
+                           y=y, ny=ny, end_gap=gap)
 
     # ------------------------------------------------------------------ photons
     def emit(self, n: int, rng):
@@ -171,7 +208,7 @@ class PreparedLight:
                  + self.scene_radius * (x[:, None] * t + yy[:, None] * b))
             return o, d, np.broadcast_to(self.photon_flux / n, (n, 3)).copy()
         if self.kind == MESH:
-            tri, o = self._mesh_point(rng, u1, u2)
+            tri, o, b1, b2 = self._mesh_point(rng, u1, u2)
             side = np.where(rng.random(n) < 0.5, 1.0, -1.0)[:, None]
             nrm = self.tri_ng[tri] * side
             d = to_world(cosine_hemisphere(u3, u4), nrm)
@@ -179,7 +216,7 @@ class PreparedLight:
             # Leave the emitting surface: from a point on the triangle itself, Embree can
             # report the triangle again at t ~ 0 and the photon lands on its own emitter,
             # from the wrong side (measured: a third of a furnace room's photons).
-            return offset_origin(o, nrm, d, self.eps), d, power
+            return offset_origin(o, nrm, d, self._mesh_offset(tri, b1, b2, o)), d, power
         if self.kind == AREA:
             o = self._area_point(u1, u2)
             if self.spread < math.pi:
@@ -259,7 +296,7 @@ class PreparedLight:
         # Origins as the light emits them.
         normal = None
         if self.kind == MESH:
-            tri, o = self._mesh_point(rng, u1, u2)
+            tri, o, b1, b2 = self._mesh_point(rng, u1, u2)
             normal = self.tri_ng[tri]
             anchor = self.v0.mean(axis=0)
         elif self.kind == AREA:
@@ -296,7 +333,8 @@ class PreparedLight:
         if self.kind == MESH:
             cos = np.abs(dot(d, normal))
             scale = self.tri_area[tri] * cos / (self.prob[tri] * n * aimed)
-            return offset_origin(o, normal, d, self.eps), d, self.tri_L[tri] * scale[:, None]
+            return (offset_origin(o, normal, d, self._mesh_offset(tri, b1, b2, o)), d,
+                    self.tri_L[tri] * scale[:, None])
         if self.kind == AREA:
             cos = dot(d, self.dir)
             pdf_nat = np.maximum(cos, 0.0) / math.pi * spread_attenuation(cos, self.spread)
@@ -355,13 +393,20 @@ class PreparedLight:
         return inside[:, None] * self.sun_radiance[None, :]
 
 
+def _min_dist2(p, y):
+    """Squared distance below which 1/d^2 is not evaluated: a light touching the surface
+    must not give inf. The floor is what float32 can resolve at the two points (16 ulps of
+    their largest coordinates), a local length, never a share of the scene's size."""
+    d = 16.0 * (ulp32(max3(np.abs(p))) + ulp32(max3(np.abs(np.broadcast_to(y, p.shape)))))
+    return d * d
+
+
 def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable) -> list[PreparedLight]:
     """Re-centre the scene's lights and add mesh and world lights."""
     out = []
     center = (geo.bounds[0] + geo.bounds[1]) / 2.0
     radius = max(geo.extent / 2.0, 1e-6) * 1.01
-    min_dist2 = (geo.eps * 10) ** 2
-    common = dict(center=center, scene_radius=radius, min_dist2=min_dist2)
+    common = dict(center=center, scene_radius=radius)
     for light in scene.lights:
         rgb = light.power * light.color
         c = float(np.dot(light.axis_u, light.axis_v))
@@ -407,7 +452,7 @@ def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable) -> list[Pr
             "emissive meshes", MESH, v0=geo.v0[idx], e1=geo.e1[idx], e2=geo.e2[idx],
             tri_ng=geo.ng[idx], tri_L=L, tri_area=area, prob=prob, cdf=cdf,
             tri_index=idx, photon_flux=flux, flux=flux, radius=0.0, visible_camera=True,
-            eps=geo.eps,
+            round32=geo.round32[idx], tilt32=geo.tilt32[idx],
             cos_half_angle=1.0, **common))
     bg = np.asarray(scene.background, np.float64)
     if scene.background_is_light and np.any(bg > 0):

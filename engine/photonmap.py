@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from .parallel import ordered_map
 from .photons import Photons
+from .rayoffset import G32_PLANE, ulp32
 from .sampling import max3
 
 NORMAL_AGREEMENT = 0.5
@@ -272,14 +273,13 @@ class GatherMap:
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
-                 eps: float = 0.0, workers: int = 1):
+                 workers: int = 1):
         ph = photons
         self.workers = workers
         # With an Accel, a lookup only takes a gather point it can see: a point on the
         # other side of a wall (e.g. the ground outside a room, coplanar with the floor
         # inside) would otherwise leak light under the wall (docs/stability.md).
         self.accel = accel
-        self.eps = float(eps)
         self.tree = None
         if len(ph) < 2:
             return
@@ -303,12 +303,15 @@ class GatherMap:
             view.accel = self.accel.serial()
         return view
 
-    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8):
+    def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
+               offset: np.ndarray | None = None):
         """(irradiance, boundary) at the nearest visible gather point facing the same way.
         boundary: that point's estimate met another surface (a corner or contact), where
         the estimate is biased dark, or no such point was found in range (a sparsely lit
         patch crowded by another surface's gather points, e.g. the underside of a ball
-        resting on a lit floor); those rows get irradiance 0 and should gather again."""
+        resting on a lit floor); those rows get irradiance 0 and should gather again.
+        offset: (N,) distance along n that takes a ray from p clear of p's surface
+        (SurfaceHit.offset); default: the float32 resolution at p."""
         out = np.zeros((len(p), 3))
         boundary = np.ones(len(p), bool)
         if self.tree is None or len(p) == 0:
@@ -319,7 +322,8 @@ class GatherMap:
         # agreeing, visible candidate in distance order is the same either way.
         for kq in (1, candidates, 8 * candidates):
             kq = min(kq, len(self.position))
-            chosen, found = self._nearest_agreeing(p[todo], n[todo], kq)
+            chosen, found = self._nearest_agreeing(p[todo], n[todo], kq,
+                                                   None if offset is None else offset[todo])
             out[todo[found]] = self.E[chosen[found]]
             boundary[todo[found]] = self.boundary[chosen[found]]
             todo = todo[~found]
@@ -327,7 +331,7 @@ class GatherMap:
                 break
         return out, boundary
 
-    def _nearest_agreeing(self, p, n, kq):
+    def _nearest_agreeing(self, p, n, kq, offset=None):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=self.radius,
                                     workers=self.workers)
         if kq == 1:
@@ -336,12 +340,12 @@ class GatherMap:
         safe = np.where(found, idx, 0)
         agree = found & (np.einsum("nkc,nc->nk", np.take(self.normal, safe, axis=0), n) > 0.7)
         if self.accel is not None:
-            agree = self._visible_first(p, n, safe, agree)
+            agree = self._visible_first(p, n, safe, agree, offset)
         first = np.argmax(agree, axis=1)
         anyok = agree.any(axis=1)
         return safe[np.arange(len(p)), first], anyok
 
-    def _visible_first(self, p, n, safe, agree):
+    def _visible_first(self, p, n, safe, agree, offset=None):
         """Drop candidates hidden from p by geometry, nearest first, until each row's first
         remaining candidate is visible (usually one occlusion ray per lookup)."""
         agree = agree.copy()
@@ -351,9 +355,16 @@ class GatherMap:
                 break
             first = np.argmax(agree[todo], axis=1)
             q = self.position[safe[todo, first]]
-            # Both ends lifted off their surfaces along the normal (shared by agreement).
-            a = p[todo] + self.eps * n[todo]
-            b = q + self.eps * self.normal[safe[todo, first]]
+            # Both ends lifted off their surfaces along the normal (shared by agreement),
+            # by bounds on their rounding error (engine/rayoffset.py): the query point's
+            # own offset, and for the gather point (a float32 photon position, triangle
+            # unknown) its float32 resolution plus the float32 error of the ray's length.
+            lift_a = (4.0 * ulp32(max3(np.abs(p[todo]))) if offset is None
+                      else offset[todo])
+            a = p[todo] + lift_a[:, None] * n[todo]
+            dist0 = np.linalg.norm(q - a, axis=1)
+            lift_b = 4.0 * ulp32(max3(np.abs(q))) + 2.0 * G32_PLANE * dist0
+            b = q + lift_b[:, None] * self.normal[safe[todo, first]]
             w = b - a
             dist = np.linalg.norm(w, axis=1)
             d = w / np.maximum(dist, 1e-300)[:, None]
@@ -364,10 +375,29 @@ class GatherMap:
         return agree
 
 
-def auto_radius(diffuse_area: float, stored: int, k: int, extent: float) -> float:
-    """Max search radius from scene size and photon density: twice the radius of a disk
-    that would hold k photons if the stored photons covered the diffuse area evenly."""
+# Photons whose k-NN distance sets the automatic radius (a strided sample: enough for a
+# median, a few ms).
+RADIUS_SAMPLE = 4096
+
+
+def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
+                positions: np.ndarray | None = None) -> float:
+    """Max search radius (m) from the photons' own density: twice the median distance from
+    a stored photon to its k-th nearest neighbour (positions: (N,3) the stored photons).
+    Where photons gather (the lit part of a huge ground plane) this is the local spacing,
+    not the spacing they would have if spread over all diffuse area. Without positions,
+    or where that median is 0 (photons piled on a point), twice the radius of a disc that
+    would hold k photons if the stored photons covered the diffuse area evenly. Never
+    more than 0.1 x the scene's diagonal `extent`; no floor tied to the scene's size."""
     if stored <= 0 or diffuse_area <= 0:
         return 0.05 * extent
-    r = 2.0 * math.sqrt(k * diffuse_area / (math.pi * stored))
-    return float(min(max(r, 1e-4 * extent), 0.1 * extent))
+    r = 0.0
+    if positions is not None and len(positions) > k:
+        pts = np.asarray(positions, np.float64)
+        step = max(1, len(pts) // RADIUS_SAMPLE)
+        tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)
+        d, _ = tree.query(pts[::step], k=k + 1)  # the nearest is the photon itself
+        r = 2.0 * float(np.median(d[:, -1]))
+    if not r > 0:
+        r = 2.0 * math.sqrt(k * diffuse_area / (math.pi * stored))
+    return float(min(r, 0.1 * extent))

@@ -23,7 +23,7 @@ import numpy as np
 
 from .parallel import Cancelled, chunk_length, ordered_map
 from .bsdf import lobe_weights, sample_specular, surface_hit
-from .sampling import cosine_hemisphere, dot, max3, offset_origin, to_world
+from .sampling import cosine_hemisphere, dot, max3, to_world
 from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class, visible_to
 
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
@@ -105,6 +105,11 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         o, d, power = light.emit_towards(n, rng, *targets)
     power *= n / count  # emit() spreads the light's whole flux over this chunk
     live = max3(power) > 0  # e.g. aimed outside a one-sided light's hemisphere
+    # Each photon keeps its slot in the chunk and takes the random numbers of that slot,
+    # drawn for every slot at every bounce: a photon whose path changes (a hit a hair
+    # from an edge, rounded differently in a scaled scene) does not shift the random
+    # numbers, and so the paths, of all the photons after it.
+    slot = np.nonzero(live)[0]
     if not live.all():
         o, d, power = o[live], d[live], power[live]
     had_diffuse = np.zeros(len(o), bool)
@@ -121,10 +126,13 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             raise Cancelled()
         if len(o) == 0:
             break
+        bounce_rng = np.random.default_rng(rng.integers(1 << 62))
+        xi_all = bounce_rng.random((3, n))  # roulette, diffuse direction (2) per slot
         _, prim, u, v = accel.intersect(o, d)
         alive = prim >= 0
         if not alive.all():
             o, d, power, prim, u, v = o[alive], d[alive], power[alive], prim[alive], u[alive], v[alive]
+            slot = slot[alive]
             had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
             caustic_then_diffuse = caustic_then_diffuse[alive]
             ray_cls, source = ray_cls[alive], source[alive]
@@ -138,7 +146,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             # tests itself) and passes on to what lies behind it. Split the photon.
             thru = np.nonzero(~visible_to(geo, prim, ray_cls))[0]
             if len(thru):
-                carry = (offset_origin(hit.p[thru], hit.ng[thru], d[thru], geo.eps), d[thru],
+                carry = (hit.clear(thru, d[thru]), d[thru],
                          power[thru], had_diffuse[thru], had_specular[thru],
                          caustic_then_diffuse[thru], ray_cls[thru], source[thru])
         w = lobe_weights(table, hit)
@@ -162,7 +170,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         s = ((((probs[:, 0] + probs[:, 1]) + probs[:, 2]) + probs[:, 3]) + probs[:, 4]) + probs[:, 5]
         probs = probs / np.maximum(s, 1.0)[:, None]
         cdf = np.cumsum(probs, axis=1)
-        xi = rng.random(len(o))
+        xi = xi_all[0, slot]
         lobe = np.count_nonzero(xi[:, None] >= cdf, axis=1)  # len(LOBES) = absorbed
         survive = lobe < len(LOBES)
         if caustic_only:
@@ -178,18 +186,19 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                 w_sel[rows] = np.take(w[k], idx[rows], axis=0)
         new_power = power[idx] * w_sel / np.maximum(p_sel, 1e-300)[:, None]
         sub = hit.take(idx)
+        slot = slot[idx]
         new_d = np.empty((len(idx), 3))
         ok = np.ones(len(idx), bool)
         diff = lobe == 0
         if diff.any():
-            nd = to_world(cosine_hemisphere(rng.random(int(diff.sum())),
-                                            rng.random(int(diff.sum()))), sub.ns[diff])
+            nd = to_world(cosine_hemisphere(xi_all[1, slot[diff]], xi_all[2, slot[diff]]),
+                          sub.ns[diff])
             new_d[diff] = nd
             ok[diff] = dot(nd, sub.ng[diff]) > 0
         spec = ~diff
         if spec.any():
             sd, valid, _ = sample_specular(table, sub.take(np.nonzero(spec)[0]),
-                                           lobe[spec] - 1, rng)
+                                           lobe[spec] - 1, bounce_rng)
             new_d[spec] = sd
             ok[spec] = valid
         if vis_on:
@@ -217,10 +226,11 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         mx = max3(new_power)
         keep = ok & np.isfinite(new_power[:, 0] + new_power[:, 1] + new_power[:, 2]) & (mx > 0)
         new_d, new_power = new_d[keep], new_power[keep]
+        slot = slot[keep]
         had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
         caustic_then_diffuse = caustic_then_diffuse[keep]
         ray_cls, source = new_cls[keep], new_source[keep]
-        o = offset_origin(sub.p[keep], sub.ng[keep], new_d, geo.eps)
+        o = sub.clear(keep, new_d)
         d, power = new_d, new_power
         if carry is not None:
             o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls, source = (

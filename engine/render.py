@@ -1,6 +1,7 @@
 """render(): scene -> photon pass -> photon maps -> camera pass -> Film."""
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 
@@ -13,7 +14,8 @@ from .geometry import Geometry, MaterialTable, prepare
 from .integrator import render_camera
 from .lights import allocate_photons, prepare_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
-from .sampling import luminance
+from .rayoffset import G32_T, ulp32
+from .sampling import luminance, max3
 from .parallel import Cancelled
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Photons, trace_photons
 from .resources import check_resources
@@ -159,8 +161,18 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     diffuse_area = float(geo.area[diffuse_tris].sum())
     k = s.k_nearest
     workers = s.threads
-    r_auto = auto_radius(diffuse_area, max(len(shot), len(caustic), 1), k, geo.extent)
-    ctx.global_radius = s.radius or auto_radius(diffuse_area, len(shot), k, geo.extent)
+    # The global radius from the global photons' own spacing (local: not the spacing they
+    # would have if spread over a huge ground plane they barely light). The caustic
+    # radius from the same spacing, scaled to the larger shot's count (aimed caustic
+    # photons pile up on a focus: their own spacing would make it tiny); without a
+    # global shot, as if the caustic photons covered the diffuse area evenly.
+    r_global = auto_radius(diffuse_area, len(shot), k, geo.extent, shot.position)
+    dense = max(len(shot), len(caustic), 1)
+    if len(shot) > k:
+        r_auto = r_global * math.sqrt(len(shot) / dense)
+    else:
+        r_auto = auto_radius(diffuse_area, dense, k, geo.extent)
+    ctx.global_radius = s.radius or r_global
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
     # ends closer than that gathers once more from its end (integrator.gather_indirect).
     ctx.gather_short = ctx.global_radius
@@ -172,7 +184,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
             gathered = shot.select(shot.kind != CAUSTIC)
             ctx.gather_map = GatherMap(gathered, ctx.global_radius, k, s.min_photons,
-                                       s.estimator, accel=ctx.accel, eps=geo.eps,
+                                       s.estimator, accel=ctx.accel,
                                        workers=workers)
             ctx.secondary_map = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
             stats["global_photons"] = len(shot)
@@ -180,7 +192,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
             ctx.global_map = PhotonMap(shot.select(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE))),
                                        workers)
             ctx.global_radius = s.radius or auto_radius(diffuse_area, len(ctx.global_map), k,
-                                                        geo.extent)
+                                                        geo.extent,
+                                                        ctx.global_map.photons.position)
             stats["global_photons"] = len(ctx.global_map)
     if plan.caustics:
         ctx.caustic_map = PhotonMap(caustic if use_caustic_shot
@@ -248,7 +261,10 @@ def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
     dist = np.linalg.norm(to, axis=1)
     d = to / np.maximum(dist, 1e-300)[:, None]
     origin = p[idx] - to
-    blocked = ctx.accel.occluded(origin, d, np.maximum(dist - 4 * ctx.geo.eps, 0.0))
+    # Stop short of the photon's surface by the float32 resolution there (photon
+    # positions are float32) plus the float32 error of the ray's length.
+    gap = 4.0 * ulp32(max3(np.abs(p[idx]))) + G32_T * dist
+    blocked = ctx.accel.occluded(origin, d, np.maximum(dist - gap, 0.0))
     idx = idx[~blocked]
     if len(idx) == 0:
         return

@@ -104,11 +104,12 @@ def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     return d - 2.0 * dot(d, n)[..., None] * n
 
 
-def offset_origin(p: np.ndarray, ng: np.ndarray, direction: np.ndarray, eps: float) -> np.ndarray:
-    """Move p off its surface along the geometric normal, to the side `direction` leaves.
+def offset_origin(p: np.ndarray, ng: np.ndarray, direction: np.ndarray, eps) -> np.ndarray:
+    """Move p off its surface along the geometric normal, to the side `direction` leaves,
+    by eps: (N,) per point (a rounding-error bound, engine/rayoffset.py) or a scalar.
 
     Offsetting along the normal (not the ray) is what keeps float32 Embree from hitting the
-    same triangle again (docs/design.md, Embree (embreex) facts)."""
+    same triangle again at any angle (pbrt-v4's OffsetRayOrigin)."""
     side = np.where(dot(direction, ng) >= 0.0, 1.0, -1.0)
     return p + (side * eps)[..., None] * ng
 

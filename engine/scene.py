@@ -143,6 +143,13 @@ class Mesh:
               rays (docs/scene_format.md, "Ray visibility", also for photons).
     holdout   the mesh cuts a hole in the image: camera rays that hit it give alpha 0 and
               no colour; to every other ray it is a black surface (Cycles' holdout)
+    shadow_terminator_offset  Cycles' object setting Shadow Terminator > Geometry Offset
+              (`shadow_terminator_geometry_offset`, >= 0, Blender's default 0.1): shadow
+              rays from smooth-shaded triangles at grazing light leave from the smooth
+              surface the normals describe, not the flat facet (engine/rayoffset.py)
+    shadow_terminator_shading_offset  Cycles' Shadow Terminator > Shading Offset (>= 0,
+              < 2, default 0): pushes the terminator of direct light towards the light
+              (Cycles' shift_cos_in, appleseed's fix)
     """
 
     name: str
@@ -158,6 +165,8 @@ class Mesh:
     visible_transmission: bool = True
     visible_shadow: bool = True
     holdout: bool = False
+    shadow_terminator_offset: float = 0.1
+    shadow_terminator_shading_offset: float = 0.0
     warnings: list = field(default_factory=list, repr=False)
 
     @property
@@ -176,6 +185,22 @@ class Mesh:
         for attr in ("visible_camera", "visible_diffuse", "visible_glossy",
                      "visible_transmission", "visible_shadow", "holdout"):
             setattr(self, attr, bool(getattr(self, attr)))
+        try:
+            sto = float(self.shadow_terminator_offset)
+        except (TypeError, ValueError):
+            sto = float("nan")
+        if not (math.isfinite(sto) and sto >= 0):
+            raise SceneError(f"{who}: shadow_terminator_offset must be a number >= 0, "
+                             f"got {self.shadow_terminator_offset!r}")
+        self.shadow_terminator_offset = sto
+        try:
+            sso = float(self.shadow_terminator_shading_offset)
+        except (TypeError, ValueError):
+            sso = float("nan")
+        if not (math.isfinite(sso) and 0 <= sso < 2):
+            raise SceneError(f"{who}: shadow_terminator_shading_offset must be a number in "
+                             f"[0, 2), got {self.shadow_terminator_shading_offset!r}")
+        self.shadow_terminator_shading_offset = sso
         if isinstance(self.materials, str):
             self.materials = [self.materials]
         v = np.asarray(self.vertices, dtype=np.float64)

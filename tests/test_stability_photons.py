@@ -116,8 +116,7 @@ def test_gather_map_lookup_does_not_take_light_through_a_wall():
     # A wall at x=0 (plane x=0 spanning y,z in [-1,1]); floor points either side at z=0.
     wall_v = np.array([[0, -1, -1], [0, 1, -1], [0, 1, 1], [0, -1, 1]], np.float32)
     acc = Accel(wall_v, np.array([[0, 1, 2], [0, 2, 3]], np.int32), 1)
-    g = GatherMap(_photons_at([[0.01, 0.0, 0.0]] * 20), 0.5, 8, 1, "knn_simpson", accel=acc,
-                  eps=1e-4)
+    g = GatherMap(_photons_at([[0.01, 0.0, 0.0]] * 20), 0.5, 8, 1, "knn_simpson", accel=acc)
     q = np.array([[-0.01, 0.0, 0.0], [0.02, 0.0, 0.0]])
     E, _ = g.lookup(q, np.tile([0.0, 0.0, 1.0], (2, 1)))
     acc.close()

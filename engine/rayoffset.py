@@ -1,0 +1,219 @@
+"""Ray origins and ends kept off their surfaces by bounds on floating-point error.
+
+No length here comes from the scene's size: every offset is a bound on the rounding error
+of one point (pbrt-v4's approach: `OffsetRayOrigin` and `SpawnRayTo` in
+src/pbrt/interaction.h and ray.h, with the error bounds of its section 6.8 "Managing
+Rounding Error"). Two sources of error are bounded:
+
+1. Where the point is. Hit points are interpolated in float64 from barycentrics
+   (`Geometry.hit_points`): error <= gamma64(7) * (|b0 v0| + |b1 v1| + |b2 v2|) per
+   component (pbrt-v4's triangle pError). Embree, however, traces the float32 copy of
+   each triangle (`Geometry.vertices32`): the difference of the two triangles at the
+   point is bounded by the exact per-vertex rounding, b0 |d0| + b1 |d1| + b2 |d2|. And a
+   ray origin or end is itself rounded to float32 when handed to Embree: one float32 ulp
+   of the point's coordinates covers that.
+2. Where Embree puts the plane. Embree intersects in float32 relative to the ray origin o
+   (its robust Pluecker test computes T = dot(v0 - o, Ng) and compares t = T / dot(Ng, D)
+   with the ray's extent). Rounding v_i - o moves the triangle's plane, along its unit
+   normal n, by at most about gamma32(k) * sum_c |n_c| max_i |v_i,c - o_c|. For an
+   axis-aligned triangle this is exactly 0 off its axis (a floor of any size needs no
+   more offset than a small one); for a tilted triangle it grows with the triangle's own
+   size and the ray's length, never with the scene's. The parametric distance t itself
+   (float32, compared with tfar) is good to a few float32 ulps of the ray's length.
+3. Which way the plane tilts. Embree's float32 normal of a thin (sliver) triangle is good
+   only to about gamma32(2) |e1||e2| / |e1 x e2| radians (`triangle_tilt`; exactly 0 for an
+   axis-aligned float32 triangle), and its plane test dots that normal with v0 - o: the
+   plane may move by the tilt times the distance to the farthest corner (`tilt_error`).
+   Measured: without this term 1 % of rays leaving 1:100 slivers hit them again.
+
+Offsets are applied along the geometric normal (towards the side the ray leaves), as
+pbrt-v4 does: an offset along the ray would have to grow without bound at grazing angles.
+Checked against Embree on random, huge, tilted and sliver triangles by
+tests/test_ray_offsets.py (no self-hits).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .sampling import dot, norm3
+
+U64 = 2.0 ** -53  # unit roundoff of float64
+U32 = 2.0 ** -24  # unit roundoff of float32
+
+
+def gamma(n: int, u: float) -> float:
+    """Higham's gamma_n = n u / (1 - n u): the relative error bound of n roundings."""
+    return n * u / (1.0 - n * u)
+
+
+# Safety factors on the bounds above (pbrt-v4 uses gamma(7) for the interpolation; the
+# Embree terms count the roundings of its Pluecker test generously).
+G64 = gamma(10, U64)
+G32_PLANE = gamma(16, U32)
+G32_T = gamma(16, U32)
+# The tilt of a float32 plane: about two roundings relative to |e1||e2| (measured: slivers
+# of aspect 1:10 .. 1:100000 still hit themselves below 0.25 u32; gamma(2) is 8x that).
+G32_TILT = gamma(2, U32)
+
+
+TINY32 = float(np.finfo(np.float32).tiny)
+
+
+def ulp32(x: np.ndarray) -> np.ndarray:
+    """Upper bound on the spacing of float32 numbers at |x| (as float64): 2^-23 |x|, at
+    least float32's smallest normal. Continuous in x rather than the exact, stepped
+    spacing, so offsets scale exactly with the scene: a scene scaled by 1e-3 takes the
+    same paths (tests/test_stability_geometry.py)."""
+    return np.maximum(2.0 * U32 * np.abs(x), TINY32)
+
+
+def triangle_point_error(v0, e1, e2, round32, b1, b2, p) -> np.ndarray:
+    """(N,3) per-component bound on how far the float64 point p = v0 + b1 e1 + b2 e2 may
+    lie from the float32 triangle Embree traces, including p's own rounding to float32.
+
+    v0, e1, e2  (N,3) float64 triangle corner and edges (Geometry's tables, per point)
+    round32     (N,3,3) bound on |float32 corner - float64 corner| (Geometry.round32)
+    b1, b2      (N,) barycentric weights of corners 1 and 2
+    p           (N,3) the point"""
+    b0 = 1.0 - b1 - b2
+    a0, a1, a2 = np.abs(b0)[:, None], np.abs(b1)[:, None], np.abs(b2)[:, None]
+    interp = G64 * (a0 * np.abs(v0) + a1 * np.abs(v0 + e1) + a2 * np.abs(v0 + e2))
+    tri32 = a0 * round32[:, 0] + a1 * round32[:, 1] + a2 * round32[:, 2]
+    return interp + tri32 + ulp32(p)
+
+
+def embree_plane_error(v0, e1, e2, n, o) -> np.ndarray:
+    """(N,) bound on how far along its unit normal n Embree's float32 test, run from ray
+    origin o, may move a triangle's plane (see the module's note 2). Zero for an
+    axis-aligned triangle whose plane passes through float32-exact coordinates."""
+    r0 = np.abs(v0 - o)
+    r1 = np.abs(v0 + e1 - o)
+    r2 = np.abs(v0 + e2 - o)
+    r = np.maximum(np.maximum(r0, r1), r2)
+    an = np.abs(n)
+    return G32_PLANE * (an[:, 0] * r[:, 0] + an[:, 1] * r[:, 1] + an[:, 2] * r[:, 2])
+
+
+def triangle_tilt(corners32: np.ndarray) -> np.ndarray:
+    """(T,) bound on the angle (radians) by which float32 arithmetic may tilt each
+    triangle's plane: gamma32(2) |e1||e2| / |e1 x e2| of its float32 corners (T,3,3), and 0
+    where all three corners share one coordinate exactly (an axis-aligned plane)."""
+    c = corners32.astype(np.float64)
+    e1, e2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+    cross = np.linalg.norm(np.cross(e1, e2), axis=1)
+    lengths = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
+    tilt = G32_TILT * lengths / np.maximum(cross, 1e-300)
+    aligned = np.any((corners32[:, 0] == corners32[:, 1]) & (corners32[:, 0] == corners32[:, 2]),
+                     axis=1)
+    return np.where(aligned, 0.0, np.minimum(tilt, 1.0))
+
+
+def tilt_error(v0, e1, e2, tilt, p) -> np.ndarray:
+    """(N,) how far Embree's float32 plane of a triangle tilted by up to `tilt` radians
+    may stray at p: the tilt times the distance from p to the farthest corner (note 3)."""
+    far = np.maximum(np.maximum(norm3(v0 - p), norm3(v0 + e1 - p)), norm3(v0 + e2 - p))
+    return tilt * far
+
+
+def origin_offset(err: np.ndarray, v0, e1, e2, n, p, tilt) -> np.ndarray:
+    """(N,) distance along the unit normal n that takes a ray origin at p clear of its own
+    triangle: the point's error projected on the normal (pbrt-v4's d = |n| . pError) plus
+    the error of Embree's plane test from that origin (notes 2 and 3)."""
+    an = np.abs(n)
+    along = an[:, 0] * err[:, 0] + an[:, 1] * err[:, 1] + an[:, 2] * err[:, 2]
+    return along + embree_plane_error(v0, e1, e2, n, p) + tilt_error(v0, e1, e2, tilt, p)
+
+
+def offset_along_normal(p: np.ndarray, n: np.ndarray, towards: np.ndarray,
+                        distance: np.ndarray) -> np.ndarray:
+    """p moved by `distance` along n, to the side where dot(towards, n) >= 0 (a direction
+    leaving the surface)."""
+    side = np.where(dot(towards, n) >= 0.0, 1.0, -1.0)
+    return p + (side * distance)[:, None] * n
+
+
+def segment_to(o: np.ndarray, y: np.ndarray, ny: np.ndarray | None = None,
+               end_gap: np.ndarray | None = None):
+    """A shadow segment from origin o to the point y: (unit direction, tmax).
+
+    With a surface at y (unit normal ny, its point error end_gap along ny), the end is
+    first lifted off that surface towards o, by end_gap plus the float32 error of the
+    ray's parametric distance (pbrt-v4's SpawnRayTo, error bounds at both ends), so the
+    segment ends before the surface's plane at any angle: a ray to a point on an emitter
+    is never blocked by the emitter itself. Without a surface, the segment stops short of
+    y by the same float32 error of t."""
+    w = y - o
+    dist = norm3(w)
+    slack = G32_T * dist + ulp32(dist)
+    if ny is not None:
+        gap = slack + (0.0 if end_gap is None else end_gap)
+        y = offset_along_normal(y, ny, o - y, gap)
+        w = y - o
+        dist = norm3(w)
+        tmax = dist
+    else:
+        tmax = np.maximum(dist - slack, 0.0)
+    d = w / np.maximum(dist, 1e-300)[:, None]
+    return d, tmax
+
+
+def smooth_surface_lift(v0, e1, e2, corner_normals, b1, b2, ng) -> np.ndarray:
+    """(N,3) Cycles' shadow-terminator lift of points on smooth-shaded triangles: from the
+    flat facet to a smooth surface through the corners, whose normals are the corner
+    normals (a parabolic patch, bounded by the corners' tangent planes). Blender's
+    intern/cycles/kernel/light/sample.h, shadow_ray_smooth_surface_offset(), in world
+    space. v0, e1, e2 (N,3) triangle; corner_normals (N,3,3); b1, b2 barycentric weights
+    of corners 1 and 2; ng (N,3) geometric normal facing the side being lit."""
+    w = 1.0 - b1 - b2  # Cycles' u, v, w are the weights of corners 0, 1, 2
+    u, v = w[:, None], b1[:, None]
+    V0, V1, V2 = v0, v0 + e1, v0 + e2
+    N0, N1, N2 = corner_normals[:, 0], corner_normals[:, 1], corner_normals[:, 2]
+    P = V0 * u + V1 * v + V2 * b2[:, None]
+    n = N0 * u + N1 * v + N2 * b2[:, None]  # not normalised, as in Cycles
+    a = dot(N2 - N0, V0 - V2)
+    b = dot(N2 - N1, V1 - V2)
+    c = dot(N1 - N0, V1 - V0)
+    uu, vv = w, b1
+    h = a * uu * (uu - 1) + (a + b + c) * uu * vv + b * vv * (vv - 1)
+    mx = np.maximum
+    # Local linear envelope (normals on the lit side of the facet).
+    h0 = mx(mx(dot(V1 - V0, N0), dot(V2 - V0, N0)), 0.0)
+    h1 = mx(mx(dot(V0 - V1, N1), dot(V2 - V1, N1)), 0.0)
+    h2 = mx(mx(dot(V0 - V2, N2), dot(V1 - V2, N2)), 0.0)
+    h0 = mx(dot(V0 - P, N0) + h0, 0.0)
+    h1 = mx(dot(V1 - P, N1) + h1, 0.0)
+    h2 = mx(dot(V2 - P, N2) + h2, 0.0)
+    lit_side = mx(np.minimum(np.minimum(h0, h1), h2), h * 0.5)
+    # Flipped normals.
+    g0 = mx(mx(dot(V0 - V1, N0), dot(V0 - V2, N0)), 0.0)
+    g1 = mx(mx(dot(V1 - V0, N1), dot(V1 - V2, N1)), 0.0)
+    g2 = mx(mx(dot(V2 - V0, N2), dot(V2 - V1, N2)), 0.0)
+    g0 = mx(dot(P - V0, N0) + g0, 0.0)
+    g1 = mx(dot(P - V1, N1) + g1, 0.0)
+    g2 = mx(dot(P - V2, N2) + g2, 0.0)
+    flipped = np.minimum(-np.minimum(np.minimum(g0, g1), g2), h * 0.5)
+    h = np.where(dot(n, ng) > 0, lit_side, flipped)
+    return n * h[:, None]
+
+
+def shift_cos_in(cos_in, shading_offset) -> np.ndarray:
+    """(N,) factor on direct light for Cycles' Shadow Terminator > Shading Offset:
+    max(cos(f acos(cos_in)), 0) / cos_in with f = 1 / (1 - offset / 2) (Cycles'
+    shift_cos_in in kernel/closure/bsdf.h, from appleseed; f as in scene/object.cpp).
+    1 where the offset is 0; 0 where cos_in <= 0."""
+    f = 1.0 / (1.0 - 0.5 * np.asarray(shading_offset, np.float64))
+    c = np.clip(cos_in, 0.0, 1.0)
+    val = np.maximum(np.cos(np.arccos(c) * f), 0.0) / np.maximum(c, 1e-300)
+    return np.where(f > 1.0, np.where(c > 0, val, 0.0), 1.0)
+
+
+def terminator_amount(cutoff, cos_ns, cos_ng) -> np.ndarray:
+    """(N,) how much of the smooth-surface lift a shadow ray takes (Cycles'
+    shadow_ray_offset(): the rays within `cutoff` (the object's geometry offset) of
+    grazing, with a smooth transition). cos_ns, cos_ng: cosines of the light direction
+    with the shading and geometric normal (both on the lit side)."""
+    nl = np.abs(cos_ns)
+    safe = np.where(cutoff > 0, cutoff, 1.0)
+    amount = np.where(nl < cutoff, np.clip(2.0 - (cos_ng + nl) / safe, 0.0, 1.0),
+                      np.clip(1.0 - cos_ng / safe, 0.0, 1.0))
+    return np.where(cutoff > 0, amount, 0.0)
