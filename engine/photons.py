@@ -146,9 +146,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             # tests itself) and passes on to what lies behind it. Split the photon.
             thru = np.nonzero(~visible_to(geo, prim, ray_cls))[0]
             if len(thru):
+                # The split-off part keeps the photon's slot (its random numbers).
                 carry = (hit.clear(thru, d[thru]), d[thru],
                          power[thru], had_diffuse[thru], had_specular[thru],
-                         caustic_then_diffuse[thru], ray_cls[thru], source[thru])
+                         caustic_then_diffuse[thru], ray_cls[thru], source[thru], slot[thru])
         w = lobe_weights(table, hit)
         kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
                         np.where(had_specular, CAUSTIC, DIRECT))
@@ -233,10 +234,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         o = sub.clear(keep, new_d)
         d, power = new_d, new_power
         if carry is not None:
-            o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls, source = (
-                np.concatenate([a, b]) for a, b in zip(
-                    (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls,
-                     source), carry))
+            (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls, source,
+             slot) = (np.concatenate([a, b]) for a, b in zip(
+                (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls,
+                 source, slot), carry))
     return parts
 
 
