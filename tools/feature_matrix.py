@@ -583,6 +583,64 @@ def warned_volume():
     _sun()
 
 
+@case("warned", status="warned", how="displacement is ignored (bump-free, flat surface)",
+      warning="displacement")
+def warned_displacement():
+    _stage()
+    m, nt, out = _nodes_material("bumpy")
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    disp = nt.nodes.new("ShaderNodeDisplacement")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs[0], disp.inputs["Height"])
+    nt.links.new(disp.outputs[0], out.inputs["Displacement"])
+    mb.box("Cube", 0.8, 0.8, 0.8, m, (0.3, 0.3, 0.4))
+    _sun()
+
+
+@case("warned", status="warned", how="depth of field is ignored (a pinhole camera)",
+      warning="depth of field")
+def warned_depth_of_field():
+    cam = _camera_scene().data
+    cam.dof.use_dof = True
+    cam.dof.focus_distance = 4.0
+    cam.dof.aperture_fstop = 1.4
+
+
+@case("warned", status="warned", how="panoramic cameras render as perspective",
+      warning="panoramic")
+def warned_panoramic_camera():
+    cam = _camera_scene().data
+    cam.type = "PANO"
+
+
+@case("warned", status="warned", how="shadow catcher objects render as ordinary surfaces",
+      warning="shadow catcher")
+def warned_shadow_catcher():
+    _vis_scene().is_shadow_catcher = True
+
+
+@case("warned", status="warned", how="a light's 'Cast Shadow' off is ignored: it casts "
+      "shadows", warning="cast shadow")
+def warned_light_cast_shadow_off():
+    _vis_scene()
+    bpy.data.lights["Sun"].use_shadow = False
+
+
+@case("warned", status="warned", how="a light object's diffuse / glossy / transmission ray "
+      "visibility is ignored", warning="ray visibility")
+def warned_light_ray_visibility():
+    _vis_scene()
+    bpy.data.objects["Sun"].visible_glossy = False
+
+
+@case("warned", status="warned", how="hair curves are skipped", warning="hair curves")
+def warned_hair_curves():
+    cube = _vis_scene()
+    bpy.context.view_layer.objects.active = cube  # the hair's surface
+    bpy.ops.object.curves_empty_hair_add(location=(0, 0, 0))
+
+
 # --- rendering and the metric ------------------------------------------------------------------
 
 def setup(name):
