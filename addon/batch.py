@@ -21,10 +21,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
-import threading
 import time
+
+from engine.cli import CancelOnInterrupt
 
 FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
            ".tif": "TIFF", ".tiff": "TIFF", ".bmp": "BMP"}
@@ -84,34 +84,6 @@ class _StatusPrinter:
                 print(f"warning: {w}", file=self.stream)
             for line in self.effects:
                 print(f"  {line}", file=self.stream)
-
-
-class _Interrupt:
-    """The first SIGINT only asks the render to cancel (polled through the engine's
-    test_break_hook); a second one raises KeyboardInterrupt at once."""
-
-    def __init__(self, stream=None):
-        self.requested = False
-        self.stream = stream or sys.stderr
-        self._previous = None
-
-    def _handler(self, signum, frame):
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-        print("\ninterrupt: cancelling the render (Ctrl-C again to stop at once)",
-              file=self.stream, flush=True)
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():  # signals: main only
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        return self
-
-    def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
-        return False
 
 
 def parse_args(argv):
@@ -208,7 +180,8 @@ def render_file(args) -> str:
     # or a cancel (an all-black frame over a good one): save it here, only when complete.
     printer = _StatusPrinter(quiet=args.quiet)
     previous_hook = engine.test_break_hook
-    interrupt = _Interrupt()
+    interrupt = CancelOnInterrupt(
+        "\ninterrupt: cancelling the render (Ctrl-C again to stop at once)")
     engine.test_break_hook = lambda: interrupt.requested or bool(previous_hook and previous_hook())
     engine.status_listeners.append(printer)
     try:

@@ -100,21 +100,26 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-class _Interrupt:
+class CancelOnInterrupt:
     """While active, the first Ctrl-C (SIGINT) only sets `requested`, which the render
-    polls as its should_cancel; a second one raises KeyboardInterrupt at once."""
+    polls as its should_cancel, and prints `message` to `stream` if one is given; a second
+    one raises KeyboardInterrupt at once. Used by this CLI and by addon/batch.py."""
 
-    def __init__(self):
+    def __init__(self, message=None, stream=None):
         self.requested = False
+        self.message = message
+        self.stream = stream or sys.stderr
         self._previous = None
 
     def _handler(self, signum, frame):
         if self.requested:
             raise KeyboardInterrupt
         self.requested = True
+        if self.message:
+            print(self.message, file=self.stream, flush=True)
 
     def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
+        if threading.current_thread() is threading.main_thread():  # signals: main only
             self._previous = signal.signal(signal.SIGINT, self._handler)
         return self
 
@@ -195,7 +200,7 @@ def _render(args) -> int:
             bar.n = int(1000 * fraction)
             bar.refresh()
 
-    interrupt = _Interrupt()
+    interrupt = CancelOnInterrupt()
     should_cancel = (lambda: interrupt.requested)
     try:
         if progressive:

@@ -73,9 +73,8 @@ def set_world(color, strength=1.0):
     world.color = color
 
 
-def material(name, kind="diffuse", color=(0.8, 0.8, 0.8), roughness=0.5, ior=1.5,
-             metallic=0.0, mix=0.5):
-    """kind: diffuse | principled | glass | glossy_mix (diffuse + glossy mix shader)."""
+def empty_material(name):
+    """A node material with only its Material Output: (material, node tree, output)."""
     m = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
         m.use_nodes = True
@@ -84,6 +83,13 @@ def material(name, kind="diffuse", color=(0.8, 0.8, 0.8), roughness=0.5, ior=1.5
         nt.nodes.remove(n)
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     out.location = (300, 0)
+    return m, nt, out
+
+
+def material(name, kind="diffuse", color=(0.8, 0.8, 0.8), roughness=0.5, ior=1.5,
+             metallic=0.0, mix=0.5):
+    """kind: diffuse | principled | glass | glossy_mix (diffuse + glossy mix shader)."""
+    m, nt, out = empty_material(name)
     rgba = (*color, 1.0)
     if kind == "diffuse":
         n = nt.nodes.new("ShaderNodeBsdfDiffuse")

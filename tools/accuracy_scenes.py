@@ -202,8 +202,8 @@ def set_photonmap_defaults(scene):
             pm.property_unset(prop.identifier)
 
 
-def render_rgb(scene):
-    """Render to a 32-bit linear EXR; returns ((H, W, 3) float32 top-to-bottom, seconds)."""
+def render_rgba(scene):
+    """Render to a 32-bit linear EXR; returns ((H, W, 4) float32 top-to-bottom, seconds)."""
     s = scene.render.image_settings
     if hasattr(s, "media_type"):  # Blender 5.0+
         s.media_type = "IMAGE"
@@ -227,7 +227,13 @@ def render_rgb(scene):
             bpy.data.images.remove(img)
     finally:
         os.unlink(path)
-    return buf.reshape(h, w, 4)[::-1, :, :3].copy(), elapsed
+    return buf.reshape(h, w, 4)[::-1].copy(), elapsed
+
+
+def render_rgb(scene):
+    """render_rgba without alpha: ((H, W, 3) float32, seconds)."""
+    rgba, elapsed = render_rgba(scene)
+    return rgba[:, :, :3].copy(), elapsed
 
 
 def render_cycles(name, samples, seed=0):

@@ -26,7 +26,6 @@ import json
 import math
 import os
 import sys
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -96,15 +95,7 @@ def _sun(strength=3.0, angle=0.0, rotation=(math.radians(35), 0, math.radians(25
     return mb.light("Sun", "SUN", (0, 0, 5), strength, rotation=rotation, angle=angle)
 
 
-def _nodes_material(name):
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    nt = m.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    return m, nt, out
+_nodes_material = mb.empty_material  # (material, node tree, output node)
 
 
 def _shader(name, node_type, **inputs):
@@ -654,33 +645,7 @@ def setup(name):
     return scene
 
 
-def render_rgba(scene):
-    """((H, W, 4) float32 linear, rows top to bottom; seconds)."""
-    s = scene.render.image_settings
-    if hasattr(s, "media_type"):
-        s.media_type = "IMAGE"
-    s.file_format = "OPEN_EXR"
-    s.color_depth = "32"
-    s.color_mode = "RGBA"
-    import tempfile
-    fd, path = tempfile.mkstemp(suffix=".exr", prefix="feat_")
-    os.close(fd)
-    try:
-        scene.render.filepath = path
-        scene.render.use_file_extension = False
-        t0 = time.perf_counter()
-        bpy.ops.render.render(write_still=True)
-        elapsed = time.perf_counter() - t0
-        img = bpy.data.images.load(path, check_existing=False)
-        try:
-            w, h = img.size
-            buf = np.empty(w * h * 4, np.float32)
-            img.pixels.foreach_get(buf)
-        finally:
-            bpy.data.images.remove(img)
-    finally:
-        os.unlink(path)
-    return buf.reshape(h, w, 4)[::-1].copy(), elapsed
+render_rgba = acc.render_rgba  # ((H, W, 4) float32 linear, rows top to bottom; seconds)
 
 
 def render_cycles(name, samples=None, seed=0):
