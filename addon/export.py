@@ -236,7 +236,9 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
         warnings.append(f"light '{name}': light node trees are not supported; using the "
                         "light's colour and power")
     if not getattr(L, "use_shadow", True):
-        warnings.append(f"light '{name}': 'cast shadow' off is not supported; it casts shadows")
+        kw["cast_shadow"] = False
+        warnings.append(f"light '{name}': 'cast shadow' off: its direct light passes every "
+                        "object, as in Cycles; its indirect light (photons) is still shadowed")
     return pm.Light(**kw)
 
 

@@ -184,7 +184,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             what = {SUN: "sun of angle 0", AREA: "area light"}.get(li.kind, f"{li.kind.lower()} light of radius 0")
             why = f"'{li.name}' is a {what}: one shadow ray per sample"
         plan.add(f"soft shadows '{li.name}'", sized, why)
-        plan.shadows[li.name] = not nothing_occludes
+        casts = bool(getattr(getattr(li, "source", None), "cast_shadow", True))
+        if not casts:
+            plan.add(f"shadow rays '{li.name}'", False, "the light's 'Cast Shadow' is off")
+        plan.shadows[li.name] = casts and not nothing_occludes
     if nothing_occludes and lights:
         plan.add("shadow rays", False, "the scene is a single flat surface: nothing can cast a shadow")
     if has_tris and np.any(luminance(table.emission[mat]) > 0):

@@ -298,6 +298,8 @@ class Light:
     spread    area light: full angle in radians of its emission cone (Blender `spread`,
               default pi = Lambertian); narrower spreads attenuate as Cycles' soft-box grid
     visible_camera  lights are invisible to camera rays by default in Blender
+    cast_shadow  Blender's light 'Cast Shadow' (use_shadow): off, no object blocks the
+              light's shadow rays (its direct light); photons are still blocked
     spot_frame optional (3,3): rows map a world direction leaving a spot light into its
               cone space, where the cone is round: Cycles' scaled_axis_u, scaled_axis_v and
               dir * inv_len_z (the light object's X and Y axes divided by their squared
@@ -323,6 +325,7 @@ class Light:
     normalize: bool = True
     spread: float = math.pi
     visible_camera: bool = False
+    cast_shadow: bool = True
     spot_frame: np.ndarray | None = None
     skew_axis_v: tuple | np.ndarray | None = None
     warnings: list = field(default_factory=list, repr=False)

@@ -400,7 +400,8 @@ def _light(scene, spec, i):
                              f"{_show(raw_kind)}")
     t = _Table(spec, where, {"type", "name", "position", "direction", "look_at", "power",
                              "strength", "color", "radius", "spot_size", "blend", "size",
-                             "shape", "angle", "spread", "visible"})
+                             "shape", "angle", "spread", "visible",
+                             "cast_shadow"})
     position = t.vec3("position", (0, 0, 0))
     if "look_at" in t:
         direction = t.vec3("look_at") - position
@@ -422,4 +423,5 @@ def _light(scene, spec, i):
                           shape=shape.upper(), size_x=sx, size_y=sy,
                           angle=math.radians(t.number("angle", 0.0, lo=0.0, hi=180.0)),
                           spread=math.radians(t.number("spread", 180.0, lo=0.0, hi=180.0)),
-                          visible_camera=t.boolean("visible", False)))
+                          visible_camera=t.boolean("visible", False),
+                          cast_shadow=t.boolean("cast_shadow", True)))

@@ -134,3 +134,26 @@ def test_spread_attenuation_keeps_the_flux():
         f = spread_attenuation(np.cos(a), math.radians(deg))
         integral = float((f * np.cos(a) * np.sin(a)).sum() * (math.pi / 2) / len(a) * 2 * math.pi)
         assert rel_err(integral, math.pi) < 2e-3, (deg, integral)
+
+
+def test_light_with_cast_shadow_off_lights_through_objects():
+    """Blender's light 'Cast Shadow' off: direct light ignores occluders (as in Cycles)."""
+    rho, P, h, view = 0.5, 1000.0, 2.0, 4.0
+    results = {}
+    for casts in (True, False):
+        s = top_down_plane(rho, view=view)
+        s.add_light(Light("bulb", "POINT", P, position=(0, 0, h), cast_shadow=casts))
+        s.add_plane((0, 0, 1.0), (0, 0, 1), 1.0, "matte", name="blocker")  # 1 m card above
+        results[casts] = s.render(RenderSettings(spp=1, **DIRECT_ONLY)).combined[..., 0]
+    x, y = pixel_to_world(s, view)
+    r2 = x * x + y * y + h * h
+    expected = rho * P / (4 * math.pi) * (h / np.sqrt(r2)) / r2 / math.pi
+    # The card (+-0.5 m, 1 m below the light) shadows the floor out to +-1 m; the camera
+    # looks straight down, so the floor is seen between 0.5 and 1 m: the shadow's rim.
+    m = np.maximum(np.abs(x), np.abs(y))
+    rim = (m > 0.6) & (m < 0.95)
+    assert results[True][rim].max() == 0.0
+    assert results[False][rim].mean() == pytest.approx(expected[rim].mean(), rel=0.01)
+    assert results[False][rim].min() > 0.9 * expected[rim].min()
+    outside = m > 1.1
+    np.testing.assert_allclose(results[True][outside], results[False][outside])

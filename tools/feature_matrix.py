@@ -611,9 +611,9 @@ def warned_shadow_catcher():
     _vis_scene().is_shadow_catcher = True
 
 
-@case("warned", status="warned", how="a light's 'Cast Shadow' off is ignored: it casts "
-      "shadows", warning="cast shadow")
-def warned_light_cast_shadow_off():
+@case("lights", status="approximated", how="direct light passes every object as in "
+      "Cycles; its photons (indirect light) are still shadowed", warning="cast shadow")
+def light_cast_shadow_off():
     _vis_scene()
     bpy.data.lights["Sun"].use_shadow = False
 
