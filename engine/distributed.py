@@ -251,7 +251,11 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                 pass
             for i in sorted(pending):
                 if pending[i].done():
-                    film = pending.pop(i).result()  # re-raises the task's error here
+                    future = pending.pop(i)
+                    film = future.result()  # re-raises the task's error here
+                    # Released now, not when garbage collected: the waits' tracebacks
+                    # form reference cycles that kept finished passes on the workers.
+                    future.release()
                     finished[i] = film
                     if progress is not None:
                         progress("render", _fraction(budget, max_passes, len(finished) + merger.passes,
@@ -282,6 +286,8 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
         try:
             stop_event.set()
             client.cancel(list(pending.values()))
+            for future in pending.values():
+                future.release()
             scene_future.release()
         except Exception:  # noqa: BLE001 - the cluster may be gone; the error before matters
             pass
