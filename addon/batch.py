@@ -3,11 +3,17 @@
     python -m addon.batch FILE.blend -o out.png [--samples N] [--photons N]
         [--caustic-photons N] [--resolution-percentage P] [--width W --height H]
         [--no-photon-mapping] [--show-photons] [--seed S] [--frame F]
+        [--frames A..B] [--animated-seed] [--dask ADDRESS]
 
 The equivalent of `blender --background FILE.blend -E PHOTONMAP -o out -f 1`: opens the
 file, registers the add-on, selects the engine, renders with write_still. The output
 format follows the file extension (.png, .exr, .jpg, .tif). Errors are reported in one
 line on stderr with a non-zero exit status.
+
+--frames A..B renders every frame from A to B (inclusive) into the output pattern: '#'
+in the name becomes the frame number, zero-padded to the count of '#' (out/f_####.png);
+without '#', '_####' is added before the extension. --dask renders the progressive passes
+of each frame on a Dask cluster (docs/distributed.md).
 """
 from __future__ import annotations
 
@@ -42,8 +48,35 @@ def parse_args(argv):
                    help="plain ray tracing (direct light only)")
     p.add_argument("--show-photons", action="store_true", help="draw photon hits")
     p.add_argument("--frame", type=int, help="frame to render")
+    p.add_argument("--frames", type=_frame_range, metavar="A..B",
+                   help="render frames A to B (inclusive) into the output pattern ('#' = "
+                        "frame digits)")
+    p.add_argument("--animated-seed", action="store_true",
+                   help="a different seed on every frame (the add-on's Animated Seed)")
+    p.add_argument("--dask", metavar="ADDRESS",
+                   help="progressive passes on a Dask cluster: tcp://HOST:8786 or local:W")
     p.add_argument("--quiet", action="store_true", help="less Blender output")
     return p.parse_args(argv)
+
+
+def _frame_range(text):
+    first, sep, last = text.partition("..")
+    try:
+        a, b = int(first), int(last)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected A..B (e.g. 1..24), got '{text}'") from None
+    if not sep or b < a:
+        raise argparse.ArgumentTypeError(f"expected A..B with A <= B, got '{text}'")
+    return a, b
+
+
+def frame_pattern(path: str) -> str:
+    """The output pattern of a frame range: path itself if it has '#', else '_####'
+    inserted before the extension."""
+    if "#" in os.path.basename(path):
+        return path
+    root, ext = os.path.splitext(path)
+    return f"{root}_####{ext}"
 
 
 def _positive(name, value, lo=1):
@@ -101,21 +134,39 @@ def render_file(args) -> str:
         pm.photon_mapping = False
     if args.show_photons:
         pm.show_photons = True
+    if args.animated_seed:
+        pm.use_animated_seed = True
+    if args.dask:
+        pm.dask_scheduler = args.dask
     if args.frame is not None:
         scene.frame_set(args.frame)
     r.image_settings.file_format = FORMATS[ext]
-    r.filepath = out
     r.use_file_extension = False
     if scene.camera is None:
         raise BatchError(f"{args.blend}: the scene has no active camera")
+    if args.frames is None:
+        _render_still(bpy, r, out)
+        return out
+    pattern = frame_pattern(out)
+    written = []
+    for frame in range(args.frames[0], args.frames[1] + 1):
+        scene.frame_set(frame)
+        r.filepath = pattern
+        path = r.frame_path(frame=frame)  # '#' -> zero-padded frame number
+        _render_still(bpy, r, path)
+        written.append(path)
+    return f"{len(written)} frames: {written[0]} .. {written[-1]}"
+
+
+def _render_still(bpy, r, path):
+    r.filepath = path
     try:
         bpy.ops.render.render(write_still=True)
     except RuntimeError as exc:
         msg = " ".join(str(exc).replace("Error:", "").split())
         raise BatchError(f"render failed: {msg}") from None
-    if not os.path.isfile(out):
-        raise BatchError(f"render finished but {out} was not written")
-    return out
+    if not os.path.isfile(path):
+        raise BatchError(f"render finished but {path} was not written")
 
 
 def main(argv=None) -> int:

@@ -116,7 +116,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.report({"INFO"}, "Photon Mapping: render cancelled during export")
             return
 
-        settings = pm.RenderSettings(**props.to_settings_kwargs(render.film_transparent))
+        kwargs = props.to_settings_kwargs(render.film_transparent)
+        if props.use_animated_seed:
+            kwargs["seed"] = frame_seed(props.seed, scene.frame_current)
+        settings = pm.RenderSettings(**kwargs)
 
         def progress(stage, fraction, text):
             self.update_progress(_overall_fraction(stage, fraction, settings.photon_mapping))
@@ -126,7 +129,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 self.update_stats("", text)
 
         t0 = time.perf_counter()
-        if props.progressive:
+        if props.progressive or props.dask_scheduler.strip():  # a cluster renders passes
             film = self._render_progressive(pm, pm_scene, settings, props, progress, region,
                                             view_layer, render.film_transparent)
         else:
@@ -188,6 +191,14 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 done.append(info["passes"] / pm.progressive.DEFAULT_MAX_PASSES)
             self.update_progress(min(1.0, max(done)))
 
+        address = props.dask_scheduler.strip()
+        if address:  # same passes on a Dask cluster (engine/distributed.py, imported lazily)
+            import importlib
+            dist = importlib.import_module(pm.__name__ + ".distributed")
+            return dist.render_distributed(pm_scene, settings, budget, address=address,
+                                           progress=pass_progress,
+                                           should_cancel=self._should_cancel,
+                                           on_pass=on_pass, region=region)
         return pm.render_progressive(pm_scene, settings, budget, progress=pass_progress,
                                      should_cancel=self._should_cancel, on_pass=on_pass,
                                      region=region)
@@ -239,6 +250,13 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 p.rect.foreach_set(flat)
         finally:
             self.end_result(result)
+
+
+def frame_seed(seed: int, frame: int) -> int:
+    """The seed of `frame` with Animated Seed on: seed and frame mixed into [0, 2^31), the
+    same on every machine, so a farm renders each frame as one machine would
+    (docs/distributed.md)."""
+    return (int(seed) * 1_000_003 + int(frame) * 7919) % (1 << 31)
 
 
 def _user_message(exc: Exception) -> str:
