@@ -130,6 +130,10 @@ def _stop_flag(key):
     """should_cancel for a running pass: the client sets the Dask Event '<key>-stop' when
     the render ends early; asked at most every STOP_POLL_SECONDS (a scheduler round trip)."""
     import distributed
+    try:
+        distributed.get_worker()
+    except ValueError:  # called outside a Dask worker (benchmarks): nothing to ask
+        return None
     event = distributed.Event(f"{key}-stop")
     state = {"last": time.perf_counter(), "stop": False}
 
