@@ -99,30 +99,40 @@ def connect(address: str):
 
 # --- worker side ------------------------------------------------------------------------
 
-_lock = threading.Lock()
-_contexts: dict[str, list] = {}  # render key -> prepared contexts not in use on this worker
-_current_key = None
+def _cache():
+    """This worker's prepared contexts: {'lock', 'key': current render, 'idle': {key: [...]}},
+    kept on the Dask Worker object, which outlives a re-import of the engine
+    (ship_engine_code). None outside a worker (no caching)."""
+    try:
+        from distributed import get_worker
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return None
+    return vars(worker).setdefault("_photonmap_contexts",
+                                   {"lock": threading.Lock(), "key": None, "idle": {}})
 
 
-def _take_context(key, scene, settings):
-    global _current_key
-    with _lock:
-        if key != _current_key:  # a new render: drop the idle contexts of older ones
-            for old in [k for k in _contexts if k != key]:
-                for ctx in _contexts.pop(old):
+def _take_context(cache, key, scene, settings):
+    if cache is None:
+        return prepare_context(scene, settings)
+    with cache["lock"]:
+        if key != cache["key"]:  # a new render: drop the idle contexts of older ones
+            for old in [k for k in cache["idle"] if k != key]:
+                for ctx in cache["idle"].pop(old):
                     ctx.accel.close()
-            _current_key = key
-        idle = _contexts.setdefault(key, [])
+            cache["key"] = key
+        idle = cache["idle"].setdefault(key, [])
         if idle:
             return idle.pop()
     return prepare_context(scene, settings)  # outside the lock: other threads may prepare too
 
 
-def _give_back(key, ctx):
-    with _lock:
-        if key == _current_key:
-            _contexts.setdefault(key, []).append(ctx)
-            return
+def _give_back(cache, key, ctx):
+    if cache is not None:
+        with cache["lock"]:
+            if key == cache["key"]:
+                cache["idle"].setdefault(key, []).append(ctx)
+                return
     ctx.accel.close()
 
 
@@ -163,7 +173,8 @@ def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
     cores divided among this worker's task threads; the image does not depend on it."""
     threads = int(worker_threads or settings.workers or _threads_here())
     base = settings if threads == settings.workers else _replace_workers(settings, threads)
-    ctx = _take_context(key, scene, base)
+    cache = _cache()
+    ctx = _take_context(cache, key, scene, base)
     try:
         ctx.settings = pass_settings(base, i)
         t0 = time.perf_counter()
@@ -174,7 +185,7 @@ def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
         if not settings.show_photons:
             film.photon_hits = None
     finally:
-        _give_back(key, ctx)
+        _give_back(cache, key, ctx)
     return film
 
 
@@ -185,10 +196,57 @@ def _replace_workers(settings, threads):
 
 # --- client side ------------------------------------------------------------------------
 
+def _engine_package() -> str:
+    """'engine' from a checkout or pip install; 'bl_ext.<repo>.<id>.engine' inside a
+    Blender extension, a name no Dask worker can import."""
+    return __name__.rpartition(".")[0]
+
+
+def engine_zip(directory: str) -> str:
+    """Write the engine's files into a zip importable under the engine's own package name
+    (parent packages as empty __init__.py files) and return its path. The name carries a
+    hash of the contents, so an edited engine is a new upload."""
+    import hashlib
+    import zipfile
+    here = os.path.dirname(os.path.abspath(__file__))
+    package = _engine_package()
+    files = []
+    for root, dirs, names in os.walk(here):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(names):
+            if not name.endswith((".pyc", ".pyo")):
+                files.append(os.path.join(root, name))
+    digest = hashlib.sha1()
+    for path in files:
+        digest.update(os.path.relpath(path, here).encode())
+        with open(path, "rb") as f:
+            digest.update(f.read())
+    path = os.path.join(directory, f"photonmap_engine_{digest.hexdigest()[:16]}.zip")
+    parts = package.split(".")
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for depth in range(1, len(parts)):
+            z.writestr("/".join(parts[:depth]) + "/__init__.py", "")
+        prefix = "/".join(parts)
+        for f in files:
+            z.write(f, prefix + "/" + os.path.relpath(f, here).replace(os.sep, "/"))
+    return path
+
+
+def ship_engine_code(client) -> None:
+    """Upload the engine (engine_zip) to the scheduler and every worker, also to workers
+    that join later (Client.upload_file), so they import it under the client's module
+    name. Inside a Blender extension that name is bl_ext.<repo>.<id>.engine, which no
+    worker could import otherwise; workers need only the engine's dependencies."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        client.upload_file(engine_zip(tmp))
+
+
 def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                        budget: Budget | None = None, client=None, address: str | None = None,
                        progress=None, should_cancel=None, on_pass=None, region=None,
-                       worker_threads: int | None = None, max_in_flight: int | None = None) -> Film:
+                       worker_threads: int | None = None, max_in_flight: int | None = None,
+                       ship_code: bool | None = None) -> Film:
     """render_progressive on a Dask cluster: bitwise the same Film for the same seed and
     pass count.
 
@@ -199,6 +257,9 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     worker_threads: engine threads per pass on a worker (default: see run_pass).
     max_in_flight: passes submitted but not merged (default 2 x the cluster's task
     threads), bounding memory and the work thrown away when a budget ends the render.
+    ship_code: upload the engine to the cluster first (ship_engine_code); default: when
+    the engine is not the top-level package 'engine' (a Blender extension). Otherwise
+    the workers import the installed engine, which must be the client's version.
     Raises ValueError for a bad address, ImportError when dask is missing, SceneError for
     a bad scene (checked here, before anything is shipped)."""
     if client is None:
@@ -208,7 +269,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
         with connect(address) as (own_client, threads):
             return render_distributed(scene, settings, budget, own_client, None, progress,
                                       should_cancel, on_pass, region,
-                                      worker_threads or threads, max_in_flight)
+                                      worker_threads or threads, max_in_flight, ship_code)
     distributed = _import_distributed()
     settings = settings or RenderSettings()
     budget = budget or Budget()
@@ -221,6 +282,8 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     merger = PassMerger(w, h, settings.show_photons)
     nthreads = sum(client.nthreads().values())
     window = max_in_flight or max(2, 2 * nthreads)
+    if ship_code if ship_code is not None else _engine_package() != "engine":
+        ship_engine_code(client)
     stop_event = distributed.Event(f"{key}-stop", client=client)
     scene_future = client.scatter(scene, broadcast=True, hash=False)
     pending: dict = {}   # pass -> future

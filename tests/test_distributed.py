@@ -153,6 +153,33 @@ def test_cancel_drops_pending_passes(client, small):
 
 
 
+def test_engine_under_an_extension_name_is_shipped(client, small, tmp_path, monkeypatch):
+    """Inside Blender the engine is bl_ext.<repo>.<id>.engine, a name no worker can import:
+    the client uploads the engine (ship_engine_code) and the image is still the local one."""
+    import importlib
+    package = "bl_ext_t.user_default.photonmap"
+    for depth, part in enumerate(package.split(".")):
+        d = tmp_path.joinpath(*package.split(".")[:depth + 1])
+        d.mkdir()
+        (d / "__init__.py").write_text("")
+    os.symlink(os.path.join(ROOT, "engine"), tmp_path.joinpath(*package.split("."), "engine"))
+    spec = "importlib.util.find_spec('bl_ext_t') is not None"
+    assert not any(client.run(eval, spec, {"importlib": importlib}).values())
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        ext = importlib.import_module(package + ".engine")
+        dist = importlib.import_module(package + ".engine.distributed")
+        scene = importlib.import_module(package + ".engine.api").cornell_box(24, 18)
+        film = dist.render_distributed(scene, ext.RenderSettings(**CHEAP), ext.Budget(passes=5),
+                                       client=client, worker_threads=1)
+        assert type(film).__module__ == package + ".engine.film"
+        assert_bitwise(film, small[2])
+        assert all(client.run(eval, spec, {"importlib": importlib}).values())  # uploaded
+    finally:
+        for name in [n for n in sys.modules if n.startswith("bl_ext_t")]:
+            del sys.modules[name]
+
+
 def test_killed_worker_loses_nothing(client):
     """SIGKILL a worker process while it holds a pass: the scheduler gives the pass to
     the other worker (the nanny restarts the killed one) and the image is unchanged."""
