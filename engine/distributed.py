@@ -37,6 +37,7 @@ SCHEMES = ("tcp://", "tls://", "ws://", "wss://")
 LOCAL_PREFIX = "local:"
 POLL_SECONDS = 0.1       # how often the client asks should_cancel while passes run
 STOP_POLL_SECONDS = 0.25  # how often a running pass asks the scheduler whether to stop
+WORKER_WAIT_SECONDS = 30.0  # a scheduler without workers: wait this long for one
 
 
 def missing_packages() -> list[str]:
@@ -134,6 +135,22 @@ def _give_back(cache, key, ctx):
                 cache["idle"].setdefault(key, []).append(ctx)
                 return
     ctx.accel.close()
+
+
+def release_contexts(key: str) -> int:
+    """Close this worker's prepared contexts of render `key` (run on every worker when
+    the render ends, so a long-lived cluster does not keep the last scene's BVH); a pass
+    still running closes its own when done. Returns how many were closed."""
+    cache = _cache()
+    if cache is None:
+        return 0
+    with cache["lock"]:
+        idle = cache["idle"].pop(key, [])
+        if cache["key"] == key:
+            cache["key"] = None
+    for ctx in idle:
+        ctx.accel.close()
+    return len(idle)
 
 
 def _stop_flag(key):
@@ -280,6 +297,12 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     key = f"photonmap-{uuid.uuid4().hex}"
     w, h = region[2] - region[0], region[3] - region[1]
     merger = PassMerger(w, h, settings.show_photons)
+    if not client.nthreads():
+        try:
+            client.wait_for_workers(1, timeout=WORKER_WAIT_SECONDS)
+        except TimeoutError:
+            raise ValueError(f"the Dask scheduler {client.scheduler.address} has no workers "
+                             f"(none joined within {WORKER_WAIT_SECONDS:g} s)") from None
     nthreads = sum(client.nthreads().values())
     window = max_in_flight or max(2, 2 * nthreads)
     if ship_code if ship_code is not None else _engine_package() != "engine":
@@ -356,6 +379,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
             for future in pending.values():
                 future.release()
             scene_future.release()
+            client.run(release_contexts, key, on_error="ignore")
         except Exception:  # noqa: BLE001 - the cluster may be gone; the error before matters
             pass
     film = merger.film

@@ -57,6 +57,10 @@ def test_same_image_as_local(client, small):
     assert film.stats["photons_total"] == local.stats["photons_total"]
     assert film.stats["effects"] == local.stats["effects"]
     assert film.warnings == local.warnings
+    # The workers closed their prepared contexts when the render ended.
+    idle = client.run(lambda dask_worker: sum(
+        len(v) for v in vars(dask_worker).get("_photonmap_contexts", {}).get("idle", {}).values()))
+    assert set(idle.values()) == {0}
 
 
 def test_same_image_one_pass_in_flight_and_other_thread_count(client, small):
@@ -228,6 +232,15 @@ def test_missing_dask_is_named(monkeypatch):
     assert dist.missing_packages() == ["distributed"]
     with pytest.raises(ImportError, match="distributed.*pip install"):
         render_distributed(cornell_box(8, 6), address="local:1")
+
+
+def test_scheduler_without_workers_is_an_error(monkeypatch):
+    import engine.distributed as dist
+    monkeypatch.setattr(dist, "WORKER_WAIT_SECONDS", 0.5)
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        with pytest.raises(ValueError, match="has no workers"):
+            render_distributed(cornell_box(8, 6), RenderSettings(**CHEAP), client=c)
 
 
 def test_bad_scene_is_reported_before_shipping(client):
