@@ -100,15 +100,16 @@ def connect(address: str):
 
 # --- worker side ------------------------------------------------------------------------
 
-def _cache():
+def _cache(worker=None):
     """This worker's prepared contexts: {'lock', 'key': current render, 'idle': {key: [...]}},
     kept on the Dask Worker object, which outlives a re-import of the engine
     (ship_engine_code). None outside a worker (no caching)."""
-    try:
-        from distributed import get_worker
-        worker = get_worker()
-    except (ImportError, ValueError):
-        return None
+    if worker is None:
+        try:
+            from distributed import get_worker
+            worker = get_worker()
+        except (ImportError, ValueError):
+            return None
     return vars(worker).setdefault("_photonmap_contexts",
                                    {"lock": threading.Lock(), "key": None, "idle": {}})
 
@@ -137,11 +138,12 @@ def _give_back(cache, key, ctx):
     ctx.accel.close()
 
 
-def release_contexts(key: str) -> int:
-    """Close this worker's prepared contexts of render `key` (run on every worker when
-    the render ends, so a long-lived cluster does not keep the last scene's BVH); a pass
-    still running closes its own when done. Returns how many were closed."""
-    cache = _cache()
+def release_contexts(key: str, dask_worker=None) -> int:
+    """Close this worker's prepared contexts of render `key` (Client.run on every worker,
+    which passes dask_worker, when the render ends, so a long-lived cluster does not keep
+    the last scene's BVH); a pass still running closes its own when done. Returns how many
+    were closed."""
+    cache = _cache(dask_worker)
     if cache is None:
         return 0
     with cache["lock"]:
