@@ -331,10 +331,12 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                 cancelled = True
                 break
             timeout = POLL_SECONDS
-            if budget.seconds is not None:
+            if budget.seconds is not None and merger.passes:
+                # As on one machine the first pass is always finished; after it the client
+                # stops waiting at the deadline: what is merged is the image.
                 left = budget.seconds - (time.perf_counter() - t_start)
                 if left <= 0:
-                    break  # the time is up: what is merged is the image
+                    break
                 timeout = min(timeout, left)
             try:
                 distributed.wait(list(pending.values()), timeout=timeout,

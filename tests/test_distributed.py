@@ -128,8 +128,10 @@ def test_time_budget(client):
     t0 = time.perf_counter()
     film = render_distributed(scene, RenderSettings(**CHEAP), Budget(seconds=2.0), client=client)
     elapsed = time.perf_counter() - t0
-    assert film.stats["passes"] >= 1
-    assert elapsed < 2.0 + 3.0  # the client stops waiting at the deadline (loaded machine: slack)
+    assert film.stats["passes"] >= 1  # the first pass always (as render_progressive)
+    first = film.stats["pass_log"][0]["elapsed"]
+    # After the first pass the client stops waiting at the deadline (slack: a loaded machine).
+    assert elapsed < max(2.0, first) + 3.0
     _wait_until_idle(client)
 
 
