@@ -11,7 +11,7 @@ whatever the number of workers or the order in which they finish.
 A worker that dies mid-pass loses nothing: the scheduler hands its task to another worker
 (the scene was broadcast, every worker holds a copy). Budgets (passes, seconds, target
 error) and cancel stop the render; pending tasks are cancelled and running ones are told
-to stop through a Dask Event that the pass polls.
+to stop (a flag on each worker that the pass polls).
 
 dask and distributed are optional (`pip install photonmap[distributed]`); they are
 imported only when a render asks for a cluster. docs/distributed.md has the set-up.
@@ -23,6 +23,7 @@ import os
 import threading
 import time
 import uuid
+from collections import deque
 from contextlib import contextmanager
 
 from .film import Film
@@ -36,7 +37,7 @@ INSTALL_HINT = "pip install 'dask[distributed]'"
 SCHEMES = ("tcp://", "tls://", "ws://", "wss://")
 LOCAL_PREFIX = "local:"
 POLL_SECONDS = 0.1       # how often the client asks should_cancel while passes run
-STOP_POLL_SECONDS = 0.25  # how often a running pass asks the scheduler whether to stop
+STOPPED_KEPT = 64          # render keys a worker remembers as ended (for passes still running)
 WORKER_WAIT_SECONDS = 30.0  # a scheduler without workers: wait this long for one
 
 
@@ -101,9 +102,9 @@ def connect(address: str):
 # --- worker side ------------------------------------------------------------------------
 
 def _cache(worker=None):
-    """This worker's prepared contexts: {'lock', 'key': current render, 'idle': {key: [...]}},
-    kept on the Dask Worker object, which outlives a re-import of the engine
-    (ship_engine_code). None outside a worker (no caching)."""
+    """This worker's state: {'lock', 'key': current render, 'idle': {key: [prepared
+    contexts]}, 'stopped': keys of ended renders}, kept on the Dask Worker object, which
+    outlives a re-import of the engine (ship_engine_code). None outside a worker."""
     if worker is None:
         try:
             from distributed import get_worker
@@ -111,7 +112,8 @@ def _cache(worker=None):
         except (ImportError, ValueError):
             return None
     return vars(worker).setdefault("_photonmap_contexts",
-                                   {"lock": threading.Lock(), "key": None, "idle": {}})
+                                   {"lock": threading.Lock(), "key": None, "idle": {},
+                                    "stopped": deque(maxlen=STOPPED_KEPT)})
 
 
 def _take_context(cache, key, scene, settings):
@@ -138,15 +140,16 @@ def _give_back(cache, key, ctx):
     ctx.accel.close()
 
 
-def release_contexts(key: str, dask_worker=None) -> int:
-    """Close this worker's prepared contexts of render `key` (Client.run on every worker,
-    which passes dask_worker, when the render ends, so a long-lived cluster does not keep
-    the last scene's BVH); a pass still running closes its own when done. Returns how many
-    were closed."""
+def end_render(key: str, dask_worker=None) -> int:
+    """Run on every worker (Client.run, which passes dask_worker) when render `key` ends:
+    passes of it still running stop at their next check, and the prepared contexts are
+    closed, so a long-lived cluster does not keep the last scene's BVH (a running pass
+    closes its own when done). Returns how many contexts were closed."""
     cache = _cache(dask_worker)
     if cache is None:
         return 0
     with cache["lock"]:
+        cache["stopped"].append(key)
         idle = cache["idle"].pop(key, [])
         if cache["key"] == key:
             cache["key"] = None
@@ -155,24 +158,12 @@ def release_contexts(key: str, dask_worker=None) -> int:
     return len(idle)
 
 
-def _stop_flag(key):
-    """should_cancel for a running pass: the client sets the Dask Event '<key>-stop' when
-    the render ends early; asked at most every STOP_POLL_SECONDS (a scheduler round trip)."""
-    import distributed
-    try:
-        distributed.get_worker()
-    except ValueError:  # called outside a Dask worker (benchmarks): nothing to ask
+def _stop_flag(cache, key):
+    """should_cancel for a running pass: True once end_render(key) ran on this worker."""
+    if cache is None:
         return None
-    event = distributed.Event(f"{key}-stop")
-    state = {"last": time.perf_counter(), "stop": False}
-
-    def should_cancel():
-        now = time.perf_counter()
-        if not state["stop"] and now - state["last"] >= STOP_POLL_SECONDS:
-            state["last"] = now
-            state["stop"] = event.is_set()
-        return state["stop"]
-    return should_cancel
+    stopped = cache["stopped"]
+    return lambda: key in stopped
 
 
 def _threads_here():
@@ -197,7 +188,7 @@ def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
     try:
         ctx.settings = pass_settings(base, i)
         t0 = time.perf_counter()
-        film = render_pass(ctx, region, None, _stop_flag(key))
+        film = render_pass(ctx, region, None, _stop_flag(cache, key))
         film.stats["pass_seconds"] = time.perf_counter() - t0
         film.stats["effects"] = ctx.plan.report()
         film.warnings = ctx.scene.all_warnings()
@@ -309,7 +300,6 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     window = max_in_flight or max(2, 2 * nthreads)
     if ship_code if ship_code is not None else _engine_package() != "engine":
         ship_engine_code(client)
-    stop_event = distributed.Event(f"{key}-stop", client=client)
     scene_future = client.scatter(scene, broadcast=True, hash=False)
     pending: dict = {}   # pass -> future
     finished: dict = {}  # pass -> Film, waiting for the passes before it
@@ -378,12 +368,11 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
         # Budget reached, cancel or an error: nothing more is merged. Stop running passes
         # at their next check and drop the ones not started.
         try:
-            stop_event.set()
             client.cancel(list(pending.values()))
             for future in pending.values():
                 future.release()
             scene_future.release()
-            client.run(release_contexts, key, on_error="ignore")
+            client.run(end_render, key, on_error="ignore")
         except Exception:  # noqa: BLE001 - the cluster may be gone; the error before matters
             pass
     film = merger.film

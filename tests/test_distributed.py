@@ -215,6 +215,26 @@ def test_killed_worker_loses_nothing(client):
     client.wait_for_workers(2, timeout=60)  # the nanny restarted it for the next tests
 
 
+def test_end_render_stops_running_passes_and_closes_contexts():
+    """What Client.run(end_render) does on a worker: the running pass's should_cancel
+    turns True and the idle prepared contexts of that render are closed."""
+    from types import SimpleNamespace
+
+    import engine.distributed as dist
+    from engine.render import prepare_context
+    worker = SimpleNamespace()
+    cache = dist._cache(worker)
+    should_cancel = dist._stop_flag(cache, "render-a")
+    other = dist._stop_flag(cache, "render-b")
+    cache["key"] = "render-a"
+    cache["idle"]["render-a"] = [prepare_context(cornell_box(8, 6), RenderSettings(**CHEAP))]
+    assert not should_cancel()
+    assert dist.end_render("render-a", dask_worker=worker) == 1
+    assert should_cancel() and not other()
+    assert cache["idle"] == {} and cache["key"] is None
+    assert dist._stop_flag(None, "render-a") is None  # outside a worker: nothing to poll
+
+
 def test_parse_address():
     assert parse_address("local:3") == ("local", 3)
     assert parse_address(" tcp://127.0.0.1:8786 ") == ("scheduler", "tcp://127.0.0.1:8786")
