@@ -1,8 +1,8 @@
 """Progressive passes on Dask (engine/distributed.py): passes per second with 1 and 2 local
 worker processes, scheduler overhead per pass, bytes shipped per pass.
 
-    .venv/bin/python bench/bench_distributed.py              # Figure 6 box, 96x72, ~2 min
-    .venv/bin/python bench/bench_distributed.py --quick      # smaller, ~30 s
+    .venv/bin/python bench/bench_distributed.py              # Figure 6 box, 96x72, 2-5 min
+    .venv/bin/python bench/bench_distributed.py --quick      # smaller, about 1 min
 
 Each case renders the same passes (same seed); the script checks that every image is
 bitwise the single-machine one. Controls measured in the same run: one process with 1 and

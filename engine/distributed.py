@@ -25,6 +25,7 @@ import time
 import uuid
 from collections import deque
 from contextlib import contextmanager
+from dataclasses import replace
 
 from .film import Film
 from .progressive import Budget, PassMerger, budget_spent, max_passes_of, pass_settings
@@ -182,7 +183,7 @@ def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
     cached per render key. Engine threads: worker_threads, else settings.workers, else the
     cores divided among this worker's task threads; the image does not depend on it."""
     threads = int(worker_threads or settings.workers or _threads_here())
-    base = settings if threads == settings.workers else _replace_workers(settings, threads)
+    base = settings if threads == settings.workers else replace(settings, workers=threads)
     cache = _cache()
     ctx = _take_context(cache, key, scene, base)
     try:
@@ -197,11 +198,6 @@ def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
     finally:
         _give_back(cache, key, ctx)
     return film
-
-
-def _replace_workers(settings, threads):
-    from dataclasses import replace
-    return replace(settings, workers=threads)
 
 
 # --- client side ------------------------------------------------------------------------
