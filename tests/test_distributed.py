@@ -215,6 +215,40 @@ def test_killed_worker_loses_nothing(client):
     client.wait_for_workers(2, timeout=60)  # the nanny restarted it for the next tests
 
 
+def test_cancel_stops_a_running_pass(monkeypatch):
+    """Pass 2 runs until its should_cancel turns True (threads of this process, so the
+    patched render_pass is what the workers run): cancelling the render after pass 1 must
+    reach it through end_render."""
+    import engine.distributed as dist
+    settings = RenderSettings(**CHEAP)
+    second_seed = settings.seed * 1_000_003 + 2
+    seen = {}
+    real = dist.render_pass
+
+    def endless_second_pass(ctx, region, progress=None, should_cancel=None):
+        if ctx.settings.seed == second_seed:
+            t0 = time.perf_counter()
+            while not should_cancel() and time.perf_counter() - t0 < 30:
+                time.sleep(0.01)
+            seen["stopped"] = should_cancel()
+        return real(ctx, region, progress, should_cancel)
+
+    monkeypatch.setattr(dist, "render_pass", endless_second_pass)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        state = {"passes": 0}
+        film = render_distributed(cornell_box(16, 12), settings, Budget(passes=2), client=c,
+                                  worker_threads=1,
+                                  should_cancel=lambda: state["passes"] >= 1,
+                                  on_pass=lambda f, i: state.update(passes=i["passes"]))
+        t0 = time.perf_counter()
+        while "stopped" not in seen and time.perf_counter() - t0 < 30:
+            time.sleep(0.01)
+    assert film.stats["cancelled"] and film.stats["passes"] == 1
+    assert seen.get("stopped") is True
+
+
 def test_end_render_stops_running_passes_and_closes_contexts():
     """What Client.run(end_render) does on a worker: the running pass's should_cancel
     turns True and the idle prepared contexts of that render are closed."""
