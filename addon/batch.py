@@ -3,6 +3,7 @@
     python -m addon.batch FILE.blend -o out.png [--samples N] [--photons N]
         [--caustic-photons N] [--resolution-percentage P] [--width W --height H]
         [--no-photon-mapping] [--show-photons] [--seed S] [--frame F]
+        [--frames A..B] [--animated-seed] [--dask ADDRESS]
 
 The equivalent of `blender --background FILE.blend -E PHOTONMAP -o out -f 1`: opens the
 file, registers the add-on, selects the engine and renders. The output format follows the
@@ -16,6 +17,11 @@ that then replaces it (os.replace). A render that fails, or is interrupted (Ctrl
 SIGINT: the render is cancelled at its next poll), writes nothing and leaves an existing
 file as it was. Errors are one line on stderr; exit status 1 for errors, 130 when
 interrupted.
+
+--frames A..B renders every frame from A to B (inclusive) into the output pattern: '#'
+in the name becomes the frame number, zero-padded to the count of '#' (out/f_####.png);
+without '#', '_####' is added before the extension. --dask renders the progressive passes
+of each frame on a Dask cluster (docs/distributed.md).
 """
 from __future__ import annotations
 
@@ -25,6 +31,7 @@ import sys
 import time
 
 from engine.cli import CancelOnInterrupt
+from engine.imageio import check_writable, replacing
 
 FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
            ".tif": "TIFF", ".tiff": "TIFF", ".bmp": "BMP"}
@@ -104,9 +111,36 @@ def parse_args(argv):
                    help="plain ray tracing (direct light only)")
     p.add_argument("--show-photons", action="store_true", help="draw photon hits")
     p.add_argument("--frame", type=int, help="frame to render")
+    p.add_argument("--frames", type=_frame_range, metavar="A..B",
+                   help="render frames A to B (inclusive) into the output pattern ('#' = "
+                        "frame digits)")
+    p.add_argument("--animated-seed", action="store_true",
+                   help="a different seed on every frame (the add-on's Animated Seed)")
+    p.add_argument("--dask", metavar="ADDRESS",
+                   help="progressive passes on a Dask cluster: tcp://HOST:8786 or local:W")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar or effect report")
     return p.parse_args(argv)
+
+
+def _frame_range(text):
+    first, sep, last = text.partition("..")
+    try:
+        a, b = int(first), int(last)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected A..B (e.g. 1..24), got '{text}'") from None
+    if not sep or b < a:
+        raise argparse.ArgumentTypeError(f"expected A..B with A <= B, got '{text}'")
+    return a, b
+
+
+def frame_pattern(path: str) -> str:
+    """The output pattern of a frame range: path itself if it has '#', else '_####'
+    inserted before the extension."""
+    if "#" in os.path.basename(path):
+        return path
+    root, ext = os.path.splitext(path)
+    return f"{root}_####{ext}"
 
 
 def _positive(name, value, lo=1):
@@ -133,7 +167,6 @@ def render_file(args) -> str:
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     if root not in sys.path:
         sys.path.insert(0, root)
-    from engine.imageio import check_writable, replacing
     try:
         check_writable(out)  # before the render, not after it
     except OSError as exc:
@@ -144,7 +177,6 @@ def render_file(args) -> str:
     except ImportError as exc:
         raise BatchError(f"cannot import bpy (Blender as a Python module): {exc}") from None
     import addon
-    from addon import engine
     from addon.engine import ENGINE_ID
     if not hasattr(bpy.types.Scene, "photonmap"):
         addon.register()
@@ -169,16 +201,36 @@ def render_file(args) -> str:
         pm.photon_mapping = False
     if args.show_photons:
         pm.show_photons = True
+    if args.animated_seed:
+        pm.use_animated_seed = True
+    if args.dask:
+        pm.dask_scheduler = args.dask
     if args.frame is not None:
         scene.frame_set(args.frame)
     r.image_settings.file_format = FORMATS[ext]
-    r.filepath = out
     r.use_file_extension = False
     if scene.camera is None:
         raise BatchError(f"{args.blend}: the scene has no active camera")
+    if args.frames is None:
+        _render_still(bpy, scene, out, args.quiet)
+        return out
+    pattern = frame_pattern(out)
+    written = []
+    for frame in range(args.frames[0], args.frames[1] + 1):
+        scene.frame_set(frame)
+        r.filepath = pattern
+        path = r.frame_path(frame=frame)  # '#' -> zero-padded frame number
+        _render_still(bpy, scene, path, args.quiet)
+        written.append(path)
+    return f"{len(written)} frames: {written[0]} .. {written[-1]}"
+
+
+def _render_still(bpy, scene, out, quiet):
+    """Render the current frame and save it to `out` only when the render is complete."""
+    from addon import engine
     # write_still=True would save whatever the render result holds, also after an error
     # or a cancel (an all-black frame over a good one): save it here, only when complete.
-    printer = _StatusPrinter(quiet=args.quiet)
+    printer = _StatusPrinter(quiet=quiet)
     previous_hook = engine.test_break_hook
     interrupt = CancelOnInterrupt(
         "\ninterrupt: cancelling the render (Ctrl-C again to stop at once)")

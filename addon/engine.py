@@ -158,7 +158,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self._emit("finished", "cancelled")
             return
 
-        settings = pm.RenderSettings(**props.to_settings_kwargs(render.film_transparent))
+        kwargs = props.to_settings_kwargs(render.film_transparent)
+        if props.use_animated_seed:
+            kwargs["seed"] = frame_seed(props.seed, scene.frame_current)
+        settings = pm.RenderSettings(**kwargs)
         # Refuse what cannot fit before anything big is allocated (Blender's render result
         # included); raises ResourceError with the setting and the estimate.
         pm.resources.check_resources(pm_scene, settings, region, progressive=props.progressive,
@@ -172,7 +175,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 self._stats(text)
 
         t0 = time.perf_counter()
-        if props.progressive:
+        if props.progressive or props.dask_scheduler.strip():  # a cluster renders passes
             film = self._render_progressive(pm, pm_scene, settings, props, progress, region,
                                             view_layer, render.film_transparent)
         else:
@@ -240,6 +243,14 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 done.append(info["passes"] / pm.progressive.DEFAULT_MAX_PASSES)
             self._progress(min(1.0, max(done)))
 
+        address = props.dask_scheduler.strip()
+        if address:  # same passes on a Dask cluster (engine/distributed.py, imported lazily)
+            import importlib
+            dist = importlib.import_module(pm.__name__ + ".distributed")
+            return dist.render_distributed(pm_scene, settings, budget, address=address,
+                                           progress=pass_progress,
+                                           should_cancel=self._should_cancel,
+                                           on_pass=on_pass, region=region)
         return pm.render_progressive(pm_scene, settings, budget, progress=pass_progress,
                                      should_cancel=self._should_cancel, on_pass=on_pass,
                                      region=region)
@@ -298,6 +309,13 @@ def _expected(exc: Exception) -> bool:
     """Refusals with a complete message of their own: no traceback in the console."""
     return (isinstance(exc, export.ExportError)
             or type(exc).__name__ in ("SceneError", "ResourceError"))
+
+
+def frame_seed(seed: int, frame: int) -> int:
+    """The seed of `frame` with Animated Seed on: seed and frame mixed into [0, 2^31), the
+    same on every machine, so a farm renders each frame as one machine would
+    (docs/distributed.md)."""
+    return (int(seed) * 1_000_003 + int(frame) * 7919) % (1 << 31)
 
 
 def _user_message(exc: Exception) -> str:

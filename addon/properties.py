@@ -4,7 +4,7 @@ Defaults mirror engine.settings.RenderSettings so a .blend renders like the CLI.
 """
 import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty,
-                       PointerProperty)
+                       PointerProperty, StringProperty)
 
 ESTIMATOR_ITEMS = (
     ("knn_simpson", "k-NN (Simpson kernel)",
@@ -138,9 +138,22 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     seed: IntProperty(
         name="Seed", default=0, min=0,
         description="Random seed: the same seed and settings give the same image")
+    use_animated_seed: BoolProperty(
+        name="Animated Seed", default=False,
+        description="Use a different seed on every frame (seed and frame number mixed), so "
+                    "the noise of an animation changes from frame to frame; off = the same "
+                    "noise pattern on every frame. Either way a frame renders the same on any "
+                    "machine of a render farm")
     threads: IntProperty(
         name="Threads", default=0, min=0, max=1024,
         description="Threads for ray tracing and photon search; 0 = all cores")
+
+    # Distributed rendering (engine/distributed.py, docs/distributed.md)
+    dask_scheduler: StringProperty(
+        name="Scheduler", default="",
+        description="Dask scheduler that renders the progressive passes on its workers: "
+                    "tcp://HOST:8786 (or local:W for W worker processes on this machine). "
+                    "Empty = render on this machine. Same image either way")
 
     def to_settings_kwargs(self, film_transparent=False):
         """Keyword arguments for engine.settings.RenderSettings."""

@@ -61,6 +61,7 @@ class PHOTONMAP_PT_sampling(PhotonMapButtonsPanel, bpy.types.Panel):
         col.prop(pm, "light_samples")
         col.prop(pm, "max_depth")
         col.prop(pm, "seed")
+        col.prop(pm, "use_animated_seed")
 
 
 class PHOTONMAP_PT_photons(PhotonMapButtonsPanel, bpy.types.Panel):
@@ -140,6 +141,36 @@ class PHOTONMAP_PT_performance(PhotonMapButtonsPanel, bpy.types.Panel):
         layout.prop(context.scene.photonmap, "threads")
 
 
+class PHOTONMAP_PT_distributed(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Progressive passes on a Dask cluster (docs/distributed.md). dask is needed only
+    when an address is set; the panel says what is missing and how to install it."""
+    bl_label = "Distributed"
+    bl_parent_id = "PHOTONMAP_PT_performance"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        import importlib.util
+        import sys
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        pm = context.scene.photonmap
+        layout.prop(pm, "dask_scheduler")
+        if not pm.dask_scheduler.strip():
+            layout.label(text="Off: empty address renders on this machine")
+            return
+        missing = [m for m in ("dask", "distributed") if importlib.util.find_spec(m) is None]
+        col = layout.column(align=True)
+        if missing:
+            col.alert = True
+            col.label(text=f"Missing Python packages: {', '.join(missing)}", icon="ERROR")
+            col.label(text="Install them into Blender's Python:")
+            col.label(text=f'"{sys.executable}" -m pip install "dask[distributed]"')
+            return
+        col.label(text="F12 and animations render progressive passes on the cluster", icon="INFO")
+        col.label(text="(budget: Sampling > Progressive); workers need the engine installed")
+
+
 class PHOTONMAP_PT_passes(PhotonMapButtonsPanel, bpy.types.Panel):
     bl_label = "Passes"
     bl_context = "view_layer"
@@ -195,7 +226,8 @@ class PHOTONMAP_PT_effects(PhotonMapButtonsPanel, bpy.types.Panel):
 
 classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_effects,
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
-           PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_passes)
+           PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_distributed,
+           PHOTONMAP_PT_passes)
 
 _patched = []
 

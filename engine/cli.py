@@ -64,6 +64,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--time-limit", type=_positive_float, help="progressive: stop within T seconds")
     r.add_argument("--target-error", type=_positive_float,
                    help="progressive: stop when the estimated relMSE is below this")
+    r.add_argument("--dask", metavar="ADDRESS",
+                   help="progressive passes on a Dask cluster: local:W (W worker processes "
+                        "here) or tcp://HOST:8786 (a running scheduler); same image as without "
+                        "(docs/distributed.md)")
     r.add_argument("--photons", type=_positive_int, help="global photons to emit")
     r.add_argument("--caustic-photons", type=_positive_int, help="caustic photons to emit")
     r.add_argument("--radius", type=_positive_float, help="max photon search radius (default: auto)")
@@ -137,7 +141,7 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("photonmap: interrupted", file=sys.stderr)
         return 130
-    except (ValueError, OSError) as e:
+    except (ValueError, OSError, ImportError) as e:  # ImportError: --dask without dask
         print(f"photonmap: error: {e}", file=sys.stderr)
         return 1
 
@@ -179,8 +183,8 @@ def _render(args) -> int:
     if args.show_photons:
         overrides["show_photons"] = True
     settings = RenderSettings(**overrides)
-    progressive = args.progressive or any(v is not None for v in (args.passes, args.time_limit,
-                                                                   args.target_error))
+    progressive = args.progressive or bool(args.dask) or any(
+        v is not None for v in (args.passes, args.time_limit, args.target_error))
     from .resources import check_resources
     scene.validate()
     check_resources(scene, settings, progressive=progressive)  # before the progress bar
@@ -212,8 +216,14 @@ def _render(args) -> int:
                               f"{info['elapsed']:.1f} s, estimated relMSE "
                               f"{info['error_estimate']:.4f}")
             with interrupt:
-                film = render_progressive(scene, settings, budget, progress=progress,
-                                          on_pass=on_pass, should_cancel=should_cancel)
+                if args.dask:
+                    from .distributed import render_distributed
+                    film = render_distributed(scene, settings, budget, address=args.dask,
+                                              progress=progress, on_pass=on_pass,
+                                              should_cancel=should_cancel)
+                else:
+                    film = render_progressive(scene, settings, budget, progress=progress,
+                                              on_pass=on_pass, should_cancel=should_cancel)
         else:
             with interrupt:
                 film = render(scene, settings, progress=progress, should_cancel=should_cancel)

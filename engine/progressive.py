@@ -84,38 +84,98 @@ def half_error(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.mean((a - b) ** 2 / 4.0 / (smooth * smooth + 0.01)))
 
 
+def pass_settings(settings: RenderSettings, i: int) -> RenderSettings:
+    """Settings of pass i (1-based): its own seed and its k_i = max(K_MIN, k_1 i^(alpha-1)).
+    A pass depends on nothing else, so passes can run anywhere in any order
+    (engine/distributed.py)."""
+    k_i = max(K_MIN, int(round(settings.k_nearest * i ** (ALPHA - 1.0))))
+    return replace(settings, seed=settings.seed * 1_000_003 + i, k_nearest=k_i, min_photons=1)
+
+
+def max_passes_of(budget: Budget) -> int | None:
+    """The pass limit of a budget: its passes, else DEFAULT_MAX_PASSES when it has no
+    time or error limit either, else None (no pass limit)."""
+    return budget.passes or (None if (budget.seconds or budget.target_error) else DEFAULT_MAX_PASSES)
+
+
+def budget_spent(budget: Budget, passes: int, error: float, elapsed: float) -> bool:
+    """True when no further pass should start after `passes` merged passes with the
+    running error estimate and elapsed seconds: the pass limit is reached, the error
+    target is met, or the next pass (at the mean pass time so far) would overrun."""
+    max_passes = max_passes_of(budget)
+    if max_passes is not None and passes >= max_passes:
+        return True
+    if budget.target_error is not None and np.isfinite(error) and error <= budget.target_error:
+        return True
+    if budget.seconds is not None and elapsed + elapsed / passes > budget.seconds:
+        return True
+    return False
+
+
+class PassMerger:
+    """Running average of pass films, merged strictly in pass order.
+
+    The float64 sums are formed in the same order whoever rendered the passes, so the
+    average is bitwise the same on one machine and on a cluster (engine/distributed.py).
+    self.film (one Film, updated in place) holds the average after every add()."""
+
+    def __init__(self, width: int, height: int, show_photons: bool = False):
+        w, h = width, height
+        self.sums = {name: np.zeros((h, w, 3)) for name in EFFECTS}
+        self.halves = [np.zeros((h, w, 3)), np.zeros((h, w, 3))]
+        self.counts = [0, 0]
+        self.extra = {"alpha": np.zeros((h, w)), "holdout": np.zeros((h, w)),
+                      "normal": np.zeros((h, w, 3)), "photon_hits": np.zeros((h, w, 3))}
+        self.depth = np.full((h, w), np.inf)
+        self.film = Film(w, h, show_photons=show_photons)
+        self.passes = 0
+        self.photons = 0
+        self.error = float("nan")
+
+    def add(self, one: Film) -> None:
+        """Merge pass self.passes + 1. A pass film rendered without photon view may carry
+        photon_hits=None (all zero, not worth shipping): adding zeros changes nothing."""
+        self.passes += 1
+        i = self.passes
+        self.photons += one.stats.get("photons_emitted", 0) + one.stats.get("caustic_photons_emitted", 0)
+        combined = one.combined.astype(np.float64)
+        for name in EFFECTS:
+            self.sums[name] += getattr(one, name)
+        self.halves[i % 2] += combined
+        self.counts[i % 2] += 1
+        for name in self.extra:
+            value = getattr(one, name)
+            if value is not None:
+                self.extra[name] += value
+        self.depth = np.minimum(self.depth, one.depth)
+        if self.counts[0] and self.counts[1]:
+            self.error = half_error(self.halves[0] / self.counts[0], self.halves[1] / self.counts[1])
+        _fill(self.film, self.sums, self.extra, self.depth, i)
+
+
 def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                        budget: Budget | None = None, progress=None, should_cancel=None,
                        on_pass=None, region=None) -> Film:
     """Render passes until the budget is spent. on_pass(film, info) is called after every
-    pass with the running average (info: pass, photons, elapsed, error_estimate)."""
+    pass with the running average (info: pass, photons, elapsed, error_estimate).
+    engine/distributed.py renders the same passes on a Dask cluster (bitwise the same
+    image)."""
     settings = settings or RenderSettings()
     budget = budget or Budget()
-    max_passes = budget.passes or (None if (budget.seconds or budget.target_error) else DEFAULT_MAX_PASSES)
     t_start = time.perf_counter()
     scene.validate()
     region = _check_region(region, scene.width, scene.height)
     check_resources(scene, settings, region, progressive=True)
     ctx = prepare_context(scene, settings)
     w, h = region[2] - region[0], region[3] - region[1]
-    sums = {name: np.zeros((h, w, 3)) for name in EFFECTS}
-    halves = [np.zeros((h, w, 3)), np.zeros((h, w, 3))]
-    counts = [0, 0]
-    extra = {"alpha": np.zeros((h, w)), "holdout": np.zeros((h, w)), "normal": np.zeros((h, w, 3)), "photon_hits": np.zeros((h, w, 3))}
-    depth = np.full((h, w), np.inf)
+    merger = PassMerger(w, h, settings.show_photons)
     log = []
-    film = Film(w, h, show_photons=settings.show_photons)
-    error = float("nan")
     cancelled = False
-    photons_total = 0
     i = 0
     try:
         while True:
             i += 1
-            k_i = max(K_MIN, int(round(settings.k_nearest * i ** (ALPHA - 1.0))))
-            pass_settings = replace(settings, seed=settings.seed * 1_000_003 + i, k_nearest=k_i,
-                                    min_photons=1)
-            ctx.settings = pass_settings
+            ctx.settings = pass_settings(settings, i)
 
             def pass_progress(stage, fraction, text, _i=i):
                 if progress is not None:
@@ -127,38 +187,22 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                 cancelled = True
                 i -= 1
                 break
-            photons_total += one.stats.get("photons_emitted", 0) + one.stats.get("caustic_photons_emitted", 0)
-            combined = one.combined.astype(np.float64)
-            for name in EFFECTS:
-                sums[name] += getattr(one, name)
-            halves[i % 2] += combined
-            counts[i % 2] += 1
-            for name in extra:
-                extra[name] += getattr(one, name)
-            depth = np.minimum(depth, one.depth)
-            if counts[0] and counts[1]:
-                error = half_error(halves[0] / counts[0], halves[1] / counts[1])
+            merger.add(one)
             elapsed = time.perf_counter() - t_start
-            _fill(film, sums, extra, depth, i)
-            info = dict(passes=i, photons=photons_total, elapsed=elapsed, error_estimate=error,
-                        k_nearest=k_i, pass_seconds=time.perf_counter() - t_pass)
+            info = dict(passes=i, photons=merger.photons, elapsed=elapsed,
+                        error_estimate=merger.error, k_nearest=ctx.settings.k_nearest,
+                        pass_seconds=time.perf_counter() - t_pass)
             log.append(info)
             if on_pass is not None:
-                on_pass(film, info)
-            # Budgets.
-            if max_passes is not None and i >= max_passes:
+                on_pass(merger.film, info)
+            if budget_spent(budget, i, merger.error, elapsed):
                 break
-            if budget.target_error is not None and np.isfinite(error) and error <= budget.target_error:
-                break
-            if budget.seconds is not None:
-                mean_pass = elapsed / i
-                if elapsed + mean_pass > budget.seconds:  # the next pass would overrun
-                    break
     finally:
         ctx.accel.close()
-    film.stats.update(progressive=True, passes=i, error_estimate=error, photons_total=photons_total,
-                      pass_log=log, cancelled=cancelled, effects=ctx.plan.report(),
-                      time_total=time.perf_counter() - t_start)
+    film = merger.film
+    film.stats.update(progressive=True, passes=i, error_estimate=merger.error,
+                      photons_total=merger.photons, pass_log=log, cancelled=cancelled,
+                      effects=ctx.plan.report(), time_total=time.perf_counter() - t_start)
     film.warnings = scene.all_warnings()
     return film
 

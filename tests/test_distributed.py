@@ -1,0 +1,331 @@
+"""Progressive passes on Dask (engine/distributed.py): bitwise the single-machine image,
+whatever the workers and the order they finish in; budgets, cancel, a killed worker."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from engine import RenderSettings  # noqa: E402
+from engine.api import cornell_box  # noqa: E402
+from engine.distributed import missing_packages, parse_address, render_distributed  # noqa: E402
+from engine.progressive import Budget, render_progressive  # noqa: E402
+from engine.scene import SceneError  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CHEAP = dict(spp=1, photons=3000, caustic_photons=1500, seed=5)
+BUFFERS = ("direct", "indirect", "caustic", "specular", "emission", "alpha", "normal", "depth",
+           "photon_hits")
+
+
+def assert_bitwise(a, b):
+    for name in BUFFERS:
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.dtype == y.dtype and x.shape == y.shape, name
+        assert x.tobytes() == y.tobytes(), f"{name} differs"
+
+
+@pytest.fixture(scope="module")
+def client():
+    """One LocalCluster of 2 worker processes (127.0.0.1 only) for the whole module."""
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address=None)
+    c = distributed.Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def small():
+    scene = cornell_box(24, 18)
+    settings = RenderSettings(**CHEAP)
+    return scene, settings, render_progressive(scene, settings, Budget(passes=5))
+
+
+def test_same_image_as_local(client, small):
+    scene, settings, local = small
+    film = render_distributed(scene, settings, Budget(passes=5), client=client, worker_threads=1)
+    assert_bitwise(film, local)
+    assert film.stats["passes"] == 5 and len(film.stats["pass_log"]) == 5
+    assert film.stats["error_estimate"] == local.stats["error_estimate"]
+    assert film.stats["photons_total"] == local.stats["photons_total"]
+    assert film.stats["effects"] == local.stats["effects"]
+    assert film.warnings == local.warnings
+    # The workers closed their prepared contexts when the render ended.
+    idle = client.run(lambda dask_worker: sum(
+        len(v) for v in vars(dask_worker).get("_photonmap_contexts", {}).get("idle", {}).values()))
+    assert set(idle.values()) == {0}
+
+
+def test_same_image_one_pass_in_flight_and_other_thread_count(client, small):
+    """Passes strictly one after another, and two engine threads per pass instead of one:
+    the same bits."""
+    scene, settings, local = small
+    film = render_distributed(scene, settings, Budget(passes=5), client=client,
+                              worker_threads=2, max_in_flight=1)
+    assert_bitwise(film, local)
+
+
+def test_on_pass_sees_the_running_average_in_pass_order(client, small):
+    scene, settings, _ = small
+    seen_local, seen_dask = [], []
+    render_progressive(scene, settings, Budget(passes=3),
+                       on_pass=lambda f, i: seen_local.append((i["passes"], f.combined.copy())))
+    render_distributed(scene, settings, Budget(passes=3), client=client,
+                       on_pass=lambda f, i: seen_dask.append((i["passes"], f.combined.copy())))
+    assert [p for p, _ in seen_dask] == [1, 2, 3]
+    for (_, a), (_, b) in zip(seen_local, seen_dask):
+        assert a.tobytes() == b.tobytes()
+
+
+def test_out_of_order_completion_is_merged_in_pass_order(monkeypatch):
+    """Pass 1 is held back until passes 2 and 3 are done (threads of this process, so the
+    patched render_pass is what the workers run); the image is still the local one."""
+    import engine.distributed as dist
+    scene = cornell_box(16, 12)
+    settings = RenderSettings(**CHEAP)
+    local = render_progressive(scene, settings, Budget(passes=3))
+    first_seed = settings.seed * 1_000_003 + 1
+    done = []
+    real = dist.render_pass
+
+    def held_back(ctx, region, progress=None, should_cancel=None):
+        if ctx.settings.seed == first_seed:
+            t0 = time.perf_counter()
+            while len(done) < 2 and time.perf_counter() - t0 < 30:  # poll, no fixed sleep
+                time.sleep(0.01)
+        film = real(ctx, region, progress, should_cancel)
+        done.append(ctx.settings.seed)
+        return film
+
+    monkeypatch.setattr(dist, "render_pass", held_back)
+    with distributed.LocalCluster(n_workers=3, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        film = render_distributed(scene, settings, Budget(passes=3), client=c, worker_threads=1)
+    assert done[-1] == first_seed, "pass 1 did not finish last"
+    assert_bitwise(film, local)
+
+
+def test_pass_and_error_budgets_stop_where_local_stops(client):
+    scene = cornell_box(16, 12)
+    settings = RenderSettings(**CHEAP)
+    budget = Budget(target_error=0.05, passes=40)
+    local = render_progressive(scene, settings, budget)
+    film = render_distributed(scene, settings, budget, client=client)
+    assert film.stats["passes"] == local.stats["passes"]
+    assert_bitwise(film, local)
+
+
+def test_time_budget(client):
+    scene = cornell_box(16, 12)
+    t0 = time.perf_counter()
+    film = render_distributed(scene, RenderSettings(**CHEAP), Budget(seconds=2.0), client=client)
+    elapsed = time.perf_counter() - t0
+    assert film.stats["passes"] >= 1  # the first pass always (as render_progressive)
+    first = film.stats["pass_log"][0]["elapsed"]
+    # After the first pass the client stops waiting at the deadline (slack: a loaded machine).
+    assert elapsed < max(2.0, first) + 3.0
+    _wait_until_idle(client)
+
+
+def _wait_until_idle(client, timeout=30.0):
+    """Poll the scheduler until it holds no task (cancelled passes were dropped)."""
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < timeout:
+        n = client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks))
+        if n == 0:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{n} tasks still on the scheduler after {timeout} s")
+
+
+def test_cancel_drops_pending_passes(client, small):
+    scene, settings, _ = small
+    state = {"passes": 0}
+    film = render_distributed(scene, settings, Budget(passes=40), client=client,
+                              should_cancel=lambda: state["passes"] >= 2,
+                              on_pass=lambda f, i: state.update(passes=i["passes"]))
+    assert film.stats["cancelled"] and 2 <= film.stats["passes"] < 40
+    local = render_progressive(scene, settings, Budget(passes=film.stats["passes"]))
+    assert_bitwise(film, local)
+    _wait_until_idle(client)
+
+
+
+def test_engine_under_an_extension_name_is_shipped(client, small, tmp_path, monkeypatch):
+    """Inside Blender the engine is bl_ext.<repo>.<id>.engine, a name no worker can import:
+    the client uploads the engine (ship_engine_code) and the image is still the local one."""
+    import importlib
+    package = "bl_ext_t.user_default.photonmap"
+    for depth, part in enumerate(package.split(".")):
+        d = tmp_path.joinpath(*package.split(".")[:depth + 1])
+        d.mkdir()
+        (d / "__init__.py").write_text("")
+    os.symlink(os.path.join(ROOT, "engine"), tmp_path.joinpath(*package.split("."), "engine"))
+    spec = "importlib.util.find_spec('bl_ext_t') is not None"
+    assert not any(client.run(eval, spec, {"importlib": importlib}).values())
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        ext = importlib.import_module(package + ".engine")
+        dist = importlib.import_module(package + ".engine.distributed")
+        scene = importlib.import_module(package + ".engine.api").cornell_box(24, 18)
+        film = dist.render_distributed(scene, ext.RenderSettings(**CHEAP), ext.Budget(passes=5),
+                                       client=client, worker_threads=1)
+        assert type(film).__module__ == package + ".engine.film"
+        assert_bitwise(film, small[2])
+        assert all(client.run(eval, spec, {"importlib": importlib}).values())  # uploaded
+    finally:
+        for name in [n for n in sys.modules if n.startswith("bl_ext_t")]:
+            del sys.modules[name]
+
+
+def test_killed_worker_loses_nothing(client):
+    """SIGKILL a worker process while it holds a pass: the scheduler gives the pass to
+    the other worker (the nanny restarts the killed one) and the image is unchanged."""
+    scene = cornell_box(32, 24)
+    settings = RenderSettings(spp=2, photons=10000, caustic_photons=3000, seed=3)
+    budget = Budget(passes=4)
+    local = render_progressive(scene, settings, budget)
+    pids = client.run(os.getpid)  # worker address -> process id
+    killed = []
+
+    def kill_a_busy_worker():
+        if not killed:
+            busy = client.run_on_scheduler(
+                lambda dask_scheduler: [ws.address for ws in dask_scheduler.workers.values()
+                                        if any(ts.key.startswith("photonmap-")
+                                               for ts in ws.executing)])
+            if busy and busy[0] in pids:
+                os.kill(pids[busy[0]], signal.SIGKILL)
+                killed.append(busy[0])
+        return False
+
+    film = render_distributed(scene, settings, budget, client=client, worker_threads=1,
+                              should_cancel=kill_a_busy_worker)
+    assert killed, "no pass was ever seen running"
+    assert film.stats["passes"] == 4
+    assert_bitwise(film, local)
+    client.wait_for_workers(2, timeout=60)  # the nanny restarted it for the next tests
+
+
+def test_cancel_stops_a_running_pass(monkeypatch):
+    """Pass 2 runs until its should_cancel turns True (threads of this process, so the
+    patched render_pass is what the workers run): cancelling the render after pass 1 must
+    reach it through end_render."""
+    import engine.distributed as dist
+    settings = RenderSettings(**CHEAP)
+    second_seed = settings.seed * 1_000_003 + 2
+    seen = {}
+    real = dist.render_pass
+
+    def endless_second_pass(ctx, region, progress=None, should_cancel=None):
+        if ctx.settings.seed == second_seed:
+            t0 = time.perf_counter()
+            while not should_cancel() and time.perf_counter() - t0 < 30:
+                time.sleep(0.01)
+            seen["stopped"] = should_cancel()
+        return real(ctx, region, progress, should_cancel)
+
+    monkeypatch.setattr(dist, "render_pass", endless_second_pass)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        state = {"passes": 0}
+        film = render_distributed(cornell_box(16, 12), settings, Budget(passes=2), client=c,
+                                  worker_threads=1,
+                                  should_cancel=lambda: state["passes"] >= 1,
+                                  on_pass=lambda f, i: state.update(passes=i["passes"]))
+        t0 = time.perf_counter()
+        while "stopped" not in seen and time.perf_counter() - t0 < 30:
+            time.sleep(0.01)
+    assert film.stats["cancelled"] and film.stats["passes"] == 1
+    assert seen.get("stopped") is True
+
+
+def test_end_render_stops_running_passes_and_closes_contexts():
+    """What Client.run(end_render) does on a worker: the running pass's should_cancel
+    turns True and the idle prepared contexts of that render are closed."""
+    from types import SimpleNamespace
+
+    import engine.distributed as dist
+    from engine.render import prepare_context
+    worker = SimpleNamespace()
+    cache = dist._cache(worker)
+    should_cancel = dist._stop_flag(cache, "render-a")
+    other = dist._stop_flag(cache, "render-b")
+    cache["key"] = "render-a"
+    cache["idle"]["render-a"] = [prepare_context(cornell_box(8, 6), RenderSettings(**CHEAP))]
+    assert not should_cancel()
+    assert dist.end_render("render-a", dask_worker=worker) == 1
+    assert should_cancel() and not other()
+    assert cache["idle"] == {} and cache["key"] is None
+    assert dist._stop_flag(None, "render-a") is None  # outside a worker: nothing to poll
+
+
+def test_parse_address():
+    assert parse_address("local:3") == ("local", 3)
+    assert parse_address(" tcp://127.0.0.1:8786 ") == ("scheduler", "tcp://127.0.0.1:8786")
+    for bad in ("local:0", "local:", "local:two", "127.0.0.1:8786", "", "tcp://"):
+        with pytest.raises(ValueError, match="dask address"):
+            parse_address(bad)
+
+
+def test_missing_dask_is_named(monkeypatch):
+    import importlib.util
+
+    import engine.distributed as dist
+    assert missing_packages() == []
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == "distributed" else real(name, *a))
+    assert dist.missing_packages() == ["distributed"]
+    with pytest.raises(ImportError, match="distributed.*pip install"):
+        render_distributed(cornell_box(8, 6), address="local:1")
+
+
+def test_scheduler_without_workers_is_an_error(monkeypatch):
+    import engine.distributed as dist
+    monkeypatch.setattr(dist, "WORKER_WAIT_SECONDS", 0.5)
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        with pytest.raises(ValueError, match="has no workers"):
+            render_distributed(cornell_box(8, 6), RenderSettings(**CHEAP), client=c)
+
+
+def test_bad_scene_is_reported_before_shipping(client):
+    scene = cornell_box(8, 6)
+    scene.camera = None
+    with pytest.raises(SceneError):
+        render_distributed(scene, RenderSettings(**CHEAP), Budget(passes=1), client=client)
+
+
+def test_cli_dask_writes_the_local_image(tmp_path):
+    """`photonmap render --dask local:1` writes the image render_progressive makes of the
+    same file and options."""
+    from engine.scenefile import load_scene
+    path = os.path.join(ROOT, "scenes", "figure3.toml")
+    out = tmp_path / "dask.npy"
+    r = subprocess.run([sys.executable, "-m", "engine.cli", "render", path, "--passes", "2",
+                        "--spp", "1", "--photons", "2000", "--caustic-photons", "500",
+                        "--width", "24", "--height", "18", "--quiet", "--dask", "local:1",
+                        "-o", str(out)], cwd=ROOT, env=dict(os.environ, PYTHONPATH=ROOT),
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    scene, overrides = load_scene(path)
+    scene.width, scene.height = 24, 18
+    overrides.update(spp=1, photons=2000, caustic_photons=500)
+    local = render_progressive(scene, RenderSettings(**overrides), Budget(passes=2))
+    assert np.load(out).tobytes() == local.combined.tobytes()
+
+
+def test_cli_bad_address_is_one_line():
+    from engine.cli import main
+    path = os.path.join(ROOT, "scenes", "figure3.toml")
+    assert main(["render", path, "-o", "x.npy", "--quiet", "--dask", "127.0.0.1:8786"]) == 1
