@@ -56,6 +56,7 @@ def test_register_unregister_twice(bpy_addon):
 def test_property_defaults_match_engine(bpy_addon):
     bpy = bpy_addon
     from engine.settings import RenderSettings
+    bpy.ops.wm.read_homefile(use_empty=True)  # defaults, whatever an earlier test opened
     pm = bpy.context.scene.photonmap
     kwargs = pm.to_settings_kwargs()
     defaults = {f.name: f.default for f in dataclasses.fields(RenderSettings)}
