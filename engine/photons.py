@@ -120,11 +120,11 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     had_specular = np.zeros(len(o), bool)
     caustic_then_diffuse = np.zeros(len(o), bool)  # path so far: L S+ D S*
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
-    # surface stands for the camera-side ray that leaves that surface backwards, whose
-    # kind is set by the use made of the photon there (see _use_kind). `kinds` holds, per
-    # photon, the ray kinds for which the segment so far is a valid camera-side ray: the
-    # surface it left sees them (the ray must hit it; a light always does) and nothing
-    # between that they see lies in the way.
+    # surface stands for the camera-side ray that leaves that surface backwards; its kind
+    # is set by the use made of the photon there (stored, or continued with a lobe: see
+    # below). `kinds` holds, per photon, the ray kinds for which the segment so far is a
+    # valid camera-side ray: the surface it left sees them (the ray must hit it; a light
+    # always does) and nothing in between that they see lies in the way.
     vis_on = bool(getattr(accel, "has_invisible", False))
     kinds = np.full(len(o), SEGMENT_KINDS, np.int64)
     for bounce in range(settings.max_photon_depth):
