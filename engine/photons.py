@@ -24,10 +24,14 @@ import numpy as np
 from .parallel import Cancelled, chunk_length, ordered_map
 from .bsdf import lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, max3, to_world
-from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class, visible_to
+from .geometry import CAMERA
+from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class
 
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
 LOBES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "coat")
+# The ray kinds a photon segment can stand for on the camera side (camera rays start at
+# the camera, never at a photon's surface).
+SEGMENT_KINDS = ALL_RAYS & ~CAMERA
 
 
 @dataclass
@@ -115,12 +119,14 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     had_diffuse = np.zeros(len(o), bool)
     had_specular = np.zeros(len(o), bool)
     caustic_then_diffuse = np.zeros(len(o), bool)  # path so far: L S+ D S*
-    # Ray visibility (docs/scene_format.md, "Ray visibility"): a segment has the class of
-    # the event that started it (shadow from the light, then diffuse / glossy /
-    # transmission); `source` holds the visibility bits of the surface it left.
+    # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
+    # surface stands for the camera-side ray that leaves that surface backwards; its kind
+    # is set by the use made of the photon there (stored, or continued with a lobe: see
+    # below). `kinds` holds, per photon, the ray kinds for which the segment so far is a
+    # valid camera-side ray: the surface it left sees them (the ray must hit it; a light
+    # always does) and nothing in between that they see lies in the way.
     vis_on = bool(getattr(accel, "has_invisible", False))
-    ray_cls = np.full(len(o), SHADOW, np.int64)
-    source = np.full(len(o), ALL_RAYS, np.int64)
+    kinds = np.full(len(o), SEGMENT_KINDS, np.int64)
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -135,21 +141,24 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             slot = slot[alive]
             had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
             caustic_then_diffuse = caustic_then_diffuse[alive]
-            ray_cls, source = ray_cls[alive], source[alive]
+            kinds = kinds[alive]
         if len(o) == 0:
             break
         hit = surface_hit(geo, table, prim, u, v, d)
         carry = None
         if vis_on:
-            # A surface this segment's class does not see is both there and not there:
-            # light arrives on it (it is the origin of the camera-side ray, which never
-            # tests itself) and passes on to what lies behind it. Split the photon.
-            thru = np.nonzero(~visible_to(geo, prim, ray_cls))[0]
+            hit_vis = np.take(geo.visibility, prim).astype(np.int64)
+            # The photon stops here for every kind it still has: this surface is where
+            # the camera-side ray starts, and a ray never tests its own start. For the
+            # kinds that do not see this surface it is also not there: a split-off copy
+            # with those kinds passes on behind it, keeping the photon's slot (its
+            # random numbers).
+            behind = kinds & ~hit_vis
+            thru = np.nonzero(behind)[0]
             if len(thru):
-                # The split-off part keeps the photon's slot (its random numbers).
                 carry = (hit.clear(thru, d[thru]), d[thru],
                          power[thru], had_diffuse[thru], had_specular[thru],
-                         caustic_then_diffuse[thru], ray_cls[thru], source[thru], slot[thru])
+                         caustic_then_diffuse[thru], behind[thru], slot[thru])
         w = lobe_weights(table, hit)
         kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
                         np.where(had_specular, CAUSTIC, DIRECT))
@@ -157,9 +166,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         if caustic_only:
             store &= kind == CAUSTIC
         if vis_on:
-            # Looked up by diffuse rays from here: the surface it came from must be
-            # visible to diffuse rays (a light always is).
-            store &= (source & DIFFUSE) != 0
+            # Stored for lookups at this surface: the camera side reaches the photon's
+            # source from here with a shadow ray (direct light) or a diffuse ray.
+            diffuse_use = np.where(kind == DIRECT, SHADOW, DIFFUSE)
+            store &= (kinds & diffuse_use) != 0
         if store.any():
             parts["position"].append(hit.p[store].astype(np.float32))
             parts["power"].append(power[store].astype(np.float32))
@@ -203,18 +213,25 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             new_d[spec] = sd
             ok[spec] = valid
         if vis_on:
-            # The continued segment's class; the camera-side ray of that class, leaving
-            # this surface backwards, must see the surface the photon came from.
-            new_cls = np.full(len(idx), DIFFUSE, np.int64)
+            # Continued with a lobe: the arriving segment is the camera-side ray of that
+            # lobe's kind leaving here backwards - a diffuse bounce uses the same kinds as
+            # storing (direct light at a diffuse surface comes from shadow rays), a
+            # mirror / glass lobe glossy or transmission (continued_class). It must be
+            # among the kinds the segment is valid for. The next segment is valid for the
+            # kinds that see this surface. A transparent pass continues the same
+            # camera-side ray: it keeps its kinds, less those that do not see this
+            # surface (they went on in the split-off copy).
+            kinds_in = kinds[idx]
+            vis_here = hit_vis[idx]
+            use = np.where(kind[idx] == DIRECT, SHADOW, DIFFUSE)
             if spec.any():
-                new_cls[spec] = continued_class(lobe[spec] - 1, ray_cls[idx][spec])
+                use[spec] = continued_class(lobe[spec] - 1, 0)
             passing = lobe == 1
-            ok &= passing | ((source[idx] & new_cls) != 0)
-            new_source = np.where(passing, source[idx],
-                                  np.take(geo.visibility, prim[idx]).astype(np.int64))
+            ok &= passing | ((kinds_in & use) != 0)
+            new_kinds = np.where(passing, kinds_in & vis_here, vis_here & SEGMENT_KINDS)
+            ok &= new_kinds != 0
         else:
-            new_cls = ray_cls[idx]
-            new_source = source[idx]
+            new_kinds = kinds[idx]
         ctd = caustic_then_diffuse[idx]
         first_diffuse = diff & ~had_diffuse[idx]
         # The first diffuse bounce after a caustic path starts L S+ D; any further
@@ -230,14 +247,14 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         slot = slot[keep]
         had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
         caustic_then_diffuse = caustic_then_diffuse[keep]
-        ray_cls, source = new_cls[keep], new_source[keep]
+        kinds = new_kinds[keep]
         o = sub.clear(keep, new_d)
         d, power = new_d, new_power
         if carry is not None:
-            (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls, source,
+            (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, kinds,
              slot) = (np.concatenate([a, b]) for a, b in zip(
-                (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, ray_cls,
-                 source, slot), carry))
+                (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, kinds,
+                 slot), carry))
     return parts
 
 

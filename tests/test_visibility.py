@@ -167,3 +167,100 @@ def test_photons_from_diffuse_invisible_surface_are_not_stored():
     assert seen[0] > 1.3 * seen[1] and seen[0] > 0.01
     hidden = floor_indirect({"visible_diffuse": False})
     assert hidden.max() < 0.01 * seen[0], (hidden, seen)
+
+
+# --- photons: a segment has the kind of the camera-side ray that traverses it backwards,
+# set by the use made of the photon where it arrives (docs/scene_format.md, "Ray
+# visibility") ----------------------------------------------------------------------------
+
+def _mirror_room(cube):
+    """A mirror floor and a white back wall under a point light, with a cube (flags
+    `cube`; None: no cube) between the light and the mirror, hidden from the camera so
+    that every variant shows the same wall pixels. The wall's caustic pass is the light
+    the mirror reflects onto it (L S D)."""
+    s = PaperScene(width=32, height=24)
+    s.add_material(Material("white", (0.8, 0.8, 0.8)))
+    s.add_material(Material("red", (0.8, 0.1, 0.1)))
+    s.add_material(Material("mirror", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.0))
+    s.add_plane((0, 0, 0), (0, 0, 1), 3.0, "mirror", name="mirror")
+    s.add_plane((0, 1.5, 1.5), (0, -1, 0), (3.0, 3.0), "white", name="wall")
+    s.add_point_light((0, -0.5, 3.0), power=300.0)
+    if cube is not None:
+        box = s.add_box((0, 0.0, 1.5), (0.8, 0.8, 0.8), "red", name="cube")
+        box.visible_camera = False
+        for k, v in cube.items():
+            setattr(box, k, v)
+    s.set_camera((0, -4, 1.5), (0, 1.5, 1.5), view_angle=40)
+    return s
+
+
+def _mirror_settings(**kw):
+    return RenderSettings(spp=2, photons=20_000, caustic_photons=40_000, seed=3, **kw)
+
+
+def test_glossy_invisible_cube_lets_light_reach_the_mirror():
+    """Cycles: the light that reaches the wall through the mirror is found by the wall's
+    diffuse ray, reflected by the mirror into a glossy ray, which passes a cube invisible
+    to glossy rays. So the segment light -> mirror is a glossy ray (the kind of the event
+    at the mirror), not a shadow ray (the kind of the event that started it)."""
+    free = _mirror_room(None).render(_mirror_settings()).caustic.mean()
+    ghost = _mirror_room({"visible_glossy": False}).render(_mirror_settings()).caustic.mean()
+    assert free > 0.02
+    assert abs(ghost / free - 1) < 0.05, (ghost, free)
+    # The control: a cube glossy rays see shades the mirror and so the wall.
+    solid = _mirror_room({}).render(_mirror_settings()).caustic.mean()
+    assert solid < 0.2 * free, (solid, free)
+
+
+def test_visibility_split_photons_are_deterministic():
+    """Same seed, same image, with photons split at invisible surfaces, for any thread
+    count (a split-off photon keeps its slot's random numbers)."""
+    a = _mirror_room({"visible_glossy": False}).render(_mirror_settings(workers=1))
+    b = _mirror_room({"visible_glossy": False}).render(_mirror_settings(workers=1))
+    c = _mirror_room({"visible_glossy": False}).render(_mirror_settings(workers=2))
+    np.testing.assert_array_equal(a.combined, b.combined)
+    np.testing.assert_array_equal(a.combined, c.combined)
+
+
+def _blocker_room(flags):
+    """A white floor and back wall under a point light, a 1.6 m plane (flags) 1.2 m over
+    the floor below the light; returns the wall's indirect light (global photon map, no
+    final gathering) on its upper third (lit by the plane's top) and its lower half (lit
+    by the floor, which the plane shades)."""
+    s = PaperScene(width=32, height=24)
+    s.add_material(Material("white", (0.8, 0.8, 0.8)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 4.0, "white", name="floor")
+    s.add_plane((0, 1.0, 1.5), (0, -1, 0), (4.0, 3.0), "white", name="wall")
+    s.add_point_light((0, 0, 2.8), power=300.0)
+    plane = s.add_plane((0, 0, 1.2), (0, 0, 1), 1.6, "white", name="blocker")
+    for k, v in flags.items():
+        setattr(plane, k, v)
+    s.set_camera((0, -4, 1.5), (0, 1.0, 1.5), view_angle=45)
+    film = s.render(RenderSettings(spp=2, photons=40_000, caustic_photons=0, seed=3,
+                                   final_gather=False))
+    h = film.indirect.shape[0]
+    return film.indirect[: h // 3].mean(), film.indirect[h // 2:].mean()
+
+
+def test_light_bounced_off_a_diffuse_surface_follows_shadow_rays():
+    """The segment light -> floor, continued by a diffuse bounce at the floor, is the
+    floor's direct light: on the camera side a shadow ray from the floor (Cycles' next
+    event estimation; this engine's gather ends in the direct photons). A plane seen only
+    by shadow rays shades the floor for that bounce too: the wall's light from the floor
+    is as dim as under a plane every ray sees, not as bright as under no plane."""
+    ghost_top, ghost_low = _blocker_room({f: False for f in FLAGS})
+    shadow_top, shadow_low = _blocker_room({f: f == "visible_shadow" for f in FLAGS})
+    assert ghost_low > 0.05
+    assert shadow_low < 0.4 * ghost_low, (shadow_low, ghost_low)
+
+
+def test_shadow_invisible_surface_is_lit_and_bounces_light():
+    """A photon lands on a surface its segment's kind does not see: that surface is where
+    the camera-side ray starts, and a ray never tests its own start. A plane invisible to
+    shadow rays is lit by the light (Cycles) and bounces that light onto the wall as a
+    plane every ray sees does."""
+    ghost_top, _ = _blocker_room({f: False for f in FLAGS})
+    solid_top, _ = _blocker_room({"visible_camera": False})
+    unshadowing_top, _ = _blocker_room({"visible_camera": False, "visible_shadow": False})
+    assert solid_top > 2 * ghost_top, (solid_top, ghost_top)
+    assert abs(unshadowing_top / solid_top - 1) < 0.15, (unshadowing_top, solid_top)
