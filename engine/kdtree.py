@@ -1,0 +1,370 @@
+"""Jensen's left-balanced kd-tree: the photon map's search structure, in one array.
+
+Layout (Jensen, "Realistic Image Synthesis Using Photon Mapping", 2001, sect. 6.3): node i
+is point i; its children are nodes 2i+1 and 2i+2 (a complete binary tree stored like a
+heap, so there are no pointers); `axis[i]` is its splitting axis. Building permutes the
+points so that every node is the median of its subtree along the axis of the subtree's
+largest extent, with the left subtree as full as a complete tree needs. The caller
+reorders its per-point data by `order` once, so a node index is also the data index.
+
+Memory: the points (float32, 12 B) plus one byte of axis per point.
+
+Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
+  knn         the k nearest points with squared distance < r2 (Jensen's max-heap search),
+              returned in increasing distance
+  ball        the points with squared distance <= r2, up to a caller's capacity
+  ball_count  how many points have squared distance <= r2
+Distances are computed in float64 from the float32 positions (as scipy's cKDTree does on
+a float64 copy), so neighbour sets match it except for exact ties.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .jit import kernel, register_warm_up
+
+STACK = 64  # traversal stack: one entry per tree level (a tree of 2^63 points at most)
+
+
+@kernel
+def _left_size(m):
+    """Nodes in the left subtree of a left-balanced (complete) tree of m nodes."""
+    depth = 0
+    while (2 << depth) <= m:  # 2^(depth+1) <= m: level depth+1 exists
+        depth += 1
+    if depth == 0:
+        return 0
+    half = 1 << (depth - 1)
+    last = m - ((1 << depth) - 1)  # nodes on the last, partly filled level
+    return half - 1 + min(last, half)
+
+
+@kernel
+def _select(perm, lo, hi, kth, points, ax):
+    """Reorder perm[lo:hi] so that perm[kth] holds the point of that rank along ax, the
+    ones before it no greater, the ones after no smaller. A three-way partition keeps many
+    equal coordinates (a focused caustic) linear instead of quadratic."""
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        a = points[perm[lo], ax]
+        b = points[perm[mid], ax]
+        c = points[perm[hi - 1], ax]
+        pivot = max(min(a, b), min(max(a, b), c))  # median of three
+        lt = lo
+        i = lo
+        gt = hi
+        while i < gt:
+            v = points[perm[i], ax]
+            if v < pivot:
+                t = perm[lt]
+                perm[lt] = perm[i]
+                perm[i] = t
+                lt += 1
+                i += 1
+            elif v > pivot:
+                gt -= 1
+                t = perm[gt]
+                perm[gt] = perm[i]
+                perm[i] = t
+            else:
+                i += 1
+        if kth < lt:
+            hi = lt
+        elif kth >= gt:
+            lo = gt
+        else:
+            return
+
+
+@kernel
+def build(points):
+    """Left-balanced kd-tree over points (N,3) float32. Returns (order (N,) int64: node
+    i is points[order[i]], axis (N,) uint8). O(N log N), no recursion."""
+    n = points.shape[0]
+    perm = np.arange(n)
+    order = np.empty(n, np.int64)
+    axis = np.zeros(n, np.uint8)
+    st_lo = np.empty(2 * STACK, np.int64)
+    st_hi = np.empty(2 * STACK, np.int64)
+    st_node = np.empty(2 * STACK, np.int64)
+    sp = 0
+    if n > 0:
+        st_lo[0], st_hi[0], st_node[0] = 0, n, 0
+        sp = 1
+    while sp > 0:
+        sp -= 1
+        lo, hi, node = st_lo[sp], st_hi[sp], st_node[sp]
+        m = hi - lo
+        if m == 1:
+            order[node] = perm[lo]
+            continue
+        lo_x = lo_y = lo_z = np.inf
+        hi_x = hi_y = hi_z = -np.inf
+        for i in range(lo, hi):
+            j = perm[i]
+            lo_x = min(lo_x, points[j, 0])
+            hi_x = max(hi_x, points[j, 0])
+            lo_y = min(lo_y, points[j, 1])
+            hi_y = max(hi_y, points[j, 1])
+            lo_z = min(lo_z, points[j, 2])
+            hi_z = max(hi_z, points[j, 2])
+        ex, ey, ez = hi_x - lo_x, hi_y - lo_y, hi_z - lo_z
+        ax = 0
+        if ey > ex and ey >= ez:
+            ax = 1
+        elif ez > ex and ez > ey:
+            ax = 2
+        med = lo + _left_size(m)
+        _select(perm, lo, hi, med, points, ax)
+        order[node] = perm[med]
+        axis[node] = ax
+        # Left pushed last: popped first (depth first keeps the stack short).
+        if hi > med + 1:
+            st_lo[sp], st_hi[sp], st_node[sp] = med + 1, hi, 2 * node + 2
+            sp += 1
+        if med > lo:
+            st_lo[sp], st_hi[sp], st_node[sp] = lo, med, 2 * node + 1
+            sp += 1
+    return order, axis
+
+
+@kernel
+def _sift_down(d2, idx, i, count):
+    """Max-heap: move entry i down until both children are no larger."""
+    while True:
+        c = 2 * i + 1
+        if c >= count:
+            return
+        if c + 1 < count and d2[c + 1] > d2[c]:
+            c += 1
+        if d2[c] <= d2[i]:
+            return
+        t = d2[c]
+        d2[c] = d2[i]
+        d2[i] = t
+        u = idx[c]
+        idx[c] = idx[i]
+        idx[i] = u
+        i = c
+
+
+@kernel
+def heap_insert(d2, idx, count, kq, dist2, j):
+    """Offer point j at squared distance dist2 to the max-heap of the kq nearest so far
+    (count entries). Returns the new count."""
+    if count < kq:
+        i = count
+        d2[i] = dist2
+        idx[i] = j
+        while i > 0:  # sift up
+            parent = (i - 1) // 2
+            if d2[parent] >= d2[i]:
+                break
+            t = d2[parent]
+            d2[parent] = d2[i]
+            d2[i] = t
+            u = idx[parent]
+            idx[parent] = idx[i]
+            idx[i] = u
+            i = parent
+        return count + 1
+    if dist2 < d2[0]:
+        d2[0] = dist2
+        idx[0] = j
+        _sift_down(d2, idx, 0, count)
+    return count
+
+
+@kernel
+def heap_sort(d2, idx, count):
+    """Turn the max-heap into increasing distance order, in place."""
+    end = count - 1
+    while end > 0:
+        t = d2[0]
+        d2[0] = d2[end]
+        d2[end] = t
+        u = idx[0]
+        idx[0] = idx[end]
+        idx[end] = u
+        _sift_down(d2, idx, 0, end)
+        end -= 1
+
+
+@kernel
+def knn(pos, axis, qx, qy, qz, kq, r2, d2, idx):
+    """The kq nearest points with squared distance < r2 into d2[:count], idx[:count]
+    (increasing distance; d2, idx: scratch of at least kq). Returns count.
+    A far subtree is skipped by its cell's distance (the query's offsets to the cell
+    along each axis, kept incrementally: Arya & Mount 1993), which prunes more than the
+    plane distance alone."""
+    n = pos.shape[0]
+    count = 0
+    if n == 0 or kq <= 0:
+        return 0
+    bound = r2
+    st_node = np.empty(STACK, np.int64)
+    st_off = np.empty((STACK, 4), np.float64)  # x, y, z offsets to the cell; squared sum
+    st_node[0] = 0
+    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        rd = st_off[sp, 3]
+        if rd >= bound:
+            continue
+        ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
+        while node < n:
+            dx = qx - np.float64(pos[node, 0])
+            dy = qy - np.float64(pos[node, 1])
+            dz = qz - np.float64(pos[node, 2])
+            dist2 = dx * dx + dy * dy + dz * dz
+            if dist2 < bound:
+                count = heap_insert(d2, idx, count, kq, dist2, node)
+                if count == kq:
+                    bound = d2[0]
+            ax = axis[node]
+            if ax == 0:
+                diff, old = dx, ox
+            elif ax == 1:
+                diff, old = dy, oy
+            else:
+                diff, old = dz, oz
+            if diff < 0.0:
+                near, far = 2 * node + 1, 2 * node + 2
+            else:
+                near, far = 2 * node + 2, 2 * node + 1
+            if far < n:
+                rd_far = rd - old * old + diff * diff
+                if rd_far < bound:
+                    st_node[sp] = far
+                    st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
+                    st_off[sp, ax] = diff
+                    st_off[sp, 3] = rd_far
+                    sp += 1
+            node = near
+    heap_sort(d2, idx, count)
+    return count
+
+
+@kernel
+def ball(pos, axis, qx, qy, qz, r2, out, cap):
+    """Indices of the points with squared distance <= r2 into out[:min(count, cap)], in
+    tree order. Stops scanning once more than cap are found and returns cap + 1; else
+    returns the count."""
+    n = pos.shape[0]
+    count = 0
+    if n == 0:
+        return 0
+    st_node = np.empty(STACK, np.int64)
+    st_node[0] = 0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        while node < n:
+            dx = qx - np.float64(pos[node, 0])
+            dy = qy - np.float64(pos[node, 1])
+            dz = qz - np.float64(pos[node, 2])
+            if dx * dx + dy * dy + dz * dz <= r2:
+                if count == cap:
+                    return cap + 1
+                out[count] = node
+                count += 1
+            ax = axis[node]
+            diff = dx if ax == 0 else (dy if ax == 1 else dz)
+            if diff < 0.0:
+                near, far = 2 * node + 1, 2 * node + 2
+            else:
+                near, far = 2 * node + 2, 2 * node + 1
+            if far < n and diff * diff <= r2:
+                st_node[sp] = far
+                sp += 1
+            node = near
+    return count
+
+
+@kernel
+def ball_count(pos, axis, qx, qy, qz, r2):
+    """Number of points with squared distance <= r2."""
+    n = pos.shape[0]
+    count = 0
+    if n == 0:
+        return 0
+    st_node = np.empty(STACK, np.int64)
+    st_node[0] = 0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        while node < n:
+            dx = qx - np.float64(pos[node, 0])
+            dy = qy - np.float64(pos[node, 1])
+            dz = qz - np.float64(pos[node, 2])
+            if dx * dx + dy * dy + dz * dz <= r2:
+                count += 1
+            ax = axis[node]
+            diff = dx if ax == 0 else (dy if ax == 1 else dz)
+            if diff < 0.0:
+                near, far = 2 * node + 1, 2 * node + 2
+            else:
+                near, far = 2 * node + 2, 2 * node + 1
+            if far < n and diff * diff <= r2:
+                st_node[sp] = far
+                sp += 1
+            node = near
+    return count
+
+
+@kernel
+def knn_batch(pos, axis, queries, kq, radius):
+    """k-NN of many queries (M,3) float64 within radius, in scipy's cKDTree.query form:
+    (dist (M,kq) float64 with inf where none, idx (M,kq) int64 with N where none)."""
+    m = queries.shape[0]
+    n = pos.shape[0]
+    dist = np.full((m, kq), np.inf)
+    out = np.full((m, kq), n, np.int64)
+    d2 = np.empty(max(kq, 1), np.float64)
+    idx = np.empty(max(kq, 1), np.int64)
+    r2 = radius * radius
+    for i in range(m):
+        c = knn(pos, axis, queries[i, 0], queries[i, 1], queries[i, 2], kq, r2, d2, idx)
+        for j in range(c):
+            dist[i, j] = np.sqrt(d2[j])
+            out[i, j] = idx[j]
+    return dist, out
+
+
+class KdTree:
+    """A left-balanced kd-tree over points (N,3); self.order maps node -> input index."""
+
+    def __init__(self, points: np.ndarray):
+        pts = np.ascontiguousarray(points, dtype=np.float32)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"KdTree: points must have shape (N, 3), got {pts.shape}")
+        self.order, self.axis = build(pts)
+        self.position = np.ascontiguousarray(pts[self.order])
+
+    def __len__(self):
+        return len(self.position)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the tree itself (positions + axes; order is dropped by callers)."""
+        return self.position.nbytes + self.axis.nbytes
+
+    def query(self, queries: np.ndarray, k: int, radius: float):
+        """(dist, idx) of the k nearest nodes within radius, like cKDTree.query with
+        distance_upper_bound (idx = len(self) where none). idx are node indices."""
+        q = np.ascontiguousarray(queries, dtype=np.float64).reshape(-1, 3)
+        return knn_batch(self.position, self.axis, q, int(k), float(radius))
+
+
+@register_warm_up
+def _warm_up():
+    pts = np.random.default_rng(0).random((40, 3)).astype(np.float32)
+    KdTree(pts).query(pts[:3].astype(np.float64), 4, 0.5)
+    tree = KdTree(pts)
+    out = np.empty(8, np.int64)
+    ball(tree.position, tree.axis, 0.5, 0.5, 0.5, 0.1, out, 8)
+    ball_count(tree.position, tree.axis, 0.5, 0.5, 0.5, 0.1)
