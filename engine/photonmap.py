@@ -35,6 +35,9 @@ MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accep
 # magnified through the ball: one pixel at 939 x the image mean). The photons inside the
 # floor disc are all counted (_estimate_row), so light is spread over it, never lost.
 MIN_RADIUS_FRACTION = 0.01
+# A row about to widen first scans its search sphere for accepted photons, up to this many
+# photons (the widening query it may save visits about MAX_WIDEN_K with a heap).
+SCAN_BUDGET = 4 * MAX_WIDEN_K
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
 
 ESTIMATOR_CODES = {"classic": 0, "radius": 1, "knn_simpson": 2, "knn_cone": 3}
@@ -182,6 +185,15 @@ def _accepted(direction, normal, j, nx, ny, nz):
 
 
 @kernel
+def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
+    acc = 0
+    for j in range(cnt):
+        if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+            acc += 1
+    return acc
+
+
+@kernel
 def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, n, r_floor,
                      radius, k, min_photons, code, want_boundary, out, boundary):
     """The estimators of this module's docstring for each row of p / n into out (E) and
@@ -190,7 +202,7 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
     cap = max(min(max(k, MAX_WIDEN_K, MAX_CLASSIC_K), P), 1)
     d2 = np.empty(cap, np.float64)
     idx = np.empty(cap, np.int64)
-    scan = np.empty(cap, np.int64)
+    scan = np.empty(SCAN_BUDGET + 1, np.int64)
     # The floored focus disc (_estimate_row) may exceed radius where 1e-6 |p| does.
     big = 0.0
     for i in range(p.shape[0]):
@@ -207,37 +219,31 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
         scale = 1.0
         if knn:
             kq = min(k, P)
-            checked = False
-            empty = False
-            while True:
-                cnt = _knn(kind, pos, axis, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
-                if cnt < kq or kq >= min(P, MAX_WIDEN_K):
-                    break
-                acc = 0
-                for j in range(cnt):
-                    if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
-                        acc += 1
-                if acc >= k // 2:
-                    break
-                # About to widen: a row whose whole search sphere holds fewer than
-                # min_photons accepted photons gets no estimate at any width (e.g. a
-                # caustic query beside a wall lit only on its other side), so a scan of
-                # the sphere (at most `cap` photons) settles it without a wide k-NN.
-                if not checked:
-                    checked = True
-                    nb = _ball(kind, pos, axis, start, grid, qx, qy, qz, r2, scan, cap,
-                               buckets)
-                    if nb <= cap:
-                        acc = 0
-                        for j in range(nb):
-                            if _accepted(direction, normal, scan[j], nx, ny, nz)[0]:
-                                acc += 1
-                        if acc < min_photons:
-                            empty = True
-                            break
-                kq = min(4 * kq, P, MAX_WIDEN_K)
-            if empty:
-                continue
+            cnt = _knn(kind, pos, axis, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+            widest = min(P, MAX_WIDEN_K)
+            if cnt == kq and kq < widest and \
+                    _count_accepted(direction, normal, idx, cnt, nx, ny, nz) < k // 2:
+                # Widen (x4 up to MAX_WIDEN_K) while fewer than k / 2 of the nearest are
+                # accepted (a crowded neighbour surface). First, a row whose sphere holds
+                # fewer than min_photons accepted photons has no estimate at any width
+                # (a caustic query beside a wall lit only on its far side): one scan of
+                # the sphere (at most SCAN_BUDGET photons) settles it.
+                nb = _ball(kind, pos, axis, start, grid, qx, qy, qz, r2, scan, SCAN_BUDGET,
+                           buckets)
+                if nb <= SCAN_BUDGET and \
+                        _count_accepted(direction, normal, scan, nb, nx, ny, nz) < min_photons:
+                    continue
+                # Each wider query's result is a prefix of the widest one (increasing
+                # distance): one query, then the prefixes are tried in turn.
+                found = _knn(kind, pos, axis, start, grid, qx, qy, qz, widest, r2, d2, idx,
+                             buckets)
+                while True:
+                    kq = min(4 * kq, widest)
+                    cnt = min(found, kq)
+                    if cnt < kq or kq >= widest:
+                        break
+                    if _count_accepted(direction, normal, idx, cnt, nx, ny, nz) >= k // 2:
+                        break
         else:
             c = _ball_count(kind, pos, axis, start, grid, qx, qy, qz, r2, buckets)
             if c < min_photons:
