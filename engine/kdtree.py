@@ -13,7 +13,8 @@ Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
   knn         the k nearest points with squared distance < r2 (Jensen's max-heap search),
               returned in increasing distance
   ball        the points with squared distance <= r2, up to a caller's capacity
-  ball_count  how many points have squared distance <= r2
+  ball_count  how many points have squared distance <= r2 (whole subtrees inside the
+              sphere are counted by their size: the points' box is kept for that)
 Distances are computed in float64 from the float32 positions (as scipy's cKDTree does on
 a float64 copy), so neighbour sets match it except for exact ties.
 """
@@ -285,33 +286,85 @@ def ball(pos, axis, qx, qy, qz, r2, out, cap):
 
 
 @kernel
-def ball_count(pos, axis, qx, qy, qz, r2):
-    """Number of points with squared distance <= r2."""
+def subtree_size(node, n):
+    """Nodes in the subtree rooted at node (heap layout, n nodes in all)."""
+    size = 0
+    first = node
+    last = node
+    while first < n:
+        size += min(last, n - 1) - first + 1
+        first = 2 * first + 1
+        last = 2 * last + 2
+    return size
+
+
+@kernel
+def ball_count(pos, axis, bounds, qx, qy, qz, r2):
+    """Number of points with squared distance <= r2. bounds: the points' box (lo x, y, z,
+    hi x, y, z). A subtree whose cell lies inside the sphere is counted whole (its size
+    follows from the layout), so a focus of a million equal points costs a few nodes."""
     n = pos.shape[0]
     count = 0
     if n == 0:
         return 0
     st_node = np.empty(STACK, np.int64)
+    st_box = np.empty((STACK, 6), np.float64)
     st_node[0] = 0
+    for c in range(6):
+        st_box[0, c] = bounds[c]
     sp = 1
+    lo = np.empty(3, np.float64)
+    hi = np.empty(3, np.float64)
+    q = np.empty(3, np.float64)
+    q[0], q[1], q[2] = qx, qy, qz
     while sp > 0:
         sp -= 1
         node = st_node[sp]
+        for c in range(3):
+            lo[c] = st_box[sp, c]
+            hi[c] = st_box[sp, 3 + c]
         while node < n:
+            near2 = 0.0  # squared distance to the cell, and to its farthest corner
+            far2 = 0.0
+            for c in range(3):
+                a = q[c] - lo[c]
+                b = hi[c] - q[c]
+                if a < 0.0:
+                    near2 += a * a
+                elif b < 0.0:
+                    near2 += b * b
+                m = max(abs(a), abs(b))
+                far2 += m * m
+            if near2 > r2:
+                break
+            if far2 <= r2:
+                count += subtree_size(node, n)
+                break
             dx = qx - np.float64(pos[node, 0])
             dy = qy - np.float64(pos[node, 1])
             dz = qz - np.float64(pos[node, 2])
             if dx * dx + dy * dy + dz * dz <= r2:
                 count += 1
             ax = axis[node]
-            diff = dx if ax == 0 else (dy if ax == 1 else dz)
-            if diff < 0.0:
+            split = np.float64(pos[node, ax])
+            if q[ax] < split:
                 near, far = 2 * node + 1, 2 * node + 2
             else:
                 near, far = 2 * node + 2, 2 * node + 1
-            if far < n and diff * diff <= r2:
+            if far < n:
                 st_node[sp] = far
+                for c in range(3):
+                    st_box[sp, c] = lo[c]
+                    st_box[sp, 3 + c] = hi[c]
+                if far == 2 * node + 1:
+                    st_box[sp, 3 + ax] = split  # left: coordinates <= split
+                else:
+                    st_box[sp, ax] = split
                 sp += 1
+            if near == 2 * node + 1:
+                hi[ax] = split
+            else:
+                lo[ax] = split
             node = near
     return count
 
@@ -344,6 +397,10 @@ class KdTree:
             raise ValueError(f"KdTree: points must have shape (N, 3), got {pts.shape}")
         self.order, self.axis = build(pts)
         self.position = np.ascontiguousarray(pts[self.order])
+        self.bounds = np.zeros(6)  # the points' box: lo x, y, z, hi x, y, z
+        if len(pts):
+            self.bounds[:3] = pts.min(axis=0)
+            self.bounds[3:] = pts.max(axis=0)
 
     def __len__(self):
         return len(self.position)
@@ -351,7 +408,7 @@ class KdTree:
     @property
     def nbytes(self) -> int:
         """Bytes of the tree itself (positions + axes; order is dropped by callers)."""
-        return self.position.nbytes + self.axis.nbytes
+        return self.position.nbytes + self.axis.nbytes + self.bounds.nbytes
 
     def query(self, queries: np.ndarray, k: int, radius: float):
         """(dist, idx) of the k nearest nodes within radius, like cKDTree.query with
@@ -367,4 +424,4 @@ def _warm_up():
     tree = KdTree(pts)
     out = np.empty(8, np.int64)
     ball(tree.position, tree.axis, 0.5, 0.5, 0.5, 0.1, out, 8)
-    ball_count(tree.position, tree.axis, 0.5, 0.5, 0.5, 0.1)
+    ball_count(tree.position, tree.axis, tree.bounds, 0.5, 0.5, 0.5, 0.1)

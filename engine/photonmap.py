@@ -36,8 +36,9 @@ MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accep
 # floor disc are all counted (_estimate_row), so light is spread over it, never lost.
 MIN_RADIUS_FRACTION = 0.01
 # A row about to widen first scans its search sphere for accepted photons, up to this many
-# photons (the widening query it may save visits about MAX_WIDEN_K with a heap).
-SCAN_BUDGET = 4 * MAX_WIDEN_K
+# photons (measured: a scan of this many costs less than the MAX_WIDEN_K heap query it
+# saves; bench/bench_lookup.py). 512 KB of scratch per kernel call.
+SCAN_BUDGET = 16 * MAX_WIDEN_K
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
 
 ESTIMATOR_CODES = {"classic": 0, "radius": 1, "knn_simpson": 2, "knn_cone": 3}
@@ -97,10 +98,11 @@ class PhotonMap:
         return view
 
     def _arrays(self):
-        """(kind, position, axis, start, grid) for the kernels; unused ones are empty."""
+        """(kind, position, axis, start, grid) for the kernels; unused ones are empty.
+        grid is the hash grid's (origin, cell size), or the kd-tree's bounds."""
         t = self.tree
         if self.structure == "kdtree":
-            return KDTREE, t.position, t.axis, _NO_START, _NO_GRID
+            return KDTREE, t.position, t.axis, _NO_START, t.bounds
         return HASHGRID, t.position, _NO_AXIS, t.start, t.grid
 
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
@@ -151,7 +153,6 @@ class PhotonMap:
 
 _NO_AXIS = np.zeros(0, np.uint8)
 _NO_START = np.zeros(1, np.int32)
-_NO_GRID = np.ones(4, np.float64)
 
 
 @kernel
@@ -171,7 +172,7 @@ def _ball(kind, pos, axis, start, grid, qx, qy, qz, r2, out, cap, buckets):
 @kernel
 def _ball_count(kind, pos, axis, start, grid, qx, qy, qz, r2, buckets):
     if kind == KDTREE:
-        return kdtree.ball_count(pos, axis, qx, qy, qz, r2)
+        return kdtree.ball_count(pos, axis, grid, qx, qy, qz, r2)
     return hashgrid.ball_count(pos, start, grid, qx, qy, qz, r2, buckets)
 
 

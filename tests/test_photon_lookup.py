@@ -66,7 +66,7 @@ def test_knn_and_sphere_counts_match_ckdtree(n, structure):
             np.allclose(np.sort(d, axis=1), np.sort(dr, axis=1))
     counts = ref.query_ball_point(q, 0.05, return_length=True)
     if structure == "kdtree":
-        mine = [ball_count(s.position, s.axis, *x, 0.05 ** 2) for x in q]
+        mine = [ball_count(s.position, s.axis, s.bounds, *x, 0.05 ** 2) for x in q]
         out = np.empty(len(pts) + 1, np.int64)
         listed = [ball(s.position, s.axis, *x, 0.05 ** 2, out, len(pts)) for x in q]
         assert listed == list(counts)
@@ -206,9 +206,9 @@ def test_widening_has_a_fixed_memory_budget():
     gigabytes), whether the sphere scan settles the row (fewer than SCAN_BUDGET photons in
     the sphere) or the full widening runs (more)."""
     rng = np.random.default_rng(2)
-    far = _plane(400_000, rng, z=0.001, nz=-1.0)
+    far = _plane(600_000, rng, z=0.001, nz=-1.0)
     pm = PhotonMap(far, workers=2)
-    for m, radius in ((20000, 0.08), (200, 0.13)):  # ~8,000 and ~21,000 in the sphere
+    for m, radius in ((20000, 0.08), (100, 0.2)):  # ~12,000 and ~75,000 in the sphere
         q = np.c_[0.2 + 0.6 * rng.random((m, 2)), np.zeros(m)]
         nq = np.tile([0.0, 0.0, 1.0], (m, 1))
         inside = len(far.position) * np.pi * radius ** 2
@@ -222,7 +222,7 @@ def test_widening_has_a_fixed_memory_budget():
         inputs_outputs = m * (3 * 8 * 3 + 1)  # p, n copies and E (float64), boundary
         assert peak < inputs_outputs + (1 << 20), f"peak {peak / 1e6:.1f} MB"
     # The kernel's own scratch is fixed too: MAX_WIDEN_K neighbours, SCAN_BUDGET indices.
-    assert MAX_WIDEN_K * 16 + SCAN_BUDGET * 8 < (1 << 20)
+    assert MAX_WIDEN_K * 16 + SCAN_BUDGET * 8 <= (1 << 20)
 
 
 def test_results_do_not_depend_on_workers():
