@@ -41,32 +41,28 @@ def _left_size(m):
 
 
 @kernel
-def _select(perm, lo, hi, kth, points, ax):
-    """Reorder perm[lo:hi] so that perm[kth] holds the point of that rank along ax, the
-    ones before it no greater, the ones after no smaller. A three-way partition keeps many
-    equal coordinates (a focused caustic) linear instead of quadratic."""
+def _select(key, perm, lo, hi, kth):
+    """Reorder key[lo:hi] (and perm with it) so that key[kth] holds the value of that
+    rank, the ones before it no greater, the ones after no smaller. A three-way partition
+    keeps many equal coordinates (a focused caustic) linear instead of quadratic."""
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        a = points[perm[lo], ax]
-        b = points[perm[mid], ax]
-        c = points[perm[hi - 1], ax]
+        a, b, c = key[lo], key[mid], key[hi - 1]
         pivot = max(min(a, b), min(max(a, b), c))  # median of three
         lt = lo
         i = lo
         gt = hi
         while i < gt:
-            v = points[perm[i], ax]
+            v = key[i]
             if v < pivot:
-                t = perm[lt]
-                perm[lt] = perm[i]
-                perm[i] = t
+                key[i], key[lt] = key[lt], v
+                perm[i], perm[lt] = perm[lt], perm[i]
                 lt += 1
                 i += 1
             elif v > pivot:
                 gt -= 1
-                t = perm[gt]
-                perm[gt] = perm[i]
-                perm[i] = t
+                key[i], key[gt] = key[gt], v
+                perm[i], perm[gt] = perm[gt], perm[i]
             else:
                 i += 1
         if kth < lt:
@@ -80,51 +76,56 @@ def _select(perm, lo, hi, kth, points, ax):
 @kernel
 def build(points):
     """Left-balanced kd-tree over points (N,3) float32. Returns (order (N,) int64: node
-    i is points[order[i]], axis (N,) uint8). O(N log N), no recursion."""
+    i is points[order[i]], axis (N,) uint8). Each node splits its cell (the points' box
+    cut by the splits above it, as Jensen builds it) along the cell's longest side.
+    O(N log N), no recursion."""
     n = points.shape[0]
     perm = np.arange(n)
+    key = np.empty(n, np.float32)
     order = np.empty(n, np.int64)
     axis = np.zeros(n, np.uint8)
-    st_lo = np.empty(2 * STACK, np.int64)
-    st_hi = np.empty(2 * STACK, np.int64)
-    st_node = np.empty(2 * STACK, np.int64)
+    st = np.empty((2 * STACK, 3), np.int64)  # lo, hi, node
+    st_box = np.empty((2 * STACK, 6), np.float64)
     sp = 0
     if n > 0:
-        st_lo[0], st_hi[0], st_node[0] = 0, n, 0
+        st[0, 0], st[0, 1], st[0, 2] = 0, n, 0
+        for c in range(3):
+            st_box[0, c] = np.inf
+            st_box[0, 3 + c] = -np.inf
+        for i in range(n):
+            for c in range(3):
+                st_box[0, c] = min(st_box[0, c], points[i, c])
+                st_box[0, 3 + c] = max(st_box[0, 3 + c], points[i, c])
         sp = 1
     while sp > 0:
         sp -= 1
-        lo, hi, node = st_lo[sp], st_hi[sp], st_node[sp]
+        lo, hi, node = st[sp, 0], st[sp, 1], st[sp, 2]
         m = hi - lo
         if m == 1:
             order[node] = perm[lo]
             continue
-        lo_x = lo_y = lo_z = np.inf
-        hi_x = hi_y = hi_z = -np.inf
-        for i in range(lo, hi):
-            j = perm[i]
-            lo_x = min(lo_x, points[j, 0])
-            hi_x = max(hi_x, points[j, 0])
-            lo_y = min(lo_y, points[j, 1])
-            hi_y = max(hi_y, points[j, 1])
-            lo_z = min(lo_z, points[j, 2])
-            hi_z = max(hi_z, points[j, 2])
-        ex, ey, ez = hi_x - lo_x, hi_y - lo_y, hi_z - lo_z
+        box = st_box[sp].copy()
         ax = 0
-        if ey > ex and ey >= ez:
-            ax = 1
-        elif ez > ex and ez > ey:
-            ax = 2
+        for c in (1, 2):
+            if box[3 + c] - box[c] > box[3 + ax] - box[ax]:
+                ax = c
+        for i in range(lo, hi):
+            key[i] = points[perm[i], ax]
         med = lo + _left_size(m)
-        _select(perm, lo, hi, med, points, ax)
+        _select(key, perm, lo, hi, med)
+        split = np.float64(key[med])
         order[node] = perm[med]
         axis[node] = ax
         # Left pushed last: popped first (depth first keeps the stack short).
         if hi > med + 1:
-            st_lo[sp], st_hi[sp], st_node[sp] = med + 1, hi, 2 * node + 2
+            st[sp, 0], st[sp, 1], st[sp, 2] = med + 1, hi, 2 * node + 2
+            st_box[sp] = box
+            st_box[sp, ax] = split
             sp += 1
         if med > lo:
-            st_lo[sp], st_hi[sp], st_node[sp] = lo, med, 2 * node + 1
+            st[sp, 0], st[sp, 1], st[sp, 2] = lo, med, 2 * node + 1
+            st_box[sp] = box
+            st_box[sp, 3 + ax] = split
             sp += 1
     return order, axis
 

@@ -235,9 +235,22 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
                         _count_accepted(direction, normal, scan, nb, nx, ny, nz) < min_photons:
                     continue
                 # Each wider query's result is a prefix of the widest one (increasing
-                # distance): one query, then the prefixes are tried in turn.
-                found = _knn(kind, pos, axis, start, grid, qx, qy, qz, widest, r2, d2, idx,
-                             buckets)
+                # distance): one query, then the prefixes are tried in turn. A sphere the
+                # scan listed whole (at most `widest` photons) is that query's answer.
+                if nb <= widest:
+                    found = 0
+                    for j in range(nb):
+                        ph = scan[j]
+                        dx = qx - np.float64(pos[ph, 0])
+                        dy = qy - np.float64(pos[ph, 1])
+                        dz = qz - np.float64(pos[ph, 2])
+                        dd = dx * dx + dy * dy + dz * dz
+                        if dd < r2:  # the k-NN query's bound is strict
+                            found = kdtree.heap_insert(d2, idx, found, widest, dd, ph)
+                    kdtree.heap_sort(d2, idx, found)
+                else:
+                    found = _knn(kind, pos, axis, start, grid, qx, qy, qz, widest, r2, d2,
+                                 idx, buckets)
                 while True:
                     kq = min(4 * kq, widest)
                     cnt = min(found, kq)
