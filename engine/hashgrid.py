@@ -112,7 +112,7 @@ def _scan(pos, start, grid, qx, qy, qz, r2, mode, kq, d2, idx, buckets, cap):
                             idx[count] = j
                         count += 1
     if mode == 0:
-        heap_sort(d2, idx, count)
+        heap_sort(d2, idx, count, kq)
     return count
 
 

@@ -152,24 +152,17 @@ def _sift_down(d2, idx, i, count):
 
 @kernel
 def heap_insert(d2, idx, count, kq, dist2, j):
-    """Offer point j at squared distance dist2 to the max-heap of the kq nearest so far
-    (count entries). Returns the new count."""
+    """Offer point j at squared distance dist2 to the kq nearest so far (count entries).
+    Until kq are held they are only appended; the kq-th turns them into a max-heap
+    (Jensen's order: no sifting while filling). Returns the new count."""
     if count < kq:
-        i = count
-        d2[i] = dist2
-        idx[i] = j
-        while i > 0:  # sift up
-            parent = (i - 1) // 2
-            if d2[parent] >= d2[i]:
-                break
-            t = d2[parent]
-            d2[parent] = d2[i]
-            d2[i] = t
-            u = idx[parent]
-            idx[parent] = idx[i]
-            idx[i] = u
-            i = parent
-        return count + 1
+        d2[count] = dist2
+        idx[count] = j
+        count += 1
+        if count == kq:
+            for i in range(kq // 2 - 1, -1, -1):
+                _sift_down(d2, idx, i, kq)
+        return count
     if dist2 < d2[0]:
         d2[0] = dist2
         idx[0] = j
@@ -178,8 +171,12 @@ def heap_insert(d2, idx, count, kq, dist2, j):
 
 
 @kernel
-def heap_sort(d2, idx, count):
-    """Turn the max-heap into increasing distance order, in place."""
+def heap_sort(d2, idx, count, kq):
+    """Turn the kq nearest (a max-heap once count == kq, else unordered) into increasing
+    distance order, in place."""
+    if count < kq:
+        for i in range(count // 2 - 1, -1, -1):
+            _sift_down(d2, idx, i, count)
     end = count - 1
     while end > 0:
         t = d2[0]
@@ -245,7 +242,7 @@ def knn(pos, axis, qx, qy, qz, kq, r2, d2, idx):
                     st_off[sp, 3] = rd_far
                     sp += 1
             node = near
-    heap_sort(d2, idx, count)
+    heap_sort(d2, idx, count, kq)
     return count
 
 

@@ -247,7 +247,7 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
                         dd = dx * dx + dy * dy + dz * dz
                         if dd < r2:  # the k-NN query's bound is strict
                             found = kdtree.heap_insert(d2, idx, found, widest, dd, ph)
-                    kdtree.heap_sort(d2, idx, found)
+                    kdtree.heap_sort(d2, idx, found, widest)
                 else:
                     found = _knn(kind, pos, axis, start, grid, qx, qy, qz, widest, r2, d2,
                                  idx, buckets)
