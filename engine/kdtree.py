@@ -41,28 +41,27 @@ def _left_size(m):
 
 
 @kernel
-def _select(key, perm, lo, hi, kth):
-    """Reorder key[lo:hi] (and perm with it) so that key[kth] holds the value of that
-    rank, the ones before it no greater, the ones after no smaller. A three-way partition
-    keeps many equal coordinates (a focused caustic) linear instead of quadratic."""
+def _select(pts, perm, lo, hi, kth, ax):
+    """Reorder pts[lo:hi] (and perm with it) so that pts[kth] holds the point of that rank
+    along ax, the ones before it no greater, the ones after no smaller. The points move
+    with their indices, so every pass reads memory in order. A three-way partition keeps
+    many equal coordinates (a focused caustic) linear instead of quadratic."""
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        a, b, c = key[lo], key[mid], key[hi - 1]
+        a, b, c = pts[lo, ax], pts[mid, ax], pts[hi - 1, ax]
         pivot = max(min(a, b), min(max(a, b), c))  # median of three
         lt = lo
         i = lo
         gt = hi
         while i < gt:
-            v = key[i]
+            v = pts[i, ax]
             if v < pivot:
-                key[i], key[lt] = key[lt], v
-                perm[i], perm[lt] = perm[lt], perm[i]
+                _swap(pts, perm, i, lt)
                 lt += 1
                 i += 1
             elif v > pivot:
                 gt -= 1
-                key[i], key[gt] = key[gt], v
-                perm[i], perm[gt] = perm[gt], perm[i]
+                _swap(pts, perm, i, gt)
             else:
                 i += 1
         if kth < lt:
@@ -74,6 +73,17 @@ def _select(key, perm, lo, hi, kth):
 
 
 @kernel
+def _swap(pts, perm, i, j):
+    for c in range(3):
+        t = pts[i, c]
+        pts[i, c] = pts[j, c]
+        pts[j, c] = t
+    u = perm[i]
+    perm[i] = perm[j]
+    perm[j] = u
+
+
+@kernel
 def build(points):
     """Left-balanced kd-tree over points (N,3) float32. Returns (order (N,) int64: node
     i is points[order[i]], axis (N,) uint8). Each node splits its cell (the points' box
@@ -81,7 +91,7 @@ def build(points):
     O(N log N), no recursion."""
     n = points.shape[0]
     perm = np.arange(n)
-    key = np.empty(n, np.float32)
+    pts = points.copy()
     order = np.empty(n, np.int64)
     axis = np.zeros(n, np.uint8)
     st = np.empty((2 * STACK, 3), np.int64)  # lo, hi, node
@@ -94,8 +104,8 @@ def build(points):
             st_box[0, 3 + c] = -np.inf
         for i in range(n):
             for c in range(3):
-                st_box[0, c] = min(st_box[0, c], points[i, c])
-                st_box[0, 3 + c] = max(st_box[0, 3 + c], points[i, c])
+                st_box[0, c] = min(st_box[0, c], pts[i, c])
+                st_box[0, 3 + c] = max(st_box[0, 3 + c], pts[i, c])
         sp = 1
     while sp > 0:
         sp -= 1
@@ -109,11 +119,9 @@ def build(points):
         for c in (1, 2):
             if box[3 + c] - box[c] > box[3 + ax] - box[ax]:
                 ax = c
-        for i in range(lo, hi):
-            key[i] = points[perm[i], ax]
         med = lo + _left_size(m)
-        _select(key, perm, lo, hi, med)
-        split = np.float64(key[med])
+        _select(pts, perm, lo, hi, med, ax)
+        split = np.float64(pts[med, ax])
         order[node] = perm[med]
         axis[node] = ax
         # Left pushed last: popped first (depth first keeps the stack short).
