@@ -1,4 +1,5 @@
-"""Photon maps: a kd-tree over stored photons and the irradiance estimators.
+"""Photon maps: stored photons in a compiled search structure (engine/kdtree.py, or
+engine/hashgrid.py) and the irradiance estimators, run as numba kernels (engine/jit.py).
 
 Estimators (irradiance E in W/m^2; the caller multiplies by the diffuse albedo / pi):
   classic      the paper's: all photons within a fixed radius r, each weighted by
