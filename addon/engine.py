@@ -139,6 +139,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         view_layer = depsgraph.view_layer
         self._stats("Loading engine")
         pm = load_engine()
+        if pm.jit.needs_compile():  # seconds, once per machine: say why the render waits
+            self.update_stats("", pm.jit.COMPILE_MESSAGE)
+            print(f"Photon Mapping: {pm.jit.COMPILE_MESSAGE}", flush=True)
+        pm.jit.ensure_compiled()
 
         width, height = export.render_size(render)
         region = export.border_region(render, width, height)

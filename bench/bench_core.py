@@ -73,6 +73,11 @@ def main(argv=None):
     ap.add_argument("--plot", help="write a bar chart of stage times (PNG)")
     args = ap.parse_args(argv)
 
+    try:  # compiled kernels (after issue 13): compile / load them before any timing
+        from engine.jit import ensure_compiled
+        ensure_compiled()
+    except ImportError:
+        pass
     scene = cornell_box(args.width, args.height)
     settings = RenderSettings(photons=args.photons, spp=args.spp, workers=args.workers)
     rows = []

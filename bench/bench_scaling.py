@@ -191,7 +191,7 @@ def sec_kdtree(a):
         for est, rad in (("knn_simpson", r), ("radius", r / 2)):
             t, _ = best_of(a.repeat, lambda: pm.irradiance(p, nn, rad, 64, 8, est))
             row[f"{est}_s_per_Mq"] = t / q * 1e6
-        t, _ = best_of(a.repeat, lambda: pm.tree.query(p, k=64, distance_upper_bound=r, workers=a.threads))
+        t, _ = best_of(a.repeat, lambda: pm.tree.query(p, 64, r))
         row["raw_query_k64_s_per_Mq"] = t / q * 1e6
         row["tree_MB"] = _tree_bytes(pm) / 1e6
         rows.append(row)
@@ -200,10 +200,8 @@ def sec_kdtree(a):
 
 
 def _tree_bytes(pm):
-    t = pm.tree
-    b = t.data.nbytes + t.indices.nbytes
-    b += t.size * 64  # cKDTree node: ~64 bytes (split dim/value, children, bounds of counts)
-    return b
+    """Bytes the search structure adds to the photons (the compiled kd-tree: axes)."""
+    return pm.nbytes - pm.photons.nbytes
 
 
 def sec_scaling(a):
@@ -268,7 +266,7 @@ def sec_memory(a):
     pm = PhotonMap(ph, 1)
     rows_b = [dict(item="Photons arrays (pos, power, dir, normal f32 + kind u8)",
                    bytes_per_photon=ph.nbytes / len(ph)),
-              dict(item="+ cKDTree (float64 copy, int64 indices, nodes)",
+              dict(item="+ kd-tree (one split axis byte per photon, engine/kdtree.py)",
                    bytes_per_photon=(ph.nbytes + _tree_bytes(pm)) / len(ph))]
     table("memory: peak RSS (child process per case, 80x60, 4 spp)", rows)
     table("memory: bytes per stored photon", rows_b)

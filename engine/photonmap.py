@@ -1,4 +1,5 @@
-"""Photon maps: a kd-tree over stored photons and the irradiance estimators.
+"""Photon maps: stored photons in a compiled search structure (engine/kdtree.py, or
+engine/hashgrid.py) and the irradiance estimators, run as numba kernels (engine/jit.py).
 
 Estimators (irradiance E in W/m^2; the caller multiplies by the diffuse albedo / pi):
   classic      the paper's: all photons within a fixed radius r, each weighted by
@@ -19,8 +20,10 @@ import copy
 import math
 
 import numpy as np
-from scipy.spatial import cKDTree
+from scipy.spatial import cKDTree  # auto_radius only: one query per render, not per sample
 
+from . import hashgrid, kdtree
+from .jit import kernel, register_warm_up
 from .parallel import ordered_map
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32
@@ -34,25 +37,62 @@ MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accep
 # point light piles k photons onto a point; a smaller disc makes the estimate there huge,
 # and the few camera samples that land on it become fireflies (the Figure 8 focus, seen
 # magnified through the ball: one pixel at 939 x the image mean). The photons inside the
-# floor disc are all counted (_estimate_rows), so light is spread over it, never lost.
+# floor disc are all counted (_estimate_row), so light is spread over it, never lost.
 MIN_RADIUS_FRACTION = 0.01
-QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
-DENSE_FRACTION = 0.8   # skip the min-photons pre-query when this share of a sample is busy
+# A row about to widen first scans its search sphere for accepted photons, up to this many
+# photons (measured: a scan of this many costs less than the MAX_WIDEN_K heap query it
+# saves; bench/bench_lookup.py). 512 KB of scratch per kernel call.
+SCAN_BUDGET = 16 * MAX_WIDEN_K
+BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
+
+ESTIMATOR_CODES = {"classic": 0, "radius": 1, "knn_simpson": 2, "knn_cone": 3}
+CLASSIC, RADIUS, KNN_SIMPSON, KNN_CONE = 0, 1, 2, 3
+STRUCTURES = ("kdtree", "hashgrid")
+KDTREE, HASHGRID = 0, 1
 
 
 class PhotonMap:
-    def __init__(self, photons: Photons, workers: int = 1):
-        self.photons = photons
+    """Stored photons and their search structure (engine/kdtree.py by default, or
+    engine/hashgrid.py), with the irradiance estimators compiled into one kernel.
+
+    The photons are kept in the structure's order (self.photons is that permutation of
+    the input), so a search result indexes the photon arrays directly: the map adds one
+    byte (kd-tree) or 4-8 bytes (hash grid) per photon to the photons' 49.
+    structure: "kdtree" or "hashgrid"; cell: the hash grid's cell size (the search radius
+    it serves best), required for "hashgrid". Raises ValueError for anything else."""
+
+    def __init__(self, photons: Photons, workers: int = 1, structure: str = "kdtree",
+                 cell: float | None = None):
+        if structure not in STRUCTURES:
+            raise ValueError(f"PhotonMap: structure must be one of {', '.join(STRUCTURES)}, "
+                             f"got {structure!r}")
         self.workers = workers
+        self.structure = structure
         self.tree = None
-        if len(photons):
-            # Unbalanced build: many identical points (a focused caustic) make the
-            # balanced median build pathological (docs/design.md, kd-tree (scipy) facts).
-            self.tree = cKDTree(photons.position.astype(np.float64), balanced_tree=False,
-                                compact_nodes=False)
+        self.photons = photons
+        if not len(photons):
+            return
+        if structure == "kdtree":
+            self.tree = kdtree.KdTree(photons.position)
+        else:
+            if cell is None:
+                raise ValueError("PhotonMap: the hash grid needs a cell size (cell=radius)")
+            self.tree = hashgrid.HashGrid(photons.position, cell)
+        order = self.tree.order
+        self.tree.order = None  # the photons are permuted below; the map needs no order
+        self.photons = Photons(self.tree.position, photons.power[order],
+                               photons.direction[order], photons.normal[order],
+                               photons.kind[order], photons.emitted)
 
     def __len__(self):
         return len(self.photons)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the map: the photons plus the structure's index arrays."""
+        if self.tree is None:
+            return self.photons.nbytes
+        return self.photons.nbytes + self.tree.nbytes - self.tree.position.nbytes
 
     def serial(self) -> "PhotonMap":
         """The same map, queried on the calling thread only (the caller runs chunks on
@@ -61,201 +101,300 @@ class PhotonMap:
         view.workers = 1
         return view
 
+    def _arrays(self):
+        """(kind, position, axis, start, grid) for the kernels; unused ones are empty.
+        grid is the hash grid's (origin, cell size), or the kd-tree's bounds."""
+        t = self.tree
+        if self.structure == "kdtree":
+            return KDTREE, t.position, t.axis, _NO_START, t.bounds
+        return HASHGRID, t.position, _NO_AXIS, t.start, t.grid
+
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                    min_photons: int, estimator: str, return_boundary: bool = False,
                    r_floor: np.ndarray | None = None):
-        """Irradiance estimate at points p with unit normals n (facing the viewer).
+        """Irradiance estimate E (W/m^2, (M,3) float64) at points p (M,3) with unit normals
+        n (M,3) facing the viewer.
         return_boundary: also return, per point, whether the estimate's disc is not whole:
         photons of another surface lay inside it (a corner or contact) or its photons lie
         off to one side (an open edge), or it had too few photons for an estimate (0).
         There the estimate is biased dark.
         r_floor: per point, the smallest k-NN radius (a camera sample's pixel footprint):
-        a focus is spread over at least that disc instead of a point."""
-        out = np.zeros((len(p), 3))
-        boundary = np.ones(len(p), bool)  # rows with no estimate keep True
+        a focus is spread over at least that disc instead of a point.
+
+        Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K entries),
+        however far a query widens. Raises ValueError for an unknown estimator."""
+        code = ESTIMATOR_CODES.get(estimator)
+        if code is None:
+            raise ValueError(f"estimator must be one of {', '.join(ESTIMATOR_CODES)}, "
+                             f"got {estimator!r}")
+        m = len(p)
+        out = np.zeros((m, 3))
+        boundary = np.ones(m, bool)  # rows with no estimate keep True
         result = (out, boundary) if return_boundary else out
-        if self.tree is None or len(p) == 0 or radius <= 0:
+        if self.tree is None or m == 0 or radius <= 0 or len(self.photons) < min_photons:
             return result
-        # A cheap query for the min_photons nearest tells which points have enough photons
-        # in range; only those pay for the k-NN query (most queries of a sparse caustic map).
-        m = int(min(min_photons, len(self.photons)))
-        if len(self.photons) < min_photons:
-            return result
-        # Where nearly every point is busy (a global map, the gather-map build) the cheap
-        # query is pure overhead (~25 % of the k-NN query): a strided sample decides.
-        # Skipping it changes nothing: a row with fewer than m photons in range gets
-        # count < min_photons in _estimate and is zeroed there too.
-        step = 32
-        if len(p) >= 8 * step:
-            ds, _ = self.tree.query(p[::step], k=m, distance_upper_bound=radius,
-                                    workers=self.workers)
-            dense = np.isfinite(ds.reshape(len(ds), -1)[:, -1]).mean() > DENSE_FRACTION
-        else:
-            dense = False
-        if dense:
-            busy = np.arange(len(p))
-        else:
-            dm, _ = self.tree.query(p, k=m, distance_upper_bound=radius, workers=self.workers)
-            dm = dm.reshape(len(p), -1)
-            busy = np.nonzero(np.isfinite(dm[:, -1]))[0]
-        if len(busy) == 0:
-            return result
-        if estimator in ("classic", "radius"):
-            counts = self.tree.query_ball_point(p[busy], radius, return_length=True,
-                                                workers=self.workers)
-            kq = int(min(max(int(counts.max()), 1), MAX_CLASSIC_K, len(self.photons)))
-        else:
-            kq = int(min(k, len(self.photons)))
-        rows = max(1, QUERY_BUDGET // kq)
-        if self.workers > 1:
-            # Blocks on worker threads (the numpy part of the estimate too). Rows are
-            # independent, so the block size does not change any result.
-            rows = min(rows, max(4096, -(-len(busy) // (2 * self.workers))))
-        blocks = range(0, len(busy), rows)
-        threads = self.workers if len(blocks) > 1 else 1
-        pm = self.serial() if threads > 1 else self
+        p = np.ascontiguousarray(p, dtype=np.float64)
+        n = np.ascontiguousarray(n, dtype=np.float64)
+        floor = (np.zeros(0) if r_floor is None
+                 else np.ascontiguousarray(np.broadcast_to(r_floor, (m,)), dtype=np.float64))
+        kind, pos, axis, start, grid = self._arrays()
+        ph = self.photons
+        threads = self.workers if m > BLOCK_ROWS else 1
+        rows = BLOCK_ROWS if threads > 1 else m
 
         def job(a, stop):
-            sel = busy[a:a + rows]
-            E, mix = pm._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator,
-                                  return_boundary,
-                                  None if r_floor is None else r_floor[sel])
-            if estimator in ("classic", "radius"):
-                # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius;
-                # the query returned the nearest kq of them. Scale by all / gathered so
-                # the fixed-radius estimate is not capped (stand-in for the missing ones).
-                c = counts[a:a + rows].astype(np.float64)
-                E *= np.maximum(c / kq, 1.0)[:, None]
-            return sel, E, mix
+            b = min(a + rows, m)
+            _irradiance_rows(kind, pos, axis, start, grid, ph.power, ph.direction, ph.normal,
+                             p[a:b], n[a:b], floor[a:b] if len(floor) else floor,
+                             float(radius), int(k), int(min_photons), code,
+                             bool(return_boundary), out[a:b], boundary[a:b])
+            return None
 
-        for sel, E, mix in ordered_map(job, blocks, threads):
-            out[sel] = E
-            boundary[sel] = mix
+        for _ in ordered_map(job, range(0, m, rows), threads):
+            pass
         return result
 
-    def _estimate(self, p, n, radius, kq, k, min_photons, estimator, want_boundary=False,
-                  r_floor=None):
-        """Estimate at rows p. k-NN estimators use the k nearest *accepted* photons (facing
-        the query's surface): where photons of another surface crowd the k nearest (a
-        corner, an object resting on the floor) the query widens, up to MAX_WIDEN_K,
-        while fewer than k / 2 of them are left."""
-        out = np.zeros((len(p), 3))
-        boundary = np.zeros(len(p), bool)
-        todo = np.arange(len(p))
-        P = len(self.photons)
-        knn = estimator not in ("classic", "radius")
-        while len(todo):
-            E, widen, mix = self._estimate_rows(p[todo], n[todo], radius, kq, k, min_photons,
-                                                estimator, want_boundary,
-                                                None if r_floor is None else r_floor[todo])
-            last = not knn or not widen.any() or kq >= min(P, MAX_WIDEN_K)
-            done = np.ones(len(todo), bool) if last else ~widen
-            out[todo[done]] = E[done]
-            if want_boundary:
-                boundary[todo[done]] = mix[done]
-            if last:
-                break
-            todo = todo[widen]
-            kq = min(4 * kq, P, MAX_WIDEN_K)
-        return out, boundary
 
-    def _estimate_rows(self, p, n, radius, kq, k, min_photons, estimator, want_boundary,
-                       r_floor=None):
-        dist, idx = self.tree.query(p, k=kq, distance_upper_bound=radius, workers=self.workers)
-        if kq == 1:
-            dist, idx = dist[:, None], idx[:, None]
-        P = len(self.photons)
-        found = idx < P  # scipy returns idx = P where nothing was found
-        # Any valid row stands in for 'not found' (masked below); np.take(axis=0) gathers
-        # rows ~4x faster than fancy indexing.
-        safe = np.minimum(idx, P - 1)
-        ph = self.photons
-        gd = np.take(ph.direction, safe, axis=0)
-        gn = np.take(ph.normal, safe, axis=0)
-        n32 = n.astype(np.float32)
-        nx, ny, nz = n32[:, None, 0], n32[:, None, 1], n32[:, None, 2]
-        # Dot products per component (same float32 products and left-to-right sums as an
-        # einsum, no (N,k,3) temporaries).
-        cos_in = -(gd[..., 0] * nx + gd[..., 1] * ny + gd[..., 2] * nz)
-        other_surface = found & ((gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz)
-                                 <= NORMAL_AGREEMENT)
-        ok = found & (cos_in > 0) & ~other_surface
-        del gd, gn
-        widen = np.zeros(len(p), bool)
-        knn = estimator not in ("classic", "radius")
-        d_max = np.full((len(p), 1), radius)
-        if estimator == "classic":
-            weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
-        elif estimator == "radius":
-            x = np.clip(1.0 - (np.where(found, dist, radius) / radius) ** 2, 0.0, 1.0)
-            weight = np.where(ok, 3.0 / (math.pi * radius * radius) * x * x, 0.0)
+_NO_AXIS = np.zeros(0, np.uint8)
+_NO_START = np.zeros(1, np.int32)
+
+
+@kernel
+def _knn(kind, pos, axis, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets):
+    if kind == KDTREE:
+        return kdtree.knn(pos, axis, qx, qy, qz, kq, r2, d2, idx)
+    return hashgrid.knn(pos, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+
+
+@kernel
+def _ball(kind, pos, axis, start, grid, qx, qy, qz, r2, out, cap, buckets):
+    if kind == KDTREE:
+        return kdtree.ball(pos, axis, qx, qy, qz, r2, out, cap)
+    return hashgrid.ball(pos, start, grid, qx, qy, qz, r2, out, cap, buckets)
+
+
+@kernel
+def _ball_count(kind, pos, axis, start, grid, qx, qy, qz, r2, buckets):
+    if kind == KDTREE:
+        return kdtree.ball_count(pos, axis, grid, qx, qy, qz, r2)
+    return hashgrid.ball_count(pos, start, grid, qx, qy, qz, r2, buckets)
+
+
+@kernel
+def _accepted(direction, normal, j, nx, ny, nz):
+    """(accepted, other_surface) for photon j at a query with float32 normal (nx, ny, nz):
+    it arrived from the front (d.N < 0) and lies on a surface facing the same way."""
+    cos_in = -(direction[j, 0] * nx + direction[j, 1] * ny + direction[j, 2] * nz)
+    other = (normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz) <= NORMAL_AGREEMENT
+    return (cos_in > 0) and not other, other, cos_in
+
+
+@kernel
+def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
+    acc = 0
+    for j in range(cnt):
+        if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+            acc += 1
+    return acc
+
+
+@kernel
+def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, n, r_floor,
+                     radius, k, min_photons, code, want_boundary, out, boundary):
+    """The estimators of this module's docstring for each row of p / n into out (E) and
+    boundary. Scratch: MAX_WIDEN_K (or k) neighbours, reused by every row."""
+    P = pos.shape[0]
+    cap = max(min(max(k, MAX_WIDEN_K, MAX_CLASSIC_K), P), 1)
+    d2 = np.empty(cap, np.float64)
+    idx = np.empty(cap, np.int64)
+    scan = np.empty(SCAN_BUDGET + 1, np.int64)
+    # The floored focus disc (_estimate_row) may exceed radius where 1e-6 |p| does.
+    big = 0.0
+    for i in range(p.shape[0]):
+        big = max(big, abs(p[i, 0]), abs(p[i, 1]), abs(p[i, 2]))
+    buckets = np.empty(hashgrid.cells_spanned(grid, max(radius, 1e-6 * big))
+                       if kind == HASHGRID else 0, np.int64)
+    r2 = radius * radius
+    knn = code >= KNN_SIMPSON
+    for i in range(p.shape[0]):
+        qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+        nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
+        out[i, 0] = out[i, 1] = out[i, 2] = 0.0
+        boundary[i] = True
+        scale = 1.0
+        if knn:
+            kq = min(k, P)
+            cnt = _knn(kind, pos, axis, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+            widest = min(P, MAX_WIDEN_K)
+            if cnt == kq and kq < widest and \
+                    _count_accepted(direction, normal, idx, cnt, nx, ny, nz) < k // 2:
+                # Widen (x4 up to MAX_WIDEN_K) while fewer than k / 2 of the nearest are
+                # accepted (a crowded neighbour surface). First, a row whose sphere holds
+                # fewer than min_photons accepted photons has no estimate at any width
+                # (a caustic query beside a wall lit only on its far side): one scan of
+                # the sphere (at most SCAN_BUDGET photons) settles it.
+                nb = _ball(kind, pos, axis, start, grid, qx, qy, qz, r2, scan, SCAN_BUDGET,
+                           buckets)
+                if nb <= SCAN_BUDGET and \
+                        _count_accepted(direction, normal, scan, nb, nx, ny, nz) < min_photons:
+                    continue
+                # Each wider query's result is a prefix of the widest one (increasing
+                # distance): one query, then the prefixes are tried in turn. A sphere the
+                # scan listed whole (at most `widest` photons) is that query's answer.
+                if nb <= widest:
+                    found = 0
+                    for j in range(nb):
+                        ph = scan[j]
+                        dx = qx - np.float64(pos[ph, 0])
+                        dy = qy - np.float64(pos[ph, 1])
+                        dz = qz - np.float64(pos[ph, 2])
+                        dd = dx * dx + dy * dy + dz * dz
+                        if dd < r2:  # the k-NN query's bound is strict
+                            found = kdtree.heap_insert(d2, idx, found, widest, dd, ph)
+                    kdtree.heap_sort(d2, idx, found, widest)
+                else:
+                    found = _knn(kind, pos, axis, start, grid, qx, qy, qz, widest, r2, d2,
+                                 idx, buckets)
+                while True:
+                    kq = min(4 * kq, widest)
+                    cnt = min(found, kq)
+                    if cnt < kq or kq >= widest:
+                        break
+                    if _count_accepted(direction, normal, idx, cnt, nx, ny, nz) >= k // 2:
+                        break
         else:
-            # r: distance to the k-th accepted photon; with fewer accepted, the radius of
-            # the disc the query has seen completely (its last photon, or the max radius).
-            accepted = np.cumsum(ok, axis=1)
-            have_k = accepted[:, -1] >= k
-            kth = np.argmax(accepted >= k, axis=1)
-            full = found[:, -1]  # the query stopped at kq photons: more may lie beyond
-            # Fewer than k accepted: the disc the query has seen (radius of its last
-            # photon) still gives an unbiased estimate from the accepted photons in it,
-            # only a noisier one. Widen only when fewer than half are left (a crowded
-            # neighbour surface); a few photons arriving from behind are not worth a 4x
-            # query.
-            widen = (accepted[:, -1] < k // 2) & full
-            rows = np.arange(len(p))
-            r = np.where(have_k, dist[rows, kth], np.where(full, dist[:, -1], radius))
-            # k photons on (nearly) the query point, as a focusing lens makes: the k-th
-            # distance is 0 and 1/r^2 would be inf. Floor r (MIN_RADIUS_FRACTION), and at
-            # a resolution the float32 photon positions can represent.
-            r_min = np.maximum(1e-6 * max3(np.abs(p)), max(MIN_RADIUS_FRACTION * radius, 1e-15))
-            if r_floor is not None:
-                r_min = np.maximum(r_min, np.minimum(r_floor, radius))
-            floored = full & (r < r_min)  # the floor disc may hold more than the kq fetched
-            r = np.maximum(r, r_min)[:, None]
-            d = np.where(found, dist, 0.0)
-            if estimator == "knn_simpson":
-                x = np.clip(1.0 - (d / r) ** 2, 0.0, 1.0)
-                weight = np.where(ok, 3.0 / (math.pi * r * r) * x * x, 0.0)
-            else:  # knn_cone
-                weight = np.where(ok, np.clip(1.0 - d / r, 0.0, 1.0), 0.0)
-                weight = weight / ((1.0 - 2.0 / 3.0) * math.pi * r * r)
-            ok &= d <= r  # accepted photons beyond the k-th do not count towards the minimum
-            d_max = r
-        count = np.count_nonzero(ok, axis=1)
-        # float64: weights near a focus exceed float32's range.
-        E = np.einsum("nk,nkc->nc", weight, np.take(ph.power, safe, axis=0).astype(np.float64))
-        if knn and floored.any():
-            # A focus: more photons lie inside the floored disc than the query fetched.
-            # There the estimate is the disc's photon count times the fetched photons'
-            # mean accepted power, over pi r^2 (a box kernel): every photon spreads its
-            # power over a disc of r, so the focus's light is spread, never dropped.
-            f = np.nonzero(floored)[0]
-            in_disc = self.tree.query_ball_point(p[f], r[f, 0], return_length=True,
-                                                 workers=self.workers)
-            fetched = np.count_nonzero(found[f] & (dist[f] <= r[f]), axis=1)
-            accepted_power = np.einsum("nk,nkc->nc", ok[f].astype(np.float64),
-                                       np.take(ph.power, safe[f], axis=0).astype(np.float64))
-            E[f] = (in_disc / np.maximum(fetched, 1))[:, None] * accepted_power / (
-                math.pi * r[f] * r[f])
-        E[count < min_photons] = 0.0
-        if not want_boundary:
-            return E, widen, None
-        inside = dist <= d_max
-        # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
-        boundary = (other_surface & inside).any(axis=1) | (count < min_photons)
-        # An open edge (a table's rim, the end of a floor) leaves no other surface's
-        # photons, but the accepted ones lie off to one side: their centroid, in the
-        # tangent plane, is more than BOUNDARY_OFFSET x r from the point (a half disc
-        # gives 0.42 r; 64 photons of a whole disc scatter it by ~0.08 r; a gradient
-        # needs a 100 % change across r to reach it).
-        use = ok & inside
-        m = np.maximum(np.count_nonzero(use, axis=1), 1)[:, None]
-        rel = (np.take(ph.position, safe, axis=0) - p[:, None, :].astype(np.float32))
-        c = np.einsum("nk,nkc->nc", use.astype(np.float32), rel) / m
-        c -= np.einsum("nc,nc->n", c, n)[:, None] * n
-        offset = np.sqrt(np.einsum("nc,nc->n", c, c)) / d_max[:, 0]
-        boundary |= offset > BOUNDARY_OFFSET
-        return E, widen, boundary
+            c = _ball_count(kind, pos, axis, start, grid, qx, qy, qz, r2, buckets)
+            if c < min_photons:
+                continue  # too few photons in range: no estimate
+            kq = min(c, MAX_CLASSIC_K)
+            # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius; the
+            # nearest kq stand in for all of them (scaled by all / gathered).
+            if c > kq:
+                scale = c / kq
+            cnt = _knn(kind, pos, axis, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+        _estimate_row(i, kind, pos, axis, start, grid, power, direction, normal, p, n,
+                      r_floor, radius, k, min_photons, code, want_boundary, d2, idx, cnt,
+                      kq, scale, buckets, out, boundary)
+
+
+@kernel
+def _estimate_row(i, kind, pos, axis, start, grid, power, direction, normal, p, n, r_floor,
+                  radius, k, min_photons, code, want_boundary, d2, idx, cnt, kq, scale,
+                  buckets, out, boundary):
+    """One row's estimate from its cnt nearest photons (d2/idx, increasing distance).
+    k-NN estimators use the k nearest *accepted* photons (facing the query's surface)."""
+    qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+    nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
+    full = cnt == kq  # the query stopped at kq photons: more may lie beyond
+    r = radius
+    floored = False
+    if code >= KNN_SIMPSON:
+        # r: distance to the k-th accepted photon; with fewer accepted, the radius of the
+        # disc the query has seen completely (its last photon, or the max radius): that
+        # still gives an unbiased estimate from the accepted photons in it.
+        acc = 0
+        kth = -1
+        for j in range(cnt):
+            if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+                acc += 1
+                if acc == k:
+                    kth = j
+                    break
+        if kth >= 0:
+            r = math.sqrt(d2[kth])
+        elif full:
+            r = math.sqrt(d2[cnt - 1])
+        # k photons on (nearly) the query point, as a focusing lens makes: the k-th
+        # distance is 0 and 1/r^2 would be inf. Floor r (MIN_RADIUS_FRACTION), and at a
+        # resolution the float32 photon positions can represent.
+        big = max(abs(qx), abs(qy), abs(qz))
+        r_min = max(1e-6 * big, max(MIN_RADIUS_FRACTION * radius, 1e-15))
+        if r_floor.shape[0]:
+            r_min = max(r_min, min(r_floor[i], radius))
+        floored = full and r < r_min  # the floor disc may hold more than the kq fetched
+        r = max(r, r_min)
+    area = math.pi * r * r
+    e0 = e1 = e2 = 0.0
+    a0 = a1 = a2 = 0.0  # accepted power inside r (the floored focus)
+    count = 0
+    fetched = 0
+    other_inside = False
+    c0 = c1 = c2 = np.float32(0.0)  # float32 sums of the accepted photons' offsets
+    for j in range(cnt):
+        ph = idx[j]
+        d = math.sqrt(d2[j])
+        ok, other, cos_in = _accepted(direction, normal, ph, nx, ny, nz)
+        inside = d <= r
+        if inside:
+            fetched += 1
+            if other:
+                other_inside = True
+        if not ok:
+            continue
+        if code == CLASSIC:
+            w = cos_in / (math.pi * radius * radius)
+        elif code == RADIUS:
+            x = min(max(1.0 - (d / radius) ** 2, 0.0), 1.0)
+            w = 3.0 / (math.pi * radius * radius) * x * x
+        elif code == KNN_SIMPSON:
+            x = min(max(1.0 - (d / r) ** 2, 0.0), 1.0)
+            w = 3.0 / area * x * x
+        else:
+            w = min(max(1.0 - d / r, 0.0), 1.0) / ((1.0 - 2.0 / 3.0) * area)
+        e0 += w * np.float64(power[ph, 0])
+        e1 += w * np.float64(power[ph, 1])
+        e2 += w * np.float64(power[ph, 2])
+        if not inside:
+            continue  # accepted photons beyond the k-th do not count towards the minimum
+        count += 1
+        a0 += np.float64(power[ph, 0])
+        a1 += np.float64(power[ph, 1])
+        a2 += np.float64(power[ph, 2])
+        c0 += pos[ph, 0] - np.float32(qx)
+        c1 += pos[ph, 1] - np.float32(qy)
+        c2 += pos[ph, 2] - np.float32(qz)
+    if floored:
+        # A focus: more photons lie inside the floored disc than the query fetched. The
+        # estimate is the disc's photon count times the fetched photons' mean accepted
+        # power, over pi r^2 (a box kernel): the focus's light is spread, never dropped.
+        in_disc = _ball_count(kind, pos, axis, start, grid, qx, qy, qz, r * r, buckets)
+        f = in_disc / max(fetched, 1) / area
+        e0, e1, e2 = f * a0, f * a1, f * a2
+    if count >= min_photons:
+        out[i, 0] = e0 * scale
+        out[i, 1] = e1 * scale
+        out[i, 2] = e2 * scale
+    if not want_boundary:
+        return
+    # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
+    b = other_inside or count < min_photons
+    # An open edge (a table's rim, the end of a floor) leaves no other surface's photons,
+    # but the accepted ones lie off to one side: their centroid, in the tangent plane, is
+    # more than BOUNDARY_OFFSET x r from the point (a half disc gives 0.42 r; 64 photons
+    # of a whole disc scatter it by ~0.08 r; a gradient needs a 100 % change across r).
+    mm = max(count, 1)
+    cx, cy, cz = np.float64(c0) / mm, np.float64(c1) / mm, np.float64(c2) / mm
+    fx, fy, fz = n[i, 0], n[i, 1], n[i, 2]
+    dn = cx * fx + cy * fy + cz * fz
+    cx, cy, cz = cx - dn * fx, cy - dn * fy, cz - dn * fz
+    offset = math.sqrt(cx * cx + cy * cy + cz * cz) / r
+    boundary[i] = b or offset > BOUNDARY_OFFSET
+
+
+@register_warm_up
+def _warm_up():
+    """Compile every estimator / structure / boundary variant a render uses."""
+    rng = np.random.default_rng(0)
+    m = 64
+    pos = rng.random((m, 3)).astype(np.float32)
+    up = np.tile(np.float32([0.0, 0.0, 1.0]), (m, 1))
+    ph = Photons(pos, np.ones((m, 3), np.float32), -up, up.copy(), np.zeros(m, np.uint8))
+    q = rng.random((4, 3))
+    nq = np.tile([0.0, 0.0, 1.0], (4, 1))
+    for pm in (PhotonMap(ph), PhotonMap(ph, structure="hashgrid", cell=0.3)):
+        for est in ESTIMATOR_CODES:
+            pm.irradiance(q, nq, 0.3, 8, 2, est, return_boundary=True, r_floor=np.full(4, 0.01))
+            pm.irradiance(q, nq, 0.3, 8, 2, est)
 
 
 class GatherMap:
@@ -288,12 +427,16 @@ class GatherMap:
         is_point[::step] = True
         others = ph.select(~is_point)
         others.power = others.power * np.float32(len(ph) / len(others))
-        self.position = ph.position[is_point].astype(np.float64)
-        self.normal = ph.normal[is_point].astype(np.float64)
+        points = ph.select(is_point)
+        tree = kdtree.KdTree(points.position)
+        # Kept in the tree's order: a search result indexes these arrays directly.
+        self.position = points.position[tree.order].astype(np.float64)
+        self.normal = points.normal[tree.order].astype(np.float64)
+        tree.order = None
         self.E, self.boundary = PhotonMap(others, workers).irradiance(
             self.position, self.normal, radius, k, min_photons, estimator, return_boundary=True)
         self.radius = radius
-        self.tree = cKDTree(self.position, balanced_tree=False, compact_nodes=False)
+        self.tree = tree
 
     def serial(self) -> "GatherMap":
         """The same map, queried on the calling thread only (see PhotonMap.serial)."""
@@ -332,10 +475,7 @@ class GatherMap:
         return out, boundary
 
     def _nearest_agreeing(self, p, n, kq, offset=None):
-        dist, idx = self.tree.query(p, k=kq, distance_upper_bound=self.radius,
-                                    workers=self.workers)
-        if kq == 1:
-            dist, idx = dist[:, None], idx[:, None]
+        _, idx = self.tree.query(p, kq, self.radius)
         found = idx < len(self.position)
         safe = np.where(found, idx, 0)
         agree = found & (np.einsum("nkc,nc->nk", np.take(self.normal, safe, axis=0), n) > 0.7)

@@ -12,6 +12,7 @@ from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, prepare
 from .integrator import render_camera
+from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .rayoffset import G32_T, ulp32
@@ -89,6 +90,9 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None) -> Film
     stats = film.stats
     stats["cancelled"] = False
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
+    # Compiled kernels: compiled on the first render on this machine (the progress text
+    # says so), loaded from the on-disk cache by later processes, once per process.
+    stats["time_compile"] = ensure_compiled(progress)
     try:
         all_photons = Photons.empty()
         if settings.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):

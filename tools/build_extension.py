@@ -4,7 +4,8 @@
         [--no-download] [--no-manifest-update]
 
 1. `pip download --only-binary=:all: --no-deps --python-version 3.11 --platform TAG`
-   embreex and scipy for every platform into wheels/.
+   embreex, scipy, numba and llvmlite for every platform into wheels/ (numba and
+   llvmlite stop at 0.62.1 / 0.45.1 on macOS x86_64: that platform pins those).
 2. Write the manifest's `wheels = [...]` list (all platforms; only when building all).
 3. Stage the package (manifest, __init__.py, addon/, engine/, the selected wheels) under
    build/extension/ and build it with Blender's own tool (blender_ext.py from the bpy
@@ -24,7 +25,13 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MANIFEST = os.path.join(ROOT, "blender_manifest.toml")
 WHEELS_DIR = os.path.join(ROOT, "wheels")
 PYTHON_VERSION = "3.11"
-PINNED = ("embreex==4.4.0.post1", "scipy==1.17.1")
+PINNED = ("embreex==4.4.0.post1", "scipy==1.17.1", "numba==0.68.1", "llvmlite==0.50.0")
+# Platforms whose newest wheels are older than PINNED: package name -> pin. numba 0.62.1
+# and llvmlite 0.45.1 are the last releases with macOS x86_64 wheels; both accept the
+# numpy Blender 4.5 / 5.0 ship (1.26.4).
+PLATFORM_PINS = {
+    "macos-x64": {"numba": "numba==0.62.1", "llvmlite": "llvmlite==0.45.1"},
+}
 # Blender platform -> pip --platform tags (pip accepts wheels for these or older).
 PLATFORMS = {
     "windows-x64": ["win_amd64"],
@@ -56,6 +63,12 @@ def blender_ext_path() -> str:
     return sorted(hits)[-1]
 
 
+def pins_for(platform: str) -> list[str]:
+    """The pinned requirements (name==version) for one Blender platform."""
+    override = PLATFORM_PINS.get(platform, {})
+    return [override.get(pin.split("==")[0], pin) for pin in PINNED]
+
+
 def download(platforms, dest=WHEELS_DIR):
     os.makedirs(dest, exist_ok=True)
     for plat in platforms:
@@ -63,7 +76,7 @@ def download(platforms, dest=WHEELS_DIR):
                "--no-deps", "--python-version", PYTHON_VERSION, "--dest", dest]
         for tag in PLATFORMS[plat]:
             cmd += ["--platform", tag]
-        cmd += list(PINNED)
+        cmd += pins_for(plat)
         print(f"downloading wheels for {plat}")
         res = subprocess.run(cmd, capture_output=True, text=True)
         if res.returncode != 0:
@@ -73,11 +86,11 @@ def download(platforms, dest=WHEELS_DIR):
 def wheels_for(platforms, src=WHEELS_DIR) -> list[str]:
     """Wheel file names in src for the pinned packages and the given platforms."""
     chosen = []
-    for pin in PINNED:
-        name, version = pin.split("==")
-        files = sorted(os.path.basename(p) for p in glob.glob(
-            os.path.join(src, f"{name}-{version}-*.whl")))
-        for plat in platforms:
+    for plat in platforms:
+        for pin in pins_for(plat):
+            name, version = pin.split("==")
+            files = sorted(os.path.basename(p) for p in glob.glob(
+                os.path.join(src, f"{name}-{version}-*.whl")))
             match = [f for f in files if WHEEL_PATTERNS[plat].search(f.rsplit("-", 1)[-1])]
             if not match:
                 raise SystemExit(f"error: no {name} {version} wheel for {plat} in {src} "

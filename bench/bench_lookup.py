@@ -1,0 +1,188 @@
+"""Photon lookups: the compiled kd-tree and hash grid against scipy's cKDTree (the numpy
+estimators they replaced), in Embree traversals, plus compile and cached-start times.
+
+    .venv/bin/python bench/bench_lookup.py [--photons 200000] [--queries 50000]
+
+One process prints one table (Markdown). All lookups run on one thread. The photon map is
+the Figure 6 box's global shot (default photon count); queries sit at random stored
+photons (position + normal), in random order. "Embree traversals" divides a lookup's
+time by the time of one closest-hit ray of camera-like rays in the same scene
+(embreex, one thread). Memory per photon is the map's bytes (photons + search structure)
+over the photons stored. The dark-wall rows are issue 16's case: queries that find only
+another surface's photons (a wall lit on its far side), where the k-NN query widens.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+
+from scipy.spatial import cKDTree  # noqa: E402
+
+from engine import RenderSettings  # noqa: E402
+from engine.api import cornell_box  # noqa: E402
+from engine.hashgrid import HashGrid  # noqa: E402
+from engine.jit import ensure_compiled  # noqa: E402
+from engine.kdtree import KdTree  # noqa: E402
+from engine.lights import allocate_photons  # noqa: E402
+from engine.photonmap import PhotonMap, auto_radius  # noqa: E402
+from engine.photons import Photons, trace_photons  # noqa: E402
+from engine.render import prepare_context  # noqa: E402
+from reference_photonmap import ReferencePhotonMap  # noqa: E402  (the cKDTree estimators)
+
+CKDTREE_NODE_BYTES = 72  # sizeof(ckdtreenode) in scipy's ckdtree_decl.h on 64-bit
+
+
+def best(fn, repeat=3):
+    """Best of `repeat` in CPU seconds of this process: every timed call here runs on one
+    thread, and CPU time is far less disturbed than wall time by other jobs on the
+    machine."""
+    times = []
+    for _ in range(repeat):
+        t0 = time.process_time()
+        out = fn()
+        times.append(time.process_time() - t0)
+    return min(times), out
+
+
+def embree_ray_seconds(ctx, n=200_000) -> float:
+    """Seconds per closest-hit ray (one thread): rays from the camera region of the box
+    towards random points on its surfaces."""
+    rng = np.random.default_rng(1)
+    geo = ctx.geo
+    v = geo.vertices32.astype(np.float64)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    o = lo + (hi - lo) * (0.3 + 0.4 * rng.random((n, 3)))
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    acc = ctx.accel.serial()
+    acc.intersect(o[:10], d[:10])
+    t, _ = best(lambda: acc.intersect(o, d))
+    return t / n
+
+
+def compile_times() -> tuple[float, float, float]:
+    """(cold compile, cached start, import numba) seconds, each in a fresh process."""
+    code = ("import time; t0 = time.perf_counter(); import numba; t1 = time.perf_counter(); "
+            "import engine.jit as j; j.ensure_compiled(); "
+            "print(time.perf_counter() - t0, t1 - t0)")
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        out = []
+        for _ in range(2):
+            r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
+                               capture_output=True, text=True, check=True)
+            out.append([float(v) for v in r.stdout.split()])
+    return out[0][0], out[1][0], out[1][1]
+
+
+def far_side_photons(n, rng):
+    pos = np.c_[rng.random((n, 2)), np.full(n, 0.001)].astype(np.float32)
+    down = np.tile(np.float32([0, 0, -1]), (n, 1))
+    return Photons(pos, np.full((n, 3), 1.0 / n, np.float32), -down, down,
+                   np.zeros(n, np.uint8))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--photons", type=int, default=RenderSettings.photons)
+    ap.add_argument("--queries", type=int, default=50_000)
+    ap.add_argument("--k", type=int, default=RenderSettings.k_nearest)
+    args = ap.parse_args(argv)
+    rows = []
+
+    t_cold, t_cached, t_numba = compile_times()
+    rows.append(("compile (fresh cache, new process, wall)", "", f"{t_cold:.2f} s", "", "",
+                 ""))
+    rows.append(("cached start (new process, wall)", "", f"{t_cached:.2f} s", "",
+                 f"of which import numba {t_numba:.2f} s", ""))
+    ensure_compiled()
+
+    s = RenderSettings(photons=args.photons, workers=1)
+    ctx = prepare_context(cornell_box(), s)
+    shot = trace_photons(ctx, ctx.lights, allocate_photons(ctx.lights, s.photons), False, 1)
+    N = len(shot)
+    diffuse = ctx.table.has_diffuse[ctx.geo.material]
+    radius = auto_radius(float(ctx.geo.area[diffuse].sum()), N, args.k, ctx.geo.extent)
+    ray = embree_ray_seconds(ctx)  # CPU seconds per ray, one thread
+    ctx.accel.close()
+    rng = np.random.default_rng(0)
+    sel = rng.integers(0, N, args.queries)
+    q = shot.position[sel].astype(np.float64)
+    nq = shot.normal[sel].astype(np.float64)
+    # Coherent order, as a camera chunk's hits come (neighbouring pixels, nearby points).
+    o = np.lexsort((q[:, 2], q[:, 1], q[:, 0]))
+    qs, nqs = q[o], nq[o]
+    k, mp, est = args.k, s.min_photons, s.estimator
+    print(f"\nFigure 6 box global shot: {N:,} photons stored, radius {radius:.4f} m, "
+          f"{args.queries:,} queries, k={k}, {est}, 1 thread; one Embree closest-hit ray "
+          f"{ray * 1e6:.3f} us\n")
+
+    builds = {
+        "kd-tree (compiled)": lambda: PhotonMap(shot, 1),
+        "hash grid (compiled)": lambda: PhotonMap(shot, 1, structure="hashgrid", cell=radius),
+        "cKDTree + numpy (before)": lambda: ReferencePhotonMap(shot, 1),
+    }
+    raw = {
+        "kd-tree (compiled)": lambda pm: pm.tree.query(q, k, radius),
+        "hash grid (compiled)": lambda pm: pm.tree.query(q, k, radius),
+        "cKDTree + numpy (before)": lambda pm: pm.tree.query(q, k=k, distance_upper_bound=radius),
+    }
+    for name, build in builds.items():
+        t_build, pm = best(build)
+        t_q, _ = best(lambda: pm.irradiance(q, nq, radius, k, mp, est), repeat=2)
+        t_qs, _ = best(lambda: pm.irradiance(qs, nqs, radius, k, mp, est), repeat=2)
+        t_raw, _ = best(lambda: raw[name](pm), repeat=2)
+        if isinstance(pm, ReferencePhotonMap):
+            t = pm.tree
+            nbytes = shot.nbytes + t.data.nbytes + t.indices.nbytes + t.size * CKDTREE_NODE_BYTES
+        else:
+            nbytes = pm.nbytes
+        per = t_q / len(q)
+        pers = t_qs / len(q)
+        rows.append((name, f"{t_build * 1e3:.0f} ms",
+                     f"{per * 1e6:.2f} us = {per / ray:.1f} rays",
+                     f"{pers * 1e6:.2f} us = {pers / ray:.1f} rays",
+                     f"k-NN alone {t_raw / len(q) * 1e6:.2f} us = {t_raw / len(q) / ray:.1f} rays",
+                     f"{nbytes / N:.1f} B"))
+
+    # Issue 16: the far side of a wall only (every query widens or is settled empty).
+    far = far_side_photons(600_000, rng)
+    m = 2000
+    qf = np.c_[0.2 + 0.6 * rng.random((m, 2)), np.zeros(m)]
+    up = np.tile([0.0, 0.0, 1.0], (m, 1))
+    for r_far, label in ((0.08, "~12k photons in the sphere"),
+                         (0.2, "~75k photons in the sphere")):
+        for name, make in (("kd-tree (compiled)", lambda: PhotonMap(far, 1)),
+                           ("cKDTree + numpy (before)", lambda: ReferencePhotonMap(far, 1))):
+            pm = make()
+            pm.irradiance(qf[:2], up[:2], r_far, k, mp, est)
+            tracemalloc.start()
+            t0 = time.process_time()
+            pm.irradiance(qf, up, r_far, k, mp, est)
+            t = time.process_time() - t0
+            peak = tracemalloc.get_traced_memory()[1]
+            tracemalloc.stop()
+            rows.append((f"dark wall side, {label}: {name}", "",
+                         f"{t / m * 1e6:.1f} us = {t / m / ray:.0f} rays", "",
+                         f"peak numpy memory {peak / 1e6:.1f} MB for {m:,} queries", ""))
+
+    print("| lookup | build | one estimate, random order | coherent order | note | memory / photon |")
+    print("|---|---:|---:|---:|---|---:|")
+    for r in rows:
+        print("| " + " | ".join(r) + " |")
+    return rows
+
+
+if __name__ == "__main__":
+    main()

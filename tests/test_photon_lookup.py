@@ -1,0 +1,278 @@
+"""The compiled photon lookups (engine/kdtree.py, engine/hashgrid.py, engine/photonmap.py)
+against scipy's cKDTree and against the numpy estimators they replaced
+(tests/reference_photonmap.py):
+- k-NN neighbour sets and sphere counts are cKDTree's, on random points, on many identical
+  points (a focus) and on tiny sets;
+- the kd-tree is left-balanced and ordered (every node splits its subtree);
+- every estimator (k-NN Simpson / cone with widening, classic, radius; boundary flags;
+  r_floor; min_photons) matches the reference on synthetic maps (corners, a wall lit only
+  on its far side, a focus) and on a real scene's global and caustic maps;
+- the widening search has a fixed memory budget (issue 16), and results do not depend on
+  the number of worker threads.
+"""
+import os
+import subprocess
+import sys
+import tracemalloc
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from engine import RenderSettings
+from engine.api import cornell_box
+from engine.hashgrid import HashGrid
+from engine.hashgrid import ball_count as grid_ball_count
+from engine.hashgrid import cells_spanned
+from engine.kdtree import KdTree, ball, ball_count
+from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
+                              PhotonMap)
+from engine.photons import Photons
+from engine.render import _photon_pass, prepare_context
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from reference_photonmap import ReferencePhotonMap  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _structures(points, cell):
+    return {"kdtree": KdTree(points), "hashgrid": HashGrid(points, cell)}
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 7, 1000, 30000])
+@pytest.mark.parametrize("structure", ["kdtree", "hashgrid"])
+def test_knn_and_sphere_counts_match_ckdtree(n, structure):
+    rng = np.random.default_rng(n)
+    pts = rng.random((n, 3)).astype(np.float32)
+    if n >= 1000:
+        pts[: n // 4] = pts[0]  # a focus: many identical points
+    s = _structures(pts, 0.1)[structure]
+    ref = cKDTree(pts.astype(np.float64))
+    q = rng.random((400, 3)) * 1.2 - 0.1
+    q[:20] = pts[0]
+    for k in (1, 8, 64):
+        k = min(k, n)
+        d, i = s.query(q, k, 0.1)
+        dr, ir = ref.query(q, k=k, distance_upper_bound=0.1)
+        dr, ir = dr.reshape(len(q), -1), ir.reshape(len(q), -1)
+        np.testing.assert_allclose(d, dr, rtol=1e-12)
+        found = i < n
+        assert (found == (ir < n)).all()
+        # Same points (ties at equal distance may come in another order).
+        mine = np.where(found, s.order[np.minimum(i, n - 1)], -1)
+        theirs = np.where(ir < n, ir, -1)
+        assert (np.sort(mine, axis=1) == np.sort(theirs, axis=1)).all() or \
+            np.allclose(np.sort(d, axis=1), np.sort(dr, axis=1))
+    counts = ref.query_ball_point(q, 0.05, return_length=True)
+    if structure == "kdtree":
+        mine = [ball_count(s.position, s.axis, s.bounds, *x, 0.05 ** 2) for x in q]
+        out = np.empty(len(pts) + 1, np.int64)
+        listed = [ball(s.position, s.axis, *x, 0.05 ** 2, out, len(pts)) for x in q]
+        assert listed == list(counts)
+        assert ball(s.position, s.axis, *q[0], 0.05 ** 2, out, 0) == (1 if counts[0] else 0)
+    else:
+        buckets = np.empty(cells_spanned(s.grid, 0.05), np.int64)
+        mine = [grid_ball_count(s.position, s.start, s.grid, *x, 0.05 ** 2, buckets) for x in q]
+    assert list(mine) == list(counts)
+
+
+def test_kdtree_is_left_balanced_and_ordered():
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 5, 6, 7, 8, 100, 1023, 1024, 1025):
+        pts = rng.random((n, 3)).astype(np.float32)
+        t = KdTree(pts)
+        assert sorted(t.order) == list(range(n))  # a permutation of the input
+        np.testing.assert_array_equal(t.position, pts[t.order])
+
+        def subtree(i):
+            out, todo = [], [i]
+            while todo:
+                j = todo.pop()
+                if j < n:
+                    out.append(j)
+                    todo += [2 * j + 1, 2 * j + 2]
+            return out
+
+        for i in range(min(n, 200)):
+            ax = t.axis[i]
+            left, right = subtree(2 * i + 1), subtree(2 * i + 2)
+            assert all(t.position[j, ax] <= t.position[i, ax] for j in left)
+            assert all(t.position[j, ax] >= t.position[i, ax] for j in right)
+
+
+def _plane(n, rng, z=0.0, nz=1.0):
+    pos = np.c_[rng.random((n, 2)), np.full(n, z)].astype(np.float32)
+    nrm = np.tile(np.float32([0, 0, nz]), (n, 1))
+    d = rng.normal(size=(n, 3))
+    d[:, 2] = -np.abs(d[:, 2]) * nz
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    return Photons(pos, rng.random((n, 3)).astype(np.float32), d.astype(np.float32), nrm,
+                   np.zeros(n, np.uint8))
+
+
+def _join(*parts):
+    return Photons(*(np.concatenate([getattr(a, f) for a in parts])
+                     for f in ("position", "power", "direction", "normal", "kind")))
+
+
+def _focus(n, at=(0.5, 0.5, 0.0)):
+    z = np.tile(np.float32([0, 0, 1]), (n, 1))
+    return Photons(np.tile(np.float32(at), (n, 1)), np.ones((n, 3), np.float32), -z, z,
+                   np.zeros(n, np.uint8))
+
+
+def _assert_same(ref, pm, q, nq, radius, k, min_photons, est, r_floor):
+    Er, Br = ref.irradiance(q, nq, radius, k, min_photons, est, return_boundary=True,
+                            r_floor=r_floor)
+    E, B = pm.irradiance(q, nq, radius, k, min_photons, est, return_boundary=True,
+                         r_floor=r_floor)
+    scale = max(np.abs(Er).max(), 1e-30)
+    np.testing.assert_allclose(E, Er, rtol=1e-6, atol=1e-7 * scale)
+    assert (B == Br).all(), f"{est}: {np.count_nonzero(B != Br)} boundary flags differ"
+    E_only = pm.irradiance(q, nq, radius, k, min_photons, est, r_floor=r_floor)
+    np.testing.assert_array_equal(E_only, E)
+    return E
+
+
+@pytest.mark.parametrize("structure", ["kdtree", "hashgrid"])
+def test_estimators_match_the_numpy_reference(structure):
+    rng = np.random.default_rng(3)
+    floor = _plane(20000, rng)
+    wall = _plane(20000, rng, z=0.001, nz=-1.0)  # a thin wall's far side, just above
+    maps = {"floor": floor, "corner": _join(floor, wall), "far side only": wall,
+            "focus": _join(_focus(3000), floor)}
+    q = np.c_[rng.random((600, 2)), np.zeros(600)]
+    q[:40, :2] = 0.5 + rng.normal(size=(40, 2)) * 1e-3  # on and around the focus
+    nq = np.tile([0.0, 0.0, 1.0], (len(q), 1))
+    r_floor = rng.random(len(q)) * 0.01
+    for name, ph in maps.items():
+        ref = ReferencePhotonMap(ph, 1)
+        pm = PhotonMap(ph, 1, structure=structure, cell=0.05)
+        for est in ESTIMATOR_CODES:
+            for rf in (None, r_floor):
+                for k, mp in ((64, 8), (16, 1)) if est == "knn_simpson" else ((64, 8),):
+                    E = _assert_same(ref, pm, q, nq, 0.05, k, mp, est, rf)
+                    if name == "far side only":
+                        assert not E.any()  # light of the other side never leaks
+
+
+def test_estimators_match_the_reference_on_a_real_scene():
+    """The global and caustic maps of the glass-ball Cornell box, queried at photon
+    positions (walls, corners, the ball's contact, the caustic) with their normals."""
+    st = RenderSettings(photons=20000, caustic_photons=20000, final_gather=False, workers=1)
+    ctx = prepare_context(cornell_box(width=32, height=24), st)
+    _photon_pass(ctx, {}, None, None)
+    rng = np.random.default_rng(0)
+    checked = 0
+    for pm, radius in ((ctx.global_map, ctx.global_radius),
+                       (ctx.caustic_map, ctx.caustic_radius)):
+        assert pm is not None and len(pm) > 500
+        ph = pm.photons
+        sel = rng.choice(len(ph), 800, replace=False)
+        q = ph.position[sel].astype(np.float64) + rng.normal(size=(800, 3)) * radius * 0.1
+        nq = ph.normal[sel].astype(np.float64)
+        ref = ReferencePhotonMap(ph, 1)
+        for est in ESTIMATOR_CODES:
+            E = _assert_same(ref, pm, q, nq, radius, st.k_nearest, st.min_photons, est,
+                             np.full(len(q), radius * 0.02))
+            checked += np.count_nonzero(E[:, 0])
+    assert checked > 3000  # most queries found light
+
+
+def test_gather_map_lookups_match_ckdtree():
+    rng = np.random.default_rng(8)
+    ph = _join(_plane(30000, rng), _plane(30000, rng, z=0.002, nz=-1.0))
+    g = GatherMap(ph, 0.05, 32, 4, "knn_simpson", max_points=5000)
+    q = np.c_[rng.random((3000, 2)), np.full(3000, 0.001)]
+    up = np.tile([0.0, 0.0, 1.0], (3000, 1))
+    E, B = g.lookup(q, up)
+    # Reference: the nearest gather point facing the query's way, by cKDTree.
+    ref = cKDTree(g.position)
+    d, i = ref.query(q, k=64, distance_upper_bound=0.05)
+    ok = (i < len(g.position)) & (g.normal[np.minimum(i, len(g.position) - 1)] @ up[0] > 0.7)
+    first = np.argmax(ok, axis=1)
+    has = ok.any(axis=1)
+    chosen = i[np.arange(len(q)), first]
+    np.testing.assert_array_equal(E[has], g.E[chosen[has]])
+    np.testing.assert_array_equal(B[has], g.boundary[chosen[has]])
+    assert not E[~has].any() and B[~has].all()
+
+
+def test_widening_has_a_fixed_memory_budget():
+    """Issue 16: caustic queries beside a wall lit only on its far side find only the
+    other surface's photons and would widen to MAX_WIDEN_K. Memory must not grow with
+    rows x k (the numpy estimator allocated about rows x 4096 x 40 B per block:
+    gigabytes), whether the sphere scan settles the row (fewer than SCAN_BUDGET photons in
+    the sphere) or the full widening runs (more)."""
+    rng = np.random.default_rng(2)
+    far = _plane(600_000, rng, z=0.001, nz=-1.0)
+    pm = PhotonMap(far, workers=2)
+    for m, radius in ((20000, 0.08), (100, 0.2)):  # ~12,000 and ~75,000 in the sphere
+        q = np.c_[0.2 + 0.6 * rng.random((m, 2)), np.zeros(m)]
+        nq = np.tile([0.0, 0.0, 1.0], (m, 1))
+        inside = len(far.position) * np.pi * radius ** 2
+        assert (inside > SCAN_BUDGET) == (radius > 0.1)
+        pm.irradiance(q[:2], nq[:2], radius, 64, 8, "knn_simpson")  # compiled already
+        tracemalloc.start()
+        E, B = pm.irradiance(q, nq, radius, 64, 8, "knn_simpson", return_boundary=True)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert not E.any() and B.all()
+        inputs_outputs = m * (3 * 8 * 3 + 1)  # p, n copies and E (float64), boundary
+        assert peak < inputs_outputs + (1 << 20), f"peak {peak / 1e6:.1f} MB"
+    # The kernel's own scratch is fixed too: MAX_WIDEN_K neighbours, SCAN_BUDGET indices.
+    assert MAX_WIDEN_K * 16 + SCAN_BUDGET * 8 <= (1 << 20)
+
+
+def test_results_do_not_depend_on_workers():
+    rng = np.random.default_rng(4)
+    ph = _join(_plane(50000, rng), _plane(5000, rng, z=0.001, nz=-1.0), _focus(500))
+    q = np.c_[rng.random((30000, 2)), np.zeros(30000)]
+    nq = np.tile([0.0, 0.0, 1.0], (len(q), 1))
+    one = PhotonMap(ph, workers=1).irradiance(q, nq, 0.03, 64, 8, "knn_simpson",
+                                               return_boundary=True)
+    two = PhotonMap(ph, workers=2).irradiance(q, nq, 0.03, 64, 8, "knn_simpson",
+                                               return_boundary=True)
+    np.testing.assert_array_equal(one[0], two[0])
+    np.testing.assert_array_equal(one[1], two[1])
+
+
+def test_bad_structure_and_estimator_are_refused():
+    ph = _focus(10)
+    with pytest.raises(ValueError, match="structure"):
+        PhotonMap(ph, structure="octree")
+    with pytest.raises(ValueError, match="cell"):
+        PhotonMap(ph, structure="hashgrid")
+    with pytest.raises(ValueError, match="estimator"):
+        PhotonMap(ph).irradiance(np.zeros((1, 3)), np.ones((1, 3)), 0.1, 8, 1, "gauss")
+    with pytest.raises(ValueError, match=r"shape \(N, 3\)"):
+        KdTree(np.zeros((4, 2)))
+
+
+def test_unwritable_cache_dir_falls_back_to_a_writable_one():
+    """numba raises at decoration time when it cannot write its cache; the engine must
+    still load (a read-only or invalid NUMBA_CACHE_DIR)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR="/dev/null/not-a-dir")
+    code = "import engine.jit as j, os; print(j.CACHE_DIR); print(os.access(j.CACHE_DIR, os.W_OK))"
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    path, writable = out.stdout.split()
+    assert not path.startswith("/dev/null") and writable == "True"
+
+
+@pytest.mark.slow
+def test_first_process_compiles_and_says_so_later_ones_load(tmp_path):
+    """A fresh cache: needs_compile() is True and the progress callback hears the
+    message; a second process finds the cache and compiles nothing."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    code = ("import engine.jit as j; seen = []; need = j.needs_compile(); "
+            "j.ensure_compiled(lambda s, f, t: seen.append(t)); print(need, seen)")
+    first = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
+                           capture_output=True, text=True, timeout=600)
+    assert first.returncode == 0, first.stderr
+    assert first.stdout.strip() == "True ['Compiling render kernels (first render only)']"
+    second = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
+                            capture_output=True, text=True, timeout=600)
+    assert second.stdout.strip() == "False []", second.stderr
