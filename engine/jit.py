@@ -1,0 +1,125 @@
+"""Compiled kernels: numba set-up (cache directory, the one decorator) and the first-use
+compile step.
+
+Every kernel is `@kernel`: numba's `njit(nogil=True, cache=True)`. nogil lets
+engine/parallel.py's threads run kernels on all cores; there is no parallel=True / prange
+(numba's threading layers conflict with Blender's libtbb and abort on concurrent calls).
+cache=True writes the machine code to NUMBA_CACHE_DIR, so only the first render on a
+machine compiles (seconds); later processes load it (a fraction of a second).
+
+NUMBA_CACHE_DIR must be set before numba is imported. The Blender add-on sets it to its
+extension's user folder (addon/core.py); otherwise this module picks a user cache folder
+(XDG_CACHE_HOME or ~/.cache, %LOCALAPPDATA%, ~/Library/Caches: photonmap/numba), unless
+NUMBA_CACHE_DIR is set already. numba raises at decoration time when it cannot write its
+cache, so an unwritable folder is replaced by one in the temporary directory.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import tempfile
+import time
+
+COMPILE_MESSAGE = "Compiling render kernels (first render only)"
+
+
+def _user_cache_dir() -> str:
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or os.path.expanduser("~\\AppData\\Local")
+    elif sys.platform == "darwin":
+        base = os.path.expanduser("~/Library/Caches")
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
+    return os.path.join(base, "photonmap", "numba")
+
+
+def _writable(path: str) -> bool:
+    try:
+        os.makedirs(path, exist_ok=True)
+        probe = tempfile.NamedTemporaryFile(dir=path, prefix=".probe", delete=True)
+        probe.close()
+        return True
+    except OSError:
+        return False
+
+
+def _choose_cache_dir() -> str:
+    path = os.environ.get("NUMBA_CACHE_DIR") or _user_cache_dir()
+    if not _writable(path):
+        user = getattr(os, "getuid", lambda: "user")()
+        path = os.path.join(tempfile.gettempdir(), f"photonmap-numba-{user}")
+        os.makedirs(path, exist_ok=True)
+    return path
+
+
+CACHE_DIR = _choose_cache_dir()
+os.environ["NUMBA_CACHE_DIR"] = CACHE_DIR
+if "numba" in sys.modules:  # imported earlier (another add-on): make it see the folder
+    import numba.core.config
+    numba.core.config.reload_config()
+
+import numba  # noqa: E402  (after NUMBA_CACHE_DIR is set)
+
+kernel = numba.njit(nogil=True, cache=True)
+
+# Kernel modules register a warm-up (a call on tiny inputs that compiles or loads every
+# specialisation a render uses) here when they are imported.
+_warm_ups: list = []
+_warm = False
+
+
+def register_warm_up(fn):
+    """Decorator: fn() compiles (or loads from the cache) one module's kernels."""
+    _warm_ups.append(fn)
+    return fn
+
+
+def _stamp() -> str:
+    """Identifies the kernels' source and the numba version: the cache is current for
+    exactly this stamp."""
+    h = hashlib.sha1(numba.__version__.encode())
+    for fn in _warm_ups:
+        path = sys.modules[fn.__module__].__file__
+        with open(path, "rb") as f:
+            h.update(f.read())
+    return h.hexdigest()[:16]
+
+
+def _marker() -> str:
+    return os.path.join(CACHE_DIR, f"photonmap-{_stamp()}.compiled")
+
+
+def needs_compile() -> bool:
+    """True when the next ensure_compiled() will compile (no usable cache on disk)."""
+    if _warm:
+        return False
+    _import_kernel_modules()
+    return not os.path.exists(_marker())
+
+
+def ensure_compiled(progress=None) -> float:
+    """Compile (first run on this machine) or load (later processes) every kernel, once
+    per process. progress(stage, fraction, text) hears COMPILE_MESSAGE before a compile
+    starts, so the user knows why the first render pauses. Returns the seconds spent."""
+    global _warm
+    if _warm:
+        return 0.0
+    t0 = time.perf_counter()
+    compiling = needs_compile()
+    if compiling and progress is not None:
+        progress("compile", 0.0, COMPILE_MESSAGE)
+    for fn in _warm_ups:
+        fn()
+    _warm = True
+    if compiling:
+        try:
+            open(_marker(), "w").close()
+        except OSError:
+            pass  # only the message's accuracy depends on it
+    return time.perf_counter() - t0
+
+
+def _import_kernel_modules():
+    # The modules that define kernels (each registers its warm-up when imported).
+    from . import hashgrid, kdtree, photonmap  # noqa: F401

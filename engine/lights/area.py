@@ -1,0 +1,119 @@
+"""Area light: a rectangle or ellipse emitting one-sided uniform radiance P/(pi A) along
+its -Z axis (the light's `dir`), optionally narrowed by Blender's spread (Cycles'
+kernel/light/area.h); a sheared object transform keeps a parallelogram."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..rayoffset import G64, ulp32
+from ..sampling import concentric_disk, cosine_hemisphere, dot, to_world
+from ..scene import AREA, DISK, spread_attenuation
+from .base import Light, finish_area
+
+
+class AreaLight(Light):
+    kind = AREA
+
+    @classmethod
+    def from_scene(cls, light, geo, common):
+        if light.area <= 0:
+            return None
+        kw = cls.scene_params(light, geo, common)
+        flux = light.flux
+        kw.update(area=light.area, flux=flux, radiance=flux / (math.pi * light.area),
+                  photon_flux=flux)
+        return cls(light.name, **kw)
+
+    def points(self, u1, u2):
+        """Uniform points on the rectangle or ellipse."""
+        if self.shape == DISK:
+            x, yy = concentric_disk(u1, u2)
+            x, yy = x * self.size_x / 2, yy * self.size_y / 2
+        else:
+            x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
+        # du, dv: the dual basis of (u, v) in the light's plane (= u, v unless sheared),
+        # so that p.u and p.v span the region the intersection test accepts.
+        return self.pos + x[:, None] * self.du + yy[:, None] * self.dv
+
+    def _gap(self, y):
+        """How far before the light's plane a shadow ray to its point y must end: y is
+        pos + x u + y v in float64, then rounded to float32 as a ray end."""
+        err = G64 * (np.abs(self.pos) + np.abs(y - self.pos)) + ulp32(y)
+        an = np.abs(self.dir)
+        return an[0] * err[:, 0] + an[1] * err[:, 1] + an[2] * err[:, 2]
+
+    def _sample(self, p, ns, ng, rng, u1, u2):
+        n = len(p)
+        if (self.spread < math.pi and self.shape != DISK and np.allclose(self.du, self.u)
+                and np.allclose(self.dv, self.v)):  # a sheared light samples it whole
+            return self._sample_spread_rect(p, ns, ng, u1, u2)
+        y = self.points(u1, u2)
+        ls = finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (n, 3)),
+                         np.broadcast_to(self.radiance * self.area, (n, 3)),
+                         two_sided=False, gap=self._gap(y))
+        if self.spread < math.pi:
+            ls.E = ls.E * spread_attenuation(dot(-ls.wi, self.dir), self.spread)[:, None]
+        return ls
+
+    def _sample_spread_rect(self, p, ns, ng, u1, u2):
+        """A rectangle with a narrow spread lights p only from the part of it within
+        tan(h) x (p's height over its plane) of p's foot point: sample that part only, as
+        Cycles does (kernel/light/area.h, area_light_spread_clamp_light); the rest has
+        f = 0. Same expectation as sampling the whole rectangle, far less noise."""
+        rel = p - self.pos
+        height = dot(rel, self.dir)             # > 0 in front of the light (dir: emission)
+        reach = np.maximum(height, 0.0) * math.tan(0.5 * self.spread)
+        pu, pv = dot(rel, self.u), dot(rel, self.v)
+        hx, hy = self.size_x / 2, self.size_y / 2
+        x0, x1 = np.maximum(pu - reach, -hx), np.minimum(pu + reach, hx)
+        y0, y1 = np.maximum(pv - reach, -hy), np.minimum(pv + reach, hy)
+        wx, wy = np.maximum(x1 - x0, 0.0), np.maximum(y1 - y0, 0.0)
+        x = x0 + u1 * wx
+        yy = y0 + u2 * wy
+        y = self.pos + x[:, None] * self.u + yy[:, None] * self.v
+        area = (wx * wy)[:, None]               # the sampled part: pdf 1 / area
+        ls = finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (len(p), 3)),
+                         self.radiance[None, :] * area, two_sided=False, gap=self._gap(y))
+        ls.E = ls.E * spread_attenuation(dot(-ls.wi, self.dir), self.spread)[:, None]
+        return ls
+
+    def _emit(self, n, rng, u1, u2, u3, u4):
+        o = self.points(u1, u2)
+        if self.spread < math.pi:
+            # Cosine-distributed inside the spread cone (a disk of radius sin h under
+            # the hemisphere): pdf cos a / (pi sin^2 h); the radiance's cos a f(a) / pi
+            # over that pdf leaves the weight f(a) sin^2 h (mean 1: flux kept).
+            sin_h = math.sin(0.5 * self.spread)
+            x, yy = concentric_disk(u3, u4)
+            x, yy = x * sin_h, yy * sin_h
+            local = np.stack([x, yy, np.sqrt(np.maximum(1.0 - x * x - yy * yy, 0.0))], 1)
+            d = to_world(local, np.broadcast_to(self.dir, (n, 3)))
+            w = spread_attenuation(local[:, 2], self.spread) * sin_h * sin_h
+            return o, d, (self.flux / n)[None, :] * w[:, None]
+        d = to_world(cosine_hemisphere(u3, u4), np.broadcast_to(self.dir, (n, 3)))
+        return o, d, np.broadcast_to(self.flux / n, (n, 3)).copy()
+
+    def _aim_origins(self, n, rng, u1, u2):
+        return self.points(u1, u2), None, self.pos, None
+
+    def _aimed_photons(self, n, rng, o, d, normal, state, aimed):
+        cos = dot(d, self.dir)
+        pdf_nat = np.maximum(cos, 0.0) / math.pi * spread_attenuation(cos, self.spread)
+        return o, d, (self.flux / n)[None, :] * (pdf_nat / aimed)[:, None]
+
+    def intersect(self, o, d, tmax):
+        """One-sided: a ray must travel against the emission to see the light."""
+        n = len(o)
+        denom = dot(d, self.dir)
+        facing = denom < -1e-12
+        t = np.where(facing, dot(self.pos - o, self.dir) / np.where(facing, denom, -1.0), np.inf)
+        hitp = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d - self.pos
+        x, y = dot(hitp, self.u) / (self.size_x / 2), dot(hitp, self.v) / (self.size_y / 2)
+        inside = (x * x + y * y <= 1.0) if self.shape == DISK else ((np.abs(x) <= 1) & (np.abs(y) <= 1))
+        mask = facing & inside & (t > 0) & (t < tmax)
+        L = np.broadcast_to(self.radiance, (n, 3))
+        if self.spread < math.pi:
+            L = L * spread_attenuation(-denom, self.spread)[:, None]
+        return mask, t, L

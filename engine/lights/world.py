@@ -1,0 +1,38 @@
+"""World: a non-black background as a uniform environment of radiance `background`
+(when the scene lets the background light it), sampled by the cosine hemisphere."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..sampling import cosine_hemisphere, dot, to_world, uniform_sphere
+from .base import InfiniteLight, LightSample
+
+WORLD = "WORLD"
+
+
+class WorldLight(InfiniteLight):
+    kind = WORLD
+    declared = False
+
+    @classmethod
+    def from_background(cls, scene, common):
+        """The world light of the scene, or None (black background, or not a light)."""
+        bg = np.asarray(scene.background, np.float64)
+        if not (scene.background_is_light and np.any(bg > 0)):
+            return None
+        radius = common["scene_radius"]
+        return cls("world", radiance=bg,
+                   photon_flux=bg * math.pi * radius ** 2 * 4.0 * math.pi,
+                   radius=0.0, visible_camera=True, cos_half_angle=1.0, **common)
+
+    def _sample(self, p, ns, ng, rng, u1, u2):
+        n = len(p)
+        wi = to_world(cosine_hemisphere(u1, u2), ns)
+        ok = dot(wi, ng) > 0
+        E = math.pi * self.radiance[None, :] * ok[:, None]
+        return LightSample(wi, np.full(n, np.inf), E)
+
+    def _directions(self, n, u1, u2):
+        return uniform_sphere(u1, u2)
