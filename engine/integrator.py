@@ -20,7 +20,8 @@ from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
 from .rayoffset import (offset_along_normal, segment_to, shift_cos_in, smooth_surface_lift,
                         terminator_amount)
-from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, to_world
+from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
+                       to_world)
 from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
 
 
@@ -86,7 +87,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         samples = plan.light_samples.get(light.name, 1)
         trace_shadows = plan.shadows.get(light.name, True)
         for si in range(samples):
-            uv = sampler.uv(2 + 64 * li + si) if sampler is not None else None
+            uv = sampler.uv(("light", li, si)) if sampler is not None else None
             ls = light.sample(hit.p, hit.ns, gate, rng, uv)
             if len(shift):
                 # Cycles' shading offset: direct light towards the terminator dimmed.
@@ -190,7 +191,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     E = np.zeros((n, 3))
     G = rays or ctx.settings.gather_rays
     for g in range(G):
-        u1, u2 = sampler.uv(1 + 64 * g) if sampler is not None else (rng.random(n), rng.random(n))
+        u1, u2 = sampler.uv(("gather", g)) if sampler is not None else (rng.random(n), rng.random(n))
         d = to_world(cosine_hemisphere(u1, u2), hit.ns)
         idx = np.nonzero(dot(d, hit.ng) > 0)[0]
         o = hit.clear(idx, d[idx])
@@ -375,6 +376,22 @@ class Accumulator:
 
 
 
+def camera_dimensions(gather_rays: int, light_samples) -> SampleDimensions:
+    """The first-hit sampler's dimensions: ("gather", g) for each final-gather ray and
+    ("light", li, si) for each shadow sample si of light li (light_samples[li] of them).
+    Preferred numbers are the ones used before dimensions were allocated (gather
+    1 + 64 g, light 2 + 64 li + si), so images stay as they were; they collided once a
+    light took >= 63 samples (its sample 63 met gather ray li + 1, sample 64 + k met light
+    li + 1's sample k). Gather rays claim first, then light samples by sample index, so
+    only the later of two colliding streams moves (SampleDimensions)."""
+    requests = [(("gather", g), 1 + 64 * g) for g in range(gather_rays)]
+    for si in range(max(light_samples, default=0)):
+        for li, n in enumerate(light_samples):
+            if si < n:
+                requests.append((("light", li, si), 2 + 64 * li + si))
+    return SampleDimensions(requests)
+
+
 def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Counters:
     s = ctx.settings
     x0, y0, x1, y1 = region
@@ -389,10 +406,12 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     threads = s.threads
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
+    dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
+                                             for li in ctx.lights])
 
     def job(item, stop):
         ci, start = item
-        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop)
+        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop, dims)
 
     try:
         for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel):
@@ -405,7 +424,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     return counters
 
 
-def _render_chunk(ctx, region, ci, start, end, should_cancel):
+def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     """Camera samples [start, end) of the region (sample = pixel * spp + sub-sample):
     returns their sums over the pixels they touch, the ray counters, and `end`."""
     s = ctx.settings
@@ -439,7 +458,7 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel):
     o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
     counters.camera_rays += len(o)
     tp = np.ones((len(o), 3))
-    sampler = StratifiedSampler(sub, pix, spp, rng)
+    sampler = StratifiedSampler(sub, pix, spp, rng, dims)
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
