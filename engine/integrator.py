@@ -15,7 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .directlight import direct_light
 from .lights import MESH
+from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
 from .rayoffset import (offset_along_normal, segment_to, shift_cos_in, smooth_surface_lift,
@@ -72,38 +74,60 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                       skip_mesh_lights=False) -> np.ndarray:
-    """Irradiance from all lights by shadow rays (one ray per sample, tested for occlusion).
+    """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
+    tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
     by its own rays, which stays calm right next to the emitter)."""
-    E = np.zeros((len(hit.p), 3))
+    n = len(hit.p)
     plan = ctx.plan
-    gate = _lit_side_normals(ctx.geo, hit)
-    shading_offset = (np.take(ctx.geo.terminator_shading, hit.prim)
-                      if len(hit.prim) else np.zeros(0))
-    shift = np.nonzero(shading_offset > 0)[0]
+    # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
+    # mesh light's triangle choice), sample by sample.
+    samples = []
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
             continue
-        samples = plan.light_samples.get(light.name, 1)
-        trace_shadows = plan.shadows.get(light.name, True)
-        for si in range(samples):
-            uv = sampler.uv(("light", li, si)) if sampler is not None else None
-            ls = light.sample(hit.p, hit.ns, gate, rng, uv)
-            if len(shift):
-                # Cycles' shading offset: direct light towards the terminator dimmed.
-                ls.E[shift] *= shift_cos_in(dot(ls.wi[shift], hit.ns[shift]),
-                                            shading_offset[shift])[:, None]
-            lit = np.nonzero(max3(ls.E) > 0)[0]
-            if len(lit) == 0:
-                continue
-            if trace_shadows:
-                o, wi, tmax = shadow_rays(hit, ls, lit, ctx.geo)
-                blocked = ctx.accel.occluded(o, wi, tmax, cls=SHADOW)
-                counters.shadow_rays += len(lit)
-            else:
-                blocked = np.zeros(len(lit), bool)
-            E[lit] += ls.E[lit] * (~blocked)[:, None] / samples
+        count = plan.light_samples.get(light.name, 1)
+        traced = plan.shadows.get(light.name, True)
+        for si in range(count):
+            u1, u2 = (sampler.uv(("light", li, si)) if sampler is not None
+                      else (rng.random(n), rng.random(n)))
+            sel = rng.random(n) if light.kind == MESH else None
+            samples.append((li, traced, count, u1, u2, sel))
+    if n == 0 or not samples:
+        return np.zeros((n, 3))
+    packed = getattr(ctx, "packed_lights", None)
+    if packed is None:
+        packed = pack_lights(ctx.lights)
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n)
+    counters.shadow_rays += rays
     return E
+
+
+def _hit_arrays(geo, hit):
+    """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
+    light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
+    offset, and the shadow-terminator cut-off and smooth-surface lift of smooth triangles."""
+    n = len(hit.p)
+    c = np.ascontiguousarray
+    gate = _lit_side_normals(geo, hit)
+    shading_offset = np.take(geo.terminator_shading, hit.prim) if n else np.zeros(0)
+    cutoff = np.zeros(n)
+    lift = np.zeros((n, 3))
+    if hit.bary is not None and n:
+        prim = hit.prim
+        cut = np.take(geo.terminator, prim)
+        cand = np.nonzero(np.take(geo.smooth, prim) & (cut > 0))[0]
+        if len(cand):
+            t = prim[cand]
+            b = hit.bary[cand]
+            cutoff[cand] = cut[cand]
+            lift[cand] = smooth_surface_lift(
+                np.take(geo.v0, t, axis=0), np.take(geo.e1, t, axis=0),
+                np.take(geo.e2, t, axis=0), np.take(geo.corner_normals, t, axis=0),
+                b[:, 0], b[:, 1], hit.ng[cand])
+    return (c(hit.p, np.float64), c(hit.ns, np.float64), c(gate, np.float64),
+            c(hit.ng, np.float64), c(hit.offset, np.float64),
+            c(shading_offset, np.float64), cutoff, lift)
 
 
 def shadow_rays(hit, ls, rows, geo=None):

@@ -10,6 +10,7 @@ import numpy as np
 from ..rayoffset import G64, ulp32
 from ..sampling import concentric_disk, cosine_hemisphere, dot, to_world
 from ..scene import AREA, DISK, spread_attenuation
+from . import packing as pk
 from .base import Light, finish_area
 
 
@@ -25,6 +26,28 @@ class AreaLight(Light):
         kw.update(area=light.area, flux=flux, radiance=flux / (math.pi * light.area),
                   photon_flux=flux)
         return cls(light.name, **kw)
+
+    def _spread_rect(self) -> bool:
+        """A rectangle with a narrow spread samples only the part that reaches the point
+        (_sample_spread_rect); a sheared one samples it whole."""
+        return bool(self.spread < math.pi and self.shape != DISK and np.allclose(self.du, self.u)
+                    and np.allclose(self.dv, self.v))
+
+    def pack(self, row) -> int:
+        """Write the kernel parameters (engine/lights/packing.py); returns the kind code."""
+        for slot, value in ((pk.POS, self.pos), (pk.DIR, self.dir), (pk.U, self.u),
+                            (pk.V, self.v), (pk.DU, self.du), (pk.DV, self.dv),
+                            (pk.RGB, self.radiance)):
+            row[slot:slot + 3] = value
+        row[pk.SIZE_X], row[pk.SIZE_Y], row[pk.AREA_] = self.size_x, self.size_y, self.area
+        row[pk.IS_DISK] = self.shape == DISK
+        row[pk.SPREAD_RECT] = self._spread_rect()
+        # spread_attenuation (engine/scene.py) is 1 from pi - 1e-6 on.
+        row[pk.SPREAD_ON] = self.spread < math.pi - 1e-6
+        h = 0.5 * self.spread
+        row[pk.TAN_H] = math.tan(h)
+        row[pk.SPREAD_NORM] = (1.0 / (math.tan(h) - h) if h > 0.05 else 3.0 / h ** 3) if h > 0 else 0.0
+        return pk.CODE_AREA
 
     def points(self, u1, u2):
         """Uniform points on the rectangle or ellipse."""
@@ -46,8 +69,7 @@ class AreaLight(Light):
 
     def _sample(self, p, ns, ng, rng, u1, u2):
         n = len(p)
-        if (self.spread < math.pi and self.shape != DISK and np.allclose(self.du, self.u)
-                and np.allclose(self.dv, self.v)):  # a sheared light samples it whole
+        if self._spread_rect():
             return self._sample_spread_rect(p, ns, ng, u1, u2)
         y = self.points(u1, u2)
         ls = finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (n, 3)),

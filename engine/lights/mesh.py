@@ -9,6 +9,7 @@ import numpy as np
 from ..geometry import emissive_triangles
 from ..rayoffset import embree_plane_error, origin_offset, tilt_error, triangle_point_error
 from ..sampling import cosine_hemisphere, dot, luminance, offset_origin, to_world, uniform_triangle
+from . import packing as pk
 from .base import Light, finish_area
 
 MESH = "MESH"
@@ -36,6 +37,10 @@ class MeshLight(Light):
                    tri_index=idx, photon_flux=flux, flux=flux, radius=0.0, visible_camera=True,
                    round32=geo.round32[idx], tilt32=geo.tilt32[idx],
                    cos_half_angle=1.0, **common)
+
+    def pack(self, row) -> int:
+        """The triangles travel as arrays (packing.pack_lights); returns the kind code."""
+        return pk.CODE_MESH
 
     def _point(self, rng, u1, u2):
         """(triangle index, point, barycentrics b1, b2) on the emissive triangles, chosen

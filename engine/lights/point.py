@@ -10,6 +10,7 @@ import numpy as np
 from ..sampling import (concentric_disk, cosine_hemisphere, dot, orthonormal_basis, to_world,
                         uniform_sphere)
 from ..scene import POINT
+from . import packing as pk
 from .base import Light, LightSample, min_dist2
 
 
@@ -31,6 +32,13 @@ class PointLight(Light):
     @property
     def has_size(self) -> bool:
         return self.radius > 0
+
+    def pack(self, row) -> int:
+        """Write the kernel parameters (engine/lights/packing.py); returns the kind code."""
+        row[pk.POS:pk.POS + 3] = self.pos
+        row[pk.RGB:pk.RGB + 3] = self.intensity
+        row[pk.RADIUS] = self.radius
+        return pk.CODE_POINT
 
     def _falloff(self, axis):
         """Directional factor of the emitted intensity along unit directions axis (N,3)

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..sampling import concentric_disk, orthonormal_basis, to_world, uniform_cone
 from ..scene import SPOT, spot_bounding_cos, spot_cone_cos, spot_mask
+from . import packing as pk
 from .point import PointLight
 
 
@@ -23,6 +24,14 @@ class SpotLight(PointLight):
     def _spot(self, w):
         """Spot mask for world directions w (N,3) leaving the light."""
         return spot_mask(spot_cone_cos(w, self.spot_frame), self.spot_size, self.spot_blend)
+
+    def pack(self, row) -> int:
+        super().pack(row)
+        cos_half = math.cos(self.spot_size / 2.0)
+        row[pk.SPOT_COS_HALF] = cos_half
+        row[pk.SPOT_WIDTH] = (1.0 - cos_half) * self.spot_blend
+        row[pk.SPOT_FRAME:pk.SPOT_FRAME + 9] = np.asarray(self.spot_frame, np.float64).ravel()
+        return pk.CODE_SPOT
 
     def _falloff(self, axis):
         return self._spot(axis)

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..sampling import dot, to_world, uniform_cone
 from ..scene import SUN
+from . import packing as pk
 from .base import InfiniteLight, LightSample
 
 
@@ -30,6 +31,13 @@ class SunLight(InfiniteLight):
     @property
     def has_size(self) -> bool:
         return self.cos_half_angle < 1.0
+
+    def pack(self, row) -> int:
+        """Write the kernel parameters (engine/lights/packing.py); returns the kind code."""
+        row[pk.DIR:pk.DIR + 3] = self.dir
+        row[pk.RGB:pk.RGB + 3] = self.irradiance
+        row[pk.COS_HALF] = self.cos_half_angle
+        return pk.CODE_SUN
 
     def _sample(self, p, ns, ng, rng, u1, u2):
         n = len(p)

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ..sampling import cosine_hemisphere, dot, to_world, uniform_sphere
+from . import packing as pk
 from .base import InfiniteLight, LightSample
 
 WORLD = "WORLD"
@@ -26,6 +27,11 @@ class WorldLight(InfiniteLight):
         return cls("world", radiance=bg,
                    photon_flux=bg * math.pi * radius ** 2 * 4.0 * math.pi,
                    radius=0.0, visible_camera=True, cos_half_angle=1.0, **common)
+
+    def pack(self, row) -> int:
+        """Write the kernel parameters (engine/lights/packing.py); returns the kind code."""
+        row[pk.RGB:pk.RGB + 3] = self.radiance
+        return pk.CODE_WORLD
 
     def _sample(self, p, ns, ng, rng, u1, u2):
         n = len(p)
