@@ -15,13 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .directlight import direct_light
+from .directlight import DirectLightBuffers, direct_light, sample_lights
 from .lights import MESH
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
-from .rayoffset import (offset_along_normal, segment_to, shift_cos_in, smooth_surface_lift,
-                        terminator_amount)
+from .rayoffset import smooth_surface_lift
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
                        to_world)
 from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
@@ -103,6 +102,26 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     return E
 
 
+def light_shadow_rays(ctx, hit, light_index, rng):
+    """One sample of light ctx.lights[light_index] per hit, as the kernels make it:
+    (rows (M,) of the lit hits, irradiance without visibility (M,3), float32 shadow-ray
+    origins (M,3), directions (M,3), tmax (M,)). For tests and diagnostics."""
+    n = len(hit.p)
+    light = ctx.lights[light_index]
+    u1, u2 = rng.random(n), rng.random(n)
+    sel = rng.random(n) if light.kind == MESH else None
+    buf = DirectLightBuffers().ensure(max(n, 1))
+    codes, params, mesh = pack_lights(ctx.lights)
+    m_all, m_rays = sample_lights(*_hit_arrays(ctx.geo, hit), codes, params, *mesh,
+                                  np.array([light_index], np.int64), np.ones(1, np.bool_),
+                                  u1[None], u2[None],
+                                  np.zeros((1, 1)) if sel is None else sel[None],
+                                  buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
+                                  buf.t32)
+    return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.o32[:m_rays].copy(),
+            buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
+
+
 def _hit_arrays(geo, hit):
     """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
     light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
@@ -130,30 +149,6 @@ def _hit_arrays(geo, hit):
             c(shading_offset, np.float64), cutoff, lift)
 
 
-def shadow_rays(hit, ls, rows, geo=None):
-    """Shadow rays from hits[rows] to their light samples: (origins, unit directions,
-    tmax). Both ends are kept off their surfaces by rounding-error bounds (pbrt-v4's
-    SpawnRayTo; engine/rayoffset.py): the origin is lifted off the hit's triangle, and a
-    ray to a point on an emitting surface ends before that surface's plane, at any angle,
-    so the emitter never shadows itself. With geo, rays from smooth-shaded triangles at
-    grazing light first move to the smooth surface (Cycles' shadow terminator offset)."""
-    wi = ls.wi[rows]
-    p = hit.p[rows]
-    if geo is not None and hit.bary is not None:
-        p = _terminator_origins(geo, hit, rows, wi, p)
-    ng = hit.ng[rows]
-    # A ray below the facet (only from the smooth surface above it, see
-    # _lit_side_normals) starts on the facet's lit side all the same.
-    o = offset_along_normal(p, ng, np.where((dot(wi, ng) >= 0)[:, None], wi, ng),
-                            hit.offset[rows])
-    if ls.y is None:  # sun, world: nothing lies beyond
-        return o, ls.wi[rows], np.full(len(rows), np.inf)
-    ny = None if ls.ny is None else ls.ny[rows]
-    gap = None if ls.end_gap is None else ls.end_gap[rows]
-    wi, tmax = segment_to(o, ls.y[rows], ny, gap)
-    return o, wi, tmax
-
-
 def _lit_side_normals(geo, hit):
     """The normal whose hemisphere decides which light directions a hit can receive:
     the geometric normal, except on smooth-shaded triangles with a shadow terminator
@@ -167,33 +162,6 @@ def _lit_side_normals(geo, hit):
     if not smooth.any():
         return hit.ng
     return np.where(smooth[:, None], hit.ns, hit.ng)
-
-
-def _terminator_origins(geo, hit, rows, wi, p):
-    """Shadow-ray start points moved from the flat facet towards the smooth surface its
-    normals describe, by Cycles' amount for the light direction wi (shadow_ray_offset in
-    intern/cycles/kernel/light/sample.h): no black facet notches along the terminator of
-    a coarse smooth mesh."""
-    prim = hit.prim[rows]
-    cutoff = np.take(geo.terminator, prim)
-    cand = np.nonzero(np.take(geo.smooth, prim) & (cutoff > 0))[0]
-    if len(cand) == 0:
-        return p
-    ng = hit.ng[rows[cand]]
-    amount = terminator_amount(cutoff[cand], dot(hit.ns[rows[cand]], wi[cand]),
-                               dot(ng, wi[cand]))
-    go = np.nonzero(amount > 0)[0]
-    if len(go) == 0:
-        return p
-    sel = cand[go]
-    t = prim[sel]
-    b = hit.bary[rows[sel]]
-    lift = smooth_surface_lift(np.take(geo.v0, t, axis=0), np.take(geo.e1, t, axis=0),
-                               np.take(geo.e2, t, axis=0), np.take(geo.corner_normals, t, axis=0),
-                               b[:, 0], b[:, 1], ng[go])
-    p = p.copy()
-    p[sel] += lift * amount[go][:, None]
-    return p
 
 
 # Gather rays that end near a corner or contact, where the precomputed irradiance is cut

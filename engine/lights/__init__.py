@@ -7,7 +7,8 @@ area light emits one-sided uniform radiance P/(pi*A) along its -Z axis; a sun gi
 irradiance `strength` W/m^2; emissive meshes emit their radiance from both sides; a
 non-black background is a uniform environment.
 
-To add a light kind: subclass Light in a new module, implement from_scene, _sample, _emit,
+To add a light kind: subclass Light in a new module, implement from_scene, pack (and its
+sampling in engine/directlight.py), _emit,
 _aim_origins / _aimed_photons (or emit_towards) and, if it has a visible surface,
 intersect; then add it to LIGHT_KINDS below. engine/scene.py, engine/scenefile.py,
 engine/api.py and addon/export.py take the declared kinds from here.
@@ -20,7 +21,7 @@ from ..geometry import Geometry, MaterialTable
 from ..sampling import luminance
 from ..scene import AREA, POINT, SPOT, SUN, Scene
 from .area import AreaLight
-from .base import InfiniteLight, Light, LightSample
+from .base import InfiniteLight, Light
 from .mesh import MESH, MeshLight
 from .point import PointLight
 from .spot import SpotLight
@@ -35,7 +36,7 @@ DECLARED_KINDS: tuple[str, ...] = tuple(k for k, c in LIGHT_KINDS.items() if c.d
 # The old single class, kept as the name of the interface.
 PreparedLight = Light
 
-__all__ = ["LIGHT_KINDS", "DECLARED_KINDS", "Light", "PreparedLight", "LightSample",
+__all__ = ["LIGHT_KINDS", "DECLARED_KINDS", "Light", "PreparedLight",
            "InfiniteLight", "PointLight", "SpotLight", "AreaLight", "SunLight", "MeshLight",
            "WorldLight", "POINT", "SPOT", "AREA", "SUN", "MESH", "WORLD", "prepare_lights",
            "allocate_photons"]

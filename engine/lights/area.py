@@ -7,11 +7,10 @@ import math
 
 import numpy as np
 
-from ..rayoffset import G64, ulp32
 from ..sampling import concentric_disk, cosine_hemisphere, dot, to_world
 from ..scene import AREA, DISK, spread_attenuation
 from . import packing as pk
-from .base import Light, finish_area
+from .base import Light
 
 
 class AreaLight(Light):
@@ -59,47 +58,6 @@ class AreaLight(Light):
         # du, dv: the dual basis of (u, v) in the light's plane (= u, v unless sheared),
         # so that p.u and p.v span the region the intersection test accepts.
         return self.pos + x[:, None] * self.du + yy[:, None] * self.dv
-
-    def _gap(self, y):
-        """How far before the light's plane a shadow ray to its point y must end: y is
-        pos + x u + y v in float64, then rounded to float32 as a ray end."""
-        err = G64 * (np.abs(self.pos) + np.abs(y - self.pos)) + ulp32(y)
-        an = np.abs(self.dir)
-        return an[0] * err[:, 0] + an[1] * err[:, 1] + an[2] * err[:, 2]
-
-    def _sample(self, p, ns, ng, rng, u1, u2):
-        n = len(p)
-        if self._spread_rect():
-            return self._sample_spread_rect(p, ns, ng, u1, u2)
-        y = self.points(u1, u2)
-        ls = finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (n, 3)),
-                         np.broadcast_to(self.radiance * self.area, (n, 3)),
-                         two_sided=False, gap=self._gap(y))
-        if self.spread < math.pi:
-            ls.E = ls.E * spread_attenuation(dot(-ls.wi, self.dir), self.spread)[:, None]
-        return ls
-
-    def _sample_spread_rect(self, p, ns, ng, u1, u2):
-        """A rectangle with a narrow spread lights p only from the part of it within
-        tan(h) x (p's height over its plane) of p's foot point: sample that part only, as
-        Cycles does (kernel/light/area.h, area_light_spread_clamp_light); the rest has
-        f = 0. Same expectation as sampling the whole rectangle, far less noise."""
-        rel = p - self.pos
-        height = dot(rel, self.dir)             # > 0 in front of the light (dir: emission)
-        reach = np.maximum(height, 0.0) * math.tan(0.5 * self.spread)
-        pu, pv = dot(rel, self.u), dot(rel, self.v)
-        hx, hy = self.size_x / 2, self.size_y / 2
-        x0, x1 = np.maximum(pu - reach, -hx), np.minimum(pu + reach, hx)
-        y0, y1 = np.maximum(pv - reach, -hy), np.minimum(pv + reach, hy)
-        wx, wy = np.maximum(x1 - x0, 0.0), np.maximum(y1 - y0, 0.0)
-        x = x0 + u1 * wx
-        yy = y0 + u2 * wy
-        y = self.pos + x[:, None] * self.u + yy[:, None] * self.v
-        area = (wx * wy)[:, None]               # the sampled part: pdf 1 / area
-        ls = finish_area(p, ns, ng, y, np.broadcast_to(self.dir, (len(p), 3)),
-                         self.radiance[None, :] * area, two_sided=False, gap=self._gap(y))
-        ls.E = ls.E * spread_attenuation(dot(-ls.wi, self.dir), self.spread)[:, None]
-        return ls
 
     def _emit(self, n, rng, u1, u2, u3, u4):
         o = self.points(u1, u2)

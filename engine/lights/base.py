@@ -4,7 +4,8 @@ A light kind is one subclass of Light in its own module (point.py, spot.py, area
 sun.py, mesh.py, world.py), registered by kind name in engine/lights/__init__.py. Each
 holds that kind's
     prepare         from_scene / from_geometry: re-centred, everything sampling needs
-    sample          one light sample per shading point (shadow rays, direct light)
+    pack            its parameters for the compiled direct-light kernels, which sample it
+                    for shadow rays (engine/lights/packing.py, engine/directlight.py)
     emit            photons as the light emits them (sum of power = flux)
     emit_towards    photons aimed at caustic casters, reweighted (same expected power)
     intersect       rays meeting the emitting surface (the light seen in mirrors)
@@ -14,23 +15,9 @@ Units: docs/units.md; docs/design.md, Units (Cycles).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import numpy as np
 
-from ..rayoffset import ulp32
-from ..sampling import dot, max3, orthonormal_basis, concentric_disk, to_world, uniform_cone
-
-
-@dataclass
-class LightSample:
-    wi: np.ndarray      # (N,3) unit direction from the shading point to the light sample
-    dist: np.ndarray    # (N,) distance to the sample (inf for sun / world)
-    E: np.ndarray       # (N,3) irradiance estimate ignoring visibility (cos at receiver in)
-    y: np.ndarray | None = None        # (N,3) the sampled point; None at infinity
-    ny: np.ndarray | None = None       # (N,3) unit normal of the emitting surface at y
-    end_gap: np.ndarray | None = None  # (N,) rounding-error bound of y along ny: a shadow
-                                       # ray must end at least this far before the surface
+from ..sampling import concentric_disk, dot, orthonormal_basis, to_world, uniform_cone
 
 
 class Light:
@@ -72,14 +59,9 @@ class Light:
         return True
 
     # ------------------------------------------------------------------ shadow rays
-    def sample(self, p, ns, ng, rng, uv=None) -> LightSample:
-        """One light sample per point p (N,3) with shading normal ns and the normal ng
-        whose hemisphere may receive light; uv = optional stratified (u1, u2) in [0,1)."""
-        n = len(p)
-        u1, u2 = uv if uv is not None else (rng.random(n), rng.random(n))
-        return self._sample(p, ns, ng, rng, u1, u2)
-
-    def _sample(self, p, ns, ng, rng, u1, u2) -> LightSample:
+    def pack(self, row) -> int:
+        """Write this light's parameters into row (P,) float64 (slots in
+        engine/lights/packing.py) for the direct-light kernels; returns its kind code."""
         raise NotImplementedError
 
     # ------------------------------------------------------------------ photons
@@ -195,25 +177,3 @@ class InfiniteLight(Light):
         natural = (np.linalg.norm(o - start, axis=1) <= R) / (math.pi * R * R)
         ratio = natural / np.maximum(aimed, 1e-300)
         return o, d, (self.photon_flux / n)[None, :] * ratio[:, None]
-
-
-def min_dist2(p, y):
-    """Squared distance below which 1/d^2 is not evaluated: a light touching the surface
-    must not give inf. The floor is what float32 can resolve at the two points (16 ulps of
-    their largest coordinates), a local length, never a share of the scene's size."""
-    d = 16.0 * (ulp32(max3(np.abs(p))) + ulp32(max3(np.abs(np.broadcast_to(y, p.shape)))))
-    return d * d
-
-
-def finish_area(p, ns, ng, y, ny, L_times_area, two_sided, gap) -> LightSample:
-    """The light sample for points y on an emitting surface with normal ny, given
-    radiance x (1 / pdf in area measure): E = L A cos_r cos_l / d^2."""
-    w = y - p
-    dist = np.linalg.norm(w, axis=1)
-    wi = w / np.maximum(dist, 1e-300)[:, None]
-    cos_r = np.maximum(dot(wi, ns), 0.0) * (dot(wi, ng) > 0)
-    cos_l = dot(-wi, ny)
-    cos_l = np.abs(cos_l) if two_sided else np.maximum(cos_l, 0.0)
-    d2 = np.maximum(dist * dist, min_dist2(p, y))
-    return LightSample(wi, dist, L_times_area * (cos_r * cos_l / d2)[:, None],
-                       y=y, ny=ny, end_gap=gap)

@@ -7,10 +7,10 @@ import math
 import numpy as np
 
 from ..geometry import emissive_triangles
-from ..rayoffset import embree_plane_error, origin_offset, tilt_error, triangle_point_error
+from ..rayoffset import origin_offset, triangle_point_error
 from ..sampling import cosine_hemisphere, dot, luminance, offset_origin, to_world, uniform_triangle
 from . import packing as pk
-from .base import Light, finish_area
+from .base import Light
 
 MESH = "MESH"
 
@@ -59,20 +59,6 @@ class MeshLight(Light):
         (engine/rayoffset.py)."""
         return origin_offset(self._error(tri, b1, b2, y), self.v0[tri], self.e1[tri],
                              self.e2[tri], self.tri_ng[tri], y, self.tilt32[tri])
-
-    def _sample(self, p, ns, ng, rng, u1, u2):
-        tri, y, b1, b2 = self._point(rng, u1, u2)
-        ny = self.tri_ng[tri]
-        # The ray must end before the emitting triangle as Embree (float32, from the
-        # shading point) places it: the point's own error plus Embree's plane error.
-        err = self._error(tri, b1, b2, y)
-        an = np.abs(ny)
-        gap = (an[:, 0] * err[:, 0] + an[:, 1] * err[:, 1] + an[:, 2] * err[:, 2]
-               + embree_plane_error(self.v0[tri], self.e1[tri], self.e2[tri], ny, p)
-               + tilt_error(self.v0[tri], self.e1[tri], self.e2[tri], self.tilt32[tri], p))
-        return finish_area(p, ns, ng, y, ny,
-                           self.tri_L[tri] * (self.tri_area[tri] / self.prob[tri])[:, None],
-                           two_sided=True, gap=gap)
 
     def _emit(self, n, rng, u1, u2, u3, u4):
         tri, o, b1, b2 = self._point(rng, u1, u2)

@@ -7,11 +7,10 @@ import math
 
 import numpy as np
 
-from ..sampling import (concentric_disk, cosine_hemisphere, dot, orthonormal_basis, to_world,
-                        uniform_sphere)
+from ..sampling import cosine_hemisphere, dot, to_world, uniform_sphere
 from ..scene import POINT
 from . import packing as pk
-from .base import Light, LightSample, min_dist2
+from .base import Light
 
 
 class PointLight(Light):
@@ -44,30 +43,6 @@ class PointLight(Light):
         """Directional factor of the emitted intensity along unit directions axis (N,3)
         leaving the light; 1 for a point light."""
         return None
-
-    def _sample(self, p, ns, ng, rng, u1, u2) -> LightSample:
-        # Optionally with a radius: sample the disk facing the point.
-        n = len(p)
-        to_p = p - self.pos
-        d_c = np.linalg.norm(to_p, axis=1)
-        axis = to_p / np.maximum(d_c, 1e-300)[:, None]
-        if self.radius > 0:
-            x, yy = concentric_disk(u1, u2)
-            t, b = orthonormal_basis(axis)
-            y = self.pos + self.radius * (x[:, None] * t + yy[:, None] * b)
-        else:
-            y = np.broadcast_to(self.pos, (n, 3))
-        w = y - p
-        dist = np.linalg.norm(w, axis=1)
-        wi = w / np.maximum(dist, 1e-300)[:, None]
-        cos_r = np.maximum(dot(wi, ns), 0.0) * (dot(wi, ng) > 0)
-        cos_l = np.maximum(dot(-wi, axis), 0.0) if self.radius > 0 else 1.0
-        d2 = np.maximum(dist * dist, min_dist2(p, y))
-        E = self.intensity[None, :] * (cos_r * cos_l / d2)[:, None]
-        f = self._falloff(axis)
-        if f is not None:
-            E = E * f[:, None]
-        return LightSample(wi, dist, E, y=y)
 
     def _emit(self, n, rng, u1, u2, u3, u4):
         if self.radius > 0:

@@ -9,7 +9,7 @@ import numpy as np
 from ..sampling import dot, to_world, uniform_cone
 from ..scene import SUN
 from . import packing as pk
-from .base import InfiniteLight, LightSample
+from .base import InfiniteLight
 
 
 class SunLight(InfiniteLight):
@@ -38,13 +38,6 @@ class SunLight(InfiniteLight):
         row[pk.RGB:pk.RGB + 3] = self.irradiance
         row[pk.COS_HALF] = self.cos_half_angle
         return pk.CODE_SUN
-
-    def _sample(self, p, ns, ng, rng, u1, u2):
-        n = len(p)
-        local = uniform_cone(u1, u2, self.cos_half_angle)
-        wi = to_world(local, np.broadcast_to(-self.dir, (n, 3)))
-        cos_r = np.maximum(dot(wi, ns), 0.0) * (dot(wi, ng) > 0)
-        return LightSample(wi, np.full(n, np.inf), self.irradiance[None, :] * cos_r[:, None])
 
     def _directions(self, n, u1, u2):
         return to_world(uniform_cone(u1, u2, self.cos_half_angle), np.broadcast_to(self.dir, (n, 3)))

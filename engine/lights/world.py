@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 
-from ..sampling import cosine_hemisphere, dot, to_world, uniform_sphere
+from ..sampling import uniform_sphere
 from . import packing as pk
-from .base import InfiniteLight, LightSample
+from .base import InfiniteLight
 
 WORLD = "WORLD"
 
@@ -32,13 +32,6 @@ class WorldLight(InfiniteLight):
         """Write the kernel parameters (engine/lights/packing.py); returns the kind code."""
         row[pk.RGB:pk.RGB + 3] = self.radiance
         return pk.CODE_WORLD
-
-    def _sample(self, p, ns, ng, rng, u1, u2):
-        n = len(p)
-        wi = to_world(cosine_hemisphere(u1, u2), ns)
-        ok = dot(wi, ng) > 0
-        E = math.pi * self.radiance[None, :] * ok[:, None]
-        return LightSample(wi, np.full(n, np.inf), E)
 
     def _directions(self, n, u1, u2):
         return uniform_sphere(u1, u2)
