@@ -301,11 +301,11 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                         la0 = q[RGB] * q[AREA_]
                         la1 = q[RGB + 1] * q[AREA_]
                         la2 = q[RGB + 2] * q[AREA_]
-                    gap = 0.0
-                    yv = (y0, y1, y2)
-                    for c in range(3):
-                        err = G64 * (abs(q[POS + c]) + abs(yv[c] - q[POS + c])) + _ulp32(yv[c])
-                        gap += abs(q[DIR + c]) * err
+                    gap = (abs(q[DIR]) * (G64 * (abs(q[POS]) + abs(y0 - q[POS])) + _ulp32(y0))
+                           + abs(q[DIR + 1]) * (G64 * (abs(q[POS + 1]) + abs(y1 - q[POS + 1]))
+                                                + _ulp32(y1))
+                           + abs(q[DIR + 2]) * (G64 * (abs(q[POS + 2]) + abs(y2 - q[POS + 2]))
+                                                + _ulp32(y2)))
                 v0_, v1_, v2_ = y0 - p0, y1 - p1, y2 - p2
                 dist = math.sqrt(v0_ * v0_ + v1_ * v1_ + v2_ * v2_)
                 ds = max(dist, 1e-300)
