@@ -126,6 +126,71 @@ def _terminator_amount(cutoff, cos_ns, cos_ng):
 
 
 @kernel
+def _dot(a0, a1, a2, b0, b1, b2):
+    return a0 * b0 + a1 * b1 + a2 * b2
+
+
+@kernel
+def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_normals,
+                    cutoff, lift):
+    """Per hit i (not per sample): cutoff[i] = the shadow-terminator geometry offset of its
+    triangle if smooth-shaded (else 0) and lift[i] (3,) the lift of the hit from the flat
+    facet to the smooth surface through the corners, rayoffset.smooth_surface_lift
+    (Cycles' shadow_ray_smooth_surface_offset) operation by operation."""
+    for i in range(prim.shape[0]):
+        t = prim[i]
+        cut = terminator[t]
+        if not (smooth[t] and cut > 0):
+            cutoff[i] = 0.0
+            lift[i, 0] = lift[i, 1] = lift[i, 2] = 0.0
+            continue
+        cutoff[i] = cut
+        b1 = bary[i, 0]
+        b2 = bary[i, 1]
+        w = 1.0 - b1 - b2
+        A0, A1, A2 = v0[t, 0], v0[t, 1], v0[t, 2]
+        B0, B1, B2 = v0[t, 0] + e1[t, 0], v0[t, 1] + e1[t, 1], v0[t, 2] + e1[t, 2]
+        C0, C1, C2 = v0[t, 0] + e2[t, 0], v0[t, 1] + e2[t, 1], v0[t, 2] + e2[t, 2]
+        M = corner_normals[t]
+        P0 = A0 * w + B0 * b1 + C0 * b2
+        P1 = A1 * w + B1 * b1 + C1 * b2
+        P2 = A2 * w + B2 * b1 + C2 * b2
+        n0 = M[0, 0] * w + M[1, 0] * b1 + M[2, 0] * b2
+        n1 = M[0, 1] * w + M[1, 1] * b1 + M[2, 1] * b2
+        n2 = M[0, 2] * w + M[1, 2] * b1 + M[2, 2] * b2
+        a = _dot(M[2, 0] - M[0, 0], M[2, 1] - M[0, 1], M[2, 2] - M[0, 2], A0 - C0, A1 - C1, A2 - C2)
+        b = _dot(M[2, 0] - M[1, 0], M[2, 1] - M[1, 1], M[2, 2] - M[1, 2], B0 - C0, B1 - C1, B2 - C2)
+        c = _dot(M[1, 0] - M[0, 0], M[1, 1] - M[0, 1], M[1, 2] - M[0, 2], B0 - A0, B1 - A1, B2 - A2)
+        h = a * w * (w - 1) + (a + b + c) * w * b1 + b * b1 * (b1 - 1)
+        N00, N01, N02 = M[0, 0], M[0, 1], M[0, 2]
+        N10, N11, N12 = M[1, 0], M[1, 1], M[1, 2]
+        N20, N21, N22 = M[2, 0], M[2, 1], M[2, 2]
+        if _dot(n0, n1, n2, ng[i, 0], ng[i, 1], ng[i, 2]) > 0:
+            h0 = _npmax(_npmax(_dot(B0 - A0, B1 - A1, B2 - A2, N00, N01, N02),
+                               _dot(C0 - A0, C1 - A1, C2 - A2, N00, N01, N02)), 0.0)
+            h1 = _npmax(_npmax(_dot(A0 - B0, A1 - B1, A2 - B2, N10, N11, N12),
+                               _dot(C0 - B0, C1 - B1, C2 - B2, N10, N11, N12)), 0.0)
+            h2 = _npmax(_npmax(_dot(A0 - C0, A1 - C1, A2 - C2, N20, N21, N22),
+                               _dot(B0 - C0, B1 - C1, B2 - C2, N20, N21, N22)), 0.0)
+            h0 = _npmax(_dot(A0 - P0, A1 - P1, A2 - P2, N00, N01, N02) + h0, 0.0)
+            h1 = _npmax(_dot(B0 - P0, B1 - P1, B2 - P2, N10, N11, N12) + h1, 0.0)
+            h2 = _npmax(_dot(C0 - P0, C1 - P1, C2 - P2, N20, N21, N22) + h2, 0.0)
+            hh = _npmax(min(min(h0, h1), h2), h * 0.5)
+        else:
+            g0 = _npmax(_npmax(_dot(A0 - B0, A1 - B1, A2 - B2, N00, N01, N02),
+                               _dot(A0 - C0, A1 - C1, A2 - C2, N00, N01, N02)), 0.0)
+            g1 = _npmax(_npmax(_dot(B0 - A0, B1 - A1, B2 - A2, N10, N11, N12),
+                               _dot(B0 - C0, B1 - C1, B2 - C2, N10, N11, N12)), 0.0)
+            g2 = _npmax(_npmax(_dot(C0 - A0, C1 - A1, C2 - A2, N20, N21, N22),
+                               _dot(C0 - B0, C1 - B1, C2 - B2, N20, N21, N22)), 0.0)
+            g0 = _npmax(_dot(P0 - A0, P1 - A1, P2 - A2, N00, N01, N02) + g0, 0.0)
+            g1 = _npmax(_dot(P0 - B0, P1 - B1, P2 - B2, N10, N11, N12) + g1, 0.0)
+            g2 = _npmax(_dot(P0 - C0, P1 - C1, P2 - C2, N20, N21, N22) + g2, 0.0)
+            hh = min(-min(min(g0, g1), g2), h * 0.5)
+        lift[i, 0], lift[i, 1], lift[i, 2] = n0 * hh, n1 * hh, n2 * hh
+
+
+@kernel
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
                   m_tilt32, klight, ktrace, U1, U2, SEL,
@@ -462,7 +527,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n):
 
 @register_warm_up
 def _warm_up():
-    """Compile (or load) both kernels on a tiny batch of every light kind."""
+    """Compile (or load) the kernels on a tiny batch of every light kind."""
     from .lights import AreaLight, MeshLight, PointLight, SpotLight, SunLight, WorldLight
     from .lights.packing import pack_lights
     base = dict(pos=np.zeros(3), dir=np.array([0.0, 0.0, -1.0]), u=np.array([1.0, 0, 0]),
@@ -490,3 +555,6 @@ def _warm_up():
             return blocked
 
     direct_light(packed, hit, samples, _NoOcclusion(), None, 1)
+    terminator_lift(np.zeros(1, np.int64), np.full((1, 2), 0.25), nrm, np.ones(1, np.bool_),
+                    np.full(1, 0.1), mesh.v0, mesh.e1, mesh.e2,
+                    np.repeat(nrm[:, None, :], 3, axis=1), np.zeros(1), np.zeros((1, 3)))

@@ -15,12 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .directlight import DirectLightBuffers, direct_light, sample_lights
+from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .lights import MESH
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
-from .rayoffset import smooth_surface_lift
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
                        to_world)
 from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
@@ -133,17 +132,9 @@ def _hit_arrays(geo, hit):
     cutoff = np.zeros(n)
     lift = np.zeros((n, 3))
     if hit.bary is not None and n:
-        prim = hit.prim
-        cut = np.take(geo.terminator, prim)
-        cand = np.nonzero(np.take(geo.smooth, prim) & (cut > 0))[0]
-        if len(cand):
-            t = prim[cand]
-            b = hit.bary[cand]
-            cutoff[cand] = cut[cand]
-            lift[cand] = smooth_surface_lift(
-                np.take(geo.v0, t, axis=0), np.take(geo.e1, t, axis=0),
-                np.take(geo.e2, t, axis=0), np.take(geo.corner_normals, t, axis=0),
-                b[:, 0], b[:, 1], hit.ng[cand])
+        terminator_lift(hit.prim, c(hit.bary, np.float64), c(hit.ng, np.float64), geo.smooth,
+                        geo.terminator, geo.v0, geo.e1, geo.e2, geo.corner_normals, cutoff,
+                        lift)
     return (c(hit.p, np.float64), c(hit.ns, np.float64), c(gate, np.float64),
             c(hit.ng, np.float64), c(hit.offset, np.float64),
             c(shading_offset, np.float64), cutoff, lift)
