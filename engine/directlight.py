@@ -135,8 +135,9 @@ def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_norma
                     cutoff, lift):
     """Per hit i (not per sample): cutoff[i] = the shadow-terminator geometry offset of its
     triangle if smooth-shaded (else 0) and lift[i] (3,) the lift of the hit from the flat
-    facet to the smooth surface through the corners, rayoffset.smooth_surface_lift
-    (Cycles' shadow_ray_smooth_surface_offset) operation by operation."""
+    facet to the smooth surface through the corners (a parabolic patch bounded by the
+    corners' tangent planes): Blender's intern/cycles/kernel/light/sample.h,
+    shadow_ray_smooth_surface_offset(), in world space."""
     for i in range(prim.shape[0]):
         t = prim[i]
         cut = terminator[t]
@@ -201,7 +202,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     receive light (integrator._lit_side_normals), geometric normals; offset (N,) the
     origin offset along ng (rayoffset.origin_offset); shade_off (N,) Cycles' shading
     offset (0: none); cutoff (N,) shadow-terminator geometry offset of smooth triangles (0:
-    none) and lift (N,3) their smooth-surface lift (rayoffset.smooth_surface_lift).
+    none) and lift (N,3) their smooth-surface lift (terminator_lift).
     codes (L,), params (L,P): packed lights; m_*: emissive triangles (packing.pack_lights).
     klight (K,) light of sample k, ktrace (K,) whether its shadows are traced; U1, U2,
     SEL (K,N): its random numbers (SEL: the triangle choice of mesh lights).
@@ -402,7 +403,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                 ray[j] = -1
                 continue
             ray[j] = m_rays
-            # Shadow-ray origin (integrator.shadow_rays): lifted to the smooth surface at
+            # Shadow-ray origin: lifted to the smooth surface at
             # the terminator, then off the facet along ng.
             h0, h1, h2 = ng[i, 0], ng[i, 1], ng[i, 2]
             o0, o1, o2 = p0, p1, p2

@@ -145,7 +145,7 @@ def _lit_side_normals(geo, hit):
     the geometric normal, except on smooth-shaded triangles with a shadow terminator
     offset, where (as in Cycles) light the shading normal faces is traced even when it
     arrives just below the flat facet: its shadow ray leaves from the smooth surface
-    (_terminator_origins) and is shadowed only if it really meets geometry, the facet
+    (directlight.terminator_lift) and is shadowed only if it really meets geometry, the facet
     itself included (Cycles skips the own triangle only when NgL > 0)."""
     if hit.bary is None or not len(hit.prim):
         return hit.ng
