@@ -184,7 +184,7 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     by the scale (measured against Cycles 5.0 in tests/blender/test_blender_fidelity.py)."""
     L = obj.data
     kind = L.type
-    if kind not in ("POINT", "SPOT", "AREA", "SUN"):
+    if kind not in pm.DECLARED_KINDS:  # the engine's light registry (engine/lights/)
         warnings.append(f"light '{name}': type {kind} is not supported and skipped")
         return None
     color = np.asarray(tuple(L.color)[:3], dtype=np.float64)

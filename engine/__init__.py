@@ -7,6 +7,7 @@ Pure Python on numpy, embreex and scipy; never imports bpy.
 """
 from . import presets, resources
 from .film import Film
+from .lights import DECLARED_KINDS
 from .progressive import Budget, render_progressive
 from .render import render
 from .resources import ResourceError
@@ -14,5 +15,6 @@ from .scene import Camera, Light, Material, Mesh, Scene, SceneError
 from .settings import RenderSettings
 
 __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "RenderSettings",
-           "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError"]
+           "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
+           "DECLARED_KINDS"]
 __version__ = "0.1.0"

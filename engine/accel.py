@@ -120,6 +120,32 @@ class Accel:
         self._run(work, n)
         return out
 
+    def occluded_into(self, o32, d32, tmax32, blocked) -> np.ndarray:
+        """Accel.occluded for rays already in Embree's layout, written by a kernel: o32,
+        d32 (N,3) and tmax32 (N,) C-contiguous float32 (tmax finite, >= 0; Embree
+        overwrites it), blocked (N,) bool receives the answer (and is returned). Raises
+        ValueError on other shapes or types (embreex does not check: a short array crashes
+        the process)."""
+        n = len(o32)
+        for name, a, shape in (("origins", o32, (n, 3)), ("directions", d32, (n, 3)),
+                               ("tmax", tmax32, (n,))):
+            if a.dtype != np.float32 or a.shape != shape or not a.flags.c_contiguous:
+                raise ValueError(f"Accel.occluded_into: {name} must be C-contiguous float32 "
+                                 f"{shape}, got {a.dtype} {a.shape}")
+        if blocked.dtype != np.bool_ or blocked.shape != (n,):
+            raise ValueError(f"Accel.occluded_into: blocked must be bool ({n},), got "
+                             f"{blocked.dtype} {blocked.shape}")
+        if self._scene is None or n == 0:
+            blocked[:] = False
+            return blocked
+
+        def work(a, b):
+            res = self._scene.run(o32[a:b], d32[a:b], dists=tmax32[a:b], query="OCCLUDED")
+            blocked[a:b] = np.asarray(res) == 0
+
+        self._run(work, n)
+        return blocked
+
     def _run(self, work, n):
         chunks = self._split(n)
         if self._pool is None or len(chunks) == 1:

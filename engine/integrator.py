@@ -15,12 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .lights import MESH
+from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
-from .rayoffset import (offset_along_normal, segment_to, shift_cos_in, smooth_surface_lift,
-                        terminator_amount)
-from .sampling import StratifiedSampler, cosine_hemisphere, dot, max3, to_world
+from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
+                       to_world)
 from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
 
 
@@ -71,62 +72,72 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                       skip_mesh_lights=False) -> np.ndarray:
-    """Irradiance from all lights by shadow rays (one ray per sample, tested for occlusion).
+    """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
+    tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
     by its own rays, which stays calm right next to the emitter)."""
-    E = np.zeros((len(hit.p), 3))
+    n = len(hit.p)
     plan = ctx.plan
-    gate = _lit_side_normals(ctx.geo, hit)
-    shading_offset = (np.take(ctx.geo.terminator_shading, hit.prim)
-                      if len(hit.prim) else np.zeros(0))
-    shift = np.nonzero(shading_offset > 0)[0]
+    # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
+    # mesh light's triangle choice), sample by sample.
+    samples = []
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
             continue
-        samples = plan.light_samples.get(light.name, 1)
-        trace_shadows = plan.shadows.get(light.name, True)
-        for si in range(samples):
-            uv = sampler.uv(2 + 64 * li + si) if sampler is not None else None
-            ls = light.sample(hit.p, hit.ns, gate, rng, uv)
-            if len(shift):
-                # Cycles' shading offset: direct light towards the terminator dimmed.
-                ls.E[shift] *= shift_cos_in(dot(ls.wi[shift], hit.ns[shift]),
-                                            shading_offset[shift])[:, None]
-            lit = np.nonzero(max3(ls.E) > 0)[0]
-            if len(lit) == 0:
-                continue
-            if trace_shadows:
-                o, wi, tmax = shadow_rays(hit, ls, lit, ctx.geo)
-                blocked = ctx.accel.occluded(o, wi, tmax, cls=SHADOW)
-                counters.shadow_rays += len(lit)
-            else:
-                blocked = np.zeros(len(lit), bool)
-            E[lit] += ls.E[lit] * (~blocked)[:, None] / samples
+        count = plan.light_samples.get(light.name, 1)
+        traced = plan.shadows.get(light.name, True)
+        for si in range(count):
+            u1, u2 = (sampler.uv(("light", li, si)) if sampler is not None
+                      else (rng.random(n), rng.random(n)))
+            sel = rng.random(n) if light.kind == MESH else None
+            samples.append((li, traced, count, u1, u2, sel))
+    if n == 0 or not samples:
+        return np.zeros((n, 3))
+    packed = getattr(ctx, "packed_lights", None)
+    if packed is None:
+        packed = pack_lights(ctx.lights)
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n)
+    counters.shadow_rays += rays
     return E
 
 
-def shadow_rays(hit, ls, rows, geo=None):
-    """Shadow rays from hits[rows] to their light samples: (origins, unit directions,
-    tmax). Both ends are kept off their surfaces by rounding-error bounds (pbrt-v4's
-    SpawnRayTo; engine/rayoffset.py): the origin is lifted off the hit's triangle, and a
-    ray to a point on an emitting surface ends before that surface's plane, at any angle,
-    so the emitter never shadows itself. With geo, rays from smooth-shaded triangles at
-    grazing light first move to the smooth surface (Cycles' shadow terminator offset)."""
-    wi = ls.wi[rows]
-    p = hit.p[rows]
-    if geo is not None and hit.bary is not None:
-        p = _terminator_origins(geo, hit, rows, wi, p)
-    ng = hit.ng[rows]
-    # A ray below the facet (only from the smooth surface above it, see
-    # _lit_side_normals) starts on the facet's lit side all the same.
-    o = offset_along_normal(p, ng, np.where((dot(wi, ng) >= 0)[:, None], wi, ng),
-                            hit.offset[rows])
-    if ls.y is None:  # sun, world: nothing lies beyond
-        return o, ls.wi[rows], np.full(len(rows), np.inf)
-    ny = None if ls.ny is None else ls.ny[rows]
-    gap = None if ls.end_gap is None else ls.end_gap[rows]
-    wi, tmax = segment_to(o, ls.y[rows], ny, gap)
-    return o, wi, tmax
+def light_shadow_rays(ctx, hit, light_index, rng):
+    """One sample of light ctx.lights[light_index] per hit, as the kernels make it:
+    (rows (M,) of the lit hits, irradiance without visibility (M,3), float32 shadow-ray
+    origins (M,3), directions (M,3), tmax (M,)). For tests and diagnostics."""
+    n = len(hit.p)
+    light = ctx.lights[light_index]
+    u1, u2 = rng.random(n), rng.random(n)
+    sel = rng.random(n) if light.kind == MESH else None
+    buf = DirectLightBuffers().ensure(max(n, 1))
+    codes, params, mesh = pack_lights(ctx.lights)
+    m_all, m_rays = sample_lights(*_hit_arrays(ctx.geo, hit), codes, params, *mesh,
+                                  np.array([light_index], np.int64), np.ones(1, np.bool_),
+                                  u1[None], u2[None],
+                                  np.zeros((1, 1)) if sel is None else sel[None],
+                                  buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
+                                  buf.t32)
+    return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.o32[:m_rays].copy(),
+            buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
+
+
+def _hit_arrays(geo, hit):
+    """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
+    light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
+    offset, and the shadow-terminator cut-off and smooth-surface lift of smooth triangles."""
+    n = len(hit.p)
+    c = np.ascontiguousarray
+    gate = _lit_side_normals(geo, hit)
+    shading_offset = np.take(geo.terminator_shading, hit.prim) if n else np.zeros(0)
+    cutoff = np.zeros(n)
+    lift = np.zeros((n, 3))
+    if hit.bary is not None and n:
+        terminator_lift(hit.prim, c(hit.bary, np.float64), c(hit.ng, np.float64), geo.smooth,
+                        geo.terminator, geo.v0, geo.e1, geo.e2, geo.corner_normals, cutoff,
+                        lift)
+    return (c(hit.p, np.float64), c(hit.ns, np.float64), c(gate, np.float64),
+            c(hit.ng, np.float64), c(hit.offset, np.float64),
+            c(shading_offset, np.float64), cutoff, lift)
 
 
 def _lit_side_normals(geo, hit):
@@ -134,7 +145,7 @@ def _lit_side_normals(geo, hit):
     the geometric normal, except on smooth-shaded triangles with a shadow terminator
     offset, where (as in Cycles) light the shading normal faces is traced even when it
     arrives just below the flat facet: its shadow ray leaves from the smooth surface
-    (_terminator_origins) and is shadowed only if it really meets geometry, the facet
+    (directlight.terminator_lift) and is shadowed only if it really meets geometry, the facet
     itself included (Cycles skips the own triangle only when NgL > 0)."""
     if hit.bary is None or not len(hit.prim):
         return hit.ng
@@ -142,33 +153,6 @@ def _lit_side_normals(geo, hit):
     if not smooth.any():
         return hit.ng
     return np.where(smooth[:, None], hit.ns, hit.ng)
-
-
-def _terminator_origins(geo, hit, rows, wi, p):
-    """Shadow-ray start points moved from the flat facet towards the smooth surface its
-    normals describe, by Cycles' amount for the light direction wi (shadow_ray_offset in
-    intern/cycles/kernel/light/sample.h): no black facet notches along the terminator of
-    a coarse smooth mesh."""
-    prim = hit.prim[rows]
-    cutoff = np.take(geo.terminator, prim)
-    cand = np.nonzero(np.take(geo.smooth, prim) & (cutoff > 0))[0]
-    if len(cand) == 0:
-        return p
-    ng = hit.ng[rows[cand]]
-    amount = terminator_amount(cutoff[cand], dot(hit.ns[rows[cand]], wi[cand]),
-                               dot(ng, wi[cand]))
-    go = np.nonzero(amount > 0)[0]
-    if len(go) == 0:
-        return p
-    sel = cand[go]
-    t = prim[sel]
-    b = hit.bary[rows[sel]]
-    lift = smooth_surface_lift(np.take(geo.v0, t, axis=0), np.take(geo.e1, t, axis=0),
-                               np.take(geo.e2, t, axis=0), np.take(geo.corner_normals, t, axis=0),
-                               b[:, 0], b[:, 1], ng[go])
-    p = p.copy()
-    p[sel] += lift * amount[go][:, None]
-    return p
 
 
 # Gather rays that end near a corner or contact, where the precomputed irradiance is cut
@@ -190,7 +174,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     E = np.zeros((n, 3))
     G = rays or ctx.settings.gather_rays
     for g in range(G):
-        u1, u2 = sampler.uv(1 + 64 * g) if sampler is not None else (rng.random(n), rng.random(n))
+        u1, u2 = sampler.uv(("gather", g)) if sampler is not None else (rng.random(n), rng.random(n))
         d = to_world(cosine_hemisphere(u1, u2), hit.ns)
         idx = np.nonzero(dot(d, hit.ng) > 0)[0]
         o = hit.clear(idx, d[idx])
@@ -375,6 +359,22 @@ class Accumulator:
 
 
 
+def camera_dimensions(gather_rays: int, light_samples) -> SampleDimensions:
+    """The first-hit sampler's dimensions: ("gather", g) for each final-gather ray and
+    ("light", li, si) for each shadow sample si of light li (light_samples[li] of them).
+    Preferred numbers are the ones used before dimensions were allocated (gather
+    1 + 64 g, light 2 + 64 li + si), so images stay as they were; they collided once a
+    light took >= 63 samples (its sample 63 met gather ray li + 1, sample 64 + k met light
+    li + 1's sample k). Gather rays claim first, then light samples by sample index, so
+    only the later of two colliding streams moves (SampleDimensions)."""
+    requests = [(("gather", g), 1 + 64 * g) for g in range(gather_rays)]
+    for si in range(max(light_samples, default=0)):
+        for li, n in enumerate(light_samples):
+            if si < n:
+                requests.append((("light", li, si), 2 + 64 * li + si))
+    return SampleDimensions(requests)
+
+
 def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Counters:
     s = ctx.settings
     x0, y0, x1, y1 = region
@@ -389,10 +389,12 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     threads = s.threads
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
+    dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
+                                             for li in ctx.lights])
 
     def job(item, stop):
         ci, start = item
-        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop)
+        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop, dims)
 
     try:
         for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel):
@@ -405,7 +407,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     return counters
 
 
-def _render_chunk(ctx, region, ci, start, end, should_cancel):
+def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     """Camera samples [start, end) of the region (sample = pixel * spp + sub-sample):
     returns their sums over the pixels they touch, the ray counters, and `end`."""
     s = ctx.settings
@@ -439,7 +441,7 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel):
     o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
     counters.camera_rays += len(o)
     tp = np.ones((len(o), 3))
-    sampler = StratifiedSampler(sub, pix, spp, rng)
+    sampler = StratifiedSampler(sub, pix, spp, rng, dims)
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,

@@ -29,7 +29,9 @@ Rounding Error"). Two sources of error are bounded:
 Offsets are applied along the geometric normal (towards the side the ray leaves), as
 pbrt-v4 does: an offset along the ray would have to grow without bound at grazing angles.
 Checked against Embree on random, huge, tilted and sliver triangles by
-tests/test_ray_offsets.py (no self-hits).
+tests/test_ray_offsets.py (no self-hits). Shadow rays (segments to a light sample, ended
+before an emitting surface by its error bound, pbrt-v4's SpawnRayTo) and Cycles' shadow
+terminator offsets are made in the compiled direct-light kernels, engine/directlight.py.
 """
 from __future__ import annotations
 
@@ -130,90 +132,3 @@ def offset_along_normal(p: np.ndarray, n: np.ndarray, towards: np.ndarray,
     leaving the surface)."""
     side = np.where(dot(towards, n) >= 0.0, 1.0, -1.0)
     return p + (side * distance)[:, None] * n
-
-
-def segment_to(o: np.ndarray, y: np.ndarray, ny: np.ndarray | None = None,
-               end_gap: np.ndarray | None = None):
-    """A shadow segment from origin o to the point y: (unit direction, tmax).
-
-    With a surface at y (unit normal ny, its point error end_gap along ny), the end is
-    first lifted off that surface towards o, by end_gap plus the float32 error of the
-    ray's parametric distance (pbrt-v4's SpawnRayTo, error bounds at both ends), so the
-    segment ends before the surface's plane at any angle: a ray to a point on an emitter
-    is never blocked by the emitter itself. Without a surface, the segment stops short of
-    y by the same float32 error of t."""
-    w = y - o
-    dist = norm3(w)
-    slack = G32_T * dist + ulp32(dist)
-    if ny is not None:
-        gap = slack + (0.0 if end_gap is None else end_gap)
-        y = offset_along_normal(y, ny, o - y, gap)
-        w = y - o
-        dist = norm3(w)
-        tmax = dist
-    else:
-        tmax = np.maximum(dist - slack, 0.0)
-    d = w / np.maximum(dist, 1e-300)[:, None]
-    return d, tmax
-
-
-def smooth_surface_lift(v0, e1, e2, corner_normals, b1, b2, ng) -> np.ndarray:
-    """(N,3) Cycles' shadow-terminator lift of points on smooth-shaded triangles: from the
-    flat facet to a smooth surface through the corners, whose normals are the corner
-    normals (a parabolic patch, bounded by the corners' tangent planes). Blender's
-    intern/cycles/kernel/light/sample.h, shadow_ray_smooth_surface_offset(), in world
-    space. v0, e1, e2 (N,3) triangle; corner_normals (N,3,3); b1, b2 barycentric weights
-    of corners 1 and 2; ng (N,3) geometric normal facing the side being lit."""
-    w = 1.0 - b1 - b2  # Cycles' u, v, w are the weights of corners 0, 1, 2
-    u, v = w[:, None], b1[:, None]
-    V0, V1, V2 = v0, v0 + e1, v0 + e2
-    N0, N1, N2 = corner_normals[:, 0], corner_normals[:, 1], corner_normals[:, 2]
-    P = V0 * u + V1 * v + V2 * b2[:, None]
-    n = N0 * u + N1 * v + N2 * b2[:, None]  # not normalised, as in Cycles
-    a = dot(N2 - N0, V0 - V2)
-    b = dot(N2 - N1, V1 - V2)
-    c = dot(N1 - N0, V1 - V0)
-    uu, vv = w, b1
-    h = a * uu * (uu - 1) + (a + b + c) * uu * vv + b * vv * (vv - 1)
-    mx = np.maximum
-    # Local linear envelope (normals on the lit side of the facet).
-    h0 = mx(mx(dot(V1 - V0, N0), dot(V2 - V0, N0)), 0.0)
-    h1 = mx(mx(dot(V0 - V1, N1), dot(V2 - V1, N1)), 0.0)
-    h2 = mx(mx(dot(V0 - V2, N2), dot(V1 - V2, N2)), 0.0)
-    h0 = mx(dot(V0 - P, N0) + h0, 0.0)
-    h1 = mx(dot(V1 - P, N1) + h1, 0.0)
-    h2 = mx(dot(V2 - P, N2) + h2, 0.0)
-    lit_side = mx(np.minimum(np.minimum(h0, h1), h2), h * 0.5)
-    # Flipped normals.
-    g0 = mx(mx(dot(V0 - V1, N0), dot(V0 - V2, N0)), 0.0)
-    g1 = mx(mx(dot(V1 - V0, N1), dot(V1 - V2, N1)), 0.0)
-    g2 = mx(mx(dot(V2 - V0, N2), dot(V2 - V1, N2)), 0.0)
-    g0 = mx(dot(P - V0, N0) + g0, 0.0)
-    g1 = mx(dot(P - V1, N1) + g1, 0.0)
-    g2 = mx(dot(P - V2, N2) + g2, 0.0)
-    flipped = np.minimum(-np.minimum(np.minimum(g0, g1), g2), h * 0.5)
-    h = np.where(dot(n, ng) > 0, lit_side, flipped)
-    return n * h[:, None]
-
-
-def shift_cos_in(cos_in, shading_offset) -> np.ndarray:
-    """(N,) factor on direct light for Cycles' Shadow Terminator > Shading Offset:
-    max(cos(f acos(cos_in)), 0) / cos_in with f = 1 / (1 - offset / 2) (Cycles'
-    shift_cos_in in kernel/closure/bsdf.h, from appleseed; f as in scene/object.cpp).
-    1 where the offset is 0; 0 where cos_in <= 0."""
-    f = 1.0 / (1.0 - 0.5 * np.asarray(shading_offset, np.float64))
-    c = np.clip(cos_in, 0.0, 1.0)
-    val = np.maximum(np.cos(np.arccos(c) * f), 0.0) / np.maximum(c, 1e-300)
-    return np.where(f > 1.0, np.where(c > 0, val, 0.0), 1.0)
-
-
-def terminator_amount(cutoff, cos_ns, cos_ng) -> np.ndarray:
-    """(N,) how much of the smooth-surface lift a shadow ray takes (Cycles'
-    shadow_ray_offset(): the rays within `cutoff` (the object's geometry offset) of
-    grazing, with a smooth transition). cos_ns, cos_ng: cosines of the light direction
-    with the shading and geometric normal (both on the lit side)."""
-    nl = np.abs(cos_ns)
-    safe = np.where(cutoff > 0, cutoff, 1.0)
-    amount = np.where(nl < cutoff, np.clip(2.0 - (cos_ng + nl) / safe, 0.0, 1.0),
-                      np.clip(1.0 - cos_ng / safe, 0.0, 1.0))
-    return np.where(cutoff > 0, amount, 0.0)

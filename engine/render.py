@@ -14,6 +14,7 @@ from .geometry import Geometry, MaterialTable, prepare
 from .integrator import render_camera
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
+from .lights.packing import pack_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
@@ -41,6 +42,7 @@ class Context:
     plan: EffectPlan | None = None
     global_radius: float = 0.0
     caustic_radius: float = 0.0
+    packed_lights: tuple | None = None  # lights as the direct-light kernels read them
 
 
     def serial(self) -> "Context":
@@ -77,7 +79,7 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel) -
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
                             threads=settings.threads)
     lights = prepare_lights(scene, geo, table)
-    ctx = Context(scene, settings, geo, table, accel, lights)
+    ctx = Context(scene, settings, geo, table, accel, lights, packed_lights=pack_lights(lights))
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
     return ctx
 

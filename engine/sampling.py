@@ -114,6 +114,55 @@ def offset_origin(p: np.ndarray, ng: np.ndarray, direction: np.ndarray, eps) -> 
     return p + (side * eps)[..., None] * ng
 
 
+class SampleDimensions:
+    """The stratified sampler's dimensions, handed out so that no two consumers share one.
+
+    Each consumer of 2-D sample points names its dimension by a key (e.g. ("gather", g),
+    ("light", li, si)) and may ask for a preferred number (the numbering images were
+    rendered with so far). Requests are resolved together, in their order: a key gets its
+    preferred number unless an earlier request holds it; such keys, and keys without a
+    preference, get numbers above every preferred one, in request order. Built once per
+    pass on one thread, so every chunk and thread count sees the same numbering.
+
+    requests: iterable of (key, preferred int >= 0 or None). Raises ValueError on a key
+    requested twice."""
+
+    def __init__(self, requests):
+        self._dim: dict = {}
+        self.moved: list = []   # keys whose preferred number was taken (for diagnostics)
+        pending = []
+        taken = set()
+        top = -1
+        for key, preferred in requests:
+            if key in self._dim or any(key == k for k, _ in pending):
+                raise ValueError(f"sample dimension {key!r} requested twice")
+            if preferred is not None and preferred not in taken:
+                self._dim[key] = int(preferred)
+                taken.add(int(preferred))
+                top = max(top, int(preferred))
+            else:
+                pending.append((key, preferred))
+        for key, preferred in pending:
+            top += 1
+            self._dim[key] = top
+            if preferred is not None:
+                self.moved.append(key)
+
+    def __getitem__(self, key) -> int:
+        try:
+            return self._dim[key]
+        except KeyError:
+            raise KeyError(f"sample dimension {key!r} was not requested; known: "
+                           f"{len(self._dim)} keys") from None
+
+    def __len__(self):
+        return len(self._dim)
+
+    def numbers(self) -> dict:
+        """key -> dimension number (a copy)."""
+        return dict(self._dim)
+
+
 class StratifiedSampler:
     """2-D sample points stratified across the samples of one pixel.
 
@@ -121,9 +170,14 @@ class StratifiedSampler:
     (m = floor(sqrt(spp))), jittered inside the cell. The shift is a hash of pixel and
     dimension, so dimensions (light position, gather direction, ...) are not correlated
     with each other or with the pixel jitter. Over the spp samples of a pixel every
-    cell is visited once, which cuts noise in soft shadows and final gathering."""
+    cell is visited once, which cuts noise in soft shadows and final gathering.
 
-    def __init__(self, sub: np.ndarray, pix: np.ndarray, spp: int, rng: np.random.Generator):
+    Dimensions are asked for by key (uv(("light", li, si))); `dims` (SampleDimensions)
+    maps keys to numbers, so no two consumers can share a dimension."""
+
+    def __init__(self, sub: np.ndarray, pix: np.ndarray, spp: int, rng: np.random.Generator,
+                 dims: SampleDimensions):
+        self.dims = dims
         self.sub = sub
         self.pix = pix
         self.m = max(1, int(np.sqrt(spp)))
@@ -135,9 +189,12 @@ class StratifiedSampler:
     def subset(self, idx) -> "StratifiedSampler":
         s = StratifiedSampler.__new__(StratifiedSampler)
         s.sub, s.pix, s.m, s.full, s.rng = self.sub[idx], self.pix[idx], self.m, self.full, self.rng
+        s.dims = self.dims
         return s
 
-    def uv(self, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    def uv(self, key) -> tuple[np.ndarray, np.ndarray]:
+        """(u1, u2), each (N,) in [0, 1), for the dimension named key (SampleDimensions)."""
+        dim = self.dims[key]
         n = len(self.sub)
         cells = self.m * self.m
         if cells < 2:

@@ -333,8 +333,9 @@ class Light:
     def __post_init__(self):
         who = f"light '{self.name}'"
         self.kind = str(self.kind).upper()
-        if self.kind not in (POINT, SPOT, AREA, SUN):
-            raise SceneError(f"{who}: unknown kind '{self.kind}' (POINT, SPOT, AREA, SUN)")
+        from .lights import DECLARED_KINDS  # the registry imports this module
+        if self.kind not in DECLARED_KINDS:
+            raise SceneError(f"{who}: unknown kind '{self.kind}' ({', '.join(DECLARED_KINDS)})")
         self.shape = {"SQUARE": RECTANGLE, "ELLIPSE": DISK}.get(str(self.shape).upper(),
                                                                  str(self.shape).upper())
         if self.shape not in (RECTANGLE, DISK):

@@ -43,7 +43,8 @@ import tomllib
 import numpy as np
 
 from .api import PaperScene
-from .scene import AREA, POINT, SPOT, SUN, Light, Material, Mesh, SceneError
+from .lights import DECLARED_KINDS
+from .scene import Light, Material, Mesh, SceneError
 from .settings import RenderSettings
 
 MATERIAL_KEYS = {"base_color", "metallic", "roughness", "transmission", "ior", "specular",
@@ -394,10 +395,11 @@ def _light(scene, spec, i):
     raw_kind = spec.get("type", "")
     kind = raw_kind.lower() if isinstance(raw_kind, str) else ""
     where = f"lights[{i}] ({spec.get('name', kind or '?')})"
-    kinds = {"point": POINT, "spot": SPOT, "area": AREA, "sun": SUN}
+    kinds = {k.lower(): k for k in DECLARED_KINDS}  # the light registry (engine/lights/)
     if kind not in kinds:
-        raise SceneFileError(f"{where}: 'type' must be point, spot, area or sun, got "
-                             f"{_show(raw_kind)}")
+        names = [k.lower() for k in DECLARED_KINDS]
+        raise SceneFileError(f"{where}: 'type' must be {', '.join(names[:-1])} or {names[-1]}, "
+                             f"got {_show(raw_kind)}")
     t = _Table(spec, where, {"type", "name", "position", "direction", "look_at", "power",
                              "strength", "color", "radius", "spot_size", "blend", "size",
                              "shape", "angle", "spread", "visible",

@@ -53,6 +53,9 @@ class _Subset:
     def occluded(self, o, d, tmax=None):
         return self.accel.occluded(o, d, tmax)
 
+    def occluded_into(self, o32, d32, tmax32, blocked):
+        return self.accel.occluded_into(o32, d32, tmax32, blocked)
+
 
 class VisibilityAccel:
     """Closest-hit and occlusion queries that honour each triangle's ray visibility.
@@ -101,6 +104,11 @@ class VisibilityAccel:
 
     def for_class(self, cls: int):
         return self._by_class[int(cls)]
+
+    def occluded_into(self, o32, d32, tmax32, blocked, cls=None):
+        """Accel.occluded_into (float32 rays written by a kernel) for rays of class cls."""
+        acc = self.full if cls is None or not self.has_invisible else self._by_class[int(cls)]
+        return acc.occluded_into(o32, d32, tmax32, blocked)
 
     def intersect(self, origins, directions, tmax=None, cls=None):
         """Closest hits (t, prim, u, v) as Accel.intersect, seen by rays of class `cls`:

@@ -16,7 +16,7 @@ from engine.accel import Accel
 from engine.api import PaperScene
 from engine.bsdf import surface_hit
 from engine.geometry import prepare
-from engine.integrator import Counters, direct_irradiance, shadow_rays
+from engine.integrator import Counters, direct_irradiance, light_shadow_rays
 from engine.render import prepare_context
 from engine.sampling import uniform_sphere
 from engine.scene import Camera, Material, Mesh, Scene
@@ -174,13 +174,12 @@ def test_shadow_rays_to_an_emitter_are_never_blocked_by_it(scale, shift):
     xs = c[0] + scale * rng.uniform(-9.5, 9.5, n)
     ys = c[1] + scale * rng.uniform(-9.5, 9.5, n)
     hit = _floor_hits(ctx, xs, ys, 1)
-    light = ctx.lights[0]
-    ls = light.sample(hit.p, hit.ns, hit.ng, rng)
-    lit = np.nonzero(ls.E[:, 0] > 0)[0]
-    o, wi, tmax = shadow_rays(hit, ls, lit)
-    # Rays that another panel blocks (checked in float64) are left out.
+    lit, _, o, wi, tmax = light_shadow_rays(ctx, hit, 0, rng)
+    # Rays that another panel blocks (checked in float64) are left out. The segment's end
+    # stands in for the sampled point (it lies before the emitter, off every plane).
     blocked = ctx.accel.occluded(o, wi, tmax)
-    other = _blocked_by_other_panels(ctx, o, wi, tmax, ls.y[lit])
+    o, wi, tmax = o.astype(np.float64), wi.astype(np.float64), tmax.astype(np.float64)
+    other = _blocked_by_other_panels(ctx, o, wi, tmax, o + tmax[:, None] * wi)
     ctx.accel.close()
     assert len(lit) > n // 4
     assert np.count_nonzero(blocked & ~other) == 0

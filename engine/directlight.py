@@ -1,0 +1,561 @@
+"""The direct-light stage in compiled kernels: shadow rays to every light, then occlusion.
+
+For a batch of diffuse hits, `sample_lights` draws every light sample (area rectangles and
+ellipses with spread clamp and shear, point and spot lights with a radius and the scaled
+spot frame, the sun's disk, emissive triangles by their CDF, the world), computes the
+irradiance each would bring ignoring visibility (with Cycles' shading offset), and writes
+the shadow rays of the lit samples, compacted, as float32 straight into the arrays handed
+to Embree's OCCLUDED query (engine/accel.py, Accel.occluded_into). `accumulate` then adds
+contribution x visible per hit, in sample order. Kernels are `@kernel` (engine/jit.py:
+nogil, cached, no prange), so engine/parallel.py's threads run them side by side.
+
+The arithmetic follows the light modules (engine/lights/) operation by operation, with the
+same random numbers (drawn by the caller in numpy, in the order the lights draw them), so
+images match the numpy implementation to rounding (docs/performance.md, "Direct light in
+compiled kernels"). Ray ends follow engine/rayoffset.py (pbrt-v4's OffsetRayOrigin /
+SpawnRayTo; Cycles' shadow terminator offset).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .jit import kernel, register_warm_up
+from .lights import packing as pk
+from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
+
+F32_MAX = float(np.finfo(np.float32).max)
+TWO_U32 = 2.0 * U32
+TWO_PI = 2.0 * np.pi
+PI_4 = np.pi / 4.0
+PI_2 = np.pi / 2.0
+PI = math.pi
+
+# Slots (engine/lights/packing.py), as module constants the kernels freeze.
+POS, DIR, U, V, DU, DV, RGB = pk.POS, pk.DIR, pk.U, pk.V, pk.DU, pk.DV, pk.RGB
+RADIUS, SIZE_X, SIZE_Y, AREA_, COS_HALF = pk.RADIUS, pk.SIZE_X, pk.SIZE_Y, pk.AREA_, pk.COS_HALF
+SPREAD_ON, TAN_H, SPREAD_NORM, IS_DISK, SPREAD_RECT = (pk.SPREAD_ON, pk.TAN_H, pk.SPREAD_NORM,
+                                                       pk.IS_DISK, pk.SPREAD_RECT)
+SPOT_COS_HALF, SPOT_WIDTH, SPOT_FRAME = pk.SPOT_COS_HALF, pk.SPOT_WIDTH, pk.SPOT_FRAME
+C_POINT, C_SPOT, C_AREA, C_SUN, C_MESH, C_WORLD = (pk.CODE_POINT, pk.CODE_SPOT, pk.CODE_AREA,
+                                                   pk.CODE_SUN, pk.CODE_MESH, pk.CODE_WORLD)
+
+
+@kernel
+def _ulp32(x):
+    return max(TWO_U32 * abs(x), TINY32)
+
+
+@kernel
+def _npmax(a, b):
+    """np.maximum: NaN wins."""
+    if a != a or b != b:
+        return a + b
+    return a if a >= b else b
+
+
+@kernel
+def _concentric_disk(u1, u2):
+    a = 2.0 * u1 - 1.0
+    b = 2.0 * u2 - 1.0
+    if abs(a) > abs(b):
+        r = a
+        phi = PI_4 * (b / (a if a != 0 else 1e-300))
+    else:
+        r = b
+        phi = PI_2 - PI_4 * (a / (b if b != 0 else 1e-300))
+    return r * math.cos(phi), r * math.sin(phi)
+
+
+@kernel
+def _to_world(l0, l1, l2, n0, n1, n2):
+    """sampling.to_world for one direction."""
+    sign = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sign + n2)
+    b = n0 * n1 * a
+    x = l0 * (1.0 + sign * n0 ** 2 * a) + l1 * b + l2 * n0
+    y = l0 * (sign * b) + l1 * (sign + n1 ** 2 * a) + l2 * n1
+    z = l0 * (-sign * n0) + l1 * (-n1) + l2 * n2
+    return x, y, z
+
+
+@kernel
+def _spread_attenuation(cos_a, q):
+    if q[SPREAD_ON] == 0.0:
+        return 1.0
+    c = max(cos_a, 1e-12)
+    tan_a = math.sqrt(max(1.0 - c * c, 0.0)) / c
+    if cos_a > 0:
+        return max((q[TAN_H] - tan_a) * q[SPREAD_NORM], 0.0)
+    return 0.0
+
+
+@kernel
+def _spot_mask(w0, w1, w2, q):
+    f = SPOT_FRAME
+    l0 = w0 * q[f + 0] + w1 * q[f + 1] + w2 * q[f + 2]
+    l1 = w0 * q[f + 3] + w1 * q[f + 4] + w2 * q[f + 5]
+    l2 = w0 * q[f + 6] + w1 * q[f + 7] + w2 * q[f + 8]
+    length = math.sqrt(l0 ** 2 + l1 ** 2 + l2 ** 2)
+    x = l2 / max(length, 1e-300) - q[SPOT_COS_HALF]
+    width = q[SPOT_WIDTH]
+    if width <= 0:
+        return 1.0 if x > 0 else 0.0
+    t = min(max(x / width, 0.0), 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+@kernel
+def _shift_cos_in(cos_in, offset):
+    f = 1.0 / (1.0 - 0.5 * offset)
+    if not f > 1.0:
+        return 1.0
+    c = min(max(cos_in, 0.0), 1.0)
+    if not c > 0:
+        return 0.0
+    return max(math.cos(math.acos(c) * f), 0.0) / max(c, 1e-300)
+
+
+@kernel
+def _terminator_amount(cutoff, cos_ns, cos_ng):
+    nl = abs(cos_ns)
+    if nl < cutoff:
+        return min(max(2.0 - (cos_ng + nl) / cutoff, 0.0), 1.0)
+    return min(max(1.0 - cos_ng / cutoff, 0.0), 1.0)
+
+
+@kernel
+def _dot(a0, a1, a2, b0, b1, b2):
+    return a0 * b0 + a1 * b1 + a2 * b2
+
+
+@kernel
+def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_normals,
+                    cutoff, lift):
+    """Per hit i (not per sample): cutoff[i] = the shadow-terminator geometry offset of its
+    triangle if smooth-shaded (else 0) and lift[i] (3,) the lift of the hit from the flat
+    facet to the smooth surface through the corners (a parabolic patch bounded by the
+    corners' tangent planes): Blender's intern/cycles/kernel/light/sample.h,
+    shadow_ray_smooth_surface_offset(), in world space."""
+    for i in range(prim.shape[0]):
+        t = prim[i]
+        cut = terminator[t]
+        if not (smooth[t] and cut > 0):
+            cutoff[i] = 0.0
+            lift[i, 0] = lift[i, 1] = lift[i, 2] = 0.0
+            continue
+        cutoff[i] = cut
+        b1 = bary[i, 0]
+        b2 = bary[i, 1]
+        w = 1.0 - b1 - b2
+        A0, A1, A2 = v0[t, 0], v0[t, 1], v0[t, 2]
+        B0, B1, B2 = v0[t, 0] + e1[t, 0], v0[t, 1] + e1[t, 1], v0[t, 2] + e1[t, 2]
+        C0, C1, C2 = v0[t, 0] + e2[t, 0], v0[t, 1] + e2[t, 1], v0[t, 2] + e2[t, 2]
+        M = corner_normals[t]
+        P0 = A0 * w + B0 * b1 + C0 * b2
+        P1 = A1 * w + B1 * b1 + C1 * b2
+        P2 = A2 * w + B2 * b1 + C2 * b2
+        n0 = M[0, 0] * w + M[1, 0] * b1 + M[2, 0] * b2
+        n1 = M[0, 1] * w + M[1, 1] * b1 + M[2, 1] * b2
+        n2 = M[0, 2] * w + M[1, 2] * b1 + M[2, 2] * b2
+        a = _dot(M[2, 0] - M[0, 0], M[2, 1] - M[0, 1], M[2, 2] - M[0, 2], A0 - C0, A1 - C1, A2 - C2)
+        b = _dot(M[2, 0] - M[1, 0], M[2, 1] - M[1, 1], M[2, 2] - M[1, 2], B0 - C0, B1 - C1, B2 - C2)
+        c = _dot(M[1, 0] - M[0, 0], M[1, 1] - M[0, 1], M[1, 2] - M[0, 2], B0 - A0, B1 - A1, B2 - A2)
+        h = a * w * (w - 1) + (a + b + c) * w * b1 + b * b1 * (b1 - 1)
+        N00, N01, N02 = M[0, 0], M[0, 1], M[0, 2]
+        N10, N11, N12 = M[1, 0], M[1, 1], M[1, 2]
+        N20, N21, N22 = M[2, 0], M[2, 1], M[2, 2]
+        if _dot(n0, n1, n2, ng[i, 0], ng[i, 1], ng[i, 2]) > 0:
+            h0 = _npmax(_npmax(_dot(B0 - A0, B1 - A1, B2 - A2, N00, N01, N02),
+                               _dot(C0 - A0, C1 - A1, C2 - A2, N00, N01, N02)), 0.0)
+            h1 = _npmax(_npmax(_dot(A0 - B0, A1 - B1, A2 - B2, N10, N11, N12),
+                               _dot(C0 - B0, C1 - B1, C2 - B2, N10, N11, N12)), 0.0)
+            h2 = _npmax(_npmax(_dot(A0 - C0, A1 - C1, A2 - C2, N20, N21, N22),
+                               _dot(B0 - C0, B1 - C1, B2 - C2, N20, N21, N22)), 0.0)
+            h0 = _npmax(_dot(A0 - P0, A1 - P1, A2 - P2, N00, N01, N02) + h0, 0.0)
+            h1 = _npmax(_dot(B0 - P0, B1 - P1, B2 - P2, N10, N11, N12) + h1, 0.0)
+            h2 = _npmax(_dot(C0 - P0, C1 - P1, C2 - P2, N20, N21, N22) + h2, 0.0)
+            hh = _npmax(min(min(h0, h1), h2), h * 0.5)
+        else:
+            g0 = _npmax(_npmax(_dot(A0 - B0, A1 - B1, A2 - B2, N00, N01, N02),
+                               _dot(A0 - C0, A1 - C1, A2 - C2, N00, N01, N02)), 0.0)
+            g1 = _npmax(_npmax(_dot(B0 - A0, B1 - A1, B2 - A2, N10, N11, N12),
+                               _dot(B0 - C0, B1 - C1, B2 - C2, N10, N11, N12)), 0.0)
+            g2 = _npmax(_npmax(_dot(C0 - A0, C1 - A1, C2 - A2, N20, N21, N22),
+                               _dot(C0 - B0, C1 - B1, C2 - B2, N20, N21, N22)), 0.0)
+            g0 = _npmax(_dot(P0 - A0, P1 - A1, P2 - A2, N00, N01, N02) + g0, 0.0)
+            g1 = _npmax(_dot(P0 - B0, P1 - B1, P2 - B2, N10, N11, N12) + g1, 0.0)
+            g2 = _npmax(_dot(P0 - C0, P1 - C1, P2 - C2, N20, N21, N22) + g2, 0.0)
+            hh = min(-min(min(g0, g1), g2), h * 0.5)
+        lift[i, 0], lift[i, 1], lift[i, 2] = n0 * hh, n1 * hh, n2 * hh
+
+
+@kernel
+def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
+                  codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
+                  m_tilt32, klight, ktrace, U1, U2, SEL,
+                  contrib, row, kidx, ray, o32, d32, t32):
+    """Every light sample of a batch of hits, compacted to the lit ones.
+
+    p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
+    receive light (integrator._lit_side_normals), geometric normals; offset (N,) the
+    origin offset along ng (rayoffset.origin_offset); shade_off (N,) Cycles' shading
+    offset (0: none); cutoff (N,) shadow-terminator geometry offset of smooth triangles (0:
+    none) and lift (N,3) their smooth-surface lift (terminator_lift).
+    codes (L,), params (L,P): packed lights; m_*: emissive triangles (packing.pack_lights).
+    klight (K,) light of sample k, ktrace (K,) whether its shadows are traced; U1, U2,
+    SEL (K,N): its random numbers (SEL: the triangle choice of mesh lights).
+    Writes entries j < m_all: contrib (j,3) irradiance without visibility, row (j,) hit,
+    kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced); rays i < m_rays:
+    o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
+    n = p.shape[0]
+    K = klight.shape[0]
+    m_all = 0
+    m_rays = 0
+    ntri = m_cdf.shape[0]
+    for k in range(K):
+        li = klight[k]
+        code = codes[li]
+        q = params[li]
+        for i in range(n):
+            u1 = U1[k, i]
+            u2 = U2[k, i]
+            p0, p1, p2 = p[i, 0], p[i, 1], p[i, 2]
+            s0, s1, s2 = ns[i, 0], ns[i, 1], ns[i, 2]
+            g0, g1, g2 = gate[i, 0], gate[i, 1], gate[i, 2]
+            finite = True      # the sample lies at a point y (not at infinity)
+            surface = False    # ... on a surface with normal ny and end gap
+            y0 = y1 = y2 = 0.0
+            ny0 = ny1 = ny2 = 0.0
+            gap = 0.0
+            e0 = e1 = e2 = 0.0
+            w0 = w1 = w2 = 0.0
+            if code == C_SUN or code == C_WORLD:
+                finite = False
+                if code == C_SUN:
+                    z = 1.0 - u1 * (1.0 - q[COS_HALF])
+                    r = math.sqrt(max(0.0, 1.0 - z * z))
+                    phi = TWO_PI * u2
+                    w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z,
+                                           -q[DIR], -q[DIR + 1], -q[DIR + 2])
+                    cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
+                        1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
+                    e0, e1, e2 = q[RGB] * cr, q[RGB + 1] * cr, q[RGB + 2] * cr
+                else:
+                    r = math.sqrt(u1)
+                    phi = TWO_PI * u2
+                    z = math.sqrt(max(0.0, 1.0 - u1))
+                    w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z, s0, s1, s2)
+                    ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
+                    e0, e1, e2 = (PI * q[RGB]) * ok, (PI * q[RGB + 1]) * ok, (PI * q[RGB + 2]) * ok
+            elif code == C_POINT or code == C_SPOT:
+                t0, t1, t2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
+                dc = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+                dcs = max(dc, 1e-300)
+                a0, a1, a2 = t0 / dcs, t1 / dcs, t2 / dcs
+                rad = q[RADIUS]
+                if rad > 0:
+                    x, yy = _concentric_disk(u1, u2)
+                    sign = 1.0 if a2 >= 0.0 else -1.0
+                    aa = -1.0 / (sign + a2)
+                    bb = a0 * a1 * aa
+                    y0 = q[POS] + rad * (x * (1.0 + sign * a0 ** 2 * aa) + yy * bb)
+                    y1 = q[POS + 1] + rad * (x * (sign * bb) + yy * (sign + a1 ** 2 * aa))
+                    y2 = q[POS + 2] + rad * (x * (-sign * a0) + yy * (-a1))
+                else:
+                    y0, y1, y2 = q[POS], q[POS + 1], q[POS + 2]
+                v0_, v1_, v2_ = y0 - p0, y1 - p1, y2 - p2
+                dist = math.sqrt(v0_ * v0_ + v1_ * v1_ + v2_ * v2_)
+                ds = max(dist, 1e-300)
+                w0, w1, w2 = v0_ / ds, v1_ / ds, v2_ / ds
+                cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
+                    1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
+                cl = _npmax((-w0) * a0 + (-w1) * a1 + (-w2) * a2, 0.0) if rad > 0 else 1.0
+                md = 16.0 * (_ulp32(max(max(abs(p0), abs(p1)), abs(p2)))
+                             + _ulp32(max(max(abs(y0), abs(y1)), abs(y2))))
+                d2 = max(dist * dist, md * md)
+                f = cr * cl / d2
+                e0, e1, e2 = q[RGB] * f, q[RGB + 1] * f, q[RGB + 2] * f
+                if code == C_SPOT:
+                    m = _spot_mask(a0, a1, a2, q)
+                    e0, e1, e2 = e0 * m, e1 * m, e2 * m
+            else:
+                surface = True
+                two_sided = code == C_MESH
+                if code == C_MESH:
+                    # searchsorted(cdf, r, side="right"), clipped
+                    rr = SEL[k, i]
+                    lo, hi = 0, ntri
+                    while lo < hi:
+                        mid = (lo + hi) // 2
+                        if m_cdf[mid] <= rr:
+                            lo = mid + 1
+                        else:
+                            hi = mid
+                    tri = min(max(lo, 0), ntri - 1)
+                    sq = math.sqrt(u1)
+                    b1 = 1.0 - sq
+                    b2 = u2 * sq
+                    y0 = m_v0[tri, 0] + b1 * m_e1[tri, 0] + b2 * m_e2[tri, 0]
+                    y1 = m_v0[tri, 1] + b1 * m_e1[tri, 1] + b2 * m_e2[tri, 1]
+                    y2 = m_v0[tri, 2] + b1 * m_e1[tri, 2] + b2 * m_e2[tri, 2]
+                    ny0, ny1, ny2 = m_ng[tri, 0], m_ng[tri, 1], m_ng[tri, 2]
+                    bb0 = abs(1.0 - b1 - b2)
+                    ab1, ab2 = abs(b1), abs(b2)
+                    far = 0.0
+                    gap_err = 0.0
+                    plane = 0.0
+                    yv = (y0, y1, y2)
+                    nyv = (ny0, ny1, ny2)
+                    pv = (p0, p1, p2)
+                    for c in range(3):
+                        c0 = m_v0[tri, c]
+                        c1 = c0 + m_e1[tri, c]
+                        c2 = c0 + m_e2[tri, c]
+                        interp = G64 * (bb0 * abs(c0) + ab1 * abs(c1) + ab2 * abs(c2))
+                        t32_ = (bb0 * m_round32[tri, 0, c] + ab1 * m_round32[tri, 1, c]
+                                + ab2 * m_round32[tri, 2, c])
+                        err = interp + t32_ + _ulp32(yv[c])
+                        gap_err += abs(nyv[c]) * err
+                        rmax = max(max(abs(c0 - pv[c]), abs(c1 - pv[c])), abs(c2 - pv[c]))
+                        plane += abs(nyv[c]) * rmax
+                    # norms of the corners seen from p (tilt_error)
+                    d0 = math.sqrt((m_v0[tri, 0] - p0) ** 2 + (m_v0[tri, 1] - p1) ** 2
+                                   + (m_v0[tri, 2] - p2) ** 2)
+                    q0 = m_v0[tri, 0] + m_e1[tri, 0] - p0
+                    q1 = m_v0[tri, 1] + m_e1[tri, 1] - p1
+                    q2 = m_v0[tri, 2] + m_e1[tri, 2] - p2
+                    d1 = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+                    q0 = m_v0[tri, 0] + m_e2[tri, 0] - p0
+                    q1 = m_v0[tri, 1] + m_e2[tri, 1] - p1
+                    q2 = m_v0[tri, 2] + m_e2[tri, 2] - p2
+                    d2_ = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
+                    far = max(max(d0, d1), d2_)
+                    gap = gap_err + G32_PLANE * plane + m_tilt32[tri] * far
+                    la0 = m_L[tri, 0] * m_weight[tri]
+                    la1 = m_L[tri, 1] * m_weight[tri]
+                    la2 = m_L[tri, 2] * m_weight[tri]
+                else:  # area light
+                    ny0, ny1, ny2 = q[DIR], q[DIR + 1], q[DIR + 2]
+                    if q[SPREAD_RECT] != 0.0:
+                        r0, r1, r2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
+                        height = r0 * q[DIR] + r1 * q[DIR + 1] + r2 * q[DIR + 2]
+                        reach = max(height, 0.0) * q[TAN_H]
+                        pu = r0 * q[U] + r1 * q[U + 1] + r2 * q[U + 2]
+                        pv_ = r0 * q[V] + r1 * q[V + 1] + r2 * q[V + 2]
+                        hx, hy = q[SIZE_X] / 2, q[SIZE_Y] / 2
+                        x0, x1 = max(pu - reach, -hx), min(pu + reach, hx)
+                        yl0, yl1 = max(pv_ - reach, -hy), min(pv_ + reach, hy)
+                        wx, wy = max(x1 - x0, 0.0), max(yl1 - yl0, 0.0)
+                        x = x0 + u1 * wx
+                        yy = yl0 + u2 * wy
+                        y0 = q[POS] + x * q[U] + yy * q[V]
+                        y1 = q[POS + 1] + x * q[U + 1] + yy * q[V + 1]
+                        y2 = q[POS + 2] + x * q[U + 2] + yy * q[V + 2]
+                        ar = wx * wy
+                        la0, la1, la2 = q[RGB] * ar, q[RGB + 1] * ar, q[RGB + 2] * ar
+                    else:
+                        if q[IS_DISK] != 0.0:
+                            x, yy = _concentric_disk(u1, u2)
+                            x, yy = x * q[SIZE_X] / 2, yy * q[SIZE_Y] / 2
+                        else:
+                            x, yy = (u1 - 0.5) * q[SIZE_X], (u2 - 0.5) * q[SIZE_Y]
+                        y0 = q[POS] + x * q[DU] + yy * q[DV]
+                        y1 = q[POS + 1] + x * q[DU + 1] + yy * q[DV + 1]
+                        y2 = q[POS + 2] + x * q[DU + 2] + yy * q[DV + 2]
+                        la0 = q[RGB] * q[AREA_]
+                        la1 = q[RGB + 1] * q[AREA_]
+                        la2 = q[RGB + 2] * q[AREA_]
+                    gap = (abs(q[DIR]) * (G64 * (abs(q[POS]) + abs(y0 - q[POS])) + _ulp32(y0))
+                           + abs(q[DIR + 1]) * (G64 * (abs(q[POS + 1]) + abs(y1 - q[POS + 1]))
+                                                + _ulp32(y1))
+                           + abs(q[DIR + 2]) * (G64 * (abs(q[POS + 2]) + abs(y2 - q[POS + 2]))
+                                                + _ulp32(y2)))
+                v0_, v1_, v2_ = y0 - p0, y1 - p1, y2 - p2
+                dist = math.sqrt(v0_ * v0_ + v1_ * v1_ + v2_ * v2_)
+                ds = max(dist, 1e-300)
+                w0, w1, w2 = v0_ / ds, v1_ / ds, v2_ / ds
+                cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
+                    1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
+                cl = (-w0) * ny0 + (-w1) * ny1 + (-w2) * ny2
+                cl = abs(cl) if two_sided else _npmax(cl, 0.0)
+                md = 16.0 * (_ulp32(max(max(abs(p0), abs(p1)), abs(p2)))
+                             + _ulp32(max(max(abs(y0), abs(y1)), abs(y2))))
+                d2 = max(dist * dist, md * md)
+                f = cr * cl / d2
+                e0, e1, e2 = la0 * f, la1 * f, la2 * f
+                if code == C_AREA and q[SPREAD_ON] != 0.0:
+                    at = _spread_attenuation((-w0) * q[DIR] + (-w1) * q[DIR + 1]
+                                             + (-w2) * q[DIR + 2], q)
+                    e0, e1, e2 = e0 * at, e1 * at, e2 * at
+            if shade_off[i] > 0:
+                sh = _shift_cos_in(w0 * s0 + w1 * s1 + w2 * s2, shade_off[i])
+                e0, e1, e2 = e0 * sh, e1 * sh, e2 * sh
+            if not ((e0 > 0 or e1 > 0 or e2 > 0) and e0 == e0 and e1 == e1 and e2 == e2):
+                continue
+            j = m_all
+            m_all += 1
+            contrib[j, 0], contrib[j, 1], contrib[j, 2] = e0, e1, e2
+            row[j] = i
+            kidx[j] = k
+            if not ktrace[k]:
+                ray[j] = -1
+                continue
+            ray[j] = m_rays
+            # Shadow-ray origin: lifted to the smooth surface at
+            # the terminator, then off the facet along ng.
+            h0, h1, h2 = ng[i, 0], ng[i, 1], ng[i, 2]
+            o0, o1, o2 = p0, p1, p2
+            if cutoff[i] > 0:
+                amt = _terminator_amount(cutoff[i], s0 * w0 + s1 * w1 + s2 * w2,
+                                         h0 * w0 + h1 * w1 + h2 * w2)
+                if amt > 0:
+                    o0 = o0 + lift[i, 0] * amt
+                    o1 = o1 + lift[i, 1] * amt
+                    o2 = o2 + lift[i, 2] * amt
+            off = offset[i]
+            o0, o1, o2 = o0 + off * h0, o1 + off * h1, o2 + off * h2
+            if not finite:
+                d0, d1, d2 = w0, w1, w2
+                tmax = np.inf
+            else:
+                v0_, v1_, v2_ = y0 - o0, y1 - o1, y2 - o2
+                dist = math.sqrt(v0_ * v0_ + v1_ * v1_ + v2_ * v2_)
+                slack = G32_T * dist + _ulp32(dist)
+                if surface:
+                    gg = slack + gap
+                    side = 1.0 if (o0 - y0) * ny0 + (o1 - y1) * ny1 + (o2 - y2) * ny2 >= 0.0 else -1.0
+                    sg = side * gg
+                    e_0, e_1, e_2 = y0 + sg * ny0, y1 + sg * ny1, y2 + sg * ny2
+                    v0_, v1_, v2_ = e_0 - o0, e_1 - o1, e_2 - o2
+                    dist = math.sqrt(v0_ * v0_ + v1_ * v1_ + v2_ * v2_)
+                    tmax = dist
+                else:
+                    tmax = max(dist - slack, 0.0)
+                ds = max(dist, 1e-300)
+                d0, d1, d2 = v0_ / ds, v1_ / ds, v2_ / ds
+            o32[m_rays, 0], o32[m_rays, 1], o32[m_rays, 2] = o0, o1, o2
+            d32[m_rays, 0], d32[m_rays, 1], d32[m_rays, 2] = d0, d1, d2
+            t = np.float32(tmax)
+            if t != t:
+                t = np.float32(0.0)
+            elif t > F32_MAX:
+                t = np.float32(F32_MAX)
+            t32[m_rays] = t
+            m_rays += 1
+    return m_all, m_rays
+
+
+@kernel
+def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all):
+    """E[row] += contrib * visible / samples of its light, entry by entry (sample order)."""
+    for j in range(m_all):
+        r = ray[j]
+        vis = 1.0 if r < 0 or not blocked[r] else 0.0
+        s = ksamples[kidx[j]]
+        i = row[j]
+        E[i, 0] = E[i, 0] + contrib[j, 0] * vis / s
+        E[i, 1] = E[i, 1] + contrib[j, 1] * vis / s
+        E[i, 2] = E[i, 2] + contrib[j, 2] * vis / s
+
+
+# Entries (hits x light samples) per kernel call: bounds the compacted arrays' memory
+# (about 70 bytes an entry) however many light samples a hit takes.
+MAX_ENTRIES = 1 << 20
+
+
+class DirectLightBuffers:
+    """The compacted arrays one thread reuses between calls (grown as needed)."""
+
+    def __init__(self):
+        self.size = 0
+
+    def ensure(self, m):
+        if m > self.size:
+            self.size = m
+            self.contrib = np.empty((m, 3))
+            self.row = np.empty(m, np.int64)
+            self.kidx = np.empty(m, np.int64)
+            self.ray = np.empty(m, np.int64)
+            self.o32 = np.empty((m, 3), np.float32)
+            self.d32 = np.empty((m, 3), np.float32)
+            self.t32 = np.empty(m, np.float32)
+            self.blocked = np.empty(m, np.bool_)
+        return self
+
+
+def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n):
+    """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
+    index, traced?, light's sample count, u1 (N,), u2 (N,), triangle choice (N,) or None),
+    in the order they must be summed. packed = packing.pack_lights(lights); hit_arrays =
+    (p, ns, gate, ng, offset, shade_off, cutoff, lift) as sample_lights takes them.
+    Returns (E, number of shadow rays traced)."""
+    codes, params, mesh = packed
+    E = np.zeros((n, 3))
+    if n == 0 or not samples:
+        return E, 0
+    buf = DirectLightBuffers()
+    per_call = max(1, MAX_ENTRIES // n)
+    rays = 0
+    zeros = None
+    for a in range(0, len(samples), per_call):
+        group = samples[a:a + per_call]
+        K = len(group)
+        klight = np.array([s[0] for s in group], np.int64)
+        ktrace = np.array([s[1] for s in group], np.bool_)
+        ksamples = np.array([float(s[2]) for s in group])
+        U1 = np.stack([s[3] for s in group])
+        U2 = np.stack([s[4] for s in group])
+        if any(s[5] is not None for s in group):
+            if zeros is None:
+                zeros = np.zeros(n)
+            SEL = np.stack([zeros if s[5] is None else s[5] for s in group])
+        else:
+            SEL = np.zeros((K, 1))
+        buf.ensure(K * n)
+        m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, klight, ktrace,
+                                      U1, U2, SEL, buf.contrib, buf.row, buf.kidx, buf.ray,
+                                      buf.o32, buf.d32, buf.t32)
+        blocked = buf.blocked[:m_rays]
+        if m_rays:
+            accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
+                                cls=shadow_cls)
+        accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
+        rays += m_rays
+    return E, rays
+
+
+@register_warm_up
+def _warm_up():
+    """Compile (or load) the kernels on a tiny batch of every light kind."""
+    from .lights import AreaLight, MeshLight, PointLight, SpotLight, SunLight, WorldLight
+    from .lights.packing import pack_lights
+    base = dict(pos=np.zeros(3), dir=np.array([0.0, 0.0, -1.0]), u=np.array([1.0, 0, 0]),
+                v=np.array([0, 1.0, 0]), du=np.array([1.0, 0, 0]), dv=np.array([0, 1.0, 0]),
+                radius=0.1, size_x=1.0, size_y=1.0, area=1.0, spread=1.0, shape="RECTANGLE",
+                spot_size=1.0, spot_blend=0.1, spot_frame=np.eye(3), intensity=np.ones(3),
+                radiance=np.ones(3), irradiance=np.ones(3), cos_half_angle=0.99)
+    one = np.ones((1, 3))
+    mesh = MeshLight("m", v0=np.zeros((1, 3)), e1=np.array([[1.0, 0, 0]]),
+                     e2=np.array([[0, 1.0, 0]]), tri_ng=np.array([[0, 0, 1.0]]), tri_L=one,
+                     tri_area=np.array([0.5]), prob=np.ones(1), cdf=np.ones(1),
+                     round32=np.zeros((1, 3, 3)), tilt32=np.zeros(1))
+    lights = [cls("w", **base) for cls in (PointLight, SpotLight, AreaLight, SunLight,
+                                           WorldLight)] + [mesh]
+    packed = pack_lights(lights)
+    p = np.array([[0.2, 0.1, -1.0]])
+    nrm = np.array([[0.0, 0.0, 1.0]])
+    hit = (p, nrm, nrm, nrm, np.zeros(1), np.full(1, 0.1), np.full(1, 0.1), np.zeros((1, 3)))
+    u = np.full(1, 0.5)
+    samples = [(li, True, 1, u, u, u if li == 5 else None) for li in range(len(lights))]
+
+    class _NoOcclusion:
+        def occluded_into(self, o32, d32, t32, blocked, cls=None):
+            blocked[:] = False
+            return blocked
+
+    direct_light(packed, hit, samples, _NoOcclusion(), None, 1)
+    terminator_lift(np.zeros(1, np.int64), np.full((1, 2), 0.25), nrm, np.ones(1, np.bool_),
+                    np.full(1, 0.1), mesh.v0, mesh.e1, mesh.e2,
+                    np.repeat(nrm[:, None, :], 3, axis=1), np.zeros(1), np.zeros((1, 3)))

@@ -1,0 +1,73 @@
+"""Lights in Cycles units: one module per kind, one interface (engine/lights/base.py),
+one registry.
+
+Conventions (docs/units.md; docs/design.md, Units (Cycles)): a point light of power P has
+intensity P/(4*pi) W/sr; a spot is that point light masked by Cycles' smoothstep cone; an
+area light emits one-sided uniform radiance P/(pi*A) along its -Z axis; a sun gives
+irradiance `strength` W/m^2; emissive meshes emit their radiance from both sides; a
+non-black background is a uniform environment.
+
+To add a light kind: subclass Light in a new module, implement from_scene, pack (and its
+sampling in engine/directlight.py), _emit,
+_aim_origins / _aimed_photons (or emit_towards) and, if it has a visible surface,
+intersect; then add it to LIGHT_KINDS below. engine/scene.py, engine/scenefile.py,
+engine/api.py and addon/export.py take the declared kinds from here.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import Geometry, MaterialTable
+from ..sampling import luminance
+from ..scene import AREA, POINT, SPOT, SUN, Scene
+from .area import AreaLight
+from .base import InfiniteLight, Light
+from .mesh import MESH, MeshLight
+from .point import PointLight
+from .spot import SpotLight
+from .sun import SunLight
+from .world import WORLD, WorldLight
+
+# Kind name -> class. Declared kinds (a scene's light objects) first, in Blender's order.
+LIGHT_KINDS: dict[str, type[Light]] = {
+    cls.kind: cls for cls in (PointLight, SpotLight, AreaLight, SunLight, MeshLight, WorldLight)}
+DECLARED_KINDS: tuple[str, ...] = tuple(k for k, c in LIGHT_KINDS.items() if c.declared)
+
+# The old single class, kept as the name of the interface.
+PreparedLight = Light
+
+__all__ = ["LIGHT_KINDS", "DECLARED_KINDS", "Light", "PreparedLight",
+           "InfiniteLight", "PointLight", "SpotLight", "AreaLight", "SunLight", "MeshLight",
+           "WorldLight", "POINT", "SPOT", "AREA", "SUN", "MESH", "WORLD", "prepare_lights",
+           "allocate_photons"]
+
+
+def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable) -> list[Light]:
+    """Re-centre the scene's lights and add mesh and world lights: a list of Light, the
+    declared lights in scene order, then the emissive meshes, then the world."""
+    center = (geo.bounds[0] + geo.bounds[1]) / 2.0
+    radius = max(geo.extent / 2.0, 1e-6) * 1.01
+    common = dict(center=center, scene_radius=radius)
+    out = []
+    for light in scene.lights:
+        prepared = LIGHT_KINDS[light.kind].from_scene(light, geo, common)
+        if prepared is not None:
+            out.append(prepared)
+    for extra in (MeshLight.from_geometry(geo, table, common),
+                  WorldLight.from_background(scene, common)):
+        if extra is not None:
+            out.append(extra)
+    return out
+
+
+def allocate_photons(lights: list[Light], total: int) -> list[int]:
+    """Photons per light, proportional to emitted power (the paper: power-proportional)."""
+    w = np.array([float(luminance(np.asarray(li.photon_flux))) for li in lights])
+    if total <= 0 or len(w) == 0 or w.sum() <= 0:
+        return [0] * len(lights)
+    share = w / w.sum() * total
+    counts = np.floor(share).astype(int)
+    rest = total - counts.sum()
+    order = np.argsort(-(share - counts))
+    counts[order[:rest]] += 1
+    return counts.tolist()
