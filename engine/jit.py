@@ -80,9 +80,13 @@ def _stamp() -> str:
     exactly this stamp."""
     h = hashlib.sha1(numba.__version__.encode())
     for fn in _warm_ups:
-        path = sys.modules[fn.__module__].__file__
-        with open(path, "rb") as f:
-            h.update(f.read())
+        module = sys.modules[fn.__module__]
+        try:
+            with open(module.__file__, "rb") as f:
+                h.update(f.read())
+        except OSError:
+            # Imported from a zip (the engine shipped to Dask workers): ask its loader.
+            h.update(module.__loader__.get_data(module.__file__))
     return h.hexdigest()[:16]
 
 
@@ -122,4 +126,4 @@ def ensure_compiled(progress=None) -> float:
 
 def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
-    from . import hashgrid, kdtree, photonmap  # noqa: F401
+    from . import directlight, hashgrid, kdtree, photonmap  # noqa: F401
