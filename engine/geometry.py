@@ -36,7 +36,7 @@ class MaterialTable:
     ior: np.ndarray
     specular: np.ndarray
     alpha: np.ndarray
-    textures: list            # per material: HxWx3 array or None
+    textures: list            # per material: engine.textures.ImageTexture or None
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":

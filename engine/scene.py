@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .textures import ImageTexture, TextureError, as_texture
+
 __all__ = [
     "SceneError", "Material", "Mesh", "Light", "Camera", "Scene",
     "POINT", "SPOT", "AREA", "SUN", "RECTANGLE", "DISK",
@@ -59,7 +61,8 @@ class Material:
                         (specular=0: pure Lambert; 1: plastic-like)
     `alpha` < 1 lets the rest of the light pass straight through (Transparent BSDF).
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
-    `texture` is an optional HxWx3 linear float image multiplied onto base colour via UVs.
+    `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
+    image: Repeat, Linear) multiplied onto base colour via UVs.
     """
 
     name: str = "default"
@@ -71,7 +74,7 @@ class Material:
     specular: float = 0.0
     emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     alpha: float = 1.0
-    texture: np.ndarray | None = None
+    texture: ImageTexture | np.ndarray | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -94,13 +97,10 @@ class Material:
         if self.ior <= 0:
             raise SceneError(f"{who} ior: must be > 0, got {self.ior}")
         if self.texture is not None:
-            tex = np.asarray(self.texture, dtype=np.float32)
-            if tex.ndim == 2:
-                tex = np.repeat(tex[:, :, None], 3, axis=2)
-            if tex.ndim != 3 or tex.shape[2] < 3 or tex.shape[0] < 1 or tex.shape[1] < 1:
-                raise SceneError(f"{who} texture: expected an HxWx3 image, got {tex.shape}")
-            tex = np.nan_to_num(tex[:, :, :3], nan=0.0, posinf=1.0, neginf=0.0)
-            self.texture = np.clip(tex, 0.0, 1.0)
+            try:
+                self.texture = as_texture(self.texture, name=f"{self.name} texture")
+            except TextureError as exc:
+                raise SceneError(f"{who} {exc}") from None
 
     @property
     def is_emissive(self) -> bool:

@@ -1,0 +1,148 @@
+"""Image texture lookups (engine/textures.py) against values worked out by hand from
+Cycles' rules: texel centres at (i + 0.5) / w, wrap modes per texel, B-spline cubic,
+sRGB converted after interpolation, UDIM tile numbers."""
+import numpy as np
+import pytest
+
+from engine.bsdf import surface_hit
+from engine.geometry import prepare
+from engine.scene import Material, Mesh, Scene, SceneError
+from engine.textures import ImageTexture, TextureError, srgb_to_linear
+
+# A 1-row image of 4 texels (stored top row first; one row so v does not matter).
+ROW = np.array([[[0.1] * 3, [0.2] * 3, [0.4] * 3, [0.8] * 3]], np.float32)
+
+
+def _red(tex, us, v=0.5):
+    uv = np.stack([np.asarray(us, float), np.full(len(us), v)], axis=1)
+    return tex.sample(uv)[:, 0]
+
+
+def _centre(i, w=4):
+    return (i + 0.5) / w
+
+
+def test_linear_reproduces_texel_centres_and_averages_between():
+    t = ImageTexture(ROW, extension="EXTEND")
+    np.testing.assert_allclose(_red(t, [_centre(i) for i in range(4)]), [0.1, 0.2, 0.4, 0.8],
+                               atol=1e-6)
+    np.testing.assert_allclose(_red(t, [0.5]), [0.3], atol=1e-6)  # between texels 1 and 2
+
+
+@pytest.mark.parametrize("ext, expect", [
+    # texel index -1 (u = -0.125) and 4 (u = 1.125), and one image over (u = 1.375 -> 5)
+    ("REPEAT", [0.8, 0.1, 0.2]),
+    ("EXTEND", [0.1, 0.8, 0.8]),
+    ("CLIP", [0.0, 0.0, 0.0]),
+    ("MIRROR", [0.1, 0.8, 0.4]),
+])
+def test_extension_modes_outside_the_image(ext, expect):
+    t = ImageTexture(ROW, extension=ext, interpolation="Closest")
+    np.testing.assert_allclose(_red(t, [-0.125, 1.125, 1.375]), expect, atol=1e-6)
+
+
+def test_clip_fades_to_black_over_half_a_texel_with_linear():
+    t = ImageTexture(ROW, extension="CLIP")
+    # At the image edge (u = 0) a linear lookup is half texel 0, half the black outside.
+    np.testing.assert_allclose(_red(t, [0.0, 1.0, -0.125, 1.2]), [0.05, 0.4, 0.0, 0.0],
+                               atol=1e-6)
+
+
+def test_closest_gives_only_stored_values_when_magnified():
+    t = ImageTexture(ROW, interpolation="Closest")
+    vals = _red(t, np.linspace(0.001, 0.999, 997))
+    assert set(np.round(vals, 6)) == {0.1, 0.2, 0.4, 0.8}
+    lin = _red(ImageTexture(ROW), np.linspace(0.001, 0.999, 997))
+    assert len(set(np.round(lin, 6))) > 100  # the fault Closest fixes: in-between values
+
+
+@pytest.mark.parametrize("mode", ["Cubic", "Smart"])
+def test_cubic_is_cycles_uniform_b_spline(mode):
+    t = ImageTexture(ROW, extension="REPEAT", interpolation=mode)
+    # At a texel centre the B-spline weights are 1/6, 4/6, 1/6 (not interpolating).
+    got = _red(t, [_centre(1), _centre(0)])
+    np.testing.assert_allclose(got, [(0.1 + 4 * 0.2 + 0.4) / 6, (0.8 + 4 * 0.1 + 0.2) / 6],
+                               atol=1e-6)
+    # Half-way between texels: weights 1/48, 23/48, 23/48, 1/48.
+    np.testing.assert_allclose(_red(t, [0.5]), [(0.1 + 23 * 0.2 + 23 * 0.4 + 0.8) / 48],
+                               atol=1e-6)
+    flat = ImageTexture(np.full((5, 7, 3), 0.3), interpolation=mode, extension="EXTEND")
+    rng = np.random.default_rng(1)
+    np.testing.assert_allclose(flat.sample(rng.random((50, 2))), 0.3, atol=1e-6)
+
+
+def test_srgb_is_converted_after_interpolation():
+    # Black and white texels, 8-bit sRGB: half-way reads encoded 0.5 -> 0.214 linear, not
+    # the 0.5 of converting first (the issue-15 checker that came out 1.68x too bright).
+    img = np.array([[[0.0] * 3, [1.0] * 3]], np.float32)
+    t = ImageTexture(img, srgb=True, extension="EXTEND")
+    np.testing.assert_allclose(_red(t, [0.5]), srgb_to_linear(0.5), atol=1e-6)
+    np.testing.assert_allclose(srgb_to_linear(0.5), 0.21404, atol=1e-5)
+    np.testing.assert_allclose(_red(t, [0.25, 0.75], ), [0.0, 1.0], atol=1e-6)
+
+
+def test_udim_tiles_use_their_own_image_and_missing_tiles_are_magenta():
+    t = ImageTexture(tiles={1001: np.full((2, 2, 3), 0.2), 1002: np.full((2, 2, 3), 0.6),
+                            1011: np.full((2, 2, 3), 0.9)}, srgb=False)
+    uv = np.array([[0.5, 0.5], [1.5, 0.5], [0.5, 1.5], [2.5, 0.5], [-0.5, 0.5]])
+    got = t.sample(uv)
+    np.testing.assert_allclose(got[:3, 0], [0.2, 0.6, 0.9], atol=1e-6)
+    np.testing.assert_allclose(got[3:], [[1, 0, 1], [1, 0, 1]], atol=1e-6)
+    ts = ImageTexture(tiles={1001: np.full((2, 2, 3), 0.5)}, srgb=True)
+    np.testing.assert_allclose(ts.sample(uv[[0, 3]]), [[srgb_to_linear(0.5)] * 3, [1, 0, 1]],
+                               atol=1e-6)
+
+
+def test_alpha_channel_is_sampled_and_reported():
+    img = np.zeros((2, 2, 4), np.float32)
+    img[..., 3] = [[1, 0], [1, 0]]
+    t = ImageTexture(img, interpolation="Closest")
+    assert t.has_alpha
+    np.testing.assert_allclose(t.sample_rgba(np.array([[0.25, 0.5], [0.75, 0.5]]))[:, 3],
+                               [1, 0])
+    assert not ImageTexture(ROW).has_alpha
+
+
+def test_bad_settings_name_the_texture_and_argument():
+    with pytest.raises(TextureError, match="'wood'.*extension"):
+        ImageTexture(ROW, extension="WRAP", name="wood")
+    with pytest.raises(TextureError, match="interpolation"):
+        ImageTexture(ROW, interpolation="Lanczos")
+    with pytest.raises(TextureError, match="tile 1001"):
+        ImageTexture(tiles={1001: np.zeros((2, 2, 2))})
+    with pytest.raises(SceneError, match="material 'm'.*HxWx4"):
+        Material("m", texture=np.zeros((2, 2, 5)))
+
+
+def _textured_quad(texture):
+    """A unit quad at z=0 whose UVs run from -1 to 2 (so a third of it is inside 0..1)."""
+    s = Scene()
+    s.add_material(Material("t", (1, 1, 1), texture=texture))
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    s.add_mesh(Mesh("quad", v, np.array([[0, 1, 2], [0, 2, 3]]), uvs=v[:, :2] * 3 - 1,
+                    materials=["t"]))
+    return prepare(s)
+
+
+def test_surface_hit_applies_the_texture_settings():
+    img = np.full((4, 4, 3), 0.5, np.float32)
+    geo, table = _textured_quad(ImageTexture(img, extension="CLIP"))
+    # Hits on triangle 0 (corners 0, 1, 2): point (u + v, v), uv = 3 point - 1, here
+    # uv (0.5, 0.2) inside the image, (-0.7, -0.85) and (1.7, -0.7) outside.
+    u = np.array([0.1, 0.05, 0.8]); v = np.array([0.4, 0.05, 0.1])
+    prim = np.zeros(3, np.int64)
+    hit = surface_hit(geo, table, prim, u, v, np.tile([0.0, 0.0, -1.0], (3, 1)))
+    uv = geo.uvs(prim, u, v)
+    inside = (uv >= 0).all(axis=1) & (uv <= 1).all(axis=1)
+    assert inside.any() and (~inside).any()
+    np.testing.assert_allclose(hit.base[inside], 0.5, atol=1e-6)
+    np.testing.assert_allclose(hit.base[~inside], 0.0, atol=1e-6)
+
+
+def test_bare_array_texture_keeps_repeat_linear():
+    img = np.random.default_rng(0).random((3, 5, 3)).astype(np.float32)
+    m = Material("legacy", texture=img)
+    assert m.texture.extension == "REPEAT" and m.texture.interpolation == "Linear"
+    uv = np.array([[0.3, 0.7], [1.3, -0.3]])
+    got = m.texture.sample(uv)
+    np.testing.assert_allclose(got[0], got[1], atol=1e-6)
