@@ -8,6 +8,8 @@ and node in a warning that names both.
 """
 from __future__ import annotations
 
+import os
+
 import bpy
 import numpy as np
 
@@ -15,11 +17,6 @@ SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANI
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
                      "MIX_SHADER", "ADD_SHADER")
 MAX_NODE_DEPTH = 32
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    c = np.asarray(c, dtype=np.float32)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 class Closure:
@@ -331,42 +328,89 @@ class MaterialConverter:
             return np.array([0.8, 0.8, 0.8]), None
 
     def _image(self, node):
+        """engine ImageTexture for an Image Texture node (its image, Extension,
+        Interpolation, UDIM tiles), or None after a warning."""
         img = node.image
         if img is None:
             self._warn(f"material '{self._mat.name}': image node '{node.name}' has no image")
             return None
-        if img.name in self.images:
-            return self.images[img.name]
+        extension = str(getattr(node, "extension", "REPEAT"))
+        interpolation = str(getattr(node, "interpolation", "Linear"))
+        if getattr(node, "projection", "FLAT") != "FLAT":
+            self._warn(f"material '{self._mat.name}': image node '{node.name}' projection "
+                       f"'{node.projection}' is not supported; using Flat (UV)")
+        key = (img.name, extension, interpolation)
+        if key in self.images:
+            return self.images[key]
         tex = None
         try:
-            w, h = img.size
-            ch = img.channels
-            if w * h == 0 or ch == 0:
-                raise ValueError("image has no pixels (missing file?)")
-            buf = np.empty(w * h * ch, dtype=np.float32)
-            img.pixels.foreach_get(buf)
-            buf = buf.reshape(h, w, ch)[::-1]  # Blender rows run bottom to top
-            if ch >= 3:
-                rgb = buf[:, :, :3]
+            srgb = self._stored_as_srgb(img)
+            if img.source == "TILED":
+                tiles = self._udim_tiles(img)
+                pixels = None
             else:
-                rgb = np.repeat(buf[:, :, :1], 3, axis=2)
-            space = img.colorspace_settings.name
-            if not img.is_float:
-                # Byte buffers hold the file's encoded values: decode sRGB here.
-                if space in ("sRGB", "sRGB EOTF", "Filmic sRGB", "AgX Base sRGB"):
-                    rgb = srgb_to_linear(rgb)
-                elif space not in ("Non-Color", "Linear Rec.709", "Linear", "Raw",
-                                   "Linear CIE-XYZ E", "Linear Rec.2020"):
-                    self._warn(f"material '{self._mat.name}': image '{img.name}' colour "
-                               f"space '{space}' is treated as sRGB")
-                    rgb = srgb_to_linear(rgb)
-            tex = np.ascontiguousarray(rgb, dtype=np.float32)
+                tiles, pixels = None, _pixels(img)
+            tex = self.pm.ImageTexture(pixels, tiles=tiles, extension=extension,
+                                       interpolation=interpolation, srgb=srgb,
+                                       name=img.name)
         except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
             self._warn(f"material '{self._mat.name}': image '{img.name}' in node "
                        f"'{node.name}' could not be read ({exc}); using the input colour")
             tex = None
-        self.images[img.name] = tex
+        self.images[key] = tex
         return tex
+
+    def _stored_as_srgb(self, img) -> bool:
+        """True when the pixels are 8-bit sRGB-encoded (Cycles interpolates those as
+        stored and converts after); float images are linear already in Blender."""
+        if img.is_float:
+            return False
+        space = img.colorspace_settings.name
+        if space in ("Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E",
+                     "Linear Rec.2020"):
+            return False
+        if space not in ("sRGB", "sRGB EOTF", "Filmic sRGB", "AgX Base sRGB"):
+            self._warn(f"material '{self._mat.name}': image '{img.name}' colour space "
+                       f"'{space}' is treated as sRGB")
+        return True
+
+    def _udim_tiles(self, img) -> dict:
+        """{tile number: pixels} of a UDIM image, each tile read from its own file
+        (Blender's `pixels` holds only the first tile)."""
+        path = bpy.path.abspath(img.filepath_raw or img.filepath)
+        tiles = {}
+        for t in img.tiles:
+            k = t.number - 1001
+            fname = path.replace("<UDIM>", str(t.number)).replace(
+                "<UVTILE>", f"u{k % 10 + 1}_v{k // 10 + 1}")
+            if not os.path.isfile(fname):
+                self._warn(f"material '{self._mat.name}': UDIM tile {t.number} of image "
+                           f"'{img.name}' has no file ({fname}); it renders as missing")
+                continue
+            one = bpy.data.images.load(fname, check_existing=False)
+            try:
+                one.colorspace_settings.name = img.colorspace_settings.name
+                tiles[t.number] = _pixels(one)
+            finally:
+                bpy.data.images.remove(one)
+        if not tiles:
+            raise ValueError("no UDIM tile could be read")
+        return tiles
+
+
+def _pixels(img) -> np.ndarray:
+    """HxWx4 float32 stored values of an image, top row first."""
+    w, h = img.size
+    ch = img.channels
+    if w * h == 0 or ch == 0:
+        raise ValueError("image has no pixels (missing file?)")
+    buf = np.empty(w * h * ch, dtype=np.float32)
+    img.pixels.foreach_get(buf)
+    buf = buf.reshape(h, w, ch)[::-1]  # Blender rows run bottom to top
+    if ch >= 4:
+        return np.ascontiguousarray(buf[:, :, :4])
+    rgb = buf[:, :, :3] if ch >= 3 else np.repeat(buf[:, :, :1], 3, axis=2)
+    return np.ascontiguousarray(np.concatenate([rgb, np.ones_like(rgb[:, :, :1])], axis=2))
 
 
 def world_background(world, warnings: list) -> np.ndarray:

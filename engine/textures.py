@@ -27,15 +27,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .imageio import srgb_to_linear
+
 EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
 INTERPOLATIONS = ("Linear", "Closest", "Cubic", "Smart")
 MISSING_RGBA = np.array([1.0, 0.0, 1.0, 1.0])  # Cycles' colour for a missing image / tile
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 sRGB decoding of values in [0, 1] (float64)."""
-    c = np.asarray(c, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((np.maximum(c, 0.04045) + 0.055) / 1.055) ** 2.4)
 
 
 class TextureError(ValueError):

@@ -7,7 +7,8 @@ import pytest
 from engine.bsdf import surface_hit
 from engine.geometry import prepare
 from engine.scene import Material, Mesh, Scene, SceneError
-from engine.textures import ImageTexture, TextureError, srgb_to_linear
+from engine.imageio import srgb_to_linear
+from engine.textures import ImageTexture, TextureError
 
 # A 1-row image of 4 texels (stored top row first; one row so v does not matter).
 ROW = np.array([[[0.1] * 3, [0.2] * 3, [0.4] * 3, [0.8] * 3]], np.float32)

@@ -394,27 +394,127 @@ def closure_transparent_card():
 
 # --- textures --------------------------------------------------------------------------
 
-@case("textures", known_issue="issue 15: Image Texture interpolation 'Closest' is read as "
-      "Linear")
-def texture_image_checker():
-    _stage(back=False)
-    img = bpy.data.images.new("checker", 8, 8, alpha=False, float_buffer=True)
-    px = np.zeros((8, 8, 4), np.float32)
-    yy, xx = np.mgrid[0:8, 0:8]
-    on = ((xx // 2 + yy // 2) % 2 == 0)
-    px[..., :3] = np.where(on[..., None], 0.8, 0.1)
-    px[..., 3] = 1.0
+def _image(name, rgb, float_buffer=True):
+    """A packed Blender image from an (H, W, 3) array, top row first."""
+    h, w = rgb.shape[:2]
+    img = bpy.data.images.new(name, w, h, alpha=False, float_buffer=float_buffer)
+    px = np.ones((h, w, 4), np.float32)
+    px[..., :3] = rgb[::-1]  # Blender rows run bottom to top
     img.pixels.foreach_set(px.ravel())
     img.pack()
+    return img
+
+
+def _checker(n, cell, lo, hi):
+    yy, xx = np.mgrid[0:n, 0:n]
+    on = (xx // cell + yy // cell) % 2 == 0
+    return np.repeat(np.where(on, hi, lo)[..., None], 3, axis=2).astype(np.float32)
+
+
+def _ramp_image(n=8):
+    """Asymmetric image: red rises left to right, green top to bottom, blue 0.2 -- any
+    wrong wrap (mirror, repeat, clamp, clip) moves whole regions of colour."""
+    t = (np.arange(n) + 0.5) / n
+    img = np.zeros((n, n, 3), np.float32)
+    img[..., 0] = 0.05 + 0.8 * t[None, :]
+    img[..., 1] = 0.05 + 0.7 * t[:, None]
+    img[..., 2] = 0.2
+    return img
+
+
+def _textured_tile(img, extension="REPEAT", interpolation="Linear", uv_min=(0.0, 0.0),
+                   uv_max=(1.0, 1.0), size=3.0):
+    """A diffuse 'Tile' plane on the stage whose colour is an Image Texture node with the
+    given settings; its UVs run from uv_min to uv_max across the plane."""
     m, nt, out = _nodes_material("tex")
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = img
-    tex.interpolation = "Closest"
+    tex.extension = extension
+    tex.interpolation = interpolation
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
     nt.links.new(tex.outputs["Color"], d.inputs["Color"])
     nt.links.new(d.outputs[0], out.inputs["Surface"])
-    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
-    ob.data.uv_layers.new(name="UVMap")
+    ob = mb.plane("Tile", size, size, m, (0, 0, 0.01))
+    uvl = ob.data.uv_layers.new(name="UVMap")
+    (u0, v0), (u1, v1) = uv_min, uv_max
+    corners = [(u0, v0), (u1, v0), (u1, v1), (u0, v1)]  # plane vertex order
+    for loop in ob.data.loops:
+        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    return ob
+
+
+@case("textures")
+def texture_image_checker():
+    """Closest on a magnified 8 x 8 checker: hard texel edges."""
+    _stage(back=False)
+    _textured_tile(_image("checker", _checker(8, 2, 0.1, 0.8)), interpolation="Closest")
+    _sun()
+
+
+def _wrap_case(extension):
+    _stage(back=False)
+    _textured_tile(_image("ramp", _ramp_image()), extension=extension,
+                   uv_min=(-0.6, -0.6), uv_max=(1.6, 1.6))
+    _sun()
+
+
+@case("textures")
+def texture_image_clip():
+    """Extension Clip: black outside the image's UV square."""
+    _wrap_case("CLIP")
+
+
+@case("textures")
+def texture_image_extend():
+    """Extension Extend: the border texels stretch outwards."""
+    _wrap_case("EXTEND")
+
+
+@case("textures")
+def texture_image_mirror():
+    """Extension Mirror: the image reflected at each border."""
+    _wrap_case("MIRROR")
+
+
+@case("textures")
+def texture_image_cubic():
+    """Interpolation Cubic (Cycles' uniform B-spline, not interpolating) on isolated bright
+    texels, each several pixels wide: a dot's centre keeps (2/3)^2 of its height, where
+    bilinear keeps all of it."""
+    _stage(back=False)
+    dots = np.full((6, 6, 3), 0.05, np.float32)
+    dots[1::3, 1::3] = 0.9
+    _textured_tile(_image("dots", dots), interpolation="Cubic")
+    _sun()
+
+
+@case("textures")
+def texture_srgb_checker_mean():
+    """8-bit sRGB checker far below pixel size: Cycles filters the stored (encoded) values
+    and converts after, so the plane is much darker than the mean of the linear texels."""
+    _stage(back=False)
+    _textured_tile(_image("srgb", _checker(256, 1, 0.0, 1.0), float_buffer=False))
+    _sun()
+
+
+@case("textures")
+def texture_udim_tiles():
+    """A UDIM image of two tiles (1001 orange, 1002 blue) on a plane with u from 0 to 2:
+    each half reads its own tile."""
+    import tempfile
+    _stage(back=False)
+    folder = os.path.join(tempfile.gettempdir(), "pm_feature_matrix_udim")
+    os.makedirs(folder, exist_ok=True)
+    for number, color in ((1001, (0.9, 0.45, 0.1)), (1002, (0.1, 0.3, 0.85))):
+        im = bpy.data.images.new(f"tile{number}", 4, 4)
+        im.pixels.foreach_set(np.tile(np.float32((*color, 1.0)), 16))
+        im.filepath_raw = os.path.join(folder, f"udim.{number}.png")
+        im.file_format = "PNG"
+        im.save()
+        bpy.data.images.remove(im)
+    img = bpy.data.images.load(os.path.join(folder, "udim.1001.png"), check_existing=False)
+    img.source = "TILED"
+    _textured_tile(img, uv_min=(0.0, 0.0), uv_max=(2.0, 1.0))
     _sun()
 
 
