@@ -28,13 +28,14 @@ class ExportError(Exception):
 class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
-    __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles")
+    __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors")
 
-    def __init__(self, co, faces, normals, uvs, material_index):
+    def __init__(self, co, faces, normals, uvs, material_index, colors=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
         self.uvs = uvs                  # None or (F,3,2)
+        self.colors = colors            # None or (F,3,4) linear RGBA (colour attribute)
         self.material_index = material_index  # (F,) int32
         self.triangles = len(faces)
 
@@ -85,9 +86,30 @@ def extract_geometry(obj) -> LocalGeometry | None:
                 attr = "vector" if hasattr(layer, "uv") else "uv"
                 uv = _foreach(data, attr, len(me.loops), 2, np.float32)
                 uvs = uv[loops].astype(np.float64)
-        return LocalGeometry(co, faces, normals, uvs, mat_index)
+        return LocalGeometry(co, faces, normals, uvs, mat_index,
+                             _corner_colors(me, tris, loops, faces))
     finally:
         obj.to_mesh_clear()
+
+
+def _corner_colors(me, tris, loops, faces):
+    """(F,3,4) linear RGBA of the mesh's render colour attribute at each triangle corner
+    (the one Cycles' Color Attribute node reads when its name is empty), or None."""
+    attrs = getattr(me, "color_attributes", None)
+    if attrs is None or not len(attrs):
+        return None
+    idx = getattr(attrs, "render_color_index", -1)
+    attr = attrs[idx] if 0 <= idx < len(attrs) else (attrs.active_color or attrs[0])
+    if attr is None:
+        return None
+    if attr.domain == "POINT":
+        # `color` is scene-linear for byte and float attributes alike.
+        col = _foreach(attr.data, "color", len(me.vertices), 4, np.float32)
+        return col[faces].astype(np.float64)
+    if attr.domain == "CORNER":
+        col = _foreach(attr.data, "color", len(me.loops), 4, np.float32)
+        return col[loops].astype(np.float64)
+    return None
 
 
 def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
@@ -387,6 +409,9 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         mids = np.clip(geo.material_index, 0, len(names) - 1)
         matrix = np.array(inst.matrix_world, dtype=np.float64)
         verts, faces, normals, uvs = transform_geometry(geo, matrix)
+        colors = geo.colors
+        if colors is not None and np.linalg.det(matrix[:3, :3]) < 0:
+            colors = colors[:, [0, 2, 1]]  # same corner order as the flipped faces
         if inst.is_instance:
             parent = inst.parent.name if inst.parent is not None else "instance"
             name = f"{parent}/{obj.name}#{info['instances']}"
@@ -396,7 +421,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         info["objects"] += 1
         warn_unsupported_visibility(obj, warnings)
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
-                       uvs=uvs, materials=names, material_ids=mids,
+                       uvs=uvs, colors=colors, materials=names, material_ids=mids,
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
                        **ray_visibility(obj, inst, view_layer))

@@ -1,8 +1,8 @@
 """Blender materials (shader node trees) -> engine materials.
 
 Supported: Principled BSDF, Diffuse, Glossy, Glass, Refraction, Emission, Transparent,
-Mix Shader and Add Shader of those, an Image Texture (or RGB / Value node, through
-reroutes) on colour inputs. Anything else falls back to its nearest approximation (the
+Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
+tiles), a Color Attribute, or an RGB / Value node (through reroutes) on colour inputs. Anything else falls back to its nearest approximation (the
 material's viewport colour when nothing else is known) and is reported once per material
 and node in a warning that names both.
 """
@@ -308,6 +308,11 @@ class MaterialConverter:
             n, out = src
             if n.type == "RGB":
                 return np.asarray(tuple(out.default_value)[:3], dtype=np.float64), None
+            if n.type == "VERTEX_COLOR":  # the Color Attribute node
+                if out.name != "Color":
+                    self._warn(f"material '{self._mat.name}': the '{out.name}' output of "
+                               f"node '{n.name}' is not supported; using its colour")
+                return np.ones(3), self.pm.ColorAttribute(getattr(n, "layer_name", ""))
             if n.type == "TEX_IMAGE":
                 tex = self._image(n)
                 if tex is not None:

@@ -12,9 +12,9 @@ from .render import render
 from .resources import ResourceError
 from .scene import Camera, Light, Material, Mesh, Scene, SceneError
 from .settings import RenderSettings
-from .textures import ImageTexture, TextureError
+from .textures import ColorAttribute, ImageTexture, TextureError
 
 __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "RenderSettings",
            "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
-           "ImageTexture", "TextureError"]
+           "ImageTexture", "ColorAttribute", "TextureError"]
 __version__ = "0.1.0"

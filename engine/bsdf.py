@@ -92,7 +92,7 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         sel = np.nonzero(mat == mi)[0]
         if len(sel):
             # Clipped to [0, 1]: an albedo above 1 would create energy (HDR texels).
-            rgb = tex.sample(geo.uvs(prim[sel], u[sel], v[sel]))
+            rgb = tex.evaluate(geo, prim[sel], u[sel], v[sel])
             base[sel] = base[sel] * np.clip(rgb, 0.0, 1.0)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=geo.origin_offset(prim, u, v, p, ng),

@@ -36,7 +36,7 @@ class MaterialTable:
     ior: np.ndarray
     specular: np.ndarray
     alpha: np.ndarray
-    textures: list            # per material: engine.textures.ImageTexture or None
+    textures: list            # per material: engine.textures object (evaluate()) or None
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -85,6 +85,8 @@ class Geometry:
     terminator_shading: np.ndarray  # (T,) Cycles' shadow terminator shading offset (Mesh)
     faces32: np.ndarray       # (T,3) int32
     bounds: np.ndarray        # (2,3) re-centred bounding box
+    corner_colors: np.ndarray | None = None  # (T,3,3) linear colour attribute; None: no
+                              # mesh has one (a mesh without one reads black, as in Cycles)
 
     @property
     def count(self) -> int:
@@ -120,6 +122,14 @@ class Geometry:
             n[bad] = np.take(self.ng, prim[bad], axis=0)
         return n
 
+    def colors(self, prim, u, v) -> np.ndarray:
+        """(N,3) colour attribute interpolated at the hits (zeros where there is none)."""
+        if self.corner_colors is None:
+            return np.zeros((len(prim), 3))
+        cc = np.take(self.corner_colors, prim, axis=0)
+        w = 1.0 - u - v
+        return w[:, None] * cc[:, 0] + u[:, None] * cc[:, 1] + v[:, None] * cc[:, 2]
+
     def uvs(self, prim, u, v) -> np.ndarray:
         cu = np.take(self.corner_uvs, prim, axis=0)
         w = 1.0 - u - v
@@ -137,6 +147,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
     table = MaterialTable.build(mats_list)
 
     v0s, v1s, v2s, cns, cuvs, mats, objs, names = [], [], [], [], [], [], [], []
+    ccols = []
     vis, holdout = [], []
     terms, shading_terms = [], []
     for oi, mesh in enumerate(scene.meshes):
@@ -158,6 +169,11 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
             cuvs.append(mesh.uvs[f])
         else:
             cuvs.append(mesh.uvs)
+        colors = getattr(mesh, "colors", None)
+        if colors is None:
+            ccols.append(np.zeros((len(f), 3, 3)))
+        else:
+            ccols.append(colors[f] if colors.ndim == 2 else colors)
         remap = np.array([mat_index[n] for n in mesh.materials], np.int32)
         if mesh.holdout:
             remap[:] = len(mats_list) - 1
@@ -220,6 +236,8 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         visibility=np.concatenate(vis) if vis else np.zeros(0, np.uint8),
         holdout=np.concatenate(holdout) if holdout else np.zeros(0, bool),
         bounds=np.stack([lo - offset, hi - offset]),
+        corner_colors=np.concatenate(ccols) if any(
+            getattr(m, "colors", None) is not None for m in scene.meshes) else None,
     )
     return geo, table
 

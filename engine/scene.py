@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .textures import ImageTexture, TextureError, as_texture
+from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
 
 __all__ = [
     "SceneError", "Material", "Mesh", "Light", "Camera", "Scene",
@@ -62,7 +62,7 @@ class Material:
     `alpha` < 1 lets the rest of the light pass straight through (Transparent BSDF).
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
     `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
-    image: Repeat, Linear) multiplied onto base colour via UVs.
+    image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
     """
 
     name: str = "default"
@@ -74,7 +74,7 @@ class Material:
     specular: float = 0.0
     emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     alpha: float = 1.0
-    texture: ImageTexture | np.ndarray | None = None
+    texture: ImageTexture | ColorAttribute | np.ndarray | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -133,6 +133,8 @@ class Mesh:
     normals   optional (V,3) per vertex or (F,3,3) per face corner (smooth / custom split
               normals); None = flat shading
     uvs       optional (V,2) per vertex or (F,3,2) per face corner
+    colors    optional colour attribute (vertex colours), linear RGB(A): (V,3|4) per vertex
+              or (F,3,3|4) per face corner; read by engine.textures.ColorAttribute
     material  one material name, or material_ids (F,) int indexing `materials` (names)
     visible_camera, visible_diffuse, visible_glossy, visible_transmission, visible_shadow
               ray visibility with Cycles' meaning (Object > Visibility > Ray Visibility):
@@ -157,6 +159,7 @@ class Mesh:
     faces: np.ndarray
     normals: np.ndarray | None = None
     uvs: np.ndarray | None = None
+    colors: np.ndarray | None = None
     materials: list[str] = field(default_factory=lambda: ["default"])
     material_ids: np.ndarray | None = None
     visible_camera: bool = True
@@ -232,6 +235,12 @@ class Mesh:
         uvs = None if self.uvs is None else np.asarray(self.uvs, dtype=np.float64)
         if uvs is not None and uvs.shape not in ((len(v), 2), (nf, 3, 2)):
             raise SceneError(f"{who}: uvs must be (V,2) or (F,3,2), got {uvs.shape}")
+        colors = None if self.colors is None else np.asarray(self.colors, dtype=np.float64)
+        if colors is not None:
+            if colors.shape[:-1] not in ((len(v),), (nf, 3)) or colors.shape[-1] not in (3, 4):
+                raise SceneError(f"{who}: colors must be (V,3|4) or (F,3,3|4), "
+                                 f"got {colors.shape}")
+            colors = np.nan_to_num(colors[..., :3], nan=0.0, posinf=1.0, neginf=0.0)
 
         # Repairable defects: drop the faces, say how many and why.
         keep = np.ones(nf, dtype=bool)
@@ -268,11 +277,14 @@ class Mesh:
                 normals = normals[keep]
             if uvs is not None and uvs.ndim == 3:
                 uvs = uvs[keep]
+            if colors is not None and colors.ndim == 3:
+                colors = colors[keep]
         self.vertices = np.where(np.isfinite(v), v, 0.0)
         self.faces = f
         self.material_ids = mids
         self.normals = normals
         self.uvs = uvs
+        self.colors = colors
 
 
 @dataclass

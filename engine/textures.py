@@ -1,4 +1,5 @@
-"""Image textures looked up as Cycles' Image Texture node does.
+"""Colour sources multiplied onto a material's base colour per hit: image textures looked
+up as Cycles' Image Texture node does, and the Color Attribute node (ColorAttribute).
 
 An `ImageTexture` holds an image's stored pixel values (one image, or one per UDIM tile)
 with the node's settings, and turns UV coordinates into linear RGBA:
@@ -151,6 +152,11 @@ class ImageTexture:
         """(N,3) float64 linear RGB at uv (N,2)."""
         return self.sample_rgba(uv)[:, :3]
 
+    def evaluate(self, geo, prim, u, v) -> np.ndarray:
+        """(N,3) linear RGB at hits (triangle prim, barycentrics u, v) of an
+        engine.geometry.Geometry, through their interpolated UVs."""
+        return self.sample(geo.uvs(prim, u, v))
+
     def _to_linear(self, rgba: np.ndarray) -> np.ndarray:
         if self.srgb:
             rgba[:, :3] = srgb_to_linear(np.clip(rgba[:, :3], 0.0, 1.0))
@@ -198,10 +204,24 @@ class ImageTexture:
         return t
 
 
+class ColorAttribute:
+    """Cycles' Color Attribute node: the mesh's colour attribute (vertex colours, linear,
+    Mesh.colors) interpolated over the triangle; black on a mesh without one, as Cycles.
+    `name` is the attribute the node asked for (informational: the exporter passes the
+    mesh's render colour attribute)."""
+
+    def __init__(self, name: str = ""):
+        self.name = str(name)
+
+    def evaluate(self, geo, prim, u, v) -> np.ndarray:
+        """(N,3) linear RGB at hits (triangle prim, barycentrics u, v)."""
+        return geo.colors(prim, u, v)
+
+
 def as_texture(tex, name: str = "image") -> ImageTexture | None:
-    """An ImageTexture from an ImageTexture, or from a bare linear HxW(x3/4) array (Repeat,
+    """A texture (ImageTexture or ColorAttribute) as given, or an ImageTexture from a bare linear HxW(x3/4) array (Repeat,
     Linear: the engine's behaviour before textures had settings); None stays None."""
-    if tex is None or isinstance(tex, ImageTexture):
+    if tex is None or isinstance(tex, (ImageTexture, ColorAttribute)):
         return tex
     return ImageTexture(np.clip(np.nan_to_num(np.asarray(tex, np.float32), nan=0.0,
                                               posinf=1.0, neginf=0.0), 0.0, 1.0), name=name)

@@ -8,7 +8,7 @@ from engine.bsdf import surface_hit
 from engine.geometry import prepare
 from engine.scene import Material, Mesh, Scene, SceneError
 from engine.imageio import srgb_to_linear
-from engine.textures import ImageTexture, TextureError
+from engine.textures import ColorAttribute, ImageTexture, TextureError
 
 # A 1-row image of 4 texels (stored top row first; one row so v does not matter).
 ROW = np.array([[[0.1] * 3, [0.2] * 3, [0.4] * 3, [0.8] * 3]], np.float32)
@@ -147,3 +147,18 @@ def test_bare_array_texture_keeps_repeat_linear():
     uv = np.array([[0.3, 0.7], [1.3, -0.3]])
     got = m.texture.sample(uv)
     np.testing.assert_allclose(got[0], got[1], atol=1e-6)
+
+
+def test_color_attribute_interpolates_corner_colours_and_is_black_without_one():
+    s = Scene()
+    s.add_material(Material("vc", (1, 1, 1), texture=ColorAttribute("Col")))
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    s.add_mesh(Mesh("tri", v, np.array([[0, 1, 2]]), materials=["vc"],
+                    colors=np.array([[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1]], float)))
+    s.add_mesh(Mesh("plain", v + [0, 0, 1], np.array([[0, 1, 2]]), materials=["vc"]))
+    geo, table = prepare(s)
+    u = np.array([0.2, 0.2]); v_ = np.array([0.3, 0.3])
+    hit = surface_hit(geo, table, np.array([0, 1]), u, v_, np.tile([0.0, 0, -1], (2, 1)))
+    np.testing.assert_allclose(hit.base, [[0.5, 0.2, 0.3], [0, 0, 0]], atol=1e-9)
+    with pytest.raises(SceneError, match="'bad'.*colors"):
+        Mesh("bad", v, np.array([[0, 1, 2]]), colors=np.zeros((2, 3)))

@@ -518,6 +518,34 @@ def texture_udim_tiles():
     _sun()
 
 
+@case("textures")
+def texture_color_attribute():
+    """Color Attribute node: a 4 x 4 grid of faces, each with its own corner colour (patches
+    of constant colour, so the triangulation of the quads does not matter)."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("vcol")
+    attr = nt.nodes.new("ShaderNodeVertexColor")
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(attr.outputs["Color"], d.inputs["Color"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    n, size = 4, 3.0
+    me = bpy.data.meshes.new("Patches")
+    g = np.linspace(-size / 2, size / 2, n + 1)
+    verts = [(x, y, 0.0) for y in g for x in g]
+    faces = [(j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1,
+              (j + 1) * (n + 1) + i) for j in range(n) for i in range(n)]
+    me.from_pydata(verts, [], faces)
+    me.update()
+    col = me.color_attributes.new("Col", "FLOAT_COLOR", "CORNER")
+    rng = np.random.default_rng(7)
+    face_rgb = rng.uniform(0.05, 0.9, (n * n, 3))
+    for poly in me.polygons:
+        for li in poly.loop_indices:
+            col.data[li].color = (*face_rgb[poly.index], 1.0)
+    mb.add_object("Patches", me, m, (0, 0, 0.01), (0, 0, 0))
+    _sun()
+
+
 # --- geometry: instancing, modifiers, curves, text, metaballs ------------------------------
 
 def _geo_scene():
