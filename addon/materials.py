@@ -2,7 +2,8 @@
 
 Supported: Principled BSDF, Diffuse, Glossy, Glass, Refraction, Emission, Transparent,
 Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
-tiles), a Color Attribute, or an RGB / Value node (through reroutes) on colour inputs. Anything else falls back to its nearest approximation (the
+tiles), a Color Attribute, or an RGB / Value node (through reroutes) on colour inputs, and a
+Normal Map node (tangent or world space) fed by an Image Texture on 'Normal' inputs. Anything else falls back to its nearest approximation (the
 material's viewport colour when nothing else is known) and is reported once per material
 and node in a warning that names both.
 """
@@ -23,11 +24,11 @@ class Closure:
     """Engine material parameters gathered from a shader sub-tree."""
 
     __slots__ = ("base_color", "metallic", "roughness", "transmission", "ior", "specular",
-                 "emission", "alpha", "texture", "has_bsdf")
+                 "emission", "alpha", "texture", "has_bsdf", "normal_map")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
-                 alpha=1.0, texture=None, has_bsdf=True):
+                 alpha=1.0, texture=None, has_bsdf=True, normal_map=None):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -38,6 +39,7 @@ class Closure:
         self.alpha = float(alpha)
         self.texture = texture
         self.has_bsdf = has_bsdf
+        self.normal_map = normal_map
 
 
 def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
@@ -76,6 +78,9 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
     out.base_color = (ta * a.base_color + tb * b.base_color) * (total / (total + da + db))
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
         b.texture if sb > 0 else None)
+    # One shading normal per material: the first side's map that has a surface.
+    out.normal_map = a.normal_map if (a.normal_map is not None and sa > 0) else (
+        b.normal_map if sb > 0 else None)
     return out
 
 
@@ -104,7 +109,7 @@ class MaterialConverter:
             metallic=closure.metallic, roughness=closure.roughness,
             transmission=closure.transmission, ior=closure.ior if closure.ior > 0 else 1.5,
             specular=closure.specular, emission=np.clip(closure.emission, 0.0, None),
-            alpha=closure.alpha, texture=closure.texture)
+            alpha=closure.alpha, texture=closure.texture, normal_map=closure.normal_map)
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -213,21 +218,21 @@ class MaterialConverter:
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
                                "is not supported and ignored")
-            self._check_normal(node)
+            c.normal_map = self._normal(node)
             return c
         if t == "BSDF_DIFFUSE":
             base, tex = self._color(node, "Color")
-            self._check_normal(node)
-            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0)
+            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
+                           normal_map=self._normal(node))
         if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             base, tex = self._color(node, "Color")
-            self._check_normal(node)
             return Closure(base_color=base, texture=tex, metallic=1.0,
+                           normal_map=self._normal(node),
                            roughness=self._float(node, "Roughness"))
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
-            self._check_normal(node)
             return Closure(base_color=base, texture=tex, transmission=1.0, specular=1.0,
+                           normal_map=self._normal(node),
                            roughness=self._float(node, "Roughness"),
                            ior=self._float(node, "IOR", 1.5))
         if t == "EMISSION":
@@ -266,16 +271,50 @@ class MaterialConverter:
                           ior=out.ior, specular=out.specular,
                           emission=a.emission + b.emission,
                           alpha=max(out.alpha, other.alpha), texture=out.texture,
-                          has_bsdf=out.has_bsdf)
+                          has_bsdf=out.has_bsdf, normal_map=out.normal_map)
             return res
         self._unsupported(node)
         return self._viewport(self._mat)
 
-    def _check_normal(self, node):
+    def _normal(self, node):
+        """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an
+        Image Texture), or None (the surface's own normal) after warning what is not
+        supported."""
         s = node.inputs.get("Normal")
-        if s is not None and s.is_linked:
+        src = self._source(s) if s is not None else None
+        if src is None:
+            return None
+        n, _ = src
+        if n.type != "NORMAL_MAP":
             self._warn(f"material '{self._mat.name}': 'Normal' input of node '{node.name}' "
-                       "(bump/normal map) is not supported and ignored")
+                       f"is driven by node '{n.name}' ({n.type}), which is not supported; "
+                       "using the surface normal")
+            return None
+        space = str(getattr(n, "space", "TANGENT"))
+        if space not in ("TANGENT", "WORLD"):
+            self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' space '{space}' "
+                       "is not supported; using the surface normal")
+            return None
+        if getattr(n, "uv_map", ""):
+            self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' UV map "
+                       f"'{n.uv_map}' is read as the active render UV map")
+        col = self._source(n.inputs["Color"])
+        if col is None:
+            return None  # the default colour (0.5, 0.5, 1) is the unperturbed normal
+        cn, cout = col
+        tex = self._image(cn) if cn.type == "TEX_IMAGE" else None
+        if tex is None or cout.name != "Color":
+            if cn.type != "TEX_IMAGE" or cout.name != "Color":
+                self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' colour from "
+                           f"node '{cn.name}' ({cn.type}) is not supported; using the "
+                           "surface normal")
+            return None
+        strength = self._float(n, "Strength", 1.0)
+        try:
+            return self.pm.NormalMap(tex, strength=strength, space=space)
+        except ValueError as exc:
+            self._warn(f"material '{self._mat.name}': Normal Map '{n.name}': {exc}")
+            return None
 
     def _float(self, node, name, default=0.0) -> float:
         s = node.inputs.get(name)

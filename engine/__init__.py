@@ -12,9 +12,10 @@ from .render import render
 from .resources import ResourceError
 from .scene import Camera, Light, Material, Mesh, Scene, SceneError
 from .settings import RenderSettings
+from .normalmap import NormalMap
 from .textures import ColorAttribute, ImageTexture, TextureError
 
 __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "RenderSettings",
            "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
-           "ImageTexture", "ColorAttribute", "TextureError"]
+           "ImageTexture", "ColorAttribute", "TextureError", "NormalMap"]
 __version__ = "0.1.0"

@@ -77,14 +77,21 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     front = dot(d, ng) < 0.0
     sign = np.where(front, 1.0, -1.0)[:, None]
     ng = ng * sign
-    ns = geo.shading_normals(prim, u, v) * sign
+    ns = geo.shading_normals(prim, u, v)
+    mat = np.take(geo.material, prim)
+    for mi, nmap in enumerate(table.normal_maps or ()):
+        if nmap is None:
+            continue
+        sel = np.nonzero(mat == mi)[0]
+        if len(sel):
+            ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
+    ns = ns * sign
     wo = -d
     # Shading normals that put the viewer below the surface would make black rings:
     # fall back to the geometric normal there (Veach's guard, simplified).
     bad = dot(ns, wo) <= 1e-6
     if bad.any():
         ns[bad] = ng[bad]
-    mat = np.take(geo.material, prim)
     base = np.take(table.base_color, mat, axis=0)
     for mi, tex in enumerate(table.textures):
         if tex is None:

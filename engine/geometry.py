@@ -37,6 +37,7 @@ class MaterialTable:
     specular: np.ndarray
     alpha: np.ndarray
     textures: list            # per material: engine.textures object (evaluate()) or None
+    normal_maps: list = None  # per material: engine.normalmap.NormalMap or None
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -44,7 +45,8 @@ class MaterialTable:
         return cls(names=[m.name for m in materials],
                    base_color=np.array([m.base_color for m in materials], np.float64).reshape(-1, 3),
                    emission=np.array([m.emission for m in materials], np.float64).reshape(-1, 3),
-                   textures=[m.texture for m in materials], **cols)
+                   textures=[m.texture for m in materials],
+                   normal_maps=[getattr(m, "normal_map", None) for m in materials], **cols)
 
     @property
     def has_diffuse(self) -> np.ndarray:
@@ -129,6 +131,19 @@ class Geometry:
         cc = np.take(self.corner_colors, prim, axis=0)
         w = 1.0 - u - v
         return w[:, None] * cc[:, 0] + u[:, None] * cc[:, 1] + v[:, None] * cc[:, 2]
+
+    def uv_tangents(self, prim) -> tuple[np.ndarray, np.ndarray]:
+        """Per-triangle UV tangent dP/du (N,3, not normalised; zero where the UVs are
+        degenerate) and the UV map's orientation sign (N,) (+1: counter-clockwise)."""
+        cu = np.take(self.corner_uvs, prim, axis=0)
+        d1 = cu[:, 1] - cu[:, 0]
+        d2 = cu[:, 2] - cu[:, 0]
+        det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+        e1 = np.take(self.e1, prim, axis=0)
+        e2 = np.take(self.e2, prim, axis=0)
+        inv = np.where(np.abs(det) > 1e-20, 1.0 / np.where(det == 0, 1.0, det), 0.0)
+        t = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * inv[:, None]
+        return t, np.where(det < 0, -1.0, 1.0)
 
     def uvs(self, prim, u, v) -> np.ndarray:
         cu = np.take(self.corner_uvs, prim, axis=0)

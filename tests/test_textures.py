@@ -162,3 +162,46 @@ def test_color_attribute_interpolates_corner_colours_and_is_black_without_one():
     np.testing.assert_allclose(hit.base, [[0.5, 0.2, 0.3], [0, 0, 0]], atol=1e-9)
     with pytest.raises(SceneError, match="'bad'.*colors"):
         Mesh("bad", v, np.array([[0, 1, 2]]), colors=np.zeros((2, 3)))
+
+
+def _normal_mapped_quad(color, space="TANGENT", strength=1.0, flip_u=False):
+    """Unit quad at z=0 (normal +z), UVs = xy (or u mirrored), a constant normal-map colour."""
+    from engine.normalmap import NormalMap
+    s = Scene()
+    tex = ImageTexture(np.array([[color]], np.float32))
+    s.add_material(Material("n", (0.8,) * 3, normal_map=NormalMap(tex, strength, space)))
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    uv = v[:, :2].copy()
+    if flip_u:
+        uv[:, 0] = 1 - uv[:, 0]
+    s.add_mesh(Mesh("quad", v, np.array([[0, 1, 2], [0, 2, 3]]), uvs=uv, materials=["n"]))
+    geo, table = prepare(s)
+    d = np.tile([0.0, 0.0, -1.0], (2, 1))
+    return surface_hit(geo, table, np.array([0, 1]), np.array([0.3, 0.2]),
+                       np.array([0.3, 0.5]), d).ns
+
+
+def test_tangent_space_normal_map_tilts_along_the_uv_axes():
+    th = np.radians(30)
+    c = [0.5 + 0.5 * np.sin(th), 0.5, 0.5 + 0.5 * np.cos(th)]  # tilt towards +u
+    np.testing.assert_allclose(_normal_mapped_quad(c), [[np.sin(th), 0, np.cos(th)]] * 2,
+                               atol=1e-6)
+    # Mirrored UVs: +u runs along -x there, and the bitangent keeps +v along +y.
+    np.testing.assert_allclose(_normal_mapped_quad(c, flip_u=True),
+                               [[-np.sin(th), 0, np.cos(th)]] * 2, atol=1e-6)
+    cy = [0.5, 0.5 + 0.5 * np.sin(th), 0.5 + 0.5 * np.cos(th)]  # tilt towards +v
+    np.testing.assert_allclose(_normal_mapped_quad(cy, flip_u=True),
+                               [[0, np.sin(th), np.cos(th)]] * 2, atol=1e-6)
+    flat = _normal_mapped_quad(c, strength=0.0)
+    np.testing.assert_allclose(flat, [[0, 0, 1]] * 2, atol=1e-9)
+
+
+def test_world_space_normal_map_and_bad_input():
+    from engine.normalmap import NormalMap, NormalMapError
+    n = np.array([0.0, 0.6, 0.8])
+    np.testing.assert_allclose(_normal_mapped_quad(0.5 + 0.5 * n, space="WORLD"), [n] * 2,
+                               atol=1e-6)
+    with pytest.raises(NormalMapError, match="space"):
+        NormalMap(ImageTexture(ROW), space="OBJECTISH")
+    with pytest.raises(SceneError, match="'m' normal_map"):
+        Material("m", normal_map=ImageTexture(ROW))

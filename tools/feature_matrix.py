@@ -546,6 +546,38 @@ def texture_color_attribute():
     _sun()
 
 
+@case("textures")
+def texture_normal_map():
+    """Normal Map node (tangent space, Non-Color image) under a grazing sun from +x:
+    stripes whose normals lean 35 degrees towards the sun or away from it, so every other
+    stripe is bright or black where an ignored map gives a uniform grey."""
+    _stage(back=False)
+    th = math.radians(35)
+    img = np.zeros((8, 8, 3), np.float32)
+    lean = np.where((np.arange(8) // 2) % 2 == 0, 1.0, -1.0)[None, :]
+    img[..., 0] = 0.5 + 0.5 * math.sin(th) * lean
+    img[..., 1] = 0.5
+    img[..., 2] = 0.5 + 0.5 * math.cos(th)
+    im = _image("normals", img)
+    im.colorspace_settings.name = "Non-Color"
+    m, nt, out = _nodes_material("nmap")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = im
+    tex.interpolation = "Closest"
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    nt.links.new(nmap.outputs["Normal"], d.inputs["Normal"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
+    uvl = ob.data.uv_layers.new(name="UVMap")
+    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
+    for loop in ob.data.loops:
+        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _sun(rotation=(0, math.radians(70), 0))
+
+
 # --- geometry: instancing, modifiers, curves, text, metaballs ------------------------------
 
 def _geo_scene():
