@@ -218,10 +218,12 @@ class ColorAttribute:
         return geo.colors(prim, u, v)
 
 
-def as_texture(tex, name: str = "image") -> ImageTexture | None:
-    """A texture (ImageTexture or ColorAttribute) as given, or an ImageTexture from a bare linear HxW(x3/4) array (Repeat,
-    Linear: the engine's behaviour before textures had settings); None stays None."""
-    if tex is None or isinstance(tex, (ImageTexture, ColorAttribute)):
+def as_texture(tex, name: str = "image"):
+    """A colour source (anything with evaluate(geo, prim, u, v): ImageTexture,
+    ColorAttribute, engine.shadernodes nodes) as given, or an ImageTexture from a bare
+    linear HxW(x3/4) array (Repeat, Linear: the engine's behaviour before textures had
+    settings); None stays None."""
+    if tex is None or hasattr(tex, "evaluate"):
         return tex
     return ImageTexture(np.clip(np.nan_to_num(np.asarray(tex, np.float32), nan=0.0,
                                               posinf=1.0, neginf=0.0), 0.0, 1.0), name=name)

@@ -205,3 +205,53 @@ def test_world_space_normal_map_and_bad_input():
         NormalMap(ImageTexture(ROW), space="OBJECTISH")
     with pytest.raises(SceneError, match="'m' normal_map"):
         Material("m", normal_map=ImageTexture(ROW))
+
+
+def _plane_geo(texture):
+    """Unit quad, UV = xy; returns a function uv -> base colour at those UVs."""
+    s = Scene()
+    s.add_material(Material("n", (1, 1, 1), texture=texture))
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    s.add_mesh(Mesh("quad", v, np.array([[0, 1, 2], [0, 2, 3]]), uvs=v[:, :2], materials=["n"]))
+    geo, table = prepare(s)
+
+    def at(uv):
+        uv = np.asarray(uv, float)
+        # triangle 0 covers x >= y: corners (0,0), (1,0), (1,1) -> p = (u + v, v)
+        prim = np.zeros(len(uv), np.int64)
+        bv = uv[:, 1]
+        bu = uv[:, 0] - uv[:, 1]
+        return surface_hit(geo, table, prim, bu, bv, np.tile([0.0, 0, -1], (len(uv), 1))).base
+    return at
+
+
+def test_shader_nodes_mix_invert_ramp_math_checker_mapping():
+    from engine import shadernodes as sn
+    uvc = sn.UVCoord()
+    u_only = sn.SeparateChannel(uvc, 0)
+    at = _plane_geo(sn.MixColor(u_only, (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)))
+    np.testing.assert_allclose(at([[0.25, 0.1]]), [[0.75, 0, 0.25]], atol=1e-9)
+    at = _plane_geo(sn.MixColor(0.5, (0.5, 0.5, 0.5), (0.2, 0.4, 1.0), blend="MULTIPLY"))
+    np.testing.assert_allclose(at([[0.5, 0.2]]), [[0.3, 0.35, 0.5]], atol=1e-9)
+    at = _plane_geo(sn.Invert(1.0, (0.2, 0.3, 0.9)))
+    np.testing.assert_allclose(at([[0.5, 0.2]]), [[0.8, 0.7, 0.1]], atol=1e-9)
+    ramp = sn.ColorRamp(u_only, [0.0, 0.5], [(0, 0, 0), (1, 1, 1)])
+    np.testing.assert_allclose(_plane_geo(ramp)([[0.25, 0.1], [0.75, 0.1]]),
+                               [[0.5] * 3, [1.0] * 3], atol=1e-9)
+    const = sn.ColorRamp(u_only, [0.0, 0.5], [(0.1, 0, 0), (0.9, 0, 0)],
+                         interpolation="CONSTANT")
+    np.testing.assert_allclose(_plane_geo(const)([[0.4, 0.1], [0.6, 0.1]])[:, 0], [0.1, 0.9])
+    m = sn.Math("MULTIPLY", u_only, 2.0, clamp=True)
+    np.testing.assert_allclose(_plane_geo(sn.Combine(m, 0.0, 0.0))([[0.3, 0.1], [0.8, 0.1]])
+                               [:, 0], [0.6, 1.0], atol=1e-9)
+    # Checker with scale 2 on UV: cells of 0.5; (0.25, 0.1) is cell (0, 0) -> colour2.
+    chk = sn.Checker(uvc, (0.9, 0.9, 0.9), (0.1, 0.1, 0.1), scale=2.0)
+    np.testing.assert_allclose(_plane_geo(chk)([[0.25, 0.1], [0.75, 0.1], [0.75, 0.6]])[:, 0],
+                               [0.1, 0.9, 0.1], atol=1e-9)
+    # Mapping (Point): scale 2 then shift by 0.25 in u; an image lookup sees u' = 2u + 0.25.
+    img = ImageTexture(ROW, extension="EXTEND", interpolation="Closest")
+    lk = sn.ImageLookup(img, sn.Mapping(uvc, location=(0.25, 0, 0), scale=(2, 1, 1)))
+    np.testing.assert_allclose(_plane_geo(lk)([[0.05, 0.02], [0.2, 0.1]])[:, 0], [0.2, 0.4],
+                               atol=1e-9)
+    with pytest.raises(ValueError, match="blend type"):
+        sn.MixColor(0.5, 0, 0, blend="OVERLAYISH")
