@@ -338,38 +338,170 @@ class MaterialConverter:
             return float(default)
 
     def _color(self, node, name):
-        """(rgb, texture or None) for a colour input."""
+        """(rgb, colour source or None) for a colour input: a constant colour, or ones and
+        an engine node evaluated per hit (engine/shadernodes.py)."""
         s = node.inputs.get(name)
         if s is None:
             return np.array([0.8, 0.8, 0.8]), None
-        src = self._source(s)
-        if src is not None:
-            n, out = src
-            if n.type == "RGB":
-                return np.asarray(tuple(out.default_value)[:3], dtype=np.float64), None
-            if n.type == "VERTEX_COLOR":  # the Color Attribute node
-                if out.name != "Color":
-                    self._warn(f"material '{self._mat.name}': the '{out.name}' output of "
-                               f"node '{n.name}' is not supported; using its colour")
-                return np.ones(3), self.pm.ColorAttribute(getattr(n, "layer_name", ""))
-            if n.type == "TEX_IMAGE":
-                tex = self._image(n)
-                if tex is not None:
-                    if n.inputs.get("Vector") is not None and n.inputs["Vector"].is_linked:
-                        self._warn(f"material '{self._mat.name}': the 'Vector' input of image "
-                                   f"node '{n.name}' is ignored; the active UV map is used")
-                    if out.name == "Alpha":
-                        self._warn(f"material '{self._mat.name}': the 'Alpha' output of image "
-                                   f"node '{n.name}' is not supported; using its colour")
-                    return np.ones(3), tex
-            else:
-                self._warn(f"material '{self._mat.name}': input '{name}' of node "
-                           f"'{node.name}' is driven by node '{n.name}' ({n.type}), which is "
-                           "not supported; using the input's own colour")
+        val = self._input(node, s, 0)
+        if hasattr(val, "evaluate"):
+            return np.ones(3), val
+        arr = np.asarray(val, dtype=np.float64)
+        return (np.full(3, float(arr)) if arr.ndim == 0 else arr[:3]), None
+
+    @staticmethod
+    def _default(socket):
+        """A socket's own value: float, or an RGB / XYZ array."""
         try:
-            return np.asarray(tuple(s.default_value)[:3], dtype=np.float64), None
-        except (AttributeError, TypeError):
-            return np.array([0.8, 0.8, 0.8]), None
+            v = socket.default_value
+        except AttributeError:
+            return 0.0
+        if np.ndim(v) == 0:
+            return float(v)
+        return np.asarray(tuple(v)[:3], dtype=np.float64)
+
+    def _input(self, node, socket, depth):
+        """What feeds an input socket: an engine node, or a constant (its own value when
+        unlinked, or when the feeding node cannot be evaluated: warned once, naming the
+        material and the node)."""
+        src = self._source(socket)
+        if src is None:
+            return self._default(socket)
+        n, out = src
+        if depth > MAX_NODE_DEPTH:
+            self._warn(f"material '{self._mat.name}': node tree too deep at node '{n.name}'")
+            return self._default(socket)
+        val = self._node_output(n, out, depth + 1)
+        if val is None:
+            self._warn(f"material '{self._mat.name}': node '{n.name}' ({n.type}) feeding "
+                       f"'{socket.name}' of node '{node.name}' is not supported; using the "
+                       "input's own value")
+            return self._default(socket)
+        return val
+
+    def _vector(self, node, name, depth):
+        """A Vector input; None when unlinked (the node's default coordinates)."""
+        s = node.inputs.get(name)
+        if s is None or self._source(s) is None:
+            return None
+        return self._input(node, s, depth)
+
+    def _node_output(self, n, out, depth):
+        """Engine node (or constant) for output `out` of Blender node n; None = not
+        supported. Evaluated per hit in engine/shadernodes.py (numpy over hits)."""
+        sn = self.pm.shadernodes
+        t = n.type
+        oname = out.name
+        if getattr(n, "mute", False):
+            return None
+        if t == "RGB":
+            return np.asarray(tuple(out.default_value)[:3], dtype=np.float64)
+        if t == "VALUE":
+            return float(out.default_value)
+        if t == "VERTEX_COLOR":  # the Color Attribute node
+            if oname != "Color":
+                return None
+            return self.pm.ColorAttribute(getattr(n, "layer_name", ""))
+        if t == "TEX_IMAGE":
+            tex = self._image(n)
+            if tex is None:
+                return None
+            vec = self._vector(n, "Vector", depth)
+            if vec is None and oname == "Color":
+                return tex  # UVs of the active render map
+            return sn.ImageLookup(tex, vec, output="ALPHA" if oname == "Alpha" else "COLOR")
+        if t == "TEX_COORD":
+            if oname == "UV":
+                return sn.UVCoord()
+            self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' output "
+                       f"'{oname}' is not supported (only UV)")
+            return None
+        if t == "UVMAP":
+            if getattr(n, "uv_map", ""):
+                self._warn(f"material '{self._mat.name}': UV Map node '{n.name}' map "
+                           f"'{n.uv_map}' is read as the active render UV map")
+            return sn.UVCoord()
+        if t == "MAPPING":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                self._warn(f"material '{self._mat.name}': Mapping '{n.name}' without a "
+                           "Vector input (Generated coordinates) is not supported; using UV")
+                vec = sn.UVCoord()
+            consts = []
+            for k in ("Location", "Rotation", "Scale"):
+                sock = n.inputs.get(k)
+                if sock is None:
+                    consts.append((0, 0, 0) if k != "Scale" else (1, 1, 1))
+                    continue
+                if sock.is_linked:
+                    self._warn(f"material '{self._mat.name}': linked '{k}' of Mapping "
+                               f"'{n.name}' is not supported; using its own value")
+                consts.append(self._default(sock))
+            return sn.Mapping(vec, *consts, kind=getattr(n, "vector_type", "POINT"))
+        if t == "MIX":
+            if getattr(n, "data_type", "RGBA") != "RGBA":
+                return None
+            ins = {i.identifier: i for i in n.inputs}
+            fac = self._input(n, ins.get("Factor_Float", n.inputs[0]), depth)
+            a = self._input(n, ins["A_Color"], depth)
+            b = self._input(n, ins["B_Color"], depth)
+            return self._mix(n, fac, a, b, n.blend_type, getattr(n, "clamp_factor", True),
+                             getattr(n, "clamp_result", False))
+        if t == "MIX_RGB":
+            fac = self._input(n, n.inputs["Fac"], depth)
+            a = self._input(n, n.inputs["Color1"], depth)
+            b = self._input(n, n.inputs["Color2"], depth)
+            return self._mix(n, fac, a, b, n.blend_type, True, getattr(n, "use_clamp", False))
+        if t == "INVERT":
+            return sn.Invert(self._input(n, n.inputs["Fac"], depth),
+                             self._input(n, n.inputs["Color"], depth))
+        if t == "VALTORGB":
+            ramp = n.color_ramp
+            interp = ramp.interpolation
+            if interp not in ("LINEAR", "CONSTANT"):
+                self._warn(f"material '{self._mat.name}': Color Ramp '{n.name}' "
+                           f"interpolation '{interp}' is read as Linear")
+                interp = "LINEAR"
+            els = list(ramp.elements)
+            return sn.ColorRamp(self._input(n, n.inputs["Fac"], depth),
+                                [e.position for e in els], [tuple(e.color)[:3] for e in els],
+                                [e.color[3] for e in els], interpolation=interp,
+                                output="ALPHA" if oname == "Alpha" else "COLOR")
+        if t == "MATH":
+            if n.operation not in sn.MATH_OPS:
+                return None
+            return sn.Math(n.operation, self._input(n, n.inputs[0], depth),
+                           self._input(n, n.inputs[1], depth), clamp=n.use_clamp)
+        if t in ("SEPARATE_COLOR", "SEPRGB", "SEPXYZ"):
+            if getattr(n, "mode", "RGB") != "RGB":
+                return None
+            channel = {"Red": 0, "R": 0, "X": 0, "Green": 1, "G": 1, "Y": 1,
+                       "Blue": 2, "B": 2, "Z": 2}.get(oname)
+            if channel is None:
+                return None
+            return sn.SeparateChannel(self._input(n, n.inputs[0], depth), channel)
+        if t in ("COMBINE_COLOR", "COMBRGB", "COMBXYZ"):
+            if getattr(n, "mode", "RGB") != "RGB":
+                return None
+            return sn.Combine(*(self._input(n, n.inputs[i], depth) for i in range(3)))
+        if t == "TEX_CHECKER":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                self._warn(f"material '{self._mat.name}': Checker '{n.name}' without a "
+                           "Vector input (Generated coordinates) is read with UV coordinates")
+                vec = sn.UVCoord()
+            return sn.Checker(vec, self._input(n, n.inputs["Color1"], depth),
+                              self._input(n, n.inputs["Color2"], depth),
+                              self._input(n, n.inputs["Scale"], depth),
+                              output="FAC" if oname == "Fac" else "COLOR")
+        return None
+
+    def _mix(self, n, fac, a, b, blend, clamp_factor, clamp_result):
+        if blend not in self.pm.shadernodes.MIX_BLENDS:
+            self._warn(f"material '{self._mat.name}': Mix '{n.name}' blend type '{blend}' "
+                       "is not supported; using Mix")
+            blend = "MIX"
+        return self.pm.shadernodes.MixColor(fac, a, b, blend, clamp_factor, clamp_result)
 
     def _image(self, node):
         """engine ImageTexture for an Image Texture node (its image, Extension,

@@ -5,7 +5,7 @@ Pure Python on numpy, embreex and scipy; never imports bpy.
     from engine import render, RenderSettings
     from engine.api import PaperScene
 """
-from . import presets, resources
+from . import presets, resources, shadernodes
 from .film import Film
 from .progressive import Budget, render_progressive
 from .render import render
@@ -15,7 +15,8 @@ from .settings import RenderSettings
 from .normalmap import NormalMap
 from .textures import ColorAttribute, ImageTexture, TextureError
 
-__all__ = ["render", "render_progressive", "Budget", "presets", "resources", "RenderSettings",
+__all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes",
+           "RenderSettings",
            "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
            "ImageTexture", "ColorAttribute", "TextureError", "NormalMap"]
 __version__ = "0.1.0"

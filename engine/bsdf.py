@@ -100,6 +100,8 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         if len(sel):
             # Clipped to [0, 1]: an albedo above 1 would create energy (HDR texels).
             rgb = tex.evaluate(geo, prim[sel], u[sel], v[sel])
+            if rgb.ndim == 1:  # a value (factor) into a colour: grey
+                rgb = rgb[:, None]
             base[sel] = base[sel] * np.clip(rgb, 0.0, 1.0)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=geo.origin_offset(prim, u, v, p, ng),

@@ -578,6 +578,77 @@ def texture_normal_map():
     _sun(rotation=(0, math.radians(70), 0))
 
 
+@case("textures")
+def texture_procedural_checker():
+    """Checker Texture on the UV coordinates (Texture Coordinate node), scale 4."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("checker")
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    chk = nt.nodes.new("ShaderNodeTexChecker")
+    chk.inputs["Scale"].default_value = 4.0
+    chk.inputs["Color1"].default_value = (0.85, 0.7, 0.2, 1.0)
+    chk.inputs["Color2"].default_value = (0.05, 0.1, 0.3, 1.0)
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(coord.outputs["UV"], chk.inputs["Vector"])
+    nt.links.new(chk.outputs["Color"], d.inputs["Color"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
+    uvl = ob.data.uv_layers.new(name="UVMap")
+    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
+    for loop in ob.data.loops:
+        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _sun()
+
+
+@case("textures")
+def texture_node_tree():
+    """What real trees put between textures and a BSDF: UV -> Mapping (scale 2, shift) ->
+    Image; a Checker's factor through a Color Ramp (constant stops); Mix Color Multiply of
+    the two; Invert at 0.3; Math on the mix factor (0.5 x 2)."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("tree")
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = (2.0, 2.0, 1.0)
+    mapping.inputs["Location"].default_value = (0.25, 0.0, 0.0)
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = _image("ramp", _ramp_image())
+    chk = nt.nodes.new("ShaderNodeTexChecker")
+    chk.inputs["Scale"].default_value = 3.0
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.interpolation = "CONSTANT"
+    ramp.color_ramp.elements[0].color = (0.2, 0.9, 0.9, 1.0)
+    ramp.color_ramp.elements[1].position = 0.5
+    ramp.color_ramp.elements[1].color = (1.0, 1.0, 0.3, 1.0)
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    math_node = nt.nodes.new("ShaderNodeMath")
+    math_node.operation = "MULTIPLY"
+    math_node.inputs[0].default_value = 0.5
+    math_node.inputs[1].default_value = 2.0
+    inv = nt.nodes.new("ShaderNodeInvert")
+    inv.inputs["Fac"].default_value = 0.3
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    L = nt.links.new
+    L(coord.outputs["UV"], mapping.inputs["Vector"])
+    L(mapping.outputs["Vector"], tex.inputs["Vector"])
+    L(coord.outputs["UV"], chk.inputs["Vector"])
+    L(chk.outputs["Fac"], ramp.inputs["Fac"])
+    L(math_node.outputs[0], mix.inputs["Factor"])
+    L(tex.outputs["Color"], mix.inputs["A"])
+    L(ramp.outputs["Color"], mix.inputs["B"])
+    L(mix.outputs["Result"], inv.inputs["Color"])
+    L(inv.outputs["Color"], d.inputs["Color"])
+    L(d.outputs[0], out.inputs["Surface"])
+    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
+    uvl = ob.data.uv_layers.new(name="UVMap")
+    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
+    for loop in ob.data.loops:
+        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _sun()
+
+
 # --- geometry: instancing, modifiers, curves, text, metaballs ------------------------------
 
 def _geo_scene():
