@@ -3,7 +3,8 @@
 Supported: Principled BSDF, Diffuse, Glossy, Glass, Refraction, Emission, Transparent,
 Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
 tiles), a Color Attribute, or an RGB / Value node (through reroutes) on colour inputs, and a
-Normal Map node (tangent or world space) fed by an Image Texture on 'Normal' inputs. Anything else falls back to its nearest approximation (the
+Normal Map node (tangent or world space) fed by an Image Texture or a Bump node on
+'Normal' inputs. Anything else falls back to its nearest approximation (the
 material's viewport colour when nothing else is known) and is reported once per material
 and node in a warning that names both.
 """
@@ -285,6 +286,8 @@ class MaterialConverter:
         if src is None:
             return None
         n, _ = src
+        if n.type == "BUMP":
+            return self._bump(n)
         if n.type != "NORMAL_MAP":
             self._warn(f"material '{self._mat.name}': 'Normal' input of node '{node.name}' "
                        f"is driven by node '{n.name}' ({n.type}), which is not supported; "
@@ -314,6 +317,22 @@ class MaterialConverter:
             return self.pm.NormalMap(tex, strength=strength, space=space)
         except ValueError as exc:
             self._warn(f"material '{self._mat.name}': Normal Map '{n.name}': {exc}")
+            return None
+
+    def _bump(self, n):
+        """engine Bump for a Bump node (its Height evaluated per hit), or None."""
+        if n.inputs.get("Normal") is not None and self._source(n.inputs["Normal"]):
+            self._warn(f"material '{self._mat.name}': the 'Normal' input of Bump '{n.name}' "
+                       "(a chained normal) is not supported; bumping the surface normal")
+        height = self._input(n, n.inputs["Height"], 0)
+        if not hasattr(height, "evaluate"):
+            return None  # a constant height: no bump
+        try:
+            return self.pm.Bump(height, strength=self._float(n, "Strength", 1.0),
+                                distance=self._float(n, "Distance", 1.0),
+                                invert=bool(getattr(n, "invert", False)))
+        except ValueError as exc:
+            self._warn(f"material '{self._mat.name}': Bump '{n.name}': {exc}")
             return None
 
     def _float(self, node, name, default=0.0) -> float:

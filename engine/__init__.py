@@ -12,11 +12,11 @@ from .render import render
 from .resources import ResourceError
 from .scene import Camera, Light, Material, Mesh, Scene, SceneError
 from .settings import RenderSettings
-from .normalmap import NormalMap
+from .normalmap import Bump, NormalMap
 from .textures import ColorAttribute, ImageTexture, TextureError
 
 __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes",
            "RenderSettings",
            "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
-           "ImageTexture", "ColorAttribute", "TextureError", "NormalMap"]
+           "ImageTexture", "ColorAttribute", "TextureError", "NormalMap", "Bump"]
 __version__ = "0.1.0"

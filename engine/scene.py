@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .normalmap import NormalMap
+from .normalmap import Bump, NormalMap
 from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
 
 __all__ = [
@@ -64,7 +64,8 @@ class Material:
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
     `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
     image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
-    `normal_map` is an optional engine.normalmap.NormalMap perturbing the shading normal.
+    `normal_map` is an optional engine.normalmap.NormalMap or Bump perturbing the shading
+    normal.
     """
 
     name: str = "default"
@@ -77,7 +78,7 @@ class Material:
     emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     alpha: float = 1.0
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
-    normal_map: NormalMap | None = None
+    normal_map: NormalMap | Bump | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -104,8 +105,8 @@ class Material:
                 self.texture = as_texture(self.texture, name=f"{self.name} texture")
             except TextureError as exc:
                 raise SceneError(f"{who} {exc}") from None
-        if self.normal_map is not None and not isinstance(self.normal_map, NormalMap):
-            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap, got "
+        if self.normal_map is not None and not isinstance(self.normal_map, (NormalMap, Bump)):
+            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap or Bump, got "
                              f"{type(self.normal_map).__name__}")
 
     @property

@@ -255,3 +255,39 @@ def test_shader_nodes_mix_invert_ramp_math_checker_mapping():
                                atol=1e-9)
     with pytest.raises(ValueError, match="blend type"):
         sn.MixColor(0.5, 0, 0, blend="OVERLAYISH")
+
+
+def test_bump_tilts_against_the_height_gradient():
+    from engine import shadernodes as sn
+    from engine.normalmap import Bump
+    # h = 0.5 u on a unit quad with uv = xy: grad h = (0.5, 0, 0); distance 0.8 ->
+    # n' = normalize((0, 0, 1) - 0.8 (0.5, 0, 0)) = normalize(-0.4, 0, 1).
+    h = sn.Math("MULTIPLY", sn.SeparateChannel(sn.UVCoord(), 0), 0.5)
+    want = np.array([-0.4, 0, 1]) / np.hypot(0.4, 1)
+    for prim_uv in ([0.3, 0.2], [0.2, 0.6]):  # one point in each triangle
+        got = _bumped(Bump(h, distance=0.8), prim_uv)
+        np.testing.assert_allclose(got, want, atol=1e-6)
+    np.testing.assert_allclose(_bumped(Bump(h, distance=0.8, invert=True), [0.3, 0.2]),
+                               want * [-1, 1, 1], atol=1e-6)
+    half = _bumped(Bump(h, strength=0.5, distance=0.8), [0.3, 0.2])
+    np.testing.assert_allclose(half, normalize_(0.5 * want + 0.5 * np.array([0, 0, 1.0])),
+                               atol=1e-6)
+
+
+def normalize_(x):
+    return x / np.linalg.norm(x)
+
+
+def _bumped(nmap, xy):
+    s = Scene()
+    s.add_material(Material("b", (0.8,) * 3, normal_map=nmap))
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    s.add_mesh(Mesh("quad", v, np.array([[0, 1, 2], [0, 2, 3]]), uvs=v[:, :2], materials=["b"]))
+    geo, table = prepare(s)
+    x, y = xy
+    if x >= y:   # triangle 0: p = (u + v, v)
+        prim, bu, bv = 0, x - y, y
+    else:        # triangle 1 (corners 0, 2, 3): p = (u, u + v)
+        prim, bu, bv = 1, x, y - x
+    return surface_hit(geo, table, np.array([prim]), np.array([bu]), np.array([bv]),
+                       np.array([[0.0, 0, -1]])).ns[0]

@@ -579,6 +579,33 @@ def texture_normal_map():
 
 
 @case("textures")
+def texture_bump():
+    """Bump node: a triangle-wave height (8 texel columns 0, 1, 0, 1..., bilinear) times
+    distance 0.15 under a grazing sun from +x: slopes facing the sun bright, the others
+    dark; an ignored bump is uniform grey."""
+    _stage(back=False)
+    h = np.zeros((8, 8, 3), np.float32)
+    h[:, 1::2] = 1.0
+    im = _image("height", h)
+    im.colorspace_settings.name = "Non-Color"
+    m, nt, out = _nodes_material("bump")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = im
+    bump = nt.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.15
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(tex.outputs["Color"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], d.inputs["Normal"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
+    uvl = ob.data.uv_layers.new(name="UVMap")
+    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
+    for loop in ob.data.loops:
+        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _sun(rotation=(0, math.radians(70), 0))
+
+
+@case("textures")
 def texture_procedural_checker():
     """Checker Texture on the UV coordinates (Texture Coordinate node), scale 4."""
     _stage(back=False)
