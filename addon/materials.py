@@ -2,7 +2,9 @@
 
 Supported: Principled BSDF, Diffuse, Glossy, Glass, Refraction, Emission, Transparent,
 Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
-tiles), a Color Attribute, or an RGB / Value node (through reroutes) on colour inputs, and a
+tiles), a Color Attribute, an RGB / Value node, or a tree of the colour nodes in
+engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
+Separate/Combine, Checker and Gradient textures) on colour inputs, and a
 Normal Map node (tangent or world space) fed by an Image Texture or a Bump node on
 'Normal' inputs. Anything else falls back to its nearest approximation (the
 material's viewport colour when nothing else is known) and is reported once per material
@@ -503,6 +505,17 @@ class MaterialConverter:
             if getattr(n, "mode", "RGB") != "RGB":
                 return None
             return sn.Combine(*(self._input(n, n.inputs[i], depth) for i in range(3)))
+        if t == "HUE_SAT":
+            i = n.inputs
+            return sn.HueSaturation(*(self._input(n, i[k], depth)
+                                      for k in ("Hue", "Saturation", "Value", "Fac", "Color")))
+        if t == "TEX_GRADIENT":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                self._warn(f"material '{self._mat.name}': Gradient '{n.name}' without a "
+                           "Vector input (Generated coordinates) is read with UV coordinates")
+                vec = sn.UVCoord()
+            return sn.Gradient(vec, n.gradient_type, output="FAC" if oname == "Fac" else "COLOR")
         if t == "TEX_CHECKER":
             vec = self._vector(n, "Vector", depth)
             if vec is None:

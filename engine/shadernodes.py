@@ -247,3 +247,89 @@ class Checker:
         c1 = _eval(self.color1, geo, prim, u, v, 3)
         c2 = _eval(self.color2, geo, prim, u, v, 3)
         return np.where(fac[:, None] == 1.0, c1, c2)
+
+
+def rgb_to_hsv(c: np.ndarray) -> np.ndarray:
+    """(N,3) RGB -> HSV with hue in [0, 1) (Cycles color_util.h rgb_to_hsv)."""
+    cmax = c.max(axis=1)
+    cmin = c.min(axis=1)
+    delta = cmax - cmin
+    s = np.where(cmax != 0, delta / np.where(cmax != 0, cmax, 1.0), 0.0)
+    safe = np.where(delta != 0, delta, 1.0)
+    cc = (cmax[:, None] - c) / safe[:, None]
+    h = np.where(c[:, 0] == cmax, cc[:, 2] - cc[:, 1],
+                 np.where(c[:, 1] == cmax, 2.0 + cc[:, 0] - cc[:, 2], 4.0 + cc[:, 1] - cc[:, 0]))
+    h = h / 6.0
+    h = np.where(h < 0, h + 1.0, h)
+    h = np.where(s != 0, h, 0.0)
+    return np.stack([h, s, cmax], axis=1)
+
+
+def hsv_to_rgb(hsv: np.ndarray) -> np.ndarray:
+    """(N,3) HSV -> RGB (Cycles color_util.h hsv_to_rgb)."""
+    h, s, v = hsv[:, 0], hsv[:, 1], hsv[:, 2]
+    h = np.where(h == 1.0, 0.0, h) * 6.0
+    i = np.floor(h)
+    f = h - i
+    p = v * (1 - s)
+    q = v * (1 - s * f)
+    t = v * (1 - s * (1 - f))
+    i = i.astype(np.int64) % 6
+    table = np.stack([np.stack([v, t, p], 1), np.stack([q, v, p], 1), np.stack([p, v, t], 1),
+                      np.stack([p, q, v], 1), np.stack([t, p, v], 1), np.stack([v, p, q], 1)])
+    rgb = table[i, np.arange(len(i))]
+    return np.where((s != 0)[:, None], rgb, v[:, None])
+
+
+class HueSaturation:
+    """Hue/Saturation/Value node: hue shifted by (hue - 0.5), saturation and value scaled,
+    mixed with the input by factor, negatives clamped (Cycles svm_node_hsv)."""
+
+    def __init__(self, hue, saturation, value, factor, color):
+        self.hue, self.saturation, self.value = hue, saturation, value
+        self.factor, self.color = factor, color
+
+    def evaluate(self, geo, prim, u, v):
+        c = _eval(self.color, geo, prim, u, v, 3)
+        hsv = rgb_to_hsv(c)
+        h = hsv[:, 0] + _eval(self.hue, geo, prim, u, v, 1) + 0.5
+        hsv[:, 0] = h - np.floor(h)
+        hsv[:, 1] = np.clip(hsv[:, 1] * _eval(self.saturation, geo, prim, u, v, 1), 0.0, 1.0)
+        hsv[:, 2] = hsv[:, 2] * _eval(self.value, geo, prim, u, v, 1)
+        t = _eval(self.factor, geo, prim, u, v, 1)[:, None]
+        return np.maximum(t * hsv_to_rgb(hsv) + (1.0 - t) * c, 0.0)
+
+
+class Gradient:
+    """Gradient Texture node (Cycles svm_gradient), clamped to 0..1; output COLOR (grey)
+    or FAC. kinds: LINEAR, QUADRATIC, EASING, DIAGONAL, RADIAL, QUADRATIC_SPHERE,
+    SPHERICAL."""
+
+    KINDS = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE",
+             "SPHERICAL")
+
+    def __init__(self, vector, kind="LINEAR", output="COLOR"):
+        if kind not in self.KINDS:
+            raise ValueError(f"Gradient type {kind!r}: expected one of {self.KINDS}")
+        self.vector, self.kind, self.output = vector, kind, output
+
+    def evaluate(self, geo, prim, u, v):
+        p = _eval(self.vector, geo, prim, u, v, 3)
+        x, y, z = p[:, 0], p[:, 1], p[:, 2]
+        k = self.kind
+        if k == "LINEAR":
+            f = x
+        elif k == "QUADRATIC":
+            f = np.maximum(x, 0.0) ** 2
+        elif k == "EASING":
+            r = np.clip(x, 0.0, 1.0)
+            f = 3.0 * r * r - 2.0 * r * r * r
+        elif k == "DIAGONAL":
+            f = (x + y) * 0.5
+        elif k == "RADIAL":
+            f = np.arctan2(y, x) / (2.0 * np.pi) + 0.5
+        else:
+            r = np.maximum(0.999999 - np.sqrt(x * x + y * y + z * z), 0.0)
+            f = r * r if k == "QUADRATIC_SPHERE" else r
+        f = np.clip(f, 0.0, 1.0)
+        return f if self.output == "FAC" else np.repeat(f[:, None], 3, axis=1)

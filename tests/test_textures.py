@@ -291,3 +291,26 @@ def _bumped(nmap, xy):
         prim, bu, bv = 1, x, y - x
     return surface_hit(geo, table, np.array([prim]), np.array([bu]), np.array([bv]),
                        np.array([[0.0, 0, -1]])).ns[0]
+
+
+def test_hue_saturation_and_gradient():
+    import colorsys
+    from engine import shadernodes as sn
+    rng = np.random.default_rng(3)
+    c = rng.random((40, 3))
+    hsv = sn.rgb_to_hsv(c)
+    want = np.array([colorsys.rgb_to_hsv(*row) for row in c])
+    np.testing.assert_allclose(hsv, want, atol=1e-12)
+    np.testing.assert_allclose(sn.hsv_to_rgb(hsv), c, atol=1e-12)
+    col = (0.8, 0.2, 0.1)
+    # Hue 0.5 / saturation 1 / value 1 is the identity; hue 0.5 + 1/3 rotates R -> G.
+    same = _plane_geo(sn.HueSaturation(0.5, 1.0, 1.0, 1.0, col))([[0.3, 0.1]])
+    np.testing.assert_allclose(same, [col], atol=1e-9)
+    rot = _plane_geo(sn.HueSaturation(0.5 + 1 / 3, 1.0, 1.0, 1.0, col))([[0.3, 0.1]])
+    np.testing.assert_allclose(rot, [[0.1, 0.8, 0.2]], atol=1e-9)
+    grey = _plane_geo(sn.HueSaturation(0.5, 0.0, 0.5, 1.0, col))([[0.3, 0.1]])
+    np.testing.assert_allclose(grey, [[0.4, 0.4, 0.4]], atol=1e-9)
+    g = _plane_geo(sn.Gradient(sn.UVCoord(), "EASING"))([[0.25, 0.1]])
+    np.testing.assert_allclose(g, [[0.15625] * 3], atol=1e-9)
+    d = _plane_geo(sn.Gradient(sn.UVCoord(), "DIAGONAL"))([[0.5, 0.1]])
+    np.testing.assert_allclose(d, [[0.3] * 3], atol=1e-9)

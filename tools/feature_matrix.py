@@ -606,6 +606,38 @@ def texture_bump():
 
 
 @case("textures")
+def texture_gradient_hue():
+    """Gradient Texture (Easing, on UV) as the factor of a Mix Color red -> blue, through
+    Hue/Saturation/Value (hue +0.15, saturation 0.8, value 1.1)."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("gradient")
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    grad.gradient_type = "EASING"
+    mix = nt.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.inputs["A"].default_value = (0.8, 0.1, 0.05, 1.0)
+    mix.inputs["B"].default_value = (0.05, 0.2, 0.8, 1.0)
+    hsv = nt.nodes.new("ShaderNodeHueSaturation")
+    hsv.inputs["Hue"].default_value = 0.65
+    hsv.inputs["Saturation"].default_value = 0.8
+    hsv.inputs["Value"].default_value = 1.1
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    L = nt.links.new
+    L(coord.outputs["UV"], grad.inputs["Vector"])
+    L(grad.outputs["Fac"], mix.inputs["Factor"])
+    L(mix.outputs["Result"], hsv.inputs["Color"])
+    L(hsv.outputs["Color"], d.inputs["Color"])
+    L(d.outputs[0], out.inputs["Surface"])
+    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
+    uvl = ob.data.uv_layers.new(name="UVMap")
+    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
+    for loop in ob.data.loops:
+        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _sun()
+
+
+@case("textures")
 def texture_procedural_checker():
     """Checker Texture on the UV coordinates (Texture Coordinate node), scale 4."""
     _stage(back=False)
