@@ -92,8 +92,13 @@ class MaterialConverter:
 
     def __init__(self, pm):
         self.pm = pm            # the engine package
-        self.images = {}        # image name -> HxWx3 float32 (or None)
+        self.images = {}        # (image name, extension, interpolation) -> ImageTexture
         self.cache = {}         # material name -> engine Material
+        self.coordinate_users = set()  # materials reading Generated / Object coordinates
+
+    def needs_coordinates(self, material_name) -> bool:
+        """Whether meshes with this material must export Generated / Object coordinates."""
+        return material_name in self.coordinate_users
 
     # --- public -------------------------------------------------------------------
     def convert(self, mat):
@@ -434,8 +439,13 @@ class MaterialConverter:
         if t == "TEX_COORD":
             if oname == "UV":
                 return sn.UVCoord()
+            if oname in ("Generated", "Object"):
+                if getattr(n, "object", None) is not None and oname == "Object":
+                    self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' "
+                               "relative to another object is read in the mesh's own space")
+                return self._coordinates(oname.lower())
             self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' output "
-                       f"'{oname}' is not supported (only UV)")
+                       f"'{oname}' is not supported (UV, Generated, Object are)")
             return None
         if t == "UVMAP":
             if getattr(n, "uv_map", ""):
@@ -443,11 +453,7 @@ class MaterialConverter:
                            f"'{n.uv_map}' is read as the active render UV map")
             return sn.UVCoord()
         if t == "MAPPING":
-            vec = self._vector(n, "Vector", depth)
-            if vec is None:
-                self._warn(f"material '{self._mat.name}': Mapping '{n.name}' without a "
-                           "Vector input (Generated coordinates) is not supported; using UV")
-                vec = sn.UVCoord()
+            vec = self._input(n, n.inputs["Vector"], depth)  # unlinked: its own value
             consts = []
             for k in ("Location", "Rotation", "Scale"):
                 sock = n.inputs.get(k)
@@ -512,21 +518,21 @@ class MaterialConverter:
         if t == "TEX_GRADIENT":
             vec = self._vector(n, "Vector", depth)
             if vec is None:
-                self._warn(f"material '{self._mat.name}': Gradient '{n.name}' without a "
-                           "Vector input (Generated coordinates) is read with UV coordinates")
-                vec = sn.UVCoord()
+                vec = self._coordinates("generated")  # procedural textures' default
             return sn.Gradient(vec, n.gradient_type, output="FAC" if oname == "Fac" else "COLOR")
         if t == "TEX_CHECKER":
             vec = self._vector(n, "Vector", depth)
             if vec is None:
-                self._warn(f"material '{self._mat.name}': Checker '{n.name}' without a "
-                           "Vector input (Generated coordinates) is read with UV coordinates")
-                vec = sn.UVCoord()
+                vec = self._coordinates("generated")  # procedural textures' default
             return sn.Checker(vec, self._input(n, n.inputs["Color1"], depth),
                               self._input(n, n.inputs["Color2"], depth),
                               self._input(n, n.inputs["Scale"], depth),
                               output="FAC" if oname == "Fac" else "COLOR")
         return None
+
+    def _coordinates(self, name):
+        self.coordinate_users.add(self._mat.name)
+        return self.pm.shadernodes.Coordinates(name)
 
     def _mix(self, n, fac, a, b, blend, clamp_factor, clamp_result):
         if blend not in self.pm.shadernodes.MIX_BLENDS:

@@ -89,6 +89,8 @@ class Geometry:
     bounds: np.ndarray        # (2,3) re-centred bounding box
     corner_colors: np.ndarray | None = None  # (T,3,3) linear colour attribute; None: no
                               # mesh has one (a mesh without one reads black, as in Cycles)
+    corner_coordinates: dict | None = None  # name -> (T,3,3) texture coordinates (Mesh);
+                              # zeros on meshes without them
 
     @property
     def count(self) -> int:
@@ -129,6 +131,15 @@ class Geometry:
         if self.corner_colors is None:
             return np.zeros((len(prim), 3))
         cc = np.take(self.corner_colors, prim, axis=0)
+        w = 1.0 - u - v
+        return w[:, None] * cc[:, 0] + u[:, None] * cc[:, 1] + v[:, None] * cc[:, 2]
+
+    def coordinates(self, name, prim, u, v) -> np.ndarray:
+        """(N,3) texture coordinates `name` interpolated at the hits (zeros where none)."""
+        cc = (self.corner_coordinates or {}).get(name)
+        if cc is None:
+            return np.zeros((len(prim), 3))
+        cc = np.take(cc, prim, axis=0)
         w = 1.0 - u - v
         return w[:, None] * cc[:, 0] + u[:, None] * cc[:, 1] + v[:, None] * cc[:, 2]
 
@@ -253,6 +264,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=np.concatenate(ccols) if any(
             getattr(m, "colors", None) is not None for m in scene.meshes) else None,
+        corner_coordinates=_corner_coordinates(scene.meshes),
     )
     return geo, table
 
@@ -265,3 +277,17 @@ def emissive_triangles(geo: Geometry, table: MaterialTable):
     lit = (luminance(em) > 0) & ((geo.visibility & DIFFUSE) != 0) if len(em) else None
     idx = np.nonzero(lit)[0] if len(em) else np.zeros(0, np.int64)
     return idx, em[idx], geo.area[idx]
+
+
+def _corner_coordinates(meshes) -> dict | None:
+    """name -> (T,3,3) per-corner texture coordinates over all meshes' triangles."""
+    names = sorted({k for m in meshes for k in (getattr(m, "coordinates", None) or {})})
+    if not names:
+        return None
+    out = {}
+    for name in names:
+        parts = [(m.coordinates or {}).get(name, None) for m in meshes if len(m.faces)]
+        sizes = [len(m.faces) for m in meshes if len(m.faces)]
+        out[name] = np.concatenate([np.zeros((n, 3, 3)) if a is None else a
+                                    for a, n in zip(parts, sizes)])
+    return out

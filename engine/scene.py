@@ -142,6 +142,8 @@ class Mesh:
     uvs       optional (V,2) per vertex or (F,3,2) per face corner
     colors    optional colour attribute (vertex colours), linear RGB(A): (V,3|4) per vertex
               or (F,3,3|4) per face corner; read by engine.textures.ColorAttribute
+    coordinates  optional {name: (F,3,3)} per-corner texture coordinates, e.g. Blender's
+              "generated" and "object" (engine.shadernodes.Coordinates)
     material  one material name, or material_ids (F,) int indexing `materials` (names)
     visible_camera, visible_diffuse, visible_glossy, visible_transmission, visible_shadow
               ray visibility with Cycles' meaning (Object > Visibility > Ray Visibility):
@@ -167,6 +169,7 @@ class Mesh:
     normals: np.ndarray | None = None
     uvs: np.ndarray | None = None
     colors: np.ndarray | None = None
+    coordinates: dict | None = None
     materials: list[str] = field(default_factory=lambda: ["default"])
     material_ids: np.ndarray | None = None
     visible_camera: bool = True
@@ -248,6 +251,12 @@ class Mesh:
                 raise SceneError(f"{who}: colors must be (V,3|4) or (F,3,3|4), "
                                  f"got {colors.shape}")
             colors = np.nan_to_num(colors[..., :3], nan=0.0, posinf=1.0, neginf=0.0)
+        coords = {}
+        for key, arr in (self.coordinates or {}).items():
+            arr = np.asarray(arr, dtype=np.float64)
+            if arr.shape != (nf, 3, 3):
+                raise SceneError(f"{who}: coordinates['{key}'] must be (F,3,3), got {arr.shape}")
+            coords[str(key)] = np.nan_to_num(arr, nan=0.0, posinf=0.0, neginf=0.0)
 
         # Repairable defects: drop the faces, say how many and why.
         keep = np.ones(nf, dtype=bool)
@@ -286,12 +295,14 @@ class Mesh:
                 uvs = uvs[keep]
             if colors is not None and colors.ndim == 3:
                 colors = colors[keep]
+            coords = {k: a[keep] for k, a in coords.items()}
         self.vertices = np.where(np.isfinite(v), v, 0.0)
         self.faces = f
         self.material_ids = mids
         self.normals = normals
         self.uvs = uvs
         self.colors = colors
+        self.coordinates = coords or None
 
 
 @dataclass

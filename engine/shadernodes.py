@@ -40,6 +40,18 @@ class UVCoord:
         return np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
 
 
+class Coordinates:
+    """Texture Coordinate node, Generated or Object output: the mesh's per-corner
+    coordinates of that name (Mesh.coordinates), interpolated; zeros where a mesh has
+    none."""
+
+    def __init__(self, name: str):
+        self.name = name
+
+    def evaluate(self, geo, prim, u, v):
+        return geo.coordinates(self.name, prim, u, v)
+
+
 def _euler_xyz(rot):
     """Rotation matrix of Blender's XYZ Euler angles (radians)."""
     cx, cy, cz = np.cos(rot)

@@ -314,3 +314,20 @@ def test_hue_saturation_and_gradient():
     np.testing.assert_allclose(g, [[0.15625] * 3], atol=1e-9)
     d = _plane_geo(sn.Gradient(sn.UVCoord(), "DIAGONAL"))([[0.5, 0.1]])
     np.testing.assert_allclose(d, [[0.3] * 3], atol=1e-9)
+
+
+def test_mesh_coordinates_feed_procedural_nodes():
+    from engine import shadernodes as sn
+    s = Scene()
+    s.add_material(Material("g", (1, 1, 1), texture=sn.Gradient(sn.Coordinates("generated"))))
+    v = np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0]], float)
+    gen = (v / 2.0)[None]  # generated = position over the bounds
+    s.add_mesh(Mesh("tri", v, np.array([[0, 1, 2]]), materials=["g"],
+                    coordinates={"generated": gen}))
+    s.add_mesh(Mesh("none", v + [0, 0, 1], np.array([[0, 1, 2]]), materials=["g"]))
+    geo, table = prepare(s)
+    hit = surface_hit(geo, table, np.array([0, 1]), np.array([0.3, 0.3]),
+                      np.array([0.1, 0.1]), np.tile([0.0, 0, -1], (2, 1)))
+    np.testing.assert_allclose(hit.base[:, 0], [0.3, 0.0], atol=1e-9)
+    with pytest.raises(SceneError, match="coordinates\\['generated'\\]"):
+        Mesh("bad", v, np.array([[0, 1, 2]]), coordinates={"generated": np.zeros((1, 3, 2))})

@@ -638,6 +638,32 @@ def texture_gradient_hue():
 
 
 @case("textures")
+def texture_generated_coords():
+    """Procedural textures' default coordinates: a Checker with no Vector input reads
+    Generated coordinates (the mesh's bounds mapped to 0..1) on a box; a second box mixes
+    in a Gradient on Object coordinates (local position)."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("generated")
+    chk = nt.nodes.new("ShaderNodeTexChecker")
+    chk.inputs["Scale"].default_value = 3.0
+    chk.inputs["Color1"].default_value = (0.85, 0.6, 0.1, 1.0)
+    chk.inputs["Color2"].default_value = (0.1, 0.2, 0.6, 1.0)
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(chk.outputs["Color"], d.inputs["Color"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    mb.box("Cube", 1.2, 1.2, 1.2, m, (-0.8, 0.2, 0.6), (0, 0, math.radians(20)))
+    m2, nt2, out2 = _nodes_material("object")
+    coord = nt2.nodes.new("ShaderNodeTexCoord")
+    grad = nt2.nodes.new("ShaderNodeTexGradient")
+    d2 = nt2.nodes.new("ShaderNodeBsdfDiffuse")
+    nt2.links.new(coord.outputs["Object"], grad.inputs["Vector"])
+    nt2.links.new(grad.outputs["Color"], d2.inputs["Color"])
+    nt2.links.new(d2.outputs[0], out2.inputs["Surface"])
+    mb.box("Block", 1.2, 1.2, 1.2, m2, (0.9, 0.2, 0.6), (0, 0, math.radians(-25)))
+    _sun()
+
+
+@case("textures")
 def texture_procedural_checker():
     """Checker Texture on the UV coordinates (Texture Coordinate node), scale 4."""
     _stage(back=False)
