@@ -198,7 +198,8 @@ class ImageTexture:
         h, w = px.shape[:2]
         ix, vx = _wrap(ix, w, self.extension)
         iy, vy = _wrap(iy, h, self.extension)
-        t = px[iy, ix].astype(np.float64)
+        # One gather of rows of the flattened image (np.take: faster than 2-D indexing).
+        t = np.take(px.reshape(-1, 4), iy * w + ix, axis=0).astype(np.float64)
         if vx is not None:
             t *= (vx & vy)[:, None]
         return t
