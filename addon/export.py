@@ -28,13 +28,16 @@ class ExportError(Exception):
 class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
-    __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles")
+    __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
+                 "texspace")
 
-    def __init__(self, co, faces, normals, uvs, material_index):
+    def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
         self.uvs = uvs                  # None or (F,3,2)
+        self.colors = colors            # None or (F,3,4) linear RGBA (colour attribute)
+        self.texspace = texspace        # (location, size) of the mesh's texture space
         self.material_index = material_index  # (F,) int32
         self.triangles = len(faces)
 
@@ -85,9 +88,45 @@ def extract_geometry(obj) -> LocalGeometry | None:
                 attr = "vector" if hasattr(layer, "uv") else "uv"
                 uv = _foreach(data, attr, len(me.loops), 2, np.float32)
                 uvs = uv[loops].astype(np.float64)
-        return LocalGeometry(co, faces, normals, uvs, mat_index)
+        texspace = (np.array(me.texspace_location, np.float64),
+                    np.array(me.texspace_size, np.float64))
+        return LocalGeometry(co, faces, normals, uvs, mat_index,
+                             _corner_colors(me, tris, loops, faces), texspace)
     finally:
         obj.to_mesh_clear()
+
+
+def _corner_colors(me, tris, loops, faces):
+    """(F,3,4) linear RGBA of the mesh's render colour attribute at each triangle corner
+    (the one Cycles' Color Attribute node reads when its name is empty), or None."""
+    attrs = getattr(me, "color_attributes", None)
+    if attrs is None or not len(attrs):
+        return None
+    idx = getattr(attrs, "render_color_index", -1)
+    attr = attrs[idx] if 0 <= idx < len(attrs) else (attrs.active_color or attrs[0])
+    if attr is None:
+        return None
+    if attr.domain == "POINT":
+        # `color` is scene-linear for byte and float attributes alike.
+        col = _foreach(attr.data, "color", len(me.vertices), 4, np.float32)
+        return col[faces].astype(np.float64)
+    if attr.domain == "CORNER":
+        col = _foreach(attr.data, "color", len(me.loops), 4, np.float32)
+        return col[loops].astype(np.float64)
+    return None
+
+
+def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
+    """Per-corner 'object' (local position) and 'generated' (position in the mesh's
+    texture space, 0..1 over its bounds: (co - location) / (2 size) + 0.5, as Cycles
+    syncs ATTR_STD_GENERATED) coordinates, (F,3,3) each, corners in the exported order."""
+    local = g.co[g.faces]
+    loc, size = g.texspace
+    size = np.where(np.abs(size) > 1e-12, size, 1.0)
+    out = {"object": local, "generated": (local - loc) / (2.0 * size) + 0.5}
+    if flipped:
+        out = {k: a[:, [0, 2, 1]] for k, a in out.items()}
+    return out
 
 
 def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
@@ -387,6 +426,10 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         mids = np.clip(geo.material_index, 0, len(names) - 1)
         matrix = np.array(inst.matrix_world, dtype=np.float64)
         verts, faces, normals, uvs = transform_geometry(geo, matrix)
+        colors = geo.colors
+        flipped = np.linalg.det(matrix[:3, :3]) < 0
+        if colors is not None and flipped:
+            colors = colors[:, [0, 2, 1]]  # same corner order as the flipped faces
         if inst.is_instance:
             parent = inst.parent.name if inst.parent is not None else "instance"
             name = f"{parent}/{obj.name}#{info['instances']}"
@@ -396,7 +439,9 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         info["objects"] += 1
         warn_unsupported_visibility(obj, warnings)
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
-                       uvs=uvs, materials=names, material_ids=mids,
+                       uvs=uvs, colors=colors, materials=names, material_ids=mids,
+                       coordinates=(texture_coordinates(geo, flipped) if any(
+                           converter.needs_coordinates(n) for n in names) else None),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
                        **ray_visibility(obj, inst, view_layer))

@@ -1,12 +1,18 @@
 """Blender materials (shader node trees) -> engine materials.
 
 Supported: Principled BSDF, Diffuse, Glossy, Glass, Refraction, Emission, Transparent,
-Mix Shader and Add Shader of those, an Image Texture (or RGB / Value node, through
-reroutes) on colour inputs. Anything else falls back to its nearest approximation (the
+Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
+tiles), a Color Attribute, an RGB / Value node, or a tree of the colour nodes in
+engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
+Separate/Combine, Checker and Gradient textures) on colour inputs, and a
+Normal Map node (tangent or world space) fed by an Image Texture or a Bump node on
+'Normal' inputs. Anything else falls back to its nearest approximation (the
 material's viewport colour when nothing else is known) and is reported once per material
 and node in a warning that names both.
 """
 from __future__ import annotations
+
+import os
 
 import bpy
 import numpy as np
@@ -17,20 +23,15 @@ SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANI
 MAX_NODE_DEPTH = 32
 
 
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    c = np.asarray(c, dtype=np.float32)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
-
-
 class Closure:
     """Engine material parameters gathered from a shader sub-tree."""
 
     __slots__ = ("base_color", "metallic", "roughness", "transmission", "ior", "specular",
-                 "emission", "alpha", "texture", "has_bsdf")
+                 "emission", "alpha", "texture", "has_bsdf", "normal_map")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
-                 alpha=1.0, texture=None, has_bsdf=True):
+                 alpha=1.0, texture=None, has_bsdf=True, normal_map=None):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -41,6 +42,7 @@ class Closure:
         self.alpha = float(alpha)
         self.texture = texture
         self.has_bsdf = has_bsdf
+        self.normal_map = normal_map
 
 
 def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
@@ -79,6 +81,9 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
     out.base_color = (ta * a.base_color + tb * b.base_color) * (total / (total + da + db))
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
         b.texture if sb > 0 else None)
+    # One shading normal per material: the first side's map that has a surface.
+    out.normal_map = a.normal_map if (a.normal_map is not None and sa > 0) else (
+        b.normal_map if sb > 0 else None)
     return out
 
 
@@ -87,8 +92,13 @@ class MaterialConverter:
 
     def __init__(self, pm):
         self.pm = pm            # the engine package
-        self.images = {}        # image name -> HxWx3 float32 (or None)
+        self.images = {}        # (image name, extension, interpolation) -> ImageTexture
         self.cache = {}         # material name -> engine Material
+        self.coordinate_users = set()  # materials reading Generated / Object coordinates
+
+    def needs_coordinates(self, material_name) -> bool:
+        """Whether meshes with this material must export Generated / Object coordinates."""
+        return material_name in self.coordinate_users
 
     # --- public -------------------------------------------------------------------
     def convert(self, mat):
@@ -107,7 +117,7 @@ class MaterialConverter:
             metallic=closure.metallic, roughness=closure.roughness,
             transmission=closure.transmission, ior=closure.ior if closure.ior > 0 else 1.5,
             specular=closure.specular, emission=np.clip(closure.emission, 0.0, None),
-            alpha=closure.alpha, texture=closure.texture)
+            alpha=closure.alpha, texture=closure.texture, normal_map=closure.normal_map)
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -216,21 +226,21 @@ class MaterialConverter:
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
                                "is not supported and ignored")
-            self._check_normal(node)
+            c.normal_map = self._normal(node)
             return c
         if t == "BSDF_DIFFUSE":
             base, tex = self._color(node, "Color")
-            self._check_normal(node)
-            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0)
+            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
+                           normal_map=self._normal(node))
         if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             base, tex = self._color(node, "Color")
-            self._check_normal(node)
             return Closure(base_color=base, texture=tex, metallic=1.0,
+                           normal_map=self._normal(node),
                            roughness=self._float(node, "Roughness"))
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
-            self._check_normal(node)
             return Closure(base_color=base, texture=tex, transmission=1.0, specular=1.0,
+                           normal_map=self._normal(node),
                            roughness=self._float(node, "Roughness"),
                            ior=self._float(node, "IOR", 1.5))
         if t == "EMISSION":
@@ -269,16 +279,68 @@ class MaterialConverter:
                           ior=out.ior, specular=out.specular,
                           emission=a.emission + b.emission,
                           alpha=max(out.alpha, other.alpha), texture=out.texture,
-                          has_bsdf=out.has_bsdf)
+                          has_bsdf=out.has_bsdf, normal_map=out.normal_map)
             return res
         self._unsupported(node)
         return self._viewport(self._mat)
 
-    def _check_normal(self, node):
+    def _normal(self, node):
+        """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an
+        Image Texture), or None (the surface's own normal) after warning what is not
+        supported."""
         s = node.inputs.get("Normal")
-        if s is not None and s.is_linked:
+        src = self._source(s) if s is not None else None
+        if src is None:
+            return None
+        n, _ = src
+        if n.type == "BUMP":
+            return self._bump(n)
+        if n.type != "NORMAL_MAP":
             self._warn(f"material '{self._mat.name}': 'Normal' input of node '{node.name}' "
-                       "(bump/normal map) is not supported and ignored")
+                       f"is driven by node '{n.name}' ({n.type}), which is not supported; "
+                       "using the surface normal")
+            return None
+        space = str(getattr(n, "space", "TANGENT"))
+        if space not in ("TANGENT", "WORLD"):
+            self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' space '{space}' "
+                       "is not supported; using the surface normal")
+            return None
+        if getattr(n, "uv_map", ""):
+            self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' UV map "
+                       f"'{n.uv_map}' is read as the active render UV map")
+        col = self._source(n.inputs["Color"])
+        if col is None:
+            return None  # the default colour (0.5, 0.5, 1) is the unperturbed normal
+        cn, cout = col
+        tex = self._image(cn) if cn.type == "TEX_IMAGE" else None
+        if tex is None or cout.name != "Color":
+            if cn.type != "TEX_IMAGE" or cout.name != "Color":
+                self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' colour from "
+                           f"node '{cn.name}' ({cn.type}) is not supported; using the "
+                           "surface normal")
+            return None
+        strength = self._float(n, "Strength", 1.0)
+        try:
+            return self.pm.NormalMap(tex, strength=strength, space=space)
+        except ValueError as exc:
+            self._warn(f"material '{self._mat.name}': Normal Map '{n.name}': {exc}")
+            return None
+
+    def _bump(self, n):
+        """engine Bump for a Bump node (its Height evaluated per hit), or None."""
+        if n.inputs.get("Normal") is not None and self._source(n.inputs["Normal"]):
+            self._warn(f"material '{self._mat.name}': the 'Normal' input of Bump '{n.name}' "
+                       "(a chained normal) is not supported; bumping the surface normal")
+        height = self._input(n, n.inputs["Height"], 0)
+        if not hasattr(height, "evaluate"):
+            return None  # a constant height: no bump
+        try:
+            return self.pm.Bump(height, strength=self._float(n, "Strength", 1.0),
+                                distance=self._float(n, "Distance", 1.0),
+                                invert=bool(getattr(n, "invert", False)))
+        except ValueError as exc:
+            self._warn(f"material '{self._mat.name}': Bump '{n.name}': {exc}")
+            return None
 
     def _float(self, node, name, default=0.0) -> float:
         s = node.inputs.get(name)
@@ -302,71 +364,267 @@ class MaterialConverter:
             return float(default)
 
     def _color(self, node, name):
-        """(rgb, texture or None) for a colour input."""
+        """(rgb, colour source or None) for a colour input: a constant colour, or ones and
+        an engine node evaluated per hit (engine/shadernodes.py)."""
         s = node.inputs.get(name)
         if s is None:
             return np.array([0.8, 0.8, 0.8]), None
-        src = self._source(s)
-        if src is not None:
-            n, out = src
-            if n.type == "RGB":
-                return np.asarray(tuple(out.default_value)[:3], dtype=np.float64), None
-            if n.type == "TEX_IMAGE":
-                tex = self._image(n)
-                if tex is not None:
-                    if n.inputs.get("Vector") is not None and n.inputs["Vector"].is_linked:
-                        self._warn(f"material '{self._mat.name}': the 'Vector' input of image "
-                                   f"node '{n.name}' is ignored; the active UV map is used")
-                    if out.name == "Alpha":
-                        self._warn(f"material '{self._mat.name}': the 'Alpha' output of image "
-                                   f"node '{n.name}' is not supported; using its colour")
-                    return np.ones(3), tex
-            else:
-                self._warn(f"material '{self._mat.name}': input '{name}' of node "
-                           f"'{node.name}' is driven by node '{n.name}' ({n.type}), which is "
-                           "not supported; using the input's own colour")
+        val = self._input(node, s, 0)
+        if hasattr(val, "evaluate"):
+            return np.ones(3), val
+        arr = np.asarray(val, dtype=np.float64)
+        return (np.full(3, float(arr)) if arr.ndim == 0 else arr[:3]), None
+
+    @staticmethod
+    def _default(socket):
+        """A socket's own value: float, or an RGB / XYZ array."""
         try:
-            return np.asarray(tuple(s.default_value)[:3], dtype=np.float64), None
-        except (AttributeError, TypeError):
-            return np.array([0.8, 0.8, 0.8]), None
+            v = socket.default_value
+        except AttributeError:
+            return 0.0
+        if np.ndim(v) == 0:
+            return float(v)
+        return np.asarray(tuple(v)[:3], dtype=np.float64)
+
+    def _input(self, node, socket, depth):
+        """What feeds an input socket: an engine node, or a constant (its own value when
+        unlinked, or when the feeding node cannot be evaluated: warned once, naming the
+        material and the node)."""
+        src = self._source(socket)
+        if src is None:
+            return self._default(socket)
+        n, out = src
+        if depth > MAX_NODE_DEPTH:
+            self._warn(f"material '{self._mat.name}': node tree too deep at node '{n.name}'")
+            return self._default(socket)
+        val = self._node_output(n, out, depth + 1)
+        if val is None:
+            self._warn(f"material '{self._mat.name}': node '{n.name}' ({n.type}) feeding "
+                       f"'{socket.name}' of node '{node.name}' is not supported; using the "
+                       "input's own value")
+            return self._default(socket)
+        return val
+
+    def _vector(self, node, name, depth):
+        """A Vector input; None when unlinked (the node's default coordinates)."""
+        s = node.inputs.get(name)
+        if s is None or self._source(s) is None:
+            return None
+        return self._input(node, s, depth)
+
+    def _node_output(self, n, out, depth):
+        """Engine node (or constant) for output `out` of Blender node n; None = not
+        supported. Evaluated per hit in engine/shadernodes.py (numpy over hits)."""
+        sn = self.pm.shadernodes
+        t = n.type
+        oname = out.name
+        if getattr(n, "mute", False):
+            return None
+        if t == "RGB":
+            return np.asarray(tuple(out.default_value)[:3], dtype=np.float64)
+        if t == "VALUE":
+            return float(out.default_value)
+        if t == "VERTEX_COLOR":  # the Color Attribute node
+            if oname != "Color":
+                return None
+            return self.pm.ColorAttribute(getattr(n, "layer_name", ""))
+        if t == "TEX_IMAGE":
+            tex = self._image(n)
+            if tex is None:
+                return None
+            vec = self._vector(n, "Vector", depth)
+            if vec is None and oname == "Color":
+                return tex  # UVs of the active render map
+            return sn.ImageLookup(tex, vec, output="ALPHA" if oname == "Alpha" else "COLOR")
+        if t == "TEX_COORD":
+            if oname == "UV":
+                return sn.UVCoord()
+            if oname in ("Generated", "Object"):
+                if getattr(n, "object", None) is not None and oname == "Object":
+                    self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' "
+                               "relative to another object is read in the mesh's own space")
+                return self._coordinates(oname.lower())
+            self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' output "
+                       f"'{oname}' is not supported (UV, Generated, Object are)")
+            return None
+        if t == "UVMAP":
+            if getattr(n, "uv_map", ""):
+                self._warn(f"material '{self._mat.name}': UV Map node '{n.name}' map "
+                           f"'{n.uv_map}' is read as the active render UV map")
+            return sn.UVCoord()
+        if t == "MAPPING":
+            vec = self._input(n, n.inputs["Vector"], depth)  # unlinked: its own value
+            consts = []
+            for k in ("Location", "Rotation", "Scale"):
+                sock = n.inputs.get(k)
+                if sock is None:
+                    consts.append((0, 0, 0) if k != "Scale" else (1, 1, 1))
+                    continue
+                if sock.is_linked:
+                    self._warn(f"material '{self._mat.name}': linked '{k}' of Mapping "
+                               f"'{n.name}' is not supported; using its own value")
+                consts.append(self._default(sock))
+            return sn.Mapping(vec, *consts, kind=getattr(n, "vector_type", "POINT"))
+        if t == "MIX":
+            if getattr(n, "data_type", "RGBA") != "RGBA":
+                return None
+            ins = {i.identifier: i for i in n.inputs}
+            fac = self._input(n, ins.get("Factor_Float", n.inputs[0]), depth)
+            a = self._input(n, ins["A_Color"], depth)
+            b = self._input(n, ins["B_Color"], depth)
+            return self._mix(n, fac, a, b, n.blend_type, getattr(n, "clamp_factor", True),
+                             getattr(n, "clamp_result", False))
+        if t == "MIX_RGB":
+            fac = self._input(n, n.inputs["Fac"], depth)
+            a = self._input(n, n.inputs["Color1"], depth)
+            b = self._input(n, n.inputs["Color2"], depth)
+            return self._mix(n, fac, a, b, n.blend_type, True, getattr(n, "use_clamp", False))
+        if t == "INVERT":
+            return sn.Invert(self._input(n, n.inputs["Fac"], depth),
+                             self._input(n, n.inputs["Color"], depth))
+        if t == "VALTORGB":
+            ramp = n.color_ramp
+            interp = ramp.interpolation
+            if interp not in ("LINEAR", "CONSTANT"):
+                self._warn(f"material '{self._mat.name}': Color Ramp '{n.name}' "
+                           f"interpolation '{interp}' is read as Linear")
+                interp = "LINEAR"
+            els = list(ramp.elements)
+            return sn.ColorRamp(self._input(n, n.inputs["Fac"], depth),
+                                [e.position for e in els], [tuple(e.color)[:3] for e in els],
+                                [e.color[3] for e in els], interpolation=interp,
+                                output="ALPHA" if oname == "Alpha" else "COLOR")
+        if t == "MATH":
+            if n.operation not in sn.MATH_OPS:
+                return None
+            return sn.Math(n.operation, self._input(n, n.inputs[0], depth),
+                           self._input(n, n.inputs[1], depth), clamp=n.use_clamp)
+        if t in ("SEPARATE_COLOR", "SEPRGB", "SEPXYZ"):
+            if getattr(n, "mode", "RGB") != "RGB":
+                return None
+            channel = {"Red": 0, "R": 0, "X": 0, "Green": 1, "G": 1, "Y": 1,
+                       "Blue": 2, "B": 2, "Z": 2}.get(oname)
+            if channel is None:
+                return None
+            return sn.SeparateChannel(self._input(n, n.inputs[0], depth), channel)
+        if t in ("COMBINE_COLOR", "COMBRGB", "COMBXYZ"):
+            if getattr(n, "mode", "RGB") != "RGB":
+                return None
+            return sn.Combine(*(self._input(n, n.inputs[i], depth) for i in range(3)))
+        if t == "HUE_SAT":
+            i = n.inputs
+            return sn.HueSaturation(*(self._input(n, i[k], depth)
+                                      for k in ("Hue", "Saturation", "Value", "Fac", "Color")))
+        if t == "TEX_GRADIENT":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            return sn.Gradient(vec, n.gradient_type, output="FAC" if oname == "Fac" else "COLOR")
+        if t == "TEX_CHECKER":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            return sn.Checker(vec, self._input(n, n.inputs["Color1"], depth),
+                              self._input(n, n.inputs["Color2"], depth),
+                              self._input(n, n.inputs["Scale"], depth),
+                              output="FAC" if oname == "Fac" else "COLOR")
+        return None
+
+    def _coordinates(self, name):
+        self.coordinate_users.add(self._mat.name)
+        return self.pm.shadernodes.Coordinates(name)
+
+    def _mix(self, n, fac, a, b, blend, clamp_factor, clamp_result):
+        if blend not in self.pm.shadernodes.MIX_BLENDS:
+            self._warn(f"material '{self._mat.name}': Mix '{n.name}' blend type '{blend}' "
+                       "is not supported; using Mix")
+            blend = "MIX"
+        return self.pm.shadernodes.MixColor(fac, a, b, blend, clamp_factor, clamp_result)
 
     def _image(self, node):
+        """engine ImageTexture for an Image Texture node (its image, Extension,
+        Interpolation, UDIM tiles), or None after a warning."""
         img = node.image
         if img is None:
             self._warn(f"material '{self._mat.name}': image node '{node.name}' has no image")
             return None
-        if img.name in self.images:
-            return self.images[img.name]
+        extension = str(getattr(node, "extension", "REPEAT"))
+        interpolation = str(getattr(node, "interpolation", "Linear"))
+        if getattr(node, "projection", "FLAT") != "FLAT":
+            self._warn(f"material '{self._mat.name}': image node '{node.name}' projection "
+                       f"'{node.projection}' is not supported; using Flat (UV)")
+        key = (img.name, extension, interpolation)
+        if key in self.images:
+            return self.images[key]
         tex = None
         try:
-            w, h = img.size
-            ch = img.channels
-            if w * h == 0 or ch == 0:
-                raise ValueError("image has no pixels (missing file?)")
-            buf = np.empty(w * h * ch, dtype=np.float32)
-            img.pixels.foreach_get(buf)
-            buf = buf.reshape(h, w, ch)[::-1]  # Blender rows run bottom to top
-            if ch >= 3:
-                rgb = buf[:, :, :3]
+            srgb = self._stored_as_srgb(img)
+            if img.source == "TILED":
+                tiles = self._udim_tiles(img)
+                pixels = None
             else:
-                rgb = np.repeat(buf[:, :, :1], 3, axis=2)
-            space = img.colorspace_settings.name
-            if not img.is_float:
-                # Byte buffers hold the file's encoded values: decode sRGB here.
-                if space in ("sRGB", "sRGB EOTF", "Filmic sRGB", "AgX Base sRGB"):
-                    rgb = srgb_to_linear(rgb)
-                elif space not in ("Non-Color", "Linear Rec.709", "Linear", "Raw",
-                                   "Linear CIE-XYZ E", "Linear Rec.2020"):
-                    self._warn(f"material '{self._mat.name}': image '{img.name}' colour "
-                               f"space '{space}' is treated as sRGB")
-                    rgb = srgb_to_linear(rgb)
-            tex = np.ascontiguousarray(rgb, dtype=np.float32)
+                tiles, pixels = None, _pixels(img)
+            tex = self.pm.ImageTexture(pixels, tiles=tiles, extension=extension,
+                                       interpolation=interpolation, srgb=srgb,
+                                       name=img.name)
         except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
             self._warn(f"material '{self._mat.name}': image '{img.name}' in node "
                        f"'{node.name}' could not be read ({exc}); using the input colour")
             tex = None
-        self.images[img.name] = tex
+        self.images[key] = tex
         return tex
+
+    def _stored_as_srgb(self, img) -> bool:
+        """True when the pixels are 8-bit sRGB-encoded (Cycles interpolates those as
+        stored and converts after); float images are linear already in Blender."""
+        if img.is_float:
+            return False
+        space = img.colorspace_settings.name
+        if space in ("Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E",
+                     "Linear Rec.2020"):
+            return False
+        if space not in ("sRGB", "sRGB EOTF", "Filmic sRGB", "AgX Base sRGB"):
+            self._warn(f"material '{self._mat.name}': image '{img.name}' colour space "
+                       f"'{space}' is treated as sRGB")
+        return True
+
+    def _udim_tiles(self, img) -> dict:
+        """{tile number: pixels} of a UDIM image, each tile read from its own file
+        (Blender's `pixels` holds only the first tile)."""
+        path = bpy.path.abspath(img.filepath_raw or img.filepath)
+        tiles = {}
+        for t in img.tiles:
+            k = t.number - 1001
+            fname = path.replace("<UDIM>", str(t.number)).replace(
+                "<UVTILE>", f"u{k % 10 + 1}_v{k // 10 + 1}")
+            if not os.path.isfile(fname):
+                self._warn(f"material '{self._mat.name}': UDIM tile {t.number} of image "
+                           f"'{img.name}' has no file ({fname}); it renders as missing")
+                continue
+            one = bpy.data.images.load(fname, check_existing=False)
+            try:
+                one.colorspace_settings.name = img.colorspace_settings.name
+                tiles[t.number] = _pixels(one)
+            finally:
+                bpy.data.images.remove(one)
+        if not tiles:
+            raise ValueError("no UDIM tile could be read")
+        return tiles
+
+
+def _pixels(img) -> np.ndarray:
+    """HxWx4 float32 stored values of an image, top row first."""
+    w, h = img.size
+    ch = img.channels
+    if w * h == 0 or ch == 0:
+        raise ValueError("image has no pixels (missing file?)")
+    buf = np.empty(w * h * ch, dtype=np.float32)
+    img.pixels.foreach_get(buf)
+    buf = buf.reshape(h, w, ch)[::-1]  # Blender rows run bottom to top
+    if ch >= 4:
+        return np.ascontiguousarray(buf[:, :, :4])
+    rgb = buf[:, :, :3] if ch >= 3 else np.repeat(buf[:, :, :1], 3, axis=2)
+    return np.ascontiguousarray(np.concatenate([rgb, np.ones_like(rgb[:, :, :1])], axis=2))
 
 
 def world_background(world, warnings: list) -> np.ndarray:

@@ -1,11 +1,11 @@
 """Photon mapping render engine (Jensen; Yu, Lowther & Shene 2005) on Embree.
 
-Pure Python on numpy, embreex and scipy; never imports bpy.
+Python on numpy, embreex, scipy and numba (compiled kernels); never imports bpy.
 
     from engine import render, RenderSettings
     from engine.api import PaperScene
 """
-from . import presets, resources
+from . import presets, resources, shadernodes
 from .film import Film
 from .lights import DECLARED_KINDS
 from .progressive import Budget, render_progressive
@@ -13,8 +13,12 @@ from .render import render
 from .resources import ResourceError
 from .scene import Camera, Light, Material, Mesh, Scene, SceneError
 from .settings import RenderSettings
+from .normalmap import Bump, NormalMap
+from .textures import ColorAttribute, ImageTexture, TextureError
 
-__all__ = ["render", "render_progressive", "Budget", "presets", "resources", "RenderSettings",
+__all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes",
+           "RenderSettings",
            "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
+           "ImageTexture", "ColorAttribute", "TextureError", "NormalMap", "Bump",
            "DECLARED_KINDS"]
 __version__ = "0.1.0"

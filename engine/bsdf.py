@@ -43,19 +43,6 @@ def refract(d: np.ndarray, n: np.ndarray, eta_ratio: np.ndarray):
     return normalize(t), tir
 
 
-def sample_texture(tex: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup with repeat wrapping; uv (0,0) is the image's bottom-left (Blender)."""
-    h, w = tex.shape[:2]
-    x = (uv[:, 0] % 1.0) * w - 0.5
-    y = (1.0 - (uv[:, 1] % 1.0)) * h - 0.5
-    x0 = np.floor(x).astype(np.int64); y0 = np.floor(y).astype(np.int64)
-    fx = (x - x0)[:, None]; fy = (y - y0)[:, None]
-    x1 = (x0 + 1) % w; y1 = (y0 + 1) % h; x0 %= w; y0 %= h
-    top = tex[y0, x0] * (1 - fx) + tex[y0, x1] * fx
-    bot = tex[y1, x0] * (1 - fx) + tex[y1, x1] * fx
-    return (top * (1 - fy) + bot * fy).astype(np.float64)
-
-
 @dataclass
 class SurfaceHit:
     """Everything the integrators need to know about a batch of ray hits."""
@@ -90,21 +77,32 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     front = dot(d, ng) < 0.0
     sign = np.where(front, 1.0, -1.0)[:, None]
     ng = ng * sign
-    ns = geo.shading_normals(prim, u, v) * sign
+    ns = geo.shading_normals(prim, u, v)
+    mat = np.take(geo.material, prim)
+    for mi, nmap in enumerate(table.normal_maps or ()):
+        if nmap is None:
+            continue
+        sel = np.nonzero(mat == mi)[0]
+        if len(sel):
+            ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
+    ns = ns * sign
     wo = -d
     # Shading normals that put the viewer below the surface would make black rings:
     # fall back to the geometric normal there (Veach's guard, simplified).
     bad = dot(ns, wo) <= 1e-6
     if bad.any():
         ns[bad] = ng[bad]
-    mat = np.take(geo.material, prim)
     base = np.take(table.base_color, mat, axis=0)
     for mi, tex in enumerate(table.textures):
         if tex is None:
             continue
         sel = np.nonzero(mat == mi)[0]
         if len(sel):
-            base[sel] = base[sel] * sample_texture(tex, geo.uvs(prim[sel], u[sel], v[sel]))
+            # Clipped to [0, 1]: an albedo above 1 would create energy (HDR texels).
+            rgb = tex.evaluate(geo, prim[sel], u[sel], v[sel])
+            if rgb.ndim == 1:  # a value (factor) into a colour: grey
+                rgb = rgb[:, None]
+            base[sel] = base[sel] * np.clip(rgb, 0.0, 1.0)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=geo.origin_offset(prim, u, v, p, ng),
                       bary=np.stack([u, v], axis=1))

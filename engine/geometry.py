@@ -36,7 +36,8 @@ class MaterialTable:
     ior: np.ndarray
     specular: np.ndarray
     alpha: np.ndarray
-    textures: list            # per material: HxWx3 array or None
+    textures: list            # per material: engine.textures object (evaluate()) or None
+    normal_maps: list = None  # per material: engine.normalmap.NormalMap or None
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -44,7 +45,8 @@ class MaterialTable:
         return cls(names=[m.name for m in materials],
                    base_color=np.array([m.base_color for m in materials], np.float64).reshape(-1, 3),
                    emission=np.array([m.emission for m in materials], np.float64).reshape(-1, 3),
-                   textures=[m.texture for m in materials], **cols)
+                   textures=[m.texture for m in materials],
+                   normal_maps=[getattr(m, "normal_map", None) for m in materials], **cols)
 
     @property
     def has_diffuse(self) -> np.ndarray:
@@ -85,6 +87,10 @@ class Geometry:
     terminator_shading: np.ndarray  # (T,) Cycles' shadow terminator shading offset (Mesh)
     faces32: np.ndarray       # (T,3) int32
     bounds: np.ndarray        # (2,3) re-centred bounding box
+    corner_colors: np.ndarray | None = None  # (T,3,3) linear colour attribute; None: no
+                              # mesh has one (a mesh without one reads black, as in Cycles)
+    corner_coordinates: dict | None = None  # name -> (T,3,3) texture coordinates (Mesh);
+                              # zeros on meshes without them
 
     @property
     def count(self) -> int:
@@ -120,6 +126,36 @@ class Geometry:
             n[bad] = np.take(self.ng, prim[bad], axis=0)
         return n
 
+    def colors(self, prim, u, v) -> np.ndarray:
+        """(N,3) colour attribute interpolated at the hits (zeros where there is none)."""
+        if self.corner_colors is None:
+            return np.zeros((len(prim), 3))
+        cc = np.take(self.corner_colors, prim, axis=0)
+        w = 1.0 - u - v
+        return w[:, None] * cc[:, 0] + u[:, None] * cc[:, 1] + v[:, None] * cc[:, 2]
+
+    def coordinates(self, name, prim, u, v) -> np.ndarray:
+        """(N,3) texture coordinates `name` interpolated at the hits (zeros where none)."""
+        cc = (self.corner_coordinates or {}).get(name)
+        if cc is None:
+            return np.zeros((len(prim), 3))
+        cc = np.take(cc, prim, axis=0)
+        w = 1.0 - u - v
+        return w[:, None] * cc[:, 0] + u[:, None] * cc[:, 1] + v[:, None] * cc[:, 2]
+
+    def uv_tangents(self, prim) -> tuple[np.ndarray, np.ndarray]:
+        """Per-triangle UV tangent dP/du (N,3, not normalised; zero where the UVs are
+        degenerate) and the UV map's orientation sign (N,) (+1: counter-clockwise)."""
+        cu = np.take(self.corner_uvs, prim, axis=0)
+        d1 = cu[:, 1] - cu[:, 0]
+        d2 = cu[:, 2] - cu[:, 0]
+        det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+        e1 = np.take(self.e1, prim, axis=0)
+        e2 = np.take(self.e2, prim, axis=0)
+        inv = np.where(np.abs(det) > 1e-20, 1.0 / np.where(det == 0, 1.0, det), 0.0)
+        t = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * inv[:, None]
+        return t, np.where(det < 0, -1.0, 1.0)
+
     def uvs(self, prim, u, v) -> np.ndarray:
         cu = np.take(self.corner_uvs, prim, axis=0)
         w = 1.0 - u - v
@@ -137,6 +173,7 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
     table = MaterialTable.build(mats_list)
 
     v0s, v1s, v2s, cns, cuvs, mats, objs, names = [], [], [], [], [], [], [], []
+    ccols = []
     vis, holdout = [], []
     terms, shading_terms = [], []
     for oi, mesh in enumerate(scene.meshes):
@@ -158,6 +195,11 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
             cuvs.append(mesh.uvs[f])
         else:
             cuvs.append(mesh.uvs)
+        colors = getattr(mesh, "colors", None)
+        if colors is None:
+            ccols.append(np.zeros((len(f), 3, 3)))
+        else:
+            ccols.append(colors[f] if colors.ndim == 2 else colors)
         remap = np.array([mat_index[n] for n in mesh.materials], np.int32)
         if mesh.holdout:
             remap[:] = len(mats_list) - 1
@@ -220,6 +262,9 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         visibility=np.concatenate(vis) if vis else np.zeros(0, np.uint8),
         holdout=np.concatenate(holdout) if holdout else np.zeros(0, bool),
         bounds=np.stack([lo - offset, hi - offset]),
+        corner_colors=np.concatenate(ccols) if any(
+            getattr(m, "colors", None) is not None for m in scene.meshes) else None,
+        corner_coordinates=_corner_coordinates(scene.meshes),
     )
     return geo, table
 
@@ -232,3 +277,17 @@ def emissive_triangles(geo: Geometry, table: MaterialTable):
     lit = (luminance(em) > 0) & ((geo.visibility & DIFFUSE) != 0) if len(em) else None
     idx = np.nonzero(lit)[0] if len(em) else np.zeros(0, np.int64)
     return idx, em[idx], geo.area[idx]
+
+
+def _corner_coordinates(meshes) -> dict | None:
+    """name -> (T,3,3) per-corner texture coordinates over all meshes' triangles."""
+    names = sorted({k for m in meshes for k in (getattr(m, "coordinates", None) or {})})
+    if not names:
+        return None
+    out = {}
+    for name in names:
+        parts = [(m.coordinates or {}).get(name, None) for m in meshes if len(m.faces)]
+        sizes = [len(m.faces) for m in meshes if len(m.faces)]
+        out[name] = np.concatenate([np.zeros((n, 3, 3)) if a is None else a
+                                    for a, n in zip(parts, sizes)])
+    return out

@@ -16,6 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .normalmap import Bump, NormalMap
+from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
+
 __all__ = [
     "SceneError", "Material", "Mesh", "Light", "Camera", "Scene",
     "POINT", "SPOT", "AREA", "SUN", "RECTANGLE", "DISK",
@@ -59,7 +62,10 @@ class Material:
                         (specular=0: pure Lambert; 1: plastic-like)
     `alpha` < 1 lets the rest of the light pass straight through (Transparent BSDF).
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
-    `texture` is an optional HxWx3 linear float image multiplied onto base colour via UVs.
+    `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
+    image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
+    `normal_map` is an optional engine.normalmap.NormalMap or Bump perturbing the shading
+    normal.
     """
 
     name: str = "default"
@@ -71,7 +77,8 @@ class Material:
     specular: float = 0.0
     emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     alpha: float = 1.0
-    texture: np.ndarray | None = None
+    texture: ImageTexture | ColorAttribute | np.ndarray | None = None
+    normal_map: NormalMap | Bump | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -94,13 +101,13 @@ class Material:
         if self.ior <= 0:
             raise SceneError(f"{who} ior: must be > 0, got {self.ior}")
         if self.texture is not None:
-            tex = np.asarray(self.texture, dtype=np.float32)
-            if tex.ndim == 2:
-                tex = np.repeat(tex[:, :, None], 3, axis=2)
-            if tex.ndim != 3 or tex.shape[2] < 3 or tex.shape[0] < 1 or tex.shape[1] < 1:
-                raise SceneError(f"{who} texture: expected an HxWx3 image, got {tex.shape}")
-            tex = np.nan_to_num(tex[:, :, :3], nan=0.0, posinf=1.0, neginf=0.0)
-            self.texture = np.clip(tex, 0.0, 1.0)
+            try:
+                self.texture = as_texture(self.texture, name=f"{self.name} texture")
+            except TextureError as exc:
+                raise SceneError(f"{who} {exc}") from None
+        if self.normal_map is not None and not isinstance(self.normal_map, (NormalMap, Bump)):
+            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap or Bump, got "
+                             f"{type(self.normal_map).__name__}")
 
     @property
     def is_emissive(self) -> bool:
@@ -133,6 +140,10 @@ class Mesh:
     normals   optional (V,3) per vertex or (F,3,3) per face corner (smooth / custom split
               normals); None = flat shading
     uvs       optional (V,2) per vertex or (F,3,2) per face corner
+    colors    optional colour attribute (vertex colours), linear RGB(A): (V,3|4) per vertex
+              or (F,3,3|4) per face corner; read by engine.textures.ColorAttribute
+    coordinates  optional {name: (F,3,3)} per-corner texture coordinates, e.g. Blender's
+              "generated" and "object" (engine.shadernodes.Coordinates)
     material  one material name, or material_ids (F,) int indexing `materials` (names)
     visible_camera, visible_diffuse, visible_glossy, visible_transmission, visible_shadow
               ray visibility with Cycles' meaning (Object > Visibility > Ray Visibility):
@@ -157,6 +168,8 @@ class Mesh:
     faces: np.ndarray
     normals: np.ndarray | None = None
     uvs: np.ndarray | None = None
+    colors: np.ndarray | None = None
+    coordinates: dict | None = None
     materials: list[str] = field(default_factory=lambda: ["default"])
     material_ids: np.ndarray | None = None
     visible_camera: bool = True
@@ -232,6 +245,18 @@ class Mesh:
         uvs = None if self.uvs is None else np.asarray(self.uvs, dtype=np.float64)
         if uvs is not None and uvs.shape not in ((len(v), 2), (nf, 3, 2)):
             raise SceneError(f"{who}: uvs must be (V,2) or (F,3,2), got {uvs.shape}")
+        colors = None if self.colors is None else np.asarray(self.colors, dtype=np.float64)
+        if colors is not None:
+            if colors.shape[:-1] not in ((len(v),), (nf, 3)) or colors.shape[-1] not in (3, 4):
+                raise SceneError(f"{who}: colors must be (V,3|4) or (F,3,3|4), "
+                                 f"got {colors.shape}")
+            colors = np.nan_to_num(colors[..., :3], nan=0.0, posinf=1.0, neginf=0.0)
+        coords = {}
+        for key, arr in (self.coordinates or {}).items():
+            arr = np.asarray(arr, dtype=np.float64)
+            if arr.shape != (nf, 3, 3):
+                raise SceneError(f"{who}: coordinates['{key}'] must be (F,3,3), got {arr.shape}")
+            coords[str(key)] = np.nan_to_num(arr, nan=0.0, posinf=0.0, neginf=0.0)
 
         # Repairable defects: drop the faces, say how many and why.
         keep = np.ones(nf, dtype=bool)
@@ -268,11 +293,16 @@ class Mesh:
                 normals = normals[keep]
             if uvs is not None and uvs.ndim == 3:
                 uvs = uvs[keep]
+            if colors is not None and colors.ndim == 3:
+                colors = colors[keep]
+            coords = {k: a[keep] for k, a in coords.items()}
         self.vertices = np.where(np.isfinite(v), v, 0.0)
         self.faces = f
         self.material_ids = mids
         self.normals = normals
         self.uvs = uvs
+        self.colors = colors
+        self.coordinates = coords or None
 
 
 @dataclass

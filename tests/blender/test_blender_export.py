@@ -178,9 +178,13 @@ def test_materials_and_texture(fresh_scene, bpy_addon):
     from addon.materials import MaterialConverter
     conv = MaterialConverter(load_engine())
     t = conv.convert(m)
-    assert t.texture.shape == (2, 4, 3)
-    np.testing.assert_allclose(t.texture[1, 0], (1, 0, 0), atol=1e-3)  # bottom row last
-    np.testing.assert_allclose(t.texture[0, 0], (0.2140,) * 3, atol=2e-3)  # sRGB decoded
+    # Stored values kept (8-bit sRGB: Cycles filters those and converts after).
+    assert t.texture.pixels.shape == (2, 4, 4) and t.texture.srgb
+    assert (t.texture.extension, t.texture.interpolation) == ("REPEAT", "Linear")
+    np.testing.assert_allclose(t.texture.pixels[1, 0, :3], (1, 0, 0), atol=1e-3)  # bottom
+    np.testing.assert_allclose(t.texture.pixels[0, 0, :3], (0.5,) * 3, atol=3e-3)  # row last
+    np.testing.assert_allclose(t.texture.sample(np.array([[0.125, 0.75]])), [(0.2140,) * 3],
+                               atol=3e-3)  # sRGB decoded at the lookup
     assert t.metallic == pytest.approx(0.25) and t.roughness == pytest.approx(0.3)
     np.testing.assert_allclose(t.emission, (2.0, 1.0, 0.0), atol=1e-6)
     gm = conv.convert(g)

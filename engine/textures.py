@@ -1,0 +1,230 @@
+"""Colour sources multiplied onto a material's base colour per hit: image textures looked
+up as Cycles' Image Texture node does, and the Color Attribute node (ColorAttribute).
+
+An `ImageTexture` holds an image's stored pixel values (one image, or one per UDIM tile)
+with the node's settings, and turns UV coordinates into linear RGBA:
+
+  extension      REPEAT | EXTEND | CLIP | MIRROR: which texel a coordinate outside the
+                 image reads (CLIP: transparent black), applied per texel, so a Linear
+                 lookup fades to black over the border's half texel as in Cycles.
+  interpolation  Linear (bilinear), Closest (nearest texel), Cubic (uniform cubic
+                 B-spline, Cycles' `cubic_weights`), Smart (Cubic, as Cycles renders it
+                 without mip-maps).
+  srgb           the pixels are 8-bit sRGB-encoded values: Cycles stores those as bytes,
+                 interpolates the encoded values and converts to linear after, so a
+                 filtered edge between dark and bright texels is darker than converting
+                 first (a checker at texel scale: 1.68x too bright the other way round).
+  tiles          UDIM: {1001: pixels, 1002: ...}; a coordinate reads tile
+                 1001 + floor(u) + 10 floor(v) at its fractional part; a coordinate with
+                 no tile (u < 0, v < 0, u >= 10 or a tile not in the set) reads Cycles'
+                 missing-image colour (magenta).
+
+Texel centres sit at (i + 0.5) / width as in Cycles; UV (0, 0) is the image's bottom-left
+corner (Blender), the arrays here are stored top row first.
+Sources: Cycles kernel/image.h (interpolation, wrap modes, UDIM map) and
+svm/image.h (sRGB conversion after the lookup).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .imageio import srgb_to_linear
+
+EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
+INTERPOLATIONS = ("Linear", "Closest", "Cubic", "Smart")
+MISSING_RGBA = np.array([1.0, 0.0, 1.0, 1.0])  # Cycles' colour for a missing image / tile
+
+
+class TextureError(ValueError):
+    """Bad texture input (names the texture and the argument)."""
+
+
+def _as_rgba(pixels, who: str) -> np.ndarray:
+    a = np.asarray(pixels, dtype=np.float32)
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or a.shape[0] < 1 or a.shape[1] < 1 or a.shape[2] not in (1, 3, 4):
+        raise TextureError(f"{who}: expected an HxW, HxWx3 or HxWx4 image, got {a.shape}")
+    a = np.nan_to_num(a, nan=0.0, posinf=1.0, neginf=0.0)
+    if a.shape[2] == 1:
+        a = np.concatenate([np.repeat(a, 3, axis=2), np.ones_like(a)], axis=2)
+    elif a.shape[2] == 3:
+        a = np.concatenate([a, np.ones_like(a[:, :, :1])], axis=2)
+    return np.ascontiguousarray(a)
+
+
+def _wrap(i: np.ndarray, n: int, extension: str):
+    """(index into 0..n-1, valid) for integer texel indices i under an extension mode."""
+    if extension == "REPEAT":
+        return np.mod(i, n), None
+    if extension == "EXTEND":
+        return np.clip(i, 0, n - 1), None
+    if extension == "MIRROR":
+        # Reflect at the image borders, each border texel repeated once (..., 1, 0, 0, 1, ...).
+        m = np.mod(i, 2 * n)
+        return np.where(m >= n, 2 * n - 1 - m, m), None
+    valid = (i >= 0) & (i < n)
+    return np.clip(i, 0, n - 1), valid
+
+
+def _cubic_weights(t: np.ndarray) -> list[np.ndarray]:
+    """Uniform cubic B-spline weights of texels -1, 0, +1, +2 for fraction t (Cycles)."""
+    t2 = t * t
+    t3 = t2 * t
+    return [(-t3 + 3 * t2 - 3 * t + 1) / 6.0, (3 * t3 - 6 * t2 + 4) / 6.0,
+            (-3 * t3 + 3 * t2 + 3 * t + 1) / 6.0, t3 / 6.0]
+
+
+class ImageTexture:
+    """One Image Texture node's image and settings; see the module docstring.
+
+    pixels         HxW, HxWx3 or HxWx4 stored values, top row first (float; sRGB-encoded
+                   when srgb=True, else linear or non-colour data).
+    tiles          optional {udim number (>= 1001): pixels} for a UDIM image; pixels is
+                   then ignored (pass None).
+    Raises TextureError (naming `name`) on a bad shape, mode or tile number.
+    """
+
+    def __init__(self, pixels=None, *, extension: str = "REPEAT",
+                 interpolation: str = "Linear", srgb: bool = False, tiles: dict | None = None,
+                 name: str = "image"):
+        self.name = name
+        who = f"texture '{name}'"
+        extension = str(extension).upper()
+        if extension not in EXTENSIONS:
+            raise TextureError(f"{who} extension: expected one of {EXTENSIONS}, got {extension!r}")
+        interp = str(interpolation).capitalize()
+        if interp not in INTERPOLATIONS:
+            raise TextureError(f"{who} interpolation: expected one of {INTERPOLATIONS}, "
+                               f"got {interpolation!r}")
+        self.extension = extension
+        self.interpolation = interp
+        self.srgb = bool(srgb)
+        if tiles:
+            self.tiles = {}
+            for k, px in tiles.items():
+                k = int(k)
+                if not 1001 <= k <= 1001 + 10 * 100 - 1:
+                    raise TextureError(f"{who}: UDIM tile number {k} is outside 1001..")
+                self.tiles[k] = _as_rgba(px, f"{who} tile {k}")
+        else:
+            if pixels is None:
+                raise TextureError(f"{who}: no pixels and no UDIM tiles")
+            self.tiles = None
+            self.pixels = _as_rgba(pixels, who)
+
+    @property
+    def is_udim(self) -> bool:
+        return self.tiles is not None
+
+    @property
+    def has_alpha(self) -> bool:
+        imgs = self.tiles.values() if self.tiles else [self.pixels]
+        return any(bool(np.any(a[:, :, 3] < 1.0)) for a in imgs)
+
+    # --- lookups ------------------------------------------------------------------------
+    def sample_rgba(self, uv: np.ndarray) -> np.ndarray:
+        """(N,4) float64 linear RGB and alpha at uv (N,2)."""
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        uv = np.nan_to_num(uv, nan=0.0, posinf=0.0, neginf=0.0)
+        if self.tiles is None:
+            out = self._lookup(self.pixels, uv)
+        else:
+            out = np.empty((len(uv), 4))
+            out[:] = MISSING_RGBA
+            tx = np.floor(uv[:, 0]).astype(np.int64)
+            ty = np.floor(uv[:, 1]).astype(np.int64)
+            inside = (tx >= 0) & (ty >= 0) & (tx < 10)
+            number = np.where(inside, 1001 + tx + 10 * ty, 0)
+            for k, px in self.tiles.items():
+                sel = np.nonzero(number == k)[0]
+                if len(sel):
+                    local = uv[sel] - np.stack([tx[sel], ty[sel]], axis=1)
+                    out[sel] = self._lookup(px, local)
+            if self.srgb:  # missing colour is linear already: undo the conversion below
+                miss = ~np.isin(number, list(self.tiles))
+                res = self._to_linear(out)
+                res[miss] = MISSING_RGBA
+                return res
+        return self._to_linear(out)
+
+    def sample(self, uv: np.ndarray) -> np.ndarray:
+        """(N,3) float64 linear RGB at uv (N,2)."""
+        return self.sample_rgba(uv)[:, :3]
+
+    def evaluate(self, geo, prim, u, v) -> np.ndarray:
+        """(N,3) linear RGB at hits (triangle prim, barycentrics u, v) of an
+        engine.geometry.Geometry, through their interpolated UVs."""
+        return self.sample(geo.uvs(prim, u, v))
+
+    def _to_linear(self, rgba: np.ndarray) -> np.ndarray:
+        if self.srgb:
+            rgba[:, :3] = srgb_to_linear(np.clip(rgba[:, :3], 0.0, 1.0))
+        return rgba
+
+    def _lookup(self, px: np.ndarray, uv: np.ndarray) -> np.ndarray:
+        h, w = px.shape[:2]
+        x = uv[:, 0] * w
+        # Rows are stored top first: v = 1 is row 0's top edge.
+        y = (1.0 - uv[:, 1]) * h
+        if self.interpolation == "Closest":
+            return self._texels(px, np.floor(x).astype(np.int64),
+                                np.floor(y).astype(np.int64))
+        x -= 0.5
+        y -= 0.5
+        x0 = np.floor(x)
+        y0 = np.floor(y)
+        fx = x - x0
+        fy = y - y0
+        x0 = x0.astype(np.int64)
+        y0 = y0.astype(np.int64)
+        if self.interpolation == "Linear":
+            wx = [1.0 - fx, fx]
+            wy = [1.0 - fy, fy]
+            offsets = (0, 1)
+        else:  # Cubic, Smart
+            wx = _cubic_weights(fx)
+            wy = _cubic_weights(fy)
+            offsets = (-1, 0, 1, 2)
+        out = np.zeros((len(uv), 4))
+        for j, oy in enumerate(offsets):
+            row = np.zeros((len(uv), 4))
+            for i, ox in enumerate(offsets):
+                row += wx[i][:, None] * self._texels(px, x0 + ox, y0 + oy)
+            out += wy[j][:, None] * row
+        return out
+
+    def _texels(self, px: np.ndarray, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
+        h, w = px.shape[:2]
+        ix, vx = _wrap(ix, w, self.extension)
+        iy, vy = _wrap(iy, h, self.extension)
+        # One gather of rows of the flattened image (np.take: faster than 2-D indexing).
+        t = np.take(px.reshape(-1, 4), iy * w + ix, axis=0).astype(np.float64)
+        if vx is not None:
+            t *= (vx & vy)[:, None]
+        return t
+
+
+class ColorAttribute:
+    """Cycles' Color Attribute node: the mesh's colour attribute (vertex colours, linear,
+    Mesh.colors) interpolated over the triangle; black on a mesh without one, as Cycles.
+    `name` is the attribute the node asked for (informational: the exporter passes the
+    mesh's render colour attribute)."""
+
+    def __init__(self, name: str = ""):
+        self.name = str(name)
+
+    def evaluate(self, geo, prim, u, v) -> np.ndarray:
+        """(N,3) linear RGB at hits (triangle prim, barycentrics u, v)."""
+        return geo.colors(prim, u, v)
+
+
+def as_texture(tex, name: str = "image"):
+    """A colour source (anything with evaluate(geo, prim, u, v): ImageTexture,
+    ColorAttribute, engine.shadernodes nodes) as given, or an ImageTexture from a bare
+    linear HxW(x3/4) array (Repeat, Linear: the engine's behaviour before textures had
+    settings); None stays None."""
+    if tex is None or hasattr(tex, "evaluate"):
+        return tex
+    return ImageTexture(np.clip(np.nan_to_num(np.asarray(tex, np.float32), nan=0.0,
+                                              posinf=1.0, neginf=0.0), 0.0, 1.0), name=name)
