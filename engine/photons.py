@@ -208,10 +208,20 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             ok[diff] = dot(nd, sub.ng[diff]) > 0
         spec = ~diff
         if spec.any():
-            sd, valid, _ = sample_specular(table, sub.take(np.nonzero(spec)[0]),
-                                           lobe[spec] - 1, bounce_rng)
+            spec_rows = np.nonzero(spec)[0]
+            sd, valid, transmitted = sample_specular(table, sub.take(spec_rows),
+                                                     lobe[spec] - 1, bounce_rng)
             new_d[spec] = sd
             ok[spec] = valid
+            # Refraction: radiance is carried as invariant across the interface, as the
+            # camera side (no eta^2 factor) and Cycles do, so the photon's power takes
+            # the factor (eta_i / eta_t)^2 (docs/units.md, "Refraction"). Paired
+            # interfaces (a slab, a ball) cancel it exactly.
+            refracted = spec_rows[transmitted & (lobe[spec] == LOBES.index("glass_t"))]
+            if len(refracted):
+                ior = np.take(table.ior, sub.mat[refracted])
+                eta_ratio = np.where(sub.front[refracted], 1.0 / ior, ior)
+                new_power[refracted] *= (eta_ratio * eta_ratio)[:, None]
         if vis_on:
             # Continued with a lobe: the arriving segment is the camera-side ray of that
             # lobe's kind leaving here backwards - a diffuse bounce uses the same kinds as
