@@ -34,6 +34,16 @@ lobe). Where the analysis does pay:
   `tests/test_effects.py::test_aimed_caustic_photons_are_more_accurate_for_fewer_photons`
   10k aimed photons give a lower caustic error than 40k uniform ones (a 0.5 m glass ball
   4.5 m from a point light catches 0.3 % of uniformly emitted photons).
+- **Only sharp specular lobes are caustic casters** (`engine/effects.py`,
+  `sharp_specular`: roughness <= 0.3, or a transparent pass): a rough Principled floor
+  (Blender's default roughness 0.5) or a rough metal ball spreads the light it reflects
+  into a soft glow, so caustic photons are not aimed at it and the report says so ("not
+  aimed at 'floor' ... too rough to focus light"). The light that meets such a surface
+  first still reaches the caustic map: the caustic paths are split by the object they hit
+  first, aimed photons keeping those that start at a caster and the global shot the rest
+  (`test_caustic_paths_split_between_aimed_and_global_photons_keep_their_power`: stored
+  power equal to 4M unaimed photons' within 0.2 %); with no sharp caster the glow comes
+  from the global photons and no caustic shot is traced.
 - **Scenes where an effect is absent but expensive**: a black room skips the whole photon
   pass (`test_black_room_skips_indirect_light`), a mirror no light reaches skips the caustic
   shot, a flat scene skips shadow rays, and hard lights get one shadow ray instead of

@@ -18,6 +18,20 @@ from .sampling import luminance
 from .scene import AREA, SUN
 
 PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can reach it
+# A specular lobe focuses light into a caustic only if it is sharp. Our microfacet lobes
+# have alpha = roughness^2, about the lobe's angular half-width in radians: at roughness
+# 0.3 that is ~5 degrees, at Principled's default 0.5 already ~14 degrees, which spreads
+# a reflected light over a patch half as wide as its distance - a soft glow that the
+# unaimed photons carry as well as aimed ones. Transparent (alpha < 1) passes are delta
+# lobes: always sharp.
+SHARP_ROUGHNESS = 0.3
+
+
+def sharp_specular(table: MaterialTable) -> np.ndarray:
+    """(M,) bool: materials whose specular lobe is sharp enough to focus light (a
+    caustic caster): a specular or refractive lobe of roughness <= SHARP_ROUGHNESS, or a
+    transparent pass."""
+    return table.has_specular & ((table.roughness <= SHARP_ROUGHNESS) | (table.alpha < 1))
 
 
 @dataclass
@@ -39,6 +53,9 @@ class EffectPlan:
     shadows: dict = field(default_factory=dict)        # light name -> trace shadow rays?
     casters: list = field(default_factory=list)        # names of caustic-casting objects
     caster_spheres: tuple = (np.zeros((0, 3)), np.zeros(0))
+    caster_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # their object ids
+    rough_specular: list = field(default_factory=list)  # specular objects too rough to focus
+    caustics_from_global: bool = False  # caustic map from the global shot, no caustic shot
     decisions: list = field(default_factory=list)
 
     def add(self, effect, enabled, reason):
@@ -121,31 +138,66 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         plan.indirect = _override(s.indirect, auto, "indirect light (global map)", why, plan)
 
     # --- caustics ------------------------------------------------------------------------
+    # Caustic photons are aimed only at casters whose specular lobe is sharp enough to
+    # focus light (sharp_specular); light that reaches a diffuse surface by way of rough
+    # specular surfaces only first (a glossy floor's coat) is a soft glow: it comes from
+    # unaimed photons (render.py partitions the caustic paths by the object hit first).
     if s.photon_mapping:
-        ids, centers, radii, names = _object_spheres(geo, spec_tri) if spec_tri.any() else ([], np.zeros((0, 3)), np.zeros(0), [])
+        sharp_tri = (sharp_specular(table)[mat] if has_tris else np.zeros(0, bool)) & spec_tri
+        rough_tri = spec_tri & ~sharp_tri
+        ids, centers, radii, names = _object_spheres(geo, sharp_tri) if sharp_tri.any() else ([], np.zeros((0, 3)), np.zeros(0), [])
+        rough_ids = np.setdiff1d(np.unique(geo.object_id[rough_tri]), ids) if rough_tri.any() else []
+        plan.rough_specular = [geo.object_names[i] for i in rough_ids]
         reached = []
         if len(ids) and emitting and diff_tri.any():
             for oid, c, r, name in zip(ids, centers, radii, names):
                 if any(_light_reaches(li, accel, geo, oid, c, r, rng) for li in emitting):
-                    reached.append((c, r, name))
+                    reached.append((oid, c, r, name))
+        rough_reached = []
+        if len(rough_ids) and emitting and diff_tri.any():
+            _, rc, rr, rn = _object_spheres(geo, np.isin(geo.object_id, rough_ids) & rough_tri)
+            for oid, c, r, name in zip(rough_ids, rc, rr, rn):
+                if any(_light_reaches(li, accel, geo, oid, c, r, rng) for li in emitting):
+                    rough_reached.append(name)
+        rough_note = ""
+        if plan.rough_specular:
+            shown = plan.rough_specular[:4]
+            rough_note = ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
+                          + (" ..." if len(plan.rough_specular) > 4 else "")
+                          + f" (specular roughness > {SHARP_ROUGHNESS:g}: too rough to focus "
+                          "light; unaimed photons carry its glossy reflections)")
         if not spec_tri.any():
             auto, why = False, "no specular or refractive materials"
         elif not diff_tri.any():
             auto, why = False, "no diffuse surface to receive a caustic"
-        elif not reached:
-            auto, why = False, ("no light reaches the mirror / glass object(s) "
-                                + ", ".join(f"'{n}'" for n in names))
+        elif reached:
+            names_r = ", ".join(f"'{n}'" for _, _, _, n in reached)
+            auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
+                               if s.aim_caustics
+                               else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
+        elif rough_reached:
+            # Nothing to aim at: a soft glow is as dense in the global photons (a larger
+            # shot) as in an unaimed caustic shot, so reuse them when there are any.
+            plan.caustics_from_global = plan.indirect
+            source = ("the global photons" if plan.indirect
+                      else f"{s.caustic_photons:,} unaimed photons")
+            auto, why = True, ("no sharp caustic caster; the glossy reflections of "
+                               + ", ".join(f"'{n}'" for n in rough_reached[:4])
+                               + (" ..." if len(rough_reached) > 4 else "")
+                               + f" (specular roughness > {SHARP_ROUGHNESS:g}) come from {source}")
         else:
-            names_r = ", ".join(f"'{n}'" for _, _, n in reached)
-            auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}"
-                               if s.aim_caustics else f"{s.caustic_photons:,} photons, from {names_r}")
+            all_names = list(names) + plan.rough_specular
+            auto, why = False, ("no light reaches the mirror / glass object(s) "
+                                + ", ".join(f"'{n}'" for n in all_names))
         plan.caustics = _override(s.caustics, auto, "caustics", why, plan)
         if plan.caustics and reached:
-            plan.casters = [n for _, _, n in reached]
-            plan.caster_spheres = (np.array([c for c, _, _ in reached]),
-                                   np.array([r for _, r, _ in reached]))
+            plan.casters = [n for _, _, _, n in reached]
+            plan.caster_ids = np.array([oid for oid, _, _, _ in reached], np.int64)
+            plan.caster_spheres = (np.array([c for _, c, _, _ in reached]),
+                                   np.array([r for _, _, r, _ in reached]))
         elif plan.caustics and len(ids):
             plan.caster_spheres = (centers, radii)
+            plan.caster_ids = np.asarray(ids, np.int64)
             plan.casters = names
 
     # --- specular chains -------------------------------------------------------------------

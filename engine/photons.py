@@ -62,10 +62,15 @@ class Photons:
 
 
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
-                  should_cancel=None, targets=None) -> Photons:
+                  should_cancel=None, targets=None, first_hit=None) -> Photons:
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
     paths only and stop a photon as soon as it scatters diffusely (the caustic shot).
-    targets=(centers, radii): aim the photons at these bounding spheres (caustic casters)."""
+    targets=(centers, radii): aim the photons at these bounding spheres (caustic casters).
+    first_hit=(is_caster, keep): is_caster (objects,) bool by object id; store CAUSTIC
+    photons only if whether the first surface they hit belongs to a caster equals keep.
+    An aimed shot (keep=True) and an unaimed one (keep=False) thus split the L S+ D paths
+    between them without overlap: a path whose first hit is a caster starts inside that
+    caster's bounding sphere, which the aimed shot covers (engine/render.py)."""
     settings = ctx.settings
     total = int(sum(counts))
     jobs = []
@@ -79,7 +84,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     def job(item, stop):
         li, ci, start, n, count = item
         rng = np.random.default_rng([settings.seed, stream, li, ci])
-        return _trace_chunk(ctx, accel, lights[li], n, count, rng, caustic_only, targets, stop)
+        return _trace_chunk(ctx, accel, lights[li], n, count, rng, caustic_only, targets, stop,
+                            first_hit)
 
     parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
     done = 0
@@ -98,7 +104,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     return out
 
 
-def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel):
+def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
+                 first_hit=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits as
     lists of arrays, bounce by bounce."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
@@ -119,6 +126,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     had_diffuse = np.zeros(len(o), bool)
     had_specular = np.zeros(len(o), bool)
     caustic_then_diffuse = np.zeros(len(o), bool)  # path so far: L S+ D S*
+    first_caster = None  # per photon: its first hit was on a caster (with first_hit)
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
     # surface stands for the camera-side ray that leaves that surface backwards; its kind
     # is set by the use made of the photon there (stored, or continued with a lobe: see
@@ -142,8 +150,12 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
             caustic_then_diffuse = caustic_then_diffuse[alive]
             kinds = kinds[alive]
+            if first_caster is not None:
+                first_caster = first_caster[alive]
         if len(o) == 0:
             break
+        if first_hit is not None and first_caster is None:
+            first_caster = np.take(first_hit[0], np.take(geo.object_id, prim))
         hit = surface_hit(geo, table, prim, u, v, d)
         carry = None
         if vis_on:
@@ -159,12 +171,16 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                 carry = (hit.clear(thru, d[thru]), d[thru],
                          power[thru], had_diffuse[thru], had_specular[thru],
                          caustic_then_diffuse[thru], behind[thru], slot[thru])
+                if first_caster is not None:
+                    carry += (first_caster[thru],)
         w = lobe_weights(table, hit)
         kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
                         np.where(had_specular, CAUSTIC, DIRECT))
         store = max3(w["diffuse"]) > 0
         if caustic_only:
             store &= kind == CAUSTIC
+        if first_caster is not None:
+            store &= (kind != CAUSTIC) | (first_caster == bool(first_hit[1]))
         if vis_on:
             # Stored for lookups at this surface: the camera side reaches the photon's
             # source from here with a shadow ray (direct light) or a diffuse ray.
@@ -208,10 +224,20 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             ok[diff] = dot(nd, sub.ng[diff]) > 0
         spec = ~diff
         if spec.any():
-            sd, valid, _ = sample_specular(table, sub.take(np.nonzero(spec)[0]),
-                                           lobe[spec] - 1, bounce_rng)
+            spec_rows = np.nonzero(spec)[0]
+            sd, valid, transmitted = sample_specular(table, sub.take(spec_rows),
+                                                     lobe[spec] - 1, bounce_rng)
             new_d[spec] = sd
             ok[spec] = valid
+            # Refraction: radiance is carried as invariant across the interface, as the
+            # camera side (no eta^2 factor) and Cycles do, so the photon's power takes
+            # the factor (eta_i / eta_t)^2 (docs/units.md, "Refraction"). Paired
+            # interfaces (a slab, a ball) cancel it exactly.
+            refracted = spec_rows[transmitted & (lobe[spec] == LOBES.index("glass_t"))]
+            if len(refracted):
+                ior = np.take(table.ior, sub.mat[refracted])
+                eta_ratio = np.where(sub.front[refracted], 1.0 / ior, ior)
+                new_power[refracted] *= (eta_ratio * eta_ratio)[:, None]
         if vis_on:
             # Continued with a lobe: the arriving segment is the camera-side ray of that
             # lobe's kind leaving here backwards - a diffuse bounce uses the same kinds as
@@ -233,6 +259,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         else:
             new_kinds = kinds[idx]
         ctd = caustic_then_diffuse[idx]
+        if first_caster is not None:
+            first_caster = first_caster[idx]
         first_diffuse = diff & ~had_diffuse[idx]
         # The first diffuse bounce after a caustic path starts L S+ D; any further
         # diffuse bounce makes it ordinary indirect light.
@@ -248,13 +276,17 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
         caustic_then_diffuse = caustic_then_diffuse[keep]
         kinds = new_kinds[keep]
+        if first_caster is not None:
+            first_caster = first_caster[keep]
         o = sub.clear(keep, new_d)
         d, power = new_d, new_power
         if carry is not None:
             (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, kinds,
              slot) = (np.concatenate([a, b]) for a, b in zip(
                 (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, kinds,
-                 slot), carry))
+                 slot), carry[:8]))
+            if first_caster is not None:
+                first_caster = np.concatenate([first_caster, carry[8]])
     return parts
 
 

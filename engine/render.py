@@ -141,22 +141,41 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
     t0 = time.perf_counter()
     shot = Photons.empty()
-    # The global shot is needed for indirect light; without a separate caustic shot it
-    # also carries the caustic (L S+ D) photons.
-    if plan.indirect or (plan.caustics and s.caustic_photons == 0):
+    use_caustic_shot = plan.caustics and s.caustic_photons > 0 and not plan.caustics_from_global
+    targets = (plan.caster_spheres if (use_caustic_shot and s.aim_caustics
+                                       and len(plan.caster_spheres[1])) else None)
+    # Aimed caustic photons keep only the L S+ D paths whose first hit is a caster; the
+    # global shot keeps the others (light by way of rough specular surfaces first, which
+    # is not aimed at: engine/effects.py, sharp_specular), so together they hold each
+    # path once (trace_photons, first_hit). Without rough specular surfaces there is no
+    # such path worth the split (the photons are as before).
+    split = None
+    if targets is not None and plan.rough_specular:
+        split = np.zeros(len(geo.object_names), bool)
+        split[plan.caster_ids] = True
+    # The global shot is needed for indirect light; without a separate caustic shot, or
+    # for the caustic paths the aimed shot leaves out, it also carries caustic photons.
+    if plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None:
         counts = allocate_photons(ctx.lights, s.photons)
         shot = trace_photons(ctx, ctx.lights, counts, caustic_only=False, stream=1,
-                             progress=progress, should_cancel=should_cancel)
+                             progress=progress, should_cancel=should_cancel,
+                             first_hit=None if split is None else (split, False))
     caustic = Photons.empty()
-    use_caustic_shot = plan.caustics and s.caustic_photons > 0
     if use_caustic_shot:
-        targets = plan.caster_spheres if (s.aim_caustics and len(plan.caster_spheres[1])) else None
         if targets is None:
             ccounts = allocate_photons(ctx.lights, s.caustic_photons)
         else:
             ccounts = _allocate_aimed(ctx, targets, s.caustic_photons)
         caustic = trace_photons(ctx, ctx.lights, ccounts, caustic_only=True, stream=2,
-                                progress=progress, should_cancel=should_cancel, targets=targets)
+                                progress=progress, should_cancel=should_cancel, targets=targets,
+                                first_hit=None if split is None else (split, True))
+        if split is not None and len(shot):
+            # The caustic paths the aimed shot leaves out, from the global shot.
+            rest = shot.select(shot.kind == CAUSTIC)
+            emitted = caustic.emitted
+            caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
+                                for f in ("position", "power", "direction", "normal", "kind")))
+            caustic.emitted = emitted
     stats["time_photons"] = time.perf_counter() - t0
     stats["photons_emitted"] = shot.emitted
     stats["caustic_photons_emitted"] = caustic.emitted

@@ -127,3 +127,69 @@ def test_aimed_photons_carry_the_power_natural_emission_sends_at_the_target(kind
     aimed = _power_into_sphere(*light.emit_towards(200_000, rng, center, radius), center[0],
                                radius[0])
     np.testing.assert_allclose(aimed, natural, rtol=0.02)
+
+
+def _glossy_floor_scene(res=32):
+    """A smooth glass ball on a rough Principled floor (specular coat, roughness 0.5, as
+    Blender's default) beside a diffuse wall that catches the floor's glossy reflection."""
+    s = PaperScene(width=res, height=res)
+    s.add_material(Material("rough_principled", (0.6, 0.6, 0.6), roughness=0.5, specular=1.0))
+    s.add_material(Material("smooth_glass", (1, 1, 1), transmission=1.0, ior=1.5, roughness=0.0))
+    s.add_plane((0, 0, 0), (0, 0, 1), 6, "rough_principled", name="floor")
+    s.add_plane((0, 2.0, 1.0), (0, -1, 0), (6, 2), "white_diffuse", name="wall")
+    s.add_sphere((0, 0, 1.0), 0.5, "smooth_glass", name="ball", segments=24)
+    s.add_point_light((0, -2, 4), power=800)
+    s.set_camera((0, -5, 3), (0, 0.5, 0.5), view_angle=50)
+    return s
+
+
+def test_rough_principled_floor_is_not_a_caustic_caster():
+    from engine.render import prepare_context
+    ctx = prepare_context(_glossy_floor_scene(), RenderSettings(photons=2000, workers=1))
+    ctx.accel.close()
+    plan = ctx.plan
+    assert plan.casters == ["ball"]  # the smooth glass ball still is
+    assert plan.rough_specular == ["floor"]
+    line = next(r for r in plan.report() if r.startswith("caustics:"))
+    assert "aimed at 'ball'" in line and "not aimed at 'floor'" in line
+    assert "too rough to focus" in line
+
+
+def test_only_rough_specular_surfaces_take_their_glow_from_the_global_photons():
+    from engine.render import prepare_context
+    s = _glossy_floor_scene()
+    s.meshes = [m for m in s.meshes if m.name != "ball"]
+    ctx = prepare_context(s, RenderSettings(photons=2000, workers=1))
+    ctx.accel.close()
+    assert ctx.plan.caustics and ctx.plan.caustics_from_global and not ctx.plan.casters
+    line = next(r for r in ctx.plan.report() if r.startswith("caustics:"))
+    assert "no sharp caustic caster" in line and "come from the global photons" in line
+
+
+def _caustic_map_power(scene, **kw):
+    """(total, on the wall) power of the photons in the caustic map, W (RGB mean)."""
+    from engine.render import _photon_pass, prepare_context
+    ctx = prepare_context(scene, RenderSettings(workers=1, seed=3, **kw))
+    try:
+        _photon_pass(ctx, {}, None, None)
+    finally:
+        ctx.accel.close()
+    ph = ctx.caustic_map.photons
+    power = ph.power.astype(np.float64).mean(axis=1)
+    wall = ph.normal[:, 1] < -0.9  # the wall faces -y; floor photons face +z
+    return power.sum(), power[wall].sum(), ctx.plan
+
+
+def test_caustic_paths_split_between_aimed_and_global_photons_keep_their_power():
+    """Aimed at the ball only, the light the rough floor reflects onto the wall comes
+    from the global shot (render.py splits L S+ D paths by the object hit first): the
+    caustic map holds the power that unaimed caustic photons carry, in all and on the
+    wall (stored power: no density estimate in between)."""
+    s = _glossy_floor_scene()
+    total, wall, plan = _caustic_map_power(s, photons=200_000, caustic_photons=50_000)
+    assert plan.casters == ["ball"] and plan.rough_specular == ["floor"]
+    ref_total, ref_wall, _ = _caustic_map_power(s, photons=1000, caustic_photons=4_000_000,
+                                                aim_caustics=False)
+    assert ref_wall > 0.01 * ref_total  # the floor's reflection is really there
+    assert total == pytest.approx(ref_total, rel=0.03)
+    assert wall == pytest.approx(ref_wall, rel=0.08)
