@@ -27,13 +27,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 
-from scipy.spatial import cKDTree  # noqa: E402
-
 from engine import RenderSettings  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
-from engine.hashgrid import HashGrid  # noqa: E402
 from engine.jit import ensure_compiled  # noqa: E402
-from engine.kdtree import KdTree  # noqa: E402
 from engine.lights import allocate_photons  # noqa: E402
 from engine.photonmap import PhotonMap, auto_radius  # noqa: E402
 from engine.photons import Photons, trace_photons  # noqa: E402
