@@ -204,15 +204,6 @@ def warn_unsupported_visibility(obj, warnings: list):
                         "rendered as an ordinary object")
 
 
-def _warn_light_visibility(obj, warnings: list):
-    """Light objects' ray visibility is not honoured (only camera visibility is)."""
-    off = [f.replace("visible_", "") for f in VISIBILITY_FLAGS[1:4]
-           if not getattr(obj, f, True)]
-    if off:
-        warnings.append(f"light '{obj.name}': ray visibility {', '.join(off)} off is not "
-                        "supported; the light reaches every surface")
-
-
 # --- lights -------------------------------------------------------------------------
 
 def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
@@ -241,7 +232,8 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
         return None
     kw = dict(name=name, kind=kind, power=power, color=color, position=pos,
               direction=direction, axis_u=axis_u if np.linalg.norm(axis_u) > 1e-12 else (1, 0, 0),
-              visible_camera=bool(getattr(obj, "visible_camera", False)))
+              visible_camera=bool(getattr(obj, "visible_camera", False)),
+              **{flag: bool(getattr(obj, flag, True)) for flag in VISIBILITY_FLAGS[1:4]})
     if kind in ("POINT", "SPOT"):
         kw["radius"] = float(L.shadow_soft_size)
     if kind == "SPOT":
@@ -395,7 +387,6 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             light = convert_light(pm, obj, matrix, name, warnings)
             if light is not None:
                 lights.append(light)
-                _warn_light_visibility(obj, warnings)
             continue
         if otype == "CURVES" and obj.name not in hair_warned:
             hair_warned.add(obj.name)

@@ -22,7 +22,7 @@ from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
                        to_world)
-from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
+from .visibility import ALL_RAYS, CAMERA, DIFFUSE, SHADOW, continued_class
 
 
 @dataclass
@@ -83,6 +83,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     samples = []
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
+            continue
+        if not light.ray_kinds & SHADOW:  # the light object's diffuse visibility is off
             continue
         count = plan.light_samples.get(light.name, 1)
         traced = plan.shadows.get(light.name, True)
@@ -488,6 +490,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if bounce == 0 and not light.visible_camera:
                 continue
             mask, tl, L = light.intersect(o, d, t)
+            if L is not None and light.ray_kinds != ALL_RAYS:
+                mask &= (ray_cls & light.ray_kinds) != 0  # e.g. glossy off: not in mirrors
             if L is not None and mask.any():
                 acc.add(target, pix[mask], tp[mask] * L[mask])
                 t = np.where(mask, tl, t)

@@ -133,8 +133,11 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # below). `kinds` holds, per photon, the ray kinds for which the segment so far is a
     # valid camera-side ray: the surface it left sees them (the ray must hit it; a light
     # always does) and nothing in between that they see lies in the way.
-    vis_on = bool(getattr(accel, "has_invisible", False))
-    kinds = np.full(len(o), SEGMENT_KINDS, np.int64)
+    # The first segment also needs the light to be visible to the kind it stands for
+    # (Light.ray_kinds: a light object's diffuse / glossy / transmission visibility).
+    light_kinds = int(getattr(light, "ray_kinds", ALL_RAYS)) & SEGMENT_KINDS
+    vis_on = bool(getattr(accel, "has_invisible", False)) or light_kinds != SEGMENT_KINDS
+    kinds = np.full(len(o), light_kinds, np.int64)
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()

@@ -328,6 +328,11 @@ class Light:
     spread    area light: full angle in radians of its emission cone (Blender `spread`,
               default pi = Lambertian); narrower spreads attenuate as Cycles' soft-box grid
     visible_camera  lights are invisible to camera rays by default in Blender
+    visible_diffuse, visible_glossy, visible_transmission  the light object's ray
+              visibility with Cycles' meaning: diffuse off, no diffuse surface receives it
+              (no shadow-ray light, no direct photons, no photon that bounces diffusely at
+              its first hit); glossy / transmission off, not seen in mirrors / through glass
+              and no photon continues from it through a mirror / glass at its first hit
     cast_shadow  Blender's light 'Cast Shadow' (use_shadow): off, no object blocks the
               light's shadow rays (its direct light); photons are still blocked
     spot_frame optional (3,3): rows map a world direction leaving a spot light into its
@@ -355,6 +360,9 @@ class Light:
     normalize: bool = True
     spread: float = math.pi
     visible_camera: bool = False
+    visible_diffuse: bool = True
+    visible_glossy: bool = True
+    visible_transmission: bool = True
     cast_shadow: bool = True
     spot_frame: np.ndarray | None = None
     skew_axis_v: tuple | np.ndarray | None = None

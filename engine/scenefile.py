@@ -403,6 +403,7 @@ def _light(scene, spec, i):
     t = _Table(spec, where, {"type", "name", "position", "direction", "look_at", "power",
                              "strength", "color", "radius", "spot_size", "blend", "size",
                              "shape", "angle", "spread", "visible",
+                             "visible_diffuse", "visible_glossy", "visible_transmission",
                              "cast_shadow"})
     position = t.vec3("position", (0, 0, 0))
     if "look_at" in t:
@@ -426,4 +427,7 @@ def _light(scene, spec, i):
                           angle=math.radians(t.number("angle", 0.0, lo=0.0, hi=180.0)),
                           spread=math.radians(t.number("spread", 180.0, lo=0.0, hi=180.0)),
                           visible_camera=t.boolean("visible", False),
+                          visible_diffuse=t.boolean("visible_diffuse", True),
+                          visible_glossy=t.boolean("visible_glossy", True),
+                          visible_transmission=t.boolean("visible_transmission", True),
                           cast_shadow=t.boolean("cast_shadow", True)))

@@ -264,3 +264,36 @@ def test_shadow_invisible_surface_is_lit_and_bounces_light():
     unshadowing_top, _ = _blocker_room({"visible_camera": False, "visible_shadow": False})
     assert solid_top > 2 * ghost_top, (solid_top, ghost_top)
     assert abs(unshadowing_top / solid_top - 1) < 0.15, (unshadowing_top, solid_top)
+
+
+def _lamp_scene(**flags):
+    """A diffuse floor and a mirror panel under a visible area light with the given
+    light-object ray visibility flags; camera looking down at both."""
+    from engine.api import PaperScene
+    from engine.scene import Camera, Light, Material
+    s = PaperScene(width=48, height=32)
+    s.add_material(Material("matte", (0.6, 0.6, 0.6)))
+    s.add_material(Material("mirror", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.0))
+    s.add_plane((-1.0, 0, 0), (0, 0, 1), 2.0, "matte", name="floor")
+    s.add_plane((1.0, 0, 0), (0, 0, 1), 2.0, "mirror", name="mirror")
+    s.add_light(Light("panel", "AREA", 200.0, position=(0, 0, 2.0), direction=(0, 0, -1),
+                      size_x=1.0, size_y=1.0, **flags))
+    s.camera = Camera(position=(0, 0, 5), rotation=np.eye(3), kind="ORTHO", ortho_scale=4.0)
+    return s
+
+
+def test_light_object_ray_visibility():
+    """A light's diffuse visibility off: the matte floor gets no light from it (direct or
+    bounced); glossy off: the mirror no longer shows it; each flag alone leaves the other
+    surface as it was (Cycles' Object > Visibility > Ray Visibility on a light)."""
+    settings = RenderSettings(spp=4, photons=20_000, caustic_photons=10_000, seed=3)
+    base = _lamp_scene().render(settings)
+    no_diffuse = _lamp_scene(visible_diffuse=False).render(settings)
+    no_glossy = _lamp_scene(visible_glossy=False).render(settings)
+    floor, mirror = np.s_[:, :20], np.s_[:, 28:]
+    assert base.combined[floor].mean() > 0.05 and base.specular[mirror].max() > 1.0
+    assert no_diffuse.direct[floor].max() == 0.0
+    assert no_diffuse.combined[floor].mean() < 0.05 * base.combined[floor].mean()
+    np.testing.assert_allclose(no_diffuse.specular[mirror], base.specular[mirror])
+    assert no_glossy.specular[mirror].max() < 0.05 * base.specular[mirror].max()
+    np.testing.assert_allclose(no_glossy.direct[floor], base.direct[floor])

@@ -937,11 +937,28 @@ def light_cast_shadow_off():
     bpy.data.lights["Sun"].use_shadow = False
 
 
-@case("warned", status="warned", how="a light object's diffuse / glossy / transmission ray "
-      "visibility is ignored", warning="ray visibility")
-def warned_light_ray_visibility():
-    _vis_scene()
-    bpy.data.objects["Sun"].visible_glossy = False
+def _lamp_over_mirror():
+    """A matte floor with a mirror tile under an area light the camera sees in the tile."""
+    _stage(back=False)
+    mirror = mb.material("mirror", "principled", (0.9, 0.9, 0.9), roughness=0.0, metallic=1.0)
+    mb.plane("Mirror", 1.6, 1.6, mirror, (0.0, 0.5, 0.01))
+    mb.box("Cube", 0.6, 0.6, 0.6, _red(), (-1.4, 0.0, 0.3))
+    # Where the camera's mirror image looks through the tile: the panel shows in it.
+    return mb.light("Panel", "AREA", (0.0, 6.5, 2.6), 1500.0, look_at=(0.0, 0.5, 0.0),
+                    size=2.0)
+
+
+@case("visibility", block_tol=0.4)  # the panel's edge in the mirror: 100x the image mean
+def visibility_light_diffuse_off():
+    """The light object's diffuse visibility off: it lights no diffuse surface, yet the
+    mirror still shows it."""
+    _lamp_over_mirror().visible_diffuse = False
+
+
+@case("visibility")
+def visibility_light_glossy_off():
+    """The light object's glossy visibility off: gone from the mirror, the floor still lit."""
+    _lamp_over_mirror().visible_glossy = False
 
 
 @case("warned", status="warned", how="hair curves are skipped", warning="hair curves")

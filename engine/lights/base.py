@@ -17,7 +17,23 @@ from __future__ import annotations
 import math
 import numpy as np
 
+from ..geometry import ALL_RAYS, CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION
 from ..sampling import concentric_disk, dot, orthonormal_basis, to_world, uniform_cone
+
+
+def ray_kinds_of(light) -> int:
+    """Bits of the ray kinds a scene light (engine/scene.py Light) is visible to. Shadow
+    rays serve diffuse surfaces here (direct light is the diffuse lobe's), so they follow
+    the light's diffuse visibility, as Cycles' next-event estimation from a diffuse
+    closure does."""
+    bits = CAMERA if light.visible_camera else 0
+    if light.visible_diffuse:
+        bits |= DIFFUSE | SHADOW
+    if light.visible_glossy:
+        bits |= GLOSSY
+    if light.visible_transmission:
+        bits |= TRANSMISSION
+    return bits
 
 
 class Light:
@@ -28,6 +44,9 @@ class Light:
 
     kind: str = ""
     declared: bool = True
+    # The ray kinds (engine/geometry.py bits) that see this light; emissive meshes and the
+    # world keep all (a mesh's own visibility lives on its triangles).
+    ray_kinds: int = ALL_RAYS
 
     def __init__(self, name, **kw):
         self.name = name
@@ -44,6 +63,7 @@ class Light:
                     v=light.axis_v, du=du, dv=dv, radius=light.radius, spot_size=light.spot_size,
                     spot_blend=light.spot_blend, shape=light.shape, size_x=light.size_x,
                     size_y=light.size_y, spread=light.spread, visible_camera=light.visible_camera,
+                    ray_kinds=ray_kinds_of(light),
                     cos_half_angle=1.0, source=light)
 
     @classmethod
