@@ -19,7 +19,6 @@ from .scene import Material, Scene
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
 CAMERA, DIFFUSE, GLOSSY, TRANSMISSION, SHADOW = 1, 2, 4, 8, 16
 ALL_RAYS = CAMERA | DIFFUSE | GLOSSY | TRANSMISSION | SHADOW
-HOLDOUT_MATERIAL = "holdout (black)"
 
 # Material table columns (one row per material).
 MAT_FIELDS = ("metallic", "roughness", "transmission", "ior", "specular", "alpha")
@@ -166,9 +165,6 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
     """Merge the scene's meshes into one triangle table and re-centre it."""
     mat_names = list(scene.materials.keys())
     mats_list = [scene.materials[n] for n in mat_names]
-    if any(m.holdout for m in scene.meshes):
-        # Holdout surfaces are black to every ray but the camera's (which sees a hole).
-        mats_list.append(Material(HOLDOUT_MATERIAL, (0.0, 0.0, 0.0)))
     mat_index = {n: i for i, n in enumerate(mat_names)}
     table = MaterialTable.build(mats_list)
 
@@ -201,8 +197,6 @@ def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
         else:
             ccols.append(colors[f] if colors.ndim == 2 else colors)
         remap = np.array([mat_index[n] for n in mesh.materials], np.int32)
-        if mesh.holdout:
-            remap[:] = len(mats_list) - 1
         mats.append(remap[mesh.material_ids])
         objs.append(np.full(len(f), oi, np.int32))
         vis.append(np.full(len(f), mesh.visibility, np.uint8))

@@ -152,8 +152,10 @@ class Mesh:
               camera rays; shadow rays are the rays to lights; final-gather rays are
               diffuse rays; mirror / coat reflections are glossy, refractions transmission
               rays (docs/scene_format.md, "Ray visibility", also for photons).
-    holdout   the mesh cuts a hole in the image: camera rays that hit it give alpha 0 and
-              no colour; to every other ray it is a black surface (Cycles' holdout)
+    holdout   the mesh cuts a hole in the image: camera rays (and their continuations
+              through transparent surfaces) that hit it give alpha 0 and no colour; every
+              other ray sees its material, so it still bounces and reflects light (Cycles'
+              holdout applies only to rays that can reach the transparent background)
     shadow_terminator_offset  Cycles' object setting Shadow Terminator > Geometry Offset
               (`shadow_terminator_geometry_offset`, >= 0, Blender's default 0.1): shadow
               rays from smooth-shaded triangles at grazing light leave from the smooth

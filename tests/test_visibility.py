@@ -297,3 +297,23 @@ def test_light_object_ray_visibility():
     np.testing.assert_allclose(no_diffuse.specular[mirror], base.specular[mirror])
     assert no_glossy.specular[mirror].max() < 0.05 * base.specular[mirror].max()
     np.testing.assert_allclose(no_glossy.direct[floor], base.direct[floor])
+
+
+def test_holdout_still_bounces_light():
+    """Cycles' holdout cuts a hole for camera rays only: every other ray sees the object's
+    material, so the red wall made a holdout still tints the floor as before."""
+    plain = _room().render(_settings())
+    s = _room()
+    next(m for m in s.meshes if m.name == "wall").holdout = True
+    held = s.render(_settings())
+    seen_floor = (plain.alpha == 1) & (held.alpha == 1)
+    assert seen_floor.sum() > 100 and (held.alpha == 0).sum() > 100  # the wall is a hole
+
+    def redness(film):  # the red wall's bounce tints the white floor's indirect light
+        ind = film.indirect[seen_floor].mean(axis=0)
+        return ind[0] / ind[1], ind.mean()
+
+    (r_plain, m_plain), (r_held, m_held) = redness(plain), redness(held)
+    assert r_plain > 1.5, r_plain
+    assert abs(r_held / r_plain - 1) < 0.1, (r_plain, r_held)
+    assert abs(m_held / m_plain - 1) < 0.1, (m_plain, m_held)

@@ -1115,7 +1115,9 @@ def write_report(rows, path=DOC_PATH):
     for row in rows:
         c, s = row["case"], row["score"]
         status = c.status if not row["fails"] else "not yet"
-        note = c.how or (c.build.__doc__ or "").strip().split("\n")[0]
+        note = c.how or " ".join((c.build.__doc__ or "").split())
+        if c.known_issue:
+            note = c.known_issue
         if row["fails"]:
             note = (note + " " if note else "") + "(" + "; ".join(row["fails"]) + ")"
         if s is None:
