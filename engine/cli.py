@@ -14,6 +14,8 @@ import signal
 import sys
 import threading
 
+import numpy as np
+
 from .settings import ESTIMATORS, RenderSettings
 
 
@@ -250,7 +252,10 @@ def _render(args) -> int:
             "photonmap:settings": repr(settings)}
     if partial is not None:
         meta["photonmap:partial"] = f"interrupted: {partial}"
-    write_image(film.combined, args.output, args.exposure, metadata=meta)
+    # RGBA where the image has transparency to carry (a transparent film, holdouts), as
+    # Blender writes it; .ppm has no alpha channel.
+    alpha = film.alpha if (settings.film_transparent or bool(np.any(film.holdout > 0))) else None
+    write_image(film.combined, args.output, args.exposure, metadata=meta, alpha=alpha)
     if partial is not None:
         print(f"photonmap: interrupted: wrote the partial image to '{args.output}' ({partial}; "
               "marked 'photonmap:partial' in its metadata)", file=sys.stderr)

@@ -174,3 +174,57 @@ def test_cli_ctrl_c_in_a_progressive_render_keeps_the_finished_passes(tmp_path):
     passes = int(note.split()[1])
     assert 2 <= passes < 500
     assert img.max() > 0  # the average of the finished passes, not a black frame
+
+
+def test_cli_writes_alpha_for_a_transparent_film_and_holdouts(tmp_path):
+    """photonmap render: film_transparent / holdout objects give an RGBA PNG and an EXR
+    with an A channel, alpha 0 where the background or a holdout is seen."""
+    from PIL import Image
+    scene = tmp_path / "t.toml"
+    scene.write_text("""
+[render]
+width = 24
+height = 16
+spp = 1
+photons = 2000
+caustic_photons = 0
+film_transparent = true
+
+[camera]
+position = [0, -4, 1]
+look_at = [0, 0, 0.5]
+fov = 40
+
+[[objects]]
+type = "plane"
+center = [0, 0, 0]
+size = 20
+
+[[objects]]
+type = "box"
+center = [0, 0, 0.5]
+size = [0.5, 0.5, 0.5]
+holdout = true
+
+[[lights]]
+type = "point"
+position = [0, -1, 3]
+power = 300
+""")
+    for ext in (".png", ".exr"):
+        out = tmp_path / f"o{ext}"
+        res = subprocess.run([sys.executable, "-m", "engine.cli", "render", str(scene), "-o",
+                              str(out), "--quiet"], capture_output=True, text=True, cwd=ROOT,
+                             timeout=300)
+        assert res.returncode == 0, res.stderr
+        if ext == ".png":
+            img = np.asarray(Image.open(out))
+            assert img.shape == (16, 24, 4)
+            alpha = img[..., 3] / 255.0
+        else:
+            import OpenEXR
+            with OpenEXR.File(str(out), separate_channels=True) as f:
+                alpha = np.asarray(f.channels()["A"].pixels)
+        assert alpha[0].max() == 0.0           # sky above the plane: transparent
+        assert alpha[-1].min() == 1.0          # the plane in front of the box: opaque
+        assert alpha[8, 12] == 0.0             # the holdout box in the middle: a hole
