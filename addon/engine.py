@@ -139,8 +139,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         view_layer = depsgraph.view_layer
         self._stats("Loading engine")
         pm = load_engine()
-        if pm.jit.needs_compile():  # seconds, once per machine: say why the render waits
-            self.update_stats("", pm.jit.COMPILE_MESSAGE)
+        if pm.jit.needs_compile():  # ~20 s, once per machine: say why the render waits
+            self._stats(pm.jit.COMPILE_MESSAGE)  # stats line and the batch command's bar
             print(f"Photon Mapping: {pm.jit.COMPILE_MESSAGE}", flush=True)
         pm.jit.ensure_compiled()
 
