@@ -240,6 +240,8 @@ def _render_still(bpy, scene, out, quiet):
         with interrupt:
             bpy.ops.render.render(write_still=False)
     except RuntimeError as exc:
+        if interrupt.requested:  # a second SIGINT landed inside Blender's render call
+            raise BatchInterrupted(f"interrupted: render cancelled; {_untouched(out)}") from None
         msg = " ".join(str(exc).replace("Error:", "").split())
         raise BatchError(f"render failed: {msg}; {_untouched(out)}") from None
     finally:
