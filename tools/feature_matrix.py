@@ -447,7 +447,12 @@ def _textured_tile(img, extension="REPEAT", interpolation="Linear", uv_min=(0.0,
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
     nt.links.new(tex.outputs["Color"], d.inputs["Color"])
     nt.links.new(d.outputs[0], out.inputs["Surface"])
-    ob = mb.plane("Tile", size, size, m, (0, 0, 0.01))
+    return _uv_tile(m, uv_min, uv_max, size)
+
+
+def _uv_tile(material, uv_min=(0.0, 0.0), uv_max=(1.0, 1.0), size=3.0):
+    """A 'Tile' plane on the stage with `material`; its UVs run from uv_min to uv_max."""
+    ob = mb.plane("Tile", size, size, material, (0, 0, 0.01))
     uvl = ob.data.uv_layers.new(name="UVMap")
     (u0, v0), (u1, v1) = uv_min, uv_max
     corners = [(u0, v0), (u1, v0), (u1, v1), (u0, v1)]  # plane vertex order
@@ -586,11 +591,7 @@ def texture_normal_map():
     nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
     nt.links.new(nmap.outputs["Normal"], d.inputs["Normal"])
     nt.links.new(d.outputs[0], out.inputs["Surface"])
-    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
-    uvl = ob.data.uv_layers.new(name="UVMap")
-    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
-    for loop in ob.data.loops:
-        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _uv_tile(m)
     _sun(rotation=(0, math.radians(70), 0))
 
 
@@ -613,11 +614,7 @@ def texture_bump():
     nt.links.new(tex.outputs["Color"], bump.inputs["Height"])
     nt.links.new(bump.outputs["Normal"], d.inputs["Normal"])
     nt.links.new(d.outputs[0], out.inputs["Surface"])
-    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
-    uvl = ob.data.uv_layers.new(name="UVMap")
-    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
-    for loop in ob.data.loops:
-        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _uv_tile(m)
     _sun(rotation=(0, math.radians(70), 0))
 
 
@@ -645,11 +642,7 @@ def texture_gradient_hue():
     L(mix.outputs["Result"], hsv.inputs["Color"])
     L(hsv.outputs["Color"], d.inputs["Color"])
     L(d.outputs[0], out.inputs["Surface"])
-    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
-    uvl = ob.data.uv_layers.new(name="UVMap")
-    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
-    for loop in ob.data.loops:
-        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _uv_tile(m)
     _sun()
 
 
@@ -693,11 +686,7 @@ def texture_procedural_checker():
     nt.links.new(coord.outputs["UV"], chk.inputs["Vector"])
     nt.links.new(chk.outputs["Color"], d.inputs["Color"])
     nt.links.new(d.outputs[0], out.inputs["Surface"])
-    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
-    uvl = ob.data.uv_layers.new(name="UVMap")
-    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
-    for loop in ob.data.loops:
-        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _uv_tile(m)
     _sun()
 
 
@@ -742,11 +731,7 @@ def texture_node_tree():
     L(mix.outputs["Result"], inv.inputs["Color"])
     L(inv.outputs["Color"], d.inputs["Color"])
     L(d.outputs[0], out.inputs["Surface"])
-    ob = mb.plane("Tile", 3, 3, m, (0, 0, 0.01))
-    uvl = ob.data.uv_layers.new(name="UVMap")
-    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
-    for loop in ob.data.loops:
-        uvl.data[loop.index].uv = corners[loop.vertex_index]
+    _uv_tile(m)
     _sun()
 
 
