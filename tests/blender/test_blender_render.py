@@ -159,8 +159,9 @@ def test_example_blend_renders(bpy_addon, tmp_path, name):
     assert img.shape == (240, 320, 4) and np.all(np.isfinite(img))
     assert img[..., :3].mean() > 0.01
     assert not engine.last_render["cancelled"]
-    engine_time = engine.last_render["stats"]["time_total"]  # excludes file I/O
-    assert engine_time < 60.0, f"{name}: engine took {engine_time:.1f} s ({elapsed:.1f} s total)"
+    # Speed is the benchmarks' business (bench/), not a test's: report it only.
+    print(f"{name}: engine {engine.last_render['stats']['time_total']:.1f} s "
+          f"({elapsed:.1f} s with file I/O)")
     EXAMPLES[name](bpy, scene, layers)
 
 
