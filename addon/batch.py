@@ -61,7 +61,7 @@ class _StatusPrinter:
         if self.bar is None and not self.quiet:
             from tqdm import tqdm
             self.bar = tqdm(total=1000, desc="Starting", file=self.stream, unit="",
-                            bar_format="{desc:<40.40}{bar}| {percentage:3.0f}% "
+                            bar_format="{desc:<46.46}{bar}| {percentage:3.0f}% "
                                        "[{elapsed}<{remaining}]")
         return self.bar
 
