@@ -19,14 +19,22 @@ import numpy as np
 from .settings import ESTIMATORS, RenderSettings
 
 
-def _positive_int(text):
+def _whole_number(text, least):
     try:
         v = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got '{text}'") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
+    if v < least:
+        raise argparse.ArgumentTypeError(f"must be >= {least}, got {v}")
     return v
+
+
+def _nonnegative_int(text):
+    return _whole_number(text, 0)
+
+
+def _positive_int(text):
+    return _whole_number(text, 1)
 
 
 def _finite_float(text):
@@ -62,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--progressive", action="store_true",
                    help="render passes of fresh photons with a shrinking search area until "
                         "a budget (--passes / --time-limit / --target-error) is reached")
-    r.add_argument("--passes", type=_positive_int, help="progressive: stop after N passes")
+    r.add_argument("--passes", type=_nonnegative_int, help="progressive: stop after N passes")
     r.add_argument("--time-limit", type=_positive_float, help="progressive: stop within T seconds")
     r.add_argument("--target-error", type=_positive_float,
                    help="progressive: stop when the estimated relMSE is below this")
@@ -70,18 +78,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="progressive passes on a Dask cluster: local:W (W worker processes "
                         "here) or tcp://HOST:8786 (a running scheduler); same image as without "
                         "(docs/distributed.md)")
-    r.add_argument("--photons", type=_positive_int, help="global photons to emit")
-    r.add_argument("--caustic-photons", type=_positive_int, help="caustic photons to emit")
+    r.add_argument("--photons", type=_nonnegative_int, help="global photons to emit")
+    r.add_argument("--caustic-photons", type=_nonnegative_int, help="caustic photons to emit")
     r.add_argument("--radius", type=_positive_float, help="max photon search radius (default: auto)")
-    r.add_argument("--min-photons", type=_positive_int, help="fewer photons found -> no estimate")
+    r.add_argument("--min-photons", type=_nonnegative_int, help="fewer photons found -> no estimate")
     r.add_argument("--k", dest="k_nearest", type=_positive_int, help="photons per k-NN estimate")
     r.add_argument("--estimator", choices=ESTIMATORS, help="radiance estimator")
     r.add_argument("--spp", type=_positive_int, help="camera samples per pixel")
-    r.add_argument("--max-depth", type=_positive_int, help="max specular bounces of camera rays")
-    r.add_argument("--max-photon-depth", type=_positive_int, help="max photon bounces")
+    r.add_argument("--max-depth", type=_nonnegative_int, help="max specular bounces of camera rays")
+    r.add_argument("--max-photon-depth", type=_nonnegative_int, help="max photon bounces")
     r.add_argument("--light-samples", type=_positive_int, help="shadow rays per area light")
-    r.add_argument("--seed", type=_positive_int, help="random seed (same seed, same image)")
-    r.add_argument("--workers", type=_positive_int, help="threads (0 = all cores)")
+    r.add_argument("--seed", type=_nonnegative_int, help="random seed (same seed, same image)")
+    r.add_argument("--workers", type=_nonnegative_int, help="threads (0 = all cores)")
     r.add_argument("--width", type=_positive_int, help="image width (overrides the file)")
     r.add_argument("--height", type=_positive_int, help="image height (overrides the file)")
     r.add_argument("--no-photon-mapping", action="store_true",
@@ -164,9 +172,9 @@ def _render(args) -> int:
     scene, file_overrides = load_scene(args.scene)
     overrides = presets.apply(args.preset) if args.preset else {}
     overrides.update(file_overrides)
-    if args.width:
+    if args.width is not None:
         scene.width = args.width
-    if args.height:
+    if args.height is not None:
         scene.height = args.height
     for name in ("photons", "caustic_photons", "radius", "min_photons", "k_nearest", "estimator",
                  "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers"):

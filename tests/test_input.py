@@ -101,6 +101,10 @@ def test_cli_renders_and_reports_errors(tmp_path):
     assert r.returncode == 2 and "--spp" in r.stderr
     r = run_cli("render", "scenes/figure3.toml", "-o", str(tmp_path / "x.gif"))
     assert r.returncode == 1 and "x.gif" in r.stderr
+    # Zero where only a positive value makes sense is refused, not silently replaced.
+    for option in ("--width", "--height", "--spp", "--light-samples"):
+        r = run_cli("render", "scenes/figure3.toml", "-o", str(out), option, "0")
+        assert r.returncode == 2 and option in r.stderr and "must be >= 1" in r.stderr, option
 
 
 @pytest.mark.parametrize("ext", [".png", ".exr", ".ppm", ".npy"])
