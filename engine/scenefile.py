@@ -405,6 +405,12 @@ def _light(scene, spec, i):
                              "shape", "angle", "spread", "visible",
                              "visible_diffuse", "visible_glossy", "visible_transmission",
                              "cast_shadow"})
+    # Keys that only one kind reads: anywhere else they would be silently ignored.
+    for key, only in (("spread", "area"), ("shape", "area"), ("spot_size", "spot"),
+                      ("blend", "spot"), ("angle", "sun")):
+        if key in t and kind != only:
+            raise SceneFileError(f"{where}: '{key}' applies to {only} lights only, not to a "
+                                 f"{kind} light")
     position = t.vec3("position", (0, 0, 0))
     if "look_at" in t:
         direction = t.vec3("look_at") - position
