@@ -236,7 +236,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             what = {SUN: "sun of angle 0", AREA: "area light"}.get(li.kind, f"{li.kind.lower()} light of radius 0")
             why = f"'{li.name}' is a {what}: one shadow ray per sample"
         plan.add(f"soft shadows '{li.name}'", sized, why)
-        casts = bool(getattr(getattr(li, "source", None), "cast_shadow", True))
+        casts = li.source is None or li.source.cast_shadow
         if not casts:
             plan.add(f"shadow rays '{li.name}'", False, "the light's 'Cast Shadow' is off")
         plan.shadows[li.name] = casts and not nothing_occludes

@@ -22,7 +22,7 @@ from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
                        to_world)
-from .visibility import ALL_RAYS, CAMERA, DIFFUSE, SHADOW, continued_class
+from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
 
 
 @dataclass
@@ -95,9 +95,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             samples.append((li, traced, count, u1, u2, sel))
     if n == 0 or not samples:
         return np.zeros((n, 3))
-    packed = getattr(ctx, "packed_lights", None)
-    if packed is None:
-        packed = pack_lights(ctx.lights)
+    packed = ctx.packed_lights or pack_lights(ctx.lights)
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n)
     counters.shadow_rays += rays
     return E
@@ -485,14 +483,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             raise Cancelled()
         target = "emission" if bounce == 0 else "specular"
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
-        # Light surfaces: invisible to camera rays unless asked, seen in mirrors and glass.
+        # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
+        # by default not camera rays, but mirrors and glass).
         for light in ctx.lights:
-            if bounce == 0 and not light.visible_camera:
+            sees = (ray_cls & light.ray_kinds) != 0
+            if not sees.any():
                 continue
             mask, tl, L = light.intersect(o, d, t)
-            if L is not None and light.ray_kinds != ALL_RAYS:
-                mask &= (ray_cls & light.ray_kinds) != 0  # e.g. glossy off: not in mirrors
             if L is not None and mask.any():
+                mask &= sees
                 acc.add(target, pix[mask], tp[mask] * L[mask])
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light

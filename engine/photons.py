@@ -135,7 +135,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # always does) and nothing in between that they see lies in the way.
     # The first segment also needs the light to be visible to the kind it stands for
     # (Light.ray_kinds: a light object's diffuse / glossy / transmission visibility).
-    light_kinds = int(getattr(light, "ray_kinds", ALL_RAYS)) & SEGMENT_KINDS
+    light_kinds = int(light.ray_kinds) & SEGMENT_KINDS
     vis_on = bool(getattr(accel, "has_invisible", False)) or light_kinds != SEGMENT_KINDS
     kinds = np.full(len(o), light_kinds, np.int64)
     for bounce in range(settings.max_photon_depth):

@@ -47,6 +47,7 @@ class Light:
     # The ray kinds (engine/geometry.py bits) that see this light; emissive meshes and the
     # world keep all (a mesh's own visibility lives on its triangles).
     ray_kinds: int = ALL_RAYS
+    source = None  # the scene's Light (engine/scene.py) a declared light was made from
 
     def __init__(self, name, **kw):
         self.name = name
@@ -62,7 +63,7 @@ class Light:
         return dict(common, pos=light.position - geo.offset, dir=light.direction, u=light.axis_u,
                     v=light.axis_v, du=du, dv=dv, radius=light.radius, spot_size=light.spot_size,
                     spot_blend=light.spot_blend, shape=light.shape, size_x=light.size_x,
-                    size_y=light.size_y, spread=light.spread, visible_camera=light.visible_camera,
+                    size_y=light.size_y, spread=light.spread,
                     ray_kinds=ray_kinds_of(light),
                     cos_half_angle=1.0, source=light)
 

@@ -34,7 +34,7 @@ class MeshLight(Light):
         flux = (2.0 * math.pi * area[:, None] * L).sum(axis=0)
         return cls("emissive meshes", v0=geo.v0[idx], e1=geo.e1[idx], e2=geo.e2[idx],
                    tri_ng=geo.ng[idx], tri_L=L, tri_area=area, prob=prob, cdf=cdf,
-                   tri_index=idx, photon_flux=flux, flux=flux, radius=0.0, visible_camera=True,
+                   tri_index=idx, photon_flux=flux, flux=flux, radius=0.0,
                    round32=geo.round32[idx], tilt32=geo.tilt32[idx],
                    cos_half_angle=1.0, **common)
 

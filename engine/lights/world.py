@@ -26,7 +26,7 @@ class WorldLight(InfiniteLight):
         radius = common["scene_radius"]
         return cls("world", radiance=bg,
                    photon_flux=bg * math.pi * radius ** 2 * 4.0 * math.pi,
-                   radius=0.0, visible_camera=True, cos_half_angle=1.0, **common)
+                   radius=0.0, cos_half_angle=1.0, **common)
 
     def pack(self, row) -> int:
         """Write the kernel parameters (engine/lights/packing.py); returns the kind code."""
