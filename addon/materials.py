@@ -4,7 +4,7 @@ Supported: Principled BSDF, Diffuse, Glossy, Glass, Refraction, Emission, Transp
 Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
 tiles), a Color Attribute, an RGB / Value node, or a tree of the colour nodes in
 engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
-Separate/Combine, Checker and Gradient textures) on colour inputs, and a
+Separate/Combine, Checker, Gradient, Noise and Voronoi textures) on colour inputs, and a
 Normal Map node (tangent or world space) fed by an Image Texture or a Bump node on
 'Normal' inputs. Anything else falls back to its nearest approximation (the
 material's viewport colour when nothing else is known) and is reported once per material
@@ -528,7 +528,27 @@ class MaterialConverter:
                               self._input(n, n.inputs["Color2"], depth),
                               self._input(n, n.inputs["Scale"], depth),
                               output="FAC" if oname == "Fac" else "COLOR")
+        if t in ("TEX_NOISE", "TEX_VORONOI"):
+            return self._procedural(n, oname, depth)
         return None
+
+    def _procedural(self, n, oname, depth):
+        """Noise or Voronoi Texture node: evaluated per hit (engine/procedural.py)."""
+        sn = self.pm.shadernodes
+        vec = self._vector(n, "Vector", depth)
+        if vec is None:
+            vec = self._coordinates("generated")  # procedural textures' default
+        noise = n.type == "TEX_NOISE"
+        names = sn.Noise.SOCKETS if noise else sn.Voronoi.SOCKETS
+        inputs = {k: self._input(n, n.inputs[k], depth) for k in names if k in n.inputs}
+        if noise:
+            return sn.Noise(vec, inputs, dims=int(n.noise_dimensions[0]),
+                            kind=getattr(n, "noise_type", "FBM"),
+                            normalize=getattr(n, "normalize", True),
+                            output="FAC" if oname in ("Fac", "Factor") else "COLOR")
+        return sn.Voronoi(vec, inputs, dims=int(n.voronoi_dimensions[0]), feature=n.feature,
+                          metric=n.distance, normalize=getattr(n, "normalize", False),
+                          output=oname.upper())
 
     def _coordinates(self, name):
         self.coordinate_users.add(self._mat.name)

@@ -345,3 +345,100 @@ class Gradient:
             f = r * r if k == "QUADRATIC_SPHERE" else r
         f = np.clip(f, 0.0, 1.0)
         return f if self.output == "FAC" else np.repeat(f[:, None], 3, axis=1)
+
+
+class Noise:
+    """Noise Texture node (Cycles svm_node_tex_noise; kernels in engine/procedural.py).
+
+    vector  coordinates node (N,3) (the add-on passes Generated when unlinked)
+    inputs  dict of socket values or nodes: W, Scale, Detail, Roughness, Lacunarity,
+            Offset, Gain, Distortion
+    dims    1-4 (Blender's noise_dimensions), kind one of procedural.NOISE_TYPES,
+    normalize (fBM only), output FAC (the value) or COLOR."""
+
+    SOCKETS = ("W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain",
+               "Distortion")
+    DEFAULTS = {"W": 0.0, "Scale": 5.0, "Detail": 2.0, "Roughness": 0.5, "Lacunarity": 2.0,
+                "Offset": 0.0, "Gain": 1.0, "Distortion": 0.0}
+
+    def __init__(self, vector, inputs=None, dims=3, kind="FBM", normalize=True,
+                 output="FAC"):
+        from . import procedural
+        if dims not in (1, 2, 3, 4):
+            raise ValueError(f"Noise Texture dimensions: expected 1-4, got {dims!r}")
+        if kind not in procedural.NOISE_TYPES:
+            raise ValueError(f"Noise Texture type {kind!r}: expected one of "
+                             f"{procedural.NOISE_TYPES}")
+        self.vector, self.dims, self.kind = vector, int(dims), kind
+        self.inputs = {**self.DEFAULTS, **(inputs or {})}
+        self.normalize, self.output = bool(normalize), output
+        self._offsets = procedural.noise_offsets(self.dims)
+
+    def evaluate(self, geo, prim, u, v):
+        from . import procedural
+        n = len(prim)
+        pts = (_eval(self.vector, geo, prim, u, v, 3) if self.dims > 1
+               else np.zeros((n, 3)))
+        ins = [np.ascontiguousarray(_eval(self.inputs[k], geo, prim, u, v, 1))
+               for k in self.SOCKETS]
+        value = np.empty(n)
+        color = np.empty((n, 3))
+        want_color = self.output == "COLOR"
+        # Socket order of the kernel: scale, w, detail, roughness, lacunarity, offset,
+        # gain, distortion.
+        procedural.noise_texture(self.dims, procedural.NOISE_TYPES.index(self.kind),
+                                 self.normalize, np.ascontiguousarray(pts), ins[1], ins[0],
+                                 ins[2], ins[3], ins[4], ins[5], ins[6], ins[7],
+                                 self._offsets, want_color, value, color)
+        return color if want_color else value
+
+
+class Voronoi:
+    """Voronoi Texture node (Cycles svm_node_tex_voronoi; kernels in
+    engine/procedural.py).
+
+    vector  coordinates node (N,3) (Generated when unlinked)
+    inputs  dict of socket values or nodes: W, Scale, Detail, Roughness, Lacunarity,
+            Smoothness, Exponent, Randomness
+    dims 1-4, feature one of procedural.VORONOI_FEATURES, metric one of
+    procedural.VORONOI_METRICS, normalize; output DISTANCE, COLOR, POSITION, W or RADIUS."""
+
+    SOCKETS = ("W", "Scale", "Detail", "Roughness", "Lacunarity", "Smoothness", "Exponent",
+               "Randomness")
+    DEFAULTS = {"W": 0.0, "Scale": 5.0, "Detail": 0.0, "Roughness": 0.5, "Lacunarity": 2.0,
+                "Smoothness": 1.0, "Exponent": 0.5, "Randomness": 1.0}
+    OUTPUTS = ("DISTANCE", "COLOR", "POSITION", "W", "RADIUS")
+
+    def __init__(self, vector, inputs=None, dims=3, feature="F1", metric="EUCLIDEAN",
+                 normalize=False, output="DISTANCE"):
+        from . import procedural
+        if dims not in (1, 2, 3, 4):
+            raise ValueError(f"Voronoi Texture dimensions: expected 1-4, got {dims!r}")
+        if feature not in procedural.VORONOI_FEATURES:
+            raise ValueError(f"Voronoi Texture feature {feature!r}: expected one of "
+                             f"{procedural.VORONOI_FEATURES}")
+        if metric not in procedural.VORONOI_METRICS:
+            raise ValueError(f"Voronoi Texture distance {metric!r}: expected one of "
+                             f"{procedural.VORONOI_METRICS}")
+        if output not in self.OUTPUTS:
+            raise ValueError(f"Voronoi Texture output {output!r}: expected one of "
+                             f"{self.OUTPUTS}")
+        self.vector, self.dims, self.feature, self.metric = vector, int(dims), feature, metric
+        self.inputs = {**self.DEFAULTS, **(inputs or {})}
+        self.normalize, self.output = bool(normalize), output
+
+    def evaluate(self, geo, prim, u, v):
+        from . import procedural
+        n = len(prim)
+        pts = (_eval(self.vector, geo, prim, u, v, 3) if self.dims > 1
+               else np.zeros((n, 3)))
+        ins = [np.ascontiguousarray(_eval(self.inputs[k], geo, prim, u, v, 1))
+               for k in self.SOCKETS]
+        dist, w_out, radius = np.zeros(n), np.zeros(n), np.zeros(n)
+        color, position = np.zeros((n, 3)), np.zeros((n, 3))
+        procedural.voronoi_texture(
+            self.dims, procedural.VORONOI_FEATURES.index(self.feature),
+            procedural.VORONOI_METRICS.index(self.metric), self.normalize,
+            np.ascontiguousarray(pts), *ins, dist, color, position, w_out, radius)
+        return {"DISTANCE": dist, "COLOR": color, "POSITION": position, "W": w_out,
+                "RADIUS": radius}[self.output]

@@ -691,6 +691,80 @@ def texture_procedural_checker():
 
 
 @case("textures")
+def texture_noise():
+    """Noise Texture (fBM, 3D, scale 2.5, detail 3, distortion 0.4) colour on a plane's
+    Generated coordinates, and its factor through a Color Ramp on a box (Object
+    coordinates, 4D with W 0.7, ridged multifractal): the pattern must sit where Cycles
+    puts it, which only an exact port of its hash and noise achieves."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("noise")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 2.5
+    noise.inputs["Detail"].default_value = 3.0
+    noise.inputs["Distortion"].default_value = 0.4
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(noise.outputs["Color"], d.inputs["Color"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    m2, nt2, out2 = _nodes_material("ridged")
+    coord = nt2.nodes.new("ShaderNodeTexCoord")
+    n2 = nt2.nodes.new("ShaderNodeTexNoise")
+    n2.noise_dimensions = "4D"
+    n2.noise_type = "RIDGED_MULTIFRACTAL"
+    n2.inputs["W"].default_value = 0.7
+    n2.inputs["Scale"].default_value = 1.5
+    ramp = nt2.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.05, 0.1, 0.4, 1.0)
+    ramp.color_ramp.elements[1].color = (0.9, 0.8, 0.3, 1.0)
+    d2 = nt2.nodes.new("ShaderNodeBsdfDiffuse")
+    nt2.links.new(coord.outputs["Object"], n2.inputs["Vector"])
+    nt2.links.new(n2.outputs[0], ramp.inputs["Fac"])
+    nt2.links.new(ramp.outputs["Color"], d2.inputs["Color"])
+    nt2.links.new(d2.outputs[0], out2.inputs["Surface"])
+    mb.box("Block", 1.0, 1.0, 1.0, m2, (0.6, 0.6, 0.5), (0, 0, math.radians(30)))
+    _sun()
+
+
+@case("textures")
+def texture_voronoi():
+    """Voronoi Texture: F1 cell colours (3D, scale 3) on a plane's Generated coordinates;
+    on a box, Smooth F1 distance (Manhattan, 2D on UV, scale 4) and F2 distance (1.5
+    octaves), both normalised, multiplied together (kept below 1: albedo)."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("cells")
+    vor = nt.nodes.new("ShaderNodeTexVoronoi")
+    vor.inputs["Scale"].default_value = 3.0
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(vor.outputs["Color"], d.inputs["Color"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    m2, nt2, out2 = _nodes_material("smooth")
+    coord = nt2.nodes.new("ShaderNodeTexCoord")
+    v1 = nt2.nodes.new("ShaderNodeTexVoronoi")
+    v1.voronoi_dimensions = "2D"
+    v1.feature = "SMOOTH_F1"
+    v1.distance = "MANHATTAN"
+    v1.inputs["Scale"].default_value = 4.0
+    v1.normalize = True
+    v2 = nt2.nodes.new("ShaderNodeTexVoronoi")
+    v2.normalize = True
+    v2.feature = "F2"
+    v2.inputs["Detail"].default_value = 1.5
+    v2.inputs["Scale"].default_value = 2.0
+    mul = nt2.nodes.new("ShaderNodeMath")
+    mul.operation = "MULTIPLY"
+    d2 = nt2.nodes.new("ShaderNodeBsdfDiffuse")
+    L = nt2.links.new
+    L(coord.outputs["UV"], v1.inputs["Vector"])
+    L(v1.outputs["Distance"], mul.inputs[0])
+    L(v2.outputs["Distance"], mul.inputs[1])
+    L(mul.outputs[0], d2.inputs["Color"])
+    L(d2.outputs[0], out2.inputs["Surface"])
+    mb.box("Block", 1.0, 1.0, 1.0, m2, (0.6, 0.6, 0.5), (0, 0, math.radians(30)))
+    _sun()
+
+
+@case("textures")
 def texture_node_tree():
     """What real trees put between textures and a BSDF: UV -> Mapping (scale 2, shift) ->
     Image; a Checker's factor through a Color Ramp (constant stops); Mix Color Multiply of
