@@ -172,7 +172,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                                      in_blender=True)
 
         def progress(stage, fraction, text):
-            self._progress(_overall_fraction(stage, fraction, settings.photon_mapping))
+            self._progress(_overall_fraction(stage, fraction, settings.uses_photon_maps))
             now = time.perf_counter()
             if now - self._last_stats > 0.1 or fraction >= 1.0:
                 self._last_stats = now
