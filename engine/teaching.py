@@ -115,13 +115,15 @@ def _photons_stored(stats) -> int:
     return int(stats.get("global_photons", 0) or 0) + int(stats.get("caustic_photons", 0) or 0)
 
 
-def _render_timed(scene, settings, progress, should_cancel, prefix):
+def _render_timed(scene, settings, progress, should_cancel, prefix, part=(0, 1)):
+    """Render; the time without the kernel compile. part = (index, count) of this render
+    in its series: progress reports the fraction of the whole series."""
     from .parallel import Cancelled
     from .render import render
 
     def step(stage, fraction, text):
         if progress is not None:
-            progress(stage, fraction, f"{prefix}: {text}")
+            progress(stage, (part[0] + fraction) / part[1], f"{prefix}: {text}")
 
     t0 = time.perf_counter()
     film = render(scene, settings, progress=step, should_cancel=should_cancel)
@@ -143,7 +145,8 @@ def compare_methods(scene, settings: RenderSettings, progress=None,
     for method in METHODS:
         s = replace(settings, method=method, photon_mapping=True,
                     show_photons=(method == "photon"))
-        films[method] = _render_timed(scene, s, progress, should_cancel, METHOD_TITLES[method])
+        films[method] = _render_timed(scene, s, progress, should_cancel, METHOD_TITLES[method],
+                                      (METHODS.index(method), len(METHODS)))
     ref = effects_sum(films["photon"][0])
     tiles = []
     for method in METHODS:
@@ -243,7 +246,7 @@ def sweep(scene, settings: RenderSettings, params: dict, reference: np.ndarray |
         s = replace(settings, **changes)  # __post_init__ checks the ranges
         title = ", ".join(_param_text(n, v[i]) for n, v in params.items())
         film, seconds = _render_timed(scene, s, progress, should_cancel,
-                                      f"{i + 1}/{count} {title}")
+                                      f"{i + 1}/{count} {title}", (i, count))
         rungs.append((title, effects_sum(film), seconds, film.stats))
     ref = reference if reference is not None else rungs[-1][1]
     tiles = []
