@@ -163,8 +163,8 @@ def compare_methods(scene, settings: RenderSettings, progress=None,
                                 diff], seconds, stats=dict(film.stats)))
     film, _ = films["photon"]
     tiles.append(Tile(np.asarray(film.photon_hits, np.float32),
-                      ["Photon hits", f"{_photons_stored(film.stats):,} stored",
-                       f"of {_photons_emitted(film.stats):,} emitted"], stats=dict(film.stats)))
+                      ["Photon hits", f"{_photons_stored(film.stats):,} hits stored",
+                       f"from {_photons_emitted(film.stats):,} photons"], stats=dict(film.stats)))
     return tiles
 
 
@@ -175,7 +175,7 @@ def parse_param(text: str):
     name = name.strip()
     name = SWEEP_ALIASES.get(name, name)
     if not sep or name not in SWEEP_PARAMS:
-        raise ValueError(f"--param '{text}': expected NAME=V1,V2,... with NAME one of "
+        raise ValueError(f"sweep parameter '{text}': expected NAME=V1,V2,... with NAME one of "
                          f"{', '.join(SWEEP_PARAMS)}")
     kind = SWEEP_PARAMS[name][1]
     out = []
@@ -186,13 +186,13 @@ def parse_param(text: str):
             if kind is int and float(part) != int(float(part)):
                 raise ValueError
         except ValueError:
-            raise ValueError(f"--param '{text}': '{part}' is not a "
+            raise ValueError(f"sweep parameter '{text}': '{part}' is not a "
                              f"{'number' if kind is float else 'whole number'}") from None
         if not math.isfinite(v):
-            raise ValueError(f"--param '{text}': '{part}' is not finite")
+            raise ValueError(f"sweep parameter '{text}': '{part}' is not finite")
         out.append(v)
     if not out:
-        raise ValueError(f"--param '{text}': no values")
+        raise ValueError(f"sweep parameter '{text}': no values")
     return name, out
 
 
@@ -284,9 +284,13 @@ def label_font_size(tile_width: int) -> int:
 
 def pillow_label_mask(lines, width: int, size: int) -> np.ndarray:
     """Text coverage (h, width) float32 in [0, 1] of `lines` in Pillow's default font at
-    `size` pixels, one line below the other; text wider than `width` is cut off."""
+    `size` pixels (smaller, down to MIN_FONT, until the longest line fits), one line below
+    the other; text still wider than `width` is cut off."""
     from PIL import Image, ImageDraw, ImageFont
     font = ImageFont.load_default(size=size)
+    while size > MIN_FONT and max(font.getlength(str(x)) for x in lines) > width - 4:
+        size -= 1  # narrower, so that the longest line fits the tile
+        font = ImageFont.load_default(size=size)
     step = size + max(2, size // 4)
     height = step * len(lines) + 4
     img = Image.new("L", (int(width), int(height)), 0)
@@ -297,6 +301,7 @@ def pillow_label_mask(lines, width: int, size: int) -> np.ndarray:
 
 
 GAP = 2  # pixels between tiles
+MIN_FONT = 8  # smallest label text, pixels
 GAP_GREY = 48
 TEXT_RGB = (255, 255, 255)
 
