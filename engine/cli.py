@@ -275,8 +275,8 @@ def _teaching_run(args, make_tiles, what):
     bar = None
     if not args.quiet:
         from tqdm import tqdm
-        bar = tqdm(total=1000, desc="Preparing", unit="", bar_format="{desc:<44}{bar}| {elapsed}",
-                   file=sys.stderr)
+        bar = tqdm(total=1000, desc="Preparing", unit="",
+                   bar_format="{desc:<44.44}{bar}| {elapsed}", file=sys.stderr)
 
     def progress(stage, fraction, text):
         if bar is not None:
