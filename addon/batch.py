@@ -151,6 +151,9 @@ def parse_args(argv):
                             "photon_depth) into a labelled ladder; repeat to sweep together")
     teach.add_argument("--sweep-preset", choices=("paper-ladder",),
                        help="the paper's Figure 6 ladder (1k / r 4.0 ... 200k / r 0.4)")
+    p.add_argument("--reference", metavar="IMAGE",
+                   help="--sweep: measure the errors against this image (EXR for linear "
+                        "values, the tiles' size) instead of against the last tile")
     p.add_argument("--preview-size", type=int, default=160,
                    help="--compare / --sweep: longer side of each tile in pixels")
     return p.parse_args(argv)
@@ -294,7 +297,7 @@ def _teaching_image(bpy, scene, args, out) -> str:
             tiles, rgb8 = operators.teaching_image(
                 kind, scene, bpy.context.evaluated_depsgraph_get(), args.preview_size,
                 "scene" if explicit else "preview", params, args.sweep_preset or "none",
-                progress)
+                progress, reference=args.reference or "")
         finally:
             printer.close()
     except KeyboardInterrupt:

@@ -95,10 +95,13 @@ def _preview_size(render, long_side: int):
 
 def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
                    quality: str = "preview", params: dict | None = None,
-                   sweep_preset: str = "none", progress=None, label_mask=None):
+                   sweep_preset: str = "none", progress=None, label_mask=None,
+                   reference: str = ""):
     """Render the teaching series `kind` ("compare", "sweep", "strip") of the Blender
     scene at a preview size and compose it. params: {name: [values]} for a sweep
-    (engine.teaching.SWEEP_PARAMS names); sweep_preset: "paper-ladder" or "none".
+    (engine.teaching.SWEEP_PARAMS names); sweep_preset: "paper-ladder" or "none";
+    reference: an image file the sweep's errors are measured against (else the last
+    tile).
     Returns (tiles, rgb8 (H, W, 3) uint8). Raises ValueError (bad parameters, named),
     SceneError, ResourceError."""
     pm = load_engine()
@@ -132,7 +135,8 @@ def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
         if not params:
             raise ValueError("Parameter Sweep: give values (e.g. 1000,10000,100000) or "
                              "choose a preset")
-        tiles = teaching.sweep(pm_scene, settings, params, progress=progress)
+        ref = load_reference(reference) if reference else None
+        tiles = teaching.sweep(pm_scene, settings, params, ref, progress=progress)
         columns = min(len(tiles), 4)
     else:
         t0 = time.perf_counter()
@@ -142,6 +146,27 @@ def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
         columns = len(tiles)
     rgb8 = teaching.compose(tiles, columns, label_mask=label_mask or blf_label_mask)
     return tiles, rgb8
+
+
+def load_reference(path: str) -> np.ndarray:
+    """A reference image for a sweep as linear (H, W, 3) float32, read by Blender (EXR,
+    HDR as stored; 8-bit formats decoded from sRGB). Raises ValueError naming the file."""
+    if not path or not os.path.isfile(bpy.path.abspath(path)):
+        raise ValueError(f"reference image '{path}' not found")
+    try:
+        image = bpy.data.images.load(bpy.path.abspath(path), check_existing=False)
+    except RuntimeError as exc:
+        raise ValueError(f"reference image '{path}' cannot be read: {exc}") from None
+    try:
+        w, h = image.size
+        px = np.empty(w * h * image.channels, np.float32)
+        image.pixels.foreach_get(px)
+        rgb = px.reshape(h, w, image.channels)[::-1, :, :3]
+        if not image.is_float:  # byte images hold their sRGB-encoded values
+            rgb = load_engine().imageio.srgb_to_linear(rgb)
+    finally:
+        bpy.data.images.remove(image)
+    return np.ascontiguousarray(rgb, np.float32)
 
 
 def store_image(name: str, rgb8: np.ndarray):
@@ -212,6 +237,9 @@ class _TeachingOperator:
     def _params(self):
         return {}, "none"
 
+    def _reference(self):
+        return ""
+
     def execute(self, context):
         scene = context.scene
         wm = context.window_manager
@@ -224,7 +252,7 @@ class _TeachingOperator:
             params, preset = self._params()
             tiles, rgb8 = teaching_image(self.kind, scene, context.evaluated_depsgraph_get(),
                                          self.preview_size, self.quality, params, preset,
-                                         progress)
+                                         progress, reference=self._reference())
         except Exception as exc:  # noqa: BLE001 - a report, never a traceback dialog
             self.report({"ERROR"}, f"Photon Mapping: {exc}")
             return {"CANCELLED"}
@@ -267,6 +295,10 @@ class PHOTONMAP_OT_parameter_sweep(_TeachingOperator, bpy.types.Operator):
         description="Comma-separated values, coarse to fine (the last is the reference)")
     preset: EnumProperty(name="Preset", items=PRESET_ITEMS, default="none",
                          description="A predefined sweep instead of the parameter above")
+    reference: StringProperty(
+        name="Reference", default="", subtype="FILE_PATH",
+        description="Image to measure each tile's error against (EXR for linear values; "
+                    "the same size as the tiles). Empty: against the last tile")
 
     def _params(self):
         if self.preset != "none":
@@ -274,6 +306,9 @@ class PHOTONMAP_OT_parameter_sweep(_TeachingOperator, bpy.types.Operator):
         teaching = load_engine().teaching
         name, values = teaching.parse_param(f"{self.parameter}={self.values}")
         return {name: values}, "none"
+
+    def _reference(self):
+        return self.reference
 
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self)
@@ -286,6 +321,7 @@ class PHOTONMAP_OT_parameter_sweep(_TeachingOperator, bpy.types.Operator):
         col.active = self.preset == "none"
         col.prop(self, "parameter")
         col.prop(self, "values")
+        layout.prop(self, "reference")
         layout.prop(self, "preview_size")
         layout.prop(self, "quality")
 

@@ -75,6 +75,26 @@ def test_sweep_and_strip_operators(bpy_addon):
         bpy.ops.photonmap.parameter_sweep(parameter="photons", values="1000,x", preview_size=48)
 
 
+def test_sweep_against_a_reference_image(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    from addon import operators
+    from engine.imageio import write_image
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    cheap(scene)
+    ref = tmp_path / "ref.exr"
+    write_image(np.full((36, 48, 3), 0.5, np.float32), str(ref))
+    np.testing.assert_allclose(operators.load_reference(str(ref)), 0.5)
+    tiles, _ = operators.teaching_image("sweep", scene, bpy.context.evaluated_depsgraph_get(),
+                                        48, params={"spp": [1, 2]}, reference=str(ref))
+    for t in tiles:  # every tile measured against the file, the last one too
+        assert t.error > 0 and t.lines[2].startswith("relMSE")
+    small = tmp_path / "small.exr"
+    write_image(np.zeros((4, 4, 3), np.float32), str(small))
+    with pytest.raises(RuntimeError, match="reference image is 4x4"):
+        bpy.ops.photonmap.parameter_sweep(parameter="spp", values="1,2", preview_size=48,
+                                          reference=str(small))
+
+
 def test_menu_and_panel_entries(bpy_addon):
     bpy = bpy_addon
     from addon import ui
