@@ -220,7 +220,9 @@ class PHOTONMAP_PT_effects(PhotonMapButtonsPanel, bpy.types.Panel):
             col.label(text="Render once to see which effects the scene needs")
         for line in lines:
             effect, _, why = line.partition(" - ")
-            col.label(text=effect, icon="CHECKMARK" if effect.endswith(": on") else "X")
+            icon = ("INFO" if effect.startswith("method:")
+                    else "CHECKMARK" if effect.endswith(": on") else "X")
+            col.label(text=effect, icon=icon)
             if why:
                 col.label(text="    " + why)
 

@@ -34,7 +34,7 @@ def sharp_specular(table: MaterialTable) -> np.ndarray:
     return table.has_specular & ((table.roughness <= SHARP_ROUGHNESS) | (table.alpha < 1))
 
 
-# What each teaching method does, for the effect report (settings.METHODS).
+# What each teaching method does: the effect report's first line (settings.METHODS).
 METHOD_TEXT = {
     "local": "local illumination: each light's direct light without shadow rays; no "
              "shadows, reflections, refractions or photon maps (emission and background "
@@ -58,6 +58,7 @@ class Decision:
 
 @dataclass
 class EffectPlan:
+    method: str | None = "photon"  # settings.METHODS: its line opens the report (None: none)
     caustics: bool = False
     indirect: bool = False
     specular_depth: int = 0                          # camera-path specular bounces
@@ -68,14 +69,16 @@ class EffectPlan:
     caster_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # their object ids
     rough_specular: list = field(default_factory=list)  # specular objects too rough to focus
     caustics_from_global: bool = False  # caustic map from the global shot, no caustic shot
-    method: str = "photon"  # settings.METHODS
     decisions: list = field(default_factory=list)
 
     def add(self, effect, enabled, reason):
         self.decisions.append(Decision(effect, bool(enabled), reason))
 
     def report(self) -> list[str]:
-        return [str(d) for d in self.decisions]
+        lines = [str(d) for d in self.decisions]
+        if self.method in METHOD_TEXT:
+            lines.insert(0, f"method: {self.method} - {METHOD_TEXT[self.method]}")
+        return lines
 
 
 def _override(value: str, auto: bool, effect: str, auto_reason: str, plan: EffectPlan) -> bool:
@@ -134,9 +137,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     # A method is a set of the switches below: local and raytrace turn photon mapping off,
     # local also the shadow rays and the specular chains.
     photon_mapping = s.uses_photon_maps
-    plan.method = s.method
-    if s.method != "photon" or s.photon_mapping:
-        plan.add(f"method '{s.method}'", True, METHOD_TEXT[s.method])
+    # The report's first line names the method unless photon mapping is switched off
+    # the paper's way (then its own line says so).
+    plan.method = s.method if (s.method != "photon" or s.photon_mapping) else None
     if not photon_mapping:
         plan.add("photon mapping", False,
                  f"method '{s.method}' has no photon maps: no indirect diffuse light, no "
@@ -270,6 +273,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             plan.add(f"shadow rays '{li.name}'", False, "the light's 'Cast Shadow' is off")
         plan.shadows[li.name] = casts and not nothing_occludes and s.method != "local"
     if s.method == "local" and lights:
+        # No shadow rays: a light's samples only integrate over its area.
+        for i, d in enumerate(plan.decisions):
+            if d.effect.startswith("soft shadows '") and d.enabled:
+                plan.decisions[i] = Decision(d.effect, False, "method 'local' has no shadows")
         plan.add("shadow rays", False, "method 'local' lights every surface facing a light "
                  "(no shadow rays)")
     if nothing_occludes and lights:

@@ -96,7 +96,8 @@ def test_methods_reported_and_validated(tmp_path):
     s = figure3(32, 24)
     film = render(s, RenderSettings(method="local", spp=1, workers=1))
     report = "\n".join(film.stats["effects"])
-    assert "method 'local'" in report
+    assert film.stats["effects"][0].startswith("method: local - local illumination")
+    assert "soft shadows 'area': off - method 'local' has no shadows" in report
     assert "photon mapping: off" in report
     assert "specular reflection / refraction: off - method 'local'" in report
     assert "shadow rays: off - method 'local'" in report
@@ -119,7 +120,11 @@ def test_methods_reported_and_validated(tmp_path):
 def test_api_method_keyword():
     s = figure3(32, 24)
     film = s.render(method="raytrace", spp=1, workers=1)
-    assert "method 'raytrace'" in film.stats["effects"][0]
+    assert film.stats["effects"][0].startswith("method: raytrace - ray tracing (paper Fig. 5b)")
+    plain = s.render(photon_mapping=False, spp=1, workers=1)
+    assert not any(line.startswith("method:") for line in plain.stats["effects"])
+    full = s.render(photons=1000, caustic_photons=0, spp=1, workers=1)
+    assert full.stats["effects"][0].startswith("method: photon - photon mapping")
 
 
 def _check_grid(img, tiles, columns):

@@ -59,7 +59,7 @@ def test_method_setting_reaches_the_engine(bpy_addon):
     assert scene.photonmap.to_settings_kwargs()["method"] == "local"
     bpy.ops.render.render()
     effects = "\n".join(last_render["stats"]["effects"])
-    assert "method 'local'" in effects and "shadow rays: off" in effects
+    assert "method: local" in effects and "shadow rays: off" in effects
 
 
 def test_sweep_and_strip_operators(bpy_addon):
