@@ -1,4 +1,7 @@
-"""Command line: `photonmap render SCENE.toml -o out.png [options]`.
+"""Command line: `photonmap render SCENE.toml -o out.png [options]`, and the teaching
+images (engine/teaching.py, docs/teaching.md): `photonmap compare SCENE.toml -o grid.png`
+(the three methods and the photon hits) and `photonmap sweep SCENE.toml --param
+photons=1000,10000 -o ladder.png` (or `--preset paper-ladder`).
 
 Errors are one line naming the argument or file, with a non-zero exit status. The output
 path is checked before the render starts, and the image replaces the target only once it
