@@ -2,9 +2,9 @@
 
 register()/unregister() are re-exported by the extension's root __init__.py.
 """
-from . import engine, properties, ui
+from . import engine, operators, properties, ui
 
-_modules = (properties, engine, ui)
+_modules = (properties, engine, operators, ui)
 
 
 def register():

@@ -4,6 +4,10 @@
         [--caustic-photons N] [--resolution-percentage P] [--width W --height H]
         [--no-photon-mapping] [--show-photons] [--seed S] [--frame F]
         [--frames A..B] [--animated-seed] [--dask ADDRESS]
+        [--method local|raytrace|photon] [--save-passes] [--strip]
+    python -m addon.batch FILE.blend --compare -o grid.png [--preview-size N]
+    python -m addon.batch FILE.blend --sweep photons=1000,10000,100000 -o ladder.png
+    python -m addon.batch FILE.blend --sweep-preset paper-ladder -o ladder.png
 
 The equivalent of `blender --background FILE.blend -E PHOTONMAP -o out -f 1`: opens the
 file, registers the add-on, selects the engine and renders. The output format follows the
@@ -22,6 +26,13 @@ interrupted.
 in the name becomes the frame number, zero-padded to the count of '#' (out/f_####.png);
 without '#', '_####' is added before the extension. --dask renders the progressive passes
 of each frame on a Dask cluster (docs/distributed.md).
+
+Teaching images (docs/teaching.md, addon/operators.py): --compare renders the three
+methods and the photon hits into one labelled grid, --sweep / --sweep-preset a labelled
+ladder of one parameter, both at a preview size (--preview-size, the longer side) with
+the Preview quality preset unless --samples / --photons / --caustic-photons are given.
+--strip writes the effect passes side by side with their sum (name.strip.png) beside a
+render, --save-passes each pass as name.direct.png ... (.exr for an .exr output).
 """
 from __future__ import annotations
 
@@ -54,6 +65,7 @@ class _StatusPrinter:
         self.stream = stream or sys.stderr
         self.bar = None
         self.status = None  # the engine's "finished" value
+        self.film = None  # the engine's Film of the finished render
         self.effects = []
         self.warnings = []
 
@@ -68,6 +80,8 @@ class _StatusPrinter:
     def __call__(self, event, value):
         if event == "finished":
             self.status = value
+        elif event == "film":
+            self.film = value
         elif event == "effects":
             self.effects = list(value)
         elif event == "warning":
@@ -120,6 +134,28 @@ def parse_args(argv):
                    help="progressive passes on a Dask cluster: tcp://HOST:8786 or local:W")
     p.add_argument("--quiet", action="store_true",
                    help="no progress bar or effect report")
+    p.add_argument("--method", choices=("local", "raytrace", "photon"),
+                   help="local: direct light without shadows, mirrors or glass; raytrace: "
+                        "shadows, mirrors and glass (paper Fig. 5b); photon: the full renderer")
+    p.add_argument("--save-passes", action="store_true",
+                   help="also write each effect pass next to the output (name.direct.png ...)")
+    p.add_argument("--strip", action="store_true",
+                   help="also write the effect passes and their sum side by side, labelled "
+                        "(name.strip.png)")
+    teach = p.add_mutually_exclusive_group()
+    teach.add_argument("--compare", action="store_true",
+                       help="render local, raytrace and photon and the photon hits into one "
+                            "labelled grid (the output) instead of a render")
+    teach.add_argument("--sweep", action="append", metavar="NAME=V1,V2,...",
+                       help="render one tile per value (photons, radius, k, spp, ray_depth, "
+                            "photon_depth) into a labelled ladder; repeat to sweep together")
+    teach.add_argument("--sweep-preset", choices=("paper-ladder",),
+                       help="the paper's Figure 6 ladder (1k / r 4.0 ... 200k / r 0.4)")
+    p.add_argument("--reference", metavar="IMAGE",
+                   help="--sweep: measure the errors against this image (EXR for linear "
+                        "values, the tiles' size) instead of against the last tile")
+    p.add_argument("--preview-size", type=int, default=160,
+                   help="--compare / --sweep: longer side of each tile in pixels")
     return p.parse_args(argv)
 
 
@@ -162,6 +198,13 @@ def render_file(args) -> str:
         _positive(name.replace("_", "-"), getattr(args, name),
                   0 if "photons" in name else 1)
     _positive("max-depth", args.max_depth, 0)
+    _positive("preview-size", args.preview_size)
+    teaching = args.compare or args.sweep or args.sweep_preset
+    if teaching and ext not in (".png", ".jpg", ".jpeg"):
+        raise BatchError(f"a labelled teaching image is written as .png or .jpg, not "
+                         f"'{ext}'")
+    if teaching and args.frames is not None:
+        raise BatchError("--compare / --sweep render one frame: use --frame, not --frames")
     _positive("seed", args.seed, 0)
     _positive("threads", args.threads, 0)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -205,14 +248,19 @@ def render_file(args) -> str:
         pm.use_animated_seed = True
     if args.dask:
         pm.dask_scheduler = args.dask
+    if args.method:
+        pm.method = args.method
     if args.frame is not None:
         scene.frame_set(args.frame)
     r.image_settings.file_format = FORMATS[ext]
     r.use_file_extension = False
     if scene.camera is None:
         raise BatchError(f"{args.blend}: the scene has no active camera")
+    if teaching:
+        return _teaching_image(bpy, scene, args, out)
     if args.frames is None:
-        _render_still(bpy, scene, out, args.quiet)
+        film = _render_still(bpy, scene, out, args.quiet)
+        _extras(bpy, film, out, args)
         return out
     pattern = frame_pattern(out)
     written = []
@@ -220,13 +268,77 @@ def render_file(args) -> str:
         scene.frame_set(frame)
         r.filepath = pattern
         path = r.frame_path(frame=frame)  # '#' -> zero-padded frame number
-        _render_still(bpy, scene, path, args.quiet)
+        film = _render_still(bpy, scene, path, args.quiet)
+        _extras(bpy, film, path, args)
         written.append(path)
     return f"{len(written)} frames: {written[0]} .. {written[-1]}"
 
 
+def _teaching_image(bpy, scene, args, out) -> str:
+    """--compare / --sweep: the labelled image of addon/operators.py, saved to `out`."""
+    from addon import operators
+    explicit = any(getattr(args, n) is not None for n in ("samples", "photons",
+                                                           "caustic_photons"))
+    params = {}
+    try:
+        from addon.core import load_engine
+        teaching = load_engine().teaching
+        for text in args.sweep or []:
+            name, values = teaching.parse_param(text)
+            params[name] = values
+        kind = "compare" if args.compare else "sweep"
+        printer = _StatusPrinter(quiet=args.quiet)
+
+        def progress(stage, fraction, text):
+            printer("stats", text)
+            printer("progress", fraction)
+
+        try:
+            tiles, rgb8 = operators.teaching_image(
+                kind, scene, bpy.context.evaluated_depsgraph_get(), args.preview_size,
+                "scene" if explicit else "preview", params, args.sweep_preset or "none",
+                progress, reference=args.reference or "")
+        finally:
+            printer.close()
+    except KeyboardInterrupt:
+        raise BatchInterrupted(f"interrupted; {_untouched(out)}") from None
+    except Exception as exc:  # noqa: BLE001 - one line: ValueError, SceneError, ...
+        raise BatchError(f"{exc}; {_untouched(out)}") from None
+    image = operators.store_image(operators.IMAGE_NAMES[kind], rgb8)
+    try:
+        operators.save_image(image, out)
+    except (OSError, RuntimeError) as exc:
+        raise BatchError(f"cannot write {out}: {str(exc).strip()}; {_untouched(out)}") from None
+    if not args.quiet:
+        for t in tiles:
+            print("  " + " | ".join(line for line in t.lines if line), file=sys.stderr)
+    return out
+
+
+def _extras(bpy, film, out, args):
+    """--save-passes and --strip beside a finished render's output `out`."""
+    if not (args.save_passes or args.strip):
+        return
+    if film is None:
+        raise BatchError("the engine returned no image to take the passes from")
+    from addon import operators
+    from addon.core import load_engine
+    pm = load_engine()
+    root, ext = os.path.splitext(out)
+    if args.save_passes:
+        pass_ext = ext if ext in pm.imageio.FORMATS else ".png"
+        for name in pm.film.EFFECTS:
+            pm.imageio.write_image(getattr(film, name), f"{root}.{name}{pass_ext}")
+    if args.strip:
+        tiles = pm.teaching.effects_strip(film)
+        rgb8 = pm.teaching.compose(tiles, len(tiles), label_mask=operators.blf_label_mask)
+        operators.save_image(operators.store_image(operators.IMAGE_NAMES["strip"], rgb8),
+                             f"{root}.strip.png")
+
+
 def _render_still(bpy, scene, out, quiet):
-    """Render the current frame and save it to `out` only when the render is complete."""
+    """Render the current frame and save it to `out` only when the render is complete.
+    Returns the engine's Film of the render."""
     from addon import engine
     # write_still=True would save whatever the render result holds, also after an error
     # or a cancel (an all-black frame over a good one): save it here, only when complete.
@@ -262,7 +374,7 @@ def _render_still(bpy, scene, out, quiet):
     except (OSError, RuntimeError) as exc:
         raise BatchError(f"cannot write {out}: {str(exc).strip()}; "
                          f"{_untouched(out)}") from None
-    return out
+    return printer.film
 
 
 def _untouched(out):

@@ -33,9 +33,10 @@ last_render: dict = {}
 # Callables listener(event, value) told what Blender's stats line and progress bar show,
 # for scripts that run through the bpy module, which prints neither (addon/batch.py draws
 # its progress bar from them). Events: ("stats", text), ("progress", fraction 0..1 of the
-# whole render), ("effects", [lines]), ("warning", text), ("finished", "done" |
-# "cancelled" | "error: <message>"). Called on Blender's main thread; a listener that
-# raises is dropped from this render with a printed traceback, never stops the render.
+# whole render), ("effects", [lines]), ("warning", text), ("film", the engine's Film of
+# a finished render), ("finished", "done" | "cancelled" | "error: <message>"). Called
+# on Blender's main thread; a listener that raises is dropped from this render with a
+# printed traceback, never stops the render.
 status_listeners: list = []
 
 
@@ -172,7 +173,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                                      in_blender=True)
 
         def progress(stage, fraction, text):
-            self._progress(_overall_fraction(stage, fraction, settings.photon_mapping))
+            self._progress(_overall_fraction(stage, fraction, settings.uses_photon_maps))
             now = time.perf_counter()
             if now - self._last_stats > 0.1 or fraction >= 1.0:
                 self._last_stats = now
@@ -193,6 +194,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                            region=region, stats=dict(film.stats), warnings=list(film.warnings),
                            export=dict(info), cancelled=cancelled, time=elapsed)
         self._progress(1.0)
+        self._emit("film", film)  # the engine's Film, for scripts (batch --save-passes)
         effects = list(film.stats.get("effects", []) or [])
         self._emit("effects", effects)
         if not self._listeners:  # a listener prints them itself

@@ -17,6 +17,17 @@ ESTIMATOR_ITEMS = (
     ("radius", "Fixed Radius (Simpson)",
      "All photons inside the search radius, weighted with the Simpson kernel"),
 )
+METHOD_ITEMS = (
+    ("photon", "Photon Mapping",
+     "The full renderer: ray tracing plus indirect diffuse light and caustics from photon "
+     "maps"),
+    ("raytrace", "Ray Tracing",
+     "The paper's Fig. 5b: shadows (soft from area lights), mirror reflection and refraction; "
+     "no indirect diffuse light, no caustics"),
+    ("local", "Local Illumination",
+     "Each light's direct light without shadow rays, reflections or refractions (an "
+     "OpenGL-style local model); emission and background still shown"),
+)
 EFFECT_ITEMS = (
     ("auto", "Auto", "Let the engine decide from the scene (the render log says why)"),
     ("on", "On", "Always compute this effect"),
@@ -114,6 +125,9 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         name="Light Samples", default=1, min=1, max=256,
         description="Shadow rays per light with a size, per camera sample (soft shadows)")
     # Modes
+    method: EnumProperty(
+        name="Method", items=METHOD_ITEMS, default="photon",
+        description="Rendering method, to show what each adds (docs/teaching.md)")
     photon_mapping: BoolProperty(
         name="Photon Mapping", default=True,
         description="Off: plain ray tracing with direct light only (the paper's Fig. 5b)")
@@ -164,7 +178,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             min_photons=self.min_photons, k_nearest=self.k_nearest,
             final_gather=self.final_gather, gather_rays=self.gather_rays,
             spp=self.spp, max_depth=self.max_depth, light_samples=self.light_samples,
-            photon_mapping=self.photon_mapping, caustics=self.caustics,
+            photon_mapping=self.photon_mapping, method=self.method, caustics=self.caustics,
             indirect=self.indirect, specular=self.specular, soft_shadows=self.soft_shadows,
             aim_caustics=self.aim_caustics,
             show_photons=self.show_photons, seed=self.seed, workers=self.threads,

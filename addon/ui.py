@@ -56,6 +56,7 @@ class PHOTONMAP_PT_sampling(PhotonMapButtonsPanel, bpy.types.Panel):
         layout.use_property_decorate = False
         pm = context.scene.photonmap
         layout.prop(pm, "quality_preset")
+        layout.prop(pm, "method")
         col = layout.column()
         col.prop(pm, "spp", text="Samples per Pass" if pm.progressive else "Samples")
         col.prop(pm, "light_samples")
@@ -75,7 +76,7 @@ class PHOTONMAP_PT_photons(PhotonMapButtonsPanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         pm = context.scene.photonmap
-        layout.active = pm.photon_mapping
+        layout.active = pm.photon_mapping and pm.method == "photon"
         col = layout.column()
         col.prop(pm, "photons")
         col.prop(pm, "max_photon_depth")
@@ -219,15 +220,43 @@ class PHOTONMAP_PT_effects(PhotonMapButtonsPanel, bpy.types.Panel):
             col.label(text="Render once to see which effects the scene needs")
         for line in lines:
             effect, _, why = line.partition(" - ")
-            col.label(text=effect, icon="CHECKMARK" if effect.endswith(": on") else "X")
+            icon = ("INFO" if effect.startswith("method:")
+                    else "CHECKMARK" if effect.endswith(": on") else "X")
+            col.label(text=effect, icon=icon)
             if why:
                 col.label(text="    " + why)
+
+
+class PHOTONMAP_PT_teaching(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Rendering methods and the teaching images (addon/operators.py, docs/teaching.md)."""
+    bl_label = "Teaching"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        col = layout.column(align=True)
+        col.operator("photonmap.compare_methods", icon="IMAGE_DATA")
+        col.operator("photonmap.parameter_sweep", icon="SEQ_STRIP_DUPLICATE")
+        col.operator("photonmap.effects_strip", icon="RENDERLAYERS")
+
+
+def draw_render_menu(self, context):
+    """Render menu entries, shown while our engine is selected."""
+    if context.engine != ENGINE_ID:
+        return
+    layout = self.layout
+    layout.separator()
+    layout.operator("photonmap.compare_methods", icon="IMAGE_DATA")
+    layout.operator("photonmap.parameter_sweep", icon="SEQ_STRIP_DUPLICATE")
+    layout.operator("photonmap.effects_strip", icon="RENDERLAYERS")
 
 
 classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_effects,
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
            PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_distributed,
-           PHOTONMAP_PT_passes)
+           PHOTONMAP_PT_passes, PHOTONMAP_PT_teaching)
 
 _patched = []
 
@@ -235,6 +264,7 @@ _patched = []
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
+    bpy.types.TOPBAR_MT_render.append(draw_render_menu)
     for panel in get_panels():
         if ENGINE_ID not in panel.COMPAT_ENGINES:
             panel.COMPAT_ENGINES.add(ENGINE_ID)
@@ -245,5 +275,6 @@ def unregister():
     for panel in _patched:
         panel.COMPAT_ENGINES.discard(ENGINE_ID)
     _patched.clear()
+    bpy.types.TOPBAR_MT_render.remove(draw_render_menu)
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

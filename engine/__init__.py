@@ -5,7 +5,7 @@ Python on numpy, embreex, scipy and numba (compiled kernels); never imports bpy.
     from engine import render, RenderSettings
     from engine.api import PaperScene
 """
-from . import presets, resources, shadernodes
+from . import imageio, presets, resources, shadernodes, teaching
 from .film import Film
 from .lights import DECLARED_KINDS
 from .progressive import Budget, render_progressive
@@ -17,6 +17,7 @@ from .normalmap import Bump, NormalMap
 from .textures import ColorAttribute, ImageTexture, TextureError
 
 __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes",
+           "teaching", "imageio",
            "RenderSettings",
            "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
            "ImageTexture", "ColorAttribute", "TextureError", "NormalMap", "Bump",

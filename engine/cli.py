@@ -1,4 +1,7 @@
-"""Command line: `photonmap render SCENE.toml -o out.png [options]`.
+"""Command line: `photonmap render SCENE.toml -o out.png [options]`, and the teaching
+images (engine/teaching.py, docs/teaching.md): `photonmap compare SCENE.toml -o grid.png`
+(the three methods and the photon hits) and `photonmap sweep SCENE.toml --param
+photons=1000,10000 -o ladder.png` (or `--preset paper-ladder`).
 
 Errors are one line naming the argument or file, with a non-zero exit status. The output
 path is checked before the render starts, and the image replaces the target only once it
@@ -16,7 +19,8 @@ import threading
 
 import numpy as np
 
-from .settings import ESTIMATORS, RenderSettings
+from .settings import ESTIMATORS, METHODS, RenderSettings
+from .teaching import SWEEP_PRESETS
 
 
 def _whole_number(text, least):
@@ -57,27 +61,21 @@ def _positive_float(text):
     return v
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="photonmap", description="Photon mapping renderer")
-    sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("render", help="render a TOML scene file to an image")
-    r.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
-    r.add_argument("-o", "--output", required=True,
-                   help="output image: .png (sRGB), .exr (linear float), .ppm, .npy")
-    r.add_argument("--preset", choices=("preview", "medium", "high", "reference"),
-                   help="quality preset (docs/accuracy_time.md has its measured time and error); "
-                        "other options override it")
-    r.add_argument("--progressive", action="store_true",
-                   help="render passes of fresh photons with a shrinking search area until "
-                        "a budget (--passes / --time-limit / --target-error) is reached")
-    r.add_argument("--passes", type=_nonnegative_int, help="progressive: stop after N passes")
-    r.add_argument("--time-limit", type=_positive_float, help="progressive: stop within T seconds")
-    r.add_argument("--target-error", type=_positive_float,
-                   help="progressive: stop when the estimated relMSE is below this")
-    r.add_argument("--dask", metavar="ADDRESS",
-                   help="progressive passes on a Dask cluster: local:W (W worker processes "
-                        "here) or tcp://HOST:8786 (a running scheduler); same image as without "
-                        "(docs/distributed.md)")
+QUALITY_PRESETS = ("preview", "medium", "high", "reference")
+
+
+def _setting_options(r, method=True, sweeps=False):
+    """Options that set RenderSettings or the image size, shared by the subcommands."""
+    if sweeps:
+        r.add_argument("--preset", choices=QUALITY_PRESETS + tuple(SWEEP_PRESETS),
+                       help="quality preset (docs/accuracy_time.md), or a predefined sweep: "
+                            "paper-ladder = the paper's Figure 6 rungs 1k / r 4.0 ... 200k / "
+                            "r 0.4 (paper units, x0.2 m) with the classic estimator and no "
+                            "final gather; other options override it")
+    else:
+        r.add_argument("--preset", choices=QUALITY_PRESETS,
+                       help="quality preset (docs/accuracy_time.md has its measured time and "
+                            "error); other options override it")
     r.add_argument("--photons", type=_nonnegative_int, help="global photons to emit")
     r.add_argument("--caustic-photons", type=_nonnegative_int, help="caustic photons to emit")
     r.add_argument("--radius", type=_positive_float, help="max photon search radius (default: auto)")
@@ -92,6 +90,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--workers", type=_nonnegative_int, help="threads (0 = all cores)")
     r.add_argument("--width", type=_positive_int, help="image width (overrides the file)")
     r.add_argument("--height", type=_positive_int, help="image height (overrides the file)")
+    if method:
+        r.add_argument("--method", choices=METHODS,
+                       help="local: direct light without shadows, mirrors or glass; raytrace: "
+                            "shadows, mirrors and glass (paper Fig. 5b); photon: the full "
+                            "renderer (default; docs/teaching.md)")
     r.add_argument("--no-photon-mapping", action="store_true",
                    help="plain ray tracing: direct light and mirrors only (paper Fig. 5b)")
     r.add_argument("--no-caustics", action="store_true", help="skip the caustic map")
@@ -101,16 +104,67 @@ def build_parser() -> argparse.ArgumentParser:
                             "from the scene)")
     r.add_argument("--no-final-gather", action="store_true",
                    help="show the global photon map directly (faster, blotchier)")
+    r.add_argument("--exposure", type=_finite_float, default=0.0,
+                   help="exposure in stops for PNG/PPM")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _teaching_options(r):
+    """Output and size of the labelled teaching images (engine/teaching.py)."""
+    r.add_argument("-o", "--output", required=True, help="output image: .png or .jpg")
+    r.add_argument("--preview-size", type=_positive_int, default=None,
+                   help="longer image side of each tile in pixels when --width / --height "
+                        "are not given (default 160)")
+    r.add_argument("--columns", type=_positive_int, help="tiles per row of the grid")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="photonmap", description="Photon mapping renderer")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("render", help="render a TOML scene file to an image")
+    r.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
+    r.add_argument("-o", "--output", required=True,
+                   help="output image: .png (sRGB), .exr (linear float), .ppm, .npy")
+    r.add_argument("--progressive", action="store_true",
+                   help="render passes of fresh photons with a shrinking search area until "
+                        "a budget (--passes / --time-limit / --target-error) is reached")
+    r.add_argument("--passes", type=_nonnegative_int, help="progressive: stop after N passes")
+    r.add_argument("--time-limit", type=_positive_float, help="progressive: stop within T seconds")
+    r.add_argument("--target-error", type=_positive_float,
+                   help="progressive: stop when the estimated relMSE is below this")
+    r.add_argument("--dask", metavar="ADDRESS",
+                   help="progressive passes on a Dask cluster: local:W (W worker processes "
+                        "here) or tcp://HOST:8786 (a running scheduler); same image as without "
+                        "(docs/distributed.md)")
+    _setting_options(r)
     r.add_argument("--show-photons", action="store_true",
                    help="draw photon hits over the image (paper Fig. 6, left)")
     r.add_argument("--save-passes", action="store_true",
                    help="also write each effect pass next to the output (name.direct.png ...)")
-    r.add_argument("--exposure", type=_finite_float, default=0.0,
-                   help="exposure in stops for PNG/PPM")
+    r.add_argument("--strip", action="store_true",
+                   help="also write the effect passes and their sum side by side, labelled, "
+                        "as name.strip.png (docs/teaching.md)")
     r.add_argument("--keep-partial", action="store_true",
                    help="on Ctrl-C, write the part of the image finished so far (marked "
                         "partial in its metadata) instead of leaving the output untouched")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    c = sub.add_parser("compare", help="render a scene with each method (local, raytrace, "
+                                       "photon) and the photon hits into one labelled grid")
+    c.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
+    _teaching_options(c)
+    _setting_options(c, method=False)
+
+    w = sub.add_parser("sweep", help="render a scene for each value of a parameter into one "
+                                     "labelled ladder with times and errors")
+    w.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
+    _teaching_options(w)
+    w.add_argument("--param", action="append", default=[], metavar="NAME=V1,V2,...",
+                   help="parameter and its values, coarse to fine: photons, radius (metres), "
+                        "k, spp, ray_depth, photon_depth; repeat to sweep several together")
+    w.add_argument("--reference", metavar="IMAGE",
+                   help="error against this image (.exr / .npy linear, same size as the tiles) "
+                        "instead of against the last tile")
+    _setting_options(w, sweeps=True)
     return p
 
 
@@ -147,7 +201,7 @@ class CancelOnInterrupt:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return _render(args)
+        return {"render": _render, "compare": _compare, "sweep": _sweep}[args.command](args)
     except KeyboardInterrupt:
         print("photonmap: interrupted", file=sys.stderr)
         return 130
@@ -156,29 +210,29 @@ def main(argv=None) -> int:
         return 1
 
 
-def _render(args) -> int:
+def _scene_and_overrides(args, preset_overrides=None, preview=False):
+    """The scene file with the size options applied, and the RenderSettings keywords:
+    quality preset, then the file's [render] table, then the options. preview: without
+    --width / --height the image is scaled to --preview-size (engine/teaching.py)."""
     from . import presets
-    from .imageio import FORMATS, write_image
-    from .progressive import Budget, render_progressive
-    from .render import render
     from .scenefile import load_scene
-
-    ext = os.path.splitext(args.output)[1].lower()
-    if ext not in FORMATS:
-        raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
-                         f"(use {', '.join(FORMATS)})")
-    from .imageio import check_writable
-    check_writable(args.output)  # before the render, not after it
     scene, file_overrides = load_scene(args.scene)
-    overrides = presets.apply(args.preset) if args.preset else {}
+    # The teaching images default to the preview quality: they render several images.
+    quality = args.preset if args.preset in presets.PRESETS else ("preview" if preview else None)
+    overrides = presets.apply(quality) if quality else {}
     overrides.update(file_overrides)
+    overrides.update(preset_overrides or {})
+    if preview and args.width is None and args.height is None:
+        from .teaching import PREVIEW_LONG_SIDE, preview_scene
+        scene = preview_scene(scene, args.preview_size or PREVIEW_LONG_SIDE)
     if args.width is not None:
         scene.width = args.width
     if args.height is not None:
         scene.height = args.height
     for name in ("photons", "caustic_photons", "radius", "min_photons", "k_nearest", "estimator",
-                 "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers"):
-        v = getattr(args, name)
+                 "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers",
+                 "method"):
+        v = getattr(args, name, None)
         if v is not None:
             overrides[name] = v
     if args.no_photon_mapping:
@@ -190,6 +244,124 @@ def _render(args) -> int:
         overrides["caustics"] = "off"
     if args.no_final_gather:
         overrides["final_gather"] = False
+    return scene, overrides
+
+
+TEACHING_FORMATS = (".png", ".jpg", ".jpeg")
+
+
+def _check_teaching_output(path):
+    from .imageio import check_writable
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in TEACHING_FORMATS:
+        raise ValueError(f"--output '{path}': unsupported format '{ext or '(none)'}' for a "
+                         f"labelled image (use {', '.join(TEACHING_FORMATS)})")
+    check_writable(path)
+
+
+def save_composed(rgb8, path):
+    """Write a composed uint8 image (engine/teaching.py) to `path` atomically (Pillow)."""
+    from PIL import Image
+
+    from .imageio import replacing
+    ext = os.path.splitext(path)[1].lower()
+    with replacing(path) as tmp:
+        Image.fromarray(rgb8).save(tmp, format="JPEG" if ext in (".jpg", ".jpeg") else "PNG",
+                                   optimize=True)
+
+
+def _teaching_run(args, make_tiles, what):
+    """Progress bar, Ctrl-C and output of compare / sweep: make_tiles(progress,
+    should_cancel) -> tiles, composed and written to args.output."""
+    from .parallel import Cancelled
+    from .teaching import compose
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+        bar = tqdm(total=1000, desc="Preparing", unit="",
+                   bar_format="{desc:<44.44}{bar}| {elapsed}", file=sys.stderr)
+
+    def progress(stage, fraction, text):
+        if bar is not None:
+            bar.set_description_str(text)
+            bar.n = int(1000 * fraction)
+            bar.refresh()
+
+    interrupt = CancelOnInterrupt()
+    try:
+        with interrupt:
+            tiles = make_tiles(progress, lambda: interrupt.requested)
+    except Cancelled:
+        print(f"photonmap: interrupted: '{args.output}' left untouched", file=sys.stderr)
+        return 130
+    finally:
+        if bar is not None:
+            bar.close()
+    save_composed(compose(tiles, args.columns, args.exposure), args.output)
+    if not args.quiet:
+        for t in tiles:
+            print("  " + " | ".join(line for line in t.lines if line), file=sys.stderr)
+        print(f"wrote {args.output} ({what}, {len(tiles)} tiles of "
+              f"{tiles[0].image.shape[1]}x{tiles[0].image.shape[0]})", file=sys.stderr)
+    return 0
+
+
+def _compare(args) -> int:
+    from .resources import check_resources
+    from .teaching import compare_methods
+    _check_teaching_output(args.output)
+    scene, overrides = _scene_and_overrides(args, preview=True)
+    settings = RenderSettings(**overrides)
+    scene.validate()
+    check_resources(scene, settings)
+    return _teaching_run(args, lambda progress, cancel: compare_methods(
+        scene, settings, progress, cancel), "methods compared")
+
+
+def _sweep(args) -> int:
+    from .imageio import read_image
+    from .resources import check_resources
+    from .teaching import SWEEP_PRESETS, parse_param, sweep
+    _check_teaching_output(args.output)
+    params, preset_settings = {}, {}
+    if args.preset in SWEEP_PRESETS:
+        params.update(SWEEP_PRESETS[args.preset]["params"])
+        preset_settings = SWEEP_PRESETS[args.preset]["settings"]
+    for text in args.param:
+        name, values = parse_param(text)
+        params[name] = values
+    if not params:
+        raise ValueError("sweep: give --param NAME=V1,V2,... or --preset paper-ladder")
+    scene, overrides = _scene_and_overrides(args, preset_settings, preview=True)
+    settings = RenderSettings(**overrides)
+    reference = None
+    if args.reference:
+        if not os.path.isfile(args.reference):
+            raise ValueError(f"--reference '{args.reference}': file not found")
+        reference = read_image(args.reference)
+    scene.validate()
+    # The largest value of each swept setting bounds the memory (engine/resources.py).
+    from dataclasses import replace
+
+    from .teaching import SWEEP_PARAMS
+    check_resources(scene, replace(settings, **{SWEEP_PARAMS[n][0]: max(v)
+                                                for n, v in params.items() if n != "radius"}))
+    return _teaching_run(args, lambda progress, cancel: sweep(
+        scene, settings, params, reference, progress, cancel), "sweep")
+
+
+def _render(args) -> int:
+    from .imageio import FORMATS, write_image
+    from .progressive import Budget, render_progressive
+    from .render import render
+
+    ext = os.path.splitext(args.output)[1].lower()
+    if ext not in FORMATS:
+        raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
+                         f"(use {', '.join(FORMATS)})")
+    from .imageio import check_writable
+    check_writable(args.output)  # before the render, not after it
+    scene, overrides = _scene_and_overrides(args)
     if args.show_photons:
         overrides["show_photons"] = True
     settings = RenderSettings(**overrides)
@@ -274,6 +446,10 @@ def _render(args) -> int:
             if name in ("combined", "depth", "alpha", "normal"):
                 continue
             write_image(img, f"{root}.{name}{ext}", args.exposure)
+    if args.strip:
+        from .teaching import compose, effects_strip
+        save_composed(compose(effects_strip(film), columns=6, exposure=args.exposure),
+                      f"{os.path.splitext(args.output)[0]}.strip.png")
     st = film.stats
     if not args.quiet:
         print(f"wrote {args.output} ({scene.width}x{scene.height}, {settings.spp} spp, "

@@ -34,6 +34,18 @@ def sharp_specular(table: MaterialTable) -> np.ndarray:
     return table.has_specular & ((table.roughness <= SHARP_ROUGHNESS) | (table.alpha < 1))
 
 
+# What each teaching method does: the effect report's first line (settings.METHODS).
+METHOD_TEXT = {
+    "local": "local illumination: each light's direct light without shadow rays; no "
+             "shadows, reflections, refractions or photon maps (emission and background "
+             "shown)",
+    "raytrace": "ray tracing (paper Fig. 5b): shadows, mirror reflection and refraction; "
+                "no indirect diffuse light, no caustics",
+    "photon": "photon mapping: ray tracing plus indirect diffuse light and caustics from "
+              "photon maps",
+}
+
+
 @dataclass
 class Decision:
     effect: str
@@ -46,6 +58,7 @@ class Decision:
 
 @dataclass
 class EffectPlan:
+    method: str | None = "photon"  # settings.METHODS: its line opens the report (None: none)
     caustics: bool = False
     indirect: bool = False
     specular_depth: int = 0                          # camera-path specular bounces
@@ -62,7 +75,10 @@ class EffectPlan:
         self.decisions.append(Decision(effect, bool(enabled), reason))
 
     def report(self) -> list[str]:
-        return [str(d) for d in self.decisions]
+        lines = [str(d) for d in self.decisions]
+        if self.method in METHOD_TEXT:
+            lines.insert(0, f"method: {self.method} - {METHOD_TEXT[self.method]}")
+        return lines
 
 
 def _override(value: str, auto: bool, effect: str, auto_reason: str, plan: EffectPlan) -> bool:
@@ -117,12 +133,21 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     spec_tri = table.has_specular[mat] if has_tris else np.zeros(0, bool)
     diff_tri = table.has_diffuse[mat] if has_tris else np.zeros(0, bool)
 
-    # --- photon mapping at all (the paper's switch) ----------------------------------
-    if not s.photon_mapping:
-        plan.add("photon mapping", False, "switched off: plain ray tracing (paper Fig. 5b)")
+    # --- the method (settings.METHODS) and photon mapping at all (the paper's switch) ---
+    # A method is a set of the switches below: local and raytrace turn photon mapping off,
+    # local also the shadow rays and the specular chains.
+    photon_mapping = s.uses_photon_maps
+    # The report's first line names the method unless photon mapping is switched off
+    # the paper's way (then its own line says so).
+    plan.method = s.method if (s.method != "photon" or s.photon_mapping) else None
+    if not photon_mapping:
+        plan.add("photon mapping", False,
+                 f"method '{s.method}' has no photon maps: no indirect diffuse light, no "
+                 "caustics" if s.method != "photon"
+                 else "switched off: plain ray tracing (paper Fig. 5b)")
 
     # --- indirect diffuse (global map) -------------------------------------------------
-    if not s.photon_mapping:
+    if not photon_mapping:
         plan.indirect = False
     else:
         if not emitting:
@@ -142,7 +167,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     # focus light (sharp_specular); light that reaches a diffuse surface by way of rough
     # specular surfaces only first (a glossy floor's coat) is a soft glow: it comes from
     # unaimed photons (render.py partitions the caustic paths by the object hit first).
-    if s.photon_mapping:
+    if photon_mapping:
         sharp_tri = (sharp_specular(table)[mat] if has_tris else np.zeros(0, bool)) & spec_tri
         rough_tri = spec_tri & ~sharp_tri
         ids, centers, radii, names = _object_spheres(geo, sharp_tri) if sharp_tri.any() else ([], np.zeros((0, 3)), np.zeros(0), [])
@@ -210,15 +235,22 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         auto, why = True, (f"up to {s.max_depth} bounces through "
                            + ", ".join(f"'{n}'" for n in visible[:4])
                            + (" ..." if len(visible) > 4 else ""))
-    on = _override(s.specular, auto, "specular reflection / refraction", why, plan)
+    if s.method == "local":
+        on = False
+        plan.add("specular reflection / refraction", False,
+                 "method 'local' traces no reflected or refracted rays")
+    else:
+        on = _override(s.specular, auto, "specular reflection / refraction", why, plan)
     plan.specular_depth = s.max_depth if on else 0
 
     # --- lights: soft shadows, shadow rays ------------------------------------------------
     nothing_occludes = has_tris and _single_flat_surface(geo, np.ones(geo.count, bool))
+    if s.method == "local":
+        nothing_occludes = False  # said once below instead
     for li in lights:
         if li.kind == WORLD:
             plan.light_samples[li.name] = s.light_samples
-            plan.shadows[li.name] = has_tris
+            plan.shadows[li.name] = has_tris and s.method != "local"
             plan.add("world light", True, "non-black background lights the scene "
                      "(cosine-weighted shadow rays)")
             continue
@@ -239,7 +271,14 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         casts = li.source is None or li.source.cast_shadow
         if not casts:
             plan.add(f"shadow rays '{li.name}'", False, "the light's 'Cast Shadow' is off")
-        plan.shadows[li.name] = casts and not nothing_occludes
+        plan.shadows[li.name] = casts and not nothing_occludes and s.method != "local"
+    if s.method == "local" and lights:
+        # No shadow rays: a light's samples only integrate over its area.
+        for i, d in enumerate(plan.decisions):
+            if d.effect.startswith("soft shadows '") and d.enabled:
+                plan.decisions[i] = Decision(d.effect, False, "method 'local' has no shadows")
+        plan.add("shadow rays", False, "method 'local' lights every surface facing a light "
+                 "(no shadow rays)")
     if nothing_occludes and lights:
         plan.add("shadow rays", False, "the scene is a single flat surface: nothing can cast a shadow")
     if has_tris and np.any(luminance(table.emission[mat]) > 0):

@@ -151,7 +151,7 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
     threads = s.threads
     est = MemoryEstimate()
 
-    if s.photon_mapping and (s.photons or s.caustic_photons):
+    if s.uses_photon_maps and (s.photons or s.caustic_photons):
         stores = min(float(s.max_photon_depth), STORES_PER_PHOTON)
         stored = s.photons * stores + s.caustic_photons
         est.parts["photon maps"] = int(stored * BYTES_PER_STORED_PHOTON)

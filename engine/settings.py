@@ -9,6 +9,10 @@ import numpy as np
 
 ESTIMATORS = ("knn_simpson", "knn_cone", "classic", "radius")
 EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
+# Rendering methods for teaching (docs/teaching.md), each a set of the effect switches
+# (engine/effects.py): local = direct light without shadow rays, mirrors or glass (an
+# OpenGL-style local model); raytrace = the paper's Fig. 5b; photon = the full renderer.
+METHODS = ("local", "raytrace", "photon")
 
 # Hard upper limits, Blender's own where it has them: Cycles' samples <= 65536 and the
 # add-on's light samples <= 256; photon counts fit Blender's 32-bit int properties (and
@@ -41,6 +45,7 @@ class RenderSettings:
     light_samples: int = 1          # shadow rays per light with size, per camera sample
     # Modes
     photon_mapping: bool = True     # False = the paper's plain ray tracer (Fig. 5b)
+    method: str = "photon"          # local | raytrace | photon (METHODS)
     # Effects: "auto" lets engine.effects decide from the scene (and say why); "on" / "off"
     # force them. True / False are accepted for "on" / "off".
     caustics: str = "auto"          # caustic map (L S+ D light)
@@ -90,6 +95,10 @@ class RenderSettings:
             if v not in ("auto", "on", "off"):
                 raise ValueError(f"setting '{name}' must be auto, on or off, got {v!r}")
             setattr(self, name, v)
+        if not isinstance(self.method, str) or self.method.lower() not in METHODS:
+            raise ValueError(f"setting 'method' must be one of {', '.join(METHODS)}, "
+                             f"got {self.method!r}")
+        self.method = self.method.lower()
         if not isinstance(self.estimator, str) or self.estimator not in ESTIMATORS:
             raise ValueError(f"setting 'estimator' must be one of {', '.join(ESTIMATORS)}, "
                              f"got {self.estimator!r}")
@@ -102,6 +111,11 @@ class RenderSettings:
                                  f"got {self.radius!r}")
             self.radius = r
         self.min_photons = min(self.min_photons, self.k_nearest)
+
+    @property
+    def uses_photon_maps(self) -> bool:
+        """Photon mapping is on and the method is the full renderer."""
+        return self.photon_mapping and self.method == "photon"
 
     @property
     def threads(self) -> int:

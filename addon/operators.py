@@ -1,0 +1,340 @@
+"""Teaching operators: Compare Methods, Parameter Sweep and Effects Strip.
+
+Each renders the scene at a preview size with the engine's teaching module
+(engine/teaching.py: the same series as `photonmap compare / sweep / render --strip`),
+burns the labels in with Blender's own font (BLF drawing into an image buffer) and opens
+the result as an Image (bpy.data.images) in an Image Editor. The Render menu and the
+Teaching panel (addon/ui.py) call them; addon/batch.py calls teaching_image() for
+--compare / --sweep / --strip.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+
+import bpy
+import numpy as np
+from bpy.props import EnumProperty, IntProperty, StringProperty
+
+from . import export
+from .core import load_engine
+
+IMAGE_NAMES = {"compare": "Photon Mapping: Compare Methods",
+               "sweep": "Photon Mapping: Parameter Sweep",
+               "strip": "Photon Mapping: Effects Strip"}
+QUALITY_ITEMS = (
+    ("preview", "Preview", "The Preview quality preset's photons, samples and neighbours "
+                           "(quick); other settings from the scene"),
+    ("scene", "Scene Settings", "The scene's own render settings"),
+)
+SWEEP_ITEMS = (
+    ("photons", "Photons", "Global photons (caustic photons scale with them)"),
+    ("radius", "Search Radius", "Maximum photon search radius in metres"),
+    ("k", "Nearest Photons", "Photons per k-nearest estimate"),
+    ("spp", "Samples", "Camera samples per pixel"),
+    ("ray_depth", "Max Ray Depth", "Specular bounces along a camera path"),
+    ("photon_depth", "Max Photon Depth", "Bounces a photon may take"),
+)
+PRESET_ITEMS = (
+    ("none", "None", "Sweep the parameter and values above"),
+    ("paper-ladder", "Paper's Figure 6 Ladder",
+     "1k photons / r 4.0 ... 200k / r 0.4 (paper units, x0.2 m), classic estimator, no "
+     "final gathering"),
+)
+
+
+# --- labels with Blender's font ------------------------------------------------------------
+
+def blf_label_mask(lines, width: int, size: int) -> np.ndarray:
+    """Text coverage (h, width) float32 in [0, 1] of `lines` in Blender's default font
+    at `size` pixels, smaller until the longest line fits (engine.teaching.compose's
+    label_mask). BLF draws into an ImBuf,
+    which is read back through a temporary PNG (ImBuf has no pixel access in Python)."""
+    import blf
+    import imbuf
+    font = 0  # Blender's default font
+    min_size = load_engine().teaching.MIN_FONT
+    blf.size(font, size)
+    while size > min_size and max(blf.dimensions(font, str(x))[0] for x in lines) > width - 4:
+        size -= 1  # narrower, so that the longest line fits the tile
+        blf.size(font, size)
+    step = size + max(2, size // 4)
+    height = step * len(lines) + 4
+    buf = imbuf.new((int(width), int(height)))
+    with blf.bind_imbuf(font, buf, display_name="sRGB"):
+        blf.size(font, size)
+        blf.color(font, 1.0, 1.0, 1.0, 1.0)
+        for i, line in enumerate(lines):
+            # BLF's y runs upwards from the bottom row to the text's baseline.
+            blf.position(font, 3, height - 2 - i * step - round(0.8 * size), 0)
+            blf.draw_buffer(font, str(line))
+    fd, path = tempfile.mkstemp(suffix=".png", prefix="photonmap_label_")
+    os.close(fd)
+    image = None
+    try:
+        imbuf.write(buf, filepath=path)
+        image = bpy.data.images.load(path, check_existing=False)
+        px = np.empty(int(width) * int(height) * 4, np.float32)
+        image.pixels.foreach_get(px)
+    finally:
+        buf.free()
+        if image is not None:
+            bpy.data.images.remove(image)
+        os.unlink(path)
+    return px.reshape(int(height), int(width), 4)[::-1, :, 0].copy()  # rows top-down
+
+
+# --- series --------------------------------------------------------------------------
+
+def _preview_size(render, long_side: int):
+    w, h = export.render_size(render)
+    scale = min(1.0, long_side / max(w, h))
+    return max(1, round(w * scale)), max(1, round(h * scale))
+
+
+def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
+                   quality: str = "preview", params: dict | None = None,
+                   sweep_preset: str = "none", progress=None, label_mask=None,
+                   reference: str = ""):
+    """Render the teaching series `kind` ("compare", "sweep", "strip") of the Blender
+    scene at a preview size and compose it. params: {name: [values]} for a sweep
+    (engine.teaching.SWEEP_PARAMS names); sweep_preset: "paper-ladder" or "none";
+    reference: an image file the sweep's errors are measured against (else the last
+    tile).
+    Returns (tiles, rgb8 (H, W, 3) uint8). Raises ValueError (bad parameters, named),
+    SceneError, ResourceError."""
+    pm = load_engine()
+    teaching = pm.teaching
+    if kind not in IMAGE_NAMES:
+        raise ValueError(f"unknown teaching image '{kind}' (one of {', '.join(IMAGE_NAMES)})")
+    if preview_size < 1:
+        raise ValueError(f"preview size must be >= 1 pixel, got {preview_size}")
+    width, height = _preview_size(scene.render, preview_size)
+    pm_scene, _ = export.export_scene(pm, depsgraph, camera=scene.camera, width=width,
+                                      height=height)
+    props = scene.photonmap
+    kwargs = props.to_settings_kwargs(scene.render.film_transparent)
+    if quality == "preview":
+        kwargs.update(pm.presets.PRESETS["preview"])
+    params = dict(params or {})
+    if kind == "sweep" and sweep_preset not in (None, "", "none"):
+        preset = teaching.SWEEP_PRESETS.get(sweep_preset)
+        if preset is None:
+            raise ValueError(f"unknown sweep preset '{sweep_preset}' (one of "
+                             f"{', '.join(teaching.SWEEP_PRESETS)})")
+        kwargs.update(preset["settings"])
+        params = {**preset["params"], **params}
+    settings = pm.RenderSettings(**kwargs)
+    pm_scene.validate()
+    pm.resources.check_resources(pm_scene, settings, in_blender=True)
+    if kind == "compare":
+        tiles = teaching.compare_methods(pm_scene, settings, progress)
+        columns = 4
+    elif kind == "sweep":
+        if not params:
+            raise ValueError("Parameter Sweep: give values (e.g. 1000,10000,100000) or "
+                             "choose a preset")
+        ref = load_reference(reference) if reference else None
+        tiles = teaching.sweep(pm_scene, settings, params, ref, progress=progress)
+        columns = min(len(tiles), 4)
+    else:
+        t0 = time.perf_counter()
+        film = pm.render(pm_scene, settings, progress=progress)
+        film.stats.setdefault("time_total", time.perf_counter() - t0)
+        tiles = teaching.effects_strip(film)
+        columns = len(tiles)
+    rgb8 = teaching.compose(tiles, columns, label_mask=label_mask or blf_label_mask)
+    return tiles, rgb8
+
+
+def load_reference(path: str) -> np.ndarray:
+    """A reference image for a sweep as linear (H, W, 3) float32, read by Blender (EXR,
+    HDR as stored; 8-bit formats decoded from sRGB). Raises ValueError naming the file."""
+    if not path or not os.path.isfile(bpy.path.abspath(path)):
+        raise ValueError(f"reference image '{path}' not found")
+    try:
+        image = bpy.data.images.load(bpy.path.abspath(path), check_existing=False)
+    except RuntimeError as exc:
+        raise ValueError(f"reference image '{path}' cannot be read: {exc}") from None
+    try:
+        w, h = image.size
+        px = np.empty(w * h * image.channels, np.float32)
+        image.pixels.foreach_get(px)
+        rgb = px.reshape(h, w, image.channels)[::-1, :, :3]
+        if not image.is_float:  # byte images hold their sRGB-encoded values
+            rgb = load_engine().imageio.srgb_to_linear(rgb)
+    finally:
+        bpy.data.images.remove(image)
+    return np.ascontiguousarray(rgb, np.float32)
+
+
+def store_image(name: str, rgb8: np.ndarray):
+    """bpy.data.images[name] holding the sRGB uint8 image (created or resized)."""
+    h, w = rgb8.shape[:2]
+    image = bpy.data.images.get(name)
+    if image is not None and (tuple(image.size) != (w, h) or image.is_float):
+        bpy.data.images.remove(image)
+        image = None
+    if image is None:
+        image = bpy.data.images.new(name, w, h, alpha=False)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = rgb8[::-1].astype(np.float32) / 255.0  # Blender's rows bottom-up
+    image.pixels.foreach_set(rgba.ravel())
+    image.update()
+    return image
+
+
+def save_image(image, path: str):
+    """Write a stored image to `path` (PNG, or JPEG for .jpg) atomically."""
+    replacing = load_engine().imageio.replacing
+    ext = os.path.splitext(path)[1].lower()
+    with replacing(path) as tmp:
+        image.filepath_raw = tmp
+        image.file_format = "JPEG" if ext in (".jpg", ".jpeg") else "PNG"
+        image.save()
+
+
+def show_in_image_editor(context, image) -> bool:
+    """Show `image` in an Image Editor: an open one, else a new window (as F11 opens the
+    render view). False when there is no window (background mode)."""
+    wm = context.window_manager
+    if bpy.app.background or context.window is None or not wm.windows:
+        return False
+
+    def editors():
+        return [a for win in wm.windows for a in win.screen.areas if a.type == "IMAGE_EDITOR"]
+
+    areas = editors()
+    if not areas:
+        try:
+            bpy.ops.render.view_show("INVOKE_DEFAULT")  # a window with an Image Editor
+        except RuntimeError:
+            return False
+        areas = editors()
+    for area in areas[:1]:
+        area.spaces.active.image = image
+        area.tag_redraw()
+    return bool(areas)
+
+
+# --- operators -----------------------------------------------------------------------
+
+class _TeachingOperator:
+    bl_options = {"REGISTER"}
+    kind = ""
+
+    preview_size: IntProperty(
+        name="Preview Size", default=160, min=16, soft_max=640, max=4096,
+        description="Longer image side of each tile in pixels")
+    quality: EnumProperty(name="Quality", items=QUALITY_ITEMS, default="preview",
+                          description="Settings of the renders")
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and context.scene.camera is not None
+
+    def _params(self):
+        return {}, "none"
+
+    def _reference(self):
+        return ""
+
+    def execute(self, context):
+        scene = context.scene
+        wm = context.window_manager
+        wm.progress_begin(0, 1000)
+
+        def progress(stage, fraction, text):
+            wm.progress_update(int(1000 * min(max(fraction, 0.0), 1.0)))
+
+        try:
+            params, preset = self._params()
+            tiles, rgb8 = teaching_image(self.kind, scene, context.evaluated_depsgraph_get(),
+                                         self.preview_size, self.quality, params, preset,
+                                         progress, reference=self._reference())
+        except Exception as exc:  # noqa: BLE001 - a report, never a traceback dialog
+            self.report({"ERROR"}, f"Photon Mapping: {exc}")
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        image = store_image(IMAGE_NAMES[self.kind], rgb8)
+        show_in_image_editor(context, image)
+        summary = "; ".join(", ".join(line for line in t.lines if line) for t in tiles)
+        self.report({"INFO"}, f"{image.name}: {summary}")
+        return {"FINISHED"}
+
+
+class PHOTONMAP_OT_compare_methods(_TeachingOperator, bpy.types.Operator):
+    """Render the scene with local illumination, ray tracing and photon mapping, plus the
+    photon hits, into one labelled image"""
+    bl_idname = "photonmap.compare_methods"
+    bl_label = "Compare Methods"
+    kind = "compare"
+
+
+class PHOTONMAP_OT_effects_strip(_TeachingOperator, bpy.types.Operator):
+    """Render the scene and show its direct, indirect, caustic, specular and emission
+    passes side by side with their sum, labelled"""
+    bl_idname = "photonmap.effects_strip"
+    bl_label = "Effects Strip"
+    kind = "strip"
+
+
+class PHOTONMAP_OT_parameter_sweep(_TeachingOperator, bpy.types.Operator):
+    """Render the scene for each value of one parameter into a labelled ladder with each
+    render's time and error against the last (finest) one"""
+    bl_idname = "photonmap.parameter_sweep"
+    bl_label = "Parameter Sweep"
+    kind = "sweep"
+
+    parameter: EnumProperty(name="Parameter", items=SWEEP_ITEMS, default="photons",
+                            description="The setting to vary")
+    values: StringProperty(
+        name="Values", default="1000,10000,100000",
+        description="Comma-separated values, coarse to fine (the last is the reference)")
+    preset: EnumProperty(name="Preset", items=PRESET_ITEMS, default="none",
+                         description="A predefined sweep instead of the parameter above")
+    reference: StringProperty(
+        name="Reference", default="", subtype="FILE_PATH",
+        description="Image to measure each tile's error against (EXR for linear values; "
+                    "the same size as the tiles). Empty: against the last tile")
+
+    def _params(self):
+        if self.preset != "none":
+            return {}, self.preset
+        teaching = load_engine().teaching
+        name, values = teaching.parse_param(f"{self.parameter}={self.values}")
+        return {name: values}, "none"
+
+    def _reference(self):
+        return self.reference
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(self, "preset")
+        col = layout.column()
+        col.active = self.preset == "none"
+        col.prop(self, "parameter")
+        col.prop(self, "values")
+        layout.prop(self, "reference")
+        layout.prop(self, "preview_size")
+        layout.prop(self, "quality")
+
+
+classes = (PHOTONMAP_OT_compare_methods, PHOTONMAP_OT_parameter_sweep,
+           PHOTONMAP_OT_effects_strip)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,134 @@
+"""Teaching in Blender: the Method setting, the Compare Methods / Parameter Sweep /
+Effects Strip operators headless through the bpy wheel, their menu and panel entries,
+and the batch command's --compare / --sweep / --strip / --save-passes (addon/operators.py,
+addon/batch.py)."""
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+from blender_helpers import BLENDS, PYTHON, ROOT, cheap, open_blend
+
+pytestmark = pytest.mark.blender
+GAP = 2  # engine.teaching.GAP
+
+
+def _pixels(image):
+    w, h = image.size
+    a = np.empty(w * h * 4, np.float32)
+    image.pixels.foreach_get(a)
+    return np.round(a.reshape(h, w, 4)[::-1, :, :3] * 255).astype(np.uint8)  # rows top-down
+
+
+def _check_labelled_row(img, count, tile_w, tile_h):
+    """`count` tiles of tile_w x tile_h in one row, each with a label band of text."""
+    assert img.shape[1] == count * tile_w + (count - 1) * GAP
+    band = img.shape[0] - tile_h
+    assert band > 10
+    for i in range(count):
+        x = i * (tile_w + GAP)
+        label = img[tile_h:, x:x + tile_w]
+        assert (label.max(axis=2) > 64).sum() > 30, i  # Blender's font drew text
+        assert label.min() == 0
+        # A gap column of grey between tiles.
+        if i:
+            assert np.all(img[:, x - 1] == 48)
+
+
+def test_compare_methods_operator_headless(bpy_addon):
+    bpy = bpy_addon
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    cheap(scene)
+    assert bpy.ops.photonmap.compare_methods(preview_size=64) == {"FINISHED"}
+    image = bpy.data.images["Photon Mapping: Compare Methods"]
+    img = _pixels(image)
+    tile_w, tile_h = 64, 48  # the file is 320 x 240
+    _check_labelled_row(img, 4, tile_w, tile_h)
+    tiles = [img[:tile_h, i * (tile_w + GAP):i * (tile_w + GAP) + tile_w] for i in range(4)]
+    assert all(t.any() for t in tiles)
+    assert not np.array_equal(tiles[0], tiles[1])  # local != raytrace
+
+
+def test_method_setting_reaches_the_engine(bpy_addon):
+    bpy = bpy_addon
+    from addon.engine import last_render
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    cheap(scene, pct=10)
+    scene.photonmap.method = "local"
+    assert scene.photonmap.to_settings_kwargs()["method"] == "local"
+    bpy.ops.render.render()
+    effects = "\n".join(last_render["stats"]["effects"])
+    assert "method: local" in effects and "shadow rays: off" in effects
+
+
+def test_sweep_and_strip_operators(bpy_addon):
+    bpy = bpy_addon
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    cheap(scene)
+    assert bpy.ops.photonmap.parameter_sweep(parameter="spp", values="1,2,4",
+                                             preview_size=48) == {"FINISHED"}
+    _check_labelled_row(_pixels(bpy.data.images["Photon Mapping: Parameter Sweep"]), 3, 48, 36)
+    assert bpy.ops.photonmap.effects_strip(preview_size=48) == {"FINISHED"}
+    _check_labelled_row(_pixels(bpy.data.images["Photon Mapping: Effects Strip"]), 6, 48, 36)
+    with pytest.raises(RuntimeError, match="'x' is not a whole number"):
+        bpy.ops.photonmap.parameter_sweep(parameter="photons", values="1000,x", preview_size=48)
+
+
+def test_sweep_against_a_reference_image(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    from addon import operators
+    from engine.imageio import write_image
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    cheap(scene)
+    ref = tmp_path / "ref.exr"
+    write_image(np.full((36, 48, 3), 0.5, np.float32), str(ref))
+    np.testing.assert_allclose(operators.load_reference(str(ref)), 0.5)
+    tiles, _ = operators.teaching_image("sweep", scene, bpy.context.evaluated_depsgraph_get(),
+                                        48, params={"spp": [1, 2]}, reference=str(ref))
+    for t in tiles:  # every tile measured against the file, the last one too
+        assert t.error > 0 and t.lines[2].startswith("relMSE")
+    small = tmp_path / "small.exr"
+    write_image(np.zeros((4, 4, 3), np.float32), str(small))
+    with pytest.raises(RuntimeError, match="reference image is 4x4"):
+        bpy.ops.photonmap.parameter_sweep(parameter="spp", values="1,2", preview_size=48,
+                                          reference=str(small))
+
+
+def test_menu_and_panel_entries(bpy_addon):
+    bpy = bpy_addon
+    from addon import ui
+    assert ui.draw_render_menu in bpy.types.TOPBAR_MT_render._dyn_ui_initialize()
+    assert hasattr(bpy.types, "PHOTONMAP_PT_teaching")
+    for op in ("compare_methods", "parameter_sweep", "effects_strip"):
+        assert hasattr(bpy.ops.photonmap, op)
+
+
+def _batch(*args):
+    return subprocess.run([PYTHON, "-m", "addon.batch", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_batch_compare_strip_and_passes(tmp_path):
+    from PIL import Image
+    blend = os.path.join(BLENDS, "figure3_sphere.blend")
+    grid = tmp_path / "grid.png"
+    res = _batch(blend, "--compare", "-o", str(grid), "--preview-size", "48", "--samples", "2",
+                 "--photons", "5000", "--caustic-photons", "2000")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "Ray tracing" in res.stderr and "Photon hits" in res.stderr
+    img = np.asarray(Image.open(grid).convert("RGB"))
+    _check_labelled_row(img, 4, 48, 36)
+    out = tmp_path / "f3.png"
+    res = _batch(blend, "-o", str(out), "--samples", "2", "--photons", "5000",
+                 "--caustic-photons", "2000", "--resolution-percentage", "15", "--strip",
+                 "--save-passes", "--method", "raytrace", "--quiet")
+    assert res.returncode == 0, res.stderr[-2000:]
+    for name in ("direct", "indirect", "caustic", "specular", "emission", "strip"):
+        assert (tmp_path / f"f3.{name}.png").is_file(), name
+    assert not np.asarray(Image.open(tmp_path / "f3.indirect.png")).any()  # raytrace
+    strip = np.asarray(Image.open(tmp_path / "f3.strip.png").convert("RGB"))
+    _check_labelled_row(strip, 6, 48, 36)
+    res = _batch(blend, "--sweep", "photons=10,x", "-o", str(tmp_path / "l.png"))
+    assert res.returncode == 1 and "'x' is not a whole number" in res.stderr
+    assert not (tmp_path / "l.png").exists()
