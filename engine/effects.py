@@ -228,7 +228,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         n_samples = s.light_samples if sized else 1
         plan.light_samples[li.name] = n_samples
         spp = s.spp
-        if li.kind == MESH:
+        if s.soft_shadows == "off" and li.has_size:
+            why = ("switched off in the settings: hard shadows, one shadow ray per sample to "
+                   + ("each emitting triangle's centre" if li.kind == MESH
+                      else f"the centre of '{li.name}'"))
+        elif li.kind == MESH:
             why = f"{len(li.tri_index):,} emitting triangles sampled by area x brightness"
         elif sized:
             why = f"{n_samples * spp} shadow rays per pixel for '{li.name}'"

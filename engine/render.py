@@ -14,12 +14,13 @@ from .geometry import Geometry, MaterialTable, prepare
 from .integrator import render_camera
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
+from .lights import packing as pk
 from .lights.packing import pack_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
 from .parallel import Cancelled
-from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Photons, trace_photons
+from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
 from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
@@ -81,7 +82,28 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel) -
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights, packed_lights=pack_lights(lights))
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
+    if settings.soft_shadows == "off":
+        ctx.packed_lights = hard_shadow_packing(ctx.packed_lights)
     return ctx
+
+
+def hard_shadow_packing(packed):
+    """Soft shadows off: every light with a size packed as a point at its centre, so
+    its one shadow ray per sample always aims there and shadows are hard (the paper's
+    point-light shadows). Flux and emission profile are kept: an area light stays a
+    one-sided cosine emitter of radiance x area (its kernel samples the centre of a
+    0 x 0 rectangle), a point / spot light of radius r becomes radius 0, and each
+    emitting triangle is sampled at its centroid. Photons still leave the whole light.
+    packed: (codes, params, mesh arrays) of lights.packing.pack_lights; returns a copy."""
+    codes, params, mesh = packed
+    params = params.copy()
+    area = codes == pk.CODE_AREA
+    params[area, pk.SIZE_X] = params[area, pk.SIZE_Y] = 0.0
+    params[area, pk.SPREAD_RECT] = 0.0  # the spread-cropped rectangle samples its window
+    params[(codes == pk.CODE_POINT) | (codes == pk.CODE_SPOT), pk.RADIUS] = 0.0
+    v0, e1, e2, *rest = mesh
+    centroid = v0 + (e1 + e2) / 3.0
+    return codes, params, (centroid, np.zeros_like(e1), np.zeros_like(e2), *rest)
 
 
 def render_pass(ctx: Context, region, progress=None, should_cancel=None) -> Film:
@@ -104,8 +126,7 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None) -> Film
         stats["time_camera"] = time.perf_counter() - t0
         stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
                      gather_rays=counters.gather_rays, specular_rays=counters.specular_rays)
-        if settings.show_photons:
-            _draw_photons(ctx, film, all_photons, region)
+        _draw_photons(ctx, film, all_photons, region)  # the photon-hit pass, always
     except Cancelled:
         stats["cancelled"] = True  # the film holds what was finished
     return film
@@ -229,8 +250,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     stats["radius_caustic"] = ctx.caustic_radius
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
-    if not s.show_photons:
-        return Photons.empty()  # only the photon-hit view needs them after this point
+    # For the photon-hit pass (_draw_photons).
     return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
                      for f in ("position", "power", "direction", "normal", "kind")))
 
@@ -252,8 +272,36 @@ def _allocate_aimed(ctx, targets, total):
     return counts.tolist()
 
 
+# The photon-hit view (the paper's Fig. 6, left): one dot per drawn photon, coloured by
+# the kind of path that brought it (engine/photons.py), on black.
+PHOTON_KIND_COLORS = {
+    DIRECT: (1.0, 0.85, 0.25),          # yellow: straight from a light
+    INDIRECT: (0.25, 0.55, 1.0),        # blue: after a diffuse bounce (global map)
+    CAUSTIC_DIFFUSE: (0.25, 0.55, 1.0),
+    CAUSTIC: (1.0, 0.25, 0.85),         # magenta: through mirrors / glass (caustic map)
+}
+
+
+def photon_hit_budget(in_frame: int, width: int, height: int) -> int:
+    """How many of `in_frame` photons (those projecting into the image) the photon-hit
+    view draws. All of them up to one per 32 pixels; beyond that the count grows only
+    logarithmically, so the view never saturates (400k photons in a 160x120 image would
+    cover every pixel) yet still shows more photons as more are shot."""
+    base = max(64, (width * height) // 32)
+    if in_frame <= base:
+        return int(in_frame)
+    return int(round(base * (1.0 + math.log(in_frame / base))))
+
+
 def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
-    """Splat visible photon hits into film.photon_hits (the paper's Fig. 6, left)."""
+    """Fill film.photon_hits with the photon-hit view: the photons stored on surfaces the
+    camera sees directly, thinned to photon_hit_budget and drawn as one-pixel dots
+    coloured by kind (PHOTON_KIND_COLORS), on black. The thinning is a seeded choice per
+    photon made on the whole image, so tiles (region) agree with a full render.
+    film.stats gets photon_hits_shown (dots drawn) and photon_hits_fraction (the share of
+    the photons in the image that was drawn)."""
+    film.stats["photon_hits_shown"] = 0
+    film.stats["photon_hits_fraction"] = 1.0
     if len(photons) == 0:
         return
     cam = ctx.scene.camera
@@ -275,9 +323,21 @@ def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
         y = local[:, 1] / np.maximum(z, 1e-300)
     sx = (x - cam.shift_x * big) / hw
     sy = (y - cam.shift_y * big) / hh
-    px = np.floor((sx + 1.0) / 2.0 * W).astype(np.int64)
-    py = np.floor((1.0 - sy) / 2.0 * H).astype(np.int64)
-    inside = (z > 0) & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
+    with np.errstate(invalid="ignore"):
+        px = np.floor((sx + 1.0) / 2.0 * W)
+        py = np.floor((1.0 - sy) / 2.0 * H)
+    frame = (z > 0) & (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    n_frame = int(frame.sum())
+    if n_frame == 0:
+        return
+    keep = photon_hit_budget(n_frame, W, H) / n_frame
+    if keep < 1.0:
+        u = np.random.default_rng([ctx.settings.seed, 97]).random(len(p))
+        frame &= u < keep
+    film.stats["photon_hits_fraction"] = keep = min(keep, 1.0)
+    px = np.where(frame, px, -1).astype(np.int64)
+    py = np.where(frame, py, -1).astype(np.int64)
+    inside = frame & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
     idx = np.nonzero(inside)[0]
     if len(idx) == 0:
         return
@@ -295,11 +355,15 @@ def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
         return
     rw = x1 - x0
     flat = (py[idx] - y0) * rw + (px[idx] - x0)
-    colour = photons.power[idx].astype(np.float64)
-    colour = colour / np.maximum(colour.max(axis=1, keepdims=True), 1e-300)
-    buf = np.zeros((film.height * film.width, 3))
+    table = np.zeros((max(PHOTON_KIND_COLORS) + 1, 3))
+    for kind, rgb in PHOTON_KIND_COLORS.items():
+        table[kind] = rgb
+    colour = table[photons.kind[idx]]
+    size = film.height * film.width
+    count = np.bincount(flat, minlength=size).astype(np.float64)
+    buf = np.zeros((size, 3))
     for c in range(3):
-        buf[:, c] = np.bincount(flat, weights=colour[:, c], minlength=len(buf))
-    peak = buf.max(axis=1, keepdims=True)
-    buf = np.where(peak > 0, buf / np.maximum(peak, 1e-300), 0.0)
+        buf[:, c] = np.bincount(flat, weights=colour[:, c], minlength=size)
+    buf /= np.maximum(count, 1.0)[:, None]  # a pixel with several dots shows their mix
     film.photon_hits[...] = buf.reshape(film.height, film.width, 3).astype(np.float32)
+    film.stats["photon_hits_shown"] = int(len(idx))
