@@ -101,8 +101,13 @@ def build_parser() -> argparse.ArgumentParser:
                             "from the scene)")
     r.add_argument("--no-final-gather", action="store_true",
                    help="show the global photon map directly (faster, blotchier)")
+    r.add_argument("--paper", action="store_true",
+                   help="the paper's own method: classic estimator (cosine-weighted, fixed "
+                        "--radius in scene units, metres), no final gathering "
+                        "(docs/paper_mode.md)")
     r.add_argument("--show-photons", action="store_true",
-                   help="draw photon hits over the image (paper Fig. 6, left)")
+                   help="write the photon-hit view (dots by photon kind on black, paper Fig. "
+                        "6, left) as the image; --save-passes writes it beside any render")
     r.add_argument("--save-passes", action="store_true",
                    help="also write each effect pass next to the output (name.direct.png ...)")
     r.add_argument("--exposure", type=_finite_float, default=0.0,
@@ -190,6 +195,8 @@ def _render(args) -> int:
         overrides["caustics"] = "off"
     if args.no_final_gather:
         overrides["final_gather"] = False
+    if args.paper:
+        overrides["paper_mode"] = True
     if args.show_photons:
         overrides["show_photons"] = True
     settings = RenderSettings(**overrides)

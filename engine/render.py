@@ -177,7 +177,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     # The global shot is needed for indirect light; without a separate caustic shot, or
     # for the caustic paths the aimed shot leaves out, it also carries caustic photons.
     if plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None:
-        counts = allocate_photons(ctx.lights, s.photons)
+        counts = photon_counts(ctx, s.photons)
         shot = trace_photons(ctx, ctx.lights, counts, caustic_only=False, stream=1,
                              progress=progress, should_cancel=should_cancel,
                              first_hit=None if split is None else (split, False))
@@ -253,6 +253,20 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     # For the photon-hit pass (_draw_photons).
     return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
                      for f in ("position", "power", "direction", "normal", "kind")))
+
+
+def photon_counts(ctx: Context, total: int) -> list[int]:
+    """Global photons per prepared light: a light named in scene.photons_per_light (the
+    paper's MaxRayPerLightSrc, engine/api.py) emits exactly that many; the others share
+    what is left of `total` in proportion to their power (lights.allocate_photons)."""
+    fixed = getattr(ctx.scene, "photons_per_light", None) or {}
+    own = [li.source is not None and li.name in fixed for li in ctx.lights]
+    if not any(own):
+        return allocate_photons(ctx.lights, total)
+    rest = [li for li, o in zip(ctx.lights, own) if not o]
+    spare = max(total - sum(fixed[li.name] for li, o in zip(ctx.lights, own) if o), 0)
+    shared = iter(allocate_photons(rest, spare))
+    return [fixed[li.name] if o else next(shared) for li, o in zip(ctx.lights, own)]
 
 
 def _allocate_aimed(ctx, targets, total):
