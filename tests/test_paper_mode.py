@@ -181,3 +181,23 @@ def test_batch_command_takes_radius_estimator_final_gather_and_paper():
     assert (a.radius, a.estimator, a.final_gather, a.paper) == (0.4, "classic", False, True)
     assert parse_args(["x.blend", "-o", "y.png"]).final_gather is None
     assert parse_args(["x.blend", "-o", "y.png", "--final-gather"]).final_gather is True
+
+
+@pytest.mark.parametrize("name,caster", [("figure6", "glass_sphere"), ("figure7", None),
+                                         ("figure8", "glass_sphere")])
+def test_paper_scene_files_render(name, caster):
+    import os
+
+    from engine.scenefile import load_scene
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    scene, overrides = load_scene(os.path.join(root, "scenes", f"{name}.toml"))
+    assert (scene.width, scene.height) == (320, 240)
+    scene.width, scene.height = 32, 24
+    overrides.update(spp=1, photons=4000, caustic_photons=6000, seed=1)
+    film = scene.render(RenderSettings(**overrides))
+    assert np.isfinite(film.combined).all() and film.combined.mean() > 0.01
+    effects = " ".join(film.stats["effects"])
+    if caster:
+        # The caustic is in view (Figure 6's camera was moved to show it).
+        assert f"'{caster}'" in effects and film.caustic.max() > 0
+        assert (film.photon_hits == np.float32(PHOTON_KIND_COLORS[CAUSTIC])).all(axis=2).any()
