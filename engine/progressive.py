@@ -204,7 +204,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     film.stats.update(progressive=True, passes=i, error_estimate=merger.error,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,
                       effects=ctx.plan.report(), time_total=time.perf_counter() - t_start)
-    film.warnings = scene.all_warnings()
+    film.warnings = scene.all_warnings() + ctx.plan.warnings
     return film
 
 

@@ -151,10 +151,11 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
         film = render_pass(ctx, region, progress, should_cancel)
     finally:
         ctx.accel.close()
-    film.stats.update(effects=ctx.plan.report(), triangles=ctx.geo.count, lights=len(ctx.lights),
+    film.stats.update(effects=ctx.plan.report() + photon_map_report(settings, film.stats),
+                      triangles=ctx.geo.count, lights=len(ctx.lights),
                       extent=ctx.geo.extent, time_prepare=t_prepare,
                       time_total=time.perf_counter() - t_start)
-    film.warnings = scene.all_warnings()
+    film.warnings = scene.all_warnings() + ctx.plan.warnings + film.stats.get("warnings", [])
     return film
 
 
@@ -248,11 +249,61 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
     stats["radius_global"] = ctx.global_radius
     stats["radius_caustic"] = ctx.caustic_radius
+    if s.radius is not None and plan.indirect:
+        stats.setdefault("warnings", []).extend(radius_warnings(
+            s.radius, geo.extent, diffuse_area, stats.get("global_photons", 0), s.min_photons))
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
     # For the photon-hit pass (_draw_photons).
     return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
                      for f in ("position", "power", "direction", "normal", "kind")))
+
+
+# A search radius above this share of the scene's size blurs light across objects.
+RADIUS_SCENE_FRACTION = 0.1
+
+
+def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: int,
+                    min_photons: int) -> list[str]:
+    """What a hand-set search radius (m) does wrong, in words: larger than
+    RADIUS_SCENE_FRACTION of the scene's size (extent: its bounding-box diagonal, m), or
+    smaller than the spacing of the `stored` global photons over `diffuse_area` m^2
+    (sqrt(area / stored): the mean distance between neighbours of an even spread)."""
+    out = []
+    if radius > RADIUS_SCENE_FRACTION * extent:
+        out.append(
+            f"search radius {radius:.4g} m is {100 * radius / extent:.0f} % of the scene's size "
+            f"({extent:.3g} m across): each estimate spreads photons over a disc of "
+            f"{math.pi * radius * radius:.3g} m^2, so indirect light is blurred across corners "
+            "and objects (and too dark where the disc is larger than the surface it lands on), "
+            "and every lookup scans many photons (slow); use a few % of the scene or the "
+            "automatic radius")
+    if stored > 0 and diffuse_area > 0:
+        spacing = math.sqrt(diffuse_area / stored)
+        if radius < spacing:
+            out.append(
+                f"search radius {radius:.4g} m is below the photon spacing (~{spacing:.3g} m: "
+                f"{stored:,} photons stored on {diffuse_area:.3g} m^2 of diffuse surface): most "
+                f"estimates find fewer than {min_photons} photons and give no light, so indirect "
+                "light is dark and spotty; raise the radius above the spacing or shoot more "
+                "photons")
+    return out
+
+
+def photon_map_report(settings: RenderSettings, stats: dict) -> list[str]:
+    """One effect-report line with what the photon maps hold and the radius used."""
+    if "radius_global" not in stats:
+        return []
+    parts = []
+    if stats.get("global_photons"):
+        parts.append(f"{stats['global_photons']:,} global photons stored, search radius "
+                     f"{stats['radius_global']:.4g} m")
+    if stats.get("caustic_photons"):
+        parts.append(f"{stats['caustic_photons']:,} caustic photons stored, search radius "
+                     f"{stats['radius_caustic']:.4g} m")
+    how = "radius set" if settings.radius is not None else "automatic radius"
+    est = f"{settings.estimator} estimator" + (" (paper mode)" if settings.paper_mode else "")
+    return [f"photon maps: on - {'; '.join(parts) or 'no photons stored'} ({how}, {est})"]
 
 
 def photon_counts(ctx: Context, total: int) -> list[int]:

@@ -201,3 +201,55 @@ def test_paper_scene_files_render(name, caster):
         # The caustic is in view (Figure 6's camera was moved to show it).
         assert f"'{caster}'" in effects and film.caustic.max() > 0
         assert (film.photon_hits == np.float32(PHOTON_KIND_COLORS[CAUSTIC])).all(axis=2).any()
+
+
+def _lamp_in_a_box():
+    s = PaperScene(24, 18)
+    s.add_plane((0, 0, 0), (0, 0, 1), 10, "white_diffuse", name="floor")
+    s.add_box((0, 0, 1), (1, 1, 1), "white_diffuse", name="lamp_box")
+    s.add_point_light((0, 0, 1), power=100, name="bulb")
+    s.set_camera((0, -6, 2), (0, 0, 1))
+    return s
+
+
+def test_a_light_shut_in_a_closed_mesh_is_named_and_indirect_light_is_not_claimed():
+    s = _lamp_in_a_box()
+    f = s.render(RenderSettings(spp=1, photons=2000))
+    assert len(f.warnings) == 1 and "'bulb'" in f.warnings[0] and "'lamp_box'" in f.warnings[0]
+    assert f.combined.max() == 0
+    line = f.stats["effects"][0]
+    assert line.startswith("indirect light (global map): off") and "'lamp_box'" in line
+    # The camera inside the same box sees the light: no warning, indirect light on.
+    s.set_camera((0.2, 0.2, 1.2), (0, 0.5, 1))
+    f = s.render(RenderSettings(spp=1, photons=2000))
+    assert not f.warnings and f.stats["effects"][0].startswith("indirect light (global map): on")
+
+
+def test_radius_mistakes_are_explained_and_the_report_shows_the_maps():
+    s = cornell_box(24, 18)
+    cheap = dict(spp=1, photons=4000, caustic_photons=2000, final_gather=False)
+    auto = s.render(RenderSettings(**cheap))
+    assert not auto.warnings
+    report = auto.stats["effects"][-1]
+    assert report.startswith("photon maps: on - ") and "automatic radius" in report
+    assert f"{auto.stats['global_photons']:,} global photons stored" in report
+    assert f"search radius {auto.stats['radius_global']:.4g} m" in report
+    big = s.render(RenderSettings(radius=1000.0, **cheap))
+    assert any("% of the scene's size" in w for w in big.warnings)
+    assert "search radius 1000 m" in big.stats["effects"][-1]
+    tiny = s.render(RenderSettings(radius=0.002, **cheap))
+    assert any("below the photon spacing" in w for w in tiny.warnings)
+    fine = s.render(RenderSettings(radius=0.3, **cheap))
+    assert not fine.warnings
+
+
+def test_a_plastic_ball_is_called_glossy_not_mirror_or_glass():
+    s = PaperScene(24, 18)
+    s.add_plane((0, 0, 0), (0, 0, 1), 10, "white_diffuse", name="floor")
+    s.add_sphere((0, 0, 1), 1.0, "red_plastic", name="ball")
+    s.add_sphere((2.5, 0, 1), 0.5, "glass", name="lens")
+    s.add_rect_area_light((0, 0, 4), (1, 1), power=300)
+    s.set_camera((0, -8, 2), (1, 0, 1))
+    f = s.render(RenderSettings(spp=1, photons=2000, caustic_photons=1000))
+    line = [x for x in f.stats["effects"] if x.startswith("specular reflection")][0]
+    assert "glossy 'ball'" in line and "glass 'lens'" in line
