@@ -69,3 +69,25 @@ def test_photon_hits_pass_is_filled_without_show_photons(bpy_addon, tmp_path):
     total = sum(layers[n][..., :3] for n in ("Direct", "Indirect", "Caustic", "Specular",
                                              "Emission"))
     np.testing.assert_allclose(layers["Combined"][..., :3], total, rtol=1e-4, atol=1e-5)
+
+
+def test_batch_paper_switches_reach_the_render(bpy_addon, tmp_path):
+    import os
+
+    from addon import batch, engine
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = tmp_path / "f3.png"
+    assert batch.main([os.path.join(root, "example_blends", "figure3_sphere.blend"), "-o",
+                       str(out), "--paper", "--radius", "0.3", "--width", "32", "--height",
+                       "24", "--samples", "1", "--photons", "2000", "--caustic-photons", "0",
+                       "--quiet"]) == 0
+    assert out.exists()
+    report = engine.last_render["stats"]["effects"][-1]
+    assert report.startswith("photon maps: on") and "search radius 0.3 m" in report
+    assert "radius set, classic estimator (paper mode)" in report
+    assert batch.main([os.path.join(root, "example_blends", "figure3_sphere.blend"), "-o",
+                       str(out), "--radius", "0", "--estimator", "knn_cone", "--width", "32",
+                       "--height", "24", "--samples", "1", "--photons", "2000",
+                       "--caustic-photons", "0", "--quiet"]) == 0
+    report = engine.last_render["stats"]["effects"][-1]
+    assert "automatic radius, knn_cone estimator" in report
