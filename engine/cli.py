@@ -80,7 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "(docs/distributed.md)")
     r.add_argument("--photons", type=_nonnegative_int, help="global photons to emit")
     r.add_argument("--caustic-photons", type=_nonnegative_int, help="caustic photons to emit")
-    r.add_argument("--radius", type=_positive_float, help="max photon search radius (default: auto)")
+    r.add_argument("--radius", type=_positive_float,
+                   help="max photon search radius in scene units, metres (the paper's "
+                        "MaxPhotonSearchRadius; default: auto from the photon spacing)")
     r.add_argument("--min-photons", type=_nonnegative_int, help="fewer photons found -> no estimate")
     r.add_argument("--k", dest="k_nearest", type=_positive_int, help="photons per k-NN estimate")
     r.add_argument("--estimator", choices=ESTIMATORS, help="radiance estimator")
