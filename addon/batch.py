@@ -2,7 +2,8 @@
 
     python -m addon.batch FILE.blend -o out.png [--samples N] [--photons N]
         [--caustic-photons N] [--resolution-percentage P] [--width W --height H]
-        [--no-photon-mapping] [--show-photons] [--seed S] [--frame F]
+        [--no-photon-mapping] [--show-photons] [--radius R] [--estimator E]
+        [--final-gather | --no-final-gather] [--paper] [--seed S] [--frame F]
         [--frames A..B] [--animated-seed] [--dask ADDRESS]
         [--method local|raytrace|photon] [--save-passes] [--strip]
     python -m addon.batch FILE.blend --compare -o grid.png [--preview-size N]
@@ -123,7 +124,20 @@ def parse_args(argv):
     p.add_argument("--height", type=int, help="image height in pixels (before percentage)")
     p.add_argument("--no-photon-mapping", action="store_true",
                    help="plain ray tracing (direct light only)")
-    p.add_argument("--show-photons", action="store_true", help="draw photon hits")
+    p.add_argument("--show-photons", action="store_true",
+                   help="the image is the photon-hit view (dots by photon kind on black)")
+    p.add_argument("--radius", type=float,
+                   help="max photon search radius in scene units (metres); 0 = automatic")
+    p.add_argument("--estimator", choices=("knn_simpson", "knn_cone", "classic", "radius"),
+                   help="radiance estimator")
+    gather = p.add_mutually_exclusive_group()
+    gather.add_argument("--final-gather", dest="final_gather", action="store_true",
+                        default=None, help="indirect light by final gathering")
+    gather.add_argument("--no-final-gather", dest="final_gather", action="store_false",
+                        help="indirect light read from the global photon map directly")
+    p.add_argument("--paper", action="store_true",
+                   help="the paper's own method: classic estimator, fixed --radius, no final "
+                        "gathering (docs/paper_mode.md)")
     p.add_argument("--frame", type=int, help="frame to render")
     p.add_argument("--frames", type=_frame_range, metavar="A..B",
                    help="render frames A to B (inclusive) into the output pattern ('#' = "
@@ -207,6 +221,8 @@ def render_file(args) -> str:
         raise BatchError("--compare / --sweep render one frame: use --frame, not --frames")
     _positive("seed", args.seed, 0)
     _positive("threads", args.threads, 0)
+    if args.radius is not None and not (args.radius >= 0 and args.radius < float("inf")):
+        raise BatchError(f"--radius must be a number >= 0 (0 = automatic), got {args.radius}")
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     if root not in sys.path:
         sys.path.insert(0, root)
@@ -244,6 +260,16 @@ def render_file(args) -> str:
         pm.photon_mapping = False
     if args.show_photons:
         pm.show_photons = True
+    if args.radius is not None:
+        pm.use_auto_radius = args.radius == 0
+        if args.radius > 0:
+            pm.radius = args.radius
+    if args.estimator is not None:
+        pm.estimator = args.estimator
+    if args.final_gather is not None:
+        pm.final_gather = args.final_gather
+    if args.paper:
+        pm.paper_mode = True
     if args.animated_seed:
         pm.use_animated_seed = True
     if args.dask:

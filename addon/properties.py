@@ -35,12 +35,24 @@ EFFECT_ITEMS = (
 )
 
 
+def _resolution(context):
+    """The file's output size in pixels (resolution x percentage), or None."""
+    r = getattr(getattr(context, "scene", None), "render", None)
+    if r is None:
+        return None
+    pct = r.resolution_percentage / 100.0
+    return max(1, int(r.resolution_x * pct)), max(1, int(r.resolution_y * pct))
+
+
 def _preset_items(self, context):
-    """Preset labels carry measured cost and error (engine/presets_measured.json)."""
+    """Preset labels carry measured cost (scaled to this file's resolution) and error
+    (engine/presets_measured.json)."""
+    size = _resolution(context)
     try:
         from .core import load_engine
         presets = load_engine().presets
-        items = [(n, presets.label(n), f"Apply the {n} preset (photons, samples, neighbours)")
+        items = [(n, presets.label(n, *(size or ())),
+                  f"Apply the {n} preset (photons, samples, neighbours)")
                  for n in presets.PRESETS]
     except Exception:  # noqa: BLE001 - engine not loadable: still show the choices
         items = [(n, n.capitalize(), "") for n in ("preview", "medium", "high", "reference")]
@@ -55,6 +67,19 @@ def _apply_preset(self, context):
     from .core import load_engine
     for key, value in load_engine().presets.PRESETS[self.quality_preset].items():
         setattr(self, key, value)
+
+
+def _preset_edited(key):
+    """Update callback of a setting a preset sets: a value other than the preset's turns
+    the preset into Custom (applying a preset sets its own values: no change)."""
+    def update(self, context):
+        if self.quality_preset == "custom":
+            return
+        from .core import load_engine
+        preset = load_engine().presets.PRESETS.get(self.quality_preset, {})
+        if key in preset and getattr(self, key) != preset[key]:
+            self.quality_preset = "custom"
+    return update
 
 
 class PhotonMapRenderSettings(bpy.types.PropertyGroup):
@@ -81,10 +106,12 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     # Pass 1: photons
     photons: IntProperty(
         name="Photons", default=400_000, min=0, soft_max=5_000_000, max=2**31 - 1,
+        update=_preset_edited("photons"),
         description="Photons emitted for the global photon map (shared by all lights in "
                     "proportion to their power)")
     caustic_photons: IntProperty(
         name="Caustic Photons", default=200_000, min=0, soft_max=5_000_000, max=2**31 - 1,
+        update=_preset_edited("caustic_photons"),
         description="Photons emitted towards glass and mirrors for the caustic map")
     max_photon_depth: IntProperty(
         name="Max Photon Depth", default=32, min=1, max=1000,
@@ -98,25 +125,33 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         description="Derive the maximum photon search radius from scene size and photon "
                     "density")
     radius: FloatProperty(
-        name="Search Radius", default=0.1, min=1e-6, soft_max=10.0, subtype="DISTANCE",
+        name="Search Radius", default=0.1, min=0.0, soft_max=10.0, subtype="DISTANCE",
         unit="LENGTH", precision=4,
-        description="Maximum photon search radius (used when Auto Radius is off)")
+        description="Maximum photon search radius in scene units (used when Auto Radius is "
+                    "off; the paper's MaxPhotonSearchRadius). 0 = automatic, as Auto Radius")
+    paper_mode: BoolProperty(
+        name="Paper Mode", default=False,
+        description="The paper's own method: its classic estimator (photons in a sphere of "
+                    "the search radius, cosine-weighted), no final gathering. Overrides "
+                    "Estimator and Final Gather")
     min_photons: IntProperty(
         name="Min Photons", default=8, min=1, max=10_000,
         description="Fewer photons than this in range: no estimate (as in the paper)")
     k_nearest: IntProperty(
         name="Nearest Photons", default=64, min=1, max=10_000,
+        update=_preset_edited("k_nearest"),
         description="Photons gathered per k-nearest estimate")
     final_gather: BoolProperty(
         name="Final Gather", default=True,
         description="Estimate indirect light by gather rays into the global map "
                     "(smoother) instead of reading the map directly")
     gather_rays: IntProperty(
-        name="Gather Rays", default=2, min=1, max=256,
+        name="Gather Rays", default=2, min=1, max=256, update=_preset_edited("gather_rays"),
         description="Final-gather rays per camera sample")
     # Pass 2: camera
     spp: IntProperty(
         name="Samples", default=128, min=1, soft_max=1024, max=65536,
+        update=_preset_edited("spp"),
         description="Camera samples per pixel (jittered, anti-aliasing)")
     max_depth: IntProperty(
         name="Max Ray Depth", default=8, min=0, max=128,
@@ -148,7 +183,8 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         description="Shoot caustic photons only towards mirrors and glass")
     show_photons: BoolProperty(
         name="Show Photon Hits", default=False,
-        description="Draw the stored photon hits over the image (the paper's Fig. 6, left)")
+        description="Show the photon-hit view (dots by photon kind on black, the paper's "
+                    "Fig. 6, left) as the image; the Photon Hits pass always has it")
     seed: IntProperty(
         name="Seed", default=0, min=0,
         description="Random seed: the same seed and settings give the same image")
@@ -174,7 +210,10 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         return dict(
             photons=self.photons, caustic_photons=self.caustic_photons,
             max_photon_depth=self.max_photon_depth, estimator=self.estimator,
-            radius=None if self.use_auto_radius else float(self.radius),
+            # 0 (typed, or Blender's old minimum 1e-6) means automatic, never a radius
+            # that finds no photon.
+            radius=None if self.use_auto_radius or self.radius <= 1e-6 else float(self.radius),
+            paper_mode=self.paper_mode,
             min_photons=self.min_photons, k_nearest=self.k_nearest,
             final_gather=self.final_gather, gather_rays=self.gather_rays,
             spp=self.spp, max_depth=self.max_depth, light_samples=self.light_samples,
@@ -192,7 +231,8 @@ class PhotonMapViewLayerSettings(bpy.types.PropertyGroup):
                     "(they sum to Combined)")
     use_pass_photon_hits: BoolProperty(
         name="Photon Hits", default=True,
-        description="Write a pass with the stored photon hits drawn as dots")
+        description="Write a pass with the stored photon hits drawn as dots on black, "
+                    "coloured by kind: yellow direct, blue indirect, magenta caustic")
 
 
 classes = (PhotonMapRenderSettings, PhotonMapViewLayerSettings)

@@ -103,19 +103,26 @@ class PHOTONMAP_PT_estimate(PhotonMapButtonsPanel, bpy.types.Panel):
         pm = context.scene.photonmap
         layout.active = pm.photon_mapping
         col = layout.column()
-        col.prop(pm, "estimator")
+        col.prop(pm, "paper_mode")
+        sub = col.column()
+        sub.active = not pm.paper_mode
+        sub.prop(pm, "estimator")
         col.prop(pm, "use_auto_radius")
         sub = col.column()
         sub.active = not pm.use_auto_radius
         sub.prop(pm, "radius")
+        if not pm.use_auto_radius and pm.radius <= 1e-6:
+            sub.label(text="Radius 0: the automatic radius is used", icon="INFO")
         col.prop(pm, "min_photons")
         sub = col.column()
-        sub.active = pm.estimator not in ("classic", "radius")
+        sub.active = pm.estimator not in ("classic", "radius") and not pm.paper_mode
         sub.prop(pm, "k_nearest")
         col.separator()
-        col.prop(pm, "final_gather")
         sub = col.column()
-        sub.active = pm.final_gather
+        sub.active = not pm.paper_mode
+        sub.prop(pm, "final_gather")
+        sub = col.column()
+        sub.active = pm.final_gather and not pm.paper_mode
         sub.prop(pm, "gather_rays")
 
 

@@ -27,17 +27,17 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from engine import RenderSettings, render  # noqa: E402
-from engine.api import cornell_box  # noqa: E402
+from engine.api import PAPER_FIGURE6_LADDER, PAPER_FIGURE6_RADIUS_SCALE, cornell_box  # noqa: E402
 from engine.imageio import replacing, to_8bit  # noqa: E402
 from engine.presets import MEASURED_FILE, PRESETS  # noqa: E402
 from engine.progressive import Budget, relmse, render_progressive  # noqa: E402
 
 DOCS = os.path.join(ROOT, "docs")
 CACHE = os.path.join(ROOT, "out", "bench_cache")
-# The paper's Figure 6 ladder (photons, radius). Its radii are in the paper's scene units;
-# we read r = 4 as one fifth of the box width (our box is 4 m wide): scale 0.2.
-PAPER_LADDER = [(1_000, 4.0), (10_000, 2.0), (100_000, 1.0), (200_000, 0.4)]
-PAPER_SCALE = 0.2
+# The paper's Figure 6 ladder (photons, radius in the paper's units) and the scale from
+# its units to our 4 m box (engine/api.py, docs/paper_mode.md).
+PAPER_LADDER = list(PAPER_FIGURE6_LADDER)
+PAPER_SCALE = PAPER_FIGURE6_RADIUS_SCALE
 
 
 def flip(ref, x):
@@ -95,16 +95,13 @@ def main(argv=None):
     # The paper's ladder: fixed radius, paper estimator, no final gather (Fig. 6).
     for photons, r in (PAPER_LADDER[:2] if args.quick else PAPER_LADDER):
         st = RenderSettings(photons=photons, caustic_photons=photons // 2, radius=r * PAPER_SCALE,
-                            estimator="classic", final_gather=False, spp=16)
+                            paper_mode=True, spp=16)
         t0 = time.perf_counter()
         film = render(scene, st)
         secs = time.perf_counter() - t0
         measure("paper", f"{photons:,} photons, r={r * PAPER_SCALE:.2f} m", film.combined, secs,
                 "classic estimator, no final gather")
-        hits = render(scene, RenderSettings(photons=photons, caustic_photons=photons // 2,
-                                            radius=r * PAPER_SCALE, estimator="classic",
-                                            final_gather=False, spp=1, show_photons=True))
-        strip.append((f"{photons:,} / r={r * PAPER_SCALE:.2f}", hits.photon_hits, film.combined))
+        strip.append((f"{photons:,} / r={r * PAPER_SCALE:.2f}", film.photon_hits, film.combined))
 
     # Presets.
     measured = {}
@@ -116,7 +113,8 @@ def main(argv=None):
         secs = time.perf_counter() - t0
         measure("preset", name, film.combined, secs)
         measured[name] = dict(seconds=secs, relmse=rows[-1]["relmse"], flip=rows[-1]["flip"],
-                              scene=f"Figure 6 box {args.width}x{args.height}, 2 cores")
+                              scene=f"Figure 6 box {args.width}x{args.height}, 2 cores",
+                              width=args.width, height=args.height)
 
     # Progressive: error after each pass of one run.
     def on_pass(film, info):

@@ -9,6 +9,17 @@
                      view_angle=40)
     film = scene.render(photons=100_000, spp=8)
     write_image(film.combined, "out.png")
+
+The paper's own names (docs/paper_mode.md) work too, and a misspelt one is refused with
+the valid names listed (an attribute nobody reads would be silently ignored):
+
+    scene.EnablePhotonMapping()
+    scene.MaxRayTraceDepth = 5          # max_depth
+    scene.MaxPhotonTraceDepth = 10      # max_photon_depth
+    scene.MaxPhotonSearchRadius = 0.4   # radius, in scene units (metres)
+    light = scene.add_point_light((0, 0, 3.5))
+    light.MaxRayPerLightSrc = 100_000   # photons this light emits
+    film = scene.render(paper_mode=True, spp=8)
 """
 from __future__ import annotations
 
@@ -19,6 +30,61 @@ import numpy as np
 from .scene import AREA, POINT, SPOT, SUN, Camera, Light, Material, Mesh, Scene, SceneError
 from .scene import predefined_materials
 from .settings import RenderSettings
+
+# The paper's parameter names (Yu, Lowther, Shene 2005; docs/paper_mode.md) and the
+# RenderSettings fields they set. MinPhotonsForEstimate names the paper's "too few
+# photons: no estimate" threshold in the same style.
+PAPER_SETTINGS = {
+    "MaxRayTraceDepth": "max_depth",
+    "MaxPhotonTraceDepth": "max_photon_depth",
+    "MaxPhotonSearchRadius": "radius",
+    "MinPhotonsForEstimate": "min_photons",
+}
+PAPER_METHODS = ("EnablePhotonMapping", "DisablePhotonMapping")
+# The paper's Figure 6 radii (4.0, 2.0, 1.0, 0.4) are in its own scene units; its box is
+# five times as wide as a search radius of 1: in our 4 m box (cornell_box) a paper radius
+# r is r x 0.2 m. Paper mode takes radii in scene units (metres): convert with this.
+PAPER_FIGURE6_RADIUS_SCALE = 0.2
+PAPER_FIGURE6_LADDER = ((1_000, 4.0), (10_000, 2.0), (100_000, 1.0), (200_000, 0.4))
+
+
+def _refuse(obj, name: str, valid) -> AttributeError:
+    return AttributeError(f"{type(obj).__name__} has no attribute '{name}'; valid names: "
+                          + ", ".join(sorted(set(valid))))
+
+
+class PaperLight(Light):
+    """A Light that also takes the paper's per-light photon count,
+    `MaxRayPerLightSrc` (photons this light emits for the global map), and refuses
+    attributes it does not have instead of silently keeping them."""
+
+    def __post_init__(self):
+        super().__post_init__()
+        self.max_ray_per_light_src = None
+        object.__setattr__(self, "_sealed", True)
+
+    @property
+    def MaxRayPerLightSrc(self):
+        return self.max_ray_per_light_src
+
+    @MaxRayPerLightSrc.setter
+    def MaxRayPerLightSrc(self, value):
+        self.max_ray_per_light_src = _photon_count(value, f"light '{self.name}' MaxRayPerLightSrc")
+
+    def __setattr__(self, name, value):
+        if (self.__dict__.get("_sealed") and name not in self.__dict__
+                and not hasattr(type(self), name)):
+            raise _refuse(self, name, [n for n in self.__dict__ if not n.startswith("_")]
+                          + ["MaxRayPerLightSrc"])
+        super().__setattr__(name, value)
+
+
+def _photon_count(value, what: str) -> int:
+    ok = not isinstance(value, bool) and isinstance(value, (int, np.integer, float)) \
+        and float(value).is_integer() and value >= 0
+    if not ok:
+        raise SceneError(f"{what} must be a whole number >= 0, got {value!r}")
+    return int(value)
 
 
 def _frame(normal):
@@ -67,6 +133,62 @@ class PaperScene(Scene):
     def __init__(self, width=400, height=300, background=(0, 0, 0), **kw):
         super().__init__(width=width, height=height, background=background, **kw)
         self.materials.update(predefined_materials())
+        self.paper_settings = {}         # RenderSettings fields set through the paper's names
+        self.max_ray_per_light_src = None  # the scene-wide MaxRayPerLightSrc
+        self.photons_per_light = None    # {light name: photons} for render (engine/render.py)
+        object.__setattr__(self, "_sealed", True)
+
+    # --- the paper's names -----------------------------------------------------------
+    def _paper_names(self):
+        return list(PAPER_SETTINGS) + list(PAPER_METHODS) + ["MaxRayPerLightSrc"]
+
+    def __setattr__(self, name, value):
+        if name in PAPER_SETTINGS:
+            key = PAPER_SETTINGS[name]
+            try:
+                RenderSettings(**{key: value})
+            except ValueError as e:
+                raise SceneError(f"{name}: {e}") from None
+            self.paper_settings[key] = value
+            return
+        if name == "MaxRayPerLightSrc":
+            self.max_ray_per_light_src = _photon_count(value, "MaxRayPerLightSrc")
+            return
+        if (self.__dict__.get("_sealed") and name not in self.__dict__
+                and not hasattr(type(self), name)):
+            raise _refuse(self, name, self._paper_names()
+                          + [n for n in self.__dict__ if not n.startswith("_")])
+        super().__setattr__(name, value)
+
+    def __getattr__(self, name):  # only for names not found the ordinary way
+        if name in PAPER_SETTINGS:
+            key = PAPER_SETTINGS[name]
+            return self.paper_settings.get(key, getattr(RenderSettings(), key))
+        if name == "MaxRayPerLightSrc":
+            return self.max_ray_per_light_src
+        if name.startswith("__") or not self.__dict__.get("_sealed"):
+            raise AttributeError(name)
+        raise _refuse(self, name, self._paper_names()
+                      + [n for n in dir(type(self)) if not n.startswith("_")])
+
+    def EnablePhotonMapping(self):
+        """The paper's switch: photon mapping on (the default)."""
+        self.paper_settings["photon_mapping"] = True
+
+    def DisablePhotonMapping(self):
+        """The paper's switch: plain ray tracing (the paper's Fig. 5b)."""
+        self.paper_settings["photon_mapping"] = False
+
+    def _photon_counts(self):
+        """{light name: photons} from MaxRayPerLightSrc (each light's own, else the
+        scene's), or None when neither is set (photons then shared by power)."""
+        counts = {}
+        for light in self.lights:
+            own = getattr(light, "max_ray_per_light_src", None)
+            n = own if own is not None else self.max_ray_per_light_src
+            if n is not None:
+                counts[light.name] = n
+        return counts or None
 
     def _material(self, material) -> str:
         if isinstance(material, Material):
@@ -117,24 +239,24 @@ class PaperScene(Scene):
         """One-sided area light facing `direction` (Blender: the light's -Z)."""
         sx, sy = (size, size) if np.isscalar(size) else size
         u, _, _ = _frame(direction)
-        return self.add_light(Light(name or f"area.{len(self.lights):03d}", AREA, power, color,
+        return self.add_light(PaperLight(name or f"area.{len(self.lights):03d}", AREA, power, color,
                                     center, direction, axis_u=u, size_x=sx, size_y=sy,
                                     shape="DISK" if disk else "RECTANGLE"))
 
     def add_point_light(self, position, power=100.0, color=(1, 1, 1), radius=0.0, name=None):
-        return self.add_light(Light(name or f"point.{len(self.lights):03d}", POINT, power, color,
+        return self.add_light(PaperLight(name or f"point.{len(self.lights):03d}", POINT, power, color,
                                     position, radius=radius))
 
     def add_spot_light(self, position, look_at, power=100.0, color=(1, 1, 1),
                        spot_size_degrees=45.0, blend=0.15, radius=0.0, name=None):
         d = np.asarray(look_at, np.float64) - np.asarray(position, np.float64)
-        return self.add_light(Light(name or f"spot.{len(self.lights):03d}", SPOT, power, color,
+        return self.add_light(PaperLight(name or f"spot.{len(self.lights):03d}", SPOT, power, color,
                                     position, d, radius=radius,
                                     spot_size=math.radians(spot_size_degrees), spot_blend=blend))
 
     def add_sun(self, direction=(0, 0, -1), strength=1.0, color=(1, 1, 1), angle_degrees=0.0,
                 name=None):
-        return self.add_light(Light(name or f"sun.{len(self.lights):03d}", SUN, strength, color,
+        return self.add_light(PaperLight(name or f"sun.{len(self.lights):03d}", SUN, strength, color,
                                     direction=direction, angle=math.radians(angle_degrees)))
 
     def set_camera(self, position, look_at, up=(0, 0, 1), view_angle=40.0, aspect=None, **kw):
@@ -146,11 +268,28 @@ class PaperScene(Scene):
         return self.camera
 
     def render(self, settings: RenderSettings | None = None, **overrides):
+        """Render with `settings` or keyword settings; what was set through the paper's
+        names applies on top. With MaxRayPerLightSrc set (per light or scene-wide),
+        those lights emit exactly that many global photons; lights without a count
+        share `photons` by power, and `photons` is the total when every light has one."""
+        from dataclasses import replace
+
         from .render import render
-        if settings is None:
-            settings = RenderSettings(**overrides)
-        elif overrides:
+        if settings is not None and overrides:
             raise TypeError("pass either a RenderSettings or keyword settings, not both")
+        counts = self._photon_counts()
+        paper = dict(self.paper_settings)
+        if counts is not None:
+            fixed = sum(counts.values())
+            every = all(li.name in counts for li in self.lights)
+            base = (settings.photons if settings is not None
+                    else overrides.get("photons", RenderSettings().photons))
+            paper["photons"] = fixed if every else fixed + base
+        if settings is None:
+            settings = RenderSettings(**{**overrides, **paper})
+        elif paper:
+            settings = replace(settings, **paper)
+        self.photons_per_light = counts
         return render(self, settings)
 
 

@@ -78,7 +78,9 @@ def _setting_options(r, method=True, sweeps=False):
                             "error); other options override it")
     r.add_argument("--photons", type=_nonnegative_int, help="global photons to emit")
     r.add_argument("--caustic-photons", type=_nonnegative_int, help="caustic photons to emit")
-    r.add_argument("--radius", type=_positive_float, help="max photon search radius (default: auto)")
+    r.add_argument("--radius", type=_positive_float,
+                   help="max photon search radius in scene units, metres (the paper's "
+                        "MaxPhotonSearchRadius; default: auto from the photon spacing)")
     r.add_argument("--min-photons", type=_nonnegative_int, help="fewer photons found -> no estimate")
     r.add_argument("--k", dest="k_nearest", type=_positive_int, help="photons per k-NN estimate")
     r.add_argument("--estimator", choices=ESTIMATORS, help="radiance estimator")
@@ -104,6 +106,10 @@ def _setting_options(r, method=True, sweeps=False):
                             "from the scene)")
     r.add_argument("--no-final-gather", action="store_true",
                    help="show the global photon map directly (faster, blotchier)")
+    r.add_argument("--paper", action="store_true",
+                   help="the paper's own method: classic estimator (cosine-weighted, fixed "
+                        "--radius in scene units, metres), no final gathering "
+                        "(docs/paper_mode.md)")
     r.add_argument("--exposure", type=_finite_float, default=0.0,
                    help="exposure in stops for PNG/PPM")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -138,7 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(docs/distributed.md)")
     _setting_options(r)
     r.add_argument("--show-photons", action="store_true",
-                   help="draw photon hits over the image (paper Fig. 6, left)")
+                   help="write the photon-hit view (dots by photon kind on black, paper Fig. "
+                        "6, left) as the image; --save-passes writes it beside any render")
     r.add_argument("--save-passes", action="store_true",
                    help="also write each effect pass next to the output (name.direct.png ...)")
     r.add_argument("--strip", action="store_true",
@@ -244,6 +251,8 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
         overrides["caustics"] = "off"
     if args.no_final_gather:
         overrides["final_gather"] = False
+    if args.paper:
+        overrides["paper_mode"] = True
     return scene, overrides
 
 

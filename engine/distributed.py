@@ -179,7 +179,7 @@ def _threads_here():
 def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
              worker_threads: int | None = None) -> Film:
     """The Dask task: render pass i (1-based) of `settings` on this worker and return its
-    film (photon_hits dropped unless photons are shown: all zero). The prepared context is
+    film (with its photon-hit pass, like every pass). The prepared context is
     cached per render key. Engine threads: worker_threads, else settings.workers, else the
     cores divided among this worker's task threads; the image does not depend on it."""
     threads = int(worker_threads or settings.workers or _threads_here())
@@ -193,8 +193,6 @@ def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
         film.stats["pass_seconds"] = time.perf_counter() - t0
         film.stats["effects"] = ctx.plan.report()
         film.warnings = ctx.scene.all_warnings()
-        if not settings.show_photons:
-            film.photon_hits = None
     finally:
         _give_back(cache, key, ctx)
     return film

@@ -69,7 +69,9 @@ class EffectPlan:
     caster_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # their object ids
     rough_specular: list = field(default_factory=list)  # specular objects too rough to focus
     caustics_from_global: bool = False  # caustic map from the global shot, no caustic shot
+    trapped: dict = field(default_factory=dict)  # light name -> closed mesh it is shut in
     decisions: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)  # students' mistakes, explained
 
     def add(self, effect, enabled, reason):
         self.decisions.append(Decision(effect, bool(enabled), reason))
@@ -123,6 +125,49 @@ def _light_reaches(light: PreparedLight, accel, geo: Geometry, oid: int, center,
     return bool(np.any(geo.object_id[prim[hit]] == oid))
 
 
+def _enclosing_object(accel, geo: Geometry, table: MaterialTable, o, d) -> int:
+    """The object that rays (o, d) all hit first from its inside (the back of its
+    triangles, by winding) when it is opaque (no transmission, alpha 1): the closed mesh
+    the origins are shut in. -1 if any ray escapes or meets anything else."""
+    _, prim, _, _ = accel.intersect(o, d)
+    if len(prim) == 0 or np.any(prim < 0):
+        return -1
+    ids = geo.object_id[prim]
+    if np.any(ids != ids[0]) or np.any(np.einsum("ij,ij->i", d, geo.ng[prim]) <= 0):
+        return -1
+    mat = geo.material[prim]
+    if np.any(table.transmission[mat] > 0) or np.any(table.alpha[mat] < 1):
+        return -1
+    return int(ids[0])
+
+
+def trapped_lights(scene, geo: Geometry, table: MaterialTable, lights: list, accel,
+                   rng) -> dict:
+    """{light name: mesh name} for declared lights shut inside a closed opaque mesh that
+    the camera is outside of: every photon and shadow ray of such a light stays inside,
+    so its light reaches nothing the camera sees. Found with PROBE_RAYS photons per
+    light (all must hit the mesh from inside) and as many rays from the camera."""
+    if geo.count == 0 or scene.camera is None:
+        return {}
+    out = {}
+    cam = None
+    for li in lights:
+        if li.source is None or li.kind in (SUN, WORLD):
+            continue
+        o, d, _ = li.emit(PROBE_RAYS, rng)
+        oid = _enclosing_object(accel, geo, table, o, d)
+        if oid < 0:
+            continue
+        if cam is None:
+            u = rng.normal(size=(PROBE_RAYS, 3))
+            u /= np.linalg.norm(u, axis=1, keepdims=True)
+            p = np.broadcast_to(scene.camera.position - geo.offset, u.shape)
+            cam = _enclosing_object(accel, geo, table, np.ascontiguousarray(p), u)
+        if cam != oid:
+            out[li.name] = geo.object_names[oid]
+    return out
+
+
 def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, settings) -> EffectPlan:
     plan = EffectPlan()
     s = settings
@@ -132,6 +177,19 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     emitting = [li for li in lights if float(luminance(np.asarray(li.photon_flux))) > 0]
     spec_tri = table.has_specular[mat] if has_tris else np.zeros(0, bool)
     diff_tri = table.has_diffuse[mat] if has_tris else np.zeros(0, bool)
+
+    # --- lights shut inside a closed mesh (a student's mistake, explained) -------------
+    plan.trapped = trapped_lights(scene, geo, table, emitting, accel,
+                                  np.random.default_rng([s.seed, 96]))
+    for name, mesh in plan.trapped.items():
+        plan.warnings.append(
+            f"light '{name}' is inside the closed mesh '{mesh}' (the camera is outside it): "
+            f"all its photons and shadow rays stay inside '{mesh}', so none of its light "
+            "reaches what the camera sees; move the light out of the mesh or delete the "
+            "mesh's faces that are in the way")
+    shut_in = [li for li in emitting if li.name in plan.trapped]
+    if shut_in and len(shut_in) == len(emitting):
+        emitting = []  # nothing the camera sees can receive light
 
     # --- the method (settings.METHODS) and photon mapping at all (the paper's switch) ---
     # A method is a set of the switches below: local and raytrace turn photon mapping off,
@@ -150,7 +208,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     if not photon_mapping:
         plan.indirect = False
     else:
-        if not emitting:
+        if not emitting and plan.trapped:
+            auto, why = False, ("every light is shut inside a closed mesh: "
+                                + ", ".join(f"'{m}'" for m in sorted(set(plan.trapped.values()))))
+        elif not emitting:
             auto, why = False, "no light emits power"
         elif not diff_tri.any():
             auto, why = False, "no diffuse surface with non-zero albedo"
@@ -212,8 +273,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                                + f" (specular roughness > {SHARP_ROUGHNESS:g}) come from {source}")
         else:
             all_names = list(names) + plan.rough_specular
-            auto, why = False, ("no light reaches the mirror / glass object(s) "
-                                + ", ".join(f"'{n}'" for n in all_names))
+            auto, why = False, ("no light reaches the specular object(s) "
+                                + _labelled(geo, table, all_names))
         plan.caustics = _override(s.caustics, auto, "caustics", why, plan)
         if plan.caustics and reached:
             plan.casters = [n for _, _, _, n in reached]
@@ -233,7 +294,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         auto, why = False, "no mirror or glass is visible to the camera"
     else:
         auto, why = True, (f"up to {s.max_depth} bounces through "
-                           + ", ".join(f"'{n}'" for n in visible[:4])
+                           + _labelled(geo, table, visible[:4])
                            + (" ..." if len(visible) > 4 else ""))
     if s.method == "local":
         on = False
@@ -260,7 +321,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         n_samples = s.light_samples if sized else 1
         plan.light_samples[li.name] = n_samples
         spp = s.spp
-        if li.kind == MESH:
+        if s.soft_shadows == "off" and li.has_size:
+            why = ("switched off in the settings: hard shadows, one shadow ray per sample to "
+                   + ("each emitting triangle's centre" if li.kind == MESH
+                      else f"the centre of '{li.name}'"))
+        elif li.kind == MESH:
             why = f"{len(li.tri_index):,} emitting triangles sampled by area x brightness"
         elif sized:
             why = f"{n_samples * spp} shadow rays per pixel for '{li.name}'"
@@ -287,6 +352,26 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         names = sorted({table.names[m] for m in np.unique(mat[table.alpha[mat] < 1])})
         plan.add("transparency", True, "alpha below 1 in " + ", ".join(f"'{n}'" for n in names))
     return plan
+
+
+def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
+    """What a specular object is, in a student's words: 'glass' (transmission or alpha
+    below 1), 'mirror' (metallic and sharp), 'metal' (metallic and rough), else 'glossy'
+    (a coat over a diffuse base: plastic, varnish)."""
+    mats = np.unique(geo.material[geo.object_id == oid])
+    if np.any(table.transmission[mats] > 0) or np.any(table.alpha[mats] < 1):
+        return "glass"
+    metal = table.metallic[mats] >= 0.5
+    if np.any(metal & (table.roughness[mats] <= SHARP_ROUGHNESS)):
+        return "mirror"
+    return "metal" if np.any(metal) else "glossy"
+
+
+def _labelled(geo: Geometry, table: MaterialTable, names) -> str:
+    """"glass 'ball', glossy 'vase'" for object names."""
+    ids = {n: i for i, n in enumerate(geo.object_names)}
+    return ", ".join(f"{specular_kind(geo, table, ids[n])} '{n}'" if n in ids else f"'{n}'"
+                     for n in names)
 
 
 def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:

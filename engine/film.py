@@ -21,7 +21,7 @@ class Film:
     caustic: np.ndarray = None
     specular: np.ndarray = None     # everything seen through mirrors and glass
     emission: np.ndarray = None     # emitters and background seen directly
-    photon_hits: np.ndarray = None  # photon positions splatted into the image (Fig. 6 left)
+    photon_hits: np.ndarray = None  # photon-hit view: dots by photon kind on black (Fig. 6 left)
     alpha: np.ndarray = None        # coverage: 1 where a camera ray hit geometry
     holdout: np.ndarray = None      # fraction of camera samples that met a holdout surface
     depth: np.ndarray = None        # camera distance to the first hit (inf = nothing)
@@ -44,12 +44,11 @@ class Film:
 
     @property
     def combined(self) -> np.ndarray:
-        """Sum of the effect buffers; in photon-view mode the photon dots are drawn over it."""
-        img = sum(getattr(self, name) for name in EFFECTS).astype(np.float32)
+        """Sum of the effect buffers; with show_photons the photon-hit view instead (the
+        paper's Fig. 6, left: dots on black), never dots painted over the render."""
         if self.show_photons:
-            hit = np.any(self.photon_hits > 0, axis=2)
-            img[hit] = self.photon_hits[hit]
-        return img
+            return self.photon_hits.astype(np.float32, copy=True)
+        return sum(getattr(self, name) for name in EFFECTS).astype(np.float32)
 
     def passes(self) -> dict[str, np.ndarray]:
         return {"combined": self.combined, **{n: getattr(self, n) for n in EFFECTS},

@@ -138,7 +138,8 @@ class PassMerger:
         self.passes += 1
         i = self.passes
         self.photons += one.stats.get("photons_emitted", 0) + one.stats.get("caustic_photons_emitted", 0)
-        combined = one.combined.astype(np.float64)
+        # The render's sum (not the photon-hit view that combined is with show_photons).
+        combined = sum(getattr(one, name) for name in EFFECTS).astype(np.float64)
         for name in EFFECTS:
             self.sums[name] += getattr(one, name)
         self.halves[i % 2] += combined
@@ -203,7 +204,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     film.stats.update(progressive=True, passes=i, error_estimate=merger.error,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,
                       effects=ctx.plan.report(), time_total=time.perf_counter() - t_start)
-    film.warnings = scene.all_warnings()
+    film.warnings = scene.all_warnings() + ctx.plan.warnings
     return film
 
 

@@ -14,12 +14,13 @@ from .geometry import Geometry, MaterialTable, prepare
 from .integrator import render_camera
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
+from .lights import packing as pk
 from .lights.packing import pack_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
 from .parallel import Cancelled
-from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Photons, trace_photons
+from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
 from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
@@ -81,7 +82,28 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel) -
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights, packed_lights=pack_lights(lights))
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
+    if settings.soft_shadows == "off":
+        ctx.packed_lights = hard_shadow_packing(ctx.packed_lights)
     return ctx
+
+
+def hard_shadow_packing(packed):
+    """Soft shadows off: every light with a size packed as a point at its centre, so
+    its one shadow ray per sample always aims there and shadows are hard (the paper's
+    point-light shadows). Flux and emission profile are kept: an area light stays a
+    one-sided cosine emitter of radiance x area (its kernel samples the centre of a
+    0 x 0 rectangle), a point / spot light of radius r becomes radius 0, and each
+    emitting triangle is sampled at its centroid. Photons still leave the whole light.
+    packed: (codes, params, mesh arrays) of lights.packing.pack_lights; returns a copy."""
+    codes, params, mesh = packed
+    params = params.copy()
+    area = codes == pk.CODE_AREA
+    params[area, pk.SIZE_X] = params[area, pk.SIZE_Y] = 0.0
+    params[area, pk.SPREAD_RECT] = 0.0  # the spread-cropped rectangle samples its window
+    params[(codes == pk.CODE_POINT) | (codes == pk.CODE_SPOT), pk.RADIUS] = 0.0
+    v0, e1, e2, *rest = mesh
+    centroid = v0 + (e1 + e2) / 3.0
+    return codes, params, (centroid, np.zeros_like(e1), np.zeros_like(e2), *rest)
 
 
 def render_pass(ctx: Context, region, progress=None, should_cancel=None) -> Film:
@@ -104,8 +126,7 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None) -> Film
         stats["time_camera"] = time.perf_counter() - t0
         stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
                      gather_rays=counters.gather_rays, specular_rays=counters.specular_rays)
-        if settings.show_photons:
-            _draw_photons(ctx, film, all_photons, region)
+        _draw_photons(ctx, film, all_photons, region)  # the photon-hit pass, always
     except Cancelled:
         stats["cancelled"] = True  # the film holds what was finished
     return film
@@ -130,10 +151,11 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
         film = render_pass(ctx, region, progress, should_cancel)
     finally:
         ctx.accel.close()
-    film.stats.update(effects=ctx.plan.report(), triangles=ctx.geo.count, lights=len(ctx.lights),
+    film.stats.update(effects=ctx.plan.report() + photon_map_report(settings, film.stats),
+                      triangles=ctx.geo.count, lights=len(ctx.lights),
                       extent=ctx.geo.extent, time_prepare=t_prepare,
                       time_total=time.perf_counter() - t_start)
-    film.warnings = scene.all_warnings()
+    film.warnings = scene.all_warnings() + ctx.plan.warnings + film.stats.get("warnings", [])
     return film
 
 
@@ -156,7 +178,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     # The global shot is needed for indirect light; without a separate caustic shot, or
     # for the caustic paths the aimed shot leaves out, it also carries caustic photons.
     if plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None:
-        counts = allocate_photons(ctx.lights, s.photons)
+        counts = photon_counts(ctx, s.photons)
         shot = trace_photons(ctx, ctx.lights, counts, caustic_only=False, stream=1,
                              progress=progress, should_cancel=should_cancel,
                              first_hit=None if split is None else (split, False))
@@ -227,12 +249,75 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
     stats["radius_global"] = ctx.global_radius
     stats["radius_caustic"] = ctx.caustic_radius
+    if s.radius is not None and plan.indirect:
+        stats.setdefault("warnings", []).extend(radius_warnings(
+            s.radius, geo.extent, diffuse_area, stats.get("global_photons", 0), s.min_photons))
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
-    if not s.show_photons:
-        return Photons.empty()  # only the photon-hit view needs them after this point
+    # For the photon-hit pass (_draw_photons).
     return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
                      for f in ("position", "power", "direction", "normal", "kind")))
+
+
+# A search radius above this share of the scene's size blurs light across objects.
+RADIUS_SCENE_FRACTION = 0.1
+
+
+def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: int,
+                    min_photons: int) -> list[str]:
+    """What a hand-set search radius (m) does wrong, in words: larger than
+    RADIUS_SCENE_FRACTION of the scene's size (extent: its bounding-box diagonal, m), or
+    smaller than the spacing of the `stored` global photons over `diffuse_area` m^2
+    (sqrt(area / stored): the mean distance between neighbours of an even spread)."""
+    out = []
+    if radius > RADIUS_SCENE_FRACTION * extent:
+        out.append(
+            f"search radius {radius:.4g} m is {100 * radius / extent:.0f} % of the scene's size "
+            f"({extent:.3g} m across): each estimate spreads photons over a disc of "
+            f"{math.pi * radius * radius:.3g} m^2, so indirect light is blurred across corners "
+            "and objects (and too dark where the disc is larger than the surface it lands on), "
+            "and every lookup scans many photons (slow); use a few % of the scene or the "
+            "automatic radius")
+    if stored > 0 and diffuse_area > 0:
+        spacing = math.sqrt(diffuse_area / stored)
+        if radius < spacing:
+            out.append(
+                f"search radius {radius:.4g} m is below the photon spacing (~{spacing:.3g} m: "
+                f"{stored:,} photons stored on {diffuse_area:.3g} m^2 of diffuse surface): most "
+                f"estimates find fewer than {min_photons} photons and give no light, so indirect "
+                "light is dark and spotty; raise the radius above the spacing or shoot more "
+                "photons")
+    return out
+
+
+def photon_map_report(settings: RenderSettings, stats: dict) -> list[str]:
+    """One effect-report line with what the photon maps hold and the radius used."""
+    if "radius_global" not in stats:
+        return []
+    parts = []
+    if stats.get("global_photons"):
+        parts.append(f"{stats['global_photons']:,} global photons stored, search radius "
+                     f"{stats['radius_global']:.4g} m")
+    if stats.get("caustic_photons"):
+        parts.append(f"{stats['caustic_photons']:,} caustic photons stored, search radius "
+                     f"{stats['radius_caustic']:.4g} m")
+    how = "radius set" if settings.radius is not None else "automatic radius"
+    est = f"{settings.estimator} estimator" + (" (paper mode)" if settings.paper_mode else "")
+    return [f"photon maps: on - {'; '.join(parts) or 'no photons stored'} ({how}, {est})"]
+
+
+def photon_counts(ctx: Context, total: int) -> list[int]:
+    """Global photons per prepared light: a light named in scene.photons_per_light (the
+    paper's MaxRayPerLightSrc, engine/api.py) emits exactly that many; the others share
+    what is left of `total` in proportion to their power (lights.allocate_photons)."""
+    fixed = getattr(ctx.scene, "photons_per_light", None) or {}
+    own = [li.source is not None and li.name in fixed for li in ctx.lights]
+    if not any(own):
+        return allocate_photons(ctx.lights, total)
+    rest = [li for li, o in zip(ctx.lights, own) if not o]
+    spare = max(total - sum(fixed[li.name] for li, o in zip(ctx.lights, own) if o), 0)
+    shared = iter(allocate_photons(rest, spare))
+    return [fixed[li.name] if o else next(shared) for li, o in zip(ctx.lights, own)]
 
 
 def _allocate_aimed(ctx, targets, total):
@@ -252,8 +337,36 @@ def _allocate_aimed(ctx, targets, total):
     return counts.tolist()
 
 
+# The photon-hit view (the paper's Fig. 6, left): one dot per drawn photon, coloured by
+# the kind of path that brought it (engine/photons.py), on black.
+PHOTON_KIND_COLORS = {
+    DIRECT: (1.0, 0.85, 0.25),          # yellow: straight from a light
+    INDIRECT: (0.25, 0.55, 1.0),        # blue: after a diffuse bounce (global map)
+    CAUSTIC_DIFFUSE: (0.25, 0.55, 1.0),
+    CAUSTIC: (1.0, 0.25, 0.85),         # magenta: through mirrors / glass (caustic map)
+}
+
+
+def photon_hit_budget(in_frame: int, width: int, height: int) -> int:
+    """How many of `in_frame` photons (those projecting into the image) the photon-hit
+    view draws. All of them up to one per 32 pixels; beyond that the count grows only
+    logarithmically, so the view never saturates (400k photons in a 160x120 image would
+    cover every pixel) yet still shows more photons as more are shot."""
+    base = max(64, (width * height) // 32)
+    if in_frame <= base:
+        return int(in_frame)
+    return int(round(base * (1.0 + math.log(in_frame / base))))
+
+
 def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
-    """Splat visible photon hits into film.photon_hits (the paper's Fig. 6, left)."""
+    """Fill film.photon_hits with the photon-hit view: the photons stored on surfaces the
+    camera sees directly, thinned to photon_hit_budget and drawn as one-pixel dots
+    coloured by kind (PHOTON_KIND_COLORS), on black. The thinning is a seeded choice per
+    photon made on the whole image, so tiles (region) agree with a full render.
+    film.stats gets photon_hits_shown (dots drawn) and photon_hits_fraction (the share of
+    the photons in the image that was drawn)."""
+    film.stats["photon_hits_shown"] = 0
+    film.stats["photon_hits_fraction"] = 1.0
     if len(photons) == 0:
         return
     cam = ctx.scene.camera
@@ -275,9 +388,21 @@ def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
         y = local[:, 1] / np.maximum(z, 1e-300)
     sx = (x - cam.shift_x * big) / hw
     sy = (y - cam.shift_y * big) / hh
-    px = np.floor((sx + 1.0) / 2.0 * W).astype(np.int64)
-    py = np.floor((1.0 - sy) / 2.0 * H).astype(np.int64)
-    inside = (z > 0) & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
+    with np.errstate(invalid="ignore"):
+        px = np.floor((sx + 1.0) / 2.0 * W)
+        py = np.floor((1.0 - sy) / 2.0 * H)
+    frame = (z > 0) & (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    n_frame = int(frame.sum())
+    if n_frame == 0:
+        return
+    keep = photon_hit_budget(n_frame, W, H) / n_frame
+    if keep < 1.0:
+        u = np.random.default_rng([ctx.settings.seed, 97]).random(len(p))
+        frame &= u < keep
+    film.stats["photon_hits_fraction"] = keep = min(keep, 1.0)
+    px = np.where(frame, px, -1).astype(np.int64)
+    py = np.where(frame, py, -1).astype(np.int64)
+    inside = frame & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
     idx = np.nonzero(inside)[0]
     if len(idx) == 0:
         return
@@ -295,11 +420,15 @@ def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
         return
     rw = x1 - x0
     flat = (py[idx] - y0) * rw + (px[idx] - x0)
-    colour = photons.power[idx].astype(np.float64)
-    colour = colour / np.maximum(colour.max(axis=1, keepdims=True), 1e-300)
-    buf = np.zeros((film.height * film.width, 3))
+    table = np.zeros((max(PHOTON_KIND_COLORS) + 1, 3))
+    for kind, rgb in PHOTON_KIND_COLORS.items():
+        table[kind] = rgb
+    colour = table[photons.kind[idx]]
+    size = film.height * film.width
+    count = np.bincount(flat, minlength=size).astype(np.float64)
+    buf = np.zeros((size, 3))
     for c in range(3):
-        buf[:, c] = np.bincount(flat, weights=colour[:, c], minlength=len(buf))
-    peak = buf.max(axis=1, keepdims=True)
-    buf = np.where(peak > 0, buf / np.maximum(peak, 1e-300), 0.0)
+        buf[:, c] = np.bincount(flat, weights=colour[:, c], minlength=size)
+    buf /= np.maximum(count, 1.0)[:, None]  # a pixel with several dots shows their mix
     film.photon_hits[...] = buf.reshape(film.height, film.width, 3).astype(np.float32)
+    film.stats["photon_hits_shown"] = int(len(idx))

@@ -53,8 +53,12 @@ class RenderSettings:
     specular: str = "auto"          # camera rays through mirrors and glass
     soft_shadows: str = "auto"      # several shadow rays for lights with a size
     aim_caustics: bool = True       # shoot caustic photons only towards mirrors and glass
-    show_photons: bool = False      # draw photon hits over the image (Fig. 6 left)
+    show_photons: bool = False      # the image shows the photon-hit view (Fig. 6 left)
     film_transparent: bool = False  # background not drawn (alpha 0), as Blender's option
+    # The paper's own method (docs/paper_mode.md): its classic estimator (cosine-weighted,
+    # fixed radius: `radius` is the paper's MaxPhotonSearchRadius in scene units, metres)
+    # and no final gathering; overrides `estimator` and `final_gather`.
+    paper_mode: bool = False
     # Reproducibility and resources
     seed: int = 0
     workers: int = 0                # threads for Embree/kd-tree; 0 = all cores
@@ -82,7 +86,7 @@ class RenderSettings:
                          ("gather_rays", 1)):
             positive_int(name, lo)
         for name in ("final_gather", "photon_mapping", "aim_caustics", "show_photons",
-                     "film_transparent"):
+                     "film_transparent", "paper_mode"):
             v = getattr(self, name)
             if not isinstance(v, (bool, np.bool_)):  # "no" is a true string
                 raise ValueError(f"setting '{name}' must be true or false, got {v!r}")
@@ -111,6 +115,8 @@ class RenderSettings:
                                  f"got {self.radius!r}")
             self.radius = r
         self.min_photons = min(self.min_photons, self.k_nearest)
+        if self.paper_mode:
+            self.estimator, self.final_gather = "classic", False
 
     @property
     def uses_photon_maps(self) -> bool:

@@ -238,7 +238,9 @@ def figure6(path):
     lamp = light("CeilingLight", "AREA", (0, 0, 3.98), 120.0, rotation=(0, 0, 0),
                  shape="SQUARE", size=1.0)
     lamp.visible_camera = True
-    camera((0, -7.6, 2.0), (0, 0, 2.0), 38.0)
+    # Higher and looking down a little, so the floor in front of the glass sphere - its
+    # caustic - is in view.
+    camera((0, -7.6, 2.4), (0, 0, 1.6), 38.0)
     save(path)
 
 

@@ -35,7 +35,7 @@ def test_mirror_that_no_light_reaches_skips_the_caustic_map():
     s.add_rect_area_light((0, 0, 3), (1, 1), power=100)                # faces down onto the roof
     s.set_camera((0, -6, 3), (0, 0, 0.5))
     film = s.render(RenderSettings(photons=5000, spp=1))
-    assert "caustics: off - no light reaches the mirror / glass object(s) 'hidden_mirror'" in effects(film)
+    assert "caustics: off - no light reaches the specular object(s) mirror 'hidden_mirror'" in effects(film)
     assert film.stats.get("caustic_photons_emitted", 0) == 0
 
 

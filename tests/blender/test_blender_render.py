@@ -115,9 +115,10 @@ def _check_figure3(bpy, scene, layers):
 
 def _check_figure6(bpy, scene, layers):
     ind = layers["Indirect"]
-    # Colour bleeding: the ceiling next to the red wall is redder than next to the green.
-    rl, cl = project(bpy, scene, (-1.7, 0.5, 3.99))
-    rr, cr = project(bpy, scene, (1.7, 0.5, 3.99))
+    # Colour bleeding: the back wall next to the red wall is redder than next to the green
+    # (high up, above the block; the camera looks down at the caustic, not the ceiling).
+    rl, cl = project(bpy, scene, (-1.7, 1.99, 3.3))
+    rr, cr = project(bpy, scene, (1.7, 1.99, 3.3))
     left = ind[rl - 1:rl + 2, cl - 1:cl + 2].mean(axis=(0, 1))
     right = ind[rr - 1:rr + 2, cr - 1:cr + 2].mean(axis=(0, 1))
     assert left[0] / left[1] > 1.2 * right[0] / right[1], (left, right)
