@@ -826,6 +826,56 @@ def transparency_mix_transparent_cutout():
     _sun()
 
 
+def _window_room(pane):
+    """A closed 4 x 4 x 2.5 m room lit only through a 1.2 x 1 m window in its +x wall by
+    an area light outside. pane: None (an open window), "plane" (single-plane Glass) or
+    "slab" (2 cm Glass slab). Glass is opaque to shadow rays in Cycles as in ours: the
+    light comes in as a caustic (Cycles: paths traced through the glass)."""
+    mb.reset()
+    white = mb.material("wall", "diffuse", (0.7, 0.7, 0.7))
+    mb.plane("Floor", 4, 4, white)
+    mb.plane("Ceiling", 4, 4, white, (0, 0, 2.5))
+    mb.plane("Back", 4, 2.5, white, (0, 2, 1.25), (math.pi / 2, 0, 0))
+    mb.plane("Front", 4, 2.5, white, (0, -2, 1.25), (math.pi / 2, 0, 0))
+    mb.plane("Left", 2.5, 4, white, (-2, 0, 1.25), (0, math.pi / 2, 0))
+    # The +x wall around the opening y in [-0.6, 0.6], z in [0.8, 1.8].
+    for name, (cy, cz, sy, sz) in {"Below": (0, 0.4, 4, 0.8), "Above": (0, 2.15, 4, 0.7),
+                                   "Side1": (-1.3, 1.3, 1.4, 1.0),
+                                   "Side2": (1.3, 1.3, 1.4, 1.0)}.items():
+        mb.plane(name, sz, sy, white, (2, cy, cz), (0, math.pi / 2, 0))
+    glass = mb.material("glass", "glass", (1, 1, 1), ior=1.5)
+    if pane == "plane":
+        mb.plane("Pane", 1.0, 1.2, glass, (2, 0, 1.3), (0, math.pi / 2, 0))
+    elif pane == "slab":
+        mb.box("Pane", 0.02, 1.2, 1.0, glass, (2, 0, 1.3))
+    mb.light("Sky", "AREA", (3.2, 0, 2.6), 1500.0, look_at=(2, 0, 1.3), size=2.0)
+    mb.camera((-1.7, -1.7, 1.7), (1.0, 0.4, 0.2), 70.0)
+
+
+WINDOW_ISSUE = ("issue 14: light through glass comes from the caustic maps (glass blocks "
+                "shadow rays, as in Cycles): the floor lit through the pane is within 3-5 % "
+                "of Cycles, but the walls lit by that floor one bounce later (the secondary "
+                "caustic estimate) read 22-31 % dark and blotchy")
+
+
+@case("transparency")
+def transparency_window_open():
+    """The window room with an open window (the control for the glass cases)."""
+    _window_room(None)
+
+
+@case("transparency", block_tol=0.35, known_issue=WINDOW_ISSUE)
+def transparency_window_glass_plane():
+    """The window room behind a single-plane Glass pane."""
+    _window_room("plane")
+
+
+@case("transparency", block_tol=0.35, known_issue=WINDOW_ISSUE)
+def transparency_window_glass_slab():
+    """The window room behind a 2 cm Glass slab."""
+    _window_room("slab")
+
+
 # --- geometry: instancing, modifiers, curves, text, metaballs ------------------------------
 
 def _geo_scene():
