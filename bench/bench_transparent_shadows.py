@@ -35,9 +35,13 @@ from engine.shadernodes import ImageLookup  # noqa: E402
 from engine.textures import ImageTexture  # noqa: E402
 
 
-def scene(cards, alpha, texture=False):
+def scene(cards, alpha, texture=False, beside=False):
+    """beside: an opaque card over the floor and the transparent cards off to one side,
+    where no measured shadow ray meets them (the price of transparency elsewhere)."""
     s = PaperScene(8, 6)
     s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "white_diffuse", name="floor")
+    if beside:
+        s.add_plane((0, 0, 1.0), (0, 0, 1), 3.0, "white_diffuse", name="opaque")
     node = None
     if texture:
         px = np.ones((64, 64, 4), np.float32)
@@ -46,7 +50,8 @@ def scene(cards, alpha, texture=False):
         node = ImageLookup(ImageTexture(px, name="holes"), output="ALPHA")
     for i in range(cards):
         s.add_material(Material(f"card{i}", (0.6, 0.6, 0.6), alpha=alpha, alpha_texture=node))
-        s.add_plane((0, 0, 1.0 + 0.2 * i), (0, 0, 1), 3.0, f"card{i}", name=f"card{i}")
+        s.add_plane((20.0 if beside else 0.0, 0, 1.0 + 0.2 * i), (0, 0, 1), 3.0, f"card{i}",
+                    name=f"card{i}")
     s.add_rect_area_light((0, 0, 2.5), 1.0, 400.0)
     s.set_camera((0, -6, 3), (0, 0, 0))
     return s
@@ -64,12 +69,15 @@ def floor_hits(ctx, n):
 
 def main():
     ensure_compiled()
-    cases = [("no card", 0, 1.0, False), ("opaque card", 1, 1.0, False),
-             ("1 card alpha 0.5", 1, 0.5, False), ("2 cards alpha 0.5", 2, 0.5, False),
-             ("4 cards alpha 0.5", 4, 0.5, False), ("1 image-alpha card", 1, 1.0, True)]
+    cases = [("no card", 0, 1.0, False, False), ("opaque card", 1, 1.0, False, False),
+             ("1 card alpha 0.5", 1, 0.5, False, False),
+             ("2 cards alpha 0.5", 2, 0.5, False, False),
+             ("4 cards alpha 0.5", 4, 0.5, False, False),
+             ("1 image-alpha card", 1, 1.0, True, False),
+             ("opaque, alpha beside", 1, 0.5, False, True)]
     rows = []
-    for label, cards, alpha, tex in cases:
-        ctx = prepare_context(scene(cards, alpha, tex), RenderSettings(workers=1))
+    for label, cards, alpha, tex, beside in cases:
+        ctx = prepare_context(scene(cards, alpha, tex, beside), RenderSettings(workers=1))
         hit = floor_hits(ctx, args.hits)
         best = np.inf
         for r in range(args.repeat):

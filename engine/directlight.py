@@ -526,7 +526,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None)
             accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
                                 cls=shadow_cls)
             if shadow is not None:
-                shadow.pass_blocked(accel, buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
+                shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                     buf.contrib, buf.ray, m_all, shadow_cls)
         accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
         rays += m_rays

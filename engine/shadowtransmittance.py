@@ -14,14 +14,22 @@ docs/design.md, Transparent shadows.
 The work is split so the common case stays one cheap query per shadow ray: the caller
 runs Embree's OCCLUDED query first (unblocked rays and rays blocked in a scene without
 transparent materials are done); only the blocked rays of a scene with transparent
-materials come here, where an intersect loop walks them surface by surface: closest hit,
-the hit's transparency (kernel `shadow_step`), compaction of the rays still travelling,
-a new origin just past the surface (engine/rayoffset.py) and the rest of the segment.
+materials come here. They take a second OCCLUDED query against a BVH of the opaque
+triangles only (blocked there: blocked, whatever else lies in the way), and the rest walk
+a BVH of the transparent triangles only, surface by surface: closest hit, the hit's
+transparency (kernel `shadow_step`), compaction of the rays still travelling, a new origin
+just past the surface (engine/rayoffset.py) and the rest of the segment. Both BVHs are
+built on first use, per ray class (engine/visibility.py), from the triangles that class
+sees.
 """
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
+from .accel import Accel
+from .geometry import ALL_RAYS
 from .jit import kernel, register_warm_up
 from .rayoffset import offset_along_normal
 from .textures import material_alpha
@@ -90,6 +98,30 @@ class ShadowTransmittance:
         self.max_hits = max_hits
         self.tri_material = np.ascontiguousarray(geo.material, np.int64)
         self.mat_alpha = np.ascontiguousarray(table.alpha, np.float64)
+        self.tri_transparent = self.transparent_materials(table)[geo.material]
+        self._subsets = {}
+        self._lock = threading.Lock()
+
+    def _bvhs(self, cls):
+        """(opaque, transparent) for rays of class cls (None: every triangle): each an
+        (Accel or None when empty, triangle indices) over the triangles the class sees.
+        Built once, single-threaded Accels (safe to share between worker threads)."""
+        key = ALL_RAYS if cls is None else int(cls)
+        pair = self._subsets.get(key)
+        if pair is None:
+            with self._lock:
+                pair = self._subsets.get(key)
+                if pair is None:
+                    seen = (self.geo.visibility.astype(np.int64) & key) != 0
+                    pair = []
+                    for mask in (seen & ~self.tri_transparent, seen & self.tri_transparent):
+                        idx = np.nonzero(mask)[0].astype(np.int64)
+                        acc = (Accel(self.geo.vertices32, self.geo.faces32[idx], threads=1)
+                               if len(idx) else None)
+                        pair.append((acc, idx))
+                    pair = tuple(pair)
+                    self._subsets[key] = pair
+        return pair
 
     @staticmethod
     def transparent_materials(table) -> np.ndarray:
@@ -110,12 +142,12 @@ class ShadowTransmittance:
             return None
         return cls(geo, table, max_hits)
 
-    def transmittance(self, accel, o32, d32, t32, rows=None, cls=None) -> np.ndarray:
+    def transmittance(self, o32, d32, t32, rows=None, cls=None) -> np.ndarray:
         """(R,) transmittance of the shadow rays `rows` (default: all) from o32 (R,3) along
-        d32 (R,3) to distance t32 (R,) (units of |d|), through transparent surfaces: the
-        product of (1 - alpha) of the surfaces crossed, 0 where an opaque surface or more
-        than max_hits transparent ones lie in the way. accel: engine.visibility
-        VisibilityAccel (or Accel) answering `intersect` for rays of class cls."""
+        d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space), through
+        transparent surfaces: the product of (1 - alpha) of the surfaces crossed, 0 where
+        an opaque surface or more than max_hits transparent ones lie in the way. cls: the
+        rays' class (engine/visibility.py; None: every triangle is seen)."""
         if rows is None:
             rows = np.arange(len(o32))
         rows = np.asarray(rows, np.int64)
@@ -131,12 +163,22 @@ class ShadowTransmittance:
         dd = np.maximum((d * d).sum(axis=1), 1e-300)
         slot = np.arange(n, dtype=np.int64)
         geo = self.geo
+        (opaque, _), (clear, clear_idx) = self._bvhs(cls)
+        if opaque is not None:
+            # An opaque surface in the way blocks the ray whatever else does.
+            stop = opaque.occluded(o, d, t)
+            if stop.any():
+                trans[stop] = 0.0
+                go = ~stop
+                o, d, t, slot = o[go], d[go], t[go], slot[go]
+        if clear is None:
+            return trans
         for _ in range(self.max_hits + 1):
             if len(slot) == 0:
                 break
-            kw = {} if cls is None else {"cls": cls}
-            _, prim, u, v = accel.intersect(o, d, t, **kw)
+            _, prim, u, v = clear.intersect(o, d, t)
             hit = prim >= 0
+            prim[hit] = clear_idx[prim[hit]]
             node_alpha = np.ones(len(prim))
             if hit.any():
                 hp, hu, hv = prim[hit], u[hit], v[hit]
@@ -168,7 +210,7 @@ class ShadowTransmittance:
             trans[slot] = 0.0
         return trans
 
-    def pass_blocked(self, accel, o32, d32, t32, blocked, contrib, ray, m_all, cls=None):
+    def pass_blocked(self, o32, d32, t32, blocked, contrib, ray, m_all, cls=None):
         """After an OCCLUDED query: re-trace the blocked shadow rays through transparent
         surfaces; rays that get through are marked unblocked in `blocked` and the entries
         (j < m_all) of `contrib` that use them scaled by their transmittance (the layout
@@ -177,7 +219,7 @@ class ShadowTransmittance:
         rows = np.nonzero(blocked)[0]
         if len(rows) == 0:
             return
-        trans = self.transmittance(accel, o32, d32, t32, rows, cls)
+        trans = self.transmittance(o32, d32, t32, rows, cls)
         through = trans > 0.0
         if not through.any():
             return

@@ -88,7 +88,7 @@ def test_transmittance_of_rays_and_refusal_of_bad_limit():
     d = np.tile(np.float32([0, 0, -1]), (3, 1))
     # To just above the floor / between the cards (z = 1.05) / beside the cards.
     t = np.array([2.95, 1.95, 2.95], np.float32)
-    tr = ctx.shadow.transmittance(ctx.accel, o, d, t)
+    tr = ctx.shadow.transmittance(o, d, t)
     assert np.allclose(tr, [0.5 * 0.75, 1.0 - 0.25, 1.0])
     with pytest.raises(ValueError, match="max_hits"):
         ShadowTransmittance(ctx.geo, ctx.table, -1)
@@ -169,3 +169,20 @@ def test_shadow_of_a_transparent_card_is_direct_light_without_noise():
     assert np.allclose(direct[under], 0.6 * lit, rtol=1e-5)
     assert np.all(film.caustic == 0.0)
     assert any("shadow rays cross up to 8" in str(d) for d in film.stats["effects"])
+
+
+def test_shadow_invisible_cards_are_not_crossed_and_do_not_block():
+    """Ray visibility (engine/visibility.py): a card invisible to shadow rays neither
+    attenuates (transparent) nor blocks (opaque) them; the visible card still does."""
+    s = PaperScene(8, 6)
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "white_diffuse", name="floor")
+    s.add_material(Material("half", (0.5, 0.5, 0.5), alpha=0.5))
+    s.add_plane((0, 0, 1.0), (0, 0, 1), 4.0, "half", name="seen")
+    s.add_plane((0, 0, 1.2), (0, 0, 1), 4.0, "half", name="unseen").visible_shadow = False
+    s.add_plane((0, 0, 1.4), (0, 0, 1), 4.0, "white_diffuse",
+                name="opaque").visible_shadow = False
+    s.add_sun((0, 0, -1), 2.0)
+    s.set_camera((0, -6, 3), (0, 0, 0))
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    E = direct_irradiance(ctx, _floor_hits(ctx, 100), np.random.default_rng(1), Counters())
+    assert np.allclose(E, 1.0, rtol=1e-12)
