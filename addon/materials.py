@@ -27,11 +27,11 @@ class Closure:
     """Engine material parameters gathered from a shader sub-tree."""
 
     __slots__ = ("base_color", "metallic", "roughness", "transmission", "ior", "specular",
-                 "emission", "alpha", "texture", "has_bsdf", "normal_map")
+                 "emission", "alpha", "texture", "has_bsdf", "normal_map", "alpha_texture")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
-                 alpha=1.0, texture=None, has_bsdf=True, normal_map=None):
+                 alpha=1.0, texture=None, has_bsdf=True, normal_map=None, alpha_texture=None):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -43,15 +43,40 @@ class Closure:
         self.texture = texture
         self.has_bsdf = has_bsdf
         self.normal_map = normal_map
+        self.alpha_texture = alpha_texture  # per-hit factor on alpha (engine node) or None
+
+    @property
+    def is_clear(self) -> bool:
+        """A Transparent BSDF (alone): no surface, no emission, alpha 0 everywhere."""
+        return (self.has_bsdf and self.alpha == 0.0 and self.alpha_texture is None
+                and not np.any(self.emission > 0))
 
 
-def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
+def _alpha_mix(sn, wa, a: Closure, wb, b: Closure):
+    """(constant alpha, alpha node or None) of wa * alpha(a) + wb * alpha(b), where a
+    side's alpha is its constant times its alpha texture (engine Math nodes per hit)."""
+    if a.alpha_texture is None and b.alpha_texture is None:
+        return wa * a.alpha + wb * b.alpha, None
+    terms = []
+    for w, c in ((wa, a), (wb, b)):
+        if c.alpha_texture is None:
+            terms.append(w * c.alpha)
+        else:
+            terms.append(sn.Math("MULTIPLY", c.alpha_texture, w * c.alpha))
+    return 1.0, sn.Math("ADD", terms[0], terms[1], clamp=True)
+
+
+def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     """Mix two closures with weights wa, wb (wa + wb = 1 for Mix Shader).
 
-    Alpha and emission mix linearly; the surface (BSDF) parameters are weighted by each
-    side's opacity, so mixing with a Transparent BSDF only changes coverage."""
+    Alpha and emission mix linearly (an alpha texture on either side per hit, through
+    engine.shadernodes `sn`); the surface (BSDF) parameters are weighted by each side's
+    constant opacity, so mixing with a Transparent BSDF only changes coverage."""
     out = Closure()
-    out.alpha = wa * a.alpha + wb * b.alpha
+    if sn is None:
+        out.alpha = wa * a.alpha + wb * b.alpha
+    else:
+        out.alpha, out.alpha_texture = _alpha_mix(sn, wa, a, wb, b)
     out.emission = wa * a.emission + wb * b.emission
     sa = wa * a.alpha if a.has_bsdf else 0.0
     sb = wb * b.alpha if b.has_bsdf else 0.0
@@ -117,7 +142,8 @@ class MaterialConverter:
             metallic=closure.metallic, roughness=closure.roughness,
             transmission=closure.transmission, ior=closure.ior if closure.ior > 0 else 1.5,
             specular=closure.specular, emission=np.clip(closure.emission, 0.0, None),
-            alpha=closure.alpha, texture=closure.texture, normal_map=closure.normal_map)
+            alpha=closure.alpha, texture=closure.texture, normal_map=closure.normal_map,
+            alpha_texture=closure.alpha_texture)
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -213,8 +239,8 @@ class MaterialConverter:
                         roughness=self._float(node, "Roughness"),
                         transmission=self._float(node, "Transmission Weight"),
                         ior=self._float(node, "IOR", 1.5),
-                        specular=min(1.0, 2.0 * self._float(node, "Specular IOR Level", 0.5)),
-                        alpha=self._float(node, "Alpha", 1.0))
+                        specular=min(1.0, 2.0 * self._float(node, "Specular IOR Level", 0.5)))
+            c.alpha, c.alpha_texture = self._factor_input(node, "Alpha", 1.0)
             strength = self._float(node, "Emission Strength", 0.0)
             if strength > 0:
                 ecol, etex = self._color(node, "Emission Color")
@@ -258,11 +284,35 @@ class MaterialConverter:
                            f"'{node.name}' is treated as clear")
             return Closure(alpha=0.0)
         if t == "MIX_SHADER":
-            fac = self._float_socket(node, inp[0], 0.5)
-            fac = min(max(fac, 0.0), 1.0)
             a = self._shader(self._source(inp[1]), depth + 1)
             b = self._shader(self._source(inp[2]), depth + 1)
-            return _blend(a, b, 1.0 - fac, fac)
+            fac = self._input(node, inp[0], depth) if self._source(inp[0]) else None
+            if hasattr(fac, "evaluate"):
+                sn = self.pm.shadernodes
+                if a.is_clear or b.is_clear:
+                    # A cut-out: the surface side's coverage is the factor per hit (fac
+                    # picks the second shader), times its own alpha.
+                    surf = b if a.is_clear else a
+                    cover = fac if a.is_clear else sn.Math("SUBTRACT", 1.0, fac)
+                    cover = sn.Math("MULTIPLY", cover, 1.0, clamp=True)
+                    out = _blend(surf, surf, 1.0, 0.0)  # a copy of surf
+                    out.alpha = surf.alpha
+                    out.alpha_texture = (cover if surf.alpha_texture is None else
+                                         sn.Math("MULTIPLY", cover, surf.alpha_texture))
+                    if np.any(surf.emission > 0):
+                        self._warn(f"material '{self._mat.name}': emission of a cut-out Mix "
+                                   f"Shader '{node.name}' is not masked by its factor")
+                    return out
+                self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes two "
+                           "surfaces by a texture; per-hit mixing is only supported with a "
+                           "Transparent BSDF (cut-outs): using the factor's own value")
+                fac = None
+            if fac is None:
+                fac = self._float_socket(node, inp[0], 0.5) if not self._source(inp[0]) \
+                    else self._default(inp[0])
+            fac = float(np.mean(fac)) if np.ndim(fac) else float(fac)
+            fac = min(max(fac, 0.0), 1.0)
+            return _blend(a, b, 1.0 - fac, fac, self.pm.shadernodes)
         if t == "ADD_SHADER":
             a = self._shader(self._source(inp[0]), depth + 1)
             b = self._shader(self._source(inp[1]), depth + 1)
@@ -279,7 +329,8 @@ class MaterialConverter:
                           ior=out.ior, specular=out.specular,
                           emission=a.emission + b.emission,
                           alpha=max(out.alpha, other.alpha), texture=out.texture,
-                          has_bsdf=out.has_bsdf, normal_map=out.normal_map)
+                          has_bsdf=out.has_bsdf, normal_map=out.normal_map,
+                          alpha_texture=out.alpha_texture)
             return res
         self._unsupported(node)
         return self._viewport(self._mat)
@@ -341,6 +392,18 @@ class MaterialConverter:
         except ValueError as exc:
             self._warn(f"material '{self._mat.name}': Bump '{n.name}': {exc}")
             return None
+
+    def _factor_input(self, node, name, default=1.0):
+        """(constant, node or None) for a factor input such as Principled Alpha: a linked
+        texture or node tree is evaluated per hit (constant 1, the node returned);
+        otherwise its value."""
+        s = node.inputs.get(name)
+        if s is None:
+            return float(default), None
+        val = self._input(node, s, 0)
+        if hasattr(val, "evaluate"):
+            return 1.0, val
+        return (float(val) if np.ndim(val) == 0 else float(np.mean(val))), None
 
     def _float(self, node, name, default=0.0) -> float:
         s = node.inputs.get(name)

@@ -159,6 +159,11 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     light_samples: IntProperty(
         name="Light Samples", default=1, min=1, max=256,
         description="Shadow rays per light with a size, per camera sample (soft shadows)")
+    transparent_max_bounces: IntProperty(
+        name="Transparent Bounces", default=8, min=0, max=1024,
+        description="Transparent surfaces (alpha below 1) a shadow ray may cross before the "
+                    "next one blocks it, as Cycles' Max Bounces > Transparent; 0 = every "
+                    "surface casts a full shadow")
     # Modes
     method: EnumProperty(
         name="Method", items=METHOD_ITEMS, default="photon",
@@ -217,6 +222,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             min_photons=self.min_photons, k_nearest=self.k_nearest,
             final_gather=self.final_gather, gather_rays=self.gather_rays,
             spp=self.spp, max_depth=self.max_depth, light_samples=self.light_samples,
+            transparent_max_bounces=self.transparent_max_bounces,
             photon_mapping=self.photon_mapping, method=self.method, caustics=self.caustics,
             indirect=self.indirect, specular=self.specular, soft_shadows=self.soft_shadows,
             aim_caustics=self.aim_caustics,

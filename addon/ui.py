@@ -61,6 +61,7 @@ class PHOTONMAP_PT_sampling(PhotonMapButtonsPanel, bpy.types.Panel):
         col.prop(pm, "spp", text="Samples per Pass" if pm.progressive else "Samples")
         col.prop(pm, "light_samples")
         col.prop(pm, "max_depth")
+        col.prop(pm, "transparent_max_bounces")
         col.prop(pm, "seed")
         col.prop(pm, "use_animated_seed")
 

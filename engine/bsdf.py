@@ -16,6 +16,7 @@ import numpy as np
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
 from .sampling import dot, normalize, reflect, to_world
+from .textures import material_alpha
 
 SPEC_LOBES = ("pass", "metal", "glass_r", "glass_t", "coat")
 
@@ -58,6 +59,8 @@ class SurfaceHit:
     offset: np.ndarray | None = None  # (N,) distance along ng that takes a ray origin
                           # clear of p's triangle (a rounding-error bound, engine/rayoffset.py)
     bary: np.ndarray | None = None    # (N,2) barycentric weights of corners 1 and 2
+    alpha: np.ndarray | None = None   # (N,) per-hit alpha where a material has an alpha
+                          # texture (textures.material_alpha); None: the materials' constants
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -103,9 +106,12 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
             if rgb.ndim == 1:  # a value (factor) into a colour: grey
                 rgb = rgb[:, None]
             base[sel] = base[sel] * np.clip(rgb, 0.0, 1.0)
+    alpha = None
+    if table.alpha_textures and any(t is not None for t in table.alpha_textures):
+        alpha = material_alpha(table, geo, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=geo.origin_offset(prim, u, v, p, ng),
-                      bary=np.stack([u, v], axis=1))
+                      bary=np.stack([u, v], axis=1), alpha=alpha)
 
 
 def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]:
@@ -116,7 +122,7 @@ def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]
     the same as evaluating them everywhere."""
     m = hit.mat
     n = len(m)
-    a1 = np.take(table.alpha, m)
+    a1 = np.take(table.alpha, m) if hit.alpha is None else hit.alpha
     metal1 = np.take(table.metallic, m)
     trans1 = np.take(table.transmission, m)
     spec1 = np.take(table.specular, m)

@@ -485,11 +485,13 @@ class DirectLightBuffers:
         return self
 
 
-def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n):
+def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), triangle choice (N,) or None),
     in the order they must be summed. packed = packing.pack_lights(lights); hit_arrays =
     (p, ns, gate, ng, offset, shade_off, cutoff, lift) as sample_lights takes them.
+    shadow: an engine.shadowtransmittance.ShadowTransmittance (transparent shadows) or
+    None (every surface blocks shadow rays).
     Returns (E, number of shadow rays traced)."""
     codes, params, mesh = packed
     E = np.zeros((n, 3))
@@ -519,8 +521,13 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n):
                                       buf.o32, buf.d32, buf.t32)
         blocked = buf.blocked[:m_rays]
         if m_rays:
+            # Embree overwrites the distances: keep them for the transparent re-trace.
+            t_keep = buf.t32[:m_rays].copy() if shadow is not None else None
             accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
                                 cls=shadow_cls)
+            if shadow is not None:
+                shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
+                                    buf.contrib, buf.ray, m_all, shadow_cls)
         accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
         rays += m_rays
     return E, rays

@@ -22,16 +22,24 @@ PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can
 # have alpha = roughness^2, about the lobe's angular half-width in radians: at roughness
 # 0.3 that is ~5 degrees, at Principled's default 0.5 already ~14 degrees, which spreads
 # a reflected light over a patch half as wide as its distance - a soft glow that the
-# unaimed photons carry as well as aimed ones. Transparent (alpha < 1) passes are delta
-# lobes: always sharp.
+# unaimed photons carry as well as aimed ones. A transparent pass (alpha < 1) casts no
+# caustic: shadow rays cross it (engine/shadowtransmittance.py), so light through it is
+# direct light.
 SHARP_ROUGHNESS = 0.3
 
 
 def sharp_specular(table: MaterialTable) -> np.ndarray:
     """(M,) bool: materials whose specular lobe is sharp enough to focus light (a
-    caustic caster): a specular or refractive lobe of roughness <= SHARP_ROUGHNESS, or a
-    transparent pass."""
-    return table.has_specular & ((table.roughness <= SHARP_ROUGHNESS) | (table.alpha < 1))
+    caustic caster): a mirror, glass or coat lobe of roughness <= SHARP_ROUGHNESS."""
+    return _focusing(table) & (table.roughness <= SHARP_ROUGHNESS)
+
+
+def _focusing(table: MaterialTable) -> np.ndarray:
+    """(M,) bool: materials with a mirror, glass or coat lobe (has_specular without the
+    transparent pass, which camera rays continue through but which focuses nothing)."""
+    dielectric = (1 - table.metallic) * (1 - table.transmission)
+    return ((table.metallic * table.base_color.max(axis=1) > 0) | (table.transmission > 0)
+            | (dielectric * table.specular > 0))
 
 
 # What each teaching method does: the effect report's first line (settings.METHODS).
@@ -229,8 +237,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     # specular surfaces only first (a glossy floor's coat) is a soft glow: it comes from
     # unaimed photons (render.py partitions the caustic paths by the object hit first).
     if photon_mapping:
-        sharp_tri = (sharp_specular(table)[mat] if has_tris else np.zeros(0, bool)) & spec_tri
-        rough_tri = spec_tri & ~sharp_tri
+        focus_tri = _focusing(table)[mat] if has_tris else np.zeros(0, bool)
+        sharp_tri = (sharp_specular(table)[mat] if has_tris else np.zeros(0, bool)) & focus_tri
+        rough_tri = focus_tri & ~sharp_tri
         ids, centers, radii, names = _object_spheres(geo, sharp_tri) if sharp_tri.any() else ([], np.zeros((0, 3)), np.zeros(0), [])
         rough_ids = np.setdiff1d(np.unique(geo.object_id[rough_tri]), ids) if rough_tri.any() else []
         plan.rough_specular = [geo.object_names[i] for i in rough_ids]
@@ -252,8 +261,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                           + (" ..." if len(plan.rough_specular) > 4 else "")
                           + f" (specular roughness > {SHARP_ROUGHNESS:g}: too rough to focus "
                           "light; unaimed photons carry its glossy reflections)")
-        if not spec_tri.any():
-            auto, why = False, "no specular or refractive materials"
+        if not focus_tri.any():
+            auto, why = False, ("no specular or refractive materials" if not spec_tri.any()
+                                else "no mirror, glass or coat: light through transparent "
+                                "surfaces comes from shadow rays")
         elif not diff_tri.any():
             auto, why = False, "no diffuse surface to receive a caustic"
         elif reached:
@@ -348,9 +359,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         plan.add("shadow rays", False, "the scene is a single flat surface: nothing can cast a shadow")
     if has_tris and np.any(luminance(table.emission[mat]) > 0):
         plan.add("emission", True, "emissive surfaces are drawn and sampled as lights")
-    if has_tris and np.any(table.alpha[mat] < 1):
-        names = sorted({table.names[m] for m in np.unique(mat[table.alpha[mat] < 1])})
-        plan.add("transparency", True, "alpha below 1 in " + ", ".join(f"'{n}'" for n in names))
+    see_through = (table.alpha < 1) | table.has_alpha_texture
+    if has_tris and np.any(see_through[mat]):
+        names = sorted({table.names[m] for m in np.unique(mat[see_through[mat]])})
+        cap = s.transparent_max_bounces
+        plan.add("transparency", True, "alpha below 1 in " + ", ".join(f"'{n}'" for n in names)
+                 + (f"; shadow rays cross up to {cap} transparent surfaces" if cap
+                    else "; transparent max bounces 0: they block shadow rays"))
     return plan
 
 

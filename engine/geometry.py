@@ -37,6 +37,7 @@ class MaterialTable:
     alpha: np.ndarray
     textures: list            # per material: engine.textures object (evaluate()) or None
     normal_maps: list = None  # per material: engine.normalmap.NormalMap or None
+    alpha_textures: list = None  # per material: alpha node (Material.alpha_texture) or None
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -45,7 +46,8 @@ class MaterialTable:
                    base_color=np.array([m.base_color for m in materials], np.float64).reshape(-1, 3),
                    emission=np.array([m.emission for m in materials], np.float64).reshape(-1, 3),
                    textures=[m.texture for m in materials],
-                   normal_maps=[m.normal_map for m in materials], **cols)
+                   normal_maps=[m.normal_map for m in materials],
+                   alpha_textures=[m.alpha_texture for m in materials], **cols)
 
     @property
     def has_diffuse(self) -> np.ndarray:
@@ -57,7 +59,14 @@ class MaterialTable:
         """Materials with a mirror-like or refractive lobe (caustic casters)."""
         dielectric = (1 - self.metallic) * (1 - self.transmission)
         return ((self.metallic * self.base_color.max(axis=1) > 0) | (self.transmission > 0)
-                | (dielectric * self.specular > 0) | (self.alpha < 1)) & True
+                | (dielectric * self.specular > 0) | (self.alpha < 1)
+                | self.has_alpha_texture) & True
+
+    @property
+    def has_alpha_texture(self) -> np.ndarray:
+        """(M,) bool: materials whose alpha varies per hit (an alpha texture)."""
+        nodes = self.alpha_textures or [None] * len(self.alpha)
+        return np.array([n is not None for n in nodes], bool)
 
 
 @dataclass

@@ -96,7 +96,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     if n == 0 or not samples:
         return np.zeros((n, 3))
     packed = ctx.packed_lights or pack_lights(ctx.lights)
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n)
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n,
+                           shadow=getattr(ctx, "shadow", None))
     counters.shadow_rays += rays
     return E
 

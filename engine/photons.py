@@ -269,7 +269,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         # diffuse bounce makes it ordinary indirect light.
         caustic_then_diffuse = np.where(diff, first_diffuse & had_specular[idx], ctd)
         had_diffuse = had_diffuse[idx] | diff
-        had_specular = had_specular[idx] | spec
+        # A transparent pass (lobe 1) leaves the path's kind as it was: shadow rays cross
+        # transparent surfaces (engine/shadowtransmittance.py), so light through them is
+        # direct light, not a caustic (docs/design.md, Transparent shadows).
+        had_specular = had_specular[idx] | (spec & (lobe != 1))
         # isfinite(all) and max > 0 per row in one pass: max3 propagates NaN
         # (NaN > 0 is False) and inf is caught by isfinite of the row sum.
         mx = max3(new_power)

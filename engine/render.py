@@ -24,6 +24,7 @@ from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_
 from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
+from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
 
 
@@ -44,6 +45,7 @@ class Context:
     global_radius: float = 0.0
     caustic_radius: float = 0.0
     packed_lights: tuple | None = None  # lights as the direct-light kernels read them
+    shadow: ShadowTransmittance | None = None  # transparent shadows (None: none in the scene)
 
 
     def serial(self) -> "Context":
@@ -80,7 +82,9 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel) -
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
                             threads=settings.threads)
     lights = prepare_lights(scene, geo, table)
-    ctx = Context(scene, settings, geo, table, accel, lights, packed_lights=pack_lights(lights))
+    ctx = Context(scene, settings, geo, table, accel, lights, packed_lights=pack_lights(lights),
+                  shadow=ShadowTransmittance.for_scene(geo, table,
+                                                       settings.transparent_max_bounces))
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
     if settings.soft_shadows == "off":
         ctx.packed_lights = hard_shadow_packing(ctx.packed_lights)

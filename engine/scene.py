@@ -66,6 +66,10 @@ class Material:
     image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
     `normal_map` is an optional engine.normalmap.NormalMap or Bump perturbing the shading
     normal.
+    `alpha_texture` is an optional node (evaluate(geo, prim, u, v): an
+    engine.shadernodes.ImageLookup of an image's Alpha, a Math node, ...) whose value per
+    hit multiplies `alpha`: alpha cut-outs (leaves, fences) for camera rays, shadow rays
+    and photons alike (engine/textures.py, material_alpha).
     """
 
     name: str = "default"
@@ -79,10 +83,15 @@ class Material:
     alpha: float = 1.0
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
     normal_map: NormalMap | Bump | None = None
+    alpha_texture: object | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
         who = f"material '{self.name}'"
+        if self.alpha_texture is not None and not hasattr(self.alpha_texture, "evaluate"):
+            raise SceneError(f"{who} alpha_texture: expected a node with evaluate(geo, prim, "
+                             f"u, v) (engine.shadernodes), got "
+                             f"{type(self.alpha_texture).__name__}")
         self.base_color = _vec3(self.base_color, f"{who} base_color")
         self.emission = _vec3(self.emission, f"{who} emission")
         if np.any(self.emission < 0):

@@ -22,7 +22,7 @@ LIMITS = {
     "photons": 2**31 - 1, "caustic_photons": 2**31 - 1, "max_photon_depth": 1024,
     "min_photons": 10_000, "k_nearest": 10_000, "gather_rays": 256, "spp": 65536,
     "max_depth": 1024, "light_samples": 256, "seed": 2**63 - 1, "workers": 1024,
-    "chunk_size": 1 << 24,
+    "chunk_size": 1 << 24, "transparent_max_bounces": 1024,
 }
 
 
@@ -43,6 +43,9 @@ class RenderSettings:
     spp: int = 128                  # camera samples per pixel (jittered, stratified)
     max_depth: int = 8              # max specular bounces along a camera path (paper)
     light_samples: int = 1          # shadow rays per light with size, per camera sample
+    # Transparent surfaces (alpha < 1) a shadow ray may cross before the next one blocks it
+    # (Cycles' Light Paths > Max Bounces > Transparent, same default; 0: every surface blocks)
+    transparent_max_bounces: int = 8
     # Modes
     photon_mapping: bool = True     # False = the paper's plain ray tracer (Fig. 5b)
     method: str = "photon"          # local | raytrace | photon (METHODS)
@@ -83,7 +86,7 @@ class RenderSettings:
         for name, lo in (("photons", 0), ("caustic_photons", 0), ("max_photon_depth", 1),
                          ("min_photons", 1), ("k_nearest", 1), ("spp", 1), ("max_depth", 0),
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
-                         ("gather_rays", 1)):
+                         ("gather_rays", 1), ("transparent_max_bounces", 0)):
             positive_int(name, lo)
         for name in ("final_gather", "photon_mapping", "aim_caustics", "show_photons",
                      "film_transparent", "paper_mode"):

@@ -219,6 +219,38 @@ class ColorAttribute:
         return geo.colors(prim, u, v)
 
 
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec.709: a colour into a value socket
+
+
+def factor(node, geo, prim, u, v) -> np.ndarray:
+    """(N,) a node's value at hits, as a factor in [0, 1]: a colour output is read as its
+    luminance (Blender's colour-to-value socket conversion), NaN as 0."""
+    val = np.asarray(node.evaluate(geo, prim, u, v), np.float64)
+    if val.ndim == 2:
+        val = val[:, :3] @ LUMINANCE
+    return np.clip(np.nan_to_num(val, nan=0.0), 0.0, 1.0)
+
+
+def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.ndarray:
+    """(N,) alpha (opacity, Cycles' Principled Alpha) at hits of materials mat (N,) on
+    triangles prim with barycentrics u, v: the material's constant alpha (table.alpha)
+    times its alpha texture's factor (table.alpha_textures: a node per material or None,
+    e.g. an Image Texture's Alpha output; engine/shadernodes.py). constant=False leaves
+    out the constant (the texture factor alone, 1 where a material has none)."""
+    mat = np.asarray(mat, np.int64)
+    out = np.take(table.alpha, mat).astype(np.float64) if constant else np.ones(len(mat))
+    nodes = getattr(table, "alpha_textures", None)
+    if not nodes:
+        return out
+    for mi, node in enumerate(nodes):
+        if node is None:
+            continue
+        sel = np.nonzero(mat == mi)[0]
+        if len(sel):
+            out[sel] *= factor(node, geo, prim[sel], u[sel], v[sel])
+    return out
+
+
 def as_texture(tex, name: str = "image"):
     """A colour source (anything with evaluate(geo, prim, u, v): ImageTexture,
     ColorAttribute, engine.shadernodes nodes) as given, or an ImageTexture from a bare
