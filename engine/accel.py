@@ -11,6 +11,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .parallel import Cancelled
+
 try:
     from embreex import rtcore_scene as _rtcs
     from embreex.mesh_construction import TriangleMesh as _TriangleMesh
@@ -22,29 +24,76 @@ else:
 
 MIN_PER_THREAD = 4096  # below this, threading costs more than it saves
 
+# The BVH is built in pieces so that a cancel is noticed between them: embreex holds the
+# GIL while it copies a mesh (~1.7 s per 1M triangles) and while Embree commits a scene
+# (~0.4 s per 1M triangles), so nothing else in the process runs meanwhile. A piece of
+# MESH_TRIANGLES copies in ~0.2 s; a block of BLOCK_TRIANGLES (one Embree scene) commits in
+# ~0.2 s. More blocks cost query speed (each block is one more traversal per ray: 1M
+# triangles as 1 / 2 / 4 blocks traced 2.1 / 1.4 / 1.0 Mrays/s), so a scene of up to
+# BLOCK_TRIANGLES is one block, as before (docs/performance.md, "Large scenes").
+MESH_TRIANGLES = 1 << 17
+BLOCK_TRIANGLES = 1 << 19
+
+
+class _Block:
+    """One Embree scene over the triangles [start, start + count) of the whole table,
+    added as pieces (embreex meshes) whose first triangles are `starts` (geomID order)."""
+
+    __slots__ = ("scene", "starts")
+
+    def __init__(self, scene, starts):
+        self.scene = scene
+        self.starts = starts
+
 
 class Accel:
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, threads: int = 1):
+    """Closest-hit and occlusion queries over triangles `faces` (F,3) int indexing
+    `vertices` (V,3) (converted to float32; shared or unshared corners). Prim ids of the
+    answers index `faces`. should_cancel() is asked between the pieces of the build:
+    raises engine.parallel.Cancelled when it returns True, ValueError for bad arrays.
+    The Accel keeps no reference to the arrays: Embree holds its own copy (float32
+    vertices and int32 indices of each piece, 6 + 12 B per triangle of a closed mesh) and
+    the BVH (~60 B per triangle, docs/performance.md)."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, threads: int = 1,
+                 should_cancel=None):
         if _rtcs is None:
             raise RuntimeError(f"embreex is not available: {_IMPORT_ERROR}")
-        vertices = np.ascontiguousarray(vertices, dtype=np.float32)
-        faces = np.ascontiguousarray(faces, dtype=np.int32)
+        vertices = np.asarray(vertices)
+        faces = np.asarray(faces)
         if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3:
             raise ValueError("Accel: vertices must be (V,3) and faces (F,3)")
         if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
             raise ValueError("Accel: face index out of range")
-        if not np.all(np.isfinite(vertices)):
+        if not np.isfinite(vertices).all():
             raise ValueError("Accel: vertices must be finite")
         self.threads = max(1, int(threads))
         self.count = len(faces)
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
-        self._scene = None
-        if self.count:
-            self._scene = _rtcs.EmbreeScene(robust=True)
-            _TriangleMesh(self._scene, vertices, faces)
+        self._blocks = []
+        stop = should_cancel if should_cancel is not None else (lambda: False)
+        one = np.zeros((1, 3), np.float32)
+        for start in range(0, self.count, BLOCK_TRIANGLES):
+            end = min(self.count, start + BLOCK_TRIANGLES)
+            scene = _rtcs.EmbreeScene(robust=True)
+            starts = []
+            for a in range(start, end, MESH_TRIANGLES):
+                if stop():
+                    raise Cancelled()
+                b = min(end, a + MESH_TRIANGLES)
+                # Only the vertices this piece uses: embreex copies the whole array given.
+                used, local = np.unique(faces[a:b], return_inverse=True)
+                _TriangleMesh(scene, np.ascontiguousarray(vertices[used], dtype=np.float32),
+                              local.reshape(-1, 3).astype(np.int32))
+                starts.append(a)
+            if stop():
+                raise Cancelled()
             # Commit the BVH now, single-threaded, before threads share the scene.
-            one = np.zeros((1, 3), np.float32)
-            self._scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
+            scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
+            self._blocks.append(_Block(scene, np.array(starts, np.int64)))
+        # The first block's Embree scene (the whole BVH when there is one block, as for
+        # every scene up to BLOCK_TRIANGLES): bench/ replays queries on it directly.
+        self._scene = self._blocks[0].scene if self._blocks else None
 
     def serial(self) -> "Accel":
         """A view of the same BVH that answers on the calling thread: for work that is
@@ -89,16 +138,32 @@ class Accel:
         prim = np.full(n, -1, np.int64)
         u = np.zeros(n)
         v = np.zeros(n)
-        if self._scene is None or n == 0:
+        if not self._blocks or n == 0:
             return t, prim, u, v
+        blocks = self._blocks
 
         def work(a, b):
-            res = self._scene.run(o[a:b], d[a:b], dists=tf[a:b].copy(), output=True)
-            hit = res["geomID"] >= 0
-            prim[a:b] = np.where(hit, res["primID"], -1)
-            t[a:b] = np.where(hit, res["tfar"], np.inf)
-            u[a:b] = res["u"]
-            v[a:b] = res["v"]
+            far = tf[a:b].copy()
+            for block in blocks:
+                # Each block is traced only up to the nearest hit found so far: a hit it
+                # returns is nearer (an exact tie goes to the later block).
+                res = block.scene.run(o[a:b], d[a:b], dists=far.copy(), output=True)
+                geom = res["geomID"]
+                hit = geom >= 0
+                if len(blocks) == 1:
+                    prim[a:b] = np.where(hit, res["primID"], -1)
+                    t[a:b] = np.where(hit, res["tfar"], np.inf)
+                    u[a:b] = res["u"]
+                    v[a:b] = res["v"]
+                    return
+                rows = np.nonzero(hit)[0]
+                if not len(rows):
+                    continue
+                prim[a + rows] = block.starts[geom[rows]] + res["primID"][rows]
+                t[a + rows] = res["tfar"][rows]
+                u[a + rows] = res["u"][rows]
+                v[a + rows] = res["v"][rows]
+                far[rows] = res["tfar"][rows]
 
         self._run(work, n)
         return t, prim, u, v
@@ -108,17 +173,32 @@ class Accel:
         o, d, tf = self._prepare(origins, directions, tmax)
         n = len(o)
         out = np.zeros(n, bool)
-        if self._scene is None or n == 0:
+        if not self._blocks or n == 0:
             return out
 
         def work(a, b):
-            # OCCLUDED must be called without output (docs/design.md, Embree (embreex)
-            # facts): 0 = blocked, -1 = clear.
-            res = self._scene.run(o[a:b], d[a:b], dists=tf[a:b].copy(), query="OCCLUDED")
-            out[a:b] = np.asarray(res) == 0
+            out[a:b] = self._occluded(o[a:b], d[a:b], tf[a:b].copy())
 
         self._run(work, n)
         return out
+
+    def _occluded(self, o, d, tf):
+        """(N,) bool blocked, block after block for the rays still clear. tf is overwritten."""
+        # OCCLUDED must be called without output (docs/design.md, Embree (embreex)
+        # facts): 0 = blocked, -1 = clear.
+        if len(self._blocks) == 1:
+            return np.asarray(self._blocks[0].scene.run(o, d, dists=tf, query="OCCLUDED")) == 0
+        blocked = np.zeros(len(o), bool)
+        rows = np.arange(len(o))
+        for block in self._blocks:
+            res = block.scene.run(np.ascontiguousarray(o[rows]), np.ascontiguousarray(d[rows]),
+                                  dists=tf[rows], query="OCCLUDED")
+            hit = np.asarray(res) == 0
+            blocked[rows[hit]] = True
+            rows = rows[~hit]
+            if not len(rows):
+                break
+        return blocked
 
     def occluded_into(self, o32, d32, tmax32, blocked) -> np.ndarray:
         """Accel.occluded for rays already in Embree's layout, written by a kernel: o32,
@@ -135,13 +215,12 @@ class Accel:
         if blocked.dtype != np.bool_ or blocked.shape != (n,):
             raise ValueError(f"Accel.occluded_into: blocked must be bool ({n},), got "
                              f"{blocked.dtype} {blocked.shape}")
-        if self._scene is None or n == 0:
+        if not self._blocks or n == 0:
             blocked[:] = False
             return blocked
 
         def work(a, b):
-            res = self._scene.run(o32[a:b], d32[a:b], dists=tmax32[a:b], query="OCCLUDED")
-            blocked[a:b] = np.asarray(res) == 0
+            blocked[a:b] = self._occluded(o32[a:b], d32[a:b], tmax32[a:b])
 
         self._run(work, n)
         return blocked

@@ -69,15 +69,18 @@ def _check_region(region, width, height):
     return (x0, y0, x1, y1)
 
 
-def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel) -> Context:
+def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
+                    should_cancel=None) -> Context:
     """Validate the scene, merge and re-centre geometry, build the BVH, prepare lights and
     decide which effects to simulate. One Context serves several passes. accel_class lets
-    the benchmarks record every ray query (bench/)."""
+    the benchmarks record every ray query (bench/). should_cancel() is asked between the
+    pieces of the geometry preparation and the BVH build: raises Cancelled."""
     scene.validate()
-    geo, table = prepare(scene)
+    geo, table = prepare(scene, should_cancel)
     # One BVH per distinct set of triangles a ray class sees (usually one in all).
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
-                            threads=settings.threads)
+                            threads=settings.threads, should_cancel=should_cancel)
+    geo.release_build_arrays()  # Embree holds its own copy
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights, packed_lights=pack_lights(lights))
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
@@ -124,7 +127,16 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     scene.validate()
     region = _check_region(region, scene.width, scene.height)
     check_resources(scene, settings, region)
-    ctx = prepare_context(scene, settings)
+    try:
+        ctx = prepare_context(scene, settings, should_cancel=should_cancel)
+    except Cancelled:
+        # Cancelled before any pixel: an empty film, marked as cancelled.
+        x0, y0, x1, y1 = region
+        film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
+        film.stats.update(cancelled=True, time_prepare=time.perf_counter() - t_start,
+                          time_total=time.perf_counter() - t_start)
+        film.warnings = scene.all_warnings()
+        return film
     t_prepare = time.perf_counter() - t_start
     try:
         film = render_pass(ctx, region, progress, should_cancel)
