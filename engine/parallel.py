@@ -56,30 +56,56 @@ def ordered_map(job, items, threads: int, should_cancel=None):
     event = threading.Event()
     pending = deque()
     todo = iter(items)
-    with ThreadPoolExecutor(threads) as pool:
-        try:
-            for item in todo:
-                pending.append(pool.submit(job, item, event.is_set))
-                if len(pending) >= 2 * threads:
-                    break
-            while pending:
-                # Checked before each chunk is awaited, after the one before it was
-                # handed over: a finished chunk is never dropped (as inline).
+    pool = ThreadPoolExecutor(threads)
+    try:
+        for item in todo:
+            pending.append(pool.submit(job, item, event.is_set))
+            if len(pending) >= 2 * threads:
+                break
+        while pending:
+            # Checked before each chunk is awaited, after the one before it was
+            # handed over: a finished chunk is never dropped (as inline).
+            if should_cancel is not None and should_cancel():
+                raise Cancelled()
+            head = pending[0]
+            while not wait([head], timeout=POLL_SECONDS).done:
                 if should_cancel is not None and should_cancel():
                     raise Cancelled()
-                head = pending[0]
-                while not wait([head], timeout=POLL_SECONDS).done:
-                    if should_cancel is not None and should_cancel():
-                        raise Cancelled()
-                pending.popleft()
-                result = head.result()  # re-raises a worker's exception here
-                for item in todo:
-                    pending.append(pool.submit(job, item, event.is_set))
-                    break
-                yield result
-        finally:
-            # Cancelled, an error, or the consumer stopped early: let running chunks stop
-            # at their next check and drop the ones not started.
-            event.set()
-            for f in pending:
-                f.cancel()
+            pending.popleft()
+            result = head.result()  # re-raises a worker's exception here
+            for item in todo:
+                pending.append(pool.submit(job, item, event.is_set))
+                break
+            yield result
+    finally:
+        # Cancelled, an error, or the consumer stopped early: let running chunks stop
+        # at their next check and drop the ones not started. Running chunks are not
+        # waited for (a chunk's step between two checks can take seconds): the caller
+        # returns within POLL_SECONDS of the cancel and their results are dropped.
+        event.set()
+        for f in pending:
+            f.cancel()
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
+def run_cancellable(job, should_cancel=None):
+    """Return job(stop), run on a worker thread while the calling thread asks
+    should_cancel() every POLL_SECONDS, for one long step that has no chunks of its own
+    (a photon map's build). On a cancel, stop() turns True for the job, which should end
+    at its next check, and Cancelled is raised at once: the job's result is dropped (it
+    must not change shared state; a compiled step without checks may run on for a while
+    in the background). Without should_cancel the job runs inline."""
+    if should_cancel is None:
+        return job(lambda: False)
+    event = threading.Event()
+    pool = ThreadPoolExecutor(1)
+    try:
+        future = pool.submit(job, event.is_set)
+        while not wait([future], timeout=POLL_SECONDS).done:
+            if should_cancel():
+                event.set()
+                raise Cancelled()
+        return future.result()
+    finally:
+        pool.shutdown(wait=False)
+

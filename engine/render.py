@@ -18,7 +18,7 @@ from .lights.packing import pack_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
-from .parallel import Cancelled
+from .parallel import Cancelled, run_cancellable
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, INDIRECT, Photons, trace_photons
 from .resources import check_resources
 from .scene import Scene
@@ -194,6 +194,35 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     if progress is not None:
         progress("photon_map", 0.0, "Building photon map")
     t0 = time.perf_counter()
+    # Built on a worker thread while this one polls should_cancel: the kd-tree builds are
+    # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
+    maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
+                                                    stop), should_cancel)
+    if "global_photons" in maps:
+        stats["global_photons"] = maps.pop("global_photons")
+    for name, value in maps.items():
+        setattr(ctx, name, value)
+    stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
+    stats["radius_global"] = ctx.global_radius
+    stats["radius_caustic"] = ctx.caustic_radius
+    stats["time_photon_map"] = time.perf_counter() - t0
+    stats["photon_bytes"] = shot.nbytes + caustic.nbytes
+    if not s.show_photons:
+        return Photons.empty()  # only the photon-hit view needs them after this point
+    return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
+                     for f in ("position", "power", "direction", "normal", "kind")))
+
+
+def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
+    """The photon maps and radii of a pass, as Context attributes (name -> value) plus
+    global_photons. stop() is asked between the steps (raises Cancelled)."""
+    s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
+
+    def check():
+        if stop():
+            raise Cancelled()
+
+    out = {}
     diffuse_tris = table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
     diffuse_area = float(geo.area[diffuse_tris].sum())
     k = s.k_nearest
@@ -209,42 +238,40 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
         r_auto = r_global * math.sqrt(len(shot) / dense)
     else:
         r_auto = auto_radius(diffuse_area, dense, k, geo.extent)
-    ctx.global_radius = s.radius or r_global
+    global_radius = s.radius or r_global
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
     # ends closer than that gathers once more from its end (integrator.gather_indirect).
-    ctx.gather_short = ctx.global_radius
+    out["gather_short"] = global_radius
     if plan.indirect:
+        check()
         if s.final_gather:
             # Final gathering needs all light at the gathered point: every stored photon.
             # Photons that arrived straight from a caustic are left out: seen through a
             # few gather rays a bright caustic makes fireflies. Their light one bounce
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
             gathered = shot.select(shot.kind != CAUSTIC)
-            ctx.gather_map = GatherMap(gathered, ctx.global_radius, k, s.min_photons,
-                                       s.estimator, accel=ctx.accel,
-                                       workers=workers)
-            ctx.secondary_map = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
-            stats["global_photons"] = len(shot)
+            out["gather_map"] = GatherMap(gathered, global_radius, k, s.min_photons,
+                                          s.estimator, accel=ctx.accel, workers=workers,
+                                          should_cancel=stop)
+            check()
+            out["secondary_map"] = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
+            out["global_photons"] = len(shot)
         else:
-            ctx.global_map = PhotonMap(shot.select(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE))),
-                                       workers)
-            ctx.global_radius = s.radius or auto_radius(diffuse_area, len(ctx.global_map), k,
-                                                        geo.extent,
-                                                        ctx.global_map.photons.position)
-            stats["global_photons"] = len(ctx.global_map)
+            out["global_map"] = PhotonMap(
+                shot.select(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE))), workers)
+            check()
+            global_radius = s.radius or auto_radius(diffuse_area, len(out["global_map"]), k,
+                                                    geo.extent,
+                                                    out["global_map"].photons.position)
+            out["global_photons"] = len(out["global_map"])
+    out["global_radius"] = global_radius
     if plan.caustics:
-        ctx.caustic_map = PhotonMap(caustic if use_caustic_shot
-                                    else shot.select(shot.kind == CAUSTIC), workers)
-    ctx.caustic_radius = s.radius or r_auto
-    stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
-    stats["radius_global"] = ctx.global_radius
-    stats["radius_caustic"] = ctx.caustic_radius
-    stats["time_photon_map"] = time.perf_counter() - t0
-    stats["photon_bytes"] = shot.nbytes + caustic.nbytes
-    if not s.show_photons:
-        return Photons.empty()  # only the photon-hit view needs them after this point
-    return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
-                     for f in ("position", "power", "direction", "normal", "kind")))
+        check()
+        out["caustic_map"] = PhotonMap(caustic if use_caustic_shot
+                                       else shot.select(shot.kind == CAUSTIC), workers)
+    out["caustic_radius"] = s.radius or r_auto
+    check()
+    return out
 
 
 def _allocate_aimed(ctx, targets, total):
