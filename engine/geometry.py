@@ -97,10 +97,14 @@ class PerTriangle:
             out = np.concatenate(parts)
         return out.reshape(idx.shape + out.shape[1:])
 
-    def take(self, indices, axis=0, out=None, mode="raise"):
-        if axis != 0 or out is not None or mode != "raise":
+    def take(self, indices, axis=None, out=None, mode="raise"):
+        """np.take(x, prim, axis=0) (and axis=None for a quantity of one value a row)."""
+        if out is not None or mode != "raise" or axis not in (0, None):
             raise ValueError("PerTriangle.take: only axis=0 without out or mode")
-        return self[indices]
+        rows = self[indices]
+        if axis is None and rows.ndim > np.ndim(indices):
+            raise ValueError("PerTriangle.take: axis=None of a multi-valued quantity")
+        return rows
 
     def __array__(self, dtype=None, copy=None):
         out = self[slice(None)]
@@ -125,14 +129,30 @@ def _round32_rows(geo, idx):
     return 0.5 * ulp32(corners)
 
 
+def _tilt32_rows(geo, idx):
+    v0 = np.take(geo.v0, idx, axis=0)
+    corners = np.stack([v0, v0 + np.take(geo.e1, idx, axis=0),
+                        v0 + np.take(geo.e2, idx, axis=0)], axis=1)
+    return triangle_tilt(corners.astype(np.float32))
+
+
+def area_sum(geo, mask) -> float:
+    """Total area (m^2) of the triangles where mask (T,) bool is True, a piece at a time."""
+    total = 0.0
+    for a in range(0, geo.count, PIECE_TRIANGLES):
+        idx = a + np.nonzero(mask[a:a + PIECE_TRIANGLES])[0]
+        total += float(_area_rows(geo, idx).sum())
+    return total
+
+
 @dataclass
 class Geometry:
     """Merged triangles in re-centred world space (world = local + offset).
 
     Memory per triangle (docs/performance.md, "Memory per triangle"): v0, e1, e2 (72 B),
-    material, object_id, tilt32, terminator, terminator_shading (20 B), smooth, visibility,
-    holdout (3 B); corner normals (36 B) only when some mesh has normals, corner UVs
-    (24 B) only when some mesh has UVs. ng, area and round32 are computed from the edges
+    material, object_id, terminator, terminator_shading (16 B), smooth, visibility, holdout
+    (3 B); corner normals (36 B) only when some mesh has normals, corner UVs (24 B) only
+    when some mesh has UVs. ng, area, round32 and tilt32 are computed from the corners
     when read (PerTriangle). vertices32 / faces32 (float32 corners shared as in the
     meshes, int32 indices) feed the BVH build and are released after it
     (release_build_arrays): Embree keeps its own copy."""
@@ -152,7 +172,6 @@ class Geometry:
     visibility: np.ndarray    # (T,) uint8 ray-class bits of the rays that see the triangle
     holdout: np.ndarray       # (T,) bool: camera rays that hit it give alpha 0
     vertices32: np.ndarray | None  # (V,3) float32 mesh vertices for Embree (build only)
-    tilt32: np.ndarray        # (T,) float32 bound on the float32 plane's tilt, radians
     terminator: np.ndarray    # (T,) float32 Cycles' shadow terminator geometry offset (Mesh)
     terminator_shading: np.ndarray  # (T,) float32 Cycles' shadow terminator shading offset
     faces32: np.ndarray | None  # (T,3) int32 into vertices32 (build only)
@@ -167,6 +186,8 @@ class Geometry:
         self.area = PerTriangle(self, _area_rows)  # (T,)
         # (T,3,3) bound on |float32 corner - float64 corner|
         self.round32 = PerTriangle(self, _round32_rows)
+        # (T,) bound on the float32 plane's tilt, radians (rayoffset.triangle_tilt)
+        self.tilt32 = PerTriangle(self, _tilt32_rows)
 
     @property
     def count(self) -> int:
@@ -298,7 +319,6 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     object_id = np.empty(T, np.int32)
     visibility = np.empty(T, np.uint8)
     holdout = np.empty(T, bool)
-    tilt32 = np.empty(T, np.float32)
     terminator = np.empty(T, np.float32)
     terminator_shading = np.empty(T, np.float32)
     vertices32 = np.empty((sum(len(m.vertices) for m in meshes if len(m.faces)), 3), np.float32)
@@ -348,9 +368,6 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
                 corner_uvs[r] = _corners(mesh.uvs, fa, a, b)
             material[r] = remap[mesh.material_ids[a:b]]
             faces32[r] = fa + vbase
-            t32 = triangle_tilt(tri.astype(np.float32))
-            # Rounded up to float32: it is a bound.
-            tilt32[r] = np.nextafter(t32.astype(np.float32), np.float32(np.inf))
         if any_colors:  # a mesh without a colour attribute reads black, as in Cycles
             c = mesh.colors
             ccols.append(np.zeros((n, 3, 3)) if c is None else c[f] if c.ndim == 2 else c)
@@ -362,7 +379,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         offset=offset, extent=extent, v0=v0, e1=e1, e2=e2,
         corner_normals=corner_normals, smooth=smooth, corner_uvs=corner_uvs,
         material=material, object_id=object_id, object_names=names,
-        vertices32=vertices32, tilt32=tilt32, faces32=faces32,
+        vertices32=vertices32, faces32=faces32,
         terminator=terminator, terminator_shading=terminator_shading,
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
@@ -376,10 +393,12 @@ def emissive_triangles(geo: Geometry, table: MaterialTable):
     """Indices, radiance and area of triangles whose material emits (mesh lights).
     Emitters invisible to diffuse rays light no diffuse surface (Cycles), so they are left
     out; camera, mirror and glass rays still see them glow."""
-    em = table.emission[geo.material] if geo.count else np.zeros((0, 3))
-    lit = (luminance(em) > 0) & ((geo.visibility & DIFFUSE) != 0) if len(em) else None
-    idx = np.nonzero(lit)[0] if len(em) else np.zeros(0, np.int64)
-    return idx, em[idx], geo.area[idx]
+    if not geo.count:
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0)
+    # Per material first: a per-triangle (T,3) radiance table would cost 24 B a triangle.
+    emits = luminance(table.emission) > 0
+    idx = np.nonzero(emits[geo.material] & ((geo.visibility & DIFFUSE) != 0))[0]
+    return idx, table.emission[geo.material[idx]], geo.area[idx]
 
 
 def _corner_coordinates(meshes) -> dict | None:

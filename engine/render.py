@@ -10,7 +10,7 @@ import numpy as np
 from .accel import Accel
 from .film import Film
 from .effects import EffectPlan, analyse
-from .geometry import Geometry, MaterialTable, prepare
+from .geometry import Geometry, MaterialTable, area_sum, prepare
 from .integrator import render_camera
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
@@ -224,7 +224,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
 
     out = {}
     diffuse_tris = table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
-    diffuse_area = float(geo.area[diffuse_tris].sum())
+    diffuse_area = area_sum(geo, diffuse_tris)
     k = s.k_nearest
     workers = s.threads
     # The global radius from the global photons' own spacing (local: not the spacing they
