@@ -27,11 +27,11 @@ MIN_PER_THREAD = 4096  # below this, threading costs more than it saves
 # The BVH is built in pieces so that a cancel is noticed between them: embreex holds the
 # GIL while it copies a mesh (~1.7 s per 1M triangles) and while Embree commits a scene
 # (~0.4 s per 1M triangles), so nothing else in the process runs meanwhile. A piece of
-# MESH_TRIANGLES copies in ~0.2 s; a block of BLOCK_TRIANGLES (one Embree scene) commits in
+# MESH_TRIANGLES copies in ~0.1 s; a block of BLOCK_TRIANGLES (one Embree scene) commits in
 # ~0.2 s. More blocks cost query speed (each block is one more traversal per ray: 1M
 # triangles as 1 / 2 / 4 blocks traced 2.1 / 1.4 / 1.0 Mrays/s), so a scene of up to
 # BLOCK_TRIANGLES is one block, as before (docs/performance.md, "Large scenes").
-MESH_TRIANGLES = 1 << 17
+MESH_TRIANGLES = 1 << 16
 BLOCK_TRIANGLES = 1 << 19
 
 

@@ -68,12 +68,15 @@ def render_and_cancel(scene, settings, canceller, progress=None):
     return out["film"], out["done"] - canceller.fired_at
 
 
-def hook(monkeypatch, module, name, canceller, wrap_class=False):
-    """Replace module.name by a wrapper that fires the canceller when first called."""
+def hook(monkeypatch, module, name, canceller, call=1):
+    """Replace module.name by a wrapper that fires the canceller at its call-th call."""
     original = getattr(module, name)
+    calls = []
 
     def wrapper(*args, **kwargs):
-        canceller.fire()
+        calls.append(1)
+        if len(calls) == call:
+            canceller.fire()
         return original(*args, **kwargs)
 
     monkeypatch.setattr(module, name, wrapper)
@@ -81,7 +84,8 @@ def hook(monkeypatch, module, name, canceller, wrap_class=False):
 
 def box_with_grid(triangles):
     scene = cornell_box(16, 12)
-    scene.add_mesh(grid_mesh(triangles))
+    # With normals: geometry.normalize runs once per piece of the preparation (the hook).
+    scene.add_mesh(grid_mesh(triangles, normals=True))
     return scene
 
 
@@ -90,14 +94,30 @@ FAST = dict(spp=1, photons=2000, caustic_photons=0, workers=1)
 
 def check(film, latency):
     assert film.stats["cancelled"] is True
+    print(f"latency {latency:.3f} s")
     assert latency < CANCEL_SECONDS, f"the render returned {latency:.2f} s after the cancel"
 
 
 def test_cancel_during_geometry_preparation(monkeypatch):
     """The flag is set while the first piece of the grid is being prepared."""
     c = Canceller()
-    hook(monkeypatch, geometry_module, "triangle_tilt", c)
+    hook(monkeypatch, geometry_module, "normalize", c, call=2)
     film, latency = render_and_cancel(box_with_grid(300_000), RenderSettings(**FAST), c)
+    check(film, latency)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("module, name, call", [
+    (geometry_module, "normalize", 40),      # preparing the 40th piece of 77
+    (accel_module, "_TriangleMesh", 8),      # copying the last piece of the first block
+    (accel_module, "_TriangleMesh", 60),     # a piece of the 8th block
+])
+def test_cancel_a_5m_triangle_scene(monkeypatch, module, name, call):
+    """The 5M-triangle case of issue 16 (14.4 s uninterruptible before): geometry
+    preparation and BVH build with the default piece and block sizes."""
+    c = Canceller()
+    hook(monkeypatch, module, name, c, call=call)
+    film, latency = render_and_cancel(box_with_grid(5_000_000), RenderSettings(**FAST), c)
     check(film, latency)
 
 
