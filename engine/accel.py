@@ -7,6 +7,7 @@ crash the process. Queries are split across threads: embreex releases the GIL.
 from __future__ import annotations
 
 import copy
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -25,14 +26,85 @@ else:
 MIN_PER_THREAD = 4096  # below this, threading costs more than it saves
 
 # The BVH is built in pieces so that a cancel is noticed between them: embreex holds the
-# GIL while it copies a mesh (~1.7 s per 1M triangles) and while Embree commits a scene
-# (~0.4 s per 1M triangles), so nothing else in the process runs meanwhile. A piece of
-# MESH_TRIANGLES copies in ~0.1 s; a block of BLOCK_TRIANGLES (one Embree scene) commits in
-# ~0.2 s. More blocks cost query speed (each block is one more traversal per ray: 1M
-# triangles as 1 / 2 / 4 blocks traced 2.1 / 1.4 / 1.0 Mrays/s), so a scene of up to
-# BLOCK_TRIANGLES is one block, as before (docs/performance.md, "Large scenes").
+# GIL while it copies a mesh (~1.7 s per 1M triangles), so nothing else in the process runs
+# meanwhile. A piece of MESH_TRIANGLES copies in ~0.1 s; the pieces are meshes of one
+# Embree scene, traced as fast as one mesh. embreex also holds the GIL while Embree
+# commits (builds) the BVH (~0.4 s per 1M triangles): the commit is made here through
+# Embree's C API with the GIL released, on a worker thread while the caller polls
+# (_free_commit). Where that is not possible (an embreex with another object layout),
+# the triangles are split into Embree scenes of BLOCK_TRIANGLES (~0.2 s commit each), at
+# a cost in query speed: each block is one more traversal per ray (1M triangles as 1 / 2 /
+# 4 blocks traced 2.1 / 1.4 / 1.0 Mrays/s; docs/performance.md, "Large scenes").
 MESH_TRIANGLES = 1 << 16
 BLOCK_TRIANGLES = 1 << 19
+POLL_SECONDS = 0.05
+
+
+def _embree_library():
+    """Embree's C library as loaded by embreex (ctypes releases the GIL in its calls), its
+    rtcCommitScene, and the offset of the RTCScene pointer in an EmbreeScene object, or
+    None. The pointer precedes the public is_committed field (embreex's rtcore_scene.pxd
+    declares scene_i, is_committed, device); a scene made robust must then report
+    RTC_SCENE_FLAG_ROBUST through rtcGetSceneFlags."""
+    try:
+        import ctypes
+        import glob
+        import os
+
+        import embreex
+        here = os.path.dirname(embreex.__file__)
+        names = (glob.glob(os.path.join(here, "..", "embreex.libs", "*embree4*"))
+                 + glob.glob(os.path.join(here, "*embree4*"))
+                 + glob.glob(os.path.join(here, "..", "embreex.libs", "*embree4*.dll")))
+        if not names:
+            return None
+        lib = ctypes.CDLL(names[0])
+        lib.rtcCommitScene.argtypes = [ctypes.c_void_p]
+        lib.rtcCommitScene.restype = None
+        lib.rtcGetSceneFlags.argtypes = [ctypes.c_void_p]
+        lib.rtcGetSceneFlags.restype = ctypes.c_int
+        probe = _rtcs.EmbreeScene(robust=True)
+        size = type(probe).__basicsize__
+        magic = 0x5A5A1234
+        probe.is_committed = magic
+        raw = bytes((ctypes.c_char * size).from_address(id(probe)))
+        probe.is_committed = 0
+        at = raw.find(magic.to_bytes(4, "little"))
+        ptr_size = ctypes.sizeof(ctypes.c_void_p)
+        if at < 2 * ptr_size or raw.find(magic.to_bytes(4, "little"), at + 1) != -1:
+            return None
+        offset = at - ptr_size
+        ptr = ctypes.c_void_p.from_address(id(probe) + offset).value
+        if not ptr or lib.rtcGetSceneFlags(ptr) != 4:  # RTC_SCENE_FLAG_ROBUST
+            return None
+        return lib, offset, ctypes
+    except Exception:  # noqa: BLE001 - any surprise: build in blocks instead
+        return None
+
+
+_LIBRARY = None if _rtcs is None else _embree_library()
+
+
+def _free_commit(scene, should_cancel):
+    """Commit `scene` (build its BVH) with the GIL released: on a worker thread while the
+    calling thread asks should_cancel() every POLL_SECONDS (raises Cancelled; the commit
+    finishes in the background and the scene is dropped after it)."""
+    lib, offset, ctypes = _LIBRARY
+    ptr = ctypes.c_void_p.from_address(id(scene) + offset).value
+
+    def commit(keep=scene):  # keeps the scene alive until Embree is done with it
+        lib.rtcCommitScene(ptr)
+
+    if should_cancel is None:
+        commit()
+    else:
+        worker = threading.Thread(target=commit, name="embree-commit", daemon=True)
+        worker.start()
+        while worker.is_alive():
+            worker.join(POLL_SECONDS)
+            if worker.is_alive() and should_cancel():
+                raise Cancelled()
+    scene.is_committed = 1  # run() would commit again otherwise
 
 
 class _Block:
@@ -73,8 +145,9 @@ class Accel:
         self._blocks = []
         stop = should_cancel if should_cancel is not None else (lambda: False)
         one = np.zeros((1, 3), np.float32)
-        for start in range(0, self.count, BLOCK_TRIANGLES):
-            end = min(self.count, start + BLOCK_TRIANGLES)
+        block = self.count if _LIBRARY is not None else BLOCK_TRIANGLES
+        for start in range(0, self.count, max(1, block)):
+            end = min(self.count, start + block)
             scene = _rtcs.EmbreeScene(robust=True)
             starts = []
             for a in range(start, end, MESH_TRIANGLES):
@@ -88,7 +161,9 @@ class Accel:
                 starts.append(a)
             if stop():
                 raise Cancelled()
-            # Commit the BVH now, single-threaded, before threads share the scene.
+            # Commit the BVH now, before threads share the scene.
+            if _LIBRARY is not None:
+                _free_commit(scene, should_cancel)
             scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
             self._blocks.append(_Block(scene, np.array(starts, np.int64)))
         # The first block's Embree scene (the whole BVH when there is one block, as for
@@ -151,7 +226,10 @@ class Accel:
                 geom = res["geomID"]
                 hit = geom >= 0
                 if len(blocks) == 1:
-                    prim[a:b] = np.where(hit, res["primID"], -1)
+                    pid = res["primID"]
+                    if len(block.starts) > 1:  # pieces: prim = first triangle + primID
+                        pid = np.take(block.starts, np.where(hit, geom, 0)) + pid
+                    prim[a:b] = np.where(hit, pid, -1)
                     t[a:b] = np.where(hit, res["tfar"], np.inf)
                     u[a:b] = res["u"]
                     v[a:b] = res["v"]

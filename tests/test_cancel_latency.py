@@ -106,11 +106,38 @@ def test_cancel_during_geometry_preparation(monkeypatch):
     check(film, latency)
 
 
+@pytest.mark.skipif(accel_module._LIBRARY is None, reason="no GIL-free Embree commit here")
+def test_cancel_during_bvh_commit(monkeypatch):
+    """The flag is set as Embree starts building the BVH (one C call, made with the GIL
+    released on a worker thread)."""
+    c = Canceller()
+    hook(monkeypatch, accel_module, "_free_commit", c)
+    film, latency = render_and_cancel(box_with_grid(300_000), RenderSettings(**FAST), c)
+    check(film, latency)
+
+
+def test_pieces_of_one_scene_answer_as_one_mesh(monkeypatch):
+    """The mesh copied into Embree in pieces (one scene, GIL-free commit) gives the same
+    hits as one piece."""
+    mesh = grid_mesh(20_000)
+    rng = np.random.default_rng(5)
+    n = 5000
+    o = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), np.full(n, 1.0)])
+    d = np.column_stack([rng.normal(0, 0.3, n), rng.normal(0, 0.3, n), -np.ones(n)])
+    one = accel_module.Accel(mesh.vertices, mesh.faces).intersect(o, d)
+    monkeypatch.setattr(accel_module, "MESH_TRIANGLES", 3000)
+    pieces = accel_module.Accel(mesh.vertices, mesh.faces)
+    assert len(pieces._blocks) == (1 if accel_module._LIBRARY is not None else 3)
+    for a, b in zip(one, pieces.intersect(o, d)):
+        np.testing.assert_array_equal(a, b)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("module, name, call", [
     (geometry_module, "normalize", 40),      # preparing the 40th piece of 77
     (accel_module, "_TriangleMesh", 8),      # copying the last piece of the first block
     (accel_module, "_TriangleMesh", 60),     # a piece of the 8th block
+    (accel_module, "_free_commit", 1),       # Embree building the BVH (~2 s)
 ])
 def test_cancel_a_5m_triangle_scene(monkeypatch, module, name, call):
     """The 5M-triangle case of issue 16 (14.4 s uninterruptible before): geometry
@@ -187,6 +214,7 @@ def test_chunked_bvh_answers_as_one(monkeypatch):
     assert len(whole._blocks) == 1
     monkeypatch.setattr(accel_module, "MESH_TRIANGLES", 1000)
     monkeypatch.setattr(accel_module, "BLOCK_TRIANGLES", 7000)
+    monkeypatch.setattr(accel_module, "_LIBRARY", None)  # as without the GIL-free commit
     parts = accel_module.Accel(V, faces, threads=2)
     assert len(parts._blocks) == 6
     t1, p1, u1, v1 = whole.intersect(o, d)
