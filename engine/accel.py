@@ -98,7 +98,9 @@ def _free_commit(scene, should_cancel):
     if should_cancel is None:
         commit()
     else:
-        worker = threading.Thread(target=commit, name="embree-commit", daemon=True)
+        # Not a daemon: the interpreter waits for a cancelled commit at exit (Embree
+        # aborts the process when its threads are torn down mid-build).
+        worker = threading.Thread(target=commit, name="embree-commit")
         worker.start()
         while worker.is_alive():
             worker.join(POLL_SECONDS)
