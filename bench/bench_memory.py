@@ -138,7 +138,9 @@ def run_triangles(tris, smooth, root):
 
 
 def main_triangles(sizes, smooth, root):
-    print(f"checkout {root}; grid {'with' if smooth else 'without'} normals and UVs")
+    print(f"checkout {root}; grid {'with' if smooth else 'without'} normals and UVs in the "
+          "Figure 3 scene (its spheres have both, so every triangle carries corner normals "
+          "and UVs)")
     print("| triangles | kept after preparing (B/tri) | peak preparing (B/tri) | "
           "peak in render (B/tri) | prepare + BVH (s) | geometry arrays (B/tri) |")
     print("|---|---|---|---|---|---|")
