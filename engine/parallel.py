@@ -42,17 +42,19 @@ def chunk_length(total: int, limit: int) -> int:
 
 def ordered_map(job, items, threads: int, should_cancel=None):
     """Yield job(item, stop) for each item, in order. stop() tells a running job that the
-    caller cancelled (it should raise Cancelled). With threads <= 1 the jobs run inline
-    and stop is should_cancel itself. At most 2 x threads chunks are in flight, which
-    bounds memory. Raises Cancelled when should_cancel() returns True."""
+    caller cancelled (it should raise Cancelled). At most 2 x threads chunks are in
+    flight (one with threads <= 1), which bounds memory. Raises Cancelled when
+    should_cancel() returns True. Without should_cancel and with threads <= 1 the jobs
+    run inline; with should_cancel they run on worker threads while this thread polls it
+    every POLL_SECONDS, so a cancel is seen within that even when a job's step between
+    two checks of stop() takes seconds (a camera chunk's first bounce)."""
     items = list(items)
-    if threads <= 1 or len(items) <= 1:
-        stop = should_cancel if should_cancel is not None else (lambda: False)
+    if should_cancel is None and (threads <= 1 or len(items) <= 1):
         for item in items:
-            if stop():
-                raise Cancelled()
-            yield job(item, stop)
+            yield job(item, lambda: False)
         return
+    threads = max(1, threads)
+    in_flight = 2 * threads if threads > 1 else 1
     event = threading.Event()
     pending = deque()
     todo = iter(items)
@@ -60,7 +62,7 @@ def ordered_map(job, items, threads: int, should_cancel=None):
     try:
         for item in todo:
             pending.append(pool.submit(job, item, event.is_set))
-            if len(pending) >= 2 * threads:
+            if len(pending) >= in_flight:
                 break
         while pending:
             # Checked before each chunk is awaited, after the one before it was

@@ -3,6 +3,7 @@ tracing, photon-map build and the camera pass. Each test starts a render on a th
 the cancel flag from a hook at a point inside one stage, and checks that the render
 returns within CANCEL_SECONDS of the flag, marked as cancelled. The latency of a stage is
 a correctness property of the engine (Blender's Esc), so it is asserted here."""
+import importlib
 import threading
 import time
 
@@ -232,3 +233,22 @@ def test_chunked_bvh_answers_as_one(monkeypatch):
     parts.occluded_into(o.astype(np.float32), d.astype(np.float32),
                         tmax.astype(np.float32), blocked)
     np.testing.assert_array_equal(occ, blocked)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_cancel_in_the_middle_of_a_camera_chunk(monkeypatch, workers):
+    """The flag is set 0.3 s into the camera pass, inside the first chunks' first bounce
+    (camera rays, direct light and gathering of 131k samples take seconds)."""
+    render_module = importlib.import_module("engine.render")  # engine.render is a function
+    c = Canceller()
+    original = render_module.render_camera
+
+    def render_camera(*args, **kwargs):
+        threading.Timer(0.3, c.fire).start()
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(render_module, "render_camera", render_camera)
+    film, latency = render_and_cancel(
+        cornell_box(320, 240), RenderSettings(spp=16, photons=2000, caustic_photons=0,
+                                              workers=workers), c)
+    check(film, latency)
