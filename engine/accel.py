@@ -53,9 +53,11 @@ def _embree_library():
 
         import embreex
         here = os.path.dirname(embreex.__file__)
+        # Where the wheels bundle it: manylinux and Windows (embreex.libs beside the
+        # package), macOS (.dylibs inside it).
         names = (glob.glob(os.path.join(here, "..", "embreex.libs", "*embree4*"))
-                 + glob.glob(os.path.join(here, "*embree4*"))
-                 + glob.glob(os.path.join(here, "..", "embreex.libs", "*embree4*.dll")))
+                 + glob.glob(os.path.join(here, ".dylibs", "*embree4*"))
+                 + glob.glob(os.path.join(here, "*embree4*")))
         if not names:
             return None
         lib = ctypes.CDLL(names[0])
@@ -71,7 +73,10 @@ def _embree_library():
         probe.is_committed = 0
         at = raw.find(magic.to_bytes(4, "little"))
         ptr_size = ctypes.sizeof(ctypes.c_void_p)
-        if at < 2 * ptr_size or raw.find(magic.to_bytes(4, "little"), at + 1) != -1:
+        # The layout embreex 4.4 compiles to: object header (2 pointers), scene_i,
+        # is_committed (padded to a pointer), device. Anything else: not this layout.
+        if size != 5 * ptr_size or at != 3 * ptr_size \
+                or raw.find(magic.to_bytes(4, "little"), at + 1) != -1:
             return None
         offset = at - ptr_size
         ptr = ctypes.c_void_p.from_address(id(probe) + offset).value
