@@ -173,8 +173,8 @@ class Accel:
                 _free_commit(scene, should_cancel)
             scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
             self._blocks.append(_Block(scene, np.array(starts, np.int64)))
-        # The first block's Embree scene (the whole BVH when there is one block, as for
-        # every scene up to BLOCK_TRIANGLES): bench/ replays queries on it directly.
+        # The first block's Embree scene (the whole BVH, except in the block fallback):
+        # bench/ replays queries on it directly.
         self._scene = self._blocks[0].scene if self._blocks else None
 
     def serial(self) -> "Accel":
