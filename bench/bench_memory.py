@@ -3,7 +3,15 @@ resident memory measured for the same render (each in a fresh process, ru_maxrss
 the render minus before it). Prints a table; the estimate should stay above the
 measurement without being far above it.
 
+--triangles prints bytes per triangle instead (docs/performance.md, "Memory per
+triangle"): a grid of 1M and 5M triangles in the Figure 3 scene, rendered tiny, each in a
+fresh process: the resident memory the prepared scene keeps (geometry tables + BVHs)
+and the peak during the render (the process's peak reset just before it), per triangle,
+with the geometry's arrays one by one. --root measures another checkout (e.g. the main
+branch, for a before/after table).
+
     .venv/bin/python bench/bench_memory.py [--quick]
+    .venv/bin/python bench/bench_memory.py --triangles [--sizes 1000000 5000000] [--smooth]
 """
 from __future__ import annotations
 
@@ -63,6 +71,88 @@ print(json.dumps({"estimate": est.total, "parts": est.parts, "measured": peak - 
 """
 
 
+TRIANGLES_CHILD = r"""
+import json, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine import RenderSettings
+from engine.render import prepare_context, render_pass
+from engine.scene import Mesh
+from engine.scenefile import load_scene
+
+
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+
+
+def hwm():
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+
+
+scene = load_scene(ROOT + "/scenes/figure3.toml")[0]
+scene.width, scene.height = 32, 24
+n = int((TRIS / 2) ** 0.5)
+xs = np.linspace(-3, 3, n + 1)
+X, Y = np.meshgrid(xs, xs)
+V = np.stack([X.ravel(), Y.ravel() + 3, 0.01 + 0.02 * np.sin(X.ravel())], 1)
+i = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+F = np.concatenate([np.stack([i, i + 1, i + n + 2], 1), np.stack([i, i + n + 2, i + n + 1], 1)])
+N = np.tile([0.0, 0.0, 1.0], (len(V), 1)) if SMOOTH else None
+UV = V[:, :2].copy() if SMOOTH else None
+scene.add_mesh(Mesh("grid", V, F, normals=N, uvs=UV, materials=["white_plastic_dull"]))
+del V, F, X, Y, i, N, UV
+T = sum(len(m.faces) for m in scene.meshes)
+settings = RenderSettings(photons=1000, caustic_photons=0, spp=1, workers=1)
+before = rss()
+with open("/proc/self/clear_refs", "w") as f:  # reset the peak (VmHWM) to the current RSS
+    f.write("5")
+t0 = time.perf_counter()
+ctx = prepare_context(scene, settings)
+t_prepare = time.perf_counter() - t0
+kept = rss() - before
+peak_prepare = hwm() - before
+geo = ctx.geo
+arrays = {}
+for name, value in vars(geo).items():
+    if isinstance(value, np.ndarray) and value.ndim >= 1 and len(value) == geo.count:
+        arrays[name] = value.nbytes / T
+    elif isinstance(value, dict):
+        for k, a in value.items():
+            arrays[name + "." + k] = a.nbytes / T
+render_pass(ctx, (0, 0, scene.width, scene.height))
+peak = hwm() - before
+print(json.dumps({"T": T, "kept": kept / T, "peak_prepare": peak_prepare / T,
+                  "peak": peak / T, "arrays": arrays, "t_prepare": t_prepare}))
+"""
+
+
+def run_triangles(tris, smooth, root):
+    code = f"ROOT={root!r}; TRIS={tris}; SMOOTH={smooth}\n" + TRIANGLES_CHILD
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def main_triangles(sizes, smooth, root):
+    print(f"checkout {root}; grid {'with' if smooth else 'without'} normals and UVs in the "
+          "Figure 3 scene (its spheres have both, so every triangle carries corner normals "
+          "and UVs)")
+    print("| triangles | kept after preparing (B/tri) | peak preparing (B/tri) | "
+          "peak in render (B/tri) | prepare + BVH (s) | geometry arrays (B/tri) |")
+    print("|---|---|---|---|---|---|")
+    for tris in sizes:
+        r = run_triangles(tris, smooth, root)
+        arrays = ", ".join(f"{k} {v:.0f}" for k, v in sorted(r["arrays"].items(),
+                                                            key=lambda kv: -kv[1]) if v >= 1)
+        total = sum(r["arrays"].values())
+        print(f"| {r['T']:,} | {r['kept']:.0f} | {r['peak_prepare']:.0f} | {r['peak']:.0f} | "
+              f"{r['t_prepare']:.1f} | {total:.0f}: {arrays} |", flush=True)
+
+
 def run(case):
     label, name, w, h, settings, tris = case
     code = (f"ROOT={ROOT!r}; NAME={name!r}; W={w}; H={h}; TRIS={tris}; "
@@ -75,7 +165,16 @@ def run(case):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="three cases only")
+    ap.add_argument("--triangles", action="store_true", help="bytes per triangle instead")
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1_000_000, 5_000_000],
+                    help="triangle counts for --triangles")
+    ap.add_argument("--smooth", action="store_true",
+                    help="--triangles: the grid has vertex normals and UVs")
+    ap.add_argument("--root", default=ROOT, help="--triangles: checkout to measure")
     args = ap.parse_args()
+    if args.triangles:
+        main_triangles(args.sizes, args.smooth, os.path.abspath(args.root))
+        return
     mb = 1 << 20
     print("| render | estimate (MB) | measured peak (MB) | estimate / measured | largest part |")
     print("|---|---|---|---|---|")

@@ -7,9 +7,12 @@ crash the process. Queries are split across threads: embreex releases the GIL.
 from __future__ import annotations
 
 import copy
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+
+from .parallel import Cancelled
 
 try:
     from embreex import rtcore_scene as _rtcs
@@ -22,29 +25,157 @@ else:
 
 MIN_PER_THREAD = 4096  # below this, threading costs more than it saves
 
+# The BVH is built in pieces so that a cancel is noticed between them: embreex holds the
+# GIL while it copies a mesh (~1.7 s per 1M triangles), so nothing else in the process runs
+# meanwhile. A piece of MESH_TRIANGLES copies in ~0.1 s; the pieces are meshes of one
+# Embree scene, traced as fast as one mesh. embreex also holds the GIL while Embree
+# commits (builds) the BVH (~0.4 s per 1M triangles): the commit is made here through
+# Embree's C API with the GIL released, on a worker thread while the caller polls
+# (_free_commit). Where that is not possible (an embreex with another object layout),
+# the triangles are split into Embree scenes of BLOCK_TRIANGLES (~0.2 s commit each), at
+# a cost in query speed: each block is one more traversal per ray (1M triangles as 1 / 2 /
+# 4 blocks traced 2.1 / 1.4 / 1.0 Mrays/s; docs/performance.md, "Large scenes").
+MESH_TRIANGLES = 1 << 16
+BLOCK_TRIANGLES = 1 << 19
+POLL_SECONDS = 0.05
+
+
+def _embree_library():
+    """Embree's C library as loaded by embreex (ctypes releases the GIL in its calls), its
+    rtcCommitScene, and the offset of the RTCScene pointer in an EmbreeScene object, or
+    None. The pointer precedes the public is_committed field (embreex's rtcore_scene.pxd
+    declares scene_i, is_committed, device); a scene made robust must then report
+    RTC_SCENE_FLAG_ROBUST through rtcGetSceneFlags."""
+    try:
+        import ctypes
+        import glob
+        import os
+
+        import embreex
+        here = os.path.dirname(embreex.__file__)
+        # Where the wheels bundle it: manylinux and Windows (embreex.libs beside the
+        # package), macOS (.dylibs inside it).
+        names = (glob.glob(os.path.join(here, "..", "embreex.libs", "*embree4*"))
+                 + glob.glob(os.path.join(here, ".dylibs", "*embree4*"))
+                 + glob.glob(os.path.join(here, "*embree4*")))
+        if not names:
+            return None
+        lib = ctypes.CDLL(names[0])
+        lib.rtcCommitScene.argtypes = [ctypes.c_void_p]
+        lib.rtcCommitScene.restype = None
+        lib.rtcGetSceneFlags.argtypes = [ctypes.c_void_p]
+        lib.rtcGetSceneFlags.restype = ctypes.c_int
+        probe = _rtcs.EmbreeScene(robust=True)
+        size = type(probe).__basicsize__
+        magic = 0x5A5A1234
+        probe.is_committed = magic
+        raw = bytes((ctypes.c_char * size).from_address(id(probe)))
+        probe.is_committed = 0
+        at = raw.find(magic.to_bytes(4, "little"))
+        ptr_size = ctypes.sizeof(ctypes.c_void_p)
+        # The layout embreex 4.4 compiles to: object header (2 pointers), scene_i,
+        # is_committed (padded to a pointer), device. Anything else: not this layout.
+        if size != 5 * ptr_size or at != 3 * ptr_size \
+                or raw.find(magic.to_bytes(4, "little"), at + 1) != -1:
+            return None
+        offset = at - ptr_size
+        ptr = ctypes.c_void_p.from_address(id(probe) + offset).value
+        if not ptr or lib.rtcGetSceneFlags(ptr) != 4:  # RTC_SCENE_FLAG_ROBUST
+            return None
+        return lib, offset, ctypes
+    except Exception:  # noqa: BLE001 - any surprise: build in blocks instead
+        return None
+
+
+_LIBRARY = None if _rtcs is None else _embree_library()
+
+
+def _free_commit(scene, should_cancel):
+    """Commit `scene` (build its BVH) with the GIL released: on a worker thread while the
+    calling thread asks should_cancel() every POLL_SECONDS (raises Cancelled; the commit
+    finishes in the background and the scene is dropped after it)."""
+    lib, offset, ctypes = _LIBRARY
+    ptr = ctypes.c_void_p.from_address(id(scene) + offset).value
+
+    def commit(keep=scene):  # keeps the scene alive until Embree is done with it
+        lib.rtcCommitScene(ptr)
+
+    if should_cancel is None:
+        commit()
+    else:
+        # Not a daemon: the interpreter waits for a cancelled commit at exit (Embree
+        # aborts the process when its threads are torn down mid-build).
+        worker = threading.Thread(target=commit, name="embree-commit")
+        worker.start()
+        while worker.is_alive():
+            worker.join(POLL_SECONDS)
+            if worker.is_alive() and should_cancel():
+                raise Cancelled()
+    scene.is_committed = 1  # run() would commit again otherwise
+
+
+class _Block:
+    """One Embree scene over the triangles [start, start + count) of the whole table,
+    added as pieces (embreex meshes) whose first triangles are `starts` (geomID order)."""
+
+    __slots__ = ("scene", "starts")
+
+    def __init__(self, scene, starts):
+        self.scene = scene
+        self.starts = starts
+
 
 class Accel:
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, threads: int = 1):
+    """Closest-hit and occlusion queries over triangles `faces` (F,3) int indexing
+    `vertices` (V,3) (converted to float32; shared or unshared corners). Prim ids of the
+    answers index `faces`. should_cancel() is asked between the pieces of the build:
+    raises engine.parallel.Cancelled when it returns True, ValueError for bad arrays.
+    The Accel keeps no reference to the arrays: Embree holds its own copy (float32
+    vertices and int32 indices of each piece, 6 + 12 B per triangle of a closed mesh) and
+    the BVH (~60 B per triangle, docs/performance.md)."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, threads: int = 1,
+                 should_cancel=None):
         if _rtcs is None:
             raise RuntimeError(f"embreex is not available: {_IMPORT_ERROR}")
-        vertices = np.ascontiguousarray(vertices, dtype=np.float32)
-        faces = np.ascontiguousarray(faces, dtype=np.int32)
+        vertices = np.asarray(vertices)
+        faces = np.asarray(faces)
         if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3:
             raise ValueError("Accel: vertices must be (V,3) and faces (F,3)")
         if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
             raise ValueError("Accel: face index out of range")
-        if not np.all(np.isfinite(vertices)):
+        if not np.isfinite(vertices).all():
             raise ValueError("Accel: vertices must be finite")
         self.threads = max(1, int(threads))
         self.count = len(faces)
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
-        self._scene = None
-        if self.count:
-            self._scene = _rtcs.EmbreeScene(robust=True)
-            _TriangleMesh(self._scene, vertices, faces)
-            # Commit the BVH now, single-threaded, before threads share the scene.
-            one = np.zeros((1, 3), np.float32)
-            self._scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
+        self._blocks = []
+        stop = should_cancel if should_cancel is not None else (lambda: False)
+        one = np.zeros((1, 3), np.float32)
+        block = self.count if _LIBRARY is not None else BLOCK_TRIANGLES
+        for start in range(0, self.count, max(1, block)):
+            end = min(self.count, start + block)
+            scene = _rtcs.EmbreeScene(robust=True)
+            starts = []
+            for a in range(start, end, MESH_TRIANGLES):
+                if stop():
+                    raise Cancelled()
+                b = min(end, a + MESH_TRIANGLES)
+                # Only the vertices this piece uses: embreex copies the whole array given.
+                used, local = np.unique(faces[a:b], return_inverse=True)
+                _TriangleMesh(scene, np.ascontiguousarray(vertices[used], dtype=np.float32),
+                              local.reshape(-1, 3).astype(np.int32))
+                starts.append(a)
+            if stop():
+                raise Cancelled()
+            # Commit the BVH now, before threads share the scene.
+            if _LIBRARY is not None:
+                _free_commit(scene, should_cancel)
+            scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
+            self._blocks.append(_Block(scene, np.array(starts, np.int64)))
+        # The first block's Embree scene (the whole BVH, except in the block fallback):
+        # bench/ replays queries on it directly.
+        self._scene = self._blocks[0].scene if self._blocks else None
 
     def serial(self) -> "Accel":
         """A view of the same BVH that answers on the calling thread: for work that is
@@ -89,16 +220,35 @@ class Accel:
         prim = np.full(n, -1, np.int64)
         u = np.zeros(n)
         v = np.zeros(n)
-        if self._scene is None or n == 0:
+        if not self._blocks or n == 0:
             return t, prim, u, v
+        blocks = self._blocks
 
         def work(a, b):
-            res = self._scene.run(o[a:b], d[a:b], dists=tf[a:b].copy(), output=True)
-            hit = res["geomID"] >= 0
-            prim[a:b] = np.where(hit, res["primID"], -1)
-            t[a:b] = np.where(hit, res["tfar"], np.inf)
-            u[a:b] = res["u"]
-            v[a:b] = res["v"]
+            far = tf[a:b].copy()
+            for block in blocks:
+                # Each block is traced only up to the nearest hit found so far: a hit it
+                # returns is nearer (an exact tie goes to the later block).
+                res = block.scene.run(o[a:b], d[a:b], dists=far.copy(), output=True)
+                geom = res["geomID"]
+                hit = geom >= 0
+                if len(blocks) == 1:
+                    pid = res["primID"]
+                    if len(block.starts) > 1:  # pieces: prim = first triangle + primID
+                        pid = np.take(block.starts, np.where(hit, geom, 0)) + pid
+                    prim[a:b] = np.where(hit, pid, -1)
+                    t[a:b] = np.where(hit, res["tfar"], np.inf)
+                    u[a:b] = res["u"]
+                    v[a:b] = res["v"]
+                    return
+                rows = np.nonzero(hit)[0]
+                if not len(rows):
+                    continue
+                prim[a + rows] = block.starts[geom[rows]] + res["primID"][rows]
+                t[a + rows] = res["tfar"][rows]
+                u[a + rows] = res["u"][rows]
+                v[a + rows] = res["v"][rows]
+                far[rows] = res["tfar"][rows]
 
         self._run(work, n)
         return t, prim, u, v
@@ -108,17 +258,32 @@ class Accel:
         o, d, tf = self._prepare(origins, directions, tmax)
         n = len(o)
         out = np.zeros(n, bool)
-        if self._scene is None or n == 0:
+        if not self._blocks or n == 0:
             return out
 
         def work(a, b):
-            # OCCLUDED must be called without output (docs/design.md, Embree (embreex)
-            # facts): 0 = blocked, -1 = clear.
-            res = self._scene.run(o[a:b], d[a:b], dists=tf[a:b].copy(), query="OCCLUDED")
-            out[a:b] = np.asarray(res) == 0
+            out[a:b] = self._occluded(o[a:b], d[a:b], tf[a:b].copy())
 
         self._run(work, n)
         return out
+
+    def _occluded(self, o, d, tf):
+        """(N,) bool blocked, block after block for the rays still clear. tf is overwritten."""
+        # OCCLUDED must be called without output (docs/design.md, Embree (embreex)
+        # facts): 0 = blocked, -1 = clear.
+        if len(self._blocks) == 1:
+            return np.asarray(self._blocks[0].scene.run(o, d, dists=tf, query="OCCLUDED")) == 0
+        blocked = np.zeros(len(o), bool)
+        rows = np.arange(len(o))
+        for block in self._blocks:
+            res = block.scene.run(np.ascontiguousarray(o[rows]), np.ascontiguousarray(d[rows]),
+                                  dists=tf[rows], query="OCCLUDED")
+            hit = np.asarray(res) == 0
+            blocked[rows[hit]] = True
+            rows = rows[~hit]
+            if not len(rows):
+                break
+        return blocked
 
     def occluded_into(self, o32, d32, tmax32, blocked) -> np.ndarray:
         """Accel.occluded for rays already in Embree's layout, written by a kernel: o32,
@@ -135,13 +300,12 @@ class Accel:
         if blocked.dtype != np.bool_ or blocked.shape != (n,):
             raise ValueError(f"Accel.occluded_into: blocked must be bool ({n},), got "
                              f"{blocked.dtype} {blocked.shape}")
-        if self._scene is None or n == 0:
+        if not self._blocks or n == 0:
             blocked[:] = False
             return blocked
 
         def work(a, b):
-            res = self._scene.run(o32[a:b], d32[a:b], dists=tmax32[a:b], query="OCCLUDED")
-            blocked[a:b] = np.asarray(res) == 0
+            blocked[a:b] = self._occluded(o32[a:b], d32[a:b], tmax32[a:b])
 
         self._run(work, n)
         return blocked

@@ -14,6 +14,7 @@ import numpy as np
 
 from .rayoffset import origin_offset, triangle_point_error, triangle_tilt, ulp32
 from .sampling import dot, luminance, normalize
+from .parallel import Cancelled
 from .scene import Material, Scene
 
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
@@ -69,40 +70,141 @@ class MaterialTable:
         return np.array([n is not None for n in nodes], bool)
 
 
+PIECE_TRIANGLES = 1 << 16  # triangles prepared between two cancel checks (~0.05 s)
+
+
+class PerTriangle:
+    """A per-triangle quantity computed from Geometry's edge tables when it is read instead
+    of being stored (it would cost 8-72 B per triangle): x[prim], x[mask] and
+    np.take(x, prim, axis=0) compute only those rows (bit-identical to computing them all),
+    in pieces of PIECE_TRIANGLES rows so a large read needs little scratch memory;
+    np.asarray(x) computes every row."""
+
+    def __init__(self, geo: "Geometry", rows):
+        self._geo = geo
+        self._rows = rows  # rows(geo, idx) -> (len(idx), ...) values
+
+    def __len__(self) -> int:
+        return self._geo.count
+
+    def __getitem__(self, key):
+        if isinstance(key, (int, np.integer)):
+            return self[np.array([key])][0]
+        key = np.asarray(key) if not isinstance(key, slice) else key
+        if isinstance(key, slice):
+            idx = np.arange(self._geo.count)[key]
+        elif key.dtype == np.bool_:
+            idx = np.nonzero(key)[0]
+        else:
+            idx = key.astype(np.int64, copy=False)
+        flat = idx.reshape(-1)
+        if len(flat) <= PIECE_TRIANGLES:
+            out = self._rows(self._geo, flat)
+        else:
+            parts = [self._rows(self._geo, flat[a:a + PIECE_TRIANGLES])
+                     for a in range(0, len(flat), PIECE_TRIANGLES)]
+            out = np.concatenate(parts)
+        return out.reshape(idx.shape + out.shape[1:])
+
+    def take(self, indices, axis=None, out=None, mode="raise"):
+        """np.take(x, prim, axis=0) (and axis=None for a quantity of one value a row)."""
+        if out is not None or mode != "raise" or axis not in (0, None):
+            raise ValueError("PerTriangle.take: only axis=0 without out or mode")
+        rows = self[indices]
+        if axis is None and rows.ndim > np.ndim(indices):
+            raise ValueError("PerTriangle.take: axis=None of a multi-valued quantity")
+        return rows
+
+    def __array__(self, dtype=None, copy=None):
+        out = self[slice(None)]
+        return out if dtype is None else out.astype(dtype)
+
+
+def _ng_rows(geo, idx):
+    c = np.cross(np.take(geo.e1, idx, axis=0), np.take(geo.e2, idx, axis=0))
+    return c / np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None]
+
+
+def _area_rows(geo, idx):
+    c = np.cross(np.take(geo.e1, idx, axis=0), np.take(geo.e2, idx, axis=0))
+    return np.linalg.norm(c, axis=1) / 2.0
+
+
+def _round32_rows(geo, idx):
+    v0 = np.take(geo.v0, idx, axis=0)
+    corners = np.stack([v0, v0 + np.take(geo.e1, idx, axis=0),
+                        v0 + np.take(geo.e2, idx, axis=0)], axis=1)
+    # Half a float32 spacing, as a bound continuous in the coordinates (rayoffset.ulp32).
+    return 0.5 * ulp32(corners)
+
+
+def _tilt32_rows(geo, idx):
+    v0 = np.take(geo.v0, idx, axis=0)
+    corners = np.stack([v0, v0 + np.take(geo.e1, idx, axis=0),
+                        v0 + np.take(geo.e2, idx, axis=0)], axis=1)
+    return triangle_tilt(corners.astype(np.float32))
+
+
+def area_sum(geo, mask) -> float:
+    """Total area (m^2) of the triangles where mask (T,) bool is True, a piece at a time."""
+    total = 0.0
+    for a in range(0, geo.count, PIECE_TRIANGLES):
+        idx = a + np.nonzero(mask[a:a + PIECE_TRIANGLES])[0]
+        total += float(_area_rows(geo, idx).sum())
+    return total
+
+
 @dataclass
 class Geometry:
-    """Merged triangles in re-centred world space (world = local + offset)."""
+    """Merged triangles in re-centred world space (world = local + offset).
+
+    Memory per triangle (docs/performance.md, "Memory per triangle"): v0, e1, e2 (72 B),
+    material, object_id, terminator, terminator_shading (16 B), smooth, visibility, holdout
+    (3 B); corner normals (36 B) only when some mesh has normals, corner UVs (24 B) only
+    when some mesh has UVs. ng, area, round32 and tilt32 are computed from the corners
+    when read (PerTriangle). vertices32 / faces32 (float32 corners shared as in the
+    meshes, int32 indices) feed the BVH build and are released after it
+    (release_build_arrays): Embree keeps its own copy."""
 
     offset: np.ndarray        # (3,) translation removed from everything
     extent: float             # bounding-box diagonal (scene size; never a length floor)
     v0: np.ndarray            # (T,3) triangle corners, float64
     e1: np.ndarray            # v1 - v0
     e2: np.ndarray            # v2 - v0
-    ng: np.ndarray            # (T,3) unit geometric normals (winding order)
-    corner_normals: np.ndarray  # (T,3,3) unit shading normals at the corners
+    corner_normals: np.ndarray  # (T,3,3) float32 unit shading normals at the corners, or
+                              # (0,3,3) when no mesh has normals (every triangle flat)
     smooth: np.ndarray        # (T,) bool: shading normals differ from the geometric one
-    corner_uvs: np.ndarray    # (T,3,2)
-    area: np.ndarray          # (T,)
+    corner_uvs: np.ndarray | None  # (T,3,2) float32, None when no mesh has UVs (reads 0)
     material: np.ndarray      # (T,) int32 index into the material table
     object_id: np.ndarray     # (T,) int32 index into object_names
     object_names: list
     visibility: np.ndarray    # (T,) uint8 ray-class bits of the rays that see the triangle
     holdout: np.ndarray       # (T,) bool: camera rays that hit it give alpha 0
-    vertices32: np.ndarray    # (3T,3) float32 for Embree
-    round32: np.ndarray       # (T,3,3) bound on |float32 corner - float64 corner|
-    tilt32: np.ndarray        # (T,) bound on the float32 plane's tilt, radians
-    terminator: np.ndarray    # (T,) Cycles' shadow terminator geometry offset (Mesh)
-    terminator_shading: np.ndarray  # (T,) Cycles' shadow terminator shading offset (Mesh)
-    faces32: np.ndarray       # (T,3) int32
+    vertices32: np.ndarray | None  # (V,3) float32 mesh vertices for Embree (build only)
+    terminator: np.ndarray    # (T,) float32 Cycles' shadow terminator geometry offset (Mesh)
+    terminator_shading: np.ndarray  # (T,) float32 Cycles' shadow terminator shading offset
+    faces32: np.ndarray | None  # (T,3) int32 into vertices32 (build only)
     bounds: np.ndarray        # (2,3) re-centred bounding box
     corner_colors: np.ndarray | None = None  # (T,3,3) linear colour attribute; None: no
                               # mesh has one (a mesh without one reads black, as in Cycles)
     corner_coordinates: dict | None = None  # name -> (T,3,3) texture coordinates (Mesh);
                               # zeros on meshes without them
 
+    def __post_init__(self):
+        self.ng = PerTriangle(self, _ng_rows)  # (T,3) unit geometric normals (winding)
+        self.area = PerTriangle(self, _area_rows)  # (T,)
+        # (T,3,3) bound on |float32 corner - float64 corner|
+        self.round32 = PerTriangle(self, _round32_rows)
+        # (T,) bound on the float32 plane's tilt, radians (rayoffset.triangle_tilt)
+        self.tilt32 = PerTriangle(self, _tilt32_rows)
+
     @property
     def count(self) -> int:
         return len(self.v0)
+
+    def release_build_arrays(self):
+        """Drop vertices32 / faces32 once the BVH is built (Embree holds its own copy)."""
+        self.vertices32 = self.faces32 = None
 
     def hit_points(self, prim: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Positions from barycentrics in float64: more exact than origin + t*dir."""
@@ -117,10 +219,12 @@ class Geometry:
         v0 = np.take(self.v0, prim, axis=0)
         e1 = np.take(self.e1, prim, axis=0)
         e2 = np.take(self.e2, prim, axis=0)
-        err = triangle_point_error(v0, e1, e2, np.take(self.round32, prim, axis=0), u, v, p)
+        err = triangle_point_error(v0, e1, e2, self.round32[prim], u, v, p)
         return origin_offset(err, v0, e1, e2, n, p, np.take(self.tilt32, prim))
 
     def shading_normals(self, prim, u, v) -> np.ndarray:
+        if not len(self.corner_normals):
+            return self.ng[prim]
         n = normalize(_corner_lerp(self.corner_normals, prim, u, v))
         # Same tests as isfinite(n).all(axis=1) and abs(n).sum(axis=1), written per component
         # (short-axis reductions are slow in numpy); |n| <= 1 here so the sum cannot overflow.
@@ -128,7 +232,7 @@ class Geometry:
         s = a[:, 0] + a[:, 1] + a[:, 2]
         bad = ~np.isfinite(s) | (s < 0.5)
         if bad.any():
-            n[bad] = np.take(self.ng, prim[bad], axis=0)
+            n[bad] = self.ng[prim[bad]]
         return n
 
     def colors(self, prim, u, v) -> np.ndarray:
@@ -147,7 +251,9 @@ class Geometry:
     def uv_tangents(self, prim) -> tuple[np.ndarray, np.ndarray]:
         """Per-triangle UV tangent dP/du (N,3, not normalised; zero where the UVs are
         degenerate) and the UV map's orientation sign (N,) (+1: counter-clockwise)."""
-        cu = np.take(self.corner_uvs, prim, axis=0)
+        if self.corner_uvs is None:
+            return np.zeros((len(prim), 3)), np.ones(len(prim))
+        cu = np.take(self.corner_uvs, prim, axis=0).astype(np.float64)
         d1 = cu[:, 1] - cu[:, 0]
         d2 = cu[:, 2] - cu[:, 0]
         det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
@@ -158,112 +264,136 @@ class Geometry:
         return t, np.where(det < 0, -1.0, 1.0)
 
     def uvs(self, prim, u, v) -> np.ndarray:
+        if self.corner_uvs is None:
+            return np.zeros((len(prim), 2))
         return _corner_lerp(self.corner_uvs, prim, u, v)
 
 
 def _corner_lerp(corners, prim, u, v) -> np.ndarray:
     """Per-corner values corners (T,3,C) of triangles prim (N,) interpolated at barycentric
-    (u, v): (N,C). np.take(axis=0) gathers rows ~4x faster than fancy indexing."""
-    c = np.take(corners, prim, axis=0)
+    (u, v): (N,C) float64. np.take(axis=0) gathers rows ~4x faster than fancy indexing."""
+    c = np.take(corners, prim, axis=0).astype(np.float64, copy=False)
     w = (1.0 - u - v)[:, None]
     return w * c[:, 0] + u[:, None] * c[:, 1] + v[:, None] * c[:, 2]
 
 
-def prepare(scene: Scene) -> tuple[Geometry, MaterialTable]:
-    """Merge the scene's meshes into one triangle table and re-centre it."""
+def _corners(values, f, a, b):
+    """Per-corner values (n,3,C) of faces [a, b): per-vertex values (V,C) gathered through
+    the faces f, or per-corner values (F,3,C) sliced."""
+    return values[f] if values.ndim == 2 else values[a:b]
+
+
+def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
+    """Merge the scene's meshes into one triangle table and re-centre it. Works through
+    the meshes in pieces of PIECE_TRIANGLES and asks should_cancel() between them (raises
+    engine.parallel.Cancelled when it returns True)."""
+    stop = should_cancel if should_cancel is not None else (lambda: False)
     mat_names = list(scene.materials.keys())
     mats_list = [scene.materials[n] for n in mat_names]
     mat_index = {n: i for i, n in enumerate(mat_names)}
     table = MaterialTable.build(mats_list)
+    meshes = scene.meshes
+    names = [mesh.name for mesh in meshes]
 
-    v0s, v1s, v2s, cns, cuvs, mats, objs, names = [], [], [], [], [], [], [], []
-    ccols = []
-    any_colors = any(m.colors is not None for m in scene.meshes)
-    vis, holdout = [], []
-    terms, shading_terms = [], []
-    for oi, mesh in enumerate(scene.meshes):
-        names.append(mesh.name)
-        f = mesh.faces
-        if len(f) == 0:
+    # Bounds of the corners (vertices no face uses do not count).
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for mesh in meshes:
+        if not len(mesh.faces):
             continue
-        tri = mesh.vertices[f]  # (F,3,3)
-        v0s.append(tri[:, 0]); v1s.append(tri[:, 1]); v2s.append(tri[:, 2])
-        if mesh.normals is None:
-            cns.append(None)
-        elif mesh.normals.ndim == 2:
-            cns.append(mesh.normals[f])
-        else:
-            cns.append(mesh.normals)
-        if mesh.uvs is None:
-            cuvs.append(np.zeros((len(f), 3, 2)))
-        elif mesh.uvs.ndim == 2:
-            cuvs.append(mesh.uvs[f])
-        else:
-            cuvs.append(mesh.uvs)
-        if any_colors:  # a mesh without a colour attribute reads black, as in Cycles
-            c = mesh.colors
-            ccols.append(np.zeros((len(f), 3, 3)) if c is None else c[f] if c.ndim == 2 else c)
-        remap = np.array([mat_index[n] for n in mesh.materials], np.int32)
-        mats.append(remap[mesh.material_ids])
-        objs.append(np.full(len(f), oi, np.int32))
-        vis.append(np.full(len(f), mesh.visibility, np.uint8))
-        holdout.append(np.full(len(f), mesh.holdout, bool))
-        terms.append(np.full(len(f), mesh.shadow_terminator_offset))
-        shading_terms.append(np.full(len(f), mesh.shadow_terminator_shading_offset))
-
-    if v0s:
-        v0 = np.concatenate(v0s); v1 = np.concatenate(v1s); v2 = np.concatenate(v2s)
-    else:
-        v0 = v1 = v2 = np.zeros((0, 3))
-    allv = np.concatenate([v0, v1, v2]) if len(v0) else np.zeros((0, 3))
-    if len(allv):
-        lo, hi = allv.min(axis=0), allv.max(axis=0)
-    else:
+        used = np.zeros(len(mesh.vertices), bool)
+        used[mesh.faces.reshape(-1)] = True
+        for a in range(0, len(used), 3 * PIECE_TRIANGLES):
+            if stop():
+                raise Cancelled()
+            piece = mesh.vertices[a:a + 3 * PIECE_TRIANGLES][used[a:a + 3 * PIECE_TRIANGLES]]
+            if len(piece):
+                lo = np.minimum(lo, piece.min(axis=0))
+                hi = np.maximum(hi, piece.max(axis=0))
+    T = int(sum(len(mesh.faces) for mesh in meshes))
+    if not T:
         c = scene.camera.position if scene.camera is not None else np.zeros(3)
         lo, hi = c - 1.0, c + 1.0
     offset = (lo + hi) / 2.0
     extent = float(np.linalg.norm(hi - lo))
     if not np.isfinite(extent) or extent <= 0:
         extent = 1.0
-    v0 = v0 - offset; v1 = v1 - offset; v2 = v2 - offset
-    e1, e2 = v1 - v0, v2 - v0
-    cross = np.cross(e1, e2)
-    area2 = np.linalg.norm(cross, axis=1)
-    ng = cross / np.maximum(area2, 1e-300)[:, None]
 
-    T = len(v0)
-    corner_normals = np.repeat(ng[:, None, :], 3, axis=1)
-    start = 0
-    for cn, vv in zip(cns, v0s):
-        n = len(vv)
-        if cn is not None:
-            cn = normalize(np.asarray(cn, np.float64))
-            bad = ~(np.linalg.norm(cn, axis=2) > 0.5)
-            cn = np.where(bad[:, :, None], corner_normals[start:start + n], cn)
-            corner_normals[start:start + n] = cn
+    any_normals = any(m.normals is not None for m in meshes if len(m.faces))
+    any_uvs = any(m.uvs is not None for m in meshes if len(m.faces))
+    v0, e1, e2 = np.empty((T, 3)), np.empty((T, 3)), np.empty((T, 3))
+    corner_normals = np.empty((T if any_normals else 0, 3, 3), np.float32)
+    corner_uvs = np.zeros((T, 3, 2), np.float32) if any_uvs else None
+    smooth = np.zeros(T, bool)
+    material = np.empty(T, np.int32)
+    object_id = np.empty(T, np.int32)
+    visibility = np.empty(T, np.uint8)
+    holdout = np.empty(T, bool)
+    terminator = np.empty(T, np.float32)
+    terminator_shading = np.empty(T, np.float32)
+    vertices32 = np.empty((sum(len(m.vertices) for m in meshes if len(m.faces)), 3), np.float32)
+    faces32 = np.empty((T, 3), np.int32)
+    ccols = []
+    any_colors = any(m.colors is not None for m in meshes)
+    start = vbase = 0
+    for oi, mesh in enumerate(meshes):
+        f = mesh.faces
+        n = len(f)
+        if n == 0:
+            continue
+        nv = len(mesh.vertices)
+        for a in range(0, nv, 3 * PIECE_TRIANGLES):
+            if stop():
+                raise Cancelled()
+            b = min(nv, a + 3 * PIECE_TRIANGLES)
+            vertices32[vbase + a:vbase + b] = mesh.vertices[a:b] - offset
+        remap = np.array([mat_index[name] for name in mesh.materials], np.int32)
+        s = slice(start, start + n)
+        object_id[s] = oi
+        visibility[s] = mesh.visibility
+        holdout[s] = mesh.holdout
+        terminator[s] = mesh.shadow_terminator_offset
+        terminator_shading[s] = mesh.shadow_terminator_shading_offset
+        for a in range(0, n, PIECE_TRIANGLES):
+            if stop():
+                raise Cancelled()
+            b = min(n, a + PIECE_TRIANGLES)
+            r = slice(start + a, start + b)
+            fa = f[a:b]
+            tri = mesh.vertices[fa] - offset  # (n,3,3) corners, re-centred
+            v0[r] = tri[:, 0]
+            e1[r] = tri[:, 1] - tri[:, 0]
+            e2[r] = tri[:, 2] - tri[:, 0]
+            cross = np.cross(e1[r], e2[r])
+            ng = cross / np.maximum(np.linalg.norm(cross, axis=1), 1e-300)[:, None]
+            if mesh.normals is not None:
+                cn = normalize(np.asarray(_corners(mesh.normals, fa, a, b), np.float64))
+                bad = ~(np.linalg.norm(cn, axis=2) > 0.5)
+                cn = np.where(bad[:, :, None], ng[:, None, :], cn)
+                smooth[r] = np.any(np.abs(dot(cn, ng[:, None, :]) - 1.0) > 1e-6, axis=1)
+                corner_normals[r] = cn
+            elif any_normals:
+                corner_normals[r] = ng[:, None, :]
+            if mesh.uvs is not None:
+                corner_uvs[r] = _corners(mesh.uvs, fa, a, b)
+            material[r] = remap[mesh.material_ids[a:b]]
+            faces32[r] = fa + vbase
+        if any_colors:  # a mesh without a colour attribute reads black, as in Cycles
+            c = mesh.colors
+            ccols.append(np.zeros((n, 3, 3)) if c is None else c[f] if c.ndim == 2 else c)
         start += n
-    smooth = np.any(np.abs(dot(corner_normals, ng[:, None, :]) - 1.0) > 1e-6, axis=1)
-    corner_uvs = np.concatenate(cuvs) if cuvs else np.zeros((0, 3, 2))
-    corners = np.stack([v0, v1, v2], axis=1)
-    verts32 = corners.reshape(-1, 3).astype(np.float32)
-    # Half a float32 spacing, as a bound continuous in the coordinates (rayoffset.ulp32).
-    round32 = 0.5 * ulp32(corners)
-    faces32 = np.arange(3 * T, dtype=np.int32).reshape(T, 3)
+        vbase += nv
+    if stop():
+        raise Cancelled()
     geo = Geometry(
-        offset=offset, extent=extent, v0=v0, e1=e1, e2=e2, ng=ng,
+        offset=offset, extent=extent, v0=v0, e1=e1, e2=e2,
         corner_normals=corner_normals, smooth=smooth, corner_uvs=corner_uvs,
-        area=area2 / 2.0,
-        material=np.concatenate(mats).astype(np.int32) if mats else np.zeros(0, np.int32),
-        object_id=np.concatenate(objs) if objs else np.zeros(0, np.int32),
-        object_names=names, vertices32=verts32, round32=round32,
-        tilt32=triangle_tilt(verts32.reshape(-1, 3, 3)), faces32=faces32,
-        terminator=np.concatenate(terms) if terms else np.zeros(0),
-        terminator_shading=np.concatenate(shading_terms) if shading_terms else np.zeros(0),
-        visibility=np.concatenate(vis) if vis else np.zeros(0, np.uint8),
-        holdout=np.concatenate(holdout) if holdout else np.zeros(0, bool),
+        material=material, object_id=object_id, object_names=names,
+        vertices32=vertices32, faces32=faces32,
+        terminator=terminator, terminator_shading=terminator_shading,
+        visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=np.concatenate(ccols) if ccols else None,
-        corner_coordinates=_corner_coordinates(scene.meshes),
+        corner_coordinates=_corner_coordinates(meshes),
     )
     return geo, table
 
@@ -272,10 +402,12 @@ def emissive_triangles(geo: Geometry, table: MaterialTable):
     """Indices, radiance and area of triangles whose material emits (mesh lights).
     Emitters invisible to diffuse rays light no diffuse surface (Cycles), so they are left
     out; camera, mirror and glass rays still see them glow."""
-    em = table.emission[geo.material] if geo.count else np.zeros((0, 3))
-    lit = (luminance(em) > 0) & ((geo.visibility & DIFFUSE) != 0) if len(em) else None
-    idx = np.nonzero(lit)[0] if len(em) else np.zeros(0, np.int64)
-    return idx, em[idx], geo.area[idx]
+    if not geo.count:
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0)
+    # Per material first: a per-triangle (T,3) radiance table would cost 24 B a triangle.
+    emits = luminance(table.emission) > 0
+    idx = np.nonzero(emits[geo.material] & ((geo.visibility & DIFFUSE) != 0))[0]
+    return idx, table.emission[geo.material[idx]], geo.area[idx]
 
 
 def _corner_coordinates(meshes) -> dict | None:

@@ -42,44 +42,72 @@ def chunk_length(total: int, limit: int) -> int:
 
 def ordered_map(job, items, threads: int, should_cancel=None):
     """Yield job(item, stop) for each item, in order. stop() tells a running job that the
-    caller cancelled (it should raise Cancelled). With threads <= 1 the jobs run inline
-    and stop is should_cancel itself. At most 2 x threads chunks are in flight, which
-    bounds memory. Raises Cancelled when should_cancel() returns True."""
+    caller cancelled (it should raise Cancelled). At most 2 x threads chunks are in
+    flight (one with threads <= 1), which bounds memory. Raises Cancelled when
+    should_cancel() returns True. Without should_cancel and with threads <= 1 the jobs
+    run inline; with should_cancel they run on worker threads while this thread polls it
+    every POLL_SECONDS, so a cancel is seen within that even when a job's step between
+    two checks of stop() takes seconds (a camera chunk's first bounce)."""
     items = list(items)
-    if threads <= 1 or len(items) <= 1:
-        stop = should_cancel if should_cancel is not None else (lambda: False)
+    if should_cancel is None and (threads <= 1 or len(items) <= 1):
         for item in items:
-            if stop():
-                raise Cancelled()
-            yield job(item, stop)
+            yield job(item, lambda: False)
         return
+    threads = max(1, threads)
+    in_flight = 2 * threads if threads > 1 else 1
     event = threading.Event()
     pending = deque()
     todo = iter(items)
-    with ThreadPoolExecutor(threads) as pool:
-        try:
-            for item in todo:
-                pending.append(pool.submit(job, item, event.is_set))
-                if len(pending) >= 2 * threads:
-                    break
-            while pending:
-                # Checked before each chunk is awaited, after the one before it was
-                # handed over: a finished chunk is never dropped (as inline).
+    pool = ThreadPoolExecutor(threads)
+    try:
+        for item in todo:
+            pending.append(pool.submit(job, item, event.is_set))
+            if len(pending) >= in_flight:
+                break
+        while pending:
+            # Checked before each chunk is awaited, after the one before it was
+            # handed over: a finished chunk is never dropped (as inline).
+            if should_cancel is not None and should_cancel():
+                raise Cancelled()
+            head = pending[0]
+            while not wait([head], timeout=POLL_SECONDS).done:
                 if should_cancel is not None and should_cancel():
                     raise Cancelled()
-                head = pending[0]
-                while not wait([head], timeout=POLL_SECONDS).done:
-                    if should_cancel is not None and should_cancel():
-                        raise Cancelled()
-                pending.popleft()
-                result = head.result()  # re-raises a worker's exception here
-                for item in todo:
-                    pending.append(pool.submit(job, item, event.is_set))
-                    break
-                yield result
-        finally:
-            # Cancelled, an error, or the consumer stopped early: let running chunks stop
-            # at their next check and drop the ones not started.
-            event.set()
-            for f in pending:
-                f.cancel()
+            pending.popleft()
+            result = head.result()  # re-raises a worker's exception here
+            for item in todo:
+                pending.append(pool.submit(job, item, event.is_set))
+                break
+            yield result
+    finally:
+        # Cancelled, an error, or the consumer stopped early: let running chunks stop
+        # at their next check and drop the ones not started. Running chunks are not
+        # waited for (a chunk's step between two checks can take seconds): the caller
+        # returns within POLL_SECONDS of the cancel and their results are dropped.
+        event.set()
+        for f in pending:
+            f.cancel()
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
+def run_cancellable(job, should_cancel=None):
+    """Return job(stop), run on a worker thread while the calling thread asks
+    should_cancel() every POLL_SECONDS, for one long step that has no chunks of its own
+    (a photon map's build). On a cancel, stop() turns True for the job, which should end
+    at its next check, and Cancelled is raised at once: the job's result is dropped (it
+    must not change shared state; a compiled step without checks may run on for a while
+    in the background). Without should_cancel the job runs inline."""
+    if should_cancel is None:
+        return job(lambda: False)
+    event = threading.Event()
+    pool = ThreadPoolExecutor(1)
+    try:
+        future = pool.submit(job, event.is_set)
+        while not wait([future], timeout=POLL_SECONDS).done:
+            if should_cancel():
+                event.set()
+                raise Cancelled()
+        return future.result()
+    finally:
+        pool.shutdown(wait=False)
+

@@ -111,7 +111,7 @@ class PhotonMap:
 
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                    min_photons: int, estimator: str, return_boundary: bool = False,
-                   r_floor: np.ndarray | None = None):
+                   r_floor: np.ndarray | None = None, should_cancel=None):
         """Irradiance estimate E (W/m^2, (M,3) float64) at points p (M,3) with unit normals
         n (M,3) facing the viewer.
         return_boundary: also return, per point, whether the estimate's disc is not whole:
@@ -122,7 +122,8 @@ class PhotonMap:
         a focus is spread over at least that disc instead of a point.
 
         Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K entries),
-        however far a query widens. Raises ValueError for an unknown estimator."""
+        however far a query widens. Raises ValueError for an unknown estimator;
+        should_cancel() is asked between blocks of rows (raises parallel.Cancelled)."""
         code = ESTIMATOR_CODES.get(estimator)
         if code is None:
             raise ValueError(f"estimator must be one of {', '.join(ESTIMATOR_CODES)}, "
@@ -150,7 +151,7 @@ class PhotonMap:
                              bool(return_boundary), out[a:b], boundary[a:b])
             return None
 
-        for _ in ordered_map(job, range(0, m, rows), threads):
+        for _ in ordered_map(job, range(0, m, rows), threads, should_cancel):
             pass
         return result
 
@@ -412,7 +413,7 @@ class GatherMap:
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
-                 workers: int = 1):
+                 workers: int = 1, should_cancel=None):
         ph = photons
         self.workers = workers
         # With an Accel, a lookup only takes a gather point it can see: a point on the
@@ -434,7 +435,8 @@ class GatherMap:
         self.normal = points.normal[tree.order].astype(np.float64)
         tree.order = None
         self.E, self.boundary = PhotonMap(others, workers).irradiance(
-            self.position, self.normal, radius, k, min_photons, estimator, return_boundary=True)
+            self.position, self.normal, radius, k, min_photons, estimator, return_boundary=True,
+            should_cancel=should_cancel)
         self.radius = radius
         self.tree = tree
 

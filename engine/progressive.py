@@ -37,6 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .film import EFFECTS, Film
+from .parallel import Cancelled
 from .render import _check_region, prepare_context, render_pass
 from .resources import check_resources
 from .scene import Scene
@@ -167,9 +168,16 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     scene.validate()
     region = _check_region(region, scene.width, scene.height)
     check_resources(scene, settings, region, progressive=True)
-    ctx = prepare_context(scene, settings)
     w, h = region[2] - region[0], region[3] - region[1]
     merger = PassMerger(w, h, settings.show_photons)
+    try:
+        ctx = prepare_context(scene, settings, should_cancel=should_cancel)
+    except Cancelled:  # before the first pass: an empty film, marked as cancelled
+        film = merger.film
+        film.stats.update(progressive=True, passes=0, photons_total=0, pass_log=[],
+                          cancelled=True, time_total=time.perf_counter() - t_start)
+        film.warnings = scene.all_warnings()
+        return film
     log = []
     cancelled = False
     i = 0

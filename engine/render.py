@@ -10,7 +10,7 @@ import numpy as np
 from .accel import Accel
 from .film import Film
 from .effects import EffectPlan, analyse
-from .geometry import Geometry, MaterialTable, prepare
+from .geometry import Geometry, MaterialTable, area_sum, prepare
 from .integrator import render_camera
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
@@ -19,7 +19,7 @@ from .lights.packing import pack_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
-from .parallel import Cancelled
+from .parallel import Cancelled, run_cancellable
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
 from .resources import check_resources
 from .scene import Scene
@@ -72,19 +72,24 @@ def _check_region(region, width, height):
     return (x0, y0, x1, y1)
 
 
-def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel) -> Context:
+def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
+                    should_cancel=None) -> Context:
     """Validate the scene, merge and re-centre geometry, build the BVH, prepare lights and
     decide which effects to simulate. One Context serves several passes. accel_class lets
-    the benchmarks record every ray query (bench/)."""
+    the benchmarks record every ray query (bench/). should_cancel() is asked between the
+    pieces of the geometry preparation and the BVH build: raises Cancelled."""
     scene.validate()
-    geo, table = prepare(scene)
+    geo, table = prepare(scene, should_cancel)
     # One BVH per distinct set of triangles a ray class sees (usually one in all).
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
-                            threads=settings.threads)
+                            threads=settings.threads, should_cancel=should_cancel)
+    shadow = ShadowTransmittance.for_scene(geo, table, settings.transparent_max_bounces)
+    if shadow is None:
+        # Embree holds its own copy; transparent shadows build their BVHs from them lazily.
+        geo.release_build_arrays()
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights, packed_lights=pack_lights(lights),
-                  shadow=ShadowTransmittance.for_scene(geo, table,
-                                                       settings.transparent_max_bounces))
+                  shadow=shadow)
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
     if settings.soft_shadows == "off":
         ctx.packed_lights = hard_shadow_packing(ctx.packed_lights)
@@ -149,7 +154,16 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     scene.validate()
     region = _check_region(region, scene.width, scene.height)
     check_resources(scene, settings, region)
-    ctx = prepare_context(scene, settings)
+    try:
+        ctx = prepare_context(scene, settings, should_cancel=should_cancel)
+    except Cancelled:
+        # Cancelled before any pixel: an empty film, marked as cancelled.
+        x0, y0, x1, y1 = region
+        film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
+        film.stats.update(cancelled=True, time_prepare=time.perf_counter() - t_start,
+                          time_total=time.perf_counter() - t_start)
+        film.warnings = scene.all_warnings()
+        return film
     t_prepare = time.perf_counter() - t_start
     try:
         film = render_pass(ctx, region, progress, should_cancel)
@@ -164,7 +178,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
 
 
 def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
-    s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
+    s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     t0 = time.perf_counter()
     shot = Photons.empty()
     use_caustic_shot = plan.caustics and s.caustic_photons > 0 and not plan.caustics_from_global
@@ -208,8 +222,40 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     if progress is not None:
         progress("photon_map", 0.0, "Building photon map")
     t0 = time.perf_counter()
+    # Built on a worker thread while this one polls should_cancel: the kd-tree builds are
+    # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
+    maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
+                                                    stop), should_cancel)
+    if "global_photons" in maps:
+        stats["global_photons"] = maps.pop("global_photons")
+    diffuse_area = maps.pop("diffuse_area")
+    for name, value in maps.items():
+        setattr(ctx, name, value)
+    stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
+    stats["radius_global"] = ctx.global_radius
+    stats["radius_caustic"] = ctx.caustic_radius
+    if s.radius is not None and plan.indirect:
+        stats.setdefault("warnings", []).extend(radius_warnings(
+            s.radius, geo.extent, diffuse_area, stats.get("global_photons", 0), s.min_photons))
+    stats["time_photon_map"] = time.perf_counter() - t0
+    stats["photon_bytes"] = shot.nbytes + caustic.nbytes
+    # For the photon-hit pass (_draw_photons), always filled.
+    return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
+                     for f in ("position", "power", "direction", "normal", "kind")))
+
+
+def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
+    """The photon maps and radii of a pass, as Context attributes (name -> value) plus
+    global_photons. stop() is asked between the steps (raises Cancelled)."""
+    s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
+
+    def check():
+        if stop():
+            raise Cancelled()
+
+    out = {}
     diffuse_tris = table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
-    diffuse_area = float(geo.area[diffuse_tris].sum())
+    diffuse_area = area_sum(geo, diffuse_tris)
     k = s.k_nearest
     workers = s.threads
     # The global radius from the global photons' own spacing (local: not the spacing they
@@ -223,44 +269,41 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
         r_auto = r_global * math.sqrt(len(shot) / dense)
     else:
         r_auto = auto_radius(diffuse_area, dense, k, geo.extent)
-    ctx.global_radius = s.radius or r_global
+    global_radius = s.radius or r_global
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
     # ends closer than that gathers once more from its end (integrator.gather_indirect).
-    ctx.gather_short = ctx.global_radius
+    out["gather_short"] = global_radius
     if plan.indirect:
+        check()
         if s.final_gather:
             # Final gathering needs all light at the gathered point: every stored photon.
             # Photons that arrived straight from a caustic are left out: seen through a
             # few gather rays a bright caustic makes fireflies. Their light one bounce
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
             gathered = shot.select(shot.kind != CAUSTIC)
-            ctx.gather_map = GatherMap(gathered, ctx.global_radius, k, s.min_photons,
-                                       s.estimator, accel=ctx.accel,
-                                       workers=workers)
-            ctx.secondary_map = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
-            stats["global_photons"] = len(shot)
+            out["gather_map"] = GatherMap(gathered, global_radius, k, s.min_photons,
+                                          s.estimator, accel=ctx.accel, workers=workers,
+                                          should_cancel=stop)
+            check()
+            out["secondary_map"] = PhotonMap(shot.select(shot.kind == CAUSTIC_DIFFUSE), workers)
+            out["global_photons"] = len(shot)
         else:
-            ctx.global_map = PhotonMap(shot.select(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE))),
-                                       workers)
-            ctx.global_radius = s.radius or auto_radius(diffuse_area, len(ctx.global_map), k,
-                                                        geo.extent,
-                                                        ctx.global_map.photons.position)
-            stats["global_photons"] = len(ctx.global_map)
+            out["global_map"] = PhotonMap(
+                shot.select(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE))), workers)
+            check()
+            global_radius = s.radius or auto_radius(diffuse_area, len(out["global_map"]), k,
+                                                    geo.extent,
+                                                    out["global_map"].photons.position)
+            out["global_photons"] = len(out["global_map"])
+    out["global_radius"] = global_radius
     if plan.caustics:
-        ctx.caustic_map = PhotonMap(caustic if use_caustic_shot
-                                    else shot.select(shot.kind == CAUSTIC), workers)
-    ctx.caustic_radius = s.radius or r_auto
-    stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
-    stats["radius_global"] = ctx.global_radius
-    stats["radius_caustic"] = ctx.caustic_radius
-    if s.radius is not None and plan.indirect:
-        stats.setdefault("warnings", []).extend(radius_warnings(
-            s.radius, geo.extent, diffuse_area, stats.get("global_photons", 0), s.min_photons))
-    stats["time_photon_map"] = time.perf_counter() - t0
-    stats["photon_bytes"] = shot.nbytes + caustic.nbytes
-    # For the photon-hit pass (_draw_photons).
-    return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
-                     for f in ("position", "power", "direction", "normal", "kind")))
+        check()
+        out["caustic_map"] = PhotonMap(caustic if use_caustic_shot
+                                       else shot.select(shot.kind == CAUSTIC), workers)
+    out["caustic_radius"] = s.radius or r_auto
+    out["diffuse_area"] = diffuse_area
+    check()
+    return out
 
 
 # A search radius above this share of the scene's size blurs light across objects.

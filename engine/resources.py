@@ -36,7 +36,7 @@ BYTES_PER_CAMERA_SAMPLE = 1900  # in flight in a chunk; measured 1.5-1.7 K (1-16
 BYTES_PER_PIXEL = 300           # accumulators 168 B + Film 92 B + write-out copies
 BYTES_PER_PIXEL_PROGRESSIVE = 350  # running sums, halves, one pass's Film
 BYTES_PER_PIXEL_BLENDER = 260   # render result passes (float32) and the copies written
-BYTES_PER_TRIANGLE = 640        # measured (issue 16); scene arrays + tables + BVH
+BYTES_PER_TRIANGLE = 320        # measured peak 240-290 (bench_memory.py --triangles); tables + BVH
 
 
 class ResourceError(ValueError):

@@ -47,12 +47,13 @@ from .lights import DECLARED_KINDS
 from .scene import Light, Material, Mesh, SceneError
 from .settings import RenderSettings
 
-MATERIAL_KEYS = {"base_color", "metallic", "roughness", "transmission", "ior", "specular",
-                 "emission", "alpha"}
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
 MAX_SEGMENTS = 2048       # sphere segments: 2048 x 1024 x 2 = 4M triangles
 MAX_INLINE_ELEMENTS = 10_000_000  # vertices / faces written into the scene file itself
-_MISSING = object()
+OBJECT_KINDS = ("sphere", "plane", "box", "mesh", "file")
+# Ray visibility and holdout per object (engine.scene.Mesh; docs/scene_format.md).
+VISIBILITY_KEYS = ("visible_camera", "visible_diffuse", "visible_glossy",
+                   "visible_transmission", "visible_shadow", "holdout")
 
 
 class SceneFileError(ValueError):
@@ -69,99 +70,13 @@ def _rotation(deg) -> np.ndarray:
     return Rz @ Ry @ Rx  # Blender's XYZ Euler order
 
 
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-class _Table:
-    """Typed reads from one TOML table. TOML already gives typed values (a string stays a
-    string), so each read accepts only the type it documents - never a guess such as
-    "no" read as true - and every refusal is one line naming the table and the key."""
-
-    def __init__(self, table, where: str, allowed: set):
-        if not isinstance(table, dict):
-            raise SceneFileError(f"{where}: must be a table (key = value lines), got "
-                                 f"{_show(table)}")
-        unknown = set(table) - allowed
-        if unknown:
-            raise SceneFileError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}; "
-                                 f"allowed: {', '.join(sorted(allowed))}")
-        self.table = table
-        self.where = where
-
-    def __contains__(self, key):
-        return key in self.table
-
-    def fail(self, key, what, value):
-        raise SceneFileError(f"{self.where}: '{key}' must be {what}, got {_show(value)}")
-
-    def get(self, key, default=_MISSING):
-        if key in self.table:
-            return self.table[key]
-        if default is _MISSING:
-            raise SceneFileError(f"{self.where}: '{key}' is required")
-        return default
-
-    def number(self, key, default=_MISSING, lo=None, hi=None, lo_open=False, hi_open=False):
-        v = self.get(key, default)
-        if not _is_number(v) or not math.isfinite(v):
-            self.fail(key, "a finite number", v)
-        v = float(v)
-        if lo is not None and (v < lo or (lo_open and v == lo)):
-            self.fail(key, _range_text(lo, hi, lo_open, hi_open), v)
-        if hi is not None and (v > hi or (hi_open and v == hi)):
-            self.fail(key, _range_text(lo, hi, lo_open, hi_open), v)
-        return v
-
-    def integer(self, key, default=_MISSING, lo=None, hi=None):
-        v = self.get(key, default)
-        if not isinstance(v, int) or isinstance(v, bool):
-            self.fail(key, "a whole number", v)
-        if (lo is not None and v < lo) or (hi is not None and v > hi):
-            self.fail(key, _range_text(lo, hi), v)
-        return v
-
-    def boolean(self, key, default=_MISSING):
-        v = self.get(key, default)
-        if not isinstance(v, bool):
-            self.fail(key, "true or false", v)
-        return v
-
-    def string(self, key, default=_MISSING, choices=None):
-        v = self.get(key, default)
-        if not isinstance(v, str):
-            self.fail(key, "a string", v)
-        if choices is not None and v.lower() not in choices:
-            self.fail(key, "one of " + ", ".join(choices), v)
-        return v
-
-    def vec3(self, key, default=_MISSING, nonzero=False, nonneg=False):
-        v = self.get(key, default)
-        if (not isinstance(v, (list, tuple)) or len(v) != 3
-                or not all(_is_number(x) and math.isfinite(x) for x in v)):
-            self.fail(key, "3 finite numbers [x, y, z]", v)
-        arr = np.asarray(v, np.float64)
-        if nonzero and not np.any(arr != 0):
-            self.fail(key, "a non-zero vector", v)
-        if nonneg and np.any(arr < 0):
-            self.fail(key, "3 numbers >= 0", v)
-        return arr
-
-    def size(self, key, default=_MISSING, count=2):
-        """A positive size: one number, or `count` numbers (one per axis)."""
-        v = self.get(key, default)
-        values = [v] if _is_number(v) else v
-        what = f"a number > 0 or {count} numbers > 0"
-        if (not isinstance(values, (list, tuple)) or len(values) not in (1, count)
-                or not all(_is_number(x) and math.isfinite(x) and x > 0 for x in values)):
-            self.fail(key, what, v)
-        return float(values[0]) if len(values) == 1 else tuple(float(x) for x in values)
-
-
-def _show(v) -> str:
-    text = repr(v) if not isinstance(v, str) else f'"{v}"'
-    return text if len(text) <= 60 else text[:57] + "..."
-
+# --- The schema --------------------------------------------------------------------------
+# JSON Schema (draft 7), checked with fastjsonschema (a well-kept, pure-Python validator
+# that compiles the schema to Python once). TOML already gives typed values (a string
+# stays a string), so each key accepts only the type it documents - never a guess such
+# as "no" read as true. Every node that can fail carries the words of its refusal:
+# "what" (the value it must be) and, for type errors, "what_type"; _refusal() turns the
+# validator's error into one line naming the file, the table and the key.
 
 def _range_text(lo, hi, lo_open=False, hi_open=False) -> str:
     if lo is not None and hi is not None:
@@ -172,12 +87,229 @@ def _range_text(lo, hi, lo_open=False, hi_open=False) -> str:
     return f"a number {'<' if hi_open else '<='} {hi:g}"
 
 
-def _array_of_tables(data, key) -> list:
-    v = data.get(key, [])
-    if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
-        raise SceneFileError(f"'{key}' must be an array of tables ([[{key}]] sections), "
-                             f"got {_show(v)}")
+def _number(lo=None, hi=None, lo_open=False, hi_open=False, integer=False) -> dict:
+    node = {"type": "integer" if integer else "number"}
+    if lo is not None:
+        node["exclusiveMinimum" if lo_open else "minimum"] = lo
+    if hi is not None:
+        node["exclusiveMaximum" if hi_open else "maximum"] = hi
+    if lo is not None or hi is not None:
+        node["what"] = _range_text(lo, hi, lo_open, hi_open)
+    return node
+
+
+_VEC3_TEXT = "3 finite numbers [x, y, z]"
+
+
+def _vec3(nonneg=False, nonzero=False) -> dict:
+    item = {"type": "number", "what_type": _VEC3_TEXT}
+    if nonneg:
+        item.update(minimum=0, what="3 numbers >= 0")
+    node = {"type": "array", "minItems": 3, "maxItems": 3, "items": item,
+            "what": _VEC3_TEXT, "what_type": _VEC3_TEXT}
+    if nonzero:
+        node = {"allOf": [node, {"not": {"const": [0, 0, 0]}, "what": "a non-zero vector"}]}
+    return node
+
+
+def _size(count) -> dict:
+    positive = {"type": "number", "exclusiveMinimum": 0}
+    return {"anyOf": [positive, {"type": "array", "minItems": 1, "maxItems": count,
+                                 "items": positive}],
+            "what": f"a number > 0 or {count} numbers > 0"}
+
+
+def _choice(*names) -> dict:
+    return {"type": "string", "pattern": "^(?i:" + "|".join(names) + ")$",
+            "what": "one of " + ", ".join(names)}
+
+
+def _table(properties: dict, required=()) -> dict:
+    return {"type": "object", "properties": properties, "additionalProperties": False,
+            "required": list(required)}
+
+
+_BOOL = {"type": "boolean"}
+_STRING = {"type": "string"}
+_UNIT = _number(0.0, 1.0)
+
+MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(nonneg=True),
+                          "metallic": _UNIT, "roughness": _UNIT, "transmission": _UNIT,
+                          "specular": _UNIT, "alpha": _UNIT,
+                          "ior": _number(0.0, lo_open=True)})
+MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
+
+CAMERA_SCHEMA = _table({
+    "position": _vec3(), "look_at": _vec3(), "up": _vec3(nonzero=True),
+    "fov": _number(0.0, 180.0, lo_open=True, hi_open=True), "type": _choice("persp", "ortho"),
+    "ortho_scale": _number(0.0, lo_open=True), "shift_x": _number(), "shift_y": _number(),
+    "clip_start": _number(0.0, lo_open=True), "clip_end": _number(0.0, lo_open=True)},
+    required=("position", "look_at"))
+
+_OBJECT_COMMON = {
+    "type": _STRING, "name": _STRING, "material": _STRING, "translate": _vec3(),
+    "rotate": _vec3(),
+    "scale": {"anyOf": [{"type": "number", "not": {"const": 0}},
+                        {"type": "array", "minItems": 3, "maxItems": 3,
+                         "items": {"type": "number", "not": {"const": 0}}}],
+              "what": "a finite, non-zero number or 3 of them"},
+    **{key: _BOOL for key in VISIBILITY_KEYS}}
+_INLINE = {"type": "array", "maxItems": MAX_INLINE_ELEMENTS,
+           "what": f"a list of at most {MAX_INLINE_ELEMENTS:,} [a, b, c] rows"}
+OBJECT_SCHEMAS = {
+    "sphere": _table({**_OBJECT_COMMON, "center": _vec3(), "radius": _number(0.0, lo_open=True),
+                      "segments": _number(3, MAX_SEGMENTS, integer=True)}),
+    "plane": _table({**_OBJECT_COMMON, "center": _vec3(), "normal": _vec3(nonzero=True),
+                     "size": _size(2), "up": _vec3(nonzero=True)}),
+    "box": _table({**_OBJECT_COMMON, "center": _vec3(), "size": _size(3)}),
+    "mesh": _table({**_OBJECT_COMMON, "vertices": _INLINE, "faces": _INLINE},
+                   required=("vertices", "faces")),
+    "file": _table({**_OBJECT_COMMON, "path": _STRING}, required=("path",)),
+}
+
+LIGHT_SCHEMA = _table({
+    "type": _STRING, "name": _STRING, "position": _vec3(), "direction": _vec3(nonzero=True),
+    "look_at": _vec3(), "power": _number(0.0), "strength": _number(0.0),
+    "color": _vec3(nonneg=True), "radius": _number(0.0),
+    "spot_size": _number(0.0, 180.0, lo_open=True), "blend": _UNIT, "size": _size(2),
+    "shape": _choice("rectangle", "square", "disk", "ellipse"),
+    "angle": _number(0.0, 180.0), "spread": _number(0.0, 180.0), "visible": _BOOL,
+    "visible_diffuse": _BOOL, "visible_glossy": _BOOL, "visible_transmission": _BOOL,
+    "cast_shadow": _BOOL})
+
+
+def _sections(key) -> dict:
+    what = f"an array of tables ([[{key}]] sections)"
+    return {"type": "array", "items": {"type": "object", "what_type": what},
+            "what": what, "what_type": what}
+
+
+def scene_schema() -> dict:
+    """The JSON Schema of a whole scene file (objects and lights are checked per kind
+    with OBJECT_SCHEMAS / LIGHT_SCHEMA after their 'type' is known)."""
+    render = {name: {} for name in RenderSettings.names()}  # RenderSettings checks these
+    render.update(width=_number(1, MAX_RESOLUTION, integer=True),
+                  height=_number(1, MAX_RESOLUTION, integer=True))
+    return _table({
+        "render": _table(render), "camera": CAMERA_SCHEMA,
+        "materials": {"type": "object", "additionalProperties": MATERIAL_SCHEMA,
+                      "what_type": "a table of [materials.NAME] sections"},
+        "objects": _sections("objects"), "lights": _sections("lights"),
+        "background": _vec3(nonneg=True)})
+
+
+_VALIDATORS = {}
+
+
+def _validator(name: str, schema_of):
+    """The compiled validator `name` (fastjsonschema is imported on the first scene file:
+    only the CLI and scene-file readers need it, never the Blender extension)."""
+    if name not in _VALIDATORS:
+        try:
+            import fastjsonschema
+        except ImportError:
+            raise SceneFileError("reading scene files needs the 'fastjsonschema' package "
+                                 "(pip install fastjsonschema)") from None
+        _VALIDATORS[name] = (fastjsonschema.compile(schema_of()),
+                             fastjsonschema.JsonSchemaValueException)
+    return _VALIDATORS[name]
+
+
+class _NotFinite:
+    """A non-finite TOML float (nan, inf): no JSON Schema type matches it, so the schema
+    refuses it wherever a number is expected, and it shows as written."""
+
+    def __init__(self, value):
+        self.value = value
+
+    def __repr__(self):
+        return repr(self.value)
+
+
+def _mark_not_finite(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return _NotFinite(v)
+    if isinstance(v, dict):
+        return {k: _mark_not_finite(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_mark_not_finite(x) for x in v]
     return v
+
+
+_TYPE_TEXT = {"number": "a finite number", "integer": "a whole number",
+              "boolean": "true or false", "string": "a string", "array": "a list",
+              "object": "a table (key = value lines)"}
+
+
+def _check(name, schema_of, data, where):
+    """Validate data against the schema; raise SceneFileError in one line. where(path)
+    names the table of a path (keys from the schema's root) and the key inside it."""
+    validate, error = _validator(name, schema_of)
+    try:
+        validate(data)
+    except error as e:
+        raise SceneFileError(_refusal(e, data, where)) from None
+
+
+def _refusal(e, data, where) -> str:
+    path = list(e.path[1:])  # e.path starts with "data"
+    node = e.definition if isinstance(e.definition, dict) else {}
+    if e.rule == "additionalProperties" and isinstance(e.value, dict):
+        table, _ = where(path + [None])
+        allowed = set(node.get("properties", {}))
+        unknown = sorted(set(e.value) - allowed)
+        return (f"{table}: unknown key(s) {', '.join(unknown)}; "
+                f"allowed: {', '.join(sorted(allowed))}")
+    if e.rule == "required" and isinstance(e.value, dict):
+        table, _ = where(path + [None])
+        missing = [k for k in node.get("required", []) if k not in e.value]
+        return f"{table}: '{missing[0]}' is required"
+    # The deepest table key on the path and its value (a whole vector, not the one bad
+    # number in it); the validator names list items by their index as a string.
+    value, depth, walk = data, 0, data
+    for i, k in enumerate(path):
+        if isinstance(walk, dict):
+            walk = walk[k]
+            value, depth = walk, i + 1
+        elif isinstance(walk, list):
+            walk = walk[int(k)]
+        else:
+            break
+    table, key = where(path[:depth])
+    if e.rule == "type":
+        what = node.get("what_type") or _TYPE_TEXT.get(node.get("type"), "valid")
+    elif node.get("type") == "integer" and isinstance(e.value, float):
+        what = "a whole number"  # 1e6 for a pixel count: TOML wrote a float
+    else:
+        what = node.get("what") or node.get("what_type") or "valid"
+    if key is None:
+        return f"{table}: must be {what}, got {_show(value)}"
+    return f"{table}: '{key}' must be {what}, got {_show(value)}"
+
+
+def _top_where(path):
+    """(table, key) of a path from the scene file's root."""
+    head = path[0] if path else None
+    if head in ("render", "camera") and len(path) > 1:
+        return f"[{head}]", path[1]
+    if head == "materials" and len(path) > 1:
+        return f"[materials.{path[1]}]", path[2] if len(path) > 2 else None
+    return "scene file", head
+
+
+def _show(v) -> str:
+    text = repr(v) if not isinstance(v, str) else f'"{v}"'
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _vec(v) -> np.ndarray:
+    return np.asarray(v, np.float64)
+
+
+def _size_value(v):
+    """A validated size: one number, or one per axis."""
+    values = [v] if not isinstance(v, list) else v
+    return float(values[0]) if len(values) == 1 else tuple(float(x) for x in values)
 
 
 def load_scene(path: str):
@@ -203,137 +335,102 @@ def load_scene(path: str):
 
 
 def _build(data: dict, base: str):
-    top = _Table(data, "scene file", {"render", "camera", "materials", "objects", "lights",
-                                      "background"})
-    render_table = _Table(top.get("render", {}), "[render]",
-                          set(RenderSettings.names()) | {"width", "height"})
-    width = render_table.integer("width", 400, 1, MAX_RESOLUTION)
-    height = render_table.integer("height", 300, 1, MAX_RESOLUTION)
-    render = {k: v for k, v in render_table.table.items() if k not in ("width", "height")}
+    data = _mark_not_finite(data)
+    data.setdefault("camera", {})  # a missing [camera] is refused for its first key
+    _check("scene", scene_schema, data, _top_where)
+    render_table = data.get("render", {})
+    width = int(render_table.get("width", 400))
+    height = int(render_table.get("height", 300))
+    render = {k: v for k, v in render_table.items() if k not in ("width", "height")}
     try:
         RenderSettings(**render)  # types and ranges of every setting, named
     except ValueError as e:
         raise SceneFileError(f"[render]: {e}") from None
-    background = top.vec3("background", (0.0, 0.0, 0.0), nonneg=True)
+    background = _vec(data.get("background", (0.0, 0.0, 0.0)))
     scene = PaperScene(width=width, height=height, background=background)
-    materials = top.get("materials", {})
-    if not isinstance(materials, dict):
-        raise SceneFileError(f"'materials' must be a table of [materials.NAME] sections, got "
-                             f"{_show(materials)}")
-    for name, spec in materials.items():
-        _material(scene, name, spec)
-    _camera(scene, _Table(top.get("camera", {}), "[camera]",
-                          {"position", "look_at", "up", "fov", "type", "ortho_scale", "shift_x",
-                           "shift_y", "clip_start", "clip_end"}))
-    for i, obj in enumerate(_array_of_tables(data, "objects")):
+    for name, spec in data.get("materials", {}).items():
+        scene.add_material(Material(name, **{k: (_vec(v) if isinstance(v, list) else float(v))
+                                             for k, v in spec.items()}))
+    _camera(scene, data["camera"])
+    for i, obj in enumerate(data.get("objects", [])):
         _object(scene, obj, i, base)
-    for i, spec in enumerate(_array_of_tables(data, "lights")):
+    for i, spec in enumerate(data.get("lights", [])):
         _light(scene, spec, i)
     return scene, render
 
 
-def _material(scene, name, spec):
-    t = _Table(spec, f"[materials.{name}]", MATERIAL_KEYS)
-    kw = {}
-    for key in ("base_color", "emission"):
-        if key in t:
-            kw[key] = t.vec3(key, nonneg=True)
-    for key in ("metallic", "roughness", "transmission", "specular", "alpha"):
-        if key in t:
-            kw[key] = t.number(key, lo=0.0, hi=1.0)
-    if "ior" in t:
-        kw["ior"] = t.number("ior", lo=0.0, lo_open=True)
-    scene.add_material(Material(name, **kw))
-
-
 def _camera(scene, cam):
-    position = cam.vec3("position")
-    look_at = cam.vec3("look_at")
+    position = _vec(cam["position"])
+    look_at = _vec(cam["look_at"])
     if np.allclose(position, look_at):
         raise SceneFileError("[camera]: 'look_at' must differ from 'position'")
-    up = cam.vec3("up", (0, 0, 1), nonzero=True)
+    up = _vec(cam.get("up", (0, 0, 1)))
     extra = {}
     if "type" in cam:
-        extra["kind"] = "ORTHO" if cam.string("type", choices=("persp", "ortho")).lower() \
-            == "ortho" else "PERSP"
-    if "ortho_scale" in cam:
-        extra["ortho_scale"] = cam.number("ortho_scale", lo=0.0, lo_open=True)
-    for k in ("shift_x", "shift_y"):
+        extra["kind"] = "ORTHO" if cam["type"].lower() == "ortho" else "PERSP"
+    for k in ("ortho_scale", "shift_x", "shift_y", "clip_start"):
         if k in cam:
-            extra[k] = cam.number(k)
-    if "clip_start" in cam:
-        extra["clip_start"] = cam.number("clip_start", lo=0.0, lo_open=True)
+            extra[k] = float(cam[k])
     if "clip_end" in cam:
-        extra["clip_end"] = cam.number("clip_end", lo=extra.get("clip_start", 0.0),
-                                       lo_open=True)
-    fov = cam.number("fov", 40.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
-    scene.set_camera(position, look_at, up, fov, **extra)
+        start = extra.get("clip_start", 0.0)
+        if not cam["clip_end"] > start:  # a relation between two keys: not in the schema
+            raise SceneFileError(f"[camera]: 'clip_end' must be {_range_text(start, None, True)}"
+                                 f", got {_show(cam['clip_end'])}")
+        extra["clip_end"] = float(cam["clip_end"])
+    scene.set_camera(position, look_at, up, float(cam.get("fov", 40.0)), **extra)
 
 
-# Ray visibility and holdout per object (engine.scene.Mesh; docs/scene_format.md).
-VISIBILITY_KEYS = ("visible_camera", "visible_diffuse", "visible_glossy",
-                   "visible_transmission", "visible_shadow", "holdout")
+def _kind(spec, where, kinds, text):
+    raw = spec.get("type", "")
+    kind = raw.lower() if isinstance(raw, str) else ""
+    if kind not in kinds:
+        raise SceneFileError(f"{where}: 'type' must be {text}, got {_show(raw)}")
+    return kind
 
 
 def _object(scene, obj, i, base):
-    raw_kind = obj.get("type", "")
-    kind = raw_kind.lower() if isinstance(raw_kind, str) else ""
-    label = obj.get("name", kind or "?")
+    raw = obj.get("type", "")
+    label = obj.get("name", raw.lower() if isinstance(raw, str) and raw else "?")
     where = f"objects[{i}] ({label})"
-    common = {"type", "name", "material", "translate", "scale", "rotate"} | set(VISIBILITY_KEYS)
-    allowed = {"sphere": {"center", "radius", "segments"},
-               "plane": {"center", "normal", "size", "up"},
-               "box": {"center", "size"}, "mesh": {"vertices", "faces"}, "file": {"path"}}
-    if kind not in allowed:
-        raise SceneFileError(f"{where}: 'type' must be sphere, plane, box, mesh or file, got "
-                             f"{_show(raw_kind)}")
-    t = _Table(obj, where, common | allowed[kind])
-    mat = t.string("material", "white_plastic_dull")
-    name = t.string("name", None) if "name" in t else None
+    kind = _kind(obj, where, OBJECT_KINDS, "sphere, plane, box, mesh or file")
+    _check("object." + kind, lambda: OBJECT_SCHEMAS[kind], obj,
+           lambda path: (where, path[0] if path else None))
+    mat = obj.get("material", "white_plastic_dull")
+    name = obj.get("name")
     if kind == "sphere":
-        mesh = scene.add_sphere(t.vec3("center", (0, 0, 0)),
-                                t.number("radius", 1.0, lo=0.0, lo_open=True), mat, name,
-                                t.integer("segments", 48, 3, MAX_SEGMENTS))
+        mesh = scene.add_sphere(_vec(obj.get("center", (0, 0, 0))), float(obj.get("radius", 1.0)),
+                                mat, name, int(obj.get("segments", 48)))
     elif kind == "plane":
-        up = t.vec3("up", nonzero=True) if "up" in t else None
-        mesh = scene.add_plane(t.vec3("center", (0, 0, 0)),
-                               t.vec3("normal", (0, 0, 1), nonzero=True),
-                               t.size("size", 10.0, 2), mat, name, up)
+        up = _vec(obj["up"]) if "up" in obj else None
+        mesh = scene.add_plane(_vec(obj.get("center", (0, 0, 0))),
+                               _vec(obj.get("normal", (0, 0, 1))),
+                               _size_value(obj.get("size", 10.0)), mat, name, up)
     elif kind == "box":
-        mesh = scene.add_box(t.vec3("center", (0, 0, 0)), t.size("size", 1.0, 3), mat, name)
+        mesh = scene.add_box(_vec(obj.get("center", (0, 0, 0))),
+                             _size_value(obj.get("size", 1.0)), mat, name)
     elif kind == "mesh":
-        vertices, faces = t.get("vertices"), t.get("faces")
-        for key, v in (("vertices", vertices), ("faces", faces)):
-            if not isinstance(v, list) or len(v) > MAX_INLINE_ELEMENTS:
-                t.fail(key, f"a list of at most {MAX_INLINE_ELEMENTS:,} [a, b, c] rows", v)
         try:
-            vertices = np.asarray(vertices, np.float64)
-            faces = np.asarray(faces)
+            vertices = np.asarray(obj["vertices"], np.float64)
+            faces = np.asarray(obj["faces"])
         except (TypeError, ValueError):
             raise SceneFileError(f"{where}: 'vertices' / 'faces' must be lists of 3 numbers "
                                  "each") from None
         if faces.size and faces.dtype.kind not in "iu":
-            t.fail("faces", "rows of 3 whole-number vertex indices", obj["faces"])
+            raise SceneFileError(f"{where}: 'faces' must be rows of 3 whole-number vertex "
+                                 f"indices, got {_show(obj['faces'])}")
         mesh = scene.add_triangles(vertices, faces, mat, name)
     else:
-        path = os.path.join(base, t.string("path"))
+        path = os.path.join(base, obj["path"])
         mesh = scene.add_mesh(_load_mesh_file(path, name or os.path.basename(path),
                                               scene._material(mat)))
     for key in VISIBILITY_KEYS:
-        if key in t:
-            setattr(mesh, key, t.boolean(key, True))
-    if any(k in t for k in ("translate", "scale", "rotate")):
-        scale = t.get("scale", 1.0)
-        if _is_number(scale):
-            if not math.isfinite(scale) or scale == 0:
-                t.fail("scale", "a finite, non-zero number or 3 of them", scale)
-            scale = float(scale)
-        else:
-            scale = t.vec3("scale")
-            if np.any(scale == 0):
-                t.fail("scale", "a finite, non-zero number or 3 of them", obj["scale"])
-        M = _rotation(t.vec3("rotate", (0, 0, 0))) * np.asarray(scale, float)
-        mesh.vertices = mesh.vertices @ M.T + t.vec3("translate", (0, 0, 0))
+        if key in obj:
+            setattr(mesh, key, obj[key])
+    if any(k in obj for k in ("translate", "scale", "rotate")):
+        scale = obj.get("scale", 1.0)
+        scale = _vec(scale) if isinstance(scale, list) else float(scale)
+        M = _rotation(obj.get("rotate", (0, 0, 0))) * np.asarray(scale, float)
+        mesh.vertices = mesh.vertices @ M.T + _vec(obj.get("translate", (0, 0, 0)))
         if mesh.normals is not None:
             nm = np.linalg.inv(M).T
             mesh.normals = mesh.normals @ nm.T
@@ -392,48 +489,42 @@ def _load_mesh_file(path: str, name: str, material: str) -> Mesh:
 
 
 def _light(scene, spec, i):
-    raw_kind = spec.get("type", "")
-    kind = raw_kind.lower() if isinstance(raw_kind, str) else ""
-    where = f"lights[{i}] ({spec.get('name', kind or '?')})"
+    raw = spec.get("type", "")
     kinds = {k.lower(): k for k in DECLARED_KINDS}  # the light registry (engine/lights/)
-    if kind not in kinds:
-        names = [k.lower() for k in DECLARED_KINDS]
-        raise SceneFileError(f"{where}: 'type' must be {', '.join(names[:-1])} or {names[-1]}, "
-                             f"got {_show(raw_kind)}")
-    t = _Table(spec, where, {"type", "name", "position", "direction", "look_at", "power",
-                             "strength", "color", "radius", "spot_size", "blend", "size",
-                             "shape", "angle", "spread", "visible",
-                             "visible_diffuse", "visible_glossy", "visible_transmission",
-                             "cast_shadow"})
+    where = f"lights[{i}] ({spec.get('name', raw.lower() if isinstance(raw, str) and raw else '?')})"
+    names = [k.lower() for k in DECLARED_KINDS]
+    kind = _kind(spec, where, kinds, f"{', '.join(names[:-1])} or {names[-1]}")
+    _check("light", lambda: LIGHT_SCHEMA, spec, lambda path: (where, path[0] if path else None))
     # Keys that only one kind reads: anywhere else they would be silently ignored.
     for key, only in (("spread", "area"), ("shape", "area"), ("spot_size", "spot"),
                       ("blend", "spot"), ("angle", "sun")):
-        if key in t and kind != only:
+        if key in spec and kind != only:
             raise SceneFileError(f"{where}: '{key}' applies to {only} lights only, not to a "
                                  f"{kind} light")
-    position = t.vec3("position", (0, 0, 0))
-    if "look_at" in t:
-        direction = t.vec3("look_at") - position
+    position = _vec(spec.get("position", (0, 0, 0)))
+    if "look_at" in spec:
+        direction = _vec(spec["look_at"]) - position
         if not np.any(direction != 0):
-            t.fail("look_at", "a point other than 'position'", spec["look_at"])
+            raise SceneFileError(f"{where}: 'look_at' must be a point other than 'position', "
+                                 f"got {_show(spec['look_at'])}")
     else:
-        direction = t.vec3("direction", (0, 0, -1), nonzero=True)
-    name = t.string("name", f"{kind}.{i:03d}")
-    key = "power" if "power" in t or "strength" not in t else "strength"
-    power = t.number(key, 100.0, lo=0.0)
-    size = t.size("size", 1.0, 2)
+        direction = _vec(spec.get("direction", (0, 0, -1)))
+    name = spec.get("name", f"{kind}.{i:03d}")
+    key = "power" if "power" in spec or "strength" not in spec else "strength"
+    size = _size_value(spec.get("size", 1.0))
     sx, sy = (size, size) if isinstance(size, float) else size
-    shape = t.string("shape", "rectangle", choices=("rectangle", "square", "disk", "ellipse"))
-    scene.add_light(Light(name, kinds[kind], power, t.vec3("color", (1, 1, 1), nonneg=True),
-                          position, direction, radius=t.number("radius", 0.0, lo=0.0),
-                          spot_size=math.radians(t.number("spot_size", 45.0, lo=0.0, hi=180.0,
-                                                          lo_open=True)),
-                          spot_blend=t.number("blend", 0.15, lo=0.0, hi=1.0),
+    shape = spec.get("shape", "rectangle")
+    get = spec.get
+    scene.add_light(Light(name, kinds[kind], float(get(key, 100.0)),
+                          _vec(get("color", (1, 1, 1))), position, direction,
+                          radius=float(get("radius", 0.0)),
+                          spot_size=math.radians(get("spot_size", 45.0)),
+                          spot_blend=float(get("blend", 0.15)),
                           shape=shape.upper(), size_x=sx, size_y=sy,
-                          angle=math.radians(t.number("angle", 0.0, lo=0.0, hi=180.0)),
-                          spread=math.radians(t.number("spread", 180.0, lo=0.0, hi=180.0)),
-                          visible_camera=t.boolean("visible", False),
-                          visible_diffuse=t.boolean("visible_diffuse", True),
-                          visible_glossy=t.boolean("visible_glossy", True),
-                          visible_transmission=t.boolean("visible_transmission", True),
-                          cast_shadow=t.boolean("cast_shadow", True)))
+                          angle=math.radians(get("angle", 0.0)),
+                          spread=math.radians(get("spread", 180.0)),
+                          visible_camera=get("visible", False),
+                          visible_diffuse=get("visible_diffuse", True),
+                          visible_glossy=get("visible_glossy", True),
+                          visible_transmission=get("visible_transmission", True),
+                          cast_shadow=get("cast_shadow", True)))

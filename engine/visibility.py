@@ -61,10 +61,14 @@ class VisibilityAccel:
     """Closest-hit and occlusion queries that honour each triangle's ray visibility.
 
     visibility: (T,) uint8 class bits per triangle (engine.geometry); the BVH over all
-    triangles is `full`; subsets are built with accel_class(vertices, faces, threads)."""
+    triangles is `full`; subsets are built with accel_class(vertices, faces, threads,
+    should_cancel=...). should_cancel() is asked between the pieces of each build (raises
+    engine.parallel.Cancelled)."""
 
-    def __init__(self, vertices32, faces32, visibility, accel_class, threads=1):
-        self.full = accel_class(vertices32, faces32, threads=threads)
+    def __init__(self, vertices32, faces32, visibility, accel_class, threads=1,
+                 should_cancel=None):
+        self.full = accel_class(vertices32, faces32, threads=threads,
+                                should_cancel=should_cancel)
         self.count = self.full.count
         self.threads = threads
         self._by_class = {}
@@ -78,7 +82,8 @@ class VisibilityAccel:
             key = mask.tobytes()
             if key not in built:
                 idx = np.nonzero(mask)[0]
-                built[key] = _Subset(accel_class(vertices32, faces32[idx], threads=threads),
+                built[key] = _Subset(accel_class(vertices32, faces32[idx], threads=threads,
+                                                 should_cancel=should_cancel),
                                      idx.astype(np.int64))
             self._by_class[cls] = built[key]
         self.has_invisible = any(a is not self.full for a in self._by_class.values())

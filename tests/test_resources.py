@@ -14,6 +14,7 @@ from engine import RenderSettings, ResourceError, render
 from engine.progressive import Budget, render_progressive
 from engine.resources import (MAX_RESOLUTION, available_memory, check_resources,
                               estimate_memory)
+from engine import resources
 from engine.scene import Mesh
 from engine.scenefile import load_scene
 from engine.settings import LIMITS
@@ -102,7 +103,7 @@ def test_triangles_beyond_memory_are_refused_naming_them():
     scene.add_mesh(Mesh("dust", v, np.arange(3 * n).reshape(n, 3)))
     with pytest.raises(ResourceError, match="the scene's triangle count: .*triangles"):
         check_resources(scene, RenderSettings(photons=0, caustic_photons=0, spp=1),
-                        available=100 << 20)
+                        available=n * resources.BYTES_PER_TRIANGLE // 2)
 
 
 def test_progressive_and_blender_renders_count_their_extra_buffers():

@@ -129,3 +129,50 @@ def test_cli_reports_a_bad_scene_and_a_nan_exposure_in_one_line(tmp_path):
         if "exposure" not in expected:
             assert len(lines) == 1
         assert not (tmp_path / "x.png").exists()
+
+
+def test_without_the_schema_library_scene_files_are_refused_in_one_line(tmp_path,
+                                                                         monkeypatch):
+    """fastjsonschema is imported lazily (only scene files need it): without it the
+    reader says which package to install instead of failing with a traceback."""
+    from engine import scenefile
+    monkeypatch.setattr(scenefile, "_VALIDATORS", {})
+    monkeypatch.setitem(sys.modules, "fastjsonschema", None)
+    with pytest.raises(SceneFileError, match="needs the 'fastjsonschema' package"):
+        _load(tmp_path, CAMERA + SPHERE)
+
+
+SCHEMA_CASES = [
+    ("material table type", "materials = 3\n" + CAMERA, "'materials' must be a table of"),
+    ("material not a table", CAMERA + "[materials]\nred = 3\n",
+     "[materials.red]: must be a table"),
+    ("object not a table", "objects = [1]\n" + CAMERA, "'objects' must be an array of tables"),
+    ("vector of 4", CAMERA + SPHERE + "center = [0, 0, 0, 1]\n",
+     "'center' must be 3 finite numbers"),
+    ("negative colour", CAMERA + '[materials.red]\nbase_color = [1, -1, 0]\n',
+     "'base_color' must be 3 numbers >= 0"),
+    ("zero scale component", CAMERA + SPHERE + "scale = [1, 0, 1]\n",
+     "'scale' must be a finite, non-zero number or 3 of them"),
+    ("mesh without faces", CAMERA + '[[objects]]\ntype = "mesh"\nvertices = []\n',
+     "'faces' is required"),
+    ("light shape", CAMERA + '[[lights]]\ntype = "area"\nshape = "star"\n',
+     "'shape' must be one of rectangle, square, disk, ellipse"),
+    ("render unknown", "[render]\nphotonz = 3\n" + CAMERA, "[render]: unknown key(s) photonz"),
+    ("top unknown", "lamps = 3\n" + CAMERA, "scene file: unknown key(s) lamps"),
+]
+
+
+@pytest.mark.parametrize("label, text, expected", SCHEMA_CASES, ids=[c[0] for c in SCHEMA_CASES])
+def test_schema_refusals_name_the_table_and_key(tmp_path, label, text, expected):
+    with pytest.raises(SceneFileError) as info:
+        _load(tmp_path, text)
+    msg = str(info.value)
+    assert "\n" not in msg and expected in msg, msg
+
+
+def test_case_of_kind_names_and_whole_floats_are_accepted(tmp_path):
+    scene, _ = _load(tmp_path, "[render]\nwidth = 32.0\nheight = 24\n" + CAMERA
+                     + 'type = "Ortho"\northo_scale = 4\n[[objects]]\ntype = "Sphere"\n'
+                     + '[[lights]]\ntype = "AREA"\nshape = "Disk"\n')
+    assert scene.width == 32 and scene.camera.kind == "ORTHO"
+    assert scene.lights[0].shape == "DISK"

@@ -1,0 +1,174 @@
+"""Instanced geometry and the ray engine (issue 16): 100 instances of a 65k-triangle
+sphere, two ways, each measured in a fresh process (resident memory kept after the
+build, build time, closest-hit throughput of the same rays, and how many hits agree):
+
+  flattened   every instance copied into world space, one BVH over all copies (what the
+              engine does: engine/geometry.prepare + engine/accel.Accel)
+  two-level   one BVH of the sphere in object space; each batch of rays is tested against
+              every instance's world bounds (numpy slab test), the rays that enter are
+              transformed into the instance's object space (unnormalised directions, so
+              t stays the world parameter) and traced up to the nearest hit so far. The
+              Geometry tables stay per unique mesh (a prototype of the ray part only).
+
+Prints a table (docs/performance.md, "Instancing").
+
+    .venv/bin/python bench/bench_instancing.py [--instances 100] [--rays 200000]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+CHILD = r"""
+import json, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine.accel import Accel
+
+
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+
+
+def sphere(rings=128, segments=256):
+    th = np.linspace(0, np.pi, rings + 1)
+    ph = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    V = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
+    r = np.arange(rings)[:, None]
+    s = np.arange(segments)[None, :]
+    a = r * segments + s
+    b = r * segments + (s + 1) % segments
+    c = a + segments
+    d = b + segments
+    F = np.concatenate([np.stack([a, c, d], -1).reshape(-1, 3), np.stack([a, d, b], -1).reshape(-1, 3)])
+    return V, F
+
+
+def instances(n, seed=1):
+    rng = np.random.default_rng(seed)
+    side = int(np.ceil(np.sqrt(n)))
+    out = []
+    for i in range(n):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        w, x, y, z = q
+        R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        M = np.eye(4)
+        M[:3, :3] = R * rng.uniform(0.5, 1.2)
+        M[:3, 3] = [3.0 * (i % side), 3.0 * (i // side), 0.0]
+        out.append(M)
+    return out
+
+
+V, F = sphere()
+Ms = instances(NI)
+rng = np.random.default_rng(2)
+side = 3.0 * np.ceil(np.sqrt(NI))
+o = np.column_stack([rng.uniform(-2, side, NR), rng.uniform(-2, side, NR), np.full(NR, 10.0)])
+d = np.column_stack([rng.normal(0, 0.2, NR), rng.normal(0, 0.2, NR), -np.ones(NR)])
+d /= np.linalg.norm(d, axis=1)[:, None]
+before = rss()
+t0 = time.perf_counter()
+if MODE == "flattened":
+    Vw = np.concatenate([V @ M[:3, :3].T + M[:3, 3] for M in Ms])
+    Fw = np.concatenate([F + i * len(V) for i in range(NI)])
+    # What engine/geometry.prepare keeps per triangle (v0, e1, e2 float64, corner normals
+    # and UVs float32, 16 B of per-triangle ids) stands in for the tables here.
+    tri = Vw[Fw]
+    tables = [tri[:, 0].copy(), tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0],
+              np.zeros((len(Fw), 3, 3), np.float32), np.zeros((len(Fw), 3, 2), np.float32),
+              np.zeros((len(Fw), 4), np.int32)]
+    del tri
+    acc = Accel(Vw, Fw)
+    del Vw, Fw
+    build = time.perf_counter() - t0
+    kept = rss() - before
+    t0 = time.perf_counter()
+    t, prim, u, v = acc.intersect(o, d)
+    trace = time.perf_counter() - t0
+else:
+    acc = Accel(V, F)
+    inv = [np.linalg.inv(M) for M in Ms]
+    corners = np.array([[x, y, z, 1] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    bounds = []
+    for M in Ms:
+        w = corners @ M.T
+        bounds.append((w[:, :3].min(axis=0), w[:, :3].max(axis=0)))
+    build = time.perf_counter() - t0
+    kept = rss() - before
+    t0 = time.perf_counter()
+    n = len(o)
+    t = np.full(n, np.inf)
+    prim = np.full(n, -1, np.int64)
+    u = np.zeros(n)
+    v = np.zeros(n)
+    inv_d = 1.0 / np.where(d == 0, 1e-300, d)
+    for i, (M, Mi, (lo, hi)) in enumerate(zip(Ms, inv, bounds)):
+        t1 = (lo - o) * inv_d
+        t2 = (hi - o) * inv_d
+        tn = np.minimum(t1, t2).max(axis=1)
+        tf = np.maximum(t1, t2).min(axis=1)
+        rows = np.nonzero((tn <= tf) & (tf >= 0) & (tn < t))[0]
+        if not len(rows):
+            continue
+        ol = o[rows] @ Mi[:3, :3].T + Mi[:3, 3]
+        dl = d[rows] @ Mi[:3, :3].T
+        tl, pl, ul, vl = acc.intersect(ol, dl, t[rows])
+        hit = pl >= 0
+        r = rows[hit]
+        t[r], prim[r], u[r], v[r] = tl[hit], pl[hit] + i * len(F), ul[hit], vl[hit]
+    trace = time.perf_counter() - t0
+np.save(OUT, np.stack([t, prim.astype(float)]))
+print(json.dumps({"kept": kept, "build": build, "trace": trace, "triangles": len(F) * NI,
+                  "hits": int((prim >= 0).sum())}))
+"""
+
+
+def run(mode, instances, rays, out):
+    code = (f"ROOT={ROOT!r}; MODE={mode!r}; NI={instances}; NR={rays}; OUT={out!r}\n" + CHILD)
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    return json.loads(res.strip().splitlines()[-1])
+
+
+def main():
+    import numpy as np
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--instances", type=int, default=100)
+    ap.add_argument("--rays", type=int, default=200_000)
+    args = ap.parse_args()
+    tmp = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"bench_instancing_{os.getpid()}")
+    res = {m: run(m, args.instances, args.rays, f"{tmp}_{m}.npy")
+           for m in ("flattened", "two-level")}
+    a = np.load(f"{tmp}_flattened.npy")
+    b = np.load(f"{tmp}_two-level.npy")
+    same_prim = float(np.mean(a[1] == b[1]))
+    both = (a[1] >= 0) & (b[1] >= 0)
+    dt = float(np.max(np.abs(a[0][both] - b[0][both]) / np.maximum(a[0][both], 1e-30))) \
+        if both.any() else 0.0
+    for m in ("flattened", "two-level"):
+        os.remove(f"{tmp}_{m}.npy")
+    mb = 1 << 20
+    print(f"{args.instances} instances of a {res['flattened']['triangles'] // args.instances:,}"
+          f"-triangle sphere, {args.rays:,} closest-hit rays, 1 thread")
+    print("| method | memory kept (MB) | build (s) | closest hits (Mrays/s) | hits |")
+    print("|---|---|---|---|---|")
+    for m, r in res.items():
+        print(f"| {m} | {r['kept'] / mb:.0f} | {r['build']:.2f} | "
+              f"{args.rays / r['trace'] / 1e6:.2f} | {r['hits']:,} |")
+    print(f"same triangle hit: {100 * same_prim:.3f} % of rays; "
+          f"largest relative difference of t: {dt:.1e}")
+
+
+if __name__ == "__main__":
+    main()
