@@ -12,6 +12,7 @@ Memory: the points (float32, 12 B) plus one byte of axis per point.
 Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
   knn         the k nearest points with squared distance < r2 (Jensen's max-heap search),
               returned in increasing distance
+  nearest     the one nearest point with squared distance < r2 (knn with k = 1, no heap)
   ball        the points with squared distance <= r2, up to a caller's capacity
   ball_count  how many points have squared distance <= r2 (whole subtrees inside the
               sphere are counted by their size: the points' box is kept for that)
@@ -255,6 +256,59 @@ def knn(pos, axis, qx, qy, qz, kq, r2, d2, idx):
 
 
 @kernel
+def nearest(pos, axis, qx, qy, qz, r2):
+    """The nearest point with squared distance < r2: (index, squared distance), or
+    (-1, r2) when there is none. The same point as knn(kq=1) (the first met of equally
+    near ones), without the heap: the gather map's common lookup."""
+    n = pos.shape[0]
+    best = -1
+    bound = r2
+    if n == 0:
+        return best, bound
+    st_node = np.empty(STACK, np.int64)
+    st_off = np.empty((STACK, 4), np.float64)
+    st_node[0] = 0
+    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        rd = st_off[sp, 3]
+        if rd >= bound:
+            continue
+        ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
+        while node < n:
+            dx = qx - np.float64(pos[node, 0])
+            dy = qy - np.float64(pos[node, 1])
+            dz = qz - np.float64(pos[node, 2])
+            dist2 = dx * dx + dy * dy + dz * dz
+            if dist2 < bound:
+                best = node
+                bound = dist2
+            ax = axis[node]
+            if ax == 0:
+                diff, old = dx, ox
+            elif ax == 1:
+                diff, old = dy, oy
+            else:
+                diff, old = dz, oz
+            if diff < 0.0:
+                near, far = 2 * node + 1, 2 * node + 2
+            else:
+                near, far = 2 * node + 2, 2 * node + 1
+            if far < n:
+                rd_far = rd - old * old + diff * diff
+                if rd_far < bound:
+                    st_node[sp] = far
+                    st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
+                    st_off[sp, ax] = diff
+                    st_off[sp, 3] = rd_far
+                    sp += 1
+            node = near
+    return best, bound
+
+
+@kernel
 def ball(pos, axis, qx, qy, qz, r2, out, cap):
     """Indices of the points with squared distance <= r2 into out[:min(count, cap)], in
     tree order. Stops scanning once more than cap are found and returns cap + 1; else
@@ -431,3 +485,4 @@ def _warm_up():
     out = np.empty(8, np.int64)
     ball(tree.position, tree.axis, 0.5, 0.5, 0.5, 0.1, out, 8)
     ball_count(tree.position, tree.axis, tree.bounds, 0.5, 0.5, 0.5, 0.1)
+    nearest(tree.position, tree.axis, 0.5, 0.5, 0.5, 0.1)

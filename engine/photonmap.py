@@ -26,8 +26,7 @@ from . import hashgrid, kdtree
 from .jit import kernel, register_warm_up
 from .parallel import ordered_map
 from .photons import Photons
-from .rayoffset import G32_PLANE, ulp32
-from .sampling import max3
+from .rayoffset import G32_PLANE, ulp32_scalar
 
 NORMAL_AGREEMENT = 0.5
 BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
@@ -448,71 +447,141 @@ class GatherMap:
 
     def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
                offset: np.ndarray | None = None):
-        """(irradiance, boundary) at the nearest visible gather point facing the same way.
+        """(irradiance, boundary) at the nearest visible gather point facing the same way
+        (normal . n > GATHER_AGREEMENT), among the 8 x candidates nearest within the radius.
         boundary: that point's estimate met another surface (a corner or contact), where
         the estimate is biased dark, or no such point was found in range (a sparsely lit
         patch crowded by another surface's gather points, e.g. the underside of a ball
         resting on a lit floor); those rows get irradiance 0 and should gather again.
-        offset: (N,) distance along n that takes a ray from p clear of p's surface
-        (SurfaceHit.offset); default: the float32 resolution at p."""
-        out = np.zeros((len(p), 3))
-        boundary = np.ones(len(p), bool)
-        if self.tree is None or len(p) == 0:
+        p, n: (M,3) points and unit normals; offset: (M,) distance along n that takes a
+        ray from p clear of p's surface (SurfaceHit.offset); default: the float32
+        resolution at p. Returns ((M,3) float64, (M,) bool).
+
+        One kernel (_gather_candidates) searches the kd-tree, tests the normals and
+        writes the visibility rays in Embree's float32 layout; the rows whose candidate is
+        hidden ask for their next candidate (usually none do)."""
+        m = len(p)
+        out = np.zeros((m, 3))
+        boundary = np.ones(m, bool)
+        if self.tree is None or m == 0:
             return out, boundary
-        todo = np.arange(len(p))
-        # Most points' nearest gather point already faces their way: one neighbour first
-        # (a k=8 kd-tree query costs 3x a k=1 query), more only for the rest. The first
-        # agreeing, visible candidate in distance order is the same either way.
-        for kq in (1, candidates, 8 * candidates):
-            kq = min(kq, len(self.position))
-            chosen, found = self._nearest_agreeing(p[todo], n[todo], kq,
-                                                   None if offset is None else offset[todo])
-            out[todo[found]] = self.E[chosen[found]]
-            boundary[todo[found]] = self.boundary[chosen[found]]
-            todo = todo[~found]
-            if len(todo) == 0 or kq == len(self.position):
+        p = np.ascontiguousarray(p, dtype=np.float64)
+        n = np.ascontiguousarray(n, dtype=np.float64)
+        lift = (_NO_LIFT if offset is None
+                else np.ascontiguousarray(offset, dtype=np.float64))
+        kmax = min(8 * candidates, len(self.position))
+        rows = np.arange(m)
+        skip = np.zeros(m, np.int64)  # hidden agreeing candidates already passed over
+        cand = np.empty(m, np.int64)
+        o32 = np.empty((m, 3), np.float32)
+        d32 = np.empty((m, 3), np.float32)
+        t32 = np.empty(m, np.float32)
+        ray_row = np.empty(m, np.int64)
+        blocked = np.zeros(m, bool)
+        want_rays = self.accel is not None
+        for _ in range(kmax):
+            k = len(rows)
+            c = cand[:k]
+            nrays = _gather_candidates(self.tree.position, self.tree.axis, self.position,
+                                       self.normal, p, n, lift, rows, skip,
+                                       self.radius * self.radius, kmax, want_rays, c,
+                                       o32, d32, t32, ray_row)
+            hidden = np.zeros(k, bool)
+            if want_rays and nrays:
+                self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays],
+                                         blocked[:nrays])
+                hidden[ray_row[:nrays]] = blocked[:nrays]
+            done = (c >= 0) & ~hidden
+            r, chosen = rows[done], c[done]
+            out[r] = self.E[chosen]
+            boundary[r] = self.boundary[chosen]
+            again = hidden  # no candidate at all (c < 0): the row ends without one
+            if not again.any():
                 break
+            rows = rows[again]
+            skip = skip[again] + 1
         return out, boundary
 
-    def _nearest_agreeing(self, p, n, kq, offset=None):
-        _, idx = self.tree.query(p, kq, self.radius)
-        found = idx < len(self.position)
-        safe = np.where(found, idx, 0)
-        agree = found & (np.einsum("nkc,nc->nk", np.take(self.normal, safe, axis=0), n) > 0.7)
-        if self.accel is not None:
-            agree = self._visible_first(p, n, safe, agree, offset)
-        first = np.argmax(agree, axis=1)
-        anyok = agree.any(axis=1)
-        return safe[np.arange(len(p)), first], anyok
 
-    def _visible_first(self, p, n, safe, agree, offset=None):
-        """Drop candidates hidden from p by geometry, nearest first, until each row's first
-        remaining candidate is visible (usually one occlusion ray per lookup)."""
-        agree = agree.copy()
-        todo = np.nonzero(agree.any(axis=1))[0]
-        for _ in range(agree.shape[1]):
-            if len(todo) == 0:
-                break
-            first = np.argmax(agree[todo], axis=1)
-            q = self.position[safe[todo, first]]
-            # Both ends lifted off their surfaces along the normal (shared by agreement),
-            # by bounds on their rounding error (engine/rayoffset.py): the query point's
-            # own offset, and for the gather point (a float32 photon position, triangle
-            # unknown) its float32 resolution plus the float32 error of the ray's length.
-            lift_a = (4.0 * ulp32(max3(np.abs(p[todo]))) if offset is None
-                      else offset[todo])
-            a = p[todo] + lift_a[:, None] * n[todo]
-            dist0 = np.linalg.norm(q - a, axis=1)
-            lift_b = 4.0 * ulp32(max3(np.abs(q))) + 2.0 * G32_PLANE * dist0
-            b = q + lift_b[:, None] * self.normal[safe[todo, first]]
-            w = b - a
-            dist = np.linalg.norm(w, axis=1)
-            d = w / np.maximum(dist, 1e-300)[:, None]
-            # Full length: a gather point a hair outside a wall is still behind it.
-            blocked = self.accel.occluded(a, d, dist)
-            agree[todo[blocked], first[blocked]] = False
-            todo = todo[blocked & agree[todo].any(axis=1)]
-        return agree
+# The gather map's normal test: a gather point's surface faces the query's way.
+GATHER_AGREEMENT = 0.7
+_NO_LIFT = np.zeros(0)
+
+
+@kernel
+def _gather_candidates(tree_pos, axis, position, normal, p, n, lift, rows, skip, r2, kmax,
+                       want_rays, cand, o32, d32, t32, ray_row):
+    """For each rows[r]: cand[r] = the (skip[r]+1)-th gather point, in increasing distance
+    among the kmax nearest within sqrt(r2), whose normal agrees with n (else -1); and,
+    if want_rays, the ray from p to it into o32 / d32 / t32 (float32, compacted; ray_row
+    = r). Returns the number of rays.
+
+    The ray: both ends lifted off their surfaces along their normals (shared by
+    agreement) by bounds on their rounding error (engine/rayoffset.py): the query's own
+    offset (lift[i], else 4 float32 ulps of p), and for the gather point (a float32
+    photon position, triangle unknown) its float32 resolution plus the float32 error of
+    the ray's length. Full length: a gather point a hair outside a wall is still behind it."""
+    P = tree_pos.shape[0]
+    d2 = np.empty(max(kmax, 1), np.float64)
+    idx = np.empty(max(kmax, 1), np.int64)
+    nrays = 0
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+        nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
+        c = -1
+        if skip[r] == 0:
+            j, _ = kdtree.nearest(tree_pos, axis, qx, qy, qz, r2)
+            if j >= 0 and normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
+                    > GATHER_AGREEMENT:
+                c = j
+        if c < 0 and (skip[r] > 0 or kmax > 1) and P > 0:
+            cnt = kdtree.knn(tree_pos, axis, qx, qy, qz, kmax, r2, d2, idx)
+            seen = 0
+            for jj in range(cnt):
+                j = idx[jj]
+                if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
+                        > GATHER_AGREEMENT:
+                    if seen == skip[r]:
+                        c = j
+                        break
+                    seen += 1
+        cand[r] = c
+        if c < 0 or not want_rays:
+            continue
+        if lift.shape[0]:
+            la = lift[i]
+        else:
+            la = 4.0 * ulp32_scalar(max(abs(qx), abs(qy), abs(qz)))
+        ax, ay, az = qx + la * nx, qy + la * ny, qz + la * nz
+        bx, by, bz = position[c, 0], position[c, 1], position[c, 2]
+        ex, ey, ez = bx - ax, by - ay, bz - az
+        dist0 = math.sqrt(ex * ex + ey * ey + ez * ez)
+        lb = 4.0 * ulp32_scalar(max(abs(bx), abs(by), abs(bz))) + 2.0 * G32_PLANE * dist0
+        bx, by, bz = bx + lb * normal[c, 0], by + lb * normal[c, 1], bz + lb * normal[c, 2]
+        wx, wy, wz = bx - ax, by - ay, bz - az
+        dist = math.sqrt(wx * wx + wy * wy + wz * wz)
+        inv = max(dist, 1e-300)
+        o32[nrays, 0], o32[nrays, 1], o32[nrays, 2] = ax, ay, az
+        d32[nrays, 0], d32[nrays, 1], d32[nrays, 2] = wx / inv, wy / inv, wz / inv
+        t32[nrays] = dist
+        ray_row[nrays] = r
+        nrays += 1
+    return nrays
+
+
+@register_warm_up
+def _warm_up_gather():
+    rng = np.random.default_rng(0)
+    m = 64
+    pos = rng.random((m, 3)).astype(np.float32)
+    up = np.tile(np.float32([0.0, 0.0, 1.0]), (m, 1))
+    g = GatherMap(Photons(pos, np.ones((m, 3), np.float32), -up, up.copy(),
+                          np.zeros(m, np.uint8)), 0.5, 8, 2, "knn_simpson")
+    q = rng.random((4, 3))
+    nq = np.tile([0.0, 0.0, 1.0], (4, 1))
+    g.lookup(q, nq)
+    g.lookup(q, nq, offset=np.full(4, 1e-6))
 
 
 # Photons whose k-NN distance sets the automatic radius (a strided sample: enough for a

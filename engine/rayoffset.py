@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .jit import kernel
 from .sampling import dot, norm3
 
 U64 = 2.0 ** -53  # unit roundoff of float64
@@ -67,6 +68,12 @@ def ulp32(x: np.ndarray) -> np.ndarray:
     spacing, so offsets scale exactly with the scene: a scene scaled by 1e-3 takes the
     same paths (tests/test_stability_geometry.py)."""
     return np.maximum(2.0 * U32 * np.abs(x), TINY32)
+
+
+@kernel
+def ulp32_scalar(x):
+    """ulp32 of one float, inside kernels (the same value)."""
+    return max(2.0 * U32 * abs(x), TINY32)
 
 
 def triangle_point_error(v0, e1, e2, round32, b1, b2, p) -> np.ndarray:
