@@ -126,4 +126,4 @@ def ensure_compiled(progress=None) -> float:
 
 def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
-    from . import directlight, hashgrid, kdtree, photonmap, rayoffset  # noqa: F401  (registers warm-ups)
+    from . import camerarays, directlight, hashgrid, kdtree, photonmap, rayoffset  # noqa: F401

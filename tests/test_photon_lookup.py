@@ -219,7 +219,8 @@ def test_widening_has_a_fixed_memory_budget():
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
         assert not E.any() and B.all()
-        inputs_outputs = m * (3 * 8 * 3 + 1)  # p, n copies and E (float64), boundary
+        # p, n copies and E (float64), boundary, the Morton row order (int64)
+        inputs_outputs = m * (3 * 8 * 3 + 1 + 8)
         assert peak < inputs_outputs + (1 << 20), f"peak {peak / 1e6:.1f} MB"
     # The kernel's own scratch is fixed too: MAX_WIDEN_K neighbours, SCAN_BUDGET indices.
     assert MAX_WIDEN_K * 16 + SCAN_BUDGET * 8 <= (1 << 20)
