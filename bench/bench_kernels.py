@@ -235,6 +235,8 @@ def compile_times(roots):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="7be1f83", help="commit to compare against")
+    ap.add_argument("--after", default=None,
+                    help="commit to measure as 'after' (default: this working tree)")
     ap.add_argument("--blends", default=",".join(BLENDS))
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=240)
@@ -254,10 +256,12 @@ def main(argv=None):
     args.lookup_blends = ["figure6_box", "figure7_blocker"]
     blends = args.blends.split(",")
     os.makedirs(args.work, exist_ok=True)
-    roots = {"before": base_tree(args.base, args.work), "after": ROOT}
-    head = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
-                          capture_output=True, text=True).stdout.strip()
-    print(f"before = {args.base}, after = {head} (+ working tree); load average "
+    roots = {"before": base_tree(args.base, args.work),
+             "after": ROOT if args.after is None else base_tree(args.after, args.work)}
+    head = args.after or subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
+                                        capture_output=True, text=True).stdout.strip() \
+        + " (+ working tree)"
+    print(f"before = {args.base}, after = {head}; load average "
           f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     only = args.only.split(",")
     if "compile" in only:
