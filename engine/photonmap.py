@@ -55,8 +55,8 @@ class PhotonMap:
     engine/hashgrid.py), with the irradiance estimators compiled into one kernel.
 
     The photons are kept in the structure's order (self.photons is that permutation of
-    the input), so a search result indexes the photon arrays directly: the map adds one
-    byte (kd-tree) or 4-8 bytes (hash grid) per photon to the photons' 49.
+    the input), so a search result indexes the photon arrays directly: the map adds under
+    2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49.
     structure: "kdtree" or "hashgrid"; cell: the hash grid's cell size (the search radius
     it serves best), required for "hashgrid". Raises ValueError for anything else."""
 
@@ -101,12 +101,13 @@ class PhotonMap:
         return view
 
     def _arrays(self):
-        """(kind, position, axis, start, grid) for the kernels; unused ones are empty.
+        """(kind, position, nodes, start, grid) for the kernels; unused ones are empty.
+        nodes: the kd-tree's (axis, split, leaf) arrays (KdTree.nodes).
         grid is the hash grid's (origin, cell size), or the kd-tree's bounds."""
         t = self.tree
         if self.structure == "kdtree":
-            return KDTREE, t.position, t.axis, _NO_START, t.bounds
-        return HASHGRID, t.position, _NO_AXIS, t.start, t.grid
+            return KDTREE, t.position, t.nodes, _NO_START, t.bounds
+        return HASHGRID, t.position, _NO_NODES, t.start, t.grid
 
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                    min_photons: int, estimator: str, return_boundary: bool = False,
@@ -139,14 +140,14 @@ class PhotonMap:
         # Rows taken in Morton order (morton_order: the tree stays in cache); each row
         # writes its own answer, so the result does not depend on the order.
         order = morton_order(p)
-        kind, pos, axis, start, grid = self._arrays()
+        kind, pos, nodes, start, grid = self._arrays()
         ph = self.photons
         threads = self.workers if m > BLOCK_ROWS else 1
         rows = BLOCK_ROWS if threads > 1 else m
 
         def job(a, stop):
             b = min(a + rows, m)
-            _irradiance_rows(kind, pos, axis, start, grid, ph.power, ph.direction, ph.normal,
+            _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
                              p, n, floor, order[a:b], float(radius), int(k), int(min_photons),
                              code, bool(return_boundary), out, boundary)
             return None
@@ -156,7 +157,7 @@ class PhotonMap:
         return result
 
 
-_NO_AXIS = np.zeros(0, np.uint8)
+_NO_NODES = (np.zeros(0, np.uint8), np.zeros(0, np.float32), np.zeros(1, np.int64))
 _NO_START = np.zeros(1, np.int32)
 
 
@@ -204,23 +205,23 @@ def morton_order(p):
 
 
 @kernel
-def _knn(kind, pos, axis, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets):
+def _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets):
     if kind == KDTREE:
-        return kdtree.knn(pos, axis, qx, qy, qz, kq, r2, d2, idx)
+        return kdtree.knn(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, kq, r2, d2, idx)
     return hashgrid.knn(pos, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
 
 
 @kernel
-def _ball(kind, pos, axis, start, grid, qx, qy, qz, r2, out, cap, buckets):
+def _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, out, cap, buckets):
     if kind == KDTREE:
-        return kdtree.ball(pos, axis, qx, qy, qz, r2, out, cap)
+        return kdtree.ball(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, r2, out, cap)
     return hashgrid.ball(pos, start, grid, qx, qy, qz, r2, out, cap, buckets)
 
 
 @kernel
-def _ball_count(kind, pos, axis, start, grid, qx, qy, qz, r2, buckets):
+def _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets):
     if kind == KDTREE:
-        return kdtree.ball_count(pos, axis, grid, qx, qy, qz, r2)
+        return kdtree.ball_count(pos, nodes[0], nodes[1], nodes[2], grid, qx, qy, qz, r2)
     return hashgrid.ball_count(pos, start, grid, qx, qy, qz, r2, buckets)
 
 
@@ -243,7 +244,7 @@ def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
 
 
 @kernel
-def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, n, r_floor,
+def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
                      rows, radius, k, min_photons, code, want_boundary, out, boundary):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
     r_floor, if not empty) into the same rows of out (E) and boundary. Scratch:
@@ -271,7 +272,7 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
         scale = 1.0
         if knn:
             kq = min(k, P)
-            cnt = _knn(kind, pos, axis, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+            cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
             widest = min(P, MAX_WIDEN_K)
             if cnt == kq and kq < widest and \
                     _count_accepted(direction, normal, idx, cnt, nx, ny, nz) < k // 2:
@@ -280,7 +281,7 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
                 # fewer than min_photons accepted photons has no estimate at any width
                 # (a caustic query beside a wall lit only on its far side): one scan of
                 # the sphere (at most SCAN_BUDGET photons) settles it.
-                nb = _ball(kind, pos, axis, start, grid, qx, qy, qz, r2, scan, SCAN_BUDGET,
+                nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan, SCAN_BUDGET,
                            buckets)
                 if nb <= SCAN_BUDGET and \
                         _count_accepted(direction, normal, scan, nb, nx, ny, nz) < min_photons:
@@ -300,7 +301,7 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
                             found = kdtree.heap_insert(d2, idx, found, widest, dd, ph)
                     kdtree.heap_sort(d2, idx, found, widest)
                 else:
-                    found = _knn(kind, pos, axis, start, grid, qx, qy, qz, widest, r2, d2,
+                    found = _knn(kind, pos, nodes, start, grid, qx, qy, qz, widest, r2, d2,
                                  idx, buckets)
                 while True:
                     kq = min(4 * kq, widest)
@@ -310,7 +311,7 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
                     if _count_accepted(direction, normal, idx, cnt, nx, ny, nz) >= k // 2:
                         break
         else:
-            c = _ball_count(kind, pos, axis, start, grid, qx, qy, qz, r2, buckets)
+            c = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets)
             if c < min_photons:
                 continue  # too few photons in range: no estimate
             kq = min(c, MAX_CLASSIC_K)
@@ -318,14 +319,14 @@ def _irradiance_rows(kind, pos, axis, start, grid, power, direction, normal, p, 
             # nearest kq stand in for all of them (scaled by all / gathered).
             if c > kq:
                 scale = c / kq
-            cnt = _knn(kind, pos, axis, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
-        _estimate_row(i, kind, pos, axis, start, grid, power, direction, normal, p, n,
+            cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+        _estimate_row(i, kind, pos, nodes, start, grid, power, direction, normal, p, n,
                       r_floor, radius, k, min_photons, code, want_boundary, d2, idx, cnt,
                       kq, scale, buckets, out, boundary)
 
 
 @kernel
-def _estimate_row(i, kind, pos, axis, start, grid, power, direction, normal, p, n, r_floor,
+def _estimate_row(i, kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
                   radius, k, min_photons, code, want_boundary, d2, idx, cnt, kq, scale,
                   buckets, out, boundary):
     """One row's estimate from its cnt nearest photons (d2/idx, increasing distance).
@@ -404,7 +405,7 @@ def _estimate_row(i, kind, pos, axis, start, grid, power, direction, normal, p, 
         # A focus: more photons lie inside the floored disc than the query fetched. The
         # estimate is the disc's photon count times the fetched photons' mean accepted
         # power, over pi r^2 (a box kernel): the focus's light is spread, never dropped.
-        in_disc = _ball_count(kind, pos, axis, start, grid, qx, qy, qz, r * r, buckets)
+        in_disc = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r * r, buckets)
         f = in_disc / max(fetched, 1) / area
         e0, e1, e2 = f * a0, f * a1, f * a2
     if count >= min_photons:
@@ -530,7 +531,7 @@ class GatherMap:
         for _ in range(kmax):
             k = len(rows)
             c = cand[:k]
-            nrays = _gather_candidates(self.tree.position, self.tree.axis, self.position,
+            nrays = _gather_candidates(self.tree.position, self.tree.nodes, self.position,
                                        self.normal, p, n, lift, rows, skip,
                                        self.radius * self.radius, kmax, want_rays, c,
                                        o32, d32, t32, ray_row)
@@ -557,7 +558,7 @@ _NO_LIFT = np.zeros(0)
 
 
 @kernel
-def _gather_candidates(tree_pos, axis, position, normal, p, n, lift, rows, skip, r2, kmax,
+def _gather_candidates(tree_pos, nodes, position, normal, p, n, lift, rows, skip, r2, kmax,
                        want_rays, cand, o32, d32, t32, ray_row):
     """For each rows[r]: cand[r] = the (skip[r]+1)-th gather point, in increasing distance
     among the kmax nearest within sqrt(r2), whose normal agrees with n (else -1); and,
@@ -579,12 +580,13 @@ def _gather_candidates(tree_pos, axis, position, normal, p, n, lift, rows, skip,
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
         c = -1
         if skip[r] == 0:
-            j, _ = kdtree.nearest(tree_pos, axis, qx, qy, qz, r2)
+            j, _ = kdtree.nearest(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, r2)
             if j >= 0 and normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
                     > GATHER_AGREEMENT:
                 c = j
         if c < 0 and (skip[r] > 0 or kmax > 1) and P > 0:
-            cnt = kdtree.knn(tree_pos, axis, qx, qy, qz, kmax, r2, d2, idx)
+            cnt = kdtree.knn(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, kmax, r2, d2,
+                             idx)
             seen = 0
             for jj in range(cnt):
                 j = idx[jj]
