@@ -291,3 +291,30 @@ def test_first_process_compiles_and_says_so_later_ones_load(tmp_path):
     second = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
                             capture_output=True, text=True, timeout=600)
     assert second.stdout.strip() == "False []", second.stderr
+
+
+def test_morton_order_changes_no_answer():
+    """Rows are visited in Morton order (photonmap.morton_order) for cache locality; each
+    row's estimate and gather lookup must not depend on that order or on its neighbours."""
+    from engine.photonmap import morton_order
+    rng = np.random.default_rng(9)
+    p = rng.random((500, 3))
+    p[7] = np.nan  # a bad row still gets a place in the order
+    order = morton_order(p)
+    assert sorted(order) == list(range(len(p)))
+    ph = _join(_plane(20000, rng), _plane(3000, rng, z=0.001, nz=-1.0))
+    pm = PhotonMap(ph, workers=1)
+    g = GatherMap(ph, 0.05, 32, 4, "knn_simpson", max_points=4000)
+    q = np.c_[rng.random((2000, 2)), np.full(2000, 0.0005)]
+    nq = np.tile([0.0, 0.0, 1.0], (2000, 1))
+    shuffle = rng.permutation(len(q))
+    for est in ("knn_simpson", "classic"):
+        E, B = pm.irradiance(q, nq, 0.05, 32, 4, est, return_boundary=True)
+        Es, Bs = pm.irradiance(q[shuffle], nq[shuffle], 0.05, 32, 4, est, return_boundary=True)
+        np.testing.assert_array_equal(Es, E[shuffle])
+        np.testing.assert_array_equal(Bs, B[shuffle])
+    E, B = g.lookup(q, nq)
+    Es, Bs = g.lookup(q[shuffle], nq[shuffle])
+    np.testing.assert_array_equal(Es, E[shuffle])
+    np.testing.assert_array_equal(Bs, B[shuffle])
+    assert E.any()
