@@ -94,14 +94,17 @@ def main(argv=None):
     ap.add_argument("--photons", type=int, default=RenderSettings.photons)
     ap.add_argument("--queries", type=int, default=50_000)
     ap.add_argument("--k", type=int, default=RenderSettings.k_nearest)
+    ap.add_argument("--skip-compile", action="store_true",
+                    help="leave out the compile rows (bench_kernels.py measures them too)")
     args = ap.parse_args(argv)
     rows = []
 
-    t_cold, t_cached, t_numba = compile_times()
-    rows.append(("compile (fresh cache, new process, wall)", "", f"{t_cold:.2f} s", "", "",
-                 ""))
-    rows.append(("cached start (new process, wall)", "", f"{t_cached:.2f} s", "",
-                 f"of which import numba {t_numba:.2f} s", ""))
+    if not args.skip_compile:
+        t_cold, t_cached, t_numba = compile_times()
+        rows.append(("compile (fresh cache, new process, wall)", "", f"{t_cold:.2f} s", "",
+                     "", ""))
+        rows.append(("cached start (new process, wall)", "", f"{t_cached:.2f} s", "",
+                     f"of which import numba {t_numba:.2f} s", ""))
     ensure_compiled()
 
     s = RenderSettings(photons=args.photons, workers=1)

@@ -320,7 +320,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                         gap_err += abs(nyv[c]) * err
                         rmax = max(max(abs(c0 - pv[c]), abs(c1 - pv[c])), abs(c2 - pv[c]))
                         plane += abs(nyv[c]) * rmax
-                    # norms of the corners seen from p (tilt_error)
+                    # norms of the corners seen from p (rayoffset.py, note 3)
                     d0 = math.sqrt((m_v0[tri, 0] - p0) ** 2 + (m_v0[tri, 1] - p1) ** 2
                                    + (m_v0[tri, 2] - p2) ** 2)
                     q0 = m_v0[tri, 0] + m_e1[tri, 0] - p0

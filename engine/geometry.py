@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rayoffset import origin_offset, triangle_point_error, triangle_tilt, ulp32
+from .rayoffset import surface_offset, triangle_tilt, ulp32
 from .sampling import dot, luminance, normalize
 from .parallel import Cancelled
 from .scene import Material, Scene
@@ -216,11 +216,18 @@ class Geometry:
         """(N,) distance along the unit geometric normal n that takes ray origins at hit
         points p clear of their own triangles (engine/rayoffset.py: the float64 and float32
         rounding error of p plus Embree's float32 plane test)."""
-        v0 = np.take(self.v0, prim, axis=0)
-        e1 = np.take(self.e1, prim, axis=0)
-        e2 = np.take(self.e2, prim, axis=0)
-        err = triangle_point_error(v0, e1, e2, self.round32[prim], u, v, p)
-        return origin_offset(err, v0, e1, e2, n, p, np.take(self.tilt32, prim))
+        # round32 / tilt32 are computed when read (PerTriangle): gather the hit rows once
+        # and run the fused kernel on them (row i of the gathered tables is hit i).
+        prim = np.ascontiguousarray(prim, dtype=np.int64)
+        rows = np.arange(len(prim), dtype=np.int64)
+        return surface_offset(np.take(self.v0, prim, axis=0), np.take(self.e1, prim, axis=0),
+                              np.take(self.e2, prim, axis=0),
+                              np.ascontiguousarray(self.round32[prim]),
+                              np.ascontiguousarray(self.tilt32[prim]), rows,
+                              np.ascontiguousarray(u, dtype=np.float64),
+                              np.ascontiguousarray(v, dtype=np.float64),
+                              np.ascontiguousarray(p, dtype=np.float64),
+                              np.ascontiguousarray(n, dtype=np.float64))
 
     def shading_normals(self, prim, u, v) -> np.ndarray:
         if not len(self.corner_normals):

@@ -19,6 +19,7 @@ from .directlight import DirectLightBuffers, direct_light, sample_lights, termin
 from .lights import MESH
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
+from .camerarays import camera_rays_kernel
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
                        to_world)
@@ -40,34 +41,17 @@ class Counters:
 
 def camera_rays(camera, offset, width, height, px, py, jx, jy):
     """World rays (re-centred) through image positions (px + jx, py + jy); rows top-down.
-    Returns origins, unit directions, and the distance limits (clip start / end)."""
+    Returns origins, unit directions, and the distance limits (clip start / end).
+    One compiled kernel (engine/camerarays.py)."""
     hw, hh = camera.half_extents(width, height)
-    sx = (px + jx) / width * 2.0 - 1.0
-    sy = 1.0 - (py + jy) / height * 2.0
-    big = 2.0 * max(hw, hh)
-    x = sx * hw + camera.shift_x * big
-    y = sy * hh + camera.shift_y * big
-    R = camera.rotation
-    pos = camera.position - offset
-    n = len(px)
-    if camera.kind == "ORTHO":
-        o = pos + x[:, None] * R[:, 0] + y[:, None] * R[:, 1]
-        d = np.broadcast_to(-R[:, 2], (n, 3)).copy()
-        scale = np.ones(n)
-    else:
-        # d = R @ (x, y, -1), written per component: (N,3) @ (3,3) and a norm over the last
-        # axis cost as much as Embree's intersection of the same rays (bench/).
-        d = np.empty((n, 3))
-        for c in range(3):
-            d[:, c] = x * R[c, 0] + y * R[c, 1] - R[c, 2]
-        scale = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
-        d /= scale[:, None]
-        o = np.broadcast_to(pos, (n, 3)).copy()
-    # Blender clips by depth along the view axis: convert to distances along each ray.
-    t_start = camera.clip_start * scale
-    t_end = camera.clip_end * scale
-    o = o + t_start[:, None] * d
-    return o, d, t_end - t_start
+    R = np.ascontiguousarray(camera.rotation, dtype=np.float64)
+    pos = np.asarray(camera.position - offset, dtype=np.float64)
+    return camera_rays_kernel(camera.kind == "ORTHO", float(hw), float(hh),
+                              float(camera.shift_x), float(camera.shift_y), R, pos,
+                              float(camera.clip_start), float(camera.clip_end), int(width),
+                              int(height), np.ascontiguousarray(px), np.ascontiguousarray(py),
+                              np.ascontiguousarray(jx, dtype=np.float64),
+                              np.ascontiguousarray(jy, dtype=np.float64))
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,

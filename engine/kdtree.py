@@ -1,22 +1,32 @@
-"""Jensen's left-balanced kd-tree: the photon map's search structure, in one array.
+"""The photon map's kd-tree in flat arrays: Jensen's balanced, pointer-free layout with
+leaf buckets.
 
-Layout (Jensen, "Realistic Image Synthesis Using Photon Mapping", 2001, sect. 6.3): node i
-is point i; its children are nodes 2i+1 and 2i+2 (a complete binary tree stored like a
-heap, so there are no pointers); `axis[i]` is its splitting axis. Building permutes the
-points so that every node is the median of its subtree along the axis of the subtree's
-largest extent, with the left subtree as full as a complete tree needs. The caller
-reorders its per-point data by `order` once, so a node index is also the data index.
+Layout: a complete binary tree stored like a heap (node i's children are 2i+1 and 2i+2;
+Jensen, "Realistic Image Synthesis Using Photon Mapping", 2001, sect. 6.3), all leaves on
+one level. Inner node i splits its cell along `axis[i]` at `split[i]`; leaf l holds the
+points [leaf[l], leaf[l+1]) of the tree's point order, at most LEAF_SIZE of them, stored
+contiguously (the leaf buckets of scipy's cKDTree: a query computes distances only in
+leaves, reading neighbouring points from one cache line, instead of at every node as in
+Jensen's one-point-per-node tree). Building permutes the points so that every split is
+the median of its range along the longest side of its cell (the points' box cut by the
+splits above); the caller reorders its per-point data by `order` once, so a point's index
+in the tree is also its data index. Any node's subtree is a contiguous range of points.
 
-Memory: the points (float32, 12 B) plus one byte of axis per point.
+Memory: the points (float32, 12 B) plus, per LEAF_SIZE / 2 .. LEAF_SIZE points, one axis
+byte, one float32 split and one int64 leaf start (under 2 B per point).
 
 Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
-  knn         the k nearest points with squared distance < r2 (Jensen's max-heap search),
-              returned in increasing distance
+  knn         the k nearest points with squared distance < r2 (a bounded max-heap filled
+              unsorted and heapified at the k-th point, as Jensen does), returned in
+              increasing distance
+  nearest     the one nearest point with squared distance < r2 (knn with k = 1, no heap)
   ball        the points with squared distance <= r2, up to a caller's capacity
   ball_count  how many points have squared distance <= r2 (whole subtrees inside the
-              sphere are counted by their size: the points' box is kept for that)
-Distances are computed in float64 from the float32 positions (as scipy's cKDTree does on
-a float64 copy), so neighbour sets match it except for exact ties.
+              sphere are counted by their range: the points' box is kept for that)
+Far subtrees are skipped by the query's squared distance to their cell (Arya & Mount
+1993, kept incrementally per axis). Distances are computed in float64 from the float32
+positions (as scipy's cKDTree does on a float64 copy), so neighbour sets match it except
+for exact ties.
 """
 from __future__ import annotations
 
@@ -25,19 +35,7 @@ import numpy as np
 from .jit import kernel, register_warm_up
 
 STACK = 64  # traversal stack: one entry per tree level (a tree of 2^63 points at most)
-
-
-@kernel
-def _left_size(m):
-    """Nodes in the left subtree of a left-balanced (complete) tree of m nodes."""
-    depth = 0
-    while (2 << depth) <= m:  # 2^(depth+1) <= m: level depth+1 exists
-        depth += 1
-    if depth == 0:
-        return 0
-    half = 1 << (depth - 1)
-    last = m - ((1 << depth) - 1)  # nodes on the last, partly filled level
-    return half - 1 + min(last, half)
+LEAF_SIZE = 8  # points per leaf at most (measured: 8 and 16 within 5 %, 4 slower)
 
 
 @kernel
@@ -84,58 +82,71 @@ def _swap(pts, perm, i, j):
 
 
 @kernel
+def leaf_count(n):
+    """Leaves of the tree over n points: the least power of two with n <= LEAF_SIZE x it."""
+    leaves = 1
+    while leaves * LEAF_SIZE < n:
+        leaves *= 2
+    return leaves
+
+
+@kernel
 def build(points):
-    """Left-balanced kd-tree over points (N,3) float32. Returns (order (N,) int64: node
-    i is points[order[i]], axis (N,) uint8). Each node splits its cell (the points' box
-    cut by the splits above it, as Jensen builds it) along the cell's longest side.
-    O(N log N), no recursion."""
+    """kd-tree over points (N,3) float32. Returns (order (N,) int64: the tree's point i is
+    points[order[i]], axis (L-1,) uint8 and split (L-1,) float32 of the inner nodes,
+    leaf (L+1,) int64 leaf starts), L = leaf_count(N). Each split is the median of its
+    range (ranges halve, so leaves differ by at most one point) along its cell's longest
+    side. O(N log N), no recursion."""
     n = points.shape[0]
+    leaves = leaf_count(n)
+    inner = leaves - 1
     perm = np.arange(n)
     pts = points.copy()
-    order = np.empty(n, np.int64)
-    axis = np.zeros(n, np.uint8)
+    axis = np.zeros(inner, np.uint8)
+    split = np.zeros(inner, np.float32)
+    leaf = np.zeros(leaves + 1, np.int64)
+    leaf[leaves] = n
     st = np.empty((2 * STACK, 3), np.int64)  # lo, hi, node
     st_box = np.empty((2 * STACK, 6), np.float64)
-    sp = 0
-    if n > 0:
-        st[0, 0], st[0, 1], st[0, 2] = 0, n, 0
+    st[0, 0], st[0, 1], st[0, 2] = 0, n, 0
+    for c in range(3):
+        st_box[0, c] = np.inf
+        st_box[0, 3 + c] = -np.inf
+    for i in range(n):
         for c in range(3):
-            st_box[0, c] = np.inf
-            st_box[0, 3 + c] = -np.inf
-        for i in range(n):
-            for c in range(3):
-                st_box[0, c] = min(st_box[0, c], pts[i, c])
-                st_box[0, 3 + c] = max(st_box[0, 3 + c], pts[i, c])
-        sp = 1
+            st_box[0, c] = min(st_box[0, c], pts[i, c])
+            st_box[0, 3 + c] = max(st_box[0, 3 + c], pts[i, c])
+    sp = 1
     while sp > 0:
         sp -= 1
         lo, hi, node = st[sp, 0], st[sp, 1], st[sp, 2]
-        m = hi - lo
-        if m == 1:
-            order[node] = perm[lo]
+        if node >= inner:
+            leaf[node - inner] = lo
             continue
         box = st_box[sp].copy()
         ax = 0
         for c in (1, 2):
             if box[3 + c] - box[c] > box[3 + ax] - box[ax]:
                 ax = c
-        med = lo + _left_size(m)
-        _select(pts, perm, lo, hi, med, ax)
-        split = np.float64(pts[med, ax])
-        order[node] = perm[med]
+        med = lo + (hi - lo) // 2
+        if hi > lo:
+            _select(pts, perm, lo, hi, med, ax)
+            value = pts[med, ax]
+        else:
+            value = np.float32(box[ax]) if np.isfinite(box[ax]) else np.float32(0.0)
         axis[node] = ax
+        split[node] = value
+        # Left: points [lo, med), coordinates <= split; right: [med, hi), >= split.
         # Left pushed last: popped first (depth first keeps the stack short).
-        if hi > med + 1:
-            st[sp, 0], st[sp, 1], st[sp, 2] = med + 1, hi, 2 * node + 2
-            st_box[sp] = box
-            st_box[sp, ax] = split
-            sp += 1
-        if med > lo:
-            st[sp, 0], st[sp, 1], st[sp, 2] = lo, med, 2 * node + 1
-            st_box[sp] = box
-            st_box[sp, 3 + ax] = split
-            sp += 1
-    return order, axis
+        st[sp, 0], st[sp, 1], st[sp, 2] = med, hi, 2 * node + 2
+        st_box[sp] = box
+        st_box[sp, ax] = value
+        sp += 1
+        st[sp, 0], st[sp, 1], st[sp, 2] = lo, med, 2 * node + 1
+        st_box[sp] = box
+        st_box[sp, 3 + ax] = value
+        sp += 1
+    return perm, axis, split, leaf
 
 
 @kernel
@@ -198,16 +209,14 @@ def heap_sort(d2, idx, count, kq):
 
 
 @kernel
-def knn(pos, axis, qx, qy, qz, kq, r2, d2, idx):
+def knn(pos, axis, split, leaf, qx, qy, qz, kq, r2, d2, idx):
     """The kq nearest points with squared distance < r2 into d2[:count], idx[:count]
-    (increasing distance; d2, idx: scratch of at least kq). Returns count.
-    A far subtree is skipped by its cell's distance (the query's offsets to the cell
-    along each axis, kept incrementally: Arya & Mount 1993), which prunes more than the
-    plane distance alone."""
+    (increasing distance; d2, idx: scratch of at least kq). Returns count."""
     n = pos.shape[0]
     count = 0
     if n == 0 or kq <= 0:
         return 0
+    inner = axis.shape[0]
     bound = r2
     st_node = np.empty(STACK, np.int64)
     st_off = np.empty((STACK, 4), np.float64)  # x, y, z offsets to the cell; squared sum
@@ -221,41 +230,95 @@ def knn(pos, axis, qx, qy, qz, kq, r2, d2, idx):
         if rd >= bound:
             continue
         ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
-        while node < n:
-            dx = qx - np.float64(pos[node, 0])
-            dy = qy - np.float64(pos[node, 1])
-            dz = qz - np.float64(pos[node, 2])
-            dist2 = dx * dx + dy * dy + dz * dz
-            if dist2 < bound:
-                count = heap_insert(d2, idx, count, kq, dist2, node)
-                if count == kq:
-                    bound = d2[0]
+        while node < inner:
             ax = axis[node]
             if ax == 0:
-                diff, old = dx, ox
+                diff, old = qx - np.float64(split[node]), ox
             elif ax == 1:
-                diff, old = dy, oy
+                diff, old = qy - np.float64(split[node]), oy
             else:
-                diff, old = dz, oz
+                diff, old = qz - np.float64(split[node]), oz
             if diff < 0.0:
                 near, far = 2 * node + 1, 2 * node + 2
             else:
                 near, far = 2 * node + 2, 2 * node + 1
-            if far < n:
-                rd_far = rd - old * old + diff * diff
-                if rd_far < bound:
-                    st_node[sp] = far
-                    st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
-                    st_off[sp, ax] = diff
-                    st_off[sp, 3] = rd_far
-                    sp += 1
+            rd_far = rd - old * old + diff * diff
+            if rd_far < bound:
+                st_node[sp] = far
+                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
+                st_off[sp, ax] = diff
+                st_off[sp, 3] = rd_far
+                sp += 1
             node = near
+        for j in range(leaf[node - inner], leaf[node - inner + 1]):
+            dx = qx - np.float64(pos[j, 0])
+            dy = qy - np.float64(pos[j, 1])
+            dz = qz - np.float64(pos[j, 2])
+            dist2 = dx * dx + dy * dy + dz * dz
+            if dist2 < bound:
+                count = heap_insert(d2, idx, count, kq, dist2, j)
+                if count == kq:
+                    bound = d2[0]
     heap_sort(d2, idx, count, kq)
     return count
 
 
 @kernel
-def ball(pos, axis, qx, qy, qz, r2, out, cap):
+def nearest(pos, axis, split, leaf, qx, qy, qz, r2):
+    """The nearest point with squared distance < r2: (index, squared distance), or
+    (-1, r2) when there is none. The same point as knn(kq=1) (the first met of equally
+    near ones), without the heap: the gather map's common lookup."""
+    n = pos.shape[0]
+    best = -1
+    bound = r2
+    if n == 0:
+        return best, bound
+    inner = axis.shape[0]
+    st_node = np.empty(STACK, np.int64)
+    st_off = np.empty((STACK, 4), np.float64)
+    st_node[0] = 0
+    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        rd = st_off[sp, 3]
+        if rd >= bound:
+            continue
+        ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
+        while node < inner:
+            ax = axis[node]
+            if ax == 0:
+                diff, old = qx - np.float64(split[node]), ox
+            elif ax == 1:
+                diff, old = qy - np.float64(split[node]), oy
+            else:
+                diff, old = qz - np.float64(split[node]), oz
+            if diff < 0.0:
+                near, far = 2 * node + 1, 2 * node + 2
+            else:
+                near, far = 2 * node + 2, 2 * node + 1
+            rd_far = rd - old * old + diff * diff
+            if rd_far < bound:
+                st_node[sp] = far
+                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
+                st_off[sp, ax] = diff
+                st_off[sp, 3] = rd_far
+                sp += 1
+            node = near
+        for j in range(leaf[node - inner], leaf[node - inner + 1]):
+            dx = qx - np.float64(pos[j, 0])
+            dy = qy - np.float64(pos[j, 1])
+            dz = qz - np.float64(pos[j, 2])
+            dist2 = dx * dx + dy * dy + dz * dz
+            if dist2 < bound:
+                best = j
+                bound = dist2
+    return best, bound
+
+
+@kernel
+def ball(pos, axis, split, leaf, qx, qy, qz, r2, out, cap):
     """Indices of the points with squared distance <= r2 into out[:min(count, cap)], in
     tree order. Stops scanning once more than cap are found and returns cap + 1; else
     returns the count."""
@@ -263,56 +326,70 @@ def ball(pos, axis, qx, qy, qz, r2, out, cap):
     count = 0
     if n == 0:
         return 0
+    inner = axis.shape[0]
     st_node = np.empty(STACK, np.int64)
+    st_off = np.empty((STACK, 4), np.float64)
     st_node[0] = 0
+    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
     sp = 1
     while sp > 0:
         sp -= 1
         node = st_node[sp]
-        while node < n:
-            dx = qx - np.float64(pos[node, 0])
-            dy = qy - np.float64(pos[node, 1])
-            dz = qz - np.float64(pos[node, 2])
-            if dx * dx + dy * dy + dz * dz <= r2:
-                if count == cap:
-                    return cap + 1
-                out[count] = node
-                count += 1
+        rd = st_off[sp, 3]
+        ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
+        while node < inner:
             ax = axis[node]
-            diff = dx if ax == 0 else (dy if ax == 1 else dz)
+            if ax == 0:
+                diff, old = qx - np.float64(split[node]), ox
+            elif ax == 1:
+                diff, old = qy - np.float64(split[node]), oy
+            else:
+                diff, old = qz - np.float64(split[node]), oz
             if diff < 0.0:
                 near, far = 2 * node + 1, 2 * node + 2
             else:
                 near, far = 2 * node + 2, 2 * node + 1
-            if far < n and diff * diff <= r2:
+            rd_far = rd - old * old + diff * diff
+            if rd_far <= r2:
                 st_node[sp] = far
+                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
+                st_off[sp, ax] = diff
+                st_off[sp, 3] = rd_far
                 sp += 1
             node = near
+        for j in range(leaf[node - inner], leaf[node - inner + 1]):
+            dx = qx - np.float64(pos[j, 0])
+            dy = qy - np.float64(pos[j, 1])
+            dz = qz - np.float64(pos[j, 2])
+            if dx * dx + dy * dy + dz * dz <= r2:
+                if count == cap:
+                    return cap + 1
+                out[count] = j
+                count += 1
     return count
 
 
 @kernel
-def subtree_size(node, n):
-    """Nodes in the subtree rooted at node (heap layout, n nodes in all)."""
-    size = 0
-    first = node
-    last = node
-    while first < n:
-        size += min(last, n - 1) - first + 1
-        first = 2 * first + 1
-        last = 2 * last + 2
-    return size
+def subtree_range(node, inner, leaf):
+    """(first, end) of the points under node: its leftmost and rightmost leaves' range."""
+    a = node
+    b = node
+    while a < inner:
+        a = 2 * a + 1
+        b = 2 * b + 2
+    return leaf[a - inner], leaf[b - inner + 1]
 
 
 @kernel
-def ball_count(pos, axis, bounds, qx, qy, qz, r2):
+def ball_count(pos, axis, split, leaf, bounds, qx, qy, qz, r2):
     """Number of points with squared distance <= r2. bounds: the points' box (lo x, y, z,
-    hi x, y, z). A subtree whose cell lies inside the sphere is counted whole (its size
-    follows from the layout), so a focus of a million equal points costs a few nodes."""
+    hi x, y, z). A subtree whose cell lies inside the sphere is counted whole (its points
+    are one range), so a focus of a million equal points costs a few nodes."""
     n = pos.shape[0]
     count = 0
     if n == 0:
         return 0
+    inner = axis.shape[0]
     st_node = np.empty(STACK, np.int64)
     st_box = np.empty((STACK, 6), np.float64)
     st_node[0] = 0
@@ -329,7 +406,7 @@ def ball_count(pos, axis, bounds, qx, qy, qz, r2):
         for c in range(3):
             lo[c] = st_box[sp, c]
             hi[c] = st_box[sp, 3 + c]
-        while node < n:
+        while True:
             near2 = 0.0  # squared distance to the cell, and to its farthest corner
             far2 = 0.0
             for c in range(3):
@@ -344,39 +421,42 @@ def ball_count(pos, axis, bounds, qx, qy, qz, r2):
             if near2 > r2:
                 break
             if far2 <= r2:
-                count += subtree_size(node, n)
+                first, end = subtree_range(node, inner, leaf)
+                count += end - first
                 break
-            dx = qx - np.float64(pos[node, 0])
-            dy = qy - np.float64(pos[node, 1])
-            dz = qz - np.float64(pos[node, 2])
-            if dx * dx + dy * dy + dz * dz <= r2:
-                count += 1
+            if node >= inner:
+                for j in range(leaf[node - inner], leaf[node - inner + 1]):
+                    dx = qx - np.float64(pos[j, 0])
+                    dy = qy - np.float64(pos[j, 1])
+                    dz = qz - np.float64(pos[j, 2])
+                    if dx * dx + dy * dy + dz * dz <= r2:
+                        count += 1
+                break
             ax = axis[node]
-            split = np.float64(pos[node, ax])
-            if q[ax] < split:
+            value = np.float64(split[node])
+            if q[ax] < value:
                 near, far = 2 * node + 1, 2 * node + 2
             else:
                 near, far = 2 * node + 2, 2 * node + 1
-            if far < n:
-                st_node[sp] = far
-                for c in range(3):
-                    st_box[sp, c] = lo[c]
-                    st_box[sp, 3 + c] = hi[c]
-                if far == 2 * node + 1:
-                    st_box[sp, 3 + ax] = split  # left: coordinates <= split
-                else:
-                    st_box[sp, ax] = split
-                sp += 1
-            if near == 2 * node + 1:
-                hi[ax] = split
+            st_node[sp] = far
+            for c in range(3):
+                st_box[sp, c] = lo[c]
+                st_box[sp, 3 + c] = hi[c]
+            if far == 2 * node + 1:
+                st_box[sp, 3 + ax] = value  # left: coordinates <= split
             else:
-                lo[ax] = split
+                st_box[sp, ax] = value
+            sp += 1
+            if near == 2 * node + 1:
+                hi[ax] = value
+            else:
+                lo[ax] = value
             node = near
     return count
 
 
 @kernel
-def knn_batch(pos, axis, queries, kq, radius):
+def knn_batch(pos, axis, split, leaf, queries, kq, radius):
     """k-NN of many queries (M,3) float64 within radius, in scipy's cKDTree.query form:
     (dist (M,kq) float64 with inf where none, idx (M,kq) int64 with N where none)."""
     m = queries.shape[0]
@@ -387,7 +467,8 @@ def knn_batch(pos, axis, queries, kq, radius):
     idx = np.empty(max(kq, 1), np.int64)
     r2 = radius * radius
     for i in range(m):
-        c = knn(pos, axis, queries[i, 0], queries[i, 1], queries[i, 2], kq, r2, d2, idx)
+        c = knn(pos, axis, split, leaf, queries[i, 0], queries[i, 1], queries[i, 2], kq, r2,
+                d2, idx)
         for j in range(c):
             dist[i, j] = np.sqrt(d2[j])
             out[i, j] = idx[j]
@@ -395,13 +476,14 @@ def knn_batch(pos, axis, queries, kq, radius):
 
 
 class KdTree:
-    """A left-balanced kd-tree over points (N,3); self.order maps node -> input index."""
+    """The kd-tree over points (N,3); self.order maps the tree's point index -> input
+    index, self.position are the points in the tree's order."""
 
     def __init__(self, points: np.ndarray):
         pts = np.ascontiguousarray(points, dtype=np.float32)
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"KdTree: points must have shape (N, 3), got {pts.shape}")
-        self.order, self.axis = build(pts)
+        self.order, self.axis, self.split, self.leaf = build(pts)
         self.position = np.ascontiguousarray(pts[self.order])
         self.bounds = np.zeros(6)  # the points' box: lo x, y, z, hi x, y, z
         if len(pts):
@@ -412,22 +494,29 @@ class KdTree:
         return len(self.position)
 
     @property
+    def nodes(self):
+        """(axis, split, leaf): the arrays every query kernel takes after the positions."""
+        return self.axis, self.split, self.leaf
+
+    @property
     def nbytes(self) -> int:
-        """Bytes of the tree itself (positions + axes; order is dropped by callers)."""
-        return self.position.nbytes + self.axis.nbytes + self.bounds.nbytes
+        """Bytes of the tree itself (positions + nodes; order is dropped by callers)."""
+        return (self.position.nbytes + self.axis.nbytes + self.split.nbytes
+                + self.leaf.nbytes + self.bounds.nbytes)
 
     def query(self, queries: np.ndarray, k: int, radius: float):
-        """(dist, idx) of the k nearest nodes within radius, like cKDTree.query with
-        distance_upper_bound (idx = len(self) where none). idx are node indices."""
+        """(dist, idx) of the k nearest points within radius, like cKDTree.query with
+        distance_upper_bound (idx = len(self) where none). idx index self.position."""
         q = np.ascontiguousarray(queries, dtype=np.float64).reshape(-1, 3)
-        return knn_batch(self.position, self.axis, q, int(k), float(radius))
+        return knn_batch(self.position, *self.nodes, q, int(k), float(radius))
 
 
 @register_warm_up
 def _warm_up():
     pts = np.random.default_rng(0).random((40, 3)).astype(np.float32)
-    KdTree(pts).query(pts[:3].astype(np.float64), 4, 0.5)
     tree = KdTree(pts)
+    tree.query(pts[:3].astype(np.float64), 4, 0.5)
     out = np.empty(8, np.int64)
-    ball(tree.position, tree.axis, 0.5, 0.5, 0.5, 0.1, out, 8)
-    ball_count(tree.position, tree.axis, tree.bounds, 0.5, 0.5, 0.5, 0.1)
+    ball(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1, out, 8)
+    ball_count(tree.position, *tree.nodes, tree.bounds, 0.5, 0.5, 0.5, 0.1)
+    nearest(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1)

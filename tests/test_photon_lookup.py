@@ -24,7 +24,7 @@ from engine.api import cornell_box
 from engine.hashgrid import HashGrid
 from engine.hashgrid import ball_count as grid_ball_count
 from engine.hashgrid import cells_spanned
-from engine.kdtree import KdTree, ball, ball_count
+from engine.kdtree import LEAF_SIZE, KdTree, ball, ball_count, nearest
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
                               PhotonMap)
 from engine.photons import Photons
@@ -66,39 +66,53 @@ def test_knn_and_sphere_counts_match_ckdtree(n, structure):
             np.allclose(np.sort(d, axis=1), np.sort(dr, axis=1))
     counts = ref.query_ball_point(q, 0.05, return_length=True)
     if structure == "kdtree":
-        mine = [ball_count(s.position, s.axis, s.bounds, *x, 0.05 ** 2) for x in q]
+        mine = [ball_count(s.position, *s.nodes, s.bounds, *x, 0.05 ** 2) for x in q]
         out = np.empty(len(pts) + 1, np.int64)
-        listed = [ball(s.position, s.axis, *x, 0.05 ** 2, out, len(pts)) for x in q]
+        listed = [ball(s.position, *s.nodes, *x, 0.05 ** 2, out, len(pts)) for x in q]
         assert listed == list(counts)
-        assert ball(s.position, s.axis, *q[0], 0.05 ** 2, out, 0) == (1 if counts[0] else 0)
+        assert ball(s.position, *s.nodes, *q[0], 0.05 ** 2, out, 0) == (1 if counts[0] else 0)
     else:
         buckets = np.empty(cells_spanned(s.grid, 0.05), np.int64)
         mine = [grid_ball_count(s.position, s.start, s.grid, *x, 0.05 ** 2, buckets) for x in q]
     assert list(mine) == list(counts)
 
 
-def test_kdtree_is_left_balanced_and_ordered():
+def test_kdtree_is_balanced_and_ordered():
+    """Every split separates its subtree's points (left <= split <= right), leaves hold
+    at most LEAF_SIZE points in contiguous ranges that cover every point once, and
+    nearest() finds what knn(k=1) finds."""
     rng = np.random.default_rng(5)
-    for n in (1, 2, 5, 6, 7, 8, 100, 1023, 1024, 1025):
+    for n in (0, 1, 2, 5, 8, 9, 100, 1023, 1024, 1025):
         pts = rng.random((n, 3)).astype(np.float32)
+        if n > 50:
+            pts[: n // 3, 2] = 0.5  # many equal coordinates (a floor)
         t = KdTree(pts)
         assert sorted(t.order) == list(range(n))  # a permutation of the input
         np.testing.assert_array_equal(t.position, pts[t.order])
+        inner = len(t.axis)
+        assert len(t.leaf) == inner + 2 and t.leaf[0] == 0 and t.leaf[-1] == n
+        sizes = np.diff(t.leaf)
+        assert (sizes >= 0).all() and sizes.max(initial=0) <= LEAF_SIZE
 
-        def subtree(i):
-            out, todo = [], [i]
-            while todo:
-                j = todo.pop()
-                if j < n:
-                    out.append(j)
-                    todo += [2 * j + 1, 2 * j + 2]
-            return out
+        def leaf_range(i):
+            a = b = i
+            while a < inner:
+                a, b = 2 * a + 1, 2 * b + 2
+            return t.leaf[a - inner], t.leaf[b - inner + 1]
 
-        for i in range(min(n, 200)):
-            ax = t.axis[i]
-            left, right = subtree(2 * i + 1), subtree(2 * i + 2)
-            assert all(t.position[j, ax] <= t.position[i, ax] for j in left)
-            assert all(t.position[j, ax] >= t.position[i, ax] for j in right)
+        for i in range(inner):
+            ax, split = t.axis[i], t.split[i]
+            la, lb = leaf_range(2 * i + 1)
+            ra, rb = leaf_range(2 * i + 2)
+            assert lb == ra  # the two subtrees' points are adjacent ranges
+            assert (t.position[la:lb, ax] <= split).all()
+            assert (t.position[ra:rb, ax] >= split).all()
+        if n:
+            q = rng.random((50, 3))
+            for x in q:
+                j, d2 = nearest(t.position, *t.nodes, *x, 0.3 ** 2)
+                d, i = t.query(x[None], 1, 0.3)
+                assert j == (i[0, 0] if i[0, 0] < n else -1)
 
 
 def _plane(n, rng, z=0.0, nz=1.0):
@@ -219,7 +233,8 @@ def test_widening_has_a_fixed_memory_budget():
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
         assert not E.any() and B.all()
-        inputs_outputs = m * (3 * 8 * 3 + 1)  # p, n copies and E (float64), boundary
+        # p, n copies and E (float64), boundary, the Morton row order (int64)
+        inputs_outputs = m * (3 * 8 * 3 + 1 + 8)
         assert peak < inputs_outputs + (1 << 20), f"peak {peak / 1e6:.1f} MB"
     # The kernel's own scratch is fixed too: MAX_WIDEN_K neighbours, SCAN_BUDGET indices.
     assert MAX_WIDEN_K * 16 + SCAN_BUDGET * 8 <= (1 << 20)
@@ -276,3 +291,30 @@ def test_first_process_compiles_and_says_so_later_ones_load(tmp_path):
     second = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
                             capture_output=True, text=True, timeout=600)
     assert second.stdout.strip() == "False []", second.stderr
+
+
+def test_morton_order_changes_no_answer():
+    """Rows are visited in Morton order (photonmap.morton_order) for cache locality; each
+    row's estimate and gather lookup must not depend on that order or on its neighbours."""
+    from engine.photonmap import morton_order
+    rng = np.random.default_rng(9)
+    p = rng.random((500, 3))
+    p[7] = np.nan  # a bad row still gets a place in the order
+    order = morton_order(p)
+    assert sorted(order) == list(range(len(p)))
+    ph = _join(_plane(20000, rng), _plane(3000, rng, z=0.001, nz=-1.0))
+    pm = PhotonMap(ph, workers=1)
+    g = GatherMap(ph, 0.05, 32, 4, "knn_simpson", max_points=4000)
+    q = np.c_[rng.random((2000, 2)), np.full(2000, 0.0005)]
+    nq = np.tile([0.0, 0.0, 1.0], (2000, 1))
+    shuffle = rng.permutation(len(q))
+    for est in ("knn_simpson", "classic"):
+        E, B = pm.irradiance(q, nq, 0.05, 32, 4, est, return_boundary=True)
+        Es, Bs = pm.irradiance(q[shuffle], nq[shuffle], 0.05, 32, 4, est, return_boundary=True)
+        np.testing.assert_array_equal(Es, E[shuffle])
+        np.testing.assert_array_equal(Bs, B[shuffle])
+    E, B = g.lookup(q, nq)
+    Es, Bs = g.lookup(q[shuffle], nq[shuffle])
+    np.testing.assert_array_equal(Es, E[shuffle])
+    np.testing.assert_array_equal(Bs, B[shuffle])
+    assert E.any()

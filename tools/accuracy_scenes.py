@@ -140,6 +140,26 @@ def _caustic_soft_spot():
     bpy.data.objects["Spot"].data.shadow_soft_size = 0.15
 
 
+def _figure7_mirror():
+    """scenes/figure7_mirror.toml in Blender: the Figure 7 room with a perfect mirror
+    floor and a small point light left of a panel that runs wall to wall from the ceiling
+    down to 0.4 m. The room's right half is lit only through the slot and the mirror."""
+    mb.reset()
+    white = mb.material("white", "diffuse", (0.75, 0.75, 0.75))
+    blue = mb.material("blue", "diffuse", (0.15, 0.2, 0.7))
+    mirror = mb.material("perfect_mirror", "principled", (0.9, 0.9, 0.9), roughness=0.0,
+                         metallic=1.0)
+    h = 2.0
+    mb.plane("Floor", 4, 4, mirror, (0, 0, 0))
+    mb.plane("Ceiling", 4, 4, white, (0, 0, 4), (math.pi, 0, 0))
+    mb.plane("Back", 4, 4, white, (0, h, h), (math.pi / 2, 0, 0))
+    mb.plane("LeftWall", 4, 4, white, (-h, 0, h), (0, math.pi / 2, 0))
+    mb.plane("RightWall", 4, 4, blue, (h, 0, h), (0, -math.pi / 2, 0))
+    mb.box("Panel", 0.1, 4.0, 3.6, white, (-0.3, 0.0, 2.2))
+    mb.light("Light", "POINT", (-1.5, 0.0, 2.0), 200.0, shadow_soft_size=0.1)
+    mb.camera((0, -7.6, 2.0), (0, 0, 1.8), 38.0)
+
+
 SCENES = {
     "figure3_sphere": (_blend("figure3_sphere"), "specular"),
     "figure6_box": (_blend("figure6_box"), "specular"),
@@ -151,10 +171,11 @@ SCENES = {
     "ellipse_scaled": (_ellipse_scaled, "diffuse"),
     "mirror_glass": (_mirror_glass, "specular"),
     "caustic_soft_spot": (_caustic_soft_spot, "specular"),
+    "figure7_mirror": (_figure7_mirror, "specular"),
 }
 # Scenes whose Cycles reference needs more samples than the default to converge: the
 # caustic is found only by paths that hit the small spot through the glass.
-REFERENCE_SAMPLES = {"caustic_soft_spot": 65536}
+REFERENCE_SAMPLES = {"caustic_soft_spot": 65536, "figure7_mirror": 65536}
 
 
 def setup(name, width=WIDTH, height=HEIGHT):

@@ -1,0 +1,278 @@
+"""Compiled kernels, before / after: this checkout against an older commit (default
+7be1f83, the last commit before the lookup / offset / camera-ray kernels), same machine,
+one command.
+
+    .venv/bin/python bench/bench_kernels.py [--base 7be1f83] [--quick]
+        [--blends figure7_blocker,...] [--width 320 --height 240] [--repeat 1]
+
+Prints Markdown tables:
+- end to end per example blend at default settings (prepare + photons + camera), before
+  and after, 1 and 2 workers: wall seconds, CPU seconds, peak RSS, and whether the image
+  is bitwise the same (before vs after, and 1 vs 2 workers);
+- gather-map lookups (the final gather's per-ray lookup) in microseconds and in Embree
+  closest-hit traversals of the same scene;
+- peak memory per resolution (320x240 .. 1920x1080, 1 sample per pixel: chunks are
+  bounded, so spp does not change the peak) and per photon count, estimated
+  (engine/resources.py) and measured (ru_maxrss of a fresh process), with bytes per
+  stored photon;
+- cold compile (empty numba cache) and cached start (import + load), fresh processes.
+Every render runs in its own process; before and after alternate. The example blends are
+exported once through the add-on (the bpy wheel) into pickled engine scenes.
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BLENDS = ("figure3_sphere", "figure6_box", "figure7_blocker", "figure8_caustic")
+RESOLUTIONS = ((320, 240), (640, 480), (1280, 720), (1920, 1080))
+PHOTON_COUNTS = (100_000, 1_600_000)
+
+EXPORT = r"""
+import pickle, sys
+sys.path.insert(0, ROOT)
+import bpy
+from addon import export
+from addon.core import load_engine
+bpy.ops.wm.open_mainfile(filepath=f"{ROOT}/example_blends/{NAME}.blend")
+scene, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get())
+with open(OUT, "wb") as f:
+    pickle.dump(scene, f)
+print('{"ok": true}')
+"""
+
+RENDER = r"""
+import hashlib, json, pickle, resource, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine.jit import ensure_compiled
+from engine.render import render
+from engine.resources import estimate_memory
+from engine.settings import RenderSettings
+ensure_compiled()
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+scene.width, scene.height = W, H
+settings = RenderSettings(workers=WORKERS, **SETTINGS)
+est = estimate_memory(scene, settings).total
+ru0 = resource.getrusage(resource.RUSAGE_SELF)
+t0 = time.perf_counter()
+film = render(scene, settings)
+wall = time.perf_counter() - t0
+ru = resource.getrusage(resource.RUSAGE_SELF)
+h = hashlib.sha1()
+for k in ("direct", "indirect", "caustic", "specular", "emission"):
+    h.update(np.ascontiguousarray(getattr(film, k)).tobytes())
+st = film.stats
+stored = st.get("global_photons", 0) + st.get("caustic_photons", 0)
+print(json.dumps(dict(wall=wall, cpu=(ru.ru_utime + ru.ru_stime) - (ru0.ru_utime + ru0.ru_stime),
+                      rss=ru.ru_maxrss * 1024, estimate=est, hash=h.hexdigest(),
+                      photons=st.get("time_photons", 0.0), maps=st.get("time_photon_map", 0.0),
+                      camera=st.get("time_camera", 0.0), prepare=st.get("time_prepare", 0.0),
+                      stored=stored, photon_bytes=st.get("photon_bytes", 0))))
+"""
+
+LOOKUP = r"""
+import json, pickle, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine.jit import ensure_compiled
+from engine.render import _photon_pass, prepare_context
+from engine.settings import RenderSettings
+ensure_compiled()
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+ctx = prepare_context(scene, RenderSettings(workers=1))
+_photon_pass(ctx, {}, None, None)
+g = ctx.gather_map.serial()
+rng = np.random.default_rng(1)
+# Queries where gather rays end: rays from inside the scene's box to random directions.
+lo, hi = ctx.geo.bounds
+m = 200_000
+o = lo + (hi - lo) * (0.25 + 0.5 * rng.random((m, 3)))
+d = rng.normal(size=(m, 3))
+d /= np.linalg.norm(d, axis=1)[:, None]
+acc = ctx.accel.serial()
+def cpu(fn):
+    best = 1e9
+    for _ in range(3):
+        t = time.process_time(); out = fn(); best = min(best, time.process_time() - t)
+    return best, out
+ray_s, (t, prim, u, v) = cpu(lambda: acc.intersect(o, d))
+hit = prim >= 0
+from engine.bsdf import surface_hit
+y = surface_hit(ctx.geo, ctx.table, prim[hit], u[hit], v[hit], d[hit])
+look_s, (E, B) = cpu(lambda: g.lookup(y.p, y.ng, offset=y.offset))
+print(json.dumps(dict(ray_us=ray_s / m * 1e6, lookup_us=look_s / hit.sum() * 1e6,
+                      lookups=int(hit.sum()), points=len(g.position),
+                      found=float(np.mean(~B)), Esum=float(E.sum()))))
+"""
+
+COMPILE = r"""
+import json, sys, time
+t0 = time.perf_counter()
+sys.path.insert(0, ROOT)
+from engine.jit import ensure_compiled, needs_compile
+cold = needs_compile()
+t1 = time.perf_counter()
+ensure_compiled()
+print(json.dumps(dict(import_s=t1 - t0, compile_s=time.perf_counter() - t1, cold=cold)))
+"""
+
+
+def child(code: str, env=None, **values) -> dict:
+    head = "".join(f"{k}={v!r}\n" for k, v in values.items())
+    out = subprocess.run([sys.executable, "-c", head + code], capture_output=True, text=True,
+                         env=env)
+    if out.returncode != 0:
+        raise RuntimeError(f"child failed ({values.get('ROOT')}):\n{out.stderr[-3000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def base_tree(commit: str, where: str) -> str:
+    path = os.path.join(where, f"base-{commit}")
+    if not os.path.isdir(path):
+        os.makedirs(path)
+        archive = subprocess.run(["git", "-C", ROOT, "archive", commit], capture_output=True,
+                                 check=True).stdout
+        subprocess.run(["tar", "-x", "-C", path], input=archive, check=True)
+    return path
+
+
+def exported(name: str, where: str) -> str:
+    out = os.path.join(where, f"{name}.pkl")
+    if not os.path.exists(out):
+        child(EXPORT, ROOT=ROOT, NAME=name, OUT=out)
+    return out
+
+
+def mb(x):
+    return x / (1 << 20)
+
+
+def end_to_end(roots, blends, args, where):
+    print(f"\n### End to end, default settings, {args.width}x{args.height}\n")
+    print("| blend | workers | before wall s | after wall s | wall gain | before CPU s | "
+          "after CPU s | CPU gain | after: photons / maps / camera s | peak RSS before / "
+          "after MB | image |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---|---|---|")
+    for name in blends:
+        pkl = exported(name, where)
+        hashes = {}
+        for workers in args.workers:
+            res = {"before": [], "after": []}
+            for _ in range(args.repeat):
+                for label in ("before", "after"):
+                    res[label].append(child(RENDER, ROOT=roots[label], PICKLE=pkl,
+                                            W=args.width, H=args.height, WORKERS=workers,
+                                            SETTINGS={}))
+            b = min(res["before"], key=lambda r: r["wall"])
+            a = min(res["after"], key=lambda r: r["wall"])
+            bc = min(r["cpu"] for r in res["before"])
+            ac = min(r["cpu"] for r in res["after"])
+            hashes[workers] = a["hash"]
+            same = "same bits" if a["hash"] == b["hash"] else "DIFFERS"
+            if len(hashes) > 1:
+                same += ", 1 = 2 workers" if len(set(hashes.values())) == 1 else \
+                    ", 1 vs 2 workers DIFFER"
+            print(f"| {name} | {workers} | {b['wall']:.1f} | {a['wall']:.1f} | "
+                  f"{b['wall'] / a['wall']:.2f}x | {bc:.1f} | {ac:.1f} | {bc / ac:.2f}x | "
+                  f"{a['photons']:.1f} / {a['maps']:.1f} / {a['camera']:.1f} | "
+                  f"{mb(b['rss']):.0f} / {mb(a['rss']):.0f} | {same} |", flush=True)
+
+
+def lookups(roots, args, where):
+    print("\n### Gather-map lookups (one thread, CPU time, best of 3)\n")
+    print("| scene | gather points | version | one lookup us | Embree closest-hit us | "
+          "lookup in Embree traversals |")
+    print("|---|---:|---|---:|---:|---:|")
+    for name in args.lookup_blends:
+        pkl = exported(name, where)
+        for label in ("before", "after"):
+            r = child(LOOKUP, ROOT=roots[label], PICKLE=pkl)
+            print(f"| {name} | {r['points']:,} | {label} | {r['lookup_us']:.2f} | "
+                  f"{r['ray_us']:.3f} | {r['lookup_us'] / r['ray_us']:.1f} |", flush=True)
+
+
+def memory(roots, args, where):
+    pkl = exported("figure6_box", where)
+    print("\n### Peak memory, Figure 6 box (fresh process each; 1 spp)\n")
+    print("| case | version | estimate MB | measured peak RSS MB | stored photons | "
+          "B / stored photon |")
+    print("|---|---|---:|---:|---:|---:|")
+    cases = [(f"{w}x{h}", w, h, {"spp": 1}) for w, h in RESOLUTIONS[:args.resolutions]]
+    cases += [(f"{n:,} + {n // 2:,} photons, 160x120", 160, 120,
+               {"spp": 1, "photons": n, "caustic_photons": n // 2})
+              for n in PHOTON_COUNTS[:args.photon_counts]]
+    for label, w, h, settings in cases:
+        for version in ("before", "after"):
+            r = child(RENDER, ROOT=roots[version], PICKLE=pkl, W=w, H=h, WORKERS=2,
+                      SETTINGS=settings)
+            per = r["photon_bytes"] / max(r["stored"], 1)
+            print(f"| {label} | {version} | {mb(r['estimate']):.0f} | {mb(r['rss']):.0f} | "
+                  f"{r['stored']:,} | {per:.0f} |", flush=True)
+
+
+def compile_times(roots):
+    print("\n### Kernel compile (fresh processes)\n")
+    print("| version | cold: import s | cold: compile s | cached: import s | cached: load s |")
+    print("|---|---:|---:|---:|---:|")
+    for label in ("before", "after"):
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+            cold = child(COMPILE, env=env, ROOT=roots[label])
+            warm = child(COMPILE, env=env, ROOT=roots[label])
+        print(f"| {label} | {cold['import_s']:.2f} | {cold['compile_s']:.2f} | "
+              f"{warm['import_s']:.2f} | {warm['compile_s']:.2f} |", flush=True)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--base", default="7be1f83", help="commit to compare against")
+    ap.add_argument("--after", default=None,
+                    help="commit to measure as 'after' (default: this working tree)")
+    ap.add_argument("--blends", default=",".join(BLENDS))
+    ap.add_argument("--width", type=int, default=320)
+    ap.add_argument("--height", type=int, default=240)
+    ap.add_argument("--workers", default="2,1", help="worker counts for end to end")
+    ap.add_argument("--repeat", type=int, default=1, help="best of this many per version")
+    ap.add_argument("--resolutions", type=int, default=len(RESOLUTIONS))
+    ap.add_argument("--photon-counts", type=int, default=len(PHOTON_COUNTS))
+    ap.add_argument("--only", default="compile,lookups,end_to_end,memory")
+    ap.add_argument("--quick", action="store_true",
+                    help="160x120, Figure 7 only, 2 workers, two resolutions, one photon count")
+    ap.add_argument("--work", default=os.path.join(tempfile.gettempdir(), "bench_kernels"))
+    args = ap.parse_args(argv)
+    args.workers = [int(w) for w in args.workers.split(",")]
+    if args.quick:
+        args.width, args.height, args.blends, args.workers = 160, 120, "figure7_blocker", [2]
+        args.resolutions, args.photon_counts = 2, 1
+    args.lookup_blends = ["figure6_box", "figure7_blocker"]
+    blends = args.blends.split(",")
+    os.makedirs(args.work, exist_ok=True)
+    roots = {"before": base_tree(args.base, args.work),
+             "after": ROOT if args.after is None else base_tree(args.after, args.work)}
+    head = args.after or subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
+                                        capture_output=True, text=True).stdout.strip() \
+        + " (+ working tree)"
+    print(f"before = {args.base}, after = {head}; load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    only = args.only.split(",")
+    if "compile" in only:
+        compile_times(roots)
+    if "lookups" in only:
+        lookups(roots, args, args.work)
+    if "end_to_end" in only:
+        end_to_end(roots, blends, args, args.work)
+    if "memory" in only:
+        memory(roots, args, args.work)
+
+
+if __name__ == "__main__":
+    main()

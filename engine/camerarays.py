@@ -1,0 +1,64 @@
+"""Camera-ray generation as a compiled kernel (engine/jit.py): one pass from pixel
+positions to ray origins, unit directions and clip distances, for integrator.camera_rays.
+
+Same arithmetic, operation by operation, as the numpy stage it replaced, so the rays are
+bitwise identical (tests/test_camera_rays.py keeps that stage as the oracle).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .jit import kernel, register_warm_up
+
+
+@kernel
+def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip_end,
+                       width, height, px, py, jx, jy):
+    """Rays through image positions (px + jx, py + jy) (N,), rows top-down.
+    ortho: orthographic camera (else perspective); hw, hh: the image plane's half extents
+    at distance 1 (ortho: world units); R (3,3) camera-to-world rotation (columns: right,
+    up, backwards); pos (3,) camera position (re-centred). Blender clips by depth along the
+    view axis: clip_start / clip_end are converted to distances along each ray.
+    Returns (origins (N,3), unit directions (N,3), distance limits (N,)), float64."""
+    n = px.shape[0]
+    o = np.empty((n, 3))
+    d = np.empty((n, 3))
+    tmax = np.empty(n)
+    big = 2.0 * max(hw, hh)
+    for i in range(n):
+        sx = (px[i] + jx[i]) / width * 2.0 - 1.0
+        sy = 1.0 - (py[i] + jy[i]) / height * 2.0
+        x = sx * hw + shift_x * big
+        y = sy * hh + shift_y * big
+        if ortho:
+            scale = 1.0
+            for c in range(3):
+                o[i, c] = pos[c] + x * R[c, 0] + y * R[c, 1]
+                d[i, c] = -R[c, 2]
+        else:
+            # d = R @ (x, y, -1), normalised
+            d0 = x * R[0, 0] + y * R[0, 1] - R[0, 2]
+            d1 = x * R[1, 0] + y * R[1, 1] - R[1, 2]
+            d2 = x * R[2, 0] + y * R[2, 1] - R[2, 2]
+            scale = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            d[i, 0], d[i, 1], d[i, 2] = d0 / scale, d1 / scale, d2 / scale
+            for c in range(3):
+                o[i, c] = pos[c]
+        t_start = clip_start * scale
+        t_end = clip_end * scale
+        for c in range(3):
+            o[i, c] = o[i, c] + t_start * d[i, c]
+        tmax[i] = t_end - t_start
+    return o, d, tmax
+
+
+@register_warm_up
+def _warm_up():
+    R = np.eye(3)
+    pos = np.zeros(3)
+    for ortho in (False, True):
+        for px in (np.arange(4), np.arange(4.0)):  # render_camera's ints, effects' floats
+            camera_rays_kernel(ortho, 0.5, 0.4, 0.0, 0.0, R, pos, 0.1, 100.0, 4, 3, px, px,
+                               np.full(4, 0.5), np.full(4, 0.5))
