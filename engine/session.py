@@ -253,7 +253,7 @@ class Session:
                     self._event("error", self.error)
         finally:
             if self._ctx is not None:
-                self._ctx.accel.close()
+                self._ctx.accel.close(wait=True)  # no query thread outlives stop()
                 self._ctx = None
             self._photons.clear()
             with self._cond:
@@ -288,7 +288,7 @@ class Session:
                 accel = ctx.accel if ctx is not None else None
                 if accel is None or not _same_triangles(old_geo, geo):
                     if accel is not None:
-                        accel.close()
+                        accel.close(wait=True)
                     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility,
                                             _accel_class(), threads=s.threads)
                     self.counters.bvh_builds += 1
