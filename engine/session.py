@@ -263,7 +263,8 @@ class Session:
     def _event(self, *what):
         self.counters.events.append((self.generation,) + what)
 
-    def _view_scene(self) -> Scene:
+    def view_scene(self) -> Scene:
+        """The scene as the current view sees it (its camera and image size)."""
         camera, width, height, _ = self._view
         return _scene_with(self._scene, camera=camera, width=width, height=height)
 
@@ -273,7 +274,7 @@ class Session:
             self._view = req.view
         if req.scene is not None:
             self._scene = req.scene
-        scene = self._view_scene()
+        scene = self.view_scene()
         scene.validate()
         ctx = self._ctx
         s = self.settings
@@ -416,7 +417,7 @@ def _scene_with(scene: Scene, **changes) -> Scene:
 def _same_triangles(a, b) -> bool:
     """The same triangles with the same ray visibility (the BVHs can be kept)."""
     return (a is not None and a.count == b.count
-            and np.array_equal(a.vertices32, b.vertices32)
+            and all(np.array_equal(getattr(a, n), getattr(b, n)) for n in ("v0", "e1", "e2"))
             and np.array_equal(a.visibility, b.visibility))
 
 
