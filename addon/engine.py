@@ -76,7 +76,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         try:
             if self._viewport is None:
                 self._viewport = viewport.ViewportRender()
-            self._viewport.update(self, context, depsgraph)
+            self._viewport.update(context, depsgraph)
         except Exception as exc:  # noqa: BLE001 - a message in the header, never a dialog
             if not _expected(exc):
                 traceback.print_exc()
@@ -374,4 +374,5 @@ def register():
 
 
 def unregister():
+    viewport.stop_all()  # no viewport thread outlives the add-on
     bpy.utils.unregister_class(PhotonMapRenderEngine)

@@ -9,8 +9,10 @@ never waits. Moving the view only re-aims the camera: the session keeps its phot
 """
 from __future__ import annotations
 
+import atexit
 import importlib
 import math
+import weakref
 
 import numpy as np
 
@@ -114,9 +116,11 @@ class ViewportRender:
         self.texture_frame = None
         self.last_export: dict = {}
         self.budget = 0
+        self.timer = None
+        _live.add(self)
 
     # view_update
-    def update(self, engine, context, depsgraph):
+    def update(self, context, depsgraph):
         bpy_scene = depsgraph.scene
         props = bpy_scene.photonmap
         if self.pm is None:
@@ -148,7 +152,7 @@ class ViewportRender:
             self.session.update_scene(scene, geometry=False)
         self.view = view
         self.view_key = _view_key(view)
-        _ensure_redraw_timer(engine, self)
+        _ensure_redraw_timer(self)
 
     # view_draw
     def draw(self, engine, context, depsgraph):
@@ -229,10 +233,12 @@ def _view_key(view):
             camera.clip_end, width, height, region)
 
 
-def _ensure_redraw_timer(engine, viewport):
-    """Redraw the view while the session produces images: a timer on Blender's main
-    thread (the render thread must not touch Blender), which ends with the session."""
-    if getattr(viewport, "_timer", None) is not None:
+def _ensure_redraw_timer(viewport):
+    """Redraw the 3D views while the session produces images: a timer on Blender's main
+    thread (the render thread must not touch Blender). It holds no reference to the
+    RenderEngine, so Blender can free the engine (and so stop the session) when the view
+    leaves Rendered shading; the timer ends with the session."""
+    if viewport.timer is not None:
         return
     import bpy
 
@@ -241,17 +247,26 @@ def _ensure_redraw_timer(engine, viewport):
     def poll():
         session = viewport.session
         if session is None:
-            viewport._timer = None
+            viewport.timer = None
             return None
         frame = session.frame
         if frame is not state["frame"] or session.error:
             state["frame"] = frame
-            try:
-                engine.tag_redraw()
-            except ReferenceError:  # the engine was freed
-                viewport._timer = None
-                return None
+            for window in bpy.context.window_manager.windows:
+                for area in window.screen.areas:
+                    if area.type == "VIEW_3D":
+                        area.tag_redraw()
         return REDRAW_SECONDS
 
-    viewport._timer = poll
+    viewport.timer = poll
     bpy.app.timers.register(poll, first_interval=REDRAW_SECONDS)
+
+
+def stop_all() -> None:
+    """Stop every viewport session of this process (add-on unregistered, Python exits)."""
+    for viewport in list(_live):
+        viewport.stop()
+
+
+_live = weakref.WeakSet()
+atexit.register(stop_all)

@@ -1,7 +1,6 @@
 """Rendered viewport through the bpy wheel (which cannot draw): the view's camera from
 Blender's matrices, the partial re-export driven by real depsgraph updates, and the
 session behind view_update (addon/viewport.py, addon/export.py: export_viewport)."""
-import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -120,12 +119,11 @@ def test_edits_re_export_only_what_changed(bpy_addon):
     props.viewport_caustic_photons = 1500
     props.viewport_samples = 1
     context = _fake_context(bpy, scene, 48, 36)
-    engine = _Engine()
     vp = ViewportRender()
     infos = []
 
     def handler(_scene, depsgraph):
-        vp.update(engine, context, depsgraph)
+        vp.update(context, depsgraph)
         infos.append(dict(vp.last_export))
 
     def edit(change):
