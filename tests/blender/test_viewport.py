@@ -60,6 +60,24 @@ def test_view_camera_from_matrices_matches_the_scene_camera(bpy_addon, kind, shi
         assert got.clip_end == pytest.approx(cam.data.clip_end, rel=1e-3)
 
 
+def test_ortho_view_starts_at_its_near_plane_behind_the_view_point(bpy_addon):
+    """Blender's orthographic 3D view clips from -far/2 to far/2 around the view point:
+    the engine camera starts at the near plane (behind it) and sees the whole depth."""
+    import engine as pm
+    from addon.viewport import view_camera
+    r, t, n, f = 4.0, 2.25, -500.0, 500.0  # half extents 4 x 2.25, clip -500..500
+    P = np.array([[1 / r, 0, 0, 0], [0, 1 / t, 0, 0],
+                  [0, 0, -2 / (f - n), -(f + n) / (f - n)], [0, 0, 0, 1]])
+    V = np.eye(4)
+    V[:3, 3] = (0.0, 0.0, -10.0)  # the view point at z = 10, looking down -z
+    cam = view_camera(pm, V, P, perspective=False)
+    np.testing.assert_allclose(cam.position, (0.0, 0.0, 10.0 + 500.0))
+    assert cam.clip_start == 0.0 and cam.clip_end == pytest.approx(1000.0)
+    assert cam.kind == "ORTHO" and cam.ortho_scale == pytest.approx(8.0)
+    hw, hh = cam.half_extents(1600, 900)
+    assert (hw, hh) == pytest.approx((4.0, 2.25))
+
+
 def test_border_pixels_inside_the_camera_frame():
     from addon.viewport import border_pixels
     # A frame covering the middle half of a 100 x 50 view; border = its right half.
