@@ -154,6 +154,8 @@ class Session:
         self._ctx: Context | None = None
         self._plan_key = None
         self._photons: dict[int, _PhotonEntry] = {}
+        self._scene_dirty = True
+        self._geometry_dirty = True
         self._thread: threading.Thread | None = None
 
     # --- control (any thread) ----------------------------------------------------------
@@ -273,16 +275,22 @@ class Session:
         if req.view is not None:
             self._view = req.view
         if req.scene is not None:
+            # Kept until a rebuild succeeds: a scene that failed is rebuilt next time.
             self._scene = req.scene
+            self._scene_dirty = True
+            self._geometry_dirty = self._geometry_dirty or req.geometry
         scene = self.view_scene()
         scene.validate()
         ctx = self._ctx
         s = self.settings
         old_geo = None if ctx is None else ctx.geo
-        if req.scene is not None or ctx is None:
+        # An empty scene is centred on the camera (engine.geometry.prepare): it follows
+        # the view.
+        empty = ctx is not None and ctx.geo.count == 0
+        if self._scene_dirty or ctx is None or empty:
             self._photons.clear()
             same_names = ctx is not None and list(scene.materials) == ctx.table.names
-            if req.geometry or not same_names or ctx is None:
+            if self._geometry_dirty or not same_names or ctx is None or empty:
                 geo, table = prepare(scene)
                 self.counters.geometry_builds += 1
                 self._event("geometry", geo.count)
@@ -302,10 +310,9 @@ class Session:
             self._event("lights", len(lights))
             self._ctx = ctx = Context(scene, s, geo, table, accel, lights,
                                       packed_lights=pack_lights(lights))
+            self._scene_dirty = self._geometry_dirty = False
         else:
             ctx.scene = scene
-            if ctx.geo.count == 0:  # an empty scene is centred on the camera
-                self._photons.clear()
         ctx.settings = s
         ctx.plan = analyse(scene, ctx.geo, ctx.table, ctx.lights, ctx.accel, s)
         key = _photon_plan_key(ctx.plan)

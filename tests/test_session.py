@@ -210,3 +210,29 @@ def test_bad_arguments_are_refused(box):
     session = Session(box, SETTINGS)
     with pytest.raises(ValueError, match="view size"):
         session.update_view(box.camera, 0, 10)
+
+
+def test_a_scene_that_failed_is_rebuilt_by_the_next_update(box):
+    """A scene update that cannot render leaves the message; the next update rebuilds
+    from the scene it brings, also what the failed one had changed."""
+    session = Session(box, SETTINGS, passes=1).start()
+    try:
+        idle(session)
+        block = next(m for m in box.meshes if m.name == "block")
+        bad = Mesh(name="bad", vertices=block.vertices, faces=block.faces,
+                   materials=["no_such_material"])
+        session.update_scene(_scene_with(box, meshes=box.meshes + [bad]), geometry=True)
+        assert session.wait_idle(60)
+        assert session.error is not None and "no_such_material" in session.error
+        cam = Camera.look_at((0.5, -6.0, 2.2), (0.0, 0.0, 2.0), fov_degrees=42.0)
+        session.update_view(cam, 32, 24)
+        assert session.wait_idle(60) and "no_such_material" in session.error
+        # The block moved as well: the failed update's geometry change still counts.
+        meshes = [moved(m, (0.3, 0.0, 0.0)) if m.name == "block" else m for m in box.meshes]
+        good = _scene_with(box, meshes=meshes)
+        session.update_scene(good, geometry=False)
+        frame = idle(session)
+        np.testing.assert_array_equal(frame.rgba[..., :3],
+                                      progressive(_scene_with(good, camera=cam), passes=1))
+    finally:
+        session.stop()
