@@ -13,7 +13,7 @@ from engine.progressive import Budget, render_progressive
 from engine.session import Session, _scene_with
 
 SETTINGS = RenderSettings(spp=1, photons=3000, caustic_photons=1500, seed=3)
-PASSES = 3
+PASSES = 2
 
 
 def progressive(scene, passes=PASSES):
