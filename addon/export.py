@@ -567,6 +567,11 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             if light is not None:
                 lights.append(light)
             continue
+        if obj.type == "CURVES":
+            msg = f"object '{obj.name}': hair curves are not supported and skipped"
+            if msg not in warnings:
+                warnings.append(msg)
+            continue
         if obj.type != "MESH":
             continue  # the depsgraph yields other geometry as MESH instances (export_scene)
         data = getattr(obj, "data", None)
