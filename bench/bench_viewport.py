@@ -125,18 +125,23 @@ def main():
     for name in names:
         print(f"{name} ...", flush=True)
         rows.append(run(name, args))
+        print("  " + row(rows[-1]), flush=True)  # a long run keeps what it measured
     print(f"\nRendered viewport at {W}x{H}, viewport defaults, {args.passes} passes; "
           f"FLIP against Cycles {args.cycles_spp} spp; {os.cpu_count()} cores")
     print(f"| blend | first image | first full pass | FLIP <= {args.flip:g} | "
           "FLIP at budget | stop median / max | threads left |")
     print("|---|---|---|---|---|---|---|")
     for r in rows:
-        reached = (f"{r['reached'][0]:.2f} s (pass {r['reached'][1]})" if r["reached"]
-                   else "not reached")
-        passes, score, t = r["final"]
-        print(f"| {r['name']} | {r['first']:.2f} s (1/{r['first_scale']}) | "
-              f"{r['first_full']:.2f} s | {reached} | {score:.3f} (pass {passes}, {t:.1f} s) | "
-              f"{np.median(r['stops']):.3f} / {max(r['stops']):.3f} s | {r['threads_left']} |")
+        print(row(r))
+
+
+def row(r):
+    reached = (f"{r['reached'][0]:.2f} s (pass {r['reached'][1]})" if r["reached"]
+               else "not reached")
+    passes, score, t = r["final"]
+    return (f"| {r['name']} | {r['first']:.2f} s (1/{r['first_scale']}) | "
+            f"{r['first_full']:.2f} s | {reached} | {score:.3f} (pass {passes}, {t:.1f} s) | "
+            f"{np.median(r['stops']):.3f} / {max(r['stops']):.3f} s | {r['threads_left']} |")
 
 
 if __name__ == "__main__":
