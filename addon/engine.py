@@ -7,7 +7,7 @@ import traceback
 import bpy
 import numpy as np
 
-from . import export
+from . import export, viewport
 from .core import load_engine
 
 ENGINE_ID = "PHOTONMAP"
@@ -62,6 +62,36 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         super().__init__(*args, **kwargs)
         self._last_stats = 0.0
         self._listeners = []
+        self._viewport = None  # rendered viewport (addon/viewport.py)
+
+    def __del__(self):
+        # Blender frees the engine when the view leaves Rendered shading (and on quit):
+        # stop the viewport session's thread.
+        self.free()
+        parent = getattr(super(), "__del__", None)
+        if parent is not None:
+            parent()
+
+    # --- rendered viewport: a thin layer over addon/viewport.py -------------------------
+    def view_update(self, context, depsgraph):
+        try:
+            if self._viewport is None:
+                self._viewport = viewport.ViewportRender()
+            self._viewport.update(context, depsgraph)
+        except Exception as exc:  # noqa: BLE001 - a message in the header, never a dialog
+            if not _expected(exc):
+                traceback.print_exc()
+            self.update_stats("", _user_message(exc))
+
+    def view_draw(self, context, depsgraph):
+        if self._viewport is not None:
+            self._viewport.draw(self, context, depsgraph)
+
+    def free(self):
+        """Stop the viewport session, if any (returns when its thread has ended)."""
+        vp = getattr(self, "_viewport", None)
+        if vp is not None:
+            vp.stop()
 
     # --- status: Blender's stats line / progress bar, and the script listeners ---------
     def _emit(self, event, value):
@@ -346,4 +376,5 @@ def register():
 
 
 def unregister():
+    viewport.stop_all()  # no viewport thread outlives the add-on
     bpy.utils.unregister_class(PhotonMapRenderEngine)

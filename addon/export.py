@@ -453,3 +453,196 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     info["lights"] = len(lights)
     info["export_time"] = time.perf_counter() - t0
     return scene, info
+
+
+# --- viewport: partial re-export (addon/viewport.py) -----------------------------------
+
+class ViewportUpdates:
+    """What depsgraph.updates of one viewport update touched, as plain names.
+
+    geometry: objects whose evaluated geometry changed (mesh data re-read); data:
+    names of geometry data-blocks (Mesh, Curve, ...) that changed; materials: material
+    names to convert again (all_materials: a node tree or image changed, so every one);
+    lights / world: a light or the world changed."""
+
+    def __init__(self):
+        self.geometry: set = set()
+        self.data: set = set()
+        self.materials: set = set()
+        self.all_materials = False
+        self.lights = False
+        self.world = False
+
+    @classmethod
+    def from_depsgraph(cls, depsgraph) -> "ViewportUpdates":
+        out = cls()
+        for update in depsgraph.updates:
+            out.add(update.id, update.is_updated_geometry, update.is_updated_transform,
+                    update.is_updated_shading)
+        return out
+
+    def add(self, idblock, geometry: bool, transform: bool, shading: bool) -> None:
+        kind = type(idblock).__name__
+        name = getattr(idblock, "name", "")
+        if kind == "Object":
+            if idblock.type == "LIGHT":
+                self.lights = True
+            elif geometry:
+                self.geometry.add(name)
+        elif kind == "Material":
+            self.materials.add(name)
+        elif kind.endswith("NodeTree"):
+            # A material's or world's own tree comes with its owner's update; a node
+            # group may be used by any material or the world.
+            if not getattr(idblock, "is_embedded_data", False):
+                self.all_materials = self.world = True
+        elif kind in ("Image", "Texture"):
+            self.all_materials = self.world = True
+        elif kind.endswith("Light"):  # PointLight, SpotLight, SunLight, AreaLight
+            self.lights = True
+        elif kind == "World":
+            self.world = True
+        elif geometry and kind in ("Mesh", "Curve", "Curves", "MetaBall", "TextCurve",
+                                   "SurfaceCurve", "PointCloud", "Volume", "GreasePencil"):
+            self.data.add(name)
+        elif kind == "Scene" and shading:
+            self.world = True  # e.g. another world assigned to the scene
+
+
+class ViewportExport:
+    """Engine scene content kept between viewport updates so that an update re-reads only
+    what changed: local geometry per object (re-read when the depsgraph says its
+    geometry changed; a moved object is only transformed again), engine meshes per
+    instance (reused while their geometry, matrix, materials and visibility are the
+    same), converted materials (converted again when changed)."""
+
+    def __init__(self, pm):
+        self.pm = pm
+        self.converter = MaterialConverter(pm)
+        self.geometry: dict = {}   # (object name, data pointer) -> LocalGeometry | None
+        self.meshes: dict = {}     # instance name -> (key, engine Mesh)
+        self.light_names: list = []
+
+
+def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height: int,
+                    updates: ViewportUpdates | None = None):
+    """Engine Scene for the viewport from an evaluated depsgraph, reusing `cache`.
+
+    camera: the engine Camera of the view (addon/viewport.py); updates: None for the
+    first export (everything read), else what changed since the last call. Returns
+    (scene, info); info says what was done: geometry_read (objects whose mesh data was
+    read), transformed (instances rebuilt from kept geometry), reused (instances kept
+    as they were), deleted (instances gone since the last call), materials (converted
+    again), and the flags geometry_changed (the mesh list differs: the renderer must
+    merge triangles again), materials_changed, lights_changed, world_changed."""
+    pm = cache.pm
+    scene_eval = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
+    render = depsgraph.scene.render
+    view_layer = getattr(depsgraph, "view_layer", None)
+    first = updates is None
+    updates = updates or ViewportUpdates()
+    converter = cache.converter
+    if updates.all_materials:
+        converter.cache.clear()
+        converter.images.clear()
+        converter.coordinate_users.clear()
+    for name in updates.materials:
+        converter.cache.pop(name, None)
+        converter.coordinate_users.discard(name)
+    info = dict(geometry_read=[], transformed=[], reused=[], deleted=[],
+                materials=sorted(updates.materials), triangles=0, lights=0, instances=0)
+    warnings: list[str] = []
+    materials: dict = {}
+    meshes, lights, seen = [], [], set()
+    converted_before = set(converter.cache)
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if not inst.is_instance and not getattr(inst, "show_self", True):
+            continue
+        if obj.type == "LIGHT":
+            name = obj.name if not inst.is_instance else \
+                f"{inst.parent.name}/{obj.name}.{len(lights)}"
+            light = convert_light(pm, obj, np.array(inst.matrix_world, dtype=np.float64),
+                                  name, warnings)
+            if light is not None:
+                lights.append(light)
+            continue
+        if obj.type == "CURVES":
+            msg = f"object '{obj.name}': hair curves are not supported and skipped"
+            if msg not in warnings:
+                warnings.append(msg)
+            continue
+        if obj.type != "MESH":
+            continue  # the depsgraph yields other geometry as MESH instances (export_scene)
+        data = getattr(obj, "data", None)
+        gkey = (obj.name, data.as_pointer() if data is not None else 0)
+        if (obj.name in updates.geometry or (data is not None and data.name in updates.data)
+                or gkey not in cache.geometry):
+            if gkey not in seen:
+                cache.geometry[gkey] = extract_geometry(obj)
+                info["geometry_read"].append(obj.name)
+        seen.add(gkey)
+        geo = cache.geometry[gkey]
+        if geo is None:
+            continue
+        names = []
+        for mat in [slot.material for slot in obj.material_slots] or [None]:
+            m = converter.convert(mat)
+            materials[m.name] = m
+            names.append(m.name)
+        if inst.is_instance:
+            parent = inst.parent.name if inst.parent is not None else "instance"
+            iname = f"{parent}/{obj.name}#{info['instances']}"
+            info["instances"] += 1
+        else:
+            iname = obj.name
+        matrix = np.array(inst.matrix_world, dtype=np.float64)
+        visibility = ray_visibility(obj, inst, view_layer)
+        coords = any(converter.needs_coordinates(n) for n in names)
+        key = (id(geo), matrix.tobytes(), tuple(names), coords,
+               tuple(sorted(visibility.items())), terminator_offset(obj),
+               terminator_shading(obj))
+        old = cache.meshes.get(iname)
+        if old is not None and old[0] == key:
+            mesh = old[1]
+            info["reused"].append(iname)
+        else:
+            verts, faces, normals, uvs = transform_geometry(geo, matrix)
+            flipped = np.linalg.det(matrix[:3, :3]) < 0
+            colors = geo.colors[:, [0, 2, 1]] if (geo.colors is not None and flipped) \
+                else geo.colors
+            mesh = pm.Mesh(name=iname, vertices=verts, faces=faces, normals=normals, uvs=uvs,
+                           colors=colors, materials=names,
+                           material_ids=np.clip(geo.material_index, 0, len(names) - 1),
+                           coordinates=texture_coordinates(geo, flipped) if coords else None,
+                           shadow_terminator_offset=key[5],
+                           shadow_terminator_shading_offset=key[6], **visibility)
+            if obj.name not in info["geometry_read"]:
+                info["transformed"].append(iname)
+            cache.meshes[iname] = (key, mesh)
+        warn_unsupported_visibility(obj, warnings)
+        meshes.append(mesh)
+        info["triangles"] += len(mesh.faces)
+    current = {m.name for m in meshes}
+    info["deleted"] = sorted(n for n in cache.meshes if n not in current)
+    for name in info["deleted"]:
+        del cache.meshes[name]
+    for gkey in [k for k in cache.geometry if k not in seen]:
+        del cache.geometry[gkey]
+    background = world_background(scene_eval.world, warnings)
+    scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
+                     width=int(width), height=int(height), background=background,
+                     background_is_light=True)
+    scene.warnings.extend(warnings)
+    light_names = [li.name for li in lights]
+    info.update(
+        lights=len(lights),
+        geometry_changed=first or bool(info["geometry_read"] or info["transformed"]
+                                       or info["deleted"]),
+        materials_changed=first or bool(set(converter.cache) - converted_before),
+        lights_changed=first or updates.lights or light_names != cache.light_names,
+        world_changed=first or updates.world)
+    cache.light_names = light_names
+    if render.use_motion_blur:
+        scene.warnings.append("motion blur is not supported and ignored")
+    return scene, info

@@ -210,6 +210,35 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
                     "tcp://HOST:8786 (or local:W for W worker processes on this machine). "
                     "Empty = render on this machine. Same image either way")
 
+    # --- Rendered viewport (addon/viewport.py, issue 19) ---------------------------------
+    viewport_passes: IntProperty(
+        name="Viewport Passes", default=32, min=0, soft_max=1000,
+        description="Passes the rendered viewport refines to before it stops "
+                    "(0 = until the view is left)")
+    viewport_resolution: IntProperty(
+        name="Viewport Resolution", default=50, min=1, max=100, subtype="PERCENTAGE",
+        description="Rendered viewport pixels in percent of the view's own; the first "
+                    "images come at a quarter and a half of this")
+    viewport_photons: IntProperty(
+        name="Viewport Photons", default=20_000, min=0, soft_max=1_000_000, max=2**31 - 1,
+        description="Global photons emitted per viewport pass")
+    viewport_caustic_photons: IntProperty(
+        name="Viewport Caustic Photons", default=10_000, min=0, soft_max=1_000_000,
+        max=2**31 - 1, description="Caustic photons emitted per viewport pass")
+    viewport_samples: IntProperty(
+        name="Viewport Samples", default=1, min=1, soft_max=64, max=65536,
+        description="Camera samples per pixel in each viewport pass")
+
+    def to_viewport_settings_kwargs(self, film_transparent=False):
+        """RenderSettings keyword arguments of the rendered viewport: the render's
+        settings with the viewport's photons and samples per pass."""
+        kwargs = self.to_settings_kwargs(film_transparent)
+        kwargs.update(photons=self.viewport_photons,
+                      caustic_photons=self.viewport_caustic_photons,
+                      spp=self.viewport_samples, show_photons=False)
+        return kwargs
+    # --- end of the viewport block -------------------------------------------------------
+
     def to_settings_kwargs(self, film_transparent=False):
         """Keyword arguments for engine.settings.RenderSettings."""
         return dict(

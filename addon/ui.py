@@ -261,7 +261,28 @@ def draw_render_menu(self, context):
     layout.operator("photonmap.effects_strip", icon="RENDERLAYERS")
 
 
-classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_effects,
+# --- Rendered viewport (addon/viewport.py, issue 19) -------------------------------------
+class PHOTONMAP_PT_viewport(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Settings of the 3D view's Rendered shading (smaller than the render's)."""
+    bl_label = "Viewport"
+    bl_parent_id = "PHOTONMAP_PT_sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        pm = context.scene.photonmap
+        col = layout.column()
+        col.prop(pm, "viewport_passes", text="Passes")
+        col.prop(pm, "viewport_resolution", text="Resolution")
+        col.prop(pm, "viewport_samples", text="Samples per Pass")
+        col.prop(pm, "viewport_photons", text="Photons per Pass")
+        col.prop(pm, "viewport_caustic_photons", text="Caustic Photons")
+# --- end of the viewport block ------------------------------------------------------------
+
+
+classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_viewport,
+           PHOTONMAP_PT_effects,
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
            PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_distributed,
            PHOTONMAP_PT_passes, PHOTONMAP_PT_teaching)

@@ -185,9 +185,10 @@ class Accel:
         view._pool = None
         return view
 
-    def close(self):
+    def close(self, wait: bool = False):
+        """Shut the query threads down; wait=True returns after they have ended."""
         if self._pool is not None:
-            self._pool.shutdown(wait=False)
+            self._pool.shutdown(wait=wait)
             self._pool = None
 
     def __del__(self):

@@ -16,7 +16,31 @@ import threading
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor, wait
 
+# Pools shut down without waiting for their running chunks (after a cancel): drain()
+# joins them when a caller must leave no thread behind (engine/session.py's stop).
+_draining: list = []
+_draining_lock = threading.Lock()
 
+
+def _let_drain(pool):
+    pool.shutdown(wait=False, cancel_futures=True)
+    with _draining_lock:
+        # Pools whose threads all ended need no join (keeps the list short when a
+        # viewport session cancels on every edit).
+        _draining[:] = [p for p in _draining
+                        if any(t.is_alive() for t in getattr(p, "_threads", ()))]
+        _draining.append(pool)
+
+
+def drain() -> None:
+    """Wait for the chunks still running in pools that a cancel left behind (each stops
+    at its next check of stop()), so no worker thread outlives the caller's work."""
+    while True:
+        with _draining_lock:
+            if not _draining:
+                return
+            pool = _draining.pop()
+        pool.shutdown(wait=True)
 
 
 class Cancelled(Exception):
@@ -87,7 +111,7 @@ def ordered_map(job, items, threads: int, should_cancel=None):
         event.set()
         for f in pending:
             f.cancel()
-        pool.shutdown(wait=False, cancel_futures=True)
+        _let_drain(pool)
 
 
 def run_cancellable(job, should_cancel=None):
@@ -109,5 +133,5 @@ def run_cancellable(job, should_cancel=None):
                 raise Cancelled()
         return future.result()
     finally:
-        pool.shutdown(wait=False)
+        _let_drain(pool)
 

@@ -115,21 +115,34 @@ def hard_shadow_packing(packed):
     return codes, params, (centroid, np.zeros_like(e1), np.zeros_like(e2), *rest)
 
 
-def render_pass(ctx: Context, region, progress=None, should_cancel=None) -> Film:
-    """Photon pass + camera pass with ctx.settings into a new Film (raises Cancelled)."""
+def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) -> Photons:
+    """The photon pass alone: (re)fills ctx's photon maps for ctx.settings and records
+    its counts in stats. Returns the stored photons (for the photon-hit pass). Raises
+    Cancelled. Photons do not depend on the camera, so a session may keep
+    the maps of a pass and render other views from them (engine/session.py)."""
+    ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
+    s = ctx.settings
+    if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
+        return _photon_pass(ctx, stats, progress, should_cancel)
+    return Photons.empty()
+
+
+def render_pass(ctx: Context, region, progress=None, should_cancel=None,
+                shoot: bool = True) -> Film:
+    """Photon pass + camera pass with ctx.settings into a new Film (raises Cancelled).
+    shoot=False renders with the photon maps already in ctx (shoot_photons)."""
     settings = ctx.settings
     x0, y0, x1, y1 = region
     film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
     stats = film.stats
     stats["cancelled"] = False
-    ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     # Compiled kernels: compiled on the first render on this machine (the progress text
     # says so), loaded from the on-disk cache by later processes, once per process.
     stats["time_compile"] = ensure_compiled(progress)
     try:
         all_photons = Photons.empty()
-        if settings.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
-            all_photons = _photon_pass(ctx, stats, progress, should_cancel)
+        if shoot:
+            all_photons = shoot_photons(ctx, stats, progress, should_cancel)
         t0 = time.perf_counter()
         counters = render_camera(ctx, region, film, progress, should_cancel)
         stats["time_camera"] = time.perf_counter() - t0

@@ -41,8 +41,8 @@ class _Subset:
     def serial(self):
         return _Subset(self.accel.serial(), self.prim_map)
 
-    def close(self):
-        self.accel.close()
+    def close(self, wait: bool = False):
+        self.accel.close(wait)
 
     def intersect(self, o, d, tmax=None):
         t, prim, u, v = self.accel.intersect(o, d, tmax)
@@ -100,12 +100,13 @@ class VisibilityAccel:
             view._by_class[cls] = views[id(acc)]
         return view
 
-    def close(self):
+    def close(self, wait: bool = False):
+        """Shut every BVH's query threads down (wait=True: until they have ended)."""
         seen = set()
         for acc in [self.full, *self._by_class.values()]:
             if id(acc) not in seen:
                 seen.add(id(acc))
-                acc.close()
+                acc.close(wait)
 
     def for_class(self, cls: int):
         return self._by_class[int(cls)]
