@@ -23,6 +23,8 @@ import numpy as np
 
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
+from .lights.environment import env_pdf, env_radiance, env_sample
+from .lights.world import ENV_MAP_FRACTION
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
 
 F32_MAX = float(np.finfo(np.float32).max)
@@ -38,6 +40,7 @@ RADIUS, SIZE_X, SIZE_Y, AREA_, COS_HALF = pk.RADIUS, pk.SIZE_X, pk.SIZE_Y, pk.AR
 SPREAD_ON, TAN_H, SPREAD_NORM, IS_DISK, SPREAD_RECT = (pk.SPREAD_ON, pk.TAN_H, pk.SPREAD_NORM,
                                                        pk.IS_DISK, pk.SPREAD_RECT)
 SPOT_COS_HALF, SPOT_WIDTH, SPOT_FRAME = pk.SPOT_COS_HALF, pk.SPOT_WIDTH, pk.SPOT_FRAME
+ENV_ON, ENV_INTERP, ENV_FRAME = pk.ENV_ON, pk.ENV_INTERP, pk.ENV_FRAME
 C_POINT, C_SPOT, C_AREA, C_SUN, C_MESH, C_WORLD = (pk.CODE_POINT, pk.CODE_SPOT, pk.CODE_AREA,
                                                    pk.CODE_SUN, pk.CODE_MESH, pk.CODE_WORLD)
 
@@ -194,8 +197,8 @@ def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_norma
 @kernel
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
-                  m_tilt32, klight, ktrace, U1, U2, SEL,
-                  contrib, row, kidx, ray, o32, d32, t32):
+                  m_tilt32, env_px, env_rows, env_cols, env_pdf_uv, klight, ktrace, U1, U2,
+                  SEL, contrib, row, kidx, ray, o32, d32, t32):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
@@ -203,9 +206,11 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     origin offset along ng (rayoffset.origin_offset); shade_off (N,) Cycles' shading
     offset (0: none); cutoff (N,) shadow-terminator geometry offset of smooth triangles (0:
     none) and lift (N,3) their smooth-surface lift (terminator_lift).
-    codes (L,), params (L,P): packed lights; m_*: emissive triangles (packing.pack_lights).
+    codes (L,), params (L,P): packed lights; m_*: emissive triangles, env_*: the world's
+    environment map (packing.pack_lights).
     klight (K,) light of sample k, ktrace (K,) whether its shadows are traced; U1, U2,
-    SEL (K,N): its random numbers (SEL: the triangle choice of mesh lights).
+    SEL (K,N): its random numbers (SEL: the triangle choice of mesh lights, the strategy
+    choice of an environment-mapped world).
     Writes entries j < m_all: contrib (j,3) irradiance without visibility, row (j,) hit,
     kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
@@ -214,10 +219,15 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     m_all = 0
     m_rays = 0
     ntri = m_cdf.shape[0]
+    env_frame = np.zeros((3, 3))
     for k in range(K):
         li = klight[k]
         code = codes[li]
         q = params[li]
+        if code == C_WORLD and q[ENV_ON] != 0.0:
+            for a in range(3):
+                for b in range(3):
+                    env_frame[a, b] = q[ENV_FRAME + 3 * a + b]
         for i in range(n):
             u1 = U1[k, i]
             u2 = U2[k, i]
@@ -242,13 +252,33 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                     cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
                         1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
                     e0, e1, e2 = q[RGB] * cr, q[RGB + 1] * cr, q[RGB + 2] * cr
-                else:
+                elif q[ENV_ON] == 0.0:
                     r = math.sqrt(u1)
                     phi = TWO_PI * u2
                     z = math.sqrt(max(0.0, 1.0 - u1))
                     w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z, s0, s1, s2)
                     ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
                     e0, e1, e2 = (PI * q[RGB]) * ok, (PI * q[RGB + 1]) * ok, (PI * q[RGB + 2]) * ok
+                else:
+                    # Environment map: one-sample MIS of the map's distribution and the
+                    # cosine hemisphere (balance heuristic), SEL picks the strategy.
+                    R = env_frame
+                    if SEL[k, i] < ENV_MAP_FRACTION:
+                        w0, w1, w2, pe = env_sample(R, env_rows, env_cols, env_pdf_uv, u1, u2)
+                    else:
+                        r = math.sqrt(u1)
+                        phi = TWO_PI * u2
+                        z = math.sqrt(max(0.0, 1.0 - u1))
+                        w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z,
+                                               s0, s1, s2)
+                        pe = env_pdf(R, env_pdf_uv, w0, w1, w2)
+                    cs = w0 * s0 + w1 * s1 + w2 * s2
+                    ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
+                    pdf = ENV_MAP_FRACTION * pe + (1.0 - ENV_MAP_FRACTION) * max(cs, 0.0) / PI
+                    if cs > 0 and pdf > 0 and ok > 0:
+                        L0, L1, L2 = env_radiance(R, env_px, int(q[ENV_INTERP]), w0, w1, w2)
+                        f = cs / pdf
+                        e0, e1, e2 = L0 * f, L1 * f, L2 * f
             elif code == C_POINT or code == C_SPOT:
                 t0, t1, t2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
                 dc = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)

@@ -219,8 +219,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         if li.kind == WORLD:
             plan.light_samples[li.name] = s.light_samples
             plan.shadows[li.name] = has_tris
+            env = li.environment
             plan.add("world light", True, "non-black background lights the scene "
-                     "(cosine-weighted shadow rays)")
+                     "(cosine-weighted shadow rays)" if env is None else
+                     f"environment map '{env.name}' ({env.width}x{env.height}) lights the "
+                     "scene (shadow rays importance-sample the map)")
             continue
         sized = li.has_size
         if s.soft_shadows == "off":

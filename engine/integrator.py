@@ -17,6 +17,7 @@ import numpy as np
 
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .lights import MESH
+from .lights.world import background_radiance
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .parallel import Cancelled, chunk_length, ordered_map
@@ -91,7 +92,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         for si in range(count):
             u1, u2 = (sampler.uv(("light", li, si)) if sampler is not None
                       else (rng.random(n), rng.random(n)))
-            sel = rng.random(n) if light.kind == MESH else None
+            sel = rng.random(n) if light.needs_choice else None
             samples.append((li, traced, count, u1, u2, sel))
     if n == 0 or not samples:
         return np.zeros((n, 3))
@@ -108,7 +109,7 @@ def light_shadow_rays(ctx, hit, light_index, rng):
     n = len(hit.p)
     light = ctx.lights[light_index]
     u1, u2 = rng.random(n), rng.random(n)
-    sel = rng.random(n) if light.kind == MESH else None
+    sel = rng.random(n) if light.needs_choice else None
     buf = DirectLightBuffers().ensure(max(n, 1))
     codes, params, mesh = pack_lights(ctx.lights)
     m_all, m_rays = sample_lights(*_hit_arrays(ctx.geo, hit), codes, params, *mesh,
@@ -465,7 +466,6 @@ def _write_film(film, acc, spp, rh, rw):
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                  should_cancel, sampler=None, sample_id=None):
     s = ctx.settings
-    bg = np.asarray(ctx.scene.background, np.float64)
     depth_limit = ctx.plan.specular_depth
     # A pixel's radius on the surface it sees: half a pixel's width at the distance the
     # path has travelled (orthographic: the pixel's half width).
@@ -498,7 +498,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         miss = prim == -1
         if miss.any():
             if not (bounce == 0 and s.film_transparent):
-                radiance = np.broadcast_to(bg, (int(miss.sum()), 3))
+                radiance = background_radiance(ctx.scene, d[miss])
                 for light in ctx.lights:
                     if bounce > 0:
                         sun = light.seen_at_infinity(d[miss])

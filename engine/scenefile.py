@@ -204,7 +204,7 @@ def load_scene(path: str):
 
 def _build(data: dict, base: str):
     top = _Table(data, "scene file", {"render", "camera", "materials", "objects", "lights",
-                                      "background"})
+                                      "background", "environment"})
     render_table = _Table(top.get("render", {}), "[render]",
                           set(RenderSettings.names()) | {"width", "height"})
     width = render_table.integer("width", 400, 1, MAX_RESOLUTION)
@@ -216,6 +216,8 @@ def _build(data: dict, base: str):
         raise SceneFileError(f"[render]: {e}") from None
     background = top.vec3("background", (0.0, 0.0, 0.0), nonneg=True)
     scene = PaperScene(width=width, height=height, background=background)
+    if "environment" in top:
+        scene.environment = _environment(top.get("environment"), base)
     materials = top.get("materials", {})
     if not isinstance(materials, dict):
         raise SceneFileError(f"'materials' must be a table of [materials.NAME] sections, got "
@@ -230,6 +232,31 @@ def _build(data: dict, base: str):
     for i, spec in enumerate(_array_of_tables(data, "lights")):
         _light(scene, spec, i)
     return scene, render
+
+
+def _environment(spec, base):
+    """[environment]: an equirectangular image lighting the scene (engine/lights/
+    environment.py): image (EXR / NPY linear, PNG sRGB), strength, rotation (XYZ Euler
+    degrees, the Mapping node's), interpolation."""
+    from .imageio import read_image
+    from .lights.environment import Environment
+    t = _Table(spec, "[environment]", {"image", "strength", "rotation", "interpolation"})
+    path = t.string("image")
+    full = path if os.path.isabs(path) else os.path.join(base, path)
+    if not os.path.isfile(full):
+        raise SceneFileError(f"[environment] image: file '{path}' not found")
+    try:
+        pixels = read_image(full)
+    except Exception as e:  # noqa: BLE001  (any reader failure: one line naming the file)
+        raise SceneFileError(f"[environment] image: '{path}' cannot be read: {e}") from None
+    strength = t.number("strength", 1.0, lo=0.0)
+    rotation = _rotation(t.vec3("rotation")) if "rotation" in t else None
+    interpolation = t.string("interpolation", "Linear", choices=("linear", "closest"))
+    interpolation = interpolation.capitalize()
+    try:
+        return Environment(pixels, strength, rotation, interpolation, name=path)
+    except ValueError as e:
+        raise SceneFileError(f"[environment]: {e}") from None
 
 
 def _material(scene, name, spec):
