@@ -14,7 +14,8 @@ image repeated in both directions (the node's fixed extension mode).
 
 Sampling: the distribution's function on texel (row i, column j) is the mean of the
 bilinearly interpolated luminance over the texel (a 3 x 3 filter of texel luminances,
-so every direction with radiance has a non-zero pdf) times sin(theta) at the row centre.
+so every direction with radiance has a non-zero pdf; Closest: the texel's luminance)
+times sin(theta) at the row centre.
 A direction's solid-angle pdf is pdf_uv / (2 pi^2 sin theta).
 
 The lookups and the sampling are compiled kernels (engine/jit.py) shared by the
@@ -107,7 +108,8 @@ class Environment:
         """(row cdf (H+1,), per-row column cdfs (H, W+1), pdf_uv (H, W)) of the 2D
         piecewise-constant distribution (see the module docstring); built once."""
         if self._distribution is None:
-            self._distribution = build_distribution(self.pixels)
+            self._distribution = build_distribution(self.pixels,
+                                                    self.interp_code == INTERP_LINEAR)
         return self._distribution
 
     def integral(self) -> np.ndarray:
@@ -152,15 +154,17 @@ class Environment:
         return wi, pdf
 
 
-def build_distribution(pixels: np.ndarray):
-    """The sampling distribution of radiance texels (H, W, 3): see Environment.distribution."""
+def build_distribution(pixels: np.ndarray, bilinear: bool = True):
+    """The sampling distribution of radiance texels (H, W, 3): see Environment.distribution.
+    bilinear: the lookups interpolate (a texel's function is the mean of the interpolated
+    luminance over it); else each texel's own luminance (Closest)."""
     H, W = pixels.shape[:2]
-    lum = np.maximum(luminance(pixels), 0.0)
-    # Mean of the bilinear interpolation over a texel: weights 3/4, 1/8, 1/8 per axis
-    # (texels wrap around, as the lookup's Repeat extension).
-    f = 0.75 * lum + 0.125 * (np.roll(lum, 1, axis=1) + np.roll(lum, -1, axis=1))
-    f = 0.75 * f + 0.125 * (np.roll(f, 1, axis=0) + np.roll(f, -1, axis=0))
-    f = np.maximum(f, lum)  # Closest lookups: the texel itself must be covered too
+    f = np.maximum(luminance(pixels), 0.0)
+    if bilinear:
+        # Mean of the bilinear interpolation over a texel: weights 3/4, 1/8, 1/8 per axis
+        # (texels wrap around, as the lookup's Repeat extension).
+        f = 0.75 * f + 0.125 * (np.roll(f, 1, axis=1) + np.roll(f, -1, axis=1))
+        f = 0.75 * f + 0.125 * (np.roll(f, 1, axis=0) + np.roll(f, -1, axis=0))
     sin_t = np.sin(PI * (np.arange(H) + 0.5) / H)
     f = f * sin_t[:, None]
     row_sum = f.sum(axis=1)
