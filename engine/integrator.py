@@ -17,6 +17,7 @@ import numpy as np
 
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .lights import MESH
+from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import background_radiance
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
@@ -79,6 +80,22 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     by its own rays, which stays calm right next to the emitter)."""
     n = len(hit.p)
     plan = ctx.plan
+    chosen = selector_for(ctx, skip_mesh_lights)
+    if chosen is not None:
+        # Many lights: each shadow ray goes to one light the light tree picks per hit.
+        S = selection_samples(ctx.settings)
+        samples = []
+        for si in range(S):
+            u1, u2 = (sampler.uv(("light", 0, si)) if sampler is not None
+                      else (rng.random(n), rng.random(n)))
+            samples.append((-1, True, S, u1, u2, rng.random(n)))
+        if n == 0:
+            return np.zeros((n, 3))
+        packed = ctx.packed_lights or pack_lights(ctx.lights)
+        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW,
+                               n, tree=chosen[1])
+        counters.shadow_rays += rays
+        return E
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
     # mesh light's triangle choice), sample by sample.
     samples = []
@@ -113,6 +130,7 @@ def light_shadow_rays(ctx, hit, light_index, rng):
     buf = DirectLightBuffers().ensure(max(n, 1))
     codes, params, mesh = pack_lights(ctx.lights)
     m_all, m_rays = sample_lights(*_hit_arrays(ctx.geo, hit), codes, params, *mesh,
+                                  *empty_tree(), np.ones(len(codes), np.bool_),
                                   np.array([light_index], np.int64), np.ones(1, np.bool_),
                                   u1[None], u2[None],
                                   np.zeros((1, 1)) if sel is None else sel[None],
@@ -390,8 +408,11 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     threads = s.threads
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
-    dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
-                                             for li in ctx.lights])
+    if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
+        dims = camera_dimensions(s.gather_rays, [selection_samples(s)])
+    else:
+        dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
+                                                 for li in ctx.lights])
 
     def job(item, stop):
         ci, start = item
@@ -486,6 +507,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
         for light in ctx.lights:
+            if not light.has_surface:  # nothing to meet (many point lights: no cost)
+                continue
             sees = (ray_cls & light.ray_kinds) != 0
             if not sees.any():
                 continue

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -43,6 +43,8 @@ class Context:
     global_radius: float = 0.0
     caustic_radius: float = 0.0
     packed_lights: tuple | None = None  # lights as the direct-light kernels read them
+    # Light trees for many lights (engine/lights/selection.py selector_for), built on use.
+    light_selectors: dict = field(default_factory=dict)
 
 
     def serial(self) -> "Context":

@@ -80,6 +80,12 @@ class Light:
         return True
 
     @property
+    def has_surface(self) -> bool:
+        """Rays can meet its emitting surface (intersect finds hits): the camera pass asks
+        only these lights, so point lights of radius 0 cost nothing per ray."""
+        return False
+
+    @property
     def needs_choice(self) -> bool:
         """Takes a third random number per shadow sample (the SEL stream of
         directlight.sample_lights): a mesh light's triangle, an environment-mapped world's
