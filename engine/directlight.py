@@ -226,13 +226,17 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     m_rays = 0
     ntri = m_cdf.shape[0]
     env_frame = np.zeros((3, 3))
+    last = -1
+    code = codes[0] if codes.shape[0] > 0 else -1
+    q = params[0] if params.shape[0] > 0 else np.zeros(pk.P)
     for k in range(K):
         for i in range(n):
             u1 = U1[k, i]
             u2 = U2[k, i]
             li = klight[k]
             pmf = 1.0
-            selu = SEL[k, i]
+            # SEL is (K, 1) when no sample takes a third number: never index past it.
+            selu = SEL[k, i] if SEL.shape[1] == n else 0.0
             trace = ktrace[k]
             if li < 0:
                 # One light chosen for this hit by the light tree (lights/selection.py);
@@ -243,12 +247,14 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                 if li < 0 or not pmf > 0:
                     continue
                 trace = l_trace[li]
-            code = codes[li]
-            q = params[li]
-            if code == C_WORLD and q[ENV_ON] != 0.0:
-                for a in range(3):
-                    for b in range(3):
-                        env_frame[a, b] = q[ENV_FRAME + 3 * a + b]
+            if li != last:  # a light's row and frame, fetched when the light changes
+                last = li
+                code = codes[li]
+                q = params[li]
+                if code == C_WORLD and q[ENV_ON] != 0.0:
+                    for a in range(3):
+                        for b in range(3):
+                            env_frame[a, b] = q[ENV_FRAME + 3 * a + b]
             p0, p1, p2 = p[i, 0], p[i, 1], p[i, 2]
             s0, s1, s2 = ns[i, 0], ns[i, 1], ns[i, 2]
             g0, g1, g2 = gate[i, 0], gate[i, 1], gate[i, 2]
