@@ -117,7 +117,7 @@ def _environment(pm, world, node, strength, warnings):
         warnings.append(f"{who}: image '{img.name}' could not be read ({exc}); using the "
                         "Background colour")
         return None
-    rgb = np.asarray(rgba[:, :, :3], np.float64)
+    rgb = np.asarray(rgba[:, :, :3], np.float32)
     if not img.is_float and img.colorspace_settings.name not in _LINEAR_SPACES:
         # 8-bit sRGB texels: Cycles interpolates the stored values and converts after;
         # here they are converted first (a difference only at texel scale).

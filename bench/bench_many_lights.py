@@ -107,7 +107,8 @@ def main():
     w, h = (int(v) for v in args.size.split("x"))
     counts = [int(v) for v in args.lights.split(",")]
     spps = [int(v) for v in args.spp.split(",")]
-    build(2, 8, 6).render(RenderSettings(spp=1, photon_mapping=False))  # compile / load kernels
+    for n in (2, selection.SAMPLE_ALL_UP_TO + 1):  # compile / load kernels, both modes
+        render_ours(build(n, 8, 6), 1)
     rows = []
     for n in counts:
         scene = build(n, w, h)

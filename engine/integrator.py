@@ -86,9 +86,16 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         S = selection_samples(ctx.settings)
         samples = []
         for si in range(S):
-            u1, u2 = (sampler.uv(("light", 0, si)) if sampler is not None
-                      else (rng.random(n), rng.random(n)))
-            samples.append((-1, True, S, u1, u2, rng.random(n)))
+            if sampler is not None:
+                u1, u2 = sampler.uv(("light", 0, si))
+                # The tree's choice stratified over the pixel's samples: the 2-D cell
+                # read as one of m^2 strata in 1-D.
+                c1, c2 = sampler.uv(("light-select", si))
+                choose = np.minimum((np.floor(c2 * sampler.m) + c1) / sampler.m,
+                                    0.9999999999999999)
+            else:
+                u1, u2, choose = rng.random(n), rng.random(n), rng.random(n)
+            samples.append((-1, True, S, u1, u2, choose))
         if n == 0:
             return np.zeros((n, 3))
         packed = ctx.packed_lights or pack_lights(ctx.lights)
@@ -378,7 +385,7 @@ class Accumulator:
 
 
 
-def camera_dimensions(gather_rays: int, light_samples) -> SampleDimensions:
+def camera_dimensions(gather_rays: int, light_samples, extra=()) -> SampleDimensions:
     """The first-hit sampler's dimensions: ("gather", g) for each final-gather ray and
     ("light", li, si) for each shadow sample si of light li (light_samples[li] of them).
     Preferred numbers are the ones used before dimensions were allocated (gather
@@ -391,6 +398,7 @@ def camera_dimensions(gather_rays: int, light_samples) -> SampleDimensions:
         for li, n in enumerate(light_samples):
             if si < n:
                 requests.append((("light", li, si), 2 + 64 * li + si))
+    requests += [(key, None) for key in extra]  # e.g. the light tree's choices
     return SampleDimensions(requests)
 
 
@@ -409,7 +417,8 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
-        dims = camera_dimensions(s.gather_rays, [selection_samples(s)])
+        S = selection_samples(s)
+        dims = camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)])
     else:
         dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
                                                  for li in ctx.lights])

@@ -51,7 +51,7 @@ class Environment:
     """An equirectangular image lighting the scene from infinity.
 
     pixels         (H, W, 3) (or (H, W, 4): alpha ignored) linear RGB radiance per unit
-                   strength, top row first (the sky's zenith), float
+                   strength, top row first (the sky's zenith); kept as float32
     strength       scalar or RGB multiplier (the Background node's Strength x colour)
     rotation       (3, 3) rotation taking world directions to texture directions (the
                    Mapping node); None = identity. Must be a rotation (orthonormal, det 1)
@@ -63,7 +63,7 @@ class Environment:
                  name="environment"):
         self.name = name
         who = f"environment '{name}'"
-        a = np.asarray(pixels, dtype=np.float64)
+        a = np.asarray(pixels, dtype=np.float32)
         if a.ndim == 2:
             a = np.repeat(a[:, :, None], 3, axis=2)
         if a.ndim != 3 or a.shape[2] not in (3, 4) or a.shape[0] < 1 or a.shape[1] < 1:
@@ -83,7 +83,11 @@ class Environment:
         if interpolation not in INTERPOLATIONS:
             raise ValueError(f"{who} interpolation: expected one of {tuple(INTERPOLATIONS)}, "
                              f"got {interpolation!r}")
-        self.pixels = np.ascontiguousarray(a * s)  # strength folded in: radiance texels
+        # Strength folded in: radiance texels, float32 like the image files (an 8k x 4k
+        # HDRI: 400 MB as float32, twice that as float64).
+        self.pixels = np.ascontiguousarray(a * s.astype(np.float32))
+        if not np.all(np.isfinite(self.pixels)):
+            raise ValueError(f"{who}: image x strength overflows float32 radiance")
         self.strength = s
         self.rotation = np.ascontiguousarray(R)
         self.interpolation = interpolation
@@ -105,7 +109,7 @@ class Environment:
     # ------------------------------------------------------------------ distribution
     @property
     def distribution(self):
-        """(row cdf (H+1,), per-row column cdfs (H, W+1), pdf_uv (H, W)) of the 2D
+        """(row cdf (H+1,), per-row column cdfs (H, W+1) float64, pdf_uv (H, W) float32) of the 2D
         piecewise-constant distribution (see the module docstring); built once."""
         if self._distribution is None:
             self._distribution = build_distribution(self.pixels,
@@ -120,7 +124,7 @@ class Environment:
         theta0 = PI * np.arange(H) / H
         theta1 = PI * (np.arange(H) + 1) / H
         omega = (np.cos(theta0) - np.cos(theta1)) * TWO_PI / W  # per texel of each row
-        return np.einsum("hwc,h->c", self.pixels, omega)
+        return np.einsum("hwc,h->c", self.pixels.astype(np.float64), omega)
 
     def average(self) -> np.ndarray:
         """Mean radiance over the sphere (RGB)."""
@@ -159,7 +163,7 @@ def build_distribution(pixels: np.ndarray, bilinear: bool = True):
     bilinear: the lookups interpolate (a texel's function is the mean of the interpolated
     luminance over it); else each texel's own luminance (Closest)."""
     H, W = pixels.shape[:2]
-    f = np.maximum(luminance(pixels), 0.0)
+    f = np.maximum(luminance(np.asarray(pixels, np.float64)), 0.0)
     if bilinear:
         # Mean of the bilinear interpolation over a texel: weights 3/4, 1/8, 1/8 per axis
         # (texels wrap around, as the lookup's Repeat extension).
@@ -170,7 +174,7 @@ def build_distribution(pixels: np.ndarray, bilinear: bool = True):
     row_sum = f.sum(axis=1)
     total = row_sum.sum()
     if not total > 0:
-        z = np.zeros((H, W))
+        z = np.zeros((H, W), np.float32)
         return np.linspace(0.0, 1.0, H + 1), np.tile(np.linspace(0.0, 1.0, W + 1), (H, 1)), z
     rows = np.concatenate([[0.0], np.cumsum(row_sum)]) / total
     rows[-1] = 1.0
@@ -180,7 +184,7 @@ def build_distribution(pixels: np.ndarray, bilinear: bool = True):
     cols[:, -1] = 1.0
     pdf_uv = f * (H * W) / total
     return (np.ascontiguousarray(rows), np.ascontiguousarray(cols),
-            np.ascontiguousarray(pdf_uv))
+            np.ascontiguousarray(pdf_uv, dtype=np.float32))
 
 
 # ---------------------------------------------------------------------- kernels

@@ -39,7 +39,7 @@ from .sun import SunLight
 from .world import WorldLight
 
 # Scenes with more lights than this sample them through the tree.
-SAMPLE_ALL_UP_TO = 8
+SAMPLE_ALL_UP_TO = 16
 
 # Float columns of a tree node: box lo (3), hi (3), cone axis w (3), cos theta_o,
 # cos theta_e, phi (power), two-sided flag.
