@@ -212,6 +212,21 @@ def light_color_and_power():
              size=0.5)
 
 
+@case("lights", ours=dict(spp=128))
+def light_many_points():
+    """60 coloured point lights (more than the engine samples one by one): the light tree
+    picks one per shadow ray; brightness and the pools of colour as Cycles'. 128 spp: one
+    shadow ray per sample among 60 lights is noisier than one light's."""
+    _stage()
+    mb.box("Cube", 0.8, 0.8, 0.8, _red(), (0.3, 0.3, 0.4))
+    rng = np.random.default_rng(7)
+    for k in range(60):
+        x, y = rng.uniform(-3.5, 3.5, 2)
+        mb.light(f"P{k:02d}", "POINT", (float(x), float(y), float(rng.uniform(0.4, 2.0))),
+                 float(rng.uniform(5.0, 40.0)), color=tuple(rng.uniform(0.2, 1.0, 3)),
+                 shadow_soft_size=0.0)
+
+
 # --- camera ----------------------------------------------------------------------------
 
 def _camera_scene():
