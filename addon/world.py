@@ -140,6 +140,21 @@ def _euler(v):
     return Rz @ Ry @ Rx  # Blender's XYZ Euler order
 
 
+def _check_coordinates(world, socket, warnings):
+    """Warn unless the Texture Coordinate output feeding socket is the world's ray
+    direction (Generated, or Object without an object)."""
+    link = socket.links[0]
+    node, out = link.from_node, link.from_socket.name
+    while node.type == "REROUTE" and node.inputs[0].is_linked:
+        link = node.inputs[0].links[0]
+        node, out = link.from_node, link.from_socket.name
+    if out == "Generated" or (out == "Object" and getattr(node, "object", None) is None):
+        return
+    warnings.append(f"world '{world.name}': Texture Coordinate '{node.name}' output '{out}' "
+                    "is not supported for the environment; using the ray direction "
+                    "(Generated)")
+
+
 def _mapping_rotation(world, env_node, warnings):
     """Rotation (world direction -> texture direction) of a Mapping node in front of the
     environment texture, or None."""
@@ -148,7 +163,8 @@ def _mapping_rotation(world, env_node, warnings):
         return None
     who = f"world '{world.name}'"
     if m.type == "TEX_COORD":
-        return None  # Generated / Object of the world: the ray direction itself
+        _check_coordinates(world, env_node.inputs["Vector"], warnings)
+        return None
     if m.type != "MAPPING":
         warnings.append(f"{who}: node '{m.name}' ({m.type}) in front of the Environment "
                         "Texture is not supported; using the ray direction")
@@ -157,6 +173,8 @@ def _mapping_rotation(world, env_node, warnings):
     if coord is not None and coord.type != "TEX_COORD":
         warnings.append(f"{who}: node '{coord.name}' ({coord.type}) feeding Mapping "
                         f"'{m.name}' is not supported; using the ray direction")
+    elif coord is not None:
+        _check_coordinates(world, m.inputs["Vector"], warnings)
     for name in ("Location", "Rotation", "Scale"):
         sock = m.inputs.get(name)
         if sock is not None and sock.is_linked:

@@ -66,6 +66,27 @@ class EffectPlan:
         return [str(d) for d in self.decisions]
 
 
+def _summarise_many_lights(plan: EffectPlan, lights, s) -> None:
+    """Many lights (the light tree picks them, engine/lights/selection.py): the per-light
+    soft-shadow and shadow-ray lines become a few summary lines."""
+    per_light = [d for d in plan.decisions
+                 if d.effect.startswith("soft shadows '") or d.effect.startswith("shadow rays '")]
+    gone = {id(d) for d in per_light}
+    plan.decisions = [d for d in plan.decisions if id(d) not in gone]
+    sized = sum(1 for d in per_light if d.effect.startswith("soft shadows '") and d.enabled)
+    dark = [d.effect[len("shadow rays '"):-1] for d in per_light
+            if d.effect.startswith("shadow rays '")]
+    plan.add("light tree", True,
+             f"{len(lights)} lights: each shadow ray goes to one light chosen by power, "
+             f"distance and orientation ({selection_samples(s)} per sample)")
+    plan.add("soft shadows", sized > 0,
+             f"{sized} of {len(lights)} lights have a size" if sized else "no light has a size")
+    if dark:
+        names = ", ".join(f"'{n}'" for n in dark[:3]) + (" ..." if len(dark) > 3 else "")
+        plan.add("shadow rays", True, f"{len(dark)} lights cast no shadow ('Cast Shadow' "
+                 f"off: {names})")
+
+
 def _override(value: str, auto: bool, effect: str, auto_reason: str, plan: EffectPlan) -> bool:
     if value == "on":
         plan.add(effect, True, f"forced on ({auto_reason} when automatic)" if not auto
@@ -216,7 +237,6 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
 
     # --- lights: soft shadows, shadow rays ------------------------------------------------
     nothing_occludes = has_tris and _single_flat_surface(geo, np.ones(geo.count, bool))
-    per_light = []  # (effect, enabled, reason) per light; summarised for many lights
     for li in lights:
         if li.kind == WORLD:
             plan.light_samples[li.name] = s.light_samples
@@ -240,30 +260,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         else:
             what = {SUN: "sun of angle 0", AREA: "area light"}.get(li.kind, f"{li.kind.lower()} light of radius 0")
             why = f"'{li.name}' is a {what}: one shadow ray per sample"
-        per_light.append((f"soft shadows '{li.name}'", sized, why))
+        plan.add(f"soft shadows '{li.name}'", sized, why)
         casts = li.source is None or li.source.cast_shadow
         if not casts:
-            per_light.append((f"shadow rays '{li.name}'", False,
-                              "the light's 'Cast Shadow' is off"))
+            plan.add(f"shadow rays '{li.name}'", False, "the light's 'Cast Shadow' is off")
         plan.shadows[li.name] = casts and not nothing_occludes
     if tree_members(lights):
-        # Many lights: a few summary lines instead of one per light.
-        n_sized = sum(1 for e, on, _ in per_light if e.startswith("soft shadows") and on)
-        no_shadow = [e[len("shadow rays '"):-1] for e, _, _ in per_light
-                     if e.startswith("shadow rays")]
-        plan.add("light tree", True,
-                 f"{len(lights)} lights: each shadow ray goes to one light chosen by power, "
-                 f"distance and orientation ({selection_samples(s)} per sample)")
-        plan.add("soft shadows", n_sized > 0,
-                 f"{n_sized} of {len(lights)} lights have a size" if n_sized else
-                 "no light has a size")
-        if no_shadow:
-            names = ", ".join(f"'{n}'" for n in no_shadow[:3]) + (" ..." if len(no_shadow) > 3 else "")
-            plan.add("shadow rays", True, f"{len(no_shadow)} lights cast no shadow "
-                     f"('Cast Shadow' off: {names})")
-    else:
-        for effect, on, why in per_light:
-            plan.add(effect, on, why)
+        _summarise_many_lights(plan, lights, s)
     if nothing_occludes and lights:
         plan.add("shadow rays", False, "the scene is a single flat surface: nothing can cast a shadow")
     if has_tris and np.any(luminance(table.emission[mat]) > 0):

@@ -82,6 +82,18 @@ def test_unsupported_world_nodes_warn_once_naming_the_node(mb, bpy_addon):
     assert len([w for w in scene.all_warnings() if "Clouds" in w]) == 1
 
 
+def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):
+    bpy = bpy_addon
+    mb.set_world_hdri(mb.sky_hdri(16, 8), 1.0, rotation=(0.0, 0.0, 0.5))
+    nt = bpy.context.scene.world.node_tree
+    coord = next(n for n in nt.nodes if n.type == "TEX_COORD")
+    mapping = next(n for n in nt.nodes if n.type == "MAPPING")
+    assert not [w for w in _export(bpy).all_warnings() if "world" in w]
+    nt.links.new(coord.outputs["Window"], mapping.inputs["Vector"])
+    hits = [w for w in _export(bpy).all_warnings() if "'Window'" in w]
+    assert len(hits) == 1 and coord.name in hits[0]
+
+
 @pytest.mark.slow
 def test_hdri_example_blend_renders(bpy_addon, tmp_path):
     bpy = bpy_addon
