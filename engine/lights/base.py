@@ -57,11 +57,12 @@ class Light:
     @staticmethod
     def scene_params(light, geo, common) -> dict:
         """The parameters every declared light keeps (re-centred position, frame, ...)."""
-        c = float(np.dot(light.axis_u, light.axis_v))
-        du = (light.axis_u - c * light.axis_v) / (1.0 - c * c)
-        dv = (light.axis_v - c * light.axis_u) / (1.0 - c * c)
-        return dict(common, pos=light.position - geo.offset, dir=light.direction, u=light.axis_u,
-                    v=light.axis_v, du=du, dv=dv, radius=light.radius, spot_size=light.spot_size,
+        u, v = light.axis_u, light.axis_v  # computed properties: read once
+        c = float(np.dot(u, v))
+        du = (u - c * v) / (1.0 - c * c)
+        dv = (v - c * u) / (1.0 - c * c)
+        return dict(common, pos=light.position - geo.offset, dir=light.direction, u=u,
+                    v=v, du=du, dv=dv, radius=light.radius, spot_size=light.spot_size,
                     spot_blend=light.spot_blend, shape=light.shape, size_x=light.size_x,
                     size_y=light.size_y, spread=light.spread,
                     ray_kinds=ray_kinds_of(light),
