@@ -11,7 +11,8 @@ import time
 
 import numpy as np
 
-from .materials import MaterialConverter, world_background
+from .materials import MaterialConverter
+from .world import export_world
 
 
 
@@ -443,12 +444,12 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     if cam_obj is not None:
         cam_obj = cam_obj.evaluated_get(depsgraph)
     camera_out = convert_camera(pm, cam_obj, width, height, render, warnings)
-    background = world_background(scene_eval.world, warnings)
+    background, environment = export_world(pm, scene_eval.world, warnings)
     if render.use_motion_blur:
         warnings.append("motion blur is not supported and ignored")
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
-                     background_is_light=True)
+                     background_is_light=True, environment=environment)
     scene.warnings.extend(warnings)
     info["lights"] = len(lights)
     info["export_time"] = time.perf_counter() - t0

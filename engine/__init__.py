@@ -8,6 +8,7 @@ Python on numpy, embreex, scipy and numba (compiled kernels); never imports bpy.
 from . import imageio, presets, resources, shadernodes, teaching
 from .film import Film
 from .lights import DECLARED_KINDS
+from .lights.environment import Environment
 from .progressive import Budget, render_progressive
 from .render import render
 from .resources import ResourceError
@@ -21,5 +22,5 @@ __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "sh
            "RenderSettings",
            "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
            "ImageTexture", "ColorAttribute", "TextureError", "NormalMap", "Bump",
-           "DECLARED_KINDS"]
+           "DECLARED_KINDS", "Environment"]
 __version__ = "0.1.0"

@@ -259,6 +259,22 @@ class PaperScene(Scene):
         return self.add_light(PaperLight(name or f"sun.{len(self.lights):03d}", SUN, strength, color,
                                     direction=direction, angle=math.radians(angle_degrees)))
 
+    def set_environment(self, image, strength=1.0, rotation_degrees=(0.0, 0.0, 0.0),
+                        interpolation="Linear"):
+        """Light the scene with an equirectangular HDRI (Blender's Environment Texture):
+        image = (H, W, 3) linear radiance (top row first) or a file path (EXR / NPY
+        linear, PNG sRGB); rotation_degrees = the XYZ Euler rotation of a Mapping node in
+        front of it. Replaces the background colour (engine/lights/environment.py)."""
+        from .lights.environment import Environment, euler_xyz
+        name = "environment"
+        if isinstance(image, str):
+            from .imageio import read_image
+            name, image = image, read_image(image)
+        rx, ry, rz = (math.radians(float(a)) for a in rotation_degrees)
+        self.environment = Environment(image, strength, euler_xyz(rx, ry, rz), interpolation,
+                                       name=name)
+        return self.environment
+
     def set_camera(self, position, look_at, up=(0, 0, 1), view_angle=40.0, aspect=None, **kw):
         """The paper's camera. view_angle in degrees across the wider image side; aspect
         (width / height) adjusts the height of the image if given."""

@@ -23,6 +23,9 @@ import numpy as np
 
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
+from .lights.environment import env_pdf, env_radiance, env_sample
+from .lights.selection import empty_tree, select_light
+from .lights.world import ENV_MAP_FRACTION
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
 
 F32_MAX = float(np.finfo(np.float32).max)
@@ -38,6 +41,7 @@ RADIUS, SIZE_X, SIZE_Y, AREA_, COS_HALF = pk.RADIUS, pk.SIZE_X, pk.SIZE_Y, pk.AR
 SPREAD_ON, TAN_H, SPREAD_NORM, IS_DISK, SPREAD_RECT = (pk.SPREAD_ON, pk.TAN_H, pk.SPREAD_NORM,
                                                        pk.IS_DISK, pk.SPREAD_RECT)
 SPOT_COS_HALF, SPOT_WIDTH, SPOT_FRAME = pk.SPOT_COS_HALF, pk.SPOT_WIDTH, pk.SPOT_FRAME
+ENV_ON, ENV_INTERP, ENV_FRAME = pk.ENV_ON, pk.ENV_INTERP, pk.ENV_FRAME
 C_POINT, C_SPOT, C_AREA, C_SUN, C_MESH, C_WORLD = (pk.CODE_POINT, pk.CODE_SPOT, pk.CODE_AREA,
                                                    pk.CODE_SUN, pk.CODE_MESH, pk.CODE_WORLD)
 
@@ -194,8 +198,9 @@ def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_norma
 @kernel
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
-                  m_tilt32, klight, ktrace, U1, U2, SEL,
-                  contrib, row, kidx, ray, o32, d32, t32):
+                  m_tilt32, env_px, env_rows, env_cols, env_pdf_uv, tree_f, tree_i, inf_idx,
+                  inf_f, l_trace, klight, ktrace, U1, U2, SEL, contrib, row, kidx, ray, o32,
+                  d32, t32):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
@@ -203,9 +208,15 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     origin offset along ng (rayoffset.origin_offset); shade_off (N,) Cycles' shading
     offset (0: none); cutoff (N,) shadow-terminator geometry offset of smooth triangles (0:
     none) and lift (N,3) their smooth-surface lift (terminator_lift).
-    codes (L,), params (L,P): packed lights; m_*: emissive triangles (packing.pack_lights).
-    klight (K,) light of sample k, ktrace (K,) whether its shadows are traced; U1, U2,
-    SEL (K,N): its random numbers (SEL: the triangle choice of mesh lights).
+    codes (L,), params (L,P): packed lights; m_*: emissive triangles, env_*: the world's
+    environment map (packing.pack_lights).
+    tree_f, tree_i, inf_idx, inf_f: the light tree (lights/selection.py LightSelector;
+    empty_tree() without one), l_trace (L,) whether each light's shadows are traced.
+    klight (K,) light of sample k, or -1: a light chosen per hit by the tree, its
+    contribution divided by the choice's probability; ktrace (K,) whether its shadows are
+    traced (l_trace for chosen lights); U1, U2, SEL (K,N): its random numbers (SEL: the
+    triangle choice of mesh lights, the strategy choice of an environment-mapped world,
+    the tree's choice (remapped for those) when klight is -1).
     Writes entries j < m_all: contrib (j,3) irradiance without visibility, row (j,) hit,
     kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
@@ -214,13 +225,36 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     m_all = 0
     m_rays = 0
     ntri = m_cdf.shape[0]
+    env_frame = np.zeros((3, 3))
+    last = -1
+    code = codes[0] if codes.shape[0] > 0 else -1
+    q = params[0] if params.shape[0] > 0 else np.zeros(pk.P)
     for k in range(K):
-        li = klight[k]
-        code = codes[li]
-        q = params[li]
         for i in range(n):
             u1 = U1[k, i]
             u2 = U2[k, i]
+            li = klight[k]
+            pmf = 1.0
+            # SEL is (K, 1) when no sample takes a third number: never index past it.
+            selu = SEL[k, i] if SEL.shape[1] == n else 0.0
+            trace = ktrace[k]
+            if li < 0:
+                # One light chosen for this hit by the light tree (lights/selection.py);
+                # its remapped number serves the light's own third choice.
+                li, pmf, selu = select_light(tree_f, tree_i, inf_idx, inf_f, p[i, 0],
+                                             p[i, 1], p[i, 2], ns[i, 0], ns[i, 1], ns[i, 2],
+                                             selu)
+                if li < 0 or not pmf > 0:
+                    continue
+                trace = l_trace[li]
+            if li != last:  # a light's row and frame, fetched when the light changes
+                last = li
+                code = codes[li]
+                q = params[li]
+                if code == C_WORLD and q[ENV_ON] != 0.0:
+                    for a in range(3):
+                        for b in range(3):
+                            env_frame[a, b] = q[ENV_FRAME + 3 * a + b]
             p0, p1, p2 = p[i, 0], p[i, 1], p[i, 2]
             s0, s1, s2 = ns[i, 0], ns[i, 1], ns[i, 2]
             g0, g1, g2 = gate[i, 0], gate[i, 1], gate[i, 2]
@@ -242,13 +276,33 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                     cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
                         1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
                     e0, e1, e2 = q[RGB] * cr, q[RGB + 1] * cr, q[RGB + 2] * cr
-                else:
+                elif q[ENV_ON] == 0.0:
                     r = math.sqrt(u1)
                     phi = TWO_PI * u2
                     z = math.sqrt(max(0.0, 1.0 - u1))
                     w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z, s0, s1, s2)
                     ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
                     e0, e1, e2 = (PI * q[RGB]) * ok, (PI * q[RGB + 1]) * ok, (PI * q[RGB + 2]) * ok
+                else:
+                    # Environment map: one-sample MIS of the map's distribution and the
+                    # cosine hemisphere (balance heuristic), SEL picks the strategy.
+                    R = env_frame
+                    if selu < ENV_MAP_FRACTION:
+                        w0, w1, w2, pe = env_sample(R, env_rows, env_cols, env_pdf_uv, u1, u2)
+                    else:
+                        r = math.sqrt(u1)
+                        phi = TWO_PI * u2
+                        z = math.sqrt(max(0.0, 1.0 - u1))
+                        w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z,
+                                               s0, s1, s2)
+                        pe = env_pdf(R, env_pdf_uv, w0, w1, w2)
+                    cs = w0 * s0 + w1 * s1 + w2 * s2
+                    ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
+                    pdf = ENV_MAP_FRACTION * pe + (1.0 - ENV_MAP_FRACTION) * max(cs, 0.0) / PI
+                    if cs > 0 and pdf > 0 and ok > 0:
+                        L0, L1, L2 = env_radiance(R, env_px, int(q[ENV_INTERP]), w0, w1, w2)
+                        f = cs / pdf
+                        e0, e1, e2 = L0 * f, L1 * f, L2 * f
             elif code == C_POINT or code == C_SPOT:
                 t0, t1, t2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
                 dc = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
@@ -285,7 +339,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                 two_sided = code == C_MESH
                 if code == C_MESH:
                     # searchsorted(cdf, r, side="right"), clipped
-                    rr = SEL[k, i]
+                    rr = selu
                     lo, hi = 0, ntri
                     while lo < hi:
                         mid = (lo + hi) // 2
@@ -392,6 +446,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
             if shade_off[i] > 0:
                 sh = _shift_cos_in(w0 * s0 + w1 * s1 + w2 * s2, shade_off[i])
                 e0, e1, e2 = e0 * sh, e1 * sh, e2 * sh
+            if pmf != 1.0:
+                e0, e1, e2 = e0 / pmf, e1 / pmf, e2 / pmf
             if not ((e0 > 0 or e1 > 0 or e2 > 0) and e0 == e0 and e1 == e1 and e2 == e2):
                 continue
             j = m_all
@@ -399,7 +455,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
             contrib[j, 0], contrib[j, 1], contrib[j, 2] = e0, e1, e2
             row[j] = i
             kidx[j] = k
-            if not ktrace[k]:
+            if not trace:
                 ray[j] = -1
                 continue
             ray[j] = m_rays
@@ -485,15 +541,19 @@ class DirectLightBuffers:
         return self
 
 
-def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None):
+def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
-    index, traced?, light's sample count, u1 (N,), u2 (N,), triangle choice (N,) or None),
-    in the order they must be summed. packed = packing.pack_lights(lights); hit_arrays =
+    index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
+    in the order they must be summed; light index -1: the light tree `tree` (tree_f,
+    tree_i, inf_idx, inf_f, l_trace: lights/selection.py) picks one light per hit with
+    the third choice. packed = packing.pack_lights(lights); hit_arrays =
     (p, ns, gate, ng, offset, shade_off, cutoff, lift) as sample_lights takes them.
     shadow: an engine.shadowtransmittance.ShadowTransmittance (transparent shadows) or
     None (every surface blocks shadow rays).
     Returns (E, number of shadow rays traced)."""
     codes, params, mesh = packed
+    if tree is None:
+        tree = (*empty_tree(), np.ones(len(codes), np.bool_))
     E = np.zeros((n, 3))
     if n == 0 or not samples:
         return E, 0
@@ -516,9 +576,9 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None)
         else:
             SEL = np.zeros((K, 1))
         buf.ensure(K * n)
-        m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, klight, ktrace,
-                                      U1, U2, SEL, buf.contrib, buf.row, buf.kidx, buf.ray,
-                                      buf.o32, buf.d32, buf.t32)
+        m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
+                                      ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
+                                      buf.ray, buf.o32, buf.d32, buf.t32)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.

@@ -13,6 +13,7 @@ import numpy as np
 
 from .geometry import Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
+from .lights.selection import selection_samples, tree_members
 from .rayoffset import ulp32
 from .sampling import luminance
 from .scene import AREA, SUN
@@ -89,6 +90,27 @@ class EffectPlan:
         if self.method in METHOD_TEXT:
             lines.insert(0, f"method: {self.method} - {METHOD_TEXT[self.method]}")
         return lines
+
+
+def _summarise_many_lights(plan: EffectPlan, lights, s) -> None:
+    """Many lights (the light tree picks them, engine/lights/selection.py): the per-light
+    soft-shadow and shadow-ray lines become a few summary lines."""
+    per_light = [d for d in plan.decisions
+                 if d.effect.startswith("soft shadows '") or d.effect.startswith("shadow rays '")]
+    gone = {id(d) for d in per_light}
+    plan.decisions = [d for d in plan.decisions if id(d) not in gone]
+    sized = sum(1 for d in per_light if d.effect.startswith("soft shadows '") and d.enabled)
+    dark = [d.effect[len("shadow rays '"):-1] for d in per_light
+            if d.effect.startswith("shadow rays '")]
+    plan.add("light tree", True,
+             f"{len(lights)} lights: each shadow ray goes to one light chosen by power, "
+             f"distance and orientation ({selection_samples(s)} per sample)")
+    plan.add("soft shadows", sized > 0,
+             f"{sized} of {len(lights)} lights have a size" if sized else "no light has a size")
+    if dark:
+        names = ", ".join(f"'{n}'" for n in dark[:3]) + (" ..." if len(dark) > 3 else "")
+        plan.add("shadow rays", True, f"{len(dark)} lights cast no shadow ('Cast Shadow' "
+                 f"off: {names})")
 
 
 def _override(value: str, auto: bool, effect: str, auto_reason: str, plan: EffectPlan) -> bool:
@@ -323,8 +345,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         if li.kind == WORLD:
             plan.light_samples[li.name] = s.light_samples
             plan.shadows[li.name] = has_tris and s.method != "local"
+            env = li.environment
             plan.add("world light", True, "non-black background lights the scene "
-                     "(cosine-weighted shadow rays)")
+                     "(cosine-weighted shadow rays)" if env is None else
+                     f"environment map '{env.name}' ({env.width}x{env.height}) lights the "
+                     "scene (shadow rays importance-sample the map)")
             continue
         sized = li.has_size
         if s.soft_shadows == "off":
@@ -355,6 +380,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                 plan.decisions[i] = Decision(d.effect, False, "method 'local' has no shadows")
         plan.add("shadow rays", False, "method 'local' lights every surface facing a light "
                  "(no shadow rays)")
+    if tree_members(lights):
+        _summarise_many_lights(plan, lights, s)
     if nothing_occludes and lights:
         plan.add("shadow rays", False, "the scene is a single flat surface: nothing can cast a shadow")
     if has_tris and np.any(luminance(table.emission[mat]) > 0):

@@ -17,6 +17,8 @@ import numpy as np
 
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .lights import MESH
+from .lights.selection import empty_tree, selection_samples, selector_for
+from .lights.world import background_radiance
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
 from .camerarays import camera_rays_kernel
@@ -62,6 +64,29 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     by its own rays, which stays calm right next to the emitter)."""
     n = len(hit.p)
     plan = ctx.plan
+    chosen = selector_for(ctx, skip_mesh_lights)
+    if chosen is not None:
+        # Many lights: each shadow ray goes to one light the light tree picks per hit.
+        S = selection_samples(ctx.settings)
+        samples = []
+        for si in range(S):
+            if sampler is not None:
+                u1, u2 = sampler.uv(("light", 0, si))
+                # The tree's choice stratified over the pixel's samples: the 2-D cell
+                # read as one of m^2 strata in 1-D.
+                c1, c2 = sampler.uv(("light-select", si))
+                choose = np.minimum((np.floor(c2 * sampler.m) + c1) / sampler.m,
+                                    0.9999999999999999)
+            else:
+                u1, u2, choose = rng.random(n), rng.random(n), rng.random(n)
+            samples.append((-1, True, S, u1, u2, choose))
+        if n == 0:
+            return np.zeros((n, 3))
+        packed = ctx.packed_lights or pack_lights(ctx.lights)
+        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW,
+                               n, shadow=getattr(ctx, "shadow", None), tree=chosen[1])
+        counters.shadow_rays += rays
+        return E
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
     # mesh light's triangle choice), sample by sample.
     samples = []
@@ -75,7 +100,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         for si in range(count):
             u1, u2 = (sampler.uv(("light", li, si)) if sampler is not None
                       else (rng.random(n), rng.random(n)))
-            sel = rng.random(n) if light.kind == MESH else None
+            sel = rng.random(n) if light.needs_choice else None
             samples.append((li, traced, count, u1, u2, sel))
     if n == 0 or not samples:
         return np.zeros((n, 3))
@@ -93,10 +118,11 @@ def light_shadow_rays(ctx, hit, light_index, rng):
     n = len(hit.p)
     light = ctx.lights[light_index]
     u1, u2 = rng.random(n), rng.random(n)
-    sel = rng.random(n) if light.kind == MESH else None
+    sel = rng.random(n) if light.needs_choice else None
     buf = DirectLightBuffers().ensure(max(n, 1))
     codes, params, mesh = pack_lights(ctx.lights)
     m_all, m_rays = sample_lights(*_hit_arrays(ctx.geo, hit), codes, params, *mesh,
+                                  *empty_tree(), np.ones(len(codes), np.bool_),
                                   np.array([light_index], np.int64), np.ones(1, np.bool_),
                                   u1[None], u2[None],
                                   np.zeros((1, 1)) if sel is None else sel[None],
@@ -344,7 +370,7 @@ class Accumulator:
 
 
 
-def camera_dimensions(gather_rays: int, light_samples) -> SampleDimensions:
+def camera_dimensions(gather_rays: int, light_samples, extra=()) -> SampleDimensions:
     """The first-hit sampler's dimensions: ("gather", g) for each final-gather ray and
     ("light", li, si) for each shadow sample si of light li (light_samples[li] of them).
     Preferred numbers are the ones used before dimensions were allocated (gather
@@ -357,6 +383,7 @@ def camera_dimensions(gather_rays: int, light_samples) -> SampleDimensions:
         for li, n in enumerate(light_samples):
             if si < n:
                 requests.append((("light", li, si), 2 + 64 * li + si))
+    requests += [(key, None) for key in extra]  # e.g. the light tree's choices
     return SampleDimensions(requests)
 
 
@@ -374,8 +401,12 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     threads = s.threads
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
-    dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
-                                             for li in ctx.lights])
+    if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
+        S = selection_samples(s)
+        dims = camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)])
+    else:
+        dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
+                                                 for li in ctx.lights])
 
     def job(item, stop):
         ci, start = item
@@ -450,7 +481,6 @@ def _write_film(film, acc, spp, rh, rw):
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                  should_cancel, sampler=None, sample_id=None):
     s = ctx.settings
-    bg = np.asarray(ctx.scene.background, np.float64)
     depth_limit = ctx.plan.specular_depth
     # A pixel's radius on the surface it sees: half a pixel's width at the distance the
     # path has travelled (orthographic: the pixel's half width).
@@ -471,6 +501,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
         for light in ctx.lights:
+            if not light.has_surface:  # nothing to meet (many point lights: no cost)
+                continue
             sees = (ray_cls & light.ray_kinds) != 0
             if not sees.any():
                 continue
@@ -483,7 +515,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         miss = prim == -1
         if miss.any():
             if not (bounce == 0 and s.film_transparent):
-                radiance = np.broadcast_to(bg, (int(miss.sum()), 3))
+                radiance = background_radiance(ctx.scene, d[miss])
                 for light in ctx.lights:
                     if bounce > 0:
                         sun = light.seen_at_infinity(d[miss])

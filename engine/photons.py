@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
 from .bsdf import lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, max3, to_world
@@ -74,17 +75,18 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     settings = ctx.settings
     total = int(sum(counts))
     jobs = []
-    for li, count in enumerate(counts):
+    # Many lights with few photons each emit in groups (engine/lights/group.py).
+    for li, emitter, count in photon_emitters(lights, counts, settings.chunk_size):
         chunk = chunk_length(count, settings.chunk_size)  # same for any thread count
-        jobs += [(li, ci, start, min(chunk, count - start), count)
+        jobs += [(li, ci, start, min(chunk, count - start), count, emitter)
                  for ci, start in enumerate(range(0, count, chunk))]
     threads = settings.threads
     accel = ctx.accel.serial() if threads > 1 and len(jobs) > 1 else ctx.accel
 
     def job(item, stop):
-        li, ci, start, n, count = item
+        li, ci, start, n, count, emitter = item
         rng = np.random.default_rng([settings.seed, stream, li, ci])
-        return _trace_chunk(ctx, accel, lights[li], n, count, rng, caustic_only, targets, stop,
+        return _trace_chunk(ctx, accel, emitter, n, count, rng, caustic_only, targets, stop,
                             first_hit)
 
     parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}

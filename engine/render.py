@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -46,6 +46,8 @@ class Context:
     caustic_radius: float = 0.0
     packed_lights: tuple | None = None  # lights as the direct-light kernels read them
     shadow: ShadowTransmittance | None = None  # transparent shadows (None: none in the scene)
+    # Light trees for many lights (engine/lights/selection.py selector_for), built on use.
+    light_selectors: dict = field(default_factory=dict)
 
 
     def serial(self) -> "Context":

@@ -668,6 +668,9 @@ class Scene:
     height: int = 240
     background: tuple | np.ndarray = (0.0, 0.0, 0.0)
     background_is_light: bool = True
+    # An equirectangular environment map (engine/lights/environment.py Environment); when
+    # set it replaces `background` as the world's radiance.
+    environment: object | None = None
     warnings: list = field(default_factory=list)
 
     def add_material(self, material: Material) -> Material:
@@ -714,8 +717,15 @@ class Scene:
                         self.materials["default"] = Material("default")
                     else:
                         raise SceneError(f"mesh '{mesh.name}': unknown material '{name}'")
+        if self.environment is not None:
+            from .lights.environment import Environment
+            if not isinstance(self.environment, Environment):
+                raise SceneError(f"environment: expected an engine Environment, got "
+                                 f"{type(self.environment).__name__}")
         has_emitter = any(m.is_emissive for m in self.materials.values())
-        if not self.lights and not has_emitter and not np.any(self.background > 0):
+        world_lit = (not self.environment.is_black if self.environment is not None
+                     else np.any(self.background > 0))
+        if not self.lights and not has_emitter and not world_lit:
             msg = "scene has no lights, emissive materials or background light: image is black"
             if msg not in self.warnings:
                 self.warnings.append(msg)

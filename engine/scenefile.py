@@ -178,6 +178,11 @@ LIGHT_SCHEMA = _table({
     "cast_shadow": _BOOL})
 
 
+ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
+                             "rotation": _vec3(), "interpolation": _choice("linear", "closest")},
+                            required=("image",))
+
+
 def _sections(key) -> dict:
     what = f"an array of tables ([[{key}]] sections)"
     return {"type": "array", "items": {"type": "object", "what_type": what},
@@ -195,7 +200,7 @@ def scene_schema() -> dict:
         "materials": {"type": "object", "additionalProperties": MATERIAL_SCHEMA,
                       "what_type": "a table of [materials.NAME] sections"},
         "objects": _sections("objects"), "lights": _sections("lights"),
-        "background": _vec3(nonneg=True)})
+        "background": _vec3(nonneg=True), "environment": ENVIRONMENT_SCHEMA})
 
 
 _VALIDATORS = {}
@@ -348,6 +353,8 @@ def _build(data: dict, base: str):
         raise SceneFileError(f"[render]: {e}") from None
     background = _vec(data.get("background", (0.0, 0.0, 0.0)))
     scene = PaperScene(width=width, height=height, background=background)
+    if "environment" in data:
+        scene.environment = _environment(data["environment"], base)
     for name, spec in data.get("materials", {}).items():
         scene.add_material(Material(name, **{k: (_vec(v) if isinstance(v, list) else float(v))
                                              for k, v in spec.items()}))
@@ -357,6 +364,29 @@ def _build(data: dict, base: str):
     for i, spec in enumerate(data.get("lights", [])):
         _light(scene, spec, i)
     return scene, render
+
+
+def _environment(spec, base):
+    """[environment]: an equirectangular image lighting the scene (engine/lights/
+    environment.py): image (EXR / NPY linear, PNG sRGB), strength, rotation (XYZ Euler
+    degrees, the Mapping node's), interpolation. Types and ranges are the schema's."""
+    from .imageio import read_image
+    from .lights.environment import Environment
+    path = spec["image"]
+    full = path if os.path.isabs(path) else os.path.join(base, path)
+    if not os.path.isfile(full):
+        raise SceneFileError(f"[environment] image: file '{path}' not found")
+    try:
+        pixels = read_image(full)
+    except Exception as e:  # noqa: BLE001  (any reader failure: one line naming the file)
+        raise SceneFileError(f"[environment] image: '{path}' cannot be read: {e}") from None
+    rotation = _rotation(spec["rotation"]) if "rotation" in spec else None
+    interpolation = spec.get("interpolation", "linear").capitalize()
+    try:
+        return Environment(pixels, float(spec.get("strength", 1.0)), rotation, interpolation,
+                           name=path)
+    except ValueError as e:
+        raise SceneFileError(f"[environment]: {e}") from None
 
 
 def _camera(scene, cam):

@@ -23,6 +23,7 @@ ROOT = os.path.dirname(HERE)
 if ROOT not in sys.path:
     sys.path.insert(0, ROOT)
 
+import numpy as np  # noqa: E402
 import bpy  # noqa: E402  (must come first: it provides bmesh and mathutils)
 import bmesh  # noqa: E402
 from mathutils import Vector  # noqa: E402
@@ -71,6 +72,56 @@ def set_world(color, strength=1.0):
     bg.inputs["Color"].default_value = (*color, 1.0)
     bg.inputs["Strength"].default_value = strength
     world.color = color
+
+
+def sky_hdri(width=64, height=32, sun_elevation=35.0, sun_azimuth=-40.0, sun_irradiance=3.0,
+             zenith=(0.12, 0.22, 0.55), horizon=(0.55, 0.62, 0.75), ground=(0.18, 0.15, 0.12)):
+    """A small procedural equirectangular HDRI (H, W, 3) float32, top row first: a sky
+    gradient from `horizon` to `zenith`, a dark ground below the horizon and a sun of one
+    texel whose radiance gives `sun_irradiance` W/m^2 (at normal incidence), at
+    `sun_elevation` / `sun_azimuth` degrees (azimuth from +X towards +Y; Blender's
+    orientation: the image centre looks along +X)."""
+    rows = (np.arange(height) + 0.5) / height
+    theta = np.pi * rows                       # from the zenith
+    elev = np.pi / 2 - theta
+    t = np.clip(np.sin(elev), 0.0, 1.0)[:, None] ** 0.5
+    sky = (1 - t) * np.asarray(horizon) + t * np.asarray(zenith)
+    img = np.where((elev > 0)[:, None], sky, np.asarray(ground)[None, :])
+    img = np.repeat(img[:, None, :], width, axis=1)
+    # The sun: the texel holding its direction (u = 0.5 - azimuth / 360, v from theta).
+    i = min(int((90.0 - sun_elevation) / 180.0 * height), height - 1)
+    j = int((0.5 - sun_azimuth / 360.0) % 1.0 * width) % width
+    th0, th1 = np.pi * i / height, np.pi * (i + 1) / height
+    omega = (np.cos(th0) - np.cos(th1)) * 2 * np.pi / width
+    img[i, j] = sun_irradiance / omega * np.array([1.0, 0.93, 0.82])
+    return img.astype(np.float32)
+
+
+def set_world_hdri(pixels, strength=1.0, rotation=None, name="sky"):
+    """World = Environment Texture of an (H, W, 3) top-first image (packed in the file)
+    x strength, behind a Texture Coordinate -> Mapping pair when `rotation` (XYZ Euler,
+    radians) is given."""
+    h, w = pixels.shape[:2]
+    img = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
+    px = np.ones((h, w, 4), np.float32)
+    px[..., :3] = pixels[::-1]  # Blender rows run bottom to top
+    img.pixels.foreach_set(px.ravel())
+    img.pack()
+    set_world((0.0, 0.0, 0.0), strength)
+    world = bpy.context.scene.world
+    nt = world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = img
+    nt.links.new(env.outputs[0], bg.inputs["Color"])
+    if rotation is not None:
+        coord = nt.nodes.new("ShaderNodeTexCoord")
+        mapping = nt.nodes.new("ShaderNodeMapping")
+        mapping.inputs["Rotation"].default_value = rotation
+        nt.links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
+        nt.links.new(mapping.outputs[0], env.inputs["Vector"])
+    world.color = tuple(float(c) for c in pixels.reshape(-1, 3).mean(axis=0))
+    return img
 
 
 def empty_material(name):
@@ -281,16 +332,36 @@ def figure8(path):
     save(path)
 
 
+def hdri_sphere(path):
+    """Blender's everyday look: objects lit only by an HDRI (a procedural sky with a sun,
+    packed in the file), with a rotated Mapping node in front of it."""
+    reset()
+    white = material("white", "diffuse", (0.8, 0.8, 0.8))
+    red = material("red_plastic", "principled", (0.8, 0.08, 0.05), roughness=0.3)
+    plane("Floor", 12, 12, white)
+    sphere("Ball", 1.0, red, (0, 0, 1))
+    box("Block", 0.8, 0.8, 0.8, white, (1.8, 0.9, 0.4), (0, 0, math.radians(25)))
+    set_world_hdri(sky_hdri(), 1.0, rotation=(0.0, 0.0, math.radians(60.0)))
+    camera((1.0, -6.5, 2.4), (0.4, 0, 0.8), 40.0)
+    save(path)
+
+
 SCENES = {
     "figure3_sphere.blend": figure3,
     "figure6_box.blend": figure6,
     "figure7_blocker.blend": figure7,
     "figure8_caustic.blend": figure8,
+    "hdri_sphere.blend": hdri_sphere,
 }
 
 
 def main(argv=None):
-    argv = sys.argv[1:] if argv is None else argv
+    argv = list(sys.argv[1:] if argv is None else argv)
+    only = None
+    if "--only" in argv:  # --only NAME[,NAME]: rebuild just these files
+        k = argv.index("--only")
+        only = set(argv[k + 1].split(","))
+        del argv[k:k + 2]
     out_dir = argv[0] if argv else HERE
     os.makedirs(out_dir, exist_ok=True)
     import addon
@@ -299,7 +370,8 @@ def main(argv=None):
     except ValueError:
         pass  # already registered in this process
     for name, build in SCENES.items():
-        build(os.path.join(out_dir, name))
+        if only is None or name in only:
+            build(os.path.join(out_dir, name))
 
 
 if __name__ == "__main__":

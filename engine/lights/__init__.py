@@ -5,7 +5,8 @@ Conventions (docs/units.md; docs/design.md, Units (Cycles)): a point light of po
 intensity P/(4*pi) W/sr; a spot is that point light masked by Cycles' smoothstep cone; an
 area light emits one-sided uniform radiance P/(pi*A) along its -Z axis; a sun gives
 irradiance `strength` W/m^2; emissive meshes emit their radiance from both sides; a
-non-black background is a uniform environment.
+non-black background is a uniform environment, an environment map (environment.py) an
+importance-sampled HDRI. Many lights: selection.py's light tree picks one per shadow ray.
 
 To add a light kind: subclass Light in a new module, implement from_scene, pack (and its
 sampling in engine/directlight.py), _emit,

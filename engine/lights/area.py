@@ -26,6 +26,8 @@ class AreaLight(Light):
                   photon_flux=flux)
         return cls(light.name, **kw)
 
+    has_surface = True
+
     def _spread_rect(self) -> bool:
         """A rectangle with a narrow spread samples only the part that reaches the point
         (_sample_spread_rect); a sheared one samples it whole."""

@@ -57,11 +57,12 @@ class Light:
     @staticmethod
     def scene_params(light, geo, common) -> dict:
         """The parameters every declared light keeps (re-centred position, frame, ...)."""
-        c = float(np.dot(light.axis_u, light.axis_v))
-        du = (light.axis_u - c * light.axis_v) / (1.0 - c * c)
-        dv = (light.axis_v - c * light.axis_u) / (1.0 - c * c)
-        return dict(common, pos=light.position - geo.offset, dir=light.direction, u=light.axis_u,
-                    v=light.axis_v, du=du, dv=dv, radius=light.radius, spot_size=light.spot_size,
+        u, v = light.axis_u, light.axis_v  # computed properties: read once
+        c = float(np.dot(u, v))
+        du = (u - c * v) / (1.0 - c * c)
+        dv = (v - c * u) / (1.0 - c * c)
+        return dict(common, pos=light.position - geo.offset, dir=light.direction, u=u,
+                    v=v, du=du, dv=dv, radius=light.radius, spot_size=light.spot_size,
                     spot_blend=light.spot_blend, shape=light.shape, size_x=light.size_x,
                     size_y=light.size_y, spread=light.spread,
                     ray_kinds=ray_kinds_of(light),
@@ -78,6 +79,19 @@ class Light:
     def has_size(self) -> bool:
         """Needs several shadow samples (soft shadows)."""
         return True
+
+    @property
+    def has_surface(self) -> bool:
+        """Rays can meet its emitting surface (intersect finds hits): the camera pass asks
+        only these lights, so point lights of radius 0 cost nothing per ray."""
+        return False
+
+    @property
+    def needs_choice(self) -> bool:
+        """Takes a third random number per shadow sample (the SEL stream of
+        directlight.sample_lights): a mesh light's triangle, an environment-mapped world's
+        sampling strategy."""
+        return False
 
     # ------------------------------------------------------------------ shadow rays
     def pack(self, row) -> int:
@@ -163,13 +177,20 @@ class InfiniteLight(Light):
     def _directions(self, n, u1, u2):
         raise NotImplementedError
 
-    def _emit(self, n, rng, u1, u2, u3, u4):
+    def _photons_along(self, n, u1, u2):
+        """(directions of travel (n,3), power (n,3) of n photons): by default directions
+        of equal power (_directions); a light whose radiance varies with direction (an
+        environment map) weights them by radiance / pdf."""
         d = self._directions(n, u1, u2)
+        return d, np.broadcast_to(self.photon_flux / n, (n, 3)).copy()
+
+    def _emit(self, n, rng, u1, u2, u3, u4):
+        d, power = self._photons_along(n, u1, u2)
         x, yy = concentric_disk(u3, u4)
         t, b = orthonormal_basis(d)
         o = (self.center - 2.0 * self.scene_radius * d
              + self.scene_radius * (x[:, None] * t + yy[:, None] * b))
-        return o, d, np.broadcast_to(self.photon_flux / n, (n, 3)).copy()
+        return o, d, power
 
     def emit_towards(self, n: int, rng, centers: np.ndarray, radii: np.ndarray):
         """As Light.emit_towards; photons start on the casters' shadow disks in the plane
@@ -179,7 +200,7 @@ class InfiniteLight(Light):
             z = np.zeros((0, 3))
             return z, z.copy(), z.copy()
         u1, u2, u3, u4 = (rng.random(n) for _ in range(4))
-        d = self._directions(n, u1, u2)
+        d, power = self._photons_along(n, u1, u2)
         probs = radii ** 2 / np.sum(radii ** 2)
         j = rng.choice(K, size=n, p=probs)
         x, yy = concentric_disk(u3, u4)
@@ -197,4 +218,4 @@ class InfiniteLight(Light):
             aimed += probs[k] * inside / (math.pi * radii[k] ** 2)
         natural = (np.linalg.norm(o - start, axis=1) <= R) / (math.pi * R * R)
         ratio = natural / np.maximum(aimed, 1e-300)
-        return o, d, (self.photon_flux / n)[None, :] * ratio[:, None]
+        return o, d, power * ratio[:, None]

@@ -38,6 +38,8 @@ class MeshLight(Light):
                    round32=geo.round32[idx], tilt32=geo.tilt32[idx],
                    cos_half_angle=1.0, **common)
 
+    needs_choice = True
+
     def pack(self, row) -> int:
         """The triangles travel as arrays (packing.pack_lights); returns the kind code."""
         return pk.CODE_MESH

@@ -2,7 +2,8 @@
 
 Each light kind writes its parameters into one float64 row of P slots (pack(row) on its
 class); the slot names below are the only contract between the kinds and the kernels.
-Emissive triangles (one MeshLight at most) travel as their own arrays."""
+Emissive triangles (one MeshLight at most) and the world's environment map travel as
+their own arrays."""
 from __future__ import annotations
 
 import numpy as np
@@ -15,25 +16,38 @@ POS, DIR, U, V, DU, DV, RGB = 0, 3, 6, 9, 12, 15, 18   # 3 each
 RADIUS, SIZE_X, SIZE_Y, AREA_, COS_HALF = 21, 22, 23, 24, 25
 SPREAD_ON, TAN_H, SPREAD_NORM, IS_DISK, SPREAD_RECT = 26, 27, 28, 29, 30
 SPOT_COS_HALF, SPOT_WIDTH, SPOT_FRAME = 31, 32, 33  # frame: 9 slots, row-major
-P = 42
+ENV_FRAME = SPOT_FRAME      # world: the environment's rotation (world -> texture), 9 slots
+ENV_ON, ENV_INTERP = 42, 43  # world: 1 with an environment map; its interpolation code
+P = 44
 
 
 def pack_lights(lights):
-    """(codes (L,) int64, params (L,P) float64, mesh arrays) for a list of Light; the mesh
-    arrays (v0, e1, e2, ng, L, area/prob, cdf, round32, tilt32) are empty without
-    emissive meshes."""
+    """(codes (L,) int64, params (L,P) float64, arrays) for a list of Light; `arrays` are
+    the emissive triangles' (v0, e1, e2, ng, L, area/prob, cdf, round32, tilt32), empty
+    without emissive meshes, then the world's environment map (radiance texels (H,W,3)
+    float32, row cdf (H+1,), column cdfs (H,W+1), pdf_uv (H,W) float32:
+    environment.build_distribution),
+    one black texel without one."""
     codes = np.zeros(len(lights), np.int64)
     params = np.zeros((len(lights), P))
     mesh = None
+    env = None
     for i, light in enumerate(lights):
         codes[i] = light.pack(params[i])
         if codes[i] == CODE_MESH:
             mesh = light
+        elif codes[i] == CODE_WORLD and getattr(light, "environment", None) is not None:
+            env = light.environment
+    if env is None:
+        env_arrays = (np.zeros((1, 1, 3), np.float32), np.array([0.0, 1.0]),
+                      np.array([[0.0, 1.0]]), np.zeros((1, 1), np.float32))
+    else:
+        env_arrays = (env.pixels, *env.distribution)
+    c = np.ascontiguousarray
     if mesh is None:
         z3 = np.zeros((0, 3))
         return codes, params, (z3, z3, z3, z3, z3, np.zeros(0), np.zeros(0),
-                               np.zeros((0, 3, 3)), np.zeros(0))
-    c = np.ascontiguousarray
+                               np.zeros((0, 3, 3)), np.zeros(0), *env_arrays)
     return codes, params, (c(mesh.v0), c(mesh.e1), c(mesh.e2), c(mesh.tri_ng), c(mesh.tri_L),
                            c(mesh.tri_area / mesh.prob), c(mesh.cdf), c(mesh.round32),
-                           c(np.asarray(mesh.tilt32, np.float64)))
+                           c(np.asarray(mesh.tilt32, np.float64)), *env_arrays)

@@ -32,6 +32,10 @@ class PointLight(Light):
     def has_size(self) -> bool:
         return self.radius > 0
 
+    @property
+    def has_surface(self) -> bool:
+        return self.radius > 0
+
     def pack(self, row) -> int:
         """Write the kernel parameters (engine/lights/packing.py); returns the kind code."""
         row[pk.POS:pk.POS + 3] = self.pos

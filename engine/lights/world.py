@@ -1,37 +1,112 @@
-"""World: a non-black background as a uniform environment of radiance `background`
-(when the scene lets the background light it), sampled by the cosine hemisphere."""
+"""World: the background as a light at infinity (Cycles' kernel/light/background.h).
+
+Two forms:
+  constant     a non-black background colour: uniform radiance `background`, sampled for
+               shadow rays by the cosine hemisphere around the shading normal
+  environment  an equirectangular image (engine/lights/environment.py): shadow rays use
+               one-sample multiple importance sampling of the environment's 2D
+               piecewise-constant distribution and the cosine hemisphere (balance
+               heuristic, each picked with probability 1/2), so a small bright sun in the
+               map and a dim, wide sky are both sampled well; photons leave a disk beyond
+               the scene's bounding sphere with directions from the same distribution.
+
+`background_radiance` gives the radiance of rays that escape the scene (camera rays that
+miss, specular continuations); `WorldLight.pdf` the solid-angle pdf of the shadow-ray
+strategy, for multiple importance sampling against BSDF-sampled rays that escape.
+"""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from ..sampling import uniform_sphere
+from ..sampling import dot, uniform_sphere
 from . import packing as pk
 from .base import InfiniteLight
 
 WORLD = "WORLD"
+# Probability that a shadow ray of an environment-mapped world samples the map (else
+# the cosine hemisphere); directlight.sample_lights uses the same constant.
+ENV_MAP_FRACTION = 0.5
+
+
+def background_radiance(scene, d: np.ndarray) -> np.ndarray:
+    """Radiance (N,3) of the world seen along directions d (N,3) of rays that escape the
+    scene (unit or not; re-centring does not change directions): the environment map
+    when the scene has one, else the constant background colour."""
+    env = getattr(scene, "environment", None)
+    if env is not None:
+        return env.radiance(d)
+    bg = np.asarray(scene.background, np.float64)
+    return np.broadcast_to(bg, (len(d), 3))
 
 
 class WorldLight(InfiniteLight):
     kind = WORLD
     declared = False
+    environment = None
 
     @classmethod
     def from_background(cls, scene, common):
         """The world light of the scene, or None (black background, or not a light)."""
-        bg = np.asarray(scene.background, np.float64)
-        if not (scene.background_is_light and np.any(bg > 0)):
+        if not scene.background_is_light:
             return None
         radius = common["scene_radius"]
+        env = getattr(scene, "environment", None)
+        if env is not None:
+            if env.is_black:
+                return None
+            return cls("world", radiance=env.average(), environment=env,
+                       photon_flux=env.integral() * math.pi * radius ** 2,
+                       radius=0.0, cos_half_angle=1.0, **common)
+        bg = np.asarray(scene.background, np.float64)
+        if not np.any(bg > 0):
+            return None
         return cls("world", radiance=bg,
                    photon_flux=bg * math.pi * radius ** 2 * 4.0 * math.pi,
                    radius=0.0, cos_half_angle=1.0, **common)
 
+    @property
+    def needs_choice(self) -> bool:
+        return self.environment is not None
+
     def pack(self, row) -> int:
-        """Write the kernel parameters (engine/lights/packing.py); returns the kind code."""
+        """Write the kernel parameters (engine/lights/packing.py); returns the kind code.
+        The environment's arrays travel beside the rows (pack_lights)."""
         row[pk.RGB:pk.RGB + 3] = self.radiance
+        if self.environment is not None:
+            row[pk.ENV_ON] = 1.0
+            row[pk.ENV_INTERP] = self.environment.interp_code
+            row[pk.ENV_FRAME:pk.ENV_FRAME + 9] = self.environment.rotation.ravel()
         return pk.CODE_WORLD
+
+    def pdf(self, wi: np.ndarray, ns: np.ndarray) -> np.ndarray:
+        """Solid-angle pdf (N,) (1/sr) with which this light's shadow-ray sampling
+        (directlight.sample_lights) picks unit directions wi (N,3) towards the world at
+        shading points with shading normals ns (N,3): cos(wi, ns)^+ / pi for a constant
+        world; ENV_MAP_FRACTION x the environment's pdf + (1 - ENV_MAP_FRACTION) x
+        cos^+ / pi with an environment map. Multiply by the light's selection probability
+        (engine/lights/selection.py) for the full light-sampling pdf of a BSDF-sampled ray
+        that escapes (power or balance heuristic, pbrt-v4's PathIntegrator)."""
+        wi = np.asarray(wi, np.float64).reshape(-1, 3)
+        cos_pdf = np.maximum(dot(wi, np.asarray(ns, np.float64).reshape(-1, 3)), 0.0) / math.pi
+        if self.environment is None:
+            return cos_pdf
+        return ENV_MAP_FRACTION * self.environment.pdf(wi) + (1.0 - ENV_MAP_FRACTION) * cos_pdf
+
+    def seen_at_infinity(self, d):
+        return None  # the background itself: background_radiance
 
     def _directions(self, n, u1, u2):
         return uniform_sphere(u1, u2)
+
+    def _photons_along(self, n, u1, u2):
+        if self.environment is None:
+            return super()._photons_along(n, u1, u2)
+        wi, pdf = self.environment.sample(u1, u2)
+        L = self.environment.radiance(wi)
+        # Power through the emission disk of area pi R^2: L(wi) / pdf(wi) x pi R^2 / n.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = np.where(pdf > 0, 1.0 / np.maximum(pdf, 1e-300), 0.0)
+        power = L * (w * math.pi * self.scene_radius ** 2 / n)[:, None]
+        return -wi, power

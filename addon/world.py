@@ -1,0 +1,194 @@
+"""Blender world -> the engine's background: a constant colour or an equirectangular
+environment map (engine Environment), with a warning naming every node that is not
+simulated.
+
+Read as Cycles renders it: Background node's Color x Strength. Color may be a constant,
+an RGB node, or an Environment Texture (equirectangular, from its file or packed),
+optionally behind a Mapping node (its rotation; Point, Vector, Normal or Texture type) fed
+by the Texture Coordinate node's Generated / Object output or nothing (the ray direction
+in world shading). A Sky Texture is not simulated: Cycles precomputes its Nishita sky
+into an image at render time that Blender's Python API does not expose; it warns and uses
+the world's viewport colour.
+"""
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+
+from .materials import _pixels
+
+_LINEAR_SPACES = ("Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E",
+                  "Linear Rec.2020")
+
+
+def _from(socket):
+    """The node feeding socket (through reroutes), or None."""
+    if not socket.is_linked:
+        return None
+    node = socket.links[0].from_node
+    while node.type == "REROUTE" and node.inputs[0].is_linked:
+        node = node.inputs[0].links[0].from_node
+    return node if node.type != "REROUTE" else None
+
+
+def _output_node(nt):
+    for target in ("CYCLES", "ALL", "EEVEE"):
+        try:
+            out = nt.get_output_node(target)
+        except Exception:  # noqa: BLE001
+            out = None
+        if out is not None:
+            return out
+    outs = [n for n in nt.nodes if n.type == "OUTPUT_WORLD"]
+    return outs[0] if outs else None
+
+
+def export_world(pm, world, warnings: list):
+    """(background RGB (3,), engine Environment or None) for a Blender world; warnings
+    get one line per unsupported node (each naming the world and the node)."""
+    if world is None:
+        return np.zeros(3), None
+    viewport = np.asarray(tuple(world.color)[:3], dtype=np.float64)
+    use_nodes = bpy.app.version >= (5, 0, 0) or getattr(world, "use_nodes", True)
+    nt = world.node_tree if use_nodes else None
+    if nt is None:
+        return viewport, None
+    out = _output_node(nt)
+    if out is None or not out.inputs["Surface"].is_linked:
+        return np.zeros(3), None
+    node = _from(out.inputs["Surface"])
+    who = f"world '{world.name}'"
+    if node is None or node.type != "BACKGROUND":
+        what = f"'{node.name}' ({node.type})" if node is not None else "(none)"
+        warnings.append(f"{who}: surface node {what} is not supported; using the world "
+                        "viewport colour as background")
+        return viewport, None
+    strength_socket = node.inputs["Strength"]
+    strength = float(strength_socket.default_value)
+    if strength_socket.is_linked:
+        warnings.append(f"{who}: a node plugged into the Background strength is not "
+                        f"supported; using {strength:g}")
+    strength = max(strength, 0.0)
+    col_socket = node.inputs["Color"]
+    color = np.asarray(tuple(col_socket.default_value)[:3], dtype=np.float64)
+    src = _from(col_socket)
+    if src is None:
+        return np.clip(color * strength, 0.0, None), None
+    if src.type == "RGB":
+        color = np.asarray(tuple(src.outputs[0].default_value)[:3], dtype=np.float64)
+        return np.clip(color * strength, 0.0, None), None
+    if src.type == "TEX_ENVIRONMENT":
+        env = _environment(pm, world, src, strength, warnings)
+        if env is not None:
+            return env.average(), env
+        return np.clip(color * strength, 0.0, None), None
+    if src.type == "TEX_SKY":
+        warnings.append(f"{who}: Sky Texture '{src.name}' is not supported (Cycles bakes "
+                        "it at render time, out of the add-on's reach); using the world "
+                        f"viewport colour {viewport.round(3).tolist()} x strength")
+        return np.clip(viewport * strength, 0.0, None), None
+    warnings.append(f"{who}: node '{src.name}' ({src.type}) plugged into the Background "
+                    "colour is not supported (a colour, an RGB node or an Environment "
+                    f"Texture are); using the colour {color.round(3).tolist()}")
+    return np.clip(color * strength, 0.0, None), None
+
+
+def _environment(pm, world, node, strength, warnings):
+    """engine Environment for an Environment Texture node, or None after a warning."""
+    who = f"world '{world.name}': Environment Texture '{node.name}'"
+    img = node.image
+    if img is None:
+        warnings.append(f"{who} has no image; using the Background colour")
+        return None
+    if node.projection != "EQUIRECTANGULAR":
+        warnings.append(f"{who}: projection '{node.projection}' is not supported "
+                        "(only Equirectangular); using the Background colour")
+        return None
+    interpolation = str(node.interpolation)
+    if interpolation not in ("Linear", "Closest"):
+        warnings.append(f"{who}: interpolation '{interpolation}' is read as Linear")
+        interpolation = "Linear"
+    rotation = _mapping_rotation(world, node, warnings)
+    try:
+        rgba = _pixels(img)
+    except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
+        warnings.append(f"{who}: image '{img.name}' could not be read ({exc}); using the "
+                        "Background colour")
+        return None
+    rgb = np.asarray(rgba[:, :, :3], np.float32)
+    if not img.is_float and img.colorspace_settings.name not in _LINEAR_SPACES:
+        # 8-bit sRGB texels: Cycles interpolates the stored values and converts after;
+        # here they are converted first (a difference only at texel scale).
+        rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((np.clip(rgb, 0, 1) + 0.055) / 1.055) ** 2.4)
+    rgb = np.nan_to_num(np.maximum(rgb, 0.0), nan=0.0, posinf=0.0)
+    try:
+        return pm.Environment(rgb, strength, rotation, interpolation, name=img.name)
+    except ValueError as exc:
+        warnings.append(f"{who}: {exc}; using the Background colour")
+        return None
+
+
+def _euler(v):
+    rx, ry, rz = (float(a) for a in v)
+    cx, sx, cy, sy, cz, sz = (math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry),
+                              math.cos(rz), math.sin(rz))
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx  # Blender's XYZ Euler order
+
+
+def _check_coordinates(world, socket, warnings):
+    """Warn unless the Texture Coordinate output feeding socket is the world's ray
+    direction (Generated, or Object without an object)."""
+    link = socket.links[0]
+    node, out = link.from_node, link.from_socket.name
+    while node.type == "REROUTE" and node.inputs[0].is_linked:
+        link = node.inputs[0].links[0]
+        node, out = link.from_node, link.from_socket.name
+    if out == "Generated" or (out == "Object" and getattr(node, "object", None) is None):
+        return
+    warnings.append(f"world '{world.name}': Texture Coordinate '{node.name}' output '{out}' "
+                    "is not supported for the environment; using the ray direction "
+                    "(Generated)")
+
+
+def _mapping_rotation(world, env_node, warnings):
+    """Rotation (world direction -> texture direction) of a Mapping node in front of the
+    environment texture, or None."""
+    m = _from(env_node.inputs["Vector"])
+    if m is None:
+        return None
+    who = f"world '{world.name}'"
+    if m.type == "TEX_COORD":
+        _check_coordinates(world, env_node.inputs["Vector"], warnings)
+        return None
+    if m.type != "MAPPING":
+        warnings.append(f"{who}: node '{m.name}' ({m.type}) in front of the Environment "
+                        "Texture is not supported; using the ray direction")
+        return None
+    coord = _from(m.inputs["Vector"])
+    if coord is not None and coord.type != "TEX_COORD":
+        warnings.append(f"{who}: node '{coord.name}' ({coord.type}) feeding Mapping "
+                        f"'{m.name}' is not supported; using the ray direction")
+    elif coord is not None:
+        _check_coordinates(world, m.inputs["Vector"], warnings)
+    for name in ("Location", "Rotation", "Scale"):
+        sock = m.inputs.get(name)
+        if sock is not None and sock.is_linked:
+            warnings.append(f"{who}: a node plugged into Mapping '{m.name}' {name} is not "
+                            "supported; using its value")
+    R = _euler(m.inputs["Rotation"].default_value)
+    scale = np.asarray(tuple(m.inputs["Scale"].default_value), np.float64)
+    if not (np.all(scale > 0) and np.allclose(scale, scale[0], rtol=1e-4)):
+        warnings.append(f"{who}: Mapping '{m.name}' scale {scale.round(3).tolist()} is not "
+                        "supported for the environment (only a uniform positive scale, "
+                        "which changes nothing); using its rotation")
+    loc = m.inputs.get("Location")
+    if (m.vector_type == "POINT" and loc is not None
+            and np.any(np.abs(tuple(loc.default_value)) > 1e-9)):
+        warnings.append(f"{who}: Mapping '{m.name}' location is ignored for the "
+                        "environment (directions only)")
+    return R.T if m.vector_type == "TEXTURE" else R

@@ -1,0 +1,333 @@
+"""An equirectangular environment map (Cycles' Environment Texture in a world's Background
+node): radiance lookup along directions and a 2D piecewise-constant distribution for
+importance sampling it (pbrt-v4's PiecewiseConstant2D, ImageInfiniteLight; Cycles'
+kernel/light/background.h).
+
+Conventions, as Cycles renders them (checked against Cycles 5.0 through the bpy wheel,
+docs/compatibility.md, world cases):
+  d_tex = rotation @ d          rotation: the Mapping node in front of the texture
+                                (world direction -> texture direction); identity without
+  u = 0.5 - atan2(y, x) / 2pi   of d_tex = (x, y, z): +X looks at the image's centre,
+  v = 1 - acos(z) / pi          +Y at u = 0.25, up (+Z) at the top row
+Texel centres sit at (i + 0.5) / width; Linear (bilinear) or Closest lookups with the
+image repeated in both directions (the node's fixed extension mode).
+
+Sampling: the distribution's function on texel (row i, column j) is the mean of the
+bilinearly interpolated luminance over the texel (a 3 x 3 filter of texel luminances,
+so every direction with radiance has a non-zero pdf; Closest: the texel's luminance)
+times sin(theta) at the row centre.
+A direction's solid-angle pdf is pdf_uv / (2 pi^2 sin theta).
+
+The lookups and the sampling are compiled kernels (engine/jit.py) shared by the
+direct-light kernel (engine/directlight.py), photon emission and escaped rays, so the
+three agree to the last bit.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..jit import kernel, register_warm_up
+from ..sampling import luminance
+
+PI = math.pi
+TWO_PI = 2.0 * math.pi
+INTERP_CLOSEST, INTERP_LINEAR = 0, 1
+INTERPOLATIONS = {"Closest": INTERP_CLOSEST, "Linear": INTERP_LINEAR}
+
+
+def euler_xyz(rx: float, ry: float, rz: float) -> np.ndarray:
+    """Blender's XYZ Euler rotation matrix (Rz @ Ry @ Rx), angles in radians."""
+    cx, sx, cy, sy, cz, sz = (math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry),
+                              math.cos(rz), math.sin(rz))
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+class Environment:
+    """An equirectangular image lighting the scene from infinity.
+
+    pixels         (H, W, 3) (or (H, W, 4): alpha ignored) linear RGB radiance per unit
+                   strength, top row first (the sky's zenith); kept as float32
+    strength       scalar or RGB multiplier (the Background node's Strength x colour)
+    rotation       (3, 3) rotation taking world directions to texture directions (the
+                   Mapping node); None = identity. Must be a rotation (orthonormal, det 1)
+    interpolation  "Linear" (default, Cycles' default) or "Closest"
+    Raises ValueError naming `name` and the argument for bad input.
+    """
+
+    def __init__(self, pixels, strength=1.0, rotation=None, interpolation="Linear",
+                 name="environment"):
+        self.name = name
+        who = f"environment '{name}'"
+        a = np.asarray(pixels, dtype=np.float32)
+        if a.ndim == 2:
+            a = np.repeat(a[:, :, None], 3, axis=2)
+        if a.ndim != 3 or a.shape[2] not in (3, 4) or a.shape[0] < 1 or a.shape[1] < 1:
+            raise ValueError(f"{who}: expected an HxWx3 image, got shape {a.shape}")
+        a = a[:, :, :3]
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{who}: the image has NaN or infinite texels")
+        if np.any(a < 0):
+            raise ValueError(f"{who}: the image has negative texels (radiance must be >= 0)")
+        s = np.broadcast_to(np.asarray(strength, np.float64), (3,)).copy()
+        if not (np.all(np.isfinite(s)) and np.all(s >= 0)):
+            raise ValueError(f"{who} strength: expected finite values >= 0, got {strength!r}")
+        R = np.eye(3) if rotation is None else np.asarray(rotation, np.float64)
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)) or not np.allclose(
+                R @ R.T, np.eye(3), atol=1e-6) or not np.linalg.det(R) > 0:
+            raise ValueError(f"{who} rotation: expected a 3x3 rotation matrix, got {R.tolist()}")
+        if interpolation not in INTERPOLATIONS:
+            raise ValueError(f"{who} interpolation: expected one of {tuple(INTERPOLATIONS)}, "
+                             f"got {interpolation!r}")
+        # Strength folded in: radiance texels, float32 like the image files (an 8k x 4k
+        # HDRI: 400 MB as float32, twice that as float64).
+        self.pixels = np.ascontiguousarray(a * s.astype(np.float32))
+        if not np.all(np.isfinite(self.pixels)):
+            raise ValueError(f"{who}: image x strength overflows float32 radiance")
+        self.strength = s
+        self.rotation = np.ascontiguousarray(R)
+        self.interpolation = interpolation
+        self.interp_code = INTERPOLATIONS[interpolation]
+        self._distribution = None
+
+    @property
+    def height(self) -> int:
+        return self.pixels.shape[0]
+
+    @property
+    def width(self) -> int:
+        return self.pixels.shape[1]
+
+    @property
+    def is_black(self) -> bool:
+        return not np.any(self.pixels > 0)
+
+    # ------------------------------------------------------------------ distribution
+    @property
+    def distribution(self):
+        """(row cdf (H+1,), per-row column cdfs (H, W+1) float64, pdf_uv (H, W) float32) of the 2D
+        piecewise-constant distribution (see the module docstring); built once."""
+        if self._distribution is None:
+            self._distribution = build_distribution(self.pixels,
+                                                    self.interp_code == INTERP_LINEAR)
+        return self._distribution
+
+    def integral(self) -> np.ndarray:
+        """RGB integral of radiance over the sphere (W / m^2): the sum of texel radiance x
+        texel solid angle. The flux crossing a disk of radius R from all directions is
+        this x pi R^2 (the world's photon flux)."""
+        H, W = self.height, self.width
+        theta0 = PI * np.arange(H) / H
+        theta1 = PI * (np.arange(H) + 1) / H
+        omega = (np.cos(theta0) - np.cos(theta1)) * TWO_PI / W  # per texel of each row
+        return np.einsum("hwc,h->c", self.pixels.astype(np.float64), omega)
+
+    def average(self) -> np.ndarray:
+        """Mean radiance over the sphere (RGB)."""
+        return self.integral() / (4.0 * PI)
+
+    # ------------------------------------------------------------------ numpy front ends
+    def radiance(self, d: np.ndarray) -> np.ndarray:
+        """Radiance (N,3) seen along world directions d (N,3) (need not be unit)."""
+        d = np.ascontiguousarray(np.asarray(d, np.float64).reshape(-1, 3))
+        out = np.empty((len(d), 3))
+        radiance_many(d, self.rotation, self.pixels, self.interp_code, out)
+        return out
+
+    def pdf(self, wi: np.ndarray) -> np.ndarray:
+        """Solid-angle pdf (N,) (1/sr) with which `sample` picks world directions wi (N,3)."""
+        wi = np.ascontiguousarray(np.asarray(wi, np.float64).reshape(-1, 3))
+        out = np.empty(len(wi))
+        _, _, pdf_uv = self.distribution
+        pdf_many(wi, self.rotation, pdf_uv, out)
+        return out
+
+    def sample(self, u1: np.ndarray, u2: np.ndarray):
+        """Directions wi (N,3) drawn in proportion to the distribution from uniform
+        numbers u1, u2 (N,), with their solid-angle pdfs (N,)."""
+        u1 = np.ascontiguousarray(u1, np.float64)
+        u2 = np.ascontiguousarray(u2, np.float64)
+        wi = np.empty((len(u1), 3))
+        pdf = np.empty(len(u1))
+        rows, cols, pdf_uv = self.distribution
+        sample_many(u1, u2, self.rotation, rows, cols, pdf_uv, wi, pdf)
+        return wi, pdf
+
+
+def build_distribution(pixels: np.ndarray, bilinear: bool = True):
+    """The sampling distribution of radiance texels (H, W, 3): see Environment.distribution.
+    bilinear: the lookups interpolate (a texel's function is the mean of the interpolated
+    luminance over it); else each texel's own luminance (Closest)."""
+    H, W = pixels.shape[:2]
+    f = np.maximum(luminance(np.asarray(pixels, np.float64)), 0.0)
+    if bilinear:
+        # Mean of the bilinear interpolation over a texel: weights 3/4, 1/8, 1/8 per axis
+        # (texels wrap around, as the lookup's Repeat extension).
+        f = 0.75 * f + 0.125 * (np.roll(f, 1, axis=1) + np.roll(f, -1, axis=1))
+        f = 0.75 * f + 0.125 * (np.roll(f, 1, axis=0) + np.roll(f, -1, axis=0))
+    sin_t = np.sin(PI * (np.arange(H) + 0.5) / H)
+    f = f * sin_t[:, None]
+    row_sum = f.sum(axis=1)
+    total = row_sum.sum()
+    if not total > 0:
+        z = np.zeros((H, W), np.float32)
+        return np.linspace(0.0, 1.0, H + 1), np.tile(np.linspace(0.0, 1.0, W + 1), (H, 1)), z
+    rows = np.concatenate([[0.0], np.cumsum(row_sum)]) / total
+    rows[-1] = 1.0
+    safe = np.where(row_sum > 0, row_sum, 1.0)
+    cols = np.concatenate([np.zeros((H, 1)), np.cumsum(f, axis=1)], axis=1) / safe[:, None]
+    cols[row_sum <= 0] = np.linspace(0.0, 1.0, W + 1)
+    cols[:, -1] = 1.0
+    pdf_uv = f * (H * W) / total
+    return (np.ascontiguousarray(rows), np.ascontiguousarray(cols),
+            np.ascontiguousarray(pdf_uv, dtype=np.float32))
+
+
+# ---------------------------------------------------------------------- kernels
+@kernel
+def env_uv(x, y, z):
+    """Texture direction (need not be unit) -> (u, v) as Cycles' equirectangular map."""
+    length = math.sqrt(x * x + y * y + z * z)
+    if not length > 0:
+        return 0.5, 0.5
+    c = min(max(z / length, -1.0), 1.0)
+    return 0.5 - math.atan2(y, x) / TWO_PI, 1.0 - math.acos(c) / PI
+
+
+@kernel
+def env_rotate(R, d0, d1, d2):
+    """R @ d."""
+    return (R[0, 0] * d0 + R[0, 1] * d1 + R[0, 2] * d2,
+            R[1, 0] * d0 + R[1, 1] * d1 + R[1, 2] * d2,
+            R[2, 0] * d0 + R[2, 1] * d1 + R[2, 2] * d2)
+
+
+@kernel
+def env_lookup(px, interp, u, v):
+    """Radiance (r, g, b) at image coordinates (u, v): texel centres at (i + 0.5) / W,
+    v = 1 at the top row; Repeat extension."""
+    H = px.shape[0]
+    W = px.shape[1]
+    x = u * W
+    y = (1.0 - v) * H
+    if interp == 0:
+        ix = int(math.floor(x)) % W
+        iy = int(math.floor(y)) % H
+        return px[iy, ix, 0], px[iy, ix, 1], px[iy, ix, 2]
+    x -= 0.5
+    y -= 0.5
+    fx0 = math.floor(x)
+    fy0 = math.floor(y)
+    fx = x - fx0
+    fy = y - fy0
+    x0 = int(fx0) % W
+    y0 = int(fy0) % H
+    x1 = (x0 + 1) % W
+    y1 = (y0 + 1) % H
+    w00 = (1.0 - fx) * (1.0 - fy)
+    w10 = fx * (1.0 - fy)
+    w01 = (1.0 - fx) * fy
+    w11 = fx * fy
+    r = w00 * px[y0, x0, 0] + w10 * px[y0, x1, 0] + w01 * px[y1, x0, 0] + w11 * px[y1, x1, 0]
+    g = w00 * px[y0, x0, 1] + w10 * px[y0, x1, 1] + w01 * px[y1, x0, 1] + w11 * px[y1, x1, 1]
+    b = w00 * px[y0, x0, 2] + w10 * px[y0, x1, 2] + w01 * px[y1, x0, 2] + w11 * px[y1, x1, 2]
+    return r, g, b
+
+
+@kernel
+def env_radiance(R, px, interp, d0, d1, d2):
+    """Radiance along world direction d."""
+    t0, t1, t2 = env_rotate(R, d0, d1, d2)
+    u, v = env_uv(t0, t1, t2)
+    return env_lookup(px, interp, u, v)
+
+
+@kernel
+def env_pdf(R, pdf_uv, d0, d1, d2):
+    """Solid-angle pdf of world direction d under the distribution."""
+    t0, t1, t2 = env_rotate(R, d0, d1, d2)
+    length = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    if not length > 0:
+        return 0.0
+    sin_t = math.sqrt(t0 * t0 + t1 * t1) / length
+    if not sin_t > 0:
+        return 0.0
+    u, v = env_uv(t0, t1, t2)
+    H = pdf_uv.shape[0]
+    W = pdf_uv.shape[1]
+    j = min(max(int(u * W), 0), W - 1)
+    i = min(max(int((1.0 - v) * H), 0), H - 1)
+    return pdf_uv[i, j] / (2.0 * PI * PI * sin_t)
+
+
+@kernel
+def _find_interval(cdf, n, x):
+    """Largest index i in [0, n-1] with cdf[i] <= x (cdf has n + 1 entries)."""
+    lo, hi = 0, n
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if cdf[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return min(max(lo - 1, 0), n - 1)
+
+
+@kernel
+def env_sample(R, rows, cols, pdf_uv, u1, u2):
+    """A world direction drawn from the distribution with its solid-angle pdf:
+    (d0, d1, d2, pdf); pdf 0 when the environment is black."""
+    H = pdf_uv.shape[0]
+    W = pdf_uv.shape[1]
+    i = _find_interval(rows, H, u1)
+    span = rows[i + 1] - rows[i]
+    fy = (u1 - rows[i]) / span if span > 0 else 0.5
+    fy = min(max(fy, 0.0), 1.0)
+    j = _find_interval(cols[i], W, u2)
+    span = cols[i, j + 1] - cols[i, j]
+    fx = (u2 - cols[i, j]) / span if span > 0 else 0.5
+    fx = min(max(fx, 0.0), 1.0)
+    p = pdf_uv[i, j]
+    theta = PI * (i + fy) / H
+    u = (j + fx) / W
+    phi = TWO_PI * (0.5 - u)
+    st = math.sin(theta)
+    t0, t1, t2 = st * math.cos(phi), st * math.sin(phi), math.cos(theta)
+    # back to world: R is a rotation, its inverse its transpose
+    d0 = R[0, 0] * t0 + R[1, 0] * t1 + R[2, 0] * t2
+    d1 = R[0, 1] * t0 + R[1, 1] * t1 + R[2, 1] * t2
+    d2 = R[0, 2] * t0 + R[1, 2] * t1 + R[2, 2] * t2
+    if not (p > 0 and st > 0):
+        return d0, d1, d2, 0.0
+    return d0, d1, d2, p / (2.0 * PI * PI * st)
+
+
+@kernel
+def radiance_many(d, R, px, interp, out):
+    for n in range(d.shape[0]):
+        out[n, 0], out[n, 1], out[n, 2] = env_radiance(R, px, interp, d[n, 0], d[n, 1], d[n, 2])
+
+
+@kernel
+def pdf_many(d, R, pdf_uv, out):
+    for n in range(d.shape[0]):
+        out[n] = env_pdf(R, pdf_uv, d[n, 0], d[n, 1], d[n, 2])
+
+
+@kernel
+def sample_many(u1, u2, R, rows, cols, pdf_uv, wi, pdf):
+    for n in range(u1.shape[0]):
+        wi[n, 0], wi[n, 1], wi[n, 2], pdf[n] = env_sample(R, rows, cols, pdf_uv, u1[n], u2[n])
+
+
+@register_warm_up
+def _warm_up():
+    env = Environment(np.ones((2, 4, 3)))
+    d = np.array([[0.0, 0.0, 1.0]])
+    env.radiance(d)
+    env.pdf(d)
+    env.sample(np.full(1, 0.3), np.full(1, 0.6))

@@ -1,0 +1,109 @@
+"""World export (addon/world.py): Background colour and strength, Environment Texture
+(packed image, Mapping rotation, interpolation), warnings naming what is not simulated;
+the HDRI example blend. Brightness against Cycles: tests/blender/test_feature_matrix.py
+(world_color, world_hdri, world_hdri_rotated)."""
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from blender_helpers import ROOT, cheap, open_blend, read_layers, render_exr
+
+pytestmark = pytest.mark.blender
+
+
+@pytest.fixture()
+def mb(fresh_scene):
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends
+    make_blends.reset()
+    return make_blends
+
+
+def _export(bpy):
+    from addon import export
+    from addon.core import load_engine
+    pm = load_engine()
+    mb_camera = bpy.context.scene.camera
+    if mb_camera is None:
+        sys.modules["make_blends"].camera((0, -5, 1), (0, 0, 0))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    scene, _ = export.export_scene(pm, depsgraph, width=16, height=12)
+    return scene
+
+
+def test_background_colour_times_strength(mb, bpy_addon):
+    mb.set_world((0.2, 0.4, 0.6), 2.5)
+    scene = _export(bpy_addon)
+    assert scene.environment is None
+    np.testing.assert_allclose(scene.background, (0.5, 1.0, 1.5), rtol=1e-6)
+
+
+def test_environment_texture_with_mapping_rotation(mb, bpy_addon):
+    sky = mb.sky_hdri(32, 16)
+    mb.set_world_hdri(sky, 1.7, rotation=(0.0, 0.0, math.radians(60.0)))
+    scene = _export(bpy_addon)
+    env = scene.environment
+    assert env is not None and env.interpolation == "Linear"
+    np.testing.assert_allclose(env.pixels, sky * 1.7, rtol=1e-5)
+    from engine.lights.environment import euler_xyz
+    np.testing.assert_allclose(env.rotation, euler_xyz(0, 0, math.radians(60)), atol=1e-6)
+    np.testing.assert_allclose(scene.background, env.average())
+    assert not [w for w in scene.all_warnings() if "world" in w]
+
+
+def test_unsupported_world_nodes_warn_once_naming_the_node(mb, bpy_addon):
+    bpy = bpy_addon
+    mb.set_world_hdri(mb.sky_hdri(16, 8), 1.0)
+    nt = bpy.context.scene.world.node_tree
+    env = next(n for n in nt.nodes if n.type == "TEX_ENVIRONMENT")
+    env.projection = "MIRROR_BALL"
+    env.name = "Ball Env"
+    scene = _export(bpy)
+    hits = [w for w in scene.all_warnings() if "Ball Env" in w and "MIRROR_BALL" in w]
+    assert len(hits) == 1 and scene.environment is None
+    # A Sky Texture: warned (Cycles bakes it internally), the viewport colour stands in.
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    sky.name = "My Sky"
+    nt.links.new(sky.outputs[0], bg.inputs["Color"])
+    bpy.context.scene.world.color = (0.3, 0.2, 0.1)
+    scene = _export(bpy)
+    hits = [w for w in scene.all_warnings() if "My Sky" in w]
+    assert len(hits) == 1 and "Sky Texture" in hits[0]
+    np.testing.assert_allclose(scene.background, (0.3, 0.2, 0.1), rtol=1e-6)
+    # Any other node in the colour: named, and the socket's colour is used.
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.name = "Clouds"
+    nt.links.new(noise.outputs["Color"], bg.inputs["Color"])
+    scene = _export(bpy)
+    assert len([w for w in scene.all_warnings() if "Clouds" in w]) == 1
+
+
+def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):
+    bpy = bpy_addon
+    mb.set_world_hdri(mb.sky_hdri(16, 8), 1.0, rotation=(0.0, 0.0, 0.5))
+    nt = bpy.context.scene.world.node_tree
+    coord = next(n for n in nt.nodes if n.type == "TEX_COORD")
+    mapping = next(n for n in nt.nodes if n.type == "MAPPING")
+    assert not [w for w in _export(bpy).all_warnings() if "world" in w]
+    nt.links.new(coord.outputs["Window"], mapping.inputs["Vector"])
+    hits = [w for w in _export(bpy).all_warnings() if "'Window'" in w]
+    assert len(hits) == 1 and coord.name in hits[0]
+
+
+@pytest.mark.slow
+def test_hdri_example_blend_renders(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene = open_blend(bpy, "hdri_sphere.blend")
+    cheap(scene, pct=25, spp=4)
+    layers = read_layers(render_exr(bpy, scene, tmp_path / "hdri.exr", multilayer=True))
+    img = layers["Combined"]
+    assert np.all(np.isfinite(img)) and img[..., :3].mean() > 0.05
+    # The sky shows at the top of the frame (bluer than it is red); the lit floor below.
+    top = img[:3, :, :3].mean(axis=(0, 1))
+    assert top[2] > top[0], top
+    from addon import engine
+    assert not [w for w in engine.last_render["warnings"] if "world" in w]
