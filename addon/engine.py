@@ -66,8 +66,13 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
 
     def __del__(self):
         # Blender frees the engine when the view leaves Rendered shading (and on quit):
-        # stop the viewport session's thread.
-        self.free()
+        # stop the viewport session's thread. When Blender has already removed the
+        # engine's data, its attributes raise ReferenceError: the session was stopped
+        # by free() or is stopped by viewport.stop_all at unregister / exit.
+        try:
+            self.free()
+        except ReferenceError:
+            return
         parent = getattr(super(), "__del__", None)
         if parent is not None:
             parent()
