@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from .closures import principled as pr
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
@@ -195,7 +196,7 @@ def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_norma
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
                   m_tilt32, klight, ktrace, U1, U2, SEL,
-                  contrib, row, kidx, ray, o32, d32, t32):
+                  contrib, row, kidx, ray, o32, d32, t32, wdir):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
@@ -207,7 +208,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     klight (K,) light of sample k, ktrace (K,) whether its shadows are traced; U1, U2,
     SEL (K,N): its random numbers (SEL: the triangle choice of mesh lights).
     Writes entries j < m_all: contrib (j,3) irradiance without visibility, row (j,) hit,
-    kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced); rays i < m_rays:
+    kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced), wdir (j,3) the
+    unit direction towards the light sample (for BSDF evaluation); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
     n = p.shape[0]
     K = klight.shape[0]
@@ -397,6 +399,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
             j = m_all
             m_all += 1
             contrib[j, 0], contrib[j, 1], contrib[j, 2] = e0, e1, e2
+            wdir[j, 0], wdir[j, 1], wdir[j, 2] = w0, w1, w2
             row[j] = i
             kidx[j] = k
             if not ktrace[k]:
@@ -460,6 +463,38 @@ def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all):
         E[i, 2] = E[i, 2] + contrib[j, 2] * vis / s
 
 
+@kernel
+def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, kdelta, fd,
+                    prm, ns, wo):
+    """Radiance instead of irradiance: L[row] += contrib x f x visible / samples, entry by
+    entry, where f = fd[row] (the diffuse lobe's f = albedo / pi) plus, for samples of
+    delta lights (kdelta[k]: a point, spot or sun without size, which no sampled direction
+    can hit), the rough reflective lobes' f(wo, wi) (engine/closures/principled.py, packed
+    per hit in prm; ns, wo (N,3)). contrib already holds cos(wi) (with the shading
+    offset), so the glossy term is eval / cos(wi). Lights with a size reach glossy lobes
+    through the lobes' sampled continuation (engine/integrator.py), not here."""
+    for j in range(m_all):
+        r = ray[j]
+        if r >= 0 and blocked[r]:
+            continue
+        k = kidx[j]
+        s = ksamples[k]
+        i = row[j]
+        f0, f1, f2 = fd[i, 0], fd[i, 1], fd[i, 2]
+        if kdelta[k]:
+            n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+            ix, iy, iz = pr.frame_local(n0, n1, n2, wdir[j, 0], wdir[j, 1], wdir[j, 2])
+            if iz > 0.0:
+                ox, oy, oz = pr.frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+                g0, g1, g2 = pr.eval_reflection(prm, i, ox, oy, oz, ix, iy, iz)
+                f0 += g0 / iz
+                f1 += g1 / iz
+                f2 += g2 / iz
+        L[i, 0] = L[i, 0] + contrib[j, 0] * f0 / s
+        L[i, 1] = L[i, 1] + contrib[j, 1] * f1 / s
+        L[i, 2] = L[i, 2] + contrib[j, 2] * f2 / s
+
+
 # Entries (hits x light samples) per kernel call: bounds the compacted arrays' memory
 # (about 70 bytes an entry) however many light samples a hit takes.
 MAX_ENTRIES = 1 << 20
@@ -482,15 +517,18 @@ class DirectLightBuffers:
             self.d32 = np.empty((m, 3), np.float32)
             self.t32 = np.empty(m, np.float32)
             self.blocked = np.empty(m, np.bool_)
+            self.wdir = np.empty((m, 3))
         return self
 
 
-def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n):
+def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, bsdf=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), triangle choice (N,) or None),
     in the order they must be summed. packed = packing.pack_lights(lights); hit_arrays =
     (p, ns, gate, ng, offset, shade_off, cutoff, lift) as sample_lights takes them.
-    Returns (E, number of shadow rays traced)."""
+    bsdf = (fd (N,3), prm (N,P), wo (N,3), delta (L,) bool per light): outgoing radiance
+    instead, weighted by the BSDF (accumulate_bsdf).
+    Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     E = np.zeros((n, 3))
     if n == 0 or not samples:
@@ -516,12 +554,17 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n):
         buf.ensure(K * n)
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, klight, ktrace,
                                       U1, U2, SEL, buf.contrib, buf.row, buf.kidx, buf.ray,
-                                      buf.o32, buf.d32, buf.t32)
+                                      buf.o32, buf.d32, buf.t32, buf.wdir)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
                                 cls=shadow_cls)
-        accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
+        if bsdf is None:
+            accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
+        else:
+            fd, prm, wo, delta = bsdf
+            accumulate_bsdf(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked,
+                            m_all, buf.wdir, delta[klight], fd, prm, hit_arrays[1], wo)
         rays += m_rays
     return E, rays
 
@@ -556,6 +599,13 @@ def _warm_up():
             return blocked
 
     direct_light(packed, hit, samples, _NoOcclusion(), None, 1)
+    from .geometry import closure_params
+    from .scene import Material
+    prm, _ = pr.setup_np(closure_params([Material("w", specular=1.0, roughness=0.5)]),
+                         np.zeros(1, np.int64), np.full((1, 3), 0.5), np.ones(1),
+                         np.ones(1, np.bool_))
+    direct_light(packed, hit, samples, _NoOcclusion(), None, 1,
+                 bsdf=(np.ones((1, 3)), prm, nrm, np.ones(len(lights), np.bool_)))
     terminator_lift(np.zeros(1, np.int64), np.full((1, 2), 0.25), nrm, np.ones(1, np.bool_),
                     np.full(1, 0.1), mesh.v0, mesh.e1, mesh.e2,
                     np.repeat(nrm[:, None, :], 3, axis=1), np.zeros(1), np.zeros((1, 3)))

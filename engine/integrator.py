@@ -18,7 +18,8 @@ import numpy as np
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .lights import MESH
 from .lights.packing import pack_lights
-from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
+from .bsdf import SPEC_LOBES, closures, lobe_weights, sample_specular, surface_hit
+from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
                        to_world)
@@ -71,11 +72,14 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
-                      skip_mesh_lights=False) -> np.ndarray:
+                      skip_mesh_lights=False, bsdf=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
-    by its own rays, which stays calm right next to the emitter)."""
+    by its own rays, which stays calm right next to the emitter).
+    bsdf = (fd (N,3) diffuse f, prm (N,P) the hits' packed lobes): outgoing radiance
+    instead, the diffuse f plus, for delta lights, the rough reflective lobes' f
+    (directlight.accumulate_bsdf)."""
     n = len(hit.p)
     plan = ctx.plan
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
@@ -96,7 +100,13 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     if n == 0 or not samples:
         return np.zeros((n, 3))
     packed = ctx.packed_lights or pack_lights(ctx.lights)
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n)
+    if bsdf is not None:
+        delta = np.array([not light.has_size for light in ctx.lights], np.bool_)
+        fd, prm = bsdf
+        bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
+                np.ascontiguousarray(hit.wo, np.float64), delta)
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n,
+                           bsdf=bsdf)
     counters.shadow_rays += rays
     return E
 
@@ -116,7 +126,7 @@ def light_shadow_rays(ctx, hit, light_index, rng):
                                   u1[None], u2[None],
                                   np.zeros((1, 1)) if sel is None else sel[None],
                                   buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
-                                  buf.t32)
+                                  buf.t32, buf.wdir)
     return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.o32[:m_rays].copy(),
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
@@ -238,15 +248,19 @@ def _secondary_irradiance(ctx, hit):
 
 
 def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
-    """Pick one specular lobe per ray in proportion to its weight (Russian roulette for
-    paths that would add little). Returns (kept indices, origins, directions, throughput,
-    ray class of the continued rays: glossy, transmission, or ray_cls (the incoming class,
-    scalar or per ray) through a transparent pass). Written lobe by lobe: numpy reductions
-    over a 3-wide axis are slow (bench/)."""
+    """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
+    paths that would add little) and sample it. Returns (kept indices, origins, directions,
+    throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
+    incoming class, scalar or per ray) through a transparent pass). The throughput takes the
+    sampled direction's own weight (f cos / pdf) over the choice probability, so the lobe
+    weights only steer the choice. Written lobe by lobe: numpy reductions over a 3-wide
+    axis are slow (bench/)."""
     cols = [w[k] for k in SPEC_LOBES]
     p = np.stack([max3(c) for c in cols], axis=1)
-    psum = (((p[:, 0] + p[:, 1]) + p[:, 2]) + p[:, 3]) + p[:, 4]
-    wsum = (((cols[0] + cols[1]) + cols[2]) + cols[3]) + cols[4]
+    psum = p.sum(axis=1)
+    wsum = cols[0]
+    for c in cols[1:]:
+        wsum = wsum + c
     # Russian roulette only for paths that would contribute little (< 10 % weight).
     q = np.clip(10.0 * max3(tp * wsum), 0.0, 1.0)
     go = (psum > 0) & (rng.random(len(p)) < q)
@@ -258,13 +272,9 @@ def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
     lobe = np.minimum(np.count_nonzero(rng.random(len(idx))[:, None] >= cdf, axis=1),
                       len(SPEC_LOBES) - 1)
     prob = p[idx, lobe] / psum[idx] * q[idx]
-    wsel = np.empty((len(idx), 3))
-    for li, c in enumerate(cols):
-        r = np.nonzero(lobe == li)[0]
-        wsel[r] = np.take(c, idx[r], axis=0)
-    new_tp = tp[idx] * wsel / np.maximum(prob, 1e-300)[:, None]
     sub = hit.take(idx)
-    nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
+    nd, valid, _, weight = sample_specular(ctx.table, sub, lobe, rng)
+    new_tp = tp[idx] * weight / np.maximum(prob, 1e-300)[:, None]
     keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
     o = sub.clear(keep, nd[keep])
     inc = ray_cls if np.ndim(ray_cls) == 0 else np.asarray(ray_cls)[idx]
@@ -295,14 +305,44 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
 
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
-                  should_cancel=None):
-    """Radiance from the diffuse lobe, split into (direct, caustic, indirect)."""
+                  should_cancel=None, glossy=None):
+    """Radiance from the diffuse lobe, split into (direct, caustic, indirect). glossy (N,)
+    bool: hits whose rough reflective lobes also take direct light from delta lights
+    (their light from lights with a size comes by continuation); the direct term then holds
+    both lobes' response (shadow rays weighted by the full BSDF)."""
     s = ctx.settings
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p)
-    direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
+    if glossy is not None and glossy.any():
+        direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm))
+    else:
+        direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
     caustic = np.zeros_like(direct)
     indirect = np.zeros_like(direct)
+    if glossy is not None:
+        # Photon estimates only where the diffuse lobe is (glossy-only rows add nothing).
+        dsel = np.nonzero(max3(wd) > 0)[0]
+        if len(dsel) < len(wd):
+            sub = hit.take(dsel)
+            if sampler is not None:
+                sampler = sampler.subset(dsel)
+            c, ind = _photon_terms(ctx, sub, f[dsel], rng, counters, sampler,
+                                   None if sample_id is None else sample_id[dsel],
+                                   None if footprint is None else footprint[dsel],
+                                   should_cancel)
+            caustic[dsel] = c
+            indirect[dsel] = ind
+            return direct, caustic, indirect
+    caustic, indirect = _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id,
+                                      footprint, should_cancel)
+    return direct, caustic, indirect
+
+
+def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel):
+    """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi."""
+    s = ctx.settings
+    caustic = np.zeros_like(f)
+    indirect = np.zeros_like(f)
     if s.photon_mapping:
         caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
                                    footprint)
@@ -314,7 +354,7 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
         elif ctx.global_map is not None and len(ctx.global_map):
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
                                                      s.k_nearest, s.min_photons, s.estimator)
-    return direct, caustic, indirect
+    return caustic, indirect
 
 
 class Accumulator:
@@ -449,6 +489,17 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     return acc, counters, end
 
 
+def _glossy_rows(ctx, hit):
+    """Hits whose rough reflective lobes take shadow rays: any, when the scene has a delta
+    light (directlight.accumulate_bsdf)."""
+    if not any(not light.has_size and light.ray_kinds & SHADOW for light in ctx.lights):
+        return np.zeros(len(hit.p), bool)
+    prm, _ = closures(ctx.table, hit)
+    out = np.empty(len(hit.p), np.bool_)
+    rough_reflection_rows(prm, out)
+    return out
+
+
 def _write_film(film, acc, spp, rh, rw):
     inv = 1.0 / spp
     for name in Accumulator.NAMES:
@@ -536,14 +587,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add(target, pix, tp * Le)
         w = lobe_weights(ctx.table, hit)
         wd = w["diffuse"]
-        dsel = np.nonzero(max3(wd) > 0)[0]
+        glossy = _glossy_rows(ctx, hit)
+        dsel = np.nonzero((max3(wd) > 0) | glossy)[0]
         if len(dsel):
             sub = hit.take(dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
             direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
                                                       sample_id[dsel], footprint[dsel],
-                                                      should_cancel)
+                                                      should_cancel, glossy=glossy[dsel])
             tpd = tp[dsel]
             if bounce == 0:
                 acc.add("direct", pix[dsel], tpd * direct)

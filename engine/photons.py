@@ -22,13 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .parallel import Cancelled, chunk_length, ordered_map
-from .bsdf import lobe_weights, sample_specular, surface_hit
+from .bsdf import LOBE_NAMES, lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, max3, to_world
 from .geometry import CAMERA
 from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class
 
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
-LOBES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "coat")
+LOBES = LOBE_NAMES
 # The ray kinds a photon segment can stand for on the camera side (camera rays start at
 # the camera, never at a photon's surface).
 SEGMENT_KINDS = ALL_RAYS & ~CAMERA
@@ -197,7 +197,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             parts["kind"].append(kind[store].astype(np.uint8))
         # Russian roulette over the lobes.
         probs = np.stack([max3(w[k]) for k in LOBES], axis=1)
-        s = ((((probs[:, 0] + probs[:, 1]) + probs[:, 2]) + probs[:, 3]) + probs[:, 4]) + probs[:, 5]
+        s = probs.sum(axis=1)
         probs = probs / np.maximum(s, 1.0)[:, None]
         cdf = np.cumsum(probs, axis=1)
         xi = xi_all[0, slot]
@@ -228,10 +228,13 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         spec = ~diff
         if spec.any():
             spec_rows = np.nonzero(spec)[0]
-            sd, valid, transmitted = sample_specular(table, sub.take(spec_rows),
-                                                     lobe[spec] - 1, bounce_rng)
+            sd, valid, transmitted, weight = sample_specular(table, sub.take(spec_rows),
+                                                             lobe[spec] - 1, bounce_rng)
             new_d[spec] = sd
             ok[spec] = valid
+            # The sampled direction's own weight replaces the lobe's estimated albedo.
+            new_power[spec_rows] = (power[idx[spec_rows]] * weight
+                                    / np.maximum(p_sel[spec_rows], 1e-300)[:, None])
             # Refraction: radiance is carried as invariant across the interface, as the
             # camera side (no eta^2 factor) and Cycles do, so the photon's power takes
             # the factor (eta_i / eta_t)^2 (docs/units.md, "Refraction"). Paired
