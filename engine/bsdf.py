@@ -23,6 +23,9 @@ from .sampling import dot, max3, normalize
 # Lobe names in engine/closures/principled.py's order (its L_* indices).
 LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat")
 SPEC_LOBES = LOBE_NAMES[1:]  # the lobes a path continues through
+# glass_r and glass_t are one lobe when sampled (sample_specular): chosen with their
+# summed probability, then reflected or refracted.
+GLASS_R, GLASS_T = SPEC_LOBES.index("glass_r"), SPEC_LOBES.index("glass_t")
 
 
 def fresnel_dielectric(cos_i: np.ndarray, eta: np.ndarray) -> np.ndarray:
@@ -138,10 +141,10 @@ def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]
 def sample_specular(table: MaterialTable, hit: SurfaceHit, lobe: np.ndarray,
                     rng: np.random.Generator):
     """New directions for the chosen lobe index (into SPEC_LOBES), GGX visible-normal
-    sampling (mirror-like below ggx.ALPHA_MIN). Returns (direction, valid, transmitted,
-    weight (N,3) = f cos / pdf of that lobe). Invalid = no direction (the sample left
-    through the wrong side of the surface, or total internal reflection on a refraction
-    lobe): that energy is absorbed."""
+    sampling (mirror-like below ggx.ALPHA_MIN); glass_r and glass_t both sample the whole
+    glass lobe (reflect or refract: `transmitted` says which). Returns (direction, valid,
+    transmitted, weight (N,3) = f cos / pdf of that lobe). Invalid = no direction (the
+    sample left through the wrong side of the surface): that energy is absorbed."""
     n = len(lobe)
     prm, _ = closures(table, hit)
     d_in = -hit.wo
@@ -156,14 +159,14 @@ def sample_specular(table: MaterialTable, hit: SurfaceHit, lobe: np.ndarray,
         weight[passing] = (1.0 - a)[:, None]
     rows = np.nonzero(~passing)[0]
     if len(rows):
-        u1, u2 = rng.random(len(rows)), rng.random(len(rows))
+        u1, u2, u3 = rng.random(len(rows)), rng.random(len(rows)), rng.random(len(rows))
         d = np.empty((len(rows), 3))
         w = np.empty((len(rows), 3))
         tr = np.empty(len(rows), np.bool_)
         pr.sample_lobes(np.ascontiguousarray(prm[rows]),
                         (lobe[rows] + 1).astype(np.int64),  # SPEC_LOBES -> LOBE_NAMES
                         np.ascontiguousarray(hit.ns[rows], np.float64),
-                        np.ascontiguousarray(hit.wo[rows], np.float64), u1, u2, d, w, tr)
+                        np.ascontiguousarray(hit.wo[rows], np.float64), u1, u2, u3, d, w, tr)
         out[rows], weight[rows], transmitted[rows] = d, w, tr
     side = dot(out, hit.ng)
     valid = (np.where(transmitted, side < 0, side > 0) & np.isfinite(out).all(axis=1)

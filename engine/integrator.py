@@ -18,7 +18,8 @@ import numpy as np
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .lights import MESH
 from .lights.packing import pack_lights
-from .bsdf import SPEC_LOBES, closures, lobe_weights, sample_specular, surface_hit
+from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, sample_specular,
+                   surface_hit)
 from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
@@ -271,9 +272,12 @@ def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
     cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
     lobe = np.minimum(np.count_nonzero(rng.random(len(idx))[:, None] >= cdf, axis=1),
                       len(SPEC_LOBES) - 1)
-    prob = p[idx, lobe] / psum[idx] * q[idx]
+    glass = (lobe == GLASS_R) | (lobe == GLASS_T)
+    p_sel = np.where(glass, p[idx, GLASS_R] + p[idx, GLASS_T], p[idx, lobe])
+    prob = p_sel / psum[idx] * q[idx]
     sub = hit.take(idx)
-    nd, valid, _, weight = sample_specular(ctx.table, sub, lobe, rng)
+    nd, valid, transmitted, weight = sample_specular(ctx.table, sub, lobe, rng)
+    lobe = np.where(glass, np.where(transmitted, GLASS_T, GLASS_R), lobe)
     new_tp = tp[idx] * weight / np.maximum(prob, 1e-300)[:, None]
     keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
     o = sub.clear(keep, nd[keep])

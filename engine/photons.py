@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .parallel import Cancelled, chunk_length, ordered_map
-from .bsdf import LOBE_NAMES, lobe_weights, sample_specular, surface_hit
+from .bsdf import GLASS_R, GLASS_T, LOBE_NAMES, lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, max3, to_world
 from .geometry import CAMERA
 from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class
@@ -207,7 +207,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             survive &= lobe != 0
         idx = np.nonzero(survive)[0]
         lobe = lobe[idx]
-        p_sel = probs[idx, lobe]
+        # glass_r and glass_t are sampled as one lobe (bsdf.sample_specular)
+        glass = (lobe == GLASS_R + 1) | (lobe == GLASS_T + 1)
+        p_sel = np.where(glass, probs[idx, GLASS_R + 1] + probs[idx, GLASS_T + 1],
+                         probs[idx, lobe])
         # The chosen lobe's weight, row by row, without an (n,6,3) stack.
         w_sel = np.zeros((len(idx), 3))
         for li, k in enumerate(LOBES):
@@ -235,11 +238,15 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             # The sampled direction's own weight replaces the lobe's estimated albedo.
             new_power[spec_rows] = (power[idx[spec_rows]] * weight
                                     / np.maximum(p_sel[spec_rows], 1e-300)[:, None])
+            # The glass lobe's sample decides reflect / refract (its visibility class too).
+            lobe[spec_rows] = np.where(glass[spec_rows], np.where(transmitted, GLASS_T + 1,
+                                                                  GLASS_R + 1),
+                                       lobe[spec_rows])
             # Refraction: radiance is carried as invariant across the interface, as the
             # camera side (no eta^2 factor) and Cycles do, so the photon's power takes
             # the factor (eta_i / eta_t)^2 (docs/units.md, "Refraction"). Paired
             # interfaces (a slab, a ball) cancel it exactly.
-            refracted = spec_rows[transmitted & (lobe[spec] == LOBES.index("glass_t"))]
+            refracted = spec_rows[transmitted & glass[spec_rows]]
             if len(refracted):
                 ior = np.take(table.ior, sub.mat[refracted])
                 eta_ratio = np.where(sub.front[refracted], 1.0 / ior, ior)

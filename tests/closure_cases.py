@@ -17,6 +17,8 @@ CAM_DIST = 6.0
 SIZE = 8           # pixels per side of the plane renders
 FURNACE_SIZE = 24  # pixels per side of the furnace renders
 
+FURNACE_VIEW, FURNACE_DIST, FURNACE_FOV = 60.0, 6.0, 25.0  # ball of radius 1 at the origin
+
 GREY = (0.8, 0.8, 0.8)
 COPPER = (0.9, 0.6, 0.3)
 
@@ -72,6 +74,20 @@ def plane_cases():
     # 85 degrees on a smooth dielectric: a mirror sees nothing of a delta sun; the diffuse
     # base under the Fresnel layer is what is compared.
     return cases
+
+
+def ball_mask(size):
+    """(size, size) bool: pixels well inside the furnace ball's silhouette (a disc of 80 %
+    of its radius), away from its faceted edge."""
+    import math
+
+    import numpy as np
+    half = math.tan(math.radians(FURNACE_FOV) / 2.0)
+    r_img = math.tan(math.asin(1.0 / FURNACE_DIST)) / half  # in image half-widths
+    y, x = np.mgrid[0:size, 0:size]
+    u = (x + 0.5) / size * 2 - 1
+    w = (y + 0.5) / size * 2 - 1
+    return u * u + w * w < (0.8 * r_img) ** 2
 
 
 def furnace_cases():

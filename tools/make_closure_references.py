@@ -89,7 +89,7 @@ def build_furnace(spec):
     mb.reset()
     mb.set_world((1.0, 1.0, 1.0), 1.0)
     mb.sphere("Ball", 1.0, _material(spec), (0.0, 0.0, 0.0), segments=96, rings=48)
-    _camera(60.0, 6.0, 25.0)
+    _camera(cc.FURNACE_VIEW, cc.FURNACE_DIST, cc.FURNACE_FOV)
     return cc.FURNACE_SIZE
 
 
@@ -123,7 +123,7 @@ def main(argv=None):
         if kind == "plane":
             mean = rgba[..., :3].reshape(-1, 3).mean(axis=0)
         else:
-            mean = rgba[..., :3][_ball_mask(size)].mean(axis=0)
+            mean = rgba[..., :3][cc.ball_mask(size)].mean(axis=0)
         refs[name] = {"rgb": [float(x) for x in mean], "samples": args.samples,
                       "seconds": round(secs, 2)}
         print(f"{name:32s} {np.round(mean, 4)}  {secs:.1f}s", flush=True)
@@ -131,17 +131,6 @@ def main(argv=None):
     with open(REF_PATH, "w") as f:
         json.dump(refs, f, indent=1, sort_keys=True)
     print(f"wrote {REF_PATH}")
-
-
-def _ball_mask(size):
-    """Pixels well inside the ball's silhouette (camera 6 m away, 25 degree field of view,
-    ball radius 1): a disc of 80 % of the silhouette's radius, away from its edge."""
-    half = math.tan(math.radians(25.0) / 2.0)
-    r_img = math.tan(math.asin(1.0 / 6.0)) / half  # silhouette radius, image half-widths
-    y, x = np.mgrid[0:size, 0:size]
-    u = (x + 0.5) / size * 2 - 1
-    w = (y + 0.5) / size * 2 - 1
-    return u * u + w * w < (0.8 * r_img) ** 2
 
 
 if __name__ == "__main__":

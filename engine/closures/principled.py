@@ -291,45 +291,71 @@ def rough_reflection_rows(prm, out):
 
 
 @kernel
-def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2):
-    """Sample lobe `lobe` (L_METAL, L_GLASS_R, L_GLASS_T, L_SPEC or L_COAT) of hit i for
-    local wo: (ix, iy, iz, weight RGB = f cos / pdf of that lobe alone, transmitted).
-    The glass lobes are sampled as two: the visible normal decides the direction, the lobe
-    the branch (reflect / refract), weighted by its Fresnel share. Weight 0: no sample."""
-    if lobe == L_GLASS_T:
-        alpha = prm[i, P_GLASS_ALPHA]
-        eta = prm[i, P_GLASS_ETA]
-        if alpha >= ggx.ALPHA_MIN:
-            hx, hy, hz = ggx.sample_vndf(ox, oy, oz, alpha, u1, u2)
-        else:
-            hx, hy, hz = 0.0, 0.0, 1.0
-        c = ox * hx + oy * hy + oz * hz
-        inv_eta = 1.0 / eta
-        s2 = inv_eta * inv_eta * (1.0 - c * c)
-        if s2 >= 1.0 or c <= 0.0:
-            return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, True
-        ct = math.sqrt(1.0 - s2)
-        k = inv_eta * c - ct
-        ix, iy, iz = -inv_eta * ox + k * hx, -inv_eta * oy + k * hy, -inv_eta * oz + k * hz
-        if iz >= 0.0:
-            return ix, iy, iz, 0.0, 0.0, 0.0, True
-        g = 1.0
-        if alpha >= ggx.ALPHA_MIN and abs(eta - 1.0) >= 1e-4:
-            a2 = alpha * alpha
-            lo = ggx.lambda_ggx(oz, a2)
-            g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(-iz, a2))
-        w0 = prm[i, P_GLASS_TW] * (1.0 - _remap(prm[i, P_GLASS_F0], c, eta)) * g
-        w1 = prm[i, P_GLASS_TW + 1] * (1.0 - _remap(prm[i, P_GLASS_F0 + 1], c, eta)) * g
-        w2 = prm[i, P_GLASS_TW + 2] * (1.0 - _remap(prm[i, P_GLASS_F0 + 2], c, eta)) * g
-        return ix, iy, iz, w0, w1, w2, True
+def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
+    """The glass lobe (reflection + refraction) as one, as Cycles samples it: a visible
+    normal, then reflect or refract with probability in proportion to the average
+    reflectance / transmittance there (the macro-surface Fresnel can be 1 - total internal
+    reflection - where a rough surface still transmits)."""
+    alpha = prm[i, P_GLASS_ALPHA]
+    eta = prm[i, P_GLASS_ETA]
+    rough = alpha >= ggx.ALPHA_MIN
+    if rough:
+        hx, hy, hz = ggx.sample_vndf(ox, oy, oz, alpha, u1, u2)
+    else:
+        hx, hy, hz = 0.0, 0.0, 1.0
+    c = ox * hx + oy * hy + oz * hz
+    if c <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
+    F0 = _remap(prm[i, P_GLASS_F0], c, eta)
+    F1 = _remap(prm[i, P_GLASS_F0 + 1], c, eta)
+    F2 = _remap(prm[i, P_GLASS_F0 + 2], c, eta)
+    r0, r1, r2 = prm[i, P_GLASS_RW] * F0, prm[i, P_GLASS_RW + 1] * F1, prm[i, P_GLASS_RW + 2] * F2
+    t0 = prm[i, P_GLASS_TW] * (1.0 - F0)
+    t1 = prm[i, P_GLASS_TW + 1] * (1.0 - F1)
+    t2 = prm[i, P_GLASS_TW + 2] * (1.0 - F2)
+    inv_eta = 1.0 / eta
+    s2 = inv_eta * inv_eta * (1.0 - c * c)
+    if s2 >= 1.0:  # total internal reflection at this microfacet
+        t0 = t1 = t2 = 0.0
+    sr = r0 + r1 + r2
+    st = t0 + t1 + t2
+    if sr + st <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
+    p_r = sr / (sr + st)
+    a2 = alpha * alpha
+    lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
+    if u3 < p_r:
+        ix, iy, iz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
+        if iz <= 0.0:
+            return ix, iy, iz, 0.0, 0.0, 0.0, False
+        g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(iz, a2)) if rough else 1.0
+        k = g / p_r
+        return ix, iy, iz, r0 * k, r1 * k, r2 * k, False
+    ct = math.sqrt(1.0 - s2)
+    kk = inv_eta * c - ct
+    ix, iy, iz = -inv_eta * ox + kk * hx, -inv_eta * oy + kk * hy, -inv_eta * oz + kk * hz
+    if iz >= 0.0:
+        return ix, iy, iz, 0.0, 0.0, 0.0, True
+    g = 1.0
+    if rough and abs(eta - 1.0) >= 1e-4:
+        g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(-iz, a2))
+    k = g / (1.0 - p_r)
+    return ix, iy, iz, t0 * k, t1 * k, t2 * k, True
+
+
+@kernel
+def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2, u3):
+    """Sample lobe `lobe` (L_METAL, L_SPEC, L_COAT, or L_GLASS_R / L_GLASS_T: both mean
+    the whole glass lobe) of hit i for local wo: (ix, iy, iz, weight RGB = f cos / pdf of
+    that lobe alone, transmitted). Weight 0: no sample."""
+    if lobe == L_GLASS_R or lobe == L_GLASS_T:
+        return _glass_sample(prm, i, ox, oy, oz, u1, u2, u3)
     if lobe == L_SPEC:
         a_col = P_SPEC_ALPHA
     elif lobe == L_METAL:
         a_col = P_METAL_ALPHA
-    elif lobe == L_COAT:
-        a_col = P_COAT_ALPHA
     else:
-        a_col = P_GLASS_ALPHA
+        a_col = P_COAT_ALPHA
     ix, iy, iz, w, pdf, c = ggx.reflect_sample(ox, oy, oz, prm[i, a_col], u1, u2)
     if w <= 0.0:
         return ix, iy, iz, 0.0, 0.0, 0.0, False
@@ -345,24 +371,21 @@ def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2):
                                                         prm[i, P_METAL_B + 1]),
                 w * prm[i, P_METAL_W + 2] * fresnel_f82(c, prm[i, P_METAL_F0 + 2],
                                                         prm[i, P_METAL_B + 2]), False)
-    if lobe == L_COAT:
-        F = w * fresnel_dielectric(c, prm[i, P_COAT_ETA])
-        return ix, iy, iz, F * prm[i, P_COAT_W], F * prm[i, P_COAT_W + 1], \
-            F * prm[i, P_COAT_W + 2], False
-    eta = prm[i, P_GLASS_ETA]
-    return (ix, iy, iz, w * prm[i, P_GLASS_RW] * _remap(prm[i, P_GLASS_F0], c, eta),
-            w * prm[i, P_GLASS_RW + 1] * _remap(prm[i, P_GLASS_F0 + 1], c, eta),
-            w * prm[i, P_GLASS_RW + 2] * _remap(prm[i, P_GLASS_F0 + 2], c, eta), False)
+    F = w * fresnel_dielectric(c, prm[i, P_COAT_ETA])
+    return ix, iy, iz, F * prm[i, P_COAT_W], F * prm[i, P_COAT_W + 1], \
+        F * prm[i, P_COAT_W + 2], False
 
 
 @kernel
-def sample_lobes(prm, lobe, ns, wo, u1, u2, d, weight, transmitted):
-    """Batch of sample_lobe in world space: lobe (N,) (L_* indices), ns, wo (N,3) unit;
-    writes d (N,3) world directions, weight (N,3), transmitted (N,)."""
+def sample_lobes(prm, lobe, ns, wo, u1, u2, u3, d, weight, transmitted):
+    """Batch of sample_lobe in world space: lobe (N,) (L_* indices), ns, wo (N,3) unit,
+    u1, u2, u3 (N,) uniform numbers; writes d (N,3) world directions, weight (N,3),
+    transmitted (N,)."""
     for i in range(lobe.shape[0]):
         n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
         ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
-        ix, iy, iz, w0, w1, w2, tr = sample_lobe(prm, i, lobe[i], ox, oy, oz, u1[i], u2[i])
+        ix, iy, iz, w0, w1, w2, tr = sample_lobe(prm, i, lobe[i], ox, oy, oz, u1[i], u2[i],
+                                                  u3[i])
         x, y, z = frame_world(n0, n1, n2, ix, iy, iz)
         ln = math.sqrt(x * x + y * y + z * z)
         if ln > 0:
