@@ -165,8 +165,11 @@ def setup(mat, params, base, cos_o, front, prm, weights):
             eta = ior if front[i] else 1.0 / ior
             Eg, Eg_avg = tables.glass_E(rough, mu, eta)
             F0g = F0_from_ior(ior)
-            s_n = tables.schlick_ior_s(rough, mu, ior)   # reflectance estimate (Cycles')
-            s_mu = schlick_remap(mu, eta)                 # ... and its transmittance
+            # Reflectance estimate: Cycles' table from outside; from inside the real
+            # Fresnel at the view angle (total internal reflection included), so that the
+            # two estimates add up to the lobe's albedo on both sides (they steer the lobe
+            # choice and the photons' Russian roulette).
+            s_n = tables.schlick_ior_s(rough, mu, ior) if eta >= 1.0 else schlick_remap(mu, eta)
             Wg = (W0, W1, W2)
             for c in range(3):
                 if node == NODE_GLASS:
@@ -182,7 +185,7 @@ def setup(mat, params, base, cos_o, front, prm, weights):
                 prm[i, P_GLASS_F0 + c] = f0
                 weights[i, L_GLASS_R, c] = tr * Wg[c] * rt * dark * (f0 + (1.0 - f0) * s_n)
                 weights[i, L_GLASS_T, c] = tr * Wg[c] * tt * dark * (1.0 - (f0 + (1.0 - f0)
-                                                                            * s_mu))
+                                                                            * s_n))
             prm[i, P_GLASS_ALPHA] = alpha
             prm[i, P_GLASS_ETA] = eta
             W0, W1, W2 = W0 * (1.0 - tr), W1 * (1.0 - tr), W2 * (1.0 - tr)
