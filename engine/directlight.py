@@ -196,7 +196,7 @@ def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_norma
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
                   m_tilt32, klight, ktrace, U1, U2, SEL,
-                  contrib, row, kidx, ray, o32, d32, t32, wdir):
+                  contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
@@ -209,7 +209,9 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     SEL (K,N): its random numbers (SEL: the triangle choice of mesh lights).
     Writes entries j < m_all: contrib (j,3) irradiance without visibility, row (j,) hit,
     kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced), wdir (j,3) the
-    unit direction towards the light sample (for BSDF evaluation); rays i < m_rays:
+    unit direction towards the light sample and lpdf (j,) its solid-angle pdf (inf for a
+    light without size) for BSDF evaluation and multiple importance sampling (the area
+    lights' pdf is of the whole light, also with spread); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
     n = p.shape[0]
     K = klight.shape[0]
@@ -233,6 +235,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
             gap = 0.0
             e0 = e1 = e2 = 0.0
             w0 = w1 = w2 = 0.0
+            lp = np.inf
             if code == C_SUN or code == C_WORLD:
                 finite = False
                 if code == C_SUN:
@@ -244,6 +247,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                     cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
                         1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
                     e0, e1, e2 = q[RGB] * cr, q[RGB + 1] * cr, q[RGB + 2] * cr
+                    if q[COS_HALF] < 1.0:
+                        lp = 1.0 / (TWO_PI * (1.0 - q[COS_HALF]))
                 else:
                     r = math.sqrt(u1)
                     phi = TWO_PI * u2
@@ -251,6 +256,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                     w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z, s0, s1, s2)
                     ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
                     e0, e1, e2 = (PI * q[RGB]) * ok, (PI * q[RGB + 1]) * ok, (PI * q[RGB + 2]) * ok
+                    lp = z / PI
             elif code == C_POINT or code == C_SPOT:
                 t0, t1, t2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
                 dc = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
@@ -279,6 +285,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                 d2 = max(dist * dist, md * md)
                 f = cr * cl / d2
                 e0, e1, e2 = q[RGB] * f, q[RGB + 1] * f, q[RGB + 2] * f
+                if rad > 0:
+                    lp = d2 / max(PI * rad * rad * cl, 1e-300)
                 if code == C_SPOT:
                     m = _spot_mask(a0, a1, a2, q)
                     e0, e1, e2 = e0 * m, e1 * m, e2 * m
@@ -338,6 +346,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                     la0 = m_L[tri, 0] * m_weight[tri]
                     la1 = m_L[tri, 1] * m_weight[tri]
                     la2 = m_L[tri, 2] * m_weight[tri]
+                    inv_pdf_a = m_weight[tri]
                 else:  # area light
                     ny0, ny1, ny2 = q[DIR], q[DIR + 1], q[DIR + 2]
                     if q[SPREAD_RECT] != 0.0:
@@ -357,6 +366,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                         y2 = q[POS + 2] + x * q[U + 2] + yy * q[V + 2]
                         ar = wx * wy
                         la0, la1, la2 = q[RGB] * ar, q[RGB + 1] * ar, q[RGB + 2] * ar
+                        inv_pdf_a = ar
                     else:
                         if q[IS_DISK] != 0.0:
                             x, yy = _concentric_disk(u1, u2)
@@ -369,6 +379,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                         la0 = q[RGB] * q[AREA_]
                         la1 = q[RGB + 1] * q[AREA_]
                         la2 = q[RGB + 2] * q[AREA_]
+                        inv_pdf_a = q[AREA_]
                     gap = (abs(q[DIR]) * (G64 * (abs(q[POS]) + abs(y0 - q[POS])) + _ulp32(y0))
                            + abs(q[DIR + 1]) * (G64 * (abs(q[POS + 1]) + abs(y1 - q[POS + 1]))
                                                 + _ulp32(y1))
@@ -387,6 +398,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                 d2 = max(dist * dist, md * md)
                 f = cr * cl / d2
                 e0, e1, e2 = la0 * f, la1 * f, la2 * f
+                lp = d2 / max(cl * inv_pdf_a, 1e-300)
                 if code == C_AREA and q[SPREAD_ON] != 0.0:
                     at = _spread_attenuation((-w0) * q[DIR] + (-w1) * q[DIR + 1]
                                              + (-w2) * q[DIR + 2], q)
@@ -400,6 +412,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
             m_all += 1
             contrib[j, 0], contrib[j, 1], contrib[j, 2] = e0, e1, e2
             wdir[j, 0], wdir[j, 1], wdir[j, 2] = w0, w1, w2
+            lpdf[j] = lp
             row[j] = i
             kidx[j] = k
             if not ktrace[k]:
@@ -464,15 +477,18 @@ def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all):
 
 
 @kernel
-def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, kdelta, fd,
-                    prm, ns, wo):
+def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, lpdf, kmode,
+                    fd, prm, ns, wo, sel):
     """Radiance instead of irradiance: L[row] += contrib x f x visible / samples, entry by
-    entry, where f = fd[row] (the diffuse lobe's f = albedo / pi) plus, for samples of
-    delta lights (kdelta[k]: a point, spot or sun without size, which no sampled direction
-    can hit), the rough reflective lobes' f(wo, wi) (engine/closures/principled.py, packed
-    per hit in prm; ns, wo (N,3)). contrib already holds cos(wi) (with the shading
-    offset), so the glossy term is eval / cos(wi). Lights with a size reach glossy lobes
-    through the lobes' sampled continuation (engine/integrator.py), not here."""
+    entry, where f = fd[row] (the diffuse lobe's f = albedo / pi) plus the rough reflective
+    lobes' f(wo, wi) (engine/closures/principled.py, packed per hit in prm; ns, wo (N,3)),
+    by the light's kmode[k]: 1 = a delta light (a point, spot or sun without size, which
+    no sampled direction can hit): full weight; 2 = a light the lobes' sampled continuation
+    also finds (engine/integrator.py): weighted by the power heuristic against the lobes'
+    sampling pdf (principled.bsdf_pdf with the continuation's lobe-choice probabilities
+    sel (N, N_LOBES)), lpdf the light sample's solid-angle pdf, ksamples its sample count;
+    0 = the glossy part is left to the continuation. contrib already holds cos(wi) (with
+    the shading offset), so the glossy term is eval / cos(wi)."""
     for j in range(m_all):
         r = ray[j]
         if r >= 0 and blocked[r]:
@@ -481,15 +497,21 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
         s = ksamples[k]
         i = row[j]
         f0, f1, f2 = fd[i, 0], fd[i, 1], fd[i, 2]
-        if kdelta[k]:
+        mode = kmode[k]
+        if mode != 0:
             n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
             ix, iy, iz = pr.frame_local(n0, n1, n2, wdir[j, 0], wdir[j, 1], wdir[j, 2])
             if iz > 0.0:
                 ox, oy, oz = pr.frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
                 g0, g1, g2 = pr.eval_reflection(prm, i, ox, oy, oz, ix, iy, iz)
-                f0 += g0 / iz
-                f1 += g1 / iz
-                f2 += g2 / iz
+                mis = 1.0
+                if mode == 2:
+                    pb = pr.bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz)
+                    pl = s * lpdf[j]
+                    mis = pl * pl / (pl * pl + pb * pb) if pl > 0.0 else 0.0
+                f0 += g0 / iz * mis
+                f1 += g1 / iz * mis
+                f2 += g2 / iz * mis
         L[i, 0] = L[i, 0] + contrib[j, 0] * f0 / s
         L[i, 1] = L[i, 1] + contrib[j, 1] * f1 / s
         L[i, 2] = L[i, 2] + contrib[j, 2] * f2 / s
@@ -518,6 +540,7 @@ class DirectLightBuffers:
             self.t32 = np.empty(m, np.float32)
             self.blocked = np.empty(m, np.bool_)
             self.wdir = np.empty((m, 3))
+            self.lpdf = np.empty(m)
         return self
 
 
@@ -526,8 +549,8 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, bsdf=None):
     index, traced?, light's sample count, u1 (N,), u2 (N,), triangle choice (N,) or None),
     in the order they must be summed. packed = packing.pack_lights(lights); hit_arrays =
     (p, ns, gate, ng, offset, shade_off, cutoff, lift) as sample_lights takes them.
-    bsdf = (fd (N,3), prm (N,P), wo (N,3), delta (L,) bool per light): outgoing radiance
-    instead, weighted by the BSDF (accumulate_bsdf).
+    bsdf = (fd (N,3), prm (N,P), wo (N,3), mode (L,) int per light, sel (N, N_LOBES)):
+    outgoing radiance instead, weighted by the BSDF (accumulate_bsdf).
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     E = np.zeros((n, 3))
@@ -554,7 +577,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, bsdf=None):
         buf.ensure(K * n)
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, klight, ktrace,
                                       U1, U2, SEL, buf.contrib, buf.row, buf.kidx, buf.ray,
-                                      buf.o32, buf.d32, buf.t32, buf.wdir)
+                                      buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
@@ -562,9 +585,10 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, bsdf=None):
         if bsdf is None:
             accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
         else:
-            fd, prm, wo, delta = bsdf
+            fd, prm, wo, mode, sel = bsdf
             accumulate_bsdf(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked,
-                            m_all, buf.wdir, delta[klight], fd, prm, hit_arrays[1], wo)
+                            m_all, buf.wdir, buf.lpdf, mode[klight], fd, prm, hit_arrays[1], wo,
+                            sel)
         rays += m_rays
     return E, rays
 
@@ -605,7 +629,8 @@ def _warm_up():
                          np.zeros(1, np.int64), np.full((1, 3), 0.5), np.ones(1),
                          np.ones(1, np.bool_))
     direct_light(packed, hit, samples, _NoOcclusion(), None, 1,
-                 bsdf=(np.ones((1, 3)), prm, nrm, np.ones(len(lights), np.bool_)))
+                 bsdf=(np.ones((1, 3)), prm, nrm, np.full(len(lights), 2, np.int64),
+                       np.full((1, pr.N_LOBES), 0.2)))
     terminator_lift(np.zeros(1, np.int64), np.full((1, 2), 0.25), nrm, np.ones(1, np.bool_),
                     np.full(1, 0.1), mesh.v0, mesh.e1, mesh.e2,
                     np.repeat(nrm[:, None, :], 3, axis=1), np.zeros(1), np.zeros((1, 3)))

@@ -16,10 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
-from .lights import MESH
+from .lights import AREA, MESH, SUN
 from .lights.packing import pack_lights
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, sample_specular,
                    surface_hit)
+from .closures import principled as pr
 from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
@@ -78,9 +79,11 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
     by its own rays, which stays calm right next to the emitter).
-    bsdf = (fd (N,3) diffuse f, prm (N,P) the hits' packed lobes): outgoing radiance
-    instead, the diffuse f plus, for delta lights, the rough reflective lobes' f
-    (directlight.accumulate_bsdf)."""
+    bsdf = (fd (N,3) diffuse f, prm (N,P) the hits' packed lobes, sel (N, N_LOBES) the
+    continuation's lobe-choice probabilities): outgoing radiance instead, the diffuse f
+    plus the rough reflective lobes' f, in full for delta lights and weighted by multiple
+    importance sampling for the lights the continuation also finds (light_modes,
+    directlight.accumulate_bsdf)."""
     n = len(hit.p)
     plan = ctx.plan
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
@@ -102,14 +105,56 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         return np.zeros((n, 3))
     packed = ctx.packed_lights or pack_lights(ctx.lights)
     if bsdf is not None:
-        delta = np.array([not light.has_size for light in ctx.lights], np.bool_)
-        fd, prm = bsdf
+        fd, prm, sel = bsdf
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
-                np.ascontiguousarray(hit.wo, np.float64), delta)
+                np.ascontiguousarray(hit.wo, np.float64), light_modes(ctx),
+                np.ascontiguousarray(sel, np.float64))
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n,
                            bsdf=bsdf)
     counters.shadow_rays += rays
     return E
+
+
+MODE_CONTINUATION, MODE_DELTA, MODE_MIS = 0, 1, 2
+
+
+def light_modes(ctx) -> np.ndarray:
+    """How each light reaches the rough reflective lobes (directlight.accumulate_bsdf):
+    MODE_DELTA: a point, spot or sun without size, by shadow rays only; MODE_MIS: an area
+    light without spread or a sun with an angle, by shadow rays and by the lobes' sampled
+    continuation, the two weighted by the power heuristic (Veach; mis_light_pdf gives the
+    light's pdf where a continuation meets it); MODE_CONTINUATION: the other lights with a
+    size (emissive meshes, the world, sized point and spot lights) by the continuation
+    alone. A light whose shadow rays are off (diffuse visibility) is continuation-only."""
+    modes = np.zeros(len(ctx.lights), np.int64)
+    for li, light in enumerate(ctx.lights):
+        if not light.ray_kinds & SHADOW:
+            continue
+        if not light.has_size:
+            modes[li] = MODE_DELTA
+        elif (light.kind == AREA and light.spread >= math.pi - 1e-6) or light.kind == SUN:
+            modes[li] = MODE_MIS
+    return modes
+
+
+def mis_light_pdf(light, o, d, t):
+    """Solid-angle pdf (N,) with which the light's shadow-ray samples (directlight.
+    sample_lights) pick direction d from o, for continuation rays that met the light at
+    distance t (sun: escaping rays inside its disk)."""
+    if light.kind == SUN:
+        return np.full(len(d), 1.0 / light.solid_angle)
+    cos_l = np.abs(dot(d, light.dir))
+    return t * t / np.maximum(cos_l * light.area, 1e-300)
+
+
+def _mis_weight(ctx, li, light, o, d, t, pdf_b):
+    """Power-heuristic weight of continuation rays (pdf pdf_b, inf = a mirror-like lobe)
+    that met light li, against its light_samples shadow rays."""
+    n = ctx.plan.light_samples.get(light.name, 1)
+    pl = n * mis_light_pdf(light, o, d, t)
+    with np.errstate(invalid="ignore", over="ignore"):
+        w = pdf_b * pdf_b / (pdf_b * pdf_b + pl * pl)
+    return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
 
 
 def light_shadow_rays(ctx, hit, light_index, rng):
@@ -127,7 +172,7 @@ def light_shadow_rays(ctx, hit, light_index, rng):
                                   u1[None], u2[None],
                                   np.zeros((1, 1)) if sel is None else sel[None],
                                   buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
-                                  buf.t32, buf.wdir)
+                                  buf.t32, buf.wdir, buf.lpdf)
     return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.o32[:m_rays].copy(),
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
@@ -248,14 +293,10 @@ def _secondary_irradiance(ctx, hit):
                            s.estimator)
 
 
-def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
-    """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
-    paths that would add little) and sample it. Returns (kept indices, origins, directions,
-    throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
-    incoming class, scalar or per ray) through a transparent pass). The throughput takes the
-    sampled direction's own weight (f cos / pdf) over the choice probability, so the lobe
-    weights only steer the choice. Written lobe by lobe: numpy reductions over a 3-wide
-    axis are slow (bench/)."""
+def lobe_choice(w, tp):
+    """The continuation's lobe choice: (sel (N, N_LOBES) the probability of continuing
+    through each lobe (diffuse: 0; Russian roulette included), q (N,) the survival
+    probability, p (N, len(SPEC_LOBES)) the unnormalised lobe weights, psum (N,))."""
     cols = [w[k] for k in SPEC_LOBES]
     p = np.stack([max3(c) for c in cols], axis=1)
     psum = p.sum(axis=1)
@@ -264,11 +305,28 @@ def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
         wsum = wsum + c
     # Russian roulette only for paths that would contribute little (< 10 % weight).
     q = np.clip(10.0 * max3(tp * wsum), 0.0, 1.0)
+    sel = np.zeros((len(p), len(SPEC_LOBES) + 1))
+    ok = psum > 0
+    sel[ok, 1:] = p[ok] / psum[ok, None] * q[ok, None]
+    return sel, q, p, psum
+
+
+def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False):
+    """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
+    paths that would add little) and sample it. Returns (kept indices, origins, directions,
+    throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
+    incoming class, scalar or per ray) through a transparent pass) and, with want_pdf, the
+    pdf (N,) of each continued direction under the whole choice (inf: from a mirror-like
+    lobe, a refraction or a pass, which light sampling cannot produce). The throughput
+    takes the sampled direction's own weight (f cos / pdf) over the choice probability, so
+    the lobe weights only steer the choice. choice: lobe_choice(w, tp) if already made."""
+    sel, q, p, psum = choice if choice is not None else lobe_choice(w, tp)
     go = (psum > 0) & (rng.random(len(p)) < q)
     idx = np.nonzero(go)[0]
     empty = np.zeros((0, 3))
     if len(idx) == 0:
-        return idx, empty, empty, empty, np.zeros(0, np.int64)
+        out = (idx, empty, empty, empty, np.zeros(0, np.int64))
+        return out + (np.zeros(0),) if want_pdf else out
     cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
     lobe = np.minimum(np.count_nonzero(rng.random(len(idx))[:, None] >= cdf, axis=1),
                       len(SPEC_LOBES) - 1)
@@ -283,7 +341,22 @@ def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
     o = sub.clear(keep, nd[keep])
     inc = ray_cls if np.ndim(ray_cls) == 0 else np.asarray(ray_cls)[idx]
     new_cls = continued_class(lobe, inc)[keep]
-    return idx[keep], o, nd[keep], new_tp[keep], new_cls
+    out = (idx[keep], o, nd[keep], new_tp[keep], new_cls)
+    if not want_pdf:
+        return out
+    pdf = np.full(len(idx), np.inf)
+    prm = np.ascontiguousarray(sub.prm)
+    rough = pr.lobe_is_rough(prm, (lobe + 1).astype(np.int64)) & ~transmitted & valid
+    r = np.nonzero(rough)[0]
+    if len(r):
+        pb = np.empty(len(r))
+        pr.bsdf_pdf_many(np.ascontiguousarray(prm[r]),
+                         np.ascontiguousarray(sel[idx[r]]),
+                         np.ascontiguousarray(sub.ns[r], np.float64),
+                         np.ascontiguousarray(sub.wo[r], np.float64),
+                         np.ascontiguousarray(nd[r], np.float64), pb)
+        pdf[r] = pb
+    return out + (pdf[keep],)
 
 
 # The caustic estimate is already a smooth kernel average, so it varies little between the
@@ -309,16 +382,17 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
 
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
-                  should_cancel=None, glossy=None):
+                  should_cancel=None, glossy=None, sel=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect). glossy (N,)
     bool: hits whose rough reflective lobes also take direct light from delta lights
     (their light from lights with a size comes by continuation); the direct term then holds
-    both lobes' response (shadow rays weighted by the full BSDF)."""
+    both lobes' response (shadow rays weighted by the full BSDF, with multiple importance
+    sampling against the continuation's choice sel (N, N_LOBES), lobe_choice))."""
     s = ctx.settings
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p)
     if glossy is not None and glossy.any():
-        direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm))
+        direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel))
     else:
         direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
     caustic = np.zeros_like(direct)
@@ -493,10 +567,10 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     return acc, counters, end
 
 
-def _glossy_rows(ctx, hit):
-    """Hits whose rough reflective lobes take shadow rays: any, when the scene has a delta
-    light (directlight.accumulate_bsdf)."""
-    if not any(not light.has_size and light.ray_kinds & SHADOW for light in ctx.lights):
+def _glossy_rows(ctx, hit, modes):
+    """Hits whose rough reflective lobes take shadow rays: any, when a light is sampled
+    for them (light_modes; directlight.accumulate_bsdf)."""
+    if not np.any(modes != MODE_CONTINUATION):
         return np.zeros(len(hit.p), bool)
     prm, _ = closures(ctx.table, hit)
     out = np.empty(len(hit.p), np.bool_)
@@ -530,6 +604,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ortho = cam.kind == "ORTHO"
     travelled = np.zeros(len(o))
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
+    pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
+    modes = light_modes(ctx)
     has_holdout = bool(ctx.geo.holdout.any())
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
@@ -540,13 +616,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
-        for light in ctx.lights:
+        for li, light in enumerate(ctx.lights):
             sees = (ray_cls & light.ray_kinds) != 0
             if not sees.any():
                 continue
             mask, tl, L = light.intersect(o, d, t)
             if L is not None and mask.any():
                 mask &= sees
+                if bounce > 0 and modes[li] == MODE_MIS and mask.any():
+                    L = L * _mis_weight(ctx, li, light, o, d, tl, pdf_b)[:, None]
                 acc.add(target, pix[mask], tp[mask] * L[mask])
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
@@ -554,10 +632,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if miss.any():
             if not (bounce == 0 and s.film_transparent):
                 radiance = np.broadcast_to(bg, (int(miss.sum()), 3))
-                for light in ctx.lights:
+                for li, light in enumerate(ctx.lights):
                     if bounce > 0:
                         sun = light.seen_at_infinity(d[miss])
                         if sun is not None:
+                            if modes[li] == MODE_MIS:
+                                sun = sun * _mis_weight(ctx, li, light, o[miss], d[miss],
+                                                        None, pdf_b[miss])[:, None]
                             radiance = radiance + sun
                 acc.add(target, pix[miss], tp[miss] * radiance)
         hitm = prim >= 0
@@ -573,8 +654,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():
             return
-        o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls = (
-            a[hitm] for a in (o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls))
+        o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
+            a[hitm] for a in (o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls,
+                              pdf_b))
         travelled = travelled + t
         footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
         if sampler is not None and bounce == 0:
@@ -591,7 +673,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add(target, pix, tp * Le)
         w = lobe_weights(ctx.table, hit)
         wd = w["diffuse"]
-        glossy = _glossy_rows(ctx, hit)
+        glossy = _glossy_rows(ctx, hit, modes)
+        choice = lobe_choice(w, tp)
         dsel = np.nonzero((max3(wd) > 0) | glossy)[0]
         if len(dsel):
             sub = hit.take(dsel)
@@ -599,7 +682,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
             direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
                                                       sample_id[dsel], footprint[dsel],
-                                                      should_cancel, glossy=glossy[dsel])
+                                                      should_cancel, glossy=glossy[dsel],
+                                                      sel=choice[0][dsel])
             tpd = tp[dsel]
             if bounce == 0:
                 acc.add("direct", pix[dsel], tpd * direct)
@@ -610,7 +694,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
-        keep, o, d, tp, ray_cls = continue_specular(ctx, hit, w, tp, rng, ray_cls)
+        keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, w, tp, rng, ray_cls,
+                                                           choice=choice, want_pdf=True)
         pix = pix[keep]
         sample_id = sample_id[keep]
         travelled = travelled[keep]

@@ -277,6 +277,74 @@ def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
 
 
 @kernel
+def _glass_reflect_share(prm, i, c, eta, inv_eta):
+    """Probability that _glass_sample reflects at a microfacet with wo.h = c."""
+    F0 = _remap(prm[i, P_GLASS_F0], c, eta)
+    F1 = _remap(prm[i, P_GLASS_F0 + 1], c, eta)
+    F2 = _remap(prm[i, P_GLASS_F0 + 2], c, eta)
+    sr = prm[i, P_GLASS_RW] * F0 + prm[i, P_GLASS_RW + 1] * F1 + prm[i, P_GLASS_RW + 2] * F2
+    if inv_eta * inv_eta * (1.0 - c * c) >= 1.0:
+        return 1.0 if sr > 0.0 else 0.0
+    st = (prm[i, P_GLASS_TW] * (1.0 - F0) + prm[i, P_GLASS_TW + 1] * (1.0 - F1)
+          + prm[i, P_GLASS_TW + 2] * (1.0 - F2))
+    return sr / (sr + st) if sr + st > 0.0 else 0.0
+
+
+@kernel
+def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
+    """Solid-angle pdf with which the continuation (sample_lobe, the lobe chosen with
+    probability sel[i, lobe]) samples the reflected direction wi of hit i: the mixture of
+    its rough reflective lobes (mirror-like lobes have no density)."""
+    if oz <= 0.0 or iz <= 0.0:
+        return 0.0
+    pdf = 0.0
+    for lobe, a_col in ((L_SPEC, P_SPEC_ALPHA), (L_METAL, P_METAL_ALPHA),
+                        (L_COAT, P_COAT_ALPHA)):
+        w = sel[i, lobe]
+        a = prm[i, a_col]
+        if w > 0.0 and a >= ggx.ALPHA_MIN:
+            _, p, _ = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+            pdf += w * p
+    w = sel[i, L_GLASS_R] + sel[i, L_GLASS_T]
+    a = prm[i, P_GLASS_ALPHA]
+    if w > 0.0 and a >= ggx.ALPHA_MIN:
+        _, p, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        eta = prm[i, P_GLASS_ETA]
+        pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
+    return pdf
+
+
+@kernel
+def bsdf_pdf_many(prm, sel, ns, wo, wi, out):
+    """Batch of bsdf_pdf in world space."""
+    for i in range(ns.shape[0]):
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+        ix, iy, iz = frame_local(n0, n1, n2, wi[i, 0], wi[i, 1], wi[i, 2])
+        out[i] = bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz)
+
+
+@kernel
+def lobe_is_rough(prm, lobe):
+    """Per row: the sampled lobe (L_* index) has a density (not mirror-like)."""
+    out = np.zeros(lobe.shape[0], np.bool_)
+    for i in range(lobe.shape[0]):
+        l = lobe[i]
+        if l == L_SPEC:
+            a = prm[i, P_SPEC_ALPHA]
+        elif l == L_METAL:
+            a = prm[i, P_METAL_ALPHA]
+        elif l == L_COAT:
+            a = prm[i, P_COAT_ALPHA]
+        elif l == L_GLASS_R or l == L_GLASS_T:
+            a = prm[i, P_GLASS_ALPHA]
+        else:
+            a = 0.0
+        out[i] = a >= ggx.ALPHA_MIN
+    return out
+
+
+@kernel
 def has_rough_reflection(prm, i):
     for a_col, w_col in ((P_SPEC_ALPHA, P_SPEC_W), (P_METAL_ALPHA, P_METAL_W),
                          (P_COAT_ALPHA, P_COAT_W), (P_GLASS_ALPHA, P_GLASS_RW)):
