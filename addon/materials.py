@@ -31,18 +31,18 @@ class Closure:
     __slots__ = ("base_color", "metallic", "roughness", "transmission", "ior", "specular",
                  "emission", "alpha", "texture", "has_bsdf", "normal_map",
                  "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
-                 "coat_ior", "coat_tint", "multiscatter", "node")
+                 "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
-             "coat_ior", "coat_tint", "multiscatter", "node")
+             "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
                  alpha=1.0, texture=None, has_bsdf=True, normal_map=None,
                  specular_ior_level=0.5, specular_tint=(1.0, 1.0, 1.0), coat_weight=0.0,
                  coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
-                 multiscatter=True, node="principled"):
+                 multiscatter=True, node="principled", glossy_color=None):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -62,6 +62,8 @@ class Closure:
         self.coat_tint = np.asarray(coat_tint, dtype=np.float64)[:3]
         self.multiscatter = bool(multiscatter)
         self.node = node
+        self.glossy_color = None if glossy_color is None else np.asarray(glossy_color,
+                                                                         np.float64)[:3]
 
 
 def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
@@ -104,6 +106,18 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
     out.multiscatter = lead.multiscatter
     out.node = lead.node
     out.base_color = (ta * a.base_color + tb * b.base_color) * (total / (total + da + db))
+    if out.node == "glossy":
+        # Diffuse + Glossy: the glossy lobe keeps the Glossy BSDF's colour and the diffuse
+        # lobe the other side's, instead of both taking the blend of the two.
+        ma, mb = ta * a.metallic, tb * b.metallic
+        if ma + mb > 0:
+            ca = a.glossy_color if a.glossy_color is not None else a.base_color
+            cb = b.glossy_color if b.glossy_color is not None else b.base_color
+            out.glossy_color = (ma * ca + mb * cb) / (ma + mb)
+        na, nb = ta * (1.0 - a.metallic), tb * (1.0 - b.metallic)
+        if na + nb > 0:
+            out.base_color = ((na * a.base_color + nb * b.base_color) / (na + nb)
+                              * (total / (total + da + db)))
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
         b.texture if sb > 0 else None)
     # One shading normal per material: the first side's map that has a surface.
@@ -149,7 +163,9 @@ class MaterialConverter:
             coat_roughness=min(max(closure.coat_roughness, 0.0), 1.0),
             coat_ior=max(closure.coat_ior, 1.0),
             coat_tint=np.clip(closure.coat_tint, 0.0, None),
-            multiscatter=closure.multiscatter, node=closure.node)
+            multiscatter=closure.multiscatter, node=closure.node,
+            glossy_color=(None if closure.glossy_color is None
+                          else np.clip(closure.glossy_color, 0.0, 1.0)))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m

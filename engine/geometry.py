@@ -88,6 +88,9 @@ def closure_params(materials: list[Material]) -> np.ndarray:
         row[pr.M_MULTI] = 1.0 if m.multiscatter else 0.0
         row[pr.M_NODE] = {"principled": pr.NODE_PRINCIPLED, "glossy": pr.NODE_GLOSSY,
                           "glass": pr.NODE_GLASS}[m.node]
+        if m.glossy_color is not None:
+            row[pr.M_GCOL:pr.M_GCOL + 3] = m.glossy_color
+            row[pr.M_HAS_GCOL] = 1.0
     return out
 
 

@@ -58,7 +58,9 @@ class Material:
       coat_weight       a clear dielectric coat (coat_roughness, coat_ior) tinting what is
                         below it with coat_tint along the refracted path
       metallic          GGX metal with F82-tint Fresnel (f0 = base colour, tint =
-                        specular_tint); node="glossy": the colour as constant reflectance
+                        specular_tint); node="glossy": a constant reflectance,
+                        glossy_color (or the base colour when None; a Mix of Diffuse and
+                        Glossy keeps both colours)
       transmission      GGX glass (reflection + refraction; transmission tinted
                         sqrt(base colour), or the colour for node="glass")
       specular          weight of the dielectric specular layer over the diffuse base
@@ -92,6 +94,7 @@ class Material:
     coat_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
     multiscatter: bool = True
     node: str = "principled"
+    glossy_color: tuple | np.ndarray | None = None
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
     normal_map: NormalMap | Bump | None = None
     warnings: list = field(default_factory=list, repr=False)
@@ -133,6 +136,9 @@ class Material:
             raise SceneError(f"{who} node: expected one of {', '.join(MATERIAL_NODES)}, got "
                              f"{self.node!r}")
         self.multiscatter = bool(self.multiscatter)
+        if self.glossy_color is not None:
+            self.glossy_color = np.clip(_vec3(self.glossy_color, f"{who} glossy_color"), 0.0,
+                                        1.0)
         if self.texture is not None:
             try:
                 self.texture = as_texture(self.texture, name=f"{self.name} texture")

@@ -334,10 +334,6 @@ def visibility_collection_holdout():
 
 # --- closures (energy per closure belongs to the materials issue) -------------------------
 
-GGX_ISSUE = ("issue 14: a rough reflection sees an area light only by its sampled "
-             "continuation (no light sampling with MIS for lights with a size yet): "
-             "speckled highlight")
-
 
 def _ball_scene(make_material, height=0.7):
     """make_material: called after the stage is reset (a reset removes all materials)."""
@@ -367,12 +363,12 @@ def closure_principled_default():
     _ball_scene(lambda: _shader("p", "ShaderNodeBsdfPrincipled"))
 
 
-@case("closures", known_issue=GGX_ISSUE)
+@case("closures")
 def closure_principled_metal_rough():
     _ball_scene(lambda: mb.material("m", "principled", (0.9, 0.6, 0.3), roughness=0.4, metallic=1.0))
 
 
-@case("closures", mean_tol=0.08, known_issue=GGX_ISSUE)
+@case("closures", mean_tol=0.08)
 def closure_glossy():
     _ball_scene(lambda: _shader("g", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.3))
 
@@ -443,7 +439,7 @@ def closure_emission():
                 height=1.0)
 
 
-@case("closures", known_issue=GGX_ISSUE)
+@case("closures")
 def closure_mix_diffuse_glossy():
     _ball_scene(lambda: mb.material("mix", "glossy_mix", (0.7, 0.2, 0.2), roughness=0.2, mix=0.3))
 

@@ -44,7 +44,9 @@ M_COAT_W, M_COAT_ROUGH, M_COAT_IOR = 10, 11, 12
 M_CTINT = 13           # 3: coat tint
 M_MULTI = 16           # 1: Multiscatter GGX (energy compensation), 0: plain GGX
 M_NODE = 17            # NODE_* below
-N_MAT = 18
+M_GCOL = 18            # 3: Glossy BSDF colour (metal lobe's constant reflectance) ...
+M_HAS_GCOL = 21        # ... when 1 (else the base colour)
+N_MAT = 22
 NODE_PRINCIPLED, NODE_GLOSSY, NODE_GLASS = 0, 1, 2
 
 # Packed per-hit row.
@@ -144,7 +146,7 @@ def setup(mat, params, base, cos_o, front, prm, weights):
                 if node == NODE_GLOSSY:  # constant reflectance = the colour (in the weight)
                     f0 = 1.0
                     b = 0.0
-                    col = base[i, c]
+                    col = q[M_GCOL + c] if q[M_HAS_GCOL] != 0.0 else base[i, c]
                 else:
                     f0 = min(max(base[i, c], 0.0), 1.0)
                     tint = min(max(q[M_STINT + c], 0.0), 1.0)
