@@ -28,10 +28,20 @@ SHARP_ROUGHNESS = 0.3
 
 
 def sharp_specular(table: MaterialTable) -> np.ndarray:
-    """(M,) bool: materials whose specular lobe is sharp enough to focus light (a
-    caustic caster): a specular or refractive lobe of roughness <= SHARP_ROUGHNESS, or a
+    """(M,) bool: materials with a lobe sharp enough to focus light (a caustic caster): a
+    metal, glass or dielectric specular lobe of roughness <= SHARP_ROUGHNESS, a Principled
+    coat of coat roughness <= SHARP_ROUGHNESS (a clear-coated rough base), or a
     transparent pass."""
-    return table.has_specular & ((table.roughness <= SHARP_ROUGHNESS) | (table.alpha < 1))
+    from .closures import principled as pr
+    dielectric = (1 - table.metallic) * (1 - table.transmission)
+    main = ((table.metallic * table.base_color.max(axis=1) > 0) | (table.transmission > 0)
+            | (dielectric * table.specular > 0))
+    coat = np.zeros(len(table.alpha), bool)
+    if table.closure_params is not None and table.coat_weight is not None:
+        coat = ((table.coat_weight > 0)
+                & (table.closure_params[:, pr.M_COAT_ROUGH] <= SHARP_ROUGHNESS))
+    return table.has_specular & ((main & (table.roughness <= SHARP_ROUGHNESS)) | coat
+                                 | (table.alpha < 1))
 
 
 @dataclass

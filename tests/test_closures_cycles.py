@@ -95,3 +95,24 @@ def test_white_furnace_matches_cycles(name):
     lossy ones (plain GGX, a coloured metal) at Cycles' albedo. Monte Carlo noise of the
     mean over ~150 pixels x 64 samples stays well under the 2 %."""
     _check(name, render_furnace(FURNACES[name]))
+
+
+def test_caustic_casters_are_the_sharp_lobes():
+    """engine/effects.sharp_specular: a rough Principled (default roughness 0.5) focuses no
+    light; a smooth one, glass, a mirror, a clear coat over a rough base and a transparent
+    pass do; a Diffuse BSDF is no caster at all."""
+    from engine.effects import sharp_specular
+    from engine.geometry import MaterialTable
+    mats = [Material("rough", roughness=0.5, specular=1.0),
+            Material("smooth", roughness=0.1, specular=1.0),
+            Material("glass", transmission=1.0, roughness=0.0),
+            Material("mirror", metallic=1.0, roughness=0.0),
+            Material("coated", roughness=0.8, specular=1.0, coat_weight=1.0,
+                     coat_roughness=0.05),
+            Material("rough_coat", roughness=0.8, specular=1.0, coat_weight=1.0,
+                     coat_roughness=0.6),
+            Material("card", alpha=0.5),
+            Material("diffuse", specular=0.0)]
+    got = dict(zip([m.name for m in mats], sharp_specular(MaterialTable.build(mats))))
+    assert got == {"rough": False, "smooth": True, "glass": True, "mirror": True,
+                   "coated": True, "rough_coat": False, "card": True, "diffuse": False}
