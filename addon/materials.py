@@ -1,7 +1,7 @@
 """Blender materials (shader node trees) -> engine materials.
 
-Supported: Principled BSDF (Cycles' v2 layers: coat, metallic with F82 tint, transmission,
-specular IOR level and tint; sheen and subsurface warn), Diffuse, Glossy (GGX or
+Supported: Principled BSDF (Cycles' v2 layers: sheen, coat, metallic with F82 tint,
+transmission, specular IOR level and tint; subsurface warns), Diffuse, Glossy (GGX or
 Multiscatter GGX), Glass, Refraction (as Glass), Emission, Transparent,
 Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
 tiles), a Color Attribute, an RGB / Value node, or a tree of the colour nodes in
@@ -31,18 +31,21 @@ class Closure:
     __slots__ = ("base_color", "metallic", "roughness", "transmission", "ior", "specular",
                  "emission", "alpha", "texture", "has_bsdf", "normal_map",
                  "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
-                 "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color")
+                 "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
+                 "sheen_weight", "sheen_roughness", "sheen_tint")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
-             "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color")
+             "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
+             "sheen_roughness", "sheen_tint")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
                  alpha=1.0, texture=None, has_bsdf=True, normal_map=None,
                  specular_ior_level=0.5, specular_tint=(1.0, 1.0, 1.0), coat_weight=0.0,
                  coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
-                 multiscatter=True, node="principled", glossy_color=None):
+                 multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
+                 sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0)):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -64,6 +67,9 @@ class Closure:
         self.node = node
         self.glossy_color = None if glossy_color is None else np.asarray(glossy_color,
                                                                          np.float64)[:3]
+        self.sheen_weight = float(sheen_weight)
+        self.sheen_roughness = float(sheen_roughness)
+        self.sheen_tint = np.asarray(sheen_tint, dtype=np.float64)[:3]
 
 
 def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
@@ -87,7 +93,8 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float) -> Closure:
         return out
     ta, tb = sa / total, sb / total
     for name in ("metallic", "transmission", "specular", "specular_ior_level",
-                 "specular_tint", "coat_weight", "coat_roughness", "coat_ior", "coat_tint"):
+                 "specular_tint", "coat_weight", "coat_roughness", "coat_ior", "coat_tint",
+                 "sheen_weight", "sheen_roughness", "sheen_tint"):
         setattr(out, name, ta * getattr(a, name) + tb * getattr(b, name))
     # Roughness and IOR belong to the reflective / refractive lobes: weight them by how much
     # of those lobes each side brings (a Diffuse BSDF's roughness is Oren-Nayar's, which
@@ -163,6 +170,9 @@ class MaterialConverter:
             coat_roughness=min(max(closure.coat_roughness, 0.0), 1.0),
             coat_ior=max(closure.coat_ior, 1.0),
             coat_tint=np.clip(closure.coat_tint, 0.0, None),
+            sheen_weight=max(closure.sheen_weight, 0.0),
+            sheen_roughness=min(max(closure.sheen_roughness, 0.0), 1.0),
+            sheen_tint=np.clip(closure.sheen_tint, 0.0, None),
             multiscatter=closure.multiscatter, node=closure.node,
             glossy_color=(None if closure.glossy_color is None
                           else np.clip(closure.glossy_color, 0.0, 1.0)))
@@ -268,6 +278,9 @@ class MaterialConverter:
                         coat_roughness=self._float(node, "Coat Roughness", 0.03),
                         coat_ior=self._float(node, "Coat IOR", 1.5),
                         coat_tint=self._const_color(node, "Coat Tint", (1, 1, 1)),
+                        sheen_weight=self._float(node, "Sheen Weight", 0.0),
+                        sheen_roughness=self._float(node, "Sheen Roughness", 0.5),
+                        sheen_tint=self._const_color(node, "Sheen Tint", (1, 1, 1)),
                         multiscatter=self._distribution(node),
                         alpha=self._float(node, "Alpha", 1.0))
             strength = self._float(node, "Emission Strength", 0.0)
@@ -277,7 +290,7 @@ class MaterialConverter:
                     self._warn(f"material '{self._mat.name}': texture on 'Emission Color' of "
                                f"node '{node.name}' is not supported; using white")
                 c.emission = np.asarray(ecol) * strength
-            for name in ("Subsurface Weight", "Sheen Weight"):
+            for name in ("Subsurface Weight",):
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
                                "is not supported and ignored")

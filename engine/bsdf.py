@@ -3,7 +3,7 @@
 At a hit the material splits into lobes (engine/closures/principled.py), each with an RGB
 weight (its estimated albedo for the view direction):
   diffuse (Lambert under the layers above)      -> photon storage / radiance estimate
-  pass (alpha), metal, glass reflect / transmit, dielectric specular, coat (GGX)
+  pass (alpha), metal, glass reflect / transmit, dielectric specular, coat (GGX), sheen
                                                 -> continuation by sampling the lobe
 The camera pass evaluates the diffuse lobe at the hit (and the rough lobes' response to
 lights, engine/integrator.py) and continues one other lobe; the photon pass picks one lobe
@@ -21,7 +21,7 @@ from .rayoffset import offset_along_normal
 from .sampling import dot, max3, normalize
 
 # Lobe names in engine/closures/principled.py's order (its L_* indices).
-LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat")
+LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat", "sheen")
 SPEC_LOBES = LOBE_NAMES[1:]  # the lobes a path continues through
 # glass_r and glass_t are one lobe when sampled (sample_specular): chosen with their
 # summed probability, then reflected or refracted.

@@ -39,6 +39,7 @@ class MaterialTable:
     normal_maps: list = None  # per material: engine.normalmap.NormalMap or None
     closure_params: np.ndarray = None  # (M, principled.N_MAT): the closures' columns
     coat_weight: np.ndarray = None     # (M,)
+    sheen_weight: np.ndarray = None    # (M,)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -50,6 +51,7 @@ class MaterialTable:
                    normal_maps=[m.normal_map for m in materials],
                    closure_params=closure_params(materials),
                    coat_weight=np.array([m.coat_weight for m in materials], np.float64),
+                   sheen_weight=np.array([m.sheen_weight for m in materials], np.float64),
                    **cols)
 
     @property
@@ -63,7 +65,7 @@ class MaterialTable:
         dielectric = (1 - self.metallic) * (1 - self.transmission)
         return ((self.metallic * self.base_color.max(axis=1) > 0) | (self.transmission > 0)
                 | (dielectric * self.specular > 0) | (self.alpha < 1)
-                | (self.coat_weight > 0)) & True
+                | (self.coat_weight > 0) | (self.sheen_weight > 0)) & True
 
 
 def closure_params(materials: list[Material]) -> np.ndarray:
@@ -91,6 +93,9 @@ def closure_params(materials: list[Material]) -> np.ndarray:
         if m.glossy_color is not None:
             row[pr.M_GCOL:pr.M_GCOL + 3] = m.glossy_color
             row[pr.M_HAS_GCOL] = 1.0
+        row[pr.M_SHEEN_W] = m.sheen_weight
+        row[pr.M_SHEEN_ROUGH] = m.sheen_roughness
+        row[pr.M_SHEEN_TINT:pr.M_SHEEN_TINT + 3] = m.sheen_tint
     return out
 
 

@@ -125,15 +125,17 @@ def light_modes(ctx) -> np.ndarray:
     continuation, the two weighted by the power heuristic (Veach; mis_light_pdf gives the
     light's pdf where a continuation meets it); MODE_CONTINUATION: the other lights with a
     size (emissive meshes, the world, sized point and spot lights) by the continuation
-    alone. A light whose shadow rays are off (diffuse visibility) is continuation-only."""
+    alone. A light whose shadow rays are off (diffuse visibility) is continuation-only.
+    Without continuation (specular effects off) the MIS lights take shadow rays in full."""
     modes = np.zeros(len(ctx.lights), np.int64)
+    mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
     for li, light in enumerate(ctx.lights):
         if not light.ray_kinds & SHADOW:
             continue
         if not light.has_size:
             modes[li] = MODE_DELTA
         elif (light.kind == AREA and light.spread >= math.pi - 1e-6) or light.kind == SUN:
-            modes[li] = MODE_MIS
+            modes[li] = mis
     return modes
 
 

@@ -55,6 +55,7 @@ def _finite(value, what: str) -> float:
 class Material:
     """A Principled-v2 surface with Cycles' meaning (engine/closures/principled.py builds
     its layers, top first):
+      sheen_weight      Cycles' microfiber sheen (sheen_roughness, tinted sheen_tint)
       coat_weight       a clear dielectric coat (coat_roughness, coat_ior) tinting what is
                         below it with coat_tint along the refracted path
       metallic          GGX metal with F82-tint Fresnel (f0 = base colour, tint =
@@ -95,6 +96,9 @@ class Material:
     multiscatter: bool = True
     node: str = "principled"
     glossy_color: tuple | np.ndarray | None = None
+    sheen_weight: float = 0.0
+    sheen_roughness: float = 0.5
+    sheen_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
     normal_map: NormalMap | Bump | None = None
     warnings: list = field(default_factory=list, repr=False)
@@ -113,15 +117,15 @@ class Material:
                                  "above 1 clamped to 1 (it would create energy)")
             self.base_color = np.minimum(self.base_color, 1.0)
         for attr in ("metallic", "roughness", "transmission", "specular", "alpha",
-                     "coat_roughness"):
+                     "coat_roughness", "sheen_roughness"):
             v = _finite(getattr(self, attr), f"{who} {attr}")
             setattr(self, attr, min(max(v, 0.0), 1.0))
-        for attr in ("specular_ior_level", "coat_weight"):
+        for attr in ("specular_ior_level", "coat_weight", "sheen_weight"):
             v = _finite(getattr(self, attr), f"{who} {attr}")
             if v < 0:
                 raise SceneError(f"{who} {attr}: must be >= 0, got {v}")
             setattr(self, attr, v)
-        for attr in ("specular_tint", "coat_tint"):
+        for attr in ("specular_tint", "coat_tint", "sheen_tint"):
             v = _vec3(getattr(self, attr), f"{who} {attr}")
             if np.any(v < 0):
                 raise SceneError(f"{who} {attr}: must be >= 0, got {v.tolist()}")

@@ -27,6 +27,7 @@ def _principled(**kw):
     d = dict(node="principled", base_color=GREY, roughness=0.5, metallic=0.0, ior=1.5,
              specular_ior_level=0.5, specular_tint=(1.0, 1.0, 1.0), coat_weight=0.0,
              coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
+             sheen_weight=0.0, sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0),
              distribution="MULTI_GGX")
     d.update(kw)
     return d
@@ -71,6 +72,9 @@ def plane_cases():
         cases[f"metal_f82_v{v:.0f}"] = (_principled(roughness=0.4, metallic=1.0,
                                                     base_color=COPPER,
                                                     specular_tint=(0.5, 0.8, 1.0)), v)
+        cases[f"sheen_v{v:.0f}"] = (_principled(roughness=0.7, base_color=(0.1, 0.1, 0.4),
+                                                sheen_weight=1.0, sheen_roughness=0.4,
+                                                sheen_tint=(1.0, 0.8, 0.6)), v)
     # 85 degrees on a smooth dielectric: a mirror sees nothing of a delta sun; the diffuse
     # base under the Fresnel layer is what is compared.
     return cases
@@ -103,4 +107,6 @@ def furnace_cases():
         "furnace_glass_r0.8_ior2.4": _glass(roughness=0.8, ior=2.4),
         "furnace_coat": _principled(roughness=0.5, base_color=(1.0, 1.0, 1.0),
                                     coat_weight=1.0, coat_roughness=0.3),
+        "furnace_sheen": _principled(roughness=0.5, base_color=(1.0, 1.0, 1.0),
+                                     sheen_weight=1.0, sheen_roughness=0.3),
     }

@@ -29,7 +29,8 @@ def engine_material(spec) -> Material:
     multi = spec.get("distribution", "MULTI_GGX") == "MULTI_GGX"
     if node == "principled":
         keys = ("base_color", "roughness", "metallic", "ior", "specular_ior_level",
-                "specular_tint", "coat_weight", "coat_roughness", "coat_ior", "coat_tint")
+                "specular_tint", "coat_weight", "coat_roughness", "coat_ior", "coat_tint",
+                "sheen_weight", "sheen_roughness", "sheen_tint")
         return Material("m", specular=1.0, multiscatter=multi, **{k: spec[k] for k in keys})
     if node == "glossy":
         return Material("m", spec["base_color"], metallic=1.0, roughness=spec["roughness"],

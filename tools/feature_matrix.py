@@ -425,10 +425,12 @@ def closure_glossy_ggx():
     _point_ball_scene(make)
 
 
-@case("closures", status="warned", how="the sheen layer is not simulated",
-      warning="'Sheen Weight' of node")
+@case("closures")
 def closure_sheen():
-    _point_ball_scene(lambda: _principled("sheen", **{"Sheen Weight": 1.0}))
+    """Principled sheen (Cycles' microfiber sheen) on a dark blue rough ball."""
+    _point_ball_scene(lambda: _principled("sheen", **{
+        "Base Color": (0.05, 0.05, 0.3), "Roughness": 0.7, "Sheen Weight": 1.0,
+        "Sheen Roughness": 0.3, "Sheen Tint": (1.0, 0.8, 0.6)}))
 
 
 @case("closures", block_tol=0.35)  # the floor is lit by a small bright ball: noisy blocks

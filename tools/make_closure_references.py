@@ -41,10 +41,13 @@ def _material(spec):
         for key, socket in (("roughness", "Roughness"), ("metallic", "Metallic"),
                             ("ior", "IOR"), ("specular_ior_level", "Specular IOR Level"),
                             ("coat_weight", "Coat Weight"),
-                            ("coat_roughness", "Coat Roughness"), ("coat_ior", "Coat IOR")):
+                            ("coat_roughness", "Coat Roughness"), ("coat_ior", "Coat IOR"),
+                            ("sheen_weight", "Sheen Weight"),
+                            ("sheen_roughness", "Sheen Roughness")):
             n.inputs[socket].default_value = spec[key]
-        n.inputs["Specular Tint"].default_value = (*spec["specular_tint"], 1.0)
-        n.inputs["Coat Tint"].default_value = (*spec["coat_tint"], 1.0)
+        for key, socket in (("specular_tint", "Specular Tint"), ("coat_tint", "Coat Tint"),
+                            ("sheen_tint", "Sheen Tint")):
+            n.inputs[socket].default_value = (*spec[key], 1.0)
     elif node == "glossy":
         n = nt.nodes.new("ShaderNodeBsdfGlossy")
         n.distribution = spec["distribution"]

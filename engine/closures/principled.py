@@ -5,6 +5,7 @@ Per hit, `setup` turns a material (a row of MaterialTable.closure_params) and th
 cosine into lobes, top layer first, each attenuating the ones below it by its estimated
 albedo (Cycles' closure_layering_weight):
     pass      1 - alpha (Transparent BSDF share)
+    sheen     Cycles' microfiber sheen (engine/closures/sheen.py), weight x tint
     coat      GGX, real dielectric Fresnel (coat IOR), energy-compensated; then the coat
               tint tints the layers below along the refracted path (tint^(1/cos_t))
     metal     GGX with F82-tint Fresnel on the base colour (Principled), or the colour as a
@@ -29,13 +30,13 @@ import math
 import numpy as np
 
 from ..jit import kernel
-from . import ggx, tables
+from . import ggx, sheen, tables
 from .fresnel import (F0_from_ior, f82_Fss, f82_tint_B, fresnel_dielectric,
                       fresnel_dielectric_Fss, fresnel_f82, ior_from_F0, schlick_remap)
 
 # Lobes in the weights array (the order of bsdf.LOBE_NAMES).
-L_DIFFUSE, L_PASS, L_METAL, L_GLASS_R, L_GLASS_T, L_SPEC, L_COAT = range(7)
-N_LOBES = 7
+L_DIFFUSE, L_PASS, L_METAL, L_GLASS_R, L_GLASS_T, L_SPEC, L_COAT, L_SHEEN = range(8)
+N_LOBES = 8
 
 # Material parameter columns (MaterialTable.closure_params).
 M_ALPHA, M_METALLIC, M_ROUGH, M_TRANS, M_IOR, M_SPEC, M_LEVEL = range(7)
@@ -46,7 +47,9 @@ M_MULTI = 16           # 1: Multiscatter GGX (energy compensation), 0: plain GGX
 M_NODE = 17            # NODE_* below
 M_GCOL = 18            # 3: Glossy BSDF colour (metal lobe's constant reflectance) ...
 M_HAS_GCOL = 21        # ... when 1 (else the base colour)
-N_MAT = 22
+M_SHEEN_W, M_SHEEN_ROUGH = 22, 23
+M_SHEEN_TINT = 24      # 3
+N_MAT = 27
 NODE_PRINCIPLED, NODE_GLOSSY, NODE_GLASS = 0, 1, 2
 
 # Packed per-hit row.
@@ -54,7 +57,8 @@ P_SPEC_W, P_SPEC_F0, P_SPEC_ALPHA, P_SPEC_ETA = 0, 3, 6, 7
 P_METAL_W, P_METAL_F0, P_METAL_B, P_METAL_ALPHA = 8, 11, 14, 17
 P_GLASS_RW, P_GLASS_TW, P_GLASS_F0, P_GLASS_ALPHA, P_GLASS_ETA = 18, 21, 24, 27, 28
 P_COAT_W, P_COAT_ALPHA, P_COAT_ETA = 29, 32, 33
-N_PACK = 34
+P_SHEEN_W, P_SHEEN_A, P_SHEEN_B = 34, 37, 38
+N_PACK = 39
 
 
 @kernel
@@ -113,6 +117,23 @@ def setup(mat, params, base, cos_o, front, prm, weights):
         node = q[M_NODE]
         E = tables.ggx_E(rough, mu)
         E_avg = tables.ggx_Eavg(rough)
+        # --- sheen (the top layer) ---
+        shw = q[M_SHEEN_W]
+        if shw > 0.0 and a > 0.0:
+            la, lb, alb = sheen.sheen_params(q[M_SHEEN_ROUGH], mu)
+            if alb > 0.0:
+                top = 0.0
+                Wsh = (W0, W1, W2)
+                for c in range(3):
+                    wc = shw * max(q[M_SHEEN_TINT + c], 0.0) * Wsh[c] * alb
+                    prm[i, P_SHEEN_W + c] = wc
+                    weights[i, L_SHEEN, c] = wc
+                    if Wsh[c] > 0.0:
+                        top = max(top, wc / Wsh[c])
+                prm[i, P_SHEEN_A] = la
+                prm[i, P_SHEEN_B] = lb
+                keep = min(max(1.0 - top, 0.0), 1.0)
+                W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
         # --- coat ---
         cw = q[M_COAT_W]
         if cw > 0.0 and a > 0.0:
@@ -275,6 +296,11 @@ def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
         r0 += prm[i, P_GLASS_RW] * _remap(prm[i, P_GLASS_F0], c, eta) * e
         r1 += prm[i, P_GLASS_RW + 1] * _remap(prm[i, P_GLASS_F0 + 1], c, eta) * e
         r2 += prm[i, P_GLASS_RW + 2] * _remap(prm[i, P_GLASS_F0 + 2], c, eta) * e
+    if prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0 or prm[i, P_SHEEN_W + 2] > 0:
+        e, _ = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
+        r0 += prm[i, P_SHEEN_W] * e
+        r1 += prm[i, P_SHEEN_W + 1] * e
+        r2 += prm[i, P_SHEEN_W + 2] * e
     return r0, r1, r2
 
 
@@ -313,6 +339,10 @@ def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
         _, p, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
         eta = prm[i, P_GLASS_ETA]
         pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
+    w = sel[i, L_SHEEN]
+    if w > 0.0:
+        _, p = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
+        pdf += w * p
     return pdf
 
 
@@ -340,6 +370,8 @@ def lobe_is_rough(prm, lobe):
             a = prm[i, P_COAT_ALPHA]
         elif l == L_GLASS_R or l == L_GLASS_T:
             a = prm[i, P_GLASS_ALPHA]
+        elif l == L_SHEEN:
+            a = 1.0
         else:
             a = 0.0
         out[i] = a >= ggx.ALPHA_MIN
@@ -348,6 +380,8 @@ def lobe_is_rough(prm, lobe):
 
 @kernel
 def has_rough_reflection(prm, i):
+    if prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0 or prm[i, P_SHEEN_W + 2] > 0:
+        return True
     for a_col, w_col in ((P_SPEC_ALPHA, P_SPEC_W), (P_METAL_ALPHA, P_METAL_W),
                          (P_COAT_ALPHA, P_COAT_W), (P_GLASS_ALPHA, P_GLASS_RW)):
         if prm[i, a_col] >= ggx.ALPHA_MIN and (prm[i, w_col] > 0 or prm[i, w_col + 1] > 0
@@ -423,6 +457,13 @@ def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2, u3):
     that lobe alone, transmitted). Weight 0: no sample."""
     if lobe == L_GLASS_R or lobe == L_GLASS_T:
         return _glass_sample(prm, i, ox, oy, oz, u1, u2, u3)
+    if lobe == L_SHEEN:
+        ix, iy, iz, pdf = sheen.sheen_sample(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz,
+                                             u1, u2)
+        if iz <= 0.0 or pdf <= 0.0:
+            return ix, iy, iz, 0.0, 0.0, 0.0, False
+        return ix, iy, iz, prm[i, P_SHEEN_W], prm[i, P_SHEEN_W + 1], prm[i, P_SHEEN_W + 2], \
+            False
     if lobe == L_SPEC:
         a_col = P_SPEC_ALPHA
     elif lobe == L_METAL:
