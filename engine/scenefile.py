@@ -44,11 +44,13 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
-from .scene import Light, Material, Mesh, SceneError
+from .scene import MATERIAL_NODES, Light, Material, Mesh, SceneError
 from .settings import RenderSettings
 
 MATERIAL_KEYS = {"base_color", "metallic", "roughness", "transmission", "ior", "specular",
-                 "emission", "alpha"}
+                 "emission", "alpha", "specular_ior_level", "specular_tint", "coat_weight",
+                 "coat_roughness", "coat_ior", "coat_tint", "sheen_weight", "sheen_roughness",
+                 "sheen_tint", "glossy_color", "multiscatter", "node"}
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
 MAX_SEGMENTS = 2048       # sphere segments: 2048 x 1024 x 2 = 4M triangles
 MAX_INLINE_ELEMENTS = 10_000_000  # vertices / faces written into the scene file itself
@@ -235,14 +237,25 @@ def _build(data: dict, base: str):
 def _material(scene, name, spec):
     t = _Table(spec, f"[materials.{name}]", MATERIAL_KEYS)
     kw = {}
-    for key in ("base_color", "emission"):
+    for key in ("base_color", "emission", "specular_tint", "coat_tint", "sheen_tint",
+                "glossy_color"):
         if key in t:
             kw[key] = t.vec3(key, nonneg=True)
-    for key in ("metallic", "roughness", "transmission", "specular", "alpha"):
+    for key in ("metallic", "roughness", "transmission", "specular", "alpha",
+                "coat_roughness", "sheen_roughness"):
         if key in t:
             kw[key] = t.number(key, lo=0.0, hi=1.0)
+    for key in ("specular_ior_level", "coat_weight", "sheen_weight"):
+        if key in t:
+            kw[key] = t.number(key, lo=0.0)
     if "ior" in t:
         kw["ior"] = t.number("ior", lo=0.0, lo_open=True)
+    if "coat_ior" in t:
+        kw["coat_ior"] = t.number("coat_ior", lo=1.0)
+    if "multiscatter" in t:
+        kw["multiscatter"] = t.boolean("multiscatter")
+    if "node" in t:
+        kw["node"] = t.string("node", choices=MATERIAL_NODES)
     scene.add_material(Material(name, **kw))
 
 
