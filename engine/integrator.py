@@ -386,11 +386,10 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect). glossy (N,)
-    bool: hits whose rough reflective lobes also take direct light from delta lights
-    (their light from lights with a size comes by continuation); the direct term then holds
-    both lobes' response (shadow rays weighted by the full BSDF, with multiple importance
-    sampling against the continuation's choice sel (N, N_LOBES), lobe_choice))."""
-    s = ctx.settings
+    bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
+    term then holds both lobes' response (shadow rays weighted by the full BSDF, with
+    multiple importance sampling against the continuation's choice sel (N, N_LOBES),
+    lobe_choice)."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p)
     if glossy is not None and glossy.any():
