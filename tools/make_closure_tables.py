@@ -31,6 +31,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
+os.environ["PHOTONMAP_CLOSURE_TABLES_BOOTSTRAP"] = "1"  # tables may not exist yet
 
 from engine.closures import ggx  # noqa: E402
 from engine.closures.fresnel import schlick_remap  # noqa: E402

@@ -11,16 +11,13 @@ Local frame: +z the normal; the lobe's own frame turns x towards the viewer (wo)
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 
 from ..jit import kernel
-from .tables import lookup2
+from .tables import load_data, lookup2
 
-_PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "sheen_ltc.npz")
-with np.load(_PATH) as _f:
-    _LTC = np.ascontiguousarray(_f["ltc"], np.float64)
+_LTC = np.ascontiguousarray(load_data(__file__, "sheen_ltc.npz")["ltc"], np.float64)
 LTC_A = np.ascontiguousarray(_LTC[0])
 LTC_B = np.ascontiguousarray(_LTC[1])
 LTC_ALBEDO = np.ascontiguousarray(_LTC[2])

@@ -6,6 +6,7 @@ Lookups interpolate linearly with clamped coordinates, like Cycles' lookup_table
 """
 from __future__ import annotations
 
+import io
 import math
 import os
 
@@ -14,6 +15,28 @@ import numpy as np
 from ..jit import kernel
 
 TABLE_PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "ggx_tables.npz")
+# Set by tools/make_closure_tables.py while it makes the tables from nothing.
+BOOTSTRAP_ENV = "PHOTONMAP_CLOSURE_TABLES_BOOTSTRAP"
+
+
+def load_data(module_file: str, name: str) -> dict:
+    """The arrays of the .npz file `name` beside module_file, also when the engine is
+    imported from a zip (shipped to Dask workers: engine/distributed.py), through the
+    package loader. Raises OSError naming the file when it is missing."""
+    path = os.path.join(os.path.dirname(module_file), name)
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except OSError:
+        import sys
+        loader = getattr(sys.modules.get(__name__), "__loader__", None)
+        try:
+            raw = loader.get_data(path)
+        except (AttributeError, OSError) as exc:
+            raise OSError(f"closure table {path} is missing (tools/make_closure_tables.py "
+                          "writes ggx_tables.npz)") from exc
+    with np.load(io.BytesIO(raw)) as f:
+        return {k: np.array(f[k]) for k in f.files}
 MU_MIN = 0.02      # albedos are estimated at mu >= MU_MIN (the grazing limit is smooth)
 Z_MAX = 0.98       # z = sqrt((ior-1)/(ior+1)) capped: ior <= ~48
 
@@ -24,14 +47,15 @@ def ior_from_z(z):
 
 
 def _load():
-    if not os.path.exists(TABLE_PATH):  # while tools/make_closure_tables.py runs
+    if os.environ.get(BOOTSTRAP_ENV) and not os.path.exists(TABLE_PATH):
+        # Only while tools/make_closure_tables.py makes the first tables: lookups give 1.
         one = np.ones(1)
         return {k: one.reshape((1,) * d) for k, d in
                 (("ggx_E", 2), ("ggx_Eavg", 1), ("glass_E", 3), ("glass_Eavg", 2),
                  ("glass_inv_E", 3), ("glass_inv_Eavg", 2), ("schlick_ior_s", 3),
                  ("schlick5_s", 2))}
-    with np.load(TABLE_PATH) as f:
-        return {k: np.ascontiguousarray(f[k], np.float64) for k in f.files if k != "samples"}
+    data = load_data(__file__, "ggx_tables.npz")
+    return {k: np.ascontiguousarray(v, np.float64) for k, v in data.items() if k != "samples"}
 
 
 _T = _load()
