@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from ..jit import kernel
+from ..jit import kernel, register_warm_up
 from . import ggx, sheen, tables
 from .fresnel import (F0_from_ior, f82_Fss, f82_tint_B, fresnel_dielectric,
                       fresnel_dielectric_Fss, fresnel_f82, ior_from_F0, schlick_remap)
@@ -528,3 +528,30 @@ def setup_np(params, mat, base, cos_o, front):
           np.ascontiguousarray(cos_o, np.float64), np.ascontiguousarray(front, np.bool_),
           prm, weights)
     return prm, weights
+
+
+@register_warm_up
+def _warm_up():
+    """Compile (or load) the closure kernels a render calls, on one hit of a material with
+    every lobe."""
+    params = np.zeros((1, N_MAT))
+    params[0, [M_ALPHA, M_METALLIC, M_ROUGH, M_TRANS, M_IOR, M_SPEC, M_LEVEL]] = (
+        0.9, 0.3, 0.4, 0.3, 1.5, 1.0, 0.5)
+    params[0, M_STINT:M_STINT + 3] = 1.0
+    params[0, [M_COAT_W, M_COAT_ROUGH, M_COAT_IOR, M_MULTI]] = (0.5, 0.2, 1.5, 1.0)
+    params[0, M_CTINT:M_CTINT + 3] = 1.0
+    params[0, [M_SHEEN_W, M_SHEEN_ROUGH]] = (0.5, 0.5)
+    params[0, M_SHEEN_TINT:M_SHEEN_TINT + 3] = 1.0
+    one = np.ones(1)
+    prm, _ = setup_np(params, np.zeros(1, np.int64), np.full((1, 3), 0.5), np.full(1, 0.8),
+                      np.ones(1, np.bool_))
+    n = np.array([[0.0, 0.0, 1.0]])
+    wo = np.array([[0.6, 0.0, 0.8]])
+    d, w = np.empty((1, 3)), np.empty((1, 3))
+    sample_lobes(prm, np.full(1, L_SPEC, np.int64), n, wo, 0.3 * one, 0.6 * one, 0.5 * one,
+                 d, w, np.empty(1, np.bool_))
+    sel = np.full((1, N_LOBES), 0.1)
+    bsdf_pdf_many(prm, sel, n, wo, d, np.empty(1))
+    eval_reflection_many(prm, n, wo, d, np.empty((1, 3)))
+    lobe_is_rough(prm, np.full(1, L_SPEC, np.int64))
+    rough_reflection_rows(prm, np.empty(1, np.bool_))
