@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
-from .lights import AREA, MESH, SUN
+from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.packing import pack_lights
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, sample_specular,
                    surface_hit)
@@ -121,11 +121,11 @@ MODE_CONTINUATION, MODE_DELTA, MODE_MIS = 0, 1, 2
 def light_modes(ctx) -> np.ndarray:
     """How each light reaches the rough reflective lobes (directlight.accumulate_bsdf):
     MODE_DELTA: a point, spot or sun without size, by shadow rays only; MODE_MIS: an area
-    light without spread or a sun with an angle, by shadow rays and by the lobes' sampled
-    continuation, the two weighted by the power heuristic (Veach; mis_light_pdf gives the
-    light's pdf where a continuation meets it); MODE_CONTINUATION: the other lights with a
-    size (emissive meshes, the world, sized point and spot lights) by the continuation
-    alone. A light whose shadow rays are off (diffuse visibility) is continuation-only.
+    light without spread, a sun with an angle or a point / spot light with a radius, by
+    shadow rays and by the lobes' sampled continuation, the two weighted by the power
+    heuristic (Veach; mis_light_pdf gives the light's pdf where a continuation meets it);
+    MODE_CONTINUATION: the other lights with a size (emissive meshes, the world) by the
+    continuation alone. A light whose shadow rays are off (diffuse visibility) is continuation-only.
     Without continuation (specular effects off) the MIS lights take shadow rays in full."""
     modes = np.zeros(len(ctx.lights), np.int64)
     mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
@@ -134,7 +134,8 @@ def light_modes(ctx) -> np.ndarray:
             continue
         if not light.has_size:
             modes[li] = MODE_DELTA
-        elif (light.kind == AREA and light.spread >= math.pi - 1e-6) or light.kind == SUN:
+        elif ((light.kind == AREA and light.spread >= math.pi - 1e-6)
+              or light.kind in (SUN, POINT, SPOT)):
             modes[li] = mis
     return modes
 
@@ -145,6 +146,19 @@ def mis_light_pdf(light, o, d, t):
     distance t (sun: escaping rays inside its disk)."""
     if light.kind == SUN:
         return np.full(len(d), 1.0 / light.solid_angle)
+    if light.kind in (POINT, SPOT):
+        # Shadow rays sample the disk of the light's radius through its centre, facing the
+        # shading point o (directlight.sample_lights): pdf of the direction's disk point.
+        axis = o - light.pos
+        axis /= np.maximum(np.linalg.norm(axis, axis=1), 1e-300)[:, None]
+        toward = -dot(d, axis)  # cosine at the disk
+        front = toward > 1e-12   # rays parallel to or leaving the disk cannot reach it
+        t_disk = dot(o - light.pos, axis) / np.where(front, toward, 1.0)
+        on_disk = t_disk[:, None] * d + o - light.pos
+        inside = (front & (t_disk > 0)
+                  & (np.einsum("ij,ij->i", on_disk, on_disk) <= light.radius ** 2))
+        pdf = t_disk * t_disk / np.where(front, math.pi * light.radius ** 2 * toward, 1.0)
+        return np.where(inside, pdf, 0.0)
     cos_l = np.abs(dot(d, light.dir))
     return t * t / np.maximum(cos_l * light.area, 1e-300)
 
