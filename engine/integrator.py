@@ -121,11 +121,11 @@ MODE_CONTINUATION, MODE_DELTA, MODE_MIS = 0, 1, 2
 def light_modes(ctx) -> np.ndarray:
     """How each light reaches the rough reflective lobes (directlight.accumulate_bsdf):
     MODE_DELTA: a point, spot or sun without size, by shadow rays only; MODE_MIS: an area
-    light without spread, a sun with an angle or a point / spot light with a radius, by
-    shadow rays and by the lobes' sampled continuation, the two weighted by the power
-    heuristic (Veach; mis_light_pdf gives the light's pdf where a continuation meets it);
-    MODE_CONTINUATION: the other lights with a size (emissive meshes, the world) by the
-    continuation alone. A light whose shadow rays are off (diffuse visibility) is continuation-only.
+    light without spread, a sun with an angle, a point / spot light with a radius or the
+    emissive meshes, by shadow rays and by the lobes' sampled continuation, the two
+    weighted by the power heuristic (Veach; mis_light_pdf and _mesh_mis_weight give the
+    light's pdf where a continuation meets it); MODE_CONTINUATION: the other lights with a
+    size (the world, area lights with spread) by the continuation alone. A light whose shadow rays are off (diffuse visibility) is continuation-only.
     Without continuation (specular effects off) the MIS lights take shadow rays in full."""
     modes = np.zeros(len(ctx.lights), np.int64)
     mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
@@ -135,7 +135,7 @@ def light_modes(ctx) -> np.ndarray:
         if not light.has_size:
             modes[li] = MODE_DELTA
         elif ((light.kind == AREA and light.spread >= math.pi - 1e-6)
-              or light.kind in (SUN, POINT, SPOT)):
+              or light.kind in (SUN, POINT, SPOT, MESH)):
             modes[li] = mis
     return modes
 
@@ -161,6 +161,33 @@ def mis_light_pdf(light, o, d, t):
         return np.where(inside, pdf, 0.0)
     cos_l = np.abs(dot(d, light.dir))
     return t * t / np.maximum(cos_l * light.area, 1e-300)
+
+
+def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b):
+    """Power-heuristic weight (N,) of continuation rays that met emissive triangles prim
+    (1 where the mesh light is not light-sampled with MIS or the lobe was mirror-like):
+    the mesh light's shadow rays pick a triangle by its probability, then a uniform point,
+    so their pdf is prob / area x t^2 / |cos| (directlight.sample_lights)."""
+    w = np.ones(len(prim))
+    for li, light in enumerate(ctx.lights):
+        if light.kind != MESH or modes[li] != MODE_MIS:
+            continue
+        lookup = getattr(light, "_tri_lookup", None)
+        if lookup is None or len(lookup) != ctx.geo.count:
+            lookup = np.full(ctx.geo.count, -1, np.int64)
+            lookup[light.tri_index] = np.arange(len(light.tri_index))
+            light._tri_lookup = lookup
+        k = lookup[prim]
+        rows = np.nonzero((k >= 0) & np.isfinite(pdf_b))[0]
+        if not len(rows):
+            continue
+        kk = k[rows]
+        cos_l = np.abs(dot(d[rows], ng[rows]))
+        pl = (ctx.plan.light_samples.get(light.name, 1) * light.prob[kk] / light.tri_area[kk]
+              * t[rows] * t[rows] / np.maximum(cos_l, 1e-300))
+        pb = pdf_b[rows]
+        w[rows] = pb * pb / np.maximum(pb * pb + pl * pl, 1e-300)
+    return w
 
 
 def _mis_weight(ctx, li, light, o, d, t, pdf_b):
@@ -685,6 +712,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 acc.normal[:, c] += acc._bins(pix, hit.ns[:, c] * facing)
         Le = ctx.table.emission[hit.mat]
         if np.any(Le > 0):
+            if bounce > 0:
+                Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b)[:, None]
             acc.add(target, pix, tp * Le)
         w = lobe_weights(ctx.table, hit)
         wd = w["diffuse"]

@@ -1,6 +1,6 @@
 """Next-event estimation on rough lobes with multiple importance sampling (issue 14):
-a rough metal / glossy floor under an area light, a sun with an angle and a point light
-with a radius. Light
+a rough metal / glossy floor under an area light, a sun with an angle, a point light
+with a radius and an emissive quad. Light
 sampling weighted by the power heuristic against the lobes' own sampling must give the
 same mean as the lobes' sampled continuation alone (both are unbiased), with far less
 noise; a delta light is seen by shadow rays only."""
@@ -24,6 +24,9 @@ def _scene(material, light):
                               direction=(-0.5, 0.0, -1.0))
     elif light == "sphere":
         s.add_point_light((1.0, 0.0, 1.5), power=300.0, radius=0.3)
+    elif light == "mesh":
+        s.add_material(Material("lamp", (0.0, 0.0, 0.0), emission=(30.0, 30.0, 30.0)))
+        s.add_plane((1.0, 0.0, 1.5), (-0.45, 0.0, -0.9), 0.8, "lamp", name="lamp")
     else:
         s.add_sun(direction=(-0.6, 0.0, -0.8), strength=3.0, angle_degrees=8.0)
     s.set_camera((-2.5, 0.0, 2.0), (0.3, 0.0, 0.0), up=(0, 0, 1), view_angle=40.0)
@@ -53,7 +56,7 @@ MATERIALS = {
 }
 
 
-@pytest.mark.parametrize("light", ["area", "sun", "sphere"])
+@pytest.mark.parametrize("light", ["area", "sun", "sphere", "mesh"])
 @pytest.mark.parametrize("mat", sorted(MATERIALS))
 def test_mis_matches_continuation_with_less_noise(mat, light, request):
     scene = _scene(MATERIALS[mat], light)
