@@ -125,8 +125,15 @@ def closures(table: MaterialTable, hit: SurfaceHit):
     if hit.prm is None or hit.lobe_albedo is None:
         cos_o = np.einsum("ij,ij->i", hit.ns, hit.wo)
         hit.prm, hit.lobe_albedo = pr.setup_np(table.closure_params, hit.mat, hit.base, cos_o,
-                                               hit.front)
+                                               hit.front, _hit_alpha(table, hit))
     return hit.prm, hit.lobe_albedo
+
+
+def _hit_alpha(table: MaterialTable, hit: SurfaceHit) -> np.ndarray:
+    """(N,) alpha at the hits: a per-hit value where the hit carries one (alpha
+    textures), else the materials' constants."""
+    per_hit = getattr(hit, "alpha", None)
+    return np.take(table.alpha, hit.mat) if per_hit is None else per_hit
 
 
 def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]:
@@ -155,7 +162,7 @@ def sample_specular(table: MaterialTable, hit: SurfaceHit, lobe: np.ndarray,
     if passing.any():
         out[passing] = d_in[passing]
         transmitted[passing] = True
-        a = np.take(table.alpha, hit.mat[passing])
+        a = _hit_alpha(table, hit)[passing]
         weight[passing] = (1.0 - a)[:, None]
     rows = np.nonzero(~passing)[0]
     if len(rows):

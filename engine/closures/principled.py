@@ -95,10 +95,11 @@ def _compensation(multi, E, E_avg, Fss):
 
 
 @kernel
-def setup(mat, params, base, cos_o, front, prm, weights):
+def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
     """Lobes of N hits. mat (N,) material index, params (M, N_MAT) material columns,
     base (N,3) base colour (texture applied), cos_o (N,) = ns . wo, front (N,) bool: the
-    ray arrived on the outside. Writes prm (N, N_PACK) and weights (N, N_LOBES, 3)."""
+    ray arrived on the outside, hit_alpha (N,) the hit's alpha (the material's, or its
+    alpha texture's value there). Writes prm (N, N_PACK) and weights (N, N_LOBES, 3)."""
     for i in range(mat.shape[0]):
         q = params[mat[i]]
         mu = min(max(cos_o[i], 0.0), 1.0)
@@ -107,7 +108,7 @@ def setup(mat, params, base, cos_o, front, prm, weights):
         for l in range(N_LOBES):
             for c in range(3):
                 weights[i, l, c] = 0.0
-        a = q[M_ALPHA]
+        a = hit_alpha[i]
         W0 = W1 = W2 = a
         for c in range(3):
             weights[i, L_PASS, c] = 1.0 - a
@@ -519,14 +520,18 @@ def eval_reflection_many(prm, ns, wo, wi, out):
         out[i, 0], out[i, 1], out[i, 2] = eval_reflection(prm, i, ox, oy, oz, ix, iy, iz)
 
 
-def setup_np(params, mat, base, cos_o, front):
-    """numpy entry of `setup`: returns (prm (N, N_PACK), weights (N, N_LOBES, 3))."""
+def setup_np(params, mat, base, cos_o, front, alpha=None):
+    """numpy entry of `setup`: returns (prm (N, N_PACK), weights (N, N_LOBES, 3)).
+    alpha (N,): per-hit alpha; None = the materials' own (params' M_ALPHA column)."""
     n = len(mat)
+    mat = np.ascontiguousarray(mat, np.int64)
+    if alpha is None:
+        alpha = params[mat, M_ALPHA] if n else np.zeros(0)
     prm = np.empty((n, N_PACK))
     weights = np.empty((n, N_LOBES, 3))
-    setup(np.ascontiguousarray(mat, np.int64), params, np.ascontiguousarray(base, np.float64),
+    setup(mat, params, np.ascontiguousarray(base, np.float64),
           np.ascontiguousarray(cos_o, np.float64), np.ascontiguousarray(front, np.bool_),
-          prm, weights)
+          np.ascontiguousarray(alpha, np.float64), prm, weights)
     return prm, weights
 
 
