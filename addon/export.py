@@ -630,10 +630,10 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         del cache.meshes[name]
     for gkey in [k for k in cache.geometry if k not in seen]:
         del cache.geometry[gkey]
-    background = world_background(scene_eval.world, warnings)
+    background, environment = export_world(pm, scene_eval.world, warnings)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
-                     background_is_light=True)
+                     background_is_light=True, environment=environment)
     scene.warnings.extend(warnings)
     light_names = [li.name for li in lights]
     info.update(

@@ -1,6 +1,8 @@
 """Blender materials (shader node trees) -> engine materials.
 
-Supported: Principled BSDF, Diffuse, Glossy, Glass, Refraction, Emission, Transparent,
+Supported: Principled BSDF (Cycles' v2 layers: sheen, coat, metallic with F82 tint,
+transmission, specular IOR level and tint; subsurface warns), Diffuse, Glossy (GGX or
+Multiscatter GGX), Glass, Refraction (as Glass), Emission, Transparent,
 Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
 tiles), a Color Attribute, an RGB / Value node, or a tree of the colour nodes in
 engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
@@ -27,11 +29,23 @@ class Closure:
     """Engine material parameters gathered from a shader sub-tree."""
 
     __slots__ = ("base_color", "metallic", "roughness", "transmission", "ior", "specular",
-                 "emission", "alpha", "texture", "has_bsdf", "normal_map", "alpha_texture")
+                 "emission", "alpha", "texture", "has_bsdf", "normal_map", "alpha_texture",
+                 "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
+                 "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
+                 "sheen_weight", "sheen_roughness", "sheen_tint")
+
+    # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
+    EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
+             "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
+             "sheen_roughness", "sheen_tint")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
-                 alpha=1.0, texture=None, has_bsdf=True, normal_map=None, alpha_texture=None):
+                 alpha=1.0, texture=None, has_bsdf=True, normal_map=None, alpha_texture=None,
+                 specular_ior_level=0.5, specular_tint=(1.0, 1.0, 1.0), coat_weight=0.0,
+                 coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
+                 multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
+                 sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0)):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -43,6 +57,19 @@ class Closure:
         self.texture = texture
         self.has_bsdf = has_bsdf
         self.normal_map = normal_map
+        self.specular_ior_level = float(specular_ior_level)
+        self.specular_tint = np.asarray(specular_tint, dtype=np.float64)[:3]
+        self.coat_weight = float(coat_weight)
+        self.coat_roughness = float(coat_roughness)
+        self.coat_ior = float(coat_ior)
+        self.coat_tint = np.asarray(coat_tint, dtype=np.float64)[:3]
+        self.multiscatter = bool(multiscatter)
+        self.node = node
+        self.glossy_color = None if glossy_color is None else np.asarray(glossy_color,
+                                                                         np.float64)[:3]
+        self.sheen_weight = float(sheen_weight)
+        self.sheen_roughness = float(sheen_roughness)
+        self.sheen_tint = np.asarray(sheen_tint, dtype=np.float64)[:3]
         self.alpha_texture = alpha_texture  # per-hit factor on alpha (engine node) or None
 
     @property
@@ -90,7 +117,9 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         out.texture = a.texture if a.texture is not None else b.texture
         return out
     ta, tb = sa / total, sb / total
-    for name in ("metallic", "transmission", "specular"):
+    for name in ("metallic", "transmission", "specular", "specular_ior_level",
+                 "specular_tint", "coat_weight", "coat_roughness", "coat_ior", "coat_tint",
+                 "sheen_weight", "sheen_roughness", "sheen_tint"):
         setattr(out, name, ta * getattr(a, name) + tb * getattr(b, name))
     # Roughness and IOR belong to the reflective / refractive lobes: weight them by how much
     # of those lobes each side brings (a Diffuse BSDF's roughness is Oren-Nayar's, which
@@ -103,7 +132,24 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     else:
         out.roughness = ta * a.roughness + tb * b.roughness
         out.ior = ta * a.ior + tb * b.ior
+    # One microfacet distribution and colour model per material: the side with more
+    # glossy / glass weight decides (a Diffuse side has no say).
+    lead = a if ga >= gb else b
+    out.multiscatter = lead.multiscatter
+    out.node = lead.node
     out.base_color = (ta * a.base_color + tb * b.base_color) * (total / (total + da + db))
+    if out.node == "glossy":
+        # Diffuse + Glossy: the glossy lobe keeps the Glossy BSDF's colour and the diffuse
+        # lobe the other side's, instead of both taking the blend of the two.
+        ma, mb = ta * a.metallic, tb * b.metallic
+        if ma + mb > 0:
+            ca = a.glossy_color if a.glossy_color is not None else a.base_color
+            cb = b.glossy_color if b.glossy_color is not None else b.base_color
+            out.glossy_color = (ma * ca + mb * cb) / (ma + mb)
+        na, nb = ta * (1.0 - a.metallic), tb * (1.0 - b.metallic)
+        if na + nb > 0:
+            out.base_color = ((na * a.base_color + nb * b.base_color) / (na + nb)
+                              * (total / (total + da + db)))
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
         b.texture if sb > 0 else None)
     # One shading normal per material: the first side's map that has a surface.
@@ -143,7 +189,19 @@ class MaterialConverter:
             transmission=closure.transmission, ior=closure.ior if closure.ior > 0 else 1.5,
             specular=closure.specular, emission=np.clip(closure.emission, 0.0, None),
             alpha=closure.alpha, texture=closure.texture, normal_map=closure.normal_map,
-            alpha_texture=closure.alpha_texture)
+            alpha_texture=closure.alpha_texture,
+            specular_ior_level=max(closure.specular_ior_level, 0.0),
+            specular_tint=np.clip(closure.specular_tint, 0.0, None),
+            coat_weight=max(closure.coat_weight, 0.0),
+            coat_roughness=min(max(closure.coat_roughness, 0.0), 1.0),
+            coat_ior=max(closure.coat_ior, 1.0),
+            coat_tint=np.clip(closure.coat_tint, 0.0, None),
+            sheen_weight=max(closure.sheen_weight, 0.0),
+            sheen_roughness=min(max(closure.sheen_roughness, 0.0), 1.0),
+            sheen_tint=np.clip(closure.sheen_tint, 0.0, None),
+            multiscatter=closure.multiscatter, node=closure.node,
+            glossy_color=(None if closure.glossy_color is None
+                          else np.clip(closure.glossy_color, 0.0, 1.0)))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -239,7 +297,17 @@ class MaterialConverter:
                         roughness=self._float(node, "Roughness"),
                         transmission=self._float(node, "Transmission Weight"),
                         ior=self._float(node, "IOR", 1.5),
-                        specular=min(1.0, 2.0 * self._float(node, "Specular IOR Level", 0.5)))
+                        specular=1.0,
+                        specular_ior_level=self._float(node, "Specular IOR Level", 0.5),
+                        specular_tint=self._const_color(node, "Specular Tint", (1, 1, 1)),
+                        coat_weight=self._float(node, "Coat Weight", 0.0),
+                        coat_roughness=self._float(node, "Coat Roughness", 0.03),
+                        coat_ior=self._float(node, "Coat IOR", 1.5),
+                        coat_tint=self._const_color(node, "Coat Tint", (1, 1, 1)),
+                        sheen_weight=self._float(node, "Sheen Weight", 0.0),
+                        sheen_roughness=self._float(node, "Sheen Roughness", 0.5),
+                        sheen_tint=self._const_color(node, "Sheen Tint", (1, 1, 1)),
+                        multiscatter=self._distribution(node))
             c.alpha, c.alpha_texture = self._factor_input(node, "Alpha", 1.0)
             strength = self._float(node, "Emission Strength", 0.0)
             if strength > 0:
@@ -248,10 +316,13 @@ class MaterialConverter:
                     self._warn(f"material '{self._mat.name}': texture on 'Emission Color' of "
                                f"node '{node.name}' is not supported; using white")
                 c.emission = np.asarray(ecol) * strength
-            for name in ("Subsurface Weight", "Coat Weight", "Sheen Weight"):
+            for name in ("Subsurface Weight",):
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
                                "is not supported and ignored")
+            if c.coat_weight > 0 and "Coat Normal" in inp and inp["Coat Normal"].is_linked:
+                self._warn(f"material '{self._mat.name}': 'Coat Normal' of node "
+                           f"'{node.name}' is not supported; the coat uses the surface normal")
             c.normal_map = self._normal(node)
             return c
         if t == "BSDF_DIFFUSE":
@@ -260,12 +331,17 @@ class MaterialConverter:
                            normal_map=self._normal(node))
         if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             base, tex = self._color(node, "Color")
-            return Closure(base_color=base, texture=tex, metallic=1.0,
+            return Closure(base_color=base, texture=tex, metallic=1.0, node="glossy",
+                           multiscatter=self._distribution(node),
                            normal_map=self._normal(node),
                            roughness=self._float(node, "Roughness"))
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
+            if t == "BSDF_REFRACTION":
+                self._warn(f"material '{self._mat.name}': Refraction BSDF '{node.name}' is "
+                           "approximated by a Glass BSDF (it also reflects)")
             return Closure(base_color=base, texture=tex, transmission=1.0, specular=1.0,
+                           node="glass", multiscatter=self._distribution(node),
                            normal_map=self._normal(node),
                            roughness=self._float(node, "Roughness"),
                            ior=self._float(node, "IOR", 1.5))
@@ -330,7 +406,8 @@ class MaterialConverter:
                           emission=a.emission + b.emission,
                           alpha=max(out.alpha, other.alpha), texture=out.texture,
                           has_bsdf=out.has_bsdf, normal_map=out.normal_map,
-                          alpha_texture=out.alpha_texture)
+                          alpha_texture=out.alpha_texture,
+                          **{k: getattr(out, k) for k in Closure.EXTRA})
             return res
         self._unsupported(node)
         return self._viewport(self._mat)
@@ -425,6 +502,25 @@ class MaterialConverter:
             return float(v if np.ndim(v) == 0 else np.mean(tuple(v)[:3]))
         except (AttributeError, TypeError):
             return float(default)
+
+    def _const_color(self, node, name, default):
+        """A colour input that must be constant (a lobe parameter, not a texture): its
+        value, or `default` with a warning when a texture drives it."""
+        rgb, tex = self._color(node, name)
+        if tex is not None:
+            self._warn(f"material '{self._mat.name}': texture on '{name}' of node "
+                       f"'{node.name}' is not supported; using {tuple(default)}")
+            return np.asarray(default, np.float64)
+        return rgb
+
+    def _distribution(self, node) -> bool:
+        """True for Multiscatter GGX (energy-compensated), False for GGX; Beckmann and
+        Ashikhmin-Shirley are rendered as GGX, with a warning."""
+        dist = getattr(node, "distribution", "MULTI_GGX")
+        if dist in ("BECKMANN", "ASHIKHMIN_SHIRLEY"):
+            self._warn(f"material '{self._mat.name}': {dist} distribution of node "
+                       f"'{node.name}' is rendered as GGX")
+        return dist == "MULTI_GGX"
 
     def _color(self, node, name):
         """(rgb, colour source or None) for a colour input: a constant colour, or ones and

@@ -1,11 +1,13 @@
-"""Surface scattering: the lobes of our Principled-like material, Fresnel, sampling.
+"""Surface scattering: hits, their lobes (Cycles' Principled v2 closures), sampling.
 
-At a hit the material splits into lobes with RGB weights that sum to at most 1:
-  diffuse (Lambert, base colour)        -> photon storage / radiance estimate
-  metal, glass reflect, glass transmit, coat reflect, pass-through (alpha)
-                                        -> specular continuation (perfect or rough)
-The camera pass evaluates the diffuse lobe at the hit and continues one specular lobe;
-the photon pass picks one lobe by Russian roulette (absorb with what is left).
+At a hit the material splits into lobes (engine/closures/principled.py), each with an RGB
+weight (its estimated albedo for the view direction):
+  diffuse (Lambert under the layers above)      -> photon storage / radiance estimate
+  pass (alpha), metal, glass reflect / transmit, dielectric specular, coat (GGX), sheen
+                                                -> continuation by sampling the lobe
+The camera pass evaluates the diffuse lobe at the hit (and the rough lobes' response to
+lights, engine/integrator.py) and continues one other lobe; the photon pass picks one lobe
+by Russian roulette (absorb with what is left).
 """
 from __future__ import annotations
 
@@ -13,12 +15,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .closures import principled as pr
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
-from .sampling import dot, normalize, reflect, to_world
+from .sampling import dot, max3, normalize
 from .textures import material_alpha
 
-SPEC_LOBES = ("pass", "metal", "glass_r", "glass_t", "coat")
+# Lobe names in engine/closures/principled.py's order (its L_* indices).
+LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat", "sheen")
+SPEC_LOBES = LOBE_NAMES[1:]  # the lobes a path continues through
+# glass_r and glass_t are one lobe when sampled (sample_specular): chosen with their
+# summed probability, then reflected or refracted.
+GLASS_R, GLASS_T = SPEC_LOBES.index("glass_r"), SPEC_LOBES.index("glass_t")
 
 
 def fresnel_dielectric(cos_i: np.ndarray, eta: np.ndarray) -> np.ndarray:
@@ -61,6 +69,8 @@ class SurfaceHit:
     bary: np.ndarray | None = None    # (N,2) barycentric weights of corners 1 and 2
     alpha: np.ndarray | None = None   # (N,) per-hit alpha where a material has an alpha
                           # texture (textures.material_alpha); None: the materials' constants
+    prm: np.ndarray | None = None     # (N, principled.N_PACK) lobes (bsdf.closures)
+    lobe_albedo: np.ndarray | None = None  # (N, len(LOBE_NAMES), 3)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -114,100 +124,64 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
                       bary=np.stack([u, v], axis=1), alpha=alpha)
 
 
+def closures(table: MaterialTable, hit: SurfaceHit):
+    """The hits' lobes as engine/closures/principled.py builds them (Cycles' Principled v2
+    layering): (packed per-hit parameters (N, principled.N_PACK), estimated albedo of each
+    lobe (N, len(LOBE_NAMES), 3)). Cached on the hit."""
+    if hit.prm is None or hit.lobe_albedo is None:
+        cos_o = np.einsum("ij,ij->i", hit.ns, hit.wo)
+        hit.prm, hit.lobe_albedo = pr.setup_np(table.closure_params, hit.mat, hit.base, cos_o,
+                                               hit.front, _hit_alpha(table, hit))
+    return hit.prm, hit.lobe_albedo
+
+
+def _hit_alpha(table: MaterialTable, hit: SurfaceHit) -> np.ndarray:
+    """(N,) alpha at the hits: a per-hit value where the hit carries one (alpha
+    textures), else the materials' constants."""
+    per_hit = getattr(hit, "alpha", None)
+    return np.take(table.alpha, hit.mat) if per_hit is None else per_hit
+
+
 def lobe_weights(table: MaterialTable, hit: SurfaceHit) -> dict[str, np.ndarray]:
-    """RGB weight of each lobe for the incoming direction (sums to <= 1 per channel).
-
-    Fresnel terms are evaluated only on rows whose material has a glass or coat lobe:
-    elsewhere they are multiplied by an exact 0 (1 - 0*f = 1), so the result is bitwise
-    the same as evaluating them everywhere."""
-    m = hit.mat
-    n = len(m)
-    a1 = np.take(table.alpha, m) if hit.alpha is None else hit.alpha
-    metal1 = np.take(table.metallic, m)
-    trans1 = np.take(table.transmission, m)
-    spec1 = np.take(table.specular, m)
-    a, metal, trans, spec = a1[:, None], metal1[:, None], trans1[:, None], spec1[:, None]
-    cos_i = np.clip(dot(hit.ns, hit.wo), 0.0, 1.0)
-    f_glass1 = np.zeros(n)
-    f_coat1 = np.zeros(n)
-    gl = np.nonzero(trans1 != 0)[0]
-    if len(gl):
-        ior = np.take(table.ior, m[gl])
-        f_glass1[gl] = fresnel_dielectric(cos_i[gl], np.where(hit.front[gl], ior, 1.0 / ior))
-    ct = np.nonzero(spec1 != 0)[0]
-    if len(ct):
-        f_coat1[ct] = fresnel_dielectric(cos_i[ct], np.take(table.ior, m[ct]))
-    f_glass, f_coat = f_glass1[:, None], f_coat1[:, None]
-    base = hit.base
-    not_metal = 1.0 - metal
-    dielectric = a * not_metal * (1.0 - trans)
-    ones = np.ones_like(base)
-    if np.any(metal1 != 0):
-        c5 = (1.0 - cos_i) ** 5
-        schlick = base + (1.0 - base) * c5[:, None]
-        metal_w = a * metal * schlick
-    else:
-        metal_w = np.zeros_like(base)  # a * 0 * schlick: schlick is finite (base in [0,1])
-    glass = a * not_metal * trans
-    return {
-        "diffuse": dielectric * (1.0 - spec * f_coat) * base,
-        "pass": (1.0 - a) * ones,
-        "metal": metal_w,
-        "glass_r": glass * f_glass * ones,
-        "glass_t": glass * (1.0 - f_glass) * base,
-        "coat": dielectric * spec * f_coat * ones,
-    }
-
-
-def _microfacet_normal(ns: np.ndarray, roughness: np.ndarray, rng: np.random.Generator):
-    """Microfacet normal (alpha = roughness^2) around ns; exactly ns where roughness is 0.
-
-    Sampled from Beckmann's distribution rather than GGX (Cycles' choice): GGX's long
-    tail sends a few percent of even a near-mirror's rays 10 degrees or more off, and
-    without light sampling for glossy lobes those that find a small bright light become
-    fireflies (measured on the Figure 7 floor). Beckmann's tail falls off like a
-    Gaussian: the highlight keeps its width, the faint halo around it is lost."""
-    alpha = roughness * roughness
-    rough = alpha > 1e-4
-    if not rough.any():
-        return ns
-    m = ns.copy()
-    idx = np.nonzero(rough)[0]
-    u1 = rng.random(len(idx)); u2 = rng.random(len(idx))
-    tan2 = -(alpha[idx] ** 2) * np.log1p(-u1)
-    cos_t = 1.0 / np.sqrt(1.0 + tan2)
-    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
-    phi = 2.0 * np.pi * u2
-    local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
-    m[idx] = to_world(local, ns[idx])
-    return m
+    """RGB weight (estimated albedo for the view direction) of each lobe, by name
+    (LOBE_NAMES). The diffuse weight is exact (Lambert under the layers above); the others
+    are Cycles' albedo estimates and serve as lobe-choice probabilities: the sampled
+    direction's own weight (sample_specular) makes the estimate unbiased."""
+    _, alb = closures(table, hit)
+    return {name: alb[:, i] for i, name in enumerate(LOBE_NAMES)}
 
 
 def sample_specular(table: MaterialTable, hit: SurfaceHit, lobe: np.ndarray,
                     rng: np.random.Generator):
-    """New directions for the chosen specular lobe index (into SPEC_LOBES).
-    Returns (direction, valid, transmitted). Invalid = the sampled direction went to the
-    wrong side of the surface (rough lobes): that energy is absorbed."""
+    """New directions for the chosen lobe index (into SPEC_LOBES), GGX visible-normal
+    sampling (mirror-like below ggx.ALPHA_MIN); glass_r and glass_t both sample the whole
+    glass lobe (reflect or refract: `transmitted` says which). Returns (direction, valid,
+    transmitted, weight (N,3) = f cos / pdf of that lobe). Invalid = no direction (the
+    sample left through the wrong side of the surface): that energy is absorbed."""
     n = len(lobe)
+    prm, _ = closures(table, hit)
     d_in = -hit.wo
-    rough = table.roughness[hit.mat]
-    m = _microfacet_normal(hit.ns, np.where(lobe == 0, 0.0, rough), rng)
-    # Microfacet normals must face the viewer.
-    flip = dot(m, hit.wo) < 0
-    m[flip] = hit.ns[flip]
-    out = reflect(d_in, m)
+    out = np.empty((n, 3))
+    weight = np.zeros((n, 3))
     transmitted = np.zeros(n, bool)
     passing = lobe == 0
-    out[passing] = d_in[passing]
-    transmitted |= passing
-    refr = lobe == 3
-    if refr.any():
-        ior = table.ior[hit.mat[refr]]
-        eta_ratio = np.where(hit.front[refr], 1.0 / ior, ior)
-        t_dir, tir = refract(d_in[refr], m[refr], eta_ratio)
-        r_dir = out[refr]
-        out[refr] = np.where(tir[:, None], r_dir, t_dir)
-        transmitted[np.nonzero(refr)[0][~tir]] = True
+    if passing.any():
+        out[passing] = d_in[passing]
+        transmitted[passing] = True
+        a = _hit_alpha(table, hit)[passing]
+        weight[passing] = (1.0 - a)[:, None]
+    rows = np.nonzero(~passing)[0]
+    if len(rows):
+        u1, u2, u3 = rng.random(len(rows)), rng.random(len(rows)), rng.random(len(rows))
+        d = np.empty((len(rows), 3))
+        w = np.empty((len(rows), 3))
+        tr = np.empty(len(rows), np.bool_)
+        pr.sample_lobes(np.ascontiguousarray(prm[rows]),
+                        (lobe[rows] + 1).astype(np.int64),  # SPEC_LOBES -> LOBE_NAMES
+                        np.ascontiguousarray(hit.ns[rows], np.float64),
+                        np.ascontiguousarray(hit.wo[rows], np.float64), u1, u2, u3, d, w, tr)
+        out[rows], weight[rows], transmitted[rows] = d, w, tr
     side = dot(out, hit.ng)
-    valid = np.where(transmitted, side < 0, side > 0) & np.isfinite(out).all(axis=1)
-    return normalize(out), valid, transmitted
+    valid = (np.where(transmitted, side < 0, side > 0) & np.isfinite(out).all(axis=1)
+             & (max3(weight) > 0))
+    return out, valid, transmitted, weight

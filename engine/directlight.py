@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from .closures import principled as pr
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
 from .lights.environment import env_pdf, env_radiance, env_sample
@@ -200,7 +201,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
                   m_tilt32, env_px, env_rows, env_cols, env_pdf_uv, tree_f, tree_i, inf_idx,
                   inf_f, l_trace, klight, ktrace, U1, U2, SEL, contrib, row, kidx, ray, o32,
-                  d32, t32):
+                  d32, t32, wdir, lpdf):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
@@ -218,7 +219,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     triangle choice of mesh lights, the strategy choice of an environment-mapped world,
     the tree's choice (remapped for those) when klight is -1).
     Writes entries j < m_all: contrib (j,3) irradiance without visibility, row (j,) hit,
-    kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced); rays i < m_rays:
+    kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced), wdir (j,3) the
+    unit direction towards the light sample and lpdf (j,) its solid-angle pdf (inf for a
+    light without size) for BSDF evaluation and multiple importance sampling (the area
+    lights' pdf is of the whole light, also with spread); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
     n = p.shape[0]
     K = klight.shape[0]
@@ -265,6 +269,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
             gap = 0.0
             e0 = e1 = e2 = 0.0
             w0 = w1 = w2 = 0.0
+            lp = np.inf
             if code == C_SUN or code == C_WORLD:
                 finite = False
                 if code == C_SUN:
@@ -276,6 +281,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                     cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
                         1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
                     e0, e1, e2 = q[RGB] * cr, q[RGB + 1] * cr, q[RGB + 2] * cr
+                    if q[COS_HALF] < 1.0:
+                        lp = 1.0 / (TWO_PI * (1.0 - q[COS_HALF]))
                 elif q[ENV_ON] == 0.0:
                     r = math.sqrt(u1)
                     phi = TWO_PI * u2
@@ -283,6 +290,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                     w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z, s0, s1, s2)
                     ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
                     e0, e1, e2 = (PI * q[RGB]) * ok, (PI * q[RGB + 1]) * ok, (PI * q[RGB + 2]) * ok
+                    lp = z / PI
                 else:
                     # Environment map: one-sample MIS of the map's distribution and the
                     # cosine hemisphere (balance heuristic), SEL picks the strategy.
@@ -303,6 +311,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                         L0, L1, L2 = env_radiance(R, env_px, int(q[ENV_INTERP]), w0, w1, w2)
                         f = cs / pdf
                         e0, e1, e2 = L0 * f, L1 * f, L2 * f
+                    lp = pdf
             elif code == C_POINT or code == C_SPOT:
                 t0, t1, t2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
                 dc = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
@@ -331,6 +340,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                 d2 = max(dist * dist, md * md)
                 f = cr * cl / d2
                 e0, e1, e2 = q[RGB] * f, q[RGB + 1] * f, q[RGB + 2] * f
+                if rad > 0:
+                    lp = d2 / max(PI * rad * rad * cl, 1e-300)
                 if code == C_SPOT:
                     m = _spot_mask(a0, a1, a2, q)
                     e0, e1, e2 = e0 * m, e1 * m, e2 * m
@@ -390,6 +401,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                     la0 = m_L[tri, 0] * m_weight[tri]
                     la1 = m_L[tri, 1] * m_weight[tri]
                     la2 = m_L[tri, 2] * m_weight[tri]
+                    inv_pdf_a = m_weight[tri]
                 else:  # area light
                     ny0, ny1, ny2 = q[DIR], q[DIR + 1], q[DIR + 2]
                     if q[SPREAD_RECT] != 0.0:
@@ -409,6 +421,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                         y2 = q[POS + 2] + x * q[U + 2] + yy * q[V + 2]
                         ar = wx * wy
                         la0, la1, la2 = q[RGB] * ar, q[RGB + 1] * ar, q[RGB + 2] * ar
+                        inv_pdf_a = ar
                     else:
                         if q[IS_DISK] != 0.0:
                             x, yy = _concentric_disk(u1, u2)
@@ -421,6 +434,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                         la0 = q[RGB] * q[AREA_]
                         la1 = q[RGB + 1] * q[AREA_]
                         la2 = q[RGB + 2] * q[AREA_]
+                        inv_pdf_a = q[AREA_]
                     gap = (abs(q[DIR]) * (G64 * (abs(q[POS]) + abs(y0 - q[POS])) + _ulp32(y0))
                            + abs(q[DIR + 1]) * (G64 * (abs(q[POS + 1]) + abs(y1 - q[POS + 1]))
                                                 + _ulp32(y1))
@@ -439,6 +453,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                 d2 = max(dist * dist, md * md)
                 f = cr * cl / d2
                 e0, e1, e2 = la0 * f, la1 * f, la2 * f
+                lp = d2 / max(cl * inv_pdf_a, 1e-300)
                 if code == C_AREA and q[SPREAD_ON] != 0.0:
                     at = _spread_attenuation((-w0) * q[DIR] + (-w1) * q[DIR + 1]
                                              + (-w2) * q[DIR + 2], q)
@@ -453,6 +468,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
             j = m_all
             m_all += 1
             contrib[j, 0], contrib[j, 1], contrib[j, 2] = e0, e1, e2
+            wdir[j, 0], wdir[j, 1], wdir[j, 2] = w0, w1, w2
+            lpdf[j] = lp
             row[j] = i
             kidx[j] = k
             if not trace:
@@ -516,6 +533,47 @@ def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all):
         E[i, 2] = E[i, 2] + contrib[j, 2] * vis / s
 
 
+@kernel
+def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, lpdf, kmode,
+                    fd, prm, ns, wo, sel):
+    """Radiance instead of irradiance: L[row] += contrib x f x visible / samples, entry by
+    entry, where f = fd[row] (the diffuse lobe's f = albedo / pi) plus the rough reflective
+    lobes' f(wo, wi) (engine/closures/principled.py, packed per hit in prm; ns, wo (N,3)),
+    by the light's kmode[k]: 1 = a delta light (a point, spot or sun without size, which
+    no sampled direction can hit): full weight; 2 = a light the lobes' sampled continuation
+    also finds (engine/integrator.py): weighted by the power heuristic against the lobes'
+    sampling pdf (principled.bsdf_pdf with the continuation's lobe-choice probabilities
+    sel (N, N_LOBES)), lpdf the light sample's solid-angle pdf, ksamples its sample count;
+    0 = the glossy part is left to the continuation. contrib already holds cos(wi) (with
+    the shading offset), so the glossy term is eval / cos(wi)."""
+    for j in range(m_all):
+        r = ray[j]
+        if r >= 0 and blocked[r]:
+            continue
+        k = kidx[j]
+        s = ksamples[k]
+        i = row[j]
+        f0, f1, f2 = fd[i, 0], fd[i, 1], fd[i, 2]
+        mode = kmode[k]
+        if mode != 0:
+            n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+            ix, iy, iz = pr.frame_local(n0, n1, n2, wdir[j, 0], wdir[j, 1], wdir[j, 2])
+            if iz > 0.0:
+                ox, oy, oz = pr.frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+                g0, g1, g2 = pr.eval_reflection(prm, i, ox, oy, oz, ix, iy, iz)
+                mis = 1.0
+                if mode == 2:
+                    pb = pr.bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz)
+                    pl = s * lpdf[j]
+                    mis = pl * pl / (pl * pl + pb * pb) if pl > 0.0 else 0.0
+                f0 += g0 / iz * mis
+                f1 += g1 / iz * mis
+                f2 += g2 / iz * mis
+        L[i, 0] = L[i, 0] + contrib[j, 0] * f0 / s
+        L[i, 1] = L[i, 1] + contrib[j, 1] * f1 / s
+        L[i, 2] = L[i, 2] + contrib[j, 2] * f2 / s
+
+
 # Entries (hits x light samples) per kernel call: bounds the compacted arrays' memory
 # (about 70 bytes an entry) however many light samples a hit takes.
 MAX_ENTRIES = 1 << 20
@@ -538,10 +596,13 @@ class DirectLightBuffers:
             self.d32 = np.empty((m, 3), np.float32)
             self.t32 = np.empty(m, np.float32)
             self.blocked = np.empty(m, np.bool_)
+            self.wdir = np.empty((m, 3))
+            self.lpdf = np.empty(m)
         return self
 
 
-def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None):
+def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
+                 bsdf=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -550,7 +611,9 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     (p, ns, gate, ng, offset, shade_off, cutoff, lift) as sample_lights takes them.
     shadow: an engine.shadowtransmittance.ShadowTransmittance (transparent shadows) or
     None (every surface blocks shadow rays).
-    Returns (E, number of shadow rays traced)."""
+    bsdf = (fd (N,3), prm (N,P), wo (N,3), mode (L,) int per light, sel (N, N_LOBES)):
+    outgoing radiance instead, weighted by the BSDF (accumulate_bsdf); not with the tree.
+    Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     if tree is None:
         tree = (*empty_tree(), np.ones(len(codes), np.bool_))
@@ -578,7 +641,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         buf.ensure(K * n)
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
-                                      buf.ray, buf.o32, buf.d32, buf.t32)
+                                      buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.
@@ -588,7 +651,13 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
             if shadow is not None:
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                     buf.contrib, buf.ray, m_all, shadow_cls)
-        accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
+        if bsdf is None:
+            accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
+        else:
+            fd, prm, wo, mode, sel = bsdf
+            accumulate_bsdf(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked,
+                            m_all, buf.wdir, buf.lpdf, mode[klight], fd, prm, hit_arrays[1], wo,
+                            sel)
         rays += m_rays
     return E, rays
 
@@ -623,6 +692,14 @@ def _warm_up():
             return blocked
 
     direct_light(packed, hit, samples, _NoOcclusion(), None, 1)
+    from .geometry import closure_params
+    from .scene import Material
+    prm, _ = pr.setup_np(closure_params([Material("w", specular=1.0, roughness=0.5)]),
+                         np.zeros(1, np.int64), np.full((1, 3), 0.5), np.ones(1),
+                         np.ones(1, np.bool_))
+    direct_light(packed, hit, samples, _NoOcclusion(), None, 1,
+                 bsdf=(np.ones((1, 3)), prm, nrm, np.full(len(lights), 2, np.int64),
+                       np.full((1, pr.N_LOBES), 0.2)))
     terminator_lift(np.zeros(1, np.int64), np.full((1, 2), 0.25), nrm, np.ones(1, np.bool_),
                     np.full(1, 0.1), mesh.v0, mesh.e1, mesh.e2,
                     np.repeat(nrm[:, None, :], 3, axis=1), np.zeros(1), np.zeros((1, 3)))

@@ -30,17 +30,28 @@ SHARP_ROUGHNESS = 0.3
 
 
 def sharp_specular(table: MaterialTable) -> np.ndarray:
-    """(M,) bool: materials whose specular lobe is sharp enough to focus light (a
-    caustic caster): a mirror, glass or coat lobe of roughness <= SHARP_ROUGHNESS."""
-    return _focusing(table) & (table.roughness <= SHARP_ROUGHNESS)
+    """(M,) bool: materials with a lobe sharp enough to focus light (a caustic caster): a
+    metal, glass or dielectric specular lobe of roughness <= SHARP_ROUGHNESS, a Principled
+    coat of coat roughness <= SHARP_ROUGHNESS (a clear-coated rough base). A transparent
+    pass is none (shadow rays cross it)."""
+    from .closures import principled as pr
+    dielectric = (1 - table.metallic) * (1 - table.transmission)
+    main = ((table.metallic * table.base_color.max(axis=1) > 0) | (table.transmission > 0)
+            | (dielectric * table.specular > 0))
+    coat = np.zeros(len(table.alpha), bool)
+    if table.closure_params is not None and table.coat_weight is not None:
+        coat = ((table.coat_weight > 0)
+                & (table.closure_params[:, pr.M_COAT_ROUGH] <= SHARP_ROUGHNESS))
+    return table.has_specular & ((main & (table.roughness <= SHARP_ROUGHNESS)) | coat)
 
 
 def _focusing(table: MaterialTable) -> np.ndarray:
     """(M,) bool: materials with a mirror, glass or coat lobe (has_specular without the
     transparent pass, which camera rays continue through but which focuses nothing)."""
     dielectric = (1 - table.metallic) * (1 - table.transmission)
+    coat = (table.coat_weight > 0) if table.coat_weight is not None else False
     return ((table.metallic * table.base_color.max(axis=1) > 0) | (table.transmission > 0)
-            | (dielectric * table.specular > 0))
+            | (dielectric * table.specular > 0) | coat)
 
 
 # What each teaching method does: the effect report's first line (settings.METHODS).

@@ -39,6 +39,9 @@ class MaterialTable:
     textures: list            # per material: engine.textures object (evaluate()) or None
     normal_maps: list = None  # per material: engine.normalmap.NormalMap or None
     alpha_textures: list = None  # per material: alpha node (Material.alpha_texture) or None
+    closure_params: np.ndarray = None  # (M, principled.N_MAT): the closures' columns
+    coat_weight: np.ndarray = None     # (M,)
+    sheen_weight: np.ndarray = None    # (M,)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -48,7 +51,11 @@ class MaterialTable:
                    emission=np.array([m.emission for m in materials], np.float64).reshape(-1, 3),
                    textures=[m.texture for m in materials],
                    normal_maps=[m.normal_map for m in materials],
-                   alpha_textures=[m.alpha_texture for m in materials], **cols)
+                   alpha_textures=[m.alpha_texture for m in materials],
+                   closure_params=closure_params(materials),
+                   coat_weight=np.array([m.coat_weight for m in materials], np.float64),
+                   sheen_weight=np.array([m.sheen_weight for m in materials], np.float64),
+                   **cols)
 
     @property
     def has_diffuse(self) -> np.ndarray:
@@ -61,13 +68,44 @@ class MaterialTable:
         dielectric = (1 - self.metallic) * (1 - self.transmission)
         return ((self.metallic * self.base_color.max(axis=1) > 0) | (self.transmission > 0)
                 | (dielectric * self.specular > 0) | (self.alpha < 1)
-                | self.has_alpha_texture) & True
+                | (self.coat_weight > 0) | (self.sheen_weight > 0) | self.has_alpha_texture) & True
 
     @property
     def has_alpha_texture(self) -> np.ndarray:
         """(M,) bool: materials whose alpha varies per hit (an alpha texture)."""
         nodes = self.alpha_textures or [None] * len(self.alpha)
         return np.array([n is not None for n in nodes], bool)
+
+
+def closure_params(materials: list[Material]) -> np.ndarray:
+    """(M, principled.N_MAT) float64 rows of the columns engine/closures/principled.py
+    reads (its M_* constants)."""
+    from .closures import principled as pr
+    out = np.zeros((len(materials), pr.N_MAT))
+    for i, m in enumerate(materials):
+        row = out[i]
+        row[pr.M_ALPHA] = m.alpha
+        row[pr.M_METALLIC] = m.metallic
+        row[pr.M_ROUGH] = m.roughness
+        row[pr.M_TRANS] = m.transmission
+        row[pr.M_IOR] = m.ior
+        row[pr.M_SPEC] = m.specular
+        row[pr.M_LEVEL] = m.specular_ior_level
+        row[pr.M_STINT:pr.M_STINT + 3] = m.specular_tint
+        row[pr.M_COAT_W] = m.coat_weight
+        row[pr.M_COAT_ROUGH] = m.coat_roughness
+        row[pr.M_COAT_IOR] = m.coat_ior
+        row[pr.M_CTINT:pr.M_CTINT + 3] = m.coat_tint
+        row[pr.M_MULTI] = 1.0 if m.multiscatter else 0.0
+        row[pr.M_NODE] = {"principled": pr.NODE_PRINCIPLED, "glossy": pr.NODE_GLOSSY,
+                          "glass": pr.NODE_GLASS}[m.node]
+        if m.glossy_color is not None:
+            row[pr.M_GCOL:pr.M_GCOL + 3] = m.glossy_color
+            row[pr.M_HAS_GCOL] = 1.0
+        row[pr.M_SHEEN_W] = m.sheen_weight
+        row[pr.M_SHEEN_ROUGH] = m.sheen_roughness
+        row[pr.M_SHEEN_TINT:pr.M_SHEEN_TINT + 3] = m.sheen_tint
+    return out
 
 
 PIECE_TRIANGLES = 1 << 16  # triangles prepared between two cancel checks (~0.05 s)

@@ -16,12 +16,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
-from .lights import MESH
-from .lights.selection import empty_tree, selection_samples, selector_for
+from .lights import AREA, MESH, POINT, SPOT, SUN
+from .lights.selection import empty_tree, selection_samples, selector_for, tree_members
 from .lights.world import background_radiance
 from .lights.packing import pack_lights
-from .bsdf import SPEC_LOBES, lobe_weights, sample_specular, surface_hit
+from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, sample_specular,
+                   surface_hit)
 from .camerarays import camera_rays_kernel
+from .closures import principled as pr
+from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
                        to_world)
@@ -57,11 +60,16 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
-                      skip_mesh_lights=False) -> np.ndarray:
+                      skip_mesh_lights=False, bsdf=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
-    by its own rays, which stays calm right next to the emitter)."""
+    by its own rays, which stays calm right next to the emitter).
+    bsdf = (fd (N,3) diffuse f, prm (N,P) the hits' packed lobes, sel (N, N_LOBES) the
+    continuation's lobe-choice probabilities): outgoing radiance instead, the diffuse f
+    plus the rough reflective lobes' f, in full for delta lights and weighted by multiple
+    importance sampling for the lights the continuation also finds (light_modes,
+    directlight.accumulate_bsdf)."""
     n = len(hit.p)
     plan = ctx.plan
     chosen = selector_for(ctx, skip_mesh_lights)
@@ -86,7 +94,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW,
                                n, shadow=getattr(ctx, "shadow", None), tree=chosen[1])
         counters.shadow_rays += rays
-        return E
+        # With the light tree the glossy lobes see lights by their continuation alone
+        # (light_modes): the shadow rays feed the diffuse lobe.
+        return E if bsdf is None else bsdf[0] * E
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
     # mesh light's triangle choice), sample by sample.
     samples = []
@@ -105,10 +115,107 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     if n == 0 or not samples:
         return np.zeros((n, 3))
     packed = ctx.packed_lights or pack_lights(ctx.lights)
+    if bsdf is not None:
+        fd, prm, sel = bsdf
+        bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
+                np.ascontiguousarray(hit.wo, np.float64), light_modes(ctx),
+                np.ascontiguousarray(sel, np.float64))
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n,
-                           shadow=getattr(ctx, "shadow", None))
+                           shadow=getattr(ctx, "shadow", None), bsdf=bsdf)
     counters.shadow_rays += rays
     return E
+
+
+MODE_CONTINUATION, MODE_DELTA, MODE_MIS = 0, 1, 2
+
+
+def light_modes(ctx) -> np.ndarray:
+    """How each light reaches the rough reflective lobes (directlight.accumulate_bsdf):
+    MODE_DELTA: a point, spot or sun without size, by shadow rays only; MODE_MIS: an area
+    light without spread, a sun with an angle, a point / spot light with a radius or the
+    emissive meshes, by shadow rays and by the lobes' sampled continuation, the two
+    weighted by the power heuristic (Veach; mis_light_pdf and _mesh_mis_weight give the
+    light's pdf where a continuation meets it); MODE_CONTINUATION: the other lights with a
+    size (the world, area lights with spread) by the continuation alone. A light whose shadow rays are off (diffuse visibility) is continuation-only.
+    Without continuation (specular effects off) the MIS lights take shadow rays in full.
+    With more lights than the light tree's threshold every light is MODE_CONTINUATION."""
+    modes = np.zeros(len(ctx.lights), np.int64)
+    if tree_members(ctx.lights):
+        # Many lights: the tree picks one light per shadow ray, and the continuation's
+        # MIS weights would need its choice probability too; the glossy lobes see every
+        # light by their continuation alone (unbiased; lights without size give them no
+        # highlight there).
+        return modes
+    mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
+    for li, light in enumerate(ctx.lights):
+        if not light.ray_kinds & SHADOW:
+            continue
+        if not light.has_size:
+            modes[li] = MODE_DELTA
+        elif ((light.kind == AREA and light.spread >= math.pi - 1e-6)
+              or light.kind in (SUN, POINT, SPOT, MESH)):
+            modes[li] = mis
+    return modes
+
+
+def mis_light_pdf(light, o, d, t):
+    """Solid-angle pdf (N,) with which the light's shadow-ray samples (directlight.
+    sample_lights) pick direction d from o, for continuation rays that met the light at
+    distance t (sun: escaping rays inside its disk)."""
+    if light.kind == SUN:
+        return np.full(len(d), 1.0 / light.solid_angle)
+    if light.kind in (POINT, SPOT):
+        # Shadow rays sample the disk of the light's radius through its centre, facing the
+        # shading point o (directlight.sample_lights): pdf of the direction's disk point.
+        axis = o - light.pos
+        axis /= np.maximum(np.linalg.norm(axis, axis=1), 1e-300)[:, None]
+        toward = -dot(d, axis)  # cosine at the disk
+        front = toward > 1e-12   # rays parallel to or leaving the disk cannot reach it
+        t_disk = dot(o - light.pos, axis) / np.where(front, toward, 1.0)
+        on_disk = t_disk[:, None] * d + o - light.pos
+        inside = (front & (t_disk > 0)
+                  & (np.einsum("ij,ij->i", on_disk, on_disk) <= light.radius ** 2))
+        pdf = t_disk * t_disk / np.where(front, math.pi * light.radius ** 2 * toward, 1.0)
+        return np.where(inside, pdf, 0.0)
+    cos_l = np.abs(dot(d, light.dir))
+    return t * t / np.maximum(cos_l * light.area, 1e-300)
+
+
+def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b):
+    """Power-heuristic weight (N,) of continuation rays that met emissive triangles prim
+    (1 where the mesh light is not light-sampled with MIS or the lobe was mirror-like):
+    the mesh light's shadow rays pick a triangle by its probability, then a uniform point,
+    so their pdf is prob / area x t^2 / |cos| (directlight.sample_lights)."""
+    w = np.ones(len(prim))
+    for li, light in enumerate(ctx.lights):
+        if light.kind != MESH or modes[li] != MODE_MIS:
+            continue
+        lookup = getattr(light, "_tri_lookup", None)
+        if lookup is None or len(lookup) != ctx.geo.count:
+            lookup = np.full(ctx.geo.count, -1, np.int64)
+            lookup[light.tri_index] = np.arange(len(light.tri_index))
+            light._tri_lookup = lookup
+        k = lookup[prim]
+        rows = np.nonzero((k >= 0) & np.isfinite(pdf_b))[0]
+        if not len(rows):
+            continue
+        kk = k[rows]
+        cos_l = np.abs(dot(d[rows], ng[rows]))
+        pl = (ctx.plan.light_samples.get(light.name, 1) * light.prob[kk] / light.tri_area[kk]
+              * t[rows] * t[rows] / np.maximum(cos_l, 1e-300))
+        pb = pdf_b[rows]
+        w[rows] = pb * pb / np.maximum(pb * pb + pl * pl, 1e-300)
+    return w
+
+
+def _mis_weight(ctx, li, light, o, d, t, pdf_b):
+    """Power-heuristic weight of continuation rays (pdf pdf_b, inf = a mirror-like lobe)
+    that met light li, against its light_samples shadow rays."""
+    n = ctx.plan.light_samples.get(light.name, 1)
+    pl = n * mis_light_pdf(light, o, d, t)
+    with np.errstate(invalid="ignore", over="ignore"):
+        w = pdf_b * pdf_b / (pdf_b * pdf_b + pl * pl)
+    return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
 
 
 def light_shadow_rays(ctx, hit, light_index, rng):
@@ -127,7 +234,7 @@ def light_shadow_rays(ctx, hit, light_index, rng):
                                   u1[None], u2[None],
                                   np.zeros((1, 1)) if sel is None else sel[None],
                                   buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
-                                  buf.t32)
+                                  buf.t32, buf.wdir, buf.lpdf)
     return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.o32[:m_rays].copy(),
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
@@ -248,39 +355,70 @@ def _secondary_irradiance(ctx, hit):
                            s.estimator)
 
 
-def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA):
-    """Pick one specular lobe per ray in proportion to its weight (Russian roulette for
-    paths that would add little). Returns (kept indices, origins, directions, throughput,
-    ray class of the continued rays: glossy, transmission, or ray_cls (the incoming class,
-    scalar or per ray) through a transparent pass). Written lobe by lobe: numpy reductions
-    over a 3-wide axis are slow (bench/)."""
+def lobe_choice(w, tp):
+    """The continuation's lobe choice: (sel (N, N_LOBES) the probability of continuing
+    through each lobe (diffuse: 0; Russian roulette included), q (N,) the survival
+    probability, p (N, len(SPEC_LOBES)) the unnormalised lobe weights, psum (N,))."""
     cols = [w[k] for k in SPEC_LOBES]
     p = np.stack([max3(c) for c in cols], axis=1)
-    psum = (((p[:, 0] + p[:, 1]) + p[:, 2]) + p[:, 3]) + p[:, 4]
-    wsum = (((cols[0] + cols[1]) + cols[2]) + cols[3]) + cols[4]
+    psum = p.sum(axis=1)
+    wsum = cols[0]
+    for c in cols[1:]:
+        wsum = wsum + c
     # Russian roulette only for paths that would contribute little (< 10 % weight).
     q = np.clip(10.0 * max3(tp * wsum), 0.0, 1.0)
+    sel = np.zeros((len(p), len(SPEC_LOBES) + 1))
+    ok = psum > 0
+    sel[ok, 1:] = p[ok] / psum[ok, None] * q[ok, None]
+    return sel, q, p, psum
+
+
+def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False):
+    """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
+    paths that would add little) and sample it. Returns (kept indices, origins, directions,
+    throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
+    incoming class, scalar or per ray) through a transparent pass) and, with want_pdf, the
+    pdf (N,) of each continued direction under the whole choice (inf: from a mirror-like
+    lobe, a refraction or a pass, which light sampling cannot produce). The throughput
+    takes the sampled direction's own weight (f cos / pdf) over the choice probability, so
+    the lobe weights only steer the choice. choice: lobe_choice(w, tp) if already made."""
+    sel, q, p, psum = choice if choice is not None else lobe_choice(w, tp)
     go = (psum > 0) & (rng.random(len(p)) < q)
     idx = np.nonzero(go)[0]
     empty = np.zeros((0, 3))
     if len(idx) == 0:
-        return idx, empty, empty, empty, np.zeros(0, np.int64)
+        out = (idx, empty, empty, empty, np.zeros(0, np.int64))
+        return out + (np.zeros(0),) if want_pdf else out
     cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
     lobe = np.minimum(np.count_nonzero(rng.random(len(idx))[:, None] >= cdf, axis=1),
                       len(SPEC_LOBES) - 1)
-    prob = p[idx, lobe] / psum[idx] * q[idx]
-    wsel = np.empty((len(idx), 3))
-    for li, c in enumerate(cols):
-        r = np.nonzero(lobe == li)[0]
-        wsel[r] = np.take(c, idx[r], axis=0)
-    new_tp = tp[idx] * wsel / np.maximum(prob, 1e-300)[:, None]
+    glass = (lobe == GLASS_R) | (lobe == GLASS_T)
+    p_sel = np.where(glass, p[idx, GLASS_R] + p[idx, GLASS_T], p[idx, lobe])
+    prob = p_sel / psum[idx] * q[idx]
     sub = hit.take(idx)
-    nd, valid, _ = sample_specular(ctx.table, sub, lobe, rng)
+    nd, valid, transmitted, weight = sample_specular(ctx.table, sub, lobe, rng)
+    lobe = np.where(glass, np.where(transmitted, GLASS_T, GLASS_R), lobe)
+    new_tp = tp[idx] * weight / np.maximum(prob, 1e-300)[:, None]
     keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
     o = sub.clear(keep, nd[keep])
     inc = ray_cls if np.ndim(ray_cls) == 0 else np.asarray(ray_cls)[idx]
     new_cls = continued_class(lobe, inc)[keep]
-    return idx[keep], o, nd[keep], new_tp[keep], new_cls
+    out = (idx[keep], o, nd[keep], new_tp[keep], new_cls)
+    if not want_pdf:
+        return out
+    pdf = np.full(len(idx), np.inf)
+    prm = np.ascontiguousarray(sub.prm)
+    rough = pr.lobe_is_rough(prm, (lobe + 1).astype(np.int64)) & ~transmitted & valid
+    r = np.nonzero(rough)[0]
+    if len(r):
+        pb = np.empty(len(r))
+        pr.bsdf_pdf_many(np.ascontiguousarray(prm[r]),
+                         np.ascontiguousarray(sel[idx[r]]),
+                         np.ascontiguousarray(sub.ns[r], np.float64),
+                         np.ascontiguousarray(sub.wo[r], np.float64),
+                         np.ascontiguousarray(nd[r], np.float64), pb)
+        pdf[r] = pb
+    return out + (pdf[keep],)
 
 
 # The caustic estimate is already a smooth kernel average, so it varies little between the
@@ -306,14 +444,44 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
 
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
-                  should_cancel=None):
-    """Radiance from the diffuse lobe, split into (direct, caustic, indirect)."""
-    s = ctx.settings
+                  should_cancel=None, glossy=None, sel=None):
+    """Radiance from the diffuse lobe, split into (direct, caustic, indirect). glossy (N,)
+    bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
+    term then holds both lobes' response (shadow rays weighted by the full BSDF, with
+    multiple importance sampling against the continuation's choice sel (N, N_LOBES),
+    lobe_choice)."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p)
-    direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
+    if glossy is not None and glossy.any():
+        direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel))
+    else:
+        direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
     caustic = np.zeros_like(direct)
     indirect = np.zeros_like(direct)
+    if glossy is not None:
+        # Photon estimates only where the diffuse lobe is (glossy-only rows add nothing).
+        dsel = np.nonzero(max3(wd) > 0)[0]
+        if len(dsel) < len(wd):
+            sub = hit.take(dsel)
+            if sampler is not None:
+                sampler = sampler.subset(dsel)
+            c, ind = _photon_terms(ctx, sub, f[dsel], rng, counters, sampler,
+                                   None if sample_id is None else sample_id[dsel],
+                                   None if footprint is None else footprint[dsel],
+                                   should_cancel)
+            caustic[dsel] = c
+            indirect[dsel] = ind
+            return direct, caustic, indirect
+    caustic, indirect = _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id,
+                                      footprint, should_cancel)
+    return direct, caustic, indirect
+
+
+def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel):
+    """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi."""
+    s = ctx.settings
+    caustic = np.zeros_like(f)
+    indirect = np.zeros_like(f)
     if s.photon_mapping:
         caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
                                    footprint)
@@ -325,7 +493,7 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
         elif ctx.global_map is not None and len(ctx.global_map):
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
                                                      s.k_nearest, s.min_photons, s.estimator)
-    return direct, caustic, indirect
+    return caustic, indirect
 
 
 class Accumulator:
@@ -465,6 +633,17 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     return acc, counters, end
 
 
+def _glossy_rows(ctx, hit, modes):
+    """Hits whose rough reflective lobes take shadow rays: any, when a light is sampled
+    for them (light_modes; directlight.accumulate_bsdf)."""
+    if not np.any(modes != MODE_CONTINUATION):
+        return np.zeros(len(hit.p), bool)
+    prm, _ = closures(ctx.table, hit)
+    out = np.empty(len(hit.p), np.bool_)
+    rough_reflection_rows(prm, out)
+    return out
+
+
 def _write_film(film, acc, spp, rh, rw):
     inv = 1.0 / spp
     for name in Accumulator.NAMES:
@@ -490,6 +669,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ortho = cam.kind == "ORTHO"
     travelled = np.zeros(len(o))
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
+    pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
+    modes = light_modes(ctx)
     has_holdout = bool(ctx.geo.holdout.any())
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
@@ -500,7 +681,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
-        for light in ctx.lights:
+        for li, light in enumerate(ctx.lights):
             if not light.has_surface:  # nothing to meet (many point lights: no cost)
                 continue
             sees = (ray_cls & light.ray_kinds) != 0
@@ -509,6 +690,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             mask, tl, L = light.intersect(o, d, t)
             if L is not None and mask.any():
                 mask &= sees
+                if bounce > 0 and modes[li] == MODE_MIS and mask.any():
+                    L = L * _mis_weight(ctx, li, light, o, d, tl, pdf_b)[:, None]
                 acc.add(target, pix[mask], tp[mask] * L[mask])
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
@@ -516,10 +699,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if miss.any():
             if not (bounce == 0 and s.film_transparent):
                 radiance = background_radiance(ctx.scene, d[miss])
-                for light in ctx.lights:
+                for li, light in enumerate(ctx.lights):
                     if bounce > 0:
                         sun = light.seen_at_infinity(d[miss])
                         if sun is not None:
+                            if modes[li] == MODE_MIS:
+                                sun = sun * _mis_weight(ctx, li, light, o[miss], d[miss],
+                                                        None, pdf_b[miss])[:, None]
                             radiance = radiance + sun
                 acc.add(target, pix[miss], tp[miss] * radiance)
         hitm = prim >= 0
@@ -535,8 +721,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():
             return
-        o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls = (
-            a[hitm] for a in (o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls))
+        o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
+            a[hitm] for a in (o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls,
+                              pdf_b))
         travelled = travelled + t
         footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
         if sampler is not None and bounce == 0:
@@ -550,17 +737,22 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 acc.normal[:, c] += acc._bins(pix, hit.ns[:, c] * facing)
         Le = ctx.table.emission[hit.mat]
         if np.any(Le > 0):
+            if bounce > 0:
+                Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b)[:, None]
             acc.add(target, pix, tp * Le)
         w = lobe_weights(ctx.table, hit)
         wd = w["diffuse"]
-        dsel = np.nonzero(max3(wd) > 0)[0]
+        glossy = _glossy_rows(ctx, hit, modes)
+        choice = lobe_choice(w, tp)
+        dsel = np.nonzero((max3(wd) > 0) | glossy)[0]
         if len(dsel):
             sub = hit.take(dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
             direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
                                                       sample_id[dsel], footprint[dsel],
-                                                      should_cancel)
+                                                      should_cancel, glossy=glossy[dsel],
+                                                      sel=choice[0][dsel])
             tpd = tp[dsel]
             if bounce == 0:
                 acc.add("direct", pix[dsel], tpd * direct)
@@ -571,7 +763,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
-        keep, o, d, tp, ray_cls = continue_specular(ctx, hit, w, tp, rng, ray_cls)
+        keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, w, tp, rng, ray_cls,
+                                                           choice=choice, want_pdf=True)
         pix = pix[keep]
         sample_id = sample_id[keep]
         travelled = travelled[keep]

@@ -5,7 +5,9 @@ Every kernel is `@kernel`: numba's `njit(nogil=True, cache=True)`. nogil lets
 engine/parallel.py's threads run kernels on all cores; there is no parallel=True / prange
 (numba's threading layers conflict with Blender's libtbb and abort on concurrent calls).
 cache=True writes the machine code to NUMBA_CACHE_DIR, so only the first render on a
-machine compiles (seconds); later processes load it (a fraction of a second).
+machine compiles (seconds); later processes load it (a fraction of a second). The cache
+lives in a subfolder named by a hash of all engine sources (numba alone would miss a
+change in a kernel that another module's kernel calls).
 
 NUMBA_CACHE_DIR must be set before numba is imported. The Blender add-on sets it to its
 extension's user folder (addon/core.py); otherwise this module picks a user cache folder
@@ -53,7 +55,60 @@ def _choose_cache_dir() -> str:
     return path
 
 
-CACHE_DIR = _choose_cache_dir()
+def _engine_stamp() -> str:
+    """Hash of every engine source file and the numba version. numba's cache checks only
+    a kernel's own file: a kernel calling one in another module (directlight ->
+    closures.principled -> closures.ggx) would load stale machine code after that module
+    changed. One cache folder per stamp rules that out."""
+    try:
+        from importlib.metadata import version
+        h = hashlib.sha1(version("numba").encode())
+    except Exception:  # noqa: BLE001  (no metadata: the sources alone still tell versions apart)
+        h = hashlib.sha1()
+    pkg = os.path.dirname(os.path.abspath(__file__))
+    if os.path.isdir(pkg):
+        for root, dirs, files in os.walk(pkg):
+            dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+            for name in sorted(files):
+                if name.endswith(".py"):
+                    path = os.path.join(root, name)
+                    h.update(os.path.relpath(path, pkg).encode())
+                    with open(path, "rb") as f:
+                        h.update(f.read())
+    else:  # imported from a zip (the engine shipped to Dask workers)
+        import zipfile
+        archive = getattr(__loader__, "archive", None)
+        prefix = os.path.relpath(pkg, archive).replace(os.sep, "/") + "/" if archive else ""
+        if archive:
+            with zipfile.ZipFile(archive) as z:
+                for name in sorted(z.namelist()):
+                    if name.startswith(prefix) and name.endswith(".py"):
+                        h.update(name.encode())
+                        h.update(z.read(name))
+    return h.hexdigest()[:16]
+
+
+def _prune(root: str, keep: str) -> None:
+    """Remove the cache folders of other engine versions (best effort)."""
+    import shutil
+    try:
+        names = os.listdir(root)
+    except OSError:
+        return
+    for name in names:
+        path = os.path.join(root, name)
+        if (name != keep and len(name) == 16 and os.path.isdir(path)
+                and all(c in "0123456789abcdef" for c in name)):
+            shutil.rmtree(path, ignore_errors=True)
+
+
+CACHE_ROOT = _choose_cache_dir()
+_STAMP = _engine_stamp()
+if os.path.basename(os.path.normpath(CACHE_ROOT)) == _STAMP:
+    CACHE_ROOT = os.path.dirname(os.path.normpath(CACHE_ROOT))  # inherited from a parent
+CACHE_DIR = os.path.join(CACHE_ROOT, _STAMP)
+os.makedirs(CACHE_DIR, exist_ok=True)
+_prune(CACHE_ROOT, _STAMP)
 os.environ["NUMBA_CACHE_DIR"] = CACHE_DIR
 if "numba" in sys.modules:  # imported earlier (another add-on): make it see the folder
     import numba.core.config

@@ -23,13 +23,13 @@ import numpy as np
 
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
-from .bsdf import lobe_weights, sample_specular, surface_hit
+from .bsdf import GLASS_R, GLASS_T, LOBE_NAMES, lobe_weights, sample_specular, surface_hit
 from .sampling import cosine_hemisphere, dot, max3, to_world
 from .geometry import CAMERA
 from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class
 
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
-LOBES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "coat")
+LOBES = LOBE_NAMES
 # The ray kinds a photon segment can stand for on the camera side (camera rays start at
 # the camera, never at a photon's surface).
 SEGMENT_KINDS = ALL_RAYS & ~CAMERA
@@ -199,7 +199,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             parts["kind"].append(kind[store].astype(np.uint8))
         # Russian roulette over the lobes.
         probs = np.stack([max3(w[k]) for k in LOBES], axis=1)
-        s = ((((probs[:, 0] + probs[:, 1]) + probs[:, 2]) + probs[:, 3]) + probs[:, 4]) + probs[:, 5]
+        s = probs.sum(axis=1)
         probs = probs / np.maximum(s, 1.0)[:, None]
         cdf = np.cumsum(probs, axis=1)
         xi = xi_all[0, slot]
@@ -209,7 +209,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             survive &= lobe != 0
         idx = np.nonzero(survive)[0]
         lobe = lobe[idx]
-        p_sel = probs[idx, lobe]
+        # glass_r and glass_t are sampled as one lobe (bsdf.sample_specular)
+        glass = (lobe == GLASS_R + 1) | (lobe == GLASS_T + 1)
+        p_sel = np.where(glass, probs[idx, GLASS_R + 1] + probs[idx, GLASS_T + 1],
+                         probs[idx, lobe])
         # The chosen lobe's weight, row by row, without an (n,6,3) stack.
         w_sel = np.zeros((len(idx), 3))
         for li, k in enumerate(LOBES):
@@ -230,15 +233,22 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         spec = ~diff
         if spec.any():
             spec_rows = np.nonzero(spec)[0]
-            sd, valid, transmitted = sample_specular(table, sub.take(spec_rows),
-                                                     lobe[spec] - 1, bounce_rng)
+            sd, valid, transmitted, weight = sample_specular(table, sub.take(spec_rows),
+                                                             lobe[spec] - 1, bounce_rng)
             new_d[spec] = sd
             ok[spec] = valid
+            # The sampled direction's own weight replaces the lobe's estimated albedo.
+            new_power[spec_rows] = (power[idx[spec_rows]] * weight
+                                    / np.maximum(p_sel[spec_rows], 1e-300)[:, None])
+            # The glass lobe's sample decides reflect / refract (its visibility class too).
+            lobe[spec_rows] = np.where(glass[spec_rows], np.where(transmitted, GLASS_T + 1,
+                                                                  GLASS_R + 1),
+                                       lobe[spec_rows])
             # Refraction: radiance is carried as invariant across the interface, as the
             # camera side (no eta^2 factor) and Cycles do, so the photon's power takes
             # the factor (eta_i / eta_t)^2 (docs/units.md, "Refraction"). Paired
             # interfaces (a slab, a ball) cancel it exactly.
-            refracted = spec_rows[transmitted & (lobe[spec] == LOBES.index("glass_t"))]
+            refracted = spec_rows[transmitted & glass[spec_rows]]
             if len(refracted):
                 ior = np.take(table.ior, sub.mat[refracted])
                 eta_ratio = np.where(sub.front[refracted], 1.0 / ior, ior)

@@ -53,13 +53,23 @@ def _finite(value, what: str) -> float:
 
 @dataclass
 class Material:
-    """A Principled-like surface: the lobes Blender scenes use, with Cycles' meaning.
-
-    Lobes, as in Blender's Principled BSDF:
-      metallic          tinted mirror (rough with `roughness`)
-      transmission      dielectric glass: Fresnel reflection + refraction (tinted)
-      otherwise         diffuse base colour under a Fresnel coat of weight `specular`
-                        (specular=0: pure Lambert; 1: plastic-like)
+    """A Principled-v2 surface with Cycles' meaning (engine/closures/principled.py builds
+    its layers, top first):
+      sheen_weight      Cycles' microfiber sheen (sheen_roughness, tinted sheen_tint)
+      coat_weight       a clear dielectric coat (coat_roughness, coat_ior) tinting what is
+                        below it with coat_tint along the refracted path
+      metallic          GGX metal with F82-tint Fresnel (f0 = base colour, tint =
+                        specular_tint); node="glossy": a constant reflectance,
+                        glossy_color (or the base colour when None; a Mix of Diffuse and
+                        Glossy keeps both colours)
+      transmission      GGX glass (reflection + refraction; transmission tinted
+                        sqrt(base colour), or the colour for node="glass")
+      specular          weight of the dielectric specular layer over the diffuse base
+                        (Principled: 1; F0 from ior x 2 x specular_ior_level, tinted by
+                        specular_tint; 0: pure Lambert)
+      diffuse           Lambert, base colour x what the layers above leave
+    Microfacet lobes use GGX with alpha = roughness^2; multiscatter=True adds Cycles'
+    multiple-scattering energy compensation (Multiscatter GGX, Principled's default).
     `alpha` < 1 lets the rest of the light pass straight through (Transparent BSDF).
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
     `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
@@ -81,6 +91,18 @@ class Material:
     specular: float = 0.0
     emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     alpha: float = 1.0
+    specular_ior_level: float = 0.5
+    specular_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
+    coat_weight: float = 0.0
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
+    coat_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
+    multiscatter: bool = True
+    node: str = "principled"
+    glossy_color: tuple | np.ndarray | None = None
+    sheen_weight: float = 0.0
+    sheen_roughness: float = 0.5
+    sheen_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
     normal_map: NormalMap | Bump | None = None
     alpha_texture: object | None = None
@@ -103,12 +125,33 @@ class Material:
             self.warnings.append(f"{who}: base colour {self.base_color.round(3).tolist()} "
                                  "above 1 clamped to 1 (it would create energy)")
             self.base_color = np.minimum(self.base_color, 1.0)
-        for attr in ("metallic", "roughness", "transmission", "specular", "alpha"):
+        for attr in ("metallic", "roughness", "transmission", "specular", "alpha",
+                     "coat_roughness", "sheen_roughness"):
             v = _finite(getattr(self, attr), f"{who} {attr}")
             setattr(self, attr, min(max(v, 0.0), 1.0))
+        for attr in ("specular_ior_level", "coat_weight", "sheen_weight"):
+            v = _finite(getattr(self, attr), f"{who} {attr}")
+            if v < 0:
+                raise SceneError(f"{who} {attr}: must be >= 0, got {v}")
+            setattr(self, attr, v)
+        for attr in ("specular_tint", "coat_tint", "sheen_tint"):
+            v = _vec3(getattr(self, attr), f"{who} {attr}")
+            if np.any(v < 0):
+                raise SceneError(f"{who} {attr}: must be >= 0, got {v.tolist()}")
+            setattr(self, attr, v)
         self.ior = _finite(self.ior, f"{who} ior")
         if self.ior <= 0:
             raise SceneError(f"{who} ior: must be > 0, got {self.ior}")
+        self.coat_ior = _finite(self.coat_ior, f"{who} coat_ior")
+        if self.coat_ior < 1:
+            raise SceneError(f"{who} coat_ior: must be >= 1, got {self.coat_ior}")
+        if self.node not in MATERIAL_NODES:
+            raise SceneError(f"{who} node: expected one of {', '.join(MATERIAL_NODES)}, got "
+                             f"{self.node!r}")
+        self.multiscatter = bool(self.multiscatter)
+        if self.glossy_color is not None:
+            self.glossy_color = np.clip(_vec3(self.glossy_color, f"{who} glossy_color"), 0.0,
+                                        1.0)
         if self.texture is not None:
             try:
                 self.texture = as_texture(self.texture, name=f"{self.name} texture")
@@ -121,6 +164,12 @@ class Material:
     @property
     def is_emissive(self) -> bool:
         return bool(np.any(self.emission > 0))
+
+
+# How the colour enters the metal and glass lobes (engine/closures/principled.py):
+# Principled BSDF, Glossy BSDF (colour = constant reflectance), Glass / Refraction BSDF
+# (colour tints reflection and refraction).
+MATERIAL_NODES = ("principled", "glossy", "glass")
 
 
 # The paper's predefined materials (Figures 3-4), in our lobe model.

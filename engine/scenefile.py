@@ -44,7 +44,7 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
-from .scene import Light, Material, Mesh, SceneError
+from .scene import MATERIAL_NODES, Light, Material, Mesh, SceneError
 from .settings import RenderSettings
 
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
@@ -136,7 +136,14 @@ _UNIT = _number(0.0, 1.0)
 MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(nonneg=True),
                           "metallic": _UNIT, "roughness": _UNIT, "transmission": _UNIT,
                           "specular": _UNIT, "alpha": _UNIT,
-                          "ior": _number(0.0, lo_open=True)})
+                          "ior": _number(0.0, lo_open=True),
+                          # Principled v2 layers (engine/closures/principled.py)
+                          "specular_ior_level": _number(0.0), "specular_tint": _vec3(nonneg=True),
+                          "coat_weight": _number(0.0), "coat_roughness": _UNIT,
+                          "coat_ior": _number(1.0), "coat_tint": _vec3(nonneg=True),
+                          "sheen_weight": _number(0.0), "sheen_roughness": _UNIT,
+                          "sheen_tint": _vec3(nonneg=True), "glossy_color": _vec3(nonneg=True),
+                          "multiscatter": _BOOL, "node": _choice(*MATERIAL_NODES)})
 MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
 
 CAMERA_SCHEMA = _table({
@@ -356,7 +363,7 @@ def _build(data: dict, base: str):
     if "environment" in data:
         scene.environment = _environment(data["environment"], base)
     for name, spec in data.get("materials", {}).items():
-        scene.add_material(Material(name, **{k: (_vec(v) if isinstance(v, list) else float(v))
+        scene.add_material(Material(name, **{k: _material_value(k, v)
                                              for k, v in spec.items()}))
     _camera(scene, data["camera"])
     for i, obj in enumerate(data.get("objects", [])):
@@ -387,6 +394,17 @@ def _environment(spec, base):
                            name=path)
     except ValueError as e:
         raise SceneFileError(f"[environment]: {e}") from None
+
+
+def _material_value(key, v):
+    """A validated material value as Material takes it."""
+    if isinstance(v, list):
+        return _vec(v)
+    if key == "node":
+        return v.lower()
+    if isinstance(v, bool):
+        return v
+    return float(v)
 
 
 def _camera(scene, cam):

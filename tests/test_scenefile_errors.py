@@ -176,3 +176,24 @@ def test_case_of_kind_names_and_whole_floats_are_accepted(tmp_path):
                      + '[[lights]]\ntype = "AREA"\nshape = "Disk"\n')
     assert scene.width == 32 and scene.camera.kind == "ORTHO"
     assert scene.lights[0].shape == "DISK"
+
+
+def test_principled_v2_material_keys(tmp_path):
+    """Coat, sheen, specular IOR level and tint, distribution and node load into the
+    Material; a bad value is refused with its key named."""
+    mat = ('[materials.m]\nroughness = 0.6\nspecular = 1.0\nspecular_ior_level = 0.8\n'
+           'specular_tint = [1, 0.5, 0.2]\ncoat_weight = 1.0\ncoat_roughness = 0.1\n'
+           'coat_ior = 1.6\ncoat_tint = [0.9, 0.9, 1]\nsheen_weight = 0.5\n'
+           'sheen_roughness = 0.3\nsheen_tint = [1, 0.8, 0.6]\nmultiscatter = false\n'
+           'node = "glossy"\nglossy_color = [0.9, 0.9, 0.9]\n')
+    scene, _ = _load(tmp_path, CAMERA + mat)
+    m = scene.materials["m"]
+    assert (m.specular_ior_level, m.coat_weight, m.coat_roughness, m.coat_ior) == \
+        (0.8, 1.0, 0.1, 1.6)
+    assert list(m.specular_tint) == [1, 0.5, 0.2] and list(m.sheen_tint) == [1, 0.8, 0.6]
+    assert (m.sheen_weight, m.sheen_roughness, m.multiscatter, m.node) == \
+        (0.5, 0.3, False, "glossy")
+    with pytest.raises(SceneFileError, match="'coat_ior' must be"):
+        _load(tmp_path, CAMERA + '[materials.m]\ncoat_ior = 0.5\n')
+    with pytest.raises(SceneFileError, match="'node' must be one of"):
+        _load(tmp_path, CAMERA + '[materials.m]\nnode = "metal"\n')

@@ -350,9 +350,6 @@ def visibility_collection_holdout():
 
 # --- closures (energy per closure belongs to the materials issue) -------------------------
 
-GGX_ISSUE = ("issue 14: rough reflection sampled from Beckmann, not Cycles' GGX with "
-             "multiple-scattering compensation: the highlight is too peaked")
-
 
 def _ball_scene(make_material, height=0.7):
     """make_material: called after the stage is reset (a reset removes all materials)."""
@@ -361,9 +358,7 @@ def _ball_scene(make_material, height=0.7):
     mb.light("Area", "AREA", (-1.0, -1.5, 3.0), 500.0, rotation=(0.4, -0.3, 0), size=1.0)
 
 
-@case("closures", known_issue="issue 14: a rough Principled dielectric reads ~10 % darker "
-      "than Cycles (roughness 1.0; 3-5 % at 0.5): Cycles' GGX with multiple scattering and "
-      "its layering of specular over diffuse are not modelled yet")
+@case("closures")
 def closure_principled_rough_floor():
     """A grey Principled floor, roughness 1.0, under a point light (Blender's default
     material on a ground plane)."""
@@ -384,12 +379,12 @@ def closure_principled_default():
     _ball_scene(lambda: _shader("p", "ShaderNodeBsdfPrincipled"))
 
 
-@case("closures", known_issue=GGX_ISSUE)
+@case("closures")
 def closure_principled_metal_rough():
     _ball_scene(lambda: mb.material("m", "principled", (0.9, 0.6, 0.3), roughness=0.4, metallic=1.0))
 
 
-@case("closures", mean_tol=0.08, known_issue=GGX_ISSUE)
+@case("closures", mean_tol=0.08)
 def closure_glossy():
     _ball_scene(lambda: _shader("g", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.3))
 
@@ -397,6 +392,61 @@ def closure_glossy():
 @case("closures", mean_tol=0.08, block_tol=0.4)
 def closure_glass():
     _ball_scene(lambda: mb.material("glass", "glass", (1, 1, 1), ior=1.45))
+
+
+def _point_ball_scene(make_material):
+    """A ball under a point light (no size): its rough lobes take the light by shadow rays
+    weighted with the full BSDF, as Cycles' light sampling does."""
+    _stage()
+    mb.sphere("Ball", 0.7, make_material(), (0, 0, 0.7), segments=32, rings=16)
+    mb.light("Point", "POINT", (-1.2, -1.8, 2.6), 500.0, shadow_soft_size=0.0)
+
+
+def _principled(name, **inputs):
+    return _shader(name, "ShaderNodeBsdfPrincipled", **inputs)
+
+
+@case("closures")
+def closure_coat():
+    """Principled coat (weight 1, roughness 0.15, IOR 1.5, blue-ish tint) over a red rough
+    dielectric."""
+    _point_ball_scene(lambda: _principled("coat", **{
+        "Base Color": (0.7, 0.15, 0.1), "Roughness": 0.6, "Coat Weight": 1.0,
+        "Coat Roughness": 0.15, "Coat Tint": (0.7, 0.85, 1.0)}))
+
+
+@case("closures")
+def closure_specular_tint():
+    """Principled specular tint (orange) and specular IOR level 0.8 on a grey dielectric."""
+    _point_ball_scene(lambda: _principled("tint", **{
+        "Base Color": (0.3, 0.3, 0.3), "Roughness": 0.3, "Specular Tint": (1.0, 0.5, 0.1),
+        "Specular IOR Level": 0.8}))
+
+
+@case("closures")
+def closure_metal_f82():
+    """Metallic with an F82 tint (Specular Tint on a metal: the edge colour)."""
+    _point_ball_scene(lambda: _principled("f82", **{
+        "Base Color": (0.95, 0.65, 0.35), "Metallic": 1.0, "Roughness": 0.35,
+        "Specular Tint": (0.4, 0.7, 1.0)}))
+
+
+@case("closures")
+def closure_glossy_ggx():
+    """Glossy BSDF with the GGX distribution (no multiple-scattering compensation)."""
+    def make():
+        m = _shader("ggx", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.4)
+        m.node_tree.nodes["Glossy BSDF"].distribution = "GGX"
+        return m
+    _point_ball_scene(make)
+
+
+@case("closures")
+def closure_sheen():
+    """Principled sheen (Cycles' microfiber sheen) on a dark blue rough ball."""
+    _point_ball_scene(lambda: _principled("sheen", **{
+        "Base Color": (0.05, 0.05, 0.3), "Roughness": 0.7, "Sheen Weight": 1.0,
+        "Sheen Roughness": 0.3, "Sheen Tint": (1.0, 0.8, 0.6)}))
 
 
 @case("closures", block_tol=0.35)  # the floor is lit by a small bright ball: noisy blocks
@@ -407,7 +457,7 @@ def closure_emission():
                 height=1.0)
 
 
-@case("closures", known_issue=GGX_ISSUE)
+@case("closures")
 def closure_mix_diffuse_glossy():
     _ball_scene(lambda: mb.material("mix", "glossy_mix", (0.7, 0.2, 0.2), roughness=0.2, mix=0.3))
 

@@ -1,0 +1,562 @@
+"""Principled v2 layering as Cycles builds it (intern/cycles/kernel/svm/closure.h), and the
+Glossy / Glass / Refraction BSDF nodes in the same terms, as compiled kernels.
+
+Per hit, `setup` turns a material (a row of MaterialTable.closure_params) and the view
+cosine into lobes, top layer first, each attenuating the ones below it by its estimated
+albedo (Cycles' closure_layering_weight):
+    pass      1 - alpha (Transparent BSDF share)
+    sheen     Cycles' microfiber sheen (engine/closures/sheen.py), weight x tint
+    coat      GGX, real dielectric Fresnel (coat IOR), energy-compensated; then the coat
+              tint tints the layers below along the refracted path (tint^(1/cos_t))
+    metal     GGX with F82-tint Fresnel on the base colour (Principled), or the colour as a
+              constant reflectance (Glossy BSDF); lower layers keep 1 - metallic
+    glass     GGX glass: Principled's Fresnel remap (f0 = F0(ior) x specular tint),
+              transmission tinted sqrt(base colour) (Principled) or the colour (Glass BSDF);
+              lower layers keep 1 - transmission
+    spec      GGX dielectric specular layer: f0 = F0(ior) x 2 x specular IOR level, tinted
+    diffuse   Lambert, base colour x what the layers above leave
+Each lobe's final multiplier is weight x energy factor (ggx.energy_factor: 1 for plain GGX,
+Cycles' compensation for Multiscatter GGX, Principled's default). `weights` receives each
+lobe's estimated albedo (RGB) for the view direction: the lobe-choice probabilities of
+both passes and the diffuse weight the photon maps are scaled by.
+
+The packed per-hit row (columns below) is what the sampling and evaluation kernels read;
+all directions are in the frame of the shading normal (frame_local / frame_world).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..jit import kernel, register_warm_up
+from . import ggx, sheen, tables
+from .fresnel import (F0_from_ior, f82_Fss, f82_tint_B, fresnel_dielectric,
+                      fresnel_dielectric_Fss, fresnel_f82, ior_from_F0, schlick_remap)
+
+# Lobes in the weights array (the order of bsdf.LOBE_NAMES).
+L_DIFFUSE, L_PASS, L_METAL, L_GLASS_R, L_GLASS_T, L_SPEC, L_COAT, L_SHEEN = range(8)
+N_LOBES = 8
+
+# Material parameter columns (MaterialTable.closure_params).
+M_ALPHA, M_METALLIC, M_ROUGH, M_TRANS, M_IOR, M_SPEC, M_LEVEL = range(7)
+M_STINT = 7            # 3: specular tint
+M_COAT_W, M_COAT_ROUGH, M_COAT_IOR = 10, 11, 12
+M_CTINT = 13           # 3: coat tint
+M_MULTI = 16           # 1: Multiscatter GGX (energy compensation), 0: plain GGX
+M_NODE = 17            # NODE_* below
+M_GCOL = 18            # 3: Glossy BSDF colour (metal lobe's constant reflectance) ...
+M_HAS_GCOL = 21        # ... when 1 (else the base colour)
+M_SHEEN_W, M_SHEEN_ROUGH = 22, 23
+M_SHEEN_TINT = 24      # 3
+N_MAT = 27
+NODE_PRINCIPLED, NODE_GLOSSY, NODE_GLASS = 0, 1, 2
+
+# Packed per-hit row.
+P_SPEC_W, P_SPEC_F0, P_SPEC_ALPHA, P_SPEC_ETA = 0, 3, 6, 7
+P_METAL_W, P_METAL_F0, P_METAL_B, P_METAL_ALPHA = 8, 11, 14, 17
+P_GLASS_RW, P_GLASS_TW, P_GLASS_F0, P_GLASS_ALPHA, P_GLASS_ETA = 18, 21, 24, 27, 28
+P_COAT_W, P_COAT_ALPHA, P_COAT_ETA = 29, 32, 33
+P_SHEEN_W, P_SHEEN_A, P_SHEEN_B = 34, 37, 38
+N_PACK = 39
+
+
+@kernel
+def frame_local(n0, n1, n2, v0, v1, v2):
+    """v in the (t, b, n) frame of sampling.to_world's basis for unit n."""
+    sign = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sign + n2)
+    b = n0 * n1 * a
+    t0, t1, t2 = 1.0 + sign * n0 * n0 * a, sign * b, -sign * n0
+    b0, b1, b2 = b, sign + n1 * n1 * a, -n1
+    return (v0 * t0 + v1 * t1 + v2 * t2, v0 * b0 + v1 * b1 + v2 * b2,
+            v0 * n0 + v1 * n1 + v2 * n2)
+
+
+@kernel
+def frame_world(n0, n1, n2, l0, l1, l2):
+    sign = 1.0 if n2 >= 0.0 else -1.0
+    a = -1.0 / (sign + n2)
+    b = n0 * n1 * a
+    x = l0 * (1.0 + sign * n0 * n0 * a) + l1 * b + l2 * n0
+    y = l0 * (sign * b) + l1 * (sign + n1 * n1 * a) + l2 * n1
+    z = l0 * (-sign * n0) + l1 * (-n1) + l2 * n2
+    return x, y, z
+
+
+@kernel
+def _compensation(multi, E, E_avg, Fss):
+    """(energy factor, albedo darkening = factor x E) of one channel (1, 1 without
+    Multiscatter GGX, where Cycles' albedo estimate still assumes a lossless lobe)."""
+    if multi == 0.0:
+        return 1.0, 1.0
+    f = ggx.energy_factor(E, E_avg, Fss)
+    return f, f * E
+
+
+@kernel
+def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
+    """Lobes of N hits. mat (N,) material index, params (M, N_MAT) material columns,
+    base (N,3) base colour (texture applied), cos_o (N,) = ns . wo, front (N,) bool: the
+    ray arrived on the outside, hit_alpha (N,) the hit's alpha (the material's, or its
+    alpha texture's value there). Writes prm (N, N_PACK) and weights (N, N_LOBES, 3)."""
+    for i in range(mat.shape[0]):
+        q = params[mat[i]]
+        mu = min(max(cos_o[i], 0.0), 1.0)
+        for c in range(N_PACK):
+            prm[i, c] = 0.0
+        for l in range(N_LOBES):
+            for c in range(3):
+                weights[i, l, c] = 0.0
+        a = hit_alpha[i]
+        W0 = W1 = W2 = a
+        for c in range(3):
+            weights[i, L_PASS, c] = 1.0 - a
+        rough = q[M_ROUGH]
+        alpha = rough * rough
+        multi = q[M_MULTI]
+        node = q[M_NODE]
+        E = tables.ggx_E(rough, mu)
+        E_avg = tables.ggx_Eavg(rough)
+        # --- sheen (the top layer) ---
+        shw = q[M_SHEEN_W]
+        if shw > 0.0 and a > 0.0:
+            la, lb, alb = sheen.sheen_params(q[M_SHEEN_ROUGH], mu)
+            if alb > 0.0:
+                top = 0.0
+                Wsh = (W0, W1, W2)
+                for c in range(3):
+                    wc = shw * max(q[M_SHEEN_TINT + c], 0.0) * Wsh[c] * alb
+                    prm[i, P_SHEEN_W + c] = wc
+                    weights[i, L_SHEEN, c] = wc
+                    if Wsh[c] > 0.0:
+                        top = max(top, wc / Wsh[c])
+                prm[i, P_SHEEN_A] = la
+                prm[i, P_SHEEN_B] = lb
+                keep = min(max(1.0 - top, 0.0), 1.0)
+                W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
+        # --- coat ---
+        cw = q[M_COAT_W]
+        if cw > 0.0 and a > 0.0:
+            cr = q[M_COAT_ROUGH]
+            cior = max(q[M_COAT_IOR], 1.0)
+            Ec = tables.ggx_E(cr, mu)
+            fac, dark = _compensation(1.0, Ec, tables.ggx_Eavg(cr), fresnel_dielectric_Fss(cior))
+            f0 = F0_from_ior(cior)
+            est = dark * (f0 + (1.0 - f0) * tables.schlick_ior_s(cr, mu, cior))
+            Wc = (W0, W1, W2)
+            for c in range(3):
+                prm[i, P_COAT_W + c] = cw * Wc[c] * fac
+                weights[i, L_COAT, c] = cw * Wc[c] * est
+            prm[i, P_COAT_ALPHA] = cr * cr
+            prm[i, P_COAT_ETA] = cior
+            keep = min(max(1.0 - cw * est, 0.0), 1.0)
+            W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
+            t0, t1, t2 = q[M_CTINT], q[M_CTINT + 1], q[M_CTINT + 2]
+            if t0 != 1.0 or t1 != 1.0 or t2 != 1.0:
+                cos_t = math.sqrt(max(1.0 - (1.0 - mu * mu) / (cior * cior), 1e-12))
+                depth = 1.0 / cos_t
+                W0 *= 1.0 - cw + cw * max(t0, 0.0) ** depth
+                W1 *= 1.0 - cw + cw * max(t1, 0.0) ** depth
+                W2 *= 1.0 - cw + cw * max(t2, 0.0) ** depth
+        # --- metal ---
+        m = q[M_METALLIC]
+        if m > 0.0:
+            s5 = tables.schlick5_s(rough, mu)
+            Wm = (W0, W1, W2)
+            for c in range(3):
+                if node == NODE_GLOSSY:  # constant reflectance = the colour (in the weight)
+                    f0 = 1.0
+                    b = 0.0
+                    col = q[M_GCOL + c] if q[M_HAS_GCOL] != 0.0 else base[i, c]
+                else:
+                    f0 = min(max(base[i, c], 0.0), 1.0)
+                    tint = min(max(q[M_STINT + c], 0.0), 1.0)
+                    b = f82_tint_B(f0, tint) if tint != 1.0 else 0.0
+                    col = 1.0
+                Fss = col * f82_Fss(f0, b)
+                fac, dark = _compensation(multi, E, E_avg, Fss)
+                prm[i, P_METAL_W + c] = m * Wm[c] * col * fac
+                prm[i, P_METAL_F0 + c] = f0
+                prm[i, P_METAL_B + c] = b
+                weights[i, L_METAL, c] = m * Wm[c] * col * dark * (f0 + (1.0 - f0) * s5)
+            prm[i, P_METAL_ALPHA] = alpha
+            W0, W1, W2 = W0 * (1.0 - m), W1 * (1.0 - m), W2 * (1.0 - m)
+        # --- transmission (glass) ---
+        tr = q[M_TRANS]
+        if tr > 0.0:
+            ior = max(q[M_IOR], 1e-5)
+            eta = ior if front[i] else 1.0 / ior
+            Eg, Eg_avg = tables.glass_E(rough, mu, eta)
+            F0g = F0_from_ior(ior)
+            # Reflectance estimate: Cycles' table from outside; from inside the real
+            # Fresnel at the view angle (total internal reflection included), so that the
+            # two estimates add up to the lobe's albedo on both sides (they steer the lobe
+            # choice and the photons' Russian roulette).
+            s_n = tables.schlick_ior_s(rough, mu, ior) if eta >= 1.0 else schlick_remap(mu, eta)
+            Wg = (W0, W1, W2)
+            for c in range(3):
+                if node == NODE_GLASS:
+                    rt = tt = max(base[i, c], 0.0)
+                    f0 = F0g
+                else:
+                    rt = 1.0
+                    tt = math.sqrt(min(max(base[i, c], 0.0), 1.0))
+                    f0 = min(F0g * max(q[M_STINT + c], 0.0), 1.0)
+                fac, dark = _compensation(multi, Eg, Eg_avg, tt)
+                prm[i, P_GLASS_RW + c] = tr * Wg[c] * rt * fac
+                prm[i, P_GLASS_TW + c] = tr * Wg[c] * tt * fac
+                prm[i, P_GLASS_F0 + c] = f0
+                weights[i, L_GLASS_R, c] = tr * Wg[c] * rt * dark * (f0 + (1.0 - f0) * s_n)
+                weights[i, L_GLASS_T, c] = tr * Wg[c] * tt * dark * (1.0 - (f0 + (1.0 - f0)
+                                                                            * s_n))
+            prm[i, P_GLASS_ALPHA] = alpha
+            prm[i, P_GLASS_ETA] = eta
+            W0, W1, W2 = W0 * (1.0 - tr), W1 * (1.0 - tr), W2 * (1.0 - tr)
+        # --- dielectric specular layer ---
+        sp = q[M_SPEC]
+        ior = max(q[M_IOR], 1e-5)
+        f0s = F0_from_ior(ior)
+        eta_s = ior
+        level = max(q[M_LEVEL], 0.0)
+        if level != 0.5:
+            f0s = f0s * 2.0 * level
+            eta_s = ior_from_F0(f0s)
+            if ior < 1.0:
+                eta_s = 1.0 / eta_s
+        if sp > 0.0 and eta_s != 1.0 and (W0 > 0.0 or W1 > 0.0 or W2 > 0.0):
+            F0r = F0_from_ior(eta_s)
+            s_avg = 0.0
+            if F0r < 1.0:
+                s_avg = min(max((fresnel_dielectric_Fss(eta_s) - F0r) / (1.0 - F0r), 0.0), 1.0)
+            s = tables.schlick_ior_s(rough, mu, max(eta_s, 1.0 / eta_s))
+            Ws = (W0, W1, W2)
+            top = 0.0
+            for c in range(3):
+                f0 = min(max(f0s * max(q[M_STINT + c], 0.0), 0.0), 1.0)
+                Fss = f0 + (1.0 - f0) * s_avg
+                fac, dark = _compensation(multi, E, E_avg, Fss)
+                est = dark * (f0 + (1.0 - f0) * s)
+                prm[i, P_SPEC_W + c] = sp * Ws[c] * fac
+                prm[i, P_SPEC_F0 + c] = f0
+                weights[i, L_SPEC, c] = sp * Ws[c] * est
+                top = max(top, sp * est)
+            prm[i, P_SPEC_ALPHA] = alpha
+            prm[i, P_SPEC_ETA] = eta_s
+            keep = min(max(1.0 - top, 0.0), 1.0)
+            W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
+        # --- diffuse base ---
+        weights[i, L_DIFFUSE, 0] = W0 * base[i, 0]
+        weights[i, L_DIFFUSE, 1] = W1 * base[i, 1]
+        weights[i, L_DIFFUSE, 2] = W2 * base[i, 2]
+
+
+@kernel
+def _remap(f0, c, eta):
+    """Principled's Fresnel: mix(f0, 1, s(c)) with the real Fresnel curve of eta."""
+    return f0 + (1.0 - f0) * schlick_remap(c, eta)
+
+
+@kernel
+def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
+    """f * cos_i (RGB) of hit i's rough reflective lobes (spec, metal, coat, glass
+    reflection) for local wo, wi; mirror-like lobes contribute nothing (delta)."""
+    r0 = r1 = r2 = 0.0
+    if oz <= 0.0 or iz <= 0.0:
+        return r0, r1, r2
+    a = prm[i, P_SPEC_ALPHA]
+    if a >= ggx.ALPHA_MIN and (prm[i, P_SPEC_W] > 0 or prm[i, P_SPEC_W + 1] > 0
+                               or prm[i, P_SPEC_W + 2] > 0):
+        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        eta = prm[i, P_SPEC_ETA]
+        r0 += prm[i, P_SPEC_W] * _remap(prm[i, P_SPEC_F0], c, eta) * e
+        r1 += prm[i, P_SPEC_W + 1] * _remap(prm[i, P_SPEC_F0 + 1], c, eta) * e
+        r2 += prm[i, P_SPEC_W + 2] * _remap(prm[i, P_SPEC_F0 + 2], c, eta) * e
+    a = prm[i, P_METAL_ALPHA]
+    if a >= ggx.ALPHA_MIN and (prm[i, P_METAL_W] > 0 or prm[i, P_METAL_W + 1] > 0
+                               or prm[i, P_METAL_W + 2] > 0):
+        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        r0 += prm[i, P_METAL_W] * fresnel_f82(c, prm[i, P_METAL_F0], prm[i, P_METAL_B]) * e
+        r1 += prm[i, P_METAL_W + 1] * fresnel_f82(c, prm[i, P_METAL_F0 + 1],
+                                                  prm[i, P_METAL_B + 1]) * e
+        r2 += prm[i, P_METAL_W + 2] * fresnel_f82(c, prm[i, P_METAL_F0 + 2],
+                                                  prm[i, P_METAL_B + 2]) * e
+    a = prm[i, P_COAT_ALPHA]
+    if a >= ggx.ALPHA_MIN and (prm[i, P_COAT_W] > 0 or prm[i, P_COAT_W + 1] > 0
+                               or prm[i, P_COAT_W + 2] > 0):
+        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        F = fresnel_dielectric(c, prm[i, P_COAT_ETA]) * e
+        r0 += prm[i, P_COAT_W] * F
+        r1 += prm[i, P_COAT_W + 1] * F
+        r2 += prm[i, P_COAT_W + 2] * F
+    a = prm[i, P_GLASS_ALPHA]
+    if a >= ggx.ALPHA_MIN and (prm[i, P_GLASS_RW] > 0 or prm[i, P_GLASS_RW + 1] > 0
+                               or prm[i, P_GLASS_RW + 2] > 0):
+        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        eta = prm[i, P_GLASS_ETA]
+        r0 += prm[i, P_GLASS_RW] * _remap(prm[i, P_GLASS_F0], c, eta) * e
+        r1 += prm[i, P_GLASS_RW + 1] * _remap(prm[i, P_GLASS_F0 + 1], c, eta) * e
+        r2 += prm[i, P_GLASS_RW + 2] * _remap(prm[i, P_GLASS_F0 + 2], c, eta) * e
+    if prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0 or prm[i, P_SHEEN_W + 2] > 0:
+        e, _ = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
+        r0 += prm[i, P_SHEEN_W] * e
+        r1 += prm[i, P_SHEEN_W + 1] * e
+        r2 += prm[i, P_SHEEN_W + 2] * e
+    return r0, r1, r2
+
+
+@kernel
+def _glass_reflect_share(prm, i, c, eta, inv_eta):
+    """Probability that _glass_sample reflects at a microfacet with wo.h = c."""
+    F0 = _remap(prm[i, P_GLASS_F0], c, eta)
+    F1 = _remap(prm[i, P_GLASS_F0 + 1], c, eta)
+    F2 = _remap(prm[i, P_GLASS_F0 + 2], c, eta)
+    sr = prm[i, P_GLASS_RW] * F0 + prm[i, P_GLASS_RW + 1] * F1 + prm[i, P_GLASS_RW + 2] * F2
+    if inv_eta * inv_eta * (1.0 - c * c) >= 1.0:
+        return 1.0 if sr > 0.0 else 0.0
+    st = (prm[i, P_GLASS_TW] * (1.0 - F0) + prm[i, P_GLASS_TW + 1] * (1.0 - F1)
+          + prm[i, P_GLASS_TW + 2] * (1.0 - F2))
+    return sr / (sr + st) if sr + st > 0.0 else 0.0
+
+
+@kernel
+def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
+    """Solid-angle pdf with which the continuation (sample_lobe, the lobe chosen with
+    probability sel[i, lobe]) samples the reflected direction wi of hit i: the mixture of
+    its rough reflective lobes (mirror-like lobes have no density)."""
+    if oz <= 0.0 or iz <= 0.0:
+        return 0.0
+    pdf = 0.0
+    for lobe, a_col in ((L_SPEC, P_SPEC_ALPHA), (L_METAL, P_METAL_ALPHA),
+                        (L_COAT, P_COAT_ALPHA)):
+        w = sel[i, lobe]
+        a = prm[i, a_col]
+        if w > 0.0 and a >= ggx.ALPHA_MIN:
+            _, p, _ = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+            pdf += w * p
+    w = sel[i, L_GLASS_R] + sel[i, L_GLASS_T]
+    a = prm[i, P_GLASS_ALPHA]
+    if w > 0.0 and a >= ggx.ALPHA_MIN:
+        _, p, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        eta = prm[i, P_GLASS_ETA]
+        pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
+    w = sel[i, L_SHEEN]
+    if w > 0.0:
+        _, p = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
+        pdf += w * p
+    return pdf
+
+
+@kernel
+def bsdf_pdf_many(prm, sel, ns, wo, wi, out):
+    """Batch of bsdf_pdf in world space."""
+    for i in range(ns.shape[0]):
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+        ix, iy, iz = frame_local(n0, n1, n2, wi[i, 0], wi[i, 1], wi[i, 2])
+        out[i] = bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz)
+
+
+@kernel
+def lobe_is_rough(prm, lobe):
+    """Per row: the sampled lobe (L_* index) has a density (not mirror-like)."""
+    out = np.zeros(lobe.shape[0], np.bool_)
+    for i in range(lobe.shape[0]):
+        l = lobe[i]
+        if l == L_SPEC:
+            a = prm[i, P_SPEC_ALPHA]
+        elif l == L_METAL:
+            a = prm[i, P_METAL_ALPHA]
+        elif l == L_COAT:
+            a = prm[i, P_COAT_ALPHA]
+        elif l == L_GLASS_R or l == L_GLASS_T:
+            a = prm[i, P_GLASS_ALPHA]
+        elif l == L_SHEEN:
+            a = 1.0
+        else:
+            a = 0.0
+        out[i] = a >= ggx.ALPHA_MIN
+    return out
+
+
+@kernel
+def has_rough_reflection(prm, i):
+    if prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0 or prm[i, P_SHEEN_W + 2] > 0:
+        return True
+    for a_col, w_col in ((P_SPEC_ALPHA, P_SPEC_W), (P_METAL_ALPHA, P_METAL_W),
+                         (P_COAT_ALPHA, P_COAT_W), (P_GLASS_ALPHA, P_GLASS_RW)):
+        if prm[i, a_col] >= ggx.ALPHA_MIN and (prm[i, w_col] > 0 or prm[i, w_col + 1] > 0
+                                              or prm[i, w_col + 2] > 0):
+            return True
+    return False
+
+
+@kernel
+def rough_reflection_rows(prm, out):
+    """out[i] = has_rough_reflection(prm, i) for every row."""
+    for i in range(prm.shape[0]):
+        out[i] = has_rough_reflection(prm, i)
+
+
+@kernel
+def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
+    """The glass lobe (reflection + refraction) as one, as Cycles samples it: a visible
+    normal, then reflect or refract with probability in proportion to the average
+    reflectance / transmittance there (the macro-surface Fresnel can be 1 - total internal
+    reflection - where a rough surface still transmits)."""
+    alpha = prm[i, P_GLASS_ALPHA]
+    eta = prm[i, P_GLASS_ETA]
+    rough = alpha >= ggx.ALPHA_MIN
+    if rough:
+        hx, hy, hz = ggx.sample_vndf(ox, oy, oz, alpha, u1, u2)
+    else:
+        hx, hy, hz = 0.0, 0.0, 1.0
+    c = ox * hx + oy * hy + oz * hz
+    if c <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
+    F0 = _remap(prm[i, P_GLASS_F0], c, eta)
+    F1 = _remap(prm[i, P_GLASS_F0 + 1], c, eta)
+    F2 = _remap(prm[i, P_GLASS_F0 + 2], c, eta)
+    r0, r1, r2 = prm[i, P_GLASS_RW] * F0, prm[i, P_GLASS_RW + 1] * F1, prm[i, P_GLASS_RW + 2] * F2
+    t0 = prm[i, P_GLASS_TW] * (1.0 - F0)
+    t1 = prm[i, P_GLASS_TW + 1] * (1.0 - F1)
+    t2 = prm[i, P_GLASS_TW + 2] * (1.0 - F2)
+    inv_eta = 1.0 / eta
+    s2 = inv_eta * inv_eta * (1.0 - c * c)
+    if s2 >= 1.0:  # total internal reflection at this microfacet
+        t0 = t1 = t2 = 0.0
+    sr = r0 + r1 + r2
+    st = t0 + t1 + t2
+    if sr + st <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
+    p_r = sr / (sr + st)
+    a2 = alpha * alpha
+    lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
+    if u3 < p_r:
+        ix, iy, iz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
+        if iz <= 0.0:
+            return ix, iy, iz, 0.0, 0.0, 0.0, False
+        g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(iz, a2)) if rough else 1.0
+        k = g / p_r
+        return ix, iy, iz, r0 * k, r1 * k, r2 * k, False
+    ct = math.sqrt(1.0 - s2)
+    kk = inv_eta * c - ct
+    ix, iy, iz = -inv_eta * ox + kk * hx, -inv_eta * oy + kk * hy, -inv_eta * oz + kk * hz
+    if iz >= 0.0:
+        return ix, iy, iz, 0.0, 0.0, 0.0, True
+    g = 1.0
+    if rough and abs(eta - 1.0) >= 1e-4:
+        g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(-iz, a2))
+    k = g / (1.0 - p_r)
+    return ix, iy, iz, t0 * k, t1 * k, t2 * k, True
+
+
+@kernel
+def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2, u3):
+    """Sample lobe `lobe` (L_METAL, L_SPEC, L_COAT, or L_GLASS_R / L_GLASS_T: both mean
+    the whole glass lobe) of hit i for local wo: (ix, iy, iz, weight RGB = f cos / pdf of
+    that lobe alone, transmitted). Weight 0: no sample."""
+    if lobe == L_GLASS_R or lobe == L_GLASS_T:
+        return _glass_sample(prm, i, ox, oy, oz, u1, u2, u3)
+    if lobe == L_SHEEN:
+        ix, iy, iz, pdf = sheen.sheen_sample(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz,
+                                             u1, u2)
+        if iz <= 0.0 or pdf <= 0.0:
+            return ix, iy, iz, 0.0, 0.0, 0.0, False
+        return ix, iy, iz, prm[i, P_SHEEN_W], prm[i, P_SHEEN_W + 1], prm[i, P_SHEEN_W + 2], \
+            False
+    if lobe == L_SPEC:
+        a_col = P_SPEC_ALPHA
+    elif lobe == L_METAL:
+        a_col = P_METAL_ALPHA
+    else:
+        a_col = P_COAT_ALPHA
+    ix, iy, iz, w, pdf, c = ggx.reflect_sample(ox, oy, oz, prm[i, a_col], u1, u2)
+    if w <= 0.0:
+        return ix, iy, iz, 0.0, 0.0, 0.0, False
+    if lobe == L_SPEC:
+        eta = prm[i, P_SPEC_ETA]
+        return (ix, iy, iz, w * prm[i, P_SPEC_W] * _remap(prm[i, P_SPEC_F0], c, eta),
+                w * prm[i, P_SPEC_W + 1] * _remap(prm[i, P_SPEC_F0 + 1], c, eta),
+                w * prm[i, P_SPEC_W + 2] * _remap(prm[i, P_SPEC_F0 + 2], c, eta), False)
+    if lobe == L_METAL:
+        return (ix, iy, iz,
+                w * prm[i, P_METAL_W] * fresnel_f82(c, prm[i, P_METAL_F0], prm[i, P_METAL_B]),
+                w * prm[i, P_METAL_W + 1] * fresnel_f82(c, prm[i, P_METAL_F0 + 1],
+                                                        prm[i, P_METAL_B + 1]),
+                w * prm[i, P_METAL_W + 2] * fresnel_f82(c, prm[i, P_METAL_F0 + 2],
+                                                        prm[i, P_METAL_B + 2]), False)
+    F = w * fresnel_dielectric(c, prm[i, P_COAT_ETA])
+    return ix, iy, iz, F * prm[i, P_COAT_W], F * prm[i, P_COAT_W + 1], \
+        F * prm[i, P_COAT_W + 2], False
+
+
+@kernel
+def sample_lobes(prm, lobe, ns, wo, u1, u2, u3, d, weight, transmitted):
+    """Batch of sample_lobe in world space: lobe (N,) (L_* indices), ns, wo (N,3) unit,
+    u1, u2, u3 (N,) uniform numbers; writes d (N,3) world directions, weight (N,3),
+    transmitted (N,)."""
+    for i in range(lobe.shape[0]):
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+        ix, iy, iz, w0, w1, w2, tr = sample_lobe(prm, i, lobe[i], ox, oy, oz, u1[i], u2[i],
+                                                  u3[i])
+        x, y, z = frame_world(n0, n1, n2, ix, iy, iz)
+        ln = math.sqrt(x * x + y * y + z * z)
+        if ln > 0:
+            x, y, z = x / ln, y / ln, z / ln
+        d[i, 0], d[i, 1], d[i, 2] = x, y, z
+        weight[i, 0], weight[i, 1], weight[i, 2] = w0, w1, w2
+        transmitted[i] = tr
+
+
+@kernel
+def eval_reflection_many(prm, ns, wo, wi, out):
+    """Batch of eval_reflection in world space: out (N,3) = f * cos_i."""
+    for i in range(ns.shape[0]):
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+        ix, iy, iz = frame_local(n0, n1, n2, wi[i, 0], wi[i, 1], wi[i, 2])
+        out[i, 0], out[i, 1], out[i, 2] = eval_reflection(prm, i, ox, oy, oz, ix, iy, iz)
+
+
+def setup_np(params, mat, base, cos_o, front, alpha=None):
+    """numpy entry of `setup`: returns (prm (N, N_PACK), weights (N, N_LOBES, 3)).
+    alpha (N,): per-hit alpha; None = the materials' own (params' M_ALPHA column)."""
+    n = len(mat)
+    mat = np.ascontiguousarray(mat, np.int64)
+    if alpha is None:
+        alpha = params[mat, M_ALPHA] if n else np.zeros(0)
+    prm = np.empty((n, N_PACK))
+    weights = np.empty((n, N_LOBES, 3))
+    setup(mat, params, np.ascontiguousarray(base, np.float64),
+          np.ascontiguousarray(cos_o, np.float64), np.ascontiguousarray(front, np.bool_),
+          np.ascontiguousarray(alpha, np.float64), prm, weights)
+    return prm, weights
+
+
+@register_warm_up
+def _warm_up():
+    """Compile (or load) the closure kernels a render calls, on one hit of a material with
+    every lobe."""
+    params = np.zeros((1, N_MAT))
+    params[0, [M_ALPHA, M_METALLIC, M_ROUGH, M_TRANS, M_IOR, M_SPEC, M_LEVEL]] = (
+        0.9, 0.3, 0.4, 0.3, 1.5, 1.0, 0.5)
+    params[0, M_STINT:M_STINT + 3] = 1.0
+    params[0, [M_COAT_W, M_COAT_ROUGH, M_COAT_IOR, M_MULTI]] = (0.5, 0.2, 1.5, 1.0)
+    params[0, M_CTINT:M_CTINT + 3] = 1.0
+    params[0, [M_SHEEN_W, M_SHEEN_ROUGH]] = (0.5, 0.5)
+    params[0, M_SHEEN_TINT:M_SHEEN_TINT + 3] = 1.0
+    one = np.ones(1)
+    prm, _ = setup_np(params, np.zeros(1, np.int64), np.full((1, 3), 0.5), np.full(1, 0.8),
+                      np.ones(1, np.bool_))
+    n = np.array([[0.0, 0.0, 1.0]])
+    wo = np.array([[0.6, 0.0, 0.8]])
+    d, w = np.empty((1, 3)), np.empty((1, 3))
+    sample_lobes(prm, np.full(1, L_SPEC, np.int64), n, wo, 0.3 * one, 0.6 * one, 0.5 * one,
+                 d, w, np.empty(1, np.bool_))
+    sel = np.full((1, N_LOBES), 0.1)
+    bsdf_pdf_many(prm, sel, n, wo, d, np.empty(1))
+    eval_reflection_many(prm, n, wo, d, np.empty((1, 3)))
+    lobe_is_rough(prm, np.full(1, L_SPEC, np.int64))
+    rough_reflection_rows(prm, np.empty(1, np.bool_))
