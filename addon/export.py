@@ -30,9 +30,10 @@ class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
     __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
-                 "texspace")
+                 "texspace", "tangents")
 
-    def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None):
+    def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None,
+                 tangents=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
@@ -41,6 +42,7 @@ class LocalGeometry:
         self.texspace = texspace        # (location, size) of the mesh's texture space
         self.material_index = material_index  # (F,) int32
         self.triangles = len(faces)
+        self.tangents = tangents        # None or (F,3,4) MikkTSpace tangent xyz, sign
 
 
 def _foreach(collection, attr, count, width, dtype):
@@ -50,8 +52,38 @@ def _foreach(collection, attr, count, width, dtype):
     return buf.reshape(count, width) if width > 1 else buf
 
 
+def _uses_tangent_normal_maps(obj) -> bool:
+    """Some material of the object has a tangent-space Normal Map node (its tangents are
+    worth computing)."""
+    for slot in getattr(obj, "material_slots", ()):
+        mat = slot.material
+        tree = getattr(mat, "node_tree", None) if mat is not None else None
+        if tree is None:
+            continue
+        for node in tree.nodes:
+            if node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT":
+                return True
+    return False
+
+
+def _corner_tangents(me, layer, loops, warnings=None):
+    """(F,3,4) MikkTSpace tangents (xyz) and bitangent signs at the triangle corners, as
+    Blender computes them for Cycles' Normal Map node (Mesh.calc_tangents on the render
+    UV map), or None when Blender cannot (n-gons: it needs triangles and quads)."""
+    try:
+        me.calc_tangents(uvmap=layer.name)
+    except RuntimeError:
+        return None
+    n = len(me.loops)
+    t = _foreach(me.loops, "tangent", n, 3, np.float32)
+    sign = _foreach(me.loops, "bitangent_sign", n, 1, np.float32)
+    out = np.concatenate([t, sign[:, None]], axis=1)
+    return out[loops].astype(np.float64)
+
+
 def extract_geometry(obj) -> LocalGeometry | None:
-    """Loop triangles, normals, UVs and material indices of an evaluated object."""
+    """Loop triangles, normals, UVs and material indices of an evaluated object (and its
+    MikkTSpace tangents when a material uses a tangent-space normal map)."""
     try:
         me = obj.to_mesh()
     except RuntimeError:
@@ -81,6 +113,7 @@ def extract_geometry(obj) -> LocalGeometry | None:
                 normals = _foreach(tris, "split_normals", nt, 9, np.float32)
                 normals = normals.reshape(nt, 3, 3).astype(np.float64)
         uvs = None
+        tangents = None
         layers = me.uv_layers
         if len(layers):
             layer = next((lay for lay in layers if lay.active_render), None) or layers.active
@@ -89,10 +122,12 @@ def extract_geometry(obj) -> LocalGeometry | None:
                 attr = "vector" if hasattr(layer, "uv") else "uv"
                 uv = _foreach(data, attr, len(me.loops), 2, np.float32)
                 uvs = uv[loops].astype(np.float64)
+                if _uses_tangent_normal_maps(obj):
+                    tangents = _corner_tangents(me, layer, loops)
         texspace = (np.array(me.texspace_location, np.float64),
                     np.array(me.texspace_size, np.float64))
         return LocalGeometry(co, faces, normals, uvs, mat_index,
-                             _corner_colors(me, tris, loops, faces), texspace)
+                             _corner_colors(me, tris, loops, faces), texspace, tangents)
     finally:
         obj.to_mesh_clear()
 
@@ -128,6 +163,24 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
     if flipped:
         out = {k: a[:, [0, 2, 1]] for k, a in out.items()}
     return out
+
+
+def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool) -> dict | None:
+    """The mesh's per-corner attributes for engine Mesh.coordinates: the texture
+    coordinates when a material reads them (texture_coordinates), and the MikkTSpace
+    tangents in world space ('tangent', and 'tangent_sign' as 3 equal values: the
+    bitangent's side, flipped with a mirroring transform) for tangent-space normal maps
+    (engine/normalmap.py). Corners in the exported order. None when there are none."""
+    flipped = np.linalg.det(matrix[:3, :3]) < 0
+    out = texture_coordinates(g, flipped) if coordinates else {}
+    if g.tangents is not None:
+        R = matrix[:3, :3]
+        t = g.tangents[..., :3] @ R.T
+        sign = np.repeat(g.tangents[..., 3:4] * (-1.0 if flipped else 1.0), 3, axis=-1)
+        if flipped:
+            t, sign = t[:, [0, 2, 1]], sign[:, [0, 2, 1]]
+        out["tangent"], out["tangent_sign"] = t, sign
+    return out or None
 
 
 def transform_geometry(g: LocalGeometry, matrix: np.ndarray):
@@ -432,8 +485,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         warn_unsupported_visibility(obj, warnings)
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
                        uvs=uvs, colors=colors, materials=names, material_ids=mids,
-                       coordinates=(texture_coordinates(geo, flipped) if any(
-                           converter.needs_coordinates(n) for n in names) else None),
+                       coordinates=corner_attributes(geo, matrix, any(
+                           converter.needs_coordinates(n) for n in names)),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
                        **ray_visibility(obj, inst, view_layer))
@@ -615,7 +668,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             mesh = pm.Mesh(name=iname, vertices=verts, faces=faces, normals=normals, uvs=uvs,
                            colors=colors, materials=names,
                            material_ids=np.clip(geo.material_index, 0, len(names) - 1),
-                           coordinates=texture_coordinates(geo, flipped) if coords else None,
+                           coordinates=corner_attributes(geo, matrix, coords),
                            shadow_terminator_offset=key[5],
                            shadow_terminator_shading_offset=key[6], **visibility)
             if obj.name not in info["geometry_read"]:

@@ -56,7 +56,7 @@ def _choose_cache_dir() -> str:
 
 
 def _engine_stamp() -> str:
-    """Hash of every engine source file and the numba version. numba's cache checks only
+    """Hash of every engine module that defines kernels, and the numba version. numba's cache checks only
     a kernel's own file: a kernel calling one in another module (directlight ->
     closures.principled -> closures.ggx) would load stale machine code after that module
     changed. One cache folder per stamp rules that out."""
@@ -72,9 +72,11 @@ def _engine_stamp() -> str:
             for name in sorted(files):
                 if name.endswith(".py"):
                     path = os.path.join(root, name)
-                    h.update(os.path.relpath(path, pkg).encode())
                     with open(path, "rb") as f:
-                        h.update(f.read())
+                        text = f.read()
+                    if b"@kernel" in text:  # kernels call kernels only
+                        h.update(os.path.relpath(path, pkg).encode())
+                        h.update(text)
     else:  # imported from a zip (the engine shipped to Dask workers)
         import zipfile
         archive = getattr(__loader__, "archive", None)
@@ -83,8 +85,10 @@ def _engine_stamp() -> str:
             with zipfile.ZipFile(archive) as z:
                 for name in sorted(z.namelist()):
                     if name.startswith(prefix) and name.endswith(".py"):
-                        h.update(name.encode())
-                        h.update(z.read(name))
+                        text = z.read(name)
+                        if b"@kernel" in text:
+                            h.update(name.encode())
+                            h.update(text)
     return h.hexdigest()[:16]
 
 

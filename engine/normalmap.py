@@ -14,8 +14,11 @@ their luminance) and tilts the normal against h's gradient along the surface:
 of dP/dx, dP/dy are, for small filter widths, this surface gradient). The gradient is taken
 by central differences of h in the triangle's barycentric coordinates, mapped to the
 surface through the dual basis of the triangle's edges, so any height node works.
-Tangents are per triangle from its UVs (exact on flat, affinely mapped faces; MikkTSpace
-smooths them across shared vertices, a difference on curved low-poly meshes).
+Tangents are Blender's MikkTSpace tangents where the mesh carries them (the add-on exports
+them per corner as the coordinates 'tangent' / 'tangent_sign' for meshes whose materials
+use a tangent-space map), else per triangle from its UVs (exact on flat, affinely mapped
+faces; MikkTSpace smooths them across shared vertices, a difference on curved low-poly
+meshes).
 """
 from __future__ import annotations
 
@@ -61,6 +64,16 @@ class NormalMap:
             tl = np.linalg.norm(t, axis=1)
             ok = tl > 1e-12  # no usable UVs: keep the normal (Cycles reads a zero tangent)
             t = t / np.maximum(tl, 1e-300)[:, None]
+            mikk = (geo.corner_coordinates or {}).get("tangent") is not None
+            if mikk:
+                # Blender's MikkTSpace tangents (exported per corner), interpolated and
+                # used as Cycles' svm_node_normal_map does: not re-orthogonalised.
+                tm = geo.coordinates("tangent", prim, u, v)
+                sm = geo.coordinates("tangent_sign", prim, u, v)[:, 0]
+                has = np.linalg.norm(tm, axis=1) > 1e-12  # meshes without them: per triangle
+                t = np.where(has[:, None], tm, t)
+                sign = np.where(has, np.where(sm < 0, -1.0, 1.0), sign)
+                ok = ok | has
             b = sign[:, None] * np.cross(n, t)
             mapped = np.where(ok[:, None], c[:, 0:1] * t + c[:, 1:2] * b + c[:, 2:3] * n, n)
         out = normalize(mapped)

@@ -684,6 +684,44 @@ def texture_bump():
     _sun(rotation=(0, math.radians(70), 0))
 
 
+@case("textures", known_issue="issue 15: a strongly tilted tangent-space map on a curved "
+      "mesh shades differently from Cycles near the terminator (block error 2.8; with "
+      "per-triangle tangents 2.9, so not the tangents; a flat map matches at 0.10); "
+      "suspected: Cycles' bump shadowing term for diffuse closures with a bumped normal")
+def texture_normal_map_mikktspace():
+    """Tangent-space Normal Map on a low-poly smooth UV sphere (12 x 6) under a side sun:
+    every texel leans 35 degrees along the UV tangent, so the shading follows the
+    tangents. Blender's MikkTSpace tangents are smooth across the faces; tangents per
+    triangle from its UVs would facet the sphere."""
+    import bmesh
+    _stage(back=False)
+    th = math.radians(35)
+    img = np.zeros((4, 4, 3), np.float32)
+    img[..., 0] = 0.5 + 0.5 * math.sin(th)
+    img[..., 1] = 0.5
+    img[..., 2] = 0.5 + 0.5 * math.cos(th)
+    im = _image("lean", img)
+    im.colorspace_settings.name = "Non-Color"
+    m, nt, out = _nodes_material("mikk")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = im
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    nt.links.new(nmap.outputs["Normal"], d.inputs["Normal"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    me = bpy.data.meshes.new("LowPoly")
+    bm = bmesh.new()
+    bm.loops.layers.uv.new("UVMap")
+    bmesh.ops.create_uvsphere(bm, u_segments=12, v_segments=6, radius=0.8, calc_uvs=True)
+    bm.to_mesh(me)
+    bm.free()
+    me.shade_smooth()
+    mb.add_object("LowPoly", me, m, (0.0, 0.0, 0.8))
+    _sun(rotation=(0, math.radians(60), math.radians(30)))
+
+
 @case("textures")
 def texture_gradient_hue():
     """Gradient Texture (Easing, on UV) as the factor of a Mix Color red -> blue, through
