@@ -544,7 +544,8 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
     also finds (engine/integrator.py): weighted by the power heuristic against the lobes'
     sampling pdf (principled.bsdf_pdf with the continuation's lobe-choice probabilities
     sel (N, N_LOBES)), lpdf the light sample's solid-angle pdf, ksamples its sample count;
-    0 = the glossy part is left to the continuation. contrib already holds cos(wi) (with
+    0 = the glossy part is left to the continuation; 3 = a light the light tree picked per
+    hit: 1 for a light without size (lpdf inf), else 0. contrib already holds cos(wi) (with
     the shading offset), so the glossy term is eval / cos(wi)."""
     for j in range(m_all):
         r = ray[j]
@@ -555,6 +556,10 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
         i = row[j]
         f0, f1, f2 = fd[i, 0], fd[i, 1], fd[i, 2]
         mode = kmode[k]
+        if mode == 3:
+            # A light the tree picked for this hit: a delta light (lpdf inf) in full,
+            # one with a size left to the continuation (integrator.light_modes).
+            mode = 1 if lpdf[j] == np.inf else 0
         if mode != 0:
             n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
             ix, iy, iz = pr.frame_local(n0, n1, n2, wdir[j, 0], wdir[j, 1], wdir[j, 2])
@@ -612,7 +617,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     shadow: an engine.shadowtransmittance.ShadowTransmittance (transparent shadows) or
     None (every surface blocks shadow rays).
     bsdf = (fd (N,3), prm (N,P), wo (N,3), mode (L,) int per light, sel (N, N_LOBES)):
-    outgoing radiance instead, weighted by the BSDF (accumulate_bsdf); not with the tree.
+    outgoing radiance instead, weighted by the BSDF (accumulate_bsdf; mode 3 with the tree).
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     if tree is None:

@@ -91,12 +91,21 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         if n == 0:
             return np.zeros((n, 3))
         packed = ctx.packed_lights or pack_lights(ctx.lights)
+        if bsdf is not None:
+            # The tree picks the light per hit: the kernel weights a delta light's sample
+            # by the full BSDF and leaves lights with a size to the continuation (mode 3).
+            fd, prm, sel = bsdf
+            bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
+                    np.ascontiguousarray(hit.wo, np.float64),
+                    np.full(len(ctx.lights),
+                            MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA,
+                            np.int64),
+                    np.ascontiguousarray(sel, np.float64))
         E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW,
-                               n, shadow=getattr(ctx, "shadow", None), tree=chosen[1])
+                               n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
+                               bsdf=bsdf)
         counters.shadow_rays += rays
-        # With the light tree the glossy lobes see lights by their continuation alone
-        # (light_modes): the shadow rays feed the diffuse lobe.
-        return E if bsdf is None else bsdf[0] * E
+        return E
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
     # mesh light's triangle choice), sample by sample.
     samples = []
@@ -126,7 +135,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     return E
 
 
-MODE_CONTINUATION, MODE_DELTA, MODE_MIS = 0, 1, 2
+MODE_CONTINUATION, MODE_DELTA, MODE_MIS, MODE_TREE = 0, 1, 2, 3
 
 
 def light_modes(ctx) -> np.ndarray:
@@ -138,13 +147,18 @@ def light_modes(ctx) -> np.ndarray:
     light's pdf where a continuation meets it); MODE_CONTINUATION: the other lights with a
     size (the world, area lights with spread) by the continuation alone. A light whose shadow rays are off (diffuse visibility) is continuation-only.
     Without continuation (specular effects off) the MIS lights take shadow rays in full.
-    With more lights than the light tree's threshold every light is MODE_CONTINUATION."""
+    With more lights than the light tree's threshold only the lights without size take
+    shadow rays for the glossy lobes (MODE_DELTA), the others are MODE_CONTINUATION."""
     modes = np.zeros(len(ctx.lights), np.int64)
     if tree_members(ctx.lights):
         # Many lights: the tree picks one light per shadow ray, and the continuation's
-        # MIS weights would need its choice probability too; the glossy lobes see every
-        # light by their continuation alone (unbiased; lights without size give them no
-        # highlight there).
+        # MIS weights would need its choice probability too. The glossy lobes see lights
+        # with a size by their continuation alone, lights without one (which no
+        # continuation meets) by the shadow rays in full (MODE_TREE in the kernel).
+        for li, light in enumerate(ctx.lights):
+            if light.ray_kinds & SHADOW and (not light.has_size
+                                             or ctx.plan.specular_depth == 0):
+                modes[li] = MODE_DELTA
         return modes
     mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
     for li, light in enumerate(ctx.lights):

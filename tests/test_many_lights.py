@@ -191,3 +191,31 @@ def test_grouped_photons_store_the_power_of_single_ones(monkeypatch):
     monkeypatch.setattr(selection, "SAMPLE_ALL_UP_TO", 1000)
     single = np.mean([stored(seed) for seed in range(3)])
     assert abs(grouped / single - 1.0) < 0.01, (grouped, single)
+
+
+def test_glossy_lobes_see_many_point_lights_as_they_see_a_few(monkeypatch):
+    """A rough metal floor and a Principled ball under 24 point lights and an area light:
+    with the tree, the lobes' highlights from the point lights come from the shadow rays
+    (no continuation can meet a light without size), those from the area light from the
+    continuation; the image matches sampling every light."""
+    def scene():
+        rng = np.random.default_rng(7)
+        s = PaperScene(24, 18, background=(0.0, 0.0, 0.0))
+        s.add_plane((0, 0, 0), (0, 0, 1), 10.0,
+                    Material("brushed", base_color=(0.9, 0.8, 0.6), metallic=1.0,
+                             roughness=0.35), name="floor")
+        s.add_sphere((0.3, 0.2, 0.7), 0.7, Material("plastic", base_color=(0.2, 0.3, 0.8),
+                                                    roughness=0.3), name="ball", segments=24)
+        for _ in range(24):
+            s.add_point_light(tuple(rng.uniform([-3, -3, 1], [3, 3, 3])),
+                              float(rng.uniform(10, 60)))
+        s.add_rect_area_light((0.0, 0.0, 3.0), (1.0, 1.0), 80.0)
+        s.set_camera((0, -5, 3), (0, 0, 0.5))
+        return s
+    st = RenderSettings(spp=256, seed=5, photon_mapping=False)
+    tree = scene().render(st).combined
+    monkeypatch.setattr(selection, "SAMPLE_ALL_UP_TO", 1000)
+    every = scene().render(st).combined
+    assert abs(tree.mean() / every.mean() - 1.0) < 0.02
+    blocks = lambda a: a.reshape(3, 6, 4, 6, 3).mean(axis=(1, 3))  # noqa: E731
+    assert np.allclose(blocks(tree), blocks(every), rtol=0.08, atol=0.005)
