@@ -100,8 +100,9 @@ def test_white_furnace_matches_cycles(name):
 
 def test_caustic_casters_are_the_sharp_lobes():
     """engine/effects.sharp_specular: a rough Principled (default roughness 0.5) focuses no
-    light; a smooth one, glass, a mirror, a clear coat over a rough base and a transparent
-    pass do; a Diffuse BSDF is no caster at all."""
+    light; a smooth one, glass, a mirror and a clear coat over a rough base do; a
+    transparent pass does not (shadow rays cross it: docs/design.md, Transparent shadows)
+    and a Diffuse BSDF is no caster at all."""
     from engine.effects import sharp_specular
     from engine.geometry import MaterialTable
     mats = [Material("rough", roughness=0.5, specular=1.0),
@@ -116,4 +117,4 @@ def test_caustic_casters_are_the_sharp_lobes():
             Material("diffuse", specular=0.0)]
     got = dict(zip([m.name for m in mats], sharp_specular(MaterialTable.build(mats))))
     assert got == {"rough": False, "smooth": True, "glass": True, "mirror": True,
-                   "coated": True, "rough_coat": False, "card": True, "diffuse": False}
+                   "coated": True, "rough_coat": False, "card": False, "diffuse": False}
