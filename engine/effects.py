@@ -408,12 +408,15 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
 
 
 def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
-    """What a specular object is, in a student's words: 'glass' (transmission or alpha
-    below 1), 'mirror' (metallic and sharp), 'metal' (metallic and rough), else 'glossy'
-    (a coat over a diffuse base: plastic, varnish)."""
+    """What a specular object is, in a student's words: 'glass' (transmission),
+    'transparent' (alpha below 1 or an alpha texture: a card, a cut-out), 'mirror'
+    (metallic and sharp), 'metal' (metallic and rough), else 'glossy' (a coat over a
+    diffuse base: plastic, varnish)."""
     mats = np.unique(geo.material[geo.object_id == oid])
-    if np.any(table.transmission[mats] > 0) or np.any(table.alpha[mats] < 1):
+    if np.any(table.transmission[mats] > 0):
         return "glass"
+    if np.any(table.alpha[mats] < 1) or np.any(table.has_alpha_texture[mats]):
+        return "transparent"
     metal = table.metallic[mats] >= 0.5
     if np.any(metal & (table.roughness[mats] <= SHARP_ROUGHNESS)):
         return "mirror"

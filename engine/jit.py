@@ -150,7 +150,10 @@ def _stamp() -> str:
 
 
 def _marker() -> str:
-    return os.path.join(CACHE_DIR, f"photonmap-{_stamp()}.compiled")
+    # numba files its cache by each kernel's source path: a checkout elsewhere compiles
+    # anew, so the marker names the package's folder too (the compile message shows).
+    where = hashlib.sha1(os.path.dirname(os.path.abspath(__file__)).encode()).hexdigest()[:8]
+    return os.path.join(CACHE_DIR, f"photonmap-{_stamp()}-{where}.compiled")
 
 
 def needs_compile() -> bool:

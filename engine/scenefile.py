@@ -386,7 +386,10 @@ def _environment(spec, base):
     try:
         pixels = read_image(full)
     except Exception as e:  # noqa: BLE001  (any reader failure: one line naming the file)
-        raise SceneFileError(f"[environment] image: '{path}' cannot be read: {e}") from None
+        raise SceneFileError(f"[environment] image: '{path}' cannot be read ({e}); use an "
+                             "OpenEXR (.exr) or NumPy (.npy) file of linear radiance, or a "
+                             "PNG (read as sRGB); Radiance .hdr is not read here (Blender's "
+                             "Environment Texture reads it)") from None
     rotation = _rotation(spec["rotation"]) if "rotation" in spec else None
     interpolation = spec.get("interpolation", "linear").capitalize()
     try:
