@@ -244,21 +244,22 @@ class PHOTONMAP_PT_teaching(PhotonMapButtonsPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        col = layout.column(align=True)
-        col.operator("photonmap.compare_methods", icon="IMAGE_DATA")
-        col.operator("photonmap.parameter_sweep", icon="SEQ_STRIP_DUPLICATE")
-        col.operator("photonmap.effects_strip", icon="RENDERLAYERS")
+        _teaching_operators(layout.column(align=True))
+
+
+def _teaching_operators(layout):
+    """The teaching operators (addon/operators.py), in the panel and the Render menu."""
+    layout.operator("photonmap.compare_methods", icon="IMAGE_DATA")
+    layout.operator("photonmap.parameter_sweep", icon="SEQ_STRIP_DUPLICATE")
+    layout.operator("photonmap.effects_strip", icon="RENDERLAYERS")
 
 
 def draw_render_menu(self, context):
     """Render menu entries, shown while our engine is selected."""
     if context.engine != ENGINE_ID:
         return
-    layout = self.layout
-    layout.separator()
-    layout.operator("photonmap.compare_methods", icon="IMAGE_DATA")
-    layout.operator("photonmap.parameter_sweep", icon="SEQ_STRIP_DUPLICATE")
-    layout.operator("photonmap.effects_strip", icon="RENDERLAYERS")
+    self.layout.separator()
+    _teaching_operators(self.layout)
 
 
 # --- Rendered viewport (addon/viewport.py, issue 19) -------------------------------------

@@ -392,8 +392,6 @@ def noise_texture(dims, kind, normalize, points, scale, w_in, detail, roughness,
         w = w_in[i] * s
         if dims == 1:  # the 1D node reads W only
             x = w
-        elif dims == 4:
-            pass
         d = min(max(detail[i], 0.0), 15.0)
         r = max(roughness[i], 0.0)
         lac = lacunarity[i]

@@ -90,12 +90,17 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
         # Embree holds its own copy; transparent shadows build their BVHs from them lazily.
         geo.release_build_arrays()
     lights = prepare_lights(scene, geo, table)
-    ctx = Context(scene, settings, geo, table, accel, lights, packed_lights=pack_lights(lights),
-                  shadow=shadow)
+    ctx = Context(scene, settings, geo, table, accel, lights,
+                  packed_lights=packed_lights_for(lights, settings), shadow=shadow)
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
-    if settings.soft_shadows == "off":
-        ctx.packed_lights = hard_shadow_packing(ctx.packed_lights)
     return ctx
+
+
+def packed_lights_for(lights, settings: RenderSettings):
+    """The lights packed for the shadow-ray kernels (lights.packing.pack_lights), as
+    points when soft shadows are off (hard_shadow_packing)."""
+    packed = pack_lights(lights)
+    return hard_shadow_packing(packed) if settings.soft_shadows == "off" else packed
 
 
 def hard_shadow_packing(packed):

@@ -47,11 +47,10 @@ from .effects import analyse
 from .geometry import MaterialTable, prepare
 from .jit import ensure_compiled
 from .lights import prepare_lights
-from .lights.packing import pack_lights
 from .shadowtransmittance import ShadowTransmittance
 from .parallel import Cancelled, drain
 from .progressive import PassMerger, pass_settings
-from .render import Context, _check_region, hard_shadow_packing, render_pass, shoot_photons
+from .render import Context, _check_region, packed_lights_for, render_pass, shoot_photons
 from .resources import check_resources
 from .scene import Camera, Scene
 from .settings import RenderSettings
@@ -312,16 +311,13 @@ class Session:
             self.counters.light_builds += 1
             self._event("lights", len(lights))
             self._ctx = ctx = Context(
-                scene, s, geo, table, accel, lights, packed_lights=pack_lights(lights),
+                scene, s, geo, table, accel, lights, packed_lights=packed_lights_for(lights, s),
                 shadow=ShadowTransmittance.for_scene(geo, table, s.transparent_max_bounces))
             self._scene_dirty = self._geometry_dirty = False
         else:
             ctx.scene = scene
         ctx.settings = s
         ctx.plan = analyse(scene, ctx.geo, ctx.table, ctx.lights, ctx.accel, s)
-        ctx.packed_lights = pack_lights(ctx.lights)
-        if s.soft_shadows == "off":
-            ctx.packed_lights = hard_shadow_packing(ctx.packed_lights)
         key = _photon_plan_key(ctx.plan)
         if key != self._plan_key:
             self._photons.clear()
