@@ -43,7 +43,7 @@ import sys
 import time
 
 from engine.cli import CancelOnInterrupt
-from engine.imageio import check_writable, replacing
+from engine.imageio import check_writable, replacing, say_created
 
 FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
            ".tif": "TIFF", ".tiff": "TIFF", ".bmp": "BMP"}
@@ -97,15 +97,17 @@ class _StatusPrinter:
                     bar.update(n - bar.n)  # update(), not n =: tqdm's ETA follows the rate
 
     def close(self):
-        """Close the bar, then print the warnings and the effect report under it."""
+        """Close the bar, then print the warnings and, for a finished render, the effect
+        report under it (a cancelled or failed render simulated nothing worth reporting)."""
         if self.bar is not None:
             self.bar.close()
             self.bar = None
         if not self.quiet:
             for w in self.warnings:
                 print(f"warning: {w}", file=self.stream)
-            for line in self.effects:
-                print(f"  {line}", file=self.stream)
+            if self.status == "done":
+                for line in self.effects:
+                    print(f"  {line}", file=self.stream)
 
 
 def parse_args(argv):
@@ -227,7 +229,7 @@ def render_file(args) -> str:
     if root not in sys.path:
         sys.path.insert(0, root)
     try:
-        check_writable(out)  # before the render, not after it
+        check_writable(out, on_create=say_created)  # before the render, not after it
     except OSError as exc:
         raise BatchError(str(exc)) from None
 
@@ -422,7 +424,9 @@ def main(argv=None) -> int:
     except BatchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    print(f"wrote {out} ({time.perf_counter() - t0:.1f} s)")
+    # The engine's "Done ... s" above is the render alone; this one includes Blender's
+    # start-up and reading the .blend.
+    print(f"wrote {out} ({time.perf_counter() - t0:.1f} s including loading the .blend)")
     return 0
 
 

@@ -275,7 +275,16 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     if getattr(L, "use_temperature", False):
         color = color * np.asarray(tuple(L.temperature_color)[:3], dtype=np.float64)
     power = float(L.energy) * 2.0 ** float(getattr(L, "exposure", 0.0))
-    if power <= 0 or not np.any(color > 0):
+    if not (math.isfinite(power) and np.all(np.isfinite(color))):
+        warnings.append(f"light '{name}': power {L.energy} W / colour {tuple(color)} is not "
+                        "a finite number; the light is skipped")
+        return None
+    if power < 0 or np.any(color < 0):
+        # Cycles subtracts light for a negative power; photons cannot carry negative flux.
+        warnings.append(f"light '{name}': negative power ({power:g} W) or colour is not "
+                        "supported; the light is skipped")
+        return None
+    if power == 0 or not np.any(color > 0):
         return None
     R = matrix[:3, :3]
     pos = matrix[:3, 3]

@@ -260,12 +260,12 @@ TEACHING_FORMATS = (".png", ".jpg", ".jpeg")
 
 
 def _check_teaching_output(path):
-    from .imageio import check_writable
+    from .imageio import check_writable, say_created
     ext = os.path.splitext(path)[1].lower()
     if ext not in TEACHING_FORMATS:
         raise ValueError(f"--output '{path}': unsupported format '{ext or '(none)'}' for a "
                          f"labelled image (use {', '.join(TEACHING_FORMATS)})")
-    check_writable(path)
+    check_writable(path, on_create=say_created)
 
 
 def save_composed(rgb8, path):
@@ -368,8 +368,8 @@ def _render(args) -> int:
     if ext not in FORMATS:
         raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
                          f"(use {', '.join(FORMATS)})")
-    from .imageio import check_writable
-    check_writable(args.output)  # before the render, not after it
+    from .imageio import check_writable, say_created
+    check_writable(args.output, on_create=say_created)  # before the render, not after it
     scene, overrides = _scene_and_overrides(args)
     if args.show_photons:
         overrides["show_photons"] = True

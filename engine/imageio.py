@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import sys
 
 import numpy as np
 
@@ -33,10 +34,12 @@ def to_8bit(rgb: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     return np.round(linear_to_srgb(scaled) * 255.0).astype(np.uint8)
 
 
-def check_writable(path: str) -> str:
+def check_writable(path: str, on_create=None) -> str:
     """Make sure an image can be written at `path` before the work that produces it starts:
-    creates missing folders, then creates and removes a probe file beside the target.
-    Returns the absolute path. Raises OSError naming the path and the reason."""
+    creates missing folders (as Blender does for its output path; on_create(folder) is
+    called when it does, so a command line can say so), then creates and removes a probe
+    file beside the target. Returns the absolute path. Raises OSError naming the path and
+    the reason."""
     full = os.path.abspath(path)
     if os.path.isdir(full):
         raise OSError(f"output '{path}' is a folder, not a file")
@@ -49,7 +52,10 @@ def check_writable(path: str) -> str:
             raise OSError(f"output '{path}' cannot be written: '{up}' is a file, not a folder")
         up = os.path.dirname(up)
     try:
-        os.makedirs(folder, exist_ok=True)
+        if not os.path.isdir(folder):
+            os.makedirs(folder, exist_ok=True)
+            if on_create is not None:
+                on_create(folder)
         with _temporary_beside(full) as probe:
             with open(probe, "wb") as f:
                 f.write(b"\0")
@@ -175,3 +181,8 @@ def read_image(path: str) -> np.ndarray:
     from PIL import Image
     arr = np.asarray(Image.open(path).convert("RGB"), np.float64) / 255.0
     return srgb_to_linear(arr).astype(np.float32)
+
+
+def say_created(folder: str) -> None:
+    """on_create callback of check_writable for the command lines: one line on stderr."""
+    print(f"created folder {folder} for the output", file=sys.stderr)

@@ -99,8 +99,12 @@ def test_check_writable_refuses_before_anything_is_written(tmp_path):
     with pytest.raises(OSError, match="is a folder"):
         check_writable(str(tmp_path))
     ok = tmp_path / "new" / "dir" / "out.png"
-    assert check_writable(str(ok)) == str(ok)
+    created = []
+    assert check_writable(str(ok), on_create=created.append) == str(ok)
     assert ok.parent.is_dir() and os.listdir(ok.parent) == []  # the probe is gone
+    assert created == [str(ok.parent)]  # said once, so the command line can tell the user
+    check_writable(str(ok), on_create=created.append)
+    assert created == [str(ok.parent)]  # an existing folder is not announced
 
 
 def test_cli_checks_the_output_path_before_rendering(tmp_path):

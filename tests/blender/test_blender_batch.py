@@ -35,7 +35,16 @@ def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
     assert "100%" in err
     assert re.search(r"^  indirect light .*: on", err, re.M), err[-2000:]  # effect report
     assert re.search(r"^  caustics: on", err, re.M)
-    assert "wrote" in res.stdout and out.is_file()
+    assert "wrote" in res.stdout and "including loading the .blend" in res.stdout
+    assert out.is_file()
+
+
+def test_batch_says_when_it_creates_the_output_folder(tmp_path):
+    out = tmp_path / "new" / "f3.png"
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), *SMALL,
+                 "--quiet")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert f"created folder {out.parent}" in res.stderr and out.is_file()
 
 
 def test_batch_quiet_prints_no_bar(tmp_path):
@@ -61,6 +70,7 @@ def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path):
     assert out.read_bytes() == OLD
     assert "interrupted" in err and "left as it was" in err, err[-2000:]
     assert "Traceback" not in err
+    assert "indirect light" not in err  # no effect report for a render that did not finish
     assert sorted(os.listdir(tmp_path)) == [out.name]  # no temporary file left behind
 
 

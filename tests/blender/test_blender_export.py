@@ -191,3 +191,23 @@ def test_materials_and_texture(fresh_scene, bpy_addon):
     assert gm.transmission == pytest.approx(1.0) and gm.ior == pytest.approx(1.33)
     assert gm.alpha == pytest.approx(0.75)
     assert not t.warnings and not gm.warnings
+
+
+def test_bad_light_power_warns_once_and_render_goes_on(fresh_scene, bpy_addon):
+    """A NaN or negative light power is skipped with one warning naming the light; the
+    other lights still render the scene."""
+    bpy = bpy_addon
+    scene = build_scene(bpy)
+    bad = _light(bpy, "NanLamp", "POINT", (0, 0, 4), energy=100.0)
+    neg = _light(bpy, "NegLamp", "POINT", (1, 0, 4), energy=100.0)
+    bad.data.energy = float("nan")
+    neg.data.energy = -50.0
+    cheap(scene, width=40, height=30, pct=100, spp=1, photons=2000, caustic_photons=500)
+    from addon import engine
+    bpy.ops.render.render()
+    warnings = engine.last_render["warnings"]
+    for name, what in (("NanLamp", "finite"), ("NegLamp", "negative")):
+        hits = [w for w in warnings if f"'{name}'" in w]
+        assert len(hits) == 1 and what in hits[0], warnings
+    assert engine.last_render.get("error") is None
+    assert engine.last_render["width"] == 40
