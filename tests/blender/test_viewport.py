@@ -237,3 +237,85 @@ def test_render_engine_free_stops_the_session(bpy_addon):
     assert session is not None and session.running and not engine.stats
     PhotonMapRenderEngine.free(engine)
     assert not session.running and engine._viewport.session is None
+
+
+class _Recorder:
+    """Stand-ins for Blender's gpu / gpu_extras modules (the bpy wheel has no GPU: every
+    gpu call raises in background mode), recording what view_draw asks them to do."""
+
+    def __init__(self):
+        self.calls = []
+        rec = self
+
+        class Buffer:
+            def __init__(self, kind, size, data):
+                assert kind == "FLOAT"
+                self.data = np.asarray(data, dtype=np.float32)
+                assert self.data.size == size
+
+        class GPUTexture:
+            def __init__(self, size, format, data):
+                self.size, self.format, self.data = size, format, data
+                rec.calls.append(("texture", size, format))
+
+        self.gpu = SimpleNamespace(
+            types=SimpleNamespace(Buffer=Buffer, GPUTexture=GPUTexture),
+            state=SimpleNamespace(blend_set=lambda mode: rec.calls.append(("blend", mode))))
+        self.presets = SimpleNamespace(
+            draw_texture_2d=lambda tex, pos, w, h: rec.calls.append(("draw", tex, pos, w, h)))
+
+    def bind_display_space_shader(self, scene):
+        self.calls.append(("bind", scene.name))
+
+    def unbind_display_space_shader(self):
+        self.calls.append(("unbind",))
+
+
+def test_view_draw_uploads_the_latest_frame_and_draws_it_in_display_space(bpy_addon,
+                                                                          monkeypatch):
+    """view_draw as Blender's custom render engine template does it: the session's latest
+    frame as an RGBA16F texture (rows flipped to Blender's bottom-up order), drawn over
+    the frame's part of the region between binding and unbinding the display-space
+    shader, with premultiplied alpha blending, the texture uploaded once per frame."""
+    import sys
+    bpy = bpy_addon
+    from addon.viewport import ViewportRender
+    scene = open_blend(bpy, "figure3_sphere.blend")
+    props = scene.photonmap
+    props.viewport_passes = 1
+    props.viewport_photons = 2000
+    props.viewport_caustic_photons = 500
+    props.viewport_samples = 1
+    props.viewport_resolution = 50
+    rec = _Recorder()
+    monkeypatch.setitem(sys.modules, "gpu", rec.gpu)
+    monkeypatch.setitem(sys.modules, "gpu_extras", SimpleNamespace(presets=rec.presets))
+    monkeypatch.setitem(sys.modules, "gpu_extras.presets", rec.presets)
+    engine = _Engine()
+    engine.bind_display_space_shader = rec.bind_display_space_shader
+    engine.unbind_display_space_shader = rec.unbind_display_space_shader
+    context = _fake_context(bpy, scene, 64, 48)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    vp = ViewportRender()
+    try:
+        vp.update(context, depsgraph)
+        assert vp.session.wait_idle(120) and vp.session.error is None, vp.session.error
+        frame = vp.session.frame
+        vp.draw(engine, context, depsgraph)
+        kinds = [c[0] for c in rec.calls]
+        assert kinds == ["texture", "blend", "bind", "draw", "unbind", "blend"], rec.calls
+        h, w = frame.rgba.shape[:2]
+        assert rec.calls[0][1:] == ((w, h), "RGBA16F")
+        assert (w, h) == frame.full_size == (32, 24)  # 50 % of the 64 x 48 region
+        np.testing.assert_array_equal(vp.texture.data.data.reshape(h, w, 4),
+                                      frame.rgba[::-1].astype(np.float32))
+        assert rec.calls[1] == ("blend", "ALPHA_PREMULT") and rec.calls[-1] == ("blend", "NONE")
+        _, tex, pos, dw, dh = rec.calls[3]
+        assert tex is vp.texture and pos == (0.0, 0.0) and (dw, dh) == (64.0, 48.0)
+        assert engine.stats[-1].startswith("Pass 1/1")
+        # The same frame again: drawn without a new upload.
+        rec.calls.clear()
+        vp.draw(engine, context, depsgraph)
+        assert [c[0] for c in rec.calls] == ["blend", "bind", "draw", "unbind", "blend"]
+    finally:
+        vp.stop()
