@@ -630,10 +630,7 @@ def texture_color_attribute():
     _sun()
 
 
-# Cycles dims diffuse light on bumped / normal-mapped normals at grazing light (a bump
-# shadowing term, ~0.9 on this case's lit stripes); the engine does not yet (docs/textures.md):
-# the mean comes out ~4.5 % bright, so this case allows 8 %.
-@case("textures", mean_tol=0.08)
+@case("textures")
 def texture_normal_map():
     """Normal Map node (tangent space, Non-Color image) under a grazing sun from +x:
     stripes whose normals lean 35 degrees towards the sun or away from it, so every other
@@ -684,15 +681,13 @@ def texture_bump():
     _sun(rotation=(0, math.radians(70), 0))
 
 
-@case("textures", known_issue="issue 15: a strongly tilted tangent-space map on a curved "
-      "mesh shades differently from Cycles near the terminator (block error 2.8; with "
-      "per-triangle tangents 2.9, so not the tangents; a flat map matches at 0.10); "
-      "suspected: Cycles' bump shadowing term for diffuse closures with a bumped normal")
+@case("textures")
 def texture_normal_map_mikktspace():
     """Tangent-space Normal Map on a low-poly smooth UV sphere (12 x 6) under a side sun:
     every texel leans 35 degrees along the UV tangent, so the shading follows the
     tangents. Blender's MikkTSpace tangents are smooth across the faces; tangents per
-    triangle from its UVs would facet the sphere."""
+    triangle from its UVs would facet the sphere. Near the terminator the tilted normals
+    face a light below the smooth surface: Cycles' bump shadowing term refuses it."""
     import bmesh
     _stage(back=False)
     th = math.radians(35)
