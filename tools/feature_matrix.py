@@ -718,6 +718,31 @@ def texture_normal_map_mikktspace():
 
 
 @case("textures")
+def texture_albedo_above_one():
+    """Colours above 1 into BSDF colours, which Cycles does not clip (its diffuse closures
+    take max(colour, 0)): a float image checker (1.8, 1.3, 0.6) / (0.9, 0.6, 1.4) into a
+    Principled BSDF's Base Color on the floor tile, and a cube whose Diffuse BSDF colour is
+    (1.4, 1.2, 0.9); the surfaces and the light they throw on the back wall come out
+    brighter than an albedo clipped to 1."""
+    _stage()
+    img = _checker(4, 1, 0.0, 1.0)
+    on = img[..., :1] > 0.5
+    img = np.where(on, np.array([1.8, 1.3, 0.6], np.float32),
+                   np.array([0.9, 0.6, 1.4], np.float32)).astype(np.float32)
+    m, nt, out = _nodes_material("hdr_tex")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = _image("hdr_checker", img)
+    tex.interpolation = "Closest"
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    hot = _shader("hot", "ShaderNodeBsdfDiffuse", Color=(1.4, 1.2, 0.9))
+    mb.box("Cube", 0.7, 0.7, 0.7, hot, (-0.9, 0.6, 0.36))
+    _sun()
+
+
+@case("textures")
 def texture_gradient_hue():
     """Gradient Texture (Easing, on UV) as the factor of a Mix Color red -> blue, through
     Hue/Saturation/Value (hue +0.15, saturation 0.8, value 1.1)."""
