@@ -1,12 +1,15 @@
-"""Shading-normal perturbation from textures: Cycles' Normal Map and Bump nodes.
+"""Shading-normal perturbation from textures: Cycles' Normal Map and Bump nodes, and the
+bump shadowing term Cycles applies to closures whose normal they bent.
 
 A `NormalMap` turns a texture's colour c (read as stored, normally Non-Color) into a
 direction 2c - 1 and that into the shading normal:
-  TANGENT  n' = normalize(x T + y B + z N): N the interpolated shading normal, T the
-           UV tangent dP/du made orthogonal to N, B = sign cross(N, T) with sign the
-           orientation of the triangle's UV map (Blender's MikkTSpace convention);
-  WORLD    n' = normalize(2c - 1) (world-space directions).
-Strength s != 1 blends: n'' = normalize(N + s (n' - N)) (Cycles svm_node_normal_map).
+  TANGENT  n' = normalize(x T + y B + z N) (Cycles svm_node_normal_map): N the smooth
+           normal and T Blender's MikkTSpace tangent, both interpolated and not
+           normalised, B = sign cross(N, T) with sign the UV map's orientation; without
+           exported tangents T is the triangle's UV tangent dP/du made orthogonal to N.
+           Strength s scales x and y and blends z from 1: (s x, s y, 1 + (z - 1) min(s, 1));
+  WORLD    n' = normalize(2c - 1) (world-space directions); strength s != 1 blends the
+           normals: n'' = normalize(N + s (n' - N)).
 A `Bump` takes a height h (any engine.textures / engine.shadernodes node; colours read as
 their luminance) and tilts the normal against h's gradient along the surface:
   n' = normalize(N - distance grad_s h),   n'' = normalize(s n' + (1 - s) N)
@@ -14,11 +17,9 @@ their luminance) and tilts the normal against h's gradient along the surface:
 of dP/dx, dP/dy are, for small filter widths, this surface gradient). The gradient is taken
 by central differences of h in the triangle's barycentric coordinates, mapped to the
 surface through the dual basis of the triangle's edges, so any height node works.
-Tangents are Blender's MikkTSpace tangents where the mesh carries them (the add-on exports
-them per corner as the coordinates 'tangent' / 'tangent_sign' for meshes whose materials
-use a tangent-space map), else per triangle from its UVs (exact on flat, affinely mapped
-faces; MikkTSpace smooths them across shared vertices, a difference on curved low-poly
-meshes).
+`bump_shadowing_term` is Cycles 5.0's factor on such closures (docs/textures.md, "Bump
+shadowing"): engine/directlight.py applies it per light sample, engine/integrator.py to
+gather rays and engine/photons.py to the photons' diffuse storage and bounce.
 """
 from __future__ import annotations
 
