@@ -71,6 +71,9 @@ class SurfaceHit:
                           # texture (textures.material_alpha); None: the materials' constants
     prm: np.ndarray | None = None     # (N, principled.N_PACK) lobes (bsdf.closures)
     lobe_albedo: np.ndarray | None = None  # (N, len(LOBE_NAMES), 3)
+    n_smooth: np.ndarray | None = None  # (N,3) the smooth shading normal before Normal Map /
+                          # Bump nodes, on ns's side, where one bent ns (else ns itself);
+                          # None: no bent normal in the batch (normalmap.bump_shadowing)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -92,17 +95,26 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     ng = ng * sign
     ns = geo.shading_normals(prim, u, v)
     mat = np.take(geo.material, prim)
+    n_smooth = bent = None
     for mi, nmap in enumerate(table.normal_maps or ()):
         if nmap is None:
             continue
         sel = np.nonzero(mat == mi)[0]
         if len(sel):
+            if n_smooth is None:
+                n_smooth, bent = ns.copy(), np.zeros(len(ns), bool)
             ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
+            bent[sel] = True
     ns = ns * sign
     wo = -d
     # Shading normals that put the viewer below the surface would make black rings:
-    # fall back to the geometric normal there (Veach's guard, simplified).
+    # fall back to the geometric normal there (Veach's guard, simplified). Not for
+    # normals a Normal Map / Bump node bent: Cycles keeps those (its bump shadowing term,
+    # engine/normalmap.py, handles the light side).
     bad = dot(ns, wo) <= 1e-6
+    if bent is not None:
+        bad &= ~bent
+        n_smooth = np.where(bent[:, None], n_smooth * sign, ns)
     if bad.any():
         ns[bad] = ng[bad]
     base = np.take(table.base_color, mat, axis=0)
@@ -111,17 +123,20 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
             continue
         sel = np.nonzero(mat == mi)[0]
         if len(sel):
-            # Clipped to [0, 1]: an albedo above 1 would create energy (HDR texels).
+            # Not clipped above 1, as Cycles (max(colour, 0)): the diffuse lobe takes an
+            # albedo above 1, the metal / glass lobes clip it themselves
+            # (closures/principled.py); photons carry it in their power (Russian
+            # roulette probabilities stay <= 1, engine/photons.py).
             rgb = tex.evaluate(geo, prim[sel], u[sel], v[sel])
             if rgb.ndim == 1:  # a value (factor) into a colour: grey
                 rgb = rgb[:, None]
-            base[sel] = base[sel] * np.clip(rgb, 0.0, 1.0)
+            base[sel] = base[sel] * np.maximum(rgb, 0.0)
     alpha = None
     if table.alpha_textures and any(t is not None for t in table.alpha_textures):
         alpha = material_alpha(table, geo, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=geo.origin_offset(prim, u, v, p, ng),
-                      bary=np.stack([u, v], axis=1), alpha=alpha)
+                      bary=np.stack([u, v], axis=1), alpha=alpha, n_smooth=n_smooth)
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):

@@ -27,6 +27,7 @@ from .lights import packing as pk
 from .lights.environment import env_pdf, env_radiance, env_sample
 from .lights.selection import empty_tree, select_light
 from .lights.world import ENV_MAP_FRACTION
+from .normalmap import bump_shadowing_term
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
 
 F32_MAX = float(np.finfo(np.float32).max)
@@ -197,18 +198,19 @@ def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_norma
 
 
 @kernel
-def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
+def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
                   m_tilt32, env_px, env_rows, env_cols, env_pdf_uv, tree_f, tree_i, inf_idx,
                   inf_f, l_trace, klight, ktrace, U1, U2, SEL, contrib, row, kidx, ray, o32,
-                  d32, t32, wdir, lpdf):
+                  d32, t32, wdir, lpdf, bump):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
     receive light (integrator._lit_side_normals), geometric normals; offset (N,) the
     origin offset along ng (rayoffset.origin_offset); shade_off (N,) Cycles' shading
     offset (0: none); cutoff (N,) shadow-terminator geometry offset of smooth triangles (0:
-    none) and lift (N,3) their smooth-surface lift (terminator_lift).
+    none) and lift (N,3) their smooth-surface lift (terminator_lift); nsm (N,3) the smooth
+    normal before Normal Map / Bump nodes (equal to ns where no node bent it).
     codes (L,), params (L,P): packed lights; m_*: emissive triangles, env_*: the world's
     environment map (packing.pack_lights).
     tree_f, tree_i, inf_idx, inf_f: the light tree (lights/selection.py LightSelector;
@@ -222,7 +224,9 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
     kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced), wdir (j,3) the
     unit direction towards the light sample and lpdf (j,) its solid-angle pdf (inf for a
     light without size) for BSDF evaluation and multiple importance sampling (the area
-    lights' pdf is of the whole light, also with spread); rays i < m_rays:
+    lights' pdf is of the whole light, also with spread), bump (j,) Cycles' bump
+    shadowing of the diffuse lobe (normalmap.bump_shadowing_term; light from below the
+    smooth surface, refused for every lobe, makes no entry); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
     n = p.shape[0]
     K = klight.shape[0]
@@ -463,6 +467,14 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
                 e0, e1, e2 = e0 * sh, e1 * sh, e2 * sh
             if pmf != 1.0:
                 e0, e1, e2 = e0 / pmf, e1 / pmf, e2 / pmf
+            bd = 1.0
+            m0, m1, m2 = nsm[i, 0], nsm[i, 1], nsm[i, 2]
+            if m0 != s0 or m1 != s1 or m2 != s2:
+                # A bent normal: no light from below the smooth surface for any lobe,
+                # the diffuse lobe dimmed towards grazing light (Cycles' bsdf_eval).
+                if bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2, False) == 0.0:
+                    continue
+                bd = bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2, True)
             if not ((e0 > 0 or e1 > 0 or e2 > 0) and e0 == e0 and e1 == e1 and e2 == e2):
                 continue
             j = m_all
@@ -470,6 +482,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
             contrib[j, 0], contrib[j, 1], contrib[j, 2] = e0, e1, e2
             wdir[j, 0], wdir[j, 1], wdir[j, 2] = w0, w1, w2
             lpdf[j] = lp
+            bump[j] = bd
             row[j] = i
             kidx[j] = k
             if not trace:
@@ -521,11 +534,12 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift,
 
 
 @kernel
-def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all):
-    """E[row] += contrib * visible / samples of its light, entry by entry (sample order)."""
+def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all, bump):
+    """E[row] += contrib * bump * visible / samples of its light, entry by entry (sample
+    order): the irradiance the diffuse lobe receives."""
     for j in range(m_all):
         r = ray[j]
-        vis = 1.0 if r < 0 or not blocked[r] else 0.0
+        vis = (1.0 if r < 0 or not blocked[r] else 0.0) * bump[j]
         s = ksamples[kidx[j]]
         i = row[j]
         E[i, 0] = E[i, 0] + contrib[j, 0] * vis / s
@@ -535,7 +549,7 @@ def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all):
 
 @kernel
 def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, lpdf, kmode,
-                    fd, prm, ns, wo, sel):
+                    fd, prm, ns, wo, sel, bump):
     """Radiance instead of irradiance: L[row] += contrib x f x visible / samples, entry by
     entry, where f = fd[row] (the diffuse lobe's f = albedo / pi) plus the rough reflective
     lobes' f(wo, wi) (engine/closures/principled.py, packed per hit in prm; ns, wo (N,3)),
@@ -546,7 +560,8 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
     sel (N, N_LOBES)), lpdf the light sample's solid-angle pdf, ksamples its sample count;
     0 = the glossy part is left to the continuation; 3 = a light the light tree picked per
     hit: 1 for a light without size (lpdf inf), else 0. contrib already holds cos(wi) (with
-    the shading offset), so the glossy term is eval / cos(wi)."""
+    the shading offset), so the glossy term is eval / cos(wi); bump (j,) dims the diffuse
+    f alone (Cycles' bump shadowing term)."""
     for j in range(m_all):
         r = ray[j]
         if r >= 0 and blocked[r]:
@@ -554,7 +569,8 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
         k = kidx[j]
         s = ksamples[k]
         i = row[j]
-        f0, f1, f2 = fd[i, 0], fd[i, 1], fd[i, 2]
+        bd = bump[j]
+        f0, f1, f2 = fd[i, 0] * bd, fd[i, 1] * bd, fd[i, 2] * bd
         mode = kmode[k]
         if mode == 3:
             # A light the tree picked for this hit: a delta light (lpdf inf) in full,
@@ -603,6 +619,7 @@ class DirectLightBuffers:
             self.blocked = np.empty(m, np.bool_)
             self.wdir = np.empty((m, 3))
             self.lpdf = np.empty(m)
+            self.bump = np.empty(m)
         return self
 
 
@@ -613,7 +630,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
     tree_i, inf_idx, inf_f, l_trace: lights/selection.py) picks one light per hit with
     the third choice. packed = packing.pack_lights(lights); hit_arrays =
-    (p, ns, gate, ng, offset, shade_off, cutoff, lift) as sample_lights takes them.
+    (p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm) as sample_lights takes them.
     shadow: an engine.shadowtransmittance.ShadowTransmittance (transparent shadows) or
     None (every surface blocks shadow rays).
     bsdf = (fd (N,3), prm (N,P), wo (N,3), mode (L,) int per light, sel (N, N_LOBES)):
@@ -646,7 +663,8 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         buf.ensure(K * n)
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
-                                      buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf)
+                                      buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf,
+                                      buf.bump)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.
@@ -657,12 +675,13 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                     buf.contrib, buf.ray, m_all, shadow_cls)
         if bsdf is None:
-            accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all)
+            accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all,
+                       buf.bump)
         else:
             fd, prm, wo, mode, sel = bsdf
             accumulate_bsdf(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked,
                             m_all, buf.wdir, buf.lpdf, mode[klight], fd, prm, hit_arrays[1], wo,
-                            sel)
+                            sel, buf.bump)
         rays += m_rays
     return E, rays
 
@@ -687,7 +706,8 @@ def _warm_up():
     packed = pack_lights(lights)
     p = np.array([[0.2, 0.1, -1.0]])
     nrm = np.array([[0.0, 0.0, 1.0]])
-    hit = (p, nrm, nrm, nrm, np.zeros(1), np.full(1, 0.1), np.full(1, 0.1), np.zeros((1, 3)))
+    hit = (p, nrm, nrm, nrm, np.zeros(1), np.full(1, 0.1), np.full(1, 0.1), np.zeros((1, 3)),
+           np.array([[0.0, 0.6, 0.8]]))  # a bent normal: the bump shadowing path too
     u = np.full(1, 0.5)
     samples = [(li, True, 1, u, u, u if li == 5 else None) for li in range(len(lights))]
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
+from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.selection import empty_tree, selection_samples, selector_for, tree_members
 from .lights.world import background_radiance
@@ -248,7 +249,7 @@ def light_shadow_rays(ctx, hit, light_index, rng):
                                   u1[None], u2[None],
                                   np.zeros((1, 1)) if sel is None else sel[None],
                                   buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
-                                  buf.t32, buf.wdir, buf.lpdf)
+                                  buf.t32, buf.wdir, buf.lpdf, buf.bump)
     return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.o32[:m_rays].copy(),
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
@@ -256,7 +257,8 @@ def light_shadow_rays(ctx, hit, light_index, rng):
 def _hit_arrays(geo, hit):
     """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
     light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
-    offset, and the shadow-terminator cut-off and smooth-surface lift of smooth triangles."""
+    offset, the shadow-terminator cut-off and smooth-surface lift of smooth triangles, and
+    the smooth normals before Normal Map / Bump nodes (Cycles' bump shadowing term)."""
     n = len(hit.p)
     c = np.ascontiguousarray
     gate = _lit_side_normals(geo, hit)
@@ -267,9 +269,12 @@ def _hit_arrays(geo, hit):
         terminator_lift(hit.prim, c(hit.bary, np.float64), c(hit.ng, np.float64), geo.smooth,
                         geo.terminator, geo.v0, geo.e1, geo.e2, geo.corner_normals, cutoff,
                         lift)
-    return (c(hit.p, np.float64), c(hit.ns, np.float64), c(gate, np.float64),
+    ns = c(hit.ns, np.float64)
+    n_smooth = getattr(hit, "n_smooth", None)
+    return (c(hit.p, np.float64), ns, c(gate, np.float64),
             c(hit.ng, np.float64), c(hit.offset, np.float64),
-            c(shading_offset, np.float64), cutoff, lift)
+            c(shading_offset, np.float64), cutoff, lift,
+            ns if n_smooth is None else c(n_smooth, np.float64))
 
 
 def _lit_side_normals(geo, hit):
@@ -312,6 +317,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         o = hit.clear(idx, d[idx])
         d = d[idx]
         tp = np.ones((len(idx), 3))
+        if getattr(hit, "n_smooth", None) is not None:
+            # Bent normals: the diffuse lobe's sampled directions take Cycles' bump
+            # shadowing term as its light samples do (engine/normalmap.py).
+            tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         for depth in range(ctx.settings.max_depth + 1):
             if len(idx) == 0:

@@ -1,12 +1,15 @@
-"""Shading-normal perturbation from textures: Cycles' Normal Map and Bump nodes.
+"""Shading-normal perturbation from textures: Cycles' Normal Map and Bump nodes, and the
+bump shadowing term Cycles applies to closures whose normal they bent.
 
 A `NormalMap` turns a texture's colour c (read as stored, normally Non-Color) into a
 direction 2c - 1 and that into the shading normal:
-  TANGENT  n' = normalize(x T + y B + z N): N the interpolated shading normal, T the
-           UV tangent dP/du made orthogonal to N, B = sign cross(N, T) with sign the
-           orientation of the triangle's UV map (Blender's MikkTSpace convention);
-  WORLD    n' = normalize(2c - 1) (world-space directions).
-Strength s != 1 blends: n'' = normalize(N + s (n' - N)) (Cycles svm_node_normal_map).
+  TANGENT  n' = normalize(x T + y B + z N) (Cycles svm_node_normal_map): N the smooth
+           normal and T Blender's MikkTSpace tangent, both interpolated and not
+           normalised, B = sign cross(N, T) with sign the UV map's orientation; without
+           exported tangents T is the triangle's UV tangent dP/du made orthogonal to N.
+           Strength s scales x and y and blends z from 1: (s x, s y, 1 + (z - 1) min(s, 1));
+  WORLD    n' = normalize(2c - 1) (world-space directions); strength s != 1 blends the
+           normals: n'' = normalize(N + s (n' - N)).
 A `Bump` takes a height h (any engine.textures / engine.shadernodes node; colours read as
 their luminance) and tilts the normal against h's gradient along the surface:
   n' = normalize(N - distance grad_s h),   n'' = normalize(s n' + (1 - s) N)
@@ -14,19 +17,73 @@ their luminance) and tilts the normal against h's gradient along the surface:
 of dP/dx, dP/dy are, for small filter widths, this surface gradient). The gradient is taken
 by central differences of h in the triangle's barycentric coordinates, mapped to the
 surface through the dual basis of the triangle's edges, so any height node works.
-Tangents are Blender's MikkTSpace tangents where the mesh carries them (the add-on exports
-them per corner as the coordinates 'tangent' / 'tangent_sign' for meshes whose materials
-use a tangent-space map), else per triangle from its UVs (exact on flat, affinely mapped
-faces; MikkTSpace smooths them across shared vertices, a difference on curved low-poly
-meshes).
+`bump_shadowing_term` is Cycles 5.0's factor on such closures (docs/textures.md, "Bump
+shadowing"): engine/directlight.py applies it per light sample, engine/integrator.py to
+gather rays and engine/photons.py to the photons' diffuse storage and bounce.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from .jit import kernel
 from .sampling import dot, normalize
 
 SPACES = ("TANGENT", "WORLD")
+
+
+@kernel
+def bump_shadowing_term(m0, m1, m2, n0, n1, n2, i0, i1, i2, diffuse):
+    """Cycles' bump shadowing term for one closure and one light direction: the factor
+    (0..1) on the BSDF value of a closure whose normal n was bent by a Normal Map / Bump
+    node away from the smooth (interpolated, pre-bump) normal m, for the unit direction
+    i towards the light. Blender 5.0, intern/cycles/kernel/closure/bsdf.h,
+    bump_shadowing_term() with is_eval (light samples; the diffuse lobe's own sampled
+    directions take the same value):
+      0 where i and n lie on different sides of the smooth surface (light leaking to the
+        rear of opaque geometry), for every closure;
+      for diffuse closures, the GGX shadowing G1 (Heitz 2014, eq. 72) of the smooth normal
+        with alpha^2 = clamp(tan^2(theta_d) / 8, 0, 1), theta_d the angle between m and n
+        (Conty Estevez, Lecocq and Stein 2019, "A Microfacet-Based Shadowing Function to
+        Solve the Bump Terminator Problem", Ray Tracing Gems ch. 12).
+    1 where n equals m (no bump)."""
+    if m0 == n0 and m1 == n1 and m2 == n2:
+        return 1.0
+    cos_mi = m0 * i0 + m1 * i1 + m2 * i2
+    cos_mn = m0 * n0 + m1 * n1 + m2 * n2
+    cos_ni = n0 * i0 + n1 * i1 + n2 * i2
+    if cos_mi * cos_mn * cos_ni < 0.0:
+        return 0.0
+    if not diffuse:
+        return 1.0
+    cos_i = abs(cos_mi)
+    cos_d = abs(cos_mn)
+    if cos_d >= 1.0 or cos_i >= 1.0:
+        return 1.0
+    if cos_i < 1e-6:
+        return 0.0
+    alpha2 = min(max(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0), 1.0)
+    lam = 0.5 * (math.sqrt(1.0 + alpha2 * max(1.0 / (cos_i * cos_i) - 1.0, 0.0)) - 1.0)
+    return 1.0 / (1.0 + lam)
+
+
+@kernel
+def _bump_shadowing_rows(m, n, wi, diffuse, out):
+    for k in range(m.shape[0]):
+        out[k] = bump_shadowing_term(m[k, 0], m[k, 1], m[k, 2], n[k, 0], n[k, 1], n[k, 2],
+                                     wi[k, 0], wi[k, 1], wi[k, 2], diffuse)
+
+
+def bump_shadowing(n_smooth, ns, wi, diffuse: bool = True) -> np.ndarray:
+    """(N,) bump_shadowing_term row by row: n_smooth (N,3) the hits' smooth normals before
+    Normal Map / Bump nodes, ns (N,3) their shading normals, wi (N,3) unit directions
+    towards the light (a photon's reversed direction, a gather ray's direction)."""
+    c = np.ascontiguousarray
+    out = np.empty(len(ns))
+    _bump_shadowing_rows(c(n_smooth, np.float64), c(ns, np.float64), c(wi, np.float64),
+                         bool(diffuse), out)
+    return out
 
 
 class NormalMapError(ValueError):
@@ -57,31 +114,52 @@ class NormalMap:
         unperturbed unit shading normals n (N,3), both on the winding-order side."""
         c = 2.0 * self.texture.evaluate(geo, prim, u, v) - 1.0
         if self.space == "WORLD":
-            mapped = c
+            out = normalize(c)
+            if self.strength != 1.0:
+                out = normalize(n + (out - n) * self.strength)
         else:
+            # Strength in tangent space, as Cycles' svm_node_normal_map: x and y scaled,
+            # z blended towards 1 (a linear blend of the normals tilts differently).
+            s = self.strength
+            c = np.column_stack([c[:, 0] * s, c[:, 1] * s,
+                                 1.0 + (c[:, 2] - 1.0) * min(s, 1.0)])
             t, sign = geo.uv_tangents(prim)
             t = t - n * dot(n, t)[:, None]
             tl = np.linalg.norm(t, axis=1)
             ok = tl > 1e-12  # no usable UVs: keep the normal (Cycles reads a zero tangent)
             t = t / np.maximum(tl, 1e-300)[:, None]
+            nz = n
             mikk = (geo.corner_coordinates or {}).get("tangent") is not None
             if mikk:
-                # Blender's MikkTSpace tangents (exported per corner), interpolated and
-                # used as Cycles' svm_node_normal_map does: not re-orthogonalised.
+                # Blender's MikkTSpace tangents (exported per corner) and the smooth
+                # normal, both interpolated and NOT normalised, as Cycles'
+                # svm_node_normal_map uses them: on a curved low-poly mesh both are
+                # shorter than 1 inside a face, which changes the mapped direction.
                 tm = geo.coordinates("tangent", prim, u, v)
                 sm = geo.coordinates("tangent_sign", prim, u, v)[:, 0]
                 has = np.linalg.norm(tm, axis=1) > 1e-12  # meshes without them: per triangle
                 t = np.where(has[:, None], tm, t)
                 sign = np.where(has, np.where(sm < 0, -1.0, 1.0), sign)
                 ok = ok | has
-            b = sign[:, None] * np.cross(n, t)
-            mapped = np.where(ok[:, None], c[:, 0:1] * t + c[:, 1:2] * b + c[:, 2:3] * n, n)
-        out = normalize(mapped)
-        if self.strength != 1.0:
-            out = normalize(n + (out - n) * self.strength)
+                if len(geo.corner_normals):
+                    nu = _interpolated_normals(geo, prim, u, v)
+                    # The unnormalised normal points along n (n is it normalised, or the
+                    # geometric normal where it degenerates): keep n's length-free side.
+                    nz = np.where((has & (dot(nu, n) > 0))[:, None], nu, n)
+            b = sign[:, None] * np.cross(nz, t)
+            mapped = np.where(ok[:, None], c[:, 0:1] * t + c[:, 1:2] * b + c[:, 2:3] * nz, n)
+            out = normalize(mapped)
         bad = ~np.isfinite(out).all(axis=1) | (np.linalg.norm(out, axis=1) < 0.5)
         out[bad] = n[bad]
         return out
+
+
+def _interpolated_normals(geo, prim, u, v) -> np.ndarray:
+    """(N,3) the corners' shading normals interpolated at the hits, not normalised
+    (Cycles' triangle_smooth_normal_unnormalized; flat faces: their geometric normal)."""
+    cn = np.take(geo.corner_normals, prim, axis=0).astype(np.float64)
+    w = (1.0 - u - v)[:, None]
+    return w * cn[:, 0] + u[:, None] * cn[:, 1] + v[:, None] * cn[:, 2]
 
 
 class Bump:

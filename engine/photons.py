@@ -24,6 +24,7 @@ import numpy as np
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
 from .bsdf import GLASS_R, GLASS_T, LOBE_NAMES, lobe_weights, sample_specular, surface_hit
+from .normalmap import bump_shadowing
 from .sampling import cosine_hemisphere, dot, max3, to_world
 from .geometry import CAMERA
 from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class
@@ -179,6 +180,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                 if first_caster is not None:
                     carry += (first_caster[thru],)
         w = lobe_weights(table, hit)
+        # Bent normals (Normal Map / Bump): the diffuse lobe takes Cycles' bump shadowing
+        # term for the photon's arriving direction, stored and bounced alike.
+        bump = (None if hit.n_smooth is None
+                else bump_shadowing(hit.n_smooth, hit.ns, -d)[:, None])
         kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
                         np.where(had_specular, CAUSTIC, DIRECT))
         store = max3(w["diffuse"]) > 0
@@ -193,7 +198,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             store &= (kinds & diffuse_use) != 0
         if store.any():
             parts["position"].append(hit.p[store].astype(np.float32))
-            parts["power"].append(power[store].astype(np.float32))
+            parts["power"].append((power[store] if bump is None else
+                                   power[store] * bump[store]).astype(np.float32))
             parts["direction"].append(d[store].astype(np.float32))
             parts["normal"].append(hit.ng[store].astype(np.float32))
             parts["kind"].append(kind[store].astype(np.uint8))
@@ -230,6 +236,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                           sub.ns[diff])
             new_d[diff] = nd
             ok[diff] = dot(nd, sub.ng[diff]) > 0
+            if bump is not None:
+                new_power[diff] *= bump[idx[diff]]
         spec = ~diff
         if spec.any():
             spec_rows = np.nonzero(spec)[0]

@@ -121,10 +121,11 @@ class Material:
         if np.any(self.base_color < 0):
             raise SceneError(f"{who} base_color: must be >= 0, got {self.base_color.tolist()}")
         if np.any(self.base_color > 1):
-            # Albedo above 1 creates energy; clamp like Cycles' BSDF closures do.
+            # Kept, as Cycles keeps it (its diffuse closure takes max(colour, 0); the metal
+            # and glass lobes clip to 1 themselves, closures/principled.py).
             self.warnings.append(f"{who}: base colour {self.base_color.round(3).tolist()} "
-                                 "above 1 clamped to 1 (it would create energy)")
-            self.base_color = np.minimum(self.base_color, 1.0)
+                                 "above 1 reflects more light than it receives (as in "
+                                 "Cycles)")
         for attr in ("metallic", "roughness", "transmission", "specular", "alpha",
                      "coat_roughness", "sheen_roughness"):
             v = _finite(getattr(self, attr), f"{who} {attr}")

@@ -258,5 +258,6 @@ def as_texture(tex, name: str = "image"):
     settings); None stays None."""
     if tex is None or hasattr(tex, "evaluate"):
         return tex
+    # Negative texels clipped; values above 1 kept (HDR colours), as Cycles reads them.
     return ImageTexture(np.clip(np.nan_to_num(np.asarray(tex, np.float32), nan=0.0,
-                                              posinf=1.0, neginf=0.0), 0.0, 1.0), name=name)
+                                              posinf=1.0, neginf=0.0), 0.0, None), name=name)

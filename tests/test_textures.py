@@ -196,6 +196,17 @@ def test_tangent_space_normal_map_tilts_along_the_uv_axes():
     np.testing.assert_allclose(flat, [[0, 0, 1]] * 2, atol=1e-9)
 
 
+def test_tangent_space_strength_scales_x_y_and_blends_z_as_cycles():
+    """svm_node_normal_map: x, y times the strength, z blended from 1 (not a blend of the
+    normals), then normalised."""
+    th = np.radians(30)
+    c = [0.5 + 0.5 * np.sin(th), 0.5, 0.5 + 0.5 * np.cos(th)]
+    for s in (0.5, 2.0):
+        m = np.array([s * np.sin(th), 0.0, 1.0 + (np.cos(th) - 1.0) * min(s, 1.0)])
+        np.testing.assert_allclose(_normal_mapped_quad(c, strength=s),
+                                   [m / np.linalg.norm(m)] * 2, atol=1e-6)
+
+
 def test_world_space_normal_map_and_bad_input():
     from engine.normalmap import NormalMap, NormalMapError
     n = np.array([0.0, 0.6, 0.8])

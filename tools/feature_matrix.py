@@ -630,10 +630,7 @@ def texture_color_attribute():
     _sun()
 
 
-# Cycles dims diffuse light on bumped / normal-mapped normals at grazing light (a bump
-# shadowing term, ~0.9 on this case's lit stripes); the engine does not yet (docs/textures.md):
-# the mean comes out ~4.5 % bright, so this case allows 8 %.
-@case("textures", mean_tol=0.08)
+@case("textures")
 def texture_normal_map():
     """Normal Map node (tangent space, Non-Color image) under a grazing sun from +x:
     stripes whose normals lean 35 degrees towards the sun or away from it, so every other
@@ -684,15 +681,13 @@ def texture_bump():
     _sun(rotation=(0, math.radians(70), 0))
 
 
-@case("textures", known_issue="issue 15: a strongly tilted tangent-space map on a curved "
-      "mesh shades differently from Cycles near the terminator (block error 2.8; with "
-      "per-triangle tangents 2.9, so not the tangents; a flat map matches at 0.10); "
-      "suspected: Cycles' bump shadowing term for diffuse closures with a bumped normal")
+@case("textures")
 def texture_normal_map_mikktspace():
     """Tangent-space Normal Map on a low-poly smooth UV sphere (12 x 6) under a side sun:
     every texel leans 35 degrees along the UV tangent, so the shading follows the
     tangents. Blender's MikkTSpace tangents are smooth across the faces; tangents per
-    triangle from its UVs would facet the sphere."""
+    triangle from its UVs would facet the sphere. Near the terminator the tilted normals
+    face a light below the smooth surface: Cycles' bump shadowing term refuses it."""
     import bmesh
     _stage(back=False)
     th = math.radians(35)
@@ -720,6 +715,31 @@ def texture_normal_map_mikktspace():
     me.shade_smooth()
     mb.add_object("LowPoly", me, m, (0.0, 0.0, 0.8))
     _sun(rotation=(0, math.radians(60), math.radians(30)))
+
+
+@case("textures")
+def texture_albedo_above_one():
+    """Colours above 1 into BSDF colours, which Cycles does not clip (its diffuse closures
+    take max(colour, 0)): a float image checker (1.8, 1.3, 0.6) / (0.9, 0.6, 1.4) into a
+    Principled BSDF's Base Color on the floor tile, and a cube whose Diffuse BSDF colour is
+    (1.4, 1.2, 0.9); the surfaces and the light they throw on the back wall come out
+    brighter than an albedo clipped to 1."""
+    _stage()
+    img = _checker(4, 1, 0.0, 1.0)
+    on = img[..., :1] > 0.5
+    img = np.where(on, np.array([1.8, 1.3, 0.6], np.float32),
+                   np.array([0.9, 0.6, 1.4], np.float32)).astype(np.float32)
+    m, nt, out = _nodes_material("hdr_tex")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = _image("hdr_checker", img)
+    tex.interpolation = "Closest"
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    hot = _shader("hot", "ShaderNodeBsdfDiffuse", Color=(1.4, 1.2, 0.9))
+    mb.box("Cube", 0.7, 0.7, 0.7, hot, (-0.9, 0.6, 0.36))
+    _sun()
 
 
 @case("textures")
