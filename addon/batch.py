@@ -321,16 +321,23 @@ def _teaching_image(bpy, scene, args, out) -> str:
             printer("stats", text)
             printer("progress", fraction)
 
+        # Blender's own SIGINT handler would swallow Ctrl-C: ours turns it into a cancel.
+        interrupt = CancelOnInterrupt(
+            "\ninterrupt: cancelling the render (Ctrl-C again to stop at once)")
         try:
-            tiles, rgb8 = operators.teaching_image(
-                kind, scene, bpy.context.evaluated_depsgraph_get(), args.preview_size,
-                "scene" if explicit else "preview", params, args.sweep_preset or "none",
-                progress, reference=args.reference or "")
+            with interrupt:
+                tiles, rgb8 = operators.teaching_image(
+                    kind, scene, bpy.context.evaluated_depsgraph_get(), args.preview_size,
+                    "scene" if explicit else "preview", params, args.sweep_preset or "none",
+                    progress, reference=args.reference or "",
+                    should_cancel=lambda: interrupt.requested)
         finally:
             printer.close()
     except KeyboardInterrupt:
         raise BatchInterrupted(f"interrupted; {_untouched(out)}") from None
     except Exception as exc:  # noqa: BLE001 - one line: ValueError, SceneError, ...
+        if type(exc).__name__ == "Cancelled":
+            raise BatchInterrupted(f"interrupted: render cancelled; {_untouched(out)}") from None
         raise BatchError(f"{exc}; {_untouched(out)}") from None
     image = operators.store_image(operators.IMAGE_NAMES[kind], rgb8)
     try:

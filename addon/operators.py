@@ -96,14 +96,14 @@ def _preview_size(render, long_side: int):
 def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
                    quality: str = "preview", params: dict | None = None,
                    sweep_preset: str = "none", progress=None, label_mask=None,
-                   reference: str = ""):
+                   reference: str = "", should_cancel=None):
     """Render the teaching series `kind` ("compare", "sweep", "strip") of the Blender
     scene at a preview size and compose it. params: {name: [values]} for a sweep
     (engine.teaching.SWEEP_PARAMS names); sweep_preset: "paper-ladder" or "none";
     reference: an image file the sweep's errors are measured against (else the last
-    tile).
+    tile); should_cancel() polled by the renders.
     Returns (tiles, rgb8 (H, W, 3) uint8). Raises ValueError (bad parameters, named),
-    SceneError, ResourceError."""
+    SceneError, ResourceError, engine.parallel.Cancelled (should_cancel() turned true)."""
     pm = load_engine()
     teaching = pm.teaching
     if kind not in IMAGE_NAMES:
@@ -129,18 +129,21 @@ def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
     pm_scene.validate()
     pm.resources.check_resources(pm_scene, settings, in_blender=True)
     if kind == "compare":
-        tiles = teaching.compare_methods(pm_scene, settings, progress)
+        tiles = teaching.compare_methods(pm_scene, settings, progress, should_cancel)
         columns = 4
     elif kind == "sweep":
         if not params:
             raise ValueError("Parameter Sweep: give values (e.g. 1000,10000,100000) or "
                              "choose a preset")
         ref = load_reference(reference) if reference else None
-        tiles = teaching.sweep(pm_scene, settings, params, ref, progress=progress)
+        tiles = teaching.sweep(pm_scene, settings, params, ref, progress=progress,
+                               should_cancel=should_cancel)
         columns = min(len(tiles), 4)
     else:
         t0 = time.perf_counter()
-        film = pm.render(pm_scene, settings, progress=progress)
+        film = pm.render(pm_scene, settings, progress=progress, should_cancel=should_cancel)
+        if film.stats.get("cancelled"):
+            raise pm.parallel.Cancelled()
         film.stats.setdefault("time_total", time.perf_counter() - t0)
         tiles = teaching.effects_strip(film)
         columns = len(tiles)

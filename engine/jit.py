@@ -92,18 +92,39 @@ def _engine_stamp() -> str:
     return h.hexdigest()[:16]
 
 
-def _prune(root: str, keep: str) -> None:
-    """Remove the cache folders of other engine versions (best effort)."""
+# Other versions' kernel caches are kept while they may still be used: several checkouts
+# (or an extension and a checkout) on one machine each have their own stamp, and deleting
+# every other folder made them recompile each other's kernels in turn (minutes each).
+KEEP_VERSIONS = 8      # at most this many cache folders (the most recently used)
+KEEP_DAYS = 14         # and none unused for longer
+
+
+def _prune(root: str, keep: str, now: float | None = None) -> list[str]:
+    """Remove other engine versions' cache folders (16 hex digits) unused for KEEP_DAYS
+    or beyond the KEEP_VERSIONS most recently used (a folder's modification time: each
+    process touches its own). Best effort; returns the folders removed."""
     import shutil
+    now = time.time() if now is None else now
     try:
         names = os.listdir(root)
     except OSError:
-        return
+        return []
+    others = []
     for name in names:
         path = os.path.join(root, name)
         if (name != keep and len(name) == 16 and os.path.isdir(path)
                 and all(c in "0123456789abcdef" for c in name)):
+            try:
+                others.append((os.path.getmtime(path), path))
+            except OSError:
+                continue
+    others.sort(reverse=True)  # most recently used first
+    removed = []
+    for rank, (mtime, path) in enumerate(others):
+        if rank >= KEEP_VERSIONS - 1 or now - mtime > KEEP_DAYS * 86400:
             shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
 
 
 CACHE_ROOT = _choose_cache_dir()
@@ -112,6 +133,10 @@ if os.path.basename(os.path.normpath(CACHE_ROOT)) == _STAMP:
     CACHE_ROOT = os.path.dirname(os.path.normpath(CACHE_ROOT))  # inherited from a parent
 CACHE_DIR = os.path.join(CACHE_ROOT, _STAMP)
 os.makedirs(CACHE_DIR, exist_ok=True)
+try:
+    os.utime(CACHE_DIR)  # "used now": _prune keeps the most recently used versions
+except OSError:
+    pass
 _prune(CACHE_ROOT, _STAMP)
 os.environ["NUMBA_CACHE_DIR"] = CACHE_DIR
 if "numba" in sys.modules:  # imported earlier (another add-on): make it see the folder

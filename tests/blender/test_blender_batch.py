@@ -108,3 +108,21 @@ def test_batch_checks_the_output_path_before_rendering(tmp_path):
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "not a folder" in lines[0], res.stderr
     assert "Read blend" not in res.stdout  # refused before the file was even opened
+
+
+def test_batch_compare_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path):
+    """Ctrl-C during a --compare series cancels it (Blender's SIGINT handler would
+    swallow the signal and let the series finish over the old file)."""
+    out = tmp_path / "cmp.png"
+    out.write_bytes(OLD)
+    with Watched([PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure6_box.blend"),
+                  "-o", str(out), "--compare", "--preview-size", "96", "--samples", "256"],
+                 cwd=ROOT) as w:
+        assert w.wait_for(r"Tracing|Rendering"), w.stderr[-2000:]
+        w.proc.send_signal(signal.SIGINT)
+        rc = w.finish()
+    err = w.stderr
+    assert rc == 130, err[-3000:]
+    assert out.read_bytes() == OLD
+    assert "interrupted" in err and "left as it was" in err, err[-2000:]
+    assert "Traceback" not in err
