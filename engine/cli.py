@@ -22,6 +22,8 @@ import numpy as np
 from .settings import ESTIMATORS, METHODS, RenderSettings
 from .teaching import SWEEP_PRESETS
 
+_DEFAULTS = RenderSettings()
+
 
 def _whole_number(text, least):
     try:
@@ -77,7 +79,8 @@ def _setting_options(r, method=True, sweeps=False):
                        help="quality preset (docs/accuracy_time.md has its measured time and "
                             "error); other options override it")
     r.add_argument("--photons", type=_nonnegative_int, help="global photons to emit")
-    r.add_argument("--caustic-photons", type=_nonnegative_int, help="caustic photons to emit")
+    r.add_argument("--caustic-photons", type=_nonnegative_int,
+                   help="caustic photons to emit (default: with --photons, half as many)")
     r.add_argument("--radius", type=_positive_float,
                    help="max photon search radius in scene units, metres (the paper's "
                         "MaxPhotonSearchRadius; default: auto from the photon spacing)")
@@ -242,6 +245,11 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
         v = getattr(args, name, None)
         if v is not None:
             overrides[name] = v
+    if args.photons is not None and args.caustic_photons is None \
+            and "caustic_photons" not in file_overrides:
+        # --photons alone scales the caustic photons too, in the defaults' ratio: a quick
+        # 5,000-photon render should not trace 200,000 caustic photons.
+        overrides["caustic_photons"] = args.photons * _DEFAULTS.caustic_photons // _DEFAULTS.photons
     if args.no_photon_mapping:
         overrides["photon_mapping"] = False
     for name in ("caustics", "indirect", "specular", "soft_shadows"):
@@ -368,9 +376,11 @@ def _render(args) -> int:
     if ext not in FORMATS:
         raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
                          f"(use {', '.join(FORMATS)})")
-    from .imageio import check_writable, say_created
-    check_writable(args.output, on_create=say_created)  # before the render, not after it
     scene, overrides = _scene_and_overrides(args)
+    from .imageio import check_writable, say_created
+    # After the scene file is read (a refused file leaves no new folder behind), before
+    # the render.
+    check_writable(args.output, on_create=say_created)
     if args.show_photons:
         overrides["show_photons"] = True
     settings = RenderSettings(**overrides)

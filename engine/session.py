@@ -168,7 +168,8 @@ class Session:
 
     def update_view(self, camera: Camera, width: int, height: int, region=None) -> None:
         """A new view (camera, image size, optional region): restarts the passes and
-        keeps the photon maps. Returns at once."""
+        keeps the photon maps. Returns at once. Raises ValueError (size < 1) and
+        RuntimeError (the session was stopped)."""
         if int(width) < 1 or int(height) < 1:
             raise ValueError(f"view size must be at least 1x1, got {width}x{height}")
         self._request(view=(camera, int(width), int(height), region))
@@ -176,7 +177,8 @@ class Session:
     def update_scene(self, scene: Scene, geometry: bool = True) -> None:
         """New scene content (the view stays): re-shoots photons. geometry=False promises
         the same meshes (triangles, visibility and material names) as before, so only
-        materials, lights and the world are rebuilt. Returns at once."""
+        materials, lights and the world are rebuilt. Returns at once. Raises RuntimeError
+        (the session was stopped)."""
         self._request(scene=_copy_scene(scene), geometry=bool(geometry))
 
     def stop(self) -> float:
@@ -217,6 +219,8 @@ class Session:
 
     def _request(self, scene=None, geometry=False, view=None):
         with self._cond:
+            if self._stopping:
+                raise RuntimeError("the render session is stopped: start a new Session")
             req = self._pending or _Request()
             if scene is not None:
                 req.scene = scene

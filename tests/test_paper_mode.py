@@ -254,3 +254,20 @@ def test_a_plastic_ball_is_called_glossy_not_mirror_or_glass():
     f = s.render(RenderSettings(spp=1, photons=2000, caustic_photons=1000))
     line = [x for x in f.stats["effects"] if x.startswith("specular reflection")][0]
     assert "glossy 'ball'" in line and "glass 'lens'" in line
+
+
+def test_cli_photons_alone_scales_the_caustic_photons():
+    """--photons without --caustic-photons keeps the defaults' ratio (a quick 5,000-photon
+    render traced 200,000 caustic photons); an explicit --caustic-photons wins."""
+    from engine.cli import _scene_and_overrides, build_parser
+    parser = build_parser()
+    base = ["render", "scenes/figure3.toml", "-o", "x.png"]
+    _, over = _scene_and_overrides(parser.parse_args(base + ["--photons", "5000"]))
+    d = RenderSettings()
+    assert over["photons"] == 5000
+    assert over["caustic_photons"] == 5000 * d.caustic_photons // d.photons
+    _, over = _scene_and_overrides(parser.parse_args(base + ["--photons", "5000",
+                                                             "--caustic-photons", "7"]))
+    assert over["caustic_photons"] == 7
+    _, over = _scene_and_overrides(parser.parse_args(base))
+    assert "caustic_photons" not in over or over["caustic_photons"] == d.caustic_photons

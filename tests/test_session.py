@@ -210,6 +210,11 @@ def test_bad_arguments_are_refused(box):
     session = Session(box, SETTINGS)
     with pytest.raises(ValueError, match="view size"):
         session.update_view(box.camera, 0, 10)
+    session.stop()  # a stopped session refuses updates instead of ignoring them
+    with pytest.raises(RuntimeError, match="stopped"):
+        session.update_view(box.camera, 10, 10)
+    with pytest.raises(RuntimeError, match="stopped"):
+        session.update_scene(box)
 
 
 def test_a_scene_that_failed_is_rebuilt_by_the_next_update(box):
