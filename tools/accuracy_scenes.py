@@ -399,7 +399,26 @@ def brightness(x, ref):
 
 
 def load_reference(name):
-    return np.load(os.path.join(REF_DIR, name + ".npy")).astype(np.float32)
+    """(H, W, 3) float32 Cycles reference of scene `name`: NAME.npy (tools/make_references.py)
+    or the image of NAME.npz (tools/make_principled_reference.py)."""
+    path = os.path.join(REF_DIR, name + ".npy")
+    if os.path.isfile(path):
+        return np.load(path).astype(np.float32)
+    with np.load(os.path.join(REF_DIR, name + ".npz")) as z:
+        return z["image"].astype(np.float32)
+
+
+def load_scene_meta(name):
+    """The reference's description: references.json's entry, else NAME.json ({} if none)."""
+    import json
+    meta = load_meta()
+    if name in meta:
+        return meta[name]
+    path = os.path.join(REF_DIR, name + ".json")
+    if not os.path.isfile(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)
 
 
 def load_meta():
