@@ -117,9 +117,12 @@ def main(argv=None):
     ap.add_argument("--ref-samples", type=int, default=4096)
     ap.add_argument("--quick", action="store_true", help="fewer rungs (a smoke run)")
     ap.add_argument("--scenes", help="comma-separated scenes of bench_accuracy_blends.py "
-                                     "(default: all)")
+                                     "to re-render (default: all; the others are "
+                                     "read from their docs/accuracy_time_<scene>.csv)")
     ap.add_argument("--no-scenes", action="store_true",
                     help="only the Figure 6 box (no Blender scenes)")
+    ap.add_argument("--fast", action="store_true",
+                    help="scenes: only Cycles' curve and our default render (the summary)")
     ap.add_argument("--no-figure6", action="store_true",
                     help="keep the Figure 6 box rows of docs/accuracy_time.csv (no re-render)")
     args = ap.parse_args(argv)
@@ -141,7 +144,7 @@ def main(argv=None):
     for name in B.SCENES:
         csv_path = os.path.join(DOCS, f"accuracy_time_{name}.csv")
         if name in rerun:
-            scene_rows = B.run(name, args.quick)
+            scene_rows = B.run(name, args.quick, args.fast)
         elif os.path.isfile(csv_path):
             scene_rows = read_rows(csv_path)  # as last measured
         else:
@@ -279,7 +282,7 @@ def print_summary(summary):
     print("\n".join(summary_lines(summary)), flush=True)
 
 
-def write_report(rows, ref_secs, args, suffix="", title=None, summary=None):
+def write_report(rows, ref_secs, args, suffix="", title=None, summary=None, extra=()):
     os.makedirs(DOCS, exist_ok=True)
     with open(os.path.join(DOCS, f"accuracy_time{suffix}.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -323,7 +326,7 @@ def write_report(rows, ref_secs, args, suffix="", title=None, summary=None):
     for r in rows:
         lines.append(f"| {r['kind']} | {r['setting']} | {r['seconds']:.1f} | {r['relmse']:.4f} | "
                      f"{r['flip']:.4f} | {r['brightness']:.3f} | {r['note']} |")
-    lines += ["", f"![error vs time](accuracy_time{suffix}.png)", ""]
+    lines += ["", f"![error vs time](accuracy_time{suffix}.png)", ""] + list(extra)
     if not suffix:
         lines += ["![Figure 6 ladder](figure6_ladder.png)", ""]
     with open(os.path.join(DOCS, f"accuracy_time{suffix}.md"), "w") as f:

@@ -408,6 +408,17 @@ def load_reference(name):
         return z["image"].astype(np.float32)
 
 
+def load_labels(name):
+    """(labels (H, W) uint8, object names) stored with scene `name`'s reference
+    (object_labels), or None when its reference has none."""
+    path = os.path.join(REF_DIR, name + ".npz")
+    meta = load_scene_meta(name)
+    if not os.path.isfile(path) or "objects" not in meta:
+        return None
+    with np.load(path) as z:
+        return z["labels"], meta["objects"]
+
+
 def load_scene_meta(name):
     """The reference's description: references.json's entry, else NAME.json ({} if none)."""
     import json
