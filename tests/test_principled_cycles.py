@@ -30,7 +30,14 @@ with open(REF + ".json") as f:
     META = json.load(f)
 
 # Objects measured outside the 2 % at default settings, with the measured cause.
-KNOWN_MISSES = {}
+KNOWN_MISSES = {
+    "Glass": ("measured 0.965 (2026-11-30): the whole deficit sits in the ball's 8 brightest "
+              "pixels, the area light seen by reflection and through the ball (sub-pixel "
+              "images: Cycles 6.53 summed, ours 4.99; the refracted ones at 0.57-0.73 of "
+              "Cycles); without those 8 pixels the ball is at 0.996. Camera paths that "
+              "reach the light only through smooth glass (L S S E), not a closure: the "
+              "Principled closures match Cycles within 2 % in tests/test_closures_cycles.py"),
+}
 
 
 @pytest.fixture(scope="module")
