@@ -273,7 +273,7 @@ def summary_lines(summary):
             f"{_flag(e['cycles_flip_at_our_time'], e['flip_extrapolated'], '.4f')} | "
             f"{_flag(e['cycles_time_at_our_flip'], e['time_extrapolated'], '.1f')} | "
             f"**{_flag(e['time_ratio'], e['time_extrapolated'], '.2f')}** | "
-            f"{s['best']['kind']} {s['best']['setting']}: "
+            f"{s['best']['kind']}: {s['best']['setting']}, "
             f"{_flag(b['time_ratio'], b['time_extrapolated'], '.2f')} |")
     return lines
 
@@ -307,8 +307,8 @@ def write_report(rows, ref_secs, args, suffix="", title=None, summary=None, extr
             "# Accuracy vs time against Cycles",
             "",
             f"Made by `.venv/bin/python bench/bench_accuracy.py` ({time.strftime('%Y-%m-%d')},"
-            f" {os.cpu_count()} cores; the machine was shared with other jobs, so times are "
-            "noisy but ours and Cycles' ran under the same load). Each scene: our render at "
+            f" {os.cpu_count()} cores; times are wall-clock, ours and Cycles' measured in turn "
+            "in one process, so a busy machine slows both alike). Each scene: our render at "
             "default settings placed on Cycles' own error-vs-time curve (Cycles at 4..1024 "
             "spp, log-log interpolation; ~ marks a value extrapolated beyond the curve's "
             "ends). *Cycles FLIP at that time*: Cycles' mean HDR-FLIP after our render time "
@@ -316,7 +316,9 @@ def write_report(rows, ref_secs, args, suffix="", title=None, summary=None, extr
             "Cycles needs to reach our FLIP divided by ours (> 1: we are faster). The "
             "reference column gives its samples and its own relMSE (its noise floor: the "
             "FLIP of a render much closer to it than that is not meaningful). Per-scene "
-            "tables and plots are linked.",
+            "tables and plots are linked."
+            + (" The Figure 6 box table below was kept from an earlier run (--no-figure6)."
+               if getattr(args, "no_figure6", False) else ""),
             "",
         ] + summary_lines(summary) + ["", ""] + ["#" + lines[0]] + lines[1:]
     lines += [
