@@ -80,6 +80,8 @@ def reference_noise(name):
     return abs(META["cycles_low_ratio"][name] - 1) * (q / (1 + q)) ** 0.5
 
 
+# One default render at 160x120: ~30 s on an idle 2-core machine (670 s at load 20), so slow.
+@pytest.mark.slow
 @pytest.mark.parametrize("name", META["objects"])
 def test_object_brightness_matches_cycles(ours, reference, name):
     image, labels = ours
