@@ -1,16 +1,22 @@
-"""Accuracy vs time: what each setting costs and what it buys.
+"""Accuracy vs time: what each setting costs and what it buys, against Cycles.
 
-Renders the paper's Figure 6 box (glass ball, 160x120) at a ladder of settings — the
-paper's Figure 6 ladder, the quality presets, and one progressive run — measures wall
-time, relMSE and mean HDR-FLIP against a converged Cycles reference, renders Cycles
-itself at 16..1024 samples for its curve on the same axes, and writes:
+Renders the paper's Figure 6 box (glass ball, 160x120, engine API) at a ladder of settings
+— the defaults, the paper's Figure 6 ladder, the quality presets, and one progressive run —
+measures wall time, relMSE and mean HDR-FLIP against a converged Cycles reference, renders
+Cycles itself at 4..1024 samples for its curve on the same axes; then does the same for
+every scene of bench/bench_accuracy_blends.py through the add-on (the example blends, the
+Figure 7 mirror-floor room, issue 14's Principled spheres) and writes:
 
-    docs/accuracy_time.md     table (also .csv)
+    docs/accuracy_time.md     summary per scene (our default render against Cycles' curve:
+                              Cycles' FLIP at our time, Cycles' time at our FLIP / ours),
+                              then the Figure 6 box table (also .csv)
     docs/accuracy_time.png    error vs time, log-log, one panel per metric
+    docs/accuracy_time_<scene>.md/.csv/.png   per scene (bench_accuracy_blends.py)
     docs/figure6_ladder.png   image strip like the paper's Figure 6
     engine/presets_measured.json   the numbers behind the preset labels
 
     .venv/bin/python bench/bench_accuracy.py [--quick] [--ref-samples 4096]
+                                             [--scenes figure7_mirror,...] [--no-scenes]
 """
 from __future__ import annotations
 
@@ -55,6 +61,39 @@ def score(ref, kind, label, img, secs, note="", prefix=""):
     return row
 
 
+def _loglog(x, xs, ys):
+    """y at x on the piecewise-linear log-log curve through (xs, ys), extended past its
+    ends by the end segments' slopes; (y, extrapolated)."""
+    lx, lxs, lys = np.log(x), np.log(xs), np.log(ys)
+    order = np.argsort(lxs)
+    lxs, lys = lxs[order], lys[order]
+    if lxs[0] <= lx <= lxs[-1]:
+        return float(np.exp(np.interp(lx, lxs, lys))), False
+    i = 0 if lx < lxs[0] else len(lxs) - 2
+    slope = (lys[i + 1] - lys[i]) / (lxs[i + 1] - lxs[i])
+    return float(np.exp(lys[i] + slope * (lx - lxs[i]))), True
+
+
+def equal_error(rows, ours):
+    """Ours against Cycles' own curve (the 'cycles' rows, time vs FLIP, log-log):
+    Cycles' FLIP at our time, and the time Cycles needs to reach our FLIP divided by ours
+    (> 1: we get there faster). Values from beyond Cycles' measured range are extrapolated
+    along its end segment and flagged. FLIP falls slower than 1/sqrt(time) once the
+    reference's own noise shows, so Cycles' time for a FLIP below its last rung is a
+    rough estimate."""
+    cyc = [r for r in rows if r["kind"] == "cycles"]
+    ts = np.array([r["seconds"] for r in cyc], float)
+    fs = np.array([r["flip"] for r in cyc], float)
+    flip_at_our_time, ext_f = _loglog(ours["seconds"], ts, fs)
+    # time as a function of FLIP along the curve (FLIP falls as time grows)
+    order = np.argsort(ts)
+    keep = fs[order] <= np.minimum.accumulate(fs[order])  # the monotone part of the curve
+    t_needed, ext_t = _loglog(ours["flip"], fs[order][keep], ts[order][keep])
+    return dict(cycles_flip_at_our_time=flip_at_our_time, flip_extrapolated=ext_f,
+                cycles_time_at_our_flip=t_needed, time_extrapolated=ext_t,
+                time_ratio=t_needed / ours["seconds"])
+
+
 def reference(scene, samples):
     os.makedirs(CACHE, exist_ok=True)
     path = os.path.join(CACHE, f"figure6_{scene.width}x{scene.height}_{samples}.npy")
@@ -77,7 +116,64 @@ def main(argv=None):
     ap.add_argument("--height", type=int, default=120)
     ap.add_argument("--ref-samples", type=int, default=4096)
     ap.add_argument("--quick", action="store_true", help="fewer rungs (a smoke run)")
+    ap.add_argument("--scenes", help="comma-separated scenes of bench_accuracy_blends.py "
+                                     "to re-render (default: all; the others are "
+                                     "read from their docs/accuracy_time_<scene>.csv)")
+    ap.add_argument("--no-scenes", action="store_true",
+                    help="only the Figure 6 box (no Blender scenes)")
+    ap.add_argument("--fast", action="store_true",
+                    help="scenes: only Cycles' curve and our default render (the summary)")
+    ap.add_argument("--no-figure6", action="store_true",
+                    help="keep the Figure 6 box rows of docs/accuracy_time.csv (no re-render)")
     args = ap.parse_args(argv)
+    if args.no_figure6:
+        rows, ref_secs = read_rows(os.path.join(DOCS, "accuracy_time.csv")), None
+        with open(os.path.join(DOCS, "accuracy_time.md")) as f:
+            import re
+            m = re.search(r"Reference: Cycles \d+ spp \((\d+) s\)", f.read())
+            ref_secs = float(m.group(1)) if m else float("nan")
+    else:
+        rows, ref_secs = figure6(args)
+    summary = []
+    if any(r["kind"] == "default" for r in rows):
+        summary.append(summarize("figure6_box (engine API, 160x120)", rows,
+                                 f"{args.ref_samples} spp"))
+    import bench_accuracy_blends as B
+    rerun = set() if args.no_scenes else set(args.scenes.split(",") if args.scenes
+                                             else B.SCENES)
+    for name in B.SCENES:
+        csv_path = os.path.join(DOCS, f"accuracy_time_{name}.csv")
+        if name in rerun:
+            scene_rows = B.run(name, args.quick, args.fast)
+        elif os.path.isfile(csv_path):
+            scene_rows = read_rows(csv_path)  # as last measured
+        else:
+            continue
+        if not any(r["kind"] == "default" for r in scene_rows):
+            continue  # measured before the default row existed
+        meta = B.A.load_scene_meta(name)
+        w, h = B.A.SIZES.get(name, (B.A.WIDTH, B.A.HEIGHT))
+        summary.append(summarize(f"[{name}](accuracy_time_{name}.md) ({w}x{h})",
+                                 scene_rows, reference_text(meta)))
+    print_summary(summary)
+    write_report(rows, ref_secs, args, summary=summary)
+    write_plot(rows, args)
+    return rows
+
+
+def read_rows(path):
+    """Rows of a table written by write_report (its .csv), numbers as numbers."""
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        for key in ("seconds", "relmse", "flip", "brightness"):
+            r[key] = float(r[key])
+    return rows
+
+
+def figure6(args):
+    """The Figure 6 box (engine API) ladder; writes its strip and the presets' measured
+    numbers; returns (rows, reference seconds)."""
     scene = cornell_box(args.width, args.height)
     ref, ref_secs = reference(scene, args.ref_samples)
     rows, strip = [], []
@@ -88,9 +184,13 @@ def main(argv=None):
     # Cycles curve on the same scene.
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import cycles_scene
-    for spp in ([16, 64] if args.quick else [16, 64, 256, 1024]):
+    for spp in ([4, 16, 64] if args.quick else [4, 16, 64, 256, 1024]):
         img, secs = cycles_scene.render(scene, spp, seed=1)
         measure("cycles", f"{spp} spp", img, secs)
+
+    t0 = time.perf_counter()
+    film = render(scene, RenderSettings())
+    measure("default", "default settings", film.combined, time.perf_counter() - t0)
 
     # The paper's ladder: fixed radius, paper estimator, no final gather (Fig. 6).
     for photons, r in (PAPER_LADDER[:2] if args.quick else PAPER_LADDER):
@@ -125,16 +225,64 @@ def main(argv=None):
     render_progressive(scene, RenderSettings(spp=8, photons=100_000, caustic_photons=50_000),
                        Budget(passes=4 if args.quick else 16), on_pass=on_pass)
 
-    write_report(rows, ref_secs, args)
-    write_plot(rows, args)
     write_strip(strip, ref)
     if not args.quick:
         with open(MEASURED_FILE, "w") as f:
             json.dump(measured, f, indent=1)
-    return rows
+    return rows, ref_secs
 
 
-def write_report(rows, ref_secs, args, suffix="", title=None):
+def reference_text(meta):
+    """'N spp, relMSE floor x': the reference's samples and its own relMSE, estimated from
+    a render at n spp (another seed) scored against it: relMSE_n ~ v (1/n + 1/N), so the
+    reference's own is relMSE_n q / (1 + q), q = n / N."""
+    n, big = meta.get("cycles_low_samples"), meta.get("cycles_samples")
+    if not n or not big or "cycles_low_relmse" not in meta:
+        return f"{big or '?'} spp"
+    q = n / big
+    return f"{big} spp, own relMSE ~{meta['cycles_low_relmse'] * q / (1 + q):.4f}"
+
+
+def summarize(scene, rows, ref_text):
+    """One summary row: our default render and our best row against Cycles' curve."""
+    default = next(r for r in rows if r["kind"] == "default")
+    ours = [r for r in rows if r["kind"] != "cycles"]
+    best = max(ours, key=lambda r: equal_error(rows, r)["time_ratio"])
+    return dict(scene=scene, reference=ref_text, default=default,
+                default_eq=equal_error(rows, default), best=best,
+                best_eq=equal_error(rows, best))
+
+
+def _flag(value, extrapolated, fmt):
+    return ("~" if extrapolated else "") + format(value, fmt)
+
+
+SUMMARY_HEADER = [
+    "| scene | reference | ours default: s / FLIP | Cycles FLIP at that time | Cycles s at "
+    "our FLIP | equal-FLIP time ratio | best of our settings: ratio |",
+    "|---|---|---:|---:|---:|---:|---|",
+]
+
+
+def summary_lines(summary):
+    lines = list(SUMMARY_HEADER)
+    for s in summary:
+        d, e, b = s["default"], s["default_eq"], s["best_eq"]
+        lines.append(
+            f"| {s['scene']} | {s['reference']} | {d['seconds']:.1f} / {d['flip']:.4f} | "
+            f"{_flag(e['cycles_flip_at_our_time'], e['flip_extrapolated'], '.4f')} | "
+            f"{_flag(e['cycles_time_at_our_flip'], e['time_extrapolated'], '.1f')} | "
+            f"**{_flag(e['time_ratio'], e['time_extrapolated'], '.2f')}** | "
+            f"{s['best']['kind']}: {s['best']['setting']}, "
+            f"{_flag(b['time_ratio'], b['time_extrapolated'], '.2f')} |")
+    return lines
+
+
+def print_summary(summary):
+    print("\n".join(summary_lines(summary)), flush=True)
+
+
+def write_report(rows, ref_secs, args, suffix="", title=None, summary=None, extra=()):
     os.makedirs(DOCS, exist_ok=True)
     with open(os.path.join(DOCS, f"accuracy_time{suffix}.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -153,13 +301,34 @@ def write_report(rows, ref_secs, args, suffix="", title=None):
         "",
         f"Regenerate: `.venv/bin/python {command}`.",
         "",
+    ]
+    if summary:
+        lines = [
+            "# Accuracy vs time against Cycles",
+            "",
+            f"Made by `.venv/bin/python bench/bench_accuracy.py` ({time.strftime('%Y-%m-%d')},"
+            f" {os.cpu_count()} cores; times are wall-clock, ours and Cycles' measured in turn "
+            "in one process, so a busy machine slows both alike). Each scene: our render at "
+            "default settings placed on Cycles' own error-vs-time curve (Cycles at 4..1024 "
+            "spp, log-log interpolation; ~ marks a value extrapolated beyond the curve's "
+            "ends). *Cycles FLIP at that time*: Cycles' mean HDR-FLIP after our render time "
+            "(ours is better when our FLIP is lower). *Equal-FLIP time ratio*: the time "
+            "Cycles needs to reach our FLIP divided by ours (> 1: we are faster). The "
+            "reference column gives its samples and its own relMSE (its noise floor: the "
+            "FLIP of a render much closer to it than that is not meaningful). Per-scene "
+            "tables and plots are linked."
+            + (" The Figure 6 box table below was kept from an earlier run (--no-figure6)."
+               if getattr(args, "no_figure6", False) else ""),
+            "",
+        ] + summary_lines(summary) + ["", ""] + ["#" + lines[0]] + lines[1:]
+    lines += [
         "| renderer | setting | seconds | relMSE | FLIP | brightness | note |",
         "|---|---|---:|---:|---:|---:|---|",
     ]
     for r in rows:
         lines.append(f"| {r['kind']} | {r['setting']} | {r['seconds']:.1f} | {r['relmse']:.4f} | "
                      f"{r['flip']:.4f} | {r['brightness']:.3f} | {r['note']} |")
-    lines += ["", f"![error vs time](accuracy_time{suffix}.png)", ""]
+    lines += ["", f"![error vs time](accuracy_time{suffix}.png)", ""] + list(extra)
     if not suffix:
         lines += ["![Figure 6 ladder](figure6_ladder.png)", ""]
     with open(os.path.join(DOCS, f"accuracy_time{suffix}.md"), "w") as f:
@@ -171,7 +340,8 @@ def write_plot(rows, args, suffix="", title=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    styles = {"cycles": "o-", "paper": "s--", "preset": "D-", "progressive": "^-"}
+    styles = {"cycles": "o-", "default": "*", "paper": "s--", "preset": "D-",
+              "progressive": "^-"}
     for ax, metric in zip(axes, ("relmse", "flip")):
         for kind, style in styles.items():
             pts = [(r["seconds"], r[metric]) for r in rows if r["kind"] == kind]

@@ -1,10 +1,13 @@
 """Accuracy vs time on the example blends, through the add-on.
 
-The same ladder as bench_accuracy.py (the paper's Figure 6 ladder, the quality presets,
-progressive passes, Cycles at 16..1024 samples) for each example .blend, rendered through
-the Blender add-on at the stored references' resolution (96x72) and scored against the
-stored Cycles references (tests/references/, `make references`). Writes, per blend,
-docs/accuracy_time_<blend>.md / .csv / .png.
+The same ladder as bench_accuracy.py (the default settings, the paper's Figure 6 ladder, the
+quality presets, progressive passes, Cycles at 4..1024 samples) for each scene of
+tools/accuracy_scenes.py listed in SCENES (the four example blends, the Figure 7 mirror-floor
+variant and issue 14's Principled spheres), rendered through the Blender add-on at the
+stored references' resolution and scored against the stored Cycles references
+(tests/references/: tools/make_references.py, tools/make_principled_reference.py). Writes,
+per scene, docs/accuracy_time_<scene>.md / .csv / .png. bench/bench_accuracy.py runs it
+too and puts the equal-time / equal-FLIP summary of every scene in docs/accuracy_time.md.
 
     .venv/bin/python bench/bench_accuracy_blends.py [--only figure6_box,figure3_sphere]
 """
@@ -20,23 +23,40 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import accuracy_scenes as A  # noqa: E402  (needs the bpy wheel)
-from bench_accuracy import PAPER_LADDER, PAPER_SCALE, score, write_plot, write_report  # noqa: E402
+from bench_accuracy import (PAPER_LADDER, PAPER_SCALE, score, write_plot,  # noqa: E402
+                            write_report)
 from engine.presets import PRESETS  # noqa: E402
 
-BLENDS = ("figure3_sphere", "figure6_box", "figure7_blocker", "figure8_caustic")
+SCENES = ("figure3_sphere", "figure6_box", "figure7_blocker", "figure8_caustic",
+          "figure7_mirror", "principled_spheres")
+TITLES = {"figure7_mirror": "Figure 7 room, perfect mirror floor, small point light "
+                            "(scenes/figure7_mirror.toml)",
+          "principled_spheres": "issue 14's Principled spheres (tools/accuracy_scenes.py)"}
+BLENDS = SCENES  # the name older scripts import
 
 
-def run(name, quick=False):
+def title(name):
+    return TITLES.get(name, f"{name}.blend")
+
+
+def run(name, quick=False, fast=False):
+    """Measure scene `name`; returns its rows (bench_accuracy.score) and writes its page.
+    fast: only Cycles' curve and our default render (what the summary needs)."""
     ref = A.load_reference(name)
-    meta = A.load_meta().get(name, {})
+    meta = A.load_scene_meta(name)
     rows = []
 
     def measure(kind, label, img, secs, note=""):
         rows.append(score(ref, kind, label, img, secs, note, prefix=f"{name:16s} "))
 
-    for spp in ([16, 64] if quick else [16, 64, 256, 1024]):
+    for spp in ([4, 16, 64] if quick else [4, 16, 64, 256, 1024]):
         img, secs = A.render_cycles(name, spp, seed=1)
         measure("cycles", f"{spp} spp", img, secs)
+    img, secs = A.render_ours(name)
+    measure("default", "default settings", img, secs)
+    extra = object_table(name, img, ref)
+    if fast:
+        return _write(name, rows, meta, extra)
     for photons, r in (PAPER_LADDER[:2] if quick else PAPER_LADDER):
         img, secs = A.render_ours(name, photons=photons, caustic_photons=photons // 2,
                                   use_auto_radius=False, radius=r * PAPER_SCALE,
@@ -52,21 +72,49 @@ def run(name, quick=False):
         img, secs = A.render_ours(name, progressive=True, max_passes=passes, spp=8,
                                   photons=100_000, caustic_photons=50_000)
         measure("progressive", f"{passes} passes of 8 spp", img, secs)
-    args = argparse.Namespace(width=A.WIDTH, height=A.HEIGHT,
+    return _write(name, rows, meta, extra)
+
+
+def object_table(name, img, ref):
+    """Markdown lines: per-object brightness of our default render against the reference
+    (scenes whose reference stores object labels), else []."""
+    stored = A.load_labels(name)
+    if stored is None:
+        return []
+    labels, names = stored
+    ours, want = A.object_means(img, labels, names), A.object_means(ref, labels, names)
+    lines = ["## Brightness per object (default settings)", "",
+             "Mean over the pixels each object covers fully (Cycles' object labels, stored "
+             "with the reference), ours / Cycles; tests/test_principled_cycles.py asks for "
+             "2 %.", "", "| object | pixels | ours / Cycles | R, G, B |", "|---|---:|---:|---|"]
+    for i, n in enumerate(names):
+        g, w = ours[n], want[n]
+        lines.append(f"| {n} | {int((labels == i + 1).sum())} | {g.mean() / w.mean():.4f} | "
+                     + ", ".join(f"{c:.3f}" for c in g / w) + " |")
+        print(f"{name:16s} {n:10s} ours/Cycles {g.mean() / w.mean():.4f}", flush=True)
+    return lines + [""]
+
+
+def _write(name, rows, meta, extra=()):
+    width, height = A.SIZES.get(name, (A.WIDTH, A.HEIGHT))
+    args = argparse.Namespace(width=width, height=height,
                               ref_samples=meta.get("cycles_samples", "?"))
     suffix = f"_{name}"
     write_report(rows, meta.get("cycles_time_s", float("nan")), args, suffix=suffix,
-                 title=f"{name}.blend")
-    write_plot(rows, args, suffix=suffix, title=f"{name}.blend")
+                 title=title(name), extra=extra)
+    write_plot(rows, args, suffix=suffix, title=title(name))
+    return rows
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", help="comma-separated blend names")
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--fast", action="store_true",
+                    help="only Cycles' curve and our default render")
     args = ap.parse_args(argv)
-    for name in (args.only.split(",") if args.only else BLENDS):
-        run(name, args.quick)
+    for name in (args.only.split(",") if args.only else SCENES):
+        run(name, args.quick, args.fast)
 
 
 if __name__ == "__main__":

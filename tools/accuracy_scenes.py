@@ -160,6 +160,63 @@ def _figure7_mirror():
     mb.camera((0, -7.6, 2.0), (0, 0, 1.8), 38.0)
 
 
+# The Principled row (issue 14): name, Principled BSDF inputs. Dielectrics from smooth to
+# fully rough, clear glass, two metals, a clear-coated and a sheen ball.
+PRINCIPLED_BALLS = (
+    ("Smooth", dict(base_color=(0.8, 0.15, 0.1), roughness=0.0)),
+    ("Glossy", dict(base_color=(0.8, 0.5, 0.1), roughness=0.25)),
+    ("Satin", dict(base_color=(0.2, 0.6, 0.2), roughness=0.5)),
+    ("Rough", dict(base_color=(0.1, 0.4, 0.8), roughness=1.0)),
+    ("Glass", dict(base_color=(1.0, 1.0, 1.0), roughness=0.0, transmission_weight=1.0,
+                   ior=1.5)),
+    ("Gold", dict(base_color=(0.95, 0.7, 0.3), roughness=0.2, metallic=1.0)),
+    ("Steel", dict(base_color=(0.6, 0.6, 0.62), roughness=0.5, metallic=1.0)),
+    ("Coated", dict(base_color=(0.6, 0.05, 0.1), roughness=0.6, coat_weight=1.0,
+                    coat_roughness=0.05)),
+    ("Sheen", dict(base_color=(0.1, 0.1, 0.35), roughness=0.7, sheen_weight=1.0,
+                   sheen_roughness=0.4, sheen_tint=(1.0, 0.9, 0.8))),
+)
+PRINCIPLED_INPUTS = {"base_color": "Base Color", "roughness": "Roughness",
+                     "metallic": "Metallic", "ior": "IOR",
+                     "transmission_weight": "Transmission Weight", "coat_weight": "Coat Weight",
+                     "coat_roughness": "Coat Roughness", "sheen_weight": "Sheen Weight",
+                     "sheen_roughness": "Sheen Roughness", "sheen_tint": "Sheen Tint"}
+
+
+def principled(name, **inputs):
+    """A material with one Principled BSDF node; `inputs` by PRINCIPLED_INPUTS key."""
+    m, nt, out = mb.empty_material(name)
+    n = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    for key, value in inputs.items():
+        if isinstance(value, tuple):
+            value = (*value, 1.0)
+        n.inputs[PRINCIPLED_INPUTS[key]].default_value = value
+    nt.links.new(n.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def _principled_spheres():
+    """Issue 14's scene as a new Blender user builds it: a row of Principled balls on a
+    rough Principled floor, one area light, a dim grey world (Blender's default 0.05)."""
+    mb.reset()
+    floor = principled("Floor", base_color=(0.5, 0.5, 0.5), roughness=0.8)
+    mb.plane("Floor", 30, 30, floor)
+    n = len(PRINCIPLED_BALLS)
+    for i, (name, inputs) in enumerate(PRINCIPLED_BALLS):
+        x = (i - (n - 1) / 2) * 1.15
+        mb.sphere(name, 0.5, principled(name, **inputs), (x, 0.0, 0.5), segments=48, rings=24)
+    mb.light("AreaLight", "AREA", (-2.0, -3.0, 5.0), 500.0, look_at=(0.0, 0.0, 0.5),
+             shape="SQUARE", size=2.0)
+    mb.camera((0.0, -9.0, 3.0), (0.0, 0.0, 0.4), 62.0)
+    world = bpy.data.worlds.new("World")
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.05, 0.05, 0.05, 1.0)
+    bg.inputs["Strength"].default_value = 1.0
+    bpy.context.scene.world = world
+
+
 SCENES = {
     "figure3_sphere": (_blend("figure3_sphere"), "specular"),
     "figure6_box": (_blend("figure6_box"), "specular"),
@@ -172,15 +229,23 @@ SCENES = {
     "mirror_glass": (_mirror_glass, "specular"),
     "caustic_soft_spot": (_caustic_soft_spot, "specular"),
     "figure7_mirror": (_figure7_mirror, "specular"),
+    "principled_spheres": (_principled_spheres, "specular"),
 }
+# Scenes rendered at another resolution than WIDTH x HEIGHT.
+SIZES = {"principled_spheres": (160, 120)}
 # Scenes whose Cycles reference needs more samples than the default to converge: the
-# caustic is found only by paths that hit the small spot through the glass.
-REFERENCE_SAMPLES = {"caustic_soft_spot": 65536, "figure7_mirror": 65536}
+# caustic is found only by paths that hit the small spot through the glass. figure7_mirror
+# (a 0.1 m point light seen through a mirror) is capped at 8192 spp so its reference takes
+# minutes on 2 cores; references.json records its noise floor (reference_relmse_floor).
+REFERENCE_SAMPLES = {"caustic_soft_spot": 65536, "figure7_mirror": 8192}
 
 
-def setup(name, width=WIDTH, height=HEIGHT):
-    """Build / open scene `name` in the current bpy session; returns bpy.context.scene."""
+def setup(name, width=None, height=None):
+    """Build / open scene `name` in the current bpy session; returns bpy.context.scene.
+    The resolution defaults to the scene's (SIZES, else WIDTH x HEIGHT)."""
     ensure_addon()
+    width = width or SIZES.get(name, (WIDTH, HEIGHT))[0]
+    height = height or SIZES.get(name, (WIDTH, HEIGHT))[1]
     SCENES[name][0]()
     scene = bpy.context.scene
     r = scene.render
@@ -263,6 +328,49 @@ def render_cycles(name, samples, seed=0):
     return render_rgb(scene)
 
 
+def object_labels(name, samples=64):
+    """Per-pixel object labels of scene `name` from Cycles coverage renders:
+    ((H, W) uint8, object names); label i + 1 marks a pixel that object i covers fully
+    (coverage >= 0.999 of `samples` box-filtered samples: edge pixels, which mix objects,
+    are 0 like the background). One render per mesh object, the object white emission,
+    everything else black emission, the world black."""
+    scene = setup(name)
+    set_cycles(scene, samples)
+    objects = sorted((o for o in scene.objects if o.type == "MESH"), key=lambda o: o.name)
+    white, black = (mb.empty_material(n) for n in ("_mask_white", "_mask_black"))
+    for (m, nt, out), strength in ((white, 1.0), (black, 0.0)):
+        em = nt.nodes.new("ShaderNodeEmission")
+        em.inputs["Strength"].default_value = strength
+        nt.links.new(em.outputs[0], out.inputs["Surface"])
+    white, black = white[0], black[0]
+    world = bpy.data.worlds.new("_mask_world")
+    world.color = (0.0, 0.0, 0.0)
+    if world.node_tree is not None:
+        for node in world.node_tree.nodes:
+            if node.type == "BACKGROUND":
+                node.inputs["Strength"].default_value = 0.0
+    scene.world = world
+    for o in objects:
+        for slot in o.material_slots:
+            slot.link = "OBJECT"
+    labels = None
+    for i, target in enumerate(objects):
+        for o in objects:
+            for slot in o.material_slots:
+                slot.material = white if o is target else black
+        img, _ = render_rgb(scene)
+        if labels is None:
+            labels = np.zeros(img.shape[:2], np.uint8)
+        labels[img[:, :, 0] >= 0.999] = i + 1
+    return labels, [o.name for o in objects]
+
+
+def object_means(img, labels, names):
+    """{object name: mean RGB (3,) over its label's pixels} of an (H, W, 3) image."""
+    return {n: img[labels == i + 1].mean(axis=0) for i, n in enumerate(names)
+            if np.any(labels == i + 1)}
+
+
 def render_ours(name, **overrides):
     scene = setup(name)
     set_photonmap_defaults(scene)
@@ -291,7 +399,37 @@ def brightness(x, ref):
 
 
 def load_reference(name):
-    return np.load(os.path.join(REF_DIR, name + ".npy")).astype(np.float32)
+    """(H, W, 3) float32 Cycles reference of scene `name`: NAME.npy (tools/make_references.py)
+    or the image of NAME.npz (tools/make_principled_reference.py)."""
+    path = os.path.join(REF_DIR, name + ".npy")
+    if os.path.isfile(path):
+        return np.load(path).astype(np.float32)
+    with np.load(os.path.join(REF_DIR, name + ".npz")) as z:
+        return z["image"].astype(np.float32)
+
+
+def load_labels(name):
+    """(labels (H, W) uint8, object names) stored with scene `name`'s reference
+    (object_labels), or None when its reference has none."""
+    path = os.path.join(REF_DIR, name + ".npz")
+    meta = load_scene_meta(name)
+    if not os.path.isfile(path) or "objects" not in meta:
+        return None
+    with np.load(path) as z:
+        return z["labels"], meta["objects"]
+
+
+def load_scene_meta(name):
+    """The reference's description: references.json's entry, else NAME.json ({} if none)."""
+    import json
+    meta = load_meta()
+    if name in meta:
+        return meta[name]
+    path = os.path.join(REF_DIR, name + ".json")
+    if not os.path.isfile(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)
 
 
 def load_meta():
