@@ -13,7 +13,9 @@ a diffuse lobe the incoming photon is recorded with the kind of path that brough
 Russian roulette picks one lobe (diffuse, mirror, glass reflect / transmit, coat, pass)
 with probability = the lobe's largest RGB weight, or absorbs; power is divided by that
 probability, so the expected power is kept (the paper's scheme with pbrt's max rule,
-which never increases a photon's power).
+which never increases a photon's power). Everything between two Embree calls runs in the
+compiled kernels of engine/photonkernels.py; this module emits (each light kind's emit,
+engine/lights/) and drives the bounces.
 """
 from __future__ import annotations
 
