@@ -42,6 +42,7 @@ SEGMENT_KINDS = ALL_RAYS & ~CAMERA
 # Random dimensions per photon and bounce: roulette, diffuse direction (2), lobe sample (3).
 N_DIMS = 6
 MAX_BOUNCES = 1 << 16
+_BLOCK = 256  # hits per closure set-up in scatter
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -216,156 +217,163 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
         if prim[i] >= 0:
             rows[nh] = i
             nh += 1
-    mat_h = np.empty(nh, np.int64)
-    base_h = np.empty((nh, 3))
-    cos_h = np.empty(nh)
-    front_h = np.empty(nh, np.bool_)
-    alpha_h = np.empty(nh)
-    for j in range(nh):
-        i = rows[j]
-        mat_h[j] = mat[i]
-        base_h[j, 0], base_h[j, 1], base_h[j, 2] = base[i, 0], base[i, 1], base[i, 2]
-        cos_h[j] = -(ns[i, 0] * d[i, 0] + ns[i, 1] * d[i, 1] + ns[i, 2] * d[i, 2])
-        front_h[j] = front[i]
-        alpha_h[j] = alpha[i]
-    prm = np.empty((nh, pr.N_PACK))
-    w = np.empty((nh, pr.N_LOBES, 3))
-    pr.setup(mat_h, params, base_h, cos_h, front_h, alpha_h, prm, w)
+    # The closures are set up a block of hits at a time: their rows stay in cache and the
+    # buffers are allocated once per call.
+    mat_h = np.empty(_BLOCK, np.int64)
+    base_h = np.empty((_BLOCK, 3))
+    cos_h = np.empty(_BLOCK)
+    front_h = np.empty(_BLOCK, np.bool_)
+    alpha_h = np.empty(_BLOCK)
+    prm = np.empty((_BLOCK, pr.N_PACK))
+    w = np.empty((_BLOCK, pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
     ns_ = 0
     nn = 0
-    for j in range(nh):
-        i = rows[j]
-        t = prim[i]
-        fl = flags[i]
-        if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
-            fl |= F_FIRST_CASTER
-        kind = _path_kind(fl)
-        kin = kinds[i]
-        hit_vis = np.int64(visibility[t]) if vis_on else np.int64(ALL_RAYS)
-        # --- store ---
-        wd = max(w[j, 0, 0], max(w[j, 0, 1], w[j, 0, 2]))
-        store = wd > 0.0
-        if caustic_only and kind != CAUSTIC:
-            store = False
-        if first_hit_mode != 0 and kind == CAUSTIC:
-            if ((fl & F_FIRST_CASTER) != 0) != (first_hit_mode == 2):
+    for b0 in range(0, nh, _BLOCK):
+        nb = min(_BLOCK, nh - b0)
+        for j in range(nb):
+            i = rows[b0 + j]
+            mat_h[j] = mat[i]
+            base_h[j, 0], base_h[j, 1], base_h[j, 2] = base[i, 0], base[i, 1], base[i, 2]
+            cos_h[j] = -(ns[i, 0] * d[i, 0] + ns[i, 1] * d[i, 1] + ns[i, 2] * d[i, 2])
+            front_h[j] = front[i]
+            alpha_h[j] = alpha[i]
+        pr.setup(mat_h[:nb], params, base_h[:nb], cos_h[:nb], front_h[:nb], alpha_h[:nb],
+                 prm[:nb], w[:nb])
+        for j in range(nb):
+            i = rows[b0 + j]
+            t = prim[i]
+            fl = flags[i]
+            if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
+                fl |= F_FIRST_CASTER
+            kind = _path_kind(fl)
+            kin = kinds[i]
+            hit_vis = np.int64(visibility[t]) if vis_on else np.int64(ALL_RAYS)
+            # --- store ---
+            wd = max(w[j, 0, 0], max(w[j, 0, 1], w[j, 0, 2]))
+            store = wd > 0.0
+            if caustic_only and kind != CAUSTIC:
                 store = False
-        if vis_on:
-            # Stored for lookups here: the camera side reaches the photon's source with a
-            # shadow ray (direct light) or a diffuse ray.
-            if kin & (SHADOW if kind == DIRECT else DIFFUSE) == 0:
-                store = False
-        if store:
-            for c in range(3):
-                st_pos[ns_, c] = p[i, c]
-                st_power[ns_, c] = power[i, c]
-                st_dir[ns_, c] = d[i, c]
-                st_normal[ns_, c] = ng[i, c]
-            st_kind[ns_] = kind
-            ns_ += 1
-        # --- Russian roulette over the lobes ---
-        s = 0.0
-        for l in range(pr.N_LOBES):
-            probs[l] = max(w[j, l, 0], max(w[j, l, 1], w[j, l, 2]))
-            s += probs[l]
-        norm = max(s, 1.0)
-        xi = uniform(key, slot[i], bounce, 0)
-        lobe = pr.N_LOBES  # absorbed
-        cdf = 0.0
-        for l in range(pr.N_LOBES):
-            cdf += probs[l] / norm
-            if xi < cdf:
-                lobe = l
-                break
-        if lobe == pr.N_LOBES or (caustic_only and lobe == pr.L_DIFFUSE):
-            continue
-        glass = lobe == pr.L_GLASS_R or lobe == pr.L_GLASS_T
-        p_sel = probs[pr.L_GLASS_R] + probs[pr.L_GLASS_T] if glass else probs[lobe]
-        p_sel = max(p_sel / norm, 1e-300)
-        dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
-        gx, gy, gz = ng[i, 0], ng[i, 1], ng[i, 2]
-        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
-        transmitted = False
-        if lobe == pr.L_DIFFUSE:
-            u1 = uniform(key, slot[i], bounce, 1)
-            u2 = uniform(key, slot[i], bounce, 2)
-            r = math.sqrt(u1)
-            phi = 2.0 * math.pi * u2
-            ox, oy, oz = pr.frame_world(n0, n1, n2, r * math.cos(phi), r * math.sin(phi),
-                                        math.sqrt(max(0.0, 1.0 - u1)))
-            ok = ox * gx + oy * gy + oz * gz > 0.0
-            k0, k1, k2 = w[j, 0, 0], w[j, 0, 1], w[j, 0, 2]
-        elif lobe == pr.L_PASS:
-            ox, oy, oz = dx, dy, dz
-            transmitted = True
-            k0 = k1 = k2 = 1.0 - alpha[i]
-            ok = k0 > 0.0
-        else:
-            lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
-            ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
-                prm, j, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),
-                uniform(key, slot[i], bounce, 4), uniform(key, slot[i], bounce, 5))
-            ox, oy, oz = pr.frame_world(n0, n1, n2, ix, iy, iz)
-            ln = math.sqrt(ox * ox + oy * oy + oz * oz)
-            if ln > 0.0:
-                ox, oy, oz = ox / ln, oy / ln, oz / ln
-            side = ox * gx + oy * gy + oz * gz
-            ok = ((side < 0.0) if transmitted else (side > 0.0)) and math.isfinite(ln)
-            ok = ok and max(k0, max(k1, k2)) > 0.0
-            if glass:
-                lobe = pr.L_GLASS_T if transmitted else pr.L_GLASS_R
-        if not ok:
-            continue
-        scale = 1.0 / p_sel
-        if glass and transmitted:
-            eta = 1.0 / mat_ior[mat[i]] if front[i] else mat_ior[mat[i]]
-            scale *= eta * eta
-        q0, q1, q2 = power[i, 0] * k0 * scale, power[i, 1] * k1 * scale, power[i, 2] * k2 * scale
-        if not (math.isfinite(q0 + q1 + q2) and max(q0, max(q1, q2)) > 0.0):
-            continue
-        # --- ray kinds (visibility) ---
-        if vis_on:
+            if first_hit_mode != 0 and kind == CAUSTIC:
+                if ((fl & F_FIRST_CASTER) != 0) != (first_hit_mode == 2):
+                    store = False
+            if vis_on:
+                # Stored for lookups here: the camera side reaches the photon's source with a
+                # shadow ray (direct light) or a diffuse ray.
+                if kin & (SHADOW if kind == DIRECT else DIFFUSE) == 0:
+                    store = False
+            if store:
+                for c in range(3):
+                    st_pos[ns_, c] = p[i, c]
+                    st_power[ns_, c] = power[i, c]
+                    st_dir[ns_, c] = d[i, c]
+                    st_normal[ns_, c] = ng[i, c]
+                st_kind[ns_] = kind
+                ns_ += 1
+            # --- Russian roulette over the lobes ---
+            s = 0.0
+            for l in range(pr.N_LOBES):
+                probs[l] = max(w[j, l, 0], max(w[j, l, 1], w[j, l, 2]))
+                s += probs[l]
+            norm = max(s, 1.0)
+            xi = uniform(key, slot[i], bounce, 0)
+            lobe = pr.N_LOBES  # absorbed
+            cdf = 0.0
+            for l in range(pr.N_LOBES):
+                cdf += probs[l] / norm
+                if xi < cdf:
+                    lobe = l
+                    break
+            if lobe == pr.N_LOBES or (caustic_only and lobe == pr.L_DIFFUSE):
+                continue
+            glass = lobe == pr.L_GLASS_R or lobe == pr.L_GLASS_T
+            p_sel = probs[pr.L_GLASS_R] + probs[pr.L_GLASS_T] if glass else probs[lobe]
+            p_sel = max(p_sel / norm, 1e-300)
+            dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
+            gx, gy, gz = ng[i, 0], ng[i, 1], ng[i, 2]
+            n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+            transmitted = False
             if lobe == pr.L_DIFFUSE:
-                use = SHADOW if kind == DIRECT else DIFFUSE
+                u1 = uniform(key, slot[i], bounce, 1)
+                u2 = uniform(key, slot[i], bounce, 2)
+                r = math.sqrt(u1)
+                phi = 2.0 * math.pi * u2
+                ox, oy, oz = pr.frame_world(n0, n1, n2, r * math.cos(phi), r * math.sin(phi),
+                                            math.sqrt(max(0.0, 1.0 - u1)))
+                ok = ox * gx + oy * gy + oz * gz > 0.0
+                k0, k1, k2 = w[j, 0, 0], w[j, 0, 1], w[j, 0, 2]
+            elif lobe == pr.L_PASS:
+                ox, oy, oz = dx, dy, dz
+                transmitted = True
+                k0 = k1 = k2 = 1.0 - alpha[i]
+                ok = k0 > 0.0
             else:
-                use = _LOBE_CLASS[lobe]
-            if lobe != pr.L_PASS and kin & use == 0:
+                lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
+                ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
+                    prm, j, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),
+                    uniform(key, slot[i], bounce, 4), uniform(key, slot[i], bounce, 5))
+                ox, oy, oz = pr.frame_world(n0, n1, n2, ix, iy, iz)
+                ln = math.sqrt(ox * ox + oy * oy + oz * oz)
+                if ln > 0.0:
+                    ox, oy, oz = ox / ln, oy / ln, oz / ln
+                side = ox * gx + oy * gy + oz * gz
+                ok = ((side < 0.0) if transmitted else (side > 0.0)) and math.isfinite(ln)
+                ok = ok and max(k0, max(k1, k2)) > 0.0
+                if glass:
+                    lobe = pr.L_GLASS_T if transmitted else pr.L_GLASS_R
+            if not ok:
                 continue
-            new_kinds = (kin & hit_vis) if lobe == pr.L_PASS else (hit_vis & SEGMENT_KINDS)
-            if new_kinds == 0:
+            scale = 1.0 / p_sel
+            if glass and transmitted:
+                eta = 1.0 / mat_ior[mat[i]] if front[i] else mat_ior[mat[i]]
+                scale *= eta * eta
+            q0 = power[i, 0] * k0 * scale
+            q1 = power[i, 1] * k1 * scale
+            q2 = power[i, 2] * k2 * scale
+            if not (math.isfinite(q0 + q1 + q2) and max(q0, max(q1, q2)) > 0.0):
                 continue
-        else:
-            new_kinds = kin
-        # --- path flags ---
-        nf = fl
-        if lobe == pr.L_DIFFUSE:
-            # The first diffuse bounce after a caustic path starts L S+ D; any further
-            # diffuse bounce makes it ordinary indirect light.
-            if fl & F_DIFFUSE:
-                nf &= ~F_CAUSTIC_DIFF
-            elif fl & F_SPECULAR:
-                nf |= F_CAUSTIC_DIFF
-            nf |= F_DIFFUSE
-        elif lobe != pr.L_PASS:
-            # Every other lobe is continued by the camera side too (which reads no photon
-            # map at a glossy lobe), so light by way of it is caustic light however rough
-            # the lobe. A transparent pass leaves the kind as it was: shadow rays cross
-            # it, so light through it is direct light (docs/design.md, Transparent
-            # shadows).
-            nf |= F_SPECULAR
-        # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
-        off = offset[i] if ox * gx + oy * gy + oz * gz >= 0.0 else -offset[i]
-        nx_o[nn, 0] = p[i, 0] + off * gx
-        nx_o[nn, 1] = p[i, 1] + off * gy
-        nx_o[nn, 2] = p[i, 2] + off * gz
-        nx_d32[nn, 0], nx_d32[nn, 1], nx_d32[nn, 2] = ox, oy, oz
-        nx_d[nn, 0], nx_d[nn, 1], nx_d[nn, 2] = ox, oy, oz
-        nx_power[nn, 0], nx_power[nn, 1], nx_power[nn, 2] = q0, q1, q2
-        nx_flags[nn] = nf
-        nx_kinds[nn] = new_kinds
-        nx_slot[nn] = slot[i]
-        nn += 1
+            # --- ray kinds (visibility) ---
+            if vis_on:
+                if lobe == pr.L_DIFFUSE:
+                    use = SHADOW if kind == DIRECT else DIFFUSE
+                else:
+                    use = _LOBE_CLASS[lobe]
+                if lobe != pr.L_PASS and kin & use == 0:
+                    continue
+                new_kinds = (kin & hit_vis) if lobe == pr.L_PASS else (hit_vis & SEGMENT_KINDS)
+                if new_kinds == 0:
+                    continue
+            else:
+                new_kinds = kin
+            # --- path flags ---
+            nf = fl
+            if lobe == pr.L_DIFFUSE:
+                # The first diffuse bounce after a caustic path starts L S+ D; any further
+                # diffuse bounce makes it ordinary indirect light.
+                if fl & F_DIFFUSE:
+                    nf &= ~F_CAUSTIC_DIFF
+                elif fl & F_SPECULAR:
+                    nf |= F_CAUSTIC_DIFF
+                nf |= F_DIFFUSE
+            elif lobe != pr.L_PASS:
+                # Every other lobe is continued by the camera side too (which reads no photon
+                # map at a glossy lobe), so light by way of it is caustic light however rough
+                # the lobe. A transparent pass leaves the kind as it was: shadow rays cross
+                # it, so light through it is direct light (docs/design.md, Transparent
+                # shadows).
+                nf |= F_SPECULAR
+            # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
+            off = offset[i] if ox * gx + oy * gy + oz * gz >= 0.0 else -offset[i]
+            nx_o[nn, 0] = p[i, 0] + off * gx
+            nx_o[nn, 1] = p[i, 1] + off * gy
+            nx_o[nn, 2] = p[i, 2] + off * gz
+            nx_d32[nn, 0], nx_d32[nn, 1], nx_d32[nn, 2] = ox, oy, oz
+            nx_d[nn, 0], nx_d[nn, 1], nx_d[nn, 2] = ox, oy, oz
+            nx_power[nn, 0], nx_power[nn, 1], nx_power[nn, 2] = q0, q1, q2
+            nx_flags[nn] = nf
+            nx_kinds[nn] = new_kinds
+            nx_slot[nn] = slot[i]
+            nn += 1
     if vis_on:
         # The kinds that do not see this surface pass on behind it in a split-off copy
         # (same slot, so the same random numbers); the photon stopped here for the others.
