@@ -82,7 +82,8 @@ def main(argv=None):
     settings = RenderSettings(photons=args.photons, spp=args.spp, workers=args.workers)
     rows = []
     ctx = prepare_context(scene, settings, RecordingAccel)
-    geo, table, accel, lights = ctx.geo, ctx.table, ctx.accel, ctx.lights
+    geo, table, lights = ctx.geo, ctx.table, ctx.lights
+    accel = getattr(ctx.accel, "full", ctx.accel)  # the RecordingAccel (VisibilityAccel wraps it)
 
     # Photon tracing.
     t0 = time.perf_counter()

@@ -214,4 +214,4 @@ def ensure_compiled(progress=None) -> float:
 def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
     from . import (camerarays, directlight, hashgrid, kdtree,  # noqa: F401  (warm-ups)
-                   photonmap, procedural, rayoffset, shadowtransmittance)
+                   photonkernels, photonmap, procedural, rayoffset, shadowtransmittance)

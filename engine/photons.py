@@ -13,7 +13,9 @@ a diffuse lobe the incoming photon is recorded with the kind of path that brough
 Russian roulette picks one lobe (diffuse, mirror, glass reflect / transmit, coat, pass)
 with probability = the lobe's largest RGB weight, or absorbs; power is divided by that
 probability, so the expected power is kept (the paper's scheme with pbrt's max rule,
-which never increases a photon's power).
+which never increases a photon's power). Everything between two Embree calls runs in the
+compiled kernels of engine/photonkernels.py; this module emits (each light kind's emit,
+engine/lights/) and drives the bounces.
 """
 from __future__ import annotations
 
@@ -23,17 +25,13 @@ import numpy as np
 
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
-from .bsdf import GLASS_R, GLASS_T, LOBE_NAMES, lobe_weights, sample_specular, surface_hit
+from . import photonkernels as pk
+from .bsdf import LOBE_NAMES, surface_hit
 from .normalmap import bump_shadowing
-from .sampling import cosine_hemisphere, dot, max3, to_world
-from .geometry import CAMERA
-from .visibility import ALL_RAYS, DIFFUSE, SHADOW, continued_class
+from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
+from .sampling import max3
 
-DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
 LOBES = LOBE_NAMES
-# The ray kinds a photon segment can stand for on the camera side (camera rays start at
-# the camera, never at a photon's surface).
-SEGMENT_KINDS = ALL_RAYS & ~CAMERA
 
 
 @dataclass
@@ -110,7 +108,9 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
                  first_hit=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits as
-    lists of arrays, bounce by bounce."""
+    lists of arrays, bounce by bounce. Between two Embree calls the work is two compiled
+    kernels (engine/photonkernels.py); bsdf.surface_hit supplies the surface data instead
+    where a material has a texture, normal map or alpha texture."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
     parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
     if targets is None:
@@ -119,201 +119,71 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         o, d, power = light.emit_towards(n, rng, *targets)
     power *= n / count  # emit() spreads the light's whole flux over this chunk
     live = max3(power) > 0  # e.g. aimed outside a one-sided light's hemisphere
-    # Each photon keeps its slot in the chunk and takes the random numbers of that slot,
-    # drawn for every slot at every bounce: a photon whose path changes (a hit a hair
-    # from an edge, rounded differently in a scaled scene) does not shift the random
-    # numbers, and so the paths, of all the photons after it.
-    slot = np.nonzero(live)[0]
+    # Each photon keeps its slot in the chunk, and its random numbers are those of its
+    # slot (photonkernels.uniform): a photon whose path changes (a hit a hair from an
+    # edge, rounded differently in a scaled scene) does not change the paths of others.
+    slot = np.nonzero(live)[0].astype(np.int64)
+    key = np.uint64(rng.integers(1 << 63, dtype=np.uint64))
     if not live.all():
         o, d, power = o[live], d[live], power[live]
-    had_diffuse = np.zeros(len(o), bool)
-    had_specular = np.zeros(len(o), bool)
-    caustic_then_diffuse = np.zeros(len(o), bool)  # path so far: L S+ D S*
-    first_caster = None  # per photon: its first hit was on a caster (with first_hit)
+    d = np.ascontiguousarray(d, np.float64)
+    power = np.ascontiguousarray(power, np.float64)
+    flags = np.zeros(len(o), np.int64)
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
-    # surface stands for the camera-side ray that leaves that surface backwards; its kind
-    # is set by the use made of the photon there (stored, or continued with a lobe: see
-    # below). `kinds` holds, per photon, the ray kinds for which the segment so far is a
-    # valid camera-side ray: the surface it left sees them (the ray must hit it; a light
-    # always does) and nothing in between that they see lies in the way.
-    # The first segment also needs the light to be visible to the kind it stands for
-    # (Light.ray_kinds: a light object's diffuse / glossy / transmission visibility).
+    # surface stands for the camera-side ray that leaves that surface backwards; `kinds`
+    # holds, per photon, the ray kinds for which the segment so far is a valid camera-side
+    # ray (photonkernels.scatter applies the rules). The first segment also needs the
+    # light to be visible to the kind it stands for (Light.ray_kinds).
     light_kinds = int(light.ray_kinds) & SEGMENT_KINDS
     vis_on = bool(getattr(accel, "has_invisible", False)) or light_kinds != SEGMENT_KINDS
     kinds = np.full(len(o), light_kinds, np.int64)
+    if first_hit is None:
+        caster, mode = np.zeros(1, np.bool_), 0
+    else:
+        caster, mode = np.ascontiguousarray(first_hit[0], np.bool_), 2 if first_hit[1] else 1
+    numpy_hits = _needs_numpy_hits(table)
+    normals = geo.corner_normals
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
-        if len(o) == 0:
+        m = len(o)
+        if m == 0:
             break
-        bounce_rng = np.random.default_rng(rng.integers(1 << 62))
-        xi_all = bounce_rng.random((3, n))  # roulette, diffuse direction (2) per slot
         _, prim, u, v = accel.intersect(o, d)
-        alive = prim >= 0
-        if not alive.all():
-            o, d, power, prim, u, v = o[alive], d[alive], power[alive], prim[alive], u[alive], v[alive]
-            slot = slot[alive]
-            had_diffuse, had_specular = had_diffuse[alive], had_specular[alive]
-            caustic_then_diffuse = caustic_then_diffuse[alive]
-            kinds = kinds[alive]
-            if first_caster is not None:
-                first_caster = first_caster[alive]
-        if len(o) == 0:
-            break
-        if first_hit is not None and first_caster is None:
-            first_caster = np.take(first_hit[0], np.take(geo.object_id, prim))
-        hit = surface_hit(geo, table, prim, u, v, d)
-        carry = None
-        if vis_on:
-            hit_vis = np.take(geo.visibility, prim).astype(np.int64)
-            # The photon stops here for every kind it still has: this surface is where
-            # the camera-side ray starts, and a ray never tests its own start. For the
-            # kinds that do not see this surface it is also not there: a split-off copy
-            # with those kinds passes on behind it, keeping the photon's slot (its
-            # random numbers).
-            behind = kinds & ~hit_vis
-            thru = np.nonzero(behind)[0]
-            if len(thru):
-                carry = (hit.clear(thru, d[thru]), d[thru],
-                         power[thru], had_diffuse[thru], had_specular[thru],
-                         caustic_then_diffuse[thru], behind[thru], slot[thru])
-                if first_caster is not None:
-                    carry += (first_caster[thru],)
-        w = lobe_weights(table, hit)
-        # Bent normals (Normal Map / Bump): the diffuse lobe takes Cycles' bump shadowing
-        # term for the photon's arriving direction, stored and bounced alike.
-        bump = (None if hit.n_smooth is None
-                else bump_shadowing(hit.n_smooth, hit.ns, -d)[:, None])
-        kind = np.where(had_diffuse, np.where(caustic_then_diffuse, CAUSTIC_DIFFUSE, INDIRECT),
-                        np.where(had_specular, CAUSTIC, DIRECT))
-        store = max3(w["diffuse"]) > 0
-        if caustic_only:
-            store &= kind == CAUSTIC
-        if first_caster is not None:
-            store &= (kind != CAUSTIC) | (first_caster == bool(first_hit[1]))
-        if vis_on:
-            # Stored for lookups at this surface: the camera side reaches the photon's
-            # source from here with a shadow ray (direct light) or a diffuse ray.
-            diffuse_use = np.where(kind == DIRECT, SHADOW, DIFFUSE)
-            store &= (kinds & diffuse_use) != 0
-        if store.any():
-            parts["position"].append(hit.p[store].astype(np.float32))
-            parts["power"].append((power[store] if bump is None else
-                                   power[store] * bump[store]).astype(np.float32))
-            parts["direction"].append(d[store].astype(np.float32))
-            parts["normal"].append(hit.ng[store].astype(np.float32))
-            parts["kind"].append(kind[store].astype(np.uint8))
-        # Russian roulette over the lobes.
-        probs = np.stack([max3(w[k]) for k in LOBES], axis=1)
-        s = probs.sum(axis=1)
-        probs = probs / np.maximum(s, 1.0)[:, None]
-        cdf = np.cumsum(probs, axis=1)
-        xi = xi_all[0, slot]
-        lobe = np.count_nonzero(xi[:, None] >= cdf, axis=1)  # len(LOBES) = absorbed
-        survive = lobe < len(LOBES)
-        if caustic_only:
-            survive &= lobe != 0
-        idx = np.nonzero(survive)[0]
-        lobe = lobe[idx]
-        # glass_r and glass_t are sampled as one lobe (bsdf.sample_specular)
-        glass = (lobe == GLASS_R + 1) | (lobe == GLASS_T + 1)
-        p_sel = np.where(glass, probs[idx, GLASS_R + 1] + probs[idx, GLASS_T + 1],
-                         probs[idx, lobe])
-        # The chosen lobe's weight, row by row, without an (n,6,3) stack.
-        w_sel = np.zeros((len(idx), 3))
-        for li, k in enumerate(LOBES):
-            rows = np.nonzero(lobe == li)[0]
-            if len(rows):
-                w_sel[rows] = np.take(w[k], idx[rows], axis=0)
-        new_power = power[idx] * w_sel / np.maximum(p_sel, 1e-300)[:, None]
-        sub = hit.take(idx)
-        slot = slot[idx]
-        new_d = np.empty((len(idx), 3))
-        ok = np.ones(len(idx), bool)
-        diff = lobe == 0
-        if diff.any():
-            nd = to_world(cosine_hemisphere(xi_all[1, slot[diff]], xi_all[2, slot[diff]]),
-                          sub.ns[diff])
-            new_d[diff] = nd
-            ok[diff] = dot(nd, sub.ng[diff]) > 0
-            if bump is not None:
-                new_power[diff] *= bump[idx[diff]]
-        spec = ~diff
-        if spec.any():
-            spec_rows = np.nonzero(spec)[0]
-            sd, valid, transmitted, weight = sample_specular(table, sub.take(spec_rows),
-                                                             lobe[spec] - 1, bounce_rng)
-            new_d[spec] = sd
-            ok[spec] = valid
-            # The sampled direction's own weight replaces the lobe's estimated albedo.
-            new_power[spec_rows] = (power[idx[spec_rows]] * weight
-                                    / np.maximum(p_sel[spec_rows], 1e-300)[:, None])
-            # The glass lobe's sample decides reflect / refract (its visibility class too).
-            lobe[spec_rows] = np.where(glass[spec_rows], np.where(transmitted, GLASS_T + 1,
-                                                                  GLASS_R + 1),
-                                       lobe[spec_rows])
-            # Refraction: radiance is carried as invariant across the interface, as the
-            # camera side (no eta^2 factor) and Cycles do, so the photon's power takes
-            # the factor (eta_i / eta_t)^2 (docs/units.md, "Refraction"). Paired
-            # interfaces (a slab, a ball) cancel it exactly.
-            refracted = spec_rows[transmitted & glass[spec_rows]]
-            if len(refracted):
-                ior = np.take(table.ior, sub.mat[refracted])
-                eta_ratio = np.where(sub.front[refracted], 1.0 / ior, ior)
-                new_power[refracted] *= (eta_ratio * eta_ratio)[:, None]
-        if vis_on:
-            # Continued with a lobe: the arriving segment is the camera-side ray of that
-            # lobe's kind leaving here backwards - a diffuse bounce uses the same kinds as
-            # storing (direct light at a diffuse surface comes from shadow rays), a
-            # mirror / glass lobe glossy or transmission (continued_class). It must be
-            # among the kinds the segment is valid for. The next segment is valid for the
-            # kinds that see this surface. A transparent pass continues the same
-            # camera-side ray: it keeps its kinds, less those that do not see this
-            # surface (they went on in the split-off copy).
-            kinds_in = kinds[idx]
-            vis_here = hit_vis[idx]
-            use = np.where(kind[idx] == DIRECT, SHADOW, DIFFUSE)
-            if spec.any():
-                use[spec] = continued_class(lobe[spec] - 1, 0)
-            passing = lobe == 1
-            ok &= passing | ((kinds_in & use) != 0)
-            new_kinds = np.where(passing, kinds_in & vis_here, vis_here & SEGMENT_KINDS)
-            ok &= new_kinds != 0
+        surf = pk.surface_arrays(m)
+        bump = np.ones(m)
+        if numpy_hits:
+            rows = np.nonzero(prim >= 0)[0]
+            hit = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
+            alpha = (np.take(table.alpha, hit.mat) if hit.alpha is None else hit.alpha)
+            for dst, src in zip(surf, (hit.p, hit.ng, hit.ns, hit.front, hit.mat, hit.base,
+                                       alpha, hit.offset)):
+                dst[rows] = src
+            if hit.n_smooth is not None:
+                # Bent normals (Normal Map / Bump): the diffuse lobe takes Cycles' bump
+                # shadowing term for the arriving direction, stored and bounced alike.
+                bump[rows] = bump_shadowing(hit.n_smooth, hit.ns, -d[rows])
         else:
-            new_kinds = kinds[idx]
-        ctd = caustic_then_diffuse[idx]
-        if first_caster is not None:
-            first_caster = first_caster[idx]
-        first_diffuse = diff & ~had_diffuse[idx]
-        # The first diffuse bounce after a caustic path starts L S+ D; any further
-        # diffuse bounce makes it ordinary indirect light.
-        caustic_then_diffuse = np.where(diff, first_diffuse & had_specular[idx], ctd)
-        had_diffuse = had_diffuse[idx] | diff
-        # A transparent pass (lobe 1) leaves the path's kind as it was: shadow rays cross
-        # transparent surfaces (engine/shadowtransmittance.py), so light through them is
-        # direct light, not a caustic (docs/design.md, Transparent shadows).
-        had_specular = had_specular[idx] | (spec & (lobe != 1))
-        # isfinite(all) and max > 0 per row in one pass: max3 propagates NaN
-        # (NaN > 0 is False) and inf is caught by isfinite of the row sum.
-        mx = max3(new_power)
-        keep = ok & np.isfinite(new_power[:, 0] + new_power[:, 1] + new_power[:, 2]) & (mx > 0)
-        new_d, new_power = new_d[keep], new_power[keep]
-        slot = slot[keep]
-        had_diffuse, had_specular = had_diffuse[keep], had_specular[keep]
-        caustic_then_diffuse = caustic_then_diffuse[keep]
-        kinds = new_kinds[keep]
-        if first_caster is not None:
-            first_caster = first_caster[keep]
-        o = sub.clear(keep, new_d)
-        d, power = new_d, new_power
-        if carry is not None:
-            (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, kinds,
-             slot) = (np.concatenate([a, b]) for a, b in zip(
-                (o, d, power, had_diffuse, had_specular, caustic_then_diffuse, kinds,
-                 slot), carry[:8]))
-            if first_caster is not None:
-                first_caster = np.concatenate([first_caster, carry[8]])
+            pk.photon_surfaces(prim, u, v, d, geo.v0, geo.e1, geo.e2, normals, geo.material,
+                               table.base_color, table.alpha, *surf)
+        store = pk.store_arrays(m)
+        nxt = pk.next_arrays(2 * m if vis_on else m)
+        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, prim, *surf, bump,
+                                table.closure_params, table.ior, geo.visibility,
+                                geo.object_id, caster, mode, bool(caustic_only), vis_on,
+                                *store, *nxt)
+        if n_st:
+            for name, buf in zip(("position", "power", "direction", "normal", "kind"), store):
+                parts[name].append(buf[:n_st].copy())
+        o, _d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt)
     return parts
+
+
+def _needs_numpy_hits(table) -> bool:
+    """Surface data from bsdf.surface_hit (numpy texture, normal-map and alpha-texture
+    evaluation) rather than the photon_surfaces kernel."""
+    return any(x is not None for lst in (table.textures, table.normal_maps,
+                                         table.alpha_textures) for x in (lst or ()))
 
 
 def _k(n: int) -> str:

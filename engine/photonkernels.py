@@ -1,0 +1,443 @@
+"""Compiled kernels of the photon pass: everything between two Embree calls.
+
+One bounce of a chunk of photons is two kernel calls (engine/photons.py drives them):
+
+  photon_surfaces  hit -> surface data (point, geometric and shading normal facing the
+                   photon, side, material, base colour, alpha, ray-origin offset) for
+                   materials without textures or normal maps; scenes with them get the
+                   same arrays from bsdf.surface_hit (the numpy texture evaluation).
+  scatter          per hit: closures (engine/closures/principled.py setup) -> stored
+                   photon record (kind of path, visibility rules) -> Russian roulette over
+                   the lobes -> sampled continuation (cosine-weighted diffuse, or the
+                   chosen lobe's own sampler) -> compacted float32 rays for the next Embree
+                   call, plus the split-off copies that pass surfaces invisible to some ray
+                   kinds (docs/scene_format.md, "Ray visibility").
+
+Random numbers: each photon keeps its slot in the chunk, and every number it uses is
+SplitMix64 (Steele et al. 2014) at counter (slot, bounce, dimension) of a stream keyed by
+the chunk's seed, computed where it is needed. A photon whose path changes therefore never
+shifts the numbers of any other photon, and no per-bounce array of numbers is drawn for
+every slot. Same seed = same photons for any thread count (chunks are fixed).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .closures import principled as pr
+from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
+from .jit import kernel, register_warm_up
+from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
+
+# Kinds of path recorded with a stored photon (engine/photons.py explains them).
+DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
+# Path flags per photon (bits of one int64).
+F_DIFFUSE = 1      # the path has bounced diffusely
+F_SPECULAR = 2     # ... off a glossy / mirror / glass lobe (not a transparent pass)
+F_CAUSTIC_DIFF = 4  # path so far L S+ D S* (light from a caustic, one diffuse bounce later)
+F_FIRST_CASTER = 8  # its first hit was on a caustic caster (trace_photons' first_hit)
+# The ray kinds a photon segment can stand for on the camera side (not camera rays).
+SEGMENT_KINDS = ALL_RAYS & ~CAMERA
+# Random dimensions per photon and bounce: roulette, diffuse direction (2), lobe sample (3).
+N_DIMS = 6
+MAX_BOUNCES = 1 << 16
+_BLOCK = 256  # hits per closure set-up in scatter
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+_INV53 = 1.0 / 9007199254740992.0  # 2^-53
+
+
+@kernel
+def uniform(key, slot, bounce, dim):
+    """A uniform number in [0, 1): SplitMix64's output number `counter` of the stream
+    seeded by key (uint64), counter = (slot * MAX_BOUNCES + bounce) * N_DIMS + dim."""
+    counter = np.uint64((slot * MAX_BOUNCES + bounce) * N_DIMS + dim)
+    z = key + (counter + np.uint64(1)) * _GOLDEN
+    z = (z ^ (z >> _S30)) * _M1
+    z = (z ^ (z >> _S27)) * _M2
+    z = z ^ (z >> _S31)
+    return float(z >> _S11) * _INV53
+
+
+@kernel
+def uniforms(key, slot, bounce, dim, out):
+    """out[i] = uniform(key, slot[i], bounce, dim) (for tests of the stream)."""
+    for i in range(slot.shape[0]):
+        out[i] = uniform(key, slot[i], bounce, dim)
+
+
+@kernel
+def _round32(x):
+    # Half a float32 spacing of a corner coordinate (geometry._round32_rows).
+    return 0.5 * max(2.0 * U32 * abs(x), TINY32)
+
+
+@kernel
+def _tilt(v0, e1, e2, t):
+    """rayoffset.triangle_tilt of triangle row t, from its float32 corners."""
+    c0x, c0y, c0z = np.float32(v0[t, 0]), np.float32(v0[t, 1]), np.float32(v0[t, 2])
+    c1x, c1y, c1z = (np.float32(v0[t, 0] + e1[t, 0]), np.float32(v0[t, 1] + e1[t, 1]),
+                     np.float32(v0[t, 2] + e1[t, 2]))
+    c2x, c2y, c2z = (np.float32(v0[t, 0] + e2[t, 0]), np.float32(v0[t, 1] + e2[t, 1]),
+                     np.float32(v0[t, 2] + e2[t, 2]))
+    if ((c0x == c1x and c0x == c2x) or (c0y == c1y and c0y == c2y)
+            or (c0z == c1z and c0z == c2z)):
+        return 0.0  # an axis-aligned float32 plane cannot tilt
+    a0, a1, a2 = (np.float64(c1x) - np.float64(c0x), np.float64(c1y) - np.float64(c0y),
+                  np.float64(c1z) - np.float64(c0z))
+    b0, b1, b2 = (np.float64(c2x) - np.float64(c0x), np.float64(c2y) - np.float64(c0y),
+                  np.float64(c2z) - np.float64(c0z))
+    x, y, z = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    cross = math.sqrt(x * x + y * y + z * z)
+    lengths = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
+    return min(G32_TILT * lengths / max(cross, 1e-300), 1.0)
+
+
+@kernel
+def photon_surfaces(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color,
+                    mat_alpha, p, ng, ns, front, mat, base, alpha, offset):
+    """Surface data at the hits of rays d (N,3) (rows with prim < 0 are skipped): writes
+    p, ng, ns (N,3) (normals facing the incoming ray; the shading normal falls back to ng
+    where it would put the ray's origin below the surface), front (N,) (arrived on the
+    winding's outside), mat (N,), base (N,3) (the material's base colour), alpha (N,),
+    offset (N,) (rayoffset: the distance along ng that clears a ray origin of the
+    triangle). The same values as bsdf.surface_hit for materials without textures,
+    normal maps or alpha textures. corner_normals (T,3,3) float32, or (0,3,3) when every
+    triangle is flat."""
+    smooth = corner_normals.shape[0] > 0
+    for i in range(prim.shape[0]):
+        t = prim[i]
+        if t < 0:
+            continue
+        b1, b2 = np.float64(u[i]), np.float64(v[i])
+        px = v0[t, 0] + b1 * e1[t, 0] + b2 * e2[t, 0]
+        py = v0[t, 1] + b1 * e1[t, 1] + b2 * e2[t, 1]
+        pz = v0[t, 2] + b1 * e1[t, 2] + b2 * e2[t, 2]
+        cx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
+        cy = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
+        cz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+        ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+        gx, gy, gz = cx / ln, cy / ln, cz / ln
+        dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
+        fr = dx * gx + dy * gy + dz * gz < 0.0
+        sign = 1.0 if fr else -1.0
+        gx, gy, gz = gx * sign, gy * sign, gz * sign
+        sx, sy, sz = gx, gy, gz
+        if smooth:
+            b0 = 1.0 - b1 - b2
+            nx = (b0 * corner_normals[t, 0, 0] + b1 * corner_normals[t, 1, 0]
+                  + b2 * corner_normals[t, 2, 0])
+            ny = (b0 * corner_normals[t, 0, 1] + b1 * corner_normals[t, 1, 1]
+                  + b2 * corner_normals[t, 2, 1])
+            nz = (b0 * corner_normals[t, 0, 2] + b1 * corner_normals[t, 1, 2]
+                  + b2 * corner_normals[t, 2, 2])
+            nl = max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
+            nx, ny, nz = nx / nl, ny / nl, nz / nl
+            s = abs(nx) + abs(ny) + abs(nz)
+            if math.isfinite(s) and s >= 0.5:
+                sx, sy, sz = nx * sign, ny * sign, nz * sign
+        # Veach's guard: a shading normal that puts the viewer below the surface.
+        if -(dx * sx + dy * sy + dz * sz) <= 1e-6:
+            sx, sy, sz = gx, gy, gz
+        m = material[t]
+        p[i, 0], p[i, 1], p[i, 2] = px, py, pz
+        ng[i, 0], ng[i, 1], ng[i, 2] = gx, gy, gz
+        ns[i, 0], ns[i, 1], ns[i, 2] = sx, sy, sz
+        front[i] = fr
+        mat[i] = m
+        base[i, 0], base[i, 1], base[i, 2] = base_color[m, 0], base_color[m, 1], base_color[m, 2]
+        alpha[i] = mat_alpha[m]
+        ex = _point_error(v0, e1, e2, t, b1, b2, px, 0)
+        ey = _point_error(v0, e1, e2, t, b1, b2, py, 1)
+        ez = _point_error(v0, e1, e2, t, b1, b2, pz, 2)
+        offset[i] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz,
+                                _tilt(v0, e1, e2, t))
+
+
+@kernel
+def _point_error(v0, e1, e2, t, b1, b2, pc, c):
+    """rayoffset._point_error (component c) with the triangle's corner rounding
+    (Geometry.round32) computed here rather than read from a table."""
+    b0 = 1.0 - b1 - b2
+    a0, a1, a2 = abs(b0), abs(b1), abs(b2)
+    c0, c1, c2 = v0[t, c], v0[t, c] + e1[t, c], v0[t, c] + e2[t, c]
+    interp = G64 * (a0 * abs(c0) + a1 * abs(c1) + a2 * abs(c2))
+    tri32 = a0 * _round32(c0) + a1 * _round32(c1) + a2 * _round32(c2)
+    return interp + tri32 + max(2.0 * U32 * abs(pc), TINY32)
+
+
+# Ray class of the camera-side ray that a continued photon segment stands for, by lobe
+# (principled.L_*; visibility.SPEC_LOBE_CLASS): the diffuse lobe's is set per photon
+# (shadow rays for direct light, else diffuse rays); a transparent pass keeps the
+# incoming kinds.
+_LOBE_CLASS = np.array([0, 0, GLOSSY, GLOSSY, TRANSMISSION, GLOSSY, GLOSSY, DIFFUSE],
+                       np.int64)
+
+
+@kernel
+def _path_kind(flags):
+    if flags & F_DIFFUSE:
+        return CAUSTIC_DIFFUSE if flags & F_CAUSTIC_DIFF else INDIRECT
+    return CAUSTIC if flags & F_SPECULAR else DIRECT
+
+
+@kernel
+def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, mat, base,
+            alpha, offset, bump, params, mat_ior, visibility, object_id, caster,
+            first_hit_mode, caustic_only, vis_on,
+            st_pos, st_power, st_dir, st_normal, st_kind,
+            nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot):
+    """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
+    ray kinds and slots (m,), at hits prim (m,) (< 0: missed; lost) with surface data from
+    photon_surfaces / bsdf.surface_hit; bump (m,) the diffuse lobe's bump shadowing
+    factor (normalmap.bump_shadowing; 1 without a bent normal). params, mat_ior: the material table's closure
+    parameters and IOR. visibility (T,) ray
+    kinds per triangle, used with vis_on. caster (objects,) bool and first_hit_mode (0:
+    off, 1: store caustic photons whose first hit is not on a caster, 2: only those whose
+    first hit is) split the caustic paths between an aimed and an unaimed shot.
+
+    Writes the stored photons (float32 position, power, direction of travel, normal on
+    the arriving side; uint8 kind) to st_* (m rows at most) and the continued photons
+    (float32 origins and directions for Embree, float64 directions, power, flags, kinds,
+    slots) to nx_* (2m rows at most: the continuations, then the copies that pass
+    surfaces some of their ray kinds do not see). Returns (stored, continued) counts.
+
+    Russian roulette picks one lobe with probability = its largest RGB albedo (absorbs with
+    what is left); the power is divided by that probability and multiplied by the sampled
+    direction's f cos / pdf (Jensen's scheme with pbrt's max rule). A refracted photon
+    takes (eta_i / eta_t)^2: radiance is carried as invariant across the interface, as by
+    the camera side and Cycles (docs/units.md, "Refraction")."""
+    m = prim.shape[0]
+    rows = np.empty(m, np.int64)
+    nh = 0
+    for i in range(m):
+        if prim[i] >= 0:
+            rows[nh] = i
+            nh += 1
+    # The closures are set up a block of hits at a time: their rows stay in cache and the
+    # buffers are allocated once per call.
+    mat_h = np.empty(_BLOCK, np.int64)
+    base_h = np.empty((_BLOCK, 3))
+    cos_h = np.empty(_BLOCK)
+    front_h = np.empty(_BLOCK, np.bool_)
+    alpha_h = np.empty(_BLOCK)
+    prm = np.empty((_BLOCK, pr.N_PACK))
+    w = np.empty((_BLOCK, pr.N_LOBES, 3))
+    probs = np.empty(pr.N_LOBES)
+    ns_ = 0
+    nn = 0
+    for b0 in range(0, nh, _BLOCK):
+        nb = min(_BLOCK, nh - b0)
+        for j in range(nb):
+            i = rows[b0 + j]
+            mat_h[j] = mat[i]
+            base_h[j, 0], base_h[j, 1], base_h[j, 2] = base[i, 0], base[i, 1], base[i, 2]
+            cos_h[j] = -(ns[i, 0] * d[i, 0] + ns[i, 1] * d[i, 1] + ns[i, 2] * d[i, 2])
+            front_h[j] = front[i]
+            alpha_h[j] = alpha[i]
+        pr.setup(mat_h[:nb], params, base_h[:nb], cos_h[:nb], front_h[:nb], alpha_h[:nb],
+                 prm[:nb], w[:nb])
+        for j in range(nb):
+            i = rows[b0 + j]
+            t = prim[i]
+            fl = flags[i]
+            if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
+                fl |= F_FIRST_CASTER
+            kind = _path_kind(fl)
+            kin = kinds[i]
+            hit_vis = np.int64(visibility[t]) if vis_on else np.int64(ALL_RAYS)
+            # --- store ---
+            wd = max(w[j, 0, 0], max(w[j, 0, 1], w[j, 0, 2]))
+            store = wd > 0.0
+            if caustic_only and kind != CAUSTIC:
+                store = False
+            if first_hit_mode != 0 and kind == CAUSTIC:
+                if ((fl & F_FIRST_CASTER) != 0) != (first_hit_mode == 2):
+                    store = False
+            if vis_on:
+                # Stored for lookups here: the camera side reaches the photon's source with a
+                # shadow ray (direct light) or a diffuse ray.
+                if kin & (SHADOW if kind == DIRECT else DIFFUSE) == 0:
+                    store = False
+            if store:
+                for c in range(3):
+                    st_pos[ns_, c] = p[i, c]
+                    st_power[ns_, c] = power[i, c] * bump[i]
+                    st_dir[ns_, c] = d[i, c]
+                    st_normal[ns_, c] = ng[i, c]
+                st_kind[ns_] = kind
+                ns_ += 1
+            # --- Russian roulette over the lobes ---
+            s = 0.0
+            for l in range(pr.N_LOBES):
+                probs[l] = max(w[j, l, 0], max(w[j, l, 1], w[j, l, 2]))
+                s += probs[l]
+            norm = max(s, 1.0)
+            xi = uniform(key, slot[i], bounce, 0)
+            lobe = pr.N_LOBES  # absorbed
+            cdf = 0.0
+            for l in range(pr.N_LOBES):
+                cdf += probs[l] / norm
+                if xi < cdf:
+                    lobe = l
+                    break
+            if lobe == pr.N_LOBES or (caustic_only and lobe == pr.L_DIFFUSE):
+                continue
+            glass = lobe == pr.L_GLASS_R or lobe == pr.L_GLASS_T
+            p_sel = probs[pr.L_GLASS_R] + probs[pr.L_GLASS_T] if glass else probs[lobe]
+            p_sel = max(p_sel / norm, 1e-300)
+            dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
+            gx, gy, gz = ng[i, 0], ng[i, 1], ng[i, 2]
+            n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+            transmitted = False
+            if lobe == pr.L_DIFFUSE:
+                u1 = uniform(key, slot[i], bounce, 1)
+                u2 = uniform(key, slot[i], bounce, 2)
+                r = math.sqrt(u1)
+                phi = 2.0 * math.pi * u2
+                ox, oy, oz = pr.frame_world(n0, n1, n2, r * math.cos(phi), r * math.sin(phi),
+                                            math.sqrt(max(0.0, 1.0 - u1)))
+                ok = ox * gx + oy * gy + oz * gz > 0.0
+                k0, k1, k2 = w[j, 0, 0] * bump[i], w[j, 0, 1] * bump[i], w[j, 0, 2] * bump[i]
+            elif lobe == pr.L_PASS:
+                ox, oy, oz = dx, dy, dz
+                transmitted = True
+                k0 = k1 = k2 = 1.0 - alpha[i]
+                ok = k0 > 0.0
+            else:
+                lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
+                ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
+                    prm, j, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),
+                    uniform(key, slot[i], bounce, 4), uniform(key, slot[i], bounce, 5))
+                ox, oy, oz = pr.frame_world(n0, n1, n2, ix, iy, iz)
+                ln = math.sqrt(ox * ox + oy * oy + oz * oz)
+                if ln > 0.0:
+                    ox, oy, oz = ox / ln, oy / ln, oz / ln
+                side = ox * gx + oy * gy + oz * gz
+                ok = ((side < 0.0) if transmitted else (side > 0.0)) and math.isfinite(ln)
+                ok = ok and max(k0, max(k1, k2)) > 0.0
+                if glass:
+                    lobe = pr.L_GLASS_T if transmitted else pr.L_GLASS_R
+            if not ok:
+                continue
+            scale = 1.0 / p_sel
+            if glass and transmitted:
+                eta = 1.0 / mat_ior[mat[i]] if front[i] else mat_ior[mat[i]]
+                scale *= eta * eta
+            q0 = power[i, 0] * k0 * scale
+            q1 = power[i, 1] * k1 * scale
+            q2 = power[i, 2] * k2 * scale
+            if not (math.isfinite(q0 + q1 + q2) and max(q0, max(q1, q2)) > 0.0):
+                continue
+            # --- ray kinds (visibility) ---
+            if vis_on:
+                if lobe == pr.L_DIFFUSE:
+                    use = SHADOW if kind == DIRECT else DIFFUSE
+                else:
+                    use = _LOBE_CLASS[lobe]
+                if lobe != pr.L_PASS and kin & use == 0:
+                    continue
+                new_kinds = (kin & hit_vis) if lobe == pr.L_PASS else (hit_vis & SEGMENT_KINDS)
+                if new_kinds == 0:
+                    continue
+            else:
+                new_kinds = kin
+            # --- path flags ---
+            nf = fl
+            if lobe == pr.L_DIFFUSE:
+                # The first diffuse bounce after a caustic path starts L S+ D; any further
+                # diffuse bounce makes it ordinary indirect light.
+                if fl & F_DIFFUSE:
+                    nf &= ~F_CAUSTIC_DIFF
+                elif fl & F_SPECULAR:
+                    nf |= F_CAUSTIC_DIFF
+                nf |= F_DIFFUSE
+            elif lobe != pr.L_PASS:
+                # Every other lobe is continued by the camera side too (which reads no photon
+                # map at a glossy lobe), so light by way of it is caustic light however rough
+                # the lobe. A transparent pass leaves the kind as it was: shadow rays cross
+                # it, so light through it is direct light (docs/design.md, Transparent
+                # shadows).
+                nf |= F_SPECULAR
+            # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
+            off = offset[i] if ox * gx + oy * gy + oz * gz >= 0.0 else -offset[i]
+            nx_o[nn, 0] = p[i, 0] + off * gx
+            nx_o[nn, 1] = p[i, 1] + off * gy
+            nx_o[nn, 2] = p[i, 2] + off * gz
+            nx_d32[nn, 0], nx_d32[nn, 1], nx_d32[nn, 2] = ox, oy, oz
+            nx_d[nn, 0], nx_d[nn, 1], nx_d[nn, 2] = ox, oy, oz
+            nx_power[nn, 0], nx_power[nn, 1], nx_power[nn, 2] = q0, q1, q2
+            nx_flags[nn] = nf
+            nx_kinds[nn] = new_kinds
+            nx_slot[nn] = slot[i]
+            nn += 1
+    if vis_on:
+        # The kinds that do not see this surface pass on behind it in a split-off copy
+        # (same slot, so the same random numbers); the photon stopped here for the others.
+        for j in range(nh):
+            i = rows[j]
+            t = prim[i]
+            behind = kinds[i] & ~np.int64(visibility[t])
+            if behind == 0:
+                continue
+            fl = flags[i]
+            if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
+                fl |= F_FIRST_CASTER
+            off = -offset[i]  # d leaves through the back of the surface
+            for c in range(3):
+                nx_o[nn, c] = p[i, c] + off * ng[i, c]
+                nx_d32[nn, c] = d[i, c]
+                nx_d[nn, c] = d[i, c]
+                nx_power[nn, c] = power[i, c]
+            nx_flags[nn] = fl
+            nx_kinds[nn] = behind
+            nx_slot[nn] = slot[i]
+            nn += 1
+    return ns_, nn
+
+
+def surface_arrays(m: int):
+    """Empty per-hit arrays (p, ng, ns, front, mat, base, alpha, offset) for m rays."""
+    return (np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3)), np.zeros(m, np.bool_),
+            np.zeros(m, np.int64), np.zeros((m, 3)), np.ones(m), np.zeros(m))
+
+
+def store_arrays(m: int):
+    """Buffers for up to m stored photons (position, power, direction, normal, kind)."""
+    return (np.empty((m, 3), np.float32), np.empty((m, 3), np.float32),
+            np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty(m, np.uint8))
+
+
+def next_arrays(m: int):
+    """Buffers for up to m continued photons (origin32, direction32, direction, power,
+    flags, kinds, slot)."""
+    return (np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty((m, 3)),
+            np.empty((m, 3)), np.empty(m, np.int64), np.empty(m, np.int64),
+            np.empty(m, np.int64))
+
+
+@register_warm_up
+def _warm_up():
+    """Compile (or load) both kernels on one photon hitting one triangle."""
+    v0 = np.zeros((1, 3))
+    e1 = np.array([[1.0, 0.0, 0.0]])
+    e2 = np.array([[0.0, 1.0, 0.0]])
+    d = np.array([[0.0, 0.0, -1.0]])
+    prim = np.zeros(1, np.int64)
+    uv = np.full(1, 0.25)
+    surf = surface_arrays(1)
+    params = np.zeros((1, pr.N_MAT))
+    params[0, pr.M_ALPHA] = 1.0
+    for normals in (np.zeros((0, 3, 3), np.float32), np.zeros((1, 3, 3), np.float32)):
+        photon_surfaces(prim, uv, uv, d, v0, e1, e2, normals, np.zeros(1, np.int32),
+                        np.full((1, 3), 0.5), np.ones(1), *surf)
+    scatter(np.uint64(1), 0, d, np.ones((1, 3)), np.zeros(1, np.int64),
+            np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), prim, *surf,
+            np.ones(1), params,
+            np.full(1, 1.5), np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32),
+            np.zeros(1, np.bool_), 0, False, False, *store_arrays(1), *next_arrays(2))
+    uniforms(np.uint64(1), np.zeros(1, np.int64), 0, 0, np.empty(1))

@@ -1,0 +1,99 @@
+"""The photon pass's compiled kernels (engine/photonkernels.py): their random stream,
+their surface data against bsdf.surface_hit, and the photon pass's energy."""
+import numpy as np
+
+from engine import RenderSettings
+from engine import photonkernels as pk
+from engine.accel import Accel
+from engine.api import PaperScene, sphere_mesh
+from engine.bsdf import surface_hit
+from engine.geometry import prepare
+from engine.scene import Material
+
+from test_energy import closed_box, shoot
+
+
+def _u(key, slot, bounce, dim):
+    out = np.empty(len(slot))
+    pk.uniforms(np.uint64(key), np.asarray(slot, np.int64), bounce, dim, out)
+    return out
+
+
+def test_uniform_stream_is_uniform_and_independent_across_slots_bounces_and_dimensions():
+    slot = np.arange(200_000)
+    a = _u(7, slot, 0, 0)
+    assert a.min() >= 0.0 and a.max() < 1.0
+    # mean 1/2 and variance 1/12 within ~5 standard errors
+    assert abs(a.mean() - 0.5) < 5 * np.sqrt(1 / 12 / len(a))
+    assert abs(a.var() * 12 - 1.0) < 0.02
+    counts = np.bincount((a * 20).astype(int), minlength=20)
+    chi2 = ((counts - len(a) / 20) ** 2 / (len(a) / 20)).sum()
+    assert chi2 < 60  # 19 degrees of freedom: p ~ 1e-6
+    others = [_u(7, slot, 0, 1), _u(7, slot, 1, 0), _u(8, slot, 0, 0), _u(7, slot + 1, 0, 0)]
+    for b in others:
+        assert abs(np.corrcoef(a, b)[0, 1]) < 0.01
+        assert not np.array_equal(a, b)
+    np.testing.assert_array_equal(a, _u(7, slot, 0, 0))  # same key and counter, same number
+
+
+def _scene():
+    s = PaperScene(width=16, height=12)
+    s.add_material(Material("wall", (0.6, 0.5, 0.4)))
+    s.add_material(Material("ball", (0.2, 0.7, 0.3)))
+    s.add_box((0, 0, 1), (2, 2, 2), "wall", name="room")
+    v, f, n, _ = sphere_mesh((0.3, -0.2, 0.6), 0.4, segments=24, rings=12)
+    s.add_triangles(v, f, "ball", name="ball", normals=n)
+    s.add_point_light((0.1, -0.2, 1.6), power=10.0)
+    s.set_camera((0, -0.9, 1), (0, 0, 1), view_angle=90)
+    return s
+
+
+def test_photon_surfaces_match_surface_hit():
+    s = _scene()
+    s.validate()
+    geo, table = prepare(s)
+    accel = Accel(geo.vertices32, geo.faces32, 1)
+    rng = np.random.default_rng(3)
+    n = 5000
+    o = np.tile((0.1, -0.2, 1.6) - geo.offset, (n, 1)) + 0.2 * rng.random((n, 3))
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    _, prim, u, v = accel.intersect(o, d)
+    assert (prim >= 0).all()
+    surf = pk.surface_arrays(n)
+    pk.photon_surfaces(prim, u, v, d, geo.v0, geo.e1, geo.e2, geo.corner_normals,
+                       geo.material, table.base_color, table.alpha, *surf)
+    p, ng, ns, front, mat, base, alpha, offset = surf
+    hit = surface_hit(geo, table, prim, u, v, d)
+    assert len(geo.corner_normals)  # the smooth sphere's normals are interpolated
+    np.testing.assert_allclose(p, hit.p, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ng, hit.ng, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ns, hit.ns, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(front, hit.front)
+    np.testing.assert_array_equal(mat, hit.mat)
+    np.testing.assert_array_equal(base, hit.base)
+    np.testing.assert_array_equal(alpha, table.alpha[hit.mat])
+    np.testing.assert_allclose(offset, hit.offset, rtol=1e-9, atol=0)
+
+
+def test_closed_box_stores_the_geometric_series_of_the_emitted_power():
+    """In a closed Lambertian box of albedo a every photon is stored at each bounce and
+    survives Russian roulette with probability a at unchanged power: the stored power sums
+    to P / (1 - a) in expectation (P (1 + a + a^2 + ...)). 20k photons: ~0.6 % standard
+    error."""
+    albedo, P = 0.8, 100.0
+    ph = shoot(closed_box(albedo, P), RenderSettings(photons=20000, max_photon_depth=80))
+    total = ph.power.astype(np.float64).sum(axis=0)
+    np.testing.assert_allclose(total, P / (1 - albedo), rtol=0.025)
+    # Russian roulette never raises a photon's power here (survival = albedo exactly).
+    assert np.allclose(ph.power.astype(np.float64).sum(axis=1), 3 * P / 20000, rtol=1e-5)
+
+
+def test_same_seed_same_photons_other_seed_other_photons():
+    s = closed_box(0.5)
+    a = shoot(s, RenderSettings(photons=3000, seed=1, chunk_size=1000))
+    b = shoot(s, RenderSettings(photons=3000, seed=1, chunk_size=1000))
+    c = shoot(s, RenderSettings(photons=3000, seed=2, chunk_size=1000))
+    np.testing.assert_array_equal(a.position, b.position)
+    np.testing.assert_array_equal(a.power, b.power)
+    assert len(a) != len(c) or not np.array_equal(a.position, c.position)
