@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .geometry import Geometry, MaterialTable
+from .geometry import PIECE_TRIANGLES, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .rayoffset import ulp32
@@ -142,11 +142,18 @@ def _object_spheres(geo: Geometry, tri_mask: np.ndarray):
     centers, radii, names = [], [], []
     for oid in ids:
         sel = np.nonzero(tri_mask & (geo.object_id == oid))[0]
-        pts = np.concatenate([geo.v0[sel], geo.v0[sel] + geo.e1[sel], geo.v0[sel] + geo.e2[sel]])
-        c = (pts.min(axis=0) + pts.max(axis=0)) / 2.0
+        # A piece of the corners at a time: all of a large object's would cost 72 B a
+        # triangle at the peak of the preparation.
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for pts in _corner_pieces(geo, sel):
+            lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
+        c = (lo + hi) / 2.0
+        far = big = 0.0
+        for pts in _corner_pieces(geo, sel):
+            far = max(far, float(np.linalg.norm(pts - c, axis=1).max()))
+            big = max(big, float(np.abs(pts).max()))
         # 0.1 % margin, and at least the float32 resolution at the sphere's coordinates.
-        r = float(np.linalg.norm(pts - c, axis=1).max()) * 1.001 + 16.0 * float(
-            ulp32(np.abs(pts).max()))
+        r = far * 1.001 + 16.0 * float(ulp32(big))
         centers.append(c)
         radii.append(r)
         names.append(geo.object_names[oid])
@@ -432,15 +439,31 @@ def _labelled(geo: Geometry, table: MaterialTable, names) -> str:
 
 def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:
     """All masked triangles lie in one plane (so none can light or shadow another)."""
-    if not mask.any():
+    sel = np.nonzero(mask)[0]
+    if not len(sel):
         return True
-    n = geo.ng[mask]
-    if np.any(np.abs(n @ n[0]) < 1.0 - 1e-9):
-        return False
+    n0 = geo.ng[sel[:1]][0]
+    # A piece at a time (geometry.PIECE_TRIANGLES): the normals and corners of every
+    # triangle at once would cost ~100 B a triangle at the peak of the preparation.
+    for a in range(0, len(sel), PIECE_TRIANGLES):
+        if np.any(np.abs(geo.ng[sel[a:a + PIECE_TRIANGLES]] @ n0) < 1.0 - 1e-9):
+            return False
     # Flat to within what float32 (Embree's precision) resolves at these coordinates.
-    corners = np.concatenate([geo.v0[mask], geo.v0[mask] + geo.e1[mask], geo.v0[mask] + geo.e2[mask]])
-    h = corners @ n[0]
-    return bool(np.ptp(h) <= 16.0 * float(ulp32(np.abs(corners).max())))
+    lo, hi, big = np.inf, -np.inf, 0.0
+    for corners in _corner_pieces(geo, sel):
+        h = corners @ n0
+        lo, hi = min(lo, float(h.min())), max(hi, float(h.max()))
+        big = max(big, float(np.abs(corners).max()))
+    return bool(hi - lo <= 16.0 * float(ulp32(big)))
+
+
+def _corner_pieces(geo: Geometry, sel: np.ndarray):
+    """The corners (3n,3) of triangles sel, PIECE_TRIANGLES triangles at a time."""
+    for a in range(0, len(sel), PIECE_TRIANGLES):
+        idx = sel[a:a + PIECE_TRIANGLES]
+        v0 = np.take(geo.v0, idx, axis=0)
+        yield np.concatenate([v0, v0 + np.take(geo.e1, idx, axis=0),
+                              v0 + np.take(geo.e2, idx, axis=0)])
 
 
 def _visible_specular(scene, geo, table, accel, probe=96) -> list:
