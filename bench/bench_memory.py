@@ -107,6 +107,11 @@ warm = prepare_context(scene, settings)
 render_pass(warm, (0, 0, scene.width, scene.height))
 del warm
 gc.collect()
+try:  # hand the warm-up's freed memory back, or the grid would reuse it uncounted
+    import ctypes
+    ctypes.CDLL("libc.so.6").malloc_trim(0)
+except (OSError, AttributeError):
+    pass
 n = int((TRIS / 2) ** 0.5)
 xs = np.linspace(-3, 3, n + 1)
 X, Y = np.meshgrid(xs, xs)

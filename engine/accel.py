@@ -146,7 +146,9 @@ class Accel:
     raises engine.parallel.Cancelled when it returns True, ValueError for bad arrays.
     The Accel keeps no reference to the arrays: Embree holds its own copy (float32
     vertices and int32 indices of each piece, 6 + 12 B per triangle of a closed mesh) and
-    the BVH (~60 B per triangle, docs/performance.md)."""
+    the BVH (~60-75 B per triangle; from COMPACT_TRIANGLES on Embree's compact BVH, copy
+    and BVH ~61 B in all, docs/performance.md "Memory per triangle"). `compact` tells
+    which was built."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, threads: int = 1,
                  should_cancel=None):
