@@ -402,7 +402,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         _summarise_many_lights(plan, lights, s)
     if nothing_occludes and lights:
         plan.add("shadow rays", False, "the scene is a single flat surface: nothing can cast a shadow")
-    if has_tris and np.any(luminance(table.emission[mat]) > 0):
+    # Per material first: the (T,3) radiance of every triangle cost ~60 B a triangle.
+    if has_tris and np.any((luminance(table.emission) > 0)[mat]):
         plan.add("emission", True, "emissive surfaces are drawn and sampled as lights")
     see_through = (table.alpha < 1) | table.has_alpha_texture
     if has_tris and np.any(see_through[mat]):
@@ -439,28 +440,36 @@ def _labelled(geo: Geometry, table: MaterialTable, names) -> str:
 
 def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:
     """All masked triangles lie in one plane (so none can light or shadow another)."""
-    sel = np.nonzero(mask)[0]
-    if not len(sel):
+    if not mask.any():
         return True
-    n0 = geo.ng[sel[:1]][0]
+    n0 = geo.ng[np.argmax(mask)]
     # A piece at a time (geometry.PIECE_TRIANGLES): the normals and corners of every
     # triangle at once would cost ~100 B a triangle at the peak of the preparation.
-    for a in range(0, len(sel), PIECE_TRIANGLES):
-        if np.any(np.abs(geo.ng[sel[a:a + PIECE_TRIANGLES]] @ n0) < 1.0 - 1e-9):
+    for idx in _pieces(mask):
+        if np.any(np.abs(geo.ng[idx] @ n0) < 1.0 - 1e-9):
             return False
     # Flat to within what float32 (Embree's precision) resolves at these coordinates.
     lo, hi, big = np.inf, -np.inf, 0.0
-    for corners in _corner_pieces(geo, sel):
+    for corners in _corner_pieces(geo, mask):
         h = corners @ n0
         lo, hi = min(lo, float(h.min())), max(hi, float(h.max()))
         big = max(big, float(np.abs(corners).max()))
     return bool(hi - lo <= 16.0 * float(ulp32(big)))
 
 
-def _corner_pieces(geo: Geometry, sel: np.ndarray):
-    """The corners (3n,3) of triangles sel, PIECE_TRIANGLES triangles at a time."""
+def _pieces(sel: np.ndarray):
+    """Indices of triangles sel (indices, or a (T,) bool mask), PIECE_TRIANGLES rows of
+    the list or of the mask at a time (no index list of every masked triangle)."""
     for a in range(0, len(sel), PIECE_TRIANGLES):
-        idx = sel[a:a + PIECE_TRIANGLES]
+        piece = sel[a:a + PIECE_TRIANGLES]
+        yield a + np.nonzero(piece)[0] if piece.dtype == np.bool_ else piece
+
+
+def _corner_pieces(geo: Geometry, sel: np.ndarray):
+    """The corners (3n,3) of triangles sel (indices or a bool mask), a piece at a time."""
+    for idx in _pieces(sel):
+        if not len(idx):
+            continue
         v0 = np.take(geo.v0, idx, axis=0)
         yield np.concatenate([v0, v0 + np.take(geo.e1, idx, axis=0),
                               v0 + np.take(geo.e2, idx, axis=0)])
