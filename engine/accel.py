@@ -39,6 +39,15 @@ MESH_TRIANGLES = 1 << 16
 BLOCK_TRIANGLES = 1 << 19
 POLL_SECONDS = 0.05
 
+# Embree's scene flags (rtcore_scene.h). COMPACT makes Embree keep triangles as indices
+# into its vertex copy instead of copying the corners into the BVH leaves, and build
+# without its memory-hungry algorithms: measured on a 2M-triangle mesh, 61 B a triangle
+# kept and at the peak of the build instead of 91 B kept and 123 B at the peak, the same
+# hits bit for bit, closest hits 10-30 % slower (docs/performance.md, "Memory per
+# triangle"). Used from COMPACT_TRIANGLES on, where memory per triangle starts to count.
+SCENE_FLAG_COMPACT, SCENE_FLAG_ROBUST = 2, 4
+COMPACT_TRIANGLES = 1 << 18
+
 
 def _embree_library():
     """Embree's C library as loaded by embreex (ctypes releases the GIL in its calls), its
@@ -65,6 +74,8 @@ def _embree_library():
         lib.rtcCommitScene.restype = None
         lib.rtcGetSceneFlags.argtypes = [ctypes.c_void_p]
         lib.rtcGetSceneFlags.restype = ctypes.c_int
+        lib.rtcSetSceneFlags.argtypes = [ctypes.c_void_p, ctypes.c_int]
+        lib.rtcSetSceneFlags.restype = None
         probe = _rtcs.EmbreeScene(robust=True)
         size = type(probe).__basicsize__
         magic = 0x5A5A1234
@@ -90,12 +101,15 @@ def _embree_library():
 _LIBRARY = None if _rtcs is None else _embree_library()
 
 
-def _free_commit(scene, should_cancel):
+def _free_commit(scene, should_cancel, compact=False):
     """Commit `scene` (build its BVH) with the GIL released: on a worker thread while the
     calling thread asks should_cancel() every POLL_SECONDS (raises Cancelled; the commit
-    finishes in the background and the scene is dropped after it)."""
+    finishes in the background and the scene is dropped after it). compact: build
+    Embree's compact BVH (SCENE_FLAG_COMPACT), robust as before."""
     lib, offset, ctypes = _LIBRARY
     ptr = ctypes.c_void_p.from_address(id(scene) + offset).value
+    if compact:
+        lib.rtcSetSceneFlags(ptr, SCENE_FLAG_ROBUST | SCENE_FLAG_COMPACT)
 
     def commit(keep=scene):  # keeps the scene alive until Embree is done with it
         lib.rtcCommitScene(ptr)
@@ -132,7 +146,9 @@ class Accel:
     raises engine.parallel.Cancelled when it returns True, ValueError for bad arrays.
     The Accel keeps no reference to the arrays: Embree holds its own copy (float32
     vertices and int32 indices of each piece, 6 + 12 B per triangle of a closed mesh) and
-    the BVH (~60 B per triangle, docs/performance.md)."""
+    the BVH (~60-75 B per triangle; from COMPACT_TRIANGLES on Embree's compact BVH, copy
+    and BVH ~61 B in all, docs/performance.md "Memory per triangle"). `compact` tells
+    which was built."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, threads: int = 1,
                  should_cancel=None):
@@ -148,6 +164,8 @@ class Accel:
             raise ValueError("Accel: vertices must be finite")
         self.threads = max(1, int(threads))
         self.count = len(faces)
+        # Compact only where it saves memory that matters (docs/performance.md).
+        self.compact = _LIBRARY is not None and self.count >= COMPACT_TRIANGLES
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         self._blocks = []
         stop = should_cancel if should_cancel is not None else (lambda: False)
@@ -170,7 +188,7 @@ class Accel:
                 raise Cancelled()
             # Commit the BVH now, before threads share the scene.
             if _LIBRARY is not None:
-                _free_commit(scene, should_cancel)
+                _free_commit(scene, should_cancel, compact=self.compact)
             scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
             self._blocks.append(_Block(scene, np.array(starts, np.int64)))
         # The first block's Embree scene (the whole BVH, except in the block fallback):

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .geometry import Geometry, MaterialTable
+from .geometry import PIECE_TRIANGLES, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .rayoffset import ulp32
@@ -142,11 +142,18 @@ def _object_spheres(geo: Geometry, tri_mask: np.ndarray):
     centers, radii, names = [], [], []
     for oid in ids:
         sel = np.nonzero(tri_mask & (geo.object_id == oid))[0]
-        pts = np.concatenate([geo.v0[sel], geo.v0[sel] + geo.e1[sel], geo.v0[sel] + geo.e2[sel]])
-        c = (pts.min(axis=0) + pts.max(axis=0)) / 2.0
+        # A piece of the corners at a time: all of a large object's would cost 72 B a
+        # triangle at the peak of the preparation.
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for pts in _corner_pieces(geo, sel):
+            lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
+        c = (lo + hi) / 2.0
+        far = big = 0.0
+        for pts in _corner_pieces(geo, sel):
+            far = max(far, float(np.linalg.norm(pts - c, axis=1).max()))
+            big = max(big, float(np.abs(pts).max()))
         # 0.1 % margin, and at least the float32 resolution at the sphere's coordinates.
-        r = float(np.linalg.norm(pts - c, axis=1).max()) * 1.001 + 16.0 * float(
-            ulp32(np.abs(pts).max()))
+        r = far * 1.001 + 16.0 * float(ulp32(big))
         centers.append(c)
         radii.append(r)
         names.append(geo.object_names[oid])
@@ -395,7 +402,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         _summarise_many_lights(plan, lights, s)
     if nothing_occludes and lights:
         plan.add("shadow rays", False, "the scene is a single flat surface: nothing can cast a shadow")
-    if has_tris and np.any(luminance(table.emission[mat]) > 0):
+    # Per material first: the (T,3) radiance of every triangle cost ~60 B a triangle.
+    if has_tris and np.any((luminance(table.emission) > 0)[mat]):
         plan.add("emission", True, "emissive surfaces are drawn and sampled as lights")
     see_through = (table.alpha < 1) | table.has_alpha_texture
     if has_tris and np.any(see_through[mat]):
@@ -434,13 +442,37 @@ def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:
     """All masked triangles lie in one plane (so none can light or shadow another)."""
     if not mask.any():
         return True
-    n = geo.ng[mask]
-    if np.any(np.abs(n @ n[0]) < 1.0 - 1e-9):
-        return False
+    n0 = geo.ng[np.argmax(mask)]
+    # A piece at a time (geometry.PIECE_TRIANGLES): the normals and corners of every
+    # triangle at once would cost ~100 B a triangle at the peak of the preparation.
+    for idx in _pieces(mask):
+        if np.any(np.abs(geo.ng[idx] @ n0) < 1.0 - 1e-9):
+            return False
     # Flat to within what float32 (Embree's precision) resolves at these coordinates.
-    corners = np.concatenate([geo.v0[mask], geo.v0[mask] + geo.e1[mask], geo.v0[mask] + geo.e2[mask]])
-    h = corners @ n[0]
-    return bool(np.ptp(h) <= 16.0 * float(ulp32(np.abs(corners).max())))
+    lo, hi, big = np.inf, -np.inf, 0.0
+    for corners in _corner_pieces(geo, mask):
+        h = corners @ n0
+        lo, hi = min(lo, float(h.min())), max(hi, float(h.max()))
+        big = max(big, float(np.abs(corners).max()))
+    return bool(hi - lo <= 16.0 * float(ulp32(big)))
+
+
+def _pieces(sel: np.ndarray):
+    """Indices of triangles sel (indices, or a (T,) bool mask), PIECE_TRIANGLES rows of
+    the list or of the mask at a time (no index list of every masked triangle)."""
+    for a in range(0, len(sel), PIECE_TRIANGLES):
+        piece = sel[a:a + PIECE_TRIANGLES]
+        yield a + np.nonzero(piece)[0] if piece.dtype == np.bool_ else piece
+
+
+def _corner_pieces(geo: Geometry, sel: np.ndarray):
+    """The corners (3n,3) of triangles sel (indices or a bool mask), a piece at a time."""
+    for idx in _pieces(sel):
+        if not len(idx):
+            continue
+        v0 = np.take(geo.v0, idx, axis=0)
+        yield np.concatenate([v0, v0 + np.take(geo.e1, idx, axis=0),
+                              v0 + np.take(geo.e2, idx, axis=0)])
 
 
 def _visible_specular(scene, geo, table, accel, probe=96) -> list:
