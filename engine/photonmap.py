@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree  # auto_radius only: one query per render, not
 
 from . import hashgrid, kdtree
 from .jit import kernel, register_warm_up
-from .parallel import ordered_map
+from .parallel import Cancelled, StopFlag, ordered_map, stop_array
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
 
@@ -43,6 +43,9 @@ MIN_RADIUS_FRACTION = 0.01
 # saves; bench/bench_lookup.py). 512 KB of scratch per kernel call.
 SCAN_BUDGET = 16 * MAX_WIDEN_K
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
+# Estimates between two looks at the stop flag: 64 x ~15 us (a widening row: ~1.5 ms) is
+# far below the 0.2 s a viewport stop may take (issue 19).
+STOP_ROWS = 64
 
 ESTIMATOR_CODES = {"classic": 0, "radius": 1, "knn_simpson": 2, "knn_cone": 3}
 CLASSIC, RADIUS, KNN_SIMPSON, KNN_CONE = 0, 1, 2, 3
@@ -123,7 +126,9 @@ class PhotonMap:
 
         Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K entries),
         however far a query widens. Raises ValueError for an unknown estimator;
-        should_cancel() is asked between blocks of rows (raises parallel.Cancelled)."""
+        should_cancel() is asked between blocks of rows, and the kernel polls its stop
+        flag (parallel.stop_flag_of: should_cancel's StopFlag, or that of the chunk
+        running on this thread) every STOP_ROWS rows; raises parallel.Cancelled."""
         code = ESTIMATOR_CODES.get(estimator)
         if code is None:
             raise ValueError(f"estimator must be one of {', '.join(ESTIMATOR_CODES)}, "
@@ -147,10 +152,15 @@ class PhotonMap:
         rows = BLOCK_ROWS if threads > 1 else m
 
         def job(a, stop):
+            # The kernel polls the stop flag every STOP_ROWS rows: a cancel ends a
+            # block of thousands of estimates at once (issue 19).
+            flag = stop.array if isinstance(stop, StopFlag) else stop_array(should_cancel)
             b = min(a + rows, m)
             _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
                              p, n, floor, order[a:b], float(radius), int(k), int(min_photons),
-                             code, bool(return_boundary), out, boundary)
+                             code, bool(return_boundary), out, boundary, flag)
+            if flag[0]:
+                raise Cancelled()
             return None
 
         for _ in ordered_map(job, range(0, m, rows), threads, should_cancel):
@@ -273,10 +283,11 @@ def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
 
 @kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
-                     rows, radius, k, min_photons, code, want_boundary, out, boundary):
+                     rows, radius, k, min_photons, code, want_boundary, out, boundary, stop):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
     r_floor, if not empty) into the same rows of out (E) and boundary. Scratch:
-    MAX_WIDEN_K (or k) neighbours, reused by every row."""
+    MAX_WIDEN_K (or k) neighbours, reused by every row. stop: (1,) uint8, polled every
+    STOP_ROWS rows; once nonzero the kernel returns with rows left unwritten."""
     P = pos.shape[0]
     cap = max(min(max(k, MAX_WIDEN_K, MAX_CLASSIC_K), P), 1)
     d2 = np.empty(cap, np.float64)
@@ -292,6 +303,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     r2 = radius * radius
     knn = code >= KNN_SIMPSON
     for r in range(rows.shape[0]):
+        if r % STOP_ROWS == 0 and stop[0]:
+            return
         i = rows[r]
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
