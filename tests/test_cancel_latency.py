@@ -14,6 +14,7 @@ from engine import RenderSettings, render
 from engine import accel as accel_module
 from engine import geometry as geometry_module
 from engine import kdtree as kdtree_module
+from engine import parallel as parallel_module
 from engine.api import cornell_box
 from engine.scene import Mesh
 
@@ -270,6 +271,10 @@ def stop_inside(monkeypatch, module, name, scene, settings, delay=0.02):
     from engine.jit import ensure_compiled
     from engine.session import Session
     ensure_compiled()  # the warm-up calls the kernels: hook the session's calls only
+    # Session.stop() joins every pool a cancel left running (parallel.drain), also those
+    # of the renders earlier tests cancelled (a camera chunk ends at its next check,
+    # seconds later): join them first, so the stop measured is this session's.
+    parallel_module.drain()
     original = getattr(module, name)
     box = {}
     fired = threading.Event()
