@@ -1,5 +1,6 @@
 """Photon lookups: the compiled kd-tree and hash grid against scipy's cKDTree (the numpy
-estimators they replaced), in Embree traversals, plus compile and cached-start times.
+estimators they replaced), in Embree traversals, plus compile and cached-start times, and
+the default estimator's per-sample lookup (the gather map's, visibility ray included).
 
     .venv/bin/python bench/bench_lookup.py [--photons 200000] [--queries 50000]
 
@@ -10,6 +11,9 @@ time by the time of one closest-hit ray of camera-like rays in the same scene
 (embreex, one thread). Memory per photon is the map's bytes (photons + search structure)
 over the photons stored. The dark-wall rows are issue 16's case: queries that find only
 another surface's photons (a wall lit on its far side), where the k-NN query widens.
+The gather-map row: GatherMap.lookup (nearest facing gather point + its visibility ray)
+at the ends of rays shot from inside the box in random directions (where gather rays
+end), in Embree traversals, split into its parts.
 """
 from __future__ import annotations
 
@@ -31,7 +35,9 @@ from engine import RenderSettings  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
 from engine.jit import ensure_compiled  # noqa: E402
 from engine.lights import allocate_photons  # noqa: E402
-from engine.photonmap import PhotonMap, auto_radius  # noqa: E402
+from engine import photonmap  # noqa: E402
+from engine.bsdf import surface_hit  # noqa: E402
+from engine.photonmap import GatherMap, PhotonMap, auto_radius  # noqa: E402
 from engine.photons import Photons, trace_photons  # noqa: E402
 from engine.render import prepare_context  # noqa: E402
 from reference_photonmap import ReferencePhotonMap  # noqa: E402  (the cKDTree estimators)
@@ -56,8 +62,7 @@ def embree_ray_seconds(ctx, n=200_000) -> float:
     towards random points on its surfaces."""
     rng = np.random.default_rng(1)
     geo = ctx.geo
-    v = geo.vertices32.astype(np.float64)
-    lo, hi = v.min(axis=0), v.max(axis=0)
+    lo, hi = (np.asarray(b, np.float64) for b in geo.bounds)
     o = lo + (hi - lo) * (0.3 + 0.4 * rng.random((n, 3)))
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
@@ -89,6 +94,41 @@ def far_side_photons(n, rng):
                    np.zeros(n, np.uint8))
 
 
+def gather_lookup(ctx, shot, radius, k, s, ray, m=200_000):
+    """The gather-map lookup row: its build time, one lookup in Embree traversals, and
+    its parts (Morton order, the kernel's searches, the visibility rays)."""
+    t_build, g = best(lambda: GatherMap(shot, radius, k, s.min_photons, s.estimator,
+                                        accel=ctx.accel), repeat=1)
+    g = g.serial()
+    rng = np.random.default_rng(1)
+    lo, hi = ctx.geo.bounds
+    o = lo + (hi - lo) * (0.25 + 0.5 * rng.random((m, 3)))
+    d = rng.normal(size=(m, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    _, prim, u, v = ctx.accel.serial().intersect(o, d)
+    hit = prim >= 0
+    y = surface_hit(ctx.geo, ctx.table, prim[hit], u[hit], v[hit], d[hit])
+    M = int(hit.sum())
+    t_all, _ = best(lambda: g.lookup(y.p, y.ng, offset=y.offset))
+    p, n = np.ascontiguousarray(y.p), np.ascontiguousarray(y.ng)
+    t_order, rows = best(lambda: photonmap.morton_order(p))
+    out, bnd = np.empty((M, 3)), np.empty(M, bool)
+    o32, d32 = np.empty((M, 3), np.float32), np.empty((M, 3), np.float32)
+    t32, ray_row, blocked = np.empty(M, np.float32), np.empty(M, np.int64), np.zeros(M, bool)
+    t_kernel, nrays = best(lambda: photonmap._gather_candidates(
+        g.tree.position, g.tree.nodes, g.position, g.normal, g.E, g.boundary, p, n,
+        np.ascontiguousarray(y.offset, dtype=np.float64), rows, np.zeros(M, np.int64),
+        g.radius ** 2, 64, True, out, bnd, o32, d32, t32, ray_row))
+    t_vis, _ = best(lambda: g.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays],
+                                                  blocked[:nrays]))
+    per = t_all / M
+    parts = (f"{len(g.position):,} gather points; order {t_order / M / ray:.2f}, search + "
+             f"rays kernel {t_kernel / M / ray:.2f}, visibility {t_vis / M / ray:.2f} rays "
+             f"({nrays / M:.0%} of lookups cast one)")
+    return ("gather-map lookup (default estimator, per sample)", f"{t_build * 1e3:.0f} ms",
+            f"{per * 1e6:.2f} us = {per / ray:.1f} rays", "", parts, "")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--photons", type=int, default=RenderSettings.photons)
@@ -114,6 +154,7 @@ def main(argv=None):
     diffuse = ctx.table.has_diffuse[ctx.geo.material]
     radius = auto_radius(float(ctx.geo.area[diffuse].sum()), N, args.k, ctx.geo.extent)
     ray = embree_ray_seconds(ctx)  # CPU seconds per ray, one thread
+    gather_row = gather_lookup(ctx, shot, radius, args.k, s, ray)
     ctx.accel.close()
     rng = np.random.default_rng(0)
     sel = rng.integers(0, N, args.queries)
@@ -176,6 +217,7 @@ def main(argv=None):
                          f"{t / m * 1e6:.1f} us = {t / m / ray:.0f} rays", "",
                          f"peak numpy memory {peak / 1e6:.1f} MB for {m:,} queries", ""))
 
+    rows.append(gather_row)
     print("| lookup | build | one estimate, random order | coherent order | note | memory / photon |")
     print("|---|---:|---:|---:|---|---:|")
     for r in rows:

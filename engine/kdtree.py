@@ -20,6 +20,8 @@ Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
               unsorted and heapified at the k-th point, as Jensen does), returned in
               increasing distance
   nearest     the one nearest point with squared distance < r2 (knn with k = 1, no heap)
+  nearest_facing  the nearest point whose normal agrees with the query's
+  count_closer    how many points have squared distance < r2, up to a cap (a rank test)
   ball        the points with squared distance <= r2, up to a caller's capacity
   ball_count  how many points have squared distance <= r2 (whole subtrees inside the
               sphere are counted by their range: the points' box is kept for that)
@@ -33,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from .jit import kernel, register_warm_up
+from .parallel import Cancelled, stop_array
 
 STACK = 64  # traversal stack: one entry per tree level (a tree of 2^63 points at most)
 LEAF_SIZE = 8  # points per leaf at most (measured: 8 and 16 within 5 %, 4 slower)
@@ -91,12 +94,13 @@ def leaf_count(n):
 
 
 @kernel
-def build(points):
+def build(points, stop):
     """kd-tree over points (N,3) float32. Returns (order (N,) int64: the tree's point i is
     points[order[i]], axis (L-1,) uint8 and split (L-1,) float32 of the inner nodes,
     leaf (L+1,) int64 leaf starts), L = leaf_count(N). Each split is the median of its
     range (ranges halve, so leaves differ by at most one point) along its cell's longest
-    side. O(N log N), no recursion."""
+    side. O(N log N), no recursion. stop: (1,) uint8 polled at every node; once it is
+    nonzero the build ends early and its arrays are meaningless (the caller checks)."""
     n = points.shape[0]
     leaves = leaf_count(n)
     inner = leaves - 1
@@ -118,6 +122,8 @@ def build(points):
             st_box[0, 3 + c] = max(st_box[0, 3 + c], pts[i, c])
     sp = 1
     while sp > 0:
+        if stop[0]:
+            break
         sp -= 1
         lo, hi, node = st[sp, 0], st[sp, 1], st[sp, 2]
         if node >= inner:
@@ -318,6 +324,112 @@ def nearest(pos, axis, split, leaf, qx, qy, qz, r2):
 
 
 @kernel
+def nearest_facing(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, agreement, r2):
+    """The nearest point j with squared distance < r2 whose normal faces the query's way
+    (normal[j] . (nx, ny, nz) > agreement): (index, squared distance), or (-1, r2). Only
+    facing points shrink the search bound, so one traversal replaces a k-NN query
+    followed by a normal test over its result (normal: (N,3), in the tree's order)."""
+    n = pos.shape[0]
+    best = -1
+    bound = r2
+    if n == 0:
+        return best, bound
+    inner = axis.shape[0]
+    st_node = np.empty(STACK, np.int64)
+    st_off = np.empty((STACK, 4), np.float64)
+    st_node[0] = 0
+    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        rd = st_off[sp, 3]
+        if rd >= bound:
+            continue
+        ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
+        while node < inner:
+            ax = axis[node]
+            if ax == 0:
+                diff, old = qx - np.float64(split[node]), ox
+            elif ax == 1:
+                diff, old = qy - np.float64(split[node]), oy
+            else:
+                diff, old = qz - np.float64(split[node]), oz
+            if diff < 0.0:
+                near, far = 2 * node + 1, 2 * node + 2
+            else:
+                near, far = 2 * node + 2, 2 * node + 1
+            rd_far = rd - old * old + diff * diff
+            if rd_far < bound:
+                st_node[sp] = far
+                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
+                st_off[sp, ax] = diff
+                st_off[sp, 3] = rd_far
+                sp += 1
+            node = near
+        for j in range(leaf[node - inner], leaf[node - inner + 1]):
+            dx = qx - np.float64(pos[j, 0])
+            dy = qy - np.float64(pos[j, 1])
+            dz = qz - np.float64(pos[j, 2])
+            dist2 = dx * dx + dy * dy + dz * dz
+            if dist2 < bound and \
+                    normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz > agreement:
+                best = j
+                bound = dist2
+    return best, bound
+
+
+@kernel
+def count_closer(pos, axis, split, leaf, qx, qy, qz, r2, cap):
+    """How many points have squared distance < r2, counting up to cap (returns cap as
+    soon as cap are found): the rank test "is this point among the cap nearest?"."""
+    n = pos.shape[0]
+    count = 0
+    if n == 0 or cap <= 0:
+        return 0
+    inner = axis.shape[0]
+    st_node = np.empty(STACK, np.int64)
+    st_off = np.empty((STACK, 4), np.float64)
+    st_node[0] = 0
+    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        rd = st_off[sp, 3]
+        ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
+        while node < inner:
+            ax = axis[node]
+            if ax == 0:
+                diff, old = qx - np.float64(split[node]), ox
+            elif ax == 1:
+                diff, old = qy - np.float64(split[node]), oy
+            else:
+                diff, old = qz - np.float64(split[node]), oz
+            if diff < 0.0:
+                near, far = 2 * node + 1, 2 * node + 2
+            else:
+                near, far = 2 * node + 2, 2 * node + 1
+            rd_far = rd - old * old + diff * diff
+            if rd_far < r2:
+                st_node[sp] = far
+                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
+                st_off[sp, ax] = diff
+                st_off[sp, 3] = rd_far
+                sp += 1
+            node = near
+        for j in range(leaf[node - inner], leaf[node - inner + 1]):
+            dx = qx - np.float64(pos[j, 0])
+            dy = qy - np.float64(pos[j, 1])
+            dz = qz - np.float64(pos[j, 2])
+            if dx * dx + dy * dy + dz * dz < r2:
+                count += 1
+                if count == cap:
+                    return cap
+    return count
+
+
+@kernel
 def ball(pos, axis, split, leaf, qx, qy, qz, r2, out, cap):
     """Indices of the points with squared distance <= r2 into out[:min(count, cap)], in
     tree order. Stops scanning once more than cap are found and returns cap + 1; else
@@ -479,11 +591,17 @@ class KdTree:
     """The kd-tree over points (N,3); self.order maps the tree's point index -> input
     index, self.position are the points in the tree's order."""
 
-    def __init__(self, points: np.ndarray):
+    def __init__(self, points: np.ndarray, should_cancel=None):
+        """should_cancel: a parallel.StopFlag (or the flag of the job running on this
+        thread, parallel.stop_flag_of) that the compiled build polls; raises
+        parallel.Cancelled when it is set."""
         pts = np.ascontiguousarray(points, dtype=np.float32)
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"KdTree: points must have shape (N, 3), got {pts.shape}")
-        self.order, self.axis, self.split, self.leaf = build(pts)
+        stop = stop_array(should_cancel)
+        self.order, self.axis, self.split, self.leaf = build(pts, stop)
+        if stop[0]:
+            raise Cancelled()
         self.position = np.ascontiguousarray(pts[self.order])
         self.bounds = np.zeros(6)  # the points' box: lo x, y, z, hi x, y, z
         if len(pts):
@@ -520,3 +638,6 @@ def _warm_up():
     ball(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1, out, 8)
     ball_count(tree.position, *tree.nodes, tree.bounds, 0.5, 0.5, 0.5, 0.1)
     nearest(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1)
+    nrm = np.zeros((40, 3)); nrm[:, 2] = 1.0
+    nearest_facing(tree.position, *tree.nodes, nrm, 0.5, 0.5, 0.5, 0.0, 0.0, 1.0, 0.7, 0.1)
+    count_closer(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1, 8)

@@ -7,14 +7,17 @@ its index) and its results are merged in chunk order on the calling thread, so t
 does not depend on the number of threads.
 
 Callbacks (progress, should_cancel) are only ever called on the calling thread: Blender's
-RenderEngine API must not be touched from other threads. Worker chunks poll a
-threading.Event instead.
+RenderEngine API must not be touched from other threads. Worker chunks poll a StopFlag
+instead, which compiled kernels poll too (its one-byte array), so a cancel reaches the
+middle of a long compiled step (a photon-map estimate of 60k rows, a kd-tree build).
 """
 from __future__ import annotations
 
 import threading
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor, wait
+
+import numpy as np
 
 # Pools shut down without waiting for their running chunks (after a cancel): drain()
 # joins them when a caller must leave no thread behind (engine/session.py's stop).
@@ -47,7 +50,84 @@ class Cancelled(Exception):
     """Raised inside the passes when the caller asked to stop."""
 
 
-POLL_SECONDS = 0.1  # how often the calling thread asks should_cancel while chunks run
+class StopFlag(threading.Event):
+    """A threading.Event that compiled kernels can poll: `array` (1,) uint8 turns 1 when
+    the flag is set, and so do the flags linked to it (the flag of an inner ordered_map
+    or run_cancellable, set at once instead of at the caller's next poll). Calling it is
+    is_set(), so it serves as a job's stop() and as a should_cancel()."""
+
+    def __init__(self):
+        super().__init__()
+        self.array = np.zeros(1, np.uint8)
+        self._linked = []
+        self._link_lock = threading.Lock()
+
+    def __call__(self) -> bool:
+        return self.array[0] != 0
+
+    def set(self):
+        self.array[0] = 1
+        super().set()
+        with self._link_lock:
+            linked = list(self._linked)
+        for flag in linked:
+            flag.set()
+
+    def clear(self):
+        self.array[0] = 0
+        super().clear()
+
+    def link(self, child: "StopFlag") -> None:
+        """Set child whenever this flag is set (now, if it is set already)."""
+        with self._link_lock:
+            self._linked.append(child)
+        if self():
+            child.set()
+
+    def unlink(self, child: "StopFlag") -> None:
+        with self._link_lock:
+            if child in self._linked:
+                self._linked.remove(child)
+
+
+_current = threading.local()
+
+
+def _never() -> bool:
+    return False
+
+
+def stop_flag_of(should_cancel) -> StopFlag | None:
+    """The StopFlag behind should_cancel (the flag itself or its is_set), else the flag of
+    the ordered_map / run_cancellable job running on this thread, else None."""
+    for f in (should_cancel, getattr(should_cancel, "__self__", None)):
+        if isinstance(f, StopFlag):
+            return f
+    return getattr(_current, "flag", None)
+
+
+def stop_array(should_cancel=None) -> np.ndarray:
+    """The (1,) uint8 array a compiled kernel polls for should_cancel (stop_flag_of), or a
+    zero array that never turns 1."""
+    flag = stop_flag_of(should_cancel)
+    return flag.array if flag is not None else np.zeros(1, np.uint8)
+
+
+def _with_flag(job, flag):
+    """job(*args) run with flag as this thread's current stop flag (stop_flag_of)."""
+    def run(*args):
+        before = getattr(_current, "flag", None)
+        _current.flag = flag
+        try:
+            return job(*args)
+        finally:
+            _current.flag = before
+    return run
+
+
+# How often the calling thread asks should_cancel while chunks run: a stop within 0.2 s
+# (the viewport, issue 19) needs the poll well under that.
+POLL_SECONDS = 0.02
 
 # A pass is cut into at least MIN_CHUNKS chunks, so small jobs use both cores, of at least
 # MIN_CHUNK items: two threads running numpy on small arrays spend their time handing the
@@ -66,7 +146,8 @@ def chunk_length(total: int, limit: int) -> int:
 
 def ordered_map(job, items, threads: int, should_cancel=None):
     """Yield job(item, stop) for each item, in order. stop() tells a running job that the
-    caller cancelled (it should raise Cancelled). At most 2 x threads chunks are in
+    caller cancelled (it should raise Cancelled); it is a StopFlag whose array compiled
+    kernels poll (stop_array), linked to should_cancel's flag if that is one. At most 2 x threads chunks are in
     flight (one with threads <= 1), which bounds memory. Raises Cancelled when
     should_cancel() returns True. Without should_cancel and with threads <= 1 the jobs
     run inline; with should_cancel they run on worker threads while this thread polls it
@@ -74,18 +155,24 @@ def ordered_map(job, items, threads: int, should_cancel=None):
     two checks of stop() takes seconds (a camera chunk's first bounce)."""
     items = list(items)
     if should_cancel is None and (threads <= 1 or len(items) <= 1):
+        # Inline on this thread: the stop of the job this thread runs, if any.
+        stop = stop_flag_of(None) or _never
         for item in items:
-            yield job(item, lambda: False)
+            yield job(item, stop)
         return
     threads = max(1, threads)
     in_flight = 2 * threads if threads > 1 else 1
-    event = threading.Event()
+    event = StopFlag()
+    parent = stop_flag_of(should_cancel)
+    if parent is not None:
+        parent.link(event)
+    run = _with_flag(job, event)
     pending = deque()
     todo = iter(items)
     pool = ThreadPoolExecutor(threads)
     try:
         for item in todo:
-            pending.append(pool.submit(job, item, event.is_set))
+            pending.append(pool.submit(run, item, event))
             if len(pending) >= in_flight:
                 break
         while pending:
@@ -100,7 +187,7 @@ def ordered_map(job, items, threads: int, should_cancel=None):
             pending.popleft()
             result = head.result()  # re-raises a worker's exception here
             for item in todo:
-                pending.append(pool.submit(job, item, event.is_set))
+                pending.append(pool.submit(run, item, event))
                 break
             yield result
     finally:
@@ -109,6 +196,8 @@ def ordered_map(job, items, threads: int, should_cancel=None):
         # waited for (a chunk's step between two checks can take seconds): the caller
         # returns within POLL_SECONDS of the cancel and their results are dropped.
         event.set()
+        if parent is not None:
+            parent.unlink(event)
         for f in pending:
             f.cancel()
         _let_drain(pool)
@@ -119,19 +208,23 @@ def run_cancellable(job, should_cancel=None):
     should_cancel() every POLL_SECONDS, for one long step that has no chunks of its own
     (a photon map's build). On a cancel, stop() turns True for the job, which should end
     at its next check, and Cancelled is raised at once: the job's result is dropped (it
-    must not change shared state; a compiled step without checks may run on for a while
-    in the background). Without should_cancel the job runs inline."""
+    must not change shared state). stop is a StopFlag: compiled steps poll its array
+    (stop_array). Without should_cancel the job runs inline."""
     if should_cancel is None:
         return job(lambda: False)
-    event = threading.Event()
+    event = StopFlag()
+    parent = stop_flag_of(should_cancel)
+    if parent is not None:
+        parent.link(event)
     pool = ThreadPoolExecutor(1)
     try:
-        future = pool.submit(job, event.is_set)
+        future = pool.submit(_with_flag(job, event), event)
         while not wait([future], timeout=POLL_SECONDS).done:
             if should_cancel():
                 event.set()
                 raise Cancelled()
         return future.result()
     finally:
+        if parent is not None:
+            parent.unlink(event)
         _let_drain(pool)
-

@@ -20,11 +20,10 @@ import copy
 import math
 
 import numpy as np
-from scipy.spatial import cKDTree  # auto_radius only: one query per render, not per sample
 
 from . import hashgrid, kdtree
 from .jit import kernel, register_warm_up
-from .parallel import ordered_map
+from .parallel import Cancelled, StopFlag, ordered_map, stop_array
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
 
@@ -43,6 +42,9 @@ MIN_RADIUS_FRACTION = 0.01
 # saves; bench/bench_lookup.py). 512 KB of scratch per kernel call.
 SCAN_BUDGET = 16 * MAX_WIDEN_K
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
+# Estimates between two looks at the stop flag: 64 x ~15 us (a widening row: ~1.5 ms) is
+# far below the 0.2 s a viewport stop may take (issue 19).
+STOP_ROWS = 64
 
 ESTIMATOR_CODES = {"classic": 0, "radius": 1, "knn_simpson": 2, "knn_cone": 3}
 CLASSIC, RADIUS, KNN_SIMPSON, KNN_CONE = 0, 1, 2, 3
@@ -123,7 +125,9 @@ class PhotonMap:
 
         Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K entries),
         however far a query widens. Raises ValueError for an unknown estimator;
-        should_cancel() is asked between blocks of rows (raises parallel.Cancelled)."""
+        should_cancel() is asked between blocks of rows, and the kernel polls its stop
+        flag (parallel.stop_flag_of: should_cancel's StopFlag, or that of the chunk
+        running on this thread) every STOP_ROWS rows; raises parallel.Cancelled."""
         code = ESTIMATOR_CODES.get(estimator)
         if code is None:
             raise ValueError(f"estimator must be one of {', '.join(ESTIMATOR_CODES)}, "
@@ -147,10 +151,15 @@ class PhotonMap:
         rows = BLOCK_ROWS if threads > 1 else m
 
         def job(a, stop):
+            # The kernel polls the stop flag every STOP_ROWS rows: a cancel ends a
+            # block of thousands of estimates at once (issue 19).
+            flag = stop.array if isinstance(stop, StopFlag) else stop_array(should_cancel)
             b = min(a + rows, m)
             _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
                              p, n, floor, order[a:b], float(radius), int(k), int(min_photons),
-                             code, bool(return_boundary), out, boundary)
+                             code, bool(return_boundary), out, boundary, flag)
+            if flag[0]:
+                raise Cancelled()
             return None
 
         for _ in ordered_map(job, range(0, m, rows), threads, should_cancel):
@@ -201,7 +210,34 @@ def morton_order(p):
             cell = int(v) if v > 0.0 and v < 1024.0 else 0  # NaN rows go first
             key |= _spread10(cell) << c
         code[i] = key
-    return np.argsort(code, kind="mergesort")
+    return _radix_argsort30(code)
+
+
+@kernel
+def _radix_argsort30(code):
+    """Stable argsort of 30-bit keys: three counting-sort passes of 10 bits (LSD radix
+    sort), the same order as np.argsort(code, kind="stable") in O(M) instead of a merge
+    sort's O(M log M) (the sort was most of morton_order's cost: 1.2 Embree traversals per
+    gather lookup, bench/bench_lookup.py)."""
+    m = code.shape[0]
+    order = np.arange(m)
+    if m < 2:
+        return order
+    tmp = np.empty(m, np.int64)
+    count = np.empty(1025, np.int64)
+    for shift in (0, 10, 20):
+        count[:] = 0
+        for i in range(m):
+            count[((code[order[i]] >> shift) & 0x3FF) + 1] += 1
+        for b in range(1024):
+            count[b + 1] += count[b]
+        for i in range(m):
+            j = order[i]
+            b = (code[j] >> shift) & 0x3FF
+            tmp[count[b]] = j
+            count[b] += 1
+        order, tmp = tmp, order
+    return order
 
 
 
@@ -246,10 +282,11 @@ def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
 
 @kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
-                     rows, radius, k, min_photons, code, want_boundary, out, boundary):
+                     rows, radius, k, min_photons, code, want_boundary, out, boundary, stop):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
     r_floor, if not empty) into the same rows of out (E) and boundary. Scratch:
-    MAX_WIDEN_K (or k) neighbours, reused by every row."""
+    MAX_WIDEN_K (or k) neighbours, reused by every row. stop: (1,) uint8, polled every
+    STOP_ROWS rows; once nonzero the kernel returns with rows left unwritten."""
     P = pos.shape[0]
     cap = max(min(max(k, MAX_WIDEN_K, MAX_CLASSIC_K), P), 1)
     d2 = np.empty(cap, np.float64)
@@ -265,6 +302,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     r2 = radius * radius
     knn = code >= KNN_SIMPSON
     for r in range(rows.shape[0]):
+        if r % STOP_ROWS == 0 and stop[0]:
+            return
         i = rows[r]
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
@@ -508,14 +547,14 @@ class GatherMap:
         ray from p clear of p's surface (SurfaceHit.offset); default: the float32
         resolution at p. Returns ((M,3) float64, (M,) bool).
 
-        One kernel (_gather_candidates) searches the kd-tree, tests the normals and
-        writes the visibility rays in Embree's float32 layout; the rows whose candidate is
-        hidden ask for their next candidate (usually none do)."""
+        One kernel (_gather_candidates) searches the kd-tree, tests the normals, writes
+        the answers and the visibility rays in Embree's float32 layout; the rows whose
+        candidate is hidden ask for their next candidate (usually none do)."""
         m = len(p)
-        out = np.zeros((m, 3))
-        boundary = np.ones(m, bool)
         if self.tree is None or m == 0:
-            return out, boundary
+            return np.zeros((m, 3)), np.ones(m, bool)
+        out = np.empty((m, 3))  # every row is written by the kernel
+        boundary = np.empty(m, bool)
         p = np.ascontiguousarray(p, dtype=np.float64)
         n = np.ascontiguousarray(n, dtype=np.float64)
         lift = (_NO_LIFT if offset is None
@@ -523,7 +562,6 @@ class GatherMap:
         kmax = min(8 * candidates, len(self.position))
         rows = morton_order(p)  # cache-friendly query order; same answers
         skip = np.zeros(m, np.int64)  # hidden agreeing candidates already passed over
-        cand = np.empty(m, np.int64)
         o32 = np.empty((m, 3), np.float32)
         d32 = np.empty((m, 3), np.float32)
         t32 = np.empty(m, np.float32)
@@ -531,25 +569,21 @@ class GatherMap:
         blocked = np.zeros(m, bool)
         want_rays = self.accel is not None
         for _ in range(kmax):
-            k = len(rows)
-            c = cand[:k]
+            # The kernel writes every row's answer (its candidate's E and boundary flag,
+            # or none); rows whose visibility ray is blocked are undone and ask again.
             nrays = _gather_candidates(self.tree.position, self.tree.nodes, self.position,
-                                       self.normal, p, n, lift, rows, skip,
-                                       self.radius * self.radius, kmax, want_rays, c,
-                                       o32, d32, t32, ray_row)
-            hidden = np.zeros(k, bool)
-            if want_rays and nrays:
-                self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays],
-                                         blocked[:nrays])
-                hidden[ray_row[:nrays]] = blocked[:nrays]
-            done = (c >= 0) & ~hidden
-            r, chosen = rows[done], c[done]
-            out[r] = self.E[chosen]
-            boundary[r] = self.boundary[chosen]
-            again = hidden  # no candidate at all (c < 0): the row ends without one
-            if not again.any():
+                                       self.normal, self.E, self.boundary, p, n, lift, rows,
+                                       skip, self.radius * self.radius, kmax, want_rays,
+                                       out, boundary, o32, d32, t32, ray_row)
+            if not nrays:
+                break
+            self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked[:nrays])
+            again = ray_row[:nrays][blocked[:nrays]]  # positions in rows, increasing
+            if not len(again):
                 break
             rows = rows[again]
+            out[rows] = 0.0
+            boundary[rows] = True
             skip = skip[again] + 1
         return out, boundary
 
@@ -560,12 +594,13 @@ _NO_LIFT = np.zeros(0)
 
 
 @kernel
-def _gather_candidates(tree_pos, nodes, position, normal, p, n, lift, rows, skip, r2, kmax,
-                       want_rays, cand, o32, d32, t32, ray_row):
-    """For each rows[r]: cand[r] = the (skip[r]+1)-th gather point, in increasing distance
-    among the kmax nearest within sqrt(r2), whose normal agrees with n (else -1); and,
-    if want_rays, the ray from p to it into o32 / d32 / t32 (float32, compacted; ray_row
-    = r). Returns the number of rays.
+def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, lift, rows,
+                       skip, r2, kmax, want_rays, out, boundary, o32, d32, t32, ray_row):
+    """For each row i = rows[r]: the candidate c = the (skip[r]+1)-th gather point, in
+    increasing distance among the kmax nearest within sqrt(r2), whose normal agrees with
+    n[i]; out[i] = E[c] and boundary[i] = E_boundary[c] (no candidate: 0 and True); and,
+    if want_rays, the ray from p[i] to c into o32 / d32 / t32 (float32, compacted;
+    ray_row = r). Returns the number of rays.
 
     The ray: both ends lifted off their surfaces along their normals (shared by
     agreement) by bounds on their rounding error (engine/rayoffset.py): the query's own
@@ -576,17 +611,45 @@ def _gather_candidates(tree_pos, nodes, position, normal, p, n, lift, rows, skip
     d2 = np.empty(max(kmax, 1), np.float64)
     idx = np.empty(max(kmax, 1), np.int64)
     nrays = 0
+    # The previous row's nearest and chosen gather points: rows come in Morton order, so
+    # they are usually near this row's, and their distance bounds this row's search
+    # (a real point at that distance exists). The bound has a margin above it, so the
+    # search still meets every point at least as near, in its usual order: the answer is
+    # the one an unbounded search gives.
+    prev_near = -1
+    prev_cand = -1
     for r in range(rows.shape[0]):
         i = rows[r]
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
         c = -1
-        if skip[r] == 0:
-            j, _ = kdtree.nearest(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, r2)
-            if j >= 0 and normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
-                    > GATHER_AGREEMENT:
-                c = j
-        if c < 0 and (skip[r] > 0 or kmax > 1) and P > 0:
+        if skip[r] == 0 and P > 0:
+            bound = r2
+            if prev_near >= 0:
+                bound = min(bound, _seed_bound(tree_pos, prev_near, qx, qy, qz))
+            j, _ = kdtree.nearest(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, bound)
+            if j >= 0:
+                prev_near = j
+                if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
+                        > GATHER_AGREEMENT:
+                    c = j
+                elif kmax > 1:
+                    # The nearest faces another way: the nearest facing point, if it is
+                    # among the kmax nearest (fewer than kmax points nearer).
+                    bound = r2
+                    if prev_cand >= 0 and normal[prev_cand, 0] * nx \
+                            + normal[prev_cand, 1] * ny + normal[prev_cand, 2] * nz \
+                            > GATHER_AGREEMENT:
+                        bound = min(bound, _seed_bound(tree_pos, prev_cand, qx, qy, qz))
+                    j, dd = kdtree.nearest_facing(tree_pos, nodes[0], nodes[1], nodes[2],
+                                                  normal, qx, qy, qz, nx, ny, nz,
+                                                  GATHER_AGREEMENT, bound)
+                    if j >= 0 and kdtree.count_closer(tree_pos, nodes[0], nodes[1],
+                                                      nodes[2], qx, qy, qz, dd, kmax) < kmax:
+                        c = j
+        elif skip[r] > 0 and P > 0:
+            # A hidden candidate was passed over (rare): the next agreeing one among the
+            # kmax nearest.
             cnt = kdtree.knn(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, kmax, r2, d2,
                              idx)
             seen = 0
@@ -598,8 +661,14 @@ def _gather_candidates(tree_pos, nodes, position, normal, p, n, lift, rows, skip
                         c = j
                         break
                     seen += 1
-        cand[r] = c
-        if c < 0 or not want_rays:
+        if c < 0:
+            out[i, 0] = out[i, 1] = out[i, 2] = 0.0
+            boundary[i] = True
+            continue
+        prev_cand = c
+        out[i, 0], out[i, 1], out[i, 2] = E[c, 0], E[c, 1], E[c, 2]
+        boundary[i] = E_boundary[c]
+        if not want_rays:
             continue
         if lift.shape[0]:
             la = lift[i]
@@ -620,6 +689,17 @@ def _gather_candidates(tree_pos, nodes, position, normal, p, n, lift, rows, skip
         ray_row[nrays] = r
         nrays += 1
     return nrays
+
+
+@kernel
+def _seed_bound(tree_pos, j, qx, qy, qz):
+    """A search bound that point j certainly passes: its squared distance plus a margin
+    (1e-9 relative) far above the rounding error of the traversal's incremental
+    distances to cells (a few ulps), so no cell holding a point as near as j is pruned."""
+    dx = qx - np.float64(tree_pos[j, 0])
+    dy = qy - np.float64(tree_pos[j, 1])
+    dz = qz - np.float64(tree_pos[j, 2])
+    return (dx * dx + dy * dy + dz * dz) * (1.0 + 1e-9) + 1e-300
 
 
 @register_warm_up
@@ -654,10 +734,13 @@ def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
         return 0.05 * extent
     r = 0.0
     if positions is not None and len(positions) > k:
-        pts = np.asarray(positions, np.float64)
-        step = max(1, len(pts) // RADIUS_SAMPLE)
-        tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)
-        d, _ = tree.query(pts[::step], k=k + 1)  # the nearest is the photon itself
+        # The compiled kd-tree: its build polls the stop flag of the job running on this
+        # thread (a map build under run_cancellable), where scipy's build could not be
+        # interrupted (0.7 s at 1M photons; issue 19). Same distances as cKDTree's.
+        tree = kdtree.KdTree(positions)
+        step = max(1, len(tree) // RADIUS_SAMPLE)
+        sample = np.asarray(positions, np.float32)[::step].astype(np.float64)
+        d, _ = tree.query(sample, k + 1, np.inf)  # the nearest is the photon itself
         r = 2.0 * float(np.median(d[:, -1]))
     if not r > 0:
         r = 2.0 * math.sqrt(k * diffuse_area / (math.pi * stored))

@@ -48,7 +48,7 @@ from .geometry import MaterialTable, prepare
 from .jit import ensure_compiled
 from .lights import prepare_lights
 from .shadowtransmittance import ShadowTransmittance
-from .parallel import Cancelled, drain
+from .parallel import Cancelled, StopFlag, drain
 from .progressive import PassMerger, pass_settings
 from .render import Context, _check_region, packed_lights_for, render_pass, shoot_photons
 from .resources import check_resources
@@ -147,7 +147,9 @@ class Session:
         self._scene = _copy_scene(scene)
         self._view = (scene.camera, int(scene.width), int(scene.height), region)
         self._cond = threading.Condition()
-        self._cancel = threading.Event()
+        # Compiled steps poll its array (parallel.StopFlag): stop() reaches the middle of
+        # a photon-map estimate or a kd-tree build at once, not at its end (issue 19).
+        self._cancel = StopFlag()
         self._pending: _Request | None = _Request(scene=self._scene, geometry=True)
         self._stopping = False
         self._busy = False

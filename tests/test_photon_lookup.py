@@ -24,7 +24,8 @@ from engine.api import cornell_box
 from engine.hashgrid import HashGrid
 from engine.hashgrid import ball_count as grid_ball_count
 from engine.hashgrid import cells_spanned
-from engine.kdtree import LEAF_SIZE, KdTree, ball, ball_count, nearest
+from engine.kdtree import (LEAF_SIZE, KdTree, ball, ball_count, count_closer, nearest,
+                           nearest_facing)
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
                               PhotonMap)
 from engine.photons import Photons
@@ -211,6 +212,57 @@ def test_gather_map_lookups_match_ckdtree():
     np.testing.assert_array_equal(E[has], g.E[chosen[has]])
     np.testing.assert_array_equal(B[has], g.boundary[chosen[has]])
     assert not E[~has].any() and B[~has].all()
+
+
+def test_nearest_facing_and_count_closer_match_brute_force():
+    """The gather lookup's two extra queries: the nearest point whose normal agrees, and
+    the capped count of nearer points (its rank test), against brute force."""
+    rng = np.random.default_rng(12)
+    pts = rng.random((5000, 3)).astype(np.float32)
+    normal = rng.normal(size=(5000, 3))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    t = KdTree(pts)
+    nrm = np.ascontiguousarray(normal[t.order])
+    pos = t.position.astype(np.float64)
+    for q in rng.random((300, 3)):
+        nq = rng.normal(size=3)
+        nq /= np.linalg.norm(nq)
+        d2 = ((pos - q) ** 2).sum(axis=1)
+        facing = nrm @ nq > 0.7
+        r2 = 0.15 ** 2
+        j, dj = nearest_facing(t.position, *t.nodes, nrm, q[0], q[1], q[2], nq[0], nq[1],
+                               nq[2], 0.7, r2)
+        ok = facing & (d2 < r2)
+        if ok.any():
+            assert j == np.flatnonzero(ok)[np.argmin(d2[ok])] and dj == d2[j]
+        else:
+            assert j == -1
+        for cap in (1, 8, 64, 10**6):
+            want = min(int((d2 < r2).sum()), cap)
+            assert count_closer(t.position, *t.nodes, q[0], q[1], q[2], r2, cap) == want
+
+
+def test_gather_lookup_needs_the_facing_point_among_the_nearest():
+    """A gather point facing the query's way counts only among the 8 x candidates nearest
+    (as a k-NN query then a normal test would find it): a crowded opposite surface hides
+    a farther facing point."""
+    rng = np.random.default_rng(13)
+    ph = _join(_plane(2000, rng), _plane(200000, rng, z=0.0005, nz=-1.0))
+    g = GatherMap(ph, 0.2, 16, 2, "knn_simpson", max_points=50000)
+    q = np.c_[rng.random((2000, 2)), np.full(2000, 0.0004)]
+    up = np.tile([0.0, 0.0, 1.0], (2000, 1))
+    for candidates in (1, 8):
+        E, B = g.lookup(q, up, candidates=candidates)
+        kq = 8 * candidates
+        ref = cKDTree(g.position)
+        d, i = ref.query(q, k=kq, distance_upper_bound=0.2)
+        ok = (i < len(g.position)) & \
+            (g.normal[np.minimum(i, len(g.position) - 1)] @ up[0] > 0.7)
+        has = ok.any(axis=1)
+        chosen = i[np.arange(len(q)), np.argmax(ok, axis=1)]
+        assert 0.05 < has.mean() < 0.95  # both kinds of rows occur
+        np.testing.assert_array_equal(E[has], g.E[chosen[has]])
+        assert not E[~has].any() and B[~has].all()
 
 
 def test_widening_has_a_fixed_memory_budget():
