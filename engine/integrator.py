@@ -22,6 +22,7 @@ from .lights.world import background_radiance
 from .lights.packing import pack_lights
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, sample_specular,
                    surface_hit)
+from .camerakernels import choose_lobes
 from .camerarays import camera_rays_kernel
 from .closures import principled as pr
 from .closures.principled import rough_reflection_rows
@@ -369,21 +370,19 @@ def _secondary_irradiance(ctx, hit):
                            s.estimator)
 
 
-def lobe_choice(w, tp):
-    """The continuation's lobe choice: (sel (N, N_LOBES) the probability of continuing
-    through each lobe (diffuse: 0; Russian roulette included), q (N,) the survival
-    probability, p (N, len(SPEC_LOBES)) the unnormalised lobe weights, psum (N,))."""
-    cols = [w[k] for k in SPEC_LOBES]
-    p = np.stack([max3(c) for c in cols], axis=1)
-    psum = p.sum(axis=1)
-    wsum = cols[0]
-    for c in cols[1:]:
-        wsum = wsum + c
-    # Russian roulette only for paths that would contribute little (< 10 % weight).
-    q = np.clip(10.0 * max3(tp * wsum), 0.0, 1.0)
-    sel = np.zeros((len(p), len(SPEC_LOBES) + 1))
-    ok = psum > 0
-    sel[ok, 1:] = p[ok] / psum[ok, None] * q[ok, None]
+def lobe_choice(albedo, tp):
+    """The continuation's lobe choice from the hits' lobe albedos albedo (N, N_LOBES, 3)
+    (bsdf.closures) and throughputs tp (N,3): (sel (N, N_LOBES) the probability of
+    continuing through each lobe (diffuse: 0; Russian roulette included), q (N,) the
+    survival probability, p (N, len(SPEC_LOBES)) the unnormalised lobe weights, psum (N,)).
+    One compiled kernel (camerakernels.choose_lobes)."""
+    n = len(albedo)
+    sel = np.empty((n, len(SPEC_LOBES) + 1))
+    q = np.empty(n)
+    p = np.empty((n, len(SPEC_LOBES)))
+    psum = np.empty(n)
+    choose_lobes(np.ascontiguousarray(albedo, np.float64), np.ascontiguousarray(tp, np.float64),
+                 sel, q, p, psum)
     return sel, q, p, psum
 
 
@@ -396,7 +395,8 @@ def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA, choice=None, want_pd
     lobe, a refraction or a pass, which light sampling cannot produce). The throughput
     takes the sampled direction's own weight (f cos / pdf) over the choice probability, so
     the lobe weights only steer the choice. choice: lobe_choice(w, tp) if already made."""
-    sel, q, p, psum = choice if choice is not None else lobe_choice(w, tp)
+    sel, q, p, psum = (choice if choice is not None
+                       else lobe_choice(closures(ctx.table, hit)[1], tp))
     go = (psum > 0) & (rng.random(len(p)) < q)
     idx = np.nonzero(go)[0]
     empty = np.zeros((0, 3))
@@ -757,7 +757,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         w = lobe_weights(ctx.table, hit)
         wd = w["diffuse"]
         glossy = _glossy_rows(ctx, hit, modes)
-        choice = lobe_choice(w, tp)
+        choice = lobe_choice(hit.lobe_albedo, tp)
         dsel = np.nonzero((max3(wd) > 0) | glossy)[0]
         if len(dsel):
             sub = hit.take(dsel)
