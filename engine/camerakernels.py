@@ -10,6 +10,11 @@ two Embree calls for every hit of a camera, gather or specular ray.
   (a shading normal that puts the viewer below the surface falls back to ng).
 - `choose_lobes`: the continuation's lobe choice (weights of the non-diffuse lobes,
   Russian roulette) from the closures' per-lobe albedo estimates.
+- `pick_lobes` + `continue_lobes`: the specular continuation: the lobe each surviving
+  path takes, its sampled direction and weight (principled.sample_lobe), the new
+  throughput, ray class and MIS pdf, and the offset origins, compacted into the arrays
+  handed to Embree. The uniform numbers are drawn in numpy between the two kernels, in
+  the order the numpy stage drew them.
 
 Every kernel computes the same floating-point operations in the same order as the numpy
 stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py keeps
@@ -22,8 +27,12 @@ import math
 
 import numpy as np
 
+from .closures import principled as pr
 from .jit import kernel, register_warm_up
 from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
+
+# Indices into SPEC_LOBES (bsdf.py: LOBE_NAMES[1:], principled's L_* minus one).
+_PASS, _GLASS_R, _GLASS_T = pr.L_PASS - 1, pr.L_GLASS_R - 1, pr.L_GLASS_T - 1
 
 
 @kernel
@@ -180,6 +189,110 @@ def choose_lobes(albedo, tp, sel, q, p, psum):
         sel[i, 0] = 0.0
         for j in range(k):
             sel[i, j + 1] = p[i, j] / s * qi if s > 0 else 0.0
+
+
+@kernel
+def pick_lobes(p, psum, q, idx, r, lobe, prob):
+    """Lobe (index into SPEC_LOBES) of each surviving row idx[k], by inverting the
+    cumulative distribution of p[row] / psum[row] with the uniform r[k] (glass_r and
+    glass_t are one lobe here: sample_lobe decides between them), and its probability
+    under the whole choice, q included. Returns how many picks are not the pass lobe
+    (they take three uniform numbers each)."""
+    k_lobes = p.shape[1]
+    sampled = 0
+    for k in range(idx.shape[0]):
+        row = idx[k]
+        c = 0.0
+        count = 0
+        for j in range(k_lobes):
+            x = p[row, j] / psum[row]
+            c = c + x if j > 0 else x
+            if r[k] >= c:
+                count += 1
+        lb = min(count, k_lobes - 1)
+        lobe[k] = lb
+        if lb == _GLASS_R or lb == _GLASS_T:
+            p_sel = p[row, _GLASS_R] + p[row, _GLASS_T]
+        else:
+            p_sel = p[row, lb]
+        prob[k] = p_sel / psum[row] * q[row]
+        if lb != _PASS:
+            sampled += 1
+    return sampled
+
+
+@kernel
+def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, alpha, p, ng, ns, wo, offset, tp,
+                   incoming, lobe_class, want_pdf, rows_out, o_out, d_out, tp_out, cls_out,
+                   pdf_out):
+    """Sample the picked lobes (pick_lobes) of rows idx (M,) of N hits and write the
+    continued rays, compacted: returns K, and rows_out[:K] (the kept k into idx), o_out,
+    d_out (K,3) float64 (origins off the surface by the hit's offset along ng, to the
+    side the ray leaves: pbrt-v4's OffsetRayOrigin), tp_out (K,3) = tp weight / prob
+    (weight = f cos / pdf of the lobe), cls_out (K,) the ray class (lobe_class[lobe],
+    or the incoming class where that is 0, a pass), pdf_out (K,) the solid-angle pdf
+    of the direction under the whole choice (inf: mirror-like, refracted or passed;
+    only with want_pdf). u1, u2, u3: one number each per non-pass pick, in pick order.
+    prm, sel (N, N_LOBES), alpha (N,), p, ng, ns, wo (N,3), offset (N,), tp (N,3),
+    incoming (N,) are the hits' (bsdf.SurfaceHit, lobe_choice). A sample is dropped
+    (absorbed) when it leaves through the wrong side of the surface, is not finite or
+    has no weight."""
+    kept = 0
+    j = 0
+    for k in range(idx.shape[0]):
+        row = idx[k]
+        lb = lobe[k]
+        if lb == _PASS:
+            x, y, z = -wo[row, 0], -wo[row, 1], -wo[row, 2]
+            a = 1.0 - alpha[row]
+            w0, w1, w2 = a, a, a
+            tr = True
+        else:
+            n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
+            ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
+            ix, iy, iz, w0, w1, w2, tr = pr.sample_lobe(prm, row, lb + 1, ox, oy, oz, u1[j],
+                                                        u2[j], u3[j])
+            j += 1
+            x, y, z = pr.frame_world(n0, n1, n2, ix, iy, iz)
+            ln = math.sqrt(x * x + y * y + z * z)
+            if ln > 0:
+                x, y, z = x / ln, y / ln, z / ln
+        gx, gy, gz = ng[row, 0], ng[row, 1], ng[row, 2]
+        side = x * gx + y * gy + z * gz
+        if not ((side < 0.0) if tr else (side > 0.0)):
+            continue
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            continue
+        if math.isnan(w0) or math.isnan(w1) or math.isnan(w2) or not (
+                w0 > 0.0 or w1 > 0.0 or w2 > 0.0):
+            continue
+        if lb == _GLASS_R or lb == _GLASS_T:
+            lb = _GLASS_T if tr else _GLASS_R
+        s = max(prob[k], 1e-300)
+        t0 = tp[row, 0] * w0 / s
+        t1 = tp[row, 1] * w1 / s
+        t2 = tp[row, 2] * w2 / s
+        if not math.isfinite(t0 + t1 + t2) or not (t0 > 0.0 or t1 > 0.0 or t2 > 0.0):
+            continue
+        lift = (1.0 if side >= 0.0 else -1.0) * offset[row]
+        o_out[kept, 0] = p[row, 0] + lift * gx
+        o_out[kept, 1] = p[row, 1] + lift * gy
+        o_out[kept, 2] = p[row, 2] + lift * gz
+        d_out[kept, 0], d_out[kept, 1], d_out[kept, 2] = x, y, z
+        tp_out[kept, 0], tp_out[kept, 1], tp_out[kept, 2] = t0, t1, t2
+        c = lobe_class[lb]
+        cls_out[kept] = incoming[row] if c == 0 else c
+        rows_out[kept] = k
+        if want_pdf:
+            pdf = np.inf
+            if not tr and pr.is_rough(prm, row, lb + 1):
+                n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
+                ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
+                ix, iy, iz = pr.frame_local(n0, n1, n2, x, y, z)
+                pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
+            pdf_out[kept] = pdf
+        kept += 1
+    return kept
 
 
 @register_warm_up

@@ -120,3 +120,86 @@ def test_lobe_choice_kernel_equals_numpy_stage():
         assert np.array_equal(g, r)
     q = got[1]
     assert (q < 1).any() and (q == 1).any() and (got[3] > 0).any() and (got[3] == 0).any()
+
+
+def _continue_specular_numpy(ctx, hit, tp, rng, ray_cls, choice):
+    """The numpy continuation the kernels pick_lobes / continue_lobes replaced (with
+    bsdf.sample_specular, the numpy stage's sampler)."""
+    from engine.bsdf import GLASS_R, GLASS_T, sample_specular
+    from engine.closures import principled as pr
+    from engine.visibility import continued_class
+    sel, q, p, psum = choice
+    go = (psum > 0) & (rng.random(len(p)) < q)
+    idx = np.nonzero(go)[0]
+    cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
+    lobe = np.minimum(np.count_nonzero(rng.random(len(idx))[:, None] >= cdf, axis=1),
+                      len(SPEC_LOBES) - 1)
+    glass = (lobe == GLASS_R) | (lobe == GLASS_T)
+    p_sel = np.where(glass, p[idx, GLASS_R] + p[idx, GLASS_T], p[idx, lobe])
+    prob = p_sel / psum[idx] * q[idx]
+    sub = hit.take(idx)
+    nd, valid, transmitted, weight = sample_specular(ctx.table, sub, lobe, rng)
+    lobe = np.where(glass, np.where(transmitted, GLASS_T, GLASS_R), lobe)
+    new_tp = tp[idx] * weight / np.maximum(prob, 1e-300)[:, None]
+    keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
+    o = sub.clear(keep, nd[keep])
+    inc = ray_cls if np.ndim(ray_cls) == 0 else np.asarray(ray_cls)[idx]
+    new_cls = continued_class(lobe, inc)[keep]
+    pdf = np.full(len(idx), np.inf)
+    prm = np.ascontiguousarray(sub.prm)
+    rough = pr.lobe_is_rough(prm, (lobe + 1).astype(np.int64)) & ~transmitted & valid
+    r = np.nonzero(rough)[0]
+    if len(r):
+        pb = np.empty(len(r))
+        pr.bsdf_pdf_many(np.ascontiguousarray(prm[r]), np.ascontiguousarray(sel[idx[r]]),
+                         np.ascontiguousarray(sub.ns[r], np.float64),
+                         np.ascontiguousarray(sub.wo[r], np.float64),
+                         np.ascontiguousarray(nd[r], np.float64), pb)
+        pdf[r] = pb
+    return idx[keep], o, nd[keep], new_tp[keep], new_cls, pdf[keep]
+
+
+def _every_lobe_box():
+    """The Cornell box with materials that have every lobe: metal, rough glass, coat,
+    sheen, alpha (pass) and specular."""
+    s = cornell_box(8, 6, glass_sphere=True)
+    used = dict.fromkeys(name for m in s.meshes for name in m.materials)
+    mats = [s.materials[name] for name in used]
+    kinds = [dict(specular=1.0, roughness=0.4, coat_weight=0.8, coat_roughness=0.1,
+                  sheen_weight=1.0), dict(metallic=1.0, roughness=0.3, alpha=0.4),
+             dict(transmission=1.0, roughness=0.2), dict(roughness=0.0, metallic=1.0)]
+    assert len(mats) >= len(kinds)
+    for m, kw in zip(mats, kinds):
+        for k, val in kw.items():
+            setattr(m, k, val)
+    return s
+
+
+@pytest.mark.parametrize("ray_cls", ["scalar", "per_ray"])
+def test_continuation_kernels_equal_numpy_stage(ray_cls):
+    from engine.integrator import continue_specular
+    from engine.visibility import CAMERA, DIFFUSE, GLOSSY
+    ctx = prepare_context(_every_lobe_box(), RenderSettings(workers=1))
+    rng = np.random.default_rng(9)
+    lo, hi = ctx.geo.bounds
+    n = 20000
+    o = lo + (hi - lo) * (0.1 + 0.8 * rng.random((n, 3)))
+    d = uniform_sphere(rng.random(n), rng.random(n))
+    t, prim, u, v = ctx.accel.intersect(o, d)
+    k = prim >= 0
+    hit = surface_hit(ctx.geo, ctx.table, prim[k], u[k], v[k], d[k])
+    _, alb = closures(ctx.table, hit)
+    m = len(hit.p)
+    tp = rng.random((m, 3)) * np.where(rng.random((m, 1)) < 0.3, 0.01, 1.0)
+    choice = lobe_choice(alb, tp)
+    cls = (CAMERA if ray_cls == "scalar"
+           else rng.choice(np.array([CAMERA, DIFFUSE, GLOSSY]), m))
+    got = continue_specular(ctx, hit, tp, np.random.default_rng(2), cls, choice=choice,
+                            want_pdf=True)
+    want = _continue_specular_numpy(ctx, hit, tp, np.random.default_rng(2), cls, choice)
+    for name, g, w in zip(("rows", "o", "d", "tp", "cls", "pdf"), got, want):
+        assert g.shape == w.shape and np.array_equal(g, w), name
+    assert np.count_nonzero((choice[0][:, 1:] > 0.05).any(axis=0)) >= 6  # lobes exercised
+    assert np.isfinite(got[5]).any() and np.isinf(got[5]).any()
+    short = continue_specular(ctx, hit, tp, np.random.default_rng(2), cls, choice=choice)
+    assert len(short) == 5 and all(np.array_equal(a, b) for a, b in zip(short, got))
