@@ -8,6 +8,8 @@ two Embree calls for every hit of a camera, gather or specular ray.
   computed in registers.
 - `face_shading_normals`: the shading normal turned to the ray's side, and Veach's guard
   (a shading normal that puts the viewer below the surface falls back to ng).
+- `gather_rays`: final-gather rays (cosine-distributed about the shading normal, kept
+  above the geometric one), compacted with their offset origins.
 - `choose_lobes`: the continuation's lobe choice (weights of the non-diffuse lobes,
   Russian roulette) from the closures' per-lobe albedo estimates.
 - `pick_lobes` + `continue_lobes`: the specular continuation: the lobe each surviving
@@ -295,6 +297,41 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, alpha, p, ng, ns, wo, 
     return kept
 
 
+@kernel
+def gather_rays(u1, u2, ns, ng, p, offset, rows, o, d):
+    """Final-gather rays of N hits: a cosine-distributed direction about the shading
+    normal ns from the uniform numbers u1, u2 (N,) (sampling.cosine_hemisphere in the
+    frame of sampling.to_world); the rays that leave above the geometric normal ng are
+    written compacted: rows (K,) the hit of each ray, o (K,3) origins lifted off the
+    surface by offset along ng (pbrt-v4's OffsetRayOrigin), d (K,3). Returns K."""
+    k = 0
+    for i in range(u1.shape[0]):
+        r = math.sqrt(u1[i])
+        phi = 2.0 * np.pi * u2[i]
+        l0 = r * math.cos(phi)
+        l1 = r * math.sin(phi)
+        l2 = math.sqrt(max(0.0, 1.0 - u1[i]))
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        sign = 1.0 if n2 >= 0.0 else -1.0
+        a = -1.0 / (sign + n2)
+        b = n0 * n1 * a
+        x = l0 * (1.0 + sign * n0 ** 2 * a) + l1 * b + l2 * n0
+        y = l0 * (sign * b) + l1 * (sign + n1 ** 2 * a) + l2 * n1
+        z = l0 * (-sign * n0) + l1 * (-n1) + l2 * n2
+        gx, gy, gz = ng[i, 0], ng[i, 1], ng[i, 2]
+        if not x * gx + y * gy + z * gz > 0.0:
+            continue
+        # Above ng: the origin goes to that side (offset_along_normal's side is +1).
+        lift = 1.0 * offset[i]
+        o[k, 0] = p[i, 0] + lift * gx
+        o[k, 1] = p[i, 1] + lift * gy
+        o[k, 2] = p[i, 2] + lift * gz
+        d[k, 0], d[k, 1], d[k, 2] = x, y, z
+        rows[k] = i
+        k += 1
+    return k
+
+
 @register_warm_up
 def _warm_up():
     v0 = np.zeros((1, 3))
@@ -311,6 +348,7 @@ def _warm_up():
         hit_geometry(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
                      np.ones((1, 3)), p, ng, ns, front, mat, base, off)
     face_shading_normals(ns, ng, front, d)
+    gather_rays(one, one, ns, ng, p, off, mat, np.empty((1, 3)), np.empty((1, 3)))
     alb = np.full((1, 8, 3), 0.1)
     choose_lobes(alb, np.ones((1, 3)), np.empty((1, 8)), np.empty(1), np.empty((1, 7)),
                  np.empty(1))

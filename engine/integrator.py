@@ -21,12 +21,11 @@ from .lights.selection import empty_tree, selection_samples, selector_for, tree_
 from .lights.world import background_radiance
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, _hit_alpha, closures, lobe_weights, surface_hit
-from .camerakernels import choose_lobes, continue_lobes, pick_lobes
+from .camerakernels import choose_lobes, continue_lobes, gather_rays, pick_lobes
 from .camerarays import camera_rays_kernel
 from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
-from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
-                       to_world)
+from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
 
 
@@ -304,12 +303,14 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     n = len(hit.p)
     E = np.zeros((n, 3))
     G = rays or ctx.settings.gather_rays
+    c = np.ascontiguousarray
     for g in range(G):
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else (rng.random(n), rng.random(n))
-        d = to_world(cosine_hemisphere(u1, u2), hit.ns)
-        idx = np.nonzero(dot(d, hit.ng) > 0)[0]
-        o = hit.clear(idx, d[idx])
-        d = d[idx]
+        idx = np.empty(n, np.int64)
+        o, d = np.empty((n, 3)), np.empty((n, 3))
+        k = gather_rays(u1, u2, c(hit.ns, np.float64), c(hit.ng, np.float64),
+                        c(hit.p, np.float64), c(hit.offset, np.float64), idx, o, d)
+        idx, o, d = idx[:k], o[:k], d[:k]
         tp = np.ones((len(idx), 3))
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         for depth in range(ctx.settings.max_depth + 1):

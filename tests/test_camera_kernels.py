@@ -203,3 +203,22 @@ def test_continuation_kernels_equal_numpy_stage(ray_cls):
     assert np.isfinite(got[5]).any() and np.isinf(got[5]).any()
     short = continue_specular(ctx, hit, tp, np.random.default_rng(2), cls, choice=choice)
     assert len(short) == 5 and all(np.array_equal(a, b) for a, b in zip(short, got))
+
+
+def test_gather_rays_kernel_equals_numpy_stage():
+    from engine.camerakernels import gather_rays
+    from engine.sampling import cosine_hemisphere, to_world
+    ctx, prim, u, v, d = _box_hits(20000, seed=8)
+    hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+    rng = np.random.default_rng(4)
+    u1, u2 = rng.random(len(prim)), rng.random(len(prim))
+    # The numpy stage gather_indirect used.
+    dn = to_world(cosine_hemisphere(u1, u2), hit.ns)
+    idx = np.nonzero(dot(dn, hit.ng) > 0)[0]
+    o_ref = hit.clear(idx, dn[idx])
+    n = len(prim)
+    rows, o, dk = np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3))
+    k = gather_rays(u1, u2, hit.ns, hit.ng, hit.p, hit.offset, rows, o, dk)
+    assert 0 < k < n  # smooth normals: some rays fall below ng
+    assert np.array_equal(rows[:k], idx)
+    assert np.array_equal(dk[:k], dn[idx]) and np.array_equal(o[:k], o_ref)
