@@ -91,16 +91,16 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     ray-origin offset come from one compiled pass (camerakernels.hit_geometry); normal
     maps, colour textures and alpha textures are applied after it, per material."""
     n = len(prim)
-    prim = np.ascontiguousarray(prim, dtype=np.int64)
     u = np.ascontiguousarray(u, dtype=np.float64)
     v = np.ascontiguousarray(v, dtype=np.float64)
     d = np.ascontiguousarray(d, dtype=np.float64)
     p, ng, ns, base = (np.empty((n, 3)) for _ in range(4))
     front = np.empty(n, np.bool_)
-    mat = np.empty(n, np.int64)
+    mat = np.empty(n, geo.material.dtype)  # as np.take(geo.material, prim) gave
     offset = np.empty(n)
-    hit_geometry(prim, u, v, d, geo.v0, geo.e1, geo.e2, geo.corner_normals, geo.material,
-                 table.base_color, p, ng, ns, front, mat, base, offset)
+    hit_geometry(np.ascontiguousarray(prim, dtype=np.int64), u, v, d, geo.v0, geo.e1, geo.e2,
+                 geo.corner_normals, geo.material, table.base_color, p, ng, ns, front, mat,
+                 base, offset)
     for mi, nmap in enumerate(table.normal_maps or ()):
         if nmap is None:
             continue

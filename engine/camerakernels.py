@@ -54,7 +54,7 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
     Out: p (N,3) = v0 + u e1 + v e2 (float64); ng (N,3) unit geometric normal facing the
     ray (against d); ns (N,3) unit shading normal on the winding side (not yet turned:
     normal maps perturb it there, then face_shading_normals turns it); front (N,) bool
-    (the ray met the winding-order outside); mat (N,) int64; base (N,3) the material's
+    (the ray met the winding-order outside); mat (N,) material's dtype; base (N,3) the material's
     base colour; offset (N,) the ray-origin offset (rayoffset.surface_offset with the
     triangle's round32 / tilt32 bounds computed here, as geometry.PerTriangle does)."""
     n = prim.shape[0]
@@ -342,13 +342,26 @@ def _warm_up():
     d = np.array([[0.0, 0.0, -1.0]])
     p, ng, ns, base = (np.empty((1, 3)) for _ in range(4))
     front = np.empty(1, np.bool_)
-    mat = np.empty(1, np.int64)
+    mat = np.empty(1, np.int32)
     off = np.empty(1)
     for cn in (np.zeros((0, 3, 3), np.float32), np.ones((1, 3, 3), np.float32)):
         hit_geometry(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
                      np.ones((1, 3)), p, ng, ns, front, mat, base, off)
     face_shading_normals(ns, ng, front, d)
-    gather_rays(one, one, ns, ng, p, off, mat, np.empty((1, 3)), np.empty((1, 3)))
+    gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
+                np.empty((1, 3)))
     alb = np.full((1, 8, 3), 0.1)
-    choose_lobes(alb, np.ones((1, 3)), np.empty((1, 8)), np.empty(1), np.empty((1, 7)),
-                 np.empty(1))
+    sel, q, pl, psum = np.empty((1, 8)), np.empty(1), np.empty((1, 7)), np.empty(1)
+    choose_lobes(alb, np.ones((1, 3)), sel, q, pl, psum)
+    idx = np.zeros(1, np.int64)
+    lobe = np.empty(1, np.int64)
+    prob = np.empty(1)
+    pick_lobes(pl, psum, q, idx, one, lobe, prob)
+    prm, _ = pr.setup_np(np.zeros((1, pr.N_MAT)), np.zeros(1, np.int64), base, np.full(1, 0.8),
+                         front)
+    lobe[0] = pr.L_METAL - 1
+    continue_lobes(idx, lobe, prob, one, one, one, prm, sel, one, p, ng, ns, -d, off,
+                   np.ones((1, 3)), np.zeros(1, np.int64), np.zeros(7, np.int64), True,
+                   np.empty(1, np.int64),
+                   np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty(1, np.int64),
+                   np.empty(1))

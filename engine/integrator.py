@@ -308,7 +308,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else (rng.random(n), rng.random(n))
         idx = np.empty(n, np.int64)
         o, d = np.empty((n, 3)), np.empty((n, 3))
-        k = gather_rays(u1, u2, c(hit.ns, np.float64), c(hit.ng, np.float64),
+        k = gather_rays(c(u1, np.float64), c(u2, np.float64), c(hit.ns, np.float64), c(hit.ng, np.float64),
                         c(hit.p, np.float64), c(hit.offset, np.float64), idx, o, d)
         idx, o, d = idx[:k], o[:k], d[:k]
         tp = np.ones((len(idx), 3))
@@ -408,7 +408,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     r = rng.random(m)
     lobe = np.empty(m, np.int64)
     prob = np.empty(m)
-    sampled = pick_lobes(p, psum, q, idx, r, lobe, prob)
+    c = np.ascontiguousarray
+    sampled = pick_lobes(c(p), c(psum), c(q), idx, r, lobe, prob)
     # Three uniform numbers per sampled (non-pass) lobe, drawn in this order.
     u1, u2, u3 = rng.random(sampled), rng.random(sampled), rng.random(sampled)
     prm, _ = closures(ctx.table, hit)
@@ -417,7 +418,6 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     cls = np.empty(m, np.int64)
     pdf = np.empty(m if want_pdf else 0)
     incoming = np.broadcast_to(np.asarray(ray_cls, np.int64), (len(p),))
-    c = np.ascontiguousarray
     k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), c(_hit_alpha(ctx.table, hit),
                        np.float64), c(hit.p), c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset),
                        c(tp, np.float64), c(incoming), _LOBE_CLASS, bool(want_pdf), rows, o, d,
