@@ -107,7 +107,7 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         sel = np.nonzero(mat == mi)[0]
         if len(sel):
             ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
-    face_shading_normals(ns, ng, front, d)
+    face_shading_normals(ns, ng, front, d, np.zeros(n, np.bool_))
     wo = -d
     for mi, tex in enumerate(table.textures):
         if tex is None:

@@ -147,15 +147,16 @@ def _tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z):
 
 
 @kernel
-def face_shading_normals(ns, ng, front, d):
+def face_shading_normals(ns, ng, front, d, exempt):
     """Turn the winding-side shading normals ns (N,3) to the ray's side (ng, front from
     hit_geometry) in place; where the result faces away from wo = -d (dot <= 1e-6), use
     ng instead (shading normals that put the viewer below the surface make black rings;
-    Veach's guard, simplified)."""
+    Veach's guard, simplified), except on rows where exempt (N,) bool is set (the
+    caller's choice, e.g. normals a Normal Map bent)."""
     for i in range(ns.shape[0]):
         sign = 1.0 if front[i] else -1.0
         sx, sy, sz = ns[i, 0] * sign, ns[i, 1] * sign, ns[i, 2] * sign
-        if sx * -d[i, 0] + sy * -d[i, 1] + sz * -d[i, 2] <= 1e-6:
+        if not exempt[i] and sx * -d[i, 0] + sy * -d[i, 1] + sz * -d[i, 2] <= 1e-6:
             sx, sy, sz = ng[i, 0], ng[i, 1], ng[i, 2]
         ns[i, 0], ns[i, 1], ns[i, 2] = sx, sy, sz
 
@@ -224,7 +225,7 @@ def pick_lobes(p, psum, q, idx, r, lobe, prob):
 
 
 @kernel
-def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, alpha, p, ng, ns, wo, offset, tp,
+def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, pass_weight, p, ng, ns, wo, offset, tp,
                    incoming, lobe_class, want_pdf, rows_out, o_out, d_out, tp_out, cls_out,
                    pdf_out):
     """Sample the picked lobes (pick_lobes) of rows idx (M,) of N hits and write the
@@ -235,8 +236,9 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, alpha, p, ng, ns, wo, 
     or the incoming class where that is 0, a pass), pdf_out (K,) the solid-angle pdf
     of the direction under the whole choice (inf: mirror-like, refracted or passed;
     only with want_pdf). u1, u2, u3: one number each per non-pass pick, in pick order.
-    prm, sel (N, N_LOBES), alpha (N,), p, ng, ns, wo (N,3), offset (N,), tp (N,3),
-    incoming (N,) are the hits' (bsdf.SurfaceHit, lobe_choice). A sample is dropped
+    prm, sel (N, N_LOBES), p, ng, ns, wo (N,3), offset (N,), tp (N,3), incoming (N,)
+    are the hits' (bsdf.SurfaceHit, lobe_choice); pass_weight (N,3) the pass lobe's
+    weight (1 - alpha). A sample is dropped
     (absorbed) when it leaves through the wrong side of the surface, is not finite or
     has no weight."""
     kept = 0
@@ -246,8 +248,7 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, alpha, p, ng, ns, wo, 
         lb = lobe[k]
         if lb == _PASS:
             x, y, z = -wo[row, 0], -wo[row, 1], -wo[row, 2]
-            a = 1.0 - alpha[row]
-            w0, w1, w2 = a, a, a
+            w0, w1, w2 = pass_weight[row, 0], pass_weight[row, 1], pass_weight[row, 2]
             tr = True
         else:
             n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
@@ -347,7 +348,7 @@ def _warm_up():
     for cn in (np.zeros((0, 3, 3), np.float32), np.ones((1, 3, 3), np.float32)):
         hit_geometry(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
                      np.ones((1, 3)), p, ng, ns, front, mat, base, off)
-    face_shading_normals(ns, ng, front, d)
+    face_shading_normals(ns, ng, front, d, np.zeros(1, np.bool_))
     gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
                 np.empty((1, 3)))
     alb = np.full((1, 8, 3), 0.1)
@@ -360,7 +361,7 @@ def _warm_up():
     prm, _ = pr.setup_np(np.zeros((1, pr.N_MAT)), np.zeros(1, np.int64), base, np.full(1, 0.8),
                          front)
     lobe[0] = pr.L_METAL - 1
-    continue_lobes(idx, lobe, prob, one, one, one, prm, sel, one, p, ng, ns, -d, off,
+    continue_lobes(idx, lobe, prob, one, one, one, prm, sel, base, p, ng, ns, -d, off,
                    np.ones((1, 3)), np.zeros(1, np.int64), np.zeros(7, np.int64), True,
                    np.empty(1, np.int64),
                    np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty(1, np.int64),

@@ -308,8 +308,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else (rng.random(n), rng.random(n))
         idx = np.empty(n, np.int64)
         o, d = np.empty((n, 3)), np.empty((n, 3))
-        k = gather_rays(c(u1, np.float64), c(u2, np.float64), c(hit.ns, np.float64), c(hit.ng, np.float64),
-                        c(hit.p, np.float64), c(hit.offset, np.float64), idx, o, d)
+        k = gather_rays(c(u1, np.float64), c(u2, np.float64), c(hit.ns, np.float64),
+                        c(hit.ng, np.float64), c(hit.p, np.float64), c(hit.offset, np.float64),
+                        idx, o, d)
         idx, o, d = idx[:k], o[:k], d[:k]
         tp = np.ones((len(idx), 3))
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
@@ -418,10 +419,12 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     cls = np.empty(m, np.int64)
     pdf = np.empty(m if want_pdf else 0)
     incoming = np.broadcast_to(np.asarray(ray_cls, np.int64), (len(p),))
-    k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), c(_hit_alpha(ctx.table, hit),
-                       np.float64), c(hit.p), c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset),
-                       c(tp, np.float64), c(incoming), _LOBE_CLASS, bool(want_pdf), rows, o, d,
-                       new_tp, cls, pdf)
+    # The pass lobe's weight (Transparent BSDF): 1 - alpha in every channel.
+    pass_weight = np.repeat((1.0 - _hit_alpha(ctx.table, hit).astype(np.float64))[:, None], 3,
+                            axis=1)
+    k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), pass_weight, c(hit.p),
+                       c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset), c(tp, np.float64),
+                       c(incoming), _LOBE_CLASS, bool(want_pdf), rows, o, d, new_tp, cls, pdf)
     out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
     return out + (pdf[:k],) if want_pdf else out
 
