@@ -37,7 +37,7 @@ from engine.photonmap import PhotonMap  # noqa: E402
 from engine.photons import Photons, trace_photons  # noqa: E402
 from engine.render import prepare_context, render  # noqa: E402
 
-from bench_core import RecordingAccel, raw_embree_time  # noqa: E402
+from bench_core import RecordingAccel, raw_embree_time, recording  # noqa: E402
 
 TABLES: dict[str, list[dict]] = {}
 
@@ -95,11 +95,11 @@ def sec_rays(a):
     scene = box(a.width, a.height)
     st = RenderSettings(photons=a.photons, workers=a.workers)
     ctx = make_ctx(scene, st)
-    t_ph, shot = best_of(a.repeat, lambda: (ctx.accel.log.clear(),
+    t_ph, shot = best_of(a.repeat, lambda: (recording(ctx.accel).log.clear(),
                          trace_photons(ctx, ctx.lights, allocate_photons(ctx.lights, st.photons), False, 1))[1])
-    log = list(ctx.accel.log)
+    log = list(recording(ctx.accel).log)
     n = sum(len(e[1]) for e in log)
-    raw, _ = best_of(a.repeat, lambda: raw_embree_time(ctx.accel, log))
+    raw, _ = best_of(a.repeat, lambda: raw_embree_time(recording(ctx.accel), log))
     rows.append(dict(stage="photon pass", rays=n, engine_s=t_ph, raw_embree_s=raw,
                      engine_Mrays_s=n / t_ph / 1e6, ceiling_pct=100 * raw / t_ph))
     ctx.accel.close()
@@ -112,12 +112,12 @@ def sec_rays(a):
         ctx = make_ctx(sc, direct)
 
         def cam():
-            ctx.accel.log.clear()
+            recording(ctx.accel).log.clear()
             render_camera(ctx, (0, 0, a.width, a.height), Film(a.width, a.height))
         t_cam, _ = best_of(a.repeat, cam)
-        log = list(ctx.accel.log)
+        log = list(recording(ctx.accel).log)
         n = sum(len(e[1]) for e in log)
-        raw, _ = best_of(a.repeat, lambda: raw_embree_time(ctx.accel, log))
+        raw, _ = best_of(a.repeat, lambda: raw_embree_time(recording(ctx.accel), log))
         rows.append(dict(stage=f"camera+shadow, {label}, {a.width}x{a.height} {a.spp} spp",
                          rays=n, engine_s=t_cam, raw_embree_s=raw, engine_Mrays_s=n / t_cam / 1e6,
                          ceiling_pct=100 * raw / t_cam))
