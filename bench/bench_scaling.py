@@ -37,7 +37,7 @@ from engine.photonmap import PhotonMap  # noqa: E402
 from engine.photons import Photons, trace_photons  # noqa: E402
 from engine.render import prepare_context, render  # noqa: E402
 
-from bench_core import RecordingAccel, raw_embree_time  # noqa: E402
+from bench_core import RecordingAccel, raw_embree_time, recording  # noqa: E402
 
 TABLES: dict[str, list[dict]] = {}
 
@@ -82,12 +82,6 @@ def box(width, height, sphere_tris=None, lights=1):
     return s
 
 
-def recorder(ctx):
-    """The RecordingAccel of a context (render.prepare_context wraps it in a
-    VisibilityAccel, which answers every query with it when all triangles are visible)."""
-    return getattr(ctx.accel, "full", ctx.accel)
-
-
 def make_ctx(scene, settings):
     """Context over a RecordingAccel: every query is logged for a raw replay."""
     return prepare_context(scene, settings, RecordingAccel)
@@ -101,11 +95,11 @@ def sec_rays(a):
     scene = box(a.width, a.height)
     st = RenderSettings(photons=a.photons, workers=a.workers)
     ctx = make_ctx(scene, st)
-    t_ph, shot = best_of(a.repeat, lambda: (recorder(ctx).log.clear(),
+    t_ph, shot = best_of(a.repeat, lambda: (recording(ctx.accel).log.clear(),
                          trace_photons(ctx, ctx.lights, allocate_photons(ctx.lights, st.photons), False, 1))[1])
-    log = list(recorder(ctx).log)
+    log = list(recording(ctx.accel).log)
     n = sum(len(e[1]) for e in log)
-    raw, _ = best_of(a.repeat, lambda: raw_embree_time(recorder(ctx), log))
+    raw, _ = best_of(a.repeat, lambda: raw_embree_time(recording(ctx.accel), log))
     rows.append(dict(stage="photon pass", rays=n, engine_s=t_ph, raw_embree_s=raw,
                      engine_Mrays_s=n / t_ph / 1e6, ceiling_pct=100 * raw / t_ph))
     ctx.accel.close()
@@ -118,12 +112,12 @@ def sec_rays(a):
         ctx = make_ctx(sc, direct)
 
         def cam():
-            recorder(ctx).log.clear()
+            recording(ctx.accel).log.clear()
             render_camera(ctx, (0, 0, a.width, a.height), Film(a.width, a.height))
         t_cam, _ = best_of(a.repeat, cam)
-        log = list(recorder(ctx).log)
+        log = list(recording(ctx.accel).log)
         n = sum(len(e[1]) for e in log)
-        raw, _ = best_of(a.repeat, lambda: raw_embree_time(recorder(ctx), log))
+        raw, _ = best_of(a.repeat, lambda: raw_embree_time(recording(ctx.accel), log))
         rows.append(dict(stage=f"camera+shadow, {label}, {a.width}x{a.height} {a.spp} spp",
                          rays=n, engine_s=t_cam, raw_embree_s=raw, engine_Mrays_s=n / t_cam / 1e6,
                          ceiling_pct=100 * raw / t_cam))
@@ -137,10 +131,10 @@ def sec_photons(a):
     st = RenderSettings(photons=a.photons, workers=a.workers)
     ctx = make_ctx(scene, st)
     counts = allocate_photons(ctx.lights, st.photons)
-    t, shot = best_of(a.repeat, lambda: (recorder(ctx).log.clear(), trace_photons(ctx, ctx.lights, counts, False, 1))[1])
+    t, shot = best_of(a.repeat, lambda: (recording(ctx.accel).log.clear(), trace_photons(ctx, ctx.lights, counts, False, 1))[1])
     # Each chunk issues one intersect per bounce, in order: bounce b = b-th call of a chunk.
     per_bounce = {}
-    calls = [len(e[1]) for e in recorder(ctx).log if e[0] == "INTERSECT"]
+    calls = [len(e[1]) for e in recording(ctx.accel).log if e[0] == "INTERSECT"]
     chunk_first = [i for i, c in enumerate(calls) if i == 0 or c > calls[i - 1]]
     for ci, start in enumerate(chunk_first):
         end = chunk_first[ci + 1] if ci + 1 < len(chunk_first) else len(calls)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .camerakernels import face_shading_normals, hit_geometry
 from .closures import principled as pr
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
@@ -88,13 +89,21 @@ class SurfaceHit:
 
 
 def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHit:
-    p = geo.hit_points(prim, u, v)
-    ng = np.take(geo.ng, prim, axis=0)
-    front = dot(d, ng) < 0.0
-    sign = np.where(front, 1.0, -1.0)[:, None]
-    ng = ng * sign
-    ns = geo.shading_normals(prim, u, v)
-    mat = np.take(geo.material, prim)
+    """Surface data at N ray hits: triangles prim (N,), barycentrics u, v (N,) of corners
+    1 and 2, ray directions d (N,3). Positions, normals, material, base colour and the
+    ray-origin offset come from one compiled pass (camerakernels.hit_geometry); normal
+    maps, colour textures and alpha textures are applied after it, per material."""
+    n = len(prim)
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    d = np.ascontiguousarray(d, dtype=np.float64)
+    p, ng, ns, base = (np.empty((n, 3)) for _ in range(4))
+    front = np.empty(n, np.bool_)
+    mat = np.empty(n, geo.material.dtype)  # as np.take(geo.material, prim) gave
+    offset = np.empty(n)
+    hit_geometry(np.ascontiguousarray(prim, dtype=np.int64), u, v, d, geo.v0, geo.e1, geo.e2,
+                 geo.corner_normals, geo.material, table.base_color, p, ng, ns, front, mat,
+                 base, offset)
     n_smooth = bent = None
     for mi, nmap in enumerate(table.normal_maps or ()):
         if nmap is None:
@@ -105,19 +114,14 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
                 n_smooth, bent = ns.copy(), np.zeros(len(ns), bool)
             ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
             bent[sel] = True
-    ns = ns * sign
-    wo = -d
-    # Shading normals that put the viewer below the surface would make black rings:
-    # fall back to the geometric normal there (Veach's guard, simplified). Not for
-    # normals a Normal Map / Bump node bent: Cycles keeps those (its bump shadowing term,
-    # engine/normalmap.py, handles the light side).
-    bad = dot(ns, wo) <= 1e-6
+    # Shading normals turned to the ray's side; the geometric normal where they would put
+    # the viewer below the surface, except normals a Normal Map / Bump node bent: Cycles
+    # keeps those (its bump shadowing term, engine/normalmap.py, handles the light side).
+    face_shading_normals(ns, ng, front, d, bent if bent is not None else np.zeros(n, np.bool_))
     if bent is not None:
-        bad &= ~bent
+        sign = np.where(front, 1.0, -1.0)[:, None]
         n_smooth = np.where(bent[:, None], n_smooth * sign, ns)
-    if bad.any():
-        ns[bad] = ng[bad]
-    base = np.take(table.base_color, mat, axis=0)
+    wo = -d
     for mi, tex in enumerate(table.textures):
         if tex is None:
             continue
@@ -135,8 +139,8 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     if table.alpha_textures and any(t is not None for t in table.alpha_textures):
         alpha = material_alpha(table, geo, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
-                      offset=geo.origin_offset(prim, u, v, p, ng),
-                      bary=np.stack([u, v], axis=1), alpha=alpha, n_smooth=n_smooth)
+                      offset=offset, bary=np.stack([u, v], axis=1), alpha=alpha,
+                      n_smooth=n_smooth)
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):

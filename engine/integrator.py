@@ -21,15 +21,13 @@ from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.selection import empty_tree, selection_samples, selector_for, tree_members
 from .lights.world import background_radiance
 from .lights.packing import pack_lights
-from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, sample_specular,
-                   surface_hit)
+from .bsdf import SPEC_LOBES, _hit_alpha, closures, lobe_weights, surface_hit
+from .camerakernels import choose_lobes, continue_lobes, gather_rays, pick_lobes
 from .camerarays import camera_rays_kernel
-from .closures import principled as pr
 from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
-from .sampling import (SampleDimensions, StratifiedSampler, cosine_hemisphere, dot, max3,
-                       to_world)
-from .visibility import CAMERA, DIFFUSE, SHADOW, continued_class
+from .sampling import SampleDimensions, StratifiedSampler, dot, max3
+from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
 
 
 @dataclass
@@ -310,12 +308,15 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     n = len(hit.p)
     E = np.zeros((n, 3))
     G = rays or ctx.settings.gather_rays
+    c = np.ascontiguousarray
     for g in range(G):
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else (rng.random(n), rng.random(n))
-        d = to_world(cosine_hemisphere(u1, u2), hit.ns)
-        idx = np.nonzero(dot(d, hit.ng) > 0)[0]
-        o = hit.clear(idx, d[idx])
-        d = d[idx]
+        idx = np.empty(n, np.int64)
+        o, d = np.empty((n, 3)), np.empty((n, 3))
+        k = gather_rays(c(u1, np.float64), c(u2, np.float64), c(hit.ns, np.float64),
+                        c(hit.ng, np.float64), c(hit.p, np.float64), c(hit.offset, np.float64),
+                        idx, o, d)
+        idx, o, d = idx[:k], o[:k], d[:k]
         tp = np.ones((len(idx), 3))
         if getattr(hit, "n_smooth", None) is not None:
             # Bent normals: the diffuse lobe's sampled directions take Cycles' bump
@@ -364,7 +365,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G  # one ray per row: no repeats
             if depth == ctx.settings.max_depth:
                 break
-            keep, o, d, tp, ray_cls = continue_specular(ctx, y, w, tp, rng, ray_cls)
+            keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
             idx = idx[keep]
     return E
 
@@ -378,25 +379,23 @@ def _secondary_irradiance(ctx, hit):
                            s.estimator)
 
 
-def lobe_choice(w, tp):
-    """The continuation's lobe choice: (sel (N, N_LOBES) the probability of continuing
-    through each lobe (diffuse: 0; Russian roulette included), q (N,) the survival
-    probability, p (N, len(SPEC_LOBES)) the unnormalised lobe weights, psum (N,))."""
-    cols = [w[k] for k in SPEC_LOBES]
-    p = np.stack([max3(c) for c in cols], axis=1)
-    psum = p.sum(axis=1)
-    wsum = cols[0]
-    for c in cols[1:]:
-        wsum = wsum + c
-    # Russian roulette only for paths that would contribute little (< 10 % weight).
-    q = np.clip(10.0 * max3(tp * wsum), 0.0, 1.0)
-    sel = np.zeros((len(p), len(SPEC_LOBES) + 1))
-    ok = psum > 0
-    sel[ok, 1:] = p[ok] / psum[ok, None] * q[ok, None]
+def lobe_choice(albedo, tp):
+    """The continuation's lobe choice from the hits' lobe albedos albedo (N, N_LOBES, 3)
+    (bsdf.closures) and throughputs tp (N,3): (sel (N, N_LOBES) the probability of
+    continuing through each lobe (diffuse: 0; Russian roulette included), q (N,) the
+    survival probability, p (N, len(SPEC_LOBES)) the unnormalised lobe weights, psum (N,)).
+    One compiled kernel (camerakernels.choose_lobes)."""
+    n = len(albedo)
+    sel = np.empty((n, len(SPEC_LOBES) + 1))
+    q = np.empty(n)
+    p = np.empty((n, len(SPEC_LOBES)))
+    psum = np.empty(n)
+    choose_lobes(np.ascontiguousarray(albedo, np.float64), np.ascontiguousarray(tp, np.float64),
+                 sel, q, p, psum)
     return sel, q, p, psum
 
 
-def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False):
+def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False):
     """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
     paths that would add little) and sample it. Returns (kept indices, origins, directions,
     throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
@@ -404,44 +403,42 @@ def continue_specular(ctx, hit, w, tp, rng, ray_cls=CAMERA, choice=None, want_pd
     pdf (N,) of each continued direction under the whole choice (inf: from a mirror-like
     lobe, a refraction or a pass, which light sampling cannot produce). The throughput
     takes the sampled direction's own weight (f cos / pdf) over the choice probability, so
-    the lobe weights only steer the choice. choice: lobe_choice(w, tp) if already made."""
-    sel, q, p, psum = choice if choice is not None else lobe_choice(w, tp)
+    the lobe weights only steer the choice. choice: lobe_choice(albedo, tp) if already made.
+    Two compiled kernels (camerakernels.pick_lobes, continue_lobes) with the uniform numbers
+    drawn between them in numpy, in a fixed order."""
+    sel, q, p, psum = (choice if choice is not None
+                       else lobe_choice(closures(ctx.table, hit)[1], tp))
     go = (psum > 0) & (rng.random(len(p)) < q)
     idx = np.nonzero(go)[0]
-    empty = np.zeros((0, 3))
-    if len(idx) == 0:
+    m = len(idx)
+    if m == 0:
+        empty = np.zeros((0, 3))
         out = (idx, empty, empty, empty, np.zeros(0, np.int64))
         return out + (np.zeros(0),) if want_pdf else out
-    cdf = np.cumsum(p[idx] / psum[idx, None], axis=1)
-    lobe = np.minimum(np.count_nonzero(rng.random(len(idx))[:, None] >= cdf, axis=1),
-                      len(SPEC_LOBES) - 1)
-    glass = (lobe == GLASS_R) | (lobe == GLASS_T)
-    p_sel = np.where(glass, p[idx, GLASS_R] + p[idx, GLASS_T], p[idx, lobe])
-    prob = p_sel / psum[idx] * q[idx]
-    sub = hit.take(idx)
-    nd, valid, transmitted, weight = sample_specular(ctx.table, sub, lobe, rng)
-    lobe = np.where(glass, np.where(transmitted, GLASS_T, GLASS_R), lobe)
-    new_tp = tp[idx] * weight / np.maximum(prob, 1e-300)[:, None]
-    keep = valid & np.isfinite(new_tp[:, 0] + new_tp[:, 1] + new_tp[:, 2]) & (max3(new_tp) > 0)
-    o = sub.clear(keep, nd[keep])
-    inc = ray_cls if np.ndim(ray_cls) == 0 else np.asarray(ray_cls)[idx]
-    new_cls = continued_class(lobe, inc)[keep]
-    out = (idx[keep], o, nd[keep], new_tp[keep], new_cls)
-    if not want_pdf:
-        return out
-    pdf = np.full(len(idx), np.inf)
-    prm = np.ascontiguousarray(sub.prm)
-    rough = pr.lobe_is_rough(prm, (lobe + 1).astype(np.int64)) & ~transmitted & valid
-    r = np.nonzero(rough)[0]
-    if len(r):
-        pb = np.empty(len(r))
-        pr.bsdf_pdf_many(np.ascontiguousarray(prm[r]),
-                         np.ascontiguousarray(sel[idx[r]]),
-                         np.ascontiguousarray(sub.ns[r], np.float64),
-                         np.ascontiguousarray(sub.wo[r], np.float64),
-                         np.ascontiguousarray(nd[r], np.float64), pb)
-        pdf[r] = pb
-    return out + (pdf[keep],)
+    r = rng.random(m)
+    lobe = np.empty(m, np.int64)
+    prob = np.empty(m)
+    c = np.ascontiguousarray
+    sampled = pick_lobes(c(p), c(psum), c(q), idx, r, lobe, prob)
+    # Three uniform numbers per sampled (non-pass) lobe, drawn in this order.
+    u1, u2, u3 = rng.random(sampled), rng.random(sampled), rng.random(sampled)
+    prm, _ = closures(ctx.table, hit)
+    rows = np.empty(m, np.int64)
+    o, d, new_tp = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
+    cls = np.empty(m, np.int64)
+    pdf = np.empty(m if want_pdf else 0)
+    incoming = np.broadcast_to(np.asarray(ray_cls, np.int64), (len(p),))
+    # The pass lobe's weight (Transparent BSDF): 1 - alpha in every channel.
+    pass_weight = np.repeat((1.0 - _hit_alpha(ctx.table, hit).astype(np.float64))[:, None], 3,
+                            axis=1)
+    k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), pass_weight, c(hit.p),
+                       c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset), c(tp, np.float64),
+                       c(incoming), _LOBE_CLASS, bool(want_pdf), rows, o, d, new_tp, cls, pdf)
+    out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
+    return out + (pdf[:k],) if want_pdf else out
+
+
+_LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 
 
 # The caustic estimate is already a smooth kernel average, so it varies little between the
@@ -766,7 +763,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         w = lobe_weights(ctx.table, hit)
         wd = w["diffuse"]
         glossy = _glossy_rows(ctx, hit, modes)
-        choice = lobe_choice(w, tp)
+        choice = lobe_choice(hit.lobe_albedo, tp)
         dsel = np.nonzero((max3(wd) > 0) | glossy)[0]
         if len(dsel):
             sub = hit.take(dsel)
@@ -786,7 +783,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
-        keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, w, tp, rng, ray_cls,
+        keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True)
         pix = pix[keep]
         sample_id = sample_id[keep]

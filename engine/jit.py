@@ -213,5 +213,6 @@ def ensure_compiled(progress=None) -> float:
 
 def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
-    from . import (camerarays, directlight, hashgrid, kdtree,  # noqa: F401  (warm-ups)
-                   photonkernels, photonmap, procedural, rayoffset, shadowtransmittance)
+    from . import (camerakernels, camerarays, directlight, hashgrid,  # noqa: F401
+                   kdtree, photonkernels, photonmap, procedural,  # (warm-ups)
+                   rayoffset, shadowtransmittance)

@@ -358,24 +358,29 @@ def bsdf_pdf_many(prm, sel, ns, wo, wi, out):
 
 
 @kernel
+def is_rough(prm, i, l):
+    """Lobe l (L_* index) of hit i has a density (is not mirror-like)."""
+    if l == L_SPEC:
+        a = prm[i, P_SPEC_ALPHA]
+    elif l == L_METAL:
+        a = prm[i, P_METAL_ALPHA]
+    elif l == L_COAT:
+        a = prm[i, P_COAT_ALPHA]
+    elif l == L_GLASS_R or l == L_GLASS_T:
+        a = prm[i, P_GLASS_ALPHA]
+    elif l == L_SHEEN:
+        a = 1.0
+    else:
+        a = 0.0
+    return a >= ggx.ALPHA_MIN
+
+
+@kernel
 def lobe_is_rough(prm, lobe):
     """Per row: the sampled lobe (L_* index) has a density (not mirror-like)."""
     out = np.zeros(lobe.shape[0], np.bool_)
     for i in range(lobe.shape[0]):
-        l = lobe[i]
-        if l == L_SPEC:
-            a = prm[i, P_SPEC_ALPHA]
-        elif l == L_METAL:
-            a = prm[i, P_METAL_ALPHA]
-        elif l == L_COAT:
-            a = prm[i, P_COAT_ALPHA]
-        elif l == L_GLASS_R or l == L_GLASS_T:
-            a = prm[i, P_GLASS_ALPHA]
-        elif l == L_SHEEN:
-            a = 1.0
-        else:
-            a = 0.0
-        out[i] = a >= ggx.ALPHA_MIN
+        out[i] = is_rough(prm, i, lobe[i])
     return out
 
 

@@ -1,0 +1,368 @@
+"""Compiled kernels of the camera pass's shading (issue 13, third slice): what runs between
+two Embree calls for every hit of a camera, gather or specular ray.
+
+- `hit_geometry`: hit -> surface data in one pass over the hits (position, geometric and
+  shading normals facing the ray, material, base colour, the ray-origin offset of
+  engine/rayoffset.py), reading the triangle tables directly: no per-hit (N,3) copies of
+  v0 / e1 / e2, and the per-triangle round32 / tilt32 bounds (Geometry.PerTriangle)
+  computed in registers.
+- `face_shading_normals`: the shading normal turned to the ray's side, and Veach's guard
+  (a shading normal that puts the viewer below the surface falls back to ng).
+- `gather_rays`: final-gather rays (cosine-distributed about the shading normal, kept
+  above the geometric one), compacted with their offset origins.
+- `choose_lobes`: the continuation's lobe choice (weights of the non-diffuse lobes,
+  Russian roulette) from the closures' per-lobe albedo estimates.
+- `pick_lobes` + `continue_lobes`: the specular continuation: the lobe each surviving
+  path takes, its sampled direction and weight (principled.sample_lobe), the new
+  throughput, ray class and MIS pdf, and the offset origins, compacted into the arrays
+  handed to Embree. The uniform numbers are drawn in numpy between the two kernels, in
+  the order the numpy stage drew them.
+
+Every kernel computes the same floating-point operations in the same order as the numpy
+stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py keeps
+the numpy stages as oracles). Formulas: docs/performance.md, "Kernels, third slice:
+camera shading"; the offsets are engine/rayoffset.py's (pbrt-v4's error bounds).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .closures import principled as pr
+from .jit import kernel, register_warm_up
+from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
+
+# Indices into SPEC_LOBES (bsdf.py: LOBE_NAMES[1:], principled's L_* minus one).
+_PASS, _GLASS_R, _GLASS_T = pr.L_PASS - 1, pr.L_GLASS_R - 1, pr.L_GLASS_T - 1
+
+
+@kernel
+def _ulp32(x):
+    # rayoffset.ulp32: 2^-23 |x|, at least float32's smallest normal.
+    return max(2.0 * U32 * abs(x), TINY32)
+
+
+@kernel
+def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color,
+                 p, ng, ns, front, mat, base, offset):
+    """Surface data of N hits, written into the caller's arrays.
+
+    prim (N,) int64 triangle rows; u, v (N,) barycentrics of corners 1 and 2; d (N,3)
+    ray directions; v0, e1, e2 (T,3) float64 triangle tables; corner_normals (T,3,3)
+    float32 (or (0,3,3): every triangle flat); material (T,) int32; base_color (M,3).
+    Out: p (N,3) = v0 + u e1 + v e2 (float64); ng (N,3) unit geometric normal facing the
+    ray (against d); ns (N,3) unit shading normal on the winding side (not yet turned:
+    normal maps perturb it there, then face_shading_normals turns it); front (N,) bool
+    (the ray met the winding-order outside); mat (N,) material's dtype; base (N,3) the material's
+    base colour; offset (N,) the ray-origin offset (rayoffset.surface_offset with the
+    triangle's round32 / tilt32 bounds computed here, as geometry.PerTriangle does)."""
+    n = prim.shape[0]
+    smooth_tables = corner_normals.shape[0] > 0
+    for i in range(n):
+        t = prim[i]
+        b1, b2 = u[i], v[i]
+        a0x, a0y, a0z = v0[t, 0], v0[t, 1], v0[t, 2]
+        a1x, a1y, a1z = e1[t, 0], e1[t, 1], e1[t, 2]
+        a2x, a2y, a2z = e2[t, 0], e2[t, 1], e2[t, 2]
+        px = a0x + b1 * a1x + b2 * a2x
+        py = a0y + b1 * a1y + b2 * a2y
+        pz = a0z + b1 * a1z + b2 * a2z
+        p[i, 0], p[i, 1], p[i, 2] = px, py, pz
+        # Unit geometric normal (winding order): e1 x e2 / |e1 x e2| (np.cross, norm).
+        cx = a1y * a2z - a1z * a2y
+        cy = a1z * a2x - a1x * a2z
+        cz = a1x * a2y - a1y * a2x
+        ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+        gx, gy, gz = cx / ln, cy / ln, cz / ln
+        fr = d[i, 0] * gx + d[i, 1] * gy + d[i, 2] * gz < 0.0
+        front[i] = fr
+        sign = 1.0 if fr else -1.0
+        ng[i, 0], ng[i, 1], ng[i, 2] = gx * sign, gy * sign, gz * sign
+        # Interpolated corner normals, normalised; ng (winding side) where degenerate.
+        if smooth_tables:
+            w = 1.0 - b1 - b2
+            sx = (w * np.float64(corner_normals[t, 0, 0]) + b1 * np.float64(corner_normals[t, 1, 0])
+                  + b2 * np.float64(corner_normals[t, 2, 0]))
+            sy = (w * np.float64(corner_normals[t, 0, 1]) + b1 * np.float64(corner_normals[t, 1, 1])
+                  + b2 * np.float64(corner_normals[t, 2, 1]))
+            sz = (w * np.float64(corner_normals[t, 0, 2]) + b1 * np.float64(corner_normals[t, 1, 2])
+                  + b2 * np.float64(corner_normals[t, 2, 2]))
+            sl = max(math.sqrt(sx * sx + sy * sy + sz * sz), 1e-300)
+            sx, sy, sz = sx / sl, sy / sl, sz / sl
+            s = abs(sx) + abs(sy) + abs(sz)
+            if not math.isfinite(s) or s < 0.5:
+                sx, sy, sz = gx, gy, gz
+        else:
+            sx, sy, sz = gx, gy, gz
+        ns[i, 0], ns[i, 1], ns[i, 2] = sx, sy, sz
+        m = material[t]
+        mat[i] = m
+        base[i, 0], base[i, 1], base[i, 2] = base_color[m, 0], base_color[m, 1], base_color[m, 2]
+        # Ray-origin offset: the point's error (rayoffset._point_error) with the corners'
+        # float32 rounding bound (geometry._round32_rows) and the plane's tilt
+        # (rayoffset.triangle_tilt) computed from the corners here.
+        b0 = 1.0 - b1 - b2
+        w0, w1, w2 = abs(b0), abs(b1), abs(b2)
+        err0 = _corner_error(w0, w1, w2, a0x, a1x, a2x, px)
+        err1 = _corner_error(w0, w1, w2, a0y, a1y, a2y, py)
+        err2 = _corner_error(w0, w1, w2, a0z, a1z, a2z, pz)
+        offset[i] = _offset_row(err0, err1, err2, v0, e1, e2, t, ng[i, 0], ng[i, 1],
+                                ng[i, 2], px, py, pz, _tilt32(a0x, a0y, a0z, a1x, a1y, a1z,
+                                                              a2x, a2y, a2z))
+
+
+@kernel
+def _corner_error(w0, w1, w2, c0, c1, c2, pc):
+    """One component of rayoffset._point_error: corner c0, edges c1, c2 (v1 - v0, v2 - v0),
+    |barycentrics| w0..w2, point component pc."""
+    k0, k1, k2 = c0, c0 + c1, c0 + c2
+    interp = G64 * (w0 * abs(k0) + w1 * abs(k1) + w2 * abs(k2))
+    tri32 = w0 * (0.5 * _ulp32(k0)) + w1 * (0.5 * _ulp32(k1)) + w2 * (0.5 * _ulp32(k2))
+    return interp + tri32 + max(2.0 * U32 * abs(pc), TINY32)
+
+
+@kernel
+def _tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z):
+    """rayoffset.triangle_tilt of the triangle (corner a0, edges a1, a2) rounded to
+    float32 corners, as geometry._tilt32_rows computes it."""
+    c0x, c0y, c0z = np.float32(a0x), np.float32(a0y), np.float32(a0z)
+    c1x, c1y, c1z = np.float32(a0x + a1x), np.float32(a0y + a1y), np.float32(a0z + a1z)
+    c2x, c2y, c2z = np.float32(a0x + a2x), np.float32(a0y + a2y), np.float32(a0z + a2z)
+    if ((c0x == c1x and c0x == c2x) or (c0y == c1y and c0y == c2y)
+            or (c0z == c1z and c0z == c2z)):
+        return 0.0
+    ux = np.float64(c1x) - np.float64(c0x)
+    uy = np.float64(c1y) - np.float64(c0y)
+    uz = np.float64(c1z) - np.float64(c0z)
+    wx = np.float64(c2x) - np.float64(c0x)
+    wy = np.float64(c2y) - np.float64(c0y)
+    wz = np.float64(c2z) - np.float64(c0z)
+    cx = uy * wz - uz * wy
+    cy = uz * wx - ux * wz
+    cz = ux * wy - uy * wx
+    cross = math.sqrt(cx * cx + cy * cy + cz * cz)
+    lengths = math.sqrt(ux * ux + uy * uy + uz * uz) * math.sqrt(wx * wx + wy * wy + wz * wz)
+    return min(G32_TILT * lengths / max(cross, 1e-300), 1.0)
+
+
+@kernel
+def face_shading_normals(ns, ng, front, d, exempt):
+    """Turn the winding-side shading normals ns (N,3) to the ray's side (ng, front from
+    hit_geometry) in place; where the result faces away from wo = -d (dot <= 1e-6), use
+    ng instead (shading normals that put the viewer below the surface make black rings;
+    Veach's guard, simplified), except on rows where exempt (N,) bool is set (the
+    caller's choice, e.g. normals a Normal Map bent)."""
+    for i in range(ns.shape[0]):
+        sign = 1.0 if front[i] else -1.0
+        sx, sy, sz = ns[i, 0] * sign, ns[i, 1] * sign, ns[i, 2] * sign
+        if not exempt[i] and sx * -d[i, 0] + sy * -d[i, 1] + sz * -d[i, 2] <= 1e-6:
+            sx, sy, sz = ng[i, 0], ng[i, 1], ng[i, 2]
+        ns[i, 0], ns[i, 1], ns[i, 2] = sx, sy, sz
+
+
+@kernel
+def choose_lobes(albedo, tp, sel, q, p, psum):
+    """The continuation's lobe choice from the closures' lobe albedos albedo
+    (N, N_LOBES, 3) (column 0 = diffuse, the rest SPEC_LOBES' order) and the path
+    throughput tp (N,3). Out: p (N, N_LOBES - 1) each non-diffuse lobe's weight (its max
+    channel), psum (N,), q (N,) the survival probability (Russian roulette only for paths
+    that would contribute less than 10 %: q = clip(10 max3(tp sum_lobes w), 0, 1)), sel
+    (N, N_LOBES) the probability of continuing through each lobe (diffuse: 0)."""
+    n = albedo.shape[0]
+    k = albedo.shape[1] - 1
+    for i in range(n):
+        s = 0.0
+        wx = albedo[i, 1, 0]
+        wy = albedo[i, 1, 1]
+        wz = albedo[i, 1, 2]
+        for j in range(k):
+            a = albedo[i, j + 1]
+            m = max(max(a[0], a[1]), a[2])
+            p[i, j] = m
+            s = s + m if j > 0 else m
+            if j > 0:
+                wx += a[0]
+                wy += a[1]
+                wz += a[2]
+        psum[i] = s
+        qi = 10.0 * max(max(tp[i, 0] * wx, tp[i, 1] * wy), tp[i, 2] * wz)
+        qi = min(max(qi, 0.0), 1.0)
+        q[i] = qi
+        sel[i, 0] = 0.0
+        for j in range(k):
+            sel[i, j + 1] = p[i, j] / s * qi if s > 0 else 0.0
+
+
+@kernel
+def pick_lobes(p, psum, q, idx, r, lobe, prob):
+    """Lobe (index into SPEC_LOBES) of each surviving row idx[k], by inverting the
+    cumulative distribution of p[row] / psum[row] with the uniform r[k] (glass_r and
+    glass_t are one lobe here: sample_lobe decides between them), and its probability
+    under the whole choice, q included. Returns how many picks are not the pass lobe
+    (they take three uniform numbers each)."""
+    k_lobes = p.shape[1]
+    sampled = 0
+    for k in range(idx.shape[0]):
+        row = idx[k]
+        c = 0.0
+        count = 0
+        for j in range(k_lobes):
+            x = p[row, j] / psum[row]
+            c = c + x if j > 0 else x
+            if r[k] >= c:
+                count += 1
+        lb = min(count, k_lobes - 1)
+        lobe[k] = lb
+        if lb == _GLASS_R or lb == _GLASS_T:
+            p_sel = p[row, _GLASS_R] + p[row, _GLASS_T]
+        else:
+            p_sel = p[row, lb]
+        prob[k] = p_sel / psum[row] * q[row]
+        if lb != _PASS:
+            sampled += 1
+    return sampled
+
+
+@kernel
+def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, pass_weight, p, ng, ns, wo, offset, tp,
+                   incoming, lobe_class, want_pdf, rows_out, o_out, d_out, tp_out, cls_out,
+                   pdf_out):
+    """Sample the picked lobes (pick_lobes) of rows idx (M,) of N hits and write the
+    continued rays, compacted: returns K, and rows_out[:K] (the kept k into idx), o_out,
+    d_out (K,3) float64 (origins off the surface by the hit's offset along ng, to the
+    side the ray leaves: pbrt-v4's OffsetRayOrigin), tp_out (K,3) = tp weight / prob
+    (weight = f cos / pdf of the lobe), cls_out (K,) the ray class (lobe_class[lobe],
+    or the incoming class where that is 0, a pass), pdf_out (K,) the solid-angle pdf
+    of the direction under the whole choice (inf: mirror-like, refracted or passed;
+    only with want_pdf). u1, u2, u3: one number each per non-pass pick, in pick order.
+    prm, sel (N, N_LOBES), p, ng, ns, wo (N,3), offset (N,), tp (N,3), incoming (N,)
+    are the hits' (bsdf.SurfaceHit, lobe_choice); pass_weight (N,3) the pass lobe's
+    weight (1 - alpha). A sample is dropped
+    (absorbed) when it leaves through the wrong side of the surface, is not finite or
+    has no weight."""
+    kept = 0
+    j = 0
+    for k in range(idx.shape[0]):
+        row = idx[k]
+        lb = lobe[k]
+        if lb == _PASS:
+            x, y, z = -wo[row, 0], -wo[row, 1], -wo[row, 2]
+            w0, w1, w2 = pass_weight[row, 0], pass_weight[row, 1], pass_weight[row, 2]
+            tr = True
+        else:
+            n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
+            ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
+            ix, iy, iz, w0, w1, w2, tr = pr.sample_lobe(prm, row, lb + 1, ox, oy, oz, u1[j],
+                                                        u2[j], u3[j])
+            j += 1
+            x, y, z = pr.frame_world(n0, n1, n2, ix, iy, iz)
+            ln = math.sqrt(x * x + y * y + z * z)
+            if ln > 0:
+                x, y, z = x / ln, y / ln, z / ln
+        gx, gy, gz = ng[row, 0], ng[row, 1], ng[row, 2]
+        side = x * gx + y * gy + z * gz
+        if not ((side < 0.0) if tr else (side > 0.0)):
+            continue
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+            continue
+        if math.isnan(w0) or math.isnan(w1) or math.isnan(w2) or not (
+                w0 > 0.0 or w1 > 0.0 or w2 > 0.0):
+            continue
+        if lb == _GLASS_R or lb == _GLASS_T:
+            lb = _GLASS_T if tr else _GLASS_R
+        s = max(prob[k], 1e-300)
+        t0 = tp[row, 0] * w0 / s
+        t1 = tp[row, 1] * w1 / s
+        t2 = tp[row, 2] * w2 / s
+        if not math.isfinite(t0 + t1 + t2) or not (t0 > 0.0 or t1 > 0.0 or t2 > 0.0):
+            continue
+        lift = (1.0 if side >= 0.0 else -1.0) * offset[row]
+        o_out[kept, 0] = p[row, 0] + lift * gx
+        o_out[kept, 1] = p[row, 1] + lift * gy
+        o_out[kept, 2] = p[row, 2] + lift * gz
+        d_out[kept, 0], d_out[kept, 1], d_out[kept, 2] = x, y, z
+        tp_out[kept, 0], tp_out[kept, 1], tp_out[kept, 2] = t0, t1, t2
+        c = lobe_class[lb]
+        cls_out[kept] = incoming[row] if c == 0 else c
+        rows_out[kept] = k
+        if want_pdf:
+            pdf = np.inf
+            if not tr and pr.is_rough(prm, row, lb + 1):
+                n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
+                ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
+                ix, iy, iz = pr.frame_local(n0, n1, n2, x, y, z)
+                pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
+            pdf_out[kept] = pdf
+        kept += 1
+    return kept
+
+
+@kernel
+def gather_rays(u1, u2, ns, ng, p, offset, rows, o, d):
+    """Final-gather rays of N hits: a cosine-distributed direction about the shading
+    normal ns from the uniform numbers u1, u2 (N,) (sampling.cosine_hemisphere in the
+    frame of sampling.to_world); the rays that leave above the geometric normal ng are
+    written compacted: rows (K,) the hit of each ray, o (K,3) origins lifted off the
+    surface by offset along ng (pbrt-v4's OffsetRayOrigin), d (K,3). Returns K."""
+    k = 0
+    for i in range(u1.shape[0]):
+        r = math.sqrt(u1[i])
+        phi = 2.0 * np.pi * u2[i]
+        l0 = r * math.cos(phi)
+        l1 = r * math.sin(phi)
+        l2 = math.sqrt(max(0.0, 1.0 - u1[i]))
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        sign = 1.0 if n2 >= 0.0 else -1.0
+        a = -1.0 / (sign + n2)
+        b = n0 * n1 * a
+        x = l0 * (1.0 + sign * n0 ** 2 * a) + l1 * b + l2 * n0
+        y = l0 * (sign * b) + l1 * (sign + n1 ** 2 * a) + l2 * n1
+        z = l0 * (-sign * n0) + l1 * (-n1) + l2 * n2
+        gx, gy, gz = ng[i, 0], ng[i, 1], ng[i, 2]
+        if not x * gx + y * gy + z * gz > 0.0:
+            continue
+        # Above ng: the origin goes to that side (offset_along_normal's side is +1).
+        lift = 1.0 * offset[i]
+        o[k, 0] = p[i, 0] + lift * gx
+        o[k, 1] = p[i, 1] + lift * gy
+        o[k, 2] = p[i, 2] + lift * gz
+        d[k, 0], d[k, 1], d[k, 2] = x, y, z
+        rows[k] = i
+        k += 1
+    return k
+
+
+@register_warm_up
+def _warm_up():
+    v0 = np.zeros((1, 3))
+    e1 = np.array([[1.0, 0.0, 0.0]])
+    e2 = np.array([[0.0, 1.0, 0.0]])
+    one = np.full(1, 0.25)
+    prim = np.zeros(1, np.int64)
+    d = np.array([[0.0, 0.0, -1.0]])
+    p, ng, ns, base = (np.empty((1, 3)) for _ in range(4))
+    front = np.empty(1, np.bool_)
+    mat = np.empty(1, np.int32)
+    off = np.empty(1)
+    for cn in (np.zeros((0, 3, 3), np.float32), np.ones((1, 3, 3), np.float32)):
+        hit_geometry(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
+                     np.ones((1, 3)), p, ng, ns, front, mat, base, off)
+    face_shading_normals(ns, ng, front, d, np.zeros(1, np.bool_))
+    gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
+                np.empty((1, 3)))
+    alb = np.full((1, 8, 3), 0.1)
+    sel, q, pl, psum = np.empty((1, 8)), np.empty(1), np.empty((1, 7)), np.empty(1)
+    choose_lobes(alb, np.ones((1, 3)), sel, q, pl, psum)
+    idx = np.zeros(1, np.int64)
+    lobe = np.empty(1, np.int64)
+    prob = np.empty(1)
+    pick_lobes(pl, psum, q, idx, one, lobe, prob)
+    prm, _ = pr.setup_np(np.zeros((1, pr.N_MAT)), np.zeros(1, np.int64), base, np.full(1, 0.8),
+                         front)
+    lobe[0] = pr.L_METAL - 1
+    continue_lobes(idx, lobe, prob, one, one, one, prm, sel, base, p, ng, ns, -d, off,
+                   np.ones((1, 3)), np.zeros(1, np.int64), np.zeros(7, np.int64), True,
+                   np.empty(1, np.int64),
+                   np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty(1, np.int64),
+                   np.empty(1))
