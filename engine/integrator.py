@@ -213,7 +213,8 @@ def mis_light_pdf(light, o, d, t, ns=None):
         y = o + t[:, None] * d - light.pos
         yu, yv = dot(y, light.u), dot(y, light.v)
         inside = (yu >= x0) & (yu <= x1) & (yv >= y0) & (yv <= y1) & (area > 0)
-        return np.where(inside, t * t / np.maximum(cos_l * area, 1e-300), 0.0)
+        with np.errstate(over="ignore", invalid="ignore"):  # rows that missed: t = inf
+            return np.where(inside, t * t / np.maximum(cos_l * area, 1e-300), 0.0)
     return t * t / np.maximum(cos_l * area, 1e-300)
 
 
