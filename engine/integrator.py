@@ -389,8 +389,8 @@ def _secondary_irradiance(ctx, hit):
     pmap, s = ctx.secondary_map, ctx.settings
     if pmap is None or len(pmap) == 0:
         return np.zeros((len(hit.p), 3))
-    return pmap.irradiance(hit.p, hit.ng, ctx.global_radius, s.k_nearest, s.min_photons,
-                           s.estimator)
+    return pmap.irradiance(hit.p, hit.ng, ctx.secondary_radius or ctx.global_radius,
+                           s.k_nearest, s.min_photons, s.estimator)
 
 
 def lobe_choice(w, tp):
@@ -526,7 +526,8 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         if ctx.gather_map is not None:
             indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                            should_cancel=should_cancel)
-            indirect += _smooth_estimate(ctx, ctx.secondary_map, ctx.global_radius, hit, f,
+            indirect += _smooth_estimate(ctx, ctx.secondary_map,
+                                         ctx.secondary_radius or ctx.global_radius, hit, f,
                                          sample_id, footprint)
         elif ctx.global_map is not None and len(ctx.global_map):
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
