@@ -32,12 +32,12 @@ class Closure:
                  "emission", "alpha", "texture", "has_bsdf", "normal_map", "alpha_texture",
                  "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
                  "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
-                 "sheen_weight", "sheen_roughness", "sheen_tint")
+                 "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
              "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
-             "sheen_roughness", "sheen_tint")
+             "sheen_roughness", "sheen_tint", "transparent_tint")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
@@ -45,7 +45,8 @@ class Closure:
                  specular_ior_level=0.5, specular_tint=(1.0, 1.0, 1.0), coat_weight=0.0,
                  coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
                  multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
-                 sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0)):
+                 sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0),
+                 transparent_tint=(1.0, 1.0, 1.0)):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -70,6 +71,8 @@ class Closure:
         self.sheen_weight = float(sheen_weight)
         self.sheen_roughness = float(sheen_roughness)
         self.sheen_tint = np.asarray(sheen_tint, dtype=np.float64)[:3]
+        # Colour of the transparent share (1 - alpha): a Transparent BSDF's Color.
+        self.transparent_tint = np.asarray(transparent_tint, dtype=np.float64)[:3]
         self.alpha_texture = alpha_texture  # per-hit factor on alpha (engine node) or None
 
     @property
@@ -105,6 +108,11 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     else:
         out.alpha, out.alpha_texture = _alpha_mix(sn, wa, a, wb, b)
     out.emission = wa * a.emission + wb * b.emission
+    # The transparent shares add up as colours (Cycles sums the transparent closures'
+    # weights): tint = (wa (1 - alpha_a) tint_a + wb (1 - alpha_b) tint_b) / (1 - alpha).
+    pa, pb = wa * (1.0 - a.alpha), wb * (1.0 - b.alpha)
+    if pa + pb > 0:
+        out.transparent_tint = (pa * a.transparent_tint + pb * b.transparent_tint) / (pa + pb)
     sa = wa * a.alpha if a.has_bsdf else 0.0
     sb = wb * b.alpha if b.has_bsdf else 0.0
     # An emission-only closure is black as a surface: it dilutes the BSDF's colour.
@@ -198,6 +206,7 @@ class MaterialConverter:
             coat_tint=np.clip(closure.coat_tint, 0.0, None),
             sheen_weight=max(closure.sheen_weight, 0.0),
             sheen_roughness=min(max(closure.sheen_roughness, 0.0), 1.0),
+            transparent_tint=np.clip(closure.transparent_tint, 0.0, None),
             sheen_tint=np.clip(closure.sheen_tint, 0.0, None),
             multiscatter=closure.multiscatter, node=closure.node,
             glossy_color=(None if closure.glossy_color is None
@@ -354,11 +363,11 @@ class MaterialConverter:
             return Closure(base_color=(0.0, 0.0, 0.0), emission=np.asarray(col) * strength,
                            has_bsdf=False)
         if t == "BSDF_TRANSPARENT":
-            col, _ = self._color(node, "Color")
-            if np.any(np.abs(np.asarray(col) - 1.0) > 1e-3):
-                self._warn(f"material '{self._mat.name}': tinted Transparent BSDF "
-                           f"'{node.name}' is treated as clear")
-            return Closure(alpha=0.0)
+            col, tex = self._color(node, "Color")
+            if tex is not None:
+                self._warn(f"material '{self._mat.name}': texture on 'Color' of Transparent "
+                           f"BSDF '{node.name}' is not supported; using white")
+            return Closure(alpha=0.0, transparent_tint=col)
         if t == "MIX_SHADER":
             a = self._shader(self._source(inp[1]), depth + 1)
             b = self._shader(self._source(inp[2]), depth + 1)
@@ -373,6 +382,8 @@ class MaterialConverter:
                     cover = sn.Math("MULTIPLY", cover, 1.0, clamp=True)
                     out = _blend(surf, surf, 1.0, 0.0)  # a copy of surf
                     out.alpha = surf.alpha
+                    clear = a if a.is_clear else b
+                    out.transparent_tint = clear.transparent_tint.copy()
                     out.alpha_texture = (cover if surf.alpha_texture is None else
                                          sn.Math("MULTIPLY", cover, surf.alpha_texture))
                     if np.any(surf.emission > 0):

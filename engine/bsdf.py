@@ -188,7 +188,9 @@ def sample_specular(table: MaterialTable, hit: SurfaceHit, lobe: np.ndarray,
         out[passing] = d_in[passing]
         transmitted[passing] = True
         a = _hit_alpha(table, hit)[passing]
-        weight[passing] = (1.0 - a)[:, None]
+        # The pass lobe's weight: (1 - alpha) x the Transparent BSDF's colour.
+        tint = table.closure_params[hit.mat[passing], pr.M_TTINT:pr.M_TTINT + 3]
+        weight[passing] = (1.0 - a)[:, None] * tint
     rows = np.nonzero(~passing)[0]
     if len(rows):
         u1, u2, u3 = rng.random(len(rows)), rng.random(len(rows)), rng.random(len(rows))

@@ -105,6 +105,7 @@ def closure_params(materials: list[Material]) -> np.ndarray:
         row[pr.M_SHEEN_W] = m.sheen_weight
         row[pr.M_SHEEN_ROUGH] = m.sheen_roughness
         row[pr.M_SHEEN_TINT:pr.M_SHEEN_TINT + 3] = m.sheen_tint
+        row[pr.M_TTINT:pr.M_TTINT + 3] = m.transparent_tint
     return out
 
 

@@ -19,12 +19,12 @@ from .directlight import DirectLightBuffers, direct_light, sample_lights, termin
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.selection import empty_tree, selection_samples, selector_for, tree_members
-from .lights.world import background_radiance
+from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, _hit_alpha, closures, lobe_weights, surface_hit
 from .camerakernels import choose_lobes, continue_lobes, gather_rays, pick_lobes
 from .camerarays import camera_rays_kernel
-from .closures.principled import rough_reflection_rows
+from .closures.principled import M_TTINT, rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
@@ -140,11 +140,14 @@ MODE_CONTINUATION, MODE_DELTA, MODE_MIS, MODE_TREE = 0, 1, 2, 3
 def light_modes(ctx) -> np.ndarray:
     """How each light reaches the rough reflective lobes (directlight.accumulate_bsdf):
     MODE_DELTA: a point, spot or sun without size, by shadow rays only; MODE_MIS: an area
-    light without spread, a sun with an angle, a point / spot light with a radius or the
-    emissive meshes, by shadow rays and by the lobes' sampled continuation, the two
-    weighted by the power heuristic (Veach; mis_light_pdf and _mesh_mis_weight give the
-    light's pdf where a continuation meets it); MODE_CONTINUATION: the other lights with a
-    size (the world, area lights with spread) by the continuation alone. A light whose shadow rays are off (diffuse visibility) is continuation-only.
+    light (with or without spread), a sun with an angle, a point / spot light with a
+    radius, the emissive meshes and an environment-mapped world, by shadow rays and by
+    the lobes' sampled continuation, the two weighted by the power heuristic (Veach;
+    mis_light_pdf and _mesh_mis_weight give the light's pdf where a continuation meets
+    it); MODE_CONTINUATION: a constant-colour world (its radiance is the same in every
+    direction, so the lobes' own sampling follows f cos alone and is the better strategy:
+    measured, its shadow rays' share doubled a rough metal's noise) and a light whose
+    shadow rays are off (diffuse visibility), by the continuation alone.
     Without continuation (specular effects off) the MIS lights take shadow rays in full.
     With more lights than the light tree's threshold only the lights without size take
     shadow rays for the glossy lobes (MODE_DELTA), the others are MODE_CONTINUATION."""
@@ -165,18 +168,21 @@ def light_modes(ctx) -> np.ndarray:
             continue
         if not light.has_size:
             modes[li] = MODE_DELTA
-        elif ((light.kind == AREA and light.spread >= math.pi - 1e-6)
-              or light.kind in (SUN, POINT, SPOT, MESH)):
+        elif (light.kind in (AREA, SUN, POINT, SPOT, MESH)
+              or (light.kind == WORLD and light.environment is not None)):
             modes[li] = mis
     return modes
 
 
-def mis_light_pdf(light, o, d, t):
+def mis_light_pdf(light, o, d, t, ns=None):
     """Solid-angle pdf (N,) with which the light's shadow-ray samples (directlight.
     sample_lights) pick direction d from o, for continuation rays that met the light at
-    distance t (sun: escaping rays inside its disk)."""
+    distance t (sun, world: escaping rays; ns (N,3): the shading normals at o, around
+    which the world's shadow rays are cosine-distributed)."""
     if light.kind == SUN:
         return np.full(len(d), 1.0 / light.solid_angle)
+    if light.kind == WORLD:
+        return light.pdf(d, ns)
     if light.kind in (POINT, SPOT):
         # Shadow rays sample the disk of the light's radius through its centre, facing the
         # shading point o (directlight.sample_lights): pdf of the direction's disk point.
@@ -191,7 +197,24 @@ def mis_light_pdf(light, o, d, t):
         pdf = t_disk * t_disk / np.where(front, math.pi * light.radius ** 2 * toward, 1.0)
         return np.where(inside, pdf, 0.0)
     cos_l = np.abs(dot(d, light.dir))
-    return t * t / np.maximum(cos_l * light.area, 1e-300)
+    area = light.area
+    if light.kind == AREA and light._spread_rect():
+        # A rectangle with spread samples only the part of it whose directions can reach
+        # o (the square of half-width height x tan(spread / 2) around o's foot, clipped
+        # to the light; Cycles' area_light_spread_clamp_light): uniform over that part.
+        r = o - light.pos
+        reach = np.maximum(dot(r, light.dir), 0.0) * math.tan(0.5 * light.spread)
+        pu, pv = dot(r, light.u), dot(r, light.v)
+        hx, hy = 0.5 * light.size_x, 0.5 * light.size_y
+        x0, x1 = np.maximum(pu - reach, -hx), np.minimum(pu + reach, hx)
+        y0, y1 = np.maximum(pv - reach, -hy), np.minimum(pv + reach, hy)
+        area = np.maximum(x1 - x0, 0.0) * np.maximum(y1 - y0, 0.0)
+        y = o + t[:, None] * d - light.pos
+        yu, yv = dot(y, light.u), dot(y, light.v)
+        inside = (yu >= x0) & (yu <= x1) & (yv >= y0) & (yv <= y1) & (area > 0)
+        with np.errstate(over="ignore", invalid="ignore"):  # rows that missed: t = inf
+            return np.where(inside, t * t / np.maximum(cos_l * area, 1e-300), 0.0)
+    return t * t / np.maximum(cos_l * area, 1e-300)
 
 
 def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b):
@@ -221,11 +244,12 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b):
     return w
 
 
-def _mis_weight(ctx, li, light, o, d, t, pdf_b):
+def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None):
     """Power-heuristic weight of continuation rays (pdf pdf_b, inf = a mirror-like lobe)
-    that met light li, against its light_samples shadow rays."""
+    that met light li, against its light_samples shadow rays (ns: the shading normals at
+    the rays' origins, for the world light)."""
     n = ctx.plan.light_samples.get(light.name, 1)
-    pl = n * mis_light_pdf(light, o, d, t)
+    pl = n * mis_light_pdf(light, o, d, t, ns)
     with np.errstate(invalid="ignore", over="ignore"):
         w = pdf_b * pdf_b / (pdf_b * pdf_b + pl * pl)
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
@@ -375,8 +399,8 @@ def _secondary_irradiance(ctx, hit):
     pmap, s = ctx.secondary_map, ctx.settings
     if pmap is None or len(pmap) == 0:
         return np.zeros((len(hit.p), 3))
-    return pmap.irradiance(hit.p, hit.ng, ctx.global_radius, s.k_nearest, s.min_photons,
-                           s.estimator)
+    return pmap.irradiance(hit.p, hit.ng, ctx.secondary_radius or ctx.global_radius,
+                           s.k_nearest, s.min_photons, s.estimator)
 
 
 def lobe_choice(albedo, tp):
@@ -428,9 +452,10 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     cls = np.empty(m, np.int64)
     pdf = np.empty(m if want_pdf else 0)
     incoming = np.broadcast_to(np.asarray(ray_cls, np.int64), (len(p),))
-    # The pass lobe's weight (Transparent BSDF): 1 - alpha in every channel.
-    pass_weight = np.repeat((1.0 - _hit_alpha(ctx.table, hit).astype(np.float64))[:, None], 3,
-                            axis=1)
+    # The pass lobe's weight: (1 - alpha) x the Transparent BSDF's colour.
+    tint = np.take(ctx.table.closure_params[:, M_TTINT:M_TTINT + 3], hit.mat, axis=0)
+    pass_weight = c((1.0 - _hit_alpha(ctx.table, hit).astype(np.float64))[:, None] * tint,
+                    np.float64)
     k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), pass_weight, c(hit.p),
                        c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset), c(tp, np.float64),
                        c(incoming), _LOBE_CLASS, bool(want_pdf), rows, o, d, new_tp, cls, pdf)
@@ -508,7 +533,8 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         if ctx.gather_map is not None:
             indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                            should_cancel=should_cancel)
-            indirect += _smooth_estimate(ctx, ctx.secondary_map, ctx.global_radius, hit, f,
+            indirect += _smooth_estimate(ctx, ctx.secondary_map,
+                                         ctx.secondary_radius or ctx.global_radius, hit, f,
                                          sample_id, footprint)
         elif ctx.global_map is not None and len(ctx.global_map):
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
@@ -690,7 +716,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     travelled = np.zeros(len(o))
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
     pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
+    org_ns = np.zeros((len(o), 3))  # shading normal where it left (the world's MIS pdf)
     modes = light_modes(ctx)
+    world = [li for li, light in enumerate(ctx.lights)
+             if light.kind == WORLD and modes[li] == MODE_MIS]
     has_holdout = bool(ctx.geo.holdout.any())
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
@@ -719,6 +748,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if miss.any():
             if not (bounce == 0 and s.film_transparent):
                 radiance = background_radiance(ctx.scene, d[miss])
+                if bounce > 0 and world:
+                    li = world[0]
+                    radiance = radiance * _mis_weight(ctx, li, ctx.lights[li], o[miss],
+                                                      d[miss], None, pdf_b[miss],
+                                                      org_ns[miss])[:, None]
                 for li, light in enumerate(ctx.lights):
                     if bounce > 0:
                         sun = light.seen_at_infinity(d[miss])
@@ -785,6 +819,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # Continue one specular lobe, chosen in proportion to its weight.
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True)
+        org_ns = hit.ns[keep]
         pix = pix[keep]
         sample_id = sample_id[keep]
         travelled = travelled[keep]

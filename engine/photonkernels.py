@@ -306,8 +306,11 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
             elif lobe == pr.L_PASS:
                 ox, oy, oz = dx, dy, dz
                 transmitted = True
-                k0 = k1 = k2 = 1.0 - alpha[i]
-                ok = k0 > 0.0
+                # (1 - alpha) x the Transparent BSDF's colour (principled.M_TTINT).
+                k0 = (1.0 - alpha[i]) * params[mat[i], pr.M_TTINT]
+                k1 = (1.0 - alpha[i]) * params[mat[i], pr.M_TTINT + 1]
+                k2 = (1.0 - alpha[i]) * params[mat[i], pr.M_TTINT + 2]
+                ok = max(k0, max(k1, k2)) > 0.0
             else:
                 lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
                 ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(

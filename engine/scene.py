@@ -70,7 +70,9 @@ class Material:
       diffuse           Lambert, base colour x what the layers above leave
     Microfacet lobes use GGX with alpha = roughness^2; multiscatter=True adds Cycles'
     multiple-scattering energy compensation (Multiscatter GGX, Principled's default).
-    `alpha` < 1 lets the rest of the light pass straight through (Transparent BSDF).
+    `alpha` < 1 lets the rest of the light pass straight through (Transparent BSDF),
+    tinted by `transparent_tint` (the Transparent BSDF's Color: the pass transmits
+    (1 - alpha) x tint per channel, for camera rays, shadow rays and photons alike).
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
     `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
     image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
@@ -103,6 +105,7 @@ class Material:
     sheen_weight: float = 0.0
     sheen_roughness: float = 0.5
     sheen_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
+    transparent_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
     normal_map: NormalMap | Bump | None = None
     alpha_texture: object | None = None
@@ -140,6 +143,14 @@ class Material:
             if np.any(v < 0):
                 raise SceneError(f"{who} {attr}: must be >= 0, got {v.tolist()}")
             setattr(self, attr, v)
+        tint = _vec3(self.transparent_tint, f"{who} transparent_tint")
+        if np.any(tint < 0):
+            raise SceneError(f"{who} transparent_tint: must be >= 0, got {tint.tolist()}")
+        if np.any(tint > 1):
+            # A pass that lets more light through than arrives would create energy.
+            self.warnings.append(f"{who}: transparent tint {tint.round(3).tolist()} above 1 "
+                                 "clamped to 1 (it would create energy)")
+        self.transparent_tint = np.minimum(tint, 1.0)
         self.ior = _finite(self.ior, f"{who} ior")
         if self.ior <= 0:
             raise SceneError(f"{who} ior: must be > 0, got {self.ior}")

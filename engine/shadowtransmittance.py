@@ -7,7 +7,9 @@ does any opaque surface. As in Cycles (intern/cycles/kernel/integrator/intersect
 and shade_shadow.h: `shader_bsdf_transparency` sums only the transparent closures), only
 the transparent part of a material lets a shadow ray through: alpha < 1 (Principled
 Alpha, a Mix Shader with a Transparent BSDF) and per-hit alpha from a texture
-(engine/textures.py, material_alpha). Glass, refraction and mirrors are opaque to shadow
+(engine/textures.py, material_alpha), tinted by the Transparent BSDF's colour
+(Material.transparent_tint: the transmittance per channel is (1 - alpha) x tint, Cycles'
+transparent closure weight). Glass, refraction and mirrors are opaque to shadow
 rays; the light that reaches a surface through them is a caustic (the photon maps'),
 docs/design.md, Transparent shadows.
 
@@ -40,47 +42,64 @@ DEFAULT_MAX_HITS = 8
 CLEAR, BLOCKED, GOING = 0, 1, 2
 
 
+def transparent_tints(table) -> np.ndarray:
+    """(M,3) the materials' Transparent BSDF colour (principled.M_TTINT columns of the
+    closure table; white without one)."""
+    from .closures import principled as pr
+    params = getattr(table, "closure_params", None)
+    if params is None:
+        return np.ones((len(table.alpha), 3))
+    return np.asarray(params[:, pr.M_TTINT:pr.M_TTINT + 3], np.float64)
+
+
 @kernel
-def shadow_step(prim, tri_material, mat_alpha, node_alpha, slot, trans, count, max_hits,
-                state):
+def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans, count,
+                max_hits, state):
     """One surface along each travelling shadow ray.
 
     prim (n,) the triangle hit (-1: none before the ray's end); tri_material (T,);
-    mat_alpha (M,) the materials' constant alpha; node_alpha (n,) the per-hit factor of a
-    material's alpha texture (1 where it has none); slot (n,) the ray's row in trans (R,)
-    (transmittance so far, multiplied in place) and count (R,) (transparent surfaces
-    crossed so far). Writes state (n,): CLEAR (reached its end), BLOCKED (opaque surface,
-    or one transparent surface more than max_hits), GOING (crossed a transparent surface)."""
+    mat_alpha (M,) the materials' constant alpha, mat_tint (M,3) their Transparent BSDF
+    colour; node_alpha (n,) the per-hit factor of a material's alpha texture (1 where it
+    has none); slot (n,) the ray's row in trans (R,3) (RGB transmittance so far,
+    multiplied in place) and count (R,) (transparent surfaces crossed so far). Writes
+    state (n,): CLEAR (reached its end), BLOCKED (opaque surface, a black tint, or one
+    transparent surface more than max_hits), GOING (crossed a transparent surface)."""
     for i in range(prim.shape[0]):
         p = prim[i]
         r = slot[i]
         if p < 0:
             state[i] = CLEAR
             continue
-        a = mat_alpha[tri_material[p]] * node_alpha[i]
+        m = tri_material[p]
+        a = mat_alpha[m] * node_alpha[i]
         through = 1.0 - min(max(a, 0.0), 1.0)
-        if not through > 0.0 or count[r] >= max_hits:
-            trans[r] = 0.0
+        t0 = through * mat_tint[m, 0]
+        t1 = through * mat_tint[m, 1]
+        t2 = through * mat_tint[m, 2]
+        if not (t0 > 0.0 or t1 > 0.0 or t2 > 0.0) or count[r] >= max_hits:
+            trans[r, 0] = 0.0
+            trans[r, 1] = 0.0
+            trans[r, 2] = 0.0
             state[i] = BLOCKED
             continue
-        trans[r] = trans[r] * through
+        trans[r, 0] = trans[r, 0] * t0
+        trans[r, 1] = trans[r, 1] * t1
+        trans[r, 2] = trans[r, 2] * t2
         count[r] += 1
         state[i] = GOING
 
 
 @kernel
 def scale_entries(contrib, ray, m_all, ray_trans):
-    """contrib[j] *= ray_trans[ray[j]] for the entries j < m_all with a traced shadow ray
-    (directlight.sample_lights' layout: ray[j] = -1 when none was traced)."""
+    """contrib[j] *= ray_trans[ray[j]] (RGB) for the entries j < m_all with a traced
+    shadow ray (directlight.sample_lights' layout: ray[j] = -1 when none was traced)."""
     for j in range(m_all):
         r = ray[j]
         if r < 0:
             continue
-        t = ray_trans[r]
-        if t != 1.0:
-            contrib[j, 0] = contrib[j, 0] * t
-            contrib[j, 1] = contrib[j, 1] * t
-            contrib[j, 2] = contrib[j, 2] * t
+        contrib[j, 0] = contrib[j, 0] * ray_trans[r, 0]
+        contrib[j, 1] = contrib[j, 1] * ray_trans[r, 1]
+        contrib[j, 2] = contrib[j, 2] * ray_trans[r, 2]
 
 
 class ShadowTransmittance:
@@ -98,6 +117,7 @@ class ShadowTransmittance:
         self.max_hits = max_hits
         self.tri_material = np.ascontiguousarray(geo.material, np.int64)
         self.mat_alpha = np.ascontiguousarray(table.alpha, np.float64)
+        self.mat_tint = np.ascontiguousarray(transparent_tints(table))
         self.tri_transparent = self.transparent_materials(table)[geo.material]
         self._subsets = {}
         self._lock = threading.Lock()
@@ -143,16 +163,17 @@ class ShadowTransmittance:
         return cls(geo, table, max_hits)
 
     def transmittance(self, o32, d32, t32, rows=None, cls=None) -> np.ndarray:
-        """(R,) transmittance of the shadow rays `rows` (default: all) from o32 (R,3) along
-        d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space), through
-        transparent surfaces: the product of (1 - alpha) of the surfaces crossed, 0 where
-        an opaque surface or more than max_hits transparent ones lie in the way. cls: the
-        rays' class (engine/visibility.py; None: every triangle is seen)."""
+        """(R,3) RGB transmittance of the shadow rays `rows` (default: all) from o32 (R,3)
+        along d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space),
+        through transparent surfaces: the product of (1 - alpha) x transparent tint of the
+        surfaces crossed, 0 where an opaque surface or more than max_hits transparent ones
+        lie in the way. cls: the rays' class (engine/visibility.py; None: every triangle
+        is seen)."""
         if rows is None:
             rows = np.arange(len(o32))
         rows = np.asarray(rows, np.int64)
         n = len(rows)
-        trans = np.ones(n)
+        trans = np.ones((n, 3))
         count = np.zeros(n, np.int64)
         if n == 0:
             return trans
@@ -185,8 +206,8 @@ class ShadowTransmittance:
                 node_alpha[hit] = material_alpha(self.table, geo, np.take(geo.material, hp),
                                                  hp, hu, hv, constant=False)
             state = np.empty(len(prim), np.int64)
-            shadow_step(prim, self.tri_material, self.mat_alpha, node_alpha, slot, trans,
-                        count, self.max_hits, state)
+            shadow_step(prim, self.tri_material, self.mat_alpha, self.mat_tint, node_alpha,
+                        slot, trans, count, self.max_hits, state)
             go = np.nonzero(state == GOING)[0]
             if len(go) == 0:
                 break
@@ -220,10 +241,10 @@ class ShadowTransmittance:
         if len(rows) == 0:
             return
         trans = self.transmittance(o32, d32, t32, rows, cls)
-        through = trans > 0.0
+        through = np.any(trans > 0.0, axis=1)
         if not through.any():
             return
-        ray_trans = np.ones(len(blocked))
+        ray_trans = np.ones((len(blocked), 3))
         ray_trans[rows[through]] = trans[through]
         blocked[rows[through]] = False
         scale_entries(contrib, ray, m_all, ray_trans)
@@ -232,9 +253,10 @@ class ShadowTransmittance:
 @register_warm_up
 def _warm_up():
     """Compile (or load) the kernels on a one-ray batch."""
-    trans = np.ones(1)
+    trans = np.ones((1, 3))
     count = np.zeros(1, np.int64)
     state = np.empty(1, np.int64)
-    shadow_step(np.zeros(1, np.int64), np.zeros(1, np.int64), np.full(1, 0.5), np.ones(1),
-                np.zeros(1, np.int64), trans, count, DEFAULT_MAX_HITS, state)
-    scale_entries(np.ones((1, 3)), np.zeros(1, np.int64), 1, np.full(1, 0.5))
+    shadow_step(np.zeros(1, np.int64), np.zeros(1, np.int64), np.full(1, 0.5),
+                np.ones((1, 3)), np.ones(1), np.zeros(1, np.int64), trans, count,
+                DEFAULT_MAX_HITS, state)
+    scale_entries(np.ones((1, 3)), np.zeros(1, np.int64), 1, np.full((1, 3), 0.5))

@@ -1,6 +1,7 @@
 """Next-event estimation on rough lobes with multiple importance sampling (issue 14):
-a rough metal / glossy floor under an area light, a sun with an angle, a point light
-with a radius and an emissive quad. Light
+a rough metal / glossy floor under an area light (also with a narrow spread), a sun with
+an angle, a point light with a radius, an emissive quad and an environment map with a
+small bright patch. Light
 sampling weighted by the power heuristic against the lobes' own sampling must give the
 same mean as the lobes' sampled continuation alone (both are unbiased), with far less
 noise; a delta light is seen by shadow rays only."""
@@ -24,6 +25,15 @@ def _scene(material, light):
                               direction=(-0.5, 0.0, -1.0))
     elif light == "sphere":
         s.add_point_light((1.0, 0.0, 1.5), power=300.0, radius=0.3)
+    elif light == "spread":
+        lamp = s.add_rect_area_light((1.0, 0.0, 1.5), size=(0.8, 0.8), power=300.0,
+                                     direction=(-0.5, 0.0, -1.0))
+        lamp.spread = math.radians(40.0)
+    elif light == "environment":
+        # A dim sky with a small bright patch where the floor mirrors it to the camera.
+        img = np.full((64, 128, 3), 0.05)
+        img[21:23, 61:63] = 500.0
+        s.set_environment(img, strength=1.0)
     elif light == "mesh":
         s.add_material(Material("lamp", (0.0, 0.0, 0.0), emission=(30.0, 30.0, 30.0)))
         s.add_plane((1.0, 0.0, 1.5), (-0.45, 0.0, -0.9), 0.8, "lamp", name="lamp")
@@ -56,7 +66,7 @@ MATERIALS = {
 }
 
 
-@pytest.mark.parametrize("light", ["area", "sun", "sphere", "mesh"])
+@pytest.mark.parametrize("light", ["area", "spread", "sun", "sphere", "mesh", "environment"])
 @pytest.mark.parametrize("mat", sorted(MATERIALS))
 def test_mis_matches_continuation_with_less_noise(mat, light, request):
     scene = _scene(MATERIALS[mat], light)
@@ -66,7 +76,10 @@ def test_mis_matches_continuation_with_less_noise(mat, light, request):
     # Pixel noise: the difference of two renders with other seeds (the image's own shape
     # cancels). Light sampling must be far less noisy ...
     noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
-    assert noise_mis < 0.4 * noise_cont, (noise_mis, noise_cont)
+    # (The environment's shadow rays also light the dielectric's diffuse base, with the
+    # same noise in both renders.)
+    limit = 0.5 if light == "environment" else 0.4
+    assert noise_mis < limit * noise_cont, (noise_mis, noise_cont)
     # ... and agree with the continuation on the mean: two unbiased estimators of the same
     # light, within 4 standard errors of the continuation's mean (or 2 %).
     m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())

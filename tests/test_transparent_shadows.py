@@ -27,14 +27,17 @@ def _floor_hits(ctx, n, seed=0, half=1.0):
     return surface_hit(ctx.geo, ctx.table, prim[keep], u[keep], v[keep], d[keep])
 
 
-def _sun_over_cards(alphas, gap=0.1, alpha_texture=None, **settings):
+def _sun_over_cards(alphas, gap=0.1, alpha_texture=None, tints=None, **settings):
     """A floor at z = 0 under a straight-down sun of 2 W/m^2 and len(alphas) horizontal
-    4 x 4 m cards stacked above it (the first at z = 1), card i with alpha alphas[i]."""
+    4 x 4 m cards stacked above it (the first at z = 1), card i with alpha alphas[i] (and
+    transparent tint tints[i])."""
     s = PaperScene(8, 6)
     s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "white_diffuse", name="floor")
     for i, a in enumerate(alphas):
         name = f"card{i}"
-        s.add_material(Material(name, (0.5, 0.5, 0.5), alpha=a, alpha_texture=alpha_texture))
+        tint = (1.0, 1.0, 1.0) if tints is None else tints[i]
+        s.add_material(Material(name, (0.5, 0.5, 0.5), alpha=a, alpha_texture=alpha_texture,
+                                transparent_tint=tint))
         s.add_plane((0, 0, 1.0 + gap * i), (0, 0, 1), 4.0, name, name=name)
     s.add_sun((0, 0, -1), 2.0)
     s.set_camera((0, -6, 3), (0, 0, 0))
@@ -47,6 +50,54 @@ def test_two_half_transparent_planes_pass_a_quarter():
     hit = _floor_hits(ctx, 400)
     E = direct_irradiance(ctx, hit, np.random.default_rng(1), Counters())
     assert np.allclose(E, 2.0 * 0.25, rtol=1e-12)
+
+
+def test_tinted_cards_multiply_their_colours():
+    """Cycles' transparent shadows carry the transparent closures' weight as a colour:
+    a card of alpha 0.5 tinted (1, 0.5, 0) over one of alpha 0 tinted (0.5, 1, 1) pass
+    0.5 x (0.5, 0.5, 0) of the sun; a black tint blocks like an opaque card."""
+    ctx = _sun_over_cards([0.5, 0.0], tints=[(1.0, 0.5, 0.0), (0.5, 1.0, 1.0)])
+    E = direct_irradiance(ctx, _floor_hits(ctx, 200), np.random.default_rng(1), Counters())
+    assert np.allclose(E, 2.0 * np.array([0.25, 0.25, 0.0]), rtol=1e-12)
+    ctx = _sun_over_cards([0.0], tints=[(0.0, 0.0, 0.0)])
+    E = direct_irradiance(ctx, _floor_hits(ctx, 200), np.random.default_rng(1), Counters())
+    assert np.all(E == 0.0)
+
+
+def test_tinted_pass_colours_camera_rays_and_photons():
+    """A clear card tinted (0.2, 0.6, 1.0) over a white floor lit by a straight-down sun,
+    seen from above through the card: the floor takes the tint twice (light in by shadow
+    rays, view out by the camera ray's pass); an untinted card leaves the floor as without
+    it. Photons that cross the card carry the tint too (their power)."""
+    from helpers import top_down_plane
+
+    def scene(tint):
+        s = top_down_plane(albedo=0.5, res=24, view=4.0)
+        s.add_material(Material("card", (0.8, 0.8, 0.8), alpha=0.0, transparent_tint=tint))
+        s.add_plane((0, 0, 1.0), (0, 0, 1), 2.0, "card", name="card")
+        s.add_sun((0, 0, -1), 2.0)
+        return s
+
+    def film_for(tint):
+        return render(scene(tint), RenderSettings(spp=2, photons=20000,
+                                                  caustic_photons=5000, workers=1, seed=2))
+    tint = np.array([0.2, 0.6, 1.0])
+    clear, tinted = film_for((1.0, 1.0, 1.0)), film_for(tuple(tint))
+    h = clear.combined.shape[0]
+    c = slice(h // 2 - 3, h // 2 + 3)  # pixels under the card's centre
+    lit = 0.5 / np.pi * 2.0
+    assert np.allclose(clear.combined[c, c], lit, rtol=1e-5)
+    assert np.allclose(tinted.combined[c, c], lit * tint * tint, rtol=1e-5)
+    ctx = prepare_context(scene(tuple(tint)), RenderSettings(workers=1))
+    ph = trace_photons(ctx, ctx.lights, [20000], caustic_only=False, stream=1)
+    z = ph.position[:, 2].astype(np.float64) + ctx.geo.offset[2]
+    x = ph.position[:, :2].astype(np.float64) + ctx.geo.offset[:2]
+    under = (np.abs(z) < 1e-3) & np.all(np.abs(x) < 0.9, axis=1) & (ph.kind == DIRECT)
+    beside = (np.abs(z) < 1e-3) & np.any(np.abs(x) > 1.1, axis=1) & (ph.kind == DIRECT)
+    assert under.any() and beside.any()
+    p_under = ph.power[under].astype(np.float64)
+    p_beside = ph.power[beside].astype(np.float64)
+    assert np.allclose(p_under / p_beside[0], tint, rtol=1e-5)
 
 
 def test_opaque_card_still_blocks_and_open_scene_has_no_retrace():
@@ -89,7 +140,8 @@ def test_transmittance_of_rays_and_refusal_of_bad_limit():
     # To just above the floor / between the cards (z = 1.05) / beside the cards.
     t = np.array([2.95, 1.95, 2.95], np.float32)
     tr = ctx.shadow.transmittance(o, d, t)
-    assert np.allclose(tr, [0.5 * 0.75, 1.0 - 0.25, 1.0])
+    assert tr.shape == (3, 3)
+    assert np.allclose(tr, np.array([0.5 * 0.75, 1.0 - 0.25, 1.0])[:, None])
     with pytest.raises(ValueError, match="max_hits"):
         ShadowTransmittance(ctx.geo, ctx.table, -1)
 

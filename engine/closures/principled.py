@@ -4,7 +4,7 @@ Glossy / Glass / Refraction BSDF nodes in the same terms, as compiled kernels.
 Per hit, `setup` turns a material (a row of MaterialTable.closure_params) and the view
 cosine into lobes, top layer first, each attenuating the ones below it by its estimated
 albedo (Cycles' closure_layering_weight):
-    pass      1 - alpha (Transparent BSDF share)
+    pass      (1 - alpha) x transparent tint (Transparent BSDF share and colour)
     sheen     Cycles' microfiber sheen (engine/closures/sheen.py), weight x tint
     coat      GGX, real dielectric Fresnel (coat IOR), energy-compensated; then the coat
               tint tints the layers below along the refracted path (tint^(1/cos_t))
@@ -49,7 +49,8 @@ M_GCOL = 18            # 3: Glossy BSDF colour (metal lobe's constant reflectanc
 M_HAS_GCOL = 21        # ... when 1 (else the base colour)
 M_SHEEN_W, M_SHEEN_ROUGH = 22, 23
 M_SHEEN_TINT = 24      # 3
-N_MAT = 27
+M_TTINT = 27           # 3: Transparent BSDF colour (the pass lobe transmits (1 - alpha) x it)
+N_MAT = 30
 NODE_PRINCIPLED, NODE_GLOSSY, NODE_GLASS = 0, 1, 2
 
 # Packed per-hit row.
@@ -111,7 +112,7 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
         a = hit_alpha[i]
         W0 = W1 = W2 = a
         for c in range(3):
-            weights[i, L_PASS, c] = 1.0 - a
+            weights[i, L_PASS, c] = (1.0 - a) * q[M_TTINT + c]
         rough = q[M_ROUGH]
         alpha = rough * rough
         multi = q[M_MULTI]
@@ -552,6 +553,7 @@ def _warm_up():
     params[0, M_CTINT:M_CTINT + 3] = 1.0
     params[0, [M_SHEEN_W, M_SHEEN_ROUGH]] = (0.5, 0.5)
     params[0, M_SHEEN_TINT:M_SHEEN_TINT + 3] = 1.0
+    params[0, M_TTINT:M_TTINT + 3] = 1.0
     one = np.ones(1)
     prm, _ = setup_np(params, np.zeros(1, np.int64), np.full((1, 3), 0.5), np.full(1, 0.8),
                       np.ones(1, np.bool_))
