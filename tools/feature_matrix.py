@@ -1089,11 +1089,6 @@ def _window_room(pane):
     mb.camera((-1.7, -1.7, 1.7), (1.0, 0.4, 0.2), 70.0)
 
 
-WINDOW_ISSUE = ("issue 14: the slab pane's own blocks (the glass seen from inside the room) "
-                "read 33-38 % dark against Cycles; the walls and the floor lit through it are "
-                "within 5 % (mean 0.99)")
-
-
 @case("transparency")
 def transparency_window_open():
     """The window room with an open window (the control for the glass cases)."""
@@ -1110,7 +1105,10 @@ def transparency_window_glass_plane():
     _window_room("plane")
 
 
-@case("transparency", block_tol=0.35, known_issue=WINDOW_ISSUE)
+# The pane's own blocks (the glass seen from inside the room) are the worst: block error
+# 0.31 against 0.35 at the matrix's seed (33-38 % dark blocks were measured before the
+# photon kernels' random numbers; the walls and floor lit through it are within 5 %).
+@case("transparency", block_tol=0.35)
 def transparency_window_glass_slab():
     """The window room behind a 2 cm Glass slab."""
     _window_room("slab")
@@ -1280,7 +1278,10 @@ def world_hdri_rotated():
 # The sun texel in rough metal: block error at 64 spp 0.29-0.44 (the continuation alone:
 # 0.76-1.64), at 128 spp 0.28-0.29 (as light_area_spread_glossy: the rough highlights'
 # shape, not their light sampling).
-@case("world", ours=dict(spp=128), block_tol=0.35)
+@case("world", ours=dict(spp=128), known_issue=(
+    "issue 14: an HDRI's sun texel in a rough metal ball: mean within 0.1 % of Cycles, but "
+    "the highlight's blocks at the ball's rim are 0.25-0.38 off at 128-512 spp (the light "
+    "sampling agrees with the continuation; the rough highlight's shape does not)"))
 def world_hdri_glossy():
     """Rough metal and a rough Principled ball on a rough metal floor under the HDRI: the
     sun texel's glossy highlights by light sampling with MIS (Cycles' background.h)."""
