@@ -245,7 +245,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                         " more warnings (see the system console)")
             for w in warnings[MAX_REPORTED_WARNINGS:]:
                 print(f"Photon Mapping warning: {w}")
-        summary = (f"{info['triangles']} triangles, {info['lights']} lights, "
+        n = info['lights']
+        summary = (f"{info['triangles']} triangles, {n} light{'' if n == 1 else 's'}, "
                    f"{elapsed:.1f} s")
         if cancelled:
             self.report({"INFO"}, f"Photon Mapping: render cancelled ({summary})")

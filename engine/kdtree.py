@@ -215,6 +215,48 @@ def heap_sort(d2, idx, count, kq):
 
 
 @kernel
+def _root_stack():
+    """A traversal stack holding the root: node indices (STACK,), per entry the query's
+    x, y, z offsets to the node's cell and their squared sum (STACK, 4); size 1."""
+    st_node = np.empty(STACK, np.int64)
+    st_off = np.empty((STACK, 4), np.float64)
+    st_node[0] = 0
+    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
+    return st_node, st_off, 1
+
+
+@kernel
+def _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, bound, inclusive, st_node,
+             st_off, sp):
+    """From `node` (its cell rd squared away from the query, per-axis offsets ox, oy, oz)
+    down to the leaf on the query's side, pushing each far child whose cell is within
+    bound (<= with inclusive, else <) onto the stack with its offsets (the incremental
+    distance of Arya and Mount). Returns (leaf node, stack size). Every query's walk."""
+    inner = axis.shape[0]
+    while node < inner:
+        ax = axis[node]
+        if ax == 0:
+            diff, old = qx - np.float64(split[node]), ox
+        elif ax == 1:
+            diff, old = qy - np.float64(split[node]), oy
+        else:
+            diff, old = qz - np.float64(split[node]), oz
+        if diff < 0.0:
+            near, far = 2 * node + 1, 2 * node + 2
+        else:
+            near, far = 2 * node + 2, 2 * node + 1
+        rd_far = rd - old * old + diff * diff
+        if rd_far <= bound if inclusive else rd_far < bound:
+            st_node[sp] = far
+            st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
+            st_off[sp, ax] = diff
+            st_off[sp, 3] = rd_far
+            sp += 1
+        node = near
+    return node, sp
+
+
+@kernel
 def knn(pos, axis, split, leaf, qx, qy, qz, kq, r2, d2, idx):
     """The kq nearest points with squared distance < r2 into d2[:count], idx[:count]
     (increasing distance; d2, idx: scratch of at least kq). Returns count."""
@@ -224,11 +266,7 @@ def knn(pos, axis, split, leaf, qx, qy, qz, kq, r2, d2, idx):
         return 0
     inner = axis.shape[0]
     bound = r2
-    st_node = np.empty(STACK, np.int64)
-    st_off = np.empty((STACK, 4), np.float64)  # x, y, z offsets to the cell; squared sum
-    st_node[0] = 0
-    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
-    sp = 1
+    st_node, st_off, sp = _root_stack()
     while sp > 0:
         sp -= 1
         node = st_node[sp]
@@ -236,26 +274,8 @@ def knn(pos, axis, split, leaf, qx, qy, qz, kq, r2, d2, idx):
         if rd >= bound:
             continue
         ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
-        while node < inner:
-            ax = axis[node]
-            if ax == 0:
-                diff, old = qx - np.float64(split[node]), ox
-            elif ax == 1:
-                diff, old = qy - np.float64(split[node]), oy
-            else:
-                diff, old = qz - np.float64(split[node]), oz
-            if diff < 0.0:
-                near, far = 2 * node + 1, 2 * node + 2
-            else:
-                near, far = 2 * node + 2, 2 * node + 1
-            rd_far = rd - old * old + diff * diff
-            if rd_far < bound:
-                st_node[sp] = far
-                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
-                st_off[sp, ax] = diff
-                st_off[sp, 3] = rd_far
-                sp += 1
-            node = near
+        node, sp = _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, bound, False,
+                            st_node, st_off, sp)
         for j in range(leaf[node - inner], leaf[node - inner + 1]):
             dx = qx - np.float64(pos[j, 0])
             dy = qy - np.float64(pos[j, 1])
@@ -280,11 +300,7 @@ def nearest(pos, axis, split, leaf, qx, qy, qz, r2):
     if n == 0:
         return best, bound
     inner = axis.shape[0]
-    st_node = np.empty(STACK, np.int64)
-    st_off = np.empty((STACK, 4), np.float64)
-    st_node[0] = 0
-    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
-    sp = 1
+    st_node, st_off, sp = _root_stack()
     while sp > 0:
         sp -= 1
         node = st_node[sp]
@@ -292,26 +308,8 @@ def nearest(pos, axis, split, leaf, qx, qy, qz, r2):
         if rd >= bound:
             continue
         ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
-        while node < inner:
-            ax = axis[node]
-            if ax == 0:
-                diff, old = qx - np.float64(split[node]), ox
-            elif ax == 1:
-                diff, old = qy - np.float64(split[node]), oy
-            else:
-                diff, old = qz - np.float64(split[node]), oz
-            if diff < 0.0:
-                near, far = 2 * node + 1, 2 * node + 2
-            else:
-                near, far = 2 * node + 2, 2 * node + 1
-            rd_far = rd - old * old + diff * diff
-            if rd_far < bound:
-                st_node[sp] = far
-                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
-                st_off[sp, ax] = diff
-                st_off[sp, 3] = rd_far
-                sp += 1
-            node = near
+        node, sp = _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, bound, False,
+                            st_node, st_off, sp)
         for j in range(leaf[node - inner], leaf[node - inner + 1]):
             dx = qx - np.float64(pos[j, 0])
             dy = qy - np.float64(pos[j, 1])
@@ -335,11 +333,7 @@ def nearest_facing(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, agree
     if n == 0:
         return best, bound
     inner = axis.shape[0]
-    st_node = np.empty(STACK, np.int64)
-    st_off = np.empty((STACK, 4), np.float64)
-    st_node[0] = 0
-    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
-    sp = 1
+    st_node, st_off, sp = _root_stack()
     while sp > 0:
         sp -= 1
         node = st_node[sp]
@@ -347,26 +341,8 @@ def nearest_facing(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, agree
         if rd >= bound:
             continue
         ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
-        while node < inner:
-            ax = axis[node]
-            if ax == 0:
-                diff, old = qx - np.float64(split[node]), ox
-            elif ax == 1:
-                diff, old = qy - np.float64(split[node]), oy
-            else:
-                diff, old = qz - np.float64(split[node]), oz
-            if diff < 0.0:
-                near, far = 2 * node + 1, 2 * node + 2
-            else:
-                near, far = 2 * node + 2, 2 * node + 1
-            rd_far = rd - old * old + diff * diff
-            if rd_far < bound:
-                st_node[sp] = far
-                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
-                st_off[sp, ax] = diff
-                st_off[sp, 3] = rd_far
-                sp += 1
-            node = near
+        node, sp = _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, bound, False,
+                            st_node, st_off, sp)
         for j in range(leaf[node - inner], leaf[node - inner + 1]):
             dx = qx - np.float64(pos[j, 0])
             dy = qy - np.float64(pos[j, 1])
@@ -388,36 +364,14 @@ def count_closer(pos, axis, split, leaf, qx, qy, qz, r2, cap):
     if n == 0 or cap <= 0:
         return 0
     inner = axis.shape[0]
-    st_node = np.empty(STACK, np.int64)
-    st_off = np.empty((STACK, 4), np.float64)
-    st_node[0] = 0
-    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
-    sp = 1
+    st_node, st_off, sp = _root_stack()
     while sp > 0:
         sp -= 1
         node = st_node[sp]
         rd = st_off[sp, 3]
         ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
-        while node < inner:
-            ax = axis[node]
-            if ax == 0:
-                diff, old = qx - np.float64(split[node]), ox
-            elif ax == 1:
-                diff, old = qy - np.float64(split[node]), oy
-            else:
-                diff, old = qz - np.float64(split[node]), oz
-            if diff < 0.0:
-                near, far = 2 * node + 1, 2 * node + 2
-            else:
-                near, far = 2 * node + 2, 2 * node + 1
-            rd_far = rd - old * old + diff * diff
-            if rd_far < r2:
-                st_node[sp] = far
-                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
-                st_off[sp, ax] = diff
-                st_off[sp, 3] = rd_far
-                sp += 1
-            node = near
+        node, sp = _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, r2, False,
+                            st_node, st_off, sp)
         for j in range(leaf[node - inner], leaf[node - inner + 1]):
             dx = qx - np.float64(pos[j, 0])
             dy = qy - np.float64(pos[j, 1])
@@ -439,36 +393,14 @@ def ball(pos, axis, split, leaf, qx, qy, qz, r2, out, cap):
     if n == 0:
         return 0
     inner = axis.shape[0]
-    st_node = np.empty(STACK, np.int64)
-    st_off = np.empty((STACK, 4), np.float64)
-    st_node[0] = 0
-    st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
-    sp = 1
+    st_node, st_off, sp = _root_stack()
     while sp > 0:
         sp -= 1
         node = st_node[sp]
         rd = st_off[sp, 3]
         ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
-        while node < inner:
-            ax = axis[node]
-            if ax == 0:
-                diff, old = qx - np.float64(split[node]), ox
-            elif ax == 1:
-                diff, old = qy - np.float64(split[node]), oy
-            else:
-                diff, old = qz - np.float64(split[node]), oz
-            if diff < 0.0:
-                near, far = 2 * node + 1, 2 * node + 2
-            else:
-                near, far = 2 * node + 2, 2 * node + 1
-            rd_far = rd - old * old + diff * diff
-            if rd_far <= r2:
-                st_node[sp] = far
-                st_off[sp, 0], st_off[sp, 1], st_off[sp, 2] = ox, oy, oz
-                st_off[sp, ax] = diff
-                st_off[sp, 3] = rd_far
-                sp += 1
-            node = near
+        node, sp = _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, r2, True,
+                            st_node, st_off, sp)
         for j in range(leaf[node - inner], leaf[node - inner + 1]):
             dx = qx - np.float64(pos[j, 0])
             dy = qy - np.float64(pos[j, 1])
