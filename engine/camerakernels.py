@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from .closures import principled as pr
+from .directlight import _to_world
 from .jit import kernel, register_warm_up
 from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
 
@@ -312,13 +313,7 @@ def gather_rays(u1, u2, ns, ng, p, offset, rows, o, d):
         l0 = r * math.cos(phi)
         l1 = r * math.sin(phi)
         l2 = math.sqrt(max(0.0, 1.0 - u1[i]))
-        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
-        sign = 1.0 if n2 >= 0.0 else -1.0
-        a = -1.0 / (sign + n2)
-        b = n0 * n1 * a
-        x = l0 * (1.0 + sign * n0 ** 2 * a) + l1 * b + l2 * n0
-        y = l0 * (sign * b) + l1 * (sign + n1 ** 2 * a) + l2 * n1
-        z = l0 * (-sign * n0) + l1 * (-n1) + l2 * n2
+        x, y, z = _to_world(l0, l1, l2, ns[i, 0], ns[i, 1], ns[i, 2])
         gx, gy, gz = ng[i, 0], ng[i, 1], ng[i, 2]
         if not x * gx + y * gy + z * gz > 0.0:
             continue
