@@ -59,7 +59,7 @@ class BatchInterrupted(BatchError):
 
 class _StatusPrinter:
     """Listener for addon.engine.status_listeners: a tqdm bar on stderr with the phase,
-    the fraction of the whole render and the ETA, then the effect report and warnings."""
+    the fraction of the whole render and the ETA, then the effect report."""
 
     def __init__(self, quiet=False, stream=None):
         self.quiet = quiet
@@ -97,14 +97,14 @@ class _StatusPrinter:
                     bar.update(n - bar.n)  # update(), not n =: tqdm's ETA follows the rate
 
     def close(self):
-        """Close the bar, then print the warnings and, for a finished render, the effect
-        report under it (a cancelled or failed render simulated nothing worth reporting)."""
+        """Close the bar, then print the effect report of a finished render under it (a
+        cancelled or failed render simulated nothing worth reporting)."""
         if self.bar is not None:
             self.bar.close()
             self.bar = None
+        # The warnings are not repeated here: Blender already prints each engine report
+        # ("Warning: Photon Mapping: ...") in background mode (self.warnings keeps them).
         if not self.quiet:
-            for w in self.warnings:
-                print(f"warning: {w}", file=self.stream)
             if self.status == "done":
                 for line in self.effects:
                     print(f"  {line}", file=self.stream)
