@@ -49,7 +49,10 @@ def reset():
         pass
     r.resolution_x, r.resolution_y, r.resolution_percentage = WIDTH, HEIGHT, 100
     r.film_transparent = False
-    r.image_settings.file_format = "PNG"
+    settings = r.image_settings
+    if hasattr(settings, "media_type"):  # Blender 5.0: an earlier multilayer EXR limits formats
+        settings.media_type = "IMAGE"
+    settings.file_format = "PNG"
     scene.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("World")
     world.color = (0.0, 0.0, 0.0)
