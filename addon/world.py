@@ -12,8 +12,6 @@ the world's viewport colour.
 """
 from __future__ import annotations
 
-import math
-
 import bpy
 import numpy as np
 
@@ -110,7 +108,7 @@ def _environment(pm, world, node, strength, warnings):
     if interpolation not in ("Linear", "Closest"):
         warnings.append(f"{who}: interpolation '{interpolation}' is read as Linear")
         interpolation = "Linear"
-    rotation = _mapping_rotation(world, node, warnings)
+    rotation = _mapping_rotation(pm, world, node, warnings)
     try:
         rgba = _pixels(img)
     except Exception as exc:  # noqa: BLE001 - any image failure becomes a warning
@@ -130,16 +128,6 @@ def _environment(pm, world, node, strength, warnings):
         return None
 
 
-def _euler(v):
-    rx, ry, rz = (float(a) for a in v)
-    cx, sx, cy, sy, cz, sz = (math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry),
-                              math.cos(rz), math.sin(rz))
-    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx  # Blender's XYZ Euler order
-
-
 def _check_coordinates(world, socket, warnings):
     """Warn unless the Texture Coordinate output feeding socket is the world's ray
     direction (Generated, or Object without an object)."""
@@ -155,7 +143,7 @@ def _check_coordinates(world, socket, warnings):
                     "(Generated)")
 
 
-def _mapping_rotation(world, env_node, warnings):
+def _mapping_rotation(pm, world, env_node, warnings):
     """Rotation (world direction -> texture direction) of a Mapping node in front of the
     environment texture, or None."""
     m = _from(env_node.inputs["Vector"])
@@ -180,7 +168,7 @@ def _mapping_rotation(world, env_node, warnings):
         if sock is not None and sock.is_linked:
             warnings.append(f"{who}: a node plugged into Mapping '{m.name}' {name} is not "
                             "supported; using its value")
-    R = _euler(m.inputs["Rotation"].default_value)
+    R = pm.scene.euler_rotation(m.inputs["Rotation"].default_value)
     scale = np.asarray(tuple(m.inputs["Scale"].default_value), np.float64)
     if not (np.all(scale > 0) and np.allclose(scale, scale[0], rtol=1e-4)):
         warnings.append(f"{who}: Mapping '{m.name}' scale {scale.round(3).tolist()} is not "

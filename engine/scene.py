@@ -44,6 +44,17 @@ def _vec3(value, what: str) -> np.ndarray:
     return arr
 
 
+def euler_rotation(angles) -> np.ndarray:
+    """(3,3) rotation matrix of Blender's XYZ Euler angles (radians): Rz @ Ry @ Rx."""
+    rx, ry, rz = (float(a) for a in angles)
+    cx, sx, cy, sy, cz, sz = (math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry),
+                              math.cos(rz), math.sin(rz))
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
 def _finite(value, what: str) -> float:
     v = float(value)
     if not math.isfinite(v):

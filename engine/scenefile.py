@@ -44,7 +44,7 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
-from .scene import MATERIAL_NODES, Light, Material, Mesh, SceneError
+from .scene import MATERIAL_NODES, Light, Material, Mesh, SceneError, euler_rotation
 from .settings import RenderSettings
 
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
@@ -61,13 +61,7 @@ class SceneFileError(ValueError):
 
 
 def _rotation(deg) -> np.ndarray:
-    rx, ry, rz = (math.radians(float(a)) for a in deg)
-    cx, sx, cy, sy, cz, sz = (math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry),
-                              math.cos(rz), math.sin(rz))
-    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx  # Blender's XYZ Euler order
+    return euler_rotation([math.radians(float(a)) for a in deg])
 
 
 # --- The schema --------------------------------------------------------------------------

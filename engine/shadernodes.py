@@ -347,6 +347,16 @@ class Gradient:
         return f if self.output == "FAC" else np.repeat(f[:, None], 3, axis=1)
 
 
+def _procedural_inputs(node, geo, prim, u, v):
+    """A Noise / Voronoi node's texture coordinates (N,3) (zeros for a 1-D texture, which
+    reads W only) and its float inputs in node.SOCKETS order, each (N,)."""
+    pts = (_eval(node.vector, geo, prim, u, v, 3) if node.dims > 1
+           else np.zeros((len(prim), 3)))
+    ins = [np.ascontiguousarray(_eval(node.inputs[k], geo, prim, u, v, 1))
+           for k in node.SOCKETS]
+    return pts, ins
+
+
 class Noise:
     """Noise Texture node (Cycles svm_node_tex_noise; kernels in engine/procedural.py).
 
@@ -377,10 +387,7 @@ class Noise:
     def evaluate(self, geo, prim, u, v):
         from . import procedural
         n = len(prim)
-        pts = (_eval(self.vector, geo, prim, u, v, 3) if self.dims > 1
-               else np.zeros((n, 3)))
-        ins = [np.ascontiguousarray(_eval(self.inputs[k], geo, prim, u, v, 1))
-               for k in self.SOCKETS]
+        pts, ins = _procedural_inputs(self, geo, prim, u, v)
         value = np.empty(n)
         color = np.empty((n, 3))
         want_color = self.output == "COLOR"
@@ -430,10 +437,7 @@ class Voronoi:
     def evaluate(self, geo, prim, u, v):
         from . import procedural
         n = len(prim)
-        pts = (_eval(self.vector, geo, prim, u, v, 3) if self.dims > 1
-               else np.zeros((n, 3)))
-        ins = [np.ascontiguousarray(_eval(self.inputs[k], geo, prim, u, v, 1))
-               for k in self.SOCKETS]
+        pts, ins = _procedural_inputs(self, geo, prim, u, v)
         dist, w_out, radius = np.zeros(n), np.zeros(n), np.zeros(n)
         color, position = np.zeros((n, 3)), np.zeros((n, 3))
         procedural.voronoi_texture(

@@ -38,8 +38,10 @@ def test_paper_ladder_changes_the_colour_bleeding_in_paper_mode():
         assert f.stats["radius_global"] == pytest.approx(r * PAPER_FIGURE6_RADIUS_SCALE)
         assert "estimated directly from the global map" in " ".join(f.stats["effects"])
         ratios.append(_back_wall_bleed(f))
-    # The 1k rung's ratio spreads by ~0.2 from seed to seed, so only "differs" is a
-    # property (final gathering gave the same value to three digits at every rung).
+    # Over seeds 0-7 the two rungs' means are 0.908 +- 0.050 and 0.853 +- 0.026: the old
+    # "> 0.05" held at seed 3 by luck. What paper mode changes is that each rung's own
+    # photons and radius reach the image at all (final gathering once gave the same value
+    # to three digits at every rung), so the assertion is "differs".
     assert abs(ratios[0] - ratios[1]) > 0.01, ratios
 
 
