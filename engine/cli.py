@@ -377,10 +377,6 @@ def _render(args) -> int:
         raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
                          f"(use {', '.join(FORMATS)})")
     scene, overrides = _scene_and_overrides(args)
-    from .imageio import check_writable, say_created
-    # After the scene file is read (a refused file leaves no new folder behind), before
-    # the render.
-    check_writable(args.output, on_create=say_created)
     if args.show_photons:
         overrides["show_photons"] = True
     settings = RenderSettings(**overrides)
@@ -389,6 +385,10 @@ def _render(args) -> int:
     from .resources import check_resources
     scene.validate()
     check_resources(scene, settings, progressive=progressive)  # before the progress bar
+    from .imageio import check_writable, say_created
+    # After the scene file and the settings are accepted (a refused render leaves no new
+    # folder behind), before the render.
+    check_writable(args.output, on_create=say_created)
 
     bar = None
     if not args.quiet:
