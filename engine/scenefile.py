@@ -57,7 +57,24 @@ VISIBILITY_KEYS = ("visible_camera", "visible_diffuse", "visible_glossy",
 
 
 class SceneFileError(ValueError):
-    pass
+    """A scene file that cannot be read. `problems`: one line per refused key (the schema
+    reports every refused key of a file at once, the first problem of each), each naming
+    the table and key; str() is that line, or a count and the lines below it."""
+
+    def __init__(self, *problems):
+        self.problems = [str(p) for p in problems] or ["invalid scene file"]
+        super().__init__(self.problems[0] if len(self.problems) == 1 else
+                         f"{len(self.problems)} problems:\n" + "\n".join(
+                             f"  {p}" for p in self.problems))
+
+    def located(self, path: str) -> "SceneFileError":
+        """The same problems, each prefixed with the file's path."""
+        if len(self.problems) == 1:
+            return SceneFileError(f"{path}: {self.problems[0]}")
+        err = SceneFileError(*(f"{path}: {p}" for p in self.problems))
+        err.args = (f"{path}: {len(self.problems)} problems:\n"
+                    + "\n".join(f"  {path}: {p}" for p in self.problems),)
+        return err
 
 
 def _rotation(deg) -> np.ndarray:
@@ -216,8 +233,16 @@ def _validator(name: str, schema_of):
         except ImportError:
             raise SceneFileError("reading scene files needs the 'fastjsonschema' package "
                                  "(pip install fastjsonschema)") from None
-        _VALIDATORS[name] = (fastjsonschema.compile(schema_of()),
-                             fastjsonschema.JsonSchemaValueException)
+        # fast_fail=False: every refused value of the file, not only the first
+        # (JsonSchemaValuesException.errors, fastjsonschema 2.22); an older release
+        # reports the first.
+        try:
+            validate = fastjsonschema.compile(schema_of(), fast_fail=False)
+        except TypeError:
+            validate = fastjsonschema.compile(schema_of())
+        _VALIDATORS[name] = (validate, fastjsonschema.JsonSchemaValueException,
+                             getattr(fastjsonschema, "JsonSchemaValuesException",
+                                     fastjsonschema.JsonSchemaValueException))
     return _VALIDATORS[name]
 
 
@@ -247,29 +272,42 @@ _TYPE_TEXT = {"number": "a finite number", "integer": "a whole number",
               "object": "a table (key = value lines)"}
 
 
-def _check(name, schema_of, data, where):
-    """Validate data against the schema; raise SceneFileError in one line. where(path)
-    names the table of a path (keys from the schema's root) and the key inside it."""
-    validate, error = _validator(name, schema_of)
+def _problems(name, schema_of, data, where) -> list[str]:
+    """Validate data against the schema: one line per refused key (the first problem of
+    each; [] when valid). where(path) names the table of a path (keys from the schema's
+    root) and the key inside it."""
+    validate, error, errors = _validator(name, schema_of)
     try:
         validate(data)
     except error as e:
-        raise SceneFileError(_refusal(e, data, where)) from None
+        found = [e]
+    except errors as e:
+        found = e.errors
+    else:
+        return []
+    out, seen = [], set()
+    for e in found:
+        key, text = _refusal(e, data, where)
+        if key not in seen:  # a vector with two bad numbers: its key once
+            seen.add(key)
+            out.append(text)
+    return out
 
 
-def _refusal(e, data, where) -> str:
+def _refusal(e, data, where) -> tuple:
+    """(the refused table / key, one line naming them) of a validator error."""
     path = list(e.path[1:])  # e.path starts with "data"
     node = e.definition if isinstance(e.definition, dict) else {}
     if e.rule == "additionalProperties" and isinstance(e.value, dict):
         table, _ = where(path + [None])
         allowed = set(node.get("properties", {}))
         unknown = sorted(set(e.value) - allowed)
-        return (f"{table}: unknown key(s) {', '.join(unknown)}; "
-                f"allowed: {', '.join(sorted(allowed))}")
+        return (table, "unknown"), (f"{table}: unknown key(s) {', '.join(unknown)}; "
+                                    f"allowed: {', '.join(sorted(allowed))}")
     if e.rule == "required" and isinstance(e.value, dict):
         table, _ = where(path + [None])
         missing = [k for k in node.get("required", []) if k not in e.value]
-        return f"{table}: '{missing[0]}' is required"
+        return (table, missing[0]), f"{table}: '{missing[0]}' is required"
     # The deepest table key on the path and its value (a whole vector, not the one bad
     # number in it); the validator names list items by their index as a string.
     value, depth, walk = data, 0, data
@@ -289,8 +327,8 @@ def _refusal(e, data, where) -> str:
     else:
         what = node.get("what") or node.get("what_type") or "valid"
     if key is None:
-        return f"{table}: must be {what}, got {_show(value)}"
-    return f"{table}: '{key}' must be {what}, got {_show(value)}"
+        return (table, None), f"{table}: must be {what}, got {_show(value)}"
+    return (table, key), f"{table}: '{key}' must be {what}, got {_show(value)}"
 
 
 def _top_where(path):
@@ -320,8 +358,10 @@ def _size_value(v):
 
 def load_scene(path: str):
     """Read a TOML scene file. Returns (scene, settings_overrides dict). Raises
-    SceneFileError with one line naming the file and the key for anything that is not
-    a valid scene: wrong types, non-finite numbers, out-of-range values, unknown keys."""
+    SceneFileError for anything that is not a valid scene (wrong types, non-finite
+    numbers, out-of-range values, unknown keys, face indices outside the vertex list):
+    one line per refused key, each naming the file, the table and the key - every
+    refused key of the file at once (SceneFileError.problems)."""
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)
@@ -334,24 +374,48 @@ def load_scene(path: str):
     base = os.path.dirname(os.path.abspath(path))
     try:
         return _build(data, base)
-    except (SceneError, SceneFileError) as e:
+    except SceneFileError as e:
+        raise e.located(path) from None
+    except SceneError as e:
         raise SceneFileError(f"{path}: {e}") from None
     except (TypeError, ValueError, KeyError, OverflowError, MemoryError) as e:
         raise SceneFileError(f"{path}: {type(e).__name__}: {e}") from None
 
 
+def _validate(data: dict) -> list[str]:
+    """Every problem of a scene file (its tables, each object and each light), one line
+    per refused key, before anything is built: a bad camera key does not hide a bad
+    light."""
+    problems = _problems("scene", scene_schema, data, _top_where)
+    render = data.get("render")
+    if isinstance(render, dict) and set(render) <= set(RenderSettings.names()) | {"width",
+                                                                                  "height"}:
+        try:
+            RenderSettings(**{k: v for k, v in render.items() if k not in ("width", "height")})
+        except (TypeError, ValueError) as e:  # types and ranges of every setting, named
+            problems.append(f"[render]: {e}")
+    camera = data.get("camera")
+    if isinstance(camera, dict) and not any(p.startswith("[camera]") for p in problems):
+        problems += _camera_problems(camera)
+    for key, check in (("objects", _object_problems), ("lights", _light_problems)):
+        items = data.get(key)
+        if isinstance(items, list):
+            for i, spec in enumerate(items):
+                if isinstance(spec, dict):
+                    problems += check(spec, i)
+    return problems
+
+
 def _build(data: dict, base: str):
     data = _mark_not_finite(data)
     data.setdefault("camera", {})  # a missing [camera] is refused for its first key
-    _check("scene", scene_schema, data, _top_where)
+    problems = _validate(data)
+    if problems:
+        raise SceneFileError(*problems)
     render_table = data.get("render", {})
     width = int(render_table.get("width", 400))
     height = int(render_table.get("height", 300))
     render = {k: v for k, v in render_table.items() if k not in ("width", "height")}
-    try:
-        RenderSettings(**render)  # types and ranges of every setting, named
-    except ValueError as e:
-        raise SceneFileError(f"[render]: {e}") from None
     background = _vec(data.get("background", (0.0, 0.0, 0.0)))
     scene = PaperScene(width=width, height=height, background=background)
     if "environment" in data:
@@ -404,11 +468,21 @@ def _material_value(key, v):
     return float(v)
 
 
+def _camera_problems(cam) -> list[str]:
+    """The relations between camera keys (the schema checks each key alone)."""
+    problems = []
+    if np.allclose(_vec(cam["position"]), _vec(cam["look_at"])):
+        problems.append("[camera]: 'look_at' must differ from 'position'")
+    start = float(cam.get("clip_start", 0.0))
+    if "clip_end" in cam and not cam["clip_end"] > start:
+        problems.append(f"[camera]: 'clip_end' must be {_range_text(start, None, True)}, "
+                        f"got {_show(cam['clip_end'])}")
+    return problems
+
+
 def _camera(scene, cam):
     position = _vec(cam["position"])
     look_at = _vec(cam["look_at"])
-    if np.allclose(position, look_at):
-        raise SceneFileError("[camera]: 'look_at' must differ from 'position'")
     up = _vec(cam.get("up", (0, 0, 1)))
     extra = {}
     if "type" in cam:
@@ -417,10 +491,6 @@ def _camera(scene, cam):
         if k in cam:
             extra[k] = float(cam[k])
     if "clip_end" in cam:
-        start = extra.get("clip_start", 0.0)
-        if not cam["clip_end"] > start:  # a relation between two keys: not in the schema
-            raise SceneFileError(f"[camera]: 'clip_end' must be {_range_text(start, None, True)}"
-                                 f", got {_show(cam['clip_end'])}")
         extra["clip_end"] = float(cam["clip_end"])
     scene.set_camera(position, look_at, up, float(cam.get("fov", 40.0)), **extra)
 
@@ -433,13 +503,56 @@ def _kind(spec, where, kinds, text):
     return kind
 
 
-def _object(scene, obj, i, base):
+def _object_where(obj, i) -> str:
     raw = obj.get("type", "")
     label = obj.get("name", raw.lower() if isinstance(raw, str) and raw else "?")
-    where = f"objects[{i}] ({label})"
-    kind = _kind(obj, where, OBJECT_KINDS, "sphere, plane, box, mesh or file")
-    _check("object." + kind, lambda: OBJECT_SCHEMAS[kind], obj,
-           lambda path: (where, path[0] if path else None))
+    return f"objects[{i}] ({_show(label).strip(chr(34))})"
+
+
+def _object_problems(obj, i) -> list[str]:
+    where = _object_where(obj, i)
+    try:
+        kind = _kind(obj, where, OBJECT_KINDS, "sphere, plane, box, mesh or file")
+    except SceneFileError as e:
+        return e.problems
+    problems = _problems("object." + kind, lambda: OBJECT_SCHEMAS[kind], obj,
+                         lambda path: (where, path[0] if path else None))
+    if kind == "mesh" and not problems:
+        problems += _mesh_problems(obj, where)
+    return problems
+
+
+def _mesh_problems(obj, where) -> list[str]:
+    """An inline mesh's rows: vertices (V, 3) numbers, faces (F, 3) whole numbers that
+    index the vertices. A face index outside 0..V-1 is refused, naming the face, rather
+    than dropped: in a file written by hand or by a script it is a mistake in the file
+    (a count off by one, indices from 1 as in OBJ), and dropping faces would render a
+    different object than the one described (Blender's importers refuse such files
+    too; its Mesh.validate() repairs meshes that a tool corrupted)."""
+    try:
+        vertices = np.asarray(obj["vertices"], np.float64)
+        faces = np.asarray(obj["faces"])
+    except (TypeError, ValueError):
+        return [f"{where}: 'vertices' / 'faces' must be lists of 3 numbers each"]
+    if vertices.size and (vertices.ndim != 2 or vertices.shape[1] != 3
+                          or not np.all(np.isfinite(vertices))):
+        return [f"{where}: 'vertices' must be rows of 3 finite numbers [x, y, z]"]
+    if faces.size == 0:
+        return []
+    if faces.dtype.kind not in "iu" or faces.ndim != 2 or faces.shape[1] != 3:
+        return [f"{where}: 'faces' must be rows of 3 whole-number vertex indices, got "
+                f"{_show(obj['faces'])}"]
+    bad = np.flatnonzero(np.any((faces < 0) | (faces >= len(vertices)), axis=1))
+    if len(bad) == 0:
+        return []
+    first = int(bad[0])
+    more = f" (and {len(bad) - 1} more face(s))" if len(bad) > 1 else ""
+    return [f"{where}: 'faces' row {first} {faces[first].tolist()} indexes a vertex outside "
+            f"0..{len(vertices) - 1} ({len(vertices)} vertices; indices count from 0)" + more]
+
+
+def _object(scene, obj, i, base):
+    kind = obj["type"].lower()
     mat = obj.get("material", "white_plastic_dull")
     name = obj.get("name")
     if kind == "sphere":
@@ -453,17 +566,9 @@ def _object(scene, obj, i, base):
     elif kind == "box":
         mesh = scene.add_box(_vec(obj.get("center", (0, 0, 0))),
                              _size_value(obj.get("size", 1.0)), mat, name)
-    elif kind == "mesh":
-        try:
-            vertices = np.asarray(obj["vertices"], np.float64)
-            faces = np.asarray(obj["faces"])
-        except (TypeError, ValueError):
-            raise SceneFileError(f"{where}: 'vertices' / 'faces' must be lists of 3 numbers "
-                                 "each") from None
-        if faces.size and faces.dtype.kind not in "iu":
-            raise SceneFileError(f"{where}: 'faces' must be rows of 3 whole-number vertex "
-                                 f"indices, got {_show(obj['faces'])}")
-        mesh = scene.add_triangles(vertices, faces, mat, name)
+    elif kind == "mesh":  # checked by _mesh_problems
+        mesh = scene.add_triangles(np.asarray(obj["vertices"], np.float64),
+                                   np.asarray(obj["faces"]), mat, name)
     else:
         path = os.path.join(base, obj["path"])
         mesh = scene.add_mesh(_load_mesh_file(path, name or os.path.basename(path),
@@ -533,25 +638,40 @@ def _load_mesh_file(path: str, name: str, material: str) -> Mesh:
                 materials=[material])
 
 
-def _light(scene, spec, i):
+def _light_where(spec, i) -> str:
     raw = spec.get("type", "")
-    kinds = {k.lower(): k for k in DECLARED_KINDS}  # the light registry (engine/lights/)
-    where = f"lights[{i}] ({spec.get('name', raw.lower() if isinstance(raw, str) and raw else '?')})"
-    names = [k.lower() for k in DECLARED_KINDS]
-    kind = _kind(spec, where, kinds, f"{', '.join(names[:-1])} or {names[-1]}")
-    _check("light", lambda: LIGHT_SCHEMA, spec, lambda path: (where, path[0] if path else None))
+    label = spec.get("name", raw.lower() if isinstance(raw, str) and raw else "?")
+    return f"lights[{i}] ({_show(label).strip(chr(34))})"
+
+
+def _light_problems(spec, i) -> list[str]:
+    where = _light_where(spec, i)
+    names = [k.lower() for k in DECLARED_KINDS]  # the light registry (engine/lights/)
+    try:
+        kind = _kind(spec, where, names, f"{', '.join(names[:-1])} or {names[-1]}")
+    except SceneFileError as e:
+        return e.problems
+    problems = _problems("light", lambda: LIGHT_SCHEMA, spec,
+                         lambda path: (where, path[0] if path else None))
     # Keys that only one kind reads: anywhere else they would be silently ignored.
     for key, only in (("spread", "area"), ("shape", "area"), ("spot_size", "spot"),
                       ("blend", "spot"), ("angle", "sun")):
         if key in spec and kind != only:
-            raise SceneFileError(f"{where}: '{key}' applies to {only} lights only, not to a "
-                                 f"{kind} light")
+            problems.append(f"{where}: '{key}' applies to {only} lights only, not to a "
+                            f"{kind} light")
+    if not problems and "look_at" in spec and not np.any(
+            _vec(spec["look_at"]) != _vec(spec.get("position", (0, 0, 0)))):
+        problems.append(f"{where}: 'look_at' must be a point other than 'position', "
+                        f"got {_show(spec['look_at'])}")
+    return problems
+
+
+def _light(scene, spec, i):
+    kinds = {k.lower(): k for k in DECLARED_KINDS}
+    kind = spec["type"].lower()
     position = _vec(spec.get("position", (0, 0, 0)))
     if "look_at" in spec:
         direction = _vec(spec["look_at"]) - position
-        if not np.any(direction != 0):
-            raise SceneFileError(f"{where}: 'look_at' must be a point other than 'position', "
-                                 f"got {_show(spec['look_at'])}")
     else:
         direction = _vec(spec.get("direction", (0, 0, -1)))
     name = spec.get("name", f"{kind}.{i:03d}")

@@ -85,10 +85,13 @@ def test_bad_scene_file_is_refused_in_one_line_naming_the_key(tmp_path, label, t
                                                               expected):
     with pytest.raises(SceneFileError) as info:
         _load(tmp_path, text)
-    msg = str(info.value)
-    assert "\n" not in msg, msg
-    assert expected in msg, msg
-    assert "scene.toml" in msg  # names the file too
+    msg, problems = str(info.value), info.value.problems
+    # One line per refused key, each naming the file too (1e6 x 1e6: width and height).
+    assert all("\n" not in p and "scene.toml" in p for p in problems), msg
+    assert any(expected in p for p in problems), msg
+    assert len(problems) == 1 or label == "width 1e6", msg
+    if len(problems) == 1:
+        assert msg == problems[0]
 
 
 def _with_file(tmp_path, name, content: bytes):
@@ -197,3 +200,59 @@ def test_principled_v2_material_keys(tmp_path):
         _load(tmp_path, CAMERA + '[materials.m]\ncoat_ior = 0.5\n')
     with pytest.raises(SceneFileError, match="'node' must be one of"):
         _load(tmp_path, CAMERA + '[materials.m]\nnode = "metal"\n')
+
+
+def test_every_refused_key_of_a_file_is_reported_at_once(tmp_path):
+    """A bad camera key does not hide the other problems: each refused key (its first
+    problem) on its own line, naming the file, the table and the key."""
+    text = ("lamps = 3\n[render]\nspp = 0\n"
+            "[camera]\nposition = [0, -6, 2]\nlook_at = [0, 0, 1]\nfov = 200\n"
+            "up = [0, 0, 0]\n[materials.red]\nmetallic = 2\nbase_color = [1, -1, -1]\n"
+            + SPHERE + "radius = -1\nsegments = 2.5\n"
+            + '[[objects]]\ntype = "cube"\n'
+            + LIGHT + 'visible = "no"\nspread = 30\n')
+    with pytest.raises(SceneFileError) as info:
+        _load(tmp_path, text)
+    problems = info.value.problems
+    expected = ["scene file: unknown key(s) lamps", "[render]: setting 'spp'",
+                "[camera]: 'fov' must be", "[camera]: 'up' must be a non-zero vector",
+                "[materials.red]: 'metallic' must be", "[materials.red]: 'base_color' must be",
+                "objects[0] (ball): 'radius' must be", "objects[0] (ball): 'segments' must be",
+                "objects[1] (cube): 'type' must be sphere",
+                "lights[0] (key): 'visible' must be true or false",
+                "lights[0] (key): 'spread' applies to area lights only"]
+    for fragment in expected:
+        assert sum(fragment in p for p in problems) == 1, (fragment, problems)
+    assert len(problems) == len(expected), problems  # base_color once, not per number
+    assert all("scene.toml: " in p and "\n" not in p for p in problems)
+    msg = str(info.value)
+    assert msg.splitlines()[0].endswith(f"scene.toml: {len(expected)} problems:")
+    assert msg.count("\n") == len(expected)
+
+
+MESH = '[[objects]]\ntype = "mesh"\nname = "tri"\nvertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]\n'
+
+
+@pytest.mark.parametrize("faces, expected", [
+    ("[[0, 1, 2], [1, 2, 3]]", "'faces' row 1 [1, 2, 3] indexes a vertex outside 0..2"),
+    ("[[1, 2, 3]]", "row 0 [1, 2, 3] indexes a vertex outside 0..2 (3 vertices; indices "
+                    "count from 0)"),  # OBJ-style indices from 1
+    ("[[0, 1, -1]]", "row 0 [0, 1, -1] indexes a vertex outside"),
+    ("[[0, 1, 2], [0, 5, 1], [7, 0, 1]]", "row 1 [0, 5, 1] indexes a vertex outside 0..2 "
+                                          "(3 vertices; indices count from 0) (and 1 more"),
+    ("[[0, 1]]", "'faces' must be rows of 3 whole-number vertex indices"),
+])
+def test_mesh_face_indices_outside_the_vertices_are_refused_naming_the_face(
+        tmp_path, faces, expected):
+    """A face index outside the vertex list is a mistake in the file: refused, naming the
+    object and the face, never dropped (which would render another object)."""
+    with pytest.raises(SceneFileError) as info:
+        _load(tmp_path, CAMERA + MESH + f"faces = {faces}\n")
+    msg = str(info.value)
+    assert "objects[0] (tri): " in msg and expected in msg, msg
+
+
+def test_a_valid_inline_mesh_keeps_all_its_faces(tmp_path):
+    scene, _ = _load(tmp_path, CAMERA + MESH + "faces = [[0, 1, 2], [2, 1, 0]]\n")
+    mesh = scene.meshes[-1]
+    assert mesh.name == "tri" and len(mesh.faces) == 2 and not scene.all_warnings()
