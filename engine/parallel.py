@@ -15,35 +15,51 @@ from __future__ import annotations
 
 import threading
 from collections import deque
+from contextlib import contextmanager
 from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
-# Pools shut down without waiting for their running chunks (after a cancel): drain()
-# joins them when a caller must leave no thread behind (engine/session.py's stop).
-_draining: list = []
+# Pools shut down without waiting for their running chunks (after a cancel), with the
+# root StopFlag of the work that made them (None: no flag): drain(owner) joins those of
+# one owner when it must leave no thread behind (engine/session.py's stop), while the
+# others end on their own in the background.
+_draining: list = []  # [(owner, pool)]
 _draining_lock = threading.Lock()
 
 
-def _let_drain(pool):
+def _alive(pool) -> bool:
+    return any(t.is_alive() for t in getattr(pool, "_threads", ()))
+
+
+def _let_drain(pool, owner=None):
     pool.shutdown(wait=False, cancel_futures=True)
     with _draining_lock:
         # Pools whose threads all ended need no join (keeps the list short when a
         # viewport session cancels on every edit).
-        _draining[:] = [p for p in _draining
-                        if any(t.is_alive() for t in getattr(p, "_threads", ()))]
-        _draining.append(pool)
+        _draining[:] = [(o, p) for o, p in _draining if _alive(p)]
+        _draining.append((owner, pool))
 
 
-def drain() -> None:
+def drain(owner=None) -> None:
     """Wait for the chunks still running in pools that a cancel left behind (each stops
-    at its next check of stop()), so no worker thread outlives the caller's work."""
+    at its next check of stop()), so no worker thread outlives the caller's work.
+    owner: a StopFlag - only the pools of work polled through it (or through flags
+    linked to it, StopFlag.link) are joined; None joins every pool in the process."""
     while True:
         with _draining_lock:
-            if not _draining:
+            index = next((i for i, (o, _) in enumerate(_draining)
+                          if owner is None or o is owner), None)
+            if index is None:
                 return
-            pool = _draining.pop()
+            _, pool = _draining.pop(index)
         pool.shutdown(wait=True)
+
+
+def pools_left(owner=None) -> int:
+    """How many cancelled pools of `owner` (None: of anyone) still have live threads."""
+    with _draining_lock:
+        return sum(1 for o, p in _draining if (owner is None or o is owner) and _alive(p))
 
 
 class Cancelled(Exception):
@@ -59,6 +75,7 @@ class StopFlag(threading.Event):
     def __init__(self):
         super().__init__()
         self.array = np.zeros(1, np.uint8)
+        self.root = self  # the flag this one is linked from, transitively (drain's owner)
         self._linked = []
         self._link_lock = threading.Lock()
 
@@ -79,6 +96,7 @@ class StopFlag(threading.Event):
 
     def link(self, child: "StopFlag") -> None:
         """Set child whenever this flag is set (now, if it is set already)."""
+        child.root = self.root
         with self._link_lock:
             self._linked.append(child)
         if self():
@@ -111,6 +129,18 @@ def stop_array(should_cancel=None) -> np.ndarray:
     zero array that never turns 1."""
     flag = stop_flag_of(should_cancel)
     return flag.array if flag is not None else np.zeros(1, np.uint8)
+
+
+@contextmanager
+def polled_by(flag: StopFlag):
+    """Within: `flag` is this thread's current stop flag (stop_flag_of), so the chunks
+    and compiled steps started here poll it and their pools belong to its root (drain)."""
+    before = getattr(_current, "flag", None)
+    _current.flag = flag
+    try:
+        yield flag
+    finally:
+        _current.flag = before
 
 
 def _with_flag(job, flag):
@@ -166,6 +196,7 @@ def ordered_map(job, items, threads: int, should_cancel=None):
     parent = stop_flag_of(should_cancel)
     if parent is not None:
         parent.link(event)
+    owner = event.root if parent is not None else None
     run = _with_flag(job, event)
     pending = deque()
     todo = iter(items)
@@ -200,7 +231,7 @@ def ordered_map(job, items, threads: int, should_cancel=None):
             parent.unlink(event)
         for f in pending:
             f.cancel()
-        _let_drain(pool)
+        _let_drain(pool, owner)
 
 
 def run_cancellable(job, should_cancel=None):
@@ -216,6 +247,7 @@ def run_cancellable(job, should_cancel=None):
     parent = stop_flag_of(should_cancel)
     if parent is not None:
         parent.link(event)
+    owner = event.root if parent is not None else None
     pool = ThreadPoolExecutor(1)
     try:
         future = pool.submit(_with_flag(job, event), event)
@@ -227,4 +259,4 @@ def run_cancellable(job, should_cancel=None):
     finally:
         if parent is not None:
             parent.unlink(event)
-        _let_drain(pool)
+        _let_drain(pool, owner)

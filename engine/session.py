@@ -31,8 +31,8 @@ What was rebuilt is counted in Session.counters and logged in Session.events, fo
 
 The newest Frame is swapped in as one attribute assignment (atomic in CPython): a reader
 (the viewport's draw callback) never waits for the renderer. stop() raises the cancel
-flag and joins the thread; it returns when no session thread is left (measured in
-bench/bench_viewport.py).
+flag and joins the thread and the worker chunks of this session's cancelled stages; it
+returns when no thread of the session is left (measured in bench/bench_viewport.py).
 """
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ from .geometry import MaterialTable, prepare
 from .jit import ensure_compiled
 from .lights import prepare_lights
 from .shadowtransmittance import ShadowTransmittance
-from .parallel import Cancelled, StopFlag, drain
+from .parallel import Cancelled, StopFlag, drain, polled_by
 from .progressive import PassMerger, pass_settings
 from .render import Context, _check_region, packed_lights_for, render_pass, shoot_photons
 from .resources import check_resources
@@ -194,7 +194,10 @@ class Session:
         thread = self._thread
         if thread is not None and thread is not threading.current_thread():
             thread.join()
-            drain()  # chunks a cancel left running stop at their next check
+            # The chunks this session's cancels left running stop at their next check:
+            # wait for those only (pools of other sessions and renders drain on their
+            # own; joining them made one stop take seconds).
+            drain(self._cancel)
         return time.perf_counter() - t0
 
     @property
@@ -236,6 +239,12 @@ class Session:
 
     # --- the thread ----------------------------------------------------------------------
     def _run(self):
+        # Every pool started on this thread belongs to the session's flag (stop() joins
+        # them), also where a stage polls it through a plain callable.
+        with polled_by(self._cancel):
+            self._loop()
+
+    def _loop(self):
         try:
             ensure_compiled()
             while True:

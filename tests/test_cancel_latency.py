@@ -271,9 +271,10 @@ def stop_inside(monkeypatch, module, name, scene, settings, delay=0.02):
     from engine.jit import ensure_compiled
     from engine.session import Session
     ensure_compiled()  # the warm-up calls the kernels: hook the session's calls only
-    # Session.stop() joins every pool a cancel left running (parallel.drain), also those
-    # of the renders earlier tests cancelled (a camera chunk ends at its next check,
-    # seconds later): join them first, so the stop measured is this session's.
+    # Session.stop() joins only its own cancelled pools (parallel.drain(owner)); the
+    # chunks of the renders earlier tests cancelled still run on the two cores (a camera
+    # chunk ends at its next check, seconds later): join them first, so the stop measured
+    # is this session's on a quiet machine.
     parallel_module.drain()
     original = getattr(module, name)
     box = {}

@@ -241,3 +241,46 @@ def test_a_scene_that_failed_is_rebuilt_by_the_next_update(box):
                                       progressive(_scene_with(good, camera=cam), passes=1))
     finally:
         session.stop()
+
+
+def test_stop_waits_for_its_own_chunks_only(box):
+    """stop() joins the worker chunks of this session's cancelled stages, not those an
+    earlier cancelled render left running elsewhere in the process (they end on their
+    own): a stop in a process full of cancels took seconds. No thread of the session is
+    left afterwards."""
+    from engine import parallel
+    release = threading.Event()
+    timer = threading.Timer(8.0, release.set)  # the foreign chunk's long step, at most
+    timer.start()
+    baseline = set(threading.enumerate())
+
+    def slow(item, stop):  # a compiled step that reaches its next stop check late
+        release.wait()
+        return item
+
+    flag = parallel.StopFlag()
+    chunks = parallel.ordered_map(slow, range(2), 2, should_cancel=flag)
+    flag.set()
+    with pytest.raises(parallel.Cancelled):
+        next(chunks)
+    foreign = set(threading.enumerate()) - baseline
+    assert foreign and parallel.pools_left(flag) == 1  # still running, left to drain
+
+    heavy = RenderSettings(spp=256, photons=3000, caustic_photons=1500, seed=3)
+    session = Session(box, heavy, passes=4).start()
+    try:
+        deadline = time.perf_counter() + 120
+        while session.counters.previews < 1 and time.perf_counter() < deadline:
+            time.sleep(0.02)
+        assert session.counters.previews >= 1
+    finally:
+        latency = session.stop()
+    left = [t for t in set(threading.enumerate()) - baseline - foreign if t.is_alive()]
+    foreign_running = not release.is_set()
+    release.set()
+    timer.cancel()
+    parallel.drain(flag)
+    assert not left, left
+    assert session.counters.cancels == 1
+    assert foreign_running and latency < 4.0, latency  # did not wait for the other pool
+    assert not any(t.is_alive() for t in foreign)
