@@ -19,9 +19,10 @@ from addon.engine.status_listeners), then the effect report, as the CLI shows th
 Output integrity: the output path is checked for writability before the file is opened;
 the image is saved only after a complete render, to a temporary file beside the target
 that then replaces it (os.replace). A render that fails, or is interrupted (Ctrl-C /
-SIGINT: the render is cancelled at its next poll), writes nothing and leaves an existing
-file as it was. Errors are one line on stderr; exit status 1 for errors, 130 when
-interrupted.
+SIGINT, from the command's first moment, also while Blender loads: the render is
+cancelled at its next poll, a second Ctrl-C stops at once), writes nothing and leaves an
+existing file as it was. Errors are one line on stderr; exit status 1 for errors, 130
+when interrupted.
 
 --frames A..B renders every frame from A to B (inclusive) into the output pattern: '#'
 in the name becomes the frame number, zero-padded to the count of '#' (out/f_####.png);
@@ -37,13 +38,42 @@ render, --save-passes each pass as name.direct.png ... (.exr for an .exr output)
 """
 from __future__ import annotations
 
-import argparse
 import os
+import signal
 import sys
-import time
 
-from engine.cli import CancelOnInterrupt
-from engine.imageio import check_writable, replacing, say_created
+# Ctrl-C from the first moment of a command-line run: while numpy, the engine and Blender
+# load (seconds), an interrupt only sets this flag, which main() then acts on as a
+# cancel; a second one stops at once. Python's own handler would raise KeyboardInterrupt
+# inside those imports: a traceback, or, inside bpy's initialisation, a lost signal or a
+# crash.
+_early_interrupts: list = []
+
+
+def _early_interrupt(signum, frame):
+    if _early_interrupts:
+        _stop_at_once()
+    _early_interrupts.append(signum)
+
+
+def _stop_at_once():
+    """The second Ctrl-C: leave now. The output is only ever replaced whole (a temporary
+    file, then os.replace), so it is the old file or the new one; a KeyboardInterrupt
+    raised inside Blender's C code could crash it instead."""
+    print("\ninterrupt: stopped at once; nothing more is written", file=sys.stderr, flush=True)
+    os._exit(130)
+
+
+if __name__ == "__main__":
+    signal.signal(signal.SIGINT, _early_interrupt)
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+from engine.cli import CancelOnInterrupt  # noqa: E402
+from engine.imageio import check_writable, replacing, say_created  # noqa: E402
+
+INTERRUPT_MESSAGE = "\ninterrupt: cancelling (Ctrl-C again to stop at once)"
 
 FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG",
            ".tif": "TIFF", ".tiff": "TIFF", ".bmp": "BMP"}
@@ -200,7 +230,18 @@ def _positive(name, value, lo=1):
         raise BatchError(f"--{name} must be >= {lo}, got {value}")
 
 
-def render_file(args) -> str:
+def _interrupted(interrupt, out, stage):
+    """Raise BatchInterrupted when Ctrl-C came in while `stage` (before the render)."""
+    if interrupt is not None and interrupt.requested:
+        raise BatchInterrupted(f"interrupted while {stage}: nothing rendered; "
+                               f"{_untouched(out)}")
+
+
+def render_file(args, interrupt=None) -> str:
+    """Render (or compose the teaching image of) args; returns what was written.
+    interrupt: the CancelOnInterrupt whose Ctrl-C cancels the run (main() enters one
+    before Blender loads); None: one for each render. Raises BatchError /
+    BatchInterrupted with one line."""
     blend = os.path.abspath(args.blend)
     if not os.path.isfile(blend):
         raise BatchError(f"blend file not found: {args.blend}")
@@ -233,18 +274,22 @@ def render_file(args) -> str:
     except OSError as exc:
         raise BatchError(str(exc)) from None
 
+    _interrupted(interrupt, out, "starting")
     try:
         import bpy
     except ImportError as exc:
         raise BatchError(f"cannot import bpy (Blender as a Python module): {exc}") from None
     import addon
     from addon.engine import ENGINE_ID
+    _interrupted(interrupt, out, "loading Blender")
     if not hasattr(bpy.types.Scene, "photonmap"):
         addon.register()
+    _interrupted(interrupt, out, "loading the add-on")
     try:
         bpy.ops.wm.open_mainfile(filepath=blend, load_ui=False)
     except RuntimeError as exc:
         raise BatchError(f"cannot open {args.blend}: {str(exc).strip()}") from None
+    _interrupted(interrupt, out, f"reading {args.blend}")
     scene = bpy.context.scene
     r = scene.render
     r.engine = ENGINE_ID
@@ -285,9 +330,9 @@ def render_file(args) -> str:
     if scene.camera is None:
         raise BatchError(f"{args.blend}: the scene has no active camera")
     if teaching:
-        return _teaching_image(bpy, scene, args, out)
+        return _teaching_image(bpy, scene, args, out, interrupt)
     if args.frames is None:
-        film = _render_still(bpy, scene, out, args.quiet)
+        film = _render_still(bpy, scene, out, args.quiet, interrupt)
         _extras(bpy, film, out, args)
         return out
     pattern = frame_pattern(out)
@@ -296,13 +341,13 @@ def render_file(args) -> str:
         scene.frame_set(frame)
         r.filepath = pattern
         path = r.frame_path(frame=frame)  # '#' -> zero-padded frame number
-        film = _render_still(bpy, scene, path, args.quiet)
+        film = _render_still(bpy, scene, path, args.quiet, interrupt)
         _extras(bpy, film, path, args)
         written.append(path)
     return f"{len(written)} frames: {written[0]} .. {written[-1]}"
 
 
-def _teaching_image(bpy, scene, args, out) -> str:
+def _teaching_image(bpy, scene, args, out, interrupt=None) -> str:
     """--compare / --sweep: the labelled image of addon/operators.py, saved to `out`."""
     from addon import operators
     explicit = any(getattr(args, n) is not None for n in ("samples", "photons",
@@ -322,8 +367,7 @@ def _teaching_image(bpy, scene, args, out) -> str:
             printer("progress", fraction)
 
         # Blender's own SIGINT handler would swallow Ctrl-C: ours turns it into a cancel.
-        interrupt = CancelOnInterrupt(
-            "\ninterrupt: cancelling the render (Ctrl-C again to stop at once)")
+        interrupt = interrupt or CancelOnInterrupt(INTERRUPT_MESSAGE)
         try:
             with interrupt:
                 tiles, rgb8 = operators.teaching_image(
@@ -371,7 +415,7 @@ def _extras(bpy, film, out, args):
                              f"{root}.strip.png")
 
 
-def _render_still(bpy, scene, out, quiet):
+def _render_still(bpy, scene, out, quiet, interrupt=None):
     """Render the current frame and save it to `out` only when the render is complete.
     Returns the engine's Film of the render."""
     from addon import engine
@@ -379,8 +423,7 @@ def _render_still(bpy, scene, out, quiet):
     # or a cancel (an all-black frame over a good one): save it here, only when complete.
     printer = _StatusPrinter(quiet=quiet)
     previous_hook = engine.test_break_hook
-    interrupt = CancelOnInterrupt(
-        "\ninterrupt: cancelling the render (Ctrl-C again to stop at once)")
+    interrupt = interrupt or CancelOnInterrupt(INTERRUPT_MESSAGE)
     engine.test_break_hook = lambda: interrupt.requested or bool(previous_hook and previous_hook())
     engine.status_listeners.append(printer)
     try:
@@ -417,10 +460,21 @@ def _untouched(out):
 
 
 def main(argv=None) -> int:
+    # The command line's Ctrl-C: one handler for the whole run, from before Blender loads
+    # (an interrupt that came earlier still, while the modules loaded, counts too).
+    interrupt = CancelOnInterrupt(INTERRUPT_MESSAGE, on_second=_stop_at_once)
+    with interrupt:
+        if _early_interrupts:
+            interrupt.requested = True
+            print(INTERRUPT_MESSAGE, file=sys.stderr, flush=True)
+        return _main(argv, interrupt)
+
+
+def _main(argv, interrupt) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     t0 = time.perf_counter()
     try:
-        out = render_file(args)
+        out = render_file(args, interrupt)
     except BatchInterrupted as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 130

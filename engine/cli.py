@@ -181,28 +181,36 @@ def build_parser() -> argparse.ArgumentParser:
 class CancelOnInterrupt:
     """While active, the first Ctrl-C (SIGINT) only sets `requested`, which the render
     polls as its should_cancel, and prints `message` to `stream` if one is given; a second
-    one raises KeyboardInterrupt at once. Used by this CLI and by addon/batch.py."""
+    one calls on_second() (default: raises KeyboardInterrupt at once). Used by this CLI
+    and by addon/batch.py."""
 
-    def __init__(self, message=None, stream=None):
+    def __init__(self, message=None, stream=None, on_second=None):
         self.requested = False
         self.message = message
         self.stream = stream or sys.stderr
+        self.on_second = on_second
         self._previous = None
 
     def _handler(self, signum, frame):
         if self.requested:
+            if self.on_second is not None:
+                self.on_second()
             raise KeyboardInterrupt
         self.requested = True
         if self.message:
             print(self.message, file=self.stream, flush=True)
 
     def __enter__(self):
-        if threading.current_thread() is threading.main_thread():  # signals: main only
-            self._previous = signal.signal(signal.SIGINT, self._handler)
+        # Re-entrant: the batch command holds one for its whole run and each render
+        # enters it again; the handler before the outermost entry comes back at its exit.
+        self._depth = getattr(self, "_depth", 0) + 1
+        if self._depth == 1 and threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)  # signals: main only
         return self
 
     def __exit__(self, *exc):
-        if self._previous is not None:
+        self._depth -= 1
+        if self._depth == 0 and self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
             self._previous = None
         return False

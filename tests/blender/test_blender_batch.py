@@ -126,3 +126,44 @@ def test_batch_compare_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_pat
     assert out.read_bytes() == OLD
     assert "interrupted" in err and "left as it was" in err, err[-2000:]
     assert "Traceback" not in err
+
+
+def _loaded(pid, library):
+    """The process has mapped a shared library whose path contains `library`."""
+    try:
+        with open(f"/proc/{pid}/maps", encoding="utf-8", errors="replace") as f:
+            return library in f.read()
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads /proc/PID/maps")
+@pytest.mark.parametrize("library, stage", [
+    ("numpy", "while the engine's modules load"),
+    (os.path.join("bpy", "__init__"), "inside bpy's import (Blender's initialisation)"),
+])
+def test_batch_interrupted_while_loading_is_a_cancel(tmp_path, library, stage):
+    """Ctrl-C in the batch's first seconds, before the render (issue 16 review): a cancel
+    as later on (exit 130, one line saying what happened, the old file kept), never a
+    traceback, a crash, or a signal lost to Blender's initialisation (the frame was then
+    rendered over the old file, exit 0). The moment is found from the libraries the
+    process has loaded, not from a delay."""
+    import time
+    out = tmp_path / "f3.png"
+    out.write_bytes(OLD)
+    with Watched([PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure3_sphere.blend"),
+                  "-o", str(out), *SMALL], cwd=ROOT) as w:
+        end = time.monotonic() + 60
+        while not _loaded(w.proc.pid, library) and w.proc.poll() is None \
+                and time.monotonic() < end:
+            time.sleep(0.005)
+        assert w.proc.poll() is None, f"ended before {stage}: {w.stderr[-2000:]}"
+        w.proc.send_signal(signal.SIGINT)
+        rc = w.finish()
+    err = w.stderr
+    assert rc == 130, f"{stage}: rc {rc}\n{err[-3000:]}"
+    assert out.read_bytes() == OLD
+    assert re.search(r"error: interrupted while .*: nothing rendered; .* left as it was",
+                     err), err[-2000:]
+    assert "Traceback" not in err and "Fatal" not in err, err[-3000:]
+    assert sorted(os.listdir(tmp_path)) == [out.name]
