@@ -47,18 +47,21 @@ PRESET_ITEMS = (
 # --- labels with Blender's font ------------------------------------------------------------
 
 def blf_label_mask(lines, width: int, size: int) -> np.ndarray:
-    """Text coverage (h, width) float32 in [0, 1] of `lines` in Blender's default font
-    at `size` pixels, smaller until the longest line fits (engine.teaching.compose's
+    """Text coverage (h, w >= width) float32 in [0, 1] of `lines` in Blender's default
+    font at `size` pixels, fitted by engine.teaching.fit_label (engine.teaching.compose's
     label_mask). BLF draws into an ImBuf,
     which is read back through a temporary PNG (ImBuf has no pixel access in Python)."""
     import blf
     import imbuf
     font = 0  # Blender's default font
-    min_size = load_engine().teaching.MIN_FONT
-    blf.size(font, size)
-    while size > min_size and max(blf.dimensions(font, str(x))[0] for x in lines) > width - 4:
-        size -= 1  # narrower, so that the longest line fits the tile
-        blf.size(font, size)
+    teaching = load_engine().teaching
+
+    def measure(text, sz):
+        blf.size(font, sz)
+        return blf.dimensions(font, text)[0]
+
+    # Smaller, then wrapped, then wider than the tile: never clipped (teaching.fit_label).
+    lines, size, width = teaching.fit_label(lines, width, size, measure)
     step = size + max(2, size // 4)
     height = step * len(lines) + 4
     buf = imbuf.new((int(width), int(height)))
@@ -67,7 +70,8 @@ def blf_label_mask(lines, width: int, size: int) -> np.ndarray:
         blf.color(font, 1.0, 1.0, 1.0, 1.0)
         for i, line in enumerate(lines):
             # BLF's y runs upwards from the bottom row to the text's baseline.
-            blf.position(font, 3, height - 2 - i * step - round(0.8 * size), 0)
+            blf.position(font, teaching.LABEL_PAD, height - 2 - i * step - round(0.8 * size),
+                         0)
             blf.draw_buffer(font, str(line))
     fd, path = tempfile.mkstemp(suffix=".png", prefix="photonmap_label_")
     os.close(fd)

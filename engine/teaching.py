@@ -282,21 +282,64 @@ def label_font_size(tile_width: int) -> int:
     return int(max(9, min(16, tile_width // 13)))
 
 
-def pillow_label_mask(lines, width: int, size: int) -> np.ndarray:
-    """Text coverage (h, width) float32 in [0, 1] of `lines` in Pillow's default font at
-    `size` pixels (smaller, down to MIN_FONT, until the longest line fits), one line below
-    the other; text still wider than `width` is cut off."""
-    from PIL import Image, ImageDraw, ImageFont
-    font = ImageFont.load_default(size=size)
-    while size > MIN_FONT and max(font.getlength(str(x)) for x in lines) > width - 4:
+LABEL_PAD = 3  # pixels between a label's text and the sides of its band
+
+
+def fit_label(lines, width: int, size: int, measure):
+    """Fit a label's text to a tile `width` pixels wide, never clipping it: the font
+    shrinks from `size` (down to MIN_FONT) until the longest line fits; lines still too
+    wide are wrapped at spaces (the band grows a line); a word wider than the tile even
+    then widens the label. measure(text, size) -> its width in pixels (the font's).
+    Returns (lines, size, label width >= width)."""
+    lines = [str(x) for x in lines]
+    room = int(width) - 2 * LABEL_PAD
+
+    def widest(texts, sz):
+        return max((measure(t, sz) for t in texts if t), default=0)
+
+    while size > MIN_FONT and widest(lines, size) > room:
         size -= 1  # narrower, so that the longest line fits the tile
-        font = ImageFont.load_default(size=size)
+    if widest(lines, size) > room:
+        wrapped = []
+        for line in lines:
+            words = []
+            for word in line.split(" "):
+                if word == "%" and words:  # "-35 %" stays on one line
+                    words[-1] += " %"
+                else:
+                    words.append(word)
+            current = words[0]
+            for word in words[1:]:
+                if measure(f"{current} {word}", size) <= room:
+                    current = f"{current} {word}"
+                else:
+                    wrapped.append(current)
+                    current = word
+            wrapped.append(current)
+        lines = wrapped
+    need = int(math.ceil(widest(lines, size))) + 2 * LABEL_PAD
+    return lines, size, max(int(width), need)
+
+
+def pillow_label_mask(lines, width: int, size: int) -> np.ndarray:
+    """Text coverage (h, w) float32 in [0, 1] of `lines` in Pillow's default font at
+    `size` pixels, one line below the other, fitted to `width` by fit_label (smaller,
+    then wrapped; w > width only for a word wider than the tile): never clipped."""
+    from PIL import Image, ImageDraw, ImageFont
+    fonts = {}
+
+    def font(sz):
+        if sz not in fonts:
+            fonts[sz] = ImageFont.load_default(size=sz)
+        return fonts[sz]
+
+    lines, size, width = fit_label(lines, width, size, lambda t, sz: font(sz).getlength(t))
     step = size + max(2, size // 4)
     height = step * len(lines) + 4
     img = Image.new("L", (int(width), int(height)), 0)
     draw = ImageDraw.Draw(img)
     for i, line in enumerate(lines):
-        draw.text((3, 2 + i * step), str(line), fill=255, font=font)
+        draw.text((LABEL_PAD, 2 + i * step), line, fill=255, font=font(size))
     return np.asarray(img, np.float32) / 255.0
 
 
@@ -311,9 +354,11 @@ def compose(tiles: list[Tile], columns: int | None = None, exposure: float = 0.0
     """Tiles on a grid (`columns` per row; default all in one row up to 4, then 4 per
     row), each image sRGB-encoded (engine.imageio.to_8bit) with its label as white text
     on a black band below it. Returns (H, W, 3) uint8 with H = rows * (tile height +
-    band + GAP) - GAP and W = columns * (tile width + GAP) - GAP. All tiles must have
-    the same size (ValueError otherwise). label_mask(lines, width, size) -> (h, width)
-    coverage: pillow_label_mask by default."""
+    band + GAP) - GAP and W = columns * (cell width + GAP) - GAP; the cell width is the
+    tile width, or the widest label's where a word is wider than a small tile (the image
+    centred in its cell): label text is never clipped. All tiles must have the same size
+    (ValueError otherwise). label_mask(lines, width, size) -> (h, w >= width) coverage:
+    pillow_label_mask by default."""
     if not tiles:
         raise ValueError("compose: no tiles")
     h, w = tiles[0].image.shape[:2]
@@ -328,23 +373,28 @@ def compose(tiles: list[Tile], columns: int | None = None, exposure: float = 0.0
     size = font_size or label_font_size(w)
     masks = [np.asarray(label_mask(t.lines, w, size), np.float32) for t in tiles]
     band = max(m.shape[0] for m in masks)
+    cell_w = max([w] + [m.shape[1] for m in masks])
     rows = -(-len(tiles) // columns)
-    cell_h, cell_w = h + band, w
+    cell_h = h + band
     out = np.full((rows * (cell_h + GAP) - GAP, columns * (cell_w + GAP) - GAP, 3), GAP_GREY,
                   np.uint8)
-    for i, (t, m) in enumerate(zip(tiles, masks)):
-        r, c = divmod(i, columns)
-        y, x = r * (cell_h + GAP), c * (cell_w + GAP)
+    boxes = tile_boxes((h, w), len(tiles), columns, band, cell_w)
+    for t, m, (x, y, _, _) in zip(tiles, masks, boxes):
         out[y:y + h, x:x + w] = to_8bit(np.nan_to_num(t.image), exposure)
-        label = np.zeros((band, w, 3), np.float32)
-        label[:m.shape[0], :, :] = m[:, :w, None] * np.asarray(TEXT_RGB, np.float32)
-        out[y + h:y + cell_h, x:x + w] = np.round(label).astype(np.uint8)
+        x0 = x - (cell_w - w) // 2  # the cell's left edge
+        label = np.zeros((band, cell_w, 3), np.float32)
+        label[:m.shape[0], :m.shape[1], :] = m[:, :cell_w, None] * np.asarray(TEXT_RGB,
+                                                                              np.float32)
+        out[y + h:y + cell_h, x0:x0 + cell_w] = np.round(label).astype(np.uint8)
     return out
 
 
-def tile_boxes(tiles_shape: tuple, count: int, columns: int, band: int):
+def tile_boxes(tiles_shape: tuple, count: int, columns: int, band: int,
+               cell_width: int | None = None):
     """(x, y, w, h) of each tile's image inside a compose() result; tiles_shape = (h, w)
-    of one tile, band the label band's height. For tests and image maps."""
+    of one tile, band the label band's height, cell_width the cells' width (default the
+    tile's; wider cells centre the image). For tests and image maps."""
     h, w = tiles_shape
-    return [((i % columns) * (w + GAP), (i // columns) * (h + band + GAP), w, h)
-            for i in range(count)]
+    cell_w = max(w, int(cell_width or w))
+    return [((i % columns) * (cell_w + GAP) + (cell_w - w) // 2,
+             (i // columns) * (h + band + GAP), w, h) for i in range(count)]

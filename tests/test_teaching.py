@@ -249,4 +249,46 @@ def test_cli_compare_sweep_strip(tmp_path, capsys):
     assert main(["render", FIGURE3, "-o", str(render_out), "--width", "32", "--height", "24",
                  "--spp", "1", "--method", "local", "--strip", "--quiet"]) == 0
     strip = np.asarray(Image.open(tmp_path / "r.strip.png"))
-    assert strip.shape[1] == 6 * 32 + 5 * teaching.GAP
+    # Six cells: 32-pixel tiles, widened where a label word is wider (never clipped).
+    cell = (strip.shape[1] + teaching.GAP) // 6 - teaching.GAP
+    assert strip.shape[1] == 6 * cell + 5 * teaching.GAP and cell >= 32
+
+
+def _measure(text, size):
+    from PIL import ImageFont
+    return ImageFont.load_default(size=size).getlength(text)
+
+
+@pytest.mark.parametrize("tile", [24, 32, 48, 64, 96])
+def test_labels_are_never_clipped_at_small_preview_sizes(tile):
+    """The compare / sweep / strip labels at small --preview-size (64 clipped 'Local
+    illumination' and 'brightness -35 % vs photon'): the text shrinks, then wraps, then
+    the cell widens; every label's text ends inside its band, with its margin."""
+    labels = [["Local illumination", "0.4 s, 0 photons", "brightness -35 % vs photon"],
+              ["Photon mapping", "1.2 s, 30,000 photons", "brightness: the reference"],
+              ["Photon hits", "12,345 hits stored", "from 30,000 photons"],
+              ["1,000 photons, r 0.8 m", "0.3 s", "relMSE 0.1234"],
+              ["Sum (the image)", "MaxPhotonSearchRadius"]]  # one word wider than a tile
+    for lines in labels:
+        fitted, size, width = teaching.fit_label(lines, tile, teaching.label_font_size(tile),
+                                                 _measure)
+        assert width >= tile and size >= teaching.MIN_FONT
+        assert " ".join(fitted).split() == " ".join(lines).split()  # every word, in order
+        for line in fitted:
+            assert _measure(line, size) + 2 * teaching.LABEL_PAD <= width, (line, width)
+        mask = teaching.pillow_label_mask(lines, tile, teaching.label_font_size(tile))
+        assert mask.shape[1] == width
+        ink = np.flatnonzero(mask.max(axis=0) > 0.05)
+        assert ink.size and ink[-1] < width - 1, (lines, tile)  # a blank right margin
+    tiles = [teaching.Tile(np.full((tile * 3 // 4, tile, 3), 0.2, np.float32), lines)
+             for lines in labels]
+    img = teaching.compose(tiles, columns=len(tiles))
+    cell = (img.shape[1] + teaching.GAP) // len(tiles) - teaching.GAP
+    h = tiles[0].image.shape[0]
+    for i, (x, y, w, th) in enumerate(teaching.tile_boxes((h, tile), len(tiles), len(tiles),
+                                                         img.shape[0] - h, cell)):
+        np.testing.assert_array_equal(img[y:y + th, x:x + w], to_8bit(tiles[i].image))
+        x0 = i * (cell + teaching.GAP)
+        band = img[y + th:, x0:x0 + cell].max(axis=2)
+        ink = np.flatnonzero(band.max(axis=0) > 12)
+        assert ink.size and ink[-1] < cell - 1, (i, tile)  # the text ends inside its cell

@@ -22,18 +22,26 @@ def _pixels(image):
 
 
 def _check_labelled_row(img, count, tile_w, tile_h):
-    """`count` tiles of tile_w x tile_h in one row, each with a label band of text."""
-    assert img.shape[1] == count * tile_w + (count - 1) * GAP
+    """`count` tiles of tile_w x tile_h in one row, each with a label band of text that
+    ends inside its cell (cells wider than the tile where a label word is: never
+    clipped). Returns the x of each tile's image."""
+    cell = (img.shape[1] + GAP) // count - GAP
+    assert img.shape[1] == count * cell + (count - 1) * GAP and cell >= tile_w
     band = img.shape[0] - tile_h
     assert band > 10
+    xs = []
     for i in range(count):
-        x = i * (tile_w + GAP)
-        label = img[tile_h:, x:x + tile_w]
+        x = i * (cell + GAP)
+        label = img[tile_h:, x:x + cell]
         assert (label.max(axis=2) > 64).sum() > 30, i  # Blender's font drew text
         assert label.min() == 0
+        ink = np.flatnonzero(label.max(axis=2).max(axis=0) > 12)
+        assert ink[-1] < cell - 1, i  # the text ends inside its cell
         # A gap column of grey between tiles.
         if i:
             assert np.all(img[:, x - 1] == 48)
+        xs.append(x + (cell - tile_w) // 2)
+    return xs
 
 
 def test_compare_methods_operator_headless(bpy_addon):
@@ -44,8 +52,8 @@ def test_compare_methods_operator_headless(bpy_addon):
     image = bpy.data.images["Photon Mapping: Compare Methods"]
     img = _pixels(image)
     tile_w, tile_h = 64, 48  # the file is 320 x 240
-    _check_labelled_row(img, 4, tile_w, tile_h)
-    tiles = [img[:tile_h, i * (tile_w + GAP):i * (tile_w + GAP) + tile_w] for i in range(4)]
+    xs = _check_labelled_row(img, 4, tile_w, tile_h)
+    tiles = [img[:tile_h, x:x + tile_w] for x in xs]
     assert all(t.any() for t in tiles)
     assert not np.array_equal(tiles[0], tiles[1])  # local != raytrace
 
