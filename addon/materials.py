@@ -32,12 +32,13 @@ class Closure:
                  "emission", "alpha", "texture", "has_bsdf", "normal_map", "alpha_texture",
                  "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
                  "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
-                 "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint")
+                 "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint",
+                 "scalars")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
              "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
-             "sheen_roughness", "sheen_tint", "transparent_tint")
+             "sheen_roughness", "sheen_tint", "transparent_tint", "scalars")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
@@ -46,7 +47,7 @@ class Closure:
                  coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
                  multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
                  sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0),
-                 transparent_tint=(1.0, 1.0, 1.0)):
+                 transparent_tint=(1.0, 1.0, 1.0), scalars=None):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -74,6 +75,9 @@ class Closure:
         # Colour of the transparent share (1 - alpha): a Transparent BSDF's Color.
         self.transparent_tint = np.asarray(transparent_tint, dtype=np.float64)[:3]
         self.alpha_texture = alpha_texture  # per-hit factor on alpha (engine node) or None
+        # Scalar inputs driven by a node per hit ({field: engine node}, engine
+        # Material.scalar_textures); the field's constant is then only its fallback.
+        self.scalars = dict(scalars) if scalars else {}
 
     @property
     def is_clear(self) -> bool:
@@ -94,6 +98,24 @@ def _alpha_mix(sn, wa, a: Closure, wb, b: Closure):
         else:
             terms.append(sn.Math("MULTIPLY", c.alpha_texture, w * c.alpha))
     return 1.0, sn.Math("ADD", terms[0], terms[1], clamp=True)
+
+
+def _weighted(sn, wa, xa, wb, xb):
+    """wa xa + wb xb, where xa and xb are constants or engine nodes (then a Math tree of
+    engine/shadernodes.py evaluated per hit)."""
+    if not (hasattr(xa, "evaluate") or hasattr(xb, "evaluate")):
+        return wa * xa + wb * xb
+    terms = []
+    for w, x in ((wa, xa), (wb, xb)):
+        if w == 0:
+            continue
+        if hasattr(x, "evaluate"):
+            terms.append(x if w == 1 else sn.Math("MULTIPLY", x, w))
+        else:
+            terms.append(w * x)
+    if len(terms) == 1:
+        return terms[0]
+    return sn.Math("ADD", terms[0], terms[1])
 
 
 def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
@@ -158,6 +180,15 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         if na + nb > 0:
             out.base_color = ((na * a.base_color + nb * b.base_color) / (na + nb)
                               * (total / (total + da + db)))
+    # Texture-driven scalar inputs blend with the same constant weights, as node trees.
+    for name in set(a.scalars) | set(b.scalars):
+        wa_, wb_ = ta, tb
+        if name == "roughness" and ga + gb > 0:
+            wa_, wb_ = ga / (ga + gb), gb / (ga + gb)
+        val = _weighted(sn, wa_, a.scalars.get(name, getattr(a, name)),
+                        wb_, b.scalars.get(name, getattr(b, name)))
+        if hasattr(val, "evaluate"):
+            out.scalars[name] = val
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
         b.texture if sb > 0 else None)
     # One shading normal per material: the first side's map that has a surface.
@@ -210,7 +241,8 @@ class MaterialConverter:
             sheen_tint=np.clip(closure.sheen_tint, 0.0, None),
             multiscatter=closure.multiscatter, node=closure.node,
             glossy_color=(None if closure.glossy_color is None
-                          else np.clip(closure.glossy_color, 0.0, 1.0)))
+                          else np.clip(closure.glossy_color, 0.0, 1.0)),
+            scalar_textures=closure.scalars or None)
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -301,22 +333,27 @@ class MaterialConverter:
         inp = node.inputs
         if t == "BSDF_PRINCIPLED":
             base, tex = self._color(node, "Base Color")
+            sc = {}  # texture-driven scalar inputs, evaluated per hit
             c = Closure(base_color=base, texture=tex,
-                        metallic=self._float(node, "Metallic"),
-                        roughness=self._float(node, "Roughness"),
-                        transmission=self._float(node, "Transmission Weight"),
+                        metallic=self._scalar(node, "Metallic", 0.0, "metallic", sc),
+                        roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
+                        transmission=self._scalar(node, "Transmission Weight", 0.0,
+                                                  "transmission", sc),
                         ior=self._float(node, "IOR", 1.5),
                         specular=1.0,
-                        specular_ior_level=self._float(node, "Specular IOR Level", 0.5),
+                        specular_ior_level=self._scalar(node, "Specular IOR Level", 0.5,
+                                                        "specular_ior_level", sc),
                         specular_tint=self._const_color(node, "Specular Tint", (1, 1, 1)),
-                        coat_weight=self._float(node, "Coat Weight", 0.0),
-                        coat_roughness=self._float(node, "Coat Roughness", 0.03),
+                        coat_weight=self._scalar(node, "Coat Weight", 0.0, "coat_weight", sc),
+                        coat_roughness=self._scalar(node, "Coat Roughness", 0.03,
+                                                    "coat_roughness", sc),
                         coat_ior=self._float(node, "Coat IOR", 1.5),
                         coat_tint=self._const_color(node, "Coat Tint", (1, 1, 1)),
-                        sheen_weight=self._float(node, "Sheen Weight", 0.0),
-                        sheen_roughness=self._float(node, "Sheen Roughness", 0.5),
+                        sheen_weight=self._scalar(node, "Sheen Weight", 0.0, "sheen_weight", sc),
+                        sheen_roughness=self._scalar(node, "Sheen Roughness", 0.5,
+                                                     "sheen_roughness", sc),
                         sheen_tint=self._const_color(node, "Sheen Tint", (1, 1, 1)),
-                        multiscatter=self._distribution(node))
+                        multiscatter=self._distribution(node), scalars=sc)
             c.alpha, c.alpha_texture = self._factor_input(node, "Alpha", 1.0)
             strength = self._float(node, "Emission Strength", 0.0)
             if strength > 0:
@@ -340,20 +377,23 @@ class MaterialConverter:
                            normal_map=self._normal(node))
         if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             base, tex = self._color(node, "Color")
+            sc = {}
             return Closure(base_color=base, texture=tex, metallic=1.0, node="glossy",
                            multiscatter=self._distribution(node),
                            normal_map=self._normal(node),
-                           roughness=self._float(node, "Roughness"))
+                           roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
+                           scalars=sc)
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
             if t == "BSDF_REFRACTION":
                 self._warn(f"material '{self._mat.name}': Refraction BSDF '{node.name}' is "
                            "approximated by a Glass BSDF (it also reflects)")
+            sc = {}
             return Closure(base_color=base, texture=tex, transmission=1.0, specular=1.0,
                            node="glass", multiscatter=self._distribution(node),
                            normal_map=self._normal(node),
-                           roughness=self._float(node, "Roughness"),
-                           ior=self._float(node, "IOR", 1.5))
+                           roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
+                           ior=self._float(node, "IOR", 1.5), scalars=sc)
         if t == "EMISSION":
             col, tex = self._color(node, "Color")
             if tex is not None:
@@ -380,7 +420,7 @@ class MaterialConverter:
                     surf = b if a.is_clear else a
                     cover = fac if a.is_clear else sn.Math("SUBTRACT", 1.0, fac)
                     cover = sn.Math("MULTIPLY", cover, 1.0, clamp=True)
-                    out = _blend(surf, surf, 1.0, 0.0)  # a copy of surf
+                    out = _blend(surf, surf, 1.0, 0.0, sn)  # a copy of surf
                     out.alpha = surf.alpha
                     clear = a if a.is_clear else b
                     out.transparent_tint = clear.transparent_tint.copy()
@@ -406,7 +446,7 @@ class MaterialConverter:
             if a.has_bsdf and b.has_bsdf:
                 self._warn(f"material '{self._mat.name}': Add Shader '{node.name}' of two "
                            "surfaces is approximated by an even mix")
-                out = _blend(a, b, 0.5, 0.5)
+                out = _blend(a, b, 0.5, 0.5, self.pm.shadernodes)
                 out.emission = a.emission + b.emission
                 return out
             out = a if a.has_bsdf else b
@@ -492,6 +532,20 @@ class MaterialConverter:
         if hasattr(val, "evaluate"):
             return 1.0, val
         return (float(val) if np.ndim(val) == 0 else float(np.mean(val))), None
+
+    def _scalar(self, node, name, default, field, texture_inputs) -> float:
+        """A scalar BSDF input (Roughness, Metallic, ...): its constant; when a texture or
+        node tree drives it, that engine node goes into texture_inputs[field] (evaluated
+        per hit: engine Material.scalar_textures) and the socket's own value is returned
+        as the fallback."""
+        s = node.inputs.get(name)
+        if s is None:
+            return float(default)
+        val = self._input(node, s, 0)
+        if hasattr(val, "evaluate"):
+            texture_inputs[field] = val
+            val = self._default(s)
+        return float(val) if np.ndim(val) == 0 else float(np.mean(val))
 
     def _float(self, node, name, default=0.0) -> float:
         s = node.inputs.get(name)

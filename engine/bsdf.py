@@ -20,7 +20,7 @@ from .closures import principled as pr
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
 from .sampling import dot, max3, normalize
-from .textures import material_alpha
+from .textures import material_alpha, scalar_params
 
 # Lobe names in engine/closures/principled.py's order (its L_* indices).
 LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat", "sheen")
@@ -75,6 +75,9 @@ class SurfaceHit:
     n_smooth: np.ndarray | None = None  # (N,3) the smooth shading normal before Normal Map /
                           # Bump nodes, on ns's side, where one bent ns (else ns itself);
                           # None: no bent normal in the batch (normalmap.bump_shadowing)
+    params: np.ndarray | None = None  # (N, principled.N_MAT) closure parameters per hit
+                          # where a material has texture-driven scalar inputs
+                          # (textures.scalar_params); None: the materials' rows
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -140,7 +143,7 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         alpha = material_alpha(table, geo, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=offset, bary=np.stack([u, v], axis=1), alpha=alpha,
-                      n_smooth=n_smooth)
+                      n_smooth=n_smooth, params=scalar_params(table, geo, mat, prim, u, v))
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):
@@ -149,8 +152,12 @@ def closures(table: MaterialTable, hit: SurfaceHit):
     lobe (N, len(LOBE_NAMES), 3)). Cached on the hit."""
     if hit.prm is None or hit.lobe_albedo is None:
         cos_o = np.einsum("ij,ij->i", hit.ns, hit.wo)
-        hit.prm, hit.lobe_albedo = pr.setup_np(table.closure_params, hit.mat, hit.base, cos_o,
-                                               hit.front, _hit_alpha(table, hit))
+        if hit.params is None:
+            params, rows = table.closure_params, hit.mat
+        else:  # texture-driven scalar inputs: one parameter row per hit
+            params, rows = hit.params, np.arange(len(hit.mat))
+        hit.prm, hit.lobe_albedo = pr.setup_np(params, rows, hit.base, cos_o, hit.front,
+                                               _hit_alpha(table, hit))
     return hit.prm, hit.lobe_albedo
 
 

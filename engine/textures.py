@@ -251,6 +251,86 @@ def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.nda
     return out
 
 
+def scalar_values(node, geo, prim, u, v, lo, hi) -> np.ndarray:
+    """(N,) a scalar input's value at hits: the node's value (a colour read as its
+    luminance, Blender's colour-to-float conversion), clamped to [lo, hi] as Cycles clamps
+    that input (svm/closure.h), NaN as lo."""
+    val = np.asarray(node.evaluate(geo, prim, u, v), np.float64)
+    if val.ndim == 2:
+        val = val[:, :3] @ LUMINANCE
+    return np.clip(np.nan_to_num(val, nan=lo, posinf=hi, neginf=lo), lo, hi)
+
+
+def scalar_params(table, geo, mat, prim, u, v):
+    """(N, principled.N_MAT) closure parameter rows of hits of materials mat (N,): the
+    material's row (table.closure_params) with its texture-driven scalar inputs
+    (table.scalar_textures: Roughness, Metallic, ... maps) evaluated at the hits; None
+    when no material has one. The closure set-up reads these rows instead of the
+    material's (bsdf.closures, photons._trace_chunk)."""
+    cols = getattr(table, "scalar_textures", None)
+    if not cols or all(c is None for c in cols):
+        return None
+    mat = np.asarray(mat, np.int64)
+    out = np.take(table.closure_params, mat, axis=0)
+    for mi, entries in enumerate(cols):
+        if entries is None:
+            continue
+        sel = np.nonzero(mat == mi)[0]
+        if not len(sel):
+            continue
+        for col, node, lo, hi in entries:
+            out[sel, col] = scalar_values(node, geo, prim[sel], u[sel], v[sel], lo, hi)
+    return out
+
+
+RANGE_SAMPLES = 4096  # points per material at which scalar_ranges evaluates its maps
+
+
+def scalar_ranges(table, geo, seed: int = 0):
+    """Summarise each texture-driven scalar input over its material's surface for the
+    effect analysis (engine/effects.py reads one value per material): the table's
+    constant columns take the extreme that enables a lobe (metallic, transmission, coat
+    and sheen weights at their largest, roughness and coat roughness at their smallest),
+    and table.diffuse_share the largest (1 - metallic)(1 - transmission). Evaluated at
+    RANGE_SAMPLES uniformly random points of the material's triangles (seeded): an
+    estimate for deciding which effects to trace; the render itself evaluates every hit
+    (scalar_params)."""
+    cols = getattr(table, "scalar_textures", None)
+    if not cols or all(c is None for c in cols) or geo.count == 0:
+        return
+    from .closures import principled as pr
+    rng = np.random.default_rng(seed)
+    share = (1 - table.metallic) * (1 - table.transmission)
+    for mi, entries in enumerate(cols):
+        if entries is None:
+            continue
+        tris = np.nonzero(np.asarray(geo.material) == mi)[0]
+        if not len(tris):
+            continue
+        area = geo.area[tris]
+        pick = rng.choice(len(tris), RANGE_SAMPLES, p=area / area.sum()) \
+            if area.sum() > 0 else rng.integers(0, len(tris), RANGE_SAMPLES)
+        prim = tris[pick]
+        r1, r2 = rng.random(RANGE_SAMPLES), rng.random(RANGE_SAMPLES)
+        s = np.sqrt(r1)
+        u, v = s * (1.0 - r2), s * r2  # uniform barycentrics of corners 1 and 2
+        vals = {col: scalar_values(node, geo, prim, u, v, lo, hi)
+                for col, node, lo, hi in entries}
+        metal = vals.get(pr.M_METALLIC, np.full(RANGE_SAMPLES, table.metallic[mi]))
+        trans = vals.get(pr.M_TRANS, np.full(RANGE_SAMPLES, table.transmission[mi]))
+        share[mi] = float(np.max((1 - metal) * (1 - trans)))
+        for col, v_ in vals.items():
+            smallest = col in (pr.M_ROUGH, pr.M_COAT_ROUGH, pr.M_SHEEN_ROUGH)
+            x = float(v_.min() if smallest else v_.max())
+            table.closure_params[mi, col] = x
+            name = {pr.M_ROUGH: "roughness", pr.M_METALLIC: "metallic",
+                    pr.M_TRANS: "transmission", pr.M_COAT_W: "coat_weight",
+                    pr.M_SHEEN_W: "sheen_weight"}.get(col)
+            if name is not None:
+                getattr(table, name)[mi] = x
+    table.diffuse_share = share
+
+
 def as_texture(tex, name: str = "image"):
     """A colour source (anything with evaluate(geo, prim, u, v): ImageTexture,
     ColorAttribute, engine.shadernodes nodes) as given, or an ImageTexture from a bare

@@ -952,6 +952,75 @@ def texture_node_tree():
     _sun()
 
 
+def _data_image(name, values, n=4):
+    """A packed Non-Color n x n checker image of two grey values (a roughness or metallic
+    map as downloaded PBR assets carry them)."""
+    im = _image(name, _checker(n, 1, *values))
+    im.colorspace_settings.name = "Non-Color"
+    return im
+
+
+def _scalar_map_tile(name, socket, image, between=None, **inputs):
+    """A Principled 'Tile' whose `socket` input is an Image Texture (Closest) of `image`,
+    through the node `between(nt)` returns ((input, output) sockets) when given."""
+    m, nt, out = _nodes_material(name)
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    for k, v in inputs.items():
+        p.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) else v
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    tex.interpolation = "Closest"
+    src = tex.outputs["Color"]
+    if between is not None:
+        into, result = between(nt)
+        nt.links.new(src, into)
+        src = result
+    nt.links.new(src, p.inputs[socket])
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    return m
+
+
+def _highlight_light():
+    """An area light above the far edge of the tile, placed so the camera sees its mirror
+    image in the middle of the tile."""
+    mb.light("Area", "AREA", (0.0, 2.0, 1.6), 400.0, rotation=(-0.5, 0, 0), size=1.0)
+
+
+@case("textures")
+def texture_roughness_map():
+    """A Principled floor tile whose Roughness is a Non-Color checker image of glossiness
+    (0.9 / 0.2) through an Invert node: roughness 0.1 / 0.8 per texel. Under an area
+    light the smooth cells show a sharp highlight and the rough ones a broad dim one, so
+    a roughness read as one constant moves whole cells."""
+    _stage(back=False)
+
+    def invert(nt):
+        inv = nt.nodes.new("ShaderNodeInvert")
+        return inv.inputs["Color"], inv.outputs["Color"]
+    _scalar_map_tile("rough", "Roughness", _data_image("gloss", (0.2, 0.9)), invert,
+                     **{"Base Color": (0.15, 0.15, 0.15), "Roughness": 0.5})
+    _highlight_light()
+
+
+@case("textures")
+def texture_metallic_map():
+    """A Principled tile (orange, roughness 0.25) whose Metallic is a Non-Color checker
+    image (0.2 / 0.8) through Math Greater Than 0.5: metal and dielectric cells. The
+    metal cells reflect the dark world and the light's highlight in orange, the others
+    are orange and matte; a constant metallic makes every cell the same."""
+    _stage(back=False)
+
+    def threshold(nt):
+        gt = nt.nodes.new("ShaderNodeMath")
+        gt.operation = "GREATER_THAN"
+        gt.inputs[1].default_value = 0.5
+        return gt.inputs[0], gt.outputs[0]
+    _scalar_map_tile("metal", "Metallic", _data_image("metalmap", (0.2, 0.8)), threshold,
+                     **{"Base Color": (0.9, 0.55, 0.25), "Roughness": 0.25})
+    _highlight_light()
+
+
 # --- transparency: transparent shadows, alpha cut-outs -------------------------------------
 
 def _leaf_image(n=32):
