@@ -430,9 +430,13 @@ class MaterialConverter:
                         self._warn(f"material '{self._mat.name}': emission of a cut-out Mix "
                                    f"Shader '{node.name}' is not masked by its factor")
                     return out
+                mixed = self._mix_per_hit(a, b, fac)
+                if mixed is not None:
+                    return mixed
                 self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes two "
-                           "surfaces by a texture; per-hit mixing is only supported with a "
-                           "Transparent BSDF (cut-outs): using the factor's own value")
+                           "surfaces by a texture, one of them emissive or with alpha; "
+                           "per-hit mixing is supported for opaque surfaces and cut-outs: "
+                           "using the factor's own value")
                 fac = None
             if fac is None:
                 fac = self._float_socket(node, inp[0], 0.5) if not self._source(inp[0]) \
@@ -462,6 +466,73 @@ class MaterialConverter:
             return res
         self._unsupported(node)
         return self._viewport(self._mat)
+
+    # Lobe parameters that a per-hit Mix Shader factor blends linearly.
+    LINEAR_SCALARS = ("metallic", "specular", "transmission", "specular_ior_level",
+                      "coat_weight", "coat_roughness", "sheen_weight", "sheen_roughness")
+
+    def _mix_per_hit(self, a: Closure, b: Closure, fac):
+        """Mix Shader of two opaque surfaces by a factor evaluated per hit (a texture,
+        Layer Weight, Fresnel): Cycles weights the closures (1 - f) and f (f clamped to
+        [0, 1]); here the lobe parameters blend per hit with the same weights (metallic,
+        specular, transmission, ... as (1 - f) x_a + f x_b, roughness weighted by each
+        side's glossy share, the colour as a Mix Color of the two sides' colours), which
+        is exact for a diffuse and a glossy or Principled side. The two sides' distribution
+        and colour model come from their even mix. None when a side is emissive or not
+        opaque (those keep the factor's own value)."""
+        def opaque(c):
+            return (c.has_bsdf and c.alpha == 1.0 and c.alpha_texture is None
+                    and not np.any(c.emission > 0))
+        if not (opaque(a) and opaque(b)):
+            return None
+        sn = self.pm.shadernodes
+        f = sn.Math("MULTIPLY", fac, 1.0, clamp=True)
+        g = sn.Math("SUBTRACT", 1.0, f)
+        out = _blend(a, b, 0.5, 0.5, sn)
+        out.scalars = {}
+
+        def side(c, name):
+            return c.scalars.get(name, getattr(c, name))
+
+        def per_hit(xa, xb):
+            """(1 - f) xa + f xb, or the constant when both sides agree."""
+            if not hasattr(xa, "evaluate") and not hasattr(xb, "evaluate") and xa == xb:
+                return xa
+            return sn.Math("ADD", sn.Math("MULTIPLY", g, xa), sn.Math("MULTIPLY", f, xb))
+        for name in self.LINEAR_SCALARS:
+            val = per_hit(side(a, name), side(b, name))
+            if hasattr(val, "evaluate"):
+                out.scalars[name] = val
+            else:
+                setattr(out, name, val)
+        # Roughness belongs to the glossy lobes: a side without one has no say.
+        ka = a.metallic + a.transmission + a.specular
+        kb = b.metallic + b.transmission + b.specular
+        ra, rb = side(a, "roughness"), side(b, "roughness")
+        if ka > 0 and kb > 0:
+            rough = sn.Math("DIVIDE", per_hit(sn.Math("MULTIPLY", ra, ka),
+                                              sn.Math("MULTIPLY", rb, kb)),
+                            per_hit(ka, kb))
+        else:
+            rough = ra if ka > 0 else rb
+        if hasattr(rough, "evaluate"):
+            out.scalars["roughness"] = rough
+        else:
+            out.roughness = float(rough)
+
+        def colour(c):
+            if c.texture is None:
+                return c.base_color
+            return sn.MixColor(1.0, c.texture, c.base_color, "MULTIPLY")
+        one_glossy = out.node == "glossy" and (a.metallic > 0) != (b.metallic > 0)
+        same = (a.texture is None and b.texture is None
+                and np.allclose(a.base_color, b.base_color))
+        if not one_glossy and not same:
+            # The colour per hit (the Glossy BSDF colour model keeps each side's colour in
+            # its own lobe when one side is the glossy one: nothing to mix there).
+            out.base_color = np.ones(3)
+            out.texture = sn.MixColor(f, colour(a), colour(b))
+        return out
 
     def _normal(self, node):
         """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an
@@ -754,6 +825,14 @@ class MaterialConverter:
                               output="FAC" if oname == "Fac" else "COLOR")
         if t in ("TEX_NOISE", "TEX_VORONOI"):
             return self._procedural(n, oname, depth)
+        if t in ("LAYER_WEIGHT", "FRESNEL"):
+            if n.inputs.get("Normal") is not None and self._source(n.inputs["Normal"]):
+                self._warn(f"material '{self._mat.name}': the 'Normal' input of "
+                           f"'{n.name}' is not supported; using the surface normal")
+            if t == "FRESNEL":
+                return sn.Fresnel(self._input(n, n.inputs["IOR"], depth))
+            return sn.LayerWeight(self._input(n, n.inputs["Blend"], depth),
+                                  output="FACING" if oname == "Facing" else "FRESNEL")
         return None
 
     def _procedural(self, n, oname, depth):

@@ -20,6 +20,7 @@ from .closures import principled as pr
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
 from .sampling import dot, max3, normalize
+from .shadernodes import ShadingGeometry
 from .textures import material_alpha, scalar_params
 
 # Lobe names in engine/closures/principled.py's order (its L_* indices).
@@ -125,6 +126,9 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         sign = np.where(front, 1.0, -1.0)[:, None]
         n_smooth = np.where(bent[:, None], n_smooth * sign, ns)
     wo = -d
+    # What view-dependent nodes (Layer Weight, Fresnel) read: Cycles' sd->N (the smooth
+    # normal on the ray's side) and sd->wi, row for row with prim.
+    sg = ShadingGeometry(geo, ns if n_smooth is None else n_smooth, wo, ~front)
     for mi, tex in enumerate(table.textures):
         if tex is None:
             continue
@@ -134,16 +138,16 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
             # albedo above 1, the metal / glass lobes clip it themselves
             # (closures/principled.py); photons carry it in their power (Russian
             # roulette probabilities stay <= 1, engine/photons.py).
-            rgb = tex.evaluate(geo, prim[sel], u[sel], v[sel])
+            rgb = tex.evaluate(sg.rows(sel), prim[sel], u[sel], v[sel])
             if rgb.ndim == 1:  # a value (factor) into a colour: grey
                 rgb = rgb[:, None]
             base[sel] = base[sel] * np.maximum(rgb, 0.0)
     alpha = None
     if table.alpha_textures and any(t is not None for t in table.alpha_textures):
-        alpha = material_alpha(table, geo, mat, prim, u, v)
+        alpha = material_alpha(table, sg, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=offset, bary=np.stack([u, v], axis=1), alpha=alpha,
-                      n_smooth=n_smooth, params=scalar_params(table, geo, mat, prim, u, v))
+                      n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v))
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):

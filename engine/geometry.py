@@ -93,7 +93,8 @@ def scalar_columns(m: Material):
         return None
     from .closures import principled as pr
     from .scene import SCALAR_INPUTS
-    col = {"roughness": pr.M_ROUGH, "metallic": pr.M_METALLIC, "transmission": pr.M_TRANS,
+    col = {"roughness": pr.M_ROUGH, "metallic": pr.M_METALLIC, "specular": pr.M_SPEC,
+           "transmission": pr.M_TRANS,
            "specular_ior_level": pr.M_LEVEL, "coat_weight": pr.M_COAT_W,
            "coat_roughness": pr.M_COAT_ROUGH, "sheen_weight": pr.M_SHEEN_W,
            "sheen_roughness": pr.M_SHEEN_ROUGH}

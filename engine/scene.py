@@ -210,7 +210,7 @@ MATERIAL_NODES = ("principled", "glossy", "glass")
 # Scalar inputs a node may drive per hit (Material.scalar_textures), with the range
 # Cycles clamps them to (svm/closure.h: saturatef, or fmaxf(x, 0) for the weights and the
 # specular IOR level).
-SCALAR_INPUTS = {"roughness": (0.0, 1.0), "metallic": (0.0, 1.0),
+SCALAR_INPUTS = {"roughness": (0.0, 1.0), "metallic": (0.0, 1.0), "specular": (0.0, 1.0),
                  "transmission": (0.0, 1.0), "specular_ior_level": (0.0, np.inf),
                  "coat_weight": (0.0, np.inf), "coat_roughness": (0.0, 1.0),
                  "sheen_weight": (0.0, np.inf), "sheen_roughness": (0.0, 1.0)}

@@ -231,6 +231,12 @@ def factor(node, geo, prim, u, v) -> np.ndarray:
     return np.clip(np.nan_to_num(val, nan=0.0), 0.0, 1.0)
 
 
+def _rows(geo, sel):
+    """geo for the hits at rows sel of a batch (a shadernodes.ShadingGeometry carries
+    per-hit view data)."""
+    return geo.rows(sel) if hasattr(geo, "rows") else geo
+
+
 def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.ndarray:
     """(N,) alpha (opacity, Cycles' Principled Alpha) at hits of materials mat (N,) on
     triangles prim with barycentrics u, v: the material's constant alpha (table.alpha)
@@ -247,7 +253,7 @@ def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.nda
             continue
         sel = np.nonzero(mat == mi)[0]
         if len(sel):
-            out[sel] *= factor(node, geo, prim[sel], u[sel], v[sel])
+            out[sel] *= factor(node, _rows(geo, sel), prim[sel], u[sel], v[sel])
     return out
 
 
@@ -279,7 +285,8 @@ def scalar_params(table, geo, mat, prim, u, v):
         if not len(sel):
             continue
         for col, node, lo, hi in entries:
-            out[sel, col] = scalar_values(node, geo, prim[sel], u[sel], v[sel], lo, hi)
+            out[sel, col] = scalar_values(node, _rows(geo, sel), prim[sel], u[sel], v[sel],
+                                          lo, hi)
     return out
 
 
@@ -314,7 +321,15 @@ def scalar_ranges(table, geo, seed: int = 0):
         r1, r2 = rng.random(RANGE_SAMPLES), rng.random(RANGE_SAMPLES)
         s = np.sqrt(r1)
         u, v = s * (1.0 - r2), s * r2  # uniform barycentrics of corners 1 and 2
-        vals = {col: scalar_values(node, geo, prim, u, v, lo, hi)
+        # View-dependent nodes (Layer Weight, Fresnel) see uniformly random directions
+        # over the front hemisphere of the geometric normal.
+        from .shadernodes import ShadingGeometry
+        ng = np.asarray(geo.ng[prim], np.float64)
+        wi = rng.normal(size=(RANGE_SAMPLES, 3))
+        wi /= np.maximum(np.linalg.norm(wi, axis=1, keepdims=True), 1e-300)
+        wi *= np.where(np.einsum("ij,ij->i", wi, ng) < 0, -1.0, 1.0)[:, None]
+        sg = ShadingGeometry(geo, ng, wi, np.zeros(RANGE_SAMPLES, bool))
+        vals = {col: scalar_values(node, sg, prim, u, v, lo, hi)
                 for col, node, lo, hi in entries}
         metal = vals.get(pr.M_METALLIC, np.full(RANGE_SAMPLES, table.metallic[mi]))
         trans = vals.get(pr.M_TRANS, np.full(RANGE_SAMPLES, table.transmission[mi]))
@@ -325,6 +340,7 @@ def scalar_ranges(table, geo, seed: int = 0):
             table.closure_params[mi, col] = x
             name = {pr.M_ROUGH: "roughness", pr.M_METALLIC: "metallic",
                     pr.M_TRANS: "transmission", pr.M_COAT_W: "coat_weight",
+                    pr.M_SPEC: "specular",
                     pr.M_SHEEN_W: "sheen_weight"}.get(col)
             if name is not None:
                 getattr(table, name)[mi] = x

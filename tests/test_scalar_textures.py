@@ -89,3 +89,35 @@ def test_unknown_scalar_input_names_the_material():
         Material("m", scalar_textures={"shininess": sn.UVCoord()})
     with pytest.raises(SceneError, match="'m' scalar_textures\\['roughness'\\]"):
         Material("m", scalar_textures={"roughness": 0.3})
+
+
+def test_layer_weight_and_fresnel_follow_cycles_per_hit_view():
+    s = _quad_scene()
+    geo, _ = prepare(s)
+    n = np.tile([0.0, 0.0, 1.0], (3, 1))
+    cos = np.array([1.0, 0.5, 0.1])
+    wi = np.stack([np.sqrt(1 - cos ** 2), np.zeros(3), cos], axis=1)
+    sg = sn.ShadingGeometry(geo, n, wi, np.zeros(3, bool))
+    prim, u, v = np.zeros(3, np.int64), np.full(3, 0.2), np.full(3, 0.2)
+    # Facing, blend 0.5: 1 - |cos|; blend 0.25: 1 - |cos|^0.5; blend 0.75: 1 - |cos|^2.
+    for blend, power in ((0.5, 1.0), (0.25, 0.5), (0.75, 2.0)):
+        got = sn.LayerWeight(blend, "FACING").evaluate(sg, prim, u, v)
+        np.testing.assert_allclose(got, 1 - cos ** power, atol=1e-12)
+    # Fresnel at normal incidence: ((eta - 1) / (eta + 1))^2; Layer Weight's eta = 1 / (1 - blend).
+    f = sn.Fresnel(1.5).evaluate(sg, prim, u, v)
+    assert f[0] == pytest.approx(0.04) and f[0] < f[1] < f[2] < 1
+    lw = sn.LayerWeight(0.5, "FRESNEL").evaluate(sg, prim, u, v)
+    assert lw[0] == pytest.approx(1 / 9)
+    # A back face: the ray leaves the denser side (eta inverted): total reflection at 0.1.
+    back = sn.ShadingGeometry(geo, n, wi, np.ones(3, bool))
+    assert sn.Fresnel(1.5).evaluate(back, prim, u, v)[2] == 1.0
+
+
+def test_mix_factor_from_the_view_reaches_the_closures():
+    # Metallic driven by Layer Weight Facing (what a Mix Shader of a Diffuse and a Glossy
+    # BSDF by that factor becomes): 0 seen head-on, near 1 at grazing views.
+    s = _quad_scene(scalar_textures={"metallic": sn.LayerWeight(0.5, "FACING")})
+    geo, table = prepare(s)
+    d = np.array([[0.0, 0.0, -1.0], [np.sqrt(1 - 0.01), 0.0, -0.1]])
+    hit = surface_hit(geo, table, np.zeros(2, np.int64), np.full(2, 0.3), np.full(2, 0.2), d)
+    np.testing.assert_allclose(hit.params[:, pr.M_METALLIC], [0.0, 0.9], atol=1e-9)

@@ -987,7 +987,7 @@ def _highlight_light():
     mb.light("Area", "AREA", (0.0, 2.0, 1.6), 400.0, rotation=(-0.5, 0, 0), size=1.0)
 
 
-@case("textures")
+@case("textures", ours=dict(spp=64))  # a sharp area-light highlight: noisy blocks at 32 spp
 def texture_roughness_map():
     """A Principled floor tile whose Roughness is a Non-Color checker image of glossiness
     (0.9 / 0.2) through an Invert node: roughness 0.1 / 0.8 per texel. Under an area
@@ -1003,7 +1003,7 @@ def texture_roughness_map():
     _highlight_light()
 
 
-@case("textures")
+@case("textures", ours=dict(spp=64))  # a sharp area-light highlight: noisy blocks at 32 spp
 def texture_metallic_map():
     """A Principled tile (orange, roughness 0.25) whose Metallic is a Non-Color checker
     image (0.2 / 0.8) through Math Greater Than 0.5: metal and dielectric cells. The
@@ -1019,6 +1019,42 @@ def texture_metallic_map():
     _scalar_map_tile("metal", "Metallic", _data_image("metalmap", (0.2, 0.8)), threshold,
                      **{"Base Color": (0.9, 0.55, 0.25), "Roughness": 0.25})
     _highlight_light()
+
+
+def _mix_by(factor_node, output, **factor_inputs):
+    """A Mix Shader of a blue Diffuse BSDF and a white Glossy BSDF (roughness 0.15), its
+    factor an output of a node of type factor_node."""
+    m, nt, out = _nodes_material("mixed")
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (0.1, 0.25, 0.75, 1.0)
+    g = nt.nodes.new("ShaderNodeBsdfGlossy")
+    g.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1.0)
+    g.inputs["Roughness"].default_value = 0.15
+    fac = nt.nodes.new(factor_node)
+    for k, v in factor_inputs.items():
+        fac.inputs[k].default_value = v
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(fac.outputs[output], mix.inputs["Fac"])
+    nt.links.new(d.outputs[0], mix.inputs[1])
+    nt.links.new(g.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return m
+
+
+@case("textures")
+def texture_mix_layer_weight():
+    """Mix Shader of a blue Diffuse and a white Glossy BSDF by Layer Weight Facing (blend
+    0.3): the ball is diffuse blue where it faces the camera and glossy towards its rim,
+    as Cycles evaluates the factor per hit from the view direction; the factor's own
+    value (0.5) gives an even mix everywhere."""
+    _ball_scene(lambda: _mix_by("ShaderNodeLayerWeight", "Facing", Blend=0.3))
+
+
+@case("textures")
+def texture_mix_fresnel():
+    """The same Mix Shader by a Fresnel node (IOR 1.45): a thin glossy coat whose
+    reflection grows towards the rim (a plastic set-up of older assets)."""
+    _ball_scene(lambda: _mix_by("ShaderNodeFresnel", "Fac", IOR=1.45))
 
 
 # --- transparency: transparent shadows, alpha cut-outs -------------------------------------
