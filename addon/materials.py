@@ -33,12 +33,13 @@ class Closure:
                  "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
                  "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
                  "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint",
-                 "scalars")
+                 "scalars", "emission_texture")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
              "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
-             "sheen_roughness", "sheen_tint", "transparent_tint", "scalars")
+             "sheen_roughness", "sheen_tint", "transparent_tint", "scalars",
+             "emission_texture")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
@@ -47,7 +48,7 @@ class Closure:
                  coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
                  multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
                  sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0),
-                 transparent_tint=(1.0, 1.0, 1.0), scalars=None):
+                 transparent_tint=(1.0, 1.0, 1.0), scalars=None, emission_texture=None):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -78,6 +79,8 @@ class Closure:
         # Scalar inputs driven by a node per hit ({field: engine node}, engine
         # Material.scalar_textures); the field's constant is then only its fallback.
         self.scalars = dict(scalars) if scalars else {}
+        # A colour node multiplied onto `emission` per hit (Emission Color textures).
+        self.emission_texture = emission_texture
 
     @property
     def is_clear(self) -> bool:
@@ -118,6 +121,23 @@ def _weighted(sn, wa, xa, wb, xb):
     return sn.Math("ADD", terms[0], terms[1])
 
 
+def _emission_mix(sn, wa, a: Closure, wb, b: Closure):
+    """(emission, emission texture or None) of wa * emission(a) + wb * emission(b), a
+    side's emission being its constant times its texture (a Mix Color per hit)."""
+    ea, eb = wa * a.emission, wb * b.emission
+    if a.emission_texture is None and b.emission_texture is None:
+        return ea + eb, None
+    if not np.any(eb > 0) or not np.any(ea > 0):
+        # One side emits: its constant and its texture (the other adds nothing).
+        c, e = (a, ea) if np.any(ea > 0) else (b, eb)
+        return e, c.emission_texture
+    # Both emit: sum the two colours per hit, with unit emission outside.
+    def colour(c, e):
+        return e if c.emission_texture is None else sn.MixColor(1.0, c.emission_texture, e,
+                                                                "MULTIPLY")
+    return np.ones(3), sn.MixColor(1.0, colour(a, ea), colour(b, eb), "ADD")
+
+
 def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     """Mix two closures with weights wa, wb (wa + wb = 1 for Mix Shader).
 
@@ -129,7 +149,7 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         out.alpha = wa * a.alpha + wb * b.alpha
     else:
         out.alpha, out.alpha_texture = _alpha_mix(sn, wa, a, wb, b)
-    out.emission = wa * a.emission + wb * b.emission
+    out.emission, out.emission_texture = _emission_mix(sn, wa, a, wb, b)
     # The transparent shares add up as colours (Cycles sums the transparent closures'
     # weights): tint = (wa (1 - alpha_a) tint_a + wb (1 - alpha_b) tint_b) / (1 - alpha).
     pa, pb = wa * (1.0 - a.alpha), wb * (1.0 - b.alpha)
@@ -242,7 +262,9 @@ class MaterialConverter:
             multiscatter=closure.multiscatter, node=closure.node,
             glossy_color=(None if closure.glossy_color is None
                           else np.clip(closure.glossy_color, 0.0, 1.0)),
-            scalar_textures=closure.scalars or None)
+            scalar_textures=closure.scalars or None,
+            emission_texture=(closure.emission_texture
+                              if np.any(closure.emission > 0) else None))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -358,10 +380,8 @@ class MaterialConverter:
             strength = self._float(node, "Emission Strength", 0.0)
             if strength > 0:
                 ecol, etex = self._color(node, "Emission Color")
-                if etex is not None:
-                    self._warn(f"material '{self._mat.name}': texture on 'Emission Color' of "
-                               f"node '{node.name}' is not supported; using white")
                 c.emission = np.asarray(ecol) * strength
+                c.emission_texture = etex  # per hit (None: a constant colour)
             for name in ("Subsurface Weight",):
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
@@ -396,12 +416,9 @@ class MaterialConverter:
                            ior=self._float(node, "IOR", 1.5), scalars=sc)
         if t == "EMISSION":
             col, tex = self._color(node, "Color")
-            if tex is not None:
-                self._warn(f"material '{self._mat.name}': texture on 'Color' of node "
-                           f"'{node.name}' is not supported; using white")
             strength = self._float(node, "Strength", 1.0)
             return Closure(base_color=(0.0, 0.0, 0.0), emission=np.asarray(col) * strength,
-                           has_bsdf=False)
+                           has_bsdf=False, emission_texture=tex)
         if t == "BSDF_TRANSPARENT":
             col, tex = self._color(node, "Color")
             if tex is not None:
@@ -427,8 +444,10 @@ class MaterialConverter:
                     out.alpha_texture = (cover if surf.alpha_texture is None else
                                          sn.Math("MULTIPLY", cover, surf.alpha_texture))
                     if np.any(surf.emission > 0):
-                        self._warn(f"material '{self._mat.name}': emission of a cut-out Mix "
-                                   f"Shader '{node.name}' is not masked by its factor")
+                        # Cycles weights the emission by the factor as well.
+                        out.emission_texture = (cover if surf.emission_texture is None else
+                                                sn.MixColor(1.0, surf.emission_texture, cover,
+                                                            "MULTIPLY"))
                     return out
                 mixed = self._mix_per_hit(a, b, fac)
                 if mixed is not None:
@@ -451,7 +470,8 @@ class MaterialConverter:
                 self._warn(f"material '{self._mat.name}': Add Shader '{node.name}' of two "
                            "surfaces is approximated by an even mix")
                 out = _blend(a, b, 0.5, 0.5, self.pm.shadernodes)
-                out.emission = a.emission + b.emission
+                out.emission, out.emission_texture = _emission_mix(self.pm.shadernodes, 1.0, a,
+                                                                   1.0, b)
                 return out
             out = a if a.has_bsdf else b
             other = b if a.has_bsdf else a
@@ -463,6 +483,8 @@ class MaterialConverter:
                           has_bsdf=out.has_bsdf, normal_map=out.normal_map,
                           alpha_texture=out.alpha_texture,
                           **{k: getattr(out, k) for k in Closure.EXTRA})
+            res.emission, res.emission_texture = _emission_mix(self.pm.shadernodes, 1.0, a,
+                                                               1.0, b)
             return res
         self._unsupported(node)
         return self._viewport(self._mat)

@@ -21,7 +21,7 @@ from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
 from .sampling import dot, max3, normalize
 from .shadernodes import ShadingGeometry
-from .textures import material_alpha, scalar_params
+from .textures import hit_emission, material_alpha, scalar_params
 
 # Lobe names in engine/closures/principled.py's order (its L_* indices).
 LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat", "sheen")
@@ -79,6 +79,7 @@ class SurfaceHit:
     params: np.ndarray | None = None  # (N, principled.N_MAT) closure parameters per hit
                           # where a material has texture-driven scalar inputs
                           # (textures.scalar_params); None: the materials' rows
+    emission: np.ndarray | None = None  # (N,3) emitted radiance (emission textures applied)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -147,7 +148,8 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         alpha = material_alpha(table, sg, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=offset, bary=np.stack([u, v], axis=1), alpha=alpha,
-                      n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v))
+                      n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v),
+                      emission=hit_emission(table, sg, mat, prim, u, v))
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):

@@ -43,6 +43,7 @@ class MaterialTable:
     coat_weight: np.ndarray = None     # (M,)
     sheen_weight: np.ndarray = None    # (M,)
     scalar_textures: list = None  # per material: [(closure column, node, lo, hi)] or None
+    emission_textures: list = None  # per material: colour node on the emission, or None
     diffuse_share: np.ndarray = None   # (M,) (1 - metallic)(1 - transmission) at its
                           # largest over the material's textured values (textures.scalar_ranges)
 
@@ -59,6 +60,7 @@ class MaterialTable:
                    coat_weight=np.array([m.coat_weight for m in materials], np.float64),
                    sheen_weight=np.array([m.sheen_weight for m in materials], np.float64),
                    scalar_textures=[scalar_columns(m) for m in materials],
+                   emission_textures=[m.emission_texture for m in materials],
                    **cols)
 
     @property
@@ -480,7 +482,11 @@ def emissive_triangles(geo: Geometry, table: MaterialTable):
     # Per material first: a per-triangle (T,3) radiance table would cost 24 B a triangle.
     emits = luminance(table.emission) > 0
     idx = np.nonzero(emits[geo.material] & ((geo.visibility & DIFFUSE) != 0))[0]
-    return idx, table.emission[geo.material[idx]], geo.area[idx]
+    L = table.emission[geo.material[idx]]
+    if any(t is not None for t in (table.emission_textures or ())):
+        from .textures import triangle_average_emission
+        L = triangle_average_emission(table, geo, idx, L)
+    return idx, L, geo.area[idx]
 
 
 def _corner_coordinates(meshes) -> dict | None:

@@ -93,6 +93,9 @@ class Material:
     engine.shadernodes.ImageLookup of an image's Alpha, a Math node, ...) whose value per
     hit multiplies `alpha`: alpha cut-outs (leaves, fences) for camera rays, shadow rays
     and photons alike (engine/textures.py, material_alpha).
+    `emission_texture` is an optional colour node multiplied onto `emission` per hit
+    (Emission Color fed by a texture): the camera sees it per hit; as a mesh light each
+    triangle emits its average (geometry.emissive_triangles).
     `scalar_textures` optionally maps scalar inputs (SCALAR_INPUTS: roughness, metallic,
     ...) to nodes evaluated per hit whose value replaces the constant there, camera and
     photon pass alike (engine/textures.py, scalar_params; docs/textures.md).
@@ -124,6 +127,7 @@ class Material:
     normal_map: NormalMap | Bump | None = None
     alpha_texture: object | None = None
     scalar_textures: dict | None = None
+    emission_texture: object | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -141,6 +145,9 @@ class Material:
                     raise SceneError(f"{who} scalar_textures[{key!r}]: expected a node with "
                                      f"evaluate(geo, prim, u, v), got {type(node).__name__}")
         self.scalar_textures = dict(self.scalar_textures) if self.scalar_textures else None
+        if self.emission_texture is not None and not hasattr(self.emission_texture, "evaluate"):
+            raise SceneError(f"{who} emission_texture: expected a node with evaluate(geo, "
+                             f"prim, u, v), got {type(self.emission_texture).__name__}")
         self.base_color = _vec3(self.base_color, f"{who} base_color")
         self.emission = _vec3(self.emission, f"{who} emission")
         if np.any(self.emission < 0):

@@ -347,6 +347,67 @@ def scalar_ranges(table, geo, seed: int = 0):
     table.diffuse_share = share
 
 
+def colour_values(node, geo, prim, u, v) -> np.ndarray:
+    """(N,3) a colour node's value at hits, negative values and NaN as 0 (a value output
+    read as grey)."""
+    rgb = np.asarray(node.evaluate(geo, prim, u, v), np.float64)
+    if rgb.ndim == 1:
+        rgb = np.repeat(rgb[:, None], 3, axis=1)
+    return np.maximum(np.nan_to_num(rgb[:, :3], nan=0.0, posinf=0.0), 0.0)
+
+
+def hit_emission(table, geo, mat, prim, u, v) -> np.ndarray:
+    """(N,3) emitted radiance at hits of materials mat (N,): the material's emission
+    times its emission texture (table.emission_textures) where it has one."""
+    mat = np.asarray(mat, np.int64)
+    out = np.take(table.emission, mat, axis=0)
+    for mi, node in enumerate(getattr(table, "emission_textures", None) or ()):
+        if node is None:
+            continue
+        sel = np.nonzero(mat == mi)[0]
+        if len(sel):
+            out[sel] *= colour_values(node, _rows(geo, sel), prim[sel], u[sel], v[sel])
+    return out
+
+
+EMISSION_SAMPLES = 1 << 18  # texture evaluations shared by a scene's textured emitters
+
+
+def triangle_average_emission(table, geo, idx, L, seed: int = 0) -> np.ndarray:
+    """(len(idx),3) radiance of emissive triangles idx for light sampling and photon
+    emission: L (the material's emission) times the triangle's average emission texture,
+    estimated from stratified points on the triangle (EMISSION_SAMPLES shared by the
+    textured triangles: at least 16 a triangle, at most 1024; seeded). Within a triangle
+    the light and its photons are uniform; the camera sees the texture per hit."""
+    nodes = table.emission_textures
+    mats = geo.material[idx]
+    out = np.array(L, np.float64, copy=True)
+    textured = np.nonzero(np.isin(mats, [i for i, t in enumerate(nodes) if t is not None]))[0]
+    if not len(textured):
+        return out
+    k = int(np.clip(EMISSION_SAMPLES // len(textured), 16, 1024))
+    side = int(np.ceil(np.sqrt(k)))
+    rng = np.random.default_rng(seed)
+    # Stratified points on the unit square (side x side cells), folded into the triangle.
+    gx, gy = np.meshgrid(np.arange(side), np.arange(side))
+    for mi, node in enumerate(nodes):
+        if node is None:
+            continue
+        rows = textured[mats[textured] == mi]
+        for a in range(0, len(rows), max(1, EMISSION_SAMPLES // (side * side))):
+            part = rows[a:a + max(1, EMISSION_SAMPLES // (side * side))]
+            n = len(part)
+            r1 = (gx.ravel()[None, :] + rng.random((n, side * side))) / side
+            r2 = (gy.ravel()[None, :] + rng.random((n, side * side))) / side
+            fold = r1 + r2 > 1.0
+            bu = np.where(fold, 1.0 - r1, r1).ravel()
+            bv = np.where(fold, 1.0 - r2, r2).ravel()
+            prim = np.repeat(idx[part], side * side)
+            rgb = colour_values(node, geo, prim, bu, bv).reshape(n, side * side, 3)
+            out[part] *= rgb.mean(axis=1)
+    return out
+
+
 def as_texture(tex, name: str = "image"):
     """A colour source (anything with evaluate(geo, prim, u, v): ImageTexture,
     ColorAttribute, engine.shadernodes nodes) as given, or an ImageTexture from a bare

@@ -121,3 +121,26 @@ def test_mix_factor_from_the_view_reaches_the_closures():
     d = np.array([[0.0, 0.0, -1.0], [np.sqrt(1 - 0.01), 0.0, -0.1]])
     hit = surface_hit(geo, table, np.zeros(2, np.int64), np.full(2, 0.3), np.full(2, 0.2), d)
     np.testing.assert_allclose(hit.params[:, pr.M_METALLIC], [0.0, 0.9], atol=1e-9)
+
+
+def test_emission_texture_per_hit_and_per_triangle_average_for_the_light():
+    from engine.geometry import emissive_triangles
+    # Emission colour red where u < 0.5, blue elsewhere, strength 2.
+    u_ = sn.SeparateChannel(sn.UVCoord(), 0)
+    colour = sn.MixColor(sn.Math("GREATER_THAN", u_, 0.5), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    s = Scene()
+    s.add_material(Material("e", (0, 0, 0), emission=(2.0, 2.0, 2.0), emission_texture=colour))
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    # Triangle 0 (x >= y) is three quarters blue (x > 0.5), triangle 1 one quarter.
+    s.add_mesh(Mesh("quad", v, np.array([[0, 1, 2], [0, 2, 3]]), uvs=v[:, :2],
+                    materials=["e"]))
+    geo, table = prepare(s)
+    prim = np.zeros(2, np.int64)
+    hit = surface_hit(geo, table, prim, np.array([0.1, 0.7]), np.array([0.05, 0.1]),
+                      np.tile([0.0, 0.0, -1.0], (2, 1)))
+    np.testing.assert_allclose(hit.emission, [[2, 0, 0], [0, 0, 2]])
+    idx, L, _ = emissive_triangles(geo, table)
+    np.testing.assert_allclose(L[idx == 0][0], [0.5, 0, 1.5], atol=0.03)
+    np.testing.assert_allclose(L[idx == 1][0], [1.5, 0, 0.5], atol=0.03)
+    with pytest.raises(SceneError, match="'m' emission_texture"):
+        Material("m", emission_texture=(1, 0, 0))
