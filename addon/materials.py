@@ -32,12 +32,14 @@ class Closure:
                  "emission", "alpha", "texture", "has_bsdf", "normal_map", "alpha_texture",
                  "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
                  "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
-                 "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint")
+                 "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint",
+                 "scalars", "emission_texture")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
              "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
-             "sheen_roughness", "sheen_tint", "transparent_tint")
+             "sheen_roughness", "sheen_tint", "transparent_tint", "scalars",
+             "emission_texture")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
@@ -46,7 +48,7 @@ class Closure:
                  coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
                  multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
                  sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0),
-                 transparent_tint=(1.0, 1.0, 1.0)):
+                 transparent_tint=(1.0, 1.0, 1.0), scalars=None, emission_texture=None):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -74,6 +76,11 @@ class Closure:
         # Colour of the transparent share (1 - alpha): a Transparent BSDF's Color.
         self.transparent_tint = np.asarray(transparent_tint, dtype=np.float64)[:3]
         self.alpha_texture = alpha_texture  # per-hit factor on alpha (engine node) or None
+        # Scalar inputs driven by a node per hit ({field: engine node}, engine
+        # Material.scalar_textures); the field's constant is then only its fallback.
+        self.scalars = dict(scalars) if scalars else {}
+        # A colour node multiplied onto `emission` per hit (Emission Color textures).
+        self.emission_texture = emission_texture
 
     @property
     def is_clear(self) -> bool:
@@ -96,6 +103,41 @@ def _alpha_mix(sn, wa, a: Closure, wb, b: Closure):
     return 1.0, sn.Math("ADD", terms[0], terms[1], clamp=True)
 
 
+def _weighted(sn, wa, xa, wb, xb):
+    """wa xa + wb xb, where xa and xb are constants or engine nodes (then a Math tree of
+    engine/shadernodes.py evaluated per hit)."""
+    if not (hasattr(xa, "evaluate") or hasattr(xb, "evaluate")):
+        return wa * xa + wb * xb
+    terms = []
+    for w, x in ((wa, xa), (wb, xb)):
+        if w == 0:
+            continue
+        if hasattr(x, "evaluate"):
+            terms.append(x if w == 1 else sn.Math("MULTIPLY", x, w))
+        else:
+            terms.append(w * x)
+    if len(terms) == 1:
+        return terms[0]
+    return sn.Math("ADD", terms[0], terms[1])
+
+
+def _emission_mix(sn, wa, a: Closure, wb, b: Closure):
+    """(emission, emission texture or None) of wa * emission(a) + wb * emission(b), a
+    side's emission being its constant times its texture (a Mix Color per hit)."""
+    ea, eb = wa * a.emission, wb * b.emission
+    if a.emission_texture is None and b.emission_texture is None:
+        return ea + eb, None
+    if not np.any(eb > 0) or not np.any(ea > 0):
+        # One side emits: its constant and its texture (the other adds nothing).
+        c, e = (a, ea) if np.any(ea > 0) else (b, eb)
+        return e, c.emission_texture
+    # Both emit: sum the two colours per hit, with unit emission outside.
+    def colour(c, e):
+        return e if c.emission_texture is None else sn.MixColor(1.0, c.emission_texture, e,
+                                                                "MULTIPLY")
+    return np.ones(3), sn.MixColor(1.0, colour(a, ea), colour(b, eb), "ADD")
+
+
 def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     """Mix two closures with weights wa, wb (wa + wb = 1 for Mix Shader).
 
@@ -107,7 +149,7 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         out.alpha = wa * a.alpha + wb * b.alpha
     else:
         out.alpha, out.alpha_texture = _alpha_mix(sn, wa, a, wb, b)
-    out.emission = wa * a.emission + wb * b.emission
+    out.emission, out.emission_texture = _emission_mix(sn, wa, a, wb, b)
     # The transparent shares add up as colours (Cycles sums the transparent closures'
     # weights): tint = (wa (1 - alpha_a) tint_a + wb (1 - alpha_b) tint_b) / (1 - alpha).
     pa, pb = wa * (1.0 - a.alpha), wb * (1.0 - b.alpha)
@@ -158,6 +200,15 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         if na + nb > 0:
             out.base_color = ((na * a.base_color + nb * b.base_color) / (na + nb)
                               * (total / (total + da + db)))
+    # Texture-driven scalar inputs blend with the same constant weights, as node trees.
+    for name in set(a.scalars) | set(b.scalars):
+        wa_, wb_ = ta, tb
+        if name == "roughness" and ga + gb > 0:
+            wa_, wb_ = ga / (ga + gb), gb / (ga + gb)
+        val = _weighted(sn, wa_, a.scalars.get(name, getattr(a, name)),
+                        wb_, b.scalars.get(name, getattr(b, name)))
+        if hasattr(val, "evaluate"):
+            out.scalars[name] = val
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
         b.texture if sb > 0 else None)
     # One shading normal per material: the first side's map that has a surface.
@@ -210,7 +261,10 @@ class MaterialConverter:
             sheen_tint=np.clip(closure.sheen_tint, 0.0, None),
             multiscatter=closure.multiscatter, node=closure.node,
             glossy_color=(None if closure.glossy_color is None
-                          else np.clip(closure.glossy_color, 0.0, 1.0)))
+                          else np.clip(closure.glossy_color, 0.0, 1.0)),
+            scalar_textures=closure.scalars or None,
+            emission_texture=(closure.emission_texture
+                              if np.any(closure.emission > 0) else None))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -301,30 +355,33 @@ class MaterialConverter:
         inp = node.inputs
         if t == "BSDF_PRINCIPLED":
             base, tex = self._color(node, "Base Color")
+            sc = {}  # texture-driven scalar inputs, evaluated per hit
             c = Closure(base_color=base, texture=tex,
-                        metallic=self._float(node, "Metallic"),
-                        roughness=self._float(node, "Roughness"),
-                        transmission=self._float(node, "Transmission Weight"),
+                        metallic=self._scalar(node, "Metallic", 0.0, "metallic", sc),
+                        roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
+                        transmission=self._scalar(node, "Transmission Weight", 0.0,
+                                                  "transmission", sc),
                         ior=self._float(node, "IOR", 1.5),
                         specular=1.0,
-                        specular_ior_level=self._float(node, "Specular IOR Level", 0.5),
+                        specular_ior_level=self._scalar(node, "Specular IOR Level", 0.5,
+                                                        "specular_ior_level", sc),
                         specular_tint=self._const_color(node, "Specular Tint", (1, 1, 1)),
-                        coat_weight=self._float(node, "Coat Weight", 0.0),
-                        coat_roughness=self._float(node, "Coat Roughness", 0.03),
+                        coat_weight=self._scalar(node, "Coat Weight", 0.0, "coat_weight", sc),
+                        coat_roughness=self._scalar(node, "Coat Roughness", 0.03,
+                                                    "coat_roughness", sc),
                         coat_ior=self._float(node, "Coat IOR", 1.5),
                         coat_tint=self._const_color(node, "Coat Tint", (1, 1, 1)),
-                        sheen_weight=self._float(node, "Sheen Weight", 0.0),
-                        sheen_roughness=self._float(node, "Sheen Roughness", 0.5),
+                        sheen_weight=self._scalar(node, "Sheen Weight", 0.0, "sheen_weight", sc),
+                        sheen_roughness=self._scalar(node, "Sheen Roughness", 0.5,
+                                                     "sheen_roughness", sc),
                         sheen_tint=self._const_color(node, "Sheen Tint", (1, 1, 1)),
-                        multiscatter=self._distribution(node))
+                        multiscatter=self._distribution(node), scalars=sc)
             c.alpha, c.alpha_texture = self._factor_input(node, "Alpha", 1.0)
             strength = self._float(node, "Emission Strength", 0.0)
             if strength > 0:
                 ecol, etex = self._color(node, "Emission Color")
-                if etex is not None:
-                    self._warn(f"material '{self._mat.name}': texture on 'Emission Color' of "
-                               f"node '{node.name}' is not supported; using white")
                 c.emission = np.asarray(ecol) * strength
+                c.emission_texture = etex  # per hit (None: a constant colour)
             for name in ("Subsurface Weight",):
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
@@ -340,28 +397,28 @@ class MaterialConverter:
                            normal_map=self._normal(node))
         if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             base, tex = self._color(node, "Color")
+            sc = {}
             return Closure(base_color=base, texture=tex, metallic=1.0, node="glossy",
                            multiscatter=self._distribution(node),
                            normal_map=self._normal(node),
-                           roughness=self._float(node, "Roughness"))
+                           roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
+                           scalars=sc)
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
             if t == "BSDF_REFRACTION":
                 self._warn(f"material '{self._mat.name}': Refraction BSDF '{node.name}' is "
                            "approximated by a Glass BSDF (it also reflects)")
+            sc = {}
             return Closure(base_color=base, texture=tex, transmission=1.0, specular=1.0,
                            node="glass", multiscatter=self._distribution(node),
                            normal_map=self._normal(node),
-                           roughness=self._float(node, "Roughness"),
-                           ior=self._float(node, "IOR", 1.5))
+                           roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
+                           ior=self._float(node, "IOR", 1.5), scalars=sc)
         if t == "EMISSION":
             col, tex = self._color(node, "Color")
-            if tex is not None:
-                self._warn(f"material '{self._mat.name}': texture on 'Color' of node "
-                           f"'{node.name}' is not supported; using white")
             strength = self._float(node, "Strength", 1.0)
             return Closure(base_color=(0.0, 0.0, 0.0), emission=np.asarray(col) * strength,
-                           has_bsdf=False)
+                           has_bsdf=False, emission_texture=tex)
         if t == "BSDF_TRANSPARENT":
             col, tex = self._color(node, "Color")
             if tex is not None:
@@ -380,19 +437,25 @@ class MaterialConverter:
                     surf = b if a.is_clear else a
                     cover = fac if a.is_clear else sn.Math("SUBTRACT", 1.0, fac)
                     cover = sn.Math("MULTIPLY", cover, 1.0, clamp=True)
-                    out = _blend(surf, surf, 1.0, 0.0)  # a copy of surf
+                    out = _blend(surf, surf, 1.0, 0.0, sn)  # a copy of surf
                     out.alpha = surf.alpha
                     clear = a if a.is_clear else b
                     out.transparent_tint = clear.transparent_tint.copy()
                     out.alpha_texture = (cover if surf.alpha_texture is None else
                                          sn.Math("MULTIPLY", cover, surf.alpha_texture))
                     if np.any(surf.emission > 0):
-                        self._warn(f"material '{self._mat.name}': emission of a cut-out Mix "
-                                   f"Shader '{node.name}' is not masked by its factor")
+                        # Cycles weights the emission by the factor as well.
+                        out.emission_texture = (cover if surf.emission_texture is None else
+                                                sn.MixColor(1.0, surf.emission_texture, cover,
+                                                            "MULTIPLY"))
                     return out
+                mixed = self._mix_per_hit(a, b, fac)
+                if mixed is not None:
+                    return mixed
                 self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes two "
-                           "surfaces by a texture; per-hit mixing is only supported with a "
-                           "Transparent BSDF (cut-outs): using the factor's own value")
+                           "surfaces by a texture, one of them emissive or with alpha; "
+                           "per-hit mixing is supported for opaque surfaces and cut-outs: "
+                           "using the factor's own value")
                 fac = None
             if fac is None:
                 fac = self._float_socket(node, inp[0], 0.5) if not self._source(inp[0]) \
@@ -406,8 +469,9 @@ class MaterialConverter:
             if a.has_bsdf and b.has_bsdf:
                 self._warn(f"material '{self._mat.name}': Add Shader '{node.name}' of two "
                            "surfaces is approximated by an even mix")
-                out = _blend(a, b, 0.5, 0.5)
-                out.emission = a.emission + b.emission
+                out = _blend(a, b, 0.5, 0.5, self.pm.shadernodes)
+                out.emission, out.emission_texture = _emission_mix(self.pm.shadernodes, 1.0, a,
+                                                                   1.0, b)
                 return out
             out = a if a.has_bsdf else b
             other = b if a.has_bsdf else a
@@ -419,9 +483,78 @@ class MaterialConverter:
                           has_bsdf=out.has_bsdf, normal_map=out.normal_map,
                           alpha_texture=out.alpha_texture,
                           **{k: getattr(out, k) for k in Closure.EXTRA})
+            res.emission, res.emission_texture = _emission_mix(self.pm.shadernodes, 1.0, a,
+                                                               1.0, b)
             return res
         self._unsupported(node)
         return self._viewport(self._mat)
+
+    # Lobe parameters that a per-hit Mix Shader factor blends linearly.
+    LINEAR_SCALARS = ("metallic", "specular", "transmission", "specular_ior_level",
+                      "coat_weight", "coat_roughness", "sheen_weight", "sheen_roughness")
+
+    def _mix_per_hit(self, a: Closure, b: Closure, fac):
+        """Mix Shader of two opaque surfaces by a factor evaluated per hit (a texture,
+        Layer Weight, Fresnel): Cycles weights the closures (1 - f) and f (f clamped to
+        [0, 1]); here the lobe parameters blend per hit with the same weights (metallic,
+        specular, transmission, ... as (1 - f) x_a + f x_b, roughness weighted by each
+        side's glossy share, the colour as a Mix Color of the two sides' colours), which
+        is exact for a diffuse and a glossy or Principled side. The two sides' distribution
+        and colour model come from their even mix. None when a side is emissive or not
+        opaque (those keep the factor's own value)."""
+        def opaque(c):
+            return (c.has_bsdf and c.alpha == 1.0 and c.alpha_texture is None
+                    and not np.any(c.emission > 0))
+        if not (opaque(a) and opaque(b)):
+            return None
+        sn = self.pm.shadernodes
+        f = sn.Math("MULTIPLY", fac, 1.0, clamp=True)
+        g = sn.Math("SUBTRACT", 1.0, f)
+        out = _blend(a, b, 0.5, 0.5, sn)
+        out.scalars = {}
+
+        def side(c, name):
+            return c.scalars.get(name, getattr(c, name))
+
+        def per_hit(xa, xb):
+            """(1 - f) xa + f xb, or the constant when both sides agree."""
+            if not hasattr(xa, "evaluate") and not hasattr(xb, "evaluate") and xa == xb:
+                return xa
+            return sn.Math("ADD", sn.Math("MULTIPLY", g, xa), sn.Math("MULTIPLY", f, xb))
+        for name in self.LINEAR_SCALARS:
+            val = per_hit(side(a, name), side(b, name))
+            if hasattr(val, "evaluate"):
+                out.scalars[name] = val
+            else:
+                setattr(out, name, val)
+        # Roughness belongs to the glossy lobes: a side without one has no say.
+        ka = a.metallic + a.transmission + a.specular
+        kb = b.metallic + b.transmission + b.specular
+        ra, rb = side(a, "roughness"), side(b, "roughness")
+        if ka > 0 and kb > 0:
+            rough = sn.Math("DIVIDE", per_hit(sn.Math("MULTIPLY", ra, ka),
+                                              sn.Math("MULTIPLY", rb, kb)),
+                            per_hit(ka, kb))
+        else:
+            rough = ra if ka > 0 else rb
+        if hasattr(rough, "evaluate"):
+            out.scalars["roughness"] = rough
+        else:
+            out.roughness = float(rough)
+
+        def colour(c):
+            if c.texture is None:
+                return c.base_color
+            return sn.MixColor(1.0, c.texture, c.base_color, "MULTIPLY")
+        one_glossy = out.node == "glossy" and (a.metallic > 0) != (b.metallic > 0)
+        same = (a.texture is None and b.texture is None
+                and np.allclose(a.base_color, b.base_color))
+        if not one_glossy and not same:
+            # The colour per hit (the Glossy BSDF colour model keeps each side's colour in
+            # its own lobe when one side is the glossy one: nothing to mix there).
+            out.base_color = np.ones(3)
+            out.texture = sn.MixColor(f, colour(a), colour(b))
+        return out
 
     def _normal(self, node):
         """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an
@@ -492,6 +625,20 @@ class MaterialConverter:
         if hasattr(val, "evaluate"):
             return 1.0, val
         return (float(val) if np.ndim(val) == 0 else float(np.mean(val))), None
+
+    def _scalar(self, node, name, default, field, texture_inputs) -> float:
+        """A scalar BSDF input (Roughness, Metallic, ...): its constant; when a texture or
+        node tree drives it, that engine node goes into texture_inputs[field] (evaluated
+        per hit: engine Material.scalar_textures) and the socket's own value is returned
+        as the fallback."""
+        s = node.inputs.get(name)
+        if s is None:
+            return float(default)
+        val = self._input(node, s, 0)
+        if hasattr(val, "evaluate"):
+            texture_inputs[field] = val
+            val = self._default(s)
+        return float(val) if np.ndim(val) == 0 else float(np.mean(val))
 
     def _float(self, node, name, default=0.0) -> float:
         s = node.inputs.get(name)
@@ -700,6 +847,14 @@ class MaterialConverter:
                               output="FAC" if oname == "Fac" else "COLOR")
         if t in ("TEX_NOISE", "TEX_VORONOI"):
             return self._procedural(n, oname, depth)
+        if t in ("LAYER_WEIGHT", "FRESNEL"):
+            if n.inputs.get("Normal") is not None and self._source(n.inputs["Normal"]):
+                self._warn(f"material '{self._mat.name}': the 'Normal' input of "
+                           f"'{n.name}' is not supported; using the surface normal")
+            if t == "FRESNEL":
+                return sn.Fresnel(self._input(n, n.inputs["IOR"], depth))
+            return sn.LayerWeight(self._input(n, n.inputs["Blend"], depth),
+                                  output="FACING" if oname == "Facing" else "FRESNEL")
         return None
 
     def _procedural(self, n, oname, depth):

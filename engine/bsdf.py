@@ -20,7 +20,8 @@ from .closures import principled as pr
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
 from .sampling import dot, max3, normalize
-from .textures import material_alpha
+from .shadernodes import ShadingGeometry
+from .textures import hit_emission, material_alpha, scalar_params
 
 # Lobe names in engine/closures/principled.py's order (its L_* indices).
 LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat", "sheen")
@@ -75,6 +76,10 @@ class SurfaceHit:
     n_smooth: np.ndarray | None = None  # (N,3) the smooth shading normal before Normal Map /
                           # Bump nodes, on ns's side, where one bent ns (else ns itself);
                           # None: no bent normal in the batch (normalmap.bump_shadowing)
+    params: np.ndarray | None = None  # (N, principled.N_MAT) closure parameters per hit
+                          # where a material has texture-driven scalar inputs
+                          # (textures.scalar_params); None: the materials' rows
+    emission: np.ndarray | None = None  # (N,3) emitted radiance (emission textures applied)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -122,6 +127,9 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
         sign = np.where(front, 1.0, -1.0)[:, None]
         n_smooth = np.where(bent[:, None], n_smooth * sign, ns)
     wo = -d
+    # What view-dependent nodes (Layer Weight, Fresnel) read: Cycles' sd->N (the smooth
+    # normal on the ray's side) and sd->wi, row for row with prim.
+    sg = ShadingGeometry(geo, ns if n_smooth is None else n_smooth, wo, ~front)
     for mi, tex in enumerate(table.textures):
         if tex is None:
             continue
@@ -131,16 +139,17 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
             # albedo above 1, the metal / glass lobes clip it themselves
             # (closures/principled.py); photons carry it in their power (Russian
             # roulette probabilities stay <= 1, engine/photons.py).
-            rgb = tex.evaluate(geo, prim[sel], u[sel], v[sel])
+            rgb = tex.evaluate(sg.rows(sel), prim[sel], u[sel], v[sel])
             if rgb.ndim == 1:  # a value (factor) into a colour: grey
                 rgb = rgb[:, None]
             base[sel] = base[sel] * np.maximum(rgb, 0.0)
     alpha = None
     if table.alpha_textures and any(t is not None for t in table.alpha_textures):
-        alpha = material_alpha(table, geo, mat, prim, u, v)
+        alpha = material_alpha(table, sg, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=offset, bary=np.stack([u, v], axis=1), alpha=alpha,
-                      n_smooth=n_smooth)
+                      n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v),
+                      emission=hit_emission(table, sg, mat, prim, u, v))
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):
@@ -149,8 +158,12 @@ def closures(table: MaterialTable, hit: SurfaceHit):
     lobe (N, len(LOBE_NAMES), 3)). Cached on the hit."""
     if hit.prm is None or hit.lobe_albedo is None:
         cos_o = np.einsum("ij,ij->i", hit.ns, hit.wo)
-        hit.prm, hit.lobe_albedo = pr.setup_np(table.closure_params, hit.mat, hit.base, cos_o,
-                                               hit.front, _hit_alpha(table, hit))
+        if hit.params is None:
+            params, rows = table.closure_params, hit.mat
+        else:  # texture-driven scalar inputs: one parameter row per hit
+            params, rows = hit.params, np.arange(len(hit.mat))
+        hit.prm, hit.lobe_albedo = pr.setup_np(params, rows, hit.base, cos_o, hit.front,
+                                               _hit_alpha(table, hit))
     return hit.prm, hit.lobe_albedo
 
 

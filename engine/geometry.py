@@ -42,6 +42,10 @@ class MaterialTable:
     closure_params: np.ndarray = None  # (M, principled.N_MAT): the closures' columns
     coat_weight: np.ndarray = None     # (M,)
     sheen_weight: np.ndarray = None    # (M,)
+    scalar_textures: list = None  # per material: [(closure column, node, lo, hi)] or None
+    emission_textures: list = None  # per material: colour node on the emission, or None
+    diffuse_share: np.ndarray = None   # (M,) (1 - metallic)(1 - transmission) at its
+                          # largest over the material's textured values (textures.scalar_ranges)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -55,12 +59,19 @@ class MaterialTable:
                    closure_params=closure_params(materials),
                    coat_weight=np.array([m.coat_weight for m in materials], np.float64),
                    sheen_weight=np.array([m.sheen_weight for m in materials], np.float64),
+                   scalar_textures=[scalar_columns(m) for m in materials],
+                   emission_textures=[m.emission_texture for m in materials],
                    **cols)
 
     @property
+    def has_scalar_textures(self) -> bool:
+        return any(x is not None for x in (self.scalar_textures or ()))
+
+    @property
     def has_diffuse(self) -> np.ndarray:
-        return ((1 - self.metallic) * (1 - self.transmission) * self.alpha
-                * self.base_color.max(axis=1)) > 0
+        share = (self.diffuse_share if self.diffuse_share is not None
+                 else (1 - self.metallic) * (1 - self.transmission))
+        return (share * self.alpha * self.base_color.max(axis=1)) > 0
 
     @property
     def has_specular(self) -> np.ndarray:
@@ -75,6 +86,21 @@ class MaterialTable:
         """(M,) bool: materials whose alpha varies per hit (an alpha texture)."""
         nodes = self.alpha_textures or [None] * len(self.alpha)
         return np.array([n is not None for n in nodes], bool)
+
+
+def scalar_columns(m: Material):
+    """[(closure_params column, node, lo, hi)] of a material's texture-driven scalar
+    inputs (Material.scalar_textures; lo, hi: Cycles' clamp), or None."""
+    if not m.scalar_textures:
+        return None
+    from .closures import principled as pr
+    from .scene import SCALAR_INPUTS
+    col = {"roughness": pr.M_ROUGH, "metallic": pr.M_METALLIC, "specular": pr.M_SPEC,
+           "transmission": pr.M_TRANS,
+           "specular_ior_level": pr.M_LEVEL, "coat_weight": pr.M_COAT_W,
+           "coat_roughness": pr.M_COAT_ROUGH, "sheen_weight": pr.M_SHEEN_W,
+           "sheen_roughness": pr.M_SHEEN_ROUGH}
+    return [(col[k], node, *SCALAR_INPUTS[k]) for k, node in m.scalar_textures.items()]
 
 
 def closure_params(materials: list[Material]) -> np.ndarray:
@@ -441,6 +467,9 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         corner_colors=np.concatenate(ccols) if ccols else None,
         corner_coordinates=_corner_coordinates(meshes),
     )
+    # Texture-driven scalar inputs: one value per material for the effect analysis.
+    from .textures import scalar_ranges
+    scalar_ranges(table, geo)
     return geo, table
 
 
@@ -453,7 +482,11 @@ def emissive_triangles(geo: Geometry, table: MaterialTable):
     # Per material first: a per-triangle (T,3) radiance table would cost 24 B a triangle.
     emits = luminance(table.emission) > 0
     idx = np.nonzero(emits[geo.material] & ((geo.visibility & DIFFUSE) != 0))[0]
-    return idx, table.emission[geo.material[idx]], geo.area[idx]
+    L = table.emission[geo.material[idx]]
+    if any(t is not None for t in (table.emission_textures or ())):
+        from .textures import triangle_average_emission
+        L = triangle_average_emission(table, geo, idx, L)
+    return idx, L, geo.area[idx]
 
 
 def _corner_coordinates(meshes) -> dict | None:

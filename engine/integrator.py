@@ -364,7 +364,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 break
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
-                Le = ctx.table.emission[y.mat]
+                Le = y.emission
                 if np.any(Le > 0):
                     E[idx] += tp * math.pi * Le / G
             w = lobe_weights(ctx.table, y)
@@ -803,7 +803,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             facing = np.where(hit.front, 1.0, -1.0)
             for c in range(3):
                 acc.normal[:, c] += acc._bins(pix, hit.ns[:, c] * facing)
-        Le = ctx.table.emission[hit.mat]
+        Le = hit.emission
         if np.any(Le > 0):
             if bounce > 0:
                 Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b)[:, None]

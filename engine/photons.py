@@ -27,6 +27,7 @@ from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
 from . import photonkernels as pk
 from .bsdf import LOBE_NAMES, surface_hit
+from .closures.principled import M_IOR
 from .normalmap import bump_shadowing
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
 from .sampling import max3
@@ -152,6 +153,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         _, prim, u, v = accel.intersect(o, d)
         surf = pk.surface_arrays(m)
         bump = np.ones(m)
+        params, mat_ior = table.closure_params, table.ior
         if numpy_hits:
             rows = np.nonzero(prim >= 0)[0]
             hit = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
@@ -163,13 +165,20 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                 # Bent normals (Normal Map / Bump): the diffuse lobe takes Cycles' bump
                 # shadowing term for the arriving direction, stored and bounced alike.
                 bump[rows] = bump_shadowing(hit.n_smooth, hit.ns, -d[rows])
+            if hit.params is not None:
+                # Texture-driven scalar inputs: the scatter kernel reads one parameter row
+                # per photon (its "material" index is its own row).
+                params = np.zeros((m, table.closure_params.shape[1]))
+                params[rows] = hit.params
+                surf[4][:] = np.arange(m)
+                mat_ior = np.ascontiguousarray(params[:, M_IOR])
         else:
             pk.photon_surfaces(prim, u, v, d, geo.v0, geo.e1, geo.e2, normals, geo.material,
                                table.base_color, table.alpha, *surf)
         store = pk.store_arrays(m)
         nxt = pk.next_arrays(2 * m if vis_on else m)
         n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, prim, *surf, bump,
-                                table.closure_params, table.ior, geo.visibility,
+                                params, mat_ior, geo.visibility,
                                 geo.object_id, caster, mode, bool(caustic_only), vis_on,
                                 *store, *nxt)
         if n_st:
@@ -183,7 +192,8 @@ def _needs_numpy_hits(table) -> bool:
     """Surface data from bsdf.surface_hit (numpy texture, normal-map and alpha-texture
     evaluation) rather than the photon_surfaces kernel."""
     return any(x is not None for lst in (table.textures, table.normal_maps,
-                                         table.alpha_textures) for x in (lst or ()))
+                                         table.alpha_textures, table.scalar_textures)
+               for x in (lst or ()))
 
 
 def _k(n: int) -> str:

@@ -93,6 +93,12 @@ class Material:
     engine.shadernodes.ImageLookup of an image's Alpha, a Math node, ...) whose value per
     hit multiplies `alpha`: alpha cut-outs (leaves, fences) for camera rays, shadow rays
     and photons alike (engine/textures.py, material_alpha).
+    `emission_texture` is an optional colour node multiplied onto `emission` per hit
+    (Emission Color fed by a texture): the camera sees it per hit; as a mesh light each
+    triangle emits its average (geometry.emissive_triangles).
+    `scalar_textures` optionally maps scalar inputs (SCALAR_INPUTS: roughness, metallic,
+    ...) to nodes evaluated per hit whose value replaces the constant there, camera and
+    photon pass alike (engine/textures.py, scalar_params; docs/textures.md).
     """
 
     name: str = "default"
@@ -120,6 +126,8 @@ class Material:
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
     normal_map: NormalMap | Bump | None = None
     alpha_texture: object | None = None
+    scalar_textures: dict | None = None
+    emission_texture: object | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -128,6 +136,18 @@ class Material:
             raise SceneError(f"{who} alpha_texture: expected a node with evaluate(geo, prim, "
                              f"u, v) (engine.shadernodes), got "
                              f"{type(self.alpha_texture).__name__}")
+        if self.scalar_textures:
+            for key, node in self.scalar_textures.items():
+                if key not in SCALAR_INPUTS:
+                    raise SceneError(f"{who} scalar_textures: unknown input {key!r} "
+                                     f"(expected one of {', '.join(SCALAR_INPUTS)})")
+                if not hasattr(node, "evaluate"):
+                    raise SceneError(f"{who} scalar_textures[{key!r}]: expected a node with "
+                                     f"evaluate(geo, prim, u, v), got {type(node).__name__}")
+        self.scalar_textures = dict(self.scalar_textures) if self.scalar_textures else None
+        if self.emission_texture is not None and not hasattr(self.emission_texture, "evaluate"):
+            raise SceneError(f"{who} emission_texture: expected a node with evaluate(geo, "
+                             f"prim, u, v), got {type(self.emission_texture).__name__}")
         self.base_color = _vec3(self.base_color, f"{who} base_color")
         self.emission = _vec3(self.emission, f"{who} emission")
         if np.any(self.emission < 0):
@@ -193,6 +213,14 @@ class Material:
 # Principled BSDF, Glossy BSDF (colour = constant reflectance), Glass / Refraction BSDF
 # (colour tints reflection and refraction).
 MATERIAL_NODES = ("principled", "glossy", "glass")
+
+# Scalar inputs a node may drive per hit (Material.scalar_textures), with the range
+# Cycles clamps them to (svm/closure.h: saturatef, or fmaxf(x, 0) for the weights and the
+# specular IOR level).
+SCALAR_INPUTS = {"roughness": (0.0, 1.0), "metallic": (0.0, 1.0), "specular": (0.0, 1.0),
+                 "transmission": (0.0, 1.0), "specular_ior_level": (0.0, np.inf),
+                 "coat_weight": (0.0, np.inf), "coat_roughness": (0.0, 1.0),
+                 "sheen_weight": (0.0, np.inf), "sheen_roughness": (0.0, 1.0)}
 
 
 # The paper's predefined materials (Figures 3-4), in our lobe model.

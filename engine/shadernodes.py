@@ -446,3 +446,93 @@ class Voronoi:
             np.ascontiguousarray(pts), *ins, dist, color, position, w_out, radius)
         return {"DISTANCE": dist, "COLOR": color, "POSITION": position, "W": w_out,
                 "RADIUS": radius}[self.output]
+
+
+class ShadingGeometry:
+    """A Geometry seen from a batch of hits: every attribute of `geo`, plus what the
+    view-dependent nodes (LayerWeight, Fresnel) read per hit, row for row with the
+    batch's prim, u, v:
+      n           (N,3) Cycles' sd->N: the smooth shading normal (before Normal Map /
+                  Bump nodes) turned to the side the ray arrived from
+      wi          (N,3) unit direction back along the arriving ray (Cycles' sd->wi): to
+                  the camera on camera paths, to the light for photons
+      backfacing  (N,) bool: the ray hit the back of the triangle (Cycles' SD_BACKFACING)
+    rows(sel) gives the same for a subset of the hits."""
+
+    def __init__(self, geo, n, wi, backfacing):
+        self._geo = geo
+        self.n = n
+        self.wi = wi
+        self.backfacing = backfacing
+
+    def __getattr__(self, name):
+        return getattr(self._geo, name)
+
+    def rows(self, sel) -> "ShadingGeometry":
+        return ShadingGeometry(self._geo, self.n[sel], self.wi[sel], self.backfacing[sel])
+
+
+def _view(geo, prim):
+    """(n, wi, backfacing) of a batch: the ShadingGeometry's, else (no view known: shadow
+    rays, the effect analysis) the triangles' geometric normal seen head-on from its
+    front."""
+    if isinstance(geo, ShadingGeometry):
+        return geo.n, geo.wi, geo.backfacing
+    ng = np.asarray(geo.ng[np.asarray(prim, np.int64)], np.float64).reshape(-1, 3)
+    return ng, ng, np.zeros(len(ng), bool)
+
+
+def fresnel_dielectric_cos(cosi, eta):
+    """Cycles' fresnel_dielectric_cos (kernel/closure/bsdf_util.h): unpolarised dielectric
+    reflectance for |cosi| and relative IOR eta; 1 under total internal reflection."""
+    c = np.abs(cosi)
+    g = eta * eta - 1.0 + c * c
+    ok = g > 0
+    g = np.sqrt(np.where(ok, g, 1.0))
+    a = (g - c) / (g + c)
+    b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+    return np.where(ok, 0.5 * a * a * (1.0 + b * b), 1.0)
+
+
+class LayerWeight:
+    """Layer Weight node (Cycles' svm_node_layer_weight), output FRESNEL or FACING, with
+    the Normal input unlinked (sd->N):
+      Fresnel  fresnel_dielectric_cos(wi . N, eta), eta = max(1 - blend, 1e-5), inverted
+               on the front (1 / eta), as is on a back face
+      Facing   1 - |wi . N|^b with b = 2 blend below 0.5 and 0.5 / (1 - blend) above
+               (blend clamped to [0, 1 - 1e-5]; b = 1 at 0.5)."""
+
+    def __init__(self, blend=0.5, output="FRESNEL"):
+        if output not in ("FRESNEL", "FACING"):
+            raise ValueError(f"Layer Weight output: expected FRESNEL or FACING, got {output!r}")
+        self.blend = blend
+        self.output = output
+
+    def evaluate(self, geo, prim, u, v):
+        blend = _eval(self.blend, geo, prim, u, v, 1)
+        n, wi, back = _view(geo, prim)
+        cos = np.einsum("ij,ij->i", wi, n)
+        if self.output == "FRESNEL":
+            eta = np.maximum(1.0 - blend, 1e-5)
+            eta = np.where(back, eta, 1.0 / eta)
+            return fresnel_dielectric_cos(cos, eta)
+        b = np.clip(blend, 0.0, 1.0 - 1e-5)
+        b = np.where(b < 0.5, 2.0 * b, 0.5 / (1.0 - b))
+        f = np.abs(cos)
+        f = np.where(blend == 0.5, f, f ** b)
+        return 1.0 - f
+
+
+class Fresnel:
+    """Fresnel node (Cycles' svm_node_fresnel), Normal input unlinked: dielectric
+    reflectance fresnel_dielectric_cos(wi . N, eta), eta = max(IOR, 1e-5), inverted on a
+    back face (the ray leaves the medium)."""
+
+    def __init__(self, ior=1.5):
+        self.ior = ior
+
+    def evaluate(self, geo, prim, u, v):
+        eta = np.maximum(_eval(self.ior, geo, prim, u, v, 1), 1e-5)
+        n, wi, back = _view(geo, prim)
+        eta = np.where(back, 1.0 / eta, eta)
+        return fresnel_dielectric_cos(np.einsum("ij,ij->i", wi, n), eta)

@@ -231,6 +231,12 @@ def factor(node, geo, prim, u, v) -> np.ndarray:
     return np.clip(np.nan_to_num(val, nan=0.0), 0.0, 1.0)
 
 
+def _rows(geo, sel):
+    """geo for the hits at rows sel of a batch (a shadernodes.ShadingGeometry carries
+    per-hit view data)."""
+    return geo.rows(sel) if hasattr(geo, "rows") else geo
+
+
 def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.ndarray:
     """(N,) alpha (opacity, Cycles' Principled Alpha) at hits of materials mat (N,) on
     triangles prim with barycentrics u, v: the material's constant alpha (table.alpha)
@@ -247,7 +253,158 @@ def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.nda
             continue
         sel = np.nonzero(mat == mi)[0]
         if len(sel):
-            out[sel] *= factor(node, geo, prim[sel], u[sel], v[sel])
+            out[sel] *= factor(node, _rows(geo, sel), prim[sel], u[sel], v[sel])
+    return out
+
+
+def scalar_values(node, geo, prim, u, v, lo, hi) -> np.ndarray:
+    """(N,) a scalar input's value at hits: the node's value (a colour read as its
+    luminance, Blender's colour-to-float conversion), clamped to [lo, hi] as Cycles clamps
+    that input (svm/closure.h), NaN as lo."""
+    val = np.asarray(node.evaluate(geo, prim, u, v), np.float64)
+    if val.ndim == 2:
+        val = val[:, :3] @ LUMINANCE
+    return np.clip(np.nan_to_num(val, nan=lo, posinf=hi, neginf=lo), lo, hi)
+
+
+def scalar_params(table, geo, mat, prim, u, v):
+    """(N, principled.N_MAT) closure parameter rows of hits of materials mat (N,): the
+    material's row (table.closure_params) with its texture-driven scalar inputs
+    (table.scalar_textures: Roughness, Metallic, ... maps) evaluated at the hits; None
+    when no material has one. The closure set-up reads these rows instead of the
+    material's (bsdf.closures, photons._trace_chunk)."""
+    cols = getattr(table, "scalar_textures", None)
+    if not cols or all(c is None for c in cols):
+        return None
+    mat = np.asarray(mat, np.int64)
+    out = np.take(table.closure_params, mat, axis=0)
+    for mi, entries in enumerate(cols):
+        if entries is None:
+            continue
+        sel = np.nonzero(mat == mi)[0]
+        if not len(sel):
+            continue
+        for col, node, lo, hi in entries:
+            out[sel, col] = scalar_values(node, _rows(geo, sel), prim[sel], u[sel], v[sel],
+                                          lo, hi)
+    return out
+
+
+RANGE_SAMPLES = 4096  # points per material at which scalar_ranges evaluates its maps
+
+
+def scalar_ranges(table, geo, seed: int = 0):
+    """Summarise each texture-driven scalar input over its material's surface for the
+    effect analysis (engine/effects.py reads one value per material): the table's
+    constant columns take the extreme that enables a lobe (metallic, transmission, coat
+    and sheen weights at their largest, roughness and coat roughness at their smallest),
+    and table.diffuse_share the largest (1 - metallic)(1 - transmission). Evaluated at
+    RANGE_SAMPLES uniformly random points of the material's triangles (seeded): an
+    estimate for deciding which effects to trace; the render itself evaluates every hit
+    (scalar_params)."""
+    cols = getattr(table, "scalar_textures", None)
+    if not cols or all(c is None for c in cols) or geo.count == 0:
+        return
+    from .closures import principled as pr
+    rng = np.random.default_rng(seed)
+    share = (1 - table.metallic) * (1 - table.transmission)
+    for mi, entries in enumerate(cols):
+        if entries is None:
+            continue
+        tris = np.nonzero(np.asarray(geo.material) == mi)[0]
+        if not len(tris):
+            continue
+        area = geo.area[tris]
+        pick = rng.choice(len(tris), RANGE_SAMPLES, p=area / area.sum()) \
+            if area.sum() > 0 else rng.integers(0, len(tris), RANGE_SAMPLES)
+        prim = tris[pick]
+        r1, r2 = rng.random(RANGE_SAMPLES), rng.random(RANGE_SAMPLES)
+        s = np.sqrt(r1)
+        u, v = s * (1.0 - r2), s * r2  # uniform barycentrics of corners 1 and 2
+        # View-dependent nodes (Layer Weight, Fresnel) see uniformly random directions
+        # over the front hemisphere of the geometric normal.
+        from .shadernodes import ShadingGeometry
+        ng = np.asarray(geo.ng[prim], np.float64)
+        wi = rng.normal(size=(RANGE_SAMPLES, 3))
+        wi /= np.maximum(np.linalg.norm(wi, axis=1, keepdims=True), 1e-300)
+        wi *= np.where(np.einsum("ij,ij->i", wi, ng) < 0, -1.0, 1.0)[:, None]
+        sg = ShadingGeometry(geo, ng, wi, np.zeros(RANGE_SAMPLES, bool))
+        vals = {col: scalar_values(node, sg, prim, u, v, lo, hi)
+                for col, node, lo, hi in entries}
+        metal = vals.get(pr.M_METALLIC, np.full(RANGE_SAMPLES, table.metallic[mi]))
+        trans = vals.get(pr.M_TRANS, np.full(RANGE_SAMPLES, table.transmission[mi]))
+        share[mi] = float(np.max((1 - metal) * (1 - trans)))
+        for col, v_ in vals.items():
+            smallest = col in (pr.M_ROUGH, pr.M_COAT_ROUGH, pr.M_SHEEN_ROUGH)
+            x = float(v_.min() if smallest else v_.max())
+            table.closure_params[mi, col] = x
+            name = {pr.M_ROUGH: "roughness", pr.M_METALLIC: "metallic",
+                    pr.M_TRANS: "transmission", pr.M_COAT_W: "coat_weight",
+                    pr.M_SPEC: "specular",
+                    pr.M_SHEEN_W: "sheen_weight"}.get(col)
+            if name is not None:
+                getattr(table, name)[mi] = x
+    table.diffuse_share = share
+
+
+def colour_values(node, geo, prim, u, v) -> np.ndarray:
+    """(N,3) a colour node's value at hits, negative values and NaN as 0 (a value output
+    read as grey)."""
+    rgb = np.asarray(node.evaluate(geo, prim, u, v), np.float64)
+    if rgb.ndim == 1:
+        rgb = np.repeat(rgb[:, None], 3, axis=1)
+    return np.maximum(np.nan_to_num(rgb[:, :3], nan=0.0, posinf=0.0), 0.0)
+
+
+def hit_emission(table, geo, mat, prim, u, v) -> np.ndarray:
+    """(N,3) emitted radiance at hits of materials mat (N,): the material's emission
+    times its emission texture (table.emission_textures) where it has one."""
+    mat = np.asarray(mat, np.int64)
+    out = np.take(table.emission, mat, axis=0)
+    for mi, node in enumerate(getattr(table, "emission_textures", None) or ()):
+        if node is None:
+            continue
+        sel = np.nonzero(mat == mi)[0]
+        if len(sel):
+            out[sel] *= colour_values(node, _rows(geo, sel), prim[sel], u[sel], v[sel])
+    return out
+
+
+EMISSION_SAMPLES = 1 << 18  # texture evaluations shared by a scene's textured emitters
+
+
+def triangle_average_emission(table, geo, idx, L, seed: int = 0) -> np.ndarray:
+    """(len(idx),3) radiance of emissive triangles idx for light sampling and photon
+    emission: L (the material's emission) times the triangle's average emission texture,
+    estimated from stratified points on the triangle (EMISSION_SAMPLES shared by the
+    textured triangles: at least 16 a triangle, at most 1024; seeded). Within a triangle
+    the light and its photons are uniform; the camera sees the texture per hit."""
+    nodes = table.emission_textures
+    mats = geo.material[idx]
+    out = np.array(L, np.float64, copy=True)
+    textured = np.nonzero(np.isin(mats, [i for i, t in enumerate(nodes) if t is not None]))[0]
+    if not len(textured):
+        return out
+    k = int(np.clip(EMISSION_SAMPLES // len(textured), 16, 1024))
+    side = int(np.ceil(np.sqrt(k)))
+    rng = np.random.default_rng(seed)
+    # Stratified points on the unit square (side x side cells), folded into the triangle.
+    gx, gy = np.meshgrid(np.arange(side), np.arange(side))
+    for mi, node in enumerate(nodes):
+        if node is None:
+            continue
+        rows = textured[mats[textured] == mi]
+        for a in range(0, len(rows), max(1, EMISSION_SAMPLES // (side * side))):
+            part = rows[a:a + max(1, EMISSION_SAMPLES // (side * side))]
+            n = len(part)
+            r1 = (gx.ravel()[None, :] + rng.random((n, side * side))) / side
+            r2 = (gy.ravel()[None, :] + rng.random((n, side * side))) / side
+            fold = r1 + r2 > 1.0
+            bu = np.where(fold, 1.0 - r1, r1).ravel()
+            bv = np.where(fold, 1.0 - r2, r2).ravel()
+            prim = np.repeat(idx[part], side * side)
+            rgb = colour_values(node, geo, prim, bu, bv).reshape(n, side * side, 3)
+            out[part] *= rgb.mean(axis=1)
     return out
 
 

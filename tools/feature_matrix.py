@@ -952,6 +952,141 @@ def texture_node_tree():
     _sun()
 
 
+def _data_image(name, values, n=4):
+    """A packed Non-Color n x n checker image of two grey values (a roughness or metallic
+    map as downloaded PBR assets carry them)."""
+    im = _image(name, _checker(n, 1, *values))
+    im.colorspace_settings.name = "Non-Color"
+    return im
+
+
+def _scalar_map_tile(name, socket, image, between=None, **inputs):
+    """A Principled 'Tile' whose `socket` input is an Image Texture (Closest) of `image`,
+    through the node `between(nt)` returns ((input, output) sockets) when given."""
+    m, nt, out = _nodes_material(name)
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    for k, v in inputs.items():
+        p.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) else v
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    tex.interpolation = "Closest"
+    src = tex.outputs["Color"]
+    if between is not None:
+        into, result = between(nt)
+        nt.links.new(src, into)
+        src = result
+    nt.links.new(src, p.inputs[socket])
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    return m
+
+
+def _highlight_light():
+    """An area light above the far edge of the tile, placed so the camera sees its mirror
+    image in the middle of the tile."""
+    mb.light("Area", "AREA", (0.0, 2.0, 1.6), 400.0, rotation=(-0.5, 0, 0), size=1.0)
+
+
+@case("textures", ours=dict(spp=64))  # a sharp area-light highlight: noisy blocks at 32 spp
+def texture_roughness_map():
+    """A Principled floor tile whose Roughness is a Non-Color checker image of glossiness
+    (0.9 / 0.2) through an Invert node: roughness 0.1 / 0.8 per texel. Under an area
+    light the smooth cells show a sharp highlight and the rough ones a broad dim one, so
+    a roughness read as one constant moves whole cells."""
+    _stage(back=False)
+
+    def invert(nt):
+        inv = nt.nodes.new("ShaderNodeInvert")
+        return inv.inputs["Color"], inv.outputs["Color"]
+    _scalar_map_tile("rough", "Roughness", _data_image("gloss", (0.2, 0.9)), invert,
+                     **{"Base Color": (0.15, 0.15, 0.15), "Roughness": 0.5})
+    _highlight_light()
+
+
+@case("textures", ours=dict(spp=64))  # a sharp area-light highlight: noisy blocks at 32 spp
+def texture_metallic_map():
+    """A Principled tile (orange, roughness 0.25) whose Metallic is a Non-Color checker
+    image (0.2 / 0.8) through Math Greater Than 0.5: metal and dielectric cells. The
+    metal cells reflect the dark world and the light's highlight in orange, the others
+    are orange and matte; a constant metallic makes every cell the same."""
+    _stage(back=False)
+
+    def threshold(nt):
+        gt = nt.nodes.new("ShaderNodeMath")
+        gt.operation = "GREATER_THAN"
+        gt.inputs[1].default_value = 0.5
+        return gt.inputs[0], gt.outputs[0]
+    _scalar_map_tile("metal", "Metallic", _data_image("metalmap", (0.2, 0.8)), threshold,
+                     **{"Base Color": (0.9, 0.55, 0.25), "Roughness": 0.25})
+    _highlight_light()
+
+
+def _mix_by(factor_node, output, **factor_inputs):
+    """A Mix Shader of a blue Diffuse BSDF and a white Glossy BSDF (roughness 0.15), its
+    factor an output of a node of type factor_node."""
+    m, nt, out = _nodes_material("mixed")
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (0.1, 0.25, 0.75, 1.0)
+    g = nt.nodes.new("ShaderNodeBsdfGlossy")
+    g.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1.0)
+    g.inputs["Roughness"].default_value = 0.15
+    fac = nt.nodes.new(factor_node)
+    for k, v in factor_inputs.items():
+        fac.inputs[k].default_value = v
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(fac.outputs[output], mix.inputs["Fac"])
+    nt.links.new(d.outputs[0], mix.inputs[1])
+    nt.links.new(g.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return m
+
+
+@case("textures")
+def texture_mix_layer_weight():
+    """Mix Shader of a blue Diffuse and a white Glossy BSDF by Layer Weight Facing (blend
+    0.3): the ball is diffuse blue where it faces the camera and glossy towards its rim,
+    as Cycles evaluates the factor per hit from the view direction; the factor's own
+    value (0.5) gives an even mix everywhere."""
+    _ball_scene(lambda: _mix_by("ShaderNodeLayerWeight", "Facing", Blend=0.3))
+
+
+@case("textures")
+def texture_mix_fresnel():
+    """The same Mix Shader by a Fresnel node (IOR 1.45): a thin glossy coat whose
+    reflection grows towards the rim (a plastic set-up of older assets)."""
+    _ball_scene(lambda: _mix_by("ShaderNodeFresnel", "Fac", IOR=1.45))
+
+
+@case("textures")
+def texture_emission_color():
+    """An Emission shader whose Color is an image (2 x 2 texels: orange, blue, white,
+    green; Linear: a smooth blend across the panel) on a panel of 8 x 5 quads facing the
+    camera: the camera sees the texture glow per hit, and the floor takes the panel's
+    light in the colours of its parts. As a light (shadow rays, photons) each triangle
+    emits its average colour: on one quad the floor's colour pools would be those of the
+    panel's two halves (block error 0.39 measured)."""
+    import bmesh
+    _stage(back=False)
+    m, nt, out = _nodes_material("screen")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    texels = np.array([[(1.0, 0.45, 0.1), (0.1, 0.3, 1.0)],
+                       [(1.0, 1.0, 1.0), (0.2, 1.0, 0.2)]], np.float32)
+    tex.image = _image("screen", texels)
+    tex.extension = "EXTEND"
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 6.0
+    nt.links.new(tex.outputs["Color"], em.inputs["Color"])
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    me = bpy.data.meshes.new("Panel")
+    bm = bmesh.new()
+    bm.loops.layers.uv.new("UVMap")
+    bmesh.ops.create_grid(bm, x_segments=8, y_segments=5, size=0.5, calc_uvs=True)
+    bmesh.ops.scale(bm, vec=(1.6, 1.0, 1.0), verts=bm.verts)
+    bm.to_mesh(me)
+    bm.free()
+    mb.add_object("Panel", me, m, (0.0, 0.6, 0.9), (math.radians(70), 0, 0))
+
+
 # --- transparency: transparent shadows, alpha cut-outs -------------------------------------
 
 def _leaf_image(n=32):
