@@ -72,6 +72,7 @@ import time  # noqa: E402
 
 from engine.cli import CancelOnInterrupt  # noqa: E402
 from engine.imageio import check_writable, replacing, say_created  # noqa: E402
+from engine.jit import COMPILE_MESSAGE  # noqa: E402
 
 INTERRUPT_MESSAGE = "\ninterrupt: cancelling (Ctrl-C again to stop at once)"
 
@@ -102,10 +103,12 @@ class _StatusPrinter:
 
     def _ensure_bar(self):
         if self.bar is None and not self.quiet:
-            from tqdm import tqdm
-            self.bar = tqdm(total=1000, desc="Starting", file=self.stream, unit="",
-                            bar_format="{desc:<46.46}{bar}| {percentage:3.0f}% "
-                                       "[{elapsed}<{remaining}]")
+            from engine.eta import Eta, progress_bar
+            # The time left from the rate after the kernel compile and the first chunk
+            # (engine/eta.py); tqdm's own {remaining} counted the compile in.
+            self.eta = Eta()
+            self.bar = progress_bar("Starting", "{desc:<46.46}{bar}| {percentage:3.0f}% "
+                                    "[{elapsed}<{eta}]", self.stream, self.eta)
         return self.bar
 
     def __call__(self, event, value):
@@ -120,11 +123,14 @@ class _StatusPrinter:
         elif not self.quiet:
             bar = self._ensure_bar()
             if event == "stats":
+                if str(value).startswith(COMPILE_MESSAGE):
+                    self.eta.restart()
                 bar.set_description_str(str(value), refresh=True)
             elif event == "progress":
+                self.eta.update(float(value))
                 n = int(round(1000 * min(max(float(value), 0.0), 1.0)))
                 if n > bar.n:
-                    bar.update(n - bar.n)  # update(), not n =: tqdm's ETA follows the rate
+                    bar.update(n - bar.n)
 
     def close(self):
         """Close the bar, then print the effect report of a finished render under it (a

@@ -19,6 +19,7 @@ import threading
 
 import numpy as np
 
+from .eta import Eta
 from .settings import ESTIMATORS, METHODS, RenderSettings
 from .teaching import SWEEP_PRESETS
 
@@ -399,18 +400,32 @@ def _render(args) -> int:
     check_writable(args.output, on_create=say_created)
 
     bar = None
+    where = {"stage": "preparing", "fraction": 0.0, "passes": 0}
+    # The bar shows the fraction of the whole render and the time left (engine/eta.py:
+    # measured after the kernel compile and the first chunk, not from the start).
+    passes = args.passes if progressive and not args.dask else None
+    eta = (_TimeLeft(args.time_limit) if progressive and args.time_limit and not passes
+           else Eta())
     if not args.quiet:
-        from tqdm import tqdm
-        bar = tqdm(total=1000, desc="Preparing", unit="", bar_format="{desc:<34}{bar}| {elapsed}",
-                   file=sys.stderr)
-
-    where = {"stage": "preparing", "fraction": 0.0}
+        from .eta import progress_bar
+        bar = progress_bar("Preparing", "{desc:<34.34}{bar}| {percentage:3.0f}% "
+                           "[{elapsed}<{eta}]", sys.stderr, eta)
 
     def progress(stage, fraction, text):
         where["stage"], where["fraction"] = stage, fraction
+        if stage == "compile":
+            eta.restart()
+        whole = _whole_fraction(stage, fraction, settings.uses_photon_maps)
+        if whole is not None and args.dask:
+            whole = fraction  # the cluster reports the fraction of the budget
+        elif whole is not None and progressive:
+            whole = (where["passes"] + whole) / passes if passes else None
+        if whole is not None:
+            eta.update(whole)
         if bar is not None:
-            bar.set_description_str(text)
-            bar.n = int(1000 * fraction)
+            bar.set_description_str(text, refresh=False)
+            if whole is not None and int(1000 * whole) > bar.n:
+                bar.n = int(1000 * whole)
             bar.refresh()
 
     interrupt = CancelOnInterrupt()
@@ -420,6 +435,7 @@ def _render(args) -> int:
             budget = Budget(args.passes or None, args.time_limit, args.target_error)
 
             def on_pass(film, info):
+                where["passes"] = info["passes"]
                 if bar is not None:
                     bar.write(f"pass {info['passes']}: {info['photons']:,} photons, "
                               f"{info['elapsed']:.1f} s, estimated relMSE "
@@ -482,6 +498,42 @@ def _render(args) -> int:
         print(f"wrote {args.output} ({scene.width}x{scene.height}, {settings.spp} spp, "
               f"{st.get('time_total', 0):.1f} s)", file=sys.stderr)
     return 0
+
+
+# Shares of a render's time by stage, for the fraction of the whole render that the bar
+# and the time left follow (as the add-on's bar, addon/engine.py). A stage reports its own
+# fraction 0..1 (each photon shot anew): the whole never moves back (Eta, the bar).
+_STAGE_SPANS = {"photons": (0.0, 0.35), "photon_map": (0.35, 0.05), "render": (0.40, 0.60)}
+
+
+def _whole_fraction(stage, fraction, photon_maps: bool):
+    """The fraction of the whole render at `fraction` of `stage`, None for a stage
+    outside the work (the kernel compile)."""
+    if stage not in _STAGE_SPANS:
+        return None
+    base, span = _STAGE_SPANS[stage] if photon_maps else {"render": (0.0, 1.0)}.get(
+        stage, (0.0, 0.0))
+    return base + span * min(max(float(fraction), 0.0), 1.0)
+
+
+class _TimeLeft:
+    """The time left of a progressive render with only a --time-limit: the limit minus
+    the time since the render started, as its budget counts it (Eta's interface)."""
+
+    def __init__(self, limit: float):
+        import time
+        self.limit, self.clock = float(limit), time.monotonic
+        self.start = self.clock()
+
+    def restart(self):
+        pass
+
+    def update(self, fraction):
+        pass
+
+    def text(self) -> str:
+        from .eta import format_seconds
+        return format_seconds(max(0.0, self.limit - (self.clock() - self.start)))
 
 
 def _stage_text(where) -> str:
