@@ -252,6 +252,9 @@ def render_file(args, interrupt=None) -> str:
     if not os.path.isfile(blend):
         raise BatchError(f"blend file not found: {args.blend}")
     out = os.path.abspath(args.output)
+    if os.path.isdir(out):
+        raise BatchError(f"--output '{args.output}' is a folder: give an image file, e.g. "
+                         f"'{os.path.join(args.output, 'render.png')}'")
     ext = os.path.splitext(out)[1].lower()
     if ext not in FORMATS:
         raise BatchError(f"unsupported output extension '{ext or '(none)'}' "

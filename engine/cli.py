@@ -190,10 +190,13 @@ class CancelOnInterrupt:
         self.message = message
         self.stream = stream or sys.stderr
         self.on_second = on_second
+        # True while a step runs that polls nothing and has nothing to keep (the kernel
+        # compile, a minute): the first Ctrl-C stops at once, as a second one.
+        self.at_once = False
         self._previous = None
 
     def _handler(self, signum, frame):
-        if self.requested:
+        if self.requested or self.at_once:
             if self.on_second is not None:
                 self.on_second()
             raise KeyboardInterrupt
@@ -276,8 +279,16 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
 TEACHING_FORMATS = (".png", ".jpg", ".jpeg")
 
 
+def _not_a_folder(path, ext):
+    """An existing folder as the output: say so (rather than 'unsupported format')."""
+    if os.path.isdir(path):
+        raise ValueError(f"--output '{path}' is a folder: give an image file, e.g. "
+                         f"'{os.path.join(path, 'render' + ext)}'")
+
+
 def _check_teaching_output(path):
     from .imageio import check_writable, say_created
+    _not_a_folder(path, ".png")
     ext = os.path.splitext(path)[1].lower()
     if ext not in TEACHING_FORMATS:
         raise ValueError(f"--output '{path}': unsupported format '{ext or '(none)'}' for a "
@@ -381,6 +392,7 @@ def _render(args) -> int:
     from .progressive import Budget, render_progressive
     from .render import render
 
+    _not_a_folder(args.output, ".png")
     ext = os.path.splitext(args.output)[1].lower()
     if ext not in FORMATS:
         raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
@@ -400,6 +412,7 @@ def _render(args) -> int:
     check_writable(args.output, on_create=say_created)
 
     bar = None
+    interrupt = CancelOnInterrupt()
     where = {"stage": "preparing", "fraction": 0.0, "passes": 0}
     # The bar shows the fraction of the whole render and the time left (engine/eta.py:
     # measured after the kernel compile and the first chunk, not from the start).
@@ -408,11 +421,12 @@ def _render(args) -> int:
            else Eta())
     if not args.quiet:
         from .eta import progress_bar
-        bar = progress_bar("Preparing", "{desc:<34.34}{bar}| {percentage:3.0f}% "
+        bar = progress_bar("Preparing", "{desc:<42.42}{bar}| {percentage:3.0f}% "
                            "[{elapsed}<{eta}]", sys.stderr, eta)
 
     def progress(stage, fraction, text):
         where["stage"], where["fraction"] = stage, fraction
+        interrupt.at_once = stage == "compile"  # polls nothing for a minute
         if stage == "compile":
             eta.restart()
         whole = _whole_fraction(stage, fraction, settings.uses_photon_maps)
@@ -428,7 +442,6 @@ def _render(args) -> int:
                 bar.n = int(1000 * whole)
             bar.refresh()
 
-    interrupt = CancelOnInterrupt()
     should_cancel = (lambda: interrupt.requested)
     try:
         if progressive:
@@ -452,6 +465,14 @@ def _render(args) -> int:
         else:
             with interrupt:
                 film = render(scene, settings, progress=progress, should_cancel=should_cancel)
+    except KeyboardInterrupt:  # a second Ctrl-C, or the first during the kernel compile
+        if bar is not None:
+            bar.close()
+            bar = None
+        again = " (the next run compiles them again)" if where["stage"] == "compile" else ""
+        print(f"photonmap: interrupted while {_stage_text(where)}: '{args.output}' left "
+              f"untouched{again}", file=sys.stderr)
+        return 130
     finally:
         if bar is not None:
             bar.close()
@@ -538,7 +559,9 @@ class _TimeLeft:
 
 def _stage_text(where) -> str:
     names = {"photons": "tracing photons", "photon_map": "building the photon map",
-             "render": "rendering"}
+             "render": "rendering", "compile": "compiling the render kernels"}
+    if where["stage"] in ("compile", "preparing"):
+        return names.get(where["stage"], where["stage"])
     return f"{names.get(where['stage'], where['stage'])} ({100 * where['fraction']:.0f} %)"
 
 

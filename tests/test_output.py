@@ -122,6 +122,16 @@ def test_cli_checks_the_output_path_before_rendering(tmp_path):
     assert len(lines) == 1 and str(blocker) in lines[0], res.stderr  # no progress bar first
 
 
+def test_a_folder_as_the_output_is_named_as_such(tmp_path):
+    for command in ("render", "compare"):
+        res = _cli(command, SCENE, "-o", str(tmp_path), "--spp", "1")
+        assert res.returncode == 1
+        assert res.stderr.strip() == (f"photonmap: error: --output '{tmp_path}' is a folder: "
+                                      f"give an image file, e.g. "
+                                      f"'{tmp_path / 'render.png'}'"), res.stderr
+    assert os.listdir(tmp_path) == []
+
+
 def _interrupted_cli(tmp_path, *extra):
     target = tmp_path / "out.png"
     target.write_bytes(OLD)
@@ -238,3 +248,42 @@ power = 300
         assert alpha[0].max() == 0.0           # sky above the plane: transparent
         assert alpha[-1].min() == 1.0          # the plane in front of the box: opaque
         assert alpha[8, 12] == 0.0             # the holdout box in the middle: a hole
+
+
+def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatch, capsys):
+    """The first render on a machine compiles the kernels for about a minute, polling
+    nothing: a Ctrl-C then stops at once (nothing is finished to keep; the cache is
+    written only after a complete compile) instead of waiting out the compile silently.
+    The compile is simulated: a step that reports the compile stage and then runs."""
+    import importlib
+    import threading
+    import time
+
+    from engine import jit
+    from engine.cli import main
+    render_module = importlib.import_module("engine.render")
+
+    def compiling(progress=None):
+        progress("compile", 0.0, jit.COMPILE_MESSAGE)
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            time.sleep(0.01)  # a signal handler's exception lands here
+        return 60.0
+
+    monkeypatch.setattr(render_module, "ensure_compiled", compiling)
+    target = tmp_path / "out.png"
+    target.write_bytes(OLD)
+    timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
+    t0 = time.monotonic()
+    timer.start()
+    try:
+        rc = main(["render", SCENE, "-o", str(target), "--width", "32", "--height", "24",
+                   "--spp", "1", "--photons", "2000"])
+    finally:
+        timer.cancel()
+    seconds = time.monotonic() - t0
+    err = capsys.readouterr().err
+    assert rc == 130 and seconds < 20, (rc, seconds, err[-1500:])
+    assert "interrupted while compiling the render kernels" in err and "left untouched" in err
+    assert target.read_bytes() == OLD
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
