@@ -95,3 +95,21 @@ def test_cli_bar_shows_the_fraction_of_the_whole_render_and_the_time_left(tmp_pa
                  "24", "--spp", "1", "--photons", "2000"]) == 0
     err = capsys.readouterr().err
     assert re.search(r"100% \[\d\d:\d\d<00:00\]", err), err[-1500:]
+
+
+def test_time_left_follows_the_rate_of_the_current_stage():
+    """Photons advance the add-on's bar fast (35 % in 10 s), the camera pass slowly (65 %
+    in 130 s): the time left within the camera pass follows its own rate, not the
+    average since the start (which promised 30 s where 78 s were left)."""
+    clock = Clock()
+    eta = Eta(clock=clock)
+    eta.update(0.0)
+    for i in range(1, 36):  # photons: 1 % per 0.29 s
+        clock.t = i * 10.0 / 35
+        eta.update(i / 100)
+    for i in range(1, 66):  # camera pass: 1 % per 2 s
+        clock.t = 10.0 + 2.0 * i
+        eta.update((35 + i) / 100)
+        truth = 2.0 * (65 - i)
+        if clock.t > 40.0:  # once the recent window holds only the camera pass
+            assert eta.remaining() == pytest.approx(truth, abs=1e-6), (i, eta.remaining())
