@@ -54,6 +54,18 @@ def _finite_float(text):
     return v
 
 
+EXPOSURE_RANGE = (-32.0, 32.0)  # stops, Blender's (View Transform > Exposure)
+
+
+def _exposure(text):
+    v = _finite_float(text)
+    lo, hi = EXPOSURE_RANGE
+    if not lo <= v <= hi:
+        raise argparse.ArgumentTypeError(f"must be from {lo:g} to {hi:g} stops (as "
+                                         f"Blender's), got {text}")
+    return v
+
+
 def _positive_float(text):
     try:
         v = float(text)
@@ -114,8 +126,8 @@ def _setting_options(r, method=True, sweeps=False):
                    help="the paper's own method: classic estimator (cosine-weighted, fixed "
                         "--radius in scene units, metres), no final gathering "
                         "(docs/paper_mode.md)")
-    r.add_argument("--exposure", type=_finite_float, default=0.0,
-                   help="exposure in stops for PNG/PPM")
+    r.add_argument("--exposure", type=_exposure, default=0.0,
+                   help="exposure in stops for PNG/PPM, -32 to 32")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
