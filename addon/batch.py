@@ -21,8 +21,9 @@ the image is saved only after a complete render, to a temporary file beside the 
 that then replaces it (os.replace). A render that fails, or is interrupted (Ctrl-C /
 SIGINT, from the command's first moment, also while Blender loads: the render is
 cancelled at its next poll, a second Ctrl-C stops at once), writes nothing and leaves an
-existing file as it was. Errors are one line on stderr; exit status 1 for errors, 130
-when interrupted.
+existing file as it was. SIGTERM (a job's timeout, a render farm's cancel) is handled as
+Ctrl-C. Errors are one line on stderr; exit status 1 for errors, 130 when interrupted
+(143 for SIGTERM).
 
 --frames A..B renders every frame from A to B (inclusive) into the output pattern: '#'
 in the name becomes the frame number, zero-padded to the count of '#' (out/f_####.png);
@@ -52,20 +53,22 @@ _early_interrupts: list = []
 
 def _early_interrupt(signum, frame):
     if _early_interrupts:
-        _stop_at_once()
+        _stop_at_once(_early_interrupts[0])
     _early_interrupts.append(signum)
 
 
-def _stop_at_once():
-    """The second Ctrl-C: leave now. The output is only ever replaced whole (a temporary
-    file, then os.replace), so it is the old file or the new one; a KeyboardInterrupt
-    raised inside Blender's C code could crash it instead."""
+def _stop_at_once(signum=signal.SIGINT):
+    """The second Ctrl-C (or SIGTERM): leave now, exit status 128 + the first signal's
+    number. The output is only ever replaced whole (a temporary file, then os.replace),
+    so it is the old file or the new one; a KeyboardInterrupt raised inside Blender's C
+    code could crash it instead."""
     print("\ninterrupt: stopped at once; nothing more is written", file=sys.stderr, flush=True)
-    os._exit(130)
+    os._exit(128 + int(signum))
 
 
 if __name__ == "__main__":
-    signal.signal(signal.SIGINT, _early_interrupt)
+    for _signal in (signal.SIGINT, signal.SIGTERM):  # a job's timeout sends SIGTERM
+        signal.signal(_signal, _early_interrupt)
 
 import argparse  # noqa: E402
 import time  # noqa: E402
@@ -471,11 +474,11 @@ def _untouched(out):
 def main(argv=None) -> int:
     # The command line's Ctrl-C: one handler for the whole run, from before Blender loads
     # (an interrupt that came earlier still, while the modules loaded, counts too).
-    interrupt = CancelOnInterrupt(INTERRUPT_MESSAGE, on_second=_stop_at_once)
+    interrupt = CancelOnInterrupt(INTERRUPT_MESSAGE)
+    interrupt.on_second = lambda: _stop_at_once(interrupt.signum or signal.SIGINT)
     with interrupt:
         if _early_interrupts:
-            interrupt.requested = True
-            print(INTERRUPT_MESSAGE, file=sys.stderr, flush=True)
+            interrupt.request(_early_interrupts[0])
         return _main(argv, interrupt)
 
 
@@ -486,11 +489,11 @@ def _main(argv, interrupt) -> int:
         out = render_file(args, interrupt)
     except BatchInterrupted as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 130
+        return interrupt.status
     except KeyboardInterrupt:
         print(f"error: interrupted; {_untouched(os.path.abspath(args.output))}",
               file=sys.stderr)
-        return 130
+        return interrupt.status
     except BatchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1

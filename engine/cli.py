@@ -5,9 +5,10 @@ photons=1000,10000 -o ladder.png` (or `--preset paper-ladder`).
 
 Errors are one line naming the argument or file, with a non-zero exit status. The output
 path is checked before the render starts, and the image replaces the target only once it
-is completely written (engine/imageio.py). Ctrl-C cancels the render: the target is left
-untouched (exit status 130), or with --keep-partial the finished part is written, marked
-partial in its metadata. A second Ctrl-C stops at once."""
+is completely written (engine/imageio.py). Ctrl-C (or SIGTERM: a job's timeout, a render
+farm's cancel) cancels the render: the target is left untouched (exit status 130; 143 for
+SIGTERM), or with --keep-partial the finished part is written, marked partial in its
+metadata. A second one stops at once, as does the first during the kernel compile."""
 from __future__ import annotations
 
 import argparse
@@ -192,43 +193,61 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 class CancelOnInterrupt:
-    """While active, the first Ctrl-C (SIGINT) only sets `requested`, which the render
-    polls as its should_cancel, and prints `message` to `stream` if one is given; a second
-    one calls on_second() (default: raises KeyboardInterrupt at once). Used by this CLI
-    and by addon/batch.py."""
+    """While active, the first Ctrl-C (SIGINT) or SIGTERM (a job's timeout or a render
+    farm's cancel) only sets `requested`, which the render polls as its should_cancel,
+    and prints `message` to `stream` if one is given; a second one calls on_second()
+    (default: raises KeyboardInterrupt at once). `status` is the exit status of the
+    interrupted command: 128 + the signal's number (130 for Ctrl-C, 143 for SIGTERM).
+    Used by this CLI and by addon/batch.py."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self, message=None, stream=None, on_second=None):
         self.requested = False
+        self.signum = None
         self.message = message
         self.stream = stream or sys.stderr
         self.on_second = on_second
         # True while a step runs that polls nothing and has nothing to keep (the kernel
         # compile, a minute): the first Ctrl-C stops at once, as a second one.
         self.at_once = False
-        self._previous = None
+        self._previous = {}
+        self._depth = 0
 
-    def _handler(self, signum, frame):
-        if self.requested or self.at_once:
-            if self.on_second is not None:
-                self.on_second()
-            raise KeyboardInterrupt
+    @property
+    def status(self) -> int:
+        return 128 + int(self.signum or signal.SIGINT)
+
+    def request(self, signum=signal.SIGINT) -> None:
+        """As if the signal had come now (the batch's interrupts before Blender loaded)."""
         self.requested = True
+        self.signum = self.signum or signum
         if self.message:
             print(self.message, file=self.stream, flush=True)
 
+    def _handler(self, signum, frame):
+        if self.requested or self.at_once:
+            self.signum = self.signum or signum
+            if self.on_second is not None:
+                self.on_second()
+            raise KeyboardInterrupt
+        self.request(signum)
+
     def __enter__(self):
         # Re-entrant: the batch command holds one for its whole run and each render
-        # enters it again; the handler before the outermost entry comes back at its exit.
-        self._depth = getattr(self, "_depth", 0) + 1
+        # enters it again; the handlers before the outermost entry come back at its exit.
+        self._depth += 1
         if self._depth == 1 and threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)  # signals: main only
+            for sig in self.SIGNALS:  # signals: main thread only
+                self._previous[sig] = signal.signal(sig, self._handler)
         return self
 
     def __exit__(self, *exc):
         self._depth -= 1
-        if self._depth == 0 and self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        if self._depth == 0:
+            for sig, previous in self._previous.items():
+                signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+            self._previous = {}
         return False
 
 
@@ -342,7 +361,7 @@ def _teaching_run(args, make_tiles, what):
             tiles = make_tiles(progress, lambda: interrupt.requested)
     except Cancelled:
         print(f"photonmap: interrupted: '{args.output}' left untouched", file=sys.stderr)
-        return 130
+        return interrupt.status
     finally:
         if bar is not None:
             bar.close()
@@ -484,7 +503,7 @@ def _render(args) -> int:
         again = " (the next run compiles them again)" if where["stage"] == "compile" else ""
         print(f"photonmap: interrupted while {_stage_text(where)}: '{args.output}' left "
               f"untouched{again}", file=sys.stderr)
-        return 130
+        return interrupt.status
     finally:
         if bar is not None:
             bar.close()
@@ -498,7 +517,7 @@ def _render(args) -> int:
                   f"'{args.output}' left untouched"
                   + ("" if args.keep_partial else " (--keep-partial writes the finished part)"),
                   file=sys.stderr)
-            return 130
+            return interrupt.status
     for w in film.warnings:
         print(f"photonmap: warning: {w}", file=sys.stderr)
     if not args.quiet:
@@ -515,7 +534,7 @@ def _render(args) -> int:
     if partial is not None:
         print(f"photonmap: interrupted: wrote the partial image to '{args.output}' ({partial}; "
               "marked 'photonmap:partial' in its metadata)", file=sys.stderr)
-        return 130
+        return interrupt.status
     if args.save_passes:
         root, ext = os.path.splitext(args.output)
         for name, img in film.passes().items():

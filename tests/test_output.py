@@ -132,7 +132,7 @@ def test_a_folder_as_the_output_is_named_as_such(tmp_path):
     assert os.listdir(tmp_path) == []
 
 
-def _interrupted_cli(tmp_path, *extra):
+def _interrupted_cli(tmp_path, *extra, sig=signal.SIGINT):
     target = tmp_path / "out.png"
     target.write_bytes(OLD)
     # A grey background: every finished pixel is non-zero, every unfinished one zero.
@@ -146,7 +146,7 @@ def _interrupted_cli(tmp_path, *extra):
                   "--caustic-photons", "10000", *extra], cwd=ROOT) as w:
         # Interrupt once some of the camera pass is finished (the bar shows 'Rendering N%').
         assert w.wait_for(r"Rendering [1-9]\d?%"), w.stderr[-2000:]
-        w.proc.send_signal(signal.SIGINT)
+        w.proc.send_signal(sig)
         return target, w.finish(), w.stderr
 
 
@@ -173,6 +173,19 @@ def test_cli_ctrl_c_with_keep_partial_writes_the_finished_part_marked(tmp_path):
     # Finished pixels run row by row from the top: rows above `rows` are complete (no
     # black pixel), rows below it untouched (black).
     assert img[:rows].sum(axis=2).min() > 0 and img[rows + 1:].max() == 0
+
+
+def test_cli_sigterm_is_a_cancel_as_ctrl_c(tmp_path):
+    """A job's timeout (`timeout 600 photonmap ...`) or a render farm's cancel sends
+    SIGTERM: the render is cancelled as by Ctrl-C (--keep-partial writes the finished
+    part), exit status 143; the process was killed mid-render before, keeping nothing."""
+    from PIL import Image
+    target, rc, err = _interrupted_cli(tmp_path, "--keep-partial", sig=signal.SIGTERM)
+    assert rc == 143, err[-2000:]
+    assert "wrote the partial image" in err and "Traceback" not in err
+    with Image.open(target) as im:
+        assert im.text.get("photonmap:partial", "").startswith("interrupted:")
+    assert _leftovers(tmp_path, {target.name, "grey.toml"}) == []
 
 
 def test_cli_ctrl_c_in_a_progressive_render_keeps_the_finished_passes(tmp_path):
@@ -265,6 +278,7 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
 
     def compiling(progress=None):
         progress("compile", 0.0, jit.COMPILE_MESSAGE)
+        timer.start()  # Ctrl-C 0.3 s into the compile
         end = time.monotonic() + 60
         while time.monotonic() < end:
             time.sleep(0.01)  # a signal handler's exception lands here
@@ -273,9 +287,8 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
     monkeypatch.setattr(render_module, "ensure_compiled", compiling)
     target = tmp_path / "out.png"
     target.write_bytes(OLD)
-    timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
+    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
     t0 = time.monotonic()
-    timer.start()
     try:
         rc = main(["render", SCENE, "-o", str(target), "--width", "32", "--height", "24",
                    "--spp", "1", "--photons", "2000"])

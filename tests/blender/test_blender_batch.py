@@ -56,17 +56,19 @@ def test_batch_quiet_prints_no_bar(tmp_path):
     assert out.is_file()
 
 
-def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path):
+@pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path, sig, status):
+    """Ctrl-C, or SIGTERM (a job's timeout, a render farm's cancel), cancels the render."""
     out = tmp_path / "f6.png"
     out.write_bytes(OLD)
     with Watched([PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure6_box.blend"),
                   "-o", str(out), "--samples", "256", "--resolution-percentage", "25"],
                  cwd=ROOT) as w:
         assert w.wait_for(r"Tracing|Rendering"), w.stderr[-2000:]
-        w.proc.send_signal(signal.SIGINT)
+        w.proc.send_signal(sig)
         rc = w.finish()
     err = w.stderr
-    assert rc == 130, err[-3000:]
+    assert rc == status, err[-3000:]
     assert out.read_bytes() == OLD
     assert "interrupted" in err and "left as it was" in err, err[-2000:]
     assert "Traceback" not in err
