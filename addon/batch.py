@@ -313,8 +313,16 @@ def render_file(args, interrupt=None) -> str:
                                  ("threads", pm, "threads"), ("width", r, "resolution_x"),
                                  ("height", r, "resolution_y"),
                                  ("resolution_percentage", r, "resolution_percentage")):
-        if getattr(args, option) is not None:
-            setattr(target, prop, getattr(args, option))
+        value = getattr(args, option)
+        if value is not None:
+            # The property's own range: Blender clamps a value outside it silently (or,
+            # beyond a 32-bit int, raises): refuse it naming the option instead.
+            rna = target.bl_rna.properties[prop]
+            if not rna.hard_min <= value <= rna.hard_max:
+                raise BatchError(f"--{option.replace('_', '-')} must be from {rna.hard_min:,} "
+                                 f"to {rna.hard_max:,} (Blender's '{rna.name}'), got "
+                                 f"{value:,}")
+            setattr(target, prop, value)
     if args.no_photon_mapping:
         pm.photon_mapping = False
     if args.show_photons:

@@ -169,3 +169,24 @@ def test_batch_interrupted_while_loading_is_a_cancel(tmp_path, library, stage):
                      err), err[-2000:]
     assert "Traceback" not in err and "Fatal" not in err, err[-3000:]
     assert sorted(os.listdir(tmp_path)) == [out.name]
+
+
+@pytest.mark.parametrize("option, value, expected", [
+    ("--photons", "99999999999", "--photons must be from 0 to 2,147,483,647"),  # traceback
+    ("--samples", "100000", "--samples must be from 1 to 65,536"),  # clamped silently
+    ("--threads", "100000", "--threads must be from 0 to 1,024"),
+])
+def test_batch_refuses_values_outside_blenders_range(bpy_addon, tmp_path, option, value,
+                                                     expected):
+    """A value outside the add-on property's range is refused naming the option (Blender
+    clamped it silently, or raised a ValueError traceback beyond a 32-bit int)."""
+    from addon import batch
+    out = tmp_path / "f3.png"
+    args = batch.parse_args([os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out),
+                             option, value, "--quiet"])
+    try:
+        with pytest.raises(batch.BatchError, match=re.escape(expected)):
+            batch.render_file(args)
+        assert not out.exists()
+    finally:
+        bpy_addon.ops.wm.read_homefile(use_empty=True)
