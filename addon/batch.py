@@ -95,8 +95,9 @@ class _StatusPrinter:
     """Listener for addon.engine.status_listeners: a tqdm bar on stderr with the phase,
     the fraction of the whole render and the ETA, then the effect report."""
 
-    def __init__(self, quiet=False, stream=None):
+    def __init__(self, quiet=False, stream=None, interrupt=None):
         self.quiet = quiet
+        self.interrupt = interrupt  # its at_once is set while the kernels compile
         self.stream = stream or sys.stderr
         self.bar = None
         self.status = None  # the engine's "finished" value
@@ -123,7 +124,12 @@ class _StatusPrinter:
             self.effects = list(value)
         elif event == "warning":
             self.warnings.append(str(value))
-        elif not self.quiet:
+        if event in ("stats", "progress") and self.interrupt is not None:
+            # The compile polls nothing for a minute and has nothing to keep: Ctrl-C then
+            # stops at once (engine.cli.CancelOnInterrupt.at_once).
+            self.interrupt.at_once = (event == "stats"
+                                      and str(value).startswith(COMPILE_MESSAGE))
+        if event in ("stats", "progress") and not self.quiet:
             bar = self._ensure_bar()
             if event == "stats":
                 if str(value).startswith(COMPILE_MESSAGE):
@@ -441,9 +447,9 @@ def _render_still(bpy, scene, out, quiet, interrupt=None):
     from addon import engine
     # write_still=True would save whatever the render result holds, also after an error
     # or a cancel (an all-black frame over a good one): save it here, only when complete.
-    printer = _StatusPrinter(quiet=quiet)
     previous_hook = engine.test_break_hook
     interrupt = interrupt or CancelOnInterrupt(INTERRUPT_MESSAGE)
+    printer = _StatusPrinter(quiet=quiet, interrupt=interrupt)
     engine.test_break_hook = lambda: interrupt.requested or bool(previous_hook and previous_hook())
     engine.status_listeners.append(printer)
     try:

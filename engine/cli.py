@@ -349,17 +349,19 @@ def _teaching_run(args, make_tiles, what):
         bar = tqdm(total=1000, desc="Preparing", unit="",
                    bar_format="{desc:<44.44}{bar}| {elapsed}", file=sys.stderr)
 
+    interrupt = CancelOnInterrupt()
+
     def progress(stage, fraction, text):
+        interrupt.at_once = stage == "compile"  # polls nothing for a minute
         if bar is not None:
             bar.set_description_str(text)
             bar.n = int(1000 * fraction)
             bar.refresh()
 
-    interrupt = CancelOnInterrupt()
     try:
         with interrupt:
             tiles = make_tiles(progress, lambda: interrupt.requested)
-    except Cancelled:
+    except (Cancelled, KeyboardInterrupt):
         print(f"photonmap: interrupted: '{args.output}' left untouched", file=sys.stderr)
         return interrupt.status
     finally:

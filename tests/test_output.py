@@ -285,18 +285,20 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
         return 60.0
 
     monkeypatch.setattr(render_module, "ensure_compiled", compiling)
-    target = tmp_path / "out.png"
-    target.write_bytes(OLD)
-    timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-    t0 = time.monotonic()
-    try:
-        rc = main(["render", SCENE, "-o", str(target), "--width", "32", "--height", "24",
-                   "--spp", "1", "--photons", "2000"])
-    finally:
-        timer.cancel()
-    seconds = time.monotonic() - t0
-    err = capsys.readouterr().err
-    assert rc == 130 and seconds < 20, (rc, seconds, err[-1500:])
-    assert "interrupted while compiling the render kernels" in err and "left untouched" in err
-    assert target.read_bytes() == OLD
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+    for command, said in (("render", "interrupted while compiling the render kernels"),
+                          ("compare", "interrupted")):
+        target = tmp_path / "out.png"
+        target.write_bytes(OLD)
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+        t0 = time.monotonic()
+        try:
+            rc = main([command, SCENE, "-o", str(target), "--width", "32", "--height", "24",
+                       "--spp", "1", "--photons", "2000"])
+        finally:
+            timer.cancel()
+        seconds = time.monotonic() - t0
+        err = capsys.readouterr().err
+        assert rc == 130 and seconds < 20, (command, rc, seconds, err[-1500:])
+        assert said in err and "left untouched" in err and "Traceback" not in err, err
+        assert target.read_bytes() == OLD
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored

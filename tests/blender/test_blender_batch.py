@@ -190,3 +190,24 @@ def test_batch_refuses_values_outside_blenders_range(bpy_addon, tmp_path, option
         assert not out.exists()
     finally:
         bpy_addon.ops.wm.read_homefile(use_empty=True)
+
+
+def test_batch_ctrl_c_during_the_kernel_compile_stops_at_once():
+    """While the add-on reports the kernel compile (a minute polling nothing), Ctrl-C
+    stops at once, as a second Ctrl-C does; from the next report on, it cancels."""
+    from addon import batch
+    from engine.cli import CancelOnInterrupt
+    from engine.jit import COMPILE_MESSAGE
+    interrupt = CancelOnInterrupt()
+    stops = []
+    interrupt.on_second = lambda: stops.append(True)
+    printer = batch._StatusPrinter(quiet=True, interrupt=interrupt)
+    printer("stats", "Loading engine")
+    assert not interrupt.at_once
+    printer("stats", COMPILE_MESSAGE)
+    assert interrupt.at_once
+    with pytest.raises(KeyboardInterrupt):
+        interrupt._handler(signal.SIGINT, None)
+    assert stops == [True] and interrupt.status == 130
+    printer("stats", "Exporting 1/4 objects")
+    assert not interrupt.at_once
