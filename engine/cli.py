@@ -471,7 +471,9 @@ def _render(args) -> int:
             eta.update(whole)
         if bar is not None:
             bar.set_description_str(text, refresh=False)
-            if whole is not None and int(1000 * whole) > bar.n:
+            if whole is None:  # no share of the whole known (--target-error): the stage's
+                bar.n = int(1000 * min(max(fraction, 0.0), 1.0))
+            elif int(1000 * whole) > bar.n:
                 bar.n = int(1000 * whole)
             bar.refresh()
 
