@@ -21,8 +21,9 @@ the image is saved only after a complete render, to a temporary file beside the 
 that then replaces it (os.replace). A render that fails, or is interrupted (Ctrl-C /
 SIGINT, from the command's first moment, also while Blender loads: the render is
 cancelled at its next poll, a second Ctrl-C stops at once), writes nothing and leaves an
-existing file as it was. Errors are one line on stderr; exit status 1 for errors, 130
-when interrupted.
+existing file as it was. SIGTERM (a job's timeout, a render farm's cancel) is handled as
+Ctrl-C. Errors are one line on stderr; exit status 1 for errors, 130 when interrupted
+(143 for SIGTERM).
 
 --frames A..B renders every frame from A to B (inclusive) into the output pattern: '#'
 in the name becomes the frame number, zero-padded to the count of '#' (out/f_####.png);
@@ -52,26 +53,29 @@ _early_interrupts: list = []
 
 def _early_interrupt(signum, frame):
     if _early_interrupts:
-        _stop_at_once()
+        _stop_at_once(_early_interrupts[0])
     _early_interrupts.append(signum)
 
 
-def _stop_at_once():
-    """The second Ctrl-C: leave now. The output is only ever replaced whole (a temporary
-    file, then os.replace), so it is the old file or the new one; a KeyboardInterrupt
-    raised inside Blender's C code could crash it instead."""
+def _stop_at_once(signum=signal.SIGINT):
+    """The second Ctrl-C (or SIGTERM): leave now, exit status 128 + the first signal's
+    number. The output is only ever replaced whole (a temporary file, then os.replace),
+    so it is the old file or the new one; a KeyboardInterrupt raised inside Blender's C
+    code could crash it instead."""
     print("\ninterrupt: stopped at once; nothing more is written", file=sys.stderr, flush=True)
-    os._exit(130)
+    os._exit(128 + int(signum))
 
 
 if __name__ == "__main__":
-    signal.signal(signal.SIGINT, _early_interrupt)
+    for _signal in (signal.SIGINT, signal.SIGTERM):  # a job's timeout sends SIGTERM
+        signal.signal(_signal, _early_interrupt)
 
 import argparse  # noqa: E402
 import time  # noqa: E402
 
 from engine.cli import CancelOnInterrupt  # noqa: E402
 from engine.imageio import check_writable, replacing, say_created  # noqa: E402
+from engine.jit import COMPILE_MESSAGE  # noqa: E402
 
 INTERRUPT_MESSAGE = "\ninterrupt: cancelling (Ctrl-C again to stop at once)"
 
@@ -91,8 +95,9 @@ class _StatusPrinter:
     """Listener for addon.engine.status_listeners: a tqdm bar on stderr with the phase,
     the fraction of the whole render and the ETA, then the effect report."""
 
-    def __init__(self, quiet=False, stream=None):
+    def __init__(self, quiet=False, stream=None, interrupt=None):
         self.quiet = quiet
+        self.interrupt = interrupt  # its at_once is set while the kernels compile
         self.stream = stream or sys.stderr
         self.bar = None
         self.status = None  # the engine's "finished" value
@@ -102,10 +107,12 @@ class _StatusPrinter:
 
     def _ensure_bar(self):
         if self.bar is None and not self.quiet:
-            from tqdm import tqdm
-            self.bar = tqdm(total=1000, desc="Starting", file=self.stream, unit="",
-                            bar_format="{desc:<46.46}{bar}| {percentage:3.0f}% "
-                                       "[{elapsed}<{remaining}]")
+            from engine.eta import Eta, progress_bar
+            # The time left from the rate after the kernel compile and the first chunk
+            # (engine/eta.py); tqdm's own {remaining} counted the compile in.
+            self.eta = Eta()
+            self.bar = progress_bar("Starting", "{desc:<46.46}{bar}| {percentage:3.0f}% "
+                                    "[{elapsed}<{eta}]", self.stream, self.eta)
         return self.bar
 
     def __call__(self, event, value):
@@ -117,14 +124,22 @@ class _StatusPrinter:
             self.effects = list(value)
         elif event == "warning":
             self.warnings.append(str(value))
-        elif not self.quiet:
+        if event in ("stats", "progress") and self.interrupt is not None:
+            # The compile polls nothing for a minute and has nothing to keep: Ctrl-C then
+            # stops at once (engine.cli.CancelOnInterrupt.at_once).
+            self.interrupt.at_once = (event == "stats"
+                                      and str(value).startswith(COMPILE_MESSAGE))
+        if event in ("stats", "progress") and not self.quiet:
             bar = self._ensure_bar()
             if event == "stats":
+                if str(value).startswith(COMPILE_MESSAGE):
+                    self.eta.restart()
                 bar.set_description_str(str(value), refresh=True)
             elif event == "progress":
+                self.eta.update(float(value))
                 n = int(round(1000 * min(max(float(value), 0.0), 1.0)))
                 if n > bar.n:
-                    bar.update(n - bar.n)  # update(), not n =: tqdm's ETA follows the rate
+                    bar.update(n - bar.n)
 
     def close(self):
         """Close the bar, then print the effect report of a finished render under it (a
@@ -246,6 +261,9 @@ def render_file(args, interrupt=None) -> str:
     if not os.path.isfile(blend):
         raise BatchError(f"blend file not found: {args.blend}")
     out = os.path.abspath(args.output)
+    if os.path.isdir(out):
+        raise BatchError(f"--output '{args.output}' is a folder: give an image file, e.g. "
+                         f"'{os.path.join(args.output, 'render.png')}'")
     ext = os.path.splitext(out)[1].lower()
     if ext not in FORMATS:
         raise BatchError(f"unsupported output extension '{ext or '(none)'}' "
@@ -301,8 +319,16 @@ def render_file(args, interrupt=None) -> str:
                                  ("threads", pm, "threads"), ("width", r, "resolution_x"),
                                  ("height", r, "resolution_y"),
                                  ("resolution_percentage", r, "resolution_percentage")):
-        if getattr(args, option) is not None:
-            setattr(target, prop, getattr(args, option))
+        value = getattr(args, option)
+        if value is not None:
+            # The property's own range: Blender clamps a value outside it silently (or,
+            # beyond a 32-bit int, raises): refuse it naming the option instead.
+            rna = target.bl_rna.properties[prop]
+            if not rna.hard_min <= value <= rna.hard_max:
+                raise BatchError(f"--{option.replace('_', '-')} must be from {rna.hard_min:,} "
+                                 f"to {rna.hard_max:,} (Blender's '{rna.name}'), got "
+                                 f"{value:,}")
+            setattr(target, prop, value)
     if args.no_photon_mapping:
         pm.photon_mapping = False
     if args.show_photons:
@@ -421,9 +447,9 @@ def _render_still(bpy, scene, out, quiet, interrupt=None):
     from addon import engine
     # write_still=True would save whatever the render result holds, also after an error
     # or a cancel (an all-black frame over a good one): save it here, only when complete.
-    printer = _StatusPrinter(quiet=quiet)
     previous_hook = engine.test_break_hook
     interrupt = interrupt or CancelOnInterrupt(INTERRUPT_MESSAGE)
+    printer = _StatusPrinter(quiet=quiet, interrupt=interrupt)
     engine.test_break_hook = lambda: interrupt.requested or bool(previous_hook and previous_hook())
     engine.status_listeners.append(printer)
     try:
@@ -462,11 +488,11 @@ def _untouched(out):
 def main(argv=None) -> int:
     # The command line's Ctrl-C: one handler for the whole run, from before Blender loads
     # (an interrupt that came earlier still, while the modules loaded, counts too).
-    interrupt = CancelOnInterrupt(INTERRUPT_MESSAGE, on_second=_stop_at_once)
+    interrupt = CancelOnInterrupt(INTERRUPT_MESSAGE)
+    interrupt.on_second = lambda: _stop_at_once(interrupt.signum or signal.SIGINT)
     with interrupt:
         if _early_interrupts:
-            interrupt.requested = True
-            print(INTERRUPT_MESSAGE, file=sys.stderr, flush=True)
+            interrupt.request(_early_interrupts[0])
         return _main(argv, interrupt)
 
 
@@ -477,11 +503,11 @@ def _main(argv, interrupt) -> int:
         out = render_file(args, interrupt)
     except BatchInterrupted as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 130
+        return interrupt.status
     except KeyboardInterrupt:
         print(f"error: interrupted; {_untouched(os.path.abspath(args.output))}",
               file=sys.stderr)
-        return 130
+        return interrupt.status
     except BatchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1

@@ -5,9 +5,10 @@ photons=1000,10000 -o ladder.png` (or `--preset paper-ladder`).
 
 Errors are one line naming the argument or file, with a non-zero exit status. The output
 path is checked before the render starts, and the image replaces the target only once it
-is completely written (engine/imageio.py). Ctrl-C cancels the render: the target is left
-untouched (exit status 130), or with --keep-partial the finished part is written, marked
-partial in its metadata. A second Ctrl-C stops at once."""
+is completely written (engine/imageio.py). Ctrl-C (or SIGTERM: a job's timeout, a render
+farm's cancel) cancels the render: the target is left untouched (exit status 130; 143 for
+SIGTERM), or with --keep-partial the finished part is written, marked partial in its
+metadata. A second one stops at once, as does the first during the kernel compile."""
 from __future__ import annotations
 
 import argparse
@@ -19,6 +20,7 @@ import threading
 
 import numpy as np
 
+from .eta import Eta
 from .settings import ESTIMATORS, METHODS, RenderSettings
 from .teaching import SWEEP_PRESETS
 
@@ -50,6 +52,18 @@ def _finite_float(text):
         raise argparse.ArgumentTypeError(f"expected a number, got '{text}'") from None
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return v
+
+
+EXPOSURE_RANGE = (-32.0, 32.0)  # stops, Blender's (View Transform > Exposure)
+
+
+def _exposure(text):
+    v = _finite_float(text)
+    lo, hi = EXPOSURE_RANGE
+    if not lo <= v <= hi:
+        raise argparse.ArgumentTypeError(f"must be from {lo:g} to {hi:g} stops (as "
+                                         f"Blender's), got {text}")
     return v
 
 
@@ -113,8 +127,8 @@ def _setting_options(r, method=True, sweeps=False):
                    help="the paper's own method: classic estimator (cosine-weighted, fixed "
                         "--radius in scene units, metres), no final gathering "
                         "(docs/paper_mode.md)")
-    r.add_argument("--exposure", type=_finite_float, default=0.0,
-                   help="exposure in stops for PNG/PPM")
+    r.add_argument("--exposure", type=_exposure, default=0.0,
+                   help="exposure in stops for PNG/PPM, -32 to 32")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -179,40 +193,61 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 class CancelOnInterrupt:
-    """While active, the first Ctrl-C (SIGINT) only sets `requested`, which the render
-    polls as its should_cancel, and prints `message` to `stream` if one is given; a second
-    one calls on_second() (default: raises KeyboardInterrupt at once). Used by this CLI
-    and by addon/batch.py."""
+    """While active, the first Ctrl-C (SIGINT) or SIGTERM (a job's timeout or a render
+    farm's cancel) only sets `requested`, which the render polls as its should_cancel,
+    and prints `message` to `stream` if one is given; a second one calls on_second()
+    (default: raises KeyboardInterrupt at once). `status` is the exit status of the
+    interrupted command: 128 + the signal's number (130 for Ctrl-C, 143 for SIGTERM).
+    Used by this CLI and by addon/batch.py."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self, message=None, stream=None, on_second=None):
         self.requested = False
+        self.signum = None
         self.message = message
         self.stream = stream or sys.stderr
         self.on_second = on_second
-        self._previous = None
+        # True while a step runs that polls nothing and has nothing to keep (the kernel
+        # compile, a minute): the first Ctrl-C stops at once, as a second one.
+        self.at_once = False
+        self._previous = {}
+        self._depth = 0
 
-    def _handler(self, signum, frame):
-        if self.requested:
-            if self.on_second is not None:
-                self.on_second()
-            raise KeyboardInterrupt
+    @property
+    def status(self) -> int:
+        return 128 + int(self.signum or signal.SIGINT)
+
+    def request(self, signum=signal.SIGINT) -> None:
+        """As if the signal had come now (the batch's interrupts before Blender loaded)."""
         self.requested = True
+        self.signum = self.signum or signum
         if self.message:
             print(self.message, file=self.stream, flush=True)
 
+    def _handler(self, signum, frame):
+        if self.requested or self.at_once:
+            self.signum = self.signum or signum
+            if self.on_second is not None:
+                self.on_second()
+            raise KeyboardInterrupt
+        self.request(signum)
+
     def __enter__(self):
         # Re-entrant: the batch command holds one for its whole run and each render
-        # enters it again; the handler before the outermost entry comes back at its exit.
-        self._depth = getattr(self, "_depth", 0) + 1
+        # enters it again; the handlers before the outermost entry come back at its exit.
+        self._depth += 1
         if self._depth == 1 and threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)  # signals: main only
+            for sig in self.SIGNALS:  # signals: main thread only
+                self._previous[sig] = signal.signal(sig, self._handler)
         return self
 
     def __exit__(self, *exc):
         self._depth -= 1
-        if self._depth == 0 and self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        if self._depth == 0:
+            for sig, previous in self._previous.items():
+                signal.signal(sig, previous if previous is not None else signal.SIG_DFL)
+            self._previous = {}
         return False
 
 
@@ -275,8 +310,16 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
 TEACHING_FORMATS = (".png", ".jpg", ".jpeg")
 
 
+def _not_a_folder(path, ext):
+    """An existing folder as the output: say so (rather than 'unsupported format')."""
+    if os.path.isdir(path):
+        raise ValueError(f"--output '{path}' is a folder: give an image file, e.g. "
+                         f"'{os.path.join(path, 'render' + ext)}'")
+
+
 def _check_teaching_output(path):
     from .imageio import check_writable, say_created
+    _not_a_folder(path, ".png")
     ext = os.path.splitext(path)[1].lower()
     if ext not in TEACHING_FORMATS:
         raise ValueError(f"--output '{path}': unsupported format '{ext or '(none)'}' for a "
@@ -306,19 +349,21 @@ def _teaching_run(args, make_tiles, what):
         bar = tqdm(total=1000, desc="Preparing", unit="",
                    bar_format="{desc:<44.44}{bar}| {elapsed}", file=sys.stderr)
 
+    interrupt = CancelOnInterrupt()
+
     def progress(stage, fraction, text):
+        interrupt.at_once = stage == "compile"  # polls nothing for a minute
         if bar is not None:
             bar.set_description_str(text)
             bar.n = int(1000 * fraction)
             bar.refresh()
 
-    interrupt = CancelOnInterrupt()
     try:
         with interrupt:
             tiles = make_tiles(progress, lambda: interrupt.requested)
-    except Cancelled:
+    except (Cancelled, KeyboardInterrupt):
         print(f"photonmap: interrupted: '{args.output}' left untouched", file=sys.stderr)
-        return 130
+        return interrupt.status
     finally:
         if bar is not None:
             bar.close()
@@ -380,6 +425,7 @@ def _render(args) -> int:
     from .progressive import Budget, render_progressive
     from .render import render
 
+    _not_a_folder(args.output, ".png")
     ext = os.path.splitext(args.output)[1].lower()
     if ext not in FORMATS:
         raise ValueError(f"--output '{args.output}': unsupported format '{ext or '(none)'}' "
@@ -399,27 +445,45 @@ def _render(args) -> int:
     check_writable(args.output, on_create=say_created)
 
     bar = None
+    interrupt = CancelOnInterrupt()
+    where = {"stage": "preparing", "fraction": 0.0, "passes": 0}
+    # The bar shows the fraction of the whole render and the time left (engine/eta.py:
+    # measured after the kernel compile and the first chunk, not from the start).
+    passes = args.passes if progressive and not args.dask else None
+    eta = (_TimeLeft(args.time_limit) if progressive and args.time_limit and not passes
+           else Eta())
     if not args.quiet:
-        from tqdm import tqdm
-        bar = tqdm(total=1000, desc="Preparing", unit="", bar_format="{desc:<34}{bar}| {elapsed}",
-                   file=sys.stderr)
-
-    where = {"stage": "preparing", "fraction": 0.0}
+        from .eta import progress_bar
+        bar = progress_bar("Preparing", "{desc:<42.42}{bar}| {percentage:3.0f}% "
+                           "[{elapsed}<{eta}]", sys.stderr, eta)
 
     def progress(stage, fraction, text):
         where["stage"], where["fraction"] = stage, fraction
+        interrupt.at_once = stage == "compile"  # polls nothing for a minute
+        if stage == "compile":
+            eta.restart()
+        whole = _whole_fraction(stage, fraction, settings.uses_photon_maps)
+        if whole is not None and args.dask:
+            whole = fraction  # the cluster reports the fraction of the budget
+        elif whole is not None and progressive:
+            whole = (where["passes"] + whole) / passes if passes else None
+        if whole is not None:
+            eta.update(whole)
         if bar is not None:
-            bar.set_description_str(text)
-            bar.n = int(1000 * fraction)
+            bar.set_description_str(text, refresh=False)
+            if whole is None:  # no share of the whole known (--target-error): the stage's
+                bar.n = int(1000 * min(max(fraction, 0.0), 1.0))
+            elif int(1000 * whole) > bar.n:
+                bar.n = int(1000 * whole)
             bar.refresh()
 
-    interrupt = CancelOnInterrupt()
     should_cancel = (lambda: interrupt.requested)
     try:
         if progressive:
             budget = Budget(args.passes or None, args.time_limit, args.target_error)
 
             def on_pass(film, info):
+                where["passes"] = info["passes"]
                 if bar is not None:
                     bar.write(f"pass {info['passes']}: {info['photons']:,} photons, "
                               f"{info['elapsed']:.1f} s, estimated relMSE "
@@ -436,6 +500,14 @@ def _render(args) -> int:
         else:
             with interrupt:
                 film = render(scene, settings, progress=progress, should_cancel=should_cancel)
+    except KeyboardInterrupt:  # a second Ctrl-C, or the first during the kernel compile
+        if bar is not None:
+            bar.close()
+            bar = None
+        again = " (the next run compiles them again)" if where["stage"] == "compile" else ""
+        print(f"photonmap: interrupted while {_stage_text(where)}: '{args.output}' left "
+              f"untouched{again}", file=sys.stderr)
+        return interrupt.status
     finally:
         if bar is not None:
             bar.close()
@@ -449,7 +521,7 @@ def _render(args) -> int:
                   f"'{args.output}' left untouched"
                   + ("" if args.keep_partial else " (--keep-partial writes the finished part)"),
                   file=sys.stderr)
-            return 130
+            return interrupt.status
     for w in film.warnings:
         print(f"photonmap: warning: {w}", file=sys.stderr)
     if not args.quiet:
@@ -466,7 +538,7 @@ def _render(args) -> int:
     if partial is not None:
         print(f"photonmap: interrupted: wrote the partial image to '{args.output}' ({partial}; "
               "marked 'photonmap:partial' in its metadata)", file=sys.stderr)
-        return 130
+        return interrupt.status
     if args.save_passes:
         root, ext = os.path.splitext(args.output)
         for name, img in film.passes().items():
@@ -484,9 +556,47 @@ def _render(args) -> int:
     return 0
 
 
+# Shares of a render's time by stage, for the fraction of the whole render that the bar
+# and the time left follow (as the add-on's bar, addon/engine.py). A stage reports its own
+# fraction 0..1 (each photon shot anew): the whole never moves back (Eta, the bar).
+_STAGE_SPANS = {"photons": (0.0, 0.35), "photon_map": (0.35, 0.05), "render": (0.40, 0.60)}
+
+
+def _whole_fraction(stage, fraction, photon_maps: bool):
+    """The fraction of the whole render at `fraction` of `stage`, None for a stage
+    outside the work (the kernel compile)."""
+    if stage not in _STAGE_SPANS:
+        return None
+    base, span = _STAGE_SPANS[stage] if photon_maps else {"render": (0.0, 1.0)}.get(
+        stage, (0.0, 0.0))
+    return base + span * min(max(float(fraction), 0.0), 1.0)
+
+
+class _TimeLeft:
+    """The time left of a progressive render with only a --time-limit: the limit minus
+    the time since the render started, as its budget counts it (Eta's interface)."""
+
+    def __init__(self, limit: float):
+        import time
+        self.limit, self.clock = float(limit), time.monotonic
+        self.start = self.clock()
+
+    def restart(self):
+        pass
+
+    def update(self, fraction):
+        pass
+
+    def text(self) -> str:
+        from .eta import format_seconds
+        return format_seconds(max(0.0, self.limit - (self.clock() - self.start)))
+
+
 def _stage_text(where) -> str:
     names = {"photons": "tracing photons", "photon_map": "building the photon map",
-             "render": "rendering"}
+             "render": "rendering", "compile": "compiling the render kernels"}
+    if where["stage"] in ("compile", "preparing"):
+        return names.get(where["stage"], where["stage"])
     return f"{names.get(where['stage'], where['stage'])} ({100 * where['fraction']:.0f} %)"
 
 

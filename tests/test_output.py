@@ -122,7 +122,17 @@ def test_cli_checks_the_output_path_before_rendering(tmp_path):
     assert len(lines) == 1 and str(blocker) in lines[0], res.stderr  # no progress bar first
 
 
-def _interrupted_cli(tmp_path, *extra):
+def test_a_folder_as_the_output_is_named_as_such(tmp_path):
+    for command in ("render", "compare"):
+        res = _cli(command, SCENE, "-o", str(tmp_path), "--spp", "1")
+        assert res.returncode == 1
+        assert res.stderr.strip() == (f"photonmap: error: --output '{tmp_path}' is a folder: "
+                                      f"give an image file, e.g. "
+                                      f"'{tmp_path / 'render.png'}'"), res.stderr
+    assert os.listdir(tmp_path) == []
+
+
+def _interrupted_cli(tmp_path, *extra, sig=signal.SIGINT):
     target = tmp_path / "out.png"
     target.write_bytes(OLD)
     # A grey background: every finished pixel is non-zero, every unfinished one zero.
@@ -136,7 +146,7 @@ def _interrupted_cli(tmp_path, *extra):
                   "--caustic-photons", "10000", *extra], cwd=ROOT) as w:
         # Interrupt once some of the camera pass is finished (the bar shows 'Rendering N%').
         assert w.wait_for(r"Rendering [1-9]\d?%"), w.stderr[-2000:]
-        w.proc.send_signal(signal.SIGINT)
+        w.proc.send_signal(sig)
         return target, w.finish(), w.stderr
 
 
@@ -163,6 +173,19 @@ def test_cli_ctrl_c_with_keep_partial_writes_the_finished_part_marked(tmp_path):
     # Finished pixels run row by row from the top: rows above `rows` are complete (no
     # black pixel), rows below it untouched (black).
     assert img[:rows].sum(axis=2).min() > 0 and img[rows + 1:].max() == 0
+
+
+def test_cli_sigterm_is_a_cancel_as_ctrl_c(tmp_path):
+    """A job's timeout (`timeout 600 photonmap ...`) or a render farm's cancel sends
+    SIGTERM: the render is cancelled as by Ctrl-C (--keep-partial writes the finished
+    part), exit status 143; the process was killed mid-render before, keeping nothing."""
+    from PIL import Image
+    target, rc, err = _interrupted_cli(tmp_path, "--keep-partial", sig=signal.SIGTERM)
+    assert rc == 143, err[-2000:]
+    assert "wrote the partial image" in err and "Traceback" not in err
+    with Image.open(target) as im:
+        assert im.text.get("photonmap:partial", "").startswith("interrupted:")
+    assert _leftovers(tmp_path, {target.name, "grey.toml"}) == []
 
 
 def test_cli_ctrl_c_in_a_progressive_render_keeps_the_finished_passes(tmp_path):
@@ -238,3 +261,44 @@ power = 300
         assert alpha[0].max() == 0.0           # sky above the plane: transparent
         assert alpha[-1].min() == 1.0          # the plane in front of the box: opaque
         assert alpha[8, 12] == 0.0             # the holdout box in the middle: a hole
+
+
+def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatch, capsys):
+    """The first render on a machine compiles the kernels for about a minute, polling
+    nothing: a Ctrl-C then stops at once (nothing is finished to keep; the cache is
+    written only after a complete compile) instead of waiting out the compile silently.
+    The compile is simulated: a step that reports the compile stage and then runs."""
+    import importlib
+    import threading
+    import time
+
+    from engine import jit
+    from engine.cli import main
+    render_module = importlib.import_module("engine.render")
+
+    def compiling(progress=None):
+        progress("compile", 0.0, jit.COMPILE_MESSAGE)
+        timer.start()  # Ctrl-C 0.3 s into the compile
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            time.sleep(0.01)  # a signal handler's exception lands here
+        return 60.0
+
+    monkeypatch.setattr(render_module, "ensure_compiled", compiling)
+    for command, said in (("render", "interrupted while compiling the render kernels"),
+                          ("compare", "interrupted")):
+        target = tmp_path / "out.png"
+        target.write_bytes(OLD)
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+        t0 = time.monotonic()
+        try:
+            rc = main([command, SCENE, "-o", str(target), "--width", "32", "--height", "24",
+                       "--spp", "1", "--photons", "2000"])
+        finally:
+            timer.cancel()
+        seconds = time.monotonic() - t0
+        err = capsys.readouterr().err
+        assert rc == 130 and seconds < 20, (command, rc, seconds, err[-1500:])
+        assert said in err and "left untouched" in err and "Traceback" not in err, err
+        assert target.read_bytes() == OLD
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored

@@ -122,7 +122,11 @@ def test_cli_reports_a_bad_scene_and_a_nan_exposure_in_one_line(tmp_path):
     bad.write_text(CAMERA + SPHERE + "translate = [nan, 0, 0]\n", encoding="utf-8")
     for args, expected in (([str(bad)], "'translate' must be 3 finite numbers"),
                            (["scenes/figure3.toml", "--exposure", "nan"],
-                            "--exposure: must be a finite number")):
+                            "--exposure: must be a finite number"),
+                           # 2 ** 1500 overflowed when the image was written: a
+                           # traceback after the whole render.
+                           (["scenes/figure3.toml", "--exposure", "1500"],
+                            "--exposure: must be from -32 to 32 stops")):
         res = subprocess.run([sys.executable, "-m", "engine.cli", "render", *args, "-o",
                               str(tmp_path / "x.png")],
                              cwd=ROOT, capture_output=True, text=True, timeout=120)

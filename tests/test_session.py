@@ -250,7 +250,9 @@ def test_stop_waits_for_its_own_chunks_only(box):
     left afterwards."""
     from engine import parallel
     release = threading.Event()
-    timer = threading.Timer(8.0, release.set)  # the foreign chunk's long step, at most
+    # The foreign chunk's long step ends when the test releases it after the stop (at
+    # most 30 s: a stop that waited for it shows as a latency of seconds).
+    timer = threading.Timer(30.0, release.set)
     timer.start()
     baseline = set(threading.enumerate())
 

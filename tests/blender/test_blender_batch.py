@@ -56,17 +56,19 @@ def test_batch_quiet_prints_no_bar(tmp_path):
     assert out.is_file()
 
 
-def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path):
+@pytest.mark.parametrize("sig, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path, sig, status):
+    """Ctrl-C, or SIGTERM (a job's timeout, a render farm's cancel), cancels the render."""
     out = tmp_path / "f6.png"
     out.write_bytes(OLD)
     with Watched([PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure6_box.blend"),
                   "-o", str(out), "--samples", "256", "--resolution-percentage", "25"],
                  cwd=ROOT) as w:
         assert w.wait_for(r"Tracing|Rendering"), w.stderr[-2000:]
-        w.proc.send_signal(signal.SIGINT)
+        w.proc.send_signal(sig)
         rc = w.finish()
     err = w.stderr
-    assert rc == 130, err[-3000:]
+    assert rc == status, err[-3000:]
     assert out.read_bytes() == OLD
     assert "interrupted" in err and "left as it was" in err, err[-2000:]
     assert "Traceback" not in err
@@ -167,3 +169,45 @@ def test_batch_interrupted_while_loading_is_a_cancel(tmp_path, library, stage):
                      err), err[-2000:]
     assert "Traceback" not in err and "Fatal" not in err, err[-3000:]
     assert sorted(os.listdir(tmp_path)) == [out.name]
+
+
+@pytest.mark.parametrize("option, value, expected", [
+    ("--photons", "99999999999", "--photons must be from 0 to 2,147,483,647"),  # traceback
+    ("--samples", "100000", "--samples must be from 1 to 65,536"),  # clamped silently
+    ("--threads", "100000", "--threads must be from 0 to 1,024"),
+])
+def test_batch_refuses_values_outside_blenders_range(bpy_addon, tmp_path, option, value,
+                                                     expected):
+    """A value outside the add-on property's range is refused naming the option (Blender
+    clamped it silently, or raised a ValueError traceback beyond a 32-bit int)."""
+    from addon import batch
+    out = tmp_path / "f3.png"
+    args = batch.parse_args([os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out),
+                             option, value, "--quiet"])
+    try:
+        with pytest.raises(batch.BatchError, match=re.escape(expected)):
+            batch.render_file(args)
+        assert not out.exists()
+    finally:
+        bpy_addon.ops.wm.read_homefile(use_empty=True)
+
+
+def test_batch_ctrl_c_during_the_kernel_compile_stops_at_once():
+    """While the add-on reports the kernel compile (a minute polling nothing), Ctrl-C
+    stops at once, as a second Ctrl-C does; from the next report on, it cancels."""
+    from addon import batch
+    from engine.cli import CancelOnInterrupt
+    from engine.jit import COMPILE_MESSAGE
+    interrupt = CancelOnInterrupt()
+    stops = []
+    interrupt.on_second = lambda: stops.append(True)
+    printer = batch._StatusPrinter(quiet=True, interrupt=interrupt)
+    printer("stats", "Loading engine")
+    assert not interrupt.at_once
+    printer("stats", COMPILE_MESSAGE)
+    assert interrupt.at_once
+    with pytest.raises(KeyboardInterrupt):
+        interrupt._handler(signal.SIGINT, None)
+    assert stops == [True] and interrupt.status == 130
+    printer("stats", "Exporting 1/4 objects")
+    assert not interrupt.at_once
