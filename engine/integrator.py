@@ -26,6 +26,7 @@ from .camerakernels import choose_lobes, continue_lobes, gather_rays, pick_lobes
 from .camerarays import camera_rays_kernel
 from .closures.principled import M_TTINT, rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
+from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
 
@@ -43,8 +44,10 @@ class Counters:
             setattr(self, name, getattr(self, name) + getattr(other, name))
 
 
-def camera_rays(camera, offset, width, height, px, py, jx, jy):
+def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None):
     """World rays (re-centred) through image positions (px + jx, py + jy); rows top-down.
+    filter_table (engine/pixelfilter.py): jx, jy are uniform numbers in [0, 1) that the
+    pixel filter's inverse CDF turns into positions (None or empty: positions as given).
     Returns origins, unit directions, and the distance limits (clip start / end).
     One compiled kernel (engine/camerarays.py)."""
     hw, hh = camera.half_extents(width, height)
@@ -55,7 +58,9 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
                               float(camera.clip_start), float(camera.clip_end), int(width),
                               int(height), np.ascontiguousarray(px), np.ascontiguousarray(py),
                               np.ascontiguousarray(jx, dtype=np.float64),
-                              np.ascontiguousarray(jy, dtype=np.float64))
+                              np.ascontiguousarray(jy, dtype=np.float64),
+                              np.ascontiguousarray(np.empty(0) if filter_table is None
+                                                   else filter_table, dtype=np.float64))
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
@@ -682,7 +687,10 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     jy[rest] = rng.random(int(rest.sum()))
     px = x0 + pix % rw
     py = y0 + pix // rw
-    o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
+    # The stratified numbers become positions by the pixel filter's distribution (Cycles
+    # samples its filter by importance: every ray weight 1; engine/pixelfilter.py).
+    o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy,
+                             filter_table(s.pixel_filter, s.filter_width))
     counters.camera_rays += len(o)
     tp = np.ones((len(o), 3))
     sampler = StratifiedSampler(sub, pix, spp, rng, dims)
