@@ -154,8 +154,9 @@ def light_modes(ctx) -> np.ndarray:
     measured, its shadow rays' share doubled a rough metal's noise) and a light whose
     shadow rays are off (diffuse visibility), by the continuation alone.
     Without continuation (specular effects off) the MIS lights take shadow rays in full.
-    With more lights than the light tree's threshold only the lights without size take
-    shadow rays for the glossy lobes (MODE_DELTA), the others are MODE_CONTINUATION."""
+    With more lights than the light tree's threshold the lights without size take shadow
+    rays for the glossy lobes (MODE_DELTA), an environment-mapped world takes MIS with the
+    tree's choice probability in its pdf (MODE_MIS), the others are MODE_CONTINUATION."""
     modes = np.zeros(len(ctx.lights), np.int64)
     if tree_members(ctx.lights):
         # Many lights: the tree picks one light per shadow ray, and the continuation's
@@ -166,6 +167,11 @@ def light_modes(ctx) -> np.ndarray:
             if light.ray_kinds & SHADOW and (not light.has_size
                                              or ctx.plan.specular_depth == 0):
                 modes[li] = MODE_DELTA
+            elif (light.ray_kinds & SHADOW and light.kind == WORLD
+                  and light.environment is not None):
+                # An environment-mapped world: MIS with the tree's choice probability
+                # in the light pdf (directlight.sample_lights, _mis_weight).
+                modes[li] = MODE_MIS
         return modes
     mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
     for li, light in enumerate(ctx.lights):
@@ -249,12 +255,20 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b):
     return w
 
 
-def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None):
+def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None):
     """Power-heuristic weight of continuation rays (pdf pdf_b, inf = a mirror-like lobe)
     that met light li, against its light_samples shadow rays (ns: the shading normals at
-    the rays' origins, for the world light)."""
-    n = ctx.plan.light_samples.get(light.name, 1)
-    pl = n * mis_light_pdf(light, o, d, t, ns)
+    the rays' origins, for the world light). With the light tree (p, ns: the hit points
+    and shading normals the rays left) the shadow rays' pdf includes the probability
+    that the tree picks light li there (LightSelector.pmf)."""
+    chosen = selector_for(ctx)
+    if chosen is not None:
+        n = selection_samples(ctx.settings)
+        pl = n * mis_light_pdf(light, o, d, t, ns) * chosen[0].pmf(o if p is None else p,
+                                                                   ns, li)
+    else:
+        n = ctx.plan.light_samples.get(light.name, 1)
+        pl = n * mis_light_pdf(light, o, d, t, ns)
     with np.errstate(invalid="ignore", over="ignore"):
         w = pdf_b * pdf_b / (pdf_b * pdf_b + pl * pl)
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
@@ -739,6 +753,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
     pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
     org_ns = np.zeros((len(o), 3))  # shading normal where it left (the world's MIS pdf)
+    org_p = np.zeros((len(o), 3))   # ... and the point (the light tree's choice there)
     modes = light_modes(ctx)
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
@@ -774,7 +789,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     li = world[0]
                     radiance = radiance * _mis_weight(ctx, li, ctx.lights[li], o[miss],
                                                       d[miss], None, pdf_b[miss],
-                                                      org_ns[miss])[:, None]
+                                                      org_ns[miss], org_p[miss])[:, None]
                 for li, light in enumerate(ctx.lights):
                     if bounce > 0:
                         sun = light.seen_at_infinity(d[miss])
@@ -842,6 +857,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True)
         org_ns = hit.ns[keep]
+        org_p = hit.p[keep]
         pix = pix[keep]
         sample_id = sample_id[keep]
         travelled = travelled[keep]
