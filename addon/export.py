@@ -375,6 +375,28 @@ def render_size(render) -> tuple[int, int]:
     return max(1, int(render.resolution_x * pct)), max(1, int(render.resolution_y * pct))
 
 
+CYCLES_PIXEL_FILTERS = {"BOX": "box", "GAUSSIAN": "gaussian",
+                        "BLACKMAN_HARRIS": "blackman_harris"}
+
+
+def pixel_filter_settings(scene) -> dict:
+    """The pixel filter as RenderSettings keywords (pixel_filter, filter_width).
+
+    Cycles reads its own Film > Pixel Filter (scene.cycles.pixel_filter_type and
+    filter_width, default Blackman-Harris 1.5 px; the box is always 1 px wide: Cycles'
+    blender/sync.cpp). We read the same properties, so a scene renders with the filter
+    Cycles would use. Without the Cycles add-on (scene.cycles absent) Blender's
+    render.filter_size (Film > Filter Size, EEVEE's, default 1.5 px) sets a
+    Blackman-Harris width; 0 there means every ray through the pixel centre."""
+    cycles = getattr(scene, "cycles", None)
+    kind = getattr(cycles, "pixel_filter_type", None) if cycles is not None else None
+    if kind in CYCLES_PIXEL_FILTERS:
+        width = 1.0 if kind == "BOX" else float(cycles.filter_width)
+        return dict(pixel_filter=CYCLES_PIXEL_FILTERS[kind], filter_width=width)
+    return dict(pixel_filter="blackman_harris",
+                filter_width=float(getattr(scene.render, "filter_size", 1.5)))
+
+
 def border_region(render, width: int, height: int):
     """Render border as engine region (x0, y0, x1, y1), top-left origin, or None.
 

@@ -240,8 +240,10 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     # --- end of the viewport block -------------------------------------------------------
 
     def to_settings_kwargs(self, film_transparent=False):
-        """Keyword arguments for engine.settings.RenderSettings."""
-        return dict(
+        """Keyword arguments for engine.settings.RenderSettings (the pixel filter from
+        the scene's Film settings: export.pixel_filter_settings)."""
+        from .export import pixel_filter_settings
+        kwargs = dict(
             photons=self.photons, caustic_photons=self.caustic_photons,
             max_photon_depth=self.max_photon_depth, estimator=self.estimator,
             # 0 (typed, or Blender's old minimum 1e-6) means automatic, never a radius
@@ -257,6 +259,8 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             aim_caustics=self.aim_caustics,
             show_photons=self.show_photons, seed=self.seed, workers=self.threads,
             film_transparent=bool(film_transparent))
+        kwargs.update(pixel_filter_settings(self.id_data))
+        return kwargs
 
 
 class PhotonMapViewLayerSettings(bpy.types.PropertyGroup):

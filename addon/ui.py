@@ -137,6 +137,15 @@ class PHOTONMAP_PT_display(PhotonMapButtonsPanel, bpy.types.Panel):
         col = layout.column()
         col.prop(context.scene.render, "film_transparent", text="Transparent")
         col.prop(context.scene.photonmap, "show_photons")
+        # The pixel filter is Cycles' own setting (shared, so both engines filter alike;
+        # addon/export.pixel_filter_settings); without Cycles, Blender's filter size.
+        cycles = getattr(context.scene, "cycles", None)
+        if cycles is not None and hasattr(cycles, "pixel_filter_type"):
+            col.prop(cycles, "pixel_filter_type", text="Pixel Filter")
+            if cycles.pixel_filter_type != "BOX":
+                col.prop(cycles, "filter_width", text="Width")
+        else:
+            col.prop(context.scene.render, "filter_size", text="Filter Size")
 
 
 class PHOTONMAP_PT_performance(PhotonMapButtonsPanel, bpy.types.Panel):

@@ -1,8 +1,11 @@
 """Camera-ray generation as a compiled kernel (engine/jit.py): one pass from pixel
 positions to ray origins, unit directions and clip distances, for integrator.camera_rays.
 
-Same arithmetic, operation by operation, as the numpy stage it replaced, so the rays are
-bitwise identical (tests/test_camera_rays.py keeps that stage as the oracle).
+The position inside the pixel comes from the pixel filter's inverse CDF
+(engine/pixelfilter.py: each ray drawn from the filter's distribution, weight 1, as
+Cycles' camera_sample does). With the box filter (empty table) the arithmetic is, operation
+by operation, the numpy stage it replaced, so the rays are bitwise identical
+(tests/test_camera_rays.py keeps that stage as the oracle).
 """
 from __future__ import annotations
 
@@ -14,9 +17,25 @@ from .jit import kernel, register_warm_up
 
 
 @kernel
+def _filter_position(table, u):
+    """Position inside the pixel for the uniform number u: the filter table read with
+    linear interpolation (pixelfilter.lookup_filter); u itself for an empty table."""
+    n = table.shape[0]
+    if n == 0:
+        return u
+    x = min(max(u, 0.0), 1.0) * (n - 1)
+    i = min(int(x), n - 1)
+    j = min(i + 1, n - 1)
+    t = x - i
+    return (1.0 - t) * table[i] + t * table[j]
+
+
+@kernel
 def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip_end,
-                       width, height, px, py, jx, jy):
-    """Rays through image positions (px + jx, py + jy) (N,), rows top-down.
+                       width, height, px, py, jx, jy, table):
+    """Rays through image positions (px + fx, py + fy) (N,), rows top-down, where
+    fx = table(jx), fy = table(jy) (engine/pixelfilter.py filter_table; an empty table:
+    jx, jy are the positions inside the pixel themselves).
     ortho: orthographic camera (else perspective); hw, hh: the image plane's half extents
     at distance 1 (ortho: world units); R (3,3) camera-to-world rotation (columns: right,
     up, backwards); pos (3,) camera position (re-centred). Blender clips by depth along the
@@ -28,8 +47,8 @@ def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip
     tmax = np.empty(n)
     big = 2.0 * max(hw, hh)
     for i in range(n):
-        sx = (px[i] + jx[i]) / width * 2.0 - 1.0
-        sy = 1.0 - (py[i] + jy[i]) / height * 2.0
+        sx = (px[i] + _filter_position(table, jx[i])) / width * 2.0 - 1.0
+        sy = 1.0 - (py[i] + _filter_position(table, jy[i])) / height * 2.0
         x = sx * hw + shift_x * big
         y = sy * hh + shift_y * big
         if ortho:
@@ -60,5 +79,6 @@ def _warm_up():
     pos = np.zeros(3)
     for ortho in (False, True):
         for px in (np.arange(4), np.arange(4.0)):  # render_camera's ints, effects' floats
-            camera_rays_kernel(ortho, 0.5, 0.4, 0.0, 0.0, R, pos, 0.1, 100.0, 4, 3, px, px,
-                               np.full(4, 0.5), np.full(4, 0.5))
+            for table in (np.empty(0), np.linspace(-1.0, 2.0, 8)):
+                camera_rays_kernel(ortho, 0.5, 0.4, 0.0, 0.0, R, pos, 0.1, 100.0, 4, 3, px,
+                                   px, np.full(4, 0.5), np.full(4, 0.5), table)

@@ -26,6 +26,7 @@ from .camerakernels import choose_lobes, continue_lobes, gather_rays, pick_lobes
 from .camerarays import camera_rays_kernel
 from .closures.principled import M_TTINT, rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
+from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
 
@@ -43,8 +44,10 @@ class Counters:
             setattr(self, name, getattr(self, name) + getattr(other, name))
 
 
-def camera_rays(camera, offset, width, height, px, py, jx, jy):
+def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None):
     """World rays (re-centred) through image positions (px + jx, py + jy); rows top-down.
+    filter_table (engine/pixelfilter.py): jx, jy are uniform numbers in [0, 1) that the
+    pixel filter's inverse CDF turns into positions (None or empty: positions as given).
     Returns origins, unit directions, and the distance limits (clip start / end).
     One compiled kernel (engine/camerarays.py)."""
     hw, hh = camera.half_extents(width, height)
@@ -55,7 +58,9 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy):
                               float(camera.clip_start), float(camera.clip_end), int(width),
                               int(height), np.ascontiguousarray(px), np.ascontiguousarray(py),
                               np.ascontiguousarray(jx, dtype=np.float64),
-                              np.ascontiguousarray(jy, dtype=np.float64))
+                              np.ascontiguousarray(jy, dtype=np.float64),
+                              np.ascontiguousarray(np.empty(0) if filter_table is None
+                                                   else filter_table, dtype=np.float64))
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
@@ -149,8 +154,9 @@ def light_modes(ctx) -> np.ndarray:
     measured, its shadow rays' share doubled a rough metal's noise) and a light whose
     shadow rays are off (diffuse visibility), by the continuation alone.
     Without continuation (specular effects off) the MIS lights take shadow rays in full.
-    With more lights than the light tree's threshold only the lights without size take
-    shadow rays for the glossy lobes (MODE_DELTA), the others are MODE_CONTINUATION."""
+    With more lights than the light tree's threshold the lights without size take shadow
+    rays for the glossy lobes (MODE_DELTA), an environment-mapped world takes MIS with the
+    tree's choice probability in its pdf (MODE_MIS), the others are MODE_CONTINUATION."""
     modes = np.zeros(len(ctx.lights), np.int64)
     if tree_members(ctx.lights):
         # Many lights: the tree picks one light per shadow ray, and the continuation's
@@ -161,6 +167,11 @@ def light_modes(ctx) -> np.ndarray:
             if light.ray_kinds & SHADOW and (not light.has_size
                                              or ctx.plan.specular_depth == 0):
                 modes[li] = MODE_DELTA
+            elif (light.ray_kinds & SHADOW and light.kind == WORLD
+                  and light.environment is not None):
+                # An environment-mapped world: MIS with the tree's choice probability
+                # in the light pdf (directlight.sample_lights, _mis_weight).
+                modes[li] = MODE_MIS
         return modes
     mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
     for li, light in enumerate(ctx.lights):
@@ -244,12 +255,20 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b):
     return w
 
 
-def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None):
+def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None):
     """Power-heuristic weight of continuation rays (pdf pdf_b, inf = a mirror-like lobe)
     that met light li, against its light_samples shadow rays (ns: the shading normals at
-    the rays' origins, for the world light)."""
-    n = ctx.plan.light_samples.get(light.name, 1)
-    pl = n * mis_light_pdf(light, o, d, t, ns)
+    the rays' origins, for the world light). With the light tree (p, ns: the hit points
+    and shading normals the rays left) the shadow rays' pdf includes the probability
+    that the tree picks light li there (LightSelector.pmf)."""
+    chosen = selector_for(ctx)
+    if chosen is not None:
+        n = selection_samples(ctx.settings)
+        pl = n * mis_light_pdf(light, o, d, t, ns) * chosen[0].pmf(o if p is None else p,
+                                                                   ns, li)
+    else:
+        n = ctx.plan.light_samples.get(light.name, 1)
+        pl = n * mis_light_pdf(light, o, d, t, ns)
     with np.errstate(invalid="ignore", over="ignore"):
         w = pdf_b * pdf_b / (pdf_b * pdf_b + pl * pl)
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
@@ -682,7 +701,10 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     jy[rest] = rng.random(int(rest.sum()))
     px = x0 + pix % rw
     py = y0 + pix // rw
-    o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy)
+    # The stratified numbers become positions by the pixel filter's distribution (Cycles
+    # samples its filter by importance: every ray weight 1; engine/pixelfilter.py).
+    o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy,
+                             filter_table(s.pixel_filter, s.filter_width))
     counters.camera_rays += len(o)
     tp = np.ones((len(o), 3))
     sampler = StratifiedSampler(sub, pix, spp, rng, dims)
@@ -731,6 +753,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
     pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
     org_ns = np.zeros((len(o), 3))  # shading normal where it left (the world's MIS pdf)
+    org_p = np.zeros((len(o), 3))   # ... and the point (the light tree's choice there)
     modes = light_modes(ctx)
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
@@ -766,7 +789,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     li = world[0]
                     radiance = radiance * _mis_weight(ctx, li, ctx.lights[li], o[miss],
                                                       d[miss], None, pdf_b[miss],
-                                                      org_ns[miss])[:, None]
+                                                      org_ns[miss], org_p[miss])[:, None]
                 for li, light in enumerate(ctx.lights):
                     if bounce > 0:
                         sun = light.seen_at_infinity(d[miss])
@@ -834,6 +857,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True)
         org_ns = hit.ns[keep]
+        org_p = hit.p[keep]
         pix = pix[keep]
         sample_id = sample_id[keep]
         travelled = travelled[keep]

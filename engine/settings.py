@@ -7,6 +7,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from .pixelfilter import PIXEL_FILTERS
+
 ESTIMATORS = ("knn_simpson", "knn_cone", "classic", "radius")
 EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
 # Rendering methods for teaching (docs/teaching.md), each a set of the effect switches
@@ -24,6 +26,7 @@ LIMITS = {
     "max_depth": 1024, "light_samples": 256, "seed": 2**63 - 1, "workers": 1024,
     "chunk_size": 1 << 24, "transparent_max_bounces": 1024,
 }
+FILTER_WIDTH_MAX = 500.0  # pixels: Blender's limit for the filter size
 
 
 @dataclass
@@ -43,6 +46,11 @@ class RenderSettings:
     spp: int = 128                  # camera samples per pixel (jittered, stratified)
     max_depth: int = 8              # max specular bounces along a camera path (paper)
     light_samples: int = 1          # shadow rays per light with size, per camera sample
+    # Pixel filter (engine/pixelfilter.py): box | gaussian | blackman_harris, width in
+    # pixels. Camera rays are drawn from its distribution, as Cycles does; the add-on
+    # exports Blender's (Cycles' Film > Pixel Filter, default Blackman-Harris 1.5 px).
+    pixel_filter: str = "box"
+    filter_width: float = 1.5
     # Transparent surfaces (alpha < 1) a shadow ray may cross before the next one blocks it
     # (Cycles' Light Paths > Max Bounces > Transparent, same default; 0: every surface blocks)
     transparent_max_bounces: int = 8
@@ -106,6 +114,18 @@ class RenderSettings:
             raise ValueError(f"setting 'method' must be one of {', '.join(METHODS)}, "
                              f"got {self.method!r}")
         self.method = self.method.lower()
+        if not isinstance(self.pixel_filter, str) or \
+                self.pixel_filter.lower() not in PIXEL_FILTERS:
+            raise ValueError(f"setting 'pixel_filter' must be one of {', '.join(PIXEL_FILTERS)}, "
+                             f"got {self.pixel_filter!r}")
+        self.pixel_filter = self.pixel_filter.lower()
+        ok = isinstance(self.filter_width, (int, float, np.floating, np.integer)) \
+            and not isinstance(self.filter_width, bool)
+        fw = float(self.filter_width) if ok else float("nan")
+        if not (0.0 <= fw <= FILTER_WIDTH_MAX):
+            raise ValueError(f"setting 'filter_width' must be a number from 0 to "
+                             f"{FILTER_WIDTH_MAX:g} (pixels), got {self.filter_width!r}")
+        self.filter_width = fw
         if not isinstance(self.estimator, str) or self.estimator not in ESTIMATORS:
             raise ValueError(f"setting 'estimator' must be one of {', '.join(ESTIMATORS)}, "
                              f"got {self.estimator!r}")

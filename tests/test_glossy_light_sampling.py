@@ -114,3 +114,28 @@ def test_layered_material_image_independent_of_threads():
     a = s.render(RenderSettings(workers=1, **st)).combined
     b = s.render(RenderSettings(workers=2, **st)).combined
     assert a.mean() > 0 and np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("mat", sorted(MATERIALS))
+def test_world_mis_with_the_light_tree(mat, request):
+    """More lights than the tree's threshold (20 faint point lights): the environment map
+    is picked by the light tree per shadow ray and still weighted by MIS against the
+    lobes' continuation (the tree's choice probability in its pdf). Same mean as the
+    continuation alone, and as little noise as without the tree; before, the world lit
+    the rough lobes by the continuation alone in tree mode (noise as the continuation's)."""
+    from engine.lights.selection import SAMPLE_ALL_UP_TO
+    tree = _scene(MATERIALS[mat], "environment")
+    faint = 20
+    assert faint + 1 > SAMPLE_ALL_UP_TO
+    for i in range(faint):  # 1 uW each: nothing visible, but the tree picks the lights
+        tree.add_point_light((-4.0 + 0.4 * i, 3.0, 2.5), power=1e-6)
+    mis, mis2 = _render(tree, 64, 1), _render(tree, 64, 2)
+    request.getfixturevalue("continuation_only")
+    plain = _scene(MATERIALS[mat], "environment")
+    cont, cont2 = _render(plain, 64, 1), _render(plain, 64, 2)
+    noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
+    assert noise_mis < 0.6 * noise_cont, (noise_mis, noise_cont)
+    m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
+    se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
+    assert m_mis > 0
+    assert abs(m_mis - m_cont) <= max(4.0 * se, 0.02 * m_cont), (m_mis, m_cont, se)

@@ -257,7 +257,19 @@ def setup(name, width=None, height=None):
 
 # --- renderers -------------------------------------------------------------------------
 
-def set_cycles(scene, samples, seed=0):
+# The pixel filter both renderers use when compared (a Cycles setting that our add-on reads
+# too: addon/export.pixel_filter_settings): a 1-pixel box, so a pixel is the plain mean
+# over its area; feature cases about the filter pass their own.
+COMPARE_FILTER = ("BOX", 1.0)
+
+
+def set_pixel_filter(scene, kind="BOX", width=1.0):
+    """Film > Pixel Filter (scene.cycles: BOX, GAUSSIAN, BLACKMAN_HARRIS; width in px)."""
+    scene.cycles.pixel_filter_type = kind
+    scene.cycles.filter_width = width
+
+
+def set_cycles(scene, samples, seed=0, pixel_filter=COMPARE_FILTER):
     scene.render.engine = "CYCLES"
     c = scene.cycles
     c.device = "CPU"
@@ -272,15 +284,16 @@ def set_cycles(scene, samples, seed=0):
     for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
                  "volume_bounces", "transparent_max_bounces"):
         setattr(c, attr, 32)
-    c.pixel_filter_type = "BOX"
-    scene.cycles.filter_width = 1.0
+    set_pixel_filter(scene, *pixel_filter)
     c.seed = seed
     scene.render.threads_mode = "AUTO"
 
 
-def set_photonmap_defaults(scene):
-    """Our engine at its default settings (every scene.photonmap property unset)."""
+def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
+    """Our engine at its default settings (every scene.photonmap property unset), with
+    the pixel filter set_cycles gives Cycles."""
     ensure_addon()
+    set_pixel_filter(scene, *pixel_filter)
     scene.render.engine = "PHOTONMAP"
     pm = scene.photonmap
     for prop in pm.bl_rna.properties:

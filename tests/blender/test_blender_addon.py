@@ -62,10 +62,31 @@ def test_property_defaults_match_engine(bpy_addon):
     defaults = {f.name: f.default for f in dataclasses.fields(RenderSettings)}
     for name, value in kwargs.items():
         assert name in defaults, f"unknown setting {name}"
-        if name == "workers":
-            continue
+        if name in ("workers", "pixel_filter", "filter_width"):
+            continue  # the filter is the scene's (Film > Pixel Filter), not ours
         assert value == defaults[name], f"{name}: add-on {value!r} != engine {defaults[name]!r}"
     RenderSettings(**kwargs)  # accepted by the engine
+
+
+def test_pixel_filter_is_read_from_the_scene(bpy_addon):
+    """Cycles' Film > Pixel Filter (scene.cycles) sets the engine's filter: Blender's
+    default is Blackman-Harris 1.5 px; the box is always 1 px (Cycles' sync)."""
+    bpy = bpy_addon
+    from engine.settings import RenderSettings
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    pm = scene.photonmap
+    kw = pm.to_settings_kwargs()
+    assert (kw["pixel_filter"], kw["filter_width"]) == ("blackman_harris", 1.5)
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 2.25
+    kw = pm.to_settings_kwargs()
+    assert (kw["pixel_filter"], kw["filter_width"]) == ("gaussian", 2.25)
+    scene.cycles.pixel_filter_type = "BOX"
+    kw = pm.to_settings_kwargs()
+    assert (kw["pixel_filter"], kw["filter_width"]) == ("box", 1.0)
+    assert pm.to_viewport_settings_kwargs()["pixel_filter"] == "box"
+    s = RenderSettings(**kw)
+    assert (s.pixel_filter, s.filter_width) == ("box", 1.0)
 
 
 def test_manifest_validates(bpy_addon):

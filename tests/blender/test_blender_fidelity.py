@@ -174,11 +174,12 @@ def _render(bpy, scene, path, engine="PHOTONMAP", spp=16, bounces=0):
     both engines to direct light (0) or allows indirect light."""
     from blender_helpers import read_rgba, render_exr
     scene.render.engine = engine
+    # Cycles' pixel filter setting, which our add-on reads as well
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
     if engine == "CYCLES":
         c = scene.cycles
         c.device, c.samples, c.seed = "CPU", spp, 0
         c.use_denoising = c.use_adaptive_sampling = False
-        c.pixel_filter_type, c.filter_width = "BOX", 1.0
         c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
         c.blur_glossy = 0.0
         c.max_bounces = bounces
