@@ -742,6 +742,39 @@ def texture_normal_map_metal():
 
 
 @case("textures")
+def texture_normal_map_inward():
+    """A checker normal map whose every other texel points into the surface (tangent
+    colour (0.8, 0.5, 0.3): x 0.6, z -0.4) under the sun, on a Diffuse tile (left) and a
+    Principled tile (right): Cycles shades with the inward normal as it is (only an
+    unusable normal falls back to the smooth one), its bump shadowing term refuses light
+    from behind the smooth surface, so the inward texels keep only the Principled
+    tile's glossy reflection on the raised normal; flipping them outwards lights them."""
+    _stage(back=False)
+    img = np.zeros((4, 4, 3), np.float32)
+    on = (np.add.outer(np.arange(4), np.arange(4)) % 2 == 0)
+    img[...] = (0.5, 0.5, 1.0)
+    img[on] = (0.8, 0.5, 0.3)
+    im = _image("inward", img)
+    im.colorspace_settings.name = "Non-Color"
+    for k, (shader, x) in enumerate((("ShaderNodeBsdfDiffuse", -0.85),
+                                     ("ShaderNodeBsdfPrincipled", 0.85))):
+        m, nt, out = _nodes_material(f"inward{k}")
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = im
+        tex.interpolation = "Closest"
+        nmap = nt.nodes.new("ShaderNodeNormalMap")
+        b = nt.nodes.new(shader)
+        b.inputs["Base Color" if "Principled" in shader else "Color"].default_value = \
+            (0.8, 0.6, 0.4, 1.0)
+        nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+        nt.links.new(nmap.outputs["Normal"], b.inputs["Normal"])
+        nt.links.new(b.outputs[0], out.inputs["Surface"])
+        ob = _uv_tile(m, size=1.6)
+        ob.location.x = x
+    _sun()
+
+
+@case("textures")
 def texture_bump():
     """Bump node: a triangle-wave height (8 texel columns 0, 1, 0, 1..., bilinear) times
     distance 0.15 under a grazing sun from +x: slopes facing the sun bright, the others
