@@ -6,9 +6,12 @@ Multiscatter GGX), Glass, Refraction (as Glass), Emission, Transparent,
 Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
 tiles), a Color Attribute, an RGB / Value node, or a tree of the colour nodes in
 engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
-Separate/Combine, Checker, Gradient, Noise and Voronoi textures) on colour inputs, and a
-Normal Map node (tangent or world space) fed by an Image Texture or a Bump node on
-'Normal' inputs. Anything else falls back to its nearest approximation (the
+Separate/Combine, Checker, Gradient, Noise and Voronoi textures, Layer Weight, Fresnel)
+on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight, Specular
+IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
+Emission Color and as a Mix Shader's factor (per hit for two opaque surfaces and for
+cut-outs), and a Normal Map node (tangent or world space) fed by an Image Texture or a
+Bump node on 'Normal' inputs (docs/textures.md). Anything else falls back to its nearest approximation (the
 material's viewport colour when nothing else is known) and is reported once per material
 and node in a warning that names both.
 """

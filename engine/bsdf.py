@@ -164,6 +164,11 @@ def closures(table: MaterialTable, hit: SurfaceHit):
             params, rows = hit.params, np.arange(len(hit.mat))
         hit.prm, hit.lobe_albedo = pr.setup_np(params, rows, hit.base, cos_o, hit.front,
                                                _hit_alpha(table, hit))
+        # Glossy lobes on a normal that keeps their mirror direction above the surface
+        # (Cycles' ensure_valid_specular_reflection), where ns differs from ng.
+        pr.raise_glossy_normals(hit.prm, np.ascontiguousarray(hit.ns, np.float64),
+                                np.ascontiguousarray(hit.ng, np.float64),
+                                np.ascontiguousarray(hit.wo, np.float64))
     return hit.prm, hit.lobe_albedo
 
 

@@ -144,3 +144,33 @@ def test_emission_texture_per_hit_and_per_triangle_average_for_the_light():
     np.testing.assert_allclose(L[idx == 1][0], [1.5, 0, 0.5], atol=0.03)
     with pytest.raises(SceneError, match="'m' emission_texture"):
         Material("m", emission_texture=(1, 0, 0))
+
+
+def test_glossy_normal_is_raised_so_the_mirror_direction_stays_above_the_surface():
+    """Cycles' ensure_valid_specular_reflection: the glossy lobes' normal N' lifts the
+    reflection of wo to height min(0.9 wo.ng, 0.01) over the surface; unchanged where
+    the reflection is above already or N = Ng."""
+    rng = np.random.default_rng(5)
+    n = 400
+    ng = np.tile([0.0, 0.0, 1.0], (n, 1))
+    ns = rng.normal(size=(n, 3)) * [0.6, 0.6, 0.0] + [0.0, 0.0, 1.0]
+    ns /= np.linalg.norm(ns, axis=1, keepdims=True)
+    wo = rng.normal(size=(n, 3))
+    wo[:, 2] = np.abs(wo[:, 2]) * 0.3
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    ns[0] = ng[0]
+    prm = np.zeros((n, pr.N_PACK))
+    pr.raise_glossy_normals(prm, ns, ng, wo)
+    local = prm[:, pr.P_GN:pr.P_GN + 3]
+    raised = np.any(local != 0, axis=1)
+    refl = 2 * np.einsum("ij,ij->i", ns, wo)[:, None] * ns - wo
+    t = np.minimum(0.9 * wo[:, 2], 0.01)
+    assert not raised[0]
+    np.testing.assert_array_equal(raised[1:], refl[1:, 2] < t[1:])
+    assert 20 < raised.sum() < n - 20
+    # N' in world space from its local frame about ns (principled.frame_world).
+    world = np.array([pr.frame_world(*ns[i], *local[i]) for i in np.nonzero(raised)[0]])
+    w = wo[raised]
+    r2 = 2 * np.einsum("ij,ij->i", world, w)[:, None] * world - w
+    np.testing.assert_allclose(r2[:, 2], t[raised], atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(world, axis=1), 1.0, atol=1e-9)

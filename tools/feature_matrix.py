@@ -737,6 +737,103 @@ def texture_normal_map():
 
 
 @case("textures")
+def texture_normal_map_principled():
+    """The stripes of texture_normal_map on a Principled BSDF (grey, roughness 0.4) seen
+    from a low camera against a grazing sun from +x: where a stripe's normal leans away
+    from the viewer the mirror direction of the view falls below the surface, and Cycles
+    raises the glossy lobes' normal just enough to keep it above
+    (ensure_valid_specular_reflection); glossy lobes on the bent normal as it is lose that
+    light."""
+    _stage(back=False)
+    th = math.radians(35)
+    img = np.zeros((8, 8, 3), np.float32)
+    lean = np.where((np.arange(8) // 2) % 2 == 0, 1.0, -1.0)[:, None]
+    img[..., 0] = 0.5
+    img[..., 1] = 0.5 + 0.5 * math.sin(th) * lean
+    img[..., 2] = 0.5 + 0.5 * math.cos(th)
+    im = _image("normals_v", img)
+    im.colorspace_settings.name = "Non-Color"
+    m, nt, out = _nodes_material("nmap_glossy")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = im
+    tex.interpolation = "Closest"
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    p.inputs["Roughness"].default_value = 0.4
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    nt.links.new(nmap.outputs["Normal"], p.inputs["Normal"])
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    _sun(rotation=(0, math.radians(70), 0))
+
+
+@case("textures")
+def texture_normal_map_metal():
+    """A rough metal tile (roughness 0.3) under a uniform grey sky, its tangent-space
+    normal map leaning 50 degrees away from the camera in every other stripe: seen at a
+    grazing angle, the mirror direction about those normals points into the floor. Cycles
+    raises the glossy lobe's normal until it is just above (ensure_valid_specular_reflection)
+    and the stripes reflect the sky; on the bent normal as it is they turn dark."""
+    _stage(back=False)
+    th = math.radians(50)
+    img = np.zeros((8, 8, 3), np.float32)
+    lean = np.where((np.arange(8) // 2) % 2 == 0, 1.0, 0.0)[:, None]
+    img[..., 0] = 0.5
+    img[..., 1] = 0.5 + 0.5 * math.sin(th) * lean
+    img[..., 2] = 0.5 + 0.5 * np.where(lean > 0, math.cos(th), 1.0)
+    im = _image("normals_away", img)
+    im.colorspace_settings.name = "Non-Color"
+    m, nt, out = _nodes_material("nmap_metal")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = im
+    tex.interpolation = "Closest"
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1.0)
+    p.inputs["Metallic"].default_value = 1.0
+    p.inputs["Roughness"].default_value = 0.3
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    nt.links.new(nmap.outputs["Normal"], p.inputs["Normal"])
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    mb.set_world((0.5, 0.5, 0.5), 1.0)
+
+
+@case("textures")
+def texture_normal_map_inward():
+    """A checker normal map whose every other texel points into the surface (tangent
+    colour (0.8, 0.5, 0.3): x 0.6, z -0.4) under the sun, on a Diffuse tile (left) and a
+    Principled tile (right): Cycles shades with the inward normal as it is (only an
+    unusable normal falls back to the smooth one), its bump shadowing term refuses light
+    from behind the smooth surface, so the inward texels keep only the Principled
+    tile's glossy reflection on the raised normal; flipping them outwards lights them."""
+    _stage(back=False)
+    img = np.zeros((4, 4, 3), np.float32)
+    on = (np.add.outer(np.arange(4), np.arange(4)) % 2 == 0)
+    img[...] = (0.5, 0.5, 1.0)
+    img[on] = (0.8, 0.5, 0.3)
+    im = _image("inward", img)
+    im.colorspace_settings.name = "Non-Color"
+    for k, (shader, x) in enumerate((("ShaderNodeBsdfDiffuse", -0.85),
+                                     ("ShaderNodeBsdfPrincipled", 0.85))):
+        m, nt, out = _nodes_material(f"inward{k}")
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.image = im
+        tex.interpolation = "Closest"
+        nmap = nt.nodes.new("ShaderNodeNormalMap")
+        b = nt.nodes.new(shader)
+        b.inputs["Base Color" if "Principled" in shader else "Color"].default_value = \
+            (0.8, 0.6, 0.4, 1.0)
+        nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+        nt.links.new(nmap.outputs["Normal"], b.inputs["Normal"])
+        nt.links.new(b.outputs[0], out.inputs["Surface"])
+        ob = _uv_tile(m, size=1.6)
+        ob.location.x = x
+    _sun()
+
+
+@case("textures")
 def texture_bump():
     """Bump node: a triangle-wave height (8 texel columns 0, 1, 0, 1..., bilinear) times
     distance 0.15 under a grazing sun from +x: slopes facing the sun bright, the others

@@ -59,7 +59,10 @@ P_METAL_W, P_METAL_F0, P_METAL_B, P_METAL_ALPHA = 8, 11, 14, 17
 P_GLASS_RW, P_GLASS_TW, P_GLASS_F0, P_GLASS_ALPHA, P_GLASS_ETA = 18, 21, 24, 27, 28
 P_COAT_W, P_COAT_ALPHA, P_COAT_ETA = 29, 32, 33
 P_SHEEN_W, P_SHEEN_A, P_SHEEN_B = 34, 37, 38
-N_PACK = 39
+P_GN = 39  # 3: the glossy lobes' normal in the shading normal's frame (Cycles'
+           # ensure_valid_specular_reflection: raise_glossy_normals); 0, 0, 0: the
+           # shading normal itself (setup's default)
+N_PACK = 42
 
 
 @kernel
@@ -259,12 +262,91 @@ def _remap(f0, c, eta):
 
 
 @kernel
+def _to_glossy(prm, i, x, y, z):
+    """A direction in the shading normal's frame -> the glossy lobes' frame (P_GN)."""
+    g0, g1, g2 = prm[i, P_GN], prm[i, P_GN + 1], prm[i, P_GN + 2]
+    if g0 == 0.0 and g1 == 0.0 and g2 == 0.0:
+        return x, y, z
+    return frame_local(g0, g1, g2, x, y, z)
+
+
+@kernel
+def _from_glossy(prm, i, x, y, z):
+    """The inverse of _to_glossy."""
+    g0, g1, g2 = prm[i, P_GN], prm[i, P_GN + 1], prm[i, P_GN + 2]
+    if g0 == 0.0 and g1 == 0.0 and g2 == 0.0:
+        return x, y, z
+    return frame_world(g0, g1, g2, x, y, z)
+
+
+@kernel
+def raise_glossy_normals(prm, ns, ng, wo):
+    """Cycles' maybe_ensure_valid_specular_reflection (kernel/closure/bsdf_util.h) for N
+    hits: where the shading normal ns (N,3) differs from the geometric normal ng (on the
+    viewer's side) and the mirror direction of wo about ns falls below
+    min(0.9 wo.ng, 0.01) over the surface, the glossy lobes (metal, specular, coat, glass)
+    take a normal rotated towards ng just enough to lift it to that height; the diffuse
+    and sheen lobes keep ns. Writes that normal, in ns's frame, to prm[:, P_GN:P_GN+3]."""
+    for i in range(ns.shape[0]):
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        g0, g1, g2 = ng[i, 0], ng[i, 1], ng[i, 2]
+        if n0 == g0 and n1 == g1 and n2 == g2:
+            continue
+        w0, w1, w2 = wo[i, 0], wo[i, 1], wo[i, 2]
+        ni = n0 * w0 + n1 * w1 + n2 * w2
+        r0, r1, r2 = 2.0 * ni * n0 - w0, 2.0 * ni * n1 - w1, 2.0 * ni * n2 - w2
+        iz = w0 * g0 + w1 * g1 + w2 * g2
+        t = min(0.9 * iz, 0.01)
+        if r0 * g0 + r1 * g1 + r2 * g2 >= t:
+            continue
+        ng_dot = n0 * g0 + n1 * g1 + n2 * g2
+        x0, x1, x2 = n0 - ng_dot * g0, n1 - ng_dot * g1, n2 - ng_dot * g2
+        ln = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if ln > 0.0:
+            x0, x1, x2 = x0 / ln, x1 / ln, x2 / ln
+        else:
+            x0, x1, x2 = n0, n1, n2
+        ix = w0 * x0 + w1 * x1 + w2 * x2
+        a = ix * ix + iz * iz
+        if a <= 0.0:
+            continue
+        b = 2.0 * (a + iz * t)
+        c = (t + iz) * (t + iz)
+        disc = math.sqrt(max(b * b - 4.0 * a * c, 0.0))
+        nz2 = 0.25 * (b + disc) / a if ix < 0.0 else 0.25 * (b - disc) / a
+        nx = math.sqrt(max(1.0 - nz2, 0.0))
+        nz = math.sqrt(max(nz2, 0.0))
+        p0, p1, p2 = nx * x0 + nz * g0, nx * x1 + nz * g1, nx * x2 + nz * g2
+        l0, l1, l2 = frame_local(n0, n1, n2, p0, p1, p2)
+        ln = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+        if not ln > 0.0:
+            continue
+        prm[i, P_GN], prm[i, P_GN + 1], prm[i, P_GN + 2] = l0 / ln, l1 / ln, l2 / ln
+
+
+@kernel
 def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
     """f * cos_i (RGB) of hit i's rough reflective lobes (spec, metal, coat, glass
-    reflection) for local wo, wi; mirror-like lobes contribute nothing (delta)."""
+    reflection: on the glossy normal P_GN; sheen: on the shading normal) for local wo, wi;
+    mirror-like lobes contribute nothing (delta)."""
     r0 = r1 = r2 = 0.0
-    if oz <= 0.0 or iz <= 0.0:
-        return r0, r1, r2
+    qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
+    jx, jy, jz = _to_glossy(prm, i, ix, iy, iz)
+    if qz > 0.0 and jz > 0.0:
+        r0, r1, r2 = _eval_glossy(prm, i, qx, qy, qz, jx, jy, jz)
+    if oz > 0.0 and iz > 0.0 and (prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0
+                                  or prm[i, P_SHEEN_W + 2] > 0):
+        e, _ = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
+        r0 += prm[i, P_SHEEN_W] * e
+        r1 += prm[i, P_SHEEN_W + 1] * e
+        r2 += prm[i, P_SHEEN_W + 2] * e
+    return r0, r1, r2
+
+
+@kernel
+def _eval_glossy(prm, i, ox, oy, oz, ix, iy, iz):
+    """eval_reflection's GGX lobes, in the glossy normal's frame (oz, iz > 0)."""
+    r0 = r1 = r2 = 0.0
     a = prm[i, P_SPEC_ALPHA]
     if a >= ggx.ALPHA_MIN and (prm[i, P_SPEC_W] > 0 or prm[i, P_SPEC_W + 1] > 0
                                or prm[i, P_SPEC_W + 2] > 0):
@@ -298,11 +380,6 @@ def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
         r0 += prm[i, P_GLASS_RW] * _remap(prm[i, P_GLASS_F0], c, eta) * e
         r1 += prm[i, P_GLASS_RW + 1] * _remap(prm[i, P_GLASS_F0 + 1], c, eta) * e
         r2 += prm[i, P_GLASS_RW + 2] * _remap(prm[i, P_GLASS_F0 + 2], c, eta) * e
-    if prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0 or prm[i, P_SHEEN_W + 2] > 0:
-        e, _ = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
-        r0 += prm[i, P_SHEEN_W] * e
-        r1 += prm[i, P_SHEEN_W + 1] * e
-        r2 += prm[i, P_SHEEN_W + 2] * e
     return r0, r1, r2
 
 
@@ -324,23 +401,27 @@ def _glass_reflect_share(prm, i, c, eta, inv_eta):
 def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
     """Solid-angle pdf with which the continuation (sample_lobe, the lobe chosen with
     probability sel[i, lobe]) samples the reflected direction wi of hit i: the mixture of
-    its rough reflective lobes (mirror-like lobes have no density)."""
-    if oz <= 0.0 or iz <= 0.0:
-        return 0.0
+    its rough reflective lobes (mirror-like lobes have no density; the GGX lobes on the
+    glossy normal P_GN, the sheen on the shading normal)."""
     pdf = 0.0
-    for lobe, a_col in ((L_SPEC, P_SPEC_ALPHA), (L_METAL, P_METAL_ALPHA),
-                        (L_COAT, P_COAT_ALPHA)):
-        w = sel[i, lobe]
-        a = prm[i, a_col]
+    qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
+    jx, jy, jz = _to_glossy(prm, i, ix, iy, iz)
+    if qz > 0.0 and jz > 0.0:
+        for lobe, a_col in ((L_SPEC, P_SPEC_ALPHA), (L_METAL, P_METAL_ALPHA),
+                            (L_COAT, P_COAT_ALPHA)):
+            w = sel[i, lobe]
+            a = prm[i, a_col]
+            if w > 0.0 and a >= ggx.ALPHA_MIN:
+                _, p, _ = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
+                pdf += w * p
+        w = sel[i, L_GLASS_R] + sel[i, L_GLASS_T]
+        a = prm[i, P_GLASS_ALPHA]
         if w > 0.0 and a >= ggx.ALPHA_MIN:
-            _, p, _ = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
-            pdf += w * p
-    w = sel[i, L_GLASS_R] + sel[i, L_GLASS_T]
-    a = prm[i, P_GLASS_ALPHA]
-    if w > 0.0 and a >= ggx.ALPHA_MIN:
-        _, p, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
-        eta = prm[i, P_GLASS_ETA]
-        pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
+            _, p, c = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
+            eta = prm[i, P_GLASS_ETA]
+            pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
+    if oz <= 0.0 or iz <= 0.0:
+        return pdf
     w = sel[i, L_SHEEN]
     if w > 0.0:
         _, p = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
@@ -461,16 +542,30 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
 def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2, u3):
     """Sample lobe `lobe` (L_METAL, L_SPEC, L_COAT, or L_GLASS_R / L_GLASS_T: both mean
     the whole glass lobe) of hit i for local wo: (ix, iy, iz, weight RGB = f cos / pdf of
-    that lobe alone, transmitted). Weight 0: no sample."""
+    that lobe alone, transmitted). Weight 0: no sample. The GGX lobes sample about the
+    glossy normal (P_GN), the sheen about the shading normal."""
+    if lobe == L_SHEEN:
+        return _sample_sheen(prm, i, ox, oy, oz, u1, u2)
+    qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
+    ix, iy, iz, w0, w1, w2, tr = _sample_glossy(prm, i, lobe, qx, qy, qz, u1, u2, u3)
+    ix, iy, iz = _from_glossy(prm, i, ix, iy, iz)
+    return ix, iy, iz, w0, w1, w2, tr
+
+
+@kernel
+def _sample_sheen(prm, i, ox, oy, oz, u1, u2):
+    ix, iy, iz, pdf = sheen.sheen_sample(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz,
+                                         u1, u2)
+    if iz <= 0.0 or pdf <= 0.0:
+        return ix, iy, iz, 0.0, 0.0, 0.0, False
+    return ix, iy, iz, prm[i, P_SHEEN_W], prm[i, P_SHEEN_W + 1], prm[i, P_SHEEN_W + 2], False
+
+
+@kernel
+def _sample_glossy(prm, i, lobe, ox, oy, oz, u1, u2, u3):
+    """sample_lobe's GGX lobes in the glossy normal's frame."""
     if lobe == L_GLASS_R or lobe == L_GLASS_T:
         return _glass_sample(prm, i, ox, oy, oz, u1, u2, u3)
-    if lobe == L_SHEEN:
-        ix, iy, iz, pdf = sheen.sheen_sample(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz,
-                                             u1, u2)
-        if iz <= 0.0 or pdf <= 0.0:
-            return ix, iy, iz, 0.0, 0.0, 0.0, False
-        return ix, iy, iz, prm[i, P_SHEEN_W], prm[i, P_SHEEN_W + 1], prm[i, P_SHEEN_W + 2], \
-            False
     if lobe == L_SPEC:
         a_col = P_SPEC_ALPHA
     elif lobe == L_METAL:
@@ -567,3 +662,4 @@ def _warm_up():
     eval_reflection_many(prm, n, wo, d, np.empty((1, 3)))
     lobe_is_rough(prm, np.full(1, L_SPEC, np.int64))
     rough_reflection_rows(prm, np.empty(1, np.bool_))
+    raise_glossy_normals(prm, n, np.array([[0.0, 0.6, 0.8]]), wo)

@@ -85,7 +85,10 @@ def test_mix_with_transparent_by_a_texture_is_a_cutout(fresh_scene, bpy_addon,
     assert np.allclose(mat.base_color, d.inputs["Color"].default_value[:3])
 
 
-def test_mix_of_two_surfaces_by_a_texture_warns(fresh_scene, bpy_addon):
+def test_mix_of_two_surfaces_by_a_texture_mixes_per_hit(fresh_scene, bpy_addon):
+    """Two opaque surfaces mixed by a texture: the lobe parameters per hit (Diffuse +
+    Glossy: the glossy share is the factor; docs/textures.md); with an emissive side the
+    factor's own value, warned."""
     bpy = bpy_addon
     m, nt, out = _material(bpy, "TwoSurfaces")
     tex = nt.nodes.new("ShaderNodeTexImage")
@@ -99,4 +102,9 @@ def test_mix_of_two_surfaces_by_a_texture_warns(fresh_scene, bpy_addon):
     nt.links.new(mix.outputs[0], out.inputs["Surface"])
     mat = _convert(bpy, m)
     assert mat.alpha_texture is None and mat.alpha == 1.0
+    assert not any("mixes two surfaces by a texture" in w for w in mat.warnings)
+    assert set(mat.scalar_textures) == {"metallic"} and mat.node == "glossy"
+    e = nt.nodes.new("ShaderNodeEmission")
+    nt.links.new(e.outputs[0], mix.inputs[1])
+    mat = _convert(bpy, m)
     assert any("mixes two surfaces by a texture" in w for w in mat.warnings)
