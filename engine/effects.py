@@ -16,7 +16,7 @@ from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .rayoffset import ulp32
 from .sampling import luminance
-from .scene import AREA, POINT, SPOT, SUN
+from .scene import AREA, SUN
 
 PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can reach it
 # A specular lobe focuses light into a caustic only if it is sharp. Our microfacet lobes
@@ -27,55 +27,6 @@ PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can
 # caustic: shadow rays cross it (engine/shadowtransmittance.py), so light through it is
 # direct light.
 SHARP_ROUGHNESS = 0.3
-# The same limit as the reflected lobe's half-width, ~2 alpha (a microfacet normal tilted
-# by alpha turns the mirror direction by 2 alpha): 0.18 rad, ~10 degrees. A lobe up to
-# this wide always counts as a caster; a wider one counts where a light looks at least as
-# wide from the object (caster_width_limit): blurring that light's mirror image by no
-# more than its own size, the lobe concentrates the reflected light about as a mirror
-# would (issue 14's 2 m area light spans 13 degrees from its balls: lobes up to
-# roughness 0.34 would count; its 0.5 balls do not).
-SHARP_LOBE_ANGLE = 2.0 * SHARP_ROUGHNESS ** 2
-
-
-def lobe_width(table: MaterialTable) -> np.ndarray:
-    """(M,) half-width in radians of each material's sharpest focusing lobe (metal,
-    glass or dielectric specular: 2 roughness^2; a Principled coat: 2 coat_roughness^2),
-    inf for a material with none (diffuse, or only a transparent pass)."""
-    from .closures import principled as pr
-    dielectric = (1 - table.metallic) * (1 - table.transmission)
-    main = ((table.metallic * table.base_color.max(axis=1) > 0) | (table.transmission > 0)
-            | (dielectric * table.specular > 0)) & table.has_specular
-    width = np.where(main, 2.0 * np.asarray(table.roughness, float) ** 2, np.inf)
-    if table.closure_params is not None and table.coat_weight is not None:
-        coat = (table.coat_weight > 0) & table.has_specular
-        coat_width = 2.0 * np.asarray(table.closure_params[:, pr.M_COAT_ROUGH], float) ** 2
-        width = np.where(coat, np.minimum(width, coat_width), width)
-    return width
-
-
-def light_angular_radius(light: PreparedLight, point: np.ndarray) -> float:
-    """Half the angle (radians) a light's emitting surface spans seen from `point`
-    (re-centred scene coordinates): an area light's half diagonal, a point or spot
-    light's radius, over its distance; a sun its angle / 2. 0 for mesh lights and the
-    world (no single size: their casters keep the fixed limit SHARP_LOBE_ANGLE)."""
-    if light.kind == SUN:
-        return float(np.arccos(np.clip(getattr(light, "cos_half_angle", 1.0), -1.0, 1.0)))
-    if light.kind == AREA:
-        half = 0.5 * float(np.hypot(light.size_x, light.size_y))
-    elif light.kind in (POINT, SPOT):
-        half = float(getattr(light, "radius", 0.0))
-    else:
-        return 0.0
-    dist = float(np.linalg.norm(np.asarray(light.pos, float) - point))
-    if half <= 0.0:
-        return 0.0
-    return float(np.arctan2(half, dist)) if dist > half else float(np.pi / 2)
-
-
-def caster_width_limit(lights: list, point: np.ndarray) -> float:
-    """The widest lobe (half-width, radians) that still focuses light at `point`:
-    SHARP_LOBE_ANGLE, or the largest angular radius of the lights seen from there."""
-    return max([SHARP_LOBE_ANGLE] + [light_angular_radius(li, point) for li in lights])
 
 
 def sharp_specular(table: MaterialTable) -> np.ndarray:
@@ -328,9 +279,6 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     if photon_mapping:
         focus_tri = _focusing(table)[mat] if has_tris else np.zeros(0, bool)
         sharp_tri = (sharp_specular(table)[mat] if has_tris else np.zeros(0, bool)) & focus_tri
-        widened = _widened_casters(geo, table, focus_tri & ~sharp_tri, emitting)
-        for oid, ok_mats, _, _ in widened:
-            sharp_tri |= (geo.object_id == oid) & np.isin(mat, ok_mats) & focus_tri
         rough_tri = focus_tri & ~sharp_tri
         ids, centers, radii, names = _object_spheres(geo, sharp_tri) if sharp_tri.any() else ([], np.zeros((0, 3)), np.zeros(0), [])
         rough_ids = np.setdiff1d(np.unique(geo.object_id[rough_tri]), ids) if rough_tri.any() else []
@@ -351,15 +299,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             shown = plan.rough_specular[:4]
             rough_note = ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
                           + (" ..." if len(plan.rough_specular) > 4 else "")
-                          + f" (specular lobe wider than {_deg(SHARP_LOBE_ANGLE)} and than "
-                          "the lights seen from it: too rough to focus light; unaimed "
-                          "photons carry its glossy reflections)")
-        widened_note = ""
-        if widened:
-            widened_note = ("; " + ", ".join(
-                f"'{geo.object_names[oid]}' (lobe {_deg(w)} within the light's {_deg(lim)})"
-                for oid, _, w, lim in widened[:3]) + (" ..." if len(widened) > 3 else "")
-                + " counted as sharp: no wider than the light it reflects")
+                          + f" (specular roughness > {SHARP_ROUGHNESS:g}: too rough to focus "
+                          "light; unaimed photons carry its glossy reflections)")
         if not focus_tri.any():
             auto, why = False, ("no specular or refractive materials" if not spec_tri.any()
                                 else "no mirror, glass or coat: light through transparent "
@@ -368,10 +309,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = False, "no diffuse surface to receive a caustic"
         elif reached:
             names_r = ", ".join(f"'{n}'" for _, _, _, n in reached)
-            auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}"
-                               f"{widened_note}{rough_note}" if s.aim_caustics
-                               else f"{s.caustic_photons:,} photons, from {names_r}"
-                               f"{widened_note}{rough_note}")
+            auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
+                               if s.aim_caustics
+                               else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
         elif rough_reached:
             # Nothing to aim at: a soft glow is as dense in the global photons (a larger
             # shot) as in an unaimed caustic shot, so reuse them when there are any.
@@ -381,8 +321,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = True, ("no sharp caustic caster; the glossy reflections of "
                                + ", ".join(f"'{n}'" for n in rough_reached[:4])
                                + (" ..." if len(rough_reached) > 4 else "")
-                               + " (specular lobes too wide to focus light) come from "
-                               + source)
+                               + f" (specular roughness > {SHARP_ROUGHNESS:g}) come from {source}")
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "
@@ -474,30 +413,6 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                  + (f"; shadow rays cross up to {cap} transparent surfaces" if cap
                     else "; transparent max bounces 0: they block shadow rays"))
     return plan
-
-
-def _deg(angle: float) -> str:
-    return f"{np.degrees(angle):.0f} deg"
-
-
-def _widened_casters(geo: Geometry, table: MaterialTable, candidates: np.ndarray,
-                     lights: list) -> list:
-    """Objects whose focusing lobes are wider than SHARP_LOBE_ANGLE but no wider than
-    a light seen from the object's centre (caster_width_limit): [(object id, materials
-    (array) whose lobes pass, the narrowest lobe's half-width, the limit)]. candidates:
-    (T,) bool, the triangles of focusing materials outside the fixed limit."""
-    if not candidates.any() or not lights:
-        return []
-    width = lobe_width(table)
-    out = []
-    ids, centers, _, _ = _object_spheres(geo, candidates)
-    for oid, c in zip(ids, centers):
-        mats = np.unique(geo.material[candidates & (geo.object_id == oid)])
-        limit = caster_width_limit(lights, c)
-        ok = mats[width[mats] <= limit]
-        if len(ok):
-            out.append((int(oid), ok, float(width[ok].min()), limit))
-    return out
 
 
 def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:

@@ -4,18 +4,8 @@ causes of its time and noise that were found and cut, each checked here without 
 1. The gather map's visibility test on curved surfaces: the chord between two points of a
    ball runs inside the ball, so every candidate of a lookup on a ball was hidden; each
    lookup then tried all its candidates (100-200 us instead of ~3) and answered
-   "boundary", which regathered from every such point. 89 % of the scene's camera time.
-2. Which specular lobes count as caustic casters (engine/effects.py): the fixed roughness
-   limit became a lobe-width limit that widens with the light's size seen from the
-   object, and the effect report says which objects it admitted and why."""
-import math
-
+   "boundary", which regathered from every such point. 89 % of the scene's camera time."""
 import numpy as np
-import pytest
-
-from engine import RenderSettings
-from engine.api import PaperScene
-from engine.scene import Material
 
 from engine.accel import Accel
 from engine.api import sphere_mesh
@@ -82,49 +72,3 @@ def test_gather_lookup_still_hides_a_point_behind_a_wall():
     assert E.max() < 0.1 * bright  # the dim side's light (or none), never the bright side's
     g.accel = None
     assert g.lookup(q, up[:500])[0].max() > 0.5 * bright  # without the wall: the bright one
-
-
-def _ball_scene(big_light: bool, roughness: float):
-    """A Principled ball of `roughness` on a diffuse floor, lit by a 4 m area light 3 m
-    above it (it spans ~43 degrees from the ball) or by a point light."""
-    s = PaperScene(width=16, height=16)
-    s.add_material(Material("floor", (0.7, 0.7, 0.7), specular=0.0))
-    s.add_material(Material("ball", (0.8, 0.6, 0.2), metallic=1.0, roughness=roughness))
-    s.add_plane((0, 0, 0), (0, 0, 1), 8, "floor", name="floor")
-    s.add_sphere((0, 0, 0.5), 0.5, "ball", name="ball", segments=24)
-    if big_light:
-        s.add_rect_area_light((0, 0, 3.5), (4.0, 4.0), power=500, direction=(0, 0, -1))
-    else:
-        s.add_point_light((0, 0, 3.5), power=500)
-    s.set_camera((0, -5, 2), (0, 0, 0.5), view_angle=40)
-    return s
-
-
-@pytest.mark.parametrize("big_light,roughness,caster", [
-    (False, 0.25, True),   # within the fixed 10 degrees (2 x 0.25^2 = 7 deg)
-    (False, 0.4, False),   # 18 deg: wider than a point light, no caster
-    (True, 0.4, True),     # 18 deg, but the light spans 43 deg from the ball
-    (True, 0.7, False),    # 56 deg: wider than that light too
-])
-def test_a_lobe_focuses_up_to_the_light_s_size(big_light, roughness, caster):
-    from engine.render import prepare_context
-    ctx = prepare_context(_ball_scene(big_light, roughness),
-                          RenderSettings(photons=2000, workers=1))
-    ctx.accel.close()
-    assert (ctx.plan.casters == ["ball"]) == caster
-    assert ("ball" in ctx.plan.rough_specular) == (not caster)
-    line = next(r for r in ctx.plan.report() if r.startswith("caustics:"))
-    widened = big_light and caster
-    assert ("'ball' (lobe 18 deg within the light's 4" in line) == widened, line
-    if not caster:
-        assert "too wide to focus" in line or "too rough to focus" in line, line
-
-
-def test_light_angular_radius_per_kind():
-    from engine.effects import light_angular_radius
-    from engine.render import prepare_context
-    ctx = prepare_context(_ball_scene(True, 0.4), RenderSettings(photons=2000, workers=1))
-    ctx.accel.close()
-    area = ctx.lights[0]
-    p = np.asarray(area.pos, float) - np.array([0.0, 0.0, 3.0])  # 3 m below its centre
-    assert light_angular_radius(area, p) == pytest.approx(math.atan(2 * math.sqrt(2) / 3))
