@@ -307,7 +307,8 @@ def write_report(rows, ref_secs, args, suffix="", title=None, summary=None, extr
             "# Accuracy vs time against Cycles",
             "",
             f"Made by `.venv/bin/python bench/bench_accuracy.py` ({time.strftime('%Y-%m-%d')},"
-            f" {os.cpu_count()} cores; times are wall-clock, ours and Cycles' measured in turn "
+            f" {os.cpu_count()} cores, load average {os.getloadavg()[1]:.1f} over the last 5 "
+            "minutes of the run; times are wall-clock, ours and Cycles' measured in turn "
             "in one process, so a busy machine slows both alike). Each scene: our render at "
             "default settings placed on Cycles' own error-vs-time curve (Cycles at 4..1024 "
             "spp, log-log interpolation; ~ marks a value extrapolated beyond the curve's "
