@@ -15,6 +15,7 @@ import numpy as np
 from .rayoffset import surface_offset, triangle_tilt, ulp32
 from .sampling import dot, luminance, normalize
 from .parallel import Cancelled
+from .instancing import Instances
 from .scene import Material, Scene
 
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
@@ -228,6 +229,9 @@ class Geometry:
                               # mesh has one (a mesh without one reads black, as in Cycles)
     corner_coordinates: dict | None = None  # name -> (T,3,3) texture coordinates (Mesh);
                               # zeros on meshes without them
+    instances: "Instances | None" = None  # meshes placed from a shared prototype
+                              # (Mesh.prototype): the rows they occupy, for two-level
+                              # tracing (engine/instancing.py); None when there are none
 
     def __post_init__(self):
         self.ng = PerTriangle(self, _ng_rows)  # (T,3) unit geometric normals (winding)
@@ -430,6 +434,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         vbase += nv
     if stop():
         raise Cancelled()
+    instances = _instances(meshes, offset)
     geo = Geometry(
         offset=offset, extent=extent, v0=v0, e1=e1, e2=e2,
         corner_normals=corner_normals, smooth=smooth, corner_uvs=corner_uvs,
@@ -440,8 +445,50 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=np.concatenate(ccols) if ccols else None,
         corner_coordinates=_corner_coordinates(meshes),
+        instances=instances,
     )
     return geo, table
+
+
+def _instances(meshes, offset) -> Instances | None:
+    """The instance records of the merged table: meshes whose Mesh.prototype and matrix
+    describe them (Mesh.instance_matches; a mesh whose record does not match is kept as
+    ordinary triangles and warned about). None when no mesh is an instance."""
+    prototypes, index = [], {}
+    proto, base, to_world, flip, vis, static = [], [], [], [], [], []
+    start = 0
+    for mesh in meshes:
+        n = len(mesh.faces)
+        if not n:
+            continue
+        if mesh.prototype is not None:
+            if mesh.instance_matches():
+                key = id(mesh.prototype)
+                if key not in index:
+                    index[key] = len(prototypes)
+                    prototypes.append((mesh.prototype.vertices, mesh.prototype.faces))
+                M = mesh.matrix.copy()
+                M[:, 3] -= offset
+                proto.append(index[key])
+                base.append(start)
+                to_world.append(M)
+                flip.append(np.linalg.det(M[:, :3]) < 0)
+                vis.append(mesh.visibility)
+            else:
+                note = (f"mesh '{mesh.name}': its instance record does not match its "
+                        "vertices and faces; traced as a copy")
+                if note not in mesh.warnings:
+                    mesh.warnings.append(note)
+                static.append(np.arange(start, start + n))
+        else:
+            static.append(np.arange(start, start + n))
+        start += n
+    if not proto:
+        return None
+    return Instances(prototypes=prototypes, prototype=np.array(proto, np.int64),
+                     base=np.array(base, np.int64), to_world=np.array(to_world),
+                     flip=np.array(flip, bool), visibility=np.array(vis, np.uint8),
+                     static=np.concatenate(static) if static else np.zeros(0, np.int64))
 
 
 def emissive_triangles(geo: Geometry, table: MaterialTable):
