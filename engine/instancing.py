@@ -117,19 +117,21 @@ def build_top_level(lo: np.ndarray, hi: np.ndarray) -> TopLevel:
 
 
 @kernel
-def _slab(o, inv, lo, hi, tmax):
-    """Entry parameter of the ray (o, 1/d) into box [lo, hi] within [0, tmax], or -1."""
-    tn = 0.0
-    tf = tmax
-    for k in range(3):
-        t1 = (lo[k] - o[k]) * inv[k]
-        t2 = (hi[k] - o[k]) * inv[k]
-        if t1 > t2:
-            t1, t2 = t2, t1
-        if t1 > tn:
-            tn = t1
-        if t2 < tf:
-            tf = t2
+def _slab(ox, oy, oz, ix, iy, iz, lo, hi, b, tmax):
+    """Entry parameter of the ray (origin o, inverse direction i) into box b of lo, hi
+    (N,3) within [0, tmax], or -1. Scalars: this runs ~10-20 times per ray."""
+    t1 = (lo[b, 0] - ox) * ix
+    t2 = (hi[b, 0] - ox) * ix
+    tn = min(t1, t2)
+    tf = max(t1, t2)
+    t1 = (lo[b, 1] - oy) * iy
+    t2 = (hi[b, 1] - oy) * iy
+    tn = max(tn, min(t1, t2))
+    tf = min(tf, max(t1, t2))
+    t1 = (lo[b, 2] - oz) * iz
+    t2 = (hi[b, 2] - oz) * iz
+    tn = max(tn, min(t1, t2), 0.0)
+    tf = min(tf, max(t1, t2), tmax)
     if tn <= tf:  # NaN rays fail every comparison: no box
         return tn
     return -1.0
@@ -147,21 +149,22 @@ def top_level_candidates(o, d, tmax, node_lo, node_hi, child, first, count, orde
     tent = np.empty(cap, np.float64)
     offsets = np.zeros(R + 1, np.int64)
     stack = np.empty(STACK_DEPTH, np.int64)
-    inv = np.empty(3)
     m = 0
     if node_lo.shape[0] == 0 or order.shape[0] == 0:
         return offsets, inst[:0], tent[:0]
     for r in range(R):
-        for k in range(3):
-            inv[k] = 1.0 / d[r, k] if d[r, k] != 0.0 else 1e300
+        ox, oy, oz = o[r, 0], o[r, 1], o[r, 2]
+        ix = 1.0 / d[r, 0] if d[r, 0] != 0.0 else 1e300
+        iy = 1.0 / d[r, 1] if d[r, 1] != 0.0 else 1e300
+        iz = 1.0 / d[r, 2] if d[r, 2] != 0.0 else 1e300
+        tm = tmax[r]
         start = m
-        top = 0
         stack[0] = 0
         top = 1
         while top > 0:
             top -= 1
             node = stack[top]
-            if _slab(o[r], inv, node_lo[node], node_hi[node], tmax[r]) < 0.0:
+            if _slab(ox, oy, oz, ix, iy, iz, node_lo, node_hi, node, tm) < 0.0:
                 continue
             if child[node] >= 0:
                 stack[top] = child[node]
@@ -170,7 +173,7 @@ def top_level_candidates(o, d, tmax, node_lo, node_hi, child, first, count, orde
                 continue
             for j in range(first[node], first[node] + count[node]):
                 i = order[j]
-                te = _slab(o[r], inv, lo[i], hi[i], tmax[r])
+                te = _slab(ox, oy, oz, ix, iy, iz, lo, hi, i, tm)
                 if te < 0.0:
                     continue
                 if m == inst.shape[0]:
@@ -221,7 +224,7 @@ class InstanceAccel:
     merged triangle table whose instances are traced two-level (module docstring).
 
     vertices32, faces32: the merged table for the triangles of no instance
-    (instances.static rows; the instanced rows are not read). instances: Instances.
+    (instances.static rows; the instanced rows are not read; None when there are none). instances: Instances.
     use: (I,) bool, the instances this BVH traces (the others are passed through, as a
     ray class that does not see them); static: the static rows it traces (default all).
     accel_class builds the Embree BVHs (bench/ records queries through it). Raises
@@ -234,7 +237,9 @@ class InstanceAccel:
         stop = should_cancel if should_cancel is not None else (lambda: False)
         self.threads = max(1, int(threads))
         self.instances = instances
-        self.count = len(faces32)
+        sizes = np.array([len(f) for _, f in instances.prototypes], np.int64)
+        ends = instances.base + sizes[instances.prototype] if instances.count else [0]
+        self.count = max(0 if faces32 is None else len(faces32), int(np.max(ends)))
         if _prototypes is None:
             built = []
             for verts, faces in instances.prototypes:
@@ -251,7 +256,6 @@ class InstanceAccel:
         self._prototypes = _prototypes
         self._proto_accels = _prototypes[0]
         use = np.ones(instances.count, bool) if use is None else np.asarray(use, bool)
-        sizes = np.array([len(f) for _, f in instances.prototypes], np.int64)
         # Instances with a singular transform are flat: their copies would be degenerate
         # triangles, which Embree never hits; they are left out here too.
         M = instances.to_world
