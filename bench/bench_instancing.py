@@ -10,9 +10,19 @@ build, build time, closest-hit throughput of the same rays, and how many hits ag
               space (unnormalised directions, so t stays the world parameter) and traced
               up to the nearest hit so far, in rounds (the k-th box of every ray).
 
+--render renders a scene instead (the engine's whole path, each case in a fresh
+process): a floor and a point light over N instances of a sphere with normals and UVs
+(Mesh.prototype records, as addon/export.py writes them), the instances expanded into
+the BVH or traced two-level (engine/resources.INSTANCE_BUDGET_FRACTION forces the
+choice): resident memory kept by the prepared context and its peak, prepare (tables +
+BVH) and render time, and the image's mean against the expanded render's. The Scene's
+own meshes (the exporter's world-space copies) exist before the measurement and are not
+counted.
+
 Prints a table (docs/performance.md, "Instancing").
 
     .venv/bin/python bench/bench_instancing.py [--instances 100] [--rays 200000]
+    .venv/bin/python bench/bench_instancing.py --render [--instances 10 100 1000] [--segments 64]
 """
 from __future__ import annotations
 
@@ -126,6 +136,107 @@ print(json.dumps({"kept": kept, "build": build, "trace": trace, "triangles": len
 """
 
 
+RENDER_CHILD = r"""
+import gc, json, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine import RenderSettings, resources
+from engine.api import PaperScene, sphere_mesh
+from engine.render import prepare_context, render_pass
+from engine.scene import Material, Mesh, Prototype, place
+
+
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+
+
+def hwm():
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+
+
+def scene(n, segments):
+    s = PaperScene(width=64, height=48)
+    s.add_material(Material("white", (0.8, 0.8, 0.8)))
+    side = int(np.ceil(np.sqrt(n)))
+    s.add_plane((1.5 * side, 1.5 * side, -1.0), (0, 0, 1), 3.0 * side + 4, "white", name="floor")
+    v, f, nrm, uv = sphere_mesh((0, 0, 0), 1.0, segments, segments // 2)
+    proto = Prototype("sphere", v, f)
+    rng = np.random.default_rng(1)
+    for i in range(n):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        q *= np.sign(np.linalg.det(q))
+        M = np.eye(4)
+        M[:3, :3] = q * rng.uniform(0.6, 1.2)
+        M[:3, 3] = [3.0 * (i % side), 3.0 * (i // side), 0.0]
+        vw, fw = place(proto, M)
+        s.add_mesh(Mesh(f"ball.{i}", vw, fw, normals=nrm @ M[:3, :3].T, uvs=uv,
+                        materials=["white"], prototype=proto, matrix=M))
+    s.add_point_light((1.5 * side, 1.5 * side, 4.0 + side), power=200.0 * side * side)
+    s.set_camera((1.5 * side, -1.0 * side, 1.5 * side), (1.5 * side, 1.5 * side, 0.0),
+                 view_angle=60)
+    return s
+
+
+settings = RenderSettings(photons=20000, caustic_photons=0, spp=4, workers=1, seed=1)
+warm = scene(2, 8)  # load the compiled kernels before measuring
+render_pass(prepare_context(warm, settings), (0, 0, 64, 48))
+del warm
+gc.collect()
+try:
+    import ctypes
+    ctypes.CDLL("libc.so.6").malloc_trim(0)
+except (OSError, AttributeError):
+    pass
+resources.INSTANCE_BUDGET_FRACTION = 0.0 if MODE == "two-level" else 1e9
+sc = scene(NI, SEG)
+sc.validate()
+T = sum(len(m.faces) for m in sc.meshes)
+before = rss()
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")
+t0 = time.perf_counter()
+ctx = prepare_context(sc, settings)
+t_prepare = time.perf_counter() - t0
+kept = rss() - before
+peak_prepare = hwm() - before
+assert ctx.accel.two_level == (MODE == "two-level")
+t0 = time.perf_counter()
+film = render_pass(ctx, (0, 0, 64, 48))
+t_render = time.perf_counter() - t0
+peak = hwm() - before
+print(json.dumps({"T": T, "kept": kept, "peak_prepare": peak_prepare, "peak": peak,
+                  "t_prepare": t_prepare, "t_render": t_render,
+                  "mean": float(film.combined.mean())}))
+"""
+
+
+def run_render(mode, instances, segments):
+    code = (f"ROOT={ROOT!r}; MODE={mode!r}; NI={instances}; SEG={segments}\n"
+            + RENDER_CHILD)
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    return json.loads(res.strip().splitlines()[-1])
+
+
+def main_render(instances, segments):
+    mb = 1 << 20
+    print(f"instances of a sphere of {segments} segments; 64x48, 4 spp, 20k photons, "
+          "1 worker")
+    print("| instances | triangles | method | kept after preparing (MB) | peak (MB) | "
+          "prepare (s) | render (s) | image mean / expanded |")
+    print("|---|---|---|---|---|---|---|---|")
+    for ni in instances:
+        res = {m: run_render(m, ni, segments) for m in ("expanded", "two-level")}
+        for m, r in res.items():
+            ratio = r["mean"] / max(res["expanded"]["mean"], 1e-30)
+            print(f"| {ni} | {r['T']:,} | {m} | {r['kept'] / mb:.0f} | {r['peak'] / mb:.0f} | "
+                  f"{r['t_prepare']:.2f} | {r['t_render']:.2f} | {ratio:.4f} |", flush=True)
+
+
 def run(mode, instances, rays, out):
     code = (f"ROOT={ROOT!r}; MODE={mode!r}; NI={instances}; NR={rays}; OUT={out!r}\n" + CHILD)
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -142,7 +253,14 @@ def main():
     ap.add_argument("--flatten-max", type=int, default=100,
                     help="flatten only up to this many instances (1000 copies of the "
                     "sphere need ~14 GB)")
+    ap.add_argument("--render", action="store_true",
+                    help="render a scene, expanded against two-level (engine path)")
+    ap.add_argument("--segments", type=int, default=64,
+                    help="--render: the sphere's segments (2 x segments^2 / 2 triangles)")
     args = ap.parse_args()
+    if args.render:
+        main_render(args.instances, args.segments)
+        return
     tmp = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"bench_instancing_{os.getpid()}")
     mb = 1 << 20
     print(f"instances of a 65,536-triangle sphere, {args.rays:,} closest-hit rays, 1 thread")
