@@ -124,7 +124,7 @@ trace = time.perf_counter() - t0
 if MODE != "flattened":
     top = acc._top
     t1 = time.perf_counter()
-    from engine.instancing import top_level_candidates
+    from engine.toplevel import top_level_candidates
     offsets, _, _ = top_level_candidates(o, d, np.full(len(o), np.inf), top.node_lo,
                                          top.node_hi, top.child, top.first, top.count,
                                          top.order, top.lo, top.hi)

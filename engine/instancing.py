@@ -23,11 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accel import Accel
-from .jit import kernel, register_warm_up
 from .parallel import Cancelled
-
-LEAF_SIZE = 2      # instances per top-level leaf
-STACK_DEPTH = 96   # median splits: depth <= log2(instances) + 1
+from .toplevel import build_top_level, to_object_rays, top_level_candidates
 
 
 @dataclass
@@ -61,145 +58,6 @@ class Instances:
     def instanced_triangles(self) -> int:
         sizes = np.array([len(f) for _, f in self.prototypes], np.int64)
         return int(sizes[self.prototype].sum()) if self.count else 0
-
-
-@dataclass
-class TopLevel:
-    """A BVH over boxes (I,3) lo / hi: nodes (N,) with boxes, `child` (first of two
-    consecutive children, internal nodes) or `first` / `count` into `order` (leaves)."""
-
-    node_lo: np.ndarray
-    node_hi: np.ndarray
-    child: np.ndarray
-    first: np.ndarray
-    count: np.ndarray
-    order: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-
-
-def build_top_level(lo: np.ndarray, hi: np.ndarray) -> TopLevel:
-    """Median-split BVH over the boxes lo, hi (I,3) float64 (largest centroid extent
-    first; leaves of up to LEAF_SIZE boxes). O(I log I) numpy work, ~2I/LEAF_SIZE nodes."""
-    lo = np.ascontiguousarray(lo, np.float64)
-    hi = np.ascontiguousarray(hi, np.float64)
-    n = len(lo)
-    cap = max(1, 2 * n)
-    node_lo = np.zeros((cap, 3))
-    node_hi = np.zeros((cap, 3))
-    child = np.full(cap, -1, np.int64)
-    first = np.zeros(cap, np.int64)
-    count = np.zeros(cap, np.int64)
-    order = np.arange(n, dtype=np.int64)
-    centre = (lo + hi) / 2.0
-    used = 1
-    stack = [(0, 0, n)] if n else []
-    while stack:
-        node, a, b = stack.pop()
-        items = order[a:b]
-        node_lo[node] = lo[items].min(axis=0)
-        node_hi[node] = hi[items].max(axis=0)
-        if b - a <= LEAF_SIZE:
-            first[node], count[node] = a, b - a
-            continue
-        c = centre[items]
-        axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
-        mid = (b - a) // 2
-        part = np.argpartition(c[:, axis], mid)
-        order[a:b] = items[part]
-        child[node] = used
-        stack.append((used, a, a + mid))
-        stack.append((used + 1, a + mid, b))
-        used += 2
-    return TopLevel(node_lo[:max(used, 1)].copy(), node_hi[:max(used, 1)].copy(),
-                    child[:max(used, 1)].copy(), first[:max(used, 1)].copy(),
-                    count[:max(used, 1)].copy(), order, lo, hi)
-
-
-@kernel
-def _slab(ox, oy, oz, ix, iy, iz, lo, hi, b, tmax):
-    """Entry parameter of the ray (origin o, inverse direction i) into box b of lo, hi
-    (N,3) within [0, tmax], or -1. Scalars: this runs ~10-20 times per ray."""
-    t1 = (lo[b, 0] - ox) * ix
-    t2 = (hi[b, 0] - ox) * ix
-    tn = min(t1, t2)
-    tf = max(t1, t2)
-    t1 = (lo[b, 1] - oy) * iy
-    t2 = (hi[b, 1] - oy) * iy
-    tn = max(tn, min(t1, t2))
-    tf = min(tf, max(t1, t2))
-    t1 = (lo[b, 2] - oz) * iz
-    t2 = (hi[b, 2] - oz) * iz
-    tn = max(tn, min(t1, t2), 0.0)
-    tf = min(tf, max(t1, t2), tmax)
-    if tn <= tf:  # NaN rays fail every comparison: no box
-        return tn
-    return -1.0
-
-
-@kernel
-def top_level_candidates(o, d, tmax, node_lo, node_hi, child, first, count, order, lo, hi):
-    """For each ray (o, d (R,3) float64, tmax (R,)): the boxes it enters before tmax,
-    nearest entry first. Returns offsets (R+1,) int64 and, for rows offsets[r] ..
-    offsets[r+1], the instance (M,) int64 and entry parameter (M,) float64. The tree is
-    walked with a stack (STACK_DEPTH nodes); a ray with no box costs one node test."""
-    R = o.shape[0]
-    cap = max(64, 2 * R)
-    inst = np.empty(cap, np.int64)
-    tent = np.empty(cap, np.float64)
-    offsets = np.zeros(R + 1, np.int64)
-    stack = np.empty(STACK_DEPTH, np.int64)
-    m = 0
-    if node_lo.shape[0] == 0 or order.shape[0] == 0:
-        return offsets, inst[:0], tent[:0]
-    for r in range(R):
-        ox, oy, oz = o[r, 0], o[r, 1], o[r, 2]
-        ix = 1.0 / d[r, 0] if d[r, 0] != 0.0 else 1e300
-        iy = 1.0 / d[r, 1] if d[r, 1] != 0.0 else 1e300
-        iz = 1.0 / d[r, 2] if d[r, 2] != 0.0 else 1e300
-        tm = tmax[r]
-        start = m
-        stack[0] = 0
-        top = 1
-        while top > 0:
-            top -= 1
-            node = stack[top]
-            if _slab(ox, oy, oz, ix, iy, iz, node_lo, node_hi, node, tm) < 0.0:
-                continue
-            if child[node] >= 0:
-                stack[top] = child[node]
-                stack[top + 1] = child[node] + 1
-                top += 2
-                continue
-            for j in range(first[node], first[node] + count[node]):
-                i = order[j]
-                te = _slab(ox, oy, oz, ix, iy, iz, lo, hi, i, tm)
-                if te < 0.0:
-                    continue
-                if m == inst.shape[0]:
-                    inst = np.concatenate((inst, np.empty(m, np.int64)))
-                    tent = np.concatenate((tent, np.empty(m, np.float64)))
-                # Insertion into this ray's list, nearest entry first.
-                q = m
-                while q > start and tent[q - 1] > te:
-                    inst[q] = inst[q - 1]
-                    tent[q] = tent[q - 1]
-                    q -= 1
-                inst[q] = i
-                tent[q] = te
-                m += 1
-        offsets[r + 1] = m
-    return offsets, inst[:m], tent[:m]
-
-
-@register_warm_up
-def _warm_up():
-    lo = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [4.0, 0.0, 0.0]])
-    top = build_top_level(lo, lo + 1.0)
-    o = np.array([[-1.0, 0.5, 0.5]])
-    top_level_candidates(o, np.array([[1.0, 0.0, 0.0]]), np.array([np.inf]), top.node_lo,
-                         top.node_hi, top.child, top.first, top.count, top.order, top.lo,
-                         top.hi)
 
 
 def _world_boxes(instances: Instances, proto_bounds):
@@ -327,9 +185,22 @@ class InstanceAccel:
                                                     top.order, top.lo, top.hi)
         return offsets, self._ids[local], tent
 
-    def _to_local(self, i, o, d):
-        A = self._to_object[i]
-        return o @ A[:, :3].T + A[:, 3], d @ A[:, :3].T
+    def _to_local(self, which, rows, o, d):
+        """Rays rows of o, d (N,3) in the object space of instances which (n,): float32
+        (n,3) each, as Embree takes them."""
+        return to_object_rays(self._to_object, which, rows, o, d)
+
+    def _by_prototype(self, rows, which):
+        """(prototype, rows, which) groups: one Embree call per prototype, whatever the
+        number of its instances (the rays are transformed per row)."""
+        proto = self.instances.prototype[which]
+        if len(self._proto_accels) == 1:
+            return [(0, rows, which)]
+        sort = np.argsort(proto, kind="stable")
+        rows, which, proto = rows[sort], which[sort], proto[sort]
+        cuts = np.flatnonzero(np.diff(proto)) + 1
+        return [(int(proto[g[0]]), rows[g], which[g])
+                for g in np.split(np.arange(len(rows)), cuts) if len(g)]
 
     def intersect(self, origins, directions, tmax=None):
         """Closest hits (t, prim, u, v) as Accel.intersect; prim indexes the merged table."""
@@ -354,32 +225,26 @@ class InstanceAccel:
         ins = self.instances
         k = 0
         while True:
+            # Round k: every ray's k-th nearest box, if it is nearer than its nearest hit
+            # so far (a ray appears once in a round, so the updates do not collide).
             rows = np.nonzero(counts > k)[0]
             if not len(rows):
                 break
             at = offsets[rows] + k
-            near = tent[at] <= far[rows]  # boxes behind the nearest hit are skipped
-            rows, which = rows[near], inst[at[near]]
-            sort = np.argsort(which, kind="stable")
-            rows, which = rows[sort], which[sort]
-            cuts = np.flatnonzero(np.diff(which)) + 1
-            for group in np.split(np.arange(len(rows)), cuts):
-                if not len(group):
-                    continue
-                i = int(which[group[0]])
-                r = rows[group]
-                ol, dl = self._to_local(i, o[r], d[r])
-                tl, pl, ul, vl = self._proto_accels[ins.prototype[i]].intersect(ol, dl, far[r])
+            near = tent[at] <= far[rows]
+            for p, r, which in self._by_prototype(rows[near], inst[at[near]]):
+                ol, dl = self._to_local(which, r, o, d)
+                tl, pl, ul, vl = self._proto_accels[p].intersect(ol, dl, far[r])
                 hit = pl >= 0
                 if not hit.any():
                     continue
-                r = r[hit]
-                t[r] = tl[hit]
-                far[r] = tl[hit]
-                prim[r] = ins.base[i] + pl[hit]
+                r, which = r[hit], which[hit]
+                t[r] = far[r] = tl[hit]
+                prim[r] = ins.base[which] + pl[hit]
                 # Mirrored copies have corners (0, 2, 1): their barycentrics swap.
-                a, b = (vl, ul) if ins.flip[i] else (ul, vl)
-                u[r], v[r] = a[hit], b[hit]
+                flip = ins.flip[which]
+                u[r] = np.where(flip, vl[hit], ul[hit])
+                v[r] = np.where(flip, ul[hit], vl[hit])
             k += 1
         return t, prim, u, v
 
@@ -396,21 +261,18 @@ class InstanceAccel:
             return blocked
         clear = np.nonzero(~blocked)[0]
         offsets, inst, _ = self._candidates(o[clear], d[clear], far[clear])
-        if not len(inst):
-            return blocked
-        rows = clear[np.repeat(np.arange(len(clear)), np.diff(offsets))]
-        sort = np.argsort(inst, kind="stable")
-        rows, which = rows[sort], inst[sort]
-        cuts = np.flatnonzero(np.diff(which)) + 1
-        ins = self.instances
-        for group in np.split(np.arange(len(rows)), cuts):
-            r = rows[group]
-            r = r[~blocked[r]]
-            if not len(r):
-                continue
-            i = int(which[group[0]])
-            ol, dl = self._to_local(i, o[r], d[r])
-            blocked[r] = self._proto_accels[ins.prototype[i]].occluded(ol, dl, far[r])
+        counts = np.diff(offsets)
+        k = 0
+        while True:
+            # Round k: the k-th box of every ray not blocked yet.
+            live = np.nonzero(counts > k)[0]
+            live = live[~blocked[clear[live]]]
+            if not len(live):
+                break
+            for p, r, which in self._by_prototype(clear[live], inst[offsets[live] + k]):
+                ol, dl = self._to_local(which, r, o, d)
+                blocked[r] = self._proto_accels[p].occluded(ol, dl, far[r])
+            k += 1
         return blocked
 
     def occluded_into(self, o32, d32, tmax32, blocked) -> np.ndarray:

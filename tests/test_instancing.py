@@ -14,7 +14,8 @@ from engine import RenderSettings, resources
 from engine.accel import Accel
 from engine.api import PaperScene, sphere_mesh
 from engine.geometry import CAMERA, SHADOW, prepare
-from engine.instancing import InstanceAccel, Instances, build_top_level, top_level_candidates
+from engine.instancing import InstanceAccel, Instances
+from engine.toplevel import build_top_level, top_level_candidates
 from engine.parallel import Cancelled
 from engine.render import prepare_context
 from engine.scene import Material, Mesh, Prototype, SceneError, place
