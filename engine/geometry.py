@@ -203,8 +203,9 @@ class Geometry:
     (3 B); corner normals (36 B) only when some mesh has normals, corner UVs (24 B) only
     when some mesh has UVs. ng, area, round32 and tilt32 are computed from the corners
     when read (PerTriangle). vertices32 / faces32 (float32 corners shared as in the
-    meshes, int32 indices) feed the BVH build and are released after it
-    (release_build_arrays): Embree keeps its own copy."""
+    meshes, int32 indices) feed the BVH build; Embree reads them in place (shared
+    buffers, engine/accel.py), so the Accel keeps them and release_build_arrays only
+    drops the Geometry's references."""
 
     offset: np.ndarray        # (3,) translation removed from everything
     extent: float             # bounding-box diagonal (scene size; never a length floor)
@@ -246,7 +247,8 @@ class Geometry:
         return len(self.v0)
 
     def release_build_arrays(self):
-        """Drop vertices32 / faces32 once the BVH is built (Embree holds its own copy)."""
+        """Drop the Geometry's references to vertices32 / faces32 once the BVH is built
+        (the Accel keeps what Embree reads)."""
         self.vertices32 = self.faces32 = None
 
     def hit_points(self, prim: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -380,7 +382,10 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     holdout = np.empty(T, bool)
     terminator = np.empty(T, np.float32)
     terminator_shading = np.empty(T, np.float32)
-    vertices32 = np.empty((sum(len(m.vertices) for m in meshes if len(m.faces)), 3), np.float32)
+    # One spare row: Embree reads the vertices in place and loads 4 bytes past the last
+    # one (accel.padded_vertices).
+    n_vertices = sum(len(m.vertices) for m in meshes if len(m.faces))
+    vertices32 = np.zeros((n_vertices + 1, 3), np.float32)[:n_vertices]
     faces32 = np.empty((T, 3), np.int32)
     ccols = []
     any_colors = any(m.colors is not None for m in meshes)
