@@ -185,6 +185,14 @@ def _tilt32_rows(geo, idx):
     return triangle_tilt(corners.astype(np.float32))
 
 
+def _terminator_rows(geo, idx):
+    return geo.object_terminator[np.take(geo.object_id, idx)]
+
+
+def _terminator_shading_rows(geo, idx):
+    return geo.object_terminator_shading[np.take(geo.object_id, idx)]
+
+
 def area_sum(geo, mask) -> float:
     """Total area (m^2) of the triangles where mask (T,) bool is True, a piece at a time."""
     total = 0.0
@@ -199,10 +207,10 @@ class Geometry:
     """Merged triangles in re-centred world space (world = local + offset).
 
     Memory per triangle (docs/performance.md, "Memory per triangle"): v0, e1, e2 (72 B),
-    material, object_id, terminator, terminator_shading (16 B), smooth, visibility, holdout
-    (3 B); corner normals (36 B) only when some mesh has normals, corner UVs (24 B) only
-    when some mesh has UVs. ng, area, round32 and tilt32 are computed from the corners
-    when read (PerTriangle). vertices32 / faces32 (float32 corners shared as in the
+    material, object_id (8 B), smooth, visibility, holdout (3 B); corner normals (36 B)
+    only when some mesh has normals, corner UVs (24 B) only when some mesh has UVs. ng,
+    area, round32 and tilt32 are computed from the corners when read, terminator and
+    terminator_shading from the per-object values (PerTriangle). vertices32 / faces32 (float32 corners shared as in the
     meshes, int32 indices) feed the BVH build; Embree reads them in place (shared
     buffers, engine/accel.py), so the Accel keeps them and release_build_arrays only
     drops the Geometry's references."""
@@ -222,8 +230,9 @@ class Geometry:
     visibility: np.ndarray    # (T,) uint8 ray-class bits of the rays that see the triangle
     holdout: np.ndarray       # (T,) bool: camera rays that hit it give alpha 0
     vertices32: np.ndarray | None  # (V,3) float32 mesh vertices for Embree (build only)
-    terminator: np.ndarray    # (T,) float32 Cycles' shadow terminator geometry offset (Mesh)
-    terminator_shading: np.ndarray  # (T,) float32 Cycles' shadow terminator shading offset
+    object_terminator: np.ndarray  # (O,) float32 Cycles' shadow terminator geometry
+                              # offset per object (Mesh.shadow_terminator_offset)
+    object_terminator_shading: np.ndarray  # (O,) float32 the shading offset per object
     faces32: np.ndarray | None  # (T,3) int32 into vertices32 (build only)
     bounds: np.ndarray        # (2,3) re-centred bounding box
     corner_colors: np.ndarray | None = None  # (T,3,3) linear colour attribute; None: no
@@ -241,6 +250,9 @@ class Geometry:
         self.round32 = PerTriangle(self, _round32_rows)
         # (T,) bound on the float32 plane's tilt, radians (rayoffset.triangle_tilt)
         self.tilt32 = PerTriangle(self, _tilt32_rows)
+        # (T,) float32 shadow terminator offsets of each triangle's object
+        self.terminator = PerTriangle(self, _terminator_rows)
+        self.terminator_shading = PerTriangle(self, _terminator_shading_rows)
 
     @property
     def count(self) -> int:
@@ -380,8 +392,9 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     object_id = np.empty(T, np.int32)
     visibility = np.empty(T, np.uint8)
     holdout = np.empty(T, bool)
-    terminator = np.empty(T, np.float32)
-    terminator_shading = np.empty(T, np.float32)
+    terminator = np.array([m.shadow_terminator_offset for m in meshes], np.float32)
+    terminator_shading = np.array([m.shadow_terminator_shading_offset for m in meshes],
+                                  np.float32)
     # One spare row: Embree reads the vertices in place and loads 4 bytes past the last
     # one (accel.padded_vertices).
     n_vertices = sum(len(m.vertices) for m in meshes if len(m.faces))
@@ -406,8 +419,6 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         object_id[s] = oi
         visibility[s] = mesh.visibility
         holdout[s] = mesh.holdout
-        terminator[s] = mesh.shadow_terminator_offset
-        terminator_shading[s] = mesh.shadow_terminator_shading_offset
         for a in range(0, n, PIECE_TRIANGLES):
             if stop():
                 raise Cancelled()
@@ -445,7 +456,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         corner_normals=corner_normals, smooth=smooth, corner_uvs=corner_uvs,
         material=material, object_id=object_id, object_names=names,
         vertices32=vertices32, faces32=faces32,
-        terminator=terminator, terminator_shading=terminator_shading,
+        object_terminator=terminator, object_terminator_shading=terminator_shading,
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=np.concatenate(ccols) if ccols else None,
