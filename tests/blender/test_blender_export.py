@@ -234,3 +234,28 @@ def test_instances_share_a_prototype(fresh_scene, bpy_addon):
     out.validate()
     geo, _ = prepare(out)
     assert geo.instances.count == 2 and len(geo.instances.static) == 48
+
+
+@pytest.mark.parametrize("name", ["geometry_collection_instance", "geometry_vertex_instancing",
+                                  "geometry_nodes_instances"])
+def test_instancing_cases_traced_two_level_match_cycles(bpy_addon, monkeypatch, name):
+    """The feature matrix's instancing scenes with every instance traced two-level
+    (engine/instancing.py; the budget forced to 0) pass against Cycles as expanded."""
+    import os
+    import sys
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "tools"))
+    import feature_matrix as fm
+    from engine import resources, visibility
+    built = []
+    original = visibility.InstanceAccel
+
+    def counting(*args, **kwargs):
+        built.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    monkeypatch.setattr(visibility, "InstanceAccel", counting)
+    img, _, warnings = fm.render_ours(name)
+    assert built, "the scene was not traced two-level"
+    s = fm.score(fm.blocks(img), fm.load_references()[name])
+    assert not fm.verdict(fm.CASES[name], s, warnings), s
