@@ -113,17 +113,18 @@ def _embree_library():
 _LIBRARY = None if _rtcs is None else _embree_library()
 
 
-def _free_commit(scene, should_cancel, compact=False):
+def _free_commit(scene, should_cancel, compact=False, shared=()):
     """Commit `scene` (build its BVH) with the GIL released: on a worker thread while the
     calling thread asks should_cancel() every POLL_SECONDS (raises Cancelled; the commit
     finishes in the background and the scene is dropped after it). compact: build
-    Embree's compact BVH (SCENE_FLAG_COMPACT), robust as before."""
+    Embree's compact BVH (SCENE_FLAG_COMPACT), robust as before. shared: the arrays
+    Embree reads in place, kept alive until a cancelled commit has finished."""
     lib, offset, ctypes = _LIBRARY
     ptr = ctypes.c_void_p.from_address(id(scene) + offset).value
     if compact:
         lib.rtcSetSceneFlags(ptr, SCENE_FLAG_ROBUST | SCENE_FLAG_COMPACT)
 
-    def commit(keep=scene):  # keeps the scene alive until Embree is done with it
+    def commit(keep=(scene, shared)):  # alive until Embree is done with them
         lib.rtcCommitScene(ptr)
 
     if should_cancel is None:
@@ -256,7 +257,7 @@ class Accel:
                 raise Cancelled()
             # Commit the BVH now, before threads share the scene.
             if _LIBRARY is not None:
-                _free_commit(scene, should_cancel, compact=self.compact)
+                _free_commit(scene, should_cancel, compact=self.compact, shared=shared)
             scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
             self._blocks.append(_Block(scene, np.array(starts, np.int64), shared))
         # The first block's Embree scene (the whole BVH, except in the block fallback):
