@@ -428,6 +428,12 @@ def terminator_shading(obj) -> float:
     return min(max(value, 0.0), 1.999)
 
 
+def _geometry_key(obj):
+    """What identifies an evaluated object's geometry: its name and its data-block."""
+    data = getattr(obj, "data", None)
+    return (obj.name, data.as_pointer() if data is not None else 0)
+
+
 def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=None,
                  should_cancel=None):
     """Build an engine Scene from an evaluated depsgraph.
@@ -448,8 +454,17 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     info = dict(objects=0, instances=0, triangles=0, lights=0, export_time=0.0)
     t0 = time.perf_counter()
 
-    # Instance handles are only valid while iterating: count first, then convert.
-    total = sum(1 for _ in depsgraph.object_instances)
+    # Instance handles are only valid while iterating: count first, then convert. The
+    # mesh geometry placed more than once gets one engine Prototype: the engine may then
+    # trace it two-level instead of one BVH copy per placement (engine/instancing.py).
+    uses: dict = {}
+    total = 0
+    for inst in depsgraph.object_instances:
+        total += 1
+        if inst.object.type == "MESH":
+            key = _geometry_key(inst.object)
+            uses[key] = uses.get(key, 0) + 1
+    prototypes: dict = {}
     last_poll = time.perf_counter()
     hair_warned = set()
     view_layer = getattr(depsgraph, "view_layer", None)
@@ -483,13 +498,14 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             # (blender/object.cpp, object_is_geometry: only Mesh data is geometry), the
             # object itself is skipped, or its geometry would be exported twice.
             continue
-        data = getattr(obj, "data", None)
-        key = (obj.name, data.as_pointer() if data is not None else 0)
+        key = _geometry_key(obj)
         if key not in cache:
             cache[key] = extract_geometry(obj)
         geo = cache[key]
         if geo is None:
             continue
+        if uses.get(key, 0) > 1 and key not in prototypes:
+            prototypes[key] = pm.Prototype(name=obj.name, vertices=geo.co, faces=geo.faces)
         # Materials per slot (object- or data-linked), as the evaluated object sees them.
         slot_mats = [slot.material for slot in obj.material_slots]
         if not slot_mats:
@@ -520,6 +536,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                            converter.needs_coordinates(n) for n in names)),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
+                       prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
                        **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)  # after dropping degenerate faces

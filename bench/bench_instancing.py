@@ -4,15 +4,25 @@ build, build time, closest-hit throughput of the same rays, and how many hits ag
 
   flattened   every instance copied into world space, one BVH over all copies (what the
               engine does: engine/geometry.prepare + engine/accel.Accel)
-  two-level   one BVH of the sphere in object space; each batch of rays is tested against
-              every instance's world bounds (numpy slab test), the rays that enter are
-              transformed into the instance's object space (unnormalised directions, so
-              t stays the world parameter) and traced up to the nearest hit so far. The
-              Geometry tables stay per unique mesh (a prototype of the ray part only).
+  two-level   engine/instancing.InstanceAccel: one BVH of the sphere in object space, a
+              compiled BVH over the instances' world boxes listing the boxes each ray
+              enters nearest first; rays are transformed into each instance's object
+              space (unnormalised directions, so t stays the world parameter) and traced
+              up to the nearest hit so far, in rounds (the k-th box of every ray).
+
+--render renders a scene instead (the engine's whole path, each case in a fresh
+process): a floor and a point light over N instances of a sphere with normals and UVs
+(Mesh.prototype records, as addon/export.py writes them), the instances expanded into
+the BVH or traced two-level (engine/resources.INSTANCE_BUDGET_FRACTION forces the
+choice): resident memory kept by the prepared context and its peak, prepare (tables +
+BVH) and render time, and the image's mean against the expanded render's. The Scene's
+own meshes (the exporter's world-space copies) exist before the measurement and are not
+counted.
 
 Prints a table (docs/performance.md, "Instancing").
 
     .venv/bin/python bench/bench_instancing.py [--instances 100] [--rays 200000]
+    .venv/bin/python bench/bench_instancing.py --render [--instances 10 100 1000] [--segments 64]
 """
 from __future__ import annotations
 
@@ -76,45 +86,14 @@ side = 3.0 * np.ceil(np.sqrt(NI))
 o = np.column_stack([rng.uniform(-2, side, NR), rng.uniform(-2, side, NR), np.full(NR, 10.0)])
 d = np.column_stack([rng.normal(0, 0.2, NR), rng.normal(0, 0.2, NR), -np.ones(NR)])
 d /= np.linalg.norm(d, axis=1)[:, None]
-from numba import njit
+from engine.instancing import InstanceAccel, Instances
 
-@njit(nogil=True)
-def candidates(o, d, lo, hi):
-    # (ray, instance) pairs whose ray meets the instance's world box (slab test),
-    # grouped by instance: starts (I+1,), rays. Every ray against every box: O(R*I).
-    R, I = o.shape[0], lo.shape[0]
-    count = np.zeros(I + 1, np.int64)
-    hits = np.zeros(R * 4, np.int64)  # grown when full
-    inst = np.zeros(R * 4, np.int64)
-    m = 0
-    for r in range(R):
-        for i in range(I):
-            tn, tf = 0.0, np.inf
-            for k in range(3):
-                inv = 1.0 / d[r, k] if d[r, k] != 0.0 else 1e300
-                t1 = (lo[i, k] - o[r, k]) * inv
-                t2 = (hi[i, k] - o[r, k]) * inv
-                tn = max(tn, min(t1, t2))
-                tf = min(tf, max(t1, t2))
-            if tn <= tf:
-                if m == len(hits):
-                    hits = np.concatenate((hits, np.zeros(m, np.int64)))
-                    inst = np.concatenate((inst, np.zeros(m, np.int64)))
-                hits[m] = r
-                inst[m] = i
-                count[i + 1] += 1
-                m += 1
-    starts = np.cumsum(count)
-    fill = starts[:-1].copy()
-    rays = np.empty(m, np.int64)
-    for j in range(m):
-        rays[fill[inst[j]]] = hits[j]
-        fill[inst[j]] += 1
-    return starts, rays
-
-
-if MODE != "flattened":  # compile outside the measurements
-    candidates(np.zeros((1, 3)), np.ones((1, 3)), np.zeros((1, 3)), np.ones((1, 3)))
+# Load numba and the top-level kernel before measuring (the same for any scene).
+_w = Instances(prototypes=[(V[:3], F[:1] * 0 + [0, 1, 2])], prototype=np.zeros(1, np.int64),
+               base=np.zeros(1, np.int64), to_world=np.eye(4)[None, :3], flip=np.zeros(1, bool),
+               visibility=np.full(1, 31, np.uint8), static=np.zeros(0, np.int64))
+InstanceAccel(None, None, _w).intersect(o[:1], d[:1])
+del _w
 extra = {}
 before = rss()
 t0 = time.perf_counter()
@@ -130,45 +109,132 @@ if MODE == "flattened":
     del tri
     acc = Accel(Vw, Fw)
     del Vw, Fw
-    build = time.perf_counter() - t0
-    kept = rss() - before
-    t0 = time.perf_counter()
-    t, prim, u, v = acc.intersect(o, d)
-    trace = time.perf_counter() - t0
 else:
-    acc = Accel(V, F)
-    inv = np.array([np.linalg.inv(M) for M in Ms])
-    corners = np.array([[x, y, z, 1] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-    w = np.einsum("cj,ikj->ick", corners, np.array(Ms))[:, :, :3]
-    lo, hi = np.ascontiguousarray(w.min(axis=1)), np.ascontiguousarray(w.max(axis=1))
-    build = time.perf_counter() - t0
-    kept = rss() - before
-    t0 = time.perf_counter()
-    n = len(o)
-    t = np.full(n, np.inf)
-    prim = np.full(n, -1, np.int64)
-    u = np.zeros(n)
-    v = np.zeros(n)
-    starts, rays = candidates(o, d, lo, hi)
-    t_top = time.perf_counter() - t0
-    for i in range(len(Ms)):
-        rows = rays[starts[i]:starts[i + 1]]
-        if not len(rows):
-            continue
-        Mi = inv[i]
-        ol = o[rows] @ Mi[:3, :3].T + Mi[:3, 3]
-        dl = d[rows] @ Mi[:3, :3].T  # unnormalised: t stays the world parameter
-        tl, pl, ul, vl = acc.intersect(ol, dl, t[rows])
-        hit = pl >= 0
-        r = rows[hit]
-        t[r], prim[r], u[r], v[r] = tl[hit], pl[hit] + i * len(F), ul[hit], vl[hit]
-    trace = time.perf_counter() - t0
-    extra["top level (s)"] = t_top
-    extra["rays per ray"] = len(rays) / n
+    # engine/instancing.py: the sphere's BVH once, the compiled top level over the boxes.
+    ins = Instances(prototypes=[(V, F)], prototype=np.zeros(NI, np.int64),
+                    base=np.arange(NI, dtype=np.int64) * len(F),
+                    to_world=np.array([M[:3] for M in Ms]), flip=np.zeros(NI, bool),
+                    visibility=np.full(NI, 31, np.uint8), static=np.zeros(0, np.int64))
+    acc = InstanceAccel(None, None, ins)
+build = time.perf_counter() - t0
+kept = rss() - before
+t0 = time.perf_counter()
+t, prim, u, v = acc.intersect(o, d)
+trace = time.perf_counter() - t0
+if MODE != "flattened":
+    top = acc._top
+    t1 = time.perf_counter()
+    from engine.toplevel import top_level_candidates
+    offsets, _, _ = top_level_candidates(o, d, np.full(len(o), np.inf), top.node_lo,
+                                         top.node_hi, top.child, top.first, top.count,
+                                         top.order, top.lo, top.hi)
+    extra["top level (s)"] = time.perf_counter() - t1
+    extra["rays per ray"] = float(offsets[-1]) / len(o)
 np.save(OUT, np.stack([t, prim.astype(float)]))
 print(json.dumps({"kept": kept, "build": build, "trace": trace, "triangles": len(F) * NI,
                   "hits": int((prim >= 0).sum()), "extra": extra}))
 """
+
+
+RENDER_CHILD = r"""
+import gc, json, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine import RenderSettings, resources
+from engine.api import PaperScene, sphere_mesh
+from engine.render import prepare_context, render_pass
+from engine.scene import Material, Mesh, Prototype, place
+
+
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+
+
+def hwm():
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+
+
+def scene(n, segments):
+    s = PaperScene(width=64, height=48)
+    s.add_material(Material("white", (0.8, 0.8, 0.8)))
+    side = int(np.ceil(np.sqrt(n)))
+    s.add_plane((1.5 * side, 1.5 * side, -1.0), (0, 0, 1), 3.0 * side + 4, "white", name="floor")
+    v, f, nrm, uv = sphere_mesh((0, 0, 0), 1.0, segments, segments // 2)
+    proto = Prototype("sphere", v, f)
+    rng = np.random.default_rng(1)
+    for i in range(n):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        q *= np.sign(np.linalg.det(q))
+        M = np.eye(4)
+        M[:3, :3] = q * rng.uniform(0.6, 1.2)
+        M[:3, 3] = [3.0 * (i % side), 3.0 * (i // side), 0.0]
+        vw, fw = place(proto, M)
+        s.add_mesh(Mesh(f"ball.{i}", vw, fw, normals=nrm @ M[:3, :3].T, uvs=uv,
+                        materials=["white"], prototype=proto, matrix=M))
+    s.add_point_light((1.5 * side, 1.5 * side, 4.0 + side), power=200.0 * side * side)
+    s.set_camera((1.5 * side, -1.0 * side, 1.5 * side), (1.5 * side, 1.5 * side, 0.0),
+                 view_angle=60)
+    return s
+
+
+settings = RenderSettings(photons=20000, caustic_photons=0, spp=4, workers=1, seed=1)
+warm = scene(2, 8)  # load the compiled kernels before measuring
+render_pass(prepare_context(warm, settings), (0, 0, 64, 48))
+del warm
+gc.collect()
+try:
+    import ctypes
+    ctypes.CDLL("libc.so.6").malloc_trim(0)
+except (OSError, AttributeError):
+    pass
+resources.INSTANCE_BUDGET_FRACTION = 0.0 if MODE == "two-level" else 1e9
+sc = scene(NI, SEG)
+sc.validate()
+T = sum(len(m.faces) for m in sc.meshes)
+before = rss()
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")
+t0 = time.perf_counter()
+ctx = prepare_context(sc, settings)
+t_prepare = time.perf_counter() - t0
+kept = rss() - before
+peak_prepare = hwm() - before
+assert ctx.accel.two_level == (MODE == "two-level")
+t0 = time.perf_counter()
+film = render_pass(ctx, (0, 0, 64, 48))
+t_render = time.perf_counter() - t0
+peak = hwm() - before
+print(json.dumps({"T": T, "kept": kept, "peak_prepare": peak_prepare, "peak": peak,
+                  "t_prepare": t_prepare, "t_render": t_render,
+                  "mean": float(film.combined.mean())}))
+"""
+
+
+def run_render(mode, instances, segments):
+    code = (f"ROOT={ROOT!r}; MODE={mode!r}; NI={instances}; SEG={segments}\n"
+            + RENDER_CHILD)
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    return json.loads(res.strip().splitlines()[-1])
+
+
+def main_render(instances, segments):
+    mb = 1 << 20
+    print(f"instances of a sphere of {segments} segments; 64x48, 4 spp, 20k photons, "
+          "1 worker")
+    print("| instances | triangles | method | kept after preparing (MB) | peak (MB) | "
+          "prepare (s) | render (s) | image mean / expanded |")
+    print("|---|---|---|---|---|---|---|---|")
+    for ni in instances:
+        res = {m: run_render(m, ni, segments) for m in ("expanded", "two-level")}
+        for m, r in res.items():
+            ratio = r["mean"] / max(res["expanded"]["mean"], 1e-30)
+            print(f"| {ni} | {r['T']:,} | {m} | {r['kept'] / mb:.0f} | {r['peak'] / mb:.0f} | "
+                  f"{r['t_prepare']:.2f} | {r['t_render']:.2f} | {ratio:.4f} |", flush=True)
 
 
 def run(mode, instances, rays, out):
@@ -187,7 +253,14 @@ def main():
     ap.add_argument("--flatten-max", type=int, default=100,
                     help="flatten only up to this many instances (1000 copies of the "
                     "sphere need ~14 GB)")
+    ap.add_argument("--render", action="store_true",
+                    help="render a scene, expanded against two-level (engine path)")
+    ap.add_argument("--segments", type=int, default=64,
+                    help="--render: the sphere's segments (2 x segments^2 / 2 triangles)")
     args = ap.parse_args()
+    if args.render:
+        main_render(args.instances, args.segments)
+        return
     tmp = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"bench_instancing_{os.getpid()}")
     mb = 1 << 20
     print(f"instances of a 65,536-triangle sphere, {args.rays:,} closest-hit rays, 1 thread")
@@ -211,8 +284,8 @@ def main():
         for m, r in res.items():
             note = ""
             if r["extra"]:
-                note = (f" (top level {r['extra']['top level (s)']:.2f} s, "
-                        f"{r['extra']['rays per ray']:.1f} instance traces a ray)")
+                note = (f" (top level alone {r['extra']['top level (s)']:.2f} s, "
+                        f"{r['extra']['rays per ray']:.1f} boxes a ray enters)")
             print(f"| {ni} | {m}{note} | {r['kept'] / mb:.0f} | {r['build']:.2f} | "
                   f"{args.rays / r['trace'] / 1e6:.2f} | {r['hits']:,} | "
                   f"{agree if m == 'two-level' else ''} |", flush=True)

@@ -12,7 +12,7 @@ from .lights.environment import Environment
 from .progressive import Budget, render_progressive
 from .render import render
 from .resources import ResourceError
-from .scene import Camera, Light, Material, Mesh, Scene, SceneError
+from .scene import Camera, Light, Material, Mesh, Prototype, Scene, SceneError
 from .settings import RenderSettings
 from .normalmap import Bump, NormalMap
 from .textures import ColorAttribute, ImageTexture, TextureError
@@ -20,7 +20,7 @@ from .textures import ColorAttribute, ImageTexture, TextureError
 __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes",
            "teaching", "imageio",
            "RenderSettings",
-           "Film", "Scene", "Mesh", "Material", "Light", "Camera", "SceneError", "ResourceError",
+           "Film", "Scene", "Mesh", "Prototype", "Material", "Light", "Camera", "SceneError", "ResourceError",
            "ImageTexture", "ColorAttribute", "TextureError", "NormalMap", "Bump",
            "DECLARED_KINDS", "Environment"]
 __version__ = "0.1.0"

@@ -76,6 +76,18 @@ def _embree_library():
         lib.rtcGetSceneFlags.restype = ctypes.c_int
         lib.rtcSetSceneFlags.argtypes = [ctypes.c_void_p, ctypes.c_int]
         lib.rtcSetSceneFlags.restype = None
+        # Shared geometry buffers (_attach_shared): Embree reads our arrays, no copy.
+        vp = ctypes.c_void_p
+        for name, args, res in (
+                ("rtcGetSceneDevice", [vp], vp), ("rtcNewGeometry", [vp, ctypes.c_int], vp),
+                ("rtcSetSharedGeometryBuffer", [vp, ctypes.c_int, ctypes.c_uint, ctypes.c_int,
+                                                vp, ctypes.c_size_t, ctypes.c_size_t,
+                                                ctypes.c_size_t], None),
+                ("rtcCommitGeometry", [vp], None), ("rtcAttachGeometry", [vp, vp], ctypes.c_uint),
+                ("rtcReleaseGeometry", [vp], None), ("rtcReleaseDevice", [vp], None),
+                ("rtcGetDeviceError", [vp], ctypes.c_int)):
+            fn = getattr(lib, name)
+            fn.argtypes, fn.restype = args, res
         probe = _rtcs.EmbreeScene(robust=True)
         size = type(probe).__basicsize__
         magic = 0x5A5A1234
@@ -101,17 +113,18 @@ def _embree_library():
 _LIBRARY = None if _rtcs is None else _embree_library()
 
 
-def _free_commit(scene, should_cancel, compact=False):
+def _free_commit(scene, should_cancel, compact=False, shared=()):
     """Commit `scene` (build its BVH) with the GIL released: on a worker thread while the
     calling thread asks should_cancel() every POLL_SECONDS (raises Cancelled; the commit
     finishes in the background and the scene is dropped after it). compact: build
-    Embree's compact BVH (SCENE_FLAG_COMPACT), robust as before."""
+    Embree's compact BVH (SCENE_FLAG_COMPACT), robust as before. shared: the arrays
+    Embree reads in place, kept alive until a cancelled commit has finished."""
     lib, offset, ctypes = _LIBRARY
     ptr = ctypes.c_void_p.from_address(id(scene) + offset).value
     if compact:
         lib.rtcSetSceneFlags(ptr, SCENE_FLAG_ROBUST | SCENE_FLAG_COMPACT)
 
-    def commit(keep=scene):  # keeps the scene alive until Embree is done with it
+    def commit(keep=(scene, shared)):  # alive until Embree is done with them
         lib.rtcCommitScene(ptr)
 
     if should_cancel is None:
@@ -128,15 +141,63 @@ def _free_commit(scene, should_cancel, compact=False):
     scene.is_committed = 1  # run() would commit again otherwise
 
 
+# Embree 4 enums (rtcore_common.h, rtcore_geometry.h, rtcore_buffer.h).
+_GEOMETRY_TRIANGLE, _BUFFER_INDEX, _BUFFER_VERTEX = 0, 0, 1
+_FORMAT_UINT3, _FORMAT_FLOAT3 = 0x5003, 0x9003
+
+
+def padded_vertices(vertices) -> np.ndarray:
+    """vertices as a C-contiguous float32 (V,3) array that Embree may read 4 bytes past
+    the end of (it loads the last vertex with a 16-byte load; rtcSetSharedGeometryBuffer):
+    `vertices` itself when its buffer extends that far (engine/geometry.prepare allocates
+    one spare row), else a padded copy."""
+    v = np.asarray(vertices)
+    if v.dtype == np.float32 and v.flags.c_contiguous and v.base is not None:
+        base = v
+        while isinstance(base.base, np.ndarray):
+            base = base.base
+        if np.byte_bounds(base)[1] - np.byte_bounds(v)[1] >= 4:
+            return v
+    buf = np.zeros((len(v) + 1, 3), np.float32)
+    buf[:len(v)] = v
+    return buf[:len(v)]
+
+
+def _attach_shared(scene, vertices, faces):
+    """Attach the triangles faces (n,3) uint32-compatible int32 over vertices (V,3)
+    float32 (padded_vertices) to `scene` as one Embree geometry reading both arrays in
+    place (no copy: the caller keeps them alive as long as the scene). Returns the geomID.
+    Raises RuntimeError when Embree reports an error."""
+    lib, offset, ctypes = _LIBRARY
+    ptr = ctypes.c_void_p.from_address(id(scene) + offset).value
+    device = lib.rtcGetSceneDevice(ptr)
+    try:
+        geom = lib.rtcNewGeometry(device, _GEOMETRY_TRIANGLE)
+        lib.rtcSetSharedGeometryBuffer(geom, _BUFFER_VERTEX, 0, _FORMAT_FLOAT3,
+                                       vertices.ctypes.data, 0, 12, len(vertices))
+        lib.rtcSetSharedGeometryBuffer(geom, _BUFFER_INDEX, 0, _FORMAT_UINT3,
+                                       faces.ctypes.data, 0, 12, len(faces))
+        lib.rtcCommitGeometry(geom)
+        gid = lib.rtcAttachGeometry(ptr, geom)
+        lib.rtcReleaseGeometry(geom)
+        err = lib.rtcGetDeviceError(device)
+    finally:
+        lib.rtcReleaseDevice(device)
+    if err:
+        raise RuntimeError(f"Accel: Embree refused the shared geometry (error {err})")
+    return gid
+
+
 class _Block:
     """One Embree scene over the triangles [start, start + count) of the whole table,
     added as pieces (embreex meshes) whose first triangles are `starts` (geomID order)."""
 
-    __slots__ = ("scene", "starts")
+    __slots__ = ("scene", "starts", "shared")
 
-    def __init__(self, scene, starts):
+    def __init__(self, scene, starts, shared=()):
         self.scene = scene
         self.starts = starts
+        self.shared = shared  # arrays Embree reads in place (as long as the scene lives)
 
 
 class Accel:
@@ -171,6 +232,11 @@ class Accel:
         stop = should_cancel if should_cancel is not None else (lambda: False)
         one = np.zeros((1, 3), np.float32)
         block = self.count if _LIBRARY is not None else BLOCK_TRIANGLES
+        shared = ()
+        if _LIBRARY is not None and self.count:
+            # Embree reads our float32 vertices and int32 indices in place (shared
+            # buffers): no copy of ~18 B a triangle, and no GIL held while copying.
+            shared = (padded_vertices(vertices), np.ascontiguousarray(faces, dtype=np.int32))
         for start in range(0, self.count, max(1, block)):
             end = min(self.count, start + block)
             scene = _rtcs.EmbreeScene(robust=True)
@@ -179,18 +245,21 @@ class Accel:
                 if stop():
                     raise Cancelled()
                 b = min(end, a + MESH_TRIANGLES)
-                # Only the vertices this piece uses: embreex copies the whole array given.
-                used, local = np.unique(faces[a:b], return_inverse=True)
-                _TriangleMesh(scene, np.ascontiguousarray(vertices[used], dtype=np.float32),
-                              local.reshape(-1, 3).astype(np.int32))
+                if shared:
+                    _attach_shared(scene, shared[0], shared[1][a:b])
+                else:
+                    # Only the vertices this piece uses: embreex copies the whole array.
+                    used, local = np.unique(faces[a:b], return_inverse=True)
+                    _TriangleMesh(scene, np.ascontiguousarray(vertices[used], dtype=np.float32),
+                                  local.reshape(-1, 3).astype(np.int32))
                 starts.append(a)
             if stop():
                 raise Cancelled()
             # Commit the BVH now, before threads share the scene.
             if _LIBRARY is not None:
-                _free_commit(scene, should_cancel, compact=self.compact)
+                _free_commit(scene, should_cancel, compact=self.compact, shared=shared)
             scene.run(one, np.array([[0, 0, 1]], np.float32), dists=np.ones(1, np.float32))
-            self._blocks.append(_Block(scene, np.array(starts, np.int64)))
+            self._blocks.append(_Block(scene, np.array(starts, np.int64), shared))
         # The first block's Embree scene (the whole BVH, except in the block fallback):
         # bench/ replays queries on it directly.
         self._scene = self._blocks[0].scene if self._blocks else None

@@ -137,16 +137,17 @@ def _dot(a0, a1, a2, b0, b1, b2):
 
 
 @kernel
-def terminator_lift(prim, bary, ng, smooth, terminator, v0, e1, e2, corner_normals,
-                    cutoff, lift):
+def terminator_lift(prim, bary, ng, smooth, object_id, terminator, v0, e1, e2,
+                    corner_normals, cutoff, lift):
     """Per hit i (not per sample): cutoff[i] = the shadow-terminator geometry offset of its
-    triangle if smooth-shaded (else 0) and lift[i] (3,) the lift of the hit from the flat
+    triangle's object (terminator[object_id[t]], per object: engine/geometry.py) if
+    smooth-shaded (else 0) and lift[i] (3,) the lift of the hit from the flat
     facet to the smooth surface through the corners (a parabolic patch bounded by the
     corners' tangent planes): Blender's intern/cycles/kernel/light/sample.h,
     shadow_ray_smooth_surface_offset(), in world space."""
     for i in range(prim.shape[0]):
         t = prim[i]
-        cut = terminator[t]
+        cut = terminator[object_id[t]]  # per object (branch scale: 4 B a triangle less)
         if not (smooth[t] and cut > 0):
             cutoff[i] = 0.0
             lift[i, 0] = lift[i, 1] = lift[i, 2] = 0.0
@@ -737,5 +738,5 @@ def _warm_up():
                  bsdf=(np.ones((1, 3)), prm, nrm, np.full(len(lights), 2, np.int64),
                        np.full((1, pr.N_LOBES), 0.2)))
     terminator_lift(np.zeros(1, np.int64), np.full((1, 2), 0.25), nrm, np.ones(1, np.bool_),
-                    np.full(1, 0.1), mesh.v0, mesh.e1, mesh.e2,
+                    np.zeros(1, np.int32), np.full(1, 0.1, np.float32), mesh.v0, mesh.e1, mesh.e2,
                     np.repeat(nrm[:, None, :], 3, axis=1), np.zeros(1), np.zeros((1, 3)))

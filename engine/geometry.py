@@ -15,6 +15,7 @@ import numpy as np
 from .rayoffset import surface_offset, triangle_tilt, ulp32
 from .sampling import dot, luminance, normalize
 from .parallel import Cancelled
+from .instancing import Instances
 from .scene import Material, Scene
 
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
@@ -210,6 +211,14 @@ def _tilt32_rows(geo, idx):
     return triangle_tilt(corners.astype(np.float32))
 
 
+def _terminator_rows(geo, idx):
+    return geo.object_terminator[np.take(geo.object_id, idx)]
+
+
+def _terminator_shading_rows(geo, idx):
+    return geo.object_terminator_shading[np.take(geo.object_id, idx)]
+
+
 def area_sum(geo, mask) -> float:
     """Total area (m^2) of the triangles where mask (T,) bool is True, a piece at a time."""
     total = 0.0
@@ -224,12 +233,13 @@ class Geometry:
     """Merged triangles in re-centred world space (world = local + offset).
 
     Memory per triangle (docs/performance.md, "Memory per triangle"): v0, e1, e2 (72 B),
-    material, object_id, terminator, terminator_shading (16 B), smooth, visibility, holdout
-    (3 B); corner normals (36 B) only when some mesh has normals, corner UVs (24 B) only
-    when some mesh has UVs. ng, area, round32 and tilt32 are computed from the corners
-    when read (PerTriangle). vertices32 / faces32 (float32 corners shared as in the
-    meshes, int32 indices) feed the BVH build and are released after it
-    (release_build_arrays): Embree keeps its own copy."""
+    material, object_id (8 B), smooth, visibility, holdout (3 B); corner normals (36 B)
+    only when some mesh has normals, corner UVs (24 B) only when some mesh has UVs. ng,
+    area, round32 and tilt32 are computed from the corners when read, terminator and
+    terminator_shading from the per-object values (PerTriangle). vertices32 / faces32 (float32 corners shared as in the
+    meshes, int32 indices) feed the BVH build; Embree reads them in place (shared
+    buffers, engine/accel.py), so the Accel keeps them and release_build_arrays only
+    drops the Geometry's references."""
 
     offset: np.ndarray        # (3,) translation removed from everything
     extent: float             # bounding-box diagonal (scene size; never a length floor)
@@ -246,14 +256,18 @@ class Geometry:
     visibility: np.ndarray    # (T,) uint8 ray-class bits of the rays that see the triangle
     holdout: np.ndarray       # (T,) bool: camera rays that hit it give alpha 0
     vertices32: np.ndarray | None  # (V,3) float32 mesh vertices for Embree (build only)
-    terminator: np.ndarray    # (T,) float32 Cycles' shadow terminator geometry offset (Mesh)
-    terminator_shading: np.ndarray  # (T,) float32 Cycles' shadow terminator shading offset
+    object_terminator: np.ndarray  # (O,) float32 Cycles' shadow terminator geometry
+                              # offset per object (Mesh.shadow_terminator_offset)
+    object_terminator_shading: np.ndarray  # (O,) float32 the shading offset per object
     faces32: np.ndarray | None  # (T,3) int32 into vertices32 (build only)
     bounds: np.ndarray        # (2,3) re-centred bounding box
     corner_colors: np.ndarray | None = None  # (T,3,3) linear colour attribute; None: no
                               # mesh has one (a mesh without one reads black, as in Cycles)
     corner_coordinates: dict | None = None  # name -> (T,3,3) texture coordinates (Mesh);
                               # zeros on meshes without them
+    instances: "Instances | None" = None  # meshes placed from a shared prototype
+                              # (Mesh.prototype): the rows they occupy, for two-level
+                              # tracing (engine/instancing.py); None when there are none
 
     def __post_init__(self):
         self.ng = PerTriangle(self, _ng_rows)  # (T,3) unit geometric normals (winding)
@@ -262,13 +276,17 @@ class Geometry:
         self.round32 = PerTriangle(self, _round32_rows)
         # (T,) bound on the float32 plane's tilt, radians (rayoffset.triangle_tilt)
         self.tilt32 = PerTriangle(self, _tilt32_rows)
+        # (T,) float32 shadow terminator offsets of each triangle's object
+        self.terminator = PerTriangle(self, _terminator_rows)
+        self.terminator_shading = PerTriangle(self, _terminator_shading_rows)
 
     @property
     def count(self) -> int:
         return len(self.v0)
 
     def release_build_arrays(self):
-        """Drop vertices32 / faces32 once the BVH is built (Embree holds its own copy)."""
+        """Drop the Geometry's references to vertices32 / faces32 once the BVH is built
+        (the Accel keeps what Embree reads)."""
         self.vertices32 = self.faces32 = None
 
     def hit_points(self, prim: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -400,9 +418,13 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     object_id = np.empty(T, np.int32)
     visibility = np.empty(T, np.uint8)
     holdout = np.empty(T, bool)
-    terminator = np.empty(T, np.float32)
-    terminator_shading = np.empty(T, np.float32)
-    vertices32 = np.empty((sum(len(m.vertices) for m in meshes if len(m.faces)), 3), np.float32)
+    terminator = np.array([m.shadow_terminator_offset for m in meshes], np.float32)
+    terminator_shading = np.array([m.shadow_terminator_shading_offset for m in meshes],
+                                  np.float32)
+    # One spare row: Embree reads the vertices in place and loads 4 bytes past the last
+    # one (accel.padded_vertices).
+    n_vertices = sum(len(m.vertices) for m in meshes if len(m.faces))
+    vertices32 = np.zeros((n_vertices + 1, 3), np.float32)[:n_vertices]
     faces32 = np.empty((T, 3), np.int32)
     ccols = []
     any_colors = any(m.colors is not None for m in meshes)
@@ -423,8 +445,6 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         object_id[s] = oi
         visibility[s] = mesh.visibility
         holdout[s] = mesh.holdout
-        terminator[s] = mesh.shadow_terminator_offset
-        terminator_shading[s] = mesh.shadow_terminator_shading_offset
         for a in range(0, n, PIECE_TRIANGLES):
             if stop():
                 raise Cancelled()
@@ -456,21 +476,64 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         vbase += nv
     if stop():
         raise Cancelled()
+    instances = _instances(meshes, offset)
     geo = Geometry(
         offset=offset, extent=extent, v0=v0, e1=e1, e2=e2,
         corner_normals=corner_normals, smooth=smooth, corner_uvs=corner_uvs,
         material=material, object_id=object_id, object_names=names,
         vertices32=vertices32, faces32=faces32,
-        terminator=terminator, terminator_shading=terminator_shading,
+        object_terminator=terminator, object_terminator_shading=terminator_shading,
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=np.concatenate(ccols) if ccols else None,
         corner_coordinates=_corner_coordinates(meshes),
+        instances=instances,
     )
     # Texture-driven scalar inputs: one value per material for the effect analysis.
     from .textures import scalar_ranges
     scalar_ranges(table, geo)
     return geo, table
+
+
+def _instances(meshes, offset) -> Instances | None:
+    """The instance records of the merged table: meshes whose Mesh.prototype and matrix
+    describe them (Mesh.instance_matches; a mesh whose record does not match is kept as
+    ordinary triangles and warned about). None when no mesh is an instance."""
+    prototypes, index = [], {}
+    proto, base, to_world, flip, vis, static = [], [], [], [], [], []
+    start = 0
+    for mesh in meshes:
+        n = len(mesh.faces)
+        if not n:
+            continue
+        if mesh.prototype is not None:
+            if mesh.instance_matches():
+                key = id(mesh.prototype)
+                if key not in index:
+                    index[key] = len(prototypes)
+                    prototypes.append((mesh.prototype.vertices, mesh.prototype.faces))
+                M = mesh.matrix.copy()
+                M[:, 3] -= offset
+                proto.append(index[key])
+                base.append(start)
+                to_world.append(M)
+                flip.append(np.linalg.det(M[:, :3]) < 0)
+                vis.append(mesh.visibility)
+            else:
+                note = (f"mesh '{mesh.name}': its instance record does not match its "
+                        "vertices and faces; traced as a copy")
+                if note not in mesh.warnings:
+                    mesh.warnings.append(note)
+                static.append(np.arange(start, start + n))
+        else:
+            static.append(np.arange(start, start + n))
+        start += n
+    if not proto:
+        return None
+    return Instances(prototypes=prototypes, prototype=np.array(proto, np.int64),
+                     base=np.array(base, np.int64), to_world=np.array(to_world),
+                     flip=np.array(flip, bool), visibility=np.array(vis, np.uint8),
+                     static=np.concatenate(static) if static else np.zeros(0, np.int64))
 
 
 def emissive_triangles(geo: Geometry, table: MaterialTable):

@@ -308,7 +308,7 @@ def _hit_arrays(geo, hit):
     lift = np.zeros((n, 3))
     if hit.bary is not None and n:
         terminator_lift(hit.prim, c(hit.bary, np.float64), c(hit.ng, np.float64), geo.smooth,
-                        geo.terminator, geo.v0, geo.e1, geo.e2, geo.corner_normals, cutoff,
+                        geo.object_id, geo.object_terminator, geo.v0, geo.e1, geo.e2, geo.corner_normals, cutoff,
                         lift)
     ns = c(hit.ns, np.float64)
     n_smooth = getattr(hit, "n_smooth", None)

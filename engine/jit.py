@@ -214,5 +214,5 @@ def ensure_compiled(progress=None) -> float:
 def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
     from . import (camerakernels, camerarays, directlight, hashgrid,  # noqa: F401
-                   kdtree, photonkernels, photonmap, procedural,  # (warm-ups)
-                   rayoffset, shadowtransmittance)
+                   kdtree, photonkernels, photonmap,  # (warm-ups)
+                   procedural, rayoffset, shadowtransmittance, toplevel)

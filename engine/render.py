@@ -85,7 +85,8 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     geo, table = prepare(scene, should_cancel)
     # One BVH per distinct set of triangles a ray class sees (usually one in all).
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
-                            threads=settings.threads, should_cancel=should_cancel)
+                            threads=settings.threads, should_cancel=should_cancel,
+                            instances=geo.instances)
     shadow = ShadowTransmittance.for_scene(geo, table, settings.transparent_max_bounces)
     if shadow is None:
         # Embree holds its own copy; transparent shadows build their BVHs from them lazily.

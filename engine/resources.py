@@ -16,7 +16,8 @@ measured peak for a set of renders. What each part counts:
   being traced at the same time (one chunk per worker thread, engine/parallel.py).
 - image: the per-pixel accumulators (float64), the Film (float32 per pass) and, for a
   progressive render, the running sums; Blender's render result when rendering there.
-- triangles: the scene's arrays, the merged tables and Embree's BVH.
+- triangles: the scene's arrays, the merged tables and Embree's BVH (instances traced
+  two-level keep no BVH copy: two_level_instances).
 """
 from __future__ import annotations
 
@@ -37,6 +38,14 @@ BYTES_PER_PIXEL = 300           # accumulators 168 B + Film 92 B + write-out cop
 BYTES_PER_PIXEL_PROGRESSIVE = 350  # running sums, halves, one pass's Film
 BYTES_PER_PIXEL_BLENDER = 260   # render result passes (float32) and the copies written
 BYTES_PER_TRIANGLE = 320        # measured peak 240-290 (bench_memory.py --triangles); tables + BVH
+# Embree's copy and BVH of a triangle (default BVH ~91 B, compact ~61 B; docs/performance.md
+# "Memory per triangle"): what an instanced copy costs beyond the tables when expanded.
+BYTES_PER_BVH_TRIANGLE = 95
+# Instances are expanded into world-space copies in the BVH (fastest to trace) while the
+# copies' BVH fits this share of the available memory; beyond it they are traced two-level
+# (engine/instancing.py; docs/performance.md, "Instancing").
+INSTANCE_BUDGET_FRACTION = 0.25
+INSTANCE_BUDGET_UNKNOWN = 1 << 30  # bytes, when the available memory is unknown
 
 
 class ResourceError(ValueError):
@@ -137,6 +146,29 @@ def _triangles(scene) -> int:
     return int(sum(len(mesh.faces) for mesh in scene.meshes))
 
 
+def instance_budget(available: int | None = None) -> int:
+    """Bytes the expanded instance copies' BVH may take (INSTANCE_BUDGET_FRACTION of the
+    available memory, INSTANCE_BUDGET_UNKNOWN when that is unknown)."""
+    room = available_memory() if available is None else int(available)
+    return INSTANCE_BUDGET_UNKNOWN if room is None else int(room * INSTANCE_BUDGET_FRACTION)
+
+
+def two_level_instances(instances, available: int | None = None) -> bool:
+    """True when instances (engine.instancing.Instances) should be traced two-level:
+    the BVH of their expanded copies would exceed instance_budget(available) bytes."""
+    copies = instances.instanced_triangles() * BYTES_PER_BVH_TRIANGLE
+    return copies > instance_budget(available)
+
+
+def _instanced_triangles(scene) -> int:
+    """(copies, shared): the triangles of meshes with an instance record
+    (Mesh.prototype), and their prototypes' triangles counted once."""
+    protos = {id(m.prototype): len(m.prototype.faces) for m in scene.meshes
+              if getattr(m, "prototype", None) is not None}
+    copies = sum(len(m.faces) for m in scene.meshes if getattr(m, "prototype", None) is not None)
+    return int(copies), int(sum(protos.values()))
+
+
 def estimate_memory(scene, settings: RenderSettings, region=None, progressive=False,
                     in_blender=False) -> MemoryEstimate:
     """Peak memory of rendering `scene` with `settings` (bytes, by part). region =
@@ -173,7 +205,12 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         + (BYTES_PER_PIXEL_BLENDER if in_blender else 0)
     est.parts["image"] = pixels * per_pixel
     est.drivers["image"] = "resolution"
-    est.parts["triangles"] = tris * BYTES_PER_TRIANGLE
+    copies, shared = _instanced_triangles(scene)
+    bvh_saved = 0
+    if copies and copies * BYTES_PER_BVH_TRIANGLE > instance_budget():
+        # Two-level: the copies keep their tables, the BVH holds the prototypes only.
+        bvh_saved = (copies - shared) * BYTES_PER_BVH_TRIANGLE
+    est.parts["triangles"] = tris * BYTES_PER_TRIANGLE - bvh_saved
     est.drivers["triangles"] = "the scene's triangle count"
     return est
 

@@ -20,7 +20,7 @@ from .normalmap import Bump, NormalMap
 from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
 
 __all__ = [
-    "SceneError", "Material", "Mesh", "Light", "Camera", "Scene",
+    "SceneError", "Material", "Mesh", "Prototype", "Light", "Camera", "Scene",
     "POINT", "SPOT", "AREA", "SUN", "RECTANGLE", "DISK",
 ]
 
@@ -272,6 +272,12 @@ class Mesh:
     shadow_terminator_shading_offset  Cycles' Shadow Terminator > Shading Offset (>= 0,
               < 2, default 0): pushes the terminator of direct light towards the light
               (Cycles' shift_cos_in, appleseed's fix)
+    prototype, matrix  optional instance record: this mesh is `prototype` (object space)
+              placed by the (4,4) or (3,4) object-to-world `matrix`; vertices and faces
+              are then that placement (faces as the prototype's, corners 0, 2, 1 when the
+              matrix mirrors). Meshes sharing a prototype may be traced with one BVH of
+              the prototype (engine/instancing.py); a record that does not match the
+              mesh is ignored (the mesh is traced as it is) with a warning.
     """
 
     name: str
@@ -291,6 +297,8 @@ class Mesh:
     holdout: bool = False
     shadow_terminator_offset: float = 0.1
     shadow_terminator_shading_offset: float = 0.0
+    prototype: "Prototype | None" = None
+    matrix: np.ndarray | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     @property
@@ -414,6 +422,57 @@ class Mesh:
         self.uvs = uvs
         self.colors = colors
         self.coordinates = coords or None
+        if self.prototype is not None or self.matrix is not None:
+            self._check_instance(who)
+
+    def _check_instance(self, who: str):
+        if not isinstance(self.prototype, Prototype):
+            raise SceneError(f"{who}: prototype must be an engine.scene.Prototype, got "
+                             f"{type(self.prototype).__name__}")
+        m = np.asarray(self.matrix if self.matrix is not None else np.eye(4), np.float64)
+        if m.shape not in ((4, 4), (3, 4)) or not np.all(np.isfinite(m)):
+            raise SceneError(f"{who}: matrix must be a finite (4,4) or (3,4) array, got "
+                             f"shape {m.shape}")
+        self.matrix = np.ascontiguousarray(m[:3])
+
+    def instance_matches(self) -> bool:
+        """True when vertices and faces are the prototype placed by matrix (faces equal,
+        or with corners 0, 2, 1 when the matrix mirrors; vertices within float64
+        rounding of the transform), so tracing the prototype gives this mesh's hits."""
+        p = self.prototype
+        if p is None or len(p.faces) != len(self.faces) or len(p.vertices) != len(self.vertices):
+            return False
+        flip = np.linalg.det(self.matrix[:, :3]) < 0
+        if not np.array_equal(self.faces, p.faces[:, [0, 2, 1]] if flip else p.faces):
+            return False
+        w = p.vertices @ self.matrix[:, :3].T + self.matrix[:, 3]
+        scale = max(float(np.abs(w).max(initial=0.0)), 1e-300)
+        return bool(np.all(np.abs(w - self.vertices) <= 1e-9 * scale))
+
+
+def place(prototype: "Prototype", matrix) -> tuple[np.ndarray, np.ndarray]:
+    """World-space vertices (V,3) and faces (F,3) of `prototype` placed by the (4,4) or
+    (3,4) object-to-world `matrix`, as Mesh.prototype expects them (corners 0, 2, 1 when
+    the matrix mirrors, so the winding stays outward)."""
+    m = np.asarray(matrix, np.float64)[:3]
+    faces = prototype.faces[:, [0, 2, 1]] if np.linalg.det(m[:, :3]) < 0 else prototype.faces
+    return prototype.vertices @ m[:, :3].T + m[:, 3], faces
+
+
+@dataclass(eq=False)
+class Prototype:
+    """Object-space triangles shared by instances (Mesh.prototype): vertices (V,3),
+    faces (F,3) int. Faces a Mesh would drop (indices out of range, NaN corners, zero
+    area) are dropped here too, so an instance's faces equal the prototype's."""
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+
+    def __post_init__(self):
+        clean = Mesh(name=f"prototype '{self.name}'", vertices=self.vertices, faces=self.faces)
+        self.vertices, self.faces = clean.vertices, clean.faces
+        self.warnings = clean.warnings
 
 
 @dataclass

@@ -316,7 +316,8 @@ class Session:
                         accel.close(wait=True)
                     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility,
                                             _accel_class(), threads=s.threads,
-                                            should_cancel=self._cancel.is_set)
+                                            should_cancel=self._cancel.is_set,
+                                            instances=geo.instances)
                     self.counters.bvh_builds += 1
                     self._event("bvh", geo.count)
             else:

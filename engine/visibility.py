@@ -14,13 +14,18 @@ of spheres: per-class BVH 0.50 / 0.51 s per million rays, re-tracing 3.5 / 7.4 s
 extra BVH took 0.53 / 1.08 s to build once.
 
 VisibilityAccel is a drop-in for accel.Accel: intersect / occluded without a class use
-every triangle, as before.
+every triangle, as before. With instance records (engine.geometry.Geometry.instances)
+that engine/resources.py decides not to expand (`two_level_instances`), every BVH is an
+engine.instancing.InstanceAccel: the prototypes' BVHs are shared by the classes, a class
+that does not see an instance skips it in the top level.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .geometry import ALL_RAYS, CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION
+from .instancing import InstanceAccel
+from .resources import two_level_instances
 
 CLASSES = (CAMERA, DIFFUSE, GLOSSY, TRANSMISSION, SHADOW)
 CLASS_NAMES = {CAMERA: "camera", DIFFUSE: "diffuse", GLOSSY: "glossy",
@@ -66,7 +71,12 @@ class VisibilityAccel:
     engine.parallel.Cancelled)."""
 
     def __init__(self, vertices32, faces32, visibility, accel_class, threads=1,
-                 should_cancel=None):
+                 should_cancel=None, instances=None):
+        self.two_level = instances is not None and two_level_instances(instances)
+        if self.two_level:
+            self._two_level(vertices32, faces32, visibility, accel_class, threads,
+                            should_cancel, instances)
+            return
         self.full = accel_class(vertices32, faces32, threads=threads,
                                 should_cancel=should_cancel)
         self.count = self.full.count
@@ -88,10 +98,35 @@ class VisibilityAccel:
             self._by_class[cls] = built[key]
         self.has_invisible = any(a is not self.full for a in self._by_class.values())
 
+    def _two_level(self, vertices32, faces32, visibility, accel_class, threads,
+                   should_cancel, instances):
+        """Every class's BVH two-level (engine/instancing.py), sharing the prototypes'."""
+        self.full = InstanceAccel(vertices32, faces32, instances, accel_class,
+                                  threads=threads, should_cancel=should_cancel)
+        self.count = self.full.count
+        self.threads = threads
+        self._by_class = {}
+        built = {}
+        vis = np.asarray(visibility, np.uint8)
+        static = instances.static
+        for cls in CLASSES:
+            use = (instances.visibility & cls) != 0
+            rows = static[(vis[static] & cls) != 0]
+            if use.all() and len(rows) == len(static):
+                self._by_class[cls] = self.full
+                continue
+            key = use.tobytes() + rows.tobytes()
+            if key not in built:
+                built[key] = self.full.subset(vertices32, faces32, use, rows, accel_class,
+                                              should_cancel=should_cancel)
+            self._by_class[cls] = built[key]
+        self.has_invisible = any(a is not self.full for a in self._by_class.values())
+
     def serial(self) -> "VisibilityAccel":
         view = VisibilityAccel.__new__(VisibilityAccel)
         view.full = self.full.serial()
         view.count, view.threads, view.has_invisible = self.count, 1, self.has_invisible
+        view.two_level = self.two_level
         views = {id(self.full): view.full}
         view._by_class = {}
         for cls, acc in self._by_class.items():

@@ -211,3 +211,51 @@ def test_bad_light_power_warns_once_and_render_goes_on(fresh_scene, bpy_addon):
         assert len(hits) == 1 and what in hits[0], warnings
     assert engine.last_render.get("error") is None
     assert engine.last_render["width"] == 40
+
+
+def test_instances_share_a_prototype(fresh_scene, bpy_addon):
+    """Geometry placed more than once (the quad, instanced twice by a collection) gets
+    one engine Prototype with each placement's matrix; the cube, placed once, none. The
+    engine records the two placements as instances (engine/instancing.py)."""
+    bpy = bpy_addon
+    build_scene(bpy)
+    from addon import export
+    from addon.core import load_engine
+    pm = load_engine()
+    from engine.geometry import prepare
+    out, _ = export.export_scene(pm, bpy.context.evaluated_depsgraph_get(), width=64, height=48)
+    quads = sorted((m for m in out.meshes if "Quad" in m.name), key=lambda m: m.vertices[0, 0])
+    cube = next(m for m in out.meshes if m.name == "Cube")
+    assert cube.prototype is None and cube.matrix is None
+    assert quads[0].prototype is quads[1].prototype is not None
+    assert all(m.instance_matches() for m in quads)
+    np.testing.assert_allclose(quads[1].matrix[:, 3], (5, 0, 0), atol=1e-6)
+    np.testing.assert_allclose(np.diag(quads[1].matrix[:, :3]), (2, 2, 2), atol=1e-6)
+    out.validate()
+    geo, _ = prepare(out)
+    assert geo.instances.count == 2 and len(geo.instances.static) == 48
+
+
+@pytest.mark.parametrize("name", ["geometry_collection_instance", "geometry_vertex_instancing",
+                                  "geometry_nodes_instances"])
+def test_instancing_cases_traced_two_level_match_cycles(bpy_addon, monkeypatch, name):
+    """The feature matrix's instancing scenes with every instance traced two-level
+    (engine/instancing.py; the budget forced to 0) pass against Cycles as expanded."""
+    import os
+    import sys
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "tools"))
+    import feature_matrix as fm
+    from engine import resources, visibility
+    built = []
+    original = visibility.InstanceAccel
+
+    def counting(*args, **kwargs):
+        built.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    monkeypatch.setattr(visibility, "InstanceAccel", counting)
+    img, _, warnings = fm.render_ours(name)
+    assert built, "the scene was not traced two-level"
+    s = fm.score(fm.blocks(img), fm.load_references()[name])
+    assert not fm.verdict(fm.CASES[name], s, warnings), s
