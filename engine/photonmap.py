@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from . import hashgrid, kdtree
+from . import gathergrid, hashgrid, kdtree
 from .jit import kernel, register_warm_up
 from .parallel import Cancelled, StopFlag, ordered_map, stop_array
 from .photons import Photons
@@ -526,6 +526,8 @@ class GatherMap:
             should_cancel=should_cancel)
         self.radius = radius
         self.tree = tree
+        # Most lookups settle in the grid's 3 x 3 x 3 cells; the rest ask the tree.
+        self.grid = gathergrid.GatherGrid(tree.position, tree)
 
     def serial(self) -> "GatherMap":
         """The same map, queried on the calling thread only (see PhotonMap.serial)."""
@@ -571,8 +573,8 @@ class GatherMap:
         for _ in range(kmax):
             # The kernel writes every row's answer (its candidate's E and boundary flag,
             # or none); rows whose visibility ray is blocked are undone and ask again.
-            nrays = _gather_candidates(self.tree.position, self.tree.nodes, self.position,
-                                       self.normal, self.E, self.boundary, p, n, lift, rows,
+            nrays = _gather_candidates(self.tree.position, self.tree.nodes, self.grid.arrays,
+                                       self.position, self.normal, self.E, self.boundary, p, n, lift, rows,
                                        skip, self.radius * self.radius, kmax, want_rays,
                                        out, boundary, o32, d32, t32, ray_row)
             if not nrays:
@@ -594,8 +596,9 @@ _NO_LIFT = np.zeros(0)
 
 
 @kernel
-def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, lift, rows,
-                       skip, r2, kmax, want_rays, out, boundary, o32, d32, t32, ray_row):
+def _gather_candidates(tree_pos, nodes, grid, position, normal, E, E_boundary, p, n, lift,
+                       rows, skip, r2, kmax, want_rays, out, boundary, o32, d32, t32,
+                       ray_row):
     """For each row i = rows[r]: the candidate c = the (skip[r]+1)-th gather point, in
     increasing distance among the kmax nearest within sqrt(r2), whose normal agrees with
     n[i]; out[i] = E[c] and boundary[i] = E_boundary[c] (no candidate: 0 and True); and,
@@ -623,7 +626,18 @@ def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, l
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
         c = -1
+        decided = False
         if skip[r] == 0 and P > 0:
+            # The grid's block settles most rows exactly (engine/gathergrid.py).
+            c, near = gathergrid.candidate(grid[0], grid[1], grid[2], grid[3], grid[4],
+                                           grid[5], normal, qx, qy, qz, nx, ny, nz,
+                                           GATHER_AGREEMENT, r2, kmax)
+            decided = c != gathergrid.UNDECIDED
+            if decided and near >= 0:
+                prev_near = near
+            if not decided:
+                c = -1
+        if skip[r] == 0 and P > 0 and not decided:
             bound = r2
             if prev_near >= 0:
                 bound = min(bound, _seed_bound(tree_pos, prev_near, qx, qy, qz))
