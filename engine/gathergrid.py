@@ -7,8 +7,9 @@ points sorted by cell (a counting sort), so a cell's points are one range
 `position` (their float32 copies, in the same order, for cache locality). Cells are
 numbered x fastest, so the three cells of a row along x are one range too.
 
-The query (`candidate`) scans the 3 x 3 x 3 block of cells around the query point. A
-point found there is the exact nearest when its distance is no more than the query's
+The query (`candidate`) scans the 3 x 3 x 3 block of cells around the query point (its
+own cell first; a cell whose nearest wall lies beyond the best distance so far is
+skipped). A point found there is the exact nearest when its distance is no more than the query's
 distance to the block's outside (at least h): no point outside the block can be nearer.
 Otherwise (the nearest lies farther than the block reaches, or the query lies outside the
 grid) the answer is `UNDECIDED` and the caller asks its kd-tree; the grid never returns a
@@ -141,12 +142,12 @@ def _cell_of(x, y, z, lo, h, dims):
 @kernel
 def _block(q, lo, h, n, reach):
     """One axis of the query's block (the cells within `reach` cells of the query's):
-    (first cell, last cell, the query's distance to the block's outside along this axis
-    (inf where the block reaches the grid's edge)), or first > last when the query lies
-    outside the grid (or is NaN)."""
+    (first cell, last cell, the query's cell, the query's distance to the block's outside
+    along this axis (inf where the block reaches the grid's edge)), or first > last when
+    the query lies outside the grid (or is NaN)."""
     v = (q - lo) / h
     if not (v >= 0.0 and v < n):
-        return 1, 0, 0.0
+        return 1, 0, 0, 0.0
     i = int(v)
     a = max(i - reach, 0)
     b = min(i + reach, n - 1)
@@ -155,7 +156,64 @@ def _block(q, lo, h, n, reach):
         m = q - (lo + a * h)
     if b < n - 1:
         m = min(m, lo + (b + 1) * h - q)
-    return a, b, m
+    return a, b, i, m
+
+
+@kernel
+def _gap(i, iq, q, lo, h, eps):
+    """A lower bound on the distance along one axis from q (in cell iq) to cell i: the
+    wall between them, less eps (the walls' rounding error, see candidate_in)."""
+    if i < iq:
+        g = q - (lo + (i + 1) * h)
+    elif i > iq:
+        g = (lo + i * h) - q
+    else:
+        return 0.0
+    return max(g - eps, 0.0)
+
+
+@kernel
+def _scan(start, index, position, normal, lo, h, dims, qx, qy, qz, nx, ny, nz, agreement,
+          x0, x1, y0, y1, z0, z1, ix, iy, iz, eps, bound, mode):
+    """One pass over the block's cells, the query's own cell first, skipping every cell
+    whose nearest wall is no nearer than `bound` (its points cannot pass the test below).
+    mode 0: the nearest point with squared distance < bound; 1: the same among the points
+    whose normal agrees; both return (slot in the cell order, its squared distance) or
+    (-1, bound). mode 2: (number of points with squared distance < bound, bound)."""
+    best = -1
+    count = 0
+    for pass_ in range(2):
+        for cz in range(z0, z1 + 1):
+            gz = _gap(cz, iz, qz, lo[2], h, eps)
+            for cy in range(y0, y1 + 1):
+                gy = _gap(cy, iy, qy, lo[1], h, eps)
+                for cx in range(x0, x1 + 1):
+                    own = cx == ix and cy == iy and cz == iz
+                    if own != (pass_ == 0):
+                        continue
+                    gx = _gap(cx, ix, qx, lo[0], h, eps)
+                    if gx * gx + gy * gy + gz * gz >= bound:
+                        continue
+                    c = (cz * dims[1] + cy) * dims[0] + cx
+                    for k in range(start[c], start[c + 1]):
+                        dx = qx - np.float64(position[k, 0])
+                        dy = qy - np.float64(position[k, 1])
+                        dz = qz - np.float64(position[k, 2])
+                        d2 = dx * dx + dy * dy + dz * dz
+                        if d2 < bound:
+                            if mode == 2:
+                                count += 1
+                                continue
+                            if mode == 1:
+                                j = index[k]
+                                if normal[j, 0] * nx + normal[j, 1] * ny \
+                                        + normal[j, 2] * nz <= agreement:
+                                    continue
+                            best = k
+                            bound = d2
+    if mode == 2:
+        return count, bound
+    return best, bound
 
 
 @kernel
@@ -180,32 +238,23 @@ def candidate_in(start, index, position, lo, h, dims, normal, qx, qy, qz, nx, ny
     (point, nearest point found (-1: none)), or (UNDECIDED, -1) where the block cannot
     tell (see the module docstring). normal: (N,3) in the caller's order; reach: the
     block's half width in cells (1: 3 x 3 x 3)."""
-    x0, x1, mx = _block(qx, lo[0], h, dims[0], reach)
-    y0, y1, my = _block(qy, lo[1], h, dims[1], reach)
-    z0, z1, mz = _block(qz, lo[2], h, dims[2], reach)
+    x0, x1, ix, mx = _block(qx, lo[0], h, dims[0], reach)
+    y0, y1, iy, my = _block(qy, lo[1], h, dims[1], reach)
+    z0, z1, iz, mz = _block(qz, lo[2], h, dims[2], reach)
     if x0 > x1 or y0 > y1 or z0 > z1:
         return UNDECIDED, -1
+    # The cell walls are computed in float64 from lo and h: keep a margin far above
+    # their rounding error, so a point just across a wall is never missed.
+    eps = 1e-9 * (abs(qx) + abs(qy) + abs(qz) + abs(lo[0]) + abs(lo[1]) + abs(lo[2]) + h
+                  * (dims[0] + dims[1] + dims[2]))
     m = min(mx, my, mz)
     if m < np.inf:
-        # The cell walls are computed in float64 from lo and h: keep a margin far above
-        # their rounding error, so a point just outside the block is never missed.
-        m -= 1e-9 * (abs(qx) + abs(qy) + abs(qz) + h)
+        m -= eps
         margin2 = m * m if m > 0.0 else 0.0
     else:
         margin2 = np.inf
-    best = -1
-    bd2 = r2
-    for iz in range(z0, z1 + 1):
-        for iy in range(y0, y1 + 1):
-            row = (iz * dims[1] + iy) * dims[0]
-            for k in range(start[row + x0], start[row + x1 + 1]):
-                dx = qx - np.float64(position[k, 0])
-                dy = qy - np.float64(position[k, 1])
-                dz = qz - np.float64(position[k, 2])
-                d2 = dx * dx + dy * dy + dz * dz
-                if d2 < bd2:
-                    best = k
-                    bd2 = d2
+    best, bd2 = _scan(start, index, position, normal, lo, h, dims, qx, qy, qz, nx, ny, nz,
+                      agreement, x0, x1, y0, y1, z0, z1, ix, iy, iz, eps, r2, 0)
     if best < 0:
         return (-1, -1) if margin2 >= r2 else (UNDECIDED, -1)
     if bd2 > margin2:
@@ -216,37 +265,15 @@ def candidate_in(start, index, position, lo, h, dims, normal, qx, qy, qz, nx, ny
     if kmax <= 1:
         return -1, j
     # The nearest faces another way: the nearest facing point, then the rank test.
-    fbest = -1
-    fd2 = r2
-    for iz in range(z0, z1 + 1):
-        for iy in range(y0, y1 + 1):
-            row = (iz * dims[1] + iy) * dims[0]
-            for k in range(start[row + x0], start[row + x1 + 1]):
-                dx = qx - np.float64(position[k, 0])
-                dy = qy - np.float64(position[k, 1])
-                dz = qz - np.float64(position[k, 2])
-                d2 = dx * dx + dy * dy + dz * dz
-                if d2 < fd2:
-                    jj = index[k]
-                    if normal[jj, 0] * nx + normal[jj, 1] * ny + normal[jj, 2] * nz \
-                            > agreement:
-                        fbest = k
-                        fd2 = d2
+    fbest, fd2 = _scan(start, index, position, normal, lo, h, dims, qx, qy, qz, nx, ny, nz,
+                       agreement, x0, x1, y0, y1, z0, z1, ix, iy, iz, eps, r2, 1)
     if fbest < 0:
         return (-1, j) if margin2 >= r2 else (UNDECIDED, -1)
     if fd2 > margin2:
         return UNDECIDED, -1
     # Every point nearer than the facing one lies in the block (fd2 <= margin2).
-    closer = 0
-    for iz in range(z0, z1 + 1):
-        for iy in range(y0, y1 + 1):
-            row = (iz * dims[1] + iy) * dims[0]
-            for k in range(start[row + x0], start[row + x1 + 1]):
-                dx = qx - np.float64(position[k, 0])
-                dy = qy - np.float64(position[k, 1])
-                dz = qz - np.float64(position[k, 2])
-                if dx * dx + dy * dy + dz * dz < fd2:
-                    closer += 1
+    closer, _ = _scan(start, index, position, normal, lo, h, dims, qx, qy, qz, nx, ny, nz,
+                      agreement, x0, x1, y0, y1, z0, z1, ix, iy, iz, eps, fd2, 2)
     return (index[fbest] if closer < kmax else -1), j
 
 
