@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from . import gathergrid, hashgrid, kdtree
+from . import hashgrid, kdtree
 from .jit import kernel, register_warm_up
 from .parallel import Cancelled, StopFlag, ordered_map, stop_array
 from .photons import Photons
@@ -526,8 +526,6 @@ class GatherMap:
             should_cancel=should_cancel)
         self.radius = radius
         self.tree = tree
-        # Most lookups settle in the grid's 3 x 3 x 3 cells; the rest ask the tree.
-        self.grid = gathergrid.GatherGrid(tree.position, tree)
 
     def serial(self) -> "GatherMap":
         """The same map, queried on the calling thread only (see PhotonMap.serial)."""
@@ -549,9 +547,9 @@ class GatherMap:
         ray from p clear of p's surface (SurfaceHit.offset); default: the float32
         resolution at p. Returns ((M,3) float64, (M,) bool).
 
-        One kernel (_gather_candidates) searches the grid (else the kd-tree), tests the
-        normals, writes the answers and the visibility rays in Embree's float32 layout;
-        the rows whose candidate is hidden take their next visible one (_next_visible)."""
+        One kernel (_gather_candidates) searches the kd-tree, tests the normals, writes
+        the answers and the visibility rays in Embree's float32 layout; the rows whose
+        candidate is hidden take their next visible one (_next_visible)."""
         m = len(p)
         if self.tree is None or m == 0:
             return np.zeros((m, 3)), np.ones(m, bool)
@@ -570,10 +568,9 @@ class GatherMap:
         blocked = np.zeros(m, bool)
         want_rays = self.accel is not None
         r2 = self.radius * self.radius
-        nrays = _gather_candidates(self.tree.position, self.tree.nodes, self.grid.arrays,
-                                   self.position, self.normal, self.E, self.boundary, p, n,
-                                   lift, rows, r2, kmax, want_rays, out, boundary, o32, d32,
-                                   t32, ray_row)
+        nrays = _gather_candidates(self.tree.position, self.tree.nodes, self.position,
+                                   self.normal, self.E, self.boundary, p, n, lift, rows, r2,
+                                   kmax, want_rays, out, boundary, o32, d32, t32, ray_row)
         if not nrays:
             return out, boundary
         self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked[:nrays])
@@ -618,14 +615,13 @@ _NO_LIFT = np.zeros(0)
 
 
 @kernel
-def _gather_candidates(tree_pos, nodes, grid, position, normal, E, E_boundary, p, n, lift,
-                       rows, r2, kmax, want_rays, out, boundary, o32, d32, t32, ray_row):
+def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, lift, rows, r2,
+                       kmax, want_rays, out, boundary, o32, d32, t32, ray_row):
     """For each row i = rows[r]: the candidate c = the nearest gather point within
     sqrt(r2) whose normal agrees with n[i], if it is among the kmax nearest; out[i] = E[c]
     and boundary[i] = E_boundary[c] (no candidate: 0 and True); and, if want_rays, the
     ray from p[i] to c into o32 / d32 / t32 (float32, compacted, _write_ray; ray_row =
-    r). Returns the number of rays. The grid (engine/gathergrid.py) settles most rows;
-    the kd-tree the rest, with the same answers."""
+    r). Returns the number of rays."""
     P = tree_pos.shape[0]
     nrays = 0
     # The previous row's nearest and chosen gather points: rows come in Morton order, so
@@ -641,40 +637,29 @@ def _gather_candidates(tree_pos, nodes, grid, position, normal, E, E_boundary, p
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
         c = -1
         if P > 0:
-            # The grid's block settles most rows exactly (engine/gathergrid.py).
-            c, near = gathergrid.candidate(grid[0], grid[1], grid[2], grid[3], grid[4],
-                                           grid[5], normal, qx, qy, qz, nx, ny, nz,
-                                           GATHER_AGREEMENT, r2, kmax)
-            if c != gathergrid.UNDECIDED:
-                if near >= 0:
-                    prev_near = near
-            else:
-                c = -1
-                bound = r2
-                if prev_near >= 0:
-                    bound = min(bound, _seed_bound(tree_pos, prev_near, qx, qy, qz))
-                j, _ = kdtree.nearest(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz,
-                                      bound)
-                if j >= 0:
-                    prev_near = j
-                    if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
+            bound = r2
+            if prev_near >= 0:
+                bound = min(bound, _seed_bound(tree_pos, prev_near, qx, qy, qz))
+            j, _ = kdtree.nearest(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, bound)
+            if j >= 0:
+                prev_near = j
+                if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
+                        > GATHER_AGREEMENT:
+                    c = j
+                elif kmax > 1:
+                    # The nearest faces another way: the nearest facing point, if it is
+                    # among the kmax nearest (fewer than kmax points nearer).
+                    bound = r2
+                    if prev_cand >= 0 and normal[prev_cand, 0] * nx \
+                            + normal[prev_cand, 1] * ny + normal[prev_cand, 2] * nz \
                             > GATHER_AGREEMENT:
+                        bound = min(bound, _seed_bound(tree_pos, prev_cand, qx, qy, qz))
+                    j, dd = kdtree.nearest_facing(tree_pos, nodes[0], nodes[1], nodes[2],
+                                                  normal, qx, qy, qz, nx, ny, nz,
+                                                  GATHER_AGREEMENT, bound)
+                    if j >= 0 and kdtree.count_closer(tree_pos, nodes[0], nodes[1],
+                                                      nodes[2], qx, qy, qz, dd, kmax) < kmax:
                         c = j
-                    elif kmax > 1:
-                        # The nearest faces another way: the nearest facing point, if it
-                        # is among the kmax nearest (fewer than kmax points nearer).
-                        bound = r2
-                        if prev_cand >= 0 and normal[prev_cand, 0] * nx \
-                                + normal[prev_cand, 1] * ny + normal[prev_cand, 2] * nz \
-                                > GATHER_AGREEMENT:
-                            bound = min(bound, _seed_bound(tree_pos, prev_cand, qx, qy, qz))
-                        j, dd = kdtree.nearest_facing(tree_pos, nodes[0], nodes[1],
-                                                      nodes[2], normal, qx, qy, qz, nx, ny,
-                                                      nz, GATHER_AGREEMENT, bound)
-                        if j >= 0 and kdtree.count_closer(tree_pos, nodes[0], nodes[1],
-                                                          nodes[2], qx, qy, qz, dd,
-                                                          kmax) < kmax:
-                            c = j
         if c < 0:
             out[i, 0] = out[i, 1] = out[i, 2] = 0.0
             boundary[i] = True

@@ -265,57 +265,6 @@ def test_gather_lookup_needs_the_facing_point_among_the_nearest():
         assert not E[~has].any() and B[~has].all()
 
 
-def _wall(n, rng, x=0.5, nx=-1.0):
-    """_plane turned into the plane x = const facing nx."""
-    p = _plane(n, rng, z=x, nz=nx)
-    for name in ("position", "direction", "normal"):
-        setattr(p, name, np.ascontiguousarray(getattr(p, name)[:, [2, 1, 0]]))
-    return p
-
-
-@pytest.mark.parametrize("case", ["corner", "facing_planes", "sparse", "focus"])
-def test_gather_grid_gives_the_kd_trees_answers(case):
-    """The gather points' grid (engine/gathergrid.py) settles most lookups in a few cells;
-    its answers must be the kd-tree's, bit for bit: a floor meeting a wall (nearest
-    points facing away), two close opposite planes, a few points over a big box (coarse
-    cells), all points on one spot; queries on and off the surfaces, outside the points'
-    box and NaN."""
-    rng = np.random.default_rng(21)
-    if case == "corner":
-        ph, radius = _join(_plane(40000, rng), _wall(20000, rng)), 0.05
-    elif case == "facing_planes":
-        ph, radius = _join(_plane(30000, rng), _plane(30000, rng, z=0.003, nz=-1.0)), 0.05
-    elif case == "sparse":
-        ph = _plane(400, rng)
-        ph.position[:, :2] *= 50.0
-        ph.position[::7, 2] = rng.random(len(ph.position[::7])) * 30.0
-        radius = 3.0
-    else:
-        ph, radius = _focus(3000), 0.05
-    g = GatherMap(ph, radius, 32, 4, "knn_simpson", max_points=8000)
-    span = 1.0 if case != "sparse" else 50.0
-    m = 6000
-    q = np.c_[rng.random((m, 2)) * 1.2 * span - 0.1 * span,
-              rng.choice([0.0005, 0.002, 0.3, -0.01], m) * (1 if case != "sparse" else 20)]
-    q[::97] = np.nan
-    n = rng.normal(size=(m, 3))
-    n[: m // 2] = [0.0, 0.0, 1.0]
-    n[m // 2: 3 * m // 4] = [-1.0, 0.0, 0.0]
-    n /= np.linalg.norm(n, axis=1)[:, None]
-    with np.errstate(invalid="ignore"):
-        for candidates in (1, 8):
-            E, B = g.lookup(q, n, candidates=candidates)
-            saved = g.grid.lo
-            g.grid.lo = np.full(3, np.inf)  # every query outside the grid: the kd-tree's
-            try:
-                Et, Bt = g.lookup(q, n, candidates=candidates)
-            finally:
-                g.grid.lo = saved
-            np.testing.assert_array_equal(E, Et)
-            np.testing.assert_array_equal(B, Bt)
-            assert E.any(axis=1).sum() > (10 if case == "focus" else 100)  # found a point
-
-
 def test_hidden_candidates_take_the_next_visible_one():
     """Rows whose gather point is hidden take the next visible agreeing one in distance
     order (GatherMap._next_visible tests them in batches of rays): the same answer as
