@@ -10,7 +10,8 @@ Prints Markdown tables:
   and after, 1 and 2 workers: wall seconds, CPU seconds, peak RSS, and whether the image
   is bitwise the same (before vs after, and 1 vs 2 workers);
 - gather-map lookups (the final gather's per-ray lookup) in microseconds and in Embree
-  closest-hit traversals of the same scene;
+  closest-hit traversals of the same scene, in one call and in a render's calls of a
+  few thousand rows;
 - peak memory per resolution (320x240 .. 1920x1080, 1 sample per pixel: chunks are
   bounded, so spp does not change the peak) and per photon count, estimated
   (engine/resources.py) and measured (ru_maxrss of a fresh process), with bytes per
@@ -109,7 +110,13 @@ hit = prim >= 0
 from engine.bsdf import surface_hit
 y = surface_hit(ctx.geo, ctx.table, prim[hit], u[hit], v[hit], d[hit])
 look_s, (E, B) = cpu(lambda: g.lookup(y.p, y.ng, offset=y.offset))
+# As a render calls it: a few thousand rows per call, spread over the whole scene (the
+# gather rays of a chunk of pixels), so fewer neighbours share cache lines.
+perm = np.random.default_rng(5).permutation(len(y.p))
+calls = [perm[a:a + 2300] for a in range(0, len(perm), 2300)]
+chunk_s, _ = cpu(lambda: [g.lookup(y.p[c], y.ng[c], offset=y.offset[c]) for c in calls])
 print(json.dumps(dict(ray_us=ray_s / m * 1e6, lookup_us=look_s / hit.sum() * 1e6,
+                      chunk_us=chunk_s / hit.sum() * 1e6,
                       lookups=int(hit.sum()), points=len(g.position),
                       found=float(np.mean(~B)), Esum=float(E.sum()))))
 """
@@ -190,14 +197,15 @@ def end_to_end(roots, blends, args, where):
 def lookups(roots, args, where):
     print("\n### Gather-map lookups (one thread, CPU time, best of 3)\n")
     print("| scene | gather points | version | one lookup us | Embree closest-hit us | "
-          "lookup in Embree traversals |")
-    print("|---|---:|---|---:|---:|---:|")
+          "lookup in Embree traversals | in calls of 2,300 rows: us / traversals |")
+    print("|---|---:|---|---:|---:|---:|---|")
     for name in args.lookup_blends:
         pkl = exported(name, where)
         for label in ("before", "after"):
             r = child(LOOKUP, ROOT=roots[label], PICKLE=pkl)
             print(f"| {name} | {r['points']:,} | {label} | {r['lookup_us']:.2f} | "
-                  f"{r['ray_us']:.3f} | {r['lookup_us'] / r['ray_us']:.1f} |", flush=True)
+                  f"{r['ray_us']:.3f} | {r['lookup_us'] / r['ray_us']:.1f} | "
+                  f"{r['chunk_us']:.2f} / {r['chunk_us'] / r['ray_us']:.1f} |", flush=True)
 
 
 def memory(roots, args, where):

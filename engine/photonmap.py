@@ -549,7 +549,7 @@ class GatherMap:
 
         One kernel (_gather_candidates) searches the kd-tree, tests the normals, writes
         the answers and the visibility rays in Embree's float32 layout; the rows whose
-        candidate is hidden ask for their next candidate (usually none do)."""
+        candidate is hidden take their next visible one (_next_visible)."""
         m = len(p)
         if self.tree is None or m == 0:
             return np.zeros((m, 3)), np.ones(m, bool)
@@ -561,31 +561,52 @@ class GatherMap:
                 else np.ascontiguousarray(offset, dtype=np.float64))
         kmax = min(8 * candidates, len(self.position))
         rows = morton_order(p)  # cache-friendly query order; same answers
-        skip = np.zeros(m, np.int64)  # hidden agreeing candidates already passed over
         o32 = np.empty((m, 3), np.float32)
         d32 = np.empty((m, 3), np.float32)
         t32 = np.empty(m, np.float32)
         ray_row = np.empty(m, np.int64)
         blocked = np.zeros(m, bool)
         want_rays = self.accel is not None
-        for _ in range(kmax):
-            # The kernel writes every row's answer (its candidate's E and boundary flag,
-            # or none); rows whose visibility ray is blocked are undone and ask again.
-            nrays = _gather_candidates(self.tree.position, self.tree.nodes, self.position,
-                                       self.normal, self.E, self.boundary, p, n, lift, rows,
-                                       skip, self.radius * self.radius, kmax, want_rays,
-                                       out, boundary, o32, d32, t32, ray_row)
-            if not nrays:
-                break
-            self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked[:nrays])
-            again = ray_row[:nrays][blocked[:nrays]]  # positions in rows, increasing
-            if not len(again):
-                break
-            rows = rows[again]
-            out[rows] = 0.0
-            boundary[rows] = True
-            skip = skip[again] + 1
+        r2 = self.radius * self.radius
+        nrays = _gather_candidates(self.tree.position, self.tree.nodes, self.position,
+                                   self.normal, self.E, self.boundary, p, n, lift, rows, r2,
+                                   kmax, want_rays, out, boundary, o32, d32, t32, ray_row)
+        if not nrays:
+            return out, boundary
+        self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked[:nrays])
+        hidden = rows[ray_row[:nrays][blocked[:nrays]]]
+        if len(hidden):
+            self._next_visible(p, n, lift, hidden, kmax, out, boundary)
         return out, boundary
+
+    def _next_visible(self, p, n, lift, hidden, kmax, out, boundary):
+        """Rows `hidden` (indices into p) whose candidate is hidden take the next visible
+        agreeing gather point, in increasing distance among the kmax nearest (the answer
+        of asking again candidate by candidate): the agreeing candidates are listed once
+        per row, then tested in batches of growing size (1, 4, 16, ... rays per row) by
+        one Embree call per batch."""
+        out[hidden] = 0.0
+        boundary[hidden] = True
+        lists = np.empty((len(hidden), max(kmax, 1)), np.int64)
+        counts = np.empty(len(hidden), np.int64)
+        _agreeing_lists(self.tree.position, self.tree.nodes, self.normal, p, n, hidden,
+                        self.radius * self.radius, kmax, lists, counts)
+        pending = np.nonzero(counts > 1)[0]  # entry 0 is the hidden candidate
+        nxt = np.ones(len(hidden), np.int64)
+        batch = 1
+        while len(pending):
+            cap = len(pending) * batch
+            o32 = np.empty((cap, 3), np.float32)
+            d32 = np.empty((cap, 3), np.float32)
+            t32 = np.empty(cap, np.float32)
+            slot = np.empty(cap, np.int64)
+            nrays = _list_rays(self.position, self.normal, p, n, lift, hidden, lists, counts,
+                               pending, nxt, batch, o32, d32, t32, slot)
+            blocked = np.zeros(nrays, bool)
+            self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked)
+            pending = _pick_visible(self.E, self.boundary, hidden, lists, counts, pending, nxt,
+                                    batch, blocked, slot[:nrays], out, boundary)
+            batch *= 4
 
 
 # The gather map's normal test: a gather point's surface faces the query's way.
@@ -594,22 +615,14 @@ _NO_LIFT = np.zeros(0)
 
 
 @kernel
-def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, lift, rows,
-                       skip, r2, kmax, want_rays, out, boundary, o32, d32, t32, ray_row):
-    """For each row i = rows[r]: the candidate c = the (skip[r]+1)-th gather point, in
-    increasing distance among the kmax nearest within sqrt(r2), whose normal agrees with
-    n[i]; out[i] = E[c] and boundary[i] = E_boundary[c] (no candidate: 0 and True); and,
-    if want_rays, the ray from p[i] to c into o32 / d32 / t32 (float32, compacted;
-    ray_row = r). Returns the number of rays.
-
-    The ray: both ends lifted off their surfaces along their normals (shared by
-    agreement) by bounds on their rounding error (engine/rayoffset.py): the query's own
-    offset (lift[i], else 4 float32 ulps of p), and for the gather point (a float32
-    photon position, triangle unknown) its float32 resolution plus the float32 error of
-    the ray's length. Full length: a gather point a hair outside a wall is still behind it."""
+def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, lift, rows, r2,
+                       kmax, want_rays, out, boundary, o32, d32, t32, ray_row):
+    """For each row i = rows[r]: the candidate c = the nearest gather point within
+    sqrt(r2) whose normal agrees with n[i], if it is among the kmax nearest; out[i] = E[c]
+    and boundary[i] = E_boundary[c] (no candidate: 0 and True); and, if want_rays, the
+    ray from p[i] to c into o32 / d32 / t32 (float32, compacted, _write_ray; ray_row =
+    r). Returns the number of rays."""
     P = tree_pos.shape[0]
-    d2 = np.empty(max(kmax, 1), np.float64)
-    idx = np.empty(max(kmax, 1), np.int64)
     nrays = 0
     # The previous row's nearest and chosen gather points: rows come in Morton order, so
     # they are usually near this row's, and their distance bounds this row's search
@@ -623,7 +636,7 @@ def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, l
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
         c = -1
-        if skip[r] == 0 and P > 0:
+        if P > 0:
             bound = r2
             if prev_near >= 0:
                 bound = min(bound, _seed_bound(tree_pos, prev_near, qx, qy, qz))
@@ -647,20 +660,6 @@ def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, l
                     if j >= 0 and kdtree.count_closer(tree_pos, nodes[0], nodes[1],
                                                       nodes[2], qx, qy, qz, dd, kmax) < kmax:
                         c = j
-        elif skip[r] > 0 and P > 0:
-            # A hidden candidate was passed over (rare): the next agreeing one among the
-            # kmax nearest.
-            cnt = kdtree.knn(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, kmax, r2, d2,
-                             idx)
-            seen = 0
-            for jj in range(cnt):
-                j = idx[jj]
-                if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
-                        > GATHER_AGREEMENT:
-                    if seen == skip[r]:
-                        c = j
-                        break
-                    seen += 1
         if c < 0:
             out[i, 0] = out[i, 1] = out[i, 2] = 0.0
             boundary[i] = True
@@ -670,37 +669,115 @@ def _gather_candidates(tree_pos, nodes, position, normal, E, E_boundary, p, n, l
         boundary[i] = E_boundary[c]
         if not want_rays:
             continue
-        if lift.shape[0]:
-            la = lift[i]
-        else:
-            la = 4.0 * ulp32_scalar(max(abs(qx), abs(qy), abs(qz)))
-        bx, by, bz = position[c, 0], position[c, 1], position[c, 2]
-        ex, ey, ez = bx - qx, by - qy, bz - qz
-        chord = math.sqrt(ex * ex + ey * ey + ez * ez)
-        # A curved surface: the chord between two of its points runs inside it (a ball's
-        # every candidate was hidden, each lookup tried all kmax, 200 us on issue 14's
-        # spheres). Both ends are lifted by chord x |n - n_c| / 4, above the chord's
-        # depth below a sphere through both points with these normals (chord x theta / 8
-        # for normals theta apart; 0.11 vs 0.19 chords at the agreement limit). Flat
-        # surfaces (equal normals) get no lift: a wall still hides the floor behind it.
-        gx, gy, gz = nx - normal[c, 0], ny - normal[c, 1], nz - normal[c, 2]
-        bend = 0.25 * chord * math.sqrt(gx * gx + gy * gy + gz * gz)
-        la += bend
-        ax, ay, az = qx + la * nx, qy + la * ny, qz + la * nz
-        ex, ey, ez = bx - ax, by - ay, bz - az
-        dist0 = math.sqrt(ex * ex + ey * ey + ez * ez)
-        lb = (4.0 * ulp32_scalar(max(abs(bx), abs(by), abs(bz))) + 2.0 * G32_PLANE * dist0
-              + bend)
-        bx, by, bz = bx + lb * normal[c, 0], by + lb * normal[c, 1], bz + lb * normal[c, 2]
-        wx, wy, wz = bx - ax, by - ay, bz - az
-        dist = math.sqrt(wx * wx + wy * wy + wz * wz)
-        inv = max(dist, 1e-300)
-        o32[nrays, 0], o32[nrays, 1], o32[nrays, 2] = ax, ay, az
-        d32[nrays, 0], d32[nrays, 1], d32[nrays, 2] = wx / inv, wy / inv, wz / inv
-        t32[nrays] = dist
+        _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, nrays)
         ray_row[nrays] = r
         nrays += 1
     return nrays
+
+
+@kernel
+def _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, slot):
+    """The visibility ray from query p[i] to gather point c into row `slot` of o32 / d32
+    / t32 (float32). Both ends lifted off their surfaces along their normals (shared by
+    agreement) by bounds on their rounding error (engine/rayoffset.py): the query's own
+    offset (lift[i], else 4 float32 ulps of p), and for the gather point (a float32
+    photon position, triangle unknown) its float32 resolution plus the float32 error of
+    the ray's length. Full length: a gather point a hair outside a wall is still behind it.
+
+    A curved surface: the chord between two of its points runs inside it (on issue 14's
+    Principled spheres every candidate on a ball was hidden and each lookup tried all
+    kmax, 200 us). Both ends are also lifted by chord x |n - n_c| / 4, above the chord's
+    depth below a sphere through both points with these normals (chord x theta / 8 for
+    normals theta apart; 0.11 vs 0.19 chords at the agreement limit). Flat surfaces
+    (equal normals) get no extra lift: a wall still hides the floor behind it."""
+    qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+    nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
+    if lift.shape[0]:
+        la = lift[i]
+    else:
+        la = 4.0 * ulp32_scalar(max(abs(qx), abs(qy), abs(qz)))
+    bx, by, bz = position[c, 0], position[c, 1], position[c, 2]
+    ex, ey, ez = bx - qx, by - qy, bz - qz
+    chord = math.sqrt(ex * ex + ey * ey + ez * ez)
+    gx, gy, gz = nx - normal[c, 0], ny - normal[c, 1], nz - normal[c, 2]
+    bend = 0.25 * chord * math.sqrt(gx * gx + gy * gy + gz * gz)
+    la += bend
+    ax, ay, az = qx + la * nx, qy + la * ny, qz + la * nz
+    ex, ey, ez = bx - ax, by - ay, bz - az
+    dist0 = math.sqrt(ex * ex + ey * ey + ez * ez)
+    lb = (4.0 * ulp32_scalar(max(abs(bx), abs(by), abs(bz))) + 2.0 * G32_PLANE * dist0
+          + bend)
+    bx, by, bz = bx + lb * normal[c, 0], by + lb * normal[c, 1], bz + lb * normal[c, 2]
+    wx, wy, wz = bx - ax, by - ay, bz - az
+    dist = math.sqrt(wx * wx + wy * wy + wz * wz)
+    inv = max(dist, 1e-300)
+    o32[slot, 0], o32[slot, 1], o32[slot, 2] = ax, ay, az
+    d32[slot, 0], d32[slot, 1], d32[slot, 2] = wx / inv, wy / inv, wz / inv
+    t32[slot] = dist
+
+
+@kernel
+def _agreeing_lists(tree_pos, nodes, normal, p, n, rows, r2, kmax, lists, counts):
+    """For each row i = rows[r]: the gather points among the kmax nearest within sqrt(r2)
+    whose normal agrees with n[i], in increasing distance, into lists[r, :counts[r]]."""
+    d2 = np.empty(max(kmax, 1), np.float64)
+    idx = np.empty(max(kmax, 1), np.int64)
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
+        cnt = kdtree.knn(tree_pos, nodes[0], nodes[1], nodes[2], p[i, 0], p[i, 1], p[i, 2],
+                         kmax, r2, d2, idx)
+        m = 0
+        for jj in range(cnt):
+            j = idx[jj]
+            if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz > GATHER_AGREEMENT:
+                lists[r, m] = j
+                m += 1
+        counts[r] = m
+
+
+@kernel
+def _list_rays(position, normal, p, n, lift, rows, lists, counts, pending, nxt, batch, o32,
+               d32, t32, slot):
+    """Visibility rays to the entries [nxt[r], nxt[r] + batch) of lists[r] (clipped to
+    counts[r]) of each pending r, row after row, entries in order; slot[k] = r's list
+    entry of ray k. Returns the number of rays."""
+    k = 0
+    for q in range(pending.shape[0]):
+        r = pending[q]
+        for e in range(nxt[r], min(nxt[r] + batch, counts[r])):
+            _write_ray(position, normal, p, n, lift, rows[r], lists[r, e], o32, d32, t32, k)
+            slot[k] = e
+            k += 1
+    return k
+
+
+@kernel
+def _pick_visible(E, E_boundary, rows, lists, counts, pending, nxt, batch, blocked, slot,
+                  out, boundary):
+    """After _list_rays: each pending row takes its first entry whose ray is clear
+    (out = its E, boundary its flag); rows with none clear and entries left stay pending
+    (nxt advanced by batch). Returns the rows still pending."""
+    still = np.empty(pending.shape[0], np.int64)
+    s = 0
+    k = 0
+    for q in range(pending.shape[0]):
+        r = pending[q]
+        end = min(nxt[r] + batch, counts[r])
+        found = False
+        for e in range(nxt[r], end):
+            if not found and not blocked[k]:
+                c = lists[r, slot[k]]
+                i = rows[r]
+                out[i, 0], out[i, 1], out[i, 2] = E[c, 0], E[c, 1], E[c, 2]
+                boundary[i] = E_boundary[c]
+                found = True
+            k += 1
+        if not found and end < counts[r]:
+            nxt[r] = end
+            still[s] = r
+            s += 1
+    return still[:s]
 
 
 @kernel
@@ -726,6 +803,23 @@ def _warm_up_gather():
     nq = np.tile([0.0, 0.0, 1.0], (4, 1))
     g.lookup(q, nq)
     g.lookup(q, nq, offset=np.full(4, 1e-6))
+    # The hidden-candidate steps (they run only with an Accel).
+    rows = np.arange(4)
+    lists = np.empty((4, 8), np.int64)
+    counts = np.empty(4, np.int64)
+    _agreeing_lists(g.tree.position, g.tree.nodes, g.normal, q, nq, rows, 0.25, 8, lists,
+                    counts)
+    pending = np.nonzero(counts > 1)[0]
+    nxt = np.ones(4, np.int64)
+    o32, d32, t32 = np.empty((32, 3), np.float32), np.empty((32, 3), np.float32), \
+        np.empty(32, np.float32)
+    slot = np.empty(32, np.int64)
+    out, boundary = np.zeros((4, 3)), np.ones(4, bool)
+    for lift in (_NO_LIFT, np.full(4, 1e-6)):
+        k = _list_rays(g.position, g.normal, q, nq, lift, rows, lists, counts, pending, nxt,
+                       4, o32, d32, t32, slot)
+        _pick_visible(g.E, g.boundary, rows, lists, counts, pending, nxt, 4,
+                      np.zeros(k, bool), slot[:k], out, boundary)
 
 
 # Photons whose k-NN distance sets the automatic radius (a strided sample: enough for a

@@ -265,6 +265,56 @@ def test_gather_lookup_needs_the_facing_point_among_the_nearest():
         assert not E[~has].any() and B[~has].all()
 
 
+def test_hidden_candidates_take_the_next_visible_one():
+    """Rows whose gather point is hidden take the next visible agreeing one in distance
+    order (GatherMap._next_visible tests them in batches of rays): the same answer as
+    trying the candidates one by one. A floor cut by a comb of thin walls hides most
+    candidates of many rows, several in a row."""
+    from engine.accel import Accel
+    from engine.photonmap import GATHER_AGREEMENT, _write_ray
+    rng = np.random.default_rng(31)
+    quads = []
+    for x in np.linspace(0.05, 0.95, 31):  # walls x = const, 0.2 m high
+        quads.append([[x, -1, -0.1], [x, 2, -0.1], [x, 2, 0.2], [x, -1, 0.2]])
+    v = np.array(quads, np.float32).reshape(-1, 3)
+    f = np.concatenate([[[4 * i, 4 * i + 1, 4 * i + 2], [4 * i, 4 * i + 2, 4 * i + 3]]
+                        for i in range(len(quads))]).astype(np.int32)
+    acc = Accel(v, f, 1)
+    try:
+        g = GatherMap(_plane(60000, rng), 0.08, 32, 4, "knn_simpson", max_points=6000,
+                      accel=acc)
+        m = 3000
+        q = np.c_[rng.random((m, 2)), np.full(m, 0.0005)]
+        walls = np.linspace(0.05, 0.95, 31)
+        q[::2, 0] = rng.choice(walls, m // 2) + rng.normal(0.0, 0.004, m // 2)  # beside one
+        up = np.tile([0.0, 0.0, 1.0], (m, 1))
+        E, B = g.lookup(q, up)
+        # One by one: the agreeing points among the 64 nearest, the first whose ray
+        # (the lookup's own ray writer) is clear.
+        ref = cKDTree(g.position)
+        d, idx = ref.query(q, k=64, distance_upper_bound=0.08)
+        o32, d32, t32 = (np.empty((1, 3), np.float32), np.empty((1, 3), np.float32),
+                         np.empty(1, np.float32))
+        blocked = np.zeros(1, bool)
+        no_lift = np.zeros(0)
+        tried = np.zeros(m, int)
+        for i in range(m):
+            want = (np.zeros(3), True)
+            for j in idx[i][idx[i] < len(g.position)]:
+                if g.normal[j] @ up[i] <= GATHER_AGREEMENT:
+                    continue
+                _write_ray(g.position, g.normal, q, up, no_lift, i, j, o32, d32, t32, 0)
+                tried[i] += 1
+                if not acc.occluded_into(o32, d32, t32, blocked)[0]:
+                    want = (g.E[j], g.boundary[j])
+                    break
+            np.testing.assert_array_equal(E[i], want[0])
+            assert B[i] == want[1]
+        assert (tried > 2).sum() > 100 and (tried > 5).sum() > 20  # several batches ran
+    finally:
+        acc.close()
+
+
 def test_widening_has_a_fixed_memory_budget():
     """Issue 16: caustic queries beside a wall lit only on its far side find only the
     other surface's photons and would widen to MAX_WIDEN_K. Memory must not grow with
