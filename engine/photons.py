@@ -14,8 +14,8 @@ Russian roulette picks one lobe (diffuse, mirror, glass reflect / transmit, coat
 with probability = the lobe's largest RGB weight, or absorbs; power is divided by that
 probability, so the expected power is kept (the paper's scheme with pbrt's max rule,
 which never increases a photon's power). Everything between two Embree calls runs in the
-compiled kernels of engine/photonkernels.py; this module emits (each light kind's emit,
-engine/lights/) and drives the bounces.
+compiled kernels of engine/photonkernels.py, and so does emission (each light kind's
+emit kernel, engine/lights/emission.py); this module drives the bounces.
 """
 from __future__ import annotations
 
@@ -23,13 +23,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .lights.base import emission_key
+from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
 from . import photonkernels as pk
 from .bsdf import LOBE_NAMES, surface_hit
 from .normalmap import bump_shadowing
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
-from .sampling import max3
 
 LOBES = LOBE_NAMES
 
@@ -113,21 +114,18 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     where a material has a texture, normal map or alpha texture."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
     parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
-    if targets is None:
-        o, d, power = light.emit(n, rng)
-    else:
-        o, d, power = light.emit_towards(n, rng, *targets)
-    power *= n / count  # emit() spreads the light's whole flux over this chunk
-    live = max3(power) > 0  # e.g. aimed outside a one-sided light's hemisphere
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
-    # slot (photonkernels.uniform): a photon whose path changes (a hit a hair from an
-    # edge, rounded differently in a scaled scene) does not change the paths of others.
-    slot = np.nonzero(live)[0].astype(np.int64)
-    key = np.uint64(rng.integers(1 << 63, dtype=np.uint64))
-    if not live.all():
-        o, d, power = o[live], d[live], power[live]
-    d = np.ascontiguousarray(d, np.float64)
-    power = np.ascontiguousarray(power, np.float64)
+    # slot (photonkernels.uniform), emission included: a photon whose path changes (a hit
+    # a hair from an edge, rounded differently in a scaled scene) does not change the
+    # paths of others. The light's kernel writes the rays of the photons that carry power
+    # (engine/lights/emission.py).
+    key = emission_key(rng)
+    out = EmissionBuffers(n)
+    if targets is None:
+        m = light.emit_into(key, 0, n, count, out, 0)
+    else:
+        m = light.emit_towards_into(key, 0, n, count, targets, out, 0)
+    o, d32, d, power, slot = out.head(m)
     flags = np.zeros(len(o), np.int64)
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
     # surface stands for the camera-side ray that leaves that surface backwards; `kinds`
@@ -149,7 +147,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         m = len(o)
         if m == 0:
             break
-        _, prim, u, v = accel.intersect(o, d)
+        _, prim, u, v = accel.intersect(o, d32)
         surf = pk.surface_arrays(m)
         bump = np.ones(m)
         if numpy_hits:
@@ -175,7 +173,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         if n_st:
             for name, buf in zip(("position", "power", "direction", "normal", "kind"), store):
                 parts[name].append(buf[:n_st].copy())
-        o, _d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt)
+        o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt)
     return parts
 
 
