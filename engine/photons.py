@@ -109,11 +109,10 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
                  first_hit=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits as
-    lists of arrays, bounce by bounce. Between two Embree calls the work is two compiled
-    kernels (engine/photonkernels.py); bsdf.surface_hit supplies the surface data instead
-    where a material has a texture, normal map or alpha texture."""
+    lists of arrays. Between two Embree calls the work is two compiled kernels
+    (engine/photonkernels.py); bsdf.surface_hit supplies the surface data instead where a
+    material has a texture, normal map or alpha texture."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
-    parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
     # slot (photonkernels.uniform), emission included: a photon whose path changes (a hit
     # a hair from an edge, rounded differently in a scaled scene) does not change the
@@ -140,7 +139,15 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     else:
         caster, mode = np.ascontiguousarray(first_hit[0], np.bool_), 2 if first_hit[1] else 1
     numpy_hits = _needs_numpy_hits(table)
+    plain = pk.plain_materials(table.closure_params)
     normals = geo.corner_normals
+    # Buffers for the whole chunk, reused bounce after bounce: the surface data, the
+    # stored photons (appended to by each bounce), and two sets of continued rays (one is
+    # the bounce's input, the other its output).
+    surf = pk.surface_arrays(m)
+    bump = np.ones(m)
+    stored = _Stored(2 * m + 1024)
+    nxt_sets = [None, None]
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -148,14 +155,17 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         if m == 0:
             break
         _, prim, u, v = accel.intersect(o, d32)
-        surf = pk.surface_arrays(m)
-        bump = np.ones(m)
+        if m > len(bump):
+            surf = pk.surface_arrays(m)
+            bump = np.ones(m)
+        surf_m = tuple(a[:m] for a in surf)
         if numpy_hits:
+            bump[:m] = 1.0
             rows = np.nonzero(prim >= 0)[0]
             hit = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
             alpha = (np.take(table.alpha, hit.mat) if hit.alpha is None else hit.alpha)
-            for dst, src in zip(surf, (hit.p, hit.ng, hit.ns, hit.front, hit.mat, hit.base,
-                                       alpha, hit.offset)):
+            for dst, src in zip(surf_m, (hit.p, hit.ng, hit.ns, hit.front, hit.mat, hit.base,
+                                         alpha, hit.offset)):
                 dst[rows] = src
             if hit.n_smooth is not None:
                 # Bent normals (Normal Map / Bump): the diffuse lobe takes Cycles' bump
@@ -163,18 +173,42 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                 bump[rows] = bump_shadowing(hit.n_smooth, hit.ns, -d[rows])
         else:
             pk.photon_surfaces(prim, u, v, d, geo.v0, geo.e1, geo.e2, normals, geo.material,
-                               table.base_color, table.alpha, *surf)
-        store = pk.store_arrays(m)
-        nxt = pk.next_arrays(2 * m if vis_on else m)
-        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, prim, *surf, bump,
-                                table.closure_params, table.ior, geo.visibility,
+                               table.base_color, table.alpha, *surf_m)
+        need = 2 * m if vis_on else m
+        k = bounce % 2
+        if nxt_sets[k] is None or len(nxt_sets[k][0]) < need:
+            nxt_sets[k] = pk.next_arrays(need)
+        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, prim, *surf_m,
+                                bump[:m], table.closure_params, plain, table.ior, geo.visibility,
                                 geo.object_id, caster, mode, bool(caustic_only), vis_on,
-                                *store, *nxt)
-        if n_st:
-            for name, buf in zip(("position", "power", "direction", "normal", "kind"), store):
-                parts[name].append(buf[:n_st].copy())
-        o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt)
-    return parts
+                                *stored.room(m), *nxt_sets[k])
+        stored.count += n_st
+        o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt_sets[k])
+    return stored.parts()
+
+
+class _Stored:
+    """A chunk's stored photons (pk.store_arrays), appended to bounce by bounce."""
+
+    def __init__(self, capacity: int):
+        self.arrays = pk.store_arrays(capacity)
+        self.count = 0
+
+    def room(self, m: int):
+        """Views of the rows from `count` on, at least m of them (the buffers grow)."""
+        if self.count + m > len(self.arrays[0]):
+            grown = pk.store_arrays(max(2 * len(self.arrays[0]), self.count + m))
+            for new, old in zip(grown, self.arrays):
+                new[:self.count] = old[:self.count]
+            self.arrays = grown
+        return tuple(a[self.count:] for a in self.arrays)
+
+    def parts(self) -> dict:
+        """{name: [array]}: the stored photons (views: trace_photons concatenates them)."""
+        names = ("position", "power", "direction", "normal", "kind")
+        if self.count == 0:
+            return {name: [] for name in names}
+        return {name: [a[:self.count]] for name, a in zip(names, self.arrays)}
 
 
 def _needs_numpy_hits(table) -> bool:
