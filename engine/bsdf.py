@@ -158,17 +158,25 @@ def closures(table: MaterialTable, hit: SurfaceHit):
     lobe (N, len(LOBE_NAMES), 3)). Cached on the hit."""
     if hit.prm is None or hit.lobe_albedo is None:
         cos_o = np.einsum("ij,ij->i", hit.ns, hit.wo)
+        # Glossy lobes on a normal that keeps their mirror direction above the surface
+        # (Cycles' ensure_valid_specular_reflection), where ns differs from ng; the lobes
+        # are set up with the view cosine about that normal.
+        local = np.zeros((len(cos_o), 3))
+        pr.glossy_normals(np.ascontiguousarray(hit.ns, np.float64),
+                          np.ascontiguousarray(hit.ng, np.float64),
+                          np.ascontiguousarray(hit.wo, np.float64), local, cos_o)
         if hit.params is None:
             params, rows = table.closure_params, hit.mat
         else:  # texture-driven scalar inputs: one parameter row per hit
             params, rows = hit.params, np.arange(len(hit.mat))
+        # Not yet for glass (docs/textures.md): its hits keep the shading normal.
+        glass = np.nonzero(np.take(params[:, pr.M_TRANS], rows) > 0)[0]
+        if len(glass):
+            local[glass] = 0.0
+            cos_o[glass] = np.einsum("ij,ij->i", hit.ns[glass], hit.wo[glass])
         hit.prm, hit.lobe_albedo = pr.setup_np(params, rows, hit.base, cos_o, hit.front,
                                                _hit_alpha(table, hit))
-        # Glossy lobes on a normal that keeps their mirror direction above the surface
-        # (Cycles' ensure_valid_specular_reflection), where ns differs from ng.
-        pr.raise_glossy_normals(hit.prm, np.ascontiguousarray(hit.ns, np.float64),
-                                np.ascontiguousarray(hit.ng, np.float64),
-                                np.ascontiguousarray(hit.wo, np.float64))
+        hit.prm[:, pr.P_GN:pr.P_GN + 3] = local
     return hit.prm, hit.lobe_albedo
 
 

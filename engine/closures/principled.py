@@ -60,7 +60,7 @@ P_GLASS_RW, P_GLASS_TW, P_GLASS_F0, P_GLASS_ALPHA, P_GLASS_ETA = 18, 21, 24, 27,
 P_COAT_W, P_COAT_ALPHA, P_COAT_ETA = 29, 32, 33
 P_SHEEN_W, P_SHEEN_A, P_SHEEN_B = 34, 37, 38
 P_GN = 39  # 3: the glossy lobes' normal in the shading normal's frame (Cycles'
-           # ensure_valid_specular_reflection: raise_glossy_normals); 0, 0, 0: the
+           # ensure_valid_specular_reflection: glossy_normals); 0, 0, 0: the
            # shading normal itself (setup's default)
 N_PACK = 42
 
@@ -280,13 +280,16 @@ def _from_glossy(prm, i, x, y, z):
 
 
 @kernel
-def raise_glossy_normals(prm, ns, ng, wo):
+def glossy_normals(ns, ng, wo, local, cos_o):
     """Cycles' maybe_ensure_valid_specular_reflection (kernel/closure/bsdf_util.h) for N
     hits: where the shading normal ns (N,3) differs from the geometric normal ng (on the
     viewer's side) and the mirror direction of wo about ns falls below
-    min(0.9 wo.ng, 0.01) over the surface, the glossy lobes (metal, specular, coat, glass)
-    take a normal rotated towards ng just enough to lift it to that height; the diffuse
-    and sheen lobes keep ns. Writes that normal, in ns's frame, to prm[:, P_GN:P_GN+3]."""
+    min(0.9 wo.ng, 0.01) over the surface, the glossy lobes (metal, specular, coat; not yet
+    glass, docs/textures.md) take a normal N' rotated towards ng just enough to lift it to that height; the diffuse
+    and sheen lobes keep ns. Writes N' in ns's frame to local (N,3) (rows left as they are
+    where nothing is raised: zeros = ns itself, prm's P_GN) and wo.N' to cos_o (N,), the
+    view cosine the closure set-up then estimates the lobes' albedo with (as Cycles sets
+    its glossy closures up on N')."""
     for i in range(ns.shape[0]):
         n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
         g0, g1, g2 = ng[i, 0], ng[i, 1], ng[i, 2]
@@ -321,21 +324,32 @@ def raise_glossy_normals(prm, ns, ng, wo):
         ln = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
         if not ln > 0.0:
             continue
-        prm[i, P_GN], prm[i, P_GN + 1], prm[i, P_GN + 2] = l0 / ln, l1 / ln, l2 / ln
+        local[i, 0], local[i, 1], local[i, 2] = l0 / ln, l1 / ln, l2 / ln
+        cos_o[i] = (w0 * p0 + w1 * p1 + w2 * p2) / ln
 
 
 @kernel
 def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
-    """f * cos_i (RGB) of hit i's rough reflective lobes (spec, metal, coat, glass
-    reflection: on the glossy normal P_GN; sheen: on the shading normal) for local wo, wi;
+    """f * cos_i (RGB) of hit i's rough reflective lobes (spec, metal, coat on the glossy
+    normal P_GN; glass reflection and sheen on the shading normal) for local wo, wi;
     mirror-like lobes contribute nothing (delta)."""
     r0 = r1 = r2 = 0.0
     qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
     jx, jy, jz = _to_glossy(prm, i, ix, iy, iz)
     if qz > 0.0 and jz > 0.0:
         r0, r1, r2 = _eval_glossy(prm, i, qx, qy, qz, jx, jy, jz)
-    if oz > 0.0 and iz > 0.0 and (prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0
-                                  or prm[i, P_SHEEN_W + 2] > 0):
+    if oz <= 0.0 or iz <= 0.0:
+        return r0, r1, r2
+    a = prm[i, P_GLASS_ALPHA]
+    if a >= ggx.ALPHA_MIN and (prm[i, P_GLASS_RW] > 0 or prm[i, P_GLASS_RW + 1] > 0
+                               or prm[i, P_GLASS_RW + 2] > 0):
+        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        eta = prm[i, P_GLASS_ETA]
+        r0 += prm[i, P_GLASS_RW] * _remap(prm[i, P_GLASS_F0], c, eta) * e
+        r1 += prm[i, P_GLASS_RW + 1] * _remap(prm[i, P_GLASS_F0 + 1], c, eta) * e
+        r2 += prm[i, P_GLASS_RW + 2] * _remap(prm[i, P_GLASS_F0 + 2], c, eta) * e
+    if (prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0
+            or prm[i, P_SHEEN_W + 2] > 0):
         e, _ = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
         r0 += prm[i, P_SHEEN_W] * e
         r1 += prm[i, P_SHEEN_W + 1] * e
@@ -345,7 +359,8 @@ def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
 
 @kernel
 def _eval_glossy(prm, i, ox, oy, oz, ix, iy, iz):
-    """eval_reflection's GGX lobes, in the glossy normal's frame (oz, iz > 0)."""
+    """eval_reflection's metal, specular and coat lobes, in the glossy normal's frame
+    (oz, iz > 0)."""
     r0 = r1 = r2 = 0.0
     a = prm[i, P_SPEC_ALPHA]
     if a >= ggx.ALPHA_MIN and (prm[i, P_SPEC_W] > 0 or prm[i, P_SPEC_W + 1] > 0
@@ -372,14 +387,6 @@ def _eval_glossy(prm, i, ox, oy, oz, ix, iy, iz):
         r0 += prm[i, P_COAT_W] * F
         r1 += prm[i, P_COAT_W + 1] * F
         r2 += prm[i, P_COAT_W + 2] * F
-    a = prm[i, P_GLASS_ALPHA]
-    if a >= ggx.ALPHA_MIN and (prm[i, P_GLASS_RW] > 0 or prm[i, P_GLASS_RW + 1] > 0
-                               or prm[i, P_GLASS_RW + 2] > 0):
-        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
-        eta = prm[i, P_GLASS_ETA]
-        r0 += prm[i, P_GLASS_RW] * _remap(prm[i, P_GLASS_F0], c, eta) * e
-        r1 += prm[i, P_GLASS_RW + 1] * _remap(prm[i, P_GLASS_F0 + 1], c, eta) * e
-        r2 += prm[i, P_GLASS_RW + 2] * _remap(prm[i, P_GLASS_F0 + 2], c, eta) * e
     return r0, r1, r2
 
 
@@ -401,8 +408,8 @@ def _glass_reflect_share(prm, i, c, eta, inv_eta):
 def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
     """Solid-angle pdf with which the continuation (sample_lobe, the lobe chosen with
     probability sel[i, lobe]) samples the reflected direction wi of hit i: the mixture of
-    its rough reflective lobes (mirror-like lobes have no density; the GGX lobes on the
-    glossy normal P_GN, the sheen on the shading normal)."""
+    its rough reflective lobes (mirror-like lobes have no density; the metal, specular and
+    coat lobes on the glossy normal P_GN, glass and sheen on the shading normal)."""
     pdf = 0.0
     qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
     jx, jy, jz = _to_glossy(prm, i, ix, iy, iz)
@@ -414,14 +421,14 @@ def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
             if w > 0.0 and a >= ggx.ALPHA_MIN:
                 _, p, _ = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
                 pdf += w * p
-        w = sel[i, L_GLASS_R] + sel[i, L_GLASS_T]
-        a = prm[i, P_GLASS_ALPHA]
-        if w > 0.0 and a >= ggx.ALPHA_MIN:
-            _, p, c = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
-            eta = prm[i, P_GLASS_ETA]
-            pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
     if oz <= 0.0 or iz <= 0.0:
         return pdf
+    w = sel[i, L_GLASS_R] + sel[i, L_GLASS_T]
+    a = prm[i, P_GLASS_ALPHA]
+    if w > 0.0 and a >= ggx.ALPHA_MIN:
+        _, p, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        eta = prm[i, P_GLASS_ETA]
+        pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
     w = sel[i, L_SHEEN]
     if w > 0.0:
         _, p = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
@@ -542,10 +549,12 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
 def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2, u3):
     """Sample lobe `lobe` (L_METAL, L_SPEC, L_COAT, or L_GLASS_R / L_GLASS_T: both mean
     the whole glass lobe) of hit i for local wo: (ix, iy, iz, weight RGB = f cos / pdf of
-    that lobe alone, transmitted). Weight 0: no sample. The GGX lobes sample about the
-    glossy normal (P_GN), the sheen about the shading normal."""
+    that lobe alone, transmitted). Weight 0: no sample. The metal, specular and coat lobes
+    sample about the glossy normal (P_GN), glass and sheen about the shading normal."""
     if lobe == L_SHEEN:
         return _sample_sheen(prm, i, ox, oy, oz, u1, u2)
+    if lobe == L_GLASS_R or lobe == L_GLASS_T:
+        return _glass_sample(prm, i, ox, oy, oz, u1, u2, u3)
     qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
     ix, iy, iz, w0, w1, w2, tr = _sample_glossy(prm, i, lobe, qx, qy, qz, u1, u2, u3)
     ix, iy, iz = _from_glossy(prm, i, ix, iy, iz)
@@ -563,9 +572,7 @@ def _sample_sheen(prm, i, ox, oy, oz, u1, u2):
 
 @kernel
 def _sample_glossy(prm, i, lobe, ox, oy, oz, u1, u2, u3):
-    """sample_lobe's GGX lobes in the glossy normal's frame."""
-    if lobe == L_GLASS_R or lobe == L_GLASS_T:
-        return _glass_sample(prm, i, ox, oy, oz, u1, u2, u3)
+    """sample_lobe's metal, specular and coat lobes in the glossy normal's frame."""
     if lobe == L_SPEC:
         a_col = P_SPEC_ALPHA
     elif lobe == L_METAL:
@@ -662,4 +669,4 @@ def _warm_up():
     eval_reflection_many(prm, n, wo, d, np.empty((1, 3)))
     lobe_is_rough(prm, np.full(1, L_SPEC, np.int64))
     rough_reflection_rows(prm, np.empty(1, np.bool_))
-    raise_glossy_normals(prm, n, np.array([[0.0, 0.6, 0.8]]), wo)
+    glossy_normals(n, np.array([[0.0, 0.6, 0.8]]), wo, np.zeros((1, 3)), np.ones(1))
