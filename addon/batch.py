@@ -124,6 +124,10 @@ class _StatusPrinter:
             self.effects = list(value)
         elif event == "warning":
             self.warnings.append(str(value))
+            if self.bar is not None:
+                # Blender prints the report next on stdout: start it on a clean line, not
+                # glued to the bar (which redraws itself below at its next update).
+                self.bar.clear()
         if event in ("stats", "progress") and self.interrupt is not None:
             # The compile polls nothing for a minute and has nothing to keep: Ctrl-C then
             # stops at once (engine.cli.CancelOnInterrupt.at_once).

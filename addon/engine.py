@@ -154,6 +154,21 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         finally:
             self._listeners = []
 
+    def _report_warnings(self, warnings, already=0):
+        """Emit each warning to the listeners and report the first MAX_REPORTED_WARNINGS of
+        a render in Blender's UI (already: how many this render reported before); the
+        rest go to the system console."""
+        for w in warnings:
+            self._emit("warning", w)
+        room = max(MAX_REPORTED_WARNINGS - already, 0)
+        for w in warnings[:room]:
+            self.report({"WARNING"}, f"Photon Mapping: {w}")
+        if len(warnings) > room:
+            self.report({"WARNING"}, f"Photon Mapping: {len(warnings) - room}"
+                        " more warnings (see the system console)")
+            for w in warnings[room:]:
+                print(f"Photon Mapping warning: {w}")
+
     def _fail(self, msg, status):
         self.report({"ERROR"}, msg)
         try:
@@ -207,6 +222,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         pm.resources.check_resources(pm_scene, settings, region, progressive=props.progressive,
                                      in_blender=True)
 
+        # What the export could not convert is known now: say it before the long render
+        # rather than after it (the end reports only what the engine adds).
+        early = list(pm_scene.all_warnings())
+        self._report_warnings(early)
+
         def progress(stage, fraction, text):
             self._progress(_overall_fraction(stage, fraction, settings.uses_photon_maps))
             now = time.perf_counter()
@@ -235,16 +255,9 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         if not self._listeners:  # a listener prints them itself
             for line in effects:
                 print(f"Photon Mapping: {line}")  # why each effect is on or off
-        warnings = list(film.warnings)
-        for w in warnings:
-            self._emit("warning", w)
-        for w in warnings[:MAX_REPORTED_WARNINGS]:
-            self.report({"WARNING"}, f"Photon Mapping: {w}")
-        if len(warnings) > MAX_REPORTED_WARNINGS:
-            self.report({"WARNING"}, f"Photon Mapping: {len(warnings) - MAX_REPORTED_WARNINGS}"
-                        " more warnings (see the system console)")
-            for w in warnings[MAX_REPORTED_WARNINGS:]:
-                print(f"Photon Mapping warning: {w}")
+        reported = set(early)
+        self._report_warnings([w for w in film.warnings if w not in reported],
+                              already=len(early))
         n = info['lights']
         summary = (f"{info['triangles']} triangles, {n} light{'' if n == 1 else 's'}, "
                    f"{elapsed:.1f} s")

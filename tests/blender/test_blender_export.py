@@ -137,9 +137,20 @@ def test_render_reports_export_warning(fresh_scene, bpy_addon):
     scene = build_scene(bpy)
     cheap(scene, width=40, height=30, pct=100, spp=1, photons=2000, caustic_photons=500)
     from addon import engine
-    bpy.ops.render.render()
+    events = []
+    listener = (lambda event, value: events.append((event, value)))
+    engine.status_listeners.append(listener)
+    try:
+        bpy.ops.render.render()
+    finally:
+        engine.status_listeners.remove(listener)
     assert engine.last_render["width"] == 40 and engine.last_render["height"] == 30
     assert any("My Toon" in w for w in engine.last_render["warnings"])
+    # Said before the render, not after it, and once.
+    names = [e for e, _ in events]
+    toon = [i for i, (e, v) in enumerate(events) if e == "warning" and "My Toon" in str(v)]
+    assert len(toon) == 1 and toon[0] < names.index("film"), names
+    assert any(e == "progress" for e in names[toon[0] + 1:names.index("film")]), names
 
 
 def test_materials_and_texture(fresh_scene, bpy_addon):
