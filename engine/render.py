@@ -347,8 +347,11 @@ def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: i
     (sqrt(area / stored): the mean distance between neighbours of an even spread)."""
     out = []
     if radius > RADIUS_SCENE_FRACTION * extent:
+        ratio = radius / extent
+        # A percentage up to 6 digits; beyond, a factor (1e300 m printed 300 digits).
+        share = f"{100 * ratio:.0f} % of" if ratio < 1e4 else f"{ratio:.3g} times"
         out.append(
-            f"search radius {radius:.4g} m is {100 * radius / extent:.0f} % of the scene's size "
+            f"search radius {radius:.4g} m is {share} the scene's size "
             f"({extent:.3g} m across): each estimate spreads photons over a disc of "
             f"{math.pi * radius * radius:.3g} m^2, so indirect light is blurred across corners "
             "and objects (and too dark where the disc is larger than the surface it lands on), "

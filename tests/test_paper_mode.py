@@ -275,3 +275,12 @@ def test_cli_photons_alone_scales_the_caustic_photons():
     assert over["caustic_photons"] == 7
     _, over = _scene_and_overrides(parser.parse_args(base))
     assert "caustic_photons" not in over or over["caustic_photons"] == d.caustic_photons
+
+
+def test_a_huge_radius_is_explained_in_a_short_line():
+    from engine.render import radius_warnings
+    (line,) = radius_warnings(1e300, 10.0, 50.0, 1000, 8)
+    assert "search radius 1e+300 m is 1e+299 times the scene's size" in line
+    assert len(line) < 400
+    (line,) = radius_warnings(50.0, 10.0, 50.0, 1000, 8)
+    assert "is 500 % of the scene's size" in line
