@@ -32,18 +32,17 @@ import os
 import subprocess
 import sys
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BENCH = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(BENCH)
 
 CHILD = r"""
 import json, sys, time
 sys.path.insert(0, ROOT)
+sys.path.insert(0, BENCH)
+from procmem import hwm, rss
 import numpy as np
 from engine.accel import Accel
 
-
-def rss():
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * 4096
 
 
 def sphere(rings=128, segments=256):
@@ -139,6 +138,8 @@ print(json.dumps({"kept": kept, "build": build, "trace": trace, "triangles": len
 RENDER_CHILD = r"""
 import gc, json, sys, time
 sys.path.insert(0, ROOT)
+sys.path.insert(0, BENCH)
+from procmem import hwm, rss
 import numpy as np
 from engine import RenderSettings, resources
 from engine.api import PaperScene, sphere_mesh
@@ -146,16 +147,6 @@ from engine.render import prepare_context, render_pass
 from engine.scene import Material, Mesh, Prototype, place
 
 
-def rss():
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * 4096
-
-
-def hwm():
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) * 1024
 
 
 def scene(n, segments):
@@ -215,7 +206,7 @@ print(json.dumps({"T": T, "kept": kept, "peak_prepare": peak_prepare, "peak": pe
 
 
 def run_render(mode, instances, segments):
-    code = (f"ROOT={ROOT!r}; MODE={mode!r}; NI={instances}; SEG={segments}\n"
+    code = (f"ROOT={ROOT!r}; BENCH={BENCH!r}; MODE={mode!r}; NI={instances}; SEG={segments}\n"
             + RENDER_CHILD)
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
@@ -238,7 +229,8 @@ def main_render(instances, segments):
 
 
 def run(mode, instances, rays, out):
-    code = (f"ROOT={ROOT!r}; MODE={mode!r}; NI={instances}; NR={rays}; OUT={out!r}\n" + CHILD)
+    code = (f"ROOT={ROOT!r}; BENCH={BENCH!r}; MODE={mode!r}; NI={instances}; NR={rays}; "
+            f"OUT={out!r}\n" + CHILD)
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     return json.loads(res.strip().splitlines()[-1])

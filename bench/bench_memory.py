@@ -23,7 +23,8 @@ import os
 import subprocess
 import sys
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BENCH = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(BENCH)
 
 # (label, scene, width, height, settings, extra triangles)
 CASES = [
@@ -76,6 +77,8 @@ print(json.dumps({"estimate": est.total, "parts": est.parts, "measured": peak - 
 TRIANGLES_CHILD = r"""
 import gc, json, sys, time
 sys.path.insert(0, ROOT)
+sys.path.insert(0, BENCH)
+from procmem import hwm, rss
 import numpy as np
 from engine import RenderSettings
 from engine.render import prepare_context, render_pass
@@ -83,16 +86,6 @@ from engine.scene import Mesh
 from engine.scenefile import load_scene
 
 
-def rss():
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * 4096
-
-
-def hwm():
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) * 1024
 
 
 scene = load_scene(ROOT + "/scenes/figure3.toml")[0]
@@ -147,7 +140,7 @@ print(json.dumps({"T": T, "kept": kept / T, "peak_prepare": peak_prepare / T,
 
 
 def run_triangles(tris, smooth, root):
-    code = f"ROOT={root!r}; TRIS={tris}; SMOOTH={smooth}\n" + TRIANGLES_CHILD
+    code = f"ROOT={root!r}; BENCH={BENCH!r}; TRIS={tris}; SMOOTH={smooth}\n" + TRIANGLES_CHILD
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
     return json.loads(out.strip().splitlines()[-1])

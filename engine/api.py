@@ -265,14 +265,14 @@ class PaperScene(Scene):
         image = (H, W, 3) linear radiance (top row first) or a file path (EXR / NPY
         linear, PNG sRGB); rotation_degrees = the XYZ Euler rotation of a Mapping node in
         front of it. Replaces the background colour (engine/lights/environment.py)."""
-        from .lights.environment import Environment, euler_xyz
+        from .lights.environment import Environment
+        from .scene import euler_rotation
         name = "environment"
         if isinstance(image, str):
             from .imageio import read_image
             name, image = image, read_image(image)
-        rx, ry, rz = (math.radians(float(a)) for a in rotation_degrees)
-        self.environment = Environment(image, strength, euler_xyz(rx, ry, rz), interpolation,
-                                       name=name)
+        rotation = euler_rotation([math.radians(float(a)) for a in rotation_degrees])
+        self.environment = Environment(image, strength, rotation, interpolation, name=name)
         return self.environment
 
     def set_camera(self, position, look_at, up=(0, 0, 1), view_angle=40.0, aspect=None, **kw):

@@ -21,7 +21,7 @@ from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
 from .sampling import dot, max3, normalize
 from .shadernodes import ShadingGeometry
-from .textures import hit_emission, material_alpha, scalar_params
+from .textures import hit_emission, material_alpha, rows_by_material, scalar_params
 
 # Lobe names in engine/closures/principled.py's order (its L_* indices).
 LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat", "sheen")
@@ -110,15 +110,11 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
                  geo.corner_normals, geo.material, table.base_color, p, ng, ns, front, mat,
                  base, offset)
     n_smooth = bent = None
-    for mi, nmap in enumerate(table.normal_maps or ()):
-        if nmap is None:
-            continue
-        sel = np.nonzero(mat == mi)[0]
-        if len(sel):
-            if n_smooth is None:
-                n_smooth, bent = ns.copy(), np.zeros(len(ns), bool)
-            ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
-            bent[sel] = True
+    for _, nmap, sel in rows_by_material(table.normal_maps, mat):
+        if n_smooth is None:
+            n_smooth, bent = ns.copy(), np.zeros(len(ns), bool)
+        ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
+        bent[sel] = True
     # Shading normals turned to the ray's side; the geometric normal where they would put
     # the viewer below the surface, except normals a Normal Map / Bump node bent: Cycles
     # keeps those (its bump shadowing term, engine/normalmap.py, handles the light side).
@@ -130,19 +126,15 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     # What view-dependent nodes (Layer Weight, Fresnel) read: Cycles' sd->N (the smooth
     # normal on the ray's side) and sd->wi, row for row with prim.
     sg = ShadingGeometry(geo, ns if n_smooth is None else n_smooth, wo, ~front)
-    for mi, tex in enumerate(table.textures):
-        if tex is None:
-            continue
-        sel = np.nonzero(mat == mi)[0]
-        if len(sel):
-            # Not clipped above 1, as Cycles (max(colour, 0)): the diffuse lobe takes an
-            # albedo above 1, the metal / glass lobes clip it themselves
-            # (closures/principled.py); photons carry it in their power (Russian
-            # roulette probabilities stay <= 1, engine/photons.py).
-            rgb = tex.evaluate(sg.rows(sel), prim[sel], u[sel], v[sel])
-            if rgb.ndim == 1:  # a value (factor) into a colour: grey
-                rgb = rgb[:, None]
-            base[sel] = base[sel] * np.maximum(rgb, 0.0)
+    for _, tex, sel in rows_by_material(table.textures, mat):
+        # Not clipped above 1, as Cycles (max(colour, 0)): the diffuse lobe takes an
+        # albedo above 1, the metal / glass lobes clip it themselves
+        # (closures/principled.py); photons carry it in their power (Russian
+        # roulette probabilities stay <= 1, engine/photons.py).
+        rgb = tex.evaluate(sg.rows(sel), prim[sel], u[sel], v[sel])
+        if rgb.ndim == 1:  # a value (factor) into a colour: grey
+            rgb = rgb[:, None]
+        base[sel] = base[sel] * np.maximum(rgb, 0.0)
     alpha = None
     if table.alpha_textures and any(t is not None for t in table.alpha_textures):
         alpha = material_alpha(table, sg, mat, prim, u, v)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .scene import euler_rotation
 from .textures import ImageTexture
 
 
@@ -52,16 +53,6 @@ class Coordinates:
         return geo.coordinates(self.name, prim, u, v)
 
 
-def _euler_xyz(rot):
-    """Rotation matrix of Blender's XYZ Euler angles (radians)."""
-    cx, cy, cz = np.cos(rot)
-    sx, sy, sz = np.sin(rot)
-    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return rz @ ry @ rx
-
-
 class Mapping:
     """Mapping node. kind POINT: R(S v) + T; TEXTURE: the inverse, S^-1 R^-1 (v - T);
     VECTOR: R(S v); NORMAL: normalize(R(v / S)). location / rotation (XYZ Euler, radians)
@@ -75,7 +66,7 @@ class Mapping:
             raise ValueError(f"Mapping type: expected one of {self.KINDS}, got {kind!r}")
         self.vector = vector
         self.location = np.asarray(location, np.float64)
-        self.rot = _euler_xyz(np.asarray(rotation, np.float64))
+        self.rot = euler_rotation(rotation)
         self.scale = np.asarray(scale, np.float64)
         self.kind = kind
 

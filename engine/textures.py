@@ -237,6 +237,19 @@ def _rows(geo, sel):
     return geo.rows(sel) if hasattr(geo, "rows") else geo
 
 
+def rows_by_material(nodes, mat):
+    """(material index, node, rows) for every material whose entry in nodes (a per-material
+    list, None = nothing to evaluate) is set and that has hits among mat (N,) int64:
+    rows = the indices i with mat[i] == that material, increasing. How per-material
+    nodes (textures, normal maps, scalar maps) are evaluated on a batch of hits."""
+    for mi, node in enumerate(nodes or ()):
+        if node is None:
+            continue
+        rows = np.nonzero(mat == mi)[0]
+        if len(rows):
+            yield mi, node, rows
+
+
 def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.ndarray:
     """(N,) alpha (opacity, Cycles' Principled Alpha) at hits of materials mat (N,) on
     triangles prim with barycentrics u, v: the material's constant alpha (table.alpha)
@@ -245,15 +258,8 @@ def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.nda
     out the constant (the texture factor alone, 1 where a material has none)."""
     mat = np.asarray(mat, np.int64)
     out = np.take(table.alpha, mat).astype(np.float64) if constant else np.ones(len(mat))
-    nodes = getattr(table, "alpha_textures", None)
-    if not nodes:
-        return out
-    for mi, node in enumerate(nodes):
-        if node is None:
-            continue
-        sel = np.nonzero(mat == mi)[0]
-        if len(sel):
-            out[sel] *= factor(node, _rows(geo, sel), prim[sel], u[sel], v[sel])
+    for _, node, sel in rows_by_material(getattr(table, "alpha_textures", None), mat):
+        out[sel] *= factor(node, _rows(geo, sel), prim[sel], u[sel], v[sel])
     return out
 
 
@@ -278,12 +284,7 @@ def scalar_params(table, geo, mat, prim, u, v):
         return None
     mat = np.asarray(mat, np.int64)
     out = np.take(table.closure_params, mat, axis=0)
-    for mi, entries in enumerate(cols):
-        if entries is None:
-            continue
-        sel = np.nonzero(mat == mi)[0]
-        if not len(sel):
-            continue
+    for _, entries, sel in rows_by_material(cols, mat):
         for col, node, lo, hi in entries:
             out[sel, col] = scalar_values(node, _rows(geo, sel), prim[sel], u[sel], v[sel],
                                           lo, hi)
@@ -361,12 +362,8 @@ def hit_emission(table, geo, mat, prim, u, v) -> np.ndarray:
     times its emission texture (table.emission_textures) where it has one."""
     mat = np.asarray(mat, np.int64)
     out = np.take(table.emission, mat, axis=0)
-    for mi, node in enumerate(getattr(table, "emission_textures", None) or ()):
-        if node is None:
-            continue
-        sel = np.nonzero(mat == mi)[0]
-        if len(sel):
-            out[sel] *= colour_values(node, _rows(geo, sel), prim[sel], u[sel], v[sel])
+    for _, node, sel in rows_by_material(getattr(table, "emission_textures", None), mat):
+        out[sel] *= colour_values(node, _rows(geo, sel), prim[sel], u[sel], v[sel])
     return out
 
 

@@ -10,7 +10,7 @@ from engine import Environment, RenderSettings
 from engine.api import PaperScene
 from engine.geometry import prepare
 from engine.lights import WorldLight, prepare_lights
-from engine.lights.environment import euler_xyz
+from engine.scene import euler_rotation
 from engine.scene import Camera
 from engine.scenefile import SceneFileError, load_scene
 from helpers import top_down_plane
@@ -35,7 +35,7 @@ def _sphere_grid(n_theta, n_phi):
     return d, np.sin(t).reshape(-1), (math.pi / n_theta) * (2 * math.pi / n_phi)
 
 
-@pytest.mark.parametrize("rotation", [None, euler_xyz(0.0, 0.0, 0.0)])
+@pytest.mark.parametrize("rotation", [None, euler_rotation((0.0, 0.0, 0.0))])
 def test_pdf_integrates_to_one_over_the_sphere(rotation):
     env = _random_env(rotation=rotation)
     # pdf x sin(theta) is constant on each texel: cell midpoints of a grid 4x finer than
@@ -46,14 +46,14 @@ def test_pdf_integrates_to_one_over_the_sphere(rotation):
 
 
 def test_pdf_integrates_to_one_when_rotated():
-    env = _random_env(rotation=euler_xyz(0.4, -0.3, 1.1))
+    env = _random_env(rotation=euler_rotation((0.4, -0.3, 1.1)))
     d, sin_t, cell = _sphere_grid(400, 800)  # no longer texel-aligned: a fine quadrature
     total = float(np.sum(env.pdf(d) * sin_t) * cell)
     assert abs(total - 1.0) < 2e-3, total
 
 
 def test_samples_follow_their_pdf():
-    env = _random_env(rotation=euler_xyz(0.2, 0.5, -0.7))
+    env = _random_env(rotation=euler_rotation((0.2, 0.5, -0.7)))
     rng = np.random.default_rng(0)
     n = 200_000
     wi, pdf = env.sample(rng.random(n), rng.random(n))
@@ -99,7 +99,7 @@ def test_equirectangular_orientation_is_blenders():
     assert np.allclose(got[:3, 0], [0.5 + 0.5 / w, 0.25 + 0.5 / w, 0.75 + 0.5 / w])
     assert got[3, 1] == pytest.approx(1 - 0.5 / h)
     # A Mapping rotation of +90 degrees about Z shows at +X what +Y showed before.
-    turned = Environment(px, rotation=euler_xyz(0, 0, math.pi / 2), interpolation="Closest")
+    turned = Environment(px, rotation=euler_rotation((0, 0, math.pi / 2)), interpolation="Closest")
     assert np.allclose(turned.radiance(np.array([[1.0, 0, 0.01]])), got[1])
 
 
@@ -147,7 +147,7 @@ def test_rotation_turns_the_light_source():
     s.environment = _one_texel_env(h, w, h - 3, 4, Ls)
     dark = s.render(RenderSettings(spp=8, seed=2, **DIRECT_ONLY)).combined
     assert dark.max() == 0.0
-    s.environment = _one_texel_env(h, w, h - 3, 4, Ls, rotation=euler_xyz(math.pi, 0, 0))
+    s.environment = _one_texel_env(h, w, h - 3, 4, Ls, rotation=euler_rotation((math.pi, 0, 0)))
     lit = s.render(RenderSettings(spp=64, seed=2, **DIRECT_ONLY)).combined
     expected = rho * _texel_irradiance(h, w, 2, Ls) / math.pi  # mirrored row h-3 -> 2
     assert abs(lit.mean() / expected - 1.0) < 0.03
@@ -260,7 +260,7 @@ size = 4
     scene, render = load_scene(str(tmp_path / "s.toml"))
     env = scene.environment
     assert env.interpolation == "Closest" and np.allclose(env.strength, 2.0)
-    assert np.allclose(env.rotation, euler_xyz(0, 0, math.pi / 2))
+    assert np.allclose(env.rotation, euler_rotation((0, 0, math.pi / 2)))
     assert np.allclose(env.pixels.max(), 80.0)
     (tmp_path / "bad.toml").write_text(text.replace('"sky.npy"', '"nope.exr"'))
     with pytest.raises(SceneFileError, match="image: file 'nope.exr' not found"):
@@ -275,7 +275,7 @@ def test_api_set_environment_from_an_array_and_a_file(tmp_path):
     px = np.full((4, 8, 3), 0.5, np.float32)
     env = s.set_environment(px, strength=2.0, rotation_degrees=(0, 0, 90))
     assert s.environment is env and np.allclose(env.pixels, 1.0)
-    assert np.allclose(env.rotation, euler_xyz(0, 0, math.pi / 2))
+    assert np.allclose(env.rotation, euler_rotation((0, 0, math.pi / 2)))
     np.save(tmp_path / "sky.npy", px)
     env = s.set_environment(str(tmp_path / "sky.npy"), interpolation="Closest")
     assert env.name.endswith("sky.npy") and env.interpolation == "Closest"

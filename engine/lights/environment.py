@@ -37,16 +37,6 @@ INTERP_CLOSEST, INTERP_LINEAR = 0, 1
 INTERPOLATIONS = {"Closest": INTERP_CLOSEST, "Linear": INTERP_LINEAR}
 
 
-def euler_xyz(rx: float, ry: float, rz: float) -> np.ndarray:
-    """Blender's XYZ Euler rotation matrix (Rz @ Ry @ Rx), angles in radians."""
-    cx, sx, cy, sy, cz, sz = (math.cos(rx), math.sin(rx), math.cos(ry), math.sin(ry),
-                              math.cos(rz), math.sin(rz))
-    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
-
-
 class Environment:
     """An equirectangular image lighting the scene from infinity.
 

@@ -48,8 +48,9 @@ def test_environment_texture_with_mapping_rotation(mb, bpy_addon):
     env = scene.environment
     assert env is not None and env.interpolation == "Linear"
     np.testing.assert_allclose(env.pixels, sky * 1.7, rtol=1e-5)
-    from engine.lights.environment import euler_xyz
-    np.testing.assert_allclose(env.rotation, euler_xyz(0, 0, math.radians(60)), atol=1e-6)
+    from engine.scene import euler_rotation
+    np.testing.assert_allclose(env.rotation, euler_rotation((0, 0, math.radians(60))),
+                               atol=1e-6)
     np.testing.assert_allclose(scene.background, env.average())
     assert not [w for w in scene.all_warnings() if "world" in w]
 
