@@ -317,3 +317,42 @@ def test_cancel_during_a_two_level_render(monkeypatch, after):
 
     film = render(_scene(), RenderSettings(spp=2, photons=20000, seed=1), should_cancel=stop)
     assert flag.is_set() and film.stats["cancelled"]
+
+
+def test_shared_tables_read_as_the_expansion(monkeypatch):
+    """Two-level scenes keep one table per prototype (engine/sharedrows.py): every
+    per-triangle column read through it equals the expanded table's, row for row
+    (mirrored, sheared and scaled instances; normals, UVs, material overrides)."""
+    s = _scene(hidden={"holdout": True, "visible_glossy": False})
+    s.validate()
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 1e9)
+    flat, _ = prepare(s)
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    geo, _ = prepare(s)
+    assert flat.shared is None and geo.shared is not None
+    assert len(geo.shared.table_start) == 1  # one sphere table for nine instances
+    assert geo.count == flat.count and geo.faces32.shape == (2, 3)
+    rng = np.random.default_rng(3)
+    prim = np.concatenate([np.arange(flat.count), rng.integers(0, flat.count, 500)])
+    for name in ("v0", "e1", "e2", "corner_normals", "corner_uvs", "smooth", "material",
+                 "object_id", "visibility", "holdout", "ng", "area"):
+        want = np.take(getattr(flat, name), prim, axis=0)
+        got = np.take(getattr(geo, name), prim, axis=0)
+        assert got.shape == want.shape and got.dtype == want.dtype, name
+        if want.dtype.kind in "biu":
+            np.testing.assert_array_equal(got, want, err_msg=name)
+        else:
+            np.testing.assert_allclose(got, want, rtol=0, atol=2e-6 if name == "corner_normals"
+                                       else 1e-12 * flat.extent, err_msg=name)
+    u, v = rng.uniform(0, 0.5, (2, len(prim)))
+    for a, b in zip(flat.uv_tangents(prim), geo.uv_tangents(prim)):
+        np.testing.assert_allclose(b, a, atol=1e-9)
+    np.testing.assert_allclose(geo.origin_offset(prim, u, v, geo.hit_points(prim, u, v),
+                                                 np.asarray(geo.ng[prim])),
+                               flat.origin_offset(prim, u, v, flat.hit_points(prim, u, v),
+                                                  np.asarray(flat.ng[prim])), rtol=1e-9)
+    # The kernels' accessor: rows 0..N-1 of gathered tables (misses stay -1).
+    rows, (v0, mat) = geo.hit_tables(np.array([5, -1, 7]), "v0", "material")
+    np.testing.assert_array_equal(rows, [0, -1, 2])
+    np.testing.assert_allclose(v0[[0, 2]], flat.v0[[5, 7]], atol=1e-12 * flat.extent)
+    np.testing.assert_array_equal(mat[[0, 2]], flat.material[[5, 7]])
