@@ -294,6 +294,16 @@ class Geometry:
         (the Accel keeps what Embree reads)."""
         self.vertices32 = self.faces32 = None
 
+    def used_materials(self) -> np.ndarray:
+        """Sorted material indices some triangle uses (for shared instances: every
+        material in the instances' slots, a superset)."""
+        if self.shared is None:
+            return np.unique(self.material)
+        r = self.shared
+        slots = r.slots[r.slots >= 0]
+        return np.unique(np.concatenate([r.static["material"].astype(np.int64),
+                                         slots.astype(np.int64)]))
+
     def hit_tables(self, prim, *names):
         """(rows, tables): what a compiled kernel that reads triangle tables by row needs
         for the hits prim (N,) int (< 0: a miss, kept as -1). Without shared instances:

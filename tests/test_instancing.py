@@ -19,6 +19,7 @@ from engine.toplevel import build_top_level, top_level_candidates
 from engine.parallel import Cancelled
 from engine.render import prepare_context
 from engine.scene import Material, Mesh, Prototype, SceneError, place
+from engine.textures import ImageTexture
 
 
 def _matrices(n, seed=1, mirror_every=3):
@@ -188,12 +189,18 @@ def test_degenerate_instance_and_empty_queries(field):
 
 # --- scenes -----------------------------------------------------------------------------
 
-def _scene(n=9, hidden=None):
-    """A floor under a point light and an area light with n instances of a smooth sphere
-    and of a card, some mirrored; `hidden`: Mesh flags set on instance 1."""
+def _scene(n=9, hidden=None, rich=False):
+    """A floor under a point light with n instances of a smooth sphere, some mirrored;
+    `hidden`: Mesh flags set on instance 1; rich: every third instance textured (a
+    checker image through the UVs) and every third half transparent (alpha 0.4)."""
     s = PaperScene(width=48, height=36)
     s.add_material(Material("white", (0.8, 0.8, 0.8)))
     s.add_material(Material("red", (0.8, 0.2, 0.1), roughness=0.3))
+    if rich:
+        checker = np.kron((np.indices((8, 8)).sum(axis=0) % 2)[:, :, None] * [0.8, 0.7, 0.1],
+                          np.ones((1, 1, 1))).astype(np.float32) + 0.05
+        s.add_material(Material("tex", (1, 1, 1), texture=ImageTexture(checker)))
+        s.add_material(Material("veil", (0.2, 0.5, 0.9), alpha=0.4))
     s.add_plane((0, 0, -0.5), (0, 0, 1), 20.0, "white", name="floor")
     sv, sf, sn, suv = sphere_mesh((0, 0, 0), 1.0, 24, 12)
     sphere = Prototype("sphere", sv, sf)
@@ -202,8 +209,11 @@ def _scene(n=9, hidden=None):
         # The copies' shading normals: n' = inv(A)^T n, as addon/export.transform_geometry.
         nrm = sn @ np.linalg.inv(M[:3, :3])
         nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+        name = "red" if i % 2 else "white"
+        if rich and i % 3:
+            name = "tex" if i % 3 == 1 else "veil"
         mesh = Mesh(f"ball.{i:03d}", v, f, normals=nrm, uvs=suv,
-                    materials=["red" if i % 2 else "white"], prototype=sphere, matrix=M)
+                    materials=[name], prototype=sphere, matrix=M)
         if i == 1 and hidden:
             for k, val in hidden.items():
                 setattr(mesh, k, val)
@@ -356,3 +366,29 @@ def test_shared_tables_read_as_the_expansion(monkeypatch):
     np.testing.assert_array_equal(rows, [0, -1, 2])
     np.testing.assert_allclose(v0[[0, 2]], flat.v0[[5, 7]], atol=1e-12 * flat.extent)
     np.testing.assert_array_equal(mat[[0, 2]], flat.material[[5, 7]])
+
+
+def test_textured_and_transparent_instances_render_as_their_expansion(monkeypatch):
+    """Shared tables with textured and half-transparent instances (transparent shadows
+    walk the two-level BVH): the same image as the expansion, statistically."""
+    s = _scene(rich=True)
+    flat = _render(s, False, monkeypatch)
+    two = _render(s, True, monkeypatch)
+    assert np.isclose(two.depth, flat.depth, rtol=1e-4, atol=1e-5).mean() > 0.99
+    for name in ("combined", "direct", "indirect"):
+        a, b = getattr(flat, name), getattr(two, name)
+        assert abs(b.mean() / a.mean() - 1) < 0.005, name
+    # Transparent shadows are there: the veiled balls' shadows are lighter than opaque.
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    s.validate()
+    ctx = prepare_context(s, RenderSettings(spp=1, photons=1000))
+    assert ctx.geo.shared is not None and ctx.shadow is not None and ctx.shadow.shared
+    o = np.array([[0.0, 0.0, 20.0]])
+    rows = np.nonzero(np.array([m.materials[0] == "veil" for m in s.meshes
+                                if m.prototype is not None]))[0]
+    M = s.meshes[1 + rows[0]].matrix
+    centre = M[:, 3] - ctx.geo.offset
+    d = (centre - (o - ctx.geo.offset))
+    trans = ctx.shadow.transmittance((o - ctx.geo.offset).astype(np.float32),
+                                     d.astype(np.float32), np.array([1.0], np.float32))
+    assert 0.0 < trans.max() < 1.0
