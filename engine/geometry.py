@@ -425,12 +425,19 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     for mesh in meshes:
         if not len(mesh.faces):
             continue
-        used = np.zeros(len(mesh.vertices), bool)
+        if mesh.copyless:  # a placement: its prototype's vertices placed (no copy kept)
+            if stop():
+                raise Cancelled()
+            P, M = mesh.prototype, mesh.matrix
+            verts = P.vertices @ M[:, :3].T + M[:, 3]
+        else:
+            verts = mesh.vertices
+        used = np.zeros(len(verts), bool)
         used[mesh.faces.reshape(-1)] = True
         for a in range(0, len(used), 3 * PIECE_TRIANGLES):
             if stop():
                 raise Cancelled()
-            piece = mesh.vertices[a:a + 3 * PIECE_TRIANGLES][used[a:a + 3 * PIECE_TRIANGLES]]
+            piece = verts[a:a + 3 * PIECE_TRIANGLES][used[a:a + 3 * PIECE_TRIANGLES]]
             if len(piece):
                 lo = np.minimum(lo, piece.min(axis=0))
                 hi = np.maximum(hi, piece.max(axis=0))
@@ -443,12 +450,15 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     if not np.isfinite(extent) or extent <= 0:
         extent = 1.0
 
-    any_normals = any(m.normals is not None for m in meshes if len(m.faces))
-    any_uvs = any(m.uvs is not None for m in meshes if len(m.faces))
     instances, mesh_instance = _instances(meshes, offset)
     # Two-level tracing (engine/resources.two_level_instances) also shares the tables:
     # the instanced rows are stored once per prototype (engine/sharedrows.py).
     shared = instances is not None and two_level_instances(instances)
+    if not shared:
+        # Expanded: placements without a copy get theirs now (the budget found it small).
+        meshes = [m.expanded() for m in meshes]
+    any_normals = any(_has(m, "normals") for m in meshes if len(m.faces))
+    any_uvs = any(_has(m, "uvs") for m in meshes if len(m.faces))
     if instances is not None:
         instances.two_level = shared
         instances.compact_static = shared
@@ -607,6 +617,12 @@ def _instances(meshes, offset):
                      ), mesh_instance
 
 
+def _has(mesh, attr) -> bool:
+    """The mesh (or, for a placement without a copy, its prototype) has `attr`."""
+    src = mesh.prototype if mesh.copyless else mesh
+    return getattr(src, attr, None) is not None
+
+
 def _prototype_order(values, mesh, flip):
     """(F,3,C) per-corner values of mesh (per vertex or per corner) in its prototype's
     corner order (a mirrored instance's faces are the prototype's with corners 0, 2, 1)."""
@@ -671,6 +687,16 @@ def _shared_rows(meshes, mesh_instance, instances, count, offset, mat_index, sta
         F = P.faces
         v0 = V[F[:, 0]]
         e1, e2 = V[F[:, 1]] - v0, V[F[:, 2]] - v0
+        if mesh.copyless:
+            # A placement: every table row from the prototype's object-space data.
+            key = (id(P), "placement")
+            if key not in reps:
+                reps[key] = _placement_table(P, v0, e1, e2, tables, coord_names,
+                                             n_rows, len(table_start))
+                table_start.append(n_rows)
+                n_rows += n
+            table_of[i] = reps[key]
+            continue
         data = {"slot": np.asarray(mesh.material_ids, np.int32)}
         if mesh.uvs is not None:
             data["corner_uvs"] = _prototype_order(mesh.uvs, mesh, flip).astype(np.float32)
@@ -736,6 +762,34 @@ def _shared_rows(meshes, mesh_instance, instances, count, offset, mat_index, sta
     return SharedRows(count, seg_start, seg_kind, seg_static, st, joined, table_start,
                       table_of, instances.to_world, instances.flip, slots, object_id,
                       visibility, holdout)
+
+
+def _placement_table(P, v0, e1, e2, tables, coord_names, start, index) -> int:
+    """Append prototype P's object-space table (placements without a copy) to tables;
+    returns its table index. Unusable normals fall back to the geometric one."""
+    n = len(P.faces)
+    ng = np.cross(e1, e2)
+    ng = ng / np.maximum(np.linalg.norm(ng, axis=1), 1e-300)[:, None]
+    if P.normals is not None:
+        cn = normalize(np.asarray(_corners(P.normals, P.faces, 0, n), np.float64))
+        bad = ~(np.linalg.norm(cn, axis=2) > 0.5)
+        cn = np.where(bad[:, :, None], ng[:, None, :], cn)
+        smooth = np.any(np.abs(dot(cn, ng[:, None, :]) - 1.0) > 1e-6, axis=1)
+    else:
+        cn = np.broadcast_to(ng[:, None, :], (n, 3, 3))
+        smooth = np.zeros(n, bool)
+    tables["v0"].append(v0)
+    tables["e1"].append(e1)
+    tables["e2"].append(e2)
+    tables["corner_normals"].append(np.asarray(cn, np.float32))
+    tables["smooth"].append(smooth)
+    tables["slot"].append(np.asarray(P.material_ids, np.int32))
+    tables["corner_uvs"].append(np.zeros((n, 3, 2), np.float32) if P.uvs is None else
+                                _corners(P.uvs, P.faces, 0, n).astype(np.float32))
+    tables["corner_colors"].append(np.zeros((n, 3, 3)))
+    for k in coord_names:
+        tables["coord:" + k].append(np.zeros((n, 3, 3)))
+    return index
 
 
 def _same_rows(rep, data, wn, instances, i) -> bool:

@@ -189,7 +189,7 @@ def test_degenerate_instance_and_empty_queries(field):
 
 # --- scenes -----------------------------------------------------------------------------
 
-def _scene(n=9, hidden=None, rich=False):
+def _scene(n=9, hidden=None, rich=False, copyless=False):
     """A floor under a point light with n instances of a smooth sphere, some mirrored;
     `hidden`: Mesh flags set on instance 1; rich: every third instance textured (a
     checker image through the UVs) and every third half transparent (alpha 0.4)."""
@@ -203,7 +203,8 @@ def _scene(n=9, hidden=None, rich=False):
         s.add_material(Material("veil", (0.2, 0.5, 0.9), alpha=0.4))
     s.add_plane((0, 0, -0.5), (0, 0, 1), 20.0, "white", name="floor")
     sv, sf, sn, suv = sphere_mesh((0, 0, 0), 1.0, 24, 12)
-    sphere = Prototype("sphere", sv, sf)
+    sphere = Prototype("sphere", sv, sf, normals=sn, uvs=suv) if copyless else \
+        Prototype("sphere", sv, sf)
     for i, M in enumerate(_matrices(n)):
         v, f = place(sphere, M)
         # The copies' shading normals: n' = inv(A)^T n, as addon/export.transform_geometry.
@@ -212,8 +213,9 @@ def _scene(n=9, hidden=None, rich=False):
         name = "red" if i % 2 else "white"
         if rich and i % 3:
             name = "tex" if i % 3 == 1 else "veil"
-        mesh = Mesh(f"ball.{i:03d}", v, f, normals=nrm, uvs=suv,
-                    materials=[name], prototype=sphere, matrix=M)
+        mesh = (Mesh.place(f"ball.{i:03d}", sphere, M, materials=[name]) if copyless else
+                Mesh(f"ball.{i:03d}", v, f, normals=nrm, uvs=suv,
+                     materials=[name], prototype=sphere, matrix=M))
         if i == 1 and hidden:
             for k, val in hidden.items():
                 setattr(mesh, k, val)
@@ -392,3 +394,42 @@ def test_textured_and_transparent_instances_render_as_their_expansion(monkeypatc
     trans = ctx.shadow.transmittance((o - ctx.geo.offset).astype(np.float32),
                                      d.astype(np.float32), np.array([1.0], np.float32))
     assert 0.0 < trans.max() < 1.0
+
+
+def test_placements_without_copies_read_as_copies(monkeypatch):
+    """Mesh.place keeps no world-space copy: shared, its tables are the prototype's
+    object-space data placed; expanded (a budget that allows it), its copy is built in
+    prepare. Both read as the scene written with copies."""
+    copies, bare = _scene(), _scene(copyless=True)
+    assert all(m.vertices is None for m in bare.meshes[1:])
+    for s in (copies, bare):
+        s.validate()
+    rng = np.random.default_rng(4)
+    for fraction in (0.0, 1e9):
+        monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", fraction)
+        a, _ = prepare(copies)
+        b, _ = prepare(bare)
+        assert (a.shared is None) == (b.shared is None) == (fraction > 0)
+        prim = rng.integers(0, a.count, 2000)
+        for name in ("v0", "e1", "e2", "corner_normals", "corner_uvs", "smooth",
+                     "material", "ng"):
+            want, got = np.take(getattr(a, name), prim, axis=0), np.take(getattr(b, name),
+                                                                         prim, axis=0)
+            if want.dtype.kind in "biu":
+                np.testing.assert_array_equal(got, want, err_msg=name)
+            else:
+                np.testing.assert_allclose(got, want, atol=1e-5, err_msg=name)
+    with pytest.raises(SceneError, match="takes its uvs from its prototype"):
+        Mesh("x", None, None, uvs=np.zeros((3, 2)), prototype=bare.meshes[1].prototype,
+             matrix=np.eye(4))
+    with pytest.raises(SceneError, match="vertices are required"):
+        Mesh("x", None, None)
+
+
+def test_placements_render_as_copies(monkeypatch):
+    """A scene of placements without copies, shared and expanded, against the copies."""
+    flat = _render(_scene(), False, monkeypatch)
+    for two_level in (True, False):
+        bare = _render(_scene(copyless=True), two_level, monkeypatch)
+        assert np.isclose(bare.depth, flat.depth, rtol=1e-4, atol=1e-5).mean() > 0.99
+        assert abs(bare.combined.mean() / flat.combined.mean() - 1) < 0.005, two_level
