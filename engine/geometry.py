@@ -223,6 +223,8 @@ def _terminator_shading_rows(geo, idx):
 
 def area_sum(geo, mask) -> float:
     """Total area (m^2) of the triangles where mask (T,) bool is True, a piece at a time."""
+    if getattr(geo, "shared", None) is not None:
+        return geo.shared.area_sum(mask)
     total = 0.0
     for a in range(0, geo.count, PIECE_TRIANGLES):
         idx = a + np.nonzero(mask[a:a + PIECE_TRIANGLES])[0]

@@ -132,6 +132,51 @@ class SharedRows:
         return out
 
 
+    def full_column(self, name):
+        """The whole (T, ...) column `name`, built a segment (mesh) at a time: static
+        rows copied, per-instance values filled, instanced rows placed per instance."""
+        st = self.static[name]
+        out = np.empty((self.count,) + st.shape[1:], st.dtype)
+        ends = np.append(self.seg_start[1:], self.count)
+        for a, b, kind, first in zip(self.seg_start, ends, self.seg_kind, self.seg_static):
+            if kind < 0:
+                out[a:b] = st[first:first + (b - a)]
+            elif name in ("object_id", "visibility", "holdout"):
+                out[a:b] = getattr(self, name)[kind]
+            elif name == "material":
+                t0 = self.table_start[self.table[kind]]
+                out[a:b] = self.slots[kind][self.tables["slot"][t0:t0 + (b - a)]]
+            else:
+                out[a:b] = self.column(name, np.arange(a, b))
+        return out
+
+    def area_sum(self, mask) -> float:
+        """Total world-space area (m^2) of the rows where mask (T,) bool is True:
+        |A^-T c| |det A| / 2 per instanced row (c the object-space e1 x e2)."""
+        total = 0.0
+        ends = np.append(self.seg_start[1:], self.count)
+        st = self.static
+        cross = {}
+        for a, b, kind, first in zip(self.seg_start, ends, self.seg_kind, self.seg_static):
+            m = np.asarray(mask[a:b], bool)
+            if not m.any():
+                continue
+            if kind < 0:
+                r = first + np.nonzero(m)[0]
+                c = np.cross(st["e1"][r], st["e2"][r])
+                total += float(np.linalg.norm(c, axis=1).sum()) / 2.0
+                continue
+            t = int(self.table[kind])
+            if t not in cross:
+                t0 = self.table_start[t]
+                cross[t] = np.cross(self.tables["e1"][t0:t0 + (b - a)],
+                                    self.tables["e2"][t0:t0 + (b - a)])
+            A = self.to_world[kind, :, :3]
+            w = cross[t][m] @ self.normal_matrix[kind].T
+            total += float(np.linalg.norm(w, axis=1).sum()) * abs(np.linalg.det(A)) / 2.0
+        return total
+
+
 class RowColumn:
     """A per-triangle column of a shared Geometry read as if it were an (T, ...) array:
     x[prim], x[mask], x[a:b], np.take(x, prim, axis=0) gather only those rows;
@@ -156,6 +201,8 @@ class RowColumn:
             k = int(key) + (self._rows.count if key < 0 else 0)
             return self._rows.column(self._name, np.array([k]))[0]
         if isinstance(key, slice):
+            if key == slice(None):
+                return self._rows.full_column(self._name)
             idx = np.arange(self._rows.count)[key]
         else:
             key = np.asarray(key)
@@ -174,7 +221,7 @@ class RowColumn:
         return self[np.asarray(indices)]
 
     def __array__(self, dtype=None, copy=None):
-        out = self[slice(None)]
+        out = self._rows.full_column(self._name)
         return out if dtype is None else out.astype(dtype)
 
     def any(self):

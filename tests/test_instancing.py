@@ -248,7 +248,9 @@ def test_prepare_records_instances_and_the_budget_chooses(monkeypatch):
     two = resources.estimate_memory(s, settings).parts["triangles"]
     monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 1e9)
     flat = resources.estimate_memory(s, settings).parts["triangles"]
-    assert two == flat - 8 * len(geo.instances.prototypes[0][1]) * resources.BYTES_PER_BVH_TRIANGLE
+    F = len(geo.instances.prototypes[0][1])
+    assert two == flat - (8 * F * resources.BYTES_PER_TRIANGLE
+                          - 9 * resources.BYTES_PER_INSTANCE)
 
 
 def test_instanced_scene_renders_as_its_expansion(monkeypatch):
@@ -433,3 +435,38 @@ def test_placements_render_as_copies(monkeypatch):
         bare = _render(_scene(copyless=True), two_level, monkeypatch)
         assert np.isclose(bare.depth, flat.depth, rtol=1e-4, atol=1e-5).mean() > 0.99
         assert abs(bare.combined.mean() / flat.combined.mean() - 1) < 0.005, two_level
+
+
+def test_budget_expands_only_small_instancing():
+    """Two-level (shared) as soon as instancing saves real memory; expanded when small."""
+    gib = 1 << 30
+    choice = resources.instance_choice
+    # 10 copies of a 500-triangle prop: a few MB, expanded (fastest to trace).
+    assert not choice(5000, 500, 24 * gib)[0]
+    # 1000 copies of a 65k-triangle sphere: 20 GB expanded, shared.
+    two, why = choice(1000 * 65536, 65536, 24 * gib)
+    assert two and "two-level" in why and "65,536,000" in why
+    # 100 copies of a 10k-triangle prop: within the memory share, but 100x the prototype.
+    two, why = choice(100 * 10_000, 10_000, 24 * gib)
+    assert two and "100x" in why
+    # Two copies of a big mesh: only twice the prototype, but over 1/32 of the memory.
+    assert choice(2 * 4_000_000, 4_000_000, 24 * gib)[0]
+    assert not choice(2 * 400_000, 400_000, 24 * gib)[0]
+
+
+def test_whole_columns_of_shared_tables(monkeypatch):
+    """Whole-column reads (the effect analysis, map radii) equal the expansion's."""
+    from engine.geometry import area_sum
+    s = _scene(rich=True)
+    s.validate()
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 1e9)
+    flat, _ = prepare(s)
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    geo, _ = prepare(s)
+    for name in ("material", "object_id", "visibility", "holdout", "smooth", "v0"):
+        np.testing.assert_allclose(np.asarray(getattr(geo, name)),
+                                   np.asarray(getattr(flat, name)), atol=1e-12)
+    mask = np.random.default_rng(5).random(flat.count) < 0.5
+    assert np.isclose(area_sum(geo, mask), area_sum(flat, mask), rtol=1e-12)
+    tex = list(s.materials).index("tex")
+    assert (geo.material == tex).sum() == (flat.material == tex).sum() > 0
