@@ -470,3 +470,26 @@ def test_whole_columns_of_shared_tables(monkeypatch):
     assert np.isclose(area_sum(geo, mask), area_sum(flat, mask), rtol=1e-12)
     tex = list(s.materials).index("tex")
     assert (geo.material == tex).sum() == (flat.material == tex).sum() > 0
+
+
+def test_api_add_instance_and_workers_agree(monkeypatch):
+    """PaperScene.add_instance places a prototype or a mesh's geometry without copies;
+    a shared render is the same with 1 and 2 workers."""
+    s = PaperScene(width=40, height=30)
+    s.add_material(Material("white", (0.8, 0.8, 0.8)))
+    s.add_material(Material("red", (0.8, 0.2, 0.1)))
+    s.add_plane((0, 0, -0.5), (0, 0, 1), 20.0, "white", name="floor")
+    ball = s.add_sphere((0, 0, 0.5), 0.6, "white", segments=16)
+    for i, M in enumerate(_matrices(6)):
+        placed = s.add_instance(ball, M, material="red" if i % 2 else None)
+        assert placed.vertices is None and placed.materials == ["red" if i % 2 else "white"]
+    assert s.meshes[2].prototype is s.meshes[3].prototype
+    with pytest.raises(SceneError, match="must be an engine.scene.Prototype or a Mesh"):
+        s.add_instance("ball", np.eye(4))
+    s.add_point_light((1, -2, 5), power=600.0)
+    s.set_camera((0, -9, 6), (0, 0, 0.5), view_angle=55)
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    one = s.render(RenderSettings(spp=2, photons=20000, caustic_photons=0, seed=5, workers=1))
+    two = s.render(RenderSettings(spp=2, photons=20000, caustic_photons=0, seed=5, workers=2))
+    np.testing.assert_array_equal(one.combined, two.combined)
+    assert one.combined.mean() > 0
