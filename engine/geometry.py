@@ -424,16 +424,21 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
 
     # Bounds of the corners (vertices no face uses do not count).
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    corners_of = {}  # id(prototype) -> the vertices its faces use
     for mesh in meshes:
         if not len(mesh.faces):
             continue
-        if mesh.copyless:  # a placement: its prototype's vertices placed (no copy kept)
+        if mesh.copyless:  # a placement: its prototype's used vertices placed (no copy)
             if stop():
                 raise Cancelled()
             P, M = mesh.prototype, mesh.matrix
-            verts = P.vertices @ M[:, :3].T + M[:, 3]
-        else:
-            verts = mesh.vertices
+            if id(P) not in corners_of:
+                corners_of[id(P)] = P.vertices[np.unique(P.faces)]
+            placed = corners_of[id(P)] @ M[:, :3].T + M[:, 3]
+            lo = np.minimum(lo, placed.min(axis=0))
+            hi = np.maximum(hi, placed.max(axis=0))
+            continue
+        verts = mesh.vertices
         used = np.zeros(len(verts), bool)
         used[mesh.faces.reshape(-1)] = True
         for a in range(0, len(used), 3 * PIECE_TRIANGLES):
@@ -685,13 +690,14 @@ def _shared_rows(meshes, mesh_instance, instances, count, offset, mat_index, sta
         M = instances.to_world[i]
         flip = bool(instances.flip[i])
         P = mesh.prototype
-        V = np.asarray(P.vertices, np.float64)
-        F = P.faces
-        v0 = V[F[:, 0]]
-        e1, e2 = V[F[:, 1]] - v0, V[F[:, 2]] - v0
+        key = (id(P), "placement")
+        if not mesh.copyless or key not in reps:
+            V = np.asarray(P.vertices, np.float64)
+            F = P.faces
+            v0 = V[F[:, 0]]
+            e1, e2 = V[F[:, 1]] - v0, V[F[:, 2]] - v0
         if mesh.copyless:
             # A placement: every table row from the prototype's object-space data.
-            key = (id(P), "placement")
             if key not in reps:
                 reps[key] = _placement_table(P, v0, e1, e2, tables, coord_names,
                                              n_rows, len(table_start))
