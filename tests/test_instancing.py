@@ -192,7 +192,8 @@ def test_degenerate_instance_and_empty_queries(field):
 def _scene(n=9, hidden=None, rich=False, copyless=False):
     """A floor under a point light with n instances of a smooth sphere, some mirrored;
     `hidden`: Mesh flags set on instance 1; rich: every third instance textured (a
-    checker image through the UVs) and every third half transparent (alpha 0.4)."""
+    checker image through the UVs), every third half transparent (alpha 0.4), instance 3
+    emissive."""
     s = PaperScene(width=48, height=36)
     s.add_material(Material("white", (0.8, 0.8, 0.8)))
     s.add_material(Material("red", (0.8, 0.2, 0.1), roughness=0.3))
@@ -201,6 +202,7 @@ def _scene(n=9, hidden=None, rich=False, copyless=False):
                           np.ones((1, 1, 1))).astype(np.float32) + 0.05
         s.add_material(Material("tex", (1, 1, 1), texture=ImageTexture(checker)))
         s.add_material(Material("veil", (0.2, 0.5, 0.9), alpha=0.4))
+        s.add_material(Material("lamp", (0.8, 0.8, 0.8), emission=(4.0, 3.0, 2.0)))
     s.add_plane((0, 0, -0.5), (0, 0, 1), 20.0, "white", name="floor")
     sv, sf, sn, suv = sphere_mesh((0, 0, 0), 1.0, 24, 12)
     sphere = Prototype("sphere", sv, sf, normals=sn, uvs=suv) if copyless else \
@@ -213,6 +215,8 @@ def _scene(n=9, hidden=None, rich=False, copyless=False):
         name = "red" if i % 2 else "white"
         if rich and i % 3:
             name = "tex" if i % 3 == 1 else "veil"
+        elif rich and i == 3:
+            name = "lamp"  # an emissive instance: its triangles become a mesh light
         mesh = (Mesh.place(f"ball.{i:03d}", sphere, M, materials=[name]) if copyless else
                 Mesh(f"ball.{i:03d}", v, f, normals=nrm, uvs=suv,
                      materials=[name], prototype=sphere, matrix=M))
