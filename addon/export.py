@@ -1,8 +1,12 @@
 """Evaluated depsgraph -> engine Scene (meshes, instances, lights, camera, world).
 
 Everything is read with foreach_get into numpy arrays; there is no per-vertex Python.
-Geometry of an object that is instanced many times is extracted once and transformed
-per instance.
+Geometry of an object that is instanced many times is extracted once and written as one
+engine Prototype with a placement (matrix, material slots, visibility) per instance
+(engine Mesh.place), not a world-space copy per instance; the engine shares or expands
+it (engine/resources.instance_choice). Geometry with colour attributes, normal-map
+tangents or texture coordinates a material reads is still copied per instance (with an
+instance record).
 """
 from __future__ import annotations
 
@@ -434,6 +438,42 @@ def _geometry_key(obj):
     return (obj.name, data.as_pointer() if data is not None else 0)
 
 
+def _instance_name(inst, obj, info) -> str:
+    """The engine mesh name of a depsgraph instance (counts instances in info)."""
+    if not inst.is_instance:
+        return obj.name
+    parent = inst.parent.name if inst.parent is not None else "instance"
+    name = f"{parent}/{obj.name}#{info['instances']}"
+    info["instances"] += 1
+    return name
+
+
+def _prototype(pm, name, geo: LocalGeometry, mids):
+    """The engine Prototype of local geometry: object-space vertices, faces, normals,
+    UVs and material slots, written once however often it is placed."""
+    return pm.Prototype(name=name, vertices=geo.co, faces=geo.faces, normals=geo.normals,
+                        uvs=geo.uvs, material_ids=mids)
+
+
+def _placeable(geo: LocalGeometry, converter, names) -> bool:
+    """Geometry a placement without a copy can carry (engine Mesh.place): no colour
+    attribute, no tangents for normal maps and no texture coordinates a material reads
+    (those stay per-instance copies with an instance record)."""
+    return (geo.colors is None and geo.tangents is None
+            and not any(converter.needs_coordinates(n) for n in names))
+
+
+def _placement(pm, name, prototype, matrix, names, obj, visibility):
+    """An engine placement (Mesh.place): the prototype by `matrix`, the object's
+    material slots (the last repeated if it has fewer than the prototype uses)."""
+    slots = int(prototype.material_ids.max()) + 1 if len(prototype.material_ids) else 1
+    names = list(names) + [names[-1]] * max(0, slots - len(names))
+    return pm.Mesh.place(name, prototype, matrix, materials=names,
+                         shadow_terminator_offset=terminator_offset(obj),
+                         shadow_terminator_shading_offset=terminator_shading(obj),
+                         **visibility)
+
+
 def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=None,
                  should_cancel=None):
     """Build an engine Scene from an evaluated depsgraph.
@@ -504,8 +544,6 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         geo = cache[key]
         if geo is None:
             continue
-        if uses.get(key, 0) > 1 and key not in prototypes:
-            prototypes[key] = pm.Prototype(name=obj.name, vertices=geo.co, faces=geo.faces)
         # Materials per slot (object- or data-linked), as the evaluated object sees them.
         slot_mats = [slot.material for slot in obj.material_slots]
         if not slot_mats:
@@ -516,18 +554,25 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             materials[m.name] = m
             names.append(m.name)
         mids = np.clip(geo.material_index, 0, len(names) - 1)
+        if uses.get(key, 0) > 1 and key not in prototypes:
+            prototypes[key] = _prototype(pm, obj.name, geo, mids)
         matrix = np.array(inst.matrix_world, dtype=np.float64)
+        if key in prototypes and _placeable(geo, converter, names):
+            # Placed more than once: a record (prototype, matrix), no world-space copy.
+            name = _instance_name(inst, obj, info)
+            info["objects"] += 1
+            warn_unsupported_visibility(obj, warnings)
+            mesh = _placement(pm, name, prototypes[key], matrix, names, obj,
+                              ray_visibility(obj, inst, view_layer))
+            meshes.append(mesh)
+            info["triangles"] += len(mesh.faces)
+            continue
         verts, faces, normals, uvs = transform_geometry(geo, matrix)
         colors = geo.colors
         flipped = np.linalg.det(matrix[:3, :3]) < 0
         if colors is not None and flipped:
             colors = colors[:, [0, 2, 1]]  # same corner order as the flipped faces
-        if inst.is_instance:
-            parent = inst.parent.name if inst.parent is not None else "instance"
-            name = f"{parent}/{obj.name}#{info['instances']}"
-            info["instances"] += 1
-        else:
-            name = obj.name
+        name = _instance_name(inst, obj, info)
         info["objects"] += 1
         warn_unsupported_visibility(obj, warnings)
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
@@ -623,6 +668,7 @@ class ViewportExport:
         self.converter = MaterialConverter(pm)
         self.geometry: dict = {}   # (object name, data pointer) -> LocalGeometry | None
         self.meshes: dict = {}     # instance name -> (key, engine Mesh)
+        self.prototypes: dict = {}  # geometry key -> (LocalGeometry, engine Prototype)
         self.light_names: list = []
 
 
@@ -692,12 +738,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             m = converter.convert(mat)
             materials[m.name] = m
             names.append(m.name)
-        if inst.is_instance:
-            parent = inst.parent.name if inst.parent is not None else "instance"
-            iname = f"{parent}/{obj.name}#{info['instances']}"
-            info["instances"] += 1
-        else:
-            iname = obj.name
+        iname = _instance_name(inst, obj, info)
         matrix = np.array(inst.matrix_world, dtype=np.float64)
         visibility = ray_visibility(obj, inst, view_layer)
         coords = any(converter.needs_coordinates(n) for n in names)
@@ -708,6 +749,17 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         if old is not None and old[0] == key:
             mesh = old[1]
             info["reused"].append(iname)
+        elif inst.is_instance and _placeable(geo, converter, names):
+            # An instance: a record on its geometry's prototype (kept while the local
+            # geometry is), no world-space copy; the engine shares or expands it.
+            proto = cache.prototypes.get(gkey)
+            if proto is None or proto[0] is not geo:
+                mids = np.clip(geo.material_index, 0, len(names) - 1)
+                proto = cache.prototypes[gkey] = (geo, _prototype(pm, obj.name, geo, mids))
+            mesh = _placement(pm, iname, proto[1], matrix, names, obj, visibility)
+            if obj.name not in info["geometry_read"]:
+                info["transformed"].append(iname)
+            cache.meshes[iname] = (key, mesh)
         else:
             verts, faces, normals, uvs = transform_geometry(geo, matrix)
             flipped = np.linalg.det(matrix[:3, :3]) < 0
@@ -731,6 +783,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         del cache.meshes[name]
     for gkey in [k for k in cache.geometry if k not in seen]:
         del cache.geometry[gkey]
+        cache.prototypes.pop(gkey, None)
     background, environment = export_world(pm, scene_eval.world, warnings)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,

@@ -155,7 +155,8 @@ def scene(n, segments):
     side = int(np.ceil(np.sqrt(n)))
     s.add_plane((1.5 * side, 1.5 * side, -1.0), (0, 0, 1), 3.0 * side + 4, "white", name="floor")
     v, f, nrm, uv = sphere_mesh((0, 0, 0), 1.0, segments, segments // 2)
-    proto = Prototype("sphere", v, f)
+    # Placements without world-space copies (Mesh.place), as addon/export.py writes them.
+    proto = Prototype("sphere", v, f, normals=nrm, uvs=uv)
     rng = np.random.default_rng(1)
     for i in range(n):
         q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
@@ -163,9 +164,7 @@ def scene(n, segments):
         M = np.eye(4)
         M[:3, :3] = q * rng.uniform(0.6, 1.2)
         M[:3, 3] = [3.0 * (i % side), 3.0 * (i // side), 0.0]
-        vw, fw = place(proto, M)
-        s.add_mesh(Mesh(f"ball.{i}", vw, fw, normals=nrm @ M[:3, :3].T, uvs=uv,
-                        materials=["white"], prototype=proto, matrix=M))
+        s.add_mesh(Mesh.place(f"ball.{i}", proto, M, materials=["white"]))
     s.add_point_light((1.5 * side, 1.5 * side, 4.0 + side), power=200.0 * side * side)
     s.set_camera((1.5 * side, -1.0 * side, 1.5 * side), (1.5 * side, 1.5 * side, 0.0),
                  view_angle=60)
@@ -183,9 +182,13 @@ try:
 except (OSError, AttributeError):
     pass
 resources.INSTANCE_BUDGET_FRACTION = 0.0 if MODE == "two-level" else 1e9
+resources.INSTANCE_FLOOR = 0 if MODE == "two-level" else 1 << 62
+start = rss()
 sc = scene(NI, SEG)
 sc.validate()
+scene_mb = rss() - start
 T = sum(len(m.faces) for m in sc.meshes)
+resources.check_resources(sc, settings)  # refuses what cannot fit (the estimate)
 before = rss()
 with open("/proc/self/clear_refs", "w") as f:
     f.write("5")
@@ -199,7 +202,8 @@ t0 = time.perf_counter()
 film = render_pass(ctx, (0, 0, 64, 48))
 t_render = time.perf_counter() - t0
 peak = hwm() - before
-print(json.dumps({"T": T, "kept": kept, "peak_prepare": peak_prepare, "peak": peak,
+print(json.dumps({"T": T, "scene": scene_mb, "kept": kept, "peak_prepare": peak_prepare,
+                  "peak": peak,
                   "t_prepare": t_prepare, "t_render": t_render,
                   "mean": float(film.combined.mean())}))
 """
@@ -213,19 +217,22 @@ def run_render(mode, instances, segments):
     return json.loads(res.strip().splitlines()[-1])
 
 
-def main_render(instances, segments):
+def main_render(instances, segments, expand_max):
     mb = 1 << 20
     print(f"instances of a sphere of {segments} segments; 64x48, 4 spp, 20k photons, "
           "1 worker")
-    print("| instances | triangles | method | kept after preparing (MB) | peak (MB) | "
-          "prepare (s) | render (s) | image mean / expanded |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| instances | triangles | method | scene (MB) | kept after preparing (MB) | "
+          "peak (MB) | prepare (s) | render (s) | image mean / expanded |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for ni in instances:
-        res = {m: run_render(m, ni, segments) for m in ("expanded", "two-level")}
+        modes = ("expanded", "shared") if ni <= expand_max else ("shared",)
+        res = {m: run_render("two-level" if m == "shared" else m, ni, segments) for m in modes}
         for m, r in res.items():
-            ratio = r["mean"] / max(res["expanded"]["mean"], 1e-30)
-            print(f"| {ni} | {r['T']:,} | {m} | {r['kept'] / mb:.0f} | {r['peak'] / mb:.0f} | "
-                  f"{r['t_prepare']:.2f} | {r['t_render']:.2f} | {ratio:.4f} |", flush=True)
+            ratio = (f"{r['mean'] / max(res['expanded']['mean'], 1e-30):.4f}"
+                     if "expanded" in res else "")
+            print(f"| {ni} | {r['T']:,} | {m} | {r['scene'] / mb:.0f} | {r['kept'] / mb:.0f} | "
+                  f"{r['peak'] / mb:.0f} | {r['t_prepare']:.2f} | {r['t_render']:.2f} | "
+                  f"{ratio} |", flush=True)
 
 
 def run(mode, instances, rays, out):
@@ -247,11 +254,14 @@ def main():
                     "sphere need ~14 GB)")
     ap.add_argument("--render", action="store_true",
                     help="render a scene, expanded against two-level (engine path)")
+    ap.add_argument("--expand-max", type=int, default=100,
+                    help="--render: expand only up to this many instances (1000 copies of "
+                    "the 65k-triangle sphere need ~21 GB expanded)")
     ap.add_argument("--segments", type=int, default=64,
                     help="--render: the sphere's segments (2 x segments^2 / 2 triangles)")
     args = ap.parse_args()
     if args.render:
-        main_render(args.instances, args.segments)
+        main_render(args.instances, args.segments, args.expand_max)
         return
     tmp = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"bench_instancing_{os.getpid()}")
     mb = 1 << 20

@@ -52,6 +52,7 @@ def build(scene):
     sc = bpy.context.scene
     mats = {name: _material(bpy, m) for name, m in scene.materials.items()}
     for mesh in scene.meshes:
+        mesh = mesh.expanded()  # a placement without a copy (Mesh.place): its copy
         me = bpy.data.meshes.new(mesh.name)
         me.from_pydata(mesh.vertices.tolist(), [], mesh.faces.tolist())
         if mesh.normals is not None:

@@ -27,7 +27,8 @@ import math
 
 import numpy as np
 
-from .scene import AREA, POINT, SPOT, SUN, Camera, Light, Material, Mesh, Scene, SceneError
+from .scene import (AREA, POINT, SPOT, SUN, Camera, Light, Material, Mesh, Prototype, Scene,
+                    SceneError)
 from .scene import predefined_materials
 from .settings import RenderSettings
 
@@ -233,6 +234,39 @@ class PaperScene(Scene):
     def add_triangles(self, vertices, faces, material="white_plastic_dull", name=None, normals=None):
         return self.add_mesh(Mesh(name or self._name("mesh"), vertices, faces, normals=normals,
                                   materials=[self._material(material)]))
+
+    def add_instance(self, prototype, matrix, material=None, name=None, **flags):
+        """Place `prototype` (an engine.scene.Prototype, or a Mesh added before, whose
+        geometry becomes one) by the (4,4) or (3,4) object-to-world `matrix` without a
+        world-space copy (Mesh.place): instanced geometry is stored once
+        (docs/performance.md, "Instancing"). material: one material for every slot, or
+        a list per slot (default: the mesh's, or "white_plastic_dull"); flags: ray
+        visibility, holdout and shadow terminator keywords of Mesh. Returns the Mesh."""
+        if isinstance(prototype, Mesh):
+            mesh = prototype
+            if mesh.copyless:
+                prototype = mesh.prototype
+            else:
+                # The mesh's geometry becomes a prototype once; the mesh a placement of it.
+                cached = getattr(mesh, "_as_prototype", None)
+                if cached is None:
+                    cached = Prototype(mesh.name, mesh.vertices, mesh.faces,
+                                       normals=mesh.normals, uvs=mesh.uvs,
+                                       material_ids=mesh.material_ids)
+                    mesh._as_prototype = cached
+                prototype = cached
+            if material is None:
+                material = list(mesh.materials)
+        if not isinstance(prototype, Prototype):
+            raise SceneError(f"add_instance: prototype must be an engine.scene.Prototype or "
+                             f"a Mesh, got {type(prototype).__name__}")
+        if material is None:
+            material = "white_plastic_dull"
+        slots = int(prototype.material_ids.max()) + 1 if len(prototype.material_ids) else 1
+        names = [material] * slots if isinstance(material, (str, Material)) else list(material)
+        names = [self._material(m) for m in names]
+        return self.add_mesh(Mesh.place(name or self._name(f"{prototype.name}.instance"),
+                                        prototype, matrix, materials=names, **flags))
 
     def add_rect_area_light(self, center, size=(1.0, 1.0), power=100.0, color=(1, 1, 1),
                             direction=(0, 0, -1), name=None, disk=False):

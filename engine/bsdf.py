@@ -106,9 +106,8 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     front = np.empty(n, np.bool_)
     mat = np.empty(n, geo.material.dtype)  # as np.take(geo.material, prim) gave
     offset = np.empty(n)
-    hit_geometry(np.ascontiguousarray(prim, dtype=np.int64), u, v, d, geo.v0, geo.e1, geo.e2,
-                 geo.corner_normals, geo.material, table.base_color, p, ng, ns, front, mat,
-                 base, offset)
+    rows, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
+    hit_geometry(rows, u, v, d, *tabs, table.base_color, p, ng, ns, front, mat, base, offset)
     n_smooth = bent = None
     for _, nmap, sel in rows_by_material(table.normal_maps, mat):
         if n_smooth is None:

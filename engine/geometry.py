@@ -16,7 +16,9 @@ from .rayoffset import surface_offset, triangle_tilt, ulp32
 from .sampling import dot, luminance, normalize
 from .parallel import Cancelled
 from .instancing import Instances
+from .sharedrows import RowColumn, SharedRows
 from .scene import Material, Scene
+from .resources import two_level_instances
 
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
 CAMERA, DIFFUSE, GLOSSY, TRANSMISSION, SHADOW = 1, 2, 4, 8, 16
@@ -221,6 +223,8 @@ def _terminator_shading_rows(geo, idx):
 
 def area_sum(geo, mask) -> float:
     """Total area (m^2) of the triangles where mask (T,) bool is True, a piece at a time."""
+    if getattr(geo, "shared", None) is not None:
+        return geo.shared.area_sum(mask)
     total = 0.0
     for a in range(0, geo.count, PIECE_TRIANGLES):
         idx = a + np.nonzero(mask[a:a + PIECE_TRIANGLES])[0]
@@ -265,6 +269,9 @@ class Geometry:
                               # mesh has one (a mesh without one reads black, as in Cycles)
     corner_coordinates: dict | None = None  # name -> (T,3,3) texture coordinates (Mesh);
                               # zeros on meshes without them
+    shared: "SharedRows | None" = None  # instanced rows stored once per prototype
+                              # (engine/sharedrows.py); the per-triangle fields are then
+                              # RowColumn views and vertices32 / faces32 hold the static rows
     instances: "Instances | None" = None  # meshes placed from a shared prototype
                               # (Mesh.prototype): the rows they occupy, for two-level
                               # tracing (engine/instancing.py); None when there are none
@@ -288,6 +295,36 @@ class Geometry:
         """Drop the Geometry's references to vertices32 / faces32 once the BVH is built
         (the Accel keeps what Embree reads)."""
         self.vertices32 = self.faces32 = None
+
+    def used_materials(self) -> np.ndarray:
+        """Sorted material indices some triangle uses (for shared instances: every
+        material in the instances' slots, a superset)."""
+        if self.shared is None:
+            return np.unique(self.material)
+        r = self.shared
+        slots = r.slots[r.slots >= 0]
+        return np.unique(np.concatenate([r.static["material"].astype(np.int64),
+                                         slots.astype(np.int64)]))
+
+    def hit_tables(self, prim, *names):
+        """(rows, tables): what a compiled kernel that reads triangle tables by row needs
+        for the hits prim (N,) int (< 0: a miss, kept as -1). Without shared instances:
+        prim itself and the Geometry's arrays `names`; with shared instances
+        (engine/sharedrows.py), the hits' own rows of each table gathered in world space
+        and rows = 0..N-1. This is the one place compiled readers of corners by prim
+        (camerakernels.hit_geometry, photonkernels.photon_surfaces / scatter,
+        directlight.terminator_lift) learn about instances."""
+        prim = np.ascontiguousarray(prim, dtype=np.int64)
+        if self.shared is None:
+            return prim, tuple(getattr(self, n) for n in names)
+        ok = prim >= 0
+        idx = np.where(ok, prim, 0)
+        rows = np.where(ok, np.arange(len(prim), dtype=np.int64), -1)
+        tables = []
+        for name in names:
+            x = getattr(self, name)
+            tables.append(np.ascontiguousarray(x[idx]) if isinstance(x, RowColumn) else x)
+        return rows, tuple(tables)
 
     def hit_points(self, prim: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Positions from barycentrics in float64: more exact than origin + t*dir."""
@@ -387,15 +424,27 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
 
     # Bounds of the corners (vertices no face uses do not count).
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    corners_of = {}  # id(prototype) -> the vertices its faces use
     for mesh in meshes:
         if not len(mesh.faces):
             continue
-        used = np.zeros(len(mesh.vertices), bool)
+        if mesh.copyless:  # a placement: its prototype's used vertices placed (no copy)
+            if stop():
+                raise Cancelled()
+            P, M = mesh.prototype, mesh.matrix
+            if id(P) not in corners_of:
+                corners_of[id(P)] = P.vertices[np.unique(P.faces)]
+            placed = corners_of[id(P)] @ M[:, :3].T + M[:, 3]
+            lo = np.minimum(lo, placed.min(axis=0))
+            hi = np.maximum(hi, placed.max(axis=0))
+            continue
+        verts = mesh.vertices
+        used = np.zeros(len(verts), bool)
         used[mesh.faces.reshape(-1)] = True
         for a in range(0, len(used), 3 * PIECE_TRIANGLES):
             if stop():
                 raise Cancelled()
-            piece = mesh.vertices[a:a + 3 * PIECE_TRIANGLES][used[a:a + 3 * PIECE_TRIANGLES]]
+            piece = verts[a:a + 3 * PIECE_TRIANGLES][used[a:a + 3 * PIECE_TRIANGLES]]
             if len(piece):
                 lo = np.minimum(lo, piece.min(axis=0))
                 hi = np.maximum(hi, piece.max(axis=0))
@@ -408,8 +457,21 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     if not np.isfinite(extent) or extent <= 0:
         extent = 1.0
 
-    any_normals = any(m.normals is not None for m in meshes if len(m.faces))
-    any_uvs = any(m.uvs is not None for m in meshes if len(m.faces))
+    instances, mesh_instance = _instances(meshes, offset)
+    # Two-level tracing (engine/resources.two_level_instances) also shares the tables:
+    # the instanced rows are stored once per prototype (engine/sharedrows.py).
+    shared = instances is not None and two_level_instances(instances)
+    if not shared:
+        # Expanded: placements without a copy get theirs now (the budget found it small).
+        meshes = [m.expanded() for m in meshes]
+    any_normals = any(_has(m, "normals") for m in meshes if len(m.faces))
+    any_uvs = any(_has(m, "uvs") for m in meshes if len(m.faces))
+    if instances is not None:
+        instances.two_level = shared
+        instances.compact_static = shared
+    if shared:
+        T_all = T
+        T = len(instances.static)
     v0, e1, e2 = np.empty((T, 3)), np.empty((T, 3)), np.empty((T, 3))
     corner_normals = np.empty((T if any_normals else 0, 3, 3), np.float32)
     corner_uvs = np.zeros((T, 3, 2), np.float32) if any_uvs else None
@@ -423,7 +485,8 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
                                   np.float32)
     # One spare row: Embree reads the vertices in place and loads 4 bytes past the last
     # one (accel.padded_vertices).
-    n_vertices = sum(len(m.vertices) for m in meshes if len(m.faces))
+    is_static = [not (shared and mesh_instance[oi] >= 0) for oi in range(len(meshes))]
+    n_vertices = sum(len(m.vertices) for m, st in zip(meshes, is_static) if len(m.faces) and st)
     vertices32 = np.zeros((n_vertices + 1, 3), np.float32)[:n_vertices]
     faces32 = np.empty((T, 3), np.int32)
     ccols = []
@@ -432,7 +495,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     for oi, mesh in enumerate(meshes):
         f = mesh.faces
         n = len(f)
-        if n == 0:
+        if n == 0 or not is_static[oi]:
             continue
         nv = len(mesh.vertices)
         for a in range(0, nv, 3 * PIECE_TRIANGLES):
@@ -476,7 +539,27 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         vbase += nv
     if stop():
         raise Cancelled()
-    instances = _instances(meshes, offset)
+    coordinates = _corner_coordinates([m for m, st in zip(meshes, is_static) if st])
+    colors = np.concatenate(ccols) if ccols else None
+    if shared:
+        rows = _shared_rows(meshes, mesh_instance, instances, T_all, offset, mat_index,
+                            dict(v0=v0, e1=e1, e2=e2, corner_normals=corner_normals,
+                                 smooth=smooth, corner_uvs=corner_uvs, material=material,
+                                 object_id=object_id, visibility=visibility, holdout=holdout,
+                                 corner_colors=colors, coordinates=coordinates),
+                            any_normals, stop)
+        col = lambda name: RowColumn(rows, name)  # noqa: E731
+        v0, e1, e2, smooth = col("v0"), col("e1"), col("e2"), col("smooth")
+        material, object_id = col("material"), col("object_id")
+        visibility, holdout = col("visibility"), col("holdout")
+        if any_normals:
+            corner_normals = col("corner_normals")
+        if corner_uvs is not None:
+            corner_uvs = col("corner_uvs")
+        if colors is not None:
+            colors = col("corner_colors")
+        if coordinates is not None:
+            coordinates = {k: col("coord:" + k) for k in coordinates}
     geo = Geometry(
         offset=offset, extent=extent, v0=v0, e1=e1, e2=e2,
         corner_normals=corner_normals, smooth=smooth, corner_uvs=corner_uvs,
@@ -485,9 +568,10 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         object_terminator=terminator, object_terminator_shading=terminator_shading,
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
-        corner_colors=np.concatenate(ccols) if ccols else None,
-        corner_coordinates=_corner_coordinates(meshes),
+        corner_colors=colors,
+        corner_coordinates=coordinates,
         instances=instances,
+        shared=rows if shared else None,
     )
     # Texture-driven scalar inputs: one value per material for the effect analysis.
     from .textures import scalar_ranges
@@ -495,19 +579,22 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     return geo, table
 
 
-def _instances(meshes, offset) -> Instances | None:
-    """The instance records of the merged table: meshes whose Mesh.prototype and matrix
-    describe them (Mesh.instance_matches; a mesh whose record does not match is kept as
-    ordinary triangles and warned about). None when no mesh is an instance."""
+def _instances(meshes, offset):
+    """(Instances or None, mesh_instance): the instance records of the merged table:
+    meshes whose Mesh.prototype and matrix describe them (Mesh.instance_matches; a mesh
+    whose record does not match is kept as ordinary triangles and warned about); None
+    when no mesh is an instance. mesh_instance: per mesh, its instance index or -1."""
+    mesh_instance = [-1] * len(meshes)
     prototypes, index = [], {}
     proto, base, to_world, flip, vis, static = [], [], [], [], [], []
     start = 0
-    for mesh in meshes:
+    for mi, mesh in enumerate(meshes):
         n = len(mesh.faces)
         if not n:
             continue
         if mesh.prototype is not None:
             if mesh.instance_matches():
+                mesh_instance[mi] = len(proto)
                 key = id(mesh.prototype)
                 if key not in index:
                     index[key] = len(prototypes)
@@ -529,11 +616,208 @@ def _instances(meshes, offset) -> Instances | None:
             static.append(np.arange(start, start + n))
         start += n
     if not proto:
-        return None
+        return None, mesh_instance
     return Instances(prototypes=prototypes, prototype=np.array(proto, np.int64),
                      base=np.array(base, np.int64), to_world=np.array(to_world),
                      flip=np.array(flip, bool), visibility=np.array(vis, np.uint8),
-                     static=np.concatenate(static) if static else np.zeros(0, np.int64))
+                     static=np.concatenate(static) if static else np.zeros(0, np.int64)
+                     ), mesh_instance
+
+
+def _has(mesh, attr) -> bool:
+    """The mesh (or, for a placement without a copy, its prototype) has `attr`."""
+    src = mesh.prototype if mesh.copyless else mesh
+    return getattr(src, attr, None) is not None
+
+
+def _prototype_order(values, mesh, flip):
+    """(F,3,C) per-corner values of mesh (per vertex or per corner) in its prototype's
+    corner order (a mirrored instance's faces are the prototype's with corners 0, 2, 1)."""
+    c = _corners(np.asarray(values), mesh.faces, 0, len(mesh.faces))
+    return c[:, [0, 2, 1]] if flip else c
+
+
+def _world_corner_normals(mesh, ng):
+    """(F,3,3) unit corner normals of a mesh with normals, the geometric normal ng
+    (F,3) where one is unusable, and (F,) smooth flags, as prepare computes them."""
+    cn = normalize(np.asarray(_corners(mesh.normals, mesh.faces, 0, len(mesh.faces)),
+                              np.float64))
+    bad = ~(np.linalg.norm(cn, axis=2) > 0.5)
+    cn = np.where(bad[:, :, None], ng[:, None, :], cn)
+    return cn, np.any(np.abs(dot(cn, ng[:, None, :]) - 1.0) > 1e-6, axis=1)
+
+
+def _shared_rows(meshes, mesh_instance, instances, count, offset, mat_index, static,
+                 any_normals, stop) -> SharedRows:
+    """The SharedRows of a prepared scene (engine/sharedrows.py): static holds the
+    tables of the triangles of no instance; each instance mesh either reads an existing
+    per-prototype table (same prototype, same material slots, UVs, colours, coordinates
+    and, transformed, normals) or starts a new one from its own data in object space."""
+    tables = {k: [] for k in ("v0", "e1", "e2", "corner_normals", "smooth", "slot",
+                              "corner_uvs", "corner_colors")}
+    coord_names = sorted((static.get("coordinates") or {}).keys())
+    for k in coord_names:
+        tables["coord:" + k] = []
+    reps = {}   # id(prototype) -> [(table index, representative data)]
+    table_start, n_rows = [], 0
+    seg_start, seg_kind, seg_static = [], [], []
+    I = instances.count
+    table_of = np.zeros(I, np.int64)
+    K = max([len(m.materials) for m in meshes if len(m.faces)] + [1])
+    slots = np.full((I, K), -1, np.int32)
+    object_id = np.zeros(I, np.int32)
+    visibility = np.zeros(I, np.uint8)
+    holdout = np.zeros(I, bool)
+    start = static_start = 0
+    for oi, mesh in enumerate(meshes):
+        n = len(mesh.faces)
+        if not n:
+            continue
+        i = mesh_instance[oi]
+        seg_start.append(start)
+        seg_kind.append(i)
+        seg_static.append(static_start if i < 0 else 0)
+        start += n
+        if i < 0:
+            static_start += n
+            continue
+        if stop():
+            raise Cancelled()
+        object_id[i] = oi
+        visibility[i] = mesh.visibility
+        holdout[i] = mesh.holdout
+        slots[i, :len(mesh.materials)] = [mat_index[m] for m in mesh.materials]
+        M = instances.to_world[i]
+        flip = bool(instances.flip[i])
+        P = mesh.prototype
+        key = (id(P), "placement")
+        if not mesh.copyless or key not in reps:
+            V = np.asarray(P.vertices, np.float64)
+            F = P.faces
+            v0 = V[F[:, 0]]
+            e1, e2 = V[F[:, 1]] - v0, V[F[:, 2]] - v0
+        if mesh.copyless:
+            # A placement: every table row from the prototype's object-space data.
+            if key not in reps:
+                reps[key] = _placement_table(P, v0, e1, e2, tables, coord_names,
+                                             n_rows, len(table_start))
+                table_start.append(n_rows)
+                n_rows += n
+            table_of[i] = reps[key]
+            continue
+        data = {"slot": np.asarray(mesh.material_ids, np.int32)}
+        if mesh.uvs is not None:
+            data["corner_uvs"] = _prototype_order(mesh.uvs, mesh, flip).astype(np.float32)
+        if mesh.colors is not None:
+            data["corner_colors"] = _prototype_order(mesh.colors, mesh, flip)
+        for k in coord_names:
+            c = (mesh.coordinates or {}).get(k)
+            if c is not None:
+                data["coord:" + k] = _prototype_order(c, mesh, flip)
+        wn = None
+        if mesh.normals is not None:
+            # World corner normals as prepare computes them for a copy (winding of the
+            # copy: corners back in prototype order), then into object space by M^T.
+            we1 = (M[:, :3] @ e1.T).T
+            we2 = (M[:, :3] @ e2.T).T
+            cross = np.cross(we2, we1) if flip else np.cross(we1, we2)
+            wng = cross / np.maximum(np.linalg.norm(cross, axis=1), 1e-300)[:, None]
+            wn, sm = _world_corner_normals(mesh, wng)
+            wn = wn[:, [0, 2, 1]] if flip else wn
+            data["smooth"] = sm
+        found = None
+        for t, rep in reps.get(id(P), []):
+            if _same_rows(rep, data, wn, instances, i):
+                found = t
+                break
+        if found is None:
+            found = len(table_start)
+            table_start.append(n_rows)
+            n_rows += n
+            if wn is not None:
+                on = normalize(np.einsum("ji,fkj->fki", M[:, :3], wn))
+            else:
+                ng = np.cross(e1, e2)
+                ng = ng / np.maximum(np.linalg.norm(ng, axis=1), 1e-300)[:, None]
+                on = np.broadcast_to(ng[:, None, :], (n, 3, 3))
+            tables["v0"].append(v0)
+            tables["e1"].append(e1)
+            tables["e2"].append(e2)
+            tables["corner_normals"].append(np.asarray(on, np.float32))
+            tables["smooth"].append(data.get("smooth", np.zeros(n, bool)))
+            tables["slot"].append(data["slot"])
+            tables["corner_uvs"].append(data.get("corner_uvs", np.zeros((n, 3, 2), np.float32)))
+            tables["corner_colors"].append(data.get("corner_colors", np.zeros((n, 3, 3))))
+            for k in coord_names:
+                tables["coord:" + k].append(data.get("coord:" + k, np.zeros((n, 3, 3))))
+            data["table"] = found
+            data["normals"] = on if wn is not None else None
+            reps.setdefault(id(P), []).append((found, data))
+        table_of[i] = found
+    joined = {k: np.concatenate(v) if v else np.zeros(0) for k, v in tables.items()}
+    st = {k: static[k] for k in ("v0", "e1", "e2", "smooth", "material", "object_id",
+                                 "visibility", "holdout")}
+    if any_normals:
+        st["corner_normals"] = static["corner_normals"]
+    if static["corner_uvs"] is not None:
+        st["corner_uvs"] = static["corner_uvs"]
+    if static["corner_colors"] is not None:
+        st["corner_colors"] = static["corner_colors"]
+    elif any(m.colors is not None for m in meshes if len(m.faces)):
+        st["corner_colors"] = np.zeros((len(static["v0"]), 3, 3))
+    for k in coord_names:
+        st["coord:" + k] = static["coordinates"][k]
+    return SharedRows(count, seg_start, seg_kind, seg_static, st, joined, table_start,
+                      table_of, instances.to_world, instances.flip, slots, object_id,
+                      visibility, holdout)
+
+
+def _placement_table(P, v0, e1, e2, tables, coord_names, start, index) -> int:
+    """Append prototype P's object-space table (placements without a copy) to tables;
+    returns its table index. Unusable normals fall back to the geometric one."""
+    n = len(P.faces)
+    ng = np.cross(e1, e2)
+    ng = ng / np.maximum(np.linalg.norm(ng, axis=1), 1e-300)[:, None]
+    if P.normals is not None:
+        cn = normalize(np.asarray(_corners(P.normals, P.faces, 0, n), np.float64))
+        bad = ~(np.linalg.norm(cn, axis=2) > 0.5)
+        cn = np.where(bad[:, :, None], ng[:, None, :], cn)
+        smooth = np.any(np.abs(dot(cn, ng[:, None, :]) - 1.0) > 1e-6, axis=1)
+    else:
+        cn = np.broadcast_to(ng[:, None, :], (n, 3, 3))
+        smooth = np.zeros(n, bool)
+    tables["v0"].append(v0)
+    tables["e1"].append(e1)
+    tables["e2"].append(e2)
+    tables["corner_normals"].append(np.asarray(cn, np.float32))
+    tables["smooth"].append(smooth)
+    tables["slot"].append(np.asarray(P.material_ids, np.int32))
+    tables["corner_uvs"].append(np.zeros((n, 3, 2), np.float32) if P.uvs is None else
+                                _corners(P.uvs, P.faces, 0, n).astype(np.float32))
+    tables["corner_colors"].append(np.zeros((n, 3, 3)))
+    for k in coord_names:
+        tables["coord:" + k].append(np.zeros((n, 3, 3)))
+    return index
+
+
+def _same_rows(rep, data, wn, instances, i) -> bool:
+    """True when an instance's per-triangle data (data, world corner normals wn) are
+    those of a table's representative rep once placed by instance i's matrix."""
+    for k in set(rep) | set(data):
+        if k in ("table", "normals"):
+            continue
+        if (k in rep) != (k in data):
+            return False
+        a, b = rep[k], data[k]
+        if a is not b and (a.shape != b.shape or not np.array_equal(a, b)):
+            return False
+    if (rep["normals"] is None) != (wn is None):
+        return False
+    if wn is None:
+        return True
+    N = np.linalg.inv(instances.to_world[i][:, :3]).T
+    placed = normalize(np.einsum("ij,fkj->fki", N, rep["normals"]))
+    return bool(np.all(np.abs(placed - wn) <= 1e-5))
 
 
 def emissive_triangles(geo: Geometry, table: MaterialTable):

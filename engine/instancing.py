@@ -41,6 +41,11 @@ class Instances:
                 reversed (corners 0, 2, 1), as addon/export.transform_geometry writes them
     visibility  (I,) uint8 ray-class bits (engine.geometry CAMERA ...), as the rows'
     static      (S,) int64 rows of the merged table that belong to no instance
+    two_level   True / False: engine/geometry.prepare chose two-level tracing (and shared
+                tables) or expansion (engine/resources.two_level_instances); None: not
+                decided yet
+    compact_static  the BVH's faces32 holds only the static rows, in `static` order (a
+                Geometry with shared tables) instead of every row of the merged table
     """
 
     prototypes: list
@@ -50,6 +55,8 @@ class Instances:
     flip: np.ndarray
     visibility: np.ndarray
     static: np.ndarray
+    two_level: bool | None = None
+    compact_static: bool = False
 
     @property
     def count(self) -> int:
@@ -97,7 +104,8 @@ class InstanceAccel:
         self.instances = instances
         sizes = np.array([len(f) for _, f in instances.prototypes], np.int64)
         ends = instances.base + sizes[instances.prototype] if instances.count else [0]
-        self.count = max(0 if faces32 is None else len(faces32), int(np.max(ends)))
+        self.count = max(len(instances.static) if instances.compact_static else
+                         0 if faces32 is None else len(faces32), int(np.max(ends)))
         if _prototypes is None:
             built = []
             for verts, faces in instances.prototypes:
@@ -134,7 +142,10 @@ class InstanceAccel:
         if len(static):
             if stop():
                 raise Cancelled()
-            self._static = accel_class(vertices32, np.asarray(faces32)[static],
+            # Compact tables hold only the static rows, in instances.static order.
+            pos = (np.searchsorted(instances.static, static) if instances.compact_static
+                   else static)
+            self._static = accel_class(vertices32, np.asarray(faces32)[pos],
                                        threads=self.threads, should_cancel=should_cancel)
 
     def subset(self, vertices32, faces32, use, static, accel_class=Accel,

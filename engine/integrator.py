@@ -307,9 +307,10 @@ def _hit_arrays(geo, hit):
     cutoff = np.zeros(n)
     lift = np.zeros((n, 3))
     if hit.bary is not None and n:
-        terminator_lift(hit.prim, c(hit.bary, np.float64), c(hit.ng, np.float64), geo.smooth,
-                        geo.object_id, geo.object_terminator, geo.v0, geo.e1, geo.e2, geo.corner_normals, cutoff,
-                        lift)
+        rows, (smooth, object_id, v0, e1, e2, normals) = geo.hit_tables(
+            hit.prim, "smooth", "object_id", "v0", "e1", "e2", "corner_normals")
+        terminator_lift(rows, c(hit.bary, np.float64), c(hit.ng, np.float64), smooth,
+                        object_id, geo.object_terminator, v0, e1, e2, normals, cutoff, lift)
     ns = c(hit.ns, np.float64)
     n_smooth = getattr(hit, "n_smooth", None)
     return (c(hit.p, np.float64), ns, c(gate, np.float64),

@@ -143,7 +143,6 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     else:
         caster, mode = np.ascontiguousarray(first_hit[0], np.bool_), 2 if first_hit[1] else 1
     numpy_hits = _needs_numpy_hits(table)
-    normals = geo.corner_normals
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -172,14 +171,17 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                 params[rows] = hit.params
                 surf[4][:] = np.arange(m)
                 mat_ior = np.ascontiguousarray(params[:, M_IOR])
-        else:
-            pk.photon_surfaces(prim, u, v, d, geo.v0, geo.e1, geo.e2, normals, geo.material,
+        # Shared instances: the hits' rows gathered (geometry.Geometry.hit_tables).
+        rows, (v0, e1, e2, normals, material, visibility, object_id) = geo.hit_tables(
+            prim, "v0", "e1", "e2", "corner_normals", "material", "visibility", "object_id")
+        if not numpy_hits:
+            pk.photon_surfaces(rows, u, v, d, v0, e1, e2, normals, material,
                                table.base_color, table.alpha, *surf)
         store = pk.store_arrays(m)
         nxt = pk.next_arrays(2 * m if vis_on else m)
-        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, prim, *surf, bump,
-                                params, mat_ior, geo.visibility,
-                                geo.object_id, caster, mode, bool(caustic_only), vis_on,
+        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, rows, *surf, bump,
+                                params, mat_ior, visibility,
+                                object_id, caster, mode, bool(caustic_only), vis_on,
                                 *store, *nxt)
         if n_st:
             for name, buf in zip(("position", "power", "direction", "normal", "kind"), store):

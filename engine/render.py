@@ -95,6 +95,12 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     ctx = Context(scene, settings, geo, table, accel, lights,
                   packed_lights=packed_lights_for(lights, settings), shadow=shadow)
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
+    if geo.instances is not None:  # which way instancing went (engine/resources.py)
+        from .resources import instance_choice
+        ins = geo.instances
+        two, why = instance_choice(ins.instanced_triangles(),
+                                   sum(len(f) for _, f in ins.prototypes))
+        ctx.plan.add("shared instances", bool(ins.two_level), why)
     return ctx
 
 

@@ -17,7 +17,7 @@ measured peak for a set of renders. What each part counts:
 - image: the per-pixel accumulators (float64), the Film (float32 per pass) and, for a
   progressive render, the running sums; Blender's render result when rendering there.
 - triangles: the scene's arrays, the merged tables and Embree's BVH (instances traced
-  two-level keep no BVH copy: two_level_instances).
+  two-level keep their prototypes' tables and BVH once: instance_choice).
 """
 from __future__ import annotations
 
@@ -39,13 +39,20 @@ BYTES_PER_PIXEL_PROGRESSIVE = 350  # running sums, halves, one pass's Film
 BYTES_PER_PIXEL_BLENDER = 260   # render result passes (float32) and the copies written
 BYTES_PER_TRIANGLE = 320        # measured peak 240-290 (bench_memory.py --triangles); tables + BVH
 # Embree's copy and BVH of a triangle (default BVH ~91 B, compact ~61 B; docs/performance.md
-# "Memory per triangle"): what an instanced copy costs beyond the tables when expanded.
+# "Memory per triangle").
 BYTES_PER_BVH_TRIANGLE = 95
-# Instances are expanded into world-space copies in the BVH (fastest to trace) while the
-# copies' BVH fits this share of the available memory; beyond it they are traced two-level
-# (engine/instancing.py; docs/performance.md, "Instancing").
-INSTANCE_BUDGET_FRACTION = 0.25
-INSTANCE_BUDGET_UNKNOWN = 1 << 30  # bytes, when the available memory is unknown
+# Instanced geometry is expanded into world-space copies (tables and BVH: fastest to
+# trace, 2-3x faster per ray) only while that is small; otherwise it is traced two-level
+# with its tables shared (engine/instancing.py, engine/sharedrows.py; docs/performance.md,
+# "Instancing"): when the copies' extra memory (BYTES_PER_TRIANGLE a triangle beyond the
+# prototypes') exceeds INSTANCE_BUDGET_FRACTION of the available memory, or when the
+# copies hold more than INSTANCE_RATIO times the prototypes' triangles and their extra
+# memory exceeds INSTANCE_FLOOR bytes.
+INSTANCE_BUDGET_FRACTION = 1 / 32
+INSTANCE_RATIO = 4
+INSTANCE_FLOOR = 64 << 20
+INSTANCE_BUDGET_UNKNOWN = 256 << 20  # bytes, when the available memory is unknown
+BYTES_PER_INSTANCE = 400  # a shared instance: record, matrices, top-level box and node
 
 
 class ResourceError(ValueError):
@@ -147,26 +154,46 @@ def _triangles(scene) -> int:
 
 
 def instance_budget(available: int | None = None) -> int:
-    """Bytes the expanded instance copies' BVH may take (INSTANCE_BUDGET_FRACTION of the
-    available memory, INSTANCE_BUDGET_UNKNOWN when that is unknown)."""
+    """Bytes the expanded instance copies may take beyond their prototypes
+    (INSTANCE_BUDGET_FRACTION of the available memory, INSTANCE_BUDGET_UNKNOWN when that
+    is unknown)."""
     room = available_memory() if available is None else int(available)
     return INSTANCE_BUDGET_UNKNOWN if room is None else int(room * INSTANCE_BUDGET_FRACTION)
 
 
+def instance_choice(copies: int, shared: int, available: int | None = None):
+    """(two_level, reason): how to trace `copies` instanced triangles whose prototypes
+    hold `shared` triangles (the rule above INSTANCE_BUDGET_FRACTION); reason is one line
+    for the effect report."""
+    extra = max(0, copies - shared) * BYTES_PER_TRIANGLE
+    budget = instance_budget(available)
+    if extra > budget:
+        why = f"expanding would add {format_bytes(extra)}, over {format_bytes(budget)}"
+    elif copies > INSTANCE_RATIO * shared and extra > INSTANCE_FLOOR:
+        why = (f"{copies / max(shared, 1):.0f}x the prototypes' triangles; expanding would "
+               f"add {format_bytes(extra)}")
+    else:
+        return False, (f"{copies:,} instanced triangles expanded (adds {format_bytes(extra)}; "
+                       "fastest to trace)")
+    return True, (f"{copies:,} instanced triangles traced two-level from {shared:,} shared "
+                  f"({why})")
+
+
 def two_level_instances(instances, available: int | None = None) -> bool:
-    """True when instances (engine.instancing.Instances) should be traced two-level:
-    the BVH of their expanded copies would exceed instance_budget(available) bytes."""
-    copies = instances.instanced_triangles() * BYTES_PER_BVH_TRIANGLE
-    return copies > instance_budget(available)
+    """True when instances (engine.instancing.Instances) should be traced two-level
+    with shared tables (instance_choice)."""
+    shared = sum(len(f) for _, f in instances.prototypes)
+    return instance_choice(instances.instanced_triangles(), shared, available)[0]
 
 
 def _instanced_triangles(scene) -> int:
-    """(copies, shared): the triangles of meshes with an instance record
-    (Mesh.prototype), and their prototypes' triangles counted once."""
+    """(copies, shared, count): the triangles of meshes with an instance record
+    (Mesh.prototype), their prototypes' triangles counted once, and the instances."""
     protos = {id(m.prototype): len(m.prototype.faces) for m in scene.meshes
               if getattr(m, "prototype", None) is not None}
-    copies = sum(len(m.faces) for m in scene.meshes if getattr(m, "prototype", None) is not None)
-    return int(copies), int(sum(protos.values()))
+    placed = [m for m in scene.meshes if getattr(m, "prototype", None) is not None]
+    copies = sum(len(m.faces) for m in placed)
+    return int(copies), int(sum(protos.values())), len(placed)
 
 
 def estimate_memory(scene, settings: RenderSettings, region=None, progressive=False,
@@ -205,12 +232,12 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         + (BYTES_PER_PIXEL_BLENDER if in_blender else 0)
     est.parts["image"] = pixels * per_pixel
     est.drivers["image"] = "resolution"
-    copies, shared = _instanced_triangles(scene)
-    bvh_saved = 0
-    if copies and copies * BYTES_PER_BVH_TRIANGLE > instance_budget():
-        # Two-level: the copies keep their tables, the BVH holds the prototypes only.
-        bvh_saved = (copies - shared) * BYTES_PER_BVH_TRIANGLE
-    est.parts["triangles"] = tris * BYTES_PER_TRIANGLE - bvh_saved
+    copies, shared, count = _instanced_triangles(scene)
+    saved = 0
+    if copies and instance_choice(copies, shared)[0]:
+        # Two-level with shared tables: the prototypes once, a record per instance.
+        saved = (copies - shared) * BYTES_PER_TRIANGLE - count * BYTES_PER_INSTANCE
+    est.parts["triangles"] = tris * BYTES_PER_TRIANGLE - saved
     est.drivers["triangles"] = "the scene's triangle count"
     return est
 

@@ -278,6 +278,11 @@ class Mesh:
               matrix mirrors). Meshes sharing a prototype may be traced with one BVH of
               the prototype (engine/instancing.py); a record that does not match the
               mesh is ignored (the mesh is traced as it is) with a warning.
+              vertices=None (and no faces, normals, UVs, colours or coordinates) makes
+              the mesh a placement without a world-space copy (Mesh.place): faces,
+              material slots, normals and UVs are the prototype's (Prototype), the mesh's
+              `materials` fill its slots; the copy is built only if the scene is
+              expanded (engine/resources.two_level_instances decides).
     """
 
     name: str
@@ -335,6 +340,9 @@ class Mesh:
         self.shadow_terminator_shading_offset = sso
         if isinstance(self.materials, str):
             self.materials = [self.materials]
+        if self.vertices is None:
+            self._init_placement(who)
+            return
         v = np.asarray(self.vertices, dtype=np.float64)
         if v.ndim != 2 or v.shape[1] != 3:
             raise SceneError(f"{who}: vertices must have shape (V,3), got {v.shape}")
@@ -435,11 +443,69 @@ class Mesh:
                              f"shape {m.shape}")
         self.matrix = np.ascontiguousarray(m[:3])
 
+    def _init_placement(self, who: str):
+        """A placement without a world-space copy (vertices=None): checks the record and
+        takes the prototype's faces and material slots."""
+        if self.prototype is None:
+            raise SceneError(f"{who}: vertices are required (None only with a prototype)")
+        for attr in ("faces", "normals", "uvs", "colors", "coordinates", "material_ids"):
+            if getattr(self, attr) is not None:
+                raise SceneError(f"{who}: a placement (vertices=None) takes its {attr} "
+                                 "from its prototype; give them to the Prototype")
+        self._check_instance(who)
+        P = self.prototype
+        n_slots = int(P.material_ids.max()) + 1 if len(P.material_ids) else 1
+        if len(self.materials) < n_slots:
+            raise SceneError(f"{who}: prototype '{P.name}' uses {n_slots} material slots, "
+                             f"the placement names {len(self.materials)} materials")
+        self.faces = P.placed_faces(np.linalg.det(self.matrix[:, :3]) < 0)
+        self.material_ids = P.material_ids
+
+    @property
+    def copyless(self) -> bool:
+        """True for a placement without a world-space copy (vertices None)."""
+        return self.vertices is None
+
+    @classmethod
+    def place(cls, name: str, prototype: "Prototype", matrix, **kw) -> "Mesh":
+        """A placement of `prototype` by the (4,4) or (3,4) object-to-world `matrix`
+        without a world-space copy; kw: materials (the prototype's slots), visibility
+        flags, holdout, shadow terminator offsets."""
+        return cls(name, None, None, prototype=prototype, matrix=matrix, **kw)
+
+    def expanded(self) -> "Mesh":
+        """This mesh with a world-space copy (itself when it has one): vertices placed by
+        the matrix, normals by its inverse transpose, per-corner values in the copy's
+        corner order (0, 2, 1 when the matrix mirrors)."""
+        if not self.copyless:
+            return self
+        P, M = self.prototype, self.matrix
+        flip = np.linalg.det(M[:, :3]) < 0
+        v, f = place(P, M)
+
+        def corners(x):
+            return None if x is None else (x[:, [0, 2, 1]] if flip and x.ndim == 3 else x)
+        normals = None
+        if P.normals is not None:
+            normals = P.normals @ np.linalg.inv(M[:, :3])
+            normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-300)
+            normals = corners(normals)
+        flags = {k: getattr(self, k) for k in (
+            "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
+            "visible_shadow", "holdout", "shadow_terminator_offset",
+            "shadow_terminator_shading_offset")}
+        return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
+                    materials=list(self.materials), material_ids=P.material_ids,
+                    prototype=P, matrix=M, **flags)
+
     def instance_matches(self) -> bool:
         """True when vertices and faces are the prototype placed by matrix (faces equal,
         or with corners 0, 2, 1 when the matrix mirrors; vertices within float64
-        rounding of the transform), so tracing the prototype gives this mesh's hits."""
+        rounding of the transform), so tracing the prototype gives this mesh's hits.
+        A placement without a copy always matches."""
         p = self.prototype
+        if p is not None and self.copyless:
+            return True
         if p is None or len(p.faces) != len(self.faces) or len(p.vertices) != len(self.vertices):
             return False
         flip = np.linalg.det(self.matrix[:, :3]) < 0
@@ -462,17 +528,39 @@ def place(prototype: "Prototype", matrix) -> tuple[np.ndarray, np.ndarray]:
 @dataclass(eq=False)
 class Prototype:
     """Object-space triangles shared by instances (Mesh.prototype): vertices (V,3),
-    faces (F,3) int. Faces a Mesh would drop (indices out of range, NaN corners, zero
-    area) are dropped here too, so an instance's faces equal the prototype's."""
+    faces (F,3) int; optional object-space normals ((V,3) or (F,3,3)), uvs ((V,2) or
+    (F,3,2)) and material_ids (F,) (material slots; the placements name the materials),
+    which placements without a copy (Mesh.place) use. Faces a Mesh would drop (indices
+    out of range, NaN corners, zero area) are dropped here too, so an instance's faces
+    equal the prototype's."""
 
     name: str
     vertices: np.ndarray
     faces: np.ndarray
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+    material_ids: np.ndarray | None = None
 
     def __post_init__(self):
-        clean = Mesh(name=f"prototype '{self.name}'", vertices=self.vertices, faces=self.faces)
+        slots = 1
+        if self.material_ids is not None and np.size(self.material_ids):
+            slots = int(np.max(self.material_ids)) + 1
+        clean = Mesh(name=f"prototype '{self.name}'", vertices=self.vertices, faces=self.faces,
+                     normals=self.normals, uvs=self.uvs, material_ids=self.material_ids,
+                     materials=[f"slot {i}" for i in range(max(slots, 1))])
         self.vertices, self.faces = clean.vertices, clean.faces
+        self.normals, self.uvs, self.material_ids = clean.normals, clean.uvs, clean.material_ids
         self.warnings = clean.warnings
+        self._flipped = None
+
+    def placed_faces(self, flip: bool) -> np.ndarray:
+        """The faces of a placement: the prototype's, or (shared between all mirrored
+        placements) with corners 0, 2, 1."""
+        if not flip:
+            return self.faces
+        if self._flipped is None:
+            self._flipped = np.ascontiguousarray(self.faces[:, [0, 2, 1]])
+        return self._flipped
 
 
 @dataclass

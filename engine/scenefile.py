@@ -33,6 +33,13 @@ Format (documented with an example in docs/scene_format.md):
     direction = [0, 0, -1]
     size = [1, 1]
     power = 60
+
+    [[instances]]                          # a placement of an object's geometry,
+    object = "ball"                        # shared, not copied (engine.scene.Mesh.place)
+    translate = [2, 0, 0]                  # or matrix = [[...] x 4] (object to world)
+    rotate = [0, 0, 45]
+    scale = 0.5
+    material = "red"                       # optional override; visibility keys as objects
 """
 from __future__ import annotations
 
@@ -44,7 +51,8 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
-from .scene import MATERIAL_NODES, Light, Material, Mesh, SceneError, euler_rotation
+from .scene import (MATERIAL_NODES, Light, Material, Mesh, Prototype, SceneError,
+                    euler_rotation)
 from .settings import RenderSettings
 
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
@@ -171,7 +179,9 @@ _OBJECT_COMMON = {
                         {"type": "array", "minItems": 3, "maxItems": 3,
                          "items": {"type": "number", "not": {"const": 0}}}],
               "what": "a finite, non-zero number or 3 of them"},
-    **{key: _BOOL for key in VISIBILITY_KEYS}}
+    **{key: _BOOL for key in VISIBILITY_KEYS},
+    # A template is drawn only through its [[instances]] (not itself).
+    "template": _BOOL}
 _INLINE = {"type": "array", "maxItems": MAX_INLINE_ELEMENTS,
            "what": f"a list of at most {MAX_INLINE_ELEMENTS:,} [a, b, c] rows"}
 OBJECT_SCHEMAS = {
@@ -184,6 +194,15 @@ OBJECT_SCHEMAS = {
                    required=("vertices", "faces")),
     "file": _table({**_OBJECT_COMMON, "path": _STRING}, required=("path",)),
 }
+
+_MATRIX = {"type": "array", "minItems": 3, "maxItems": 4,
+           "items": {"type": "array", "minItems": 4, "maxItems": 4,
+                     "items": {"type": "number"}},
+           "what": "3 or 4 rows of 4 finite numbers (object to world)"}
+INSTANCE_SCHEMA = _table({
+    "object": _STRING, "name": _STRING, "material": _STRING, "translate": _vec3(),
+    "rotate": _vec3(), "scale": _OBJECT_COMMON["scale"], "matrix": _MATRIX,
+    **{key: _BOOL for key in VISIBILITY_KEYS}}, required=("object",))
 
 LIGHT_SCHEMA = _table({
     "type": _STRING, "name": _STRING, "position": _vec3(), "direction": _vec3(nonzero=True),
@@ -218,6 +237,7 @@ def scene_schema() -> dict:
         "materials": {"type": "object", "additionalProperties": MATERIAL_SCHEMA,
                       "what_type": "a table of [materials.NAME] sections"},
         "objects": _sections("objects"), "lights": _sections("lights"),
+        "instances": _sections("instances"),
         "background": _vec3(nonneg=True), "environment": ENVIRONMENT_SCHEMA})
 
 
@@ -397,7 +417,8 @@ def _validate(data: dict) -> list[str]:
     camera = data.get("camera")
     if isinstance(camera, dict) and not any(p.startswith("[camera]") for p in problems):
         problems += _camera_problems(camera)
-    for key, check in (("objects", _object_problems), ("lights", _light_problems)):
+    for key, check in (("objects", _object_problems), ("lights", _light_problems),
+                       ("instances", _instance_problems(data))):
         items = data.get(key)
         if isinstance(items, list):
             for i, spec in enumerate(items):
@@ -428,7 +449,91 @@ def _build(data: dict, base: str):
         _object(scene, obj, i, base)
     for i, spec in enumerate(data.get("lights", [])):
         _light(scene, spec, i)
+    _instances(scene, data.get("objects", []), data.get("instances", []))
     return scene, render
+
+
+def _instance_problems(data):
+    """The check of [[instances]] entries: the schema, then the object they place
+    (an object named so must exist) and a matrix that is not singular."""
+    objects = data.get("objects")
+    names = {o.get("name") for o in objects if isinstance(o, dict)} \
+        if isinstance(objects, list) else set()
+
+    def check(spec, i) -> list[str]:
+        label = spec.get("name", spec.get("object", "?"))
+        where = f"instances[{i}] ({_show(label).strip(chr(34))})"
+        problems = _problems("instance", lambda: INSTANCE_SCHEMA, spec,
+                             lambda path: (where, path[0] if path else None))
+        if problems:
+            return problems
+        if spec["object"] not in names:
+            return [f"{where}: 'object' names no [[objects]] entry with that name "
+                    f"({_show(spec['object'])})"]
+        if "matrix" in spec and any(k in spec for k in ("translate", "rotate", "scale")):
+            return [f"{where}: give 'matrix' or translate / rotate / scale, not both"]
+        if abs(np.linalg.det(_instance_matrix(spec)[:3, :3])) < 1e-300:
+            return [f"{where}: 'matrix' is singular (a zero scale flattens the object)"]
+        return []
+    return check
+
+
+def _instance_matrix(spec) -> np.ndarray:
+    """(4,4) object-to-world matrix of an [[instances]] entry: 'matrix' rows, or
+    translate @ rotate (XYZ Euler degrees) @ scale as objects are transformed."""
+    M = np.eye(4)
+    if "matrix" in spec:
+        rows = np.asarray(spec["matrix"], np.float64)
+        M[:len(rows)] = rows
+        return M
+    scale = spec.get("scale", 1.0)
+    scale = _vec(scale) if isinstance(scale, list) else float(scale)
+    M[:3, :3] = _rotation(spec.get("rotate", (0, 0, 0))) * np.asarray(scale, float)
+    M[:3, 3] = _vec(spec.get("translate", (0, 0, 0)))
+    return M
+
+
+def _instances(scene, objects, instances):
+    """Turn the objects that [[instances]] place into prototypes (engine.scene.
+    Prototype, world space as the object was built) and add a placement without a copy
+    per entry; the object itself becomes a placement by the identity (shared too), or
+    is dropped when it is a template."""
+    used = {spec["object"] for spec in instances}
+    if not used:
+        return
+    templates = {o.get("name") for o in objects if o.get("template")}
+    protos = {}
+    keep = []
+    for mesh in scene.meshes:
+        if mesh.name not in used or mesh.name in protos:
+            keep.append(mesh)
+            continue
+        P = Prototype(mesh.name, mesh.vertices, mesh.faces, normals=mesh.normals,
+                      uvs=mesh.uvs, material_ids=mesh.material_ids)
+        protos[mesh.name] = (P, mesh)
+        if mesh.name not in templates:
+            keep.append(_placement(mesh.name, P, np.eye(4), mesh, {}))
+    scene.meshes[:] = keep
+    for i, spec in enumerate(instances):
+        P, mesh = protos[spec["object"]]
+        if "material" in spec:
+            try:
+                scene._material(spec["material"])
+            except SceneError as e:
+                raise SceneFileError(f"instances[{i}]: {e}") from None
+        name = spec.get("name", f"{spec['object']}.instance.{i:03d}")
+        scene.add_mesh(_placement(name, P, _instance_matrix(spec), mesh, spec))
+
+
+def _placement(name, P, M, mesh, spec) -> Mesh:
+    flags = {k: spec.get(k, getattr(mesh, k)) for k in VISIBILITY_KEYS}
+    materials = list(mesh.materials)
+    if "material" in spec:
+        materials = [spec["material"]] * len(materials)
+    return Mesh.place(name, P, M, materials=materials,
+                      shadow_terminator_offset=mesh.shadow_terminator_offset,
+                      shadow_terminator_shading_offset=mesh.shadow_terminator_shading_offset,
+                      **flags)
 
 
 def _environment(spec, base):

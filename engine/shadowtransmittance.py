@@ -22,7 +22,9 @@ a BVH of the transparent triangles only, surface by surface: closest hit, the hi
 transparency (kernel `shadow_step`), compaction of the rays still travelling, a new origin
 just past the surface (engine/rayoffset.py) and the rest of the segment. Both BVHs are
 built on first use, per ray class (engine/visibility.py), from the triangles that class
-sees.
+sees. A scene whose instances share their tables (engine/sharedrows.py) walks its
+two-level BVH (engine/instancing.py) instead, every surface in order: an opaque one
+blocks the ray where it is met, which gives the same transmittance.
 """
 from __future__ import annotations
 
@@ -115,12 +117,42 @@ class ShadowTransmittance:
         self.geo = geo
         self.table = table
         self.max_hits = max_hits
-        self.tri_material = np.ascontiguousarray(geo.material, np.int64)
         self.mat_alpha = np.ascontiguousarray(table.alpha, np.float64)
         self.mat_tint = np.ascontiguousarray(transparent_tints(table))
-        self.tri_transparent = self.transparent_materials(table)[geo.material]
+        # Shared instances (engine/sharedrows.py): no per-triangle tables; the rays walk
+        # the class's two-level BVH surface by surface instead (_walk_bvh).
+        self.shared = getattr(geo, "shared", None) is not None
+        if not self.shared:
+            self.tri_material = np.ascontiguousarray(geo.material, np.int64)
+            self.tri_transparent = self.transparent_materials(table)[geo.material]
         self._subsets = {}
         self._lock = threading.Lock()
+
+    def _walk_bvh(self, cls):
+        """A shared Geometry's BVH of the triangles rays of class cls see (None: all):
+        two-level over the prototypes (engine/instancing.py), single-threaded, built once.
+        Every surface is walked in order: an opaque one blocks in shadow_step."""
+        key = ALL_RAYS if cls is None else int(cls)
+        acc = self._subsets.get(key)
+        if acc is None:
+            with self._lock:
+                acc = self._subsets.get(key)
+                if acc is None:
+                    from .instancing import InstanceAccel
+                    geo = self.geo
+                    ins = geo.instances
+                    full = self._subsets.get(ALL_RAYS)
+                    if full is None:
+                        full = InstanceAccel(geo.vertices32, geo.faces32, ins, threads=1)
+                        self._subsets[ALL_RAYS] = full
+                    acc = full
+                    if key != ALL_RAYS:
+                        vis = np.asarray(np.take(geo.visibility, ins.static), np.int64)
+                        acc = full.subset(geo.vertices32, geo.faces32,
+                                          (ins.visibility & key) != 0,
+                                          ins.static[(vis & key) != 0])
+                    self._subsets[key] = acc
+        return acc
 
     def _bvhs(self, cls):
         """(opaque, transparent) for rays of class cls (None: every triangle): each an
@@ -157,7 +189,7 @@ class ShadowTransmittance:
         bounces)."""
         if geo.count == 0 or int(max_hits) <= 0:
             return None
-        used = np.unique(geo.material)
+        used = geo.used_materials()
         if not cls.transparent_materials(table)[used].any():
             return None
         return cls(geo, table, max_hits)
@@ -184,7 +216,10 @@ class ShadowTransmittance:
         dd = np.maximum((d * d).sum(axis=1), 1e-300)
         slot = np.arange(n, dtype=np.int64)
         geo = self.geo
-        (opaque, _), (clear, clear_idx) = self._bvhs(cls)
+        if self.shared:
+            opaque, clear, clear_idx = None, self._walk_bvh(cls), None
+        else:
+            (opaque, _), (clear, clear_idx) = self._bvhs(cls)
         if opaque is not None:
             # An opaque surface in the way blocks the ray whatever else does.
             stop = opaque.occluded(o, d, t)
@@ -199,15 +234,19 @@ class ShadowTransmittance:
                 break
             _, prim, u, v = clear.intersect(o, d, t)
             hit = prim >= 0
-            prim[hit] = clear_idx[prim[hit]]
+            if clear_idx is not None:
+                prim[hit] = clear_idx[prim[hit]]
+            # The hits' material rows (gathered for shared instances: hit_tables).
+            rows, (tri_material,) = (geo.hit_tables(prim, "material") if self.shared
+                                     else (prim, (self.tri_material,)))
             node_alpha = np.ones(len(prim))
             if hit.any():
                 hp, hu, hv = prim[hit], u[hit], v[hit]
                 node_alpha[hit] = material_alpha(self.table, geo, np.take(geo.material, hp),
                                                  hp, hu, hv, constant=False)
             state = np.empty(len(prim), np.int64)
-            shadow_step(prim, self.tri_material, self.mat_alpha, self.mat_tint, node_alpha,
-                        slot, trans, count, self.max_hits, state)
+            shadow_step(rows, np.ascontiguousarray(tri_material, np.int64), self.mat_alpha,
+                        self.mat_tint, node_alpha, slot, trans, count, self.max_hits, state)
             go = np.nonzero(state == GOING)[0]
             if len(go) == 0:
                 break

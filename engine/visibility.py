@@ -72,7 +72,9 @@ class VisibilityAccel:
 
     def __init__(self, vertices32, faces32, visibility, accel_class, threads=1,
                  should_cancel=None, instances=None):
-        self.two_level = instances is not None and two_level_instances(instances)
+        self.two_level = instances is not None and (
+            instances.two_level if instances.two_level is not None
+            else two_level_instances(instances))
         if self.two_level:
             self._two_level(vertices32, faces32, visibility, accel_class, threads,
                             should_cancel, instances)
@@ -107,11 +109,13 @@ class VisibilityAccel:
         self.threads = threads
         self._by_class = {}
         built = {}
-        vis = np.asarray(visibility, np.uint8)
         static = instances.static
+        # np.take reads only the static rows (also of a shared Geometry's RowColumn).
+        vis_static = np.asarray(np.take(visibility, static), np.uint8) if len(static) \
+            else np.zeros(0, np.uint8)
         for cls in CLASSES:
             use = (instances.visibility & cls) != 0
-            rows = static[(vis[static] & cls) != 0]
+            rows = static[(vis_static & cls) != 0]
             if use.all() and len(rows) == len(static):
                 self._by_class[cls] = self.full
                 continue

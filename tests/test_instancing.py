@@ -19,6 +19,7 @@ from engine.toplevel import build_top_level, top_level_candidates
 from engine.parallel import Cancelled
 from engine.render import prepare_context
 from engine.scene import Material, Mesh, Prototype, SceneError, place
+from engine.textures import ImageTexture
 
 
 def _matrices(n, seed=1, mirror_every=3):
@@ -188,22 +189,37 @@ def test_degenerate_instance_and_empty_queries(field):
 
 # --- scenes -----------------------------------------------------------------------------
 
-def _scene(n=9, hidden=None):
-    """A floor under a point light and an area light with n instances of a smooth sphere
-    and of a card, some mirrored; `hidden`: Mesh flags set on instance 1."""
+def _scene(n=9, hidden=None, rich=False, copyless=False):
+    """A floor under a point light with n instances of a smooth sphere, some mirrored;
+    `hidden`: Mesh flags set on instance 1; rich: every third instance textured (a
+    checker image through the UVs), every third half transparent (alpha 0.4), instance 3
+    emissive."""
     s = PaperScene(width=48, height=36)
     s.add_material(Material("white", (0.8, 0.8, 0.8)))
     s.add_material(Material("red", (0.8, 0.2, 0.1), roughness=0.3))
+    if rich:
+        checker = np.kron((np.indices((8, 8)).sum(axis=0) % 2)[:, :, None] * [0.8, 0.7, 0.1],
+                          np.ones((1, 1, 1))).astype(np.float32) + 0.05
+        s.add_material(Material("tex", (1, 1, 1), texture=ImageTexture(checker)))
+        s.add_material(Material("veil", (0.2, 0.5, 0.9), alpha=0.4))
+        s.add_material(Material("lamp", (0.8, 0.8, 0.8), emission=(4.0, 3.0, 2.0)))
     s.add_plane((0, 0, -0.5), (0, 0, 1), 20.0, "white", name="floor")
     sv, sf, sn, suv = sphere_mesh((0, 0, 0), 1.0, 24, 12)
-    sphere = Prototype("sphere", sv, sf)
+    sphere = Prototype("sphere", sv, sf, normals=sn, uvs=suv) if copyless else \
+        Prototype("sphere", sv, sf)
     for i, M in enumerate(_matrices(n)):
         v, f = place(sphere, M)
         # The copies' shading normals: n' = inv(A)^T n, as addon/export.transform_geometry.
         nrm = sn @ np.linalg.inv(M[:3, :3])
         nrm /= np.linalg.norm(nrm, axis=1)[:, None]
-        mesh = Mesh(f"ball.{i:03d}", v, f, normals=nrm, uvs=suv,
-                    materials=["red" if i % 2 else "white"], prototype=sphere, matrix=M)
+        name = "red" if i % 2 else "white"
+        if rich and i % 3:
+            name = "tex" if i % 3 == 1 else "veil"
+        elif rich and i == 3:
+            name = "lamp"  # an emissive instance: its triangles become a mesh light
+        mesh = (Mesh.place(f"ball.{i:03d}", sphere, M, materials=[name]) if copyless else
+                Mesh(f"ball.{i:03d}", v, f, normals=nrm, uvs=suv,
+                     materials=[name], prototype=sphere, matrix=M))
         if i == 1 and hidden:
             for k, val in hidden.items():
                 setattr(mesh, k, val)
@@ -236,7 +252,9 @@ def test_prepare_records_instances_and_the_budget_chooses(monkeypatch):
     two = resources.estimate_memory(s, settings).parts["triangles"]
     monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 1e9)
     flat = resources.estimate_memory(s, settings).parts["triangles"]
-    assert two == flat - 8 * len(geo.instances.prototypes[0][1]) * resources.BYTES_PER_BVH_TRIANGLE
+    F = len(geo.instances.prototypes[0][1])
+    assert two == flat - (8 * F * resources.BYTES_PER_TRIANGLE
+                          - 9 * resources.BYTES_PER_INSTANCE)
 
 
 def test_instanced_scene_renders_as_its_expansion(monkeypatch):
@@ -317,3 +335,165 @@ def test_cancel_during_a_two_level_render(monkeypatch, after):
 
     film = render(_scene(), RenderSettings(spp=2, photons=20000, seed=1), should_cancel=stop)
     assert flag.is_set() and film.stats["cancelled"]
+
+
+def test_shared_tables_read_as_the_expansion(monkeypatch):
+    """Two-level scenes keep one table per prototype (engine/sharedrows.py): every
+    per-triangle column read through it equals the expanded table's, row for row
+    (mirrored, sheared and scaled instances; normals, UVs, material overrides)."""
+    s = _scene(hidden={"holdout": True, "visible_glossy": False})
+    s.validate()
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 1e9)
+    flat, _ = prepare(s)
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    geo, _ = prepare(s)
+    assert flat.shared is None and geo.shared is not None
+    assert len(geo.shared.table_start) == 1  # one sphere table for nine instances
+    assert geo.count == flat.count and geo.faces32.shape == (2, 3)
+    rng = np.random.default_rng(3)
+    prim = np.concatenate([np.arange(flat.count), rng.integers(0, flat.count, 500)])
+    for name in ("v0", "e1", "e2", "corner_normals", "corner_uvs", "smooth", "material",
+                 "object_id", "visibility", "holdout", "ng", "area"):
+        want = np.take(getattr(flat, name), prim, axis=0)
+        got = np.take(getattr(geo, name), prim, axis=0)
+        assert got.shape == want.shape and got.dtype == want.dtype, name
+        if want.dtype.kind in "biu":
+            np.testing.assert_array_equal(got, want, err_msg=name)
+        else:
+            np.testing.assert_allclose(got, want, rtol=0, atol=2e-6 if name == "corner_normals"
+                                       else 1e-12 * flat.extent, err_msg=name)
+    u, v = rng.uniform(0, 0.5, (2, len(prim)))
+    for a, b in zip(flat.uv_tangents(prim), geo.uv_tangents(prim)):
+        np.testing.assert_allclose(b, a, atol=1e-9)
+    np.testing.assert_allclose(geo.origin_offset(prim, u, v, geo.hit_points(prim, u, v),
+                                                 np.asarray(geo.ng[prim])),
+                               flat.origin_offset(prim, u, v, flat.hit_points(prim, u, v),
+                                                  np.asarray(flat.ng[prim])), rtol=1e-9)
+    # The kernels' accessor: rows 0..N-1 of gathered tables (misses stay -1).
+    rows, (v0, mat) = geo.hit_tables(np.array([5, -1, 7]), "v0", "material")
+    np.testing.assert_array_equal(rows, [0, -1, 2])
+    np.testing.assert_allclose(v0[[0, 2]], flat.v0[[5, 7]], atol=1e-12 * flat.extent)
+    np.testing.assert_array_equal(mat[[0, 2]], flat.material[[5, 7]])
+
+
+def test_textured_and_transparent_instances_render_as_their_expansion(monkeypatch):
+    """Shared tables with textured and half-transparent instances (transparent shadows
+    walk the two-level BVH): the same image as the expansion, statistically."""
+    s = _scene(rich=True)
+    flat = _render(s, False, monkeypatch)
+    two = _render(s, True, monkeypatch)
+    assert np.isclose(two.depth, flat.depth, rtol=1e-4, atol=1e-5).mean() > 0.99
+    for name in ("combined", "direct", "indirect"):
+        a, b = getattr(flat, name), getattr(two, name)
+        assert abs(b.mean() / a.mean() - 1) < 0.005, name
+    # Transparent shadows are there: the veiled balls' shadows are lighter than opaque.
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    s.validate()
+    ctx = prepare_context(s, RenderSettings(spp=1, photons=1000))
+    assert ctx.geo.shared is not None and ctx.shadow is not None and ctx.shadow.shared
+    o = np.array([[0.0, 0.0, 20.0]])
+    rows = np.nonzero(np.array([m.materials[0] == "veil" for m in s.meshes
+                                if m.prototype is not None]))[0]
+    M = s.meshes[1 + rows[0]].matrix
+    centre = M[:, 3] - ctx.geo.offset
+    d = (centre - (o - ctx.geo.offset))
+    trans = ctx.shadow.transmittance((o - ctx.geo.offset).astype(np.float32),
+                                     d.astype(np.float32), np.array([1.0], np.float32))
+    assert 0.0 < trans.max() < 1.0
+
+
+def test_placements_without_copies_read_as_copies(monkeypatch):
+    """Mesh.place keeps no world-space copy: shared, its tables are the prototype's
+    object-space data placed; expanded (a budget that allows it), its copy is built in
+    prepare. Both read as the scene written with copies."""
+    copies, bare = _scene(), _scene(copyless=True)
+    assert all(m.vertices is None for m in bare.meshes[1:])
+    for s in (copies, bare):
+        s.validate()
+    rng = np.random.default_rng(4)
+    for fraction in (0.0, 1e9):
+        monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", fraction)
+        a, _ = prepare(copies)
+        b, _ = prepare(bare)
+        assert (a.shared is None) == (b.shared is None) == (fraction > 0)
+        prim = rng.integers(0, a.count, 2000)
+        for name in ("v0", "e1", "e2", "corner_normals", "corner_uvs", "smooth",
+                     "material", "ng"):
+            want, got = np.take(getattr(a, name), prim, axis=0), np.take(getattr(b, name),
+                                                                         prim, axis=0)
+            if want.dtype.kind in "biu":
+                np.testing.assert_array_equal(got, want, err_msg=name)
+            else:
+                np.testing.assert_allclose(got, want, atol=1e-5, err_msg=name)
+    with pytest.raises(SceneError, match="takes its uvs from its prototype"):
+        Mesh("x", None, None, uvs=np.zeros((3, 2)), prototype=bare.meshes[1].prototype,
+             matrix=np.eye(4))
+    with pytest.raises(SceneError, match="vertices are required"):
+        Mesh("x", None, None)
+
+
+def test_placements_render_as_copies(monkeypatch):
+    """A scene of placements without copies, shared and expanded, against the copies."""
+    flat = _render(_scene(), False, monkeypatch)
+    for two_level in (True, False):
+        bare = _render(_scene(copyless=True), two_level, monkeypatch)
+        assert np.isclose(bare.depth, flat.depth, rtol=1e-4, atol=1e-5).mean() > 0.99
+        assert abs(bare.combined.mean() / flat.combined.mean() - 1) < 0.005, two_level
+
+
+def test_budget_expands_only_small_instancing():
+    """Two-level (shared) as soon as instancing saves real memory; expanded when small."""
+    gib = 1 << 30
+    choice = resources.instance_choice
+    # 10 copies of a 500-triangle prop: a few MB, expanded (fastest to trace).
+    assert not choice(5000, 500, 24 * gib)[0]
+    # 1000 copies of a 65k-triangle sphere: 20 GB expanded, shared.
+    two, why = choice(1000 * 65536, 65536, 24 * gib)
+    assert two and "two-level" in why and "65,536,000" in why
+    # 100 copies of a 10k-triangle prop: within the memory share, but 100x the prototype.
+    two, why = choice(100 * 10_000, 10_000, 24 * gib)
+    assert two and "100x" in why
+    # Two copies of a big mesh: only twice the prototype, but over 1/32 of the memory.
+    assert choice(2 * 4_000_000, 4_000_000, 24 * gib)[0]
+    assert not choice(2 * 400_000, 400_000, 24 * gib)[0]
+
+
+def test_whole_columns_of_shared_tables(monkeypatch):
+    """Whole-column reads (the effect analysis, map radii) equal the expansion's."""
+    from engine.geometry import area_sum
+    s = _scene(rich=True)
+    s.validate()
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 1e9)
+    flat, _ = prepare(s)
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    geo, _ = prepare(s)
+    for name in ("material", "object_id", "visibility", "holdout", "smooth", "v0"):
+        np.testing.assert_allclose(np.asarray(getattr(geo, name)),
+                                   np.asarray(getattr(flat, name)), atol=1e-12)
+    mask = np.random.default_rng(5).random(flat.count) < 0.5
+    assert np.isclose(area_sum(geo, mask), area_sum(flat, mask), rtol=1e-12)
+    tex = list(s.materials).index("tex")
+    assert (geo.material == tex).sum() == (flat.material == tex).sum() > 0
+
+
+def test_api_add_instance_and_workers_agree(monkeypatch):
+    """PaperScene.add_instance places a prototype or a mesh's geometry without copies;
+    a shared render is the same with 1 and 2 workers."""
+    s = PaperScene(width=40, height=30)
+    s.add_material(Material("white", (0.8, 0.8, 0.8)))
+    s.add_material(Material("red", (0.8, 0.2, 0.1)))
+    s.add_plane((0, 0, -0.5), (0, 0, 1), 20.0, "white", name="floor")
+    ball = s.add_sphere((0, 0, 0.5), 0.6, "white", segments=16)
+    for i, M in enumerate(_matrices(6)):
+        placed = s.add_instance(ball, M, material="red" if i % 2 else None)
+        assert placed.vertices is None and placed.materials == ["red" if i % 2 else "white"]
+    assert s.meshes[2].prototype is s.meshes[3].prototype
+    with pytest.raises(SceneError, match="must be an engine.scene.Prototype or a Mesh"):
+        s.add_instance("ball", np.eye(4))
+    s.add_point_light((1, -2, 5), power=600.0)
+    s.set_camera((0, -9, 6), (0, 0, 0.5), view_angle=55)
+    monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    one = s.render(RenderSettings(spp=2, photons=20000, caustic_photons=0, seed=5, workers=1))
+    two = s.render(RenderSettings(spp=2, photons=20000, caustic_photons=0, seed=5, workers=2))
+    np.testing.assert_array_equal(one.combined, two.combined)
+    assert one.combined.mean() > 0

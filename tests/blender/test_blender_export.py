@@ -98,7 +98,10 @@ def test_export_round_trip(fresh_scene, bpy_addon):
     cube = meshes["Cube"]
     assert len(cube.faces) == 48
     np.testing.assert_allclose(cube.vertices.mean(axis=0), (1, 2, 3), atol=1e-5)
-    inst = sorted((m for m in out.meshes if m.name != "Cube"), key=lambda m: m.vertices[0, 0])
+    # The instances are placements without copies: their world-space copies as the
+    # engine builds them when it expands them (Mesh.expanded).
+    inst = sorted((m.expanded() for m in out.meshes if m.name != "Cube"),
+                  key=lambda m: m.vertices[0, 0])
     assert len(inst) == 2 and all("Quad" in m.name for m in inst)
     b, a = inst  # x < 0 first
     np.testing.assert_allclose(a.vertices.min(axis=0), (4, -1, 0), atol=1e-6)
@@ -235,11 +238,13 @@ def test_instances_share_a_prototype(fresh_scene, bpy_addon):
     pm = load_engine()
     from engine.geometry import prepare
     out, _ = export.export_scene(pm, bpy.context.evaluated_depsgraph_get(), width=64, height=48)
-    quads = sorted((m for m in out.meshes if "Quad" in m.name), key=lambda m: m.vertices[0, 0])
+    quads = sorted((m for m in out.meshes if "Quad" in m.name), key=lambda m: m.matrix[0, 3])
     cube = next(m for m in out.meshes if m.name == "Cube")
     assert cube.prototype is None and cube.matrix is None
     assert quads[0].prototype is quads[1].prototype is not None
-    assert all(m.instance_matches() for m in quads)
+    # Records, not copies: the placements keep no world-space vertices (Mesh.place).
+    assert all(m.vertices is None and m.instance_matches() for m in quads)
+    assert quads[0].faces is quads[0].prototype.faces
     np.testing.assert_allclose(quads[1].matrix[:, 3], (5, 0, 0), atol=1e-6)
     np.testing.assert_allclose(np.diag(quads[1].matrix[:, :3]), (2, 2, 2), atol=1e-6)
     out.validate()
@@ -250,8 +255,9 @@ def test_instances_share_a_prototype(fresh_scene, bpy_addon):
 @pytest.mark.parametrize("name", ["geometry_collection_instance", "geometry_vertex_instancing",
                                   "geometry_nodes_instances"])
 def test_instancing_cases_traced_two_level_match_cycles(bpy_addon, monkeypatch, name):
-    """The feature matrix's instancing scenes with every instance traced two-level
-    (engine/instancing.py; the budget forced to 0) pass against Cycles as expanded."""
+    """The feature matrix's instancing scenes, exported as placements without copies
+    (Mesh.place) and traced two-level with shared tables (engine/instancing.py,
+    engine/sharedrows.py; the budget forced to 0), pass against Cycles as expanded."""
     import os
     import sys
     sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "tools"))
@@ -264,9 +270,50 @@ def test_instancing_cases_traced_two_level_match_cycles(bpy_addon, monkeypatch, 
         built.append(1)
         return original(*args, **kwargs)
 
+    from engine.scene import Mesh
+    placed = []
+    place = Mesh.place.__func__
+
+    def recording(cls, *args, **kwargs):
+        placed.append(1)
+        return place(cls, *args, **kwargs)
+
     monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
     monkeypatch.setattr(visibility, "InstanceAccel", counting)
+    monkeypatch.setattr(Mesh, "place", classmethod(recording))
     img, _, warnings = fm.render_ours(name)
     assert built, "the scene was not traced two-level"
+    # The export wrote placements (records on a shared prototype), not world copies.
+    assert len(placed) >= 2, "the instances were exported as copies"
     s = fm.score(fm.blocks(img), fm.load_references()[name])
     assert not fm.verdict(fm.CASES[name], s, warnings), s
+
+
+def test_viewport_export_writes_instance_records(fresh_scene, bpy_addon):
+    """export_viewport writes collection instances as placements on one prototype (no
+    world-space copies), keeps them while nothing changes and places a moved instancer's
+    again from the kept prototype."""
+    bpy = bpy_addon
+    build_scene(bpy)
+    from addon import export
+    from addon.core import load_engine
+    pm = load_engine()
+    cache = export.ViewportExport(pm)
+    camera = pm.Camera.look_at((0, -10, 3), (0, 0, 0))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    out, info = export.export_viewport(cache, depsgraph, camera, 32, 24)
+    quads = [m for m in out.meshes if "Quad" in m.name]
+    assert len(quads) == 2 and all(m.vertices is None for m in quads)
+    assert quads[0].prototype is quads[1].prototype
+    again, info = export.export_viewport(cache, depsgraph, camera, 32, 24,
+                                         export.ViewportUpdates())
+    assert sorted(m.name for m in again.meshes if "Quad" in m.name) == \
+        sorted(m.name for m in quads) and not info["geometry_changed"]
+    bpy.data.objects["EmptyA"].location.x = 7.0
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    moved, info = export.export_viewport(cache, depsgraph, camera, 32, 24,
+                                         export.ViewportUpdates())
+    mq = sorted((m for m in moved.meshes if "Quad" in m.name), key=lambda m: m.matrix[0, 3])
+    np.testing.assert_allclose(mq[1].matrix[:, 3], (7, 0, 0), atol=1e-6)
+    assert mq[1].prototype is quads[0].prototype and mq[1].vertices is None
+    moved.validate()
