@@ -101,6 +101,33 @@ def test_batch_engine_error_writes_nothing(bpy_addon, tmp_path, monkeypatch):
         bpy_addon.ops.wm.read_homefile(use_empty=True)  # later tests expect default settings
 
 
+@pytest.mark.parametrize("ext", [".png", ".exr"])
+def test_batch_write_cut_short_keeps_the_old_file(tmp_path, ext):
+    """`ulimit -f` (as a full disk): Blender's PNG and EXR writers report success on a
+    short write; the batch must see the cut file, exit 1 and keep the previous frame."""
+    import resource
+
+    blend = os.path.join(BLENDS, "figure3_sphere.blend")
+    warm = _batch(blend, "-o", str(tmp_path / f"warm{ext}"), *SMALL, "--quiet")
+    assert warm.returncode == 0, warm.stderr[-2000:]  # kernels cached before the limit
+    limit = os.path.getsize(tmp_path / f"warm{ext}") // 2
+    out = tmp_path / f"out{ext}"
+    out.write_bytes(OLD)
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of being killed
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    res = subprocess.run([PYTHON, "-m", "addon.batch", blend, "-o", str(out), *SMALL,
+                          "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                         preexec_fn=small_files)
+    assert res.returncode == 1, res.stdout[-1000:] + res.stderr[-2000:]
+    assert "cut short" in res.stderr and "left as it was" in res.stderr, res.stderr[-2000:]
+    assert "wrote" not in res.stdout
+    assert out.read_bytes() == OLD
+    assert sorted(n for n in os.listdir(tmp_path) if n.startswith(".")) == []
+
+
 def test_batch_checks_the_output_path_before_rendering(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_bytes(b"x")
