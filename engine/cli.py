@@ -252,6 +252,12 @@ class CancelOnInterrupt:
 
 
 def main(argv=None) -> int:
+    from . import _interrupted_while_loading
+    if signal.getsignal(signal.SIGINT) is _interrupted_while_loading:
+        # Loaded: Ctrl-C is a KeyboardInterrupt again (a cancel inside the render, a clean
+        # stop elsewhere); engine/__init__ stopped at once only while the imports ran.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     args = build_parser().parse_args(argv)
     try:
         return {"render": _render, "compare": _compare, "sweep": _sweep}[args.command](args)

@@ -343,3 +343,22 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
         assert said in err and "left untouched" in err and "Traceback" not in err, err
         assert target.read_bytes() == OLD
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+def test_cli_ctrl_c_while_the_command_loads_stops_without_a_traceback(tmp_path):
+    """Ctrl-C in the `photonmap` command's first moment (numpy, numba, Embree still
+    importing): exit 130 and one line, never a KeyboardInterrupt traceback."""
+    import time
+    launcher = tmp_path / "photonmap"  # what pip's console script does, from this checkout
+    launcher.write_text(f"import sys\nsys.path.insert(0, {ROOT!r})\n"
+                        "from engine.cli import main\nsys.exit(main())\n")
+    target = tmp_path / "out.png"
+    proc = subprocess.Popen([sys.executable, str(launcher), "render", SCENE, "-o", str(target),
+                             "--width", "32", "--height", "24", "--spp", "1", "--quiet"],
+                            cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    time.sleep(0.3)  # after Python's own start-up (site), while the engine imports
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=120)[1]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupt" in err, err
+    assert not target.exists()
