@@ -44,7 +44,7 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
-from .scene import MATERIAL_NODES, Light, Material, Mesh, SceneError, euler_rotation
+from .scene import FLOAT32_MAX, MATERIAL_NODES, Light, Material, Mesh, SceneError, euler_rotation
 from .settings import RenderSettings
 
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
@@ -254,11 +254,15 @@ class _NotFinite:
         self.value = value
 
     def __repr__(self):
+        if math.isfinite(self.value):
+            return f"{self.value!r} (beyond float32's range)"
         return repr(self.value)
 
 
 def _mark_not_finite(v):
-    if isinstance(v, float) and not math.isfinite(v):
+    # Beyond float32's range counts as infinite: the engine traces in float32.
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and not (
+            math.isfinite(v) and abs(v) <= FLOAT32_MAX):
         return _NotFinite(v)
     if isinstance(v, dict):
         return {k: _mark_not_finite(x) for k, x in v.items()}

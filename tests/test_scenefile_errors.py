@@ -77,6 +77,12 @@ CASES = [
     ("material name type", CAMERA + SPHERE + "material = 3\n", "'material' must be a string"),
     ("unknown key", CAMERA + SPHERE + "radios = 1\n", "unknown key(s) radios"),
     ("spp float", '[render]\nspp = 2.5\n' + CAMERA, "setting 'spp' must be a whole number"),
+    # Beyond float32's range (the engine traces in float32): as infinite as inf.
+    ("translate 1e308", CAMERA + SPHERE + "translate = [1e308, 0, 0]\n",
+     "objects[0] (ball): 'translate' must be 3 finite numbers"),
+    ("power 1e39", CAMERA + LIGHT + "power = 1e39\n", "'power' must be a finite number"),
+    ("background 1e39", 'background = [1e39, 0, 0]\n' + CAMERA,
+     "'background' must be 3 finite numbers"),
 ]
 
 
@@ -260,3 +266,20 @@ def test_a_valid_inline_mesh_keeps_all_its_faces(tmp_path):
     scene, _ = _load(tmp_path, CAMERA + MESH + "faces = [[0, 1, 2], [2, 1, 0]]\n")
     mesh = scene.meshes[-1]
     assert mesh.name == "tri" and len(mesh.faces) == 2 and not scene.all_warnings()
+
+
+def test_api_vertices_beyond_float32_are_dropped_naming_the_mesh():
+    """Python API: a vertex at 1e39 m is infinite to Embree's float32. Its faces are
+    dropped with a warning naming the mesh (the BVH build refused the whole scene
+    without naming anything, and Accel.__del__ printed a second traceback)."""
+    import numpy as np
+    from engine import RenderSettings, render
+    from engine.api import cornell_box
+    from engine.scene import Mesh
+    scene = cornell_box()
+    scene.width, scene.height = 16, 12
+    v = np.array([[0, 0, 0.5], [0.2, 0, 0.5], [0, 0.2, 0.5], [1e39, 0, 0.5]], float)
+    scene.meshes.append(Mesh("far", v, [[0, 1, 2], [0, 1, 3]], materials=["white_diffuse"]))
+    film = render(scene, RenderSettings(spp=1, photons=1000, caustic_photons=0))
+    assert any("far" in w and "infinite" in w for w in film.warnings), film.warnings
+    assert np.isfinite(film.combined).all()
