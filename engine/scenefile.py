@@ -618,6 +618,8 @@ def _check_ply_header(path: str):
 def _load_mesh_file(path: str, name: str, material: str) -> Mesh:
     """OBJ / PLY / STL / glTF through trimesh (a well-kept mesh library). A file that
     yields no triangles (empty or not a mesh) is an error, not an empty object."""
+    if os.path.isdir(path):
+        raise SceneFileError(f"mesh file '{path}' is a folder, not a mesh file")
     if not os.path.isfile(path):
         raise SceneFileError(f"mesh file '{path}' not found")
     try:
@@ -630,7 +632,10 @@ def _load_mesh_file(path: str, name: str, material: str) -> Mesh:
     try:
         m = trimesh.load(path, force="mesh", process=False)
     except Exception as e:  # trimesh raises many exception types for bad files
-        raise SceneFileError(f"mesh file '{path}': {type(e).__name__}: {e}") from None
+        kind = os.path.splitext(path)[1].lstrip(".").upper() or "mesh"
+        raise SceneFileError(f"mesh file '{path}' is not a readable {kind} file (damaged, "
+                             f"or another format; trimesh said {type(e).__name__}: "
+                             f"{str(e)[:120]})") from None
     faces = np.asarray(getattr(m, "faces", np.zeros((0, 3))))
     if faces.ndim != 2 or len(faces) == 0:
         raise SceneFileError(f"mesh file '{path}': no triangles found (empty, or not a "

@@ -123,6 +123,26 @@ def test_empty_or_garbage_mesh_files_are_refused(tmp_path, name, content):
         _with_file(tmp_path, name, content)
 
 
+@pytest.mark.parametrize("name, content", [
+    ("dangling.obj", b"v 0 0 0\nf 1 2 3\n"),
+    ("broken.gltf", b'{"asset": {"version": "2.0"}, "meshes": [{"primitives": [{}]}]}'),
+    ("cut.glb", b"glTF\x02\x00\x00\x00\xff\xff\x00\x00"),
+])
+def test_damaged_mesh_files_are_refused_in_words(tmp_path, name, content):
+    """A damaged file is named with what is wrong, not only a library's IndexError."""
+    with pytest.raises(SceneFileError) as info:
+        _with_file(tmp_path, name, content)
+    msg = str(info.value)
+    assert name in msg and "\n" not in msg, msg
+    assert "not a readable" in msg or "no triangles found" in msg, msg
+
+
+def test_a_folder_as_mesh_file_is_named_as_such(tmp_path):
+    (tmp_path / "meshes").mkdir()
+    with pytest.raises(SceneFileError, match="'.*meshes' is a folder, not a mesh file"):
+        _load(tmp_path, CAMERA + '[[objects]]\ntype = "file"\npath = "meshes"\n')
+
+
 def test_cli_reports_a_bad_scene_and_a_nan_exposure_in_one_line(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(CAMERA + SPHERE + "translate = [nan, 0, 0]\n", encoding="utf-8")
