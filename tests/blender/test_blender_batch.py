@@ -238,3 +238,29 @@ def test_batch_ctrl_c_during_the_kernel_compile_stops_at_once():
     assert stops == [True] and interrupt.status == 130
     printer("stats", "Exporting 1/4 objects")
     assert not interrupt.at_once
+
+
+@pytest.mark.parametrize("option, value", [("--frame", "-99999999999"),
+                                           ("--frames", "1..9999999")])
+def test_batch_refuses_frames_outside_blenders_range(option, value):
+    """Beyond Blender's frames (+-1,048,574): one line naming the option, not
+    frame_set's 16-line ValueError traceback."""
+    from addon import batch
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", "/nonexistent/x.png",
+                 option, value)
+    assert res.returncode == 2, res.stderr[-2000:]
+    assert f"argument {option}: Blender's frames run from -1048574 to 1048574" in res.stderr
+    assert "Traceback" not in res.stderr
+    assert batch.FRAME_LIMIT == 1048574
+
+
+def test_batch_engine_refusal_is_said_once(tmp_path):
+    """A render the engine refuses (memory) ends in one 'render failed' line holding the
+    engine's message once (it was doubled: Blender's exception repeats each report)."""
+    out = tmp_path / "big.png"
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), "--quiet",
+                 "--width", "30000", "--height", "30000")
+    assert res.returncode == 1, res.stderr[-2000:]
+    lines = [ln for ln in res.stderr.splitlines() if ln.startswith("error: render failed")]
+    assert len(lines) == 1 and lines[0].count("would need about") == 1, res.stderr[-3000:]
+    assert not out.exists()
