@@ -491,9 +491,10 @@ def _render(args) -> int:
             def on_pass(film, info):
                 where["passes"] = info["passes"]
                 if bar is not None:
+                    error = info["error_estimate"]  # two passes are needed to estimate it
+                    error = f"{error:.4f}" if math.isfinite(error) else "after pass 2"
                     bar.write(f"pass {info['passes']}: {info['photons']:,} photons, "
-                              f"{info['elapsed']:.1f} s, estimated relMSE "
-                              f"{info['error_estimate']:.4f}")
+                              f"{info['elapsed']:.1f} s, estimated relMSE {error}")
             with interrupt:
                 if args.dask:
                     from .distributed import render_distributed

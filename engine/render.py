@@ -356,10 +356,12 @@ def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: i
         ratio = radius / extent
         # A percentage up to 6 digits; beyond, a factor (1e300 m printed 300 digits).
         share = f"{100 * ratio:.0f} % of" if ratio < 1e4 else f"{ratio:.3g} times"
+        disc_area = math.pi * radius * radius  # inf beyond ~1e154 m
+        disc = f"{disc_area:.3g} m^2" if math.isfinite(disc_area) else "beyond any number"
         out.append(
             f"search radius {radius:.4g} m is {share} the scene's size "
             f"({extent:.3g} m across): each estimate spreads photons over a disc of "
-            f"{math.pi * radius * radius:.3g} m^2, so indirect light is blurred across corners "
+            f"{disc}, so indirect light is blurred across corners "
             "and objects (and too dark where the disc is larger than the surface it lands on), "
             "and every lookup scans many photons (slow); use a few % of the scene or the "
             "automatic radius")
