@@ -189,7 +189,7 @@ def parse_args(argv):
     p.add_argument("--paper", action="store_true",
                    help="the paper's own method: classic estimator, fixed --radius, no final "
                         "gathering (docs/paper_mode.md)")
-    p.add_argument("--frame", type=int, help="frame to render")
+    p.add_argument("--frame", type=_frame, help="frame to render")
     p.add_argument("--frames", type=_frame_range, metavar="A..B",
                    help="render frames A to B (inclusive) into the output pattern ('#' = "
                         "frame digits)")
@@ -224,12 +224,27 @@ def parse_args(argv):
     return p.parse_args(argv)
 
 
+# Blender's frame numbers (MINAFRAME / MAXFRAME in DNA_scene_types.h).
+FRAME_LIMIT = 1048574
+
+
+def _frame(text):
+    try:
+        frame = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole frame number, got '{text}'") from None
+    if abs(frame) > FRAME_LIMIT:
+        raise argparse.ArgumentTypeError(f"Blender's frames run from {-FRAME_LIMIT} to "
+                                         f"{FRAME_LIMIT}, got {frame}")
+    return frame
+
+
 def _frame_range(text):
     first, sep, last = text.partition("..")
     try:
-        a, b = int(first), int(last)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected A..B (e.g. 1..24), got '{text}'") from None
+        a, b = _frame(first), _frame(last)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"{exc} in '{text}' (expected A..B, e.g. 1..24)") from None
     if not sep or b < a:
         raise argparse.ArgumentTypeError(f"expected A..B with A <= B, got '{text}'")
     return a, b
@@ -462,7 +477,8 @@ def _render_still(bpy, scene, out, quiet, interrupt=None):
     except RuntimeError as exc:
         if interrupt.requested:  # a second SIGINT landed inside Blender's render call
             raise BatchInterrupted(f"interrupted: render cancelled; {_untouched(out)}") from None
-        msg = " ".join(str(exc).replace("Error:", "").split())
+        # The engine's own message once (Blender's exception repeats each report).
+        msg = engine.last_render.get("error") or " ".join(str(exc).replace("Error:", "").split())
         raise BatchError(f"render failed: {msg}; {_untouched(out)}") from None
     finally:
         engine.status_listeners.remove(printer)

@@ -192,7 +192,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         pm = load_engine()
         if pm.jit.needs_compile():  # ~20 s, once per machine: say why the render waits
             self._stats(pm.jit.COMPILE_MESSAGE)  # stats line and the batch command's bar
-            print(f"Photon Mapping: {pm.jit.COMPILE_MESSAGE}", flush=True)
+            if not self._listeners:  # the batch's bar shows it; a print would split the bar
+                print(f"Photon Mapping: {pm.jit.COMPILE_MESSAGE}", flush=True)
         pm.jit.ensure_compiled()
 
         width, height = export.render_size(render)

@@ -5,17 +5,36 @@ Python on numpy, embreex, scipy and numba (compiled kernels); never imports bpy.
     from engine import render, RenderSettings
     from engine.api import PaperScene
 """
-from . import imageio, presets, resources, shadernodes, teaching
-from .film import Film
-from .lights import DECLARED_KINDS
-from .lights.environment import Environment
-from .progressive import Budget, render_progressive
-from .render import render
-from .resources import ResourceError
-from .scene import Camera, Light, Material, Mesh, Prototype, Scene, SceneError
-from .settings import RenderSettings
-from .normalmap import Bump, NormalMap
-from .textures import ColorAttribute, ImageTexture, TextureError
+import os as _os
+import signal as _signal
+import sys as _sys
+
+
+def _interrupted_while_loading(signum, frame):
+    # Nothing is rendered or written yet: leave at once, without a traceback.
+    _sys.stderr.write("\nphotonmap: interrupted while loading; nothing was written\n")
+    _os._exit(128 + int(signum))
+
+
+# The `photonmap` command: Ctrl-C (or SIGTERM) in its first moment, while numpy, scipy,
+# numba and Embree load (~1 s), stops quietly; the command installs its own cancel
+# handler (engine.cli.CancelOnInterrupt) once it runs.
+if (_sys.argv and _os.path.splitext(_os.path.basename(_sys.argv[0]))[0] == "photonmap"
+        and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler):
+    for _sig in (_signal.SIGINT, _signal.SIGTERM):
+        _signal.signal(_sig, _interrupted_while_loading)
+
+from . import imageio, presets, resources, shadernodes, teaching  # noqa: E402
+from .film import Film  # noqa: E402
+from .lights import DECLARED_KINDS  # noqa: E402
+from .lights.environment import Environment  # noqa: E402
+from .progressive import Budget, render_progressive  # noqa: E402
+from .render import render  # noqa: E402
+from .resources import ResourceError  # noqa: E402
+from .scene import Camera, Light, Material, Mesh, Prototype, Scene, SceneError  # noqa: E402
+from .settings import RenderSettings  # noqa: E402
+from .normalmap import Bump, NormalMap  # noqa: E402
+from .textures import ColorAttribute, ImageTexture, TextureError  # noqa: E402
 
 __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes",
            "teaching", "imageio",

@@ -274,7 +274,7 @@ class Accel:
 
     def close(self, wait: bool = False):
         """Shut the query threads down; wait=True returns after they have ended."""
-        if self._pool is not None:
+        if getattr(self, "_pool", None) is not None:  # None too when __init__ refused
             self._pool.shutdown(wait=wait)
             self._pool = None
 

@@ -252,6 +252,12 @@ class CancelOnInterrupt:
 
 
 def main(argv=None) -> int:
+    from . import _interrupted_while_loading
+    if signal.getsignal(signal.SIGINT) is _interrupted_while_loading:
+        # Loaded: Ctrl-C is a KeyboardInterrupt again (a cancel inside the render, a clean
+        # stop elsewhere); engine/__init__ stopped at once only while the imports ran.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     args = build_parser().parse_args(argv)
     try:
         return {"render": _render, "compare": _compare, "sweep": _sweep}[args.command](args)
@@ -485,9 +491,10 @@ def _render(args) -> int:
             def on_pass(film, info):
                 where["passes"] = info["passes"]
                 if bar is not None:
+                    error = info["error_estimate"]  # two passes are needed to estimate it
+                    error = f"{error:.4f}" if math.isfinite(error) else "after pass 2"
                     bar.write(f"pass {info['passes']}: {info['photons']:,} photons, "
-                              f"{info['elapsed']:.1f} s, estimated relMSE "
-                              f"{info['error_estimate']:.4f}")
+                              f"{info['elapsed']:.1f} s, estimated relMSE {error}")
             with interrupt:
                 if args.dask:
                     from .distributed import render_distributed

@@ -85,6 +85,97 @@ def _temporary_beside(full: str):
             os.unlink(tmp)
 
 
+def truncation(path: str) -> str | None:
+    """Why the image file at `path` is incomplete, or None when it is whole as far as its
+    format's own structure tells (PNG: ends with the IEND chunk; JPEG: ends with the EOI
+    marker; single-part scanline OpenEXR: the last chunk of the offset table ends inside
+    the file; PPM and NPY: header size + pixel bytes). Other formats are not checked
+    (None). Writers that ignore a failed write (disk full, `ulimit -f`) leave files that
+    fail this check. Formats: PNG spec 11.2.5, ITU T.81 B.2, OpenEXR file layout."""
+    ext = os.path.splitext(path)[1].lower()
+    size = os.path.getsize(path)
+    with open(path, "rb") as f:
+        if ext == ".png":
+            f.seek(max(0, size - 12))
+            return None if f.read(12) == b"\0\0\0\0IEND\xaeB`\x82" else "no IEND chunk at the end"
+        if ext in (".jpg", ".jpeg"):
+            f.seek(max(0, size - 2))
+            return None if f.read(2) == b"\xff\xd9" else "no end-of-image marker"
+        if ext == ".exr":
+            return _exr_truncation(f, size)
+        if ext in (".ppm", ".npy"):
+            head = f.read(4096)
+    if ext == ".ppm":
+        parts = head.split(maxsplit=4)
+        if len(parts) < 5 or parts[0] != b"P6":
+            return "no P6 header"
+        w, h, maxval = (int(v) for v in parts[1:4])
+        need = len(head) - len(parts[4]) + w * h * 3 * (2 if maxval > 255 else 1)
+        return None if size >= need else f"{size} of {need} bytes"
+    if ext == ".npy":
+        import io
+        fh = io.BytesIO(head)
+        try:
+            version = np.lib.format.read_magic(fh)
+            shape, _, dtype = np.lib.format._read_array_header(fh, version)
+        except ValueError as exc:
+            return f"bad header ({exc})"
+        need = fh.tell() + int(np.prod(shape)) * dtype.itemsize
+        return None if size >= need else f"{size} of {need} bytes"
+    return None
+
+
+def _exr_truncation(f, size: int) -> str | None:
+    import struct
+    if f.read(4) != b"\x76\x2f\x31\x01":
+        return "no OpenEXR magic number"
+    flags = struct.unpack("<I", f.read(4))[0]
+    if flags & 0x1A00:  # tiled, deep or multi-part: chunk layouts not checked here
+        return None
+    while True:  # the header: attributes (name, type, size, value) up to an empty name
+        name = _read_cstring(f)
+        if name is None:
+            return "header cut short"
+        if name == b"":
+            break
+        if _read_cstring(f) is None:
+            return "header cut short"
+        raw = f.read(4)
+        if len(raw) < 4:
+            return "header cut short"
+        f.seek(struct.unpack("<i", raw)[0], 1)
+    table = f.tell()
+    raw = f.read(8)
+    if len(raw) < 8:
+        return "no offset table"
+    first = struct.unpack("<Q", raw)[0]  # the first chunk follows the table at once
+    count = (first - table) // 8
+    if first <= table or first > size or (first - table) % 8:
+        return "offset table cut short"
+    f.seek(table)
+    offsets = np.frombuffer(f.read(8 * count), "<u8")
+    if len(offsets) < count:
+        return "offset table cut short"
+    last = int(offsets.max())
+    if last + 8 > size:
+        return "last chunk missing"
+    f.seek(last + 4)
+    chunk = struct.unpack("<i", f.read(4))[0]
+    return None if last + 8 + chunk <= size else "last chunk cut short"
+
+
+def _read_cstring(f, limit: int = 256) -> bytes | None:
+    out = bytearray()
+    while len(out) <= limit:
+        c = f.read(1)
+        if not c:
+            return None
+        if c == b"\0":
+            return bytes(out)
+        out += c
+    return None
+
+
 @contextlib.contextmanager
 def replacing(path: str):
     """Context manager yielding a temporary path in `path`'s folder to write the new file
@@ -101,6 +192,10 @@ def replacing(path: str):
         yield tmp
         if not os.path.isfile(tmp) or os.path.getsize(tmp) == 0:
             raise OSError(f"writing '{path}' produced no data")
+        cut = truncation(tmp)
+        if cut:  # some writers (Blender's PNG and EXR, Pillow's PPM) ignore a short write
+            raise OSError(f"writing '{path}' was cut short ({cut}): disk full or file size "
+                          f"limit?")
         with open(tmp, "rb+") as f:
             os.fsync(f.fileno())
         os.replace(tmp, full)
@@ -125,10 +220,10 @@ def write_image(rgb: np.ndarray, path: str, exposure: float = 0.0, alpha: np.nda
     try:
         with replacing(path) as tmp:
             _write(rgb, tmp, ext, exposure, alpha, metadata)
-    except OSError as exc:
+    except (OSError, RuntimeError) as exc:  # OpenEXR raises RuntimeError on a failed write
         # e.g. numpy's "9216 requested and 2016 written" when the disk or ulimit is full
         kept = "the previous file is unchanged" if existed else "nothing was written"
-        raise OSError(f"writing '{path}' failed: {exc.strerror or exc} "
+        raise OSError(f"writing '{path}' failed: {getattr(exc, 'strerror', None) or exc} "
                       f"(disk full or file size limit?); {kept}") from exc
     return path
 

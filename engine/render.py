@@ -182,21 +182,27 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     scene.validate()
     region = _check_region(region, scene.width, scene.height)
     check_resources(scene, settings, region)
+    # The kernels load (or compile) before the preparation: their first use would
+    # otherwise load them inside a step that polls should_cancel rarely (the effect
+    # analysis' probe rays: 1.3 s).
+    t_compile = ensure_compiled(progress)
     try:
         ctx = prepare_context(scene, settings, should_cancel=should_cancel)
     except Cancelled:
         # Cancelled before any pixel: an empty film, marked as cancelled.
         x0, y0, x1, y1 = region
         film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
-        film.stats.update(cancelled=True, time_prepare=time.perf_counter() - t_start,
+        film.stats.update(cancelled=True, time_compile=t_compile,
+                          time_prepare=time.perf_counter() - t_start,
                           time_total=time.perf_counter() - t_start)
         film.warnings = scene.all_warnings()
         return film
-    t_prepare = time.perf_counter() - t_start
+    t_prepare = time.perf_counter() - t_start - t_compile
     try:
         film = render_pass(ctx, region, progress, should_cancel)
     finally:
         ctx.accel.close()
+    film.stats["time_compile"] += t_compile
     film.stats.update(effects=ctx.plan.report() + photon_map_report(settings, film.stats),
                       triangles=ctx.geo.count, lights=len(ctx.lights),
                       extent=ctx.geo.extent, time_prepare=t_prepare,
@@ -356,10 +362,12 @@ def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: i
         ratio = radius / extent
         # A percentage up to 6 digits; beyond, a factor (1e300 m printed 300 digits).
         share = f"{100 * ratio:.0f} % of" if ratio < 1e4 else f"{ratio:.3g} times"
+        disc_area = math.pi * radius * radius  # inf beyond ~1e154 m
+        disc = f"{disc_area:.3g} m^2" if math.isfinite(disc_area) else "beyond any number"
         out.append(
             f"search radius {radius:.4g} m is {share} the scene's size "
             f"({extent:.3g} m across): each estimate spreads photons over a disc of "
-            f"{math.pi * radius * radius:.3g} m^2, so indirect light is blurred across corners "
+            f"{disc}, so indirect light is blurred across corners "
             "and objects (and too dark where the disc is larger than the surface it lands on), "
             "and every lookup scans many photons (slow); use a few % of the scene or the "
             "automatic radius")

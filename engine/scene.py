@@ -33,14 +33,28 @@ class SceneError(ValueError):
     """Invalid scene input; the message names the object and what is wrong."""
 
 
+# The engine traces in float32 (Embree): a value beyond float32's range is as infinite
+# as inf itself, so it is refused as such (1e39 W would render black, 1e308 m crashed
+# the BVH build).
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def representable(arr) -> np.ndarray:
+    """Elementwise: finite and within float32's range (|x| <= 3.4e38)."""
+    arr = np.asarray(arr, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(arr) & (np.abs(arr) <= FLOAT32_MAX)
+
+
 def _vec3(value, what: str) -> np.ndarray:
     arr = np.asarray(value, dtype=np.float64).reshape(-1)
     if arr.size == 1:
         arr = np.repeat(arr, 3)
     if arr.shape != (3,):
         raise SceneError(f"{what}: expected 3 numbers, got {np.asarray(value).shape}")
-    if not np.all(np.isfinite(arr)):
-        raise SceneError(f"{what}: values must be finite, got {arr.tolist()}")
+    if not np.all(representable(arr)):
+        raise SceneError(f"{what}: values must be finite (within float32's +-3.4e38), "
+                         f"got {arr.tolist()}")
     return arr
 
 
@@ -57,8 +71,8 @@ def euler_rotation(angles) -> np.ndarray:
 
 def _finite(value, what: str) -> float:
     v = float(value)
-    if not math.isfinite(v):
-        raise SceneError(f"{what}: must be finite, got {value}")
+    if not (math.isfinite(v) and abs(v) <= FLOAT32_MAX):
+        raise SceneError(f"{what}: must be finite (within float32's +-3.4e38), got {value}")
     return v
 
 
@@ -394,13 +408,14 @@ class Mesh:
             keep &= ~bad_index
         fi = np.where(keep[:, None], f, 0)
         if len(v):
-            finite_v = np.all(np.isfinite(v), axis=1)
+            finite_v = np.all(representable(v), axis=1)
             bad_v = ~np.all(finite_v[fi], axis=1) & keep
             if bad_v.any():
                 self.warnings.append(f"{who}: dropped {int(bad_v.sum())} faces that use "
-                                     "NaN or infinite vertex coordinates")
+                                     "NaN or infinite vertex coordinates (or beyond "
+                                     "float32's +-3.4e38)")
                 keep &= ~bad_v
-            vv = np.where(np.isfinite(v), v, 0.0)
+            vv = np.where(representable(v), v, 0.0)
             e1 = vv[fi[:, 1]] - vv[fi[:, 0]]
             e2 = vv[fi[:, 2]] - vv[fi[:, 0]]
             area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
@@ -423,7 +438,7 @@ class Mesh:
             if colors is not None and colors.ndim == 3:
                 colors = colors[keep]
             coords = {k: a[keep] for k, a in coords.items()}
-        self.vertices = np.where(np.isfinite(v), v, 0.0)
+        self.vertices = np.where(representable(v), v, 0.0)  # unused bad ones: Embree needs all finite
         self.faces = f
         self.material_ids = mids
         self.normals = normals

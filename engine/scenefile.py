@@ -51,8 +51,8 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
-from .scene import (MATERIAL_NODES, Light, Material, Mesh, Prototype, SceneError,
-                    euler_rotation)
+from .scene import (FLOAT32_MAX, MATERIAL_NODES, Light, Material, Mesh, Prototype,
+                    SceneError, euler_rotation)
 from .settings import RenderSettings
 
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
@@ -274,11 +274,15 @@ class _NotFinite:
         self.value = value
 
     def __repr__(self):
+        if math.isfinite(self.value):
+            return f"{self.value!r} (beyond float32's range)"
         return repr(self.value)
 
 
 def _mark_not_finite(v):
-    if isinstance(v, float) and not math.isfinite(v):
+    # Beyond float32's range counts as infinite: the engine traces in float32.
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and not (
+            math.isfinite(v) and abs(v) <= FLOAT32_MAX):
         return _NotFinite(v)
     if isinstance(v, dict):
         return {k: _mark_not_finite(x) for k, x in v.items()}
@@ -719,6 +723,8 @@ def _check_ply_header(path: str):
 def _load_mesh_file(path: str, name: str, material: str) -> Mesh:
     """OBJ / PLY / STL / glTF through trimesh (a well-kept mesh library). A file that
     yields no triangles (empty or not a mesh) is an error, not an empty object."""
+    if os.path.isdir(path):
+        raise SceneFileError(f"mesh file '{path}' is a folder, not a mesh file")
     if not os.path.isfile(path):
         raise SceneFileError(f"mesh file '{path}' not found")
     try:
@@ -731,7 +737,10 @@ def _load_mesh_file(path: str, name: str, material: str) -> Mesh:
     try:
         m = trimesh.load(path, force="mesh", process=False)
     except Exception as e:  # trimesh raises many exception types for bad files
-        raise SceneFileError(f"mesh file '{path}': {type(e).__name__}: {e}") from None
+        kind = os.path.splitext(path)[1].lstrip(".").upper() or "mesh"
+        raise SceneFileError(f"mesh file '{path}' is not a readable {kind} file (damaged, "
+                             f"or another format; trimesh said {type(e).__name__}: "
+                             f"{str(e)[:120]})") from None
     faces = np.asarray(getattr(m, "faces", np.zeros((0, 3))))
     if faces.ndim != 2 or len(faces) == 0:
         raise SceneFileError(f"mesh file '{path}': no triangles found (empty, or not a "

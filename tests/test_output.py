@@ -12,7 +12,7 @@ import pytest
 
 from helpers import ROOT
 from process_helpers import Watched
-from engine.imageio import check_writable, read_image, replacing, write_image
+from engine.imageio import check_writable, read_image, replacing, truncation, write_image
 
 SCENE = os.path.join(ROOT, "scenes", "figure3.toml")
 OLD = b"the previous frame, which must survive"
@@ -72,9 +72,50 @@ def test_replacing_removes_the_temporary_file_on_an_exception(tmp_path):
     assert _leftovers(tmp_path, {target.name}) == []
 
 
-def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path):
-    """`ulimit -f`: the CLI's write fails with EFBIG; the old image stays, one-line error."""
-    target = tmp_path / "out.npy"  # 64x48x3 float32 = 36 KB, over the 8 KB limit
+@pytest.mark.parametrize("ext", [".png", ".jpg", ".exr", ".ppm", ".npy"])
+def test_truncation_finds_a_file_cut_anywhere(tmp_path, ext):
+    """Writers that ignore a short write (Blender's PNG and EXR, Pillow's PPM) leave files
+    cut at a block boundary: each cut is told from the whole file by its own structure."""
+    img = np.random.default_rng(2).random((48, 64, 3)).astype(np.float32)
+    whole = tmp_path / f"whole{ext}"
+    if ext == ".jpg":
+        from PIL import Image
+        Image.fromarray((img * 255).astype(np.uint8)).save(whole)
+    else:
+        write_image(img, str(whole))
+    data = whole.read_bytes()
+    assert truncation(str(whole)) is None
+    cut = tmp_path / f"cut{ext}"
+    for n in {len(data) // 2, len(data) - 1, len(data) - 20, min(4096, len(data) - 2)}:
+        cut.write_bytes(data[:n])
+        assert truncation(str(cut)), (ext, n, len(data))
+
+
+def test_a_writer_that_ignores_a_short_write_keeps_the_old_file(tmp_path, monkeypatch):
+    """Blender's save_render reports success on a full disk: the cut file never replaces
+    the previous frame."""
+    target = tmp_path / "out.png"
+    target.write_bytes(OLD)
+    import engine.imageio as imageio
+    real = imageio._write
+
+    def cut_silently(rgb, path, *args):
+        real(rgb, path, *args)
+        with open(path, "r+b") as f:
+            f.truncate(os.path.getsize(path) - 100)
+
+    monkeypatch.setattr(imageio, "_write", cut_silently)
+    with pytest.raises(OSError, match="cut short.*unchanged"):
+        write_image(np.random.default_rng(3).random((40, 50, 3)), str(target))
+    assert target.read_bytes() == OLD
+    assert _leftovers(tmp_path, {target.name}) == []
+
+
+@pytest.mark.parametrize("ext", [".npy", ".ppm", ".exr"])
+def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path, ext):
+    """`ulimit -f`: the CLI's write fails (EFBIG, or a writer that ignores it and leaves a
+    cut file); the old image stays, one-line error."""
+    target = tmp_path / f"out{ext}"  # 64x48: npy 36 KB, ppm 9 KB, exr > 8 KB
     target.write_bytes(OLD)
 
     def limit():
@@ -92,7 +133,7 @@ def test_write_beyond_the_file_size_limit_keeps_the_old_file(tmp_path):
     res = _cli(*args, "-o", str(target), preexec_fn=limit)
     assert res.returncode == 1, res.stderr
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "out.npy" in lines[0] and "unchanged" in lines[0], res.stderr
+    assert len(lines) == 1 and target.name in lines[0] and "unchanged" in lines[0], res.stderr
     assert target.read_bytes() == OLD
     assert _leftovers(tmp_path, {target.name}) == []
 
@@ -302,3 +343,22 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
         assert said in err and "left untouched" in err and "Traceback" not in err, err
         assert target.read_bytes() == OLD
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+def test_cli_ctrl_c_while_the_command_loads_stops_without_a_traceback(tmp_path):
+    """Ctrl-C in the `photonmap` command's first moment (numpy, numba, Embree still
+    importing): exit 130 and one line, never a KeyboardInterrupt traceback."""
+    import time
+    launcher = tmp_path / "photonmap"  # what pip's console script does, from this checkout
+    launcher.write_text(f"import sys\nsys.path.insert(0, {ROOT!r})\n"
+                        "from engine.cli import main\nsys.exit(main())\n")
+    target = tmp_path / "out.png"
+    proc = subprocess.Popen([sys.executable, str(launcher), "render", SCENE, "-o", str(target),
+                             "--width", "32", "--height", "24", "--spp", "1", "--quiet"],
+                            cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    time.sleep(0.3)  # after Python's own start-up (site), while the engine imports
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=120)[1]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupt" in err, err
+    assert not target.exists()

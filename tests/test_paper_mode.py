@@ -281,6 +281,7 @@ def test_a_huge_radius_is_explained_in_a_short_line():
     from engine.render import radius_warnings
     (line,) = radius_warnings(1e300, 10.0, 50.0, 1000, 8)
     assert "search radius 1e+300 m is 1e+299 times the scene's size" in line
+    assert "inf" not in line and "beyond any number" in line
     assert len(line) < 400
     (line,) = radius_warnings(50.0, 10.0, 50.0, 1000, 8)
     assert "is 500 % of the scene's size" in line

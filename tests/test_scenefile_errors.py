@@ -77,6 +77,12 @@ CASES = [
     ("material name type", CAMERA + SPHERE + "material = 3\n", "'material' must be a string"),
     ("unknown key", CAMERA + SPHERE + "radios = 1\n", "unknown key(s) radios"),
     ("spp float", '[render]\nspp = 2.5\n' + CAMERA, "setting 'spp' must be a whole number"),
+    # Beyond float32's range (the engine traces in float32): as infinite as inf.
+    ("translate 1e308", CAMERA + SPHERE + "translate = [1e308, 0, 0]\n",
+     "objects[0] (ball): 'translate' must be 3 finite numbers"),
+    ("power 1e39", CAMERA + LIGHT + "power = 1e39\n", "'power' must be a finite number"),
+    ("background 1e39", 'background = [1e39, 0, 0]\n' + CAMERA,
+     "'background' must be 3 finite numbers"),
 ]
 
 
@@ -115,6 +121,26 @@ def test_ply_header_claiming_too_many_vertices_is_refused_before_loading(tmp_pat
 def test_empty_or_garbage_mesh_files_are_refused(tmp_path, name, content):
     with pytest.raises(SceneFileError, match=f"{name}.*no triangles found"):
         _with_file(tmp_path, name, content)
+
+
+@pytest.mark.parametrize("name, content", [
+    ("dangling.obj", b"v 0 0 0\nf 1 2 3\n"),
+    ("broken.gltf", b'{"asset": {"version": "2.0"}, "meshes": [{"primitives": [{}]}]}'),
+    ("cut.glb", b"glTF\x02\x00\x00\x00\xff\xff\x00\x00"),
+])
+def test_damaged_mesh_files_are_refused_in_words(tmp_path, name, content):
+    """A damaged file is named with what is wrong, not only a library's IndexError."""
+    with pytest.raises(SceneFileError) as info:
+        _with_file(tmp_path, name, content)
+    msg = str(info.value)
+    assert name in msg and "\n" not in msg, msg
+    assert "not a readable" in msg or "no triangles found" in msg, msg
+
+
+def test_a_folder_as_mesh_file_is_named_as_such(tmp_path):
+    (tmp_path / "meshes").mkdir()
+    with pytest.raises(SceneFileError, match="'.*meshes' is a folder, not a mesh file"):
+        _load(tmp_path, CAMERA + '[[objects]]\ntype = "file"\npath = "meshes"\n')
 
 
 def test_cli_reports_a_bad_scene_and_a_nan_exposure_in_one_line(tmp_path):
@@ -260,3 +286,20 @@ def test_a_valid_inline_mesh_keeps_all_its_faces(tmp_path):
     scene, _ = _load(tmp_path, CAMERA + MESH + "faces = [[0, 1, 2], [2, 1, 0]]\n")
     mesh = scene.meshes[-1]
     assert mesh.name == "tri" and len(mesh.faces) == 2 and not scene.all_warnings()
+
+
+def test_api_vertices_beyond_float32_are_dropped_naming_the_mesh():
+    """Python API: a vertex at 1e39 m is infinite to Embree's float32. Its faces are
+    dropped with a warning naming the mesh (the BVH build refused the whole scene
+    without naming anything, and Accel.__del__ printed a second traceback)."""
+    import numpy as np
+    from engine import RenderSettings, render
+    from engine.api import cornell_box
+    from engine.scene import Mesh
+    scene = cornell_box()
+    scene.width, scene.height = 16, 12
+    v = np.array([[0, 0, 0.5], [0.2, 0, 0.5], [0, 0.2, 0.5], [1e39, 0, 0.5]], float)
+    scene.meshes.append(Mesh("far", v, [[0, 1, 2], [0, 1, 3]], materials=["white_diffuse"]))
+    film = render(scene, RenderSettings(spp=1, photons=1000, caustic_photons=0))
+    assert any("far" in w and "infinite" in w for w in film.warnings), film.warnings
+    assert np.isfinite(film.combined).all()

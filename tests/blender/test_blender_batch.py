@@ -101,6 +101,33 @@ def test_batch_engine_error_writes_nothing(bpy_addon, tmp_path, monkeypatch):
         bpy_addon.ops.wm.read_homefile(use_empty=True)  # later tests expect default settings
 
 
+@pytest.mark.parametrize("ext", [".png", ".exr"])
+def test_batch_write_cut_short_keeps_the_old_file(tmp_path, ext):
+    """`ulimit -f` (as a full disk): Blender's PNG and EXR writers report success on a
+    short write; the batch must see the cut file, exit 1 and keep the previous frame."""
+    import resource
+
+    blend = os.path.join(BLENDS, "figure3_sphere.blend")
+    warm = _batch(blend, "-o", str(tmp_path / f"warm{ext}"), *SMALL, "--quiet")
+    assert warm.returncode == 0, warm.stderr[-2000:]  # kernels cached before the limit
+    limit = os.path.getsize(tmp_path / f"warm{ext}") // 2
+    out = tmp_path / f"out{ext}"
+    out.write_bytes(OLD)
+
+    def small_files():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of being killed
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    res = subprocess.run([PYTHON, "-m", "addon.batch", blend, "-o", str(out), *SMALL,
+                          "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                         preexec_fn=small_files)
+    assert res.returncode == 1, res.stdout[-1000:] + res.stderr[-2000:]
+    assert "cut short" in res.stderr and "left as it was" in res.stderr, res.stderr[-2000:]
+    assert "wrote" not in res.stdout
+    assert out.read_bytes() == OLD
+    assert sorted(n for n in os.listdir(tmp_path) if n.startswith(".")) == []
+
+
 def test_batch_checks_the_output_path_before_rendering(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_bytes(b"x")
@@ -211,3 +238,29 @@ def test_batch_ctrl_c_during_the_kernel_compile_stops_at_once():
     assert stops == [True] and interrupt.status == 130
     printer("stats", "Exporting 1/4 objects")
     assert not interrupt.at_once
+
+
+@pytest.mark.parametrize("option, value", [("--frame", "-99999999999"),
+                                           ("--frames", "1..9999999")])
+def test_batch_refuses_frames_outside_blenders_range(option, value):
+    """Beyond Blender's frames (+-1,048,574): one line naming the option, not
+    frame_set's 16-line ValueError traceback."""
+    from addon import batch
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", "/nonexistent/x.png",
+                 option, value)
+    assert res.returncode == 2, res.stderr[-2000:]
+    assert f"argument {option}: Blender's frames run from -1048574 to 1048574" in res.stderr
+    assert "Traceback" not in res.stderr
+    assert batch.FRAME_LIMIT == 1048574
+
+
+def test_batch_engine_refusal_is_said_once(tmp_path):
+    """A render the engine refuses (memory) ends in one 'render failed' line holding the
+    engine's message once (it was doubled: Blender's exception repeats each report)."""
+    out = tmp_path / "big.png"
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), "--quiet",
+                 "--width", "30000", "--height", "30000")
+    assert res.returncode == 1, res.stderr[-2000:]
+    lines = [ln for ln in res.stderr.splitlines() if ln.startswith("error: render failed")]
+    assert len(lines) == 1 and lines[0].count("would need about") == 1, res.stderr[-3000:]
+    assert not out.exists()
