@@ -1389,8 +1389,11 @@ def transparency_window_open():
 # Light through glass comes from the caustic maps (glass blocks shadow rays, as in
 # Cycles); the walls, lit one bounce later by the secondary caustic photons, read 22-31 %
 # dark while that map was searched with the global radius (render._build_maps): with its
-# own radius, mean 0.985-1.004 and block error 0.29-0.36 (seeds 0, 1).
-@case("transparency", block_tol=0.35)
+# own radius, mean 0.985-1.004 and block error 0.29-0.36 (seeds 0, 1). Over seeds 0-9
+# (issue 13, docs/performance.md "Fourth slice: photon emission"): block error 0.25-0.43
+# with the numpy emission, 0.30-0.45 with the emission kernels (mean 0.994 / 0.993): the
+# largest of 192 block errors moves with the seed; 0.47 holds both distributions.
+@case("transparency", block_tol=0.47)
 def transparency_window_glass_plane():
     """The window room behind a single-plane Glass pane."""
     _window_room("plane")
@@ -1399,7 +1402,10 @@ def transparency_window_glass_plane():
 # The pane's own blocks (the glass seen from inside the room) are the worst: block error
 # 0.31 against 0.35 at the matrix's seed (33-38 % dark blocks were measured before the
 # photon kernels' random numbers; the walls and floor lit through it are within 5 %).
-@case("transparency", block_tol=0.35)
+# Over seeds 1-50: block error median 0.34 and over 0.35 at 24 seeds with the numpy
+# emission (max 0.437), at 22 with the emission kernels (max 0.465); brightness 0.983 +-
+# 0.002 both (docs/performance.md, "Fourth slice: photon emission").
+@case("transparency", block_tol=0.47)
 def transparency_window_glass_slab():
     """The window room behind a 2 cm Glass slab."""
     _window_room("slab")
