@@ -288,7 +288,8 @@ def test_emission_numbers_are_independent_of_the_scattering_numbers_of_the_same_
     p = 1e-7 (chi-square, 255 degrees of freedom), so the test fails by chance about
     once in 20 000 runs. Measured beyond it (2 keys x 2^21 slots, 64 x 64 bins, 4
     emission x 36 scattering dimensions): the smallest of 288 p-values was 0.002, as
-    expected of independent numbers (docs/performance.md, "Fourth slice")."""
+    expected of independent numbers (docs/performance.md, "Fourth slice: photon
+    emission")."""
     from scipy.stats import chi2
     slot = np.arange(1 << 16)
     limit = chi2.isf(1e-7, 255)
