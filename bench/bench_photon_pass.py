@@ -5,10 +5,13 @@
 CHECKOUT (default: this one) is put first on sys.path, so an older checkout's engine can be
 measured by the same script; PHOTONS defaults to 500000. Prints one line per worker count:
 photons/s, the traced rays, and the engine's time against raw embreex replaying the
-recorded rays (bench_core.raw_embree_time), best of 3.
+recorded rays (bench_core.raw_embree_time), best of 3, as wall time and as CPU time of the
+process (time.process_time: all threads; on a shared machine the CPU-time ratio moves
+less with the load than the wall-time one).
 """
 import os
 import sys
+import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 root = os.path.abspath(sys.argv[1]) if len(sys.argv) > 1 else os.path.dirname(HERE)
@@ -18,25 +21,40 @@ sys.path.insert(0, root)
 sys.path.insert(2, HERE)
 
 from engine.jit import ensure_compiled  # noqa: E402
-from bench_scaling import best_of, box, make_ctx  # noqa: E402
+from bench_scaling import box, make_ctx  # noqa: E402
 from bench_core import raw_embree_time  # noqa: E402
 from engine.settings import RenderSettings  # noqa: E402
 from engine.lights import allocate_photons  # noqa: E402
 from engine.photons import trace_photons  # noqa: E402
 
+
+def best_of(n, fn):
+    """(best wall s, best CPU s, last result) of n calls."""
+    wall = cpu = float("inf")
+    out = None
+    for _ in range(n):
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        wall = min(wall, time.perf_counter() - t0)
+        cpu = min(cpu, time.process_time() - c0)
+    return wall, cpu, out
+
+
 ensure_compiled()
+print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
 for workers in (1, 2):
     st = RenderSettings(photons=photons, workers=workers)
     ctx = make_ctx(box(160, 120), st)
     rec = getattr(ctx.accel, "full", ctx.accel)  # the RecordingAccel
     counts = allocate_photons(ctx.lights, st.photons)
-    t, shot = best_of(3, lambda: (rec.log.clear(),
-                                  trace_photons(ctx, ctx.lights, counts, False, 1))[1])
+    t, c, shot = best_of(3, lambda: (rec.log.clear(),
+                                     trace_photons(ctx, ctx.lights, counts, False, 1))[1])
     log = list(rec.log)
     n = sum(len(e[1]) for e in log)
-    raw, _ = best_of(3, lambda: raw_embree_time(rec, log))
+    raw, raw_c, _ = best_of(3, lambda: raw_embree_time(rec, log))
     print(f"{os.path.basename(root):14s} workers={workers} photons={photons:,} "
           f"stored={len(shot):,} rays={n:,} engine={t:.3f} s raw={raw:.3f} s "
-          f"{photons / t / 1e6:.2f} M photons/s, {100 * raw / t:.0f} % of raw Embree, "
+          f"{photons / t / 1e6:.2f} M photons/s, {100 * raw / t:.0f} % of raw Embree; "
+          f"CPU engine={c:.3f} s raw={raw_c:.3f} s {100 * raw_c / c:.0f} % of raw Embree; "
           f"{shot.nbytes / max(len(shot), 1):.0f} B/photon")
     ctx.accel.close()

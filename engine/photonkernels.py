@@ -6,7 +6,8 @@ One bounce of a chunk of photons is two kernel calls (engine/photons.py drives t
                    photon, side, material, base colour, alpha, ray-origin offset) for
                    materials without textures or normal maps; scenes with them get the
                    same arrays from bsdf.surface_hit (the numpy texture evaluation).
-  scatter          per hit: closures (engine/closures/principled.py setup) -> stored
+  scatter          per hit: closures (engine/closures/principled.py setup; skipped for
+                   materials with only the diffuse and pass lobes) -> stored
                    photon record (kind of path, visibility rules) -> Russian roulette over
                    the lobes -> sampled continuation (cosine-weighted diffuse, or the
                    chosen lobe's own sampler) -> compacted float32 rays for the next Embree
@@ -187,15 +188,17 @@ def _path_kind(flags):
 
 @kernel
 def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, mat, base,
-            alpha, offset, bump, params, mat_ior, visibility, object_id, caster,
+            alpha, offset, bump, params, plain, mat_ior, visibility, object_id, caster,
             first_hit_mode, caustic_only, vis_on,
             st_pos, st_power, st_dir, st_normal, st_kind,
             nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds and slots (m,), at hits prim (m,) (< 0: missed; lost) with surface data from
     photon_surfaces / bsdf.surface_hit; bump (m,) the diffuse lobe's bump shadowing
-    factor (normalmap.bump_shadowing; 1 without a bent normal). params, mat_ior: the material table's closure
-    parameters and IOR. visibility (T,) ray
+    factor (normalmap.bump_shadowing; 1 without a bent normal). params, mat_ior: the
+    material table's closure parameters and IOR; plain (M,) bool: the material has only
+    the diffuse and pass lobes (plain_materials), whose weights need no closure set-up.
+    visibility (T,) ray
     kinds per triangle, used with vis_on. caster (objects,) bool and first_hit_mode (0:
     off, 1: store caustic photons whose first hit is not on a caster, 2: only those whose
     first hit is) split the caustic paths between an aimed and an unaimed shot.
@@ -227,22 +230,42 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
     alpha_h = np.empty(_BLOCK)
     prm = np.empty((_BLOCK, pr.N_PACK))
     w = np.empty((_BLOCK, pr.N_LOBES, 3))
+    at = np.empty(_BLOCK, np.int64)
+    w_plain = np.zeros((pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
     ns_ = 0
     nn = 0
     for b0 in range(0, nh, _BLOCK):
         nb = min(_BLOCK, nh - b0)
+        nc = 0
         for j in range(nb):
             i = rows[b0 + j]
-            mat_h[j] = mat[i]
-            base_h[j, 0], base_h[j, 1], base_h[j, 2] = base[i, 0], base[i, 1], base[i, 2]
-            cos_h[j] = -(ns[i, 0] * d[i, 0] + ns[i, 1] * d[i, 1] + ns[i, 2] * d[i, 2])
-            front_h[j] = front[i]
-            alpha_h[j] = alpha[i]
-        pr.setup(mat_h[:nb], params, base_h[:nb], cos_h[:nb], front_h[:nb], alpha_h[:nb],
-                 prm[:nb], w[:nb])
+            if plain[mat[i]]:
+                at[j] = -1
+                continue
+            at[j] = nc
+            mat_h[nc] = mat[i]
+            base_h[nc, 0], base_h[nc, 1], base_h[nc, 2] = base[i, 0], base[i, 1], base[i, 2]
+            cos_h[nc] = -(ns[i, 0] * d[i, 0] + ns[i, 1] * d[i, 1] + ns[i, 2] * d[i, 2])
+            front_h[nc] = front[i]
+            alpha_h[nc] = alpha[i]
+            nc += 1
+        if nc > 0:
+            pr.setup(mat_h[:nc], params, base_h[:nc], cos_h[:nc], front_h[:nc],
+                     alpha_h[:nc], prm[:nc], w[:nc])
         for j in range(nb):
             i = rows[b0 + j]
+            jc = at[j]
+            if jc < 0:
+                # The diffuse and pass weights principled.setup gives a material without
+                # other lobes, bit for bit (its other lobes' weights stay 0).
+                a = alpha[i]
+                for c in range(3):
+                    w_plain[pr.L_PASS, c] = (1.0 - a) * params[mat[i], pr.M_TTINT + c]
+                    w_plain[pr.L_DIFFUSE, c] = a * base[i, c]
+                wj = w_plain
+            else:
+                wj = w[jc]
             t = prim[i]
             fl = flags[i]
             if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
@@ -251,7 +274,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
             kin = kinds[i]
             hit_vis = np.int64(visibility[t]) if vis_on else np.int64(ALL_RAYS)
             # --- store ---
-            wd = max(w[j, 0, 0], max(w[j, 0, 1], w[j, 0, 2]))
+            wd = max(wj[0, 0], max(wj[0, 1], wj[0, 2]))
             store = wd > 0.0
             if caustic_only and kind != CAUSTIC:
                 store = False
@@ -274,7 +297,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
             # --- Russian roulette over the lobes ---
             s = 0.0
             for l in range(pr.N_LOBES):
-                probs[l] = max(w[j, l, 0], max(w[j, l, 1], w[j, l, 2]))
+                probs[l] = max(wj[l, 0], max(wj[l, 1], wj[l, 2]))
                 s += probs[l]
             norm = max(s, 1.0)
             xi = uniform(key, slot[i], bounce, 0)
@@ -302,7 +325,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
                 ox, oy, oz = pr.frame_world(n0, n1, n2, r * math.cos(phi), r * math.sin(phi),
                                             math.sqrt(max(0.0, 1.0 - u1)))
                 ok = ox * gx + oy * gy + oz * gz > 0.0
-                k0, k1, k2 = w[j, 0, 0] * bump[i], w[j, 0, 1] * bump[i], w[j, 0, 2] * bump[i]
+                k0, k1, k2 = wj[0, 0] * bump[i], wj[0, 1] * bump[i], wj[0, 2] * bump[i]
             elif lobe == pr.L_PASS:
                 ox, oy, oz = dx, dy, dz
                 transmitted = True
@@ -314,7 +337,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
             else:
                 lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
                 ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
-                    prm, j, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),
+                    prm, jc, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),
                     uniform(key, slot[i], bounce, 4), uniform(key, slot[i], bounce, 5))
                 ox, oy, oz = pr.frame_world(n0, n1, n2, ix, iy, iz)
                 ln = math.sqrt(ox * ox + oy * oy + oz * oz)
@@ -403,6 +426,14 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
     return ns_, nn
 
 
+def plain_materials(params: np.ndarray) -> np.ndarray:
+    """(M,) bool: materials whose closures are the diffuse and pass lobes alone (no sheen,
+    coat, metal, transmission or specular layer: principled.setup skips each of them
+    unless its weight is > 0), for scatter's set-up-free path."""
+    layers = (pr.M_SHEEN_W, pr.M_COAT_W, pr.M_METALLIC, pr.M_TRANS, pr.M_SPEC)
+    return np.ascontiguousarray(~np.any(params[:, layers] > 0.0, axis=1))
+
+
 def surface_arrays(m: int):
     """Empty per-hit arrays (p, ng, ns, front, mat, base, alpha, offset) for m rays."""
     return (np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3)), np.zeros(m, np.bool_),
@@ -440,7 +471,7 @@ def _warm_up():
                         np.full((1, 3), 0.5), np.ones(1), *surf)
     scatter(np.uint64(1), 0, d, np.ones((1, 3)), np.zeros(1, np.int64),
             np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), prim, *surf,
-            np.ones(1), params,
+            np.ones(1), params, plain_materials(params),
             np.full(1, 1.5), np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32),
             np.zeros(1, np.bool_), 0, False, False, *store_arrays(1), *next_arrays(2))
     uniforms(np.uint64(1), np.zeros(1, np.int64), 0, 0, np.empty(1))

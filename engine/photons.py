@@ -14,8 +14,8 @@ Russian roulette picks one lobe (diffuse, mirror, glass reflect / transmit, coat
 with probability = the lobe's largest RGB weight, or absorbs; power is divided by that
 probability, so the expected power is kept (the paper's scheme with pbrt's max rule,
 which never increases a photon's power). Everything between two Embree calls runs in the
-compiled kernels of engine/photonkernels.py; this module emits (each light kind's emit,
-engine/lights/) and drives the bounces.
+compiled kernels of engine/photonkernels.py, and so does emission (each light kind's
+emit kernel, engine/lights/emission.py); this module drives the bounces.
 """
 from __future__ import annotations
 
@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .lights.base import emission_key
+from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
 from . import photonkernels as pk
@@ -30,7 +32,6 @@ from .bsdf import LOBE_NAMES, surface_hit
 from .closures.principled import M_IOR
 from .normalmap import bump_shadowing
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
-from .sampling import max3
 
 LOBES = LOBE_NAMES
 
@@ -109,26 +110,22 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
                  first_hit=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits as
-    lists of arrays, bounce by bounce. Between two Embree calls the work is two compiled
-    kernels (engine/photonkernels.py); bsdf.surface_hit supplies the surface data instead
-    where a material has a texture, normal map or alpha texture."""
+    lists of arrays. Between two Embree calls the work is two compiled kernels
+    (engine/photonkernels.py); bsdf.surface_hit supplies the surface data instead where a
+    material has a texture, normal map or alpha texture."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
-    parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
-    if targets is None:
-        o, d, power = light.emit(n, rng)
-    else:
-        o, d, power = light.emit_towards(n, rng, *targets)
-    power *= n / count  # emit() spreads the light's whole flux over this chunk
-    live = max3(power) > 0  # e.g. aimed outside a one-sided light's hemisphere
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
-    # slot (photonkernels.uniform): a photon whose path changes (a hit a hair from an
-    # edge, rounded differently in a scaled scene) does not change the paths of others.
-    slot = np.nonzero(live)[0].astype(np.int64)
-    key = np.uint64(rng.integers(1 << 63, dtype=np.uint64))
-    if not live.all():
-        o, d, power = o[live], d[live], power[live]
-    d = np.ascontiguousarray(d, np.float64)
-    power = np.ascontiguousarray(power, np.float64)
+    # slot (photonkernels.uniform), emission included: a photon whose path changes (a hit
+    # a hair from an edge, rounded differently in a scaled scene) does not change the
+    # paths of others. The light's kernel writes the rays of the photons that carry power
+    # (engine/lights/emission.py).
+    key = emission_key(rng)
+    out = EmissionBuffers(n)
+    if targets is None:
+        m = light.emit_into(key, 0, n, count, out, 0)
+    else:
+        m = light.emit_towards_into(key, 0, n, count, targets, out, 0)
+    o, d32, d, power, slot = out.head(m)
     flags = np.zeros(len(o), np.int64)
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
     # surface stands for the camera-side ray that leaves that surface backwards; `kinds`
@@ -143,22 +140,33 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     else:
         caster, mode = np.ascontiguousarray(first_hit[0], np.bool_), 2 if first_hit[1] else 1
     numpy_hits = _needs_numpy_hits(table)
+    plain = pk.plain_materials(table.closure_params)
+    # Buffers for the whole chunk, reused bounce after bounce: the surface data, the
+    # stored photons (appended to by each bounce), and two sets of continued rays (one is
+    # the bounce's input, the other its output).
+    surf = pk.surface_arrays(m)
+    bump = np.ones(m)
+    stored = _Stored(2 * m + 1024)
+    nxt_sets = [None, None]
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
         m = len(o)
         if m == 0:
             break
-        _, prim, u, v = accel.intersect(o, d)
-        surf = pk.surface_arrays(m)
-        bump = np.ones(m)
-        params, mat_ior = table.closure_params, table.ior
+        _, prim, u, v = accel.intersect(o, d32)
+        if m > len(bump):
+            surf = pk.surface_arrays(m)
+            bump = np.ones(m)
+        surf_m = tuple(a[:m] for a in surf)
+        params, row_plain, mat_ior = table.closure_params, plain, table.ior
         if numpy_hits:
+            bump[:m] = 1.0
             rows = np.nonzero(prim >= 0)[0]
             hit = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
             alpha = (np.take(table.alpha, hit.mat) if hit.alpha is None else hit.alpha)
-            for dst, src in zip(surf, (hit.p, hit.ng, hit.ns, hit.front, hit.mat, hit.base,
-                                       alpha, hit.offset)):
+            for dst, src in zip(surf_m, (hit.p, hit.ng, hit.ns, hit.front, hit.mat, hit.base,
+                                         alpha, hit.offset)):
                 dst[rows] = src
             if hit.n_smooth is not None:
                 # Bent normals (Normal Map / Bump): the diffuse lobe takes Cycles' bump
@@ -169,25 +177,50 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                 # per photon (its "material" index is its own row).
                 params = np.zeros((m, table.closure_params.shape[1]))
                 params[rows] = hit.params
-                surf[4][:] = np.arange(m)
+                surf_m[4][:] = np.arange(m)
                 mat_ior = np.ascontiguousarray(params[:, M_IOR])
+                row_plain = pk.plain_materials(params)
         # Shared instances: the hits' rows gathered (geometry.Geometry.hit_tables).
         rows, (v0, e1, e2, normals, material, visibility, object_id) = geo.hit_tables(
             prim, "v0", "e1", "e2", "corner_normals", "material", "visibility", "object_id")
         if not numpy_hits:
             pk.photon_surfaces(rows, u, v, d, v0, e1, e2, normals, material,
-                               table.base_color, table.alpha, *surf)
-        store = pk.store_arrays(m)
-        nxt = pk.next_arrays(2 * m if vis_on else m)
-        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, rows, *surf, bump,
-                                params, mat_ior, visibility,
+                               table.base_color, table.alpha, *surf_m)
+        need = 2 * m if vis_on else m
+        k = bounce % 2
+        if nxt_sets[k] is None or len(nxt_sets[k][0]) < need:
+            nxt_sets[k] = pk.next_arrays(need)
+        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, rows, *surf_m,
+                                bump[:m], params, row_plain, mat_ior, visibility,
                                 object_id, caster, mode, bool(caustic_only), vis_on,
-                                *store, *nxt)
-        if n_st:
-            for name, buf in zip(("position", "power", "direction", "normal", "kind"), store):
-                parts[name].append(buf[:n_st].copy())
-        o, _d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt)
-    return parts
+                                *stored.room(m), *nxt_sets[k])
+        stored.count += n_st
+        o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt_sets[k])
+    return stored.parts()
+
+
+class _Stored:
+    """A chunk's stored photons (pk.store_arrays), appended to bounce by bounce."""
+
+    def __init__(self, capacity: int):
+        self.arrays = pk.store_arrays(capacity)
+        self.count = 0
+
+    def room(self, m: int):
+        """Views of the rows from `count` on, at least m of them (the buffers grow)."""
+        if self.count + m > len(self.arrays[0]):
+            grown = pk.store_arrays(max(2 * len(self.arrays[0]), self.count + m))
+            for new, old in zip(grown, self.arrays):
+                new[:self.count] = old[:self.count]
+            self.arrays = grown
+        return tuple(a[self.count:] for a in self.arrays)
+
+    def parts(self) -> dict:
+        """{name: [array]}: the stored photons (views: trace_photons concatenates them)."""
+        names = ("position", "power", "direction", "normal", "kind")
+        if self.count == 0:
+            return {name: [] for name in names}
+        return {name: [a[:self.count]] for name, a in zip(names, self.arrays)}
 
 
 def _needs_numpy_hits(table) -> bool:

@@ -87,10 +87,11 @@ def test_half_image_estimate_is_within_a_factor_two_of_the_true_error(which, box
         ref = render_progressive(scene, RenderSettings(spp=8, photons=40000, caustic_photons=20000,
                                                        seed=99), Budget(passes=12)).combined
     # At 1 spp a single lucky path (the light seen through the glass ball) moves one run's
-    # true error by 2-3x, so judge the typical ratio over three runs, from pass 4 on (two
-    # samples per pixel cannot see a rare highlight's variance).
+    # true error by 2-3x, so judge the typical ratio over five runs, from pass 4 on (two
+    # samples per pixel cannot see a rare highlight's variance). Over three runs Figure 3's
+    # typical ratio moved between 0.39 and 0.65 with the seeds.
     ratios = []
-    for seed in (5, 6, 7):
+    for seed in (5, 6, 7, 8, 9):
         render_progressive(scene, RenderSettings(seed=seed, spp=1, photons=10000,
                                                  caustic_photons=5000),
                            Budget(passes=6),

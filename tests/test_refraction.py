@@ -44,7 +44,9 @@ def _sun_through(ior, slab):
     return s
 
 
-def _caustic_power(scene, photons=40000):
+def _caustic_power(scene, photons=200_000):
+    # 200k photons: the floor's caustic power has a 0.65 % standard error (40k: 1.4 %,
+    # measured over 10 seeds, against the tests' 2 % tolerance).
     scene.validate()
     settings = RenderSettings(photons=photons, seed=3)
     geo, table = prepare(scene)

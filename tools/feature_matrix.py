@@ -1389,8 +1389,11 @@ def transparency_window_open():
 # Light through glass comes from the caustic maps (glass blocks shadow rays, as in
 # Cycles); the walls, lit one bounce later by the secondary caustic photons, read 22-31 %
 # dark while that map was searched with the global radius (render._build_maps): with its
-# own radius, mean 0.985-1.004 and block error 0.29-0.36 (seeds 0, 1).
-@case("transparency", block_tol=0.35)
+# own radius, mean 0.985-1.004 and block error 0.29-0.36 (seeds 0, 1). Over seeds 0-9
+# (issue 13, docs/performance.md "Fourth slice: photon emission"): block error 0.25-0.43
+# with the numpy emission, 0.30-0.45 with the emission kernels (mean 0.994 / 0.993): the
+# largest of 192 block errors moves with the seed; 0.47 holds both distributions.
+@case("transparency", block_tol=0.47)
 def transparency_window_glass_plane():
     """The window room behind a single-plane Glass pane."""
     _window_room("plane")
@@ -1399,7 +1402,10 @@ def transparency_window_glass_plane():
 # The pane's own blocks (the glass seen from inside the room) are the worst: block error
 # 0.31 against 0.35 at the matrix's seed (33-38 % dark blocks were measured before the
 # photon kernels' random numbers; the walls and floor lit through it are within 5 %).
-@case("transparency", block_tol=0.35)
+# Over seeds 1-50: block error median 0.34 and over 0.35 at 24 seeds with the numpy
+# emission (max 0.437), at 22 with the emission kernels (max 0.465); brightness 0.983 +-
+# 0.002 both (docs/performance.md, "Fourth slice: photon emission").
+@case("transparency", block_tol=0.47)
 def transparency_window_glass_slab():
     """The window room behind a 2 cm Glass slab."""
     _window_room("slab")
@@ -1811,17 +1817,19 @@ def _save_references(refs, meta):
         json.dump(meta, f, indent=1, sort_keys=True)
 
 
-def run_matrix(names):
+def run_matrix(names, seed=0):
     refs = load_references()
     rows = []
     for name in names:
         c = CASES[name]
-        img, seconds, warnings = render_ours(name)
+        img, seconds, warnings = render_ours(name, seed)
         s = score(blocks(img), refs[name]) if name in refs else None
         fails = verdict(c, s, warnings)
         rows.append(dict(case=c, score=s, fails=fails, seconds=seconds, warnings=warnings))
         state = "ok" if not fails else "FAIL: " + "; ".join(fails)
-        print(f"{name:40s} {seconds:5.1f} s  {state}", flush=True)
+        measured = "" if s is None else (f"  brightness {s['brightness']:.3f}, "
+                                         f"block error {s['block_error']:.3f}")
+        print(f"{name:40s} {seconds:5.1f} s  {state}{measured}", flush=True)
     return rows
 
 
@@ -1877,6 +1885,10 @@ def main(argv=None):
     p.add_argument("--report", action="store_true", help="score ours, write the report")
     p.add_argument("--list", action="store_true", help="list the cases")
     p.add_argument("--only", help="comma-separated case names (default: all)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="our renders' seed for --report (default 0, the matrix's and the "
+                        "test's; other seeds show the photon maps' noise); the report is "
+                        "written only at seed 0")
     args = p.parse_args(argv)
     names = list(CASES) if not args.only else [n.strip() for n in args.only.split(",")]
     unknown = [n for n in names if n not in CASES]
@@ -1889,9 +1901,11 @@ def main(argv=None):
     if args.references:
         make_references(names)
     if args.report:
-        rows = run_matrix(names)
+        rows = run_matrix(names, args.seed)
         if args.only:
             print("(--only: the report is not written for a partial run)")
+        elif args.seed:
+            print("(--seed: the report is written only at the matrix's seed 0)")
         else:
             write_report(rows)
     if not (args.references or args.report or args.list):

@@ -9,9 +9,9 @@ non-black background is a uniform environment, an environment map (environment.p
 importance-sampled HDRI. Many lights: selection.py's light tree picks one per shadow ray.
 
 To add a light kind: subclass Light in a new module, implement from_scene, pack (and its
-sampling in engine/directlight.py), _emit,
-_aim_origins / _aimed_photons (or emit_towards) and, if it has a visible surface,
-intersect; then add it to LIGHT_KINDS below. engine/scene.py, engine/scenefile.py,
+sampling in engine/directlight.py), _emit (calling the module's emission kernel, natural
+and aimed: engine/lights/emission.py) and, if it has a visible surface, intersect; then
+add it to LIGHT_KINDS below and to emission._warm_up. engine/scene.py, engine/scenefile.py,
 engine/api.py and addon/export.py take the declared kinds from here.
 """
 from __future__ import annotations

@@ -7,7 +7,10 @@ import math
 
 import numpy as np
 
-from ..sampling import concentric_disk, cosine_hemisphere, dot, to_world
+from ..jit import kernel
+from ..sampling import dot
+from .emission import (f64, aim_direction, concentric_disk, cosine_hemisphere, emit_uniform, put,
+                       to_world)
 from ..scene import AREA, DISK, spread_attenuation
 from . import packing as pk
 from .base import Light
@@ -50,40 +53,17 @@ class AreaLight(Light):
         row[pk.SPREAD_NORM] = (1.0 / (math.tan(h) - h) if h > 0.05 else 3.0 / h ** 3) if h > 0 else 0.0
         return pk.CODE_AREA
 
-    def points(self, u1, u2):
-        """Uniform points on the rectangle or ellipse."""
-        if self.shape == DISK:
-            x, yy = concentric_disk(u1, u2)
-            x, yy = x * self.size_x / 2, yy * self.size_y / 2
-        else:
-            x, yy = (u1 - 0.5) * self.size_x, (u2 - 0.5) * self.size_y
-        # du, dv: the dual basis of (u, v) in the light's plane (= u, v unless sheared),
-        # so that p.u and p.v span the region the intersection test accepts.
-        return self.pos + x[:, None] * self.du + yy[:, None] * self.dv
-
-    def _emit(self, n, rng, u1, u2, u3, u4):
-        o = self.points(u1, u2)
-        if self.spread < math.pi:
-            # Cosine-distributed inside the spread cone (a disk of radius sin h under
-            # the hemisphere): pdf cos a / (pi sin^2 h); the radiance's cos a f(a) / pi
-            # over that pdf leaves the weight f(a) sin^2 h (mean 1: flux kept).
-            sin_h = math.sin(0.5 * self.spread)
-            x, yy = concentric_disk(u3, u4)
-            x, yy = x * sin_h, yy * sin_h
-            local = np.stack([x, yy, np.sqrt(np.maximum(1.0 - x * x - yy * yy, 0.0))], 1)
-            d = to_world(local, np.broadcast_to(self.dir, (n, 3)))
-            w = spread_attenuation(local[:, 2], self.spread) * sin_h * sin_h
-            return o, d, (self.flux / n)[None, :] * w[:, None]
-        d = to_world(cosine_hemisphere(u3, u4), np.broadcast_to(self.dir, (n, 3)))
-        return o, d, np.broadcast_to(self.flux / n, (n, 3)).copy()
-
-    def _aim_origins(self, n, rng, u1, u2):
-        return self.points(u1, u2), None, self.pos, None
-
-    def _aimed_photons(self, n, rng, o, d, normal, state, aimed):
-        cos = dot(d, self.dir)
-        pdf_nat = np.maximum(cos, 0.0) / math.pi * spread_attenuation(cos, self.spread)
-        return o, d, (self.flux / n)[None, :] * (pdf_nat / aimed)[:, None]
+    def _emit(self, aim, aimed, key, first, n, count, out, start):
+        h = 0.5 * self.spread
+        # spread_attenuation (engine/scene.py) is 1 from pi - 1e-6 on; below pi the
+        # directions are drawn inside the spread cone.
+        norm = (1.0 / (math.tan(h) - h) if h > 0.05 else 3.0 / h ** 3) if h > 0 else 0.0
+        return emit_area(f64(self.pos), f64(self.dir), f64(self.du), f64(self.dv),
+                         float(self.size_x),
+                         float(self.size_y), self.shape == DISK, self.spread < math.pi,
+                         self.spread < math.pi - 1e-6, math.sin(h), math.tan(h), norm,
+                         f64(self.flux), *aim.arrays, aimed, key, first, n,
+                         float(count), *out.arrays, start)
 
     def intersect(self, o, d, tmax):
         """One-sided: a ray must travel against the emission to see the light."""
@@ -99,3 +79,65 @@ class AreaLight(Light):
         if self.spread < math.pi:
             L = L * spread_attenuation(-denom, self.spread)[:, None]
         return mask, t, L
+
+
+@kernel
+def spread_factor(on, tan_h, norm, cos_a):
+    """scene.spread_attenuation for one cosine (on: spread below pi - 1e-6)."""
+    if not on:
+        return 1.0
+    c = max(cos_a, 1e-12)
+    tan_a = math.sqrt(max(1.0 - c * c, 0.0)) / c
+    if cos_a > 0:
+        return max((tan_h - tan_a) * norm, 0.0)
+    return 0.0
+
+
+@kernel
+def emit_area(pos, axis, du, dv, size_x, size_y, disk, narrow, spread_on, sin_h, tan_h, norm,
+              flux, centers, radii, probs, cdf, aimed, key, first, n, count,
+              o32, d32, d, power, slot, start):
+    """Photons of an area light (rectangle or ellipse size_x x size_y spanned by du, dv
+    round pos; one-sided along axis) of flux `flux` (3,) W: uniform points, cosine-
+    distributed directions; narrow (spread < pi): cosine-distributed inside the spread
+    cone (a disk of radius sin h under the hemisphere, pdf cos a / (pi sin^2 h)), weighted
+    f(a) sin^2 h (mean 1: the flux is kept). aimed: directions aimed at the spheres,
+    weighted by the natural pdf cos a f(a) / pi over the aimed pdf. Dimensions: 0, 1 the
+    point, 2, 3 the direction; aimed: 0 the target, 1, 2 the point, 3, 4 the direction."""
+    j = start
+    f0, f1, f2 = flux[0] / count, flux[1] / count, flux[2] / count
+    k = 1 if aimed else 0
+    for i in range(n):
+        s = first + i
+        u1 = emit_uniform(key, s, k)
+        u2 = emit_uniform(key, s, k + 1)
+        if disk:
+            x, y = concentric_disk(u1, u2)
+            x, y = x * size_x / 2, y * size_y / 2
+        else:
+            x, y = (u1 - 0.5) * size_x, (u2 - 0.5) * size_y
+        # du, dv: the dual basis of (u, v) in the light's plane (= u, v unless sheared),
+        # so that p.u and p.v span the region the intersection test accepts.
+        o0 = pos[0] + x * du[0] + y * dv[0]
+        o1 = pos[1] + x * du[1] + y * dv[1]
+        o2 = pos[2] + x * du[2] + y * dv[2]
+        if not aimed:
+            u3 = emit_uniform(key, s, 2)
+            u4 = emit_uniform(key, s, 3)
+            if narrow:
+                a, b = concentric_disk(u3, u4)
+                a, b = a * sin_h, b * sin_h
+                c = math.sqrt(max(1.0 - a * a - b * b, 0.0))
+                w = spread_factor(spread_on, tan_h, norm, c) * sin_h * sin_h
+            else:
+                a, b, c = cosine_hemisphere(u3, u4)
+                w = 1.0
+            d0, d1, d2 = to_world(a, b, c, axis[0], axis[1], axis[2])
+        else:
+            d0, d1, d2, pdf_aim = aim_direction(centers, radii, probs, cdf, o0, o1, o2,
+                                                emit_uniform(key, s, 0), emit_uniform(key, s, 3),
+                                                emit_uniform(key, s, 4))
+            cos = d0 * axis[0] + d1 * axis[1] + d2 * axis[2]
+            w = max(cos, 0.0) / math.pi * spread_factor(spread_on, tan_h, norm, cos) / pdf_aim
+        j = put(o32, d32, d, power, slot, j, o0, o1, o2, d0, d1, d2, f0 * w, f1 * w, f2 * w, s)
+    return j

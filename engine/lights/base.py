@@ -6,19 +6,19 @@ holds that kind's
     prepare         from_scene / from_geometry: re-centred, everything sampling needs
     pack            its parameters for the compiled direct-light kernels, which sample it
                     for shadow rays (engine/lights/packing.py, engine/directlight.py)
-    emit            photons as the light emits them (sum of power = flux)
-    emit_towards    photons aimed at caustic casters, reweighted (same expected power)
+    emit_into       photons as the light emits them (sum of power = flux), written by a
+                    compiled kernel of the kind's module (engine/lights/emission.py)
+    emit_towards_into  photons aimed at caustic casters, reweighted (same expected power)
     intersect       rays meeting the emitting surface (the light seen in mirrors)
     photon_flux     RGB power (W) the photon pass distributes among lights
 Units: docs/units.md; docs/design.md, Units (Cycles).
 """
 from __future__ import annotations
 
-import math
 import numpy as np
 
 from ..geometry import ALL_RAYS, CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION
-from ..sampling import concentric_disk, dot, orthonormal_basis, to_world, uniform_cone
+from .emission import NO_AIM, Aim, EmissionBuffers, aim_disks, aim_weights
 
 
 def ray_kinds_of(light) -> int:
@@ -100,63 +100,45 @@ class Light:
         raise NotImplementedError
 
     # ------------------------------------------------------------------ photons
-    def emit(self, n: int, rng):
-        """n photons: origins (n,3), unit directions (n,3), RGB power (n,3) in W each;
-        sum of power = photon_flux."""
-        u1, u2, u3, u4 = (rng.random(n) for _ in range(4))
-        return self._emit(n, rng, u1, u2, u3, u4)
+    def emit_into(self, key, first: int, n: int, count: int, out, start: int) -> int:
+        """Emit the photons in slots first .. first + n - 1 of a chunk keyed by key
+        (uint64) into out (emission.EmissionBuffers) from row `start`, compacted (photons
+        of no power take no row), each carrying photon_flux / count (count: this light's
+        photons over all chunks); returns the next free row. A compiled kernel of the
+        light's module (engine/lights/emission.py)."""
+        return self._emit(NO_AIM, False, key, first, n, count, out, start)
 
-    def _emit(self, n, rng, u1, u2, u3, u4):
+    def aim(self, centers: np.ndarray, radii: np.ndarray) -> Aim:
+        """How this light aims at bounding spheres (centers (K,3), radii (K,)): caustic
+        casters (emission.aim_weights: by the solid angle each subtends)."""
+        return aim_weights(centers, self._aim_radii(radii), self.pos)
+
+    def emit_towards_into(self, key, first: int, n: int, count: int, targets, out,
+                          start: int) -> int:
+        """As emit_into, the photons aimed at bounding spheres targets = (centers (K,3),
+        radii (K,)) (self.aim) and weighted so the expected power arriving anywhere inside
+        them equals that of emit_into: power = natural power x natural pdf / aimed pdf."""
+        return self._emit(self.aim(*targets), True, key, first, n, count, out, start)
+
+    def _emit(self, aim: Aim, aimed: bool, key, first, n, count, out, start) -> int:
+        """The kind's emission kernel: natural (aimed False) or aimed photons."""
         raise NotImplementedError
+
+    def emit(self, n: int, rng):
+        """n photons with a key drawn from rng (numpy.random.Generator): origins (m,3),
+        unit directions (m,3), RGB power (m,3) in W each, for the m <= n that carry power;
+        sum of power = photon_flux (in expectation for lights whose power varies per
+        photon). The photon pass itself calls emit_into."""
+        return emit_arrays(self, n, rng)
 
     # ------------------------------------------------------------------ aimed photons
     def emit_towards(self, n: int, rng, centers: np.ndarray, radii: np.ndarray):
-        """n photons aimed at bounding spheres (centers (K,3), radii (K,): caustic casters),
-        weighted so the expected power arriving anywhere inside the spheres equals that of
-        emit(): power = natural power x natural pdf / aimed pdf (POV-Ray-style photon
-        targets). Finite lights: each photon picks a sphere by its solid angle seen from
-        the light, then a direction uniformly in its cone."""
-        K = len(centers)
-        if K == 0 or n == 0:
-            z = np.zeros((0, 3))
-            return z, z.copy(), z.copy()
-        radii = self._aim_radii(radii)
-        u1, u2, u3, u4 = (rng.random(n) for _ in range(4))
-        o, normal, anchor, state = self._aim_origins(n, rng, u1, u2)
-        # Choose a target per photon in proportion to its solid angle seen from the light.
-        dist_a = np.linalg.norm(centers - anchor, axis=1)
-        sin_a = np.clip(radii / np.maximum(dist_a, 1e-300), 0.0, 1.0)
-        omega_a = 2.0 * math.pi * (1.0 - np.sqrt(1.0 - sin_a ** 2))
-        probs = np.maximum(omega_a, 1e-12) / np.maximum(omega_a, 1e-12).sum()
-        j = rng.choice(K, size=n, p=probs)
-        to_c = centers[j] - o
-        dist = np.linalg.norm(to_c, axis=1)
-        axis = to_c / np.maximum(dist, 1e-300)[:, None]
-        cos_max = np.sqrt(np.maximum(0.0, 1.0 - (radii[j] / np.maximum(dist, 1e-300)) ** 2))
-        cos_max = np.where(dist <= radii[j], -1.0, cos_max)  # inside: whole sphere
-        d = to_world(uniform_cone(u3, u4, cos_max), axis)
-        aimed = np.zeros(n)
-        for k in range(K):
-            to_k = centers[k] - o
-            dk = np.linalg.norm(to_k, axis=1)
-            cos_k = np.sqrt(np.maximum(0.0, 1.0 - (radii[k] / np.maximum(dk, 1e-300)) ** 2))
-            cos_k = np.where(dk <= radii[k], -1.0, cos_k)
-            inside = dot(d, to_k) >= cos_k * dk
-            aimed += probs[k] * inside / (2.0 * math.pi * (1.0 - cos_k))
-        aimed = np.maximum(aimed, 1e-300)
-        return self._aimed_photons(n, rng, o, d, normal, state, aimed)
+        """As emit, n photons aimed at bounding spheres (centers (K,3), radii (K,)):
+        emit_towards_into with a key drawn from rng."""
+        return emit_arrays(self, n, rng, (centers, radii))
 
     def _aim_radii(self, radii):
         return radii
-
-    def _aim_origins(self, n, rng, u1, u2):
-        """(origins (n,3), their surface normals or None, the point solid angles are seen
-        from, kind-specific state for _aimed_photons)."""
-        return np.broadcast_to(self.pos, (n, 3)).copy(), None, self.pos, None
-
-    def _aimed_photons(self, n, rng, o, d, normal, state, aimed):
-        """(origins, directions, power) of aimed photons; aimed = the aiming pdf of d."""
-        raise NotImplementedError
 
     # ------------------------------------------------------------------ seen in mirrors
     def intersect(self, o, d, tmax):
@@ -174,48 +156,28 @@ class InfiniteLight(Light):
     """A light at infinity (sun, world): photons leave a disk of the scene's bounding
     radius, 2 radii before the scene's centre, across their direction."""
 
-    def _directions(self, n, u1, u2):
-        raise NotImplementedError
+    def aim(self, centers: np.ndarray, radii: np.ndarray) -> Aim:
+        """Photons from infinity aim at the casters' shadow disks (emission.aim_disks)."""
+        return aim_disks(centers, radii)
 
-    def _photons_along(self, n, u1, u2):
-        """(directions of travel (n,3), power (n,3) of n photons): by default directions
-        of equal power (_directions); a light whose radiance varies with direction (an
-        environment map) weights them by radiance / pdf."""
-        d = self._directions(n, u1, u2)
-        return d, np.broadcast_to(self.photon_flux / n, (n, 3)).copy()
 
-    def _emit(self, n, rng, u1, u2, u3, u4):
-        d, power = self._photons_along(n, u1, u2)
-        x, yy = concentric_disk(u3, u4)
-        t, b = orthonormal_basis(d)
-        o = (self.center - 2.0 * self.scene_radius * d
-             + self.scene_radius * (x[:, None] * t + yy[:, None] * b))
-        return o, d, power
+def emission_key(rng) -> np.uint64:
+    """The key of a chunk's random numbers (engine/photonkernels.uniform), from rng."""
+    return np.uint64(rng.integers(1 << 63, dtype=np.uint64))
 
-    def emit_towards(self, n: int, rng, centers: np.ndarray, radii: np.ndarray):
-        """As Light.emit_towards; photons start on the casters' shadow disks in the plane
-        of the natural emission disk."""
-        K = len(centers)
-        if K == 0 or n == 0:
-            z = np.zeros((0, 3))
-            return z, z.copy(), z.copy()
-        u1, u2, u3, u4 = (rng.random(n) for _ in range(4))
-        d, power = self._photons_along(n, u1, u2)
-        probs = radii ** 2 / np.sum(radii ** 2)
-        j = rng.choice(K, size=n, p=probs)
-        x, yy = concentric_disk(u3, u4)
-        t, b = orthonormal_basis(d)
-        R = self.scene_radius
-        start = self.center - 2.0 * R * d  # the natural disk's centre for direction d
-        c = centers[j]
-        # Centre of caster j's shadow disk in the plane through `start` normal to d.
-        c_proj = c - dot(c - start, d)[:, None] * d
-        o = c_proj + radii[j][:, None] * (x[:, None] * t + yy[:, None] * b)
-        aimed = np.zeros(n)
-        for k in range(K):
-            ck = centers[k] - dot(centers[k] - start, d)[:, None] * d
-            inside = np.linalg.norm(o - ck, axis=1) <= radii[k]
-            aimed += probs[k] * inside / (math.pi * radii[k] ** 2)
-        natural = (np.linalg.norm(o - start, axis=1) <= R) / (math.pi * R * R)
-        ratio = natural / np.maximum(aimed, 1e-300)
-        return o, d, power * ratio[:, None]
+
+def emit_arrays(emitter, n: int, rng, targets=None):
+    """(origins, directions, power) (m,3) float64 of n photons of a light or LightGroup
+    (engine/lights/group.py), natural or aimed at targets = (centers, radii), with a key
+    drawn from rng: Light.emit and emit_towards."""
+    if n == 0 or (targets is not None and len(targets[0]) == 0):
+        z = np.zeros((0, 3))
+        return z, z.copy(), z.copy()
+    out = EmissionBuffers(n)
+    key = emission_key(rng)
+    if targets is None:
+        m = emitter.emit_into(key, 0, n, n, out, 0)
+    else:
+        m = emitter.emit_towards_into(key, 0, n, n, targets, out, 0)
+    o32, _, d, power, _ = out.head(m)
+    return o32.astype(np.float64), d.copy(), power.copy()

@@ -7,16 +7,15 @@ Only scenes with more than selection.SAMPLE_ALL_UP_TO lights are grouped, so the
 """
 from __future__ import annotations
 
-import numpy as np
-
 from ..parallel import MIN_CHUNK
 from . import selection
+from .base import emit_arrays
 
 
 class LightGroup:
-    """Consecutive lights of equal ray visibility that emit as one photon job: emit(n)
-    with n = the sum of their photon counts returns each member's photons (each member's
-    share summing to its photon_flux, as Light.emit), concatenated in order."""
+    """Consecutive lights of equal ray visibility that emit as one photon job: emit_into
+    with n = the sum of their photon counts writes each member's photons (each member's
+    share summing to its photon_flux, as Light.emit_into), in order."""
 
     def __init__(self, lights, counts):
         self.lights = list(lights)
@@ -24,21 +23,32 @@ class LightGroup:
         self.ray_kinds = self.lights[0].ray_kinds
         self.name = f"{len(self.lights)} lights from '{self.lights[0].name}'"
 
-    def _join(self, parts):
-        return tuple(np.concatenate([p[k] for p in parts]) for k in range(3))
+    def _check(self, n):
+        if n != sum(self.counts):
+            raise ValueError(f"{self.name}: a group emits its {sum(self.counts)} photons at once, "
+                             f"not {n}")
+
+    def emit_into(self, key, first, n, count, out, start):
+        """Light.emit_into for every member in turn (its own count), slots in order."""
+        self._check(n)
+        for light, c in zip(self.lights, self.counts):
+            start = light.emit_into(key, first, c, c, out, start)
+            first += c
+        return start
+
+    def emit_towards_into(self, key, first, n, count, targets, out, start):
+        """Light.emit_towards_into for every member in turn."""
+        self._check(n)
+        for light, c in zip(self.lights, self.counts):
+            start = light.emit_towards_into(key, first, c, c, targets, out, start)
+            first += c
+        return start
 
     def emit(self, n: int, rng):
-        if n != sum(self.counts):
-            raise ValueError(f"{self.name}: a group emits its {sum(self.counts)} photons at once, "
-                             f"not {n}")
-        return self._join([light.emit(c, rng) for light, c in zip(self.lights, self.counts)])
+        return emit_arrays(self, n, rng)
 
     def emit_towards(self, n: int, rng, centers, radii):
-        if n != sum(self.counts):
-            raise ValueError(f"{self.name}: a group emits its {sum(self.counts)} photons at once, "
-                             f"not {n}")
-        return self._join([light.emit_towards(c, rng, centers, radii)
-                           for light, c in zip(self.lights, self.counts)])
+        return emit_arrays(self, n, rng, (centers, radii))
 
 
 def photon_emitters(lights, counts, chunk_size: int) -> list:

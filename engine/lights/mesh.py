@@ -7,8 +7,11 @@ import math
 import numpy as np
 
 from ..geometry import emissive_triangles
-from ..rayoffset import origin_offset, triangle_point_error
-from ..sampling import cosine_hemisphere, dot, luminance, offset_origin, to_world, uniform_triangle
+from ..jit import kernel
+from ..rayoffset import _offset_row, _point_error
+from ..sampling import luminance
+from .emission import (f64, aim_direction, aim_weights, cosine_hemisphere, emit_uniform, pick, put,
+                       to_world)
 from . import packing as pk
 from .base import Light
 
@@ -44,42 +47,57 @@ class MeshLight(Light):
         """The triangles travel as arrays (packing.pack_lights); returns the kind code."""
         return pk.CODE_MESH
 
-    def _point(self, rng, u1, u2):
-        """(triangle index, point, barycentrics b1, b2) on the emissive triangles, chosen
-        by area x brightness."""
-        tri = np.searchsorted(self.cdf, rng.random(len(u1)), side="right").clip(0, len(self.cdf) - 1)
-        b1, b2 = uniform_triangle(u1, u2)
-        return tri, self.v0[tri] + b1[:, None] * self.e1[tri] + b2[:, None] * self.e2[tri], b1, b2
+    def aim(self, centers, radii):
+        """Aimed from the emitting triangles' mean corner (emission.aim_weights)."""
+        return aim_weights(centers, radii, self.v0.mean(axis=0))
 
-    def _error(self, tri, b1, b2, y):
-        """(N,3) rounding-error bound of points y on emissive triangles (engine/rayoffset.py)."""
-        return triangle_point_error(self.v0[tri], self.e1[tri], self.e2[tri], self.round32[tri],
-                                    b1, b2, y)
+    def _emit(self, aim, aimed, key, first, n, count, out, start):
+        return emit_mesh(f64(self.v0), f64(self.e1), f64(self.e2), f64(self.tri_ng),
+                         f64(self.tri_L), f64(self.tri_area), f64(self.prob), f64(self.cdf),
+                         f64(self.round32), f64(self.tilt32), *aim.arrays, aimed, key, first,
+                         n, float(count), *out.arrays, start)
 
-    def _offset(self, tri, b1, b2, y):
-        """(N,) distance along the normal that takes a ray leaving y clear of its triangle
-        (engine/rayoffset.py)."""
-        return origin_offset(self._error(tri, b1, b2, y), self.v0[tri], self.e1[tri],
-                             self.e2[tri], self.tri_ng[tri], y, self.tilt32[tri])
 
-    def _emit(self, n, rng, u1, u2, u3, u4):
-        tri, o, b1, b2 = self._point(rng, u1, u2)
-        side = np.where(rng.random(n) < 0.5, 1.0, -1.0)[:, None]
-        nrm = self.tri_ng[tri] * side
-        d = to_world(cosine_hemisphere(u3, u4), nrm)
-        power = (2.0 * math.pi * self.tri_area[tri] / (self.prob[tri] * n))[:, None] * self.tri_L[tri]
-        # Leave the emitting surface: from a point on the triangle itself, Embree can
-        # report the triangle again at t ~ 0 and the photon lands on its own emitter,
-        # from the wrong side (measured: a third of a furnace room's photons).
-        return offset_origin(o, nrm, d, self._offset(tri, b1, b2, o)), d, power
-
-    def _aim_origins(self, n, rng, u1, u2):
-        tri, o, b1, b2 = self._point(rng, u1, u2)
-        return o, self.tri_ng[tri], self.v0.mean(axis=0), (tri, b1, b2)
-
-    def _aimed_photons(self, n, rng, o, d, normal, state, aimed):
-        tri, b1, b2 = state
-        cos = np.abs(dot(d, normal))
-        scale = self.tri_area[tri] * cos / (self.prob[tri] * n * aimed)
-        return (offset_origin(o, normal, d, self._offset(tri, b1, b2, o)), d,
-                self.tri_L[tri] * scale[:, None])
+@kernel
+def emit_mesh(v0, e1, e2, ng, L, area, prob, cdf, round32, tilt32, centers, radii, probs,
+              aimed_cdf, aimed, key, first, n, count, o32, d32, d, power, slot, start):
+    """Photons of the emissive triangles (v0, e1, e2, unit normals ng (T,3), radiance L
+    (T,3), area (T,), chosen with probabilities prob / CDF cdf (T,) by area x brightness):
+    a uniform point, a side, a cosine-distributed direction; power 2 pi area L /
+    (prob count) (both sides emit). aimed: directions aimed at the spheres (centers, radii,
+    probs, aimed_cdf), power area L |cos| / (prob count aimed pdf). Each origin leaves its
+    triangle along ng by the rounding-error bound of the point (engine/rayoffset.py): from
+    the triangle itself, Embree can report it again at t ~ 0 and the photon lands on its own
+    emitter from the wrong side (measured: a third of a furnace room's photons).
+    Dimensions: 0 the triangle, 1, 2 the point, 3, 4 the direction, 5 the side (aimed: the
+    target)."""
+    j = start
+    for i in range(n):
+        s = first + i
+        t = pick(cdf, emit_uniform(key, s, 0))
+        sq = math.sqrt(emit_uniform(key, s, 1))
+        b1 = 1.0 - sq
+        b2 = emit_uniform(key, s, 2) * sq
+        y0 = v0[t, 0] + b1 * e1[t, 0] + b2 * e2[t, 0]
+        y1 = v0[t, 1] + b1 * e1[t, 1] + b2 * e2[t, 1]
+        y2 = v0[t, 2] + b1 * e1[t, 2] + b2 * e2[t, 2]
+        g0, g1, g2 = ng[t, 0], ng[t, 1], ng[t, 2]
+        if not aimed:
+            side = 1.0 if emit_uniform(key, s, 5) < 0.5 else -1.0
+            l0, l1, l2 = cosine_hemisphere(emit_uniform(key, s, 3), emit_uniform(key, s, 4))
+            d0, d1, d2 = to_world(l0, l1, l2, g0 * side, g1 * side, g2 * side)
+            w = 2.0 * math.pi * area[t] / (prob[t] * count)
+        else:
+            d0, d1, d2, pdf_aim = aim_direction(centers, radii, probs, aimed_cdf, y0, y1, y2,
+                                                emit_uniform(key, s, 5), emit_uniform(key, s, 3),
+                                                emit_uniform(key, s, 4))
+            w = area[t] * abs(d0 * g0 + d1 * g1 + d2 * g2) / (prob[t] * count * pdf_aim)
+        ex = _point_error(v0, e1, e2, round32, t, b1, b2, y0, y1, y2, 0)
+        ey = _point_error(v0, e1, e2, round32, t, b1, b2, y0, y1, y2, 1)
+        ez = _point_error(v0, e1, e2, round32, t, b1, b2, y0, y1, y2, 2)
+        off = _offset_row(ex, ey, ez, v0, e1, e2, t, g0, g1, g2, y0, y1, y2, tilt32[t])
+        if d0 * g0 + d1 * g1 + d2 * g2 < 0.0:
+            off = -off
+        j = put(o32, d32, d, power, slot, j, y0 + off * g0, y1 + off * g1, y2 + off * g2,
+                d0, d1, d2, L[t, 0] * w, L[t, 1] * w, L[t, 2] * w, s)
+    return j

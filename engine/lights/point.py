@@ -7,7 +7,10 @@ import math
 
 import numpy as np
 
-from ..sampling import cosine_hemisphere, dot, to_world, uniform_sphere
+from ..jit import kernel
+from ..sampling import dot
+from .emission import (cosine_hemisphere, f64, emit_uniform, put, to_world, aim_direction,
+                       uniform_sphere)
 from ..scene import POINT
 from . import packing as pk
 from .base import Light
@@ -48,28 +51,9 @@ class PointLight(Light):
         leaving the light; 1 for a point light."""
         return None
 
-    def _emit(self, n, rng, u1, u2, u3, u4):
-        if self.radius > 0:
-            s = uniform_sphere(u1, u2)
-            o = self.pos + self.radius * s
-            d = to_world(cosine_hemisphere(u3, u4), s)
-        else:
-            o = np.broadcast_to(self.pos, (n, 3)).copy()
-            d = uniform_sphere(u1, u2)
-        return o, d, np.broadcast_to(self.flux / n, (n, 3)).copy()
-
-    def _aim_origins(self, n, rng, u1, u2):
-        if self.radius > 0:
-            normal = uniform_sphere(u1, u2)
-            return self.pos + self.radius * normal, normal, self.pos, None
-        return np.broadcast_to(self.pos, (n, 3)).copy(), None, self.pos, None
-
-    def _aimed_photons(self, n, rng, o, d, normal, state, aimed):
-        if normal is not None:  # a radius: cosine-distributed from the sphere's surface
-            pdf_nat = np.maximum(dot(d, normal), 0.0) / math.pi
-        else:
-            pdf_nat = np.full(n, 1.0 / (4.0 * math.pi))
-        return o, d, (self.flux / n)[None, :] * (pdf_nat / aimed)[:, None]
+    def _emit(self, aim, aimed, key, first, n, count, out, start):
+        return emit_point(f64(self.pos), float(self.radius), f64(self.flux),
+                          *aim.arrays, aimed, key, first, n, float(count), *out.arrays, start)
 
     def intersect(self, o, d, tmax):
         """A light with a radius is a sphere of radiance I / (pi r^2) (x the spot mask)."""
@@ -89,3 +73,43 @@ class PointLight(Light):
         if f is not None:
             L = L * f[:, None]
         return mask, t, L
+
+
+@kernel
+def emit_point(pos, radius, flux, centers, radii, probs, cdf, aimed, key, first, n, count,
+               o32, d32, d, power, slot, start):
+    """Photons of a point light of flux `flux` (3,) W, radius `radius` (a sphere emitting
+    cosine-distributed from its surface: each point's radiance is the same): uniform over
+    the sphere of directions without radius. aimed: directions aimed at the spheres
+    (centers, radii; emission.aim_direction), weighted by natural pdf / aimed pdf.
+    Dimensions: 0, 1 the point on the sphere (or the direction), 2, 3 the direction;
+    aimed: 0 the target, 1, 2 the point, 3, 4 the direction."""
+    j = start
+    f0, f1, f2 = flux[0] / count, flux[1] / count, flux[2] / count
+    for i in range(n):
+        s = first + i
+        o0, o1, o2 = pos[0], pos[1], pos[2]
+        a0 = a1 = a2 = 0.0
+        w = 1.0
+        if not aimed:
+            a0, a1, a2 = uniform_sphere(emit_uniform(key, s, 0), emit_uniform(key, s, 1))
+            if radius > 0:
+                o0, o1, o2 = pos[0] + radius * a0, pos[1] + radius * a1, pos[2] + radius * a2
+                l0, l1, l2 = cosine_hemisphere(emit_uniform(key, s, 2), emit_uniform(key, s, 3))
+                d0, d1, d2 = to_world(l0, l1, l2, a0, a1, a2)
+            else:
+                d0, d1, d2 = a0, a1, a2
+        else:
+            if radius > 0:
+                a0, a1, a2 = uniform_sphere(emit_uniform(key, s, 1), emit_uniform(key, s, 2))
+                o0, o1, o2 = pos[0] + radius * a0, pos[1] + radius * a1, pos[2] + radius * a2
+            d0, d1, d2, pdf_aim = aim_direction(centers, radii, probs, cdf, o0, o1, o2,
+                                                emit_uniform(key, s, 0), emit_uniform(key, s, 3),
+                                                emit_uniform(key, s, 4))
+            if radius > 0:
+                pdf_nat = max(d0 * a0 + d1 * a1 + d2 * a2, 0.0) / math.pi
+            else:
+                pdf_nat = 1.0 / (4.0 * math.pi)
+            w = pdf_nat / pdf_aim
+        j = put(o32, d32, d, power, slot, j, o0, o1, o2, d0, d1, d2, f0 * w, f1 * w, f2 * w, s)
+    return j

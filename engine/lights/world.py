@@ -20,7 +20,10 @@ import math
 
 import numpy as np
 
-from ..sampling import dot, uniform_sphere
+from ..jit import kernel
+from ..sampling import dot
+from .emission import f64, aim_origin, disk_origin, emit_uniform, put, uniform_sphere
+from .environment import env_radiance, env_sample
 from . import packing as pk
 from .base import InfiniteLight
 
@@ -97,16 +100,55 @@ class WorldLight(InfiniteLight):
     def seen_at_infinity(self, d):
         return None  # the background itself: background_radiance
 
-    def _directions(self, n, u1, u2):
-        return uniform_sphere(u1, u2)
+    def _emit(self, aim, aimed, key, first, n, count, out, start):
+        env = self.environment
+        if env is None:
+            arrays = (np.eye(3), np.zeros((1, 1, 3), np.float32), 0, np.array([0.0, 1.0]),
+                      np.array([[0.0, 1.0]]), np.zeros((1, 1), np.float32))
+        else:
+            rows, cols, pdf_uv = env.distribution
+            arrays = (env.rotation, env.pixels, int(env.interp_code), rows, cols, pdf_uv)
+        return emit_world(env is not None, *arrays, f64(self.photon_flux), f64(self.center),
+                          float(self.scene_radius), *aim.arrays, aimed, key,
+                          first, n, float(count), *out.arrays, start)
 
-    def _photons_along(self, n, u1, u2):
-        if self.environment is None:
-            return super()._photons_along(n, u1, u2)
-        wi, pdf = self.environment.sample(u1, u2)
-        L = self.environment.radiance(wi)
-        # Power through the emission disk of area pi R^2: L(wi) / pdf(wi) x pi R^2 / n.
-        with np.errstate(divide="ignore", invalid="ignore"):
-            w = np.where(pdf > 0, 1.0 / np.maximum(pdf, 1e-300), 0.0)
-        power = L * (w * math.pi * self.scene_radius ** 2 / n)[:, None]
-        return -wi, power
+
+@kernel
+def emit_world(env_on, rotation, pixels, interp, rows, cols, pdf_uv, flux, center, R, centers,
+               radii, probs, cdf, aimed, key, first, n, count, o32, d32, d, power, slot,
+               start):
+    """Photons of the world. A constant background: directions uniform over the sphere,
+    each flux / count (flux: the radiance through the natural disk of radius R from every
+    direction). An environment map (env_on; its rotation, radiance texels, interpolation
+    and distribution: environment.py): directions from the map's distribution, power
+    L / pdf x pi R^2 / count. Photons travel against the sampled direction, from the
+    natural disk (emission.disk_origin) or, aimed, a caster's shadow disk
+    (emission.aim_origin). Dimensions: 0, 1 the direction, 2, 3 the origin; aimed: 2 the
+    target, 3, 4 the origin."""
+    j = start
+    f0, f1, f2 = flux[0] / count, flux[1] / count, flux[2] / count
+    area = math.pi * R * R
+    for i in range(n):
+        s = first + i
+        u1 = emit_uniform(key, s, 0)
+        u2 = emit_uniform(key, s, 1)
+        if env_on:
+            w0, w1, w2, pdf = env_sample(rotation, rows, cols, pdf_uv, u1, u2)
+            L0, L1, L2 = env_radiance(rotation, pixels, interp, w0, w1, w2)
+            inv = 1.0 / max(pdf, 1e-300) if pdf > 0 else 0.0
+            g = inv * area / count
+            p0, p1, p2 = L0 * g, L1 * g, L2 * g
+            d0, d1, d2 = -w0, -w1, -w2
+        else:
+            d0, d1, d2 = uniform_sphere(u1, u2)
+            p0, p1, p2 = f0, f1, f2
+        if not aimed:
+            o0, o1, o2 = disk_origin(center, R, d0, d1, d2, emit_uniform(key, s, 2),
+                                     emit_uniform(key, s, 3))
+        else:
+            o0, o1, o2, w = aim_origin(center, R, centers, radii, probs, cdf, d0, d1, d2,
+                                       emit_uniform(key, s, 2), emit_uniform(key, s, 3),
+                                       emit_uniform(key, s, 4))
+            p0, p1, p2 = p0 * w, p1 * w, p2 * w
+        j = put(o32, d32, d, power, slot, j, o0, o1, o2, d0, d1, d2, p0, p1, p2, s)
+    return j
