@@ -319,11 +319,16 @@ def test_instance_records_are_checked():
     assert any("does not match" in w for w in s.all_warnings())
 
 
-@pytest.mark.parametrize("after", [1, 40])
-def test_cancel_during_a_two_level_render(monkeypatch, after):
-    """A cancel in the build (after=1) or in the passes ends the render, marked."""
+@pytest.mark.parametrize("share", [0.0, 0.5])
+def test_cancel_during_a_two_level_render(monkeypatch, share):
+    """A cancel in the build (its first poll) or half way through the polls of the whole
+    render (in the passes) ends the render, marked."""
     from engine.render import render
     monkeypatch.setattr(resources, "INSTANCE_BUDGET_FRACTION", 0.0)
+    polls = []
+    render(_scene(), RenderSettings(spp=2, photons=20000, seed=1),
+           should_cancel=lambda: polls.append(1) and False)
+    after = max(1, int(share * len(polls)))
     flag = threading.Event()
     calls = []
 
