@@ -16,7 +16,10 @@ Prints Markdown tables:
   bounded, so spp does not change the peak) and per photon count, estimated
   (engine/resources.py) and measured (ru_maxrss of a fresh process), with bytes per
   stored photon;
-- cold compile (empty numba cache) and cached start (import + load), fresh processes.
+- cold compile (empty numba cache) and cached start (import + load), fresh processes;
+- where a 1-worker render's CPU time goes (cProfile on the process clock, after only):
+  compiled kernels, Embree, and the Python / numpy glue between them, which holds the GIL
+  and so bounds what a second worker can gain (Amdahl: 2 / (1 + glue share)).
 Every render runs in its own process; before and after alternate. The example blends are
 exported once through the add-on (the bpy wheel) into pickled engine scenes.
 """
@@ -119,6 +122,49 @@ print(json.dumps(dict(ray_us=ray_s / m * 1e6, lookup_us=look_s / hit.sum() * 1e6
                       chunk_us=chunk_s / hit.sum() * 1e6,
                       lookups=int(hit.sum()), points=len(g.position),
                       found=float(np.mean(~B)), Esum=float(E.sum()))))
+"""
+
+PROFILE = r"""
+import cProfile, glob, json, os, pickle, re, sys, time
+sys.path.insert(0, ROOT)
+from engine.jit import ensure_compiled
+from engine.render import render
+from engine.settings import RenderSettings
+ensure_compiled()
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+scene.width, scene.height = W, H
+kernels = set()
+for path in glob.glob(os.path.join(ROOT, "engine", "**", "*.py"), recursive=True):
+    lines = open(path).read().splitlines()
+    for i, line in enumerate(lines):
+        if line.strip() == "@kernel":
+            m = next((re.match(r"\s*def (\w+)", x) for x in lines[i + 1:i + 3]
+                      if re.match(r"\s*def (\w+)", x)), None)
+            if m:
+                kernels.add((os.path.basename(path), m.group(1)))
+pr = cProfile.Profile(time.process_time)
+pr.enable()
+film = render(scene, RenderSettings(workers=1))
+pr.disable()
+pr.create_stats()
+parts = dict(kernels=0.0, embree=0.0, glue=0.0, other=0.0)
+glue = {}
+for (path, line, name), (cc, nc, tt, ct, callers) in pr.stats.items():
+    base = os.path.basename(path)
+    if (base, name) in kernels:
+        parts["kernels"] += tt
+    elif base == "accel.py" and name in ("work", "_occluded"):
+        parts["embree"] += tt
+    elif "acquire" in name or "/numba/" in path or "llvmlite" in path:
+        parts["other"] += tt  # waits for worker threads, lazy compiles
+    else:
+        parts["glue"] += tt
+        key = f"{base}:{name}" if base != "~" else \
+            (name.split("'")[1] if name.startswith("<method '") else name.strip("<>"))
+        glue[key] = glue.get(key, 0.0) + tt
+top = sorted(glue.items(), key=lambda x: -x[1])[:6]
+print(json.dumps(dict(parts=parts, top=top, camera=film.stats.get("time_camera", 0.0))))
 """
 
 COMPILE = r"""
@@ -240,6 +286,24 @@ def compile_times(roots):
               f"{warm['import_s']:.2f} | {warm['compile_s']:.2f} |", flush=True)
 
 
+def glue_profile(roots, blends, args, where):
+    print(f"\n### Where a 1-worker render's CPU goes (cProfile, process clock, "
+          f"{args.width}x{args.height}, after)\n")
+    print("| blend | profiled CPU s | kernels s | Embree s | Python + numpy glue s | glue share "
+          "| 2-worker bound | largest glue items (s) |")
+    print("|---|---:|---:|---:|---:|---:|---:|---|")
+    for name in blends:
+        r = child(PROFILE, ROOT=roots["after"], PICKLE=exported(name, where), W=args.width,
+                  H=args.height)
+        p = r["parts"]
+        total = sum(p.values())
+        share = p["glue"] / total
+        top = ", ".join(f"{k} {v:.2f}" for k, v in r["top"])
+        print(f"| {name} | {total:.1f} | {p['kernels']:.1f} | {p['embree']:.1f} | "
+              f"{p['glue']:.1f} | {100 * share:.0f} % | {2 / (1 + share):.2f}x | {top} |",
+              flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="7be1f83", help="commit to compare against")
@@ -252,7 +316,7 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1, help="best of this many per version")
     ap.add_argument("--resolutions", type=int, default=len(RESOLUTIONS))
     ap.add_argument("--photon-counts", type=int, default=len(PHOTON_COUNTS))
-    ap.add_argument("--only", default="compile,lookups,end_to_end,memory")
+    ap.add_argument("--only", default="compile,lookups,end_to_end,memory,profile")
     ap.add_argument("--quick", action="store_true",
                     help="160x120, Figure 7 only, 2 workers, two resolutions, one photon count")
     ap.add_argument("--work", default=os.path.join(tempfile.gettempdir(), "bench_kernels"))
@@ -280,6 +344,8 @@ def main(argv=None):
         end_to_end(roots, blends, args, args.work)
     if "memory" in only:
         memory(roots, args, args.work)
+    if "profile" in only:
+        glue_profile(roots, blends, args, args.work)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, _hit_alpha, closures, lobe_weights, surface_hit
 from .camerakernels import choose_lobes, continue_lobes, gather_rays, pick_lobes
 from .camerarays import camera_rays_kernel
+from .gatherkernels import add_gathered, diffuse_lookups, keep_hits
 from .closures.principled import M_TTINT, rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
@@ -353,6 +354,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     E = np.zeros((n, 3))
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
+    regather = level < MAX_GATHER_LEVEL
     for g in range(G):
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else (rng.random(n), rng.random(n))
         idx = np.empty(n, np.int64)
@@ -375,12 +377,16 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 raise Cancelled()
             t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
             counters.gather_rays += len(idx)
-            got = prim >= 0
-            if not got.all():
-                o, d, tp, idx, prim, u, v, t = (a[got] for a in (o, d, tp, idx, prim, u, v, t))
-                if np.ndim(ray_cls):
-                    ray_cls = ray_cls[got]
-            if len(idx) == 0:
+            # The hits, compacted in place (gatherkernels.keep_hits).
+            per_ray = np.ndim(ray_cls) > 0
+            cls = c(ray_cls, np.int64) if per_ray else _NO_CLASS
+            tp = c(tp, np.float64)
+            m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
+            if m < len(idx):
+                o, d, tp, idx, prim, u, v, t = (a[:m] for a in (o, d, tp, idx, prim, u, v, t))
+                if per_ray:
+                    ray_cls = cls[:m]
+            if m == 0:
                 break
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
@@ -388,30 +394,43 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if np.any(Le > 0):
                     E[idx] += tp * math.pi * Le / G
             w = lobe_weights(ctx.table, y)
-            wd = w["diffuse"]
-            dsel = np.nonzero(max3(wd) > 0)[0]
-            if len(dsel):
-                Ey, boundary = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel],
-                                                     offset=y.offset[dsel])
-                if level < MAX_GATHER_LEVEL:
-                    again = np.nonzero(boundary | (t[dsel] < ctx.gather_short))[0]
-                    if len(again):
-                        ysub = y.take(dsel[again])
-                        # The lookup held light from caustics one bounce back (the
-                        # CAUSTIC_DIFFUSE photons); the gather below cannot see caustics
-                        # (kept out of the gather map), so add that light here.
-                        Ey[again] = (direct_irradiance(ctx, ysub, rng, counters,
-                                                       skip_mesh_lights=True)
-                                     + gather_indirect(ctx, ysub, rng, counters, rays=1,
-                                                       level=level + 1,
-                                                       should_cancel=should_cancel)
-                                     + _secondary_irradiance(ctx, ysub, rng))
-                E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G  # one ray per row: no repeats
+            wd = c(w["diffuse"], np.float64)
+            # Lookup inputs of the rows with a diffuse lobe (gatherkernels.diffuse_lookups).
+            dsel = np.empty(m, np.int64)
+            lp, ln = np.empty((m, 3)), np.empty((m, 3))
+            loff, lt = np.empty(m), np.empty(m)
+            nd = diffuse_lookups(wd, y.p, y.ng, y.offset, t, dsel, lp, ln, loff, lt)
+            if nd:
+                dsel = dsel[:nd]
+                Ey, boundary = ctx.gather_map.lookup(lp[:nd], ln[:nd], offset=loff[:nd])
+                again = np.empty(nd, np.int64)
+                n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
+                                       float(ctx.gather_short), regather, again)
+                if n_again:
+                    rows = dsel[again[:n_again]]
+                    ysub = y.take(rows)
+                    # The lookup held light from caustics one bounce back (the
+                    # CAUSTIC_DIFFUSE photons); the gather below cannot see caustics
+                    # (kept out of the gather map), so add that light here.
+                    Esub = (direct_irradiance(ctx, ysub, rng, counters, skip_mesh_lights=True)
+                            + gather_indirect(ctx, ysub, rng, counters, rays=1,
+                                              level=level + 1, should_cancel=should_cancel)
+                            + _secondary_irradiance(ctx, ysub, rng))
+                    add_gathered(E, idx, rows, tp, wd, c(Esub, np.float64), G, _NO_FLAG,
+                                 _NO_LENGTH, 0.0, False, _NO_ROWS)
             if depth == ctx.settings.max_depth:
                 break
             keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
             idx = idx[keep]
     return E
+
+
+# Placeholders for gatherkernels' optional arguments (a scalar ray class; the second
+# add_gathered call, which regathers nothing).
+_NO_CLASS = np.zeros(0, np.int64)
+_NO_FLAG = np.zeros(0, np.bool_)
+_NO_LENGTH = np.zeros(0)
+_NO_ROWS = np.zeros(0, np.int64)
 
 
 # A regathered point's secondary-caustic estimate (a k-NN query, ~100 Embree traversals)
@@ -485,14 +504,17 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     o, d, new_tp = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
     cls = np.empty(m, np.int64)
     pdf = np.empty(m if want_pdf else 0)
-    incoming = np.broadcast_to(np.asarray(ray_cls, np.int64), (len(p),))
+    # A writable copy: a read-only view would be a second kernel signature, compiled
+    # during the first render instead of by jit.ensure_compiled.
+    incoming = np.empty(len(p), np.int64)
+    incoming[:] = ray_cls
     # The pass lobe's weight: (1 - alpha) x the Transparent BSDF's colour.
     tint = np.take(ctx.table.closure_params[:, M_TTINT:M_TTINT + 3], hit.mat, axis=0)
     pass_weight = c((1.0 - _hit_alpha(ctx.table, hit).astype(np.float64))[:, None] * tint,
                     np.float64)
     k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), pass_weight, c(hit.p),
                        c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset), c(tp, np.float64),
-                       c(incoming), _LOBE_CLASS, bool(want_pdf), rows, o, d, new_tp, cls, pdf)
+                       incoming, _LOBE_CLASS, bool(want_pdf), rows, o, d, new_tp, cls, pdf)
     out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
     return out + (pdf[:k],) if want_pdf else out
 

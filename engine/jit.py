@@ -213,6 +213,7 @@ def ensure_compiled(progress=None) -> float:
 
 def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
-    from . import (camerakernels, camerarays, directlight, hashgrid,  # noqa: F401
+    from . import (camerakernels, camerarays, directlight, gatherkernels,  # noqa: F401
+                   hashgrid,
                    kdtree, photonkernels, photonmap,  # (warm-ups)
                    procedural, rayoffset, shadowtransmittance, toplevel)

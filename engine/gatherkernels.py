@@ -1,0 +1,111 @@
+"""Compiled kernels of the final gather's bookkeeping (integrator.gather_indirect; issue 13,
+fifth slice): what ran as numpy indexing between two Embree calls of every gather step.
+
+- `keep_hits`: the rays that met something, compacted in place (the path arrays of a
+  gather step: origins, directions, throughput, row of the gathering hit, triangle,
+  barycentrics, distance, and the per-ray class once a specular bounce set one).
+- `diffuse_lookups`: the hits whose diffuse lobe has weight, with their gather-map lookup
+  inputs (point, geometric normal, offset) and ray length written contiguously.
+- `add_gathered`: the lookups' irradiance weighted by throughput and diffuse albedo into
+  the gathering hits' sums; rows to gather again (a boundary lookup or a short ray) are
+  listed instead when the recursion may go deeper.
+
+Each kernel performs the numpy stage's floating-point operations in the same order, so
+images are bitwise unchanged (tests/test_gather_kernels.py keeps the numpy gather as an
+oracle; docs/performance.md, "Fifth slice"). All are nogil (engine/jit.py): a chunk on one
+worker thread no longer holds the GIL for this glue.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .jit import kernel, register_warm_up
+
+
+@kernel
+def keep_hits(prim, o, d, tp, idx, u, v, t, cls):
+    """Compact the rays with prim >= 0 to the front of every array, in order, in place:
+    prim, idx (N,) int64; o, d, tp (N,3); u, v, t (N,); cls (N,) int64 or empty (a
+    scalar class for all rays). Returns K, the rays kept (arrays[:K] are the hits)."""
+    k = 0
+    per_ray = cls.shape[0] > 0
+    for i in range(prim.shape[0]):
+        if prim[i] < 0:
+            continue
+        if k != i:
+            for c in range(3):
+                o[k, c] = o[i, c]
+                d[k, c] = d[i, c]
+                tp[k, c] = tp[i, c]
+            prim[k] = prim[i]
+            idx[k] = idx[i]
+            u[k] = u[i]
+            v[k] = v[i]
+            t[k] = t[i]
+            if per_ray:
+                cls[k] = cls[i]
+        k += 1
+    return k
+
+
+@kernel
+def diffuse_lookups(wd, p, ng, offset, t, rows, lp, ln, loff, lt):
+    """The hits whose diffuse weight wd (N,3) has a positive channel (max3(wd) > 0: a NaN
+    channel excludes the row, as np.maximum propagates it): their rows (K,) and, written
+    contiguously for GatherMap.lookup, point lp (K,3), geometric normal ln (K,3), offset
+    loff (K,) and the gather ray's length lt (K,). Returns K."""
+    k = 0
+    for i in range(wd.shape[0]):
+        a, b, c = wd[i, 0], wd[i, 1], wd[i, 2]
+        if a != a or b != b or c != c:
+            continue
+        if not (a > 0.0 or b > 0.0 or c > 0.0):
+            continue
+        rows[k] = i
+        for j in range(3):
+            lp[k, j] = p[i, j]
+            ln[k, j] = ng[i, j]
+        loff[k] = offset[i]
+        lt[k] = t[i]
+        k += 1
+    return k
+
+
+@kernel
+def add_gathered(E, idx, rows, tp, wd, Ey, G, boundary, lt, short, regather, again):
+    """E[idx[rows[r]]] += tp[rows[r]] * wd[rows[r]] * Ey[r] / G for the lookups r (the
+    numpy stage's order of operations; idx holds each gathering hit once per step, so no
+    two r add to the same row). With regather, the rows r whose lookup met a boundary or
+    whose ray is shorter than `short` (lt[r] < short) are skipped and listed in again
+    instead (ascending r). E (M,3); idx (N,); rows (K,); tp, wd (N,3); Ey (K,3);
+    boundary (K,) bool; lt (K,); again (K,). Returns the number of rows listed."""
+    n_again = 0
+    g = float(G)
+    for r in range(rows.shape[0]):
+        if regather and (boundary[r] or lt[r] < short):
+            again[n_again] = r
+            n_again += 1
+            continue
+        j = rows[r]
+        i = idx[j]
+        for c in range(3):
+            E[i, c] += tp[j, c] * wd[j, c] * Ey[r, c] / g
+    return n_again
+
+
+@register_warm_up
+def _warm_up():
+    n = 2
+    prim = np.array([0, -1], np.int64)
+    o, d, tp = np.zeros((n, 3)), np.zeros((n, 3)), np.ones((n, 3))
+    idx = np.arange(n, dtype=np.int64)
+    u, v, t = np.zeros(n), np.zeros(n), np.ones(n)
+    for cls in (np.zeros(0, np.int64), np.zeros(n, np.int64)):
+        keep_hits(prim.copy(), o, d, tp, idx, u, v, t, cls)
+    rows = np.empty(n, np.int64)
+    lp, ln, loff, lt = np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
+    k = diffuse_lookups(tp, o, d, u, t, rows, lp, ln, loff, lt)
+    again = np.empty(n, np.int64)
+    for regather in (False, True):
+        add_gathered(np.zeros((n, 3)), idx, rows[:k], tp, tp, np.ones((k, 3)), 2,
+                     np.zeros(k, np.bool_), lt[:k], 0.5, regather, again)

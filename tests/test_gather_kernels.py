@@ -1,0 +1,174 @@
+"""The final gather's bookkeeping kernels (engine/gatherkernels.py) against the numpy
+gather_indirect they replaced, kept here as the oracle: the same irradiance, bit for bit,
+with the recursion (regathers at boundaries and short rays) and specular continuations
+(per-ray classes) exercised; and each kernel against its numpy expression."""
+import math
+
+import numpy as np
+import pytest
+
+from engine import RenderSettings
+from engine.api import cornell_box
+from engine.bsdf import lobe_weights, surface_hit
+from engine.gatherkernels import add_gathered, diffuse_lookups, keep_hits
+from engine.integrator import (MAX_GATHER_LEVEL, Counters, _secondary_irradiance,
+                               continue_specular, direct_irradiance, gather_indirect)
+from engine.camerakernels import gather_rays
+from engine.normalmap import bump_shadowing
+from engine.render import _photon_pass, prepare_context
+from engine.sampling import max3, uniform_sphere
+from engine.visibility import DIFFUSE
+
+
+def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None):
+    """gather_indirect as it was before gatherkernels (numpy compaction, selection and
+    accumulation); log counts the regathered rows and the per-ray-class steps."""
+    n = len(hit.p)
+    E = np.zeros((n, 3))
+    G = rays or ctx.settings.gather_rays
+    c = np.ascontiguousarray
+    for g in range(G):
+        u1, u2 = rng.random(n), rng.random(n)
+        idx = np.empty(n, np.int64)
+        o, d = np.empty((n, 3)), np.empty((n, 3))
+        k = gather_rays(c(u1, np.float64), c(u2, np.float64), c(hit.ns, np.float64),
+                        c(hit.ng, np.float64), c(hit.p, np.float64), c(hit.offset, np.float64),
+                        idx, o, d)
+        idx, o, d = idx[:k], o[:k], d[:k]
+        tp = np.ones((len(idx), 3))
+        if getattr(hit, "n_smooth", None) is not None:
+            tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
+        ray_cls = DIFFUSE
+        for depth in range(ctx.settings.max_depth + 1):
+            if len(idx) == 0:
+                break
+            t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
+            counters.gather_rays += len(idx)
+            got = prim >= 0
+            if not got.all():
+                o, d, tp, idx, prim, u, v, t = (a[got] for a in (o, d, tp, idx, prim, u, v, t))
+                if np.ndim(ray_cls):
+                    ray_cls = ray_cls[got]
+                    log["per_ray_steps"] += 1
+            if len(idx) == 0:
+                break
+            y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            if level > 0 and depth == 0:
+                Le = y.emission
+                if np.any(Le > 0):
+                    E[idx] += tp * math.pi * Le / G
+            wd = lobe_weights(ctx.table, y)["diffuse"]
+            dsel = np.nonzero(max3(wd) > 0)[0]
+            if len(dsel):
+                Ey, boundary = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel],
+                                                     offset=y.offset[dsel])
+                if level < MAX_GATHER_LEVEL:
+                    again = np.nonzero(boundary | (t[dsel] < ctx.gather_short))[0]
+                    if len(again):
+                        log["regathered"] += len(again)
+                        ysub = y.take(dsel[again])
+                        Ey[again] = (direct_irradiance(ctx, ysub, rng, counters,
+                                                       skip_mesh_lights=True)
+                                     + _gather_indirect_numpy(ctx, ysub, rng, counters, 1,
+                                                              level + 1, log)
+                                     + _secondary_irradiance(ctx, ysub, rng))
+                E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G
+            if depth == ctx.settings.max_depth:
+                break
+            keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
+            idx = idx[keep]
+    return E
+
+
+@pytest.fixture(scope="module")
+def box():
+    ctx = prepare_context(cornell_box(32, 24, glass_sphere=True),
+                          RenderSettings(workers=1, photons=30_000, caustic_photons=10_000,
+                                         seed=2))
+    _photon_pass(ctx, {}, None, None)
+    yield ctx
+    ctx.accel.close()
+
+
+def _hits(ctx, n, seed):
+    rng = np.random.default_rng(seed)
+    lo, hi = ctx.geo.bounds
+    o = lo + (hi - lo) * (0.1 + 0.8 * rng.random((n, 3)))
+    d = uniform_sphere(rng.random(n), rng.random(n))
+    t, prim, u, v = ctx.accel.intersect(o, d)
+    k = prim >= 0
+    return surface_hit(ctx.geo, ctx.table, prim[k], u[k], v[k], d[k])
+
+
+def test_gather_indirect_is_bitwise_the_numpy_stage(box):
+    ctx = box
+    assert ctx.gather_map is not None
+    hit = _hits(ctx, 6000, seed=11)
+    log = {"regathered": 0, "per_ray_steps": 0}
+    want = _gather_indirect_numpy(ctx, hit, np.random.default_rng(5), Counters(), log=log)
+    c_new = Counters()
+    got = gather_indirect(ctx, hit, np.random.default_rng(5), c_new)
+    assert log["regathered"] > 50 and log["per_ray_steps"] > 0  # recursion, classes exercised
+    assert got.shape == want.shape and np.array_equal(got, want)
+    assert (want > 0).mean() > 0.5
+
+
+def test_keep_hits_compacts_like_boolean_indexing():
+    rng = np.random.default_rng(1)
+    n = 1000
+    prim = np.where(rng.random(n) < 0.3, -1, rng.integers(0, 50, n)).astype(np.int64)
+    arrays = dict(o=rng.random((n, 3)), d=rng.random((n, 3)), tp=rng.random((n, 3)),
+                  idx=rng.permutation(n).astype(np.int64), u=rng.random(n), v=rng.random(n),
+                  t=rng.random(n))
+    cls = rng.integers(0, 8, n).astype(np.int64)
+    got = prim >= 0
+    want = {k: a[got] for k, a in arrays.items()}
+    work = {k: a.copy() for k, a in arrays.items()}
+    pc, cc = prim.copy(), cls.copy()
+    m = keep_hits(pc, work["o"], work["d"], work["tp"], work["idx"], work["u"], work["v"],
+                  work["t"], cc)
+    assert m == got.sum()
+    assert np.array_equal(pc[:m], prim[got]) and np.array_equal(cc[:m], cls[got])
+    for k in arrays:
+        assert np.array_equal(work[k][:m], want[k]), k
+    # A scalar class: an empty cls array, untouched.
+    m2 = keep_hits(prim.copy(), *(a.copy() for a in arrays.values()), np.zeros(0, np.int64))
+    assert m2 == m
+
+
+def test_diffuse_rows_and_accumulation_match_numpy():
+    rng = np.random.default_rng(3)
+    n = 500
+    wd = rng.random((n, 3)) * (rng.random((n, 1)) < 0.6)
+    wd[7] = [np.nan, 0.5, 0.5]  # max3 propagates NaN: not a diffuse row
+    wd[8] = [0.0, 0.0, 1e-300]
+    p, ng, t = rng.random((n, 3)), rng.random((n, 3)), rng.random(n)
+    off = rng.random(n)
+    dsel = np.nonzero(max3(wd) > 0)[0]
+    rows = np.empty(n, np.int64)
+    lp, ln, lo, lt = np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
+    k = diffuse_lookups(wd, p, ng, off, t, rows, lp, ln, lo, lt)
+    assert np.array_equal(rows[:k], dsel) and 7 not in dsel and 8 in dsel
+    assert np.array_equal(lp[:k], p[dsel]) and np.array_equal(ln[:k], ng[dsel])
+    assert np.array_equal(lo[:k], off[dsel]) and np.array_equal(lt[:k], t[dsel])
+    # Accumulation, with and without the regather list.
+    idx = rng.permutation(2 * n)[:n].astype(np.int64)
+    tp = rng.random((n, 3))
+    Ey = rng.random((k, 3))
+    boundary = rng.random(k) < 0.2
+    E0 = rng.random((2 * n, 3))
+    want = E0.copy()
+    want[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / 3
+    got = E0.copy()
+    again = np.empty(k, np.int64)
+    assert add_gathered(got, idx, dsel, tp, wd, Ey, 3, boundary, lt[:k], 0.4, False,
+                        again) == 0
+    assert np.array_equal(got, want)
+    got = E0.copy()
+    na = add_gathered(got, idx, dsel, tp, wd, Ey, 3, boundary, lt[:k], 0.4, True, again)
+    expect = np.nonzero(boundary | (t[dsel] < 0.4))[0]
+    assert np.array_equal(again[:na], expect)
+    keep = np.setdiff1d(np.arange(k), expect)
+    want = E0.copy()
+    want[idx[dsel[keep]]] += tp[dsel[keep]] * wd[dsel[keep]] * Ey[keep] / 3
+    assert np.array_equal(got, want)
