@@ -139,3 +139,37 @@ def test_world_mis_with_the_light_tree(mat, request):
     se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
     assert m_mis > 0
     assert abs(m_mis - m_cont) <= max(4.0 * se, 0.02 * m_cont), (m_mis, m_cont, se)
+
+
+def test_every_ray_that_meets_a_point_light_with_a_radius_has_its_light_pdf():
+    """A continuation ray that meets a point light with a radius must be one its shadow
+    rays could have picked (light pdf > 0), or it takes the light's whole radiance without
+    multiple importance sampling: single-sample sparkles on glossy surfaces (issue 14; a
+    sphere met by rays and a disk sampled by shadow rays left a rim of such directions,
+    about r^2 / distance^2 of them). Rays aimed at and just beyond the light's rim."""
+    from engine.render import prepare_context
+    s = PaperScene(width=8, height=8)
+    s.add_plane((0, 0, 0), (0, 0, 1), 12.0, "white_diffuse", name="floor")
+    s.add_point_light((0.3, -0.2, 1.0), power=100.0, radius=0.4)
+    s.set_camera((-2.5, 0.0, 2.0), (0.3, 0.0, 0.0), up=(0, 0, 1), view_angle=40.0)
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    light = next(li for li in ctx.lights if li.kind == "POINT")
+    rng = np.random.default_rng(5)
+    n = 20000
+    o = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), np.full(n, 1e-3)])
+    o += light.pos - np.array([0.3, -0.2, 1.0])
+    # Directions towards points around the centre out to 1.1 radii, in random planes.
+    to_c = light.pos - o
+    dist = np.linalg.norm(to_c, axis=1, keepdims=True)
+    side = np.cross(to_c, rng.normal(size=(n, 3)))
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    target = light.pos + side * light.radius * rng.uniform(0.9, 1.1, n)[:, None]
+    d = target - o
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    mask, t, L = light.intersect(o, d, np.full(n, np.inf))
+    assert 0.2 * n < mask.sum() < 0.9 * n
+    pdf = integrator.mis_light_pdf(light, o[mask], d[mask], t[mask])
+    assert np.all(pdf > 0)
+    # The shadow rays' pdf is that of a uniform point on the disk facing o: t^2 / (A cos).
+    cos_l = -np.einsum("ij,ij->i", d[mask], (o[mask] - light.pos) / dist[mask])
+    assert np.allclose(pdf, t[mask] ** 2 / (np.pi * light.radius ** 2 * cos_l), rtol=1e-9)
