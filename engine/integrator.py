@@ -22,7 +22,7 @@ from .lights.selection import empty_tree, selection_samples, selector_for, tree_
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
 from .bsdf import SPEC_LOBES, _hit_alpha, closures, lobe_weights, surface_hit
-from .camerakernels import choose_lobes, continue_lobes, gather_rays, pick_lobes
+from .camerakernels import _PASS as PASS_LOBE, choose_lobes, continue_lobes, gather_rays, pick_lobes
 from .camerarays import camera_rays_kernel
 from .closures.principled import M_TTINT, rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
@@ -124,6 +124,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             u1, u2 = (sampler.uv(("light", li, si)) if sampler is not None
                       else (rng.random(n), rng.random(n)))
             sel = rng.random(n) if light.needs_choice else None
+            if sampler is not None and light.kind == MESH:
+                u1, sel = stratified_triangle_choice(light, u1)
             samples.append((li, traced, count, u1, u2, sel))
     if n == 0 or not samples:
         return np.zeros((n, 3))
@@ -137,6 +139,20 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            shadow=getattr(ctx, "shadow", None), bsdf=bsdf)
     counters.shadow_rays += rays
     return E
+
+
+def stratified_triangle_choice(light, u1):
+    """(u1 (N,), the triangle choice (N,)) for a mesh light's shadow samples from one
+    stratified number u1: the choice is u1 itself (the kernel picks the triangle whose CDF
+    bin holds it) and u1 is rescaled within that bin, so the pixel's strata spread over
+    the emitting triangles as an area light's do over its rectangle (an independent
+    random choice of triangle lost the stratification: a glossy highlight of a panel was
+    1.4x as noisy as Cycles' at 16 spp)."""
+    cdf, prob = light.cdf, light.prob
+    tri = np.searchsorted(cdf, u1, side="right").clip(0, len(cdf) - 1)
+    lo = cdf[tri] - prob[tri]
+    inner = (u1 - lo) / np.maximum(prob[tri], 1e-300)
+    return np.clip(inner, 0.0, 0.9999999999999999), u1
 
 
 MODE_CONTINUATION, MODE_DELTA, MODE_MIS, MODE_TREE = 0, 1, 2, 3
@@ -452,7 +468,8 @@ def lobe_choice(albedo, tp):
     return sel, q, p, psum
 
 
-def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False):
+def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False,
+                      uv=None):
     """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
     paths that would add little) and sample it. Returns (kept indices, origins, directions,
     throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
@@ -462,7 +479,11 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     takes the sampled direction's own weight (f cos / pdf) over the choice probability, so
     the lobe weights only steer the choice. choice: lobe_choice(albedo, tp) if already made.
     Two compiled kernels (camerakernels.pick_lobes, continue_lobes) with the uniform numbers
-    drawn between them in numpy, in a fixed order."""
+    drawn between them in numpy, in a fixed order. uv: (u1, u2) (N,) stratified numbers
+    (the first hit's sampler) for the sampled lobes' directions instead of plain random
+    ones: a glossy highlight, where the lobe is narrower than the light and the lobes'
+    sampling carries it, is far calmer with its directions stratified over the pixel's
+    samples (as Cycles' are)."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit)[1], tp))
     go = (psum > 0) & (rng.random(len(p)) < q)
@@ -479,6 +500,9 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     sampled = pick_lobes(c(p), c(psum), c(q), idx, r, lobe, prob)
     # Three uniform numbers per sampled (non-pass) lobe, drawn in this order.
     u1, u2, u3 = rng.random(sampled), rng.random(sampled), rng.random(sampled)
+    if uv is not None and sampled:
+        rows_sampled = idx[lobe != PASS_LOBE]
+        u1, u2 = uv[0][rows_sampled], uv[1][rows_sampled]
     prm, _ = closures(ctx.table, hit)
     rows = np.empty(m, np.int64)
     o, d, new_tp = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
@@ -650,10 +674,11 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
-        dims = camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)])
+        dims = camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
+                                 + [("bsdf",)])
     else:
         dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
-                                                 for li in ctx.lights])
+                                                 for li in ctx.lights], [("bsdf",)])
 
     def job(item, stop):
         ci, start = item
@@ -707,7 +732,7 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
                              filter_table(s.pixel_filter, s.filter_width))
     counters.camera_rays += len(o)
     tp = np.ones((len(o), 3))
-    sampler = StratifiedSampler(sub, pix, spp, rng, dims)
+    sampler = StratifiedSampler(sub, pix, spp, rng, dims, salt=s.seed)
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
@@ -854,8 +879,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
+        uv = (sampler.uv(("bsdf",)) if sampler is not None and bounce == 0 else None)
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
-                                                           choice=choice, want_pdf=True)
+                                                           choice=choice, want_pdf=True,
+                                                           uv=uv)
         org_ns = hit.ns[keep]
         org_p = hit.p[keep]
         pix = pix[keep]

@@ -176,8 +176,9 @@ class StratifiedSampler:
     maps keys to numbers, so no two consumers can share a dimension."""
 
     def __init__(self, sub: np.ndarray, pix: np.ndarray, spp: int, rng: np.random.Generator,
-                 dims: SampleDimensions):
+                 dims: SampleDimensions, salt: int = 0):
         self.dims = dims
+        self.salt = int(salt) % (1 << 64)
         self.sub = sub
         self.pix = pix
         self.m = max(1, int(np.sqrt(spp)))
@@ -190,6 +191,7 @@ class StratifiedSampler:
         s = StratifiedSampler.__new__(StratifiedSampler)
         s.sub, s.pix, s.m, s.full, s.rng = self.sub[idx], self.pix[idx], self.m, self.full, self.rng
         s.dims = self.dims
+        s.salt = self.salt
         return s
 
     def uv(self, key) -> tuple[np.ndarray, np.ndarray]:
@@ -199,8 +201,20 @@ class StratifiedSampler:
         cells = self.m * self.m
         if cells < 2:
             return self.rng.random(n), self.rng.random(n)
-        shift = (self.pix.astype(np.uint64) * np.uint64(2654435761)
-                 + np.uint64(dim * 40503 + 12345)) % np.uint64(cells)
+        # The pairing of two dimensions' strata within a pixel is a fixed offset: it must
+        # vary at random between pixels and seeds, or its error is a fixed pattern that no
+        # number of seeds averages away (a linear hash pix * a + dim * b of old gave
+        # neighbouring pixels consecutive offsets, independent of the seed: a glossy floor
+        # mirroring a small bright patch, whose few highlight pixels carry the image,
+        # stayed 1.8 % off over 30 seeds). A splitmix64 finaliser of (pixel, dimension,
+        # seed).
+        x = (self.pix.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)
+             + np.uint64((dim + 1) * 0xBF58476D1CE4E5B9 % (1 << 64))
+             + np.uint64(self.salt * 0xD6E8FEB86659FD93 % (1 << 64)))
+        x ^= x >> np.uint64(31)
+        x *= np.uint64(0x94D049BB133111EB)
+        x ^= x >> np.uint64(29)
+        shift = x % np.uint64(cells)
         cell = (self.sub.astype(np.uint64) + shift) % np.uint64(cells)
         cell = cell.astype(np.int64)
         u1 = (cell % self.m + self.rng.random(n)) / self.m

@@ -72,18 +72,24 @@ def test_mis_matches_continuation_with_less_noise(mat, light, request):
     scene = _scene(MATERIALS[mat], light)
     mis, mis2 = _render(scene, 64, 1), _render(scene, 64, 2)
     request.getfixturevalue("continuation_only")
-    cont, cont2 = _render(scene, 64, 1), _render(scene, 64, 2)
+    # The small sun is met by few of the continuation's rays: a heavy-tailed estimator
+    # whose image mean strays by several % at 64 spp (seed to seed), so it takes 4x the
+    # samples here (its noise scaled back to 64 spp below).
+    cont_spp = 256 if light == "sun" else 64
+    cont, cont2 = _render(scene, cont_spp, 1), _render(scene, cont_spp, 2)
     # Pixel noise: the difference of two renders with other seeds (the image's own shape
     # cancels). Light sampling must be far less noisy ...
-    noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
+    noise_mis = np.std(mis - mis2)
+    noise_cont = np.std(cont - cont2) * math.sqrt(cont_spp / 64)
     # (The environment's shadow rays also light the dielectric's diffuse base, with the
-    # same noise in both renders.)
-    limit = 0.5 if light == "environment" else 0.4
+    # same noise in both renders; with the first hit's lobe directions stratified the
+    # continuation alone fell from 0.86 to 0.57 there, light sampling from 0.35 to 0.34.)
+    limit = 0.65 if light == "environment" else 0.4
     assert noise_mis < limit * noise_cont, (noise_mis, noise_cont)
     # ... and agree with the continuation on the mean: two unbiased estimators of the same
     # light, within 4 standard errors of the continuation's mean (or 2 %).
     m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
-    se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
+    se = noise_cont * math.sqrt(64 / cont_spp) / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
     assert m_mis > 0
     assert abs(m_mis - m_cont) <= max(4.0 * se, 0.02 * m_cont), (m_mis, m_cont, se)
 
@@ -134,7 +140,9 @@ def test_world_mis_with_the_light_tree(mat, request):
     plain = _scene(MATERIALS[mat], "environment")
     cont, cont2 = _render(plain, 64, 1), _render(plain, 64, 2)
     noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
-    assert noise_mis < 0.6 * noise_cont, (noise_mis, noise_cont)
+    # (The continuation's first lobe directions are stratified over the pixel's samples:
+    # it alone is far calmer than it was, 0.60 here; the tree's light sampling 0.46.)
+    assert noise_mis < 0.8 * noise_cont, (noise_mis, noise_cont)
     m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
     se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
     assert m_mis > 0
