@@ -1,11 +1,14 @@
 """Glossy noise against Cycles at equal samples (issue 14): a rough metal ball and a
-Principled dielectric ball on a grey floor, lit by one light at a time (area light,
-emissive mesh panel, point light with a radius, a constant world). For each renderer two
-renders at SPP samples with different seeds; the pixel noise of an object is the std of
-their difference over its pixels / sqrt(2). Prints per light and object: ours / Cycles
-noise, and the mean brightness of ours over Cycles'.
+Principled dielectric ball on a grey floor, lit by one light at a time (an area light, an
+emissive mesh panel, a point light with a radius, a constant world). For each renderer two
+renders at SPP samples with different seeds: the pixel noise of an object is the std of
+their difference over its pixels / sqrt(2); the mean is over its pixels (Cycles' at
+REF_SPP samples). Needs the bpy wheel.
 
-Run: .venv/bin/python bench/bench_glossy_noise.py [--spp 16] [--lights area,mesh,...]
+    .venv/bin/python tools/glossy_noise.py              table: ours / Cycles noise, means
+    .venv/bin/python tools/glossy_noise.py --references  writes Cycles' numbers to
+                                                         tests/references/glossy_noise.json
+(tests/blender/test_glossy_noise_cycles.py compares ours with them.)
 """
 from __future__ import annotations
 
@@ -20,11 +23,15 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 sys.path.insert(0, ROOT)
 import accuracy_scenes as acc  # noqa: E402
+import json  # noqa: E402
 import bpy  # noqa: E402
 
 mb = acc.mb
 W, H = 96, 72
 OBJECTS = ("Metal", "Dielectric", "Floor")
+LIGHTS = ("area", "mesh", "point", "world")
+SPP, REF_SPP = 16, 256
+REF_PATH = os.path.join(ROOT, "tests", "references", "glossy_noise.json")
 
 
 def build(light, metal_rough=0.3, diel_rough=0.2):
@@ -109,52 +116,54 @@ def render(scene, engine, spp, seed, **overrides):
     return acc.render_rgb(scene)
 
 
+def measure(light, engine, spp=SPP, seeds=(1, 2), **overrides):
+    """{object: (pixel noise, mean)} of `engine` ("ours" | "cycles") on the scene lit by
+    `light`: noise from two renders at spp with `seeds`, the mean over both."""
+    lab = labels(build(light))
+    imgs = [render(build(light), engine, spp, seed, **overrides)[0] for seed in seeds]
+    out = {}
+    for k, name in enumerate(OBJECTS):
+        m = lab == k + 1
+        if m.sum() < 5:
+            continue
+        noise = float(np.std((imgs[0] - imgs[1])[m]) / math.sqrt(2))
+        out[name] = (noise, float(np.mean([im[m].mean() for im in imgs])))
+    return out
+
+
+def references():
+    """Cycles' noise at SPP (seeds 1, 2) and mean at REF_SPP (seed 3) per light and object."""
+    ref = {"width": W, "height": H, "spp": SPP, "ref_spp": REF_SPP, "lights": {}}
+    for light in LIGHTS:
+        noisy = measure(light, "cycles")
+        conv = measure(light, "cycles", REF_SPP, seeds=(3, 4))
+        ref["lights"][light] = {name: {"noise": noisy[name][0], "mean": conv[name][1]}
+                                for name in noisy}
+    with open(REF_PATH, "w") as f:
+        json.dump(ref, f, indent=1)
+    return ref
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--ref-spp", type=int, default=256)
-    ap.add_argument("--lights", default="area,mesh,point,world")
+    ap.add_argument("--references", action="store_true")
+    ap.add_argument("--lights", default=",".join(LIGHTS))
     ap.add_argument("--no-photons", action="store_true", help="ours with photon_mapping off")
-    ap.add_argument("--cache", default=None, help="folder to keep Cycles renders in")
     args = ap.parse_args(argv)
+    if args.references:
+        references()
+    with open(REF_PATH) as f:
+        ref = json.load(f)
     over = {"photon_mapping": False} if args.no_photons else {}
-    print(f"| light | object | noise ours | noise Cycles | ratio | mean ours / Cycles |")
+    print(f"{SPP} spp, {W}x{H}; Cycles' numbers from {os.path.relpath(REF_PATH, ROOT)}")
+    print("| light | object | noise ours | noise Cycles | ratio | mean ours / Cycles |")
     print("|---|---|---:|---:|---:|---:|")
     for light in args.lights.split(","):
-        scene = build(light)
-        lab = labels(scene)
-        if args.cache:
-            os.makedirs(args.cache, exist_ok=True)
-            np.save(os.path.join(args.cache, f"labels_{light}.npy"), lab)
-        cyc = []
-        for seed, spp in ((1, args.spp), (2, args.spp), (3, args.ref_spp)):
-            path = (os.path.join(args.cache, f"{light}_{seed}_{spp}.npy")
-                    if args.cache else None)
-            if path and os.path.exists(path):
-                cyc.append(np.load(path))
-                continue
-            scene = build(light)
-            img, _ = render(scene, "cycles", spp, seed)
-            if path:
-                os.makedirs(args.cache, exist_ok=True)
-                np.save(path, img)
-            cyc.append(img)
-        ours = []
-        for seed in (1, 2):
-            scene = build(light)
-            ours.append(render(scene, "ours", args.spp, seed, **over)[0])
-            if args.cache:
-                np.save(os.path.join(args.cache, f"ours_{light}_{seed}.npy"), ours[-1])
-        for k, name in enumerate(OBJECTS):
-            m = lab == k + 1
-            if m.sum() < 5:
-                continue
-            na = np.std((ours[0] - ours[1])[m]) / math.sqrt(2)
-            nc = np.std((cyc[0] - cyc[1])[m]) / math.sqrt(2)
-            mean_o = 0.5 * (ours[0][m].mean() + ours[1][m].mean())
-            mean_c = cyc[2][m].mean()
-            print(f"| {light} | {name} | {na:.4f} | {nc:.4f} | {na / nc:.2f} | "
-                  f"{mean_o / mean_c:.3f} |", flush=True)
+        ours = measure(light, "ours", **over)
+        for name, (noise, mean) in ours.items():
+            c = ref["lights"][light][name]
+            print(f"| {light} | {name} | {noise:.4f} | {c['noise']:.4f} | "
+                  f"{noise / c['noise']:.2f} | {mean / c['mean']:.3f} |", flush=True)
 
 
 if __name__ == "__main__":
