@@ -736,7 +736,7 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler, sub)
+                 should_cancel, sampler, sub, np.random.default_rng([s.seed, 11, ci]))
     return acc, counters, end
 
 
@@ -765,7 +765,7 @@ def _write_film(film, acc, spp, rh, rw):
 
 
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler=None, sample_id=None):
+                 should_cancel, sampler=None, sample_id=None, bsdf_rng=None):
     s = ctx.settings
     depth_limit = ctx.plan.specular_depth
     # A pixel's radius on the surface it sees: half a pixel's width at the distance the
@@ -879,7 +879,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
-        uv = (sampler.uv(("bsdf",)) if sampler is not None and bounce == 0 else None)
+        # (Jittered by their own generator: the chunk's stream, and so every image
+        # without a rough lobe, stays as it was.)
+        uv = (sampler.uv(("bsdf",), rng=bsdf_rng)
+              if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True,
                                                            uv=uv)

@@ -194,9 +194,19 @@ class StratifiedSampler:
         s.salt = self.salt
         return s
 
-    def uv(self, key) -> tuple[np.ndarray, np.ndarray]:
-        """(u1, u2), each (N,) in [0, 1), for the dimension named key (SampleDimensions)."""
+    def uv(self, key, rng=None) -> tuple[np.ndarray, np.ndarray]:
+        """(u1, u2), each (N,) in [0, 1), for the dimension named key (SampleDimensions);
+        rng: the generator of the jitter inside the cells (default: the sampler's)."""
         dim = self.dims[key]
+        saved = self.rng
+        if rng is not None:
+            self.rng = rng
+        try:
+            return self._uv(dim)
+        finally:
+            self.rng = saved
+
+    def _uv(self, dim):
         n = len(self.sub)
         cells = self.m * self.m
         if cells < 2:
