@@ -124,8 +124,6 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             u1, u2 = (sampler.uv(("light", li, si)) if sampler is not None
                       else (rng.random(n), rng.random(n)))
             sel = rng.random(n) if light.needs_choice else None
-            if sampler is not None and light.kind == MESH:
-                u1, sel = stratified_triangle_choice(light, u1)
             samples.append((li, traced, count, u1, u2, sel))
     if n == 0 or not samples:
         return np.zeros((n, 3))
@@ -139,20 +137,6 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            shadow=getattr(ctx, "shadow", None), bsdf=bsdf)
     counters.shadow_rays += rays
     return E
-
-
-def stratified_triangle_choice(light, u1):
-    """(u1 (N,), the triangle choice (N,)) for a mesh light's shadow samples from one
-    stratified number u1: the choice is u1 itself (the kernel picks the triangle whose CDF
-    bin holds it) and u1 is rescaled within that bin, so the pixel's strata spread over
-    the emitting triangles as an area light's do over its rectangle (an independent
-    random choice of triangle lost the stratification: a glossy highlight of a panel was
-    1.4x as noisy as Cycles' at 16 spp)."""
-    cdf, prob = light.cdf, light.prob
-    tri = np.searchsorted(cdf, u1, side="right").clip(0, len(cdf) - 1)
-    lo = cdf[tri] - prob[tri]
-    inner = (u1 - lo) / np.maximum(prob[tri], 1e-300)
-    return np.clip(inner, 0.0, 0.9999999999999999), u1
 
 
 MODE_CONTINUATION, MODE_DELTA, MODE_MIS, MODE_TREE = 0, 1, 2, 3
