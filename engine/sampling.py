@@ -176,8 +176,9 @@ class StratifiedSampler:
     maps keys to numbers, so no two consumers can share a dimension."""
 
     def __init__(self, sub: np.ndarray, pix: np.ndarray, spp: int, rng: np.random.Generator,
-                 dims: SampleDimensions):
+                 dims: SampleDimensions, salt: int = 0):
         self.dims = dims
+        self.salt = int(salt) % (1 << 64)
         self.sub = sub
         self.pix = pix
         self.m = max(1, int(np.sqrt(spp)))
@@ -190,17 +191,45 @@ class StratifiedSampler:
         s = StratifiedSampler.__new__(StratifiedSampler)
         s.sub, s.pix, s.m, s.full, s.rng = self.sub[idx], self.pix[idx], self.m, self.full, self.rng
         s.dims = self.dims
+        s.salt = self.salt
         return s
 
-    def uv(self, key) -> tuple[np.ndarray, np.ndarray]:
-        """(u1, u2), each (N,) in [0, 1), for the dimension named key (SampleDimensions)."""
+    def uv(self, key, rng=None, scrambled=False) -> tuple[np.ndarray, np.ndarray]:
+        """(u1, u2), each (N,) in [0, 1), for the dimension named key (SampleDimensions);
+        rng: the generator of the jitter inside the cells (default: the sampler's);
+        scrambled: the cell order's offset hashed from pixel, dimension and seed (below)."""
         dim = self.dims[key]
+        saved = self.rng
+        if rng is not None:
+            self.rng = rng
+        try:
+            return self._uv(dim, scrambled)
+        finally:
+            self.rng = saved
+
+    def _uv(self, dim, scrambled=False):
         n = len(self.sub)
         cells = self.m * self.m
         if cells < 2:
             return self.rng.random(n), self.rng.random(n)
-        shift = (self.pix.astype(np.uint64) * np.uint64(2654435761)
-                 + np.uint64(dim * 40503 + 12345)) % np.uint64(cells)
+        if scrambled:
+            # The pairing of two dimensions' strata within a pixel is a fixed offset. With
+            # the linear hash below it is the same in every pixel and seed, a fixed pattern
+            # no number of seeds averages away: lobe directions paired so stayed 1.8 % off
+            # on a glossy floor mirroring a small bright patch (30 seeds), whose few
+            # highlight pixels carry the image. Scrambled: a splitmix64 finaliser of
+            # (pixel, dimension, seed). (The other dimensions keep the linear hash, so
+            # their images stay as they were.)
+            x = (self.pix.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)
+                 + np.uint64((dim + 1) * 0xBF58476D1CE4E5B9 % (1 << 64))
+                 + np.uint64(self.salt * 0xD6E8FEB86659FD93 % (1 << 64)))
+            x ^= x >> np.uint64(31)
+            x *= np.uint64(0x94D049BB133111EB)
+            x ^= x >> np.uint64(29)
+            shift = x % np.uint64(cells)
+        else:
+            shift = (self.pix.astype(np.uint64) * np.uint64(2654435761)
+                     + np.uint64(dim * 40503 + 12345)) % np.uint64(cells)
         cell = (self.sub.astype(np.uint64) + shift) % np.uint64(cells)
         cell = cell.astype(np.int64)
         u1 = (cell % self.m + self.rng.random(n)) / self.m

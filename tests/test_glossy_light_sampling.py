@@ -72,18 +72,26 @@ def test_mis_matches_continuation_with_less_noise(mat, light, request):
     scene = _scene(MATERIALS[mat], light)
     mis, mis2 = _render(scene, 64, 1), _render(scene, 64, 2)
     request.getfixturevalue("continuation_only")
-    cont, cont2 = _render(scene, 64, 1), _render(scene, 64, 2)
+    # The small sun is met by few of the continuation's rays: a heavy-tailed estimator
+    # whose image mean strays by several % at 64 spp (seed to seed), so it takes 4x the
+    # samples here (its noise scaled back to 64 spp below).
+    cont_spp = 256 if light == "sun" else 64
+    cont, cont2 = _render(scene, cont_spp, 1), _render(scene, cont_spp, 2)
     # Pixel noise: the difference of two renders with other seeds (the image's own shape
     # cancels). Light sampling must be far less noisy ...
-    noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
+    noise_mis = np.std(mis - mis2)
+    noise_cont = np.std(cont - cont2) * math.sqrt(cont_spp / 64)
     # (The environment's shadow rays also light the dielectric's diffuse base, with the
-    # same noise in both renders.)
-    limit = 0.5 if light == "environment" else 0.4
+    # same noise in both renders; with the first hit's lobe directions stratified the
+    # continuation alone fell from 0.86 to 0.57 there, light sampling from 0.35 to 0.34.)
+    # The mesh light's triangle is chosen by an unstratified number while the
+    # continuation's directions are stratified: 0.44 for the metal.
+    limit = {"environment": 0.65, "mesh": 0.5}.get(light, 0.4)
     assert noise_mis < limit * noise_cont, (noise_mis, noise_cont)
     # ... and agree with the continuation on the mean: two unbiased estimators of the same
     # light, within 4 standard errors of the continuation's mean (or 2 %).
     m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
-    se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
+    se = noise_cont * math.sqrt(64 / cont_spp) / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
     assert m_mis > 0
     assert abs(m_mis - m_cont) <= max(4.0 * se, 0.02 * m_cont), (m_mis, m_cont, se)
 
@@ -134,8 +142,44 @@ def test_world_mis_with_the_light_tree(mat, request):
     plain = _scene(MATERIALS[mat], "environment")
     cont, cont2 = _render(plain, 64, 1), _render(plain, 64, 2)
     noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
-    assert noise_mis < 0.6 * noise_cont, (noise_mis, noise_cont)
+    # (The continuation's first lobe directions are stratified over the pixel's samples:
+    # it alone is far calmer than it was, 0.60 here; the tree's light sampling 0.46.)
+    assert noise_mis < 0.8 * noise_cont, (noise_mis, noise_cont)
     m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
     se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
     assert m_mis > 0
     assert abs(m_mis - m_cont) <= max(4.0 * se, 0.02 * m_cont), (m_mis, m_cont, se)
+
+
+def test_every_ray_that_meets_a_point_light_with_a_radius_has_its_light_pdf():
+    """A continuation ray that meets a point light with a radius must be one its shadow
+    rays could have picked (light pdf > 0), or it takes the light's whole radiance without
+    multiple importance sampling: single-sample sparkles on glossy surfaces (issue 14; a
+    sphere met by rays and a disk sampled by shadow rays left a rim of such directions,
+    about r^2 / distance^2 of them). Rays aimed at and just beyond the light's rim."""
+    from engine.render import prepare_context
+    s = PaperScene(width=8, height=8)
+    s.add_plane((0, 0, 0), (0, 0, 1), 12.0, "white_diffuse", name="floor")
+    s.add_point_light((0.3, -0.2, 1.0), power=100.0, radius=0.4)
+    s.set_camera((-2.5, 0.0, 2.0), (0.3, 0.0, 0.0), up=(0, 0, 1), view_angle=40.0)
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    light = next(li for li in ctx.lights if li.kind == "POINT")
+    rng = np.random.default_rng(5)
+    n = 20000
+    o = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), np.full(n, 1e-3)])
+    o += light.pos - np.array([0.3, -0.2, 1.0])
+    # Directions towards points around the centre out to 1.1 radii, in random planes.
+    to_c = light.pos - o
+    dist = np.linalg.norm(to_c, axis=1, keepdims=True)
+    side = np.cross(to_c, rng.normal(size=(n, 3)))
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    target = light.pos + side * light.radius * rng.uniform(0.9, 1.1, n)[:, None]
+    d = target - o
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    mask, t, L = light.intersect(o, d, np.full(n, np.inf))
+    assert 0.2 * n < mask.sum() < 0.9 * n
+    pdf = integrator.mis_light_pdf(light, o[mask], d[mask], t[mask])
+    assert np.all(pdf > 0)
+    # The shadow rays' pdf is that of a uniform point on the disk facing o: t^2 / (A cos).
+    cos_l = -np.einsum("ij,ij->i", d[mask], (o[mask] - light.pos) / dist[mask])
+    assert np.allclose(pdf, t[mask] ** 2 / (np.pi * light.radius ** 2 * cos_l), rtol=1e-9)

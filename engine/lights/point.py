@@ -1,6 +1,7 @@
 """Point light (Blender's Point, optionally with a radius): intensity P/(4 pi) W/sr;
-with a radius it is a sphere, sampled as the disk facing the shading point (Cycles'
-kernel/light/point.h)."""
+with a radius it is a disk of that radius through its centre facing the shading point,
+both for shadow rays and for rays that meet it (Cycles' point light with Soft Falloff, its
+default: kernel/light/point.h)."""
 from __future__ import annotations
 
 import math
@@ -56,18 +57,26 @@ class PointLight(Light):
                           *aim.arrays, aimed, key, first, n, float(count), *out.arrays, start)
 
     def intersect(self, o, d, tmax):
-        """A light with a radius is a sphere of radiance I / (pi r^2) (x the spot mask)."""
+        """A light with a radius is a disk of radius r through its centre facing the ray's
+        origin, of radiance I / (pi r^2) (x the spot mask): the shape its shadow rays
+        sample (directlight.sample_lights) and Cycles' point light with Soft Falloff (its
+        default; kernel/light/point.h, point_light_intersect). A sphere met by the
+        continuation had a rim of directions (relative width ~ r^2 / distance^2) that the
+        disk's shadow rays never pick: those paths took the full light without multiple
+        importance sampling, single-sample sparkles on glossy surfaces."""
         if self.radius <= 0:
             return super().intersect(o, d, tmax)
         n = len(o)
-        oc = o - self.pos
-        b = dot(oc, d)
-        c = dot(oc, oc) - self.radius ** 2
-        disc = b * b - c
-        sq = np.sqrt(np.maximum(disc, 0.0))
-        t0 = -b - sq
-        t = np.where(t0 > 0, t0, -b + sq)
-        mask = (disc > 0) & (t > 0) & (t < tmax) & (c > 0)
+        axis = o - self.pos
+        dist = np.linalg.norm(axis, axis=1)
+        axis = axis / np.maximum(dist, 1e-300)[:, None]
+        toward = -dot(d, axis)
+        front = toward > 1e-12
+        t = dist / np.where(front, toward, 1.0)
+        on_disk = t[:, None] * d + o - self.pos
+        mask = (front & (dist > 0) & (t < tmax)
+                & (np.einsum("ij,ij->i", on_disk, on_disk) <= self.radius ** 2))
+        t = np.where(front, t, np.inf)
         L = np.broadcast_to(self.intensity / (math.pi * self.radius ** 2), (n, 3))
         f = self._falloff(-d)
         if f is not None:
