@@ -155,6 +155,32 @@ def test_rough_principled_floor_is_not_a_caustic_caster():
     assert "too rough to focus" in line
 
 
+def test_caster_roughness_bound_does_not_depend_on_float_precision():
+    """A 0.3 floor is rough (not aimed at) whether its roughness came from Blender as
+    float32 (0.30000001) or was typed in Python (0.3); 0.29 and a 0.29 coat focus light.
+    The report names the bound the way it is applied."""
+    from engine.effects import SHARP_ROUGHNESS, sharp_specular
+    from engine.geometry import MaterialTable
+    assert SHARP_ROUGHNESS == 0.3
+    mats = [Material("py", metallic=1.0, roughness=0.3),
+            Material("f32", metallic=1.0, roughness=float(np.float32(0.3))),
+            Material("below", metallic=1.0, roughness=0.29),
+            Material("coat", roughness=0.8, specular=1.0, coat_weight=1.0, coat_roughness=0.29),
+            Material("coat_edge", roughness=0.8, specular=1.0, coat_weight=1.0,
+                     coat_roughness=0.3)]
+    got = dict(zip([m.name for m in mats], sharp_specular(MaterialTable.build(mats))))
+    assert got == {"py": False, "f32": False, "below": True, "coat": True,
+                   "coat_edge": False}
+    s = _glossy_floor_scene()
+    s.materials["rough_principled"].roughness = 0.3
+    from engine.render import prepare_context
+    ctx = prepare_context(s, RenderSettings(photons=2000, workers=1))
+    ctx.accel.close()
+    assert ctx.plan.casters == ["ball"] and ctx.plan.rough_specular == ["floor"]
+    line = next(r for r in ctx.plan.report() if r.startswith("caustics:"))
+    assert "not aimed at 'floor' (specular roughness 0.3 or more: too rough" in line
+
+
 def test_only_rough_specular_surfaces_take_their_glow_from_the_global_photons():
     from engine.render import prepare_context
     s = _glossy_floor_scene()
