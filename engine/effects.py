@@ -26,13 +26,26 @@ PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can
 # unaimed photons carry as well as aimed ones. A transparent pass (alpha < 1) casts no
 # caustic: shadow rays cross it (engine/shadowtransmittance.py), so light through it is
 # direct light.
+# The bound is exclusive, and a roughness within SHARP_TOLERANCE of it counts as rough:
+# Blender hands over float32 (0.3 arrives as 0.30000001), so a `<=` made a 0.3 floor rough
+# when exported and a caster when built headless. Aimed at, a rough metal floor of 0.3
+# turned light_area_spread_glossy's block error to 0.58 (docs/compatibility.md); as
+# rough, its glow comes from the global shot with its own map (engine/render.py).
 SHARP_ROUGHNESS = 0.3
+SHARP_TOLERANCE = 1e-6
+
+
+def is_sharp(roughness) -> np.ndarray:
+    """Roughness (any shape) sharp enough to focus light: below SHARP_ROUGHNESS by more
+    than float32's rounding (SHARP_TOLERANCE), whatever precision the value came in."""
+    return np.asarray(roughness, np.float64) < SHARP_ROUGHNESS - SHARP_TOLERANCE
 
 
 def sharp_specular(table: MaterialTable) -> np.ndarray:
     """(M,) bool: materials with a lobe sharp enough to focus light (a caustic caster): a
-    metal, glass or dielectric specular lobe of roughness <= SHARP_ROUGHNESS, a Principled
-    coat of coat roughness <= SHARP_ROUGHNESS (a clear-coated rough base). A transparent
+    metal, glass or dielectric specular lobe of roughness below SHARP_ROUGHNESS
+    (is_sharp), a Principled coat of coat roughness below it (a clear-coated rough
+    base). A transparent
     pass is none (shadow rays cross it)."""
     from .closures import principled as pr
     dielectric = (1 - table.metallic) * (1 - table.transmission)
@@ -41,8 +54,8 @@ def sharp_specular(table: MaterialTable) -> np.ndarray:
     coat = np.zeros(len(table.alpha), bool)
     if table.closure_params is not None and table.coat_weight is not None:
         coat = ((table.coat_weight > 0)
-                & (table.closure_params[:, pr.M_COAT_ROUGH] <= SHARP_ROUGHNESS))
-    return table.has_specular & ((main & (table.roughness <= SHARP_ROUGHNESS)) | coat)
+                & is_sharp(table.closure_params[:, pr.M_COAT_ROUGH]))
+    return table.has_specular & ((main & is_sharp(table.roughness)) | coat)
 
 
 def _focusing(table: MaterialTable) -> np.ndarray:
@@ -299,7 +312,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             shown = plan.rough_specular[:4]
             rough_note = ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
                           + (" ..." if len(plan.rough_specular) > 4 else "")
-                          + f" (specular roughness > {SHARP_ROUGHNESS:g}: too rough to focus "
+                          + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
                           "light; unaimed photons carry its glossy reflections)")
         if not focus_tri.any():
             auto, why = False, ("no specular or refractive materials" if not spec_tri.any()
@@ -321,7 +334,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = True, ("no sharp caustic caster; the glossy reflections of "
                                + ", ".join(f"'{n}'" for n in rough_reached[:4])
                                + (" ..." if len(rough_reached) > 4 else "")
-                               + f" (specular roughness > {SHARP_ROUGHNESS:g}) come from {source}")
+                               + f" (specular roughness {SHARP_ROUGHNESS:g} or more) come "
+                               f"from {source}")
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "
@@ -430,7 +444,7 @@ def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
     if np.any(table.alpha[mats] < 1) or np.any(table.has_alpha_texture[mats]):
         return "transparent"
     metal = table.metallic[mats] >= 0.5
-    if np.any(metal & (table.roughness[mats] <= SHARP_ROUGHNESS)):
+    if np.any(metal & is_sharp(table.roughness[mats])):
         return "mirror"
     return "metal" if np.any(metal) else "glossy"
 
