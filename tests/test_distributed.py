@@ -189,8 +189,10 @@ def test_engine_under_an_extension_name_is_shipped(client, small, tmp_path, monk
 def test_killed_worker_loses_nothing(client):
     """SIGKILL a worker process while it holds a pass: the scheduler gives the pass to
     the other worker (the nanny restarts the killed one) and the image is unchanged."""
-    scene = cornell_box(32, 24)
-    settings = RenderSettings(spp=2, photons=10000, caustic_photons=3000, seed=3)
+    # Passes long enough (~0.5 s each) that the scheduler is seen running one, also on a
+    # machine where a 32x24 pass ended between two polls.
+    scene = cornell_box(64, 48)
+    settings = RenderSettings(spp=8, photons=40000, caustic_photons=10000, seed=3)
     budget = Budget(passes=4)
     local = render_progressive(scene, settings, budget)
     pids = client.run(os.getpid)  # worker address -> process id
