@@ -24,6 +24,7 @@ import numpy as np
 from .closures import principled as pr
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
+from .lights.emission import concentric_disk as _concentric_disk, to_world as _to_world
 from .lights.environment import env_pdf, env_radiance, env_sample
 from .lights.selection import empty_tree, select_light
 from .lights.world import ENV_MAP_FRACTION
@@ -33,8 +34,6 @@ from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
 F32_MAX = float(np.finfo(np.float32).max)
 TWO_U32 = 2.0 * U32
 TWO_PI = 2.0 * np.pi
-PI_4 = np.pi / 4.0
-PI_2 = np.pi / 2.0
 PI = math.pi
 
 # Slots (engine/lights/packing.py), as module constants the kernels freeze.
@@ -59,31 +58,6 @@ def _npmax(a, b):
     if a != a or b != b:
         return a + b
     return a if a >= b else b
-
-
-@kernel
-def _concentric_disk(u1, u2):
-    a = 2.0 * u1 - 1.0
-    b = 2.0 * u2 - 1.0
-    if abs(a) > abs(b):
-        r = a
-        phi = PI_4 * (b / (a if a != 0 else 1e-300))
-    else:
-        r = b
-        phi = PI_2 - PI_4 * (a / (b if b != 0 else 1e-300))
-    return r * math.cos(phi), r * math.sin(phi)
-
-
-@kernel
-def _to_world(l0, l1, l2, n0, n1, n2):
-    """sampling.to_world for one direction."""
-    sign = 1.0 if n2 >= 0.0 else -1.0
-    a = -1.0 / (sign + n2)
-    b = n0 * n1 * a
-    x = l0 * (1.0 + sign * n0 ** 2 * a) + l1 * b + l2 * n0
-    y = l0 * (sign * b) + l1 * (sign + n1 ** 2 * a) + l2 * n1
-    z = l0 * (-sign * n0) + l1 * (-n1) + l2 * n2
-    return x, y, z
 
 
 @kernel
