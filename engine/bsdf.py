@@ -108,6 +108,9 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     offset = np.empty(n)
     rows, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
     hit_geometry(rows, u, v, d, *tabs, table.base_color, p, ng, ns, front, mat, base, offset)
+    floor = geo.instance_offset_floor(prim, p, ng)  # shared instances: object-space rounding
+    if floor is not None:
+        np.maximum(offset, floor, out=offset)
     n_smooth = bent = None
     for _, nmap, sel in rows_by_material(table.normal_maps, mat):
         if n_smooth is None:

@@ -332,6 +332,44 @@ class Geometry:
         return (np.take(self.v0, prim, axis=0) + u[:, None] * np.take(self.e1, prim, axis=0)
                 + v[:, None] * np.take(self.e2, prim, axis=0))
 
+    def instance_offset_floor(self, prim, p, n):
+        """(N,) least ray-origin offset (m, along the unit geometric normals n (N,3)) at
+        hit points p (N,3) on rows prim (N,) of shared instances, 0 on other rows; None
+        when the Geometry has no shared instances. A shared instance is traced in its
+        object space (engine/instancing.py): its float32 corners and the ray origin
+        rounded to float32 there each err by up to half a float32 spacing of the
+        object-space coordinates, which the instance's matrix A carries into world space
+        (|A| times it), and its float32 plane may tilt (rayoffset.triangle_tilt) by up to
+        cond(A) times more. The world-space offset of the expanded triangle
+        (camerakernels.hit_geometry) does not cover that: a ray leaving a translated box's
+        top started below it in object space and was blocked at t = 0 (black faces)."""
+        shared = self.shared
+        if shared is None:
+            return None
+        prim = np.asarray(prim, np.int64).reshape(-1)
+        floor = np.zeros(len(prim))
+        hit = np.nonzero(prim >= 0)[0]
+        inst, _, rows, which = shared.locate(prim[hit])
+        if not inst.any():
+            return floor
+        sel, r, i = hit[inst], rows[inst], which[inst]
+        v0 = np.take(shared.tables["v0"], r, axis=0)
+        corners = np.stack([v0, v0 + np.take(shared.tables["e1"], r, axis=0),
+                            v0 + np.take(shared.tables["e2"], r, axis=0)], axis=1)
+        A = shared.to_world[i][:, :, :3]
+        # Corners' and origin's rounding (half a spacing each) and as much again for
+        # Embree's float32 plane test, per object-space component, into world space.
+        err = np.einsum("nij,nj->ni", np.abs(A), 2.0 * ulp32(np.abs(corners).max(axis=1)))
+        n = np.asarray(n, np.float64).reshape(-1, 3)[sel]
+        floor[sel] = np.einsum("ni,ni->n", np.abs(n), err)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cond = np.nan_to_num(np.linalg.cond(A), nan=1.0, posinf=1.0)
+        world = np.einsum("nij,nkj->nki", A, corners) + shared.to_world[i][:, None, :, 3]
+        far = np.linalg.norm(world - np.asarray(p, np.float64).reshape(-1, 3)[sel][:, None],
+                             axis=2).max(axis=1)
+        floor[sel] += triangle_tilt(corners.astype(np.float32)) * cond * far
+        return floor
+
     def origin_offset(self, prim, u, v, p, n) -> np.ndarray:
         """(N,) distance along the unit geometric normal n that takes ray origins at hit
         points p clear of their own triangles (engine/rayoffset.py: the float64 and float32
@@ -340,14 +378,16 @@ class Geometry:
         # and run the fused kernel on them (row i of the gathered tables is hit i).
         prim = np.ascontiguousarray(prim, dtype=np.int64)
         rows = np.arange(len(prim), dtype=np.int64)
-        return surface_offset(np.take(self.v0, prim, axis=0), np.take(self.e1, prim, axis=0),
-                              np.take(self.e2, prim, axis=0),
-                              np.ascontiguousarray(self.round32[prim]),
-                              np.ascontiguousarray(self.tilt32[prim]), rows,
-                              np.ascontiguousarray(u, dtype=np.float64),
-                              np.ascontiguousarray(v, dtype=np.float64),
-                              np.ascontiguousarray(p, dtype=np.float64),
-                              np.ascontiguousarray(n, dtype=np.float64))
+        offset = surface_offset(np.take(self.v0, prim, axis=0), np.take(self.e1, prim, axis=0),
+                                np.take(self.e2, prim, axis=0),
+                                np.ascontiguousarray(self.round32[prim]),
+                                np.ascontiguousarray(self.tilt32[prim]), rows,
+                                np.ascontiguousarray(u, dtype=np.float64),
+                                np.ascontiguousarray(v, dtype=np.float64),
+                                np.ascontiguousarray(p, dtype=np.float64),
+                                np.ascontiguousarray(n, dtype=np.float64))
+        floor = self.instance_offset_floor(prim, p, n)
+        return offset if floor is None else np.maximum(offset, floor)
 
     def shading_normals(self, prim, u, v) -> np.ndarray:
         if not len(self.corner_normals):

@@ -186,6 +186,9 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         if not numpy_hits:
             pk.photon_surfaces(rows, u, v, d, v0, e1, e2, normals, material,
                                table.base_color, table.alpha, *surf_m)
+            floor = geo.instance_offset_floor(prim, surf_m[0], surf_m[1])
+            if floor is not None:  # shared instances: object-space rounding (Geometry)
+                np.maximum(surf_m[7], floor, out=surf_m[7])
         need = 2 * m if vis_on else m
         k = bounce % 2
         if nxt_sets[k] is None or len(nxt_sets[k][0]) < need:
