@@ -503,12 +503,15 @@ def _instances(scene, objects, instances):
     per entry; the object itself becomes a placement by the identity (shared too), or
     is dropped when it is a template."""
     used = {spec["object"] for spec in instances}
-    if not used:
-        return
     templates = {o.get("name") for o in objects if o.get("template")}
+    for name in sorted(templates - used, key=str):
+        scene.warnings.append(f"object '{name}' is a template (template = true) that no "
+                              "[[instances]] entry places: it is not drawn")
     protos = {}
     keep = []
     for mesh in scene.meshes:
+        if mesh.name in templates - used:
+            continue  # drawn only through its instances: here none
         if mesh.name not in used or mesh.name in protos:
             keep.append(mesh)
             continue

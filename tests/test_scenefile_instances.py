@@ -84,3 +84,14 @@ def test_instances_are_placements_and_render_as_copies(tmp_path, monkeypatch):
 def test_bad_instances_are_refused_naming_the_key(tmp_path, text, message):
     with pytest.raises(SceneFileError, match=message):
         load_scene(_write(tmp_path, text))
+
+
+def test_a_template_without_instances_is_not_drawn_and_said(tmp_path):
+    """template = true means 'drawn only through its instances' (docs/scene_format.md):
+    with no [[instances]] entry placing it, it is not drawn, and a warning says why (it
+    was drawn, against the docs; found by a reviewer)."""
+    scene, _ = load_scene(_write(tmp_path, '[[objects]]\ntype = "sphere"\nname = "ball"\n'
+                                           'template = true\n'))
+    assert [m.name for m in scene.meshes] == ["plane.000"] or "ball" not in [
+        m.name for m in scene.meshes]
+    assert any("'ball' is a template" in w and "not drawn" in w for w in scene.all_warnings())
