@@ -476,6 +476,11 @@ def _instance_problems(data):
                     f"({_show(spec['object'])})"]
         if "matrix" in spec and any(k in spec for k in ("translate", "rotate", "scale")):
             return [f"{where}: give 'matrix' or translate / rotate / scale, not both"]
+        rows = spec.get("matrix", [])
+        if len(rows) == 4 and list(map(float, rows[3])) != [0.0, 0.0, 0.0, 1.0]:
+            # A projective last row has no meaning for a placement: refused, not ignored.
+            return [f"{where}: 'matrix' row 4 must be [0, 0, 0, 1] (an affine object-to-"
+                    f"world matrix; or give 3 rows), got {rows[3]}"]
         if abs(np.linalg.det(_instance_matrix(spec)[:3, :3])) < 1e-300:
             return [f"{where}: 'matrix' is singular (a zero scale flattens the object)"]
         return []

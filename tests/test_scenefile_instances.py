@@ -76,6 +76,9 @@ def test_instances_are_placements_and_render_as_copies(tmp_path, monkeypatch):
      'matrix = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0]]\n', "singular"),
     ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\nmatrix = [[1, 0]]\n',
      "matrix"),
+    ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\n'
+     'matrix = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 1, 1, 1]]\n',
+     "'matrix' row 4 must be \\[0, 0, 0, 1\\]"),
     ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\nvisible_camera = "no"\n',
      "visible_camera"),
     ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\nmaterial = "nope"\n',
