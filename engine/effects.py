@@ -334,8 +334,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = True, ("no sharp caustic caster; the glossy reflections of "
                                + ", ".join(f"'{n}'" for n in rough_reached[:4])
                                + (" ..." if len(rough_reached) > 4 else "")
-                               + f" (specular roughness {SHARP_ROUGHNESS:g} or more) come "
-                               f"from {source}")
+                               + f" (specular roughness {SHARP_ROUGHNESS:g} or more) come from {source}")
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "

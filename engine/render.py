@@ -63,8 +63,7 @@ class Context:
             return None if m is None else m.serial()
         return replace(self, accel=self.accel.serial(), global_map=one(self.global_map),
                        caustic_map=one(self.caustic_map),
-                       caustic_rest_map=one(self.caustic_rest_map),
-                       gather_map=one(self.gather_map),
+                       caustic_rest_map=one(self.caustic_rest_map), gather_map=one(self.gather_map),
                        secondary_map=one(self.secondary_map))
 
 
