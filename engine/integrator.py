@@ -599,10 +599,6 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     if s.photon_mapping:
         caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
                                    footprint)
-        # The caustic paths an aimed shot left out, at their own density (render._build_maps).
-        caustic += _smooth_estimate(ctx, getattr(ctx, "caustic_rest_map", None),
-                                    getattr(ctx, "caustic_rest_radius", 0.0), hit, f,
-                                    sample_id, footprint)
         if ctx.gather_map is not None:
             indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                            should_cancel=should_cancel)

@@ -38,10 +38,6 @@ class Context:
     lights: list
     global_map: PhotonMap | None = None
     caustic_map: PhotonMap | None = None
-    # The caustic paths an aimed shot leaves out (first hit on a rough specular surface),
-    # from the global shot: a population far sparser than the aimed one, so a map and a
-    # radius of its own (render._build_maps).
-    caustic_rest_map: PhotonMap | None = None
     gather_map: GatherMap | None = None
     secondary_map: PhotonMap | None = None  # caustic light after one diffuse bounce
     gather_short: float = 0.0  # gather rays shorter than this gather again from their end
@@ -49,7 +45,6 @@ class Context:
     global_radius: float = 0.0
     secondary_radius: float = 0.0  # search radius of the secondary map (its own spacing)
     caustic_radius: float = 0.0
-    caustic_rest_radius: float = 0.0
     packed_lights: tuple | None = None  # lights as the direct-light kernels read them
     shadow: ShadowTransmittance | None = None  # transparent shadows (None: none in the scene)
     # Light trees for many lights (engine/lights/selection.py selector_for), built on use.
@@ -62,8 +57,7 @@ class Context:
         def one(m):
             return None if m is None else m.serial()
         return replace(self, accel=self.accel.serial(), global_map=one(self.global_map),
-                       caustic_map=one(self.caustic_map),
-                       caustic_rest_map=one(self.caustic_rest_map), gather_map=one(self.gather_map),
+                       caustic_map=one(self.caustic_map), gather_map=one(self.gather_map),
                        secondary_map=one(self.secondary_map))
 
 
@@ -142,7 +136,6 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) 
     Cancelled. Photons do not depend on the camera, so a session may keep
     the maps of a pass and render other views from them (engine/session.py)."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
-    ctx.caustic_rest_map = None
     s = ctx.settings
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
         return _photon_pass(ctx, stats, progress, should_cancel)
@@ -250,9 +243,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
         caustic = trace_photons(ctx, ctx.lights, ccounts, caustic_only=True, stream=2,
                                 progress=progress, should_cancel=should_cancel, targets=targets,
                                 first_hit=None if split is None else (split, True))
-    # The caustic paths the aimed shot leaves out, from the global shot (their own map).
-    rest = (shot.select(shot.kind == CAUSTIC) if use_caustic_shot and split is not None
-            and len(shot) else None)
+        if split is not None and len(shot):
+            # The caustic paths the aimed shot leaves out, from the global shot.
+            rest = shot.select(shot.kind == CAUSTIC)
+            emitted = caustic.emitted
+            caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
+                                for f in ("position", "power", "direction", "normal", "kind")))
+            caustic.emitted = emitted
     stats["time_photons"] = time.perf_counter() - t0
     stats["photons_emitted"] = shot.emitted
     stats["caustic_photons_emitted"] = caustic.emitted
@@ -262,18 +259,15 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
     # Built on a worker thread while this one polls should_cancel: the kd-tree builds are
     # single compiled calls of seconds at 10M photons (engine/parallel.run_cancellable).
     maps = run_cancellable(lambda stop: _build_maps(ctx, shot, caustic, use_caustic_shot,
-                                                    stop, rest), should_cancel)
+                                                    stop), should_cancel)
     if "global_photons" in maps:
         stats["global_photons"] = maps.pop("global_photons")
     diffuse_area = maps.pop("diffuse_area")
     for name, value in maps.items():
         setattr(ctx, name, value)
-    stats["caustic_photons"] = sum(len(m) for m in (ctx.caustic_map, ctx.caustic_rest_map)
-                                   if m is not None)
+    stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
     stats["radius_global"] = ctx.global_radius
     stats["radius_caustic"] = ctx.caustic_radius
-    if ctx.caustic_rest_map is not None:
-        stats["radius_caustic_rest"] = ctx.caustic_rest_radius
     if s.radius is not None and plan.indirect:
         stats.setdefault("warnings", []).extend(radius_warnings(
             s.radius, geo.extent, diffuse_area, stats.get("global_photons", 0), s.min_photons))
@@ -284,10 +278,9 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
                      for f in ("position", "power", "direction", "normal", "kind")))
 
 
-def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, rest=None) -> dict:
+def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
-    global_photons. rest: the global shot's caustic photons that an aimed caustic shot
-    leaves out (None: no split). stop() is asked between the steps (raises Cancelled)."""
+    global_photons. stop() is asked between the steps (raises Cancelled)."""
     s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
 
     def check():
@@ -349,18 +342,6 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop, rest=None) -> dict:
         out["caustic_map"] = PhotonMap(caustic if use_caustic_shot
                                        else shot.select(shot.kind == CAUSTIC), workers)
     out["caustic_radius"] = s.radius or r_auto
-    out["caustic_rest_map"] = None
-    out["caustic_rest_radius"] = 0.0
-    if plan.caustics and rest is not None and len(rest):
-        # Light off rough specular surfaces first (a glossy floor's glow on a ball's
-        # underside) comes from the global shot: a few heavy photons spread wide. In the
-        # aimed map, whose radius follows the aimed count, most of its points found fewer
-        # than min_photons and read black - the more caustic photons, the darker (issue
-        # 14). Its own map and its own photons' spacing, like the secondary map.
-        check()
-        out["caustic_rest_map"] = PhotonMap(rest, workers)
-        out["caustic_rest_radius"] = s.radius or auto_radius(diffuse_area, len(rest), k,
-                                                             geo.extent, rest.position)
     out["diffuse_area"] = diffuse_area
     check()
     return out

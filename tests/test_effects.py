@@ -200,53 +200,10 @@ def _caustic_map_power(scene, **kw):
         _photon_pass(ctx, {}, None, None)
     finally:
         ctx.accel.close()
-    maps = [m for m in (ctx.caustic_map, ctx.caustic_rest_map) if m is not None]
-    power = np.concatenate([m.photons.power for m in maps]).astype(np.float64).mean(axis=1)
-    normal = np.concatenate([m.photons.normal for m in maps])
-    wall = normal[:, 1] < -0.9  # the wall faces -y; floor photons face +z
+    ph = ctx.caustic_map.photons
+    power = ph.power.astype(np.float64).mean(axis=1)
+    wall = ph.normal[:, 1] < -0.9  # the wall faces -y; floor photons face +z
     return power.sum(), power[wall].sum(), ctx.plan
-
-
-def _ball_over_rough_metal():
-    """world_hdri_glossy's ingredients (issue 14), headless: a diffuse ball on a rough
-    metal floor (roughness 0.5: not a caustic caster) and a small mirror ball (a caster,
-    so caustic photons are aimed and the floor's L S+ D paths come from the global shot),
-    under a sun. The ball's underside sees the floor's glossy reflection of the sun."""
-    s = PaperScene(width=32, height=24)
-    s.add_material(Material("rough_metal", (0.8, 0.7, 0.6), metallic=1.0, roughness=0.5))
-    s.add_material(Material("mirror", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.0))
-    s.add_material(Material("blue", (0.3, 0.4, 0.7), roughness=1.0))
-    s.add_plane((0, 0, 0), (0, 0, 1), 6, "rough_metal", name="floor")
-    s.add_sphere((0, 0, 0.7), 0.7, "blue", name="ball", segments=24)
-    s.add_sphere((1.4, 0.6, 0.3), 0.3, "mirror", name="mirror", segments=16)
-    s.add_sun((0.3, 0.5, -1.0), strength=3.0)
-    s.set_camera((0, -4.5, 0.6), (0, 0, 0.5), view_angle=40)
-    return s
-
-
-def _underside_caustic(scene, caustic_photons):
-    film = scene.render(RenderSettings(workers=1, seed=5, spp=4, photons=20_000,
-                                       caustic_photons=caustic_photons))
-    under = (film.normal[..., 2] < -0.3) & (film.alpha > 0)
-    assert under.sum() > 20
-    return float(film.caustic[under].mean()), film
-
-
-def test_floor_glow_on_a_ball_does_not_fade_with_more_aimed_caustic_photons():
-    """Issue 14 (world_hdri_glossy: the ball's underside 20-40 % dark with more caustic
-    photons): the global shot's caustic photons (first hit on a rough specular surface)
-    are far sparser than the aimed ones. In one map whose search radius follows the aimed
-    count they fell below min_photons where the radius shrank: 500k aimed photons left
-    the underside 14 % darker than 20k. Each population has its own map and radius now,
-    so the aimed count does not change the floor's glow."""
-    s = _ball_over_rough_metal()
-    few, film = _underside_caustic(s, 20_000)
-    assert "aimed at 'mirror'" in effects(film) and "not aimed at 'floor'" in effects(film)
-    assert film.stats["radius_caustic_rest"] > 0
-    many, film = _underside_caustic(s, 500_000)
-    assert film.stats["radius_caustic"] < 0.5 * film.stats["radius_caustic_rest"]
-    assert few > 0
-    assert many == pytest.approx(few, rel=0.03)
 
 
 def test_caustic_paths_split_between_aimed_and_global_photons_keep_their_power():
