@@ -46,11 +46,6 @@ def test_glossy_noise_and_means_match_cycles_at_equal_samples(tool, light):
         c = ref[name]
         # The metal's mean is carried by its highlight: two 16-spp renders scatter ~1 %.
         tol = 0.04 if name == "Metal" else 0.025
-        if light == "world" and name == "Dielectric":
-            # Open (issue 14): the Principled dielectric under a constant world reads
-            # 2.7 % dark since the rough-specular caustic photons got their own map
-            # (render._build_maps, caustic_rest_map); 1.2-1.6 % before.
-            tol = 0.03
         assert abs(mean / c["mean"] - 1.0) <= tol, (light, name, mean, c["mean"])
         if name in NOISE_CHECKED[light]:
             assert noise <= 1.25 * c["noise"], (light, name, noise, c["noise"])
