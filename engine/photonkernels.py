@@ -1,18 +1,21 @@
 """Compiled kernels of the photon pass: everything between two Embree calls.
 
-One bounce of a chunk of photons is two kernel calls (engine/photons.py drives them):
+One bounce of a chunk of photons is one kernel call, `scatter` (engine/photons.py drives
+the bounces). Per block of hits (_BLOCK of them, whose data stays in cache):
 
-  photon_surfaces  hit -> surface data (point, geometric and shading normal facing the
-                   photon, side, material, base colour, alpha, ray-origin offset) for
-                   materials without textures or normal maps; scenes with them get the
-                   same arrays from bsdf.surface_hit (the numpy texture evaluation).
-  scatter          per hit: closures (engine/closures/principled.py setup; skipped for
-                   materials with only the diffuse and pass lobes) -> stored
-                   photon record (kind of path, visibility rules) -> Russian roulette over
-                   the lobes -> sampled continuation (cosine-weighted diffuse, or the
-                   chosen lobe's own sampler) -> compacted float32 rays for the next Embree
-                   call, plus the split-off copies that pass surfaces invisible to some ray
-                   kinds (docs/scene_format.md, "Ray visibility").
+  surfaces         hit -> surface data (point, geometric and shading normal facing the
+                   photon, side, material, base colour, alpha, ray-origin offset),
+                   computed in the kernel (`_surfaces`, also behind `photon_surfaces`) for
+                   materials without textures or normal maps; scenes with them, and shared
+                   instances (whose offsets take a floor from engine/geometry.py), hand in
+                   the same arrays from bsdf.surface_hit / photon_surfaces instead.
+  closures         engine/closures/principled.py setup (skipped for materials with only
+                   the diffuse and pass lobes)
+  scattering       stored photon record (kind of path, visibility rules) -> Russian
+                   roulette over the lobes -> sampled continuation (cosine-weighted
+                   diffuse, or the chosen lobe's own sampler) -> compacted float32 rays for
+                   the next Embree call, plus the split-off copies that pass surfaces
+                   invisible to some ray kinds (docs/scene_format.md, "Ray visibility").
 
 Random numbers: each photon keeps its slot in the chunk, and every number it uses is
 SplitMix64 (Steele et al. 2014) at counter (slot, bounce, dimension) of a stream keyed by
@@ -108,12 +111,27 @@ def photon_surfaces(prim, u, v, d, v0, e1, e2, corner_normals, material, base_co
     offset (N,) (rayoffset: the distance along ng that clears a ray origin of the
     triangle). The same values as bsdf.surface_hit for materials without textures,
     normal maps or alpha textures. corner_normals (T,3,3) float32, or (0,3,3) when every
-    triangle is flat."""
-    smooth = corner_normals.shape[0] > 0
+    triangle is flat. (scatter computes the same inline, a block of hits at a time.)"""
+    rows = np.empty(prim.shape[0], np.int64)
+    nh = 0
     for i in range(prim.shape[0]):
+        if prim[i] >= 0:
+            rows[nh] = i
+            nh += 1
+    _surfaces(rows, 0, nh, False, prim, u, v, d, v0, e1, e2, corner_normals, material,
+              base_color, mat_alpha, p, ng, ns, front, mat, base, alpha, offset)
+
+
+@kernel
+def _surfaces(rows, lo, hi, compact, prim, u, v, d, v0, e1, e2, corner_normals, material,
+              base_color, mat_alpha, p, ng, ns, front, mat, base, alpha, offset):
+    """photon_surfaces for the hits rows[lo:hi], written at row i = rows[k] of the
+    outputs, or at k - lo when compact (a block's own buffers)."""
+    smooth = corner_normals.shape[0] > 0
+    for k in range(lo, hi):
+        i = rows[k]
+        o = k - lo if compact else i
         t = prim[i]
-        if t < 0:
-            continue
         b1, b2 = np.float64(u[i]), np.float64(v[i])
         px = v0[t, 0] + b1 * e1[t, 0] + b2 * e2[t, 0]
         py = v0[t, 1] + b1 * e1[t, 1] + b2 * e2[t, 1]
@@ -145,17 +163,17 @@ def photon_surfaces(prim, u, v, d, v0, e1, e2, corner_normals, material, base_co
         if -(dx * sx + dy * sy + dz * sz) <= 1e-6:
             sx, sy, sz = gx, gy, gz
         m = material[t]
-        p[i, 0], p[i, 1], p[i, 2] = px, py, pz
-        ng[i, 0], ng[i, 1], ng[i, 2] = gx, gy, gz
-        ns[i, 0], ns[i, 1], ns[i, 2] = sx, sy, sz
-        front[i] = fr
-        mat[i] = m
-        base[i, 0], base[i, 1], base[i, 2] = base_color[m, 0], base_color[m, 1], base_color[m, 2]
-        alpha[i] = mat_alpha[m]
+        p[o, 0], p[o, 1], p[o, 2] = px, py, pz
+        ng[o, 0], ng[o, 1], ng[o, 2] = gx, gy, gz
+        ns[o, 0], ns[o, 1], ns[o, 2] = sx, sy, sz
+        front[o] = fr
+        mat[o] = m
+        base[o, 0], base[o, 1], base[o, 2] = base_color[m, 0], base_color[m, 1], base_color[m, 2]
+        alpha[o] = mat_alpha[m]
         ex = _point_error(v0, e1, e2, t, b1, b2, px, 0)
         ey = _point_error(v0, e1, e2, t, b1, b2, py, 1)
         ez = _point_error(v0, e1, e2, t, b1, b2, pz, 2)
-        offset[i] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz,
+        offset[o] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz,
                                 _tilt(v0, e1, e2, t))
 
 
@@ -187,14 +205,19 @@ def _path_kind(flags):
 
 
 @kernel
-def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, mat, base,
-            alpha, offset, bump, params, plain, mat_ior, visibility, object_id, caster,
+def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
+            corner_normals, material, base_color, mat_alpha, given, p, ng, ns, front, mat,
+            base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id, caster,
             first_hit_mode, caustic_only, vis_on,
             st_pos, st_power, st_dir, st_normal, st_kind,
             nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
-    ray kinds and slots (m,), at hits prim (m,) (< 0: missed; lost) with surface data from
-    photon_surfaces / bsdf.surface_hit; bump (m,) the diffuse lobe's bump shadowing
+    ray kinds and slots (m,), at hits prim (m,) (< 0: missed; lost). Surface data: with
+    given False computed here from the hits' barycentrics u, v (m,) and the triangle
+    tables v0, e1, e2 (T,3), corner_normals (T,3,3) float32 or (0,3,3), material (T,),
+    base_color (M,3) and mat_alpha (M,) (photon_surfaces' inputs; p .. offset unused,
+    may be empty); with given True read from p, ng, ns, front, mat, base, alpha, offset
+    (photon_surfaces' outputs, or bsdf.surface_hit's). bump (m,) the diffuse lobe's bump shadowing
     factor (normalmap.bump_shadowing; 1 without a bent normal). params, mat_ior: the
     material table's closure parameters and IOR; plain (M,) bool: the material has only
     the diffuse and pass lobes (plain_materials), whose weights need no closure set-up.
@@ -223,6 +246,20 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
             nh += 1
     # The closures are set up a block of hits at a time: their rows stay in cache and the
     # buffers are allocated once per call.
+    # Surface data of a block (photon_surfaces' values, computed here or copied from the
+    # given arrays).
+    p_b = np.empty((_BLOCK, 3))
+    ng_b = np.empty((_BLOCK, 3))
+    ns_b = np.empty((_BLOCK, 3))
+    front_b = np.empty(_BLOCK, np.bool_)
+    mat_b = np.empty(_BLOCK, np.int64)
+    base_b = np.empty((_BLOCK, 3))
+    alpha_b = np.empty(_BLOCK)
+    off_b = np.empty(_BLOCK)
+    # The split-off copies (vis_on) go after every continuation: their origins are kept.
+    n_beh = 0
+    beh_row = np.empty(nh if vis_on else 0, np.int64)
+    beh_o = np.empty((nh if vis_on else 0, 3), np.float32)
     mat_h = np.empty(_BLOCK, np.int64)
     base_h = np.empty((_BLOCK, 3))
     cos_h = np.empty(_BLOCK)
@@ -237,18 +274,42 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
     nn = 0
     for b0 in range(0, nh, _BLOCK):
         nb = min(_BLOCK, nh - b0)
+        if given:
+            for j in range(nb):
+                i = rows[b0 + j]
+                for c in range(3):
+                    p_b[j, c] = p[i, c]
+                    ng_b[j, c] = ng[i, c]
+                    ns_b[j, c] = ns[i, c]
+                    base_b[j, c] = base[i, c]
+                front_b[j] = front[i]
+                mat_b[j] = mat[i]
+                alpha_b[j] = alpha[i]
+                off_b[j] = offset[i]
+        else:
+            _surfaces(rows, b0, b0 + nb, True, prim, u, v, d, v0, e1, e2, corner_normals,
+                      material, base_color, mat_alpha, p_b, ng_b, ns_b, front_b, mat_b,
+                      base_b, alpha_b, off_b)
+        if vis_on:
+            for j in range(nb):
+                i = rows[b0 + j]
+                if kinds[i] & ~np.int64(visibility[prim[i]]) != 0:
+                    beh_row[n_beh] = i
+                    for c in range(3):  # d leaves through the back of the surface
+                        beh_o[n_beh, c] = p_b[j, c] - off_b[j] * ng_b[j, c]
+                    n_beh += 1
         nc = 0
         for j in range(nb):
             i = rows[b0 + j]
-            if plain[mat[i]]:
+            if plain[mat_b[j]]:
                 at[j] = -1
                 continue
             at[j] = nc
-            mat_h[nc] = mat[i]
-            base_h[nc, 0], base_h[nc, 1], base_h[nc, 2] = base[i, 0], base[i, 1], base[i, 2]
-            cos_h[nc] = -(ns[i, 0] * d[i, 0] + ns[i, 1] * d[i, 1] + ns[i, 2] * d[i, 2])
-            front_h[nc] = front[i]
-            alpha_h[nc] = alpha[i]
+            mat_h[nc] = mat_b[j]
+            base_h[nc, 0], base_h[nc, 1], base_h[nc, 2] = base_b[j, 0], base_b[j, 1], base_b[j, 2]
+            cos_h[nc] = -(ns_b[j, 0] * d[i, 0] + ns_b[j, 1] * d[i, 1] + ns_b[j, 2] * d[i, 2])
+            front_h[nc] = front_b[j]
+            alpha_h[nc] = alpha_b[j]
             nc += 1
         if nc > 0:
             pr.setup(mat_h[:nc], params, base_h[:nc], cos_h[:nc], front_h[:nc],
@@ -259,10 +320,10 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
             if jc < 0:
                 # The diffuse and pass weights principled.setup gives a material without
                 # other lobes, bit for bit (its other lobes' weights stay 0).
-                a = alpha[i]
+                a = alpha_b[j]
                 for c in range(3):
-                    w_plain[pr.L_PASS, c] = (1.0 - a) * params[mat[i], pr.M_TTINT + c]
-                    w_plain[pr.L_DIFFUSE, c] = a * base[i, c]
+                    w_plain[pr.L_PASS, c] = (1.0 - a) * params[mat_b[j], pr.M_TTINT + c]
+                    w_plain[pr.L_DIFFUSE, c] = a * base_b[j, c]
                 wj = w_plain
             else:
                 wj = w[jc]
@@ -288,10 +349,10 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
                     store = False
             if store:
                 for c in range(3):
-                    st_pos[ns_, c] = p[i, c]
+                    st_pos[ns_, c] = p_b[j, c]
                     st_power[ns_, c] = power[i, c] * bump[i]
                     st_dir[ns_, c] = d[i, c]
-                    st_normal[ns_, c] = ng[i, c]
+                    st_normal[ns_, c] = ng_b[j, c]
                 st_kind[ns_] = kind
                 ns_ += 1
             # --- Russian roulette over the lobes ---
@@ -314,8 +375,8 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
             p_sel = probs[pr.L_GLASS_R] + probs[pr.L_GLASS_T] if glass else probs[lobe]
             p_sel = max(p_sel / norm, 1e-300)
             dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
-            gx, gy, gz = ng[i, 0], ng[i, 1], ng[i, 2]
-            n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+            gx, gy, gz = ng_b[j, 0], ng_b[j, 1], ng_b[j, 2]
+            n0, n1, n2 = ns_b[j, 0], ns_b[j, 1], ns_b[j, 2]
             transmitted = False
             if lobe == pr.L_DIFFUSE:
                 u1 = uniform(key, slot[i], bounce, 1)
@@ -330,9 +391,9 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
                 ox, oy, oz = dx, dy, dz
                 transmitted = True
                 # (1 - alpha) x the Transparent BSDF's colour (principled.M_TTINT).
-                k0 = (1.0 - alpha[i]) * params[mat[i], pr.M_TTINT]
-                k1 = (1.0 - alpha[i]) * params[mat[i], pr.M_TTINT + 1]
-                k2 = (1.0 - alpha[i]) * params[mat[i], pr.M_TTINT + 2]
+                k0 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT]
+                k1 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT + 1]
+                k2 = (1.0 - alpha_b[j]) * params[mat_b[j], pr.M_TTINT + 2]
                 ok = max(k0, max(k1, k2)) > 0.0
             else:
                 lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
@@ -352,7 +413,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
                 continue
             scale = 1.0 / p_sel
             if glass and transmitted:
-                eta = 1.0 / mat_ior[mat[i]] if front[i] else mat_ior[mat[i]]
+                eta = 1.0 / mat_ior[mat_b[j]] if front_b[j] else mat_ior[mat_b[j]]
                 scale *= eta * eta
             q0 = power[i, 0] * k0 * scale
             q1 = power[i, 1] * k1 * scale
@@ -390,10 +451,10 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
                 # shadows).
                 nf |= F_SPECULAR
             # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
-            off = offset[i] if ox * gx + oy * gy + oz * gz >= 0.0 else -offset[i]
-            nx_o[nn, 0] = p[i, 0] + off * gx
-            nx_o[nn, 1] = p[i, 1] + off * gy
-            nx_o[nn, 2] = p[i, 2] + off * gz
+            off = off_b[j] if ox * gx + oy * gy + oz * gz >= 0.0 else -off_b[j]
+            nx_o[nn, 0] = p_b[j, 0] + off * gx
+            nx_o[nn, 1] = p_b[j, 1] + off * gy
+            nx_o[nn, 2] = p_b[j, 2] + off * gz
             nx_d32[nn, 0], nx_d32[nn, 1], nx_d32[nn, 2] = ox, oy, oz
             nx_d[nn, 0], nx_d[nn, 1], nx_d[nn, 2] = ox, oy, oz
             nx_power[nn, 0], nx_power[nn, 1], nx_power[nn, 2] = q0, q1, q2
@@ -404,23 +465,19 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, p, ng, ns, front, m
     if vis_on:
         # The kinds that do not see this surface pass on behind it in a split-off copy
         # (same slot, so the same random numbers); the photon stopped here for the others.
-        for j in range(nh):
-            i = rows[j]
+        for k in range(n_beh):
+            i = beh_row[k]
             t = prim[i]
-            behind = kinds[i] & ~np.int64(visibility[t])
-            if behind == 0:
-                continue
             fl = flags[i]
             if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
                 fl |= F_FIRST_CASTER
-            off = -offset[i]  # d leaves through the back of the surface
             for c in range(3):
-                nx_o[nn, c] = p[i, c] + off * ng[i, c]
+                nx_o[nn, c] = beh_o[k, c]
                 nx_d32[nn, c] = d[i, c]
                 nx_d[nn, c] = d[i, c]
                 nx_power[nn, c] = power[i, c]
             nx_flags[nn] = fl
-            nx_kinds[nn] = behind
+            nx_kinds[nn] = kinds[i] & ~np.int64(visibility[t])
             nx_slot[nn] = slot[i]
             nn += 1
     return ns_, nn
@@ -456,7 +513,7 @@ def next_arrays(m: int):
 
 @register_warm_up
 def _warm_up():
-    """Compile (or load) both kernels on one photon hitting one triangle."""
+    """Compile (or load) the kernels on one photon hitting one triangle."""
     v0 = np.zeros((1, 3))
     e1 = np.array([[1.0, 0.0, 0.0]])
     e2 = np.array([[0.0, 1.0, 0.0]])
@@ -469,9 +526,11 @@ def _warm_up():
     for normals in (np.zeros((0, 3, 3), np.float32), np.zeros((1, 3, 3), np.float32)):
         photon_surfaces(prim, uv, uv, d, v0, e1, e2, normals, np.zeros(1, np.int32),
                         np.full((1, 3), 0.5), np.ones(1), *surf)
-    scatter(np.uint64(1), 0, d, np.ones((1, 3)), np.zeros(1, np.int64),
-            np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), prim, *surf,
-            np.ones(1), params, plain_materials(params),
-            np.full(1, 1.5), np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32),
-            np.zeros(1, np.bool_), 0, False, False, *store_arrays(1), *next_arrays(2))
+    for given in (False, True):
+        scatter(np.uint64(1), 0, d, np.ones((1, 3)), np.zeros(1, np.int64),
+                np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), prim, uv, uv, v0,
+                e1, e2, normals, np.zeros(1, np.int32), np.full((1, 3), 0.5), np.ones(1),
+                given, *surf, np.ones(1), params, plain_materials(params), np.full(1, 1.5),
+                np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.bool_),
+                0, False, False, *store_arrays(1), *next_arrays(2))
     uniforms(np.uint64(1), np.zeros(1, np.int64), 0, 0, np.empty(1))

@@ -110,9 +110,10 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
                  first_hit=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits as
-    lists of arrays. Between two Embree calls the work is two compiled kernels
-    (engine/photonkernels.py); bsdf.surface_hit supplies the surface data instead where a
-    material has a texture, normal map or alpha texture."""
+    lists of arrays. Between two Embree calls the work is one compiled kernel
+    (photonkernels.scatter, which computes the surface data itself); bsdf.surface_hit
+    supplies the surface data instead where a material has a texture, normal map or alpha
+    texture, and photonkernels.photon_surfaces with shared instances."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
     # slot (photonkernels.uniform), emission included: a photon whose path changes (a hit
@@ -140,11 +141,15 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     else:
         caster, mode = np.ascontiguousarray(first_hit[0], np.bool_), 2 if first_hit[1] else 1
     numpy_hits = _needs_numpy_hits(table)
+    # Surface data as arrays only where the scatter kernel cannot compute it itself: the
+    # numpy texture evaluation, and shared instances (their offsets take a floor computed
+    # from the points, Geometry.instance_offset_floor).
+    given = numpy_hits or geo.shared is not None
     plain = pk.plain_materials(table.closure_params)
-    # Buffers for the whole chunk, reused bounce after bounce: the surface data, the
-    # stored photons (appended to by each bounce), and two sets of continued rays (one is
-    # the bounce's input, the other its output).
-    surf = pk.surface_arrays(m)
+    # Buffers for the whole chunk, reused bounce after bounce: the surface data (given
+    # only), the stored photons (appended to by each bounce), and two sets of continued
+    # rays (one is the bounce's input, the other its output).
+    surf = pk.surface_arrays(m if given else 0)
     bump = np.ones(m)
     stored = _Stored(2 * m + 1024)
     nxt_sets = [None, None]
@@ -156,7 +161,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
             break
         _, prim, u, v = accel.intersect(o, d32)
         if m > len(bump):
-            surf = pk.surface_arrays(m)
+            surf = pk.surface_arrays(m if given else 0)
             bump = np.ones(m)
         surf_m = tuple(a[:m] for a in surf)
         params, row_plain, mat_ior = table.closure_params, plain, table.ior
@@ -183,7 +188,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         # Shared instances: the hits' rows gathered (geometry.Geometry.hit_tables).
         rows, (v0, e1, e2, normals, material, visibility, object_id) = geo.hit_tables(
             prim, "v0", "e1", "e2", "corner_normals", "material", "visibility", "object_id")
-        if not numpy_hits:
+        if given and not numpy_hits:
             pk.photon_surfaces(rows, u, v, d, v0, e1, e2, normals, material,
                                table.base_color, table.alpha, *surf_m)
             floor = geo.instance_offset_floor(prim, surf_m[0], surf_m[1])
@@ -193,10 +198,11 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         k = bounce % 2
         if nxt_sets[k] is None or len(nxt_sets[k][0]) < need:
             nxt_sets[k] = pk.next_arrays(need)
-        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, rows, *surf_m,
-                                bump[:m], params, row_plain, mat_ior, visibility,
-                                object_id, caster, mode, bool(caustic_only), vis_on,
-                                *stored.room(m), *nxt_sets[k])
+        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, rows, u, v, v0, e1,
+                                e2, normals, material, table.base_color, table.alpha,
+                                given, *surf_m, bump[:m], params, row_plain, mat_ior,
+                                visibility, object_id, caster, mode, bool(caustic_only),
+                                vis_on, *stored.room(m), *nxt_sets[k])
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt_sets[k])
     return stored.parts()
