@@ -713,4 +713,7 @@ def _warm_up():
                        np.full((1, pr.N_LOBES), 0.2)))
     terminator_lift(np.zeros(1, np.int64), np.full((1, 2), 0.25), nrm, np.ones(1, np.bool_),
                     np.zeros(1, np.int32), np.full(1, 0.1, np.float32), mesh.v0, mesh.e1, mesh.e2,
-                    np.repeat(nrm[:, None, :], 3, axis=1), np.zeros(1), np.zeros((1, 3)))
+                    # float32 corner normals, as Geometry.corner_normals holds them (a float64
+                    # copy compiled a variant no render uses; the render then compiled its own)
+                    np.repeat(nrm[:, None, :], 3, axis=1).astype(np.float32), np.zeros(1),
+                    np.zeros((1, 3)))

@@ -96,8 +96,9 @@ def leaf_count(n):
 @kernel
 def build(points, stop):
     """kd-tree over points (N,3) float32. Returns (order (N,) int64: the tree's point i is
-    points[order[i]], axis (L-1,) uint8 and split (L-1,) float32 of the inner nodes,
-    leaf (L+1,) int64 leaf starts), L = leaf_count(N). Each split is the median of its
+    points[order[i]], position (N,3) float32: the points in that order, axis (L-1,) uint8
+    and split (L-1,) float32 of the inner nodes, leaf (L+1,) int64 leaf starts, bounds (6,)
+    float64: the points' box, lo x, y, z, hi x, y, z), L = leaf_count(N). Each split is the median of its
     range (ranges halve, so leaves differ by at most one point) along its cell's longest
     side. O(N log N), no recursion. stop: (1,) uint8 polled at every node; once it is
     nonzero the build ends early and its arrays are meaningless (the caller checks)."""
@@ -120,6 +121,7 @@ def build(points, stop):
         for c in range(3):
             st_box[0, c] = min(st_box[0, c], pts[i, c])
             st_box[0, 3 + c] = max(st_box[0, 3 + c], pts[i, c])
+    bounds = st_box[0].copy()
     sp = 1
     while sp > 0:
         if stop[0]:
@@ -152,7 +154,7 @@ def build(points, stop):
         st_box[sp] = box
         st_box[sp, 3 + ax] = value
         sp += 1
-    return perm, axis, split, leaf
+    return perm, pts, axis, split, leaf, bounds
 
 
 @kernel
@@ -531,14 +533,11 @@ class KdTree:
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"KdTree: points must have shape (N, 3), got {pts.shape}")
         stop = stop_array(should_cancel)
-        self.order, self.axis, self.split, self.leaf = build(pts, stop)
+        # The build permutes its own copy of the points: that copy is the tree's order.
+        self.order, self.position, self.axis, self.split, self.leaf, bounds = build(pts, stop)
         if stop[0]:
             raise Cancelled()
-        self.position = np.ascontiguousarray(pts[self.order])
-        self.bounds = np.zeros(6)  # the points' box: lo x, y, z, hi x, y, z
-        if len(pts):
-            self.bounds[:3] = pts.min(axis=0)
-            self.bounds[3:] = pts.max(axis=0)
+        self.bounds = bounds if len(pts) else np.zeros(6)  # lo x, y, z, hi x, y, z
 
     def __len__(self):
         return len(self.position)

@@ -81,9 +81,8 @@ class PhotonMap:
             self.tree = hashgrid.HashGrid(photons.position, cell)
         order = self.tree.order
         self.tree.order = None  # the photons are permuted below; the map needs no order
-        self.photons = Photons(self.tree.position, photons.power[order],
-                               photons.direction[order], photons.normal[order],
-                               photons.kind[order], photons.emitted)
+        self.photons = Photons(self.tree.position, *(np.take(a, order, axis=0) for a in (
+            photons.power, photons.direction, photons.normal, photons.kind)), photons.emitted)
 
     def __len__(self):
         return len(self.photons)
@@ -518,8 +517,8 @@ class GatherMap:
         points = ph.select(is_point)
         tree = kdtree.KdTree(points.position)
         # Kept in the tree's order: a search result indexes these arrays directly.
-        self.position = points.position[tree.order].astype(np.float64)
-        self.normal = points.normal[tree.order].astype(np.float64)
+        self.position = tree.position.astype(np.float64)
+        self.normal = np.take(points.normal, tree.order, axis=0).astype(np.float64)
         tree.order = None
         self.E, self.boundary = PhotonMap(others, workers).irradiance(
             self.position, self.normal, radius, k, min_photons, estimator, return_boundary=True,
@@ -828,14 +827,16 @@ RADIUS_SAMPLE = 4096
 
 
 def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
-                positions: np.ndarray | None = None) -> float:
+                positions: np.ndarray | None = None, tree=None) -> float:
     """Max search radius (m) from the photons' own density: twice the median distance from
     a stored photon to its k-th nearest neighbour (positions: (N,3) the stored photons).
     Where photons gather (the lit part of a huge ground plane) this is the local spacing,
     not the spacing they would have if spread over all diffuse area. Without positions,
     or where that median is 0 (photons piled on a point), twice the radius of a disc that
     would hold k photons if the stored photons covered the diffuse area evenly. Never
-    more than 0.1 x the scene's diagonal `extent`; no floor tied to the scene's size."""
+    more than 0.1 x the scene's diagonal `extent`; no floor tied to the scene's size.
+    tree: a kdtree.KdTree over the same points (a map's), used instead of building one
+    (same distances: the k-NN distances do not depend on the tree)."""
     if stored <= 0 or diffuse_area <= 0:
         return 0.05 * extent
     r = 0.0
@@ -843,7 +844,8 @@ def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
         # The compiled kd-tree: its build polls the stop flag of the job running on this
         # thread (a map build under run_cancellable), where scipy's build could not be
         # interrupted (0.7 s at 1M photons; issue 19). Same distances as cKDTree's.
-        tree = kdtree.KdTree(positions)
+        if not isinstance(tree, kdtree.KdTree) or len(tree) != len(positions):
+            tree = kdtree.KdTree(positions)
         step = max(1, len(tree) // RADIUS_SAMPLE)
         sample = np.asarray(positions, np.float32)[::step].astype(np.float64)
         d, _ = tree.query(sample, k + 1, np.inf)  # the nearest is the photon itself

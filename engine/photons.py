@@ -54,8 +54,15 @@ class Photons:
         return len(self.position)
 
     def select(self, mask) -> "Photons":
-        return Photons(self.position[mask], self.power[mask], self.direction[mask],
-                       self.normal[mask], self.kind[mask], self.emitted)
+        """The photons where mask (N,) bool is set, or at the rows mask (K,) int."""
+        rows = np.flatnonzero(mask) if np.asarray(mask).dtype == np.bool_ else mask
+        return self.take(rows)
+
+    def take(self, rows) -> "Photons":
+        """The photons at rows (K,) int, in that order (np.take: a few times faster than
+        fancy indexing for (N,3) rows)."""
+        return Photons(*(np.take(a, rows, axis=0) for a in (
+            self.position, self.power, self.direction, self.normal, self.kind)), self.emitted)
 
     @property
     def nbytes(self) -> int:

@@ -325,8 +325,9 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             # whole shot (a caustic's pile among them), which leaves the sparser secondary
             # photons below min_photons in much of the disc (zero estimate): walls lit
             # from a floor behind a window read 25 % dark against Cycles.
-            out["secondary_radius"] = s.radius or auto_radius(diffuse_area, len(secondary), k,
-                                                              geo.extent, secondary.position)
+            out["secondary_radius"] = s.radius or auto_radius(
+                diffuse_area, len(secondary), k, geo.extent, secondary.position,
+                out["secondary_map"].tree)
             out["global_photons"] = len(shot)
         else:
             out["global_map"] = PhotonMap(
@@ -334,7 +335,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             check()
             global_radius = s.radius or auto_radius(diffuse_area, len(out["global_map"]), k,
                                                     geo.extent,
-                                                    out["global_map"].photons.position)
+                                                    out["global_map"].photons.position,
+                                                    out["global_map"].tree)
             out["global_photons"] = len(out["global_map"])
     out["global_radius"] = global_radius
     if plan.caustics:
