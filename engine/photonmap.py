@@ -74,7 +74,7 @@ class PhotonMap:
         if not len(photons):
             return
         if structure == "kdtree":
-            self.tree = kdtree.KdTree(photons.position)
+            self.tree = kdtree.KdTree(photons.position, workers=workers)
         else:
             if cell is None:
                 raise ValueError("PhotonMap: the hash grid needs a cell size (cell=radius)")
@@ -515,7 +515,7 @@ class GatherMap:
         others = ph.select(~is_point)
         others.power = others.power * np.float32(len(ph) / len(others))
         points = ph.select(is_point)
-        tree = kdtree.KdTree(points.position)
+        tree = kdtree.KdTree(points.position, workers=workers)
         # Kept in the tree's order: a search result indexes these arrays directly.
         self.position = tree.position.astype(np.float64)
         self.normal = np.take(points.normal, tree.order, axis=0).astype(np.float64)
@@ -827,7 +827,7 @@ RADIUS_SAMPLE = 4096
 
 
 def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
-                positions: np.ndarray | None = None, tree=None) -> float:
+                positions: np.ndarray | None = None, tree=None, workers: int = 1) -> float:
     """Max search radius (m) from the photons' own density: twice the median distance from
     a stored photon to its k-th nearest neighbour (positions: (N,3) the stored photons).
     Where photons gather (the lit part of a huge ground plane) this is the local spacing,
@@ -836,7 +836,8 @@ def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
     would hold k photons if the stored photons covered the diffuse area evenly. Never
     more than 0.1 x the scene's diagonal `extent`; no floor tied to the scene's size.
     tree: a kdtree.KdTree over the same points (a map's), used instead of building one
-    (same distances: the k-NN distances do not depend on the tree)."""
+    (same distances: the k-NN distances do not depend on the tree); workers: threads
+    for building one (kdtree.KdTree)."""
     if stored <= 0 or diffuse_area <= 0:
         return 0.05 * extent
     r = 0.0
@@ -845,7 +846,7 @@ def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
         # thread (a map build under run_cancellable), where scipy's build could not be
         # interrupted (0.7 s at 1M photons; issue 19). Same distances as cKDTree's.
         if not isinstance(tree, kdtree.KdTree) or len(tree) != len(positions):
-            tree = kdtree.KdTree(positions)
+            tree = kdtree.KdTree(positions, workers=workers)
         step = max(1, len(tree) // RADIUS_SAMPLE)
         sample = np.asarray(positions, np.float32)[::step].astype(np.float64)
         d, _ = tree.query(sample, k + 1, np.inf)  # the nearest is the photon itself

@@ -297,7 +297,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     # radius from the same spacing, scaled to the larger shot's count (aimed caustic
     # photons pile up on a focus: their own spacing would make it tiny); without a
     # global shot, as if the caustic photons covered the diffuse area evenly.
-    r_global = auto_radius(diffuse_area, len(shot), k, geo.extent, shot.position)
+    r_global = auto_radius(diffuse_area, len(shot), k, geo.extent, shot.position,
+                           workers=workers)
     dense = max(len(shot), len(caustic), 1)
     if len(shot) > k:
         r_auto = r_global * math.sqrt(len(shot) / dense)
