@@ -845,7 +845,7 @@ def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
         # The compiled kd-tree: its build polls the stop flag of the job running on this
         # thread (a map build under run_cancellable), where scipy's build could not be
         # interrupted (0.7 s at 1M photons; issue 19). Same distances as cKDTree's.
-        if not isinstance(tree, kdtree.KdTree) or len(tree) != len(positions):
+        if tree is None or not hasattr(tree, "query") or len(tree) != len(positions):
             tree = kdtree.KdTree(positions, workers=workers)
         step = max(1, len(tree) // RADIUS_SAMPLE)
         sample = np.asarray(positions, np.float32)[::step].astype(np.float64)

@@ -97,27 +97,23 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
         return _trace_chunk(ctx, accel, emitter, n, count, rng, caustic_only, targets, stop,
                             first_hit)
 
-    parts = {k: [] for k in ("position", "power", "direction", "normal", "kind")}
+    shot = _Shot(total)
     done = 0
-    for item, chunk_parts in zip(jobs, ordered_map(job, jobs, threads, should_cancel)):
-        for k, v in chunk_parts.items():
-            parts[k] += v
+    for item, stored in zip(jobs, ordered_map(job, jobs, threads, should_cancel)):
         done += item[3]
+        shot.append(stored, done)
         if progress is not None:
             label = "caustic photons" if caustic_only else "photons"
             progress("photons", done / max(total, 1), f"Tracing {label} {_k(done)}/{_k(total)}")
-    if not parts["position"]:
-        out = Photons.empty()
-    else:
-        out = Photons(**{k: np.concatenate(v) for k, v in parts.items()})
+    out = shot.photons()
     out.emitted = total
     return out
 
 
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
                  first_hit=None):
-    """Emit n of the light's `count` photons and trace them; returns the stored hits as
-    lists of arrays. Between two Embree calls the work is one compiled kernel
+    """Emit n of the light's `count` photons and trace them; returns the stored hits (a
+    _Stored). Between two Embree calls the work is one compiled kernel
     (photonkernels.scatter, which computes the surface data itself); bsdf.surface_hit
     supplies the surface data instead where a material has a texture, normal map or alpha
     texture, and photonkernels.photon_surfaces with shared instances."""
@@ -212,7 +208,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                                 vis_on, *stored.room(m), *nxt_sets[k])
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt_sets[k])
-    return stored.parts()
+    return stored
 
 
 class _Stored:
@@ -231,14 +227,42 @@ class _Stored:
             self.arrays = grown
         return tuple(a[self.count:] for a in self.arrays)
 
-    def parts(self) -> dict:
-        """{name: [array]}: the stored photons, trimmed copies (a view would keep the
-        chunk's whole buffer, ~2x its rays, alive until trace_photons concatenates every
-        chunk: 10M photons in 2^17 chunks held ~1 GB)."""
-        names = ("position", "power", "direction", "normal", "kind")
-        if self.count == 0:
-            return {name: [] for name in names}
-        return {name: [a[:self.count].copy()] for name, a in zip(names, self.arrays)}
+
+class _Shot:
+    """A shot's stored photons, the chunks' appended in order as they finish: one copy
+    from a chunk's buffers into the shot's (no trimmed copy per chunk and concatenation),
+    and a chunk's buffers (~2x its rays) are dropped as soon as it is copied. The shot's
+    arrays are sized from the photons stored per photon emitted so far (grown if that
+    falls short, trimmed at the end if much is left over)."""
+
+    def __init__(self, total: int):
+        self.total = total
+        self.arrays = None
+        self.count = 0
+
+    def append(self, stored: _Stored, emitted: int):
+        """Add a chunk's photons; emitted: photons emitted by the chunks appended so far,
+        this one included."""
+        need = self.count + stored.count
+        if self.arrays is None or need > len(self.arrays[0]):
+            # Expected for the whole shot at the rate so far, 5 % spare.
+            expect = int(need * self.total / max(emitted, 1) * 1.05) + 1024
+            grown = pk.store_arrays(max(need, expect) if emitted < self.total else need)
+            if self.arrays is not None:
+                for new, old in zip(grown, self.arrays):
+                    new[:self.count] = old[:self.count]
+            self.arrays = grown
+        for dst, src in zip(self.arrays, stored.arrays):
+            dst[self.count:need] = src[:stored.count]
+        self.count = need
+
+    def photons(self) -> Photons:
+        if self.arrays is None or self.count == 0:
+            return Photons.empty()
+        n = self.count
+        if 8 * (len(self.arrays[0]) - n) > n:  # over 1/8 spare: a trimmed copy
+            return Photons(*(a[:n].copy() for a in self.arrays))
+        return Photons(*(a[:n] for a in self.arrays))
 
 
 def _needs_numpy_hits(table) -> bool:
