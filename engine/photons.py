@@ -245,8 +245,12 @@ class _Shot:
         this one included."""
         need = self.count + stored.count
         if self.arrays is None or need > len(self.arrays[0]):
-            # Expected for the whole shot at the rate so far, 5 % spare.
+            # Expected for the whole shot at the rate so far, 5 % spare; at least 1.5x
+            # the arrays it replaces (a rate that keeps rising copies a bounded number of
+            # times).
             expect = int(need * self.total / max(emitted, 1) * 1.05) + 1024
+            if self.arrays is not None:
+                expect = max(expect, len(self.arrays[0]) * 3 // 2)
             grown = pk.store_arrays(max(need, expect) if emitted < self.total else need)
             if self.arrays is not None:
                 for new, old in zip(grown, self.arrays):

@@ -97,3 +97,58 @@ def test_same_seed_same_photons_other_seed_other_photons():
     np.testing.assert_array_equal(a.position, b.position)
     np.testing.assert_array_equal(a.power, b.power)
     assert len(a) != len(c) or not np.array_equal(a.position, c.position)
+
+
+def test_scatter_computes_the_surface_data_as_photon_surfaces_does():
+    """scatter's own surface data (given=False) and photon_surfaces' arrays (given=True,
+    the path of textured materials and shared instances) give the same photons, bit for
+    bit, with and without the visibility split-offs."""
+    s = _scene()
+    s.validate()
+    geo, table = prepare(s)
+    accel = Accel(geo.vertices32, geo.faces32, 1)
+    rng = np.random.default_rng(5)
+    n = 3000
+    o = np.tile((0.1, -0.2, 1.6) - geo.offset, (n, 1)) + 0.2 * rng.random((n, 3))
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    _, prim, u, v = accel.intersect(o, d)
+    prim[::7] = -1  # some misses
+    surf = pk.surface_arrays(n)
+    pk.photon_surfaces(prim, u, v, d, geo.v0, geo.e1, geo.e2, geo.corner_normals,
+                       geo.material, table.base_color, table.alpha, *surf)
+    power = rng.random((n, 3))
+    flags = rng.integers(0, 16, n).astype(np.int64)
+    # Each triangle hides from some ray kinds: split-off copies pass it.
+    visibility = rng.integers(0, 64, geo.count).astype(np.uint8)
+    plain = pk.plain_materials(table.closure_params)
+    for vis_on in (False, True):
+        kinds = np.full(n, pk.SEGMENT_KINDS, np.int64)
+        out = []
+        for given in (True, False):
+            st, nx = pk.store_arrays(n), pk.next_arrays(2 * n)
+            counts = pk.scatter(np.uint64(11), 1, d, power, flags, kinds, np.arange(n), prim,
+                                u, v, geo.v0, geo.e1, geo.e2, geo.corner_normals,
+                                geo.material, table.base_color, table.alpha, given,
+                                *(surf if given else pk.surface_arrays(0)), np.ones(n),
+                                table.closure_params, plain, table.ior, visibility,
+                                geo.object_id, np.zeros(1, np.bool_), 0, False, vis_on,
+                                *st, *nx)
+            out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
+        (c1, a1), (c2, a2) = out
+        assert c1 == c2 and c1[0] > 0 and c1[1] > 0
+        for x, y in zip(a1, a2):
+            np.testing.assert_array_equal(x, y)
+
+
+def test_a_shot_in_many_chunks_is_the_same_on_one_and_two_workers():
+    """The chunks' stored photons are copied into the shot in chunk order (photons._Shot,
+    its arrays grown as the rate of stored photons rises): the same photons for any
+    worker count."""
+    s = closed_box(0.7)
+    a = shoot(s, RenderSettings(photons=6000, seed=4, chunk_size=500, workers=1))
+    b = shoot(s, RenderSettings(photons=6000, seed=4, chunk_size=500, workers=2))
+    assert len(a) > 6000 and a.emitted == b.emitted == 6000
+    for name in ("position", "power", "direction", "normal", "kind"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert getattr(a, name).flags.c_contiguous
