@@ -14,6 +14,17 @@ another surface's photons (a wall lit on its far side), where the k-NN query wid
 The gather-map row: GatherMap.lookup (nearest facing gather point + its visibility ray)
 at the ends of rays shot from inside the box in random directions (where gather rays
 end), in Embree traversals, split into its parts.
+
+    .venv/bin/python bench/bench_lookup.py --render-calls [--base 1b8bc95]
+        [--blends figure6_box,figure7_blocker] [--width 160 --height 120]
+
+A render's own estimates instead: one 1-worker render of each exported example blend
+(default settings, bench/bench_kernels.py's export) records every PhotonMap.irradiance
+call (its map, its caller, its rows); then each version (this tree and --base, one
+fresh process each) replays those calls, one thread, best of 3 CPU seconds, and prints
+per map and caller: microseconds per estimate, the same in Embree closest-hit
+traversals of that scene, and whether both versions' answers are the same bits. The
+kernel gather lookups (GatherMap.lookup) of the same render are timed alike.
 """
 from __future__ import annotations
 
@@ -30,6 +41,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests"))
+sys.path.insert(0, os.path.join(ROOT, "bench"))
 
 from engine import RenderSettings  # noqa: E402
 from engine.api import cornell_box  # noqa: E402
@@ -129,14 +141,179 @@ def gather_lookup(ctx, shot, radius, k, s, ray, m=200_000):
             f"{per * 1e6:.2f} us = {per / ray:.1f} rays", "", parts, "")
 
 
+CAPTURE = r"""
+import pickle, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine.jit import ensure_compiled
+from engine.render import render
+from engine.settings import RenderSettings
+from engine import photonmap
+ensure_compiled()
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+scene.width, scene.height = W, H
+maps, calls, lookups = {}, {}, []
+irradiance, lookup = photonmap.PhotonMap.irradiance, photonmap.GatherMap.lookup
+def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
+           r_floor=None, should_cancel=None):
+    caller = sys._getframe(1).f_code.co_name
+    if id(self) not in maps:
+        t, ph = self.tree, self.photons
+        maps[id(self)] = dict(tree=(t.position, t.axis, t.split, t.leaf, t.bounds),
+                              photons=(ph.position, ph.power, ph.direction, ph.normal,
+                                       ph.kind, ph.emitted))
+    calls.setdefault((id(self), caller, radius), []).append(
+        (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
+         None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),)))))
+    return irradiance(self, p, n, radius, k, min_photons, estimator, return_boundary,
+                      r_floor, should_cancel)
+def record_lookup(self, p, n, candidates=8, offset=None):
+    if not lookups:
+        lookups.append((self.tree.position, self.tree.axis, self.tree.split,
+                        self.tree.leaf, self.position, self.normal, self.E, self.boundary,
+                        self.radius))
+    lookups.append((np.array(p), np.array(n), None if offset is None else np.array(offset)))
+    return lookup(self, p, n, candidates, offset)
+photonmap.PhotonMap.irradiance = record
+photonmap.GatherMap.lookup = record_lookup
+render(scene, RenderSettings(workers=1))
+with open(OUT, "wb") as f:
+    pickle.dump(dict(maps=maps, calls=calls, lookups=lookups), f, protocol=4)
+print('{"ok": true}')
+"""
+
+REPLAY = r"""
+import hashlib, json, pickle, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine.jit import ensure_compiled
+from engine import kdtree, photonmap
+from engine.photons import Photons
+from engine.render import prepare_context
+from engine.settings import RenderSettings
+ensure_compiled()
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+ctx = prepare_context(scene, RenderSettings(workers=1))
+rng = np.random.default_rng(1)
+lo, hi = (np.asarray(b, np.float64) for b in ctx.geo.bounds)
+o = lo + (hi - lo) * (0.3 + 0.4 * rng.random((200_000, 3)))
+d = rng.normal(size=(200_000, 3))
+d /= np.linalg.norm(d, axis=1)[:, None]
+acc = ctx.accel.serial()
+def cpu(fn):
+    best = 1e9
+    for _ in range(3):
+        t = time.process_time(); out = fn(); best = min(best, time.process_time() - t)
+    return best, out
+ray_s, _ = cpu(lambda: acc.intersect(o, d))
+ray_us = ray_s / len(o) * 1e6
+with open(CAPTURE, "rb") as f:
+    cap = pickle.load(f)
+def tree(arrays):
+    t = kdtree.KdTree.__new__(kdtree.KdTree)
+    t.position, t.axis, t.split, t.leaf, t.bounds = arrays
+    t.order = None
+    return t
+rows = []
+for (mid, caller, radius), calls in cap["calls"].items():
+    m = cap["maps"][mid]
+    pm = photonmap.PhotonMap.__new__(photonmap.PhotonMap)
+    pm.workers, pm.structure, pm.tree = 1, "kdtree", tree(m["tree"])
+    pm.photons = Photons(*m["photons"])
+    def run():
+        return [pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf)
+                for p, n, k, mp, est, rb, rf in calls]
+    t, outs = cpu(run)
+    h = hashlib.sha1()
+    for out in outs:
+        for a in (out if isinstance(out, tuple) else (out,)):
+            h.update(np.ascontiguousarray(a).tobytes())
+    m_rows = sum(len(c[0]) for c in calls)
+    rows.append(dict(caller=caller, photons=len(pm.photons), radius=radius,
+                     calls=len(calls), rows=m_rows, us=t / m_rows * 1e6, hash=h.hexdigest()))
+if cap["lookups"]:
+    tp, ax, sp, lf, position, normal, E, B, radius = cap["lookups"][0]
+    calls = cap["lookups"][1:]
+    big = max(len(c[0]) for c in calls)
+    o32, d32 = np.empty((big, 3), np.float32), np.empty((big, 3), np.float32)
+    t32, ray_row = np.empty(big, np.float32), np.empty(big, np.int64)
+    def run():
+        outs = []
+        for p, n, off in calls:
+            out, bnd = np.empty((len(p), 3)), np.empty(len(p), bool)
+            lift = (photonmap._NO_LIFT if off is None
+                    else np.ascontiguousarray(off, dtype=np.float64))
+            rows_ = photonmap.morton_order(p)
+            photonmap._gather_candidates(tp, (ax, sp, lf), position, normal, E, B, p, n,
+                                         lift, rows_, radius * radius, 64, True, out, bnd,
+                                         o32, d32, t32, ray_row)
+            outs.append((out, bnd))
+        return outs
+    t, outs = cpu(run)
+    h = hashlib.sha1()
+    for out, bnd in outs:
+        h.update(out.tobytes()); h.update(bnd.tobytes())
+    m_rows = sum(len(c[0]) for c in calls)
+    rows.append(dict(caller="GatherMap.lookup (kernel: search + rays, no Embree)",
+                     photons=len(position), radius=radius, calls=len(calls), rows=m_rows,
+                     us=t / m_rows * 1e6, hash=h.hexdigest()))
+print(json.dumps(dict(ray_us=ray_us, rows=rows)))
+"""
+
+CALLERS = {"__init__": "gather map's points (once per render)",
+           "_smooth_estimate": "camera hits (<= 16 per pixel)",
+           "_secondary_irradiance": "regathered points (a quarter of them)"}
+
+
+def render_calls(args):
+    """The --render-calls table: a render's own estimates, replayed by both versions."""
+    import bench_kernels as bk  # noqa: E402  (the blend export and the base-tree copy)
+    where = args.work
+    os.makedirs(where, exist_ok=True)
+    roots = {"before": bk.base_tree(args.base, where), "after": ROOT}
+    head = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True).stdout.strip()
+    print(f"before = {args.base}, after = {head} (+ working tree); load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; {args.width}x{args.height}, "
+          f"default settings, estimates of a 1-worker render replayed on one thread\n")
+    print("| scene | estimate at | map photons | radius m | calls | rows | before us / row "
+          "| after us / row | gain | after in Embree traversals | answers |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+    for name in args.blends.split(","):
+        pkl = bk.exported(name, where)
+        cap = os.path.join(where, f"{name}-{args.width}x{args.height}.calls")
+        bk.child(CAPTURE, ROOT=ROOT, PICKLE=pkl, W=args.width, H=args.height, OUT=cap)
+        res = {v: bk.child(REPLAY, ROOT=roots[v], PICKLE=pkl, CAPTURE=cap) for v in roots}
+        for b, a in zip(res["before"]["rows"], res["after"]["rows"]):
+            ray = res["after"]["ray_us"]
+            same = "same bits" if a["hash"] == b["hash"] else "DIFFER"
+            print(f"| {name} | {CALLERS.get(a['caller'], a['caller'])} | {a['photons']:,} | "
+                  f"{a['radius']:.3f} | {a['calls']:,} | {a['rows']:,} | {b['us']:.2f} | "
+                  f"{a['us']:.2f} | {b['us'] / a['us']:.2f}x | {a['us'] / ray:.1f} | {same} |",
+                  flush=True)
+        print(f"| {name} | (one Embree closest-hit ray, us: before / after) | | | | | "
+              f"{res['before']['ray_us']:.3f} | {res['after']['ray_us']:.3f} | | | |")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--render-calls", action="store_true",
+                    help="only the table of a render's own estimates, before / after")
+    ap.add_argument("--base", default="1b8bc95", help="--render-calls: commit to compare")
+    ap.add_argument("--blends", default="figure6_box,figure7_blocker")
+    ap.add_argument("--width", type=int, default=160)
+    ap.add_argument("--height", type=int, default=120)
+    ap.add_argument("--work", default=os.path.join(tempfile.gettempdir(), "bench_kernels"))
     ap.add_argument("--photons", type=int, default=RenderSettings.photons)
     ap.add_argument("--queries", type=int, default=50_000)
     ap.add_argument("--k", type=int, default=RenderSettings.k_nearest)
     ap.add_argument("--skip-compile", action="store_true",
                     help="leave out the compile rows (bench_kernels.py measures them too)")
     args = ap.parse_args(argv)
+    if args.render_calls:
+        return render_calls(args)
     rows = []
 
     if not args.skip_compile:

@@ -25,6 +25,8 @@ Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
   ball        the points with squared distance <= r2, up to a caller's capacity
   ball_count  how many points have squared distance <= r2 (whole subtrees inside the
               sphere are counted by their range: the points' box is kept for that)
+  ball_d2     the points with squared distance < r2 and their distances, up to a cap;
+              nearest_first then orders the m nearest of them (knn's answer, no heap)
 Far subtrees are skipped by the query's squared distance to their cell (Arya & Mount
 1993, kept incrementally per axis). Distances are computed in float64 from the float32
 positions (as scipy's cKDTree does on a float64 copy), so neighbour sets match it except
@@ -452,6 +454,169 @@ def ball(pos, axis, split, leaf, qx, qy, qz, r2, out, cap):
                 out[count] = j
                 count += 1
     return count
+
+
+@kernel
+def ball_d2(pos, axis, split, leaf, qx, qy, qz, r2, d2, idx, cap):
+    """The points with squared distance < r2 (knn's strict bound) and those distances
+    into idx[:count], d2[:count], in tree order (the same float64 distances knn
+    computes). Stops scanning once more than cap are found and returns cap + 1; else
+    returns the count. With nearest_first, the k-NN answer of a sphere that holds few
+    points, without a heap (estimates of a sparse map: engine/photonmap.py)."""
+    n = pos.shape[0]
+    count = 0
+    if n == 0:
+        return 0
+    inner = axis.shape[0]
+    st_node, st_off, sp = _root_stack()
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        rd = st_off[sp, 3]
+        ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
+        node, sp = _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, r2, False,
+                            st_node, st_off, sp)
+        for j in range(leaf[node - inner], leaf[node - inner + 1]):
+            dx = qx - np.float64(pos[j, 0])
+            dy = qy - np.float64(pos[j, 1])
+            dz = qz - np.float64(pos[j, 2])
+            dist2 = dx * dx + dy * dy + dz * dz
+            if dist2 < r2:
+                if count == cap:
+                    return cap + 1
+                d2[count] = dist2
+                idx[count] = j
+                count += 1
+    return count
+
+
+INSERTION_SORT = 16  # ranges this short are finished by insertion sort
+BUCKET_MAX = 32  # a distance bucket fuller than this is ordered by quicksort instead
+
+
+@kernel
+def nearest_first(src_d2, src_idx, count, m, r2, d2, idx, hist):
+    """The count entries of src_d2 / src_idx (squared distances < r2 and their points)
+    into d2 / idx (same entries) with the m smallest first in increasing distance, the
+    rest after them. A counting sort into `count` buckets of equal squared-distance width
+    (photons on a surface fill them evenly: a disc's area grows with d^2), then insertion
+    sort of the buckets up to the m-th entry: about two branch-free passes, where a
+    comparison sort's unpredictable branches cost 3-4x more (bench/bench_lookup.py).
+    Buckets fuller than BUCKET_MAX (clustered distances) fall back to a partial quicksort
+    (_partial_sort). hist: scratch of count + 1 entries. Equal distances keep src's order."""
+    m = min(m, count)
+    if m <= 0:
+        return
+    if count <= INSERTION_SORT or not r2 > 0.0:
+        for j in range(count):
+            d2[j] = src_d2[j]
+            idx[j] = src_idx[j]
+        _partial_sort(d2, idx, count, m)
+        return
+    scale = count / r2
+    top = count - 1
+    hist[:count + 1] = 0
+    for j in range(count):
+        b = min(int(src_d2[j] * scale), top)
+        hist[b + 1] += 1
+    # Bucket starts; the buckets up to the one holding entry m - 1 must be short.
+    full = False
+    last = 0
+    for b in range(count):
+        size = hist[b + 1]
+        hist[b + 1] += hist[b]
+        if hist[b] < m:
+            last = b
+            if size > BUCKET_MAX:
+                full = True
+    if full:
+        for j in range(count):
+            d2[j] = src_d2[j]
+            idx[j] = src_idx[j]
+        _partial_sort(d2, idx, count, m)
+        return
+    for j in range(count):
+        b = min(int(src_d2[j] * scale), top)
+        slot = hist[b]
+        d2[slot] = src_d2[j]
+        idx[slot] = src_idx[j]
+        hist[b] = slot + 1
+    # hist[b] is now bucket b's end; entries beyond bucket `last` stay bucket-ordered.
+    _insertion_sort(d2, idx, 0, hist[last])
+
+
+@kernel
+def _insertion_sort(d2, idx, lo, hi):
+    """Sort d2[lo:hi] (idx with it) by insertion: stable, fast on nearly sorted ranges."""
+    for i in range(lo + 1, hi):
+        v = d2[i]
+        u = idx[i]
+        j = i - 1
+        while j >= lo and d2[j] > v:
+            d2[j + 1] = d2[j]
+            idx[j + 1] = idx[j]
+            j -= 1
+        d2[j + 1] = v
+        idx[j + 1] = u
+
+
+@kernel
+def _partial_sort(d2, idx, count, m):
+    """Reorder the count entries of d2 / idx in place so that the m smallest come first
+    in increasing distance: a partial quicksort (Hoare's FIND and quicksort, recursing
+    only into ranges that start below m; three-way partitions, so many equal distances
+    (a focus) stay linear). O(count + m log m) expected, a fixed stack."""
+    m = min(m, count)
+    st = np.empty((2 * STACK, 2), np.int64)
+    st[0, 0], st[0, 1] = 0, count
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        lo, hi = st[sp, 0], st[sp, 1]
+        while hi - lo > INSERTION_SORT and lo < m:
+            mid = (lo + hi) // 2
+            a, b, c = d2[lo], d2[mid], d2[hi - 1]
+            pivot = max(min(a, b), min(max(a, b), c))  # median of three
+            lt = lo
+            i = lo
+            gt = hi
+            while i < gt:
+                v = d2[i]
+                if v < pivot:
+                    _swap_entry(d2, idx, i, lt)
+                    lt += 1
+                    i += 1
+                elif v > pivot:
+                    gt -= 1
+                    _swap_entry(d2, idx, i, gt)
+                else:
+                    i += 1
+            # [lo, lt) < pivot, [lt, gt) == pivot (done), [gt, hi) > pivot. Only ranges
+            # starting below m matter; the longer one goes on the stack, the shorter
+            # is taken next, so the stack stays under log2(count) < 2 x STACK deep.
+            if gt < m:
+                if lt - lo > hi - gt:
+                    st[sp, 0], st[sp, 1] = lo, lt
+                    sp += 1
+                    lo = gt
+                else:
+                    st[sp, 0], st[sp, 1] = gt, hi
+                    sp += 1
+                    hi = lt
+            else:
+                hi = lt
+        if lo < m:
+            _insertion_sort(d2, idx, lo, hi)
+
+
+@kernel
+def _swap_entry(d2, idx, i, j):
+    t = d2[i]
+    d2[i] = d2[j]
+    d2[j] = t
+    u = idx[i]
+    idx[i] = idx[j]
+    idx[j] = u
 
 
 @kernel

@@ -41,6 +41,9 @@ MIN_RADIUS_FRACTION = 0.01
 # photons (measured: a scan of this many costs less than the MAX_WIDEN_K heap query it
 # saves; bench/bench_lookup.py). 512 KB of scratch per kernel call.
 SCAN_BUDGET = 16 * MAX_WIDEN_K
+# A k-NN estimate lists its whole search sphere (then orders its k nearest: no heap) when
+# the sphere holds at most this many times k photons (kdtree.ball_d2, nearest_first).
+LIST_FACTOR = 8
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
 # Estimates between two looks at the stop flag: 64 x ~15 us (a widening row: ~1.5 ms) is
 # far below the 0.2 s a viewport stop may take (issue 19).
@@ -300,6 +303,10 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                        if kind == HASHGRID else 0, np.int64)
     r2 = radius * radius
     knn = code >= KNN_SIMPSON
+    list_cap = min(cap, LIST_FACTOR * max(k, 1))
+    list_d2 = np.empty(list_cap, np.float64)  # a listed sphere, before nearest_first
+    list_idx = np.empty(list_cap, np.int64)
+    hist = np.empty(list_cap + 1, np.int64)
     for r in range(rows.shape[0]):
         if r % STOP_ROWS == 0 and stop[0]:
             return
@@ -311,8 +318,30 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         scale = 1.0
         if knn:
             kq = min(k, P)
-            cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
             widest = min(P, MAX_WIDEN_K)
+            # A sphere holding at most list_cap photons is listed whole (ball_d2) and its
+            # kq nearest put first (nearest_first): the knn answer without a heap, which
+            # costs a sparse map's estimate most (kdtree.knn's heap steps). A fuller
+            # sphere takes the heap search, bounded by the kq-th distance among the
+            # photons listed so far. Rows choose by their own sphere, never by another
+            # row's, so the answer does not depend on the rows' order or blocks.
+            listed = -1
+            if kind == KDTREE:
+                listed = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, r2,
+                                        list_d2, list_idx, list_cap)
+            if 0 <= listed <= list_cap:
+                cnt = min(kq, listed)
+                kdtree.nearest_first(list_d2, list_idx, listed, cnt, r2, d2, idx, hist)
+            else:
+                bound = r2
+                if listed > list_cap and list_cap >= kq:
+                    # kq photons lie within the kq-th listed distance: a bound (with the
+                    # margin of _seed_bound) that the kq nearest all pass.
+                    kdtree.nearest_first(list_d2, list_idx, list_cap, kq, r2, d2, idx, hist)
+                    bound = min(r2, d2[kq - 1] * (1.0 + 1e-9) + 1e-300)
+                listed = -1
+                cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, bound, d2, idx,
+                           buckets)
             if cnt == kq and kq < widest and \
                     _count_accepted(direction, normal, idx, cnt, nx, ny, nz) < k // 2:
                 # Widen (x4 up to MAX_WIDEN_K) while fewer than k / 2 of the nearest are
@@ -320,28 +349,37 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 # fewer than min_photons accepted photons has no estimate at any width
                 # (a caustic query beside a wall lit only on its far side): one scan of
                 # the sphere (at most SCAN_BUDGET photons) settles it.
-                nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan, SCAN_BUDGET,
-                           buckets)
-                if nb <= SCAN_BUDGET and \
-                        _count_accepted(direction, normal, scan, nb, nx, ny, nz) < min_photons:
-                    continue
-                # Each wider query's result is a prefix of the widest one (increasing
-                # distance): one query, then the prefixes are tried in turn. A sphere the
-                # scan listed whole (at most `widest` photons) is that query's answer.
-                if nb <= widest:
-                    found = 0
-                    for j in range(nb):
-                        ph = scan[j]
-                        dx = qx - np.float64(pos[ph, 0])
-                        dy = qy - np.float64(pos[ph, 1])
-                        dz = qz - np.float64(pos[ph, 2])
-                        dd = dx * dx + dy * dy + dz * dz
-                        if dd < r2:  # the k-NN query's bound is strict
-                            found = kdtree.heap_insert(d2, idx, found, widest, dd, ph)
-                    kdtree.heap_sort(d2, idx, found, widest)
+                if listed >= 0:
+                    # The sphere is listed already, in d2 / idx.
+                    if _count_accepted(direction, normal, idx, listed, nx, ny, nz) \
+                            < min_photons:
+                        continue
+                    found = min(listed, widest)
+                    kdtree.nearest_first(list_d2, list_idx, listed, found, r2, d2, idx, hist)
                 else:
-                    found = _knn(kind, pos, nodes, start, grid, qx, qy, qz, widest, r2, d2,
-                                 idx, buckets)
+                    nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan,
+                               SCAN_BUDGET, buckets)
+                    if nb <= SCAN_BUDGET and _count_accepted(direction, normal, scan, nb,
+                                                             nx, ny, nz) < min_photons:
+                        continue
+                    # Each wider query's result is a prefix of the widest one (increasing
+                    # distance): one query, then the prefixes are tried in turn. A sphere
+                    # the scan listed whole (at most `widest` photons) is that query's
+                    # answer.
+                    if nb <= widest:
+                        found = 0
+                        for j in range(nb):
+                            ph = scan[j]
+                            dx = qx - np.float64(pos[ph, 0])
+                            dy = qy - np.float64(pos[ph, 1])
+                            dz = qz - np.float64(pos[ph, 2])
+                            dd = dx * dx + dy * dy + dz * dz
+                            if dd < r2:  # the k-NN query's bound is strict
+                                found = kdtree.heap_insert(d2, idx, found, widest, dd, ph)
+                        kdtree.heap_sort(d2, idx, found, widest)
+                    else:
+                        found = _knn(kind, pos, nodes, start, grid, qx, qy, qz, widest, r2,
+                                     d2, idx, buckets)
                 while True:
                     kq = min(4 * kq, widest)
                     cnt = min(found, kq)

@@ -24,8 +24,8 @@ from engine.api import cornell_box
 from engine.hashgrid import HashGrid
 from engine.hashgrid import ball_count as grid_ball_count
 from engine.hashgrid import cells_spanned
-from engine.kdtree import (LEAF_SIZE, KdTree, ball, ball_count, count_closer, nearest,
-                           nearest_facing)
+from engine.kdtree import (BUCKET_MAX, LEAF_SIZE, KdTree, ball, ball_count, ball_d2,
+                           count_closer, knn, nearest, nearest_facing, nearest_first)
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
                               PhotonMap)
 from engine.photons import Photons
@@ -240,6 +240,62 @@ def test_nearest_facing_and_count_closer_match_brute_force():
         for cap in (1, 8, 64, 10**6):
             want = min(int((d2 < r2).sum()), cap)
             assert count_closer(t.position, *t.nodes, q[0], q[1], q[2], r2, cap) == want
+
+
+def test_listed_sphere_gives_the_knn_answer():
+    """The estimators' heap-free k-NN (ball_d2 lists the sphere, nearest_first orders its
+    m nearest) against brute force and against the heap search (kdtree.knn): the same
+    points in increasing distance, the same float64 distances; on a surface, in a focus
+    (many equal points: equal distances), and with clustered distances (a bucket fuller
+    than BUCKET_MAX takes the quicksort), capped listings included."""
+    rng = np.random.default_rng(14)
+    flat = rng.random((6000, 3)).astype(np.float32)
+    flat[:, 2] = 0.5
+    focus = flat.copy()
+    focus[:2000] = focus[0]  # 2000 equal points
+    ring = flat.copy()  # points on a thin ring round (0.5, 0.5): clustered distances
+    ang = rng.random(3000) * 2 * np.pi
+    ring[:3000, 0] = 0.5 + 0.1 * np.cos(ang) * (1 + 1e-4 * rng.random(3000))
+    ring[:3000, 1] = 0.5 + 0.1 * np.sin(ang)
+    for pts in (flat, focus, ring):
+        t = KdTree(pts)
+        pos = t.position.astype(np.float64)
+        queries = np.vstack([rng.random((150, 3)) * [1, 1, 0] + [0, 0, 0.5],
+                             pos[[0, 1, 2]], [[0.5, 0.5, 0.5], [0.5, 0.5, 0.51]]])
+        cap = 4096
+        src_d2, src_idx = np.empty(cap), np.empty(cap, np.int64)
+        d2, idx, hist = np.empty(cap), np.empty(cap, np.int64), np.empty(cap + 1, np.int64)
+        kd2, kidx = np.empty(cap), np.empty(cap, np.int64)
+        for q in queries:
+            for r in (0.02, 0.06, 0.15):
+                r2 = r * r
+                dd = ((q - pos) ** 2).sum(axis=1)
+                inside = np.flatnonzero(dd < r2)
+                nb = ball_d2(t.position, *t.nodes, q[0], q[1], q[2], r2, src_d2, src_idx, cap)
+                if len(inside) > cap:
+                    assert nb == cap + 1
+                    continue
+                assert nb == len(inside)
+                np.testing.assert_array_equal(np.sort(src_idx[:nb]), inside)
+                np.testing.assert_array_equal(src_d2[:nb], dd[src_idx[:nb]])
+                for m in (1, 8, 64, nb):
+                    nearest_first(src_d2, src_idx, nb, m, r2, d2, idx, hist)
+                    mm = min(m, nb)
+                    want = np.sort(dd[inside])[:mm]
+                    np.testing.assert_array_equal(d2[:mm], want)
+                    np.testing.assert_array_equal(d2[:mm], dd[idx[:mm]])
+                    # every entry kept once: the rest are the farther ones
+                    np.testing.assert_array_equal(np.sort(idx[:nb]), inside)
+                    assert mm == nb or d2[mm:nb].min() >= d2[mm - 1]
+                    c = knn(t.position, *t.nodes, q[0], q[1], q[2], m, r2, kd2, kidx)
+                    assert c == mm
+                    np.testing.assert_array_equal(kd2[:c], d2[:mm])
+                    if mm == nb or d2[mm] > d2[mm - 1]:  # no tie at the k-th: same set
+                        np.testing.assert_array_equal(np.sort(kidx[:c]), np.sort(idx[:mm]))
+    # The ring's query at its centre took the quicksort: its distances crowd buckets.
+    dd = ((ring.astype(np.float64) - [0.5, 0.5, 0.5]) ** 2).sum(axis=1)
+    dd = dd[dd < 0.15 ** 2]
+    assert np.bincount((dd * len(dd) / 0.15 ** 2).astype(int)).max() > BUCKET_MAX
 
 
 def test_gather_lookup_needs_the_facing_point_among_the_nearest():
