@@ -18,6 +18,7 @@ import numpy as np
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
+from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for, tree_members
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
@@ -190,11 +191,14 @@ def mis_light_pdf(light, o, d, t, ns=None):
     """Solid-angle pdf (N,) with which the light's shadow-ray samples (directlight.
     sample_lights) pick direction d from o, for continuation rays that met the light at
     distance t (sun, world: escaping rays; ns (N,3): the shading normals at o, around
-    which the world's shadow rays are cosine-distributed)."""
+    which the world's shadow rays are cosine-distributed, and a sphere light's from inside
+    it)."""
     if light.kind == SUN:
         return np.full(len(d), 1.0 / light.solid_angle)
     if light.kind == WORLD:
         return light.pdf(d, ns)
+    if light.kind in (POINT, SPOT) and light.is_sphere:
+        return sphere_light_pdf(light, o, d, ns)
     if light.kind in (POINT, SPOT):
         # Shadow rays sample the disk of the light's radius through its centre, facing the
         # shading point o (directlight.sample_lights): pdf of the direction's disk point.
@@ -814,7 +818,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if L is not None and mask.any():
                 mask &= sees
                 if bounce > 0 and modes[li] == MODE_MIS and mask.any():
-                    L = L * _mis_weight(ctx, li, light, o, d, tl, pdf_b)[:, None]
+                    L = L * _mis_weight(ctx, li, light, o, d, tl, pdf_b, org_ns)[:, None]
                 acc.add(target, pix[mask], tp[mask] * L[mask])
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
