@@ -339,7 +339,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                         f = cs / pdf
                         e0, e1, e2 = L0 * f, L1 * f, L2 * f
                     lp = pdf
-            elif (code == C_POINT or code == C_SPOT) and q[SPHERE] != 0.0:
+            elif (code == C_POINT or code == C_SPOT) and q[SPHERE] != 0.0 and q[RADIUS] > 0:
                 y0, y1, y2, w0, w1, w2, e0, e1, e2, lp = _sphere_light_sample(
                     p0, p1, p2, s0, s1, s2, g0, g1, g2, u1, u2, q, code == C_SPOT)
             elif code == C_POINT or code == C_SPOT:

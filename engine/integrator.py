@@ -456,7 +456,7 @@ def _secondary_irradiance(ctx, hit, rng):
     if len(rows):
         out[rows] = pmap.irradiance(hit.p[rows], hit.ng[rows],
                                     ctx.secondary_radius or ctx.global_radius, s.k_nearest,
-                                    s.min_photons, s.estimator) / SECONDARY_REGATHER_FRACTION
+                                    smooth_min_photons(s), s.estimator) / SECONDARY_REGATHER_FRACTION
     return out
 
 
@@ -544,6 +544,16 @@ _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 CAUSTIC_SAMPLES_PER_PIXEL = 16
 
 
+def smooth_min_photons(settings) -> int:
+    """Photons a caustic or secondary-caustic estimate needs (fewer: no estimate). The
+    paper's min_photons in paper mode; else 1: with fewer than k photons the k-NN estimate
+    uses every photon in the whole search disc, which is unbiased, while zeroing it below
+    min_photons darkened light that reaches the caustic map thinly (issue 14: a constant
+    world reflected by a rough metal ball and a glossy floor onto a diffuse ball, 2-3 % of
+    the ball's light, docs/accuracy_time.md "Glossy noise against Cycles")."""
+    return settings.min_photons if settings.paper_mode else 1
+
+
 def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most CAUSTIC_SAMPLES_PER_PIXEL samples per pixel
@@ -555,8 +565,8 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
     s = ctx.settings
     stride = max(1, -(-s.spp // CAUSTIC_SAMPLES_PER_PIXEL)) if sample_id is not None else 1
     sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
-    E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, s.min_photons, s.estimator,
-                        r_floor=None if footprint is None else footprint[sel])
+    E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, smooth_min_photons(s),
+                        s.estimator, r_floor=None if footprint is None else footprint[sel])
     out[sel] = stride * f[sel] * E
     return out
 
