@@ -509,8 +509,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     # Three uniform numbers per sampled (non-pass) lobe, drawn in this order.
     u1, u2, u3 = rng.random(sampled), rng.random(sampled), rng.random(sampled)
     if uv is not None and sampled:
-        # Reflective lobes only: rough glass (IOR 2.4) in the white furnace scatters twice
-        # as widely over seeds with stratified numbers (no bias: docs/accuracy_time.md).
+        # Reflective lobes only: rough glass (IOR 2.4) in the white furnace scatters ~4x as
+        # widely over seeds with stratified numbers (no bias: docs/accuracy_time.md).
         picked = lobe[lobe != PASS_LOBE]
         rows_sampled = idx[lobe != PASS_LOBE]
         refl = (picked != GLASS_R) & (picked != GLASS_T)
