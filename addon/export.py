@@ -303,6 +303,9 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
               **{flag: bool(getattr(obj, flag, True)) for flag in VISIBILITY_FLAGS[1:4]})
     if kind in ("POINT", "SPOT"):
         kw["radius"] = float(L.shadow_soft_size)
+        # Soft Falloff (Blender >= 4.0, on by default): off, Cycles' light is a sphere
+        # of that radius instead of the disk facing the shaded point (is_sphere).
+        kw["soft_falloff"] = bool(getattr(L, "use_soft_falloff", True))
     if kind == "SPOT":
         kw["spot_size"] = float(L.spot_size)
         kw["spot_blend"] = float(L.spot_blend)

@@ -43,6 +43,7 @@ SPREAD_ON, TAN_H, SPREAD_NORM, IS_DISK, SPREAD_RECT = (pk.SPREAD_ON, pk.TAN_H, p
                                                        pk.IS_DISK, pk.SPREAD_RECT)
 SPOT_COS_HALF, SPOT_WIDTH, SPOT_FRAME = pk.SPOT_COS_HALF, pk.SPOT_WIDTH, pk.SPOT_FRAME
 ENV_ON, ENV_INTERP, ENV_FRAME = pk.ENV_ON, pk.ENV_INTERP, pk.ENV_FRAME
+SPHERE = pk.SPHERE
 C_POINT, C_SPOT, C_AREA, C_SUN, C_MESH, C_WORLD = (pk.CODE_POINT, pk.CODE_SPOT, pk.CODE_AREA,
                                                    pk.CODE_SUN, pk.CODE_MESH, pk.CODE_WORLD)
 
@@ -84,6 +85,50 @@ def _spot_mask(w0, w1, w2, q):
         return 1.0 if x > 0 else 0.0
     t = min(max(x / width, 0.0), 1.0)
     return t * t * (3.0 - 2.0 * t)
+
+
+@kernel
+def _sphere_light_sample(p0, p1, p2, s0, s1, s2, g0, g1, g2, u1, u2, q, spot):
+    """One shadow-ray sample of a point / spot light that is a sphere of radius q[RADIUS]
+    (Soft Falloff off; Cycles' point_light_sample / spot_light_sample, is_sphere): from
+    outside, a direction uniform in the cone the sphere subtends (pdf 1 / (2 pi (1 -
+    cos a)), sin a = r / d); from inside, cosine-distributed round the shading normal s.
+    The ray's end y is where the direction meets the sphere (law of cosines). Radiance
+    I / (pi r^2) x a spot's mask along the ray (outside only). Returns (y (3), w (3), the
+    irradiance L cos / pdf (3), the solid-angle pdf)."""
+    rad = q[RADIUS]
+    t0, t1, t2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
+    d2c = t0 * t0 + t1 * t1 + t2 * t2
+    dc = math.sqrt(d2c)
+    dcs = max(dc, 1e-300)
+    a0, a1, a2 = t0 / dcs, t1 / dcs, t2 / dcs
+    r2 = rad * rad
+    outside = d2c > r2
+    if outside:
+        x = r2 / d2c
+        omc = x / (1.0 + math.sqrt(max(1.0 - x, 0.0)))  # 1 - cos a, stable for small x
+        v = u1 * omc
+        ct = 1.0 - v
+        st = math.sqrt(max(v * (2.0 - v), 0.0))
+        phi = TWO_PI * u2
+        w0, w1, w2 = _to_world(st * math.cos(phi), st * math.sin(phi), ct, -a0, -a1, -a2)
+        pdf = 1.0 / (TWO_PI * omc)
+    else:
+        r = math.sqrt(u1)
+        phi = TWO_PI * u2
+        z = math.sqrt(max(0.0, 1.0 - u1))
+        w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z, s0, s1, s2)
+        ct = -(w0 * a0 + w1 * a1 + w2 * a2)
+        pdf = z / PI
+    root = math.sqrt(max(r2 - d2c + d2c * ct * ct, 0.0))
+    t = dc * ct - (root if outside else -root)
+    y0, y1, y2 = p0 + w0 * t, p1 + w1 * t, p2 + w2 * t
+    cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
+        1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
+    f = cr / max(pdf, 1e-300) / (PI * r2) if pdf > 0 else 0.0
+    if spot and outside:
+        f = f * _spot_mask(-w0, -w1, -w2, q)
+    return y0, y1, y2, w0, w1, w2, q[RGB] * f, q[RGB + 1] * f, q[RGB + 2] * f, pdf
 
 
 @kernel
@@ -294,6 +339,9 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                         f = cs / pdf
                         e0, e1, e2 = L0 * f, L1 * f, L2 * f
                     lp = pdf
+            elif (code == C_POINT or code == C_SPOT) and q[SPHERE] != 0.0 and q[RADIUS] > 0:
+                y0, y1, y2, w0, w1, w2, e0, e1, e2, lp = _sphere_light_sample(
+                    p0, p1, p2, s0, s1, s2, g0, g1, g2, u1, u2, q, code == C_SPOT)
             elif code == C_POINT or code == C_SPOT:
                 t0, t1, t2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
                 dc = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)

@@ -18,6 +18,7 @@ import numpy as np
 from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
+from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for, tree_members
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
@@ -190,11 +191,14 @@ def mis_light_pdf(light, o, d, t, ns=None):
     """Solid-angle pdf (N,) with which the light's shadow-ray samples (directlight.
     sample_lights) pick direction d from o, for continuation rays that met the light at
     distance t (sun, world: escaping rays; ns (N,3): the shading normals at o, around
-    which the world's shadow rays are cosine-distributed)."""
+    which the world's shadow rays are cosine-distributed, and a sphere light's from inside
+    it)."""
     if light.kind == SUN:
         return np.full(len(d), 1.0 / light.solid_angle)
     if light.kind == WORLD:
         return light.pdf(d, ns)
+    if light.kind in (POINT, SPOT) and light.is_sphere:
+        return sphere_light_pdf(light, o, d, ns)
     if light.kind in (POINT, SPOT):
         # Shadow rays sample the disk of the light's radius through its centre, facing the
         # shading point o (directlight.sample_lights): pdf of the direction's disk point.
@@ -452,7 +456,7 @@ def _secondary_irradiance(ctx, hit, rng):
     if len(rows):
         out[rows] = pmap.irradiance(hit.p[rows], hit.ng[rows],
                                     ctx.secondary_radius or ctx.global_radius, s.k_nearest,
-                                    s.min_photons, s.estimator) / SECONDARY_REGATHER_FRACTION
+                                    smooth_min_photons(s), s.estimator) / SECONDARY_REGATHER_FRACTION
     return out
 
 
@@ -505,8 +509,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     # Three uniform numbers per sampled (non-pass) lobe, drawn in this order.
     u1, u2, u3 = rng.random(sampled), rng.random(sampled), rng.random(sampled)
     if uv is not None and sampled:
-        # Reflective lobes only: with glass (rough, IOR 2.4) the white furnace read 3.4 %
-        # dark with stratified numbers, a cause not found in the time (docs/accuracy_time.md).
+        # Reflective lobes only: rough glass (IOR 2.4) in the white furnace scatters ~4x as
+        # widely over seeds with stratified numbers (no bias: docs/accuracy_time.md).
         picked = lobe[lobe != PASS_LOBE]
         rows_sampled = idx[lobe != PASS_LOBE]
         refl = (picked != GLASS_R) & (picked != GLASS_T)
@@ -540,6 +544,16 @@ _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 CAUSTIC_SAMPLES_PER_PIXEL = 16
 
 
+def smooth_min_photons(settings) -> int:
+    """Photons a caustic or secondary-caustic estimate needs (fewer: no estimate). The
+    paper's min_photons in paper mode; else 1: with fewer than k photons the k-NN estimate
+    uses every photon in the whole search disc, which is unbiased, while zeroing it below
+    min_photons darkened light that reaches the caustic map thinly (issue 14: a constant
+    world reflected by a rough metal ball and a glossy floor onto a diffuse ball, 2-3 % of
+    the ball's light, docs/accuracy_time.md "Glossy noise against Cycles")."""
+    return settings.min_photons if settings.paper_mode else 1
+
+
 def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most CAUSTIC_SAMPLES_PER_PIXEL samples per pixel
@@ -551,8 +565,8 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
     s = ctx.settings
     stride = max(1, -(-s.spp // CAUSTIC_SAMPLES_PER_PIXEL)) if sample_id is not None else 1
     sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
-    E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, s.min_photons, s.estimator,
-                        r_floor=None if footprint is None else footprint[sel])
+    E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, smooth_min_photons(s),
+                        s.estimator, r_floor=None if footprint is None else footprint[sel])
     out[sel] = stride * f[sel] * E
     return out
 
@@ -814,7 +828,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if L is not None and mask.any():
                 mask &= sees
                 if bounce > 0 and modes[li] == MODE_MIS and mask.any():
-                    L = L * _mis_weight(ctx, li, light, o, d, tl, pdf_b)[:, None]
+                    L = L * _mis_weight(ctx, li, light, o, d, tl, pdf_b, org_ns)[:, None]
                 acc.add(target, pix[mask], tp[mask] * L[mask])
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light

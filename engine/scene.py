@@ -588,6 +588,10 @@ class Light:
     position  world position (ignored for SUN)
     direction the light's local -Z axis in world space (spot axis, area normal, sun rays)
     radius    point/spot soft-shadow radius (Blender `shadow_soft_size`)
+    soft_falloff  point/spot with a radius: True (Blender's "Soft Falloff", its default)
+              is Cycles' disk of that radius facing the shading point, whose light fades
+              towards a surface it nearly touches; False is a true sphere of that radius
+              (Cycles' `is_sphere`: kernel/light/point.h, spot.h), brighter up close
     spot_size full cone angle in radians; spot_blend 0..1
     shape     RECTANGLE or DISK for area lights; size_x, size_y in world units (already
               multiplied by object scale); axis_u gives the local +X direction
@@ -624,6 +628,7 @@ class Light:
     direction: tuple | np.ndarray = (0.0, 0.0, -1.0)
     axis_u: tuple | np.ndarray = (1.0, 0.0, 0.0)
     radius: float = 0.0
+    soft_falloff: bool = True
     spot_size: float = math.radians(45.0)
     spot_blend: float = 0.15
     shape: str = RECTANGLE
@@ -680,6 +685,7 @@ class Light:
         if self.power < 0:
             raise SceneError(f"{who} power: must be >= 0, got {self.power}")
         self.radius = max(self.radius, 0.0)
+        self.soft_falloff = bool(self.soft_falloff)
         self.size_x, self.size_y = abs(self.size_x), abs(self.size_y)
         self.spot_size = min(max(self.spot_size, 1e-4), math.pi)
         self.spot_blend = min(max(self.spot_blend, 0.0), 1.0)

@@ -212,7 +212,7 @@ LIGHT_SCHEMA = _table({
     "shape": _choice("rectangle", "square", "disk", "ellipse"),
     "angle": _number(0.0, 180.0), "spread": _number(0.0, 180.0), "visible": _BOOL,
     "visible_diffuse": _BOOL, "visible_glossy": _BOOL, "visible_transmission": _BOOL,
-    "cast_shadow": _BOOL})
+    "cast_shadow": _BOOL, "soft_falloff": _BOOL})
 
 
 ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
@@ -805,6 +805,7 @@ def _light(scene, spec, i):
     scene.add_light(Light(name, kinds[kind], float(get(key, 100.0)),
                           _vec(get("color", (1, 1, 1))), position, direction,
                           radius=float(get("radius", 0.0)),
+                          soft_falloff=get("soft_falloff", True),
                           spot_size=math.radians(get("spot_size", 45.0)),
                           spot_blend=float(get("blend", 0.15)),
                           shape=shape.upper(), size_x=sx, size_y=sy,

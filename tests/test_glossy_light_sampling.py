@@ -1,6 +1,7 @@
 """Next-event estimation on rough lobes with multiple importance sampling (issue 14):
 a rough metal / glossy floor under an area light (also with a narrow spread), a sun with
-an angle, a point light with a radius, an emissive quad and an environment map with a
+an angle, a point light with a radius (a facing disk, or a sphere with Soft Falloff off),
+an emissive quad and an environment map with a
 small bright patch. Light
 sampling weighted by the power heuristic against the lobes' own sampling must give the
 same mean as the lobes' sampled continuation alone (both are unbiased), with far less
@@ -25,6 +26,8 @@ def _scene(material, light):
                               direction=(-0.5, 0.0, -1.0))
     elif light == "sphere":
         s.add_point_light((1.0, 0.0, 1.5), power=300.0, radius=0.3)
+    elif light == "ball":  # Soft Falloff off: a true sphere (tests/test_soft_falloff.py)
+        s.add_point_light((1.0, 0.0, 1.5), power=300.0, radius=0.3, soft_falloff=False)
     elif light == "spread":
         lamp = s.add_rect_area_light((1.0, 0.0, 1.5), size=(0.8, 0.8), power=300.0,
                                      direction=(-0.5, 0.0, -1.0))
@@ -66,7 +69,8 @@ MATERIALS = {
 }
 
 
-@pytest.mark.parametrize("light", ["area", "spread", "sun", "sphere", "mesh", "environment"])
+@pytest.mark.parametrize("light", ["area", "spread", "sun", "sphere", "ball", "mesh",
+                                   "environment"])
 @pytest.mark.parametrize("mat", sorted(MATERIALS))
 def test_mis_matches_continuation_with_less_noise(mat, light, request):
     scene = _scene(MATERIALS[mat], light)

@@ -132,6 +132,25 @@ def light_point_radius():
 
 
 @case("lights")
+def light_point_sphere():
+    """Soft Falloff off: Cycles' point light is a sphere of its radius (is_sphere), not
+    the disk facing the lit point: brighter near it (the floor under this one ~1.3x)."""
+    _stage()
+    mb.box("Cube", 0.8, 0.8, 0.8, _red(), (0.3, 0.3, 0.4))
+    mb.light("Point", "POINT", (-0.6, -0.6, 1.1), 200.0, shadow_soft_size=0.6,
+             use_soft_falloff=False)
+
+
+@case("lights")
+def light_spot_sphere():
+    """A wide spot with a radius and Soft Falloff off (a sphere, masked along each ray)."""
+    _stage(back=False)
+    mb.light("Spot", "SPOT", (0, 0, 1.0), 300.0, rotation=(0, 0, 0),
+             spot_size=math.radians(100), spot_blend=0.3, shadow_soft_size=0.5,
+             use_soft_falloff=False)
+
+
+@case("lights")
 def light_spot():
     _stage(back=False)
     mb.light("Spot", "SPOT", (0, 0, 3), 600.0, rotation=(0, 0, 0),

@@ -18,7 +18,8 @@ SPREAD_ON, TAN_H, SPREAD_NORM, IS_DISK, SPREAD_RECT = 26, 27, 28, 29, 30
 SPOT_COS_HALF, SPOT_WIDTH, SPOT_FRAME = 31, 32, 33  # frame: 9 slots, row-major
 ENV_FRAME = SPOT_FRAME      # world: the environment's rotation (world -> texture), 9 slots
 ENV_ON, ENV_INTERP = 42, 43  # world: 1 with an environment map; its interpolation code
-P = 44
+SPHERE = 44                 # point / spot: 1 for a sphere (Soft Falloff off), 0 a facing disk
+P = 45
 
 
 def pack_lights(lights):

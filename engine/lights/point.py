@@ -1,7 +1,17 @@
-"""Point light (Blender's Point, optionally with a radius): intensity P/(4 pi) W/sr;
-with a radius it is a disk of that radius through its centre facing the shading point,
-both for shadow rays and for rays that meet it (Cycles' point light with Soft Falloff, its
-default: kernel/light/point.h)."""
+"""Point light (Blender's Point, optionally with a radius): intensity P/(4 pi) W/sr.
+
+With a radius r its radiance is I / (pi r^2) (Cycles' eval_fac x strength) on one of two
+shapes, as Blender's "Soft Falloff" (Light.soft_falloff) picks (Cycles'
+kernel/light/point.h; `is_sphere` = not use_soft_falloff):
+- Soft Falloff on (Blender's default): a disk of radius r through the centre facing the
+  shading point, both for shadow rays and for rays that meet it. A point at distance d
+  receives I / (d^2 + r^2) face-on: the light fades where it nearly touches a surface.
+- Soft Falloff off: a sphere of radius r. Shadow rays sample the cone of directions it
+  subtends uniformly (pdf 1 / (2 pi (1 - cos a)), sin a = r / d), rays meet the sphere;
+  a point receives I / d^2 face-on, as from a point, however close (from inside the
+  sphere: cosine-distributed directions, pi L).
+Photons leave the sphere's surface cosine-distributed in both cases (the two differ only
+within a few radii of the light)."""
 from __future__ import annotations
 
 import math
@@ -25,7 +35,8 @@ class PointLight(Light):
         kw = cls.scene_params(light, geo, common)
         kw.update(cls.extra_params(light))
         intensity = light.power * light.color / (4.0 * math.pi)
-        kw.update(intensity=intensity, flux=light.flux, photon_flux=light.flux)
+        kw.update(intensity=intensity, flux=light.flux, photon_flux=light.flux,
+                  soft_falloff=bool(light.soft_falloff))
         return cls(light.name, **kw)
 
     @staticmethod
@@ -45,7 +56,13 @@ class PointLight(Light):
         row[pk.POS:pk.POS + 3] = self.pos
         row[pk.RGB:pk.RGB + 3] = self.intensity
         row[pk.RADIUS] = self.radius
+        row[pk.SPHERE] = 1.0 if self.is_sphere else 0.0
         return pk.CODE_POINT
+
+    @property
+    def is_sphere(self) -> bool:
+        """True: a sphere of the light's radius (Soft Falloff off), not the facing disk."""
+        return self.radius > 0 and not getattr(self, "soft_falloff", True)
 
     def _falloff(self, axis):
         """Directional factor of the emitted intensity along unit directions axis (N,3)
@@ -57,31 +74,69 @@ class PointLight(Light):
                           *aim.arrays, aimed, key, first, n, float(count), *out.arrays, start)
 
     def intersect(self, o, d, tmax):
-        """A light with a radius is a disk of radius r through its centre facing the ray's
-        origin, of radiance I / (pi r^2) (x the spot mask): the shape its shadow rays
-        sample (directlight.sample_lights) and Cycles' point light with Soft Falloff (its
-        default; kernel/light/point.h, point_light_intersect). A sphere met by the
-        continuation had a rim of directions (relative width ~ r^2 / distance^2) that the
-        disk's shadow rays never pick: those paths took the full light without multiple
-        importance sampling, single-sample sparkles on glossy surfaces."""
+        """A light with a radius, met by rays (o, d (N,3), tmax (N,)): (mask, t, radiance
+        I / (pi r^2) x the spot mask). With Soft Falloff it is a disk of radius r through
+        its centre facing the ray's origin: the shape its shadow rays sample
+        (directlight.sample_lights) and Cycles' point_light_intersect. (A sphere met by
+        the continuation had a rim of directions, relative width ~ r^2 / distance^2, that
+        the disk's shadow rays never pick: those paths took the full light without
+        multiple importance sampling, single-sample sparkles on glossy surfaces.) Without
+        it, the sphere (ray_sphere_intersect); a spot's mask is then read along the ray,
+        and only from outside the sphere (Cycles' spot_light_sample_from_intersection)."""
         if self.radius <= 0:
             return super().intersect(o, d, tmax)
         n = len(o)
-        axis = o - self.pos
-        dist = np.linalg.norm(axis, axis=1)
-        axis = axis / np.maximum(dist, 1e-300)[:, None]
-        toward = -dot(d, axis)
-        front = toward > 1e-12
-        t = dist / np.where(front, toward, 1.0)
-        on_disk = t[:, None] * d + o - self.pos
-        mask = (front & (dist > 0) & (t < tmax)
-                & (np.einsum("ij,ij->i", on_disk, on_disk) <= self.radius ** 2))
-        t = np.where(front, t, np.inf)
+        rel = o - self.pos
+        if self.is_sphere:
+            t = sphere_hit(rel, d, self.radius)
+            mask = t < tmax
+            inside = np.einsum("ij,ij->i", rel, rel) <= self.radius ** 2
+        else:
+            dist = np.linalg.norm(rel, axis=1)
+            axis = rel / np.maximum(dist, 1e-300)[:, None]
+            toward = -dot(d, axis)
+            front = toward > 1e-12
+            t = dist / np.where(front, toward, 1.0)
+            on_disk = t[:, None] * d + rel
+            mask = (front & (dist > 0) & (t < tmax)
+                    & (np.einsum("ij,ij->i", on_disk, on_disk) <= self.radius ** 2))
+            t = np.where(front, t, np.inf)
+            inside = np.zeros(n, bool)
         L = np.broadcast_to(self.intensity / (math.pi * self.radius ** 2), (n, 3))
         f = self._falloff(-d)
         if f is not None:
-            L = L * f[:, None]
+            L = L * np.where(inside, 1.0, f)[:, None]
         return mask, t, L
+
+
+def sphere_light_pdf(light, o, d, ns):
+    """Solid-angle pdf (N,) of a sphere light's shadow rays (directlight's
+    _sphere_light_sample) for directions d (N,3) from points o (N,3): uniform over the
+    cone the sphere subtends from outside (1 / (2 pi (1 - cos a))), cos / pi round the
+    shading normals ns (N,3) from inside (Cycles' sphere_light_pdf). Directions that miss
+    the sphere get the cone's pdf too: callers ask only for rays that met it."""
+    rel = o - light.pos
+    x = light.radius ** 2 / np.maximum(np.einsum("ij,ij->i", rel, rel), 1e-300)
+    outside = x < 1.0
+    xo = np.minimum(x, 1.0)
+    one_minus_cos = xo / (1.0 + np.sqrt(1.0 - xo))
+    cone = 1.0 / (2.0 * math.pi * np.maximum(one_minus_cos, 1e-300))
+    if ns is None:
+        return cone
+    return np.where(outside, cone, np.maximum(dot(d, ns), 0.0) / math.pi)
+
+
+def sphere_hit(rel, d, radius):
+    """Distance (N,) along unit directions d (N,3) from points rel (N,3, relative to a
+    sphere's centre) to the sphere of `radius` (the far side from inside), inf where the
+    ray misses it or it lies behind."""
+    b = dot(rel, d)
+    c = np.einsum("ij,ij->i", rel, rel) - radius * radius
+    disc = b * b - c
+    root = np.sqrt(np.maximum(disc, 0.0))
+    near, far = -b - root, -b + root
+    t = np.where(near > 0, near, far)
+    return np.where((disc >= 0) & (t > 0), t, np.inf)
 
 
 @kernel

@@ -74,7 +74,7 @@ def build_scene(bpy):
     _light(bpy, "Disk", "AREA", (0, 3, 5), energy=50.0, shape="DISK", size=0.8)
     _light(bpy, "Spot", "SPOT", (0, -3, 4), rotation=(math.radians(30), 0, 0), energy=300.0,
            spot_size=math.radians(40), spot_blend=0.2, shadow_soft_size=0.1,
-           color=(1.0, 0.5, 0.25))
+           color=(1.0, 0.5, 0.25), use_soft_falloff=False)
     cd = bpy.data.cameras.new("Cam")
     cam = bpy.data.objects.new("Cam", cd)
     cam.location = (0, -10, 3)
@@ -120,6 +120,7 @@ def test_export_round_trip(fresh_scene, bpy_addon):
     assert spot.kind == "SPOT" and spot.power == pytest.approx(300.0)
     assert spot.spot_size == pytest.approx(math.radians(40))
     assert spot.spot_blend == pytest.approx(0.2) and spot.radius == pytest.approx(0.1)
+    assert spot.soft_falloff is False  # Soft Falloff off: a sphere (engine/lights/point.py)
     np.testing.assert_allclose(spot.color, (1.0, 0.5, 0.25))
     np.testing.assert_allclose(spot.direction, (0, math.sin(math.radians(30)),
                                                 -math.cos(math.radians(30))), atol=1e-6)
