@@ -138,8 +138,10 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     front = np.empty(n, np.bool_)
     mat = np.empty(n, geo.material.dtype)  # as np.take(geo.material, prim) gave
     offset = np.empty(n)
+    bary = np.empty((n, 2))
     rows, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
-    hit_geometry(rows, u, v, d, *tabs, table.base_color, p, ng, ns, front, mat, base, offset)
+    hit_geometry(rows, u, v, d, *tabs, table.base_color, p, ng, ns, front, mat, base, offset,
+                 bary)
     floor = geo.instance_offset_floor(prim, p, ng)  # shared instances: object-space rounding
     if floor is not None:
         np.maximum(offset, floor, out=offset)
@@ -173,7 +175,7 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     if table.alpha_textures and any(t is not None for t in table.alpha_textures):
         alpha = material_alpha(table, sg, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
-                      offset=offset, bary=np.stack([u, v], axis=1), alpha=alpha,
+                      offset=offset, bary=bary, alpha=alpha,
                       n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v),
                       emission=hit_emission(table, sg, mat, prim, u, v))
 

@@ -46,7 +46,7 @@ def _ulp32(x):
 
 @kernel
 def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color,
-                 p, ng, ns, front, mat, base, offset):
+                 p, ng, ns, front, mat, base, offset, bary):
     """Surface data of N hits, written into the caller's arrays.
 
     prim (N,) int64 triangle rows; u, v (N,) barycentrics of corners 1 and 2; d (N,3)
@@ -57,12 +57,14 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
     normal maps perturb it there, then face_shading_normals turns it); front (N,) bool
     (the ray met the winding-order outside); mat (N,) material's dtype; base (N,3) the material's
     base colour; offset (N,) the ray-origin offset (rayoffset.surface_offset with the
-    triangle's round32 / tilt32 bounds computed here, as geometry.PerTriangle does)."""
+    triangle's round32 / tilt32 bounds computed here, as geometry.PerTriangle does);
+    bary (N,2) = (u, v)."""
     n = prim.shape[0]
     smooth_tables = corner_normals.shape[0] > 0
     for i in range(n):
         t = prim[i]
         b1, b2 = u[i], v[i]
+        bary[i, 0], bary[i, 1] = b1, b2
         a0x, a0y, a0z = v0[t, 0], v0[t, 1], v0[t, 2]
         a1x, a1y, a1z = e1[t, 0], e1[t, 1], e1[t, 2]
         a2x, a2y, a2z = e2[t, 0], e2[t, 1], e2[t, 2]
@@ -330,8 +332,8 @@ def pick_lobes(p, psum, q, idx, r, lobe, prob):
 
 
 @kernel
-def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, pass_weight, p, ng, ns, wo, offset, tp,
-                   incoming, lobe_class, want_pdf, rows_out, o_out, d_out, tp_out, cls_out,
+def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, table_alpha,
+                   hit_alpha, p, ng, ns, wo, offset, tp, incoming, lobe_class, want_pdf, rows_out, o_out, d_out, tp_out, cls_out,
                    pdf_out):
     """Sample the picked lobes (pick_lobes) of rows idx (M,) of N hits and write the
     continued rays, compacted: returns K, and rows_out[:K] (the kept k into idx), o_out,
@@ -342,8 +344,10 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, pass_weight, p, ng, ns
     of the direction under the whole choice (inf: mirror-like, refracted or passed;
     only with want_pdf). u1, u2, u3: one number each per non-pass pick, in pick order.
     prm, sel (N, N_LOBES), p, ng, ns, wo (N,3), offset (N,), tp (N,3), incoming (N,)
-    are the hits' (bsdf.SurfaceHit, lobe_choice); pass_weight (N,3) the pass lobe's
-    weight (1 - alpha). A sample is dropped
+    are the hits' (bsdf.SurfaceHit, lobe_choice); the pass lobe's weight is
+    (1 - alpha) x the Transparent BSDF's colour, from mat (N,), closure_params
+    (M, N_MAT) (its M_TTINT columns), and alpha: hit_alpha (N,) float64 per hit (alpha
+    textures), or (0,): table_alpha (M,) of the material. A sample is dropped
     (absorbed) when it leaves through the wrong side of the surface, is not finite or
     has no weight."""
     kept = 0
@@ -353,7 +357,11 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, pass_weight, p, ng, ns
         lb = lobe[k]
         if lb == _PASS:
             x, y, z = -wo[row, 0], -wo[row, 1], -wo[row, 2]
-            w0, w1, w2 = pass_weight[row, 0], pass_weight[row, 1], pass_weight[row, 2]
+            mt = mat[row]
+            a = hit_alpha[row] if hit_alpha.shape[0] > 0 else table_alpha[mt]
+            w0 = (1.0 - a) * closure_params[mt, pr.M_TTINT]
+            w1 = (1.0 - a) * closure_params[mt, pr.M_TTINT + 1]
+            w2 = (1.0 - a) * closure_params[mt, pr.M_TTINT + 2]
             tr = True
         else:
             n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
@@ -446,7 +454,7 @@ def _warm_up():
     off = np.empty(1)
     for cn in (np.zeros((0, 3, 3), np.float32), np.ones((1, 3, 3), np.float32)):
         hit_geometry(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
-                     np.ones((1, 3)), p, ng, ns, front, mat, base, off)
+                     np.ones((1, 3)), p, ng, ns, front, mat, base, off, np.empty((1, 2)))
     face_shading_normals(ns, ng, front, d, np.zeros(1, np.bool_))
     for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
         hit_closures(ns, ng, -d, mat, np.zeros((1, pr.N_MAT)), per_hit, base, front,
@@ -469,7 +477,8 @@ def _warm_up():
     prm, _ = pr.setup_np(np.zeros((1, pr.N_MAT)), np.zeros(1, np.int64), base, np.full(1, 0.8),
                          front)
     lobe[0] = pr.L_METAL - 1
-    continue_lobes(idx, lobe, prob, one, one, one, prm, sel, base, p, ng, ns, -d, off,
+    continue_lobes(idx, lobe, prob, one, one, one, prm, sel, mat, np.zeros((1, pr.N_MAT)),
+                   np.ones(1), np.zeros(0), p, ng, ns, -d, off,
                    np.ones((1, 3)), np.zeros(1, np.int64), np.zeros(7, np.int64), True,
                    np.empty(1, np.int64),
                    np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty(1, np.int64),

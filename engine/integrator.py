@@ -21,12 +21,12 @@ from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.selection import empty_tree, selection_samples, selector_for, tree_members
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, _hit_alpha, closures, lobe_weights, surface_hit
+from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, surface_hit
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             gather_rays, keep_path_hits, pick_lobes)
 from .camerarays import camera_rays_kernel
 from .gatherkernels import add_gathered, diffuse_lookups, keep_hits
-from .closures.principled import M_TTINT, rough_reflection_rows
+from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
@@ -522,17 +522,17 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     # during the first render instead of by jit.ensure_compiled.
     incoming = np.empty(len(p), np.int64)
     incoming[:] = ray_cls
-    # The pass lobe's weight: (1 - alpha) x the Transparent BSDF's colour.
-    tint = np.take(ctx.table.closure_params[:, M_TTINT:M_TTINT + 3], hit.mat, axis=0)
-    pass_weight = c((1.0 - _hit_alpha(ctx.table, hit).astype(np.float64))[:, None] * tint,
-                    np.float64)
-    k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), pass_weight, c(hit.p),
+    # The pass lobe's weight, (1 - alpha) x the Transparent BSDF's colour, in the kernel.
+    alpha = _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64)
+    k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), hit.mat,
+                       ctx.table.closure_params, c(ctx.table.alpha, np.float64), alpha, c(hit.p),
                        c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset), c(tp, np.float64),
                        incoming, _LOBE_CLASS, bool(want_pdf), rows, o, d, new_tp, cls, pdf)
     out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
     return out + (pdf[:k],) if want_pdf else out
 
 
+_NO_ALPHA = np.zeros(0)  # continue_lobes: the materials' alpha
 _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 
 
