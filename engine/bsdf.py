@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camerakernels import face_shading_normals, hit_geometry
+from .camerakernels import face_shading_normals, hit_closures, hit_geometry
 from .closures import principled as pr
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
@@ -87,10 +87,42 @@ class SurfaceHit:
         return offset_along_normal(self.p[rows], self.ng[rows], d, self.offset[rows])
 
     def take(self, idx) -> "SurfaceHit":
-        """The hits at rows idx (np.take(axis=0) is ~4x faster than fancy indexing)."""
-        return SurfaceHit(*(None if getattr(self, k) is None else
-                            np.take(getattr(self, k), idx, axis=0)
-                            for k in self.__dataclass_fields__))
+        """The hits at rows idx (N,) int: a HitRows view whose fields are copied from this
+        batch (np.take(axis=0)) only when first read, so a subset handed to a stage that
+        reads five fields does not copy the other ones (the packed lobes and their albedos
+        alone are ~530 of a hit's ~720 bytes)."""
+        return HitRows(self, idx)
+
+
+def _row_field(name):
+    """HitRows' property for field `name`: the source's rows, taken on first read;
+    assigned values (closures' cache) replace it."""
+    def get(self):
+        cache = self.__dict__
+        if name not in cache:
+            a = getattr(self._source, name)
+            cache[name] = None if a is None else np.take(a, self._rows, axis=0)
+        return cache[name]
+
+    def put(self, value):
+        self.__dict__[name] = value
+
+    return property(get, put)
+
+
+class HitRows(SurfaceHit):
+    """Rows `rows` of a SurfaceHit (SurfaceHit.take): each field is that field's rows of
+    the source, copied when first read (then kept); a field assigned here (e.g. the lobes
+    bsdf.closures computes) is this view's own. Behaves as the SurfaceHit take copied."""
+
+    def __init__(self, source: SurfaceHit, rows):
+        self.__dict__["_source"] = source
+        self.__dict__["_rows"] = rows
+
+
+for _name in SurfaceHit.__dataclass_fields__:
+    setattr(HitRows, _name, _row_field(_name))
+del _name
 
 
 def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHit:
@@ -106,8 +138,10 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     front = np.empty(n, np.bool_)
     mat = np.empty(n, geo.material.dtype)  # as np.take(geo.material, prim) gave
     offset = np.empty(n)
+    bary = np.empty((n, 2))
     rows, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
-    hit_geometry(rows, u, v, d, *tabs, table.base_color, p, ng, ns, front, mat, base, offset)
+    hit_geometry(rows, u, v, d, *tabs, table.base_color, p, ng, ns, front, mat, base, offset,
+                 bary)
     floor = geo.instance_offset_floor(prim, p, ng)  # shared instances: object-space rounding
     if floor is not None:
         np.maximum(offset, floor, out=offset)
@@ -141,7 +175,7 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     if table.alpha_textures and any(t is not None for t in table.alpha_textures):
         alpha = material_alpha(table, sg, mat, prim, u, v)
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
-                      offset=offset, bary=np.stack([u, v], axis=1), alpha=alpha,
+                      offset=offset, bary=bary, alpha=alpha,
                       n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v),
                       emission=hit_emission(table, sg, mat, prim, u, v))
 
@@ -149,29 +183,24 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
 def closures(table: MaterialTable, hit: SurfaceHit):
     """The hits' lobes as engine/closures/principled.py builds them (Cycles' Principled v2
     layering): (packed per-hit parameters (N, principled.N_PACK), estimated albedo of each
-    lobe (N, len(LOBE_NAMES), 3)). Cached on the hit."""
+    lobe (N, len(LOBE_NAMES), 3)). Cached on the hit. One compiled kernel
+    (camerakernels.hit_closures: the view cosine, Cycles' glossy normal, the closures'
+    set-up)."""
     if hit.prm is None or hit.lobe_albedo is None:
-        cos_o = np.einsum("ij,ij->i", hit.ns, hit.wo)
-        # Glossy lobes on a normal that keeps their mirror direction above the surface
-        # (Cycles' ensure_valid_specular_reflection), where ns differs from ng; the lobes
-        # are set up with the view cosine about that normal.
-        local = np.zeros((len(cos_o), 3))
-        pr.glossy_normals(np.ascontiguousarray(hit.ns, np.float64),
-                          np.ascontiguousarray(hit.ng, np.float64),
-                          np.ascontiguousarray(hit.wo, np.float64), local, cos_o)
-        if hit.params is None:
-            params, rows = table.closure_params, hit.mat
-        else:  # texture-driven scalar inputs: one parameter row per hit
-            params, rows = hit.params, np.arange(len(hit.mat))
-        # Not yet for glass (docs/textures.md): its hits keep the shading normal.
-        glass = np.nonzero(np.take(params[:, pr.M_TRANS], rows) > 0)[0]
-        if len(glass):
-            local[glass] = 0.0
-            cos_o[glass] = np.einsum("ij,ij->i", hit.ns[glass], hit.wo[glass])
-        hit.prm, hit.lobe_albedo = pr.setup_np(params, rows, hit.base, cos_o, hit.front,
-                                               _hit_alpha(table, hit))
-        hit.prm[:, pr.P_GN:pr.P_GN + 3] = local
+        n = len(hit.mat)
+        per_hit = hit.params is not None  # texture-driven scalar inputs: a row per hit
+        alpha = _NO_ALPHA if hit.alpha is None else np.ascontiguousarray(hit.alpha, np.float64)
+        prm = np.empty((n, pr.N_PACK))
+        albedo = np.empty((n, pr.N_LOBES, 3))
+        hit_closures(hit.ns, hit.ng, hit.wo, hit.mat,
+                     hit.params if per_hit else table.closure_params, per_hit, hit.base,
+                     hit.front, np.ascontiguousarray(table.alpha, np.float64), alpha, prm,
+                     albedo)
+        hit.prm, hit.lobe_albedo = prm, albedo
     return hit.prm, hit.lobe_albedo
+
+
+_NO_ALPHA = np.zeros(0)  # hit_closures' per-hit alpha when the materials' constants apply
 
 
 def _hit_alpha(table: MaterialTable, hit: SurfaceHit) -> np.ndarray:

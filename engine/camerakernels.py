@@ -46,7 +46,7 @@ def _ulp32(x):
 
 @kernel
 def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color,
-                 p, ng, ns, front, mat, base, offset):
+                 p, ng, ns, front, mat, base, offset, bary):
     """Surface data of N hits, written into the caller's arrays.
 
     prim (N,) int64 triangle rows; u, v (N,) barycentrics of corners 1 and 2; d (N,3)
@@ -57,12 +57,14 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
     normal maps perturb it there, then face_shading_normals turns it); front (N,) bool
     (the ray met the winding-order outside); mat (N,) material's dtype; base (N,3) the material's
     base colour; offset (N,) the ray-origin offset (rayoffset.surface_offset with the
-    triangle's round32 / tilt32 bounds computed here, as geometry.PerTriangle does)."""
+    triangle's round32 / tilt32 bounds computed here, as geometry.PerTriangle does);
+    bary (N,2) = (u, v)."""
     n = prim.shape[0]
     smooth_tables = corner_normals.shape[0] > 0
     for i in range(n):
         t = prim[i]
         b1, b2 = u[i], v[i]
+        bary[i, 0], bary[i, 1] = b1, b2
         a0x, a0y, a0z = v0[t, 0], v0[t, 1], v0[t, 2]
         a1x, a1y, a1z = e1[t, 0], e1[t, 1], e1[t, 2]
         a2x, a2y, a2z = e2[t, 0], e2[t, 1], e2[t, 2]
@@ -163,6 +165,110 @@ def face_shading_normals(ns, ng, front, d, exempt):
 
 
 @kernel
+def _view_cosine(ns, wo, i):
+    # ns[i] . wo[i] summed as np.einsum("ij,ij->i") sums three terms (x + z) + y, which
+    # the set-up this replaced used: the same bits.
+    return (ns[i, 0] * wo[i, 0] + ns[i, 2] * wo[i, 2]) + ns[i, 1] * wo[i, 1]
+
+
+@kernel
+def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha,
+                 prm, albedo):
+    """The lobes of N hits (bsdf.closures), in one pass: the view cosine ns . wo, Cycles'
+    glossy normal (principled.glossy_normals; not for glass, which keeps ns and its view
+    cosine, docs/textures.md), the closures' set-up (principled.setup) and the glossy
+    normal packed into prm's P_GN columns.
+
+    ns, ng, wo (N,3) float64; mat (N,) material index; params (M, N_MAT) the materials'
+    closure rows, or (N, N_MAT) one row per hit when per_hit (texture-driven scalar
+    inputs); base (N,3) base colour; front (N,) bool; table_alpha (M,) the materials'
+    alpha; hit_alpha (N,) per-hit alpha (alpha textures) or (0,): the materials'.
+    Out: prm (N, N_PACK), albedo (N, N_LOBES, 3). Same operations in the same order as
+    the numpy set-up it replaced (tests/test_camera_kernels.py)."""
+    n = ns.shape[0]
+    cos_o = np.empty(n)
+    for i in range(n):
+        cos_o[i] = _view_cosine(ns, wo, i)
+    local = np.zeros((n, 3))
+    pr.glossy_normals(ns, ng, wo, local, cos_o)
+    rows = np.empty(n, np.int64)
+    alpha = np.empty(n)
+    per_hit_alpha = hit_alpha.shape[0] > 0
+    for i in range(n):
+        r = i if per_hit else mat[i]
+        rows[i] = r
+        if params[r, pr.M_TRANS] > 0:
+            local[i, 0], local[i, 1], local[i, 2] = 0.0, 0.0, 0.0
+            cos_o[i] = _view_cosine(ns, wo, i)
+        alpha[i] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
+    pr.setup(rows, params, base, cos_o, front, alpha, prm, albedo)
+    for i in range(n):
+        for c in range(3):
+            prm[i, pr.P_GN + c] = local[i, c]
+
+
+@kernel
+def keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, cls, pdf_b):
+    """The camera paths whose ray met a surface (prim >= 0), compacted in order into new
+    arrays (integrator._trace_paths' state after an Embree call): returns (rows (K,) the
+    kept rows, o, d, tp (K,3), pix, prim (K,) int64, u, v, t (K,), sample_id (K,) int64,
+    travelled (K,) = travelled + t, cls (K,) int64, pdf_b (K,)). Inputs: prim, pix,
+    sample_id, cls (N,) int64; o, d, tp (N,3), u, v, t, travelled, pdf_b (N,) float64."""
+    n = prim.shape[0]
+    k = 0
+    for i in range(n):
+        if prim[i] >= 0:
+            k += 1
+    rows = np.empty(k, np.int64)
+    o2, d2, tp2 = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3))
+    pix2, prim2 = np.empty(k, np.int64), np.empty(k, np.int64)
+    u2, v2, t2 = np.empty(k), np.empty(k), np.empty(k)
+    sid2, cls2 = np.empty(k, np.int64), np.empty(k, np.int64)
+    trav2, pdf2 = np.empty(k), np.empty(k)
+    j = 0
+    for i in range(n):
+        if prim[i] < 0:
+            continue
+        rows[j] = i
+        for c in range(3):
+            o2[j, c] = o[i, c]
+            d2[j, c] = d[i, c]
+            tp2[j, c] = tp[i, c]
+        pix2[j] = pix[i]
+        prim2[j] = prim[i]
+        u2[j] = u[i]
+        v2[j] = v[i]
+        t2[j] = t[i]
+        sid2[j] = sample_id[i]
+        trav2[j] = travelled[i] + t[i]
+        cls2[j] = cls[i]
+        pdf2[j] = pdf_b[i]
+        j += 1
+    return rows, o2, d2, tp2, pix2, prim2, u2, v2, t2, sid2, trav2, cls2, pdf2
+
+
+@kernel
+def film_add(buf, lo, pix, rows, tp, rgb):
+    """Add tp[rows[k]] * rgb[k] (RGB) into buf[pix[rows[k]] - lo]: buf (P,3) float64;
+    pix (N,) int64 pixel of each row; rows (K,) int64, or (0,) for rows k = k; tp (N,3)
+    float64 path throughput, or (0,3) for none; rgb (K,3) float64. As the Accumulator's
+    np.bincount of tp[rows] * rgb did: each pixel's sum formed from zero in row order,
+    then added to buf (the same floating-point operations, so the same bits)."""
+    k_rows = rgb.shape[0]
+    every = rows.shape[0] == 0
+    weighted = tp.shape[0] > 0
+    sums = np.zeros(buf.shape)
+    for k in range(k_rows):
+        i = k if every else rows[k]
+        b = pix[i] - lo
+        for c in range(3):
+            sums[b, c] += tp[i, c] * rgb[k, c] if weighted else rgb[k, c]
+    for b in range(buf.shape[0]):
+        for c in range(3):
+            buf[b, c] += sums[b, c]
+
+
+@kernel
 def choose_lobes(albedo, tp, sel, q, p, psum):
     """The continuation's lobe choice from the closures' lobe albedos albedo
     (N, N_LOBES, 3) (column 0 = diffuse, the rest SPEC_LOBES' order) and the path
@@ -226,8 +332,8 @@ def pick_lobes(p, psum, q, idx, r, lobe, prob):
 
 
 @kernel
-def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, pass_weight, p, ng, ns, wo, offset, tp,
-                   incoming, lobe_class, want_pdf, rows_out, o_out, d_out, tp_out, cls_out,
+def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, table_alpha,
+                   hit_alpha, p, ng, ns, wo, offset, tp, incoming, lobe_class, want_pdf, rows_out, o_out, d_out, tp_out, cls_out,
                    pdf_out):
     """Sample the picked lobes (pick_lobes) of rows idx (M,) of N hits and write the
     continued rays, compacted: returns K, and rows_out[:K] (the kept k into idx), o_out,
@@ -238,8 +344,10 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, pass_weight, p, ng, ns
     of the direction under the whole choice (inf: mirror-like, refracted or passed;
     only with want_pdf). u1, u2, u3: one number each per non-pass pick, in pick order.
     prm, sel (N, N_LOBES), p, ng, ns, wo (N,3), offset (N,), tp (N,3), incoming (N,)
-    are the hits' (bsdf.SurfaceHit, lobe_choice); pass_weight (N,3) the pass lobe's
-    weight (1 - alpha). A sample is dropped
+    are the hits' (bsdf.SurfaceHit, lobe_choice); the pass lobe's weight is
+    (1 - alpha) x the Transparent BSDF's colour, from mat (N,), closure_params
+    (M, N_MAT) (its M_TTINT columns), and alpha: hit_alpha (N,) float64 per hit (alpha
+    textures), or (0,): table_alpha (M,) of the material. A sample is dropped
     (absorbed) when it leaves through the wrong side of the surface, is not finite or
     has no weight."""
     kept = 0
@@ -249,7 +357,11 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, pass_weight, p, ng, ns
         lb = lobe[k]
         if lb == _PASS:
             x, y, z = -wo[row, 0], -wo[row, 1], -wo[row, 2]
-            w0, w1, w2 = pass_weight[row, 0], pass_weight[row, 1], pass_weight[row, 2]
+            mt = mat[row]
+            a = hit_alpha[row] if hit_alpha.shape[0] > 0 else table_alpha[mt]
+            w0 = (1.0 - a) * closure_params[mt, pr.M_TTINT]
+            w1 = (1.0 - a) * closure_params[mt, pr.M_TTINT + 1]
+            w2 = (1.0 - a) * closure_params[mt, pr.M_TTINT + 2]
             tr = True
         else:
             n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
@@ -342,10 +454,19 @@ def _warm_up():
     off = np.empty(1)
     for cn in (np.zeros((0, 3, 3), np.float32), np.ones((1, 3, 3), np.float32)):
         hit_geometry(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
-                     np.ones((1, 3)), p, ng, ns, front, mat, base, off)
+                     np.ones((1, 3)), p, ng, ns, front, mat, base, off, np.empty((1, 2)))
     face_shading_normals(ns, ng, front, d, np.zeros(1, np.bool_))
+    for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
+        hit_closures(ns, ng, -d, mat, np.zeros((1, pr.N_MAT)), per_hit, base, front,
+                     np.ones(1), hit_alpha, np.empty((1, pr.N_PACK)),
+                     np.empty((1, pr.N_LOBES, 3)))
     gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
                 np.empty((1, 3)))
+    i64 = np.zeros(1, np.int64)
+    keep_path_hits(i64, p, d, base, i64, one, one, one, i64, one, i64, one)
+    film_add(np.zeros((1, 3)), 0, i64, i64, base, base)
+    film_add(np.zeros((1, 3)), 0, i64, np.zeros(0, np.int64), base, base)
+    film_add(np.zeros((1, 3)), 0, i64, np.zeros(0, np.int64), np.zeros((0, 3)), base)
     alb = np.full((1, 8, 3), 0.1)
     sel, q, pl, psum = np.empty((1, 8)), np.empty(1), np.empty((1, 7)), np.empty(1)
     choose_lobes(alb, np.ones((1, 3)), sel, q, pl, psum)
@@ -356,7 +477,8 @@ def _warm_up():
     prm, _ = pr.setup_np(np.zeros((1, pr.N_MAT)), np.zeros(1, np.int64), base, np.full(1, 0.8),
                          front)
     lobe[0] = pr.L_METAL - 1
-    continue_lobes(idx, lobe, prob, one, one, one, prm, sel, base, p, ng, ns, -d, off,
+    continue_lobes(idx, lobe, prob, one, one, one, prm, sel, mat, np.zeros((1, pr.N_MAT)),
+                   np.ones(1), np.zeros(0), p, ng, ns, -d, off,
                    np.ones((1, 3)), np.zeros(1, np.int64), np.zeros(7, np.int64), True,
                    np.empty(1, np.int64),
                    np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty(1, np.int64),

@@ -22,11 +22,12 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for, tree_members
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, _hit_alpha, closures, lobe_weights, surface_hit
-from .camerakernels import _PASS as PASS_LOBE, choose_lobes, continue_lobes, gather_rays, pick_lobes
+from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, surface_hit
+from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
+                            gather_rays, keep_path_hits, pick_lobes)
 from .camerarays import camera_rays_kernel
 from .gatherkernels import add_gathered, diffuse_lookups, keep_hits
-from .closures.principled import M_TTINT, rough_reflection_rows
+from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
@@ -525,17 +526,17 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     # during the first render instead of by jit.ensure_compiled.
     incoming = np.empty(len(p), np.int64)
     incoming[:] = ray_cls
-    # The pass lobe's weight: (1 - alpha) x the Transparent BSDF's colour.
-    tint = np.take(ctx.table.closure_params[:, M_TTINT:M_TTINT + 3], hit.mat, axis=0)
-    pass_weight = c((1.0 - _hit_alpha(ctx.table, hit).astype(np.float64))[:, None] * tint,
-                    np.float64)
-    k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), pass_weight, c(hit.p),
+    # The pass lobe's weight, (1 - alpha) x the Transparent BSDF's colour, in the kernel.
+    alpha = _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64)
+    k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), hit.mat,
+                       ctx.table.closure_params, c(ctx.table.alpha, np.float64), alpha, c(hit.p),
                        c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset), c(tp, np.float64),
                        incoming, _LOBE_CLASS, bool(want_pdf), rows, o, d, new_tp, cls, pdf)
     out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
     return out + (pdf[:k],) if want_pdf else out
 
 
+_NO_ALPHA = np.zeros(0)  # continue_lobes: the materials' alpha
 _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 
 
@@ -626,8 +627,9 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
 
 
 class Accumulator:
-    """Per-pixel sums for each pass over pixels [lo, lo + npix) of the region; np.bincount
-    is the fast vectorised scatter-add."""
+    """Per-pixel sums for each pass over pixels [lo, lo + npix) of the region: the RGB
+    passes by a compiled scatter-add (camerakernels.film_add), the scalar ones by
+    np.bincount."""
 
     NAMES = ("direct", "indirect", "caustic", "specular", "emission")
 
@@ -644,14 +646,17 @@ class Accumulator:
     def _bins(self, pix, w):
         return np.bincount(pix - self.lo, weights=w, minlength=self.npix)
 
-    def add(self, name, pix, rgb):
-        if len(pix) == 0:
+    def add(self, name, pix, rgb, tp=None, rows=None):
+        """Add rgb (K,3) into pass `name`: at pixels pix (K,), or with rows (K,) int64
+        at pixels pix[rows] times throughputs tp[rows] (pix (N,), tp (N,3)), without
+        copying the rows out (tp without rows: K = N)."""
+        if len(rgb) == 0:
             return
-        b = self.buf[name]
-        for c in range(3):
-            b[:, c] += self._bins(pix, rgb[:, c])
+        film_add(self.buf[name], self.lo, pix, _ALL_ROWS if rows is None else rows,
+                 _NO_TP if tp is None else tp, np.ascontiguousarray(rgb, np.float64))
 
     def add_scalar(self, arr, pix, w):
+        """Add w (N,) into the scalar pass arr at pixels pix (N,)."""
         arr += self._bins(pix, w)
 
     def merge(self, part: "Accumulator"):
@@ -663,6 +668,10 @@ class Accumulator:
                              (self.depth_sum, part.depth_sum),
                              (self.depth_n, part.depth_n), (self.normal, part.normal)):
             mine[a:b] += theirs
+
+
+_ALL_ROWS = np.zeros(0, np.int64)  # film_add: every row, in order
+_NO_TP = np.zeros((0, 3))          # film_add: no throughput factor
 
 
 
@@ -829,7 +838,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 mask &= sees
                 if bounce > 0 and modes[li] == MODE_MIS and mask.any():
                     L = L * _mis_weight(ctx, li, light, o, d, tl, pdf_b, org_ns)[:, None]
-                acc.add(target, pix[mask], tp[mask] * L[mask])
+                rows = np.nonzero(mask)[0]
+                acc.add(target, pix, L[rows], tp, rows)
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
@@ -849,7 +859,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                 sun = sun * _mis_weight(ctx, li, light, o[miss], d[miss],
                                                         None, pdf_b[miss])[:, None]
                             radiance = radiance + sun
-                acc.add(target, pix[miss], tp[miss] * radiance)
+                acc.add(target, pix, radiance, tp, np.nonzero(miss)[0])
         hitm = prim >= 0
         if has_holdout and hitm.any():
             # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
@@ -863,13 +873,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():
             return
-        o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
-            a[hitm] for a in (o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls,
-                              pdf_b))
-        travelled = travelled + t
+        # The paths that met a surface, compacted (camerakernels.keep_path_hits).
+        kept, o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
+            keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
+                           pdf_b))
         footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
         if sampler is not None and bounce == 0:
-            sampler = sampler.subset(np.nonzero(hitm)[0])
+            sampler = sampler.subset(kept)
         hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
         if bounce == 0:
             acc.add_scalar(acc.depth_sum, pix, dot(hit.p - cam_pos, forward))
@@ -881,27 +891,27 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if np.any(Le > 0):
             if bounce > 0:
                 Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b)[:, None]
-            acc.add(target, pix, tp * Le)
+            acc.add(target, pix, Le, tp)
         w = lobe_weights(ctx.table, hit)
         wd = w["diffuse"]
         glossy = _glossy_rows(ctx, hit, modes)
         choice = lobe_choice(hit.lobe_albedo, tp)
         dsel = np.nonzero((max3(wd) > 0) | glossy)[0]
         if len(dsel):
-            sub = hit.take(dsel)
+            # The diffuse rows as a view (fields copied on first read), or the batch itself.
+            sub = hit if len(dsel) == len(prim) else hit.take(dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
             direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
                                                       sample_id[dsel], footprint[dsel],
                                                       should_cancel, glossy=glossy[dsel],
                                                       sel=choice[0][dsel])
-            tpd = tp[dsel]
             if bounce == 0:
-                acc.add("direct", pix[dsel], tpd * direct)
-                acc.add("caustic", pix[dsel], tpd * caustic)
-                acc.add("indirect", pix[dsel], tpd * indirect)
+                acc.add("direct", pix, direct, tp, dsel)
+                acc.add("caustic", pix, caustic, tp, dsel)
+                acc.add("indirect", pix, indirect, tp, dsel)
             else:
-                acc.add("specular", pix[dsel], tpd * (direct + caustic + indirect))
+                acc.add("specular", pix, direct + caustic + indirect, tp, dsel)
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .jit import kernel, register_warm_up
+
 
 def norm3(v: np.ndarray) -> np.ndarray:
     """|v| over the last axis of length 3. Bitwise equal to np.linalg.norm(v, axis=-1)
@@ -212,30 +214,65 @@ class StratifiedSampler:
         cells = self.m * self.m
         if cells < 2:
             return self.rng.random(n), self.rng.random(n)
+        # The pairing of two dimensions' strata within a pixel is a fixed offset. With
+        # the linear hash (pixel * 2654435761 + dim * 40503 + 12345) it is the same in
+        # every pixel and seed, a fixed pattern no number of seeds averages away: lobe
+        # directions paired so stayed 1.8 % off on a glossy floor mirroring a small
+        # bright patch (30 seeds), whose few highlight pixels carry the image. Scrambled:
+        # a splitmix64 finaliser of (pixel, dimension, seed). (The other dimensions keep
+        # the linear hash, so their images stay as they were.) One compiled pass
+        # (_stratified_uv); the jitter is drawn here in the order the numpy stage drew it.
+        jitter1, jitter2 = self.rng.random(n), self.rng.random(n)
+        n_rest = int(np.count_nonzero(self.sub >= self.full))
+        rest1 = self.rng.random(n_rest) if n_rest else _EMPTY
+        rest2 = self.rng.random(n_rest) if n_rest else _EMPTY
         if scrambled:
-            # The pairing of two dimensions' strata within a pixel is a fixed offset. With
-            # the linear hash below it is the same in every pixel and seed, a fixed pattern
-            # no number of seeds averages away: lobe directions paired so stayed 1.8 % off
-            # on a glossy floor mirroring a small bright patch (30 seeds), whose few
-            # highlight pixels carry the image. Scrambled: a splitmix64 finaliser of
-            # (pixel, dimension, seed). (The other dimensions keep the linear hash, so
-            # their images stay as they were.)
-            x = (self.pix.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)
-                 + np.uint64((dim + 1) * 0xBF58476D1CE4E5B9 % (1 << 64))
-                 + np.uint64(self.salt * 0xD6E8FEB86659FD93 % (1 << 64)))
+            add = np.uint64(((dim + 1) * 0xBF58476D1CE4E5B9 + self.salt * 0xD6E8FEB86659FD93)
+                            % (1 << 64))
+        else:
+            add = np.uint64(dim * 40503 + 12345)
+        u1, u2 = np.empty(n), np.empty(n)
+        _stratified_uv(np.ascontiguousarray(self.pix, np.int64),
+                       np.ascontiguousarray(self.sub, np.int64), self.m, self.full,
+                       bool(scrambled), add, jitter1, jitter2, rest1, rest2, u1, u2)
+        return u1, u2
+
+
+_EMPTY = np.zeros(0)
+
+
+@kernel
+def _stratified_uv(pix, sub, m, full, scrambled, add, jitter1, jitter2, rest1, rest2, u1, u2):
+    """StratifiedSampler._uv's numbers: sample sub[i] of pixel pix[i] takes cell
+    (sub + shift) mod m^2, shift = a hash of the pixel and `add` (the dimension, and the
+    seed when scrambled) in uint64 arithmetic; u1 = (cell mod m + jitter1) / m,
+    u2 = (cell div m + jitter2) / m; samples with sub >= full take rest1, rest2 in
+    order instead. pix, sub (N,) int64; jitter1, jitter2, u1, u2 (N,); rest1, rest2
+    (count of sub >= full,)."""
+    cells = np.uint64(m * m)
+    j = 0
+    for i in range(pix.shape[0]):
+        if scrambled:
+            x = np.uint64(pix[i]) * np.uint64(0x9E3779B97F4A7C15) + add
             x ^= x >> np.uint64(31)
             x *= np.uint64(0x94D049BB133111EB)
             x ^= x >> np.uint64(29)
-            shift = x % np.uint64(cells)
+            shift = x % cells
         else:
-            shift = (self.pix.astype(np.uint64) * np.uint64(2654435761)
-                     + np.uint64(dim * 40503 + 12345)) % np.uint64(cells)
-        cell = (self.sub.astype(np.uint64) + shift) % np.uint64(cells)
-        cell = cell.astype(np.int64)
-        u1 = (cell % self.m + self.rng.random(n)) / self.m
-        u2 = (cell // self.m + self.rng.random(n)) / self.m
-        rest = self.sub >= self.full
-        if rest.any():
-            u1[rest] = self.rng.random(int(rest.sum()))
-            u2[rest] = self.rng.random(int(rest.sum()))
-        return u1, u2
+            shift = (np.uint64(pix[i]) * np.uint64(2654435761) + add) % cells
+        cell = np.int64((np.uint64(sub[i]) + shift) % cells)
+        if sub[i] >= full:
+            u1[i] = rest1[j]
+            u2[i] = rest2[j]
+            j += 1
+        else:
+            u1[i] = (np.float64(cell % m) + jitter1[i]) / np.float64(m)
+            u2[i] = (np.float64(cell // m) + jitter2[i]) / np.float64(m)
+
+
+@register_warm_up
+def _warm_up():
+    one = np.ones(1, np.int64)
+    for scrambled in (False, True):
+        _stratified_uv(one, one, 4, 16, scrambled, np.uint64(7), np.full(1, 0.5),
+                       np.full(1, 0.5), _EMPTY, _EMPTY, np.empty(1), np.empty(1))
