@@ -264,11 +264,17 @@ def _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets):
 
 @kernel
 def _accepted(direction, normal, j, nx, ny, nz):
-    """(accepted, other_surface) for photon j at a query with float32 normal (nx, ny, nz):
-    it arrived from the front (d.N < 0) and lies on a surface facing the same way."""
+    """(accepted, other_surface, cos_in) for photon j at a query with float32 normal
+    (nx, ny, nz): accepted if it arrived from the front (d.N < 0) and lies on a surface
+    facing the same way; other_surface if its surface meets the query's at an angle (a
+    wall, an edge: the disc is cut off). A photon on the back of the same sheet (normals
+    opposed: a floor plane lit from below by the world) is neither: it cuts nothing off,
+    and counting it flagged 95 % of the gather points of issue 14's Principled floor as
+    boundary, which regathered from nearly every gather ray."""
     cos_in = -(direction[j, 0] * nx + direction[j, 1] * ny + direction[j, 2] * nz)
-    other = (normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz) <= NORMAL_AGREEMENT
-    return (cos_in > 0) and not other, other, cos_in
+    agree = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
+    same = agree > NORMAL_AGREEMENT
+    return (cos_in > 0) and same, (not same) and agree >= -NORMAL_AGREEMENT, cos_in
 
 
 @kernel
