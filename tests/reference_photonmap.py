@@ -162,9 +162,11 @@ class ReferencePhotonMap:
         # Dot products per component (same float32 products and left-to-right sums as an
         # einsum, no (N,k,3) temporaries).
         cos_in = -(gd[..., 0] * nx + gd[..., 1] * ny + gd[..., 2] * nz)
-        other_surface = found & ((gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz)
-                                 <= NORMAL_AGREEMENT)
-        ok = found & (cos_in > 0) & ~other_surface
+        agree = gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz
+        # The back of the same sheet (normals opposed) is neither accepted nor another
+        # surface that cuts the disc off (engine/photonmap.py _accepted).
+        other_surface = found & (agree <= NORMAL_AGREEMENT) & (agree >= -NORMAL_AGREEMENT)
+        ok = found & (cos_in > 0) & (agree > NORMAL_AGREEMENT)
         del gd, gn
         widen = np.zeros(len(p), bool)
         knn = estimator not in ("classic", "radius")
