@@ -264,17 +264,30 @@ def _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets):
 
 @kernel
 def _accepted(direction, normal, j, nx, ny, nz):
-    """(accepted, other_surface, cos_in) for photon j at a query with float32 normal
-    (nx, ny, nz): accepted if it arrived from the front (d.N < 0) and lies on a surface
-    facing the same way; other_surface if its surface meets the query's at an angle (a
-    wall, an edge: the disc is cut off). A photon on the back of the same sheet (normals
-    opposed: a floor plane lit from below by the world) is neither: it cuts nothing off,
-    and counting it flagged 95 % of the gather points of issue 14's Principled floor as
-    boundary, which regathered from nearly every gather ray."""
+    """(accepted, other_surface) for photon j at a query with float32 normal (nx, ny, nz):
+    it arrived from the front (d.N < 0) and lies on a surface facing the same way."""
     cos_in = -(direction[j, 0] * nx + direction[j, 1] * ny + direction[j, 2] * nz)
-    agree = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
-    same = agree > NORMAL_AGREEMENT
-    return (cos_in > 0) and same, (not same) and agree >= -NORMAL_AGREEMENT, cos_in
+    other = (normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz) <= NORMAL_AGREEMENT
+    return (cos_in > 0) and not other, other, cos_in
+
+
+# A photon facing away from the query (normals opposed) no more than this x its distance
+# in front of the query's tangent plane lies on the back of the same sheet.
+BACK_OF_SHEET_RISE = 0.25
+
+
+@kernel
+def _back_of_sheet(normal, pos, j, qx, qy, qz, nx, ny, nz, d):
+    """Photon j lies on the back of the query's own sheet (a floor plane lit from below
+    by the world: opposed normals, in or behind the query's tangent plane), which cuts
+    no disc off. Counted as another surface, such photons flagged 95 % of issue 14's
+    Principled floor's gather points as boundaries, which regathered from nearly every
+    gather ray. A surface facing the query across a gap (a ball's underside over the
+    floor) lies in front of the plane and still counts."""
+    if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz >= -NORMAL_AGREEMENT:
+        return False
+    rise = (pos[j, 0] - qx) * nx + (pos[j, 1] - qy) * ny + (pos[j, 2] - qz) * nz
+    return rise <= BACK_OF_SHEET_RISE * d
 
 
 @kernel
@@ -421,7 +434,7 @@ def _estimate_row(i, kind, pos, nodes, start, grid, power, direction, normal, p,
         inside = d <= r
         if inside:
             fetched += 1
-            if other:
+            if other and not _back_of_sheet(normal, pos, ph, qx, qy, qz, nx, ny, nz, d):
                 other_inside = True
         if not ok:
             continue
