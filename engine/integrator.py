@@ -543,7 +543,8 @@ CAUSTIC_SAMPLES_PER_PIXEL = 16
 # The secondary caustic (caustic light one diffuse bounce back, CAUSTIC_DIFFUSE photons)
 # has been spread by a diffuse reflection: it varies within a pixel as little as the
 # indirect light does, so fewer samples per pixel carry it: 16 -> 4 took 1 CPU s of 14
-# off issue 14's Principled spheres, HDR-FLIP unchanged (docs/accuracy_time_principled_spheres.md).
+# off issue 14's Principled spheres, HDR-FLIP unchanged
+# (docs/accuracy_time_principled_spheres.md).
 SECONDARY_SAMPLES_PER_PIXEL = 4
 
 
@@ -551,8 +552,9 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
                      per_pixel=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most per_pixel samples per pixel (default
-    CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius on the surface; a focus is
-    spread over at least that (a point focus hit by few samples makes fireflies)."""
+    CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius
+    on the surface; a focus is spread over at least that (a point focus hit by few
+    samples makes fireflies)."""
     out = np.zeros_like(f)
     if pmap is None or len(pmap) == 0:
         return out
