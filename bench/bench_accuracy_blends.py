@@ -109,8 +109,8 @@ NOTES = {"principled_spheres": [
     "for 2 % less time (after the fix above, 55 % of the gather rays still regather: "
     "they end on a ball of radius 0.5 m or on the floor under it, within the radius "
     "0.57 m). At 64 spp with 1.6M + 800k photons, regather depth 1 instead of 2: 0.0114 "
-    "-> 0.0120; 1 gather ray: 0.0114 -> 0.0119 for 14 % less time; k = 32: 0.0126 / 7.1 against 0.0120 / 9.6 (64 spp); "
-    "caustic estimate at 4 samples a pixel: 0.0123 / 7.5 (64 spp).",
+    "-> 0.0120; 1 gather ray: 0.0114 -> 0.0119 for 14 % less time. k = 32: 0.0126 / 7.1 "
+    "against 0.0120 / 9.6 (64 spp); caustic estimate at 4 samples a pixel: 0.0123 / 7.5 (64 spp).",
     "- **Where that leaves us**: Cycles and ours in turn in one process (load 12), CPU "
     "seconds: Cycles 64 spp 1.8 s / 0.0159, 256 spp 6.3 s / 0.0114, 1024 spp 24.6 s / "
     "0.0083; ours at default settings, 2 workers, 14.9 s / 0.0119 (1 worker: 12.3-12.9 "
@@ -118,8 +118,9 @@ NOTES = {"principled_spheres": [
     "time (0.37 wall in the table above, measured at load 14-16). Equal time with Cycles "
     "at this FLIP (the issue's target) needs ~5 CPU s, 2.5x less than now: our photon "
     "pass and map build take ~2-3 CPU s, the camera pass (~10 CPU s at 128 spp) is "
-    "~70 % photon terms (final gathering with its regathers, k-NN estimates). The 21 % of the global photons stored on the floor's unseen "
-    "underside are a further waste left to the photon pass.",
+    "~70 % photon terms (final gathering with its regathers, k-NN estimates). The 21 % "
+    "of the global photons stored on the floor's unseen underside are a further waste "
+    "left to the photon pass.",
     "",
 ]}
 
