@@ -441,8 +441,10 @@ _NO_ROWS = np.zeros(0, np.int64)
 # A regathered point's secondary-caustic estimate (a k-NN query, ~100 Embree traversals)
 # is a smooth term averaged over many gather rays: evaluate it for this fraction of them,
 # weighted up (Russian roulette on the estimate: unbiased). Evaluating all of them took
-# 45 % of Figure 7's camera pass once that map had a radius of its own.
-SECONDARY_REGATHER_FRACTION = 0.25
+# 45 % of Figure 7's camera pass once that map had a radius of its own. 0.25 -> 0.1 took
+# 1 CPU s of 9 off Figure 7 and of 13 off issue 14's Principled spheres at the same
+# HDR-FLIP (docs/accuracy_time_principled_spheres.md).
+SECONDARY_REGATHER_FRACTION = 0.1
 
 
 def _secondary_irradiance(ctx, hit, rng):
@@ -543,6 +545,12 @@ _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 # The caustic estimate is already a smooth kernel average, so it varies little between the
 # samples of one pixel: evaluate it for at most this many samples per pixel (weighted up).
 CAUSTIC_SAMPLES_PER_PIXEL = 16
+# The secondary caustic (caustic light one diffuse bounce back, CAUSTIC_DIFFUSE photons)
+# has been spread by a diffuse reflection: it varies within a pixel as little as the
+# indirect light does, so fewer samples per pixel carry it: 16 -> 4 took 1 CPU s of 14
+# off issue 14's Principled spheres, HDR-FLIP unchanged
+# (docs/accuracy_time_principled_spheres.md).
+SECONDARY_SAMPLES_PER_PIXEL = 4
 
 
 def smooth_min_photons(settings) -> int:
@@ -555,16 +563,19 @@ def smooth_min_photons(settings) -> int:
     return settings.min_photons if settings.paper_mode else 1
 
 
-def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None):
+def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
+                     per_pixel=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
-    secondary caustic): evaluated for at most CAUSTIC_SAMPLES_PER_PIXEL samples per pixel
-    and weighted up accordingly. footprint: the pixel's radius on the surface; a focus is
-    spread over at least that (a point focus hit by few samples makes fireflies)."""
+    secondary caustic): evaluated for at most per_pixel samples per pixel (default
+    CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius
+    on the surface; a focus is spread over at least that (a point focus hit by few
+    samples makes fireflies)."""
     out = np.zeros_like(f)
     if pmap is None or len(pmap) == 0:
         return out
     s = ctx.settings
-    stride = max(1, -(-s.spp // CAUSTIC_SAMPLES_PER_PIXEL)) if sample_id is not None else 1
+    per_pixel = CAUSTIC_SAMPLES_PER_PIXEL if per_pixel is None else per_pixel
+    stride = max(1, -(-s.spp // per_pixel)) if sample_id is not None else 1
     sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
     E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, smooth_min_photons(s),
                         s.estimator, r_floor=None if footprint is None else footprint[sel])
@@ -619,7 +630,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
                                            should_cancel=should_cancel)
             indirect += _smooth_estimate(ctx, ctx.secondary_map,
                                          ctx.secondary_radius or ctx.global_radius, hit, f,
-                                         sample_id, footprint)
+                                         sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL)
         elif ctx.global_map is not None and len(ctx.global_map):
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
                                                      s.k_nearest, s.min_photons, s.estimator)

@@ -71,3 +71,44 @@ def test_gather_lookup_still_hides_a_point_behind_a_wall():
     assert E.max() < 0.1 * bright  # the dim side's light (or none), never the bright side's
     g.accel = None
     assert g.lookup(q, up[:500])[0].max() > 0.5 * bright  # without the wall: the bright one
+
+
+def _sheet(rng, n, z, normal_z):
+    """n photons on the unit square at height z, on the side whose normal is (0, 0,
+    normal_z), arriving from that side."""
+    p = np.c_[rng.random((n, 2)), np.full(n, z)]
+    nrm = np.tile([0.0, 0.0, normal_z], (n, 1))
+    return p, nrm
+
+
+def test_back_of_a_sheet_does_not_flag_the_gather_points():
+    """A floor plane lit from both sides (the world lights its underside) holds photons
+    facing down at the same places as those facing up. They cut no disc off, so the
+    floor's gather points are not boundaries (95 % of issue 14's floor points were, which
+    regathered from nearly every gather ray); the photons of a wall standing on the floor
+    and of a shelf facing it from just above still flag the points beside and under
+    them."""
+    rng = np.random.default_rng(5)
+    top, n_top = _sheet(rng, 20_000, 0.0, 1.0)
+    bottom, n_bottom = _sheet(rng, 20_000, 0.0, -1.0)
+    wall = np.c_[np.full(4000, 0.5), rng.random(4000), 0.2 * rng.random(4000)]
+    n_wall = np.tile([1.0, 0.0, 0.0], (4000, 1))
+    # A shelf facing the floor 5 mm above it (as a ball's underside over the floor): in
+    # front of the floor's tangent plane, so its photons still cut the discs off.
+    shelf = np.c_[rng.random(4000), 0.1 * rng.random(4000), np.full(4000, 0.005)]
+    n_shelf = np.tile([0.0, 0.0, -1.0], (4000, 1))
+    pos = np.concatenate([top, bottom, wall, shelf])
+    nrm = np.concatenate([n_top, n_bottom, n_wall, n_shelf])
+    m = len(pos)
+    ph = Photons(pos.astype(np.float32), np.full((m, 3), 1e-4, np.float32),
+                 (-nrm).astype(np.float32), nrm.astype(np.float32), np.zeros(m, np.uint8))
+    g = GatherMap(ph, 0.1, 64, 4, "knn_simpson", max_points=8000)
+    up = g.normal[:, 2] > 0.5
+    x, y = g.position[:, 0], g.position[:, 1]
+    inner = up & (np.abs(x - 0.5) > 0.15) & (x > 0.15) & (x < 0.85) & (y > 0.15) & (y < 0.85)
+    beside = up & (np.abs(x - 0.5) < 0.01) & (y > 0.15) & (y < 0.85)
+    under = up & (np.abs(x - 0.5) > 0.15) & (y > 0.02) & (y < 0.08)
+    assert inner.sum() > 500 and beside.sum() > 20 and under.sum() > 20
+    assert g.boundary[inner].mean() < 0.15  # open-edge test scatter only (was 1.0)
+    assert g.boundary[beside].mean() > 0.9
+    assert g.boundary[under].mean() > 0.9
