@@ -17,11 +17,17 @@ two Embree calls for every hit of a camera, gather or specular ray.
   throughput, ray class and MIS pdf, and the offset origins, compacted into the arrays
   handed to Embree. The uniform numbers are drawn in numpy between the two kernels, in
   the order the numpy stage drew them.
+- `hit_closures` (sixth slice): bsdf.closures' set-up (view cosine, Cycles' glossy
+  normal, glass rows, per-hit alpha and parameter rows, principled.setup) in one pass.
+- `keep_path_hits` (sixth slice): the camera paths whose ray met a surface, compacted
+  (integrator._trace_paths' state after each Embree call).
+- `film_add` (sixth slice): the Accumulator's RGB scatter-add, throughput factor included.
 
 Every kernel computes the same floating-point operations in the same order as the numpy
-stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py keeps
-the numpy stages as oracles). Formulas: docs/performance.md, "Kernels, third slice:
-camera shading"; the offsets are engine/rayoffset.py's (pbrt-v4's error bounds).
+stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py and
+tests/test_bounce_kernels.py keep the numpy stages as oracles). Formulas:
+docs/performance.md, "Kernels, third slice: camera shading" and "Sixth slice"; the
+offsets are engine/rayoffset.py's (pbrt-v4's error bounds).
 """
 from __future__ import annotations
 
