@@ -83,7 +83,9 @@ NOTES = {"principled_spheres": [
     "128 pays again (1.2M + 400k photons: 0.0118 / 9.3 at 64 spp, 0.0108 / 13.3 at 128), "
     "so the samples were left alone. 2 and 4 light samples at 32 spp: 0.0156 / 7.4, "
     "0.0148 / 8.2.",
-    "- **Gather-map boundary flags** (fixed, engine/photonmap.py `_back_of_sheet`): the "
+    "- **Gather-map boundary flags** (tried, then reverted: the Coated ball read 0.973 of "
+    "Cycles at the test's seed and the glass-plane window's block error 0.479; kept for "
+    "the next attempt): the "
     "dim world lights the floor plane's underside, so 21 % of the global photons lie "
     "there facing down, at the same places as those facing up, and counted as another "
     "surface in every disc: 95 % of the gather points (98 % of the floor's) were "
@@ -95,8 +97,7 @@ NOTES = {"principled_spheres": [
     "ignored every opposed photon read 0.0112-0.0115 over seeds 0-2 but flagged no "
     "contact under the balls. Figure 6 box 0.0334 / 8.5 CPU s and Figure 7 0.1068 / 9.0 "
     "as before. The Coated ball's brightness scatters 0.973-1.014 by seed with it (its "
-    "coat's reflections of the floor's caustics; 0.991 in our 1024-spp render), hence its "
-    "entry in tests/test_principled_cycles.py's KNOWN_MISSES.",
+    "coat's reflections of the floor's caustics; 0.991 in our 1024-spp render).",
     "- **Secondary-caustic estimates** (changed, engine/integrator.py): 4 samples a pixel "
     "at camera hits instead of the caustic's 16 (the light has been spread by a diffuse "
     "bounce), and at 0.1 of the regathered points instead of 0.25: 14.7 -> 12.5 CPU s, "

@@ -273,25 +273,6 @@ def _accepted(direction, normal, j, nx, ny, nz):
     return (cos_in > 0) and not other, other, cos_in
 
 
-# A photon facing away from the query (normals opposed) no more than this x its distance
-# in front of the query's tangent plane lies on the back of the same sheet.
-BACK_OF_SHEET_RISE = 0.25
-
-
-@kernel
-def _back_of_sheet(normal, pos, j, qx, qy, qz, nx, ny, nz, d):
-    """Photon j lies on the back of the query's own sheet (a floor plane lit from below
-    by the world: opposed normals, in or behind the query's tangent plane), which cuts
-    no disc off. Counted as another surface, such photons flagged 95 % of issue 14's
-    Principled floor's gather points as boundaries, which regathered from nearly every
-    gather ray. A surface facing the query across a gap (a ball's underside over the
-    floor) lies in front of the plane and still counts."""
-    if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz >= -NORMAL_AGREEMENT:
-        return False
-    rise = (pos[j, 0] - qx) * nx + (pos[j, 1] - qy) * ny + (pos[j, 2] - qz) * nz
-    return rise <= BACK_OF_SHEET_RISE * d
-
-
 @kernel
 def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
     acc = 0
@@ -471,7 +452,7 @@ def _estimate_row(i, kind, pos, nodes, start, grid, power, direction, normal, p,
         inside = d <= r
         if inside:
             fetched += 1
-            if other and not _back_of_sheet(normal, pos, ph, qx, qy, qz, nx, ny, nz, d):
+            if other:
                 other_inside = True
         if not ok:
             continue

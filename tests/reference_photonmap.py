@@ -14,8 +14,7 @@ from scipy.spatial import cKDTree
 
 from engine.parallel import ordered_map
 from engine.photonmap import (BOUNDARY_OFFSET, MAX_CLASSIC_K, MAX_WIDEN_K,
-                              MIN_RADIUS_FRACTION, NORMAL_AGREEMENT,
-                              BACK_OF_SHEET_RISE)
+                              MIN_RADIUS_FRACTION, NORMAL_AGREEMENT)
 from engine.photons import Photons
 
 QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
@@ -163,16 +162,9 @@ class ReferencePhotonMap:
         # Dot products per component (same float32 products and left-to-right sums as an
         # einsum, no (N,k,3) temporaries).
         cos_in = -(gd[..., 0] * nx + gd[..., 1] * ny + gd[..., 2] * nz)
-        agree = gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz
-        # The back of the same sheet (normals opposed, the photon in or behind the query's
-        # tangent plane) cuts no disc off (engine/photonmap.py _back_of_sheet).
-        gp = np.take(ph.position, safe, axis=0).astype(np.float64) - p[:, None, :]
-        rise = gp[..., 0] * nx + gp[..., 1] * ny + gp[..., 2] * nz
-        back = (agree < -NORMAL_AGREEMENT) & (rise <= BACK_OF_SHEET_RISE * dist)
-        other_surface = found & (agree <= NORMAL_AGREEMENT)
+        other_surface = found & ((gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz)
+                                 <= NORMAL_AGREEMENT)
         ok = found & (cos_in > 0) & ~other_surface
-        other_surface &= ~back
-        del gp, rise, back
         del gd, gn
         widen = np.zeros(len(p), bool)
         knn = estimator not in ("classic", "radius")

@@ -41,14 +41,6 @@ KNOWN_MISSES = {
               "in 6 % of its pixels: summed, Cycles 6.10, ours 5.91-6.63 by seed. "
               "(Measured 0.965 before those merges; both renderers use the box filter "
               "here, so the pixel filter plays no part.)"),
-    "Coated": ("noise, not a bias (2026-12-01, eqtime branch): 0.973 at the test's seed, "
-               "1.014 at seed 1 (128 spp, 1 worker); the same code's other variants "
-               "0.981-0.996 over seeds 0-2, and 0.991 for our own 1024-spp render with "
-               "1.6M + 800k photons. The scatter is in its coat's reflections (specular "
-               "pass 0.122-0.149 of Cycles' mean by seed: the floor's caustics seen in "
-               "the coat) and its caustic pass (0.012-0.029 by the photon seed). The "
-               "gather-map boundary fix (back of the same sheet) changed which random "
-               "numbers its paths draw: 0.989 before it at seed 0."),
 }
 
 
