@@ -195,10 +195,14 @@ OBJECT_SCHEMAS = {
     "file": _table({**_OBJECT_COMMON, "path": _STRING}, required=("path",)),
 }
 
+# A refusal names the deepest failing schema; the rows and their numbers carry the
+# matrix's own description, so a short row reads as what a matrix must be, not "valid".
+_MATRIX_TEXT = "3 or 4 rows of 4 finite numbers (object to world)"
 _MATRIX = {"type": "array", "minItems": 3, "maxItems": 4,
-           "items": {"type": "array", "minItems": 4, "maxItems": 4,
-                     "items": {"type": "number"}},
-           "what": "3 or 4 rows of 4 finite numbers (object to world)"}
+           "items": {"type": "array", "minItems": 4, "maxItems": 4, "what": _MATRIX_TEXT,
+                     "what_type": _MATRIX_TEXT,
+                     "items": {"type": "number", "what_type": _MATRIX_TEXT}},
+           "what": _MATRIX_TEXT, "what_type": _MATRIX_TEXT}
 INSTANCE_SCHEMA = _table({
     "object": _STRING, "name": _STRING, "material": _STRING, "translate": _vec3(),
     "rotate": _vec3(), "scale": _OBJECT_COMMON["scale"], "matrix": _MATRIX,

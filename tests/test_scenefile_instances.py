@@ -75,7 +75,18 @@ def test_instances_are_placements_and_render_as_copies(tmp_path, monkeypatch):
     ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\n'
      'matrix = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0]]\n', "singular"),
     ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\nmatrix = [[1, 0]]\n',
-     "matrix"),
+     "'matrix' must be 3 or 4 rows of 4 finite numbers"),
+    # A short row, a word for a number, a number for a row: the message says what a
+    # matrix must be (it said "must be valid").
+    ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\n'
+     'matrix = [[1, 0, 0, 0], [0, 1, 0], [0, 0, 1, 0]]\n',
+     "'matrix' must be 3 or 4 rows of 4 finite numbers \\(object to world\\), got"),
+    ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\n'
+     'matrix = [[1, 0, 0, 0], [0, 1, "x", 0], [0, 0, 1, 0]]\n',
+     "'matrix' must be 3 or 4 rows of 4 finite numbers"),
+    ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\n'
+     'matrix = [[1, 0, 0, 0], 5, [0, 0, 1, 0]]\n',
+     "'matrix' must be 3 or 4 rows of 4 finite numbers"),
     ('[[objects]]\ntype = "box"\nname = "b"\n[[instances]]\nobject = "b"\n'
      'matrix = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 1, 1, 1]]\n',
      "'matrix' row 4 must be \\[0, 0, 0, 1\\]"),
