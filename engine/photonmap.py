@@ -536,14 +536,13 @@ class GatherMap:
 
     A photon is a gather point with probability gather_point_share: 1 / step where
     photons are dense, more where they are sparse (counted from the every-step-th points),
-    so that a lookup disc of the search radius holds a few gather points
-    wherever photons are stored. Every step-th photon
-    alone left surfaces lit 30x more thinly than the brightest ones (a room lit through a
-    slot and a mirror) with a gather point in 1 of 3 lookup discs; the others returned
-    nothing and, after two regathers, no light (that half of the room 5 % dark against
-    Cycles, docs/accuracy_time_figure7_mirror.md). min_photons: photons an estimate
-    needs (fewer: no estimate, flagged); integrator.smooth_min_photons gives 1 outside
-    paper mode.
+    so that a lookup disc of the search radius holds a few gather points wherever photons
+    are stored. Every step-th photon alone left surfaces lit 30x more thinly than the
+    brightest ones (a room lit through a slot and a mirror) with a gather point in 1 of 3
+    lookup discs; the others returned nothing and, after two regathers, no light (that half
+    of the room 5 % dark against Cycles, docs/accuracy_time_figure7_mirror.md).
+    min_photons: photons an estimate needs (fewer: no estimate, flagged);
+    integrator.smooth_min_photons gives 1 outside paper mode.
     """
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
@@ -666,8 +665,11 @@ class GatherMap:
 
 # The gather map's normal test: a gather point's surface faces the query's way.
 GATHER_AGREEMENT = 0.7
+_NO_LIFT = np.zeros(0)
+
 # Gather points a lookup disc of the search radius should hold where photons are sparse
-# (where the share reaches MAX_POINT_SHARE at ~8 photons a disc: 4 points, none: e^-4).
+# (below ~12 photons a disc the share stops at MAX_POINT_SHARE: 8 photons give 4 points,
+# a disc with none e^-4 of the time).
 GATHER_POINTS_PER_DISC = 6.0
 # The largest share of a region's photons taken as gather points (the rest estimate).
 MAX_POINT_SHARE = 0.5
@@ -719,7 +721,6 @@ def _pick_points(base: np.ndarray, share: np.ndarray) -> np.ndarray:
     extra = (share - s) / max(1.0 - s, 1e-300)
     u = np.modf((np.arange(len(share), dtype=np.float64) + 1.0) * 0.6180339887498949)[0]
     return base | (u < extra)
-_NO_LIFT = np.zeros(0)
 
 
 @kernel
