@@ -124,6 +124,67 @@ NOTES = {"principled_spheres": [
     "left to the photon pass.",
     "",
 ]}
+# What read dark on the Figure 7 scenes and why (fig7dark, issue 13/14; measured
+# 2026-12-01 with the scene exported once through the add-on and rendered by engine.render
+# at default settings; brightness = our mean / the reference's over a region, objects by
+# Cycles' object labels).
+NOTES["figure7_mirror"] = [
+    "## What read dark and why (measured 2026-12-01)",
+    "",
+    "- **Where**: on b193f4f the whole image read 1.002 of Cycles, but the right half (lit "
+    "only through the slot under the panel and the mirror, 27x darker than the left) 0.951 / "
+    "0.959 / 0.955 at seeds 0 / 1 / 2: its part of the back wall 0.943, the right wall 0.971, "
+    "the floor's reflection of it 0.945, the panel's dark face 0.959; the left half 1.004. "
+    "It was all in the indirect pass (final gathering): no direct light reaches the right "
+    "half, and the caustic pass there (the light's mirror image through the slot) was the "
+    "same in every variant below. The 0.954 of 2026-11-30 (fb047cd) was the whole image, "
+    "then also darkened by the caustic estimates' min_photons rule (removed in ffe9094).",
+    "- **Why**: the gather map's points were every step-th global photon (58k of 990k), as "
+    "dense as the photons, while the search radius (0.061 m) follows the bright half's "
+    "photons. The right half held 2.7 % of the points, 0.4 to a lookup disc: 72 % of its "
+    "lookups found no point, and 32 % of its points had fewer than min_photons = 8 photons "
+    "in their disc and estimated 0. Both answer 'gather again'; after two regathers the "
+    "last lookup's 0 is used, and that light is lost. More photons made it worse (1.6M + "
+    "800k: 0.921): the radius shrinks while the points stay at ~60k. Either change alone "
+    "below gave 0.960.",
+    "- **Fix** (engine/photonmap.py GatherMap, engine/render.py): a photon becomes a gather "
+    "point with a share that rises where the every-step-th points are sparse (about 4 points "
+    "to a disc, at most half the photons; counted from those base points, which estimate "
+    "nothing, so the points and the estimating photons stay independent: a share counted "
+    "from all photons read 9 % dark on a test plane), the estimating photons weighted by "
+    "1 / (1 - share); and the gather map's estimates take every photon of the disc outside "
+    "paper mode, as the caustic estimates do (integrator.smooth_min_photons). Right half "
+    "0.993 / 1.005 (seeds 0 / 1), whole image 1.004; right-half lookups without an "
+    "estimate 72 % -> 9 %; 66k gather points instead of 58k. Where photons are dense "
+    "nothing changes (same points, same weights). Tests: tests/test_estimator_bias.py (a "
+    "plane half lit 30x more thinly), tests/test_accuracy_cycles.py (this scene's right "
+    "half within 3 %).",
+    "- **Checked, not the cause**: the caustic pass's power by way of a mirror "
+    "(tests/test_mirror_caustic.py: a floor lit only by a spot's mirror image against the "
+    "closed form, 0.991 with the caustic photons aimed at the mirror, 1.002 not aimed); an "
+    "independent estimate of the right half without final gathering (4M global photons, "
+    "every photon of a disc counted) reads 0.989. Per object, the panel's dark face (265 "
+    "px) and the ceiling's right part (90 px) read 1.07-1.18 in every variant, that one "
+    "included: the reference's own noise (rows of 24 panel pixels scatter +-20 % around "
+    "our renders' common profile). The half as a whole is the measure.",
+    "",
+]
+NOTES["figure7_blocker"] = [
+    "## What read dark and why (measured 2026-12-01)",
+    "",
+    "- On b193f4f this scene reads 0.996 of Cycles (left half 0.997, right half 0.996; "
+    "every object within 0.3 % but the ceiling's right part, 90 px, 0.973, whose light is "
+    "16 % caustic). The 0.952 of 2026-11-30 (fb047cd) was mostly the caustic estimates' "
+    "min_photons rule, removed outside paper mode in ffe9094: the caustic map here is "
+    "sparse (15,700 photons, radius 0.068 m) and discs with fewer than 8 photons estimated "
+    "0; with the rule put back on today's code the caustic pass halves (0.050 -> 0.024 of "
+    "the image's mean) and the image reads 0.970. The rest of the 0.952 came and went with "
+    "other changes since fb047cd (not traced).",
+    "- The gather-map fix found on figure7_mirror (sparse surfaces keep their gather "
+    "points) changes this scene by < 0.1 % (its left wall, lit only indirectly, 0.999 -> "
+    "1.010 at seed 0).",
+    "",
+]
 
 
 def title(name):

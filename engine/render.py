@@ -11,7 +11,7 @@ from .accel import Accel
 from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, area_sum, prepare
-from .integrator import render_camera
+from .integrator import render_camera, smooth_min_photons
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
 from .lights import packing as pk
@@ -316,7 +316,9 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             # few gather rays a bright caustic makes fireflies. Their light one bounce
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
             gathered = shot.select(shot.kind != CAUSTIC)
-            out["gather_map"] = GatherMap(gathered, global_radius, k, s.min_photons,
+            # Every photon of a disc counts outside paper mode (smooth_min_photons):
+            # zeroing discs below min_photons darkened thinly lit surfaces.
+            out["gather_map"] = GatherMap(gathered, global_radius, k, smooth_min_photons(s),
                                           s.estimator, accel=ctx.accel, workers=workers,
                                           should_cancel=stop)
             check()

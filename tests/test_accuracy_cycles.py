@@ -43,6 +43,16 @@ CYCLES_WRONG = {
     "figure8_caustic": "Cycles misses L S+ D light from a radius-0 spot through smooth glass",
 }
 
+# Parts of an image checked on their own, where the whole image's mean would hide them:
+# name -> [(what, rows slice, columns slice, brightness tolerance)].
+REGIONS = {
+    # Lit only through the slot under the panel and the mirror floor, 27x darker than the
+    # left half: its gather points were too sparse for the lookups (0.951-0.959 of
+    # Cycles; docs/accuracy_time_figure7_mirror.md). The reference's own noise there is
+    # ~0.4 % over the half.
+    "figure7_mirror": [("right half", slice(None), slice(48, None), 0.03)],
+}
+
 
 def _meta():
     import json
@@ -106,6 +116,9 @@ def test_matches_cycles(acc, name):
         assert rel <= 0.02, info
     else:
         assert abs(bright - 1) <= 0.05, info
+    for what, rows, cols, tol in REGIONS.get(name, ()):
+        part = acc.brightness(ours[rows, cols], ref[rows, cols])
+        assert abs(part - 1) <= tol, f"{info}; {what}: brightness {part:.4f}"
     # per channel too: a colour shift must not hide behind a right mean
     ch = ours.mean(axis=(0, 1)) / ref.mean(axis=(0, 1))
     tol = 0.03 if m["kind"] == "diffuse" else 0.07
