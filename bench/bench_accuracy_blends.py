@@ -123,6 +123,82 @@ NOTES = {"principled_spheres": [
     "of the global photons stored on the floor's unseen underside are a further waste "
     "left to the photon pass.",
     "",
+    "## Equal-time work, third round (measured 2026-12-01 02:55 to 03:40 UTC)",
+    "",
+    "`bench/bench_accuracy_ab.py` (the scene exported once through the add-on, rendered by "
+    "engine.render on 1 worker, CPU seconds of the process; Cycles timed in CPU seconds in "
+    "the same process: 64 spp 1.5 s / FLIP 0.0159, 256 spp 6.0 s / 0.0114, 1024 spp 24.0 s "
+    "/ 0.0083; load average 5-7 on the 2 cores). Seeds 0-2 unless said; seed-to-seed "
+    "scatter of FLIP ~0.0003.",
+    "",
+    "- **1 gather ray per camera sample instead of 2** (measured, not taken): 9.3 -> 7.2 "
+    "CPU s, FLIP 0.0116 -> 0.0119 (means of 0.0117 / 0.0114 / 0.0116 and 0.0121 / 0.0118 / "
+    "0.0117); equal-FLIP ratio in CPU seconds 0.62 -> 0.72. The Figure 6 and Figure 7 "
+    "blends (96x72, seeds 0-1, same command, no Cycles runs): Figure 6 box 6.4 -> 4.8 CPU "
+    "s, FLIP 0.0340 -> 0.0364; Figure 7 blocker 6.7 -> 4.7, 0.0818 -> 0.0824. On Cycles' "
+    "own curves (its time grows as FLIP^-3.7 and FLIP^-3.8 between 256 and 1024 spp, "
+    "docs/accuracy_time_figure6_box.csv and _figure7_blocker.csv) that is x1.03 and x1.39 "
+    "on their equal-FLIP ratios. At 128 samples the indirect pass had half the noise of "
+    "the direct, caustic and specular passes. But as the default it costs the feature "
+    "matrix's closure_glass case at its seed (32 spp: block error 0.615 against its bound "
+    "0.4, where 2 rays read 0.397), by the seed's draw rather than by a worse image: over "
+    "seeds 0-3, 1 ray 0.615 / 0.420 / 0.414 / 0.330, 2 rays 0.397 / 0.403 / 0.521 / 0.907 "
+    "(the largest of its block errors is set by the glass ball's caustic noise). The other "
+    "106 cases pass with it. Left for a decision with the matrix's owner.",
+    "- **Census of the regathers** (1 worker, 16 spp, every gather-map lookup at a gather "
+    "ray's end): 92,641 lookups, 88 % at gather points flagged as boundaries, 69 % shorter "
+    "than the global radius (0.57 m), 72 % gathered again. 95 % of the gather points were "
+    "flagged (the floor's 98 %).",
+    "- **Back-of-sheet rule, strict form** (tried, not taken): a photon with an opposed "
+    "normal counts as the back of the query's own sheet only when it lies in or behind the "
+    "query's tangent plane to 1e-4 of the disc radius plus 8 float32 ulps (the two faces of "
+    "one plane are stored at the same place; a 0.5 m ball's underside rises above that "
+    "from 0.6 cm off its contact, where the earlier rule's 0.25 x distance excused it up "
+    "to ~25 cm). Flagged gather points 95 % -> 4.5 %, but lookups still met a flagged point "
+    "59 % of the time: gather rays end near the balls, where the floor within 0.25 m of "
+    "the row of balls is flagged at 80 % by the balls' undersides (a true contact) and the "
+    "balls' own points at 77 % (the far side of a 0.5 m ball lies within a 0.57 m disc with "
+    "normals < 0.5). Regathered lookups 72 -> 57 %, 9.8 -> 9.2 CPU s, FLIP 0.0117 -> 0.0120 / "
+    "0.0114 / 0.0114 (seeds 0-2). The Coated ball read 0.973 of Cycles at the test's seed "
+    "(0.990 without the rule): all of it in its specular pass (0.140 -> 0.122 of Cycles' mean), "
+    "where its coat mirrors the glass ball's caustic focus on the floor; fewer regathers "
+    "shift the random stream the specular continuations draw from (seeds 1, 2: 1.016, "
+    "1.022). It costs tests/test_principled_cycles.py at its seed, so it is not kept.",
+    "- **No regathers at all** (MAX_GATHER_LEVEL = 0, the bound of any regather rule): "
+    "7.8 CPU s against 9.6-10.2 at the same load, FLIP 0.0133 against 0.0120; the regathers "
+    "are 1.1M of 6.4M shadow rays and 0.57M of 4.3M gather rays, ~20 % of the render. The "
+    "rest of final gathering's cost is the first-level gather itself (its rays' specular "
+    "continuations through the glossy balls, the hit glue, the lookups): no regather rule "
+    "can bring the ~2x the target needs.",
+    "- **Regather length threshold at half the global radius** (about the median k-NN "
+    "radius, what a per-gather-point threshold gives on average): 2 % less CPU, FLIP "
+    "0.0127 / 0.0123 / 0.0124 against 0.0125 / 0.0123 / 0.0120. Second-level regathers by "
+    "the boundary flag only (not by length): 1.5 % fewer shadow rays, FLIP within the "
+    "scatter. Not taken.",
+    "- **Gathering at 32 of each pixel's 128 samples** (weighted 4x, stratified over a grid "
+    "of their own): 9.2 -> 6.9 CPU s, FLIP 0.0120 / 0.0114 / 0.0114 -> 0.0125 / 0.0123 / "
+    "0.0120 (ratio x1.08); but the Figure 6 box, lit mostly by indirect light, went 6.8 -> "
+    "4.4 CPU s at FLIP 0.0335 -> 0.0447 (x0.6 on Cycles' curve). Not taken.",
+    "- **Russian roulette on the gather by its share of the light** (a hit gathers with "
+    "probability clamp(4 x I / (I + D), 1/4, 1), weighted 1/q; I from a second gather-map "
+    "estimate with the DIRECT photons' power zeroed, D the hit's direct radiance): mean q "
+    "0.32, yet gathering time fell only 24 %: the hits it skips (the lit floor away from "
+    "the balls, whose gather rays mostly escape to the world) are the cheap ones, and the "
+    "costly ones (near contacts, in shadow) keep q = 1. The per-hit lookup (+1.0 s) and the "
+    "second estimate (+0.6 s) ate the gain; FLIP 0.0121 / 0.0120 / 0.0121. Not taken.",
+    "- **Samples** (not changed here: it would move every default-settings test and the "
+    "feature matrix): 64 spp 5.9 CPU s / 0.0123 (ratio 0.75), 64 spp with 1 gather ray "
+    "4.8 / 0.0126 (0.83); Figure 6 box 4.2 / 0.0374 and 3.4 / 0.0407 (x1.07, x0.96 on "
+    "Cycles' curve), Figure 7 4.3 / 0.0834 and 3.4 / 0.0842 (x1.45, x1.77).",
+    "- **Where that leaves us**: equal-FLIP ratio 0.62 in CPU seconds at the default "
+    "settings (0.72 with 1 gather ray, 0.83 with 64 spp and 1 gather ray), short of issue "
+    "14's 1. Our FLIP hardly moves with samples "
+    "(128 -> 64 spp: 0.0116 -> 0.0123) while Cycles' falls as t^-0.24: the error left is "
+    "the photon estimates' bias and noise (our own 1024-spp render with 1.6M + 800k "
+    "photons reads 0.0092). The candidates: fewer wasted photons (21 % lie on the floor's "
+    "unseen underside: importance from the camera), cheaper first-level gathers, and a "
+    "lower default sample count once the feature matrix has been checked at it.",
+    "",
 ]}
 # What read dark on the Figure 7 scenes and why (fig7dark, issue 13/14; measured
 # 2026-12-01 with the scene exported once through the add-on and rendered by engine.render
