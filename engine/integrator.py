@@ -315,10 +315,14 @@ def _hit_arrays(geo, hit):
     n = len(hit.p)
     c = np.ascontiguousarray
     gate = _lit_side_normals(geo, hit)
-    shading_offset = np.take(geo.terminator_shading, hit.prim) if n else np.zeros(0)
+    # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
+    shading_offset = (np.take(geo.terminator_shading, hit.prim)
+                      if n and geo.object_terminator_shading.view(np.uint32).any()
+                      else np.zeros(n))
     cutoff = np.zeros(n)
     lift = np.zeros((n, 3))
-    if hit.bary is not None and n:
+    # terminator_lift leaves cutoff and lift 0 unless an object's offset is > 0.
+    if hit.bary is not None and n and (geo.object_terminator > 0).any():
         rows, (smooth, object_id, v0, e1, e2, normals) = geo.hit_tables(
             hit.prim, "smooth", "object_id", "v0", "e1", "e2", "corner_normals")
         terminator_lift(rows, c(hit.bary, np.float64), c(hit.ng, np.float64), smooth,
@@ -338,8 +342,8 @@ def _lit_side_normals(geo, hit):
     arrives just below the flat facet: its shadow ray leaves from the smooth surface
     (directlight.terminator_lift) and is shadowed only if it really meets geometry, the facet
     itself included (Cycles skips the own triangle only when NgL > 0)."""
-    if hit.bary is None or not len(hit.prim):
-        return hit.ng
+    if hit.bary is None or not len(hit.prim) or not (geo.object_terminator > 0).any():
+        return hit.ng  # (no object has a terminator offset: the per-hit test below is False)
     smooth = np.take(geo.smooth, hit.prim) & (np.take(geo.terminator, hit.prim) > 0)
     if not smooth.any():
         return hit.ng
