@@ -151,3 +151,57 @@ def test_tilt_cache_gives_the_uncached_offsets_on_colliding_triangles():
         assert one[7][0] == surf[7][i]
     want = geo.origin_offset(prim[hit], u[hit], v[hit], surf[0][hit], surf[1][hit])
     np.testing.assert_allclose(surf[7][hit], want, rtol=1e-9, atol=0)
+
+
+def _area_intersect_numpy(light, o, d, tmax):
+    """AreaLight.intersect's numpy stage before intersect_area (the oracle)."""
+    import math
+    from engine.sampling import dot
+    from engine.scene import DISK, spread_attenuation
+    n = len(o)
+    denom = dot(d, light.dir)
+    facing = denom < -1e-12
+    t = np.where(facing, dot(light.pos - o, light.dir) / np.where(facing, denom, -1.0), np.inf)
+    hitp = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d - light.pos
+    x, y = dot(hitp, light.u) / (light.size_x / 2), dot(hitp, light.v) / (light.size_y / 2)
+    inside = ((x * x + y * y <= 1.0) if light.shape == DISK
+              else ((np.abs(x) <= 1) & (np.abs(y) <= 1)))
+    mask = facing & inside & (t > 0) & (t < tmax)
+    L = np.broadcast_to(light.radiance, (n, 3))
+    if light.spread < math.pi:
+        L = L * spread_attenuation(-denom, light.spread)[:, None]
+    return mask, t, L
+
+
+@pytest.mark.parametrize("shape, spread", [("RECTANGLE", np.pi), ("DISK", np.pi),
+                                           ("DISK", 0.7), ("RECTANGLE", 1.2)])
+def test_area_light_intersect_kernel_equals_numpy_stage(shape, spread):
+    from engine.api import cornell_box
+    from engine.render import prepare_context
+    from engine.settings import RenderSettings
+    from engine.scene import AREA
+    s = cornell_box(16, 12, glass_sphere=False)
+    area = [li for li in s.lights if li.kind == AREA]
+    if not area:
+        pytest.skip("no area light in the box")
+    area[0].shape = shape
+    area[0].spread = spread
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    light = next(li for li in ctx.lights if li.kind == AREA)
+    rng = np.random.default_rng(21)
+    n = 20000
+    # Rays from below the light towards it (many hits near the edge) and random ones.
+    o = light.pos + rng.normal(size=(n, 3)) * 0.6
+    o[:, 2] = light.pos[2] - np.abs(rng.normal(size=n))
+    target = light.pos + rng.normal(size=(n, 3)) * 0.3
+    d = target - o
+    d[n // 2:] = rng.normal(size=(n - n // 2, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    tmax = np.where(rng.random(n) < 0.2, rng.random(n) * 0.5, np.inf)
+    want = _area_intersect_numpy(light, o, d, tmax)
+    got = light.intersect(o, d, tmax)
+    assert want[0].sum() > 100
+    for a, b in zip(got, want):
+        assert np.array_equal(a, b)
+    got = light.intersect(o, d, 1.0)  # a scalar tmax
+    assert np.array_equal(got[0], _area_intersect_numpy(light, o, d, 1.0)[0])
