@@ -670,8 +670,13 @@ class Accumulator:
         copying the rows out (tp without rows: K = N)."""
         if len(rgb) == 0:
             return
+        rgb = np.ascontiguousarray(rgb, np.float64)
+        if not rgb.flags.writeable:
+            # A read-only array (one row of a broadcast colour is contiguous already) would
+            # be a second kernel signature, compiled inside the render.
+            rgb = rgb.copy()
         film_add(self.buf[name], self.lo, pix, _ALL_ROWS if rows is None else rows,
-                 _NO_TP if tp is None else tp, np.ascontiguousarray(rgb, np.float64))
+                 _NO_TP if tp is None else tp, rgb)
 
     def add_scalar(self, arr, pix, w):
         """Add w (N,) into the scalar pass arr at pixels pix (N,) int64."""
