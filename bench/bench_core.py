@@ -33,23 +33,28 @@ from engine.render import Context, prepare_context, render  # noqa: E402
 
 
 class RecordingAccel(Accel):
-    """Accel that keeps a copy of every query so the same rays can be replayed raw."""
+    """Accel that keeps a copy of every query so the same rays can be replayed raw.
+    enabled = False stops the logging (its copies), for timing the engine alone."""
 
     def __init__(self, *a, **kw):
         super().__init__(*a, **kw)
         self.log = []
+        self.enabled = True
 
     def intersect(self, o, d, tmax=None):
-        self.log.append(("INTERSECT", *self._prepare(o, d, tmax)))
+        if self.enabled:
+            self.log.append(("INTERSECT", *self._prepare(o, d, tmax)))
         return super().intersect(o, d, tmax)
 
     def occluded(self, o, d, tmax=None):
-        self.log.append(("OCCLUDED", *self._prepare(o, d, tmax)))
+        if self.enabled:
+            self.log.append(("OCCLUDED", *self._prepare(o, d, tmax)))
         return super().occluded(o, d, tmax)
 
     def occluded_into(self, o32, d32, tmax32, blocked):
         # The kernels' float32 shadow and visibility rays (Embree overwrites tmax: copy).
-        self.log.append(("OCCLUDED", o32.copy(), d32.copy(), tmax32.copy()))
+        if self.enabled:
+            self.log.append(("OCCLUDED", o32.copy(), d32.copy(), tmax32.copy()))
         return super().occluded_into(o32, d32, tmax32, blocked)
 
 

@@ -304,15 +304,29 @@ class Accel:
         Directions should be unit length: t is in units of |direction|."""
         o, d, tf = self._prepare(origins, directions, tmax)
         n = len(o)
-        t = np.full(n, np.inf)
-        prim = np.full(n, -1, np.int64)
-        u = np.zeros(n)
-        v = np.zeros(n)
-        if not self._blocks or n == 0:
-            return t, prim, u, v
         blocks = self._blocks
+        if len(blocks) == 1:  # every row is written below
+            t, prim, u, v = np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n)
+        else:
+            t, prim, u, v = np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros(n), np.zeros(n)
+        if not blocks or n == 0:
+            return t, prim, u, v
 
         def work(a, b):
+            if len(blocks) == 1:
+                # tf is this call's own copy (_prepare): Embree may write into it.
+                block = blocks[0]
+                res = block.scene.run(o[a:b], d[a:b], dists=tf[a:b], output=True)
+                geom = res["geomID"]
+                hit = geom >= 0
+                pid = res["primID"]
+                if len(block.starts) > 1:  # pieces: prim = first triangle + primID
+                    pid = np.take(block.starts, np.where(hit, geom, 0)) + pid
+                prim[a:b] = np.where(hit, pid, -1)
+                t[a:b] = np.where(hit, res["tfar"], np.inf)
+                u[a:b] = res["u"]
+                v[a:b] = res["v"]
+                return
             far = tf[a:b].copy()
             for block in blocks:
                 # Each block is traced only up to the nearest hit found so far: a hit it
@@ -320,15 +334,6 @@ class Accel:
                 res = block.scene.run(o[a:b], d[a:b], dists=far.copy(), output=True)
                 geom = res["geomID"]
                 hit = geom >= 0
-                if len(blocks) == 1:
-                    pid = res["primID"]
-                    if len(block.starts) > 1:  # pieces: prim = first triangle + primID
-                        pid = np.take(block.starts, np.where(hit, geom, 0)) + pid
-                    prim[a:b] = np.where(hit, pid, -1)
-                    t[a:b] = np.where(hit, res["tfar"], np.inf)
-                    u[a:b] = res["u"]
-                    v[a:b] = res["v"]
-                    return
                 rows = np.nonzero(hit)[0]
                 if not len(rows):
                     continue
@@ -350,7 +355,7 @@ class Accel:
             return out
 
         def work(a, b):
-            out[a:b] = self._occluded(o[a:b], d[a:b], tf[a:b].copy())
+            out[a:b] = self._occluded(o[a:b], d[a:b], tf[a:b])  # tf: this call's own
 
         self._run(work, n)
         return out

@@ -275,6 +275,42 @@ def film_add(buf, lo, pix, rows, tp, rgb):
 
 
 @kernel
+def film_add_scalar(buf, lo, pix, w):
+    """Add w[i] into buf[pix[i] - lo]: buf (P,) float64, pix (N,) int64, w (N,) float64.
+    As np.bincount(pix - lo, weights=w) added to buf: each pixel's sum formed from zero in
+    row order, then added (the same bits), without holding the GIL."""
+    sums = np.zeros(buf.shape[0])
+    for i in range(pix.shape[0]):
+        sums[pix[i] - lo] += w[i]
+    for b in range(buf.shape[0]):
+        buf[b] += sums[b]
+
+
+@kernel
+def film_first_hits(lo, pix, depth, ns, front, depth_sum, depth_n, normal):
+    """The first hits' depth and normal passes, one pass over the hits: depth[i] into
+    depth_sum, 1 into depth_n and ns[i] turned to the front side (times 1 or -1 as
+    `front` says) into normal (P,3), at pixel pix[i] - lo; sums formed per pixel from
+    zero in row order, then added, as the np.bincount calls they replace (same bits)."""
+    n_pix = depth_sum.shape[0]
+    sums = np.zeros((n_pix, 5))
+    for i in range(pix.shape[0]):
+        b = pix[i] - lo
+        f = 1.0 if front[i] else -1.0
+        sums[b, 0] += depth[i]
+        sums[b, 1] += 1.0
+        sums[b, 2] += ns[i, 0] * f
+        sums[b, 3] += ns[i, 1] * f
+        sums[b, 4] += ns[i, 2] * f
+    for b in range(n_pix):
+        depth_sum[b] += sums[b, 0]
+        depth_n[b] += sums[b, 1]
+        normal[b, 0] += sums[b, 2]
+        normal[b, 1] += sums[b, 3]
+        normal[b, 2] += sums[b, 4]
+
+
+@kernel
 def choose_lobes(albedo, tp, sel, q, p, psum):
     """The continuation's lobe choice from the closures' lobe albedos albedo
     (N, N_LOBES, 3) (column 0 = diffuse, the rest SPEC_LOBES' order) and the path
@@ -473,6 +509,9 @@ def _warm_up():
     film_add(np.zeros((1, 3)), 0, i64, i64, base, base)
     film_add(np.zeros((1, 3)), 0, i64, np.zeros(0, np.int64), base, base)
     film_add(np.zeros((1, 3)), 0, i64, np.zeros(0, np.int64), np.zeros((0, 3)), base)
+    film_add_scalar(np.zeros(1), 0, i64, np.ones(len(i64)))
+    film_first_hits(0, i64, np.ones(len(i64)), base, np.ones(len(i64), np.bool_), np.zeros(1),
+                    np.zeros(1), np.zeros((1, 3)))
     alb = np.full((1, 8, 3), 0.1)
     sel, q, pl, psum = np.empty((1, 8)), np.empty(1), np.empty((1, 7)), np.empty(1)
     choose_lobes(alb, np.ones((1, 3)), sel, q, pl, psum)

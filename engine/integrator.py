@@ -24,7 +24,8 @@ from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
 from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, surface_hit
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
-                            gather_rays, keep_path_hits, pick_lobes)
+                            film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
+                            pick_lobes)
 from .camerarays import camera_rays_kernel
 from .gatherkernels import add_gathered, diffuse_lookups, keep_hits
 from .closures.principled import rough_reflection_rows
@@ -93,7 +94,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                 choose = np.minimum((np.floor(c2 * sampler.m) + c1) / sampler.m,
                                     0.9999999999999999)
             else:
-                u1, u2, choose = rng.random(n), rng.random(n), rng.random(n)
+                u1, u2, choose = rng.random((3, n))  # one draw: the same numbers
             samples.append((-1, True, S, u1, u2, choose))
         if n == 0:
             return np.zeros((n, 3))
@@ -124,9 +125,14 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         count = plan.light_samples.get(light.name, 1)
         traced = plan.shadows.get(light.name, True)
         for si in range(count):
-            u1, u2 = (sampler.uv(("light", li, si)) if sampler is not None
-                      else (rng.random(n), rng.random(n)))
-            sel = rng.random(n) if light.needs_choice else None
+            sel = None
+            if sampler is not None:
+                u1, u2 = sampler.uv(("light", li, si))
+                sel = rng.random(n) if light.needs_choice else None
+            elif light.needs_choice:
+                u1, u2, sel = rng.random((3, n))  # one draw: u1, u2, sel in this order
+            else:
+                u1, u2 = rng.random((2, n))
             samples.append((li, traced, count, u1, u2, sel))
     if n == 0 or not samples:
         return np.zeros((n, 3))
@@ -309,10 +315,14 @@ def _hit_arrays(geo, hit):
     n = len(hit.p)
     c = np.ascontiguousarray
     gate = _lit_side_normals(geo, hit)
-    shading_offset = np.take(geo.terminator_shading, hit.prim) if n else np.zeros(0)
+    # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
+    shading_offset = (np.take(geo.terminator_shading, hit.prim)
+                      if n and geo.object_terminator_shading.view(np.uint32).any()
+                      else np.zeros(n))
     cutoff = np.zeros(n)
     lift = np.zeros((n, 3))
-    if hit.bary is not None and n:
+    # terminator_lift leaves cutoff and lift 0 unless an object's offset is > 0.
+    if hit.bary is not None and n and (geo.object_terminator > 0).any():
         rows, (smooth, object_id, v0, e1, e2, normals) = geo.hit_tables(
             hit.prim, "smooth", "object_id", "v0", "e1", "e2", "corner_normals")
         terminator_lift(rows, c(hit.bary, np.float64), c(hit.ng, np.float64), smooth,
@@ -332,8 +342,8 @@ def _lit_side_normals(geo, hit):
     arrives just below the flat facet: its shadow ray leaves from the smooth surface
     (directlight.terminator_lift) and is shadowed only if it really meets geometry, the facet
     itself included (Cycles skips the own triangle only when NgL > 0)."""
-    if hit.bary is None or not len(hit.prim):
-        return hit.ng
+    if hit.bary is None or not len(hit.prim) or not (geo.object_terminator > 0).any():
+        return hit.ng  # (no object has a terminator offset: the per-hit test below is False)
     smooth = np.take(geo.smooth, hit.prim) & (np.take(geo.terminator, hit.prim) > 0)
     if not smooth.any():
         return hit.ng
@@ -360,13 +370,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
     regather = level < MAX_GATHER_LEVEL
+    # The hits' fields as the kernel reads them, once for all G rays.
+    ns, ng, p, offset = (c(a, np.float64) for a in (hit.ns, hit.ng, hit.p, hit.offset))
     for g in range(G):
-        u1, u2 = sampler.uv(("gather", g)) if sampler is not None else (rng.random(n), rng.random(n))
+        u1, u2 = sampler.uv(("gather", g)) if sampler is not None else rng.random((2, n))
         idx = np.empty(n, np.int64)
         o, d = np.empty((n, 3)), np.empty((n, 3))
-        k = gather_rays(c(u1, np.float64), c(u2, np.float64), c(hit.ns, np.float64),
-                        c(hit.ng, np.float64), c(hit.p, np.float64), c(hit.offset, np.float64),
-                        idx, o, d)
+        k = gather_rays(c(u1, np.float64), c(u2, np.float64), ns, ng, p, offset, idx, o, d)
         idx, o, d = idx[:k], o[:k], d[:k]
         tp = np.ones((len(idx), 3))
         if getattr(hit, "n_smooth", None) is not None:
@@ -510,7 +520,7 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     c = np.ascontiguousarray
     sampled = pick_lobes(c(p), c(psum), c(q), idx, r, lobe, prob)
     # Three uniform numbers per sampled (non-pass) lobe, drawn in this order.
-    u1, u2, u3 = rng.random(sampled), rng.random(sampled), rng.random(sampled)
+    u1, u2, u3 = rng.random((3, sampled))  # one draw: the same numbers as three
     if uv is not None and sampled:
         # Reflective lobes only: rough glass (IOR 2.4) in the white furnace scatters ~4x as
         # widely over seeds with stratified numbers (no bias: docs/accuracy_time.md).
@@ -638,9 +648,9 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
 
 
 class Accumulator:
-    """Per-pixel sums for each pass over pixels [lo, lo + npix) of the region: the RGB
-    passes by a compiled scatter-add (camerakernels.film_add), the scalar ones by
-    np.bincount."""
+    """Per-pixel sums for each pass over pixels [lo, lo + npix) of the region, by compiled
+    scatter-adds (camerakernels.film_add, film_add_scalar, film_first_hits) that form
+    each pixel's sum as np.bincount did (the same bits) without holding the GIL."""
 
     NAMES = ("direct", "indirect", "caustic", "specular", "emission")
 
@@ -654,21 +664,30 @@ class Accumulator:
         self.depth_n = np.zeros(npix)
         self.normal = np.zeros((npix, 3))
 
-    def _bins(self, pix, w):
-        return np.bincount(pix - self.lo, weights=w, minlength=self.npix)
-
     def add(self, name, pix, rgb, tp=None, rows=None):
         """Add rgb (K,3) into pass `name`: at pixels pix (K,), or with rows (K,) int64
         at pixels pix[rows] times throughputs tp[rows] (pix (N,), tp (N,3)), without
         copying the rows out (tp without rows: K = N)."""
         if len(rgb) == 0:
             return
+        rgb = np.ascontiguousarray(rgb, np.float64)
+        if not rgb.flags.writeable:
+            # A read-only array (one row of a broadcast colour is contiguous already) would
+            # be a second kernel signature, compiled inside the render.
+            rgb = rgb.copy()
         film_add(self.buf[name], self.lo, pix, _ALL_ROWS if rows is None else rows,
-                 _NO_TP if tp is None else tp, np.ascontiguousarray(rgb, np.float64))
+                 _NO_TP if tp is None else tp, rgb)
 
     def add_scalar(self, arr, pix, w):
-        """Add w (N,) into the scalar pass arr at pixels pix (N,)."""
-        arr += self._bins(pix, w)
+        """Add w (N,) into the scalar pass arr at pixels pix (N,) int64."""
+        film_add_scalar(arr, self.lo, pix, np.ascontiguousarray(w, np.float64))
+
+    def add_first_hits(self, pix, depth, ns, front):
+        """The first hits' depth (N,) and front-facing shading normal ns (N,3) (front
+        (N,) bool: ns as is, else negated) into the depth and normal passes."""
+        film_first_hits(self.lo, pix, np.ascontiguousarray(depth, np.float64),
+                        np.ascontiguousarray(ns, np.float64), front, self.depth_sum,
+                        self.depth_n, self.normal)
 
     def merge(self, part: "Accumulator"):
         """Add a chunk's sums (its pixels are a window of this accumulator's)."""
@@ -765,11 +784,15 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     # by a fixed offset, so a pixel split by an edge saw only part of the gather
     # hemisphere on each side (a dashed line along a floor-wall seam, measured).
     cell = jitter_order[sub % cells]
-    jx = (cell % m + rng.random(len(sample))) / m
-    jy = (cell // m + rng.random(len(sample))) / m
+    # (Each generator call draws its numbers in order: one call of 2 n numbers gives the
+    # two calls of n that this stream was made with.)
+    jitter = rng.random((2, len(sample)))
+    jx = (cell % m + jitter[0]) / m
+    jy = (cell // m + jitter[1]) / m
     rest = sub >= full_rounds  # beyond whole rounds of the grid: uniform
-    jx[rest] = rng.random(int(rest.sum()))
-    jy[rest] = rng.random(int(rest.sum()))
+    n_rest = int(np.count_nonzero(rest))
+    if n_rest:
+        jx[rest], jy[rest] = rng.random((2, n_rest))
     px = x0 + pix % rw
     py = y0 + pix // rw
     # The stratified numbers become positions by the pixel filter's distribution (Cycles
@@ -893,11 +916,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             sampler = sampler.subset(kept)
         hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
         if bounce == 0:
-            acc.add_scalar(acc.depth_sum, pix, dot(hit.p - cam_pos, forward))
-            acc.add_scalar(acc.depth_n, pix, np.ones(len(pix)))
-            facing = np.where(hit.front, 1.0, -1.0)
-            for c in range(3):
-                acc.normal[:, c] += acc._bins(pix, hit.ns[:, c] * facing)
+            acc.add_first_hits(pix, dot(hit.p - cam_pos, forward), hit.ns, hit.front)
         Le = hit.emission
         if np.any(Le > 0):
             if bounce > 0:

@@ -47,6 +47,10 @@ SEGMENT_KINDS = ALL_RAYS & ~CAMERA
 N_DIMS = 6
 MAX_BOUNCES = 1 << 16
 _BLOCK = 256  # hits per closure set-up in scatter
+# Slots of the per-call cache of triangle tilts (_surfaces): a direct-mapped table keyed by
+# the triangle's row, so photons that hit the same triangles (a room's few walls) compute
+# its float32 plane's tilt once per call instead of per hit; the same value either way.
+_TILT_SLOTS = 1024
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -118,15 +122,25 @@ def photon_surfaces(prim, u, v, d, v0, e1, e2, corner_normals, material, base_co
         if prim[i] >= 0:
             rows[nh] = i
             nh += 1
+    tilt_row, tilt = _tilt_cache()
     _surfaces(rows, 0, nh, False, prim, u, v, d, v0, e1, e2, corner_normals, material,
-              base_color, mat_alpha, p, ng, ns, front, mat, base, alpha, offset)
+              base_color, mat_alpha, p, ng, ns, front, mat, base, alpha, offset, tilt_row,
+              tilt)
+
+
+@kernel
+def _tilt_cache():
+    """An empty tilt cache for _surfaces: (triangle row of each slot, -1 = empty; tilt)."""
+    return np.full(_TILT_SLOTS, -1, np.int64), np.zeros(_TILT_SLOTS)
 
 
 @kernel
 def _surfaces(rows, lo, hi, compact, prim, u, v, d, v0, e1, e2, corner_normals, material,
-              base_color, mat_alpha, p, ng, ns, front, mat, base, alpha, offset):
+              base_color, mat_alpha, p, ng, ns, front, mat, base, alpha, offset, tilt_row,
+              tilt):
     """photon_surfaces for the hits rows[lo:hi], written at row i = rows[k] of the
-    outputs, or at k - lo when compact (a block's own buffers)."""
+    outputs, or at k - lo when compact (a block's own buffers). tilt_row, tilt: the
+    call's tilt cache (_tilt_cache), read and filled here."""
     smooth = corner_normals.shape[0] > 0
     for k in range(lo, hi):
         i = rows[k]
@@ -173,8 +187,14 @@ def _surfaces(rows, lo, hi, compact, prim, u, v, d, v0, e1, e2, corner_normals, 
         ex = _point_error(v0, e1, e2, t, b1, b2, px, 0)
         ey = _point_error(v0, e1, e2, t, b1, b2, py, 1)
         ez = _point_error(v0, e1, e2, t, b1, b2, pz, 2)
-        offset[o] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz,
-                                _tilt(v0, e1, e2, t))
+        slot = t & (_TILT_SLOTS - 1)
+        if tilt_row[slot] == t:
+            tl = tilt[slot]
+        else:
+            tl = _tilt(v0, e1, e2, t)
+            tilt_row[slot] = t
+            tilt[slot] = tl
+        offset[o] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz, tl)
 
 
 @kernel
@@ -249,6 +269,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
     # Surface data of a block (photon_surfaces' values, computed here or copied from the
     # given arrays).
     p_b = np.empty((_BLOCK, 3))
+    tilt_row, tilt = _tilt_cache()
     ng_b = np.empty((_BLOCK, 3))
     ns_b = np.empty((_BLOCK, 3))
     front_b = np.empty(_BLOCK, np.bool_)
@@ -289,7 +310,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
         else:
             _surfaces(rows, b0, b0 + nb, True, prim, u, v, d, v0, e1, e2, corner_normals,
                       material, base_color, mat_alpha, p_b, ng_b, ns_b, front_b, mat_b,
-                      base_b, alpha_b, off_b)
+                      base_b, alpha_b, off_b, tilt_row, tilt)
         if vis_on:
             for j in range(nb):
                 i = rows[b0 + j]

@@ -213,7 +213,8 @@ class StratifiedSampler:
         n = len(self.sub)
         cells = self.m * self.m
         if cells < 2:
-            return self.rng.random(n), self.rng.random(n)
+            u1, u2 = self.rng.random((2, n))  # one draw: the numbers of two
+            return u1, u2
         # The pairing of two dimensions' strata within a pixel is a fixed offset. With
         # the linear hash (pixel * 2654435761 + dim * 40503 + 12345) it is the same in
         # every pixel and seed, a fixed pattern no number of seeds averages away: lobe
@@ -222,10 +223,10 @@ class StratifiedSampler:
         # a splitmix64 finaliser of (pixel, dimension, seed). (The other dimensions keep
         # the linear hash, so their images stay as they were.) One compiled pass
         # (_stratified_uv); the jitter is drawn here in the order the numpy stage drew it.
-        jitter1, jitter2 = self.rng.random(n), self.rng.random(n)
+        # One generator call per pair: the same numbers as two calls of n.
+        jitter1, jitter2 = self.rng.random((2, n))
         n_rest = int(np.count_nonzero(self.sub >= self.full))
-        rest1 = self.rng.random(n_rest) if n_rest else _EMPTY
-        rest2 = self.rng.random(n_rest) if n_rest else _EMPTY
+        rest1, rest2 = self.rng.random((2, n_rest)) if n_rest else (_EMPTY, _EMPTY)
         if scrambled:
             add = np.uint64(((dim + 1) * 0xBF58476D1CE4E5B9 + self.salt * 0xD6E8FEB86659FD93)
                             % (1 << 64))
