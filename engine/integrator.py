@@ -589,8 +589,16 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
     E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, smooth_min_photons(s),
                         s.estimator, r_floor=None if footprint is None else footprint[sel])
-    out[sel] = stride * f[sel] * E
+    out[sel] = smooth_sample_weight(s.spp, stride) * f[sel] * E
     return out
+
+
+def smooth_sample_weight(spp: int, stride: int) -> float:
+    """Weight of a sample that takes a smooth estimate when one sample in `stride` of a
+    pixel's spp does (sub-sample ids 0, stride, 2 stride, ... < spp): spp over the number
+    of those samples, so the pixel's mean is unbiased. (The stride itself over-weighted
+    whenever spp is not a multiple of it: +5 % at 100 spp with 16 estimates a pixel.)"""
+    return spp / -(-spp // stride)
 
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,

@@ -52,3 +52,25 @@ def test_sparse_caustic_estimate_keeps_its_light(paper_mode):
     else:
         assert smooth_min_photons(settings) == 1
         assert got == pytest.approx(E, rel=0.05)
+
+
+@pytest.mark.parametrize("spp, per_pixel", [(100, 16), (128, 16), (50, 4), (7, 16), (200, 4)])
+def test_strided_estimate_keeps_each_pixels_mean(spp, per_pixel):
+    """A smooth estimate taken at one sample in `stride` of a pixel is weighted so the
+    pixel's mean is the estimate at its point, whatever spp is: sub-samples 0, stride, ...
+    of spp = 100 with 16 a pixel are 15 samples, not 100 / 7 (the weight was the stride,
+    +5 % at 100 spp and +4 % at 200 with 4)."""
+    rng = np.random.default_rng(5)
+    pmap = _sparse_plane_map(rng)
+    ctx = SimpleNamespace(settings=RenderSettings(spp=spp, estimator="knn_simpson"))
+    pixels = 40
+    centres = np.column_stack([rng.uniform(-3, 3, pixels), rng.uniform(-3, 3, pixels),
+                               np.zeros(pixels)])
+    p = np.repeat(centres, spp, axis=0)  # every sample of a pixel at its centre
+    sample_id = np.tile(np.arange(spp), pixels)
+    hit = SimpleNamespace(p=p, ng=np.tile([0.0, 0.0, 1.0], (len(p), 1)))
+    f = np.ones((len(p), 3))
+    strided = _smooth_estimate(ctx, pmap, RADIUS, hit, f, sample_id, per_pixel=per_pixel)
+    every = _smooth_estimate(ctx, pmap, RADIUS, hit, f, None)
+    assert np.allclose(strided[:, 0].reshape(pixels, spp).mean(axis=1),
+                       every[:, 0].reshape(pixels, spp).mean(axis=1), rtol=1e-12, atol=0)
