@@ -239,6 +239,16 @@ if cap["lookups"]:
     big = max(len(c[0]) for c in calls)
     o32, d32 = np.empty((big, 3), np.float32), np.empty((big, 3), np.float32)
     t32, ray_row = np.empty(big, np.float32), np.empty(big, np.int64)
+    # Versions since the seventh slice walk the gather points' neighbour lists (built
+    # with the map, once per render: timed as a row of its own).
+    walks = "nbr" in photonmap._gather_candidates.py_func.__code__.co_varnames[:4]
+    tables = ()
+    if walks:
+        gt = tree((tp, ax, sp, lf, None))
+        t_nb, tables = cpu(gt.neighbour_lists)
+        rows.append(dict(caller="gather map's neighbour lists (once per render)",
+                         photons=len(tp), radius=radius, calls=1, rows=len(tp),
+                         us=t_nb / len(tp) * 1e6, hash="-"))
     def run():
         outs = []
         for p, n, off in calls:
@@ -246,9 +256,9 @@ if cap["lookups"]:
             lift = (photonmap._NO_LIFT if off is None
                     else np.ascontiguousarray(off, dtype=np.float64))
             rows_ = photonmap.morton_order(p)
-            photonmap._gather_candidates(tp, (ax, sp, lf), position, normal, E, B, p, n,
-                                         lift, rows_, radius * radius, 64, True, out, bnd,
-                                         o32, d32, t32, ray_row)
+            photonmap._gather_candidates(tp, (ax, sp, lf), *tables, position, normal, E, B,
+                                         p, n, lift, rows_, radius * radius, 64, True, out,
+                                         bnd, o32, d32, t32, ray_row)
             outs.append((out, bnd))
         return outs
     t, outs = cpu(run)
@@ -286,9 +296,14 @@ def render_calls(args):
         cap = os.path.join(where, f"{name}-{args.width}x{args.height}.calls")
         bk.child(CAPTURE, ROOT=ROOT, PICKLE=pkl, W=args.width, H=args.height, OUT=cap)
         res = {v: bk.child(REPLAY, ROOT=roots[v], PICKLE=pkl, CAPTURE=cap) for v in roots}
-        for b, a in zip(res["before"]["rows"], res["after"]["rows"]):
+        def key(r):
+            return r["caller"], r["photons"], r["radius"]
+        before = {key(r): r for r in res["before"]["rows"]}
+        for a in res["after"]["rows"]:
             ray = res["after"]["ray_us"]
-            same = "same bits" if a["hash"] == b["hash"] else "DIFFER"
+            b = before.get(key(a), dict(us=float("nan"), hash="-"))
+            same = ("same bits" if a["hash"] == b["hash"] != "-" else
+                    "new" if b["hash"] == "-" else "DIFFER")
             print(f"| {name} | {CALLERS.get(a['caller'], a['caller'])} | {a['photons']:,} | "
                   f"{a['radius']:.3f} | {a['calls']:,} | {a['rows']:,} | {b['us']:.2f} | "
                   f"{a['us']:.2f} | {b['us'] / a['us']:.2f}x | {a['us'] / ray:.1f} | {same} |",

@@ -27,6 +27,10 @@ Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
               sphere are counted by their range: the points' box is kept for that)
   ball_d2     the points with squared distance < r2 and their distances, up to a cap;
               nearest_first then orders the m nearest of them (knn's answer, no heap)
+  nearest_walk  nearest's answer from a nearby point's list of its k nearest
+              (neighbour_lists, built once: 4 B x k + 8 B per point), without the tree
+              when the lists prove it (most queries taken in Morton order); else a
+              seed for nearest
 Far subtrees are skipped by the query's squared distance to their cell (Arya & Mount
 1993, kept incrementally per axis). Distances are computed in float64 from the float32
 positions (as scipy's cKDTree does on a float64 copy), so neighbour sets match it except
@@ -43,6 +47,11 @@ STACK = 64  # traversal stack: one entry per tree level (a tree of 2^63 points a
 LEAF_SIZE = 8  # points per leaf at most (measured: 8 and 16 within 5 %, 4 slower)
 # Fewer points are built on one thread (a pool's start-up would cost more than it saves).
 PARALLEL_POINTS = 1 << 16
+# neighbour_lists: points listed per point (measured on Figures 6 and 7's gather lookups:
+# 8 settles 75-80 % of them without the tree, 12 85-90 %, 16 the same speed as 12) and
+# points per job of a threaded build.
+NEIGHBOURS = 12
+NEIGHBOUR_CHUNK = 8192
 
 
 @kernel
@@ -706,6 +715,77 @@ def ball_count(pos, axis, split, leaf, bounds, qx, qy, qz, r2):
 
 
 @kernel
+def neighbour_lists(pos, axis, split, leaf, lo, hi, nbr, reach):
+    """For the points j in [lo, hi): their k = nbr.shape[1] nearest other points (knn's
+    order) into nbr[j] (int32; padded with j itself when there are fewer), and into
+    reach[j] the distance (not squared) within which no unlisted point lies: the k-th
+    listed one's, shrunk by 1e-9 relative (far above the float64 rounding of the
+    distances), inf when every other point is listed. nearest_walk's table."""
+    k = nbr.shape[1]
+    d2 = np.empty(k + 1, np.float64)
+    idx = np.empty(k + 1, np.int64)
+    for j in range(lo, hi):
+        c = knn(pos, axis, split, leaf, np.float64(pos[j, 0]), np.float64(pos[j, 1]),
+                np.float64(pos[j, 2]), k + 1, np.inf, d2, idx)
+        m = 0
+        last = np.inf
+        for t in range(c):
+            if idx[t] != j and m < k:  # j itself (or an equal point first: then j later)
+                nbr[j, m] = idx[t]
+                last = d2[t]
+                m += 1
+        for t in range(m, k):
+            nbr[j, t] = j
+        reach[j] = np.inf if c < k + 1 else np.sqrt(last) * (1.0 - 1e-9)
+
+
+@kernel
+def _dist2(pos, j, qx, qy, qz):
+    """Squared distance of point j to the query: the same float64 arithmetic as every
+    query here, so the values compare bit for bit."""
+    dx = qx - np.float64(pos[j, 0])
+    dy = qy - np.float64(pos[j, 1])
+    dz = qz - np.float64(pos[j, 2])
+    return dx * dx + dy * dy + dz * dz
+
+
+@kernel
+def nearest_walk(pos, nbr, reach, g, qx, qy, qz, r2, steps):
+    """The nearest point to the query from a guess g (a point near it: the previous
+    query's answer) and neighbour_lists' table, without the tree: (settled, index,
+    squared distance). The nearest of g and its list is q's nearest among all points
+    when sqrt(d2(q, best)) + |q - g| < reach[g] (an unlisted point p is at least
+    reach[g] - |q - g| from q: triangle inequality). Settled: index is nearest(r2)'s
+    answer (-1 when that distance is not below r2). Else the walk moves to the best
+    point met and tries again, up to `steps` lists; unsettled returns the nearest point
+    met (a seed for the tree search: _seed_bound). Equally near points are never
+    settled here (nearest keeps the one its traversal meets first)."""
+    k = nbr.shape[1]
+    best = g
+    bd = _dist2(pos, g, qx, qy, qz)
+    for _ in range(steps):
+        dg = bd  # best == g here
+        tie = False
+        for t in range(k):
+            j = nbr[g, t]
+            d = _dist2(pos, j, qx, qy, qz)
+            if d < bd:
+                best = j
+                bd = d
+                tie = False
+            elif d == bd and j != best:
+                tie = True
+        if not tie and np.sqrt(bd) + np.sqrt(dg) < reach[g]:
+            if bd < r2:
+                return True, best, bd
+            return True, -1, r2
+        if best == g:
+            break
+        g = best
+    return False, best, bd
+
+
+@kernel
 def knn_batch(pos, axis, split, leaf, queries, kq, radius):
     """k-NN of many queries (M,3) float64 within radius, in scipy's cKDTree.query form:
     (dist (M,kq) float64 with inf where none, idx (M,kq) int64 with N where none)."""
@@ -774,6 +854,26 @@ class KdTree:
         return (self.position.nbytes + self.axis.nbytes + self.split.nbytes
                 + self.leaf.nbytes + self.bounds.nbytes)
 
+    def neighbour_lists(self, k: int = NEIGHBOURS, workers: int = 1, should_cancel=None):
+        """(nbr (N,k) int32, reach (N,) float64): each point's k nearest other points and
+        the distance within which no other point lies (neighbour_lists), for
+        nearest_walk. Built on `workers` threads (the same table); raises
+        parallel.Cancelled when should_cancel is set."""
+        n = len(self.position)
+        nbr = np.empty((n, k), np.int32)
+        reach = np.empty(n)
+        chunks = [(a, min(a + NEIGHBOUR_CHUNK, n)) for a in range(0, n, NEIGHBOUR_CHUNK)]
+
+        def job(chunk, job_stop):
+            if job_stop():
+                raise Cancelled()
+            neighbour_lists(self.position, self.axis, self.split, self.leaf, chunk[0],
+                            chunk[1], nbr, reach)
+        for _ in ordered_map(job, chunks, workers if n >= PARALLEL_POINTS // 4 else 1,
+                             should_cancel):
+            pass
+        return nbr, reach
+
     def query(self, queries: np.ndarray, k: int, radius: float):
         """(dist, idx) of the k nearest points within radius, like cKDTree.query with
         distance_upper_bound (idx = len(self) where none). idx index self.position."""
@@ -798,3 +898,5 @@ def _warm_up():
     nrm = np.zeros((40, 3)); nrm[:, 2] = 1.0
     nearest_facing(tree.position, *tree.nodes, nrm, 0.5, 0.5, 0.5, 0.0, 0.0, 1.0, 0.7, 0.1)
     count_closer(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1, 8)
+    nbr, reach = tree.neighbour_lists(4)
+    nearest_walk(tree.position, nbr, reach, 0, 0.5, 0.5, 0.5, 0.1, 3)

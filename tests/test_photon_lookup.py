@@ -25,7 +25,8 @@ from engine.hashgrid import HashGrid
 from engine.hashgrid import ball_count as grid_ball_count
 from engine.hashgrid import cells_spanned
 from engine.kdtree import (BUCKET_MAX, LEAF_SIZE, KdTree, ball, ball_count, ball_d2,
-                           count_closer, knn, nearest, nearest_facing, nearest_first)
+                           count_closer, knn, nearest, nearest_facing, nearest_first,
+                           nearest_walk)
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
                               PhotonMap)
 from engine.photons import Photons
@@ -240,6 +241,61 @@ def test_nearest_facing_and_count_closer_match_brute_force():
         for cap in (1, 8, 64, 10**6):
             want = min(int((d2 < r2).sum()), cap)
             assert count_closer(t.position, *t.nodes, q[0], q[1], q[2], r2, cap) == want
+
+
+def test_neighbour_walk_gives_the_nearest_answer():
+    """kdtree.nearest_walk (the gather lookup's search from the previous row's answer and
+    neighbour lists) against brute force and kdtree.nearest: every settled query has the
+    nearest's index, and no query whose nearest distance is shared by two points (a
+    tie: nearest keeps the one its traversal meets first) is settled. Points: two
+    planes 1 mm apart, a crease (two walls meeting), a sparse cloud and exact duplicates
+    (ties); the lists are checked against brute force too."""
+    from engine.photonmap import morton_order
+    rng = np.random.default_rng(21)
+    parts = [np.c_[rng.random((3000, 2)), np.zeros(3000)],
+             np.c_[rng.random((3000, 2)), np.full(3000, 0.001)],
+             np.c_[np.full(1500, 1.0), rng.random((1500, 2))],
+             np.c_[rng.random(1500), np.full(1500, 1.0), rng.random(1500)],
+             rng.random((300, 3)) * [2.0, 2.0, 2.0] + [0.0, 0.0, 1.2]]
+    pts = np.concatenate(parts).astype(np.float32)
+    pts[-200:] = pts[:200]  # duplicates: exact ties at any query
+    t = KdTree(pts)
+    nbr, reach = t.neighbour_lists(k=8)
+    pos = t.position.astype(np.float64)
+    for j in rng.choice(len(pos), 300, replace=False):
+        d2 = ((pos - pos[j]) ** 2).sum(axis=1)
+        d2[j] = np.inf
+        listed = nbr[j]
+        assert j not in listed and len(set(listed)) == 8
+        rest = np.setdiff1d(np.arange(len(pos)), np.append(listed, j))
+        assert np.sqrt(d2[rest].min()) > reach[j] >= np.sqrt(d2[listed].max()) * (1 - 1e-8)
+        np.testing.assert_array_equal(np.sort(d2[listed]), np.sort(d2)[:8])
+    # Queries on and near the surfaces, in Morton order (as lookups take them), plus
+    # queries exactly at duplicated points and halfway between a point and its double.
+    m = 4000
+    q = pos[rng.integers(0, len(pos), m)] + rng.normal(0.0, 0.01, (m, 3))
+    q[:100] = pos[:100]
+    q = q[morton_order(q)]
+    settled_rows = ties = 0
+    prev = 0
+    for r2 in (0.05 ** 2, np.inf):
+        for x in q:
+            d2 = ((pos - x) ** 2).sum(axis=1)  # the kernels' own float64 arithmetic
+            want, dw = nearest(t.position, *t.nodes, x[0], x[1], x[2], r2)
+            tie = (d2 == d2.min()).sum() > 1
+            ties += tie
+            if not tie:
+                best = int(np.argmin(d2))
+                assert want == (best if d2[best] < r2 else -1)
+            settled, j, dj = nearest_walk(t.position, nbr, reach, prev, x[0], x[1], x[2],
+                                          r2, 3)
+            if settled:
+                settled_rows += 1
+                assert not tie and j == want and dj == dw
+            else:
+                assert 0 <= j < len(pos) and dj == d2[j] >= d2.min()  # a valid seed
+            prev = want if want >= 0 else prev
+    assert ties >= 100 and settled_rows > 0.3 * 2 * m  # not vacuous: most settle
 
 
 def test_listed_sphere_gives_the_knn_answer():
