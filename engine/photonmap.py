@@ -602,7 +602,9 @@ class GatherMap:
         ray from p clear of p's surface (SurfaceHit.offset); default: the float32
         resolution at p. Returns ((M,3) float64, (M,) bool).
 
-        One kernel (_gather_candidates) searches the kd-tree, tests the normals, writes
+        One kernel (_gather_candidates) finds the nearest point (a walk over the gather
+        points' neighbour lists from the previous row's answer, else the kd-tree), tests
+        the normals, writes
         the answers and the visibility rays in Embree's float32 layout; the rows whose
         candidate is hidden take their next visible one (_next_visible)."""
         m = len(p)
