@@ -89,7 +89,7 @@ def test_mis_matches_continuation_with_less_noise(mat, light, request):
     # same noise in both renders; with the first hit's lobe directions stratified the
     # continuation alone fell from 0.86 to 0.57 there, light sampling from 0.35 to 0.34.)
     # (The mesh light's triangle, chosen by an unstratified number, gave 0.44 for the
-    # metal; stratified with the point on it: 0.35.)
+    # metal; stratified with the point on it (integrator.mesh_light_numbers): 0.21.)
     limit = {"environment": 0.65}.get(light, 0.4)
     assert noise_mis < limit * noise_cont, (noise_mis, noise_cont)
     # ... and agree with the continuation on the mean: two unbiased estimators of the same
