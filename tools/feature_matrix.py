@@ -580,11 +580,12 @@ def closure_sheen():
         "Sheen Roughness": 0.3, "Sheen Tint": (1.0, 0.8, 0.6)}))
 
 
-# The floor is lit by a small bright ball: block error 0.10-0.20 over seeds 0-7 with the mesh
-# light's triangle chosen by its own random number (tolerance 0.35 then); with the choice
-# multi-jittered with the point (integrator.mesh_light_numbers) 0.06-0.18 over seeds 0-9
-# (median 0.085), so the default tolerance.
-@case("closures")
+# The floor is lit by a small bright ball: noisy blocks. Block error 0.06-0.20 over seeds
+# 0-9 (median 0.11) with the mesh light's triangle chosen by its own random number; with
+# the choice multi-jittered with the point (integrator.mesh_light_numbers) median 0.085,
+# max 0.18. The tolerance stays 0.35: renders inside Blender are not repeatable (the
+# report's header), one run of the old engine read 0.26 at seed 0.
+@case("closures", block_tol=0.35)
 def closure_emission():
     """The ball floats 0.3 m up: where an emitter touches a surface, light sampling alone
     (no MIS with BSDF sampling yet, issue 14) leaves rare fireflies of 20x the image mean."""
