@@ -486,7 +486,12 @@ def closure_glossy():
     _ball_scene(lambda: _shader("g", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.3))
 
 
-@case("closures", mean_tol=0.08, block_tol=0.4)
+# A glass ball under an area light: the light's small image through the ball is a few
+# bright pixels (10-25 against a block mean of 2) that 32 spp catch or miss, so the block
+# error at 32 spp was 0.28-0.91 over seeds 0-9 (median 0.40: half the seeds over the
+# tolerance; brightness 0.989-1.015); at 128 spp 0.09-0.35 over seeds 0-5 (median 0.21,
+# brightness 0.994-1.002).
+@case("closures", mean_tol=0.08, block_tol=0.4, ours=dict(spp=128))
 def closure_glass():
     _ball_scene(lambda: mb.material("glass", "glass", (1, 1, 1), ior=1.45))
 
