@@ -486,8 +486,9 @@ def closure_glossy():
     _ball_scene(lambda: _shader("g", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.3))
 
 
-# A glass ball under an area light: the light's small image through the ball is a few
-# bright pixels (10-25 against a block mean of 2) that 32 spp catch or miss, so the block
+# A glass ball under an area light: a small bright feature seen through the ball (at seed 3
+# three pixels of 10-25 in a block whose Cycles mean is 2: the light or its caustic seen
+# through the glass, not told apart) that 32 spp catch or miss, so the block
 # error at 32 spp was 0.28-0.91 over seeds 0-9 (median 0.40: half the seeds over the
 # tolerance; brightness 0.989-1.015); at 128 spp 0.09-0.35 over seeds 0-5 (median 0.21,
 # brightness 0.994-1.002).
