@@ -32,6 +32,7 @@ from .normalmap import bump_shadowing_term
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
 
 F32_MAX = float(np.finfo(np.float32).max)
+ONE_BELOW = 1.0 - 2.0 ** -53  # the largest float64 below 1
 TWO_U32 = 2.0 * U32
 TWO_PI = 2.0 * np.pi
 PI = math.pi
@@ -239,7 +240,9 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     contribution divided by the choice's probability; ktrace (K,) whether its shadows are
     traced (l_trace for chosen lights); U1, U2, SEL (K,N): its random numbers (SEL: the
     triangle choice of mesh lights, the strategy choice of an environment-mapped world,
-    the tree's choice (remapped for those) when klight is -1).
+    the tree's choice (remapped for those) when klight is -1). A mesh light reads SEL and
+    U2 only: SEL picks the triangle and, rescaled within the triangle's CDF bin, is the
+    point's first coordinate, U2 its second (integrator.mesh_light_numbers).
     Writes entries j < m_all: contrib (j,3) irradiance without visibility, row (j,) hit,
     kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced), wdir (j,3) the
     unit direction towards the light sample and lpdf (j,) its solid-angle pdf (inf for a
@@ -389,7 +392,15 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                         else:
                             hi = mid
                     tri = min(max(lo, 0), ntri - 1)
-                    sq = math.sqrt(u1)
+                    # The choice's number rescaled within the triangle's CDF bin is
+                    # uniform on [0, 1) and independent of the choice (pbrt-v4's
+                    # SampleDiscrete, uRemapped): it places the point on the triangle,
+                    # so a stratified choice spreads over the panel as a whole.
+                    c_lo = m_cdf[tri - 1] if tri > 0 else 0.0
+                    c_w = m_cdf[tri] - c_lo
+                    ur = (rr - c_lo) / c_w if c_w > 0.0 else 0.5
+                    ur = min(max(ur, 0.0), ONE_BELOW)
+                    sq = math.sqrt(ur)
                     b1 = 1.0 - sq
                     b2 = u2 * sq
                     y0 = m_v0[tri, 0] + b1 * m_e1[tri, 0] + b2 * m_e2[tri, 0]
