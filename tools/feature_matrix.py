@@ -589,8 +589,8 @@ def closure_sheen():
 # The floor is lit by a small bright ball: noisy blocks. Block error 0.06-0.20 over seeds
 # 0-9 (median 0.11) with the mesh light's triangle chosen by its own random number; with
 # the choice multi-jittered with the point (integrator.mesh_light_numbers) median 0.085,
-# max 0.18. The tolerance stays 0.35: renders inside Blender are not repeatable (the
-# report's header), one run of the old engine read 0.26 at seed 0.
+# max 0.18. The tolerance stays 0.35: a rebuilt case's ball can come with its polygons in
+# another order (the report's header), and one run of the old engine read 0.26 at seed 0.
 @case("closures", block_tol=0.35)
 def closure_emission():
     """The ball floats 0.3 m up: where an emitter touches a surface, light sampling alone
@@ -1909,12 +1909,13 @@ def write_report(rows, path=DOC_PATH):
         "camera_pixel_filter cases (Film > Pixel Filter, which the add-on reads as Cycles does).",
         "Cycles renders with Light Paths > Caustics > Filter Glossy 0 (its default 1.0 blurs",
         "glossy and glass paths to cut noise, a few % on caustics and glass: compare with 0).",
-        "Our renders inside Blender are not bitwise repeatable at the same seed: the ball of",
-        "closure_emission, rebuilt and exported again in one session, came with the same 960",
-        "triangles in another order (and vertex normals 7e-8 apart), so the same random numbers",
-        "met other triangles (74,444 / 74,511 / 74,438 global photons stored in three renders,",
-        "one thread too; the exported scene itself renders bitwise the same every time). A",
-        "case's numbers move between runs by about its noise over seeds (bench/feature_seeds.py).",
+        "A case rebuilt in the same Blender session is not always the same mesh: the ball of",
+        "closure_emission, built again by bmesh after a reset, came with the same 960",
+        "triangles in another polygon order (and vertex normals 7e-8 apart), so the same random",
+        "numbers met other triangles (74,444 / 74,511 / 74,438 global photons stored in three",
+        "rebuilds). The same scene rendered again is bitwise the same image (checked in Blender,",
+        "three renders of one build), and so is the exported scene. A case's numbers therefore",
+        "move between report runs by about its noise over seeds (bench/feature_seeds.py).",
         "",
         "- *block error*: the largest |ours - Cycles| / (Cycles + 0.1 x image mean) over all",
         "  blocks and colour channels; *alpha*: the largest block alpha difference;",
