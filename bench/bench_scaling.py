@@ -60,12 +60,9 @@ def table(name, rows):
 
 
 def best_of(n, fn):
-    best, out = float("inf"), None
-    for _ in range(n):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+    """(best wall s, last result) of n calls."""
+    wall, _, out = best_of_cpu(n, fn)
+    return wall, out
 
 
 def box(width, height, sphere_tris=None, lights=1):

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .directlight import DirectLightBuffers, direct_light, sample_lights, terminator_lift
+from .directlight import (ONE_BELOW, DirectLightBuffers, direct_light, sample_lights,
+                          terminator_lift)
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.point import sphere_light_pdf
@@ -91,8 +92,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                 # The tree's choice stratified over the pixel's samples: the 2-D cell
                 # read as one of m^2 strata in 1-D.
                 c1, c2 = sampler.uv(("light-select", si))
-                choose = np.minimum((np.floor(c2 * sampler.m) + c1) / sampler.m,
-                                    0.9999999999999999)
+                choose = np.minimum((np.floor(c2 * sampler.m) + c1) / sampler.m, ONE_BELOW)
             else:
                 u1, u2, choose = rng.random((3, n))  # one draw: the same numbers
             samples.append((-1, True, S, u1, u2, choose))
@@ -127,10 +127,6 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         for si in range(count):
             if sampler is not None and light.kind == MESH:
                 u1, u2, sel = mesh_light_numbers(sampler, ("light", li, si))
-                # The triangle's own number of before, drawn and not used: the chunk's
-                # random stream for everything after stays as it was, so an image changes
-                # only by the direct light of its emissive meshes.
-                rng.random(n)
                 samples.append((li, traced, count, u1, u2, sel))
                 continue
             sel = None
@@ -209,8 +205,6 @@ def _mix64(h):
         h = h * np.uint64(0x94D049BB133111EB)
         return h ^ (h >> np.uint64(31))
 
-
-ONE_BELOW = 1.0 - 2.0 ** -53  # the largest float64 below 1
 
 MODE_CONTINUATION, MODE_DELTA, MODE_MIS, MODE_TREE = 0, 1, 2, 3
 

@@ -705,8 +705,8 @@ def gather_point_share(position: np.ndarray, base: np.ndarray, radius: float):
     size = DENSITY_CELL * radius
     cell = np.floor(np.asarray(position, np.float64) / size)
     cell = np.clip(np.nan_to_num(cell), -2.0 ** 40, 2.0 ** 40).astype(np.int64)
-    key = (cell[:, 0] * np.int64(73856093)) ^ (cell[:, 1] * np.int64(19349663)) \
-        ^ (cell[:, 2] * np.int64(83492791))
+    key = (cell[:, 0] * np.int64(hashgrid.P1)) ^ (cell[:, 1] * np.int64(hashgrid.P2)) \
+        ^ (cell[:, 2] * np.int64(hashgrid.P3))  # the hash grid's cell hash
     base_keys, counts = np.unique(key[base], return_counts=True)
     at = np.minimum(np.searchsorted(base_keys, key), len(base_keys) - 1)
     found = np.where(base_keys[at] == key, counts[at], 0)

@@ -110,7 +110,6 @@ def test_gather_map_lookups_are_unbiased():
     assert boundary[edge].mean() > 0.9
 
 
-
 def test_a_thinly_lit_surface_keeps_its_gather_points():
     """Half a plane lit 30x more thinly than the other half (the far side of a room lit
     through a slot, Figure 7 with a mirror floor): at the renderer's radius (from the
@@ -142,6 +141,7 @@ def test_a_thinly_lit_surface_keeps_its_gather_points():
     qb = np.c_[rng.uniform(0.05, 0.45, m), rng.uniform(0.05, 0.95, m), np.zeros(m)]
     Eb, _ = g.lookup(qb, np.tile([0.0, 0.0, 1.0], (m, 1)))
     assert abs(Eb[:, 0].mean() - 1.0) < 0.005, Eb[:, 0].mean()
+
 
 def _emitting_box(rho):
     s = PaperScene(width=8, height=8)
