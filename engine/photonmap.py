@@ -737,7 +737,7 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
     """For each row i = rows[r]: the candidate c = the nearest gather point within
     sqrt(r2) whose normal agrees with n[i], if it is among the kmax nearest; out[i] = E[c]
     and boundary[i] = E_boundary[c] (no candidate: 0 and True); and, if want_rays, the
-    ray from p[i] to c into o32 / d32 / t32 (float32, compacted, _write_ray; ray_row =
+    ray from p[i] to c into o32 / d32 / t32 (float32, compacted, _ray_ends; ray_row =
     r). nbr, reach: the tree's neighbour lists (kdtree.neighbour_lists). Returns the
     number of rays."""
     P = tree_pos.shape[0]
@@ -795,18 +795,36 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
         boundary[i] = E_boundary[c]
         if not want_rays:
             continue
-        _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, nrays)
+        # The ray's ends from scalars (_ray_ends): a kernel called with arrays pays ~14 ns
+        # per array (reference counts) when it is not inlined, ~0.1 us a ray here.
+        ox, oy, oz, dx, dy, dz, t = _ray_ends(
+            qx, qy, qz, nx, ny, nz, _query_lift(lift, i, qx, qy, qz), position[c, 0],
+            position[c, 1], position[c, 2], normal[c, 0], normal[c, 1], normal[c, 2])
+        o32[nrays, 0], o32[nrays, 1], o32[nrays, 2] = ox, oy, oz
+        d32[nrays, 0], d32[nrays, 1], d32[nrays, 2] = dx, dy, dz
+        t32[nrays] = t
         ray_row[nrays] = r
         nrays += 1
     return nrays
 
 
 @kernel
-def _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, slot):
-    """The visibility ray from query p[i] to gather point c into row `slot` of o32 / d32
-    / t32 (float32). Both ends lifted off their surfaces along their normals (shared by
-    agreement) by bounds on their rounding error (engine/rayoffset.py): the query's own
-    offset (lift[i], else 4 float32 ulps of p), and for the gather point (a float32
+def _query_lift(lift, i, qx, qy, qz):
+    """The query's own offset along its normal: lift[i], else (lift empty) 4 float32
+    ulps of p[i] = (qx, qy, qz)."""
+    if lift.shape[0]:
+        return lift[i]
+    return 4.0 * ulp32_scalar(max(abs(qx), abs(qy), abs(qz)))
+
+
+@kernel
+def _ray_ends(qx, qy, qz, nx, ny, nz, la, bx, by, bz, mx, my, mz):
+    """The visibility ray from a query q = (qx, qy, qz) with unit normal (nx, ny, nz) and
+    own offset la (_query_lift) to a gather point b = (bx, by, bz) with normal
+    (mx, my, mz): (origin x, y, z, unit direction x, y, z, length), float64, which the
+    callers store in Embree's float32 arrays. Both ends lifted off their surfaces along
+    their normals (shared by agreement) by bounds on their rounding error
+    (engine/rayoffset.py): the query's own offset, and for the gather point (a float32
     photon position, triangle unknown) its float32 resolution plus the float32 error of
     the ray's length. Full length: a gather point a hair outside a wall is still behind it.
 
@@ -815,17 +833,11 @@ def _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, slot):
     kmax, 200 us). Both ends are also lifted by chord x |n - n_c| / 4, above the chord's
     depth below a sphere through both points with these normals (chord x theta / 8 for
     normals theta apart; 0.11 vs 0.19 chords at the agreement limit). Flat surfaces
-    (equal normals) get no extra lift: a wall still hides the floor behind it."""
-    qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
-    nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
-    if lift.shape[0]:
-        la = lift[i]
-    else:
-        la = 4.0 * ulp32_scalar(max(abs(qx), abs(qy), abs(qz)))
-    bx, by, bz = position[c, 0], position[c, 1], position[c, 2]
+    (equal normals) get no extra lift: a wall still hides the floor behind it.
+    Scalars only: it runs once per lookup (docs/performance.md, "Eighth slice")."""
     ex, ey, ez = bx - qx, by - qy, bz - qz
     chord = math.sqrt(ex * ex + ey * ey + ez * ez)
-    gx, gy, gz = nx - normal[c, 0], ny - normal[c, 1], nz - normal[c, 2]
+    gx, gy, gz = nx - mx, ny - my, nz - mz
     bend = 0.25 * chord * math.sqrt(gx * gx + gy * gy + gz * gz)
     la += bend
     ax, ay, az = qx + la * nx, qy + la * ny, qz + la * nz
@@ -833,13 +845,11 @@ def _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, slot):
     dist0 = math.sqrt(ex * ex + ey * ey + ez * ez)
     lb = (4.0 * ulp32_scalar(max(abs(bx), abs(by), abs(bz))) + 2.0 * G32_PLANE * dist0
           + bend)
-    bx, by, bz = bx + lb * normal[c, 0], by + lb * normal[c, 1], bz + lb * normal[c, 2]
+    bx, by, bz = bx + lb * mx, by + lb * my, bz + lb * mz
     wx, wy, wz = bx - ax, by - ay, bz - az
     dist = math.sqrt(wx * wx + wy * wy + wz * wz)
     inv = max(dist, 1e-300)
-    o32[slot, 0], o32[slot, 1], o32[slot, 2] = ax, ay, az
-    d32[slot, 0], d32[slot, 1], d32[slot, 2] = wx / inv, wy / inv, wz / inv
-    t32[slot] = dist
+    return ax, ay, az, wx / inv, wy / inv, wz / inv, dist
 
 
 @kernel
@@ -871,8 +881,17 @@ def _list_rays(position, normal, p, n, lift, rows, lists, counts, pending, nxt, 
     k = 0
     for q in range(pending.shape[0]):
         r = pending[q]
+        i = rows[r]
+        qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+        la = _query_lift(lift, i, qx, qy, qz)
         for e in range(nxt[r], min(nxt[r] + batch, counts[r])):
-            _write_ray(position, normal, p, n, lift, rows[r], lists[r, e], o32, d32, t32, k)
+            c = lists[r, e]
+            ox, oy, oz, dx, dy, dz, t = _ray_ends(
+                qx, qy, qz, n[i, 0], n[i, 1], n[i, 2], la, position[c, 0], position[c, 1],
+                position[c, 2], normal[c, 0], normal[c, 1], normal[c, 2])
+            o32[k, 0], o32[k, 1], o32[k, 2] = ox, oy, oz
+            d32[k, 0], d32[k, 1], d32[k, 2] = dx, dy, dz
+            t32[k] = t
             slot[k] = e
             k += 1
     return k

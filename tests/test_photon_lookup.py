@@ -383,7 +383,7 @@ def test_hidden_candidates_take_the_next_visible_one():
     trying the candidates one by one. A floor cut by a comb of thin walls hides most
     candidates of many rows, several in a row."""
     from engine.accel import Accel
-    from engine.photonmap import GATHER_AGREEMENT, _write_ray
+    from engine.photonmap import GATHER_AGREEMENT, _query_lift, _ray_ends
     rng = np.random.default_rng(31)
     quads = []
     for x in np.linspace(0.05, 0.95, 31):  # walls x = const, 0.2 m high
@@ -415,7 +415,9 @@ def test_hidden_candidates_take_the_next_visible_one():
             for j in idx[i][idx[i] < len(g.position)]:
                 if g.normal[j] @ up[i] <= GATHER_AGREEMENT:
                     continue
-                _write_ray(g.position, g.normal, q, up, no_lift, i, j, o32, d32, t32, 0)
+                ends = _ray_ends(*q[i], *up[i], _query_lift(no_lift, i, *q[i]), *g.position[j],
+                                 *g.normal[j])
+                o32[0], d32[0], t32[0] = ends[:3], ends[3:6], ends[6]
                 tried[i] += 1
                 if not acc.occluded_into(o32, d32, t32, blocked)[0]:
                     want = (g.E[j], g.boundary[j])
