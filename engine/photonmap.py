@@ -742,14 +742,15 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
     number of rays."""
     P = tree_pos.shape[0]
     nrays = 0
-    # The previous row's nearest and chosen gather points: rows come in Morton order, so
-    # they are usually near this row's. The nearest is found from the previous row's by
-    # its neighbour list (kdtree.nearest_walk: 85-90 % of rows, same answer), else by
-    # the tree, its search bounded by the nearest point the walk met (a real point at
-    # that distance exists). The bound has a margin above it, so the search still meets
-    # every point at least as near, in its usual order: the answer is the one an
-    # unbounded search gives.
-    prev_near = -1
+    # Each row's nearest gather point first, for all rows (kdtree.nearest_walk: from the
+    # previous row's answer by its neighbour list, 85-90 % of rows, else the tree; rows
+    # come in Morton order, so the previous answer is usually near). The answer is the
+    # one an unbounded tree search gives.
+    near = np.empty(rows.shape[0], np.int64)
+    if P > 0:
+        kdtree.nearest_walk(tree_pos, nodes[0], nodes[1], nodes[2], nbr, reach, p, rows, r2,
+                            WALK_STEPS, near, np.zeros(0, np.bool_))
+    # The previous row's chosen gather point (a seed for the facing search).
     prev_cand = -1
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -757,18 +758,8 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
         c = -1
         if P > 0:
-            settled = False
-            bound = r2
-            if prev_near >= 0:
-                settled, j, _ = kdtree.nearest_walk(tree_pos, nbr, reach, prev_near, qx, qy,
-                                                    qz, r2, WALK_STEPS)
-                if not settled:
-                    bound = min(bound, _seed_bound(tree_pos, j, qx, qy, qz))
-            if not settled:
-                j, _ = kdtree.nearest(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz,
-                                      bound)
+            j = near[r]
             if j >= 0:
-                prev_near = j
                 if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
                         > GATHER_AGREEMENT:
                     c = j
@@ -933,7 +924,7 @@ def _seed_bound(tree_pos, j, qx, qy, qz):
     dx = qx - np.float64(tree_pos[j, 0])
     dy = qy - np.float64(tree_pos[j, 1])
     dz = qz - np.float64(tree_pos[j, 2])
-    return (dx * dx + dy * dy + dz * dz) * (1.0 + 1e-9) + 1e-300
+    return kdtree.seed_bound(dx * dx + dy * dy + dz * dz)
 
 
 @register_warm_up
