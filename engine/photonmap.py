@@ -35,7 +35,7 @@ MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accep
 # point light piles k photons onto a point; a smaller disc makes the estimate there huge,
 # and the few camera samples that land on it become fireflies (the Figure 8 focus, seen
 # magnified through the ball: one pixel at 939 x the image mean). The photons inside the
-# floor disc are all counted (_estimate_row), so light is spread over it, never lost.
+# floor disc are all counted (_irradiance_rows), so light is spread over it, never lost.
 MIN_RADIUS_FRACTION = 0.01
 # A row about to widen first scans its search sphere for accepted photons, up to this many
 # photons (measured: a scan of this many costs less than the MAX_WIDEN_K heap query it
@@ -294,7 +294,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     d2 = np.empty(cap, np.float64)
     idx = np.empty(cap, np.int64)
     scan = np.empty(SCAN_BUDGET + 1, np.int64)
-    # The floored focus disc (_estimate_row) may exceed radius where 1e-6 |p| does.
+    # The floored focus disc (below) may exceed radius where 1e-6 |p| does.
     big = 0.0
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -397,113 +397,104 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             if c > kq:
                 scale = c / kq
             cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
-        _estimate_row(i, kind, pos, nodes, start, grid, power, direction, normal, p, n,
-                      r_floor, radius, k, min_photons, code, want_boundary, d2, idx, cnt,
-                      kq, scale, buckets, out, boundary)
-
-
-@kernel
-def _estimate_row(i, kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
-                  radius, k, min_photons, code, want_boundary, d2, idx, cnt, kq, scale,
-                  buckets, out, boundary):
-    """One row's estimate from its cnt nearest photons (d2/idx, increasing distance).
-    k-NN estimators use the k nearest *accepted* photons (facing the query's surface)."""
-    qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
-    nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
-    full = cnt == kq  # the query stopped at kq photons: more may lie beyond
-    r = radius
-    floored = False
-    if code >= KNN_SIMPSON:
-        # r: distance to the k-th accepted photon; with fewer accepted, the radius of the
-        # disc the query has seen completely (its last photon, or the max radius): that
-        # still gives an unbiased estimate from the accepted photons in it.
-        acc = 0
-        kth = -1
+        # The row's estimate from its cnt nearest photons (d2 / idx, increasing distance),
+        # here in the loop: a kernel called per row with its ~18 arrays paid ~0.25 us of
+        # reference counting (docs/performance.md, "Eighth slice"). k-NN estimators use
+        # the k nearest *accepted* photons (facing the query's surface).
+        full = cnt == kq  # the query stopped at kq photons: more may lie beyond
+        rk = radius
+        floored = False
+        if code >= KNN_SIMPSON:
+            # rk: distance to the k-th accepted photon; with fewer accepted, the radius of the
+            # disc the query has seen completely (its last photon, or the max radius): that
+            # still gives an unbiased estimate from the accepted photons in it.
+            acc = 0
+            kth = -1
+            for j in range(cnt):
+                if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+                    acc += 1
+                    if acc == k:
+                        kth = j
+                        break
+            if kth >= 0:
+                rk = math.sqrt(d2[kth])
+            elif full:
+                rk = math.sqrt(d2[cnt - 1])
+            # k photons on (nearly) the query point, as a focusing lens makes: the k-th
+            # distance is 0 and 1/rk^2 would be inf. Floor rk (MIN_RADIUS_FRACTION), and at a
+            # resolution the float32 photon positions can represent.
+            bq = max(abs(qx), abs(qy), abs(qz))
+            r_min = max(1e-6 * bq, max(MIN_RADIUS_FRACTION * radius, 1e-15))
+            if r_floor.shape[0]:
+                r_min = max(r_min, min(r_floor[i], radius))
+            floored = full and rk < r_min  # the floor disc may hold more than the kq fetched
+            rk = max(rk, r_min)
+        area = math.pi * rk * rk
+        e0 = e1 = e2 = 0.0
+        a0 = a1 = a2 = 0.0  # accepted power inside rk (the floored focus)
+        count = 0
+        fetched = 0
+        other_inside = False
+        c0 = c1 = c2 = np.float32(0.0)  # float32 sums of the accepted photons' offsets
         for j in range(cnt):
-            if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
-                acc += 1
-                if acc == k:
-                    kth = j
-                    break
-        if kth >= 0:
-            r = math.sqrt(d2[kth])
-        elif full:
-            r = math.sqrt(d2[cnt - 1])
-        # k photons on (nearly) the query point, as a focusing lens makes: the k-th
-        # distance is 0 and 1/r^2 would be inf. Floor r (MIN_RADIUS_FRACTION), and at a
-        # resolution the float32 photon positions can represent.
-        big = max(abs(qx), abs(qy), abs(qz))
-        r_min = max(1e-6 * big, max(MIN_RADIUS_FRACTION * radius, 1e-15))
-        if r_floor.shape[0]:
-            r_min = max(r_min, min(r_floor[i], radius))
-        floored = full and r < r_min  # the floor disc may hold more than the kq fetched
-        r = max(r, r_min)
-    area = math.pi * r * r
-    e0 = e1 = e2 = 0.0
-    a0 = a1 = a2 = 0.0  # accepted power inside r (the floored focus)
-    count = 0
-    fetched = 0
-    other_inside = False
-    c0 = c1 = c2 = np.float32(0.0)  # float32 sums of the accepted photons' offsets
-    for j in range(cnt):
-        ph = idx[j]
-        d = math.sqrt(d2[j])
-        ok, other, cos_in = _accepted(direction, normal, ph, nx, ny, nz)
-        inside = d <= r
-        if inside:
-            fetched += 1
-            if other:
-                other_inside = True
-        if not ok:
+            pj = idx[j]
+            d = math.sqrt(d2[j])
+            ok, other, cos_in = _accepted(direction, normal, pj, nx, ny, nz)
+            inside = d <= rk
+            if inside:
+                fetched += 1
+                if other:
+                    other_inside = True
+            if not ok:
+                continue
+            if code == CLASSIC:
+                w = cos_in / (math.pi * radius * radius)
+            elif code == RADIUS:
+                x = min(max(1.0 - (d / radius) ** 2, 0.0), 1.0)
+                w = 3.0 / (math.pi * radius * radius) * x * x
+            elif code == KNN_SIMPSON:
+                x = min(max(1.0 - (d / rk) ** 2, 0.0), 1.0)
+                w = 3.0 / area * x * x
+            else:
+                w = min(max(1.0 - d / rk, 0.0), 1.0) / ((1.0 - 2.0 / 3.0) * area)
+            e0 += w * np.float64(power[pj, 0])
+            e1 += w * np.float64(power[pj, 1])
+            e2 += w * np.float64(power[pj, 2])
+            if not inside:
+                continue  # accepted photons beyond the k-th do not count towards the minimum
+            count += 1
+            a0 += np.float64(power[pj, 0])
+            a1 += np.float64(power[pj, 1])
+            a2 += np.float64(power[pj, 2])
+            c0 += pos[pj, 0] - np.float32(qx)
+            c1 += pos[pj, 1] - np.float32(qy)
+            c2 += pos[pj, 2] - np.float32(qz)
+        if floored:
+            # A focus: more photons lie inside the floored disc than the query fetched. The
+            # estimate is the disc's photon count times the fetched photons' mean accepted
+            # power, over pi rk^2 (a box kernel): the focus's light is spread, never dropped.
+            in_disc = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, rk * rk, buckets)
+            f = in_disc / max(fetched, 1) / area
+            e0, e1, e2 = f * a0, f * a1, f * a2
+        if count >= min_photons:
+            out[i, 0] = e0 * scale
+            out[i, 1] = e1 * scale
+            out[i, 2] = e2 * scale
+        if not want_boundary:
             continue
-        if code == CLASSIC:
-            w = cos_in / (math.pi * radius * radius)
-        elif code == RADIUS:
-            x = min(max(1.0 - (d / radius) ** 2, 0.0), 1.0)
-            w = 3.0 / (math.pi * radius * radius) * x * x
-        elif code == KNN_SIMPSON:
-            x = min(max(1.0 - (d / r) ** 2, 0.0), 1.0)
-            w = 3.0 / area * x * x
-        else:
-            w = min(max(1.0 - d / r, 0.0), 1.0) / ((1.0 - 2.0 / 3.0) * area)
-        e0 += w * np.float64(power[ph, 0])
-        e1 += w * np.float64(power[ph, 1])
-        e2 += w * np.float64(power[ph, 2])
-        if not inside:
-            continue  # accepted photons beyond the k-th do not count towards the minimum
-        count += 1
-        a0 += np.float64(power[ph, 0])
-        a1 += np.float64(power[ph, 1])
-        a2 += np.float64(power[ph, 2])
-        c0 += pos[ph, 0] - np.float32(qx)
-        c1 += pos[ph, 1] - np.float32(qy)
-        c2 += pos[ph, 2] - np.float32(qz)
-    if floored:
-        # A focus: more photons lie inside the floored disc than the query fetched. The
-        # estimate is the disc's photon count times the fetched photons' mean accepted
-        # power, over pi r^2 (a box kernel): the focus's light is spread, never dropped.
-        in_disc = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r * r, buckets)
-        f = in_disc / max(fetched, 1) / area
-        e0, e1, e2 = f * a0, f * a1, f * a2
-    if count >= min_photons:
-        out[i, 0] = e0 * scale
-        out[i, 1] = e1 * scale
-        out[i, 2] = e2 * scale
-    if not want_boundary:
-        return
-    # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
-    b = other_inside or count < min_photons
-    # An open edge (a table's rim, the end of a floor) leaves no other surface's photons,
-    # but the accepted ones lie off to one side: their centroid, in the tangent plane, is
-    # more than BOUNDARY_OFFSET x r from the point (a half disc gives 0.42 r; 64 photons
-    # of a whole disc scatter it by ~0.08 r; a gradient needs a 100 % change across r).
-    mm = max(count, 1)
-    cx, cy, cz = np.float64(c0) / mm, np.float64(c1) / mm, np.float64(c2) / mm
-    fx, fy, fz = n[i, 0], n[i, 1], n[i, 2]
-    dn = cx * fx + cy * fy + cz * fz
-    cx, cy, cz = cx - dn * fx, cy - dn * fy, cz - dn * fz
-    offset = math.sqrt(cx * cx + cy * cy + cz * cz) / r
-    boundary[i] = b or offset > BOUNDARY_OFFSET
+        # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
+        b = other_inside or count < min_photons
+        # An open edge (a table's rim, the end of a floor) leaves no other surface's photons,
+        # but the accepted ones lie off to one side: their centroid, in the tangent plane, is
+        # more than BOUNDARY_OFFSET x rk from the point (a half disc gives 0.42 rk; 64 photons
+        # of a whole disc scatter it by ~0.08 rk; a gradient needs a 100 % change across rk).
+        mm = max(count, 1)
+        cx, cy, cz = np.float64(c0) / mm, np.float64(c1) / mm, np.float64(c2) / mm
+        fx, fy, fz = n[i, 0], n[i, 1], n[i, 2]
+        dn = cx * fx + cy * fy + cz * fz
+        cx, cy, cz = cx - dn * fx, cy - dn * fy, cz - dn * fz
+        offset = math.sqrt(cx * cx + cy * cy + cz * cz) / rk
+        boundary[i] = b or offset > BOUNDARY_OFFSET
 
 
 @register_warm_up
