@@ -408,6 +408,9 @@ def _lit_side_normals(geo, hit):
     return np.where(smooth[:, None], hit.ns, hit.ng)
 
 
+_UNSET = object()  # gather_indirect's lean: not given
+
+
 # Gather rays that end near a corner or contact, where the precomputed irradiance is cut
 # off and biased dark (or, closer than its resolution, could come from round the corner),
 # gather once more from their end, up to this many levels deep (Jensen's advice for
@@ -416,13 +419,14 @@ MAX_GATHER_LEVEL = 2
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
-                    level=0, should_cancel=None) -> np.ndarray:
+                    level=0, should_cancel=None, lean=_UNSET) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
     level > 0: a recursive gather from a corner; it also counts the emission of the
     emissive meshes its rays hit (direct light there comes from shadow rays to the other
-    lights only)."""
+    lights only). lean: gatherkernels.lean_materials(ctx.table) if the caller has it (the
+    recursion passes its own: regathers come in thousands of small batches)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     G = rays or ctx.settings.gather_rays
@@ -432,7 +436,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     ns, ng, p, offset = (c(a, np.float64) for a in (hit.ns, hit.ng, hit.p, hit.offset))
     # Plain diffuse materials: their hits skip the closures' set-up and the continuation
     # (gatherkernels.lean_diffuse; the same numbers, docs/performance.md "Eighth slice").
-    lean = lean_materials(ctx.table)
+    if lean is _UNSET:
+        lean = lean_materials(ctx.table)
     table_alpha = c(ctx.table.alpha, np.float64)
     for g in range(G):
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else rng.random((2, n))
@@ -501,7 +506,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     # (kept out of the gather map), so add that light here.
                     Esub = (direct_irradiance(ctx, ysub, rng, counters, skip_mesh_lights=True)
                             + gather_indirect(ctx, ysub, rng, counters, rays=1,
-                                              level=level + 1, should_cancel=should_cancel)
+                                              level=level + 1, should_cancel=should_cancel,
+                                              lean=lean)
                             + _secondary_irradiance(ctx, ysub, rng))
                     add_gathered(E, idx, rows, tp, wd, c(Esub, np.float64), G, _NO_FLAG,
                                  _NO_LENGTH, 0.0, False, _NO_ROWS)
