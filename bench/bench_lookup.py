@@ -273,8 +273,8 @@ print(json.dumps(dict(ray_us=ray_us, rows=rows)))
 """
 
 CALLERS = {"__init__": "gather map's points (once per render)",
-           "_smooth_estimate": "camera hits (<= 16 per pixel)",
-           "_secondary_irradiance": "regathered points (a quarter of them)"}
+           "_smooth_estimate": "camera hits (caustic <= 16, secondary <= 4 per pixel)",
+           "_secondary_irradiance": "regathered points (a tenth of them)"}
 
 
 def render_calls(args):

@@ -9,6 +9,10 @@ fifth slice): what ran as numpy indexing between two Embree calls of every gathe
 - `add_gathered`: the lookups' irradiance weighted by throughput and diffuse albedo into
   the gathering hits' sums; rows to gather again (a boundary lookup or a short ray) are
   listed instead when the recursion may go deeper.
+- `lean_diffuse` (eighth slice): the diffuse albedo of the hits on plain diffuse
+  materials (`lean_materials`: one Lambert lobe, nothing textured) without the closures'
+  set-up, and the list of the other hits, which alone take bsdf.closures and the
+  specular continuation.
 
 Each kernel performs the numpy stage's floating-point operations in the same order, so
 images are bitwise unchanged (tests/test_gather_kernels.py keeps the numpy gather as an
@@ -19,7 +23,37 @@ from __future__ import annotations
 
 import numpy as np
 
+from .closures import principled as pr
 from .jit import kernel, register_warm_up
+
+
+def lean_materials(table) -> np.ndarray | None:
+    """(M,) bool: the materials whose closures are one Lambert lobe of albedo = the base
+    colour, at every hit: opaque (alpha 1, no alpha texture), no metal, transmission,
+    specular, coat or sheen layer, no texture of any kind (colour, normal map, scalar
+    input, emission) and no emission. principled.setup then leaves every other lobe's
+    weight zero (so no continuation: camerakernels.choose_lobes' psum is 0) and the
+    diffuse weight is alpha x base = the hit's base colour, bit for bit; `lean_diffuse`
+    writes that instead of the whole set-up. A NaN parameter is not lean. None when no
+    material is (the caller keeps the general path). table: geometry.MaterialTable."""
+    q = table.closure_params
+    m = len(q)
+    if m == 0:
+        return None
+
+    def untextured(nodes):
+        return np.array([x is None for x in (nodes or [None] * m)], bool)
+
+    lean = ((np.asarray(table.alpha, np.float64) == 1.0)
+            & (q[:, pr.M_METALLIC] <= 0.0) & (q[:, pr.M_TRANS] <= 0.0)
+            & (q[:, pr.M_SPEC] <= 0.0) & (q[:, pr.M_COAT_W] <= 0.0)
+            & (q[:, pr.M_SHEEN_W] <= 0.0)
+            & np.isfinite(q[:, pr.M_TTINT:pr.M_TTINT + 3]).all(axis=1)
+            & (np.asarray(table.emission, np.float64) == 0.0).all(axis=1)
+            & untextured(table.textures) & untextured(table.normal_maps)
+            & untextured(table.alpha_textures) & untextured(table.scalar_textures)
+            & untextured(getattr(table, "emission_textures", None)))
+    return lean if lean.any() else None
 
 
 @kernel
@@ -93,6 +127,26 @@ def add_gathered(E, idx, rows, tp, wd, Ey, G, boundary, lt, short, regather, aga
     return n_again
 
 
+@kernel
+def lean_diffuse(mat, base, lean, table_alpha, wd, full):
+    """The diffuse weight wd (N,3) of the hits of lean materials (lean (M,) bool,
+    `lean_materials`): table_alpha[mat] x base, principled.setup's arithmetic for a lone
+    Lambert lobe (alpha is 1: the base colour); the other hits' rows are listed in full
+    (ascending) and their wd left for bsdf.closures. mat (N,) material index; base (N,3)
+    the hits' base colour. Returns the number of rows listed."""
+    n_full = 0
+    for i in range(mat.shape[0]):
+        m = mat[i]
+        if lean[m]:
+            a = table_alpha[m]
+            for c in range(3):
+                wd[i, c] = a * base[i, c]
+        else:
+            full[n_full] = i
+            n_full += 1
+    return n_full
+
+
 @register_warm_up
 def _warm_up():
     n = 2
@@ -106,6 +160,9 @@ def _warm_up():
     lp, ln, loff, lt = np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
     k = diffuse_lookups(tp, o, d, u, t, rows, lp, ln, loff, lt)
     again = np.empty(n, np.int64)
+    full = np.empty(n, np.int64)
+    for mat in (np.zeros(n, np.int32), np.zeros(n, np.int64)):
+        lean_diffuse(mat, tp, np.ones(1, np.bool_), np.ones(1), np.empty((n, 3)), full)
     for regather in (False, True):
         add_gathered(np.zeros((n, 3)), idx, rows[:k], tp, tp, np.ones((k, 3)), 2,
                      np.zeros(k, np.bool_), lt[:k], 0.5, regather, again)

@@ -28,7 +28,7 @@ from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, fi
                             film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
                             pick_lobes)
 from .camerarays import camera_rays_kernel
-from .gatherkernels import add_gathered, diffuse_lookups, keep_hits
+from .gatherkernels import add_gathered, diffuse_lookups, keep_hits, lean_diffuse, lean_materials
 from .closures.principled import rough_reflection_rows
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
@@ -408,6 +408,9 @@ def _lit_side_normals(geo, hit):
     return np.where(smooth[:, None], hit.ns, hit.ng)
 
 
+_UNSET = object()  # gather_indirect's lean: not given
+
+
 # Gather rays that end near a corner or contact, where the precomputed irradiance is cut
 # off and biased dark (or, closer than its resolution, could come from round the corner),
 # gather once more from their end, up to this many levels deep (Jensen's advice for
@@ -416,13 +419,14 @@ MAX_GATHER_LEVEL = 2
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
-                    level=0, should_cancel=None) -> np.ndarray:
+                    level=0, should_cancel=None, lean=_UNSET) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
     level > 0: a recursive gather from a corner; it also counts the emission of the
     emissive meshes its rays hit (direct light there comes from shadow rays to the other
-    lights only)."""
+    lights only). lean: gatherkernels.lean_materials(ctx.table) if the caller has it (the
+    recursion passes its own: regathers come in thousands of small batches)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     G = rays or ctx.settings.gather_rays
@@ -430,6 +434,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     regather = level < MAX_GATHER_LEVEL
     # The hits' fields as the kernel reads them, once for all G rays.
     ns, ng, p, offset = (c(a, np.float64) for a in (hit.ns, hit.ng, hit.p, hit.offset))
+    # Plain diffuse materials: their hits skip the closures' set-up and the continuation
+    # (gatherkernels.lean_diffuse; the same numbers, docs/performance.md "Eighth slice").
+    if lean is _UNSET:
+        lean = lean_materials(ctx.table)
+    table_alpha = c(ctx.table.alpha, np.float64)
     for g in range(G):
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else rng.random((2, n))
         idx = np.empty(n, np.int64)
@@ -466,8 +475,18 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 Le = y.emission
                 if np.any(Le > 0):
                     E[idx] += tp * math.pi * Le / G
-            w = lobe_weights(ctx.table, y)
-            wd = c(w["diffuse"], np.float64)
+            if lean is None:
+                wd = c(lobe_weights(ctx.table, y)["diffuse"], np.float64)
+                yf = y
+            else:
+                # The other hits (full) alone take the closures.
+                wd = np.empty((m, 3))
+                full = np.empty(m, np.int64)
+                n_full = lean_diffuse(y.mat, y.base, lean, table_alpha, wd, full)
+                full = full[:n_full]
+                yf = y if n_full == m else y.take(full)
+                if n_full:
+                    wd[full] = lobe_weights(ctx.table, yf)["diffuse"]
             # Lookup inputs of the rows with a diffuse lobe (gatherkernels.diffuse_lookups).
             dsel = np.empty(m, np.int64)
             lp, ln = np.empty((m, 3)), np.empty((m, 3))
@@ -487,13 +506,25 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     # (kept out of the gather map), so add that light here.
                     Esub = (direct_irradiance(ctx, ysub, rng, counters, skip_mesh_lights=True)
                             + gather_indirect(ctx, ysub, rng, counters, rays=1,
-                                              level=level + 1, should_cancel=should_cancel)
+                                              level=level + 1, should_cancel=should_cancel,
+                                              lean=lean)
                             + _secondary_irradiance(ctx, ysub, rng))
                     add_gathered(E, idx, rows, tp, wd, c(Esub, np.float64), G, _NO_FLAG,
                                  _NO_LENGTH, 0.0, False, _NO_ROWS)
             if depth == ctx.settings.max_depth:
                 break
-            keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
+            if yf is y:
+                keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
+            else:
+                # Lean hits never continue (no lobe but the diffuse one); the survival
+                # numbers are drawn for every hit, as continue_specular draws them.
+                go_u = rng.random(m)
+                if not n_full:
+                    break
+                keep, o, d, tp, ray_cls = continue_specular(
+                    ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
+                    go_u=go_u[full])
+                keep = full[keep]
             idx = idx[keep]
     return E
 
@@ -548,7 +579,7 @@ def lobe_choice(albedo, tp):
 
 
 def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False,
-                      uv=None):
+                      uv=None, go_u=None):
     """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
     paths that would add little) and sample it. Returns (kept indices, origins, directions,
     throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
@@ -562,10 +593,12 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     (the first hit's sampler) for the sampled lobes' directions instead of plain random
     ones: a glossy highlight, where the lobe is narrower than the light and the lobes'
     sampling carries it, is far calmer with its directions stratified over the pixel's
-    samples (as Cycles' are)."""
+    samples (as Cycles' are). go_u: the survival test's uniform numbers (N,), drawn by the
+    caller (gather_indirect draws them for all its hits and continues only those with a
+    non-diffuse lobe); default: drawn here."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit)[1], tp))
-    go = (psum > 0) & (rng.random(len(p)) < q)
+    go = (psum > 0) & ((rng.random(len(p)) if go_u is None else go_u) < q)
     idx = np.nonzero(go)[0]
     m = len(idx)
     if m == 0:

@@ -27,10 +27,10 @@ Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
               sphere are counted by their range: the points' box is kept for that)
   ball_d2     the points with squared distance < r2 and their distances, up to a cap;
               nearest_first then orders the m nearest of them (knn's answer, no heap)
-  nearest_walk  nearest's answer from a nearby point's list of its k nearest
-              (neighbour_lists, built once: 4 B x k + 8 B per point), without the tree
-              when the lists prove it (most queries taken in Morton order); else a
-              seed for nearest
+  nearest_walk  nearest's answers for a block of queries in Morton order, each from
+              the previous answer's list of its k nearest (neighbour_lists, built
+              once: 4 B x k + 8 B per point) without the tree when the lists prove it;
+              else nearest, seeded
 Far subtrees are skipped by the query's squared distance to their cell (Arya & Mount
 1993, kept incrementally per axis). Distances are computed in float64 from the float32
 positions (as scipy's cKDTree does on a float64 copy), so neighbour sets match it except
@@ -750,39 +750,71 @@ def _dist2(pos, j, qx, qy, qz):
 
 
 @kernel
-def nearest_walk(pos, nbr, reach, g, qx, qy, qz, r2, steps):
-    """The nearest point to the query from a guess g (a point near it: the previous
-    query's answer) and neighbour_lists' table, without the tree: (settled, index,
-    squared distance). The nearest of g and its list is q's nearest among all points
-    when sqrt(d2(q, best)) + |q - g| < reach[g] (an unlisted point p is at least
-    reach[g] - |q - g| from q: triangle inequality). Settled: index is nearest(r2)'s
-    answer (-1 when that distance is not below r2). Else the walk moves to the best
-    point met and tries again, up to `steps` lists; unsettled returns the nearest point
-    met (a seed for the tree search: _seed_bound). Equally near points are never
-    settled here (nearest keeps the one its traversal meets first)."""
+def seed_bound(d2):
+    """A search bound that a point at squared distance d2 certainly passes: d2 plus a
+    margin (1e-9 relative) far above the rounding error of the traversal's incremental
+    distances to cells (a few ulps), so no cell holding a point as near is pruned and
+    the search still meets every such point in its usual order."""
+    return d2 * (1.0 + 1e-9) + 1e-300
+
+
+@kernel
+def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, walked):
+    """nearest(r2)'s answer for the queries p[rows[r]] (p (M,3) float64, rows (R,) in
+    Morton order) into near[r] (-1: no point nearer than sqrt(r2)), most of them without
+    the tree: from g = the previous row's answer, the nearest of g and its neighbour list
+    (neighbour_lists' table nbr, reach) is q's nearest among all points when
+    sqrt(d2(q, best)) + |q - g| < reach[g] (an unlisted point p is at least
+    reach[g] - |q - g| from q: triangle inequality). Else the walk moves to the best
+    point met and tries again, up to `steps` lists, then searches the tree bounded by
+    the nearest point met (seed_bound). Equally near points are never settled by the
+    lists (nearest keeps the one its traversal meets first), so every answer is
+    nearest's. walked (R,) bool or (0,): which rows the lists settled (tests, benches).
+
+    One kernel for all rows, the walk inline: a per-row call of a kernel with array
+    arguments cost ~0.08 us a row in reference counting (docs/performance.md, "Eighth
+    slice")."""
     k = nbr.shape[1]
-    best = g
-    bd = _dist2(pos, g, qx, qy, qz)
-    for _ in range(steps):
-        dg = bd  # best == g here
-        tie = False
-        for t in range(k):
-            j = nbr[g, t]
-            d = _dist2(pos, j, qx, qy, qz)
-            if d < bd:
-                best = j
-                bd = d
+    record = walked.shape[0] > 0
+    prev = -1
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+        settled = False
+        bound = r2
+        j = -1
+        if prev >= 0:
+            g = prev
+            best = g
+            bd = _dist2(pos, g, qx, qy, qz)
+            for _ in range(steps):
+                dg = bd  # best == g here
                 tie = False
-            elif d == bd and j != best:
-                tie = True
-        if not tie and np.sqrt(bd) + np.sqrt(dg) < reach[g]:
-            if bd < r2:
-                return True, best, bd
-            return True, -1, r2
-        if best == g:
-            break
-        g = best
-    return False, best, bd
+                for t in range(k):
+                    jj = nbr[g, t]
+                    d = _dist2(pos, jj, qx, qy, qz)
+                    if d < bd:
+                        best = jj
+                        bd = d
+                        tie = False
+                    elif d == bd and jj != best:
+                        tie = True
+                if not tie and np.sqrt(bd) + np.sqrt(dg) < reach[g]:
+                    settled = True
+                    j = best if bd < r2 else -1
+                    break
+                if best == g:
+                    break
+                g = best
+            if not settled:
+                bound = min(bound, seed_bound(bd))
+        if not settled:
+            j, _ = nearest(pos, axis, split, leaf, qx, qy, qz, bound)
+        if record:
+            walked[r] = settled
+        near[r] = j
+        if j >= 0:
+            prev = j
 
 
 @kernel
@@ -899,4 +931,8 @@ def _warm_up():
     nearest_facing(tree.position, *tree.nodes, nrm, 0.5, 0.5, 0.5, 0.0, 0.0, 1.0, 0.7, 0.1)
     count_closer(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1, 8)
     nbr, reach = tree.neighbour_lists(4)
-    nearest_walk(tree.position, nbr, reach, 0, 0.5, 0.5, 0.5, 0.1, 3)
+    q = np.full((2, 3), 0.5)
+    rows = np.arange(2, dtype=np.int64)
+    near = np.empty(2, np.int64)
+    for walked in (np.empty(2, np.bool_), np.zeros(0, np.bool_)):
+        nearest_walk(tree.position, *tree.nodes, nbr, reach, q, rows, 0.1, 3, near, walked)

@@ -35,7 +35,7 @@ MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accep
 # point light piles k photons onto a point; a smaller disc makes the estimate there huge,
 # and the few camera samples that land on it become fireflies (the Figure 8 focus, seen
 # magnified through the ball: one pixel at 939 x the image mean). The photons inside the
-# floor disc are all counted (_estimate_row), so light is spread over it, never lost.
+# floor disc are all counted (_irradiance_rows), so light is spread over it, never lost.
 MIN_RADIUS_FRACTION = 0.01
 # A row about to widen first scans its search sphere for accepted photons, up to this many
 # photons (measured: a scan of this many costs less than the MAX_WIDEN_K heap query it
@@ -294,7 +294,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     d2 = np.empty(cap, np.float64)
     idx = np.empty(cap, np.int64)
     scan = np.empty(SCAN_BUDGET + 1, np.int64)
-    # The floored focus disc (_estimate_row) may exceed radius where 1e-6 |p| does.
+    # The floored focus disc (below) may exceed radius where 1e-6 |p| does.
     big = 0.0
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -397,113 +397,104 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             if c > kq:
                 scale = c / kq
             cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
-        _estimate_row(i, kind, pos, nodes, start, grid, power, direction, normal, p, n,
-                      r_floor, radius, k, min_photons, code, want_boundary, d2, idx, cnt,
-                      kq, scale, buckets, out, boundary)
-
-
-@kernel
-def _estimate_row(i, kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
-                  radius, k, min_photons, code, want_boundary, d2, idx, cnt, kq, scale,
-                  buckets, out, boundary):
-    """One row's estimate from its cnt nearest photons (d2/idx, increasing distance).
-    k-NN estimators use the k nearest *accepted* photons (facing the query's surface)."""
-    qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
-    nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
-    full = cnt == kq  # the query stopped at kq photons: more may lie beyond
-    r = radius
-    floored = False
-    if code >= KNN_SIMPSON:
-        # r: distance to the k-th accepted photon; with fewer accepted, the radius of the
-        # disc the query has seen completely (its last photon, or the max radius): that
-        # still gives an unbiased estimate from the accepted photons in it.
-        acc = 0
-        kth = -1
+        # The row's estimate from its cnt nearest photons (d2 / idx, increasing distance),
+        # here in the loop: a kernel called per row with its ~18 arrays paid ~0.25 us of
+        # reference counting (docs/performance.md, "Eighth slice"). k-NN estimators use
+        # the k nearest *accepted* photons (facing the query's surface).
+        full = cnt == kq  # the query stopped at kq photons: more may lie beyond
+        rk = radius
+        floored = False
+        if code >= KNN_SIMPSON:
+            # rk: distance to the k-th accepted photon; with fewer accepted, the radius of the
+            # disc the query has seen completely (its last photon, or the max radius): that
+            # still gives an unbiased estimate from the accepted photons in it.
+            acc = 0
+            kth = -1
+            for j in range(cnt):
+                if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+                    acc += 1
+                    if acc == k:
+                        kth = j
+                        break
+            if kth >= 0:
+                rk = math.sqrt(d2[kth])
+            elif full:
+                rk = math.sqrt(d2[cnt - 1])
+            # k photons on (nearly) the query point, as a focusing lens makes: the k-th
+            # distance is 0 and 1/rk^2 would be inf. Floor rk (MIN_RADIUS_FRACTION), and at a
+            # resolution the float32 photon positions can represent.
+            bq = max(abs(qx), abs(qy), abs(qz))
+            r_min = max(1e-6 * bq, max(MIN_RADIUS_FRACTION * radius, 1e-15))
+            if r_floor.shape[0]:
+                r_min = max(r_min, min(r_floor[i], radius))
+            floored = full and rk < r_min  # the floor disc may hold more than the kq fetched
+            rk = max(rk, r_min)
+        area = math.pi * rk * rk
+        e0 = e1 = e2 = 0.0
+        a0 = a1 = a2 = 0.0  # accepted power inside rk (the floored focus)
+        count = 0
+        fetched = 0
+        other_inside = False
+        c0 = c1 = c2 = np.float32(0.0)  # float32 sums of the accepted photons' offsets
         for j in range(cnt):
-            if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
-                acc += 1
-                if acc == k:
-                    kth = j
-                    break
-        if kth >= 0:
-            r = math.sqrt(d2[kth])
-        elif full:
-            r = math.sqrt(d2[cnt - 1])
-        # k photons on (nearly) the query point, as a focusing lens makes: the k-th
-        # distance is 0 and 1/r^2 would be inf. Floor r (MIN_RADIUS_FRACTION), and at a
-        # resolution the float32 photon positions can represent.
-        big = max(abs(qx), abs(qy), abs(qz))
-        r_min = max(1e-6 * big, max(MIN_RADIUS_FRACTION * radius, 1e-15))
-        if r_floor.shape[0]:
-            r_min = max(r_min, min(r_floor[i], radius))
-        floored = full and r < r_min  # the floor disc may hold more than the kq fetched
-        r = max(r, r_min)
-    area = math.pi * r * r
-    e0 = e1 = e2 = 0.0
-    a0 = a1 = a2 = 0.0  # accepted power inside r (the floored focus)
-    count = 0
-    fetched = 0
-    other_inside = False
-    c0 = c1 = c2 = np.float32(0.0)  # float32 sums of the accepted photons' offsets
-    for j in range(cnt):
-        ph = idx[j]
-        d = math.sqrt(d2[j])
-        ok, other, cos_in = _accepted(direction, normal, ph, nx, ny, nz)
-        inside = d <= r
-        if inside:
-            fetched += 1
-            if other:
-                other_inside = True
-        if not ok:
+            pj = idx[j]
+            d = math.sqrt(d2[j])
+            ok, other, cos_in = _accepted(direction, normal, pj, nx, ny, nz)
+            inside = d <= rk
+            if inside:
+                fetched += 1
+                if other:
+                    other_inside = True
+            if not ok:
+                continue
+            if code == CLASSIC:
+                w = cos_in / (math.pi * radius * radius)
+            elif code == RADIUS:
+                x = min(max(1.0 - (d / radius) ** 2, 0.0), 1.0)
+                w = 3.0 / (math.pi * radius * radius) * x * x
+            elif code == KNN_SIMPSON:
+                x = min(max(1.0 - (d / rk) ** 2, 0.0), 1.0)
+                w = 3.0 / area * x * x
+            else:
+                w = min(max(1.0 - d / rk, 0.0), 1.0) / ((1.0 - 2.0 / 3.0) * area)
+            e0 += w * np.float64(power[pj, 0])
+            e1 += w * np.float64(power[pj, 1])
+            e2 += w * np.float64(power[pj, 2])
+            if not inside:
+                continue  # accepted photons beyond the k-th do not count towards the minimum
+            count += 1
+            a0 += np.float64(power[pj, 0])
+            a1 += np.float64(power[pj, 1])
+            a2 += np.float64(power[pj, 2])
+            c0 += pos[pj, 0] - np.float32(qx)
+            c1 += pos[pj, 1] - np.float32(qy)
+            c2 += pos[pj, 2] - np.float32(qz)
+        if floored:
+            # A focus: more photons lie inside the floored disc than the query fetched. The
+            # estimate is the disc's photon count times the fetched photons' mean accepted
+            # power, over pi rk^2 (a box kernel): the focus's light is spread, never dropped.
+            in_disc = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, rk * rk, buckets)
+            f = in_disc / max(fetched, 1) / area
+            e0, e1, e2 = f * a0, f * a1, f * a2
+        if count >= min_photons:
+            out[i, 0] = e0 * scale
+            out[i, 1] = e1 * scale
+            out[i, 2] = e2 * scale
+        if not want_boundary:
             continue
-        if code == CLASSIC:
-            w = cos_in / (math.pi * radius * radius)
-        elif code == RADIUS:
-            x = min(max(1.0 - (d / radius) ** 2, 0.0), 1.0)
-            w = 3.0 / (math.pi * radius * radius) * x * x
-        elif code == KNN_SIMPSON:
-            x = min(max(1.0 - (d / r) ** 2, 0.0), 1.0)
-            w = 3.0 / area * x * x
-        else:
-            w = min(max(1.0 - d / r, 0.0), 1.0) / ((1.0 - 2.0 / 3.0) * area)
-        e0 += w * np.float64(power[ph, 0])
-        e1 += w * np.float64(power[ph, 1])
-        e2 += w * np.float64(power[ph, 2])
-        if not inside:
-            continue  # accepted photons beyond the k-th do not count towards the minimum
-        count += 1
-        a0 += np.float64(power[ph, 0])
-        a1 += np.float64(power[ph, 1])
-        a2 += np.float64(power[ph, 2])
-        c0 += pos[ph, 0] - np.float32(qx)
-        c1 += pos[ph, 1] - np.float32(qy)
-        c2 += pos[ph, 2] - np.float32(qz)
-    if floored:
-        # A focus: more photons lie inside the floored disc than the query fetched. The
-        # estimate is the disc's photon count times the fetched photons' mean accepted
-        # power, over pi r^2 (a box kernel): the focus's light is spread, never dropped.
-        in_disc = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r * r, buckets)
-        f = in_disc / max(fetched, 1) / area
-        e0, e1, e2 = f * a0, f * a1, f * a2
-    if count >= min_photons:
-        out[i, 0] = e0 * scale
-        out[i, 1] = e1 * scale
-        out[i, 2] = e2 * scale
-    if not want_boundary:
-        return
-    # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
-    b = other_inside or count < min_photons
-    # An open edge (a table's rim, the end of a floor) leaves no other surface's photons,
-    # but the accepted ones lie off to one side: their centroid, in the tangent plane, is
-    # more than BOUNDARY_OFFSET x r from the point (a half disc gives 0.42 r; 64 photons
-    # of a whole disc scatter it by ~0.08 r; a gradient needs a 100 % change across r).
-    mm = max(count, 1)
-    cx, cy, cz = np.float64(c0) / mm, np.float64(c1) / mm, np.float64(c2) / mm
-    fx, fy, fz = n[i, 0], n[i, 1], n[i, 2]
-    dn = cx * fx + cy * fy + cz * fz
-    cx, cy, cz = cx - dn * fx, cy - dn * fy, cz - dn * fz
-    offset = math.sqrt(cx * cx + cy * cy + cz * cz) / r
-    boundary[i] = b or offset > BOUNDARY_OFFSET
+        # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
+        b = other_inside or count < min_photons
+        # An open edge (a table's rim, the end of a floor) leaves no other surface's photons,
+        # but the accepted ones lie off to one side: their centroid, in the tangent plane, is
+        # more than BOUNDARY_OFFSET x rk from the point (a half disc gives 0.42 rk; 64 photons
+        # of a whole disc scatter it by ~0.08 rk; a gradient needs a 100 % change across rk).
+        mm = max(count, 1)
+        cx, cy, cz = np.float64(c0) / mm, np.float64(c1) / mm, np.float64(c2) / mm
+        fx, fy, fz = n[i, 0], n[i, 1], n[i, 2]
+        dn = cx * fx + cy * fy + cz * fz
+        cx, cy, cz = cx - dn * fx, cy - dn * fy, cz - dn * fz
+        offset = math.sqrt(cx * cx + cy * cy + cz * cz) / rk
+        boundary[i] = b or offset > BOUNDARY_OFFSET
 
 
 @register_warm_up
@@ -737,19 +728,20 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
     """For each row i = rows[r]: the candidate c = the nearest gather point within
     sqrt(r2) whose normal agrees with n[i], if it is among the kmax nearest; out[i] = E[c]
     and boundary[i] = E_boundary[c] (no candidate: 0 and True); and, if want_rays, the
-    ray from p[i] to c into o32 / d32 / t32 (float32, compacted, _write_ray; ray_row =
+    ray from p[i] to c into o32 / d32 / t32 (float32, compacted, _ray_ends; ray_row =
     r). nbr, reach: the tree's neighbour lists (kdtree.neighbour_lists). Returns the
     number of rays."""
     P = tree_pos.shape[0]
     nrays = 0
-    # The previous row's nearest and chosen gather points: rows come in Morton order, so
-    # they are usually near this row's. The nearest is found from the previous row's by
-    # its neighbour list (kdtree.nearest_walk: 85-90 % of rows, same answer), else by
-    # the tree, its search bounded by the nearest point the walk met (a real point at
-    # that distance exists). The bound has a margin above it, so the search still meets
-    # every point at least as near, in its usual order: the answer is the one an
-    # unbounded search gives.
-    prev_near = -1
+    # Each row's nearest gather point first, for all rows (kdtree.nearest_walk: from the
+    # previous row's answer by its neighbour list, 85-90 % of rows, else the tree; rows
+    # come in Morton order, so the previous answer is usually near). The answer is the
+    # one an unbounded tree search gives.
+    near = np.empty(rows.shape[0], np.int64)
+    if P > 0:
+        kdtree.nearest_walk(tree_pos, nodes[0], nodes[1], nodes[2], nbr, reach, p, rows, r2,
+                            WALK_STEPS, near, np.zeros(0, np.bool_))
+    # The previous row's chosen gather point (a seed for the facing search).
     prev_cand = -1
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -757,18 +749,8 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
         c = -1
         if P > 0:
-            settled = False
-            bound = r2
-            if prev_near >= 0:
-                settled, j, _ = kdtree.nearest_walk(tree_pos, nbr, reach, prev_near, qx, qy,
-                                                    qz, r2, WALK_STEPS)
-                if not settled:
-                    bound = min(bound, _seed_bound(tree_pos, j, qx, qy, qz))
-            if not settled:
-                j, _ = kdtree.nearest(tree_pos, nodes[0], nodes[1], nodes[2], qx, qy, qz,
-                                      bound)
+            j = near[r]
             if j >= 0:
-                prev_near = j
                 if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
                         > GATHER_AGREEMENT:
                     c = j
@@ -795,18 +777,36 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
         boundary[i] = E_boundary[c]
         if not want_rays:
             continue
-        _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, nrays)
+        # The ray's ends from scalars (_ray_ends): a kernel called with arrays pays ~14 ns
+        # per array (reference counts) when it is not inlined, ~0.1 us a ray here.
+        ox, oy, oz, dx, dy, dz, t = _ray_ends(
+            qx, qy, qz, nx, ny, nz, _query_lift(lift, i, qx, qy, qz), position[c, 0],
+            position[c, 1], position[c, 2], normal[c, 0], normal[c, 1], normal[c, 2])
+        o32[nrays, 0], o32[nrays, 1], o32[nrays, 2] = ox, oy, oz
+        d32[nrays, 0], d32[nrays, 1], d32[nrays, 2] = dx, dy, dz
+        t32[nrays] = t
         ray_row[nrays] = r
         nrays += 1
     return nrays
 
 
 @kernel
-def _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, slot):
-    """The visibility ray from query p[i] to gather point c into row `slot` of o32 / d32
-    / t32 (float32). Both ends lifted off their surfaces along their normals (shared by
-    agreement) by bounds on their rounding error (engine/rayoffset.py): the query's own
-    offset (lift[i], else 4 float32 ulps of p), and for the gather point (a float32
+def _query_lift(lift, i, qx, qy, qz):
+    """The query's own offset along its normal: lift[i], else (lift empty) 4 float32
+    ulps of p[i] = (qx, qy, qz)."""
+    if lift.shape[0]:
+        return lift[i]
+    return 4.0 * ulp32_scalar(max(abs(qx), abs(qy), abs(qz)))
+
+
+@kernel
+def _ray_ends(qx, qy, qz, nx, ny, nz, la, bx, by, bz, mx, my, mz):
+    """The visibility ray from a query q = (qx, qy, qz) with unit normal (nx, ny, nz) and
+    own offset la (_query_lift) to a gather point b = (bx, by, bz) with normal
+    (mx, my, mz): (origin x, y, z, unit direction x, y, z, length), float64, which the
+    callers store in Embree's float32 arrays. Both ends lifted off their surfaces along
+    their normals (shared by agreement) by bounds on their rounding error
+    (engine/rayoffset.py): the query's own offset, and for the gather point (a float32
     photon position, triangle unknown) its float32 resolution plus the float32 error of
     the ray's length. Full length: a gather point a hair outside a wall is still behind it.
 
@@ -815,17 +815,11 @@ def _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, slot):
     kmax, 200 us). Both ends are also lifted by chord x |n - n_c| / 4, above the chord's
     depth below a sphere through both points with these normals (chord x theta / 8 for
     normals theta apart; 0.11 vs 0.19 chords at the agreement limit). Flat surfaces
-    (equal normals) get no extra lift: a wall still hides the floor behind it."""
-    qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
-    nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
-    if lift.shape[0]:
-        la = lift[i]
-    else:
-        la = 4.0 * ulp32_scalar(max(abs(qx), abs(qy), abs(qz)))
-    bx, by, bz = position[c, 0], position[c, 1], position[c, 2]
+    (equal normals) get no extra lift: a wall still hides the floor behind it.
+    Scalars only: it runs once per lookup (docs/performance.md, "Eighth slice")."""
     ex, ey, ez = bx - qx, by - qy, bz - qz
     chord = math.sqrt(ex * ex + ey * ey + ez * ez)
-    gx, gy, gz = nx - normal[c, 0], ny - normal[c, 1], nz - normal[c, 2]
+    gx, gy, gz = nx - mx, ny - my, nz - mz
     bend = 0.25 * chord * math.sqrt(gx * gx + gy * gy + gz * gz)
     la += bend
     ax, ay, az = qx + la * nx, qy + la * ny, qz + la * nz
@@ -833,13 +827,11 @@ def _write_ray(position, normal, p, n, lift, i, c, o32, d32, t32, slot):
     dist0 = math.sqrt(ex * ex + ey * ey + ez * ez)
     lb = (4.0 * ulp32_scalar(max(abs(bx), abs(by), abs(bz))) + 2.0 * G32_PLANE * dist0
           + bend)
-    bx, by, bz = bx + lb * normal[c, 0], by + lb * normal[c, 1], bz + lb * normal[c, 2]
+    bx, by, bz = bx + lb * mx, by + lb * my, bz + lb * mz
     wx, wy, wz = bx - ax, by - ay, bz - az
     dist = math.sqrt(wx * wx + wy * wy + wz * wz)
     inv = max(dist, 1e-300)
-    o32[slot, 0], o32[slot, 1], o32[slot, 2] = ax, ay, az
-    d32[slot, 0], d32[slot, 1], d32[slot, 2] = wx / inv, wy / inv, wz / inv
-    t32[slot] = dist
+    return ax, ay, az, wx / inv, wy / inv, wz / inv, dist
 
 
 @kernel
@@ -871,8 +863,17 @@ def _list_rays(position, normal, p, n, lift, rows, lists, counts, pending, nxt, 
     k = 0
     for q in range(pending.shape[0]):
         r = pending[q]
+        i = rows[r]
+        qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+        la = _query_lift(lift, i, qx, qy, qz)
         for e in range(nxt[r], min(nxt[r] + batch, counts[r])):
-            _write_ray(position, normal, p, n, lift, rows[r], lists[r, e], o32, d32, t32, k)
+            c = lists[r, e]
+            ox, oy, oz, dx, dy, dz, t = _ray_ends(
+                qx, qy, qz, n[i, 0], n[i, 1], n[i, 2], la, position[c, 0], position[c, 1],
+                position[c, 2], normal[c, 0], normal[c, 1], normal[c, 2])
+            o32[k, 0], o32[k, 1], o32[k, 2] = ox, oy, oz
+            d32[k, 0], d32[k, 1], d32[k, 2] = dx, dy, dz
+            t32[k] = t
             slot[k] = e
             k += 1
     return k
@@ -914,7 +915,7 @@ def _seed_bound(tree_pos, j, qx, qy, qz):
     dx = qx - np.float64(tree_pos[j, 0])
     dy = qy - np.float64(tree_pos[j, 1])
     dz = qz - np.float64(tree_pos[j, 2])
-    return (dx * dx + dy * dy + dz * dz) * (1.0 + 1e-9) + 1e-300
+    return kdtree.seed_bound(dx * dx + dy * dy + dz * dz)
 
 
 @register_warm_up

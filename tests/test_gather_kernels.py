@@ -1,7 +1,9 @@
 """The final gather's bookkeeping kernels (engine/gatherkernels.py) against the numpy
 gather_indirect they replaced, kept here as the oracle: the same irradiance, bit for bit,
 with the recursion (regathers at boundaries and short rays) and specular continuations
-(per-ray classes) exercised; and each kernel against its numpy expression."""
+(per-ray classes) exercised; and each kernel against its numpy expression. The lean
+hits (plain diffuse materials: no closures' set-up, no continuation) against the full
+set-up of the same materials."""
 import math
 
 import numpy as np
@@ -10,7 +12,12 @@ import pytest
 from engine import RenderSettings
 from engine.api import cornell_box
 from engine.bsdf import lobe_weights, surface_hit
-from engine.gatherkernels import add_gathered, diffuse_lookups, keep_hits
+from engine.camerakernels import choose_lobes, hit_closures
+from engine.closures import principled as pr
+from engine.gatherkernels import (add_gathered, diffuse_lookups, keep_hits, lean_diffuse,
+                                  lean_materials)
+from engine.geometry import MaterialTable
+from engine.scene import Material
 from engine.integrator import (MAX_GATHER_LEVEL, Counters, _secondary_irradiance,
                                continue_specular, direct_irradiance, gather_indirect)
 from engine.camerakernels import gather_rays
@@ -171,4 +178,82 @@ def test_diffuse_rows_and_accumulation_match_numpy():
     keep = np.setdiff1d(np.arange(k), expect)
     want = E0.copy()
     want[idx[dsel[keep]]] += tp[dsel[keep]] * wd[dsel[keep]] * Ey[keep] / 3
+    assert np.array_equal(got, want)
+
+
+def _lean_cases():
+    """Materials (name, Material, lean?) covering each feature that makes a hit need the
+    full closures."""
+    grey = (0.6, 0.5, 0.4)
+    return [
+        ("lambert", Material("lambert", base_color=grey), True),
+        ("lambert_dark", Material("lambert_dark", base_color=(0.0, 0.0, 0.0)), True),
+        ("bright", Material("bright", base_color=(1.5, 0.2, 0.7), roughness=0.7), True),
+        ("metal", Material("metal", base_color=grey, metallic=0.5), False),
+        ("glass", Material("glass", transmission=1.0), False),
+        ("spec", Material("spec", base_color=grey, specular=1.0), False),
+        ("coat", Material("coat", base_color=grey, coat_weight=0.3), False),
+        ("sheen", Material("sheen", base_color=grey, sheen_weight=0.3), False),
+        ("alpha", Material("alpha", base_color=grey, alpha=0.5), False),
+        ("emitter", Material("emitter", base_color=grey, emission=(1.0, 1.0, 1.0)), False),
+        ("textured", Material("textured", base_color=grey,
+                              texture=np.full((2, 2, 3), 0.5)), False),
+    ]
+
+
+def test_lean_materials_are_one_lambert_lobe():
+    """Every material lean_materials calls lean has, from any view and side, the full
+    set-up's (camerakernels.hit_closures) diffuse weight bit for bit and no other lobe to
+    continue through (choose_lobes' psum 0); every other case is not lean."""
+    cases = _lean_cases()
+    table = MaterialTable.build([m for _, m, _ in cases])
+    lean = lean_materials(table)
+    assert lean.tolist() == [want for _, _, want in cases]
+    rng = np.random.default_rng(4)
+    n = 4000
+    mat = rng.integers(0, len(cases), n).astype(np.int32)
+    ng = uniform_sphere(rng.random(n), rng.random(n))
+    ns = ng + 0.3 * uniform_sphere(rng.random(n), rng.random(n))
+    ns /= np.linalg.norm(ns, axis=1)[:, None]
+    wo = uniform_sphere(rng.random(n), rng.random(n))
+    front = rng.random(n) < 0.7
+    base = np.take(table.base_color, mat, axis=0)
+    prm, albedo = np.empty((n, pr.N_PACK)), np.empty((n, pr.N_LOBES, 3))
+    hit_closures(ns, ng, wo, mat, table.closure_params, False, base, front,
+                 np.ascontiguousarray(table.alpha, np.float64), np.zeros(0), prm, albedo)
+    sel, q, p, psum = np.empty((n, pr.N_LOBES)), np.empty(n), np.empty((n, pr.N_LOBES - 1)), \
+        np.empty(n)
+    choose_lobes(albedo, np.ones((n, 3)), sel, q, p, psum)
+    wd = np.full((n, 3), -1.0)
+    full = np.empty(n, np.int64)
+    k = lean_diffuse(mat, base, lean, np.ascontiguousarray(table.alpha, np.float64), wd, full)
+    is_lean = lean[mat]
+    assert np.array_equal(full[:k], np.nonzero(~is_lean)[0])
+    assert np.array_equal(wd[is_lean], albedo[is_lean, pr.L_DIFFUSE])
+    assert not (albedo[is_lean, 1:] != 0).any() and not (psum[is_lean] > 0).any()
+    assert (wd[~is_lean] == -1.0).all()  # left for the full set-up
+    # The layered cases do have another lobe to continue through, from most views.
+    for case in range(3, 9):
+        assert (psum[mat == case] > 0).mean() > 0.5, cases[case][0]
+    # No lean material: the general path.
+    assert lean_materials(MaterialTable.build([cases[3][1], cases[4][1]])) is None
+
+
+def test_gather_indirect_with_only_lean_or_no_lean_hits(box, monkeypatch):
+    """The lean split at its ends: hits on lean surfaces only (the box's walls; their gather
+    rays still meet the glass ball), and the same gather with the split switched off
+    (every hit takes the full set-up, as before it): the numpy oracle's irradiance, bit
+    for bit."""
+    ctx = box
+    hit = _hits(ctx, 3000, seed=12)
+    walls = np.nonzero(lean_materials(ctx.table)[hit.mat])[0]
+    assert 0 < len(walls) < len(hit.p)
+    want = _gather_indirect_numpy(ctx, hit.take(walls), np.random.default_rng(6), Counters(),
+                                  log={"regathered": 0, "per_ray_steps": 0})
+    got = gather_indirect(ctx, hit.take(walls), np.random.default_rng(6), Counters())
+    assert np.array_equal(got, want)
+    want = _gather_indirect_numpy(ctx, hit, np.random.default_rng(7), Counters(),
+                                  log={"regathered": 0, "per_ray_steps": 0})
+    monkeypatch.setattr("engine.integrator.lean_materials", lambda table: None)
+    got = gather_indirect(ctx, hit, np.random.default_rng(7), Counters())
     assert np.array_equal(got, want)
