@@ -90,8 +90,12 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             if sampler is not None:
                 u1, u2 = sampler.uv(("light", 0, si))
                 # The tree's choice stratified over the pixel's samples: the 2-D cell
-                # read as one of m^2 strata in 1-D.
-                c1, c2 = sampler.uv(("light-select", si))
+                # read as one of m^2 strata in 1-D. Scrambled: with the linear cell
+                # shift its pairing with the pixel jitter and the light's point was the
+                # same in every pixel and seed, a bias no seed averaged away (a diffuse
+                # floor under 200 small area lights: +0.49 % against every light
+                # sampled, 18 standard errors over 6 seeds at 16 spp; now -0.03 %).
+                c1, c2 = sampler.uv(("light-select", si), scrambled=True)
                 choose = np.minimum((np.floor(c2 * sampler.m) + c1) / sampler.m, ONE_BELOW)
             else:
                 u1, u2, choose = rng.random((3, n))  # one draw: the same numbers
@@ -933,11 +937,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             mask, tl, L = light.intersect(o, d, t)
             if L is not None and mask.any():
                 mask &= sees
-                if bounce > 0 and modes[li] == MODE_MIS and mask.any():
-                    L = L * _mis_weight(ctx, li, light, o, d, tl, pdf_b, org_ns,
-                                        org_p)[:, None]
                 rows = np.nonzero(mask)[0]
-                acc.add(target, pix, L[rows], tp, rows)
+                L = L[rows]
+                if bounce > 0 and modes[li] == MODE_MIS and len(rows):
+                    # The rays that met the light only (with the light tree each takes
+                    # a walk down the tree per light for its choice probability).
+                    L = L * _mis_weight(ctx, li, light, o[rows], d[rows], tl[rows],
+                                        pdf_b[rows], org_ns[rows], org_p[rows])[:, None]
+                acc.add(target, pix, L, tp, rows)
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1

@@ -147,8 +147,10 @@ def test_world_mis_with_the_light_tree(mat, request):
     cont, cont2 = _render(plain, 64, 1), _render(plain, 64, 2)
     noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
     # (The continuation's first lobe directions are stratified over the pixel's samples:
-    # it alone is far calmer than it was, 0.60 here; the tree's light sampling 0.46.)
-    assert noise_mis < 0.8 * noise_cont, (noise_mis, noise_cont)
+    # it alone is far calmer than it was, 0.56 here (dielectric); the tree's light
+    # sampling 0.46, 0.47 since the tree's choice is paired with the pixel's other
+    # dimensions at random (a fixed pairing biased the tree: integrator.direct_irradiance).)
+    assert noise_mis < 0.9 * noise_cont, (noise_mis, noise_cont)
     m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
     se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
     assert m_mis > 0
