@@ -14,7 +14,7 @@ light sample and its BSDF sample by MIS), now two shadow rays: 1.23x and 1.12x, 
 asserted (the dielectric too close to the bound). Under 20 small area lights or 20 point
 lights with a radius (the light tree picks one per shadow ray) the rough metal was 2.96x
 and 4.67x Cycles' noise while the glossy lobes saw those lights by their continuation
-alone; with MIS against the tree's choice (issue 14) 0.93x and 0.95x."""
+alone; with MIS against the tree's choice (issue 14) 0.87x and 0.92x."""
 import json
 import os
 import sys
