@@ -249,8 +249,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     light without size) for BSDF evaluation and multiple importance sampling (the area
     lights' pdf is of the whole light, also with spread; for a light the tree picked, the
     light's pdf times the choice's probability, -1 for a constant-colour world, which the
-    glossy lobes leave to their continuation), bump (j,) Cycles' bump
-    shadowing of the diffuse lobe (normalmap.bump_shadowing_term; light from below the
+    glossy lobes leave to their continuation), bump (j,) Cycles' bump shadowing of the
+    diffuse lobe (normalmap.bump_shadowing_term; light from below the
     smooth surface, refused for every lobe, makes no entry); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
     n = p.shape[0]
@@ -606,9 +606,8 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
     0 = the glossy part is left to the continuation; 3 = a light the light tree picked per
     hit: 1 for a light without size (lpdf inf), 2 for a light with a size (lpdf > 0, the
     choice's probability included), 0 for a constant-colour world (lpdf -1). contrib
-    already holds cos(wi) (with
-    the shading offset), so the glossy term is eval / cos(wi); bump (j,) dims the diffuse
-    f alone (Cycles' bump shadowing term)."""
+    already holds cos(wi) (with the shading offset), so the glossy term is eval / cos(wi);
+    bump (j,) dims the diffuse f alone (Cycles' bump shadowing term)."""
     for j in range(m_all):
         r = ray[j]
         if r >= 0 and blocked[r]:
