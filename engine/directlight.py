@@ -247,10 +247,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced), wdir (j,3) the
     unit direction towards the light sample and lpdf (j,) its solid-angle pdf (inf for a
     light without size) for BSDF evaluation and multiple importance sampling (the area
-    lights' pdf is of the whole light, also with spread; for a light the tree picked, an
-    environment-mapped world's pdf times the choice's probability, -1 for the other
-    lights with a size, which the glossy lobes leave to their continuation), bump (j,) Cycles' bump
-    shadowing of the diffuse lobe (normalmap.bump_shadowing_term; light from below the
+    lights' pdf is of the whole light, also with spread; for a light the tree picked, the
+    light's pdf times the choice's probability, -1 for a constant-colour world, which the
+    glossy lobes leave to their continuation), bump (j,) Cycles' bump shadowing of the
+    diffuse lobe (normalmap.bump_shadowing_term; light from below the
     smooth surface, refused for every lobe, makes no entry); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
     n = p.shape[0]
@@ -519,11 +519,13 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
             contrib[j, 0], contrib[j, 1], contrib[j, 2] = e0, e1, e2
             wdir[j, 0], wdir[j, 1], wdir[j, 2] = w0, w1, w2
             if chosen and lp != np.inf:
-                # Picked by the tree: an environment-mapped world takes MIS with the
-                # lobes' continuation (its pdf times the choice's probability, as the
-                # continuation computes it: integrator._mis_weight); other lights with a
-                # size are left to the continuation (-1).
-                lp = lp * pmf if (code == C_WORLD and q[ENV_ON] != 0.0) else -1.0
+                # Picked by the tree: a light with a size takes MIS with the lobes'
+                # continuation, its pdf times the choice's probability at this point and
+                # shading normal (as the continuation computes it: integrator._mis_weight,
+                # _mesh_mis_weight; Cycles' light_tree_pdf, pbrt-v4's
+                # BVHLightSampler::PMF); a constant-colour world is left to the
+                # continuation (-1), as without the tree (integrator.light_modes).
+                lp = -1.0 if (code == C_WORLD and q[ENV_ON] == 0.0) else lp * pmf
             lpdf[j] = lp
             bump[j] = bd
             row[j] = i
@@ -602,10 +604,10 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
     sampling pdf (principled.bsdf_pdf with the continuation's lobe-choice probabilities
     sel (N, N_LOBES)), lpdf the light sample's solid-angle pdf, ksamples its sample count;
     0 = the glossy part is left to the continuation; 3 = a light the light tree picked per
-    hit: 1 for a light without size (lpdf inf), 2 for an environment-mapped world (lpdf
-    > 0, the choice's probability included), else 0. contrib already holds cos(wi) (with
-    the shading offset), so the glossy term is eval / cos(wi); bump (j,) dims the diffuse
-    f alone (Cycles' bump shadowing term)."""
+    hit: 1 for a light without size (lpdf inf), 2 for a light with a size (lpdf > 0, the
+    choice's probability included), 0 for a constant-colour world (lpdf -1). contrib
+    already holds cos(wi) (with the shading offset), so the glossy term is eval / cos(wi);
+    bump (j,) dims the diffuse f alone (Cycles' bump shadowing term)."""
     for j in range(m_all):
         r = ray[j]
         if r >= 0 and blocked[r]:
@@ -617,9 +619,9 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
         f0, f1, f2 = fd[i, 0] * bd, fd[i, 1] * bd, fd[i, 2] * bd
         mode = kmode[k]
         if mode == 3:
-            # A light the tree picked for this hit: a delta light (lpdf inf) in full, an
-            # environment-mapped world (lpdf > 0: its pdf x the tree's choice) by MIS,
-            # other lights with a size left to the continuation (integrator.light_modes).
+            # A light the tree picked for this hit: a delta light (lpdf inf) in full, a
+            # light with a size (lpdf > 0: its pdf x the tree's choice) by MIS, a
+            # constant-colour world left to the continuation (integrator.light_modes).
             mode = 1 if lpdf[j] == np.inf else (2 if lpdf[j] > 0.0 else 0)
         if mode != 0:
             n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]

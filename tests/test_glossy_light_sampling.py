@@ -147,8 +147,10 @@ def test_world_mis_with_the_light_tree(mat, request):
     cont, cont2 = _render(plain, 64, 1), _render(plain, 64, 2)
     noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
     # (The continuation's first lobe directions are stratified over the pixel's samples:
-    # it alone is far calmer than it was, 0.60 here; the tree's light sampling 0.46.)
-    assert noise_mis < 0.8 * noise_cont, (noise_mis, noise_cont)
+    # it alone is far calmer than it was, 0.56 here (dielectric); the tree's light
+    # sampling 0.46, 0.47 since the tree's choice is paired with the pixel's other
+    # dimensions at random (a fixed pairing biased the tree: integrator.direct_irradiance).)
+    assert noise_mis < 0.9 * noise_cont, (noise_mis, noise_cont)
     m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
     se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
     assert m_mis > 0
@@ -187,3 +189,105 @@ def test_every_ray_that_meets_a_point_light_with_a_radius_has_its_light_pdf():
     # The shadow rays' pdf is that of a uniform point on the disk facing o: t^2 / (A cos).
     cos_l = -np.einsum("ij,ij->i", d[mask], (o[mask] - light.pos) / dist[mask])
     assert np.allclose(pdf, t[mask] ** 2 / (np.pi * light.radius ** 2 * cos_l), rtol=1e-9)
+
+
+def _many_lights_scene(material, kind, count=20):
+    """The rough floor under `count` small lights with a size (more than the light tree's
+    threshold): area lights tilted towards the camera's mirror direction, or point lights
+    with a radius, in a 5 x 4 grid above the floor's highlight."""
+    s = PaperScene(width=24, height=24)
+    s.add_material(material)
+    s.add_plane((0, 0, 0), (0, 0, 1), 12.0, material.name, name="floor")
+    for i in range(count):
+        pos = (0.4 + 0.45 * (i % 5), -0.9 + 0.6 * (i // 5), 1.5)
+        if kind == "area":
+            s.add_rect_area_light(pos, size=(0.25, 0.25), power=20.0,
+                                  direction=(-0.5, 0.0, -1.0))
+        else:
+            s.add_point_light(pos, power=20.0, radius=0.12)
+    s.set_camera((-2.5, 0.0, 2.0), (0.3, 0.0, 0.0), up=(0, 0, 1), view_angle=40.0)
+    return s
+
+
+@pytest.fixture
+def tree_continuation_only(monkeypatch):
+    """With the light tree: the glossy lobes see the lights with a size by their sampled
+    continuation alone, at full weight (the tree's shadow rays light the diffuse lobe
+    only: before issue 14's tree MIS)."""
+    orig = integrator.light_modes
+
+    def modes(ctx):
+        m = orig(ctx)
+        m[m == integrator.MODE_MIS] = integrator.MODE_CONTINUATION
+        return m
+    monkeypatch.setattr(integrator, "light_modes", modes)
+    # The kernel's mode for the tree's choices: the glossy part left to the continuation.
+    monkeypatch.setattr(integrator, "MODE_TREE", integrator.MODE_CONTINUATION)
+
+
+@pytest.mark.parametrize("kind", ["area", "point"])
+@pytest.mark.parametrize("mat", sorted(MATERIALS))
+def test_tree_mis_matches_continuation_with_less_noise(mat, kind, request):
+    """More lights than the tree's threshold (20 small area lights, or point lights with a
+    radius): the tree's shadow rays light the glossy lobes too, weighted by the power
+    heuristic with the tree's choice probability in the light pdf (directlight.
+    sample_lights, integrator._mis_weight). Same mean as the continuation alone over
+    seeds, and much less pixel noise (the continuation alone: speckled highlights)."""
+    from engine.lights.selection import SAMPLE_ALL_UP_TO
+    scene = _many_lights_scene(MATERIALS[mat], kind)
+    assert 20 > SAMPLE_ALL_UP_TO
+    seeds = range(1, 7)
+    mis = [_render(scene, 32, sd) for sd in seeds]
+    request.getfixturevalue("tree_continuation_only")
+    cont = [_render(scene, 32, sd) for sd in seeds]
+    noise_mis = np.std(mis[0] - mis[1])
+    noise_cont = np.std(cont[0] - cont[1])
+    # (Measured: 0.37-0.46 of the continuation's noise, area and point lights, both floors.)
+    assert noise_mis < 0.6 * noise_cont, (noise_mis, noise_cont)
+    # Same mean: image means over the seeds, within 4.5 standard errors of their
+    # difference (the tree's choice of one light of 20 moves an image's mean by ~1 %).
+    m_mis = np.array([im.mean() for im in mis])
+    m_cont = np.array([im.mean() for im in cont])
+    se = math.sqrt(m_mis.var(ddof=1) / len(seeds) + m_cont.var(ddof=1) / len(seeds))
+    assert m_mis.mean() > 0
+    assert abs(m_mis.mean() - m_cont.mean()) <= max(4.5 * se, 0.005 * m_cont.mean()), (
+        m_mis, m_cont, se)
+
+
+@pytest.mark.parametrize("kind", ["area", "point"])
+def test_tree_mis_matches_sampling_every_light(kind, monkeypatch):
+    """The tree's light sampling with MIS against every light sampled with MIS (the
+    threshold raised above the scene's 20 lights): two unbiased estimators of the same
+    image, same mean."""
+    import engine.lights.selection as selection
+    scene = _many_lights_scene(MATERIALS["metal"], kind)
+    seeds = range(1, 9)
+    tree = np.array([_render(scene, 16, sd).mean() for sd in seeds])
+    monkeypatch.setattr(selection, "SAMPLE_ALL_UP_TO", 100)
+    every = np.array([_render(scene, 16, sd).mean() for sd in seeds])
+    se = math.sqrt(tree.var(ddof=1) / len(seeds) + every.var(ddof=1) / len(seeds))
+    assert abs(tree.mean() - every.mean()) <= max(4.5 * se, 0.005 * every.mean()), (
+        tree, every, se)
+
+
+def test_tree_mis_mesh_and_sun_lights():
+    """A mesh light and a sun with an angle among 20 lights (the tree picks them): their
+    continuation's weights take the tree's pmf at the point the ray left
+    (integrator._mesh_mis_weight, _mis_weight), so the image mean agrees with every light
+    sampled."""
+    import engine.lights.selection as selection
+    scene = _scene(MATERIALS["metal"], "mesh")
+    scene.add_sun(direction=(-0.6, 0.0, -0.8), strength=1.0, angle_degrees=8.0)
+    for i in range(19):  # faint point lights with a radius: the tree is on
+        scene.add_point_light((-3.0 + 0.3 * i, 3.0, 2.5), power=1.0, radius=0.1)
+    seeds = range(1, 9)
+    tree = np.array([_render(scene, 16, sd).mean() for sd in seeds])
+    orig = selection.SAMPLE_ALL_UP_TO
+    try:
+        selection.SAMPLE_ALL_UP_TO = 100
+        every = np.array([_render(scene, 16, sd).mean() for sd in seeds])
+    finally:
+        selection.SAMPLE_ALL_UP_TO = orig
+    se = math.sqrt(tree.var(ddof=1) / len(seeds) + every.var(ddof=1) / len(seeds))
+    assert abs(tree.mean() - every.mean()) <= max(4.5 * se, 0.005 * every.mean()), (
+        tree, every, se)

@@ -197,7 +197,8 @@ def test_glossy_lobes_see_many_point_lights_as_they_see_a_few(monkeypatch):
     """A rough metal floor and a Principled ball under 24 point lights and an area light:
     with the tree, the lobes' highlights from the point lights come from the shadow rays
     (no continuation can meet a light without size), those from the area light from the
-    continuation; the image matches sampling every light."""
+    continuation and the tree's shadow rays weighted by MIS (the tree's choice probability
+    in the light pdf); the image matches sampling every light."""
     def scene():
         rng = np.random.default_rng(7)
         s = PaperScene(24, 18, background=(0.0, 0.0, 0.0))
@@ -219,3 +220,29 @@ def test_glossy_lobes_see_many_point_lights_as_they_see_a_few(monkeypatch):
     assert abs(tree.mean() / every.mean() - 1.0) < 0.02
     blocks = lambda a: a.reshape(3, 6, 4, 6, 3).mean(axis=(1, 3))  # noqa: E731
     assert np.allclose(blocks(tree), blocks(every), rtol=0.08, atol=0.005)
+
+
+def test_stratified_tree_choice_is_unbiased(monkeypatch):
+    """The tree's choice is stratified over a pixel's samples: its pairing with the pixel
+    jitter and the light's point must differ from pixel to pixel and seed to seed, or the
+    pixel's estimate is biased however many seeds are averaged (a diffuse floor under 200
+    small area lights read +0.49 % against every light sampled at 16 spp: 18 standard
+    errors over 6 seeds; integrator.direct_irradiance)."""
+    s = PaperScene(48, 36, background=(0.0, 0.0, 0.0))
+    s.add_plane((0, 0, 0), (0, 0, 1), 12.0, Material("grey", (0.5, 0.5, 0.5)), name="floor")
+    for i in range(200):
+        s.add_rect_area_light((0.4 + 2.0 * (i % 15) / 15, -1.0 + 2.0 * (i // 15) / 15, 1.5),
+                              size=(0.1, 0.1), power=2.0, direction=(-0.5, 0.0, -1.0))
+    s.set_camera((-2.5, 0.0, 2.0), (0.3, 0.0, 0.0), up=(0, 0, 1), view_angle=40.0)
+    seeds = range(1, 7)
+
+    def means():
+        return np.array([s.render(RenderSettings(spp=16, photon_mapping=False, seed=sd,
+                                                 workers=1)).combined.mean() for sd in seeds])
+    tree = means()
+    monkeypatch.setattr(selection, "SAMPLE_ALL_UP_TO", 1000)
+    every = means()
+    se = math.sqrt(tree.var(ddof=1) / len(seeds) + every.var(ddof=1) / len(seeds))
+    assert abs(tree.mean() - every.mean()) < max(4.5 * se, 1e-4 * every.mean()), (
+        tree, every, se)
+    assert abs(tree.mean() / every.mean() - 1.0) < 0.002, (tree.mean(), every.mean())

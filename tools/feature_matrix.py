@@ -269,6 +269,24 @@ def light_many_points():
                  shadow_soft_size=0.0)
 
 
+@case("lights", ours=dict(spp=64), block_tol=0.35)
+def light_many_area_glossy():
+    """24 small area lights (more than the engine samples one by one) over a rough metal
+    floor and a rough Principled ball: the light tree picks one per shadow ray, and the
+    glossy highlights take it by MIS with the tree's choice probability in the light pdf
+    (docs/lights.md, "Glossy lobes under many lights"); 64 spp as light_many_points."""
+    _stage(back=False)
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials[0] = mb.material("metalfloor", "principled", (0.8, 0.7, 0.6),
+                                          roughness=0.3, metallic=1.0)
+    mb.sphere("Ball", 0.6, mb.material("ball", "principled", (0.3, 0.4, 0.7), roughness=0.35),
+              (0.6, 0.5, 0.6), segments=32, rings=16)
+    for k in range(24):
+        x, y = -2.0 + 0.8 * (k % 6), 0.6 + 0.6 * (k // 6)
+        mb.light(f"A{k:02d}", "AREA", (x, y, 2.2), 25.0, look_at=(0.4 * x, -1.0, 0.0),
+                 shape="SQUARE", size=0.25)
+
+
 # --- camera ----------------------------------------------------------------------------
 
 def _camera_scene():

@@ -1,6 +1,8 @@
 """Glossy noise against Cycles at equal samples (issue 14): a rough metal ball and a
 Principled dielectric ball on a grey floor, lit by one light at a time (an area light, an
-emissive mesh panel, a point light with a radius, a constant world). For each renderer two
+emissive mesh panel, a point light with a radius, a constant world) or by 20 small area
+lights / 20 point lights with a radius sharing the same power (more than the light tree's
+threshold: both renderers pick lights with their light trees). For each renderer two
 renders at SPP samples with different seeds: the pixel noise of an object is the std of
 their difference over its pixels / sqrt(2); the mean is over its pixels (Cycles' at
 REF_SPP samples). Needs the bpy wheel.
@@ -8,6 +10,8 @@ REF_SPP samples). Needs the bpy wheel.
     .venv/bin/python tools/glossy_noise.py              table: ours / Cycles noise, means
     .venv/bin/python tools/glossy_noise.py --references  writes Cycles' numbers to
                                                          tests/references/glossy_noise.json
+    .venv/bin/python tools/glossy_noise.py --references --lights area20,point20
+                                                         ... of these lights only (merged)
 (tests/blender/test_glossy_noise_cycles.py compares ours with them.)
 """
 from __future__ import annotations
@@ -29,7 +33,8 @@ import bpy  # noqa: E402
 mb = acc.mb
 W, H = 96, 72
 OBJECTS = ("Metal", "Dielectric", "Floor")
-LIGHTS = ("area", "mesh", "point", "world")
+LIGHTS = ("area", "mesh", "point", "world", "area20", "point20")
+MANY = 20  # lights of the area20 / point20 scenes
 SPP, REF_SPP = 16, 256
 REF_PATH = os.path.join(ROOT, "tests", "references", "glossy_noise.json")
 
@@ -69,6 +74,15 @@ def build(light, metal_rough=0.3, diel_rough=0.2):
         obj = mb.add_object("Panel", me, m, (-1.0, -2.0, 3.0))
         d = Vector((0, 0, 0.5)) - Vector((-1.0, -2.0, 3.0))
         obj.rotation_euler = (-d).to_track_quat("Z", "Y").to_euler()
+    elif light in ("area20", "point20"):
+        # A 5 x 4 grid of small lights round the single light's place, 200 W in all.
+        for i in range(MANY):
+            loc = (-1.0 + 0.35 * (i % 5 - 2), -2.0, 3.0 + 0.35 * (i // 5 - 1.5))
+            if light == "area20":
+                mb.light(f"Lamp{i}", "AREA", loc, 200.0 / MANY, look_at=(0, 0, 0.5),
+                         shape="SQUARE", size=0.2)
+            else:
+                mb.light(f"Lamp{i}", "POINT", loc, 200.0 / MANY, shadow_soft_size=0.08)
     elif light == "world":
         bg.inputs["Color"].default_value = (0.6, 0.6, 0.6, 1.0)
     else:
@@ -131,10 +145,14 @@ def measure(light, engine, spp=SPP, seeds=(1, 2), **overrides):
     return out
 
 
-def references():
-    """Cycles' noise at SPP (seeds 1, 2) and mean at REF_SPP (seed 3) per light and object."""
+def references(lights=LIGHTS):
+    """Cycles' noise at SPP (seeds 1, 2) and mean at REF_SPP (seed 3) per light and object,
+    for `lights` (the others' stored numbers are kept)."""
     ref = {"width": W, "height": H, "spp": SPP, "ref_spp": REF_SPP, "lights": {}}
-    for light in LIGHTS:
+    if os.path.exists(REF_PATH):
+        with open(REF_PATH) as f:
+            ref["lights"] = json.load(f)["lights"]
+    for light in lights:
         noisy = measure(light, "cycles")
         conv = measure(light, "cycles", REF_SPP, seeds=(3, 4))
         ref["lights"][light] = {name: {"noise": noisy[name][0], "mean": conv[name][1]}
@@ -151,7 +169,7 @@ def main(argv=None):
     ap.add_argument("--no-photons", action="store_true", help="ours with photon_mapping off")
     args = ap.parse_args(argv)
     if args.references:
-        references()
+        references(args.lights.split(","))
     with open(REF_PATH) as f:
         ref = json.load(f)
     over = {"photon_mapping": False} if args.no_photons else {}

@@ -11,7 +11,10 @@ emissive panel and 1.05x under the area light (unstratified lobe directions and 
 choice); under a constant world the dielectric ball was 1.57x and the floor 1.37x (one
 cosine-weighted shadow ray per sample for the world, where Cycles spends two samples: its
 light sample and its BSDF sample by MIS), now two shadow rays: 1.23x and 1.12x, not
-asserted (the dielectric too close to the bound)."""
+asserted (the dielectric too close to the bound). Under 20 small area lights or 20 point
+lights with a radius (the light tree picks one per shadow ray) the rough metal was 2.96x
+and 4.67x Cycles' noise while the glossy lobes saw those lights by their continuation
+alone; with MIS against the tree's choice (issue 14) 0.87x and 0.92x."""
 import json
 import os
 import sys
@@ -28,7 +31,8 @@ with open(REF_PATH) as f:
 
 # Objects whose noise must be within 1.25x Cycles' (the issue's ~1.2x), per light.
 NOISE_CHECKED = {"area": ("Metal", "Dielectric"), "mesh": ("Metal", "Dielectric"),
-                 "point": ("Metal", "Dielectric"), "world": ("Metal",)}
+                 "point": ("Metal", "Dielectric"), "world": ("Metal",),
+                 "area20": ("Metal", "Dielectric"), "point20": ("Metal", "Dielectric")}
 
 
 @pytest.fixture(scope="module")
