@@ -79,7 +79,8 @@ class SurfaceHit:
     params: np.ndarray | None = None  # (N, principled.N_MAT) closure parameters per hit
                           # where a material has texture-driven scalar inputs
                           # (textures.scalar_params); None: the materials' rows
-    emission: np.ndarray | None = None  # (N,3) emitted radiance (emission textures applied)
+    emission: np.ndarray | None = None  # (N,3) emitted radiance (emission textures applied;
+                          # a read-only zero-stride view of zeros when no material emits)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -177,7 +178,13 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=offset, bary=bary, alpha=alpha,
                       n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v),
-                      emission=hit_emission(table, sg, mat, prim, u, v))
+                      emission=(hit_emission(table, sg, mat, prim, u, v)
+                                if table.emission.any() else np.broadcast_to(_NO_LIGHT, (n, 3))))
+
+
+# Emission rows where no material emits: one zero row seen N times (nothing to gather).
+_NO_LIGHT = np.zeros(3)
+_NO_LIGHT.flags.writeable = False
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):

@@ -22,6 +22,9 @@ two Embree calls for every hit of a camera, gather or specular ray.
 - `keep_path_hits` (sixth slice): the camera paths whose ray met a surface, compacted
   (integrator._trace_paths' state after each Embree call).
 - `film_add` (sixth slice): the Accumulator's RGB scatter-add, throughput factor included.
+- `shade_lobes` (eighth slice): one camera bounce's closures, lobe choice, glossy rows and
+  the rows to shade in one pass, writing only what the bounce reads (a diffuse-only
+  material skips the closures' set-up; lobe albedos stay in a scratch row).
 
 Every kernel computes the same floating-point operations in the same order as the numpy
 stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py and
@@ -36,7 +39,7 @@ import math
 import numpy as np
 
 from .closures import principled as pr
-from .directlight import _to_world
+from .directlight import _npmax, _to_world
 from .jit import kernel, register_warm_up
 from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
 
@@ -191,26 +194,114 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
     alpha; hit_alpha (N,) per-hit alpha (alpha textures) or (0,): the materials'.
     Out: prm (N, N_PACK), albedo (N, N_LOBES, 3). Same operations in the same order as
     the numpy set-up it replaced (tests/test_camera_kernels.py)."""
-    n = ns.shape[0]
-    cos_o = np.empty(n)
-    for i in range(n):
-        cos_o[i] = _view_cosine(ns, wo, i)
-    local = np.zeros((n, 3))
-    pr.glossy_normals(ns, ng, wo, local, cos_o)
-    rows = np.empty(n, np.int64)
-    alpha = np.empty(n)
     per_hit_alpha = hit_alpha.shape[0] > 0
+    for i in range(ns.shape[0]):
+        r = i if per_hit else mat[i]
+        a = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
+        _closure_row(ns, ng, wo, params, r, base, front[i], a, prm, i, albedo[i])
+
+
+@kernel
+def _closure_row(ns, ng, wo, params, r, base, front, a, prm, i, w):
+    """hit_closures for hit i with material row r and alpha a: writes prm[i] and w
+    (N_LOBES, 3) its lobes' albedo estimates. The view cosine ns . wo, raised to Cycles'
+    glossy normal where that applies (not for glass rows), then principled.setup_row, then
+    the glossy normal into prm's P_GN columns (zeros: ns itself)."""
+    cos_o = _view_cosine(ns, wo, i)
+    l0 = l1 = l2 = 0.0
+    if not params[r, pr.M_TRANS] > 0:
+        raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
+        if raised:
+            l0, l1, l2, cos_o = g0, g1, g2, c
+    pr.setup_row(params[r], base, cos_o, front, a, prm, i, w)
+    prm[i, pr.P_GN] = l0
+    prm[i, pr.P_GN + 1] = l1
+    prm[i, pr.P_GN + 2] = l2
+
+
+@kernel
+def _diffuse_only(params, r):
+    """Material row r has the diffuse and pass lobes alone: principled.setup_row would
+    skip its sheen, coat, metal, glass and specular layers (each needs a weight > 0) and
+    leave every packed column 0 (photonkernels.plain_materials, per row)."""
+    return not (params[r, pr.M_SHEEN_W] > 0.0 or params[r, pr.M_COAT_W] > 0.0
+                or params[r, pr.M_METALLIC] > 0.0 or params[r, pr.M_TRANS] > 0.0
+                or params[r, pr.M_SPEC] > 0.0)
+
+
+@kernel
+def _max3(a, b, c):
+    """sampling.max3 of one row (np.maximum: NaN wins)."""
+    return _npmax(_npmax(a, b), c)
+
+
+@kernel
+def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha, tp,
+                want_glossy, prm, sel, q, p, psum, glossy, rows, wd):
+    """One camera bounce's lobes in one pass over N hits (hit_closures, choose_lobes, the
+    glossy rows of integrator.light_modes and the rows the diffuse stage shades), with
+    only what the bounce reads written to memory.
+
+    Inputs as hit_closures takes them, plus tp (N,3) path throughputs and want_glossy
+    (bool: some light takes glossy shadow rays, integrator._glossy_rows).
+    prm (N, N_PACK), sel (N, N_LOBES), p (N, N_LOBES - 1) must come zero-filled
+    (np.zeros): a hit whose material has the diffuse and pass lobes alone skips the
+    closures' set-up (its packed row is all 0 but the glossy normal), and p, sel are
+    written only where psum > 0 (the rows a continuation may pick; zero elsewhere, as
+    choose_lobes writes them). The lobe albedos stay in a per-hit scratch row. When some
+    hit is glossy (the direct stage then reads every shaded row's prm), the skipped rows'
+    glossy normals are written too, so prm equals hit_closures' everywhere.
+    Out: q, psum (N,) as choose_lobes; glossy (N,) bool (principled.has_rough_reflection,
+    False unless want_glossy); rows (K,) the hits with a diffuse albedo (max3 > 0) or a
+    glossy lobe, in order, and wd (K,3) their diffuse albedo. Returns K. Same
+    floating-point operations as the kernels it fuses (tests/test_fused_camera.py)."""
+    n = ns.shape[0]
+    k_lobes = pr.N_LOBES - 1
+    w = np.empty((pr.N_LOBES, 3))
+    m = np.empty(k_lobes)
+    per_hit_alpha = hit_alpha.shape[0] > 0
+    set_up = np.zeros(n, np.bool_)
+    any_glossy = False
+    k = 0
     for i in range(n):
         r = i if per_hit else mat[i]
-        rows[i] = r
-        if params[r, pr.M_TRANS] > 0:
-            local[i, 0], local[i, 1], local[i, 2] = 0.0, 0.0, 0.0
-            cos_o[i] = _view_cosine(ns, wo, i)
-        alpha[i] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
-    pr.setup(rows, params, base, cos_o, front, alpha, prm, albedo)
-    for i in range(n):
-        for c in range(3):
-            prm[i, pr.P_GN + c] = local[i, c]
+        a = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
+        gl = False
+        if _diffuse_only(params, r):
+            # setup_row's albedos for such a material, bit for bit (W stays a).
+            for lb in range(pr.N_LOBES):
+                for c in range(3):
+                    w[lb, c] = 0.0
+            for c in range(3):
+                w[pr.L_PASS, c] = (1.0 - a) * params[r, pr.M_TTINT + c]
+                w[pr.L_DIFFUSE, c] = a * base[i, c]
+        else:
+            _closure_row(ns, ng, wo, params, r, base, front[i], a, prm, i, w)
+            set_up[i] = True
+            if want_glossy:
+                gl = pr.has_rough_reflection(prm, i)
+        s, qi = _choose_row(w, tp[i, 0], tp[i, 1], tp[i, 2], m)
+        psum[i] = s
+        q[i] = qi
+        if s > 0:
+            for j in range(k_lobes):
+                p[i, j] = m[j]
+                sel[i, j + 1] = m[j] / s * qi
+        glossy[i] = gl
+        any_glossy = any_glossy or gl
+        if _max3(w[0, 0], w[0, 1], w[0, 2]) > 0 or gl:
+            rows[k] = i
+            wd[k, 0], wd[k, 1], wd[k, 2] = w[0, 0], w[0, 1], w[0, 2]
+            k += 1
+    if any_glossy:
+        for i in range(n):
+            if not set_up[i]:
+                raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
+                if raised:
+                    prm[i, pr.P_GN] = g0
+                    prm[i, pr.P_GN + 1] = g1
+                    prm[i, pr.P_GN + 2] = g2
+    return k
 
 
 @kernel
@@ -318,29 +409,40 @@ def choose_lobes(albedo, tp, sel, q, p, psum):
     channel), psum (N,), q (N,) the survival probability (Russian roulette only for paths
     that would contribute less than 10 %: q = clip(10 max3(tp sum_lobes w), 0, 1)), sel
     (N, N_LOBES) the probability of continuing through each lobe (diffuse: 0)."""
-    n = albedo.shape[0]
     k = albedo.shape[1] - 1
-    for i in range(n):
-        s = 0.0
-        wx = albedo[i, 1, 0]
-        wy = albedo[i, 1, 1]
-        wz = albedo[i, 1, 2]
-        for j in range(k):
-            a = albedo[i, j + 1]
-            m = max(max(a[0], a[1]), a[2])
-            p[i, j] = m
-            s = s + m if j > 0 else m
-            if j > 0:
-                wx += a[0]
-                wy += a[1]
-                wz += a[2]
+    m = np.empty(k)
+    for i in range(albedo.shape[0]):
+        s, qi = _choose_row(albedo[i], tp[i, 0], tp[i, 1], tp[i, 2], m)
         psum[i] = s
-        qi = 10.0 * max(max(tp[i, 0] * wx, tp[i, 1] * wy), tp[i, 2] * wz)
-        qi = min(max(qi, 0.0), 1.0)
         q[i] = qi
         sel[i, 0] = 0.0
         for j in range(k):
-            sel[i, j + 1] = p[i, j] / s * qi if s > 0 else 0.0
+            p[i, j] = m[j]
+            sel[i, j + 1] = m[j] / s * qi if s > 0 else 0.0
+
+
+@kernel
+def _choose_row(w, t0, t1, t2, m):
+    """choose_lobes for one hit: w (N_LOBES, 3) its lobe albedos, (t0, t1, t2) its
+    throughput. Writes m (N_LOBES - 1,) the non-diffuse lobes' weights (max channel);
+    returns (their sum psum, the survival probability q)."""
+    k = w.shape[0] - 1
+    s = 0.0
+    wx = w[1, 0]
+    wy = w[1, 1]
+    wz = w[1, 2]
+    for j in range(k):
+        a0, a1, a2 = w[j + 1, 0], w[j + 1, 1], w[j + 1, 2]
+        mj = max(max(a0, a1), a2)
+        m[j] = mj
+        s = s + mj if j > 0 else mj
+        if j > 0:
+            wx += a0
+            wy += a1
+            wz += a2
+    qi = 10.0 * max(max(t0 * wx, t1 * wy), t2 * wz)
+    qi = min(max(qi, 0.0), 1.0)
+    return s, qi
 
 
 @kernel
@@ -502,6 +604,13 @@ def _warm_up():
         hit_closures(ns, ng, -d, mat, np.zeros((1, pr.N_MAT)), per_hit, base, front,
                      np.ones(1), hit_alpha, np.empty((1, pr.N_PACK)),
                      np.empty((1, pr.N_LOBES, 3)))
+    for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
+        for params in (np.zeros((1, pr.N_MAT)), np.full((1, pr.N_MAT), 0.5)):
+            shade_lobes(ns, ng, -d, mat, params, per_hit, base, front, np.ones(1), hit_alpha,
+                        np.ones((1, 3)), True, np.zeros((1, pr.N_PACK)),
+                        np.zeros((1, pr.N_LOBES)), np.empty(1), np.zeros((1, pr.N_LOBES - 1)),
+                        np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
+                        np.empty((1, 3)))
     gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
                 np.empty((1, 3)))
     i64 = np.zeros(1, np.int64)

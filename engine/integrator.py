@@ -26,10 +26,10 @@ from .lights.packing import pack_lights
 from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, surface_hit
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
-                            pick_lobes)
+                            pick_lobes, shade_lobes)
 from .camerarays import camera_rays_kernel
 from .gatherkernels import add_gathered, diffuse_lookups, keep_hits
-from .closures.principled import rough_reflection_rows
+from .closures import principled as pr
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
@@ -587,7 +587,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
         refl = (picked != GLASS_R) & (picked != GLASS_T)
         u1 = np.where(refl, uv[0][rows_sampled], u1)
         u2 = np.where(refl, uv[1][rows_sampled], u2)
-    prm, _ = closures(ctx.table, hit)
+    # The camera bounce's hits carry their packed lobes (shade_lobes); others set them up.
+    prm = hit.prm if hit.prm is not None else closures(ctx.table, hit)[0]
     rows = np.empty(m, np.int64)
     o, d, new_tp = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
     cls = np.empty(m, np.int64)
@@ -661,7 +662,8 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None):
-    """Radiance from the diffuse lobe, split into (direct, caustic, indirect). glossy (N,)
+    """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
+    indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
     term then holds both lobes' response (shadow rays weighted by the full BSDF, with
     multiple importance sampling against the continuation's choice sel (N, N_LOBES),
@@ -672,6 +674,8 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel))
     else:
         direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
+    if not ctx.settings.photon_mapping:
+        return direct, None, None  # (no caustic or indirect term to add)
     caustic = np.zeros_like(direct)
     indirect = np.zeros_like(direct)
     if glossy is not None:
@@ -875,17 +879,6 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     return acc, counters, end
 
 
-def _glossy_rows(ctx, hit, modes):
-    """Hits whose rough reflective lobes take shadow rays: any, when a light is sampled
-    for them (light_modes; directlight.accumulate_bsdf)."""
-    if not np.any(modes != MODE_CONTINUATION):
-        return np.zeros(len(hit.p), bool)
-    prm, _ = closures(ctx.table, hit)
-    out = np.empty(len(hit.p), np.bool_)
-    rough_reflection_rows(prm, out)
-    return out
-
-
 def _write_film(film, acc, spp, rh, rw):
     inv = 1.0 / spp
     for name in Accumulator.NAMES:
@@ -918,6 +911,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
     has_holdout = bool(ctx.geo.holdout.any())
+    # No material emits: no emission rows to gather or test (surface_hit's are zeros).
+    emitters = bool(ctx.table.emission.any())
+    want_glossy = bool(np.any(modes != MODE_CONTINUATION))
+    table_alpha = np.ascontiguousarray(ctx.table.alpha, np.float64)
+    c = np.ascontiguousarray
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -977,37 +975,55 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         kept, o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
             keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
                            pdf_b))
-        footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
+        # A pixel's footprint: only the photon estimates read it.
+        footprint = None
+        if s.photon_mapping:
+            footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
         if sampler is not None and bounce == 0:
             sampler = sampler.subset(kept)
         hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
         if bounce == 0:
             acc.add_first_hits(pix, dot(hit.p - cam_pos, forward), hit.ns, hit.front)
-        Le = hit.emission
-        if np.any(Le > 0):
-            if bounce > 0:
-                Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b)[:, None]
-            acc.add(target, pix, Le, tp)
-        w = lobe_weights(ctx.table, hit)
-        wd = w["diffuse"]
-        glossy = _glossy_rows(ctx, hit, modes)
-        choice = lobe_choice(hit.lobe_albedo, tp)
-        dsel = np.nonzero((max3(wd) > 0) | glossy)[0]
-        if len(dsel):
+        if emitters:
+            Le = hit.emission
+            if np.any(Le > 0):
+                if bounce > 0:
+                    Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b)[:, None]
+                acc.add(target, pix, Le, tp)
+        # The lobes, the continuation's choice, the glossy rows and the rows to shade, in
+        # one kernel (camerakernels.shade_lobes; zero-filled outputs, see there).
+        n = len(prim)
+        prm, sel, p = (np.zeros((n, pr.N_PACK)), np.zeros((n, pr.N_LOBES)),
+                       np.zeros((n, pr.N_LOBES - 1)))
+        q, psum, glossy = np.empty(n), np.empty(n), np.empty(n, np.bool_)
+        dsel, wd = np.empty(n, np.int64), np.empty((n, 3))
+        per_hit = hit.params is not None
+        nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
+                         hit.params if per_hit else ctx.table.closure_params, per_hit,
+                         hit.base, hit.front, table_alpha,
+                         _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64), tp,
+                         want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
+        hit.prm = prm
+        choice = (sel, q, p, psum)
+        if nd:
+            dsel, wd = dsel[:nd], wd[:nd]
             # The diffuse rows as a view (fields copied on first read), or the batch itself.
-            sub = hit if len(dsel) == len(prim) else hit.take(dsel)
+            sub = hit if nd == n else hit.take(dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
-            direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
-                                                      sample_id[dsel], footprint[dsel],
-                                                      should_cancel, glossy=glossy[dsel],
-                                                      sel=choice[0][dsel])
+            g = glossy[dsel]
+            direct, caustic, indirect = shade_diffuse(
+                ctx, sub, wd, rng, counters, strat, sample_id[dsel],
+                None if footprint is None else footprint[dsel], should_cancel, glossy=g,
+                sel=sel[dsel] if g.any() else None)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
-                acc.add("caustic", pix, caustic, tp, dsel)
-                acc.add("indirect", pix, indirect, tp, dsel)
+                if caustic is not None:
+                    acc.add("caustic", pix, caustic, tp, dsel)
+                    acc.add("indirect", pix, indirect, tp, dsel)
             else:
-                acc.add("specular", pix, direct + caustic + indirect, tp, dsel)
+                acc.add("specular", pix, direct if caustic is None
+                        else direct + caustic + indirect, tp, dsel)
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
