@@ -23,8 +23,8 @@ two Embree calls for every hit of a camera, gather or specular ray.
   (integrator._trace_paths' state after each Embree call).
 - `film_add` (sixth slice): the Accumulator's RGB scatter-add, throughput factor included.
 - `shade_lobes` (eighth slice): one camera bounce's closures, lobe choice, glossy rows and
-  the rows to shade in one pass, writing only what the bounce reads (a diffuse-only
-  material skips the closures' set-up; lobe albedos stay in a scratch row).
+  the rows to shade in one call, writing only what the bounce reads (a diffuse-only
+  material skips the closures' set-up and its packed row; no (N, N_LOBES, 3) albedos).
 
 Every kernel computes the same floating-point operations in the same order as the numpy
 stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py and
@@ -194,34 +194,31 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
     alpha; hit_alpha (N,) per-hit alpha (alpha textures) or (0,): the materials'.
     Out: prm (N, N_PACK), albedo (N, N_LOBES, 3). Same operations in the same order as
     the numpy set-up it replaced (tests/test_camera_kernels.py)."""
+    n = ns.shape[0]
+    cos_o = np.empty(n)
+    for i in range(n):
+        cos_o[i] = _view_cosine(ns, wo, i)
+    local = np.zeros((n, 3))
+    pr.glossy_normals(ns, ng, wo, local, cos_o)
+    rows = np.empty(n, np.int64)
+    alpha = np.empty(n)
     per_hit_alpha = hit_alpha.shape[0] > 0
-    for i in range(ns.shape[0]):
+    for i in range(n):
         r = i if per_hit else mat[i]
-        a = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
-        _closure_row(ns, ng, wo, params, r, base, front[i], a, prm, i, albedo[i])
-
-
-@kernel
-def _closure_row(ns, ng, wo, params, r, base, front, a, prm, i, w):
-    """hit_closures for hit i with material row r and alpha a: writes prm[i] and w
-    (N_LOBES, 3) its lobes' albedo estimates. The view cosine ns . wo, raised to Cycles'
-    glossy normal where that applies (not for glass rows), then principled.setup_row, then
-    the glossy normal into prm's P_GN columns (zeros: ns itself)."""
-    cos_o = _view_cosine(ns, wo, i)
-    l0 = l1 = l2 = 0.0
-    if not params[r, pr.M_TRANS] > 0:
-        raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
-        if raised:
-            l0, l1, l2, cos_o = g0, g1, g2, c
-    pr.setup_row(params[r], base, cos_o, front, a, prm, i, w)
-    prm[i, pr.P_GN] = l0
-    prm[i, pr.P_GN + 1] = l1
-    prm[i, pr.P_GN + 2] = l2
+        rows[i] = r
+        if params[r, pr.M_TRANS] > 0:
+            local[i, 0], local[i, 1], local[i, 2] = 0.0, 0.0, 0.0
+            cos_o[i] = _view_cosine(ns, wo, i)
+        alpha[i] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
+    pr.setup(rows, params, base, cos_o, front, alpha, prm, albedo)
+    for i in range(n):
+        for c in range(3):
+            prm[i, pr.P_GN + c] = local[i, c]
 
 
 @kernel
 def _diffuse_only(params, r):
-    """Material row r has the diffuse and pass lobes alone: principled.setup_row would
+    """Material row r has the diffuse and pass lobes alone: principled.setup would
     skip its sheen, coat, metal, glass and specular layers (each needs a weight > 0) and
     leave every packed column 0 (photonkernels.plain_materials, per row)."""
     return not (params[r, pr.M_SHEEN_W] > 0.0 or params[r, pr.M_COAT_W] > 0.0
@@ -238,69 +235,117 @@ def _max3(a, b, c):
 @kernel
 def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha, tp,
                 want_glossy, prm, sel, q, p, psum, glossy, rows, wd):
-    """One camera bounce's lobes in one pass over N hits (hit_closures, choose_lobes, the
-    glossy rows of integrator.light_modes and the rows the diffuse stage shades), with
-    only what the bounce reads written to memory.
+    """One camera bounce's lobes over N hits in one call (hit_closures, choose_lobes, the
+    glossy rows of integrator.light_modes and the rows the diffuse stage shades), writing
+    to memory only what the bounce reads.
 
     Inputs as hit_closures takes them, plus tp (N,3) path throughputs and want_glossy
-    (bool: some light takes glossy shadow rays, integrator._glossy_rows).
-    prm (N, N_PACK), sel (N, N_LOBES), p (N, N_LOBES - 1) must come zero-filled
-    (np.zeros): a hit whose material has the diffuse and pass lobes alone skips the
-    closures' set-up (its packed row is all 0 but the glossy normal), and p, sel are
-    written only where psum > 0 (the rows a continuation may pick; zero elsewhere, as
-    choose_lobes writes them). The lobe albedos stay in a per-hit scratch row. When some
-    hit is glossy (the direct stage then reads every shaded row's prm), the skipped rows'
-    glossy normals are written too, so prm equals hit_closures' everywhere.
-    Out: q, psum (N,) as choose_lobes; glossy (N,) bool (principled.has_rough_reflection,
-    False unless want_glossy); rows (K,) the hits with a diffuse albedo (max3 > 0) or a
-    glossy lobe, in order, and wd (K,3) their diffuse albedo. Returns K. Same
-    floating-point operations as the kernels it fuses (tests/test_fused_camera.py)."""
+    (bool: some light takes glossy shadow rays; else no row is glossy).
+    Hits whose material has the diffuse and pass lobes alone skip the closures' set-up
+    (their albedos are written into a scratch row, exactly as principled.setup gives
+    them); the others are set up together (principled.setup on a compacted batch).
+    Out: prm (N, N_PACK) must come zero-filled (np.zeros: the diffuse-only rows are not
+    written, and their pages are never touched); q, psum (N,) as choose_lobes; p
+    (N, N_LOBES - 1), sel (N, N_LOBES) as choose_lobes where psum > 0 (the rows a
+    continuation may pick; elsewhere sel is 0 once some row is glossy, p undefined);
+    glossy (N,) bool (principled.has_rough_reflection); rows (K,) the hits with a diffuse
+    albedo (max3 > 0) or a glossy lobe, in order, and wd (K,3) their diffuse albedo.
+    When some row is glossy the direct stage reads every shaded row's prm and sel, so the
+    diffuse-only rows then get their glossy normals (prm equals hit_closures'
+    everywhere) and zero choices. Returns K. Same floating-point operations as the
+    kernels it fuses (tests/test_fused_camera.py)."""
     n = ns.shape[0]
     k_lobes = pr.N_LOBES - 1
-    w = np.empty((pr.N_LOBES, 3))
-    m = np.empty(k_lobes)
     per_hit_alpha = hit_alpha.shape[0] > 0
-    set_up = np.zeros(n, np.bool_)
-    any_glossy = False
-    k = 0
+    # 1. The hits whose material has more than the diffuse and pass lobes, compacted,
+    # with hit_closures' view cosine and glossy normal; principled.setup on them at once.
+    nc = 0
+    for i in range(n):
+        if not _diffuse_only(params, i if per_hit else mat[i]):
+            nc += 1
+    at = np.empty(nc, np.int64)
+    rows_c = np.empty(nc, np.int64)
+    base_c, local_c = np.empty((nc, 3)), np.zeros((nc, 3))
+    cos_c, alpha_c = np.empty(nc), np.empty(nc)
+    front_c = np.empty(nc, np.bool_)
+    j = 0
     for i in range(n):
         r = i if per_hit else mat[i]
-        a = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
-        gl = False
         if _diffuse_only(params, r):
-            # setup_row's albedos for such a material, bit for bit (W stays a).
+            continue
+        at[j] = i
+        rows_c[j] = r
+        cos = _view_cosine(ns, wo, i)
+        if not params[r, pr.M_TRANS] > 0:  # glass keeps ns (hit_closures)
+            raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
+            if raised:
+                local_c[j, 0], local_c[j, 1], local_c[j, 2], cos = g0, g1, g2, c
+        cos_c[j] = cos
+        alpha_c[j] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
+        front_c[j] = front[i]
+        base_c[j, 0], base_c[j, 1], base_c[j, 2] = base[i, 0], base[i, 1], base[i, 2]
+        j += 1
+    prm_c = np.empty((nc, pr.N_PACK))
+    w_c = np.empty((nc, pr.N_LOBES, 3))
+    pr.setup(rows_c, params, base_c, cos_c, front_c, alpha_c, prm_c, w_c)
+    # 2. Every hit in order: its packed row, lobe choice, glossy flag and diffuse row.
+    w = np.empty((pr.N_LOBES, 3))  # a diffuse-only hit's albedos
+    m = np.empty(k_lobes)
+    any_glossy = False
+    j = 0
+    k = 0
+    for i in range(n):
+        gl = False
+        if j < nc and at[j] == i:
+            for c in range(pr.P_GN):
+                prm[i, c] = prm_c[j, c]
+            for c in range(3):
+                prm[i, pr.P_GN + c] = local_c[j, c]
+            if want_glossy:
+                gl = pr.has_rough_reflection(prm, i)
+            wi = w_c[j]
+            j += 1
+        else:
+            # setup's albedos for a diffuse-only material, bit for bit (W stays a).
+            r = i if per_hit else mat[i]
+            a = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
             for lb in range(pr.N_LOBES):
                 for c in range(3):
                     w[lb, c] = 0.0
             for c in range(3):
                 w[pr.L_PASS, c] = (1.0 - a) * params[r, pr.M_TTINT + c]
                 w[pr.L_DIFFUSE, c] = a * base[i, c]
-        else:
-            _closure_row(ns, ng, wo, params, r, base, front[i], a, prm, i, w)
-            set_up[i] = True
-            if want_glossy:
-                gl = pr.has_rough_reflection(prm, i)
-        s, qi = _choose_row(w, tp[i, 0], tp[i, 1], tp[i, 2], m)
+            wi = w
+        s, qi = _choose_row(wi, tp[i, 0], tp[i, 1], tp[i, 2], m)
         psum[i] = s
         q[i] = qi
         if s > 0:
-            for j in range(k_lobes):
-                p[i, j] = m[j]
-                sel[i, j + 1] = m[j] / s * qi
+            sel[i, 0] = 0.0
+            for jj in range(k_lobes):
+                p[i, jj] = m[jj]
+                sel[i, jj + 1] = m[jj] / s * qi
         glossy[i] = gl
         any_glossy = any_glossy or gl
-        if _max3(w[0, 0], w[0, 1], w[0, 2]) > 0 or gl:
+        if _max3(wi[0, 0], wi[0, 1], wi[0, 2]) > 0 or gl:
             rows[k] = i
-            wd[k, 0], wd[k, 1], wd[k, 2] = w[0, 0], w[0, 1], w[0, 2]
+            wd[k, 0], wd[k, 1], wd[k, 2] = wi[0, 0], wi[0, 1], wi[0, 2]
             k += 1
     if any_glossy:
+        # The direct stage reads every shaded row's prm and sel: the diffuse-only rows'
+        # glossy normals (the rest of their packed row is 0) and their zero choice.
+        j = 0
         for i in range(n):
-            if not set_up[i]:
-                raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
-                if raised:
-                    prm[i, pr.P_GN] = g0
-                    prm[i, pr.P_GN + 1] = g1
-                    prm[i, pr.P_GN + 2] = g2
+            if not psum[i] > 0:
+                for jj in range(pr.N_LOBES):
+                    sel[i, jj] = 0.0
+            if j < nc and at[j] == i:
+                j += 1
+                continue
+            raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
+            if raised:
+                prm[i, pr.P_GN] = g0
+                prm[i, pr.P_GN + 1] = g1
+                prm[i, pr.P_GN + 2] = g2
     return k
 
 
@@ -608,7 +653,7 @@ def _warm_up():
         for params in (np.zeros((1, pr.N_MAT)), np.full((1, pr.N_MAT), 0.5)):
             shade_lobes(ns, ng, -d, mat, params, per_hit, base, front, np.ones(1), hit_alpha,
                         np.ones((1, 3)), True, np.zeros((1, pr.N_PACK)),
-                        np.zeros((1, pr.N_LOBES)), np.empty(1), np.zeros((1, pr.N_LOBES - 1)),
+                        np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
                         np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
                         np.empty((1, 3)))
     gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),

@@ -991,10 +991,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b)[:, None]
                 acc.add(target, pix, Le, tp)
         # The lobes, the continuation's choice, the glossy rows and the rows to shade, in
-        # one kernel (camerakernels.shade_lobes; zero-filled outputs, see there).
+        # one kernel (camerakernels.shade_lobes: prm zero-filled, see there).
         n = len(prim)
-        prm, sel, p = (np.zeros((n, pr.N_PACK)), np.zeros((n, pr.N_LOBES)),
-                       np.zeros((n, pr.N_LOBES - 1)))
+        prm, sel, p = (np.zeros((n, pr.N_PACK)), np.empty((n, pr.N_LOBES)),
+                       np.empty((n, pr.N_LOBES - 1)))
         q, psum, glossy = np.empty(n), np.empty(n), np.empty(n, np.bool_)
         dsel, wd = np.empty(n, np.int64), np.empty((n, 3))
         per_hit = hit.params is not None

@@ -105,165 +105,158 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
     ray arrived on the outside, hit_alpha (N,) the hit's alpha (the material's, or its
     alpha texture's value there). Writes prm (N, N_PACK) and weights (N, N_LOBES, 3)."""
     for i in range(mat.shape[0]):
-        setup_row(params[mat[i]], base, cos_o[i], front[i], hit_alpha[i], prm, i, weights[i])
-
-
-@kernel
-def setup_row(q, base, cos_o, front, a, prm, i, w):
-    """setup for hit i alone: q (N_MAT,) its material's parameter row, base (N,3) base
-    colours (row i read), cos_o the view cosine, front the side flag, a its alpha.
-    Writes prm[i] and w (N_LOBES, 3) the lobes' albedo estimates (weights[i], or a
-    caller's scratch: camerakernels.shade_lobes keeps them out of memory)."""
-    mu = min(max(cos_o, 0.0), 1.0)
-    for c in range(N_PACK):
-        prm[i, c] = 0.0
-    for l in range(N_LOBES):
-        for c in range(3):
-            w[l, c] = 0.0
-    W0 = W1 = W2 = a
-    for c in range(3):
-        w[L_PASS, c] = (1.0 - a) * q[M_TTINT + c]
-    rough = q[M_ROUGH]
-    alpha = rough * rough
-    multi = q[M_MULTI]
-    node = q[M_NODE]
-    # The GGX albedo tables only where a metal or specular layer reads them (a
-    # diffuse-only material skips both lookups; nothing else changes).
-    E = E_avg = 0.0
-    if q[M_METALLIC] > 0.0 or q[M_SPEC] > 0.0:
-        E = tables.ggx_E(rough, mu)
-        E_avg = tables.ggx_Eavg(rough)
-    # --- sheen (the top layer) ---
-    shw = q[M_SHEEN_W]
-    if shw > 0.0 and a > 0.0:
-        la, lb, alb = sheen.sheen_params(q[M_SHEEN_ROUGH], mu)
-        if alb > 0.0:
-            top = 0.0
-            Wsh = (W0, W1, W2)
+        q = params[mat[i]]
+        mu = min(max(cos_o[i], 0.0), 1.0)
+        for c in range(N_PACK):
+            prm[i, c] = 0.0
+        for l in range(N_LOBES):
             for c in range(3):
-                wc = shw * max(q[M_SHEEN_TINT + c], 0.0) * Wsh[c] * alb
-                prm[i, P_SHEEN_W + c] = wc
-                w[L_SHEEN, c] = wc
-                if Wsh[c] > 0.0:
-                    top = max(top, wc / Wsh[c])
-            prm[i, P_SHEEN_A] = la
-            prm[i, P_SHEEN_B] = lb
+                weights[i, l, c] = 0.0
+        a = hit_alpha[i]
+        W0 = W1 = W2 = a
+        for c in range(3):
+            weights[i, L_PASS, c] = (1.0 - a) * q[M_TTINT + c]
+        rough = q[M_ROUGH]
+        alpha = rough * rough
+        multi = q[M_MULTI]
+        node = q[M_NODE]
+        # The GGX albedo tables only where a metal or specular layer reads them (a
+        # diffuse-only material skips both lookups; nothing else changes).
+        E = E_avg = 0.0
+        if q[M_METALLIC] > 0.0 or q[M_SPEC] > 0.0:
+            E = tables.ggx_E(rough, mu)
+            E_avg = tables.ggx_Eavg(rough)
+        # --- sheen (the top layer) ---
+        shw = q[M_SHEEN_W]
+        if shw > 0.0 and a > 0.0:
+            la, lb, alb = sheen.sheen_params(q[M_SHEEN_ROUGH], mu)
+            if alb > 0.0:
+                top = 0.0
+                Wsh = (W0, W1, W2)
+                for c in range(3):
+                    wc = shw * max(q[M_SHEEN_TINT + c], 0.0) * Wsh[c] * alb
+                    prm[i, P_SHEEN_W + c] = wc
+                    weights[i, L_SHEEN, c] = wc
+                    if Wsh[c] > 0.0:
+                        top = max(top, wc / Wsh[c])
+                prm[i, P_SHEEN_A] = la
+                prm[i, P_SHEEN_B] = lb
+                keep = min(max(1.0 - top, 0.0), 1.0)
+                W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
+        # --- coat ---
+        cw = q[M_COAT_W]
+        if cw > 0.0 and a > 0.0:
+            cr = q[M_COAT_ROUGH]
+            cior = max(q[M_COAT_IOR], 1.0)
+            Ec = tables.ggx_E(cr, mu)
+            fac, dark = _compensation(1.0, Ec, tables.ggx_Eavg(cr), fresnel_dielectric_Fss(cior))
+            f0 = F0_from_ior(cior)
+            est = dark * (f0 + (1.0 - f0) * tables.schlick_ior_s(cr, mu, cior))
+            Wc = (W0, W1, W2)
+            for c in range(3):
+                prm[i, P_COAT_W + c] = cw * Wc[c] * fac
+                weights[i, L_COAT, c] = cw * Wc[c] * est
+            prm[i, P_COAT_ALPHA] = cr * cr
+            prm[i, P_COAT_ETA] = cior
+            keep = min(max(1.0 - cw * est, 0.0), 1.0)
+            W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
+            t0, t1, t2 = q[M_CTINT], q[M_CTINT + 1], q[M_CTINT + 2]
+            if t0 != 1.0 or t1 != 1.0 or t2 != 1.0:
+                cos_t = math.sqrt(max(1.0 - (1.0 - mu * mu) / (cior * cior), 1e-12))
+                depth = 1.0 / cos_t
+                W0 *= 1.0 - cw + cw * max(t0, 0.0) ** depth
+                W1 *= 1.0 - cw + cw * max(t1, 0.0) ** depth
+                W2 *= 1.0 - cw + cw * max(t2, 0.0) ** depth
+        # --- metal ---
+        m = q[M_METALLIC]
+        if m > 0.0:
+            s5 = tables.schlick5_s(rough, mu)
+            Wm = (W0, W1, W2)
+            for c in range(3):
+                if node == NODE_GLOSSY:  # constant reflectance = the colour (in the weight)
+                    f0 = 1.0
+                    b = 0.0
+                    col = q[M_GCOL + c] if q[M_HAS_GCOL] != 0.0 else base[i, c]
+                else:
+                    f0 = min(max(base[i, c], 0.0), 1.0)
+                    tint = min(max(q[M_STINT + c], 0.0), 1.0)
+                    b = f82_tint_B(f0, tint) if tint != 1.0 else 0.0
+                    col = 1.0
+                Fss = col * f82_Fss(f0, b)
+                fac, dark = _compensation(multi, E, E_avg, Fss)
+                prm[i, P_METAL_W + c] = m * Wm[c] * col * fac
+                prm[i, P_METAL_F0 + c] = f0
+                prm[i, P_METAL_B + c] = b
+                weights[i, L_METAL, c] = m * Wm[c] * col * dark * (f0 + (1.0 - f0) * s5)
+            prm[i, P_METAL_ALPHA] = alpha
+            W0, W1, W2 = W0 * (1.0 - m), W1 * (1.0 - m), W2 * (1.0 - m)
+        # --- transmission (glass) ---
+        tr = q[M_TRANS]
+        if tr > 0.0:
+            ior = max(q[M_IOR], 1e-5)
+            eta = ior if front[i] else 1.0 / ior
+            Eg, Eg_avg = tables.glass_E(rough, mu, eta)
+            F0g = F0_from_ior(ior)
+            # Reflectance estimate: Cycles' table from outside; from inside the real
+            # Fresnel at the view angle (total internal reflection included), so that the
+            # two estimates add up to the lobe's albedo on both sides (they steer the lobe
+            # choice and the photons' Russian roulette).
+            s_n = tables.schlick_ior_s(rough, mu, ior) if eta >= 1.0 else schlick_remap(mu, eta)
+            Wg = (W0, W1, W2)
+            for c in range(3):
+                if node == NODE_GLASS:
+                    rt = tt = max(base[i, c], 0.0)
+                    f0 = F0g
+                else:
+                    rt = 1.0
+                    tt = math.sqrt(min(max(base[i, c], 0.0), 1.0))
+                    f0 = min(F0g * max(q[M_STINT + c], 0.0), 1.0)
+                fac, dark = _compensation(multi, Eg, Eg_avg, tt)
+                prm[i, P_GLASS_RW + c] = tr * Wg[c] * rt * fac
+                prm[i, P_GLASS_TW + c] = tr * Wg[c] * tt * fac
+                prm[i, P_GLASS_F0 + c] = f0
+                weights[i, L_GLASS_R, c] = tr * Wg[c] * rt * dark * (f0 + (1.0 - f0) * s_n)
+                weights[i, L_GLASS_T, c] = tr * Wg[c] * tt * dark * (1.0 - (f0 + (1.0 - f0)
+                                                                            * s_n))
+            prm[i, P_GLASS_ALPHA] = alpha
+            prm[i, P_GLASS_ETA] = eta
+            W0, W1, W2 = W0 * (1.0 - tr), W1 * (1.0 - tr), W2 * (1.0 - tr)
+        # --- dielectric specular layer ---
+        sp = q[M_SPEC]
+        ior = max(q[M_IOR], 1e-5)
+        f0s = F0_from_ior(ior)
+        eta_s = ior
+        level = max(q[M_LEVEL], 0.0)
+        if level != 0.5:
+            f0s = f0s * 2.0 * level
+            eta_s = ior_from_F0(f0s)
+            if ior < 1.0:
+                eta_s = 1.0 / eta_s
+        if sp > 0.0 and eta_s != 1.0 and (W0 > 0.0 or W1 > 0.0 or W2 > 0.0):
+            F0r = F0_from_ior(eta_s)
+            s_avg = 0.0
+            if F0r < 1.0:
+                s_avg = min(max((fresnel_dielectric_Fss(eta_s) - F0r) / (1.0 - F0r), 0.0), 1.0)
+            s = tables.schlick_ior_s(rough, mu, max(eta_s, 1.0 / eta_s))
+            Ws = (W0, W1, W2)
+            top = 0.0
+            for c in range(3):
+                f0 = min(max(f0s * max(q[M_STINT + c], 0.0), 0.0), 1.0)
+                Fss = f0 + (1.0 - f0) * s_avg
+                fac, dark = _compensation(multi, E, E_avg, Fss)
+                est = dark * (f0 + (1.0 - f0) * s)
+                prm[i, P_SPEC_W + c] = sp * Ws[c] * fac
+                prm[i, P_SPEC_F0 + c] = f0
+                weights[i, L_SPEC, c] = sp * Ws[c] * est
+                top = max(top, sp * est)
+            prm[i, P_SPEC_ALPHA] = alpha
+            prm[i, P_SPEC_ETA] = eta_s
             keep = min(max(1.0 - top, 0.0), 1.0)
             W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
-    # --- coat ---
-    cw = q[M_COAT_W]
-    if cw > 0.0 and a > 0.0:
-        cr = q[M_COAT_ROUGH]
-        cior = max(q[M_COAT_IOR], 1.0)
-        Ec = tables.ggx_E(cr, mu)
-        fac, dark = _compensation(1.0, Ec, tables.ggx_Eavg(cr), fresnel_dielectric_Fss(cior))
-        f0 = F0_from_ior(cior)
-        est = dark * (f0 + (1.0 - f0) * tables.schlick_ior_s(cr, mu, cior))
-        Wc = (W0, W1, W2)
-        for c in range(3):
-            prm[i, P_COAT_W + c] = cw * Wc[c] * fac
-            w[L_COAT, c] = cw * Wc[c] * est
-        prm[i, P_COAT_ALPHA] = cr * cr
-        prm[i, P_COAT_ETA] = cior
-        keep = min(max(1.0 - cw * est, 0.0), 1.0)
-        W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
-        t0, t1, t2 = q[M_CTINT], q[M_CTINT + 1], q[M_CTINT + 2]
-        if t0 != 1.0 or t1 != 1.0 or t2 != 1.0:
-            cos_t = math.sqrt(max(1.0 - (1.0 - mu * mu) / (cior * cior), 1e-12))
-            depth = 1.0 / cos_t
-            W0 *= 1.0 - cw + cw * max(t0, 0.0) ** depth
-            W1 *= 1.0 - cw + cw * max(t1, 0.0) ** depth
-            W2 *= 1.0 - cw + cw * max(t2, 0.0) ** depth
-    # --- metal ---
-    m = q[M_METALLIC]
-    if m > 0.0:
-        s5 = tables.schlick5_s(rough, mu)
-        Wm = (W0, W1, W2)
-        for c in range(3):
-            if node == NODE_GLOSSY:  # constant reflectance = the colour (in the weight)
-                f0 = 1.0
-                b = 0.0
-                col = q[M_GCOL + c] if q[M_HAS_GCOL] != 0.0 else base[i, c]
-            else:
-                f0 = min(max(base[i, c], 0.0), 1.0)
-                tint = min(max(q[M_STINT + c], 0.0), 1.0)
-                b = f82_tint_B(f0, tint) if tint != 1.0 else 0.0
-                col = 1.0
-            Fss = col * f82_Fss(f0, b)
-            fac, dark = _compensation(multi, E, E_avg, Fss)
-            prm[i, P_METAL_W + c] = m * Wm[c] * col * fac
-            prm[i, P_METAL_F0 + c] = f0
-            prm[i, P_METAL_B + c] = b
-            w[L_METAL, c] = m * Wm[c] * col * dark * (f0 + (1.0 - f0) * s5)
-        prm[i, P_METAL_ALPHA] = alpha
-        W0, W1, W2 = W0 * (1.0 - m), W1 * (1.0 - m), W2 * (1.0 - m)
-    # --- transmission (glass) ---
-    tr = q[M_TRANS]
-    if tr > 0.0:
-        ior = max(q[M_IOR], 1e-5)
-        eta = ior if front else 1.0 / ior
-        Eg, Eg_avg = tables.glass_E(rough, mu, eta)
-        F0g = F0_from_ior(ior)
-        # Reflectance estimate: Cycles' table from outside; from inside the real
-        # Fresnel at the view angle (total internal reflection included), so that the
-        # two estimates add up to the lobe's albedo on both sides (they steer the lobe
-        # choice and the photons' Russian roulette).
-        s_n = tables.schlick_ior_s(rough, mu, ior) if eta >= 1.0 else schlick_remap(mu, eta)
-        Wg = (W0, W1, W2)
-        for c in range(3):
-            if node == NODE_GLASS:
-                rt = tt = max(base[i, c], 0.0)
-                f0 = F0g
-            else:
-                rt = 1.0
-                tt = math.sqrt(min(max(base[i, c], 0.0), 1.0))
-                f0 = min(F0g * max(q[M_STINT + c], 0.0), 1.0)
-            fac, dark = _compensation(multi, Eg, Eg_avg, tt)
-            prm[i, P_GLASS_RW + c] = tr * Wg[c] * rt * fac
-            prm[i, P_GLASS_TW + c] = tr * Wg[c] * tt * fac
-            prm[i, P_GLASS_F0 + c] = f0
-            w[L_GLASS_R, c] = tr * Wg[c] * rt * dark * (f0 + (1.0 - f0) * s_n)
-            w[L_GLASS_T, c] = tr * Wg[c] * tt * dark * (1.0 - (f0 + (1.0 - f0)
-                                                                        * s_n))
-        prm[i, P_GLASS_ALPHA] = alpha
-        prm[i, P_GLASS_ETA] = eta
-        W0, W1, W2 = W0 * (1.0 - tr), W1 * (1.0 - tr), W2 * (1.0 - tr)
-    # --- dielectric specular layer ---
-    sp = q[M_SPEC]
-    ior = max(q[M_IOR], 1e-5)
-    f0s = F0_from_ior(ior)
-    eta_s = ior
-    level = max(q[M_LEVEL], 0.0)
-    if level != 0.5:
-        f0s = f0s * 2.0 * level
-        eta_s = ior_from_F0(f0s)
-        if ior < 1.0:
-            eta_s = 1.0 / eta_s
-    if sp > 0.0 and eta_s != 1.0 and (W0 > 0.0 or W1 > 0.0 or W2 > 0.0):
-        F0r = F0_from_ior(eta_s)
-        s_avg = 0.0
-        if F0r < 1.0:
-            s_avg = min(max((fresnel_dielectric_Fss(eta_s) - F0r) / (1.0 - F0r), 0.0), 1.0)
-        s = tables.schlick_ior_s(rough, mu, max(eta_s, 1.0 / eta_s))
-        Ws = (W0, W1, W2)
-        top = 0.0
-        for c in range(3):
-            f0 = min(max(f0s * max(q[M_STINT + c], 0.0), 0.0), 1.0)
-            Fss = f0 + (1.0 - f0) * s_avg
-            fac, dark = _compensation(multi, E, E_avg, Fss)
-            est = dark * (f0 + (1.0 - f0) * s)
-            prm[i, P_SPEC_W + c] = sp * Ws[c] * fac
-            prm[i, P_SPEC_F0 + c] = f0
-            w[L_SPEC, c] = sp * Ws[c] * est
-            top = max(top, sp * est)
-        prm[i, P_SPEC_ALPHA] = alpha
-        prm[i, P_SPEC_ETA] = eta_s
-        keep = min(max(1.0 - top, 0.0), 1.0)
-        W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
-    # --- diffuse base ---
-    w[L_DIFFUSE, 0] = W0 * base[i, 0]
-    w[L_DIFFUSE, 1] = W1 * base[i, 1]
-    w[L_DIFFUSE, 2] = W2 * base[i, 2]
+        # --- diffuse base ---
+        weights[i, L_DIFFUSE, 0] = W0 * base[i, 0]
+        weights[i, L_DIFFUSE, 1] = W1 * base[i, 1]
+        weights[i, L_DIFFUSE, 2] = W2 * base[i, 2]
 
 
 @kernel
