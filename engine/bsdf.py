@@ -71,7 +71,9 @@ class SurfaceHit:
     bary: np.ndarray | None = None    # (N,2) barycentric weights of corners 1 and 2
     alpha: np.ndarray | None = None   # (N,) per-hit alpha where a material has an alpha
                           # texture (textures.material_alpha); None: the materials' constants
-    prm: np.ndarray | None = None     # (N, principled.N_PACK) lobes (bsdf.closures)
+    prm: np.ndarray | None = None     # (N, principled.N_PACK) lobes (bsdf.closures; on a
+                          # camera bounce's hits camerakernels.shade_lobes's, whose
+                          # diffuse-only rows are set only when the direct stage reads them)
     lobe_albedo: np.ndarray | None = None  # (N, len(LOBE_NAMES), 3)
     n_smooth: np.ndarray | None = None  # (N,3) the smooth shading normal before Normal Map /
                           # Bump nodes, on ns's side, where one bent ns (else ns itself);

@@ -244,15 +244,17 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
     Hits whose material has the diffuse and pass lobes alone skip the closures' set-up
     (their albedos are written into a scratch row, exactly as principled.setup gives
     them); the others are set up together (principled.setup on a compacted batch).
-    Out: prm (N, N_PACK) must come zero-filled (np.zeros: the diffuse-only rows are not
-    written, and their pages are never touched); q, psum (N,) as choose_lobes; p
-    (N, N_LOBES - 1), sel (N, N_LOBES) as choose_lobes where psum > 0 (the rows a
-    continuation may pick; elsewhere sel is 0 once some row is glossy, p undefined);
+    Out: prm (N, N_PACK) as hit_closures on the hits the set-up saw; q, psum (N,) as
+    choose_lobes; p (N, N_LOBES - 1), sel (N, N_LOBES) as choose_lobes where psum > 0
+    (the rows a continuation may pick); the diffuse-only rows' prm, the other rows' sel,
+    and p where psum <= 0 are left unwritten (undefined: a continuation picks only rows
+    with psum > 0, and through a diffuse-only material only its pass lobe, which reads
+    no packed row);
     glossy (N,) bool (principled.has_rough_reflection); rows (K,) the hits with a diffuse
     albedo (max3 > 0) or a glossy lobe, in order, and wd (K,3) their diffuse albedo.
-    When some row is glossy the direct stage reads every shaded row's prm and sel, so the
-    diffuse-only rows then get their glossy normals (prm equals hit_closures'
-    everywhere) and zero choices. Returns K. Same floating-point operations as the
+    When some row is glossy the direct stage reads every shaded row's prm and sel, so
+    then every row is written: prm equals hit_closures' (zeros and the glossy normal on
+    diffuse-only rows) and sel choose_lobes' everywhere. Returns K. Same floating-point operations as the
     kernels it fuses (tests/test_fused_camera.py)."""
     n = ns.shape[0]
     k_lobes = pr.N_LOBES - 1
@@ -341,11 +343,12 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
             if j < nc and at[j] == i:
                 j += 1
                 continue
+            for c in range(pr.P_GN):
+                prm[i, c] = 0.0
             raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
-            if raised:
-                prm[i, pr.P_GN] = g0
-                prm[i, pr.P_GN + 1] = g1
-                prm[i, pr.P_GN + 2] = g2
+            prm[i, pr.P_GN] = g0
+            prm[i, pr.P_GN + 1] = g1
+            prm[i, pr.P_GN + 2] = g2
     return k
 
 
@@ -652,7 +655,7 @@ def _warm_up():
     for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
         for params in (np.zeros((1, pr.N_MAT)), np.full((1, pr.N_MAT), 0.5)):
             shade_lobes(ns, ng, -d, mat, params, per_hit, base, front, np.ones(1), hit_alpha,
-                        np.ones((1, 3)), True, np.zeros((1, pr.N_PACK)),
+                        np.ones((1, 3)), True, np.empty((1, pr.N_PACK)),
                         np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
                         np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
                         np.empty((1, 3)))

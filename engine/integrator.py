@@ -27,7 +27,7 @@ from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, surface_
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
                             pick_lobes, shade_lobes)
-from .camerarays import camera_rays_kernel
+from .camerarays import camera_rays_kernel, chunk_samples
 from .gatherkernels import add_gathered, diffuse_lookups, keep_hits
 from .closures import principled as pr
 from .parallel import Cancelled, chunk_length, ordered_map
@@ -842,29 +842,26 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     m = max(1, int(math.sqrt(spp)))
     cells = m * m
     full_rounds = (spp // cells) * cells
-    jitter_order = np.random.default_rng(0x5EED).permutation(cells)
+    jitter_order = np.random.default_rng(0x5EED).permutation(cells)  # (int64)
     rng = np.random.default_rng([s.seed, 7, ci])
-    sample = np.arange(start, end)
-    pix = sample // spp
-    sub = sample % spp
-    acc = Accumulator(int(pix[-1] - pix[0]) + 1, int(pix[0]))
+    n = end - start
     counters = Counters()
     # Pixel jitter: stratified over the same m x m grid, but visited in a scrambled
     # order. With the plain order, jitter cell and light / gather cells were paired
     # by a fixed offset, so a pixel split by an edge saw only part of the gather
     # hemisphere on each side (a dashed line along a floor-wall seam, measured).
-    cell = jitter_order[sub % cells]
     # (Each generator call draws its numbers in order: one call of 2 n numbers gives the
     # two calls of n that this stream was made with.)
-    jitter = rng.random((2, len(sample)))
-    jx = (cell % m + jitter[0]) / m
-    jy = (cell // m + jitter[1]) / m
-    rest = sub >= full_rounds  # beyond whole rounds of the grid: uniform
-    n_rest = int(np.count_nonzero(rest))
-    if n_rest:
-        jx[rest], jy[rest] = rng.random((2, n_rest))
-    px = x0 + pix % rw
-    py = y0 + pix // rw
+    jitter = rng.random((2, n))
+    pix, sub, px, py = (np.empty(n, np.int64) for _ in range(4))
+    jx, jy = np.empty(n), np.empty(n)
+    chunk_samples(start, spp, m, jitter_order, jitter, rw, x0, y0, pix, sub, px, py, jx, jy)
+    acc = Accumulator(int(pix[-1] - pix[0]) + 1, int(pix[0]))
+    if full_rounds < spp:
+        rest = sub >= full_rounds  # beyond whole rounds of the grid: uniform
+        n_rest = int(np.count_nonzero(rest))
+        if n_rest:
+            jx[rest], jy[rest] = rng.random((2, n_rest))
     # The stratified numbers become positions by the pixel filter's distribution (Cycles
     # samples its filter by importance: every ray weight 1; engine/pixelfilter.py).
     o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy,
@@ -971,15 +968,19 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():
             return
-        # The paths that met a surface, compacted (camerakernels.keep_path_hits).
-        kept, o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
-            keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
-                           pdf_b))
+        if hitm.all():  # every path met a surface (a closed room): nothing to compact
+            kept = None
+            travelled = travelled + t
+        else:
+            # The paths that met a surface, compacted (camerakernels.keep_path_hits).
+            kept, o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
+                keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
+                               pdf_b))
         # A pixel's footprint: only the photon estimates read it.
         footprint = None
         if s.photon_mapping:
             footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
-        if sampler is not None and bounce == 0:
+        if sampler is not None and bounce == 0 and kept is not None:
             sampler = sampler.subset(kept)
         hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
         if bounce == 0:
@@ -991,9 +992,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b)[:, None]
                 acc.add(target, pix, Le, tp)
         # The lobes, the continuation's choice, the glossy rows and the rows to shade, in
-        # one kernel (camerakernels.shade_lobes: prm zero-filled, see there).
+        # one kernel (camerakernels.shade_lobes: rows nothing reads stay unwritten).
         n = len(prim)
-        prm, sel, p = (np.zeros((n, pr.N_PACK)), np.empty((n, pr.N_LOBES)),
+        prm, sel, p = (np.empty((n, pr.N_PACK)), np.empty((n, pr.N_LOBES)),
                        np.empty((n, pr.N_LOBES - 1)))
         q, psum, glossy = np.empty(n), np.empty(n), np.empty(n, np.bool_)
         dsel, wd = np.empty(n, np.int64), np.empty((n, 3))
@@ -1007,13 +1008,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         choice = (sel, q, p, psum)
         if nd:
             dsel, wd = dsel[:nd], wd[:nd]
+            every = nd == n
             # The diffuse rows as a view (fields copied on first read), or the batch itself.
-            sub = hit if nd == n else hit.take(dsel)
+            sub = hit if every else hit.take(dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
-            strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
-            g = glossy[dsel]
+            strat = (None if sampler is None or bounce > 0 else
+                     sampler if every else sampler.subset(dsel))
+            g = glossy if every else glossy[dsel]
             direct, caustic, indirect = shade_diffuse(
-                ctx, sub, wd, rng, counters, strat, sample_id[dsel],
+                ctx, sub, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
                 sel=sel[dsel] if g.any() else None)
             if bounce == 0:
