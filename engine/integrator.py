@@ -10,6 +10,7 @@ pass, so the passes add up to the combined image.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -562,7 +563,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     (the first hit's sampler) for the sampled lobes' directions instead of plain random
     ones: a glossy highlight, where the lobe is narrower than the light and the lobes'
     sampling carries it, is far calmer with its directions stratified over the pixel's
-    samples (as Cycles' are)."""
+    samples (as Cycles' are); or a function returning them, called only when a reflective
+    lobe is sampled."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit)[1], tp))
     go = (psum > 0) & (rng.random(len(p)) < q)
@@ -585,8 +587,10 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
         picked = lobe[lobe != PASS_LOBE]
         rows_sampled = idx[lobe != PASS_LOBE]
         refl = (picked != GLASS_R) & (picked != GLASS_T)
-        u1 = np.where(refl, uv[0][rows_sampled], u1)
-        u2 = np.where(refl, uv[1][rows_sampled], u2)
+        if refl.any():
+            u = uv() if callable(uv) else uv
+            u1 = np.where(refl, u[0][rows_sampled], u1)
+            u2 = np.where(refl, u[1][rows_sampled], u2)
     # The camera bounce's hits carry their packed lobes (shade_lobes); others set them up.
     prm = hit.prm if hit.prm is not None else closures(ctx.table, hit)[0]
     rows = np.empty(m, np.int64)
@@ -1032,7 +1036,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # Continue one specular lobe, chosen in proportion to its weight.
         # (Jittered by their own generator: the chunk's stream, and so every image
         # without a rough lobe, stays as it was.)
-        uv = (sampler.uv(("bsdf",), rng=bsdf_rng, scrambled=True)
+        # (Drawn only if a reflective lobe is sampled: bsdf_rng serves nothing else.)
+        uv = (functools.partial(sampler.uv, ("bsdf",), rng=bsdf_rng, scrambled=True)
               if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True,
