@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -819,9 +820,14 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
         dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
                                                  for li in ctx.lights], [("bsdf",)])
 
+    # One set of bounce arrays per thread, reused by its chunks (dropped with the render).
+    buffers = {}
+
     def job(item, stop):
         ci, start = item
-        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop, dims)
+        own = buffers.setdefault(threading.get_ident(), BounceBuffers())
+        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop, dims,
+                             own)
 
     try:
         for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel):
@@ -834,9 +840,10 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     return counters
 
 
-def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
+def _render_chunk(ctx, region, ci, start, end, should_cancel, dims, buffers=None):
     """Camera samples [start, end) of the region (sample = pixel * spp + sub-sample):
-    returns their sums over the pixels they touch, the ray counters, and `end`."""
+    returns their sums over the pixels they touch, the ray counters, and `end`.
+    buffers: the calling thread's BounceBuffers (None: the chunk's own)."""
     s = ctx.settings
     cam = ctx.scene.camera
     W, H = ctx.scene.width, ctx.scene.height
@@ -876,7 +883,8 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler, sub, np.random.default_rng([s.seed, 11, ci]))
+                 should_cancel, sampler, sub, np.random.default_rng([s.seed, 11, ci]),
+                 buffers or BounceBuffers())
     return acc, counters, end
 
 
@@ -893,8 +901,28 @@ def _write_film(film, acc, spp, rh, rw):
     film.normal[...] = nrm.reshape(rh, rw, 3)
 
 
+class BounceBuffers:
+    """The arrays camerakernels.shade_lobes writes per bounce (packed lobes, lobe choice),
+    kept by one thread between its bounces and chunks: fresh arrays of tens of MB per
+    bounce cost more in first-touch page faults than the kernel's own work. A bounce's
+    hits read them until its continuation is made, before the next bounce writes."""
+
+    def __init__(self):
+        self.size = 0
+
+    def take(self, n):
+        """(prm (n, N_PACK), sel (n, N_LOBES), p (n, N_LOBES - 1)): unwritten rows."""
+        if n > self.size:
+            self.size = n
+            self.prm = np.empty((n, pr.N_PACK))
+            self.sel = np.empty((n, pr.N_LOBES))
+            self.p = np.empty((n, pr.N_LOBES - 1))
+        return self.prm[:n], self.sel[:n], self.p[:n]
+
+
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler=None, sample_id=None, bsdf_rng=None):
+                 should_cancel, sampler=None, sample_id=None, bsdf_rng=None, buffers=None):
+    buffers = buffers or BounceBuffers()
     s = ctx.settings
     depth_limit = ctx.plan.specular_depth
     # A pixel's radius on the surface it sees: half a pixel's width at the distance the
@@ -998,8 +1026,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # The lobes, the continuation's choice, the glossy rows and the rows to shade, in
         # one kernel (camerakernels.shade_lobes: rows nothing reads stay unwritten).
         n = len(prim)
-        prm, sel, p = (np.empty((n, pr.N_PACK)), np.empty((n, pr.N_LOBES)),
-                       np.empty((n, pr.N_LOBES - 1)))
+        prm, sel, p = buffers.take(n)
         q, psum, glossy = np.empty(n), np.empty(n), np.empty(n, np.bool_)
         dsel, wd = np.empty(n, np.int64), np.empty((n, 3))
         per_hit = hit.params is not None
