@@ -70,6 +70,10 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
     bary (N,2) = (u, v)."""
     n = prim.shape[0]
     smooth_tables = corner_normals.shape[0] > 0
+    # The unit normal and float32 tilt of the last triangle: a camera chunk's rays come
+    # pixel by pixel, so consecutive hits mostly share a triangle (same values either way).
+    last = -1
+    gx = gy = gz = tilt = 0.0
     for i in range(n):
         t = prim[i]
         b1, b2 = u[i], v[i]
@@ -81,12 +85,15 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
         py = a0y + b1 * a1y + b2 * a2y
         pz = a0z + b1 * a1z + b2 * a2z
         p[i, 0], p[i, 1], p[i, 2] = px, py, pz
-        # Unit geometric normal (winding order): e1 x e2 / |e1 x e2| (np.cross, norm).
-        cx = a1y * a2z - a1z * a2y
-        cy = a1z * a2x - a1x * a2z
-        cz = a1x * a2y - a1y * a2x
-        ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
-        gx, gy, gz = cx / ln, cy / ln, cz / ln
+        if t != last:
+            last = t
+            # Unit geometric normal (winding order): e1 x e2 / |e1 x e2| (np.cross, norm).
+            cx = a1y * a2z - a1z * a2y
+            cy = a1z * a2x - a1x * a2z
+            cz = a1x * a2y - a1y * a2x
+            ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+            gx, gy, gz = cx / ln, cy / ln, cz / ln
+            tilt = _tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z)
         fr = d[i, 0] * gx + d[i, 1] * gy + d[i, 2] * gz < 0.0
         front[i] = fr
         sign = 1.0 if fr else -1.0
@@ -120,8 +127,7 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
         err1 = _corner_error(w0, w1, w2, a0y, a1y, a2y, py)
         err2 = _corner_error(w0, w1, w2, a0z, a1z, a2z, pz)
         offset[i] = _offset_row(err0, err1, err2, v0, e1, e2, t, ng[i, 0], ng[i, 1],
-                                ng[i, 2], px, py, pz, _tilt32(a0x, a0y, a0z, a1x, a1y, a1z,
-                                                              a2x, a2y, a2z))
+                                ng[i, 2], px, py, pz, tilt)
 
 
 @kernel
