@@ -71,7 +71,9 @@ class SurfaceHit:
     bary: np.ndarray | None = None    # (N,2) barycentric weights of corners 1 and 2
     alpha: np.ndarray | None = None   # (N,) per-hit alpha where a material has an alpha
                           # texture (textures.material_alpha); None: the materials' constants
-    prm: np.ndarray | None = None     # (N, principled.N_PACK) lobes (bsdf.closures)
+    prm: np.ndarray | None = None     # (N, principled.N_PACK) lobes (bsdf.closures; on a
+                          # camera bounce's hits camerakernels.shade_lobes's, whose
+                          # diffuse-only rows are set only when the direct stage reads them)
     lobe_albedo: np.ndarray | None = None  # (N, len(LOBE_NAMES), 3)
     n_smooth: np.ndarray | None = None  # (N,3) the smooth shading normal before Normal Map /
                           # Bump nodes, on ns's side, where one bent ns (else ns itself);
@@ -79,7 +81,8 @@ class SurfaceHit:
     params: np.ndarray | None = None  # (N, principled.N_MAT) closure parameters per hit
                           # where a material has texture-driven scalar inputs
                           # (textures.scalar_params); None: the materials' rows
-    emission: np.ndarray | None = None  # (N,3) emitted radiance (emission textures applied)
+    emission: np.ndarray | None = None  # (N,3) emitted radiance (emission textures applied;
+                          # a read-only zero-stride view of zeros when no material emits)
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle
@@ -177,7 +180,13 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
                       offset=offset, bary=bary, alpha=alpha,
                       n_smooth=n_smooth, params=scalar_params(table, sg, mat, prim, u, v),
-                      emission=hit_emission(table, sg, mat, prim, u, v))
+                      emission=(hit_emission(table, sg, mat, prim, u, v)
+                                if table.emission.any() else np.broadcast_to(_NO_LIGHT, (n, 3))))
+
+
+# Emission rows where no material emits: one zero row seen N times (nothing to gather).
+_NO_LIGHT = np.zeros(3)
+_NO_LIGHT.flags.writeable = False
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):

@@ -22,6 +22,9 @@ two Embree calls for every hit of a camera, gather or specular ray.
 - `keep_path_hits` (sixth slice): the camera paths whose ray met a surface, compacted
   (integrator._trace_paths' state after each Embree call).
 - `film_add` (sixth slice): the Accumulator's RGB scatter-add, throughput factor included.
+- `shade_lobes` (eighth slice): one camera bounce's closures, lobe choice, glossy rows and
+  the rows to shade in one call, writing only what the bounce reads (a diffuse-only
+  material skips the closures' set-up and its packed row; no (N, N_LOBES, 3) albedos).
 
 Every kernel computes the same floating-point operations in the same order as the numpy
 stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py and
@@ -36,7 +39,7 @@ import math
 import numpy as np
 
 from .closures import principled as pr
-from .directlight import _to_world
+from .directlight import _npmax, _to_world
 from .jit import kernel, register_warm_up
 from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
 
@@ -67,6 +70,10 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
     bary (N,2) = (u, v)."""
     n = prim.shape[0]
     smooth_tables = corner_normals.shape[0] > 0
+    # The unit normal and float32 tilt of the last triangle: a camera chunk's rays come
+    # pixel by pixel, so consecutive hits mostly share a triangle (same values either way).
+    last = -1
+    gx = gy = gz = tilt = 0.0
     for i in range(n):
         t = prim[i]
         b1, b2 = u[i], v[i]
@@ -78,12 +85,15 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
         py = a0y + b1 * a1y + b2 * a2y
         pz = a0z + b1 * a1z + b2 * a2z
         p[i, 0], p[i, 1], p[i, 2] = px, py, pz
-        # Unit geometric normal (winding order): e1 x e2 / |e1 x e2| (np.cross, norm).
-        cx = a1y * a2z - a1z * a2y
-        cy = a1z * a2x - a1x * a2z
-        cz = a1x * a2y - a1y * a2x
-        ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
-        gx, gy, gz = cx / ln, cy / ln, cz / ln
+        if t != last:
+            last = t
+            # Unit geometric normal (winding order): e1 x e2 / |e1 x e2| (np.cross, norm).
+            cx = a1y * a2z - a1z * a2y
+            cy = a1z * a2x - a1x * a2z
+            cz = a1x * a2y - a1y * a2x
+            ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+            gx, gy, gz = cx / ln, cy / ln, cz / ln
+            tilt = _tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z)
         fr = d[i, 0] * gx + d[i, 1] * gy + d[i, 2] * gz < 0.0
         front[i] = fr
         sign = 1.0 if fr else -1.0
@@ -117,8 +127,7 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
         err1 = _corner_error(w0, w1, w2, a0y, a1y, a2y, py)
         err2 = _corner_error(w0, w1, w2, a0z, a1z, a2z, pz)
         offset[i] = _offset_row(err0, err1, err2, v0, e1, e2, t, ng[i, 0], ng[i, 1],
-                                ng[i, 2], px, py, pz, _tilt32(a0x, a0y, a0z, a1x, a1y, a1z,
-                                                              a2x, a2y, a2z))
+                                ng[i, 2], px, py, pz, tilt)
 
 
 @kernel
@@ -211,6 +220,142 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
     for i in range(n):
         for c in range(3):
             prm[i, pr.P_GN + c] = local[i, c]
+
+
+@kernel
+def _diffuse_only(params, r):
+    """Material row r has the diffuse and pass lobes alone: principled.setup would
+    skip its sheen, coat, metal, glass and specular layers (each needs a weight > 0) and
+    leave every packed column 0 (photonkernels.plain_materials, per row)."""
+    return not (params[r, pr.M_SHEEN_W] > 0.0 or params[r, pr.M_COAT_W] > 0.0
+                or params[r, pr.M_METALLIC] > 0.0 or params[r, pr.M_TRANS] > 0.0
+                or params[r, pr.M_SPEC] > 0.0)
+
+
+@kernel
+def _max3(a, b, c):
+    """sampling.max3 of one row (np.maximum: NaN wins)."""
+    return _npmax(_npmax(a, b), c)
+
+
+@kernel
+def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha, tp,
+                want_glossy, prm, sel, q, p, psum, glossy, rows, wd):
+    """One camera bounce's lobes over N hits in one call (hit_closures, choose_lobes, the
+    glossy rows of integrator.light_modes and the rows the diffuse stage shades), writing
+    to memory only what the bounce reads.
+
+    Inputs as hit_closures takes them, plus tp (N,3) path throughputs and want_glossy
+    (bool: some light takes glossy shadow rays; else no row is glossy).
+    Hits whose material has the diffuse and pass lobes alone skip the closures' set-up
+    (their albedos are written into a scratch row, exactly as principled.setup gives
+    them); the others are set up together (principled.setup on a compacted batch).
+    Out: prm (N, N_PACK) as hit_closures on the hits the set-up saw; q, psum (N,) as
+    choose_lobes; p (N, N_LOBES - 1), sel (N, N_LOBES) as choose_lobes where psum > 0
+    (the rows a continuation may pick); the diffuse-only rows' prm, the other rows' sel,
+    and p where psum <= 0 are left unwritten (undefined: a continuation picks only rows
+    with psum > 0, and through a diffuse-only material only its pass lobe, which reads
+    no packed row);
+    glossy (N,) bool (principled.has_rough_reflection); rows (K,) the hits with a diffuse
+    albedo (max3 > 0) or a glossy lobe, in order, and wd (K,3) their diffuse albedo.
+    When some row is glossy the direct stage reads every shaded row's prm and sel, so
+    then every row is written: prm equals hit_closures' (zeros and the glossy normal on
+    diffuse-only rows) and sel choose_lobes' everywhere. Returns K. Same floating-point operations as the
+    kernels it fuses (tests/test_fused_camera.py)."""
+    n = ns.shape[0]
+    k_lobes = pr.N_LOBES - 1
+    per_hit_alpha = hit_alpha.shape[0] > 0
+    # 1. The hits whose material has more than the diffuse and pass lobes, compacted,
+    # with hit_closures' view cosine and glossy normal; principled.setup on them at once.
+    nc = 0
+    for i in range(n):
+        if not _diffuse_only(params, i if per_hit else mat[i]):
+            nc += 1
+    at = np.empty(nc, np.int64)
+    rows_c = np.empty(nc, np.int64)
+    base_c, local_c = np.empty((nc, 3)), np.zeros((nc, 3))
+    cos_c, alpha_c = np.empty(nc), np.empty(nc)
+    front_c = np.empty(nc, np.bool_)
+    j = 0
+    for i in range(n):
+        r = i if per_hit else mat[i]
+        if _diffuse_only(params, r):
+            continue
+        at[j] = i
+        rows_c[j] = r
+        cos = _view_cosine(ns, wo, i)
+        if not params[r, pr.M_TRANS] > 0:  # glass keeps ns (hit_closures)
+            raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
+            if raised:
+                local_c[j, 0], local_c[j, 1], local_c[j, 2], cos = g0, g1, g2, c
+        cos_c[j] = cos
+        alpha_c[j] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
+        front_c[j] = front[i]
+        base_c[j, 0], base_c[j, 1], base_c[j, 2] = base[i, 0], base[i, 1], base[i, 2]
+        j += 1
+    prm_c = np.empty((nc, pr.N_PACK))
+    w_c = np.empty((nc, pr.N_LOBES, 3))
+    pr.setup(rows_c, params, base_c, cos_c, front_c, alpha_c, prm_c, w_c)
+    # 2. Every hit in order: its packed row, lobe choice, glossy flag and diffuse row.
+    w = np.empty((pr.N_LOBES, 3))  # a diffuse-only hit's albedos
+    m = np.empty(k_lobes)
+    any_glossy = False
+    j = 0
+    k = 0
+    for i in range(n):
+        gl = False
+        if j < nc and at[j] == i:
+            for c in range(pr.P_GN):
+                prm[i, c] = prm_c[j, c]
+            for c in range(3):
+                prm[i, pr.P_GN + c] = local_c[j, c]
+            if want_glossy:
+                gl = pr.has_rough_reflection(prm, i)
+            wi = w_c[j]
+            j += 1
+        else:
+            # setup's albedos for a diffuse-only material, bit for bit (W stays a).
+            r = i if per_hit else mat[i]
+            a = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
+            for lb in range(pr.N_LOBES):
+                for c in range(3):
+                    w[lb, c] = 0.0
+            for c in range(3):
+                w[pr.L_PASS, c] = (1.0 - a) * params[r, pr.M_TTINT + c]
+                w[pr.L_DIFFUSE, c] = a * base[i, c]
+            wi = w
+        s, qi = _choose_row(wi, tp[i, 0], tp[i, 1], tp[i, 2], m)
+        psum[i] = s
+        q[i] = qi
+        if s > 0:
+            sel[i, 0] = 0.0
+            for jj in range(k_lobes):
+                p[i, jj] = m[jj]
+                sel[i, jj + 1] = m[jj] / s * qi
+        glossy[i] = gl
+        any_glossy = any_glossy or gl
+        if _max3(wi[0, 0], wi[0, 1], wi[0, 2]) > 0 or gl:
+            rows[k] = i
+            wd[k, 0], wd[k, 1], wd[k, 2] = wi[0, 0], wi[0, 1], wi[0, 2]
+            k += 1
+    if any_glossy:
+        # The direct stage reads every shaded row's prm and sel: the diffuse-only rows'
+        # glossy normals (the rest of their packed row is 0) and their zero choice.
+        j = 0
+        for i in range(n):
+            if not psum[i] > 0:
+                for jj in range(pr.N_LOBES):
+                    sel[i, jj] = 0.0
+            if j < nc and at[j] == i:
+                j += 1
+                continue
+            for c in range(pr.P_GN):
+                prm[i, c] = 0.0
+            raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
+            prm[i, pr.P_GN] = g0
+            prm[i, pr.P_GN + 1] = g1
+            prm[i, pr.P_GN + 2] = g2
+    return k
 
 
 @kernel
@@ -318,29 +463,40 @@ def choose_lobes(albedo, tp, sel, q, p, psum):
     channel), psum (N,), q (N,) the survival probability (Russian roulette only for paths
     that would contribute less than 10 %: q = clip(10 max3(tp sum_lobes w), 0, 1)), sel
     (N, N_LOBES) the probability of continuing through each lobe (diffuse: 0)."""
-    n = albedo.shape[0]
     k = albedo.shape[1] - 1
-    for i in range(n):
-        s = 0.0
-        wx = albedo[i, 1, 0]
-        wy = albedo[i, 1, 1]
-        wz = albedo[i, 1, 2]
-        for j in range(k):
-            a = albedo[i, j + 1]
-            m = max(max(a[0], a[1]), a[2])
-            p[i, j] = m
-            s = s + m if j > 0 else m
-            if j > 0:
-                wx += a[0]
-                wy += a[1]
-                wz += a[2]
+    m = np.empty(k)
+    for i in range(albedo.shape[0]):
+        s, qi = _choose_row(albedo[i], tp[i, 0], tp[i, 1], tp[i, 2], m)
         psum[i] = s
-        qi = 10.0 * max(max(tp[i, 0] * wx, tp[i, 1] * wy), tp[i, 2] * wz)
-        qi = min(max(qi, 0.0), 1.0)
         q[i] = qi
         sel[i, 0] = 0.0
         for j in range(k):
-            sel[i, j + 1] = p[i, j] / s * qi if s > 0 else 0.0
+            p[i, j] = m[j]
+            sel[i, j + 1] = m[j] / s * qi if s > 0 else 0.0
+
+
+@kernel
+def _choose_row(w, t0, t1, t2, m):
+    """choose_lobes for one hit: w (N_LOBES, 3) its lobe albedos, (t0, t1, t2) its
+    throughput. Writes m (N_LOBES - 1,) the non-diffuse lobes' weights (max channel);
+    returns (their sum psum, the survival probability q)."""
+    k = w.shape[0] - 1
+    s = 0.0
+    wx = w[1, 0]
+    wy = w[1, 1]
+    wz = w[1, 2]
+    for j in range(k):
+        a0, a1, a2 = w[j + 1, 0], w[j + 1, 1], w[j + 1, 2]
+        mj = max(max(a0, a1), a2)
+        m[j] = mj
+        s = s + mj if j > 0 else mj
+        if j > 0:
+            wx += a0
+            wy += a1
+            wz += a2
+    qi = 10.0 * max(max(t0 * wx, t1 * wy), t2 * wz)
+    qi = min(max(qi, 0.0), 1.0)
+    return s, qi
 
 
 @kernel
@@ -502,6 +658,13 @@ def _warm_up():
         hit_closures(ns, ng, -d, mat, np.zeros((1, pr.N_MAT)), per_hit, base, front,
                      np.ones(1), hit_alpha, np.empty((1, pr.N_PACK)),
                      np.empty((1, pr.N_LOBES, 3)))
+    for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
+        for params in (np.zeros((1, pr.N_MAT)), np.full((1, pr.N_MAT), 0.5)):
+            shade_lobes(ns, ng, -d, mat, params, per_hit, base, front, np.ones(1), hit_alpha,
+                        np.ones((1, 3)), True, np.empty((1, pr.N_PACK)),
+                        np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
+                        np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
+                        np.empty((1, 3)))
     gather_rays(one, one, ns, ng, p, off, np.empty(1, np.int64), np.empty((1, 3)),
                 np.empty((1, 3)))
     i64 = np.zeros(1, np.int64)

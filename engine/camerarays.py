@@ -1,5 +1,6 @@
-"""Camera-ray generation as a compiled kernel (engine/jit.py): one pass from pixel
-positions to ray origins, unit directions and clip distances, for integrator.camera_rays.
+"""Camera-ray generation as compiled kernels (engine/jit.py): a chunk's samples to pixels
+and jittered positions (chunk_samples), and one pass from pixel positions to ray origins,
+unit directions and clip distances, for integrator.camera_rays.
 
 The position inside the pixel comes from the pixel filter's inverse CDF
 (engine/pixelfilter.py: each ray drawn from the filter's distribution, weight 1, as
@@ -73,8 +74,47 @@ def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip
     return o, d, tmax
 
 
+@kernel
+def chunk_samples(start, spp, m, cell_order, jitter, rw, x0, y0, pix, sub, px, py, jx, jy):
+    """Camera samples start + k (sample = pixel * spp + sub-sample) of a chunk, k < N, in
+    one pass (integrator._render_chunk): pix, sub (N,) int64; the pixel's column and row
+    px = x0 + pix mod rw, py = y0 + pix div rw (N,) int64; the jittered position inside
+    the pixel jx = (cell mod m + jitter[0]) / m, jy = (cell div m + jitter[1]) / m (N,)
+    float64 of the stratified cell cell = cell_order[sub mod m^2] (m x m grid, visited in
+    the scrambled order cell_order (m^2,) int64), jitter (2, N) uniform numbers. The same
+    integer and floating-point operations as the numpy stage it replaced."""
+    cells = m * m
+    n = pix.shape[0]
+    if n == 0:
+        return
+    # Counters carried from sample to sample instead of six integer divisions each.
+    p = start // spp
+    b = start % spp
+    col = p % rw
+    row = p // rw
+    for k in range(n):
+        pix[k] = p
+        sub[k] = b
+        cell = cell_order[b % cells]
+        jx[k] = (cell % m + jitter[0, k]) / m
+        jy[k] = (cell // m + jitter[1, k]) / m
+        px[k] = x0 + col
+        py[k] = y0 + row
+        b += 1
+        if b == spp:
+            b = 0
+            p += 1
+            col += 1
+            if col == rw:
+                col = 0
+                row += 1
+
+
 @register_warm_up
 def _warm_up():
+    i64 = np.empty(4, np.int64)
+    chunk_samples(0, 4, 2, np.arange(4), np.full((2, 4), 0.5), 2, 0, 0, i64, i64.copy(),
+                  i64.copy(), i64.copy(), np.empty(4), np.empty(4))
     R = np.eye(3)
     pos = np.zeros(3)
     for ortho in (False, True):

@@ -10,7 +10,9 @@ pass, so the passes add up to the combined image.
 """
 from __future__ import annotations
 
+import functools
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,10 +28,10 @@ from .lights.packing import pack_lights
 from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, surface_hit
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
-                            pick_lobes)
-from .camerarays import camera_rays_kernel
+                            pick_lobes, shade_lobes)
+from .camerarays import camera_rays_kernel, chunk_samples
 from .gatherkernels import add_gathered, diffuse_lookups, keep_hits, lean_diffuse, lean_materials
-from .closures.principled import rough_reflection_rows
+from .closures import principled as pr
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
@@ -594,8 +596,9 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     (the first hit's sampler) for the sampled lobes' directions instead of plain random
     ones: a glossy highlight, where the lobe is narrower than the light and the lobes'
     sampling carries it, is far calmer with its directions stratified over the pixel's
-    samples (as Cycles' are). go_u: the survival test's uniform numbers (N,), drawn by the
-    caller (gather_indirect draws them for all its hits and continues only those with a
+    samples (as Cycles' are); or a function returning them, called only when a reflective
+    lobe is sampled. go_u: the survival test's uniform numbers (N,), drawn by the caller
+    (gather_indirect draws them for all its hits and continues only those with a
     non-diffuse lobe); default: drawn here."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit)[1], tp))
@@ -619,9 +622,12 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
         picked = lobe[lobe != PASS_LOBE]
         rows_sampled = idx[lobe != PASS_LOBE]
         refl = (picked != GLASS_R) & (picked != GLASS_T)
-        u1 = np.where(refl, uv[0][rows_sampled], u1)
-        u2 = np.where(refl, uv[1][rows_sampled], u2)
-    prm, _ = closures(ctx.table, hit)
+        if refl.any():
+            u = uv() if callable(uv) else uv
+            u1 = np.where(refl, u[0][rows_sampled], u1)
+            u2 = np.where(refl, u[1][rows_sampled], u2)
+    # The camera bounce's hits carry their packed lobes (shade_lobes); others set them up.
+    prm = hit.prm if hit.prm is not None else closures(ctx.table, hit)[0]
     rows = np.empty(m, np.int64)
     o, d, new_tp = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
     cls = np.empty(m, np.int64)
@@ -695,7 +701,8 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None):
-    """Radiance from the diffuse lobe, split into (direct, caustic, indirect). glossy (N,)
+    """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
+    indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
     term then holds both lobes' response (shadow rays weighted by the full BSDF, with
     multiple importance sampling against the continuation's choice sel (N, N_LOBES),
@@ -706,6 +713,8 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel))
     else:
         direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
+    if not ctx.settings.photon_mapping:
+        return direct, None, None  # (no caustic or indirect term to add)
     caustic = np.zeros_like(direct)
     indirect = np.zeros_like(direct)
     if glossy is not None:
@@ -845,9 +854,14 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
         dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
                                                  for li in ctx.lights], [("bsdf",)])
 
+    # One set of bounce arrays per thread, reused by its chunks (dropped with the render).
+    buffers = {}
+
     def job(item, stop):
         ci, start = item
-        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop, dims)
+        own = buffers.setdefault(threading.get_ident(), BounceBuffers())
+        return _render_chunk(wctx, region, ci, start, min(total, start + chunk), stop, dims,
+                             own)
 
     try:
         for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel):
@@ -860,9 +874,10 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
     return counters
 
 
-def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
+def _render_chunk(ctx, region, ci, start, end, should_cancel, dims, buffers=None):
     """Camera samples [start, end) of the region (sample = pixel * spp + sub-sample):
-    returns their sums over the pixels they touch, the ray counters, and `end`."""
+    returns their sums over the pixels they touch, the ray counters, and `end`.
+    buffers: the calling thread's BounceBuffers (None: the chunk's own)."""
     s = ctx.settings
     cam = ctx.scene.camera
     W, H = ctx.scene.width, ctx.scene.height
@@ -872,29 +887,26 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     m = max(1, int(math.sqrt(spp)))
     cells = m * m
     full_rounds = (spp // cells) * cells
-    jitter_order = np.random.default_rng(0x5EED).permutation(cells)
+    jitter_order = np.random.default_rng(0x5EED).permutation(cells)  # (int64)
     rng = np.random.default_rng([s.seed, 7, ci])
-    sample = np.arange(start, end)
-    pix = sample // spp
-    sub = sample % spp
-    acc = Accumulator(int(pix[-1] - pix[0]) + 1, int(pix[0]))
+    n = end - start
     counters = Counters()
     # Pixel jitter: stratified over the same m x m grid, but visited in a scrambled
     # order. With the plain order, jitter cell and light / gather cells were paired
     # by a fixed offset, so a pixel split by an edge saw only part of the gather
     # hemisphere on each side (a dashed line along a floor-wall seam, measured).
-    cell = jitter_order[sub % cells]
     # (Each generator call draws its numbers in order: one call of 2 n numbers gives the
     # two calls of n that this stream was made with.)
-    jitter = rng.random((2, len(sample)))
-    jx = (cell % m + jitter[0]) / m
-    jy = (cell // m + jitter[1]) / m
-    rest = sub >= full_rounds  # beyond whole rounds of the grid: uniform
-    n_rest = int(np.count_nonzero(rest))
-    if n_rest:
-        jx[rest], jy[rest] = rng.random((2, n_rest))
-    px = x0 + pix % rw
-    py = y0 + pix // rw
+    jitter = rng.random((2, n))
+    pix, sub, px, py = (np.empty(n, np.int64) for _ in range(4))
+    jx, jy = np.empty(n), np.empty(n)
+    chunk_samples(start, spp, m, jitter_order, jitter, rw, x0, y0, pix, sub, px, py, jx, jy)
+    acc = Accumulator(int(pix[-1] - pix[0]) + 1, int(pix[0]))
+    if full_rounds < spp:
+        rest = sub >= full_rounds  # beyond whole rounds of the grid: uniform
+        n_rest = int(np.count_nonzero(rest))
+        if n_rest:
+            jx[rest], jy[rest] = rng.random((2, n_rest))
     # The stratified numbers become positions by the pixel filter's distribution (Cycles
     # samples its filter by importance: every ray weight 1; engine/pixelfilter.py).
     o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy,
@@ -905,19 +917,9 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims):
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler, sub, np.random.default_rng([s.seed, 11, ci]))
+                 should_cancel, sampler, sub, np.random.default_rng([s.seed, 11, ci]),
+                 buffers or BounceBuffers())
     return acc, counters, end
-
-
-def _glossy_rows(ctx, hit, modes):
-    """Hits whose rough reflective lobes take shadow rays: any, when a light is sampled
-    for them (light_modes; directlight.accumulate_bsdf)."""
-    if not np.any(modes != MODE_CONTINUATION):
-        return np.zeros(len(hit.p), bool)
-    prm, _ = closures(ctx.table, hit)
-    out = np.empty(len(hit.p), np.bool_)
-    rough_reflection_rows(prm, out)
-    return out
 
 
 def _write_film(film, acc, spp, rh, rw):
@@ -933,8 +935,28 @@ def _write_film(film, acc, spp, rh, rw):
     film.normal[...] = nrm.reshape(rh, rw, 3)
 
 
+class BounceBuffers:
+    """The arrays camerakernels.shade_lobes writes per bounce (packed lobes, lobe choice),
+    kept by one thread between its bounces and chunks: fresh arrays of tens of MB per
+    bounce cost more in first-touch page faults than the kernel's own work. A bounce's
+    hits read them until its continuation is made, before the next bounce writes."""
+
+    def __init__(self):
+        self.size = 0
+
+    def take(self, n):
+        """(prm (n, N_PACK), sel (n, N_LOBES), p (n, N_LOBES - 1)): unwritten rows."""
+        if n > self.size:
+            self.size = n
+            self.prm = np.empty((n, pr.N_PACK))
+            self.sel = np.empty((n, pr.N_LOBES))
+            self.p = np.empty((n, pr.N_LOBES - 1))
+        return self.prm[:n], self.sel[:n], self.p[:n]
+
+
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler=None, sample_id=None, bsdf_rng=None):
+                 should_cancel, sampler=None, sample_id=None, bsdf_rng=None, buffers=None):
+    buffers = buffers or BounceBuffers()
     s = ctx.settings
     depth_limit = ctx.plan.specular_depth
     # A pixel's radius on the surface it sees: half a pixel's width at the distance the
@@ -952,6 +974,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
     has_holdout = bool(ctx.geo.holdout.any())
+    # No material emits: no emission rows to gather or test (surface_hit's are zeros).
+    emitters = bool(ctx.table.emission.any())
+    want_glossy = bool(np.any(modes != MODE_CONTINUATION))
+    table_alpha = np.ascontiguousarray(ctx.table.alpha, np.float64)
+    c = np.ascontiguousarray
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1012,48 +1039,74 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():
             return
-        # The paths that met a surface, compacted (camerakernels.keep_path_hits).
-        kept, o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
-            keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
-                           pdf_b))
-        footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
-        if sampler is not None and bounce == 0:
+        if hitm.all():  # every path met a surface (a closed room): nothing to compact
+            kept = None
+            travelled = travelled + t
+        else:
+            # The paths that met a surface, compacted (camerakernels.keep_path_hits).
+            kept, o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
+                keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
+                               pdf_b))
+        # A pixel's footprint: only the photon estimates read it.
+        footprint = None
+        if s.photon_mapping:
+            footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
+        if sampler is not None and bounce == 0 and kept is not None:
             sampler = sampler.subset(kept)
         hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
         if bounce == 0:
             acc.add_first_hits(pix, dot(hit.p - cam_pos, forward), hit.ns, hit.front)
-        Le = hit.emission
-        if np.any(Le > 0):
-            if bounce > 0:
-                Le = Le * _mesh_mis_weight(ctx, modes, prim, o, d, t, hit.ng, pdf_b,
-                                           org_p[kept], org_ns[kept])[:, None]
-            acc.add(target, pix, Le, tp)
-        w = lobe_weights(ctx.table, hit)
-        wd = w["diffuse"]
-        glossy = _glossy_rows(ctx, hit, modes)
-        choice = lobe_choice(hit.lobe_albedo, tp)
-        dsel = np.nonzero((max3(wd) > 0) | glossy)[0]
-        if len(dsel):
+        if emitters:
+            Le = hit.emission
+            if np.any(Le > 0):
+                if bounce > 0:
+                    Le = Le * _mesh_mis_weight(
+                        ctx, modes, prim, o, d, t, hit.ng, pdf_b,
+                        org_p if kept is None else org_p[kept],
+                        org_ns if kept is None else org_ns[kept])[:, None]
+                acc.add(target, pix, Le, tp)
+        # The lobes, the continuation's choice, the glossy rows and the rows to shade, in
+        # one kernel (camerakernels.shade_lobes: rows nothing reads stay unwritten).
+        n = len(prim)
+        prm, sel, p = buffers.take(n)
+        q, psum, glossy = np.empty(n), np.empty(n), np.empty(n, np.bool_)
+        dsel, wd = np.empty(n, np.int64), np.empty((n, 3))
+        per_hit = hit.params is not None
+        nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
+                         hit.params if per_hit else ctx.table.closure_params, per_hit,
+                         hit.base, hit.front, table_alpha,
+                         _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64), tp,
+                         want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
+        hit.prm = prm
+        choice = (sel, q, p, psum)
+        if nd:
+            dsel, wd = dsel[:nd], wd[:nd]
+            every = nd == n
             # The diffuse rows as a view (fields copied on first read), or the batch itself.
-            sub = hit if len(dsel) == len(prim) else hit.take(dsel)
+            sub = hit if every else hit.take(dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
-            strat = sampler.subset(dsel) if (sampler is not None and bounce == 0) else None
-            direct, caustic, indirect = shade_diffuse(ctx, sub, wd[dsel], rng, counters, strat,
-                                                      sample_id[dsel], footprint[dsel],
-                                                      should_cancel, glossy=glossy[dsel],
-                                                      sel=choice[0][dsel])
+            strat = (None if sampler is None or bounce > 0 else
+                     sampler if every else sampler.subset(dsel))
+            g = glossy if every else glossy[dsel]
+            direct, caustic, indirect = shade_diffuse(
+                ctx, sub, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
+                None if footprint is None else footprint[dsel], should_cancel, glossy=g,
+                sel=sel[dsel] if g.any() else None)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
-                acc.add("caustic", pix, caustic, tp, dsel)
-                acc.add("indirect", pix, indirect, tp, dsel)
+                if caustic is not None:
+                    acc.add("caustic", pix, caustic, tp, dsel)
+                    acc.add("indirect", pix, indirect, tp, dsel)
             else:
-                acc.add("specular", pix, direct + caustic + indirect, tp, dsel)
+                acc.add("specular", pix, direct if caustic is None
+                        else direct + caustic + indirect, tp, dsel)
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
         # (Jittered by their own generator: the chunk's stream, and so every image
         # without a rough lobe, stays as it was.)
-        uv = (sampler.uv(("bsdf",), rng=bsdf_rng, scrambled=True)
+        # (Drawn only if a reflective lobe is sampled: bsdf_rng serves nothing else.)
+        uv = (functools.partial(sampler.uv, ("bsdf",), rng=bsdf_rng, scrambled=True)
               if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True,

@@ -120,8 +120,12 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
         alpha = rough * rough
         multi = q[M_MULTI]
         node = q[M_NODE]
-        E = tables.ggx_E(rough, mu)
-        E_avg = tables.ggx_Eavg(rough)
+        # The GGX albedo tables only where a metal or specular layer reads them (a
+        # diffuse-only material skips both lookups; nothing else changes).
+        E = E_avg = 0.0
+        if q[M_METALLIC] > 0.0 or q[M_SPEC] > 0.0:
+            E = tables.ggx_E(rough, mu)
+            E_avg = tables.ggx_Eavg(rough)
         # --- sheen (the top layer) ---
         shw = q[M_SHEEN_W]
         if shw > 0.0 and a > 0.0:
@@ -291,41 +295,50 @@ def glossy_normals(ns, ng, wo, local, cos_o):
     view cosine the closure set-up then estimates the lobes' albedo with (as Cycles sets
     its glossy closures up on N')."""
     for i in range(ns.shape[0]):
-        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
-        g0, g1, g2 = ng[i, 0], ng[i, 1], ng[i, 2]
-        if n0 == g0 and n1 == g1 and n2 == g2:
-            continue
-        w0, w1, w2 = wo[i, 0], wo[i, 1], wo[i, 2]
-        ni = n0 * w0 + n1 * w1 + n2 * w2
-        r0, r1, r2 = 2.0 * ni * n0 - w0, 2.0 * ni * n1 - w1, 2.0 * ni * n2 - w2
-        iz = w0 * g0 + w1 * g1 + w2 * g2
-        t = min(0.9 * iz, 0.01)
-        if r0 * g0 + r1 * g1 + r2 * g2 >= t:
-            continue
-        ng_dot = n0 * g0 + n1 * g1 + n2 * g2
-        x0, x1, x2 = n0 - ng_dot * g0, n1 - ng_dot * g1, n2 - ng_dot * g2
-        ln = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
-        if ln > 0.0:
-            x0, x1, x2 = x0 / ln, x1 / ln, x2 / ln
-        else:
-            x0, x1, x2 = n0, n1, n2
-        ix = w0 * x0 + w1 * x1 + w2 * x2
-        a = ix * ix + iz * iz
-        if a <= 0.0:
-            continue
-        b = 2.0 * (a + iz * t)
-        c = (t + iz) * (t + iz)
-        disc = math.sqrt(max(b * b - 4.0 * a * c, 0.0))
-        nz2 = 0.25 * (b + disc) / a if ix < 0.0 else 0.25 * (b - disc) / a
-        nx = math.sqrt(max(1.0 - nz2, 0.0))
-        nz = math.sqrt(max(nz2, 0.0))
-        p0, p1, p2 = nx * x0 + nz * g0, nx * x1 + nz * g1, nx * x2 + nz * g2
-        l0, l1, l2 = frame_local(n0, n1, n2, p0, p1, p2)
-        ln = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
-        if not ln > 0.0:
-            continue
-        local[i, 0], local[i, 1], local[i, 2] = l0 / ln, l1 / ln, l2 / ln
-        cos_o[i] = (w0 * p0 + w1 * p1 + w2 * p2) / ln
+        raised, l0, l1, l2, c = glossy_normal_row(ns, ng, wo, i)
+        if raised:
+            local[i, 0], local[i, 1], local[i, 2] = l0, l1, l2
+            cos_o[i] = c
+
+
+@kernel
+def glossy_normal_row(ns, ng, wo, i):
+    """glossy_normals for row i: (raised, N' in ns's frame (3 values), wo.N'); raised
+    False: the glossy lobes keep ns (the other values unused)."""
+    n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+    g0, g1, g2 = ng[i, 0], ng[i, 1], ng[i, 2]
+    if n0 == g0 and n1 == g1 and n2 == g2:
+        return False, 0.0, 0.0, 0.0, 0.0
+    w0, w1, w2 = wo[i, 0], wo[i, 1], wo[i, 2]
+    ni = n0 * w0 + n1 * w1 + n2 * w2
+    r0, r1, r2 = 2.0 * ni * n0 - w0, 2.0 * ni * n1 - w1, 2.0 * ni * n2 - w2
+    iz = w0 * g0 + w1 * g1 + w2 * g2
+    t = min(0.9 * iz, 0.01)
+    if r0 * g0 + r1 * g1 + r2 * g2 >= t:
+        return False, 0.0, 0.0, 0.0, 0.0
+    ng_dot = n0 * g0 + n1 * g1 + n2 * g2
+    x0, x1, x2 = n0 - ng_dot * g0, n1 - ng_dot * g1, n2 - ng_dot * g2
+    ln = math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+    if ln > 0.0:
+        x0, x1, x2 = x0 / ln, x1 / ln, x2 / ln
+    else:
+        x0, x1, x2 = n0, n1, n2
+    ix = w0 * x0 + w1 * x1 + w2 * x2
+    a = ix * ix + iz * iz
+    if a <= 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0
+    b = 2.0 * (a + iz * t)
+    c = (t + iz) * (t + iz)
+    disc = math.sqrt(max(b * b - 4.0 * a * c, 0.0))
+    nz2 = 0.25 * (b + disc) / a if ix < 0.0 else 0.25 * (b - disc) / a
+    nx = math.sqrt(max(1.0 - nz2, 0.0))
+    nz = math.sqrt(max(nz2, 0.0))
+    p0, p1, p2 = nx * x0 + nz * g0, nx * x1 + nz * g1, nx * x2 + nz * g2
+    l0, l1, l2 = frame_local(n0, n1, n2, p0, p1, p2)
+    ln = math.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+    if not ln > 0.0:
+        return False, 0.0, 0.0, 0.0, 0.0
+    return True, l0 / ln, l1 / ln, l2 / ln, (w0 * p0 + w1 * p1 + w2 * p2) / ln
 
 
 @kernel
