@@ -234,6 +234,17 @@ def ordered_map(job, items, threads: int, should_cancel=None):
         _let_drain(pool, owner)
 
 
+def run_tasks(tasks, threads: int, should_cancel=None) -> list:
+    """[task(stop) for task in tasks]: independent steps (a photon map's build: kd-trees
+    over disjoint photon sets, the radius's k-NN, the neighbour lists) run side by side
+    on up to `threads` threads, so neither core waits for the other's step. Each task
+    computes what it would alone (no shared state), so the results do not depend on the
+    thread count. Inline in order with threads <= 1 and no should_cancel; otherwise as
+    ordered_map runs its jobs (stop, cancel and errors alike), all of them at once when
+    there are at most 2 x threads."""
+    return list(ordered_map(lambda task, stop: task(stop), tasks, threads, should_cancel))
+
+
 def run_cancellable(job, should_cancel=None):
     """Return job(stop), run on a worker thread while the calling thread asks
     should_cancel() every POLL_SECONDS, for one long step that has no chunks of its own
