@@ -545,7 +545,7 @@ class GatherMap:
     brightens every estimate by +3 photons of the Simpson kernel (+4.8 % at k = 64).
     The two thinned sets are independent, so neither bias appears (tests/test_furnace.py).
 
-    A photon is a gather point with probability gather_point_share: 1 / step where
+    A photon is a gather point with the probability _point_shares gives: 1 / step where
     photons are dense, more where they are sparse (counted from the every-step-th points),
     so that a lookup disc of the search radius holds a few gather points wherever photons
     are stored. Every step-th photon alone left surfaces lit 30x more thinly than the

@@ -319,7 +319,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
             s.radius, geo.extent, diffuse_area, stats.get("global_photons", 0), s.min_photons))
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
-    # For the photon-hit pass (_draw_photons), always filled.
+    # For the photon-hit pass (_photon_hit_view), always filled.
     return (shot, caustic)
 
 
