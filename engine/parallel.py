@@ -174,8 +174,10 @@ def chunk_length(total: int, limit: int) -> int:
     return max(1, min(limit, max(MIN_CHUNK, -(-total // MIN_CHUNKS))))
 
 
-def ordered_map(job, items, threads: int, should_cancel=None):
-    """Yield job(item, stop) for each item, in order. stop() tells a running job that the
+def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=None):
+    """Yield job(item, stop) for each item, in order. on_all_started() is called on the
+    calling thread once the last item has been handed to a worker (the pass's tail,
+    where workers fall idle one by one; not called inline or when stopped early). stop() tells a running job that the
     caller cancelled (it should raise Cancelled); it is a StopFlag whose array compiled
     kernels poll (stop_array), linked to should_cancel's flag if that is one. At most 2 x threads chunks are in
     flight (one with threads <= 1), which bounds memory. Raises Cancelled when
@@ -202,10 +204,14 @@ def ordered_map(job, items, threads: int, should_cancel=None):
     todo = iter(items)
     pool = ThreadPoolExecutor(threads)
     try:
+        left = len(items)
         for item in todo:
             pending.append(pool.submit(run, item, event))
+            left -= 1
             if len(pending) >= in_flight:
                 break
+        if left == 0 and on_all_started is not None:
+            on_all_started()
         while pending:
             # Checked before each chunk is awaited, after the one before it was
             # handed over: a finished chunk is never dropped (as inline).
@@ -219,6 +225,9 @@ def ordered_map(job, items, threads: int, should_cancel=None):
             result = head.result()  # re-raises a worker's exception here
             for item in todo:
                 pending.append(pool.submit(run, item, event))
+                left -= 1
+                if left == 0 and on_all_started is not None:
+                    on_all_started()
                 break
             yield result
     finally:

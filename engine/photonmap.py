@@ -588,13 +588,15 @@ class GatherMap:
         # it lies (Horvitz-Thompson: power / (1 - share)): no region loses light.
         scale = (1.0 / (1.0 - np.take(share, others))).astype(np.float32)
 
-        def points_tree(stop):
-            return kdtree.KdTree(np.take(position, points, axis=0), workers=workers)
-
-        def others_map(stop):
-            return PhotonMap(photons, workers, rows=np.take(rows, others), power_scale=scale)
-
-        tree, estimating = run_tasks([points_tree, others_map], workers, should_cancel)
+        # The two trees side by side; their inputs are bound to the tasks (and dropped
+        # with them), as are the shares', before the estimates' memory.
+        trees = [lambda stop, pts=np.take(position, points, axis=0):
+                 kdtree.KdTree(pts, workers=workers),
+                 lambda stop, rows_=np.take(rows, others), scale_=scale:
+                 PhotonMap(photons, workers, rows=rows_, power_scale=scale_)]
+        del position, share, is_point, others, scale
+        tree, estimating = run_tasks(trees, workers, should_cancel)
+        del trees
         # Kept in the tree's order: a search result indexes these arrays directly.
         self.position = tree.position.astype(np.float64)
         self.normal = np.take(photons.normal, np.take(rows, np.take(points, tree.order)),

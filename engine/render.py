@@ -160,14 +160,16 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None,
         shots = ()
         if shoot:
             shots = shoot_photons(ctx, stats, progress, should_cancel)
-        # The photon-hit pass, always: on its own thread beside the camera pass when there
-        # are several workers (it fills a worker left idle by the camera pass's last
-        # chunk), else after it; its view is written to the film once the camera pass ends.
+        # The photon-hit pass, always: with several workers on its own thread, started
+        # when the camera pass's last chunk is handed out (it fills a worker the tail
+        # leaves idle, when fewer chunks hold memory), else after the camera pass; its
+        # view is written to the film once the camera pass ends.
         hits = _side_job(lambda: _photon_hit_view(ctx, shots, region, film.width,
                                                   film.height), settings.threads > 1)
         try:
             t0 = time.perf_counter()
-            counters = render_camera(ctx, region, film, progress, should_cancel)
+            counters = render_camera(ctx, region, film, progress, should_cancel,
+                                     on_tail=hits.start)
             stats["time_camera"] = time.perf_counter() - t0
             stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
                          gather_rays=counters.gather_rays,
@@ -185,13 +187,17 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None,
 
 
 class _side_job:
-    """fn() on a thread of its own (threaded=True), started at once; calling the object
-    returns its result (re-raising its error) after waiting for it; join() waits without
-    raising (always call it). threaded=False: fn runs on the first call, inline."""
+    """fn() on a thread of its own (threaded=True) from start() on; calling the object
+    returns its result (re-raising its error), starting it first if need be, after
+    waiting for it; join() waits without raising (always call it). threaded=False: start()
+    does nothing and fn runs on the call, inline."""
 
     def __init__(self, fn, threaded: bool):
         self._fn, self._result, self._error, self._thread = fn, None, None, None
-        if threaded:
+        self._threaded = threaded
+
+    def start(self):
+        if self._threaded and self._thread is None:
             self._thread = threading.Thread(target=self._run, daemon=True,
                                             name="photon-hit view")
             self._thread.start()
@@ -203,8 +209,9 @@ class _side_job:
             self._error = e
 
     def __call__(self):
-        if self._thread is None:
+        if not self._threaded:
             return self._fn()
+        self.start()
         self._thread.join()
         if self._error is not None:
             raise self._error
@@ -517,6 +524,9 @@ def photon_hit_budget(in_frame: int, width: int, height: int) -> int:
     return int(round(base * (1.0 + math.log(in_frame / base))))
 
 
+VIEW_ROWS = 1 << 16  # photons per block of the photon-hit view's projection
+
+
 def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     """The photon-hit view of the photons in shots (a sequence of Photons): the photons
     stored on surfaces the camera sees directly, thinned to photon_hit_budget and drawn
@@ -531,54 +541,65 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     cam = ctx.scene.camera
     W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
-    p = np.concatenate([ph.position for ph in shots]).astype(np.float64)
+    position = np.concatenate([ph.position for ph in shots])  # float32
     pos = cam.position - ctx.geo.offset
-    rel = p - pos
     R = cam.rotation
-    local = rel @ R  # camera coordinates
+    local = (position.astype(np.float64) - pos) @ R  # camera coordinates
     hw, hh = cam.half_extents(W, H)
     big = 2.0 * max(hw, hh)
-    if cam.kind == "ORTHO":
-        z = -local[:, 2]
-        x, y = local[:, 0], local[:, 1]
-    else:
-        z = -local[:, 2]
-        x = local[:, 0] / np.maximum(z, 1e-300)
-        y = local[:, 1] / np.maximum(z, 1e-300)
-    sx = (x - cam.shift_x * big) / hw
-    sy = (y - cam.shift_y * big) / hh
-    with np.errstate(invalid="ignore"):
-        px = np.floor((sx + 1.0) / 2.0 * W)
-        py = np.floor((1.0 - sy) / 2.0 * H)
-    frame = (z > 0) & (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    # Which photons project into the frame, a block of rows at a time (element by element
+    # the same numbers as whole arrays, with a fraction of their memory: this view may
+    # run beside the camera pass's chunks).
+    n = len(position)
+    frame = np.zeros(n, bool)
+    cols, rows_ = [], []
+    for a in range(0, n, VIEW_ROWS):
+        lb = local[a:a + VIEW_ROWS]
+        z = -lb[:, 2]
+        if cam.kind == "ORTHO":
+            x, y = lb[:, 0], lb[:, 1]
+        else:
+            x = lb[:, 0] / np.maximum(z, 1e-300)
+            y = lb[:, 1] / np.maximum(z, 1e-300)
+        sx = (x - cam.shift_x * big) / hw
+        sy = (y - cam.shift_y * big) / hh
+        with np.errstate(invalid="ignore"):
+            px = np.floor((sx + 1.0) / 2.0 * W)
+            py = np.floor((1.0 - sy) / 2.0 * H)
+        fb = (z > 0) & (px >= 0) & (px < W) & (py >= 0) & (py < H)
+        frame[a:a + VIEW_ROWS] = fb
+        cols.append(px[fb].astype(np.int64))
+        rows_.append(py[fb].astype(np.int64))
     n_frame = int(frame.sum())
     if n_frame == 0:
         return None, 0, 1.0
+    px, py = np.concatenate(cols), np.concatenate(rows_)  # of the frame's photons, in order
     keep = photon_hit_budget(n_frame, W, H) / n_frame
+    chosen = np.ones(n_frame, bool)
     if keep < 1.0:
-        u = np.random.default_rng([ctx.settings.seed, 97]).random(len(p))
-        frame &= u < keep
+        u = np.random.default_rng([ctx.settings.seed, 97]).random(n)
+        chosen = u[frame] < keep
     fraction = min(keep, 1.0)
-    px = np.where(frame, px, -1).astype(np.int64)
-    py = np.where(frame, py, -1).astype(np.int64)
-    inside = frame & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
-    idx = np.nonzero(inside)[0]
+    inside = chosen & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
+    idx = np.flatnonzero(frame)[inside]
+    px, py = px[inside], py[inside]
     if len(idx) == 0:
         return None, 0, fraction
+    p = np.take(position, idx, axis=0).astype(np.float64)
     # Visible only if nothing lies between the camera and the photon.
-    to = p[idx] - (pos if cam.kind != "ORTHO" else p[idx] + local[idx, 2:3] * R[:, 2])
+    to = p - (pos if cam.kind != "ORTHO" else p + local[idx, 2:3] * R[:, 2])
     dist = np.linalg.norm(to, axis=1)
     d = to / np.maximum(dist, 1e-300)[:, None]
-    origin = p[idx] - to
+    origin = p - to
     # Stop short of the photon's surface by the float32 resolution there (photon
     # positions are float32) plus the float32 error of the ray's length.
-    gap = 4.0 * ulp32(max3(np.abs(p[idx]))) + G32_T * dist
+    gap = 4.0 * ulp32(max3(np.abs(p))) + G32_T * dist
     blocked = ctx.accel.serial().occluded(origin, d, np.maximum(dist - gap, 0.0))
-    idx = idx[~blocked]
+    idx, px, py = idx[~blocked], px[~blocked], py[~blocked]
     if len(idx) == 0:
         return None, 0, fraction
     rw = x1 - x0
-    flat = (py[idx] - y0) * rw + (px[idx] - x0)
+    flat = (py - y0) * rw + (px - x0)
     table = np.zeros((max(PHOTON_KIND_COLORS) + 1, 3))
     for kind, rgb in PHOTON_KIND_COLORS.items():
         table[kind] = rgb
