@@ -33,12 +33,20 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 WAITS = ("acquire", "wait", "_wait_for_tstate_lock", "join", "result", "get")
 
 
-def _timed(fn, label, acc, depth, prof):
-    """fn with its thread's CPU time added to acc[label] when it is the outermost job."""
+STATE = {}  # the blend being measured: its "acc" (label -> CPU s) and "prof"
+
+
+def _timed(fn, label, depth):
+    """fn with its thread's CPU time added to STATE's acc[label] when it is the outermost
+    job."""
     def run(*args):
+        acc, prof = STATE["acc"], STATE["prof"]
         d = getattr(depth, "d", 0)
+        # cProfile follows the thread that enabled it: jobs on other threads are not in it.
+        main = threading.current_thread() is threading.main_thread()
         if d == 0:
-            prof.disable()
+            if main:
+                prof.disable()
             t0 = time.thread_time()
         depth.d = d + 1
         try:
@@ -47,27 +55,30 @@ def _timed(fn, label, acc, depth, prof):
             depth.d = d
             if d == 0:
                 acc[label] = acc.get(label, 0.0) + time.thread_time() - t0
-                prof.enable()
+                if main:
+                    prof.enable()
     return run
 
 
-def instrument(acc, prof):
-    """Wrap the ordered_map / run_tasks every engine module imported."""
+def instrument():
+    """Wrap the ordered_map / run_tasks every engine module imported (once)."""
     from engine import parallel
     depth = threading.local()
     ordered_map = parallel.ordered_map
     run_tasks = getattr(parallel, "run_tasks", None)
 
-    def timed_map(job, items, threads, should_cancel=None):
-        return ordered_map(_timed(job, job.__qualname__, acc, depth, prof), items, threads,
-                           should_cancel)
+    def timed_map(job, items, threads, *args, **kwargs):
+        return ordered_map(_timed(job, job.__qualname__, depth), items, threads,
+                           *args, **kwargs)
 
     def timed_tasks(tasks, threads, should_cancel=None):
-        return run_tasks([_timed(t, "task " + t.__qualname__, acc, depth, prof)
+        return run_tasks([_timed(t, "task " + t.__qualname__, depth)
                           for t in tasks], threads, should_cancel)
     for name in list(sys.modules):
         mod = sys.modules[name]
-        if name.startswith("engine") and mod is not None:
+        # (engine.parallel's own ordered_map, behind run_tasks, stays: its tasks are timed
+        # by their names.)
+        if name.startswith("engine") and name != "engine.parallel" and mod is not None:
             if getattr(mod, "ordered_map", None) is ordered_map:
                 mod.ordered_map = timed_map
             if run_tasks is not None and getattr(mod, "run_tasks", None) is run_tasks:
@@ -93,6 +104,7 @@ def main(argv=None):
     from engine.settings import RenderSettings
     ensure_compiled()
     render = importlib.import_module("engine.render")
+    instrument()
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; engine "
           f"{os.path.dirname(render.__file__)}")
     print("| blend | CPU s | in jobs s | calling thread alone s | serial share "
@@ -102,9 +114,8 @@ def main(argv=None):
         with open(path, "rb") as f:
             scene = pickle.load(f)
         scene.width, scene.height = args.width, args.height
-        acc = {}
-        prof = cProfile.Profile(time.process_time)
-        instrument(acc, prof)
+        acc = STATE["acc"] = {}
+        prof = STATE["prof"] = cProfile.Profile(time.process_time)
         c0 = time.process_time()
         prof.enable()
         render.render(scene, RenderSettings(workers=1))
@@ -114,8 +125,8 @@ def main(argv=None):
         serial = (cpu - jobs) / cpu
         stats = pstats.Stats(prof, stream=io.StringIO())
         items = sorted(((tt, fn) for fn, (_, _, tt, _, _) in stats.stats.items()
-                        if fn[2] not in WAITS and not fn[2].startswith("<method 'acquire")
-                        and "acquire" not in fn[2]), reverse=True)[:args.top]
+                        if fn[2] not in WAITS and "acquire" not in fn[2]
+                        and "_lsprof" not in fn[2]), reverse=True)[:args.top]
         top = ", ".join(f"{fn[2]} {tt:.2f}" for tt, fn in items)
         print(f"| {name} | {cpu:.2f} | {jobs:.2f} | {cpu - jobs:.2f} | {100 * serial:.1f} % "
               f"| {1 / (serial + (1 - serial) / 2):.2f}x | {top} |", flush=True)
