@@ -832,7 +832,11 @@ def camera_dimensions(gather_rays: int, light_samples, extra=()) -> SampleDimens
     return SampleDimensions(requests)
 
 
-def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Counters:
+def render_camera(ctx, region, film, progress=None, should_cancel=None,
+                  on_tail=None) -> Counters:
+    """The camera pass over region into film (chunks on ctx.settings.threads workers).
+    on_tail(): called once the last chunk has been handed to a worker (parallel.ordered_map
+    on_all_started), to start work that fills the workers the tail leaves idle."""
     s = ctx.settings
     x0, y0, x1, y1 = region
     rw, rh = x1 - x0, y1 - y0
@@ -864,7 +868,8 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None) -> Count
                              own)
 
     try:
-        for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel):
+        for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel,
+                                                    on_tail):
             acc.merge(part)
             counters.add(part_counters)
             if progress is not None:

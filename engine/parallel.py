@@ -174,8 +174,10 @@ def chunk_length(total: int, limit: int) -> int:
     return max(1, min(limit, max(MIN_CHUNK, -(-total // MIN_CHUNKS))))
 
 
-def ordered_map(job, items, threads: int, should_cancel=None):
-    """Yield job(item, stop) for each item, in order. stop() tells a running job that the
+def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=None):
+    """Yield job(item, stop) for each item, in order. on_all_started() is called on the
+    calling thread once the last item has been handed to a worker (the pass's tail,
+    where workers fall idle one by one; not called inline or when stopped early). stop() tells a running job that the
     caller cancelled (it should raise Cancelled); it is a StopFlag whose array compiled
     kernels poll (stop_array), linked to should_cancel's flag if that is one. At most 2 x threads chunks are in
     flight (one with threads <= 1), which bounds memory. Raises Cancelled when
@@ -202,10 +204,14 @@ def ordered_map(job, items, threads: int, should_cancel=None):
     todo = iter(items)
     pool = ThreadPoolExecutor(threads)
     try:
+        left = len(items)
         for item in todo:
             pending.append(pool.submit(run, item, event))
+            left -= 1
             if len(pending) >= in_flight:
                 break
+        if left == 0 and on_all_started is not None:
+            on_all_started()
         while pending:
             # Checked before each chunk is awaited, after the one before it was
             # handed over: a finished chunk is never dropped (as inline).
@@ -219,6 +225,9 @@ def ordered_map(job, items, threads: int, should_cancel=None):
             result = head.result()  # re-raises a worker's exception here
             for item in todo:
                 pending.append(pool.submit(run, item, event))
+                left -= 1
+                if left == 0 and on_all_started is not None:
+                    on_all_started()
                 break
             yield result
     finally:
@@ -232,6 +241,17 @@ def ordered_map(job, items, threads: int, should_cancel=None):
         for f in pending:
             f.cancel()
         _let_drain(pool, owner)
+
+
+def run_tasks(tasks, threads: int, should_cancel=None) -> list:
+    """[task(stop) for task in tasks]: independent steps (a photon map's build: kd-trees
+    over disjoint photon sets, the radius's k-NN, the neighbour lists) run side by side
+    on up to `threads` threads, so neither core waits for the other's step. Each task
+    computes what it would alone (no shared state), so the results do not depend on the
+    thread count. Inline in order with threads <= 1 and no should_cancel; otherwise as
+    ordered_map runs its jobs (stop, cancel and errors alike), all of them at once when
+    there are at most 2 x threads."""
+    return list(ordered_map(lambda task, stop: task(stop), tasks, threads, should_cancel))
 
 
 def run_cancellable(job, should_cancel=None):

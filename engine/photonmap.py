@@ -23,7 +23,7 @@ import numpy as np
 
 from . import hashgrid, kdtree
 from .jit import kernel, register_warm_up
-from .parallel import Cancelled, StopFlag, ordered_map, stop_array
+from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
 
@@ -63,29 +63,40 @@ class PhotonMap:
     the input), so a search result indexes the photon arrays directly: the map adds under
     2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49.
     structure: "kdtree" or "hashgrid"; cell: the hash grid's cell size (the search radius
-    it serves best), required for "hashgrid". Raises ValueError for anything else."""
+    it serves best), required for "hashgrid". Raises ValueError for anything else.
+    rows: (K,) int, the map holds only those photons (photons.take(rows), gathered once
+    straight into the tree's order instead of twice); power_scale: (K,) float32 factors
+    multiplying those photons' power (the same float32 products as scaling first)."""
 
     def __init__(self, photons: Photons, workers: int = 1, structure: str = "kdtree",
-                 cell: float | None = None):
+                 cell: float | None = None, rows: np.ndarray | None = None,
+                 power_scale: np.ndarray | None = None):
         if structure not in STRUCTURES:
             raise ValueError(f"PhotonMap: structure must be one of {', '.join(STRUCTURES)}, "
                              f"got {structure!r}")
+        if structure == "hashgrid" and cell is None:
+            raise ValueError("PhotonMap: the hash grid needs a cell size (cell=radius)")
         self.workers = workers
         self.structure = structure
         self.tree = None
-        self.photons = photons
-        if not len(photons):
+        position = photons.position if rows is None else np.take(photons.position, rows,
+                                                                   axis=0)
+        if not len(position):
+            self.photons = photons if rows is None else photons.take(rows)
             return
         if structure == "kdtree":
-            self.tree = kdtree.KdTree(photons.position, workers=workers)
+            self.tree = kdtree.KdTree(position, workers=workers)
         else:
-            if cell is None:
-                raise ValueError("PhotonMap: the hash grid needs a cell size (cell=radius)")
-            self.tree = hashgrid.HashGrid(photons.position, cell)
+            self.tree = hashgrid.HashGrid(position, cell)
         order = self.tree.order
         self.tree.order = None  # the photons are permuted below; the map needs no order
-        self.photons = Photons(self.tree.position, *(np.take(a, order, axis=0) for a in (
-            photons.power, photons.direction, photons.normal, photons.kind)), photons.emitted)
+        source = order if rows is None else np.take(rows, order)
+        power = np.take(photons.power, source, axis=0)
+        if power_scale is not None:
+            power *= np.take(np.asarray(power_scale, np.float32), order)[:, None]
+        self.photons = Photons(self.tree.position, power, *(
+            np.take(a, source, axis=0) for a in (photons.direction, photons.normal,
+                                                 photons.kind)), photons.emitted)
 
     def __len__(self):
         return len(self.photons)
@@ -525,7 +536,7 @@ class GatherMap:
     brightens every estimate by +3 photons of the Simpson kernel (+4.8 % at k = 64).
     The two thinned sets are independent, so neither bias appears (tests/test_furnace.py).
 
-    A photon is a gather point with probability gather_point_share: 1 / step where
+    A photon is a gather point with the probability _point_shares gives: 1 / step where
     photons are dense, more where they are sparse (counted from the every-step-th points),
     so that a lookup disc of the search radius holds a few gather points wherever photons
     are stored. Every step-th photon alone left surfaces lit 30x more thinly than the
@@ -538,40 +549,63 @@ class GatherMap:
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
-                 workers: int = 1, should_cancel=None):
-        ph = photons
+                 workers: int = 1, should_cancel=None, rows: np.ndarray | None = None):
+        """rows: (K,) int, build from photons.take(rows) only (gathered once, straight into
+        the trees' order). The independent steps run side by side on `workers` threads
+        (parallel.run_tasks: the two kd-trees, then the points' irradiance and their
+        neighbour lists): the same map for any thread count. should_cancel (a StopFlag or
+        a callable) is asked between the steps; raises parallel.Cancelled."""
         self.workers = workers
         # With an Accel, a lookup only takes a gather point it can see: a point on the
         # other side of a wall (e.g. the ground outside a room, coplanar with the floor
         # inside) would otherwise leak light under the wall (docs/stability.md).
         self.accel = accel
         self.tree = None
-        if len(ph) < 2:
+        if rows is None:
+            rows = np.arange(len(photons))
+        n = len(rows)
+        if n < 2:
             return
-        step = max(4, int(math.ceil(len(ph) / max_points)))
-        base = np.zeros(len(ph), bool)
-        base[::step] = True
-        share = gather_point_share(ph.position, base, radius)
-        is_point = _pick_points(base, share)
+        step = max(4, int(math.ceil(n / max_points)))
+        position = np.take(photons.position, rows, axis=0)
+        share = np.empty(n)
+        is_point = np.empty(n, np.bool_)
+        _point_shares(position, step, radius, share, is_point, workers, should_cancel)
         if is_point.all():  # too few photons to split
             return
-        others = ph.select(~is_point)
+        points = np.flatnonzero(is_point)
+        others = np.flatnonzero(~is_point)
         # Each photon left for the estimates stands in for the ones taken as points where
         # it lies (Horvitz-Thompson: power / (1 - share)): no region loses light.
-        others.power = others.power * (1.0 / (1.0 - share[~is_point])).astype(
-            np.float32)[:, None]
-        points = ph.select(is_point)
-        tree = kdtree.KdTree(points.position, workers=workers)
+        scale = (1.0 / (1.0 - np.take(share, others))).astype(np.float32)
+
+        # The two trees side by side; their inputs are bound to the tasks (and dropped
+        # with them), as are the shares', before the estimates' memory.
+        trees = [lambda stop, pts=np.take(position, points, axis=0):
+                 kdtree.KdTree(pts, workers=workers),
+                 lambda stop, rows_=np.take(rows, others), scale_=scale:
+                 PhotonMap(photons, workers, rows=rows_, power_scale=scale_)]
+        del position, share, is_point, others, scale
+        tree, estimating = run_tasks(trees, workers, should_cancel)
+        del trees
         # Kept in the tree's order: a search result indexes these arrays directly.
         self.position = tree.position.astype(np.float64)
-        self.normal = np.take(points.normal, tree.order, axis=0).astype(np.float64)
+        self.normal = np.take(photons.normal, np.take(rows, np.take(points, tree.order)),
+                              axis=0).astype(np.float64)
         tree.order = None
-        self.E, self.boundary = PhotonMap(others, workers).irradiance(
-            self.position, self.normal, radius, k, min_photons, estimator, return_boundary=True,
-            should_cancel=should_cancel)
+
+        def estimate(stop):
+            return estimating.irradiance(self.position, self.normal, radius, k, min_photons,
+                                         estimator, return_boundary=True,
+                                         should_cancel=stop)
+
+        def neighbours(stop):
+            return tree.neighbour_lists(workers=workers, should_cancel=stop)
+
+        (self.E, self.boundary), self.neighbours = run_tasks([estimate, neighbours], workers,
+                                                             should_cancel)
         self.radius = radius
         self.tree = tree
-        self.neighbours = tree.neighbour_lists(workers=workers, should_cancel=should_cancel)
 
     def serial(self) -> "GatherMap":
         """The same map, queried on the calling thread only (see PhotonMap.serial)."""
@@ -675,50 +709,99 @@ MAX_POINT_SHARE = 0.5
 DENSITY_CELL = 2.0
 
 
-def gather_point_share(position: np.ndarray, base: np.ndarray, radius: float):
-    """Probability (N,) float64 that each photon (position (N,3)) is a gather point,
-    given the base points base (N,) bool (every step-th photon, share 1 / step): 1 / step
-    where photons are dense, more where they are sparse so that a disc of the search
-    radius holds about GATHER_POINTS_PER_DISC points, at most MAX_POINT_SHARE.
-    The density is counted from the base points alone, on a grid of cells DENSITY_CELL
-    radii wide (a surface crossing a cell holds about its face's area). A share counted
-    from all photons would pick points where photons happen to be sparse, whose
-    estimates are low (measured: 9 % dark); the base points are an independent thinning
-    and estimate nothing, so the points and the estimating photons stay independent.
-    Cells are hashed; two cells that share a hash count together, which only lowers
-    their share (the estimates stay unbiased for any share: GatherMap weights the
-    photons left by 1 / (1 - share))."""
+def _point_shares(position, step, radius, share, is_point, workers=1, should_cancel=None):
+    """The gather points of GatherMap, from the base points (every step-th photon, share
+    s = 1 / step): share (N,) float64, the probability that each photon (position (N,3))
+    is a gather point, and is_point (N,) bool, the choice made with it; both written in
+    place.
+
+    share is s where photons are dense, more where they are sparse so that a disc of the
+    search radius holds about GATHER_POINTS_PER_DISC points, at most MAX_POINT_SHARE. The
+    density is counted from the base points alone, on a grid of cells DENSITY_CELL radii
+    wide (a surface crossing a cell holds about its face's area). A share counted from
+    all photons would pick points where photons happen to be sparse, whose estimates are
+    low (measured: 9 % dark); the base points are an independent thinning and estimate
+    nothing, so the points and the estimating photons stay independent. Cells are hashed
+    (the hash grid's primes); two cells that share a hash count together, which only
+    lowers their share (the estimates stay unbiased for any share: GatherMap weights the
+    photons left by 1 / (1 - share)).
+
+    is_point: the base points, and the others with probability (share - s) / (1 - s), so
+    that each photon is a point with probability share: photon i when frac((i + 1) x
+    golden ratio) is below it (a fixed sequence: the same points for any thread count and
+    run; photons come in emission order, unrelated to where they lie).
+
+    Compiled (_cell_keys, _shares_rows), rows in blocks on `workers` threads."""
     n = len(position)
-    step_share = base.sum() / max(n, 1)
-    share = np.full(n, step_share)
-    if n == 0 or not radius > 0 or not base.any():
-        return share
-    size = DENSITY_CELL * radius
-    cell = np.floor(np.asarray(position, np.float64) / size)
-    cell = np.clip(np.nan_to_num(cell), -2.0 ** 40, 2.0 ** 40).astype(np.int64)
-    key = (cell[:, 0] * np.int64(hashgrid.P1)) ^ (cell[:, 1] * np.int64(hashgrid.P2)) \
-        ^ (cell[:, 2] * np.int64(hashgrid.P3))  # the hash grid's cell hash
-    base_keys, counts = np.unique(key[base], return_counts=True)
-    at = np.minimum(np.searchsorted(base_keys, key), len(base_keys) - 1)
-    found = np.where(base_keys[at] == key, counts[at], 0)
-    # Photons in a search disc: the base points' count / their share, over the cell
-    # face's area in discs.
-    per_disc = found / step_share * math.pi / (DENSITY_CELL * DENSITY_CELL)
-    with np.errstate(divide="ignore"):
-        want = GATHER_POINTS_PER_DISC / per_disc
-    return np.clip(want, step_share, max(MAX_POINT_SHARE, step_share))
+    step_share = (-(-n // step)) / max(n, 1)  # base points / photons
+    size = DENSITY_CELL * radius if radius > 0 else 1.0
+    base_keys = np.empty(-(-n // step), np.int64)
+    _cell_keys(position, size, step, base_keys)
+    base_keys, counts = np.unique(base_keys, return_counts=True)
+    counts = counts.astype(np.int64)
+    dense = bool(radius > 0)
+
+    def job(a, stop):
+        if stop():
+            raise Cancelled()
+        _shares_rows(position, size, step, step_share, base_keys, counts, dense, a,
+                     min(a + SHARE_ROWS, n), share, is_point)
+    for _ in ordered_map(job, range(0, n, SHARE_ROWS), workers if n > SHARE_ROWS else 1,
+                         should_cancel):
+        pass
 
 
-def _pick_points(base: np.ndarray, share: np.ndarray) -> np.ndarray:
-    """(N,) bool: the base points, and the others with probability (share - s) / (1 - s)
-    (s = the base points' share), so that each photon is a point with probability share:
-    photon i when frac((i + 1) x golden ratio) is below it (a fixed sequence: the same
-    points for any thread count and run; photons come in emission order, unrelated to
-    where they lie)."""
-    s = base.sum() / max(len(base), 1)
-    extra = (share - s) / max(1.0 - s, 1e-300)
-    u = np.modf((np.arange(len(share), dtype=np.float64) + 1.0) * 0.6180339887498949)[0]
-    return base | (u < extra)
+SHARE_ROWS = 1 << 17  # photons per job of _point_shares
+
+
+@kernel
+def _cell_key(position, i, size):
+    """The hashed density cell of photon i: floor(p / size) per axis (NaN as 0, clamped
+    to +-2^40), mixed with the hash grid's primes."""
+    key = np.int64(0)
+    for c in range(3):
+        v = np.floor(np.float64(position[i, c]) / size)
+        if v != v:
+            v = 0.0
+        v = min(max(v, -CELL_CLAMP), CELL_CLAMP)
+        key ^= np.int64(v) * PRIMES[c]
+    return key
+
+
+@kernel
+def _cell_keys(position, size, step, out):
+    """_cell_key of the photons 0, step, 2 step, ... into out."""
+    for j in range(out.shape[0]):
+        out[j] = _cell_key(position, j * step, size)
+
+
+@kernel
+def _shares_rows(position, size, step, step_share, base_keys, counts, dense, lo, hi, share,
+                 is_point):
+    """_point_shares for the photons [lo, hi): base_keys (sorted) and counts are the base
+    points' cells and how many base points each holds."""
+    top = max(MAX_POINT_SHARE, step_share)
+    last = base_keys.shape[0] - 1
+    spare = max(1.0 - step_share, 1e-300)
+    for i in range(lo, hi):
+        sh = step_share
+        if dense:
+            key = _cell_key(position, i, size)
+            at = min(np.searchsorted(base_keys, key), last)
+            found = counts[at] if base_keys[at] == key else 0
+            # Photons in a search disc: the base points' count / their share, over the
+            # cell face's area in discs.
+            per_disc = found / step_share * math.pi / (DENSITY_CELL * DENSITY_CELL)
+            want = np.inf if per_disc == 0.0 else GATHER_POINTS_PER_DISC / per_disc
+            sh = min(max(want, step_share), top)
+        share[i] = sh
+        x = (i + 1.0) * 0.6180339887498949
+        u = x - np.floor(x)  # exact for x > 0 (modf's fraction)
+        is_point[i] = i % step == 0 or u < (sh - step_share) / spare
+
+
+CELL_CLAMP = 2.0 ** 40
+PRIMES = np.array([hashgrid.P1, hashgrid.P2, hashgrid.P3], np.int64)
 
 
 @kernel
@@ -977,8 +1060,13 @@ def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
             tree = kdtree.KdTree(positions, workers=workers)
         step = max(1, len(tree) // RADIUS_SAMPLE)
         sample = np.asarray(positions, np.float32)[::step].astype(np.float64)
-        d, _ = tree.query(sample, k + 1, np.inf)  # the nearest is the photon itself
-        r = 2.0 * float(np.median(d[:, -1]))
+        # The nearest is the photon itself; the queries in blocks on the workers (each
+        # query's answer is the same in any block).
+        rows = -(-len(sample) // max(1, workers))
+        kth = np.concatenate(list(ordered_map(
+            lambda a, stop: tree.query(sample[a:a + rows], k + 1, np.inf)[0][:, -1],
+            range(0, len(sample), rows), workers)))
+        r = 2.0 * float(np.median(kth))
     if not r > 0:
         r = 2.0 * math.sqrt(k * diffuse_area / (math.pi * stored))
     return float(min(r, 0.1 * extent))

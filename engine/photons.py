@@ -19,6 +19,7 @@ emit kernel, engine/lights/emission.py); this module drives the bounces.
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,18 +91,20 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                  for ci, start in enumerate(range(0, count, chunk))]
     threads = settings.threads
     accel = ctx.accel.serial() if threads > 1 and len(jobs) > 1 else ctx.accel
+    pool = _Buffers()
 
     def job(item, stop):
         li, ci, start, n, count, emitter = item
         rng = np.random.default_rng([settings.seed, stream, li, ci])
         return _trace_chunk(ctx, accel, emitter, n, count, rng, caustic_only, targets, stop,
-                            first_hit)
+                            first_hit, pool)
 
     shot = _Shot(total)
     done = 0
     for item, stored in zip(jobs, ordered_map(job, jobs, threads, should_cancel)):
         done += item[3]
         shot.append(stored, done)
+        stored.release()
         if progress is not None:
             label = "caustic photons" if caustic_only else "photons"
             progress("photons", done / max(total, 1), f"Tracing {label} {_k(done)}/{_k(total)}")
@@ -111,13 +114,16 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 
 
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
-                 first_hit=None):
+                 first_hit=None, pool=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits (a
     _Stored). Between two Embree calls the work is one compiled kernel
     (photonkernels.scatter, which computes the surface data itself); bsdf.surface_hit
     supplies the surface data instead where a material has a texture, normal map or alpha
-    texture, and photonkernels.photon_surfaces with shared instances."""
+    texture, and photonkernels.photon_surfaces with shared instances. pool: the
+    trace's _Buffers, which lends the stored-photon and continued-ray buffers (a new
+    one without)."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
+    pool = pool if pool is not None else _Buffers()
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
     # slot (photonkernels.uniform), emission included: a photon whose path changes (a hit
     # a hair from an edge, rounded differently in a scaled scene) does not change the
@@ -154,8 +160,28 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # rays (one is the bounce's input, the other its output).
     surf = pk.surface_arrays(m if given else 0)
     bump = np.ones(m)
-    stored = _Stored(2 * m + 1024)
+    stored = _Stored(2 * m + 1024, pool)
     nxt_sets = [None, None]
+    try:
+        _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
+                 vis_on, caster, mode, numpy_hits, given, plain, surf, bump, stored, nxt_sets,
+                 pool, caustic_only, should_cancel)
+    except BaseException:
+        stored.release()
+        raise
+    finally:
+        for arrays in nxt_sets:
+            if arrays is not None:
+                pool.give(arrays)
+    return stored
+
+
+def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
+             vis_on, caster, mode, numpy_hits, given, plain, surf, bump, stored, nxt_sets,
+             pool, caustic_only, should_cancel):
+    """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
+    is left or max_photon_depth; the stored photons go to `stored`, the continued rays
+    alternate between the two buffer sets of nxt_sets (borrowed from pool)."""
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -200,7 +226,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         need = 2 * m if vis_on else m
         k = bounce % 2
         if nxt_sets[k] is None or len(nxt_sets[k][0]) < need:
-            nxt_sets[k] = pk.next_arrays(need)
+            if nxt_sets[k] is not None:
+                pool.give(nxt_sets[k])
+            nxt_sets[k] = None
+            nxt_sets[k] = pool.take(pk.next_arrays, need)
         n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, rows, u, v, v0, e1,
                                 e2, normals, material, table.base_color, table.alpha,
                                 given, *surf_m, bump[:m], params, row_plain, mat_ior,
@@ -208,32 +237,79 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                                 vis_on, *stored.room(m), *nxt_sets[k])
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt_sets[k])
-    return stored
+
+
+class _Buffers:
+    """Buffers lent to a trace's chunks and given back when a chunk is done with them (its
+    continued-ray sets when it ends, its stored-photon blocks once the shot has copied
+    them), so later chunks reuse memory that is already mapped instead of faulting in
+    fresh pages (on a cold process a third of the photon pass went to the kernel's page
+    faults). Every lent row is written before it is read, so the photons do not depend
+    on what a buffer held before. Shared by the trace's threads (a lock); dropped with
+    the trace."""
+
+    def __init__(self):
+        self._free = []
+        self._lock = threading.Lock()
+
+    def take(self, make, rows: int):
+        """A set of arrays from make(rows) (pk.store_arrays, pk.next_arrays) with at
+        least `rows` rows: the smallest free one that fits, else a new one."""
+        with self._lock:
+            fits = [i for i, (f, arrays) in enumerate(self._free)
+                    if f is make and len(arrays[0]) >= rows]
+            if fits:
+                best = min(fits, key=lambda i: len(self._free[i][1][0]))
+                return self._free.pop(best)[1]
+        return make(rows)
+
+    def give(self, arrays):
+        make = pk.store_arrays if len(arrays) == 5 else pk.next_arrays
+        with self._lock:
+            self._free.append((make, arrays))
 
 
 class _Stored:
-    """A chunk's stored photons (pk.store_arrays), appended to bounce by bounce."""
+    """A chunk's stored photons (pk.store_arrays), appended to bounce by bounce, in blocks:
+    when the current block has no room for a bounce, it is kept as it is and a new one
+    started (no copy as the chunk's photons grow). Blocks come from the trace's
+    _Buffers and go back to it on release()."""
 
-    def __init__(self, capacity: int):
-        self.arrays = pk.store_arrays(capacity)
-        self.count = 0
+    def __init__(self, capacity: int, pool: _Buffers | None = None):
+        self.pool = pool if pool is not None else _Buffers()
+        self.blocks = []  # full blocks: (arrays, rows used)
+        self.arrays = self.pool.take(pk.store_arrays, capacity)
+        self.count = 0  # rows used in the current block
 
     def room(self, m: int):
-        """Views of the rows from `count` on, at least m of them (the buffers grow)."""
+        """Views of the current block's rows from `count` on, at least m of them."""
         if self.count + m > len(self.arrays[0]):
-            grown = pk.store_arrays(max(2 * len(self.arrays[0]), self.count + m))
-            for new, old in zip(grown, self.arrays):
-                new[:self.count] = old[:self.count]
-            self.arrays = grown
+            self.blocks.append((self.arrays, self.count))
+            self.arrays = self.pool.take(pk.store_arrays, max(len(self.arrays[0]), m))
+            self.count = 0
         return tuple(a[self.count:] for a in self.arrays)
+
+    def parts(self):
+        """[(arrays, rows used)] in storing order."""
+        return self.blocks + [(self.arrays, self.count)]
+
+    @property
+    def total(self) -> int:
+        return sum(n for _, n in self.parts())
+
+    def release(self):
+        """Give the blocks back to the pool (after the shot copied them)."""
+        for arrays, _ in self.parts():
+            self.pool.give(arrays)
+        self.blocks, self.arrays, self.count = [], (), 0
 
 
 class _Shot:
     """A shot's stored photons, the chunks' appended in order as they finish: one copy
     from a chunk's buffers into the shot's (no trimmed copy per chunk and concatenation),
-    and a chunk's buffers (~2x its rays) are dropped as soon as it is copied. The shot's
-    arrays are sized from the photons stored per photon emitted so far (grown if that
-    falls short, trimmed at the end if much is left over)."""
+    and a chunk's buffers (~2x its rays) go back to the trace's _Buffers once copied.
+    The shot's arrays are sized from the photons stored per photon emitted so far (grown
+    if that falls short, trimmed at the end if much is left over)."""
 
     def __init__(self, total: int):
         self.total = total
@@ -243,7 +319,7 @@ class _Shot:
     def append(self, stored: _Stored, emitted: int):
         """Add a chunk's photons; emitted: photons emitted by the chunks appended so far,
         this one included."""
-        need = self.count + stored.count
+        need = self.count + stored.total
         if self.arrays is None or need > len(self.arrays[0]):
             # Expected for the whole shot at the rate so far, 5 % spare; at least 1.5x
             # the arrays it replaces (a rate that keeps rising copies a bounded number of
@@ -256,9 +332,10 @@ class _Shot:
                 for new, old in zip(grown, self.arrays):
                     new[:self.count] = old[:self.count]
             self.arrays = grown
-        for dst, src in zip(self.arrays, stored.arrays):
-            dst[self.count:need] = src[:stored.count]
-        self.count = need
+        for arrays, rows in stored.parts():
+            for dst, src in zip(self.arrays, arrays):
+                dst[self.count:self.count + rows] = src[:rows]
+            self.count += rows
 
     def photons(self) -> Photons:
         if self.arrays is None or self.count == 0:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass, field, replace
 
@@ -19,7 +20,7 @@ from .lights.packing import pack_lights
 from .photonmap import GatherMap, PhotonMap, auto_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
-from .parallel import Cancelled, run_cancellable
+from .parallel import Cancelled, run_cancellable, run_tasks
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
 from .resources import check_resources
 from .scene import Scene
@@ -130,16 +131,17 @@ def hard_shadow_packing(packed):
     return codes, params, (centroid, np.zeros_like(e1), np.zeros_like(e2), *rest)
 
 
-def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) -> Photons:
+def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) -> tuple:
     """The photon pass alone: (re)fills ctx's photon maps for ctx.settings and records
-    its counts in stats. Returns the stored photons (for the photon-hit pass). Raises
+    its counts in stats. Returns the stored photons (for the photon-hit pass) as a tuple
+    of Photons, one per shot (global, caustic; empty without photon mapping). Raises
     Cancelled. Photons do not depend on the camera, so a session may keep
     the maps of a pass and render other views from them (engine/session.py)."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     s = ctx.settings
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
         return _photon_pass(ctx, stats, progress, should_cancel)
-    return Photons.empty()
+    return ()
 
 
 def render_pass(ctx: Context, region, progress=None, should_cancel=None,
@@ -155,18 +157,69 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None,
     # says so), loaded from the on-disk cache by later processes, once per process.
     stats["time_compile"] = ensure_compiled(progress)
     try:
-        all_photons = Photons.empty()
+        shots = ()
         if shoot:
-            all_photons = shoot_photons(ctx, stats, progress, should_cancel)
-        t0 = time.perf_counter()
-        counters = render_camera(ctx, region, film, progress, should_cancel)
-        stats["time_camera"] = time.perf_counter() - t0
-        stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
-                     gather_rays=counters.gather_rays, specular_rays=counters.specular_rays)
-        _draw_photons(ctx, film, all_photons, region)  # the photon-hit pass, always
+            shots = shoot_photons(ctx, stats, progress, should_cancel)
+        # The photon-hit pass, always: with several workers on its own thread, started
+        # when the camera pass's last chunk is handed out (it fills a worker the tail
+        # leaves idle, when fewer chunks hold memory), else after the camera pass; its
+        # view is written to the film once the camera pass ends.
+        hits = _side_job(lambda: _photon_hit_view(ctx, shots, region, film.width,
+                                                  film.height), settings.threads > 1)
+        try:
+            t0 = time.perf_counter()
+            counters = render_camera(ctx, region, film, progress, should_cancel,
+                                     on_tail=hits.start)
+            stats["time_camera"] = time.perf_counter() - t0
+            stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
+                         gather_rays=counters.gather_rays,
+                         specular_rays=counters.specular_rays)
+            view, shown, fraction = hits()
+        finally:
+            hits.join()
+        if view is not None:
+            film.photon_hits[...] = view
+        stats["photon_hits_shown"] = shown
+        stats["photon_hits_fraction"] = fraction
     except Cancelled:
         stats["cancelled"] = True  # the film holds what was finished
     return film
+
+
+class _side_job:
+    """fn() on a thread of its own (threaded=True) from start() on; calling the object
+    returns its result (re-raising its error), starting it first if need be, after
+    waiting for it; join() waits without raising (always call it). threaded=False: start()
+    does nothing and fn runs on the call, inline."""
+
+    def __init__(self, fn, threaded: bool):
+        self._fn, self._result, self._error, self._thread = fn, None, None, None
+        self._threaded = threaded
+
+    def start(self):
+        if self._threaded and self._thread is None:
+            self._thread = threading.Thread(target=self._run, daemon=True,
+                                            name="photon-hit view")
+            self._thread.start()
+
+    def _run(self):
+        try:
+            self._result = self._fn()
+        except BaseException as e:  # re-raised on the calling thread
+            self._error = e
+
+    def __call__(self):
+        if not self._threaded:
+            return self._fn()
+        self.start()
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._result
+
+    def join(self):
+        if self._thread is not None:
+            self._thread.join()
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
@@ -211,7 +264,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     return film
 
 
-def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
+def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     t0 = time.perf_counter()
     shot = Photons.empty()
@@ -273,82 +326,97 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> Photons:
             s.radius, geo.extent, diffuse_area, stats.get("global_photons", 0), s.min_photons))
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
-    # For the photon-hit pass (_draw_photons), always filled.
-    return Photons(*(np.concatenate([getattr(shot, f), getattr(caustic, f)])
-                     for f in ("position", "power", "direction", "normal", "kind")))
+    # For the photon-hit pass (_photon_hit_view), always filled.
+    return (shot, caustic)
 
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
-    global_photons. stop() is asked between the steps (raises Cancelled)."""
+    global_photons. stop() is asked between the steps (raises Cancelled).
+
+    Two chains run side by side on the workers (parallel.run_tasks): the global radius and
+    then the gather map, which needs it; the caustic map and the secondary (or, without
+    final gathering, the global) map beside them. Each map is gathered from the shot once,
+    straight into its tree's order (PhotonMap / GatherMap rows), and each step computes
+    what it computes alone, so the maps are the same for any thread count."""
     s, geo, table, plan = ctx.settings, ctx.geo, ctx.table, ctx.plan
-
-    def check():
-        if stop():
-            raise Cancelled()
-
-    out = {}
     diffuse_tris = table.has_diffuse[geo.material] if geo.count else np.zeros(0, bool)
     diffuse_area = area_sum(geo, diffuse_tris)
     k = s.k_nearest
     workers = s.threads
-    # The global radius from the global photons' own spacing (local: not the spacing they
-    # would have if spread over a huge ground plane they barely light). The caustic
-    # radius from the same spacing, scaled to the larger shot's count (aimed caustic
-    # photons pile up on a focus: their own spacing would make it tiny); without a
-    # global shot, as if the caustic photons covered the diffuse area evenly.
-    r_global = auto_radius(diffuse_area, len(shot), k, geo.extent, shot.position,
-                           workers=workers)
-    dense = max(len(shot), len(caustic), 1)
-    if len(shot) > k:
-        r_auto = r_global * math.sqrt(len(shot) / dense)
-    else:
-        r_auto = auto_radius(diffuse_area, dense, k, geo.extent)
-    global_radius = s.radius or r_global
-    # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
-    # ends closer than that gathers once more from its end (integrator.gather_indirect).
-    out["gather_short"] = global_radius
-    if plan.indirect:
-        check()
-        if s.final_gather:
+    final = plan.indirect and s.final_gather
+
+    def check(flag):
+        if flag():
+            raise Cancelled()
+
+    def gather_chain(flag):
+        # The global radius from the global photons' own spacing (local: not the spacing
+        # they would have if spread over a huge ground plane they barely light).
+        r_global = auto_radius(diffuse_area, len(shot), k, geo.extent, shot.position,
+                               workers=workers)
+        gather_map = None
+        if final:
+            check(flag)
             # Final gathering needs all light at the gathered point: every stored photon.
             # Photons that arrived straight from a caustic are left out: seen through a
             # few gather rays a bright caustic makes fireflies. Their light one bounce
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
-            gathered = shot.select(shot.kind != CAUSTIC)
             # Every photon of a disc counts outside paper mode (smooth_min_photons):
             # zeroing discs below min_photons darkened thinly lit surfaces.
-            out["gather_map"] = GatherMap(gathered, global_radius, k, smooth_min_photons(s),
-                                          s.estimator, accel=ctx.accel, workers=workers,
-                                          should_cancel=stop)
-            check()
-            secondary = shot.select(shot.kind == CAUSTIC_DIFFUSE)
-            out["secondary_map"] = PhotonMap(secondary, workers)
+            gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
+                                   s.estimator, accel=ctx.accel, workers=workers,
+                                   should_cancel=flag,
+                                   rows=np.flatnonzero(shot.kind != CAUSTIC))
+        return r_global, gather_map
+
+    def other_maps(flag):
+        out = {}
+        if plan.caustics:
+            out["caustic_map"] = (PhotonMap(caustic, workers) if use_caustic_shot else
+                                  PhotonMap(shot, workers,
+                                            rows=np.flatnonzero(shot.kind == CAUSTIC)))
+            check(flag)
+        if final:
+            rows = np.flatnonzero(shot.kind == CAUSTIC_DIFFUSE)
+            out["secondary_map"] = secondary = PhotonMap(shot, workers, rows=rows)
             # Its own photons' spacing: the global radius follows the dense photons of the
             # whole shot (a caustic's pile among them), which leaves the sparser secondary
             # photons below min_photons in much of the disc (zero estimate): walls lit
             # from a floor behind a window read 25 % dark against Cycles.
             out["secondary_radius"] = s.radius or auto_radius(
-                diffuse_area, len(secondary), k, geo.extent, secondary.position,
-                out["secondary_map"].tree)
-            out["global_photons"] = len(shot)
-        else:
-            out["global_map"] = PhotonMap(
-                shot.select(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE))), workers)
-            check()
-            global_radius = s.radius or auto_radius(diffuse_area, len(out["global_map"]), k,
-                                                    geo.extent,
-                                                    out["global_map"].photons.position,
-                                                    out["global_map"].tree)
-            out["global_photons"] = len(out["global_map"])
+                diffuse_area, len(rows), k, geo.extent,
+                np.take(shot.position, rows, axis=0), secondary.tree, workers=workers)
+        elif plan.indirect:
+            rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)))
+            out["global_map"] = pm = PhotonMap(shot, workers, rows=rows)
+            out["global_radius"] = s.radius or auto_radius(
+                diffuse_area, len(pm), k, geo.extent, pm.photons.position, pm.tree,
+                workers=workers)
+        return out
+
+    (r_global, gather_map), out = run_tasks([gather_chain, other_maps], workers, stop)
+    check(stop)
+    global_radius = out.pop("global_radius", s.radius or r_global)
+    # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
+    # ends closer than that gathers once more from its end (integrator.gather_indirect).
+    out["gather_short"] = s.radius or r_global
+    if final:
+        out["gather_map"] = gather_map
+        out["global_photons"] = len(shot)
+    elif plan.indirect:
+        out["global_photons"] = len(out["global_map"])
     out["global_radius"] = global_radius
-    if plan.caustics:
-        check()
-        out["caustic_map"] = PhotonMap(caustic if use_caustic_shot
-                                       else shot.select(shot.kind == CAUSTIC), workers)
+    # The caustic radius from the global spacing, scaled to the larger shot's count
+    # (aimed caustic photons pile up on a focus: their own spacing would make it tiny);
+    # without a global shot, as if the caustic photons covered the diffuse area evenly.
+    dense = max(len(shot), len(caustic), 1)
+    if len(shot) > k:
+        r_auto = r_global * math.sqrt(len(shot) / dense)
+    else:
+        r_auto = auto_radius(diffuse_area, dense, k, geo.extent)
     out["caustic_radius"] = s.radius or r_auto
     out["diffuse_area"] = diffuse_area
-    check()
     return out
 
 
@@ -456,77 +524,90 @@ def photon_hit_budget(in_frame: int, width: int, height: int) -> int:
     return int(round(base * (1.0 + math.log(in_frame / base))))
 
 
-def _draw_photons(ctx: Context, film: Film, photons: Photons, region):
-    """Fill film.photon_hits with the photon-hit view: the photons stored on surfaces the
-    camera sees directly, thinned to photon_hit_budget and drawn as one-pixel dots
-    coloured by kind (PHOTON_KIND_COLORS), on black. The thinning is a seeded choice per
-    photon made on the whole image, so tiles (region) agree with a full render.
-    film.stats gets photon_hits_shown (dots drawn) and photon_hits_fraction (the share of
-    the photons in the image that was drawn)."""
-    film.stats["photon_hits_shown"] = 0
-    film.stats["photon_hits_fraction"] = 1.0
-    if len(photons) == 0:
-        return
+VIEW_ROWS = 1 << 16  # photons per block of the photon-hit view's projection
+
+
+def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
+    """The photon-hit view of the photons in shots (a sequence of Photons): the photons
+    stored on surfaces the camera sees directly, thinned to photon_hit_budget and drawn
+    as one-pixel dots coloured by kind (PHOTON_KIND_COLORS), on black. The thinning is a
+    seeded choice per photon made on the whole image, so tiles (region) agree with a full
+    render. Returns (view (height, width, 3) float32 or None when no dot is drawn, dots
+    drawn, the share of the photons in the image that was drawn). Queries Embree on the
+    calling thread only (Accel.serial), so it may run beside the camera pass."""
+    shots = [ph for ph in shots if len(ph)]
+    if not shots:
+        return None, 0, 1.0
     cam = ctx.scene.camera
     W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
-    p = photons.position.astype(np.float64)
+    position = np.concatenate([ph.position for ph in shots])  # float32
     pos = cam.position - ctx.geo.offset
-    rel = p - pos
     R = cam.rotation
-    local = rel @ R  # camera coordinates
+    local = (position.astype(np.float64) - pos) @ R  # camera coordinates
     hw, hh = cam.half_extents(W, H)
     big = 2.0 * max(hw, hh)
-    if cam.kind == "ORTHO":
-        z = -local[:, 2]
-        x, y = local[:, 0], local[:, 1]
-    else:
-        z = -local[:, 2]
-        x = local[:, 0] / np.maximum(z, 1e-300)
-        y = local[:, 1] / np.maximum(z, 1e-300)
-    sx = (x - cam.shift_x * big) / hw
-    sy = (y - cam.shift_y * big) / hh
-    with np.errstate(invalid="ignore"):
-        px = np.floor((sx + 1.0) / 2.0 * W)
-        py = np.floor((1.0 - sy) / 2.0 * H)
-    frame = (z > 0) & (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    # Which photons project into the frame, a block of rows at a time (element by element
+    # the same numbers as whole arrays, with a fraction of their memory: this view may
+    # run beside the camera pass's chunks).
+    n = len(position)
+    frame = np.zeros(n, bool)
+    cols, rows_ = [], []
+    for a in range(0, n, VIEW_ROWS):
+        lb = local[a:a + VIEW_ROWS]
+        z = -lb[:, 2]
+        if cam.kind == "ORTHO":
+            x, y = lb[:, 0], lb[:, 1]
+        else:
+            x = lb[:, 0] / np.maximum(z, 1e-300)
+            y = lb[:, 1] / np.maximum(z, 1e-300)
+        sx = (x - cam.shift_x * big) / hw
+        sy = (y - cam.shift_y * big) / hh
+        with np.errstate(invalid="ignore"):
+            px = np.floor((sx + 1.0) / 2.0 * W)
+            py = np.floor((1.0 - sy) / 2.0 * H)
+        fb = (z > 0) & (px >= 0) & (px < W) & (py >= 0) & (py < H)
+        frame[a:a + VIEW_ROWS] = fb
+        cols.append(px[fb].astype(np.int64))
+        rows_.append(py[fb].astype(np.int64))
     n_frame = int(frame.sum())
     if n_frame == 0:
-        return
+        return None, 0, 1.0
+    px, py = np.concatenate(cols), np.concatenate(rows_)  # of the frame's photons, in order
     keep = photon_hit_budget(n_frame, W, H) / n_frame
+    chosen = np.ones(n_frame, bool)
     if keep < 1.0:
-        u = np.random.default_rng([ctx.settings.seed, 97]).random(len(p))
-        frame &= u < keep
-    film.stats["photon_hits_fraction"] = keep = min(keep, 1.0)
-    px = np.where(frame, px, -1).astype(np.int64)
-    py = np.where(frame, py, -1).astype(np.int64)
-    inside = frame & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
-    idx = np.nonzero(inside)[0]
+        u = np.random.default_rng([ctx.settings.seed, 97]).random(n)
+        chosen = u[frame] < keep
+    fraction = min(keep, 1.0)
+    inside = chosen & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
+    idx = np.flatnonzero(frame)[inside]
+    px, py = px[inside], py[inside]
     if len(idx) == 0:
-        return
+        return None, 0, fraction
+    p = np.take(position, idx, axis=0).astype(np.float64)
     # Visible only if nothing lies between the camera and the photon.
-    to = p[idx] - (pos if cam.kind != "ORTHO" else p[idx] + local[idx, 2:3] * R[:, 2])
+    to = p - (pos if cam.kind != "ORTHO" else p + local[idx, 2:3] * R[:, 2])
     dist = np.linalg.norm(to, axis=1)
     d = to / np.maximum(dist, 1e-300)[:, None]
-    origin = p[idx] - to
+    origin = p - to
     # Stop short of the photon's surface by the float32 resolution there (photon
     # positions are float32) plus the float32 error of the ray's length.
-    gap = 4.0 * ulp32(max3(np.abs(p[idx]))) + G32_T * dist
-    blocked = ctx.accel.occluded(origin, d, np.maximum(dist - gap, 0.0))
-    idx = idx[~blocked]
+    gap = 4.0 * ulp32(max3(np.abs(p))) + G32_T * dist
+    blocked = ctx.accel.serial().occluded(origin, d, np.maximum(dist - gap, 0.0))
+    idx, px, py = idx[~blocked], px[~blocked], py[~blocked]
     if len(idx) == 0:
-        return
+        return None, 0, fraction
     rw = x1 - x0
-    flat = (py[idx] - y0) * rw + (px[idx] - x0)
+    flat = (py - y0) * rw + (px - x0)
     table = np.zeros((max(PHOTON_KIND_COLORS) + 1, 3))
     for kind, rgb in PHOTON_KIND_COLORS.items():
         table[kind] = rgb
-    colour = table[photons.kind[idx]]
-    size = film.height * film.width
+    colour = table[np.concatenate([ph.kind for ph in shots])[idx]]
+    size = height * width
     count = np.bincount(flat, minlength=size).astype(np.float64)
     buf = np.zeros((size, 3))
     for c in range(3):
         buf[:, c] = np.bincount(flat, weights=colour[:, c], minlength=size)
     buf /= np.maximum(count, 1.0)[:, None]  # a pixel with several dots shows their mix
-    film.photon_hits[...] = buf.reshape(film.height, film.width, 3).astype(np.float32)
-    film.stats["photon_hits_shown"] = int(len(idx))
+    return buf.reshape(height, width, 3).astype(np.float32), int(len(idx)), fraction

@@ -161,8 +161,9 @@ def test_emissive_meshes_do_not_hit_themselves_and_the_photon_power_balances(rho
     st = RenderSettings(photons=20000, caustic_photons=0, max_photon_depth=200, seed=4,
                         show_photons=True, workers=2)
     ctx = prepare_context(_emitting_box(rho), st)
-    photons = _photon_pass(ctx, {}, None, None)
+    photons, caustic = _photon_pass(ctx, {}, None, None)  # the shots (global, caustic)
     ctx.accel.close()
+    assert len(caustic) == 0  # caustic_photons=0: every photon is in the global shot
     p = photons.position.astype(np.float64) + ctx.geo.offset
     inward = np.einsum("ij,ij->i", photons.normal.astype(np.float64), -np.sign(p) * (np.abs(p) > 0.999))
     assert (inward > 0.99).all()
