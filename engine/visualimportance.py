@@ -151,9 +151,22 @@ def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
             break
         h *= 2.0
     k = min(k, len(order))
-    chosen = cells[order[:k]]
-    centers = lo + (chosen + 0.5) * h
-    radii = np.full(k, 0.5 * math.sqrt(3.0) * h)
+    # Each chosen cell as the bounding sphere of its points round their mean: on a floor
+    # a flat disc's sphere, not the cube's (which reaches below the floor, where the
+    # world's photons from underneath would land on its unseen side).
+    _, member = np.unique(key, axis=0, return_inverse=True)
+    member = member.ravel()
+    rank = np.empty(len(cells), np.int64)
+    rank[order] = np.arange(len(cells))
+    slot = rank[member]
+    take = slot < k
+    n = np.bincount(slot[take], minlength=k).astype(np.float64)
+    centers = np.stack([np.bincount(slot[take], weights=points[take, a], minlength=k)
+                        for a in range(3)], axis=1) / n[:, None]
+    dist = np.linalg.norm(points[take] - centers[slot[take]], axis=1)
+    radii = np.zeros(k)
+    np.maximum.at(radii, slot[take], dist)
+    radii = np.maximum(radii, 1e-3 * h)
     return Region(centers, radii, float(taken[k - 1]) / len(points), len(points))
 
 
