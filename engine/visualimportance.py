@@ -54,7 +54,7 @@ ROI_GATHER = 4         # cosine rays per diffuse camera hit
 ROI_MIRROR_DEPTH = 4   # mirror bounces of a pre-pass camera ray at non-diffuse surfaces
 ROI_COVER = 0.9        # share of the lookups the region holds
 ROI_CELLS = 32         # at most this many cells (spheres) in the region
-ROI_PILOT = 4096       # pilot photons per light
+ROI_PILOT = 4096       # pilot photons per light (up to 8 lights; fewer each beyond)
 ROI_MIN_BOOST = 2.0    # below this photon-density boost the shot is left natural
 ROI_MIN_OUTSIDE = 0.1  # at least this share of the photons outside the region
 
@@ -275,11 +275,13 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     power_in = np.zeros(len(lights))
     power_out = np.zeros(len(lights))
     aims = np.zeros(len(lights), bool)
+    # ROI_PILOT photons a light for a few lights; with many, fewer each (at least 64).
+    pilot = max(64, ROI_PILOT * 8 // max(8, len(lights)))
     for i, light in enumerate(lights):
         flux = float(luminance(np.asarray(light.photon_flux, np.float64)))
         if not flux > 0:
             continue
-        o, d, power = emit_arrays(light, ROI_PILOT, rng)
+        o, d, power = emit_arrays(light, pilot, rng)
         w = luminance(power)
         total_w = float(w.sum())
         inside = meets_region(o, d, region.centers, region.radii,
