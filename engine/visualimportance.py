@@ -18,11 +18,14 @@ search radius and the estimates' quality. Here:
    P_out the lights' power sent there, photon density n ~ sqrt(lookup density / power
    density) minimises the summed k-NN blur (the squared radius ~ 1 / photon density, per
    lookup): a photon inside carries 1 / B of what one outside carries, with
-   B = sqrt((I_in / P_in) / (I_out / P_out)). Below ROI_MIN_BOOST (a closed room, where
-   the region is most of the scene) the shot stays as it was: every light emits
-   naturally, photons in proportion to its power.
+   B = sqrt((I_in / P_in) / (I_out / P_out)). The same rule sphere by sphere
+   (ROI_CELL_WEIGHTS) shares the aimed photons among the spheres: photons ~
+   sqrt(I_k P_k). Below ROI_MIN_BOOST (a closed room, where the region is most of the
+   scene) the shot stays as it was: every light emits naturally, photons in proportion
+   to its power.
 3. Each light that can aim (a RegionEmitter) emits a share f of its photons aimed at the
-   region's spheres (Light.emit_towards_into: power x natural pdf / aimed pdf) and the
+   region's spheres (its emission kernel's aimed mode, the caustic aiming's: power x
+   natural pdf / aimed pdf, the sphere picked by the probabilities of step 2) and the
    rest naturally, dropping the natural photons whose ray meets a sphere. The two parts
    split the light's emission space between them without overlap (what is dropped is
    exactly where the aimed pdf is positive), so the expected power arriving anywhere is
@@ -44,6 +47,7 @@ import numpy as np
 from .bsdf import surface_hit
 from .lights.area import AreaLight
 from .lights.base import InfiniteLight, emit_arrays
+from .lights.emission import Aim
 from .lights.mesh import MeshLight
 from .lights.point import PointLight
 from .lights.spot import SpotLight
@@ -57,6 +61,8 @@ ROI_CELLS = 32         # at most this many cells (spheres) in the region
 ROI_PILOT = 4096       # pilot photons per light (up to 8 lights; fewer each beyond)
 ROI_MIN_BOOST = 2.0    # below this photon-density boost the shot is left natural
 ROI_MIN_OUTSIDE = 0.1  # at least this share of the photons outside the region
+ROI_CELL_WEIGHTS = True  # photons per sphere by its own lookups and power (else uniform)
+ROI_MIN_CELL = 0.1     # each sphere's aim probability at least this share of the mean
 
 
 @dataclass
@@ -67,6 +73,7 @@ class Region:
     radii: np.ndarray
     inside: float
     lookups: int
+    shares: np.ndarray | None = None  # (K,) each sphere's share of the lookups
 
     @property
     def targets(self):
@@ -167,7 +174,8 @@ def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
     radii = np.zeros(k)
     np.maximum.at(radii, slot[take], dist)
     radii = np.maximum(radii, 1e-3 * h)
-    return Region(centers, radii, float(taken[k - 1]) / len(points), len(points))
+    return Region(centers, radii, float(taken[k - 1]) / len(points), len(points),
+                  n / len(points))
 
 
 # ---------------------------------------------------------------------- emission
@@ -183,22 +191,28 @@ def can_aim(light) -> bool:
 
 def meets_region(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
                  infinite: bool) -> np.ndarray:
-    """(N,) bool: photons (origins o, unit directions d (N,3)) that the aimed emission at
-    spheres (centers (K,3), radii (K,)) could have drawn. Lights at infinity: the line
+    """(N,) bool: meets_spheres(...).any(axis=1)."""
+    return meets_spheres(o, d, centers, radii, infinite).any(axis=1)
+
+
+def meets_spheres(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
+                  infinite: bool) -> np.ndarray:
+    """(N, K) bool: photons (origins o, unit directions d (N,3)) that the aimed emission at
+    spheres (centers (K,3), radii (K,)) could have drawn, sphere by sphere. Lights at infinity: the line
     passes within the radius of a centre (the sphere's shadow disk, emission.aim_origin);
     finite lights: the direction lies in the cone from the origin holding a sphere, every
     direction from inside one (emission.aim_direction)."""
-    out = np.zeros(len(o), bool)
-    for c, r in zip(centers, radii):
+    out = np.zeros((len(o), len(radii)), bool)
+    for k, (c, r) in enumerate(zip(centers, radii)):
         t = c[None, :] - o
         along = dot(t, d)
         dist2 = np.einsum("ij,ij->i", t, t)
         if infinite:
-            out |= dist2 - along * along <= r * r
+            out[:, k] = dist2 - along * along <= r * r
         else:
             dist = np.sqrt(dist2)
             cos_max = np.sqrt(np.maximum(0.0, 1.0 - r * r / np.maximum(dist2, 1e-300)))
-            out |= (dist <= r) | (along >= cos_max * dist)
+            out[:, k] = (dist <= r) | (along >= cos_max * dist)
     return out
 
 
@@ -208,10 +222,16 @@ class RegionEmitter:
     Each chunk of n of the light's `count` photons carries n / count of its flux, so the
     split may round differently per chunk without bias."""
 
-    def __init__(self, light, region: Region, share: float):
+    def __init__(self, light, region: Region, share: float, probs=None):
         self.light = light
         self.region = region
         self.share = float(share)
+        # How the aimed photons pick a sphere: the light's own rule (Light.aim: by solid
+        # angle or shadow-disk area), or probs (K,) (each > 0, so the aimed pdf is
+        # positive wherever a natural photon is dropped).
+        self.aim = light.aim(region.centers, region.radii)
+        if probs is not None:
+            self.aim = Aim(self.aim.centers, self.aim.radii, np.asarray(probs, np.float64))
         self.name = light.name
         self.ray_kinds = light.ray_kinds
         self.source = light.source
@@ -232,8 +252,7 @@ class RegionEmitter:
         a = self.split(n)
         j = start
         if a > 0:
-            j = self.light.emit_towards_into(key, first, a, a * count / n,
-                                             self.region.targets, out, j)
+            j = self.light._emit(self.aim, True, key, first, a, a * count / n, out, j)
         if a < n:
             j0 = j
             j = self.light.emit_into(key, first + a, n - a, (n - a) * count / n, out, j0)
@@ -272,7 +291,8 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
         natural.report = "natural emission (no surface in view to aim at)"
         return natural
     rng = np.random.default_rng([ctx.settings.seed, 94])
-    power_in = np.zeros(len(lights))
+    K = len(region.radii)
+    cell_power = np.zeros((len(lights), K))  # natural power each light sends into each sphere
     power_out = np.zeros(len(lights))
     aims = np.zeros(len(lights), bool)
     # ROI_PILOT photons a light for a few lights; with many, fewer each (at least 64).
@@ -284,11 +304,17 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
         o, d, power = emit_arrays(light, pilot, rng)
         w = luminance(power)
         total_w = float(w.sum())
-        inside = meets_region(o, d, region.centers, region.radii,
-                              isinstance(light, InfiniteLight))
-        share = float(w[inside].sum()) / total_w if total_w > 0 else 0.0
-        power_in[i], power_out[i] = share * flux, (1.0 - share) * flux
-        aims[i] = can_aim(light) and 0.0 < share < 1.0
+        if not total_w > 0:
+            continue
+        met = meets_spheres(o, d, region.centers, region.radii,
+                            isinstance(light, InfiniteLight))
+        # A photon meeting several spheres counts a part in each.
+        many = np.maximum(met.sum(axis=1), 1)
+        cell_power[i] = (met * (w / many)[:, None]).sum(axis=0) / total_w * flux
+        inside = met.any(axis=1)
+        power_out[i] = float(w[~inside].sum()) / total_w * flux
+        aims[i] = can_aim(light) and inside.any() and not inside.all()
+    power_in = cell_power.sum(axis=1)
     p_in, p_out = power_in.sum(), power_out.sum()
     i_in = region.inside
     i_out = max(1.0 - i_in, ROI_MIN_OUTSIDE * 0.5)
@@ -297,22 +323,35 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
                           + ("all" if p_out <= 0 else "nothing") + " of their power "
                           "towards the camera's region)")
         return natural
-    boost = math.sqrt((i_in / p_in) / (i_out / p_out))
+    # Photons ~ sqrt(lookups x power) per piece (module docstring): per watt, a sphere's
+    # weight sqrt(I_k / P_k), outside sqrt(I_out / P_out). Uniform over the spheres
+    # (ROI_CELL_WEIGHTS off): sqrt(I_in / P_in) for all.
+    p_cell = cell_power.sum(axis=0)
+    if ROI_CELL_WEIGHTS and region.shares is not None:
+        weight = np.sqrt(region.shares / np.maximum(p_cell, 1e-300 * p_in))
+        weight = np.where(p_cell > 0, weight, 0.0)
+    else:
+        weight = np.full(K, math.sqrt(i_in / p_in))
+    w_out = math.sqrt(i_out / p_out)
+    boost = float((p_cell * weight).sum() / p_in) / w_out
     if boost < ROI_MIN_BOOST:
         natural.report = (f"natural emission (the camera's region gets {p_in / (p_in + p_out):.0%} "
                           f"of the light for {i_in:.0%} of the lookups: density boost "
                           f"{boost:.2f} < {ROI_MIN_BOOST:g})")
         return natural
-    # Photons per light: power inside at pi_in each, outside at boost x pi_in (lights
-    # that cannot aim emit naturally, every photon at pi_in); at least ROI_MIN_OUTSIDE of
-    # all photons outside.
-    # A light that cannot aim and sends nothing inside: its photons as bright as the
-    # others' outside; one that cannot aim and sends light inside: natural, all at pi_in.
+    # Photons per light: inside sum_k P_ik w_k, outside P_out w_out. A light that cannot
+    # aim emits naturally: its photons as bright as the others' outside if it sends
+    # nothing inside, else all as bright as the others' inside on average.
+    per_cell = cell_power * weight[None, :]
+    n_in = per_cell.sum(axis=1)
+    n_out = power_out * w_out
     far = ~aims & (power_in <= 0)
-    n_in = np.where(aims | far, power_in, power_in + power_out)
-    n_out = np.where(aims | far, power_out / boost, 0.0)
+    natural_light = ~aims & ~far
+    n_in = np.where(natural_light, (power_in + power_out) * boost * w_out, n_in)
+    n_out = np.where(natural_light, 0.0, n_out)
+    # At least ROI_MIN_OUTSIDE of all photons outside.
     out_share = n_out.sum() / (n_in.sum() + n_out.sum())
-    if out_share < ROI_MIN_OUTSIDE:
+    if 0 < out_share < ROI_MIN_OUTSIDE:
         n_out *= ROI_MIN_OUTSIDE * n_in.sum() / ((1.0 - ROI_MIN_OUTSIDE) * n_out.sum())
     want = n_in + n_out
     share = want / want.sum() * total
@@ -321,10 +360,17 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     emitters = []
     for i, light in enumerate(lights):
         if aims[i]:
-            emitters.append(RegionEmitter(light, region, n_in[i] / want[i]))
+            probs = None
+            if ROI_CELL_WEIGHTS:
+                # Every sphere keeps a share (a natural photon meeting only it is dropped,
+                # so it must be aimed at): at least ROI_MIN_CELL of the mean.
+                probs = per_cell[i] / max(n_in[i], 1e-300)
+                probs = np.maximum(probs, ROI_MIN_CELL / K)
+                probs /= probs.sum()
+            emitters.append(RegionEmitter(light, region, n_in[i] / want[i], probs))
         else:
             emitters.append(light)
-    report = (f"visual importance: {len(region.radii)} region spheres hold {i_in:.0%} of "
+    report = (f"visual importance: {K} region spheres hold {i_in:.0%} of "
               f"the camera's lookups and get {p_in / (p_in + p_out):.0%} of the light; "
               f"photons there {boost:.1f}x denser per watt")
     return ShotPlan(emitters, counts.tolist(), report, region, boost)
