@@ -37,7 +37,7 @@ def _ground(background=(L_WORLD,) * 3, sun=None, area=False):
     return s
 
 
-def _shoot(scene, importance, photons=300_000, seed=3, workers=1):
+def _shoot(scene, importance, photons=150_000, seed=3, workers=1):
     st = RenderSettings(photons=photons, caustic_photons=0, seed=seed, workers=workers,
                         photon_importance=importance)
     ctx = prepare_context(scene, st)
@@ -127,7 +127,7 @@ def test_the_split_emitters_keep_each_lights_power():
         for light in ctx.lights:
             em = vi.RegionEmitter(light, region, 0.8)
             rng = np.random.default_rng(11)
-            n = 200_000
+            n = 100_000
             _, _, power = em_arrays(em, n, rng)
             flux = np.asarray(light.photon_flux, np.float64)
             got = power.sum(axis=0)
