@@ -20,7 +20,7 @@ search radius and the estimates' quality. Here:
    lookup): a photon inside carries 1 / B of what one outside carries, with
    B = sqrt((I_in / P_in) / (I_out / P_out)). The same rule sphere by sphere
    (ROI_CELL_WEIGHTS) shares the aimed photons among the spheres: photons ~
-   sqrt(I_k P_k). Below ROI_MIN_BOOST (a closed room, where the region is most of the
+   sqrt(I_k P_k); at least ROI_MIN_OUTSIDE of them stay outside. Below ROI_MIN_BOOST (a closed room, where the region is most of the
    scene) the shot stays as it was: every light emits naturally, photons in proportion
    to its power.
 3. Each light that can aim (a RegionEmitter) emits a share f of its photons aimed at the
@@ -31,7 +31,7 @@ search radius and the estimates' quality. Here:
    exactly where the aimed pdf is positive), so the expected power arriving anywhere is
    the light's own: no bias, and light bouncing in from surfaces outside the region is
    still carried, by fewer, brighter photons. Photons per light follow the power each
-   sends inside (at power pi_in per photon) and outside (at B x pi_in).
+   sends into each sphere and outside, at the densities of step 2.
 
 Everything is seeded by the settings' seed and independent of the worker count (the
 pre-pass and the pilot run on the calling thread, the photons keep their per-slot random
@@ -317,6 +317,8 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     power_in = cell_power.sum(axis=1)
     p_in, p_out = power_in.sum(), power_out.sum()
     i_in = region.inside
+    # A region holding every lookup still leaves the outside a finite weight (the photons
+    # outside keep a finite power; ROI_MIN_OUTSIDE below then sets their share).
     i_out = max(1.0 - i_in, ROI_MIN_OUTSIDE * 0.5)
     if not (p_in > 0 and p_out > 0 and aims.any()):
         natural.report = ("natural emission (the lights send "
