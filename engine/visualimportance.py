@@ -149,7 +149,11 @@ def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
     h = max(diag / 16.0, 1e-6 * max(full, 1e-30), 1e-30)
     need = int(math.ceil(cover * len(points) - 1e-9))
     while True:
-        key = np.floor((points - lo) / h).astype(np.int64)
+        # Cells start half a cell below the quantile: a plane holding many points (a
+        # floor: often the quantile itself) lies mid-cell, not on a cell boundary, where
+        # last-bit differences of its points (an instanced or inside-out copy of the same
+        # scene) would split it between two cells and change the photons.
+        key = np.floor((points - lo) / h + 0.5).astype(np.int64)
         cells, count = np.unique(key, axis=0, return_counts=True)
         order = np.argsort(-count, kind="stable")
         taken = np.cumsum(count[order])
