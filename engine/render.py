@@ -424,12 +424,14 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
     """The global shot's emitters and photon counts: with visual importance
     (engine/visualimportance.py) the photons go where the camera's gather rays end; else
     ctx.lights with `counts`. Off for the paper's method (its photons are the paper's:
-    power-proportional, docs/paper_mode.md), for a scene that fixes photons per light, and
-    where the global map serves no indirect light. stats gets the decision
+    power-proportional, docs/paper_mode.md), for a scene that fixes photons per light,
+    where the global map serves no indirect light, and without final gathering (the map
+    is then read at camera hits, where its light has mostly bounced in from elsewhere:
+    aiming the photons' first hits there starves it). stats gets the decision
     (photon_importance: one line)."""
     s = ctx.settings
-    if not (s.photon_importance and ctx.plan.indirect and not s.paper_mode
-            and not getattr(ctx.scene, "photons_per_light", None)):
+    if not (s.photon_importance and ctx.plan.indirect and s.final_gather
+            and not s.paper_mode and not getattr(ctx.scene, "photons_per_light", None)):
         return ctx.lights, counts
     from .visualimportance import plan_global_shot, region_of_interest
     region = region_of_interest(ctx)

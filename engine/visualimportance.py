@@ -9,7 +9,7 @@ search radius and the estimates' quality. Here:
 1. A coarse camera pre-pass (region_of_interest): a jittered grid of camera rays, mirrored
    on at surfaces without a diffuse lobe, and ROI_GATHER cosine-distributed rays from each
    diffuse hit, as final gathering casts them. Where those rays end are the global map's
-   lookups (where the camera rays end, without final gathering). The region of interest
+   lookups (final gathering only: engine/render.py global_emitters). The region of interest
    is the set of grid cells holding ROI_COVER of them (at most ROI_CELLS cells: the cell
    size doubles until they fit), each as its bounding sphere.
 2. A pilot (plan_global_shot): ROI_PILOT photons of every light, emitted as it emits them,
@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bsdf import surface_hit
+from .geometry import CAMERA, DIFFUSE, GLOSSY
 from .lights.area import AreaLight
 from .lights.base import InfiniteLight, emit_arrays
 from .lights.emission import Aim
@@ -90,8 +91,8 @@ def region_of_interest(ctx, rays: int = ROI_RAYS) -> Region | None:
 
 
 def lookup_points(ctx, rays: int = ROI_RAYS) -> np.ndarray:
-    """(N,3) points where the pre-pass' gather rays end on a surface (camera hits without
-    final gathering): where the global map is looked up."""
+    """(N,3) points where the pre-pass' gather rays end on a surface: where final
+    gathering looks the global map up."""
     from .integrator import camera_rays
     scene, geo, table, accel = ctx.scene, ctx.geo, ctx.table, ctx.accel
     W, H = scene.width, scene.height
@@ -105,10 +106,14 @@ def lookup_points(ctx, rays: int = ROI_RAYS) -> np.ndarray:
     o, d, tmax = camera_rays(scene.camera, geo.offset, W, H, px, py, fx - px, fy - py)
     diffuse = table.has_diffuse
     hits = []
+    # Each ray sees what its kind sees (docs/scene_format.md, "Ray visibility"): camera
+    # rays, then mirrored (glossy) rays, and the gather rays as diffuse rays.
+    ray_cls = CAMERA
     for _ in range(ROI_MIRROR_DEPTH + 1):
         if len(o) == 0:
             break
-        _, prim, u, v = accel.intersect(o, d, tmax)
+        _, prim, u, v = accel.intersect(o, d, tmax, cls=ray_cls)
+        ray_cls = GLOSSY
         keep = prim >= 0
         if not keep.any():
             break
@@ -124,15 +129,13 @@ def lookup_points(ctx, rays: int = ROI_RAYS) -> np.ndarray:
     if not hits:
         return np.zeros((0, 3))
     p = np.concatenate([h[0] for h in hits])
-    if not ctx.settings.final_gather:
-        return p
     ng = np.concatenate([h[1] for h in hits])
     off = np.concatenate([h[2] for h in hits])
     p, ng, off = (np.repeat(a, ROI_GATHER, axis=0) for a in (p, ng, off))
     u = rng.random((2, len(p)))
     d = to_world(cosine_hemisphere(u[0], u[1]), ng)
     o = offset_origin(p, ng, d, off)
-    t, prim, _, _ = accel.intersect(o, d, np.full(len(o), np.inf))
+    t, prim, _, _ = accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
     ok = prim >= 0
     return o[ok] + t[ok, None] * d[ok]
 
