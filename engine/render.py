@@ -283,8 +283,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
     # The global shot is needed for indirect light; without a separate caustic shot, or
     # for the caustic paths the aimed shot leaves out, it also carries caustic photons.
     if plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None:
-        counts = photon_counts(ctx, s.photons)
-        shot = trace_photons(ctx, ctx.lights, counts, caustic_only=False, stream=1,
+        emitters, counts = global_emitters(ctx, photon_counts(ctx, s.photons), stats)
+        shot = trace_photons(ctx, emitters, counts, caustic_only=False, stream=1,
                              progress=progress, should_cancel=should_cancel,
                              first_hit=None if split is None else (split, False))
     caustic = Photons.empty()
@@ -467,6 +467,8 @@ def photon_map_report(settings: RenderSettings, stats: dict) -> list[str]:
     if stats.get("caustic_photons"):
         parts.append(f"{stats['caustic_photons']:,} caustic photons stored, search radius "
                      f"{stats['radius_caustic']:.4g} m")
+    if stats.get("photon_importance"):
+        parts.append(stats["photon_importance"])
     how = "radius set" if settings.radius is not None else "automatic radius"
     est = f"{settings.estimator} estimator" + (" (paper mode)" if settings.paper_mode else "")
     return [f"photon maps: on - {'; '.join(parts) or 'no photons stored'} ({how}, {est})"]
@@ -484,6 +486,26 @@ def photon_counts(ctx: Context, total: int) -> list[int]:
     spare = max(total - sum(fixed[li.name] for li, o in zip(ctx.lights, own) if o), 0)
     shared = iter(allocate_photons(rest, spare))
     return [fixed[li.name] if o else next(shared) for li, o in zip(ctx.lights, own)]
+
+
+def global_emitters(ctx: Context, counts: list[int], stats: dict):
+    """The global shot's emitters and photon counts: with visual importance
+    (engine/visualimportance.py) the photons go where the camera's gather rays end; else
+    ctx.lights with `counts`. Off for the paper's method (its photons are the paper's:
+    power-proportional, docs/paper_mode.md), for a scene that fixes photons per light,
+    where the global map serves no indirect light, and without final gathering (the map
+    is then read at camera hits, where its light has mostly bounced in from elsewhere:
+    aiming the photons' first hits there starves it). stats gets the decision
+    (photon_importance: one line)."""
+    s = ctx.settings
+    if not (s.photon_importance and ctx.plan.indirect and s.final_gather
+            and not s.paper_mode and not getattr(ctx.scene, "photons_per_light", None)):
+        return ctx.lights, counts
+    from .visualimportance import plan_global_shot, region_of_interest
+    region = region_of_interest(ctx)
+    shot = plan_global_shot(ctx, ctx.lights, s.photons, counts, region)
+    stats["photon_importance"] = shot.report
+    return shot.emitters, shot.counts
 
 
 def _allocate_aimed(ctx, targets, total):

@@ -64,6 +64,8 @@ class RenderSettings:
     specular: str = "auto"          # camera rays through mirrors and glass
     soft_shadows: str = "auto"      # several shadow rays for lights with a size
     aim_caustics: bool = True       # shoot caustic photons only towards mirrors and glass
+    # Global photons towards where the camera's gather rays end (engine/visualimportance.py)
+    photon_importance: bool = True
     show_photons: bool = False      # the image shows the photon-hit view (Fig. 6 left)
     film_transparent: bool = False  # background not drawn (alpha 0), as Blender's option
     # The paper's own method (docs/paper_mode.md): its classic estimator (cosine-weighted,
@@ -96,8 +98,8 @@ class RenderSettings:
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
                          ("gather_rays", 1), ("transparent_max_bounces", 0)):
             positive_int(name, lo)
-        for name in ("final_gather", "photon_mapping", "aim_caustics", "show_photons",
-                     "film_transparent", "paper_mode"):
+        for name in ("final_gather", "photon_mapping", "aim_caustics", "photon_importance",
+                     "show_photons", "film_transparent", "paper_mode"):
             v = getattr(self, name)
             if not isinstance(v, (bool, np.bool_)):  # "no" is a true string
                 raise ValueError(f"setting '{name}' must be true or false, got {v!r}")

@@ -1,0 +1,385 @@
+"""Visual importance for the global photon shot: the global photons go where camera paths
+use them (docs/design.md, Photon budget: visual importance).
+
+Final gathering looks the global photons up where gather rays end; a large scene lit from
+far (a 30 m ground plane under a dim world, issue 14) spreads them over surfaces no camera
+path reaches, the photon density where the camera looks falls, and with it the automatic
+search radius and the estimates' quality. Here:
+
+1. A coarse camera pre-pass (region_of_interest): a jittered grid of camera rays, mirrored
+   on at surfaces without a diffuse lobe, and ROI_GATHER cosine-distributed rays from each
+   diffuse hit, as final gathering casts them. Where those rays end are the global map's
+   lookups (final gathering only: engine/render.py global_emitters). The region of interest
+   is the set of grid cells holding ROI_COVER of them (at most ROI_CELLS cells: the cell
+   size doubles until they fit), each as its bounding sphere.
+2. A pilot (plan_global_shot): ROI_PILOT photons of every light, emitted as it emits them,
+   tell which share of its power leaves towards the region (rays that meet one of the
+   spheres). With I_in, I_out the lookups' shares inside / outside the region and P_in,
+   P_out the lights' power sent there, photon density n ~ sqrt(lookup density / power
+   density) minimises the summed k-NN blur (the squared radius ~ 1 / photon density, per
+   lookup): a photon inside carries 1 / B of what one outside carries, with
+   B = sqrt((I_in / P_in) / (I_out / P_out)). The same rule sphere by sphere
+   (ROI_CELL_WEIGHTS) shares the aimed photons among the spheres: photons ~
+   sqrt(I_k P_k); at least ROI_MIN_OUTSIDE of them stay outside. Below ROI_MIN_BOOST (a closed room, where the region is most of the
+   scene) the shot stays as it was: every light emits naturally, photons in proportion
+   to its power.
+3. Each light that can aim (a RegionEmitter) emits a share f of its photons aimed at the
+   region's spheres (its emission kernel's aimed mode, the caustic aiming's: power x
+   natural pdf / aimed pdf, the sphere picked by the probabilities of step 2) and the
+   rest naturally, dropping the natural photons whose ray meets a sphere. The two parts
+   split the light's emission space between them without overlap (what is dropped is
+   exactly where the aimed pdf is positive), so the expected power arriving anywhere is
+   the light's own: no bias, and light bouncing in from surfaces outside the region is
+   still carried, by fewer, brighter photons. Photons per light follow the power each
+   sends into each sphere and outside, at the densities of step 2.
+
+Everything is seeded by the settings' seed and independent of the worker count (the
+pre-pass and the pilot run on the calling thread, the photons keep their per-slot random
+numbers: engine/lights/emission.py).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bsdf import surface_hit
+from .geometry import CAMERA, DIFFUSE, GLOSSY
+from .lights.area import AreaLight
+from .lights.base import InfiniteLight, emit_arrays
+from .lights.emission import Aim
+from .lights.mesh import MeshLight
+from .lights.point import PointLight
+from .lights.spot import SpotLight
+from .sampling import cosine_hemisphere, dot, luminance, offset_origin, reflect, to_world
+
+ROI_RAYS = 4096        # camera rays of the pre-pass
+ROI_GATHER = 4         # cosine rays per diffuse camera hit
+ROI_MIRROR_DEPTH = 4   # mirror bounces of a pre-pass camera ray at non-diffuse surfaces
+ROI_COVER = 0.9        # share of the lookups the region holds
+ROI_CELLS = 32         # at most this many cells (spheres) in the region
+ROI_PILOT = 4096       # pilot photons per light (up to 8 lights; fewer each beyond)
+ROI_MIN_BOOST = 2.0    # below this photon-density boost the shot is left natural
+ROI_MIN_OUTSIDE = 0.1  # at least this share of the photons outside the region
+ROI_CELL_WEIGHTS = True  # photons per sphere by its own lookups and power (else uniform)
+ROI_MIN_CELL = 0.1     # each sphere's aim probability at least this share of the mean
+
+
+@dataclass
+class Region:
+    """The region of interest: spheres (centers (K,3), radii (K,), re-centred world
+    space, m) holding `inside` of the pre-pass lookups (`lookups` of them)."""
+    centers: np.ndarray
+    radii: np.ndarray
+    inside: float
+    lookups: int
+    shares: np.ndarray | None = None  # (K,) each sphere's share of the lookups
+
+    @property
+    def targets(self):
+        return self.centers, self.radii
+
+
+def region_of_interest(ctx, rays: int = ROI_RAYS) -> Region | None:
+    """The region of interest of ctx's camera (module docstring, step 1), or None when
+    the pre-pass finds no lookup (nothing diffuse in view)."""
+    points = lookup_points(ctx, rays)
+    if len(points) == 0:
+        return None
+    return cover_cells(points, ROI_COVER, ROI_CELLS)
+
+
+def lookup_points(ctx, rays: int = ROI_RAYS) -> np.ndarray:
+    """(N,3) points where the pre-pass' gather rays end on a surface: where final
+    gathering looks the global map up."""
+    from .integrator import camera_rays
+    scene, geo, table, accel = ctx.scene, ctx.geo, ctx.table, ctx.accel
+    W, H = scene.width, scene.height
+    nx = max(1, int(round(math.sqrt(rays * W / max(H, 1)))))
+    ny = max(1, int(round(rays / nx)))
+    rng = np.random.default_rng([ctx.settings.seed, 95])
+    gx, gy = np.meshgrid(np.arange(nx), np.arange(ny))
+    fx = (gx.ravel() + rng.random(nx * ny)) / nx * W
+    fy = (gy.ravel() + rng.random(nx * ny)) / ny * H
+    px, py = np.minimum(np.floor(fx), W - 1), np.minimum(np.floor(fy), H - 1)
+    o, d, tmax = camera_rays(scene.camera, geo.offset, W, H, px, py, fx - px, fy - py)
+    diffuse = table.has_diffuse
+    hits = []
+    # Each ray sees what its kind sees (docs/scene_format.md, "Ray visibility"): camera
+    # rays, then mirrored (glossy) rays, and the gather rays as diffuse rays.
+    ray_cls = CAMERA
+    for _ in range(ROI_MIRROR_DEPTH + 1):
+        if len(o) == 0:
+            break
+        _, prim, u, v = accel.intersect(o, d, tmax, cls=ray_cls)
+        ray_cls = GLOSSY
+        keep = prim >= 0
+        if not keep.any():
+            break
+        d = d[keep]
+        hit = surface_hit(geo, table, prim[keep], u[keep], v[keep], d)
+        dif = diffuse[hit.mat]
+        hits.append((hit.p[dif], hit.ng[dif], hit.offset[dif]))
+        # Surfaces without a diffuse lobe: the camera path goes on as a mirror would.
+        spec = ~dif
+        d = reflect(d[spec], hit.ns[spec])
+        o = offset_origin(hit.p[spec], hit.ng[spec], d, hit.offset[spec])
+        tmax = np.full(len(o), np.inf)
+    if not hits:
+        return np.zeros((0, 3))
+    p = np.concatenate([h[0] for h in hits])
+    ng = np.concatenate([h[1] for h in hits])
+    off = np.concatenate([h[2] for h in hits])
+    p, ng, off = (np.repeat(a, ROI_GATHER, axis=0) for a in (p, ng, off))
+    u = rng.random((2, len(p)))
+    d = to_world(cosine_hemisphere(u[0], u[1]), ng)
+    o = offset_origin(p, ng, d, off)
+    t, prim, _, _ = accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
+    ok = prim >= 0
+    return o[ok] + t[ok, None] * d[ok]
+
+
+def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
+                max_cells: int = ROI_CELLS) -> Region:
+    """The fewest grid cells holding `cover` of points (N,3), as bounding spheres; the
+    cell size starts at 1/16 of the diagonal of the box holding the central 90 % of the
+    points on each axis and doubles until at most max_cells cells do."""
+    lo = np.quantile(points, 0.05, axis=0)
+    hi = np.quantile(points, 0.95, axis=0)
+    diag = float(np.linalg.norm(hi - lo))
+    full = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    h = max(diag / 16.0, 1e-6 * max(full, 1e-30), 1e-30)
+    need = int(math.ceil(cover * len(points) - 1e-9))
+    while True:
+        # Cells start half a cell below the quantile: a plane holding many points (a
+        # floor: often the quantile itself) lies mid-cell, not on a cell boundary, where
+        # last-bit differences of its points (an instanced or inside-out copy of the same
+        # scene) would split it between two cells and change the photons.
+        key = np.floor((points - lo) / h + 0.5).astype(np.int64)
+        cells, count = np.unique(key, axis=0, return_counts=True)
+        order = np.argsort(-count, kind="stable")
+        taken = np.cumsum(count[order])
+        k = int(np.searchsorted(taken, need) + 1)
+        if k <= max_cells or h > 2.0 * full:
+            break
+        h *= 2.0
+    k = min(k, len(order))
+    # Each chosen cell as the bounding sphere of its points round their mean: on a floor
+    # a flat disc's sphere, not the cube's (which reaches below the floor, where the
+    # world's photons from underneath would land on its unseen side).
+    _, member = np.unique(key, axis=0, return_inverse=True)
+    member = member.ravel()
+    rank = np.empty(len(cells), np.int64)
+    rank[order] = np.arange(len(cells))
+    slot = rank[member]
+    take = slot < k
+    n = np.bincount(slot[take], minlength=k).astype(np.float64)
+    centers = np.stack([np.bincount(slot[take], weights=points[take, a], minlength=k)
+                        for a in range(3)], axis=1) / n[:, None]
+    dist = np.linalg.norm(points[take] - centers[slot[take]], axis=1)
+    radii = np.zeros(k)
+    np.maximum.at(radii, slot[take], dist)
+    radii = np.maximum(radii, 1e-3 * h)
+    return Region(centers, radii, float(taken[k - 1]) / len(points), len(points),
+                  n / len(points))
+
+
+# ---------------------------------------------------------------------- emission
+def can_aim(light) -> bool:
+    """Lights whose aimed emission (Light.emit_towards_into) draws its direction from the
+    photon's own origin (finite lights) or its origin across its direction (lights at
+    infinity), so that meets_region tells exactly where the aimed pdf is positive. A spot
+    light shifts its photons' origins after aiming (engine/lights/spot.py): natural."""
+    if isinstance(light, SpotLight):
+        return False
+    return isinstance(light, (InfiniteLight, AreaLight, PointLight, MeshLight))
+
+
+def meets_region(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
+                 infinite: bool) -> np.ndarray:
+    """(N,) bool: meets_spheres(...).any(axis=1)."""
+    return meets_spheres(o, d, centers, radii, infinite).any(axis=1)
+
+
+def meets_spheres(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
+                  infinite: bool) -> np.ndarray:
+    """(N, K) bool: photons (origins o, unit directions d (N,3)) that the aimed emission at
+    spheres (centers (K,3), radii (K,)) could have drawn, sphere by sphere. Lights at infinity: the line
+    passes within the radius of a centre (the sphere's shadow disk, emission.aim_origin);
+    finite lights: the direction lies in the cone from the origin holding a sphere, every
+    direction from inside one (emission.aim_direction)."""
+    out = np.zeros((len(o), len(radii)), bool)
+    for k, (c, r) in enumerate(zip(centers, radii)):
+        t = c[None, :] - o
+        along = dot(t, d)
+        dist2 = np.einsum("ij,ij->i", t, t)
+        if infinite:
+            out[:, k] = dist2 - along * along <= r * r
+        else:
+            dist = np.sqrt(dist2)
+            cos_max = np.sqrt(np.maximum(0.0, 1.0 - r * r / np.maximum(dist2, 1e-300)))
+            out[:, k] = (dist <= r) | (along >= cos_max * dist)
+    return out
+
+
+class RegionEmitter:
+    """A light that emits `share` of its photons aimed at the region and the rest
+    naturally, minus the natural photons that meet the region (module docstring, step 3).
+    Each chunk of n of the light's `count` photons carries n / count of its flux, so the
+    split may round differently per chunk without bias."""
+
+    def __init__(self, light, region: Region, share: float, probs=None):
+        self.light = light
+        self.region = region
+        self.share = float(share)
+        # How the aimed photons pick a sphere: the light's own rule (Light.aim: by solid
+        # angle or shadow-disk area), or probs (K,) (each > 0, so the aimed pdf is
+        # positive wherever a natural photon is dropped).
+        self.aim = light.aim(region.centers, region.radii)
+        if probs is not None:
+            self.aim = Aim(self.aim.centers, self.aim.radii, np.asarray(probs, np.float64))
+        self.name = light.name
+        self.ray_kinds = light.ray_kinds
+        self.source = light.source
+        self.photon_flux = light.photon_flux
+        self.infinite = isinstance(light, InfiniteLight)
+
+    def split(self, n: int) -> int:
+        """Aimed photons of a chunk of n: round(share x n), one of each kind when n >= 2
+        and 0 < share < 1 (each part covers its own piece of the emission space)."""
+        a = int(round(self.share * n))
+        if n >= 2 and 0.0 < self.share < 1.0:
+            a = min(max(a, 1), n - 1)
+        return min(max(a, 0), n)
+
+    def emit_into(self, key, first: int, n: int, count: int, out, start: int) -> int:
+        """Light.emit_into's contract: slots first .. first + n - 1, compacted rows from
+        start, the chunk's expected power n / count of the flux; returns the next row."""
+        a = self.split(n)
+        j = start
+        if a > 0:
+            j = self.light._emit(self.aim, True, key, first, a, a * count / n, out, j)
+        if a < n:
+            j0 = j
+            j = self.light.emit_into(key, first + a, n - a, (n - a) * count / n, out, j0)
+            o32, d32, d, power, slot = (arr[j0:j] for arr in out.arrays)
+            keep = ~meets_region(o32.astype(np.float64), d, self.region.centers,
+                                 self.region.radii, self.infinite)
+            m = int(keep.sum())
+            if m < len(keep):
+                for arr in (o32, d32, d, power, slot):
+                    arr[:m] = arr[keep]
+                j = j0 + m
+        return j
+
+    def emit_towards_into(self, key, first, n, count, targets, out, start):
+        return self.light.emit_towards_into(key, first, n, count, targets, out, start)
+
+
+@dataclass
+class ShotPlan:
+    """The global shot: emitters (lights or RegionEmitters) and their photon counts, with
+    what was decided (report: one line)."""
+    emitters: list
+    counts: list
+    report: str
+    region: Region | None = None
+    boost: float = 1.0
+
+
+def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | None
+                     ) -> ShotPlan:
+    """How the global shot's `total` photons are emitted (module docstring, step 2):
+    natural_counts are the photons per light without visual importance (returned when
+    it does not pay)."""
+    natural = ShotPlan(list(lights), list(natural_counts), "")
+    if region is None or total <= 0 or not lights:
+        natural.report = "natural emission (no surface in view to aim at)"
+        return natural
+    rng = np.random.default_rng([ctx.settings.seed, 94])
+    K = len(region.radii)
+    cell_power = np.zeros((len(lights), K))  # natural power each light sends into each sphere
+    power_out = np.zeros(len(lights))
+    aims = np.zeros(len(lights), bool)
+    # ROI_PILOT photons a light for a few lights; with many, fewer each (at least 64).
+    pilot = max(64, ROI_PILOT * 8 // max(8, len(lights)))
+    for i, light in enumerate(lights):
+        flux = float(luminance(np.asarray(light.photon_flux, np.float64)))
+        if not flux > 0:
+            continue
+        o, d, power = emit_arrays(light, pilot, rng)
+        w = luminance(power)
+        total_w = float(w.sum())
+        if not total_w > 0:
+            continue
+        met = meets_spheres(o, d, region.centers, region.radii,
+                            isinstance(light, InfiniteLight))
+        # A photon meeting several spheres counts a part in each.
+        many = np.maximum(met.sum(axis=1), 1)
+        cell_power[i] = (met * (w / many)[:, None]).sum(axis=0) / total_w * flux
+        inside = met.any(axis=1)
+        power_out[i] = float(w[~inside].sum()) / total_w * flux
+        aims[i] = can_aim(light) and inside.any() and not inside.all()
+    power_in = cell_power.sum(axis=1)
+    p_in, p_out = power_in.sum(), power_out.sum()
+    i_in = region.inside
+    # A region holding every lookup still leaves the outside a finite weight (the photons
+    # outside keep a finite power; ROI_MIN_OUTSIDE below then sets their share).
+    i_out = max(1.0 - i_in, ROI_MIN_OUTSIDE * 0.5)
+    if not (p_in > 0 and p_out > 0 and aims.any()):
+        natural.report = ("natural emission (the lights send "
+                          + ("all" if p_out <= 0 else "nothing") + " of their power "
+                          "towards the camera's region)")
+        return natural
+    # Photons ~ sqrt(lookups x power) per piece (module docstring): per watt, a sphere's
+    # weight sqrt(I_k / P_k), outside sqrt(I_out / P_out). Uniform over the spheres
+    # (ROI_CELL_WEIGHTS off): sqrt(I_in / P_in) for all.
+    p_cell = cell_power.sum(axis=0)
+    if ROI_CELL_WEIGHTS and region.shares is not None:
+        weight = np.sqrt(region.shares / np.maximum(p_cell, 1e-300 * p_in))
+        weight = np.where(p_cell > 0, weight, 0.0)
+    else:
+        weight = np.full(K, math.sqrt(i_in / p_in))
+    w_out = math.sqrt(i_out / p_out)
+    boost = float((p_cell * weight).sum() / p_in) / w_out
+    if boost < ROI_MIN_BOOST:
+        natural.report = (f"natural emission (the camera's region gets {p_in / (p_in + p_out):.0%} "
+                          f"of the light for {i_in:.0%} of the lookups: density boost "
+                          f"{boost:.2f} < {ROI_MIN_BOOST:g})")
+        return natural
+    # Photons per light: inside sum_k P_ik w_k, outside P_out w_out. A light that cannot
+    # aim emits naturally: its photons as bright as the others' outside if it sends
+    # nothing inside, else all as bright as the others' inside on average.
+    per_cell = cell_power * weight[None, :]
+    n_in = per_cell.sum(axis=1)
+    n_out = power_out * w_out
+    far = ~aims & (power_in <= 0)
+    natural_light = ~aims & ~far
+    n_in = np.where(natural_light, (power_in + power_out) * boost * w_out, n_in)
+    n_out = np.where(natural_light, 0.0, n_out)
+    # At least ROI_MIN_OUTSIDE of all photons outside.
+    out_share = n_out.sum() / (n_in.sum() + n_out.sum())
+    if 0 < out_share < ROI_MIN_OUTSIDE:
+        n_out *= ROI_MIN_OUTSIDE * n_in.sum() / ((1.0 - ROI_MIN_OUTSIDE) * n_out.sum())
+    want = n_in + n_out
+    share = want / want.sum() * total
+    counts = np.floor(share).astype(int)
+    counts[np.argsort(-(share - counts), kind="stable")[: total - counts.sum()]] += 1
+    emitters = []
+    for i, light in enumerate(lights):
+        if aims[i]:
+            probs = None
+            if ROI_CELL_WEIGHTS:
+                # Every sphere keeps a share (a natural photon meeting only it is dropped,
+                # so it must be aimed at): at least ROI_MIN_CELL of the mean.
+                probs = per_cell[i] / max(n_in[i], 1e-300)
+                probs = np.maximum(probs, ROI_MIN_CELL / K)
+                probs /= probs.sum()
+            emitters.append(RegionEmitter(light, region, n_in[i] / want[i], probs))
+        else:
+            emitters.append(light)
+    report = (f"visual importance: {K} region spheres hold {i_in:.0%} of "
+              f"the camera's lookups and get {p_in / (p_in + p_out):.0%} of the light; "
+              f"photons there {boost:.1f}x denser per watt")
+    return ShotPlan(emitters, counts.tolist(), report, region, boost)

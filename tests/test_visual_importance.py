@@ -1,0 +1,166 @@
+"""Visual importance for the global photon shot (engine/visualimportance.py): the photons
+go where the camera's gather rays end, and the expected power arriving anywhere is kept.
+
+A large plane under a uniform world of radiance L receives irradiance pi L on its top
+(and on its underside) wherever nothing shades it, and under a sun of strength S straight
+down, S: the photons' power per area must say so both inside the camera's region (where
+the photons crowd) and far outside it (where fewer, brighter photons arrive), within the
+photons' own statistical error. A closed room, where the region is most of the scene,
+keeps its photons exactly as without visual importance.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from engine import RenderSettings
+from engine.api import PaperScene, box_mesh
+from engine.photons import DIRECT
+from engine.render import prepare_context, shoot_photons
+from engine import visualimportance as vi
+
+L_WORLD = 0.1
+
+
+def _ground(background=(L_WORLD,) * 3, sun=None, area=False):
+    """A 40 m x 40 m plane with three balls in a row near its centre, the camera looking
+    at the balls from 9 m (it sees a few metres of the plane round them)."""
+    s = PaperScene(width=64, height=48, background=background)
+    s.add_plane((0, 0, 0), size=40.0, name="ground")
+    for i in range(3):
+        s.add_sphere(((i - 1) * 1.2, 0, 0.5), 0.5, name=f"ball{i}")
+    if sun is not None:
+        s.add_sun(direction=(0, 0, -1), strength=sun)
+    if area:
+        s.add_rect_area_light((-2, -3, 5), size=(2, 2), power=500.0)
+    s.set_camera((0, -9, 3), (0, 0, 0.4), view_angle=30)
+    return s
+
+
+def _shoot(scene, importance, photons=150_000, seed=3, workers=1):
+    st = RenderSettings(photons=photons, caustic_photons=0, seed=seed, workers=workers,
+                        photon_importance=importance)
+    ctx = prepare_context(scene, st)
+    try:
+        stats = {}
+        ph = shoot_photons(ctx, stats)
+        return ph, ph.position.astype(np.float64) + ctx.geo.offset, stats
+    finally:
+        ctx.accel.close()
+
+
+def _irradiance(ph, p, box, up=True):
+    """Power per area (W/m^2, red channel) of the DIRECT photons on the plane's top (or
+    underside) inside box = (x0, x1, y0, y1), and its standard error (the photons' own
+    scatter: sqrt of the sum of squared powers)."""
+    x0, x1, y0, y1 = box
+    side = ph.normal[:, 2] > 0.5 if up else ph.normal[:, 2] < -0.5
+    sel = (side & (np.abs(p[:, 2]) < 1e-3) & (ph.kind == DIRECT) & (p[:, 0] > x0)
+           & (p[:, 0] < x1) & (p[:, 1] > y0) & (p[:, 1] < y1))
+    w = ph.power[sel, 0].astype(np.float64)
+    area = (x1 - x0) * (y1 - y0)
+    return w.sum() / area, math.sqrt((w * w).sum()) / area, int(sel.sum())
+
+
+NEAR = (-2.5, 2.5, -2.5, -1.0)    # in front of the balls, in the camera's region
+FAR = (6.0, 18.0, 6.0, 18.0)      # behind and beside them, outside it
+UNDER = (-15.0, 15.0, -15.0, 15.0)
+
+
+@pytest.fixture(scope="module")
+def world_shots():
+    scene = _ground()
+    return _shoot(scene, True), _shoot(scene, False)
+
+
+def test_a_plane_under_a_uniform_world_gets_pi_L_inside_and_outside_the_region(world_shots):
+    (ph, p, stats), _ = world_shots
+    assert "visual importance" in stats["photon_importance"], stats["photon_importance"]
+    expect = math.pi * L_WORLD
+    for box, up in ((NEAR, True), (FAR, True), (UNDER, False)):
+        E, err, n = _irradiance(ph, p, box, up)
+        assert n > 200, (box, n)
+        assert abs(E - expect) < 4 * err + 0.005 * expect, (box, up, E, expect, err)
+
+
+def test_the_region_gets_denser_photons_and_the_rest_fewer_brighter_ones(world_shots):
+    (ph, p, _), (nat, pn, _) = world_shots
+    _, _, near = _irradiance(ph, p, NEAR)
+    _, _, near_nat = _irradiance(nat, pn, NEAR)
+    _, _, far = _irradiance(ph, p, FAR)
+    _, _, far_nat = _irradiance(nat, pn, FAR)
+    assert near > 4 * near_nat, (near, near_nat)
+    assert far < far_nat, (far, far_nat)
+
+
+def test_a_plane_under_a_sun_gets_its_strength_inside_and_outside_the_region():
+    S = 2.0
+    ph, p, stats = _shoot(_ground(background=(0, 0, 0), sun=S), True)
+    assert "visual importance" in stats["photon_importance"], stats["photon_importance"]
+    for box in (NEAR, FAR):
+        E, err, n = _irradiance(ph, p, box)
+        assert n > 200, (box, n)
+        assert abs(E - S) < 4 * err + 0.005 * S, (box, E, S, err)
+
+
+def test_an_area_light_delivers_the_same_power_as_without_importance():
+    """An area light and the world together (issue 14's scene in small): per patch, the
+    power with visual importance matches the natural shot's within their errors."""
+    scene = _ground(area=True)
+    ph, p, stats = _shoot(scene, True, seed=5)
+    nat, pn, _ = _shoot(scene, False, seed=6)
+    assert "visual importance" in stats["photon_importance"], stats["photon_importance"]
+    for box in (NEAR, FAR, (-6.0, 6.0, 1.0, 4.0)):
+        E, err, _ = _irradiance(ph, p, box)
+        En, errn, _ = _irradiance(nat, pn, box)
+        assert abs(E - En) < 4 * math.hypot(err, errn), (box, E, En, err, errn)
+
+
+def test_the_split_emitters_keep_each_lights_power():
+    """A RegionEmitter's aimed and natural parts together carry the light's flux in
+    expectation (here: the mean over many photons), for a finite and an infinite light."""
+    scene = _ground(area=True)
+    ctx = prepare_context(scene, RenderSettings(photons=1000, workers=1))
+    try:
+        region = vi.region_of_interest(ctx)
+        assert region is not None and region.inside >= vi.ROI_COVER - 1e-9
+        for light in ctx.lights:
+            em = vi.RegionEmitter(light, region, 0.8)
+            rng = np.random.default_rng(11)
+            n = 100_000
+            _, _, power = em_arrays(em, n, rng)
+            flux = np.asarray(light.photon_flux, np.float64)
+            got = power.sum(axis=0)
+            err = np.sqrt((power ** 2).sum(axis=0))
+            assert np.all(np.abs(got - flux) < 4 * err + 1e-3 * flux), (light.name, got, flux)
+    finally:
+        ctx.accel.close()
+
+
+def em_arrays(emitter, n, rng):
+    from engine.lights.base import emit_arrays
+    return emit_arrays(emitter, n, rng)
+
+
+def test_a_closed_room_keeps_its_natural_photons():
+    """The region of a closed room is most of it: the shot stays natural, photon for
+    photon."""
+    s = PaperScene(width=48, height=36)
+    v, f = box_mesh((0, 0, 0), 4.0)
+    s.add_triangles(v, f, name="room")
+    s.add_sphere((0.5, 0.5, -1.4), 0.6, name="ball")
+    s.add_rect_area_light((0, 0, 1.95), size=(1, 1), power=100.0)
+    s.set_camera((0, -1.9, 0), (0, 1, -0.2), view_angle=60)
+    ph, _, stats = _shoot(s, True, photons=20_000)
+    nat, _, _ = _shoot(s, False, photons=20_000)
+    assert stats["photon_importance"].startswith("natural emission"), stats["photon_importance"]
+    assert np.array_equal(ph.position, nat.position)
+    assert np.array_equal(ph.power, nat.power)
+
+
+def test_the_shot_is_the_same_for_any_worker_count():
+    scene = _ground(area=True)
+    a, _, sa = _shoot(scene, True, photons=60_000, workers=1)
+    b, _, sb = _shoot(scene, True, photons=60_000, workers=2)
+    assert sa["photon_importance"] == sb["photon_importance"]
+    assert np.array_equal(a.position, b.position) and np.array_equal(a.power, b.power)
