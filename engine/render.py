@@ -135,8 +135,9 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) 
     """The photon pass alone: (re)fills ctx's photon maps for ctx.settings and records
     its counts in stats. Returns the stored photons (for the photon-hit pass) as a tuple
     of Photons, one per shot (global, caustic; empty without photon mapping). Raises
-    Cancelled. Photons do not depend on the camera, so a session may keep
-    the maps of a pass and render other views from them (engine/session.py)."""
+    Cancelled. A session may keep the maps of a pass and render other views from them
+    (engine/session.py): with visual importance the global photons are denser where this
+    camera looks (engine/visualimportance.py), but every view's estimates stay unbiased."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     s = ctx.settings
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):

@@ -43,7 +43,7 @@ def _shoot(scene, importance, photons=150_000, seed=3, workers=1):
     ctx = prepare_context(scene, st)
     try:
         stats = {}
-        ph = shoot_photons(ctx, stats)
+        ph = shoot_photons(ctx, stats)[0]  # the shots (global, caustic): global
         return ph, ph.position.astype(np.float64) + ctx.geo.offset, stats
     finally:
         ctx.accel.close()
