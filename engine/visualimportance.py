@@ -157,7 +157,7 @@ def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
         # last-bit differences of its points (an instanced or inside-out copy of the same
         # scene) would split it between two cells and change the photons.
         key = np.floor((points - lo) / h + 0.5).astype(np.int64)
-        cells, count = np.unique(key, axis=0, return_counts=True)
+        _, member, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
         order = np.argsort(-count, kind="stable")
         taken = np.cumsum(count[order])
         k = int(np.searchsorted(taken, need) + 1)
@@ -168,10 +168,9 @@ def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
     # Each chosen cell as the bounding sphere of its points round their mean: on a floor
     # a flat disc's sphere, not the cube's (which reaches below the floor, where the
     # world's photons from underneath would land on its unseen side).
-    _, member = np.unique(key, axis=0, return_inverse=True)
     member = member.ravel()
-    rank = np.empty(len(cells), np.int64)
-    rank[order] = np.arange(len(cells))
+    rank = np.empty(len(count), np.int64)
+    rank[order] = np.arange(len(count))
     slot = rank[member]
     take = slot < k
     n = np.bincount(slot[take], minlength=k).astype(np.float64)
