@@ -1,6 +1,6 @@
 """Photon pass vs raw Embree on the same rays (Figure 6 box with the glass ball).
 
-    .venv/bin/python bench/bench_photon_pass.py [CHECKOUT] [PHOTONS]
+    .venv/bin/python bench/bench_photon_pass.py [CHECKOUT] [PHOTONS] [--split]
 
 CHECKOUT (default: this one) is put first on sys.path, so an older checkout's engine can be
 measured by the same script; PHOTONS defaults to 500000. Prints one line per worker count:
@@ -12,14 +12,21 @@ less with the load than the wall-time one). The engine is timed with the query l
 logged trace then records the rays for the replay. "first" is the CPU time of the
 process's first trace (cold: what a render's one photon pass costs, page faults of fresh
 buffers included), the other columns the best of 3 after it.
+
+--split adds, for one worker, where a warm trace's CPU goes (best of 3, thread CPU time):
+the Embree calls through Accel.intersect, the scatter kernel, the copies into the shot
+(_Shot.append) and the rest (emission kernels and Python glue), against raw embreex on
+the same rays; and the scatter calls per bounce (late bounces carry few photons).
 """
 import os
 import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-root = os.path.abspath(sys.argv[1]) if len(sys.argv) > 1 else os.path.dirname(HERE)
-photons = int(sys.argv[2]) if len(sys.argv) > 2 else 500_000
+split = "--split" in sys.argv
+args = [a for a in sys.argv[1:] if a != "--split"]
+root = os.path.abspath(args[0]) if args else os.path.dirname(HERE)
+photons = int(args[1]) if len(args) > 1 else 500_000
 sys.path.insert(0, os.path.join(root, "bench"))
 sys.path.insert(0, root)
 sys.path.insert(2, HERE)
@@ -42,6 +49,60 @@ def best_of(n, fn):
         wall = min(wall, time.perf_counter() - t0)
         cpu = min(cpu, time.process_time() - c0)
     return wall, cpu, out
+
+
+def print_split(ctx, counts, raw_cpu):
+    """Where one warm trace's thread CPU goes (best of 3 per part), and per bounce."""
+    import engine.photons as photons_mod
+    from engine import photonkernels as pk
+    from engine.accel import Accel
+    spent, per_bounce = {}, {}
+    patched = [(pk, "scatter"), (Accel, "intersect"), (photons_mod._Shot, "append")]
+    originals = [getattr(obj, name) for obj, name in patched]
+
+    def timed(fn, part):
+        def call(*a, **k):
+            t0 = time.thread_time()
+            out = fn(*a, **k)
+            dt = time.thread_time() - t0
+            spent[part] = spent.get(part, 0.0) + dt
+            if part == "scatter":
+                row = per_bounce.setdefault(a[1], [0, 0, 0.0])
+                row[0] += 1
+                row[1] += len(a[2])
+                row[2] += dt
+            return out
+        return call
+
+    best = {}
+    try:
+        for (obj, name), fn in zip(patched, originals):
+            setattr(obj, name, timed(fn, name))
+        for _ in range(3):
+            spent.clear()
+            per_bounce.clear()
+            t0 = time.thread_time()
+            trace_photons(ctx, ctx.lights, counts, False, 1)
+            spent["total"] = time.thread_time() - t0
+            spent["rest"] = spent["total"] - sum(spent[n] for _, n in patched)
+            for part, dt in spent.items():
+                best[part] = min(best.get(part, float("inf")), dt)
+    finally:
+        for (obj, name), fn in zip(patched, originals):
+            setattr(obj, name, fn)
+    print("| part (1 worker, warm) | CPU s | share |")
+    print("|---|---:|---:|")
+    labels = {"intersect": "Embree via Accel.intersect", "scatter": "scatter kernel",
+              "append": "_Shot.append", "rest": "emission kernels + Python glue",
+              "total": "total"}
+    for part in ("intersect", "scatter", "append", "rest", "total"):
+        print(f"| {labels[part]} | {best[part]:.3f} | {100 * best[part] / best['total']:.0f} % |")
+    print(f"| raw embreex, same rays (process CPU) | {raw_cpu:.3f} | |")
+    print("| bounce | scatter calls | rays | scatter CPU s (last trace) |")
+    print("|---:|---:|---:|---:|")
+    for b in sorted(per_bounce):
+        calls, rays, dt = per_bounce[b]
+        print(f"| {b} | {calls} | {rays:,} | {dt:.4f} |")
 
 
 ensure_compiled()
@@ -67,4 +128,6 @@ for workers in (1, 2):
           f"CPU engine={c:.3f} s (first {first:.3f} s) raw={raw_c:.3f} s "
           f"{100 * raw_c / c:.0f} % of raw Embree; "
           f"{shot.nbytes / max(len(shot), 1):.0f} B/photon")
+    if split and workers == 1:
+        print_split(ctx, counts, raw_c)
     ctx.accel.close()

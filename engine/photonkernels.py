@@ -289,7 +289,9 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
     prm = np.empty((_BLOCK, pr.N_PACK))
     w = np.empty((_BLOCK, pr.N_LOBES, 3))
     at = np.empty(_BLOCK, np.int64)
-    w_plain = np.zeros((pr.N_LOBES, 3))
+    # The hit's lobe weights, copied into one buffer (a view w[jc] per hit costs a
+    # reference count; plain materials write only their two lobes, the only ones read).
+    wj = np.zeros((pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
     ns_ = 0
     nn = 0
@@ -340,14 +342,15 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
             jc = at[j]
             if jc < 0:
                 # The diffuse and pass weights principled.setup gives a material without
-                # other lobes, bit for bit (its other lobes' weights stay 0).
+                # other lobes, bit for bit (its other lobes' weights are 0 and not read).
                 a = alpha_b[j]
                 for c in range(3):
-                    w_plain[pr.L_PASS, c] = (1.0 - a) * params[mat_b[j], pr.M_TTINT + c]
-                    w_plain[pr.L_DIFFUSE, c] = a * base_b[j, c]
-                wj = w_plain
+                    wj[pr.L_PASS, c] = (1.0 - a) * params[mat_b[j], pr.M_TTINT + c]
+                    wj[pr.L_DIFFUSE, c] = a * base_b[j, c]
             else:
-                wj = w[jc]
+                for l in range(pr.N_LOBES):
+                    for c in range(3):
+                        wj[l, c] = w[jc, l, c]
             t = prim[i]
             fl = flags[i]
             if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
@@ -377,19 +380,36 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
                 st_kind[ns_] = kind
                 ns_ += 1
             # --- Russian roulette over the lobes ---
-            s = 0.0
-            for l in range(pr.N_LOBES):
-                probs[l] = max(wj[l, 0], max(wj[l, 1], wj[l, 2]))
-                s += probs[l]
-            norm = max(s, 1.0)
             xi = uniform(key, slot[i], bounce, 0)
             lobe = pr.N_LOBES  # absorbed
+            s = 0.0
             cdf = 0.0
-            for l in range(pr.N_LOBES):
-                cdf += probs[l] / norm
+            if jc < 0:
+                # Plain: only the diffuse and pass lobes (0 and 1) can weigh anything; the
+                # others would add exact zeros to s and cdf and never be chosen, so the
+                # sums and the choice are the full loop's, bit for bit.
+                for l in (pr.L_DIFFUSE, pr.L_PASS):
+                    probs[l] = max(wj[l, 0], max(wj[l, 1], wj[l, 2]))
+                s += probs[pr.L_DIFFUSE]
+                s += probs[pr.L_PASS]
+                norm = max(s, 1.0)
+                cdf += probs[pr.L_DIFFUSE] / norm
                 if xi < cdf:
-                    lobe = l
-                    break
+                    lobe = pr.L_DIFFUSE
+                else:
+                    cdf += probs[pr.L_PASS] / norm
+                    if xi < cdf:
+                        lobe = pr.L_PASS
+            else:
+                for l in range(pr.N_LOBES):
+                    probs[l] = max(wj[l, 0], max(wj[l, 1], wj[l, 2]))
+                    s += probs[l]
+                norm = max(s, 1.0)
+                for l in range(pr.N_LOBES):
+                    cdf += probs[l] / norm
+                    if xi < cdf:
+                        lobe = l
+                        break
             if lobe == pr.N_LOBES or (caustic_only and lobe == pr.L_DIFFUSE):
                 continue
             glass = lobe == pr.L_GLASS_R or lobe == pr.L_GLASS_T

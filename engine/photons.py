@@ -130,13 +130,18 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # paths of others. The light's kernel writes the rays of the photons that carry power
     # (engine/lights/emission.py).
     key = emission_key(rng)
-    out = EmissionBuffers(n)
+    # The emitted rays go straight into a continued-ray set of the pool (fresh arrays
+    # per chunk cost page faults), with the path flags and ray kinds of its columns; the
+    # set becomes the second bounce's output (nxt_sets[1]) once bounce 0 has read it.
+    first = pool.take(pk.next_arrays, n)
+    out = EmissionBuffers(n, (first[0], first[1], first[2], first[3], first[6]))
+    nxt_sets = [None, first]
     if targets is None:
         m = light.emit_into(key, 0, n, count, out, 0)
     else:
         m = light.emit_towards_into(key, 0, n, count, targets, out, 0)
-    o, d32, d, power, slot = out.head(m)
-    flags = np.zeros(len(o), np.int64)
+    o, d32, d, power, flags, kinds, slot = (a[:m] for a in first)
+    flags[:] = 0
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
     # surface stands for the camera-side ray that leaves that surface backwards; `kinds`
     # holds, per photon, the ray kinds for which the segment so far is a valid camera-side
@@ -144,7 +149,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # light to be visible to the kind it stands for (Light.ray_kinds).
     light_kinds = int(light.ray_kinds) & SEGMENT_KINDS
     vis_on = bool(getattr(accel, "has_invisible", False)) or light_kinds != SEGMENT_KINDS
-    kinds = np.full(len(o), light_kinds, np.int64)
+    kinds[:] = light_kinds
     if first_hit is None:
         caster, mode = np.zeros(1, np.bool_), 0
     else:
@@ -159,9 +164,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # only), the stored photons (appended to by each bounce), and two sets of continued
     # rays (one is the bounce's input, the other its output).
     surf = pk.surface_arrays(m if given else 0)
-    bump = np.ones(m)
+    bump_buf = pool.take(_factors, m)
+    bump = bump_buf[0][:m]
+    bump[:] = 1.0
     stored = _Stored(2 * m + 1024, pool)
-    nxt_sets = [None, None]
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
                  vis_on, caster, mode, numpy_hits, given, plain, surf, bump, stored, nxt_sets,
@@ -173,6 +179,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         for arrays in nxt_sets:
             if arrays is not None:
                 pool.give(arrays)
+        pool.give(bump_buf)
     return stored
 
 
@@ -253,8 +260,8 @@ class _Buffers:
         self._lock = threading.Lock()
 
     def take(self, make, rows: int):
-        """A set of arrays from make(rows) (pk.store_arrays, pk.next_arrays) with at
-        least `rows` rows: the smallest free one that fits, else a new one."""
+        """A set of arrays from make(rows) (pk.store_arrays, pk.next_arrays, _factors)
+        with at least `rows` rows: the smallest free one that fits, else a new one."""
         with self._lock:
             fits = [i for i, (f, arrays) in enumerate(self._free)
                     if f is make and len(arrays[0]) >= rows]
@@ -264,7 +271,7 @@ class _Buffers:
         return make(rows)
 
     def give(self, arrays):
-        make = pk.store_arrays if len(arrays) == 5 else pk.next_arrays
+        make = {5: pk.store_arrays, 7: pk.next_arrays, 1: _factors}[len(arrays)]
         with self._lock:
             self._free.append((make, arrays))
 
@@ -344,6 +351,11 @@ class _Shot:
         if 8 * (len(self.arrays[0]) - n) > n:  # over 1/8 spare: a trimmed copy
             return Photons(*(a[:n].copy() for a in self.arrays))
         return Photons(*(a[:n] for a in self.arrays))
+
+
+def _factors(m: int):
+    """A buffer for m per-photon factors (the bump shadowing factors), as a set of one."""
+    return (np.empty(m),)
 
 
 def _needs_numpy_hits(table) -> bool:

@@ -152,3 +152,92 @@ def test_a_shot_in_many_chunks_is_the_same_on_one_and_two_workers():
     for name in ("position", "power", "direction", "normal", "kind"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
         assert getattr(a, name).flags.c_contiguous
+
+
+def test_plain_materials_scatter_as_with_the_full_set_of_lobes():
+    """scatter's plain-material path (only the diffuse and pass weights written, Russian
+    roulette over those two lobes) gives the photons the full closure set-up and the
+    roulette over every lobe give, bit for bit: plain = all False sends every hit through
+    principled.setup. Glass and plain hits alternate in the blocks (a plain hit after a
+    glass one must not read the glass lobes' weights), and a translucent wall uses the
+    pass lobe."""
+    s = _scene()
+    s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.45))
+    s.add_material(Material("veil", (0.3, 0.6, 0.9), alpha=0.4))
+    v, f, n, _ = sphere_mesh((-0.3, 0.2, 1.3), 0.35, segments=16, rings=8)
+    s.add_triangles(v, f, "glass", name="glass ball", normals=n)
+    s.add_box((0.5, 0.4, 1.2), (0.3, 0.3, 0.3), "veil", name="veil")
+    s.validate()
+    geo, table = prepare(s)
+    accel = Accel(geo.vertices32, geo.faces32, 1)
+    rng = np.random.default_rng(9)
+    n = 6000
+    o = np.tile((0.1, -0.2, 1.6) - geo.offset, (n, 1)) + 0.2 * rng.random((n, 3))
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    _, prim, u, v = accel.intersect(o, d)
+    prim[::11] = -1  # some misses
+    plain = pk.plain_materials(table.closure_params)
+    assert plain.any() and not plain.all()
+    mats = table.closure_params.shape[0]
+    hit_mat = geo.material[prim[prim >= 0]]
+    assert (~plain[hit_mat]).sum() > 100 and plain[hit_mat].sum() > 1000
+    power = rng.random((n, 3))
+    flags = rng.integers(0, 16, n).astype(np.int64)
+    out = []
+    for row_plain in (plain, np.zeros(mats, np.bool_)):
+        st, nx = pk.store_arrays(n), pk.next_arrays(2 * n)
+        counts = pk.scatter(np.uint64(13), 2, d, power, flags,
+                            np.full(n, pk.SEGMENT_KINDS, np.int64), np.arange(n), prim, u,
+                            v, geo.v0, geo.e1, geo.e2, geo.corner_normals, geo.material,
+                            table.base_color, table.alpha, False, *pk.surface_arrays(0),
+                            np.ones(n), table.closure_params, row_plain, table.ior,
+                            np.full(geo.count, 255, np.uint8), geo.object_id,
+                            np.zeros(1, np.bool_), 0, False, False, *st, *nx)
+        out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
+    (c1, a1), (c2, a2) = out
+    assert c1 == c2 and c1[0] > 1000 and c1[1] > 1000
+    for x, y in zip(a1, a2):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():
+    """_trace_chunk borrows its emission rows, path flags, ray kinds, bump factors,
+    continued rays and stored-photon blocks from the trace's pool: buffers left full of
+    NaN and garbage by earlier chunks (and larger than needed) give the photons of new
+    ones, bit for bit."""
+    import engine.photons as P
+    from engine.lights import allocate_photons
+    from engine.render import prepare_context
+
+    s = closed_box(0.6)
+    s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.5))
+    v, f, n, _ = sphere_mesh((0.2, 0.1, 0.5), 0.3, segments=16, rings=8)
+    s.add_triangles(v, f, "glass", name="glass ball", normals=n)
+    st = RenderSettings(photons=4000, workers=1)
+    ctx = prepare_context(s, st)
+    light = ctx.lights[0]
+    count = int(allocate_photons(ctx.lights, st.photons)[0])
+
+    def chunk(pool):
+        rng = np.random.default_rng([st.seed, 1, 0, 0])
+        stored = P._trace_chunk(ctx, ctx.accel, light, count, count, rng, False, None, None,
+                                None, pool)
+        return [np.concatenate([a[:k] for a, k in [(arrays[i], k)
+                                                    for arrays, k in stored.parts()]])
+                for i in range(5)]
+
+    fresh = chunk(P._Buffers())
+    used = P._Buffers()
+    junk = np.random.default_rng(1)
+    for make, rows in ((pk.next_arrays, 3 * count), (pk.next_arrays, 2 * count),
+                       (pk.store_arrays, 4 * count), (P._factors, 2 * count)):
+        arrays = make(rows)
+        for a in arrays:
+            a[...] = junk.integers(0, 255, a.shape) if a.dtype.kind in "iub" else np.nan
+        used.give(arrays)
+    again = chunk(used)
+    assert len(fresh[0]) > count
+    for x, y in zip(fresh, again):
+        np.testing.assert_array_equal(x, y)
+    ctx.accel.close()

@@ -131,12 +131,13 @@ class EmissionBuffers:
     """Rows for up to n emitted photons: o32, d32 (n,3) float32 (the arrays handed to
     Embree), d, power (n,3) float64, slot (n,) int64."""
 
-    def __init__(self, n: int):
-        self.o32 = np.empty((n, 3), np.float32)
-        self.d32 = np.empty((n, 3), np.float32)
-        self.d = np.empty((n, 3))
-        self.power = np.empty((n, 3))
-        self.slot = np.empty(n, np.int64)
+    def __init__(self, n: int, arrays=None):
+        """arrays: (o32, d32, d, power, slot) with at least n rows to write into (the
+        photon pass lends its continued-ray buffers), else new ones."""
+        if arrays is None:
+            arrays = (np.empty((n, 3), np.float32), np.empty((n, 3), np.float32),
+                      np.empty((n, 3)), np.empty((n, 3)), np.empty(n, np.int64))
+        self.o32, self.d32, self.d, self.power, self.slot = arrays
 
     @property
     def arrays(self):
