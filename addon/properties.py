@@ -186,6 +186,12 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     aim_caustics: BoolProperty(
         name="Aim Caustic Photons", default=True,
         description="Shoot caustic photons only towards mirrors and glass")
+    photon_importance: BoolProperty(
+        name="Photons Where Seen", default=True,
+        description="Send more global photons where the camera's gather rays use them "
+                    "(visual importance: a coarse camera pre-pass marks the region; photons "
+                    "elsewhere carry more power each, so the image stays unbiased). "
+                    "A closed room keeps the plain shot")
     show_photons: BoolProperty(
         name="Show Photon Hits", default=False,
         description="Show the photon-hit view (dots by photon kind on black, the paper's "
@@ -256,7 +262,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             transparent_max_bounces=self.transparent_max_bounces,
             photon_mapping=self.photon_mapping, method=self.method, caustics=self.caustics,
             indirect=self.indirect, specular=self.specular, soft_shadows=self.soft_shadows,
-            aim_caustics=self.aim_caustics,
+            aim_caustics=self.aim_caustics, photon_importance=self.photon_importance,
             show_photons=self.show_photons, seed=self.seed, workers=self.threads,
             film_transparent=bool(film_transparent))
         kwargs.update(pixel_filter_settings(self.id_data))

@@ -80,6 +80,10 @@ class PHOTONMAP_PT_photons(PhotonMapButtonsPanel, bpy.types.Panel):
         layout.active = pm.photon_mapping and pm.method == "photon"
         col = layout.column()
         col.prop(pm, "photons")
+        sub = col.column()
+        # visual importance serves final gathering only (engine/render.py)
+        sub.active = pm.indirect != "off" and pm.final_gather and not pm.paper_mode
+        sub.prop(pm, "photon_importance")
         col.prop(pm, "max_photon_depth")
         col.separator()
         col.prop(pm, "caustics")

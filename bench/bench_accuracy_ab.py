@@ -9,7 +9,10 @@ render: CPU s, wall s, shadow and gather rays, mean HDR-FLIP against the stored 
 and, where the reference has object labels, each object's brightness against Cycles'
 (tests/test_principled_cycles.py asks for 2 %). Per variant: the mean over the seeds and
 the equal-FLIP ratio (Cycles' CPU s to reach our mean FLIP, log-log on its curve, over our
-mean CPU s; > 1: we are faster). docs/accuracy_time_principled_spheres.md quotes its runs.
+mean CPU s; > 1: we are faster). With --where, per variant and object (the reference's
+labels; 'rest' is edges and sky): its share of the summed HDR-FLIP, and its relMSE split
+into noise (the seeds' variance) and bias (what the seeds' mean keeps beyond its own
+noise). docs/accuracy_time_principled_spheres.md quotes its runs.
 
     .venv/bin/python bench/bench_accuracy_ab.py principled_spheres --seeds 0,1,2 \\
         --variant spp64:spp=64 --variant g1:gather_rays=1 [--cycles 64,256,1024]
@@ -111,6 +114,37 @@ def object_ratios(img, name):
             for i, n in enumerate(names) if np.any(labels == i + 1)}
 
 
+def where(images, ref, flip_maps, name):
+    """Lines: per object of the reference's labels (and 'rest': edges, sky) its pixels,
+    its share of the summed HDR-FLIP, its mean FLIP, and its relMSE split into noise and
+    bias: noise = the seeds' pixel variance (from their spread, unbiased), bias = the
+    squared error of the seeds' mean image less the noise that mean still holds."""
+    stack = np.stack([np.asarray(i, np.float64) for i in images])
+    ref = np.asarray(ref, np.float64)
+    n = len(stack)
+    fmap = np.mean(flip_maps, axis=0)
+    denom = ref * ref + 0.01
+    var = stack.var(axis=0, ddof=1) if n > 1 else np.zeros_like(ref)
+    err_mean = (stack.mean(axis=0) - ref) ** 2
+    stored = A.load_labels(name)
+    regions = []
+    if stored is not None:
+        labels, names = stored
+        regions = [(nm, labels == i + 1) for i, nm in enumerate(names)]
+        regions.append(("rest", labels == 0))
+    regions.append(("image", np.ones(ref.shape[:2], bool)))
+    total = fmap.sum()
+    out = []
+    for nm, m in regions:
+        if not m.any():
+            continue
+        noise = float((var[m] / denom[m]).mean())
+        bias = float(((err_mean[m] - var[m] / n) / denom[m]).mean())
+        out.append(f"  {nm:8s} px {int(m.sum()):6d}  FLIP share {fmap[m].sum() / total:6.1%}"
+                   f"  mean {fmap[m].mean():.4f}  relMSE noise {noise:.2e} bias {bias:+.2e}")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene")
@@ -120,6 +154,8 @@ def main(argv=None):
     ap.add_argument("--cycles", default="64,256,1024",
                     help="Cycles sample counts for its curve ('' to skip)")
     ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--where", action="store_true",
+                    help="per object: share of the FLIP, relMSE noise and bias (where())")
     args = ap.parse_args(argv)
     import engine
     engine.jit.ensure_compiled()
@@ -137,13 +173,16 @@ def main(argv=None):
     print(f"load average {os.getloadavg()[0]:.1f}", flush=True)
     for text in ["default:"] + args.variant:
         name, overrides, patches = parse_variant(text)
-        flips, cpus = [], []
+        flips, cpus, images, maps = [], [], [], []
         for seed in seeds:
             img, cpu, wall, st = render_ours(pm_scene, dict(base, seed=seed, **overrides),
                                              patches)
-            f = A.flip(img, ref)
+            f, fmap = A.flip(img, ref, return_map=True)
             flips.append(f)
             cpus.append(cpu)
+            if args.where:
+                images.append(img)
+                maps.append(fmap)
             ratios = object_ratios(img, args.scene)
             off = " ".join(f"{n} {r:.3f}" for n, r in ratios.items() if abs(r - 1) > 0.02)
             print(f"{name:14s} seed {seed}  cpu {cpu:6.1f} s  wall {wall:6.1f} s  "
@@ -157,6 +196,8 @@ def main(argv=None):
             line += (f"  Cycles cpu at that FLIP {'~' if extrapolated else ''}{t:.1f} s"
                      f"  equal-FLIP ratio {t / np.mean(cpus):.2f}")
         print(line, f"(load {os.getloadavg()[0]:.1f})", flush=True)
+        if args.where:
+            print("\n".join(where(images, ref, maps, args.scene)), flush=True)
 
 
 if __name__ == "__main__":

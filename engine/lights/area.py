@@ -8,8 +8,8 @@ import math
 import numpy as np
 
 from ..jit import kernel, register_warm_up
-from .emission import (f64, aim_direction, concentric_disk, cosine_hemisphere, emit_uniform, put,
-                       to_world)
+from .emission import (TWO_PI, Aim, f64, _cone_cos, aim_weights, concentric_disk,
+                       cosine_hemisphere, emit_uniform, pick, put, to_world, uniform_cone)
 from ..scene import AREA, DISK, spread_attenuation
 from . import packing as pk
 from .base import Light
@@ -29,6 +29,13 @@ class AreaLight(Light):
         return cls(light.name, **kw)
 
     has_surface = True
+
+    def aim(self, centers, radii) -> Aim:
+        """Aim at bounding spheres (centers (K,3), radii (K,)) by the power the light sends
+        into each (area_aim_weights): a sphere wholly behind the one-sided emitter, or
+        outside its spread, is never aimed at (solid-angle weights wasted those photons
+        as spot lights once did: tests/test_area_aim.py)."""
+        return area_aim_weights(centers, radii, self.pos, self.dir, self.spread)
 
     def _spread_rect(self) -> bool:
         """A rectangle with a narrow spread samples only the part that reaches the point
@@ -137,7 +144,8 @@ def emit_area(pos, axis, du, dv, size_x, size_y, disk, narrow, spread_on, sin_h,
     distributed directions; narrow (spread < pi): cosine-distributed inside the spread
     cone (a disk of radius sin h under the hemisphere, pdf cos a / (pi sin^2 h)), weighted
     f(a) sin^2 h (mean 1: the flux is kept). aimed: directions aimed at the spheres,
-    weighted by the natural pdf cos a f(a) / pi over the aimed pdf. Dimensions: 0, 1 the
+    weighted by the natural pdf cos a f(a) / pi over the aimed pdf (area_aim_direction).
+    Dimensions: 0, 1 the
     point, 2, 3 the direction; aimed: 0 the target, 1, 2 the point, 3, 4 the direction."""
     j = start
     f0, f1, f2 = flux[0] / count, flux[1] / count, flux[2] / count
@@ -169,10 +177,104 @@ def emit_area(pos, axis, du, dv, size_x, size_y, disk, narrow, spread_on, sin_h,
                 w = 1.0
             d0, d1, d2 = to_world(a, b, c, axis[0], axis[1], axis[2])
         else:
-            d0, d1, d2, pdf_aim = aim_direction(centers, radii, probs, cdf, o0, o1, o2,
-                                                emit_uniform(key, s, 0), emit_uniform(key, s, 3),
-                                                emit_uniform(key, s, 4))
+            d0, d1, d2, pdf_aim = area_aim_direction(centers, radii, probs, cdf, axis, narrow,
+                                                     sin_h, o0, o1, o2, emit_uniform(key, s, 0),
+                                                     emit_uniform(key, s, 3),
+                                                     emit_uniform(key, s, 4))
             cos = d0 * axis[0] + d1 * axis[1] + d2 * axis[2]
             w = max(cos, 0.0) / math.pi * spread_factor(spread_on, tan_h, norm, cos) / pdf_aim
         j = put(o32, d32, d, power, slot, j, o0, o1, o2, d0, d1, d2, f0 * w, f1 * w, f2 * w, s)
     return j
+
+
+# Directions of a fixed 16 x 16 stratified grid over a unit cone (cos from 1 to cos_max),
+# for the aim weights' quadrature.
+_AIM_GRID = (np.arange(16) + 0.5) / 16.0
+
+
+def area_aim_weights(centers, radii, pos, axis, spread) -> Aim:
+    """Aim of a one-sided area light (centre pos (3,), unit axis (3,), spread in radians)
+    at spheres (centers (K,3), radii (K,)): each chosen in proportion to the natural
+    power its centre sends into it, the integral of cos+(a) f(a) over the sphere's cone of
+    directions (f: the spread's attenuation), by a 256-point quadrature over the cone (a
+    light inside a sphere: its whole front hemisphere, pi). Zero for a sphere wholly
+    behind the emitting side (or outside the spread), which no photon of the light
+    reaches; solid-angle weights (emission.aim_weights) if every sphere gets zero."""
+    from ..scene import spread_attenuation
+    centers = np.asarray(centers, np.float64).reshape(-1, 3)
+    radii = np.asarray(radii, np.float64)
+    axis = np.asarray(axis, np.float64)
+    u1, u2 = np.meshgrid(_AIM_GRID, _AIM_GRID)
+    u1, u2 = u1.ravel(), u2.ravel()
+    w = np.zeros(len(radii))
+    for k in range(len(radii)):
+        t = centers[k] - pos
+        dist = float(np.linalg.norm(t))
+        if dist <= radii[k]:
+            w[k] = math.pi * float(np.mean(spread_attenuation(np.sqrt(1.0 - u1), spread)))
+            continue
+        if float(t @ axis) + radii[k] <= 0.0:
+            continue  # wholly behind the light's plane
+        cos_max = math.sqrt(max(0.0, 1.0 - (radii[k] / dist) ** 2))
+        z = 1.0 - u1 * (1.0 - cos_max)
+        r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+        n = t / dist
+        # the cone's directions in an orthonormal frame round n
+        a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        b1 = np.cross(n, a)
+        b1 /= np.linalg.norm(b1)
+        b2 = np.cross(n, b1)
+        phi = 2.0 * math.pi * u2
+        cos = (r * np.cos(phi)) * (b1 @ axis) + (r * np.sin(phi)) * (b2 @ axis) + z * (n @ axis)
+        g = np.maximum(cos, 0.0) * spread_attenuation(cos, spread)
+        w[k] = 2.0 * math.pi * (1.0 - cos_max) * float(np.mean(g))
+    if not w.sum() > 0:
+        return aim_weights(centers, radii, pos)
+    return Aim(centers, radii, w / w.sum())
+
+
+@kernel
+def _natural_pdf(narrow, sin_h, cos):
+    """pdf (1/sr) of emit_area's natural direction at cosine `cos` to the axis."""
+    if cos <= 0.0:
+        return 0.0
+    if narrow:
+        if 1.0 - cos * cos > sin_h * sin_h:
+            return 0.0
+        return cos / (math.pi * sin_h * sin_h)
+    return cos / math.pi
+
+
+@kernel
+def area_aim_direction(centers, radii, probs, cdf, axis, narrow, sin_h, o0, o1, o2, us, u1, u2):
+    """A direction from o (a point of the light) aimed at one of the spheres (chosen by us
+    from cdf), and its aimed pdf (1/sr): the mixture over the spheres, sphere k adding
+    probs[k] x its own pdf. Outside sphere k: uniform in its cone (u1, u2), as
+    emission.aim_direction. From inside it every direction the light emits meets it, so
+    its directions are the natural ones (cosine-distributed, inside the spread): half of
+    a whole sphere's directions lay behind the one-sided emitter and carried nothing."""
+    j = pick(cdf, us)
+    cos_max, dist, t0, t1, t2 = _cone_cos(centers[j, 0], centers[j, 1], centers[j, 2],
+                                          radii[j], o0, o1, o2)
+    if cos_max < 0.0:
+        if narrow:
+            a, b = concentric_disk(u1, u2)
+            a, b = a * sin_h, b * sin_h
+            c = math.sqrt(max(1.0 - a * a - b * b, 0.0))
+        else:
+            a, b, c = cosine_hemisphere(u1, u2)
+        d0, d1, d2 = to_world(a, b, c, axis[0], axis[1], axis[2])
+    else:
+        ds = max(dist, 1e-300)
+        l0, l1, l2 = uniform_cone(u1, u2, cos_max)
+        d0, d1, d2 = to_world(l0, l1, l2, t0 / ds, t1 / ds, t2 / ds)
+    aimed = 0.0
+    for k in range(centers.shape[0]):
+        ck, dk, k0, k1, k2 = _cone_cos(centers[k, 0], centers[k, 1], centers[k, 2], radii[k],
+                                       o0, o1, o2)
+        if ck < 0.0:
+            cos = d0 * axis[0] + d1 * axis[1] + d2 * axis[2]
+            aimed += probs[k] * _natural_pdf(narrow, sin_h, cos)
+        elif d0 * k0 + d1 * k1 + d2 * k2 >= ck * dk:
+            aimed += probs[k] / (TWO_PI * (1.0 - ck))
+    return d0, d1, d2, max(aimed, 1e-300)
