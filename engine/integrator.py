@@ -848,6 +848,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
     # Chunk ci owns its random streams: the bounds depend on the image and the settings
     # only (the pass's tail in smaller pieces, parallel.chunk_bounds).
     jobs = list(enumerate(chunk_bounds(total, s.chunk_size)))
+    chunk = max((b - a for _, (a, b) in jobs), default=1)
     threads = s.threads
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
@@ -868,8 +869,12 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
         return _render_chunk(wctx, region, ci, start, end, stop, dims, own)
 
     try:
-        for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel,
-                                                    on_tail):
+        # In flight by samples (a tail piece is a fraction of a chunk): a worker done with
+        # the tail's short pieces takes the next one instead of waiting for a whole chunk
+        # before them to be merged.
+        for part, part_counters, end in ordered_map(
+                job, jobs, threads, should_cancel, on_tail,
+                weight=lambda item: (item[1][1] - item[1][0]) / chunk):
             acc.merge(part)
             counters.add(part_counters)
             if progress is not None:

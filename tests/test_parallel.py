@@ -171,3 +171,21 @@ def test_pieces_at_the_end_change_only_the_tail_and_not_with_the_thread_count(mo
     assert rows == 32
     np.testing.assert_array_equal(images[0][:rows], whole[:rows])
     assert not np.array_equal(images[0][rows:], whole[rows:])  # the pieces' new streams
+
+
+def test_light_items_run_ahead_of_a_slow_head_chunk():
+    """Items weighing a quarter of a chunk (the camera pass's tail pieces): with 2 threads
+    up to 4 chunks' weight is in flight, so a worker goes on to item 6 while item 0 still
+    runs (with every item weighing 1 it would wait for item 0 after item 3); results still
+    come back in order."""
+    reached = threading.Event()
+
+    def job(x, stop):
+        if x == 0:
+            return reached.wait(10)  # True once item 6 has started beside it
+        if x == 6:
+            reached.set()
+        return x
+
+    out = list(ordered_map(job, range(10), 2, weight=lambda x: 1 if x == 0 else 0.25))
+    assert out == [True] + list(range(1, 10))
