@@ -399,11 +399,15 @@ def timeline_rows(name, workers, log):
             busy_s=busy, run_s=d[1], runqueue_s=d[2], blocked_s=blocked, idle_s=wall - busy,
             system_s=d[5], minor_faults=int(d[3]), vol_switches=int(d[4])))
     c = log["caller"]
-    rows.append(dict(blend=name, workers=workers, thread="calling thread", chunks=0,
-                     busy_s=log["merge"], run_s=c[1], runqueue_s=c[2], blocked_s=0.0,
-                     idle_s=0.0, system_s=c[5], minor_faults=int(c[3]),
-                     vol_switches=int(c[4])))
-    summary = dict(blend=name, workers=workers, camera_wall_s=wall,
+    if workers > 1:  # (one worker: the chunks run inline on the calling thread)
+        rows.append(dict(blend=name, workers=workers, thread="calling thread", chunks=0,
+                         busy_s=log["merge"], run_s=c[1], runqueue_s=c[2], blocked_s=0.0,
+                         idle_s=0.0, system_s=c[5], minor_faults=int(c[3]),
+                         vol_switches=int(c[4])))
+    # The slowest worker's run + blocked time: the stage's wall on a machine with no
+    # other load (run-queue waits left out), tail imbalance included.
+    critical = max(r["run_s"] + r["blocked_s"] for r in rows)
+    summary = dict(blend=name, workers=workers, camera_wall_s=wall, critical_s=critical,
                    chunk_run_s=tot[1], chunk_blocked_s=tot[0] - tot[1] - tot[2],
                    chunk_runqueue_s=tot[2], tail_s=ends[-1] - ends[0],
                    merge_s=log["merge"], system_s=tot[5], minor_faults=int(tot[3]))
@@ -432,22 +436,33 @@ def sec_camera_workers(a):
         ensure_compiled()
     except ImportError:
         pass
+    from engine import parallel
     rows, sums = [], []
-    for name in a.blends:
+    plans = [("whole chunks", 1)] + ([("tail pieces", a.tail_split)] if a.tail_split > 1
+                                     else [])
+    split0 = parallel.TAIL_SPLIT
+    for name, (plan, split) in ((n, p) for n in a.blends for p in plans):
         scene = _export(name)
         scene.width, scene.height = a.width, a.height
         best = {}
-        for _ in range(a.repeat):
-            for w in (1, 2):
-                log = timeline_rows(name, w, camera_timeline(scene, RenderSettings(workers=w)))
-                if w not in best or log[1]["chunk_runqueue_s"] < best[w][1]["chunk_runqueue_s"]:
-                    best[w] = log
+        try:
+            parallel.TAIL_SPLIT = split
+            for _ in range(a.repeat):
+                for w in (1, 2):
+                    log = timeline_rows(f"{name}, {plan}", w,
+                                        camera_timeline(scene, RenderSettings(workers=w)))
+                    if w not in best or (log[1]["chunk_runqueue_s"]
+                                         < best[w][1]["chunk_runqueue_s"]):
+                        best[w] = log
+        finally:
+            parallel.TAIL_SPLIT = split0
         for w in (1, 2):
             rows += best[w][0]
             sums.append(best[w][1])
         one, two = best[1][1], best[2][1]
-        sums.append(dict(blend=name, workers="1 / 2", camera_wall_s=one["camera_wall_s"]
-                         / two["camera_wall_s"],
+        sums.append(dict(blend=f"{name}, {plan}", workers="1 / 2",
+                         camera_wall_s=one["camera_wall_s"] / two["camera_wall_s"],
+                         critical_s=one["critical_s"] / two["critical_s"],
                          chunk_run_s=one["chunk_run_s"] / two["chunk_run_s"],
                          chunk_blocked_s=two["chunk_blocked_s"] - one["chunk_blocked_s"],
                          chunk_runqueue_s=two["chunk_runqueue_s"] - one["chunk_runqueue_s"],
@@ -456,39 +471,39 @@ def sec_camera_workers(a):
                          minor_faults=two["minor_faults"] - one["minor_faults"]))
     table(f"camera stage per worker thread ({a.width}x{a.height}, default settings; "
           f"seconds inside the stage)", rows)
-    table("camera stage: totals over the chunks (last rows: 1w / 2w ratio for wall and run, "
-          "2w - 1w for the rest)", sums)
+    table("camera stage: totals over the chunks (critical = slowest worker's run + blocked s; "
+          "rows 1 / 2: ratios for wall, critical and run, 2w - 1w for the rest)", sums)
 
 
 def sec_tail_pieces(a):
-    """The camera pass's tail in pieces (parallel.chunk_bounds) against whole chunks (the
-    plan before), over --seeds seeds, Figure 6 blend, default settings but --spp: the
+    """The camera pass's tail in pieces (parallel.chunk_bounds with TAIL_SPLIT =
+    --tail-split) against whole chunks (the default), over --seeds seeds, Figure 6 blend, default settings but --spp: the
     rows rendered by the pieces, their mean radiance per seed (paired difference) and the
     noise (per-pixel standard deviation over the seeds); the rows above must be the same
     bits."""
-    import importlib
-    from engine.parallel import chunk_bounds, chunk_length
-    integrator = importlib.import_module("engine.integrator")
+    from engine import parallel
     scene = _export(a.blends[0])
     scene.width, scene.height = a.width, a.height
     spp = a.spp
     total = a.width * a.height * spp
     limit = RenderSettings().chunk_size
-    whole = [(s, min(total, s + chunk_length(total, limit)))
-             for s in range(0, total, chunk_length(total, limit))]
-    split = next((b[0] for b, w in zip(chunk_bounds(total, limit), whole) if b != w), total)
-    row = split // spp // a.width  # first row a piece renders samples of
-    imgs = {"whole chunks": [], "tail pieces": []}
-    plan0 = integrator.chunk_bounds
+    split0 = parallel.TAIL_SPLIT
+    plans = {"whole chunks": 1, "tail pieces": max(2, a.tail_split)}
     try:
+        parallel.TAIL_SPLIT = plans["tail pieces"]
+        pieces = parallel.chunk_bounds(total, limit)
+        parallel.TAIL_SPLIT = 1
+        whole = parallel.chunk_bounds(total, limit)
+        split = next((b[0] for b, w in zip(pieces, whole) if b != w), total)
+        row = split // spp // a.width  # first row a piece renders samples of
+        imgs = {label: [] for label in plans}
         for seed in range(1, a.seeds + 1):
-            for label in imgs:
-                integrator.chunk_bounds = plan0 if label == "tail pieces" else (
-                    lambda t, lim: whole)
+            for label, k in plans.items():
+                parallel.TAIL_SPLIT = k
                 f = render(scene, RenderSettings(spp=spp, seed=seed, workers=a.workers))
                 imgs[label].append(f.combined.astype(np.float64))
     finally:
-        integrator.chunk_bounds = plan0
+        parallel.TAIL_SPLIT = split0
     same_above = all(np.array_equal(x[:row], y[:row])
                      for x, y in zip(imgs["whole chunks"], imgs["tail pieces"]))
     rows = []
@@ -497,13 +512,14 @@ def sec_tail_pieces(a):
     for label, v in imgs.items():
         stack = np.stack([x[row:] for x in v])
         rows.append(dict(plan=label, rows=f"{row}-{a.height - 1}", seeds=len(v),
-                         mean=float(means[label].mean()),
-                         mean_se=float(means[label].std(ddof=1) / np.sqrt(len(v))),
-                         pixel_noise=float(stack.std(axis=0, ddof=1).mean()),
-                         full_image_mean=float(np.mean([x.mean() for x in v]))))
+                         mean=f"{means[label].mean():.5f}",
+                         mean_se=f"{means[label].std(ddof=1) / np.sqrt(len(v)):.5f}",
+                         pixel_noise=f"{stack.std(axis=0, ddof=1).mean():.5f}",
+                         full_image_mean=f"{np.mean([x.mean() for x in v]):.5f}"))
     rows.append(dict(plan="pieces - whole, paired by seed", rows="", seeds=len(diff),
-                     mean=float(diff.mean()), mean_se=float(diff.std(ddof=1) / np.sqrt(len(diff))),
-                     pixel_noise=0.0, full_image_mean=0.0))
+                     mean=f"{diff.mean():.5f}",
+                     mean_se=f"{diff.std(ddof=1) / np.sqrt(len(diff)):.5f}",
+                     pixel_noise="", full_image_mean=""))
     table(f"camera tail in pieces vs whole chunks ({a.blends[0]}, {a.width}x{a.height}, "
           f"{spp} spp; rows above {row}: {'same bits' if same_above else 'DIFFER'})", rows)
 
@@ -526,6 +542,9 @@ def main(argv=None):
     ap.add_argument("--blends", default="figure6_box,figure7_blocker",
                     help="camera_workers: example blends (exported through the add-on)")
     ap.add_argument("--seeds", type=int, default=6, help="tail_pieces: seeds per plan")
+    ap.add_argument("--tail-split", type=int, default=4,
+                    help="camera_workers (also whole chunks if > 1), tail_pieces: the tail "
+                         "pieces' parallel.TAIL_SPLIT")
     ap.add_argument("--json", help="write all tables as JSON")
     a = ap.parse_args(argv)
     q = a.quick

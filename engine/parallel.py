@@ -174,20 +174,24 @@ def chunk_length(total: int, limit: int) -> int:
     return max(1, min(limit, max(MIN_CHUNK, -(-total // MIN_CHUNKS))))
 
 
-# The last TAIL_CHUNKS chunk lengths of a long pass run as pieces of 1 / TAIL_SPLIT of a
-# chunk: with whole chunks, the workers that finish first wait for the last one (at
-# 160x120, 128 spp, 18.75 chunks: 2 workers ran 10 and 9). Pieces leave them at most a
-# piece apart, whatever the chunks' costs, for any thread count.
+# TAIL_SPLIT > 1: the last TAIL_CHUNKS chunk lengths of a long pass run as pieces of
+# 1 / TAIL_SPLIT of a chunk. With whole chunks the worker that finishes first waits for
+# the last chunk (at 160x120, 128 spp, 18.75 chunks: 2 workers ran 10 and 9); pieces
+# leave the workers at most a piece apart, for any thread count. Off (1) by default:
+# pieces give the tail's rows new random streams (new images), and their gain (about a
+# quarter of a chunk, minus a piece's fixed per-chunk glue) was not measurable on a
+# loaded machine (docs/performance.md, "Ninth slice: scaling"); bench_scaling.py
+# --only camera_workers --tail-split 4 measures it against whole chunks.
 TAIL_CHUNKS = 2
-TAIL_SPLIT = 4
+TAIL_SPLIT = 1
 
 
 def chunk_bounds(total: int, limit: int) -> list:
     """[(start, end)] of the chunks of a pass of `total` items, at most `limit` each: chunks
-    of chunk_length(total, limit), except that a pass cut into more than MIN_CHUNKS chunks
-    ends in pieces of a TAIL_SPLIT-th of a chunk (at least MIN_CHUNK items) over its last
-    TAIL_CHUNKS to TAIL_CHUNKS + 1 chunk lengths, so the workers finish together. The
-    chunks before the tail are those of chunk_length. Like chunk_length it depends on the
+    of chunk_length(total, limit), except that with TAIL_SPLIT > 1 a pass cut into more
+    than MIN_CHUNKS chunks ends in pieces of a TAIL_SPLIT-th of a chunk (at least
+    MIN_CHUNK items) over its last TAIL_CHUNKS to TAIL_CHUNKS + 1 chunk lengths, so the
+    workers finish together. The chunks before the tail are those of chunk_length. Like chunk_length it depends on the
     job and the settings only, never on the number of threads."""
     chunk = chunk_length(total, limit)
     piece = max(MIN_CHUNK, chunk // TAIL_SPLIT)

@@ -128,15 +128,19 @@ def test_cancel_is_noticed_inside_a_chunk(workers):
 @pytest.mark.parametrize("total,limit", [(160 * 120 * 128, 1 << 17), (320 * 240 * 128, 1 << 17),
                                          (64 * 48 * 64, 1 << 15), (96 * 72 * 16, 1 << 17),
                                          (100, 1 << 17), (1, 256), (0, 1 << 17)])
-def test_chunk_bounds_cover_the_pass_and_end_in_pieces(total, limit):
+def test_chunk_bounds_cover_the_pass_and_end_in_pieces(total, limit, monkeypatch):
+    from engine import parallel
     from engine.parallel import MIN_CHUNK, MIN_CHUNKS, TAIL_CHUNKS, chunk_bounds, chunk_length
-    bounds = chunk_bounds(total, limit)
     chunk = chunk_length(total, limit)
+    plain = [(a, min(total, a + chunk)) for a in range(0, total, chunk)]
+    # Off by default: the chunks of chunk_length (the images of whole chunks).
+    assert chunk_bounds(total, limit) == plain
+    monkeypatch.setattr(parallel, "TAIL_SPLIT", 4)
+    bounds = chunk_bounds(total, limit)
     assert [a for a, _ in bounds[1:]] == [b for _, b in bounds[:-1]]  # contiguous
     assert (bounds[0][0], bounds[-1][1]) == (0, total) if total else bounds == []
     sizes = [b - a for a, b in bounds]
     assert all(0 < n <= min(limit, chunk) for n in sizes)
-    plain = [(a, min(total, a + chunk)) for a in range(0, total, chunk)]
     if len(plain) <= MIN_CHUNKS or chunk < 2 * MIN_CHUNK:
         assert bounds == plain  # short passes and small chunks: as chunk_length cuts them
         return
@@ -150,23 +154,21 @@ def test_chunk_bounds_cover_the_pass_and_end_in_pieces(total, limit):
 
 
 def test_pieces_at_the_end_change_only_the_tail_and_not_with_the_thread_count(monkeypatch):
-    """64x48 x 64 spp with chunk_size 32768: 4 chunks, then 4 pieces of 16384 samples.
-    The image is the same bits for 1, 2 and 3 threads, and the rows rendered by the whole
-    chunks are the same bits as with whole chunks only (the pieces own new streams)."""
-    from engine import integrator
-    from engine.parallel import chunk_bounds, chunk_length
+    """parallel.TAIL_SPLIT = 4, 64x48 x 64 spp with chunk_size 32768: 4 chunks, then 4
+    pieces of 16384 samples. The image is the same bits for 1, 2 and 3 threads, and the
+    rows rendered by the whole chunks are the same bits as with whole chunks only (the
+    default; the pieces own new streams)."""
+    from engine import parallel
+    from engine.parallel import chunk_bounds
     s = cornell_box(64, 48)
     st = dict(photons=20000, caustic_photons=10000, spp=64, seed=5, chunk_size=1 << 15)
-    total = 64 * 48 * 64
-    bounds = chunk_bounds(total, 1 << 15)
+    whole = s.render(RenderSettings(workers=2, **st)).combined
+    monkeypatch.setattr(parallel, "TAIL_SPLIT", 4)
+    bounds = chunk_bounds(64 * 48 * 64, 1 << 15)
     assert len(bounds) == 8 and bounds[4] == (4 << 15, (4 << 15) + 16384)
     images = [s.render(RenderSettings(workers=w, **st)).combined for w in (1, 2, 3)]
     np.testing.assert_array_equal(images[0], images[1])
     np.testing.assert_array_equal(images[0], images[2])
-    chunk = chunk_length(total, 1 << 15)
-    monkeypatch.setattr(integrator, "chunk_bounds", lambda t, lim: [
-        (a, min(t, a + chunk)) for a in range(0, t, chunk)])
-    whole = s.render(RenderSettings(workers=2, **st)).combined
     rows = (4 << 15) // 64 // 64  # rows whose samples all lie in the first 4 chunks
     assert rows == 32
     np.testing.assert_array_equal(images[0][:rows], whole[:rows])
