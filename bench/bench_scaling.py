@@ -9,7 +9,9 @@ best of --repeat), except peak RSS, which is measured in a fresh child process p
 
 Sections: rays (engine vs raw embreex on the same rays), photons (per bounce), kdtree
 (build / gather per million queries), scaling (pixels, photons, triangles, lights),
-memory (peak RSS, bytes per photon), workers (1 vs 2, same image).
+memory (peak RSS, bytes per photon), workers (1 vs 2, same image), camera_workers (where
+two workers lose in a default render's camera stage: per-thread timeline of the chunks),
+tail_pieces (the camera pass's tail in pieces against whole chunks: same image statistics).
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ import os
 import resource
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -318,8 +321,212 @@ def sec_workers(a):
     table("workers: 1 vs 2 threads (Embree + kd-tree)", rows)
 
 
+# --------------------------------------------------------------------------- camera workers
+
+def _thread_clock():
+    """(wall s, run s, run-queue wait s, minor faults, voluntary switches, system s) of
+    this thread: the kernel's schedstat (run time, time runnable but not running) and
+    RUSAGE_THREAD (system time: page faults, futex calls)."""
+    with open(f"/proc/self/task/{threading.get_native_id()}/schedstat") as f:
+        run, rq = (int(x) * 1e-9 for x in f.read().split()[:2])
+    ru = resource.getrusage(resource.RUSAGE_THREAD)
+    return np.array([time.perf_counter(), run, rq, ru.ru_minflt, ru.ru_nvcsw, ru.ru_stime],
+                    float)
+
+
+def camera_timeline(scene, settings, runs=1):
+    """Render scene with every camera chunk timed on its worker thread (_thread_clock at
+    its start and end), the calling thread's merges timed, and the camera stage's span:
+    {"chunks": [(thread, ci, start, end)], "merge": s, "caller": delta, "span": (t0, t1),
+    "film": Film} of the last of `runs` renders."""
+    import importlib
+    integrator = importlib.import_module("engine.integrator")
+    render_mod = importlib.import_module("engine.render")  # engine.render is also a function
+    log = {}
+    chunk0, merge0, camera0 = integrator._render_chunk, integrator.Accumulator.merge, \
+        render_mod.render_camera
+
+    def chunk(ctx, region, ci, *args, **kw):
+        a = _thread_clock()
+        out = chunk0(ctx, region, ci, *args, **kw)
+        log["chunks"].append((threading.get_native_id(), ci, a, _thread_clock()))
+        return out
+
+    def merge(self, part):
+        t0 = time.perf_counter()
+        merge0(self, part)
+        log["merge"] += time.perf_counter() - t0
+
+    def camera(*args, **kw):
+        a = _thread_clock()
+        try:
+            return camera0(*args, **kw)
+        finally:
+            b = _thread_clock()
+            log["span"] = (a[0], b[0])
+            log["caller"] = b - a
+
+    integrator._render_chunk, integrator.Accumulator.merge = chunk, merge
+    render_mod.render_camera = camera
+    try:
+        for _ in range(runs):
+            log.update(chunks=[], merge=0.0)
+            log["film"] = render(scene, settings)
+    finally:
+        integrator._render_chunk, integrator.Accumulator.merge = chunk0, merge0
+        render_mod.render_camera = camera0
+    return log
+
+
+def timeline_rows(name, workers, log):
+    """Per worker thread: chunks, busy wall, run / run-queue / blocked seconds inside its
+    chunks, idle seconds inside the stage, minor faults; then the stage's totals."""
+    t0, t1 = log["span"]
+    wall = t1 - t0
+    rows = []
+    by = {}
+    for tid, ci, a, b in log["chunks"]:
+        by.setdefault(tid, []).append((a, b))
+    ends = sorted(max(b[0] for _, b in ch) for ch in by.values())
+    tot = np.zeros(6)
+    for k, tid in enumerate(sorted(by, key=lambda t: min(a[0] for a, _ in by[t]))):
+        d = sum(b - a for a, b in by[tid])
+        busy = d[0]
+        blocked = busy - d[1] - d[2]
+        tot += d
+        rows.append(dict(
+            blend=name, workers=workers, thread=f"worker {k}", chunks=len(by[tid]),
+            busy_s=busy, run_s=d[1], runqueue_s=d[2], blocked_s=blocked, idle_s=wall - busy,
+            system_s=d[5], minor_faults=int(d[3]), vol_switches=int(d[4])))
+    c = log["caller"]
+    if workers > 1:  # (one worker: the chunks run inline on the calling thread)
+        rows.append(dict(blend=name, workers=workers, thread="calling thread", chunks=0,
+                         busy_s=log["merge"], run_s=c[1], runqueue_s=c[2], blocked_s=0.0,
+                         idle_s=0.0, system_s=c[5], minor_faults=int(c[3]),
+                         vol_switches=int(c[4])))
+    # The slowest worker's run + blocked time: the stage's wall on a machine with no
+    # other load (run-queue waits left out), tail imbalance included.
+    critical = max(r["run_s"] + r["blocked_s"] for r in rows)
+    summary = dict(blend=name, workers=workers, camera_wall_s=wall, critical_s=critical,
+                   chunk_run_s=tot[1], chunk_blocked_s=tot[0] - tot[1] - tot[2],
+                   chunk_runqueue_s=tot[2], tail_s=ends[-1] - ends[0],
+                   merge_s=log["merge"], system_s=tot[5], minor_faults=int(tot[3]))
+    return rows, summary
+
+
+def _export(name):
+    """An example blend's engine scene, exported once through the add-on (bpy)."""
+    import pickle
+    from bench_kernels import exported
+    import tempfile
+    with open(exported(name, os.path.join(tempfile.gettempdir(), "bench_kernels")), "rb") as f:
+        return pickle.load(f)
+
+
+def sec_camera_workers(a):
+    """Where two workers lose against one in the camera stage of a default render
+    (Figures 6 and 7, --width x --height, default spp): per worker thread the chunks'
+    run time (schedstat), time runnable but waiting for a core (other processes' load),
+    blocked time (wall - run - run queue inside a chunk: GIL and kernel-lock waits),
+    idle time in the stage (between its chunks and in the tail), minor page faults; the
+    calling thread's merge time. 1 and 2 workers alternate, --repeat times; the run with
+    the least run-queue wait is kept."""
+    try:
+        from engine.jit import ensure_compiled
+        ensure_compiled()
+    except ImportError:
+        pass
+    from engine import parallel
+    rows, sums = [], []
+    plans = [("whole chunks", 1)] + ([("tail pieces", a.tail_split)] if a.tail_split > 1
+                                     else [])
+    split0 = parallel.TAIL_SPLIT
+    for name, (plan, split) in ((n, p) for n in a.blends for p in plans):
+        scene = _export(name)
+        scene.width, scene.height = a.width, a.height
+        best = {}
+        try:
+            parallel.TAIL_SPLIT = split
+            for _ in range(a.repeat):
+                for w in (1, 2):
+                    log = timeline_rows(f"{name}, {plan}", w,
+                                        camera_timeline(scene, RenderSettings(workers=w)))
+                    if w not in best or (log[1]["chunk_runqueue_s"]
+                                         < best[w][1]["chunk_runqueue_s"]):
+                        best[w] = log
+        finally:
+            parallel.TAIL_SPLIT = split0
+        for w in (1, 2):
+            rows += best[w][0]
+            sums.append(best[w][1])
+        one, two = best[1][1], best[2][1]
+        sums.append(dict(blend=f"{name}, {plan}", workers="1 / 2",
+                         camera_wall_s=one["camera_wall_s"] / two["camera_wall_s"],
+                         critical_s=one["critical_s"] / two["critical_s"],
+                         chunk_run_s=one["chunk_run_s"] / two["chunk_run_s"],
+                         chunk_blocked_s=two["chunk_blocked_s"] - one["chunk_blocked_s"],
+                         chunk_runqueue_s=two["chunk_runqueue_s"] - one["chunk_runqueue_s"],
+                         tail_s=two["tail_s"], merge_s=two["merge_s"],
+                         system_s=two["system_s"] - one["system_s"],
+                         minor_faults=two["minor_faults"] - one["minor_faults"]))
+    table(f"camera stage per worker thread ({a.width}x{a.height}, default settings; "
+          f"seconds inside the stage)", rows)
+    table("camera stage: totals over the chunks (critical = slowest worker's run + blocked s; "
+          "rows 1 / 2: ratios for wall, critical and run, 2w - 1w for the rest)", sums)
+
+
+def sec_tail_pieces(a):
+    """The camera pass's tail in pieces (parallel.chunk_bounds with TAIL_SPLIT =
+    --tail-split) against whole chunks (the default), over --seeds seeds, Figure 6 blend, default settings but --spp: the
+    rows rendered by the pieces, their mean radiance per seed (paired difference) and the
+    noise (per-pixel standard deviation over the seeds); the rows above must be the same
+    bits."""
+    from engine import parallel
+    scene = _export(a.blends[0])
+    scene.width, scene.height = a.width, a.height
+    spp = a.spp
+    total = a.width * a.height * spp
+    limit = RenderSettings().chunk_size
+    split0 = parallel.TAIL_SPLIT
+    plans = {"whole chunks": 1, "tail pieces": max(2, a.tail_split)}
+    try:
+        parallel.TAIL_SPLIT = plans["tail pieces"]
+        pieces = parallel.chunk_bounds(total, limit)
+        parallel.TAIL_SPLIT = 1
+        whole = parallel.chunk_bounds(total, limit)
+        split = next((b[0] for b, w in zip(pieces, whole) if b != w), total)
+        row = split // spp // a.width  # first row a piece renders samples of
+        imgs = {label: [] for label in plans}
+        for seed in range(1, a.seeds + 1):
+            for label, k in plans.items():
+                parallel.TAIL_SPLIT = k
+                f = render(scene, RenderSettings(spp=spp, seed=seed, workers=a.workers))
+                imgs[label].append(f.combined.astype(np.float64))
+    finally:
+        parallel.TAIL_SPLIT = split0
+    same_above = all(np.array_equal(x[:row], y[:row])
+                     for x, y in zip(imgs["whole chunks"], imgs["tail pieces"]))
+    rows = []
+    means = {k: np.array([x[row:].mean() for x in v]) for k, v in imgs.items()}
+    diff = means["tail pieces"] - means["whole chunks"]
+    for label, v in imgs.items():
+        stack = np.stack([x[row:] for x in v])
+        rows.append(dict(plan=label, rows=f"{row}-{a.height - 1}", seeds=len(v),
+                         mean=f"{means[label].mean():.5f}",
+                         mean_se=f"{means[label].std(ddof=1) / np.sqrt(len(v)):.5f}",
+                         pixel_noise=f"{stack.std(axis=0, ddof=1).mean():.5f}",
+                         full_image_mean=f"{np.mean([x.mean() for x in v]):.5f}"))
+    rows.append(dict(plan="pieces - whole, paired by seed", rows="", seeds=len(diff),
+                     mean=f"{diff.mean():.5f}",
+                     mean_se=f"{diff.std(ddof=1) / np.sqrt(len(diff)):.5f}",
+                     pixel_noise="", full_image_mean=""))
+    table(f"camera tail in pieces vs whole chunks ({a.blends[0]}, {a.width}x{a.height}, "
+          f"{spp} spp; rows above {row}: {'same bits' if same_above else 'DIFFER'})", rows)
+
+
 SECTIONS = dict(rays=sec_rays, photons=sec_photons, kdtree=sec_kdtree, scaling=sec_scaling,
-                memory=sec_memory, workers=sec_workers)
+                memory=sec_memory, workers=sec_workers,
+                camera_workers=sec_camera_workers, tail_pieces=sec_tail_pieces)
 
 
 def main(argv=None):
@@ -332,6 +539,12 @@ def main(argv=None):
     ap.add_argument("--photons", type=int, default=None)
     ap.add_argument("--workers", type=int, default=0, help="0 = all cores")
     ap.add_argument("--repeat", type=int, default=None, help="best of N (default 3, quick 1)")
+    ap.add_argument("--blends", default="figure6_box,figure7_blocker",
+                    help="camera_workers: example blends (exported through the add-on)")
+    ap.add_argument("--seeds", type=int, default=6, help="tail_pieces: seeds per plan")
+    ap.add_argument("--tail-split", type=int, default=4,
+                    help="camera_workers (also whole chunks if > 1), tail_pieces: the tail "
+                         "pieces' parallel.TAIL_SPLIT")
     ap.add_argument("--json", help="write all tables as JSON")
     a = ap.parse_args(argv)
     q = a.quick
@@ -340,6 +553,7 @@ def main(argv=None):
     a.spp = a.spp or (8 if q else 64)
     a.photons = a.photons or (50_000 if q else 200_000)
     a.repeat = a.repeat or (1 if q else 3)
+    a.blends = a.blends.split(",")
     a.threads = a.workers if a.workers > 0 else (os.cpu_count() or 1)
     print(f"# bench_scaling ({'quick' if q else 'full'}), {os.cpu_count()} cores, "
           f"load {os.getloadavg()[0]:.1f}, numpy {np.__version__}")

@@ -123,3 +123,71 @@ def test_cancel_is_noticed_inside_a_chunk(workers):
     late = time.perf_counter() - t_cancel[0]
     assert film.stats["cancelled"]
     assert late < 3.0, late  # a full render takes far longer (~10 s)
+
+
+@pytest.mark.parametrize("total,limit", [(160 * 120 * 128, 1 << 17), (320 * 240 * 128, 1 << 17),
+                                         (64 * 48 * 64, 1 << 15), (96 * 72 * 16, 1 << 17),
+                                         (100, 1 << 17), (1, 256), (0, 1 << 17)])
+def test_chunk_bounds_cover_the_pass_and_end_in_pieces(total, limit, monkeypatch):
+    from engine import parallel
+    from engine.parallel import MIN_CHUNK, MIN_CHUNKS, TAIL_CHUNKS, chunk_bounds, chunk_length
+    chunk = chunk_length(total, limit)
+    plain = [(a, min(total, a + chunk)) for a in range(0, total, chunk)]
+    # Off by default: the chunks of chunk_length (the images of whole chunks).
+    assert chunk_bounds(total, limit) == plain
+    monkeypatch.setattr(parallel, "TAIL_SPLIT", 4)
+    bounds = chunk_bounds(total, limit)
+    assert [a for a, _ in bounds[1:]] == [b for _, b in bounds[:-1]]  # contiguous
+    assert (bounds[0][0], bounds[-1][1]) == (0, total) if total else bounds == []
+    sizes = [b - a for a, b in bounds]
+    assert all(0 < n <= min(limit, chunk) for n in sizes)
+    if len(plain) <= MIN_CHUNKS or chunk < 2 * MIN_CHUNK:
+        assert bounds == plain  # short passes and small chunks: as chunk_length cuts them
+        return
+    # Whole chunks as chunk_length cuts them, then pieces over the last 2-3 chunk lengths.
+    whole = [ab for ab in bounds if ab[1] - ab[0] == chunk]
+    assert whole == plain[:len(whole)]
+    tail = total - whole[-1][1]
+    assert TAIL_CHUNKS * chunk <= tail < (TAIL_CHUNKS + 1) * chunk
+    piece = max(MIN_CHUNK, chunk // 4)
+    assert all(n == piece for n in sizes[len(whole):-1]) and sizes[-1] <= piece
+
+
+def test_pieces_at_the_end_change_only_the_tail_and_not_with_the_thread_count(monkeypatch):
+    """parallel.TAIL_SPLIT = 4, 64x48 x 64 spp with chunk_size 32768: 4 chunks, then 4
+    pieces of 16384 samples. The image is the same bits for 1, 2 and 3 threads, and the
+    rows rendered by the whole chunks are the same bits as with whole chunks only (the
+    default; the pieces own new streams)."""
+    from engine import parallel
+    from engine.parallel import chunk_bounds
+    s = cornell_box(64, 48)
+    st = dict(photons=20000, caustic_photons=10000, spp=64, seed=5, chunk_size=1 << 15)
+    whole = s.render(RenderSettings(workers=2, **st)).combined
+    monkeypatch.setattr(parallel, "TAIL_SPLIT", 4)
+    bounds = chunk_bounds(64 * 48 * 64, 1 << 15)
+    assert len(bounds) == 8 and bounds[4] == (4 << 15, (4 << 15) + 16384)
+    images = [s.render(RenderSettings(workers=w, **st)).combined for w in (1, 2, 3)]
+    np.testing.assert_array_equal(images[0], images[1])
+    np.testing.assert_array_equal(images[0], images[2])
+    rows = (4 << 15) // 64 // 64  # rows whose samples all lie in the first 4 chunks
+    assert rows == 32
+    np.testing.assert_array_equal(images[0][:rows], whole[:rows])
+    assert not np.array_equal(images[0][rows:], whole[rows:])  # the pieces' new streams
+
+
+def test_light_items_run_ahead_of_a_slow_head_chunk():
+    """Items weighing a quarter of a chunk (the camera pass's tail pieces): with 2 threads
+    up to 4 chunks' weight is in flight, so a worker goes on to item 6 while item 0 still
+    runs (with every item weighing 1 it would wait for item 0 after item 3); results still
+    come back in order."""
+    reached = threading.Event()
+
+    def job(x, stop):
+        if x == 0:
+            return reached.wait(10)  # True once item 6 has started beside it
+        if x == 6:
+            reached.set()
+        return x
+
+    out = list(ordered_map(job, range(10), 2, weight=lambda x: 1 if x == 0 else 0.25))
+    assert out == [True] + list(range(1, 10))
