@@ -24,6 +24,8 @@ from .kdtree import heap_insert, seed_bound
 LEAF_SIZE = 8
 STACK = 64  # DFS stack: at most one pushed sibling per level (2^63 leaves)
 STOP_QUERIES = 64  # queries between two looks at the stop flag
+POLL = 1 << 14  # points of a build pass between two looks at the stop flag
+_NEVER = np.zeros(1, np.uint8)  # a stop flag that never turns 1
 SEED_WINDOW = 2  # points read around a query's Morton place for its seed, per kq
 
 
@@ -39,13 +41,16 @@ def _spread10(x):
 
 
 @kernel
-def morton_codes(p):
+def morton_codes(p, stop):
     """(code (M,) int64, lo (3,) float64, scale): the 30-bit Morton code of each point of
-    p (M,3) over their box (lo, cubic cells of 1 / scale; NaN rows get cell 0)."""
+    p (M,3) over their box (lo, cubic cells of 1 / scale; NaN rows get cell 0). stop:
+    (1,) uint8 polled every POLL rows; once nonzero the codes are meaningless."""
     m = p.shape[0]
     lo = np.full(3, np.inf)
     hi = np.full(3, -np.inf)
     for i in range(m):
+        if i % POLL == 0 and stop[0]:
+            break
         for c in range(3):
             v = p[i, c]
             if v < lo[c]:
@@ -56,8 +61,10 @@ def morton_codes(p):
     for c in range(3):
         span = max(span, hi[c] - lo[c])
     scale = 1023.0 / span if span > 0.0 and np.isfinite(span) else 0.0
-    code = np.empty(m, np.int64)
+    code = np.zeros(m, np.int64)
     for i in range(m):
+        if i % POLL == 0 and stop[0]:
+            break
         code[i] = _code(p[i, 0], p[i, 1], p[i, 2], lo, scale)
     return code, lo, scale
 
@@ -79,15 +86,16 @@ def morton_order(p):
     bits per axis. Queries taken in this order find the tree's nodes still in cache from
     the previous one: 25 % faster gather lookups, 2x for a whole image's worth
     (bench/bench_kernels.py). Every row's answer is the same in any order."""
-    return _radix_argsort30(morton_codes(p)[0])
+    return _radix_argsort30(morton_codes(p, _NEVER)[0], _NEVER)
 
 
 @kernel
-def _radix_argsort30(code):
+def _radix_argsort30(code, stop):
     """Stable argsort of 30-bit keys: three counting-sort passes of 10 bits (LSD radix
     sort), the same order as np.argsort(code, kind="stable") in O(M) instead of a merge
     sort's O(M log M) (the sort was most of morton_order's cost: 1.2 Embree traversals per
-    gather lookup, bench/bench_lookup.py)."""
+    gather lookup, bench/bench_lookup.py). stop: polled every POLL keys (a stopped
+    sort's order is meaningless)."""
     m = code.shape[0]
     order = np.arange(m)
     if m < 2:
@@ -96,11 +104,15 @@ def _radix_argsort30(code):
     count = np.empty(1025, np.int64)
     for shift in (0, 10, 20):
         count[:] = 0
+        if stop[0]:
+            break
         for i in range(m):
             count[((code[order[i]] >> shift) & 0x3FF) + 1] += 1
         for b in range(1024):
             count[b + 1] += count[b]
         for i in range(m):
+            if i % POLL == 0 and stop[0]:
+                break
             j = order[i]
             b = (code[j] >> shift) & 0x3FF
             tmp[count[b]] = j
@@ -115,16 +127,18 @@ def build(points, stop):
     order; box (2L-1, 6) float32, node i's box lo x, y, z, hi x, y, z (empty: +inf /
     -inf), L the least power of two with N <= LEAF_SIZE x L; code (N,) their Morton
     codes, increasing; lo, scale: morton_codes' grid). NaN coordinates stay out of
-    the boxes (a NaN point is never near anything). stop: (1,) uint8 polled between the
-    O(N) passes (~0.04 s a million points); once nonzero the arrays are meaningless."""
+    the boxes (a NaN point is never near anything). stop: (1,) uint8 polled every POLL
+    points of each O(N) pass; once nonzero the arrays are meaningless."""
     n = points.shape[0]
-    code, lo, scale = morton_codes(points)
-    order = _radix_argsort30(code)
+    code, lo, scale = morton_codes(points, stop)
+    order = _radix_argsort30(code, stop)
     if stop[0]:
         return points[:0].copy(), np.empty((0, 6), np.float32), code[:0], lo, scale
     position = np.empty((n, 3), np.float32)
     sorted_code = np.empty(n, np.int64)
     for i in range(n):
+        if i % POLL == 0 and stop[0]:
+            break
         j = order[i]
         sorted_code[i] = code[j]
         for c in range(3):
@@ -139,6 +153,8 @@ def build(points, stop):
             box[node, c] = np.inf
             box[node, 3 + c] = -np.inf
     for i in range(n):
+        if i % POLL == 0 and stop[0]:
+            break
         node = inner + i // LEAF_SIZE
         for c in range(3):
             v = position[i, c]

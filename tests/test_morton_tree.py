@@ -48,12 +48,14 @@ def test_stopped_query_leaves_rows_unwritten():
     p = _points(1000, 2)
     stop = np.ones(1, np.uint8)
     assert np.all(np.isinf(mortontree.KthTree(p).kth(p[:5].astype(np.float64), 4, stop)))
+    # A stopped build returns at once (the caller, photonmap.auto_radius, raises).
+    assert len(mortontree.KthTree(p, stop)) == 0
 
 
 def test_morton_order_is_a_stable_sort_of_the_codes():
     p = np.random.default_rng(3).random((5000, 3))
     p[::7] = p[3]  # equal codes keep their order
     p[11] = np.nan
-    code = mortontree.morton_codes(p)[0]
+    code = mortontree.morton_codes(p, np.zeros(1, np.uint8))[0]
     assert np.array_equal(mortontree.morton_order(p), np.argsort(code, kind="stable"))
     assert code[11] == 0 and code.max() < 1 << 30
