@@ -166,6 +166,7 @@ def _build_nodes(pts, perm, axis, split, leaf, inner, lo0, hi0, node0, box0, sto
     st_box = np.empty((2 * STACK, 6), np.float64)
     st[0, 0], st[0, 1], st[0, 2] = lo0, hi0, node0
     st_box[0] = box0
+    box = np.empty(6, np.float64)  # the popped node's cell (scratch: no allocation a node)
     nt = 0
     sp = 1
     while sp > 0:
@@ -181,7 +182,7 @@ def _build_nodes(pts, perm, axis, split, leaf, inner, lo0, hi0, node0, box0, sto
             task_box[nt] = st_box[sp]
             nt += 1
             continue
-        box = st_box[sp].copy()
+        box[:] = st_box[sp]
         ax = 0
         for c in (1, 2):
             if box[3 + c] - box[c] > box[3 + ax] - box[ax]:

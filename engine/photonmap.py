@@ -21,8 +21,9 @@ import math
 
 import numpy as np
 
-from . import hashgrid, kdtree
+from . import hashgrid, kdtree, mortontree
 from .jit import kernel, register_warm_up
+from .mortontree import morton_order  # noqa: F401 (query order; tests, benches)
 from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
@@ -182,76 +183,6 @@ class PhotonMap:
 
 _NO_NODES = (np.zeros(0, np.uint8), np.zeros(0, np.float32), np.zeros(1, np.int64))
 _NO_START = np.zeros(1, np.int32)
-
-
-@kernel
-def _spread10(x):
-    """The low 10 bits of x spread to every third bit (a Morton code's one axis)."""
-    x &= 0x3FF
-    x = (x | (x << 16)) & 0x030000FF
-    x = (x | (x << 8)) & 0x0300F00F
-    x = (x | (x << 4)) & 0x030C30C3
-    x = (x | (x << 2)) & 0x09249249
-    return x
-
-
-@kernel
-def morton_order(p):
-    """Row order of the points p (M,3) along a Morton (Z-order) curve over their box, 10
-    bits per axis. Queries taken in this order find the tree's nodes still in cache from
-    the previous one: 25 % faster gather lookups, 2x for a whole image's worth
-    (bench/bench_kernels.py). Every row's answer is the same in any order."""
-    m = p.shape[0]
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    for i in range(m):
-        for c in range(3):
-            v = p[i, c]
-            if v < lo[c]:
-                lo[c] = v
-            if v > hi[c]:
-                hi[c] = v
-    span = 0.0
-    for c in range(3):
-        span = max(span, hi[c] - lo[c])
-    scale = 1023.0 / span if span > 0.0 and np.isfinite(span) else 0.0
-    code = np.empty(m, np.int64)
-    for i in range(m):
-        key = 0
-        for c in range(3):
-            v = (p[i, c] - lo[c]) * scale
-            cell = int(v) if v > 0.0 and v < 1024.0 else 0  # NaN rows go first
-            key |= _spread10(cell) << c
-        code[i] = key
-    return _radix_argsort30(code)
-
-
-@kernel
-def _radix_argsort30(code):
-    """Stable argsort of 30-bit keys: three counting-sort passes of 10 bits (LSD radix
-    sort), the same order as np.argsort(code, kind="stable") in O(M) instead of a merge
-    sort's O(M log M) (the sort was most of morton_order's cost: 1.2 Embree traversals per
-    gather lookup, bench/bench_lookup.py)."""
-    m = code.shape[0]
-    order = np.arange(m)
-    if m < 2:
-        return order
-    tmp = np.empty(m, np.int64)
-    count = np.empty(1025, np.int64)
-    for shift in (0, 10, 20):
-        count[:] = 0
-        for i in range(m):
-            count[((code[order[i]] >> shift) & 0x3FF) + 1] += 1
-        for b in range(1024):
-            count[b + 1] += count[b]
-        for i in range(m):
-            j = order[i]
-            b = (code[j] >> shift) & 0x3FF
-            tmp[count[b]] = j
-            count[b] += 1
-        order, tmp = tmp, order
-    return order
-
 
 
 @kernel
@@ -1046,27 +977,39 @@ def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
     or where that median is 0 (photons piled on a point), twice the radius of a disc that
     would hold k photons if the stored photons covered the diffuse area evenly. Never
     more than 0.1 x the scene's diagonal `extent`; no floor tied to the scene's size.
-    tree: a kdtree.KdTree over the same points (a map's), used instead of building one
-    (same distances: the k-NN distances do not depend on the tree); workers: threads
-    for building one (kdtree.KdTree)."""
+    tree: a kdtree.KdTree over the same points (a map's), queried instead of building a
+    mortontree.KthTree (same distances: the k-NN distances do not depend on the tree);
+    workers: threads for the queries."""
     if stored <= 0 or diffuse_area <= 0:
         return 0.05 * extent
     r = 0.0
     if positions is not None and len(positions) > k:
-        # The compiled kd-tree: its build polls the stop flag of the job running on this
-        # thread (a map build under run_cancellable), where scipy's build could not be
-        # interrupted (0.7 s at 1M photons; issue 19). Same distances as cKDTree's.
-        if tree is None or not hasattr(tree, "query") or len(tree) != len(positions):
-            tree = kdtree.KdTree(positions, workers=workers)
-        step = max(1, len(tree) // RADIUS_SAMPLE)
+        step = max(1, len(positions) // RADIUS_SAMPLE)
         sample = np.asarray(positions, np.float32)[::step].astype(np.float64)
         # The nearest is the photon itself; the queries in blocks on the workers (each
-        # query's answer is the same in any block).
+        # query's answer is the same in any block). Same distances with any tree.
         rows = -(-len(sample) // max(1, workers))
-        kth = np.concatenate(list(ordered_map(
-            lambda a, stop: tree.query(sample[a:a + rows], k + 1, np.inf)[0][:, -1],
-            range(0, len(sample), rows), workers)))
-        r = 2.0 * float(np.median(kth))
+        if tree is not None and hasattr(tree, "query") and len(tree) == len(positions):
+            def kth(a, stop):
+                return tree.query(sample[a:a + rows], k + 1, np.inf)[0][:, -1]
+        else:
+            # Nothing else searches these points: a Morton box tree, built in O(N)
+            # (mortontree), answers the 4,096 queries for a fraction of a kd-tree's
+            # build. Its build and queries poll the stop flag of the job running on
+            # this thread (a map build under run_cancellable; issue 19).
+            stop = stop_array()
+            tree = mortontree.KthTree(positions, stop)
+            if stop[0]:
+                raise Cancelled()
+
+            def kth(a, job_stop):
+                flag = stop_array(job_stop)
+                out = tree.kth(sample[a:a + rows], k + 1, flag)
+                if flag[0]:
+                    raise Cancelled()
+                return out
+        r = 2.0 * float(np.median(np.concatenate(list(ordered_map(
+            kth, range(0, len(sample), rows), workers)))))
     if not r > 0:
         r = 2.0 * math.sqrt(k * diffuse_area / (math.pi * stored))
     return float(min(r, 0.1 * extent))

@@ -330,11 +330,13 @@ def test_session_stops_inside_the_gather_map_estimate(monkeypatch):
     check_stop(session, latency, running)
 
 
-def test_session_stops_inside_a_kdtree_build(monkeypatch):
-    """The first kd-tree build of a photon pass (auto_radius's tree over the global shot),
-    one compiled call that polls the stop flag at every node."""
+def test_session_stops_inside_the_radius_trees_build(monkeypatch):
+    """The first tree of a photon pass (auto_radius's Morton tree over the global shot),
+    one compiled call that polls the stop flag between its O(N) passes. (The kd-tree
+    builds poll at every node: tests/test_map_build.py.)"""
+    from engine import mortontree
     session, latency, running = stop_inside(
-        monkeypatch, kdtree_module, "build", cornell_box(16, 12),
+        monkeypatch, mortontree, "build", cornell_box(16, 12),
         RenderSettings(**{**SESSION, "photons": 1_000_000}), delay=0.01)
     check_stop(session, latency, running)
 

@@ -78,3 +78,11 @@ def test_auto_radius_with_a_maps_tree_is_the_radius_without():
     assert auto_radius(4.0, len(pts), 32, 10.0, pts, pm.tree) == own
     assert auto_radius(4.0, len(pts), 32, 10.0, pts, workers=2) == own
     assert 0 < own < 1.0
+
+
+def test_kdtree_build_polls_its_stop_flag_in_the_compiled_call():
+    """One thread (no pool between the steps): the compiled build itself sees the flag."""
+    flag = StopFlag()
+    flag.set()
+    with pytest.raises(Cancelled):
+        kdtree.KdTree(_points(5000), should_cancel=flag)
