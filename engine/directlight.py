@@ -648,10 +648,18 @@ MAX_ENTRIES = 1 << 20
 
 
 class DirectLightBuffers:
-    """The compacted arrays one thread reuses between calls (grown as needed)."""
+    """The arrays one thread reuses between direct_light calls, grown as needed: the
+    compacted entries (ensure), the per-hit sums and the samples' random numbers stacked
+    (hits), and zero rows for hits without a shading or terminator offset (zeros, never
+    written). Fresh arrays of this size each call cost more in first-touch page faults
+    than the kernels' own work (docs/performance.md, "Ninth slice"). The sums a call
+    returns are valid until the next call with the same buffers."""
 
     def __init__(self):
         self.size = 0
+        self.n_hits = 0
+        self.n_numbers = 0
+        self.n_zeros = 0
 
     def ensure(self, m):
         if m > self.size:
@@ -669,9 +677,36 @@ class DirectLightBuffers:
             self.bump = np.empty(m)
         return self
 
+    def sums(self, n):
+        """(n, 3) float64 zeros: a call's irradiance or radiance sums."""
+        if n > self.n_hits:
+            self.n_hits = n
+            self.E = np.empty((n, 3))
+        E = self.E[:n]
+        E.fill(0.0)
+        return E
+
+    def numbers(self, K, n, third):
+        """(U1, U2, SEL): unwritten (K, n) float64 arrays for K samples' random numbers
+        (SEL (K, 1) when no sample takes a third number: sample_lights reads none)."""
+        m = K * n
+        if m > self.n_numbers:
+            self.n_numbers = m
+            self.u = np.empty((3, m))
+        return (self.u[0, :m].reshape(K, n), self.u[1, :m].reshape(K, n),
+                self.u[2, :m].reshape(K, n) if third else np.zeros((K, 1)))
+
+    def zeros(self, n):
+        """((n,), (n, 3)) float64 zeros that nothing writes."""
+        if n > self.n_zeros:
+            self.n_zeros = n
+            self.zero1 = np.zeros(n)
+            self.zero3 = np.zeros((n, 3))
+        return self.zero1[:n], self.zero3[:n]
+
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
-                 bsdf=None):
+                 bsdf=None, buffers=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -682,14 +717,16 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     None (every surface blocks shadow rays).
     bsdf = (fd (N,3), prm (N,P), wo (N,3), mode (L,) int per light, sel (N, N_LOBES)):
     outgoing radiance instead, weighted by the BSDF (accumulate_bsdf; mode 3 with the tree).
+    buffers: the calling thread's DirectLightBuffers (E is then its sums, valid until
+    the next call with them; None: fresh arrays).
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     if tree is None:
         tree = (*empty_tree(), np.ones(len(codes), np.bool_))
-    E = np.zeros((n, 3))
     if n == 0 or not samples:
-        return E, 0
-    buf = DirectLightBuffers()
+        return np.zeros((n, 3)), 0
+    buf = buffers or DirectLightBuffers()
+    E = buf.sums(n)
     per_call = max(1, MAX_ENTRIES // n)
     rays = 0
     zeros = None
@@ -699,14 +736,14 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         klight = np.array([s[0] for s in group], np.int64)
         ktrace = np.array([s[1] for s in group], np.bool_)
         ksamples = np.array([float(s[2]) for s in group])
-        U1 = np.stack([s[3] for s in group])
-        U2 = np.stack([s[4] for s in group])
-        if any(s[5] is not None for s in group):
+        third = any(s[5] is not None for s in group)
+        U1, U2, SEL = buf.numbers(K, n, third)
+        np.stack([s[3] for s in group], out=U1)
+        np.stack([s[4] for s in group], out=U2)
+        if third:
             if zeros is None:
                 zeros = np.zeros(n)
-            SEL = np.stack([zeros if s[5] is None else s[5] for s in group])
-        else:
-            SEL = np.zeros((K, 1))
+            np.stack([zeros if s[5] is None else s[5] for s in group], out=SEL)
         buf.ensure(K * n)
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,

@@ -75,3 +75,39 @@ def test_sun_and_world_light_a_floor_as_their_formulas_say():
     hit = _floor_hits(ctx, 500)
     E = direct_irradiance(ctx, hit, np.random.default_rng(1), Counters())
     assert np.allclose(E, 2.0 + np.pi * 0.3, rtol=1e-12)
+
+
+def test_reused_buffers_change_no_bit():
+    """One thread's DirectLightBuffers reused across calls of different sizes (larger,
+    smaller, with and without a third random number per sample, with and without glossy
+    weights) give the bits of fresh arrays, and the zero rows stay zero."""
+    from engine.closures import principled as pr
+    from engine.integrator import shade_diffuse
+
+    ctx = prepare_context(_box_with_every_kind(), RenderSettings(light_samples=3, workers=1,
+                                                                 photon_mapping=False))
+    buffers = dl.DirectLightBuffers()
+    for n, seed in ((2000, 1), (3000, 2), (500, 3), (2500, 4)):
+        hit = _floor_hits(ctx, n, seed)
+        fresh = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters())
+        reused = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters(),
+                                   buffers=buffers)
+        assert reused.base is buffers.E or reused is buffers.E
+        assert np.array_equal(fresh, reused)
+        # The diffuse stage's product f x E, in place in the buffers' sums.
+        wd = np.full((len(hit.p), 3), 0.7)
+        a = shade_diffuse(ctx, hit, wd, np.random.default_rng(seed), Counters())[0]
+        b = shade_diffuse(ctx, hit, wd, np.random.default_rng(seed), Counters(),
+                          buffers=buffers)[0]
+        assert np.array_equal(a, b) and a[:, 0].mean() > 0
+        # Radiance weighted by the BSDF (accumulate_bsdf): every light's glossy mode.
+        m = len(hit.p)
+        prm = np.zeros((m, pr.N_PACK))
+        sel = np.full((m, pr.N_LOBES), 0.1)
+        fd = np.full((m, 3), 0.2)
+        a = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters(),
+                              bsdf=(fd, prm, sel))
+        b = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters(),
+                              bsdf=(fd, prm, sel), buffers=buffers)
+        assert np.array_equal(a, b)
+    assert not buffers.zero1.any() and not buffers.zero3.any()
