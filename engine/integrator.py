@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .directlight import (ONE_BELOW, DirectLightBuffers, direct_light, sample_lights,
-                          terminator_lift)
+from .directlight import (NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuffers, direct_light,
+                          sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.point import sphere_light_pdf
@@ -118,7 +118,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                             MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA,
                             np.int64),
                     np.ascontiguousarray(sel, np.float64))
-        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, buffers), samples, ctx.accel,
+        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
                                SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
                                bsdf=bsdf, buffers=buffers)
         counters.shadow_rays += rays
@@ -155,7 +155,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
                 np.ascontiguousarray(hit.wo, np.float64), light_modes(ctx),
                 np.ascontiguousarray(sel, np.float64))
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, buffers), samples, ctx.accel,
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
                            SHADOW, n, shadow=getattr(ctx, "shadow", None), bsdf=bsdf,
                            buffers=buffers)
     counters.shadow_rays += rays
@@ -371,23 +371,21 @@ def light_shadow_rays(ctx, hit, light_index, rng):
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
 
-def _hit_arrays(geo, hit, buffers=None):
+def _hit_arrays(geo, hit):
     """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
     light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
     offset, the shadow-terminator cut-off and smooth-surface lift of smooth triangles, and
     the smooth normals before Normal Map / Bump nodes (Cycles' bump shadowing term).
-    buffers: a directlight.DirectLightBuffers whose zero rows stand for the offsets no
-    object has (None: fresh zeros)."""
+    An offset no object has is an empty array (sample_lights reads no rows)."""
     n = len(hit.p)
     c = np.ascontiguousarray
     gate = _lit_side_normals(geo, hit)
-    zero1, zero3 = (np.zeros(n), np.zeros((n, 3))) if buffers is None else buffers.zeros(n)
     # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
     shading_offset = (np.take(geo.terminator_shading, hit.prim)
                       if n and geo.object_terminator_shading.view(np.uint32).any()
-                      else zero1)
-    cutoff = zero1
-    lift = zero3
+                      else NO_ROWS)
+    cutoff = NO_ROWS
+    lift = NO_ROWS3
     # terminator_lift leaves cutoff and lift 0 unless an object's offset is > 0.
     if hit.bary is not None and n and (geo.object_terminator > 0).any():
         cutoff = np.empty(n)  # (every row written)
