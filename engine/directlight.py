@@ -230,7 +230,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     receive light (integrator._lit_side_normals), geometric normals; offset (N,) the
     origin offset along ng (rayoffset.origin_offset); shade_off (N,) Cycles' shading
     offset (0: none); cutoff (N,) shadow-terminator geometry offset of smooth triangles (0:
-    none) and lift (N,3) their smooth-surface lift (terminator_lift); nsm (N,3) the smooth
+    none) and lift (N,3) their smooth-surface lift (terminator_lift); shade_off (0,),
+    cutoff (0,) and lift (0,3): no hit has one (nothing to read); nsm (N,3) the smooth
     normal before Normal Map / Bump nodes (equal to ns where no node bent it).
     codes (L,), params (L,P): packed lights; m_*: emissive triangles, env_*: the world's
     environment map (packing.pack_lights).
@@ -251,9 +252,15 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     light's pdf times the choice's probability, -1 for a constant-colour world, which the
     glossy lobes leave to their continuation), bump (j,) Cycles' bump shadowing of the
     diffuse lobe (normalmap.bump_shadowing_term; light from below the
-    smooth surface, refused for every lobe, makes no entry); rays i < m_rays:
+    smooth surface, refused for every lobe, makes no entry); wdir (0,3) and lpdf (0,):
+    not written (the diffuse lobe alone reads neither); rays i < m_rays:
     o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
     n = p.shape[0]
+    # Optional inputs and outputs, left empty when no hit has them or nothing reads them:
+    # each is tens of bytes a hit of memory traffic, most of this kernel's time.
+    has_shade = shade_off.shape[0] > 0
+    has_terminator = cutoff.shape[0] > 0
+    want_dir = wdir.shape[0] > 0
     K = klight.shape[0]
     m_all = 0
     m_rays = 0
@@ -499,7 +506,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     at = _spread_attenuation((-w0) * q[DIR] + (-w1) * q[DIR + 1]
                                              + (-w2) * q[DIR + 2], q)
                     e0, e1, e2 = e0 * at, e1 * at, e2 * at
-            if shade_off[i] > 0:
+            if has_shade and shade_off[i] > 0:
                 sh = _shift_cos_in(w0 * s0 + w1 * s1 + w2 * s2, shade_off[i])
                 e0, e1, e2 = e0 * sh, e1 * sh, e2 * sh
             if pmf != 1.0:
@@ -517,7 +524,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
             j = m_all
             m_all += 1
             contrib[j, 0], contrib[j, 1], contrib[j, 2] = e0, e1, e2
-            wdir[j, 0], wdir[j, 1], wdir[j, 2] = w0, w1, w2
+            if want_dir:
+                wdir[j, 0], wdir[j, 1], wdir[j, 2] = w0, w1, w2
             if chosen and lp != np.inf:
                 # Picked by the tree: a light with a size takes MIS with the lobes'
                 # continuation, its pdf times the choice's probability at this point and
@@ -526,7 +534,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 # BVHLightSampler::PMF); a constant-colour world is left to the
                 # continuation (-1), as without the tree (integrator.light_modes).
                 lp = -1.0 if (code == C_WORLD and q[ENV_ON] == 0.0) else lp * pmf
-            lpdf[j] = lp
+            if want_dir:
+                lpdf[j] = lp
             bump[j] = bd
             row[j] = i
             kidx[j] = k
@@ -538,7 +547,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
             # the terminator, then off the facet along ng.
             h0, h1, h2 = ng[i, 0], ng[i, 1], ng[i, 2]
             o0, o1, o2 = p0, p1, p2
-            if cutoff[i] > 0:
+            if has_terminator and cutoff[i] > 0:
                 amt = _terminator_amount(cutoff[i], s0 * w0 + s1 * w1 + s2 * w2,
                                          h0 * w0 + h1 * w1 + h2 * w2)
                 if amt > 0:
@@ -642,16 +651,35 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
         L[i, 2] = L[i, 2] + contrib[j, 2] * f2 / s
 
 
+# sample_lights' optional arrays, empty: no per-hit row to read, no entry field to write.
+NO_ROWS = np.zeros(0)
+NO_ROWS3 = np.zeros((0, 3))
+_NO_DIR, _NO_PDF = NO_ROWS3, NO_ROWS
+
+
 # Entries (hits x light samples) per kernel call: bounds the compacted arrays' memory
 # (about 70 bytes an entry) however many light samples a hit takes.
 MAX_ENTRIES = 1 << 20
 
 
+def _row_ready(u):
+    """Whether a sample's numbers (N,) or None can be handed to sample_lights as a (1, N)
+    view (C-contiguous, writable float64: the kernel's compiled signature)."""
+    return u is None or (isinstance(u, np.ndarray) and u.dtype == np.float64 and u.ndim == 1
+                         and u.flags.c_contiguous and u.flags.writeable)
+
+
 class DirectLightBuffers:
-    """The compacted arrays one thread reuses between calls (grown as needed)."""
+    """The arrays one thread reuses between direct_light calls, grown as needed: the
+    compacted entries (ensure), the per-hit sums (sums) and the samples' random numbers
+    stacked (numbers). Fresh arrays of this size each call cost more in first-touch page faults
+    than the kernels' own work (docs/performance.md, "Ninth slice"). The sums a call
+    returns are valid until the next call with the same buffers."""
 
     def __init__(self):
         self.size = 0
+        self.n_hits = 0
+        self.n_numbers = 0
 
     def ensure(self, m):
         if m > self.size:
@@ -669,9 +697,28 @@ class DirectLightBuffers:
             self.bump = np.empty(m)
         return self
 
+    def sums(self, n):
+        """(n, 3) float64 zeros: a call's irradiance or radiance sums."""
+        if n > self.n_hits:
+            self.n_hits = n
+            self.E = np.empty((n, 3))
+        E = self.E[:n]
+        E.fill(0.0)
+        return E
+
+    def numbers(self, K, n, third):
+        """(U1, U2, SEL): unwritten (K, n) float64 arrays for K samples' random numbers
+        (SEL (K, 1) when no sample takes a third number: sample_lights reads none)."""
+        m = K * n
+        if m > self.n_numbers:
+            self.n_numbers = m
+            self.u = np.empty((3, m))
+        return (self.u[0, :m].reshape(K, n), self.u[1, :m].reshape(K, n),
+                self.u[2, :m].reshape(K, n) if third else np.zeros((K, 1)))
+
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
-                 bsdf=None):
+                 bsdf=None, buffers=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -682,14 +729,16 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     None (every surface blocks shadow rays).
     bsdf = (fd (N,3), prm (N,P), wo (N,3), mode (L,) int per light, sel (N, N_LOBES)):
     outgoing radiance instead, weighted by the BSDF (accumulate_bsdf; mode 3 with the tree).
+    buffers: the calling thread's DirectLightBuffers (E is then its sums, valid until
+    the next call with them; None: fresh arrays).
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     if tree is None:
         tree = (*empty_tree(), np.ones(len(codes), np.bool_))
-    E = np.zeros((n, 3))
     if n == 0 or not samples:
-        return E, 0
-    buf = DirectLightBuffers()
+        return np.zeros((n, 3)), 0
+    buf = buffers or DirectLightBuffers()
+    E = buf.sums(n)
     per_call = max(1, MAX_ENTRIES // n)
     rays = 0
     zeros = None
@@ -699,19 +748,26 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         klight = np.array([s[0] for s in group], np.int64)
         ktrace = np.array([s[1] for s in group], np.bool_)
         ksamples = np.array([float(s[2]) for s in group])
-        U1 = np.stack([s[3] for s in group])
-        U2 = np.stack([s[4] for s in group])
-        if any(s[5] is not None for s in group):
-            if zeros is None:
-                zeros = np.zeros(n)
-            SEL = np.stack([zeros if s[5] is None else s[5] for s in group])
+        third = any(s[5] is not None for s in group)
+        if K == 1 and all(_row_ready(u) for u in group[0][3:6]):
+            # One sample (one light, or the light tree's one pick): its numbers as they
+            # are, no copy.
+            U1, U2 = group[0][3][None], group[0][4][None]
+            SEL = group[0][5][None] if third else np.zeros((1, 1))
         else:
-            SEL = np.zeros((K, 1))
+            U1, U2, SEL = buf.numbers(K, n, third)
+            np.stack([s[3] for s in group], out=U1)
+            np.stack([s[4] for s in group], out=U2)
+            if third:
+                if zeros is None:
+                    zeros = np.zeros(n)
+                np.stack([zeros if s[5] is None else s[5] for s in group], out=SEL)
         buf.ensure(K * n)
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
-                                      buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf,
-                                      buf.bump)
+                                      buf.ray, buf.o32, buf.d32, buf.t32,
+                                      _NO_DIR if bsdf is None else buf.wdir,
+                                      _NO_PDF if bsdf is None else buf.lpdf, buf.bump)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.
@@ -722,6 +778,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                     buf.contrib, buf.ray, m_all, shadow_cls)
         if bsdf is None:
+            # (sample_lights wrote no directions or pdfs: _NO_DIR, _NO_PDF)
             accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all,
                        buf.bump)
         else:

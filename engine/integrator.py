@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .directlight import (ONE_BELOW, DirectLightBuffers, direct_light, sample_lights,
-                          terminator_lift)
+from .directlight import (NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuffers, direct_light,
+                          sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.point import sphere_light_pdf
@@ -71,7 +71,7 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
-                      skip_mesh_lights=False, bsdf=None) -> np.ndarray:
+                      skip_mesh_lights=False, bsdf=None, buffers=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
@@ -80,7 +80,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     continuation's lobe-choice probabilities): outgoing radiance instead, the diffuse f
     plus the rough reflective lobes' f, in full for delta lights and weighted by multiple
     importance sampling for the lights the continuation also finds (light_modes,
-    directlight.accumulate_bsdf)."""
+    directlight.accumulate_bsdf).
+    buffers: the calling thread's directlight.DirectLightBuffers (the result is then
+    their sums, valid until their next use; None: fresh arrays)."""
     n = len(hit.p)
     plan = ctx.plan
     chosen = selector_for(ctx, skip_mesh_lights)
@@ -116,9 +118,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                             MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA,
                             np.int64),
                     np.ascontiguousarray(sel, np.float64))
-        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW,
-                               n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
-                               bsdf=bsdf)
+        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
+                               SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
+                               bsdf=bsdf, buffers=buffers)
         counters.shadow_rays += rays
         return E
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
@@ -153,8 +155,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
                 np.ascontiguousarray(hit.wo, np.float64), light_modes(ctx),
                 np.ascontiguousarray(sel, np.float64))
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel, SHADOW, n,
-                           shadow=getattr(ctx, "shadow", None), bsdf=bsdf)
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
+                           SHADOW, n, shadow=getattr(ctx, "shadow", None), bsdf=bsdf,
+                           buffers=buffers)
     counters.shadow_rays += rays
     return E
 
@@ -372,18 +375,21 @@ def _hit_arrays(geo, hit):
     """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
     light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
     offset, the shadow-terminator cut-off and smooth-surface lift of smooth triangles, and
-    the smooth normals before Normal Map / Bump nodes (Cycles' bump shadowing term)."""
+    the smooth normals before Normal Map / Bump nodes (Cycles' bump shadowing term).
+    An offset no object has is an empty array (sample_lights reads no rows)."""
     n = len(hit.p)
     c = np.ascontiguousarray
     gate = _lit_side_normals(geo, hit)
     # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
     shading_offset = (np.take(geo.terminator_shading, hit.prim)
                       if n and geo.object_terminator_shading.view(np.uint32).any()
-                      else np.zeros(n))
-    cutoff = np.zeros(n)
-    lift = np.zeros((n, 3))
+                      else NO_ROWS)
+    cutoff = NO_ROWS
+    lift = NO_ROWS3
     # terminator_lift leaves cutoff and lift 0 unless an object's offset is > 0.
     if hit.bary is not None and n and (geo.object_terminator > 0).any():
+        cutoff = np.empty(n)  # (every row written)
+        lift = np.empty((n, 3))
         rows, (smooth, object_id, v0, e1, e2, normals) = geo.hit_tables(
             hit.prim, "smooth", "object_id", "v0", "e1", "e2", "corner_normals")
         terminator_lift(rows, c(hit.bary, np.float64), c(hit.ng, np.float64), smooth,
@@ -700,19 +706,22 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
-                  should_cancel=None, glossy=None, sel=None):
+                  should_cancel=None, glossy=None, sel=None, buffers=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
     term then holds both lobes' response (shadow rays weighted by the full BSDF, with
     multiple importance sampling against the continuation's choice sel (N, N_LOBES),
-    lobe_choice)."""
+    lobe_choice). buffers: the calling thread's directlight.DirectLightBuffers (direct is
+    then their sums, valid until their next use; None: fresh arrays)."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p)
     if glossy is not None and glossy.any():
-        direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel))
+        direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
+                                   buffers=buffers)
     else:
-        direct = f * direct_irradiance(ctx, hit, rng, counters, sampler)
+        direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers)
+        np.multiply(f, direct, out=direct)  # f x E, in place
     if not ctx.settings.photon_mapping:
         return direct, None, None  # (no caustic or indirect term to add)
     caustic = np.zeros_like(direct)
@@ -946,22 +955,31 @@ def _write_film(film, acc, spp, rh, rw):
 
 
 class BounceBuffers:
-    """The arrays camerakernels.shade_lobes writes per bounce (packed lobes, lobe choice),
-    kept by one thread between its bounces and chunks: fresh arrays of tens of MB per
-    bounce cost more in first-touch page faults than the kernel's own work. A bounce's
-    hits read them until its continuation is made, before the next bounce writes."""
+    """The arrays camerakernels.shade_lobes writes per bounce (packed lobes, lobe choice,
+    the rows to shade and their diffuse albedo) and the direct-light stage's
+    (directlight.DirectLightBuffers), kept by one thread between its bounces and chunks:
+    fresh arrays of tens of MB per bounce cost more in first-touch page faults than the
+    kernels' own work (docs/performance.md, "Ninth slice"). A bounce's hits read them
+    until its continuation is made, before the next bounce writes."""
 
     def __init__(self):
         self.size = 0
+        self.direct = DirectLightBuffers()
 
     def take(self, n):
-        """(prm (n, N_PACK), sel (n, N_LOBES), p (n, N_LOBES - 1)): unwritten rows."""
+        """(prm (n, N_PACK), sel (n, N_LOBES), p (n, N_LOBES - 1), q (n,), psum (n,),
+        glossy (n,) bool, rows (n,) int64, wd (n, 3)): unwritten rows."""
         if n > self.size:
             self.size = n
             self.prm = np.empty((n, pr.N_PACK))
             self.sel = np.empty((n, pr.N_LOBES))
             self.p = np.empty((n, pr.N_LOBES - 1))
-        return self.prm[:n], self.sel[:n], self.p[:n]
+            self.q, self.psum = np.empty(n), np.empty(n)
+            self.glossy = np.empty(n, np.bool_)
+            self.rows = np.empty(n, np.int64)
+            self.wd = np.empty((n, 3))
+        return (self.prm[:n], self.sel[:n], self.p[:n], self.q[:n], self.psum[:n],
+                self.glossy[:n], self.rows[:n], self.wd[:n])
 
 
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
@@ -1078,9 +1096,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # The lobes, the continuation's choice, the glossy rows and the rows to shade, in
         # one kernel (camerakernels.shade_lobes: rows nothing reads stay unwritten).
         n = len(prim)
-        prm, sel, p = buffers.take(n)
-        q, psum, glossy = np.empty(n), np.empty(n), np.empty(n, np.bool_)
-        dsel, wd = np.empty(n, np.int64), np.empty((n, 3))
+        prm, sel, p, q, psum, glossy, dsel, wd = buffers.take(n)
         per_hit = hit.params is not None
         nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
                          hit.params if per_hit else ctx.table.closure_params, per_hit,
@@ -1101,7 +1117,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             direct, caustic, indirect = shade_diffuse(
                 ctx, sub, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
-                sel=sel[dsel] if g.any() else None)
+                sel=sel[dsel] if g.any() else None, buffers=buffers.direct)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:

@@ -39,6 +39,9 @@ def test_grouping_of_light_samples_changes_no_bit(monkeypatch):
     monkeypatch.setattr(dl, "MAX_ENTRIES", 7000)  # two samples per kernel call
     grouped = direct_irradiance(ctx, hit, np.random.default_rng(4), Counters())
     assert np.array_equal(whole, grouped)
+    monkeypatch.setattr(dl, "MAX_ENTRIES", len(hit.p))  # one: its numbers without a copy
+    single = direct_irradiance(ctx, hit, np.random.default_rng(4), Counters())
+    assert np.array_equal(whole, single)
     assert np.all(np.isfinite(whole)) and whole[:, 0].mean() > 0
 
 
@@ -75,3 +78,76 @@ def test_sun_and_world_light_a_floor_as_their_formulas_say():
     hit = _floor_hits(ctx, 500)
     E = direct_irradiance(ctx, hit, np.random.default_rng(1), Counters())
     assert np.allclose(E, 2.0 + np.pi * 0.3, rtol=1e-12)
+
+
+def test_reused_buffers_change_no_bit():
+    """One thread's DirectLightBuffers reused across calls of different sizes (larger,
+    smaller, with and without a third random number per sample, with and without glossy
+    weights) give the bits of fresh arrays."""
+    from engine.closures import principled as pr
+    from engine.integrator import shade_diffuse
+
+    ctx = prepare_context(_box_with_every_kind(), RenderSettings(light_samples=3, workers=1,
+                                                                 photon_mapping=False))
+    buffers = dl.DirectLightBuffers()
+    for n, seed in ((2000, 1), (3000, 2), (500, 3), (2500, 4)):
+        hit = _floor_hits(ctx, n, seed)
+        fresh = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters())
+        reused = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters(),
+                                   buffers=buffers)
+        assert reused.base is buffers.E or reused is buffers.E
+        assert np.array_equal(fresh, reused)
+        # The diffuse stage's product f x E, in place in the buffers' sums.
+        wd = np.full((len(hit.p), 3), 0.7)
+        a = shade_diffuse(ctx, hit, wd, np.random.default_rng(seed), Counters())[0]
+        b = shade_diffuse(ctx, hit, wd, np.random.default_rng(seed), Counters(),
+                          buffers=buffers)[0]
+        assert np.array_equal(a, b) and a[:, 0].mean() > 0
+        # Radiance weighted by the BSDF (accumulate_bsdf): every light's glossy mode.
+        m = len(hit.p)
+        prm = np.zeros((m, pr.N_PACK))
+        sel = np.full((m, pr.N_LOBES), 0.1)
+        fd = np.full((m, 3), 0.2)
+        a = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters(),
+                              bsdf=(fd, prm, sel))
+        b = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters(),
+                              bsdf=(fd, prm, sel), buffers=buffers)
+        assert np.array_equal(a, b)
+
+
+def test_empty_offset_rows_and_unread_directions_change_no_bit():
+    """sample_lights with no shading / terminator offset rows (empty arrays) and no
+    direction or pdf output (the diffuse lobe alone) writes the same entries and shadow
+    rays as with zero rows and every output."""
+    from engine.integrator import _hit_arrays
+    from engine.lights.packing import pack_lights
+    from engine.lights.selection import empty_tree
+
+    ctx = prepare_context(_box_with_every_kind(), RenderSettings(workers=1))
+    hit = _floor_hits(ctx, 4000, 7)
+    arrays = list(_hit_arrays(ctx.geo, hit))
+    assert arrays[5].shape == (0,)  # no object has a shading offset
+    n = len(hit.p)
+    zeros = list(arrays)
+    zeros[5], zeros[6], zeros[7] = np.zeros(n), np.zeros(n), np.zeros((n, 3))
+    arrays[6], arrays[7] = dl.NO_ROWS, dl.NO_ROWS3  # nor a terminator offset
+    codes, params, mesh = pack_lights(ctx.lights)
+    L = len(codes)
+    rng = np.random.default_rng(3)
+    U1, U2, SEL = rng.random((3, L, n))
+    out = []
+    for hit_arrays, want_dir in ((zeros, True), (arrays, False)):
+        b = dl.DirectLightBuffers().ensure(L * n)
+        b.contrib[:] = b.o32[:] = b.d32[:] = b.t32[:] = b.bump[:] = np.nan
+        m = dl.sample_lights(*hit_arrays, codes, params, *mesh, *empty_tree(),
+                             np.ones(L, np.bool_), np.arange(L), np.ones(L, np.bool_),
+                             U1, U2, SEL, b.contrib, b.row, b.kidx, b.ray, b.o32, b.d32,
+                             b.t32, b.wdir if want_dir else dl.NO_ROWS3,
+                             b.lpdf if want_dir else dl.NO_ROWS, b.bump)
+        out.append((m, b))
+    (m0, a), (m1, b) = out
+    assert m0 == m1 and m0[1] > n  # every light lit some of the floor
+    j, r = m0
+    for name, k in (("contrib", j), ("row", j), ("kidx", j), ("ray", j), ("bump", j),
+                    ("o32", r), ("d32", r), ("t32", r)):
+        assert np.array_equal(getattr(a, name)[:k], getattr(b, name)[:k]), name
