@@ -47,8 +47,17 @@ def test_compact_bvh_gives_the_same_hits(monkeypatch):
     assert lib.rtcGetSceneFlags(ptr) == accel_mod.SCENE_FLAG_ROBUST | accel_mod.SCENE_FLAG_COMPACT
     a, b = default.intersect(o, d), compact.intersect(o, d)
     assert (a[1] >= 0).sum() > len(o) // 2
-    for x, y in zip(a, b):
-        np.testing.assert_array_equal(x, y)
+    # The same triangle for every ray and the same occlusion. Distances and barycentrics
+    # are equal to float32 rounding only: the compact layout keeps vertex indices and
+    # forms the edges during traversal, and Embree's two layouts round differently on
+    # some CPUs (bitwise on an AVX-512 machine; on an AMD EPYC without AVX-512, t differs
+    # by up to 1.3e-6 relative and u, v by up to 2.1e-5 on 24-52 % of the rays).
+    t_a, prim_a, u_a, v_a = a
+    t_b, prim_b, u_b, v_b = b
+    np.testing.assert_array_equal(prim_a, prim_b)
+    np.testing.assert_allclose(t_a, t_b, rtol=1e-5, atol=0)
+    np.testing.assert_allclose(u_a, u_b, rtol=0, atol=1e-4)
+    np.testing.assert_allclose(v_a, v_b, rtol=0, atol=1e-4)
     np.testing.assert_array_equal(default.occluded(o, d, tmax), compact.occluded(o, d, tmax))
 
 
