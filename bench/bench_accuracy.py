@@ -17,6 +17,7 @@ Figure 7 mirror-floor room, issue 14's Principled spheres) and writes:
 
     .venv/bin/python bench/bench_accuracy.py [--quick] [--ref-samples 4096]
                                              [--scenes figure7_mirror,...] [--no-scenes]
+                                             [--presets-only]
 """
 from __future__ import annotations
 
@@ -125,7 +126,16 @@ def main(argv=None):
                     help="scenes: only Cycles' curve and our default render (the summary)")
     ap.add_argument("--no-figure6", action="store_true",
                     help="keep the Figure 6 box rows of docs/accuracy_time.csv (no re-render)")
+    ap.add_argument("--presets-only", action="store_true",
+                    help="only the presets on the Figure 6 box: rewrite "
+                         "engine/presets_measured.json, no docs (after a preset changes)")
     args = ap.parse_args(argv)
+    if args.presets_only:
+        scene = cornell_box(args.width, args.height)
+        ref, _ = reference(scene, args.ref_samples)
+        rows = []
+        measure_presets(scene, ref, args, rows)
+        return rows
     if args.no_figure6:
         rows, ref_secs = read_rows(os.path.join(DOCS, "accuracy_time.csv")), None
         with open(os.path.join(DOCS, "accuracy_time.md")) as f:
@@ -203,18 +213,7 @@ def figure6(args):
                 "classic estimator, no final gather")
         strip.append((f"{photons:,} / r={r * PAPER_SCALE:.2f}", film.photon_hits, film.combined))
 
-    # Presets.
-    measured = {}
-    for name, overrides in PRESETS.items():
-        if args.quick and name == "reference":
-            continue
-        t0 = time.perf_counter()
-        film = render(scene, RenderSettings(**overrides))
-        secs = time.perf_counter() - t0
-        measure("preset", name, film.combined, secs)
-        measured[name] = dict(seconds=secs, relmse=rows[-1]["relmse"], flip=rows[-1]["flip"],
-                              scene=f"Figure 6 box {args.width}x{args.height}, 2 cores",
-                              width=args.width, height=args.height)
+    measured = measure_presets(scene, ref, args, rows, write=False)
 
     # Progressive: error after each pass of one run.
     def on_pass(film, info):
@@ -230,6 +229,27 @@ def figure6(args):
         with open(MEASURED_FILE, "w") as f:
             json.dump(measured, f, indent=1)
     return rows, ref_secs
+
+
+def measure_presets(scene, ref, args, rows, write=True):
+    """Render the Figure 6 box with every preset (wall seconds, 2 workers), append their
+    rows; {preset: numbers} for engine/presets_measured.json (written if `write` and the
+    run is not --quick)."""
+    measured = {}
+    for name, overrides in PRESETS.items():
+        if args.quick and name == "reference":
+            continue
+        t0 = time.perf_counter()
+        film = render(scene, RenderSettings(**overrides))
+        secs = time.perf_counter() - t0
+        rows.append(score(ref, "preset", name, film.combined, secs))
+        measured[name] = dict(seconds=secs, relmse=rows[-1]["relmse"], flip=rows[-1]["flip"],
+                              scene=f"Figure 6 box {args.width}x{args.height}, 2 cores",
+                              width=args.width, height=args.height)
+    if write and not args.quick:
+        with open(MEASURED_FILE, "w") as f:
+            json.dump(measured, f, indent=1)
+    return measured
 
 
 def reference_text(meta):
