@@ -654,7 +654,6 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
 # sample_lights' optional arrays, empty: no per-hit row to read, no entry field to write.
 NO_ROWS = np.zeros(0)
 NO_ROWS3 = np.zeros((0, 3))
-_NO_DIR, _NO_PDF = NO_ROWS3, NO_ROWS
 
 
 # Entries (hits x light samples) per kernel call: bounds the compacted arrays' memory
@@ -766,8 +765,8 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
                                       buf.ray, buf.o32, buf.d32, buf.t32,
-                                      _NO_DIR if bsdf is None else buf.wdir,
-                                      _NO_PDF if bsdf is None else buf.lpdf, buf.bump)
+                                      NO_ROWS3 if bsdf is None else buf.wdir,
+                                      NO_ROWS if bsdf is None else buf.lpdf, buf.bump)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.
@@ -778,7 +777,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                     buf.contrib, buf.ray, m_all, shadow_cls)
         if bsdf is None:
-            # (sample_lights wrote no directions or pdfs: _NO_DIR, _NO_PDF)
+            # (sample_lights wrote no directions or pdfs: NO_ROWS3, NO_ROWS)
             accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all,
                        buf.bump)
         else:

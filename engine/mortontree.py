@@ -172,32 +172,24 @@ def build(points, stop):
 
 
 @kernel
+def _gap2(lo, hi, q):
+    """Squared distance from q to the interval [lo, hi] of one axis (0 inside)."""
+    a = np.float64(lo) - q
+    if a > 0.0:
+        return a * a
+    b = q - np.float64(hi)
+    return b * b if b > 0.0 else 0.0
+
+
+@kernel
 def _box_d2(box, node, qx, qy, qz):
     """Squared distance from the query to node's box (0 inside; inf for an empty box).
     Rounding is monotonic, so it never exceeds the float64 squared distance knn computes
     to any point in the box: pruning by it loses no point."""
-    d = 0.0
-    a = np.float64(box[node, 0]) - qx
-    b = qx - np.float64(box[node, 3])
-    if a > 0.0:
-        d += a * a
-    elif b > 0.0:
-        d += b * b
-    a = np.float64(box[node, 1]) - qy
-    b = qy - np.float64(box[node, 4])
-    if a > 0.0:
-        d += a * a
-    elif b > 0.0:
-        d += b * b
-    a = np.float64(box[node, 2]) - qz
-    b = qz - np.float64(box[node, 5])
-    if a > 0.0:
-        d += a * a
-    elif b > 0.0:
-        d += b * b
     if box[node, 0] > box[node, 3]:  # empty (padding) leaf or subtree
         return np.inf
-    return d
+    return (_gap2(box[node, 0], box[node, 3], qx) + _gap2(box[node, 1], box[node, 4], qy)
+            + _gap2(box[node, 2], box[node, 5], qz))
 
 
 @kernel

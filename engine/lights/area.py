@@ -200,7 +200,6 @@ def area_aim_weights(centers, radii, pos, axis, spread) -> Aim:
     light inside a sphere: its whole front hemisphere, pi). Zero for a sphere wholly
     behind the emitting side (or outside the spread), which no photon of the light
     reaches; solid-angle weights (emission.aim_weights) if every sphere gets zero."""
-    from ..scene import spread_attenuation
     centers = np.asarray(centers, np.float64).reshape(-1, 3)
     radii = np.asarray(radii, np.float64)
     axis = np.asarray(axis, np.float64)
