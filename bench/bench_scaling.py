@@ -10,8 +10,7 @@ best of --repeat), except peak RSS, which is measured in a fresh child process p
 Sections: rays (engine vs raw embreex on the same rays), photons (per bounce), kdtree
 (build / gather per million queries), scaling (pixels, photons, triangles, lights),
 memory (peak RSS, bytes per photon), workers (1 vs 2, same image), camera_workers (where
-two workers lose in a default render's camera stage: per-thread timeline of the chunks),
-tail_pieces (the camera pass's tail in pieces against whole chunks: same image statistics).
+two workers lose in a default render's camera stage: per-thread timeline of the chunks).
 """
 from __future__ import annotations
 
@@ -436,31 +435,22 @@ def sec_camera_workers(a):
         ensure_compiled()
     except ImportError:
         pass
-    from engine import parallel
     rows, sums = [], []
-    plans = [("whole chunks", 1)] + ([("tail pieces", a.tail_split)] if a.tail_split > 1
-                                     else [])
-    split0 = parallel.TAIL_SPLIT
-    for name, (plan, split) in ((n, p) for n in a.blends for p in plans):
+    for name in a.blends:
         scene = _export(name)
         scene.width, scene.height = a.width, a.height
         best = {}
-        try:
-            parallel.TAIL_SPLIT = split
-            for _ in range(a.repeat):
-                for w in (1, 2):
-                    log = timeline_rows(f"{name}, {plan}", w,
-                                        camera_timeline(scene, RenderSettings(workers=w)))
-                    if w not in best or (log[1]["chunk_runqueue_s"]
-                                         < best[w][1]["chunk_runqueue_s"]):
-                        best[w] = log
-        finally:
-            parallel.TAIL_SPLIT = split0
+        for _ in range(a.repeat):
+            for w in (1, 2):
+                log = timeline_rows(name, w, camera_timeline(scene, RenderSettings(workers=w)))
+                if w not in best or (log[1]["chunk_runqueue_s"]
+                                     < best[w][1]["chunk_runqueue_s"]):
+                    best[w] = log
         for w in (1, 2):
             rows += best[w][0]
             sums.append(best[w][1])
         one, two = best[1][1], best[2][1]
-        sums.append(dict(blend=f"{name}, {plan}", workers="1 / 2",
+        sums.append(dict(blend=name, workers="1 / 2",
                          camera_wall_s=one["camera_wall_s"] / two["camera_wall_s"],
                          critical_s=one["critical_s"] / two["critical_s"],
                          chunk_run_s=one["chunk_run_s"] / two["chunk_run_s"],
@@ -475,58 +465,9 @@ def sec_camera_workers(a):
           "rows 1 / 2: ratios for wall, critical and run, 2w - 1w for the rest)", sums)
 
 
-def sec_tail_pieces(a):
-    """The camera pass's tail in pieces (parallel.chunk_bounds with TAIL_SPLIT =
-    --tail-split) against whole chunks (the default), over --seeds seeds, Figure 6 blend, default settings but --spp: the
-    rows rendered by the pieces, their mean radiance per seed (paired difference) and the
-    noise (per-pixel standard deviation over the seeds); the rows above must be the same
-    bits."""
-    from engine import parallel
-    scene = _export(a.blends[0])
-    scene.width, scene.height = a.width, a.height
-    spp = a.spp
-    total = a.width * a.height * spp
-    limit = RenderSettings().chunk_size
-    split0 = parallel.TAIL_SPLIT
-    plans = {"whole chunks": 1, "tail pieces": max(2, a.tail_split)}
-    try:
-        parallel.TAIL_SPLIT = plans["tail pieces"]
-        pieces = parallel.chunk_bounds(total, limit)
-        parallel.TAIL_SPLIT = 1
-        whole = parallel.chunk_bounds(total, limit)
-        split = next((b[0] for b, w in zip(pieces, whole) if b != w), total)
-        row = split // spp // a.width  # first row a piece renders samples of
-        imgs = {label: [] for label in plans}
-        for seed in range(1, a.seeds + 1):
-            for label, k in plans.items():
-                parallel.TAIL_SPLIT = k
-                f = render(scene, RenderSettings(spp=spp, seed=seed, workers=a.workers))
-                imgs[label].append(f.combined.astype(np.float64))
-    finally:
-        parallel.TAIL_SPLIT = split0
-    same_above = all(np.array_equal(x[:row], y[:row])
-                     for x, y in zip(imgs["whole chunks"], imgs["tail pieces"]))
-    rows = []
-    means = {k: np.array([x[row:].mean() for x in v]) for k, v in imgs.items()}
-    diff = means["tail pieces"] - means["whole chunks"]
-    for label, v in imgs.items():
-        stack = np.stack([x[row:] for x in v])
-        rows.append(dict(plan=label, rows=f"{row}-{a.height - 1}", seeds=len(v),
-                         mean=f"{means[label].mean():.5f}",
-                         mean_se=f"{means[label].std(ddof=1) / np.sqrt(len(v)):.5f}",
-                         pixel_noise=f"{stack.std(axis=0, ddof=1).mean():.5f}",
-                         full_image_mean=f"{np.mean([x.mean() for x in v]):.5f}"))
-    rows.append(dict(plan="pieces - whole, paired by seed", rows="", seeds=len(diff),
-                     mean=f"{diff.mean():.5f}",
-                     mean_se=f"{diff.std(ddof=1) / np.sqrt(len(diff)):.5f}",
-                     pixel_noise="", full_image_mean=""))
-    table(f"camera tail in pieces vs whole chunks ({a.blends[0]}, {a.width}x{a.height}, "
-          f"{spp} spp; rows above {row}: {'same bits' if same_above else 'DIFFER'})", rows)
-
-
 SECTIONS = dict(rays=sec_rays, photons=sec_photons, kdtree=sec_kdtree, scaling=sec_scaling,
                 memory=sec_memory, workers=sec_workers,
-                camera_workers=sec_camera_workers, tail_pieces=sec_tail_pieces)
+                camera_workers=sec_camera_workers)
 
 
 def main(argv=None):
@@ -541,10 +482,6 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=None, help="best of N (default 3, quick 1)")
     ap.add_argument("--blends", default="figure6_box,figure7_blocker",
                     help="camera_workers: example blends (exported through the add-on)")
-    ap.add_argument("--seeds", type=int, default=6, help="tail_pieces: seeds per plan")
-    ap.add_argument("--tail-split", type=int, default=4,
-                    help="camera_workers (also whole chunks if > 1), tail_pieces: the tail "
-                         "pieces' parallel.TAIL_SPLIT")
     ap.add_argument("--json", help="write all tables as JSON")
     a = ap.parse_args(argv)
     q = a.quick

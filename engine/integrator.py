@@ -32,7 +32,7 @@ from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, fi
 from .camerarays import camera_rays_kernel, chunk_samples
 from .gatherkernels import add_gathered, diffuse_lookups, keep_hits, lean_diffuse, lean_materials
 from .closures import principled as pr
-from .parallel import Cancelled, chunk_bounds, ordered_map
+from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
@@ -855,9 +855,9 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
     acc = Accumulator(npix)
     counters = Counters()
     # Chunk ci owns its random streams: the bounds depend on the image and the settings
-    # only (the pass's tail in smaller pieces, parallel.chunk_bounds).
-    jobs = list(enumerate(chunk_bounds(total, s.chunk_size)))
-    chunk = max((b - a for _, (a, b) in jobs), default=1)
+    # only (parallel.chunk_length), never on the thread count.
+    chunk = chunk_length(total, s.chunk_size)
+    jobs = [(ci, (a, min(total, a + chunk))) for ci, a in enumerate(range(0, total, chunk))]
     threads = s.threads
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
@@ -878,12 +878,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
         return _render_chunk(wctx, region, ci, start, end, stop, dims, own)
 
     try:
-        # In flight by samples (a tail piece is a fraction of a chunk): a worker done with
-        # the tail's short pieces takes the next one instead of waiting for a whole chunk
-        # before them to be merged.
-        for part, part_counters, end in ordered_map(
-                job, jobs, threads, should_cancel, on_tail,
-                weight=lambda item: (item[1][1] - item[1][0]) / chunk):
+        for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel, on_tail):
             acc.merge(part)
             counters.add(part_counters)
             if progress is not None:

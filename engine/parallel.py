@@ -174,45 +174,13 @@ def chunk_length(total: int, limit: int) -> int:
     return max(1, min(limit, max(MIN_CHUNK, -(-total // MIN_CHUNKS))))
 
 
-# TAIL_SPLIT > 1: the last TAIL_CHUNKS chunk lengths of a long pass run as pieces of
-# 1 / TAIL_SPLIT of a chunk. With whole chunks the worker that finishes first waits for
-# the last chunk (at 160x120, 128 spp, 18.75 chunks: 2 workers ran 10 and 9); pieces
-# leave the workers at most a piece apart, for any thread count. Off (1) by default:
-# pieces give the tail's rows new random streams (new images), and their gain (about a
-# quarter of a chunk, minus a piece's fixed per-chunk glue) was not measurable on a
-# loaded machine (docs/performance.md, "Ninth slice: scaling"); bench_scaling.py
-# --only camera_workers --tail-split 4 measures it against whole chunks.
-TAIL_CHUNKS = 2
-TAIL_SPLIT = 1
-
-
-def chunk_bounds(total: int, limit: int) -> list:
-    """[(start, end)] of the chunks of a pass of `total` items, at most `limit` each: chunks
-    of chunk_length(total, limit), except that with TAIL_SPLIT > 1 a pass cut into more
-    than MIN_CHUNKS chunks ends in pieces of a TAIL_SPLIT-th of a chunk (at least
-    MIN_CHUNK items) over its last TAIL_CHUNKS to TAIL_CHUNKS + 1 chunk lengths, so the
-    workers finish together. The chunks before the tail are those of chunk_length. Like chunk_length it depends on the
-    job and the settings only, never on the number of threads."""
-    chunk = chunk_length(total, limit)
-    piece = max(MIN_CHUNK, chunk // TAIL_SPLIT)
-    split = (total - TAIL_CHUNKS * chunk) // chunk * chunk  # whole chunks before the tail
-    if -(-total // chunk) <= MIN_CHUNKS or piece >= chunk or split <= 0:
-        return [(a, min(total, a + chunk)) for a in range(0, total, chunk)]
-    return ([(a, a + chunk) for a in range(0, split, chunk)]
-            + [(a, min(total, a + piece)) for a in range(split, total, piece)])
-
-
-def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=None,
-                weight=None):
+def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=None):
     """Yield job(item, stop) for each item, in order. on_all_started() is called on the
     calling thread once the last item has been handed to a worker (the pass's tail,
     where workers fall idle one by one; not called inline or when stopped early). stop() tells a running job that the
     caller cancelled (it should raise Cancelled); it is a StopFlag whose array compiled
     kernels poll (stop_array), linked to should_cancel's flag if that is one. At most 2 x threads chunks are in
-    flight (one with threads <= 1), which bounds memory; weight(item) (default 1) counts
-    an item as that fraction of a chunk (the camera pass's tail pieces: several pieces
-    in flight for one chunk, so a worker done with its pieces takes the next one instead
-    of waiting for a whole chunk before them to be handed back). Raises Cancelled when
+    flight (one with threads <= 1), which bounds memory. Raises Cancelled when
     should_cancel() returns True. Without should_cancel and with threads <= 1 the jobs
     run inline; with should_cancel they run on worker threads while this thread polls it
     every POLL_SECONDS, so a cancel is seen within that even when a job's step between
@@ -226,24 +194,21 @@ def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=Non
         return
     threads = max(1, threads)
     in_flight = 2 * threads if threads > 1 else 1
-    cost = weight or (lambda item: 1)
     event = StopFlag()
     parent = stop_flag_of(should_cancel)
     if parent is not None:
         parent.link(event)
     owner = event.root if parent is not None else None
     run = _with_flag(job, event)
-    pending = deque()  # (future, weight) in item order
+    pending = deque()
     todo = iter(items)
     pool = ThreadPoolExecutor(threads)
     try:
         left = len(items)
-        load = 0  # the weight in flight
         for item in todo:
-            pending.append((pool.submit(run, item, event), cost(item)))
-            load += pending[-1][1]
+            pending.append(pool.submit(run, item, event))
             left -= 1
-            if load >= in_flight:
+            if len(pending) >= in_flight:
                 break
         if left == 0 and on_all_started is not None:
             on_all_started()
@@ -252,19 +217,18 @@ def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=Non
             # handed over: a finished chunk is never dropped (as inline).
             if should_cancel is not None and should_cancel():
                 raise Cancelled()
-            head = pending[0][0]
+            head = pending[0]
             while not wait([head], timeout=POLL_SECONDS).done:
                 if should_cancel is not None and should_cancel():
                     raise Cancelled()
-            load -= pending.popleft()[1]
+            pending.popleft()
             result = head.result()  # re-raises a worker's exception here
-            while load < in_flight and left:
-                item = next(todo)
-                pending.append((pool.submit(run, item, event), cost(item)))
-                load += pending[-1][1]
+            for item in todo:
+                pending.append(pool.submit(run, item, event))
                 left -= 1
                 if left == 0 and on_all_started is not None:
                     on_all_started()
+                break
             yield result
     finally:
         # Cancelled, an error, or the consumer stopped early: let running chunks stop
@@ -274,7 +238,7 @@ def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=Non
         event.set()
         if parent is not None:
             parent.unlink(event)
-        for f, _ in pending:
+        for f in pending:
             f.cancel()
         _let_drain(pool, owner)
 
