@@ -25,7 +25,8 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from .bsdf import GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, surface_hit
+from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
+                   surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
                             pick_lobes, shade_lobes)
@@ -1006,6 +1007,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     emitters = bool(ctx.table.emission.any())
     want_glossy = bool(np.any(modes != MODE_CONTINUATION))
     table_alpha = np.ascontiguousarray(ctx.table.alpha, np.float64)
+    plain = plain_surfaces(ctx.table)  # no per-hit nodes: surface data and lobes fused
     c = np.ascontiguousarray
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
@@ -1081,7 +1083,24 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
         if sampler is not None and bounce == 0 and kept is not None:
             sampler = sampler.subset(kept)
-        hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+        n = len(prim)
+        # The lobes, the continuation's choice, the glossy rows and the rows to shade
+        # (camerakernels.shade_lobes: rows nothing reads stay unwritten); without per-hit
+        # nodes with the surface data in the same kernel (bsdf.surface_hit_lobes).
+        bufs = buffers.take(n)
+        prm, sel, p, q, psum, glossy, dsel, wd = bufs
+        if plain:
+            hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
+                                        bufs)
+        else:
+            hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+            per_hit = hit.params is not None
+            nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
+                             hit.params if per_hit else ctx.table.closure_params, per_hit,
+                             hit.base, hit.front, table_alpha,
+                             _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64),
+                             tp, want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
+            hit.prm = prm
         if bounce == 0:
             acc.add_first_hits(pix, dot(hit.p - cam_pos, forward), hit.ns, hit.front)
         if emitters:
@@ -1093,17 +1112,6 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         org_p if kept is None else org_p[kept],
                         org_ns if kept is None else org_ns[kept])[:, None]
                 acc.add(target, pix, Le, tp)
-        # The lobes, the continuation's choice, the glossy rows and the rows to shade, in
-        # one kernel (camerakernels.shade_lobes: rows nothing reads stay unwritten).
-        n = len(prim)
-        prm, sel, p, q, psum, glossy, dsel, wd = buffers.take(n)
-        per_hit = hit.params is not None
-        nd = shade_lobes(hit.ns, hit.ng, hit.wo, hit.mat,
-                         hit.params if per_hit else ctx.table.closure_params, per_hit,
-                         hit.base, hit.front, table_alpha,
-                         _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64), tp,
-                         want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
-        hit.prm = prm
         choice = (sel, q, p, psum)
         if nd:
             dsel, wd = dsel[:nd], wd[:nd]
