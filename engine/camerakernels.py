@@ -521,6 +521,17 @@ def film_first_hits(lo, pix, depth, ns, front, depth_sum, depth_n, normal):
 
 
 @kernel
+def view_depth(p, cam_pos, forward, depth):
+    """depth (N,) = (p - cam_pos) . forward for hit points p (N,3), camera position and
+    unit forward axis (3,): the depth pass, summed as sampling.dot's np.einsum sums three
+    terms, (x + z) + y (the same bits), without the (N,3) difference array."""
+    c0, c1, c2 = cam_pos[0], cam_pos[1], cam_pos[2]
+    f0, f1, f2 = forward[0], forward[1], forward[2]
+    for i in range(p.shape[0]):
+        depth[i] = ((p[i, 0] - c0) * f0 + (p[i, 2] - c2) * f2) + (p[i, 1] - c1) * f1
+
+
+@kernel
 def choose_lobes(albedo, tp, sel, q, p, psum):
     """The continuation's lobe choice from the closures' lobe albedos albedo
     (N, N_LOBES, 3) (column 0 = diffuse, the rest SPEC_LOBES' order) and the path
@@ -719,6 +730,7 @@ def _warm_up():
         hit_geometry(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
                      np.ones((1, 3)), p, ng, ns, front, mat, base, off, np.empty((1, 2)))
     face_shading_normals(ns, ng, front, d, np.zeros(1, np.bool_))
+    view_depth(p, np.zeros(3), np.ones(3), np.empty(1))
     for cn in (np.zeros((0, 3, 3), np.float32), np.ones((1, 3, 3), np.float32)):
         surface_lobes(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
                       np.ones((1, 3)), np.full((1, pr.N_MAT), 0.5), np.ones(1),

@@ -209,3 +209,20 @@ def test_surface_hit_lobes_equals_surface_hit_then_shade_lobes(order, want_gloss
     if glossy_w.any():
         assert np.array_equal(sel_g, sel_w) and not np.isnan(prm_g).any()
     assert glossy_w.any() == want_glossy
+
+
+@pytest.mark.parametrize("n, start", [(1, 0), (7, 1), (4099, 3), (100000, 0)])
+def test_view_depth_equals_the_einsum_dot(n, start):
+    """camerakernels.view_depth against sampling.dot(p - cam_pos, forward) (np.einsum),
+    bitwise, on unaligned slices and sizes around numpy's SIMD blocks."""
+    from engine.camerakernels import view_depth
+    from engine.sampling import dot
+    rng = np.random.default_rng(n)
+    p = (rng.normal(size=(n + start, 3)) * np.array([3.0, 1e-3, 50.0]))[start:]
+    p = np.ascontiguousarray(p)
+    cam = rng.normal(size=3)
+    forward = rng.normal(size=3)
+    forward /= np.linalg.norm(forward)
+    depth = np.empty(n)
+    view_depth(p, cam, forward, depth)
+    assert np.array_equal(depth, dot(p - cam, forward))
