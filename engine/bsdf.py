@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camerakernels import face_shading_normals, hit_closures, hit_geometry
+from .camerakernels import face_shading_normals, hit_closures, hit_geometry, surface_lobes
 from .closures import principled as pr
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
@@ -187,6 +187,50 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
 # Emission rows where no material emits: one zero row seen N times (nothing to gather).
 _NO_LIGHT = np.zeros(3)
 _NO_LIGHT.flags.writeable = False
+
+
+def plain_surfaces(table: MaterialTable) -> bool:
+    """Whether no material has per-hit nodes (normal map, colour texture, alpha texture,
+    texture-driven scalar input) between the hit's geometry and its lobes: then
+    surface_hit_lobes computes a bounce's surface data and lobes in one kernel."""
+    return not any(node is not None
+                   for nodes in (table.normal_maps, table.textures, table.alpha_textures,
+                                 getattr(table, "scalar_textures", None))
+                   for node in (nodes or ()))
+
+
+def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, want_glossy,
+                      out) -> tuple[SurfaceHit, int]:
+    """surface_hit and camerakernels.shade_lobes on N hits in one kernel
+    (camerakernels.surface_lobes), for tables with plain_surfaces: (the SurfaceHit, with
+    prm set to out's packed lobes, K the number of rows to shade). tp (N,3) throughputs,
+    want_glossy as shade_lobes; out = (prm, sel, p, q, psum, glossy, rows, wd) the
+    arrays shade_lobes writes (integrator.BounceBuffers.take(N)), written as it writes
+    them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py)."""
+    n = len(prim)
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    d = np.ascontiguousarray(d, dtype=np.float64)
+    p, ng, ns, base, wo = (np.empty((n, 3)) for _ in range(5))
+    front = np.empty(n, np.bool_)
+    mat = np.empty(n, geo.material.dtype)
+    offset = np.empty(n)
+    bary = np.empty((n, 2))
+    prm, sel, pw, q, psum, glossy, rows, wd = out
+    idx, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
+    k = surface_lobes(idx, u, v, d, *tabs, table.base_color, table.closure_params,
+                      np.ascontiguousarray(table.alpha, np.float64),
+                      np.ascontiguousarray(tp, np.float64), bool(want_glossy), p, ng, ns, wo,
+                      front, mat, base, offset, bary, prm, sel, q, pw, psum, glossy, rows, wd)
+    floor = geo.instance_offset_floor(prim, p, ng)  # shared instances: object-space rounding
+    if floor is not None:
+        np.maximum(offset, floor, out=offset)
+    if table.emission.any():
+        emission = hit_emission(table, ShadingGeometry(geo, ns, wo, ~front), mat, prim, u, v)
+    else:
+        emission = np.broadcast_to(_NO_LIGHT, (n, 3))
+    return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
+                      offset=offset, bary=bary, prm=prm, emission=emission), k
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):

@@ -25,6 +25,9 @@ two Embree calls for every hit of a camera, gather or specular ray.
 - `shade_lobes` (eighth slice): one camera bounce's closures, lobe choice, glossy rows and
   the rows to shade in one call, writing only what the bounce reads (a diffuse-only
   material skips the closures' set-up and its packed row; no (N, N_LOBES, 3) albedos).
+- `surface_lobes` (tenth slice): `hit_geometry`, `face_shading_normals` and `shade_lobes`
+  in one call, block by block (a block's surface data is still in cache for its lobes),
+  for scenes without per-hit material nodes.
 
 Every kernel computes the same floating-point operations in the same order as the numpy
 stage it replaced, so images are bitwise unchanged (tests/test_camera_kernels.py and
@@ -339,22 +342,84 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
             wd[k, 0], wd[k, 1], wd[k, 2] = wi[0, 0], wi[0, 1], wi[0, 2]
             k += 1
     if any_glossy:
-        # The direct stage reads every shaded row's prm and sel: the diffuse-only rows'
-        # glossy normals (the rest of their packed row is 0) and their zero choice.
-        j = 0
-        for i in range(n):
-            if not psum[i] > 0:
-                for jj in range(pr.N_LOBES):
-                    sel[i, jj] = 0.0
-            if j < nc and at[j] == i:
-                j += 1
-                continue
-            for c in range(pr.P_GN):
-                prm[i, c] = 0.0
-            raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
-            prm[i, pr.P_GN] = g0
-            prm[i, pr.P_GN + 1] = g1
-            prm[i, pr.P_GN + 2] = g2
+        _fill_unread_rows(ns, ng, wo, mat, params, per_hit, psum, sel, prm)
+    return k
+
+
+@kernel
+def _fill_unread_rows(ns, ng, wo, mat, params, per_hit, psum, sel, prm):
+    """shade_lobes' rows left unwritten, written as the direct stage reads them when some
+    row of the batch is glossy (it then reads every shaded row's prm and sel): the
+    diffuse-only rows' glossy normals (the rest of their packed row is 0) and the zero
+    choice of rows with psum <= 0."""
+    for i in range(ns.shape[0]):
+        if not psum[i] > 0:
+            for jj in range(pr.N_LOBES):
+                sel[i, jj] = 0.0
+        if not _diffuse_only(params, i if per_hit else mat[i]):
+            continue  # (set up: its packed row is written)
+        for c in range(pr.P_GN):
+            prm[i, c] = 0.0
+        raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
+        prm[i, pr.P_GN] = g0
+        prm[i, pr.P_GN + 1] = g1
+        prm[i, pr.P_GN + 2] = g2
+
+
+# Hits per block of surface_lobes: the block's surface data (~200 bytes a hit) stays in
+# the core's cache between the stages it runs on it.
+SURFACE_BLOCK = 512
+
+
+@kernel
+def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color, params,
+                  table_alpha, tp, want_glossy, p, ng, ns, wo, front, mat, base, offset, bary,
+                  prm, sel, q, pw, psum, glossy, rows, wd):
+    """hit_geometry, the shading normals turned to the ray's side (face_shading_normals,
+    no row exempt), wo = -d and shade_lobes over N hits in one call, block by block
+    (SURFACE_BLOCK hits: each block's surface data is still in cache when its lobes are
+    set up), for a scene whose materials have no per-hit nodes (no normal map, texture,
+    alpha texture or texture-driven scalar input: bsdf.plain_surfaces).
+
+    Inputs as hit_geometry and shade_lobes take them (params (M, N_MAT) the materials'
+    rows, table_alpha (M,)); out: hit_geometry's p, ng, ns, front, mat, base, offset, bary,
+    wo (N,3), and shade_lobes' prm, sel, q, pw (its p), psum, glossy, rows, wd with the
+    same rows written (when some row of the batch is glossy, every block's unread rows
+    are filled in as shade_lobes fills them). Returns K, the number of shaded rows.
+    The same kernels on slices: the same bits (tests/test_fused_camera.py)."""
+    n = prim.shape[0]
+    none_exempt = np.zeros(SURFACE_BLOCK, np.bool_)
+    no_alpha = np.zeros(0)
+    nb = (n + SURFACE_BLOCK - 1) // SURFACE_BLOCK
+    block_glossy = np.zeros(nb, np.bool_)
+    k = 0
+    for bi in range(nb):
+        a = bi * SURFACE_BLOCK
+        b = min(a + SURFACE_BLOCK, n)
+        hit_geometry(prim[a:b], u[a:b], v[a:b], d[a:b], v0, e1, e2, corner_normals, material,
+                     base_color, p[a:b], ng[a:b], ns[a:b], front[a:b], mat[a:b], base[a:b],
+                     offset[a:b], bary[a:b])
+        for i in range(a, b):
+            wo[i, 0], wo[i, 1], wo[i, 2] = -d[i, 0], -d[i, 1], -d[i, 2]
+        face_shading_normals(ns[a:b], ng[a:b], front[a:b], d[a:b], none_exempt[:b - a])
+        kb = shade_lobes(ns[a:b], ng[a:b], wo[a:b], mat[a:b], params, False, base[a:b],
+                         front[a:b], table_alpha, no_alpha, tp[a:b], want_glossy, prm[a:b],
+                         sel[a:b], q[a:b], pw[a:b], psum[a:b], glossy[a:b], rows[k:], wd[k:])
+        for j in range(k, k + kb):
+            rows[j] += a
+        k += kb
+        for i in range(a, b):
+            if glossy[i]:
+                block_glossy[bi] = True
+                break
+    if block_glossy.any():
+        # shade_lobes filled the glossy blocks' unread rows; the other blocks' too.
+        for bi in range(nb):
+            if not block_glossy[bi]:
+                a = bi * SURFACE_BLOCK
+                b = min(a + SURFACE_BLOCK, n)
+                _fill_unread_rows(ns[a:b], ng[a:b], wo[a:b], mat[a:b], params, False,
+                                  psum[a:b], sel[a:b], prm[a:b])
     return k
 
 
@@ -453,6 +518,17 @@ def film_first_hits(lo, pix, depth, ns, front, depth_sum, depth_n, normal):
         normal[b, 0] += sums[b, 2]
         normal[b, 1] += sums[b, 3]
         normal[b, 2] += sums[b, 4]
+
+
+@kernel
+def view_depth(p, cam_pos, forward, depth):
+    """depth (N,) = (p - cam_pos) . forward for hit points p (N,3), camera position and
+    unit forward axis (3,): the depth pass, summed as sampling.dot's np.einsum sums three
+    terms, (x + z) + y (the same bits), without the (N,3) difference array."""
+    c0, c1, c2 = cam_pos[0], cam_pos[1], cam_pos[2]
+    f0, f1, f2 = forward[0], forward[1], forward[2]
+    for i in range(p.shape[0]):
+        depth[i] = ((p[i, 0] - c0) * f0 + (p[i, 2] - c2) * f2) + (p[i, 1] - c1) * f1
 
 
 @kernel
@@ -654,6 +730,15 @@ def _warm_up():
         hit_geometry(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
                      np.ones((1, 3)), p, ng, ns, front, mat, base, off, np.empty((1, 2)))
     face_shading_normals(ns, ng, front, d, np.zeros(1, np.bool_))
+    view_depth(p, np.zeros(3), np.ones(3), np.empty(1))
+    for cn in (np.zeros((0, 3, 3), np.float32), np.ones((1, 3, 3), np.float32)):
+        surface_lobes(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
+                      np.ones((1, 3)), np.full((1, pr.N_MAT), 0.5), np.ones(1),
+                      np.ones((1, 3)), True, p, ng, ns, np.empty((1, 3)), front, mat, base,
+                      off, np.empty((1, 2)), np.empty((1, pr.N_PACK)),
+                      np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
+                      np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
+                      np.empty((1, 3)))
     for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
         hit_closures(ns, ng, -d, mat, np.zeros((1, pr.N_MAT)), per_hit, base, front,
                      np.ones(1), hit_alpha, np.empty((1, pr.N_PACK)),

@@ -146,3 +146,83 @@ def test_chunk_samples_equals_the_numpy_stage(start, n, spp, rw, x0, y0):
             (cell // m + jitter[1]) / m)
     for g, w in zip(out, want):
         assert g.dtype == w.dtype and np.array_equal(g, w)
+
+
+def _plain_rays(ctx, n, seed):
+    """n rays from inside the box in every direction, and their hits (prim, u, v, d)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = ctx.geo.bounds
+    o = lo + (hi - lo) * (0.1 + 0.8 * rng.random((n, 3)))
+    d = uniform_sphere(rng.random(n), rng.random(n))
+    t, prim, u, v = ctx.accel.intersect(o, d)
+    k = prim >= 0
+    return prim[k], u[k], v[k], d[k]
+
+
+@pytest.mark.parametrize("order", ["as_traced", "glossy_last"])
+@pytest.mark.parametrize("want_glossy", [True, False])
+def test_surface_hit_lobes_equals_surface_hit_then_shade_lobes(order, want_glossy):
+    """bsdf.surface_hit_lobes (camerakernels.surface_lobes: hit_geometry, the turned
+    shading normals and shade_lobes block by block) against surface_hit then shade_lobes,
+    bitwise: every SurfaceHit field, and shade_lobes' outputs on the rows it writes.
+    glossy_last: the diffuse-only hits first, so whole blocks have no glossy row and the
+    unread rows of those blocks are filled in afterwards."""
+    from engine.bsdf import plain_surfaces, surface_hit_lobes
+    from engine.camerakernels import SURFACE_BLOCK
+    ctx = prepare_context(_mixed_box(), RenderSettings(workers=1))
+    assert plain_surfaces(ctx.table)
+    prim, u, v, d = _plain_rays(ctx, 30000, 11)
+    if order == "glossy_last":
+        plain = ~np.any(np.take(ctx.table.closure_params, np.take(ctx.geo.material, prim),
+                                axis=0)[:, [pr.M_SHEEN_W, pr.M_COAT_W, pr.M_METALLIC,
+                                            pr.M_TRANS, pr.M_SPEC]] > 0.0, axis=1)
+        k = np.argsort(~plain, kind="stable")
+        prim, u, v, d = prim[k], u[k], v[k], d[k]
+        assert plain.sum() > 3 * SURFACE_BLOCK
+    n = len(prim)
+    assert n > 8 * SURFACE_BLOCK
+    rng = np.random.default_rng(5)
+    tp = np.ascontiguousarray(10.0 ** (-4.0 * rng.random((n, 3))))
+    hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+    want = _fused(ctx.table, hit, tp, want_glossy)
+    out = (np.full((n, pr.N_PACK), np.nan), np.full((n, pr.N_LOBES), np.nan),
+           np.full((n, pr.N_LOBES - 1), np.nan), np.full(n, np.nan), np.full(n, np.nan),
+           np.empty(n, np.bool_), np.empty(n, np.int64), np.empty((n, 3)))
+    got_hit, k = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy, out)
+    for name in ("p", "ng", "ns", "wo", "front", "mat", "base", "prim", "offset", "bary",
+                 "emission"):
+        a, b = getattr(got_hit, name), getattr(hit, name)
+        assert a.dtype == b.dtype and np.array_equal(a, b), name
+    assert got_hit.alpha is None and got_hit.params is None and got_hit.n_smooth is None
+    prm_w, sel_w, q_w, p_w, psum_w, glossy_w, rows_w, wd_w = want
+    prm_g, sel_g, p_g, q_g, psum_g, glossy_g, rows_g, wd_g = out
+    assert got_hit.prm is prm_g
+    assert k == len(rows_w)
+    assert np.array_equal(rows_g[:k], rows_w) and np.array_equal(wd_g[:k], wd_w)
+    assert np.array_equal(q_g, q_w) and np.array_equal(psum_g, psum_w)
+    assert np.array_equal(glossy_g, glossy_w)
+    pick = psum_w > 0
+    assert np.array_equal(p_g[pick], p_w[pick]), "p"
+    # NaN in both where neither writes (diffuse-only rows without a glossy row anywhere).
+    assert np.array_equal(prm_g, prm_w, equal_nan=True)
+    assert np.array_equal(sel_g[pick], sel_w[pick])
+    if glossy_w.any():
+        assert np.array_equal(sel_g, sel_w) and not np.isnan(prm_g).any()
+    assert glossy_w.any() == want_glossy
+
+
+@pytest.mark.parametrize("n, start", [(1, 0), (7, 1), (4099, 3), (100000, 0)])
+def test_view_depth_equals_the_einsum_dot(n, start):
+    """camerakernels.view_depth against sampling.dot(p - cam_pos, forward) (np.einsum),
+    bitwise, on unaligned slices and sizes around numpy's SIMD blocks."""
+    from engine.camerakernels import view_depth
+    from engine.sampling import dot
+    rng = np.random.default_rng(n)
+    p = (rng.normal(size=(n + start, 3)) * np.array([3.0, 1e-3, 50.0]))[start:]
+    p = np.ascontiguousarray(p)
+    cam = rng.normal(size=3)
+    forward = rng.normal(size=3)
+    forward /= np.linalg.norm(forward)
+    depth = np.empty(n)
+    view_depth(p, cam, forward, depth)
+    assert np.array_equal(depth, dot(p - cam, forward))
