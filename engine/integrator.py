@@ -666,6 +666,10 @@ CAUSTIC_SAMPLES_PER_PIXEL = 16
 # off issue 14's Principled spheres, HDR-FLIP unchanged
 # (docs/accuracy_time_principled_spheres.md).
 SECONDARY_SAMPLES_PER_PIXEL = 4
+# Hits reached through a rough lobe take the caustic estimate at every sample, not at
+# CAUSTIC_SAMPLES_PER_PIXEL of them (_trace_paths; False: the stride everywhere, as before:
+# bench/bench_accuracy_ab.py's @integrator.CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE=False).
+CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE = True
 
 
 def smooth_min_photons(settings) -> int:
@@ -679,22 +683,29 @@ def smooth_min_photons(settings) -> int:
 
 
 def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
-                     per_pixel=None):
+                     per_pixel=None, every=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most per_pixel samples per pixel (default
     CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius
     on the surface; a focus is spread over at least that (a point focus hit by few
-    samples makes fireflies)."""
+    samples makes fireflies). every: (N,) bool, rows that take the estimate at every
+    sample (unweighted): hits past a rough bounce, where one pixel's samples scatter over
+    the surface and a stride would multiply the estimate's noise; None: none."""
     out = np.zeros_like(f)
     if pmap is None or len(pmap) == 0:
         return out
     s = ctx.settings
     per_pixel = CAUSTIC_SAMPLES_PER_PIXEL if per_pixel is None else per_pixel
     stride = max(1, -(-s.spp // per_pixel)) if sample_id is not None else 1
-    sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
+    if stride > 1 and every is not None and every.any():
+        sel = np.nonzero((sample_id % stride == 0) | every)[0]
+        weight = np.where(every[sel], 1.0, smooth_sample_weight(s.spp, stride))[:, None]
+    else:
+        sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
+        weight = smooth_sample_weight(s.spp, stride)
     E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, smooth_min_photons(s),
                         s.estimator, r_floor=None if footprint is None else footprint[sel])
-    out[sel] = smooth_sample_weight(s.spp, stride) * f[sel] * E
+    out[sel] = weight * f[sel] * E
     return out
 
 
@@ -707,14 +718,16 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
-                  should_cancel=None, glossy=None, sel=None, buffers=None):
+                  should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
     term then holds both lobes' response (shadow rays weighted by the full BSDF, with
     multiple importance sampling against the continuation's choice sel (N, N_LOBES),
     lobe_choice). buffers: the calling thread's directlight.DirectLightBuffers (direct is
-    then their sums, valid until their next use; None: fresh arrays)."""
+    then their sums, valid until their next use; None: fresh arrays). scattered: (N,) bool,
+    hits reached through a rough lobe, whose caustic estimate is taken at every sample
+    (_smooth_estimate's every); None: none."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p)
     if glossy is not None and glossy.any():
@@ -737,23 +750,25 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
             c, ind = _photon_terms(ctx, sub, f[dsel], rng, counters, sampler,
                                    None if sample_id is None else sample_id[dsel],
                                    None if footprint is None else footprint[dsel],
-                                   should_cancel)
+                                   should_cancel, None if scattered is None else scattered[dsel])
             caustic[dsel] = c
             indirect[dsel] = ind
             return direct, caustic, indirect
     caustic, indirect = _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id,
-                                      footprint, should_cancel)
+                                      footprint, should_cancel, scattered)
     return direct, caustic, indirect
 
 
-def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel):
-    """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi."""
+def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
+                  scattered=None):
+    """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered:
+    shade_diffuse's."""
     s = ctx.settings
     caustic = np.zeros_like(f)
     indirect = np.zeros_like(f)
     if s.photon_mapping:
         caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
-                                   footprint)
+                                   footprint, every=scattered)
         if ctx.gather_map is not None:
             indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                            should_cancel=should_cancel)
@@ -1098,6 +1113,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                              _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64),
                              tp, want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
             hit.prm = prm
+        # Hits reached through a rough lobe (a finite pdf; mirrors, glass and passes: inf):
+        # one pixel's samples land all over them, so the caustic estimate's per-pixel
+        # stride would only multiply its noise (issue 14's gold ball reflecting the glass
+        # ball's focus: relMSE noise x3, docs/accuracy_time_principled_spheres.md).
+        scattered = (np.isfinite(pdf_b) if bounce > 0 and CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE
+                     else None)
         if bounce == 0:
             depth = np.empty(n)
             view_depth(hit.p, cam_pos, forward, depth)
@@ -1124,7 +1145,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             direct, caustic, indirect = shade_diffuse(
                 ctx, sub, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
-                sel=sel[dsel] if g.any() else None, buffers=buffers.direct)
+                sel=sel[dsel] if g.any() else None, buffers=buffers.direct,
+                scattered=scattered if every or scattered is None else scattered[dsel])
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:
