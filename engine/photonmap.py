@@ -320,6 +320,10 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 # fewer than min_photons accepted photons has no estimate at any width
                 # (a caustic query beside a wall lit only on its far side): one scan of
                 # the sphere (at most SCAN_BUDGET photons) settles it.
+                # The next row lists its whole sphere at once: beside a crowded surface
+                # its seeded sphere would mostly fail the same test (Figure 7's
+                # regathered points: 2 of 3 tries).
+                prev_kth = -1.0
                 if listed >= 0:
                     # The sphere is listed already, in d2 / idx.
                     if _count_accepted(direction, normal, idx, listed, nx, ny, nz) \
