@@ -26,7 +26,8 @@ Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
   ball_count  how many points have squared distance <= r2 (whole subtrees inside the
               sphere are counted by their range: the points' box is kept for that)
   ball_d2     the points with squared distance < r2 and their distances, up to a cap;
-              nearest_first then orders the m nearest of them (knn's answer, no heap)
+              nearest_first then orders the m nearest of them (knn's answer, no heap);
+              unique_nearest tells whether those m are free of ties
   nearest_walk  nearest's answers for a block of queries in Morton order, each from
               the previous answer's list of its k nearest (neighbour_lists, built
               once: 4 B x k + 8 B per point) without the tree when the lists prove it;
@@ -553,6 +554,23 @@ def nearest_first(src_d2, src_idx, count, m, r2, d2, idx, hist):
         hist[b] = slot + 1
     # hist[b] is now bucket b's end; entries beyond bucket `last` stay bucket-ordered.
     _insertion_sort(d2, idx, 0, hist[last])
+
+
+@kernel
+def unique_nearest(d2, count, m):
+    """After nearest_first(..., count, m, ...): True when the m first distances are
+    strictly increasing and strictly below every other of the count entries, i.e. the m
+    nearest are one set in one order whatever the search or sort that finds them."""
+    if m > count or m <= 0:
+        return False
+    for j in range(m - 1):
+        if not d2[j] < d2[j + 1]:
+            return False
+    last = d2[m - 1]
+    for j in range(m, count):
+        if not last < d2[j]:
+            return False
+    return True
 
 
 @kernel

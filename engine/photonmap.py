@@ -45,6 +45,10 @@ SCAN_BUDGET = 16 * MAX_WIDEN_K
 # A k-NN estimate lists its whole search sphere (then orders its k nearest: no heap) when
 # the sphere holds at most this many times k photons (kdtree.ball_d2, nearest_first).
 LIST_FACTOR = 8
+# A k-NN row first lists a sphere of this many times the previous row's kq-th squared
+# distance (1.2x the distance; measured on Figure 6's gather map: 1.2x lists 92 photons
+# a row and is taken by 96 % of rows, 1.41x 128 and 91 %, the whole sphere ~243).
+SEED_GROWTH = 1.44
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
 # Estimates between two looks at the stop flag: 64 x ~15 us (a widening row: ~1.5 ms) is
 # far below the 0.2 s a viewport stop may take (issue 19).
@@ -249,6 +253,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     list_d2 = np.empty(list_cap, np.float64)  # a listed sphere, before nearest_first
     list_idx = np.empty(list_cap, np.int64)
     hist = np.empty(list_cap + 1, np.int64)
+    prev_kth = -1.0  # the previous k-NN row's kq-th squared distance (a seed; -1: none)
     for r in range(rows.shape[0]):
         if r % STOP_ROWS == 0 and stop[0]:
             return
@@ -266,31 +271,59 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             # costs a sparse map's estimate most (kdtree.knn's heap steps). A fuller
             # sphere takes the heap search, bounded by the kq-th distance among the
             # photons listed so far. Rows choose by their own sphere, never by another
-            # row's, so the answer does not depend on the rows' order or blocks.
+            # row's, so the answer does not depend on the rows' order or blocks (the
+            # seeded sphere below is taken only where it proves the same answer).
             listed = -1
-            if kind == KDTREE:
-                listed = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, r2,
-                                        list_d2, list_idx, list_cap)
-            if 0 <= listed <= list_cap:
-                cnt = min(kq, listed)
-                kdtree.nearest_first(list_d2, list_idx, listed, cnt, r2, d2, idx, hist)
+            seeded = False
+            if kind == KDTREE and prev_kth > 0.0 and prev_kth * SEED_GROWTH < r2:
+                # First a smaller sphere, sized by the previous row's kq-th distance (rows
+                # come in Morton order: a neighbour of similar density). When it holds at
+                # least kq photons whose kq nearest are strictly ordered and strictly
+                # nearer than the rest (kdtree.unique_nearest), those are the kq nearest
+                # of the whole sphere in the only order any path can give them (either
+                # path below sorts by the same float64 distances): the same d2 / idx
+                # prefix, from a sphere listing ~1/3 of the photons (the gather map's
+                # estimates, docs/performance.md "Tenth slice: lookups"). Rows that would widen
+                # take the path below (the widening reads the whole sphere).
+                b2 = prev_kth * SEED_GROWTH
+                got = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, b2,
+                                     list_d2, list_idx, list_cap)
+                if kq <= got <= list_cap:
+                    kdtree.nearest_first(list_d2, list_idx, got, kq, b2, d2, idx, hist)
+                    seeded = kdtree.unique_nearest(d2, got, kq) and (
+                        kq >= widest
+                        or _count_accepted(direction, normal, idx, kq, nx, ny, nz) >= k // 2)
+            if seeded:
+                cnt = kq
             else:
-                bound = r2
-                if listed > list_cap and list_cap >= kq:
-                    # kq photons lie within the kq-th listed distance: a bound (with the
-                    # margin of _seed_bound) that the kq nearest all pass.
-                    kdtree.nearest_first(list_d2, list_idx, list_cap, kq, r2, d2, idx, hist)
-                    bound = min(r2, d2[kq - 1] * (1.0 + 1e-9) + 1e-300)
-                listed = -1
-                cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, bound, d2, idx,
-                           buckets)
-            if cnt == kq and kq < widest and \
+                if kind == KDTREE:
+                    listed = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz,
+                                            r2, list_d2, list_idx, list_cap)
+                if 0 <= listed <= list_cap:
+                    cnt = min(kq, listed)
+                    kdtree.nearest_first(list_d2, list_idx, listed, cnt, r2, d2, idx, hist)
+                else:
+                    bound = r2
+                    if listed > list_cap and list_cap >= kq:
+                        # kq photons lie within the kq-th listed distance: a bound (with the
+                        # margin of _seed_bound) that the kq nearest all pass.
+                        kdtree.nearest_first(list_d2, list_idx, list_cap, kq, r2, d2, idx, hist)
+                        bound = min(r2, d2[kq - 1] * (1.0 + 1e-9) + 1e-300)
+                    listed = -1
+                    cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, bound, d2, idx,
+                               buckets)
+            prev_kth = d2[kq - 1] if cnt == kq else -1.0
+            if not seeded and cnt == kq and kq < widest and \
                     _count_accepted(direction, normal, idx, cnt, nx, ny, nz) < k // 2:
                 # Widen (x4 up to MAX_WIDEN_K) while fewer than k / 2 of the nearest are
                 # accepted (a crowded neighbour surface). First, a row whose sphere holds
                 # fewer than min_photons accepted photons has no estimate at any width
                 # (a caustic query beside a wall lit only on its far side): one scan of
                 # the sphere (at most SCAN_BUDGET photons) settles it.
+                # The next row lists its whole sphere at once: beside a crowded surface
+                # its seeded sphere would mostly fail the same test (Figure 7's
+                # regathered points: 2 of 3 tries).
+                prev_kth = -1.0
                 if listed >= 0:
                     # The sphere is listed already, in d2 / idx.
                     if _count_accepted(direction, normal, idx, listed, nx, ny, nz) \

@@ -26,7 +26,7 @@ from engine.hashgrid import ball_count as grid_ball_count
 from engine.hashgrid import cells_spanned
 from engine.kdtree import (BUCKET_MAX, LEAF_SIZE, KdTree, ball, ball_count, ball_d2,
                            count_closer, knn, nearest, nearest_facing, nearest_first,
-                           nearest_walk)
+                           nearest_walk, unique_nearest)
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
                               PhotonMap)
 from engine.photons import Photons
@@ -534,3 +534,44 @@ def test_morton_order_changes_no_answer():
     np.testing.assert_array_equal(Es, E[shuffle])
     np.testing.assert_array_equal(Bs, B[shuffle])
     assert E.any()
+
+
+def test_seeded_sphere_gives_the_unseeded_answer():
+    """A k-NN row first lists a smaller sphere sized by the previous row's k-th distance
+    (photonmap.SEED_GROWTH) and keeps it only when its k nearest are free of ties
+    (kdtree.unique_nearest). A row estimated alone (one row a call: never seeded) must
+    give the same bits as the same row among others: on a plane (most rows seeded), a
+    lattice (equal distances everywhere: ties fall back), a thin wall's far side (rows
+    that widen), and a focus (k photons on one point)."""
+    rng = np.random.default_rng(21)
+    g = np.stack(np.meshgrid(np.arange(120), np.arange(120)), -1).reshape(-1, 2) / 120.0
+    lattice = _plane(len(g), rng)
+    lattice.position[:, :2] = g
+    maps = {"plane": _plane(20000, rng),
+            "lattice": lattice,
+            "thin wall": _join(_plane(20000, rng), _plane(20000, rng, z=0.001, nz=-1.0)),
+            "focus": _join(_focus(3000), _plane(20000, rng))}
+    for name, ph in maps.items():
+        pm = PhotonMap(ph, workers=1)
+        q = np.vstack([np.c_[rng.random((150, 2)), np.full(150, 0.0005)],
+                       np.c_[g[::97] + 0.5 / 120.0, np.zeros(len(g[::97]))],  # lattice ties
+                       np.c_[g[::89], np.zeros(len(g[::89]))],
+                       [[0.5, 0.5, 0.0], [0.5, 0.5, 0.0004]]])
+        nq = np.tile([0.0, 0.0, 1.0], (len(q), 1))
+        for est, k in (("knn_simpson", 32), ("knn_cone", 16), ("knn_simpson", 64)):
+            E, B = pm.irradiance(q, nq, 0.05, k, 4, est, return_boundary=True)
+            assert E.any(), name
+            for i in range(len(q)):
+                Ei, Bi = pm.irradiance(q[i:i + 1], nq[i:i + 1], 0.05, k, 4, est,
+                                       return_boundary=True)
+                np.testing.assert_array_equal(Ei[0], E[i], err_msg=f"{name} {est} row {i}")
+                assert Bi[0] == B[i], f"{name} {est} row {i}"
+
+
+def test_unique_nearest_refuses_ties():
+    d2 = np.array([1.0, 2.0, 3.0, 5.0, 4.0])
+    assert unique_nearest(d2, 5, 3)
+    assert not unique_nearest(d2, 5, 6)
+    assert not unique_nearest(np.array([1.0, 1.0, 3.0]), 3, 2)  # a tie inside
+    assert not unique_nearest(np.array([1.0, 2.0, 2.0]), 3, 2)  # a tie at the k-th
+    assert unique_nearest(np.array([1.0, 2.0, 2.0]), 3, 1)
