@@ -14,9 +14,10 @@ process's first trace (cold: what a render's one photon pass costs, page faults 
 buffers included), the other columns the best of 3 after it.
 
 --split adds, for one worker, where a warm trace's CPU goes (best of 3, thread CPU time):
-the Embree calls through Accel.intersect, the scatter kernel, the copies into the shot
-(_Shot.append) and the rest (emission kernels and Python glue), against raw embreex on
-the same rays; and the scatter calls per bounce (late bounces carry few photons).
+the Embree calls (Accel.intersect_hits; Accel.intersect in older checkouts), the scatter
+kernel, the copies into the shot (_Shot.append) and the rest (emission kernels and Python
+glue), against raw embreex on the same rays; and the scatter calls per bounce (late
+bounces carry few photons).
 """
 import os
 import sys
@@ -57,8 +58,14 @@ def print_split(ctx, counts, raw_cpu):
     from engine import photonkernels as pk
     from engine.accel import Accel
     spent, per_bounce = {}, {}
-    patched = [(pk, "scatter"), (Accel, "intersect"), (photons_mod._Shot, "append")]
-    originals = [getattr(obj, name) for obj, name in patched]
+    # (object, attribute, part): Embree's calls through Accel.intersect_hits (the photon
+    # pass's own since the tenth slice) or Accel.intersect (before it) count as one part.
+    patched = [(pk, "scatter", "scatter"), (Accel, "intersect", "intersect"),
+               (photons_mod._Shot, "append", "append")]
+    if hasattr(Accel, "intersect_hits"):
+        patched.append((Accel, "intersect_hits", "intersect"))
+    originals = [getattr(obj, name) for obj, name, _ in patched]
+    parts = ("intersect", "scatter", "append")
 
     def timed(fn, part):
         def call(*a, **k):
@@ -76,23 +83,23 @@ def print_split(ctx, counts, raw_cpu):
 
     best = {}
     try:
-        for (obj, name), fn in zip(patched, originals):
-            setattr(obj, name, timed(fn, name))
+        for (obj, name, part), fn in zip(patched, originals):
+            setattr(obj, name, timed(fn, part))
         for _ in range(3):
             spent.clear()
             per_bounce.clear()
             t0 = time.thread_time()
             trace_photons(ctx, ctx.lights, counts, False, 1)
             spent["total"] = time.thread_time() - t0
-            spent["rest"] = spent["total"] - sum(spent[n] for _, n in patched)
+            spent["rest"] = spent["total"] - sum(spent.get(n, 0.0) for n in parts)
             for part, dt in spent.items():
                 best[part] = min(best.get(part, float("inf")), dt)
     finally:
-        for (obj, name), fn in zip(patched, originals):
+        for (obj, name, _), fn in zip(patched, originals):
             setattr(obj, name, fn)
     print("| part (1 worker, warm) | CPU s | share |")
     print("|---|---:|---:|")
-    labels = {"intersect": "Embree via Accel.intersect", "scatter": "scatter kernel",
+    labels = {"intersect": "Embree via Accel.intersect(_hits)", "scatter": "scatter kernel",
               "append": "_Shot.append", "rest": "emission kernels + Python glue",
               "total": "total"}
     for part in ("intersect", "scatter", "append", "rest", "total"):
