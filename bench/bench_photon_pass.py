@@ -16,8 +16,10 @@ buffers included), the other columns the best of 3 after it.
 --split adds, for one worker, where a warm trace's CPU goes (best of 3, thread CPU time):
 the Embree calls (Accel.intersect_hits; Accel.intersect in older checkouts), the scatter
 kernel, the copies into the shot (_Shot.append) and the rest (emission kernels and Python
-glue), against raw embreex on the same rays; and the scatter calls per bounce (late
-bounces carry few photons).
+glue), against raw embreex on the same rays; the scatter calls per bounce (late bounces
+carry few photons); and the Embree calls alone on the recorded rays, raw embreex against
+Accel.intersect(_hits), interleaved in this process (the comparison that moves least with
+the load).
 """
 import os
 import sys
@@ -112,6 +114,31 @@ def print_split(ctx, counts, raw_cpu):
         print(f"| {b} | {calls} | {rays:,} | {dt:.4f} |")
 
 
+def print_embree_calls(rec, log):
+    """The Embree calls alone on a trace's recorded rays, interleaved in this process
+    (thread CPU, best of 5): raw embreex, Accel.intersect (int64 ids, float64 copies) and,
+    where the checkout has it, Accel.intersect_hits (Embree's own arrays, the photon
+    pass's call since the tenth slice)."""
+    from engine.accel import Accel
+    acc = rec.serial()
+    scene = acc._scene
+    calls = {"raw embreex": lambda o, d, t: scene.run(o, d, dists=t.copy(), output=True),
+             "Accel.intersect": lambda o, d, t: Accel.intersect(acc, o, d, t)}
+    if hasattr(Accel, "intersect_hits"):
+        calls["Accel.intersect_hits"] = lambda o, d, t: Accel.intersect_hits(acc, o, d, t.copy())
+    best = {}
+    for _ in range(5):
+        for name, call in calls.items():
+            t0 = time.thread_time()
+            for query, o, d, t in log:
+                call(o, d, t)
+            best[name] = min(best.get(name, float("inf")), time.thread_time() - t0)
+    print("| Embree call, recorded rays (1 thread, interleaved) | CPU s |")
+    print("|---|---:|")
+    for name, dt in best.items():
+        print(f"| {name} | {dt:.3f} |")
+
+
 ensure_compiled()
 print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
 for workers in (1, 2):
@@ -127,6 +154,7 @@ for workers in (1, 2):
     trace_photons(ctx, ctx.lights, counts, False, 1)
     log = list(rec.log)
     rec.log.clear()
+    rec.enabled = False  # the split's traces: no logging copies in "rest"
     n = sum(len(e[1]) for e in log)
     raw, raw_c, _ = best_of(3, lambda: raw_embree_time(rec, log))
     print(f"{os.path.basename(root):14s} workers={workers} photons={photons:,} "
@@ -137,4 +165,5 @@ for workers in (1, 2):
           f"{shot.nbytes / max(len(shot), 1):.0f} B/photon")
     if split and workers == 1:
         print_split(ctx, counts, raw_c)
+        print_embree_calls(rec, [e for e in log if e[0] == "INTERSECT"])
     ctx.accel.close()
