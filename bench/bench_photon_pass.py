@@ -14,9 +14,12 @@ process's first trace (cold: what a render's one photon pass costs, page faults 
 buffers included), the other columns the best of 3 after it.
 
 --split adds, for one worker, where a warm trace's CPU goes (best of 3, thread CPU time):
-the Embree calls through Accel.intersect, the scatter kernel, the copies into the shot
-(_Shot.append) and the rest (emission kernels and Python glue), against raw embreex on
-the same rays; and the scatter calls per bounce (late bounces carry few photons).
+the Embree calls (Accel.intersect_hits; Accel.intersect in older checkouts), the scatter
+kernel, the copies into the shot (_Shot.append) and the rest (emission kernels and Python
+glue), against raw embreex on the same rays; the scatter calls per bounce (late bounces
+carry few photons); and the Embree calls alone on the recorded rays, raw embreex against
+Accel.intersect(_hits), interleaved in this process (the comparison that moves least with
+the load).
 """
 import os
 import sys
@@ -57,8 +60,14 @@ def print_split(ctx, counts, raw_cpu):
     from engine import photonkernels as pk
     from engine.accel import Accel
     spent, per_bounce = {}, {}
-    patched = [(pk, "scatter"), (Accel, "intersect"), (photons_mod._Shot, "append")]
-    originals = [getattr(obj, name) for obj, name in patched]
+    # (object, attribute, part): Embree's calls through Accel.intersect_hits (the photon
+    # pass's own since the tenth slice) or Accel.intersect (before it) count as one part.
+    patched = [(pk, "scatter", "scatter"), (Accel, "intersect", "intersect"),
+               (photons_mod._Shot, "append", "append")]
+    if hasattr(Accel, "intersect_hits"):
+        patched.append((Accel, "intersect_hits", "intersect"))
+    originals = [getattr(obj, name) for obj, name, _ in patched]
+    parts = ("intersect", "scatter", "append")
 
     def timed(fn, part):
         def call(*a, **k):
@@ -76,23 +85,23 @@ def print_split(ctx, counts, raw_cpu):
 
     best = {}
     try:
-        for (obj, name), fn in zip(patched, originals):
-            setattr(obj, name, timed(fn, name))
+        for (obj, name, part), fn in zip(patched, originals):
+            setattr(obj, name, timed(fn, part))
         for _ in range(3):
             spent.clear()
             per_bounce.clear()
             t0 = time.thread_time()
             trace_photons(ctx, ctx.lights, counts, False, 1)
             spent["total"] = time.thread_time() - t0
-            spent["rest"] = spent["total"] - sum(spent[n] for _, n in patched)
+            spent["rest"] = spent["total"] - sum(spent.get(n, 0.0) for n in parts)
             for part, dt in spent.items():
                 best[part] = min(best.get(part, float("inf")), dt)
     finally:
-        for (obj, name), fn in zip(patched, originals):
+        for (obj, name, _), fn in zip(patched, originals):
             setattr(obj, name, fn)
     print("| part (1 worker, warm) | CPU s | share |")
     print("|---|---:|---:|")
-    labels = {"intersect": "Embree via Accel.intersect", "scatter": "scatter kernel",
+    labels = {"intersect": "Embree via Accel.intersect(_hits)", "scatter": "scatter kernel",
               "append": "_Shot.append", "rest": "emission kernels + Python glue",
               "total": "total"}
     for part in ("intersect", "scatter", "append", "rest", "total"):
@@ -103,6 +112,31 @@ def print_split(ctx, counts, raw_cpu):
     for b in sorted(per_bounce):
         calls, rays, dt = per_bounce[b]
         print(f"| {b} | {calls} | {rays:,} | {dt:.4f} |")
+
+
+def print_embree_calls(rec, log):
+    """The Embree calls alone on a trace's recorded rays, interleaved in this process
+    (thread CPU, best of 5): raw embreex, Accel.intersect (int64 ids, float64 copies) and,
+    where the checkout has it, Accel.intersect_hits (Embree's own arrays, the photon
+    pass's call since the tenth slice)."""
+    from engine.accel import Accel
+    acc = rec.serial()
+    scene = acc._scene
+    calls = {"raw embreex": lambda o, d, t: scene.run(o, d, dists=t.copy(), output=True),
+             "Accel.intersect": lambda o, d, t: Accel.intersect(acc, o, d, t)}
+    if hasattr(Accel, "intersect_hits"):
+        calls["Accel.intersect_hits"] = lambda o, d, t: Accel.intersect_hits(acc, o, d, t.copy())
+    best = {}
+    for _ in range(5):
+        for name, call in calls.items():
+            t0 = time.thread_time()
+            for query, o, d, t in log:
+                call(o, d, t)
+            best[name] = min(best.get(name, float("inf")), time.thread_time() - t0)
+    print("| Embree call, recorded rays (1 thread, interleaved) | CPU s |")
+    print("|---|---:|")
+    for name, dt in best.items():
+        print(f"| {name} | {dt:.3f} |")
 
 
 ensure_compiled()
@@ -120,6 +154,7 @@ for workers in (1, 2):
     trace_photons(ctx, ctx.lights, counts, False, 1)
     log = list(rec.log)
     rec.log.clear()
+    rec.enabled = False  # the split's traces: no logging copies in "rest"
     n = sum(len(e[1]) for e in log)
     raw, raw_c, _ = best_of(3, lambda: raw_embree_time(rec, log))
     print(f"{os.path.basename(root):14s} workers={workers} photons={photons:,} "
@@ -130,4 +165,5 @@ for workers in (1, 2):
           f"{shot.nbytes / max(len(shot), 1):.0f} B/photon")
     if split and workers == 1:
         print_split(ctx, counts, raw_c)
+        print_embree_calls(rec, [e for e in log if e[0] == "INTERSECT"])
     ctx.accel.close()

@@ -117,13 +117,15 @@ def photon_surfaces(prim, u, v, d, v0, e1, e2, corner_normals, material, base_co
     normal maps or alpha textures. corner_normals (T,3,3) float32, or (0,3,3) when every
     triangle is flat. (scatter computes the same inline, a block of hits at a time.)"""
     rows = np.empty(prim.shape[0], np.int64)
+    tri = np.empty(prim.shape[0], np.int64)
     nh = 0
     for i in range(prim.shape[0]):
         if prim[i] >= 0:
             rows[nh] = i
+            tri[nh] = prim[i]
             nh += 1
     tilt_row, tilt = _tilt_cache()
-    _surfaces(rows, 0, nh, False, prim, u, v, d, v0, e1, e2, corner_normals, material,
+    _surfaces(rows, tri, 0, nh, False, u, v, d, v0, e1, e2, corner_normals, material,
               base_color, mat_alpha, p, ng, ns, front, mat, base, alpha, offset, tilt_row,
               tilt)
 
@@ -135,17 +137,18 @@ def _tilt_cache():
 
 
 @kernel
-def _surfaces(rows, lo, hi, compact, prim, u, v, d, v0, e1, e2, corner_normals, material,
+def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, material,
               base_color, mat_alpha, p, ng, ns, front, mat, base, alpha, offset, tilt_row,
               tilt):
-    """photon_surfaces for the hits rows[lo:hi], written at row i = rows[k] of the
-    outputs, or at k - lo when compact (a block's own buffers). tilt_row, tilt: the
+    """photon_surfaces for the hits rows[lo:hi] on triangle rows tri[lo:hi], written at
+    row i = rows[k] of the outputs, or at k - lo when compact (a block's own buffers).
+    u, v: float64 or Embree's float32 (the same values either way). tilt_row, tilt: the
     call's tilt cache (_tilt_cache), read and filled here."""
     smooth = corner_normals.shape[0] > 0
     for k in range(lo, hi):
         i = rows[k]
         o = k - lo if compact else i
-        t = prim[i]
+        t = tri[k]
         b1, b2 = np.float64(u[i]), np.float64(v[i])
         px = v0[t, 0] + b1 * e1[t, 0] + b2 * e2[t, 0]
         py = v0[t, 1] + b1 * e1[t, 1] + b2 * e2[t, 1]
@@ -225,15 +228,17 @@ def _path_kind(flags):
 
 
 @kernel
-def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
+def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v, v0, e1, e2,
             corner_normals, material, base_color, mat_alpha, given, p, ng, ns, front, mat,
             base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id, caster,
             first_hit_mode, caustic_only, vis_on,
             st_pos, st_power, st_dir, st_normal, st_kind,
             nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
-    ray kinds and slots (m,), at hits prim (m,) (< 0: missed; lost). Surface data: with
-    given False computed here from the hits' barycentrics u, v (m,) and the triangle
+    ray kinds and slots (m,), at the hits as Embree answers them (Accel.intersect_hits):
+    geom, prim (m,) int32 (geom < 0: missed; lost; else the triangle's row is
+    starts[geom] + prim, starts (G,) int64). Surface data: with
+    given False computed here from the hits' float32 barycentrics u, v (m,) and the triangle
     tables v0, e1, e2 (T,3), corner_normals (T,3,3) float32 or (0,3,3), material (T,),
     base_color (M,3) and mat_alpha (M,) (photon_surfaces' inputs; p .. offset unused,
     may be empty); with given True read from p, ng, ns, front, mat, base, alpha, offset
@@ -257,12 +262,16 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
     direction's f cos / pdf (Jensen's scheme with pbrt's max rule). A refracted photon
     takes (eta_i / eta_t)^2: radiance is carried as invariant across the interface, as by
     the camera side and Cycles (docs/units.md, "Refraction")."""
-    m = prim.shape[0]
+    m = geom.shape[0]
+    # The hits' rows and triangle rows, in order.
     rows = np.empty(m, np.int64)
+    tri = np.empty(m, np.int64)
     nh = 0
     for i in range(m):
-        if prim[i] >= 0:
+        g = geom[i]
+        if g >= 0:
             rows[nh] = i
+            tri[nh] = starts[g] + prim[i]
             nh += 1
     # The closures are set up a block of hits at a time: their rows stay in cache and the
     # buffers are allocated once per call.
@@ -280,6 +289,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
     # The split-off copies (vis_on) go after every continuation: their origins are kept.
     n_beh = 0
     beh_row = np.empty(nh if vis_on else 0, np.int64)
+    beh_tri = np.empty(nh if vis_on else 0, np.int64)
     beh_o = np.empty((nh if vis_on else 0, 3), np.float32)
     mat_h = np.empty(_BLOCK, np.int64)
     base_h = np.empty((_BLOCK, 3))
@@ -310,14 +320,15 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
                 alpha_b[j] = alpha[i]
                 off_b[j] = offset[i]
         else:
-            _surfaces(rows, b0, b0 + nb, True, prim, u, v, d, v0, e1, e2, corner_normals,
+            _surfaces(rows, tri, b0, b0 + nb, True, u, v, d, v0, e1, e2, corner_normals,
                       material, base_color, mat_alpha, p_b, ng_b, ns_b, front_b, mat_b,
                       base_b, alpha_b, off_b, tilt_row, tilt)
         if vis_on:
             for j in range(nb):
                 i = rows[b0 + j]
-                if kinds[i] & ~np.int64(visibility[prim[i]]) != 0:
+                if kinds[i] & ~np.int64(visibility[tri[b0 + j]]) != 0:
                     beh_row[n_beh] = i
+                    beh_tri[n_beh] = tri[b0 + j]
                     for c in range(3):  # d leaves through the back of the surface
                         beh_o[n_beh, c] = p_b[j, c] - off_b[j] * ng_b[j, c]
                     n_beh += 1
@@ -351,7 +362,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
                 for l in range(pr.N_LOBES):
                     for c in range(3):
                         wj[l, c] = w[jc, l, c]
-            t = prim[i]
+            t = tri[b0 + j]
             fl = flags[i]
             if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
                 fl |= F_FIRST_CASTER
@@ -508,7 +519,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, prim, u, v, v0, e1, e2,
         # (same slot, so the same random numbers); the photon stopped here for the others.
         for k in range(n_beh):
             i = beh_row[k]
-            t = prim[i]
+            t = beh_tri[k]
             fl = flags[i]
             if bounce == 0 and first_hit_mode != 0 and caster[object_id[t]]:
                 fl |= F_FIRST_CASTER
@@ -567,9 +578,12 @@ def _warm_up():
     for normals in (np.zeros((0, 3, 3), np.float32), np.zeros((1, 3, 3), np.float32)):
         photon_surfaces(prim, uv, uv, d, v0, e1, e2, normals, np.zeros(1, np.int32),
                         np.full((1, 3), 0.5), np.ones(1), *surf)
+    # Embree's answer (Accel.intersect_hits): int32 ids, float32 barycentrics.
+    geom32, prim32, uv32 = np.zeros(1, np.int32), np.zeros(1, np.int32), np.full(1, 0.25, np.float32)
     for given in (False, True):
         scatter(np.uint64(1), 0, d, np.ones((1, 3)), np.zeros(1, np.int64),
-                np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), prim, uv, uv, v0,
+                np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), geom32, prim32,
+                np.zeros(1, np.int64), uv32, uv32, v0,
                 e1, e2, normals, np.zeros(1, np.int32), np.full((1, 3), 0.5), np.ones(1),
                 given, *surf, np.ones(1), params, plain_materials(params), np.full(1, 1.5),
                 np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.bool_),

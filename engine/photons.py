@@ -165,13 +165,13 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # rays (one is the bounce's input, the other its output).
     surf = pk.surface_arrays(m if given else 0)
     bump_buf = pool.take(_factors, m)
-    bump = bump_buf[0][:m]
+    bump, tfar = bump_buf[0][:m], bump_buf[1][:m]
     bump[:] = 1.0
     stored = _Stored(2 * m + 1024, pool)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-                 vis_on, caster, mode, numpy_hits, given, plain, surf, bump, stored, nxt_sets,
-                 pool, caustic_only, should_cancel)
+                 vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, stored,
+                 nxt_sets, pool, caustic_only, should_cancel)
     except BaseException:
         stored.release()
         raise
@@ -184,8 +184,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
 
 
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-             vis_on, caster, mode, numpy_hits, given, plain, surf, bump, stored, nxt_sets,
-             pool, caustic_only, should_cancel):
+             vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, stored,
+             nxt_sets, pool, caustic_only, should_cancel):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool)."""
@@ -195,16 +195,26 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         m = len(o)
         if m == 0:
             break
-        _, prim, u, v = accel.intersect(o, d32)
         if m > len(bump):
             surf = pk.surface_arrays(m if given else 0)
-            bump = np.ones(m)
+            bump, tfar = np.ones(m), np.empty(m, np.float32)
+        tfar[:m] = _UNBOUNDED
+        # Embree's own answer: int32 ids, float32 barycentrics; scatter reads them as they
+        # are (Accel.intersect_hits).
+        geom, prim32, u, v, starts = _closest_hits(accel, o, d32, tfar[:m])
+        if given:
+            # Triangle rows and float64 barycentrics for numpy and instance paths (the
+            # same values as Accel.intersect's).
+            prim = np.where(geom >= 0, np.take(starts, np.maximum(geom, 0)) + prim32, -1)
+            u64, v64 = u.astype(np.float64), v.astype(np.float64)
+        else:
+            prim = _NO_HITS
         surf_m = tuple(a[:m] for a in surf)
         params, row_plain, mat_ior = table.closure_params, plain, table.ior
         if numpy_hits:
             bump[:m] = 1.0
             rows = np.nonzero(prim >= 0)[0]
-            hit = surface_hit(geo, table, prim[rows], u[rows], v[rows], d[rows])
+            hit = surface_hit(geo, table, prim[rows], u64[rows], v64[rows], d[rows])
             alpha = (np.take(table.alpha, hit.mat) if hit.alpha is None else hit.alpha)
             for dst, src in zip(surf_m, (hit.p, hit.ng, hit.ns, hit.front, hit.mat, hit.base,
                                          alpha, hit.offset)):
@@ -224,8 +234,13 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         # Shared instances: the hits' rows gathered (geometry.Geometry.hit_tables).
         rows, (v0, e1, e2, normals, material, visibility, object_id) = geo.hit_tables(
             prim, "v0", "e1", "e2", "corner_normals", "material", "visibility", "object_id")
+        if geo.shared is not None:
+            # scatter reads the gathered rows: hit i is on row i (-1: a miss).
+            geom = np.where(rows >= 0, 0, -1).astype(np.int32)
+            prim32 = np.maximum(rows, 0).astype(np.int32)
+            starts = _FIRST_ROW
         if given and not numpy_hits:
-            pk.photon_surfaces(rows, u, v, d, v0, e1, e2, normals, material,
+            pk.photon_surfaces(rows, u64, v64, d, v0, e1, e2, normals, material,
                                table.base_color, table.alpha, *surf_m)
             floor = geo.instance_offset_floor(prim, surf_m[0], surf_m[1])
             if floor is not None:  # shared instances: object-space rounding (Geometry)
@@ -237,9 +252,9 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 pool.give(nxt_sets[k])
             nxt_sets[k] = None
             nxt_sets[k] = pool.take(pk.next_arrays, need)
-        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, rows, u, v, v0, e1,
-                                e2, normals, material, table.base_color, table.alpha,
-                                given, *surf_m, bump[:m], params, row_plain, mat_ior,
+        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, geom, prim32,
+                                starts, u, v, v0, e1, e2, normals, material, table.base_color,
+                                table.alpha, given, *surf_m, bump[:m], params, row_plain, mat_ior,
                                 visibility, object_id, caster, mode, bool(caustic_only),
                                 vis_on, *stored.room(m), *nxt_sets[k])
         stored.count += n_st
@@ -271,7 +286,7 @@ class _Buffers:
         return make(rows)
 
     def give(self, arrays):
-        make = {5: pk.store_arrays, 7: pk.next_arrays, 1: _factors}[len(arrays)]
+        make = {5: pk.store_arrays, 7: pk.next_arrays, 2: _factors}[len(arrays)]
         with self._lock:
             self._free.append((make, arrays))
 
@@ -354,8 +369,28 @@ class _Shot:
 
 
 def _factors(m: int):
-    """A buffer for m per-photon factors (the bump shadowing factors), as a set of one."""
-    return (np.empty(m),)
+    """Per-photon buffers for m photons: the bump shadowing factors (float64) and the
+    rays' tmax handed to Embree (float32, which Embree overwrites)."""
+    return (np.empty(m), np.empty(m, np.float32))
+
+
+_UNBOUNDED = np.finfo(np.float32).max  # tmax of a photon ray (Accel.intersect's default)
+_NO_HITS = np.zeros(0, np.int64)
+_FIRST_ROW = np.zeros(1, np.int64)  # starts of rows gathered per hit (shared instances)
+
+
+def _closest_hits(accel, o32, d32, tfar32):
+    """Closest hits of the photon rays o32, d32 (N,3) float32 over every triangle, as
+    Accel.intersect_hits answers: (geom, prim (N,) int32, u, v (N,) float32, starts). A
+    VisibilityAccel's queries without a ray class go to its `full` BVH; a BVH without
+    intersect_hits (two-level instances) answers through intersect, converted."""
+    full = getattr(accel, "full", accel)
+    if hasattr(full, "intersect_hits"):
+        return full.intersect_hits(o32, d32, tfar32)
+    _, prim, u, v = accel.intersect(o32, d32)  # unbounded, as tfar32
+    ok = prim >= 0
+    return (np.where(ok, 0, -1).astype(np.int32), np.where(ok, prim, 0).astype(np.int32),
+            u.astype(np.float32), v.astype(np.float32), _FIRST_ROW)
 
 
 def _needs_numpy_hits(table) -> bool:

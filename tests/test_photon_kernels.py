@@ -48,6 +48,13 @@ def _scene():
     return s
 
 
+def _embree_layout(prim, u, v):
+    """Accel.intersect's hits (prim (N,) int64, < 0: miss; u, v float64) in the layout of
+    Accel.intersect_hits, as one geometry starting at row 0."""
+    return (np.where(prim >= 0, 0, -1).astype(np.int32), np.maximum(prim, 0).astype(np.int32),
+            u.astype(np.float32), v.astype(np.float32), np.zeros(1, np.int64))
+
+
 def test_photon_surfaces_match_surface_hit():
     s = _scene()
     s.validate()
@@ -114,6 +121,7 @@ def test_scatter_computes_the_surface_data_as_photon_surfaces_does():
     d /= np.linalg.norm(d, axis=1)[:, None]
     _, prim, u, v = accel.intersect(o, d)
     prim[::7] = -1  # some misses
+    geom, prim32, u32, v32, starts = _embree_layout(prim, u, v)
     surf = pk.surface_arrays(n)
     pk.photon_surfaces(prim, u, v, d, geo.v0, geo.e1, geo.e2, geo.corner_normals,
                        geo.material, table.base_color, table.alpha, *surf)
@@ -127,9 +135,10 @@ def test_scatter_computes_the_surface_data_as_photon_surfaces_does():
         out = []
         for given in (True, False):
             st, nx = pk.store_arrays(n), pk.next_arrays(2 * n)
-            counts = pk.scatter(np.uint64(11), 1, d, power, flags, kinds, np.arange(n), prim,
-                                u, v, geo.v0, geo.e1, geo.e2, geo.corner_normals,
-                                geo.material, table.base_color, table.alpha, given,
+            counts = pk.scatter(np.uint64(11), 1, d, power, flags, kinds, np.arange(n), geom,
+                                prim32, starts, u32, v32, geo.v0, geo.e1, geo.e2,
+                                geo.corner_normals, geo.material, table.base_color,
+                                table.alpha, given,
                                 *(surf if given else pk.surface_arrays(0)), np.ones(n),
                                 table.closure_params, plain, table.ior, visibility,
                                 geo.object_id, np.zeros(1, np.bool_), 0, False, vis_on,
@@ -177,6 +186,7 @@ def test_plain_materials_scatter_as_with_the_full_set_of_lobes():
     d /= np.linalg.norm(d, axis=1)[:, None]
     _, prim, u, v = accel.intersect(o, d)
     prim[::11] = -1  # some misses
+    geom, prim32, u32, v32, starts = _embree_layout(prim, u, v)
     plain = pk.plain_materials(table.closure_params)
     assert plain.any() and not plain.all()
     mats = table.closure_params.shape[0]
@@ -188,10 +198,11 @@ def test_plain_materials_scatter_as_with_the_full_set_of_lobes():
     for row_plain in (plain, np.zeros(mats, np.bool_)):
         st, nx = pk.store_arrays(n), pk.next_arrays(2 * n)
         counts = pk.scatter(np.uint64(13), 2, d, power, flags,
-                            np.full(n, pk.SEGMENT_KINDS, np.int64), np.arange(n), prim, u,
-                            v, geo.v0, geo.e1, geo.e2, geo.corner_normals, geo.material,
-                            table.base_color, table.alpha, False, *pk.surface_arrays(0),
-                            np.ones(n), table.closure_params, row_plain, table.ior,
+                            np.full(n, pk.SEGMENT_KINDS, np.int64), np.arange(n), geom,
+                            prim32, starts, u32, v32, geo.v0, geo.e1, geo.e2,
+                            geo.corner_normals, geo.material, table.base_color,
+                            table.alpha, False, *pk.surface_arrays(0), np.ones(n),
+                            table.closure_params, row_plain, table.ior,
                             np.full(geo.count, 255, np.uint8), geo.object_id,
                             np.zeros(1, np.bool_), 0, False, False, *st, *nx)
         out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
@@ -241,3 +252,63 @@ def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():
     for x, y in zip(fresh, again):
         np.testing.assert_array_equal(x, y)
     ctx.accel.close()
+
+
+def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
+    """Accel.intersect_hits (Embree's own int32 ids and float32 barycentrics, which the
+    photon pass hands to scatter) names the triangles and barycentrics Accel.intersect
+    does, bit for bit, on a mesh Embree holds in several pieces (geometries of
+    MESH_TRIANGLES), on one thread and split over two; and scatter gives the same photons
+    from either answer."""
+    from engine import accel as accel_mod
+
+    s = _scene()
+    v, f, n, _ = sphere_mesh((-0.3, 0.2, 1.3), 0.35, segments=330, rings=210)
+    s.add_triangles(v, f, "ball", name="fine ball", normals=n)
+    s.validate()
+    geo, table = prepare(s)
+    assert geo.count > 2 * accel_mod.MESH_TRIANGLES
+    rng = np.random.default_rng(21)
+    m = 3 * accel_mod.MIN_PER_THREAD
+    o = np.tile((0.1, -0.2, 1.6) - geo.offset, (m, 1)) + 0.2 * rng.random((m, 3))
+    d = rng.normal(size=(m, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    o32, d32 = o.astype(np.float32), d.astype(np.float32)
+    d = d32.astype(np.float64)
+    o32[::9] = 1e6  # misses: outside the room, pointing anywhere
+    power = rng.random((m, 3))
+    flags = rng.integers(0, 16, m).astype(np.int64)
+    plain = pk.plain_materials(table.closure_params)
+    for threads in (1, 2):
+        accel = Accel(geo.vertices32, geo.faces32, threads)
+        t, prim, u, v = accel.intersect(o32, d32)
+        tfar = np.full(m, np.finfo(np.float32).max, np.float32)
+        geom, prim32, u32, v32, starts = accel.intersect_hits(o32, d32, tfar)
+        accel.close()
+        assert len(starts) > 2 and geom.dtype == prim32.dtype == np.int32
+        assert u32.dtype == v32.dtype == np.float32
+        hit = geom >= 0
+        assert hit.sum() > m // 2 and (~hit).sum() >= m // 9
+        assert (geom[hit] > 0).sum() > 100  # hits in later pieces (starts > 0)
+        np.testing.assert_array_equal(prim < 0, ~hit)
+        np.testing.assert_array_equal(starts[geom[hit]] + prim32[hit], prim[hit])
+        np.testing.assert_array_equal(u32.astype(np.float64)[hit], u[hit])
+        np.testing.assert_array_equal(v32.astype(np.float64)[hit], v[hit])
+        np.testing.assert_array_equal(tfar[hit].astype(np.float64), t[hit])
+        out = []
+        for geom_k, prim_k, u_k, v_k, starts_k in ((geom, prim32, u32, v32, starts),
+                                                   _embree_layout(prim, u, v)):
+            st, nx = pk.store_arrays(m), pk.next_arrays(2 * m)
+            counts = pk.scatter(np.uint64(17), 0, d, power, flags,
+                                np.full(m, pk.SEGMENT_KINDS, np.int64), np.arange(m), geom_k,
+                                prim_k, starts_k, u_k, v_k, geo.v0, geo.e1, geo.e2,
+                                geo.corner_normals, geo.material, table.base_color,
+                                table.alpha, False, *pk.surface_arrays(0), np.ones(m),
+                                table.closure_params, plain, table.ior,
+                                np.full(geo.count, 255, np.uint8), geo.object_id,
+                                np.zeros(1, np.bool_), 0, False, False, *st, *nx)
+            out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
+        (c1, a1), (c2, a2) = out
+        assert c1 == c2 and c1[0] > m // 4 and c1[1] > m // 4
+        for x, y in zip(a1, a2):
+            np.testing.assert_array_equal(x, y)
