@@ -74,7 +74,9 @@ def camera(*a, **k):
     finally:
         camera_cpu[0] += time.process_time() - t
 
+import engine.render as render_module
 integrator.gather_indirect, integrator.render_camera = gather, camera
+render_module.render_camera = camera  # (imported by name there)
 film = render(scene, RenderSettings(workers=WORKERS, seed=SEED))
 h = hashlib.sha1()
 for k in ("direct", "indirect", "caustic", "specular", "emission"):
@@ -122,8 +124,9 @@ def timing(roots, blends, args, where):
                 same = ["(first worker count)"]
             calls = (" ".join(f"{v}" for v in b[0]["calls"].values()) + " / "
                      + " ".join(f"{v}" for v in a[0]["calls"].values()))
-            print(f"| {name} | {workers} | {cb:.2f} | {ca:.2f} | {cb / ca:.2f}x | {gb:.2f} "
-                  f"| {ga:.2f} | {gb / ga:.2f}x | {calls} | {', '.join(same)} |", flush=True)
+            print(f"| {name} | {workers} | {cb:.2f} | {ca:.2f} | {cb / max(ca, 1e-9):.2f}x | "
+                  f"{gb:.2f} | {ga:.2f} | {gb / max(ga, 1e-9):.2f}x | {calls} | "
+                  f"{', '.join(same)} |", flush=True)
 
 
 def stats(roots, blends, args, where):
