@@ -10,8 +10,8 @@ batch per gather call).
 Prints Markdown tables:
 - time: per example blend at default settings, before and after, for each worker count:
   CPU seconds of the camera stage (process clock around integrator.render_camera, all
-  threads) and of the final gather in it (thread clock summed over the top-level
-  gather_indirect calls, regathers included), gather_indirect calls by level, and whether
+  threads) and of the final gather in it (summed over the top-level gather_indirect
+  calls, regathers included: process clock at 1 worker, thread clock at 2), gather_indirect calls by level, and whether
   the film is bitwise the same as 1 worker's (SHA-1 of the five effect passes);
 - stats: the image over seeds 0..N-1, paired by seed (the same seed before and after):
   the mean of the combined image and of the indirect pass, their paired difference with
@@ -48,6 +48,10 @@ with open(PICKLE, "rb") as f:
     scene = pickle.load(f)
 scene.width, scene.height = W, H
 calls, gather_cpu, camera_cpu = {}, [0.0], [0.0]
+# One worker: the chunks run on this thread and Embree / lookups may split a call over
+# helper threads, so the process clock; two: each worker's queries stay on its thread
+# (Context.serial), so the thread clock of the calls (summed over workers).
+clock = time.process_time if WORKERS == 1 else time.thread_time
 lock = threading.Lock()
 local = threading.local()
 real_gather, real_camera = integrator.gather_indirect, integrator.render_camera
@@ -56,7 +60,7 @@ def gather(ctx, hit, rng, counters, *a, **k):
     level = k.get("level", 0)
     top = not getattr(local, "inside", False)
     local.inside = True
-    t = time.thread_time()
+    t = clock()
     try:
         return real_gather(ctx, hit, rng, counters, *a, **k)
     finally:
@@ -65,7 +69,7 @@ def gather(ctx, hit, rng, counters, *a, **k):
         with lock:
             calls[level] = calls.get(level, 0) + 1
             if top:
-                gather_cpu[0] += time.thread_time() - t
+                gather_cpu[0] += clock() - t
 
 def camera(*a, **k):
     t = time.process_time()
@@ -74,9 +78,8 @@ def camera(*a, **k):
     finally:
         camera_cpu[0] += time.process_time() - t
 
-import engine.render as render_module
 integrator.gather_indirect, integrator.render_camera = gather, camera
-render_module.render_camera = camera  # (imported by name there)
+sys.modules["engine.render"].render_camera = camera  # (imported by name there)
 film = render(scene, RenderSettings(workers=WORKERS, seed=SEED))
 h = hashlib.sha1()
 for k in ("direct", "indirect", "caustic", "specular", "emission"):
