@@ -134,7 +134,8 @@ def timing(roots, blends, args, where):
 
 def stats(roots, blends, args, where):
     w, h = args.stats_width, args.stats_height
-    print(f"\n### The image over {args.seeds} seeds, paired by seed, default settings, "
+    print(f"\n### The image over {args.seeds} seeds from {args.first_seed}, paired by seed, "
+          f"default settings, "
           f"{w}x{h}, 1 worker\n")
     print("| blend | image | mean before | mean after | paired difference (± s.e.) | "
           "difference / s.e. | per-pixel noise before | after | ratio |")
@@ -142,7 +143,7 @@ def stats(roots, blends, args, where):
     for name in blends:
         pkl = exported(name, where)
         imgs = {"before": [], "after": []}
-        for seed in range(args.seeds):
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
             for label in ("before", "after"):
                 out = os.path.join(where, f"gather_{label}_{name}_{seed}.npz")
                 run(roots[label], pkl, w, h, 1, seed, out)
@@ -181,6 +182,7 @@ def main():
     ap.add_argument("--workers", default="1,2")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--seeds", type=int, default=4)
+    ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--stats-width", type=int, default=80)
     ap.add_argument("--stats-height", type=int, default=60)
     ap.add_argument("--only", default="time,stats")
