@@ -11,9 +11,10 @@ Prints Markdown tables:
 - time: per example blend at default settings, before and after, for each worker count:
   CPU seconds of the camera stage (process clock around integrator.render_camera, all
   threads) and of the final gather in it (summed over the top-level gather_indirect
-  calls, regathers included: process clock at 1 worker, thread clock at 2), gather_indirect calls by level, and whether
-  the film is bitwise the same as 1 worker's (SHA-1 of the five effect passes);
-- stats: the image over seeds 0..N-1, paired by seed (the same seed before and after):
+  calls, regathers included: process clock at 1 worker, thread clock at 2),
+  gather_indirect calls by level, and whether the film is bitwise the same as 1 worker's
+  (SHA-1 of the five effect passes);
+- stats: the image over seeds first..first+N-1, paired by seed (the same seed before and after):
   the mean of the combined image and of the indirect pass, their paired difference with
   its standard error over seeds, and the per-pixel noise (standard deviation over seeds,
   averaged over pixels) before and after.
