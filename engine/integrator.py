@@ -575,6 +575,15 @@ def _gather_buffers(ctx, level) -> GatherBuffers:
     return buf
 
 
+def _spawn(rng: np.random.Generator) -> np.random.Generator:
+    """A child stream of rng that draws nothing from it: numpy's Generator.spawn(1)[0]
+    (numpy >= 1.25), written out from the bit generator's SeedSequence so the same
+    numbers come on the older numpy some Blender releases embed."""
+    bits = rng.bit_generator
+    seq = getattr(bits, "seed_seq", None) or bits._seed_seq
+    return np.random.Generator(type(bits)(seq.spawn(1)[0]))
+
+
 def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     """Gather once more from the ends of gather rays whose lookup is not to be trusted
     (gather_indirect's regathers), all of one gather_indirect call in one batch: direct
@@ -588,7 +597,7 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
                                      for a in zip(*pending))
     y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
-    rng = rng.spawn(1)[0]
+    rng = _spawn(rng)
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
     # light here.

@@ -332,3 +332,15 @@ def test_batched_regathers_are_statistically_the_per_step_ones(box):
     se = diff.std() / math.sqrt(len(diff))
     assert abs(diff.mean()) < 4 * se
     assert abs(diff.mean()) < 0.01 * np.mean(means)
+
+
+def test_regather_stream_is_generator_spawn_and_draws_nothing():
+    """integrator._spawn (the regathers' stream) gives Generator.spawn's numbers without
+    calling it (absent before numpy 1.25), child after child, and leaves the parent's
+    stream where it was."""
+    from engine.integrator import _spawn
+    a, b = np.random.default_rng(11), np.random.default_rng(11)
+    a.random(3), b.random(3)
+    for _ in range(2):
+        np.testing.assert_array_equal(_spawn(a).random(8), b.spawn(1)[0].random(8))
+    np.testing.assert_array_equal(a.random(8), b.random(8))
