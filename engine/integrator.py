@@ -440,7 +440,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     Regathers: the lookups to gather again (a boundary or a short ray, levels below
     MAX_GATHER_LEVEL) over all G rays and all their continuations are collected and
     gathered in one batch at the end (_regather), with random numbers of a stream of their
-    own (rng.spawn: the chunk's stream for the rays of this level is drawn as before)."""
+    own (_spawn: the chunk's stream for the rays of this level is drawn as before)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     pending = []  # the regathers' (target row, tp, wd, prim, u, v, d), per gather step
