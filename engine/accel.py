@@ -200,6 +200,15 @@ class _Block:
         self.shared = shared  # arrays Embree reads in place (as long as the scene lives)
 
 
+def rows_as_hits(rows: np.ndarray):
+    """Triangle rows (N,) (< 0: a miss) in Accel.intersect_hits' layout: (geom, prim (N,)
+    int32, starts (1,) int64), one geometry starting at row 0, so starts[geom] + prim is
+    the row again and geom < 0 marks the misses."""
+    ok = rows >= 0
+    return (np.where(ok, 0, -1).astype(np.int32), np.where(ok, rows, 0).astype(np.int32),
+            np.zeros(1, np.int64))
+
+
 class Accel:
     """Closest-hit and occlusion queries over triangles `faces` (F,3) int indexing
     `vertices` (V,3) (converted to float32; shared or unshared corners). Prim ids of the
@@ -382,9 +391,8 @@ class Accel:
         # No blocks, or Embree scenes in blocks (no shared-buffer commit): intersect's
         # answer in this layout (its u, v are float32 values, so the same bits).
         _, hit, u, v = self.intersect(o32, d32, tfar32)
-        ok = hit >= 0
-        return (np.where(ok, 0, -1).astype(np.int32), np.where(ok, hit, 0).astype(np.int32),
-                u.astype(np.float32), v.astype(np.float32), np.zeros(1, np.int64))
+        geom, prim, starts = rows_as_hits(hit)
+        return geom, prim, u.astype(np.float32), v.astype(np.float32), starts
 
     def occluded(self, origins, directions, tmax=None) -> np.ndarray:
         """True where something lies between the origin and distance tmax."""

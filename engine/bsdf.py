@@ -128,26 +128,39 @@ for _name in SurfaceHit.__dataclass_fields__:
 del _name
 
 
+def _as_float64(*arrays):
+    """The hit kernels' inputs as C-contiguous float64 (no copy when they already are)."""
+    return tuple(np.ascontiguousarray(a, dtype=np.float64) for a in arrays)
+
+
+def _hit_outputs(geo: Geometry, n: int):
+    """hit_geometry's outputs for n hits: p, ng, ns, base (n,3), front (n,) bool, mat (n,)
+    of geo.material's dtype (as np.take(geo.material, prim) gave), offset (n,), bary (n,2)."""
+    p, ng, ns, base = (np.empty((n, 3)) for _ in range(4))
+    return (p, ng, ns, base, np.empty(n, np.bool_), np.empty(n, geo.material.dtype),
+            np.empty(n), np.empty((n, 2)))
+
+
+def _offset_floor(geo: Geometry, prim, p, ng, offset):
+    """Raise the ray-origin offsets (N,) in place to the shared instances' object-space
+    rounding floor (Geometry.instance_offset_floor), where there is one."""
+    floor = geo.instance_offset_floor(prim, p, ng)
+    if floor is not None:
+        np.maximum(offset, floor, out=offset)
+
+
 def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHit:
     """Surface data at N ray hits: triangles prim (N,), barycentrics u, v (N,) of corners
     1 and 2, ray directions d (N,3). Positions, normals, material, base colour and the
     ray-origin offset come from one compiled pass (camerakernels.hit_geometry); normal
     maps, colour textures and alpha textures are applied after it, per material."""
     n = len(prim)
-    u = np.ascontiguousarray(u, dtype=np.float64)
-    v = np.ascontiguousarray(v, dtype=np.float64)
-    d = np.ascontiguousarray(d, dtype=np.float64)
-    p, ng, ns, base = (np.empty((n, 3)) for _ in range(4))
-    front = np.empty(n, np.bool_)
-    mat = np.empty(n, geo.material.dtype)  # as np.take(geo.material, prim) gave
-    offset = np.empty(n)
-    bary = np.empty((n, 2))
+    u, v, d = _as_float64(u, v, d)
+    p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
     rows, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
     hit_geometry(rows, u, v, d, *tabs, table.base_color, p, ng, ns, front, mat, base, offset,
                  bary)
-    floor = geo.instance_offset_floor(prim, p, ng)  # shared instances: object-space rounding
-    if floor is not None:
-        np.maximum(offset, floor, out=offset)
+    _offset_floor(geo, prim, p, ng, offset)
     n_smooth = bent = None
     for _, nmap, sel in rows_by_material(table.normal_maps, mat):
         if n_smooth is None:
@@ -208,23 +221,16 @@ def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, wa
     arrays shade_lobes writes (integrator.BounceBuffers.take(N)), written as it writes
     them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py)."""
     n = len(prim)
-    u = np.ascontiguousarray(u, dtype=np.float64)
-    v = np.ascontiguousarray(v, dtype=np.float64)
-    d = np.ascontiguousarray(d, dtype=np.float64)
-    p, ng, ns, base, wo = (np.empty((n, 3)) for _ in range(5))
-    front = np.empty(n, np.bool_)
-    mat = np.empty(n, geo.material.dtype)
-    offset = np.empty(n)
-    bary = np.empty((n, 2))
+    u, v, d = _as_float64(u, v, d)
+    p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
+    wo = np.empty((n, 3))
     prm, sel, pw, q, psum, glossy, rows, wd = out
     idx, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
     k = surface_lobes(idx, u, v, d, *tabs, table.base_color, table.closure_params,
                       np.ascontiguousarray(table.alpha, np.float64),
                       np.ascontiguousarray(tp, np.float64), bool(want_glossy), p, ng, ns, wo,
                       front, mat, base, offset, bary, prm, sel, q, pw, psum, glossy, rows, wd)
-    floor = geo.instance_offset_floor(prim, p, ng)  # shared instances: object-space rounding
-    if floor is not None:
-        np.maximum(offset, floor, out=offset)
+    _offset_floor(geo, prim, p, ng, offset)
     if table.emission.any():
         emission = hit_emission(table, ShadingGeometry(geo, ns, wo, ~front), mat, prim, u, v)
     else:

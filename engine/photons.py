@@ -29,6 +29,7 @@ from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
 from . import photonkernels as pk
+from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
 from .closures.principled import M_IOR
 from .normalmap import bump_shadowing
@@ -236,9 +237,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             prim, "v0", "e1", "e2", "corner_normals", "material", "visibility", "object_id")
         if geo.shared is not None:
             # scatter reads the gathered rows: hit i is on row i (-1: a miss).
-            geom = np.where(rows >= 0, 0, -1).astype(np.int32)
-            prim32 = np.maximum(rows, 0).astype(np.int32)
-            starts = _FIRST_ROW
+            geom, prim32, starts = rows_as_hits(rows)
         if given and not numpy_hits:
             pk.photon_surfaces(rows, u64, v64, d, v0, e1, e2, normals, material,
                                table.base_color, table.alpha, *surf_m)
@@ -376,7 +375,6 @@ def _factors(m: int):
 
 _UNBOUNDED = np.finfo(np.float32).max  # tmax of a photon ray (Accel.intersect's default)
 _NO_HITS = np.zeros(0, np.int64)
-_FIRST_ROW = np.zeros(1, np.int64)  # starts of rows gathered per hit (shared instances)
 
 
 def _closest_hits(accel, o32, d32, tfar32):
@@ -388,9 +386,8 @@ def _closest_hits(accel, o32, d32, tfar32):
     if hasattr(full, "intersect_hits"):
         return full.intersect_hits(o32, d32, tfar32)
     _, prim, u, v = accel.intersect(o32, d32)  # unbounded, as tfar32
-    ok = prim >= 0
-    return (np.where(ok, 0, -1).astype(np.int32), np.where(ok, prim, 0).astype(np.int32),
-            u.astype(np.float32), v.astype(np.float32), _FIRST_ROW)
+    geom, prim32, starts = rows_as_hits(prim)
+    return geom, prim32, u.astype(np.float32), v.astype(np.float32), starts
 
 
 def _needs_numpy_hits(table) -> bool:

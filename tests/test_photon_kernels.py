@@ -51,8 +51,9 @@ def _scene():
 def _embree_layout(prim, u, v):
     """Accel.intersect's hits (prim (N,) int64, < 0: miss; u, v float64) in the layout of
     Accel.intersect_hits, as one geometry starting at row 0."""
-    return (np.where(prim >= 0, 0, -1).astype(np.int32), np.maximum(prim, 0).astype(np.int32),
-            u.astype(np.float32), v.astype(np.float32), np.zeros(1, np.int64))
+    from engine.accel import rows_as_hits
+    geom, prim32, starts = rows_as_hits(prim)
+    return geom, prim32, u.astype(np.float32), v.astype(np.float32), starts
 
 
 def test_photon_surfaces_match_surface_hit():
@@ -312,3 +313,16 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
         assert c1 == c2 and c1[0] > m // 4 and c1[1] > m // 4
         for x, y in zip(a1, a2):
             np.testing.assert_array_equal(x, y)
+
+
+def test_rows_as_hits_round_trips_triangle_rows():
+    """accel.rows_as_hits (intersect_hits' layout for rows already resolved: the fallback
+    BVHs and shared instances): starts[geom] + prim is the row again, misses get geom < 0,
+    ids are int32 as Embree's."""
+    from engine.accel import rows_as_hits
+    rows = np.array([5, -1, 0, 123456, -1, 7], np.int64)
+    geom, prim, starts = rows_as_hits(rows)
+    assert geom.dtype == np.int32 and prim.dtype == np.int32 and starts.dtype == np.int64
+    hit = rows >= 0
+    np.testing.assert_array_equal(geom < 0, ~hit)
+    np.testing.assert_array_equal(starts[geom[hit]] + prim[hit], rows[hit])
