@@ -46,11 +46,11 @@ class RecordingAccel(Accel):
             self.log.append(("INTERSECT", *self._prepare(o, d, tmax)))
         return super().intersect(o, d, tmax)
 
-    def intersect_hits(self, o32, d32, tfar32):
+    def intersect_hits(self, o32, d32, tfar32, out=None):
         # The photon pass's float32 rays (Embree overwrites tfar: copy).
         if self.enabled:
             self.log.append(("INTERSECT", o32.copy(), d32.copy(), tfar32.copy()))
-        return super().intersect_hits(o32, d32, tfar32)
+        return super().intersect_hits(o32, d32, tfar32, out)
 
     def occluded(self, o, d, tmax=None):
         if self.enabled:

@@ -25,6 +25,8 @@ import os
 import sys
 import time
 
+import numpy as np
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 split = "--split" in sys.argv
 args = [a for a in sys.argv[1:] if a != "--split"]
@@ -117,8 +119,9 @@ def print_split(ctx, counts, raw_cpu):
 def print_embree_calls(rec, log):
     """The Embree calls alone on a trace's recorded rays, interleaved in this process
     (thread CPU, best of 5): raw embreex, Accel.intersect (int64 ids, float64 copies) and,
-    where the checkout has it, Accel.intersect_hits (Embree's own arrays, the photon
-    pass's call since the tenth slice)."""
+    where the checkout has them, Accel.intersect_hits (Embree's own arrays, the photon
+    pass's call in the tenth slice) and intersect_hits into reused arrays (the trace
+    kernel, the photon pass's call since the eleventh slice)."""
     from engine.accel import Accel
     acc = rec.serial()
     scene = acc._scene
@@ -126,6 +129,15 @@ def print_embree_calls(rec, log):
              "Accel.intersect": lambda o, d, t: Accel.intersect(acc, o, d, t)}
     if hasattr(Accel, "intersect_hits"):
         calls["Accel.intersect_hits"] = lambda o, d, t: Accel.intersect_hits(acc, o, d, t.copy())
+    import inspect
+    if "out" in inspect.signature(Accel.intersect_hits).parameters:
+        # Into reused arrays, traced by the kernel through rtcIntersect1 (the photon
+        # pass's call since the eleventh slice).
+        n = max((len(e[1]) for e in log), default=0)
+        ids, uv = np.empty((2, n), np.int32), np.empty((2, n), np.float32)
+        calls["Accel.intersect_hits(out=)"] = lambda o, d, t: Accel.intersect_hits(
+            acc, o, d, t.copy(), (ids[0][:len(o)], ids[1][:len(o)], uv[0][:len(o)],
+                                  uv[1][:len(o)]))
     best = {}
     for _ in range(5):
         for name, call in calls.items():

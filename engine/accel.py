@@ -12,6 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .jit import kernel, register_warm_up
 from .parallel import Cancelled
 
 try:
@@ -111,6 +112,122 @@ def _embree_library():
 
 
 _LIBRARY = None if _rtcs is None else _embree_library()
+
+
+# ---------------------------------------------------------------- closest hits in a kernel
+# Accel.intersect_hits with output arrays traces through Embree's rtcIntersect1 called from
+# a compiled kernel: the same Embree call embreex's run() makes per ray, without run()'s
+# per-call output arrays (Ng, tfar, ids, u, v: 36 B a ray, fresh pages every call) and
+# its Python-level answer. The ray-hit record is Embree 4's RTCRayHit (rtcore_ray.h), in
+# 32-bit words: org 0-2, tnear 3, dir 4-6, time 7, tfar 8, mask 9, id 10, flags 11; hit
+# (16-byte aligned) Ng 12-14, u 15, v 16, primID 17, geomID 18, instID 19, instPrimID 20.
+# The rays are set up as embreex sets them (tnear 0, time 0, mask all, no arguments), a
+# miss answers as embreex's (primID and geomID -1, u = v = 0), and _kernel_hits_agree
+# checks that on a probe before the kernel is used.
+_RAYHIT_WORDS = 24
+
+try:
+    from llvmlite import ir as _ir
+    from numba import types as _types
+    from numba.extending import intrinsic as _intrinsic
+except ImportError:  # pragma: no cover - numba is a dependency of the engine
+    _intrinsic = None
+
+if _intrinsic is not None:
+    @_intrinsic
+    def _call_c3(typingctx, fn, a, b):
+        """fn(a, b, NULL) for the C function void fn(void*, void*, void*) at address fn
+        (a, b addresses): how a kernel calls rtcIntersect1 (scene, rayhit, args)."""
+        sig = _types.void(_types.intp, _types.intp, _types.intp)
+
+        def codegen(context, builder, signature, args):
+            f, x, y = args
+            vp = _ir.IntType(8).as_pointer()
+            fnty = _ir.FunctionType(_ir.VoidType(), [vp, vp, vp])
+            builder.call(builder.inttoptr(f, fnty.as_pointer()),
+                         [builder.inttoptr(x, vp), builder.inttoptr(y, vp),
+                          _ir.Constant(vp, None)])
+            return context.get_dummy_value()
+        return sig, codegen
+
+    @kernel
+    def _intersect1(fn, scene, o32, d32, tfar32, geom, prim, u, v):
+        """Closest hits of rays o32, d32 (N,3) float32 up to tfar32 (N,) (overwritten with
+        the hit distance, as embreex does) through rtcIntersect1 at address fn on the
+        RTCScene at address scene; writes geom, prim (N,) int32 and u, v (N,) float32 as
+        embreex's run() answers them."""
+        buf = np.empty(2 * _RAYHIT_WORDS, np.float32)
+        start = buf.ctypes.data
+        skip = ((start + 15) & ~15) - start  # RTCRayHit is 16-byte aligned
+        rh = buf[skip // 4:skip // 4 + _RAYHIT_WORDS]
+        ri = rh.view(np.uint32)
+        at = start + skip
+        none = np.uint32(0xFFFFFFFF)
+        for i in range(o32.shape[0]):
+            rh[0], rh[1], rh[2], rh[3] = o32[i, 0], o32[i, 1], o32[i, 2], 0.0
+            rh[4], rh[5], rh[6], rh[7] = d32[i, 0], d32[i, 1], d32[i, 2], 0.0
+            rh[8] = tfar32[i]
+            ri[9], ri[10], ri[11] = none, 0, 0
+            rh[15], rh[16] = 0.0, 0.0
+            ri[17], ri[18], ri[19], ri[20] = none, none, none, none
+            _call_c3(fn, scene, at)
+            tfar32[i] = rh[8]
+            geom[i] = np.int32(ri[18])
+            prim[i] = np.int32(ri[17])
+            u[i] = rh[15]
+            v[i] = rh[16]
+
+    @register_warm_up
+    def _warm_up():
+        """Compile (or load) the trace kernel (no rays: nothing is called)."""
+        z3, z1 = np.zeros((0, 3), np.float32), np.zeros(0, np.float32)
+        ids = np.zeros(0, np.int32)
+        _intersect1(0, 0, z3, z3, z1, ids, ids, z1, z1)
+
+
+def _scene_address(scene) -> int:
+    """The RTCScene pointer inside an embreex EmbreeScene (_embree_library's offset)."""
+    lib, offset, ctypes = _LIBRARY
+    return ctypes.c_void_p.from_address(id(scene) + offset).value
+
+
+_KERNEL_HITS = None  # rtcIntersect1's address once the probe agreed, 0 if it did not
+
+
+def _kernel_hits_address() -> int:
+    """rtcIntersect1's address when the trace kernel answers as embreex's run() on a probe
+    (hits, misses, a ray stopped short by tfar), else 0 (intersect_hits then copies
+    run()'s answer into the output arrays)."""
+    global _KERNEL_HITS
+    if _KERNEL_HITS is None:
+        _KERNEL_HITS = 0
+        if _LIBRARY is not None and _intrinsic is not None:
+            try:
+                _KERNEL_HITS = _probe_kernel_hits()
+            except Exception:  # noqa: BLE001 - any surprise: run()'s answer instead
+                _KERNEL_HITS = 0
+    return _KERNEL_HITS
+
+
+def _probe_kernel_hits() -> int:
+    lib, _, ctypes = _LIBRARY
+    fn = ctypes.cast(lib.rtcIntersect1, ctypes.c_void_p).value
+    rng = np.random.default_rng(5)
+    vertices = rng.random((30, 3)).astype(np.float32)
+    faces = rng.integers(0, 30, (40, 3))
+    acc = Accel(vertices, faces)
+    o = (rng.random((256, 3)) * 1.4 - 0.2).astype(np.float32)
+    d = rng.normal(size=(256, 3)).astype(np.float32)
+    tf = np.full(256, np.finfo(np.float32).max, np.float32)
+    tf[::7] = 0.05
+    res = acc._scene.run(o, d, dists=tf.copy(), output=True)
+    want = (res["geomID"], res["primID"], res["u"], res["v"], res["tfar"])
+    got = (np.empty(256, np.int32), np.empty(256, np.int32), np.empty(256, np.float32),
+           np.empty(256, np.float32), tf.copy())
+    _intersect1(fn, _scene_address(acc._scene), o, d, got[4], *got[:4])
+    same = all(np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))
+               for a, b in zip(got, want))
+    return fn if same and (want[0] >= 0).any() and (want[0] < 0).any() else 0
 
 
 def _free_commit(scene, should_cancel, compact=False, shared=()):
@@ -355,7 +472,7 @@ class Accel:
         self._run(work, n)
         return t, prim, u, v
 
-    def intersect_hits(self, o32, d32, tfar32):
+    def intersect_hits(self, o32, d32, tfar32, out=None):
         """Closest hits of rays already in Embree's layout (written by a kernel), as Embree
         answers them, without intersect's conversions (np.where on the ids, float64
         copies of t, u, v: ~5 % of the photon pass): o32, d32 (N,3) C-contiguous float32,
@@ -363,14 +480,19 @@ class Accel:
         with the hit distance). Returns (geom, prim, u, v, starts): geom, prim (N,) int32,
         geom < 0 where the ray misses, else the hit triangle's row in `faces` is
         starts[geom] + prim; u, v (N,) float32 barycentrics (intersect's u, v are these
-        values as float64); starts (G,) int64. Raises ValueError on other shapes or
-        types (embreex does not check)."""
+        values as float64); starts (G,) int64. out: (geom, prim, u, v) C-contiguous
+        arrays of those types and (N,) shape to write the answer into (a caller's
+        reused buffers), returned; traced by a compiled kernel through rtcIntersect1
+        where the probe allows (_kernel_hits_address), the same values bit for bit.
+        Raises ValueError on other shapes or types (embreex does not check)."""
         n = len(o32)
         for name, a, shape in (("origins", o32, (n, 3)), ("directions", d32, (n, 3)),
                                ("tfar", tfar32, (n,))):
             if a.dtype != np.float32 or a.shape != shape or not a.flags.c_contiguous:
                 raise ValueError(f"Accel.intersect_hits: {name} must be C-contiguous float32 "
                                  f"{shape}, got {a.dtype} {a.shape}")
+        if out is not None:
+            return self._hits_into(o32, d32, tfar32, out)
         blocks = self._blocks
         if len(blocks) == 1:
             block = blocks[0]
@@ -393,6 +515,31 @@ class Accel:
         _, hit, u, v = self.intersect(o32, d32, tfar32)
         geom, prim, starts = rows_as_hits(hit)
         return geom, prim, u.astype(np.float32), v.astype(np.float32), starts
+
+    def _hits_into(self, o32, d32, tfar32, out):
+        """intersect_hits(o32, d32, tfar32, out) (shapes of the rays checked)."""
+        n = len(o32)
+        geom, prim, u, v = out
+        for name, a, dtype in (("geom", geom, np.int32), ("prim", prim, np.int32),
+                               ("u", u, np.float32), ("v", v, np.float32)):
+            if a.dtype != dtype or a.shape != (n,) or not a.flags.c_contiguous:
+                raise ValueError(f"Accel.intersect_hits: out {name} must be C-contiguous "
+                                 f"{np.dtype(dtype)} ({n},), got {a.dtype} {a.shape}")
+        fn = _kernel_hits_address() if len(self._blocks) == 1 else 0
+        if not fn:
+            answer = self.intersect_hits(o32, d32, tfar32)
+            for dst, src in zip(out, answer):
+                dst[:] = src
+            return (*out, answer[4])
+        block = self._blocks[0]
+        scene = _scene_address(block.scene)
+
+        def work(a, b):
+            _intersect1(fn, scene, o32[a:b], d32[a:b], tfar32[a:b], geom[a:b], prim[a:b],
+                        u[a:b], v[a:b])
+
+        self._run(work, n)
+        return (*out, block.starts)
 
     def occluded(self, origins, directions, tmax=None) -> np.ndarray:
         """True where something lies between the origin and distance tmax."""

@@ -233,7 +233,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
             base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id, caster,
             first_hit_mode, caustic_only, vis_on,
             st_pos, st_power, st_dir, st_normal, st_kind,
-            nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot):
+            nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, hit_rows):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds and slots (m,), at the hits as Embree answers them (Accel.intersect_hits):
     geom, prim (m,) int32 (geom < 0: missed; lost; else the triangle's row is
@@ -243,7 +243,8 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
     base_color (M,3) and mat_alpha (M,) (photon_surfaces' inputs; p .. offset unused,
     may be empty); with given True read from p, ng, ns, front, mat, base, alpha, offset
     (photon_surfaces' outputs, or bsdf.surface_hit's). bump (m,) the diffuse lobe's bump shadowing
-    factor (normalmap.bump_shadowing; 1 without a bent normal). params, mat_ior: the
+    factor (normalmap.bump_shadowing; 1 without a bent normal), or (0,): 1 for every
+    photon (x * 1.0 is x: the same bits without reading it). params, mat_ior: the
     material table's closure parameters and IOR; plain (M,) bool: the material has only
     the diffuse and pass lobes (plain_materials), whose weights need no closure set-up.
     visibility (T,) ray
@@ -256,6 +257,8 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
     (float32 origins and directions for Embree, float64 directions, power, flags, kinds,
     slots) to nx_* (2m rows at most: the continuations, then the copies that pass
     surfaces some of their ray kinds do not see). Returns (stored, continued) counts.
+    hit_rows (2, >= m) int64: scratch for the hits' rows and triangle rows (lent by the
+    trace's buffer pool: fresh arrays per call cost page faults; contents ignored).
 
     Russian roulette picks one lobe with probability = its largest RGB albedo (absorbs with
     what is left); the power is divided by that probability and multiplied by the sampled
@@ -263,9 +266,12 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
     takes (eta_i / eta_t)^2: radiance is carried as invariant across the interface, as by
     the camera side and Cycles (docs/units.md, "Refraction")."""
     m = geom.shape[0]
+    bumped = bump.shape[0] > 0
+    if hit_rows.shape[1] < m:
+        raise ValueError("scatter: hit_rows has fewer than m columns")
     # The hits' rows and triangle rows, in order.
-    rows = np.empty(m, np.int64)
-    tri = np.empty(m, np.int64)
+    rows = hit_rows[0]
+    tri = hit_rows[1]
     nh = 0
     for i in range(m):
         g = geom[i]
@@ -385,7 +391,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
             if store:
                 for c in range(3):
                     st_pos[ns_, c] = p_b[j, c]
-                    st_power[ns_, c] = power[i, c] * bump[i]
+                    st_power[ns_, c] = power[i, c] * bump[i] if bumped else power[i, c]
                     st_dir[ns_, c] = d[i, c]
                     st_normal[ns_, c] = ng_b[j, c]
                 st_kind[ns_] = kind
@@ -404,11 +410,13 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
                 s += probs[pr.L_DIFFUSE]
                 s += probs[pr.L_PASS]
                 norm = max(s, 1.0)
-                cdf += probs[pr.L_DIFFUSE] / norm
+                # x / 1.0 is x: the divisions are skipped where norm is 1 (the usual
+                # case: weights summing to at most 1), the same bits.
+                cdf += probs[pr.L_DIFFUSE] if norm == 1.0 else probs[pr.L_DIFFUSE] / norm
                 if xi < cdf:
                     lobe = pr.L_DIFFUSE
                 else:
-                    cdf += probs[pr.L_PASS] / norm
+                    cdf += probs[pr.L_PASS] if norm == 1.0 else probs[pr.L_PASS] / norm
                     if xi < cdf:
                         lobe = pr.L_PASS
             else:
@@ -425,7 +433,7 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
                 continue
             glass = lobe == pr.L_GLASS_R or lobe == pr.L_GLASS_T
             p_sel = probs[pr.L_GLASS_R] + probs[pr.L_GLASS_T] if glass else probs[lobe]
-            p_sel = max(p_sel / norm, 1e-300)
+            p_sel = max(p_sel if norm == 1.0 else p_sel / norm, 1e-300)
             dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
             gx, gy, gz = ng_b[j, 0], ng_b[j, 1], ng_b[j, 2]
             n0, n1, n2 = ns_b[j, 0], ns_b[j, 1], ns_b[j, 2]
@@ -438,7 +446,9 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
                 ox, oy, oz = pr.frame_world(n0, n1, n2, r * math.cos(phi), r * math.sin(phi),
                                             math.sqrt(max(0.0, 1.0 - u1)))
                 ok = ox * gx + oy * gy + oz * gz > 0.0
-                k0, k1, k2 = wj[0, 0] * bump[i], wj[0, 1] * bump[i], wj[0, 2] * bump[i]
+                k0, k1, k2 = wj[0, 0], wj[0, 1], wj[0, 2]
+                if bumped:
+                    k0, k1, k2 = k0 * bump[i], k1 * bump[i], k2 * bump[i]
             elif lobe == pr.L_PASS:
                 ox, oy, oz = dx, dy, dz
                 transmitted = True
@@ -587,5 +597,5 @@ def _warm_up():
                 e1, e2, normals, np.zeros(1, np.int32), np.full((1, 3), 0.5), np.ones(1),
                 given, *surf, np.ones(1), params, plain_materials(params), np.full(1, 1.5),
                 np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.bool_),
-                0, False, False, *store_arrays(1), *next_arrays(2))
+                0, False, False, *store_arrays(1), *next_arrays(2), np.empty((2, 1), np.int64))
     uniforms(np.uint64(1), np.zeros(1, np.int64), 0, 0, np.empty(1))

@@ -166,13 +166,14 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # rays (one is the bounce's input, the other its output).
     surf = pk.surface_arrays(m if given else 0)
     bump_buf = pool.take(_factors, m)
-    bump, tfar = bump_buf[0][:m], bump_buf[1][:m]
+    bump, tfar, hit_rows = bump_buf[0][:m], bump_buf[1][:m], bump_buf[2]
+    hits = (bump_buf[3][0], bump_buf[3][1], bump_buf[4], bump_buf[5])  # Embree's answer
     bump[:] = 1.0
     stored = _Stored(2 * m + 1024, pool)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-                 vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, stored,
-                 nxt_sets, pool, caustic_only, should_cancel)
+                 vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
+                 hits, stored, nxt_sets, pool, caustic_only, should_cancel)
     except BaseException:
         stored.release()
         raise
@@ -185,8 +186,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
 
 
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-             vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, stored,
-             nxt_sets, pool, caustic_only, should_cancel):
+             vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
+             hits, stored, nxt_sets, pool, caustic_only, should_cancel):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool)."""
@@ -198,11 +199,14 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             break
         if m > len(bump):
             surf = pk.surface_arrays(m if given else 0)
-            bump, tfar = np.ones(m), np.empty(m, np.float32)
+            bump, tfar, hit_rows, ids, u_buf, v_buf = _factors(m)
+            bump[:] = 1.0
+            hits = (ids[0], ids[1], u_buf, v_buf)
         tfar[:m] = _UNBOUNDED
         # Embree's own answer: int32 ids, float32 barycentrics; scatter reads them as they
         # are (Accel.intersect_hits).
-        geom, prim32, u, v, starts = _closest_hits(accel, o, d32, tfar[:m])
+        geom, prim32, u, v, starts = _closest_hits(accel, o, d32, tfar[:m],
+                                                   tuple(a[:m] for a in hits))
         if given:
             # Triangle rows and float64 barycentrics for numpy and instance paths (the
             # same values as Accel.intersect's).
@@ -253,9 +257,10 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             nxt_sets[k] = pool.take(pk.next_arrays, need)
         n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, geom, prim32,
                                 starts, u, v, v0, e1, e2, normals, material, table.base_color,
-                                table.alpha, given, *surf_m, bump[:m], params, row_plain, mat_ior,
+                                table.alpha, given, *surf_m, bump[:m] if numpy_hits else _NO_BUMP,
+                                params, row_plain, mat_ior,
                                 visibility, object_id, caster, mode, bool(caustic_only),
-                                vis_on, *stored.room(m), *nxt_sets[k])
+                                vis_on, *stored.room(m), *nxt_sets[k], hit_rows)
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt_sets[k])
 
@@ -285,7 +290,7 @@ class _Buffers:
         return make(rows)
 
     def give(self, arrays):
-        make = {5: pk.store_arrays, 7: pk.next_arrays, 2: _factors}[len(arrays)]
+        make = {5: pk.store_arrays, 7: pk.next_arrays, 6: _factors}[len(arrays)]
         with self._lock:
             self._free.append((make, arrays))
 
@@ -368,23 +373,29 @@ class _Shot:
 
 
 def _factors(m: int):
-    """Per-photon buffers for m photons: the bump shadowing factors (float64) and the
-    rays' tmax handed to Embree (float32, which Embree overwrites)."""
-    return (np.empty(m), np.empty(m, np.float32))
+    """Per-photon buffers for m photons: the bump shadowing factors (float64), the
+    rays' tmax handed to Embree (float32, which Embree overwrites), scatter's scratch
+    rows (2, m) int64, and Embree's answer: geometry and triangle ids (2, m) int32,
+    barycentrics u, v (m,) float32 (Accel.intersect_hits' out)."""
+    return (np.empty(m), np.empty(m, np.float32), np.empty((2, m), np.int64),
+            np.empty((2, m), np.int32), np.empty(m, np.float32), np.empty(m, np.float32))
 
 
 _UNBOUNDED = np.finfo(np.float32).max  # tmax of a photon ray (Accel.intersect's default)
 _NO_HITS = np.zeros(0, np.int64)
+_NO_BUMP = np.zeros(0)  # scatter: no bent normals, every photon's bump factor is 1
 
 
-def _closest_hits(accel, o32, d32, tfar32):
+def _closest_hits(accel, o32, d32, tfar32, out):
     """Closest hits of the photon rays o32, d32 (N,3) float32 over every triangle, as
-    Accel.intersect_hits answers: (geom, prim (N,) int32, u, v (N,) float32, starts). A
-    VisibilityAccel's queries without a ray class go to its `full` BVH; a BVH without
-    intersect_hits (two-level instances) answers through intersect, converted."""
+    Accel.intersect_hits answers: (geom, prim (N,) int32, u, v (N,) float32, starts),
+    written into out = (geom, prim, u, v) (the trace's pooled buffers) where the BVH
+    takes them. A VisibilityAccel's queries without a ray class go to its `full` BVH; a
+    BVH without intersect_hits (two-level instances) answers through intersect,
+    converted."""
     full = getattr(accel, "full", accel)
     if hasattr(full, "intersect_hits"):
-        return full.intersect_hits(o32, d32, tfar32)
+        return full.intersect_hits(o32, d32, tfar32, out)
     _, prim, u, v = accel.intersect(o32, d32)  # unbounded, as tfar32
     geom, prim32, starts = rows_as_hits(prim)
     return geom, prim32, u.astype(np.float32), v.astype(np.float32), starts

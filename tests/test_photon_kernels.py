@@ -140,10 +140,12 @@ def test_scatter_computes_the_surface_data_as_photon_surfaces_does():
                                 prim32, starts, u32, v32, geo.v0, geo.e1, geo.e2,
                                 geo.corner_normals, geo.material, table.base_color,
                                 table.alpha, given,
-                                *(surf if given else pk.surface_arrays(0)), np.ones(n),
+                                *(surf if given else pk.surface_arrays(0)),
+                                # bump factors of 1, or none (the same: x * 1.0 is x)
+                                np.ones(n) if given else np.zeros(0),
                                 table.closure_params, plain, table.ior, visibility,
                                 geo.object_id, np.zeros(1, np.bool_), 0, False, vis_on,
-                                *st, *nx)
+                                *st, *nx, _scratch_rows(n))
             out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
         (c1, a1), (c2, a2) = out
         assert c1 == c2 and c1[0] > 0 and c1[1] > 0
@@ -205,7 +207,8 @@ def test_plain_materials_scatter_as_with_the_full_set_of_lobes():
                             table.alpha, False, *pk.surface_arrays(0), np.ones(n),
                             table.closure_params, row_plain, table.ior,
                             np.full(geo.count, 255, np.uint8), geo.object_id,
-                            np.zeros(1, np.bool_), 0, False, False, *st, *nx)
+                            np.zeros(1, np.bool_), 0, False, False, *st, *nx,
+                            _scratch_rows(n))
         out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
     (c1, a1), (c2, a2) = out
     assert c1 == c2 and c1[0] > 1000 and c1[1] > 1000
@@ -296,6 +299,24 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
         np.testing.assert_array_equal(u32.astype(np.float64)[hit], u[hit])
         np.testing.assert_array_equal(v32.astype(np.float64)[hit], v[hit])
         np.testing.assert_array_equal(tfar[hit].astype(np.float64), t[hit])
+        # The same query into the caller's arrays (junk before): traced by the kernel
+        # through rtcIntersect1 (a single Embree scene; the pieces are its geometries),
+        # embreex's answer bit for bit, misses and tfar included; some rays end short.
+        tmax = np.full(m, np.finfo(np.float32).max, np.float32)
+        tmax[::5] = rng.random(len(tmax[::5])).astype(np.float32) * 0.5
+        accel = Accel(geo.vertices32, geo.faces32, threads)
+        want_t = tmax.copy()
+        want = accel.intersect_hits(o32, d32, want_t)
+        got_t = tmax.copy()
+        out_arrays = (np.full(m, 77, np.int32), np.full(m, -5, np.int32),
+                      np.full(m, np.nan, np.float32), np.full(m, 3.0, np.float32))
+        got = accel.intersect_hits(o32, d32, got_t, out_arrays)
+        accel.close()
+        assert all(a is b for a, b in zip(got[:4], out_arrays))
+        assert (want[0] < 0).sum() > (~hit).sum()  # the short rays miss more
+        for x, y in zip(list(got) + [got_t], list(want) + [want_t]):
+            assert x.dtype == y.dtype
+            np.testing.assert_array_equal(x.view(np.uint8), y.view(np.uint8))
         out = []
         for geom_k, prim_k, u_k, v_k, starts_k in ((geom, prim32, u32, v32, starts),
                                                    _embree_layout(prim, u, v)):
@@ -307,12 +328,64 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
                                 table.alpha, False, *pk.surface_arrays(0), np.ones(m),
                                 table.closure_params, plain, table.ior,
                                 np.full(geo.count, 255, np.uint8), geo.object_id,
-                                np.zeros(1, np.bool_), 0, False, False, *st, *nx)
+                                np.zeros(1, np.bool_), 0, False, False, *st, *nx,
+                                _scratch_rows(m))
             out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
         (c1, a1), (c2, a2) = out
         assert c1 == c2 and c1[0] > m // 4 and c1[1] > m // 4
         for x, y in zip(a1, a2):
             np.testing.assert_array_equal(x, y)
+
+
+def test_intersect_hits_into_arrays_uses_the_trace_kernel_and_checks_them():
+    """With the embreex wheel's Embree the probe accepts the trace kernel (rtcIntersect1
+    from compiled code answers as embreex's run()), and intersect_hits refuses output
+    arrays of the wrong type or length (a short array would be written past its end)."""
+    import pytest
+
+    from engine import accel as accel_mod
+
+    if accel_mod._LIBRARY is not None:
+        assert accel_mod._kernel_hits_address() != 0
+    v = np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1]], np.float32)
+    accel = Accel(v, np.array([[0, 1, 2]]))
+    o = np.array([[0.2, 0.2, 0.0], [5.0, 5.0, 0.0]], np.float32)
+    d = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]], np.float32)
+    tfar = np.full(2, np.finfo(np.float32).max, np.float32)
+    ids, uv = np.zeros(2, np.int32), np.zeros(2, np.float32)
+    geom, prim, u, v, starts = accel.intersect_hits(o, d, tfar, (ids, ids.copy(), uv, uv.copy()))
+    assert list(geom) == [0, -1] and list(prim) == [0, -1] and abs(tfar[0] - 1.0) < 1e-6
+    assert abs(u[0] - 0.2) < 1e-6 and abs(v[0] - 0.2) < 1e-6 and (u[1], v[1]) == (0, 0)
+    for bad in ((ids[:1], ids, uv, uv), (ids, ids, uv.astype(np.float64), uv),
+                (ids, ids.astype(np.int64), uv, uv)):
+        with pytest.raises(ValueError):
+            accel.intersect_hits(o, d, tfar, bad)
+    accel.close()
+
+
+def test_scatter_refuses_short_scratch_rows():
+    """scatter's scratch rows (2, >= m) come from the caller: fewer raise rather than
+    write past the end."""
+    import pytest
+
+    m = 4
+    d = np.tile([0.0, 0.0, -1.0], (m, 1))
+    with pytest.raises(ValueError):
+        pk.scatter(np.uint64(1), 0, d, np.ones((m, 3)), np.zeros(m, np.int64),
+                   np.full(m, pk.SEGMENT_KINDS, np.int64), np.arange(m),
+                   np.full(m, -1, np.int32), np.zeros(m, np.int32), np.zeros(1, np.int64),
+                   np.zeros(m, np.float32), np.zeros(m, np.float32), np.zeros((1, 3)),
+                   np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((0, 3, 3), np.float32),
+                   np.zeros(1, np.int32), np.ones((1, 3)), np.ones(1), False,
+                   *pk.surface_arrays(0), np.zeros(0), np.zeros((1, 30)), np.ones(1, np.bool_),
+                   np.ones(1), np.zeros(1, np.uint8), np.zeros(1, np.int32),
+                   np.zeros(1, np.bool_), 0, False, False, *pk.store_arrays(m),
+                   *pk.next_arrays(2 * m), np.empty((2, m - 1), np.int64))
+
+
+def _scratch_rows(m):
+    """scatter's scratch rows, filled with junk (its output must not depend on them)."""
+    return np.full((2, m), -12345, np.int64)
 
 
 def test_rows_as_hits_round_trips_triangle_rows():
