@@ -449,13 +449,15 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     if lean is _UNSET:
         lean = lean_materials(ctx.table)
     table_alpha = c(ctx.table.alpha, np.float64)
+    # This thread's arrays for this level's steps (a call of the next level, the
+    # regathers', uses its own).
+    buf = _gather_buffers(ctx, level)
     for g in range(G):
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else rng.random((2, n))
-        idx = np.empty(n, np.int64)
-        o, d = np.empty((n, 3)), np.empty((n, 3))
+        idx, o, d, tp = buf.rays(n)
         k = gather_rays(c(u1, np.float64), c(u2, np.float64), ns, ng, p, offset, idx, o, d)
-        idx, o, d = idx[:k], o[:k], d[:k]
-        tp = np.ones((len(idx), 3))
+        idx, o, d, tp = idx[:k], o[:k], d[:k], tp[:k]
+        tp.fill(1.0)
         if getattr(hit, "n_smooth", None) is not None:
             # Bent normals: the diffuse lobe's sampled directions take Cycles' bump
             # shadowing term as its light samples do (engine/normalmap.py).
@@ -490,22 +492,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 yf = y
             else:
                 # The other hits (full) alone take the closures.
-                wd = np.empty((m, 3))
-                full = np.empty(m, np.int64)
+                wd, full = buf.wd[:m], buf.full[:m]
                 n_full = lean_diffuse(y.mat, y.base, lean, table_alpha, wd, full)
                 full = full[:n_full]
                 yf = y if n_full == m else y.take(full)
                 if n_full:
                     wd[full] = lobe_weights(ctx.table, yf)["diffuse"]
             # Lookup inputs of the rows with a diffuse lobe (gatherkernels.diffuse_lookups).
-            dsel = np.empty(m, np.int64)
-            lp, ln = np.empty((m, 3)), np.empty((m, 3))
-            loff, lt = np.empty(m), np.empty(m)
+            dsel, lp, ln = buf.dsel[:m], buf.lp[:m], buf.ln[:m]
+            loff, lt = buf.loff[:m], buf.lt[:m]
             nd = diffuse_lookups(wd, y.p, y.ng, y.offset, t, dsel, lp, ln, loff, lt)
             if nd:
                 dsel = dsel[:nd]
                 Ey, boundary = ctx.gather_map.lookup(lp[:nd], ln[:nd], offset=loff[:nd])
-                again = np.empty(nd, np.int64)
+                again = buf.again[:nd]
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
                 if n_again:
@@ -537,6 +537,43 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 keep = full[keep]
             idx = idx[keep]
     return E
+
+
+class GatherBuffers:
+    """The arrays of one gather level's steps, kept by one thread between its calls:
+    fresh arrays of a few MB per step fault their pages in on first touch (and fault in
+    parallel on two workers). rays(n) hands out the gather rays' rows (row of the
+    gathering hit (n,) int64, origins, directions, throughput (n,3)); the ends' fields
+    (diffuse weight wd (m,3), full (m,), dsel (m,), lookup point lp, normal ln (m,3),
+    offset loff, ray length lt (m,), again (m,)) hold rows for as many rays as the largest
+    call had (a step's ends are never more than its rays)."""
+
+    def __init__(self):
+        self.size = 0
+
+    def rays(self, n):
+        if n > self.size:
+            self.size = n
+            self.idx, self.full, self.dsel, self.again = (np.empty(n, np.int64)
+                                                           for _ in range(4))
+            self.o, self.d, self.tp, self.wd, self.lp, self.ln = (np.empty((n, 3))
+                                                                  for _ in range(6))
+            self.loff, self.lt = np.empty(n), np.empty(n)
+        return self.idx[:n], self.o[:n], self.d[:n], self.tp[:n]
+
+
+def _gather_buffers(ctx, level) -> GatherBuffers:
+    """The calling thread's GatherBuffers for gather level `level`, held by the render's
+    context (dropped with it; a context made for worker threads, Context.serial, is one
+    render's)."""
+    bufs = vars(ctx).get("_gather_buffers")
+    if bufs is None:
+        bufs = vars(ctx).setdefault("_gather_buffers", {})  # (atomic under the GIL)
+    key = (threading.get_ident(), level)
+    buf = bufs.get(key)
+    if buf is None:
+        buf = bufs[key] = GatherBuffers()
+    return buf
 
 
 # Placeholders for gatherkernels' optional arguments (a scalar ray class; the second
