@@ -436,9 +436,14 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     level > 0: a recursive gather from a corner; it also counts the emission of the
     emissive meshes its rays hit (direct light there comes from shadow rays to the other
     lights only). lean: gatherkernels.lean_materials(ctx.table) if the caller has it (the
-    recursion passes its own: regathers come in thousands of small batches)."""
+    recursion passes its own).
+    Regathers: the lookups to gather again (a boundary or a short ray, levels below
+    MAX_GATHER_LEVEL) over all G rays and all their continuations are collected and
+    gathered in one batch at the end (_regather); their random numbers draw the
+    level's stream after its own rays."""
     n = len(hit.p)
     E = np.zeros((n, 3))
+    pending = []  # the regathers' (target row, tp, wd, prim, u, v, d), per gather step
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
     regather = level < MAX_GATHER_LEVEL
@@ -509,18 +514,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
                 if n_again:
+                    # Gathered again later, all in one batch (_regather).
                     rows = dsel[again[:n_again]]
-                    ysub = y.take(rows)
-                    # The lookup held light from caustics one bounce back (the
-                    # CAUSTIC_DIFFUSE photons); the gather below cannot see caustics
-                    # (kept out of the gather map), so add that light here.
-                    Esub = (direct_irradiance(ctx, ysub, rng, counters, skip_mesh_lights=True)
-                            + gather_indirect(ctx, ysub, rng, counters, rays=1,
-                                              level=level + 1, should_cancel=should_cancel,
-                                              lean=lean)
-                            + _secondary_irradiance(ctx, ysub, rng))
-                    add_gathered(E, idx, rows, tp, wd, c(Esub, np.float64), G, _NO_FLAG,
-                                 _NO_LENGTH, 0.0, False, _NO_ROWS)
+                    pending.append((idx[rows], tp[rows], wd[rows], prim[rows], u[rows],
+                                    v[rows], d[rows]))
             if depth == ctx.settings.max_depth:
                 break
             if yf is y:
@@ -536,6 +533,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     go_u=go_u[full])
                 keep = full[keep]
             idx = idx[keep]
+    if pending:
+        _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
 
 
@@ -574,6 +573,31 @@ def _gather_buffers(ctx, level) -> GatherBuffers:
     if buf is None:
         buf = bufs[key] = GatherBuffers()
     return buf
+
+
+def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
+    """Gather once more from the ends of gather rays whose lookup is not to be trusted
+    (gather_indirect's regathers), all of one gather_indirect call in one batch: direct
+    light by shadow rays, one gather ray of level + 1 and the secondary caustic at the
+    ends, added into E (M,3) at their target rows with weight tp x wd / G (several ends
+    may add to one row). pending: per gather step (target (K,) int64, tp (K,3), wd (K,3),
+    prim (K,), u, v (K,), d (K,3)) of the ends. The surface data are recomputed from the
+    rays' hits (surface_hit is row by row: the same values the step had). Random numbers:
+    rng's, after the level's own rays."""
+    target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
+                                     for a in zip(*pending))
+    y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+    # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
+    # the gather below cannot see caustics (kept out of the gather map), so add that
+    # light here.
+    Esub = (direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True)
+            + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
+                              should_cancel=should_cancel, lean=lean)
+            + _secondary_irradiance(ctx, y, rng))
+    c = np.ascontiguousarray
+    add_gathered(E, target, np.arange(len(target), dtype=np.int64), c(tp, np.float64),
+                 c(wd, np.float64), c(Esub, np.float64), G, _NO_FLAG, _NO_LENGTH, 0.0,
+                 False, _NO_ROWS)
 
 
 # Placeholders for gatherkernels' optional arguments (a scalar ray class; the second
