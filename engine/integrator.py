@@ -439,8 +439,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     recursion passes its own).
     Regathers: the lookups to gather again (a boundary or a short ray, levels below
     MAX_GATHER_LEVEL) over all G rays and all their continuations are collected and
-    gathered in one batch at the end (_regather); their random numbers draw the
-    level's stream after its own rays."""
+    gathered in one batch at the end (_regather); their random numbers draw from a
+    stream of their own (_spawn: the chunk's stream for the rays of this level is drawn
+    as before)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     pending = []  # the regathers' (target row, tp, wd, prim, u, v, d), per gather step
@@ -575,6 +576,15 @@ def _gather_buffers(ctx, level) -> GatherBuffers:
     return buf
 
 
+def _spawn(rng: np.random.Generator) -> np.random.Generator:
+    """A child stream of rng that draws nothing from it: numpy's Generator.spawn(1)[0]
+    (numpy >= 1.25), written out from the bit generator's SeedSequence so the same
+    numbers come on the older numpy some Blender releases embed."""
+    bits = rng.bit_generator
+    seq = getattr(bits, "seed_seq", None) or bits._seed_seq
+    return np.random.Generator(type(bits)(seq.spawn(1)[0]))
+
+
 def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     """Gather once more from the ends of gather rays whose lookup is not to be trusted
     (gather_indirect's regathers), all of one gather_indirect call in one batch: direct
@@ -583,10 +593,12 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     may add to one row). pending: per gather step (target (K,) int64, tp (K,3), wd (K,3),
     prim (K,), u, v (K,), d (K,3)) of the ends. The surface data are recomputed from the
     rays' hits (surface_hit is row by row: the same values the step had). Random numbers:
-    rng's, after the level's own rays."""
+    a stream spawned from rng (_spawn, which draws nothing from rng), so the same for any
+    worker count as the chunk's own."""
     target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
                                      for a in zip(*pending))
     y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+    rng = _spawn(rng)
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
     # light here.
