@@ -108,8 +108,9 @@ def diffuse_lookups(wd, p, ng, offset, t, rows, lp, ln, loff, lt):
 @kernel
 def add_gathered(E, idx, rows, tp, wd, Ey, G, boundary, lt, short, regather, again):
     """E[idx[rows[r]]] += tp[rows[r]] * wd[rows[r]] * Ey[r] / G for the lookups r (the
-    numpy stage's order of operations; idx holds each gathering hit once per step, so no
-    two r add to the same row). With regather, the rows r whose lookup met a boundary or
+    numpy stage's order of operations; rows adding to one row add in order of r: a gather
+    step's idx holds each gathering hit once, the regather batch (integrator._regather)
+    several times). With regather, the rows r whose lookup met a boundary or
     whose ray is shorter than `short` (lt[r] < short) are skipped and listed in again
     instead (ascending r). E (M,3); idx (N,); rows (K,); tp, wd (N,3); Ey (K,3);
     boundary (K,) bool; lt (K,); again (K,). Returns the number of rows listed."""

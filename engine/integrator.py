@@ -436,9 +436,15 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     level > 0: a recursive gather from a corner; it also counts the emission of the
     emissive meshes its rays hit (direct light there comes from shadow rays to the other
     lights only). lean: gatherkernels.lean_materials(ctx.table) if the caller has it (the
-    recursion passes its own: regathers come in thousands of small batches)."""
+    recursion passes its own).
+    Regathers: the lookups to gather again (a boundary or a short ray, levels below
+    MAX_GATHER_LEVEL) over all G rays and all their continuations are collected and
+    gathered in one batch at the end (_regather); their random numbers draw from a
+    stream of their own (_spawn: the chunk's stream for the rays of this level is drawn
+    as before)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
+    pending = []  # the regathers' (target row, tp, wd, prim, u, v, d), per gather step
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
     regather = level < MAX_GATHER_LEVEL
@@ -449,13 +455,15 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     if lean is _UNSET:
         lean = lean_materials(ctx.table)
     table_alpha = c(ctx.table.alpha, np.float64)
+    # This thread's arrays for this level's steps (a call of the next level, the
+    # regathers', uses its own).
+    buf = _gather_buffers(ctx, level)
     for g in range(G):
         u1, u2 = sampler.uv(("gather", g)) if sampler is not None else rng.random((2, n))
-        idx = np.empty(n, np.int64)
-        o, d = np.empty((n, 3)), np.empty((n, 3))
+        idx, o, d, tp = buf.rays(n)
         k = gather_rays(c(u1, np.float64), c(u2, np.float64), ns, ng, p, offset, idx, o, d)
-        idx, o, d = idx[:k], o[:k], d[:k]
-        tp = np.ones((len(idx), 3))
+        idx, o, d, tp = idx[:k], o[:k], d[:k], tp[:k]
+        tp.fill(1.0)
         if getattr(hit, "n_smooth", None) is not None:
             # Bent normals: the diffuse lobe's sampled directions take Cycles' bump
             # shadowing term as its light samples do (engine/normalmap.py).
@@ -490,37 +498,27 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 yf = y
             else:
                 # The other hits (full) alone take the closures.
-                wd = np.empty((m, 3))
-                full = np.empty(m, np.int64)
+                wd, full = buf.wd[:m], buf.full[:m]
                 n_full = lean_diffuse(y.mat, y.base, lean, table_alpha, wd, full)
                 full = full[:n_full]
                 yf = y if n_full == m else y.take(full)
                 if n_full:
                     wd[full] = lobe_weights(ctx.table, yf)["diffuse"]
             # Lookup inputs of the rows with a diffuse lobe (gatherkernels.diffuse_lookups).
-            dsel = np.empty(m, np.int64)
-            lp, ln = np.empty((m, 3)), np.empty((m, 3))
-            loff, lt = np.empty(m), np.empty(m)
+            dsel, lp, ln = buf.dsel[:m], buf.lp[:m], buf.ln[:m]
+            loff, lt = buf.loff[:m], buf.lt[:m]
             nd = diffuse_lookups(wd, y.p, y.ng, y.offset, t, dsel, lp, ln, loff, lt)
             if nd:
                 dsel = dsel[:nd]
                 Ey, boundary = ctx.gather_map.lookup(lp[:nd], ln[:nd], offset=loff[:nd])
-                again = np.empty(nd, np.int64)
+                again = buf.again[:nd]
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
                 if n_again:
+                    # Gathered again later, all in one batch (_regather).
                     rows = dsel[again[:n_again]]
-                    ysub = y.take(rows)
-                    # The lookup held light from caustics one bounce back (the
-                    # CAUSTIC_DIFFUSE photons); the gather below cannot see caustics
-                    # (kept out of the gather map), so add that light here.
-                    Esub = (direct_irradiance(ctx, ysub, rng, counters, skip_mesh_lights=True)
-                            + gather_indirect(ctx, ysub, rng, counters, rays=1,
-                                              level=level + 1, should_cancel=should_cancel,
-                                              lean=lean)
-                            + _secondary_irradiance(ctx, ysub, rng))
-                    add_gathered(E, idx, rows, tp, wd, c(Esub, np.float64), G, _NO_FLAG,
-                                 _NO_LENGTH, 0.0, False, _NO_ROWS)
+                    pending.append((idx[rows], tp[rows], wd[rows], prim[rows], u[rows],
+                                    v[rows], d[rows]))
             if depth == ctx.settings.max_depth:
                 break
             if yf is y:
@@ -536,7 +534,82 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     go_u=go_u[full])
                 keep = full[keep]
             idx = idx[keep]
+    if pending:
+        _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
+
+
+class GatherBuffers:
+    """The arrays of one gather level's steps, kept by one thread between its calls:
+    fresh arrays of a few MB per step fault their pages in on first touch (and fault in
+    parallel on two workers). rays(n) hands out the gather rays' rows (row of the
+    gathering hit (n,) int64, origins, directions, throughput (n,3)); the ends' fields
+    (diffuse weight wd (m,3), full (m,), dsel (m,), lookup point lp, normal ln (m,3),
+    offset loff, ray length lt (m,), again (m,)) hold rows for as many rays as the largest
+    call had (a step's ends are never more than its rays)."""
+
+    def __init__(self):
+        self.size = 0
+
+    def rays(self, n):
+        if n > self.size:
+            self.size = n
+            self.idx, self.full, self.dsel, self.again = (np.empty(n, np.int64)
+                                                           for _ in range(4))
+            self.o, self.d, self.tp, self.wd, self.lp, self.ln = (np.empty((n, 3))
+                                                                  for _ in range(6))
+            self.loff, self.lt = np.empty(n), np.empty(n)
+        return self.idx[:n], self.o[:n], self.d[:n], self.tp[:n]
+
+
+def _gather_buffers(ctx, level) -> GatherBuffers:
+    """The calling thread's GatherBuffers for gather level `level`, held by the render's
+    context (dropped with it; a context made for worker threads, Context.serial, is one
+    render's)."""
+    bufs = vars(ctx).get("_gather_buffers")
+    if bufs is None:
+        bufs = vars(ctx).setdefault("_gather_buffers", {})  # (atomic under the GIL)
+    key = (threading.get_ident(), level)
+    buf = bufs.get(key)
+    if buf is None:
+        buf = bufs[key] = GatherBuffers()
+    return buf
+
+
+def _spawn(rng: np.random.Generator) -> np.random.Generator:
+    """A child stream of rng that draws nothing from it: numpy's Generator.spawn(1)[0]
+    (numpy >= 1.25), written out from the bit generator's SeedSequence so the same
+    numbers come on the older numpy some Blender releases embed."""
+    bits = rng.bit_generator
+    seq = getattr(bits, "seed_seq", None) or bits._seed_seq
+    return np.random.Generator(type(bits)(seq.spawn(1)[0]))
+
+
+def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
+    """Gather once more from the ends of gather rays whose lookup is not to be trusted
+    (gather_indirect's regathers), all of one gather_indirect call in one batch: direct
+    light by shadow rays, one gather ray of level + 1 and the secondary caustic at the
+    ends, added into E (M,3) at their target rows with weight tp x wd / G (several ends
+    may add to one row). pending: per gather step (target (K,) int64, tp (K,3), wd (K,3),
+    prim (K,), u, v (K,), d (K,3)) of the ends. The surface data are recomputed from the
+    rays' hits (surface_hit is row by row: the same values the step had). Random numbers:
+    a stream spawned from rng (_spawn, which draws nothing from rng), so the same for any
+    worker count as the chunk's own."""
+    target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
+                                     for a in zip(*pending))
+    y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
+    rng = _spawn(rng)
+    # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
+    # the gather below cannot see caustics (kept out of the gather map), so add that
+    # light here.
+    Esub = (direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True)
+            + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
+                              should_cancel=should_cancel, lean=lean)
+            + _secondary_irradiance(ctx, y, rng))
+    c = np.ascontiguousarray
+    add_gathered(E, target, np.arange(len(target), dtype=np.int64), c(tp, np.float64),
+                 c(wd, np.float64), c(Esub, np.float64), G, _NO_FLAG, _NO_LENGTH, 0.0,
+                 False, _NO_ROWS)
 
 
 # Placeholders for gatherkernels' optional arguments (a scalar ray class; the second
