@@ -433,3 +433,57 @@ def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
     if not total > 0:
         return None
     return float(luminance(Ei).sum()) / total
+
+
+# LocalShare: cells of this many global search radii (a floor's patch in a ball's
+# shadow is a few radii across), and at least this many photons for a cell's share.
+LOCAL_SHARE_CELL = 2.0
+LOCAL_SHARE_MIN_PHOTONS = 16
+
+
+class LocalShare:
+    """The indirect share of the irradiance (INDIRECT photons' power over that of every
+    non-caustic photon, as indirect_share) per grid cell and facing: cells of `cell` m,
+    each split six ways by its photons' normals' dominant axis and sign, so a floor's
+    underside or the far face of a thin wall keeps its own share. share(p, n) reads it at
+    points p (N,3) with unit normals n (N,3) facing the viewer; `default` (the scene's
+    share, indirect_share) where the cell holds fewer than min_photons photons."""
+
+    def __init__(self, shot, cell: float, default: float = float("nan"),
+                 min_photons: int = LOCAL_SHARE_MIN_PHOTONS):
+        self.default = default
+        from .photonkernels import CAUSTIC, INDIRECT
+        rows = np.flatnonzero(shot.kind != CAUSTIC)
+        self.cell = float(cell)
+        # The grid anchored so a plane at a multiple of the cell size lies mid-cell (its
+        # photons and hits a last bit either side keep one cell).
+        lo = shot.position[rows].min(axis=0).astype(np.float64) if len(rows) else np.zeros(3)
+        self.origin = (np.floor(lo / self.cell) - 0.5) * self.cell
+        keys = self._keys(shot.position[rows], shot.normal[rows])
+        self.keys, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+        power = luminance(shot.power[rows].astype(np.float64))
+        total = np.bincount(inverse, power, len(self.keys))
+        indirect = np.bincount(inverse, power * (shot.kind[rows] == INDIRECT), len(self.keys))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            self.shares = np.where((counts >= min_photons) & (total > 0),
+                                   indirect / total, np.nan)
+
+    def _keys(self, p, n):
+        q = np.floor((np.asarray(p, np.float64) - self.origin) / self.cell).astype(np.int64)
+        q = np.clip(q, 0, (1 << 20) - 1)
+        n = np.asarray(n, np.float64)
+        axis = np.argmax(np.abs(n), axis=1)
+        face = 2 * axis + (np.take_along_axis(n, axis[:, None], 1)[:, 0] < 0)
+        return ((q[:, 0] << 40) | (q[:, 1] << 20) | q[:, 2]) * 6 + face
+
+    def share(self, p, n) -> np.ndarray:
+        out = np.full(len(p), self.default)
+        if not len(self.keys) or not len(p):
+            return out
+        k = self._keys(p, n)
+        i = np.minimum(np.searchsorted(self.keys, k), len(self.keys) - 1)
+        hit = self.keys[i] == k
+        known = np.flatnonzero(hit)
+        known = known[np.isfinite(self.shares[i[known]])]
+        out[known] = self.shares[i[known]]
+        return out
