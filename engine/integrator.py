@@ -770,7 +770,8 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
         caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
                                    footprint, every=scattered)
         if ctx.gather_map is not None:
-            indirect = f * _gather_by_region(ctx, hit, rng, counters, sampler, should_cancel)
+            indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
+                                           should_cancel=should_cancel)
             indirect += _smooth_estimate(ctx, ctx.secondary_map,
                                          ctx.secondary_radius or ctx.global_radius, hit, f,
                                          sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL)
@@ -778,27 +779,6 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
             indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
                                                      s.k_nearest, s.min_photons, s.estimator)
     return caustic, indirect
-
-
-def _gather_by_region(ctx, hit, rng, counters, sampler, should_cancel):
-    """gather_indirect's irradiance (N,3) at camera hits; with ctx.local_share each hit
-    casts render.gather_count(settings.gather_rays, its region's indirect share) rays
-    (its first ones of the sampler's gather dimensions), an unknown share the full count."""
-    local = getattr(ctx, "local_share", None)
-    if local is None or not len(hit.p):
-        return gather_indirect(ctx, hit, rng, counters, sampler, should_cancel=should_cancel)
-    from .render import gather_counts
-    G = ctx.settings.gather_rays
-    rays = gather_counts(G, local.share(hit.p, hit.ng))
-    E = np.zeros((len(hit.p), 3))
-    for g in np.unique(rays):
-        rows = np.flatnonzero(rays == g)
-        whole = len(rows) == len(rays)
-        sub = hit if whole else hit.take(rows)
-        smp = sampler if whole or sampler is None else sampler.subset(rows)
-        E[rows] = gather_indirect(ctx, sub, rng, counters, smp, rays=int(g),
-                                  should_cancel=should_cancel)
-    return E
 
 
 class Accumulator:

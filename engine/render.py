@@ -27,7 +27,7 @@ from .scene import Scene
 from .settings import RenderSettings
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
-from .visualimportance import LOCAL_SHARE_CELL, LocalShare, indirect_share
+from .visualimportance import indirect_share
 
 
 @dataclass
@@ -50,10 +50,6 @@ class Context:
     # Final-gather rays per camera sample of the camera pass (0: settings.gather_rays),
     # chosen after the photon pass (gather_count)
     gather_rays: int = 0
-    # Where the scene's share calls for fewer rays: the share per region, and each camera
-    # hit gathers gather_count(gather_rays, its region's share) rays (integrator
-    # _photon_terms); None: every hit the same count
-    local_share: object = None
     packed_lights: tuple | None = None  # lights as the direct-light kernels read them
     shadow: ShadowTransmittance | None = None  # transparent shadows (None: none in the scene)
     # Light trees for many lights (engine/lights/selection.py selector_for), built on use.
@@ -148,7 +144,6 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) 
     camera looks (engine/visualimportance.py), but every view's estimates stay unbiased."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     ctx.gather_rays = 0
-    ctx.local_share = None
     s = ctx.settings
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
         return _photon_pass(ctx, stats, progress, should_cancel)
@@ -343,14 +338,6 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
         ctx.gather_rays = gather_count(s.gather_rays, share)
         stats["indirect_share"] = share
         stats["gather_rays_used"] = ctx.gather_rays
-        stats["gather_by_region"] = False
-        if LOCAL_GATHER and ctx.gather_rays < s.gather_rays:
-            # Fewer rays pay on average, but not where the indirect light is most of a
-            # region's light (a floor in a ball's shadow, magnified through a glass ball):
-            # there each hit keeps the rays its region's share asks for.
-            ctx.local_share = LocalShare(shot, LOCAL_SHARE_CELL * ctx.gather_short, share)
-            ctx.gather_rays = s.gather_rays
-            stats["gather_by_region"] = True
     stats["time_photon_map"] = time.perf_counter() - t0
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
     # For the photon-hit pass (_photon_hit_view), always filled.
@@ -360,8 +347,6 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
 # The indirect light's share of the seen diffuse irradiance at and above which final
 # gathering casts settings.gather_rays rays a sample; below it, fewer in proportion.
 GATHER_SHARE_FULL = 0.1
-# Below it, the count per camera hit from its region's share (visualimportance.LocalShare)
-LOCAL_GATHER = True
 
 
 def gather_count(most: int, share: float | None) -> int:
@@ -379,14 +364,6 @@ def gather_count(most: int, share: float | None) -> int:
     if share is None or not math.isfinite(share):
         return most
     return int(min(most, max(1, math.ceil(most * share / GATHER_SHARE_FULL))))
-
-
-def gather_counts(most: int, shares: np.ndarray) -> np.ndarray:
-    """gather_count for each of shares (N,) (NaN: unknown, `most`): (N,) int64."""
-    shares = np.asarray(shares, np.float64)
-    with np.errstate(invalid="ignore"):
-        g = np.clip(np.ceil(most * shares / GATHER_SHARE_FULL), 1, most)
-    return np.where(np.isfinite(shares), g, most).astype(np.int64)
 
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
@@ -532,13 +509,8 @@ def photon_map_report(settings: RenderSettings, stats: dict) -> list[str]:
         share = stats.get("indirect_share")
         seen = ("share not measured" if share is None else
                 f"indirect light {100 * share:.1f} % of the seen diffuse irradiance")
-        if stats.get("gather_by_region"):
-            parts.append(f"final gathering with fewer of {settings.gather_rays} ray(s) a "
-                         f"sample where a region's indirect light is under "
-                         f"{100 * GATHER_SHARE_FULL:.0f} % of its light ({seen})")
-        else:
-            parts.append(f"final gathering with {stats['gather_rays_used']} of "
-                         f"{settings.gather_rays} ray(s) a sample ({seen})")
+        parts.append(f"final gathering with {stats['gather_rays_used']} of "
+                     f"{settings.gather_rays} ray(s) a sample ({seen})")
     how = "radius set" if settings.radius is not None else "automatic radius"
     est = f"{settings.estimator} estimator" + (" (paper mode)" if settings.paper_mode else "")
     return [f"photon maps: on - {'; '.join(parts) or 'no photons stored'} ({how}, {est})"]
