@@ -129,6 +129,7 @@ class PHOTONMAP_PT_estimate(PhotonMapButtonsPanel, bpy.types.Panel):
         sub = col.column()
         sub.active = pm.final_gather and not pm.paper_mode
         sub.prop(pm, "gather_rays")
+        sub.prop(pm, "gather_by_share")
 
 
 class PHOTONMAP_PT_display(PhotonMapButtonsPanel, bpy.types.Panel):

@@ -279,9 +279,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         elif _single_flat_surface(geo, diff_tri | spec_tri):
             auto, why = False, "a single flat surface cannot light itself"
         else:
-            auto, why = True, (f"{s.photons:,} photons; final gathering with {s.gather_rays} ray(s) "
-                               "per sample" if s.final_gather else f"{s.photons:,} photons, "
-                               "estimated directly from the global map")
+            most = (" at most (fewer where the indirect light is a small share)"
+                    if s.gather_by_share else "")
+            auto, why = True, (f"{s.photons:,} photons; final gathering with {s.gather_rays} "
+                               f"ray(s) per sample{most}" if s.final_gather else
+                               f"{s.photons:,} photons, estimated directly from the global map")
         plan.indirect = _override(s.indirect, auto, "indirect light (global map)", why, plan)
 
     # --- caustics ------------------------------------------------------------------------

@@ -41,7 +41,11 @@ class RenderSettings:
     min_photons: int = 8            # fewer photons found -> no estimate (paper)
     k_nearest: int = 64             # photons per k-NN estimate
     final_gather: bool = True       # indirect light by gather rays into the global map
-    gather_rays: int = 2            # final-gather rays per camera sample
+    gather_rays: int = 2            # final-gather rays per camera sample (the most, with
+    # gather_by_share: fewer where the indirect light is a small share of what the camera
+    # sees, measured from the global photons after the photon pass; engine/render.py
+    # gather_count)
+    gather_by_share: bool = True
     # Pass 2 (camera)
     spp: int = 128                  # camera samples per pixel (jittered, stratified)
     max_depth: int = 8              # max specular bounces along a camera path (paper)
@@ -98,7 +102,8 @@ class RenderSettings:
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
                          ("gather_rays", 1), ("transparent_max_bounces", 0)):
             positive_int(name, lo)
-        for name in ("final_gather", "photon_mapping", "aim_caustics", "photon_importance",
+        for name in ("final_gather", "gather_by_share", "photon_mapping", "aim_caustics",
+                     "photon_importance",
                      "show_photons", "film_transparent", "paper_mode"):
             v = getattr(self, name)
             if not isinstance(v, (bool, np.bool_)):  # "no" is a true string

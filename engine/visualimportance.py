@@ -93,12 +93,29 @@ def region_of_interest(ctx, rays: int = ROI_RAYS) -> Region | None:
 def lookup_points(ctx, rays: int = ROI_RAYS) -> np.ndarray:
     """(N,3) points where the pre-pass' gather rays end on a surface: where final
     gathering looks the global map up."""
+    rng = np.random.default_rng([ctx.settings.seed, 95])
+    p, ng, off = diffuse_camera_hits(ctx, rays, rng)
+    if len(p) == 0:
+        return np.zeros((0, 3))
+    p, ng, off = (np.repeat(a, ROI_GATHER, axis=0) for a in (p, ng, off))
+    u = rng.random((2, len(p)))
+    d = to_world(cosine_hemisphere(u[0], u[1]), ng)
+    o = offset_origin(p, ng, d, off)
+    t, prim, _, _ = ctx.accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
+    ok = prim >= 0
+    return o[ok] + t[ok, None] * d[ok]
+
+
+def diffuse_camera_hits(ctx, rays: int, rng) -> tuple:
+    """The pre-pass' camera paths: a jittered grid of about `rays` camera rays (rng draws
+    the jitter), mirrored on at surfaces without a diffuse lobe (ROI_MIRROR_DEPTH times).
+    Returns (p, ng, offset) of the hits on surfaces with a diffuse lobe: (N,3) re-centred
+    positions (m), (N,3) unit geometric normals facing the ray, (N,) origin offsets (m)."""
     from .integrator import camera_rays
     scene, geo, table, accel = ctx.scene, ctx.geo, ctx.table, ctx.accel
     W, H = scene.width, scene.height
     nx = max(1, int(round(math.sqrt(rays * W / max(H, 1)))))
     ny = max(1, int(round(rays / nx)))
-    rng = np.random.default_rng([ctx.settings.seed, 95])
     gx, gy = np.meshgrid(np.arange(nx), np.arange(ny))
     fx = (gx.ravel() + rng.random(nx * ny)) / nx * W
     fy = (gy.ravel() + rng.random(nx * ny)) / ny * H
@@ -107,7 +124,7 @@ def lookup_points(ctx, rays: int = ROI_RAYS) -> np.ndarray:
     diffuse = table.has_diffuse
     hits = []
     # Each ray sees what its kind sees (docs/scene_format.md, "Ray visibility"): camera
-    # rays, then mirrored (glossy) rays, and the gather rays as diffuse rays.
+    # rays, then mirrored (glossy) rays.
     ray_cls = CAMERA
     for _ in range(ROI_MIRROR_DEPTH + 1):
         if len(o) == 0:
@@ -127,17 +144,8 @@ def lookup_points(ctx, rays: int = ROI_RAYS) -> np.ndarray:
         o = offset_origin(hit.p[spec], hit.ng[spec], d, hit.offset[spec])
         tmax = np.full(len(o), np.inf)
     if not hits:
-        return np.zeros((0, 3))
-    p = np.concatenate([h[0] for h in hits])
-    ng = np.concatenate([h[1] for h in hits])
-    off = np.concatenate([h[2] for h in hits])
-    p, ng, off = (np.repeat(a, ROI_GATHER, axis=0) for a in (p, ng, off))
-    u = rng.random((2, len(p)))
-    d = to_world(cosine_hemisphere(u[0], u[1]), ng)
-    o = offset_origin(p, ng, d, off)
-    t, prim, _, _ = accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
-    ok = prim >= 0
-    return o[ok] + t[ok, None] * d[ok]
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
+    return tuple(np.concatenate([h[i] for h in hits]) for i in range(3))
 
 
 def cover_cells(points: np.ndarray, cover: float = ROI_COVER,
@@ -382,3 +390,46 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
               f"the camera's lookups and get {p_in / (p_in + p_out):.0%} of the light; "
               f"photons there {boost:.1f}x denser per watt")
     return ShotPlan(emitters, counts.tolist(), report, region, boost)
+
+
+# The indirect share's pre-pass (indirect_share): camera rays, and at most this many of the
+# global photons (a stride of the shot; the ratio of two estimates from the same photons
+# does not need them all).
+SHARE_RAYS = 1024
+SHARE_PHOTONS = 1 << 16
+
+
+def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
+                   max_photons: int = SHARE_PHOTONS) -> float | None:
+    """The share of the irradiance at the diffuse surfaces the camera sees that final
+    gathering carries: the INDIRECT photons' estimate over that of every photon the
+    gather map holds (direct, indirect, and caustic light one diffuse bounce back; the
+    caustic photons are left out as the gather map leaves them out), summed as luminance
+    over the pre-pass' diffuse camera hits (diffuse_camera_hits, ~`rays` camera rays,
+    mirrored on). Both estimates come from the same k-NN discs of a stride of the shot
+    (at most max_photons; radius (m) is scaled up by the stride's square root), so their
+    ratio keeps no blur of its own. None when the camera sees nothing diffuse or the shot
+    holds no photon there. Seeded by the settings' seed, on the calling thread: the
+    same value for any worker count."""
+    from .photonkernels import CAUSTIC, INDIRECT
+    from .photonmap import PhotonMap
+    from .photons import Photons
+    s = ctx.settings
+    p, ng, _ = diffuse_camera_hits(ctx, rays, np.random.default_rng([s.seed, 96]))
+    rows = np.flatnonzero(shot.kind != CAUSTIC)
+    if len(p) == 0 or len(rows) < 2:
+        return None
+    step = max(1, -(-len(rows) // max_photons))
+    rows = rows[::step]
+    pm = PhotonMap(shot, 1, rows=rows)
+    r = radius * math.sqrt(step)
+    E = pm.irradiance(p, ng, r, s.k_nearest, 1, s.estimator)
+    ph = pm.photons
+    indirect = (ph.kind == INDIRECT).astype(np.float32)[:, None]
+    pm.photons = Photons(ph.position, ph.power * indirect, ph.direction, ph.normal, ph.kind,
+                         ph.emitted)
+    Ei = pm.irradiance(p, ng, r, s.k_nearest, 1, s.estimator)
+    total = float(luminance(E).sum())
+    if not total > 0:
+        return None
+    return float(luminance(Ei).sum()) / total
