@@ -227,7 +227,9 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
-    receive light (integrator._lit_side_normals), geometric normals; offset (N,) the
+    receive light (gate (0,3): chosen here, ns where the hit has a terminator cut-off > 0,
+    else ng: integrator._hit_arrays),
+    geometric normals; offset (N,) the
     origin offset along ng (rayoffset.origin_offset); shade_off (N,) Cycles' shading
     offset (0: none); cutoff (N,) shadow-terminator geometry offset of smooth triangles (0:
     none) and lift (N,3) their smooth-surface lift (terminator_lift); shade_off (0,),
@@ -262,6 +264,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     indexed = hrow.shape[0] > 0
     n = hrow.shape[0] if indexed else p.shape[0]
     want_bump = bump.shape[0] > 0
+    own_gate = gate.shape[0] == 0
     # Optional inputs and outputs, left empty when no hit has them or nothing reads them:
     # each is tens of bytes a hit of memory traffic, most of this kernel's time.
     has_shade = shade_off.shape[0] > 0
@@ -305,7 +308,14 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                             env_frame[a, b] = q[ENV_FRAME + 3 * a + b]
             p0, p1, p2 = p[h, 0], p[h, 1], p[h, 2]
             s0, s1, s2 = ns[h, 0], ns[h, 1], ns[h, 2]
-            g0, g1, g2 = gate[h, 0], gate[h, 1], gate[h, 2]
+            if not own_gate:
+                g0, g1, g2 = gate[h, 0], gate[h, 1], gate[h, 2]
+            elif has_terminator and cutoff[h] > 0:
+                # Smooth with a terminator offset: light the shading normal faces is
+                # traced (its ray leaves from the lifted point: integrator._hit_arrays).
+                g0, g1, g2 = s0, s1, s2
+            else:
+                g0, g1, g2 = ng[h, 0], ng[h, 1], ng[h, 2]
             finite = True      # the sample lies at a point y (not at infinity)
             surface = False    # ... on a surface with normal ny and end gap
             y0 = y1 = y2 = 0.0

@@ -383,7 +383,6 @@ def _hit_arrays(geo, hit):
     An offset no object has is an empty array (sample_lights reads no rows)."""
     n = len(hit.p)
     c = np.ascontiguousarray
-    gate = _lit_side_normals(geo, hit)
     # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
     shading_offset = (np.take(geo.terminator_shading, hit.prim)
                       if n and geo.object_terminator_shading.view(np.uint32).any()
@@ -400,25 +399,17 @@ def _hit_arrays(geo, hit):
                         object_id, geo.object_terminator, v0, e1, e2, normals, cutoff, lift)
     ns = c(hit.ns, np.float64)
     n_smooth = getattr(hit, "n_smooth", None)
-    return (c(hit.p, np.float64), ns, c(gate, np.float64),
+    # The normal whose hemisphere decides which light directions a hit can receive is
+    # chosen in the kernel (gate NO_ROWS3): the geometric normal, except on smooth-shaded
+    # triangles with a shadow terminator offset (cut-off > 0), where (as in Cycles) light
+    # the shading normal faces is traced even when it arrives just below the flat facet:
+    # its shadow ray leaves from the smooth surface (directlight.terminator_lift) and is
+    # shadowed only if it really meets geometry, the facet itself included (Cycles skips
+    # the own triangle only when NgL > 0).
+    return (c(hit.p, np.float64), ns, NO_ROWS3,
             c(hit.ng, np.float64), c(hit.offset, np.float64),
             c(shading_offset, np.float64), cutoff, lift,
             ns if n_smooth is None else c(n_smooth, np.float64))
-
-
-def _lit_side_normals(geo, hit):
-    """The normal whose hemisphere decides which light directions a hit can receive:
-    the geometric normal, except on smooth-shaded triangles with a shadow terminator
-    offset, where (as in Cycles) light the shading normal faces is traced even when it
-    arrives just below the flat facet: its shadow ray leaves from the smooth surface
-    (directlight.terminator_lift) and is shadowed only if it really meets geometry, the facet
-    itself included (Cycles skips the own triangle only when NgL > 0)."""
-    if hit.bary is None or not len(hit.prim) or not (geo.object_terminator > 0).any():
-        return hit.ng  # (no object has a terminator offset: the per-hit test below is False)
-    smooth = np.take(geo.smooth, hit.prim) & (np.take(geo.terminator, hit.prim) > 0)
-    if not smooth.any():
-        return hit.ng
-    return np.where(smooth[:, None], hit.ns, hit.ng)
 
 
 _UNSET = object()  # gather_indirect's lean: not given
@@ -979,7 +970,8 @@ def _write_film(film, acc, spp, rh, rw):
 
 class BounceBuffers:
     """The arrays camerakernels.shade_lobes writes per bounce (packed lobes, lobe choice,
-    the rows to shade and their diffuse albedo) and the direct-light stage's
+    the rows to shade and their diffuse albedo), the surface data of the fused path
+    (surface: bsdf.surface_hit_lobes' SurfaceHit fields) and the direct-light stage's
     (directlight.DirectLightBuffers), kept by one thread between its bounces and chunks:
     fresh arrays of tens of MB per bounce cost more in first-touch page faults than the
     kernels' own work (docs/performance.md, "Ninth slice"). A bounce's hits read them
@@ -987,7 +979,20 @@ class BounceBuffers:
 
     def __init__(self):
         self.size = 0
+        self.surface_size = 0
+        self.hit = None
         self.direct = DirectLightBuffers()
+
+    def surface(self, n, mat_dtype):
+        """(p, ng, ns, base (n,3), front (n,) bool, mat (n,) mat_dtype, offset (n,),
+        bary (n,2), wo (n,3)): unwritten rows for bsdf.surface_hit_lobes' SurfaceHit,
+        whose fields are read until the bounce's continuation is made."""
+        if self.hit is None or n > self.surface_size or self.hit[5].dtype != mat_dtype:
+            self.surface_size = n
+            self.hit = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
+                        np.empty((n, 3)), np.empty(n, np.bool_), np.empty(n, mat_dtype),
+                        np.empty(n), np.empty((n, 2)), np.empty((n, 3)))
+        return tuple(a[:n] for a in self.hit)
 
     def take(self, n):
         """(prm (n, N_PACK), sel (n, N_LOBES), p (n, N_LOBES - 1), q (n,), psum (n,),
@@ -1115,7 +1120,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         prm, sel, p, q, psum, glossy, dsel, wd = bufs
         if plain:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
-                                        bufs)
+                                        bufs, buffers.surface(n, ctx.geo.material.dtype))
         else:
             hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             per_hit = hit.params is not None

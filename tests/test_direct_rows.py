@@ -152,3 +152,56 @@ def test_no_bump_terms_when_no_normal_is_bent():
                       b.bump if bump_out else dl.NO_ROWS)
         sums.append(E)
     assert m_all > n and np.array_equal(sums[0], sums[1])
+
+
+def _lit_side_normals(geo, hit):
+    """The numpy stage the kernel's own choice replaced (integrator._lit_side_normals, an
+    (N,3) array per batch): ns on smooth triangles whose object has a terminator offset,
+    else ng."""
+    if hit.bary is None or not len(hit.prim) or not (geo.object_terminator > 0).any():
+        return hit.ng
+    smooth = np.take(geo.smooth, hit.prim) & (np.take(geo.terminator, hit.prim) > 0)
+    return np.where(smooth[:, None], hit.ns, hit.ng)
+
+
+@pytest.mark.parametrize("terminator", [0.1, 0.0])
+def test_lit_side_chosen_in_the_kernel_equals_the_numpy_gate(terminator):
+    """sample_lights' gate (0,3) (the lit side chosen from the terminator cut-off per hit)
+    writes the same entries and shadow rays as the explicit (N,3) gate of the numpy
+    stage, on a box whose smooth glass sphere has a terminator offset (or none)."""
+    from engine.integrator import _hit_arrays
+    from engine.lights.packing import pack_lights
+    from engine.lights.selection import empty_tree
+
+    s = _mixed_box()
+    for mesh in s.meshes:
+        mesh.shadow_terminator_offset = terminator
+    ctx = prepare_context(s, RenderSettings(workers=1, photon_mapping=False))
+    hit = _hits(ctx, 8000, 9)
+    arrays = list(_hit_arrays(ctx.geo, hit))
+    assert arrays[2].shape == (0, 3)
+    gate = np.ascontiguousarray(_lit_side_normals(ctx.geo, hit), np.float64)
+    if terminator > 0:
+        smooth = np.take(ctx.geo.smooth, hit.prim)
+        assert smooth.any() and (~smooth).any()
+        assert not np.array_equal(gate, hit.ng)  # the choice matters somewhere
+    explicit = list(arrays)
+    explicit[2] = gate
+    codes, params, mesh = pack_lights(ctx.lights)
+    L = len(codes)
+    n = len(hit.p)
+    U1, U2, SEL = np.random.default_rng(4).random((3, L, n))
+    out = []
+    for hit_arrays in (explicit, arrays):
+        b = dl.DirectLightBuffers().ensure(L * n)
+        m = dl.sample_lights(*hit_arrays, codes, params, *mesh, *empty_tree(),
+                             np.ones(L, np.bool_), np.arange(L), np.ones(L, np.bool_),
+                             U1, U2, SEL, b.contrib, b.row, b.kidx, b.ray, b.o32, b.d32,
+                             b.t32, b.wdir, b.lpdf, dl.NO_ROWS, dl.NO_HROWS)
+        out.append((m, b))
+    (m0, a), (m1, b) = out
+    assert m0 == m1 and m0[1] > n
+    j, r = m0
+    for name, k in (("contrib", j), ("row", j), ("kidx", j), ("ray", j), ("wdir", j),
+                    ("lpdf", j), ("o32", r), ("d32", r), ("t32", r)):
+        assert np.array_equal(getattr(a, name)[:k], getattr(b, name)[:k]), name
