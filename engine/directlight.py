@@ -696,8 +696,8 @@ def _row_ready(u):
 
 class DirectLightBuffers:
     """The arrays one thread reuses between direct_light calls, grown as needed: the
-    compacted entries (ensure), the per-hit sums (sums), the samples' random numbers
-    stacked (numbers) and the terminator rows (terminator). Fresh arrays of this size each call cost more in first-touch page faults
+    compacted entries (ensure), the per-hit sums (sums) and the samples' random numbers
+    stacked (numbers). Fresh arrays of this size each call cost more in first-touch page faults
     than the kernels' own work (docs/performance.md, "Ninth slice"). The sums a call
     returns are valid until the next call with the same buffers."""
 
@@ -730,13 +730,6 @@ class DirectLightBuffers:
         E = self.E[:n]
         E.fill(0.0)
         return E
-
-    def terminator(self, n):
-        """(cutoff (n,), lift (n,3)): unwritten rows for terminator_lift's outputs."""
-        if n > getattr(self, "n_terminator", 0):
-            self.n_terminator = n
-            self.cutoff, self.lift = np.empty(n), np.empty((n, 3))
-        return self.cutoff[:n], self.lift[:n]
 
     def numbers(self, K, n, third):
         """(U1, U2, SEL): unwritten (K, n) float64 arrays for K samples' random numbers

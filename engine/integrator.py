@@ -122,7 +122,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                             MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA,
                             np.int64),
                     np.ascontiguousarray(sel, np.float64))
-        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, buffers), samples, ctx.accel,
+        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
                                SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
                                bsdf=bsdf, buffers=buffers, rows=rows)
         counters.shadow_rays += rays
@@ -159,7 +159,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
                 np.ascontiguousarray(hit.wo, np.float64), light_modes(ctx),
                 np.ascontiguousarray(sel, np.float64))
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, buffers), samples, ctx.accel,
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
                            SHADOW, n, shadow=getattr(ctx, "shadow", None), bsdf=bsdf,
                            buffers=buffers, rows=rows)
     counters.shadow_rays += rays
@@ -375,14 +375,12 @@ def light_shadow_rays(ctx, hit, light_index, rng):
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
 
-def _hit_arrays(geo, hit, buffers=None):
+def _hit_arrays(geo, hit):
     """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
     light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
     offset, the shadow-terminator cut-off and smooth-surface lift of smooth triangles, and
     the smooth normals before Normal Map / Bump nodes (Cycles' bump shadowing term).
-    An offset no object has is an empty array (sample_lights reads no rows).
-    buffers: the calling thread's directlight.DirectLightBuffers (the terminator rows are
-    then theirs, valid until their next use; None: fresh arrays)."""
+    An offset no object has is an empty array (sample_lights reads no rows)."""
     n = len(hit.p)
     c = np.ascontiguousarray
     # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
@@ -393,9 +391,8 @@ def _hit_arrays(geo, hit, buffers=None):
     lift = NO_ROWS3
     # terminator_lift leaves cutoff and lift 0 unless an object's offset is > 0.
     if hit.bary is not None and n and (geo.object_terminator > 0).any():
-        # (every row written)
-        cutoff, lift = (np.empty(n), np.empty((n, 3))) if buffers is None else (
-            buffers.terminator(n))
+        cutoff = np.empty(n)  # (every row written)
+        lift = np.empty((n, 3))
         rows, (smooth, object_id, v0, e1, e2, normals) = geo.hit_tables(
             hit.prim, "smooth", "object_id", "v0", "e1", "e2", "corner_normals")
         terminator_lift(rows, c(hit.bary, np.float64), c(hit.ng, np.float64), smooth,
@@ -586,7 +583,7 @@ def lobe_choice(albedo, tp):
 
 
 def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False,
-                      uv=None, go_u=None, buffers=None):
+                      uv=None, go_u=None):
     """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
     paths that would add little) and sample it. Returns (kept indices, origins, directions,
     throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
@@ -603,9 +600,7 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     samples (as Cycles' are); or a function returning them, called only when a reflective
     lobe is sampled. go_u: the survival test's uniform numbers (N,), drawn by the caller
     (gather_indirect draws them for all its hits and continues only those with a
-    non-diffuse lobe); default: drawn here. buffers: the calling thread's BounceBuffers
-    (the continued rays are then rows of its continuation arrays, valid until its next
-    continuation but one; None: fresh arrays)."""
+    non-diffuse lobe); default: drawn here."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit)[1], tp))
     go = (psum > 0) & ((rng.random(len(p)) if go_u is None else go_u) < q)
@@ -634,16 +629,13 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
             u2 = np.where(refl, u[1][rows_sampled], u2)
     # The camera bounce's hits carry their packed lobes (shade_lobes); others set them up.
     prm = hit.prm if hit.prm is not None else closures(ctx.table, hit)[0]
-    if buffers is None:
-        rows = np.empty(m, np.int64)
-        o, d, new_tp = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
-        cls = np.empty(m, np.int64)
-        pdf = np.empty(m if want_pdf else 0)
-        incoming = np.empty(len(p), np.int64)
-    else:
-        rows, o, d, new_tp, cls, pdf, incoming = buffers.continuation(m, len(p), want_pdf)
+    rows = np.empty(m, np.int64)
+    o, d, new_tp = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
+    cls = np.empty(m, np.int64)
+    pdf = np.empty(m if want_pdf else 0)
     # A writable copy: a read-only view would be a second kernel signature, compiled
     # during the first render instead of by jit.ensure_compiled.
+    incoming = np.empty(len(p), np.int64)
     incoming[:] = ray_cls
     # The pass lobe's weight, (1 - alpha) x the Transparent BSDF's colour, in the kernel.
     alpha = _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64)
@@ -978,8 +970,7 @@ def _write_film(film, acc, spp, rh, rw):
 
 class BounceBuffers:
     """The arrays camerakernels.shade_lobes writes per bounce (packed lobes, lobe choice,
-    the rows to shade and their diffuse albedo), the surface data of the fused path
-    (surface: bsdf.surface_hit_lobes' SurfaceHit fields) and the direct-light stage's
+    the rows to shade and their diffuse albedo) and the direct-light stage's
     (directlight.DirectLightBuffers), kept by one thread between its bounces and chunks:
     fresh arrays of tens of MB per bounce cost more in first-touch page faults than the
     kernels' own work (docs/performance.md, "Ninth slice"). A bounce's hits read them
@@ -987,41 +978,7 @@ class BounceBuffers:
 
     def __init__(self):
         self.size = 0
-        self.surface_size = 0
-        self.hit = None
         self.direct = DirectLightBuffers()
-        # Two sets of continuation arrays, alternating: a bounce's continuation reads the
-        # rays (throughput, classes) the one before it wrote.
-        self.cont = [None, None]
-        self.cont_turn = 0
-
-    def continuation(self, m, n, want_pdf):
-        """(rows (m,) int64, o, d, tp (m,3), cls (m,) int64, pdf (m,) or (0,), incoming
-        (n,) int64): unwritten rows for continue_specular's outputs, from the set the
-        previous call did not use (its rays are this bounce's, read until this call)."""
-        turn = self.cont_turn
-        self.cont_turn = 1 - turn
-        have = self.cont[turn]
-        if have is None or m > have[0] or n > have[1]:
-            mm, nn = max(m, 0 if have is None else have[0]), max(n, 0 if have is None else have[1])
-            have = (mm, nn, np.empty(mm, np.int64), np.empty((mm, 3)), np.empty((mm, 3)),
-                    np.empty((mm, 3)), np.empty(mm, np.int64), np.empty(mm),
-                    np.empty(nn, np.int64))
-            self.cont[turn] = have
-        rows, o, d, tp, cls, pdf, incoming = have[2:]
-        return (rows[:m], o[:m], d[:m], tp[:m], cls[:m], pdf[:m if want_pdf else 0],
-                incoming[:n])
-
-    def surface(self, n, mat_dtype):
-        """(p, ng, ns, base (n,3), front (n,) bool, mat (n,) mat_dtype, offset (n,),
-        bary (n,2), wo (n,3)): unwritten rows for bsdf.surface_hit_lobes' SurfaceHit,
-        whose fields are read until the bounce's continuation is made."""
-        if self.hit is None or n > self.surface_size or self.hit[5].dtype != mat_dtype:
-            self.surface_size = n
-            self.hit = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
-                        np.empty((n, 3)), np.empty(n, np.bool_), np.empty(n, mat_dtype),
-                        np.empty(n), np.empty((n, 2)), np.empty((n, 3)))
-        return tuple(a[:n] for a in self.hit)
 
     def take(self, n):
         """(prm (n, N_PACK), sel (n, N_LOBES), p (n, N_LOBES - 1), q (n,), psum (n,),
@@ -1149,7 +1106,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         prm, sel, p, q, psum, glossy, dsel, wd = bufs
         if plain:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
-                                        bufs, buffers.surface(n, ctx.geo.material.dtype))
+                                        bufs)
         else:
             hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             per_hit = hit.params is not None
@@ -1212,7 +1169,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
               if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True,
-                                                           uv=uv, buffers=buffers)
+                                                           uv=uv)
         # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
         org_ns = np.take(hit.ns, keep, axis=0)
         org_p = np.take(hit.p, keep, axis=0)

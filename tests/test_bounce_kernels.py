@@ -211,34 +211,3 @@ def test_stratified_uv_kernel_equals_numpy_stage(spp, scrambled):
         assert all(np.array_equal(g, w) for g, w in zip(got, want))
         # The generator advanced alike (the next stage's numbers stay the same).
         assert a.rng.random() == b.rng.random()
-
-
-def test_continuation_into_reused_buffers_equals_fresh_arrays(box_hits):
-    """continue_specular writing into one thread's BounceBuffers (two sets, alternating per
-    call; batches of different sizes, the previous call's rays fed back as the next
-    call's throughput and classes, as _trace_paths does) gives the bits of fresh
-    arrays, and never overwrites the rays the call before it returned."""
-    from engine.integrator import BounceBuffers, continue_specular
-    ctx, hit = box_hits
-    buffers = BounceBuffers()
-    n = len(hit.p)
-    tp_f = tp_b = np.ones((n, 3))
-    cls_f = cls_b = np.full(n, 1, np.int64)
-    last = None
-    for size, seed in ((n, 1), (n // 2, 2), (n, 3), (n // 3, 4)):
-        sub = hit.take(np.arange(size))
-        a = continue_specular(ctx, sub, tp_f[:size], np.random.default_rng(seed), cls_f[:size],
-                              want_pdf=True)
-        b = continue_specular(ctx, sub, tp_b[:size], np.random.default_rng(seed), cls_b[:size],
-                              want_pdf=True, buffers=buffers)
-        for x, y in zip(a, b):
-            assert x.dtype == y.dtype and np.array_equal(x, y)
-        assert len(a[0]) > 100
-        if last is not None:  # the rays returned by the call before are intact
-            assert all(np.array_equal(x, y) for x, y in zip(last[0], last[1]))
-        last = ([x.copy() for x in b], b)
-        # The continued rays' throughputs and classes feed the next call (padded to n).
-        tp_f = np.concatenate([a[3], np.ones((n, 3))])[:n]
-        tp_b = np.concatenate([b[3], np.ones((n, 3))])[:n]
-        cls_f = np.concatenate([a[4], np.ones(n, np.int64)])[:n]
-        cls_b = np.concatenate([b[4], np.ones(n, np.int64)])[:n]

@@ -226,28 +226,3 @@ def test_view_depth_equals_the_einsum_dot(n, start):
     depth = np.empty(n)
     view_depth(p, cam, forward, depth)
     assert np.array_equal(depth, dot(p - cam, forward))
-
-
-def test_surface_hit_lobes_into_reused_buffers_equals_fresh_arrays():
-    """surface_hit_lobes writing the SurfaceHit's fields into one thread's reused
-    BounceBuffers rows (batches of growing and shrinking size, stale values from the last
-    batch left in them) gives the bits of fresh arrays."""
-    from engine.bsdf import surface_hit_lobes
-    from engine.integrator import BounceBuffers
-    ctx = prepare_context(_mixed_box(), RenderSettings(workers=1))
-    buffers = BounceBuffers()
-    for n_rays, seed in ((20000, 1), (30000, 2), (5000, 3), (25000, 4)):
-        prim, u, v, d = _plain_rays(ctx, n_rays, seed)
-        n = len(prim)
-        tp = np.ascontiguousarray(10.0 ** (-4.0 * np.random.default_rng(seed).random((n, 3))))
-        fresh, k0 = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, True,
-                                      BounceBuffers().take(n))
-        fresh_out = {name: getattr(fresh, name).copy() for name in
-                     ("p", "ng", "ns", "wo", "front", "mat", "base", "offset", "bary", "prm")}
-        surface = buffers.surface(n, ctx.geo.material.dtype)
-        got, k1 = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, True,
-                                    buffers.take(n), surface)
-        assert k0 == k1 and got.p is surface[0] and got.wo is surface[8]
-        for name, want in fresh_out.items():
-            a = getattr(got, name)
-            assert a.dtype == want.dtype and np.array_equal(a, want), name
