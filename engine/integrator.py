@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .directlight import (NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuffers, direct_light,
-                          sample_lights, terminator_lift)
+from .directlight import (NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuffers,
+                          direct_light, sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.point import sphere_light_pdf
