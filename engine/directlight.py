@@ -223,11 +223,13 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
                   m_tilt32, env_px, env_rows, env_cols, env_pdf_uv, tree_f, tree_i, inf_idx,
                   inf_f, l_trace, klight, ktrace, U1, U2, SEL, contrib, row, kidx, ray, o32,
-                  d32, t32, wdir, lpdf, bump):
+                  d32, t32, wdir, lpdf, bump, hrow):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
-    receive light (integrator._lit_side_normals), geometric normals; offset (N,) the
+    receive light (gate (0,3): chosen here, ns where the hit has a terminator cut-off > 0,
+    else ng: integrator._hit_arrays),
+    geometric normals; offset (N,) the
     origin offset along ng (rayoffset.origin_offset); shade_off (N,) Cycles' shading
     offset (0: none); cutoff (N,) shadow-terminator geometry offset of smooth triangles (0:
     none) and lift (N,3) their smooth-surface lift (terminator_lift); shade_off (0,),
@@ -253,9 +255,16 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     glossy lobes leave to their continuation), bump (j,) Cycles' bump shadowing of the
     diffuse lobe (normalmap.bump_shadowing_term; light from below the
     smooth surface, refused for every lobe, makes no entry); wdir (0,3) and lpdf (0,):
-    not written (the diffuse lobe alone reads neither); rays i < m_rays:
-    o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays)."""
-    n = p.shape[0]
+    not written (the diffuse lobe alone reads neither); bump (0,): not written (no hit's
+    normal is bent, nsm is ns: every entry's term is 1, accumulate reads none); rays
+    i < m_rays: o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays).
+    hrow (n,) int64: the hits are rows hrow of the per-hit arrays above (a camera
+    bounce's shaded rows read in place, no compacted copies; row[j] and U1..SEL's
+    columns count the n shaded hits); (0,): the per-hit arrays are the n hits."""
+    indexed = hrow.shape[0] > 0
+    n = hrow.shape[0] if indexed else p.shape[0]
+    want_bump = bump.shape[0] > 0
+    own_gate = gate.shape[0] == 0
     # Optional inputs and outputs, left empty when no hit has them or nothing reads them:
     # each is tens of bytes a hit of memory traffic, most of this kernel's time.
     has_shade = shade_off.shape[0] > 0
@@ -271,6 +280,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     q = params[0] if params.shape[0] > 0 else np.zeros(pk.P)
     for k in range(K):
         for i in range(n):
+            h = hrow[i] if indexed else i  # the hit's row in the per-hit arrays
             u1 = U1[k, i]
             u2 = U2[k, i]
             li = klight[k]
@@ -282,8 +292,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
             if li < 0:
                 # One light chosen for this hit by the light tree (lights/selection.py);
                 # its remapped number serves the light's own third choice.
-                li, pmf, selu = select_light(tree_f, tree_i, inf_idx, inf_f, p[i, 0],
-                                             p[i, 1], p[i, 2], ns[i, 0], ns[i, 1], ns[i, 2],
+                li, pmf, selu = select_light(tree_f, tree_i, inf_idx, inf_f, p[h, 0],
+                                             p[h, 1], p[h, 2], ns[h, 0], ns[h, 1], ns[h, 2],
                                              selu)
                 if li < 0 or not pmf > 0:
                     continue
@@ -296,9 +306,16 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     for a in range(3):
                         for b in range(3):
                             env_frame[a, b] = q[ENV_FRAME + 3 * a + b]
-            p0, p1, p2 = p[i, 0], p[i, 1], p[i, 2]
-            s0, s1, s2 = ns[i, 0], ns[i, 1], ns[i, 2]
-            g0, g1, g2 = gate[i, 0], gate[i, 1], gate[i, 2]
+            p0, p1, p2 = p[h, 0], p[h, 1], p[h, 2]
+            s0, s1, s2 = ns[h, 0], ns[h, 1], ns[h, 2]
+            if not own_gate:
+                g0, g1, g2 = gate[h, 0], gate[h, 1], gate[h, 2]
+            elif has_terminator and cutoff[h] > 0:
+                # Smooth with a terminator offset: light the shading normal faces is
+                # traced (its ray leaves from the lifted point: integrator._hit_arrays).
+                g0, g1, g2 = s0, s1, s2
+            else:
+                g0, g1, g2 = ng[h, 0], ng[h, 1], ng[h, 2]
             finite = True      # the sample lies at a point y (not at infinity)
             surface = False    # ... on a surface with normal ny and end gap
             y0 = y1 = y2 = 0.0
@@ -506,13 +523,13 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     at = _spread_attenuation((-w0) * q[DIR] + (-w1) * q[DIR + 1]
                                              + (-w2) * q[DIR + 2], q)
                     e0, e1, e2 = e0 * at, e1 * at, e2 * at
-            if has_shade and shade_off[i] > 0:
-                sh = _shift_cos_in(w0 * s0 + w1 * s1 + w2 * s2, shade_off[i])
+            if has_shade and shade_off[h] > 0:
+                sh = _shift_cos_in(w0 * s0 + w1 * s1 + w2 * s2, shade_off[h])
                 e0, e1, e2 = e0 * sh, e1 * sh, e2 * sh
             if pmf != 1.0:
                 e0, e1, e2 = e0 / pmf, e1 / pmf, e2 / pmf
             bd = 1.0
-            m0, m1, m2 = nsm[i, 0], nsm[i, 1], nsm[i, 2]
+            m0, m1, m2 = nsm[h, 0], nsm[h, 1], nsm[h, 2]
             if m0 != s0 or m1 != s1 or m2 != s2:
                 # A bent normal: no light from below the smooth surface for any lobe,
                 # the diffuse lobe dimmed towards grazing light (Cycles' bsdf_eval).
@@ -536,7 +553,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 lp = -1.0 if (code == C_WORLD and q[ENV_ON] == 0.0) else lp * pmf
             if want_dir:
                 lpdf[j] = lp
-            bump[j] = bd
+            if want_bump:
+                bump[j] = bd
             row[j] = i
             kidx[j] = k
             if not trace:
@@ -545,16 +563,16 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
             ray[j] = m_rays
             # Shadow-ray origin: lifted to the smooth surface at
             # the terminator, then off the facet along ng.
-            h0, h1, h2 = ng[i, 0], ng[i, 1], ng[i, 2]
+            h0, h1, h2 = ng[h, 0], ng[h, 1], ng[h, 2]
             o0, o1, o2 = p0, p1, p2
-            if has_terminator and cutoff[i] > 0:
-                amt = _terminator_amount(cutoff[i], s0 * w0 + s1 * w1 + s2 * w2,
+            if has_terminator and cutoff[h] > 0:
+                amt = _terminator_amount(cutoff[h], s0 * w0 + s1 * w1 + s2 * w2,
                                          h0 * w0 + h1 * w1 + h2 * w2)
                 if amt > 0:
-                    o0 = o0 + lift[i, 0] * amt
-                    o1 = o1 + lift[i, 1] * amt
-                    o2 = o2 + lift[i, 2] * amt
-            off = offset[i]
+                    o0 = o0 + lift[h, 0] * amt
+                    o1 = o1 + lift[h, 1] * amt
+                    o2 = o2 + lift[h, 2] * amt
+            off = offset[h]
             o0, o1, o2 = o0 + off * h0, o1 + off * h1, o2 + off * h2
             if not finite:
                 d0, d1, d2 = w0, w1, w2
@@ -590,10 +608,12 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
 @kernel
 def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all, bump):
     """E[row] += contrib * bump * visible / samples of its light, entry by entry (sample
-    order): the irradiance the diffuse lobe receives."""
+    order): the irradiance the diffuse lobe receives. bump (0,): 1 for every entry."""
+    has_bump = bump.shape[0] > 0
     for j in range(m_all):
         r = ray[j]
-        vis = (1.0 if r < 0 or not blocked[r] else 0.0) * bump[j]
+        # (x 1.0 where no bump term was written: the same bits as multiplying by a 1 row)
+        vis = (1.0 if r < 0 or not blocked[r] else 0.0) * (bump[j] if has_bump else 1.0)
         s = ksamples[kidx[j]]
         i = row[j]
         E[i, 0] = E[i, 0] + contrib[j, 0] * vis / s
@@ -603,7 +623,7 @@ def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all, bump):
 
 @kernel
 def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, lpdf, kmode,
-                    fd, prm, ns, wo, sel, bump):
+                    fd, prm, ns, wo, sel, bump, hrow):
     """Radiance instead of irradiance: L[row] += contrib x f x visible / samples, entry by
     entry, where f = fd[row] (the diffuse lobe's f = albedo / pi) plus the rough reflective
     lobes' f(wo, wi) (engine/closures/principled.py, packed per hit in prm; ns, wo (N,3)),
@@ -616,7 +636,11 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
     hit: 1 for a light without size (lpdf inf), 2 for a light with a size (lpdf > 0, the
     choice's probability included), 0 for a constant-colour world (lpdf -1). contrib
     already holds cos(wi) (with the shading offset), so the glossy term is eval / cos(wi);
-    bump (j,) dims the diffuse f alone (Cycles' bump shadowing term)."""
+    bump (j,) dims the diffuse f alone (Cycles' bump shadowing term; (0,): 1 everywhere).
+    hrow (n,) int64: entry row i's hit is row hrow[i] of prm, ns, wo and sel (fd and L
+    are per shaded row i), as sample_lights' hrow; (0,): the same rows."""
+    has_bump = bump.shape[0] > 0
+    indexed = hrow.shape[0] > 0
     for j in range(m_all):
         r = ray[j]
         if r >= 0 and blocked[r]:
@@ -624,7 +648,8 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
         k = kidx[j]
         s = ksamples[k]
         i = row[j]
-        bd = bump[j]
+        h = hrow[i] if indexed else i
+        bd = bump[j] if has_bump else 1.0
         f0, f1, f2 = fd[i, 0] * bd, fd[i, 1] * bd, fd[i, 2] * bd
         mode = kmode[k]
         if mode == 3:
@@ -633,14 +658,14 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
             # constant-colour world left to the continuation (integrator.light_modes).
             mode = 1 if lpdf[j] == np.inf else (2 if lpdf[j] > 0.0 else 0)
         if mode != 0:
-            n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+            n0, n1, n2 = ns[h, 0], ns[h, 1], ns[h, 2]
             ix, iy, iz = pr.frame_local(n0, n1, n2, wdir[j, 0], wdir[j, 1], wdir[j, 2])
             if iz > 0.0:
-                ox, oy, oz = pr.frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
-                g0, g1, g2 = pr.eval_reflection(prm, i, ox, oy, oz, ix, iy, iz)
+                ox, oy, oz = pr.frame_local(n0, n1, n2, wo[h, 0], wo[h, 1], wo[h, 2])
+                g0, g1, g2 = pr.eval_reflection(prm, h, ox, oy, oz, ix, iy, iz)
                 mis = 1.0
                 if mode == 2:
-                    pb = pr.bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz)
+                    pb = pr.bsdf_pdf(prm, sel, h, ox, oy, oz, ix, iy, iz)
                     pl = s * lpdf[j]
                     mis = pl * pl / (pl * pl + pb * pb) if pl > 0.0 else 0.0
                 f0 += g0 / iz * mis
@@ -654,6 +679,7 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
 # sample_lights' optional arrays, empty: no per-hit row to read, no entry field to write.
 NO_ROWS = np.zeros(0)
 NO_ROWS3 = np.zeros((0, 3))
+NO_HROWS = np.zeros(0, np.int64)  # hrow: the per-hit arrays are the hits themselves
 
 
 # Entries (hits x light samples) per kernel call: bounds the compacted arrays' memory
@@ -717,7 +743,7 @@ class DirectLightBuffers:
 
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
-                 bsdf=None, buffers=None):
+                 bsdf=None, buffers=None, rows=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -730,8 +756,14 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     outgoing radiance instead, weighted by the BSDF (accumulate_bsdf; mode 3 with the tree).
     buffers: the calling thread's DirectLightBuffers (E is then its sums, valid until
     the next call with them; None: fresh arrays).
+    rows (n,) int64: the n hits are these rows of hit_arrays and of bsdf's prm, wo and sel
+    (a batch's shaded rows, read in place; the numbers, fd and E count the n hits);
+    None: hit_arrays are the n hits.
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
+    hrow = NO_HROWS if rows is None else rows
+    # No bent normal (nsm is ns): every bump term is 1, none is written or read.
+    bump_out = None if hit_arrays[8] is hit_arrays[1] else True
     if tree is None:
         tree = (*empty_tree(), np.ones(len(codes), np.bool_))
     if n == 0 or not samples:
@@ -766,7 +798,9 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
                                       buf.ray, buf.o32, buf.d32, buf.t32,
                                       NO_ROWS3 if bsdf is None else buf.wdir,
-                                      NO_ROWS if bsdf is None else buf.lpdf, buf.bump)
+                                      NO_ROWS if bsdf is None else buf.lpdf,
+                                      NO_ROWS if bump_out is None else buf.bump, hrow)
+        bump = NO_ROWS if bump_out is None else buf.bump
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.
@@ -779,12 +813,12 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         if bsdf is None:
             # (sample_lights wrote no directions or pdfs: NO_ROWS3, NO_ROWS)
             accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all,
-                       buf.bump)
+                       bump)
         else:
             fd, prm, wo, mode, sel = bsdf
             accumulate_bsdf(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked,
                             m_all, buf.wdir, buf.lpdf, mode[klight], fd, prm, hit_arrays[1], wo,
-                            sel, buf.bump)
+                            sel, bump, hrow)
         rays += m_rays
     return E, rays
 

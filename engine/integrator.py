@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .directlight import (NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuffers, direct_light,
-                          sample_lights, terminator_lift)
+from .directlight import (NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuffers,
+                          direct_light, sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.point import sphere_light_pdf
@@ -72,7 +72,7 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
-                      skip_mesh_lights=False, bsdf=None, buffers=None) -> np.ndarray:
+                      skip_mesh_lights=False, bsdf=None, buffers=None, rows=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
@@ -83,8 +83,11 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     importance sampling for the lights the continuation also finds (light_modes,
     directlight.accumulate_bsdf).
     buffers: the calling thread's directlight.DirectLightBuffers (the result is then
-    their sums, valid until their next use; None: fresh arrays)."""
-    n = len(hit.p)
+    their sums, valid until their next use; None: fresh arrays).
+    rows (K,) int64: shade these rows of hit only (the result, the sampler and bsdf's fd
+    are per row of rows; bsdf's prm and sel are the whole batch's, read at rows): the
+    same numbers as hit.take(rows) without copying the rows' fields; None: every hit."""
+    n = len(hit.p) if rows is None else len(rows)
     plan = ctx.plan
     chosen = selector_for(ctx, skip_mesh_lights)
     if chosen is not None:
@@ -121,7 +124,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                     np.ascontiguousarray(sel, np.float64))
         E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
                                SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
-                               bsdf=bsdf, buffers=buffers)
+                               bsdf=bsdf, buffers=buffers, rows=rows)
         counters.shadow_rays += rays
         return E
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
@@ -158,7 +161,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                 np.ascontiguousarray(sel, np.float64))
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
                            SHADOW, n, shadow=getattr(ctx, "shadow", None), bsdf=bsdf,
-                           buffers=buffers)
+                           buffers=buffers, rows=rows)
     counters.shadow_rays += rays
     return E
 
@@ -367,7 +370,7 @@ def light_shadow_rays(ctx, hit, light_index, rng):
                                   u1[None], u2[None],
                                   np.zeros((1, 1)) if sel is None else sel[None],
                                   buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
-                                  buf.t32, buf.wdir, buf.lpdf, buf.bump)
+                                  buf.t32, buf.wdir, buf.lpdf, buf.bump, NO_HROWS)
     return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.o32[:m_rays].copy(),
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
@@ -380,7 +383,6 @@ def _hit_arrays(geo, hit):
     An offset no object has is an empty array (sample_lights reads no rows)."""
     n = len(hit.p)
     c = np.ascontiguousarray
-    gate = _lit_side_normals(geo, hit)
     # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
     shading_offset = (np.take(geo.terminator_shading, hit.prim)
                       if n and geo.object_terminator_shading.view(np.uint32).any()
@@ -397,25 +399,17 @@ def _hit_arrays(geo, hit):
                         object_id, geo.object_terminator, v0, e1, e2, normals, cutoff, lift)
     ns = c(hit.ns, np.float64)
     n_smooth = getattr(hit, "n_smooth", None)
-    return (c(hit.p, np.float64), ns, c(gate, np.float64),
+    # The normal whose hemisphere decides which light directions a hit can receive is
+    # chosen in the kernel (gate NO_ROWS3): the geometric normal, except on smooth-shaded
+    # triangles with a shadow terminator offset (cut-off > 0), where (as in Cycles) light
+    # the shading normal faces is traced even when it arrives just below the flat facet:
+    # its shadow ray leaves from the smooth surface (directlight.terminator_lift) and is
+    # shadowed only if it really meets geometry, the facet itself included (Cycles skips
+    # the own triangle only when NgL > 0).
+    return (c(hit.p, np.float64), ns, NO_ROWS3,
             c(hit.ng, np.float64), c(hit.offset, np.float64),
             c(shading_offset, np.float64), cutoff, lift,
             ns if n_smooth is None else c(n_smooth, np.float64))
-
-
-def _lit_side_normals(geo, hit):
-    """The normal whose hemisphere decides which light directions a hit can receive:
-    the geometric normal, except on smooth-shaded triangles with a shadow terminator
-    offset, where (as in Cycles) light the shading normal faces is traced even when it
-    arrives just below the flat facet: its shadow ray leaves from the smooth surface
-    (directlight.terminator_lift) and is shadowed only if it really meets geometry, the facet
-    itself included (Cycles skips the own triangle only when NgL > 0)."""
-    if hit.bary is None or not len(hit.prim) or not (geo.object_terminator > 0).any():
-        return hit.ng  # (no object has a terminator offset: the per-hit test below is False)
-    smooth = np.take(geo.smooth, hit.prim) & (np.take(geo.terminator, hit.prim) > 0)
-    if not smooth.any():
-        return hit.ng
-    return np.where(smooth[:, None], hit.ns, hit.ng)
 
 
 _UNSET = object()  # gather_indirect's lean: not given
@@ -791,7 +785,8 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
-                  should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None):
+                  should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
+                  rows=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
@@ -800,17 +795,25 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     lobe_choice). buffers: the calling thread's directlight.DirectLightBuffers (direct is
     then their sums, valid until their next use; None: fresh arrays). scattered: (N,) bool,
     hits reached through a rough lobe, whose caustic estimate is taken at every sample
-    (_smooth_estimate's every); None: none."""
+    (_smooth_estimate's every); None: none.
+    rows (K,) int64: shade rows `rows` of the batch `hit` (a camera bounce's shaded rows:
+    the direct stage reads them in place, direct_irradiance's rows); wd, the sampler,
+    sample_id, footprint, glossy, scattered and the results are per row of rows, sel is
+    the whole batch's. The same numbers as shade_diffuse(hit.take(rows), ...) with sel
+    taken at rows. None: every hit."""
     f = wd / math.pi
-    counters.diffuse_hits += len(hit.p)
+    counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
-                                   buffers=buffers)
+                                   buffers=buffers, rows=rows)
     else:
-        direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers)
+        direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers,
+                                   rows=rows)
         np.multiply(f, direct, out=direct)  # f x E, in place
     if not ctx.settings.photon_mapping:
         return direct, None, None  # (no caustic or indirect term to add)
+    if rows is not None:
+        hit = hit.take(rows)  # the photon estimates read the rows' fields (copied on read)
     caustic = np.zeros_like(direct)
     indirect = np.zeros_like(direct)
     if glossy is not None:
@@ -1209,17 +1212,18 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if nd:
             dsel, wd = dsel[:nd], wd[:nd]
             every = nd == n
-            # The diffuse rows as a view (fields copied on first read), or the batch itself.
-            sub = hit if every else hit.take(dsel)
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = (None if sampler is None or bounce > 0 else
                      sampler if every else sampler.subset(dsel))
             g = glossy if every else glossy[dsel]
+            # The shaded rows read in place (rows=dsel), or the batch itself: no copies of
+            # their fields for the direct stage.
             direct, caustic, indirect = shade_diffuse(
-                ctx, sub, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
+                ctx, hit, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
-                sel=sel[dsel] if g.any() else None, buffers=buffers.direct,
-                scattered=scattered if every or scattered is None else scattered[dsel])
+                sel=sel if g.any() else None, buffers=buffers.direct,
+                scattered=scattered if every or scattered is None else scattered[dsel],
+                rows=None if every else dsel)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:
