@@ -38,3 +38,18 @@ def rect_corner_factor(a, b, h):
     X, Y = a / h, b / h
     return 0.5 * (X / math.sqrt(1 + X * X) * math.atan(Y / math.sqrt(1 + X * X))
                   + Y / math.sqrt(1 + Y * Y) * math.atan(X / math.sqrt(1 + Y * Y)))
+
+
+def hits_from_inside(ctx, n, seed):
+    """Surface hits (engine.bsdf.SurfaceHit) of up to n rays from random points inside the
+    middle 80 % of the scene's bounding box in uniformly random directions (the rays that
+    miss are dropped); ctx: a render Context (engine.render.prepare_context)."""
+    from engine.bsdf import surface_hit
+    from engine.sampling import uniform_sphere
+    rng = np.random.default_rng(seed)
+    lo, hi = ctx.geo.bounds
+    o = lo + (hi - lo) * (0.1 + 0.8 * rng.random((n, 3)))
+    d = uniform_sphere(rng.random(n), rng.random(n))
+    t, prim, u, v = ctx.accel.intersect(o, d)
+    k = prim >= 0
+    return surface_hit(ctx.geo, ctx.table, prim[k], u[k], v[k], d[k])

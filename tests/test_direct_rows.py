@@ -15,9 +15,10 @@ from engine.closures import principled as pr
 from engine.integrator import Counters, direct_irradiance, lobe_choice, shade_diffuse
 from engine.normalmap import NormalMap
 from engine.render import prepare_context
-from engine.sampling import max3, uniform_sphere
+from engine.sampling import max3
 from engine.scene import Material
 from engine.textures import ImageTexture
+from helpers import hits_from_inside
 
 
 def _mixed_box(many_lights=False):
@@ -58,15 +59,11 @@ def _bent_floor():
 
 
 def _hits(ctx, n, seed, floor=False):
+    if not floor:
+        return hits_from_inside(ctx, n, seed)
     rng = np.random.default_rng(seed)
-    if floor:
-        o = np.column_stack([rng.uniform(-1.9, 1.9, n), rng.uniform(-1.9, 1.9, n),
-                             np.ones(n)])
-        d = np.tile([0.0, 0.0, -1.0], (n, 1))
-    else:
-        lo, hi = ctx.geo.bounds
-        o = lo + (hi - lo) * (0.1 + 0.8 * rng.random((n, 3)))
-        d = uniform_sphere(rng.random(n), rng.random(n))
+    o = np.column_stack([rng.uniform(-1.9, 1.9, n), rng.uniform(-1.9, 1.9, n), np.ones(n)])
+    d = np.tile([0.0, 0.0, -1.0], (n, 1))
     t, prim, u, v = ctx.accel.intersect(o, d)
     k = prim >= 0
     return surface_hit(ctx.geo, ctx.table, prim[k], u[k], v[k], d[k])

@@ -24,6 +24,7 @@ from engine.camerakernels import gather_rays
 from engine.normalmap import bump_shadowing
 from engine.render import _photon_pass, prepare_context
 from engine.sampling import max3, uniform_sphere
+from helpers import hits_from_inside
 from engine.visibility import DIFFUSE
 
 
@@ -129,14 +130,7 @@ def box():
     ctx.accel.close()
 
 
-def _hits(ctx, n, seed):
-    rng = np.random.default_rng(seed)
-    lo, hi = ctx.geo.bounds
-    o = lo + (hi - lo) * (0.1 + 0.8 * rng.random((n, 3)))
-    d = uniform_sphere(rng.random(n), rng.random(n))
-    t, prim, u, v = ctx.accel.intersect(o, d)
-    k = prim >= 0
-    return surface_hit(ctx.geo, ctx.table, prim[k], u[k], v[k], d[k])
+_hits = hits_from_inside
 
 
 def test_gather_indirect_is_bitwise_the_numpy_stage(box):

@@ -50,6 +50,25 @@ def fresh_scene(bpy_addon):
     return scene
 
 
+@pytest.fixture()
+def open_ground(fresh_scene):
+    """A grey ball on a 30 m ground under a dim grey world and one area light, seen from
+    close by: nearly all the light the camera sees on the ground is direct, and most of
+    the world's light lands where no gather ray ends (the photon-importance and
+    gather-share tests)."""
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends as mb
+    scene = mb.reset()
+    grey = mb.material("grey", "principled", (0.5, 0.5, 0.5), roughness=1.0)
+    mb.plane("Floor", 30, 30, grey)
+    mb.sphere("Ball", 0.5, grey, (0, 0, 0.5), segments=24, rings=12)
+    mb.set_world((0.05, 0.05, 0.05))
+    mb.light("Area", "AREA", (1.0, -1.0, 3.0), 500.0, look_at=(0, 0, 0), size=1.0)
+    mb.camera((0, -4, 1.5), (0, 0, 0.4))
+    cheap(scene, width=32, height=24, spp=1, photons=20_000, caustic_photons=2_000)
+    return scene
+
+
 def cheap(scene, width=None, height=None, pct=None, spp=2, photons=20_000,
           caustic_photons=10_000):
     pm = scene.photonmap

@@ -5,4 +5,4 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from blender_helpers import bpy_addon, fresh_scene  # noqa: E402,F401
+from blender_helpers import bpy_addon, fresh_scene, open_ground  # noqa: E402,F401

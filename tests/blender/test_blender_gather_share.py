@@ -1,30 +1,8 @@
 """The add-on's "Gather by Indirect Share" property (gather_by_share, engine/render.py
 gather_count) reaches the engine's settings, and a render reports the gather count used."""
-import os
-import sys
-
 import pytest
 
-from blender_helpers import ROOT, cheap
-
 pytestmark = pytest.mark.blender
-
-
-@pytest.fixture()
-def open_ground(fresh_scene):
-    """A grey ball on a 30 m ground under a dim world and one area light: nearly all the
-    light the camera sees on the ground is direct."""
-    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
-    import make_blends as mb
-    scene = mb.reset()
-    grey = mb.material("grey", "principled", (0.5, 0.5, 0.5), roughness=1.0)
-    mb.plane("Floor", 30, 30, grey)
-    mb.sphere("Ball", 0.5, grey, (0, 0, 0.5), segments=24, rings=12)
-    mb.set_world((0.05, 0.05, 0.05))
-    mb.light("Area", "AREA", (1.0, -1.0, 3.0), 500.0, look_at=(0, 0, 0), size=1.0)
-    mb.camera((0, -4, 1.5), (0, 0, 0.4))
-    cheap(scene, width=32, height=24, spp=1, photons=20_000, caustic_photons=2_000)
-    return scene
 
 
 def test_gather_by_share_property_reaches_the_engine(bpy_addon, open_ground):
