@@ -122,7 +122,7 @@ _LIBRARY = None if _rtcs is None else _embree_library()
 # 32-bit words: org 0-2, tnear 3, dir 4-6, time 7, tfar 8, mask 9, id 10, flags 11; hit
 # (16-byte aligned) Ng 12-14, u 15, v 16, primID 17, geomID 18, instID 19, instPrimID 20.
 # The rays are set up as embreex sets them (tnear 0, time 0, mask all, no arguments), a
-# miss answers as embreex's (primID and geomID -1, u = v = 0), and _kernel_hits_agree
+# miss answers as embreex's (primID and geomID -1, u = v = 0), and _probe_kernel_hits
 # checks that on a probe before the kernel is used.
 _RAYHIT_WORDS = 24
 

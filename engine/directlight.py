@@ -763,7 +763,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
     # No bent normal (nsm is ns): every bump term is 1, none is written or read.
-    bump_out = None if hit_arrays[8] is hit_arrays[1] else True
+    bent = hit_arrays[8] is not hit_arrays[1]
     if tree is None:
         tree = (*empty_tree(), np.ones(len(codes), np.bool_))
     if n == 0 or not samples:
@@ -794,13 +794,12 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                     zeros = np.zeros(n)
                 np.stack([zeros if s[5] is None else s[5] for s in group], out=SEL)
         buf.ensure(K * n)
+        bump = buf.bump if bent else NO_ROWS
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
                                       buf.ray, buf.o32, buf.d32, buf.t32,
                                       NO_ROWS3 if bsdf is None else buf.wdir,
-                                      NO_ROWS if bsdf is None else buf.lpdf,
-                                      NO_ROWS if bump_out is None else buf.bump, hrow)
-        bump = NO_ROWS if bump_out is None else buf.bump
+                                      NO_ROWS if bsdf is None else buf.lpdf, bump, hrow)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.

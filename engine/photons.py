@@ -165,10 +165,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # only), the stored photons (appended to by each bounce), and two sets of continued
     # rays (one is the bounce's input, the other its output).
     surf = pk.surface_arrays(m if given else 0)
-    bump_buf = pool.take(_factors, m)
-    bump, tfar, hit_rows = bump_buf[0][:m], bump_buf[1][:m], bump_buf[2]
-    hits = (bump_buf[3][0], bump_buf[3][1], bump_buf[4], bump_buf[5])  # Embree's answer
-    bump[:] = 1.0
+    factors = pool.take(_factors, m)
+    bump, tfar, hit_rows, hits = _factor_views(factors, m)
     stored = _Stored(2 * m + 1024, pool)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
@@ -181,7 +179,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         for arrays in nxt_sets:
             if arrays is not None:
                 pool.give(arrays)
-        pool.give(bump_buf)
+        pool.give(factors)
     return stored
 
 
@@ -199,9 +197,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             break
         if m > len(bump):
             surf = pk.surface_arrays(m if given else 0)
-            bump, tfar, hit_rows, ids, u_buf, v_buf = _factors(m)
-            bump[:] = 1.0
-            hits = (ids[0], ids[1], u_buf, v_buf)
+            bump, tfar, hit_rows, hits = _factor_views(_factors(m), m)
         tfar[:m] = _UNBOUNDED
         # Embree's own answer: int32 ids, float32 barycentrics; scatter reads them as they
         # are (Accel.intersect_hits).
@@ -379,6 +375,16 @@ def _factors(m: int):
     barycentrics u, v (m,) float32 (Accel.intersect_hits' out)."""
     return (np.empty(m), np.empty(m, np.float32), np.empty((2, m), np.int64),
             np.empty((2, m), np.int32), np.empty(m, np.float32), np.empty(m, np.float32))
+
+
+def _factor_views(factors, m: int):
+    """What the bounces use of a _factors set of at least m rows: the bump factors (m,)
+    (set to 1), the tmax (m,), scatter's scratch rows, and Embree's answer arrays (geom,
+    prim, u, v)."""
+    bump, tfar, hit_rows, ids, u, v = factors
+    bump = bump[:m]
+    bump[:] = 1.0
+    return bump, tfar[:m], hit_rows, (ids[0], ids[1], u, v)
 
 
 _UNBOUNDED = np.finfo(np.float32).max  # tmax of a photon ray (Accel.intersect's default)

@@ -40,11 +40,10 @@ def rect_corner_factor(a, b, h):
                   + Y / math.sqrt(1 + Y * Y) * math.atan(X / math.sqrt(1 + Y * Y)))
 
 
-def hits_from_inside(ctx, n, seed):
-    """Surface hits (engine.bsdf.SurfaceHit) of up to n rays from random points inside the
-    middle 80 % of the scene's bounding box in uniformly random directions (the rays that
-    miss are dropped); ctx: a render Context (engine.render.prepare_context)."""
-    from engine.bsdf import surface_hit
+def rays_from_inside(ctx, n, seed):
+    """n rays from random points inside the middle 80 % of the scene's bounding box in
+    uniformly random directions, and their hits: (prim, u, v (K,), d (K,3)) of the K rays
+    that hit something; ctx: a render Context (engine.render.prepare_context)."""
     from engine.sampling import uniform_sphere
     rng = np.random.default_rng(seed)
     lo, hi = ctx.geo.bounds
@@ -52,4 +51,10 @@ def hits_from_inside(ctx, n, seed):
     d = uniform_sphere(rng.random(n), rng.random(n))
     t, prim, u, v = ctx.accel.intersect(o, d)
     k = prim >= 0
-    return surface_hit(ctx.geo, ctx.table, prim[k], u[k], v[k], d[k])
+    return prim[k], u[k], v[k], d[k]
+
+
+def hits_from_inside(ctx, n, seed):
+    """The surface hits (engine.bsdf.SurfaceHit) of rays_from_inside(ctx, n, seed)."""
+    from engine.bsdf import surface_hit
+    return surface_hit(ctx.geo, ctx.table, *rays_from_inside(ctx, n, seed))

@@ -12,6 +12,7 @@ from engine.geometry import prepare
 from engine.integrator import lobe_choice
 from engine.render import prepare_context
 from engine.sampling import dot, max3, uniform_sphere
+from helpers import rays_from_inside
 from engine.scene import Material, Mesh, Scene
 
 
@@ -50,13 +51,7 @@ def _lobe_choice_numpy(w, tp):
 
 def _box_hits(n=20000, seed=3):
     ctx = prepare_context(cornell_box(8, 6, glass_sphere=True), RenderSettings(workers=1))
-    rng = np.random.default_rng(seed)
-    lo, hi = ctx.geo.bounds
-    o = lo + (hi - lo) * (0.1 + 0.8 * rng.random((n, 3)))
-    d = uniform_sphere(rng.random(n), rng.random(n))
-    t, prim, u, v = ctx.accel.intersect(o, d)
-    k = prim >= 0
-    return ctx, prim[k], u[k], v[k], d[k]
+    return (ctx, *rays_from_inside(ctx, n, seed))
 
 
 def _tris(kind, rng, T=300):

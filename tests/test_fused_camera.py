@@ -17,6 +17,7 @@ from engine.closures import principled as pr
 from engine.integrator import lobe_choice
 from engine.render import prepare_context
 from engine.sampling import max3, uniform_sphere
+from helpers import rays_from_inside
 from engine.scene import Material
 
 
@@ -150,13 +151,7 @@ def test_chunk_samples_equals_the_numpy_stage(start, n, spp, rw, x0, y0):
 
 def _plain_rays(ctx, n, seed):
     """n rays from inside the box in every direction, and their hits (prim, u, v, d)."""
-    rng = np.random.default_rng(seed)
-    lo, hi = ctx.geo.bounds
-    o = lo + (hi - lo) * (0.1 + 0.8 * rng.random((n, 3)))
-    d = uniform_sphere(rng.random(n), rng.random(n))
-    t, prim, u, v = ctx.accel.intersect(o, d)
-    k = prim >= 0
-    return prim[k], u[k], v[k], d[k]
+    return rays_from_inside(ctx, n, seed)
 
 
 @pytest.mark.parametrize("order", ["as_traced", "glossy_last"])
