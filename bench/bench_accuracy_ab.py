@@ -44,16 +44,8 @@ from bench_accuracy import _loglog  # noqa: E402
 
 def export(name):
     """(engine Scene, RenderSettings kwargs) of scene `name` at our default settings, as
-    the add-on hands them to the engine."""
-    import bpy
-    from addon import export as ex
-    import engine
-    scene = A.setup(name)
-    A.set_photonmap_defaults(scene)
-    dg = bpy.context.evaluated_depsgraph_get()
-    w, h = ex.render_size(scene.render)
-    pm_scene, _ = ex.export_scene(engine, dg, width=w, height=h)
-    return pm_scene, scene.photonmap.to_settings_kwargs(scene.render.film_transparent)
+    the add-on hands them to the engine (accuracy_scenes.export_ours)."""
+    return A.export_ours(name)
 
 
 def parse_variant(text):

@@ -384,6 +384,21 @@ def object_means(img, labels, names):
             if np.any(labels == i + 1)}
 
 
+def export_ours(name):
+    """(engine Scene, RenderSettings kwargs) of scene `name` at our default settings (every
+    scene.photonmap property unset, COMPARE_FILTER), exported as the add-on exports it for
+    a render: for many engine renders of one scene (seeds, regions) without the add-on's
+    per-render export and EXR round trip."""
+    from addon import export as ex
+    import engine
+    scene = setup(name)
+    set_photonmap_defaults(scene)
+    dg = bpy.context.evaluated_depsgraph_get()
+    w, h = ex.render_size(scene.render)
+    pm_scene, _ = ex.export_scene(engine, dg, width=w, height=h)
+    return pm_scene, scene.photonmap.to_settings_kwargs(scene.render.film_transparent)
+
+
 def render_ours(name, **overrides):
     scene = setup(name)
     set_photonmap_defaults(scene)
