@@ -560,11 +560,14 @@ class GatherBuffers:
     dsel (m,), lookup point lp, normal ln (m,3), offset loff, ray length lt (m,), again
     (m,)); the uniform numbers of a gather without a sampler uv (2n,); Embree's rays and
     answer (o32, d32 (n,3), tf32, u32, v32 (n,) float32; geom, prim32 (n,) int32) and
-    the hits kept from it (prim (n,) int64, u, v, t (n,)); and GatherMap.lookup's
-    scratch (scratch_arrays(m))."""
+    the hits kept from it (prim (n,) int64, u, v, t (n,)); GatherMap.lookup's scratch
+    (scratch_arrays(m)); and `direct`, the DirectLightBuffers of this level's regathers."""
 
     def __init__(self):
         self.size = 0
+        # The regathers' direct light from this level's ends (_regather): its sums are
+        # read before the level below (which has its own) runs.
+        self.direct = DirectLightBuffers()
 
     def rays(self, n):
         if n > self.size:
@@ -649,7 +652,10 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
     # light here.
-    Esub = (direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True)
+    # (direct_irradiance's sums live in this level's buffers until the next regather
+    # batch of this level on this thread; the sum below reads them first.)
+    Esub = (direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True,
+                              buffers=_gather_buffers(ctx, level).direct)
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
                               should_cancel=should_cancel, lean=lean)
             + _secondary_irradiance(ctx, y, rng))
