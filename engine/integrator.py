@@ -585,17 +585,16 @@ class GatherBuffers:
             self.u, self.v, self.t = np.empty(n), np.empty(n), np.empty(n)
             self.q_out = np.empty((n, 3))
             self.q_boundary, self.q_blocked = np.empty(n, np.bool_), np.empty(n, np.bool_)
-            self.q_o32, self.q_d32 = (np.empty((n, 3), np.float32) for _ in range(2))
-            self.q_t32 = np.empty(n, np.float32)
             self.q_row = np.empty(n, np.int64)
         return self.idx[:n], self.o[:n], self.d[:n], self.tp[:n]
 
     def scratch_arrays(self, m):
         """GatherMap.lookup's arrays for m rows (m <= size): (out (m,3), boundary (m,)
         bool, o32, d32 (m,3) float32, t32 (m,) float32, ray_row (m,) int64, blocked (m,)
-        bool)."""
-        return (self.q_out[:m], self.q_boundary[:m], self.q_o32[:m], self.q_d32[:m],
-                self.q_t32[:m], self.q_row[:m], self.q_blocked[:m])
+        bool). Its visibility rays reuse the step's Embree rays (o32, d32, tf32), which
+        the step has read by then (keep_embree_hits)."""
+        return (self.q_out[:m], self.q_boundary[:m], self.o32[:m], self.d32[:m],
+                self.tf32[:m], self.q_row[:m], self.q_blocked[:m])
 
 
 def _closest_bvh(vis, ray_cls):
