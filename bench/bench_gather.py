@@ -4,7 +4,7 @@ batch per gather call).
 
     .venv/bin/python bench/bench_gather.py [--base main] [--blends figure6_box,...]
         [--width 160 --height 120] [--workers 1,2] [--repeat 2]
-        [--seeds 4 --stats-width 80 --stats-height 60] [--only time,stats]
+        [--seeds 4 --stats-width 80 --stats-height 60] [--only time,threads,stats]
         [--before /path/to/a/checkout/of/base]
 
 Prints Markdown tables:
@@ -14,6 +14,12 @@ Prints Markdown tables:
   calls, regathers included: process clock at 1 worker, thread clock at 2),
   gather_indirect calls by level, and whether the film is bitwise the same as 1 worker's
   (SHA-1 of the five effect passes);
+- threads: where the camera stage's and the final gather's time goes on the worker
+  threads (twelfth slice), for each worker count: per thread, summed over threads, the
+  seconds on a core (run), waiting for a core (run-queue: other processes), and
+  *blocked* = wall - run - run-queue (waits for the GIL or a lock), and the minor page
+  faults (RUSAGE_THREAD), inside the chunks (_render_chunk) and inside the top-level
+  gather_indirect calls; from /proc/self/task/<tid>/schedstat (Linux);
 - stats: the image over seeds first..first+N-1, paired by seed (the same seed before and after):
   the mean of the combined image and of the indirect pass, their paired difference with
   its standard error over seeds, and the per-pixel noise (standard deviation over seeds,
@@ -92,6 +98,50 @@ print(json.dumps(dict(camera=camera_cpu[0], gather=gather_cpu[0], hash=h.hexdige
                       calls={str(k): v for k, v in sorted(calls.items())})))
 """
 
+THREADS = r"""
+import json, pickle, resource, sys, threading, time
+sys.path.insert(0, ROOT)
+from engine.jit import ensure_compiled
+ensure_compiled()
+from engine import integrator
+from engine.render import render
+from engine.settings import RenderSettings
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+scene.width, scene.height = W, H
+stats, lock, local = {}, threading.Lock(), threading.local()
+
+def snap():
+    with open(f"/proc/self/task/{threading.get_native_id()}/schedstat") as f:
+        run, wait = (int(x) * 1e-9 for x in f.read().split()[:2])
+    return (time.perf_counter(), run, wait,
+            resource.getrusage(resource.RUSAGE_THREAD).ru_minflt)
+
+def timed(fname, key):
+    real = getattr(integrator, fname)
+    def call(*a, **k):
+        if getattr(local, fname, False):  # recursion: counted by the outer call
+            return real(*a, **k)
+        setattr(local, fname, True)
+        s0 = snap()
+        try:
+            return real(*a, **k)
+        finally:
+            setattr(local, fname, False)
+            d = [y - x for x, y in zip(s0, snap())]
+            with lock:
+                acc = stats.setdefault(key, [0.0] * 4)
+                for i in range(4):
+                    acc[i] += d[i]
+    setattr(integrator, fname, call)
+
+timed("_render_chunk", "chunk")
+timed("gather_indirect", "gather")
+render(scene, RenderSettings(workers=WORKERS))
+print(json.dumps({k: dict(run=r, runq=q, blocked=w - r - q, faults=int(f))
+                  for k, (w, r, q, f) in stats.items()}))
+"""
+
 PASSES = ("direct", "indirect", "caustic", "specular", "emission")
 
 
@@ -131,6 +181,29 @@ def timing(roots, blends, args, where):
             print(f"| {name} | {workers} | {cb:.2f} | {ca:.2f} | {cb / max(ca, 1e-9):.2f}x | "
                   f"{gb:.2f} | {ga:.2f} | {gb / max(ga, 1e-9):.2f}x | {calls} | "
                   f"{', '.join(same)} |", flush=True)
+
+
+def threads(roots, blends, args, where):
+    print(f"\n### Worker threads: camera chunks and final gather, default settings, "
+          f"{args.width}x{args.height} (s summed over threads; the run with the least chunk "
+          f"run time of {args.repeat})\n")
+    print("| blend | workers | tree | chunks: run s | run-queue s | blocked s | faults | "
+          "gather: run s | run-queue s | blocked s | faults |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for name in blends:
+        pkl = exported(name, where)
+        for workers in args.workers:
+            res = {"before": [], "after": []}
+            for _ in range(args.repeat):
+                for label in ("before", "after"):
+                    res[label].append(child(THREADS, ROOT=roots[label], PICKLE=pkl,
+                                            W=args.width, H=args.height, WORKERS=workers))
+            for label in ("before", "after"):
+                r = min(res[label], key=lambda x: x["chunk"]["run"])
+                c, g = r["chunk"], r["gather"]
+                print(f"| {name} | {workers} | {label} | {c['run']:.2f} | {c['runq']:.2f} | "
+                      f"{c['blocked']:.2f} | {c['faults']:,} | {g['run']:.2f} | "
+                      f"{g['runq']:.2f} | {g['blocked']:.2f} | {g['faults']:,} |", flush=True)
 
 
 def stats(roots, blends, args, where):
@@ -200,6 +273,8 @@ def main():
     only = args.only.split(",")
     if "time" in only:
         timing(roots, blends, args, args.work)
+    if "threads" in only:
+        threads(roots, blends, args, args.work)
     if "stats" in only:
         stats(roots, blends, args, args.work)
     print(f"\nload average at the end {os.getloadavg()[0]:.1f}")

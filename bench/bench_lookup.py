@@ -168,13 +168,13 @@ def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
          None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),)))))
     return irradiance(self, p, n, radius, k, min_photons, estimator, return_boundary,
                       r_floor, should_cancel)
-def record_lookup(self, p, n, candidates=8, offset=None):
+def record_lookup(self, p, n, candidates=8, offset=None, **kw):  # kw: scratch=
     if not lookups:
         lookups.append((self.tree.position, self.tree.axis, self.tree.split,
                         self.tree.leaf, self.position, self.normal, self.E, self.boundary,
                         self.radius))
     lookups.append((np.array(p), np.array(n), None if offset is None else np.array(offset)))
-    return lookup(self, p, n, candidates, offset)
+    return lookup(self, p, n, candidates, offset, **kw)
 photonmap.PhotonMap.irradiance = record
 photonmap.GatherMap.lookup = record_lookup
 render(scene, RenderSettings(workers=1))

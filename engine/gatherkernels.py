@@ -13,6 +13,11 @@ fifth slice): what ran as numpy indexing between two Embree calls of every gathe
   materials (`lean_materials`: one Lambert lobe, nothing textured) without the closures'
   set-up, and the list of the other hits, which alone take bsdf.closures and the
   specular continuation.
+- `rays_f32`, `keep_embree_hits` (twelfth slice): a gather step's rays in Embree's
+  float32 layout for Accel.intersect_hits(out=) (Embree called from a kernel into the
+  thread's buffers), and its answer compacted as `keep_hits` compacts Accel.intersect's:
+  the same triangle rows, distances and barycentrics without intersect's conversions
+  and fresh arrays (GIL-held numpy, page faults on two workers).
 
 Each kernel performs the numpy stage's floating-point operations in the same order, so
 images are bitwise unchanged (tests/test_gather_kernels.py keeps the numpy gather as an
@@ -76,6 +81,52 @@ def keep_hits(prim, o, d, tp, idx, u, v, t, cls):
             u[k] = u[i]
             v[k] = v[i]
             t[k] = t[i]
+            if per_ray:
+                cls[k] = cls[i]
+        k += 1
+    return k
+
+
+F32_MAX = float(np.finfo(np.float32).max)  # an unbounded ray's tfar (Accel.intersect's)
+
+
+@kernel
+def rays_f32(o, d, o32, d32, tf32):
+    """Rays o, d (N,3) float64 in Embree's layout: o32, d32 (N,3) float32 (rounded to
+    nearest, as np.ascontiguousarray(o, np.float32) rounds) and tf32 (N,) = float32's
+    largest value (unbounded, Accel.intersect's tmax=None)."""
+    for i in range(o.shape[0]):
+        for c in range(3):
+            o32[i, c] = np.float32(o[i, c])
+            d32[i, c] = np.float32(d[i, c])
+        tf32[i] = np.float32(F32_MAX)
+
+
+@kernel
+def keep_embree_hits(geom, prim32, u32, v32, tf32, starts, o, d, tp, idx, cls, prim, u, v, t):
+    """keep_hits on Embree's answer (Accel.intersect_hits: geom, prim32 (N,) int32, geom
+    < 0 a miss; u32, v32 (N,) float32; tf32 (N,) float32 the hit distance; starts (G,)
+    int64 the pieces' first triangles): the rays that met something compacted to the
+    front of o, d, tp (N,3), idx (N,) int64 and cls ((N,) int64 or empty: one class for
+    all), in place, and their triangle row prim = starts[geom] + prim32 (int64), u, v and
+    distance t (float64 of the float32 values) into prim, u, v, t (N,) from the front:
+    what Accel.intersect answers and keep_hits keeps, bit for bit. Returns K."""
+    k = 0
+    per_ray = cls.shape[0] > 0
+    for i in range(geom.shape[0]):
+        g = geom[i]
+        if g < 0:
+            continue
+        prim[k] = starts[g] + np.int64(prim32[i])
+        u[k] = np.float64(u32[i])
+        v[k] = np.float64(v32[i])
+        t[k] = np.float64(tf32[i])
+        if k != i:
+            for c in range(3):
+                o[k, c] = o[i, c]
+                d[k, c] = d[i, c]
+                tp[k, c] = tp[i, c]
+            idx[k] = idx[i]
             if per_ray:
                 cls[k] = cls[i]
         k += 1
@@ -157,6 +208,13 @@ def _warm_up():
     u, v, t = np.zeros(n), np.zeros(n), np.ones(n)
     for cls in (np.zeros(0, np.int64), np.zeros(n, np.int64)):
         keep_hits(prim.copy(), o, d, tp, idx, u, v, t, cls)
+    o32, d32, tf32 = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n, np.float32)
+    rays_f32(o, d, o32, d32, tf32)
+    geom, prim32 = np.array([0, -1], np.int32), np.zeros(n, np.int32)
+    u32 = np.zeros(n, np.float32)
+    for cls in (np.zeros(0, np.int64), np.zeros(n, np.int64)):
+        keep_embree_hits(geom, prim32, u32, u32, tf32, np.zeros(1, np.int64), o, d, tp, idx,
+                         cls, np.empty(n, np.int64), np.empty(n), np.empty(n), np.empty(n))
     rows = np.empty(n, np.int64)
     lp, ln, loff, lt = np.empty((n, 3)), np.empty((n, 3)), np.empty(n), np.empty(n)
     k = diffuse_lookups(tp, o, d, u, t, rows, lp, ln, loff, lt)

@@ -31,7 +31,8 @@ from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, fi
                             film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
                             pick_lobes, shade_lobes, view_depth)
 from .camerarays import camera_rays_kernel, chunk_samples
-from .gatherkernels import add_gathered, diffuse_lookups, keep_hits, lean_diffuse, lean_materials
+from .gatherkernels import (add_gathered, diffuse_lookups, keep_embree_hits, keep_hits,
+                            lean_diffuse, lean_materials, rays_f32)
 from .closures import principled as pr
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
@@ -453,8 +454,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # regathers', uses its own).
     buf = _gather_buffers(ctx, level)
     for g in range(G):
-        u1, u2 = sampler.uv(("gather", g)) if sampler is not None else rng.random((2, n))
         idx, o, d, tp = buf.rays(n)
+        # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
+        u1, u2 = (sampler.uv(("gather", g)) if sampler is not None
+                  else rng.random(out=buf.uv[:2 * n].reshape(2, n)))
         k = gather_rays(c(u1, np.float64), c(u2, np.float64), ns, ng, p, offset, idx, o, d)
         idx, o, d, tp = idx[:k], o[:k], d[:k], tp[:k]
         tp.fill(1.0)
@@ -469,13 +472,26 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             # Most of a camera chunk's time is spent here: poll the stop flag per step.
             if should_cancel is not None and should_cancel():
                 raise Cancelled()
-            t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
             counters.gather_rays += len(idx)
-            # The hits, compacted in place (gatherkernels.keep_hits).
             per_ray = np.ndim(ray_cls) > 0
             cls = c(ray_cls, np.int64) if per_ray else _NO_CLASS
             tp = c(tp, np.float64)
-            m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
+            bvh = _closest_bvh(ctx.accel, ray_cls)
+            if bvh is not None:
+                # Embree from a kernel into this thread's buffers (Accel.intersect_hits),
+                # the hits compacted from its answer (gatherkernels.keep_embree_hits):
+                # intersect's numbers without its conversions and fresh arrays.
+                nr = len(idx)
+                o32, d32, tf32 = buf.o32[:nr], buf.d32[:nr], buf.tf32[:nr]
+                rays_f32(o, d, o32, d32, tf32)
+                out = buf.geom[:nr], buf.prim32[:nr], buf.u32[:nr], buf.v32[:nr]
+                starts = bvh.intersect_hits(o32, d32, tf32, out=out)[4]
+                prim, u, v, t = buf.prim[:nr], buf.u[:nr], buf.v[:nr], buf.t[:nr]
+                m = keep_embree_hits(*out, tf32, starts, o, d, tp, idx, cls, prim, u, v, t)
+            else:
+                t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
+                # The hits, compacted in place (gatherkernels.keep_hits).
+                m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
             if m < len(idx):
                 o, d, tp, idx, prim, u, v, t = (a[:m] for a in (o, d, tp, idx, prim, u, v, t))
                 if per_ray:
@@ -504,7 +520,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             nd = diffuse_lookups(wd, y.p, y.ng, y.offset, t, dsel, lp, ln, loff, lt)
             if nd:
                 dsel = dsel[:nd]
-                Ey, boundary = ctx.gather_map.lookup(lp[:nd], ln[:nd], offset=loff[:nd])
+                Ey, boundary = ctx.gather_map.lookup(lp[:nd], ln[:nd], offset=loff[:nd],
+                                                     scratch=buf)
                 again = buf.again[:nd]
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
@@ -537,13 +554,20 @@ class GatherBuffers:
     """The arrays of one gather level's steps, kept by one thread between its calls:
     fresh arrays of a few MB per step fault their pages in on first touch (and fault in
     parallel on two workers). rays(n) hands out the gather rays' rows (row of the
-    gathering hit (n,) int64, origins, directions, throughput (n,3)); the ends' fields
-    (diffuse weight wd (m,3), full (m,), dsel (m,), lookup point lp, normal ln (m,3),
-    offset loff, ray length lt (m,), again (m,)) hold rows for as many rays as the largest
-    call had (a step's ends are never more than its rays)."""
+    gathering hit (n,) int64, origins, directions, throughput (n,3)); the other fields
+    hold rows for as many rays as the largest call had (a step's rays and ends are never
+    more than its first rays): the ends' fields (diffuse weight wd (m,3), full (m,),
+    dsel (m,), lookup point lp, normal ln (m,3), offset loff, ray length lt (m,), again
+    (m,)); the uniform numbers of a gather without a sampler uv (2n,); Embree's rays and
+    answer (o32, d32 (n,3), tf32, u32, v32 (n,) float32; geom, prim32 (n,) int32) and
+    the hits kept from it (prim (n,) int64, u, v, t (n,)); GatherMap.lookup's scratch
+    (scratch_arrays(m)); and `direct`, the DirectLightBuffers of this level's regathers."""
 
     def __init__(self):
         self.size = 0
+        # The regathers' direct light from this level's ends (_regather): its sums are
+        # read before the level below (which has its own) runs.
+        self.direct = DirectLightBuffers()
 
     def rays(self, n):
         if n > self.size:
@@ -553,7 +577,38 @@ class GatherBuffers:
             self.o, self.d, self.tp, self.wd, self.lp, self.ln = (np.empty((n, 3))
                                                                   for _ in range(6))
             self.loff, self.lt = np.empty(n), np.empty(n)
+            self.uv = np.empty(2 * n)
+            self.o32, self.d32 = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+            self.tf32, self.u32, self.v32 = (np.empty(n, np.float32) for _ in range(3))
+            self.geom, self.prim32 = np.empty(n, np.int32), np.empty(n, np.int32)
+            self.prim = np.empty(n, np.int64)
+            self.u, self.v, self.t = np.empty(n), np.empty(n), np.empty(n)
+            self.q_out = np.empty((n, 3))
+            self.q_boundary, self.q_blocked = np.empty(n, np.bool_), np.empty(n, np.bool_)
+            self.q_row = np.empty(n, np.int64)
         return self.idx[:n], self.o[:n], self.d[:n], self.tp[:n]
+
+    def scratch_arrays(self, m):
+        """GatherMap.lookup's arrays for m rows (m <= size): (out (m,3), boundary (m,)
+        bool, o32, d32 (m,3) float32, t32 (m,) float32, ray_row (m,) int64, blocked (m,)
+        bool). Its visibility rays reuse the step's Embree rays (o32, d32, tf32), which
+        the step has read by then (keep_embree_hits)."""
+        return (self.q_out[:m], self.q_boundary[:m], self.o32[:m], self.d32[:m],
+                self.tf32[:m], self.q_row[:m], self.q_blocked[:m])
+
+
+def _closest_bvh(vis, ray_cls):
+    """The Embree BVH (accel.Accel, with intersect_hits) that answers closest-hit rays of
+    class ray_cls (scalar, or per ray) exactly as vis.intersect(..., cls=ray_cls) does,
+    or None where that needs more (per-ray classes over class subsets, a subset's
+    triangle map, two-level instances)."""
+    if getattr(vis, "has_invisible", False):
+        if np.ndim(ray_cls) > 0:
+            return None
+        bvh = vis.for_class(ray_cls)
+    else:
+        bvh = getattr(vis, "full", vis)
+    return bvh if hasattr(bvh, "intersect_hits") else None
 
 
 def _gather_buffers(ctx, level) -> GatherBuffers:
@@ -596,7 +651,10 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
     # light here.
-    Esub = (direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True)
+    # (direct_irradiance's sums live in this level's buffers until the next regather
+    # batch of this level on this thread; the sum below reads them first.)
+    Esub = (direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True,
+                              buffers=_gather_buffers(ctx, level).direct)
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
                               should_cancel=should_cancel, lean=lean)
             + _secondary_irradiance(ctx, y, rng))

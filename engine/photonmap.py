@@ -580,7 +580,7 @@ class GatherMap:
         return view
 
     def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
-               offset: np.ndarray | None = None):
+               offset: np.ndarray | None = None, scratch=None):
         """(irradiance, boundary) at the nearest visible gather point facing the same way
         (normal . n > GATHER_AGREEMENT), among the 8 x candidates nearest within the radius.
         boundary: that point's estimate met another surface (a corner or contact), where
@@ -589,7 +589,10 @@ class GatherMap:
         resting on a lit floor); those rows get irradiance 0 and should gather again.
         p, n: (M,3) points and unit normals; offset: (M,) distance along n that takes a
         ray from p clear of p's surface (SurfaceHit.offset); default: the float32
-        resolution at p. Returns ((M,3) float64, (M,) bool).
+        resolution at p. Returns ((M,3) float64, (M,) bool). scratch: an object whose
+        scratch_arrays(M) hands out the arrays to write into (integrator.GatherBuffers:
+        the calling thread's, reused between calls; the answers are then valid until its
+        next use); default: fresh arrays.
 
         One kernel (_gather_candidates) finds the nearest point (a walk over the gather
         points' neighbour lists from the previous row's answer, else the kd-tree), tests
@@ -599,19 +602,22 @@ class GatherMap:
         m = len(p)
         if self.tree is None or m == 0:
             return np.zeros((m, 3)), np.ones(m, bool)
-        out = np.empty((m, 3))  # every row is written by the kernel
-        boundary = np.empty(m, bool)
+        if scratch is not None:
+            out, boundary, o32, d32, t32, ray_row, blocked = scratch.scratch_arrays(m)
+        else:
+            out = np.empty((m, 3))  # every row is written by the kernel
+            boundary = np.empty(m, bool)
+            o32 = np.empty((m, 3), np.float32)
+            d32 = np.empty((m, 3), np.float32)
+            t32 = np.empty(m, np.float32)
+            ray_row = np.empty(m, np.int64)
+            blocked = np.empty(m, bool)
         p = np.ascontiguousarray(p, dtype=np.float64)
         n = np.ascontiguousarray(n, dtype=np.float64)
         lift = (_NO_LIFT if offset is None
                 else np.ascontiguousarray(offset, dtype=np.float64))
         kmax = min(8 * candidates, len(self.position))
         rows = morton_order(p)  # cache-friendly query order; same answers
-        o32 = np.empty((m, 3), np.float32)
-        d32 = np.empty((m, 3), np.float32)
-        t32 = np.empty(m, np.float32)
-        ray_row = np.empty(m, np.int64)
-        blocked = np.zeros(m, bool)
         want_rays = self.accel is not None
         r2 = self.radius * self.radius
         nrays = _gather_candidates(self.tree.position, self.tree.nodes, *self.neighbours,

@@ -14,12 +14,13 @@ from engine.api import cornell_box
 from engine.bsdf import SurfaceHit, lobe_weights, surface_hit
 from engine.camerakernels import choose_lobes, hit_closures
 from engine.closures import principled as pr
-from engine.gatherkernels import (add_gathered, diffuse_lookups, keep_hits, lean_diffuse,
-                                  lean_materials)
+from engine.gatherkernels import (add_gathered, diffuse_lookups, keep_embree_hits, keep_hits,
+                                  lean_diffuse, lean_materials, rays_f32)
 from engine.geometry import MaterialTable
 from engine.scene import Material
-from engine.integrator import (MAX_GATHER_LEVEL, Counters, _secondary_irradiance,
-                               continue_specular, direct_irradiance, gather_indirect)
+from engine.integrator import (MAX_GATHER_LEVEL, Counters, GatherBuffers, _closest_bvh,
+                               _secondary_irradiance, continue_specular, direct_irradiance,
+                               gather_indirect)
 from engine.camerakernels import gather_rays
 from engine.normalmap import bump_shadowing
 from engine.render import _photon_pass, prepare_context
@@ -414,3 +415,162 @@ def test_regather_surface_data_are_the_steps(box):
         assert (a is None) == (b is None), name
         if a is not None:
             assert np.array_equal(np.asarray(a), np.asarray(b)), name
+
+
+def _random_rays(ctx, n, seed):
+    """n float64 rays in random directions, two thirds from inside the scene's bounds, a
+    third from outside a corner of them (about half of these miss)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = ctx.geo.bounds  # (as tests/helpers.rays_from_inside)
+    o = lo + (hi - lo) * (0.05 + 0.9 * rng.random((n, 3)))
+    o[: n // 3] = hi + 1.0  # outside: about half of these miss everything
+    d = uniform_sphere(rng.random(n), rng.random(n))
+    return np.ascontiguousarray(o), np.ascontiguousarray(d)
+
+
+def test_rays_f32_is_numpys_float32_layout():
+    rng = np.random.default_rng(4)
+    o = rng.normal(size=(700, 3)) * 10.0 ** rng.integers(-8, 8, (700, 1))
+    d = rng.normal(size=(700, 3))
+    o32, d32 = np.empty((700, 3), np.float32), np.empty((700, 3), np.float32)
+    tf32 = np.zeros(700, np.float32)
+    rays_f32(o, d, o32, d32, tf32)
+    assert np.array_equal(o32, np.ascontiguousarray(o, np.float32))
+    assert np.array_equal(d32, np.ascontiguousarray(d, np.float32))
+    assert (tf32 == np.finfo(np.float32).max).all()
+
+
+@pytest.mark.parametrize("per_ray", [False, True])
+def test_embree_hits_kept_as_intersect_and_keep_hits_keep_them(box, per_ray):
+    """The gather step's Embree path (rays_f32, Accel.intersect_hits(out=),
+    keep_embree_hits) against Accel.intersect and keep_hits, bit for bit: the kept rays,
+    their triangles, barycentrics and distances."""
+    ctx = box
+    n = 5000
+    o, d = _random_rays(ctx, n, seed=8)
+    rng = np.random.default_rng(9)
+    tp = rng.random((n, 3))
+    idx = rng.permutation(n).astype(np.int64)
+    cls = rng.integers(0, 8, n).astype(np.int64) if per_ray else np.zeros(0, np.int64)
+    ray_cls = cls if per_ray else DIFFUSE
+    # numpy's way
+    t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
+    want = [a.copy() for a in (o, d, tp, idx)]
+    want_cls = cls.copy()
+    k_want = keep_hits(prim, *want, u, v, t, want_cls)
+    assert 0 < k_want < n  # hits and misses
+    # the kernel path, into a thread's buffers used before for more rays
+    buf = GatherBuffers()
+    buf.rays(n + 100)
+    bvh = _closest_bvh(ctx.accel, ray_cls)
+    assert bvh is not None
+    o32, d32, tf32 = buf.o32[:n], buf.d32[:n], buf.tf32[:n]
+    buf.o32[:], buf.tf32[:] = 7.0, 3.0  # stale values from an earlier step
+    got = [a.copy() for a in (o, d, tp, idx)]
+    got_cls = cls.copy()
+    rays_f32(got[0], got[1], o32, d32, tf32)
+    out = buf.geom[:n], buf.prim32[:n], buf.u32[:n], buf.v32[:n]
+    starts = bvh.intersect_hits(o32, d32, tf32, out=out)[4]
+    gp, gu, gv, gt = buf.prim[:n], buf.u[:n], buf.v[:n], buf.t[:n]
+    k = keep_embree_hits(*out, tf32, starts, *got, got_cls, gp, gu, gv, gt)
+    assert k == k_want
+    for g, w in zip(got, want):
+        assert np.array_equal(g[:k], w[:k])
+    for g, w in ((gp, prim), (gu, u), (gv, v), (gt, t)):
+        assert g.dtype == w.dtype and np.array_equal(g[:k], w[:k])
+    if per_ray:
+        assert np.array_equal(got_cls[:k], want_cls[:k])
+
+
+def test_keep_embree_hits_adds_the_pieces_first_triangles():
+    """Several Embree geometries in one BVH: the hit triangle's row is starts[geom] +
+    prim, as Accel.intersect answers (and the misses, geom -1, are dropped)."""
+    geom = np.array([0, -1, 2, 1, -1, 2], np.int32)
+    prim32 = np.array([5, 9, 0, 3, 9, 7], np.int32)
+    starts = np.array([0, 100, 1000], np.int64)
+    u32 = np.linspace(0, 1, 6).astype(np.float32)
+    tf32 = np.linspace(1, 2, 6).astype(np.float32)
+    o, d, tp = (np.arange(18.0).reshape(6, 3) + s for s in (0, 100, 200))
+    idx = np.arange(6, dtype=np.int64)
+    prim, u, v, t = np.empty(6, np.int64), np.empty(6), np.empty(6), np.empty(6)
+    k = keep_embree_hits(geom, prim32, u32, u32, tf32, starts, o, d, tp, idx,
+                         np.zeros(0, np.int64), prim, u, v, t)
+    hit = geom >= 0
+    assert k == 4
+    assert prim[:k].tolist() == [5, 1000, 103, 1007]
+    assert np.array_equal(u[:k], u32[hit].astype(np.float64))
+    assert np.array_equal(t[:k], tf32[hit].astype(np.float64))
+    assert idx[:k].tolist() == [0, 2, 3, 5] and np.array_equal(o[1], [6.0, 7.0, 8.0])
+
+
+def test_gather_lookup_into_scratch_is_the_fresh_lookup(box):
+    """GatherMap.lookup writing into a thread's GatherBuffers answers as with fresh arrays,
+    also after a larger call left other values in them (hidden candidates included)."""
+    ctx = box
+    hit = _hits(ctx, 4000, seed=13)
+    buf = GatherBuffers()
+    buf.rays(len(hit.p))
+    g = ctx.gather_map
+    big = g.lookup(hit.p, hit.ng, offset=hit.offset, scratch=buf)
+    assert np.array_equal(big[0], g.lookup(hit.p, hit.ng, offset=hit.offset)[0])
+    rows = np.arange(0, len(hit.p), 3)
+    want = g.lookup(hit.p[rows], hit.ng[rows], offset=hit.offset[rows])
+    got = g.lookup(hit.p[rows], hit.ng[rows], offset=hit.offset[rows], scratch=buf)
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    assert want[1].any() and not want[1].all() and (want[0] > 0).any()
+
+
+def test_closest_bvh_only_where_one_bvh_answers_as_intersect():
+    scene = cornell_box(16, 12, glass_sphere=True)
+    ctx = prepare_context(scene, RenderSettings(workers=1, photon_mapping=False))
+    try:
+        assert not ctx.accel.has_invisible
+        assert _closest_bvh(ctx.accel, DIFFUSE) is ctx.accel.full
+        assert _closest_bvh(ctx.accel, np.array([DIFFUSE, 4])) is ctx.accel.full
+    finally:
+        ctx.accel.close()
+    scene = cornell_box(16, 12, glass_sphere=True)
+    next(m for m in scene.meshes if m.name == "block").visible_diffuse = False
+    ctx = prepare_context(scene, RenderSettings(workers=1, photon_mapping=False))
+    try:
+        assert ctx.accel.has_invisible
+        assert _closest_bvh(ctx.accel, DIFFUSE) is None  # a subset: its own triangle rows
+        assert _closest_bvh(ctx.accel, np.array([DIFFUSE, 4])) is None  # split by class
+        assert _closest_bvh(ctx.accel, 4) is ctx.accel.for_class(4)  # glossy sees all
+    finally:
+        ctx.accel.close()
+
+
+def test_gather_indirect_with_invisible_objects_is_the_numpy_stage(monkeypatch):
+    """A glass ball invisible to glossy rays: the gather's diffuse steps go through the
+    kernel path (every triangle answers diffuse rays), the steps with per-ray classes
+    after a specular bounce through Accel.intersect (a class subset); the oracle's
+    numbers either way."""
+    from engine import integrator
+    scene = cornell_box(32, 24, glass_sphere=True)
+    next(m for m in scene.meshes if m.name == "glass_sphere").visible_glossy = False
+    ctx = prepare_context(scene, RenderSettings(workers=1, photons=20_000,
+                                                caustic_photons=5_000, seed=3))
+    used = {"kernel": 0, "intersect": 0}
+
+    def counted(name, f):
+        def call(*a):
+            used[name] += 1
+            return f(*a)
+        return call
+
+    monkeypatch.setattr(integrator, "keep_embree_hits",
+                        counted("kernel", integrator.keep_embree_hits))
+    monkeypatch.setattr(integrator, "keep_hits", counted("intersect", integrator.keep_hits))
+    try:
+        assert ctx.accel.has_invisible
+        _photon_pass(ctx, {}, None, None)
+        hit = _hits(ctx, 3000, seed=21)
+        log = {"regathered": 0, "per_ray_steps": 0}
+        want = _gather_indirect_numpy(ctx, hit, np.random.default_rng(6), Counters(), log=log)
+        got = gather_indirect(ctx, hit, np.random.default_rng(6), Counters())
+        assert log["regathered"] > 0 and log["per_ray_steps"] > 0
+        assert used["kernel"] > 0 and used["intersect"] > 0
+        assert np.array_equal(got, want) and (want > 0).mean() > 0.3
+    finally:
+        ctx.accel.close()
