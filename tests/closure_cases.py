@@ -120,8 +120,8 @@ def sweep_cases():
     Plane: a Principled dielectric at IOR 1.1 / 1.33 / 2.4 and roughness 0 / 0.25 / 1
     (IOR 1.33 also at 0.5), the coat case at coat IOR 1.2 and 2.0, copper at roughness 0.1
     and 0.75, each from the four VIEWS. Furnace: glass at IOR 1.1 / 2.4 x roughness
-    0.1 / 0.5 / 1, a white dielectric at IOR 1.1 / 2.4 x roughness 0.25 / 1, copper at
-    roughness 0.1 and 1."""
+    0.1 / 0.5 / 1 (and 2.4 at 0.8), a white dielectric at IOR 1.1 / 2.4 x roughness
+    0.25 / 1, copper at roughness 0.1 and 1."""
     planes = {}
     for ior in (1.1, 1.33, 2.4):
         for r in (0.0, 0.25, 0.5, 1.0):
@@ -147,6 +147,8 @@ def sweep_cases():
         for r in (0.25, 1.0):
             furnaces[f"furnace_dielectric_ior{ior}_r{r}"] = _principled(
                 roughness=r, ior=ior, base_color=(1.0, 1.0, 1.0))
+    # furnace_glass_r0.8_ior2.4 again, converged (test_closures_sweep.FURNACE_SPP).
+    furnaces["furnace_glass_ior2.4_r0.8"] = _glass(roughness=0.8, ior=2.4)
     for r in (0.1, 1.0):
         furnaces[f"furnace_metal_r{r}"] = _principled(roughness=r, metallic=1.0,
                                                       base_color=COPPER)
