@@ -110,3 +110,46 @@ def furnace_cases():
         "furnace_sheen": _principled(roughness=0.5, base_color=(1.0, 1.0, 1.0),
                                      sheen_weight=1.0, sheen_roughness=0.3),
     }
+
+
+def sweep_cases():
+    """The corners of issue 14's sweep that plane_cases / furnace_cases leave out
+    (tests/test_closures_sweep.py, tests/references/closures_sweep.json): returns
+    (planes, furnaces), dicts shaped as plane_cases() and furnace_cases() return.
+
+    Plane: a Principled dielectric at IOR 1.1 / 1.33 / 2.4 and roughness 0 / 0.25 / 1
+    (IOR 1.33 also at 0.5), the coat case at coat IOR 1.2 and 2.0, copper at roughness 0.1
+    and 0.75, each from the four VIEWS. Furnace: glass at IOR 1.1 / 2.4 x roughness
+    0.1 / 0.5 / 1 (and 2.4 at 0.8), a white dielectric at IOR 1.1 / 2.4 x roughness
+    0.25 / 1, copper at roughness 0.1 and 1."""
+    planes = {}
+    for ior in (1.1, 1.33, 2.4):
+        for r in (0.0, 0.25, 0.5, 1.0):
+            if r == 0.5 and ior != 1.33:  # plane_cases has IOR 1.1 and 2.4 at 0.5
+                continue
+            for v in VIEWS:
+                planes[f"dielectric_ior{ior}_r{r}_v{v:.0f}"] = (
+                    _principled(roughness=r, ior=ior), v)
+    for coat_ior in (1.2, 2.0):
+        for v in VIEWS:
+            planes[f"coat_ior{coat_ior}_v{v:.0f}"] = (
+                _principled(roughness=0.6, base_color=(0.7, 0.2, 0.2), coat_weight=1.0,
+                            coat_roughness=0.2, coat_tint=(0.8, 0.9, 1.0),
+                            coat_ior=coat_ior), v)
+    for r in (0.1, 0.75):
+        for v in VIEWS:
+            planes[f"metal_r{r}_v{v:.0f}"] = (
+                _principled(roughness=r, metallic=1.0, base_color=COPPER), v)
+    furnaces = {}
+    for ior in (1.1, 2.4):
+        for r in (0.1, 0.5, 1.0):
+            furnaces[f"furnace_glass_ior{ior}_r{r}"] = _glass(roughness=r, ior=ior)
+        for r in (0.25, 1.0):
+            furnaces[f"furnace_dielectric_ior{ior}_r{r}"] = _principled(
+                roughness=r, ior=ior, base_color=(1.0, 1.0, 1.0))
+    # furnace_glass_r0.8_ior2.4 again, converged (test_closures_sweep.FURNACE_SPP).
+    furnaces["furnace_glass_ior2.4_r0.8"] = _glass(roughness=0.8, ior=2.4)
+    for r in (0.1, 1.0):
+        furnaces[f"furnace_metal_r{r}"] = _principled(roughness=r, metallic=1.0,
+                                                      base_color=COPPER)
+    return planes, furnaces

@@ -1,6 +1,10 @@
 """Cycles references for tests/test_closures_cycles.py (the cases of tests/closure_cases.py).
 
     .venv/bin/python tools/make_closure_references.py [--samples 2048] [--only NAME,...]
+    .venv/bin/python tools/make_closure_references.py --sweep --samples 1024
+
+--sweep renders closure_cases.sweep_cases() (the sweep's corners, tests/test_closures_sweep.py)
+into tests/references/closures_sweep.json instead.
 
 Renders each case with Cycles (CPU, no clamping, no denoising, box filter, 32 bounces) in
 the bpy wheel and stores the mean RGB of its pixels (the whole plane image; the furnace
@@ -27,6 +31,7 @@ import closure_cases as cc  # noqa: E402
 bpy = acc.bpy
 mb = acc.mb
 REF_PATH = os.path.join(ROOT, "tests", "references", "closures.json")
+SWEEP_PATH = os.path.join(ROOT, "tests", "references", "closures_sweep.json")
 
 
 def _material(spec):
@@ -109,14 +114,20 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=2048)
     ap.add_argument("--only", default="")
+    ap.add_argument("--sweep", action="store_true",
+                    help="the sweep's corners (closure_cases.sweep_cases) into "
+                         "closures_sweep.json")
     args = ap.parse_args(argv)
     only = set(filter(None, args.only.split(",")))
+    path = SWEEP_PATH if args.sweep else REF_PATH
     refs = {}
-    if os.path.exists(REF_PATH):
-        with open(REF_PATH) as f:
+    if os.path.exists(path):
+        with open(path) as f:
             refs = json.load(f)
-    cases = {k: ("plane", v) for k, v in cc.plane_cases().items()}
-    cases.update({k: ("furnace", v) for k, v in cc.furnace_cases().items()})
+    planes, furnaces = (cc.sweep_cases() if args.sweep
+                        else (cc.plane_cases(), cc.furnace_cases()))
+    cases = {k: ("plane", v) for k, v in planes.items()}
+    cases.update({k: ("furnace", v) for k, v in furnaces.items()})
     for name, (kind, spec) in cases.items():
         if only and name not in only:
             continue
@@ -130,9 +141,9 @@ def main(argv=None):
                       "seconds": round(secs, 2)}
         print(f"{name:32s} {np.round(mean, 4)}  {secs:.1f}s", flush=True)
     refs["_meta"] = {"blender": bpy.app.version_string, "tool": "tools/make_closure_references.py"}
-    with open(REF_PATH, "w") as f:
+    with open(path, "w") as f:
         json.dump(refs, f, indent=1, sort_keys=True)
-    print(f"wrote {REF_PATH}")
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":
