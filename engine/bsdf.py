@@ -213,86 +213,30 @@ def plain_surfaces(table: MaterialTable) -> bool:
 
 
 def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, want_glossy,
-                      out, lights=None) -> tuple[SurfaceHit, int]:
+                      out) -> tuple[SurfaceHit, int]:
     """surface_hit and camerakernels.shade_lobes on N hits in one kernel
     (camerakernels.surface_lobes), for tables with plain_surfaces: (the SurfaceHit, with
     prm set to out's packed lobes, K the number of rows to shade). tp (N,3) throughputs,
     want_glossy as shade_lobes; out = (prm, sel, p, q, psum, glossy, rows, wd) the
     arrays shade_lobes writes (integrator.BounceBuffers.take(N)), written as it writes
-    them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py).
-    lights = (packed lights, tree (tree_f, tree_i, inf_idx, inf_f, l_trace), group,
-    buffers): also the light samples of the shaded rows in the same kernel, for a
-    Geometry without shared instances (no offset floor to apply after the kernel):
-    group = directlight.sample_arrays' (klight, ktrace, ksamples, U1, U2, SEL) with the
-    numbers of EVERY hit (K, N), read at the shaded rows; the entries and shadow rays go
-    into buffers (a directlight.DirectLightBuffers, ensured for K N entries) as
-    directlight.sample_lights writes them for the shaded rows (rows = the shaded rows).
-    Then returns (hit, K, (entries, rays)) for directlight.direct_light's `sampled`."""
+    them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py)."""
     n = len(prim)
     u, v, d = _as_float64(u, v, d)
     p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
     wo = np.empty((n, 3))
     prm, sel, pw, q, psum, glossy, rows, wd = out
-    idx, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material",
-                               "smooth", "object_id")
-    counts = np.zeros(4, np.int64)
-    if lights is None:
-        light_args = _no_light_stage()
-    else:
-        assert geo.shared is None, "the light stage runs before any offset floor"
-        packed, tree, (klight, ktrace, _, U1, U2, SEL), buf = lights
-        codes, lparams, mesh = packed
-        buf.ensure(max(1, len(klight) * n))
-        # Per-object offsets: where no object has one, no per-hit rows (integrator._hit_arrays)
-        shade_off = (np.ascontiguousarray(np.take(geo.terminator_shading, prim), np.float64)
-                     if n and geo.object_terminator_shading.view(np.uint32).any() else _NO_ROWS)
-        if n and (geo.object_terminator > 0).any():
-            cutoff, lift = np.empty(n), np.empty((n, 3))
-        else:
-            cutoff, lift = _NO_ROWS, _NO_ROWS3
-        light_args = (geo.object_terminator, cutoff, lift, shade_off, codes, lparams, *mesh,
-                      *tree, klight, ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
-                      buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf)
-    k = surface_lobes(idx, u, v, d, *tabs[:5], table.base_color, table.closure_params,
+    idx, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
+    k = surface_lobes(idx, u, v, d, *tabs, table.base_color, table.closure_params,
                       np.ascontiguousarray(table.alpha, np.float64),
                       np.ascontiguousarray(tp, np.float64), bool(want_glossy), p, ng, ns, wo,
-                      front, mat, base, offset, bary, prm, sel, q, pw, psum, glossy, rows, wd,
-                      *tabs[5:], *light_args, counts)
+                      front, mat, base, offset, bary, prm, sel, q, pw, psum, glossy, rows, wd)
     _offset_floor(geo, prim, p, ng, offset)
     if table.emission.any():
         emission = hit_emission(table, ShadingGeometry(geo, ns, wo, ~front), mat, prim, u, v)
     else:
         emission = np.broadcast_to(_NO_LIGHT, (n, 3))
-    hit = SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
-                     offset=offset, bary=bary, prm=prm, emission=emission)
-    if lights is None:
-        return hit, k
-    return hit, k, (int(counts[1]), int(counts[2]))
-
-
-_NO_ROWS = np.zeros(0)
-_NO_ROWS3 = np.zeros((0, 3))
-
-
-def _no_light_stage():
-    """surface_lobes' light-stage arguments when it samples no light (K = 0)."""
-    global _NO_LIGHT_STAGE
-    if _NO_LIGHT_STAGE is None:
-        from .directlight import DirectLightBuffers
-        from .lights.packing import pack_lights
-        from .lights.selection import empty_tree
-        codes, lparams, mesh = pack_lights([])
-        buf = DirectLightBuffers().ensure(1)
-        z = np.zeros((0, 1))
-        _NO_LIGHT_STAGE = (np.zeros(1, np.float32), _NO_ROWS, _NO_ROWS3, _NO_ROWS, codes,
-                           lparams, *mesh, *empty_tree(), np.zeros(0, np.bool_),
-                           np.zeros(0, np.int64), np.zeros(0, np.bool_), z, z, z, buf.contrib,
-                           buf.row, buf.kidx, buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir,
-                           buf.lpdf)
-    return _NO_LIGHT_STAGE
-
-
-_NO_LIGHT_STAGE = None
+    return SurfaceHit(p=p, ng=ng, ns=ns, wo=wo, front=front, mat=mat, base=base, prim=prim,
+                      offset=offset, bary=bary, prm=prm, emission=emission), k
 
 
 def closures(table: MaterialTable, hit: SurfaceHit):

@@ -42,7 +42,7 @@ import math
 import numpy as np
 
 from .closures import principled as pr
-from .directlight import _npmax, _to_world, sample_lights, terminator_lift
+from .directlight import _npmax, _to_world
 from .jit import kernel, register_warm_up
 from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
 
@@ -374,54 +374,24 @@ SURFACE_BLOCK = 512
 @kernel
 def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color, params,
                   table_alpha, tp, want_glossy, p, ng, ns, wo, front, mat, base, offset, bary,
-                  prm, sel, q, pw, psum, glossy, rows, wd, smooth, object_id, terminator,
-                  cutoff, lift, shade_off, codes, lparams, m_v0, m_e1, m_e2, m_ng, m_L,
-                  m_weight, m_cdf, m_round32, m_tilt32, env_px, env_rows, env_cols,
-                  env_pdf_uv, tree_f, tree_i, inf_idx, inf_f, l_trace, klight, ktrace, U1, U2,
-                  SEL, contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf, counts):
+                  prm, sel, q, pw, psum, glossy, rows, wd):
     """hit_geometry, the shading normals turned to the ray's side (face_shading_normals,
-    no row exempt), wo = -d, shade_lobes and (when klight is not empty) the light samples
-    of the shaded rows (directlight.terminator_lift and sample_lights) over N hits in one
-    call, block by block (SURFACE_BLOCK hits: each block's surface data is still in cache
-    when its lobes are set up and its lights sampled), for a scene whose materials have
-    no per-hit nodes (no normal map, texture, alpha texture or texture-driven scalar
-    input: bsdf.plain_surfaces).
+    no row exempt), wo = -d and shade_lobes over N hits in one call, block by block
+    (SURFACE_BLOCK hits: each block's surface data is still in cache when its lobes are
+    set up), for a scene whose materials have no per-hit nodes (no normal map, texture,
+    alpha texture or texture-driven scalar input: bsdf.plain_surfaces).
 
     Inputs as hit_geometry and shade_lobes take them (params (M, N_MAT) the materials'
     rows, table_alpha (M,)); out: hit_geometry's p, ng, ns, front, mat, base, offset, bary,
     wo (N,3), and shade_lobes' prm, sel, q, pw (its p), psum, glossy, rows, wd with the
     same rows written (when some row of the batch is glossy, every block's unread rows
-    are filled in as shade_lobes fills them).
-    Light stage (skipped when klight is (0,)): smooth, object_id, terminator (Geometry's
-    tables: terminator_lift's) and cutoff, lift (N,), (N,3) written, or (0,), (0,3) when
-    no object has a terminator offset; shade_off (N,) or (0,) as sample_lights takes it;
-    codes ... l_trace, klight, ktrace as sample_lights takes them; U1, U2, SEL (K, N): the
-    samples' numbers of EVERY hit (SEL (K, 1) when no sample takes a third), read at the
-    shaded rows; entries and float32 shadow rays written as sample_lights writes them for
-    the shaded rows with hrow = rows (row[j] counts shaded rows; the entries come block by
-    block, each hit's in sample order); wdir, lpdf (K N,3), (K N,) written only when some
-    row is glossy (the BSDF-weighted sums read them). counts (4,) int64 out: K shaded
-    rows, entries, shadow rays, 1 if wdir / lpdf were written.
+    are filled in as shade_lobes fills them). Returns K, the number of shaded rows.
     The same kernels on slices: the same bits (tests/test_fused_camera.py)."""
     n = prim.shape[0]
     none_exempt = np.zeros(SURFACE_BLOCK, np.bool_)
     no_alpha = np.zeros(0)
     nb = (n + SURFACE_BLOCK - 1) // SURFACE_BLOCK
     block_glossy = np.zeros(nb, np.bool_)
-    block_k = np.zeros(nb + 1, np.int64)  # the blocks' first shaded row
-    K = klight.shape[0]
-    lights = K > 0
-    has_terminator = cutoff.shape[0] > 0
-    third = SEL.shape[1] == n and n > 0
-    u1b = np.empty((K, SURFACE_BLOCK))
-    u2b = np.empty((K, SURFACE_BLOCK))
-    selb = np.empty((K, SURFACE_BLOCK)) if third else np.zeros((K, 1))
-    no_gate = np.zeros((0, 3))
-    no_bump = np.zeros(0)
-    no_hrow_dirs = np.zeros((0, 3))
-    dirs = False
-    m_all = 0
-    m_rays = 0
     k = 0
     for bi in range(nb):
         a = bi * SURFACE_BLOCK
@@ -437,61 +407,11 @@ def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_colo
                          sel[a:b], q[a:b], pw[a:b], psum[a:b], glossy[a:b], rows[k:], wd[k:])
         for j in range(k, k + kb):
             rows[j] += a
-        block_k[bi] = k
         k += kb
-        block_k[bi + 1] = k
         for i in range(a, b):
             if glossy[i]:
                 block_glossy[bi] = True
                 break
-        if not lights:
-            continue
-        if has_terminator:
-            terminator_lift(prim[a:b], bary[a:b], ng[a:b], smooth, object_id, terminator,
-                            v0, e1, e2, corner_normals, cutoff[a:b], lift[a:b])
-        first = bi
-        if block_glossy[bi] and not dirs:
-            # The BSDF-weighted sums read every entry's direction and pdf: from here on
-            # they are written, and the earlier blocks' entries are written again with
-            # them (the same numbers: the same entries and rays).
-            dirs = True
-            first = 0
-            m_all = 0
-            m_rays = 0
-        for bj in range(first, bi + 1):
-            k0, k1 = block_k[bj], block_k[bj + 1]
-            if k1 == k0:
-                continue
-            for kk in range(K):
-                for i in range(k1 - k0):
-                    h = rows[k0 + i]
-                    u1b[kk, i] = U1[kk, h]
-                    u2b[kk, i] = U2[kk, h]
-                    if third:
-                        selb[kk, i] = SEL[kk, h]
-            nk = k1 - k0
-            # (no conditional expressions inside the long call: numba's bytecode reader
-            # refuses them there)
-            selv = selb[:, :nk] if third else selb[:, :1]
-            if dirs:
-                wdv = wdir[m_all:]
-                lpv = lpdf[m_all:]
-            else:
-                wdv = no_hrow_dirs[0:]
-                lpv = no_bump[0:]
-            ma, mr = sample_lights(
-                p, ns, no_gate, ng, offset, shade_off, cutoff, lift, ns, codes, lparams,
-                m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32, m_tilt32, env_px,
-                env_rows, env_cols, env_pdf_uv, tree_f, tree_i, inf_idx, inf_f, l_trace,
-                klight, ktrace, u1b[:, :nk], u2b[:, :nk], selv, contrib[m_all:],
-                row[m_all:], kidx[m_all:], ray[m_all:], o32[m_rays:], d32[m_rays:],
-                t32[m_rays:], wdv, lpv, no_bump, rows[k0:k1])
-            for j in range(m_all, m_all + ma):
-                row[j] += k0
-                if ray[j] >= 0:
-                    ray[j] += m_rays
-            m_all += ma
-            m_rays += mr
     if block_glossy.any():
         # shade_lobes filled the glossy blocks' unread rows; the other blocks' too.
         for bi in range(nb):
@@ -500,10 +420,6 @@ def surface_lobes(prim, u, v, d, v0, e1, e2, corner_normals, material, base_colo
                 b = min(a + SURFACE_BLOCK, n)
                 _fill_unread_rows(ns[a:b], ng[a:b], wo[a:b], mat[a:b], params, False,
                                   psum[a:b], sel[a:b], prm[a:b])
-    counts[0] = k
-    counts[1] = m_all
-    counts[2] = m_rays
-    counts[3] = 1 if dirs else 0
     return k
 
 
@@ -815,7 +731,6 @@ def _warm_up():
                      np.ones((1, 3)), p, ng, ns, front, mat, base, off, np.empty((1, 2)))
     face_shading_normals(ns, ng, front, d, np.zeros(1, np.bool_))
     view_depth(p, np.zeros(3), np.ones(3), np.empty(1))
-    from .bsdf import _no_light_stage  # (bsdf imports this module)
     for cn in (np.zeros((0, 3, 3), np.float32), np.ones((1, 3, 3), np.float32)):
         surface_lobes(prim, one, one, d, v0, e1, e2, cn, np.zeros(1, np.int32),
                       np.ones((1, 3)), np.full((1, pr.N_MAT), 0.5), np.ones(1),
@@ -823,8 +738,7 @@ def _warm_up():
                       off, np.empty((1, 2)), np.empty((1, pr.N_PACK)),
                       np.empty((1, pr.N_LOBES)), np.empty(1), np.empty((1, pr.N_LOBES - 1)),
                       np.empty(1), np.empty(1, np.bool_), np.empty(1, np.int64),
-                      np.empty((1, 3)), np.ones(1, np.bool_), np.zeros(1, np.int32),
-                      *_no_light_stage(), np.zeros(4, np.int64))
+                      np.empty((1, 3)))
     for per_hit, hit_alpha in ((False, np.zeros(0)), (True, np.ones(1))):
         hit_closures(ns, ng, -d, mat, np.zeros((1, pr.N_MAT)), per_hit, base, front,
                      np.ones(1), hit_alpha, np.empty((1, pr.N_PACK)),

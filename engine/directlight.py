@@ -742,38 +742,8 @@ class DirectLightBuffers:
                 self.u[2, :m].reshape(K, n) if third else np.zeros((K, 1)))
 
 
-def sample_arrays(group, n, buf=None, numbers=True):
-    """(klight (K,), ktrace (K,), ksamples (K,), U1, U2, SEL) of a group of K light samples
-    (direct_light's `samples` entries) as sample_lights takes them: U1, U2 (K, n), SEL
-    (K, n), or (K, 1) zeros when no sample takes a third number. One sample's numbers are
-    handed over as (1, n) views (no copy) when they can be; else they are stacked into
-    buf's numbers (a DirectLightBuffers; None: fresh arrays). numbers False: U1, U2, SEL
-    are None (the entries exist already)."""
-    K = len(group)
-    klight = np.array([s[0] for s in group], np.int64)
-    ktrace = np.array([s[1] for s in group], np.bool_)
-    ksamples = np.array([float(s[2]) for s in group])
-    if not numbers:
-        return klight, ktrace, ksamples, None, None, None
-    if K == 0:
-        return klight, ktrace, ksamples, np.zeros((0, n)), np.zeros((0, n)), np.zeros((0, 1))
-    third = any(s[5] is not None for s in group)
-    if K == 1 and all(_row_ready(u) for u in group[0][3:6]):
-        # One sample (one light, or the light tree's one pick): its numbers as they are.
-        U1, U2 = group[0][3][None], group[0][4][None]
-        SEL = group[0][5][None] if third else np.zeros((1, 1))
-    else:
-        U1, U2, SEL = (buf or DirectLightBuffers()).numbers(K, n, third)
-        np.stack([s[3] for s in group], out=U1)
-        np.stack([s[4] for s in group], out=U2)
-        if third:
-            zeros = np.zeros(n)
-            np.stack([zeros if s[5] is None else s[5] for s in group], out=SEL)
-    return klight, ktrace, ksamples, U1, U2, SEL
-
-
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
-                 bsdf=None, buffers=None, rows=None, sampled=None):
+                 bsdf=None, buffers=None, rows=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -789,10 +759,6 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     rows (n,) int64: the n hits are these rows of hit_arrays and of bsdf's prm, wo and sel
     (a batch's shaded rows, read in place; the numbers, fd and E count the n hits);
     None: hit_arrays are the n hits.
-    sampled (m_all, m_rays): sample_lights already ran for every sample (one group: len(
-    samples) n <= MAX_ENTRIES) and wrote m_all entries and m_rays rays into buffers (the
-    camera bounce's fused kernel, camerakernels.surface_lobes; with bsdf, the directions
-    and pdfs too); the numbers in `samples` are then unread. None: sample here.
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
@@ -806,22 +772,34 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     E = buf.sums(n)
     per_call = max(1, MAX_ENTRIES // n)
     rays = 0
+    zeros = None
     for a in range(0, len(samples), per_call):
         group = samples[a:a + per_call]
-        if sampled is not None and a == 0:
-            # The group's entries and rays are in buf already (camerakernels.surface_lobes)
-            klight, ktrace, ksamples, _, _, _ = sample_arrays(group, n, numbers=False)
-            m_all, m_rays = sampled
+        K = len(group)
+        klight = np.array([s[0] for s in group], np.int64)
+        ktrace = np.array([s[1] for s in group], np.bool_)
+        ksamples = np.array([float(s[2]) for s in group])
+        third = any(s[5] is not None for s in group)
+        if K == 1 and all(_row_ready(u) for u in group[0][3:6]):
+            # One sample (one light, or the light tree's one pick): its numbers as they
+            # are, no copy.
+            U1, U2 = group[0][3][None], group[0][4][None]
+            SEL = group[0][5][None] if third else np.zeros((1, 1))
         else:
-            klight, ktrace, ksamples, U1, U2, SEL = sample_arrays(group, n, buf)
-            buf.ensure(len(group) * n)
-            bump = buf.bump if bent else NO_ROWS
-            m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
-                                          ktrace, U1, U2, SEL, buf.contrib, buf.row,
-                                          buf.kidx, buf.ray, buf.o32, buf.d32, buf.t32,
-                                          NO_ROWS3 if bsdf is None else buf.wdir,
-                                          NO_ROWS if bsdf is None else buf.lpdf, bump, hrow)
+            U1, U2, SEL = buf.numbers(K, n, third)
+            np.stack([s[3] for s in group], out=U1)
+            np.stack([s[4] for s in group], out=U2)
+            if third:
+                if zeros is None:
+                    zeros = np.zeros(n)
+                np.stack([zeros if s[5] is None else s[5] for s in group], out=SEL)
+        buf.ensure(K * n)
         bump = buf.bump if bent else NO_ROWS
+        m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
+                                      ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
+                                      buf.ray, buf.o32, buf.d32, buf.t32,
+                                      NO_ROWS3 if bsdf is None else buf.wdir,
+                                      NO_ROWS if bsdf is None else buf.lpdf, bump, hrow)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.

@@ -17,9 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .directlight import (MAX_ENTRIES, NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW,
-                          DirectLightBuffers, direct_light, sample_arrays, sample_lights,
-                          terminator_lift)
+from .directlight import (NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuffers,
+                          direct_light, sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .lights.point import sphere_light_pdf
@@ -72,19 +71,29 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None
                                                    else filter_table, dtype=np.float64))
 
 
-def light_numbers(ctx, n, rng, sampler=None, skip_mesh_lights=False):
-    """The light samples' random numbers for n hits, drawn in the order the lights draw
-    them (engine/lights/: u1, u2, then a mesh light's triangle choice), sample by sample:
-    (samples, chosen) with samples directlight.direct_light's list of (light index,
-    traced?, sample count, u1 (n,), u2 (n,), third (n,) or None) and chosen the light tree
-    (selector_for) or None. sampler: stratified numbers (its rows are the n hits), else
-    rng's."""
+def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
+                      skip_mesh_lights=False, bsdf=None, buffers=None, rows=None) -> np.ndarray:
+    """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
+    tested for occlusion), in the compiled kernels of engine/directlight.py.
+    skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
+    by its own rays, which stays calm right next to the emitter).
+    bsdf = (fd (N,3) diffuse f, prm (N,P) the hits' packed lobes, sel (N, N_LOBES) the
+    continuation's lobe-choice probabilities): outgoing radiance instead, the diffuse f
+    plus the rough reflective lobes' f, in full for delta lights and weighted by multiple
+    importance sampling for the lights the continuation also finds (light_modes,
+    directlight.accumulate_bsdf).
+    buffers: the calling thread's directlight.DirectLightBuffers (the result is then
+    their sums, valid until their next use; None: fresh arrays).
+    rows (K,) int64: shade these rows of hit only (the result, the sampler and bsdf's fd
+    are per row of rows; bsdf's prm and sel are the whole batch's, read at rows): the
+    same numbers as hit.take(rows) without copying the rows' fields; None: every hit."""
+    n = len(hit.p) if rows is None else len(rows)
     plan = ctx.plan
     chosen = selector_for(ctx, skip_mesh_lights)
-    samples = []
     if chosen is not None:
         # Many lights: each shadow ray goes to one light the light tree picks per hit.
         S = selection_samples(ctx.settings)
+        samples = []
         for si in range(S):
             if sampler is not None:
                 u1, u2 = sampler.uv(("light", 0, si))
@@ -99,7 +108,28 @@ def light_numbers(ctx, n, rng, sampler=None, skip_mesh_lights=False):
             else:
                 u1, u2, choose = rng.random((3, n))  # one draw: the same numbers
             samples.append((-1, True, S, u1, u2, choose))
-        return samples, chosen
+        if n == 0:
+            return np.zeros((n, 3))
+        packed = ctx.packed_lights or pack_lights(ctx.lights)
+        if bsdf is not None:
+            # The tree picks the light per hit: the kernel weights a delta light's sample
+            # by the full BSDF, a light with a size by MIS with the tree's choice
+            # probability in its pdf (mode 3).
+            fd, prm, sel = bsdf
+            bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
+                    np.ascontiguousarray(hit.wo, np.float64),
+                    np.full(len(ctx.lights),
+                            MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA,
+                            np.int64),
+                    np.ascontiguousarray(sel, np.float64))
+        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
+                               SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
+                               bsdf=bsdf, buffers=buffers, rows=rows)
+        counters.shadow_rays += rays
+        return E
+    # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
+    # mesh light's triangle choice), sample by sample.
+    samples = []
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
             continue
@@ -121,59 +151,17 @@ def light_numbers(ctx, n, rng, sampler=None, skip_mesh_lights=False):
             else:
                 u1, u2 = rng.random((2, n))
             samples.append((li, traced, count, u1, u2, sel))
-    return samples, chosen
-
-
-def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
-                      skip_mesh_lights=False, bsdf=None, buffers=None, rows=None,
-                      drawn=None) -> np.ndarray:
-    """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
-    tested for occlusion), in the compiled kernels of engine/directlight.py.
-    skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
-    by its own rays, which stays calm right next to the emitter).
-    bsdf = (fd (N,3) diffuse f, prm (N,P) the hits' packed lobes, sel (N, N_LOBES) the
-    continuation's lobe-choice probabilities): outgoing radiance instead, the diffuse f
-    plus the rough reflective lobes' f, in full for delta lights and weighted by multiple
-    importance sampling for the lights the continuation also finds (light_modes,
-    directlight.accumulate_bsdf).
-    buffers: the calling thread's directlight.DirectLightBuffers (the result is then
-    their sums, valid until their next use; None: fresh arrays).
-    rows (K,) int64: shade these rows of hit only (the result, the sampler and bsdf's fd
-    are per row of rows; bsdf's prm and sel are the whole batch's, read at rows): the
-    same numbers as hit.take(rows) without copying the rows' fields; None: every hit.
-    drawn = (samples, chosen, sampled): the numbers were drawn already (light_numbers)
-    for EVERY hit of hit, and are read at rows (a camera bounce: _trace_paths); sampled
-    (entries, rays): the fused kernel sampled them into buffers already (bsdf.
-    surface_hit_lobes' light stage), else None. None: draw them here for the rows."""
-    n = len(hit.p) if rows is None else len(rows)
-    sampled = None
-    if drawn is None:
-        samples, chosen = light_numbers(ctx, n, rng, sampler, skip_mesh_lights)
-    else:
-        samples, chosen, sampled = drawn
-        if sampled is None and rows is not None:
-            samples = [(li, tr, cnt, u1[rows], u2[rows], None if s3 is None else s3[rows])
-                       for li, tr, cnt, u1, u2, s3 in samples]
     if n == 0 or not samples:
         return np.zeros((n, 3))
     packed = ctx.packed_lights or pack_lights(ctx.lights)
     if bsdf is not None:
         fd, prm, sel = bsdf
-        if chosen is not None:
-            # The tree picks the light per hit: the kernel weights a delta light's sample
-            # by the full BSDF, a light with a size by MIS with the tree's choice
-            # probability in its pdf (mode 3).
-            mode = np.full(len(ctx.lights),
-                           MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA, np.int64)
-        else:
-            mode = light_modes(ctx)
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
-                np.ascontiguousarray(hit.wo, np.float64), mode,
+                np.ascontiguousarray(hit.wo, np.float64), light_modes(ctx),
                 np.ascontiguousarray(sel, np.float64))
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, sampled is None), samples,
-                           ctx.accel, SHADOW, n, shadow=getattr(ctx, "shadow", None),
-                           tree=None if chosen is None else chosen[1], bsdf=bsdf,
-                           buffers=buffers, rows=rows, sampled=sampled)
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
+                           SHADOW, n, shadow=getattr(ctx, "shadow", None), bsdf=bsdf,
+                           buffers=buffers, rows=rows)
     counters.shadow_rays += rays
     return E
 
@@ -387,15 +375,13 @@ def light_shadow_rays(ctx, hit, light_index, rng):
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
 
-def _hit_arrays(geo, hit, offsets=True):
+def _hit_arrays(geo, hit):
     """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
     light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
     offset, the shadow-terminator cut-off and smooth-surface lift of smooth triangles, and
     the smooth normals before Normal Map / Bump nodes (Cycles' bump shadowing term).
-    An offset no object has is an empty array (sample_lights reads no rows).
-    offsets False: the shading offset and terminator rows are not computed (empty: the
-    samples were taken already, only p, ns, ng are read)."""
-    n = len(hit.p) if offsets else 0
+    An offset no object has is an empty array (sample_lights reads no rows)."""
+    n = len(hit.p)
     c = np.ascontiguousarray
     # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
     shading_offset = (np.take(geo.terminator_shading, hit.prim)
@@ -800,7 +786,7 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
-                  rows=None, drawn=None):
+                  rows=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
@@ -814,17 +800,15 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     the direct stage reads them in place, direct_irradiance's rows); wd, the sampler,
     sample_id, footprint, glossy, scattered and the results are per row of rows, sel is
     the whole batch's. The same numbers as shade_diffuse(hit.take(rows), ...) with sel
-    taken at rows. None: every hit.
-    drawn: the light samples' numbers drawn for every hit of the batch, maybe sampled
-    already (direct_irradiance's drawn; the sampler then serves the photon terms alone)."""
+    taken at rows. None: every hit."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
-                                   buffers=buffers, rows=rows, drawn=drawn)
+                                   buffers=buffers, rows=rows)
     else:
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers,
-                                   rows=rows, drawn=drawn)
+                                   rows=rows)
         np.multiply(f, direct, out=direct)  # f x E, in place
     if not ctx.settings.photon_mapping:
         return direct, None, None  # (no caustic or indirect term to add)
@@ -1193,27 +1177,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # nodes with the surface data in the same kernel (bsdf.surface_hit_lobes).
         bufs = buffers.take(n)
         prm, sel, p, q, psum, glossy, dsel, wd = bufs
-        drawn = None
         if plain:
-            # The light samples' numbers for EVERY hit, drawn before the kernel (which
-            # samples the lights of the rows it finds shaded, block by block, while their
-            # surface data is in cache) and read at the shaded rows; the stratified ones
-            # at the first hit.
-            samples, chosen = light_numbers(ctx, n, rng, sampler if bounce == 0 else None)
-            sampled = None
-            if (samples and ctx.geo.shared is None
-                    and len(samples) <= max(1, MAX_ENTRIES // n)):
-                packed = ctx.packed_lights or pack_lights(ctx.lights)
-                tree = (chosen[1] if chosen is not None else
-                        (*empty_tree(), np.ones(len(packed[0]), np.bool_)))
-                lights = (packed, tree, sample_arrays(samples, n, buffers.direct),
-                          buffers.direct)
-                hit, nd, sampled = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp,
-                                                     want_glossy, bufs, lights=lights)
-            else:
-                hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp,
-                                            want_glossy, bufs)
-            drawn = (samples, chosen, sampled)
+            hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
+                                        bufs)
         else:
             hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             per_hit = hit.params is not None
@@ -1257,7 +1223,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
                 sel=sel if g.any() else None, buffers=buffers.direct,
                 scattered=scattered if every or scattered is None else scattered[dsel],
-                rows=None if every else dsel, drawn=drawn)
+                rows=None if every else dsel)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:
