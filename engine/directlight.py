@@ -158,14 +158,18 @@ def _dot(a0, a1, a2, b0, b1, b2):
 
 @kernel
 def terminator_lift(prim, bary, ng, smooth, object_id, terminator, v0, e1, e2,
-                    corner_normals, cutoff, lift):
+                    corner_normals, cutoff, lift, only):
     """Per hit i (not per sample): cutoff[i] = the shadow-terminator geometry offset of its
     triangle's object (terminator[object_id[t]], per object: engine/geometry.py) if
     smooth-shaded (else 0) and lift[i] (3,) the lift of the hit from the flat
     facet to the smooth surface through the corners (a parabolic patch bounded by the
     corners' tangent planes): Blender's intern/cycles/kernel/light/sample.h,
-    shadow_ray_smooth_surface_offset(), in world space."""
-    for i in range(prim.shape[0]):
+    shadow_ray_smooth_surface_offset(), in world space.
+    only (K,) int64: these hits alone (a camera bounce's shaded rows, sample_lights'
+    hrow; the other rows of cutoff and lift stay unwritten); (0,): every hit."""
+    some = only.shape[0] > 0
+    for ii in range(only.shape[0] if some else prim.shape[0]):
+        i = only[ii] if some else ii
         t = prim[i]
         cut = terminator[object_id[t]]  # per object (branch scale: 4 B a triangle less)
         if not (smooth[t] and cut > 0):
@@ -866,4 +870,4 @@ def _warm_up():
                     # float32 corner normals, as Geometry.corner_normals holds them (a float64
                     # copy compiled a variant no render uses; the render then compiled its own)
                     np.repeat(nrm[:, None, :], 3, axis=1).astype(np.float32), np.zeros(1),
-                    np.zeros((1, 3)))
+                    np.zeros((1, 3)), NO_HROWS)

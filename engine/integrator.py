@@ -123,7 +123,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                             MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA,
                             np.int64),
                     np.ascontiguousarray(sel, np.float64))
-        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
+        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
                                SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
                                bsdf=bsdf, buffers=buffers, rows=rows)
         counters.shadow_rays += rays
@@ -160,7 +160,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
                 np.ascontiguousarray(hit.wo, np.float64), light_modes(ctx),
                 np.ascontiguousarray(sel, np.float64))
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit), samples, ctx.accel,
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
                            SHADOW, n, shadow=getattr(ctx, "shadow", None), bsdf=bsdf,
                            buffers=buffers, rows=rows)
     counters.shadow_rays += rays
@@ -376,12 +376,14 @@ def light_shadow_rays(ctx, hit, light_index, rng):
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
 
-def _hit_arrays(geo, hit):
+def _hit_arrays(geo, hit, rows=None):
     """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
     light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
     offset, the shadow-terminator cut-off and smooth-surface lift of smooth triangles, and
     the smooth normals before Normal Map / Bump nodes (Cycles' bump shadowing term).
-    An offset no object has is an empty array (sample_lights reads no rows)."""
+    An offset no object has is an empty array (sample_lights reads no rows).
+    rows (K,) int64: only these hits are sampled (direct_irradiance's rows): the
+    terminator rows are computed for them alone (the rest stay unwritten and unread)."""
     n = len(hit.p)
     c = np.ascontiguousarray
     # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
@@ -394,10 +396,11 @@ def _hit_arrays(geo, hit):
     if hit.bary is not None and n and (geo.object_terminator > 0).any():
         cutoff = np.empty(n)  # (every row written)
         lift = np.empty((n, 3))
-        rows, (smooth, object_id, v0, e1, e2, normals) = geo.hit_tables(
+        tri, (smooth, object_id, v0, e1, e2, normals) = geo.hit_tables(
             hit.prim, "smooth", "object_id", "v0", "e1", "e2", "corner_normals")
-        terminator_lift(rows, c(hit.bary, np.float64), c(hit.ng, np.float64), smooth,
-                        object_id, geo.object_terminator, v0, e1, e2, normals, cutoff, lift)
+        terminator_lift(tri, c(hit.bary, np.float64), c(hit.ng, np.float64), smooth,
+                        object_id, geo.object_terminator, v0, e1, e2, normals, cutoff, lift,
+                        NO_HROWS if rows is None else c(rows, np.int64))
     ns = c(hit.ns, np.float64)
     n_smooth = getattr(hit, "n_smooth", None)
     # The normal whose hemisphere decides which light directions a hit can receive is

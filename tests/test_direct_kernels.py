@@ -151,3 +151,42 @@ def test_empty_offset_rows_and_unread_directions_change_no_bit():
     for name, k in (("contrib", j), ("row", j), ("kidx", j), ("ray", j), ("bump", j),
                     ("o32", r), ("d32", r), ("t32", r)):
         assert np.array_equal(getattr(a, name)[:k], getattr(b, name)[:k]), name
+
+
+def test_terminator_lift_on_the_shaded_rows_alone():
+    """terminator_lift with `only` (a camera bounce's shaded rows, integrator._hit_arrays'
+    rows) writes at those rows exactly what the whole batch's pass writes there, and
+    nothing elsewhere (the other rows stay as they were: sample_lights never reads them);
+    direct_irradiance on rows of a batch with smooth terminator-offset hits gives the same
+    sums as on their copy."""
+    from helpers import hits_from_inside
+
+    ctx = prepare_context(cornell_box(8, 6, glass_sphere=True),
+                          RenderSettings(workers=1, photon_mapping=False))
+    geo = ctx.geo
+    assert (geo.object_terminator > 0).any()
+    hit = hits_from_inside(ctx, 20000, 4)
+    n = len(hit.p)
+    tri, tabs = geo.hit_tables(hit.prim, "smooth", "object_id", "v0", "e1", "e2",
+                               "corner_normals")
+    smooth_hits = np.take(geo.smooth, hit.prim)
+    assert 100 < smooth_hits.sum() < n - 100
+    bary = np.ascontiguousarray(hit.bary, np.float64)
+    ng = np.ascontiguousarray(hit.ng, np.float64)
+    full_cut, full_lift = np.empty(n), np.empty((n, 3))
+    dl.terminator_lift(tri, bary, ng, tabs[0], tabs[1], geo.object_terminator, *tabs[2:],
+                       full_cut, full_lift, dl.NO_HROWS)
+    assert (full_cut > 0).any() and (full_lift != 0).any()
+    rows = np.nonzero(np.random.default_rng(1).random(n) < 0.6)[0]
+    cut, lift = np.full(n, np.nan), np.full((n, 3), np.nan)
+    dl.terminator_lift(tri, bary, ng, tabs[0], tabs[1], geo.object_terminator, *tabs[2:],
+                       cut, lift, rows)
+    assert np.array_equal(cut[rows], full_cut[rows])
+    assert np.array_equal(lift[rows], full_lift[rows])
+    rest = np.ones(n, bool)
+    rest[rows] = False
+    assert np.isnan(cut[rest]).all() and np.isnan(lift[rest]).all()
+    for seed in (1, 2):
+        a = direct_irradiance(ctx, hit.take(rows), np.random.default_rng(seed), Counters())
+        b = direct_irradiance(ctx, hit, np.random.default_rng(seed), Counters(), rows=rows)
+        assert np.array_equal(a, b) and a[:, 0].max() > 0
