@@ -2,10 +2,12 @@
 
 Supported: Principled BSDF (Cycles' v2 layers: sheen, coat, metallic with F82 tint,
 transmission, specular IOR level and tint; subsurface warns), Diffuse, Glossy (GGX or
-Multiscatter GGX), Glass, Refraction (as Glass), Emission, Transparent,
-Mix Shader and Add Shader of those, an Image Texture (its Extension, Interpolation, UDIM
-tiles), a Color Attribute, an RGB / Value node, or a tree of the colour nodes in
-engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
+Multiscatter GGX), Glass, Refraction (refraction alone, no Fresnel, as Cycles), Emission,
+Transparent, Mix Shader and Add Shader of those (Add sums the closures: their even mix at
+closure weight 2, exact for Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
+transparent shares of an Add are averaged, warned), an Image Texture (its Extension,
+Interpolation, UDIM tiles), a Color Attribute, an RGB / Value node, or a tree of the
+colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
 Separate/Combine, Checker, Gradient, Noise and Voronoi textures, Layer Weight, Fresnel)
 on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight, Specular
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
@@ -36,13 +38,13 @@ class Closure:
                  "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
                  "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
                  "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint",
-                 "scalars", "emission_texture")
+                 "scalars", "emission_texture", "weight")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
              "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
              "sheen_roughness", "sheen_tint", "transparent_tint", "scalars",
-             "emission_texture")
+             "emission_texture", "weight")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
@@ -51,7 +53,8 @@ class Closure:
                  coat_roughness=0.03, coat_ior=1.5, coat_tint=(1.0, 1.0, 1.0),
                  multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
                  sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0),
-                 transparent_tint=(1.0, 1.0, 1.0), scalars=None, emission_texture=None):
+                 transparent_tint=(1.0, 1.0, 1.0), scalars=None, emission_texture=None,
+                 weight=1.0):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -84,6 +87,9 @@ class Closure:
         self.scalars = dict(scalars) if scalars else {}
         # A colour node multiplied onto `emission` per hit (Emission Color textures).
         self.emission_texture = emission_texture
+        # Cycles' closure weight of the surface (BSDF) part: an Add Shader of two surfaces
+        # sums them, i.e. their even mix at weight 2 (engine Material.closure_weight).
+        self.weight = float(weight)
 
     @property
     def is_clear(self) -> bool:
@@ -267,7 +273,8 @@ class MaterialConverter:
                           else np.clip(closure.glossy_color, 0.0, 1.0)),
             scalar_textures=closure.scalars or None,
             emission_texture=(closure.emission_texture
-                              if np.any(closure.emission > 0) else None))
+                              if np.any(closure.emission > 0) else None),
+            closure_weight=max(closure.weight, 0.0))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -408,12 +415,12 @@ class MaterialConverter:
                            scalars=sc)
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
-            if t == "BSDF_REFRACTION":
-                self._warn(f"material '{self._mat.name}': Refraction BSDF '{node.name}' is "
-                           "approximated by a Glass BSDF (it also reflects)")
             sc = {}
+            # Refraction BSDF: the glass lobe's refraction alone, colour x refraction
+            # (Cycles: no Fresnel, no reflection, no energy compensation).
             return Closure(base_color=base, texture=tex, transmission=1.0, specular=1.0,
-                           node="glass", multiscatter=self._distribution(node),
+                           node="glass" if t == "BSDF_GLASS" else "refraction",
+                           multiscatter=self._distribution(node),
                            normal_map=self._normal(node),
                            roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
                            ior=self._float(node, "IOR", 1.5), scalars=sc)
@@ -442,6 +449,7 @@ class MaterialConverter:
                     cover = sn.Math("MULTIPLY", cover, 1.0, clamp=True)
                     out = _blend(surf, surf, 1.0, 0.0, sn)  # a copy of surf
                     out.alpha = surf.alpha
+                    out.weight = surf.weight
                     clear = a if a.is_clear else b
                     out.transparent_tint = clear.transparent_tint.copy()
                     out.alpha_texture = (cover if surf.alpha_texture is None else
@@ -454,6 +462,12 @@ class MaterialConverter:
                     return out
                 mixed = self._mix_per_hit(a, b, fac)
                 if mixed is not None:
+                    if a.weight != b.weight:
+                        self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' "
+                                   "mixes by a texture two surfaces of different closure "
+                                   "weights (an Add Shader on one side); using their mean "
+                                   "weight")
+                    mixed.weight = 0.5 * (a.weight + b.weight)
                     return mixed
                 self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes two "
                            "surfaces by a texture, one of them emissive or with alpha; "
@@ -465,17 +479,18 @@ class MaterialConverter:
                     else self._default(inp[0])
             fac = float(np.mean(fac)) if np.ndim(fac) else float(fac)
             fac = min(max(fac, 0.0), 1.0)
-            return _blend(a, b, 1.0 - fac, fac, self.pm.shadernodes)
+            if a.weight == 1.0 and b.weight == 1.0:
+                return _blend(a, b, 1.0 - fac, fac, self.pm.shadernodes)
+            # A side of closure weight != 1 (an Add Shader): (1 - f) w_a a + f w_b b is
+            # their mix by (1 - f) w_a : f w_b at weight W = (1 - f) w_a + f w_b.
+            return self._weighted_sum(node, a, b, (1.0 - fac) * a.weight, fac * b.weight,
+                                      1.0 - fac, fac)
         if t == "ADD_SHADER":
             a = self._shader(self._source(inp[0]), depth + 1)
             b = self._shader(self._source(inp[1]), depth + 1)
             if a.has_bsdf and b.has_bsdf:
-                self._warn(f"material '{self._mat.name}': Add Shader '{node.name}' of two "
-                           "surfaces is approximated by an even mix")
-                out = _blend(a, b, 0.5, 0.5, self.pm.shadernodes)
-                out.emission, out.emission_texture = _emission_mix(self.pm.shadernodes, 1.0, a,
-                                                                   1.0, b)
-                return out
+                # Cycles sums the two closures: their mix by w_a : w_b at weight w_a + w_b.
+                return self._weighted_sum(node, a, b, a.weight, b.weight, 1.0, 1.0)
             out = a if a.has_bsdf else b
             other = b if a.has_bsdf else a
             res = Closure(base_color=out.base_color, metallic=out.metallic,
@@ -491,6 +506,27 @@ class MaterialConverter:
             return res
         self._unsupported(node)
         return self._viewport(self._mat)
+
+    def _weighted_sum(self, node, a: Closure, b: Closure, wa, wb, ea, eb) -> Closure:
+        """wa a + wb b of two surfaces (wa = mix or add weight x closure weight): their
+        blend by wa : wb (_blend) at closure weight wa + wb, so that every BSDF lobe of
+        either side keeps its own weight (exact where _blend is: equal or complementary
+        lobes, e.g. Diffuse + Diffuse, Diffuse + Glossy); emission ea x a's + eb x b's.
+        The transparent shares (alpha < 1) are averaged by wa : wb, not added up (warned)."""
+        sn = self.pm.shadernodes
+        total = wa + wb
+        if total <= 0:
+            out = _blend(a, b, 0.5, 0.5, sn)
+            out.weight = 0.0
+        else:
+            out = _blend(a, b, wa / total, wb / total, sn)
+            out.weight = total
+        out.emission, out.emission_texture = _emission_mix(sn, ea, a, eb, b)
+        if not all(c.alpha == 1.0 and c.alpha_texture is None for c in (a, b)):
+            self._warn(f"material '{self._mat.name}': {node.type.replace('_', ' ').title()} "
+                       f"'{node.name}' of surfaces with a transparent share: the surfaces "
+                       "add up, their transparent shares are averaged")
+        return out
 
     # Lobe parameters that a per-hit Mix Shader factor blends linearly.
     LINEAR_SCALARS = ("metallic", "specular", "transmission", "specular_ior_level",

@@ -232,7 +232,7 @@ def _diffuse_only(params, r):
     leave every packed column 0 (photonkernels.plain_materials, per row)."""
     return not (params[r, pr.M_SHEEN_W] > 0.0 or params[r, pr.M_COAT_W] > 0.0
                 or params[r, pr.M_METALLIC] > 0.0 or params[r, pr.M_TRANS] > 0.0
-                or params[r, pr.M_SPEC] > 0.0)
+                or params[r, pr.M_SPEC] > 0.0 or params[r, pr.M_ADD] != 0.0)
 
 
 @kernel

@@ -127,7 +127,7 @@ def closure_params(materials: list[Material]) -> np.ndarray:
         row[pr.M_CTINT:pr.M_CTINT + 3] = m.coat_tint
         row[pr.M_MULTI] = 1.0 if m.multiscatter else 0.0
         row[pr.M_NODE] = {"principled": pr.NODE_PRINCIPLED, "glossy": pr.NODE_GLOSSY,
-                          "glass": pr.NODE_GLASS}[m.node]
+                          "glass": pr.NODE_GLASS, "refraction": pr.NODE_REFRACTION}[m.node]
         if m.glossy_color is not None:
             row[pr.M_GCOL:pr.M_GCOL + 3] = m.glossy_color
             row[pr.M_HAS_GCOL] = 1.0
@@ -135,6 +135,7 @@ def closure_params(materials: list[Material]) -> np.ndarray:
         row[pr.M_SHEEN_ROUGH] = m.sheen_roughness
         row[pr.M_SHEEN_TINT:pr.M_SHEEN_TINT + 3] = m.sheen_tint
         row[pr.M_TTINT:pr.M_TTINT + 3] = m.transparent_tint
+        row[pr.M_ADD] = m.closure_weight - 1.0
     return out
 
 

@@ -550,7 +550,8 @@ def plain_materials(params: np.ndarray) -> np.ndarray:
     coat, metal, transmission or specular layer: principled.setup skips each of them
     unless its weight is > 0), for scatter's set-up-free path."""
     layers = (pr.M_SHEEN_W, pr.M_COAT_W, pr.M_METALLIC, pr.M_TRANS, pr.M_SPEC)
-    return np.ascontiguousarray(~np.any(params[:, layers] > 0.0, axis=1))
+    return np.ascontiguousarray(~np.any(params[:, layers] > 0.0, axis=1)
+                                & (params[:, pr.M_ADD] == 0.0))  # closure weight 1
 
 
 def surface_arrays(m: int):

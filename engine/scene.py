@@ -88,7 +88,8 @@ class Material:
                         glossy_color (or the base colour when None; a Mix of Diffuse and
                         Glossy keeps both colours)
       transmission      GGX glass (reflection + refraction; transmission tinted
-                        sqrt(base colour), or the colour for node="glass")
+                        sqrt(base colour), or the colour for node="glass";
+                        node="refraction": refraction alone, the colour, no Fresnel)
       specular          weight of the dielectric specular layer over the diffuse base
                         (Principled: 1; F0 from ior x 2 x specular_ior_level, tinted by
                         specular_tint; 0: pure Lambert)
@@ -110,6 +111,9 @@ class Material:
     `emission_texture` is an optional colour node multiplied onto `emission` per hit
     (Emission Color fed by a texture): the camera sees it per hit; as a mesh light each
     triangle emits its average (geometry.emissive_triangles).
+    `closure_weight` scales every BSDF lobe (not the pass lobe, not the emission): Cycles'
+    closure weight, 2 for an Add Shader of two surfaces (it sums their closures; the
+    layers above describe their even mix).
     `scalar_textures` optionally maps scalar inputs (SCALAR_INPUTS: roughness, metallic,
     ...) to nodes evaluated per hit whose value replaces the constant there, camera and
     photon pass alike (engine/textures.py, scalar_params; docs/textures.md).
@@ -142,6 +146,7 @@ class Material:
     alpha_texture: object | None = None
     scalar_textures: dict | None = None
     emission_texture: object | None = None
+    closure_weight: float = 1.0
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -178,7 +183,7 @@ class Material:
                      "coat_roughness", "sheen_roughness"):
             v = _finite(getattr(self, attr), f"{who} {attr}")
             setattr(self, attr, min(max(v, 0.0), 1.0))
-        for attr in ("specular_ior_level", "coat_weight", "sheen_weight"):
+        for attr in ("specular_ior_level", "coat_weight", "sheen_weight", "closure_weight"):
             v = _finite(getattr(self, attr), f"{who} {attr}")
             if v < 0:
                 raise SceneError(f"{who} {attr}: must be >= 0, got {v}")
@@ -224,9 +229,10 @@ class Material:
 
 
 # How the colour enters the metal and glass lobes (engine/closures/principled.py):
-# Principled BSDF, Glossy BSDF (colour = constant reflectance), Glass / Refraction BSDF
-# (colour tints reflection and refraction).
-MATERIAL_NODES = ("principled", "glossy", "glass")
+# Principled BSDF, Glossy BSDF (colour = constant reflectance), Glass BSDF (colour tints
+# reflection and refraction), Refraction BSDF (the glass lobe's refraction alone, colour x
+# refraction, no Fresnel).
+MATERIAL_NODES = ("principled", "glossy", "glass", "refraction")
 
 # Scalar inputs a node may drive per hit (Material.scalar_textures), with the range
 # Cycles clamps them to (svm/closure.h: saturatef, or fmaxf(x, 0) for the weights and the

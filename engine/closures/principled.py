@@ -50,8 +50,12 @@ M_HAS_GCOL = 21        # ... when 1 (else the base colour)
 M_SHEEN_W, M_SHEEN_ROUGH = 22, 23
 M_SHEEN_TINT = 24      # 3
 M_TTINT = 27           # 3: Transparent BSDF colour (the pass lobe transmits (1 - alpha) x it)
-N_MAT = 30
-NODE_PRINCIPLED, NODE_GLOSSY, NODE_GLASS = 0, 1, 2
+M_ADD = 30             # 1: closure weight - 1 (Add Shader sums closures: every BSDF lobe x
+                       # (1 + M_ADD); 0 = weight 1, the usual case)
+N_MAT = 31
+# NODE_REFRACTION: the glass lobe transmits only, without Fresnel (Cycles' Refraction BSDF,
+# MicrofacetFresnel::NONE: transmittance = colour) and without energy compensation.
+NODE_PRINCIPLED, NODE_GLOSSY, NODE_GLASS, NODE_REFRACTION = 0, 1, 2, 3
 
 # Packed per-hit row.
 P_SPEC_W, P_SPEC_F0, P_SPEC_ALPHA, P_SPEC_ETA = 0, 3, 6, 7
@@ -113,7 +117,9 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
             for c in range(3):
                 weights[i, l, c] = 0.0
         a = hit_alpha[i]
-        W0 = W1 = W2 = a
+        # The BSDF lobes' share: alpha x the closure weight (Add Shader); the pass lobe
+        # keeps 1 - alpha. x (1.0 + 0.0) is exact: weight 1 changes no bit.
+        W0 = W1 = W2 = a * (1.0 + q[M_ADD])
         for c in range(3):
             weights[i, L_PASS, c] = (1.0 - a) * q[M_TTINT + c]
         rough = q[M_ROUGH]
@@ -204,6 +210,16 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
             s_n = tables.schlick_ior_s(rough, mu, ior) if eta >= 1.0 else schlick_remap(mu, eta)
             Wg = (W0, W1, W2)
             for c in range(3):
+                if node == NODE_REFRACTION:
+                    # Transmission alone, colour x refraction: no reflection, no Fresnel
+                    # (f0 < 0 marks it for _glass_F), no energy compensation.
+                    tt = max(base[i, c], 0.0)
+                    prm[i, P_GLASS_RW + c] = 0.0
+                    prm[i, P_GLASS_TW + c] = tr * Wg[c] * tt
+                    prm[i, P_GLASS_F0 + c] = -1.0
+                    weights[i, L_GLASS_R, c] = 0.0
+                    weights[i, L_GLASS_T, c] = tr * Wg[c] * tt
+                    continue
                 if node == NODE_GLASS:
                     rt = tt = max(base[i, c], 0.0)
                     f0 = F0g
@@ -263,6 +279,15 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
 def _remap(f0, c, eta):
     """Principled's Fresnel: mix(f0, 1, s(c)) with the real Fresnel curve of eta."""
     return f0 + (1.0 - f0) * schlick_remap(c, eta)
+
+
+@kernel
+def _glass_F(f0, c, eta):
+    """The glass lobe's Fresnel reflectance: _remap, or 0 for a Refraction BSDF (f0 < 0,
+    setup's marker: it transmits everything it does not absorb)."""
+    if f0 < 0.0:
+        return 0.0
+    return _remap(f0, c, eta)
 
 
 @kernel
@@ -358,9 +383,9 @@ def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
                                or prm[i, P_GLASS_RW + 2] > 0):
         e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
         eta = prm[i, P_GLASS_ETA]
-        r0 += prm[i, P_GLASS_RW] * _remap(prm[i, P_GLASS_F0], c, eta) * e
-        r1 += prm[i, P_GLASS_RW + 1] * _remap(prm[i, P_GLASS_F0 + 1], c, eta) * e
-        r2 += prm[i, P_GLASS_RW + 2] * _remap(prm[i, P_GLASS_F0 + 2], c, eta) * e
+        r0 += prm[i, P_GLASS_RW] * _glass_F(prm[i, P_GLASS_F0], c, eta) * e
+        r1 += prm[i, P_GLASS_RW + 1] * _glass_F(prm[i, P_GLASS_F0 + 1], c, eta) * e
+        r2 += prm[i, P_GLASS_RW + 2] * _glass_F(prm[i, P_GLASS_F0 + 2], c, eta) * e
     if (prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0
             or prm[i, P_SHEEN_W + 2] > 0):
         e, _ = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
@@ -406,9 +431,9 @@ def _eval_glossy(prm, i, ox, oy, oz, ix, iy, iz):
 @kernel
 def _glass_reflect_share(prm, i, c, eta, inv_eta):
     """Probability that _glass_sample reflects at a microfacet with wo.h = c."""
-    F0 = _remap(prm[i, P_GLASS_F0], c, eta)
-    F1 = _remap(prm[i, P_GLASS_F0 + 1], c, eta)
-    F2 = _remap(prm[i, P_GLASS_F0 + 2], c, eta)
+    F0 = _glass_F(prm[i, P_GLASS_F0], c, eta)
+    F1 = _glass_F(prm[i, P_GLASS_F0 + 1], c, eta)
+    F2 = _glass_F(prm[i, P_GLASS_F0 + 2], c, eta)
     sr = prm[i, P_GLASS_RW] * F0 + prm[i, P_GLASS_RW + 1] * F1 + prm[i, P_GLASS_RW + 2] * F2
     if inv_eta * inv_eta * (1.0 - c * c) >= 1.0:
         return 1.0 if sr > 0.0 else 0.0
@@ -521,9 +546,9 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
     c = ox * hx + oy * hy + oz * hz
     if c <= 0.0:
         return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
-    F0 = _remap(prm[i, P_GLASS_F0], c, eta)
-    F1 = _remap(prm[i, P_GLASS_F0 + 1], c, eta)
-    F2 = _remap(prm[i, P_GLASS_F0 + 2], c, eta)
+    F0 = _glass_F(prm[i, P_GLASS_F0], c, eta)
+    F1 = _glass_F(prm[i, P_GLASS_F0 + 1], c, eta)
+    F2 = _glass_F(prm[i, P_GLASS_F0 + 2], c, eta)
     r0, r1, r2 = prm[i, P_GLASS_RW] * F0, prm[i, P_GLASS_RW + 1] * F1, prm[i, P_GLASS_RW + 2] * F2
     t0 = prm[i, P_GLASS_TW] * (1.0 - F0)
     t1 = prm[i, P_GLASS_TW + 1] * (1.0 - F1)

@@ -1,0 +1,181 @@
+"""Add Shader and Refraction BSDF against Cycles (issue 14: "Diffuse, Glossy, Glass,
+Refraction; Mix and Add. Every closure matches Cycles within 2 %").
+
+- Add Shader sums its two closures (Cycles); it was exported as their even mix (exactly
+  0.500 of Cycles on a sun-lit plane). A plane lit by a delta sun in a black world, seen
+  at 45 degrees, direct light only: every pixel is one BSDF evaluation in both engines,
+  so the image means agree to well within the 2 % the issue asks.
+- Refraction BSDF transmits only (colour x refraction, no Fresnel reflection); it was
+  exported as a Glass BSDF (1.086 of Cycles on a ball). A smooth slab of it over an
+  emissive floor, seen from straight above through a black world: each pixel sees the
+  floor through two parallel interfaces, colour^2 x the floor's radiance (the n^2 of the
+  two crossings cancel), where a Glass BSDF's Fresnel would take ~8 % away.
+"""
+import math
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+
+def _material(bpy, name, build):
+    """A material whose Surface is build(nodes, links) (-> the output socket)."""
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    nt = m.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(build(nt.nodes, nt.links), out.inputs["Surface"])
+    return m
+
+
+def _diffuse(nodes, rgb):
+    n = nodes.new("ShaderNodeBsdfDiffuse")
+    n.inputs["Color"].default_value = (*rgb, 1.0)
+    return n.outputs[0]
+
+
+def _glossy(nodes, rgb, roughness):
+    n = nodes.new("ShaderNodeBsdfGlossy")  # Multiscatter GGX, the node's default
+    n.inputs["Color"].default_value = (*rgb, 1.0)
+    n.inputs["Roughness"].default_value = roughness
+    return n.outputs[0]
+
+
+def _add(nodes, links, a, b):
+    n = nodes.new("ShaderNodeAddShader")
+    links.new(a, n.inputs[0])
+    links.new(b, n.inputs[1])
+    return n.outputs[0]
+
+
+def _mix(nodes, links, fac, a, b):
+    n = nodes.new("ShaderNodeMixShader")
+    n.inputs[0].default_value = fac
+    links.new(a, n.inputs[1])
+    links.new(b, n.inputs[2])
+    return n.outputs[0]
+
+
+ADD_CASES = {
+    "diffuse+diffuse": lambda nd, ln: _add(nd, ln, _diffuse(nd, (0.4, 0.4, 0.4)),
+                                          _diffuse(nd, (0.4, 0.4, 0.4))),
+    "red+blue diffuse": lambda nd, ln: _add(nd, ln, _diffuse(nd, (0.5, 0.1, 0.05)),
+                                           _diffuse(nd, (0.05, 0.2, 0.6))),
+    "diffuse+glossy": lambda nd, ln: _add(nd, ln, _diffuse(nd, (0.5, 0.5, 0.5)),
+                                         _glossy(nd, (0.5, 0.5, 0.5), 0.4)),
+    "tinted diffuse+glossy": lambda nd, ln: _add(nd, ln, _diffuse(nd, (0.6, 0.3, 0.1)),
+                                                _glossy(nd, (0.3, 0.5, 0.8), 0.3)),
+    # An Add inside a Mix: (1 - f) x (diffuse + glossy) + f x diffuse.
+    "mix(add, diffuse)": lambda nd, ln: _mix(
+        nd, ln, 0.3, _add(nd, ln, _diffuse(nd, (0.5, 0.5, 0.5)),
+                          _glossy(nd, (0.5, 0.5, 0.5), 0.4)),
+        _diffuse(nd, (0.2, 0.6, 0.3))),
+}
+
+
+def _render(bpy, scene, path, engine, spp, bounces):
+    from blender_helpers import cheap, read_rgba, render_exr
+    scene.render.engine = engine
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
+    if engine == "CYCLES":
+        c = scene.cycles
+        c.device, c.samples, c.seed = "CPU", spp, 0
+        c.use_denoising = c.use_adaptive_sampling = False
+        c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+        c.blur_glossy = 0.0
+        c.max_bounces = bounces
+        c.transmission_bounces = bounces
+        c.caustics_reflective = c.caustics_refractive = True
+    else:
+        cheap(scene, spp=spp, photons=20_000, caustic_photons=0)
+        scene.photonmap.photon_mapping = False
+    return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3]
+
+
+def _black_world(bpy, scene):
+    world = bpy.data.worlds.new("Black")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+    bg.inputs["Strength"].default_value = 0.0
+
+
+def _camera(bpy, scene, location, rotation, ortho=None):
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location, cam.rotation_euler = location, rotation
+    if ortho is not None:
+        cam.data.type, cam.data.ortho_scale = "ORTHO", ortho
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+
+
+def _check(ours, ref, what):
+    """Image means within 2 % per channel (of the brightest channel for a faint one)."""
+    got, want = ours.reshape(-1, 3).mean(axis=0), ref.reshape(-1, 3).mean(axis=0)
+    print(f"{what}: ours / Cycles {np.round(got / np.maximum(want, 1e-9), 4)}")
+    tol = np.maximum(0.02 * want, 0.02 * want.max())
+    assert np.all(np.abs(got - want) <= tol), (
+        f"{what}: ours {np.round(got, 4)} Cycles {np.round(want, 4)} "
+        f"(ratio {np.round(got / np.maximum(want, 1e-9), 4)})")
+
+
+@pytest.mark.parametrize("case", sorted(ADD_CASES))
+def test_add_shader_on_sunlit_plane_matches_cycles(fresh_scene, bpy_addon, tmp_path, case):
+    bpy = bpy_addon
+    scene = fresh_scene
+    scene.render.resolution_x = scene.render.resolution_y = 24
+    scene.render.resolution_percentage = 100
+    bpy.ops.mesh.primitive_plane_add(size=40)
+    bpy.context.object.data.materials.append(_material(bpy, "Add", ADD_CASES[case]))
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy, sun.data.angle = 3.0, 0.0
+    sun.rotation_euler = (0.0, math.radians(35.0), 0.0)  # light from +x, 35 deg off zenith
+    scene.collection.objects.link(sun)
+    # From -x at 45 degrees: the glossy lobe's highlight lies in the field of view.
+    _camera(bpy, scene, (-6.0, 0.0, 6.0), (math.radians(45.0), 0.0, math.radians(-90.0)))
+    _black_world(bpy, scene)
+    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 4, 0)
+    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 16, 0)
+    assert ref.mean() > 0.05
+    _check(ours, ref, case)
+
+
+@pytest.mark.parametrize("color", [(1.0, 1.0, 1.0), (0.9, 0.6, 0.3)])
+def test_refraction_slab_over_emissive_floor_matches_cycles(fresh_scene, bpy_addon, tmp_path,
+                                                            color):
+    bpy = bpy_addon
+    scene = fresh_scene
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    scene.render.resolution_percentage = 100
+
+    def emission(nodes, links):
+        n = nodes.new("ShaderNodeEmission")
+        n.inputs["Strength"].default_value = 1.0
+        return n.outputs[0]
+
+    def refraction(nodes, links):
+        n = nodes.new("ShaderNodeBsdfRefraction")
+        n.inputs["Color"].default_value = (*color, 1.0)
+        n.inputs["Roughness"].default_value = 0.0
+        n.inputs["IOR"].default_value = 1.45
+        return n.outputs[0]
+
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    bpy.context.object.data.materials.append(_material(bpy, "Floor", emission))
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0, 0, 1.0))
+    slab = bpy.context.object
+    slab.scale = (6.0, 6.0, 0.3)
+    slab.data.materials.append(_material(bpy, "Refraction", refraction))
+    # Straight down, orthographic, 2 m across: every pixel looks through the slab.
+    _camera(bpy, scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0), ortho=2.0)
+    _black_world(bpy, scene)
+    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 4, 8)
+    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 64, 8)
+    # Cycles at 4 spp drops one sample in a few pixels (0.984 of colour^2); at 64 spp 0.999.
+    np.testing.assert_allclose(ref.reshape(-1, 3).mean(axis=0), np.square(color), rtol=0.01)
+    _check(ours, ref, f"refraction {color}")
