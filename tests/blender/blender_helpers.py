@@ -83,6 +83,20 @@ def cheap(scene, width=None, height=None, pct=None, spp=2, photons=20_000,
         scene.render.resolution_percentage = pct
 
 
+def cycles_plain(scene, spp, bounces):
+    """Cycles' sampling as the tests compare against it: CPU, seed 0, `spp` samples, no
+    denoising, no adaptive sampling, no clamping, no glossy blur, `bounces` as Light
+    Paths > Max Bounces (docs/units.md: the settings that change its image). Returns
+    scene.cycles."""
+    c = scene.cycles
+    c.device, c.samples, c.seed = "CPU", spp, 0
+    c.use_denoising = c.use_adaptive_sampling = False
+    c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    c.max_bounces = bounces
+    return c
+
+
 def open_blend(bpy, name):
     bpy.ops.wm.open_mainfile(filepath=os.path.join(BLENDS, name), load_ui=False)
     scene = bpy.context.scene

@@ -78,16 +78,11 @@ ADD_CASES = {
 
 
 def _render(bpy, scene, path, engine, spp, bounces):
-    from blender_helpers import cheap, read_rgba, render_exr
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
     scene.render.engine = engine
     scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
     if engine == "CYCLES":
-        c = scene.cycles
-        c.device, c.samples, c.seed = "CPU", spp, 0
-        c.use_denoising = c.use_adaptive_sampling = False
-        c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
-        c.blur_glossy = 0.0
-        c.max_bounces = bounces
+        c = cycles_plain(scene, spp, bounces)
         c.transmission_bounces = bounces
         c.caustics_reflective = c.caustics_refractive = True
     else:

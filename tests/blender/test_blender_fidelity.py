@@ -172,17 +172,12 @@ def _render(bpy, scene, path, engine="PHOTONMAP", spp=16, bounces=0):
     """Linear RGBA (H, W, 4), rows top down. Cycles: CPU, no denoising, box filter 1 px,
     no clamping (the settings that change its image, docs/units.md); `bounces` limits
     both engines to direct light (0) or allows indirect light."""
-    from blender_helpers import read_rgba, render_exr
+    from blender_helpers import cycles_plain, read_rgba, render_exr
     scene.render.engine = engine
     # Cycles' pixel filter setting, which our add-on reads as well
     scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
     if engine == "CYCLES":
-        c = scene.cycles
-        c.device, c.samples, c.seed = "CPU", spp, 0
-        c.use_denoising = c.use_adaptive_sampling = False
-        c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
-        c.blur_glossy = 0.0
-        c.max_bounces = bounces
+        cycles_plain(scene, spp, bounces)
     else:
         from blender_helpers import cheap
         cheap(scene, spp=spp, photons=20_000, caustic_photons=0)
