@@ -263,6 +263,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         out[i, 0] = out[i, 1] = out[i, 2] = 0.0
         boundary[i] = True
         scale = 1.0
+        r_simpson = radius  # the radius estimator's kernel support
         if knn:
             kq = min(k, P)
             widest = min(P, MAX_WIDEN_K)
@@ -367,11 +368,16 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             if c < min_photons:
                 continue  # too few photons in range: no estimate
             kq = min(c, MAX_CLASSIC_K)
-            # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius; the
-            # nearest kq stand in for all of them (scaled by all / gathered).
-            if c > kq:
-                scale = c / kq
             cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+            # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius; the
+            # nearest kq stand in for all of them. The box kernel scales by all / gathered;
+            # the Simpson kernel cannot (the nearest photons weigh most: 1.8x too bright),
+            # so it narrows to the gathered photons' disc, a k-NN estimate with k = kq.
+            if c > kq:
+                if code == RADIUS:
+                    r_simpson = max(math.sqrt(d2[cnt - 1]), MIN_RADIUS_FRACTION * radius)
+                else:
+                    scale = c / kq
         # The row's estimate from its cnt nearest photons (d2 / idx, increasing distance),
         # here in the loop: a kernel called per row with its ~18 arrays paid ~0.25 us of
         # reference counting (docs/performance.md, "Eighth slice"). k-NN estimators use
@@ -425,8 +431,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             if code == CLASSIC:
                 w = cos_in / (math.pi * radius * radius)
             elif code == RADIUS:
-                x = min(max(1.0 - (d / radius) ** 2, 0.0), 1.0)
-                w = 3.0 / (math.pi * radius * radius) * x * x
+                x = min(max(1.0 - (d / r_simpson) ** 2, 0.0), 1.0)
+                w = 3.0 / (math.pi * r_simpson * r_simpson) * x * x
             elif code == KNN_SIMPSON:
                 x = min(max(1.0 - (d / rk) ** 2, 0.0), 1.0)
                 w = 3.0 / area * x * x

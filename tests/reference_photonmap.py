@@ -102,10 +102,11 @@ class ReferencePhotonMap:
 
         def job(a, stop):
             sel = busy[a:a + rows]
+            truncated = counts[a:a + rows] > kq if estimator in ("classic", "radius") else None
             E, mix = pm._estimate(p[sel], n[sel], radius, kq, k, min_photons, estimator,
                                   return_boundary,
-                                  None if r_floor is None else r_floor[sel])
-            if estimator in ("classic", "radius"):
+                                  None if r_floor is None else r_floor[sel], truncated)
+            if estimator == "classic":
                 # A dense caustic can hold more than MAX_CLASSIC_K photons in the radius;
                 # the query returned the nearest kq of them. Scale by all / gathered so
                 # the fixed-radius estimate is not capped (stand-in for the missing ones).
@@ -119,7 +120,7 @@ class ReferencePhotonMap:
         return result
 
     def _estimate(self, p, n, radius, kq, k, min_photons, estimator, want_boundary=False,
-                  r_floor=None):
+                  r_floor=None, truncated=None):
         """Estimate at rows p. k-NN estimators use the k nearest *accepted* photons (facing
         the query's surface): where photons of another surface crowd the k nearest (a
         corner, an object resting on the floor) the query widens, up to MAX_WIDEN_K,
@@ -132,7 +133,8 @@ class ReferencePhotonMap:
         while len(todo):
             E, widen, mix = self._estimate_rows(p[todo], n[todo], radius, kq, k, min_photons,
                                                 estimator, want_boundary,
-                                                None if r_floor is None else r_floor[todo])
+                                                None if r_floor is None else r_floor[todo],
+                                                None if truncated is None else truncated[todo])
             last = not knn or not widen.any() or kq >= min(P, MAX_WIDEN_K)
             done = np.ones(len(todo), bool) if last else ~widen
             out[todo[done]] = E[done]
@@ -145,7 +147,7 @@ class ReferencePhotonMap:
         return out, boundary
 
     def _estimate_rows(self, p, n, radius, kq, k, min_photons, estimator, want_boundary,
-                       r_floor=None):
+                       r_floor=None, truncated=None):
         dist, idx = self.tree.query(p, k=kq, distance_upper_bound=radius, workers=self.workers)
         if kq == 1:
             dist, idx = dist[:, None], idx[:, None]
@@ -172,8 +174,16 @@ class ReferencePhotonMap:
         if estimator == "classic":
             weight = np.where(ok, cos_in, 0.0) / (math.pi * radius * radius)
         elif estimator == "radius":
-            x = np.clip(1.0 - (np.where(found, dist, radius) / radius) ** 2, 0.0, 1.0)
-            weight = np.where(ok, 3.0 / (math.pi * radius * radius) * x * x, 0.0)
+            # More than kq photons in the radius (truncated): the Simpson kernel narrows to
+            # the gathered photons' disc (scaling by all / gathered would weigh the nearest,
+            # heaviest photons for the missing ones: 1.8x too bright).
+            rs = np.full(len(p), radius)
+            if truncated is not None and truncated.any():
+                rs = np.where(truncated, np.maximum(np.where(found[:, -1], dist[:, -1], radius),
+                                                    MIN_RADIUS_FRACTION * radius), radius)
+            rs = rs[:, None]
+            x = np.clip(1.0 - (np.where(found, dist, rs) / rs) ** 2, 0.0, 1.0)
+            weight = np.where(ok, 3.0 / (math.pi * rs * rs) * x * x, 0.0)
         else:
             # r: distance to the k-th accepted photon; with fewer accepted, the radius of
             # the disc the query has seen completely (its last photon, or the max radius).

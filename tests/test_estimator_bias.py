@@ -64,6 +64,19 @@ def test_knn_estimate_is_unbiased_on_a_uniform_plane():
     assert abs(E[inner].mean() - 1.0) < 0.005, E[inner].mean()
 
 
+@pytest.mark.parametrize("estimator", ["radius", "classic"])
+def test_fixed_radius_estimates_stay_unbiased_with_more_photons_than_they_gather(estimator):
+    """~25,000 photons in the radius, more than MAX_CLASSIC_K (4096) are gathered: the box
+    kernel scales by all / gathered, the Simpson kernel narrows to the gathered photons'
+    disc (scaling it read 1.8x: the nearest photons weigh most)."""
+    rng = np.random.default_rng(4)
+    pm = PhotonMap(_plane(N, rng), workers=2)
+    q = np.c_[0.3 + 0.4 * rng.random(200), 0.3 + 0.4 * rng.random(200), np.zeros(200)]
+    n = np.tile([0.0, 0.0, 1.0], (len(q), 1))
+    E = pm.irradiance(q, n, 0.2, 64, 8, estimator)[:, 0]
+    assert abs(E.mean() - 1.0) < 0.02, E.mean()
+
+
 def test_photons_of_a_crowded_neighbour_surface_do_not_starve_the_estimate():
     """A wall with 20x the floor's photon density stands across the floor. Floor points
     near its foot used to find mostly wall photons among their 64 nearest: too few floor

@@ -173,6 +173,24 @@ def test_estimators_match_the_numpy_reference(structure):
                         assert not E.any()  # light of the other side never leaks
 
 
+@pytest.mark.parametrize("structure", ["kdtree", "hashgrid"])
+def test_fixed_radius_estimators_match_the_reference_beyond_max_classic_k(structure):
+    """More than MAX_CLASSIC_K photons in the radius (a dense plane; a focus on it): the
+    classic estimate scales the gathered photons by all / gathered, the radius estimate
+    narrows its Simpson kernel to their disc; the kernels as the numpy reference."""
+    rng = np.random.default_rng(5)
+    dense = _plane(200_000, rng)
+    maps = {"dense": dense, "focus": _join(_focus(6000), dense)}
+    q = np.c_[0.2 + 0.6 * rng.random((200, 2)), np.zeros(200)]
+    q[:20, :2] = 0.5 + rng.normal(size=(20, 2)) * 1e-3
+    nq = np.tile([0.0, 0.0, 1.0], (len(q), 1))
+    for ph in maps.values():
+        ref = ReferencePhotonMap(ph, 1)
+        pm = PhotonMap(ph, 1, structure=structure, cell=0.05)
+        for est in ("classic", "radius"):
+            _assert_same(ref, pm, q, nq, 0.1, 64, 8, est, None)
+
+
 def test_estimators_match_the_reference_on_a_real_scene():
     """The global and caustic maps of the glass-ball Cornell box, queried at photon
     positions (walls, corners, the ball's contact, the caustic) with their normals."""
