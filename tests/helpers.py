@@ -58,3 +58,21 @@ def hits_from_inside(ctx, n, seed):
     """The surface hits (engine.bsdf.SurfaceHit) of rays_from_inside(ctx, n, seed)."""
     from engine.bsdf import surface_hit
     return surface_hit(ctx.geo, ctx.table, *rays_from_inside(ctx, n, seed))
+
+
+def assert_mis_matches_continuation(mis, mis2, cont, cont2, noise_limit, cont_spp=64,
+                                    mis_spp=64):
+    """Light sampling with MIS against the lobes' continuation alone (two unbiased
+    estimators of the same light), each rendered at two seeds (images (H, W, 3)):
+    MIS's pixel noise (the difference of its two renders: the image's own shape cancels)
+    must be below noise_limit x the continuation's, scaled to mis_spp samples, and the two
+    means must agree within 4 standard errors of the continuation's mean (or 2 %)."""
+    raw_cont = np.std(cont - cont2)
+    noise_mis = np.std(mis - mis2)
+    noise_cont = raw_cont * math.sqrt(cont_spp / mis_spp)
+    assert noise_cont > 0, "the continuation must see the light"
+    assert noise_mis < noise_limit * noise_cont, (noise_mis, noise_cont)
+    m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
+    se = raw_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
+    assert m_mis > 0
+    assert abs(m_mis - m_cont) <= max(4.0 * se, 0.02 * m_cont), (m_mis, m_cont, se)

@@ -5,7 +5,6 @@ cone (and its blend ring) covers the floor the camera sees: light sampling weigh
 power heuristic against the lobes' own sampling must give the continuation's mean (both
 unbiased) with far less noise, and a spot without a radius (a delta light, seen by
 shadow rays only) must light the highlight without sampling noise."""
-import math
 
 import numpy as np
 import pytest
@@ -14,6 +13,7 @@ import engine.integrator as integrator
 from engine.api import PaperScene
 from engine.scene import Material
 from engine.settings import RenderSettings
+from helpers import assert_mis_matches_continuation
 
 MATERIALS = {
     "metal": Material("metal", (0.9, 0.7, 0.5), metallic=1.0, roughness=0.35),
@@ -50,13 +50,7 @@ def test_spot_with_radius_mis_matches_continuation_with_less_noise(mat, monkeypa
         return m
     monkeypatch.setattr(integrator, "light_modes", continuation)
     cont, cont2 = _render(scene, 64, 1), _render(scene, 64, 2)
-    noise_mis, noise_cont = np.std(mis - mis2), np.std(cont - cont2)
-    assert noise_cont > 0, "the continuation must see the spot's disk (it has a radius)"
-    assert noise_mis < 0.4 * noise_cont, (noise_mis, noise_cont)
-    m_mis, m_cont = 0.5 * (mis.mean() + mis2.mean()), 0.5 * (cont.mean() + cont2.mean())
-    se = noise_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
-    assert m_mis > 0
-    assert abs(m_mis - m_cont) <= max(4.0 * se, 0.02 * m_cont), (m_mis, m_cont, se)
+    assert_mis_matches_continuation(mis, mis2, cont, cont2, 0.4)
 
 
 def test_spot_without_radius_is_seen_by_shadow_rays_only():
