@@ -172,3 +172,35 @@ def test_object_brightness_converged(converged, name):
     assert pixels >= 100, info
     assert se < TOLERANCE / 3, "too noisy to test 2 %: " + info
     assert abs(mean - 1) <= TOLERANCE, info
+
+
+# Two default renders through the exported scene (seeds 0 and 1): ~16 CPU s idle.
+@pytest.mark.slow
+def test_flip_at_equal_time_no_worse_than_cycles(reference):
+    """Issue 14: at equal time our HDR-FLIP is no worse than Cycles'. Equal time is fixed
+    by a measurement, not timed here: Cycles' samples in our default render's CPU time on
+    one machine (docs/accuracy_time.md: 177 spp), rounded up to cycles_equal_time's 192 spp
+    (Cycles' FLIP at seeds 1, 2 stored in the reference's .json by
+    tools/make_principled_reference.py). Our mean FLIP over seeds 0 and 1 at the default
+    settings (the whole image, against the same 2048-spp reference) must not exceed
+    Cycles' mean."""
+    pytest.importorskip("bpy")
+    pytest.importorskip("flip_evaluator")
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    import accuracy_scenes
+    from engine.render import render
+    from engine.settings import RenderSettings
+    ref_image, _ = reference
+    cycles = META["cycles_equal_time"]
+    assert cycles["samples"] >= 177 and len(cycles["flip"]) == 2
+    pm_scene, kwargs = accuracy_scenes.export_ours(NAME)
+    flips = []
+    for seed in (0, 1):
+        film = render(pm_scene, RenderSettings(**dict(kwargs, seed=seed)))
+        image = np.asarray(film.combined, np.float32)
+        assert image.shape == ref_image.shape and np.isfinite(image).all()
+        flips.append(accuracy_scenes.flip(image, ref_image))
+    info = (f"HDR-FLIP ours {np.round(flips, 5)} (seeds 0, 1) against Cycles at "
+            f"{cycles['samples']} spp {cycles['flip']} (seeds {cycles['seeds']})")
+    print(info)
+    assert np.mean(flips) <= np.mean(cycles["flip"]), info
