@@ -1,0 +1,458 @@
+"""Blender's Sky Texture (a world's Background colour) as the engine lights it: the sky
+baked into an equirectangular Environment (engine/lights/environment.py, importance
+sampled for shadow rays and photons) and the sun disc as a separate sun light.
+
+The model is Blender's Single Scattering sky (Blender 4.2-4.5's "Nishita"; Blender's
+intern/sky/source/sky_single_scattering.cpp, Cycles' scene/shader_nodes.cpp SkyTextureNode
+and kernel/svm/sky.h), reimplemented in numpy:
+
+  sky       single scattering of sunlight by air (Rayleigh) and aerosols (Mie, g = 0.76)
+            along the view ray through a spherical atmosphere (Earth radius 6360 km,
+            atmosphere 6420 km, scale heights 8 km and 1.2 km, an ozone layer 10-40 km
+            that only absorbs), at 21 wavelengths 380-780 nm, 32 midpoint steps along the
+            view ray and an 8-node Gauss-Laguerre quadrature for the optical depth
+            towards the sun; the spectrum -> CIE XYZ -> linear Rec.709 (clamped >= 0).
+            As Cycles, the sky is first tabulated in a 512 x 256 table (upper half used:
+            elevation = pi/2 t^2 per row, dense at the horizon; longitude relative to the
+            sun, mirrored) and looked up bilinearly; below the horizon the horizon's
+            colour fades as (1 + 2.5 z)^3, black from z = -0.4.
+  sun disc  radiance = sun irradiance x transmittance along the sun's direction / the
+            disc's solid angle, interpolated between the disc's bottom and top edge and
+            limb darkened by 1 - 0.6 (1 - sqrt(1 - (a / a_half)^2)); black below the
+            horizon. Here it is a sun light (engine/lights/sun.py) of angle sun_size and
+            the disc's irradiance (its radiance integrated over the disc: limb darkening
+            averages to 0.8), so it is sampled as a light, as Cycles samples the sky's
+            sun separately, instead of a few texels of the map.
+
+Conventions (Cycles'): sun_rotation 0 puts the sun towards +Y, increasing clockwise seen
+from above (towards +X); the sky seen along world direction d is the sky at
+rotation @ d (the Mapping node in front of the texture), as the Environment's.
+
+Units: radiance per unit Background strength (W / (m^2 sr) in Cycles' convention), the
+sun light's irradiance in W / m^2.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE")
+# The types baked here; the others are warned about by the caller.
+SUPPORTED_SKY_TYPES = ("SINGLE_SCATTERING",)
+# Blender 4.x spelling of the Single Scattering model.
+SKY_TYPE_ALIASES = {"NISHITA": "SINGLE_SCATTERING"}
+
+# Baked map: 1024 x 512 texels (0.35 degrees): twice the table's azimuth resolution
+# (512 columns over 360 degrees) and finer in elevation than the table above ~5 degrees,
+# so the map adds no visible error to Cycles' own bilinear table; 6 MB as float32.
+BAKE_WIDTH, BAKE_HEIGHT = 1024, 512
+TABLE_WIDTH, TABLE_HEIGHT = 512, 256
+
+# --- the atmosphere (Blender's intern/sky tables: 21 wavelengths, 380..780 nm) ----------
+RAYLEIGH_SCALE = 8e3       # m
+MIE_SCALE = 1.2e3          # m
+MIE_COEFF = 2e-5           # 1/m
+MIE_G = 0.76
+EARTH_RADIUS = 6360e3      # m
+ATMOSPHERE_RADIUS = 6420e3  # m
+STEPS = 32
+STEP_LAMBDA = 20.0         # nm
+# Sun spectral irradiance at the top of the atmosphere (W m^-2 nm^-1).
+SUN_IRRADIANCE = np.array([
+    1.45756829855592995315, 1.56596305559738380175, 1.65148449067670455293,
+    1.71496242737209314555, 1.75797983805020541226, 1.78256407885924539336,
+    1.79095108475838560302, 1.78541550133410664714, 1.76815554864306845317,
+    1.74122069647250410362, 1.70647127164943679389, 1.66556087452739887134,
+    1.61993437242451854274, 1.57083597368892080581, 1.51932335059305478886,
+    1.46628494965214395407, 1.41245852740172450623, 1.35844961970384092709,
+    1.30474913844739281998, 1.25174963272610817455, 1.19975998755420620867])
+RAYLEIGH_COEFF = np.array([
+    5.424820087636473e-05, 4.418549866505454e-05, 3.635151910165377e-05,
+    3.017929012024763e-05, 2.526320226989157e-05, 2.130859310621843e-05,
+    1.809838025320633e-05, 1.547057129129042e-05, 1.330284977336850e-05,
+    1.150184784075764e-05, 9.99557429990163e-06, 8.72799973630707e-06,
+    7.65513700977967e-06, 6.74217203751443e-06, 5.96134125832052e-06,
+    5.29034598065810e-06, 4.71115687557433e-06, 4.20910481110487e-06,
+    3.77218381260133e-06, 3.39051255477280e-06, 3.05591531679811e-06])
+OZONE_COEFF = np.array([
+    3.25126849861e-09, 5.85395365047e-09, 1.977191155085e-08, 7.309568762914e-08,
+    2.0084561514287e-07, 4.0383958096161e-07, 6.3551335912363e-07, 9.6707041180970e-07,
+    1.54797400424410e-06, 2.09038647223331e-06, 2.46128056164565e-06,
+    2.73551299461512e-06, 2.15125863128643e-06, 1.59051840791988e-06,
+    1.12356197979857e-06, 7.3527551487574e-07, 4.6450130357806e-07, 3.3096079921048e-07,
+    2.2512612292678e-07, 1.4879129266490e-07, 1.6828623364192e-07])
+# CIE 1931 colour matching functions at the same wavelengths (x, y, z).
+CMF_XYZ = np.array([
+    [0.00136800000, 0.00003900000, 0.00645000100], [0.01431000000, 0.00039600000, 0.06785001000],
+    [0.13438000000, 0.00400000000, 0.64560000000], [0.34828000000, 0.02300000000, 1.74706000000],
+    [0.29080000000, 0.06000000000, 1.66920000000], [0.09564000000, 0.13902000000, 0.81295010000],
+    [0.00490000000, 0.32300000000, 0.27200000000], [0.06327000000, 0.71000000000, 0.07824999000],
+    [0.29040000000, 0.95400000000, 0.02030000000], [0.59450000000, 0.99500000000, 0.00390000000],
+    [0.91630000000, 0.87000000000, 0.00165000100], [1.06220000000, 0.63100000000, 0.00080000000],
+    [0.85444990000, 0.38100000000, 0.00019000000], [0.44790000000, 0.17500000000, 0.00002000000],
+    [0.16490000000, 0.06100000000, 0.00000000000], [0.04677000000, 0.01700000000, 0.00000000000],
+    [0.01135916000, 0.00410200000, 0.00000000000], [0.00289932700, 0.00104700000, 0.00000000000],
+    [0.00069007860, 0.00024920000, 0.00000000000], [0.00016615050, 0.00006000000, 0.00000000000],
+    [0.00004150994, 0.00001499000, 0.00000000000]])
+# Gauss-Laguerre nodes (n = 8, scaled so the last node stays inside the atmosphere: x/25)
+# and weights w exp(x) / 25: the optical depth integral of a density that falls roughly
+# exponentially along the ray.
+QUADRATURE_NODES = np.array([0.006811185292, 0.03614807107, 0.09004346519, 0.1706680068,
+                             0.2818362161, 0.4303406404, 0.6296271457, 0.9145252695])
+QUADRATURE_WEIGHTS = np.array([0.01750893642, 0.04135477391, 0.06678839063, 0.09507698807,
+                               0.1283416365, 0.1707430204, 0.2327233347, 0.3562490486])
+# CIE XYZ -> linear Rec.709 as Blender's colour management converts the sky's XYZ
+# (see xyz_to_rec709).
+XYZ_TO_REC709 = np.array([[3.2404542, -1.5371385, -0.4985314],
+                          [-0.9692660, 1.8760108, 0.0415560],
+                          [0.0556434, -0.2040259, 1.0572252]])
+LIMB_DARKENING = 0.6
+MIN_SUN_SIZE = 0.0005  # Cycles clamps the disc's angular diameter (numerical issues)
+
+
+def xyz_to_rec709(xyz: np.ndarray) -> np.ndarray:
+    """(..., 3) CIE XYZ -> linear Rec.709, negative components clamped to 0 (Cycles'
+    xyz_to_rgb_clamped)."""
+    return np.maximum(np.asarray(xyz) @ XYZ_TO_REC709.T, 0.0)
+
+
+# --- the model --------------------------------------------------------------------------
+
+def _densities(height: np.ndarray) -> np.ndarray:
+    """(..., 3) relative densities of air, aerosols and ozone at heights (m) above sea
+    level: exponentials of scale height 8 km and 1.2 km; ozone a tent 10-40 km peaking
+    at 25 km."""
+    return np.stack([np.exp(-height / RAYLEIGH_SCALE), np.exp(-height / MIE_SCALE),
+                     np.maximum(0.0, 1.0 - np.abs(height - 25000.0) / 15000.0)], axis=-1)
+
+
+def _phases(mu: np.ndarray) -> np.ndarray:
+    """(..., 2) Rayleigh and Mie (Cornette-Shanks, g = 0.76) phase functions (1/sr) at
+    the cosine mu between the view ray and the sun."""
+    g2 = MIE_G * MIE_G
+    rayleigh = 3.0 / (16.0 * math.pi) * (1.0 + mu * mu)
+    mie = (3.0 * (1.0 - g2) * (1.0 + mu * mu)) / (
+        8.0 * math.pi * (2.0 + g2) * (1.0 + g2 - 2.0 * MIE_G * mu) ** 1.5)
+    return np.stack([rayleigh, mie], axis=-1)
+
+
+def _atmosphere_exit(pos: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Distance (m) from points pos (..., 3) inside the atmosphere along unit d (..., 3)
+    to its outer sphere."""
+    b = np.einsum("...i,...i->...", pos, d)
+    c = np.einsum("...i,...i->...", pos, pos) - ATMOSPHERE_RADIUS ** 2
+    return -b + np.sqrt(np.maximum(b * b - c, 0.0))
+
+
+def _earth_blocks(pos: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(...,) bool: the ray from pos along unit d (both (..., 3)) meets the Earth."""
+    b = np.einsum("...i,...i->...", pos, d)
+    c = np.einsum("...i,...i->...", pos, pos) - EARTH_RADIUS ** 2
+    return (d[..., 2] < 0) & (b * b - c >= 0)
+
+
+def optical_depth(pos: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(..., 3) column densities (m, per unit relative density) of air, aerosols and
+    ozone from pos (..., 3) along unit d (..., 3) out of the atmosphere."""
+    length = _atmosphere_exit(pos, d)
+    total = 0.0
+    for x, w in zip(QUADRATURE_NODES, QUADRATURE_WEIGHTS):
+        p = pos + (x * length)[..., None] * d
+        total = total + w * _densities(np.linalg.norm(p, axis=-1) - EARTH_RADIUS)
+    return total * length[..., None]
+
+
+def sun_direction_local(elevation: float) -> np.ndarray:
+    """Unit direction to the sun in the model's frame (sun at longitude 0: +X)."""
+    return np.array([math.cos(elevation), 0.0, math.sin(elevation)])
+
+
+def single_scattering_spectrum(dirs: np.ndarray, sun_elevation: float, altitude: float,
+                               air: float = 1.0, aerosol: float = 1.0,
+                               ozone: float = 1.0) -> np.ndarray:
+    """(N, 21) spectral radiance (W m^-2 sr^-1 nm^-1) of the sky along unit directions
+    dirs (N, 3) (model frame: +Z up, the sun at longitude 0) seen from `altitude` m above
+    sea level; sunlight scattered once, attenuated on its way in and out."""
+    dirs = np.asarray(dirs, np.float64).reshape(-1, 3)
+    n = len(dirs)
+    sun = sun_direction_local(sun_elevation)
+    origin = np.array([0.0, 0.0, EARTH_RADIUS + altitude])
+    length = _atmosphere_exit(np.broadcast_to(origin, dirs.shape), dirs)
+    seg = length / STEPS
+    scale = np.array([air, aerosol, ozone])
+    # extinction per unit column (air, aerosol, ozone) x wavelength: aerosols also absorb
+    # (extinction 1.11 x scattering)
+    ext = np.stack([RAYLEIGH_COEFF, np.full(21, 1.11 * MIE_COEFF), OZONE_COEFF])
+    phase = _phases(dirs @ sun)  # (N, 2)
+    spectrum = np.zeros((n, 21))
+    depth = np.zeros((n, 3))
+    for i in range(STEPS):
+        p = origin + ((i + 0.5) * seg)[:, None] * dirs
+        dens = scale * _densities(np.linalg.norm(p, axis=1) - EARTH_RADIUS)
+        depth += seg[:, None] * dens
+        lit = ~_earth_blocks(p, np.broadcast_to(sun, p.shape))
+        if not lit.any():
+            continue
+        total = depth[lit] + scale * optical_depth(p[lit], np.broadcast_to(sun, p[lit].shape))
+        attenuation = np.exp(-(total @ ext))  # (M, 21)
+        scatter = (phase[lit, 0] * dens[lit, 0])[:, None] * RAYLEIGH_COEFF + \
+            (phase[lit, 1] * dens[lit, 1] * MIE_COEFF)[:, None]
+        spectrum[lit] += attenuation * scatter * SUN_IRRADIANCE * seg[lit, None]
+    return spectrum
+
+
+def spectrum_to_xyz(spectrum: np.ndarray) -> np.ndarray:
+    """(..., 21) spectral radiance -> (..., 3) CIE XYZ (Riemann sum, 20 nm steps)."""
+    return (spectrum @ CMF_XYZ) * STEP_LAMBDA
+
+
+def sky_table(sun_elevation: float, altitude: float, air: float = 1.0,
+              aerosol: float = 1.0, ozone: float = 1.0, width: int = TABLE_WIDTH,
+              height: int = TABLE_HEIGHT) -> np.ndarray:
+    """(height, width, 3) XYZ table of the sky as Cycles tabulates it: row y >= height/2 at
+    elevation pi/2 (2y/height - 1)^2 (dense at the horizon), column x at longitude
+    2 pi x / width - pi relative to the sun, mirrored about the sun's side; row y <
+    height/2 the horizon row faded by (1 - 2.5 sin(lat))^3 with lat = pi/2 (2y/height -
+    1)^2 (black from sin(lat) = 0.4): the ground below the horizon."""
+    altitude = min(max(altitude, 1.0), 59999.0)
+    half_w, half_h = width // 2, height // 2
+    ys = np.arange(half_h, height)
+    lat = 0.5 * math.pi * (ys / half_h - 1.0) ** 2
+    lon = 2.0 * math.pi / width * np.arange(half_w) - math.pi
+    la, lo = np.meshgrid(lat, lon, indexing="ij")
+    dirs = np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], axis=-1)
+    xyz = spectrum_to_xyz(single_scattering_spectrum(dirs.reshape(-1, 3), sun_elevation,
+                                                     altitude, air, aerosol, ozone))
+    table = np.zeros((height, width, 3))
+    half = xyz.reshape(len(ys), half_w, 3)
+    table[ys, :half_w] = half
+    table[ys[:, None], (width - 1 - np.arange(half_w))[None, :]] = half
+    low = np.arange(half_h)
+    z = np.sin(0.5 * math.pi * (low / half_h - 1.0) ** 2)
+    fade = np.where(z < 0.4, (1.0 - 2.5 * z) ** 3, 0.0)
+    table[low] = table[half_h][None] * fade[:, None, None]
+    return table
+
+
+def _table_lookup(table: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of table (H, W, 3) at image coordinates x, y in [0, 1] (texel
+    centres at (i + 0.5) / size, clamped at the edges: Cycles' Linear / Extend)."""
+    H, W = table.shape[:2]
+    fx = np.clip(x * W - 0.5, 0.0, W - 1.0)
+    fy = np.clip(y * H - 0.5, 0.0, H - 1.0)
+    x0 = np.minimum(np.floor(fx).astype(np.int64), W - 1)
+    y0 = np.minimum(np.floor(fy).astype(np.int64), H - 1)
+    x1 = np.minimum(x0 + 1, W - 1)
+    y1 = np.minimum(y0 + 1, H - 1)
+    tx = (fx - x0)[..., None]
+    ty = (fy - y0)[..., None]
+    return ((1 - tx) * (1 - ty) * table[y0, x0] + tx * (1 - ty) * table[y0, x1]
+            + (1 - tx) * ty * table[y1, x0] + tx * ty * table[y1, x1])
+
+
+def earth_intersection_angle(altitude: float) -> float:
+    """Angle (radians, > 0) below the horizon at which the Earth's limb hides the sky
+    from `altitude` m."""
+    altitude = min(max(altitude, 1.0), 59999.0)
+    return math.acos(EARTH_RADIUS / (EARTH_RADIUS + altitude))
+
+
+def sun_edges_xyz(sun_elevation: float, sun_size: float, altitude: float, air: float = 1.0,
+                  aerosol: float = 1.0):
+    """XYZ radiance of the sun disc at its bottom and top edge: the top-of-atmosphere
+    irradiance / the disc's solid angle, attenuated by air and aerosols (not ozone, as
+    Blender's) along the edge's direction (clamped at the horizon); black when the whole
+    disc is below the horizon."""
+    altitude = min(max(altitude, 1.0), 59999.0)
+    half = sun_size / 2.0
+    solid = 2.0 * math.pi * (1.0 - math.cos(half))
+    top = sun_elevation + half
+    if not top > 0:
+        return np.zeros(3), np.zeros(3)
+    out = []
+    origin = np.array([[0.0, 0.0, EARTH_RADIUS + altitude]])
+    for e in (max(sun_elevation - half, 0.0), top):
+        depth = optical_depth(origin, sun_direction_local(e)[None])[0]
+        tau = RAYLEIGH_COEFF * depth[0] * air + 1.11 * MIE_COEFF * depth[1] * aerosol
+        out.append(spectrum_to_xyz(SUN_IRRADIANCE * np.exp(-tau) / solid))
+    return out[0], out[1]
+
+
+# --- the node ---------------------------------------------------------------------------
+
+@dataclass
+class SkyTexture:
+    """A Sky Texture node's settings (Blender's names and units: angles in radians,
+    altitude in m, densities relative to Earth's). sky_type: SKY_TYPES (or 4.x's NISHITA).
+    strength: the Background node's strength (scalar or RGB)."""
+
+    sky_type: str = "SINGLE_SCATTERING"
+    sun_disc: bool = True
+    sun_size: float = math.radians(0.545)
+    sun_intensity: float = 1.0
+    sun_elevation: float = math.radians(15.0)
+    sun_rotation: float = 0.0
+    altitude: float = 100.0
+    air_density: float = 1.0
+    aerosol_density: float = 1.0
+    ozone_density: float = 1.0
+    strength: object = 1.0
+    rotation: np.ndarray | None = None
+    name: str = "sky"
+    _table: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        self.sky_type = SKY_TYPE_ALIASES.get(str(self.sky_type).upper(), str(self.sky_type).upper())
+        who = f"sky '{self.name}'"
+        if self.sky_type not in SUPPORTED_SKY_TYPES:
+            raise ValueError(f"{who}: sky type {self.sky_type} is not supported (only "
+                             f"{', '.join(SUPPORTED_SKY_TYPES)})")
+        for key in ("sun_size", "sun_intensity", "sun_elevation", "sun_rotation", "altitude",
+                    "air_density", "aerosol_density", "ozone_density"):
+            v = getattr(self, key)
+            if not math.isfinite(float(v)):
+                raise ValueError(f"{who} {key}: expected a finite number, got {v!r}")
+            setattr(self, key, float(v))
+        for key in ("sun_size", "sun_intensity", "air_density", "aerosol_density",
+                    "ozone_density"):
+            if getattr(self, key) < 0:
+                raise ValueError(f"{who} {key}: expected a value >= 0, got {getattr(self, key)}")
+        self.elevation, self.azimuth = self._sun_position()
+
+    def _sun_position(self):
+        """(elevation in [-pi/2, pi/2], rotation) as Cycles folds an animated sun
+        (SkyTextureNode::simplify_settings): an elevation past the zenith turns the sun
+        round by pi."""
+        e = math.fmod(self.sun_elevation, 2.0 * math.pi)
+        r = self.sun_rotation
+        if abs(e) >= math.pi:
+            e -= math.copysign(2.0 * math.pi, e)
+        if e >= 0.5 * math.pi or e <= -0.5 * math.pi:
+            e = math.copysign(math.pi, e) - e
+            r += math.pi
+        return e, r
+
+    @property
+    def sun_size_clamped(self) -> float:
+        return max(self.sun_size, MIN_SUN_SIZE)
+
+    def sun_direction(self) -> np.ndarray:
+        """Unit direction towards the sun's centre in texture space (sun_rotation 0: +Y,
+        turning towards +X)."""
+        e, r = self.elevation, self.azimuth
+        return np.array([math.cos(e) * math.sin(r), math.cos(e) * math.cos(r), math.sin(e)])
+
+    @property
+    def table(self) -> np.ndarray:
+        if self._table is None:
+            self._table = sky_table(self.elevation, self.altitude, self.air_density,
+                                    self.aerosol_density, self.ozone_density)
+        return self._table
+
+    def sky_xyz(self, d: np.ndarray) -> np.ndarray:
+        """(N, 3) XYZ radiance of the sky without the sun disc along texture-space
+        directions d (N, 3) (unit or not), as Cycles looks its table up."""
+        d = np.asarray(d, np.float64).reshape(-1, 3)
+        d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+        z = np.clip(d[:, 2], -1.0, 1.0)
+        elev = np.arcsin(z)
+        # longitude relative to the sun: the table's x = 0.5 looks at the sun
+        sun = self.sun_direction()
+        phi = np.arctan2(d[:, 1], d[:, 0]) - math.atan2(sun[1], sun[0])
+        x = np.mod(phi / (2.0 * math.pi) + 0.5, 1.0)
+        y = np.sqrt(np.abs(elev) / (0.5 * math.pi)) * np.sign(elev) * 0.5 + 0.5
+        return _table_lookup(self.table, x, y)
+
+    def sky_rgb(self, d: np.ndarray) -> np.ndarray:
+        """(N, 3) linear Rec.709 radiance of the sky (no sun disc) x strength along
+        texture-space directions d (N, 3)."""
+        s = np.broadcast_to(np.asarray(self.strength, np.float64), (3,))
+        return xyz_to_rec709(self.sky_xyz(d)) * s
+
+    def sun_rgb(self, d: np.ndarray) -> np.ndarray:
+        """(N, 3) radiance of the sun disc (x sun_intensity x strength) along texture-space
+        unit directions d (N, 3); 0 outside the disc, below the horizon or with the disc
+        off."""
+        d = np.asarray(d, np.float64).reshape(-1, 3)
+        out = np.zeros((len(d), 3))
+        if not self.sun_disc:
+            return out
+        size = self.sun_size_clamped
+        half = 0.5 * size
+        sun = self.sun_direction()
+        angle = np.arccos(np.clip(d @ sun, -1.0, 1.0))
+        elev = np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
+        inside = (angle < half) & (d[:, 2] >= 0) & (elev > -earth_intersection_angle(self.altitude))
+        if not inside.any():
+            return out
+        bottom, top = sun_edges_xyz(self.elevation, size, self.altitude, self.air_density,
+                                    self.aerosol_density)
+        t = ((elev[inside] - self.elevation) / size + 0.5)[:, None]
+        xyz = bottom + t * (top - bottom)
+        limb = 1.0 - LIMB_DARKENING * (1.0 - np.sqrt(1.0 - (angle[inside] / half) ** 2))
+        s = np.broadcast_to(np.asarray(self.strength, np.float64), (3,))
+        out[inside] = xyz_to_rec709(xyz) * limb[:, None] * self.sun_intensity * s
+        return out
+
+    def sun_irradiance(self, n: int = 96) -> np.ndarray:
+        """RGB irradiance (W / m^2) of the sun disc on a surface facing it: the disc's
+        radiance integrated over its solid angle (a midpoint rule on n x n points of the
+        disc's tangent plane, mapped to equal solid angles)."""
+        if not self.sun_disc:
+            return np.zeros(3)
+        half = 0.5 * self.sun_size_clamped
+        sun = self.sun_direction()
+        up = np.array([0.0, 0.0, 1.0]) if abs(sun[2]) < 0.999 else np.array([1.0, 0.0, 0.0])
+        t = np.cross(up, sun)
+        t /= np.linalg.norm(t)
+        b = np.cross(sun, t)
+        g = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+        gx, gy = np.meshgrid(g, g, indexing="ij")
+        r2 = gx * gx + gy * gy
+        keep = r2 < 1.0
+        # a point at radius r of the unit disc: cos(angle) = 1 - r^2 (1 - cos half), equal
+        # areas of the disc -> equal solid angles of the cap
+        cos_a = 1.0 - r2[keep] * (1.0 - math.cos(half))
+        sin_a = np.sqrt(np.maximum(1.0 - cos_a * cos_a, 0.0))
+        rr = np.sqrt(r2[keep])
+        ux = np.where(rr > 0, gx[keep] / np.maximum(rr, 1e-300), 1.0)
+        uy = np.where(rr > 0, gy[keep] / np.maximum(rr, 1e-300), 0.0)
+        d = (cos_a[:, None] * sun + (sin_a * ux)[:, None] * t + (sin_a * uy)[:, None] * b)
+        solid = 2.0 * math.pi * (1.0 - math.cos(half))
+        # each kept cell covers solid / (pi n^2 / 4) of the cap
+        return self.sun_rgb(d).sum(axis=0) * solid * 4.0 / (math.pi * n * n)
+
+    def bake(self, width: int = BAKE_WIDTH, height: int = BAKE_HEIGHT) -> np.ndarray:
+        """(height, width, 3) float32 equirectangular radiance of the sky without the sun
+        disc, x strength, in the Environment's layout (engine/lights/environment.py)."""
+        theta = math.pi * (np.arange(height) + 0.5) / height
+        u = (np.arange(width) + 0.5) / width
+        phi = 2.0 * math.pi * (0.5 - u)
+        th, ph = np.meshgrid(theta, phi, indexing="ij")
+        d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1)
+        return self.sky_rgb(d.reshape(-1, 3)).reshape(height, width, 3).astype(np.float32)
+
+    def environment(self, width: int = BAKE_WIDTH, height: int = BAKE_HEIGHT):
+        """The engine Environment of the sky (without the sun disc); its `sun_light` is
+        sun_light_params() and its `sky` this SkyTexture."""
+        from .environment import Environment
+        env = Environment(self.bake(width, height), 1.0, self.rotation, "Linear",
+                          name=self.name)
+        env.sky = self
+        env.sun_light = self.sun_light_params()
+        return env
+
+    def sun_light_params(self):
+        """None (disc off, or below the horizon) or a dict for engine/scene.py Light:
+        kind SUN, direction of travel in world space, power 1 x colour = the disc's RGB
+        irradiance, angle = sun_size; seen by camera rays as Cycles' sky shows its disc."""
+        E = self.sun_irradiance()
+        if not np.any(E > 0):
+            return None
+        d = self.sun_direction()
+        if self.rotation is not None:
+            d = np.asarray(self.rotation, np.float64).T @ d  # texture -> world
+        return dict(kind="SUN", power=1.0, color=E, direction=-d, angle=self.sun_size_clamped,
+                    visible_camera=True, name=f"{self.name} sun")
