@@ -147,12 +147,13 @@ def _check_coordinates(world, socket, warnings):
 def _mapping_rotation(pm, world, env_node, warnings):
     """Rotation (world direction -> texture direction) of a Mapping node in front of the
     environment texture, or None."""
-    m = _from(env_node.inputs["Vector"])
+    vector = env_node.inputs.get("Vector")  # (a freshly added Sky Texture's evaluated
+    m = _from(vector) if vector is not None else None  # copy may not list it yet)
     if m is None:
         return None
     who = f"world '{world.name}'"
     if m.type == "TEX_COORD":
-        _check_coordinates(world, env_node.inputs["Vector"], warnings)
+        _check_coordinates(world, vector, warnings)
         return None
     if m.type != "MAPPING":
         warnings.append(f"{who}: node '{m.name}' ({m.type}) in front of '{env_node.name}' "

@@ -138,30 +138,30 @@ def _phases(mu: np.ndarray) -> np.ndarray:
     return np.stack([rayleigh, mie], axis=-1)
 
 
-def _atmosphere_exit(pos: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Distance (m) from points pos (..., 3) inside the atmosphere along unit d (..., 3)
-    to its outer sphere."""
-    b = np.einsum("...i,...i->...", pos, d)
-    c = np.einsum("...i,...i->...", pos, pos) - ATMOSPHERE_RADIUS ** 2
-    return -b + np.sqrt(np.maximum(b * b - c, 0.0))
+def _exit_length(r2: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (m) along a unit direction to the atmosphere's outer sphere from a point
+    at squared distance r2 from the Earth's centre, b = the point . the direction."""
+    return -b + np.sqrt(np.maximum(b * b - (r2 - ATMOSPHERE_RADIUS ** 2), 0.0))
 
 
-def _earth_blocks(pos: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """(...,) bool: the ray from pos along unit d (both (..., 3)) meets the Earth."""
-    b = np.einsum("...i,...i->...", pos, d)
-    c = np.einsum("...i,...i->...", pos, pos) - EARTH_RADIUS ** 2
-    return (d[..., 2] < 0) & (b * b - c >= 0)
+def _column(r2: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(..., 3) column densities (m, per unit relative density) of air, aerosols and
+    ozone from a point (squared distance r2 from the centre) along a unit direction (b =
+    point . direction) out of the atmosphere: Gauss-Laguerre nodes along the path; a
+    node at distance t is at radius sqrt(r2 + 2 t b + t^2)."""
+    length = _exit_length(r2, b)
+    total = 0.0
+    for x, w in zip(QUADRATURE_NODES, QUADRATURE_WEIGHTS):
+        t = x * length
+        total = total + w * _densities(np.sqrt(r2 + t * (2.0 * b + t)) - EARTH_RADIUS)
+    return total * length[..., None]
 
 
 def optical_depth(pos: np.ndarray, d: np.ndarray) -> np.ndarray:
     """(..., 3) column densities (m, per unit relative density) of air, aerosols and
     ozone from pos (..., 3) along unit d (..., 3) out of the atmosphere."""
-    length = _atmosphere_exit(pos, d)
-    total = 0.0
-    for x, w in zip(QUADRATURE_NODES, QUADRATURE_WEIGHTS):
-        p = pos + (x * length)[..., None] * d
-        total = total + w * _densities(np.linalg.norm(p, axis=-1) - EARTH_RADIUS)
-    return total * length[..., None]
+    pos = np.asarray(pos, np.float64)
+    return _column(np.einsum("...i,...i->...", pos, pos), np.einsum("...i,...i->...", pos, d))
 
 
 def sun_direction_local(elevation: float) -> np.ndarray:
@@ -174,33 +174,45 @@ def single_scattering_spectrum(dirs: np.ndarray, sun_elevation: float, altitude:
                                ozone: float = 1.0) -> np.ndarray:
     """(N, 21) spectral radiance (W m^-2 sr^-1 nm^-1) of the sky along unit directions
     dirs (N, 3) (model frame: +Z up, the sun at longitude 0) seen from `altitude` m above
-    sea level; sunlight scattered once, attenuated on its way in and out."""
+    sea level; sunlight scattered once at the midpoints of 32 equal steps to the
+    atmosphere's edge, attenuated on its way in and out (Earth's shadow: none where the
+    sun is hidden)."""
     dirs = np.asarray(dirs, np.float64).reshape(-1, 3)
-    n = len(dirs)
     sun = sun_direction_local(sun_elevation)
-    origin = np.array([0.0, 0.0, EARTH_RADIUS + altitude])
-    length = _atmosphere_exit(np.broadcast_to(origin, dirs.shape), dirs)
-    seg = length / STEPS
+    r0 = EARTH_RADIUS + altitude
+    # The camera sits at (0, 0, r0): a point s along d is at squared radius
+    # r0^2 + 2 s r0 d_z + s^2 and has point . sun = r0 sun_z + s (d . sun).
+    dz = dirs[:, 2]
+    mu = dirs @ sun
+    seg = _exit_length(np.full(len(dirs), r0 * r0), r0 * dz) / STEPS
     scale = np.array([air, aerosol, ozone])
     # extinction per unit column (air, aerosol, ozone) x wavelength: aerosols also absorb
     # (extinction 1.11 x scattering)
     ext = np.stack([RAYLEIGH_COEFF, np.full(21, 1.11 * MIE_COEFF), OZONE_COEFF])
-    phase = _phases(dirs @ sun)  # (N, 2)
-    spectrum = np.zeros((n, 21))
-    depth = np.zeros((n, 3))
+    phase = _phases(mu)  # (N, 2)
+    spectrum = np.zeros((len(dirs), 21))
+    depth = np.zeros((len(dirs), 3))
     for i in range(STEPS):
-        p = origin + ((i + 0.5) * seg)[:, None] * dirs
-        dens = scale * _densities(np.linalg.norm(p, axis=1) - EARTH_RADIUS)
+        s = (i + 0.5) * seg
+        r2 = r0 * r0 + s * (2.0 * r0 * dz + s)
+        dens = scale * _densities(np.sqrt(r2) - EARTH_RADIUS)
         depth += seg[:, None] * dens
-        lit = ~_earth_blocks(p, np.broadcast_to(sun, p.shape))
+        b = r0 * sun[2] + s * mu
+        # Blender's test: the sun ray heads down and its line meets the Earth's sphere.
+        lit = ~((sun[2] < 0) & (b * b - (r2 - EARTH_RADIUS ** 2) >= 0))
         if not lit.any():
             continue
-        total = depth[lit] + scale * optical_depth(p[lit], np.broadcast_to(sun, p[lit].shape))
-        attenuation = np.exp(-(total @ ext))  # (M, 21)
-        scatter = (phase[lit, 0] * dens[lit, 0])[:, None] * RAYLEIGH_COEFF + \
-            (phase[lit, 1] * dens[lit, 1] * MIE_COEFF)[:, None]
-        spectrum[lit] += attenuation * scatter * SUN_IRRADIANCE * seg[lit, None]
-    return spectrum
+        total = depth + scale * _column(r2, b)
+        # in place: (N, 21) temporaries dominate the cost
+        attenuation = total @ ext
+        np.negative(attenuation, out=attenuation)
+        np.exp(attenuation, out=attenuation)
+        w = lit * seg
+        term = np.multiply.outer(w * phase[:, 0] * dens[:, 0], RAYLEIGH_COEFF)
+        term += (w * phase[:, 1] * dens[:, 1] * MIE_COEFF)[:, None]
+        term *= attenuation
+        spectrum += term
+    return spectrum * SUN_IRRADIANCE
 
 
 def spectrum_to_xyz(spectrum: np.ndarray) -> np.ndarray:
@@ -242,14 +254,16 @@ def _table_lookup(table: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray
     H, W = table.shape[:2]
     fx = np.clip(x * W - 0.5, 0.0, W - 1.0)
     fy = np.clip(y * H - 0.5, 0.0, H - 1.0)
-    x0 = np.minimum(np.floor(fx).astype(np.int64), W - 1)
-    y0 = np.minimum(np.floor(fy).astype(np.int64), H - 1)
+    x0 = np.minimum(fx.astype(np.int64), W - 1)
+    y0 = np.minimum(fy.astype(np.int64), H - 1)
     x1 = np.minimum(x0 + 1, W - 1)
     y1 = np.minimum(y0 + 1, H - 1)
-    tx = (fx - x0)[..., None]
-    ty = (fy - y0)[..., None]
-    return ((1 - tx) * (1 - ty) * table[y0, x0] + tx * (1 - ty) * table[y0, x1]
-            + (1 - tx) * ty * table[y1, x0] + tx * ty * table[y1, x1])
+    tx = (fx - x0)[:, None]
+    ty = (fy - y0)[:, None]
+    flat = table.reshape(-1, 3)
+    top = flat.take(y0 * W + x0, axis=0) * (1.0 - tx) + flat.take(y0 * W + x1, axis=0) * tx
+    low = flat.take(y1 * W + x0, axis=0) * (1.0 - tx) + flat.take(y1 * W + x1, axis=0) * tx
+    return top * (1.0 - ty) + low * ty
 
 
 def earth_intersection_angle(altitude: float) -> float:
@@ -301,6 +315,8 @@ class SkyTexture:
     strength: object = 1.0
     rotation: np.ndarray | None = None
     name: str = "sky"
+    # Cycles' table size; smaller only to test quickly
+    table_size: tuple = (TABLE_WIDTH, TABLE_HEIGHT)
     _table: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self):
@@ -348,7 +364,8 @@ class SkyTexture:
     def table(self) -> np.ndarray:
         if self._table is None:
             self._table = sky_table(self.elevation, self.altitude, self.air_density,
-                                    self.aerosol_density, self.ozone_density)
+                                    self.aerosol_density, self.ozone_density,
+                                    *self.table_size)
         return self._table
 
     def sky_xyz(self, d: np.ndarray) -> np.ndarray:
