@@ -147,8 +147,10 @@ def _check_coordinates(world, socket, warnings):
 def _mapping_rotation(pm, world, env_node, warnings):
     """Rotation (world direction -> texture direction) of a Mapping node in front of the
     environment texture, or None."""
-    vector = env_node.inputs.get("Vector")  # (a freshly added Sky Texture's evaluated
-    m = _from(vector) if vector is not None else None  # copy may not list it yet)
+    # By iteration: inputs["Vector"] skips a socket flagged unavailable, as a Sky
+    # Texture's is until its tree updates after the sky type changed.
+    vector = next((s for s in env_node.inputs if s.name == "Vector"), None)
+    m = _from(vector) if vector is not None else None
     if m is None:
         return None
     who = f"world '{world.name}'"
