@@ -6,10 +6,11 @@ Read as Cycles renders it: Background node's Color x Strength. Color may be a co
 an RGB node, or an Environment Texture (equirectangular, from its file or packed),
 optionally behind a Mapping node (its rotation; Point, Vector, Normal or Texture type) fed
 by the Texture Coordinate node's Generated / Object output or nothing (the ray direction
-in world shading), or a Sky Texture of type Single Scattering (4.x: Nishita), behind the
-same Mapping: the engine computes the sky as Cycles does (engine/lights/sky.py), bakes it
-into an environment map and adds its sun disc as a sun light (`sky_sun_lights`). The other
-sky types warn and use the world's viewport colour x strength.
+in world shading), or a Sky Texture of type Single Scattering (4.x: Nishita) or Multiple
+Scattering (5.0's default), behind the same Mapping: the engine computes the sky as Cycles
+does (engine/lights/sky.py), bakes it into an environment map and adds its sun disc as a
+sun light (`sky_sun_lights`). Preetham and Hosek / Wilkie warn and use the world's
+viewport colour x strength.
 """
 from __future__ import annotations
 
@@ -189,14 +190,14 @@ def _mapping_rotation(pm, world, env_node, warnings):
 def _sky(pm, world, node, strength, warnings):
     """engine Environment baked from a Sky Texture node (engine/lights/sky.py), with the
     sun disc's light parameters as its `sun_light` (None without a disc); or None after a
-    warning (sky types other than Single Scattering)."""
+    warning (Preetham, Hosek / Wilkie)."""
     from importlib import import_module
     sky_mod = import_module(pm.__name__ + ".lights.sky")
     who = f"world '{world.name}': Sky Texture '{node.name}'"
     sky_type = sky_mod.SKY_TYPE_ALIASES.get(str(node.sky_type), str(node.sky_type))
     if sky_type not in sky_mod.SUPPORTED_SKY_TYPES:
-        warnings.append(f"{who}: sky type {sky_type} is not supported (Single Scattering "
-                        "is); using the world viewport colour "
+        warnings.append(f"{who}: sky type {sky_type} is not supported (Single and "
+                        "Multiple Scattering are); using the world viewport colour "
                         f"{np.round(tuple(world.color)[:3], 3).tolist()} x strength")
         return None
     rotation = _mapping_rotation(pm, world, node, warnings)

@@ -2,9 +2,13 @@
 baked into an equirectangular Environment (engine/lights/environment.py, importance
 sampled for shadow rays and photons) and the sun disc as a separate sun light.
 
-The model is Blender's Single Scattering sky (Blender 4.2-4.5's "Nishita"; Blender's
-intern/sky/source/sky_single_scattering.cpp, Cycles' scene/shader_nodes.cpp SkyTextureNode
-and kernel/svm/sky.h), reimplemented in numpy:
+Two of Blender's models, reimplemented in numpy from Blender's intern/sky/source/ and
+Cycles' scene/shader_nodes.cpp SkyTextureNode and kernel/svm/sky.h (checked against Cycles
+5.0.1 through the bpy wheel: tests/test_sky.py): Single Scattering (Blender 4.2-4.5's
+"Nishita", described below) and Multiple Scattering (5.0's default: four wavelengths, a
+transmittance table, a fitted multiple-scattering term and light from a grey ground; the
+table covers both hemispheres, the sun disc sets at the Earth's limb; see its section).
+Preetham and Hosek / Wilkie are not here.
 
   sky       single scattering of sunlight by air (Rayleigh) and aerosols (Mie, g = 0.76)
             along the view ray through a spherical atmosphere (Earth radius 6360 km,
@@ -12,14 +16,14 @@ and kernel/svm/sky.h), reimplemented in numpy:
             that only absorbs), at 21 wavelengths 380-780 nm, 32 midpoint steps along the
             view ray and an 8-node Gauss-Laguerre quadrature for the optical depth
             towards the sun; the spectrum -> CIE XYZ -> linear Rec.709 (clamped >= 0).
-            As Cycles, the sky is first tabulated in a 512 x 256 table (upper half used:
+            As Cycles, the sky is first tabulated in a 512 x 256 table (upper half:
             elevation = pi/2 t^2 per row, dense at the horizon; longitude relative to the
-            sun, mirrored) and looked up bilinearly; below the horizon the horizon's
-            colour fades as (1 + 2.5 z)^3, black from z = -0.4.
+            sun, mirrored; lower half: the horizon's colour faded by (1 - 2.5 |z|)^3,
+            black from |z| = 0.4) and looked up bilinearly.
   sun disc  radiance = sun irradiance x transmittance along the sun's direction / the
             disc's solid angle, interpolated between the disc's bottom and top edge and
             limb darkened by 1 - 0.6 (1 - sqrt(1 - (a / a_half)^2)); black below the
-            horizon. Here it is a sun light (engine/lights/sun.py) of angle sun_size and
+            horizon (Multiple Scattering: below the Earth's limb). Here it is a sun light (engine/lights/sun.py) of angle sun_size and
             the disc's irradiance (its radiance integrated over the disc: limb darkening
             averages to 0.8), so it is sampled as a light, as Cycles samples the sky's
             sun separately, instead of a few texels of the map.
@@ -33,6 +37,7 @@ sun light's irradiance in W / m^2.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -40,7 +45,7 @@ import numpy as np
 
 SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE")
 # The types baked here; the others are warned about by the caller.
-SUPPORTED_SKY_TYPES = ("SINGLE_SCATTERING",)
+SUPPORTED_SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING")
 # Blender 4.x spelling of the Single Scattering model.
 SKY_TYPE_ALIASES = {"NISHITA": "SINGLE_SCATTERING"}
 
@@ -266,13 +271,6 @@ def _table_lookup(table: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray
     return top * (1.0 - ty) + low * ty
 
 
-def earth_intersection_angle(altitude: float) -> float:
-    """Angle (radians, > 0) below the horizon at which the Earth's limb hides the sky
-    from `altitude` m."""
-    altitude = min(max(altitude, 1.0), 59999.0)
-    return math.acos(EARTH_RADIUS / (EARTH_RADIUS + altitude))
-
-
 def sun_edges_xyz(sun_elevation: float, sun_size: float, altitude: float, air: float = 1.0,
                   aerosol: float = 1.0):
     """XYZ radiance of the sun disc at its bottom and top edge: the top-of-atmosphere
@@ -292,6 +290,230 @@ def sun_edges_xyz(sun_elevation: float, sun_size: float, altitude: float, air: f
         tau = RAYLEIGH_COEFF * depth[0] * air + 1.11 * MIE_COEFF * depth[1] * aerosol
         out.append(spectrum_to_xyz(SUN_IRRADIANCE * np.exp(-tau) / solid))
     return out[0], out[1]
+
+
+# --- Multiple Scattering (Blender 5.0's default; intern/sky/source/
+# sky_multiple_scattering.cpp: Fernando Garcia Linan's spectral sky, MIT licence) ------
+# Four wavelengths (630, 560, 490, 430 nm), heights in km, single scattering marched in
+# 64 steps with Hillaire's energy-conserving step integral plus a fitted multiple
+# scattering term and second-order light from a ground of albedo 0.3.
+MS_EARTH_RADIUS = 6371.0      # km
+MS_ATMOSPHERE_RADIUS = 6471.0  # km (100 km thick)
+MS_THICKNESS = 100.0
+MS_STEPS = 64
+MS_LUT_X, MS_LUT_Y = 256, 64  # transmittance table: cos(sun zenith) x altitude
+MS_G = 0.8
+MS_GROUND_ALBEDO = 0.3
+MS_SUN_IRRADIANCE = np.array([1.679, 1.828, 1.986, 1.307])
+MS_MOLECULAR_SCATTERING = np.array([6.605e-3, 1.067e-2, 1.842e-2, 3.156e-2])
+MS_OZONE_CROSS_SECTION = np.array([3.472e-25, 3.914e-25, 1.349e-25, 11.03e-27])
+MS_OZONE_DOBSON = 334.5
+MS_AEROSOL_ABSORPTION = np.array([2.8722e-24, 4.6168e-24, 7.9706e-24, 1.3578e-23])
+MS_AEROSOL_SCATTERING = np.array([1.5908e-22, 1.7711e-22, 2.0942e-22, 2.4033e-22])
+MS_AEROSOL_BASE_DENSITY = 1.3681e20
+MS_AEROSOL_BACKGROUND_DENSITY = 2e6
+MS_AEROSOL_HEIGHT_SCALE = 0.73
+# rows: the four wavelengths' contributions to X, Y, Z
+MS_SPECTRAL_XYZ = np.array([
+    [53.386917738564668023, 22.981337506691024754, 0.0],
+    [43.904844466369358263, 71.347795700053393866, 0.102506867965741307],
+    [1.6137278251608962005, 18.422960591455485011, 31.742921188390805758],
+    [20.762668673810577145, 2.3614213523314368527, 110.48009643252140334]])
+
+
+def _ms_coefficients(h, air, aerosol, ozone):
+    """(aerosol absorption, aerosol scattering, molecular absorption, molecular
+    scattering), each (..., 4) in 1/km, at heights h (...,) km."""
+    h = np.asarray(h, np.float64)[..., None]
+    a_dens = aerosol * MS_AEROSOL_BASE_DENSITY * (
+        np.exp(-h / MS_AEROSOL_HEIGHT_SCALE)
+        + MS_AEROSOL_BACKGROUND_DENSITY / MS_AEROSOL_BASE_DENSITY)
+    log_h = np.log(np.maximum(h, 1e-4))
+    o_dens = 3.78547397e20 * np.exp(-(log_h - 3.22261) ** 2 * 5.55555555 - log_h)
+    return (MS_AEROSOL_ABSORPTION * a_dens, MS_AEROSOL_SCATTERING * a_dens,
+            ozone * MS_OZONE_CROSS_SECTION * MS_OZONE_DOBSON * o_dens,
+            air * MS_MOLECULAR_SCATTERING * np.exp(-0.07771971 * np.power(h, 1.16364243)))
+
+
+def _ms_extinction(h, air, aerosol, ozone):
+    aa, as_, ma, ms = _ms_coefficients(h, air, aerosol, ozone)
+    return aa + as_ + ma + ms
+
+
+def _ms_sphere_hit(r2, b, radius):
+    """Blender's ray_sphere_intersection for a point at squared radius r2 (km^2) and a
+    unit direction with point . direction = b: the exit distance from inside, the near
+    hit from outside, -1 for a miss."""
+    c = r2 - radius * radius
+    d = b * b - c
+    sq = np.sqrt(np.maximum(d, 0.0))
+    t = np.where(d >= b * b, -b + sq, -b - sq)
+    return np.where(((c > 0) & (b > 0)) | (d < 0), -1.0, t)
+
+
+def ms_transmittance(cos_theta, normalized_altitude, air=1.0, aerosol=1.0, ozone=1.0):
+    """(..., 4) transmittance to the top of the atmosphere from normalized_altitude (0 at
+    the ground, 1 at the top) towards a direction of zenith cosine cos_theta: 64
+    midpoint steps (Blender's get_transmittance; the Earth is not tested)."""
+    c = np.asarray(cos_theta, np.float64)
+    r = MS_EARTH_RADIUS + np.asarray(normalized_altitude, np.float64) * MS_THICKNESS
+    r, c = np.broadcast_arrays(r, c)
+    t_d = _ms_sphere_hit(r * r, r * c, MS_ATMOSPHERE_RADIUS)
+    dt = t_d / MS_STEPS
+    depth = 0.0
+    for i in range(MS_STEPS):
+        t = (i + 0.5) * dt
+        h = np.maximum(np.sqrt(r * r + t * (2.0 * r * c + t)) - MS_EARTH_RADIUS, 0.0)
+        depth = depth + _ms_extinction(h, air, aerosol, ozone) * dt[..., None]
+    return np.exp(-depth)
+
+
+class _MSTransmittance:
+    """Blender's 256 x 64 transmittance table (u = cos(sun zenith) 0.5 + 0.5, v =
+    normalized altitude, texel i at i / (size - 1)) and its bilinear lookups."""
+
+    def __init__(self, air, aerosol, ozone):
+        u = np.arange(MS_LUT_X) / (MS_LUT_X - 1)
+        v = np.arange(MS_LUT_Y) / (MS_LUT_Y - 1)
+        V, U = np.meshgrid(v, u, indexing="ij")
+        self.lut = ms_transmittance(U * 2.0 - 1.0, V, air, aerosol, ozone)  # (64, 256, 4)
+
+    def lookup(self, cos_theta, normalized_altitude):
+        x = (MS_LUT_X - 1) * np.clip(cos_theta * 0.5 + 0.5, 0.0, 1.0)
+        y = (MS_LUT_Y - 1) * np.clip(normalized_altitude, 0.0, 1.0)
+        x1 = x.astype(np.int64)
+        y1 = y.astype(np.int64)
+        x2 = np.minimum(x1 + 1, MS_LUT_X - 1)
+        y2 = np.minimum(y1 + 1, MS_LUT_Y - 1)
+        fx = (x - x1)[..., None]
+        fy = (y - y1)[..., None]
+        flat = self.lut.reshape(-1, 4)  # flat gathers: 2D fancy indexing is much slower
+        r1, r2 = y1 * MS_LUT_X, y2 * MS_LUT_X
+        a = flat.take(r1 + x1, axis=0)
+        bottom = a + fx * (flat.take(r1 + x2, axis=0) - a)
+        a = flat.take(r2 + x1, axis=0)
+        top = a + fx * (flat.take(r2 + x2, axis=0) - a)
+        return bottom + fy * (top - bottom)
+
+    def at_ground(self, cos_theta):
+        """lookup(cos_theta, 0): the table's first row."""
+        x = (MS_LUT_X - 1) * np.clip(cos_theta * 0.5 + 0.5, 0.0, 1.0)
+        x1 = x.astype(np.int64)
+        x2 = np.minimum(x1 + 1, MS_LUT_X - 1)
+        row = self.lut[0]
+        a = row.take(x1, axis=0)
+        return a + (x - x1)[..., None] * (row.take(x2, axis=0) - a)
+
+    def to_sun(self, normalized_altitude):
+        """lookup(1, normalized_altitude): the table's last column."""
+        y = (MS_LUT_Y - 1) * np.clip(normalized_altitude, 0.0, 1.0)
+        y1 = y.astype(np.int64)
+        y2 = np.minimum(y1 + 1, MS_LUT_Y - 1)
+        col = self.lut[:, -1]
+        a = col.take(y1, axis=0)
+        return a + (y - y1)[..., None] * (col.take(y2, axis=0) - a)
+
+    def multiscattering(self, cos_theta, normalized_altitude, d):
+        """(..., 4) multiply scattered light reaching a point at distance d (km) from the
+        centre: the ground's second-order light plus the fitted rest of the atmosphere."""
+        omega = 2.0 * math.pi * (1.0 - np.sqrt(np.maximum(1.0 - (MS_EARTH_RADIUS / d) ** 2, 0.0)))
+        t_ground = self.at_ground(cos_theta)
+        t_ground_to_sample = self.lut[0, -1] / self.to_sun(normalized_altitude)
+        ground = (1.0 / (4.0 * math.pi)) * omega[..., None] * (MS_GROUND_ALBEDO / math.pi) * \
+            t_ground * t_ground_to_sample * cos_theta[..., None]
+        fit = 0.02 * np.array([0.217, 0.347, 0.594, 1.0]) * (
+            1.0 / (1.0 + 5.0 * np.exp(-17.92 * cos_theta)))[..., None]
+        return fit + ground
+
+
+@functools.lru_cache(maxsize=4)
+def _ms_transmittance_table(air, aerosol, ozone):
+    """The transmittance table of these densities (it depends on nothing else: a sun or
+    altitude change in the viewport reuses it)."""
+    return _MSTransmittance(air, aerosol, ozone)
+
+
+def ms_inscattering(dirs, sun_elevation, altitude, air=1.0, aerosol=1.0, ozone=1.0,
+                    transmittance=None):
+    """(N, 4) radiance at the four wavelengths along unit directions dirs (N, 3) (the
+    sun towards -X at sun_elevation, +Z up) from altitude m: the ray to the ground or to
+    the atmosphere's edge in 64 steps (Blender's get_inscattering)."""
+    T = transmittance or _ms_transmittance_table(float(air), float(aerosol), float(ozone))
+    alt = min(max(altitude, 1.0), 99999.0) / 1000.0
+    dirs = np.asarray(dirs, np.float64).reshape(-1, 3)
+    c_sun = math.cos(0.5 * math.pi - sun_elevation)
+    sun = np.array([-math.sqrt(max(1.0 - c_sun * c_sun, 0.0)), 0.0, c_sun])
+    r0 = MS_EARTH_RADIUS + alt
+    dz = dirs[:, 2]
+    b0 = r0 * dz
+    atmos = _ms_sphere_hit(np.full(len(dirs), r0 * r0), b0, MS_ATMOSPHERE_RADIUS)
+    ground = _ms_sphere_hit(np.full(len(dirs), r0 * r0), b0, MS_EARTH_RADIUS)
+    t_d = np.where(ground < 0.0, atmos, ground)
+    cos_t = -(dirs @ sun)
+    g2 = MS_G * MS_G
+    phase_m = 3.0 / (16.0 * math.pi) * (1.0 + cos_t * cos_t)
+    den = 1.0 + g2 + 2.0 * MS_G * cos_t
+    phase_a = (1.0 / (4.0 * math.pi)) * (1.0 - g2) / (den * np.sqrt(den))
+    dt = t_d / MS_STEPS
+    L = np.zeros((len(dirs), 4))
+    trans = np.ones((len(dirs), 4))
+    for i in range(MS_STEPS):
+        t = (i + 0.5) * dt
+        # the point r0 z + t d: its distance from the centre and its zenith . sun
+        dist = np.sqrt(r0 * r0 + t * (2.0 * b0 + t))
+        cos_s = (r0 * sun[2] + t * (dirs @ sun)) / dist
+        h = np.maximum(dist - MS_EARTH_RADIUS, 0.0)
+        nh = h / MS_THICKNESS
+        aa, as_, ma, msc = _ms_coefficients(h, air, aerosol, ozone)
+        ext = aa + as_ + ma + msc
+        to_sun = T.lookup(cos_s, nh)
+        ms = T.multiscattering(cos_s, nh, dist)
+        S = MS_SUN_IRRADIANCE * (msc * (phase_m[:, None] * to_sun + ms)
+                                 + as_ * (phase_a[:, None] * to_sun + ms))
+        step = np.exp(-dt[:, None] * ext)
+        L += trans * (S - S * step) / np.maximum(ext, 1e-7)
+        trans *= step
+    return L
+
+
+def ms_sky_table(sun_elevation, altitude, air=1.0, aerosol=1.0, ozone=1.0,
+                 width=TABLE_WIDTH, height=TABLE_HEIGHT):
+    """(height, width, 3) XYZ table of the Multiple Scattering sky as Cycles tabulates
+    it: texel (x, y) at azimuth 2 pi (x + 0.5) / width (the sun at the middle column)
+    and elevation pi/2 l |l|, l = 2 (y + 0.5) / height - 1 (both hemispheres, dense at
+    the horizon), mirrored."""
+    half_w = width // 2
+    az = 2.0 * math.pi * (np.arange(half_w) + 0.5) / width
+    ll = (np.arange(height) + 0.5) / height * 2.0 - 1.0
+    el = np.sign(ll) * ll * ll * 0.5 * math.pi
+    E, A = np.meshgrid(el, az, indexing="ij")
+    dirs = np.stack([np.cos(E) * np.cos(A), np.cos(E) * np.sin(A), np.sin(E)], axis=-1)
+    L = ms_inscattering(dirs.reshape(-1, 3), sun_elevation, altitude, air, aerosol, ozone)
+    xyz = (L @ MS_SPECTRAL_XYZ).reshape(height, half_w, 3)
+    table = np.empty((height, width, 3))
+    table[:, :half_w] = xyz
+    table[:, width - 1 - np.arange(half_w)] = xyz
+    return table
+
+
+def ms_sun_edges_xyz(sun_elevation, sun_size, altitude, air=1.0, aerosol=1.0, ozone=1.0):
+    """XYZ radiance of the Multiple Scattering sun disc at its bottom and top edge: the
+    irradiance / the disc's solid angle, times the transmittance towards the edge (not
+    clamped at the horizon)."""
+    alt = min(max(altitude, 1.0), 99999.0) / 1000.0
+    half = sun_size / 2.0
+    solid = 2.0 * math.pi * (1.0 - math.cos(half))
+    out = []
+    for e in (sun_elevation - half, sun_elevation + half):
+        T = ms_transmittance(math.cos(0.5 * math.pi - e), alt / MS_THICKNESS, air, aerosol, ozone)
+        out.append((MS_SUN_IRRADIANCE * T / solid) @ MS_SPECTRAL_XYZ)
+    return out[0], out[1]
+
+
+def ms_earth_intersection_angle(altitude: float) -> float:
+    """Angle (radians) below the horizon where the Earth hides the sky from altitude m
+    (Blender's SKY_earth_intersection_angle, Earth radius 6371 km)."""
+    return 0.5 * math.pi - math.asin(MS_EARTH_RADIUS / (MS_EARTH_RADIUS + altitude / 1000.0))
 
 
 # --- the node ---------------------------------------------------------------------------
@@ -363,10 +585,14 @@ class SkyTexture:
     @property
     def table(self) -> np.ndarray:
         if self._table is None:
-            self._table = sky_table(self.elevation, self.altitude, self.air_density,
-                                    self.aerosol_density, self.ozone_density,
-                                    *self.table_size)
+            build = ms_sky_table if self.multiple_scattering else sky_table
+            self._table = build(self.elevation, self.altitude, self.air_density,
+                                self.aerosol_density, self.ozone_density, *self.table_size)
         return self._table
+
+    @property
+    def multiple_scattering(self) -> bool:
+        return self.sky_type == "MULTIPLE_SCATTERING"
 
     def sky_xyz(self, d: np.ndarray) -> np.ndarray:
         """(N, 3) XYZ radiance of the sky without the sun disc along texture-space
@@ -401,11 +627,19 @@ class SkyTexture:
         sun = self.sun_direction()
         angle = np.arccos(np.clip(d @ sun, -1.0, 1.0))
         elev = np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
-        inside = (angle < half) & (d[:, 2] >= 0) & (elev > -earth_intersection_angle(self.altitude))
+        # Seen down to the Earth's limb; Single Scattering's disc ends at the horizon.
+        inside = (angle < half) & (elev > -ms_earth_intersection_angle(self.altitude))
+        if not self.multiple_scattering:
+            inside &= d[:, 2] >= 0
         if not inside.any():
             return out
-        bottom, top = sun_edges_xyz(self.elevation, size, self.altitude, self.air_density,
-                                    self.aerosol_density)
+        if self.multiple_scattering:
+            bottom, top = ms_sun_edges_xyz(self.elevation, size, self.altitude,
+                                           self.air_density, self.aerosol_density,
+                                           self.ozone_density)
+        else:
+            bottom, top = sun_edges_xyz(self.elevation, size, self.altitude, self.air_density,
+                                        self.aerosol_density)
         t = ((elev[inside] - self.elevation) / size + 0.5)[:, None]
         xyz = bottom + t * (top - bottom)
         limb = 1.0 - LIMB_DARKENING * (1.0 - np.sqrt(1.0 - (angle[inside] / half) ** 2))

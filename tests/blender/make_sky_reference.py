@@ -1,13 +1,14 @@
-"""Write tests/references/sky_cycles.json: Cycles' Single Scattering sky (Blender 5.0.1's,
+"""Write tests/references/sky_cycles.json: Cycles' Single and Multiple Scattering skies (Blender 5.0.1's,
 through the bpy wheel) for tests/test_sky.py. Run by hand from the repository root:
 
     python tests/blender/make_sky_reference.py
 
-Per case (sun elevation / rotation in degrees, altitude m, air / aerosol / ozone density):
+Per case (sky type, sun elevation / rotation in degrees, altitude m, air / aerosol / ozone density):
 - a 256 x 128 equirectangular panorama of the world without the sun disc (a panoramic
   camera at the origin looking along +X, up +Z: the Environment's layout, +X at the
   centre column), 16 samples, a 0.01-pixel filter; stored as the upper hemisphere's row
-  means and column means of the RGB mean, and its per-channel sums;
+  means and column means of the RGB mean, and its per-channel sums, and the lower
+  hemisphere's row means;
 - the sun disc's irradiance (RGB, W / m^2): a camera aimed at the sun, 2 sun diameters
   across, 96 x 96 pixels, radiance x pixel solid angle summed, disc on minus disc off.
 """
@@ -20,12 +21,16 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 OUT = os.path.join(ROOT, "tests", "references", "sky_cycles.json")
 CASES = [
-    dict(sun_elevation=30.0, sun_rotation=0.0, altitude=100.0, air=1.0, aerosol=1.0, ozone=1.0,
+    dict(type="SINGLE_SCATTERING", sun_elevation=30.0, sun_rotation=0.0, altitude=100.0, air=1.0, aerosol=1.0, ozone=1.0,
          sun_size=0.545),
-    dict(sun_elevation=6.0, sun_rotation=70.0, altitude=2000.0, air=1.5, aerosol=3.0, ozone=2.0,
+    dict(type="SINGLE_SCATTERING", sun_elevation=6.0, sun_rotation=70.0, altitude=2000.0, air=1.5, aerosol=3.0, ozone=2.0,
          sun_size=1.5),
-    dict(sun_elevation=75.0, sun_rotation=200.0, altitude=30000.0, air=0.5, aerosol=0.0,
-         ozone=0.0, sun_size=0.545),
+    dict(type="SINGLE_SCATTERING", sun_elevation=75.0, sun_rotation=200.0, altitude=30000.0,
+         air=0.5, aerosol=0.0, ozone=0.0, sun_size=0.545),
+    dict(type="MULTIPLE_SCATTERING", sun_elevation=30.0, sun_rotation=0.0, altitude=100.0,
+         air=1.0, aerosol=1.0, ozone=1.0, sun_size=0.545),
+    dict(type="MULTIPLE_SCATTERING", sun_elevation=4.0, sun_rotation=250.0, altitude=5000.0,
+         air=2.0, aerosol=0.5, ozone=3.0, sun_size=2.0),
 ]
 W, H = 256, 128
 
@@ -45,7 +50,7 @@ def _scene(bpy, case, disc):
     nt = world.node_tree
     bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
     sky = nt.nodes.new("ShaderNodeTexSky")
-    sky.sky_type = "SINGLE_SCATTERING"
+    sky.sky_type = case["type"]
     sky.sun_elevation = math.radians(case["sun_elevation"])
     sky.sun_rotation = math.radians(case["sun_rotation"])
     sky.altitude = case["altitude"]
@@ -83,7 +88,8 @@ def panorama(bpy, case):
     img = _render(bpy, sc, cd, (math.pi / 2, 0.0, -math.pi / 2), W, H, 16)
     up = img[: H // 2]
     return dict(row_means=up.mean(axis=(1, 2)).tolist(), column_means=up.mean(axis=(0, 2)).tolist(),
-                channel_sums=up.sum(axis=(0, 1)).tolist())
+                channel_sums=up.sum(axis=(0, 1)).tolist(),
+                lower_row_means=img[H // 2:].mean(axis=(1, 2)).tolist())
 
 
 def disc_irradiance(bpy, case):
