@@ -6,10 +6,10 @@ Read as Cycles renders it: Background node's Color x Strength. Color may be a co
 an RGB node, or an Environment Texture (equirectangular, from its file or packed),
 optionally behind a Mapping node (its rotation; Point, Vector, Normal or Texture type) fed
 by the Texture Coordinate node's Generated / Object output or nothing (the ray direction
-in world shading), or a Sky Texture of type Single Scattering (4.x: Nishita) or Multiple
-Scattering (5.0's default), behind the same Mapping: the engine computes the sky as Cycles
-does (engine/lights/sky.py), bakes it into an environment map and adds its sun disc as a
-sun light (`sky_sun_lights`). Preetham and Hosek / Wilkie warn and use the world's
+in world shading), or a Sky Texture of type Single Scattering (4.x: Nishita), Multiple
+Scattering (5.0's default) or Preetham, behind the same Mapping: the engine computes the
+sky as Cycles does (engine/lights/sky.py), bakes it into an environment map and adds its
+sun disc as a sun light (`sky_sun_lights`). Hosek / Wilkie warns and uses the world's
 viewport colour x strength.
 """
 from __future__ import annotations
@@ -190,14 +190,14 @@ def _mapping_rotation(pm, world, env_node, warnings):
 def _sky(pm, world, node, strength, warnings):
     """engine Environment baked from a Sky Texture node (engine/lights/sky.py), with the
     sun disc's light parameters as its `sun_light` (None without a disc); or None after a
-    warning (Preetham, Hosek / Wilkie)."""
+    warning (Hosek / Wilkie)."""
     from importlib import import_module
     sky_mod = import_module(pm.__name__ + ".lights.sky")
     who = f"world '{world.name}': Sky Texture '{node.name}'"
     sky_type = sky_mod.SKY_TYPE_ALIASES.get(str(node.sky_type), str(node.sky_type))
     if sky_type not in sky_mod.SUPPORTED_SKY_TYPES:
-        warnings.append(f"{who}: sky type {sky_type} is not supported (Single and "
-                        "Multiple Scattering are); using the world viewport colour "
+        warnings.append(f"{who}: sky type {sky_type} is not supported (Single / Multiple "
+                        "Scattering and Preetham are); using the world viewport colour "
                         f"{np.round(tuple(world.color)[:3], 3).tolist()} x strength")
         return None
     rotation = _mapping_rotation(pm, world, node, warnings)
@@ -211,8 +211,10 @@ def _sky(pm, world, node, strength, warnings):
             sun_intensity=float(node.sun_intensity), sun_elevation=float(node.sun_elevation),
             sun_rotation=float(node.sun_rotation), altitude=float(node.altitude),
             air_density=float(node.air_density), aerosol_density=float(aerosol),
-            ozone_density=float(node.ozone_density), strength=strength, rotation=rotation,
-            name=node.name)
+            ozone_density=float(node.ozone_density),
+            sun_vector=tuple(getattr(node, "sun_direction", (0.0, 0.0, 1.0))),
+            turbidity=float(getattr(node, "turbidity", 2.2)), strength=strength,
+            rotation=rotation, name=node.name)
         return sky.environment()
     except ValueError as exc:
         warnings.append(f"{who}: {exc}; using the world viewport colour x strength")

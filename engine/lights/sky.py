@@ -8,7 +8,8 @@ Cycles' scene/shader_nodes.cpp SkyTextureNode and kernel/svm/sky.h (checked agai
 "Nishita", described below) and Multiple Scattering (5.0's default: four wavelengths, a
 transmittance table, a fitted multiple-scattering term and light from a grey ground; the
 table covers both hemispheres, the sun disc sets at the Earth's limb; see its section).
-Preetham and Hosek / Wilkie are not here.
+Preetham (an analytic fit, no disc) is evaluated at each texel; Hosek / Wilkie is not
+here.
 
   sky       single scattering of sunlight by air (Rayleigh) and aerosols (Mie, g = 0.76)
             along the view ray through a spherical atmosphere (Earth radius 6360 km,
@@ -22,8 +23,9 @@ Preetham and Hosek / Wilkie are not here.
             black from |z| = 0.4) and looked up bilinearly.
   sun disc  radiance = sun irradiance x transmittance along the sun's direction / the
             disc's solid angle, interpolated between the disc's bottom and top edge and
-            limb darkened by 1 - 0.6 (1 - sqrt(1 - (a / a_half)^2)); black below the
-            horizon (Multiple Scattering: below the Earth's limb). Here it is a sun light (engine/lights/sun.py) of angle sun_size and
+            limb darkened by 1 - 0.6 (1 - sqrt(1 - (a / a_half)^2)); seen down to the
+            Earth's limb (0.32 degrees below the horizon at 100 m); an edge below the
+            horizon takes the horizon's value, a disc wholly below it is black. Here it is a sun light (engine/lights/sun.py) of angle sun_size and
             the disc's irradiance (its radiance integrated over the disc: limb darkening
             averages to 0.8), so it is sampled as a light, as Cycles samples the sky's
             sun separately, instead of a few texels of the map.
@@ -45,7 +47,7 @@ import numpy as np
 
 SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE")
 # The types baked here; the others are warned about by the caller.
-SUPPORTED_SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING")
+SUPPORTED_SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM")
 # Blender 4.x spelling of the Single Scattering model.
 SKY_TYPE_ALIASES = {"NISHITA": "SINGLE_SCATTERING"}
 
@@ -516,6 +518,63 @@ def ms_earth_intersection_angle(altitude: float) -> float:
     return 0.5 * math.pi - math.asin(MS_EARTH_RADIUS / (MS_EARTH_RADIUS + altitude / 1000.0))
 
 
+# --- Preetham ("A Practical Analytic Model for Daylight", Preetham, Shirley, Smits 1999;
+# Cycles' scene/shader_nodes.cpp sky_texture_precompute_preetham, kernel/svm/sky.h) -----
+
+def _perez(lam, theta, gamma):
+    """Perez et al.'s sky luminance distribution (5 coefficients lam)."""
+    return (1.0 + lam[0] * np.exp(lam[1] / np.cos(theta))) * (
+        1.0 + lam[2] * np.exp(lam[3] * gamma) + lam[4] * np.cos(gamma) ** 2)
+
+
+def preetham_coefficients(sun_theta: float, turbidity: float):
+    """(zenith (Y, x, y) / Perez(0, sun_theta), Perez coefficients for Y, x, y (3, 5)) of
+    a sun at zenith angle sun_theta and the given turbidity, Cycles' scaling (Y x 0.06)."""
+    T, t = turbidity, sun_theta
+    t2, t3 = t * t, t * t * t
+    chi = (4.0 / 9.0 - T / 120.0) * (math.pi - 2.0 * t)
+    Y = ((4.0453 * T - 4.9710) * math.tan(chi) - 0.2155 * T + 2.4192) * 0.06
+    x = ((0.00166 * t3 - 0.00375 * t2 + 0.00209 * t) * T * T
+         + (-0.02903 * t3 + 0.06377 * t2 - 0.03202 * t + 0.00394) * T
+         + (0.11693 * t3 - 0.21196 * t2 + 0.06052 * t + 0.25886))
+    y = ((0.00275 * t3 - 0.00610 * t2 + 0.00317 * t) * T * T
+         + (-0.04214 * t3 + 0.08970 * t2 - 0.04153 * t + 0.00516) * T
+         + (0.15346 * t3 - 0.26756 * t2 + 0.06670 * t + 0.26688))
+    lam = np.array([
+        [0.1787 * T - 1.4630, -0.3554 * T + 0.4275, -0.0227 * T + 5.3251,
+         0.1206 * T - 2.5771, -0.0670 * T + 0.3703],
+        [-0.0193 * T - 0.2592, -0.0665 * T + 0.0008, -0.0004 * T + 0.2125,
+         -0.0641 * T - 0.8989, -0.0033 * T + 0.0452],
+        [-0.0167 * T - 0.2608, -0.0950 * T + 0.0092, -0.0079 * T + 0.2102,
+         -0.0441 * T - 1.6537, -0.0109 * T + 0.0529]])
+    zenith = np.array([Y, x, y]) / np.array([_perez(lam[i], 0.0, t) for i in range(3)])
+    return zenith, lam
+
+
+def preetham_xyz(d: np.ndarray, sun_vector, turbidity: float) -> np.ndarray:
+    """(N, 3) XYZ of the Preetham sky along unit directions d (N, 3) for the node's
+    sun_direction vector (normalised, as Blender hands it to Cycles) and turbidity;
+    below the horizon the sky just above it (the zenith angle clamped to pi/2 - 0.001)."""
+    sv = np.asarray(sun_vector, np.float64)
+    sv = sv / max(np.linalg.norm(sv), 1e-300)
+    sun_theta = math.acos(min(max(sv[2], -1.0), 1.0))
+    sun_phi = math.atan2(sv[0], sv[1])
+    zenith, lam = preetham_coefficients(sun_theta, turbidity)
+    theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+    phi = np.arctan2(d[:, 0], d[:, 1])
+    cos_g = (math.sin(sun_theta) * np.sin(theta) * np.cos(phi - sun_phi)
+             + math.cos(sun_theta) * np.cos(theta))
+    gamma = np.arccos(np.clip(cos_g, -1.0, 1.0))
+    theta = np.minimum(theta, 0.5 * math.pi - 0.001)
+    Y = zenith[0] * _perez(lam[0], theta, gamma)
+    x = zenith[1] * _perez(lam[1], theta, gamma)
+    y = zenith[2] * _perez(lam[2], theta, gamma)
+    safe = np.where(y != 0, y, 1.0)
+    X = np.where(y != 0, x / safe * Y, 0.0)
+    Z = np.where((y != 0) & (Y != 0), (1.0 - x - y) / safe * Y, 0.0)
+    return np.stack([X, Y, Z], axis=-1)
+
+
 # --- the node ---------------------------------------------------------------------------
 
 @dataclass
@@ -534,6 +593,9 @@ class SkyTexture:
     air_density: float = 1.0
     aerosol_density: float = 1.0
     ozone_density: float = 1.0
+    # Preetham: the node's sun_direction (a vector) and turbidity
+    sun_vector: tuple = (0.0, 0.0, 1.0)
+    turbidity: float = 2.2
     strength: object = 1.0
     rotation: np.ndarray | None = None
     name: str = "sky"
@@ -548,7 +610,7 @@ class SkyTexture:
             raise ValueError(f"{who}: sky type {self.sky_type} is not supported (only "
                              f"{', '.join(SUPPORTED_SKY_TYPES)})")
         for key in ("sun_size", "sun_intensity", "sun_elevation", "sun_rotation", "altitude",
-                    "air_density", "aerosol_density", "ozone_density"):
+                    "air_density", "aerosol_density", "ozone_density", "turbidity"):
             v = getattr(self, key)
             if not math.isfinite(float(v)):
                 raise ValueError(f"{who} {key}: expected a finite number, got {v!r}")
@@ -557,6 +619,10 @@ class SkyTexture:
                     "ozone_density"):
             if getattr(self, key) < 0:
                 raise ValueError(f"{who} {key}: expected a value >= 0, got {getattr(self, key)}")
+        v = np.asarray(self.sun_vector, np.float64).reshape(-1)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ValueError(f"{who} sun_vector: expected 3 finite numbers, got {self.sun_vector!r}")
+        self.sun_vector = v
         self.elevation, self.azimuth = self._sun_position()
 
     def _sun_position(self):
@@ -599,6 +665,8 @@ class SkyTexture:
         directions d (N, 3) (unit or not), as Cycles looks its table up."""
         d = np.asarray(d, np.float64).reshape(-1, 3)
         d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+        if self.sky_type == "PREETHAM":
+            return preetham_xyz(d, self.sun_vector, self.turbidity)
         z = np.clip(d[:, 2], -1.0, 1.0)
         elev = np.arcsin(z)
         # longitude relative to the sun: the table's x = 0.5 looks at the sun
@@ -620,17 +688,16 @@ class SkyTexture:
         off."""
         d = np.asarray(d, np.float64).reshape(-1, 3)
         out = np.zeros((len(d), 3))
-        if not self.sun_disc:
+        if not self.sun_disc or self.sky_type == "PREETHAM":  # Preetham has no disc
             return out
         size = self.sun_size_clamped
         half = 0.5 * size
         sun = self.sun_direction()
         angle = np.arccos(np.clip(d @ sun, -1.0, 1.0))
         elev = np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
-        # Seen down to the Earth's limb; Single Scattering's disc ends at the horizon.
+        # Seen down to the Earth's limb (Single Scattering's edges are black once the
+        # disc's top is below the horizon).
         inside = (angle < half) & (elev > -ms_earth_intersection_angle(self.altitude))
-        if not self.multiple_scattering:
-            inside &= d[:, 2] >= 0
         if not inside.any():
             return out
         if self.multiple_scattering:
@@ -651,7 +718,7 @@ class SkyTexture:
         """RGB irradiance (W / m^2) of the sun disc on a surface facing it: the disc's
         radiance integrated over its solid angle (a midpoint rule on n x n points of the
         disc's tangent plane, mapped to equal solid angles)."""
-        if not self.sun_disc:
+        if not self.sun_disc or self.sky_type == "PREETHAM":
             return np.zeros(3)
         half = 0.5 * self.sun_size_clamped
         sun = self.sun_direction()

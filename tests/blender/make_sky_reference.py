@@ -1,4 +1,4 @@
-"""Write tests/references/sky_cycles.json: Cycles' Single and Multiple Scattering skies (Blender 5.0.1's,
+"""Write tests/references/sky_cycles.json: Cycles' Single / Multiple Scattering and Preetham skies (Blender 5.0.1's,
 through the bpy wheel) for tests/test_sky.py. Run by hand from the repository root:
 
     python tests/blender/make_sky_reference.py
@@ -31,6 +31,8 @@ CASES = [
          air=1.0, aerosol=1.0, ozone=1.0, sun_size=0.545),
     dict(type="MULTIPLE_SCATTERING", sun_elevation=4.0, sun_rotation=250.0, altitude=5000.0,
          air=2.0, aerosol=0.5, ozone=3.0, sun_size=2.0),
+    # Preetham: no disc; its sun is the node's sun_direction (normalised by Blender)
+    dict(type="PREETHAM", sun_vector=[0.3, 0.5, 0.6], turbidity=3.0),
 ]
 W, H = 256, 128
 
@@ -51,13 +53,16 @@ def _scene(bpy, case, disc):
     bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
     sky = nt.nodes.new("ShaderNodeTexSky")
     sky.sky_type = case["type"]
-    sky.sun_elevation = math.radians(case["sun_elevation"])
-    sky.sun_rotation = math.radians(case["sun_rotation"])
-    sky.altitude = case["altitude"]
-    sky.air_density, sky.aerosol_density, sky.ozone_density = (
-        case["air"], case["aerosol"], case["ozone"])
-    sky.sun_size = math.radians(case["sun_size"])
-    sky.sun_disc = disc
+    if case["type"] == "PREETHAM":
+        sky.sun_direction, sky.turbidity = case["sun_vector"], case["turbidity"]
+    else:
+        sky.sun_elevation = math.radians(case["sun_elevation"])
+        sky.sun_rotation = math.radians(case["sun_rotation"])
+        sky.altitude = case["altitude"]
+        sky.air_density, sky.aerosol_density, sky.ozone_density = (
+            case["air"], case["aerosol"], case["ozone"])
+        sky.sun_size = math.radians(case["sun_size"])
+        sky.sun_disc = disc
     nt.links.new(sky.outputs[0], bg.inputs["Color"])
     return sc
 
@@ -119,7 +124,8 @@ def main():
     for case in CASES:
         entry = dict(case)
         entry.update(panorama(bpy, case))
-        entry["disc_irradiance"] = disc_irradiance(bpy, case)
+        entry["disc_irradiance"] = (disc_irradiance(bpy, case) if case["type"] != "PREETHAM"
+                                    else [0.0, 0.0, 0.0])
         out["cases"].append(entry)
         print(case, "disc", np.round(entry["disc_irradiance"], 3))
     with open(OUT, "w") as f:

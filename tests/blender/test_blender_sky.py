@@ -81,12 +81,26 @@ def test_single_scattering_sky_exports_map_and_sun(mb, bpy_addon):
     assert not [li for li in _export(bpy).lights if li.kind == "SUN"]
 
 
-def test_other_sky_types_warn_and_use_the_viewport_colour(mb, bpy_addon):
+def test_preetham_sky_exports_its_sun_direction_and_turbidity(mb, bpy_addon):
+    from engine.lights.sky import SkyTexture
     bpy = bpy_addon
     sky = _sky_world(bpy, mb, strength=2.0)
     sky.sky_type = "PREETHAM"
+    sky.sun_direction, sky.turbidity = (0.3, 0.5, 0.6), 3.5
+    scene = _export(bpy)
+    assert not [w for w in scene.all_warnings() if "world" in w]
+    want = SkyTexture(sky_type="PREETHAM", sun_vector=(0.3, 0.5, 0.6), turbidity=3.5,
+                      strength=2.0)
+    np.testing.assert_allclose(scene.environment.pixels, want.bake(), rtol=1e-4, atol=1e-6)
+    assert not scene.lights  # no disc
+
+
+def test_other_sky_types_warn_and_use_the_viewport_colour(mb, bpy_addon):
+    bpy = bpy_addon
+    sky = _sky_world(bpy, mb, strength=2.0)
+    sky.sky_type = "HOSEK_WILKIE"
     scene = _export(bpy)
     hits = [w for w in scene.all_warnings() if "'Day'" in w]
-    assert len(hits) == 1 and "PREETHAM" in hits[0] and "Sky Texture" in hits[0]
+    assert len(hits) == 1 and "HOSEK_WILKIE" in hits[0] and "Sky Texture" in hits[0]
     assert scene.environment is None and not scene.lights
     np.testing.assert_allclose(scene.background, (0.6, 0.4, 0.2), rtol=1e-6)
