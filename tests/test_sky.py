@@ -211,7 +211,7 @@ def test_unsupported_types_and_bad_values_are_refused():
 
 def test_scene_file_sky(tmp_path):
     """[sky] in a scene file: the baked environment and the disc's sun light after the
-    file's lights; [sky] with [environment] is refused."""
+    file's lights; Preetham from its sun direction; [sky] with [environment] is refused."""
     from engine.scenefile import SceneFileError, load_scene
     text = """
 [render]
@@ -241,7 +241,14 @@ strength = 0.5
                                sky.sun_irradiance(), rtol=1e-9)
     np.testing.assert_allclose(scene.lights[1].direction, -sky.sun_direction(), atol=1e-12)
     np.testing.assert_allclose(scene.environment.pixels, sky.bake(), rtol=1e-6)
-    (tmp_path / "a.npy").write_bytes(b"")
+    # Preetham: its sun from sun_direction, no disc.
+    path.write_text(text.replace("sun_elevation = 35", 'type = "preetham"\nsun_direction = '
+                                 '[0.3, 0.5, 0.6]\nturbidity = 3.0'))
+    scene, _ = load_scene(str(path))
+    assert [li.kind for li in scene.lights] == ["POINT"]
+    want = SkyTexture(sky_type="PREETHAM", sun_vector=(0.3, 0.5, 0.6), turbidity=3.0,
+                      strength=0.5)
+    np.testing.assert_allclose(scene.environment.pixels, want.bake(), rtol=1e-6)
     np.save(tmp_path / "a.npy", np.ones((4, 8, 3), np.float32))
     path.write_text(text + '[environment]\nimage = "a.npy"\n')
     with pytest.raises(SceneFileError, match="sky"):
