@@ -205,20 +205,33 @@ def _sky(pm, world, node, strength, warnings):
     aerosol = getattr(node, "aerosol_density", None)
     if aerosol is None:
         aerosol = getattr(node, "dust_density", 1.0)
-    try:
-        sky = sky_mod.SkyTexture(
-            sky_type=sky_type, sun_disc=bool(node.sun_disc), sun_size=float(node.sun_size),
-            sun_intensity=float(node.sun_intensity), sun_elevation=float(node.sun_elevation),
-            sun_rotation=float(node.sun_rotation), altitude=float(node.altitude),
-            air_density=float(node.air_density), aerosol_density=float(aerosol),
-            ozone_density=float(node.ozone_density),
-            sun_vector=tuple(getattr(node, "sun_direction", (0.0, 0.0, 1.0))),
-            turbidity=float(getattr(node, "turbidity", 2.2)), strength=strength,
-            rotation=rotation, name=node.name)
-        return sky.environment()
-    except ValueError as exc:
-        warnings.append(f"{who}: {exc}; using the world viewport colour x strength")
-        return None
+    params = dict(
+        sky_type=sky_type, sun_disc=bool(node.sun_disc), sun_size=float(node.sun_size),
+        sun_intensity=float(node.sun_intensity), sun_elevation=float(node.sun_elevation),
+        sun_rotation=float(node.sun_rotation), altitude=float(node.altitude),
+        air_density=float(node.air_density), aerosol_density=float(aerosol),
+        ozone_density=float(node.ozone_density),
+        sun_vector=tuple(getattr(node, "sun_direction", (0.0, 0.0, 1.0))),
+        turbidity=float(getattr(node, "turbidity", 2.2)), strength=strength,
+        rotation=rotation, name=node.name)
+    # The bake takes 1-4 s of CPU: a viewport update that leaves the sky as it was (an
+    # object moved, a material edited) reuses the last bakes.
+    key = repr(sorted((k, v if k != "rotation" or v is None else np.round(v, 12).tolist())
+                      for k, v in params.items()))
+    env = _SKY_CACHE.get(key)
+    if env is None:
+        try:
+            env = sky_mod.SkyTexture(**params).environment()
+        except ValueError as exc:
+            warnings.append(f"{who}: {exc}; using the world viewport colour x strength")
+            return None
+        _SKY_CACHE[key] = env
+        while len(_SKY_CACHE) > 2:
+            _SKY_CACHE.pop(next(iter(_SKY_CACHE)))
+    return env
+
+
+_SKY_CACHE: dict = {}  # key of the node's settings -> baked Environment (insertion order)
 
 
 def sky_sun_lights(pm, environment) -> list:

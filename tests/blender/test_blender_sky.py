@@ -76,9 +76,12 @@ def test_single_scattering_sky_exports_map_and_sun(mb, bpy_addon):
     np.testing.assert_allclose(suns[0].color * suns[0].power, want.sun_irradiance(), rtol=1e-4)
     np.testing.assert_allclose(suns[0].direction, -(R.T @ want.sun_direction()), atol=1e-6)
     np.testing.assert_allclose(scene.background, env.average())
+    # The same sky again: the last bake, not a new one (1-4 s a bake in the viewport).
+    assert _export(bpy).environment is env
     # Disc off: the map alone.
     bpy.context.scene.world.node_tree.nodes["Day"].sun_disc = False
-    assert not [li for li in _export(bpy).lights if li.kind == "SUN"]
+    again = _export(bpy)
+    assert not [li for li in again.lights if li.kind == "SUN"] and again.environment is not env
 
 
 def test_preetham_sky_exports_its_sun_direction_and_turbidity(mb, bpy_addon):
