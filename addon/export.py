@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from .materials import MaterialConverter
-from .world import export_world
+from .world import export_world, sky_sun_lights
 
 
 
@@ -594,6 +594,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         cam_obj = cam_obj.evaluated_get(depsgraph)
     camera_out = convert_camera(pm, cam_obj, width, height, render, warnings)
     background, environment = export_world(pm, scene_eval.world, warnings)
+    lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     if render.use_motion_blur:
         warnings.append("motion blur is not supported and ignored")
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
@@ -788,6 +789,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         del cache.geometry[gkey]
         cache.prototypes.pop(gkey, None)
     background, environment = export_world(pm, scene_eval.world, warnings)
+    lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
                      background_is_light=True, environment=environment)

@@ -6,9 +6,11 @@ Read as Cycles renders it: Background node's Color x Strength. Color may be a co
 an RGB node, or an Environment Texture (equirectangular, from its file or packed),
 optionally behind a Mapping node (its rotation; Point, Vector, Normal or Texture type) fed
 by the Texture Coordinate node's Generated / Object output or nothing (the ray direction
-in world shading). A Sky Texture is not simulated: Cycles precomputes its Nishita sky
-into an image at render time that Blender's Python API does not expose; it warns and uses
-the world's viewport colour.
+in world shading), or a Sky Texture of type Single Scattering (4.x: Nishita), Multiple
+Scattering (5.0's default) or Preetham, behind the same Mapping: the engine computes the
+sky as Cycles does (engine/lights/sky.py), bakes it into an environment map and adds its
+sun disc as a sun light (`sky_sun_lights`). Hosek / Wilkie warns and uses the world's
+viewport colour x strength.
 """
 from __future__ import annotations
 
@@ -83,9 +85,9 @@ def export_world(pm, world, warnings: list):
             return env.average(), env
         return np.clip(color * strength, 0.0, None), None
     if src.type == "TEX_SKY":
-        warnings.append(f"{who}: Sky Texture '{src.name}' is not supported (Cycles bakes "
-                        "it at render time, out of the add-on's reach); using the world "
-                        f"viewport colour {viewport.round(3).tolist()} x strength")
+        env = _sky(pm, world, src, strength, warnings)
+        if env is not None:
+            return env.average(), env
         return np.clip(viewport * strength, 0.0, None), None
     warnings.append(f"{who}: node '{src.name}' ({src.type}) plugged into the Background "
                     "colour is not supported (a colour, an RGB node or an Environment "
@@ -146,16 +148,19 @@ def _check_coordinates(world, socket, warnings):
 def _mapping_rotation(pm, world, env_node, warnings):
     """Rotation (world direction -> texture direction) of a Mapping node in front of the
     environment texture, or None."""
-    m = _from(env_node.inputs["Vector"])
+    # By iteration: inputs["Vector"] skips a socket flagged unavailable, as a Sky
+    # Texture's is until its tree updates after the sky type changed.
+    vector = next((s for s in env_node.inputs if s.name == "Vector"), None)
+    m = _from(vector) if vector is not None else None
     if m is None:
         return None
     who = f"world '{world.name}'"
     if m.type == "TEX_COORD":
-        _check_coordinates(world, env_node.inputs["Vector"], warnings)
+        _check_coordinates(world, vector, warnings)
         return None
     if m.type != "MAPPING":
-        warnings.append(f"{who}: node '{m.name}' ({m.type}) in front of the Environment "
-                        "Texture is not supported; using the ray direction")
+        warnings.append(f"{who}: node '{m.name}' ({m.type}) in front of '{env_node.name}' "
+                        "is not supported; using the ray direction")
         return None
     coord = _from(m.inputs["Vector"])
     if coord is not None and coord.type != "TEX_COORD":
@@ -180,3 +185,56 @@ def _mapping_rotation(pm, world, env_node, warnings):
         warnings.append(f"{who}: Mapping '{m.name}' location is ignored for the "
                         "environment (directions only)")
     return R.T if m.vector_type == "TEXTURE" else R
+
+
+def _sky(pm, world, node, strength, warnings):
+    """engine Environment baked from a Sky Texture node (engine/lights/sky.py), with the
+    sun disc's light parameters as its `sun_light` (None without a disc); or None after a
+    warning (Hosek / Wilkie)."""
+    from importlib import import_module
+    sky_mod = import_module(pm.__name__ + ".lights.sky")
+    who = f"world '{world.name}': Sky Texture '{node.name}'"
+    sky_type = sky_mod.SKY_TYPE_ALIASES.get(str(node.sky_type), str(node.sky_type))
+    if sky_type not in sky_mod.SUPPORTED_SKY_TYPES:
+        warnings.append(f"{who}: sky type {sky_type} is not supported (Single / Multiple "
+                        "Scattering and Preetham are); using the world viewport colour "
+                        f"{np.round(tuple(world.color)[:3], 3).tolist()} x strength")
+        return None
+    rotation = _mapping_rotation(pm, world, node, warnings)
+    # Blender 5.0 calls the aerosols' density aerosol_density, 4.x dust_density.
+    aerosol = getattr(node, "aerosol_density", None)
+    if aerosol is None:
+        aerosol = getattr(node, "dust_density", 1.0)
+    params = dict(
+        sky_type=sky_type, sun_disc=bool(node.sun_disc), sun_size=float(node.sun_size),
+        sun_intensity=float(node.sun_intensity), sun_elevation=float(node.sun_elevation),
+        sun_rotation=float(node.sun_rotation), altitude=float(node.altitude),
+        air_density=float(node.air_density), aerosol_density=float(aerosol),
+        ozone_density=float(node.ozone_density),
+        sun_vector=tuple(getattr(node, "sun_direction", (0.0, 0.0, 1.0))),
+        turbidity=float(getattr(node, "turbidity", 2.2)), strength=strength,
+        rotation=rotation, name=node.name)
+    # The bake takes 1-4 s of CPU: a viewport update that leaves the sky as it was (an
+    # object moved, a material edited) reuses the last bakes.
+    key = repr(sorted((k, v if k != "rotation" or v is None else np.round(v, 12).tolist())
+                      for k, v in params.items()))
+    env = _SKY_CACHE.get(key)
+    if env is None:
+        try:
+            env = sky_mod.SkyTexture(**params).environment()
+        except ValueError as exc:
+            warnings.append(f"{who}: {exc}; using the world viewport colour x strength")
+            return None
+        _SKY_CACHE[key] = env
+        while len(_SKY_CACHE) > 2:
+            _SKY_CACHE.pop(next(iter(_SKY_CACHE)))
+    return env
+
+
+_SKY_CACHE: dict = {}  # key of the node's settings -> baked Environment (insertion order)
+
+
+def sky_sun_lights(pm, environment) -> list:
+    """The engine Light of a baked sky's sun disc ([] for any other environment)."""
+    params = getattr(environment, "sun_light", None)
+    return [] if params is None else [pm.Light(**params)]

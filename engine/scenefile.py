@@ -222,6 +222,14 @@ LIGHT_SCHEMA = _table({
 ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
                              "rotation": _vec3(), "interpolation": _choice("linear", "closest")},
                             required=("image",))
+SKY_SCHEMA = _table({"type": _choice("single_scattering", "nishita", "multiple_scattering",
+                                     "preetham"), "sun_disc": _BOOL,
+                     "sun_size": _number(0.0, 180.0), "sun_intensity": _number(0.0),
+                     "sun_elevation": _number(), "sun_rotation": _number(),
+                     "altitude": _number(0.0, 60000.0), "air_density": _number(0.0),
+                     "aerosol_density": _number(0.0), "ozone_density": _number(0.0),
+                     "sun_direction": _vec3(nonzero=True), "turbidity": _number(0.0),
+                     "strength": _number(0.0), "rotation": _vec3()})
 
 
 def _sections(key) -> dict:
@@ -242,7 +250,8 @@ def scene_schema() -> dict:
                       "what_type": "a table of [materials.NAME] sections"},
         "objects": _sections("objects"), "lights": _sections("lights"),
         "instances": _sections("instances"),
-        "background": _vec3(nonneg=True), "environment": ENVIRONMENT_SCHEMA})
+        "background": _vec3(nonneg=True), "environment": ENVIRONMENT_SCHEMA,
+        "sky": SKY_SCHEMA})
 
 
 _VALIDATORS = {}
@@ -458,6 +467,8 @@ def _build(data: dict, base: str):
     for i, spec in enumerate(data.get("lights", [])):
         _light(scene, spec, i)
     _instances(scene, data.get("objects", []), data.get("instances", []))
+    if "sky" in data:
+        _sky(scene, data["sky"])
     return scene, render
 
 
@@ -576,6 +587,32 @@ def _environment(spec, base):
                            name=path)
     except ValueError as e:
         raise SceneFileError(f"[environment]: {e}") from None
+
+
+def _sky(scene, spec):
+    """[sky]: Blender's Sky Texture (engine/lights/sky.py) lighting the scene: baked into
+    the environment, its sun disc a sun light added after the file's lights. Angles in
+    degrees, altitude in m; Preetham takes sun_direction (a vector towards the sun) and
+    turbidity; types and ranges are the schema's."""
+    from .lights.sky import SkyTexture
+    if scene.environment is not None:
+        raise SceneFileError("[sky] and [environment] both light the world; give one")
+    deg = {k: math.radians(float(spec[k])) for k in ("sun_size", "sun_elevation",
+                                                      "sun_rotation") if k in spec}
+    rest = {k: spec[k] for k in ("sun_disc", "sun_intensity", "altitude", "air_density",
+                                 "aerosol_density", "ozone_density", "strength", "turbidity")
+            if k in spec}
+    if "sun_direction" in spec:  # Preetham's sun
+        rest["sun_vector"] = tuple(float(v) for v in spec["sun_direction"])
+    rotation = _rotation(spec["rotation"]) if "rotation" in spec else None
+    try:
+        sky = SkyTexture(sky_type=spec.get("type", "single_scattering"), rotation=rotation,
+                         name="sky", **deg, **rest)
+        scene.environment = sky.environment()
+    except ValueError as e:
+        raise SceneFileError(f"[sky]: {e}") from None
+    if scene.environment.sun_light is not None:
+        scene.add_light(Light(**scene.environment.sun_light))
 
 
 def _material_value(key, v):

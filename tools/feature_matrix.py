@@ -1682,15 +1682,18 @@ def world_hdri_glossy():
     mb.set_world_hdri(mb.sky_hdri(), 1.0)
 
 
-@case("world", status="warned", how="Sky Texture is not simulated: the world's viewport "
-      "colour lights the scene", warning="Sky Texture")
+@case("world", status="warned", how="Sky Texture of type Hosek / Wilkie is not simulated: "
+      "the world's viewport colour lights the scene (Single / Multiple Scattering and "
+      "Preetham are: tests/blender/test_sky_cycles.py, tests/test_sky.py)",
+      warning="Sky Texture")
 def world_sky_texture():
-    """A Nishita sky: warned, the viewport colour stands in (far from Cycles' sky)."""
+    """A Hosek / Wilkie sky: warned, the viewport colour stands in (far from Cycles' sky)."""
     _hdri_scene()
     mb.set_world((0.3, 0.4, 0.6), 1.0)
     nt = bpy.context.scene.world.node_tree
     bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
     sky = nt.nodes.new("ShaderNodeTexSky")
+    sky.sky_type = "HOSEK_WILKIE"
     nt.links.new(sky.outputs[0], bg.inputs["Color"])
 
 

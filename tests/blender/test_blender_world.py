@@ -65,10 +65,11 @@ def test_unsupported_world_nodes_warn_once_naming_the_node(mb, bpy_addon):
     scene = _export(bpy)
     hits = [w for w in scene.all_warnings() if "Ball Env" in w and "MIRROR_BALL" in w]
     assert len(hits) == 1 and scene.environment is None
-    # A Sky Texture: warned (Cycles bakes it internally), the viewport colour stands in.
+    # A Hosek / Wilkie Sky Texture: warned, the viewport colour stands in.
     bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
     sky = nt.nodes.new("ShaderNodeTexSky")
     sky.name = "My Sky"
+    sky.sky_type = "HOSEK_WILKIE"  # (the other types are simulated: test_blender_sky)
     nt.links.new(sky.outputs[0], bg.inputs["Color"])
     bpy.context.scene.world.color = (0.3, 0.2, 0.1)
     scene = _export(bpy)
