@@ -194,7 +194,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self._stats(pm.jit.COMPILE_MESSAGE)  # stats line and the batch command's bar
             if not self._listeners:  # the batch's bar shows it; a print would split the bar
                 print(f"Photon Mapping: {pm.jit.COMPILE_MESSAGE}", flush=True)
-        pm.jit.ensure_compiled()
+        compile_seconds = pm.jit.ensure_compiled(
+            lambda stage, fraction, text: self._stats(text))
 
         width, height = export.render_size(render)
         region = export.border_region(render, width, height)
@@ -248,7 +249,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         last_render.clear()
         last_render.update(width=film.width, height=film.height, full_size=(width, height),
                            region=region, stats=dict(film.stats), warnings=list(film.warnings),
-                           export=dict(info), cancelled=cancelled, time=elapsed)
+                           export=dict(info), cancelled=cancelled, time=elapsed,
+                           compile_time=compile_seconds)
         self._progress(1.0)
         self._emit("film", film)  # the engine's Film, for scripts (batch --save-passes)
         effects = list(film.stats.get("effects", []) or [])

@@ -192,7 +192,9 @@ def needs_compile() -> bool:
 def ensure_compiled(progress=None) -> float:
     """Compile (first run on this machine) or load (later processes) every kernel, once
     per process. progress(stage, fraction, text) hears COMPILE_MESSAGE before a compile
-    starts, so the user knows why the first render pauses. Returns the seconds spent."""
+    starts, so the user knows why the first render pauses, and then
+    "COMPILE_MESSAGE: i/n kernel modules" after each module (a compile takes minutes on a
+    busy machine: the bar and its clock move). Returns the seconds spent."""
     global _warm
     if _warm:
         return 0.0
@@ -200,8 +202,11 @@ def ensure_compiled(progress=None) -> float:
     compiling = needs_compile()
     if compiling and progress is not None:
         progress("compile", 0.0, COMPILE_MESSAGE)
-    for fn in _warm_ups:
+    for i, fn in enumerate(_warm_ups):
         fn()
+        if compiling and progress is not None:
+            progress("compile", (i + 1) / len(_warm_ups),
+                     f"{COMPILE_MESSAGE}: {i + 1}/{len(_warm_ups)} kernel modules")
     _warm = True
     if compiling:
         try:

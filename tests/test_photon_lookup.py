@@ -10,6 +10,7 @@ against scipy's cKDTree and against the numpy estimators they replaced
 - the widening search has a fixed memory budget (issue 16), and results do not depend on
   the number of worker threads.
 """
+import ast
 import os
 import subprocess
 import sys
@@ -521,7 +522,13 @@ def test_first_process_compiles_and_says_so_later_ones_load(tmp_path):
     first = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
                            capture_output=True, text=True, timeout=600)
     assert first.returncode == 0, first.stderr
-    assert first.stdout.strip() == "True ['Compiling render kernels (first render only)']"
+    need, seen = first.stdout.strip().split(" ", 1)
+    seen = ast.literal_eval(seen)  # the printed list of messages
+    assert need == "True" and seen[0] == "Compiling render kernels (first render only)"
+    # then one message per kernel module, counting up to all of them
+    n = len(seen) - 1
+    assert n >= 5 and seen[1:] == [f"{seen[0]}: {i}/{n} kernel modules"
+                                   for i in range(1, n + 1)]
     second = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
                             capture_output=True, text=True, timeout=600)
     assert second.stdout.strip() == "False []", second.stderr
