@@ -196,8 +196,8 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
 
 
 @kernel
-def camera_passage(v0, e1, e2, material, object_id, flat_mat, flat_limit, prim, d_in, p,
-                   keep, d_out, pdf_in, ns_in, p_in, entry, pre_pdf, pre_ns, pre_p,
+def camera_passage(v0, e1, e2, material, object_id, flat_mat, flat_limit, mat_pass, prim,
+                   d_in, p, keep, d_out, pdf_in, ns_in, p_in, entry, pre_pdf, pre_ns, pre_p,
                    pdf_out, ns_out, p_out, entry_out, pre_pdf_out, pre_ns_out, pre_p_out):
     """The camera paths' side of flat passages (integrator._trace_paths), after a
     specular continuation: the rows keep (K,) of the N hits (triangle prim, arriving
@@ -209,7 +209,12 @@ def camera_passage(v0, e1, e2, material, object_id, flat_mat, flat_limit, prim, 
     refraction out of a flat passage (photonkernels.flat_exit) gives the ray its state
     from before the glass back, so a light met after a window takes the MIS weight of
     the surface whose lobe sampled it, as the shadow rays from that surface pass the
-    window (otherwise both strategies would count that light in full)."""
+    window (otherwise both strategies would count that light in full). The same for a
+    transparent pass (a continuation straight on through a material of mat_pass (M,)
+    bool, those shadow rays cross; empty: none): the ray keeps its state, as the shadow
+    rays from where it left cross that surface. flat_mat empty: no flat passages."""
+    flat_on = flat_mat.shape[0] > 0
+    pass_on = mat_pass.shape[0] > 0
     for k in range(keep.shape[0]):
         i = keep[k]
         t = prim[i]
@@ -219,6 +224,26 @@ def camera_passage(v0, e1, e2, material, object_id, flat_mat, flat_limit, prim, 
             pre_ns_out[k, c] = 0.0
             pre_p_out[k, c] = 0.0
         if t < 0:
+            continue
+        if pass_on and mat_pass[material[t]]:
+            li = math.sqrt(d_in[i, 0] ** 2 + d_in[i, 1] ** 2 + d_in[i, 2] ** 2)
+            lo = math.sqrt(d_out[k, 0] ** 2 + d_out[k, 1] ** 2 + d_out[k, 2] ** 2)
+            cs = (d_in[i, 0] * d_out[k, 0] + d_in[i, 1] * d_out[k, 1]
+                  + d_in[i, 2] * d_out[k, 2])
+            if cs >= (1.0 - 1e-12) * li * lo:
+                # Straight on through a transparent pass: the state goes on with the ray
+                # (its glass entry too: an alpha card inside glass is no passage).
+                entry_out[k] = entry[i]
+                pre_pdf_out[k] = pre_pdf[i]
+                for c in range(3):
+                    pre_ns_out[k, c] = pre_ns[i, c]
+                    pre_p_out[k, c] = pre_p[i, c]
+                pdf_out[k] = pdf_in[i]
+                for c in range(3):
+                    ns_out[k, c] = ns_in[i, c]
+                    p_out[k, c] = p_in[i, c]
+                continue
+        if not flat_on:
             continue
         nx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
         ny = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
@@ -250,13 +275,24 @@ class CameraPassages:
 
     @classmethod
     def for_context(cls, ctx, n):
-        flat_mat, flat_limit = pk.flat_tables(ctx.geo, ctx.table)
-        if not len(flat_mat):
+        """None unless shadow rays cross some surface (ctx.shadow: flat passages, when
+        they may cross both faces of a slab, or transparent passes)."""
+        shadow = getattr(ctx, "shadow", None)
+        if shadow is None or shadow.shared:
+            return None
+        flat_mat, flat_limit = shadow.flat_mat, shadow.flat_limit
+        if not shadow.flat_on or shadow.max_hits < 2:
+            flat_mat, flat_limit = pk._NO_FLAT_MAT, pk._NO_FLAT_LIMIT
+        mat_pass = np.ascontiguousarray(shadow.transparent_materials(ctx.table), np.bool_)
+        if not mat_pass.any():
+            mat_pass = np.zeros(0, np.bool_)
+        if not len(flat_mat) and not len(mat_pass):
             return None
         self = cls()
         geo = ctx.geo
         self.tables = (geo.v0, geo.e1, geo.e2, np.ascontiguousarray(geo.material, np.int64),
-                       np.ascontiguousarray(geo.object_id, np.int64), flat_mat, flat_limit)
+                       np.ascontiguousarray(geo.object_id, np.int64), flat_mat, flat_limit,
+                       mat_pass)
         self.entry = np.full(n, -1, np.int64)
         self.pre_pdf = np.full(n, np.inf)
         self.pre_ns = np.zeros((n, 3))
@@ -526,7 +562,8 @@ def _warm_up():
     scale_entries(np.ones((1, 3)), np.zeros(1, np.int64), 1, np.full((1, 3), 0.5))
     one3 = np.zeros((1, 3))
     camera_passage(np.zeros((1, 3)), *tri, np.zeros(1, np.int64), np.zeros(1, np.int64),
-                   np.ones(1, np.bool_), np.full(1, 0.1), np.zeros(1, np.int64),
+                   np.ones(1, np.bool_), np.full(1, 0.1), np.ones(1, np.bool_),
+                   np.zeros(1, np.int64),
                    np.array([[0.0, 0.0, -1.0]]), one3, np.zeros(1, np.int64),
                    np.array([[0.0, 0.0, -1.0]]), np.ones(1), one3, one3,
                    np.full(1, -1, np.int64), np.ones(1), one3, one3, np.ones(1), one3.copy(),
