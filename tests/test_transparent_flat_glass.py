@@ -155,3 +155,28 @@ def test_glossy_floor_under_slab_counts_the_light_once():
     assert slab.direct.mean() / open_.direct.mean() == pytest.approx(T, rel=2e-3)
     ratio = slab.combined.mean() / open_.combined.mean()
     assert T < ratio < T + 0.05, ratio
+
+
+def test_point_and_area_light_through_thin_slab():
+    """Every light kind's shadow rays take the slab's transmittance: a point light and a
+    small area light 3 m above the floor, floor points within 10 cm of the axis (angles
+    below 5 degrees: T within 1e-4 of its normal value), the same light samples with and
+    without the slab."""
+    T = (1.0 - _fresnel(1.0, IOR)) ** 2
+    for kind in ("point", "area"):
+        E = {}
+        for slab in (True, False):
+            s = PaperScene(8, 6)
+            s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "white_diffuse", name="floor")
+            if slab:
+                s.add_box((0, 0, 1.0), (2.0, 2.0, 0.02), _glass(), name="pane")
+            if kind == "point":
+                s.add_point_light((0.0, 0.0, 3.0), power=100.0)
+            else:
+                s.add_rect_area_light((0.0, 0.0, 3.0), (0.3, 0.3), power=100.0)
+            s.set_camera((0, -6, 3), (0, 0, 0))
+            ctx = prepare_context(s, RenderSettings(workers=1))
+            hit = _floor_hits(ctx, 200, half=0.1)
+            E[slab] = direct_irradiance(ctx, hit, np.random.default_rng(1), Counters())
+        assert E[False].min() > 0
+        np.testing.assert_allclose(E[True], T * E[False], rtol=1e-3)
