@@ -101,6 +101,7 @@ class EffectPlan:
     caster_spheres: tuple = (np.zeros((0, 3)), np.zeros(0))
     caster_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # their object ids
     rough_specular: list = field(default_factory=list)  # specular objects too rough to focus
+    window_glass: list = field(default_factory=list)    # thin flat glass: shadow rays pass it
     caustics_from_global: bool = False  # caustic map from the global shot, no caustic shot
     trapped: dict = field(default_factory=dict)  # light name -> closed mesh it is shut in
     decisions: list = field(default_factory=list)
@@ -293,8 +294,14 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     # unaimed photons (render.py partitions the caustic paths by the object hit first).
     if photon_mapping:
         focus_tri = _focusing(table)[mat] if has_tris else np.zeros(0, bool)
-        sharp_tri = (sharp_specular(table)[mat] if has_tris else np.zeros(0, bool)) & focus_tri
-        rough_tri = focus_tri & ~sharp_tri
+        # Window glass (thin slabs, window_glass): passed by shadow rays, so no caustic
+        # caster; its reflections come from unaimed photons, as a rough lobe's glow.
+        window_tri = window_glass(geo, table) if has_tris else np.zeros(0, bool)
+        plan.window_glass = ([geo.object_names[i] for i in np.unique(geo.object_id[window_tri])]
+                             if window_tri.any() else [])
+        sharp_tri = ((sharp_specular(table)[mat] if has_tris else np.zeros(0, bool))
+                     & focus_tri & ~window_tri)
+        rough_tri = focus_tri & ~sharp_tri & ~window_tri
         ids, centers, radii, names = _object_spheres(geo, sharp_tri) if sharp_tri.any() else ([], np.zeros((0, 3)), np.zeros(0), [])
         rough_ids = np.setdiff1d(np.unique(geo.object_id[rough_tri]), ids) if rough_tri.any() else []
         plan.rough_specular = [geo.object_names[i] for i in rough_ids]
@@ -310,6 +317,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                 if any(_light_reaches(li, accel, geo, oid, c, r, rng) for li in emitting):
                     rough_reached.append(name)
         rough_note = ""
+        if plan.window_glass:
+            shown = plan.window_glass[:4]
+            rough_note += ("; window glass " + ", ".join(f"'{n}'" for n in shown)
+                           + (" ..." if len(plan.window_glass) > 4 else "")
+                           + ": passed by shadow rays (thin flat glass), not a caustic "
+                           "caster; its reflections come from unaimed photons")
         if plan.rough_specular:
             shown = plan.rough_specular[:4]
             rough_note = ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
@@ -327,16 +340,28 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
-        elif rough_reached:
+        elif rough_reached or (plan.window_glass and emitting):
             # Nothing to aim at: a soft glow is as dense in the global photons (a larger
             # shot) as in an unaimed caustic shot, so reuse them when there are any.
             plan.caustics_from_global = plan.indirect
             source = ("the global photons" if plan.indirect
                       else f"{s.caustic_photons:,} unaimed photons")
-            auto, why = True, ("no sharp caustic caster; the glossy reflections of "
-                               + ", ".join(f"'{n}'" for n in rough_reached[:4])
-                               + (" ..." if len(rough_reached) > 4 else "")
-                               + f" (specular roughness {SHARP_ROUGHNESS:g} or more) come from {source}")
+            window_note = ("; window glass " + ", ".join(f"'{n}'" for n in plan.window_glass[:4])
+                           + (" ..." if len(plan.window_glass) > 4 else "")
+                           + ": passed by shadow rays (thin flat glass)"
+                           if plan.window_glass else "")
+            if rough_reached:
+                auto, why = True, ("no sharp caustic caster; the glossy reflections of "
+                                   + ", ".join(f"'{n}'" for n in rough_reached[:4])
+                                   + (" ..." if len(rough_reached) > 4 else "")
+                                   + f" (specular roughness {SHARP_ROUGHNESS:g} or more) "
+                                   f"come from {source}" + window_note)
+            else:
+                auto, why = True, ("no sharp caustic caster; window glass "
+                                   + ", ".join(f"'{n}'" for n in plan.window_glass[:4])
+                                   + (" ..." if len(plan.window_glass) > 4 else "")
+                                   + ": passed by shadow rays (thin flat glass); its "
+                                   f"reflections come from {source}")
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "
@@ -492,6 +517,18 @@ def _corner_pieces(geo: Geometry, sel: np.ndarray):
         v0 = np.take(geo.v0, idx, axis=0)
         yield np.concatenate([v0, v0 + np.take(geo.e1, idx, axis=0),
                               v0 + np.take(geo.e2, idx, axis=0)])
+
+
+def window_glass(geo: Geometry, table: MaterialTable) -> np.ndarray:
+    """(T,) bool: triangles of window glass (photonkernels.window_triangles: thin slabs
+    of smooth glass). Shadow rays pass them (engine/shadowtransmittance.py) and photons
+    through them keep their path's kind, so they cast no caustic to aim at: their
+    reflections (and the few inner ones) are the unaimed photons'."""
+    from . import photonkernels as pk
+    flat, limit = pk.flat_tables(geo, table)
+    if not len(flat):
+        return np.zeros(geo.count, bool)
+    return pk.window_triangles(geo, flat, limit)
 
 
 def _visible_specular(scene, geo, table, accel, probe=96) -> list:

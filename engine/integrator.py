@@ -37,6 +37,7 @@ from .closures import principled as pr
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
+from .shadowtransmittance import CameraPassages
 from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
 
 
@@ -1158,6 +1159,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     cam_pos = np.ascontiguousarray(cam_pos, np.float64)  # (view_depth's signature)
     forward = np.ascontiguousarray(forward, np.float64)
     c = np.ascontiguousarray
+    # Flat passages through thin glass (engine/shadowtransmittance.py): None without them.
+    passages = CameraPassages.for_context(ctx, len(o))
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1226,6 +1229,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             kept, o, d, tp, pix, prim, u, v, t, sample_id, travelled, ray_cls, pdf_b = (
                 keep_path_hits(prim, o, d, tp, pix, u, v, t, sample_id, travelled, ray_cls,
                                pdf_b))
+            if passages is not None:
+                passages.compact(kept)
         # A pixel's footprint: only the photon estimates read it.
         footprint = None
         if s.photon_mapping:
@@ -1301,12 +1306,18 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # (Drawn only if a reflective lobe is sampled: bsdf_rng serves nothing else.)
         uv = (functools.partial(sampler.uv, ("bsdf",), rng=bsdf_rng, scrambled=True)
               if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
+        d_in, pdf_in = d, pdf_b
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True,
                                                            uv=uv)
         # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
+        org_ns_in = org_ns if kept is None else org_ns[kept]
+        org_p_in = org_p if kept is None else org_p[kept]
         org_ns = np.take(hit.ns, keep, axis=0)
         org_p = np.take(hit.p, keep, axis=0)
+        if passages is not None:
+            passages.step(prim, d_in, hit.p, keep, d, pdf_in, org_ns_in, org_p_in, pdf_b,
+                          org_ns, org_p)
         pix = pix[keep]
         sample_id = sample_id[keep]
         travelled = travelled[keep]

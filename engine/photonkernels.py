@@ -41,6 +41,28 @@ F_DIFFUSE = 1      # the path has bounced diffusely
 F_SPECULAR = 2     # ... off a glossy / mirror / glass lobe (not a transparent pass)
 F_CAUSTIC_DIFF = 4  # path so far L S+ D S* (light from a caustic, one diffuse bounce later)
 F_FIRST_CASTER = 8  # its first hit was on a caustic caster (trace_photons' first_hit)
+F_PATH = 15        # the bits above: the path's own state
+# A flat passage under way (docs/design.md, Transparent shadows): the photon refracted
+# into smooth glass that may be a thin slab. Its flags then also hold the path's state
+# from before the glass (bits 8-11) and the entry triangle's row (bits 32-62), so that
+# the exit through the slab's parallel face restores the path as it was (no caustic).
+F_IN_GLASS = 16
+_PRE_SHIFT = 8
+_TRI_SHIFT = 32
+# The flat-passage test (shared with engine/shadowtransmittance.py): the exit face's
+# geometric normal within 1 degree of the entry face's (either orientation), and the slab
+# no thicker than FLAT_OBJECT_SHARE of the glass object's bounding-box diagonal and
+# FLAT_SCENE_SHARE of the scene's. The true refracted path is displaced sideways by
+# t sin(theta - theta_t) / cos(theta_t), which grows with the angle to t at grazing
+# incidence (eta >= 1): bounding the thickness bounds the displacement at every angle, so
+# one slab is flat (or not) for all light, and a shadow ray's straight line misses the
+# true path by at most 1 % of the scene and 2 % of the pane's size (a 2 cm pane of
+# 1.2 x 1 m in a 4 m room: 1.3 % of its diagonal; window glass is 0.3-1 %). A 1 m glass
+# cube, a ball or a 30 cm block on an 8 m slab (2.7 %) are not flat: they keep the
+# caustic map.
+FLAT_COS = math.cos(math.radians(1.0))
+FLAT_OBJECT_SHARE = 0.02
+FLAT_SCENE_SHARE = 0.01
 # The ray kinds a photon segment can stand for on the camera side (not camera rays).
 SEGMENT_KINDS = ALL_RAYS & ~CAMERA
 # Random dimensions per photon and bounce: roulette, diffuse direction (2), lobe sample (3).
@@ -228,12 +250,165 @@ def _path_kind(flags):
 
 
 @kernel
-def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v, v0, e1, e2,
-            corner_normals, material, base_color, mat_alpha, given, p, ng, ns, front, mat,
-            base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id, caster,
-            first_hit_mode, caustic_only, vis_on,
-            st_pos, st_power, st_dir, st_normal, st_kind,
-            nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, hit_rows):
+def flat_exit(v0, e1, e2, material, object_id, flat_mat, flat_limit, entry, t, dx, dy, dz,
+              px, py, pz):
+    """True when a ray (direction d, any length) that entered glass through triangle row
+    `entry` and meets triangle row t at point p leaves it through a flat passage: t is of
+    the entry's material (flat_mat (M,) bool: smooth glass), leaves the glass (d along
+    the face's winding normal) with its geometric normal within FLAT_COS of the entry's,
+    and the slab's thickness (p's distance to the entry plane) is at most
+    flat_limit[object_id[entry]] (m; flat_thickness_limits)."""
+    if entry < 0 or t < 0 or material[t] != material[entry] or not flat_mat[material[t]]:
+        return False
+    ax = e1[entry, 1] * e2[entry, 2] - e1[entry, 2] * e2[entry, 1]
+    ay = e1[entry, 2] * e2[entry, 0] - e1[entry, 0] * e2[entry, 2]
+    az = e1[entry, 0] * e2[entry, 1] - e1[entry, 1] * e2[entry, 0]
+    bx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
+    by = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
+    bz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+    la = math.sqrt(ax * ax + ay * ay + az * az)
+    lb = math.sqrt(bx * bx + by * by + bz * bz)
+    if not (la > 0.0 and lb > 0.0):
+        return False
+    ax, ay, az = ax / la, ay / la, az / la
+    if abs(ax * bx + ay * by + az * bz) < FLAT_COS * lb:
+        return False
+    if dx * bx + dy * by + dz * bz <= 0.0:
+        return False  # arrives on the exit face's outside: not leaving the glass
+    thick = abs((px - v0[entry, 0]) * ax + (py - v0[entry, 1]) * ay
+                + (pz - v0[entry, 2]) * az)
+    return thick <= flat_limit[object_id[entry]]
+
+
+@kernel
+def flat_entry(e1, e2, material, flat_mat, t, dx, dy, dz):
+    """True when a ray along d meeting triangle row t enters smooth glass that may form a
+    flat passage: t's material is in flat_mat and d arrives on its winding's outside."""
+    if t < 0 or not flat_mat[material[t]]:
+        return False
+    bx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
+    by = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
+    bz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+    return dx * bx + dy * by + dz * bz < 0.0
+
+
+def flat_glass_materials(table) -> np.ndarray:
+    """(M,) bool: materials whose every lobe is smooth glass (Glass, Refraction, or
+    Principled with transmission 1, roughness below the delta threshold ggx.ALPHA_MIN,
+    opaque alpha, no metal, coat, sheen or Add Shader, no per-hit texture or normal map):
+    the only ones a flat passage can cross."""
+    from .closures import ggx
+    params = np.asarray(table.closure_params)
+    M = len(params)
+    if M == 0:
+        return np.zeros(0, np.bool_)
+    rough = params[:, pr.M_ROUGH]
+    ok = ((params[:, pr.M_TRANS] >= 1.0) & (rough * rough < ggx.ALPHA_MIN)
+          & (np.asarray(table.alpha) >= 1.0) & (params[:, pr.M_METALLIC] <= 0.0)
+          & (params[:, pr.M_COAT_W] <= 0.0) & (params[:, pr.M_SHEEN_W] <= 0.0)
+          & (params[:, pr.M_ADD] == 0.0))
+    for attr in ("textures", "normal_maps", "alpha_textures", "scalar_textures"):
+        nodes = getattr(table, attr, None)
+        if nodes is not None and len(nodes) == M:
+            ok &= np.array([n is None or (isinstance(n, (list, tuple)) and not n)
+                            for n in nodes], np.bool_)
+    return np.ascontiguousarray(ok)
+
+
+def flat_thickness_limits(geo) -> np.ndarray:
+    """(objects,) float64: the thickest slab of each object that still counts as flat
+    (m): FLAT_OBJECT_SHARE of the object's bounding-box diagonal, at most FLAT_SCENE_SHARE
+    of the scene's (Geometry.extent)."""
+    n = len(geo.object_names)
+    out = np.zeros(n)
+    if geo.count == 0 or n == 0:
+        return out
+    oid = np.asarray(geo.object_id, np.int64)
+    corners = np.concatenate([geo.v0, geo.v0 + geo.e1, geo.v0 + geo.e2])
+    ids = np.concatenate([oid, oid, oid])
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, ids, corners)
+    np.maximum.at(hi, ids, corners)
+    diag = np.sqrt(np.sum(np.where(np.isfinite(hi - lo), hi - lo, 0.0) ** 2, axis=1))
+    return np.ascontiguousarray(np.minimum(FLAT_OBJECT_SHARE * diag,
+                                           FLAT_SCENE_SHARE * float(geo.extent)))
+
+
+_NO_FLAT_MAT = np.zeros(0, np.bool_)
+_NO_FLAT_LIMIT = np.zeros(0)
+
+
+def window_triangles(geo, flat, limit) -> np.ndarray:
+    """(T,) bool: triangles of window glass, objects wholly of flat-glass materials (flat
+    (M,) bool) with two opposite faces (geometric normals within FLAT_COS of the largest
+    triangle's, both orientations present) no further apart than the object's flat limit
+    (limit (objects,)). Only such objects can hold a flat passage; without any, a scene
+    has none (a glass ball or cube costs nothing here). Single-plane glass is not window
+    glass (one orientation only)."""
+    out = np.zeros(geo.count, bool)
+    on = flat[geo.material]
+    if not on.any():
+        return out
+    for oid in np.unique(geo.object_id[on]):
+        tris = np.nonzero(geo.object_id == oid)[0]
+        if not np.all(on[tris]):
+            continue
+        e1, e2 = geo.e1[tris], geo.e2[tris]
+        cross = np.cross(e1, e2)
+        area = np.linalg.norm(cross, axis=1)
+        big = int(np.argmax(area))
+        if not area[big] > 0:
+            continue
+        n0 = cross[big] / area[big]
+        c = (cross @ n0) / np.maximum(area, 1e-300)
+        if not (np.any(c >= FLAT_COS) and np.any(c <= -FLAT_COS)):
+            continue
+        v0 = geo.v0[tris]
+        h = np.concatenate([v0 @ n0, (v0 + e1) @ n0, (v0 + e2) @ n0])
+        if h.max() - h.min() <= limit[oid]:
+            out[tris] = True
+    return out
+
+
+def flat_tables(geo, table):
+    """(flat_mat (M,) bool, flat_limit (objects,)) for a prepared scene, or two empty
+    arrays when no triangle is of a flat-glass material, or the scene's instances share
+    their tables (engine/sharedrows.py: no per-triangle rows to remember an entry by).
+    Cached on geo for its table (both passes use the same tables)."""
+    cached = getattr(geo, "_flat_tables", None)
+    if cached is not None and cached[0] is table:
+        return cached[1]
+    out = (_NO_FLAT_MAT, _NO_FLAT_LIMIT)
+    if geo.count > 0 and getattr(geo, "shared", None) is None:
+        flat = flat_glass_materials(table)
+        if len(flat) and flat[geo.used_materials()].any():
+            limit = flat_thickness_limits(geo)
+            if window_triangles(geo, flat, limit).any():
+                out = (flat, limit)
+    try:
+        geo._flat_tables = (table, out)
+    except AttributeError:
+        pass
+    return out
+
+
+def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT):
+    """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
+    (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
+    rows being the scene's own (no shared instances); empty (the default): no flat
+    passages."""
+    return _scatter(*args, flat_mat, flat_limit)
+
+
+@kernel
+def _scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v, v0, e1, e2,
+             corner_normals, material, base_color, mat_alpha, given, p, ng, ns, front, mat,
+             base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id, caster,
+             first_hit_mode, caustic_only, vis_on,
+             st_pos, st_power, st_dir, st_normal, st_kind,
+             nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, hit_rows,
+             flat_mat, flat_limit):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds and slots (m,), at the hits as Embree answers them (Accel.intersect_hits):
     geom, prim (m,) int32 (geom < 0: missed; lost; else the triangle's row is
@@ -264,8 +439,16 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
     what is left); the power is divided by that probability and multiplied by the sampled
     direction's f cos / pdf (Jensen's scheme with pbrt's max rule). A refracted photon
     takes (eta_i / eta_t)^2: radiance is carried as invariant across the interface, as by
-    the camera side and Cycles (docs/units.md, "Refraction")."""
+    the camera side and Cycles (docs/units.md, "Refraction").
+
+    Flat passages (flat_mat non-empty; docs/design.md, Transparent shadows): a photon
+    refracted into smooth glass from outside carries F_IN_GLASS, its path state and the
+    entry triangle in its flags; refracted out at the next hit through a flat passage
+    (flat_exit) it takes its path state back, as if the glass had not been there: shadow
+    rays carry that light (engine/shadowtransmittance.py). Any other next event (an inner
+    reflection, another surface) leaves the path specular."""
     m = geom.shape[0]
+    flat_on = flat_mat.shape[0] > 0
     bumped = bump.shape[0] > 0
     if hit_rows.shape[1] < m:
         raise ValueError("scatter: hit_rows has fewer than m columns")
@@ -496,7 +679,8 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
             else:
                 new_kinds = kin
             # --- path flags ---
-            nf = fl
+            nf = fl & ~np.int64(F_IN_GLASS) & ((np.int64(1) << _PRE_SHIFT) - 1)
+            passage = fl & F_IN_GLASS
             if lobe == pr.L_DIFFUSE:
                 # The first diffuse bounce after a caustic path starts L S+ D; any further
                 # diffuse bounce makes it ordinary indirect light.
@@ -511,7 +695,17 @@ def scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v,
                 # the lobe. A transparent pass leaves the kind as it was: shadow rays cross
                 # it, so light through it is direct light (docs/design.md, Transparent
                 # shadows).
-                nf |= F_SPECULAR
+                if (flat_on and passage and glass and transmitted and flat_exit(
+                        v0, e1, e2, material, object_id, flat_mat, flat_limit,
+                        fl >> _TRI_SHIFT, t, dx, dy, dz, p_b[j, 0], p_b[j, 1], p_b[j, 2])):
+                    # Out of a flat passage: the path as it was before the glass.
+                    nf = (fl >> _PRE_SHIFT) & F_PATH
+                else:
+                    pre = nf
+                    nf |= F_SPECULAR
+                    if (flat_on and glass and transmitted
+                            and flat_entry(e1, e2, material, flat_mat, t, dx, dy, dz)):
+                        nf |= F_IN_GLASS | (pre << _PRE_SHIFT) | (t << _TRI_SHIFT)
             # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---
             off = off_b[j] if ox * gx + oy * gy + oz * gz >= 0.0 else -off_b[j]
             nx_o[nn, 0] = p_b[j, 0] + off * gx
@@ -599,4 +793,12 @@ def _warm_up():
                 given, *surf, np.ones(1), params, plain_materials(params), np.full(1, 1.5),
                 np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.bool_),
                 0, False, False, *store_arrays(1), *next_arrays(2), np.empty((2, 1), np.int64))
+        scatter(np.uint64(1), 0, d, np.ones((1, 3)), np.zeros(1, np.int64),
+                np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), geom32, prim32,
+                np.zeros(1, np.int64), uv32, uv32, v0,
+                e1, e2, normals, np.zeros(1, np.int32), np.full((1, 3), 0.5), np.ones(1),
+                given, *surf, np.ones(1), params, plain_materials(params), np.full(1, 1.5),
+                np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.bool_),
+                0, False, False, *store_arrays(1), *next_arrays(2), np.empty((2, 1), np.int64),
+                flat_mat=np.ones(1, np.bool_), flat_limit=np.full(1, 0.1))
     uniforms(np.uint64(1), np.zeros(1, np.int64), 0, 0, np.empty(1))

@@ -189,6 +189,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool)."""
+    # Flat passages through thin glass (docs/design.md, Transparent shadows).
+    flat = pk.flat_tables(geo, table)
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -256,7 +258,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 table.alpha, given, *surf_m, bump[:m] if numpy_hits else _NO_BUMP,
                                 params, row_plain, mat_ior,
                                 visibility, object_id, caster, mode, bool(caustic_only),
-                                vis_on, *stored.room(m), *nxt_sets[k], hit_rows)
+                                vis_on, *stored.room(m), *nxt_sets[k], hit_rows,
+                                flat_mat=flat[0], flat_limit=flat[1])
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt_sets[k])
 

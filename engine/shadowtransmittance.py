@@ -9,9 +9,12 @@ the transparent part of a material lets a shadow ray through: alpha < 1 (Princip
 Alpha, a Mix Shader with a Transparent BSDF) and per-hit alpha from a texture
 (engine/textures.py, material_alpha), tinted by the Transparent BSDF's colour
 (Material.transparent_tint: the transmittance per channel is (1 - alpha) x tint, Cycles'
-transparent closure weight). Glass, refraction and mirrors are opaque to shadow
-rays; the light that reaches a surface through them is a caustic (the photon maps'),
-docs/design.md, Transparent shadows.
+transparent closure weight). Mirrors and glass are opaque to shadow rays (the light that
+reaches a surface through them is a caustic, the photon maps'), except a *flat passage*
+through thin smooth glass (photonkernels.flat_exit): a shadow ray crosses it with the two
+refractions' transmittance, as photons that cross it keep their path's kind, and camera
+paths that cross it keep their MIS state (CameraPassages); docs/design.md, Transparent
+shadows.
 
 The work is split so the common case stays one cheap query per shadow ray: the caller
 runs Embree's OCCLUDED query first (unblocked rays and rays blocked in a scene without
@@ -28,11 +31,14 @@ blocks the ray where it is met, which gives the same transmittance.
 """
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
 
+from . import photonkernels as pk
 from .accel import Accel
+from .closures import principled as pr
 from .geometry import ALL_RAYS
 from .jit import kernel, register_warm_up
 from .rayoffset import offset_along_normal
@@ -42,6 +48,9 @@ from .textures import material_alpha
 DEFAULT_MAX_HITS = 8
 
 CLEAR, BLOCKED, GOING = 0, 1, 2
+_NO_FLAT = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)),
+            np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.bool_),
+            np.zeros(0), np.zeros((0, 1)), np.zeros((0, 3)), np.zeros(0))
 
 
 def transparent_tints(table) -> np.ndarray:
@@ -55,8 +64,30 @@ def transparent_tints(table) -> np.ndarray:
 
 
 @kernel
+def _crossing(params, base_color, m, cos_o, front, mat1, base1, cos1, front1, alpha1, prm1,
+              w1, out):
+    """out (3,) *= the smooth glass lobe's transmittance (RGB) for one refraction of
+    material m at cos_o (the cosine on the arriving side), from outside (front) or
+    inside: the weight the photons' glass sampling gives a refraction on average,
+    TW x (1 - F) (principled._glass_sample), set up as principled.setup does for a hit.
+    mat1 .. w1: one-row scratch arrays for principled.setup."""
+    mat1[0] = m
+    for c in range(3):
+        base1[0, c] = base_color[m, c]
+    cos1[0] = cos_o
+    front1[0] = front
+    alpha1[0] = 1.0
+    pr.setup(mat1, params, base1, cos1, front1, alpha1, prm1, w1)
+    eta = prm1[0, pr.P_GLASS_ETA]
+    for c in range(3):
+        f = pr._glass_F(prm1[0, pr.P_GLASS_F0 + c], cos_o, eta)
+        out[c] *= prm1[0, pr.P_GLASS_TW + c] * (1.0 - f)
+
+
+@kernel
 def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans, count,
-                max_hits, state):
+                max_hits, state, entry, o, d, thit, v0, e1, e2, object_id, flat_mat,
+                flat_limit, params, base_color, mat_ior):
     """One surface along each travelling shadow ray.
 
     prim (n,) the triangle hit (-1: none before the ray's end); tri_material (T,);
@@ -65,14 +96,87 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
     has none); slot (n,) the ray's row in trans (R,3) (RGB transmittance so far,
     multiplied in place) and count (R,) (transparent surfaces crossed so far). Writes
     state (n,): CLEAR (reached its end), BLOCKED (opaque surface, a black tint, or one
-    transparent surface more than max_hits), GOING (crossed a transparent surface)."""
+    transparent surface more than max_hits), GOING (crossed a transparent surface).
+
+    Flat passages (flat_mat (M,) bool non-empty: photonkernels.flat_glass_materials):
+    entry (R,) the triangle through which each ray entered smooth glass (-1: none; read
+    and written); o, d (n,3) and thit (n,) the rays and their hit distances (units of
+    |d|), v0, e1, e2 (T,3), object_id (T,), flat_limit (objects,) (photonkernels.
+    flat_exit); params, base_color, mat_ior: the material table's closure columns, base
+    colours, IOR. A ray entering such glass crosses it (two surfaces counted) if its next
+    surface is the exit of a flat passage, with the transmittance of the two refractions
+    (_crossing at the entry and the refracted angle); otherwise (another surface, or
+    none: single-plane glass) it is blocked."""
+    flat_on = flat_mat.shape[0] > 0
+    mat1 = np.empty(1, np.int64)
+    base1 = np.empty((1, 3))
+    cos1 = np.empty(1)
+    front1 = np.empty(1, np.bool_)
+    alpha1 = np.empty(1)
+    prm1 = np.empty((1, pr.N_PACK))
+    w1 = np.empty((1, pr.N_LOBES, 3))
+    out = np.empty(3)
     for i in range(prim.shape[0]):
         p = prim[i]
         r = slot[i]
+        if flat_on and entry[r] >= 0:
+            # Inside glass: the next surface must be the slab's other face.
+            en = entry[r]
+            entry[r] = -1
+            ok = False
+            if p >= 0 and count[r] < max_hits:
+                px = o[i, 0] + d[i, 0] * thit[i]
+                py = o[i, 1] + d[i, 1] * thit[i]
+                pz = o[i, 2] + d[i, 2] * thit[i]
+                ok = pk.flat_exit(v0, e1, e2, tri_material, object_id, flat_mat,
+                                  flat_limit, en, p, d[i, 0], d[i, 1], d[i, 2], px, py, pz)
+            if ok:
+                m = tri_material[en]
+                nx = e1[en, 1] * e2[en, 2] - e1[en, 2] * e2[en, 1]
+                ny = e1[en, 2] * e2[en, 0] - e1[en, 0] * e2[en, 2]
+                nz = e1[en, 0] * e2[en, 1] - e1[en, 1] * e2[en, 0]
+                ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+                dl = math.sqrt(d[i, 0] ** 2 + d[i, 1] ** 2 + d[i, 2] ** 2)
+                ci = min(abs(d[i, 0] * nx + d[i, 1] * ny + d[i, 2] * nz) / max(ln * dl, 1e-300),
+                         1.0)
+                ior = max(mat_ior[m], 1e-5)
+                s2 = (1.0 - ci * ci) / (ior * ior)
+                ct = math.sqrt(max(1.0 - s2, 0.0))
+                out[0] = out[1] = out[2] = 1.0
+                _crossing(params, base_color, m, ci, True, mat1, base1, cos1, front1, alpha1,
+                          prm1, w1, out)
+                _crossing(params, base_color, m, ct, False, mat1, base1, cos1, front1, alpha1,
+                          prm1, w1, out)
+                ok = out[0] > 0.0 or out[1] > 0.0 or out[2] > 0.0
+            if not ok:
+                trans[r, 0] = 0.0
+                trans[r, 1] = 0.0
+                trans[r, 2] = 0.0
+                state[i] = BLOCKED
+                continue
+            trans[r, 0] = trans[r, 0] * out[0]
+            trans[r, 1] = trans[r, 1] * out[1]
+            trans[r, 2] = trans[r, 2] * out[2]
+            count[r] += 1
+            state[i] = GOING
+            continue
         if p < 0:
             state[i] = CLEAR
             continue
         m = tri_material[p]
+        if flat_on and flat_mat[m]:
+            # Into smooth glass: room for both surfaces, arriving on its outside.
+            if count[r] + 2 > max_hits or not pk.flat_entry(e1, e2, tri_material, flat_mat,
+                                                            p, d[i, 0], d[i, 1], d[i, 2]):
+                trans[r, 0] = 0.0
+                trans[r, 1] = 0.0
+                trans[r, 2] = 0.0
+                state[i] = BLOCKED
+                continue
+            entry[r] = p
+            count[r] += 1
+            state[i] = GOING
+            continue
         a = mat_alpha[m] * node_alpha[i]
         through = 1.0 - min(max(a, 0.0), 1.0)
         t0 = through * mat_tint[m, 0]
@@ -89,6 +193,132 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
         trans[r, 2] = trans[r, 2] * t2
         count[r] += 1
         state[i] = GOING
+
+
+@kernel
+def camera_passage(v0, e1, e2, material, object_id, flat_mat, flat_limit, mat_pass, prim,
+                   d_in, p, keep, d_out, pdf_in, ns_in, p_in, entry, pre_pdf, pre_ns, pre_p,
+                   pdf_out, ns_out, p_out, entry_out, pre_pdf_out, pre_ns_out, pre_p_out):
+    """The camera paths' side of flat passages (integrator._trace_paths), after a
+    specular continuation: the rows keep (K,) of the N hits (triangle prim, arriving
+    direction d_in, point p; pdf_in, ns_in, p_in: the arriving rays' continuation pdf and
+    the shading normal and point they left, for MIS; entry, pre_*: the glass each ray is
+    inside and the MIS state it had before it) went on along d_out (K,3) with
+    pdf_out, ns_out, p_out (K,) (the new state, rewritten in place). A refraction into
+    flat-passage glass records the state before it (entry_out, pre_*_out (K,)); the
+    refraction out of a flat passage (photonkernels.flat_exit) gives the ray its state
+    from before the glass back, so a light met after a window takes the MIS weight of
+    the surface whose lobe sampled it, as the shadow rays from that surface pass the
+    window (otherwise both strategies would count that light in full). The same for a
+    transparent pass (a continuation straight on through a material of mat_pass (M,)
+    bool, those shadow rays cross; empty: none): the ray keeps its state, as the shadow
+    rays from where it left cross that surface. flat_mat empty: no flat passages."""
+    flat_on = flat_mat.shape[0] > 0
+    pass_on = mat_pass.shape[0] > 0
+    for k in range(keep.shape[0]):
+        i = keep[k]
+        t = prim[i]
+        entry_out[k] = -1
+        pre_pdf_out[k] = math.inf
+        for c in range(3):
+            pre_ns_out[k, c] = 0.0
+            pre_p_out[k, c] = 0.0
+        if t < 0:
+            continue
+        if pass_on and mat_pass[material[t]]:
+            li = math.sqrt(d_in[i, 0] ** 2 + d_in[i, 1] ** 2 + d_in[i, 2] ** 2)
+            lo = math.sqrt(d_out[k, 0] ** 2 + d_out[k, 1] ** 2 + d_out[k, 2] ** 2)
+            cs = (d_in[i, 0] * d_out[k, 0] + d_in[i, 1] * d_out[k, 1]
+                  + d_in[i, 2] * d_out[k, 2])
+            if cs >= (1.0 - 1e-12) * li * lo:
+                # Straight on through a transparent pass: the state goes on with the ray
+                # (its glass entry too: an alpha card inside glass is no passage).
+                entry_out[k] = entry[i]
+                pre_pdf_out[k] = pre_pdf[i]
+                for c in range(3):
+                    pre_ns_out[k, c] = pre_ns[i, c]
+                    pre_p_out[k, c] = pre_p[i, c]
+                pdf_out[k] = pdf_in[i]
+                for c in range(3):
+                    ns_out[k, c] = ns_in[i, c]
+                    p_out[k, c] = p_in[i, c]
+                continue
+        if not flat_on:
+            continue
+        nx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
+        ny = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
+        nz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+        a = d_in[i, 0] * nx + d_in[i, 1] * ny + d_in[i, 2] * nz
+        b = d_out[k, 0] * nx + d_out[k, 1] * ny + d_out[k, 2] * nz
+        if not ((a < 0.0 and b < 0.0) or (a > 0.0 and b > 0.0)):
+            continue  # reflected: no passage
+        e = entry[i]
+        if e >= 0:
+            if pk.flat_exit(v0, e1, e2, material, object_id, flat_mat, flat_limit, e, t,
+                            d_in[i, 0], d_in[i, 1], d_in[i, 2], p[i, 0], p[i, 1], p[i, 2]):
+                pdf_out[k] = pre_pdf[i]
+                for c in range(3):
+                    ns_out[k, c] = pre_ns[i, c]
+                    p_out[k, c] = pre_p[i, c]
+            continue
+        if pk.flat_entry(e1, e2, material, flat_mat, t, d_in[i, 0], d_in[i, 1], d_in[i, 2]):
+            entry_out[k] = t
+            pre_pdf_out[k] = pdf_in[i]
+            for c in range(3):
+                pre_ns_out[k, c] = ns_in[i, c]
+                pre_p_out[k, c] = p_in[i, c]
+
+
+class CameraPassages:
+    """Per-path flat-passage state of integrator._trace_paths (camera_passage), or None
+    for a scene without flat-passage glass (then nothing changes)."""
+
+    @classmethod
+    def for_context(cls, ctx, n):
+        """None unless shadow rays cross some surface (ctx.shadow: flat passages, when
+        they may cross both faces of a slab, or transparent passes)."""
+        shadow = getattr(ctx, "shadow", None)
+        if shadow is None or shadow.shared:
+            return None
+        flat_mat, flat_limit = shadow.flat_mat, shadow.flat_limit
+        if not shadow.flat_on or shadow.max_hits < 2:
+            flat_mat, flat_limit = pk._NO_FLAT_MAT, pk._NO_FLAT_LIMIT
+        mat_pass = np.ascontiguousarray(shadow.transparent_materials(ctx.table), np.bool_)
+        if not mat_pass.any():
+            mat_pass = np.zeros(0, np.bool_)
+        if not len(flat_mat) and not len(mat_pass):
+            return None
+        self = cls()
+        geo = ctx.geo
+        self.tables = (geo.v0, geo.e1, geo.e2, np.ascontiguousarray(geo.material, np.int64),
+                       np.ascontiguousarray(geo.object_id, np.int64), flat_mat, flat_limit,
+                       mat_pass)
+        self.entry = np.full(n, -1, np.int64)
+        self.pre_pdf = np.full(n, np.inf)
+        self.pre_ns = np.zeros((n, 3))
+        self.pre_p = np.zeros((n, 3))
+        return self
+
+    def compact(self, kept):
+        if kept is not None:
+            self.entry, self.pre_pdf = self.entry[kept], self.pre_pdf[kept]
+            self.pre_ns, self.pre_p = self.pre_ns[kept], self.pre_p[kept]
+
+    def step(self, prim, d_in, p, keep, d_out, pdf_in, ns_in, p_in, pdf_out, ns_out, p_out):
+        """After continue_specular: pdf_out, ns_out, p_out (K,) rewritten where a flat
+        passage ends; the state carried to the continued rows."""
+        c = np.ascontiguousarray
+        K = len(keep)
+        entry = np.empty(K, np.int64)
+        pre_pdf = np.empty(K)
+        pre_ns = np.empty((K, 3))
+        pre_p = np.empty((K, 3))
+        camera_passage(*self.tables, c(prim, np.int64), c(d_in, np.float64), c(p, np.float64),
+                       c(keep, np.int64), c(d_out, np.float64), c(pdf_in, np.float64),
+                       c(ns_in, np.float64), c(p_in, np.float64), self.entry, self.pre_pdf,
+                       self.pre_ns, self.pre_p, pdf_out, ns_out, p_out, entry, pre_pdf,
+                       pre_ns, pre_p)
+        self.entry, self.pre_pdf, self.pre_ns, self.pre_p = entry, pre_pdf, pre_ns, pre_p
 
 
 @kernel
@@ -122,9 +352,19 @@ class ShadowTransmittance:
         # Shared instances (engine/sharedrows.py): no per-triangle tables; the rays walk
         # the class's two-level BVH surface by surface instead (_walk_bvh).
         self.shared = getattr(geo, "shared", None) is not None
+        # Flat passages through thin smooth glass (empty tables: none in the scene, or
+        # shared instances).
+        self.flat_mat, self.flat_limit = pk.flat_tables(geo, table)
+        self.flat_on = len(self.flat_mat) > 0
         if not self.shared:
             self.tri_material = np.ascontiguousarray(geo.material, np.int64)
             self.tri_transparent = self.transparent_materials(table)[geo.material]
+            if self.flat_on:
+                self.tri_transparent = self.tri_transparent | self.flat_mat[geo.material]
+                self.object_id = np.ascontiguousarray(geo.object_id, np.int64)
+                self.params = np.ascontiguousarray(table.closure_params, np.float64)
+                self.base_color = np.ascontiguousarray(table.base_color, np.float64)
+                self.mat_ior = np.ascontiguousarray(table.ior, np.float64)
         self._subsets = {}
         self._lock = threading.Lock()
 
@@ -190,7 +430,8 @@ class ShadowTransmittance:
         if geo.count == 0 or int(max_hits) <= 0:
             return None
         used = geo.used_materials()
-        if not cls.transparent_materials(table)[used].any():
+        if not cls.transparent_materials(table)[used].any() and not len(
+                pk.flat_tables(geo, table)[0]):
             return None
         return cls(geo, table, max_hits)
 
@@ -215,6 +456,7 @@ class ShadowTransmittance:
         end = o + d * t[:, None]
         dd = np.maximum((d * d).sum(axis=1), 1e-300)
         slot = np.arange(n, dtype=np.int64)
+        entry = np.full(n, -1, np.int64)  # the glass each ray is inside (-1: none)
         geo = self.geo
         if self.shared:
             opaque, clear, clear_idx = None, self._walk_bvh(cls), None
@@ -232,7 +474,7 @@ class ShadowTransmittance:
         for _ in range(self.max_hits + 1):
             if len(slot) == 0:
                 break
-            _, prim, u, v = clear.intersect(o, d, t)
+            thit, prim, u, v = clear.intersect(o, d, t)
             hit = prim >= 0
             if clear_idx is not None:
                 prim[hit] = clear_idx[prim[hit]]
@@ -245,8 +487,15 @@ class ShadowTransmittance:
                 node_alpha[hit] = material_alpha(self.table, geo, np.take(geo.material, hp),
                                                  hp, hu, hv, constant=False)
             state = np.empty(len(prim), np.int64)
+            if self.flat_on:
+                flat = (o, d, np.ascontiguousarray(thit, np.float64), geo.v0, geo.e1, geo.e2,
+                        self.object_id, self.flat_mat, self.flat_limit, self.params,
+                        self.base_color, self.mat_ior)
+            else:
+                flat = _NO_FLAT
             shadow_step(rows, np.ascontiguousarray(tri_material, np.int64), self.mat_alpha,
-                        self.mat_tint, node_alpha, slot, trans, count, self.max_hits, state)
+                        self.mat_tint, node_alpha, slot, trans, count, self.max_hits, state,
+                        entry, *flat)
             go = np.nonzero(state == GOING)[0]
             if len(go) == 0:
                 break
@@ -263,6 +512,8 @@ class ShadowTransmittance:
             t = ((end[slot] - o) * d).sum(axis=1) / dd[slot]
             past = t <= 0.0  # the surface lies at the ray's end: nothing more to cross
             if past.any():
+                # ... but a ray that ends inside glass has no way out of it.
+                trans[slot[past & (entry[slot] >= 0)]] = 0.0
                 keep = ~past
                 o, d, t, slot = o[keep], d[keep], t[keep], slot[keep]
         else:
@@ -297,5 +548,24 @@ def _warm_up():
     state = np.empty(1, np.int64)
     shadow_step(np.zeros(1, np.int64), np.zeros(1, np.int64), np.full(1, 0.5),
                 np.ones((1, 3)), np.ones(1), np.zeros(1, np.int64), trans, count,
-                DEFAULT_MAX_HITS, state)
+                DEFAULT_MAX_HITS, state, np.full(1, -1, np.int64), *_NO_FLAT)
+    params = np.zeros((1, pr.N_MAT))
+    params[0, pr.M_TRANS] = params[0, pr.M_ALPHA] = 1.0
+    params[0, pr.M_IOR] = 1.5
+    tri = np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
+    shadow_step(np.zeros(1, np.int64), np.zeros(1, np.int64), np.ones(1),
+                np.ones((1, 3)), np.ones(1), np.zeros(1, np.int64), trans, count,
+                DEFAULT_MAX_HITS, state, np.zeros(1, np.int64), np.zeros((1, 3)),
+                np.array([[0.0, 0.0, 1.0]]), np.full(1, 0.01), np.zeros((1, 3)), *tri,
+                np.zeros(1, np.int64), np.ones(1, np.bool_), np.full(1, 0.1), params,
+                np.ones((1, 3)), np.full(1, 1.5))
     scale_entries(np.ones((1, 3)), np.zeros(1, np.int64), 1, np.full((1, 3), 0.5))
+    one3 = np.zeros((1, 3))
+    camera_passage(np.zeros((1, 3)), *tri, np.zeros(1, np.int64), np.zeros(1, np.int64),
+                   np.ones(1, np.bool_), np.full(1, 0.1), np.ones(1, np.bool_),
+                   np.zeros(1, np.int64),
+                   np.array([[0.0, 0.0, -1.0]]), one3, np.zeros(1, np.int64),
+                   np.array([[0.0, 0.0, -1.0]]), np.ones(1), one3, one3,
+                   np.full(1, -1, np.int64), np.ones(1), one3, one3, np.ones(1), one3.copy(),
+                   one3.copy(), np.empty(1, np.int64), np.empty(1), np.empty((1, 3)),
+                   np.empty((1, 3)))

@@ -17,7 +17,7 @@ from engine.api import PaperScene
 from engine.bsdf import fresnel_dielectric
 from engine.geometry import prepare
 from engine.lights import allocate_photons, prepare_lights
-from engine.photons import CAUSTIC, trace_photons
+from engine.photons import CAUSTIC, DIRECT, trace_photons
 from engine.render import Context
 from engine.scene import Material
 
@@ -54,8 +54,13 @@ def _caustic_power(scene, photons=200_000):
     lights = prepare_lights(scene, geo, table)
     ctx = Context(scene, settings, geo, table, accel, lights)
     ph = trace_photons(ctx, lights, allocate_photons(lights, photons), False, 1)
-    # Floor photons that came through the glass without touching the floor before.
-    sel = (ph.kind == CAUSTIC) & (np.abs(ph.position[:, 2] - ph.position[:, 2].min()) < 1e-3)
+    # Floor photons that came through the glass without touching the floor before: caustic,
+    # or direct under the pane (a thin slab's straight passages keep the direct kind:
+    # docs/design.md, Transparent shadows, flat passages).
+    xy = ph.position[:, :2].astype(np.float64) + geo.offset[:2]
+    under = np.all(np.abs(xy) < 0.5 * PANE, axis=1)
+    sel = (((ph.kind == CAUSTIC) | ((ph.kind == DIRECT) & under))
+           & (np.abs(ph.position[:, 2] - ph.position[:, 2].min()) < 1e-3))
     return float(ph.power[sel].astype(np.float64).sum(axis=0).mean())
 
 
