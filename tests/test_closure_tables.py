@@ -1,6 +1,6 @@
 """The GGX albedo tables (engine/closures/ggx_tables.npz): made by tools/make_closure_tables.py
 (the tool reproduces the stored file bit for bit, spot-checked here), the glass tables as
-Cycles 5.0 ships its own (docs/design.md, "Glass albedo tables"), and the kernel cache keyed
+Cycles 5.0 ships its own (docs/design.md, Glass albedo tables), and the kernel cache keyed
 on them."""
 import importlib.util
 import math

@@ -24,7 +24,7 @@ PLANES, FURNACES = cc.sweep_cases()
 FURNACE_SPP = {"furnace_glass_ior2.4_r1.0": 16384, "furnace_glass_ior2.4_r0.8": 16384}
 # Strict xfails for reported misses (none now). Glass IOR 2.4 r 0.8 was one (ours 0.9887 /
 # 1.0001 against Cycles' 0.9586) until the glass albedo tables were made as Cycles' are
-# (docs/design.md, "Glass albedo tables"): 0.9616 / 0.9566 (seeds 5 / 11).
+# (docs/design.md, Glass albedo tables): 0.9616 / 0.9566 (seeds 5 / 11).
 MISSES = {}
 
 

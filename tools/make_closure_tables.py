@@ -28,7 +28,7 @@ Tables:
                                    like ours, drops it: LABEL_NONE). So E is a little high
                                    where such samples are common (rough, eta < 1, grazing) and
                                    the compensated lobe loses light there, as Cycles' does
-                                   (docs/design.md, "Glass albedo tables").
+                                   (docs/design.md, Glass albedo tables).
     schlick_ior_s (16, 16, 16)     reflection lobe with Principled's Fresnel remap s(wo.h)
                                    = inverse_lerp(F0, 1, F(wo.h)): int s f cos / E, so the
                                    compensated lobe's albedo is mix(f0, f90, s)
