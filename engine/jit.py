@@ -56,7 +56,8 @@ def _choose_cache_dir() -> str:
 
 
 def _engine_stamp() -> str:
-    """Hash of every engine module that defines kernels, and the numba version. numba's cache checks only
+    """Hash of every engine module that defines kernels, the tables they read (.npz: numba
+    freezes global arrays into the machine code), and the numba version. numba's cache checks only
     a kernel's own file: a kernel calling one in another module (directlight ->
     closures.principled -> closures.ggx) would load stale machine code after that module
     changed. One cache folder per stamp rules that out."""
@@ -70,11 +71,12 @@ def _engine_stamp() -> str:
         for root, dirs, files in os.walk(pkg):
             dirs[:] = sorted(d for d in dirs if d != "__pycache__")
             for name in sorted(files):
-                if name.endswith(".py"):
+                if name.endswith((".py", ".npz")):
                     path = os.path.join(root, name)
                     with open(path, "rb") as f:
                         text = f.read()
-                    if b"@kernel" in text:  # kernels call kernels only
+                    # kernels call kernels only; .npz: tables kernels read as constants
+                    if b"@kernel" in text or name.endswith(".npz"):
                         h.update(os.path.relpath(path, pkg).encode())
                         h.update(text)
     else:  # imported from a zip (the engine shipped to Dask workers)
@@ -84,9 +86,9 @@ def _engine_stamp() -> str:
         if archive:
             with zipfile.ZipFile(archive) as z:
                 for name in sorted(z.namelist()):
-                    if name.startswith(prefix) and name.endswith(".py"):
+                    if name.startswith(prefix) and name.endswith((".py", ".npz")):
                         text = z.read(name)
-                        if b"@kernel" in text:
+                        if b"@kernel" in text or name.endswith(".npz"):
                             h.update(name.encode())
                             h.update(text)
     return h.hexdigest()[:16]

@@ -38,6 +38,7 @@ def load_data(module_file: str, name: str) -> dict:
     with np.load(io.BytesIO(raw)) as f:
         return {k: np.array(f[k]) for k in f.files}
 MU_MIN = 0.02      # albedos are estimated at mu >= MU_MIN (the grazing limit is smooth)
+GLASS_MU_MIN = 1e-4  # the glass tables' first row, as Cycles' (tools/make_closure_tables.py)
 Z_MAX = 0.98       # z = sqrt((ior-1)/(ior+1)) capped: ior <= ~48
 
 
