@@ -53,6 +53,9 @@ PARALLEL_POINTS = 1 << 16
 # points per job of a threaded build.
 NEIGHBOURS = 12
 NEIGHBOUR_CHUNK = 8192
+# kth_d2_rows and neighbour_lists list a seeded sphere of up to this many times the
+# points they need before they fall back to the heap search (knn).
+KTH_LIST_FACTOR = 8
 
 
 @kernel
@@ -739,13 +742,40 @@ def neighbour_lists(pos, axis, split, leaf, lo, hi, nbr, reach):
     order) into nbr[j] (int32; padded with j itself when there are fewer), and into
     reach[j] the distance (not squared) within which no unlisted point lies: the k-th
     listed one's, shrunk by 1e-9 relative (far above the float64 rounding of the
-    distances), inf when every other point is listed. nearest_walk's table."""
+    distances), inf when every other point is listed. nearest_walk's table.
+
+    Each point's k + 1 nearest (itself among them) lie within the previous point's
+    (k + 1)-th distance + the distance between the two (triangle inequality; points come
+    in tree order, so neighbours): that sphere is listed (ball_d2) and ordered
+    (nearest_first), and taken when its k + 1 nearest are free of ties (unique_nearest:
+    then any search gives them in that order, knn's answer bit for bit). Else, and for
+    spheres of more than KTH_LIST_FACTOR x (k + 1) points, knn."""
     k = nbr.shape[1]
-    d2 = np.empty(k + 1, np.float64)
-    idx = np.empty(k + 1, np.int64)
+    kq = k + 1
+    cap = KTH_LIST_FACTOR * kq
+    d2 = np.empty(cap, np.float64)
+    idx = np.empty(cap, np.int64)
+    list_d2 = np.empty(cap, np.float64)
+    list_idx = np.empty(cap, np.int64)
+    hist = np.empty(cap + 1, np.int64)
+    prev = -1
+    prev_d = np.inf  # the previous point's kq-th distance (inf: none)
     for j in range(lo, hi):
-        c = knn(pos, axis, split, leaf, np.float64(pos[j, 0]), np.float64(pos[j, 1]),
-                np.float64(pos[j, 2]), k + 1, np.inf, d2, idx)
+        qx, qy, qz = np.float64(pos[j, 0]), np.float64(pos[j, 1]), np.float64(pos[j, 2])
+        c = -1
+        if prev >= 0 and prev_d < np.inf:
+            b = prev_d + np.sqrt(_dist2(pos, prev, qx, qy, qz))
+            b2 = seed_bound(b * b)
+            if b2 < np.inf:
+                got = ball_d2(pos, axis, split, leaf, qx, qy, qz, b2, list_d2, list_idx, cap)
+                if kq <= got <= cap:
+                    nearest_first(list_d2, list_idx, got, kq, b2, d2, idx, hist)
+                    if unique_nearest(d2, got, kq):
+                        c = kq
+        if c < 0:
+            c = knn(pos, axis, split, leaf, qx, qy, qz, kq, np.inf, d2, idx)
+        prev = j
+        prev_d = np.sqrt(d2[kq - 1]) if c == kq else np.inf
         m = 0
         last = np.inf
         for t in range(c):
@@ -891,11 +921,6 @@ def select_value(a, count, m):
         else:
             return pivot
     return a[lo]
-
-
-# kth_d2_rows lists a sphere of up to this many times kq points before it falls back to
-# the heap search.
-KTH_LIST_FACTOR = 8
 
 
 @kernel
