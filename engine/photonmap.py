@@ -95,16 +95,13 @@ class PhotonMap:
             self.tree = hashgrid.HashGrid(position, cell)
         order = self.tree.order
         self.tree.order = None  # the photons are permuted below; the map needs no order
-        m = len(order)
-        power, direction, normal, kind = (np.empty((m,) + a.shape[1:], a.dtype) for a in (
-            photons.power, photons.direction, photons.normal, photons.kind))
-        _gather_photons(photons.power, photons.direction, photons.normal, photons.kind,
-                        _NO_ROWS if rows is None else np.asarray(rows, np.int64), order,
-                        _NO_SCALE if power_scale is None
-                        else np.asarray(power_scale, np.float32),
-                        power, direction, normal, kind)
-        self.photons = Photons(self.tree.position, power, direction, normal, kind,
-                               photons.emitted)
+        source = order if rows is None else np.take(rows, order)
+        power = np.take(photons.power, source, axis=0)
+        if power_scale is not None:
+            power *= np.take(np.asarray(power_scale, np.float32), order)[:, None]
+        self.photons = Photons(self.tree.position, power, *(
+            np.take(a, source, axis=0) for a in (photons.direction, photons.normal,
+                                                 photons.kind)), photons.emitted)
 
     def __len__(self):
         return len(self.photons)
@@ -186,35 +183,6 @@ class PhotonMap:
         for _ in ordered_map(job, range(0, m, rows), threads, should_cancel):
             pass
         return result
-
-
-_NO_ROWS = np.zeros(0, np.int64)
-_NO_SCALE = np.zeros(0, np.float32)
-
-
-@kernel
-def _gather_photons(power, direction, normal, kind, rows, order, scale, out_power,
-                    out_direction, out_normal, out_kind):
-    """A map's photon arrays in its tree's order, in one pass: photon i is the input's
-    source = rows[order[i]] (rows empty: order[i]); its power times scale[order[i]]
-    (float32, the product numpy's float32 `*=` gives; scale empty: unscaled). One
-    random read per photon of each array instead of numpy's take per array
-    (docs/performance.md, "Thirteenth slice")."""
-    with_rows = rows.shape[0] > 0
-    with_scale = scale.shape[0] > 0
-    for i in range(order.shape[0]):
-        j = rows[order[i]] if with_rows else order[i]
-        if with_scale:
-            f = scale[order[i]]
-            for c in range(3):
-                out_power[i, c] = power[j, c] * f
-        else:
-            for c in range(3):
-                out_power[i, c] = power[j, c]
-        for c in range(3):
-            out_direction[i, c] = direction[j, c]
-            out_normal[i, c] = normal[j, c]
-        out_kind[i] = kind[j]
 
 
 _NO_NODES = (np.zeros(0, np.uint8), np.zeros(0, np.float32), np.zeros(1, np.int64))

@@ -89,8 +89,8 @@ def test_kdtree_build_polls_its_stop_flag_in_the_compiled_call():
 
 
 def test_map_of_rows_with_power_scale_is_the_numpy_gather():
-    """PhotonMap(rows=, power_scale=) gathers its photons in one compiled pass
-    (_gather_photons): the arrays numpy's take and float32 product gave before."""
+    """PhotonMap(rows=, power_scale=) holds photons.take(rows) in its tree's order, each
+    power times its float32 scale (the GatherMap's estimating photons)."""
     n = 20_000
     rng = np.random.default_rng(7)
     ph = Photons(_points(n, 8), rng.random((n, 3)).astype(np.float32),
