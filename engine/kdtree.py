@@ -53,6 +53,9 @@ PARALLEL_POINTS = 1 << 16
 # points per job of a threaded build.
 NEIGHBOURS = 12
 NEIGHBOUR_CHUNK = 8192
+# kth_d2_rows and neighbour_lists list a seeded sphere of up to this many times the
+# points they need before they fall back to the heap search (knn).
+KTH_LIST_FACTOR = 8
 
 
 @kernel
@@ -739,13 +742,40 @@ def neighbour_lists(pos, axis, split, leaf, lo, hi, nbr, reach):
     order) into nbr[j] (int32; padded with j itself when there are fewer), and into
     reach[j] the distance (not squared) within which no unlisted point lies: the k-th
     listed one's, shrunk by 1e-9 relative (far above the float64 rounding of the
-    distances), inf when every other point is listed. nearest_walk's table."""
+    distances), inf when every other point is listed. nearest_walk's table.
+
+    Each point's k + 1 nearest (itself among them) lie within the previous point's
+    (k + 1)-th distance + the distance between the two (triangle inequality; points come
+    in tree order, so neighbours): that sphere is listed (ball_d2) and ordered
+    (nearest_first), and taken when its k + 1 nearest are free of ties (unique_nearest:
+    then any search gives them in that order, knn's answer bit for bit). Else, and for
+    spheres of more than KTH_LIST_FACTOR x (k + 1) points, knn."""
     k = nbr.shape[1]
-    d2 = np.empty(k + 1, np.float64)
-    idx = np.empty(k + 1, np.int64)
+    kq = k + 1
+    cap = KTH_LIST_FACTOR * kq
+    d2 = np.empty(cap, np.float64)
+    idx = np.empty(cap, np.int64)
+    list_d2 = np.empty(cap, np.float64)
+    list_idx = np.empty(cap, np.int64)
+    hist = np.empty(cap + 1, np.int64)
+    prev = -1
+    prev_d = np.inf  # the previous point's kq-th distance (inf: none)
     for j in range(lo, hi):
-        c = knn(pos, axis, split, leaf, np.float64(pos[j, 0]), np.float64(pos[j, 1]),
-                np.float64(pos[j, 2]), k + 1, np.inf, d2, idx)
+        qx, qy, qz = np.float64(pos[j, 0]), np.float64(pos[j, 1]), np.float64(pos[j, 2])
+        c = -1
+        if prev >= 0 and prev_d < np.inf:
+            b = prev_d + np.sqrt(_dist2(pos, prev, qx, qy, qz))
+            b2 = seed_bound(b * b)
+            if b2 < np.inf:
+                got = ball_d2(pos, axis, split, leaf, qx, qy, qz, b2, list_d2, list_idx, cap)
+                if kq <= got <= cap:
+                    nearest_first(list_d2, list_idx, got, kq, b2, d2, idx, hist)
+                    if unique_nearest(d2, got, kq):
+                        c = kq
+        if c < 0:
+            c = knn(pos, axis, split, leaf, qx, qy, qz, kq, np.inf, d2, idx)
+        prev = j
+        prev_d = np.sqrt(d2[kq - 1]) if c == kq else np.inf
         m = 0
         last = np.inf
         for t in range(c):
@@ -856,6 +886,99 @@ def knn_batch(pos, axis, split, leaf, queries, kq, radius):
     return dist, out
 
 
+@kernel
+def select_value(a, count, m):
+    """The m-th smallest (1-based) of a[:count] (float64, no NaN), reordering a[:count]
+    in place: Hoare's FIND with a median-of-three pivot and a three-way partition (many
+    equal values stay linear). Only the value: which entry holds it is not kept."""
+    lo = 0
+    hi = count
+    kth = m - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        x, y, z = a[lo], a[mid], a[hi - 1]
+        pivot = max(min(x, y), min(max(x, y), z))
+        lt = lo
+        i = lo
+        gt = hi
+        while i < gt:
+            v = a[i]
+            if v < pivot:
+                a[i] = a[lt]
+                a[lt] = v
+                lt += 1
+                i += 1
+            elif v > pivot:
+                gt -= 1
+                a[i] = a[gt]
+                a[gt] = v
+            else:
+                i += 1
+        if kth < lt:
+            hi = lt
+        elif kth >= gt:
+            lo = gt
+        else:
+            return pivot
+    return a[lo]
+
+
+@kernel
+def kth_d2_rows(pos, axis, split, leaf, queries, rows, kq, out):
+    """For each query i = rows[r] (queries (M,3) float64, rows in Morton order): the
+    kq-th smallest squared distance to the points into out[i] (knn's float64 distances
+    and strict bound, so knn's d2[kq - 1] bit for bit; out[i] untouched where fewer than
+    kq points are finite).
+
+    Only the value is asked for, never which point holds it, so ties do not matter and
+    no heap is needed where a bound is known: the kq nearest of the previous row lie
+    within its kq-th distance + the distance between the two queries of this one
+    (triangle inequality; seed_bound's margin covers the rounding), so the sphere of that
+    radius is listed (ball_d2) and its kq-th distance picked (select_value). Rows whose
+    sphere holds fewer than kq or more than KTH_LIST_FACTOR x kq points (the first row,
+    a jump between Morton cells) take knn. Measured on the secondary map's radius
+    (5,113 queries of k = 65): docs/performance.md, "Thirteenth slice"."""
+    cap = max(KTH_LIST_FACTOR * kq, 1)
+    d2 = np.empty(max(kq, 1), np.float64)
+    idx = np.empty(max(kq, 1), np.int64)
+    list_d2 = np.empty(cap, np.float64)
+    list_idx = np.empty(cap, np.int64)
+    prev = -1
+    prev_kth = np.inf
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        qx, qy, qz = queries[i, 0], queries[i, 1], queries[i, 2]
+        found = False
+        kth = np.inf
+        if prev >= 0 and prev_kth < np.inf:
+            gap = np.sqrt(_dist2q(queries, prev, qx, qy, qz))
+            b = np.sqrt(prev_kth) + gap
+            b2 = seed_bound(b * b)
+            if b2 < np.inf:  # not NaN or inf: a NaN query lists nothing
+                got = ball_d2(pos, axis, split, leaf, qx, qy, qz, b2, list_d2, list_idx,
+                              cap)
+                if kq <= got <= cap:
+                    kth = select_value(list_d2, got, kq)
+                    found = True
+        if not found:
+            c = knn(pos, axis, split, leaf, qx, qy, qz, kq, np.inf, d2, idx)
+            if c == kq:
+                kth = d2[kq - 1]
+        if kth < np.inf:
+            out[i] = kth
+        prev = i
+        prev_kth = kth
+
+
+@kernel
+def _dist2q(queries, j, qx, qy, qz):
+    """Squared distance between query j and (qx, qy, qz), float64."""
+    dx = qx - queries[j, 0]
+    dy = qy - queries[j, 1]
+    dz = qz - queries[j, 2]
+    return dx * dx + dy * dy + dz * dz
+
+
 class KdTree:
     """The kd-tree over points (N,3); self.order maps the tree's point index -> input
     index, self.position are the points in the tree's order."""
@@ -925,6 +1048,17 @@ class KdTree:
             pass
         return nbr, reach
 
+    def kth(self, queries: np.ndarray, k: int) -> np.ndarray:
+        """(M,) float64 distances (not squared) from queries (M,3) to their k-th nearest
+        point (inf where fewer than k): query(queries, k, inf)[0][:, k - 1] bit for bit
+        (kth_d2_rows, rows in Morton order), as mortontree.KthTree.kth."""
+        from .mortontree import morton_order
+        q = np.ascontiguousarray(queries, dtype=np.float64).reshape(-1, 3)
+        out = np.full(len(q), np.inf)
+        if len(self.position) and k > 0 and len(q):
+            kth_d2_rows(self.position, *self.nodes, q, morton_order(q), int(k), out)
+        return np.sqrt(out)
+
     def query(self, queries: np.ndarray, k: int, radius: float):
         """(dist, idx) of the k nearest points within radius, like cKDTree.query with
         distance_upper_bound (idx = len(self) where none). idx index self.position."""
@@ -942,6 +1076,7 @@ def _warm_up():
         build_subtree(position, order, axis, split, leaf, tasks[i, 0], tasks[i, 1],
                       tasks[i, 2], task_box[i], np.zeros(1, np.uint8))
     tree.query(pts[:3].astype(np.float64), 4, 0.5)
+    tree.kth(pts[:6].astype(np.float64), 4)
     out = np.empty(8, np.int64)
     ball(tree.position, *tree.nodes, 0.5, 0.5, 0.5, 0.1, out, 8)
     ball_count(tree.position, *tree.nodes, tree.bounds, 0.5, 0.5, 0.5, 0.1)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .jit import kernel, register_warm_up
-from .kdtree import heap_insert, seed_bound
+from .kdtree import heap_insert, seed_bound, select_value
 
 LEAF_SIZE = 8
 STACK = 64  # DFS stack: at most one pushed sibling per level (2^63 leaves)
@@ -27,6 +27,9 @@ STOP_QUERIES = 64  # queries between two looks at the stop flag
 POLL = 1 << 14  # points of a build pass between two looks at the stop flag
 _NEVER = np.zeros(1, np.uint8)  # a stop flag that never turns 1
 SEED_WINDOW = 2  # points read around a query's Morton place for its seed, per kq
+# A query's seeded sphere is listed whole (no heap) when it holds at most this many
+# times kq points (kth_d2).
+LIST_FACTOR = 8
 
 
 @kernel
@@ -91,34 +94,55 @@ def morton_order(p):
 
 @kernel
 def _radix_argsort30(code, stop):
-    """Stable argsort of 30-bit keys: three counting-sort passes of 10 bits (LSD radix
-    sort), the same order as np.argsort(code, kind="stable") in O(M) instead of a merge
-    sort's O(M log M) (the sort was most of morton_order's cost: 1.2 Embree traversals per
-    gather lookup, bench/bench_lookup.py). stop: polled every POLL keys (a stopped
-    sort's order is meaningless)."""
+    """Stable argsort of 30-bit keys (_radix_sort30's order): the same order as
+    np.argsort(code, kind="stable") in O(M)."""
+    return _radix_sort30(code, stop)[0]
+
+
+@kernel
+def _radix_sort30(code, stop):
+    """(order, keys): the stable argsort of 30-bit keys and the keys in that order, by
+    three counting-sort passes of 10 bits (LSD radix sort): the same order as
+    np.argsort(code, kind="stable") in O(M) instead of a merge sort's O(M log M) (the
+    sort was most of morton_order's cost: 1.2 Embree traversals per gather lookup,
+    bench/bench_lookup.py). The three histograms are counted in one pass, and each pass
+    moves the keys with the indices, so it reads both in order (reading code[order[i]]
+    at random cost 3x: docs/performance.md, "Thirteenth slice"). stop: polled every
+    POLL keys (a stopped sort's order is meaningless)."""
     m = code.shape[0]
     order = np.arange(m)
     if m < 2:
-        return order
+        return order, code.copy()
+    count = np.zeros((3, 1025), np.int64)
+    for i in range(m):
+        if i % POLL == 0 and stop[0]:
+            break
+        c = code[i]
+        count[0, (c & 0x3FF) + 1] += 1
+        count[1, ((c >> 10) & 0x3FF) + 1] += 1
+        count[2, ((c >> 20) & 0x3FF) + 1] += 1
+    for p in range(3):
+        for b in range(1024):
+            count[p, b + 1] += count[p, b]
+    key = code.copy()
     tmp = np.empty(m, np.int64)
-    count = np.empty(1025, np.int64)
-    for shift in (0, 10, 20):
-        count[:] = 0
+    tmp_key = np.empty(m, np.int64)
+    for p in range(3):
         if stop[0]:
             break
-        for i in range(m):
-            count[((code[order[i]] >> shift) & 0x3FF) + 1] += 1
-        for b in range(1024):
-            count[b + 1] += count[b]
+        shift = 10 * p
         for i in range(m):
             if i % POLL == 0 and stop[0]:
                 break
-            j = order[i]
-            b = (code[j] >> shift) & 0x3FF
-            tmp[count[b]] = j
-            count[b] += 1
+            c = key[i]
+            b = (c >> shift) & 0x3FF
+            d = count[p, b]
+            tmp[d] = order[i]
+            tmp_key[d] = c
+            count[p, b] = d + 1
         order, tmp = tmp, order
-    return order
+        key, tmp_key = tmp_key, key
+    return order, key
 
 
 @kernel
@@ -131,16 +155,14 @@ def build(points, stop):
     points of each O(N) pass; once nonzero the arrays are meaningless."""
     n = points.shape[0]
     code, lo, scale = morton_codes(points, stop)
-    order = _radix_argsort30(code, stop)
+    order, sorted_code = _radix_sort30(code, stop)
     if stop[0]:
         return points[:0].copy(), np.empty((0, 6), np.float32), code[:0], lo, scale
     position = np.empty((n, 3), np.float32)
-    sorted_code = np.empty(n, np.int64)
     for i in range(n):
         if i % POLL == 0 and stop[0]:
             break
         j = order[i]
-        sorted_code[i] = code[j]
         for c in range(3):
             position[i, c] = points[j, c]
     leaves = 1
@@ -202,15 +224,20 @@ def kth_d2(position, box, code, lo, scale, queries, kq, out, stop):
 
     Each query first reads the SEED_WINDOW x kq points around its own place in Morton
     order: their kq-th distance bounds the answer from above (seed_bound's margin), so
-    the traversal below prunes from its first box instead of after kq points."""
+    the traversal below prunes from its first box instead of after kq points. Only the
+    kq-th value is asked for (never which point), so a sphere of that bound holding at
+    most LIST_FACTOR x kq points is listed (_list_d2) and its kq-th value selected
+    (kdtree.select_value) without a heap; a fuller one takes the bounded heap search."""
     n = position.shape[0]
     leaves = (box.shape[0] + 1) // 2
     inner = leaves - 1
     d2 = np.empty(max(kq, 1), np.float64)
     idx = np.empty(max(kq, 1), np.int64)
+    half = SEED_WINDOW * kq // 2
+    cap = max(LIST_FACTOR * kq, 2 * half, 1)
+    listed = np.empty(cap, np.float64)
     st_node = np.empty(STACK, np.int64)
     st_d2 = np.empty(STACK, np.float64)
-    half = SEED_WINDOW * kq // 2
     for i in range(queries.shape[0]):
         if i % STOP_QUERIES == 0 and stop[0]:
             return
@@ -221,9 +248,23 @@ def kth_d2(position, box, code, lo, scale, queries, kq, out, stop):
         count = 0
         for j in range(a, min(a + 2 * half, n)):
             dist2 = _d2(position, j, qx, qy, qz)
-            if dist2 < np.inf:  # not NaN: it would spoil the heap's order
-                count = heap_insert(d2, idx, count, kq, dist2, j)
-        bound = seed_bound(d2[0]) if count == kq and d2[0] < np.inf else np.inf
+            if dist2 < np.inf:  # not NaN: it would spoil the selection
+                listed[count] = dist2
+                count += 1
+        bound = np.inf
+        if count >= kq:
+            seed = select_value(listed, count, kq)
+            if seed < np.inf:
+                bound = seed_bound(seed)
+        if bound < np.inf:
+            # Only the kq-th value is asked for: the sphere of the seed's bound listed
+            # whole and its kq-th picked, without a heap, unless it holds more than
+            # `cap` points (then the heap search below, bounded the same way).
+            got = _list_d2(position, box, inner, n, qx, qy, qz, bound, listed, cap,
+                           st_node, st_d2)
+            if kq <= got <= cap:
+                out[i] = select_value(listed, got, kq)
+                continue
         count = 0
         st_node[0] = 0
         st_d2[0] = _box_d2(box, 0, qx, qy, qz)
@@ -259,6 +300,47 @@ def kth_d2(position, box, code, lo, scale, queries, kq, out, stop):
                     if count == kq:
                         bound = d2[0]
         out[i] = d2[0] if count == kq else np.inf
+
+
+@kernel
+def _list_d2(position, box, inner, n, qx, qy, qz, bound, listed, cap, st_node, st_d2):
+    """The squared distances < bound of the points to the query into listed[:count]
+    (any order); returns count, or cap + 1 as soon as more than cap are found."""
+    count = 0
+    st_node[0] = 0
+    st_d2[0] = _box_d2(box, 0, qx, qy, qz)
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        if st_d2[sp] >= bound:
+            continue
+        while node < inner:
+            a = 2 * node + 1
+            da = _box_d2(box, a, qx, qy, qz)
+            db = _box_d2(box, a + 1, qx, qy, qz)
+            if da < bound:
+                if db < bound:
+                    st_node[sp] = a + 1
+                    st_d2[sp] = db
+                    sp += 1
+                node = a
+            elif db < bound:
+                node = a + 1
+            else:
+                node = -1
+                break
+        if node < 0:
+            continue
+        first = (node - inner) * LEAF_SIZE
+        for j in range(first, min(first + LEAF_SIZE, n)):
+            dist2 = _d2(position, j, qx, qy, qz)
+            if dist2 < bound:
+                if count == cap:
+                    return cap + 1
+                listed[count] = dist2
+                count += 1
+    return count
 
 
 @kernel

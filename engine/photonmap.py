@@ -714,13 +714,13 @@ def _point_shares(position, step, radius, share, is_point, workers=1, should_can
     base_keys = np.empty(-(-n // step), np.int64)
     _cell_keys(position, size, step, base_keys)
     base_keys, counts = np.unique(base_keys, return_counts=True)
-    counts = counts.astype(np.int64)
+    table_keys, table_counts = _count_table(base_keys, counts.astype(np.int64))
     dense = bool(radius > 0)
 
     def job(a, stop):
         if stop():
             raise Cancelled()
-        _shares_rows(position, size, step, step_share, base_keys, counts, dense, a,
+        _shares_rows(position, size, step, step_share, table_keys, table_counts, dense, a,
                      min(a + SHARE_ROWS, n), share, is_point)
     for _ in ordered_map(job, range(0, n, SHARE_ROWS), workers if n > SHARE_ROWS else 1,
                          should_cancel):
@@ -751,20 +751,57 @@ def _cell_keys(position, size, step, out):
         out[j] = _cell_key(position, j * step, size)
 
 
+# Multiplier of _count_table's hash (an odd 64-bit constant: 2^64 / golden ratio).
+TABLE_MIX = -7046029254386353131
+
+
 @kernel
-def _shares_rows(position, size, step, step_share, base_keys, counts, dense, lo, hi, share,
-                 is_point):
-    """_point_shares for the photons [lo, hi): base_keys (sorted) and counts are the base
-    points' cells and how many base points each holds."""
+def _table_slot(key, mask):
+    """_count_table's first slot for key."""
+    return ((key * np.int64(TABLE_MIX)) >> np.int64(29)) & mask
+
+
+@kernel
+def _count_table(keys, counts):
+    """An open-addressing hash table of the distinct cell keys (keys (K,) int64, their
+    base-point counts (K,) int64): (table_keys, table_counts), a power of two of at least
+    4 K slots, empty slots with count -1, linear probing from _table_slot. Looked up per
+    photon by _shares_rows: the same count as a binary search of the sorted keys (exact
+    key equality) at ~1/3 of its cost (docs/performance.md, "Thirteenth slice")."""
+    size = 16
+    while size < 4 * keys.shape[0]:
+        size *= 2
+    table_keys = np.zeros(size, np.int64)
+    table_counts = np.full(size, -1, np.int64)
+    mask = size - 1
+    for a in range(keys.shape[0]):
+        s = _table_slot(keys[a], mask)
+        while table_counts[s] >= 0:
+            s = (s + 1) & mask
+        table_keys[s] = keys[a]
+        table_counts[s] = counts[a]
+    return table_keys, table_counts
+
+
+@kernel
+def _shares_rows(position, size, step, step_share, table_keys, table_counts, dense, lo, hi,
+                 share, is_point):
+    """_point_shares for the photons [lo, hi): table_keys / table_counts (_count_table)
+    hold the base points' cells and how many base points each holds."""
     top = max(MAX_POINT_SHARE, step_share)
-    last = base_keys.shape[0] - 1
+    mask = table_keys.shape[0] - 1
     spare = max(1.0 - step_share, 1e-300)
     for i in range(lo, hi):
         sh = step_share
         if dense:
             key = _cell_key(position, i, size)
-            at = min(np.searchsorted(base_keys, key), last)
-            found = counts[at] if base_keys[at] == key else 0
+            s = _table_slot(key, mask)
+            found = 0
+            while table_counts[s] >= 0:
+                if table_keys[s] == key:
+                    found = table_counts[s]
+                    break
+                s = (s + 1) & mask
             # Photons in a search disc: the base points' count / their share, over the
             # cell face's area in discs.
             per_disc = found / step_share * math.pi / (DENSITY_CELL * DENSITY_CELL)
@@ -1034,9 +1071,9 @@ def auto_radius(diffuse_area: float, stored: int, k: int, extent: float,
         # The nearest is the photon itself; the queries in blocks on the workers (each
         # query's answer is the same in any block). Same distances with any tree.
         rows = -(-len(sample) // max(1, workers))
-        if tree is not None and hasattr(tree, "query") and len(tree) == len(positions):
+        if tree is not None and hasattr(tree, "kth") and len(tree) == len(positions):
             def kth(a, stop):
-                return tree.query(sample[a:a + rows], k + 1, np.inf)[0][:, -1]
+                return tree.kth(sample[a:a + rows], k + 1)
         else:
             # Nothing else searches these points: a Morton box tree, built in O(N)
             # (mortontree), answers the 4,096 queries for a fraction of a kd-tree's

@@ -86,3 +86,24 @@ def test_kdtree_build_polls_its_stop_flag_in_the_compiled_call():
     flag.set()
     with pytest.raises(Cancelled):
         kdtree.KdTree(_points(5000), should_cancel=flag)
+
+
+def test_map_of_rows_with_power_scale_is_the_numpy_gather():
+    """PhotonMap(rows=, power_scale=) holds photons.take(rows) in its tree's order, each
+    power times its float32 scale (the GatherMap's estimating photons)."""
+    n = 20_000
+    rng = np.random.default_rng(7)
+    ph = Photons(_points(n, 8), rng.random((n, 3)).astype(np.float32),
+                 rng.random((n, 3)).astype(np.float32), rng.random((n, 3)).astype(np.float32),
+                 rng.integers(0, 4, n).astype(np.uint8), emitted=n)
+    rows = np.flatnonzero(rng.random(n) < 0.7)
+    scale = (1.0 / (1.0 - rng.random(len(rows)) * 0.5)).astype(np.float32)
+    pm = PhotonMap(ph, 1, rows=rows, power_scale=scale)
+    order = kdtree.KdTree(ph.position[rows]).order
+    source = rows[order]
+    power = ph.power[source]
+    power *= scale[order][:, None]
+    assert np.array_equal(pm.photons.power, power)
+    for name in ("position", "direction", "normal", "kind"):
+        assert np.array_equal(getattr(pm.photons, name), getattr(ph, name)[source]), name
+    assert pm.photons.emitted == n

@@ -59,3 +59,47 @@ def test_morton_order_is_a_stable_sort_of_the_codes():
     code = mortontree.morton_codes(p, np.zeros(1, np.uint8))[0]
     assert np.array_equal(mortontree.morton_order(p), np.argsort(code, kind="stable"))
     assert code[11] == 0 and code.max() < 1 << 30
+
+
+@pytest.mark.parametrize("m", [0, 1, 2, 5000])
+def test_radix_sort_returns_the_codes_in_their_stable_order(m):
+    rng = np.random.default_rng(m)
+    code = rng.integers(0, 1 << 30, m).astype(np.int64)
+    code[::5] = code[:1] if m else code[::5]  # equal keys keep their order
+    if m > 2:
+        code[1] = (1 << 30) - 1  # every bit of all three passes
+    order, keys = mortontree._radix_sort30(code, np.zeros(1, np.uint8))
+    assert np.array_equal(order, np.argsort(code, kind="stable"))
+    assert np.array_equal(keys, code[order])
+    assert np.array_equal(mortontree._radix_argsort30(code, np.zeros(1, np.uint8)), order)
+
+
+@pytest.mark.parametrize("count", [1, 2, 7, 100, 3000])
+def test_select_value_is_the_sorted_arrays_entry(count):
+    rng = np.random.default_rng(count)
+    a = rng.random(count)
+    a[::3] = a[0]  # many equal values (a focus)
+    a[1::7] = np.inf
+    want = np.sort(a)
+    for m in sorted({1, min(2, count), count // 2 + 1, count}):
+        b = a.copy()
+        assert kdtree.select_value(b, count, m) == want[m - 1], (count, m)
+        assert np.array_equal(np.sort(b), want)  # only reordered
+
+
+@pytest.mark.parametrize("n", [1, 9, 200, 5000, 40_000])
+def test_kd_trees_kth_is_its_query(n):
+    """KdTree.kth (kth_d2_rows: the previous row's sphere listed, else knn) gives the
+    k-NN query's last distance bit for bit, for queries on points, between them, on a
+    pile of equal points, NaN and far away."""
+    p = _points(n, n + 1)
+    rng = np.random.default_rng(2)
+    q = np.concatenate([p[::2].astype(np.float64), rng.random((40, 3)) * 3 - 1,
+                        np.array([[np.nan, 0.0, 0.0], [1e30, 0.0, 0.0]]),
+                        np.repeat(p[:1].astype(np.float64), 3, axis=0)])
+    kd = kdtree.KdTree(p)
+    for k in (1, 2, 8, 65, n + 1):
+        if k > 65 and n > 200:
+            continue  # query's (M, k) answer would not fit
+        want = kd.query(q, k, np.inf)[0][:, -1]
+        assert np.array_equal(kd.kth(q, k), want, equal_nan=True), (n, k)
