@@ -706,7 +706,7 @@ class DirectLightBuffers:
     returns are valid until the next call with the same buffers."""
 
     def __init__(self):
-        self.size = 0
+        self.size = -1  # (-1: a first call for 0 rows still makes its empty arrays)
         self.n_hits = 0
         self.n_numbers = 0
 

@@ -568,7 +568,7 @@ class GatherBuffers:
     (scratch_arrays(m)); and `direct`, the DirectLightBuffers of this level's regathers."""
 
     def __init__(self):
-        self.size = 0
+        self.size = -1  # (-1: a first call for 0 rows still makes its empty arrays)
         # The regathers' direct light from this level's ends (_regather): its sums are
         # read before the level below (which has its own) runs.
         self.direct = DirectLightBuffers()
@@ -1112,7 +1112,7 @@ class BounceBuffers:
     until its continuation is made, before the next bounce writes."""
 
     def __init__(self):
-        self.size = 0
+        self.size = -1  # (-1: a first call for 0 rows still makes its empty arrays)
         self.direct = DirectLightBuffers()
 
     def take(self, n):

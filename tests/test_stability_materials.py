@@ -191,3 +191,19 @@ def test_lobe_weights_never_exceed_one():
     assert np.all(np.isfinite(total))
     assert total.max() <= 1.0 + 1e-9
     assert min(v.min() for v in w.values()) >= 0.0
+
+
+def test_buffers_asked_for_no_rows_first():
+    """A gather level (or a chunk's bounce, or a light sample) can have no rows at all: the
+    per-thread buffers' first call then asks for 0 rows. Their arrays were made only for
+    n > size = 0, so gather_indirect on no hits raised AttributeError ('GatherBuffers'
+    object has no attribute 'idx'; seen in a 16x12 render with 2 workers of a rough
+    metal floor under an area light, a sun, a wall and a glass slab)."""
+    from engine.directlight import DirectLightBuffers
+    from engine.integrator import BounceBuffers, GatherBuffers
+    idx, o, d, tp = GatherBuffers().rays(0)
+    assert len(idx) == len(o) == len(d) == len(tp) == 0
+    assert all(len(a) == 0 for a in BounceBuffers().take(0))
+    b = DirectLightBuffers()
+    b.ensure(0)
+    assert b.contrib.shape == (0, 3)
