@@ -1199,10 +1199,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                       d[miss], None, pdf_b[miss],
                                                       org_ns[miss], org_p[miss])[:, None]
                 for li, light in enumerate(ctx.lights):
-                    if bounce > 0:
+                    # A sun's disc is seen by camera rays when the light is visible to
+                    # them (Cycles' integrate_distant_lights: a Sky Texture's disc, a sun
+                    # whose object is visible to the camera), past bounce 0 always.
+                    if bounce > 0 or light.ray_kinds & CAMERA:
                         sun = light.seen_at_infinity(d[miss])
                         if sun is not None:
-                            if modes[li] == MODE_MIS:
+                            if bounce > 0 and modes[li] == MODE_MIS:
                                 sun = sun * _mis_weight(ctx, li, light, o[miss], d[miss],
                                                         None, pdf_b[miss], org_ns[miss],
                                                         org_p[miss])[:, None]

@@ -253,3 +253,27 @@ strength = 0.5
     path.write_text(text + '[environment]\nimage = "a.npy"\n')
     with pytest.raises(SceneFileError, match="sky"):
         load_scene(str(path))
+
+
+def test_sun_disc_seen_by_camera_rays_only_when_visible_to_them():
+    """A Sky Texture's disc (exported as a sun light visible to the camera) is seen where
+    the camera looks at it, with the light's radiance; a sun invisible to the camera (every
+    sun lamp, as in Cycles) leaves the black world there."""
+    from engine.api import PaperScene
+    from engine.scene import Light
+    from engine.settings import RenderSettings
+    angle = math.radians(20.0)
+    centre = {}
+    for visible in (True, False):
+        s = PaperScene(width=9, height=9)
+        s.set_camera((0, 0, 0), (0, 1, 0), up=(0, 0, 1), view_angle=10.0)
+        s.add_light(Light(name="disc", kind="SUN", power=3.0, direction=(0, -1, 0),
+                          angle=angle, visible_camera=visible))
+        film = s.render(RenderSettings(spp=4, photon_mapping=False, workers=1, seed=0))
+        img = np.asarray(film.combined, np.float64)
+        assert np.isfinite(img).all()
+        centre[visible] = img[4, 4]
+    # the disc's radiance: irradiance / (pi sin^2(half angle)) (engine/lights/sun.py)
+    want = 3.0 / (math.pi * math.sin(angle / 2) ** 2)
+    np.testing.assert_allclose(centre[True], want, rtol=1e-6)
+    assert np.all(centre[False] == 0)

@@ -107,3 +107,17 @@ def test_other_sky_types_warn_and_use_the_viewport_colour(mb, bpy_addon):
     assert len(hits) == 1 and "HOSEK_WILKIE" in hits[0] and "Sky Texture" in hits[0]
     assert scene.environment is None and not scene.lights
     np.testing.assert_allclose(scene.background, (0.6, 0.4, 0.2), rtol=1e-6)
+
+
+def test_sun_lamp_disc_is_hidden_from_the_camera_the_sky_disc_is_not(mb, bpy_addon):
+    """Cycles shows a Sky Texture's sun disc to camera rays (it is the background) but never
+    a sun lamp's disc, whatever the lamp object's camera visibility (Cycles 5.0.1: a
+    20-degree sun in view reads 0 at visible_camera on and off). The export says which."""
+    bpy = bpy_addon
+    _sky_world(bpy, mb)
+    lamp = mb.light("Lamp", "SUN", (0, 0, 3), 2.0, look_at=(0, 0, 0))
+    lamp.visible_camera = True
+    suns = {li.name: li for li in _export(bpy).lights if li.kind == "SUN"}
+    assert not suns["Lamp"].visible_camera
+    (sky_sun,) = [li for n, li in suns.items() if n != "Lamp"]
+    assert sky_sun.visible_camera
