@@ -198,7 +198,7 @@ def _sky(pm, world, node, strength, warnings):
     if sky_type not in sky_mod.SUPPORTED_SKY_TYPES:
         warnings.append(f"{who}: sky type {sky_type} is not supported (Single / Multiple "
                         "Scattering and Preetham are); using the world viewport colour "
-                        f"{np.round(tuple(world.color)[:3], 3).tolist()} x strength")
+                        f"{np.round(tuple(world.color)[:3], 3).tolist()} x strength {strength:g}")
         return None
     rotation = _mapping_rotation(pm, world, node, warnings)
     # Blender 5.0 calls the aerosols' density aerosol_density, 4.x dust_density.

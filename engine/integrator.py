@@ -1199,9 +1199,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                       d[miss], None, pdf_b[miss],
                                                       org_ns[miss], org_p[miss])[:, None]
                 for li, light in enumerate(ctx.lights):
-                    # A sun's disc is seen by camera rays when the light is visible to
-                    # them (Cycles' integrate_distant_lights: a Sky Texture's disc, a sun
-                    # whose object is visible to the camera), past bounce 0 always.
+                    # A sun's disc is seen by camera rays only when its light is visible
+                    # to them: a Sky Texture's disc (the background); the add-on exports
+                    # sun lamps invisible to the camera, as Cycles shows them. Past bounce
+                    # 0 every disc is seen.
                     if bounce > 0 or light.ray_kinds & CAMERA:
                         sun = light.seen_at_infinity(d[miss])
                         if sun is not None:
