@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .closures.ggx import ALPHA_MIN
 from .geometry import PIECE_TRIANGLES, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
@@ -350,18 +351,21 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                            + (" ..." if len(plan.window_glass) > 4 else "")
                            + ": passed by shadow rays (thin flat glass)"
                            if plan.window_glass else "")
+            # Lead with what is on (the estimate, from which photons), then why nothing
+            # is aimed: "on - no caster" read as a contradiction to a new user.
             if rough_reached:
-                auto, why = True, ("no sharp caustic caster; the glossy reflections of "
+                auto, why = True, (f"from {source}: the glossy reflections of "
                                    + ", ".join(f"'{n}'" for n in rough_reached[:4])
                                    + (" ..." if len(rough_reached) > 4 else "")
-                                   + f" (specular roughness {SHARP_ROUGHNESS:g} or more) "
-                                   f"come from {source}" + window_note)
+                                   + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too "
+                                   "rough to focus light, so no photons are aimed at them)"
+                                   + window_note)
             else:
-                auto, why = True, ("no sharp caustic caster; window glass "
+                auto, why = True, (f"from {source}: the reflections of window glass "
                                    + ", ".join(f"'{n}'" for n in plan.window_glass[:4])
                                    + (" ..." if len(plan.window_glass) > 4 else "")
-                                   + ": passed by shadow rays (thin flat glass); its "
-                                   f"reflections come from {source}")
+                                   + " (passed by shadow rays: thin flat glass focuses no "
+                                   "light, so no photons are aimed at it)")
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "
@@ -462,16 +466,20 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
 def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
     """What a specular object is, in a student's words: 'glass' (transmission),
     'transparent' (alpha below 1 or an alpha texture: a card, a cut-out), 'mirror'
-    (metallic and sharp), 'metal' (metallic and rough), else 'glossy' (a coat over a
-    diffuse base: plastic, varnish)."""
+    (metallic and mirror-smooth: GGX alpha below ggx.ALPHA_MIN, the engine's delta lobe),
+    'polished metal' (metallic, rough but sharp enough to focus light: is_sharp), 'metal'
+    (metallic and rougher), else 'glossy' (a coat over a diffuse base: plastic, varnish)."""
     mats = np.unique(geo.material[geo.object_id == oid])
     if np.any(table.transmission[mats] > 0):
         return "glass"
     if np.any(table.alpha[mats] < 1) or np.any(table.has_alpha_texture[mats]):
         return "transparent"
     metal = table.metallic[mats] >= 0.5
-    if np.any(metal & is_sharp(table.roughness[mats])):
+    rough = np.asarray(table.roughness[mats], np.float64)
+    if np.any(metal & (rough * rough < ALPHA_MIN)):
         return "mirror"
+    if np.any(metal & is_sharp(rough)):
+        return "polished metal"
     return "metal" if np.any(metal) else "glossy"
 
 

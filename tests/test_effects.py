@@ -189,7 +189,9 @@ def test_only_rough_specular_surfaces_take_their_glow_from_the_global_photons():
     ctx.accel.close()
     assert ctx.plan.caustics and ctx.plan.caustics_from_global and not ctx.plan.casters
     line = next(r for r in ctx.plan.report() if r.startswith("caustics:"))
-    assert "no sharp caustic caster" in line and "come from the global photons" in line
+    assert line.startswith("caustics: on - from the global photons: the glossy reflections of "
+                           "'floor'"), line
+    assert "too rough to focus light, so no photons are aimed at them" in line
 
 
 def _caustic_map_power(scene, **kw):
@@ -220,3 +222,17 @@ def test_caustic_paths_split_between_aimed_and_global_photons_keep_their_power()
     assert ref_wall > 0.01 * ref_total  # the floor's reflection is really there
     assert total == pytest.approx(ref_total, rel=0.03)
     assert wall == pytest.approx(ref_wall, rel=0.08)
+
+
+def test_specular_kind_calls_only_a_mirror_smooth_metal_a_mirror():
+    """The report's words for a metal follow its GGX lobe: delta (alpha below ggx.ALPHA_MIN)
+    is a mirror, sharp enough to focus light a polished metal, rougher a metal."""
+    from engine.effects import specular_kind
+    from engine.geometry import prepare
+    s = PaperScene(width=8, height=8)
+    for name, rough in (("m0", 0.0), ("m2", 0.2), ("m5", 0.5)):
+        s.add_material(Material(name, (0.9, 0.9, 0.9), metallic=1.0, roughness=rough))
+        s.add_plane((0, 0, len(s.meshes)), (0, 0, 1), 1.0, name, name=name)
+    geo, table = prepare(s)
+    kinds = {n: specular_kind(geo, table, geo.object_names.index(n)) for n in ("m0", "m2", "m5")}
+    assert kinds == {"m0": "mirror", "m2": "polished metal", "m5": "metal"}
