@@ -10,14 +10,15 @@ Per case (sky type, sun elevation / rotation in degrees, altitude m, air / aeros
 - a 256 x 128 equirectangular panorama of the world without the sun disc (a panoramic
   camera at the origin looking along +X, up +Z: the Environment's layout, +X at the
   centre column), 16 samples; stored as the upper hemisphere's row means and column
-  means of the RGB mean, and its per-channel sums, and the lower hemisphere's row means.
-  Cycles' pixel filter is scene.cycles.filter_width (render.filter_size, set below, is not
-  Cycles' setting): the cases without a "filter_width" were rendered with its default,
-  Blackman-Harris 1.5 px, so their pixels average ~1.4 degrees of sky; a case with
-  "filter_width" uses a Gaussian filter that wide (0.01: the sky at the pixel centres; a
-  Box filter is always 1 px wide, whatever filter_width says);
+  means of the RGB mean, and its per-channel sums, and the lower hemisphere's row means;
+  a 0.01 px Gaussian pixel filter, so the pixels are the sky at their centres (Cycles'
+  filter is scene.cycles.filter_width; render.filter_size is not Cycles' setting, and a
+  Box filter is 1 px wide whatever filter_width says; until s14 this script set only
+  render.filter_size and its panoramas were Blackman-Harris 1.5 px averages);
 - the sun disc's irradiance (RGB, W / m^2): a camera aimed at the sun, 2 sun diameters
-  across, 96 x 96 pixels, radiance x pixel solid angle summed, disc on minus disc off.
+  across, 96 x 96 pixels, radiance x pixel solid angle summed, disc on minus disc off
+  (Cycles' default filter, Blackman-Harris 1.5 px: the disc's edge averaged over pixels;
+  point samples at 96 pixels across alias it by 0.2 %).
 """
 import json
 import math
@@ -43,14 +44,10 @@ CASES = [
     # Hosek / Wilkie: no disc either; its sun the node's sun_direction, turbidity and ground
     # albedo; the cases cover the blends between turbidities (and none at 10), between
     # the two albedo sets and a sun below the horizon (clamped to it)
-    dict(type="HOSEK_WILKIE", sun_vector=[0.3, 0.5, 0.6], turbidity=3.0, ground_albedo=0.3,
-         filter_width=0.01),
-    dict(type="HOSEK_WILKIE", sun_vector=[-0.8, 0.2, 0.1], turbidity=7.5, ground_albedo=0.8,
-         filter_width=0.01),
-    dict(type="HOSEK_WILKIE", sun_vector=[0.05, -0.1, 1.0], turbidity=1.7, ground_albedo=0.0,
-         filter_width=0.01),
-    dict(type="HOSEK_WILKIE", sun_vector=[0.2, -0.7, -0.1], turbidity=10.0, ground_albedo=1.0,
-         filter_width=0.01),
+    dict(type="HOSEK_WILKIE", sun_vector=[0.3, 0.5, 0.6], turbidity=3.0, ground_albedo=0.3),
+    dict(type="HOSEK_WILKIE", sun_vector=[-0.8, 0.2, 0.1], turbidity=7.5, ground_albedo=0.8),
+    dict(type="HOSEK_WILKIE", sun_vector=[0.05, -0.1, 1.0], turbidity=1.7, ground_albedo=0.0),
+    dict(type="HOSEK_WILKIE", sun_vector=[0.2, -0.7, -0.1], turbidity=10.0, ground_albedo=1.0),
 ]
 ANALYTIC = ("PREETHAM", "HOSEK_WILKIE")
 W, H = 256, 128
@@ -64,10 +61,7 @@ def _scene(bpy, case, disc):
     c.device, c.seed = "CPU", 0
     c.use_denoising = c.use_adaptive_sampling = False
     sc.render.resolution_percentage = 100
-    sc.render.filter_size = 0.01
     sc.view_settings.view_transform = "Standard"
-    if "filter_width" in case:
-        c.pixel_filter_type, c.filter_width = "GAUSSIAN", case["filter_width"]
     world = bpy.data.worlds.new("World")
     sc.world = world
     nt = world.node_tree
@@ -111,6 +105,7 @@ def _render(bpy, sc, cam_data, rotation, w, h, spp):
 
 def panorama(bpy, case):
     sc = _scene(bpy, case, False)
+    sc.cycles.pixel_filter_type, sc.cycles.filter_width = "GAUSSIAN", 0.01
     cd = bpy.data.cameras.new("Pano")
     cd.type, cd.panorama_type = "PANO", "EQUIRECTANGULAR"
     img = _render(bpy, sc, cd, (math.pi / 2, 0.0, -math.pi / 2), W, H, 16)
