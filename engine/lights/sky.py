@@ -578,7 +578,6 @@ def preetham_xyz(d: np.ndarray, sun_vector, turbidity: float) -> np.ndarray:
     return np.stack([X, Y, Z], axis=-1)
 
 
-
 # --- Hosek / Wilkie ("An Analytic Model for Full Spectral Sky-Dome Radiance", Hosek and
 # Wilkie, SIGGRAPH 2012; the CIE XYZ version 1.4a of their reference code, Blender's
 # intern/sky/source/sky_hosek.cpp SKY_arhosek_xyz_skymodelstate_alloc_init, as Cycles'
@@ -666,6 +665,7 @@ def hosek_xyz(d: np.ndarray, sun_vector, turbidity: float, albedo: float) -> np.
     theta = np.minimum(theta, HOSEK_ZENITH_CLAMP)
     return np.stack([hosek_radiance(configs[c], theta, gamma) * radiances[c]
                      for c in range(3)], axis=-1) * HOSEK_SCALE
+
 
 # --- the node ---------------------------------------------------------------------------
 

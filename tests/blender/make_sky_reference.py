@@ -1,5 +1,6 @@
-"""Write tests/references/sky_cycles.json: Cycles' Single / Multiple Scattering, Preetham and Hosek / Wilkie skies
-(Blender 5.0.1's, through the bpy wheel) for tests/test_sky.py. Run by hand from the repository root:
+"""Write tests/references/sky_cycles.json: Cycles' Single / Multiple Scattering, Preetham and
+Hosek / Wilkie skies (Blender 5.0.1's, through the bpy wheel) for tests/test_sky.py. Run by
+hand from the repository root:
 
     python tests/blender/make_sky_reference.py [--all]
 
