@@ -6,11 +6,11 @@ Read as Cycles renders it: Background node's Color x Strength. Color may be a co
 an RGB node, or an Environment Texture (equirectangular, from its file or packed),
 optionally behind a Mapping node (its rotation; Point, Vector, Normal or Texture type) fed
 by the Texture Coordinate node's Generated / Object output or nothing (the ray direction
-in world shading), or a Sky Texture of type Single Scattering (4.x: Nishita), Multiple
-Scattering (5.0's default) or Preetham, behind the same Mapping: the engine computes the
-sky as Cycles does (engine/lights/sky.py), bakes it into an environment map and adds its
-sun disc as a sun light (`sky_sun_lights`). Hosek / Wilkie warns and uses the world's
-viewport colour x strength.
+in world shading), or a Sky Texture of any of Blender 5.0's types (Single Scattering, 4.x:
+Nishita; Multiple Scattering, 5.0's default; Preetham; Hosek / Wilkie), behind the same
+Mapping: the engine computes the sky as Cycles does (engine/lights/sky.py), bakes it into
+an environment map and adds its sun disc as a sun light (`sky_sun_lights`). A sky type
+the engine does not know warns and uses the world's viewport colour x strength.
 """
 from __future__ import annotations
 
@@ -190,14 +190,15 @@ def _mapping_rotation(pm, world, env_node, warnings):
 def _sky(pm, world, node, strength, warnings):
     """engine Environment baked from a Sky Texture node (engine/lights/sky.py), with the
     sun disc's light parameters as its `sun_light` (None without a disc); or None after a
-    warning (Hosek / Wilkie)."""
+    warning (a sky type engine/lights/sky.py does not know)."""
     from importlib import import_module
     sky_mod = import_module(pm.__name__ + ".lights.sky")
     who = f"world '{world.name}': Sky Texture '{node.name}'"
     sky_type = sky_mod.SKY_TYPE_ALIASES.get(str(node.sky_type), str(node.sky_type))
     if sky_type not in sky_mod.SUPPORTED_SKY_TYPES:
         warnings.append(f"{who}: sky type {sky_type} is not supported (Single / Multiple "
-                        "Scattering and Preetham are); using the world viewport colour "
+                        "Scattering, Preetham and Hosek / Wilkie are); using the world "
+                        "viewport colour "
                         f"{np.round(tuple(world.color)[:3], 3).tolist()} x strength {strength:g}")
         return None
     rotation = _mapping_rotation(pm, world, node, warnings)
@@ -212,7 +213,8 @@ def _sky(pm, world, node, strength, warnings):
         air_density=float(node.air_density), aerosol_density=float(aerosol),
         ozone_density=float(node.ozone_density),
         sun_vector=tuple(getattr(node, "sun_direction", (0.0, 0.0, 1.0))),
-        turbidity=float(getattr(node, "turbidity", 2.2)), strength=strength,
+        turbidity=float(getattr(node, "turbidity", 2.2)),
+        ground_albedo=float(getattr(node, "ground_albedo", 0.3)), strength=strength,
         rotation=rotation, name=node.name)
     # The bake takes 1-4 s of CPU: a viewport update that leaves the sky as it was (an
     # object moved, a material edited) reuses the last bakes.

@@ -27,13 +27,13 @@ def main():
     args = p.parse_args()
     print(f"{'type':<22}{'table':>8}{'map':>8}{'disc':>8}{'distrib.':>10}{'total':>8}  (CPU s, "
           f"best of {args.runs})")
-    for t in ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM"):
+    for t in ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE"):
         best = None
         for _ in range(args.runs):
             sk._ms_transmittance_table.cache_clear()
             sky = sk.SkyTexture(sky_type=t, sun_elevation=math.radians(30.0),
                                 sun_vector=(0.3, 0.5, 0.6))
-            table = _cpu(lambda: sky.table)[0] if t != "PREETHAM" else 0.0
+            table = _cpu(lambda: sky.table)[0] if t not in sk.ANALYTIC_SKY_TYPES else 0.0
             bake, env = _cpu(sky.environment)
             disc = _cpu(sky.sun_irradiance)[0]
             dist = _cpu(lambda: env.distribution)[0]

@@ -223,12 +223,13 @@ ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
                              "rotation": _vec3(), "interpolation": _choice("linear", "closest")},
                             required=("image",))
 SKY_SCHEMA = _table({"type": _choice("single_scattering", "nishita", "multiple_scattering",
-                                     "preetham"), "sun_disc": _BOOL,
+                                     "preetham", "hosek_wilkie"), "sun_disc": _BOOL,
                      "sun_size": _number(0.0, 180.0), "sun_intensity": _number(0.0),
                      "sun_elevation": _number(), "sun_rotation": _number(),
                      "altitude": _number(0.0, 60000.0), "air_density": _number(0.0),
                      "aerosol_density": _number(0.0), "ozone_density": _number(0.0),
                      "sun_direction": _vec3(nonzero=True), "turbidity": _number(0.0),
+                     "ground_albedo": _UNIT,
                      "strength": _number(0.0), "rotation": _vec3()})
 
 
@@ -592,17 +593,19 @@ def _environment(spec, base):
 def _sky(scene, spec):
     """[sky]: Blender's Sky Texture (engine/lights/sky.py) lighting the scene: baked into
     the environment, its sun disc a sun light added after the file's lights. Angles in
-    degrees, altitude in m; Preetham takes sun_direction (a vector towards the sun) and
-    turbidity; types and ranges are the schema's."""
+    degrees, altitude in m; Preetham and Hosek / Wilkie take sun_direction (a vector
+    towards the sun) and turbidity, Hosek / Wilkie also ground_albedo; types and ranges
+    are the schema's."""
     from .lights.sky import SkyTexture
     if scene.environment is not None:
         raise SceneFileError("[sky] and [environment] both light the world; give one")
     deg = {k: math.radians(float(spec[k])) for k in ("sun_size", "sun_elevation",
                                                       "sun_rotation") if k in spec}
     rest = {k: spec[k] for k in ("sun_disc", "sun_intensity", "altitude", "air_density",
-                                 "aerosol_density", "ozone_density", "strength", "turbidity")
+                                 "aerosol_density", "ozone_density", "strength", "turbidity",
+                                 "ground_albedo")
             if k in spec}
-    if "sun_direction" in spec:  # Preetham's sun
+    if "sun_direction" in spec:  # Preetham's and Hosek / Wilkie's sun
         rest["sun_vector"] = tuple(float(v) for v in spec["sun_direction"])
     rotation = _rotation(spec["rotation"]) if "rotation" in spec else None
     try:

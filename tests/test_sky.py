@@ -1,7 +1,8 @@
 """The Sky Texture (engine/lights/sky.py): the model against its own physics in limits
 with closed forms, the bake against Cycles 5.0.1 (tests/references/sky_cycles.json, made
 by tests/blender/make_sky_reference.py), the sun disc's light, the Mapping rotation,
-robustness over elevations and altitudes, and the scene file's [sky]."""
+robustness over elevations and altitudes, Hosek / Wilkie's coefficient blending and its
+data's licence notice, and the scene file's [sky]."""
 import json
 import math
 import os
@@ -69,14 +70,16 @@ def reference():
 @pytest.mark.parametrize("index", [0, 1, 2, 3, 4, 5])
 def test_bake_matches_cycles_panorama(reference, index):
     """The baked sky (no disc) at Cycles' panorama pixel centres against Cycles' pixels
-    (cases 0-2 Single Scattering, 3-4 Multiple Scattering, 5 Preetham): the upper hemisphere's
-    channel sums within 1 %, its row means within 2 % (1.5 % measured near the horizon,
-    where a pixel's average over its 1.4 degrees and our value at its centre differ most;
-    the row touching the horizon 5 %)
-    and its column means (the azimuth: the sun's side) within 2 %; the lower hemisphere's
-    rows from the third below the horizon within 2 % (the first two hold the fade or the
-    Earth's limb, a sharp step that a pixel average smears: 0.76 there at the centre,
-    1.00 averaged over the pixel); the disc's irradiance within 1 % (0.1 % measured)."""
+    (cases 0-2 Single Scattering, 3-4 Multiple Scattering, 5 Preetham; since s14 the
+    panoramas are the sky at the pixel centres, a 0.01 px Gaussian filter; they were
+    Blackman-Harris 1.5 px averages, 1-3 % off near the horizon): the upper hemisphere's
+    channel sums within 0.3 % (measured 0.07 %), its row means within 0.5 % (0.17 %) and
+    the row touching the horizon too (0.23 %), its column means (the azimuth: the sun's
+    side) within 0.3 % (0.10 %); the lower hemisphere's rows from the third below the
+    horizon within 1.5 % (0.82 %: the Single Scattering fade (1 + 2.5 z)^3 bilinear in
+    the map; the first two rows hold the Earth's limb, a step that our map and Cycles'
+    table interpolate differently: 6 % there); the disc's irradiance (a Blackman-Harris
+    average over its edge) within 0.5 % (0.14 %)."""
     case = reference["cases"][index]
     W, H = reference["width"], reference["height"]
     if case["type"] == "PREETHAM":
@@ -92,23 +95,122 @@ def test_bake_matches_cycles_panorama(reference, index):
     env = sky.environment()
     d = _pano_dirs(W, H)[: H // 2].reshape(-1, 3)
     ours = env.radiance(d).reshape(H // 2, W, 3)
-    np.testing.assert_allclose(ours.sum(axis=(0, 1)), case["channel_sums"], rtol=0.01)
+    np.testing.assert_allclose(ours.sum(axis=(0, 1)), case["channel_sums"], rtol=3e-3)
     rows = ours.mean(axis=(1, 2))
-    np.testing.assert_allclose(rows[:-1], case["row_means"][:-1], rtol=0.02)
-    # the row touching the horizon: 2.8 % (Multiple Scattering's sharper horizon)
-    np.testing.assert_allclose(rows[-1], case["row_means"][-1], rtol=0.05)
-    np.testing.assert_allclose(ours.mean(axis=(0, 2)), case["column_means"], rtol=0.02)
+    np.testing.assert_allclose(rows, case["row_means"], rtol=5e-3)
+    np.testing.assert_allclose(ours.mean(axis=(0, 2)), case["column_means"], rtol=3e-3)
     low = env.radiance(_pano_dirs(W, H)[H // 2 + 2:].reshape(-1, 3)).reshape(-1, W, 3)
     want = np.asarray(case["lower_row_means"][2:])
-    # (+ 1 % of the brightest such row: the fade's convex tail near z = -0.4, where a
-    # pixel's average exceeds the centre's value by up to 5 % of almost nothing)
-    np.testing.assert_allclose(low.mean(axis=(1, 2)), want, rtol=0.02, atol=0.01 * want.max())
+    # (+ 1e-4 of the brightest such row: the fade's tail near z = -0.4, where both are
+    # almost nothing)
+    np.testing.assert_allclose(low.mean(axis=(1, 2)), want, rtol=0.015, atol=1e-4 * want.max())
     light = env.sun_light
     if case["type"] == "PREETHAM":
         assert light is None  # no disc
     else:
         np.testing.assert_allclose(light["color"] * light["power"], case["disc_irradiance"],
-                                   rtol=0.01)
+                                   rtol=5e-3)
+
+
+def _hosek_cases(reference):
+    return [c for c in reference["cases"] if c["type"] == "HOSEK_WILKIE"]
+
+
+@pytest.mark.parametrize("index", [0, 1, 2, 3])
+def test_hosek_wilkie_matches_cycles_panorama(reference, index):
+    """Hosek / Wilkie against Cycles' panoramas rendered with a 0.01 px Gaussian filter
+    (the sky at the pixel centres), four skies: turbidity 3 / 7.5 / 1.7 / 10, ground
+    albedo 0.3 / 0.8 / 0 / 1, the sun 37 degrees up, 6 degrees up, near the zenith and
+    below the horizon (lit as on it). The model at the pixel centres: channel sums, row
+    and column means above the horizon and row means below it within 0.1 % (measured
+    0.025 %, 0.017 %, 0.03 %, 0.011 %: float32 in Cycles). The baked 1024 x 512 map
+    looked up there (bilinear between texel centres half a texel away): sums and
+    columns within 0.1 % (0.021 %, 0.024 %), rows 0.2 % (0.063 %) but the one touching
+    the horizon 0.5 % (0.26 %: the model turns steeply there, exp(B / (cos theta +
+    0.01))), below the horizon 0.1 % (0.011 %); no disc, so no sun light."""
+    case = _hosek_cases(reference)[index]
+    W, H = reference["width"], reference["height"]
+    sky = SkyTexture(sky_type="HOSEK_WILKIE", sun_vector=case["sun_vector"],
+                     turbidity=case["turbidity"], ground_albedo=case["ground_albedo"])
+    d = _pano_dirs(W, H)
+    up, low = d[: H // 2].reshape(-1, 3), d[H // 2:].reshape(-1, 3)
+    env = sky.environment()
+    for what, f, rows_tol, horizon_tol in (("model", sky.sky_rgb, 1e-3, 1e-3),
+                                           ("map", env.radiance, 2e-3, 5e-3)):
+        ours = f(up).reshape(H // 2, W, 3)
+        np.testing.assert_allclose(ours.sum(axis=(0, 1)), case["channel_sums"], rtol=1e-3,
+                                   err_msg=what)
+        rows = ours.mean(axis=(1, 2))
+        np.testing.assert_allclose(rows[:-1], case["row_means"][:-1], rtol=rows_tol,
+                                   err_msg=what)
+        np.testing.assert_allclose(rows[-1], case["row_means"][-1], rtol=horizon_tol,
+                                   err_msg=what)
+        np.testing.assert_allclose(ours.mean(axis=(0, 2)), case["column_means"], rtol=1e-3,
+                                   err_msg=what)
+        below = f(low).reshape(H // 2, W, 3).mean(axis=(1, 2))
+        np.testing.assert_allclose(below, case["lower_row_means"], rtol=1e-3, err_msg=what)
+    assert env.sun_light is None and not np.any(sky.sun_irradiance())
+
+
+def test_hosek_wilkie_coefficients_blend_as_the_reference_code():
+    """Hosek and Wilkie's cooking of a channel's dataset (2 albedos x 10 turbidities x 6
+    control points): at elevation 0 the first control point, at the zenith the last (the
+    quintic Bezier's ends); linear in ground albedo and between integer turbidities;
+    turbidity 10 takes the last set alone. The node's turbidity is clamped to [1, 10]
+    and a sun below the horizon lights the sky as one on it."""
+    xyz, rad = sk.hosek_datasets()
+    assert xyz.shape == (3, 2, 10, 6, 9) and rad.shape == (3, 2, 10, 6)
+    c = xyz[1]
+    np.testing.assert_array_equal(sk.hosek_cook(c, 3.0, 0.0, 0.0), c[0, 2, 0])
+    np.testing.assert_allclose(sk.hosek_cook(c, 3.0, 1.0, 0.5 * math.pi), c[1, 2, 5],
+                               rtol=1e-12)
+    np.testing.assert_allclose(sk.hosek_cook(rad[2], 10.0, 0.0, 0.0), rad[2, 0, 9, 0])
+    e = 0.4
+    a0, a1 = sk.hosek_cook(c, 4.0, 0.0, e), sk.hosek_cook(c, 4.0, 1.0, e)
+    np.testing.assert_allclose(sk.hosek_cook(c, 4.0, 0.25, e), 0.75 * a0 + 0.25 * a1,
+                               rtol=1e-12)
+    t4, t5 = a0, sk.hosek_cook(c, 5.0, 0.0, e)
+    np.testing.assert_allclose(sk.hosek_cook(c, 4.5, 0.0, e), 0.5 * (t4 + t5), rtol=1e-12)
+    # a Bezier curve stays within its control points' hull, per parameter
+    for elev in np.linspace(0.0, 0.5 * math.pi, 7):
+        got = sk.hosek_cook(c, 6.0, 0.0, elev)
+        assert np.all(got >= c[0, 5].min(axis=0) - 1e-12)
+        assert np.all(got <= c[0, 5].max(axis=0) + 1e-12)
+    d = np.random.default_rng(3).normal(size=(64, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    for a, b in (((0.3, 0.5, -0.2), (0.3, 0.5, 0.0)), ):
+        np.testing.assert_allclose(sk.hosek_xyz(d, a, 2.0, 0.3), sk.hosek_xyz(d, b, 2.0, 0.3),
+                                   rtol=1e-12)
+    for t, clamped in ((0.5, 1.0), (12.0, 10.0)):
+        np.testing.assert_array_equal(sk.hosek_xyz(d, (0.1, 0.2, 0.9), t, 0.5),
+                                      sk.hosek_xyz(d, (0.1, 0.2, 0.9), clamped, 0.5))
+
+
+def test_hosek_wilkie_sky_is_brightest_near_its_sun_and_keeps_its_licence_notice():
+    """The analytic sky 5 degrees from its sun outshines the sky opposite at the same
+    elevation (3x in luminance); more turbidity or a brighter ground brightens the zenith; the sun
+    direction vector need not be unit. The coefficients' file keeps Hosek and Wilkie's
+    copyright and BSD-3-Clause notice (their licence asks it)."""
+    e = math.radians(25.0)
+    sun = (0.0, math.cos(e), math.sin(e))
+    sky = SkyTexture(sky_type="HOSEK_WILKIE", sun_vector=sun, turbidity=3.0)
+    near = sky.sky_rgb(np.array([[math.sin(0.09) * math.cos(e), math.cos(0.09) * math.cos(e),
+                                  math.sin(e)]]))
+    far = sky.sky_rgb(np.array([[0.0, -math.cos(e), math.sin(e)]]))
+    assert np.all(near > far) and luminance(near) > 3.0 * luminance(far)
+    zenith = np.array([[0.0, 0.0, 1.0]])
+    hazy = SkyTexture(sky_type="HOSEK_WILKIE", sun_vector=sun, turbidity=6.0)
+    snow = SkyTexture(sky_type="HOSEK_WILKIE", sun_vector=sun, turbidity=3.0, ground_albedo=0.9)
+    assert luminance(hazy.sky_rgb(zenith)) > luminance(sky.sky_rgb(zenith))
+    assert luminance(snow.sky_rgb(zenith)) > luminance(sky.sky_rgb(zenith))
+    long = SkyTexture(sky_type="HOSEK_WILKIE", sun_vector=tuple(7.0 * v for v in sun),
+                      turbidity=3.0)
+    np.testing.assert_allclose(long.sky_rgb(zenith), sky.sky_rgb(zenith), rtol=1e-12)
+    data = os.path.join(os.path.dirname(sk.__file__), "sky_hosek_data.py")
+    with open(data, encoding="utf-8") as f:
+        text = f.read()
+    assert "Lukas Hosek and Alexander Wilkie" in text and "BSD-3-Clause" in text
+    assert "Neither the name of the copyright holders" in text
 
 
 def test_sun_light_points_away_from_the_sun_through_the_mapping():
@@ -198,10 +300,12 @@ def test_multiple_scattering_sun_sets_below_the_horizon_to_the_earths_limb():
 
 
 def test_unsupported_types_and_bad_values_are_refused():
-    for t in ("HOSEK_WILKIE",):
-        if t not in sk.SUPPORTED_SKY_TYPES:
-            with pytest.raises(ValueError, match=t):
-                SkyTexture(sky_type=t)
+    assert set(sk.SKY_TYPES) <= set(sk.SUPPORTED_SKY_TYPES)  # all of Blender 5.0's
+    with pytest.raises(ValueError, match="RAINBOW"):
+        SkyTexture(sky_type="RAINBOW")
+    for bad in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="ground_albedo"):
+            SkyTexture(sky_type="HOSEK_WILKIE", ground_albedo=bad)
     assert SkyTexture(sky_type="NISHITA").sky_type == "SINGLE_SCATTERING"
     with pytest.raises(ValueError, match="altitude"):
         SkyTexture(altitude=float("nan"))
@@ -249,6 +353,18 @@ strength = 0.5
     want = SkyTexture(sky_type="PREETHAM", sun_vector=(0.3, 0.5, 0.6), turbidity=3.0,
                       strength=0.5)
     np.testing.assert_allclose(scene.environment.pixels, want.bake(), rtol=1e-6)
+    # Hosek / Wilkie: the same sun and turbidity, and the ground albedo.
+    path.write_text(text.replace("sun_elevation = 35", 'type = "hosek_wilkie"\nsun_direction = '
+                                 '[0.3, 0.5, 0.6]\nturbidity = 4.5\nground_albedo = 0.6'))
+    scene, _ = load_scene(str(path))
+    assert [li.kind for li in scene.lights] == ["POINT"]
+    want = SkyTexture(sky_type="HOSEK_WILKIE", sun_vector=(0.3, 0.5, 0.6), turbidity=4.5,
+                      ground_albedo=0.6, strength=0.5)
+    np.testing.assert_allclose(scene.environment.pixels, want.bake(), rtol=1e-6)
+    path.write_text(text.replace("sun_elevation = 35", 'type = "hosek_wilkie"\n'
+                                 'ground_albedo = 1.5'))
+    with pytest.raises(SceneFileError, match=r"<= 1, got 1\.5"):
+        load_scene(str(path))
     np.save(tmp_path / "a.npy", np.ones((4, 8, 3), np.float32))
     path.write_text(text + '[environment]\nimage = "a.npy"\n')
     with pytest.raises(SceneFileError, match="sky"):

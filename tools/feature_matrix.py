@@ -1690,19 +1690,9 @@ def world_hdri_glossy():
     mb.set_world_hdri(mb.sky_hdri(), 1.0)
 
 
-@case("world", status="warned", how="Sky Texture of type Hosek / Wilkie is not simulated: "
-      "the world's viewport colour lights the scene (Single / Multiple Scattering and "
-      "Preetham are: tests/blender/test_sky_cycles.py, tests/test_sky.py)",
-      warning="Sky Texture")
-def world_sky_texture():
-    """A Hosek / Wilkie sky: warned, the viewport colour stands in (far from Cycles' sky)."""
-    _hdri_scene()
-    mb.set_world((0.3, 0.4, 0.6), 1.0)
-    nt = bpy.context.scene.world.node_tree
-    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
-    sky = nt.nodes.new("ShaderNodeTexSky")
-    sky.sky_type = "HOSEK_WILKIE"
-    nt.links.new(sky.outputs[0], bg.inputs["Color"])
+# (No Sky Texture case: every sky type is simulated and checked against Cycles 5.0.1 by
+# tests/test_sky.py and tests/blender/test_sky_cycles.py; the warned Hosek / Wilkie case
+# that stood here went with its warning.)
 
 
 # --- warned (not simulated; the user is told) ---------------------------------------------

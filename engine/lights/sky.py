@@ -8,8 +8,9 @@ Cycles' scene/shader_nodes.cpp SkyTextureNode and kernel/svm/sky.h (checked agai
 "Nishita", described below) and Multiple Scattering (5.0's default: four wavelengths, a
 transmittance table, a fitted multiple-scattering term and light from a grey ground; the
 table covers both hemispheres, the sun disc sets at the Earth's limb; see its section).
-Preetham (an analytic fit, no disc) is evaluated at each texel; Hosek / Wilkie is not
-here.
+Preetham and Hosek / Wilkie (analytic fits, no disc; Hosek / Wilkie's coefficients in
+sky_hosek_data.py, (c) Lukas Hosek and Alexander Wilkie, BSD-3-Clause) are evaluated at
+each texel.
 
   sky       single scattering of sunlight by air (Rayleigh) and aerosols (Mie, g = 0.76)
             along the view ray through a spherical atmosphere (Earth radius 6360 km,
@@ -47,7 +48,9 @@ import numpy as np
 
 SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE")
 # The types baked here; the others are warned about by the caller.
-SUPPORTED_SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM")
+SUPPORTED_SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE")
+# The analytic fits: a sun from the node's sun_direction, turbidity, no disc.
+ANALYTIC_SKY_TYPES = ("PREETHAM", "HOSEK_WILKIE")
 # Blender 4.x spelling of the Single Scattering model.
 SKY_TYPE_ALIASES = {"NISHITA": "SINGLE_SCATTERING"}
 
@@ -575,12 +578,103 @@ def preetham_xyz(d: np.ndarray, sun_vector, turbidity: float) -> np.ndarray:
     return np.stack([X, Y, Z], axis=-1)
 
 
+# --- Hosek / Wilkie ("An Analytic Model for Full Spectral Sky-Dome Radiance", Hosek and
+# Wilkie, SIGGRAPH 2012; the CIE XYZ version 1.4a of their reference code, Blender's
+# intern/sky/source/sky_hosek.cpp SKY_arhosek_xyz_skymodelstate_alloc_init, as Cycles'
+# scene/shader_nodes.cpp sky_texture_precompute_hosek calls it; kernel/svm/sky.h
+# sky_radiance_hosek) ------------------------------------------------------------------
+# Cycles scales the model's XYZ (W m^-2 sr^-1 x CIE functions, luminance / 683 lm/W) by
+# 2 pi / 683 after the RGB conversion.
+HOSEK_SCALE = 2.0 * math.pi / 683.0
+HOSEK_ZENITH_CLAMP = 0.5 * math.pi - 0.001  # as Preetham: below the horizon the horizon
+
+
+@functools.lru_cache(maxsize=1)
+def hosek_datasets():
+    """(XYZ (3, 2, 10, 6, 9), radiance (3, 2, 10, 6)): the model's coefficients per
+    channel, ground albedo 0 / 1, turbidity 1..10 and Bezier control point
+    (engine/lights/sky_hosek_data.py, (c) Hosek and Wilkie, BSD-3-Clause)."""
+    from . import sky_hosek_data as data
+    return (np.asarray(data.XYZ, np.float64).reshape(3, 2, 10, 6, 9),
+            np.asarray(data.XYZ_RAD, np.float64).reshape(3, 2, 10, 6))
+
+
+def hosek_cook(dataset: np.ndarray, turbidity: float, albedo: float,
+               elevation: float) -> np.ndarray:
+    """Blend one channel's dataset (2, 10, 6, ...) for a sun elevation (radians, [0,
+    pi/2]), turbidity [1, 10] and ground albedo [0, 1]: a quintic Bezier over
+    (elevation / (pi/2))^(1/3) through the 6 control points, linear in albedo between
+    the two albedo sets and in turbidity between the integer turbidities around it
+    (Hosek and Wilkie's ArHosekSkyModel_CookConfiguration / CookRadianceConfiguration)."""
+    t_int = int(turbidity)
+    t_rem = turbidity - t_int
+    e = (elevation / (0.5 * math.pi)) ** (1.0 / 3.0)
+    bezier = np.array([(1.0 - e) ** 5, 5.0 * (1.0 - e) ** 4 * e,
+                       10.0 * (1.0 - e) ** 3 * e ** 2, 10.0 * (1.0 - e) ** 2 * e ** 3,
+                       5.0 * (1.0 - e) * e ** 4, e ** 5])
+    out = ((1.0 - albedo) * (1.0 - t_rem) * np.tensordot(bezier, dataset[0, t_int - 1], 1)
+           + albedo * (1.0 - t_rem) * np.tensordot(bezier, dataset[1, t_int - 1], 1))
+    if t_int < 10:  # (turbidity 10: nothing above to blend with)
+        out = out + ((1.0 - albedo) * t_rem * np.tensordot(bezier, dataset[0, t_int], 1)
+                     + albedo * t_rem * np.tensordot(bezier, dataset[1, t_int], 1))
+    return out
+
+
+def hosek_state(sun_vector, turbidity: float, albedo: float):
+    """(sun zenith angle, sun azimuth phi = atan2(x, y), configs (3, 9), radiances (3,))
+    as Cycles precomputes them: the sun clamped to [0, pi/2] from the zenith (a sun below
+    the horizon lights the sky as one on it), turbidity clamped to [1, 10] (Cycles clamps
+    to [0, 10]; the node's range is [1, 10] and below 1 the reference code reads outside
+    its table)."""
+    sv = np.asarray(sun_vector, np.float64)
+    sv = sv / max(np.linalg.norm(sv), 1e-300)
+    theta = min(max(math.acos(min(max(sv[2], -1.0), 1.0)), 0.0), 0.5 * math.pi)
+    phi = math.atan2(sv[0], sv[1])
+    turbidity = min(max(float(turbidity), 1.0), 10.0)
+    elevation = 0.5 * math.pi - theta
+    xyz, rad = hosek_datasets()
+    configs = np.stack([hosek_cook(xyz[c], turbidity, albedo, elevation) for c in range(3)])
+    radiances = np.array([float(hosek_cook(rad[c], turbidity, albedo, elevation))
+                          for c in range(3)])
+    return theta, phi, configs, radiances
+
+
+def hosek_radiance(config: np.ndarray, theta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+    """The model's sky-dome distribution F(theta, gamma) for one channel's 9 parameters
+    A..I at view zenith angles theta and angles gamma from the sun (radians):
+    (1 + A exp(B / (cos theta + 0.01))) (C + D exp(E gamma) + F cos^2 gamma
+    + G (1 + cos^2 gamma) / (1 + I^2 - 2 I cos gamma)^1.5 + H sqrt(cos theta))."""
+    A, B, C, D, E, F, G, H, I = config
+    ct, cg = np.cos(theta), np.cos(gamma)
+    mie = (1.0 + cg * cg) / (1.0 + I * I - 2.0 * I * cg) ** 1.5
+    return (1.0 + A * np.exp(B / (ct + 0.01))) * (
+        C + D * np.exp(E * gamma) + F * cg * cg + G * mie + H * np.sqrt(ct))
+
+
+def hosek_xyz(d: np.ndarray, sun_vector, turbidity: float, albedo: float) -> np.ndarray:
+    """(N, 3) XYZ of the Hosek / Wilkie sky x Cycles' 2 pi / 683 along unit directions
+    d (N, 3) for the node's sun_direction (normalised, as Blender hands it to Cycles),
+    turbidity and ground albedo; gamma from the true direction, theta then clamped to
+    pi/2 - 0.001 (below the horizon the horizon's colour)."""
+    sun_theta, sun_phi, configs, radiances = hosek_state(sun_vector, turbidity, albedo)
+    theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+    phi = np.arctan2(d[:, 0], d[:, 1])
+    cos_g = (math.sin(sun_theta) * np.sin(theta) * np.cos(phi - sun_phi)
+             + math.cos(sun_theta) * np.cos(theta))
+    gamma = np.arccos(np.clip(cos_g, -1.0, 1.0))
+    theta = np.minimum(theta, HOSEK_ZENITH_CLAMP)
+    return np.stack([hosek_radiance(configs[c], theta, gamma) * radiances[c]
+                     for c in range(3)], axis=-1) * HOSEK_SCALE
+
+
 # --- the node ---------------------------------------------------------------------------
 
 @dataclass
 class SkyTexture:
     """A Sky Texture node's settings (Blender's names and units: angles in radians,
     altitude in m, densities relative to Earth's). sky_type: SKY_TYPES (or 4.x's NISHITA).
+    Preetham and Hosek / Wilkie read only sun_vector, turbidity (and Hosek / Wilkie
+    ground_albedo) and have no disc.
     strength: the Background node's strength (scalar or RGB)."""
 
     sky_type: str = "SINGLE_SCATTERING"
@@ -593,9 +687,11 @@ class SkyTexture:
     air_density: float = 1.0
     aerosol_density: float = 1.0
     ozone_density: float = 1.0
-    # Preetham: the node's sun_direction (a vector) and turbidity
+    # Preetham and Hosek / Wilkie: the node's sun_direction (a vector) and turbidity;
+    # Hosek / Wilkie's ground albedo in [0, 1]
     sun_vector: tuple = (0.0, 0.0, 1.0)
     turbidity: float = 2.2
+    ground_albedo: float = 0.3
     strength: object = 1.0
     rotation: np.ndarray | None = None
     name: str = "sky"
@@ -610,7 +706,8 @@ class SkyTexture:
             raise ValueError(f"{who}: sky type {self.sky_type} is not supported (only "
                              f"{', '.join(SUPPORTED_SKY_TYPES)})")
         for key in ("sun_size", "sun_intensity", "sun_elevation", "sun_rotation", "altitude",
-                    "air_density", "aerosol_density", "ozone_density", "turbidity"):
+                    "air_density", "aerosol_density", "ozone_density", "turbidity",
+                    "ground_albedo"):
             v = getattr(self, key)
             if not math.isfinite(float(v)):
                 raise ValueError(f"{who} {key}: expected a finite number, got {v!r}")
@@ -619,6 +716,9 @@ class SkyTexture:
                     "ozone_density"):
             if getattr(self, key) < 0:
                 raise ValueError(f"{who} {key}: expected a value >= 0, got {getattr(self, key)}")
+        if not 0.0 <= self.ground_albedo <= 1.0:
+            raise ValueError(f"{who} ground_albedo: expected a value in [0, 1], got "
+                             f"{self.ground_albedo}")
         v = np.asarray(self.sun_vector, np.float64).reshape(-1)
         if v.shape != (3,) or not np.all(np.isfinite(v)):
             raise ValueError(f"{who} sun_vector: expected 3 finite numbers, got {self.sun_vector!r}")
@@ -667,6 +767,8 @@ class SkyTexture:
         d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
         if self.sky_type == "PREETHAM":
             return preetham_xyz(d, self.sun_vector, self.turbidity)
+        if self.sky_type == "HOSEK_WILKIE":
+            return hosek_xyz(d, self.sun_vector, self.turbidity, self.ground_albedo)
         z = np.clip(d[:, 2], -1.0, 1.0)
         elev = np.arcsin(z)
         # longitude relative to the sun: the table's x = 0.5 looks at the sun
@@ -688,7 +790,7 @@ class SkyTexture:
         off."""
         d = np.asarray(d, np.float64).reshape(-1, 3)
         out = np.zeros((len(d), 3))
-        if not self.sun_disc or self.sky_type == "PREETHAM":  # Preetham has no disc
+        if not self.sun_disc or self.sky_type in ANALYTIC_SKY_TYPES:  # they have no disc
             return out
         size = self.sun_size_clamped
         half = 0.5 * size
@@ -718,7 +820,7 @@ class SkyTexture:
         """RGB irradiance (W / m^2) of the sun disc on a surface facing it: the disc's
         radiance integrated over its solid angle (a midpoint rule on n x n points of the
         disc's tangent plane, mapped to equal solid angles)."""
-        if not self.sun_disc or self.sky_type == "PREETHAM":
+        if not self.sun_disc or self.sky_type in ANALYTIC_SKY_TYPES:
             return np.zeros(3)
         half = 0.5 * self.sun_size_clamped
         sun = self.sun_direction()

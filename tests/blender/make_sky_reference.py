@@ -1,16 +1,25 @@
-"""Write tests/references/sky_cycles.json: Cycles' Single / Multiple Scattering and Preetham skies (Blender 5.0.1's,
-through the bpy wheel) for tests/test_sky.py. Run by hand from the repository root:
+"""Write tests/references/sky_cycles.json: Cycles' Single / Multiple Scattering, Preetham and
+Hosek / Wilkie skies (Blender 5.0.1's, through the bpy wheel) for tests/test_sky.py. Run by
+hand from the repository root:
 
-    python tests/blender/make_sky_reference.py
+    python tests/blender/make_sky_reference.py [--all]
+
+A case already in the file (the same settings) keeps its numbers unless --all is given: adding a
+case renders only that one.
 
 Per case (sky type, sun elevation / rotation in degrees, altitude m, air / aerosol / ozone density):
 - a 256 x 128 equirectangular panorama of the world without the sun disc (a panoramic
   camera at the origin looking along +X, up +Z: the Environment's layout, +X at the
-  centre column), 16 samples, a 0.01-pixel filter; stored as the upper hemisphere's row
-  means and column means of the RGB mean, and its per-channel sums, and the lower
-  hemisphere's row means;
+  centre column), 16 samples; stored as the upper hemisphere's row means and column
+  means of the RGB mean, and its per-channel sums, and the lower hemisphere's row means;
+  a 0.01 px Gaussian pixel filter, so the pixels are the sky at their centres (Cycles'
+  filter is scene.cycles.filter_width; render.filter_size is not Cycles' setting, and a
+  Box filter is 1 px wide whatever filter_width says; until s14 this script set only
+  render.filter_size and its panoramas were Blackman-Harris 1.5 px averages);
 - the sun disc's irradiance (RGB, W / m^2): a camera aimed at the sun, 2 sun diameters
-  across, 96 x 96 pixels, radiance x pixel solid angle summed, disc on minus disc off.
+  across, 96 x 96 pixels, radiance x pixel solid angle summed, disc on minus disc off
+  (Cycles' default filter, Blackman-Harris 1.5 px: the disc's edge averaged over pixels;
+  point samples at 96 pixels across alias it by 0.2 %).
 """
 import json
 import math
@@ -33,7 +42,15 @@ CASES = [
          air=2.0, aerosol=0.5, ozone=3.0, sun_size=2.0),
     # Preetham: no disc; its sun is the node's sun_direction (normalised by Blender)
     dict(type="PREETHAM", sun_vector=[0.3, 0.5, 0.6], turbidity=3.0),
+    # Hosek / Wilkie: no disc either; its sun the node's sun_direction, turbidity and ground
+    # albedo; the cases cover the blends between turbidities (and none at 10), between
+    # the two albedo sets and a sun below the horizon (clamped to it)
+    dict(type="HOSEK_WILKIE", sun_vector=[0.3, 0.5, 0.6], turbidity=3.0, ground_albedo=0.3),
+    dict(type="HOSEK_WILKIE", sun_vector=[-0.8, 0.2, 0.1], turbidity=7.5, ground_albedo=0.8),
+    dict(type="HOSEK_WILKIE", sun_vector=[0.05, -0.1, 1.0], turbidity=1.7, ground_albedo=0.0),
+    dict(type="HOSEK_WILKIE", sun_vector=[0.2, -0.7, -0.1], turbidity=10.0, ground_albedo=1.0),
 ]
+ANALYTIC = ("PREETHAM", "HOSEK_WILKIE")
 W, H = 256, 128
 
 
@@ -45,7 +62,6 @@ def _scene(bpy, case, disc):
     c.device, c.seed = "CPU", 0
     c.use_denoising = c.use_adaptive_sampling = False
     sc.render.resolution_percentage = 100
-    sc.render.filter_size = 0.01
     sc.view_settings.view_transform = "Standard"
     world = bpy.data.worlds.new("World")
     sc.world = world
@@ -53,8 +69,10 @@ def _scene(bpy, case, disc):
     bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
     sky = nt.nodes.new("ShaderNodeTexSky")
     sky.sky_type = case["type"]
-    if case["type"] == "PREETHAM":
+    if case["type"] in ANALYTIC:
         sky.sun_direction, sky.turbidity = case["sun_vector"], case["turbidity"]
+        if case["type"] == "HOSEK_WILKIE":
+            sky.ground_albedo = case["ground_albedo"]
     else:
         sky.sun_elevation = math.radians(case["sun_elevation"])
         sky.sun_rotation = math.radians(case["sun_rotation"])
@@ -88,6 +106,7 @@ def _render(bpy, sc, cam_data, rotation, w, h, spp):
 
 def panorama(bpy, case):
     sc = _scene(bpy, case, False)
+    sc.cycles.pixel_filter_type, sc.cycles.filter_width = "GAUSSIAN", 0.01
     cd = bpy.data.cameras.new("Pano")
     cd.type, cd.panorama_type = "PANO", "EQUIRECTANGULAR"
     img = _render(bpy, sc, cd, (math.pi / 2, 0.0, -math.pi / 2), W, H, 16)
@@ -119,12 +138,22 @@ def disc_irradiance(bpy, case):
 
 
 def main():
+    import sys
+
     import bpy
+    old = []
+    if os.path.exists(OUT) and "--all" not in sys.argv:
+        with open(OUT) as f:
+            old = json.load(f)["cases"]
     out = dict(blender=bpy.app.version_string, width=W, height=H, cases=[])
     for case in CASES:
+        kept = [e for e in old if {k: e.get(k) for k in case} == case]
+        if kept:
+            out["cases"].append(kept[0])
+            continue
         entry = dict(case)
         entry.update(panorama(bpy, case))
-        entry["disc_irradiance"] = (disc_irradiance(bpy, case) if case["type"] != "PREETHAM"
+        entry["disc_irradiance"] = (disc_irradiance(bpy, case) if case["type"] not in ANALYTIC
                                     else [0.0, 0.0, 0.0])
         out["cases"].append(entry)
         print(case, "disc", np.round(entry["disc_irradiance"], 3))

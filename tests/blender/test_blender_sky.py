@@ -1,5 +1,5 @@
 """Sky Texture export (addon/world.py): the node's settings, a Mapping in front, the sun
-disc as a light of the exported scene, and the warning for the sky types not simulated.
+disc as a light of the exported scene, and the warning for a sky type not simulated.
 Brightness against Cycles: tests/blender/test_sky_cycles.py."""
 import math
 import os
@@ -98,8 +98,31 @@ def test_preetham_sky_exports_its_sun_direction_and_turbidity(mb, bpy_addon):
     assert not scene.lights  # no disc
 
 
-def test_other_sky_types_warn_and_use_the_viewport_colour(mb, bpy_addon):
+def test_hosek_wilkie_sky_exports_its_sun_direction_turbidity_and_ground_albedo(mb, bpy_addon):
+    from engine.lights.sky import SkyTexture
     bpy = bpy_addon
+    sky = _sky_world(bpy, mb, strength=2.0)
+    sky.sky_type = "HOSEK_WILKIE"
+    sky.sun_direction, sky.turbidity, sky.ground_albedo = (-0.4, 0.6, 0.5), 6.3, 0.7
+    scene = _export(bpy)
+    assert not [w for w in scene.all_warnings() if "world" in w]
+    want = SkyTexture(sky_type="HOSEK_WILKIE", sun_vector=(-0.4, 0.6, 0.5), turbidity=6.3,
+                      ground_albedo=0.7, strength=2.0)
+    assert scene.environment.sky.ground_albedo == pytest.approx(0.7)
+    np.testing.assert_allclose(scene.environment.pixels, want.bake(), rtol=1e-4, atol=1e-6)
+    assert not scene.lights  # no disc
+
+
+def test_unknown_sky_types_warn_and_use_the_viewport_colour(mb, bpy_addon, monkeypatch):
+    """Every Blender 5.0 sky type is simulated; a type the engine does not know (here
+    Hosek / Wilkie, taken off the engine's list) warns and the viewport colour stands in."""
+    from importlib import import_module
+
+    from addon.core import load_engine
+    bpy = bpy_addon
+    sky_mod = import_module(load_engine().__name__ + ".lights.sky")
+    monkeypatch.setattr(sky_mod, "SUPPORTED_SKY_TYPES",
+                        tuple(t for t in sky_mod.SUPPORTED_SKY_TYPES if t != "HOSEK_WILKIE"))
     sky = _sky_world(bpy, mb, strength=2.0)
     sky.sky_type = "HOSEK_WILKIE"
     scene = _export(bpy)
