@@ -1495,7 +1495,21 @@ def transparency_window_glass_plane():
 # Over seeds 1-50: block error median 0.34 and over 0.35 at 24 seeds with the numpy
 # emission (max 0.437), at 22 with the emission kernels (max 0.465); brightness 0.983 +-
 # 0.002 both (docs/performance.md, "Fourth slice: photon emission").
-@case("transparency", block_tol=0.47)
+# The pane's "0.60 of Cycles" was mostly the reference's noise (issue 14, glasscam): the
+# pane reflects a room lit only through the glass, which Cycles reaches by BSDF-sampled
+# caustic paths (glass blocks its shadow rays), so at 1024 spp its pane pixels are
+# sparse spikes (one sample in 1024 carrying ~100); against Cycles at 32768 spp (border
+# render of the pane) the 1024-spp reference read the pane's inner pixels at 0.77 and
+# ours at 0.94-1.03 over seeds 0-3 (tests/test_camera_glass.py checks the pane's T_slab
+# and R_slab analytically). The reference is now 16384 spp. Against it, seeds 0-39:
+# block error median 0.217, 90th percentile 0.286, max 0.328 (against the 1024-spp
+# one: median 0.296, max 0.420), brightness 0.999 +- 0.008; bound 0.47 -> 0.40. The worst
+# block (36 of 40 seeds) is the pane's lower edge, 0.55-0.76 of Cycles: Cycles shows a
+# bright line along the slab's edges where light piped through the 2 cm glass (entering
+# its exposed top face outside) leaves its bottom face onto the wall below; ours has
+# that light in the caustic map, whose k-NN estimate at the wall's edge is cut by the
+# edge and spread over ~2 pixel rows (the caustic pass there: 0.07-0.3 in the edge row).
+@case("transparency", block_tol=0.40, samples=16384)
 def transparency_window_glass_slab():
     """The window room behind a 2 cm Glass slab."""
     _window_room("slab")

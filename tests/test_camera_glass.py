@@ -1,0 +1,144 @@
+"""Camera paths through thin glass (issue 14: the window pane seen from a room).
+
+A camera looking through a smooth, non-absorbing glass slab sees the world behind it with
+the slab's transmittance and what lies in front of it with the slab's reflectance, both
+summed over the light's internal reflections. With F the unpolarised Fresnel reflectance
+of one interface at the incidence angle (the exit's equals the entry's at the refracted
+angle):
+
+    T_slab = (1 - F)^2 (1 + F^2 + F^4 + ...) = (1 - F) / (1 + F)
+    R_slab = F + (1 - F)^2 F (1 + F^2 + ...) = 2 F / (1 + F)       (T_slab + R_slab = 1)
+
+Each case puts an opaque plane where the reflected rays go: black with a white world
+behind the slab (the pixel is T_slab x world), or emitting with a black world (the pixel
+is R_slab x emission). The camera's specular chain picks one lobe per interface at random
+and ends paths by Russian roulette; both are unbiased, so the image mean over the slab
+matches to its noise (a few tenths of a percent at these samples)."""
+import math
+
+import numpy as np
+import pytest
+
+from engine import RenderSettings
+from engine.api import PaperScene
+from engine.integrator import camera_rays
+from engine.scene import Material
+
+IOR = 1.5
+THICKNESS = 0.02
+W, H = 24, 18
+
+
+def _fresnel(cos_i, eta=IOR):
+    """Unpolarised dielectric Fresnel reflectance from outside (eta = n_t / n_i)."""
+    s2 = (1.0 - cos_i * cos_i) / (eta * eta)
+    ct = np.sqrt(1.0 - s2)
+    rs = (cos_i - eta * ct) / (cos_i + eta * ct)
+    rp = (eta * cos_i - ct) / (eta * cos_i + ct)
+    return 0.5 * (rs * rs + rp * rp)
+
+
+def _glass():
+    return Material("glass", (1.0, 1.0, 1.0), transmission=1.0, roughness=0.0, ior=IOR,
+                    node="glass", multiscatter=False)
+
+
+def _slab_scene(theta_deg, mode, level=1.0):
+    """A 1 x 1 m slab (2 cm) at the origin, its normal theta_deg from the camera's view
+    axis (+y), seen from 5 m with a 6-degree view; the plane 8 m along the mirror
+    direction: black with a uniform world of `level` (mode "transmit") or emitting
+    `level` with a black world (mode "reflect")."""
+    th = math.radians(theta_deg)
+    n = np.array([-math.sin(th), -math.cos(th), 0.0])  # toward the camera
+    s = PaperScene(W, H, background=(level,) * 3 if mode == "transmit" else (0.0,) * 3)
+    glass = _glass()
+    # The two faces as planes facing out of the slab (one object: a flat passage).
+    up = (0.0, 0.0, 1.0)
+    c0, c1 = n * (0.5 * THICKNESS), -n * (0.5 * THICKNESS)
+    v = []
+    for c, nn in ((c0, n), (c1, -n)):
+        u = np.cross(up, nn)
+        u /= np.linalg.norm(u)
+        z = np.array(up)
+        v.append([c - 0.5 * u - 0.5 * z, c + 0.5 * u - 0.5 * z, c + 0.5 * u + 0.5 * z,
+                  c - 0.5 * u + 0.5 * z])
+    verts = np.array(v, np.float64).reshape(-1, 3)
+    faces = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]])
+    # Each face's winding so its geometric normal points out of the slab.
+    for k, nn in ((0, n), (1, -n)):
+        a, b, c = verts[faces[2 * k]]
+        if np.dot(np.cross(b - a, c - a), nn) < 0:
+            faces[2 * k:2 * k + 2] = faces[2 * k:2 * k + 2][:, ::-1]
+    s.add_triangles(verts, faces, glass, name="slab")
+    d = np.array([0.0, 1.0, 0.0])
+    r = d - 2.0 * np.dot(d, n) * n  # the mirror direction
+    if mode == "transmit":
+        back = Material("black", (0.0, 0.0, 0.0))
+    else:
+        back = Material("lamp", (0.0, 0.0, 0.0), emission=(level,) * 3)
+    s.add_plane(tuple(8.0 * r), tuple(-r), 30.0, back, name="back")
+    s.set_camera((0.0, -5.0, 0.0), (0.0, 0.0, 0.0), view_angle=6.0)
+    return s, n
+
+
+def _expected_and_mask(s, n):
+    """Per pixel (H, W): the cosine of incidence of its centre ray, and whether the ray
+    meets the slab 0.1 m or more inside its edges (the lateral walk inside 2 cm of glass
+    stays far from them)."""
+    py, px = np.mgrid[0:H, 0:W]
+    px, py = px.ravel().astype(np.int64), py.ravel().astype(np.int64)
+    half = np.full(len(px), 0.5)
+    o, d, _ = camera_rays(s.camera, np.zeros(3), W, H, px, py, half, half)
+    cos_i = np.abs(d @ n)
+    t = -(o @ n) / (d @ n)
+    p = o + t[:, None] * d
+    u = np.cross((0.0, 0.0, 1.0), n)
+    u /= np.linalg.norm(u)
+    inside = (np.abs(p @ u) < 0.4) & (np.abs(p[:, 2]) < 0.4)
+    return cos_i.reshape(H, W), inside.reshape(H, W)
+
+
+def _render(s, **kw):
+    film = s.render(RenderSettings(workers=1, spp=kw.pop("spp", 256), seed=kw.pop("seed", 1),
+                                   photon_mapping=False, **kw))
+    img = sum(np.asarray(getattr(film, k), np.float64)
+              for k in ("direct", "caustic", "indirect", "specular", "emission"))
+    return img
+
+
+@pytest.mark.parametrize("theta_deg", [0.0, 45.0])
+def test_pane_transmits_the_world_behind_it(theta_deg):
+    """A white world behind the slab, a black plane where the reflections go: the pixel
+    is T_slab = (1 - F) / (1 + F) (0.923 at 0 degrees, 0.905 at 45)."""
+    s, n = _slab_scene(theta_deg, "transmit")
+    cos_i, inside = _expected_and_mask(s, n)
+    assert inside.sum() > 100
+    F = _fresnel(cos_i)
+    expect = (1.0 - F) / (1.0 + F)
+    img = _render(s)
+    got = img[inside].mean(axis=0)
+    # Grey: every channel the same
+    np.testing.assert_allclose(got, got[0], rtol=1e-12)
+    # Each sample carries 0 or 1 (one lobe per interface): binomial noise over >= 100
+    # pixels x 256 samples, ~0.2 %.
+    assert got[0] == pytest.approx(expect[inside].mean(), rel=0.01), (theta_deg, got[0])
+    # Not the single interface's transmittance 1 - F (both faces take their share; the
+    # internal reflections' part, (1 - F)^2 F^2 / (1 - F^2) = 0.15 %, is below the noise).
+    assert abs(got[0] - (1.0 - F[inside]).mean()) > 0.02
+
+
+@pytest.mark.parametrize("theta_deg", [0.0, 45.0])
+def test_pane_reflects_what_is_in_front_of_it(theta_deg):
+    """A black world, an emitting plane (radiance 10) where the reflections go: the pixel
+    is 10 x R_slab = 10 x 2F / (1 + F) (0.77 at 0 degrees, 0.96 at 45): both faces'
+    reflections and the internal ones, nearly twice one interface's F."""
+    s, n = _slab_scene(theta_deg, "reflect", level=10.0)
+    cos_i, inside = _expected_and_mask(s, n)
+    F = _fresnel(cos_i)
+    expect = 10.0 * 2.0 * F / (1.0 + F)
+    img = _render(s)
+    got = img[inside, 0].mean()
+    # A sample carries 10 with probability ~R_slab (8-10 %): relative noise
+    # sqrt((1 - R) / (R N)) ~ 0.6 % over >= 100 pixels x 256 samples.
+    assert got == pytest.approx(expect[inside].mean(), rel=0.035), (theta_deg, got)
+    assert got > 1.5 * 10.0 * F[inside].mean()  # the back face's reflection is there
