@@ -20,6 +20,8 @@ Queries run inside compiled kernels (engine/jit.py) with fixed scratch memory:
               unsorted and heapified at the k-th point, as Jensen does), returned in
               increasing distance
   nearest     the one nearest point with squared distance < r2 (knn with k = 1, no heap)
+              (nearest, nearest_facing and count_closer have `_in` forms that take a
+              traversal_stack as scratch, for callers making many searches)
   nearest_facing  the nearest point whose normal agrees with the query's
   count_closer    how many points have squared distance < r2, up to a cap (a rank test)
   ball        the points with squared distance <= r2, up to a caller's capacity
@@ -272,14 +274,28 @@ def heap_sort(d2, idx, count, kq):
 
 
 @kernel
-def _root_stack():
-    """A traversal stack holding the root: node indices (STACK,), per entry the query's
-    x, y, z offsets to the node's cell and their squared sum (STACK, 4); size 1."""
-    st_node = np.empty(STACK, np.int64)
-    st_off = np.empty((STACK, 4), np.float64)
+def traversal_stack():
+    """A traversal stack: node indices (STACK,) int64 and, per entry, the query's x, y, z
+    offsets to the node's cell and their squared sum (STACK, 4) float64. The searches'
+    `_in` forms take one as scratch: a caller making many searches on one thread makes it
+    once (two allocations per search cost ~20 % of a seeded nearest search: 0.58-0.71
+    against 0.45-0.51 us, docs/performance.md, "Fourteenth slice")."""
+    return np.empty(STACK, np.int64), np.empty((STACK, 4), np.float64)
+
+
+@kernel
+def _push_root(st_node, st_off):
+    """Empty the stack but for the root (no offsets). Returns the stack size, 1."""
     st_node[0] = 0
     st_off[0, 0] = st_off[0, 1] = st_off[0, 2] = st_off[0, 3] = 0.0
-    return st_node, st_off, 1
+    return 1
+
+
+@kernel
+def _root_stack():
+    """A fresh traversal_stack holding the root: (st_node, st_off, size 1)."""
+    st_node, st_off = traversal_stack()
+    return st_node, st_off, _push_root(st_node, st_off)
 
 
 @kernel
@@ -351,13 +367,20 @@ def nearest(pos, axis, split, leaf, qx, qy, qz, r2):
     """The nearest point with squared distance < r2: (index, squared distance), or
     (-1, r2) when there is none. The same point as knn(kq=1) (the first met of equally
     near ones), without the heap: the gather map's common lookup."""
+    st_node, st_off = traversal_stack()
+    return nearest_in(pos, axis, split, leaf, qx, qy, qz, r2, st_node, st_off)
+
+
+@kernel
+def nearest_in(pos, axis, split, leaf, qx, qy, qz, r2, st_node, st_off):
+    """nearest with a caller's traversal_stack (st_node, st_off) as scratch."""
     n = pos.shape[0]
     best = -1
     bound = r2
     if n == 0:
         return best, bound
     inner = axis.shape[0]
-    st_node, st_off, sp = _root_stack()
+    sp = _push_root(st_node, st_off)
     while sp > 0:
         sp -= 1
         node = st_node[sp]
@@ -384,13 +407,22 @@ def nearest_facing(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, agree
     (normal[j] . (nx, ny, nz) > agreement): (index, squared distance), or (-1, r2). Only
     facing points shrink the search bound, so one traversal replaces a k-NN query
     followed by a normal test over its result (normal: (N,3), in the tree's order)."""
+    st_node, st_off = traversal_stack()
+    return nearest_facing_in(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz,
+                             agreement, r2, st_node, st_off)
+
+
+@kernel
+def nearest_facing_in(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, agreement, r2,
+                      st_node, st_off):
+    """nearest_facing with a caller's traversal_stack (st_node, st_off) as scratch."""
     n = pos.shape[0]
     best = -1
     bound = r2
     if n == 0:
         return best, bound
     inner = axis.shape[0]
-    st_node, st_off, sp = _root_stack()
+    sp = _push_root(st_node, st_off)
     while sp > 0:
         sp -= 1
         node = st_node[sp]
@@ -416,12 +448,19 @@ def nearest_facing(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, agree
 def count_closer(pos, axis, split, leaf, qx, qy, qz, r2, cap):
     """How many points have squared distance < r2, counting up to cap (returns cap as
     soon as cap are found): the rank test "is this point among the cap nearest?"."""
+    st_node, st_off = traversal_stack()
+    return count_closer_in(pos, axis, split, leaf, qx, qy, qz, r2, cap, st_node, st_off)
+
+
+@kernel
+def count_closer_in(pos, axis, split, leaf, qx, qy, qz, r2, cap, st_node, st_off):
+    """count_closer with a caller's traversal_stack (st_node, st_off) as scratch."""
     n = pos.shape[0]
     count = 0
     if n == 0 or cap <= 0:
         return 0
     inner = axis.shape[0]
-    st_node, st_off, sp = _root_stack()
+    sp = _push_root(st_node, st_off)
     while sp > 0:
         sp -= 1
         node = st_node[sp]
@@ -825,6 +864,7 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
     slice")."""
     k = nbr.shape[1]
     record = walked.shape[0] > 0
+    st_node, st_off = traversal_stack()  # one for all rows' tree searches
     prev = -1
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -858,7 +898,7 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
             if not settled:
                 bound = min(bound, seed_bound(bd))
         if not settled:
-            j, _ = nearest(pos, axis, split, leaf, qx, qy, qz, bound)
+            j, _ = nearest_in(pos, axis, split, leaf, qx, qy, qz, bound, st_node, st_off)
         if record:
             walked[r] = settled
         near[r] = j

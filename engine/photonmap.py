@@ -834,6 +834,7 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
     # come in Morton order, so the previous answer is usually near). The answer is the
     # one an unbounded tree search gives.
     near = np.empty(rows.shape[0], np.int64)
+    st_node, st_off = kdtree.traversal_stack()  # the facing searches' scratch
     if P > 0:
         kdtree.nearest_walk(tree_pos, nodes[0], nodes[1], nodes[2], nbr, reach, p, rows, r2,
                             WALK_STEPS, near, np.zeros(0, np.bool_))
@@ -858,11 +859,13 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
                             + normal[prev_cand, 1] * ny + normal[prev_cand, 2] * nz \
                             > GATHER_AGREEMENT:
                         bound = min(bound, _seed_bound(tree_pos, prev_cand, qx, qy, qz))
-                    j, dd = kdtree.nearest_facing(tree_pos, nodes[0], nodes[1], nodes[2],
-                                                  normal, qx, qy, qz, nx, ny, nz,
-                                                  GATHER_AGREEMENT, bound)
-                    if j >= 0 and kdtree.count_closer(tree_pos, nodes[0], nodes[1],
-                                                      nodes[2], qx, qy, qz, dd, kmax) < kmax:
+                    j, dd = kdtree.nearest_facing_in(tree_pos, nodes[0], nodes[1],
+                                                     nodes[2], normal, qx, qy, qz, nx, ny,
+                                                     nz, GATHER_AGREEMENT, bound, st_node,
+                                                     st_off)
+                    if j >= 0 and kdtree.count_closer_in(tree_pos, nodes[0], nodes[1],
+                                                         nodes[2], qx, qy, qz, dd, kmax,
+                                                         st_node, st_off) < kmax:
                         c = j
         if c < 0:
             out[i, 0] = out[i, 1] = out[i, 2] = 0.0

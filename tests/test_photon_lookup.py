@@ -26,8 +26,9 @@ from engine.hashgrid import HashGrid
 from engine.hashgrid import ball_count as grid_ball_count
 from engine.hashgrid import cells_spanned
 from engine.kdtree import (BUCKET_MAX, LEAF_SIZE, KdTree, ball, ball_count, ball_d2,
-                           count_closer, knn, nearest, nearest_facing, nearest_first,
-                           nearest_walk, unique_nearest)
+                           count_closer, count_closer_in, knn, nearest, nearest_facing,
+                           nearest_facing_in, nearest_first, nearest_in, nearest_walk,
+                           traversal_stack, unique_nearest)
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
                               PhotonMap)
 from engine.photons import Photons
@@ -260,6 +261,52 @@ def test_nearest_facing_and_count_closer_match_brute_force():
         for cap in (1, 8, 64, 10**6):
             want = min(int((d2 < r2).sum()), cap)
             assert count_closer(t.position, *t.nodes, q[0], q[1], q[2], r2, cap) == want
+
+
+def test_searches_on_a_reused_stack_give_the_fresh_answers():
+    """nearest_in, nearest_facing_in and count_closer_in (the gather lookup's searches on
+    one traversal_stack per kernel call) against nearest, nearest_facing and count_closer
+    (a fresh stack per search): the same index and squared distance bit for bit, and the
+    same count, with one stack reused across all queries and kinds in turn (each search
+    starts on what the last one left: deep, shallow or empty stacks). Points: a plane, a
+    crease, duplicates (ties) and a sparse cloud; queries near and far, bounds from tiny
+    to unbounded."""
+    rng = np.random.default_rng(31)
+    pts = np.concatenate([np.c_[rng.random((2000, 2)), np.zeros(2000)],
+                          np.c_[np.full(800, 1.0), rng.random((800, 2))],
+                          rng.random((200, 3)) * 2.0]).astype(np.float32)
+    pts[-100:] = pts[:100]  # exact ties
+    t = KdTree(pts)
+    nrm = rng.normal(size=(len(pts), 3))  # per point in the tree's order
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    st_node, st_off = traversal_stack()
+    st_off[:] = np.nan  # stale garbage: every search must start from its own root
+    st_node[:] = -7
+    q = np.concatenate([t.position[:50].astype(np.float64),
+                        t.position[rng.integers(0, len(pts), 300)] + rng.normal(0, 0.02,
+                                                                                 (300, 3)),
+                        rng.random((100, 3)) * 4.0 - 1.0])
+    found = facing = counted = 0
+    for x in q:
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        for r2 in (1e-6, 0.01, 0.3, np.inf):
+            a = nearest(t.position, *t.nodes, x[0], x[1], x[2], r2)
+            b = nearest_in(t.position, *t.nodes, x[0], x[1], x[2], r2, st_node, st_off)
+            assert a == b
+            found += a[0] >= 0
+            a = nearest_facing(t.position, *t.nodes, nrm, x[0], x[1], x[2], *n, 0.7, r2)
+            b = nearest_facing_in(t.position, *t.nodes, nrm, x[0], x[1], x[2], *n, 0.7, r2,
+                                  st_node, st_off)
+            assert a == b
+            facing += a[0] >= 0
+            for cap in (1, 64):
+                a = count_closer(t.position, *t.nodes, x[0], x[1], x[2], r2, cap)
+                b = count_closer_in(t.position, *t.nodes, x[0], x[1], x[2], r2, cap,
+                                    st_node, st_off)
+                assert a == b
+                counted += a
+    assert found > 900 and facing > 500 and counted > 10000  # not vacuous
 
 
 def test_neighbour_walk_gives_the_nearest_answer():
