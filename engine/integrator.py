@@ -38,7 +38,7 @@ from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .shadowtransmittance import CameraPassages
-from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
+from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
 
 @dataclass
@@ -1161,6 +1161,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     c = np.ascontiguousarray
     # Flat passages through thin glass (engine/shadowtransmittance.py): None without them.
     passages = CameraPassages.for_context(ctx, len(o))
+    # Cycles' bounce limits on the camera chain (docs/design.md, "Bounce limits"): each
+    # path's glossy / transmission bounces so far and their total; a path past a limit
+    # still collects emission and the background where its ray ends (Cycles'
+    # PATH_RAY_TERMINATE_AFTER_TRANSPARENT), but that hit is neither shaded nor continued.
+    limits = s.bounce_limits
+    chain = np.zeros((len(o), 3), np.int64)  # (total, glossy, transmission) bounces
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1235,6 +1241,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                pdf_b))
             if passages is not None:
                 passages.compact(kept)
+            chain = chain[kept]
+        over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
+                | (chain[:, 2] > limits[3])) if bounce > 0 else None
+        if over is not None and not over.any():
+            over = None
         # A pixel's footprint: only the photon estimates read it.
         footprint = None
         if s.photon_mapping:
@@ -1279,6 +1290,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         org_ns if kept is None else org_ns[kept])[:, None]
                 acc.add(target, pix, Le, tp)
         choice = (sel, q, p, psum)
+        if nd and over is not None:
+            # (nd rows of dsel / wd stay in place: the shaded rows within the limits)
+            shade = ~over[dsel[:nd]]
+            kd = int(shade.sum())
+            dsel[:kd], wd[:kd] = dsel[:nd][shade], wd[:nd][shade]
+            nd = kd
         if nd:
             dsel, wd = dsel[:nd], wd[:nd]
             every = nd == n
@@ -1300,6 +1317,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     acc.add("caustic", pix, caustic, tp, dsel)
                     acc.add("indirect", pix, indirect, tp, dsel)
             else:
+                if caustic is not None:
+                    # Final gathering adds a diffuse bounce to the chain's (the gather map
+                    # holds the photons valid one diffuse bounce after the camera's first
+                    # hit: render._build_maps; the chain's bounces are not subtracted from
+                    # them further, docs/design.md "Bounce limits").
+                    past = chain[dsel, 0] + 1 > limits[0]
+                    if past.any():
+                        indirect[past] = 0.0
                 acc.add("specular", pix, direct if caustic is None
                         else direct + caustic + indirect, tp, dsel)
         if bounce == depth_limit:
@@ -1314,6 +1339,18 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True,
                                                            uv=uv)
+        if over is not None:
+            # Past a limit: no bounce from here (the numbers drawn as for every path).
+            go = ~over[keep]
+            keep, o, d, tp, ray_cls, pdf_b = (a[go] for a in (keep, o, d, tp, ray_cls,
+                                                              pdf_b))
+        # The bounce's kind (Cycles' path_state_next): a transparent pass (the ray goes on
+        # unbent) is none; else glossy or transmission by the continued ray's class.
+        chain = chain[keep]
+        bent = np.any(d != d_in[keep], axis=1)
+        chain[:, 0] += bent
+        chain[:, 1] += bent & (ray_cls == GLOSSY)
+        chain[:, 2] += bent & (ray_cls == TRANSMISSION)
         # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
         org_ns_in = org_ns if kept is None else org_ns[kept]
         org_p_in = org_p if kept is None else org_p[kept]

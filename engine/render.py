@@ -310,7 +310,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
             rest = shot.select(shot.kind == CAUSTIC)
             emitted = caustic.emitted
             caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
-                                for f in ("position", "power", "direction", "normal", "kind")))
+                                for f in ("position", "power", "direction", "normal", "kind")),
+                              bounces=np.concatenate([caustic.bounces, rest.bounces]))
             caustic.emitted = emitted
     stats["time_photons"] = time.perf_counter() - t0
     stats["photons_emitted"] = shot.emitted
@@ -380,7 +381,15 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     diffuse_area = area_sum(geo, diffuse_tris)
     k = s.k_nearest
     workers = s.threads
-    final = plan.indirect and s.final_gather
+    # Bounce limits (docs/design.md, "Bounce limits"): each map keeps the photons whose
+    # paths stay within them as the camera side commonly reads that map: the gather map at
+    # the end of a final-gather ray (one diffuse bounce on the camera side), the others at
+    # the camera's hit (none). Paths with more camera-side bounces (after a mirror or glass
+    # chain) read the same maps.
+    limits = s.bounce_limits
+    at_hit = shot.usable(limits)
+    gathered = shot.usable(limits, camera=(1, 1, 0, 0))
+    final = plan.indirect and s.final_gather and bool(gathered.any())
 
     def check(flag):
         if flag():
@@ -403,18 +412,19 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
                                    should_cancel=flag,
-                                   rows=np.flatnonzero(shot.kind != CAUSTIC))
+                                   rows=np.flatnonzero((shot.kind != CAUSTIC) & gathered))
         return r_global, gather_map
 
     def other_maps(flag):
         out = {}
         if plan.caustics:
-            out["caustic_map"] = (PhotonMap(caustic, workers) if use_caustic_shot else
-                                  PhotonMap(shot, workers,
-                                            rows=np.flatnonzero(shot.kind == CAUSTIC)))
+            out["caustic_map"] = (
+                PhotonMap(caustic, workers, rows=np.flatnonzero(caustic.usable(limits)))
+                if use_caustic_shot else
+                PhotonMap(shot, workers, rows=np.flatnonzero((shot.kind == CAUSTIC) & at_hit)))
             check(flag)
         if final:
-            rows = np.flatnonzero(shot.kind == CAUSTIC_DIFFUSE)
+            rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & at_hit)
             out["secondary_map"] = secondary = PhotonMap(shot, workers, rows=rows)
             # Its own photons' spacing: the global radius follows the dense photons of the
             # whole shot (a caustic's pile among them), which leaves the sparser secondary
@@ -423,8 +433,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             out["secondary_radius"] = s.radius or auto_radius(
                 diffuse_area, len(rows), k, geo.extent,
                 np.take(shot.position, rows, axis=0), secondary.tree, workers=workers)
-        elif plan.indirect:
-            rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)))
+        elif plan.indirect and not s.final_gather:
+            rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)) & at_hit)
             out["global_map"] = pm = PhotonMap(shot, workers, rows=rows)
             out["global_radius"] = s.radius or auto_radius(
                 diffuse_area, len(pm), k, geo.extent, pm.photons.position, pm.tree,
@@ -440,7 +450,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     if final:
         out["gather_map"] = gather_map
         out["global_photons"] = len(shot)
-    elif plan.indirect:
+    elif "global_map" in out:
         out["global_photons"] = len(out["global_map"])
     out["global_radius"] = global_radius
     # The caustic radius from the global spacing, scaled to the larger shot's count
