@@ -160,3 +160,23 @@ def test_camera_chain_honours_the_glossy_and_transmission_limits():
     off = _mirror_view(glass).render(RenderSettings(**dict(st, transmission_bounces=0)))
     # Through the pane the floor is seen; the pane's reflection (glossy) stays.
     assert on.specular.mean() > off.specular.mean() * 1.5
+
+
+def test_scene_file_and_command_line_set_the_limits(tmp_path):
+    import os
+    from engine import cli
+    from engine.scenefile import load_scene
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    text = open(os.path.join(root, "scenes", "figure6.toml")).read()
+    path = tmp_path / "room.toml"
+    path.write_text(text.replace("[render]\n", "[render]\ndiffuse_bounces = 2\n"
+                                 "max_bounces = 9\n", 1))
+    _, overrides = load_scene(str(path))
+    s = RenderSettings(**overrides)
+    assert (s.max_bounces, s.diffuse_bounces, s.glossy_bounces) == (9, 2, 4)
+    args = cli.build_parser().parse_args(["render", str(path), "-o", str(tmp_path / "x.png"),
+                                          "--glossy-bounces", "1",
+                                          "--transmission-bounces", "3"])
+    _, kw = cli._scene_and_overrides(args)
+    s = RenderSettings(**kw)
+    assert s.bounce_limits.tolist() == [9, 2, 1, 3]
