@@ -171,7 +171,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
                     "next one blocks it, as Cycles' Max Bounces > Transparent; 0 = every "
                     "surface casts a full shadow")
     # Cycles' Light Paths > Max Bounces, same names, defaults and meaning (Cycles' own panel
-    # shows for Cycles only; engine/settings.py, docs/design.md "Bounce limits")
+    # shows for Cycles only; engine/settings.py, docs/design.md, Bounce limits)
     max_bounces: IntProperty(
         name="Total", default=12, min=0, max=1024,
         description="Total maximum number of bounces of a light path (as Cycles' Max "

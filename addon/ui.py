@@ -75,7 +75,7 @@ class PHOTONMAP_PT_light_paths(PhotonMapButtonsPanel, bpy.types.Panel):
 
 class PHOTONMAP_PT_light_paths_max_bounces(PhotonMapButtonsPanel, bpy.types.Panel):
     """Cycles' Light Paths > Max Bounces, for our engine (the same limits and defaults:
-    a scene lit for Cycles renders as bright; docs/design.md "Bounce limits")."""
+    a scene lit for Cycles renders as bright; docs/design.md, Bounce limits)."""
     bl_label = "Max Bounces"
     bl_parent_id = "PHOTONMAP_PT_light_paths"
 

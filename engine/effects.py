@@ -450,7 +450,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     if has_tris and np.any((luminance(table.emission) > 0)[mat]):
         plan.add("emission", True, "emissive surfaces are drawn and sampled as lights")
     if s.method != "local":
-        # Cycles' Light Paths limits (docs/design.md, "Bounce limits"): said once, so a
+        # Cycles' Light Paths limits (docs/design.md, Bounce limits): said once, so a
         # render darker than expected points at them.
         plan.add("bounce limits", True,
                  f"light paths up to {s.max_bounces} bounces: {s.diffuse_bounces} diffuse, "

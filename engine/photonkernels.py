@@ -63,7 +63,7 @@ _TRI_SHIFT = 32
 FLAT_COS = math.cos(math.radians(1.0))
 FLAT_OBJECT_SHARE = 0.02
 FLAT_SCENE_SHARE = 0.01
-# A photon's bounce counts (Cycles' Light Paths limits, docs/design.md "Bounce limits"),
+# A photon's bounce counts (Cycles' Light Paths limits, docs/design.md, Bounce limits),
 # packed in one int64 per photon in flight, 16 bits each: B_TOTAL every scatter but a
 # transparent pass; B_DIFFUSE, B_GLOSSY, B_TRANSMISSION the scatters of each kind after
 # the first. The first scatter's kind does not count: read from the camera the photon's

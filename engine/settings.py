@@ -62,8 +62,8 @@ class RenderSettings:
     # Transparent surfaces (alpha < 1) a shadow ray may cross before the next one blocks it
     # (Cycles' Light Paths > Max Bounces > Transparent, same default; 0: every surface blocks)
     transparent_max_bounces: int = 8
-    # Cycles' Light Paths > Max Bounces, same meaning and defaults (docs/design.md, "Bounce
-    # limits"): a light path (camera to light, the photon's part included) may scatter at
+    # Cycles' Light Paths > Max Bounces, same meaning and defaults (docs/design.md, Bounce
+    # limits): a light path (camera to light, the photon's part included) may scatter at
     # most max_bounces times in all, diffuse_bounces times off a diffuse reflection,
     # glossy_bounces off a glossy / mirror reflection and transmission_bounces through a
     # refraction (transparent passes count apart, above); the vertex that connects to the

@@ -1,5 +1,5 @@
 """Cycles' Light Paths bounce limits (max_bounces, diffuse / glossy / transmission bounces;
-docs/design.md "Bounce limits"): the photons' counts, the maps' filtering and the camera
+docs/design.md, Bounce limits): the photons' counts, the maps' filtering and the camera
 chain, against geometric series and simple optics."""
 import numpy as np
 import pytest

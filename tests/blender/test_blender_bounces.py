@@ -1,4 +1,4 @@
-"""Cycles' Light Paths bounce limits through the add-on (docs/design.md, "Bounce limits"):
+"""Cycles' Light Paths bounce limits through the add-on (docs/design.md, Bounce limits):
 the properties and their export, and a closed room at Cycles' default limits against
 live Cycles (the bpy wheel)."""
 import os
