@@ -50,10 +50,9 @@ def _closed_room(bpy, albedo=0.8):
 def test_closed_room_at_cycles_default_limits_matches_cycles(bpy_addon, tmp_path):
     """At Cycles' default Light Paths (12 / 4 diffuse / 4 / 12) our closed room reads
     Cycles' brightness (before the limits: 1.41x, all bounces). Measured (64 x 48, two
-    seeds each): ours / Cycles 1.005 at the defaults, 0.999 at 64 bounces; our seeds
-    differ by 0.2 %, Cycles' (512 spp) by 0.02 %; the rest is final gathering's corner
-    regathers, which read the gather map one diffuse bounce deeper (docs/design.md).
-    Bound 2 %."""
+    seeds each, Cycles 512 spp): ours / Cycles 0.999 at the defaults (1.005 while the
+    corner regathers read the level-0 gather map), 0.999 at 64 bounces; our seeds differ
+    by 0.2 %, Cycles' by 0.03 %. Bound 2 %."""
     bpy = bpy_addon
     scene = _closed_room(bpy)
     scene.render.engine = "CYCLES"
