@@ -304,8 +304,9 @@ def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
     for prop in pm.bl_rna.properties:
         if prop.identifier != "rna_type":
             pm.property_unset(prop.identifier)
-    # The bounce limits Cycles gets in set_cycles (at 32 our images are those of before
-    # the limits, bit for bit: no photon or camera chain reaches them).
+    # The bounce limits Cycles gets in set_cycles (at 32 the camera chain (max depth 8) and
+    # the photons (max photon depth 32) stay within them; only photons past 29 bounces,
+    # a handful, leave the deepest regather map: the images of before the limits).
     for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces"):
         if hasattr(pm, attr):
             setattr(pm, attr, COMPARE_BOUNCES)
