@@ -170,6 +170,21 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         description="Transparent surfaces (alpha below 1) a shadow ray may cross before the "
                     "next one blocks it, as Cycles' Max Bounces > Transparent; 0 = every "
                     "surface casts a full shadow")
+    # Cycles' Light Paths > Max Bounces, same names, defaults and meaning (Cycles' own panel
+    # shows for Cycles only; engine/settings.py, docs/design.md, Bounce limits)
+    max_bounces: IntProperty(
+        name="Total", default=12, min=0, max=1024,
+        description="Total maximum number of bounces of a light path (as Cycles' Max "
+                    "Bounces > Total)")
+    diffuse_bounces: IntProperty(
+        name="Diffuse", default=4, min=0, max=1024,
+        description="Maximum number of diffuse reflection bounces (0: direct light only)")
+    glossy_bounces: IntProperty(
+        name="Glossy", default=4, min=0, max=1024,
+        description="Maximum number of glossy and mirror reflection bounces")
+    transmission_bounces: IntProperty(
+        name="Transmission", default=12, min=0, max=1024,
+        description="Maximum number of refractions (glass, transmission)")
     # Modes
     method: EnumProperty(
         name="Method", items=METHOD_ITEMS, default="photon",
@@ -267,6 +282,8 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             gather_by_share=self.gather_by_share,
             spp=self.spp, max_depth=self.max_depth, light_samples=self.light_samples,
             transparent_max_bounces=self.transparent_max_bounces,
+            max_bounces=self.max_bounces, diffuse_bounces=self.diffuse_bounces,
+            glossy_bounces=self.glossy_bounces, transmission_bounces=self.transmission_bounces,
             photon_mapping=self.photon_mapping, method=self.method, caustics=self.caustics,
             indirect=self.indirect, specular=self.specular, soft_shadows=self.soft_shadows,
             aim_caustics=self.aim_caustics, photon_importance=self.photon_importance,

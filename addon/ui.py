@@ -61,9 +61,36 @@ class PHOTONMAP_PT_sampling(PhotonMapButtonsPanel, bpy.types.Panel):
         col.prop(pm, "spp", text="Samples per Pass" if pm.progressive else "Samples")
         col.prop(pm, "light_samples")
         col.prop(pm, "max_depth")
-        col.prop(pm, "transparent_max_bounces")
         col.prop(pm, "seed")
         col.prop(pm, "use_animated_seed")
+
+
+class PHOTONMAP_PT_light_paths(PhotonMapButtonsPanel, bpy.types.Panel):
+    bl_label = "Light Paths"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        pass
+
+
+class PHOTONMAP_PT_light_paths_max_bounces(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Cycles' Light Paths > Max Bounces, for our engine (the same limits and defaults:
+    a scene lit for Cycles renders as bright; docs/design.md, Bounce limits)."""
+    bl_label = "Max Bounces"
+    bl_parent_id = "PHOTONMAP_PT_light_paths"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        pm = context.scene.photonmap
+        col = layout.column(align=True)
+        col.prop(pm, "max_bounces", text="Total")
+        col = layout.column(align=True)
+        col.prop(pm, "diffuse_bounces", text="Diffuse")
+        col.prop(pm, "glossy_bounces", text="Glossy")
+        col.prop(pm, "transmission_bounces", text="Transmission")
+        col.prop(pm, "transparent_max_bounces", text="Transparent")
 
 
 class PHOTONMAP_PT_photons(PhotonMapButtonsPanel, bpy.types.Panel):
@@ -297,6 +324,7 @@ class PHOTONMAP_PT_viewport(PhotonMapButtonsPanel, bpy.types.Panel):
 
 
 classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_viewport,
+           PHOTONMAP_PT_light_paths, PHOTONMAP_PT_light_paths_max_bounces,
            PHOTONMAP_PT_effects,
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
            PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_distributed,

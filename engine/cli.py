@@ -104,6 +104,15 @@ def _setting_options(r, method=True, sweeps=False):
     r.add_argument("--spp", type=_positive_int, help="camera samples per pixel")
     r.add_argument("--max-depth", type=_nonnegative_int, help="max specular bounces of camera rays")
     r.add_argument("--max-photon-depth", type=_nonnegative_int, help="max photon bounces")
+    # Cycles' Light Paths > Max Bounces (engine/settings.py, same defaults 12 / 4 / 4 / 12)
+    r.add_argument("--max-bounces", type=_nonnegative_int,
+                   help="most bounces of a light path in all (Cycles' Total, default 12)")
+    r.add_argument("--diffuse-bounces", type=_nonnegative_int,
+                   help="most diffuse bounces of a light path (default 4; 0: direct light only)")
+    r.add_argument("--glossy-bounces", type=_nonnegative_int,
+                   help="most glossy / mirror bounces of a light path (default 4)")
+    r.add_argument("--transmission-bounces", type=_nonnegative_int,
+                   help="most refractions of a light path (default 12)")
     r.add_argument("--light-samples", type=_positive_int, help="shadow rays per area light")
     r.add_argument("--seed", type=_nonnegative_int, help="random seed (same seed, same image)")
     r.add_argument("--workers", type=_nonnegative_int, help="threads (0 = all cores)")
@@ -290,7 +299,8 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
         scene.height = args.height
     for name in ("photons", "caustic_photons", "radius", "min_photons", "k_nearest", "estimator",
                  "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers",
-                 "method"):
+                 "method", "max_bounces", "diffuse_bounces", "glossy_bounces",
+                 "transmission_bounces"):
         v = getattr(args, name, None)
         if v is not None:
             overrides[name] = v

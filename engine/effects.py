@@ -453,6 +453,14 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     # Per material first: the (T,3) radiance of every triangle cost ~60 B a triangle.
     if has_tris and np.any((luminance(table.emission) > 0)[mat]):
         plan.add("emission", True, "emissive surfaces are drawn and sampled as lights")
+    if s.method != "local":
+        # Cycles' Light Paths limits (docs/design.md, Bounce limits): said once, so a
+        # render darker than expected points at them.
+        plan.add("bounce limits", True,
+                 f"light paths up to {s.max_bounces} bounces: {s.diffuse_bounces} diffuse, "
+                 f"{s.glossy_bounces} glossy, {s.transmission_bounces} transmission "
+                 "(Cycles' Light Paths > Max Bounces; camera chains also stop at max depth "
+                 f"{s.max_depth})")
     see_through = (table.alpha < 1) | table.has_alpha_texture
     if has_tris and np.any(see_through[mat]):
         names = sorted({table.names[m] for m in np.unique(mat[see_through[mat]])})

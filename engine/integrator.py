@@ -38,7 +38,7 @@ from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .shadowtransmittance import CameraPassages
-from .visibility import CAMERA, DIFFUSE, SHADOW, SPEC_LOBE_CLASS
+from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
 
 @dataclass
@@ -454,6 +454,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     if lean is _UNSET:
         lean = lean_materials(ctx.table)
     table_alpha = c(ctx.table.alpha, np.float64)
+    # The map of this level's depth (bounce limits; None: no photon within them).
+    gmap = _deeper(ctx.gather_map, ctx.regather_maps, level)
     # This thread's arrays for this level's steps (a call of the next level, the
     # regathers', uses its own).
     buf = _gather_buffers(ctx, level)
@@ -522,10 +524,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             dsel, lp, ln = buf.dsel[:m], buf.lp[:m], buf.ln[:m]
             loff, lt = buf.loff[:m], buf.lt[:m]
             nd = diffuse_lookups(wd, y.p, y.ng, y.offset, t, dsel, lp, ln, loff, lt)
-            if nd:
+            if nd and gmap is not None:
                 dsel = dsel[:nd]
-                Ey, boundary = ctx.gather_map.lookup(lp[:nd], ln[:nd], offset=loff[:nd],
-                                                     scratch=buf)
+                Ey, boundary = gmap.lookup(lp[:nd], ln[:nd], offset=loff[:nd], scratch=buf)
                 again = buf.again[:nd]
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
@@ -552,6 +553,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
+
+
+def _deeper(pmap, deeper, level):
+    """The map for lookups `level` diffuse bounces deeper than pmap's own: deeper[level -
+    1] (Context.regather_maps / regather_secondary), pmap at level 0 or without them."""
+    return pmap if level == 0 or len(deeper) < level else deeper[level - 1]
 
 
 class GatherBuffers:
@@ -657,11 +664,13 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     # light here.
     # (direct_irradiance's sums live in this level's buffers until the next regather
     # batch of this level on this thread; the sum below reads them first.)
+    # (The ends are level + 1 diffuse bounces from the camera's hit: their secondary
+    # caustic comes from that level's map, bounce limits: docs/design.md.)
     Esub = (direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True,
                               buffers=_gather_buffers(ctx, level).direct)
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
                               should_cancel=should_cancel, lean=lean)
-            + _secondary_irradiance(ctx, y, rng))
+            + _secondary_irradiance(ctx, y, rng, level + 1))
     c = np.ascontiguousarray
     add_gathered(E, target, np.arange(len(target), dtype=np.int64), c(tp, np.float64),
                  c(wd, np.float64), c(Esub, np.float64), G, _NO_FLAG, _NO_LENGTH, 0.0,
@@ -685,11 +694,12 @@ _NO_ROWS = np.zeros(0, np.int64)
 SECONDARY_REGATHER_FRACTION = 0.1
 
 
-def _secondary_irradiance(ctx, hit, rng):
+def _secondary_irradiance(ctx, hit, rng, bounces=0):
     """Irradiance (N,3) from caustic light one diffuse bounce back (CAUSTIC_DIFFUSE
     photons) at regathered points, estimated for a random SECONDARY_REGATHER_FRACTION of
-    them and weighted by its inverse (zero elsewhere)."""
-    pmap, s = ctx.secondary_map, ctx.settings
+    them and weighted by its inverse (zero elsewhere). bounces: the points' diffuse
+    bounces from the camera's hit (the map of that depth: Context.regather_secondary)."""
+    pmap, s = _deeper(ctx.secondary_map, ctx.regather_secondary, bounces), ctx.settings
     out = np.zeros((len(hit.p), 3))
     if pmap is None or len(pmap) == 0:
         return out
@@ -1161,6 +1171,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     c = np.ascontiguousarray
     # Flat passages through thin glass (engine/shadowtransmittance.py): None without them.
     passages = CameraPassages.for_context(ctx, len(o))
+    # Cycles' bounce limits on the camera chain (docs/design.md, Bounce limits): each
+    # path's glossy / transmission bounces so far and their total; a path past a limit
+    # still collects emission and the background where its ray ends (Cycles'
+    # PATH_RAY_TERMINATE_AFTER_TRANSPARENT), but that hit is neither shaded nor continued.
+    limits = s.bounce_limits
+    chain = np.zeros((len(o), 3), np.int64)  # (total, glossy, transmission) bounces
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1235,6 +1251,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                pdf_b))
             if passages is not None:
                 passages.compact(kept)
+            chain = chain[kept]
+        over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
+                | (chain[:, 2] > limits[3])) if bounce > 0 else None
+        if over is not None and not over.any():
+            over = None
         # A pixel's footprint: only the photon estimates read it.
         footprint = None
         if s.photon_mapping:
@@ -1279,6 +1300,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         org_ns if kept is None else org_ns[kept])[:, None]
                 acc.add(target, pix, Le, tp)
         choice = (sel, q, p, psum)
+        if nd and over is not None:
+            # (nd rows of dsel / wd stay in place: the shaded rows within the limits)
+            shade = ~over[dsel[:nd]]
+            kd = int(shade.sum())
+            dsel[:kd], wd[:kd] = dsel[:nd][shade], wd[:nd][shade]
+            nd = kd
         if nd:
             dsel, wd = dsel[:nd], wd[:nd]
             every = nd == n
@@ -1300,6 +1327,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     acc.add("caustic", pix, caustic, tp, dsel)
                     acc.add("indirect", pix, indirect, tp, dsel)
             else:
+                if caustic is not None:
+                    # Final gathering adds a diffuse bounce to the chain's (the gather map
+                    # holds the photons valid one diffuse bounce after the camera's first
+                    # hit: render._build_maps; the chain's bounces are not subtracted from
+                    # them further, docs/design.md, Bounce limits).
+                    past = chain[dsel, 0] + 1 > limits[0]
+                    if past.any():
+                        indirect[past] = 0.0
                 acc.add("specular", pix, direct if caustic is None
                         else direct + caustic + indirect, tp, dsel)
         if bounce == depth_limit:
@@ -1314,6 +1349,18 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
                                                            choice=choice, want_pdf=True,
                                                            uv=uv)
+        if over is not None:
+            # Past a limit: no bounce from here (the numbers drawn as for every path).
+            go = ~over[keep]
+            keep, o, d, tp, ray_cls, pdf_b = (a[go] for a in (keep, o, d, tp, ray_cls,
+                                                              pdf_b))
+        # The bounce's kind (Cycles' path_state_next): a transparent pass (the ray goes on
+        # unbent) is none; else glossy or transmission by the continued ray's class.
+        chain = chain[keep]
+        bent = np.any(d != d_in[keep], axis=1)
+        chain[:, 0] += bent
+        chain[:, 1] += bent & (ray_cls == GLOSSY)
+        chain[:, 2] += bent & (ray_cls == TRANSMISSION)
         # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
         org_ns_in = org_ns if kept is None else org_ns[kept]
         org_p_in = org_p if kept is None else org_p[kept]

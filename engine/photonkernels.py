@@ -63,6 +63,18 @@ _TRI_SHIFT = 32
 FLAT_COS = math.cos(math.radians(1.0))
 FLAT_OBJECT_SHARE = 0.02
 FLAT_SCENE_SHARE = 0.01
+# A photon's bounce counts (Cycles' Light Paths limits, docs/design.md, Bounce limits),
+# packed in one int64 per photon in flight, 16 bits each: B_TOTAL every scatter but a
+# transparent pass; B_DIFFUSE, B_GLOSSY, B_TRANSMISSION the scatters of each kind after
+# the first. The first scatter's kind does not count: read from the camera the photon's
+# first hit is the vertex that connects to the light (Cycles' light sample, no bounce),
+# and the photon's last hit, the camera side's lookup vertex, counts as a diffuse bounce
+# instead once the photon has scattered (a direct photon's hit is that light vertex).
+# Stored photons keep the four counts as uint8, saturated at 255 (BOUNCE_SATURATED).
+B_TOTAL, B_DIFFUSE, B_GLOSSY, B_TRANSMISSION = 0, 1, 2, 3
+_B_BITS = 16
+_B_MASK = (1 << _B_BITS) - 1
+BOUNCE_SATURATED = 255
 # The ray kinds a photon segment can stand for on the camera side (not camera rays).
 SEGMENT_KINDS = ALL_RAYS & ~CAMERA
 # Random dimensions per photon and bounce: roulette, diffuse direction (2), lobe sample (3).
@@ -402,15 +414,15 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT):
 
 
 @kernel
-def _scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v, v0, e1, e2,
-             corner_normals, material, base_color, mat_alpha, given, p, ng, ns, front, mat,
-             base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id, caster,
-             first_hit_mode, caustic_only, vis_on,
-             st_pos, st_power, st_dir, st_normal, st_kind,
-             nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, hit_rows,
+def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts, u, v, v0,
+             e1, e2, corner_normals, material, base_color, mat_alpha, given, p, ng, ns, front,
+             mat, base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id,
+             caster, first_hit_mode, caustic_only, vis_on, limits,
+             st_pos, st_power, st_dir, st_normal, st_kind, st_bnc,
+             nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, hit_rows,
              flat_mat, flat_limit):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
-    ray kinds and slots (m,), at the hits as Embree answers them (Accel.intersect_hits):
+    ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits as Embree answers them (Accel.intersect_hits):
     geom, prim (m,) int32 (geom < 0: missed; lost; else the triangle's row is
     starts[geom] + prim, starts (G,) int64). Surface data: with
     given False computed here from the hits' float32 barycentrics u, v (m,) and the triangle
@@ -426,11 +438,14 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v
     kinds per triangle, used with vis_on. caster (objects,) bool and first_hit_mode (0:
     off, 1: store caustic photons whose first hit is not on a caster, 2: only those whose
     first hit is) split the caustic paths between an aimed and an unaimed shot.
+    limits (4,) int64: the bounce limits (settings.bounce_limits, B_TOTAL order); a
+    photon whose counts after this scatter no photon lookup could use (bounce_usable with
+    no camera-side bounce) is not continued.
 
     Writes the stored photons (float32 position, power, direction of travel, normal on
-    the arriving side; uint8 kind) to st_* (m rows at most) and the continued photons
-    (float32 origins and directions for Embree, float64 directions, power, flags, kinds,
-    slots) to nx_* (2m rows at most: the continuations, then the copies that pass
+    the arriving side; uint8 kind; (4,) uint8 bounce counts) to st_* (m rows at most) and
+    the continued photons (float32 origins and directions for Embree, float64 directions,
+    power, flags, kinds, slots, packed bounce counts) to nx_* (2m rows at most: the continuations, then the copies that pass
     surfaces some of their ray kinds do not see). Returns (stored, continued) counts.
     hit_rows (2, >= m) int64: scratch for the hits' rows and triangle rows (lent by the
     trace's buffer pool: fresh arrays per call cost page faults; contents ignored).
@@ -578,6 +593,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v
                     st_dir[ns_, c] = d[i, c]
                     st_normal[ns_, c] = ng_b[j, c]
                 st_kind[ns_] = kind
+                bi = bnc[i]
+                for c in range(4):
+                    st_bnc[ns_, c] = min((bi >> (_B_BITS * c)) & _B_MASK, BOUNCE_SATURATED)
                 ns_ += 1
             # --- Russian roulette over the lobes ---
             xi = uniform(key, slot[i], bounce, 0)
@@ -665,6 +683,20 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v
             q2 = power[i, 2] * k2 * scale
             if not (math.isfinite(q0 + q1 + q2) and max(q0, max(q1, q2)) > 0.0):
                 continue
+            # --- bounce counts (Cycles' path_state_next; a transparent pass is none) ---
+            bn = bnc[i]
+            if lobe != pr.L_PASS:
+                first_scatter = (bn & _B_MASK) == 0
+                bn = _count_bounce(bn, B_TOTAL)
+                if not first_scatter:
+                    if lobe == pr.L_DIFFUSE:
+                        bn = _count_bounce(bn, B_DIFFUSE)
+                    elif transmitted:
+                        bn = _count_bounce(bn, B_TRANSMISSION)
+                    else:
+                        bn = _count_bounce(bn, B_GLOSSY)
+                if not _counts_usable(bn, limits):
+                    continue
             # --- ray kinds (visibility) ---
             if vis_on:
                 if lobe == pr.L_DIFFUSE:
@@ -717,6 +749,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v
             nx_flags[nn] = nf
             nx_kinds[nn] = new_kinds
             nx_slot[nn] = slot[i]
+            nx_bnc[nn] = bn
             nn += 1
     if vis_on:
         # The kinds that do not see this surface pass on behind it in a split-off copy
@@ -735,8 +768,54 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, geom, prim, starts, u, v
             nx_flags[nn] = fl
             nx_kinds[nn] = kinds[i] & ~np.int64(visibility[t])
             nx_slot[nn] = slot[i]
+            nx_bnc[nn] = bnc[i]
             nn += 1
     return ns_, nn
+
+
+@kernel
+def _count_bounce(packed, which):
+    """packed bounce counts (int64, B_TOTAL ...) with count `which` one higher (held at
+    the 16-bit field's top: never reached, photons stop far sooner)."""
+    shift = _B_BITS * which
+    c = (packed >> shift) & _B_MASK
+    if c == _B_MASK:
+        return packed
+    return packed + (np.int64(1) << shift)
+
+
+@kernel
+def _counts_usable(packed, limits):
+    """Whether a photon with these packed counts can still be stored and used: read at a
+    camera hit with no camera-side bounce (the caustic map's case), its path scatters
+    total times, and once it has scattered its last hit is a diffuse bounce more
+    (bounce_usable)."""
+    total = packed & _B_MASK
+    diff = ((packed >> _B_BITS) & _B_MASK) + (1 if total > 0 else 0)
+    glossy = (packed >> (2 * _B_BITS)) & _B_MASK
+    trans = (packed >> (3 * _B_BITS)) & _B_MASK
+    return (total <= limits[0] and diff <= limits[1] and glossy <= limits[2]
+            and trans <= limits[3])
+
+
+def bounce_usable(counts: np.ndarray, limits, camera=(0, 0, 0, 0)) -> np.ndarray:
+    """(N,) bool: the stored photons whose light, read at a camera-side lookup vertex
+    reached with `camera` bounces (total, diffuse, glossy, transmission; e.g. a final
+    gather ray's end: (1, 1, 0, 0)), makes a path within the limits (4,) (max_bounces,
+    diffuse, glossy, transmission). counts (N,4) uint8 (Photons.bounces). The path's
+    bounces: the camera side's, the photon's total, and the lookup vertex's diffuse
+    bounce once the photon has scattered (see B_TOTAL). A count at BOUNCE_SATURATED
+    passes a limit at or above it (limits that high are no limit in practice)."""
+    c = np.asarray(counts, np.int64)
+    lim = np.asarray(limits, np.int64)
+    cam = np.asarray(camera, np.int64)
+    if len(c) == 0:
+        return np.zeros(0, bool)
+    total = c[:, 0] + cam[0]
+    diff = c[:, 1] + (c[:, 0] > 0) + cam[1]
+    ok = (total <= lim[0]) & (diff <= lim[1]) & (c[:, 2] + cam[2] <= lim[2]) \
+        & (c[:, 3] + cam[3] <= lim[3])
+    return ok
 
 
 def plain_materials(params: np.ndarray) -> np.ndarray:
@@ -755,17 +834,22 @@ def surface_arrays(m: int):
 
 
 def store_arrays(m: int):
-    """Buffers for up to m stored photons (position, power, direction, normal, kind)."""
+    """Buffers for up to m stored photons (position, power, direction, normal, kind,
+    bounce counts (m,4) uint8)."""
     return (np.empty((m, 3), np.float32), np.empty((m, 3), np.float32),
-            np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty(m, np.uint8))
+            np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty(m, np.uint8),
+            np.empty((m, 4), np.uint8))
 
 
 def next_arrays(m: int):
     """Buffers for up to m continued photons (origin32, direction32, direction, power,
-    flags, kinds, slot)."""
+    flags, kinds, slot, packed bounce counts)."""
     return (np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty((m, 3)),
             np.empty((m, 3)), np.empty(m, np.int64), np.empty(m, np.int64),
-            np.empty(m, np.int64))
+            np.empty(m, np.int64), np.empty(m, np.int64))
+
+
+_NO_LIMITS = np.full(4, 1 << 20, np.int64)  # limits no count reaches
 
 
 @register_warm_up
@@ -787,18 +871,21 @@ def _warm_up():
     geom32, prim32, uv32 = np.zeros(1, np.int32), np.zeros(1, np.int32), np.full(1, 0.25, np.float32)
     for given in (False, True):
         scatter(np.uint64(1), 0, d, np.ones((1, 3)), np.zeros(1, np.int64),
-                np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), geom32, prim32,
+                np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64),
+                np.zeros(1, np.int64), geom32, prim32,
                 np.zeros(1, np.int64), uv32, uv32, v0,
                 e1, e2, normals, np.zeros(1, np.int32), np.full((1, 3), 0.5), np.ones(1),
                 given, *surf, np.ones(1), params, plain_materials(params), np.full(1, 1.5),
                 np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.bool_),
-                0, False, False, *store_arrays(1), *next_arrays(2), np.empty((2, 1), np.int64))
+                0, False, False, _NO_LIMITS, *store_arrays(1), *next_arrays(2),
+                np.empty((2, 1), np.int64))
         scatter(np.uint64(1), 0, d, np.ones((1, 3)), np.zeros(1, np.int64),
-                np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64), geom32, prim32,
+                np.full(1, SEGMENT_KINDS, np.int64), np.zeros(1, np.int64),
+                np.zeros(1, np.int64), geom32, prim32,
                 np.zeros(1, np.int64), uv32, uv32, v0,
                 e1, e2, normals, np.zeros(1, np.int32), np.full((1, 3), 0.5), np.ones(1),
                 given, *surf, np.ones(1), params, plain_materials(params), np.full(1, 1.5),
                 np.full(1, ALL_RAYS, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.bool_),
-                0, False, False, *store_arrays(1), *next_arrays(2), np.empty((2, 1), np.int64),
-                flat_mat=np.ones(1, np.bool_), flat_limit=np.full(1, 0.1))
+                0, False, False, _NO_LIMITS, *store_arrays(1), *next_arrays(2),
+                np.empty((2, 1), np.int64), flat_mat=np.ones(1, np.bool_), flat_limit=np.full(1, 0.1))
     uniforms(np.uint64(1), np.zeros(1, np.int64), 0, 0, np.empty(1))

@@ -46,11 +46,17 @@ class Photons:
     normal: np.ndarray     # (N,3) float32 surface normal on the side it arrived from
     kind: np.ndarray       # (N,) uint8 DIRECT / CAUSTIC / INDIRECT
     emitted: int = 0       # photons emitted to produce these (for statistics)
+    # (N,4) uint8 bounce counts of the path that brought each photon (photonkernels.B_TOTAL
+    # ...: total, then diffuse, glossy, transmission after the first scatter; saturated at
+    # 255), for the bounce limits (photonkernels.bounce_usable); None: not counted (no
+    # limit applies)
+    bounces: np.ndarray | None = None
 
     @classmethod
     def empty(cls):
         z = np.zeros((0, 3), np.float32)
-        return cls(z, z.copy(), z.copy(), z.copy(), np.zeros(0, np.uint8))
+        return cls(z, z.copy(), z.copy(), z.copy(), np.zeros(0, np.uint8),
+                   bounces=np.zeros((0, 4), np.uint8))
 
     def __len__(self):
         return len(self.position)
@@ -64,12 +70,22 @@ class Photons:
         """The photons at rows (K,) int, in that order (np.take: a few times faster than
         fancy indexing for (N,3) rows)."""
         return Photons(*(np.take(a, rows, axis=0) for a in (
-            self.position, self.power, self.direction, self.normal, self.kind)), self.emitted)
+            self.position, self.power, self.direction, self.normal, self.kind)), self.emitted,
+            None if self.bounces is None else np.take(self.bounces, rows, axis=0))
 
     @property
     def nbytes(self) -> int:
         return sum(a.nbytes for a in (self.position, self.power, self.direction,
-                                      self.normal, self.kind))
+                                      self.normal, self.kind)) + \
+            (0 if self.bounces is None else self.bounces.nbytes)
+
+    def usable(self, limits, camera=(0, 0, 0, 0)) -> np.ndarray:
+        """(N,) bool: the photons whose light read at a camera-side vertex reached with
+        `camera` bounces (total, diffuse, glossy, transmission) stays within the bounce
+        limits (4,) (RenderSettings.bounce_limits); every photon without counts."""
+        if self.bounces is None:
+            return np.ones(len(self), bool)
+        return pk.bounce_usable(self.bounces, limits, camera)
 
 
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
@@ -141,8 +157,9 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         m = light.emit_into(key, 0, n, count, out, 0)
     else:
         m = light.emit_towards_into(key, 0, n, count, targets, out, 0)
-    o, d32, d, power, flags, kinds, slot = (a[:m] for a in first)
+    o, d32, d, power, flags, kinds, slot, bnc = (a[:m] for a in first)
     flags[:] = 0
+    bnc[:] = 0  # no bounce yet
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
     # surface stands for the camera-side ray that leaves that surface backwards; `kinds`
     # holds, per photon, the ray kinds for which the segment so far is a valid camera-side
@@ -170,7 +187,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     stored = _Stored(2 * m + 1024, pool)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-                 vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
+                 bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
                  hits, stored, nxt_sets, pool, caustic_only, should_cancel)
     except BaseException:
         stored.release()
@@ -178,19 +195,20 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     finally:
         for arrays in nxt_sets:
             if arrays is not None:
-                pool.give(arrays)
-        pool.give(factors)
+                pool.give(arrays, pk.next_arrays)
+        pool.give(factors, _factors)
     return stored
 
 
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-             vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
+             bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
              hits, stored, nxt_sets, pool, caustic_only, should_cancel):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool)."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
+    limits = settings.bounce_limits
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -250,18 +268,18 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         k = bounce % 2
         if nxt_sets[k] is None or len(nxt_sets[k][0]) < need:
             if nxt_sets[k] is not None:
-                pool.give(nxt_sets[k])
+                pool.give(nxt_sets[k], pk.next_arrays)
             nxt_sets[k] = None
             nxt_sets[k] = pool.take(pk.next_arrays, need)
-        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, geom, prim32,
+        n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim32,
                                 starts, u, v, v0, e1, e2, normals, material, table.base_color,
                                 table.alpha, given, *surf_m, bump[:m] if numpy_hits else _NO_BUMP,
                                 params, row_plain, mat_ior,
                                 visibility, object_id, caster, mode, bool(caustic_only),
-                                vis_on, *stored.room(m), *nxt_sets[k], hit_rows,
+                                vis_on, limits, *stored.room(m), *nxt_sets[k], hit_rows,
                                 flat_mat=flat[0], flat_limit=flat[1])
         stored.count += n_st
-        o, d32, d, power, flags, kinds, slot = (a[:n_nx] for a in nxt_sets[k])
+        o, d32, d, power, flags, kinds, slot, bnc = (a[:n_nx] for a in nxt_sets[k])
 
 
 class _Buffers:
@@ -288,8 +306,8 @@ class _Buffers:
                 return self._free.pop(best)[1]
         return make(rows)
 
-    def give(self, arrays):
-        make = {5: pk.store_arrays, 7: pk.next_arrays, 6: _factors}[len(arrays)]
+    def give(self, arrays, make):
+        """Take back a set of arrays that make (as for take) made."""
         with self._lock:
             self._free.append((make, arrays))
 
@@ -325,7 +343,7 @@ class _Stored:
     def release(self):
         """Give the blocks back to the pool (after the shot copied them)."""
         for arrays, _ in self.parts():
-            self.pool.give(arrays)
+            self.pool.give(arrays, pk.store_arrays)
         self.blocks, self.arrays, self.count = [], (), 0
 
 
@@ -367,8 +385,10 @@ class _Shot:
             return Photons.empty()
         n = self.count
         if 8 * (len(self.arrays[0]) - n) > n:  # over 1/8 spare: a trimmed copy
-            return Photons(*(a[:n].copy() for a in self.arrays))
-        return Photons(*(a[:n] for a in self.arrays))
+            a = [x[:n].copy() for x in self.arrays]
+        else:
+            a = [x[:n] for x in self.arrays]
+        return Photons(*a[:5], bounces=a[5])
 
 
 def _factors(m: int):

@@ -12,7 +12,7 @@ from .accel import Accel
 from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, area_sum, prepare
-from .integrator import render_camera, smooth_min_photons
+from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
 from .lights import packing as pk
@@ -42,6 +42,12 @@ class Context:
     caustic_map: PhotonMap | None = None
     gather_map: GatherMap | None = None
     secondary_map: PhotonMap | None = None  # caustic light after one diffuse bounce
+    # The maps final gathering's regathers read at level 1, 2, ... (integrator._regather):
+    # their points are that many diffuse bounces deeper, so under the bounce limits they
+    # hold fewer photons (docs/design.md, Bounce limits); the same objects as gather_map
+    # / secondary_map where the limits leave every photon, None where they leave none.
+    regather_maps: tuple = ()
+    regather_secondary: tuple = ()
     gather_short: float = 0.0  # gather rays shorter than this gather again from their end
     plan: EffectPlan | None = None
     global_radius: float = 0.0
@@ -63,7 +69,9 @@ class Context:
             return None if m is None else m.serial()
         return replace(self, accel=self.accel.serial(), global_map=one(self.global_map),
                        caustic_map=one(self.caustic_map), gather_map=one(self.gather_map),
-                       secondary_map=one(self.secondary_map))
+                       secondary_map=one(self.secondary_map),
+                       regather_maps=tuple(one(m) for m in self.regather_maps),
+                       regather_secondary=tuple(one(m) for m in self.regather_secondary))
 
 
 def _check_region(region, width, height):
@@ -143,6 +151,7 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) 
     (engine/session.py): with visual importance the global photons are denser where this
     camera looks (engine/visualimportance.py), but every view's estimates stay unbiased."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
+    ctx.regather_maps = ctx.regather_secondary = ()
     ctx.gather_rays = 0
     s = ctx.settings
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
@@ -310,7 +319,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
             rest = shot.select(shot.kind == CAUSTIC)
             emitted = caustic.emitted
             caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
-                                for f in ("position", "power", "direction", "normal", "kind")))
+                                for f in ("position", "power", "direction", "normal", "kind")),
+                              bounces=np.concatenate([caustic.bounces, rest.bounces]))
             caustic.emitted = emitted
     stats["time_photons"] = time.perf_counter() - t0
     stats["photons_emitted"] = shot.emitted
@@ -380,7 +390,15 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     diffuse_area = area_sum(geo, diffuse_tris)
     k = s.k_nearest
     workers = s.threads
-    final = plan.indirect and s.final_gather
+    # Bounce limits (docs/design.md, Bounce limits): each map keeps the photons whose
+    # paths stay within them as the camera side commonly reads that map: the gather map at
+    # the end of a final-gather ray (one diffuse bounce on the camera side), the others at
+    # the camera's hit (none). Paths with more camera-side bounces (after a mirror or glass
+    # chain) read the same maps.
+    limits = s.bounce_limits
+    at_hit = shot.usable(limits)
+    gathered = shot.usable(limits, camera=(1, 1, 0, 0))
+    final = plan.indirect and s.final_gather and bool(gathered.any())
 
     def check(flag):
         if flag():
@@ -403,18 +421,35 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
                                    should_cancel=flag,
-                                   rows=np.flatnonzero(shot.kind != CAUSTIC))
+                                   rows=np.flatnonzero((shot.kind != CAUSTIC) & gathered))
+            # The regathers' maps, level by level (a map of its own only where the
+            # limits drop photons the level above keeps).
+            deeper, last = [], (gather_map, gathered)
+            for level in range(1, MAX_GATHER_LEVEL + 1):
+                check(flag)
+                ok = shot.usable(limits, camera=(level + 1, level + 1, 0, 0))
+                if np.array_equal(ok, last[1]):
+                    deeper.append(last[0])
+                    continue
+                rows = np.flatnonzero((shot.kind != CAUSTIC) & ok)
+                gmap = None if len(rows) == 0 else GatherMap(
+                    shot, s.radius or r_global, k, smooth_min_photons(s), s.estimator,
+                    accel=ctx.accel, workers=workers, should_cancel=flag, rows=rows)
+                deeper.append(gmap)
+                last = (gmap, ok)
+            out_deeper["regather_maps"] = tuple(deeper)
         return r_global, gather_map
 
     def other_maps(flag):
         out = {}
         if plan.caustics:
-            out["caustic_map"] = (PhotonMap(caustic, workers) if use_caustic_shot else
-                                  PhotonMap(shot, workers,
-                                            rows=np.flatnonzero(shot.kind == CAUSTIC)))
+            out["caustic_map"] = (
+                PhotonMap(caustic, workers, rows=np.flatnonzero(caustic.usable(limits)))
+                if use_caustic_shot else
+                PhotonMap(shot, workers, rows=np.flatnonzero((shot.kind == CAUSTIC) & at_hit)))
             check(flag)
         if final:
-            rows = np.flatnonzero(shot.kind == CAUSTIC_DIFFUSE)
+            rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & at_hit)
             out["secondary_map"] = secondary = PhotonMap(shot, workers, rows=rows)
             # Its own photons' spacing: the global radius follows the dense photons of the
             # whole shot (a caustic's pile among them), which leaves the sparser secondary
@@ -423,15 +458,26 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             out["secondary_radius"] = s.radius or auto_radius(
                 diffuse_area, len(rows), k, geo.extent,
                 np.take(shot.position, rows, axis=0), secondary.tree, workers=workers)
-        elif plan.indirect:
-            rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)))
+            # Read at regathered points, level + 1 diffuse bounces from the camera's hit.
+            deeper, last = [], (secondary, at_hit)
+            for level in range(1, MAX_GATHER_LEVEL + 1):
+                ok = shot.usable(limits, camera=(level, level, 0, 0))
+                if not np.array_equal(ok, last[1]):
+                    rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & ok)
+                    last = (PhotonMap(shot, workers, rows=rows), ok)
+                deeper.append(last[0])
+            out["regather_secondary"] = tuple(deeper)
+        elif plan.indirect and not s.final_gather:
+            rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)) & at_hit)
             out["global_map"] = pm = PhotonMap(shot, workers, rows=rows)
             out["global_radius"] = s.radius or auto_radius(
                 diffuse_area, len(pm), k, geo.extent, pm.photons.position, pm.tree,
                 workers=workers)
         return out
 
+    out_deeper = {}
     (r_global, gather_map), out = run_tasks([gather_chain, other_maps], workers, stop)
+    out.update(out_deeper)
     check(stop)
     global_radius = out.pop("global_radius", s.radius or r_global)
     # The precomputed irradiance is blurred over about the k-NN radius: a gather ray that
@@ -440,7 +486,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     if final:
         out["gather_map"] = gather_map
         out["global_photons"] = len(shot)
-    elif plan.indirect:
+    elif "global_map" in out:
         out["global_photons"] = len(out["global_map"])
     out["global_radius"] = global_radius
     # The caustic radius from the global spacing, scaled to the larger shot's count

@@ -24,8 +24,12 @@ LIMITS = {
     "photons": 2**31 - 1, "caustic_photons": 2**31 - 1, "max_photon_depth": 1024,
     "min_photons": 10_000, "k_nearest": 10_000, "gather_rays": 256, "spp": 65536,
     "max_depth": 1024, "light_samples": 256, "seed": 2**63 - 1, "workers": 1024,
-    "chunk_size": 1 << 24, "transparent_max_bounces": 1024,
+    "chunk_size": 1 << 24, "transparent_max_bounces": 1024, "max_bounces": 1024,
+    "diffuse_bounces": 1024, "glossy_bounces": 1024, "transmission_bounces": 1024,
 }
+# Cycles' Light Paths > Max Bounces (its defaults): the setting names and their defaults.
+BOUNCE_LIMITS = (("max_bounces", 12), ("diffuse_bounces", 4), ("glossy_bounces", 4),
+                 ("transmission_bounces", 12))
 FILTER_WIDTH_MAX = 500.0  # pixels: Blender's limit for the filter size
 
 
@@ -58,6 +62,17 @@ class RenderSettings:
     # Transparent surfaces (alpha < 1) a shadow ray may cross before the next one blocks it
     # (Cycles' Light Paths > Max Bounces > Transparent, same default; 0: every surface blocks)
     transparent_max_bounces: int = 8
+    # Cycles' Light Paths > Max Bounces, same meaning and defaults (docs/design.md, Bounce
+    # limits): a light path (camera to light, the photon's part included) may scatter at
+    # most max_bounces times in all, diffuse_bounces times off a diffuse reflection,
+    # glossy_bounces off a glossy / mirror reflection and transmission_bounces through a
+    # refraction (transparent passes count apart, above); the vertex that connects to the
+    # light (a shadow ray, or the photon's first hit) is not a bounce. 0 diffuse = direct
+    # light only. max_depth stays the camera chain's own cap on top of these.
+    max_bounces: int = 12
+    diffuse_bounces: int = 4
+    glossy_bounces: int = 4
+    transmission_bounces: int = 12
     # Modes
     photon_mapping: bool = True     # False = the paper's plain ray tracer (Fig. 5b)
     method: str = "photon"          # local | raytrace | photon (METHODS)
@@ -100,7 +115,9 @@ class RenderSettings:
         for name, lo in (("photons", 0), ("caustic_photons", 0), ("max_photon_depth", 1),
                          ("min_photons", 1), ("k_nearest", 1), ("spp", 1), ("max_depth", 0),
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
-                         ("gather_rays", 1), ("transparent_max_bounces", 0)):
+                         ("gather_rays", 1), ("transparent_max_bounces", 0),
+                         ("max_bounces", 0), ("diffuse_bounces", 0), ("glossy_bounces", 0),
+                         ("transmission_bounces", 0)):
             positive_int(name, lo)
         for name in ("final_gather", "gather_by_share", "photon_mapping", "aim_caustics",
                      "photon_importance",
@@ -152,6 +169,13 @@ class RenderSettings:
     def uses_photon_maps(self) -> bool:
         """Photon mapping is on and the method is the full renderer."""
         return self.photon_mapping and self.method == "photon"
+
+    @property
+    def bounce_limits(self) -> np.ndarray:
+        """(4,) int64: max_bounces, diffuse_bounces, glossy_bounces, transmission_bounces
+        (the order of the photons' bounce counts, photonkernels.B_TOTAL ...)."""
+        return np.array([self.max_bounces, self.diffuse_bounces, self.glossy_bounces,
+                         self.transmission_bounces], np.int64)
 
     @property
     def threads(self) -> int:

@@ -82,8 +82,10 @@ def render_furnace(spec, spp=64):
     s = PaperScene(width=cc.FURNACE_SIZE, height=cc.FURNACE_SIZE, background=(1.0, 1.0, 1.0))
     s.add_sphere((0, 0, 0), 1.0, engine_material(spec), name="ball", segments=96)
     _camera(s, cc.FURNACE_VIEW, cc.FURNACE_DIST, cc.FURNACE_FOV)
+    # (the references' 32 bounces: tools/make_closure_references.py)
     film = s.render(RenderSettings(spp=spp, photon_mapping=False, seed=5, max_depth=32,
-                                   workers=1))
+                                   workers=1, max_bounces=32, diffuse_bounces=32,
+                                   glossy_bounces=32, transmission_bounces=32))
     return film.combined[cc.ball_mask(cc.FURNACE_SIZE)].mean(axis=0)
 
 

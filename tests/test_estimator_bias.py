@@ -171,8 +171,10 @@ def test_emissive_meshes_do_not_hit_themselves_and_the_photon_power_balances(rho
     pi Le / (1 - rho) everywhere: the stored photon power per area must say so, and every
     photon must arrive on the inside. Emitted from the triangle itself, photons used to hit
     their own emitter from behind (a third of them) and leave the room."""
+    # (every bounce: the balance below is the unlimited series)
     st = RenderSettings(photons=20000, caustic_photons=0, max_photon_depth=200, seed=4,
-                        show_photons=True, workers=2)
+                        show_photons=True, workers=2, max_bounces=1024, diffuse_bounces=1024,
+                        glossy_bounces=1024, transmission_bounces=1024)
     ctx = prepare_context(_emitting_box(rho), st)
     photons, caustic = _photon_pass(ctx, {}, None, None)  # the shots (global, caustic)
     ctx.accel.close()

@@ -26,8 +26,11 @@ def furnace(rho, Le=1.0, size=24, **settings):
     v, f = box_mesh((0, 0, 0), 2.0)
     s.add_triangles(v, f, "glow", name="furnace_box")
     s.set_camera((0, -0.5, 0), (0, 1, 0.1), view_angle=90)
+    # (every bounce: the furnace's series runs to infinity; tests/test_bounce_limits.py
+    # checks the series cut by Cycles' limits)
     st = dict(photons=40_000, caustic_photons=0, spp=16, max_photon_depth=200, seed=1,
-              light_samples=16)
+              light_samples=16, max_bounces=1024, diffuse_bounces=1024, glossy_bounces=1024,
+              transmission_bounces=1024)
     st.update(settings)
     film = s.render(RenderSettings(**st))
     assert_film_sane(film)

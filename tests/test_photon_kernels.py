@@ -90,7 +90,9 @@ def test_closed_box_stores_the_geometric_series_of_the_emitted_power():
     to P / (1 - a) in expectation (P (1 + a + a^2 + ...)). 20k photons: ~0.6 % standard
     error."""
     albedo, P = 0.8, 100.0
-    ph = shoot(closed_box(albedo, P), RenderSettings(photons=20000, max_photon_depth=80))
+    # (bounce limits out of the way: tests/test_bounce_limits.py checks the cut series)
+    ph = shoot(closed_box(albedo, P), RenderSettings(photons=20000, max_photon_depth=80,
+                                                     max_bounces=1024, diffuse_bounces=1024))
     total = ph.power.astype(np.float64).sum(axis=0)
     np.testing.assert_allclose(total, P / (1 - albedo), rtol=0.025)
     # Russian roulette never raises a photon's power here (survival = albedo exactly).
@@ -136,7 +138,7 @@ def test_scatter_computes_the_surface_data_as_photon_surfaces_does():
         out = []
         for given in (True, False):
             st, nx = pk.store_arrays(n), pk.next_arrays(2 * n)
-            counts = pk.scatter(np.uint64(11), 1, d, power, flags, kinds, np.arange(n), geom,
+            counts = pk.scatter(np.uint64(11), 1, d, power, flags, kinds, np.arange(n), _NO_BNC(n), geom,
                                 prim32, starts, u32, v32, geo.v0, geo.e1, geo.e2,
                                 geo.corner_normals, geo.material, table.base_color,
                                 table.alpha, given,
@@ -145,7 +147,7 @@ def test_scatter_computes_the_surface_data_as_photon_surfaces_does():
                                 np.ones(n) if given else np.zeros(0),
                                 table.closure_params, plain, table.ior, visibility,
                                 geo.object_id, np.zeros(1, np.bool_), 0, False, vis_on,
-                                *st, *nx, _scratch_rows(n))
+                                pk._NO_LIMITS, *st, *nx, _scratch_rows(n))
             out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
         (c1, a1), (c2, a2) = out
         assert c1 == c2 and c1[0] > 0 and c1[1] > 0
@@ -201,13 +203,13 @@ def test_plain_materials_scatter_as_with_the_full_set_of_lobes():
     for row_plain in (plain, np.zeros(mats, np.bool_)):
         st, nx = pk.store_arrays(n), pk.next_arrays(2 * n)
         counts = pk.scatter(np.uint64(13), 2, d, power, flags,
-                            np.full(n, pk.SEGMENT_KINDS, np.int64), np.arange(n), geom,
+                            np.full(n, pk.SEGMENT_KINDS, np.int64), np.arange(n), _NO_BNC(n), geom,
                             prim32, starts, u32, v32, geo.v0, geo.e1, geo.e2,
                             geo.corner_normals, geo.material, table.base_color,
                             table.alpha, False, *pk.surface_arrays(0), np.ones(n),
                             table.closure_params, row_plain, table.ior,
                             np.full(geo.count, 255, np.uint8), geo.object_id,
-                            np.zeros(1, np.bool_), 0, False, False, *st, *nx,
+                            np.zeros(1, np.bool_), 0, False, False, pk._NO_LIMITS, *st, *nx,
                             _scratch_rows(n))
         out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
     (c1, a1), (c2, a2) = out
@@ -240,7 +242,7 @@ def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():
                                 None, pool)
         return [np.concatenate([a[:k] for a, k in [(arrays[i], k)
                                                     for arrays, k in stored.parts()]])
-                for i in range(5)]
+                for i in range(6)]
 
     fresh = chunk(P._Buffers())
     used = P._Buffers()
@@ -250,7 +252,7 @@ def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():
         arrays = make(rows)
         for a in arrays:
             a[...] = junk.integers(0, 255, a.shape) if a.dtype.kind in "iub" else np.nan
-        used.give(arrays)
+        used.give(arrays, make)
     again = chunk(used)
     assert len(fresh[0]) > count
     for x, y in zip(fresh, again):
@@ -322,14 +324,14 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
                                                    _embree_layout(prim, u, v)):
             st, nx = pk.store_arrays(m), pk.next_arrays(2 * m)
             counts = pk.scatter(np.uint64(17), 0, d, power, flags,
-                                np.full(m, pk.SEGMENT_KINDS, np.int64), np.arange(m), geom_k,
+                                np.full(m, pk.SEGMENT_KINDS, np.int64), np.arange(m), _NO_BNC(m), geom_k,
                                 prim_k, starts_k, u_k, v_k, geo.v0, geo.e1, geo.e2,
                                 geo.corner_normals, geo.material, table.base_color,
                                 table.alpha, False, *pk.surface_arrays(0), np.ones(m),
                                 table.closure_params, plain, table.ior,
                                 np.full(geo.count, 255, np.uint8), geo.object_id,
-                                np.zeros(1, np.bool_), 0, False, False, *st, *nx,
-                                _scratch_rows(m))
+                                np.zeros(1, np.bool_), 0, False, False, pk._NO_LIMITS, *st,
+                                *nx, _scratch_rows(m))
             out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
         (c1, a1), (c2, a2) = out
         assert c1 == c2 and c1[0] > m // 4 and c1[1] > m // 4
@@ -372,15 +374,20 @@ def test_scatter_refuses_short_scratch_rows():
     d = np.tile([0.0, 0.0, -1.0], (m, 1))
     with pytest.raises(ValueError):
         pk.scatter(np.uint64(1), 0, d, np.ones((m, 3)), np.zeros(m, np.int64),
-                   np.full(m, pk.SEGMENT_KINDS, np.int64), np.arange(m),
+                   np.full(m, pk.SEGMENT_KINDS, np.int64), np.arange(m), _NO_BNC(m),
                    np.full(m, -1, np.int32), np.zeros(m, np.int32), np.zeros(1, np.int64),
                    np.zeros(m, np.float32), np.zeros(m, np.float32), np.zeros((1, 3)),
                    np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((0, 3, 3), np.float32),
                    np.zeros(1, np.int32), np.ones((1, 3)), np.ones(1), False,
                    *pk.surface_arrays(0), np.zeros(0), np.zeros((1, 30)), np.ones(1, np.bool_),
                    np.ones(1), np.zeros(1, np.uint8), np.zeros(1, np.int32),
-                   np.zeros(1, np.bool_), 0, False, False, *pk.store_arrays(m),
+                   np.zeros(1, np.bool_), 0, False, False, pk._NO_LIMITS, *pk.store_arrays(m),
                    *pk.next_arrays(2 * m), np.empty((2, m - 1), np.int64))
+
+
+def _NO_BNC(m):
+    """Photons that have not bounced yet (packed bounce counts, photonkernels.B_TOTAL)."""
+    return np.zeros(m, np.int64)
 
 
 def _scratch_rows(m):

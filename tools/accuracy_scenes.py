@@ -269,6 +269,11 @@ def set_pixel_filter(scene, kind="BOX", width=1.0):
     scene.cycles.filter_width = width
 
 
+# Light Paths > Max Bounces of every comparison (the stored references were rendered so):
+# Cycles' limits in set_cycles, ours (the same four settings) in set_photonmap_defaults.
+COMPARE_BOUNCES = 32
+
+
 def set_cycles(scene, samples, seed=0, pixel_filter=COMPARE_FILTER):
     scene.render.engine = "CYCLES"
     c = scene.cycles
@@ -283,7 +288,7 @@ def set_cycles(scene, samples, seed=0, pixel_filter=COMPARE_FILTER):
     c.caustics_refractive = True
     for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
                  "volume_bounces", "transparent_max_bounces"):
-        setattr(c, attr, 32)
+        setattr(c, attr, COMPARE_BOUNCES)
     set_pixel_filter(scene, *pixel_filter)
     c.seed = seed
     scene.render.threads_mode = "AUTO"
@@ -291,7 +296,7 @@ def set_cycles(scene, samples, seed=0, pixel_filter=COMPARE_FILTER):
 
 def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
     """Our engine at its default settings (every scene.photonmap property unset), with
-    the pixel filter set_cycles gives Cycles."""
+    the pixel filter and the bounce limits set_cycles gives Cycles."""
     ensure_addon()
     set_pixel_filter(scene, *pixel_filter)
     scene.render.engine = "PHOTONMAP"
@@ -299,6 +304,12 @@ def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
     for prop in pm.bl_rna.properties:
         if prop.identifier != "rna_type":
             pm.property_unset(prop.identifier)
+    # The bounce limits Cycles gets in set_cycles (at 32 the camera chain (max depth 8) and
+    # the photons (max photon depth 32) stay within them; only photons past 29 bounces,
+    # a handful, leave the deepest regather map: the images of before the limits).
+    for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces"):
+        if hasattr(pm, attr):
+            setattr(pm, attr, COMPARE_BOUNCES)
 
 
 def render_rgba(scene):

@@ -1,0 +1,182 @@
+"""Cycles' Light Paths bounce limits (max_bounces, diffuse / glossy / transmission bounces;
+docs/design.md, Bounce limits): the photons' counts, the maps' filtering and the camera
+chain, against geometric series and simple optics."""
+import numpy as np
+import pytest
+
+from engine import RenderSettings
+from engine import photonkernels as pk
+from engine.api import PaperScene
+from engine.scene import Material
+from engine.photons import DIRECT
+from test_energy import closed_box, shoot
+
+HIGH = dict(max_bounces=1024, diffuse_bounces=1024, glossy_bounces=1024,
+            transmission_bounces=1024)
+
+
+def test_settings_default_to_cycles_light_paths():
+    s = RenderSettings()
+    assert (s.max_bounces, s.diffuse_bounces, s.glossy_bounces, s.transmission_bounces) == \
+        (12, 4, 4, 12)
+    assert s.bounce_limits.tolist() == [12, 4, 4, 12]
+    with pytest.raises(ValueError):
+        RenderSettings(diffuse_bounces=-1)
+    with pytest.raises(ValueError):
+        RenderSettings(max_bounces=2000)
+
+
+def test_photon_counts_follow_its_bounces_in_a_closed_box():
+    """Closed Lambertian box of albedo a: Russian roulette keeps a photon's power and
+    continues it with probability a, so the photons stored after s scatters carry P a^s
+    in all, and each photon's counts say s (total) and s - 1 diffuse bounces after the
+    first (0 for direct photons)."""
+    a, P, n = 0.6, 100.0, 20000
+    ph = shoot(closed_box(a, P), RenderSettings(photons=n, max_photon_depth=80, **HIGH))
+    b = ph.bounces.astype(np.int64)
+    assert ph.bounces.dtype == np.uint8 and b.shape == (len(ph), 4)
+    assert np.all(b[:, 2:] == 0)  # no glossy or transmission bounce in a Lambert box
+    assert np.all(b[:, 1] == np.maximum(b[:, 0] - 1, 0))
+    assert np.all((b[:, 0] == 0) == (ph.kind == DIRECT))
+    power = ph.power.astype(np.float64).sum(axis=1) / 3
+    for s in range(5):
+        # sum of Bernoulli(a^s) x P / n: standard error P sqrt(a^s (1 - a^s) / n)
+        got = power[b[:, 0] == s].sum()
+        sigma = P * np.sqrt(a ** s * (1 - a ** s) / n) + 1e-6 * P  # (float32 sums)
+        assert abs(got - P * a ** s) < 5 * sigma, (s, got, P * a ** s)
+
+
+@pytest.mark.parametrize("diffuse", [0, 1, 3])
+def test_photon_pass_stops_at_the_diffuse_limit(diffuse):
+    """With diffuse_bounces = D the stored power is the geometric series cut after D
+    scatters, P (1 + a + ... + a^D) (a lookup after s >= 1 scatters is the path's
+    (s + 1)-th diffuse vertex, s of them bounces); no photon is stored past it."""
+    a, P, n = 0.6, 100.0, 20000
+    ph = shoot(closed_box(a, P), RenderSettings(photons=n, max_photon_depth=80,
+                                                **dict(HIGH, diffuse_bounces=diffuse)))
+    assert ph.bounces[:, 0].max() == diffuse
+    total = ph.power.astype(np.float64).sum() / 3
+    want = P * sum(a ** k for k in range(diffuse + 1))
+    assert abs(total - want) < 0.02 * want, (total, want)
+    # The total limit cuts the same way.
+    ph2 = shoot(closed_box(a, P), RenderSettings(photons=n, max_photon_depth=80,
+                                                 **dict(HIGH, max_bounces=diffuse)))
+    np.testing.assert_array_equal(ph.power, ph2.power)
+
+
+def test_bounce_usable_counts_the_camera_side_and_the_lookup_vertex():
+    lim = np.array([3, 2, 1, 5])
+    counts = np.array([[0, 0, 0, 0],   # direct photon: the camera side's bounces only
+                       [1, 0, 0, 0],   # one scatter: the lookup vertex is a diffuse bounce
+                       [2, 1, 0, 0],
+                       [3, 0, 1, 1],
+                       [2, 0, 2, 0]], np.uint8)
+    assert pk.bounce_usable(counts, lim).tolist() == [True, True, True, True, False]
+    # A final-gather ray's end: one more diffuse bounce and one more in all.
+    assert pk.bounce_usable(counts, lim, (1, 1, 0, 0)).tolist() == \
+        [True, True, False, False, False]
+
+
+def _inside_sphere(albedo):
+    """A closed sphere of albedo a with a point light at its centre, seen from inside:
+    in a sphere every diffuse reflection spreads its power evenly over the inner surface
+    (the form factor from any point to dA is dA / (4 pi R^2)), so each bounce adds
+    a^k of the direct irradiance everywhere: indirect / direct = a + a^2 + ... + a^D with D
+    diffuse bounces (Cycles: D diffuse scatters, then the light sample at the next hit)."""
+    s = PaperScene(width=24, height=18)
+    s.add_material(Material("wall", (albedo,) * 3))
+    s.add_sphere((0, 0, 0), 1.0, "wall", name="ball", segments=64)
+    s.add_point_light((0, 0, 0), power=100.0)
+    s.set_camera((0, -0.5, 0.1), (0, 1, 0.1), view_angle=70)
+    return s
+
+
+@pytest.mark.parametrize("diffuse", [1, 2])
+def test_inside_a_sphere_indirect_light_is_the_cut_geometric_series(diffuse):
+    a = 0.5
+    st = dict(photons=30000, caustic_photons=0, spp=4, seed=3, **HIGH)
+    st["diffuse_bounces"] = diffuse
+    film = _inside_sphere(a).render(RenderSettings(**st))
+    ratio = film.indirect.mean() / film.direct.mean()
+    want = sum(a ** k for k in range(1, diffuse + 1))
+    assert abs(ratio - want) < 0.03 * want, (ratio, want)
+    # The same cut by the total limit.
+    st.update(diffuse_bounces=1024, max_bounces=diffuse)
+    film2 = _inside_sphere(a).render(RenderSettings(**st))
+    ratio2 = film2.indirect.mean() / film2.direct.mean()
+    assert abs(ratio2 - want) < 0.03 * want, (ratio2, want)
+
+
+def test_no_diffuse_bounce_leaves_direct_light_only():
+    """diffuse_bounces = 0: no indirect light and no caustic (Cycles reaches a caustic
+    only through a diffuse bounce at the lit surface); the direct light is untouched."""
+    st = dict(photons=20000, caustic_photons=5000, spp=2, seed=2, **HIGH)
+    high = _inside_sphere(0.5).render(RenderSettings(**st))
+    zero = _inside_sphere(0.5).render(RenderSettings(**dict(st, diffuse_bounces=0)))
+    assert high.indirect.max() > 0
+    assert zero.indirect.max() == 0.0 and zero.caustic.max() == 0.0
+    np.testing.assert_allclose(zero.direct.mean(), high.direct.mean(), rtol=1e-9)
+
+
+def test_high_limits_keep_the_unlimited_image():
+    """Limits no path reaches change nothing, bit for bit."""
+    st = dict(photons=8000, spp=2, seed=5, max_photon_depth=40)
+    a = _inside_sphere(0.7).render(RenderSettings(**st, **HIGH))
+    b = _inside_sphere(0.7).render(RenderSettings(**st, **{k: 900 for k in HIGH}))
+    for name in ("direct", "indirect", "caustic", "specular", "emission"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def _mirror_view(mirror: Material):
+    """The camera looks down at a 45-degree surface that shows (by a mirror reflection
+    or straight through) a lit diffuse wall; nothing else is lit."""
+    s = PaperScene(width=16, height=12)
+    s.add_material(Material("wall", (0.8, 0.8, 0.8)))
+    s.add_material(mirror)
+    s.add_plane((0, 0, 0), normal=(0, 1, 1), size=1.0, material=mirror.name, name="m")
+    s.add_plane((0, 3, 0), normal=(0, -1, 0), size=4.0, material="wall", name="wall")
+    s.add_plane((0, 0, -3), normal=(0, 0, 1), size=4.0, material="wall", name="floor")
+    s.add_point_light((0, 1.5, 0.0), power=200.0)
+    s.set_camera((0, 0, 2), (0, 0, 0), up=(0, 1, 0), view_angle=15)
+    return s
+
+
+def test_camera_chain_honours_the_glossy_and_transmission_limits():
+    """A mirror seen by the camera shows the lit wall with one glossy bounce allowed, and
+    nothing with none; glass (two refractions through a slab's faces: here a single
+    plane, one refraction) likewise with transmission bounces."""
+    st = dict(photons=2000, caustic_photons=0, spp=2, seed=1, caustics="off",
+              indirect="off", **HIGH)
+    mirror = Material("mirror", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.0)
+    on = _mirror_view(mirror).render(RenderSettings(**dict(st, glossy_bounces=1)))
+    off = _mirror_view(mirror).render(RenderSettings(**dict(st, glossy_bounces=0)))
+    assert on.specular.mean() > 0.01
+    assert off.specular.max() == 0.0
+    np.testing.assert_array_equal(on.direct, off.direct)
+    total0 = _mirror_view(mirror).render(RenderSettings(**dict(st, max_bounces=0)))
+    assert total0.specular.max() == 0.0
+    glass = Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0, ior=1.5)
+    on = _mirror_view(glass).render(RenderSettings(**dict(st, transmission_bounces=1)))
+    off = _mirror_view(glass).render(RenderSettings(**dict(st, transmission_bounces=0)))
+    # Through the pane the floor is seen; the pane's reflection (glossy) stays.
+    assert on.specular.mean() > off.specular.mean() * 1.5
+
+
+def test_scene_file_and_command_line_set_the_limits(tmp_path):
+    import os
+    from engine import cli
+    from engine.scenefile import load_scene
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    text = open(os.path.join(root, "scenes", "figure6.toml")).read()
+    path = tmp_path / "room.toml"
+    path.write_text(text.replace("[render]\n", "[render]\ndiffuse_bounces = 2\n"
+                                 "max_bounces = 9\n", 1))
+    _, overrides = load_scene(str(path))
+    s = RenderSettings(**overrides)
+    assert (s.max_bounces, s.diffuse_bounces, s.glossy_bounces) == (9, 2, 4)
+    args = cli.build_parser().parse_args(["render", str(path), "-o", str(tmp_path / "x.png"),
+                                          "--glossy-bounces", "1",
+                                          "--transmission-bounces", "3"])
+    _, kw = cli._scene_and_overrides(args)
+    s = RenderSettings(**kw)
+    assert s.bounce_limits.tolist() == [9, 2, 1, 3]
