@@ -25,7 +25,7 @@ from .closures import principled as pr
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
 from .lights.emission import concentric_disk as _concentric_disk, to_world as _to_world
-from .lights.environment import env_pdf, env_radiance, env_sample
+from .lights.environment import N_OCT, env_cosine_pdf, env_cosine_sample, env_radiance
 from .lights.selection import empty_tree, select_light
 from .lights.world import ENV_MAP_FRACTION
 from .normalmap import bump_shadowing_term
@@ -225,9 +225,9 @@ def terminator_lift(prim, bary, ng, smooth, object_id, terminator, v0, e1, e2,
 @kernel
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
-                  m_tilt32, env_px, env_rows, env_cols, env_pdf_uv, tree_f, tree_i, inf_idx,
-                  inf_f, l_trace, klight, ktrace, U1, U2, SEL, contrib, row, kidx, ray, o32,
-                  d32, t32, wdir, lpdf, bump, hrow):
+                  m_tilt32, env_px, env_rows, env_cols, env_mass, env_prefix, env_cell,
+                  tree_f, tree_i, inf_idx, inf_f, l_trace, klight, ktrace, U1, U2, SEL,
+                  contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf, bump, hrow):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
@@ -246,7 +246,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     klight (K,) light of sample k, or -1: a light chosen per hit by the tree, its
     contribution divided by the choice's probability; ktrace (K,) whether its shadows are
     traced (l_trace for chosen lights); U1, U2, SEL (K,N): its random numbers (SEL: the
-    triangle choice of mesh lights, the strategy choice of an environment-mapped world,
+    triangle choice of mesh lights, the strategy choice of an environment-mapped world
+    (rescaled, its direction's first coordinate in place of U1),
     the tree's choice (remapped for those) when klight is -1). A mesh light reads SEL and
     U2 only: SEL picks the triangle and, rescaled within the triangle's CDF bin, is the
     point's first coordinate, U2 its second (integrator.mesh_light_numbers).
@@ -350,18 +351,28 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     e0, e1, e2 = (PI * q[RGB]) * ok, (PI * q[RGB + 1]) * ok, (PI * q[RGB + 2]) * ok
                     lp = z / PI
                 else:
-                    # Environment map: one-sample MIS of the map's distribution and the
-                    # cosine hemisphere (balance heuristic), SEL picks the strategy.
+                    # Environment map: one-sample MIS (balance heuristic) of the map's
+                    # cosine-weighted distribution for the shading normal's cluster and
+                    # the cosine hemisphere. SEL picks the strategy and, rescaled within
+                    # the strategy's share, is the sample's first coordinate (U2 its
+                    # second; integrator.mesh_light_numbers stratifies the pair), as a
+                    # mesh light's triangle choice.
                     R = env_frame
                     if selu < ENV_MAP_FRACTION:
-                        w0, w1, w2, pe = env_sample(R, env_rows, env_cols, env_pdf_uv, u1, u2)
+                        x = min(selu / ENV_MAP_FRACTION, ONE_BELOW)
+                        w0, w1, w2, pe = env_cosine_sample(R, env_rows, env_cols, env_mass,
+                                                           env_prefix, env_cell, N_OCT,
+                                                           s0, s1, s2, x, u2)
                     else:
-                        r = math.sqrt(u1)
+                        x = min((selu - ENV_MAP_FRACTION) / (1.0 - ENV_MAP_FRACTION),
+                                ONE_BELOW)
+                        r = math.sqrt(x)
                         phi = TWO_PI * u2
-                        z = math.sqrt(max(0.0, 1.0 - u1))
+                        z = math.sqrt(max(0.0, 1.0 - x))
                         w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z,
                                                s0, s1, s2)
-                        pe = env_pdf(R, env_pdf_uv, w0, w1, w2)
+                        pe = env_cosine_pdf(R, env_mass, env_prefix, env_cell, N_OCT,
+                                            w0, w1, w2, s0, s1, s2)
                     cs = w0 * s0 + w1 * s1 + w2 * s2
                     ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
                     pdf = ENV_MAP_FRACTION * pe + (1.0 - ENV_MAP_FRACTION) * max(cs, 0.0) / PI

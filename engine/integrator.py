@@ -140,7 +140,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         count = plan.light_samples.get(light.name, 1)
         traced = plan.shadows.get(light.name, True)
         for si in range(count):
-            if sampler is not None and light.kind == MESH:
+            if sampler is not None and light.needs_choice:
+                # A mesh light's triangle, an environment-mapped world's strategy: the
+                # choice stratified with the point (directlight.sample_lights)
                 u1, u2, sel = mesh_light_numbers(sampler, ("light", li, si))
                 samples.append((li, traced, count, u1, u2, sel))
                 continue

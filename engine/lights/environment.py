@@ -83,6 +83,7 @@ class Environment:
         self.interpolation = interpolation
         self.interp_code = INTERPOLATIONS[interpolation]
         self._distribution = None
+        self._cosine = None
 
     @property
     def height(self) -> int:
@@ -105,6 +106,40 @@ class Environment:
             self._distribution = build_distribution(self.pixels,
                                                     self.interp_code == INTERP_LINEAR)
         return self._distribution
+
+    @property
+    def cosine_distributions(self):
+        """build_cosine_distributions of this map (rows, cols, mass, prefix, cell); built
+        once."""
+        if getattr(self, "_cosine", None) is None:
+            self._cosine = build_cosine_distributions(self.pixels,
+                                                      self.interp_code == INTERP_LINEAR)
+        return self._cosine
+
+    def cosine_pdf(self, wi: np.ndarray, ns: np.ndarray) -> np.ndarray:
+        """Solid-angle pdf (N,) (1/sr) with which `cosine_sample` picks world directions
+        wi (N,3) at shading normals ns (N,3)."""
+        wi = np.ascontiguousarray(np.asarray(wi, np.float64).reshape(-1, 3))
+        ns = np.ascontiguousarray(np.broadcast_to(np.asarray(ns, np.float64).reshape(-1, 3),
+                                                  wi.shape))
+        out = np.empty(len(wi))
+        _, _, mass, prefix, cell = self.cosine_distributions
+        cosine_pdf_many(wi, ns, self.rotation, mass, prefix, cell, N_OCT, out)
+        return out
+
+    def cosine_sample(self, u1: np.ndarray, u2: np.ndarray, ns: np.ndarray):
+        """Directions wi (N,3) drawn from the cosine-weighted distribution of the cluster
+        of each shading normal ns (N,3) (build_cosine_distributions), with their
+        solid-angle pdfs (N,)."""
+        u1 = np.ascontiguousarray(u1, np.float64)
+        u2 = np.ascontiguousarray(u2, np.float64)
+        ns = np.ascontiguousarray(np.broadcast_to(np.asarray(ns, np.float64).reshape(-1, 3),
+                                                  (len(u1), 3)))
+        wi = np.empty((len(u1), 3))
+        pdf = np.empty(len(u1))
+        cosine_sample_many(u1, u2, ns, self.rotation, *self.cosine_distributions, N_OCT, wi,
+                           pdf)
+        return wi, pdf
 
     def integral(self) -> np.ndarray:
         """RGB integral of radiance over the sphere (W / m^2): the sum of texel radiance x
@@ -148,11 +183,11 @@ class Environment:
         return wi, pdf
 
 
-def build_distribution(pixels: np.ndarray, bilinear: bool = True):
-    """The sampling distribution of radiance texels (H, W, 3): see Environment.distribution.
-    bilinear: the lookups interpolate (a texel's function is the mean of the interpolated
-    luminance over it); else each texel's own luminance (Closest)."""
-    H, W = pixels.shape[:2]
+def texel_function(pixels: np.ndarray, bilinear: bool = True) -> np.ndarray:
+    """(H, W) float64: the map distribution's function on each texel of radiance texels
+    (H, W, 3): luminance (the mean of its bilinear interpolation over the texel when
+    `bilinear`) x sin(theta) at the row centre (see the module docstring)."""
+    H = pixels.shape[0]
     f = np.maximum(luminance(np.asarray(pixels, np.float64)), 0.0)
     if bilinear:
         # Mean of the bilinear interpolation over a texel: weights 3/4, 1/8, 1/8 per axis
@@ -160,7 +195,15 @@ def build_distribution(pixels: np.ndarray, bilinear: bool = True):
         f = 0.75 * f + 0.125 * (np.roll(f, 1, axis=1) + np.roll(f, -1, axis=1))
         f = 0.75 * f + 0.125 * (np.roll(f, 1, axis=0) + np.roll(f, -1, axis=0))
     sin_t = np.sin(PI * (np.arange(H) + 0.5) / H)
-    f = f * sin_t[:, None]
+    return f * sin_t[:, None]
+
+
+def build_distribution(pixels: np.ndarray, bilinear: bool = True):
+    """The sampling distribution of radiance texels (H, W, 3): see Environment.distribution.
+    bilinear: the lookups interpolate (a texel's function is the mean of the interpolated
+    luminance over it); else each texel's own luminance (Closest)."""
+    H, W = pixels.shape[:2]
+    f = texel_function(pixels, bilinear)
     row_sum = f.sum(axis=1)
     total = row_sum.sum()
     if not total > 0:
@@ -176,6 +219,91 @@ def build_distribution(pixels: np.ndarray, bilinear: bool = True):
     return (np.ascontiguousarray(rows), np.ascontiguousarray(cols),
             np.ascontiguousarray(pdf_uv, dtype=np.float32))
 
+
+
+# Cosine-weighted distributions (shadow rays of diffuse and rough lobes): the map's
+# function times the cosine to a shading normal, so no sample is spent below the
+# surface's horizon and a bright patch low over it gets what its irradiance is worth.
+# Shading normals fall into N_OCT x N_OCT clusters of an octahedral grid (odd: +Z, a
+# floor's normal, is the centre of a cell); each cluster has a distribution over a coarse
+# grid of at most COARSE_H x COARSE_W cells of texels, proportional to the map's function
+# summed over the cell times the largest cosine to the cluster's normal over the cell's
+# corners, edge midpoints and centre. Within a cell a texel is drawn in proportion to the
+# map's function (the per-row prefix sums), so a sun of a few texels is found as exactly
+# as by the map's own distribution. The shadow rays mix this with cosine-hemisphere
+# sampling (engine/lights/world.py), which covers the directions the cluster's cosine
+# misses for the shading normal itself.
+N_OCT = 9
+COARSE_H, COARSE_W = 64, 128
+
+
+def octahedral_centre(k: int, n_oct: int = N_OCT) -> np.ndarray:
+    """Unit normal (3,) at the centre of octahedral cell k = row * n_oct + column."""
+    a = (k % n_oct + 0.5) / n_oct * 2.0 - 1.0
+    b = (k // n_oct + 0.5) / n_oct * 2.0 - 1.0
+    z = 1.0 - abs(a) - abs(b)
+    if z < 0:
+        a, b = (1.0 - abs(b)) * (1.0 if a >= 0 else -1.0), (1.0 - abs(a)) * (1.0 if b >= 0 else -1.0)
+    v = np.array([a, b, z])
+    return v / np.linalg.norm(v)
+
+
+def _cell_directions(theta, u):
+    """Texture directions (..., 3) at polar angles theta and image u (arrays)."""
+    theta, u = np.broadcast_arrays(theta, u)
+    phi = TWO_PI * (0.5 - u)
+    st = np.sin(theta)
+    return np.stack([st * np.cos(phi), st * np.sin(phi), np.cos(theta)], -1)
+
+
+def build_cosine_distributions(pixels: np.ndarray, bilinear: bool = True,
+                               n_oct: int = N_OCT, coarse=(COARSE_H, COARSE_W)):
+    """The cosine-weighted distributions of radiance texels (H, W, 3) (see above):
+    (rows (K, Hc+1), cols (K, Hc, Wc+1) cdfs and mass (K, Hc, Wc) probabilities of the
+    coarse cells per cluster, float64; prefix (H, W+1) float64 per-row prefix sums of the
+    map's function; cell (Hc, Wc) float64 the function summed over each cell, from the
+    prefix sums), K = n_oct^2. Cell I spans texel rows I H // Hc .. (I+1) H // Hc."""
+    H, W = pixels.shape[:2]
+    f = texel_function(pixels, bilinear)
+    prefix = np.concatenate([np.zeros((H, 1)), np.cumsum(f, axis=1)], axis=1)
+    Hc, Wc = min(H, coarse[0]), min(W, coarse[1])
+    rb = np.arange(Hc + 1) * H // Hc
+    cb = np.arange(Wc + 1) * W // Wc
+    per_row = prefix[:, cb[1:]] - prefix[:, cb[:-1]]                     # (H, Wc)
+    cell = np.add.reduceat(per_row, rb[:-1], axis=0)                     # (Hc, Wc)
+    # Cosine factor: the largest cosine over 3 x 3 points of each cell (corners, edge
+    # midpoints, centre), clamped at 0.
+    th = PI * rb / H
+    uu = cb / W
+    th3 = np.stack([th[:-1], 0.5 * (th[:-1] + th[1:]), th[1:]], -1)   # (Hc, 3)
+    u3 = np.stack([uu[:-1], 0.5 * (uu[:-1] + uu[1:]), uu[1:]], -1)     # (Wc, 3)
+    pts = _cell_directions(th3[:, None, :, None], u3[None, :, None, :])  # (Hc, Wc, 3, 3, 3)
+    K = n_oct * n_oct
+    normals = np.array([octahedral_centre(k, n_oct) for k in range(K)])
+    rows = np.empty((K, Hc + 1))
+    cols = np.empty((K, Hc, Wc + 1))
+    mass = np.empty((K, Hc, Wc))
+    flat = pts.reshape(Hc, Wc, 9, 3)
+    for k in range(K):
+        c = np.maximum((flat @ normals[k]).max(axis=2), 0.0)
+        m = cell * c
+        if not m.sum() > 0:
+            m = cell  # nothing above this cluster's horizon: the map's own (any is unbiased)
+        total = m.sum()
+        if not total > 0:
+            m = np.ones((Hc, Wc))
+            total = m.sum()
+        rs = m.sum(axis=1)
+        rows[k] = np.concatenate([[0.0], np.cumsum(rs)]) / total
+        rows[k, -1] = 1.0
+        safe = np.where(rs > 0, rs, 1.0)
+        cc = np.concatenate([np.zeros((Hc, 1)), np.cumsum(m, axis=1)], axis=1) / safe[:, None]
+        cc[rs <= 0] = np.linspace(0.0, 1.0, Wc + 1)
+        cc[:, -1] = 1.0
+        cols[k] = cc
+        mass[k] = m / total
+    return (np.ascontiguousarray(rows), np.ascontiguousarray(cols), np.ascontiguousarray(mass),
+            np.ascontiguousarray(prefix), np.ascontiguousarray(cell))
 
 # ---------------------------------------------------------------------- kernels
 @kernel
@@ -297,6 +425,152 @@ def env_sample(R, rows, cols, pdf_uv, u1, u2):
 
 
 @kernel
+def octahedral_cell(n_oct, x, y, z):
+    """Octahedral cell (row * n_oct + column) of direction (x, y, z) (need not be unit;
+    0: cell of +Z)."""
+    s = abs(x) + abs(y) + abs(z)
+    if not s > 0:
+        return (n_oct // 2) * n_oct + n_oct // 2
+    a = x / s
+    b = y / s
+    if z < 0:
+        a, b = (1.0 - abs(y / s)) * (1.0 if x >= 0 else -1.0), (1.0 - abs(x / s)) * (
+            1.0 if y >= 0 else -1.0)
+    ix = min(max(int((a + 1.0) * 0.5 * n_oct), 0), n_oct - 1)
+    iy = min(max(int((b + 1.0) * 0.5 * n_oct), 0), n_oct - 1)
+    return iy * n_oct + ix
+
+
+@kernel
+def _cosine_texel_pdf(c_mass, prefix, cell, k, i, j):
+    """pdf_uv of texel (i, j) under cluster k's cosine-weighted distribution."""
+    H = prefix.shape[0]
+    W = prefix.shape[1] - 1
+    Hc = cell.shape[0]
+    Wc = cell.shape[1]
+    # the texel's cell: the largest I with I H // Hc <= i
+    I = min((i * Hc + Hc - 1) // H, Hc - 1)
+    while I > 0 and (I * H) // Hc > i:
+        I -= 1
+    while I < Hc - 1 and ((I + 1) * H) // Hc <= i:
+        I += 1
+    J = min((j * Wc + Wc - 1) // W, Wc - 1)
+    while J > 0 and (J * W) // Wc > j:
+        J -= 1
+    while J < Wc - 1 and ((J + 1) * W) // Wc <= j:
+        J += 1
+    cf = cell[I, J]
+    if not cf > 0:
+        return 0.0
+    return c_mass[k, I, J] * (prefix[i, j + 1] - prefix[i, j]) / cf * (H * W)
+
+
+@kernel
+def env_cosine_pdf(R, c_mass, prefix, cell, n_oct, d0, d1, d2, s0, s1, s2):
+    """Solid-angle pdf of world direction d under the cosine-weighted distribution of the
+    cluster of shading normal s (world space)."""
+    t0, t1, t2 = env_rotate(R, d0, d1, d2)
+    length = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    if not length > 0:
+        return 0.0
+    sin_t = math.sqrt(t0 * t0 + t1 * t1) / length
+    if not sin_t > 0:
+        return 0.0
+    m0, m1, m2 = env_rotate(R, s0, s1, s2)
+    k = octahedral_cell(n_oct, m0, m1, m2)
+    u, v = env_uv(t0, t1, t2)
+    H = prefix.shape[0]
+    W = prefix.shape[1] - 1
+    j = min(max(int(u * W), 0), W - 1)
+    i = min(max(int((1.0 - v) * H), 0), H - 1)
+    return _cosine_texel_pdf(c_mass, prefix, cell, k, i, j) / (2.0 * PI * PI * sin_t)
+
+
+@kernel
+def env_cosine_sample(R, c_rows, c_cols, c_mass, prefix, cell, n_oct, s0, s1, s2, u1, u2):
+    """A world direction drawn from the cosine-weighted distribution of the cluster of
+    shading normal s: (d0, d1, d2, pdf); pdf 0 where nothing can be drawn."""
+    H = prefix.shape[0]
+    W = prefix.shape[1] - 1
+    Hc = cell.shape[0]
+    Wc = cell.shape[1]
+    m0, m1, m2 = env_rotate(R, s0, s1, s2)
+    k = octahedral_cell(n_oct, m0, m1, m2)
+    rows = c_rows[k]
+    I = _find_interval(rows, Hc, u1)
+    span = rows[I + 1] - rows[I]
+    a = (u1 - rows[I]) / span if span > 0 else 0.5
+    a = min(max(a, 0.0), 0.9999999999999999)
+    cols = c_cols[k, I]
+    J = _find_interval(cols, Wc, u2)
+    span = cols[J + 1] - cols[J]
+    b = (u2 - cols[J]) / span if span > 0 else 0.5
+    b = min(max(b, 0.0), 0.9999999999999999)
+    i0 = (I * H) // Hc
+    i1 = ((I + 1) * H) // Hc
+    j0 = (J * W) // Wc
+    j1 = ((J + 1) * W) // Wc
+    # The texel row within the cell: rows in proportion to their function over the cell.
+    target = a * cell[I, J]
+    acc = 0.0
+    i = -1
+    fy = 0.5
+    for r in range(i0, i1):
+        w = prefix[r, j1] - prefix[r, j0]
+        if w > 0:
+            i = r
+            if target < acc + w:
+                fy = (target - acc) / w
+                break
+            fy = 0.9999999999999999  # (rounding at the cell's end: its last row)
+        acc += w
+    if i < 0:
+        return 0.0, 0.0, 1.0, 0.0
+    fy = min(max(fy, 0.0), 0.9999999999999999)
+    # The texel column: the row's prefix sums restricted to the cell.
+    lo_v = prefix[i, j0]
+    x = lo_v + b * (prefix[i, j1] - lo_v)
+    lo, hi = j0, j1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if prefix[i, mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    j = min(max(lo - 1, j0), j1 - 1)
+    w = prefix[i, j + 1] - prefix[i, j]
+    fx = (x - prefix[i, j]) / w if w > 0 else 0.5
+    fx = min(max(fx, 0.0), 1.0)
+    p = _cosine_texel_pdf(c_mass, prefix, cell, k, i, j)
+    theta = PI * (i + fy) / H
+    u = (j + fx) / W
+    phi = TWO_PI * (0.5 - u)
+    st = math.sin(theta)
+    t0, t1, t2 = st * math.cos(phi), st * math.sin(phi), math.cos(theta)
+    d0 = R[0, 0] * t0 + R[1, 0] * t1 + R[2, 0] * t2
+    d1 = R[0, 1] * t0 + R[1, 1] * t1 + R[2, 1] * t2
+    d2 = R[0, 2] * t0 + R[1, 2] * t1 + R[2, 2] * t2
+    if not (p > 0 and st > 0):
+        return d0, d1, d2, 0.0
+    return d0, d1, d2, p / (2.0 * PI * PI * st)
+
+
+@kernel
+def cosine_pdf_many(d, ns, R, c_mass, prefix, cell, n_oct, out):
+    for n in range(d.shape[0]):
+        out[n] = env_cosine_pdf(R, c_mass, prefix, cell, n_oct, d[n, 0], d[n, 1], d[n, 2],
+                                ns[n, 0], ns[n, 1], ns[n, 2])
+
+
+@kernel
+def cosine_sample_many(u1, u2, ns, R, c_rows, c_cols, c_mass, prefix, cell, n_oct, wi, pdf):
+    for n in range(u1.shape[0]):
+        wi[n, 0], wi[n, 1], wi[n, 2], pdf[n] = env_cosine_sample(
+            R, c_rows, c_cols, c_mass, prefix, cell, n_oct, ns[n, 0], ns[n, 1], ns[n, 2],
+            u1[n], u2[n])
+
+
+@kernel
 def radiance_many(d, R, px, interp, out):
     for n in range(d.shape[0]):
         out[n, 0], out[n, 1], out[n, 2] = env_radiance(R, px, interp, d[n, 0], d[n, 1], d[n, 2])
@@ -321,3 +595,5 @@ def _warm_up():
     env.radiance(d)
     env.pdf(d)
     env.sample(np.full(1, 0.3), np.full(1, 0.6))
+    env.cosine_pdf(d, d)
+    env.cosine_sample(np.full(1, 0.3), np.full(1, 0.6), d)

@@ -26,9 +26,9 @@ def pack_lights(lights):
     """(codes (L,) int64, params (L,P) float64, arrays) for a list of Light; `arrays` are
     the emissive triangles' (v0, e1, e2, ng, L, area/prob, cdf, round32, tilt32), empty
     without emissive meshes, then the world's environment map (radiance texels (H,W,3)
-    float32, row cdf (H+1,), column cdfs (H,W+1), pdf_uv (H,W) float32:
-    environment.build_distribution),
-    one black texel without one."""
+    float32 and its cosine-weighted distributions: row cdfs (K,Hc+1), column cdfs
+    (K,Hc,Wc+1), cell probabilities (K,Hc,Wc), per-row prefix sums (H,W+1), cell sums
+    (Hc,Wc): environment.build_cosine_distributions), one black texel without one."""
     codes = np.zeros(len(lights), np.int64)
     params = np.zeros((len(lights), P))
     mesh = None
@@ -40,10 +40,11 @@ def pack_lights(lights):
         elif codes[i] == CODE_WORLD and getattr(light, "environment", None) is not None:
             env = light.environment
     if env is None:
-        env_arrays = (np.zeros((1, 1, 3), np.float32), np.array([0.0, 1.0]),
-                      np.array([[0.0, 1.0]]), np.zeros((1, 1), np.float32))
+        env_arrays = (np.zeros((1, 1, 3), np.float32), np.array([[0.0, 1.0]]),
+                      np.array([[[0.0, 1.0]]]), np.zeros((1, 1, 1)), np.zeros((1, 2)),
+                      np.zeros((1, 1)))
     else:
-        env_arrays = (env.pixels, *env.distribution)
+        env_arrays = (env.pixels, *env.cosine_distributions)
     c = np.ascontiguousarray
     if mesh is None:
         z3 = np.zeros((0, 3))

@@ -4,11 +4,14 @@ Two forms:
   constant     a non-black background colour: uniform radiance `background`, sampled for
                shadow rays by the cosine hemisphere around the shading normal
   environment  an equirectangular image (engine/lights/environment.py): shadow rays use
-               one-sample multiple importance sampling of the environment's 2D
-               piecewise-constant distribution and the cosine hemisphere (balance
-               heuristic, each picked with probability 1/2), so a small bright sun in the
-               map and a dim, wide sky are both sampled well; photons leave a disk beyond
-               the scene's bounding sphere with directions from the same distribution.
+               one-sample multiple importance sampling (balance heuristic) of the map
+               times the cosine to the shading normal's cluster (the environment's
+               cosine-weighted distributions, picked with probability ENV_MAP_FRACTION)
+               and the cosine hemisphere, so a small bright sun in the map, the dim, wide
+               sky and the directions the cluster's cosine misses are all sampled, and no
+               sample goes below the surface's horizon; photons leave a disk beyond the
+               scene's bounding sphere with directions from the map's own 2D
+               piecewise-constant distribution.
 
 `background_radiance` gives the radiance of rays that escape the scene (camera rays that
 miss, specular continuations); `WorldLight.pdf` the solid-angle pdf of the shadow-ray
@@ -28,9 +31,11 @@ from . import packing as pk
 from .base import InfiniteLight
 
 WORLD = "WORLD"
-# Probability that a shadow ray of an environment-mapped world samples the map (else
-# the cosine hemisphere); directlight.sample_lights uses the same constant.
-ENV_MAP_FRACTION = 0.5
+# Probability that a shadow ray of an environment-mapped world samples the map's
+# cosine-weighted distribution (else the cosine hemisphere); directlight.sample_lights
+# uses the same constant. (0.5 with the map's plain distribution until issue 14: the
+# case-3 HDRI scene's floor, direct light per sample, docs/performance.md.)
+ENV_MAP_FRACTION = 0.75
 
 
 def background_radiance(scene, d: np.ndarray) -> np.ndarray:
@@ -87,15 +92,16 @@ class WorldLight(InfiniteLight):
         """Solid-angle pdf (N,) (1/sr) with which this light's shadow-ray sampling
         (directlight.sample_lights) picks unit directions wi (N,3) towards the world at
         shading points with shading normals ns (N,3): cos(wi, ns)^+ / pi for a constant
-        world; ENV_MAP_FRACTION x the environment's pdf + (1 - ENV_MAP_FRACTION) x
-        cos^+ / pi with an environment map. Multiply by the light's selection probability
+        world; ENV_MAP_FRACTION x the environment's cosine-weighted pdf at ns + (1 -
+        ENV_MAP_FRACTION) x cos^+ / pi with an environment map. Multiply by the light's selection probability
         (engine/lights/selection.py) for the full light-sampling pdf of a BSDF-sampled ray
         that escapes (power or balance heuristic, pbrt-v4's PathIntegrator)."""
         wi = np.asarray(wi, np.float64).reshape(-1, 3)
         cos_pdf = np.maximum(dot(wi, np.asarray(ns, np.float64).reshape(-1, 3)), 0.0) / math.pi
         if self.environment is None:
             return cos_pdf
-        return ENV_MAP_FRACTION * self.environment.pdf(wi) + (1.0 - ENV_MAP_FRACTION) * cos_pdf
+        return (ENV_MAP_FRACTION * self.environment.cosine_pdf(wi, ns)
+                + (1.0 - ENV_MAP_FRACTION) * cos_pdf)
 
     def seen_at_infinity(self, d):
         return None  # the background itself: background_radiance
