@@ -422,7 +422,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, hit_rows,
              flat_mat, flat_limit):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
-    ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits as Embree answers them (Accel.intersect_hits):
+    ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
+    as Embree answers them (Accel.intersect_hits):
     geom, prim (m,) int32 (geom < 0: missed; lost; else the triangle's row is
     starts[geom] + prim, starts (G,) int64). Surface data: with
     given False computed here from the hits' float32 barycentrics u, v (m,) and the triangle
@@ -445,7 +446,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     Writes the stored photons (float32 position, power, direction of travel, normal on
     the arriving side; uint8 kind; (4,) uint8 bounce counts) to st_* (m rows at most) and
     the continued photons (float32 origins and directions for Embree, float64 directions,
-    power, flags, kinds, slots, packed bounce counts) to nx_* (2m rows at most: the continuations, then the copies that pass
+    power, flags, kinds, slots, packed bounce counts) to nx_* (2m rows at most: the
+    continuations, then the copies that pass
     surfaces some of their ray kinds do not see). Returns (stored, continued) counts.
     hit_rows (2, >= m) int64: scratch for the hits' rows and triangle rows (lent by the
     trace's buffer pool: fresh arrays per call cost page faults; contents ignored).

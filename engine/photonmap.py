@@ -17,6 +17,7 @@ wall) are ignored: that is what keeps light from leaking.
 from __future__ import annotations
 
 import copy
+from dataclasses import replace
 import math
 
 import numpy as np
@@ -71,11 +72,12 @@ class PhotonMap:
     it serves best), required for "hashgrid". Raises ValueError for anything else.
     rows: (K,) int, the map holds only those photons (photons.take(rows), gathered once
     straight into the tree's order instead of twice); power_scale: (K,) float32 factors
-    multiplying those photons' power (the same float32 products as scaling first)."""
+    multiplying those photons' power (the same float32 products as scaling first);
+    keep_source: keep self.source, (K,) int64, each map photon's row in `photons`."""
 
     def __init__(self, photons: Photons, workers: int = 1, structure: str = "kdtree",
                  cell: float | None = None, rows: np.ndarray | None = None,
-                 power_scale: np.ndarray | None = None):
+                 power_scale: np.ndarray | None = None, keep_source: bool = False):
         if structure not in STRUCTURES:
             raise ValueError(f"PhotonMap: structure must be one of {', '.join(STRUCTURES)}, "
                              f"got {structure!r}")
@@ -96,6 +98,8 @@ class PhotonMap:
         order = self.tree.order
         self.tree.order = None  # the photons are permuted below; the map needs no order
         source = order if rows is None else np.take(rows, order)
+        if keep_source:
+            self.source = source
         power = np.take(photons.power, source, axis=0)
         if power_scale is not None:
             power *= np.take(np.asarray(power_scale, np.float32), order)[:, None]
@@ -519,13 +523,21 @@ class GatherMap:
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
-                 workers: int = 1, should_cancel=None, rows: np.ndarray | None = None):
+                 workers: int = 1, should_cancel=None, rows: np.ndarray | None = None,
+                 subsets=()):
         """rows: (K,) int, build from photons.take(rows) only (gathered once, straight into
         the trees' order). The independent steps run side by side on `workers` threads
         (parallel.run_tasks: the two kd-trees, then the points' irradiance and their
         neighbour lists): the same map for any thread count. should_cancel (a StopFlag or
-        a callable) is asked between the steps; raises parallel.Cancelled."""
+        a callable) is asked between the steps; raises parallel.Cancelled.
+        subsets: (N,) bool masks over `photons`, each keeping fewer of the rows' photons
+        (the bounce limits' deeper levels, engine/render.py); self.subset_maps then holds,
+        per mask, this map with the irradiance of that mask's photons alone at the same
+        gather points: the same trees, neighbour lists and estimate discs, the other
+        photons' power counted as 0 (an unbiased estimate of the subset's irradiance),
+        for about the cost of the points' estimates instead of a whole map's."""
         self.workers = workers
+        self.subset_maps = []
         # With an Accel, a lookup only takes a gather point it can see: a point on the
         # other side of a wall (e.g. the ground outside a room, coplanar with the floor
         # inside) would otherwise leak light under the wall (docs/stability.md).
@@ -554,7 +566,8 @@ class GatherMap:
         trees = [lambda stop, pts=np.take(position, points, axis=0):
                  kdtree.KdTree(pts, workers=workers),
                  lambda stop, rows_=np.take(rows, others), scale_=scale:
-                 PhotonMap(photons, workers, rows=rows_, power_scale=scale_)]
+                 PhotonMap(photons, workers, rows=rows_, power_scale=scale_,
+                           keep_source=bool(len(subsets)))]
         del position, share, is_point, others, scale
         tree, estimating = run_tasks(trees, workers, should_cancel)
         del trees
@@ -572,10 +585,24 @@ class GatherMap:
         def neighbours(stop):
             return tree.neighbour_lists(workers=workers, should_cancel=stop)
 
-        (self.E, self.boundary), self.neighbours = run_tasks([estimate, neighbours], workers,
-                                                             should_cancel)
+        def subset_estimate(keep):
+            def run(stop):
+                view = copy.copy(estimating)
+                power = estimating.photons.power * np.take(keep, estimating.source)[:, None]
+                view.photons = replace(estimating.photons, power=power.astype(np.float32))
+                return view.irradiance(self.position, self.normal, radius, k, min_photons,
+                                       estimator, return_boundary=True, should_cancel=stop)
+            return run
+
+        done = run_tasks([estimate, neighbours] + [subset_estimate(m) for m in subsets],
+                         workers, should_cancel)
+        (self.E, self.boundary), self.neighbours = done[0], done[1]
         self.radius = radius
         self.tree = tree
+        for E, boundary in done[2:]:
+            view = copy.copy(self)
+            view.E, view.boundary, view.subset_maps = E, boundary, []
+            self.subset_maps.append(view)
 
     def serial(self) -> "GatherMap":
         """The same map, queried on the calling thread only (see PhotonMap.serial)."""

@@ -45,7 +45,8 @@ class Context:
     # The maps final gathering's regathers read at level 1, 2, ... (integrator._regather):
     # their points are that many diffuse bounces deeper, so under the bounce limits they
     # hold fewer photons (docs/design.md, Bounce limits); the same objects as gather_map
-    # / secondary_map where the limits leave every photon, None where they leave none.
+    # / secondary_map where the limits leave every photon; a regather map is gather_map's
+    # subset map (GatherMap.subset_maps: the same points, that level's photons' irradiance).
     regather_maps: tuple = ()
     regather_secondary: tuple = ()
     gather_short: float = 0.0  # gather rays shorter than this gather again from their end
@@ -418,26 +419,25 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             # later (CAUSTIC_DIFFUSE photons) is estimated directly at the camera hit.
             # Every photon of a disc counts outside paper mode (smooth_min_photons):
             # zeroing discs below min_photons darkened thinly lit surfaces.
+            # The regathers' maps, level by level: where the limits drop photons the
+            # level above keeps, the level-0 map's irradiance from those photons alone at
+            # the same gather points (GatherMap subsets: the points' estimates again, not
+            # a whole map; whole maps per level doubled Figure 6's map build).
+            masks, level_of = [], []
+            last = gathered
+            for level in range(1, MAX_GATHER_LEVEL + 1):
+                ok = shot.usable(limits, camera=(level + 1, level + 1, 0, 0))
+                if not np.array_equal(ok, last):
+                    masks.append(ok)
+                    last = ok
+                level_of.append(len(masks) - 1)
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
                                    should_cancel=flag,
-                                   rows=np.flatnonzero((shot.kind != CAUSTIC) & gathered))
-            # The regathers' maps, level by level (a map of its own only where the
-            # limits drop photons the level above keeps).
-            deeper, last = [], (gather_map, gathered)
-            for level in range(1, MAX_GATHER_LEVEL + 1):
-                check(flag)
-                ok = shot.usable(limits, camera=(level + 1, level + 1, 0, 0))
-                if np.array_equal(ok, last[1]):
-                    deeper.append(last[0])
-                    continue
-                rows = np.flatnonzero((shot.kind != CAUSTIC) & ok)
-                gmap = None if len(rows) == 0 else GatherMap(
-                    shot, s.radius or r_global, k, smooth_min_photons(s), s.estimator,
-                    accel=ctx.accel, workers=workers, should_cancel=flag, rows=rows)
-                deeper.append(gmap)
-                last = (gmap, ok)
-            out_deeper["regather_maps"] = tuple(deeper)
+                                   rows=np.flatnonzero((shot.kind != CAUSTIC) & gathered),
+                                   subsets=masks)
+            out_deeper["regather_maps"] = tuple(
+                gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of)
         return r_global, gather_map
 
     def other_maps(flag):

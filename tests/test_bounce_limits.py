@@ -180,3 +180,24 @@ def test_scene_file_and_command_line_set_the_limits(tmp_path):
     _, kw = cli._scene_and_overrides(args)
     s = RenderSettings(**kw)
     assert s.bounce_limits.tolist() == [9, 2, 1, 3]
+
+
+def test_gather_map_subsets_estimate_their_photons_alone_at_the_same_points():
+    """The regathers' maps (GatherMap subset_maps): the level-0 map's points, trees and
+    discs with the irradiance of a subset's photons. Every photon kept: the map's own
+    numbers bit for bit; none: zero; a photon in two by a fair coin: half the irradiance
+    on average (the other photons' power counted as 0, an unbiased subset estimate)."""
+    from engine.photonmap import GatherMap
+    ph = shoot(closed_box(0.6, 100.0), RenderSettings(photons=20000, **HIGH))
+    n = len(ph)
+    coin = np.random.default_rng(5).random(n) < 0.5
+    g = GatherMap(ph, 0.2, 32, 1, "knn_simpson", workers=1,
+                  subsets=[np.ones(n, bool), np.zeros(n, bool), coin])
+    same, none, half = g.subset_maps
+    assert np.array_equal(same.E, g.E) and np.array_equal(same.boundary, g.boundary)
+    assert same.tree is g.tree and same.neighbours is g.neighbours
+    assert not none.E.any()
+    lit = g.E.sum(axis=1) > 0
+    ratio = half.E[lit].sum() / g.E[lit].sum()
+    assert abs(ratio - 0.5) < 0.02, ratio
+    assert g.subset_maps and not same.subset_maps
