@@ -76,3 +76,24 @@ def assert_mis_matches_continuation(mis, mis2, cont, cont2, noise_limit, cont_sp
     se = raw_cont / math.sqrt(2.0) / math.sqrt(2.0 * mis.size)
     assert m_mis > 0
     assert abs(m_mis - m_cont) <= max(4.0 * se, 0.02 * m_cont), (m_mis, m_cont, se)
+
+
+def random_environment(seed=3, h=12, w=24, rotation=None, interpolation="Linear"):
+    """A small random equirectangular Environment (h x w) with a bright texel (a sun) and a
+    black bottom row (zero pdf there unless the filter covers it)."""
+    from engine import Environment
+    rng = np.random.default_rng(seed)
+    px = rng.random((h, w, 3)) ** 3
+    px[2, 5] = 300.0   # a sun
+    px[h - 1, :] = 0.0  # a black band
+    return Environment(px, 1.3, rotation, interpolation)
+
+
+def sphere_grid(n_theta, n_phi):
+    """Cell-midpoint directions (K,3) of a (theta, phi) grid over the sphere, their
+    sin(theta) (K,) and the d(theta) d(phi) of a cell."""
+    th = (np.arange(n_theta) + 0.5) / n_theta * math.pi
+    ph = (np.arange(n_phi) + 0.5) / n_phi * 2 * math.pi
+    t, p = np.meshgrid(th, ph, indexing="ij")
+    d = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
+    return d, np.sin(t).reshape(-1), (math.pi / n_theta) * (2 * math.pi / n_phi)

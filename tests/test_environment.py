@@ -13,47 +13,32 @@ from engine.lights import WorldLight, prepare_lights
 from engine.scene import euler_rotation
 from engine.scene import Camera
 from engine.scenefile import SceneFileError, load_scene
-from helpers import top_down_plane
+from helpers import random_environment, sphere_grid, top_down_plane
 
 DIRECT_ONLY = dict(photon_mapping=False, max_depth=0)
 
 
-def _random_env(seed=3, h=12, w=24, rotation=None, interpolation="Linear"):
-    rng = np.random.default_rng(seed)
-    px = rng.random((h, w, 3)) ** 3
-    px[2, 5] = 300.0   # a sun
-    px[h - 1, :] = 0.0  # a black band: zero pdf there unless the filter covers it
-    return Environment(px, 1.3, rotation, interpolation)
-
-
-def _sphere_grid(n_theta, n_phi):
-    """Cell-midpoint directions of a (theta, phi) grid and the d(theta) d(phi) of a cell."""
-    th = (np.arange(n_theta) + 0.5) / n_theta * math.pi
-    ph = (np.arange(n_phi) + 0.5) / n_phi * 2 * math.pi
-    t, p = np.meshgrid(th, ph, indexing="ij")
-    d = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
-    return d, np.sin(t).reshape(-1), (math.pi / n_theta) * (2 * math.pi / n_phi)
 
 
 @pytest.mark.parametrize("rotation", [None, euler_rotation((0.0, 0.0, 0.0))])
 def test_pdf_integrates_to_one_over_the_sphere(rotation):
-    env = _random_env(rotation=rotation)
+    env = random_environment(rotation=rotation)
     # pdf x sin(theta) is constant on each texel: cell midpoints of a grid 4x finer than
     # the texels integrate it exactly (to the float32 rounding of the stored pdf).
-    d, sin_t, cell = _sphere_grid(4 * env.height, 4 * env.width)
+    d, sin_t, cell = sphere_grid(4 * env.height, 4 * env.width)
     total = float(np.sum(env.pdf(d) * sin_t) * cell)
     assert abs(total - 1.0) < 1e-6, total
 
 
 def test_pdf_integrates_to_one_when_rotated():
-    env = _random_env(rotation=euler_rotation((0.4, -0.3, 1.1)))
-    d, sin_t, cell = _sphere_grid(400, 800)  # no longer texel-aligned: a fine quadrature
+    env = random_environment(rotation=euler_rotation((0.4, -0.3, 1.1)))
+    d, sin_t, cell = sphere_grid(400, 800)  # no longer texel-aligned: a fine quadrature
     total = float(np.sum(env.pdf(d) * sin_t) * cell)
     assert abs(total - 1.0) < 2e-3, total
 
 
 def test_samples_follow_their_pdf():
-    env = _random_env(rotation=euler_rotation((0.2, 0.5, -0.7)))
+    env = random_environment(rotation=euler_rotation((0.2, 0.5, -0.7)))
     rng = np.random.default_rng(0)
     n = 200_000
     wi, pdf = env.sample(rng.random(n), rng.random(n))
@@ -61,7 +46,7 @@ def test_samples_follow_their_pdf():
     assert np.allclose(pdf, env.pdf(wi), rtol=1e-9)
     # Every direction with radiance has pdf > 0 (the filtered distribution covers the
     # bilinear lookup's spread), so radiance / pdf estimates the integral without bias.
-    d, sin_t, cell = _sphere_grid(200, 400)
+    d, sin_t, cell = sphere_grid(200, 400)
     L = env.radiance(d)
     assert np.all(env.pdf(d)[L.max(axis=1) > 0] > 0)
     estimate = (env.radiance(wi) / pdf[:, None]).mean(axis=0)
@@ -193,7 +178,7 @@ def test_camera_rays_that_miss_see_the_map_and_film_transparent_hides_it():
 
 def test_world_photons_carry_the_maps_flux():
     s = top_down_plane(0.5, res=8)
-    s.environment = _random_env()
+    s.environment = random_environment()
     geo, table = prepare(s)
     world = [li for li in prepare_lights(s, geo, table) if isinstance(li, WorldLight)][0]
     R = world.scene_radius
@@ -211,7 +196,7 @@ def test_world_photons_carry_the_maps_flux():
 def test_environment_renders_deterministically_with_photons():
     s = top_down_plane(0.5, res=8)
     s.add_sphere((0, 0, 0.5), 0.5, "white_diffuse")
-    s.environment = _random_env()
+    s.environment = random_environment()
     st = RenderSettings(spp=2, photons=2000, seed=9)
     a = s.render(st).combined
     b = s.render(st).combined

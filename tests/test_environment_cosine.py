@@ -19,25 +19,11 @@ from engine.lights.environment import (N_OCT, build_cosine_distributions, octahe
 from engine.lights.packing import pack_lights
 from engine.lights.selection import empty_tree
 from engine.scene import euler_rotation
-from helpers import top_down_plane
+from helpers import random_environment, sphere_grid, top_down_plane
 
 NORMALS = [(0, 0, 1.0), (0.3, -0.2, 0.9), (0, 0, -1.0), (1.0, 0, 0), (-0.5, 0.7, -0.2)]
 
 
-def _random_env(seed=3, h=12, w=24, rotation=None, interpolation="Linear"):
-    rng = np.random.default_rng(seed)
-    px = rng.random((h, w, 3)) ** 3
-    px[2, 5] = 300.0   # a sun
-    px[h - 1, :] = 0.0  # a black band
-    return Environment(px, 1.3, rotation, interpolation)
-
-
-def _sphere_grid(n_theta, n_phi):
-    th = (np.arange(n_theta) + 0.5) / n_theta * math.pi
-    ph = (np.arange(n_phi) + 0.5) / n_phi * 2 * math.pi
-    t, p = np.meshgrid(th, ph, indexing="ij")
-    d = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
-    return d, np.sin(t).reshape(-1), (math.pi / n_theta) * (2 * math.pi / n_phi)
 
 
 def _unit(n):
@@ -47,10 +33,10 @@ def _unit(n):
 
 @pytest.mark.parametrize("n", NORMALS)
 def test_cosine_pdf_integrates_to_one(n):
-    env = _random_env()
+    env = random_environment()
     # pdf x sin(theta) is constant on each texel: a grid 4x finer than the texels,
     # aligned with them, integrates it exactly (to the float32 pixels' rounding).
-    d, sin_t, cell = _sphere_grid(4 * env.height, 4 * env.width)
+    d, sin_t, cell = sphere_grid(4 * env.height, 4 * env.width)
     total = float(np.sum(env.cosine_pdf(d, _unit(n)[None]) * sin_t) * cell)
     assert abs(total - 1.0) < 1e-9, total
 
@@ -64,13 +50,13 @@ def test_cosine_pdf_integrates_to_one_on_a_coarse_grid_and_rotated():
     env = Environment(px)
     rows, cols, mass, prefix, cell = env.cosine_distributions
     assert mass.shape[1:] == (64, 128) and np.allclose(mass.sum(axis=(1, 2)), 1.0)
-    d, sin_t, c = _sphere_grid(2 * 150, 2 * 290)
+    d, sin_t, c = sphere_grid(2 * 150, 2 * 290)
     for n in NORMALS:
         total = float(np.sum(env.cosine_pdf(d, _unit(n)[None]) * sin_t) * c)
         assert abs(total - 1.0) < 1e-9, (n, total)
     # Rotated: no longer texel-aligned, a fine quadrature.
-    env = _random_env(rotation=euler_rotation((0.4, -0.3, 1.1)))
-    d, sin_t, c = _sphere_grid(400, 800)
+    env = random_environment(rotation=euler_rotation((0.4, -0.3, 1.1)))
+    d, sin_t, c = sphere_grid(400, 800)
     for n in NORMALS:
         total = float(np.sum(env.cosine_pdf(d, _unit(n)[None]) * sin_t) * c)
         assert abs(total - 1.0) < 2e-3, (n, total)
@@ -119,20 +105,20 @@ def test_cosine_samples_follow_their_pdf_chi_square(shape, rotation):
 
 @pytest.mark.parametrize("n", NORMALS)
 def test_cosine_sampling_estimates_irradiance_without_bias(n):
-    env = _random_env(rotation=euler_rotation((0.2, 0.5, -0.7)))
+    env = random_environment(rotation=euler_rotation((0.2, 0.5, -0.7)))
     n = _unit(n)
     rng = np.random.default_rng(11)
     N = 300_000
     wi, pdf = env.cosine_sample(rng.random(N), rng.random(N), n[None])
     c = np.maximum(wi @ n, 0.0)
     est = (env.radiance(wi) * (c / pdf)[:, None]).mean(axis=0)
-    d, sin_t, cell = _sphere_grid(400, 800)
+    d, sin_t, cell = sphere_grid(400, 800)
     quad = (env.radiance(d) * (np.maximum(d @ n, 0) * sin_t * cell)[:, None]).sum(axis=0)
     assert np.allclose(est, quad, rtol=0.01), (est, quad)
 
 
 def test_cosine_distribution_has_no_mass_below_the_clusters_horizon():
-    env = _random_env()
+    env = random_environment()
     rows, cols, mass, prefix, cell = env.cosine_distributions
     k = (N_OCT // 2) * N_OCT + N_OCT // 2   # the cell of +Z
     assert np.allclose(octahedral_centre(k), [0, 0, 1])
@@ -148,7 +134,7 @@ def test_cosine_distribution_has_no_mass_below_the_clusters_horizon():
 
 
 def test_cluster_of_a_normal_is_the_octahedral_cell_it_falls_in():
-    env = _random_env()
+    env = random_environment()
     rng = np.random.default_rng(2)
     n = rng.normal(size=(2000, 3))
     n /= np.linalg.norm(n, axis=1)[:, None]
@@ -188,7 +174,7 @@ def _world_light_samples(env, normals, n=20000, seed=4):
 
 
 def test_shadow_ray_pdf_is_the_one_mis_uses_and_weights_sum_to_one():
-    env = _random_env(rotation=euler_rotation((0.2, 0.5, -0.7)))
+    env = random_environment(rotation=euler_rotation((0.2, 0.5, -0.7)))
     rng = np.random.default_rng(5)
     normals = rng.normal(size=(20000, 3))
     normals /= np.linalg.norm(normals, axis=1)[:, None]
@@ -209,12 +195,12 @@ def test_shadow_ray_pdf_is_the_one_mis_uses_and_weights_sum_to_one():
 
 @pytest.mark.parametrize("n", NORMALS[:4])
 def test_shadow_ray_mixture_estimates_irradiance_without_bias(n):
-    env = _random_env(rotation=euler_rotation((0.2, 0.5, -0.7)))
+    env = random_environment(rotation=euler_rotation((0.2, 0.5, -0.7)))
     n = _unit(n)
     N = 200_000
     row, contrib, _, _, _ = _world_light_samples(env, np.tile(n, (N, 1)), n=N)
     est = contrib.sum(axis=0) / N
-    d, sin_t, cell = _sphere_grid(400, 800)
+    d, sin_t, cell = sphere_grid(400, 800)
     quad = (env.radiance(d) * (np.maximum(d @ n, 0) * sin_t * cell)[:, None]).sum(axis=0)
     assert np.allclose(est, quad, rtol=0.015), (est, quad)
 
@@ -223,14 +209,14 @@ def test_random_environment_lights_an_open_plane_with_its_irradiance():
     """Analytic: an open diffuse plane of albedo rho under a map reflects rho E / pi with
     E the map's cosine-weighted integral over the upper hemisphere."""
     rho = 0.5
-    env = _random_env(rotation=euler_rotation((0.3, 0.2, 0.4)))
+    env = random_environment(rotation=euler_rotation((0.3, 0.2, 0.4)))
     s = top_down_plane(rho, res=16)
     s.environment = env
     # The image mean scatters by ~0.6 % over seeds (the sun texel): 4 seeds' mean.
     got = np.mean([s.render(RenderSettings(spp=64, seed=seed, photon_mapping=False,
                                            max_depth=0)).combined.reshape(-1, 3).mean(axis=0)
                    for seed in range(1, 5)], axis=0)
-    d, sin_t, cell = _sphere_grid(400, 800)
+    d, sin_t, cell = sphere_grid(400, 800)
     E = (env.radiance(d) * (np.maximum(d[:, 2], 0) * sin_t * cell)[:, None]).sum(axis=0)
     expected = rho * E / math.pi
     assert np.allclose(got, expected, rtol=0.01), (got, expected)

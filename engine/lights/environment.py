@@ -409,7 +409,15 @@ def env_sample(R, rows, cols, pdf_uv, u1, u2):
     span = cols[i, j + 1] - cols[i, j]
     fx = (u2 - cols[i, j]) / span if span > 0 else 0.5
     fx = min(max(fx, 0.0), 1.0)
-    p = pdf_uv[i, j]
+    return texel_direction(i, j, fx, fy, H, W, R, pdf_uv[i, j])
+
+
+@kernel
+def texel_direction(i, j, fx, fy, H, W, R, p):
+    """The world direction at (fx, fy) in [0,1]^2 inside texel (row i, column j) of an
+    H x W equirectangular map rotated by R (3,3), and the solid-angle pdf of texel pdf p
+    (per unit of the map's uv square): p / (2 pi^2 sin theta); 0 where p or sin theta is
+    0. Returns (d0, d1, d2, pdf)."""
     theta = PI * (i + fy) / H
     u = (j + fx) / W
     phi = TWO_PI * (0.5 - u)
@@ -541,18 +549,8 @@ def env_cosine_sample(R, c_rows, c_cols, c_mass, prefix, cell, n_oct, s0, s1, s2
     w = prefix[i, j + 1] - prefix[i, j]
     fx = (x - prefix[i, j]) / w if w > 0 else 0.5
     fx = min(max(fx, 0.0), 1.0)
-    p = _cosine_texel_pdf(c_mass, prefix, cell, k, i, j)
-    theta = PI * (i + fy) / H
-    u = (j + fx) / W
-    phi = TWO_PI * (0.5 - u)
-    st = math.sin(theta)
-    t0, t1, t2 = st * math.cos(phi), st * math.sin(phi), math.cos(theta)
-    d0 = R[0, 0] * t0 + R[1, 0] * t1 + R[2, 0] * t2
-    d1 = R[0, 1] * t0 + R[1, 1] * t1 + R[2, 1] * t2
-    d2 = R[0, 2] * t0 + R[1, 2] * t1 + R[2, 2] * t2
-    if not (p > 0 and st > 0):
-        return d0, d1, d2, 0.0
-    return d0, d1, d2, p / (2.0 * PI * PI * st)
+    return texel_direction(i, j, fx, fy, H, W, R,
+                           _cosine_texel_pdf(c_mass, prefix, cell, k, i, j))
 
 
 @kernel
