@@ -2,7 +2,9 @@
 
 Builds the same scene in bpy (meshes, materials, lights, camera, black world) and renders
 it with the settings that make Cycles comparable: no denoising, no clamping, no glossy
-filter, 32 bounces, box pixel filter of 1 px (our film's filter). Used by the benchmarks;
+filter, the engine's default bounce limits (Cycles' own defaults: RenderSettings' max /
+diffuse / glossy / transmission / transparent bounces, so our default renders and Cycles'
+count the same paths), box pixel filter of 1 px (our film's filter). Used by the benchmarks;
 the Blender tests compare through the add-on instead.
 """
 from __future__ import annotations
@@ -12,6 +14,8 @@ import tempfile
 import time
 
 import numpy as np
+
+from engine.settings import RenderSettings
 
 
 def _material(bpy, m):
@@ -128,9 +132,10 @@ def render(scene, samples: int, seed: int = 0) -> tuple[np.ndarray, float]:
     c.use_adaptive_sampling = False
     c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
     c.blur_glossy = 0.0
+    ours = RenderSettings()
     for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
-                 "transparent_max_bounces", "volume_bounces"):
-        setattr(c, attr, 32)
+                 "transparent_max_bounces"):
+        setattr(c, attr, getattr(ours, attr))
     c.caustics_reflective = c.caustics_refractive = True
     c.pixel_filter_type = "BOX"
     c.filter_width = 1.0
