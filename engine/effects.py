@@ -326,7 +326,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                            "caster; its reflections come from unaimed photons")
         if plan.rough_specular:
             shown = plan.rough_specular[:4]
-            rough_note = ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
+            rough_note += ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
                           + (" ..." if len(plan.rough_specular) > 4 else "")
                           + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
                           "light; unaimed photons carry its glossy reflections)")
@@ -430,7 +430,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         elif li.kind == MESH:
             why = f"{len(li.tri_index):,} emitting triangles sampled by area x brightness"
         elif sized:
-            why = f"{n_samples * spp} shadow rays per pixel for '{li.name}'"
+            rays = n_samples * spp
+            why = f"{rays} shadow ray{'s' if rays != 1 else ''} per pixel for '{li.name}'"
         else:
             what = {SUN: "sun of angle 0", AREA: "area light"}.get(li.kind, f"{li.kind.lower()} light of radius 0")
             why = f"'{li.name}' is a {what}: one shadow ray per sample"

@@ -201,3 +201,32 @@ def test_gather_map_subsets_estimate_their_photons_alone_at_the_same_points():
     ratio = half.E[lit].sum() / g.E[lit].sum()
     assert abs(ratio - 0.5) < 0.02, ratio
     assert g.subset_maps and not same.subset_maps
+
+
+def _regather_maps(scene):
+    from engine.render import prepare_context, shoot_photons
+    ctx = prepare_context(scene, RenderSettings(photons=40000, caustic_photons=0, workers=1))
+    try:
+        shoot_photons(ctx, {})
+        return ctx.gather_map, ctx.regather_maps
+    finally:
+        ctx.accel.close()
+
+
+def test_regathers_get_maps_of_their_depth_only_where_the_limits_drop_light():
+    """A closed bright box loses a large share of its photons' power at each deeper level:
+    each regather level reads a subset map of its own. A floor under a lamp, open to the sky,
+    has no deeper photons worth a map (under render.SUBSET_POWER_SHARE of the power): its
+    regathers read the level-0 map itself, and the map build costs no more than without
+    limits."""
+    g, deeper = _regather_maps(closed_box(0.8))
+    assert len(deeper) == 2 and all(m is not g for m in deeper) and deeper[0] is not deeper[1]
+    assert all(m.tree is g.tree for m in deeper)
+    s = PaperScene(width=16, height=12)
+    s.add_material(Material("grey", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 10.0, "grey", name="floor")
+    s.add_sphere((0, 0, 0.5), 0.5, "grey", name="ball")
+    s.add_point_light((1.0, -1.0, 5.0), power=2000.0)
+    s.set_camera((0, -4, 2), (0, 0, 0.4), view_angle=50)
+    g, deeper = _regather_maps(s)
+    assert g is not None and all(m is g for m in deeper)
