@@ -18,7 +18,7 @@ from engine.gatherkernels import (add_gathered, diffuse_lookups, keep_embree_hit
                                   lean_diffuse, lean_materials, rays_f32)
 from engine.geometry import MaterialTable
 from engine.scene import Material
-from engine.integrator import (MAX_GATHER_LEVEL, Counters, GatherBuffers, _closest_bvh,
+from engine.integrator import (MAX_GATHER_LEVEL, Counters, GatherBuffers, _closest_bvh, _deeper,
                                _secondary_irradiance, continue_specular, direct_irradiance,
                                gather_indirect)
 from engine.camerakernels import gather_rays
@@ -88,8 +88,9 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
             wd = lobe_weights(ctx.table, y)["diffuse"]
             dsel = np.nonzero(max3(wd) > 0)[0]
             if len(dsel):
-                Ey, boundary = ctx.gather_map.lookup(y.p[dsel], y.ng[dsel],
-                                                     offset=y.offset[dsel])
+                # (the map of this level's depth under the bounce limits, as the kernel)
+                Ey, boundary = _deeper(ctx.gather_map, ctx.regather_maps, level).lookup(
+                    y.p[dsel], y.ng[dsel], offset=y.offset[dsel])
                 if level < MAX_GATHER_LEVEL:
                     redo = boundary | (t[dsel] < ctx.gather_short)
                     if redo.any() and not batched:
@@ -98,7 +99,7 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
                                                       skip_mesh_lights=True)
                                     + _gather_indirect_numpy(ctx, ysub, rng, counters, 1,
                                                              level + 1, log, False)
-                                    + _secondary_irradiance(ctx, ysub, rng))
+                                    + _secondary_irradiance(ctx, ysub, rng, level + 1))
                     elif redo.any():
                         log["regathered"] += int(redo.sum())
                         rows = dsel[redo]
@@ -116,7 +117,7 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
         sub_rng = rng.spawn(1)[0]
         Esub = (direct_irradiance(ctx, ysub, sub_rng, counters, skip_mesh_lights=True)
                 + _gather_indirect_numpy(ctx, ysub, sub_rng, counters, 1, level + 1, log)
-                + _secondary_irradiance(ctx, ysub, sub_rng))
+                + _secondary_irradiance(ctx, ysub, sub_rng, level + 1))
         np.add.at(E, target, tps * wds * Esub / G)  # in order, as the kernel adds
     return E
 
