@@ -445,10 +445,13 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                     masks.append(ok)
                     last = ok
                 level_of.append(len(masks) - 1)
+            # Every non-caustic photon makes the map's points and discs; the irradiance
+            # counts those valid one diffuse bounce after the camera's hit (keep).
+            rows = np.flatnonzero(shot.kind != CAUSTIC)
             gather_map = GatherMap(shot, s.radius or r_global, k, smooth_min_photons(s),
                                    s.estimator, accel=ctx.accel, workers=workers,
-                                   should_cancel=flag,
-                                   rows=np.flatnonzero((shot.kind != CAUSTIC) & gathered),
+                                   should_cancel=flag, rows=rows,
+                                   keep=None if gathered[rows].all() else gathered,
                                    subsets=masks)
             out_deeper["regather_maps"] = tuple(
                 gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of)
