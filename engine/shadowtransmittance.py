@@ -41,7 +41,7 @@ from .accel import Accel
 from .closures import principled as pr
 from .geometry import ALL_RAYS
 from .jit import kernel, register_warm_up
-from .rayoffset import offset_along_normal
+from .rayoffset import offset_along_normal, winding_normal
 from .textures import material_alpha
 
 # Cycles' default transparent_max_bounces (Render Properties > Light Paths).
@@ -132,9 +132,7 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
                                   flat_limit, en, p, d[i, 0], d[i, 1], d[i, 2], px, py, pz)
             if ok:
                 m = tri_material[en]
-                nx = e1[en, 1] * e2[en, 2] - e1[en, 2] * e2[en, 1]
-                ny = e1[en, 2] * e2[en, 0] - e1[en, 0] * e2[en, 2]
-                nz = e1[en, 0] * e2[en, 1] - e1[en, 1] * e2[en, 0]
+                nx, ny, nz = winding_normal(e1, e2, en)
                 ln = math.sqrt(nx * nx + ny * ny + nz * nz)
                 dl = math.sqrt(d[i, 0] ** 2 + d[i, 1] ** 2 + d[i, 2] ** 2)
                 ci = min(abs(d[i, 0] * nx + d[i, 1] * ny + d[i, 2] * nz) / max(ln * dl, 1e-300),
@@ -245,9 +243,7 @@ def camera_passage(v0, e1, e2, material, object_id, flat_mat, flat_limit, mat_pa
                 continue
         if not flat_on:
             continue
-        nx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
-        ny = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
-        nz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+        nx, ny, nz = winding_normal(e1, e2, t)
         a = d_in[i, 0] * nx + d_in[i, 1] * ny + d_in[i, 2] * nz
         b = d_out[k, 0] * nx + d_out[k, 1] * ny + d_out[k, 2] * nz
         if not ((a < 0.0 and b < 0.0) or (a > 0.0 and b > 0.0)):
