@@ -12,7 +12,7 @@ first, so the compiled kernels it loads are not counted. --smooth gives the grid
 spheres vertex normals and UVs, else no mesh has either. --root measures another
 checkout (e.g. the main branch, for a before/after table).
 
-    .venv/bin/python bench/bench_memory.py [--quick]
+    .venv/bin/python bench/bench_memory.py [--quick] [--only HDRI]
     .venv/bin/python bench/bench_memory.py --triangles [--sizes 1000000 5000000] [--smooth]
 """
 from __future__ import annotations
@@ -42,6 +42,8 @@ CASES = [
                                                    "spp": 256, "gather_rays": 8}, 0),
     ("1M triangles", "figure3", 64, 48, {"photons": 1000, "caustic_photons": 0, "spp": 1},
      1_000_000),
+    # The Figure 3 ground lit by a 4k x 2k HDRI alone (its sampling tables: 170 MB).
+    ("4k x 2k HDRI", "hdri", 64, 48, {"photons": 100_000, "caustic_photons": 0, "spp": 1}, 0),
 ]
 QUICK = {"defaults 160x120, Figure 3", "2M photons", "256 spp, 64x48"}
 
@@ -55,6 +57,16 @@ from engine.resources import estimate_memory
 from engine.scene import Mesh
 from engine.scenefile import load_scene
 scene = cornell_box() if NAME == "box" else load_scene(ROOT + "/scenes/figure3.toml")[0]
+if NAME == "hdri":
+    from engine import Environment
+    h, w = 2048, 4096
+    sky = np.empty((h, w, 3), np.float32)
+    sky[:] = 0.3
+    sky[h // 2:] = 0.02
+    sky[h // 8, w // 3] = 5000.0
+    scene.lights = []
+    scene.environment = Environment(sky)
+    del sky
 scene.width, scene.height = W, H
 if TRIS:
     n = int((TRIS / 2) ** 0.5)
@@ -174,6 +186,7 @@ def run(case):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="three cases only")
+    ap.add_argument("--only", default=None, help="the cases whose label holds this text")
     ap.add_argument("--triangles", action="store_true", help="bytes per triangle instead")
     ap.add_argument("--sizes", type=int, nargs="+", default=[1_000_000, 5_000_000],
                     help="triangle counts for --triangles")
@@ -189,7 +202,7 @@ def main():
     print("| render | estimate (MB) | measured peak (MB) | estimate / measured | largest part |")
     print("|---|---|---|---|---|")
     for case in CASES:
-        if args.quick and case[0] not in QUICK:
+        if (args.quick and case[0] not in QUICK) or (args.only and args.only not in case[0]):
             continue
         r = run(case)
         largest = max(r["parts"], key=r["parts"].get)

@@ -44,7 +44,7 @@ import numpy as np
 from .closures import principled as pr
 from .directlight import _npmax, _to_world
 from .jit import kernel, register_warm_up
-from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
+from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
 
 # Indices into SPEC_LOBES (bsdf.py: LOBE_NAMES[1:], principled's L_* minus one).
 _PASS, _GLASS_R, _GLASS_T = pr.L_PASS - 1, pr.L_GLASS_R - 1, pr.L_GLASS_T - 1
@@ -91,12 +91,10 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
         if t != last:
             last = t
             # Unit geometric normal (winding order): e1 x e2 / |e1 x e2| (np.cross, norm).
-            cx = a1y * a2z - a1z * a2y
-            cy = a1z * a2x - a1x * a2z
-            cz = a1x * a2y - a1y * a2x
+            cx, cy, cz = winding_normal(e1, e2, t)
             ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
             gx, gy, gz = cx / ln, cy / ln, cz / ln
-            tilt = _tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z)
+            tilt = tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z)
         fr = d[i, 0] * gx + d[i, 1] * gy + d[i, 2] * gz < 0.0
         front[i] = fr
         sign = 1.0 if fr else -1.0
@@ -141,30 +139,6 @@ def _corner_error(w0, w1, w2, c0, c1, c2, pc):
     interp = G64 * (w0 * abs(k0) + w1 * abs(k1) + w2 * abs(k2))
     tri32 = w0 * (0.5 * _ulp32(k0)) + w1 * (0.5 * _ulp32(k1)) + w2 * (0.5 * _ulp32(k2))
     return interp + tri32 + max(2.0 * U32 * abs(pc), TINY32)
-
-
-@kernel
-def _tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z):
-    """rayoffset.triangle_tilt of the triangle (corner a0, edges a1, a2) rounded to
-    float32 corners, as geometry._tilt32_rows computes it."""
-    c0x, c0y, c0z = np.float32(a0x), np.float32(a0y), np.float32(a0z)
-    c1x, c1y, c1z = np.float32(a0x + a1x), np.float32(a0y + a1y), np.float32(a0z + a1z)
-    c2x, c2y, c2z = np.float32(a0x + a2x), np.float32(a0y + a2y), np.float32(a0z + a2z)
-    if ((c0x == c1x and c0x == c2x) or (c0y == c1y and c0y == c2y)
-            or (c0z == c1z and c0z == c2z)):
-        return 0.0
-    ux = np.float64(c1x) - np.float64(c0x)
-    uy = np.float64(c1y) - np.float64(c0y)
-    uz = np.float64(c1z) - np.float64(c0z)
-    wx = np.float64(c2x) - np.float64(c0x)
-    wy = np.float64(c2y) - np.float64(c0y)
-    wz = np.float64(c2z) - np.float64(c0z)
-    cx = uy * wz - uz * wy
-    cy = uz * wx - ux * wz
-    cz = ux * wy - uy * wx
-    cross = math.sqrt(cx * cx + cy * cy + cz * cz)
-    lengths = math.sqrt(ux * ux + uy * uy + uz * uz) * math.sqrt(wx * wx + wy * wy + wz * wz)
-    return min(G32_TILT * lengths / max(cross, 1e-300), 1.0)
 
 
 @kernel

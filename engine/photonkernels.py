@@ -32,7 +32,7 @@ import numpy as np
 from .closures import principled as pr
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .jit import kernel, register_warm_up
-from .rayoffset import G32_TILT, G64, TINY32, U32, _offset_row
+from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
 
 # Kinds of path recorded with a stored photon (engine/photons.py explains them).
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
@@ -121,22 +121,8 @@ def _round32(x):
 @kernel
 def _tilt(v0, e1, e2, t):
     """rayoffset.triangle_tilt of triangle row t, from its float32 corners."""
-    c0x, c0y, c0z = np.float32(v0[t, 0]), np.float32(v0[t, 1]), np.float32(v0[t, 2])
-    c1x, c1y, c1z = (np.float32(v0[t, 0] + e1[t, 0]), np.float32(v0[t, 1] + e1[t, 1]),
-                     np.float32(v0[t, 2] + e1[t, 2]))
-    c2x, c2y, c2z = (np.float32(v0[t, 0] + e2[t, 0]), np.float32(v0[t, 1] + e2[t, 1]),
-                     np.float32(v0[t, 2] + e2[t, 2]))
-    if ((c0x == c1x and c0x == c2x) or (c0y == c1y and c0y == c2y)
-            or (c0z == c1z and c0z == c2z)):
-        return 0.0  # an axis-aligned float32 plane cannot tilt
-    a0, a1, a2 = (np.float64(c1x) - np.float64(c0x), np.float64(c1y) - np.float64(c0y),
-                  np.float64(c1z) - np.float64(c0z))
-    b0, b1, b2 = (np.float64(c2x) - np.float64(c0x), np.float64(c2y) - np.float64(c0y),
-                  np.float64(c2z) - np.float64(c0z))
-    x, y, z = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
-    cross = math.sqrt(x * x + y * y + z * z)
-    lengths = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2) * math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
-    return min(G32_TILT * lengths / max(cross, 1e-300), 1.0)
+    return tilt32(v0[t, 0], v0[t, 1], v0[t, 2], e1[t, 0], e1[t, 1], e1[t, 2],
+                  e2[t, 0], e2[t, 1], e2[t, 2])
 
 
 @kernel
@@ -187,9 +173,7 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         px = v0[t, 0] + b1 * e1[t, 0] + b2 * e2[t, 0]
         py = v0[t, 1] + b1 * e1[t, 1] + b2 * e2[t, 1]
         pz = v0[t, 2] + b1 * e1[t, 2] + b2 * e2[t, 2]
-        cx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
-        cy = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
-        cz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+        cx, cy, cz = winding_normal(e1, e2, t)
         ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
         gx, gy, gz = cx / ln, cy / ln, cz / ln
         dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
@@ -272,12 +256,8 @@ def flat_exit(v0, e1, e2, material, object_id, flat_mat, flat_limit, entry, t, d
     flat_limit[object_id[entry]] (m; flat_thickness_limits)."""
     if entry < 0 or t < 0 or material[t] != material[entry] or not flat_mat[material[t]]:
         return False
-    ax = e1[entry, 1] * e2[entry, 2] - e1[entry, 2] * e2[entry, 1]
-    ay = e1[entry, 2] * e2[entry, 0] - e1[entry, 0] * e2[entry, 2]
-    az = e1[entry, 0] * e2[entry, 1] - e1[entry, 1] * e2[entry, 0]
-    bx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
-    by = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
-    bz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+    ax, ay, az = winding_normal(e1, e2, entry)
+    bx, by, bz = winding_normal(e1, e2, t)
     la = math.sqrt(ax * ax + ay * ay + az * az)
     lb = math.sqrt(bx * bx + by * by + bz * bz)
     if not (la > 0.0 and lb > 0.0):
@@ -298,9 +278,7 @@ def flat_entry(e1, e2, material, flat_mat, t, dx, dy, dz):
     flat passage: t's material is in flat_mat and d arrives on its winding's outside."""
     if t < 0 or not flat_mat[material[t]]:
         return False
-    bx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
-    by = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
-    bz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+    bx, by, bz = winding_normal(e1, e2, t)
     return dx * bx + dy * by + dz * bz < 0.0
 
 

@@ -97,6 +97,40 @@ def triangle_point_error(v0, e1, e2, round32, b1, b2, p) -> np.ndarray:
 
 
 @kernel
+def winding_normal(e1, e2, t):
+    """Triangle row t's geometric normal on its winding's outside: e1 x e2 (np.cross's
+    order of operations) from the edge tables e1, e2 (T,3) float64; not unit (its length
+    is twice the triangle's area). The one place for it in the kernels."""
+    return (e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1],
+            e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2],
+            e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0])
+
+
+@kernel
+def tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z):
+    """triangle_tilt of one triangle (corner a0, edges a1, a2, float64) rounded to float32
+    corners, as geometry._tilt32_rows computes it, inside kernels (the same value)."""
+    c0x, c0y, c0z = np.float32(a0x), np.float32(a0y), np.float32(a0z)
+    c1x, c1y, c1z = np.float32(a0x + a1x), np.float32(a0y + a1y), np.float32(a0z + a1z)
+    c2x, c2y, c2z = np.float32(a0x + a2x), np.float32(a0y + a2y), np.float32(a0z + a2z)
+    if ((c0x == c1x and c0x == c2x) or (c0y == c1y and c0y == c2y)
+            or (c0z == c1z and c0z == c2z)):
+        return 0.0  # an axis-aligned float32 plane cannot tilt
+    ux = np.float64(c1x) - np.float64(c0x)
+    uy = np.float64(c1y) - np.float64(c0y)
+    uz = np.float64(c1z) - np.float64(c0z)
+    wx = np.float64(c2x) - np.float64(c0x)
+    wy = np.float64(c2y) - np.float64(c0y)
+    wz = np.float64(c2z) - np.float64(c0z)
+    cx = uy * wz - uz * wy
+    cy = uz * wx - ux * wz
+    cz = ux * wy - uy * wx
+    cross = math.sqrt(cx * cx + cy * cy + cz * cz)
+    lengths = math.sqrt(ux * ux + uy * uy + uz * uz) * math.sqrt(wx * wx + wy * wy + wz * wz)
+    return min(G32_TILT * lengths / max(cross, 1e-300), 1.0)
+
+
+@kernel
 def _point_error(v0, e1, e2, round32, t, b1, b2, px, py, pz, c):
     """Component c of triangle_point_error for triangle row t of the tables."""
     b0 = 1.0 - b1 - b2

@@ -18,9 +18,21 @@ measured peak for a set of renders. What each part counts:
   progressive render, the running sums; Blender's render result when rendering there.
 - triangles: the scene's arrays, the merged tables and Embree's BVH (instances traced
   two-level keep their prototypes' tables and BVH once: instance_choice).
+- environment: the sampling tables an environment map's light builds at prepare
+  (engine/lights/environment.py): the cosine-weighted distributions of the shadow rays
+  (N_OCT^2 clusters of coarse cells, ~10.7 MB, plus float64 prefix sums of the map's
+  size) and, when photons are shot, the map's own distribution (float64 column cdfs and
+  a float32 pdf of the map's size): 8k x 4k texels keep 682 MB (environment_bytes: the
+  exact array sizes), and building them takes ENV_BUILD_BYTES_PER_TEXEL more for a moment
+  (tests/test_resources_measured.py checks both against the arrays).
+- regather maps: the bounce limits' deeper gather levels (photonmap.GatherMap subsets,
+  engine/render.py _build_maps): per level the irradiance and boundary flag of every
+  gather point, counted at the most levels (integrator.MAX_GATHER_LEVEL) whenever the
+  limits can drop photons.
 """
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -53,6 +65,20 @@ INSTANCE_RATIO = 4
 INSTANCE_FLOOR = 64 << 20
 INSTANCE_BUDGET_UNKNOWN = 256 << 20  # bytes, when the available memory is unknown
 BYTES_PER_INSTANCE = 400  # a shared instance: record, matrices, top-level box and node
+# The regathers' maps: GatherMap's gather points are every step-th photon (at most
+# GATHER_MAX_POINTS of those: GatherMap's max_points), and more where photons are sparse
+# (photonmap._point_shares): measured 1.08x the every-step-th points in the Figure 6 box
+# at the defaults (60,739 points of 733,827 photons), 0.99x on an HDRI-lit ground;
+# GATHER_POINT_SPREAD leaves room above that. Each deeper level holds a (P,3) float64
+# irradiance and a (P,) bool boundary flag per point.
+GATHER_MAX_POINTS = 60_000
+GATHER_POINT_SPREAD = 1.25
+BYTES_PER_GATHER_POINT_LEVEL = 25
+# Building an environment map's tables (lights.environment.texel_function: the texels as
+# float64, their luminance and its filtered copies) holds this much per texel beyond the
+# tables for a moment (tracemalloc, 2k x 1k: peak 40.0 B/texel with the cosine tables'
+# 13.1 kept, 53.2 with both distributions' 25.1).
+ENV_BUILD_BYTES_PER_TEXEL = 30
 
 
 class ResourceError(ValueError):
@@ -196,6 +222,44 @@ def _instanced_triangles(scene) -> int:
     return int(copies), int(sum(protos.values())), len(placed)
 
 
+def environment_bytes(env, photons: bool = True) -> int:
+    """Bytes of the sampling tables that an environment map (lights.environment.Environment,
+    H x W texels) builds at prepare: its cosine_distributions (the shadow rays'; always)
+    and, with photons, its distribution (the world's photons are emitted from it)."""
+    from .lights import environment as em
+    H, W = int(env.height), int(env.width)
+    K = em.N_OCT * em.N_OCT
+    Hc, Wc = min(H, em.COARSE_H), min(W, em.COARSE_W)
+    # rows (K,Hc+1), cols (K,Hc,Wc+1), mass (K,Hc,Wc), prefix (H,W+1), cell (Hc,Wc): float64
+    cosine = 8 * (K * (Hc + 1) + K * Hc * (Wc + 1) + K * Hc * Wc + H * (W + 1) + Hc * Wc)
+    # rows (H+1,) and cols (H,W+1) float64, pdf_uv (H,W) float32
+    own = 8 * ((H + 1) + H * (W + 1)) + 4 * H * W
+    return cosine + (own if photons else 0)
+
+
+def regather_levels(settings: RenderSettings) -> int:
+    """The most regather levels with maps of their own (GatherMap subsets) that the
+    bounce limits can make: integrator.MAX_GATHER_LEVEL when a photon's bounces
+    (max_photon_depth) plus the camera side's at the deepest level can pass a limit,
+    else 0 (e.g. every limit at 1024)."""
+    from .integrator import MAX_GATHER_LEVEL
+    s = settings
+    if not (s.uses_photon_maps and s.final_gather and s.photons):
+        return 0
+    reach = int(s.max_photon_depth) + MAX_GATHER_LEVEL + 2  # + the lookup's diffuse bounce
+    return MAX_GATHER_LEVEL if int(min(s.bounce_limits)) < reach else 0
+
+
+def gather_points(stored: float) -> int:
+    """The most gather points a GatherMap over `stored` photons takes (see
+    GATHER_POINT_SPREAD)."""
+    n = int(math.ceil(stored))
+    if n < 2:
+        return 0
+    step = max(4, -(-n // GATHER_MAX_POINTS))
+    return int(math.ceil(-(-n // step) * GATHER_POINT_SPREAD))
+
+
 def estimate_memory(scene, settings: RenderSettings, region=None, progressive=False,
                     in_blender=False) -> MemoryEstimate:
     """Peak memory of rendering `scene` with `settings` (bytes, by part). region =
@@ -221,6 +285,11 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         est.parts["photon chunks"] = int(in_flight * chunk_length(biggest, s.chunk_size)
                                          * BYTES_PER_TRACED_PHOTON)
         est.drivers["photon chunks"] = "chunk_size"
+        levels = regather_levels(s)
+        if levels:
+            est.parts["regather maps"] = (gather_points(s.photons * stores) * levels
+                                          * BYTES_PER_GATHER_POINT_LEVEL)
+            est.drivers["regather maps"] = "photons"
 
     samples = pixels * s.spp
     if samples:
@@ -239,13 +308,19 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         saved = (copies - shared) * BYTES_PER_TRIANGLE - count * BYTES_PER_INSTANCE
     est.parts["triangles"] = tris * BYTES_PER_TRIANGLE - saved
     est.drivers["triangles"] = "the scene's triangle count"
+    env = getattr(scene, "environment", None)
+    if env is not None and getattr(scene, "background_is_light", True):
+        shoots = bool(s.uses_photon_maps and (s.photons or s.caustic_photons))
+        est.parts["environment"] = (environment_bytes(env, photons=shoots)
+                                    + ENV_BUILD_BYTES_PER_TEXEL * env.height * env.width)
+        est.drivers["environment"] = "the environment map's size"
     return est
 
 
 def _setting_text(name, scene, settings) -> str:
     if name == "resolution":
         return f"resolution {scene.width}x{scene.height}"
-    if name == "the scene's triangle count":
+    if name in ("the scene's triangle count", "the environment map's size"):
         return name
     return f"setting '{name}' = {getattr(settings, name):,}"
 

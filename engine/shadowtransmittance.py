@@ -39,18 +39,25 @@ import numpy as np
 from . import photonkernels as pk
 from .accel import Accel
 from .closures import principled as pr
+from .closures import tables
 from .geometry import ALL_RAYS
 from .jit import kernel, register_warm_up
-from .rayoffset import offset_along_normal
+from .rayoffset import offset_along_normal, winding_normal
 from .textures import material_alpha
 
 # Cycles' default transparent_max_bounces (Render Properties > Light Paths).
 DEFAULT_MAX_HITS = 8
 
 CLEAR, BLOCKED, GOING = 0, 1, 2
+# Columns of the flat-passage glass table (glass_crossings), per material and side
+# (0: a refraction from outside, 1: from inside): the glass lobe's eta, roughness and
+# Multiscatter flag, its transmission weight before the energy compensation (3), the
+# compensation's Fss = the transmission tint (3), and its Fresnel f0 (3; < 0: Refraction).
+G_ETA, G_ROUGH, G_MULTI, G_TW, G_TT, G_F0 = 0, 1, 2, 3, 6, 9
+G_N = 12
 _NO_FLAT = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)),
             np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.bool_),
-            np.zeros(0), np.zeros((0, 1)), np.zeros((0, 3)), np.zeros(0))
+            np.zeros(0), np.zeros((0, 2, G_N)), np.zeros(0))
 
 
 def transparent_tints(table) -> np.ndarray:
@@ -63,31 +70,67 @@ def transparent_tints(table) -> np.ndarray:
     return np.asarray(params[:, pr.M_TTINT:pr.M_TTINT + 3], np.float64)
 
 
+def glass_crossings(params, base_color) -> np.ndarray:
+    """(M, 2, G_N) float64: the smooth glass lobe's per-material constants of a refraction
+    from outside (side 0) and from inside (side 1), for _crossing; params (M, N_MAT) the
+    material table's closure columns, base_color (M,3). Built once per prepared scene
+    (ShadowTransmittance), by principled.setup itself (the one place of the lobe's
+    weights) at any angle: eta and f0 do not depend on it; the weight before the
+    angle-dependent energy compensation is setup's with Multiscatter off (x 1.0, exact),
+    and the compensation's Fss (the transmission tint) that weight with transmission 1 as
+    well, exact for the materials a flat passage crosses (photonkernels.
+    flat_glass_materials: alpha 1, no Add Shader, coat, sheen or metal above the glass,
+    so the layers above leave it weight 1.0). Rows of other materials are unused."""
+    params = np.ascontiguousarray(params, np.float64)
+    base = np.ascontiguousarray(base_color, np.float64)
+    M = len(params)
+    out = np.zeros((M, 2, G_N))
+    if M == 0:
+        return out
+    plain = params.copy()
+    plain[:, pr.M_MULTI] = 0.0
+    unit = plain.copy()
+    unit[:, pr.M_TRANS] = 1.0
+    mat = np.arange(M, dtype=np.int64)
+    prm = np.empty((M, pr.N_PACK))
+    weights = np.empty((M, pr.N_LOBES, 3))
+    for side in range(2):
+        front = np.full(M, side == 0)
+        pr.setup(mat, plain, base, np.ones(M), front, np.ones(M), prm, weights)
+        out[:, side, G_ETA] = prm[:, pr.P_GLASS_ETA]
+        out[:, side, G_TW:G_TW + 3] = prm[:, pr.P_GLASS_TW:pr.P_GLASS_TW + 3]
+        out[:, side, G_F0:G_F0 + 3] = prm[:, pr.P_GLASS_F0:pr.P_GLASS_F0 + 3]
+        pr.setup(mat, unit, base, np.ones(M), front, np.ones(M), prm, weights)
+        out[:, side, G_TT:G_TT + 3] = prm[:, pr.P_GLASS_TW:pr.P_GLASS_TW + 3]
+    out[:, :, G_ROUGH] = params[:, None, pr.M_ROUGH]
+    out[:, :, G_MULTI] = params[:, None, pr.M_MULTI]
+    return out
+
+
 @kernel
-def _crossing(params, base_color, m, cos_o, front, mat1, base1, cos1, front1, alpha1, prm1,
-              w1, out):
+def _crossing(glass, m, side, cos_o, out):
     """out (3,) *= the smooth glass lobe's transmittance (RGB) for one refraction of
-    material m at cos_o (the cosine on the arriving side), from outside (front) or
-    inside: the weight the photons' glass sampling gives a refraction on average,
-    TW x (1 - F) (principled._glass_sample), set up as principled.setup does for a hit.
-    mat1 .. w1: one-row scratch arrays for principled.setup."""
-    mat1[0] = m
+    material m at cos_o (the cosine on the arriving side), from outside (side 0) or
+    inside (side 1): the weight the photons' glass sampling gives a refraction on
+    average, TW x (1 - F) (principled._glass_sample), with TW as principled.setup sets
+    it up for a hit: the table's weight (glass_crossings) x the energy compensation at
+    this angle (none for a Refraction BSDF, f0 < 0). The same arithmetic as setup."""
+    eta = glass[m, side, G_ETA]
+    mu = min(max(cos_o, 0.0), 1.0)
+    Eg, Eg_avg = tables.glass_E(glass[m, side, G_ROUGH], mu, eta)
+    multi = glass[m, side, G_MULTI]
     for c in range(3):
-        base1[0, c] = base_color[m, c]
-    cos1[0] = cos_o
-    front1[0] = front
-    alpha1[0] = 1.0
-    pr.setup(mat1, params, base1, cos1, front1, alpha1, prm1, w1)
-    eta = prm1[0, pr.P_GLASS_ETA]
-    for c in range(3):
-        f = pr._glass_F(prm1[0, pr.P_GLASS_F0 + c], cos_o, eta)
-        out[c] *= prm1[0, pr.P_GLASS_TW + c] * (1.0 - f)
+        f0 = glass[m, side, G_F0 + c]
+        tw = glass[m, side, G_TW + c]
+        if f0 >= 0.0:
+            tw = tw * pr._compensation(multi, Eg, Eg_avg, glass[m, side, G_TT + c])[0]
+        out[c] *= tw * (1.0 - pr._glass_F(f0, cos_o, eta))
 
 
 @kernel
 def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans, count,
                 max_hits, state, entry, o, d, thit, v0, e1, e2, object_id, flat_mat,
-                flat_limit, params, base_color, mat_ior):
+                flat_limit, glass, mat_ior):
     """One surface along each travelling shadow ray.
 
     prim (n,) the triangle hit (-1: none before the ray's end); tri_material (T,);
@@ -102,19 +145,11 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
     entry (R,) the triangle through which each ray entered smooth glass (-1: none; read
     and written); o, d (n,3) and thit (n,) the rays and their hit distances (units of
     |d|), v0, e1, e2 (T,3), object_id (T,), flat_limit (objects,) (photonkernels.
-    flat_exit); params, base_color, mat_ior: the material table's closure columns, base
-    colours, IOR. A ray entering such glass crosses it (two surfaces counted) if its next
+    flat_exit); glass (M, 2, G_N) the materials' glass_crossings, mat_ior (M,) their IOR. A ray entering such glass crosses it (two surfaces counted) if its next
     surface is the exit of a flat passage, with the transmittance of the two refractions
     (_crossing at the entry and the refracted angle); otherwise (another surface, or
     none: single-plane glass) it is blocked."""
     flat_on = flat_mat.shape[0] > 0
-    mat1 = np.empty(1, np.int64)
-    base1 = np.empty((1, 3))
-    cos1 = np.empty(1)
-    front1 = np.empty(1, np.bool_)
-    alpha1 = np.empty(1)
-    prm1 = np.empty((1, pr.N_PACK))
-    w1 = np.empty((1, pr.N_LOBES, 3))
     out = np.empty(3)
     for i in range(prim.shape[0]):
         p = prim[i]
@@ -132,9 +167,7 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
                                   flat_limit, en, p, d[i, 0], d[i, 1], d[i, 2], px, py, pz)
             if ok:
                 m = tri_material[en]
-                nx = e1[en, 1] * e2[en, 2] - e1[en, 2] * e2[en, 1]
-                ny = e1[en, 2] * e2[en, 0] - e1[en, 0] * e2[en, 2]
-                nz = e1[en, 0] * e2[en, 1] - e1[en, 1] * e2[en, 0]
+                nx, ny, nz = winding_normal(e1, e2, en)
                 ln = math.sqrt(nx * nx + ny * ny + nz * nz)
                 dl = math.sqrt(d[i, 0] ** 2 + d[i, 1] ** 2 + d[i, 2] ** 2)
                 ci = min(abs(d[i, 0] * nx + d[i, 1] * ny + d[i, 2] * nz) / max(ln * dl, 1e-300),
@@ -143,10 +176,8 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
                 s2 = (1.0 - ci * ci) / (ior * ior)
                 ct = math.sqrt(max(1.0 - s2, 0.0))
                 out[0] = out[1] = out[2] = 1.0
-                _crossing(params, base_color, m, ci, True, mat1, base1, cos1, front1, alpha1,
-                          prm1, w1, out)
-                _crossing(params, base_color, m, ct, False, mat1, base1, cos1, front1, alpha1,
-                          prm1, w1, out)
+                _crossing(glass, m, 0, ci, out)
+                _crossing(glass, m, 1, ct, out)
                 ok = out[0] > 0.0 or out[1] > 0.0 or out[2] > 0.0
             if not ok:
                 trans[r, 0] = 0.0
@@ -245,9 +276,7 @@ def camera_passage(v0, e1, e2, material, object_id, flat_mat, flat_limit, mat_pa
                 continue
         if not flat_on:
             continue
-        nx = e1[t, 1] * e2[t, 2] - e1[t, 2] * e2[t, 1]
-        ny = e1[t, 2] * e2[t, 0] - e1[t, 0] * e2[t, 2]
-        nz = e1[t, 0] * e2[t, 1] - e1[t, 1] * e2[t, 0]
+        nx, ny, nz = winding_normal(e1, e2, t)
         a = d_in[i, 0] * nx + d_in[i, 1] * ny + d_in[i, 2] * nz
         b = d_out[k, 0] * nx + d_out[k, 1] * ny + d_out[k, 2] * nz
         if not ((a < 0.0 and b < 0.0) or (a > 0.0 and b > 0.0)):
@@ -362,8 +391,7 @@ class ShadowTransmittance:
             if self.flat_on:
                 self.tri_transparent = self.tri_transparent | self.flat_mat[geo.material]
                 self.object_id = np.ascontiguousarray(geo.object_id, np.int64)
-                self.params = np.ascontiguousarray(table.closure_params, np.float64)
-                self.base_color = np.ascontiguousarray(table.base_color, np.float64)
+                self.glass = glass_crossings(table.closure_params, table.base_color)
                 self.mat_ior = np.ascontiguousarray(table.ior, np.float64)
         self._subsets = {}
         self._lock = threading.Lock()
@@ -489,8 +517,8 @@ class ShadowTransmittance:
             state = np.empty(len(prim), np.int64)
             if self.flat_on:
                 flat = (o, d, np.ascontiguousarray(thit, np.float64), geo.v0, geo.e1, geo.e2,
-                        self.object_id, self.flat_mat, self.flat_limit, self.params,
-                        self.base_color, self.mat_ior)
+                        self.object_id, self.flat_mat, self.flat_limit, self.glass,
+                        self.mat_ior)
             else:
                 flat = _NO_FLAT
             shadow_step(rows, np.ascontiguousarray(tri_material, np.int64), self.mat_alpha,
@@ -557,8 +585,8 @@ def _warm_up():
                 np.ones((1, 3)), np.ones(1), np.zeros(1, np.int64), trans, count,
                 DEFAULT_MAX_HITS, state, np.zeros(1, np.int64), np.zeros((1, 3)),
                 np.array([[0.0, 0.0, 1.0]]), np.full(1, 0.01), np.zeros((1, 3)), *tri,
-                np.zeros(1, np.int64), np.ones(1, np.bool_), np.full(1, 0.1), params,
-                np.ones((1, 3)), np.full(1, 1.5))
+                np.zeros(1, np.int64), np.ones(1, np.bool_), np.full(1, 0.1),
+                glass_crossings(params, np.ones((1, 3))), np.full(1, 1.5))
     scale_entries(np.ones((1, 3)), np.zeros(1, np.int64), 1, np.full((1, 3), 0.5))
     one3 = np.zeros((1, 3))
     camera_passage(np.zeros((1, 3)), *tri, np.zeros(1, np.int64), np.zeros(1, np.int64),
