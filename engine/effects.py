@@ -329,7 +329,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             rough_note += ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
                           + (" ..." if len(plan.rough_specular) > 4 else "")
                           + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
-                          "light; the global photons carry the soft glow it reflects)")
+                          "light; the global photons carry the soft glow "
+                          + ("they reflect)" if len(plan.rough_specular) > 1 else "it reflects)"))
         if not focus_tri.any():
             auto, why = False, ("no specular or refractive materials" if not spec_tri.any()
                                 else "no mirror, glass or coat: light through transparent "
@@ -363,8 +364,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                             + ", ".join(f"'{n}'" for n in plan.window_glass[:4])
                             + (" ..." if len(plan.window_glass) > 4 else "")
                             + " (passed by shadow rays: thin flat glass)")
-            sharp_none = (f"no mirror, glass or surface smoother than roughness "
-                          f"{SHARP_ROUGHNESS:g}")
+            sharp_none = (f"no mirror, {'only window' if plan.window_glass else 'no'} glass, "
+                          f"no surface smoother than roughness {SHARP_ROUGHNESS:g}")
             carried = (f"{' and '.join(glow)} come"
                        + ("s" if len(glow) == 1 and rough_reached else "")
                        + f" from {source} (Caustic pass)")

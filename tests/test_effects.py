@@ -311,7 +311,7 @@ def test_a_plain_room_says_caustics_off_and_where_the_glow_comes_from():
     s = _room(rough, wall="rough_principled")
     plan = _plan(s)
     line = _line(plan, "caustics:")
-    assert line.startswith("caustics: off - nothing focuses light (no mirror, glass or "
+    assert line.startswith("caustics: off - nothing focuses light (no mirror, no glass, no "
                            "surface smoother than roughness 0.3)"), line
     assert ("the soft glow that the rough specular layers of 'Floor', 'BackWall' reflect "
             "onto other surfaces comes from the global photons (Caustic pass)") in line, line
@@ -323,6 +323,21 @@ def test_a_plain_room_says_caustics_off_and_where_the_glow_comes_from():
     assert _line(off, "caustics:") == "caustics: off - switched off in the settings"
 
 
+def test_window_glass_alone_focuses_no_light():
+    """A thin flat pane between the light and a plain floor: shadow rays pass it, so it
+    is no caustic caster; the report says where its reflections come from."""
+    s = _room(Material("plain", (0.6, 0.6, 0.6)))
+    s.add_material(Material("pane", (1, 1, 1), transmission=1.0, ior=1.5))
+    s.add_box((0, 0, 1.5), (2, 2, 0.02), "pane", name="Window")
+    plan = _plan(s)
+    assert plan.window_glass == ["Window"] and not plan.casters
+    line = _line(plan, "caustics:")
+    assert line == ("caustics: off - nothing focuses light (no mirror, only window glass, no "
+                    "surface smoother than roughness 0.3); the reflections of window glass "
+                    "'Window' (passed by shadow rays: thin flat glass) come from the global "
+                    "photons (Caustic pass)"), line
+
+
 def test_a_mirror_and_a_glass_ball_are_caustic_casters_by_name():
     s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0),
               extra=(("mirror", "Mirror"), ("glass", "Ball")))
@@ -330,6 +345,7 @@ def test_a_mirror_and_a_glass_ball_are_caustic_casters_by_name():
     line = _line(plan, "caustics:")
     assert line.startswith("caustics: on - 200,000 photons aimed at 'Mirror', 'Ball'"), line
     assert "not aimed at 'Floor' (specular roughness 0.3 or more" in line
+    assert line.endswith("the global photons carry the soft glow it reflects)"), line
     assert sorted(plan.casters) == ["Ball", "Mirror"]
     spec = _line(plan, "specular reflection / refraction: on")
     assert "mirror 'Mirror'" in spec and "glass 'Ball'" in spec, spec
