@@ -420,3 +420,21 @@ def test_photon_map_line_says_the_caustic_radius_once_with_why():
     fixed = photon_map_report(RenderSettings(radius=0.3), dict(
         global_photons=100, radius_global=0.3, caustic_photons=50, radius_caustic=0.3))[0]
     assert "the same search radius (set in the settings)" in fixed, fixed
+
+
+def test_visual_importance_is_one_plain_sentence_with_its_numbers():
+    """The photon maps line's visual importance part: what it does for the student, in
+    one sentence, the numbers kept (it read "27 region spheres hold 91% of the camera's
+    lookups ... 10.6x denser per watt")."""
+    import re
+
+    from test_visual_importance import _ground, _shoot
+    _, _, stats = _shoot(_ground(), True, photons=20_000)
+    text = stats["photon_importance"]
+    m = re.fullmatch(r"visual importance: (\d+)% of the photon lookups the camera makes fall "
+                     r"in (\d+) small regions? that get (\d+)% of the light, so ([\d.]+)x "
+                     r"more photons per watt are sent there: less noise where you look, the "
+                     r"same brightness", text)
+    assert m, text
+    assert int(m[1]) >= 50 and int(m[2]) >= 1 and float(m[4]) > 1.0, text
+    assert "sphere" not in text and "denser" not in text
