@@ -438,3 +438,23 @@ def test_visual_importance_is_one_plain_sentence_with_its_numbers():
     assert m, text
     assert int(m[1]) >= 50 and int(m[2]) >= 1 and float(m[4]) > 1.0, text
     assert "sphere" not in text and "denser" not in text
+
+
+def test_scene_files_and_the_cli_keep_max_depth(tmp_path):
+    """A scene file's max_depth (old files set the paper's MaxRayTraceDepth there) and
+    --max-depth still reach the settings, and the report names the cap."""
+    import argparse
+
+    from engine.cli import _scene_and_overrides, build_parser
+    text = open("scenes/figure3.toml").read().replace("[render]", "[render]\nmax_depth = 3", 1)
+    path = tmp_path / "f3.toml"
+    path.write_text(text)
+    parser = build_parser()
+    for argv, want in ((["render", str(path), "-o", "x.png"], 3),
+                       (["render", str(path), "-o", "x.png", "--max-depth", "5"], 5)):
+        args = parser.parse_args(argv)
+        assert isinstance(args, argparse.Namespace)
+        scene, over = _scene_and_overrides(args)
+        assert over["max_depth"] == want
+        plan = _plan(scene, **{k: v for k, v in over.items() if k not in ("workers", "photons")})
+        assert f"Max Ray Depth {want} stops camera paths sooner" in _line(plan, "bounce limits:")
