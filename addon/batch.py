@@ -536,7 +536,7 @@ def _main(argv, interrupt) -> int:
     total = time.perf_counter() - t0
     from addon import engine
     render_s = float(engine.last_render.get("time", 0.0))
-    compile_s = float(engine.last_render.get("compile_time", 0.0))
+    compile_s = float((engine.last_render.get("stats") or {}).get("time_compile") or 0.0)
     compiled = f", compiling the render kernels {compile_s:.1f} s" if compile_s >= 0.5 else ""
     print(f"wrote {out} ({total:.1f} s: rendering {render_s:.1f} s{compiled}, Blender start-up, "
           f"loading the .blend and writing the image "

@@ -407,6 +407,28 @@ def pixel_filter_settings(scene) -> dict:
                 filter_width=float(getattr(scene.render, "filter_size", 1.5)))
 
 
+# Light Paths > Max Bounces: Cycles' property names, which ours (scene.photonmap) share.
+LIGHT_PATH_LIMITS = ("max_bounces", "diffuse_bounces", "glossy_bounces",
+                     "transmission_bounces", "transparent_max_bounces")
+
+
+def light_path_source(scene, props):
+    """Where the Light Paths limits come from: scene.cycles when the Cycles add-on is
+    there (its properties registered: a scene set to Diffuse 1 for Cycles renders with 1
+    here too, as other render engines read them), else props (scene.photonmap)."""
+    cycles = getattr(scene, "cycles", None)
+    if cycles is not None and all(hasattr(cycles, n) for n in LIGHT_PATH_LIMITS):
+        return cycles
+    return props
+
+
+def light_path_settings(scene, props) -> dict:
+    """The Light Paths limits as RenderSettings keywords (LIGHT_PATH_LIMITS): Cycles' own
+    properties when the Cycles add-on is there, else ours (light_path_source)."""
+    src = light_path_source(scene, props)
+    return {n: int(getattr(src, n)) for n in LIGHT_PATH_LIMITS}
+
+
 def border_region(render, width: int, height: int):
     """Render border as engine region (x0, y0, x1, y1), top-left origin, or None.
 

@@ -160,8 +160,10 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         update=_preset_edited("spp"),
         description="Camera samples per pixel (jittered, anti-aliasing)")
     max_depth: IntProperty(
-        name="Max Ray Depth", default=8, min=0, max=128,
-        description="Maximum specular bounces (mirror, glass) along a camera path")
+        name="Max Ray Depth", default=1024, min=0, max=1024,
+        description="An extra cap on the mirror and glass bounces along a camera path (the "
+                    "paper's MaxRayTraceDepth). The default 1024 caps nothing: camera paths "
+                    "stop at the Max Bounces above, as in Cycles")
     light_samples: IntProperty(
         name="Light Samples", default=1, min=1, max=256,
         description="Shadow rays per light with a size, per camera sample (soft shadows)")
@@ -170,8 +172,10 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         description="Transparent surfaces (alpha below 1) a shadow ray may cross before the "
                     "next one blocks it, as Cycles' Max Bounces > Transparent; 0 = every "
                     "surface casts a full shadow")
-    # Cycles' Light Paths > Max Bounces, same names, defaults and meaning (Cycles' own panel
-    # shows for Cycles only; engine/settings.py, docs/design.md, Bounce limits)
+    # Cycles' Light Paths > Max Bounces, same names, defaults and meaning: used only where
+    # the Cycles add-on is missing; with it the render reads (and our panel shows) Cycles'
+    # own properties, so the limits follow a scene set up for Cycles
+    # (export.light_path_settings; engine/settings.py, docs/design.md, Bounce limits)
     max_bounces: IntProperty(
         name="Total", default=12, min=0, max=1024,
         description="Total maximum number of bounces of a light path (as Cycles' Max "
@@ -269,7 +273,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     def to_settings_kwargs(self, film_transparent=False):
         """Keyword arguments for engine.settings.RenderSettings (the pixel filter from
         the scene's Film settings: export.pixel_filter_settings)."""
-        from .export import pixel_filter_settings
+        from .export import light_path_settings, pixel_filter_settings
         kwargs = dict(
             photons=self.photons, caustic_photons=self.caustic_photons,
             max_photon_depth=self.max_photon_depth, estimator=self.estimator,
@@ -290,6 +294,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             show_photons=self.show_photons, seed=self.seed, workers=self.threads,
             film_transparent=bool(film_transparent))
         kwargs.update(pixel_filter_settings(self.id_data))
+        kwargs.update(light_path_settings(self.id_data, self))
         return kwargs
 
 

@@ -60,7 +60,6 @@ class PHOTONMAP_PT_sampling(PhotonMapButtonsPanel, bpy.types.Panel):
         col = layout.column()
         col.prop(pm, "spp", text="Samples per Pass" if pm.progressive else "Samples")
         col.prop(pm, "light_samples")
-        col.prop(pm, "max_depth")
         col.prop(pm, "seed")
         col.prop(pm, "use_animated_seed")
 
@@ -74,23 +73,36 @@ class PHOTONMAP_PT_light_paths(PhotonMapButtonsPanel, bpy.types.Panel):
 
 
 class PHOTONMAP_PT_light_paths_max_bounces(PhotonMapButtonsPanel, bpy.types.Panel):
-    """Cycles' Light Paths > Max Bounces, for our engine (the same limits and defaults:
-    a scene lit for Cycles renders as bright; docs/design.md, Bounce limits)."""
+    """Light Paths > Max Bounces: Cycles' own properties when the Cycles add-on is there
+    (the render reads them: addon/export.light_path_settings; the same panel as Cycles',
+    so a scene set up for Cycles renders with its limits), else ours with the same names
+    and defaults; and our Max Ray Depth, an extra cap on camera paths (docs/design.md,
+    Bounce limits)."""
     bl_label = "Max Bounces"
     bl_parent_id = "PHOTONMAP_PT_light_paths"
 
     def draw(self, context):
+        from .export import light_path_source
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
         pm = context.scene.photonmap
+        src = light_path_source(context.scene, pm)
         col = layout.column(align=True)
-        col.prop(pm, "max_bounces", text="Total")
+        col.prop(src, "max_bounces", text="Total")
         col = layout.column(align=True)
-        col.prop(pm, "diffuse_bounces", text="Diffuse")
-        col.prop(pm, "glossy_bounces", text="Glossy")
-        col.prop(pm, "transmission_bounces", text="Transmission")
-        col.prop(pm, "transparent_max_bounces", text="Transparent")
+        col.prop(src, "diffuse_bounces", text="Diffuse")
+        col.prop(src, "glossy_bounces", text="Glossy")
+        col.prop(src, "transmission_bounces", text="Transmission")
+        col.prop(src, "transparent_max_bounces", text="Transparent")
+        if src is not pm:
+            layout.label(text="Shared with Cycles' Light Paths", icon="LINKED")
+        col = layout.column()
+        col.prop(pm, "max_depth")
+        if pm.max_depth < src.max_bounces:
+            # The cap cuts camera paths shorter than the limits (the effect report says so).
+            col.label(text=f"Camera paths stop after {pm.max_depth} mirror / glass bounces",
+                      icon="INFO")
 
 
 class PHOTONMAP_PT_photons(PhotonMapButtonsPanel, bpy.types.Panel):

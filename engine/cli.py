@@ -102,7 +102,9 @@ def _setting_options(r, method=True, sweeps=False):
     r.add_argument("--k", dest="k_nearest", type=_positive_int, help="photons per k-NN estimate")
     r.add_argument("--estimator", choices=ESTIMATORS, help="radiance estimator")
     r.add_argument("--spp", type=_positive_int, help="camera samples per pixel")
-    r.add_argument("--max-depth", type=_nonnegative_int, help="max specular bounces of camera rays")
+    r.add_argument("--max-depth", type=_nonnegative_int,
+                   help="an extra cap on the mirror / glass bounces of camera rays (default "
+                        "1024: none, the bounce limits below stop them, as in Cycles)")
     r.add_argument("--max-photon-depth", type=_nonnegative_int, help="max photon bounces")
     # Cycles' Light Paths > Max Bounces (engine/settings.py, same defaults 12 / 4 / 4 / 12)
     r.add_argument("--max-bounces", type=_nonnegative_int,

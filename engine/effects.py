@@ -323,13 +323,14 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             rough_note += ("; window glass " + ", ".join(f"'{n}'" for n in shown)
                            + (" ..." if len(plan.window_glass) > 4 else "")
                            + ": passed by shadow rays (thin flat glass), not a caustic "
-                           "caster; its reflections come from unaimed photons")
+                           "caster; the global photons carry its reflections")
         if plan.rough_specular:
             shown = plan.rough_specular[:4]
             rough_note += ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
                           + (" ..." if len(plan.rough_specular) > 4 else "")
                           + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
-                          "light; unaimed photons carry its glossy reflections)")
+                          "light; the global photons carry the soft glow "
+                          + ("they reflect)" if len(plan.rough_specular) > 1 else "it reflects)"))
         if not focus_tri.any():
             auto, why = False, ("no specular or refractive materials" if not spec_tri.any()
                                 else "no mirror, glass or coat: light through transparent "
@@ -342,35 +343,49 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
         elif rough_reached or (plan.window_glass and emitting):
-            # Nothing to aim at: a soft glow is as dense in the global photons (a larger
-            # shot) as in an unaimed caustic shot, so reuse them when there are any.
+            # Nothing focuses light: no caustic in a student's sense (a plain room's rough
+            # Principled walls read "caustics: on" to a new user). Their specular layers
+            # still reflect a soft glow onto the other surfaces, and that light is
+            # estimated as before: from the caustic-kind paths of the global photons (or
+            # an unaimed shot), into the Caustic pass; the line says so.
             plan.caustics_from_global = plan.indirect
             source = ("the global photons" if plan.indirect
                       else f"{s.caustic_photons:,} unaimed photons")
-            window_note = ("; window glass " + ", ".join(f"'{n}'" for n in plan.window_glass[:4])
-                           + (" ..." if len(plan.window_glass) > 4 else "")
-                           + ": passed by shadow rays (thin flat glass)"
-                           if plan.window_glass else "")
-            # Lead with what is on (the estimate, from which photons), then why nothing
-            # is aimed: "on - no caster" read as a contradiction to a new user.
+            glow = []
             if rough_reached:
-                auto, why = True, (f"from {source}: the glossy reflections of "
-                                   + ", ".join(f"'{n}'" for n in rough_reached[:4])
-                                   + (" ..." if len(rough_reached) > 4 else "")
-                                   + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too "
-                                   "rough to focus light, so no photons are aimed at them)"
-                                   + window_note)
+                glow.append("the soft glow that the rough specular layer"
+                            + ("s" if len(rough_reached) > 1 else "") + " of "
+                            + ", ".join(f"'{n}'" for n in rough_reached[:4])
+                            + (" ..." if len(rough_reached) > 4 else "")
+                            + " reflect" + ("" if len(rough_reached) > 1 else "s")
+                            + " onto other surfaces")
+            if plan.window_glass:
+                glow.append("the reflections of window glass "
+                            + ", ".join(f"'{n}'" for n in plan.window_glass[:4])
+                            + (" ..." if len(plan.window_glass) > 4 else "")
+                            + " (passed by shadow rays: thin flat glass)")
+            sharp_none = (f"no mirror, {'only window' if plan.window_glass else 'no'} glass, "
+                          f"no surface smoother than roughness {SHARP_ROUGHNESS:g}")
+            carried = (f"{' and '.join(glow)} come"
+                       + ("s" if len(glow) == 1 and rough_reached else "")
+                       + f" from {source} (Caustic pass)")
+            if s.caustics == "off":
+                plan.caustics = _override(s.caustics, True, "caustics", "", plan)
+            elif s.caustics == "on":
+                plan.caustics = True
+                plan.add("caustics", True, f"forced on (nothing focuses light: "
+                         f"{sharp_none}); {carried}")
             else:
-                auto, why = True, (f"from {source}: the reflections of window glass "
-                                   + ", ".join(f"'{n}'" for n in plan.window_glass[:4])
-                                   + (" ..." if len(plan.window_glass) > 4 else "")
-                                   + " (passed by shadow rays: thin flat glass focuses no "
-                                   "light, so no photons are aimed at it)")
+                plan.caustics = True  # the glow's estimate (above), as before
+                plan.add("caustics", False, f"nothing focuses light ({sharp_none}); "
+                         f"{carried}")
+            auto = None
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "
                                 + _labelled(geo, table, all_names))
-        plan.caustics = _override(s.caustics, auto, "caustics", why, plan)
+        if auto is not None:
+            plan.caustics = _override(s.caustics, auto, "caustics", why, plan)
         if plan.caustics and reached:
             plan.casters = [n for _, _, _, n in reached]
             plan.caster_ids = np.array([oid for oid, _, _, _ in reached], np.int64)
@@ -388,7 +403,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     elif not visible:
         auto, why = False, "no mirror or glass is visible to the camera"
     else:
-        auto, why = True, (f"up to {s.max_depth} bounces through "
+        # The chain stops at the Light Paths limits (as Cycles'), or at Max Ray Depth
+        # where that is set lower (settings.max_depth).
+        limit = (f"at most {s.glossy_bounces} glossy, {s.transmission_bounces} "
+                 "transmission: Light Paths" if s.max_depth >= s.max_bounces else
+                 f"Max Ray Depth {s.max_depth}, below Light Paths' Total {s.max_bounces}")
+        auto, why = True, (f"up to {s.camera_depth} bounces ({limit}) through "
                            + _labelled(geo, table, visible[:4])
                            + (" ..." if len(visible) > 4 else ""))
     if s.method == "local":
@@ -457,11 +477,16 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     if s.method != "local":
         # Cycles' Light Paths limits (docs/design.md, Bounce limits): said once, so a
         # render darker than expected points at them.
+        # Max Ray Depth (settings.max_depth) is named only where it cuts camera chains
+        # shorter than the limits do: Cycles has no such cap.
+        cap = (f"; Max Ray Depth {s.max_depth} stops camera paths sooner: at most "
+               f"{s.max_depth} mirror / glass bounce{'s' if s.max_depth != 1 else ''} "
+               f"(below Total {s.max_bounces})" if s.max_depth < s.max_bounces else
+               "; camera paths stop at these too, as in Cycles")
         plan.add("bounce limits", True,
                  f"light paths up to {s.max_bounces} bounces: {s.diffuse_bounces} diffuse, "
                  f"{s.glossy_bounces} glossy, {s.transmission_bounces} transmission "
-                 "(Cycles' Light Paths > Max Bounces; camera chains also stop at max depth "
-                 f"{s.max_depth})")
+                 f"(Light Paths > Max Bounces, Cycles' settings and defaults){cap}")
     see_through = (table.alpha < 1) | table.has_alpha_texture
     if has_tris and np.any(see_through[mat]):
         names = sorted({table.names[m] for m in np.unique(mat[see_through[mat]])})
@@ -472,12 +497,35 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     return plan
 
 
+# Words for a dielectric's specular layer (a Principled base's, a coat's), by its
+# roughness: below SHARP_ROUGHNESS it focuses light and shows sharp highlights ("glossy":
+# plastic, varnish); from MATTE_ROUGHNESS (GGX alpha = roughness^2 >= 0.49, a lobe ~30
+# degrees and more wide) its highlight spreads over most of the view and the surface reads
+# as matte (a Principled floor at roughness 1.0 is not what a student calls glossy); in
+# between "rough glossy" (satin).
+MATTE_ROUGHNESS = 0.7
+
+
+def _layer_roughness(table: MaterialTable, mats) -> np.ndarray:
+    """(len(mats),) the sharpest dielectric specular roughness of materials mats: the
+    base's specular layer, or a coat's roughness where it has a coat."""
+    rough = np.asarray(table.roughness[mats], np.float64)
+    if table.coat_weight is not None and table.closure_params is not None:
+        from .closures import principled as pr
+        coat = np.asarray(table.closure_params[mats, pr.M_COAT_ROUGH], np.float64)
+        rough = np.where(table.coat_weight[mats] > 0, np.minimum(rough, coat), rough)
+    return rough
+
+
 def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
     """What a specular object is, in a student's words: 'glass' (transmission),
     'transparent' (alpha below 1 or an alpha texture: a card, a cut-out), 'mirror'
     (metallic and mirror-smooth: GGX alpha below ggx.ALPHA_MIN, the engine's delta lobe),
     'polished metal' (metallic, rough but sharp enough to focus light: is_sharp), 'metal'
-    (metallic and rougher), else 'glossy' (a coat over a diffuse base: plastic, varnish)."""
+    (metallic and rougher); else a specular layer over a diffuse base (a dielectric
+    Principled, a coat), by its roughness: 'glossy' (sharp enough to focus light: plastic,
+    varnish), 'rough glossy' (up to MATTE_ROUGHNESS) or 'matte' (rougher: its highlight
+    spreads over most of the view)."""
     mats = np.unique(geo.material[geo.object_id == oid])
     if np.any(table.transmission[mats] > 0):
         return "glass"
@@ -489,14 +537,27 @@ def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
         return "mirror"
     if np.any(metal & is_sharp(rough)):
         return "polished metal"
-    return "metal" if np.any(metal) else "glossy"
+    if np.any(metal):
+        return "metal"
+    layer = float(_layer_roughness(table, mats).min())
+    if is_sharp(layer):
+        return "glossy"
+    return "rough glossy" if layer < MATTE_ROUGHNESS - SHARP_TOLERANCE else "matte"
 
 
 def _labelled(geo: Geometry, table: MaterialTable, names) -> str:
-    """"glass 'ball', glossy 'vase'" for object names."""
+    """"glass 'ball', glossy 'vase'" for object names (a matte one with the specular
+    layer that puts it in the list: "matte 'floor' (its rough specular layer)")."""
     ids = {n: i for i, n in enumerate(geo.object_names)}
-    return ", ".join(f"{specular_kind(geo, table, ids[n])} '{n}'" if n in ids else f"'{n}'"
-                     for n in names)
+    out = []
+    for n in names:
+        if n not in ids:
+            out.append(f"'{n}'")
+            continue
+        kind = specular_kind(geo, table, ids[n])
+        out.append(f"{kind} '{n}'" + (" (its rough specular layer)" if kind == "matte"
+                                      else ""))
+    return ", ".join(out)
 
 
 def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:

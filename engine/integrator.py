@@ -474,7 +474,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             # shadowing term as its light samples do (engine/normalmap.py).
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
-        for depth in range(ctx.settings.max_depth + 1):
+        for depth in range(ctx.settings.gather_depth + 1):
             if len(idx) == 0:
                 break
             # Most of a camera chunk's time is spent here: poll the stop flag per step.
@@ -537,7 +537,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     rows = dsel[again[:n_again]]
                     pending.append((idx[rows], tp[rows], wd[rows], prim[rows], u[rows],
                                     v[rows], d[rows]))
-            if depth == ctx.settings.max_depth:
+            if depth == ctx.settings.gather_depth:
                 break
             if yf is y:
                 keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)

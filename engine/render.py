@@ -564,8 +564,19 @@ def photon_map_report(settings: RenderSettings, stats: dict) -> list[str]:
         parts.append(f"{stats['global_photons']:,} global photons stored, search radius "
                      f"{stats['radius_global']:.4g} m")
     if stats.get("caustic_photons"):
-        parts.append(f"{stats['caustic_photons']:,} caustic photons stored, search radius "
-                     f"{stats['radius_caustic']:.4g} m")
+        # The caustic radius is the global one scaled by sqrt(global / larger count)
+        # (_build_maps): the same unless the caustic shot stored more photons. Said once.
+        rc, rg = stats["radius_caustic"], stats.get("radius_global")
+        if stats.get("global_photons") and rg and abs(rc - rg) <= 1e-9 * rg:
+            why = ("set in the settings" if settings.radius is not None
+                   else "from the global photons' spacing: the caustic map holds fewer")
+            parts.append(f"{stats['caustic_photons']:,} caustic photons stored, the same "
+                         f"search radius ({why})")
+        else:
+            why = (" (the global radius, scaled down to their greater number)"
+                   if stats.get("global_photons") and rg and rc < rg else "")
+            parts.append(f"{stats['caustic_photons']:,} caustic photons stored, search "
+                         f"radius {rc:.4g} m{why}")
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])
     if stats.get("gather_rays_used"):

@@ -30,6 +30,11 @@ LIMITS = {
 # Cycles' Light Paths > Max Bounces (its defaults): the setting names and their defaults.
 BOUNCE_LIMITS = (("max_bounces", 12), ("diffuse_bounces", 4), ("glossy_bounces", 4),
                  ("transmission_bounces", 12))
+# A final-gather ray's own mirror / glass continuations: at most this many (and no more
+# than max_depth). They are not counted against the bounce limits (docs/design.md, Bounce
+# limits); 8 is max_depth's old default, so the gather's images kept their bits when
+# max_depth stopped capping the camera chain by default.
+GATHER_SPECULAR_DEPTH = 8
 FILTER_WIDTH_MAX = 500.0  # pixels: Blender's limit for the filter size
 
 
@@ -52,7 +57,11 @@ class RenderSettings:
     gather_by_share: bool = True
     # Pass 2 (camera)
     spp: int = 128                  # camera samples per pixel (jittered, stratified)
-    max_depth: int = 8              # max specular bounces along a camera path (paper)
+    # An extra cap on the specular bounces along a camera path (the paper's
+    # MaxRayTraceDepth), transparent passes included. Off by default (1024, the most
+    # Cycles' Total allows): like Cycles, the camera chain stops at the Light Paths limits
+    # below. Was 8, which silently cut glass chains below Cycles' Transmission 12.
+    max_depth: int = 1024
     light_samples: int = 1          # shadow rays per light with size, per camera sample
     # Pixel filter (engine/pixelfilter.py): box | gaussian | blackman_harris, width in
     # pixels. Camera rays are drawn from its distribution, as Cycles does; the add-on
@@ -68,7 +77,7 @@ class RenderSettings:
     # glossy_bounces off a glossy / mirror reflection and transmission_bounces through a
     # refraction (transparent passes count apart, above); the vertex that connects to the
     # light (a shadow ray, or the photon's first hit) is not a bounce. 0 diffuse = direct
-    # light only. max_depth stays the camera chain's own cap on top of these.
+    # light only. max_depth (above) is an optional extra cap on the camera chain.
     max_bounces: int = 12
     diffuse_bounces: int = 4
     glossy_bounces: int = 4
@@ -176,6 +185,19 @@ class RenderSettings:
         (the order of the photons' bounce counts, photonkernels.B_TOTAL ...)."""
         return np.array([self.max_bounces, self.diffuse_bounces, self.glossy_bounces,
                          self.transmission_bounces], np.int64)
+
+    @property
+    def camera_depth(self) -> int:
+        """The most bounces (bent ones: reflections and refractions) a camera chain takes
+        before the Light Paths stop it: max_bounces, or max_depth where the extra cap is
+        lower (the effect report names which)."""
+        return min(self.max_depth, self.max_bounces)
+
+    @property
+    def gather_depth(self) -> int:
+        """The most mirror / glass continuations of a final-gather ray: max_depth, at most
+        GATHER_SPECULAR_DEPTH."""
+        return min(self.max_depth, GATHER_SPECULAR_DEPTH)
 
     @property
     def threads(self) -> int:

@@ -386,9 +386,11 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
             emitters.append(RegionEmitter(light, region, n_in[i] / want[i], probs))
         else:
             emitters.append(light)
-    report = (f"visual importance: {K} region spheres hold {i_in:.0%} of "
-              f"the camera's lookups and get {p_in / (p_in + p_out):.0%} of the light; "
-              f"photons there {boost:.1f}x denser per watt")
+    # One plain sentence for the effect report (a student's words; the numbers kept).
+    report = (f"visual importance: {i_in:.0%} of the photon lookups the camera makes fall "
+              f"in {K} small region{'s' if K != 1 else ''} that get "
+              f"{p_in / (p_in + p_out):.0%} of the light, so {boost:.1f}x more photons "
+              "per watt are sent there: less noise where you look, the same brightness")
     return ShotPlan(emitters, counts.tolist(), report, region, boost)
 
 

@@ -67,7 +67,7 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
         if getattr(hit, "n_smooth", None) is not None:
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
         ray_cls = DIFFUSE
-        for depth in range(ctx.settings.max_depth + 1):
+        for depth in range(ctx.settings.gather_depth + 1):
             if len(idx) == 0:
                 break
             t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
@@ -106,7 +106,7 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
                         pending.append((idx[rows], tp[rows], wd[rows], y.take(rows)))
                         dsel, Ey = dsel[~redo], Ey[~redo]  # added by the batch below
                 E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G
-            if depth == ctx.settings.max_depth:
+            if depth == ctx.settings.gather_depth:
                 break
             keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
             idx = idx[keep]

@@ -304,12 +304,19 @@ def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
     for prop in pm.bl_rna.properties:
         if prop.identifier != "rna_type":
             pm.property_unset(prop.identifier)
-    # The bounce limits Cycles gets in set_cycles (at 32 the camera chain (max depth 8) and
-    # the photons (max photon depth 32) stay within them; only photons past 29 bounces,
-    # a handful, leave the deepest regather map: the images of before the limits).
+    # The bounce limits Cycles gets in set_cycles (the photons (max photon depth 32) stay
+    # within them; only photons past 29 bounces, a handful, leave the deepest regather
+    # map). The add-on reads Cycles' own Light Paths properties when the Cycles add-on is
+    # there (addon/export.light_path_settings): set them as set_cycles does; ours too (the
+    # fallback without Cycles).
+    cycles = getattr(scene, "cycles", None)
     for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces"):
         if hasattr(pm, attr):
             setattr(pm, attr, COMPARE_BOUNCES)
+    for attr in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
+                 "volume_bounces", "transparent_max_bounces"):
+        if cycles is not None and hasattr(cycles, attr):
+            setattr(cycles, attr, COMPARE_BOUNCES)
 
 
 def render_rgba(scene):

@@ -1942,6 +1942,8 @@ def write_report(rows, path=DOC_PATH):
         "camera_pixel_filter cases (Film > Pixel Filter, which the add-on reads as Cycles does).",
         "Cycles renders with Light Paths > Caustics > Filter Glossy 0 (its default 1.0 blurs",
         "glossy and glass paths to cut noise, a few % on caustics and glass: compare with 0).",
+        "Both render with Light Paths > Max Bounces 32 for every kind (the add-on reads Cycles'",
+        "own Light Paths properties; our camera paths stop at them, as Cycles' do).",
         "A case rebuilt in the same Blender session is not always the same mesh: the ball of",
         "closure_emission, built again by bmesh after a reset, came with the same 960",
         "triangles in another polygon order (and vertex normals 7e-8 apart), so the same random",

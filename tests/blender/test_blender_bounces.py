@@ -15,18 +15,87 @@ LIMITS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_boun
 
 
 def test_light_paths_properties_default_to_cycles_and_export(fresh_scene, bpy_addon):
+    """Our Light Paths properties have Cycles' names and defaults; with the Cycles add-on
+    there the render reads Cycles' own properties (a scene set to Diffuse 1 for Cycles
+    renders with 1 after switching engines), without it ours (the fallback)."""
+    from types import SimpleNamespace
+
+    from addon.export import light_path_settings, light_path_source
     from engine.settings import RenderSettings
-    pm = fresh_scene.photonmap
-    for name in LIMITS:
+    pm, c = fresh_scene.photonmap, fresh_scene.cycles
+    for name in LIMITS + ("transparent_max_bounces", "max_depth"):
         pm.property_unset(name)
     assert [getattr(pm, n) for n in LIMITS] == [12, 4, 4, 12]
-    assert [getattr(pm, n) for n in LIMITS] == \
-        [getattr(fresh_scene.cycles, n) for n in LIMITS]  # Cycles' own defaults
-    pm.max_bounces, pm.diffuse_bounces, pm.glossy_bounces, pm.transmission_bounces = 7, 2, 3, 5
-    kw = pm.to_settings_kwargs()
-    s = RenderSettings(**kw)
-    assert s.bounce_limits.tolist() == [7, 2, 3, 5]
+    assert [getattr(pm, n) for n in LIMITS] == [getattr(c, n) for n in LIMITS]  # Cycles' own
+    assert pm.transparent_max_bounces == c.transparent_max_bounces == 8
+    assert pm.max_depth == 1024 and RenderSettings(**pm.to_settings_kwargs()).max_depth == 1024
+    # Cycles' panel set for a Cycles render: ours follows it, our own values unused.
+    c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = 7, 1, 3, 5
+    c.transparent_max_bounces = 6
+    pm.max_bounces, pm.diffuse_bounces = 30, 9
+    assert light_path_source(fresh_scene, pm) == c
+    s = RenderSettings(**pm.to_settings_kwargs())
+    assert s.bounce_limits.tolist() == [7, 1, 3, 5] and s.transparent_max_bounces == 6
+    # Without the Cycles add-on (no scene.cycles): our properties.
+    bare = SimpleNamespace(render=fresh_scene.render)
+    assert light_path_source(bare, pm) is pm
+    pm.glossy_bounces, pm.transmission_bounces, pm.transparent_max_bounces = 2, 3, 1
+    assert light_path_settings(bare, pm) == dict(
+        max_bounces=30, diffuse_bounces=9, glossy_bounces=2, transmission_bounces=3,
+        transparent_max_bounces=1)
     assert hasattr(bpy_addon.types, "PHOTONMAP_PT_light_paths_max_bounces")
+
+
+class _Layout:
+    """A stand-in for a panel's layout: records prop(owner, name) and label(text)."""
+
+    def __init__(self, log=None):
+        self.log = [] if log is None else log
+        self.use_property_split = self.use_property_decorate = self.active = False
+
+    def column(self, **kw):
+        return _Layout(self.log)
+
+    def prop(self, owner, name, **kw):
+        self.log.append(("prop", owner, name))
+
+    def label(self, text="", **kw):
+        self.log.append(("label", None, text))
+
+
+def _draw_max_bounces(scene):
+    from types import SimpleNamespace
+
+    from addon.ui import PHOTONMAP_PT_light_paths_max_bounces as panel
+    layout = _Layout()
+    panel.draw(SimpleNamespace(layout=layout), SimpleNamespace(scene=scene))
+    return layout.log
+
+
+def test_light_paths_panel_draws_cycles_properties_and_the_depth_cap(fresh_scene):
+    """The Max Bounces panel shows Cycles' own properties (the ones the render reads) and
+    our Max Ray Depth beside them, with a note when that cap cuts camera paths shorter
+    than Total (it was on another panel, silently below Transmission 12)."""
+    pm, c = fresh_scene.photonmap, fresh_scene.cycles
+    pm.property_unset("max_depth")
+    log = _draw_max_bounces(fresh_scene)
+    props = {name: owner for kind, owner, name in log if kind == "prop"}
+    for name in LIMITS + ("transparent_max_bounces",):
+        assert props[name] == c, name
+    assert props["max_depth"] == pm
+    labels = [t for kind, _, t in log if kind == "label"]
+    assert "Shared with Cycles' Light Paths" in labels
+    assert not any("Camera paths stop" in t for t in labels)
+    pm.max_depth = 8
+    labels = [t for kind, _, t in _draw_max_bounces(fresh_scene) if kind == "label"]
+    assert "Camera paths stop after 8 mirror / glass bounces" in labels
+    # Sampling no longer shows it (one place, next to the limits it caps).
+    from types import SimpleNamespace
+
+    from addon.ui import PHOTONMAP_PT_sampling
+    layout = _Layout()
+    PHOTONMAP_PT_sampling.draw(SimpleNamespace(layout=layout), SimpleNamespace(scene=fresh_scene))
+    assert "max_depth" not in [name for kind, _, name in layout.log if kind == "prop"]
 
 
 def _closed_room(bpy, albedo=0.8):
