@@ -370,6 +370,9 @@ def glue_profile(roots, blends, args, where):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="7be1f83", help="commit to compare against")
+    ap.add_argument("--before-root", default=None,
+                    help="an existing checkout of --base to measure as 'before' (numba caches "
+                         "by source path: a checkout compiled already saves a compile)")
     ap.add_argument("--after", default=None,
                     help="commit to measure as 'after' (default: this working tree)")
     ap.add_argument("--blends", default=",".join(BLENDS))
@@ -391,7 +394,7 @@ def main(argv=None):
     args.lookup_blends = ["figure6_box", "figure7_blocker"]
     blends = args.blends.split(",")
     os.makedirs(args.work, exist_ok=True)
-    roots = {"before": base_tree(args.base, args.work),
+    roots = {"before": args.before_root or base_tree(args.base, args.work),
              "after": ROOT if args.after is None else base_tree(args.after, args.work)}
     head = args.after or subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                                         capture_output=True, text=True).stdout.strip() \
