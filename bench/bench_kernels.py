@@ -16,6 +16,10 @@ Prints Markdown tables:
   bounded, so spp does not change the peak) and per photon count, estimated
   (engine/resources.py) and measured (ru_maxrss of a fresh process), with bytes per
   stored photon;
+- the photon map stage alone (render._build_maps after the photon pass), before and
+  after, 1 and 2 workers: CPU seconds of the process while it runs (only its threads
+  work then), wall seconds, and whether the maps (every estimate, flag and stored
+  photon the camera pass reads) are bitwise the same;
 - cold compile (empty numba cache) and cached start (import + load), fresh processes;
 - where a 1-worker render's CPU time goes (cProfile on the process clock, after only):
   compiled kernels, Embree, and the Python / numpy glue between them, which holds the GIL
@@ -167,6 +171,44 @@ top = sorted(glue.items(), key=lambda x: -x[1])[:6]
 print(json.dumps(dict(parts=parts, top=top, camera=film.stats.get("time_camera", 0.0))))
 """
 
+MAPS = r"""
+import hashlib, importlib, json, pickle, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine.jit import ensure_compiled
+from engine.settings import RenderSettings
+render = importlib.import_module("engine.render")
+ensure_compiled()
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+scene.width, scene.height = W, H
+ctx = render.prepare_context(scene, RenderSettings(workers=WORKERS))
+build, spent = render._build_maps, {}
+def timed(*a, **kw):
+    c, w = time.process_time(), time.perf_counter()
+    out = build(*a, **kw)
+    spent.update(cpu=time.process_time() - c, wall=time.perf_counter() - w)
+    return out
+render._build_maps = timed
+render.shoot_photons(ctx, {})
+h = hashlib.sha1()
+def add(m):
+    if m is None:
+        return
+    for name in ("E", "boundary", "position", "normal"):
+        if hasattr(m, name):
+            h.update(np.ascontiguousarray(getattr(m, name)).tobytes())
+    if hasattr(m, "photons"):
+        for name in ("position", "power", "direction", "normal", "kind"):
+            h.update(np.ascontiguousarray(getattr(m.photons, name)).tobytes())
+for m in (ctx.gather_map, ctx.caustic_map, ctx.secondary_map, ctx.global_map,
+          *ctx.regather_maps, *ctx.regather_secondary):
+    add(m)
+h.update(np.float64([ctx.global_radius, ctx.caustic_radius, ctx.secondary_radius,
+                     ctx.gather_short]).tobytes())
+print(json.dumps(dict(spent, hash=h.hexdigest())))
+"""
+
 COMPILE = r"""
 import json, sys, time
 t0 = time.perf_counter()
@@ -286,6 +328,27 @@ def compile_times(roots):
               f"{warm['import_s']:.2f} | {warm['compile_s']:.2f} |", flush=True)
 
 
+def map_stage(roots, blends, args, where):
+    print("\n### The photon map stage (render._build_maps), default settings\n")
+    print("| blend | workers | before CPU s | after CPU s | CPU gain | before wall s | "
+          "after wall s | wall gain | maps |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---|")
+    for name in blends:
+        pkl = exported(name, where)
+        for workers in args.workers:
+            res = {"before": [], "after": []}
+            for _ in range(max(args.repeat, 2)):
+                for label in ("before", "after"):
+                    res[label].append(child(MAPS, ROOT=roots[label], PICKLE=pkl,
+                                            W=args.width, H=args.height, WORKERS=workers))
+            bc, ac = (min(r["cpu"] for r in res[x]) for x in ("before", "after"))
+            bw, aw = (min(r["wall"] for r in res[x]) for x in ("before", "after"))
+            same = "same bits" if res["before"][0]["hash"] == res["after"][0]["hash"] else \
+                "DIFFER"
+            print(f"| {name} | {workers} | {bc:.2f} | {ac:.2f} | {bc / ac:.2f}x | {bw:.2f} | "
+                  f"{aw:.2f} | {bw / aw:.2f}x | {same} |", flush=True)
+
+
 def glue_profile(roots, blends, args, where):
     print(f"\n### Where a 1-worker render's CPU goes (cProfile, process clock, "
           f"{args.width}x{args.height}, after)\n")
@@ -307,6 +370,9 @@ def glue_profile(roots, blends, args, where):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="7be1f83", help="commit to compare against")
+    ap.add_argument("--before-root", default=None,
+                    help="an existing checkout of --base to measure as 'before' (numba caches "
+                         "by source path: a checkout compiled already saves a compile)")
     ap.add_argument("--after", default=None,
                     help="commit to measure as 'after' (default: this working tree)")
     ap.add_argument("--blends", default=",".join(BLENDS))
@@ -316,7 +382,7 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1, help="best of this many per version")
     ap.add_argument("--resolutions", type=int, default=len(RESOLUTIONS))
     ap.add_argument("--photon-counts", type=int, default=len(PHOTON_COUNTS))
-    ap.add_argument("--only", default="compile,lookups,end_to_end,memory,profile")
+    ap.add_argument("--only", default="compile,lookups,end_to_end,maps,memory,profile")
     ap.add_argument("--quick", action="store_true",
                     help="160x120, Figure 7 only, 2 workers, two resolutions, one photon count")
     ap.add_argument("--work", default=os.path.join(tempfile.gettempdir(), "bench_kernels"))
@@ -328,7 +394,7 @@ def main(argv=None):
     args.lookup_blends = ["figure6_box", "figure7_blocker"]
     blends = args.blends.split(",")
     os.makedirs(args.work, exist_ok=True)
-    roots = {"before": base_tree(args.base, args.work),
+    roots = {"before": args.before_root or base_tree(args.base, args.work),
              "after": ROOT if args.after is None else base_tree(args.after, args.work)}
     head = args.after or subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
                                         capture_output=True, text=True).stdout.strip() \
@@ -342,6 +408,8 @@ def main(argv=None):
         lookups(roots, args, args.work)
     if "end_to_end" in only:
         end_to_end(roots, blends, args, args.work)
+    if "maps" in only:
+        map_stage(roots, blends, args, args.work)
     if "memory" in only:
         memory(roots, args, args.work)
     if "profile" in only:

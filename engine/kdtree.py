@@ -65,16 +65,18 @@ def _select(pts, perm, lo, hi, kth, ax):
     """Reorder pts[lo:hi] (and perm with it) so that pts[kth] holds the point of that rank
     along ax, the ones before it no greater, the ones after no smaller. The points move
     with their indices, so every pass reads memory in order. A three-way partition keeps
-    many equal coordinates (a focused caustic) linear instead of quadratic."""
+    many equal coordinates (a focused caustic) linear instead of quadratic: Hoare's FIND
+    with a median-of-three pivot. pts (N,3) points and perm (N,) their indices, or pts
+    (N,) values (perm and ax unused: select_value): numba compiles each form alone."""
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        a, b, c = pts[lo, ax], pts[mid, ax], pts[hi - 1, ax]
+        a, b, c = _coord(pts, lo, ax), _coord(pts, mid, ax), _coord(pts, hi - 1, ax)
         pivot = max(min(a, b), min(max(a, b), c))  # median of three
         lt = lo
         i = lo
         gt = hi
         while i < gt:
-            v = pts[i, ax]
+            v = _coord(pts, i, ax)
             if v < pivot:
                 _swap(pts, perm, i, lt)
                 lt += 1
@@ -93,7 +95,20 @@ def _select(pts, perm, lo, hi, kth, ax):
 
 
 @kernel
+def _coord(pts, i, ax):
+    """Point i's coordinate along ax, or value i (pts (N,): a compile-time branch)."""
+    if pts.ndim == 2:
+        return pts[i, ax]
+    return pts[i]
+
+
+@kernel
 def _swap(pts, perm, i, j):
+    if pts.ndim == 1:
+        t = pts[i]
+        pts[i] = pts[j]
+        pts[j] = t
+        return
     for c in range(3):
         t = pts[i, c]
         pts[i, c] = pts[j, c]
@@ -929,38 +944,10 @@ def knn_batch(pos, axis, split, leaf, queries, kq, radius):
 @kernel
 def select_value(a, count, m):
     """The m-th smallest (1-based) of a[:count] (float64, no NaN), reordering a[:count]
-    in place: Hoare's FIND with a median-of-three pivot and a three-way partition (many
-    equal values stay linear). Only the value: which entry holds it is not kept."""
-    lo = 0
-    hi = count
-    kth = m - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        x, y, z = a[lo], a[mid], a[hi - 1]
-        pivot = max(min(x, y), min(max(x, y), z))
-        lt = lo
-        i = lo
-        gt = hi
-        while i < gt:
-            v = a[i]
-            if v < pivot:
-                a[i] = a[lt]
-                a[lt] = v
-                lt += 1
-                i += 1
-            elif v > pivot:
-                gt -= 1
-                a[i] = a[gt]
-                a[gt] = v
-            else:
-                i += 1
-        if kth < lt:
-            hi = lt
-        elif kth >= gt:
-            lo = gt
-        else:
-            return pivot
-    return a[lo]
+    in place: the kd-tree build's _select on values. Only the value: which entry holds
+    it is not kept."""
+    _select(a, a, 0, count, m - 1, 0)  # perm unused for values
+    return a[m - 1]
 
 
 @kernel

@@ -266,32 +266,11 @@ def kth_d2(position, box, code, lo, scale, queries, kq, out, stop):
                 out[i] = select_value(listed, got, kq)
                 continue
         count = 0
-        st_node[0] = 0
-        st_d2[0] = _box_d2(box, 0, qx, qy, qz)
-        sp = 1
-        while sp > 0:
-            sp -= 1
-            node = st_node[sp]
-            if st_d2[sp] >= bound:
-                continue
-            while node < inner:
-                a = 2 * node + 1
-                da = _box_d2(box, a, qx, qy, qz)
-                db = _box_d2(box, a + 1, qx, qy, qz)
-                if db < da:
-                    near, far, dfar = a + 1, a, da
-                else:
-                    near, far, dfar = a, a + 1, db
-                if dfar < bound:
-                    st_node[sp] = far
-                    st_d2[sp] = dfar
-                    sp += 1
-                if min(da, db) >= bound:
-                    node = -1
-                    break
-                node = near
+        sp = _root(box, qx, qy, qz, st_node, st_d2)
+        while True:
+            node, sp = _next_leaf(box, inner, qx, qy, qz, bound, st_node, st_d2, sp)
             if node < 0:
-                continue
+                break
             first = (node - inner) * LEAF_SIZE
             for j in range(first, min(first + LEAF_SIZE, n)):
                 dist2 = _d2(position, j, qx, qy, qz)
@@ -307,31 +286,11 @@ def _list_d2(position, box, inner, n, qx, qy, qz, bound, listed, cap, st_node, s
     """The squared distances < bound of the points to the query into listed[:count]
     (any order); returns count, or cap + 1 as soon as more than cap are found."""
     count = 0
-    st_node[0] = 0
-    st_d2[0] = _box_d2(box, 0, qx, qy, qz)
-    sp = 1
-    while sp > 0:
-        sp -= 1
-        node = st_node[sp]
-        if st_d2[sp] >= bound:
-            continue
-        while node < inner:
-            a = 2 * node + 1
-            da = _box_d2(box, a, qx, qy, qz)
-            db = _box_d2(box, a + 1, qx, qy, qz)
-            if da < bound:
-                if db < bound:
-                    st_node[sp] = a + 1
-                    st_d2[sp] = db
-                    sp += 1
-                node = a
-            elif db < bound:
-                node = a + 1
-            else:
-                node = -1
-                break
+    sp = _root(box, qx, qy, qz, st_node, st_d2)
+    while True:
+        node, sp = _next_leaf(box, inner, qx, qy, qz, bound, st_node, st_d2, sp)
         if node < 0:
-            continue
+            break
         first = (node - inner) * LEAF_SIZE
         for j in range(first, min(first + LEAF_SIZE, n)):
             dist2 = _d2(position, j, qx, qy, qz)
@@ -341,6 +300,48 @@ def _list_d2(position, box, inner, n, qx, qy, qz, bound, listed, cap, st_node, s
                 listed[count] = dist2
                 count += 1
     return count
+
+
+@kernel
+def _root(box, qx, qy, qz, st_node, st_d2):
+    """Start a traversal of the box tree: the root on the stack (st_node, st_d2: node and
+    its box's squared distance); returns the stack's size."""
+    st_node[0] = 0
+    st_d2[0] = _box_d2(box, 0, qx, qy, qz)
+    return 1
+
+
+@kernel
+def _next_leaf(box, inner, qx, qy, qz, bound, st_node, st_d2, sp):
+    """The traversal both searches share (kth_d2's heap search, _list_d2): pop the stack
+    (sp entries) and descend, nearer child first, to the next leaf whose box is nearer
+    than bound, pushing the farther child where it is nearer than bound too. Returns
+    (leaf node, sp), or (-1, 0) when no leaf is left. bound may shrink between calls
+    (the heap's): each entry is tested against it again when popped."""
+    while sp > 0:
+        sp -= 1
+        node = st_node[sp]
+        if st_d2[sp] >= bound:
+            continue
+        while node < inner:
+            a = 2 * node + 1
+            da = _box_d2(box, a, qx, qy, qz)
+            db = _box_d2(box, a + 1, qx, qy, qz)
+            if db < da:
+                near, far, dfar = a + 1, a, da
+            else:
+                near, far, dfar = a, a + 1, db
+            if dfar < bound:
+                st_node[sp] = far
+                st_d2[sp] = dfar
+                sp += 1
+            if min(da, db) >= bound:
+                node = -1
+                break
+            node = near
+        if node >= 0:
+            return node, sp
+    return -1, 0
 
 
 @kernel

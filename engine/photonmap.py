@@ -17,7 +17,6 @@ wall) are ignored: that is what keeps light from leaking.
 from __future__ import annotations
 
 import copy
-from dataclasses import replace
 import math
 
 import numpy as np
@@ -135,7 +134,8 @@ class PhotonMap:
 
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                    min_photons: int, estimator: str, return_boundary: bool = False,
-                   r_floor: np.ndarray | None = None, should_cancel=None):
+                   r_floor: np.ndarray | None = None, should_cancel=None,
+                   masks: np.ndarray | None = None):
         """Irradiance estimate E (W/m^2, (M,3) float64) at points p (M,3) with unit normals
         n (M,3) facing the viewer.
         return_boundary: also return, per point, whether the estimate's disc is not whole:
@@ -144,6 +144,10 @@ class PhotonMap:
         There the estimate is biased dark.
         r_floor: per point, the smallest k-NN radius (a camera sample's pixel footprint):
         a focus is spread over at least that disc instead of a point.
+        masks: (S, N) bool over self.photons: also return, last, (S, M, 3) float64 the
+        irradiance of each mask's photons alone from the same search (the others' power
+        counted as 0): the bits of S more calls on maps whose power arrays zero the
+        other photons, for about the cost of one (GatherMap's subsets).
 
         Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K entries),
         however far a query widens. Raises ValueError for an unknown estimator;
@@ -158,6 +162,15 @@ class PhotonMap:
         out = np.zeros((m, 3))
         boundary = np.ones(m, bool)  # rows with no estimate keep True
         result = (out, boundary) if return_boundary else out
+        if masks is None:
+            masks, masked = _NO_MASKS, _NO_MASKED
+        else:
+            masks = np.ascontiguousarray(masks, dtype=np.bool_)
+            if masks.ndim != 2 or masks.shape[1] != len(self.photons):
+                raise ValueError(f"irradiance: masks must have shape (S, {len(self.photons)}),"
+                                 f" got {masks.shape}")
+            masked = np.zeros((len(masks), m, 3))
+            result = (*result, masked) if return_boundary else (out, masked)
         if self.tree is None or m == 0 or radius <= 0 or len(self.photons) < min_photons:
             return result
         p = np.ascontiguousarray(p, dtype=np.float64)
@@ -179,7 +192,7 @@ class PhotonMap:
             b = min(a + rows, m)
             _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
                              p, n, floor, order[a:b], float(radius), int(k), int(min_photons),
-                             code, bool(return_boundary), out, boundary, flag)
+                             code, bool(return_boundary), out, boundary, flag, masks, masked)
             if flag[0]:
                 raise Cancelled()
             return None
@@ -190,6 +203,8 @@ class PhotonMap:
 
 
 _NO_NODES = (np.zeros(0, np.uint8), np.zeros(0, np.float32), np.zeros(1, np.int64))
+_NO_MASKS = np.zeros((0, 0), np.bool_)
+_NO_MASKED = np.zeros((0, 0, 3))
 _NO_START = np.zeros(1, np.int32)
 
 
@@ -234,12 +249,19 @@ def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
 
 @kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
-                     rows, radius, k, min_photons, code, want_boundary, out, boundary, stop):
+                     rows, radius, k, min_photons, code, want_boundary, out, boundary, stop,
+                     masks, masked):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
     r_floor, if not empty) into the same rows of out (E) and boundary. Scratch:
     MAX_WIDEN_K (or k) neighbours, reused by every row. stop: (1,) uint8, polled every
-    STOP_ROWS rows; once nonzero the kernel returns with rows left unwritten."""
+    STOP_ROWS rows; once nonzero the kernel returns with rows left unwritten.
+    masks: (S, P) bool over the photons, masked: (S, M, 3) float64: row i's estimate
+    from mask s's photons alone into masked[s, i] (the other photons' power counted as
+    0; the same neighbours, disc and terms in the same order as an estimate whose power
+    array zeroes them: the same bits). S = 0: none."""
     P = pos.shape[0]
+    S = masks.shape[0]
+    ms = np.zeros((S, 6))  # per mask: e0, e1, e2, a0, a1, a2 of the row
     cap = max(min(max(k, MAX_WIDEN_K, MAX_CLASSIC_K), P), 1)
     d2 = np.empty(cap, np.float64)
     idx = np.empty(cap, np.int64)
@@ -265,6 +287,10 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
         out[i, 0] = out[i, 1] = out[i, 2] = 0.0
+        for s in range(S):
+            masked[s, i, 0] = masked[s, i, 1] = masked[s, i, 2] = 0.0
+            for c in range(6):
+                ms[s, c] = 0.0
         boundary[i] = True
         scale = 1.0
         r_simpson = radius  # the radius estimator's kernel support
@@ -445,12 +471,22 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             e0 += w * np.float64(power[pj, 0])
             e1 += w * np.float64(power[pj, 1])
             e2 += w * np.float64(power[pj, 2])
+            for s in range(S):
+                if masks[s, pj]:
+                    ms[s, 0] += w * np.float64(power[pj, 0])
+                    ms[s, 1] += w * np.float64(power[pj, 1])
+                    ms[s, 2] += w * np.float64(power[pj, 2])
             if not inside:
                 continue  # accepted photons beyond the k-th do not count towards the minimum
             count += 1
             a0 += np.float64(power[pj, 0])
             a1 += np.float64(power[pj, 1])
             a2 += np.float64(power[pj, 2])
+            for s in range(S):
+                if masks[s, pj]:
+                    ms[s, 3] += np.float64(power[pj, 0])
+                    ms[s, 4] += np.float64(power[pj, 1])
+                    ms[s, 5] += np.float64(power[pj, 2])
             c0 += pos[pj, 0] - np.float32(qx)
             c1 += pos[pj, 1] - np.float32(qy)
             c2 += pos[pj, 2] - np.float32(qz)
@@ -461,10 +497,16 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             in_disc = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, rk * rk, buckets)
             f = in_disc / max(fetched, 1) / area
             e0, e1, e2 = f * a0, f * a1, f * a2
+            for s in range(S):
+                for c in range(3):
+                    ms[s, c] = f * ms[s, 3 + c]
         if count >= min_photons:
             out[i, 0] = e0 * scale
             out[i, 1] = e1 * scale
             out[i, 2] = e2 * scale
+            for s in range(S):
+                for c in range(3):
+                    masked[s, i, c] = ms[s, c] * scale
         if not want_boundary:
             continue
         # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
@@ -581,28 +623,35 @@ class GatherMap:
                               axis=0).astype(np.float64)
         tree.order = None
 
-        def estimate(mask):
-            def run(stop):
-                view = estimating
-                if mask is not None:
-                    view = copy.copy(estimating)
-                    power = estimating.photons.power * np.take(mask, estimating.source)[:, None]
-                    view.photons = replace(estimating.photons, power=power.astype(np.float32))
-                return view.irradiance(self.position, self.normal, radius, k, min_photons,
-                                       estimator, return_boundary=True, should_cancel=stop)
-            return run
+        # keep's and the subsets' irradiance from one search per point: the neighbours,
+        # discs and boundary flags depend on the photons' places and directions only,
+        # never on their power (PhotonMap.irradiance's masks: the same bits as an estimate
+        # pass per mask, for about the cost of one).
+        masks = ([] if keep is None else [keep]) + list(subsets)
+
+        def estimate(stop):
+            chosen = None
+            if masks:
+                chosen = np.empty((len(masks), len(estimating)), np.bool_)
+                for row, mask in zip(chosen, masks):
+                    np.take(mask, estimating.source, out=row)
+            return estimating.irradiance(self.position, self.normal, radius, k, min_photons,
+                                         estimator, return_boundary=True, should_cancel=stop,
+                                         masks=chosen)
 
         def neighbours(stop):
             return tree.neighbour_lists(workers=workers, should_cancel=stop)
 
-        done = run_tasks([estimate(keep), neighbours] + [estimate(m) for m in subsets],
-                         workers, should_cancel)
-        (self.E, self.boundary), self.neighbours = done[0], done[1]
+        done, self.neighbours = run_tasks([estimate, neighbours], workers, should_cancel)
+        E, self.boundary = done[0], done[1]
+        levels = list(done[2]) if masks else []
+        self.E = E if keep is None else levels.pop(0)
         self.radius = radius
         self.tree = tree
-        for E, boundary in done[2:]:
+        for E in levels:
+            # The same points, trees, neighbour lists and boundary flags (shared).
             view = copy.copy(self)
-            view.E, view.boundary, view.subset_maps = E, boundary, []
+            view.E, view.subset_maps = E, []
             self.subset_maps.append(view)
 
     def serial(self) -> "GatherMap":

@@ -476,12 +476,14 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                 diffuse_area, len(rows), k, geo.extent,
                 np.take(shot.position, rows, axis=0), secondary.tree, workers=workers)
             # Read at regathered points, level + 1 diffuse bounces from the camera's hit.
-            deeper, last = [], (secondary, at_hit)
+            # A level whose limits keep the same secondary photons (they differ only in
+            # others: Figure 6's levels 1 / 2) reads the map above (the same estimates).
+            deeper, last = [], (secondary, rows)
             for level in range(1, MAX_GATHER_LEVEL + 1):
                 ok = shot.usable(limits, camera=(level, level, 0, 0))
-                if not np.array_equal(ok, last[1]):
-                    rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & ok)
-                    last = (PhotonMap(shot, workers, rows=rows), ok)
+                rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & ok)
+                if not np.array_equal(rows, last[1]):
+                    last = (PhotonMap(shot, workers, rows=rows), rows)
                 deeper.append(last[0])
             out["regather_secondary"] = tuple(deeper)
         elif plan.indirect and not s.final_gather:
