@@ -139,7 +139,7 @@ def emit_world(env_on, rotation, pixels, interp, rows, cols, pdf_uv, flux, cente
         u1 = emit_uniform(key, s, 0)
         u2 = emit_uniform(key, s, 1)
         if env_on:
-            w0, w1, w2, pdf = env_sample(rotation, rows, cols, pdf_uv, u1, u2)
+            w0, w1, w2, pdf = env_sample(rotation, pixels, interp, rows, cols, pdf_uv, u1, u2)
             L0, L1, L2 = env_radiance(rotation, pixels, interp, w0, w1, w2)
             inv = 1.0 / max(pdf, 1e-300) if pdf > 0 else 0.0
             g = inv * area / count
