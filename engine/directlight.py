@@ -360,7 +360,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     R = env_frame
                     if selu < ENV_MAP_FRACTION:
                         x = min(selu / ENV_MAP_FRACTION, ONE_BELOW)
-                        w0, w1, w2, pe = env_cosine_sample(R, env_rows, env_cols, env_mass,
+                        w0, w1, w2, pe = env_cosine_sample(R, env_px, int(q[ENV_INTERP]),
+                                                           env_rows, env_cols, env_mass,
                                                            env_prefix, env_cell, N_OCT,
                                                            s0, s1, s2, x, u2)
                     else:
@@ -371,7 +372,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                         z = math.sqrt(max(0.0, 1.0 - x))
                         w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z,
                                                s0, s1, s2)
-                        pe = env_cosine_pdf(R, env_mass, env_prefix, env_cell, N_OCT,
+                        pe = env_cosine_pdf(R, env_px, int(q[ENV_INTERP]), env_mass,
+                                            env_prefix, env_cell, N_OCT,
                                             w0, w1, w2, s0, s1, s2)
                     cs = w0 * s0 + w1 * s1 + w2 * s2
                     ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0

@@ -84,14 +84,18 @@ def test_cosine_samples_follow_their_pdf_chi_square(shape, rotation):
         wi, pdf = env.cosine_sample(rng.random(n_samples), rng.random(n_samples), n[None])
         assert np.all(pdf > 0) and np.allclose(np.linalg.norm(wi, axis=1), 1.0)
         assert np.allclose(pdf, env.cosine_pdf(wi, n[None]), rtol=1e-9)
-        # Expected texel frequencies from the pdf: pdf_uv / (H W) at the texel centres.
-        th = math.pi * (np.arange(H) + 0.5) / H
-        u = (np.arange(W) + 0.5) / W
+        # Expected texel frequencies from the pdf: the mean of pdf_uv over the texel / (H W)
+        # (pdf_uv is bilinear on each quarter of a texel (texel_warp): the midpoints of
+        # 8 x 8 sub-squares, aligned with the quarters, integrate it exactly).
+        sub = (np.arange(8) + 0.5) / 8
+        th = math.pi * (np.arange(H)[:, None] + sub[None, :]).reshape(-1) / H
+        u = (np.arange(W)[:, None] + sub[None, :]).reshape(-1) / W
         T, U = np.meshgrid(th, u, indexing="ij")
         phi = 2 * math.pi * (0.5 - U)
         tex = np.stack([np.sin(T) * np.cos(phi), np.sin(T) * np.sin(phi), np.cos(T)], -1)
         world = tex.reshape(-1, 3) @ env.rotation  # R^T t
         p_uv = env.cosine_pdf(world, n[None]) * 2 * math.pi ** 2 * np.sin(T).reshape(-1)
+        p_uv = p_uv.reshape(H, 8, W, 8).mean(axis=(1, 3)).reshape(-1)
         expected = p_uv / (H * W) * n_samples
         observed = np.bincount(_texel_of(env, wi), minlength=H * W)
         big = expected > 20
