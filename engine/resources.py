@@ -70,10 +70,10 @@ BYTES_PER_INSTANCE = 400  # a shared instance: record, matrices, top-level box a
 # (photonmap._point_shares): measured 1.08x the every-step-th points in the Figure 6 box
 # at the defaults (60,739 points of 733,827 photons), 0.99x on an HDRI-lit ground;
 # GATHER_POINT_SPREAD leaves room above that. Each deeper level holds a (P,3) float64
-# irradiance and a (P,) bool boundary flag per point.
+# irradiance per point; the boundary flags are the level-0 map's (shared).
 GATHER_MAX_POINTS = 60_000
 GATHER_POINT_SPREAD = 1.25
-BYTES_PER_GATHER_POINT_LEVEL = 25
+BYTES_PER_GATHER_POINT_LEVEL = 24
 # Building an environment map's tables (lights.environment.texel_function: the texels as
 # float64, their luminance and its filtered copies) holds this much per texel beyond the
 # tables for a moment (tracemalloc, 2k x 1k: peak 40.0 B/texel with the cosine tables'

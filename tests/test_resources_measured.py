@@ -28,7 +28,7 @@ def _subset_bytes(ctx):
     gm = ctx.gather_map
     if gm is None:
         return 0
-    return sum(v.E.nbytes + v.boundary.nbytes for v in gm.subset_maps)
+    return sum(v.E.nbytes for v in gm.subset_maps)
 
 
 def _environment_arrays(env):
