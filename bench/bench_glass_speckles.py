@@ -14,7 +14,8 @@ Principled spheres (the pickled export /tmp/pk/principled_spheres_df2.pkl, defau
 settings at --size); "figure6" / "figure8", the paper's boxes (/tmp/pk/*.pkl).
 Modes: "choice" (SPLIT_FIRST_GLASS = False: one lobe picked at random, as before),
 "split" (the first glass hit), "splitN" (the first N glass hits), with "+rough" (rough
-glass split too) and "+mirror" (integrator.MIRROR_NO_ROULETTE), e.g. "split2+rough".
+glass split too) and "+mirror" (integrator.MIRROR_NO_ROULETTE), e.g. "split2+rough";
+"default": the module's settings (now split2+rough+mirror).
 
 Per mode and region (the pixels whose centre ray first meets that material, and the
 whole image): the region's mean (luminance, the mean of R, G, B), the pixel variance over
@@ -85,10 +86,18 @@ def first_hit_materials(scene, settings):
     return names[mat].reshape(H, W)
 
 
+_FLAGS = ("SPLIT_FIRST_GLASS", "SPLIT_GLASS_HITS", "SPLIT_ROUGH_GLASS", "MIRROR_NO_ROULETTE")
+DEFAULTS = {k: getattr(integrator, k) for k in _FLAGS}
+
+
 def set_mode(mode):
     """mode: "choice", or "split" / "splitN" (the first N glass hits), with "+rough"
     (rough glass split too) and / or "+mirror" (no Russian roulette at mirror-only first
-    hits, integrator.MIRROR_NO_ROULETTE); "choice+mirror" too."""
+    hits, integrator.MIRROR_NO_ROULETTE); "choice+mirror" too; "default": the module's."""
+    if mode == "default":
+        for k, v in DEFAULTS.items():
+            setattr(integrator, k, v)
+        return
     parts = mode.split("+")
     head = parts[0]
     integrator.SPLIT_FIRST_GLASS = head != "choice"
@@ -125,7 +134,7 @@ def run(name, seeds, modes, spp=None, size=None, save=None):
             imgs[m].append(img)
             cpus[m].append(cpu)
             print(f"  {name} seed {seed} {m}: {cpu:.2f} CPU s", flush=True)
-    set_mode("split")
+    set_mode("default")
     if save:
         os.makedirs(save, exist_ok=True)
         np.savez_compressed(os.path.join(save, f"{name}.npz"), mats=mats,
@@ -164,7 +173,7 @@ def main(argv=None):
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--spp", type=int, default=None)
     ap.add_argument("--size", default=None, help="WxH (pickled scenes: 80x60)")
-    ap.add_argument("--modes", default="choice,split")
+    ap.add_argument("--modes", default="choice,default")
     ap.add_argument("--save", default=None, help="directory for the images (npz)")
     args = ap.parse_args(argv)
     size = tuple(int(x) for x in args.size.split("x")) if args.size else None

@@ -807,20 +807,26 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
 
 _NO_ALPHA = np.zeros(0)  # continue_lobes: the materials' alpha
 _NO_SPLIT = np.zeros(0, np.bool_)  # continue_lobes: no glass lobe is split
-# A camera path's first smooth glass hit continues both halves of the glass lobe, each
-# with its Fresnel weight, instead of one chosen with it (_trace_paths): the sun's mirror
-# image on a glass ball, met by the ~4 % of samples whose choice took the reflection, was
-# a speckle of full radiance (docs/performance.md, "Camera paths through glass"); deeper
-# glass hits keep the random choice (as Cycles' do). False: the choice everywhere, as before.
+# A camera path's first glass hits continue both halves of the glass lobe, each with its
+# Fresnel weight, instead of one chosen with it (_trace_paths; docs/performance.md,
+# "Glass speckles: splitting the camera's first glass hits"). A glass ball under a sun
+# behind the camera showed rare samples of the sun's full radiance: its mirror image on
+# the ball's front, taken by the ~4 % of samples whose choice took the reflection, and
+# (most of them) the ball's rainbow, the path in, reflected at the back and out, whose
+# inner reflection was the rare choice. Deeper glass hits keep the random choice, as
+# Cycles' do. False: the choice everywhere, as before.
 SPLIT_FIRST_GLASS = True
+# How many glass hits of a camera path split: 2 takes the rainbow's inner reflection
+# (a sun-lit glass ball: pixel variance x CPU s 16 -> 1.0; 1 split: 20).
+SPLIT_GLASS_HITS = 2
+# Rough glass splits too, at one microfacet normal (glass_both). Its reflection keeps
+# the MIS pdf of the whole choice (principled.bsdf_pdf), which light sampling's weight
+# also uses: the two weights still sum to one, so the estimate stays unbiased.
+SPLIT_ROUGH_GLASS = True
 # The camera's first hits whose continuation is mirror-like only (a smooth dielectric's
-# specular layer) always continue: no Russian roulette (camerakernels.mirror_survival).
-MIRROR_NO_ROULETTE = False
-# How many glass hits of a camera path split (1: the first only).
-SPLIT_GLASS_HITS = 1
-# Split rough glass too (its reflection keeps its MIS pdf under the whole choice: the
-# weights of the two strategies still sum to one, so the estimate stays unbiased).
-SPLIT_ROUGH_GLASS = False
+# specular layer, albedo ~4 %: Russian roulette kept 40 % of them at weight 2.5) always
+# continue (camerakernels.mirror_survival): light sampling cannot carry a mirror lobe.
+MIRROR_NO_ROULETTE = True
 _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 
 

@@ -239,4 +239,21 @@ def test_glass_both_is_the_choice_times_its_probability(roughness, front):
                 checked += 1
         else:
             assert not t_w.any()
-    assert checked > 100
+    # (From inside, below mu ~0.75 every normal reflects totally: no refraction to pair.)
+    assert checked > (100 if front else 30)
+
+
+def test_smooth_dielectric_mirror_lobe_is_not_roulette_at_the_first_hit():
+    """A smooth Principled dielectric (black base: its specular layer alone) at 45 degrees
+    reflecting an emitter of radiance 10 (black world): the layer's albedo is F (~5 %), so
+    Russian roulette would continue 10 F x 10 of the samples at weight 1 / (10 F) and
+    leave the rest 0; at the camera's first hit a mirror-only continuation always goes on
+    (integrator.MIRROR_NO_ROULETTE), so at 1 sample a pixel every pixel is 10 F."""
+    plastic = Material("plastic", (0.0, 0.0, 0.0), roughness=0.0, ior=IOR, specular=1.0,
+                       multiscatter=False)
+    s, n = _slab_scene(45.0, "reflect", level=10.0, glass=plastic)
+    cos_i, inside = _expected_and_mask(s, n)
+    F = _fresnel(cos_i)[inside]
+    img = _render(s, spp=1)[inside, 0]
+    assert img.min() >= 0.995 * 10.0 * F.min()
+    assert img.max() <= 1.005 * 10.0 * F.max()
