@@ -17,8 +17,10 @@ two Embree calls for every hit of a camera, gather or specular ray.
   throughput, ray class and MIS pdf, and the offset origins, compacted into the arrays
   handed to Embree. The uniform numbers are drawn in numpy between the two kernels, in
   the order the numpy stage drew them. On the hits the caller marks (a camera path's
-  first smooth glass hit, integrator._trace_paths) a picked glass lobe is split:
+  first glass hits, integrator._trace_paths) a picked glass lobe is split:
   `glass_both` continues its reflection and its refraction, each with its Fresnel weight.
+  `mirror_survival`: no Russian roulette at the camera's first hits whose continuation
+  is mirror-like only.
 - `hit_closures` (sixth slice): bsdf.closures' set-up (view cosine, Cycles' glossy
   normal, glass rows, per-hit alpha and parameter rows, principled.setup) in one pass.
 - `keep_path_hits` (sixth slice): the camera paths whose ray met a surface, compacted
