@@ -257,3 +257,27 @@ def test_smooth_dielectric_mirror_lobe_is_not_roulette_at_the_first_hit():
     img = _render(s, spp=1)[inside, 0]
     assert img.min() >= 0.995 * 10.0 * F.min()
     assert img.max() <= 1.005 * 10.0 * F.max()
+
+
+def test_rough_glass_split_keeps_the_mean_of_the_choice():
+    """Rough glass (roughness 0.3, Principled, base 0.25 / 0.5 / 1) in a uniform world at
+    60 degrees: the split at one microfacet normal (SPLIT_ROUGH_GLASS) and the random
+    choice it replaces give the same mean (measured over 3 seeds x 64 spp: within 0.6
+    standard errors per channel; here one seed each, 256 spp: ~0.5 % noise)."""
+    import engine.integrator as integrator
+
+    m = Material("rough", (0.25, 0.5, 1.0), transmission=1.0, roughness=0.3, ior=IOR,
+                 node="principled", multiscatter=False)
+    s, n = _slab_scene(60.0, "furnace", glass=m)
+    _, inside = _expected_and_mask(s, n)
+    got = {}
+    saved = integrator.SPLIT_FIRST_GLASS
+    try:
+        for split in (False, True):
+            integrator.SPLIT_FIRST_GLASS = split
+            got[split] = _render(s, spp=256, seed=2)[inside].mean(axis=0)
+    finally:
+        integrator.SPLIT_FIRST_GLASS = saved
+    assert integrator.SPLIT_ROUGH_GLASS
+    np.testing.assert_allclose(got[True], got[False], rtol=0.02)
+    assert got[True][0] > 0.2  # (light reaches the pixels)
