@@ -16,7 +16,11 @@ two Embree calls for every hit of a camera, gather or specular ray.
   path takes, its sampled direction and weight (principled.sample_lobe), the new
   throughput, ray class and MIS pdf, and the offset origins, compacted into the arrays
   handed to Embree. The uniform numbers are drawn in numpy between the two kernels, in
-  the order the numpy stage drew them.
+  the order the numpy stage drew them. On the hits the caller marks (a camera path's
+  first glass hits, integrator._trace_paths) a picked glass lobe is split:
+  `glass_both` continues its reflection and its refraction, each with its Fresnel weight.
+  `mirror_survival`: no Russian roulette at the camera's first hits whose continuation
+  is mirror-like only.
 - `hit_closures` (sixth slice): bsdf.closures' set-up (view cosine, Cycles' glossy
   normal, glass rows, per-hit alpha and parameter rows, principled.setup) in one pass.
 - `keep_path_hits` (sixth slice): the camera paths whose ray met a surface, compacted
@@ -41,6 +45,7 @@ import math
 
 import numpy as np
 
+from .closures import ggx
 from .closures import principled as pr
 from .directlight import _npmax, _to_world
 from .jit import kernel, register_warm_up
@@ -506,6 +511,39 @@ def view_depth(p, cam_pos, forward, depth):
 
 
 @kernel
+def mirror_survival(prm, p, psum, q, sel):
+    """No Russian roulette on hits whose continuation is mirror-like only: rows (N,) with
+    psum > 0 whose non-diffuse lobes of weight p > 0 are all mirror-like (no pass lobe, no
+    lobe with a density: principled.is_rough) get q = 1 and sel (N, N_LOBES) = p / psum
+    (choose_lobes' sel with q = 1). A smooth dielectric's mirror lobe (albedo ~4 %) took
+    q = 0.4 and weight 2.5 on the ~40 % of samples that continued; light sampling cannot
+    carry a mirror lobe, so its highlights were that much noisier. Returns the rows
+    changed. Reads prm only on rows with such a lobe (shade_lobes leaves a diffuse-only
+    row's prm unwritten; its only possible lobe is the pass lobe)."""
+    k_lobes = p.shape[1]
+    changed = 0
+    for i in range(p.shape[0]):
+        s = psum[i]
+        if not s > 0.0 or q[i] >= 1.0:
+            continue
+        if p[i, _PASS] > 0.0:
+            continue
+        mirror = True
+        for j in range(k_lobes):
+            if p[i, j] > 0.0 and pr.is_rough(prm, i, j + 1):
+                mirror = False
+                break
+        if not mirror:
+            continue
+        q[i] = 1.0
+        sel[i, 0] = 0.0
+        for j in range(k_lobes):
+            sel[i, j + 1] = p[i, j] / s
+        changed += 1
+    return changed
+
+
+@kernel
 def choose_lobes(albedo, tp, sel, q, p, psum):
     """The continuation's lobe choice from the closures' lobe albedos albedo
     (N, N_LOBES, 3) (column 0 = diffuse, the rest SPEC_LOBES' order) and the path
@@ -580,9 +618,117 @@ def pick_lobes(p, psum, q, idx, r, lobe, prob):
 
 
 @kernel
+def glass_both(prm, i, ox, oy, oz, u1, u2):
+    """Both halves of hit i's glass lobe for local wo, each weighted by its Fresnel term
+    instead of chosen with it (a split; principled._glass_sample chooses one with the
+    probability p_r of its reflectance share and divides by it): one microfacet normal
+    (visible-normal sampled from u1, u2 on rough glass; the shading normal on smooth),
+    then its mirror direction and its refraction. Returns (rx, ry, rz, reflection weight
+    RGB, tx, ty, tz, transmission weight RGB); weights are f cos / pdf of the normal's
+    sampling alone (r x G1 ratio, t x G1 ratio; smooth: the Fresnel-weighted colours), 0
+    where that half has no sample (below the surface, total internal reflection, a
+    Refraction BSDF's reflection). Its expectation equals _glass_sample's, term by term."""
+    alpha = prm[i, pr.P_GLASS_ALPHA]
+    eta = prm[i, pr.P_GLASS_ETA]
+    rough = alpha >= ggx.ALPHA_MIN
+    if rough:
+        hx, hy, hz = ggx.sample_vndf(ox, oy, oz, alpha, u1, u2)
+    else:
+        hx, hy, hz = 0.0, 0.0, 1.0
+    c = ox * hx + oy * hy + oz * hz
+    if c <= 0.0:
+        return (0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0)
+    F0 = pr._glass_F(prm[i, pr.P_GLASS_F0], c, eta)
+    F1 = pr._glass_F(prm[i, pr.P_GLASS_F0 + 1], c, eta)
+    F2 = pr._glass_F(prm[i, pr.P_GLASS_F0 + 2], c, eta)
+    r0 = prm[i, pr.P_GLASS_RW] * F0
+    r1 = prm[i, pr.P_GLASS_RW + 1] * F1
+    r2 = prm[i, pr.P_GLASS_RW + 2] * F2
+    t0 = prm[i, pr.P_GLASS_TW] * (1.0 - F0)
+    t1 = prm[i, pr.P_GLASS_TW + 1] * (1.0 - F1)
+    t2 = prm[i, pr.P_GLASS_TW + 2] * (1.0 - F2)
+    a2 = alpha * alpha
+    lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
+    rx, ry, rz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
+    if rz <= 0.0:
+        r0 = r1 = r2 = 0.0
+    elif rough:
+        g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(rz, a2))
+        r0, r1, r2 = r0 * g, r1 * g, r2 * g
+    inv_eta = 1.0 / eta
+    s2 = inv_eta * inv_eta * (1.0 - c * c)
+    if s2 >= 1.0:  # total internal reflection at this microfacet
+        return (rx, ry, rz, r0, r1, r2, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0)
+    ct = math.sqrt(1.0 - s2)
+    kk = inv_eta * c - ct
+    tx, ty, tz = -inv_eta * ox + kk * hx, -inv_eta * oy + kk * hy, -inv_eta * oz + kk * hz
+    if tz >= 0.0:
+        t0 = t1 = t2 = 0.0
+    elif rough and abs(eta - 1.0) >= 1e-4:
+        g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(-tz, a2))
+        t0, t1, t2 = t0 * g, t1 * g, t2 * g
+    return (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2)
+
+
+@kernel
+def _emit_ray(k, row, lb, x, y, z, w0, w1, w2, tr, prob, prm, sel, p, ng, ns, wo, offset,
+              tp, incoming, lobe_class, want_pdf, kept, rows_out, o_out, d_out, tp_out,
+              cls_out, pdf_out):
+    """continue_lobes' checks and output row for one sampled direction (x, y, z) (unit,
+    world) with weight (w0, w1, w2) through lobe lb of hit row (pick k): writes row `kept`
+    and returns 1, or 0 (absorbed: the wrong side of the surface, not finite, no weight)."""
+    gx, gy, gz = ng[row, 0], ng[row, 1], ng[row, 2]
+    side = x * gx + y * gy + z * gz
+    if not ((side < 0.0) if tr else (side > 0.0)):
+        return 0
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        return 0
+    if math.isnan(w0) or math.isnan(w1) or math.isnan(w2) or not (
+            w0 > 0.0 or w1 > 0.0 or w2 > 0.0):
+        return 0
+    if lb == _GLASS_R or lb == _GLASS_T:
+        lb = _GLASS_T if tr else _GLASS_R
+    s = max(prob, 1e-300)
+    t0 = tp[row, 0] * w0 / s
+    t1 = tp[row, 1] * w1 / s
+    t2 = tp[row, 2] * w2 / s
+    if not math.isfinite(t0 + t1 + t2) or not (t0 > 0.0 or t1 > 0.0 or t2 > 0.0):
+        return 0
+    lift = (1.0 if side >= 0.0 else -1.0) * offset[row]
+    o_out[kept, 0] = p[row, 0] + lift * gx
+    o_out[kept, 1] = p[row, 1] + lift * gy
+    o_out[kept, 2] = p[row, 2] + lift * gz
+    d_out[kept, 0], d_out[kept, 1], d_out[kept, 2] = x, y, z
+    tp_out[kept, 0], tp_out[kept, 1], tp_out[kept, 2] = t0, t1, t2
+    c = lobe_class[lb]
+    cls_out[kept] = incoming[row] if c == 0 else c
+    rows_out[kept] = k
+    if want_pdf:
+        pdf = np.inf
+        if not tr and pr.is_rough(prm, row, lb + 1):
+            n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
+            ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
+            ix, iy, iz = pr.frame_local(n0, n1, n2, x, y, z)
+            pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
+        pdf_out[kept] = pdf
+    return 1
+
+
+@kernel
+def _unit_world(n0, n1, n2, ix, iy, iz):
+    # sample_lobe's local direction in world space, normalised.
+    x, y, z = pr.frame_world(n0, n1, n2, ix, iy, iz)
+    ln = math.sqrt(x * x + y * y + z * z)
+    if ln > 0:
+        x, y, z = x / ln, y / ln, z / ln
+    return x, y, z
+
+
+@kernel
 def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, table_alpha,
-                   hit_alpha, p, ng, ns, wo, offset, tp, incoming, lobe_class, want_pdf, rows_out, o_out, d_out, tp_out, cls_out,
-                   pdf_out):
+                   hit_alpha, p, ng, ns, wo, offset, tp, incoming, lobe_class, want_pdf,
+                   split, split_rough, rows_out, o_out, d_out, tp_out, cls_out, pdf_out,
+                   split_out):
     """Sample the picked lobes (pick_lobes) of rows idx (M,) of N hits and write the
     continued rays, compacted: returns K, and rows_out[:K] (the kept k into idx), o_out,
     d_out (K,3) float64 (origins off the surface by the hit's offset along ng, to the
@@ -597,9 +743,15 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
     (M, N_MAT) (its M_TTINT columns), and alpha: hit_alpha (N,) float64 per hit (alpha
     textures), or (0,): table_alpha (M,) of the material. A sample is dropped
     (absorbed) when it leaves through the wrong side of the surface, is not finite or
-    has no weight."""
+    has no weight.
+    split (N,) bool, or (0,) for none: on these hits a picked glass lobe is split
+    (glass_both: its reflection and its refraction both continue, each with its Fresnel
+    weight; smooth glass only unless split_rough), so one pick may write two rows (the
+    output arrays then hold 2 M rows; the reflection first); split_out (K,) marks the
+    rows a split wrote (u3 is drawn for them and not read)."""
     kept = 0
     j = 0
+    any_split = split.shape[0] > 0
     for k in range(idx.shape[0]):
         row = idx[k]
         lb = lobe[k]
@@ -614,48 +766,39 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
         else:
             n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
             ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
+            if (any_split and split[row] and (lb == _GLASS_R or lb == _GLASS_T)
+                    and (split_rough or not pr.is_rough(prm, row, lb + 1))):
+                (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2) = glass_both(
+                    prm, row, ox, oy, oz, u1[j], u2[j])
+                j += 1
+                x, y, z = _unit_world(n0, n1, n2, rx, ry, rz)
+                got = _emit_ray(k, row, _GLASS_R, x, y, z, r0, r1, r2, False, prob[k], prm,
+                                sel, p, ng, ns, wo, offset, tp, incoming, lobe_class,
+                                want_pdf, kept, rows_out, o_out, d_out, tp_out, cls_out,
+                                pdf_out)
+                if got:
+                    split_out[kept] = True
+                    kept += 1
+                x, y, z = _unit_world(n0, n1, n2, tx, ty, tz)
+                got = _emit_ray(k, row, _GLASS_T, x, y, z, t0, t1, t2, True, prob[k], prm,
+                                sel, p, ng, ns, wo, offset, tp, incoming, lobe_class,
+                                want_pdf, kept, rows_out, o_out, d_out, tp_out, cls_out,
+                                pdf_out)
+                if got:
+                    split_out[kept] = True
+                    kept += 1
+                continue
             ix, iy, iz, w0, w1, w2, tr = pr.sample_lobe(prm, row, lb + 1, ox, oy, oz, u1[j],
                                                         u2[j], u3[j])
             j += 1
-            x, y, z = pr.frame_world(n0, n1, n2, ix, iy, iz)
-            ln = math.sqrt(x * x + y * y + z * z)
-            if ln > 0:
-                x, y, z = x / ln, y / ln, z / ln
-        gx, gy, gz = ng[row, 0], ng[row, 1], ng[row, 2]
-        side = x * gx + y * gy + z * gz
-        if not ((side < 0.0) if tr else (side > 0.0)):
-            continue
-        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-            continue
-        if math.isnan(w0) or math.isnan(w1) or math.isnan(w2) or not (
-                w0 > 0.0 or w1 > 0.0 or w2 > 0.0):
-            continue
-        if lb == _GLASS_R or lb == _GLASS_T:
-            lb = _GLASS_T if tr else _GLASS_R
-        s = max(prob[k], 1e-300)
-        t0 = tp[row, 0] * w0 / s
-        t1 = tp[row, 1] * w1 / s
-        t2 = tp[row, 2] * w2 / s
-        if not math.isfinite(t0 + t1 + t2) or not (t0 > 0.0 or t1 > 0.0 or t2 > 0.0):
-            continue
-        lift = (1.0 if side >= 0.0 else -1.0) * offset[row]
-        o_out[kept, 0] = p[row, 0] + lift * gx
-        o_out[kept, 1] = p[row, 1] + lift * gy
-        o_out[kept, 2] = p[row, 2] + lift * gz
-        d_out[kept, 0], d_out[kept, 1], d_out[kept, 2] = x, y, z
-        tp_out[kept, 0], tp_out[kept, 1], tp_out[kept, 2] = t0, t1, t2
-        c = lobe_class[lb]
-        cls_out[kept] = incoming[row] if c == 0 else c
-        rows_out[kept] = k
-        if want_pdf:
-            pdf = np.inf
-            if not tr and pr.is_rough(prm, row, lb + 1):
-                n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
-                ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
-                ix, iy, iz = pr.frame_local(n0, n1, n2, x, y, z)
-                pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
-            pdf_out[kept] = pdf
-        kept += 1
+            x, y, z = _unit_world(n0, n1, n2, ix, iy, iz)
+        got = _emit_ray(k, row, lb, x, y, z, w0, w1, w2, tr, prob[k], prm, sel, p, ng, ns,
+                        wo, offset, tp, incoming, lobe_class, want_pdf, kept, rows_out, o_out,
+                        d_out, tp_out, cls_out, pdf_out)
+        if got:
+            if split_out.shape[0] > 0:
+                split_out[kept] = False
+            kept += 1
     return kept
 
 
@@ -741,12 +884,13 @@ def _warm_up():
     lobe = np.empty(1, np.int64)
     prob = np.empty(1)
     pick_lobes(pl, psum, q, idx, one, lobe, prob)
+    mirror_survival(np.zeros((1, pr.N_PACK)), pl, psum, q, sel)
     prm, _ = pr.setup_np(np.zeros((1, pr.N_MAT)), np.zeros(1, np.int64), base, np.full(1, 0.8),
                          front)
     lobe[0] = pr.L_METAL - 1
     continue_lobes(idx, lobe, prob, one, one, one, prm, sel, mat, np.zeros((1, pr.N_MAT)),
                    np.ones(1), np.zeros(0), p, ng, ns, -d, off,
                    np.ones((1, 3)), np.zeros(1, np.int64), np.zeros(7, np.int64), True,
-                   np.empty(1, np.int64),
-                   np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty(1, np.int64),
-                   np.empty(1))
+                   np.ones(1, np.bool_), False, np.empty(2, np.int64), np.empty((2, 3)),
+                   np.empty((2, 3)), np.empty((2, 3)), np.empty(2, np.int64), np.empty(2),
+                   np.empty(2, np.bool_))

@@ -29,7 +29,7 @@ from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_s
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
                             film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
-                            pick_lobes, shade_lobes, view_depth)
+                            mirror_survival, pick_lobes, shade_lobes, view_depth)
 from .camerarays import camera_rays_kernel, chunk_samples
 from .gatherkernels import (add_gathered, diffuse_lookups, keep_embree_hits, keep_hits,
                             lean_diffuse, lean_materials, rays_f32)
@@ -730,7 +730,7 @@ def lobe_choice(albedo, tp):
 
 
 def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=False,
-                      uv=None, go_u=None):
+                      uv=None, go_u=None, split=None):
     """Pick one non-diffuse lobe per ray in proportion to its weight (Russian roulette for
     paths that would add little) and sample it. Returns (kept indices, origins, directions,
     throughput, ray class of the continued rays: glossy, transmission, or ray_cls (the
@@ -747,7 +747,11 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     samples (as Cycles' are); or a function returning them, called only when a reflective
     lobe is sampled. go_u: the survival test's uniform numbers (N,), drawn by the caller
     (gather_indirect draws them for all its hits and continues only those with a
-    non-diffuse lobe); default: drawn here."""
+    non-diffuse lobe); default: drawn here. split: (N,) bool, the hits where a picked
+    smooth glass lobe (rough too with SPLIT_ROUGH_GLASS) continues both its reflection and
+    its refraction, each with its Fresnel weight (camerakernels.glass_both): one kept
+    index may then appear twice, and a last element is returned, (K,) bool, the rays a
+    split made. The same uniform numbers are drawn either way."""
     sel, q, p, psum = (choice if choice is not None
                        else lobe_choice(closures(ctx.table, hit)[1], tp))
     go = (psum > 0) & ((rng.random(len(p)) if go_u is None else go_u) < q)
@@ -756,7 +760,8 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     if m == 0:
         empty = np.zeros((0, 3))
         out = (idx, empty, empty, empty, np.zeros(0, np.int64))
-        return out + (np.zeros(0),) if want_pdf else out
+        out = out + (np.zeros(0),) if want_pdf else out
+        return out if split is None else out + (np.zeros(0, bool),)
     r = rng.random(m)
     lobe = np.empty(m, np.int64)
     prob = np.empty(m)
@@ -776,10 +781,14 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
             u2 = np.where(refl, u[1][rows_sampled], u2)
     # The camera bounce's hits carry their packed lobes (shade_lobes); others set them up.
     prm = hit.prm if hit.prm is not None else closures(ctx.table, hit)[0]
-    rows = np.empty(m, np.int64)
-    o, d, new_tp = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
-    cls = np.empty(m, np.int64)
-    pdf = np.empty(m if want_pdf else 0)
+    # A split writes up to two rays for one pick.
+    cap = m if split is None else 2 * m
+    rows = np.empty(cap, np.int64)
+    o, d, new_tp = np.empty((cap, 3)), np.empty((cap, 3)), np.empty((cap, 3))
+    cls = np.empty(cap, np.int64)
+    pdf = np.empty(cap if want_pdf else 0)
+    split_in = _NO_SPLIT if split is None else c(split, np.bool_)
+    split_out = np.empty(cap if split is not None else 0, np.bool_)
     # A writable copy: a read-only view would be a second kernel signature, compiled
     # during the first render instead of by jit.ensure_compiled.
     incoming = np.empty(len(p), np.int64)
@@ -789,12 +798,35 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     k = continue_lobes(idx, lobe, prob, u1, u2, u3, c(prm), c(sel), hit.mat,
                        ctx.table.closure_params, c(ctx.table.alpha, np.float64), alpha, c(hit.p),
                        c(hit.ng), c(hit.ns), c(hit.wo), c(hit.offset), c(tp, np.float64),
-                       incoming, _LOBE_CLASS, bool(want_pdf), rows, o, d, new_tp, cls, pdf)
+                       incoming, _LOBE_CLASS, bool(want_pdf), split_in,
+                       bool(SPLIT_ROUGH_GLASS), rows, o, d, new_tp, cls, pdf, split_out)
     out = (idx[rows[:k]], o[:k], d[:k], new_tp[:k], cls[:k])
-    return out + (pdf[:k],) if want_pdf else out
+    out = out + (pdf[:k],) if want_pdf else out
+    return out if split is None else out + (split_out[:k],)
 
 
 _NO_ALPHA = np.zeros(0)  # continue_lobes: the materials' alpha
+_NO_SPLIT = np.zeros(0, np.bool_)  # continue_lobes: no glass lobe is split
+# A camera path's first glass hits continue both halves of the glass lobe, each with its
+# Fresnel weight, instead of one chosen with it (_trace_paths; docs/performance.md,
+# "Glass speckles: splitting the camera's first glass hits"). A glass ball under a sun
+# behind the camera showed rare samples of the sun's full radiance: its mirror image on
+# the ball's front, taken by the ~4 % of samples whose choice took the reflection, and
+# (most of them) the ball's rainbow, the path in, reflected at the back and out, whose
+# inner reflection was the rare choice. Deeper glass hits keep the random choice, as
+# Cycles' do. False: the choice everywhere, as before.
+SPLIT_FIRST_GLASS = True
+# How many glass hits of a camera path split: 2 takes the rainbow's inner reflection
+# (a sun-lit glass ball: pixel variance x CPU s 16 -> 1.0; 1 split: 20).
+SPLIT_GLASS_HITS = 2
+# Rough glass splits too, at one microfacet normal (glass_both). Its reflection keeps
+# the MIS pdf of the whole choice (principled.bsdf_pdf), which light sampling's weight
+# also uses: the two weights still sum to one, so the estimate stays unbiased.
+SPLIT_ROUGH_GLASS = True
+# The camera's first hits whose continuation is mirror-like only (a smooth dielectric's
+# specular layer, albedo ~4 %: Russian roulette kept 40 % of them at weight 2.5) always
+# continue (camerakernels.mirror_survival): light sampling cannot carry a mirror lobe.
+MIRROR_NO_ROULETTE = True
 _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 
 
@@ -1179,6 +1211,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # PATH_RAY_TERMINATE_AFTER_TRANSPARENT), but that hit is neither shaded nor continued.
     limits = s.bounce_limits
     chain = np.zeros((len(o), 3), np.int64)  # (total, glossy, transmission) bounces
+    # Each path's glass hits left to split (SPLIT_GLASS_HITS; None: the lobe choice
+    # everywhere).
+    may_split = (np.full(len(o), SPLIT_GLASS_HITS, np.int64)
+                 if SPLIT_FIRST_GLASS and SPLIT_GLASS_HITS > 0 else None)
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1254,6 +1290,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if passages is not None:
                 passages.compact(kept)
             chain = chain[kept]
+            if may_split is not None:
+                may_split = may_split[kept]
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
                 | (chain[:, 2] > limits[3])) if bounce > 0 else None
         if over is not None and not over.any():
@@ -1301,6 +1339,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         org_p if kept is None else org_p[kept],
                         org_ns if kept is None else org_ns[kept])[:, None]
                 acc.add(target, pix, Le, tp)
+        if bounce == 0 and MIRROR_NO_ROULETTE:
+            mirror_survival(prm if hit.prm is None else hit.prm, p, psum, q, sel)
         choice = (sel, q, p, psum)
         if nd and over is not None:
             # (nd rows of dsel / wd stay in place: the shaded rows within the limits)
@@ -1348,14 +1388,19 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         uv = (functools.partial(sampler.uv, ("bsdf",), rng=bsdf_rng, scrambled=True)
               if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
         d_in, pdf_in = d, pdf_b
-        keep, o, d, tp, ray_cls, pdf_b = continue_specular(ctx, hit, tp, rng, ray_cls,
-                                                           choice=choice, want_pdf=True,
-                                                           uv=uv)
+        cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice, want_pdf=True,
+                                 uv=uv, split=None if may_split is None else may_split > 0)
+        keep, o, d, tp, ray_cls, pdf_b = cont[:6]
         if over is not None:
             # Past a limit: no bounce from here (the numbers drawn as for every path).
             go = ~over[keep]
             keep, o, d, tp, ray_cls, pdf_b = (a[go] for a in (keep, o, d, tp, ray_cls,
                                                               pdf_b))
+            if may_split is not None:
+                cont = cont[:6] + (cont[6][go],)
+        if may_split is not None:
+            # A split path's two rays have one split less left.
+            may_split = may_split[keep] - cont[6]
         # The bounce's kind (Cycles' path_state_next): a transparent pass (the ray goes on
         # unbent) is none; else glossy or transmission by the continued ray's class.
         chain = chain[keep]
