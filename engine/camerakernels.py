@@ -628,25 +628,10 @@ def glass_both(prm, i, ox, oy, oz, u1, u2):
     sampling alone (r x G1 ratio, t x G1 ratio; smooth: the Fresnel-weighted colours), 0
     where that half has no sample (below the surface, total internal reflection, a
     Refraction BSDF's reflection). Its expectation equals _glass_sample's, term by term."""
-    alpha = prm[i, pr.P_GLASS_ALPHA]
-    eta = prm[i, pr.P_GLASS_ETA]
-    rough = alpha >= ggx.ALPHA_MIN
-    if rough:
-        hx, hy, hz = ggx.sample_vndf(ox, oy, oz, alpha, u1, u2)
-    else:
-        hx, hy, hz = 0.0, 0.0, 1.0
-    c = ox * hx + oy * hy + oz * hz
+    (rough, alpha, eta, hx, hy, hz, c, r0, r1, r2, t0, t1, t2) = pr.glass_microfacet(
+        prm, i, ox, oy, oz, u1, u2)
     if c <= 0.0:
         return (0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0)
-    F0 = pr._glass_F(prm[i, pr.P_GLASS_F0], c, eta)
-    F1 = pr._glass_F(prm[i, pr.P_GLASS_F0 + 1], c, eta)
-    F2 = pr._glass_F(prm[i, pr.P_GLASS_F0 + 2], c, eta)
-    r0 = prm[i, pr.P_GLASS_RW] * F0
-    r1 = prm[i, pr.P_GLASS_RW + 1] * F1
-    r2 = prm[i, pr.P_GLASS_RW + 2] * F2
-    t0 = prm[i, pr.P_GLASS_TW] * (1.0 - F0)
-    t1 = prm[i, pr.P_GLASS_TW + 1] * (1.0 - F1)
-    t2 = prm[i, pr.P_GLASS_TW + 2] * (1.0 - F2)
     a2 = alpha * alpha
     lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
     rx, ry, rz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
@@ -771,22 +756,18 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
                 (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2) = glass_both(
                     prm, row, ox, oy, oz, u1[j], u2[j])
                 j += 1
-                x, y, z = _unit_world(n0, n1, n2, rx, ry, rz)
-                got = _emit_ray(k, row, _GLASS_R, x, y, z, r0, r1, r2, False, prob[k], prm,
-                                sel, p, ng, ns, wo, offset, tp, incoming, lobe_class,
-                                want_pdf, kept, rows_out, o_out, d_out, tp_out, cls_out,
-                                pdf_out)
-                if got:
-                    split_out[kept] = True
-                    kept += 1
-                x, y, z = _unit_world(n0, n1, n2, tx, ty, tz)
-                got = _emit_ray(k, row, _GLASS_T, x, y, z, t0, t1, t2, True, prob[k], prm,
-                                sel, p, ng, ns, wo, offset, tp, incoming, lobe_class,
-                                want_pdf, kept, rows_out, o_out, d_out, tp_out, cls_out,
-                                pdf_out)
-                if got:
-                    split_out[kept] = True
-                    kept += 1
+                for half in range(2):  # the reflection, then the refraction
+                    if half == 0:
+                        x, y, z = _unit_world(n0, n1, n2, rx, ry, rz)
+                        lh, w0, w1, w2, tr = _GLASS_R, r0, r1, r2, False
+                    else:
+                        x, y, z = _unit_world(n0, n1, n2, tx, ty, tz)
+                        lh, w0, w1, w2, tr = _GLASS_T, t0, t1, t2, True
+                    if _emit_ray(k, row, lh, x, y, z, w0, w1, w2, tr, prob[k], prm, sel, p,
+                                 ng, ns, wo, offset, tp, incoming, lobe_class, want_pdf,
+                                 kept, rows_out, o_out, d_out, tp_out, cls_out, pdf_out):
+                        split_out[kept] = True
+                        kept += 1
                 continue
             ix, iy, iz, w0, w1, w2, tr = pr.sample_lobe(prm, row, lb + 1, ox, oy, oz, u1[j],
                                                         u2[j], u3[j])

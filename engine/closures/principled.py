@@ -531,11 +531,12 @@ def rough_reflection_rows(prm, out):
 
 
 @kernel
-def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
-    """The glass lobe (reflection + refraction) as one, as Cycles samples it: a visible
-    normal, then reflect or refract with probability in proportion to the average
-    reflectance / transmittance there (the macro-surface Fresnel can be 1 - total internal
-    reflection - where a rough surface still transmits)."""
+def glass_microfacet(prm, i, ox, oy, oz, u1, u2):
+    """The glass lobe's first step, shared by sampling one half (_glass_sample) and both
+    (camerakernels.glass_both): the microfacet normal h (visible-normal sampled from u1, u2
+    on rough glass; the shading normal on smooth), c = wo . h, and the Fresnel-weighted
+    reflection and transmission colours there. Returns (rough, alpha, eta, hx, hy, hz, c,
+    r0, r1, r2, t0, t1, t2); c <= 0: wo sees the microfacet's back (no sample, colours 0)."""
     alpha = prm[i, P_GLASS_ALPHA]
     eta = prm[i, P_GLASS_ETA]
     rough = alpha >= ggx.ALPHA_MIN
@@ -545,7 +546,7 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
         hx, hy, hz = 0.0, 0.0, 1.0
     c = ox * hx + oy * hy + oz * hz
     if c <= 0.0:
-        return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
+        return rough, alpha, eta, hx, hy, hz, c, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     F0 = _glass_F(prm[i, P_GLASS_F0], c, eta)
     F1 = _glass_F(prm[i, P_GLASS_F0 + 1], c, eta)
     F2 = _glass_F(prm[i, P_GLASS_F0 + 2], c, eta)
@@ -553,6 +554,19 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
     t0 = prm[i, P_GLASS_TW] * (1.0 - F0)
     t1 = prm[i, P_GLASS_TW + 1] * (1.0 - F1)
     t2 = prm[i, P_GLASS_TW + 2] * (1.0 - F2)
+    return rough, alpha, eta, hx, hy, hz, c, r0, r1, r2, t0, t1, t2
+
+
+@kernel
+def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
+    """The glass lobe (reflection + refraction) as one, as Cycles samples it: a visible
+    normal, then reflect or refract with probability in proportion to the average
+    reflectance / transmittance there (the macro-surface Fresnel can be 1 - total internal
+    reflection - where a rough surface still transmits)."""
+    (rough, alpha, eta, hx, hy, hz, c, r0, r1, r2, t0, t1, t2) = glass_microfacet(
+        prm, i, ox, oy, oz, u1, u2)
+    if c <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
     inv_eta = 1.0 / eta
     s2 = inv_eta * inv_eta * (1.0 - c * c)
     if s2 >= 1.0:  # total internal reflection at this microfacet
