@@ -104,6 +104,7 @@ class EffectPlan:
     rough_specular: list = field(default_factory=list)  # specular objects too rough to focus
     window_glass: list = field(default_factory=list)    # thin flat glass: shadow rays pass it
     caustics_from_global: bool = False  # caustic map from the global shot, no caustic shot
+    caustics_glow_only: bool = False  # the caustic map holds only rough layers' / window glow
     trapped: dict = field(default_factory=dict)  # light name -> closed mesh it is shut in
     decisions: list = field(default_factory=list)
     warnings: list = field(default_factory=list)  # students' mistakes, explained
@@ -349,6 +350,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # estimated as before: from the caustic-kind paths of the global photons (or
             # an unaimed shot), into the Caustic pass; the line says so.
             plan.caustics_from_global = plan.indirect
+            plan.caustics_glow_only = True
             source = ("the global photons" if plan.indirect
                       else f"{s.caustic_photons:,} unaimed photons")
             glow = []
@@ -408,6 +410,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         limit = (f"at most {s.glossy_bounces} glossy, {s.transmission_bounces} "
                  "transmission: Light Paths" if s.max_depth >= s.max_bounces else
                  f"Max Ray Depth {s.max_depth}, below Light Paths' Total {s.max_bounces}")
+        # Mirrors, glass and metals first: a room's rough walls listed first hid them
+        # behind the "..." (new-user trial).
+        visible = _sharp_first(geo, table, visible)
         auto, why = True, (f"up to {s.camera_depth} bounces ({limit}) through "
                            + _labelled(geo, table, visible[:4])
                            + (" ..." if len(visible) > 4 else ""))
@@ -543,6 +548,22 @@ def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
     if is_sharp(layer):
         return "glossy"
     return "rough glossy" if layer < MATTE_ROUGHNESS - SHARP_TOLERANCE else "matte"
+
+
+# The order the report names specular objects in: what a student looks for first.
+_KIND_ORDER = ("mirror", "glass", "polished metal", "metal", "transparent", "glossy",
+               "rough glossy", "matte")
+
+
+def _sharp_first(geo: Geometry, table: MaterialTable, names) -> list:
+    """names reordered by their specular_kind (_KIND_ORDER; stable within a kind)."""
+    ids = {n: i for i, n in enumerate(geo.object_names)}
+
+    def rank(n):
+        kind = specular_kind(geo, table, ids[n]) if n in ids else ""
+        return _KIND_ORDER.index(kind) if kind in _KIND_ORDER else len(_KIND_ORDER)
+
+    return sorted(names, key=rank)
 
 
 def _labelled(geo: Geometry, table: MaterialTable, names) -> str:

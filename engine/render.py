@@ -275,7 +275,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     finally:
         ctx.accel.close()
     film.stats["time_compile"] += t_compile
-    film.stats.update(effects=ctx.plan.report() + photon_map_report(settings, film.stats),
+    film.stats.update(effects=ctx.plan.report() + photon_map_report(
+        settings, film.stats, glow_only=ctx.plan.caustics_glow_only),
                       triangles=ctx.geo.count, lights=len(ctx.lights),
                       extent=ctx.geo.extent, time_prepare=t_prepare,
                       time_total=time.perf_counter() - t_start)
@@ -557,11 +558,16 @@ def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: i
     return out
 
 
-def photon_map_report(settings: RenderSettings, stats: dict) -> list[str]:
-    """One effect-report line with what the photon maps hold and the radius used."""
+def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = False
+                      ) -> list[str]:
+    """One effect-report line with what the photon maps hold and the radius used.
+    glow_only: the caustic map holds only the soft glow of rough specular layers and
+    window glass (the report's "caustics: off - nothing focuses light"), named so."""
     if "radius_global" not in stats:
         return []
     parts = []
+    # "caustic photons" beside "caustics: off" read as a contradiction (new-user trial).
+    held = "glow photons (Caustic pass)" if glow_only else "caustic photons"
     if stats.get("global_photons"):
         parts.append(f"{stats['global_photons']:,} global photons stored, search radius "
                      f"{stats['radius_global']:.4g} m")
@@ -572,12 +578,12 @@ def photon_map_report(settings: RenderSettings, stats: dict) -> list[str]:
         if stats.get("global_photons") and rg and abs(rc - rg) <= 1e-9 * rg:
             why = ("set in the settings" if settings.radius is not None
                    else "from the global photons' spacing: the caustic map holds fewer")
-            parts.append(f"{stats['caustic_photons']:,} caustic photons stored, the same "
+            parts.append(f"{stats['caustic_photons']:,} {held} stored, the same "
                          f"search radius ({why})")
         else:
             why = (" (the global radius, scaled down to their greater number)"
                    if stats.get("global_photons") and rg and rc < rg else "")
-            parts.append(f"{stats['caustic_photons']:,} caustic photons stored, search "
+            parts.append(f"{stats['caustic_photons']:,} {held} stored, search "
                          f"radius {rc:.4g} m{why}")
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])

@@ -458,3 +458,33 @@ def test_scene_files_and_the_cli_keep_max_depth(tmp_path):
         assert over["max_depth"] == want
         plan = _plan(scene, **{k: v for k, v in over.items() if k not in ("workers", "photons")})
         assert f"Max Ray Depth {want} stops camera paths sooner" in _line(plan, "bounce limits:")
+
+
+def test_glow_only_caustic_map_is_not_called_caustic_photons():
+    """Beside "caustics: off - nothing focuses light" the maps line read "17,878 caustic
+    photons stored" (new-user trial, s15): a contradiction to a student. The plan marks
+    the glow-only map and the maps line names its photons for what they carry."""
+    from engine.render import photon_map_report
+    rough = Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0)
+    plan = _plan(_room(rough, wall="rough_principled"))
+    assert plan.caustics and plan.caustics_glow_only
+    stats = dict(global_photons=20_000, radius_global=0.2, caustic_photons=1_500,
+                 radius_caustic=0.2)
+    line = photon_map_report(RenderSettings(), stats, glow_only=plan.caustics_glow_only)[0]
+    assert "1,500 glow photons (Caustic pass) stored, the same search radius" in line, line
+    assert "caustic photons" not in line, line
+    sharp = _plan(_room(rough, extra=(("glass", "Ball"),)))
+    assert not sharp.caustics_glow_only
+
+
+def test_specular_line_names_mirrors_and_glass_before_rough_layers():
+    """A room of rough Principled walls with a mirror and a glass ball: the specular line
+    named the first four objects it found (the walls) and hid the mirror and the ball
+    behind "..." (new-user trial, s15). Mirrors and glass come first."""
+    rough = Material("rough_principled", (0.6, 0.6, 0.6), roughness=0.5, specular=1.0)
+    s = _room(rough, wall="rough_principled", extra=(("mirror", "Mirror"), ("glass", "Ball")))
+    for i, (x, y) in enumerate(((-2.5, 2), (2.5, 2), (-2.5, -1), (2.5, -1))):
+        s.add_sphere((x, y, 0.4), 0.4, "rough_principled", name=f"Rough{i}", segments=12)
+    spec = _line(_plan(s), "specular reflection / refraction:")
+    assert spec.index("mirror 'Mirror'") < spec.index("rough glossy"), spec
+    assert "glass 'Ball'" in spec.split(" ...")[0], spec
