@@ -4,6 +4,7 @@ aimed photons carry into each sphere equals what natural emission sends there, a
 more of them carry power when the spot's cone is narrower than a sphere's (a spot under a
 mirror that surrounds it). The caustic of tests/test_mirror_caustic.py's spot keeps its
 closed form with ~15x the stored photons and less noise at equal photons."""
+import copy
 import math
 
 import numpy as np
@@ -99,13 +100,13 @@ def _aim_at_whole_spheres(monkeypatch):
     def old_emit(self, aim, aimed, *args):
         if not aimed:
             return emit(self, aim, aimed, *args)
-        bound = self.spot_cos_bound
-        self.spot_cos_bound = -1.0
-        try:
-            aim = self.aim(aim.centers, aim.radii - (self.radius if self.radius > 0 else 0))
-            return emit(self, aim, aimed, *args)
-        finally:
-            self.spot_cos_bound = bound
+        # A copy, not the light itself: the photon pass's worker threads emit from one
+        # light at once, and setting and restoring its bound in place raced (a thread
+        # restored the bound while another was emitting: CI stored 8397, not ~2300).
+        whole = copy.copy(self)
+        whole.spot_cos_bound = -1.0
+        aim = whole.aim(aim.centers, aim.radii - (self.radius if self.radius > 0 else 0))
+        return emit(whole, aim, aimed, *args)
     monkeypatch.setattr(SpotLight, "_emit", old_emit)
 
 
