@@ -1,5 +1,5 @@
 """Speckles on and through glass balls (issue 14): the camera chain's first glass hit split
-into its reflection and its refraction (integrator.SPLIT_FIRST_GLASS) against the random
+into its reflection and its refraction (integrator.SPLIT_GLASS_HITS) against the random
 choice between them, on the same seeds, interleaved.
 
     python bench/bench_glass_speckles.py [--scene sunball|spheres|figure6|figure8|all]
@@ -12,7 +12,7 @@ ball's front: docs/performance.md, "Camera paths through glass"); "roughball", t
 ball of rough glass (roughness 0.2); "spheres", issue 14's
 Principled spheres (the pickled export /tmp/pk/principled_spheres_df2.pkl, default
 settings at --size); "figure6" / "figure8", the paper's boxes (/tmp/pk/*.pkl).
-Modes: "choice" (SPLIT_FIRST_GLASS = False: one lobe picked at random, as before),
+Modes: "choice" (SPLIT_GLASS_HITS = 0: one lobe picked at random, as before),
 "split" (the first glass hit), "splitN" (the first N glass hits), with "+rough" (rough
 glass split too) and "+mirror" (integrator.MIRROR_NO_ROULETTE), e.g. "split2+rough";
 "default": the module's settings (now split2+rough+mirror).
@@ -86,7 +86,7 @@ def first_hit_materials(scene, settings):
     return names[mat].reshape(H, W)
 
 
-_FLAGS = ("SPLIT_FIRST_GLASS", "SPLIT_GLASS_HITS", "SPLIT_ROUGH_GLASS", "MIRROR_NO_ROULETTE")
+_FLAGS = ("SPLIT_GLASS_HITS", "SPLIT_ROUGH_GLASS", "MIRROR_NO_ROULETTE")
 DEFAULTS = {k: getattr(integrator, k) for k in _FLAGS}
 
 
@@ -100,8 +100,7 @@ def set_mode(mode):
         return
     parts = mode.split("+")
     head = parts[0]
-    integrator.SPLIT_FIRST_GLASS = head != "choice"
-    integrator.SPLIT_GLASS_HITS = int(head[5:] or 1) if head != "choice" else 1
+    integrator.SPLIT_GLASS_HITS = int(head[5:] or 1) if head != "choice" else 0
     integrator.SPLIT_ROUGH_GLASS = "rough" in parts[1:]
     integrator.MIRROR_NO_ROULETTE = "mirror" in parts[1:]
 

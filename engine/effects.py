@@ -135,7 +135,7 @@ def _summarise_many_lights(plan: EffectPlan, lights, s) -> None:
     plan.add("soft shadows", sized > 0,
              f"{sized} of {len(lights)} lights have a size" if sized else "no light has a size")
     if dark:
-        names = ", ".join(f"'{n}'" for n in dark[:3]) + (" ..." if len(dark) > 3 else "")
+        names = _quoted(dark, most=3)
         plan.add("shadow rays", True, f"{len(dark)} lights cast no shadow ('Cast Shadow' "
                  f"off: {names})")
 
@@ -274,7 +274,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     else:
         if not emitting and plan.trapped:
             auto, why = False, ("every light is shut inside a closed mesh: "
-                                + ", ".join(f"'{m}'" for m in sorted(set(plan.trapped.values()))))
+                                + _quoted(sorted(set(plan.trapped.values())), most=None))
         elif not emitting:
             auto, why = False, "no light emits power"
         elif not diff_tri.any():
@@ -320,16 +320,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                     rough_reached.append(name)
         rough_note = ""
         if plan.window_glass:
-            shown = plan.window_glass[:4]
-            rough_note += ("; window glass " + ", ".join(f"'{n}'" for n in shown)
-                           + (" ..." if len(plan.window_glass) > 4 else "")
+            rough_note += ("; window glass " + _quoted(plan.window_glass)
                            + ": passed by shadow rays (thin flat glass), not a caustic "
                            "caster; the global photons carry its reflections")
         if plan.rough_specular:
-            shown = plan.rough_specular[:4]
-            rough_note += ("; not aimed at " + ", ".join(f"'{n}'" for n in shown)
-                          + (" ..." if len(plan.rough_specular) > 4 else "")
-                          + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
+            rough_note += ("; not aimed at " + _quoted(plan.rough_specular)
+                           + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
                           "light; the global photons carry the soft glow "
                           + ("they reflect)" if len(plan.rough_specular) > 1 else "it reflects)"))
         if not focus_tri.any():
@@ -339,7 +335,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         elif not diff_tri.any():
             auto, why = False, "no diffuse surface to receive a caustic"
         elif reached:
-            names_r = ", ".join(f"'{n}'" for _, _, _, n in reached)
+            names_r = _quoted([n for _, _, _, n in reached], most=None)
             auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
@@ -357,15 +353,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             if rough_reached:
                 glow.append("the soft glow that the rough specular layer"
                             + ("s" if len(rough_reached) > 1 else "") + " of "
-                            + ", ".join(f"'{n}'" for n in rough_reached[:4])
-                            + (" ..." if len(rough_reached) > 4 else "")
-                            + " reflect" + ("" if len(rough_reached) > 1 else "s")
+                            + _quoted(rough_reached) + " reflect" + ("" if len(rough_reached) > 1 else "s")
                             + " onto other surfaces")
             if plan.window_glass:
                 glow.append("the reflections of window glass "
-                            + ", ".join(f"'{n}'" for n in plan.window_glass[:4])
-                            + (" ..." if len(plan.window_glass) > 4 else "")
-                            + " (passed by shadow rays: thin flat glass)")
+                            + _quoted(plan.window_glass) + " (passed by shadow rays: thin flat glass)")
             sharp_none = (f"no mirror, {'only window' if plan.window_glass else 'no'} glass, "
                           f"no surface smoother than roughness {SHARP_ROUGHNESS:g}")
             carried = (f"{' and '.join(glow)} come"
@@ -496,7 +488,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     if has_tris and np.any(see_through[mat]):
         names = sorted({table.names[m] for m in np.unique(mat[see_through[mat]])})
         cap = s.transparent_max_bounces
-        plan.add("transparency", True, "alpha below 1 in " + ", ".join(f"'{n}'" for n in names)
+        plan.add("transparency", True, "alpha below 1 in " + _quoted(names, most=None)
                  + (f"; shadow rays cross up to {cap} transparent surfaces" if cap
                     else "; transparent max bounces 0: they block shadow rays"))
     return plan
@@ -564,6 +556,14 @@ def _sharp_first(geo: Geometry, table: MaterialTable, names) -> list:
         return _KIND_ORDER.index(kind) if kind in _KIND_ORDER else len(_KIND_ORDER)
 
     return sorted(names, key=rank)
+
+
+def _quoted(names, most: int | None = 4) -> str:
+    """"'a', 'b', 'c', 'd' ..." for a report line: the first `most` names (None: all)
+    quoted, " ..." where more were left off."""
+    names = list(names)
+    shown = names if most is None else names[:most]
+    return ", ".join(f"'{n}'" for n in shown) + (" ..." if len(shown) < len(names) else "")
 
 
 def _labelled(geo: Geometry, table: MaterialTable, names) -> str:

@@ -814,10 +814,9 @@ _NO_SPLIT = np.zeros(0, np.bool_)  # continue_lobes: no glass lobe is split
 # the ball's front, taken by the ~4 % of samples whose choice took the reflection, and
 # (most of them) the ball's rainbow, the path in, reflected at the back and out, whose
 # inner reflection was the rare choice. Deeper glass hits keep the random choice, as
-# Cycles' do. False: the choice everywhere, as before.
-SPLIT_FIRST_GLASS = True
-# How many glass hits of a camera path split: 2 takes the rainbow's inner reflection
-# (a sun-lit glass ball: pixel variance x CPU s 16 -> 1.0; 1 split: 20).
+# Cycles' do. How many glass hits of a camera path split: 2 takes the rainbow's inner
+# reflection (a sun-lit glass ball: pixel variance x CPU s 16 -> 1.0; 1 split: 20);
+# 0: the choice everywhere, as before.
 SPLIT_GLASS_HITS = 2
 # Rough glass splits too, at one microfacet normal (glass_both). Its reflection keeps
 # the MIS pdf of the whole choice (principled.bsdf_pdf), which light sampling's weight
@@ -1214,7 +1213,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # Each path's glass hits left to split (SPLIT_GLASS_HITS; None: the lobe choice
     # everywhere).
     may_split = (np.full(len(o), SPLIT_GLASS_HITS, np.int64)
-                 if SPLIT_FIRST_GLASS and SPLIT_GLASS_HITS > 0 else None)
+                 if SPLIT_GLASS_HITS > 0 else None)
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return

@@ -148,7 +148,7 @@ def test_pane_reflects_what_is_in_front_of_it(theta_deg):
     assert got > 1.5 * 10.0 * F[inside].mean()  # the back face's reflection is there
 
 
-# --- The first glass hits split (integrator.SPLIT_FIRST_GLASS, SPLIT_GLASS_HITS) ---------
+# --- The first glass hits split (integrator.SPLIT_GLASS_HITS) ---------
 # A camera path's first glass hits continue both the reflection and the refraction, each
 # with its Fresnel weight (camerakernels.glass_both), instead of one chosen with it.
 
@@ -271,13 +271,13 @@ def test_rough_glass_split_keeps_the_mean_of_the_choice():
     s, n = _slab_scene(60.0, "furnace", glass=m)
     _, inside = _expected_and_mask(s, n)
     got = {}
-    saved = integrator.SPLIT_FIRST_GLASS
+    saved = integrator.SPLIT_GLASS_HITS
     try:
         for split in (False, True):
-            integrator.SPLIT_FIRST_GLASS = split
+            integrator.SPLIT_GLASS_HITS = saved if split else 0
             got[split] = _render(s, spp=256, seed=2)[inside].mean(axis=0)
     finally:
-        integrator.SPLIT_FIRST_GLASS = saved
+        integrator.SPLIT_GLASS_HITS = saved
     assert integrator.SPLIT_ROUGH_GLASS
     np.testing.assert_allclose(got[True], got[False], rtol=0.02)
     assert got[True][0] > 0.2  # (light reaches the pixels)
