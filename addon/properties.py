@@ -161,9 +161,9 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         description="Camera samples per pixel (jittered, anti-aliasing)")
     max_depth: IntProperty(
         name="Max Ray Depth", default=1024, min=0, max=1024,
-        description="An extra cap on the mirror and glass bounces along a camera path (the "
-                    "paper's MaxRayTraceDepth). The default 1024 caps nothing: camera paths "
-                    "stop at the Max Bounces above, as in Cycles")
+        description="An extra cap on the mirror and glass bounces along a camera path. The "
+                    "default 1024 caps nothing: camera paths stop at the Max Bounces above, "
+                    "as in Cycles. (Photon Mapping Made Easy calls this MaxRayTraceDepth)")
     light_samples: IntProperty(
         name="Light Samples", default=1, min=1, max=256,
         description="Shadow rays per light with a size, per camera sample (soft shadows)")

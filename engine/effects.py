@@ -18,6 +18,7 @@ from .lights.selection import selection_samples, tree_members
 from .rayoffset import ulp32
 from .sampling import luminance
 from .scene import AREA, SUN
+from .settings import CYCLES_DEFAULT_BOUNCES
 
 PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can reach it
 # A specular lobe focuses light into a caustic only if it is sharp. Our microfacet lobes
@@ -429,8 +430,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             plan.light_samples[li.name] = s.light_samples * (2 if li.environment is None else 1)
             plan.shadows[li.name] = has_tris and s.method != "local"
             env = li.environment
-            plan.add("world light", True, "non-black background lights the scene "
-                     "(cosine-weighted shadow rays)" if env is None else
+            plan.add("world light", True, "the World colour lights the scene from the whole "
+                     "sky: two shadow rays a sample, more of them towards where the sky is "
+                     "brightest on a surface (overhead)" if env is None else
                      f"environment map '{env.name}' ({env.width}x{env.height}) lights the "
                      "scene (shadow rays importance-sample the map)")
             continue
@@ -480,10 +482,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                f"{s.max_depth} mirror / glass bounce{'s' if s.max_depth != 1 else ''} "
                f"(below Total {s.max_bounces})" if s.max_depth < s.max_bounces else
                "; camera paths stop at these too, as in Cycles")
+        limits = (s.max_bounces, s.diffuse_bounces, s.glossy_bounces, s.transmission_bounces)
+        origin = ("Cycles' defaults" if limits == CYCLES_DEFAULT_BOUNCES
+                  else "as set there")
         plan.add("bounce limits", True,
                  f"light paths up to {s.max_bounces} bounces: {s.diffuse_bounces} diffuse, "
                  f"{s.glossy_bounces} glossy, {s.transmission_bounces} transmission "
-                 f"(Light Paths > Max Bounces, Cycles' settings and defaults){cap}")
+                 f"(Light Paths > Max Bounces, {origin}){cap}")
     see_through = (table.alpha < 1) | table.has_alpha_texture
     if has_tris and np.any(see_through[mat]):
         names = sorted({table.names[m] for m in np.unique(mat[see_through[mat]])})

@@ -38,6 +38,11 @@ GATHER_SPECULAR_DEPTH = 8
 FILTER_WIDTH_MAX = 500.0  # pixels: Blender's limit for the filter size
 
 
+# Cycles' Light Paths defaults (max, diffuse, glossy, transmission bounces): ours too, so
+# the effect report can say whether a scene changed them.
+CYCLES_DEFAULT_BOUNCES = (12, 4, 4, 12)
+
+
 @dataclass
 class RenderSettings:
     # Pass 1 (photons)
@@ -78,7 +83,7 @@ class RenderSettings:
     # refraction (transparent passes count apart, above); the vertex that connects to the
     # light (a shadow ray, or the photon's first hit) is not a bounce. 0 diffuse = direct
     # light only. max_depth (above) is an optional extra cap on the camera chain.
-    max_bounces: int = 12
+    max_bounces: int = 12           # (these four: Cycles' defaults, CYCLES_DEFAULT_BOUNCES)
     diffuse_bounces: int = 4
     glossy_bounces: int = 4
     transmission_bounces: int = 12

@@ -361,8 +361,11 @@ def test_max_ray_depth_is_named_only_where_it_cuts_camera_paths():
     plan = _plan(s)
     limits = _line(plan, "bounce limits:")
     assert limits == ("bounce limits: on - light paths up to 12 bounces: 4 diffuse, 4 "
-                      "glossy, 12 transmission (Light Paths > Max Bounces, Cycles' settings "
-                      "and defaults); camera paths stop at these too, as in Cycles"), limits
+                      "glossy, 12 transmission (Light Paths > Max Bounces, Cycles' "
+                      "defaults); camera paths stop at these too, as in Cycles"), limits
+    # Changed limits are not called Cycles' defaults (the new user's Diffuse 1 was).
+    assert "(Light Paths > Max Bounces, as set there)" in \
+        _line(_plan(s, diffuse_bounces=1), "bounce limits:")
     assert "up to 12 bounces (at most 4 glossy, 12 transmission: Light Paths)" in \
         _line(plan, "specular reflection / refraction: on")
     capped = _plan(s, max_depth=8)
@@ -488,3 +491,14 @@ def test_specular_line_names_mirrors_and_glass_before_rough_layers():
     spec = _line(_plan(s), "specular reflection / refraction:")
     assert spec.index("mirror 'Mirror'") < spec.index("rough glossy"), spec
     assert "glass 'Ball'" in spec.split(" ...")[0], spec
+
+
+def test_world_colour_line_says_what_lights_the_scene_in_plain_words():
+    """A constant World colour: the line says the sky lights the scene and how it is
+    sampled, without sampling jargon ("cosine-weighted" read as jargon to a new user)."""
+    s = _room(Material("white_diffuse_floor", (0.8, 0.8, 0.8)))
+    s.background = (0.2, 0.3, 0.4)
+    line = _line(_plan(s), "world light:")
+    assert line.startswith("world light: on - the World colour lights the scene from the "
+                           "whole sky: two shadow rays a sample"), line
+    assert "cosine" not in line
