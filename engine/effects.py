@@ -431,8 +431,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             plan.shadows[li.name] = has_tris and s.method != "local"
             env = li.environment
             plan.add("world light", True, "the World colour lights the scene from the whole "
-                     "sky: two shadow rays a sample, more of them towards where the sky is "
-                     "brightest on a surface (overhead)" if env is None else
+                     "sky: two shadow rays a sample, aimed more often straight out from "
+                     "each surface, where the sky lights it most" if env is None else
                      f"environment map '{env.name}' ({env.width}x{env.height}) lights the "
                      "scene (shadow rays importance-sample the map)")
             continue
