@@ -14,7 +14,8 @@ from engine.geometry import prepare
 from engine.integrator import _hit_arrays
 from engine.directlight import DirectLightBuffers, NO_HROWS, sample_lights
 from engine.lights import WorldLight, prepare_lights
-from engine.lights.environment import (N_OCT, build_cosine_distributions, octahedral_centre,
+from engine.lights.environment import (N_OCT, SPREAD_SHARE, build_cosine_distributions,
+                                       octahedral_centre, octahedral_spread,
                                        texel_function)
 from engine.lights.packing import pack_lights
 from engine.lights.selection import empty_tree
@@ -127,11 +128,24 @@ def test_cosine_distribution_has_no_mass_below_the_clusters_horizon():
     k = (N_OCT // 2) * N_OCT + N_OCT // 2   # the cell of +Z
     assert np.allclose(octahedral_centre(k), [0, 0, 1])
     H = env.height
-    # Cells entirely below the horizon (theta > 90 degrees) of +Z get nothing.
-    below = (np.arange(mass.shape[1]) * H // mass.shape[1]) >= H // 2
+    Hc = mass.shape[1]
+    # Cells entirely below the horizon of every normal of the +Z cluster (theta > 90
+    # degrees + the cluster's spread) get nothing ...
+    spread = octahedral_spread(k)
+    top = math.pi * (np.arange(Hc) * H // Hc) / H           # each cell row's smallest theta
+    below = top >= 0.5 * math.pi + spread + 1e-9
+    assert below.any()
     assert mass[k][below].sum() < 1e-12  # (cos of 90 degrees rounds to 6e-17)
     # ... while the map's own function is there.
     assert cell[below].sum() > 0
+    # Rows just below the centre's horizon but above an edge normal's get a share
+    # (SPREAD_SHARE: a sun setting for the centre is still found for the cluster's edge).
+    band = (top >= 0.5 * math.pi) & (top < 0.5 * math.pi + spread - 0.05)
+    assert band.any() and mass[k][band].sum() > 0
+    # ... and no more than that share: a cell's weight over its map function is at most
+    # SPREAD_SHARE there, against 1 + SPREAD_SHARE overhead.
+    ratio = np.where(cell > 0, mass[k] / np.where(cell > 0, cell, 1.0), 0.0)
+    assert ratio[band].max() <= SPREAD_SHARE / (1 + SPREAD_SHARE) * ratio.max() * (1 + 1e-9)
     # The per-row prefix sums are those of the map's function.
     f = texel_function(env.pixels, True)
     assert np.allclose(prefix[:, -1], f.sum(axis=1))
