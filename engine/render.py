@@ -17,7 +17,7 @@ from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
 from .lights import packing as pk
 from .lights.packing import pack_lights
-from .photonmap import GatherMap, PhotonMap, auto_radius
+from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
 from .parallel import Cancelled, run_cancellable, run_tasks
@@ -509,15 +509,11 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     elif "global_map" in out:
         out["global_photons"] = len(out["global_map"])
     out["global_radius"] = global_radius
-    # The caustic radius from the global spacing, scaled to the larger shot's count
-    # (aimed caustic photons pile up on a focus: their own spacing would make it tiny);
-    # without a global shot, as if the caustic photons covered the diffuse area evenly.
-    dense = max(len(shot), len(caustic), 1)
-    if len(shot) > k:
-        r_auto = r_global * math.sqrt(len(shot) / dense)
-    else:
-        r_auto = auto_radius(diffuse_area, dense, k, geo.extent)
-    out["caustic_radius"] = s.radius or r_auto
+    # The caustic estimates' cap (photonmap.caustic_radius): each takes its k nearest
+    # caustic photons, so a focus is as narrow as its photons; the cap acts where they
+    # are sparse.
+    out["caustic_radius"] = s.radius or caustic_radius(r_global, len(shot), len(caustic), k,
+                                                       diffuse_area, geo.extent)
     out["diffuse_area"] = diffuse_area
     return out
 
