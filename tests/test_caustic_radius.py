@@ -116,3 +116,32 @@ def test_caustic_radius_rule():
     assert caustic_radius(0.4, 10_000, 5_000, 64, 10.0, 20.0) == 0.4
     assert caustic_radius(0.4, 10_000, 40_000, 64, 10.0, 20.0) == 0.4 * math.sqrt(0.25)
     assert caustic_radius(0.4, 0, 40_000, 64, 10.0, 20.0) == auto_radius(10.0, 40_000, 64, 20.0)
+
+
+@pytest.mark.slow
+def test_rendered_caustic_pass_matches_the_analytic_spot():
+    """End to end: the camera pass's caustic under the ball (the ball invisible to the
+    camera; 60 x 60 pixels of 2 cm, 16 spp) against the bundle binned on the pixels:
+    measured peak 0.94 (the sun's 1 degree blurs it; the bundle's sun has none), half-power
+    width 14.1 cm both, power 0.999, L1 0.080."""
+    view, res = 1.2, 60
+    s = PaperScene(width=res, height=res)
+    s.add_material(Material("matte", (0.8,) * 3))
+    s.add_plane((0, 0, 0), (0, 0, 1), 20.0, "matte", name="floor")
+    c = (-0.8, 0.3, R)
+    s.add_sphere(c, R, "glass", name="ball", segments=48).visible_camera = False
+    s.add_sun(tuple(SUN_DIR), SUN, angle_degrees=1.0)
+    s.camera = Camera(position=(-0.8, 0.9, 3), rotation=np.eye(3), kind="ORTHO",
+                      ortho_scale=view)
+    film = s.render(RenderSettings(spp=16, photons=400_000, caustic_photons=100_000, seed=1,
+                                   indirect="off"))
+    E = film.caustic[..., 1].astype(np.float64) * math.pi / 0.8
+    px = (np.arange(res) + 0.5) / res * view - view / 2
+    xs, ys = px - 0.8, px + 0.9
+    pts, power = floor_hits(c, R, IOR, SUN_DIR, SUN, rays=2_000_000, seed=7)
+    ref = bin_irradiance(pts, power, xs, ys, view / res)[::-1]  # image row 0: +y
+    assert abs(E.max() / ref.max() - 1) < 0.12, (E.max(), ref.max())
+    w, w_ref = encircled_radius(E, xs, ys[::-1]), encircled_radius(ref, xs, ys[::-1])
+    assert abs(w / w_ref - 1) < 0.1, (w, w_ref)
+    assert abs(E.sum() / ref.sum() - 1) < 0.03, (E.sum(), ref.sum())
+    assert np.abs(E - ref).sum() / ref.sum() < 0.12
