@@ -51,7 +51,9 @@ class RenderSettings:
     max_photon_depth: int = 32      # bounces a photon may take (Russian roulette ends most sooner)
     # Radiance estimate
     estimator: str = "knn_simpson"  # knn_simpson | knn_cone | classic (paper) | radius
-    radius: float | None = None     # max search radius; None = auto from scene size and density
+    radius: float | None = None     # max search radius (m): a k-NN estimate's cap; None = auto
+    # from the global photons' spacing (photonmap.auto_radius; the caustic map's cap:
+    # photonmap.caustic_radius, its k-NN radius follows the caustic photons' density)
     min_photons: int = 8            # fewer photons found -> no estimate (paper)
     k_nearest: int = 64             # photons per k-NN estimate
     final_gather: bool = True       # indirect light by gather rays into the global map

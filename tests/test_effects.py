@@ -403,26 +403,36 @@ def test_camera_paths_through_glass_follow_the_light_paths_limits():
 
 
 def test_photon_map_line_says_the_caustic_radius_once_with_why():
-    """The caustic radius is the global one unless the caustic map holds more photons
-    (render._build_maps): said once, with why; a different radius is printed."""
+    """The caustic estimate takes its k nearest photons, capped by the global radius
+    unless the caustic map holds more photons (photonmap.caustic_radius): the line says
+    the estimate is as narrow as the photons lie ("the same search radius 0.52 m" read as
+    a 0.52 m blur of a ball's focus, new-user trial s16), the cap once, with why; a
+    different cap is printed."""
     from engine.render import photon_map_report
     s = RenderSettings()
     same = photon_map_report(s, dict(global_photons=222_001, radius_global=0.1352498,
                                      caustic_photons=116_301, radius_caustic=0.1352498))[0]
     assert "222,001 global photons stored, search radius 0.1352 m" in same
-    assert ("116,301 caustic photons stored, the same search radius (from the global "
-            "photons' spacing: the caustic map holds fewer)") in same, same
+    assert ("116,301 caustic photons stored, each estimate from its 64 nearest: as narrow "
+            "as they lie (a focus stays sharp), at most the global search radius (from the "
+            "global photons' spacing) where they are sparse") in same, same
     assert same.count("search radius") == 2 and same.count("0.1352") == 1
     more = photon_map_report(s, dict(global_photons=10_000, radius_global=0.2,
                                      caustic_photons=40_000, radius_caustic=0.1))[0]
-    assert ("40,000 caustic photons stored, search radius 0.1 m (the global radius, "
-            "scaled down to their greater number)") in more, more
+    assert ("40,000 caustic photons stored, each estimate from its 64 nearest: as narrow as "
+            "they lie (a focus stays sharp), at most 0.1 m (the global radius, scaled down "
+            "to their greater number) where they are sparse") in more, more
     alone = photon_map_report(s, dict(radius_global=0.0, caustic_photons=500,
                                       radius_caustic=0.05))[0]
-    assert "500 caustic photons stored, search radius 0.05 m" in alone, alone
+    assert "500 caustic photons stored, each estimate from its 64 nearest" in alone, alone
+    assert "at most 0.05 m (from their number over the diffuse area)" in alone, alone
     fixed = photon_map_report(RenderSettings(radius=0.3), dict(
         global_photons=100, radius_global=0.3, caustic_photons=50, radius_caustic=0.3))[0]
-    assert "the same search radius (set in the settings)" in fixed, fixed
+    assert "at most the same search radius (set in the settings)" in fixed, fixed
+    paper = photon_map_report(RenderSettings(paper_mode=True, radius=0.3), dict(
+        global_photons=100, radius_global=0.3, caustic_photons=50, radius_caustic=0.3))[0]
+    assert ("50 caustic photons stored, every photon within the same search radius (set in "
+            "the settings)") in paper, paper
 
 
 def test_visual_importance_is_one_plain_sentence_with_its_numbers():
@@ -474,7 +484,8 @@ def test_glow_only_caustic_map_is_not_called_caustic_photons():
     stats = dict(global_photons=20_000, radius_global=0.2, caustic_photons=1_500,
                  radius_caustic=0.2)
     line = photon_map_report(RenderSettings(), stats, glow_only=plan.caustics_glow_only)[0]
-    assert "1,500 glow photons (Caustic pass) stored, the same search radius" in line, line
+    assert "1,500 glow photons (Caustic pass) stored, each estimate from its 64 nearest: " \
+        "as narrow as they lie, at most the global search radius" in line, line
     assert "caustic photons" not in line, line
     sharp = _plan(_room(rough, extra=(("glass", "Ball"),)))
     assert not sharp.caustics_glow_only
