@@ -530,22 +530,26 @@ def traced_render(scene, settings):
             trace = parallel.Trace()
             w0, p0, c0, q0 = (time.perf_counter(), time.process_time(), time.thread_time(),
                               _schedstat()[1])
+            r0 = resource.getrusage(resource.RUSAGE_SELF)
             with parallel.tracing(trace):
                 try:
                     return fn(*args, **kw)
                 finally:
                     trace.root.cpu = time.thread_time() - c0
                     leaf_cpu, leaf_wall = _leaf_waits(trace.root)
+                    r1 = resource.getrusage(resource.RUSAGE_SELF)
                     d = stages.setdefault(stage_of[name], dict(
                         wall=0.0, cpu=0.0, work=0.0, span=0.0, caller=0.0, leaf_cpu=0.0,
-                        leaf_wall=0.0, caller_rq=0.0))
+                        leaf_wall=0.0, caller_rq=0.0, system=0.0, faults=0))
                     for k, v in (("wall", time.perf_counter() - w0),
                                  ("cpu", time.process_time() - p0),
                                  ("work", trace.root.work()),
                                  ("span", trace.root.time_on(settings.threads)),
                                  ("caller", trace.root.own()), ("leaf_cpu", leaf_cpu),
                                  ("leaf_wall", leaf_wall),
-                                 ("caller_rq", _schedstat()[1] - q0)):
+                                 ("caller_rq", _schedstat()[1] - q0),
+                                 ("system", r1.ru_stime - r0.ru_stime),
+                                 ("faults", r1.ru_minflt - r0.ru_minflt)):
                         d[k] += v
         return run
 
@@ -564,7 +568,8 @@ def traced_render(scene, settings):
     rest_wall = wall - sum(d["wall"] for d in stages.values())
     rest_cpu = cpu - sum(d["cpu"] for d in stages.values())
     stages["other"] = dict(wall=rest_wall, cpu=rest_cpu, work=rest_cpu, span=rest_cpu,
-                           caller=rest_cpu, leaf_cpu=0.0, leaf_wall=0.0, caller_rq=0.0)
+                           caller=rest_cpu, leaf_cpu=0.0, leaf_wall=0.0, caller_rq=0.0,
+                           system=float("nan"), faults=-1)
     return stages, film, wall, cpu
 
 
@@ -627,6 +632,7 @@ def sec_critical_path(a):
                         scene=f"{name} {size}", workers=w, stage=st, wall_s=d["wall"],
                         cpu_s=d["cpu"], work_s=d["work"], span_s=d["span"],
                         serial_s=d["caller"], leaf_wait_s=d["leaf_wall"] - d["leaf_cpu"],
+                        system_s=d["system"], minor_faults=int(d["faults"]),
                         bound=d["work"] / d["span"] if d["span"] > 0 else 1.0))
             one, two = best[1][0][0], best[2][0][0]
             work1 = sum(d["work"] for d in one.values())
@@ -648,10 +654,13 @@ def sec_critical_path(a):
                     wall_1w_s=wall1, wall_2w_s=wall2, measured=wall1 / wall2,
                     load=f"{best[1][1]:.1f} / {best[2][1]:.1f}",
                     image="1 = 2 workers" if shas[1] == shas[2] else "DIFFERS"))
-            print(f"# {name} {size}: film SHA-1 1 worker {shas[1]}, 2 workers {shas[2]}",
-                  flush=True)
+            print(f"# {name} {size}: film SHA-1 1 worker {shas[1]}, 2 workers {shas[2]}; "
+                  + "; ".join(f"{r['stage']} {r['predicted']:.2f}x predicted, "
+                              f"{r['measured']:.2f}x measured"
+                              for r in sums if r["scene"] == f"{name} {size}"), flush=True)
     table("critical path per stage (CPU s; span = critical path on idle cores; serial = "
-          "calling thread's own CPU; leaf wait = wall - CPU inside the chunks)", rows)
+          "calling thread's own CPU; leaf wait = wall - CPU inside the chunks; system s and "
+          "minor faults of the process during the stage)", rows)
     table("2 workers / 1 worker: predicted = 1w work / 2w span, measured = wall ratio "
           "(loaded machine: not a measurement above load ~1.5)", sums)
     _critical_plot(a, sums)
