@@ -106,3 +106,26 @@ def test_tracing_changes_no_image_and_one_equals_two_workers():
     ref = films[False, 1]
     for key, f in films.items():
         assert np.array_equal(f, ref), key
+
+
+def test_without_should_cancel_the_caller_waits_once_per_chunk(monkeypatch):
+    # ordered_map's calling thread sleeps on the head chunk (no 20 ms polls, each of
+    # which took the GIL from a worker); with should_cancel it polls.
+    calls = []
+    real_wait = parallel.wait
+
+    def counting_wait(fs, timeout=None):
+        calls.append(timeout)
+        return real_wait(fs, timeout=timeout)
+
+    monkeypatch.setattr(parallel, "wait", counting_wait)  # the calling thread's only
+
+    def job(x, stop):
+        time.sleep(0.15)
+        return x
+
+    assert list(ordered_map(job, range(4), 2)) == [0, 1, 2, 3]
+    assert calls == [None] * 4
+    calls.clear()
+    assert list(ordered_map(job, range(4), 2, lambda: False)) == [0, 1, 2, 3]
+    assert len(calls) > 4 and set(calls) == {parallel.POLL_SECONDS}
