@@ -710,8 +710,18 @@ def main(argv=None):
     ap.add_argument("--sizes", default="160x120,320x240",
                     help="critical_path: image sizes WxH")
     ap.add_argument("--plot", help="critical_path: write a PNG of the speed-ups (matplotlib)")
+    ap.add_argument("--malloc-single", action="store_true",
+                    help="re-run this process under glibc's single malloc arena without "
+                         "trimming (MALLOC_ARENA_MAX=1, MALLOC_TRIM_THRESHOLD_=512 MB, "
+                         "MALLOC_MMAP_THRESHOLD_=32 MB): the allocator A/B of "
+                         "docs/performance.md's sixteenth slice")
     ap.add_argument("--json", help="write all tables as JSON")
     a = ap.parse_args(argv)
+    if a.malloc_single and os.environ.get("MALLOC_ARENA_MAX") != "1" and argv is None:
+        # glibc reads these once, at the process's start: run again under them.
+        os.environ.update(MALLOC_ARENA_MAX="1", MALLOC_TRIM_THRESHOLD_=str(512 << 20),
+                          MALLOC_MMAP_THRESHOLD_=str(32 << 20))
+        os.execv(sys.executable, [sys.executable] + sys.argv)
     q = a.quick
     a.width = a.width or (80 if q else 160)
     a.height = a.height or (60 if q else 120)
@@ -722,7 +732,11 @@ def main(argv=None):
     a.sizes = a.sizes.split(",")
     a.threads = a.workers if a.workers > 0 else (os.cpu_count() or 1)
     print(f"# bench_scaling ({'quick' if q else 'full'}), {os.cpu_count()} cores, "
-          f"load {os.getloadavg()[0]:.1f}, numpy {np.__version__}")
+          f"load {os.getloadavg()[0]:.1f}, numpy {np.__version__}, malloc env "
+          + (" ".join(f"{k}={os.environ[k]}" for k in ("MALLOC_ARENA_MAX",
+                                                         "MALLOC_TRIM_THRESHOLD_",
+                                                         "MALLOC_MMAP_THRESHOLD_")
+                      if k in os.environ) or "default"))
     t0 = time.perf_counter()
     for name in (a.only or list(SECTIONS)):
         SECTIONS[name](a)
