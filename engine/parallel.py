@@ -182,6 +182,9 @@ class Trace:
 
 
 class Group:
+    """One ordered_map / run_cancellable call: its jobs (Tasks, in dispatch order) and the
+    threads they ran on (1 when inline on the caller's thread)."""
+
     def __init__(self, threads: int, inline: bool, name: str = ""):
         self.threads = 1 if inline else max(1, threads)
         self.inline = inline
@@ -210,6 +213,8 @@ class Group:
 
 
 class Task:
+    """One job: its thread's CPU and wall seconds while it ran, and the groups it started."""
+
     def __init__(self):
         self.cpu = 0.0  # its thread's CPU s while it ran (inline children included)
         self.wall = 0.0
