@@ -10,7 +10,12 @@ best of --repeat), except peak RSS, which is measured in a fresh child process p
 Sections: rays (engine vs raw embreex on the same rays), photons (per bounce), kdtree
 (build / gather per million queries), scaling (pixels, photons, triangles, lights),
 memory (peak RSS, bytes per photon), workers (1 vs 2, same image), camera_workers (where
-two workers lose in a default render's camera stage: per-thread timeline of the chunks).
+two workers lose in a default render's camera stage: per-thread timeline of the chunks),
+critical_path (issue 13's 2 workers >= 1.8x: per stage the CPU on the critical path,
+traced through engine.parallel.Trace, predicted and measured speed-ups):
+
+    .venv/bin/python bench/bench_scaling.py --only critical_path --repeat 1 \\
+        --blends figure6_box,figure7_blocker,principled_spheres_df2 --sizes 160x120,320x240
 """
 from __future__ import annotations
 
@@ -465,9 +470,229 @@ def sec_camera_workers(a):
           "rows 1 / 2: ratios for wall, critical and run, 2w - 1w for the rest)", sums)
 
 
+# --------------------------------------------------------------------------- critical path
+
+def _schedstat():
+    """(run s, run-queue s) of this thread (Linux; zeros elsewhere)."""
+    try:
+        with open(f"/proc/self/task/{threading.get_native_id()}/schedstat") as f:
+            run, rq = (int(x) * 1e-9 for x in f.read().split()[:2])
+        return run, rq
+    except OSError:
+        return 0.0, 0.0
+
+
+def _leaf_waits(task):
+    """(cpu s, wall s) summed over the tasks that start no threaded group (the chunks
+    and blocks that do the work): wall - cpu there is time waiting for a core (other
+    processes), for the GIL or for a kernel's lock."""
+    from engine.parallel import Task  # noqa: F401
+    cpu = wall = 0.0
+    for g in task.groups:
+        for t in g.tasks:
+            if any(not h.inline for h in t.groups):
+                c, w = _leaf_waits(t)
+                cpu, wall = cpu + c, wall + w
+            elif not g.inline:
+                cpu, wall = cpu + t.cpu, wall + t.wall
+    return cpu, wall
+
+
+def traced_render(scene, settings):
+    """Render with every stage traced (engine.parallel.Trace): {stage: dict(wall, cpu =
+    process CPU, work, span, caller = the calling thread's own CPU, leaf cpu / wall,
+    run-queue s of the calling thread)}, the film and the render's wall and CPU. Stages:
+    photons (each trace_photons call), maps (the map build under run_cancellable and the
+    gather count's indirect share), camera (render_camera; the photon-hit view on its side
+    thread counted in its work, not its span: it fills the idle tail), other (the rest:
+    preparation, effect analysis, film)."""
+    import importlib
+    from engine import parallel
+    render_mod = importlib.import_module("engine.render")
+    stages = {}
+    names = ("trace_photons", "run_cancellable", "indirect_share", "render_camera",
+             "_photon_hit_view")
+    originals = {n: getattr(render_mod, n) for n in names}
+    stage_of = dict(trace_photons="photons", run_cancellable="maps", indirect_share="maps",
+                    render_camera="camera")
+    side = {"cpu": 0.0}
+
+    def traced(name):
+        fn = originals[name]
+
+        def run(*args, **kw):
+            if name == "_photon_hit_view":
+                c0 = time.thread_time()
+                try:
+                    return fn(*args, **kw)
+                finally:
+                    side["cpu"] += time.thread_time() - c0
+            trace = parallel.Trace()
+            w0, p0, c0, q0 = (time.perf_counter(), time.process_time(), time.thread_time(),
+                              _schedstat()[1])
+            r0 = resource.getrusage(resource.RUSAGE_SELF)
+            with parallel.tracing(trace):
+                try:
+                    return fn(*args, **kw)
+                finally:
+                    trace.root.cpu = time.thread_time() - c0
+                    leaf_cpu, leaf_wall = _leaf_waits(trace.root)
+                    r1 = resource.getrusage(resource.RUSAGE_SELF)
+                    d = stages.setdefault(stage_of[name], dict(
+                        wall=0.0, cpu=0.0, work=0.0, span=0.0, caller=0.0, leaf_cpu=0.0,
+                        leaf_wall=0.0, caller_rq=0.0, system=0.0, faults=0))
+                    for k, v in (("wall", time.perf_counter() - w0),
+                                 ("cpu", time.process_time() - p0),
+                                 ("work", trace.root.work()),
+                                 ("span", trace.root.time_on(settings.threads)),
+                                 ("caller", trace.root.own()), ("leaf_cpu", leaf_cpu),
+                                 ("leaf_wall", leaf_wall),
+                                 ("caller_rq", _schedstat()[1] - q0),
+                                 ("system", r1.ru_stime - r0.ru_stime),
+                                 ("faults", r1.ru_minflt - r0.ru_minflt)):
+                        d[k] += v
+        return run
+
+    for n in names:
+        setattr(render_mod, n, traced(n))
+    try:
+        w0, p0 = time.perf_counter(), time.process_time()
+        film = render(scene, settings)
+        wall, cpu = time.perf_counter() - w0, time.process_time() - p0
+    finally:
+        for n, fn in originals.items():
+            setattr(render_mod, n, fn)
+    if "camera" in stages:
+        stages["camera"]["work"] += side["cpu"] if settings.threads > 1 else 0.0
+        stages["camera"]["side"] = side["cpu"]
+    rest_wall = wall - sum(d["wall"] for d in stages.values())
+    rest_cpu = cpu - sum(d["cpu"] for d in stages.values())
+    stages["other"] = dict(wall=rest_wall, cpu=rest_cpu, work=rest_cpu, span=rest_cpu,
+                           caller=rest_cpu, leaf_cpu=0.0, leaf_wall=0.0, caller_rq=0.0,
+                           system=float("nan"), faults=-1)
+    return stages, film, wall, cpu
+
+
+def _scene(name):
+    """/tmp/pk/<name>.pkl (engine scenes pickled without bpy) if present, else the example
+    blend exported through the add-on."""
+    import pickle
+    pk = os.path.join("/tmp/pk", name + ".pkl")
+    if os.path.exists(pk):
+        with open(pk, "rb") as f:
+            return pickle.load(f)
+    return _export(name)
+
+
+def _film_sha(film):
+    import hashlib
+    h = hashlib.sha1()
+    for k in ("direct", "indirect", "caustic", "specular", "emission"):
+        h.update(np.ascontiguousarray(getattr(film, k)).tobytes())
+    return h.hexdigest()[:16]
+
+
+def sec_critical_path(a):
+    """Per stage of a default render (photons, maps, camera, other), 1 and 2 workers:
+    wall, process CPU, the traced work (CPU of every job and of the calling thread's own
+    code), the critical path (span: the calling thread's own CPU, then each pool's jobs
+    dispatched in order to its threads; at least work / workers, as nested pools share
+    the cores: Task.time_on), the calling thread's serial CPU, the leaf jobs'
+    waits (wall - CPU inside the chunks: other processes' load, GIL and lock waits).
+    predicted = 1-worker work / 2-worker span (what two idle cores would give, no GIL
+    contention), measured = 1-worker wall / 2-worker wall (meaningful only at load < 1.5).
+    --blends names /tmp/pk pickles or example blends; --sizes WxH list; default settings."""
+    try:
+        from engine.jit import ensure_compiled
+        ensure_compiled()
+    except ImportError:
+        pass
+    rows, sums = [], []
+    for name in a.blends:
+        scene = _scene(name)
+        # A small render first: the process's first render loads kernels and warms
+        # caches, which would count against whichever worker count ran first.
+        scene.width, scene.height = 32, 24
+        render(scene, RenderSettings(workers=2, spp=4))
+        for size in a.sizes:
+            w_, h_ = (int(x) for x in size.split("x"))
+            scene.width, scene.height = w_, h_
+            best = {}
+            for rep in range(a.repeat):
+                for w in ((1, 2) if rep % 2 == 0 else (2, 1)):
+                    load = os.getloadavg()[0]
+                    out = traced_render(scene, RenderSettings(workers=w))
+                    if w not in best or out[2] < best[w][0][2]:
+                        best[w] = (out, load)
+            shas = {w: _film_sha(best[w][0][1]) for w in (1, 2)}
+            for w in (1, 2):
+                (stages, film, wall, cpu), load = best[w]
+                for st, d in stages.items():
+                    rows.append(dict(
+                        scene=f"{name} {size}", workers=w, stage=st, wall_s=d["wall"],
+                        cpu_s=d["cpu"], work_s=d["work"], span_s=d["span"],
+                        serial_s=d["caller"], leaf_wait_s=d["leaf_wall"] - d["leaf_cpu"],
+                        system_s=d["system"], minor_faults=int(d["faults"]),
+                        bound=d["work"] / d["span"] if d["span"] > 0 else 1.0))
+            one, two = best[1][0][0], best[2][0][0]
+            work1 = sum(d["work"] for d in one.values())
+            span2 = sum(d["span"] for d in two.values())
+            for st in ("photons", "maps", "camera", "other", "all"):
+                if st == "all":
+                    w1, s2 = work1, span2
+                    wall1, wall2 = best[1][0][2], best[2][0][2]
+                elif st in one and st in two:
+                    w1, s2 = one[st]["work"], two[st]["span"]
+                    wall1, wall2 = one[st]["wall"], two[st]["wall"]
+                else:
+                    continue
+                sums.append(dict(
+                    scene=f"{name} {size}", stage=st, work_1w_s=w1,
+                    work_2w_s=(sum(d["work"] for d in two.values()) if st == "all"
+                               else two[st]["work"]),
+                    span_2w_s=s2, predicted=w1 / s2 if s2 > 0 else 1.0,
+                    wall_1w_s=wall1, wall_2w_s=wall2, measured=wall1 / wall2,
+                    load=f"{best[1][1]:.1f} / {best[2][1]:.1f}",
+                    image="1 = 2 workers" if shas[1] == shas[2] else "DIFFERS"))
+            print(f"# {name} {size}: film SHA-1 1 worker {shas[1]}, 2 workers {shas[2]}; "
+                  + "; ".join(f"{r['stage']} {r['predicted']:.2f}x predicted, "
+                              f"{r['measured']:.2f}x measured"
+                              for r in sums if r["scene"] == f"{name} {size}"), flush=True)
+    table("critical path per stage (CPU s; span = critical path on idle cores; serial = "
+          "calling thread's own CPU; leaf wait = wall - CPU inside the chunks; system s and "
+          "minor faults of the process during the stage)", rows)
+    table("2 workers / 1 worker: predicted = 1w work / 2w span, measured = wall ratio "
+          "(loaded machine: not a measurement above load ~1.5)", sums)
+    _critical_plot(a, sums)
+
+
+def _critical_plot(a, sums):
+    if not a.plot:
+        return
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("(matplotlib not installed: no plot)")
+        return
+    labels = [f"{r['scene']}\n{r['stage']}" for r in sums]
+    x = np.arange(len(sums))
+    fig, ax = plt.subplots(figsize=(max(6, 0.6 * len(sums)), 4))
+    ax.bar(x - 0.2, [r["predicted"] for r in sums], 0.4, label="predicted (1w work / 2w span)")
+    ax.bar(x + 0.2, [r["measured"] for r in sums], 0.4, label="measured (wall)")
+    ax.axhline(1.8, color="k", lw=0.8, ls="--")
+    ax.set_xticks(x, labels, rotation=90, fontsize=6)
+    ax.set_ylabel("2 workers / 1 worker")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(a.plot, dpi=120)
+    print(f"(plot: {a.plot})")
+
+
 SECTIONS = dict(rays=sec_rays, photons=sec_photons, kdtree=sec_kdtree, scaling=sec_scaling,
                 memory=sec_memory, workers=sec_workers,
-                camera_workers=sec_camera_workers)
+                camera_workers=sec_camera_workers, critical_path=sec_critical_path)
 
 
 def main(argv=None):
@@ -482,8 +707,21 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=None, help="best of N (default 3, quick 1)")
     ap.add_argument("--blends", default="figure6_box,figure7_blocker",
                     help="camera_workers: example blends (exported through the add-on)")
+    ap.add_argument("--sizes", default="160x120,320x240",
+                    help="critical_path: image sizes WxH")
+    ap.add_argument("--plot", help="critical_path: write a PNG of the speed-ups (matplotlib)")
+    ap.add_argument("--malloc-single", action="store_true",
+                    help="re-run this process under glibc's single malloc arena without "
+                         "trimming (MALLOC_ARENA_MAX=1, MALLOC_TRIM_THRESHOLD_=512 MB, "
+                         "MALLOC_MMAP_THRESHOLD_=32 MB): the allocator A/B of "
+                         "docs/performance.md's sixteenth slice")
     ap.add_argument("--json", help="write all tables as JSON")
     a = ap.parse_args(argv)
+    if a.malloc_single and os.environ.get("MALLOC_ARENA_MAX") != "1" and argv is None:
+        # glibc reads these once, at the process's start: run again under them.
+        os.environ.update(MALLOC_ARENA_MAX="1", MALLOC_TRIM_THRESHOLD_=str(512 << 20),
+                          MALLOC_MMAP_THRESHOLD_=str(32 << 20))
+        os.execv(sys.executable, [sys.executable] + sys.argv)
     q = a.quick
     a.width = a.width or (80 if q else 160)
     a.height = a.height or (60 if q else 120)
@@ -491,9 +729,14 @@ def main(argv=None):
     a.photons = a.photons or (50_000 if q else 200_000)
     a.repeat = a.repeat or (1 if q else 3)
     a.blends = a.blends.split(",")
+    a.sizes = a.sizes.split(",")
     a.threads = a.workers if a.workers > 0 else (os.cpu_count() or 1)
     print(f"# bench_scaling ({'quick' if q else 'full'}), {os.cpu_count()} cores, "
-          f"load {os.getloadavg()[0]:.1f}, numpy {np.__version__}")
+          f"load {os.getloadavg()[0]:.1f}, numpy {np.__version__}, malloc env "
+          + (" ".join(f"{k}={os.environ[k]}" for k in ("MALLOC_ARENA_MAX",
+                                                         "MALLOC_TRIM_THRESHOLD_",
+                                                         "MALLOC_MMAP_THRESHOLD_")
+                      if k in os.environ) or "default"))
     t0 = time.perf_counter()
     for name in (a.only or list(SECTIONS)):
         SECTIONS[name](a)

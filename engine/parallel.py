@@ -14,6 +14,7 @@ middle of a long compiled step (a photon-map estimate of 60k rows, a kd-tree bui
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor, wait
 from contextlib import contextmanager
@@ -155,6 +156,114 @@ def _with_flag(job, flag):
     return run
 
 
+# ---------------------------------------------------------------------------- the tracer
+
+class Trace:
+    """Work and span of the jobs the pools run, for bench/bench_scaling.py's critical path
+    (off unless a caller installs one with `tracing`, before the work starts and from the
+    calling thread: the workers only read it).
+
+    Each ordered_map / run_cancellable call made while a Trace is on becomes a Group (its
+    thread count, inline or not) under the job running on the calling thread (or under
+    the trace's root). Each job records its own thread's CPU (time.thread_time), which
+    leaves out the threads of the groups it starts; with `inline` groups the children's
+    CPU is inside their parent's and is taken out again (Task.own)."""
+
+    def __init__(self):
+        self.root = Task()
+        self._lock = threading.Lock()
+
+    def group(self, threads: int, inline: bool, name: str = "") -> "Group":
+        g = Group(threads, inline, name)
+        parent = getattr(_current, "task", None) or self.root
+        with self._lock:
+            parent.groups.append(g)
+        return g
+
+
+class Group:
+    """One ordered_map / run_cancellable call: its jobs (Tasks, in dispatch order) and the
+    threads they ran on (1 when inline on the caller's thread)."""
+
+    def __init__(self, threads: int, inline: bool, name: str = ""):
+        self.threads = 1 if inline else max(1, threads)
+        self.inline = inline
+        self.name = name  # the job's qualified name
+        self.tasks: list = []
+        self._lock = threading.Lock()
+
+    def wrap(self, job):
+        """job(*args) run as one of this group's tasks, in submission order."""
+        task = Task()
+        with self._lock:
+            self.tasks.append(task)
+
+        def run(*args):
+            before = getattr(_current, "task", None)
+            _current.task = task
+            task.thread = threading.get_native_id()
+            t0, c0 = time.perf_counter(), time.thread_time()
+            try:
+                return job(*args)
+            finally:
+                task.cpu = time.thread_time() - c0
+                task.wall = time.perf_counter() - t0
+                _current.task = before
+        return run
+
+
+class Task:
+    """One job: its thread's CPU and wall seconds while it ran, and the groups it started."""
+
+    def __init__(self):
+        self.cpu = 0.0  # its thread's CPU s while it ran (inline children included)
+        self.wall = 0.0
+        self.thread = None
+        self.groups: list = []
+
+    def own(self) -> float:
+        """CPU s of this task's own code (inline children taken out). A root task's cpu
+        is set by whoever traces (Trace's callers: the calling thread's CPU)."""
+        return max(0.0, self.cpu - sum(t.cpu for g in self.groups if g.inline
+                                       for t in g.tasks))
+
+    def work(self) -> float:
+        """CPU s of this task and everything it started."""
+        return self.own() + sum(t.work() for g in self.groups for t in g.tasks)
+
+    def span(self) -> float:
+        """CPU s on the critical path: its own code, then each group's jobs (their spans)
+        dispatched in order to the group's threads, each to the first thread free (as a
+        ThreadPoolExecutor takes them), with no wait for cores, locks or the GIL."""
+        total = self.own()
+        for g in self.groups:
+            free = [0.0] * g.threads
+            for t in g.tasks:
+                i = free.index(min(free))
+                free[i] += t.span()
+            total += max(free) if free else 0.0
+        return total
+
+    def time_on(self, cores: int) -> float:
+        """The least time this task's work can take on `cores` idle cores: its span, or
+        its work spread evenly where nested pools hold more threads than cores."""
+        return max(self.span(), self.work() / max(1, cores))
+
+
+_trace: Trace | None = None
+
+
+@contextmanager
+def tracing(trace: Trace):
+    """Within: the pools' jobs started on any thread are recorded in `trace`."""
+    global _trace
+    before, _trace = _trace, trace
+    try:
+        yield trace
+    finally:
+        _trace = before
+
+
 # How often the calling thread asks should_cancel while chunks run: a stop within 0.2 s
 # (the viewport, issue 19) needs the poll well under that.
 POLL_SECONDS = 0.02
@@ -186,7 +295,15 @@ def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=Non
     every POLL_SECONDS, so a cancel is seen within that even when a job's step between
     two checks of stop() takes seconds (a camera chunk's first bounce)."""
     items = list(items)
-    if should_cancel is None and (threads <= 1 or len(items) <= 1):
+    inline = should_cancel is None and (threads <= 1 or len(items) <= 1)
+    if _trace is not None:
+        # Each item with its task, made here in the items' order (the dispatch order).
+        group = _trace.group(threads, inline, getattr(job, "__qualname__", ""))
+        items = [(group.wrap(job), item) for item in items]
+
+        def job(pair, stop):
+            return pair[0](pair[1], stop)
+    if inline:
         # Inline on this thread: the stop of the job this thread runs, if any.
         stop = stop_flag_of(None) or _never
         for item in items:
@@ -218,8 +335,11 @@ def ordered_map(job, items, threads: int, should_cancel=None, on_all_started=Non
             if should_cancel is not None and should_cancel():
                 raise Cancelled()
             head = pending[0]
-            while not wait([head], timeout=POLL_SECONDS).done:
-                if should_cancel is not None and should_cancel():
+            # Without should_cancel nothing needs polling: this thread sleeps until the
+            # chunk is done (each poll takes the GIL from a worker: 50 a second).
+            while not wait([head], timeout=None if should_cancel is None
+                           else POLL_SECONDS).done:
+                if should_cancel():
                     raise Cancelled()
             pending.popleft()
             result = head.result()  # re-raises a worker's exception here
@@ -261,6 +381,9 @@ def run_cancellable(job, should_cancel=None):
     at its next check, and Cancelled is raised at once: the job's result is dropped (it
     must not change shared state). stop is a StopFlag: compiled steps poll its array
     (stop_array). Without should_cancel the job runs inline."""
+    if _trace is not None:
+        job = _trace.group(1, should_cancel is None,
+                           getattr(job, "__qualname__", "")).wrap(job)
     if should_cancel is None:
         return job(lambda: False)
     event = StopFlag()
