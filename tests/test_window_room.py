@@ -128,3 +128,40 @@ def test_the_pilot_counts_photons_that_light_the_seen_side(window_room):
         assert list(got) == [False, True, False], got
     finally:
         ctx.accel.close()
+
+
+def test_regathers_run_in_bounded_slices(window_room, monkeypatch):
+    """A chunk's regathers run REGATHER_BATCH ends at a time (integrator._regather): the
+    next level's gather buffers never hold more rows than that, however many ends the
+    window room's lookups send back; with one slice the sums are the same bits."""
+    from engine import integrator
+    from engine.bsdf import surface_hit
+    ctx = prepare_context(window_room, RenderSettings(workers=1, spp=4, photons=50_000))
+    try:
+        shoot_photons(ctx, {})
+        rng = np.random.default_rng(3)
+        n = 3000
+        o = np.c_[rng.uniform(-1.9, 1.9, n), rng.uniform(-1.9, 1.9, n), np.full(n, 1.0)]
+        d = np.tile([0.0, 0.0, -1.0], (n, 1))
+        _, prim, u, v = ctx.accel.intersect(o - ctx.geo.offset, d)
+        keep = prim >= 0
+        hit = surface_hit(ctx.geo, ctx.table, prim[keep], u[keep], v[keep], d[keep])
+
+        def gather(batch):
+            monkeypatch.setattr(integrator, "REGATHER_BATCH", batch)
+            vars(ctx).pop("_gather_buffers", None)
+            c = integrator.Counters()
+            E = integrator.gather_indirect(ctx, hit, np.random.default_rng(7), c)
+            return E.copy(), c, integrator._gather_buffers(ctx, 1).size
+
+        E_big, c_big, size_big = gather(1 << 20)
+        E_small, c_small, size_small = gather(100)
+        regathered = c_small.stages.get(("regathered", 1), 0)
+        assert regathered > 300, regathered
+        assert size_small <= 100 < size_big
+        assert c_small.stages[("regathered", 1)] == c_big.stages[("regathered", 1)]
+        assert np.isfinite(E_small).all() and E_small.mean() > 0
+        E_one, _, _ = gather(regathered)
+        assert np.array_equal(E_one, E_big)
+    finally:
+        ctx.accel.close()
