@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -43,15 +43,40 @@ from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSM
 
 @dataclass
 class Counters:
+    """Rays and hits of a camera pass. stages: finer counts, (stage, depth) -> count:
+    ("paths", b) camera paths traced at bounce b; ("shaded", b) their hits that took the
+    diffuse lobe's terms; ("camera shadow", b) shadow rays from those hits; ("gather", L)
+    final-gather rays (continuations through glass and mirrors included) at gather level
+    L (0: from the camera's hits; L > 0: regathers); ("regathered", L) gather ends
+    gathered again at level L; ("regather shadow", L) their shadow rays
+    (bench/bench_window_room.py prints them)."""
     camera_rays: int = 0
     shadow_rays: int = 0
     gather_rays: int = 0
     specular_rays: int = 0
     diffuse_hits: int = 0
+    stages: dict = field(default_factory=dict)
 
     def add(self, other: "Counters"):
         for name in self.__dataclass_fields__:
-            setattr(self, name, getattr(self, name) + getattr(other, name))
+            if name == "stages":
+                for key, value in other.stages.items():
+                    self.count(key[0], key[1], value)
+            else:
+                setattr(self, name, getattr(self, name) + getattr(other, name))
+
+    def count(self, stage: str, depth: int, n: int):
+        """Add n to the finer count (stage, depth)."""
+        key = (stage, int(depth))
+        self.stages[key] = self.stages.get(key, 0) + int(n)
+
+    def regather_shadow_rays(self) -> int:
+        """Shadow rays from regathered ends so far (every level)."""
+        return sum(v for k, v in self.stages.items() if k[0] == "regather shadow")
+
+    def stage_table(self) -> dict:
+        """stages as 'stage depth' -> count, in stage order (for a render's stats)."""
+        return {f"{k[0]} {k[1]}": v for k, v in sorted(self.stages.items())}
 
 
 def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None):
@@ -481,6 +506,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if should_cancel is not None and should_cancel():
                 raise Cancelled()
             counters.gather_rays += len(idx)
+            counters.count("gather", level, len(idx))
             per_ray = np.ndim(ray_cls) > 0
             cls = c(ray_cls, np.int64) if per_ray else _NO_CLASS
             tp = c(tp, np.float64)
@@ -659,8 +685,25 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     worker count as the chunk's own."""
     target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
                                      for a in zip(*pending))
-    y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
     rng = _spawn(rng)
+    # At most REGATHER_BATCH ends at a time (one stream, slice after slice): the level's
+    # arrays stay bounded however many ends a chunk regathers.
+    for a in range(0, len(target), REGATHER_BATCH):
+        b = a + REGATHER_BATCH
+        _regather_batch(ctx, E, target[a:b], tp[a:b], wd[a:b], prim[a:b], u[a:b], v[a:b],
+                        d[a:b], G, rng, counters, level, should_cancel, lean)
+
+
+# Ends a regather batch holds at most (its surface data, direct-light buffers and the next
+# level's gather buffers: ~1-2 KB an end). A window-lit room regathered ~1 end per camera
+# sample per level, 2.1x estimate_memory's peak at 128 spp in one batch per chunk.
+REGATHER_BATCH = 1 << 15
+
+
+def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, level,
+                    should_cancel, lean):
+    """_regather for one slice of its ends (rng: the batch's spawned stream)."""
+    y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
     # light here.
@@ -668,8 +711,12 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     # batch of this level on this thread; the sum below reads them first.)
     # (The ends are level + 1 diffuse bounces from the camera's hit: their secondary
     # caustic comes from that level's map, bounce limits: docs/design.md.)
-    Esub = (direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True,
-                              buffers=_gather_buffers(ctx, level).direct)
+    counters.count("regathered", level + 1, len(target))
+    before = counters.shadow_rays
+    Ed = direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True,
+                           buffers=_gather_buffers(ctx, level).direct)
+    counters.count("regather shadow", level + 1, counters.shadow_rays - before)
+    Esub = (Ed
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
                               should_cancel=should_cancel, lean=lean)
             + _secondary_irradiance(ctx, y, rng, level + 1))
@@ -1220,6 +1267,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if should_cancel is not None and bounce > 0 and should_cancel():
             raise Cancelled()
         target = "emission" if bounce == 0 else "specular"
+        counters.count("paths", bounce, len(o))
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
@@ -1356,12 +1404,16 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             g = glossy if every else glossy[dsel]
             # The shaded rows read in place (rows=dsel), or the batch itself: no copies of
             # their fields for the direct stage.
+            counters.count("shaded", bounce, nd)
+            before = counters.shadow_rays - counters.regather_shadow_rays()
             direct, caustic, indirect = shade_diffuse(
                 ctx, hit, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
                 sel=sel if g.any() else None, buffers=buffers.direct,
                 scattered=scattered if every or scattered is None else scattered[dsel],
                 rows=None if every else dsel)
+            counters.count("camera shadow", bounce, counters.shadow_rays
+                           - counters.regather_shadow_rays() - before)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:

@@ -192,7 +192,8 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None,
             stats["time_camera"] = time.perf_counter() - t0
             stats.update(camera_rays=counters.camera_rays, shadow_rays=counters.shadow_rays,
                          gather_rays=counters.gather_rays,
-                         specular_rays=counters.specular_rays)
+                         specular_rays=counters.specular_rays,
+                         ray_stages=counters.stage_table())
             view, shown, fraction = hits()
         finally:
             hits.join()

@@ -75,6 +75,10 @@ class Region:
     inside: float
     lookups: int
     shares: np.ndarray | None = None  # (K,) each sphere's share of the lookups
+    # The lookups themselves: points (N,3) and unit geometric normals (N,3) facing the
+    # gather ray that found them (the side of the surface they read); None: not known.
+    points: np.ndarray | None = None
+    normals: np.ndarray | None = None
 
     @property
     def targets(self):
@@ -84,26 +88,100 @@ class Region:
 def region_of_interest(ctx, rays: int = ROI_RAYS) -> Region | None:
     """The region of interest of ctx's camera (module docstring, step 1), or None when
     the pre-pass finds no lookup (nothing diffuse in view)."""
-    points = lookup_points(ctx, rays)
+    points, normals = lookup_points(ctx, rays, normals=True)
     if len(points) == 0:
         return None
-    return cover_cells(points, ROI_COVER, ROI_CELLS)
+    region = cover_cells(points, ROI_COVER, ROI_CELLS)
+    region.points, region.normals = points, normals
+    return region
 
 
-def lookup_points(ctx, rays: int = ROI_RAYS) -> np.ndarray:
+def lookup_points(ctx, rays: int = ROI_RAYS, normals: bool = False):
     """(N,3) points where the pre-pass' gather rays end on a surface: where final
-    gathering looks the global map up."""
+    gathering looks the global map up. normals=True: (points, (N,3) unit geometric
+    normals there facing the gather ray, the side of the surface the lookup reads)."""
     rng = np.random.default_rng([ctx.settings.seed, 95])
     p, ng, off = diffuse_camera_hits(ctx, rays, rng)
     if len(p) == 0:
-        return np.zeros((0, 3))
+        return (np.zeros((0, 3)), np.zeros((0, 3))) if normals else np.zeros((0, 3))
     p, ng, off = (np.repeat(a, ROI_GATHER, axis=0) for a in (p, ng, off))
     u = rng.random((2, len(p)))
     d = to_world(cosine_hemisphere(u[0], u[1]), ng)
     o = offset_origin(p, ng, d, off)
     t, prim, _, _ = ctx.accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
     ok = prim >= 0
-    return o[ok] + t[ok, None] * d[ok]
+    points = o[ok] + t[ok, None] * d[ok]
+    if not normals:
+        return points
+    return points, _facing(ctx.geo.ng[prim[ok]], d[ok])
+
+
+def _facing(ng, d):
+    """Unit normals ng (N,3) turned to face rays of direction d (N,3) that met them."""
+    return np.where((dot(ng, d) > 0)[:, None], -ng, ng)
+
+
+# The pilot's photons pass on through at most this many surfaces without a diffuse lobe
+# (window glass, mirrors) before their first diffuse hit counts.
+PILOT_SPECULAR_DEPTH = 4
+# A pilot photon's first diffuse hit serves the lookups when one of its PILOT_NEIGHBOURS
+# nearest lookups reads the same side of a surface (normals agreeing by more than
+# PILOT_AGREEMENT).
+PILOT_NEIGHBOURS = 8
+PILOT_AGREEMENT = 0.5
+# plan_global_shot counts a pilot photon's power for the region only where
+# seen_side_hits says it serves the lookups (False: wherever its line meets a sphere, as
+# before; bench/bench_window_room.py's A/B).
+PILOT_SEEN_SIDE = True
+
+
+def seen_side_hits(ctx, o, d, region: Region) -> np.ndarray:
+    """(N,) bool: photons (origins o, unit directions d (N,3)) whose first diffuse hit
+    lies on the side of a surface the region's lookups read: one of the hit's
+    PILOT_NEIGHBOURS nearest lookups faces the way the hit's surface faces the photon.
+    Surfaces without a diffuse lobe are passed straight through (transmissive: window
+    glass, whose two faces restore the direction) or mirrored (the rest), as the
+    pre-pass' camera paths are. A sunlit roof whose inside is a room's ceiling lies in
+    the ceiling's sphere, but its photons light the other side: they do not count."""
+    from scipy.spatial import cKDTree
+    n = len(o)
+    out = np.zeros(n, bool)
+    if region.points is None or len(region.points) == 0 or n == 0:
+        return out
+    geo, table, accel = ctx.geo, ctx.table, ctx.accel
+    diffuse = table.has_diffuse
+    passes = np.asarray(table.transmission, np.float64) > 0
+    rows = np.arange(n)
+    o = np.asarray(o, np.float64)
+    d = np.asarray(d, np.float64)
+    hit_p, hit_n, found = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, bool)
+    for _ in range(PILOT_SPECULAR_DEPTH + 1):
+        if len(rows) == 0:
+            break
+        _, prim, u, v = accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
+        keep = prim >= 0
+        rows, o, d, prim, u, v = rows[keep], o[keep], d[keep], prim[keep], u[keep], v[keep]
+        if len(rows) == 0:
+            break
+        hit = surface_hit(geo, table, prim, u, v, d)
+        dif = diffuse[hit.mat]
+        hit_p[rows[dif]] = hit.p[dif]
+        hit_n[rows[dif]] = _facing(np.asarray(geo.ng[prim[dif]]), d[dif])
+        found[rows[dif]] = True
+        spec = ~dif
+        through = passes[hit.mat[spec]]
+        d_next = np.where(through[:, None], d[spec], reflect(d[spec], hit.ns[spec]))
+        o = offset_origin(hit.p[spec], hit.ng[spec], d_next, hit.offset[spec])
+        rows, d = rows[spec], d_next
+    idx = np.flatnonzero(found)
+    if len(idx) == 0:
+        return out
+    k = min(PILOT_NEIGHBOURS, len(region.points))
+    _, near = cKDTree(region.points).query(hit_p[idx], k=k)
+    near = np.asarray(near).reshape(len(idx), k)
+    agree = np.einsum("ikj,ij->ik", region.normals[near], hit_n[idx]) > PILOT_AGREEMENT
+    out[idx] = agree.any(axis=1)
+    return out
 
 
 def diffuse_camera_hits(ctx, rays: int, rng) -> tuple:
@@ -322,10 +400,15 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
             continue
         met = meets_spheres(o, d, region.centers, region.radii,
                             isinstance(light, InfiniteLight))
+        # Power into the region counts only where it lights the side the lookups read
+        # (seen_side_hits): an aimed photon landing on a room's sunlit roof serves none
+        # of the room's lookups. (The split emission stays unbiased whatever the counts.)
+        inside = met.any(axis=1)
+        if PILOT_SEEN_SIDE and region.points is not None and inside.any():
+            met &= seen_side_hits(ctx, o, d, region)[:, None]
         # A photon meeting several spheres counts a part in each.
         many = np.maximum(met.sum(axis=1), 1)
         cell_power[i] = (met * (w / many)[:, None]).sum(axis=0) / total_w * flux
-        inside = met.any(axis=1)
         power_out[i] = float(w[~inside].sum()) / total_w * flux
         aims[i] = can_aim(light) and inside.any() and not inside.all()
     power_in = cell_power.sum(axis=1)
