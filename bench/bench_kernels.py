@@ -21,6 +21,11 @@ Prints Markdown tables:
   work then), wall seconds, and whether the maps (every estimate, flag and stored
   photon the camera pass reads) are bitwise the same;
 - cold compile (empty numba cache) and cached start (import + load), fresh processes;
+- the camera pass of an example blend against raw Embree on its own rays (`--only camera`):
+  the pass's CPU seconds (1 worker, best of --repeat, after its photon pass) and embreex
+  replaying every closest-hit and occlusion query it made (camera, shadow, final gather,
+  gather-lookup visibility and specular rays) on one thread: the issue's "camera +
+  shadow stages against raw Embree" for whole default renders, gathers included;
 - where a 1-worker render's CPU time goes (cProfile on the process clock, after only):
   compiled kernels, Embree, and the Python / numpy glue between them, which holds the GIL
   and so bounds what a second worker can gain (Amdahl: 2 / (1 + glue share)).
@@ -209,6 +214,57 @@ h.update(np.float64([ctx.global_radius, ctx.caustic_radius, ctx.secondary_radius
 print(json.dumps(dict(spent, hash=h.hexdigest())))
 """
 
+CAMERA = r"""
+import contextlib, dataclasses, hashlib, json, pickle, sys, time
+sys.path.insert(0, ROOT)
+sys.path.insert(0, ROOT + "/bench")
+import numpy as np
+from engine.jit import ensure_compiled
+ensure_compiled()
+import importlib
+R = importlib.import_module("engine.render")
+from engine.film import Film
+from engine.integrator import render_camera
+from engine.settings import RenderSettings
+from bench_core import RecordingAccel, raw_embree_time, recording
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+scene.width, scene.height = W, H
+ctx = R.prepare_context(scene, RenderSettings(workers=1), RecordingAccel)
+rec = recording(ctx.accel)
+R.shoot_photons(ctx, {})
+pages = getattr(R, "small_pages", contextlib.nullcontext)  # (trees before it: none)
+region = (0, 0, W, H)
+if ctx.gather_rays and ctx.gather_rays != ctx.settings.gather_rays:  # as render_pass
+    ctx = dataclasses.replace(ctx, settings=dataclasses.replace(
+        ctx.settings, gather_rays=ctx.gather_rays))
+rec.log.clear()
+film = Film(W, H)
+with pages():
+    render_camera(ctx, region, film)  # logs the pass's queries
+log = list(rec.log)
+rec.log.clear()
+rec.enabled = False
+h = hashlib.sha1()
+for k in ("direct", "indirect", "caustic", "specular", "emission"):
+    h.update(np.ascontiguousarray(getattr(film, k)).tobytes())
+cpu = float("inf")
+for _ in range(REPEAT):
+    c0 = time.process_time()
+    with pages():
+        render_camera(ctx, region, Film(W, H))
+    cpu = min(cpu, time.process_time() - c0)
+raw = float("inf")
+for _ in range(REPEAT):
+    c0 = time.process_time()
+    raw_embree_time(rec, log)
+    raw = min(raw, time.process_time() - c0)
+closest = sum(len(e[1]) for e in log if e[0] == "INTERSECT")
+occluded = sum(len(e[1]) for e in log if e[0] != "INTERSECT")
+print(json.dumps(dict(cpu=cpu, raw=raw, closest=closest, occluded=occluded,
+                      hash=h.hexdigest())))
+"""
+
 COMPILE = r"""
 import json, sys, time
 t0 = time.perf_counter()
@@ -349,6 +405,24 @@ def map_stage(roots, blends, args, where):
                   f"{aw:.2f} | {bw / aw:.2f}x | {same} |", flush=True)
 
 
+def camera_vs_embree(roots, blends, args, where):
+    print(f"\n### Camera pass against raw Embree on its own rays, default settings, "
+          f"{args.width}x{args.height}, 1 worker (CPU s, best of {args.repeat})\n")
+    print("| blend | tree | closest-hit rays | occlusion rays | camera pass CPU s | "
+          "raw Embree CPU s | % of raw Embree | film |")
+    print("|---|---|---:|---:|---:|---:|---:|---|")
+    for name in blends:
+        got = {}
+        for tag in ("before", "after"):
+            got[tag] = r = child(CAMERA, ROOT=roots[tag], PICKLE=exported(name, where),
+                                 W=args.width, H=args.height, REPEAT=args.repeat)
+            same = "" if tag == "before" else \
+                ("same bits" if r["hash"] == got["before"]["hash"] else "DIFFERS")
+            print(f"| {name} | {tag} | {r['closest']:,} | {r['occluded']:,} | "
+                  f"{r['cpu']:.2f} | {r['raw']:.2f} | {100 * r['raw'] / r['cpu']:.1f} | "
+                  f"{r['hash'][:8]} {same} |", flush=True)
+
+
 def glue_profile(roots, blends, args, where):
     print(f"\n### Where a 1-worker render's CPU goes (cProfile, process clock, "
           f"{args.width}x{args.height}, after)\n")
@@ -414,6 +488,8 @@ def main(argv=None):
         memory(roots, args, args.work)
     if "profile" in only:
         glue_profile(roots, blends, args, args.work)
+    if "camera" in only:
+        camera_vs_embree(roots, blends, args, args.work)
 
 
 if __name__ == "__main__":

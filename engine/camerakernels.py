@@ -656,50 +656,6 @@ def glass_both(prm, i, ox, oy, oz, u1, u2):
 
 
 @kernel
-def _emit_ray(k, row, lb, x, y, z, w0, w1, w2, tr, prob, prm, sel, p, ng, ns, wo, offset,
-              tp, incoming, lobe_class, want_pdf, kept, rows_out, o_out, d_out, tp_out,
-              cls_out, pdf_out):
-    """continue_lobes' checks and output row for one sampled direction (x, y, z) (unit,
-    world) with weight (w0, w1, w2) through lobe lb of hit row (pick k): writes row `kept`
-    and returns 1, or 0 (absorbed: the wrong side of the surface, not finite, no weight)."""
-    gx, gy, gz = ng[row, 0], ng[row, 1], ng[row, 2]
-    side = x * gx + y * gy + z * gz
-    if not ((side < 0.0) if tr else (side > 0.0)):
-        return 0
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        return 0
-    if math.isnan(w0) or math.isnan(w1) or math.isnan(w2) or not (
-            w0 > 0.0 or w1 > 0.0 or w2 > 0.0):
-        return 0
-    if lb == _GLASS_R or lb == _GLASS_T:
-        lb = _GLASS_T if tr else _GLASS_R
-    s = max(prob, 1e-300)
-    t0 = tp[row, 0] * w0 / s
-    t1 = tp[row, 1] * w1 / s
-    t2 = tp[row, 2] * w2 / s
-    if not math.isfinite(t0 + t1 + t2) or not (t0 > 0.0 or t1 > 0.0 or t2 > 0.0):
-        return 0
-    lift = (1.0 if side >= 0.0 else -1.0) * offset[row]
-    o_out[kept, 0] = p[row, 0] + lift * gx
-    o_out[kept, 1] = p[row, 1] + lift * gy
-    o_out[kept, 2] = p[row, 2] + lift * gz
-    d_out[kept, 0], d_out[kept, 1], d_out[kept, 2] = x, y, z
-    tp_out[kept, 0], tp_out[kept, 1], tp_out[kept, 2] = t0, t1, t2
-    c = lobe_class[lb]
-    cls_out[kept] = incoming[row] if c == 0 else c
-    rows_out[kept] = k
-    if want_pdf:
-        pdf = np.inf
-        if not tr and pr.is_rough(prm, row, lb + 1):
-            n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
-            ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
-            ix, iy, iz = pr.frame_local(n0, n1, n2, x, y, z)
-            pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
-        pdf_out[kept] = pdf
-    return 1
-
-
-@kernel
 def _unit_world(n0, n1, n2, ix, iy, iz):
     # sample_lobe's local direction in world space, normalised.
     x, y, z = pr.frame_world(n0, n1, n2, ix, iy, iz)
@@ -707,6 +663,32 @@ def _unit_world(n0, n1, n2, ix, iy, iz):
     if ln > 0:
         x, y, z = x / ln, y / ln, z / ln
     return x, y, z
+
+
+@kernel
+def _ray_weight(x, y, z, w0, w1, w2, tr, prob, gx, gy, gz, tp0, tp1, tp2):
+    """continue_lobes' checks of one sampled direction (x, y, z) (unit, world) with weight
+    (w0, w1, w2) and choice probability prob at a hit with geometric normal (gx, gy, gz)
+    and throughput (tp0, tp1, tp2): (kept, side = direction . ng, the continued
+    throughput RGB). Not kept (absorbed): the wrong side of the surface, not finite, no
+    weight. Scalars only: a kernel called per ray with arrays pays ~14 ns an array
+    (reference counts) when numba does not inline it, which was most of continue_lobes'
+    time (~20 arrays a ray)."""
+    side = x * gx + y * gy + z * gz
+    if not ((side < 0.0) if tr else (side > 0.0)):
+        return False, side, 0.0, 0.0, 0.0
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        return False, side, 0.0, 0.0, 0.0
+    if math.isnan(w0) or math.isnan(w1) or math.isnan(w2) or not (
+            w0 > 0.0 or w1 > 0.0 or w2 > 0.0):
+        return False, side, 0.0, 0.0, 0.0
+    s = max(prob, 1e-300)
+    t0 = tp0 * w0 / s
+    t1 = tp1 * w1 / s
+    t2 = tp2 * w2 / s
+    if not math.isfinite(t0 + t1 + t2) or not (t0 > 0.0 or t1 > 0.0 or t2 > 0.0):
+        return False, side, 0.0, 0.0, 0.0
+    return True, side, t0, t1, t2
 
 
 @kernel
@@ -728,7 +710,7 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
     (M, N_MAT) (its M_TTINT columns), and alpha: hit_alpha (N,) float64 per hit (alpha
     textures), or (0,): table_alpha (M,) of the material. A sample is dropped
     (absorbed) when it leaves through the wrong side of the surface, is not finite or
-    has no weight.
+    has no weight (_ray_weight).
     split (N,) bool, or (0,) for none: on these hits a picked glass lobe is split
     (glass_both: its reflection and its refraction both continue, each with its Fresnel
     weight; smooth glass only unless split_rough), so one pick may write two rows (the
@@ -740,6 +722,10 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
     for k in range(idx.shape[0]):
         row = idx[k]
         lb = lobe[k]
+        # One or two directions (a split glass lobe: the reflection, then the refraction).
+        halves = 1
+        is_split = False
+        rx = ry = rz = r0 = r1 = r2 = 0.0
         if lb == _PASS:
             x, y, z = -wo[row, 0], -wo[row, 1], -wo[row, 2]
             mt = mat[row]
@@ -756,29 +742,48 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
                 (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2) = glass_both(
                     prm, row, ox, oy, oz, u1[j], u2[j])
                 j += 1
-                for half in range(2):  # the reflection, then the refraction
-                    if half == 0:
-                        x, y, z = _unit_world(n0, n1, n2, rx, ry, rz)
-                        lh, w0, w1, w2, tr = _GLASS_R, r0, r1, r2, False
-                    else:
-                        x, y, z = _unit_world(n0, n1, n2, tx, ty, tz)
-                        lh, w0, w1, w2, tr = _GLASS_T, t0, t1, t2, True
-                    if _emit_ray(k, row, lh, x, y, z, w0, w1, w2, tr, prob[k], prm, sel, p,
-                                 ng, ns, wo, offset, tp, incoming, lobe_class, want_pdf,
-                                 kept, rows_out, o_out, d_out, tp_out, cls_out, pdf_out):
-                        split_out[kept] = True
-                        kept += 1
+                halves = 2
+                is_split = True
+                rx, ry, rz = _unit_world(n0, n1, n2, rx, ry, rz)
+                x, y, z = _unit_world(n0, n1, n2, tx, ty, tz)
+                w0, w1, w2, tr = t0, t1, t2, True
+            else:
+                ix, iy, iz, w0, w1, w2, tr = pr.sample_lobe(prm, row, lb + 1, ox, oy, oz,
+                                                            u1[j], u2[j], u3[j])
+                j += 1
+                x, y, z = _unit_world(n0, n1, n2, ix, iy, iz)
+        for half in range(halves):
+            if halves == 2 and half == 0:  # the split's reflection first
+                hx, hy, hz, h0, h1, h2, htr, lh = rx, ry, rz, r0, r1, r2, False, _GLASS_R
+            else:
+                hx, hy, hz, h0, h1, h2, htr, lh = x, y, z, w0, w1, w2, tr, lb
+            gx, gy, gz = ng[row, 0], ng[row, 1], ng[row, 2]
+            ok, side, c0, c1, c2 = _ray_weight(hx, hy, hz, h0, h1, h2, htr, prob[k], gx, gy,
+                                               gz, tp[row, 0], tp[row, 1], tp[row, 2])
+            if not ok:
                 continue
-            ix, iy, iz, w0, w1, w2, tr = pr.sample_lobe(prm, row, lb + 1, ox, oy, oz, u1[j],
-                                                        u2[j], u3[j])
-            j += 1
-            x, y, z = _unit_world(n0, n1, n2, ix, iy, iz)
-        got = _emit_ray(k, row, lb, x, y, z, w0, w1, w2, tr, prob[k], prm, sel, p, ng, ns,
-                        wo, offset, tp, incoming, lobe_class, want_pdf, kept, rows_out, o_out,
-                        d_out, tp_out, cls_out, pdf_out)
-        if got:
+            if lh == _GLASS_R or lh == _GLASS_T:
+                lh = _GLASS_T if htr else _GLASS_R
+            lift = (1.0 if side >= 0.0 else -1.0) * offset[row]
+            o_out[kept, 0] = p[row, 0] + lift * gx
+            o_out[kept, 1] = p[row, 1] + lift * gy
+            o_out[kept, 2] = p[row, 2] + lift * gz
+            d_out[kept, 0], d_out[kept, 1], d_out[kept, 2] = hx, hy, hz
+            tp_out[kept, 0], tp_out[kept, 1], tp_out[kept, 2] = c0, c1, c2
+            c = lobe_class[lh]
+            cls_out[kept] = incoming[row] if c == 0 else c
+            rows_out[kept] = k
+            if want_pdf:
+                pdf = np.inf
+                if not htr and pr.is_rough(prm, row, lh + 1):
+                    n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
+                    ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1],
+                                                wo[row, 2])
+                    ix, iy, iz = pr.frame_local(n0, n1, n2, hx, hy, hz)
+                    pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
+                pdf_out[kept] = pdf
             if split_out.shape[0] > 0:
-                split_out[kept] = False
+                split_out[kept] = is_split
             kept += 1
     return kept
 

@@ -1,9 +1,11 @@
 """render(): scene -> photon pass -> photon maps -> camera pass -> Film."""
 from __future__ import annotations
 
+import importlib
 import math
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -163,7 +165,13 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) 
 def render_pass(ctx: Context, region, progress=None, should_cancel=None,
                 shoot: bool = True) -> Film:
     """Photon pass + camera pass with ctx.settings into a new Film (raises Cancelled).
-    shoot=False renders with the photon maps already in ctx (shoot_photons)."""
+    shoot=False renders with the photon maps already in ctx (shoot_photons). numpy's
+    huge-page advice is off meanwhile (small_pages)."""
+    with small_pages():
+        return _render_pass(ctx, region, progress, should_cancel, shoot)
+
+
+def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool) -> Film:
     settings = ctx.settings
     x0, y0, x1, y1 = region
     film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
@@ -240,6 +248,50 @@ class _side_job:
     def join(self):
         if self._thread is not None:
             self._thread.join()
+
+
+def _madvise_hugepage_setter():
+    """numpy's switch for asking Linux for transparent huge pages on large arrays
+    (_set_madvise_hugepage(on) -> the previous setting), or None."""
+    for name in ("numpy._core.multiarray", "numpy.core.multiarray"):
+        try:
+            fn = getattr(importlib.import_module(name), "_set_madvise_hugepage", None)
+        except ImportError:
+            continue
+        if fn is not None:
+            return fn
+    return None
+
+
+_PAGES_LOCK = threading.Lock()
+_PAGES = {"users": 0, "before": None}
+
+
+@contextmanager
+def small_pages():
+    """numpy's huge-page advice off while a render runs (restored when the last
+    overlapping render ends). numpy madvises every array of >= 4 MB for transparent huge
+    pages; where Linux's THP defrag setting is "madvise" (a common default) each first
+    touch of such an array may stall in direct memory compaction. The passes allocate
+    arrays of tens of MB per chunk: measured on this 2-core machine under load, 0.7-1.4 of
+    a Figure 7 render's ~10 CPU s went to the kernel that way (docs/performance.md,
+    "Camera pass: reference counts, huge pages"). Only where memory comes from changes,
+    never a value: images are bitwise the same. A no-op where numpy has no such switch."""
+    setter = _madvise_hugepage_setter()
+    if setter is None:
+        yield
+        return
+    with _PAGES_LOCK:
+        if _PAGES["users"] == 0:
+            _PAGES["before"] = setter(False)
+        _PAGES["users"] += 1
+    try:
+        yield
+    finally:
+        with _PAGES_LOCK:
+            _PAGES["users"] -= 1
+            if _PAGES["users"] == 0:
+                setter(_PAGES["before"])
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
