@@ -690,11 +690,16 @@ def _emit_ray(k, row, lb, x, y, z, w0, w1, w2, tr, prob, prm, sel, p, ng, ns, wo
     rows_out[kept] = k
     if want_pdf:
         pdf = np.inf
-        if not tr and pr.is_rough(prm, row, lb + 1):
+        if pr.is_rough(prm, row, lb + 1):
             n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
             ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1], wo[row, 2])
             ix, iy, iz = pr.frame_local(n0, n1, n2, x, y, z)
-            pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
+            if not tr:
+                pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
+            else:
+                # Rough glass's refraction: light sampling reaches it too
+                # (engine/glasslight.py), so the rays that meet a light take MIS weights.
+                pdf = pr.transmission_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
         pdf_out[kept] = pdf
     return 1
 
