@@ -775,12 +775,18 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
             rows_out[kept] = k
             if want_pdf:
                 pdf = np.inf
-                if not htr and pr.is_rough(prm, row, lh + 1):
+                if (not htr or lh == _GLASS_T) and pr.is_rough(prm, row, lh + 1):
                     n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
                     ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1],
                                                 wo[row, 2])
                     ix, iy, iz = pr.frame_local(n0, n1, n2, hx, hy, hz)
-                    pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
+                    if not htr:
+                        pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
+                    else:
+                        # Rough glass's refraction: light sampling reaches it too
+                        # (engine/glasslight.py), so the rays that meet a light take MIS
+                        # weights.
+                        pdf = pr.transmission_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
                 pdf_out[kept] = pdf
             if split_out.shape[0] > 0:
                 split_out[kept] = is_split

@@ -34,6 +34,7 @@ from .camerarays import camera_rays_kernel, chunk_samples
 from .gatherkernels import (add_gathered, diffuse_lookups, keep_embree_hits, keep_hits,
                             lean_diffuse, lean_materials, rays_f32)
 from .closures import principled as pr
+from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
@@ -852,6 +853,13 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     return out if split is None else out + (split_out[:k],)
 
 
+# Camera paths sample the lights through rough glass (engine/glasslight.py; False: the
+# refraction's continuation alone finds them, as before: a sun behind a rough glass ball
+# made fireflies and a dark median, issue 14).
+GLASS_LIGHT_SAMPLING = True
+_NO_ROWS = np.zeros(0, np.int64)
+
+
 _NO_ALPHA = np.zeros(0)  # continue_lobes: the materials' alpha
 _NO_SPLIT = np.zeros(0, np.bool_)  # continue_lobes: no glass lobe is split
 # A camera path's first glass hits continue both halves of the glass lobe, each with its
@@ -1261,6 +1269,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # everywhere).
     may_split = (np.full(len(o), SPLIT_GLASS_HITS, np.int64)
                  if SPLIT_GLASS_HITS > 0 else None)
+    # Materials with a glass lobe (the rows whose packed lobes glasslight reads; a
+    # diffuse-only hit's are left unwritten by shade_lobes).
+    glass_mat = np.asarray(ctx.table.closure_params)[:, pr.M_TRANS] > 0
+    glass_rng = None  # glasslight's numbers, made when first needed
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1430,6 +1442,27 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         indirect[past] = 0.0
                 acc.add("specular", pix, direct if caustic is None
                         else direct + caustic + indirect, tp, dsel)
+        if GLASS_LIGHT_SAMPLING:
+            # Rough glass hits sample the lights behind their surface too (Cycles' light
+            # sampling at every non-delta vertex; engine/glasslight.py). No rough glass:
+            # no rows, no number drawn.
+            if getattr(hit, "params", None) is not None:
+                cand = np.nonzero(hit.params[:, pr.M_TRANS] > 0)[0]
+            else:
+                cand = np.nonzero(glass_mat[hit.mat])[0] if glass_mat.any() else _NO_ROWS
+            if over is not None and len(cand):
+                cand = cand[~over[cand]]
+            gl = (rough_transmission_rows(prm if hit.prm is None else hit.prm, cand)
+                  if len(cand) else cand)
+            if len(gl):
+                if glass_rng is None:
+                    # Their own stream (a child of bsdf_rng's, which it leaves as it was):
+                    # every path that meets no rough glass keeps its numbers.
+                    glass_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
+                                 else np.random.default_rng(rng.integers(1 << 62)))
+                Lt = transmitted_light(ctx, hit, gl, prm if hit.prm is None else hit.prm, sel,
+                                       psum, modes, glass_rng, counters)
+                acc.add("direct" if bounce == 0 else "specular", pix, Lt, tp, gl)
         if bounce == depth_limit:
             return
         # Continue one specular lobe, chosen in proportion to its weight.
@@ -1464,6 +1497,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         org_p_in = org_p if kept is None else org_p[kept]
         org_ns = np.take(hit.ns, keep, axis=0)
         org_p = np.take(hit.p, keep, axis=0)
+        if GLASS_LIGHT_SAMPLING:
+            # Rays refracted by rough glass (a finite pdf) left the far side: the lights'
+            # pdf there (world, sphere lights, the light tree) is that of the samples
+            # glasslight.transmitted_light takes, about the flipped normal.
+            through = (ray_cls == TRANSMISSION) & np.isfinite(pdf_b)
+            if through.any():
+                org_ns[through] = -org_ns[through]
         if passages is not None:
             passages.step(prim, d_in, hit.p, keep, d, pdf_in, org_ns_in, org_p_in, pdf_b,
                           org_ns, org_p)

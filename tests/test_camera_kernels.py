@@ -151,6 +151,20 @@ def _continue_specular_numpy(ctx, hit, tp, rng, ray_cls, choice):
                          np.ascontiguousarray(sub.wo[r], np.float64),
                          np.ascontiguousarray(nd[r], np.float64), pb)
         pdf[r] = pb
+    # Rough glass's refraction: the glass lobe's choice x its refraction pdf
+    # (principled.transmission_pdf; inf where it has no density).
+    through = pr.lobe_is_rough(prm, (lobe + 1).astype(np.int64)) & transmitted & valid
+    r = np.nonzero(through)[0]
+    if len(r):
+        ev = np.empty((len(r), 4))
+        pr.eval_transmission_many(np.ascontiguousarray(prm[r]),
+                                  np.ascontiguousarray(sub.ns[r], np.float64),
+                                  np.ascontiguousarray(sub.wo[r], np.float64),
+                                  np.ascontiguousarray(nd[r], np.float64), ev)
+        s_glass = sel[idx[r], pr.L_GLASS_R] + sel[idx[r], pr.L_GLASS_T]
+        dense = ((np.abs(prm[r, pr.P_GLASS_ETA] - 1.0) >= 1e-4)
+                 & np.any(prm[r, pr.P_GLASS_TW:pr.P_GLASS_TW + 3] > 0, axis=1))
+        pdf[r] = np.where(dense, s_glass * ev[:, 3], np.inf)
     return idx[keep], o, nd[keep], new_tp[keep], new_cls, pdf[keep]
 
 

@@ -485,6 +485,130 @@ def bsdf_pdf_many(prm, sel, ns, wo, wi, out):
 
 
 @kernel
+def has_rough_transmission(prm, i):
+    """Hit i's glass lobe refracts with a density (rough, not index-matched, some
+    transmission weight): light sampling can reach it through the surface."""
+    return (prm[i, P_GLASS_ALPHA] >= ggx.ALPHA_MIN and abs(prm[i, P_GLASS_ETA] - 1.0) >= 1e-4
+            and (prm[i, P_GLASS_TW] > 0 or prm[i, P_GLASS_TW + 1] > 0
+                 or prm[i, P_GLASS_TW + 2] > 0))
+
+
+@kernel
+def eval_transmission(prm, i, ox, oy, oz, ix, iy, iz):
+    """Hit i's rough glass refraction for local wo above (oz > 0) and wi below (iz < 0)
+    the shading normal: (f * |cos_i| RGB, the solid-angle pdf with which the glass lobe's
+    sampling (_glass_sample, the lobe alone) refracts into wi). Walter et al. 2007 with
+    the half vector h = -(wo + eta wi), as ggx.glass_eval, with the lobe's transmission
+    colours TW x (1 - F) (F Principled's remap at wo.h); the pdf takes the refraction's
+    share 1 - p_r at h, so that f / pdf is _glass_sample's weight t G2/G1 / (1 - p_r).
+    Zeros where the pair is no refraction (wrong sides, h facing away, eta 1)."""
+    if oz <= 0.0 or iz >= 0.0 or not has_rough_transmission(prm, i):
+        return 0.0, 0.0, 0.0, 0.0
+    alpha = prm[i, P_GLASS_ALPHA]
+    eta = prm[i, P_GLASS_ETA]
+    hx, hy, hz = -(ox + eta * ix), -(oy + eta * iy), -(oz + eta * iz)
+    ln = math.sqrt(hx * hx + hy * hy + hz * hz)
+    if ln <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    hx, hy, hz = hx / ln, hy / ln, hz / ln
+    if hz < 0.0:
+        hx, hy, hz = -hx, -hy, -hz
+    c = ox * hx + oy * hy + oz * hz
+    ch_i = ix * hx + iy * hy + iz * hz
+    if c <= 0.0 or ch_i >= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    inv_eta = 1.0 / eta
+    if inv_eta * inv_eta * (1.0 - c * c) >= 1.0:  # total internal reflection at h
+        return 0.0, 0.0, 0.0, 0.0
+    a2 = alpha * alpha
+    denom = c + eta * ch_i
+    # D(h) |wo.h| / cos_o x |dh / dwi| (Walter's Jacobian of the refraction)
+    common = ggx.d_ggx(hz, a2) * c / oz * (eta * eta) * abs(ch_i) / (denom * denom)
+    lo = ggx.lambda_ggx(oz, a2)
+    g2 = common / (1.0 + lo + ggx.lambda_ggx(-iz, a2))
+    t0 = prm[i, P_GLASS_TW] * (1.0 - _glass_F(prm[i, P_GLASS_F0], c, eta)) * g2
+    t1 = prm[i, P_GLASS_TW + 1] * (1.0 - _glass_F(prm[i, P_GLASS_F0 + 1], c, eta)) * g2
+    t2 = prm[i, P_GLASS_TW + 2] * (1.0 - _glass_F(prm[i, P_GLASS_F0 + 2], c, eta)) * g2
+    pdf = common / (1.0 + lo) * (1.0 - _glass_reflect_share(prm, i, c, eta, inv_eta))
+    return t0, t1, t2, pdf
+
+
+@kernel
+def transmission_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
+    """Solid-angle pdf with which the continuation (the glass lobe chosen with probability
+    sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) refracts into wi (local, iz < 0) at hit i:
+    bsdf_pdf's counterpart through the surface; inf where the refraction has no density
+    (smooth or index-matched glass: light sampling cannot produce it)."""
+    if not has_rough_transmission(prm, i):
+        return np.inf
+    _, _, _, p = eval_transmission(prm, i, ox, oy, oz, ix, iy, iz)
+    return (sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) * p
+
+
+@kernel
+def rough_transmission_rows(prm, cand, out):
+    """Writes the rows of cand (int64) with has_rough_transmission into out; returns
+    their count."""
+    k = 0
+    for i in cand:
+        if has_rough_transmission(prm, i):
+            out[k] = i
+            k += 1
+    return k
+
+
+@kernel
+def accumulate_transmission(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, lpdf,
+                            kmode, prm, ns, wo, sel):
+    """Radiance through rough glass from light samples taken on the far side of the
+    surface (engine/glasslight.py): L[row] += contrib x f_t x visible / samples, entry by
+    entry, with f_t the glass lobe's refraction (eval_transmission; prm, sel per row of
+    L, ns (N,3) the shading normals on wo's side, wo (N,3)); contrib holds the light's
+    radiance x |cos_i| / light pdf (directlight.sample_lights, taken with the normals
+    flipped). kmode[k] as directlight.accumulate_bsdf's: 1 full weight (a delta light),
+    2 power heuristic against the continuation's transmission_pdf, 0 left to the
+    continuation, 3 a light the light tree picked (1, 2 or 0 by lpdf)."""
+    for j in range(m_all):
+        r = ray[j]
+        if r >= 0 and blocked[r]:
+            continue
+        k = kidx[j]
+        mode = kmode[k]
+        if mode == 3:
+            mode = 1 if lpdf[j] == np.inf else (2 if lpdf[j] > 0.0 else 0)
+        if mode == 0:
+            continue
+        i = row[j]
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        ix, iy, iz = frame_local(n0, n1, n2, wdir[j, 0], wdir[j, 1], wdir[j, 2])
+        if iz >= 0.0:
+            continue
+        ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+        t0, t1, t2, pt = eval_transmission(prm, i, ox, oy, oz, ix, iy, iz)
+        s = ksamples[k]
+        w = 1.0
+        if mode == 2:
+            pb = (sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) * pt
+            pl = s * lpdf[j]
+            w = pl * pl / (pl * pl + pb * pb) if pl > 0.0 else 0.0
+        w = w / (-iz * s)  # contrib holds |cos_i|, f_t * |cos_i| is the eval
+        L[i, 0] = L[i, 0] + contrib[j, 0] * t0 * w
+        L[i, 1] = L[i, 1] + contrib[j, 1] * t1 * w
+        L[i, 2] = L[i, 2] + contrib[j, 2] * t2 * w
+
+
+@kernel
+def eval_transmission_many(prm, ns, wo, wi, out):
+    """Batch of eval_transmission in world space: out (N,4) = f * |cos_i| RGB, pdf."""
+    for i in range(ns.shape[0]):
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+        ix, iy, iz = frame_local(n0, n1, n2, wi[i, 0], wi[i, 1], wi[i, 2])
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = eval_transmission(prm, i, ox, oy, oz,
+                                                                       ix, iy, iz)
+
+
+@kernel
 def is_rough(prm, i, l):
     """Lobe l (L_* index) of hit i has a density (is not mirror-like)."""
     if l == L_SPEC:
@@ -722,3 +846,11 @@ def _warm_up():
     lobe_is_rough(prm, np.full(1, L_SPEC, np.int64))
     rough_reflection_rows(prm, np.empty(1, np.bool_))
     glossy_normals(n, np.array([[0.0, 0.6, 0.8]]), wo, np.zeros((1, 3)), np.ones(1))
+    wt = np.array([[-0.3, 0.0, -0.95]])
+    eval_transmission_many(prm, n, wo, wt, np.empty((1, 4)))
+    rows = np.empty(1, np.int64)
+    rough_transmission_rows(prm, np.zeros(1, np.int64), rows)
+    accumulate_transmission(np.zeros((1, 3)), np.ones((1, 3)), np.zeros(1, np.int64),
+                            np.zeros(1, np.int64), np.full(1, -1, np.int64), np.ones(1),
+                            np.zeros(1, np.bool_), 1, wt, np.ones(1), np.full(1, 2, np.int64),
+                            prm, n, wo, sel)
