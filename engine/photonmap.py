@@ -30,14 +30,6 @@ from .rayoffset import G32_PLANE, ulp32_scalar
 
 NORMAL_AGREEMENT = 0.5
 BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
-# Photons on the back of the query's own surface (a wall lit on both sides: a room's
-# walls under a sun, a blocker's top seen from below) face the other way and lie on or
-# behind the query's plane; they do not cut the disc off, so they do not mark a boundary
-# (a corner's photons face another way and lie in front of it; an open edge leaves the
-# accepted photons' centroid off to one side). This share of the disc radius is the
-# plane's tolerance (float32 positions, a gently curved sheet). Counting them had 85 % of
-# a sunlit window room's gather points regathered (docs/performance.md, "Window room").
-BACK_SIDE_TOLERANCE = 1e-3
 MAX_CLASSIC_K = 4096
 MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accepted ones
 # The k-NN radius never shrinks below this share of the search radius. A lens focusing a
@@ -244,19 +236,6 @@ def _accepted(direction, normal, j, nx, ny, nz):
     cos_in = -(direction[j, 0] * nx + direction[j, 1] * ny + direction[j, 2] * nz)
     other = (normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz) <= NORMAL_AGREEMENT
     return (cos_in > 0) and not other, other, cos_in
-
-
-@kernel
-def _back_side(pos, normal, j, qx, qy, qz, nx, ny, nz, tol):
-    """Photon j lies on the back of the query's surface (point q, float32 normal n): it
-    faces the other way (normal . n <= -NORMAL_AGREEMENT) and lies on or behind q's plane
-    ((pos_j - q) . n <= tol)."""
-    facing = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
-    if facing > -NORMAL_AGREEMENT:
-        return False
-    h = ((np.float64(pos[j, 0]) - qx) * nx + (np.float64(pos[j, 1]) - qy) * ny
-         + (np.float64(pos[j, 2]) - qz) * nz)
-    return h <= tol
 
 
 @kernel
@@ -468,8 +447,6 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         fetched = 0
         other_inside = False
         c0 = c1 = c2 = np.float32(0.0)  # float32 sums of the accepted photons' offsets
-        back_tol = (max(BACK_SIDE_TOLERANCE * rk, 1e-6 * max(abs(qx), abs(qy), abs(qz)))
-                    if want_boundary else 0.0)
         for j in range(cnt):
             pj = idx[j]
             d = math.sqrt(d2[j])
@@ -477,8 +454,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             inside = d <= rk
             if inside:
                 fetched += 1
-                if other and not other_inside and want_boundary and not _back_side(
-                        pos, normal, pj, qx, qy, qz, nx, ny, nz, back_tol):
+                if other:
                     other_inside = True
             if not ok:
                 continue

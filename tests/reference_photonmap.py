@@ -13,8 +13,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.parallel import ordered_map
-from engine.photonmap import (BACK_SIDE_TOLERANCE, BOUNDARY_OFFSET, MAX_CLASSIC_K,
-                              MAX_WIDEN_K, MIN_RADIUS_FRACTION, NORMAL_AGREEMENT)
+from engine.photonmap import (BOUNDARY_OFFSET, MAX_CLASSIC_K, MAX_WIDEN_K,
+                              MIN_RADIUS_FRACTION, NORMAL_AGREEMENT)
 from engine.photons import Photons
 
 QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
@@ -164,17 +164,10 @@ class ReferencePhotonMap:
         # Dot products per component (same float32 products and left-to-right sums as an
         # einsum, no (N,k,3) temporaries).
         cos_in = -(gd[..., 0] * nx + gd[..., 1] * ny + gd[..., 2] * nz)
-        facing = gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz
-        other_surface = found & (facing <= NORMAL_AGREEMENT)
+        other_surface = found & ((gn[..., 0] * nx + gn[..., 1] * ny + gn[..., 2] * nz)
+                                 <= NORMAL_AGREEMENT)
         ok = found & (cos_in > 0) & ~other_surface
-        # Photons on the back of the query's own surface (photonmap._back_side): facing
-        # the other way, on or behind its plane; their height above it in float64.
-        rel = np.take(ph.position, safe, axis=0).astype(np.float64) - p[:, None, :]
-        n64 = n32.astype(np.float64)
-        height = rel[..., 0] * n64[:, None, 0] + rel[..., 1] * n64[:, None, 1] \
-            + rel[..., 2] * n64[:, None, 2]
-        back_facing = facing <= -NORMAL_AGREEMENT
-        del gd, gn, rel
+        del gd, gn
         widen = np.zeros(len(p), bool)
         knn = estimator not in ("classic", "radius")
         d_max = np.full((len(p), 1), radius)
@@ -244,9 +237,7 @@ class ReferencePhotonMap:
             return E, widen, None
         inside = dist <= d_max
         # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
-        tol = np.maximum(BACK_SIDE_TOLERANCE * d_max[:, 0], 1e-6 * np.abs(p).max(axis=1))
-        back = back_facing & (height <= tol[:, None])
-        boundary = (other_surface & ~back & inside).any(axis=1) | (count < min_photons)
+        boundary = (other_surface & inside).any(axis=1) | (count < min_photons)
         # An open edge (a table's rim, the end of a floor) leaves no other surface's
         # photons, but the accepted ones lie off to one side: their centroid, in the
         # tangent plane, is more than BOUNDARY_OFFSET x r from the point (a half disc

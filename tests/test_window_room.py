@@ -1,12 +1,14 @@
 """A room lit by the sun through a glass window (issues 13 / 14; bench/bench_window_room.py).
 
 Its walls are single planes, sunlit outside and dim inside. Photons on the back of a
-gather point's own plane marked its estimate as a boundary (a corner), so 85 % of the
-room's gather points were gathered again, twice over: 33 shadow and 24 gather rays per
-camera sample against 1.6 and 5.4 in the same room lit from inside. Here: the boundary
-rule on a thin lit sheet (photonmap._back_side), the room's gather points, the ray
-counters' bookkeeping, and the visual-importance pilot that counts only photons lighting
-the side of a surface the camera's lookups read (visualimportance.seen_side_hits).
+gather point's own plane mark its estimate as a boundary (a corner), so most of the room's
+gather points are gathered again: costly (33 shadow and 24 gather rays per camera sample
+against 1.6 and 5.4 in the same room lit from inside), but right. Treating the back side
+as no boundary (tried: a third of the CPU) read the dim walls +3.5 % against Cycles on the
+same room with an open window, where the regathers match it within 0.3 % (docs/performance.md,
+"Window room"). Here: that rule on a thin sheet lit on both sides, the ray counters'
+bookkeeping, the visual-importance pilot that counts only photons lighting the side of a
+surface the camera's lookups read (visualimportance.seen_side_hits), the regathers' slices.
 """
 import importlib.util
 import math
@@ -55,43 +57,22 @@ def _boundary(pm, q, nq):
                          return_boundary=True)[1][0]
 
 
-def test_the_back_of_a_lit_sheet_is_no_boundary():
-    """A sheet lit on both sides: each side's disc is whole (no boundary), as with one
-    side lit; a wall standing on it, or a sheet facing it from just above (a low
-    ceiling), still marks one."""
+def test_the_back_of_a_lit_sheet_marks_a_boundary():
+    """A sheet lit on one side only: its disc is whole. Lit on both sides, the photons on
+    its back mark the estimate as a boundary, so the point is gathered again: its
+    photon estimate read 3.5 % bright on a sunlit room's inner walls (windowcheck, s16)."""
     rng = np.random.default_rng(1)
     top, below = _sheet(20_000, rng, 0.0, True), _sheet(20_000, rng, 0.0, False)
     q_up, q_down = (0.5, 0.5, 0.0), (0.5, 0.5, 0.0)
     assert not _boundary(_map(top), q_up, (0, 0, 1))
-    assert not _boundary(_map(top, below), q_up, (0, 0, 1))
-    assert not _boundary(_map(top, below), q_down, (0, 0, -1))
-    # a wall at x = 0.51 facing -x, standing on the sheet's top
-    m = 4000
-    wall = (np.c_[np.full(m, 0.51), rng.random(m), rng.random(m) * 0.1].astype(np.float32),
-            np.tile(np.float32([-1, 0, 0]), (m, 1)),
-            np.tile(np.float32([1, 0, 0]), (m, 1)))
-    assert _boundary(_map(top, wall), q_up, (0, 0, 1))
-    # a sheet facing down 2 cm above the top: in front of it, so still a boundary
-    low = _sheet(20_000, rng, 0.02, False)
-    assert _boundary(_map(top, low), q_up, (0, 0, 1))
+    assert not _boundary(_map(below), q_down, (0, 0, -1))
+    assert _boundary(_map(top, below), q_up, (0, 0, 1))
+    assert _boundary(_map(top, below), q_down, (0, 0, -1))
 
 
 @pytest.fixture(scope="module")
 def window_room():
     return _bench().room_scene(window=True, width=32, height=24)
-
-
-def test_the_window_rooms_gather_points_are_mostly_whole(window_room):
-    """The sunlit room's gather points: their discs are whole where the room's walls are
-    (0.85 of them were boundaries when the walls' sunlit outsides counted as corners;
-    the same room lit from inside: 0.04)."""
-    ctx = prepare_context(window_room, RenderSettings(workers=1, spp=4, photons=100_000))
-    try:
-        shoot_photons(ctx, {})
-        share = float(ctx.gather_map.boundary.mean())
-        assert share < 0.35, share
-    finally:
-        ctx.accel.close()
 
 
 def test_the_ray_counters_add_up(window_room):
@@ -161,7 +142,9 @@ def test_regathers_run_in_bounded_slices(window_room, monkeypatch):
         assert size_small <= 100 < size_big
         assert c_small.stages[("regathered", 1)] == c_big.stages[("regathered", 1)]
         assert np.isfinite(E_small).all() and E_small.mean() > 0
-        E_one, _, _ = gather(regathered)
+        # one slice at every level: the batch as large as the largest level's ends
+        largest = max(v for key, v in c_big.stages.items() if key[0] == "regathered")
+        E_one, _, _ = gather(largest)
         assert np.array_equal(E_one, E_big)
     finally:
         ctx.accel.close()
