@@ -131,8 +131,10 @@ PILOT_NEIGHBOURS = 8
 PILOT_AGREEMENT = 0.5
 # plan_global_shot counts a pilot photon's power for the region only where
 # seen_side_hits says it serves the lookups (False: wherever its line meets a sphere, as
-# before; bench/bench_window_room.py's A/B).
-PILOT_SEEN_SIDE = True
+# before; bench/bench_window_room.py's A/B). Off: on the feature matrix's
+# light_area_spread_glossy (a narrow-spread area light over a rough metal floor) it made
+# the block error 0.136 -> 0.939 against Cycles (CI of 75a7cd6), not yet understood.
+PILOT_SEEN_SIDE = False
 
 
 def seen_side_hits(ctx, o, d, region: Region) -> np.ndarray:
