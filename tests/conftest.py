@@ -13,3 +13,22 @@ ROOT = os.path.dirname(TESTS)
 for path in (TESTS, ROOT):
     if path not in sys.path:
         sys.path.insert(0, path)
+
+
+import pytest  # noqa: E402  (after sys.path is set: the fixtures below import the engine)
+
+
+@pytest.fixture
+def continuation_only(monkeypatch):
+    """Camera paths without light sampling for lights with a size: every lobe (and the
+    refraction through rough glass) reaches them only by its sampled continuation, the
+    estimate MIS must match on average. Patches the module function the render reads
+    before it starts (not state a worker thread sets and restores)."""
+    from engine import integrator
+    orig = integrator.light_modes
+
+    def modes(ctx):
+        m = orig(ctx)
+        m[m == integrator.MODE_MIS] = integrator.MODE_CONTINUATION
+        return m
+    monkeypatch.setattr(integrator, "light_modes", modes)

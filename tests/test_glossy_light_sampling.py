@@ -52,18 +52,6 @@ def _render(scene, spp, seed):
     return film.combined
 
 
-@pytest.fixture
-def continuation_only(monkeypatch):
-    """The lobes' sampled continuation alone (no light sampling for lights with a size)."""
-    orig = integrator.light_modes
-
-    def modes(ctx):
-        m = orig(ctx)
-        m[m == integrator.MODE_MIS] = integrator.MODE_CONTINUATION
-        return m
-    monkeypatch.setattr(integrator, "light_modes", modes)
-
-
 MATERIALS = {
     "metal": Material("metal", (0.9, 0.7, 0.5), metallic=1.0, roughness=0.35),
     "dielectric": Material("dielectric", (0.3, 0.3, 0.3), specular=1.0, roughness=0.3),
@@ -197,17 +185,10 @@ def _many_lights_scene(material, kind, count=20):
 
 
 @pytest.fixture
-def tree_continuation_only(monkeypatch):
+def tree_continuation_only(continuation_only, monkeypatch):
     """With the light tree: the glossy lobes see the lights with a size by their sampled
     continuation alone, at full weight (the tree's shadow rays light the diffuse lobe
     only: before issue 14's tree MIS)."""
-    orig = integrator.light_modes
-
-    def modes(ctx):
-        m = orig(ctx)
-        m[m == integrator.MODE_MIS] = integrator.MODE_CONTINUATION
-        return m
-    monkeypatch.setattr(integrator, "light_modes", modes)
     # The kernel's mode for the tree's choices: the glossy part left to the continuation.
     monkeypatch.setattr(integrator, "MODE_TREE", integrator.MODE_CONTINUATION)
 

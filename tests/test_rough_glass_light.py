@@ -18,7 +18,6 @@ import math
 import numpy as np
 import pytest
 
-import engine.integrator as integrator
 from engine.api import PaperScene
 from engine.closures import principled as pr
 from engine.geometry import closure_params
@@ -157,19 +156,6 @@ def _scene_below(light, roughness=0.3):
 def _render(scene, spp, seed):
     return scene.render(RenderSettings(spp=spp, photon_mapping=False, seed=seed,
                                        workers=1)).combined
-
-
-@pytest.fixture
-def continuation_only(monkeypatch):
-    """The refraction's sampled continuation alone (no light sampling for lights with a
-    size, through the glass or off it)."""
-    orig = integrator.light_modes
-
-    def modes(ctx):
-        m = orig(ctx)
-        m[m == integrator.MODE_MIS] = integrator.MODE_CONTINUATION
-        return m
-    monkeypatch.setattr(integrator, "light_modes", modes)
 
 
 @pytest.mark.parametrize("light", ["area", "sun", "sphere", "mesh", "environment"])

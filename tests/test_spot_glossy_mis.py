@@ -9,7 +9,6 @@ shadow rays only) must light the highlight without sampling noise."""
 import numpy as np
 import pytest
 
-import engine.integrator as integrator
 from engine.api import PaperScene
 from engine.scene import Material
 from engine.settings import RenderSettings
@@ -39,16 +38,10 @@ def _render(scene, spp, seed):
 
 
 @pytest.mark.parametrize("mat", sorted(MATERIALS))
-def test_spot_with_radius_mis_matches_continuation_with_less_noise(mat, monkeypatch):
+def test_spot_with_radius_mis_matches_continuation_with_less_noise(mat, request):
     scene = _scene(MATERIALS[mat], radius=0.3)
     mis, mis2 = _render(scene, 64, 1), _render(scene, 64, 2)
-    orig = integrator.light_modes
-
-    def continuation(ctx):
-        m = orig(ctx)
-        m[m == integrator.MODE_MIS] = integrator.MODE_CONTINUATION
-        return m
-    monkeypatch.setattr(integrator, "light_modes", continuation)
+    request.getfixturevalue("continuation_only")
     cont, cont2 = _render(scene, 64, 1), _render(scene, 64, 2)
     assert_mis_matches_continuation(mis, mis2, cont, cont2, 0.4)
 
