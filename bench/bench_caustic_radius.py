@@ -36,29 +36,11 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 
-from ball_lens import bin_irradiance, encircled_radius, floor_hits  # noqa: E402
+from ball_lens import (CENTRE, IOR, R, SUN, SUN_DIR, CELL, XS, YS,  # noqa: E402
+                       ball_scene, bin_irradiance, encircled_radius, floor_hits)
 from engine import RenderSettings  # noqa: E402
-from engine.api import PaperScene  # noqa: E402
 from engine.photonmap import auto_radius  # noqa: E402
 from engine.render import prepare_context, shoot_photons  # noqa: E402
-from engine.scene import Camera, Material  # noqa: E402
-
-R, IOR, SUN = 0.6, 1.5, 4.0
-CENTRE = np.array([0.0, 0.0, R])
-SUN_DIR = -np.array([1.0, -10.0, 7.0]) / math.sqrt(150.0)  # travelling down, towards +y
-CELL = 0.02
-XS = np.arange(-0.5, 0.5 + 1e-9, CELL)
-YS = np.arange(0.2, 2.2 + 1e-9, CELL)
-
-
-def ball_scene() -> PaperScene:
-    s = PaperScene(width=32, height=32)
-    s.add_material(Material("matte", (0.8,) * 3))
-    s.add_plane((0, 0, 0), (0, 0, 1), 20.0, "matte", name="floor")
-    s.add_sphere(tuple(CENTRE), R, "glass", name="ball", segments=96)
-    s.add_sun(tuple(SUN_DIR), SUN, angle_degrees=0.0)
-    s.camera = Camera(position=(0, 1.2, 3), rotation=np.eye(3), kind="ORTHO", ortho_scale=2.0)
-    return s
 
 
 def reference(rays=4_000_000):

@@ -93,3 +93,28 @@ def encircled_radius(image, xs, ys, share: float = 0.5):
     order = np.argsort(d, kind="stable")
     acc = np.cumsum(image.ravel()[order])
     return float(d[order][np.searchsorted(acc, share * acc[-1])])
+
+
+# The case tests/test_caustic_radius.py and bench/bench_caustic_radius.py share: a ball of
+# radius R (m) and index IOR on the floor under a sun of SUN W/m^2 from SUN_DIR (travelling
+# down, towards +y); the floor binned in CELL-sized cells over XS x YS (m).
+R, IOR, SUN = 0.6, 1.5, 4.0
+CENTRE = np.array([0.0, 0.0, R])
+SUN_DIR = -np.array([1.0, -10.0, 7.0]) / math.sqrt(150.0)
+CELL = 0.02
+XS = np.arange(-0.5, 0.5 + 1e-9, CELL)
+YS = np.arange(0.2, 2.2 + 1e-9, CELL)
+
+
+def ball_scene():
+    """The engine's scene of the case: the matte floor, the smooth glass ball (96
+    segments), the sun as a point on the sky (angle 0) and an orthographic camera above."""
+    from engine.api import PaperScene
+    from engine.scene import Camera, Material
+    s = PaperScene(width=32, height=32)
+    s.add_material(Material("matte", (0.8,) * 3))
+    s.add_plane((0, 0, 0), (0, 0, 1), 20.0, "matte", name="floor")
+    s.add_sphere(tuple(CENTRE), R, "glass", name="ball", segments=96)
+    s.add_sun(tuple(SUN_DIR), SUN, angle_degrees=0.0)
+    s.camera = Camera(position=(0, 1.2, 3), rotation=np.eye(3), kind="ORTHO", ortho_scale=2.0)
+    return s

@@ -17,7 +17,8 @@ import math
 import numpy as np
 import pytest
 
-from ball_lens import (bin_irradiance, encircled_radius, floor_hits, paraxial_focus,
+from ball_lens import (CELL, CENTRE, IOR, R, SUN, SUN_DIR, XS, YS, ball_scene,
+                       bin_irradiance, encircled_radius, floor_hits, paraxial_focus,
                        trace_bundle)
 from engine import RenderSettings
 from engine.api import PaperScene
@@ -25,12 +26,6 @@ from engine.photonmap import auto_radius, caustic_radius
 from engine.render import prepare_context, shoot_photons
 from engine.scene import Camera, Material
 
-R, IOR, SUN = 0.6, 1.5, 4.0
-CENTRE = np.array([0.0, 0.0, R])
-SUN_DIR = -np.array([1.0, -10.0, 7.0]) / math.sqrt(150.0)
-CELL = 0.02
-XS = np.arange(-0.5, 0.5 + 1e-9, CELL)
-YS = np.arange(0.2, 2.2 + 1e-9, CELL)
 
 
 def test_ball_lens_reference_focuses_paraxial_rays_at_n_r_over_2_n_minus_1():
@@ -50,14 +45,8 @@ def test_ball_lens_reference_focuses_paraxial_rays_at_n_r_over_2_n_minus_1():
 
 @pytest.fixture(scope="module")
 def ball():
-    s = PaperScene(width=32, height=32)
-    s.add_material(Material("matte", (0.8,) * 3))
-    s.add_plane((0, 0, 0), (0, 0, 1), 20.0, "matte", name="floor")
-    s.add_sphere(tuple(CENTRE), R, "glass", name="ball", segments=96)
-    s.add_sun(tuple(SUN_DIR), SUN, angle_degrees=0.0)
-    s.camera = Camera(position=(0, 1.2, 3), rotation=np.eye(3), kind="ORTHO", ortho_scale=2.0)
     settings = RenderSettings(spp=1, photons=100_000, caustic_photons=100_000, seed=1)
-    ctx = prepare_context(s, settings)
+    ctx = prepare_context(ball_scene(), settings)
     shoot_photons(ctx, {})
     pts, power = floor_hits(CENTRE, R, IOR, SUN_DIR, SUN, rays=1_000_000, seed=7)
     return ctx, bin_irradiance(pts, power, XS, YS, CELL)
