@@ -418,6 +418,15 @@ def timeline_rows(name, workers, log):
     return rows, summary
 
 
+def _compiled_kernels():
+    """Compile or load the kernels before any timing (engines before numba have none)."""
+    try:
+        from engine.jit import ensure_compiled
+    except ImportError:
+        return
+    ensure_compiled()
+
+
 def _export(name):
     """An example blend's engine scene, exported once through the add-on (bpy)."""
     import pickle
@@ -435,11 +444,7 @@ def sec_camera_workers(a):
     idle time in the stage (between its chunks and in the tail), minor page faults; the
     calling thread's merge time. 1 and 2 workers alternate, --repeat times; the run with
     the least run-queue wait is kept."""
-    try:
-        from engine.jit import ensure_compiled
-        ensure_compiled()
-    except ImportError:
-        pass
+    _compiled_kernels()
     rows, sums = [], []
     for name in a.blends:
         scene = _export(name)
@@ -602,11 +607,7 @@ def sec_critical_path(a):
     predicted = 1-worker work / 2-worker span (what two idle cores would give, no GIL
     contention), measured = 1-worker wall / 2-worker wall (meaningful only at load < 1.5).
     --blends names /tmp/pk pickles or example blends; --sizes WxH list; default settings."""
-    try:
-        from engine.jit import ensure_compiled
-        ensure_compiled()
-    except ImportError:
-        pass
+    _compiled_kernels()
     rows, sums = [], []
     for name in a.blends:
         scene = _scene(name)
