@@ -760,7 +760,7 @@ class DirectLightBuffers:
 
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
-                 bsdf=None, buffers=None, rows=None):
+                 bsdf=None, buffers=None, rows=None, transmission=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -771,6 +771,10 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     None (every surface blocks shadow rays).
     bsdf = (fd (N,3), prm (N,P), wo (N,3), mode (L,) int per light, sel (N, N_LOBES)):
     outgoing radiance instead, weighted by the BSDF (accumulate_bsdf; mode 3 with the tree).
+    transmission = (prm (N,P), ns (N,3) the normals on wo's side, wo (N,3), mode (L,),
+    sel (N, N_LOBES)): radiance through rough glass instead (principled
+    .accumulate_transmission; hit_arrays then hold the flipped normals: the lights are
+    sampled on the far side; engine/glasslight.py). At most one of bsdf, transmission.
     buffers: the calling thread's DirectLightBuffers (E is then its sums, valid until
     the next call with them; None: fresh arrays).
     rows (n,) int64: the n hits are these rows of hit_arrays and of bsdf's prm, wo and sel
@@ -787,6 +791,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         return np.zeros((n, 3)), 0
     buf = buffers or DirectLightBuffers()
     E = buf.sums(n)
+    lobes = bsdf if transmission is None else transmission  # directions and pdfs wanted
     per_call = max(1, MAX_ENTRIES // n)
     rays = 0
     zeros = None
@@ -815,8 +820,8 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
                                       buf.ray, buf.o32, buf.d32, buf.t32,
-                                      NO_ROWS3 if bsdf is None else buf.wdir,
-                                      NO_ROWS if bsdf is None else buf.lpdf, bump, hrow)
+                                      NO_ROWS3 if lobes is None else buf.wdir,
+                                      NO_ROWS if lobes is None else buf.lpdf, bump, hrow)
         blocked = buf.blocked[:m_rays]
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.
@@ -826,7 +831,12 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
             if shadow is not None:
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                     buf.contrib, buf.ray, m_all, shadow_cls)
-        if bsdf is None:
+        if transmission is not None:
+            prm, ns, wo, mode, sel = transmission
+            pr.accumulate_transmission(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples,
+                                       blocked, m_all, buf.wdir, buf.lpdf, mode[klight], prm,
+                                       ns, wo, sel)
+        elif bsdf is None:
             # (sample_lights wrote no directions or pdfs: NO_ROWS3, NO_ROWS)
             accumulate(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all,
                        bump)

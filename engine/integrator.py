@@ -116,12 +116,52 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     are per row of rows; bsdf's prm and sel are the whole batch's, read at rows): the
     same numbers as hit.take(rows) without copying the rows' fields; None: every hit."""
     n = len(hit.p) if rows is None else len(rows)
-    plan = ctx.plan
     chosen = selector_for(ctx, skip_mesh_lights)
+    samples = light_sample_list(ctx, n, rng, sampler, skip_mesh_lights)
+    if n == 0 or not samples:
+        return np.zeros((n, 3))
+    packed = ctx.packed_lights or pack_lights(ctx.lights)
+    tree = None
+    if bsdf is not None:
+        fd, prm, sel = bsdf
+        if chosen is not None:
+            # The tree picks the light per hit: the kernel weights a delta light's sample
+            # by the full BSDF, a light with a size by MIS with the tree's choice
+            # probability in its pdf (mode 3).
+            mode = np.full(len(ctx.lights),
+                           MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA, np.int64)
+        else:
+            mode = light_modes(ctx)
+        bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
+                np.ascontiguousarray(hit.wo, np.float64), mode,
+                np.ascontiguousarray(sel, np.float64))
+    if chosen is not None:
+        tree = chosen[1]
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
+                           SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=tree,
+                           bsdf=bsdf, buffers=buffers, rows=rows)
+    counters.shadow_rays += rays
+    return E
+
+
+def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=None) -> list:
+    """The light samples of n hits, as directlight.direct_light takes them: a list of
+    (light index, traced?, the light's sample count, u1 (n,), u2 (n,), third number (n,)
+    or None), in the order they are drawn and summed. With many lights (the light tree,
+    lights/selection.py) selection_samples entries of light index -1, the third number
+    the tree's choice; else each light's plan.light_samples entries in light order, the
+    third number a mesh light's triangle or an environment map's strategy.
+    sampler: the camera's StratifiedSampler (its 2-D dimensions ("light", li, si), the
+    choices stratified with the point: mesh_light_numbers) or None (rng draws u1, u2 and
+    the third number together, in this order).
+    skip_mesh_lights: no samples of emissive meshes (a recursive gather finds them by its
+    own rays). modes (L,) int (light_modes): lights left to the continuation
+    (MODE_CONTINUATION) take no sample (glasslight.transmitted_light); None: every light."""
+    chosen = selector_for(ctx, skip_mesh_lights)
+    samples = []
     if chosen is not None:
         # Many lights: each shadow ray goes to one light the light tree picks per hit.
         S = selection_samples(ctx.settings)
-        samples = []
         for si in range(S):
             if sampler is not None:
                 u1, u2 = sampler.uv(("light", 0, si))
@@ -136,32 +176,16 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             else:
                 u1, u2, choose = rng.random((3, n))  # one draw: the same numbers
             samples.append((-1, True, S, u1, u2, choose))
-        if n == 0:
-            return np.zeros((n, 3))
-        packed = ctx.packed_lights or pack_lights(ctx.lights)
-        if bsdf is not None:
-            # The tree picks the light per hit: the kernel weights a delta light's sample
-            # by the full BSDF, a light with a size by MIS with the tree's choice
-            # probability in its pdf (mode 3).
-            fd, prm, sel = bsdf
-            bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
-                    np.ascontiguousarray(hit.wo, np.float64),
-                    np.full(len(ctx.lights),
-                            MODE_TREE if ctx.plan.specular_depth > 0 else MODE_DELTA,
-                            np.int64),
-                    np.ascontiguousarray(sel, np.float64))
-        E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
-                               SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=chosen[1],
-                               bsdf=bsdf, buffers=buffers, rows=rows)
-        counters.shadow_rays += rays
-        return E
+        return samples
     # Random numbers in the order the lights draw them (engine/lights/: u1, u2, then a
     # mesh light's triangle choice), sample by sample.
-    samples = []
+    plan = ctx.plan
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
             continue
         if not light.ray_kinds & SHADOW:  # the light object's diffuse visibility is off
+            continue
+        if modes is not None and modes[li] == MODE_CONTINUATION:
             continue
         count = plan.light_samples.get(light.name, 1)
         traced = plan.shadows.get(light.name, True)
@@ -181,19 +205,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
             else:
                 u1, u2 = rng.random((2, n))
             samples.append((li, traced, count, u1, u2, sel))
-    if n == 0 or not samples:
-        return np.zeros((n, 3))
-    packed = ctx.packed_lights or pack_lights(ctx.lights)
-    if bsdf is not None:
-        fd, prm, sel = bsdf
-        bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
-                np.ascontiguousarray(hit.wo, np.float64), light_modes(ctx),
-                np.ascontiguousarray(sel, np.float64))
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
-                           SHADOW, n, shadow=getattr(ctx, "shadow", None), bsdf=bsdf,
-                           buffers=buffers, rows=rows)
-    counters.shadow_rays += rays
-    return E
+    return samples
 
 
 def mesh_light_numbers(sampler, key):
@@ -1461,7 +1473,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     glass_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
                                  else np.random.default_rng(rng.integers(1 << 62)))
                 Lt = transmitted_light(ctx, hit, gl, prm if hit.prm is None else hit.prm, sel,
-                                       psum, modes, glass_rng, counters)
+                                       psum, modes,
+                                       light_sample_list(ctx, len(gl), glass_rng, modes=modes),
+                                       counters)
                 acc.add("direct" if bounce == 0 else "specular", pix, Lt, tp, gl)
         if bounce == depth_limit:
             return
