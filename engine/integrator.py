@@ -71,10 +71,6 @@ class Counters:
         key = (stage, int(depth))
         self.stages[key] = self.stages.get(key, 0) + int(n)
 
-    def regather_shadow_rays(self) -> int:
-        """Shadow rays from regathered ends so far (every level)."""
-        return sum(v for k, v in self.stages.items() if k[0] == "regather shadow")
-
     def stage_table(self) -> dict:
         """stages as 'stage depth' -> count, in stage order (for a render's stats)."""
         return {f"{k[0]} {k[1]}": v for k, v in sorted(self.stages.items())}
@@ -958,7 +954,7 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
-                  rows=None):
+                  rows=None, bounce=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
@@ -972,9 +968,12 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     the direct stage reads them in place, direct_irradiance's rows); wd, the sampler,
     sample_id, footprint, glossy, scattered and the results are per row of rows, sel is
     the whole batch's. The same numbers as shade_diffuse(hit.take(rows), ...) with sel
-    taken at rows. None: every hit."""
+    taken at rows. None: every hit.
+    bounce: the camera path's bounce, for counters.stages' ("camera shadow", bounce): the
+    direct stage's shadow rays (the final gather's regathers count their own)."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
+    shadow_rays_before = counters.shadow_rays
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
                                    buffers=buffers, rows=rows)
@@ -982,6 +981,8 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers,
                                    rows=rows)
         np.multiply(f, direct, out=direct)  # f x E, in place
+    if bounce is not None:
+        counters.count("camera shadow", bounce, counters.shadow_rays - shadow_rays_before)
     if not ctx.settings.photon_mapping:
         return direct, None, None  # (no caustic or indirect term to add)
     if rows is not None:
@@ -1429,15 +1430,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # The shaded rows read in place (rows=dsel), or the batch itself: no copies of
             # their fields for the direct stage.
             counters.count("shaded", bounce, nd)
-            before = counters.shadow_rays - counters.regather_shadow_rays()
             direct, caustic, indirect = shade_diffuse(
                 ctx, hit, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
                 sel=sel if g.any() else None, buffers=buffers.direct,
                 scattered=scattered if every or scattered is None else scattered[dsel],
-                rows=None if every else dsel)
-            counters.count("camera shadow", bounce, counters.shadow_rays
-                           - counters.regather_shadow_rays() - before)
+                rows=None if every else dsel, bounce=bounce)
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:
