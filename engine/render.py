@@ -26,7 +26,7 @@ from .parallel import Cancelled, run_cancellable, run_tasks
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
 from .resources import check_resources
 from .scene import Scene
-from .settings import RenderSettings
+from .settings import ESTIMATOR_LABELS, RenderSettings
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
 from .visualimportance import indirect_share
@@ -631,7 +631,8 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
         parts.append(f"final gathering with {stats['gather_rays_used']} of "
                      f"{settings.gather_rays} ray(s) a sample ({seen})")
     how = "radius set" if settings.radius is not None else "automatic radius"
-    est = f"{settings.estimator} estimator" + (" (paper mode)" if settings.paper_mode else "")
+    est = (f"estimator {ESTIMATOR_LABELS.get(settings.estimator, settings.estimator)}"
+           + (", paper mode" if settings.paper_mode else ""))
     return [f"photon maps: on - {'; '.join(parts) or 'no photons stored'} ({how}, {est})"]
 
 

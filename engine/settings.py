@@ -10,6 +10,10 @@ import numpy as np
 from .pixelfilter import PIXEL_FILTERS
 
 ESTIMATORS = ("knn_simpson", "knn_cone", "classic", "radius")
+# Their names in the add-on's Estimator menu (addon/properties.py ESTIMATOR_ITEMS), which the
+# effect report uses: a user reads there what the panel shows, not the setting's key.
+ESTIMATOR_LABELS = {"knn_simpson": "k-NN (Simpson kernel)", "knn_cone": "k-NN (cone filter)",
+                    "classic": "Classic (paper)", "radius": "Fixed Radius (Simpson)"}
 EFFECT_SWITCHES = ("caustics", "indirect", "specular", "soft_shadows")
 # Rendering methods for teaching (docs/teaching.md), each a set of the effect switches
 # (engine/effects.py): local = direct light without shadow rays, mirrors or glass (an

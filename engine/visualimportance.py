@@ -382,7 +382,7 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     it does not pay)."""
     natural = ShotPlan(list(lights), list(natural_counts), "")
     if region is None or total <= 0 or not lights:
-        natural.report = "natural emission (no surface in view to aim at)"
+        natural.report = "no visual importance: no surface in view to aim photons at"
         return natural
     rng = np.random.default_rng([ctx.settings.seed, 94])
     K = len(region.radii)
@@ -420,9 +420,9 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     # outside keep a finite power; ROI_MIN_OUTSIDE below then sets their share).
     i_out = max(1.0 - i_in, ROI_MIN_OUTSIDE * 0.5)
     if not (p_in > 0 and p_out > 0 and aims.any()):
-        natural.report = ("natural emission (the lights send "
-                          + ("all" if p_out <= 0 else "nothing") + " of their power "
-                          "towards the camera's region)")
+        natural.report = ("no visual importance: the lights send "
+                          + ("all" if p_out <= 0 else "none") + " of their light "
+                          "to what the camera sees, so photons go where the lights send them")
         return natural
     # Photons ~ sqrt(lookups x power) per piece (module docstring): per watt, a sphere's
     # weight sqrt(I_k / P_k), outside sqrt(I_out / P_out). Uniform over the spheres
@@ -436,9 +436,10 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     w_out = math.sqrt(i_out / p_out)
     boost = float((p_cell * weight).sum() / p_in) / w_out
     if boost < ROI_MIN_BOOST:
-        natural.report = (f"natural emission (the camera's region gets {p_in / (p_in + p_out):.0%} "
-                          f"of the light for {i_in:.0%} of the lookups: density boost "
-                          f"{boost:.2f} < {ROI_MIN_BOOST:g})")
+        natural.report = (f"no visual importance: what the camera sees gets "
+                          f"{p_in / (p_in + p_out):.0%} of the light for {i_in:.0%} of the "
+                          f"photon lookups, so aiming photons there would make them only "
+                          f"{boost:.1f}x denser (it pays from {ROI_MIN_BOOST:g}x)")
         return natural
     # Photons per light: inside sum_k P_ik w_k, outside P_out w_out. A light that cannot
     # aim emits naturally: its photons as bright as the others' outside if it sends

@@ -68,6 +68,14 @@ def test_property_defaults_match_engine(bpy_addon):
     RenderSettings(**kwargs)  # accepted by the engine
 
 
+def test_estimator_menu_names_are_the_reports(bpy_addon):
+    """The effect report names the estimator as the panel's menu does."""
+    from addon.properties import ESTIMATOR_ITEMS
+    from engine.settings import ESTIMATOR_LABELS, ESTIMATORS
+    assert {key: label for key, label, _ in ESTIMATOR_ITEMS} == ESTIMATOR_LABELS
+    assert set(ESTIMATOR_LABELS) == set(ESTIMATORS)
+
+
 def test_pixel_filter_is_read_from_the_scene(bpy_addon):
     """Cycles' Film > Pixel Filter (scene.cycles) sets the engine's filter: Blender's
     default is Blackman-Harris 1.5 px; the box is always 1 px (Cycles' sync)."""

@@ -84,10 +84,10 @@ def test_batch_paper_switches_reach_the_render(bpy_addon, tmp_path):
     assert out.exists()
     report = engine.last_render["stats"]["effects"][-1]
     assert report.startswith("photon maps: on") and "search radius 0.3 m" in report
-    assert "radius set, classic estimator (paper mode)" in report
+    assert "radius set, estimator Classic (paper), paper mode" in report
     assert batch.main([os.path.join(root, "example_blends", "figure3_sphere.blend"), "-o",
                        str(out), "--radius", "0", "--estimator", "knn_cone", "--width", "32",
                        "--height", "24", "--samples", "1", "--photons", "2000",
                        "--caustic-photons", "0", "--quiet"]) == 0
     report = engine.last_render["stats"]["effects"][-1]
-    assert "automatic radius, knn_cone estimator" in report
+    assert "automatic radius, estimator k-NN (cone filter)" in report
