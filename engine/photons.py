@@ -89,8 +89,7 @@ class Photons:
 
 
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
-                  should_cancel=None, targets=None, first_hit=None,
-                  pool: "PhotonBuffers | None" = None) -> Photons:
+                  should_cancel=None, targets=None, first_hit=None) -> Photons:
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
     paths only and stop a photon as soon as it scatters diffusely (the caustic shot).
     targets=(centers, radii): aim the photons at these bounding spheres (caustic casters).
@@ -98,10 +97,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     photons only if whether the first surface they hit belongs to a caster equals keep.
     An aimed shot (keep=True) and an unaimed one (keep=False) thus split the L S+ D paths
     between them without overlap: a path whose first hit is a caster starts inside that
-    caster's bounding sphere, which the aimed shot covers (engine/render.py).
-    pool: the buffers the chunks borrow (PhotonBuffers; the photon pass's driver lends
-    one to all its shots, so a later shot reuses pages an earlier one faulted in); None:
-    a pool of this trace's own, dropped with it."""
+    caster's bounding sphere, which the aimed shot covers (engine/render.py)."""
     settings = ctx.settings
     total = int(sum(counts))
     jobs = []
@@ -112,7 +108,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
                  for ci, start in enumerate(range(0, count, chunk))]
     threads = settings.threads
     accel = ctx.accel.serial() if threads > 1 and len(jobs) > 1 else ctx.accel
-    pool = pool if pool is not None else PhotonBuffers()
+    pool = _Buffers()
 
     def job(item, stop):
         li, ci, start, n, count, emitter = item
@@ -141,11 +137,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     (photonkernels.scatter, which computes the surface data itself); bsdf.surface_hit
     supplies the surface data instead where a material has a texture, normal map or alpha
     texture, and photonkernels.photon_surfaces with shared instances. pool: the
-    trace's PhotonBuffers, which lends every per-photon buffer of the chunk (emitted and
-    continued rays, stored-photon blocks, Embree's answer, scratch rows, bump factors,
-    given surface data; a new pool without)."""
+    trace's _Buffers, which lends the stored-photon and continued-ray buffers (a new
+    one without)."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
-    pool = pool if pool is not None else PhotonBuffers()
+    pool = pool if pool is not None else _Buffers()
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
     # slot (photonkernels.uniform), emission included: a photon whose path changes (a hit
     # a hair from an edge, rounded differently in a scaled scene) does not change the
@@ -185,17 +180,15 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     plain = pk.plain_materials(table.closure_params)
     # Buffers for the whole chunk, reused bounce after bounce: the surface data (given
     # only), the stored photons (appended to by each bounce), and two sets of continued
-    # rays (one is the bounce's input, the other its output). All of them borrowed from
-    # the pool (lent[make] holds the chunk's set of each kind; _bounces swaps a set that
-    # is too small for a larger one) and given back when the chunk ends.
-    lent = {_factors: pool.take(_factors, m)}
-    if given:
-        lent[pk.surface_arrays] = pool.take(pk.surface_arrays, m)
+    # rays (one is the bounce's input, the other its output).
+    surf = pk.surface_arrays(m if given else 0)
+    factors = pool.take(_factors, m)
+    bump, tfar, hit_rows, hits = _factor_views(factors, m)
     stored = _Stored(2 * m + 1024, pool)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-                 bnc, vis_on, caster, mode, numpy_hits, given, plain, lent, stored, nxt_sets,
-                 pool, caustic_only, should_cancel)
+                 bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
+                 hits, stored, nxt_sets, pool, caustic_only, should_cancel)
     except BaseException:
         stored.release()
         raise
@@ -203,40 +196,28 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         for arrays in nxt_sets:
             if arrays is not None:
                 pool.give(arrays, pk.next_arrays)
-        for make, arrays in lent.items():
-            if arrays is not None:
-                pool.give(arrays, make)
+        pool.give(factors, _factors)
     return stored
 
 
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-             bnc, vis_on, caster, mode, numpy_hits, given, plain, lent, stored, nxt_sets, pool,
-             caustic_only, should_cancel):
+             bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
+             hits, stored, nxt_sets, pool, caustic_only, should_cancel):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
-    alternate between the two buffer sets of nxt_sets (borrowed from pool). lent: the
-    chunk's per-photon sets borrowed from pool by their make (_factors, and
-    pk.surface_arrays when the surface data is given); a set too small for a bounce
-    (split-off copies can double the rays) is given back for a larger one."""
+    alternate between the two buffer sets of nxt_sets (borrowed from pool)."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     limits = settings.bounce_limits
-    cap = -1  # rows of the current views of lent's sets
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
         m = len(o)
         if m == 0:
             break
-        if m > cap:
-            for make in lent:
-                if len(lent[make][0]) < m:
-                    pool.give(lent[make], make)
-                    lent[make] = None
-                    lent[make] = pool.take(make, m)
-            cap = min(len(arrays[0]) for arrays in lent.values())
-            bump, tfar, hit_rows, hits = _factor_views(lent[_factors], cap)
-            surf = lent[pk.surface_arrays] if given else _NO_SURFACES
+        if m > len(bump):
+            surf = pk.surface_arrays(m if given else 0)
+            bump, tfar, hit_rows, hits = _factor_views(_factors(m), m)
         tfar[:m] = _UNBOUNDED
         # Embree's own answer: int32 ids, float32 barycentrics; scatter reads them as they
         # are (Accel.intersect_hits).
@@ -301,26 +282,22 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         o, d32, d, power, flags, kinds, slot, bnc = (a[:n_nx] for a in nxt_sets[k])
 
 
-class PhotonBuffers:
-    """Per-photon buffers lent to the photon pass's chunks and given back when a chunk is
-    done with them (its continued-ray sets, Embree's answer, scratch rows and surface data
-    when it ends, its stored-photon blocks once the shot has copied them), so later chunks
-    reuse memory that is already mapped instead of faulting in fresh pages (on a cold
-    process a third of the photon pass went to the kernel's page faults). Every lent row
-    is written before it is read, so the photons do not depend on what a buffer held
-    before. Shared by the trace's threads (a lock). Its owner is the photon pass's driver
-    (engine/render.py, _photon_pass): one pool for all the shots of a pass, dropped
-    (clear) before the map build and the camera pass; trace_photons without one makes
-    its own."""
+class _Buffers:
+    """Buffers lent to a trace's chunks and given back when a chunk is done with them (its
+    continued-ray sets when it ends, its stored-photon blocks once the shot has copied
+    them), so later chunks reuse memory that is already mapped instead of faulting in
+    fresh pages (on a cold process a third of the photon pass went to the kernel's page
+    faults). Every lent row is written before it is read, so the photons do not depend
+    on what a buffer held before. Shared by the trace's threads (a lock); dropped with
+    the trace."""
 
     def __init__(self):
         self._free = []
         self._lock = threading.Lock()
 
     def take(self, make, rows: int):
-        """A set of arrays from make(rows) (pk.store_arrays, pk.next_arrays, _factors,
-        pk.surface_arrays) with at least `rows` rows: the smallest free one that fits,
-        else a new one."""
+        """A set of arrays from make(rows) (pk.store_arrays, pk.next_arrays, _factors)
+        with at least `rows` rows: the smallest free one that fits, else a new one."""
         with self._lock:
             fits = [i for i, (f, arrays) in enumerate(self._free)
                     if f is make and len(arrays[0]) >= rows]
@@ -334,26 +311,15 @@ class PhotonBuffers:
         with self._lock:
             self._free.append((make, arrays))
 
-    @property
-    def nbytes(self) -> int:
-        """Bytes of the free sets (their virtual size: rows never written take no pages)."""
-        with self._lock:
-            return sum(a.nbytes for _, arrays in self._free for a in arrays)
-
-    def clear(self):
-        """Drop every free set (their memory goes back once no chunk holds it)."""
-        with self._lock:
-            self._free = []
-
 
 class _Stored:
     """A chunk's stored photons (pk.store_arrays), appended to bounce by bounce, in blocks:
     when the current block has no room for a bounce, it is kept as it is and a new one
     started (no copy as the chunk's photons grow). Blocks come from the trace's
-    PhotonBuffers and go back to it on release()."""
+    _Buffers and go back to it on release()."""
 
-    def __init__(self, capacity: int, pool: PhotonBuffers | None = None):
-        self.pool = pool if pool is not None else PhotonBuffers()
+    def __init__(self, capacity: int, pool: _Buffers | None = None):
+        self.pool = pool if pool is not None else _Buffers()
         self.blocks = []  # full blocks: (arrays, rows used)
         self.arrays = self.pool.take(pk.store_arrays, capacity)
         self.count = 0  # rows used in the current block
@@ -384,7 +350,7 @@ class _Stored:
 class _Shot:
     """A shot's stored photons, the chunks' appended in order as they finish: one copy
     from a chunk's buffers into the shot's (no trimmed copy per chunk and concatenation),
-    and a chunk's buffers (~2x its rays) go back to the trace's PhotonBuffers once copied.
+    and a chunk's buffers (~2x its rays) go back to the trace's _Buffers once copied.
     The shot's arrays are sized from the photons stored per photon emitted so far (grown
     if that falls short, trimmed at the end if much is left over)."""
 
@@ -436,16 +402,17 @@ def _factors(m: int):
 
 def _factor_views(factors, m: int):
     """What the bounces use of a _factors set of at least m rows: the bump factors (m,)
-    (read only with numpy surface data, which sets them each bounce), the tmax (m,),
-    scatter's scratch rows, and Embree's answer arrays (geom, prim, u, v)."""
+    (set to 1), the tmax (m,), scatter's scratch rows, and Embree's answer arrays (geom,
+    prim, u, v)."""
     bump, tfar, hit_rows, ids, u, v = factors
-    return bump[:m], tfar[:m], hit_rows, (ids[0], ids[1], u, v)
+    bump = bump[:m]
+    bump[:] = 1.0
+    return bump, tfar[:m], hit_rows, (ids[0], ids[1], u, v)
 
 
 _UNBOUNDED = np.finfo(np.float32).max  # tmax of a photon ray (Accel.intersect's default)
 _NO_HITS = np.zeros(0, np.int64)
 _NO_BUMP = np.zeros(0)  # scatter: no bent normals, every photon's bump factor is 1
-_NO_SURFACES = pk.surface_arrays(0)  # not given: scatter computes the surface data itself
 
 
 def _closest_hits(accel, o32, d32, tfar32, out):

@@ -23,8 +23,7 @@ from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
 from .parallel import Cancelled, run_cancellable, run_tasks
-from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, PhotonBuffers, Photons,
-                      trace_photons)
+from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
 from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
@@ -341,6 +340,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
 def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     t0 = time.perf_counter()
+    shot = Photons.empty()
     use_caustic_shot = plan.caustics and s.caustic_photons > 0 and not plan.caustics_from_global
     targets = (plan.caster_spheres if (use_caustic_shot and s.aim_caustics
                                        and len(plan.caster_spheres[1])) else None)
@@ -353,15 +353,30 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
     if targets is not None and plan.rough_specular:
         split = np.zeros(len(geo.object_names), bool)
         split[plan.caster_ids] = True
-    # One buffer pool for the pass's shots: the caustic shot's chunks borrow the pages the
-    # global shot's chunks faulted in (photons.PhotonBuffers). Dropped once the shots are
-    # traced, before the map build and the camera pass need the memory.
-    pool = PhotonBuffers()
-    try:
-        shot, caustic = _shots(ctx, stats, progress, should_cancel, use_caustic_shot, targets,
-                               split, pool)
-    finally:
-        pool.clear()
+    # The global shot is needed for indirect light; without a separate caustic shot, or
+    # for the caustic paths the aimed shot leaves out, it also carries caustic photons.
+    if plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None:
+        emitters, counts = global_emitters(ctx, photon_counts(ctx, s.photons), stats)
+        shot = trace_photons(ctx, emitters, counts, caustic_only=False, stream=1,
+                             progress=progress, should_cancel=should_cancel,
+                             first_hit=None if split is None else (split, False))
+    caustic = Photons.empty()
+    if use_caustic_shot:
+        if targets is None:
+            ccounts = allocate_photons(ctx.lights, s.caustic_photons)
+        else:
+            ccounts = _allocate_aimed(ctx, targets, s.caustic_photons)
+        caustic = trace_photons(ctx, ctx.lights, ccounts, caustic_only=True, stream=2,
+                                progress=progress, should_cancel=should_cancel, targets=targets,
+                                first_hit=None if split is None else (split, True))
+        if split is not None and len(shot):
+            # The caustic paths the aimed shot leaves out, from the global shot.
+            rest = shot.select(shot.kind == CAUSTIC)
+            emitted = caustic.emitted
+            caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
+                                for f in ("position", "power", "direction", "normal", "kind")),
+                              bounces=np.concatenate([caustic.bounces, rest.bounces]))
+            caustic.emitted = emitted
     stats["time_photons"] = time.perf_counter() - t0
     stats["photons_emitted"] = shot.emitted
     stats["caustic_photons_emitted"] = caustic.emitted
@@ -392,38 +407,6 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
     stats["photon_bytes"] = shot.nbytes + caustic.nbytes
     # For the photon-hit pass (_photon_hit_view), always filled.
     return (shot, caustic)
-
-
-def _shots(ctx, stats, progress, should_cancel, use_caustic_shot, targets, split, pool):
-    """The photon pass's shots, traced with the buffers of pool: (global, caustic)
-    Photons (either empty where the pass has no such shot)."""
-    s, plan = ctx.settings, ctx.plan
-    shot = Photons.empty()
-    # The global shot is needed for indirect light; without a separate caustic shot, or
-    # for the caustic paths the aimed shot leaves out, it also carries caustic photons.
-    if plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None:
-        emitters, counts = global_emitters(ctx, photon_counts(ctx, s.photons), stats)
-        shot = trace_photons(ctx, emitters, counts, caustic_only=False, stream=1,
-                             progress=progress, should_cancel=should_cancel,
-                             first_hit=None if split is None else (split, False), pool=pool)
-    caustic = Photons.empty()
-    if use_caustic_shot:
-        if targets is None:
-            ccounts = allocate_photons(ctx.lights, s.caustic_photons)
-        else:
-            ccounts = _allocate_aimed(ctx, targets, s.caustic_photons)
-        caustic = trace_photons(ctx, ctx.lights, ccounts, caustic_only=True, stream=2,
-                                progress=progress, should_cancel=should_cancel, targets=targets,
-                                first_hit=None if split is None else (split, True), pool=pool)
-        if split is not None and len(shot):
-            # The caustic paths the aimed shot leaves out, from the global shot.
-            rest = shot.select(shot.kind == CAUSTIC)
-            emitted = caustic.emitted
-            caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
-                                for f in ("position", "power", "direction", "normal", "kind")),
-                              bounces=np.concatenate([caustic.bounces, rest.bounces]))
-            caustic.emitted = emitted
-    return shot, caustic
 
 
 # The indirect light's share of the seen diffuse irradiance at and above which final

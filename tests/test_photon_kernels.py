@@ -244,8 +244,8 @@ def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():
                                                     for arrays, k in stored.parts()]])
                 for i in range(6)]
 
-    fresh = chunk(P.PhotonBuffers())
-    used = P.PhotonBuffers()
+    fresh = chunk(P._Buffers())
+    used = P._Buffers()
     junk = np.random.default_rng(1)
     for make, rows in ((pk.next_arrays, 3 * count), (pk.next_arrays, 2 * count),
                        (pk.store_arrays, 4 * count), (P._factors, 2 * count)):

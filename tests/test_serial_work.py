@@ -15,7 +15,7 @@ from engine.api import cornell_box
 from engine.parallel import Cancelled, run_tasks
 from engine.photonmap import (DENSITY_CELL, GATHER_POINTS_PER_DISC, MAX_POINT_SHARE, SHARE_ROWS,
                               GatherMap, PhotonMap, _point_shares)
-from engine.photons import Photons, PhotonBuffers, _Shot, _Stored, trace_photons
+from engine.photons import Photons, _Buffers, _Shot, _Stored, trace_photons
 from engine.render import prepare_context, render, shoot_photons
 from engine.lights import allocate_photons
 from engine.photonkernels import store_arrays
@@ -179,7 +179,7 @@ def test_map_build_is_the_same_for_one_and_two_workers(final_gather):
 
 def test_stored_blocks_hold_what_one_block_holds():
     rng = np.random.default_rng(3)
-    pool = PhotonBuffers()
+    pool = _Buffers()
     stored = _Stored(100, pool)
     want = [np.empty((0, 3), np.float32)] * 4 + [np.empty(0, np.uint8)]
     for m in (60, 30, 90, 250, 5):  # the 3rd and 4th overflow their block
@@ -215,7 +215,7 @@ def test_lent_buffers_give_the_photons_of_fresh_ones(monkeypatch):
         ctx = prepare_context(scene, st)
         with monkeypatch.context() as mp:
             if fresh:
-                mp.setattr(PhotonBuffers, "take", lambda self, make, rows: make(rows))
+                mp.setattr(_Buffers, "take", lambda self, make, rows: make(rows))
             counts = allocate_photons(ctx.lights, st.photons)
             shots.append(trace_photons(ctx, ctx.lights, counts, False, 1))
         ctx.accel.close()
