@@ -1,6 +1,6 @@
 """Photon pass vs raw Embree on the same rays (Figure 6 box with the glass ball).
 
-    .venv/bin/python bench/bench_photon_pass.py [CHECKOUT] [PHOTONS] [--split]
+    .venv/bin/python bench/bench_photon_pass.py [CHECKOUT] [PHOTONS] [--split] [--small-pages]
 
 CHECKOUT (default: this one) is put first on sys.path, so an older checkout's engine can be
 measured by the same script; PHOTONS defaults to 500000. Prints one line per worker count:
@@ -11,7 +11,11 @@ less with the load than the wall-time one). The engine is timed with the query l
 (the RecordingAccel's copies of every ray are the benchmark's, not the engine's); one
 logged trace then records the rays for the replay. "first" is the CPU time of the
 process's first trace (cold: what a render's one photon pass costs, page faults of fresh
-buffers included), the other columns the best of 3 after it.
+buffers included), the other columns the best of 3 after it; "faults" and "sys" are the
+process's minor page faults and system CPU s of the first trace and the median of the
+warm ones (getrusage). --small-pages traces inside render.small_pages() (numpy's
+huge-page advice off, as a render runs the pass: 4 KB pages, so several times the faults
+of the default run, whose arrays of >= 4 MB may get 2 MB pages).
 
 --split adds, for one worker, where a warm trace's CPU goes (best of 3, thread CPU time):
 the Embree calls (Accel.intersect_hits; Accel.intersect in older checkouts), the scatter
@@ -21,7 +25,9 @@ carry few photons); and the Embree calls alone on the recorded rays, raw embreex
 Accel.intersect(_hits), interleaved in this process (the comparison that moves least with
 the load).
 """
+import contextlib
 import os
+import resource
 import sys
 import time
 
@@ -29,7 +35,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 split = "--split" in sys.argv
-args = [a for a in sys.argv[1:] if a != "--split"]
+small = "--small-pages" in sys.argv
+args = [a for a in sys.argv[1:] if a not in ("--split", "--small-pages")]
 root = os.path.abspath(args[0]) if args else os.path.dirname(HERE)
 photons = int(args[1]) if len(args) > 1 else 500_000
 sys.path.insert(0, os.path.join(root, "bench"))
@@ -54,6 +61,14 @@ def best_of(n, fn):
         wall = min(wall, time.perf_counter() - t0)
         cpu = min(cpu, time.process_time() - c0)
     return wall, cpu, out
+
+
+def faulted(fn):
+    """(minor page faults, system CPU s, result) of fn() for the whole process."""
+    r0 = resource.getrusage(resource.RUSAGE_SELF)
+    out = fn()
+    r1 = resource.getrusage(resource.RUSAGE_SELF)
+    return r1.ru_minflt - r0.ru_minflt, r1.ru_stime - r0.ru_stime, out
 
 
 def print_split(ctx, counts, raw_cpu):
@@ -152,15 +167,28 @@ def print_embree_calls(rec, log):
 
 
 ensure_compiled()
-print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+pages = contextlib.nullcontext()
+if small:
+    import importlib
+    pages = importlib.import_module("engine.render").small_pages()
+pages.__enter__()
+print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
+      + (", small pages (render.small_pages)" if small else ""))
 for workers in (1, 2):
     st = RenderSettings(photons=photons, workers=workers)
     ctx = make_ctx(box(160, 120), st)
     rec = getattr(ctx.accel, "full", ctx.accel)  # the RecordingAccel
     counts = allocate_photons(ctx.lights, st.photons)
     rec.enabled = False
-    _, first, _ = best_of(1, lambda: trace_photons(ctx, ctx.lights, counts, False, 1))
-    t, c, shot = best_of(3, lambda: trace_photons(ctx, ctx.lights, counts, False, 1))
+    f_first, s_first, (_, first, _) = faulted(
+        lambda: best_of(1, lambda: trace_photons(ctx, ctx.lights, counts, False, 1)))
+    warm = [faulted(lambda: best_of(1, lambda: trace_photons(ctx, ctx.lights, counts, False, 1)))
+            for _ in range(3)]
+    t = min(w[2][0] for w in warm)
+    c = min(w[2][1] for w in warm)
+    shot = warm[-1][2][2]
+    f_warm = sorted(w[0] for w in warm)[1]
+    s_warm = sorted(w[1] for w in warm)[1]
     rec.enabled = True
     rec.log.clear()
     trace_photons(ctx, ctx.lights, counts, False, 1)
@@ -174,8 +202,10 @@ for workers in (1, 2):
           f"{photons / t / 1e6:.2f} M photons/s, {100 * raw / t:.0f} % of raw Embree; "
           f"CPU engine={c:.3f} s (first {first:.3f} s) raw={raw_c:.3f} s "
           f"{100 * raw_c / c:.0f} % of raw Embree; "
-          f"{shot.nbytes / max(len(shot), 1):.0f} B/photon")
+          f"{shot.nbytes / max(len(shot), 1):.0f} B/photon; faults {f_warm} (first {f_first}), "
+          f"sys {s_warm:.3f} s (first {s_first:.3f} s)")
     if split and workers == 1:
         print_split(ctx, counts, raw_c)
         print_embree_calls(rec, [e for e in log if e[0] == "INTERSECT"])
     ctx.accel.close()
+pages.__exit__(None, None, None)
