@@ -48,7 +48,7 @@ from .bsdf import surface_hit
 from .geometry import CAMERA, DIFFUSE, GLOSSY
 from .lights.area import AreaLight
 from .lights.base import InfiniteLight, emit_arrays
-from .lights.emission import Aim
+from .lights.emission import Aim, sphere_meets
 from .lights.mesh import MeshLight
 from .lights.point import PointLight
 from .lights.spot import SpotLight
@@ -285,8 +285,14 @@ def can_aim(light) -> bool:
 
 def meets_region(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
                  infinite: bool) -> np.ndarray:
-    """(N,) bool: meets_spheres(...).any(axis=1)."""
-    return meets_spheres(o, d, centers, radii, infinite).any(axis=1)
+    """(N,) bool: meets_spheres(...).any(axis=1), stopping at the first sphere met."""
+    out = np.empty((len(o), 1 if len(radii) > 1 else len(radii)), np.bool_)
+    if out.shape[1] == 0:
+        return np.zeros(len(o), np.bool_)
+    sphere_meets(np.ascontiguousarray(o, np.float64), np.ascontiguousarray(d, np.float64),
+                 np.ascontiguousarray(centers, np.float64),
+                 np.ascontiguousarray(radii, np.float64), bool(infinite), out)
+    return out[:, 0]
 
 
 def meets_spheres(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
@@ -295,18 +301,13 @@ def meets_spheres(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.n
     spheres (centers (K,3), radii (K,)) could have drawn, sphere by sphere. Lights at infinity: the line
     passes within the radius of a centre (the sphere's shadow disk, emission.aim_origin);
     finite lights: the direction lies in the cone from the origin holding a sphere, every
-    direction from inside one (emission.aim_direction)."""
-    out = np.zeros((len(o), len(radii)), bool)
-    for k, (c, r) in enumerate(zip(centers, radii)):
-        t = c[None, :] - o
-        along = dot(t, d)
-        dist2 = np.einsum("ij,ij->i", t, t)
-        if infinite:
-            out[:, k] = dist2 - along * along <= r * r
-        else:
-            dist = np.sqrt(dist2)
-            cos_max = np.sqrt(np.maximum(0.0, 1.0 - r * r / np.maximum(dist2, 1e-300)))
-            out[:, k] = (dist <= r) | (along >= cos_max * dist)
+    direction from inside one (emission.aim_direction). One compiled kernel
+    (lights/emission.sphere_meets)."""
+    out = np.empty((len(o), len(radii)), np.bool_)
+    if out.size:
+        sphere_meets(np.ascontiguousarray(o, np.float64), np.ascontiguousarray(d, np.float64),
+                     np.ascontiguousarray(centers, np.float64),
+                     np.ascontiguousarray(radii, np.float64), bool(infinite), out)
     return out
 
 

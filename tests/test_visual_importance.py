@@ -165,3 +165,39 @@ def test_the_shot_is_the_same_for_any_worker_count():
     b, _, sb = _shoot(scene, True, photons=60_000, workers=2)
     assert sa["photon_importance"] == sb["photon_importance"]
     assert np.array_equal(a.position, b.position) and np.array_equal(a.power, b.power)
+
+
+@pytest.mark.parametrize("infinite", [False, True])
+def test_sphere_meets_is_the_cone_and_disk_test(infinite):
+    """meets_spheres / meets_region (one kernel, lights/emission.sphere_meets) against the
+    test written out in numpy: a light at infinity meets a sphere when the line passes
+    within its radius of the centre; a finite light when the direction lies in the cone
+    from the origin that holds the sphere, or the origin lies inside it."""
+    from engine.visualimportance import meets_region, meets_spheres
+    rng = np.random.default_rng(7)
+    n, K = 20_000, 12
+    o = rng.normal(size=(n, 3))
+    o[:50] = 0.0  # some origins inside a sphere
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    centers = rng.normal(size=(K, 3)) * 2.0
+    centers[0] = 0.0
+    radii = rng.uniform(0.05, 0.5, K)
+    want = np.zeros((n, K), bool)
+    for k in range(K):
+        t = centers[k] - o
+        along = (t * d).sum(axis=1)
+        dist2 = (t * t).sum(axis=1)
+        if infinite:
+            want[:, k] = dist2 - along ** 2 <= radii[k] ** 2
+        else:
+            dist = np.sqrt(dist2)
+            cos_max = np.sqrt(np.maximum(0.0, 1.0 - radii[k] ** 2 / np.maximum(dist2, 1e-300)))
+            want[:, k] = (dist <= radii[k]) | (along >= cos_max * dist)
+    got = meets_spheres(o, d, centers, radii, infinite)
+    assert 0.03 < want.any(axis=1).mean() < 0.9  # both outcomes well represented
+    # Ties at the boundary could round either way between numpy's and the kernel's sums.
+    assert (got != want).sum() <= 2
+    assert np.array_equal(meets_region(o, d, centers, radii, infinite), got.any(axis=1))
+    assert np.array_equal(meets_region(o, d, centers[:1], radii[:1], infinite), got[:, 0])
+    assert meets_region(o, d, centers[:0], radii[:0], infinite).shape == (n,)

@@ -47,6 +47,42 @@ def emit_uniform(key, slot, dim):
     return uniform(key, slot, EMIT_BOUNCE - dim // N_DIMS, dim % N_DIMS)
 
 
+@kernel
+def sphere_meets(o, d, centers, radii, infinite, out):
+    """Whether photons (origins o, unit directions d (N,3) float64) meet spheres (centers
+    (K,3), radii (K,)) as aimed emission could have drawn them (aim_origin /
+    aim_direction): lights at infinity (infinite) when the line passes within the radius
+    of a centre (the sphere's shadow disk); finite lights when the direction lies in the
+    cone from the origin holding the sphere, or the origin lies inside it.
+    out (N, K) bool: sphere by sphere; out (N, 1) with K > 1: whether any sphere (the
+    test stops at the first met). Operation for operation as the numpy it replaced
+    (visualimportance.meets_spheres before issue 13's s17: same booleans)."""
+    n, K = o.shape[0], radii.shape[0]
+    each = out.shape[1] == K
+    for i in range(n):
+        met_any = False
+        for k in range(K):
+            t0 = centers[k, 0] - o[i, 0]
+            t1 = centers[k, 1] - o[i, 1]
+            t2 = centers[k, 2] - o[i, 2]
+            along = t0 * d[i, 0] + t1 * d[i, 1] + t2 * d[i, 2]
+            dist2 = t0 * t0 + t1 * t1 + t2 * t2
+            r = radii[k]
+            if infinite:
+                met = dist2 - along * along <= r * r
+            else:
+                dist = math.sqrt(dist2)
+                cos_max = math.sqrt(max(0.0, 1.0 - r * r / max(dist2, 1e-300)))
+                met = dist <= r or along >= cos_max * dist
+            if each:
+                out[i, k] = met
+            elif met:
+                met_any = True
+                break
+        if not each:
+            out[i, 0] = met_any
+
+
 # ---------------------------------------------------------------------- sampling, scalar
 # One direction at a time, operation for operation as engine/sampling.py's numpy versions.
 
@@ -294,6 +330,10 @@ def _warm_up():
     from .environment import Environment
     from .base import emit_arrays
     emission_uniforms(1, np.zeros(1, np.int64), 2)
+    for infinite in (False, True):
+        for width in (1, 2):
+            sphere_meets(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((2, 3)), np.ones(2),
+                         infinite, np.zeros((1, width), np.bool_))
     z, ez = np.zeros(3), np.array([0.0, 0.0, 1.0])
     one = np.ones(3)
     common = dict(pos=z, dir=-ez, radius=0.1, center=z, scene_radius=1.0, flux=one,
