@@ -26,6 +26,11 @@ Prints Markdown tables:
   replaying every closest-hit and occlusion query it made (camera, shadow, final gather,
   gather-lookup visibility and specular rays) on one thread: the issue's "camera +
   shadow stages against raw Embree" for whole default renders, gathers included;
+- the final gather's regathers of a 1-worker render (`--only regather`, after only): ends
+  regathered per level and why (the lookup met a boundary point, or the gather ray was
+  short), their secondary-caustic k-NN queries (CPU us a query, and in raw Embree
+  closest-hit traversals of the same scene), and the regathers' CPU split by cProfile
+  (k-NN estimates, gather-map lookups, Embree, other kernels, Python / numpy glue);
 - where a 1-worker render's CPU time goes (cProfile on the process clock, after only):
   compiled kernels, Embree, and the Python / numpy glue between them, which holds the GIL
   and so bounds what a second worker can gain (Amdahl: 2 / (1 + glue share)).
@@ -265,6 +270,113 @@ print(json.dumps(dict(cpu=cpu, raw=raw, closest=closest, occluded=occluded,
                       hash=h.hexdigest())))
 """
 
+REGATHER = r"""
+import cProfile, collections, glob, json, os, pickle, re, sys, time
+sys.path.insert(0, ROOT)
+import numpy as np
+from engine.jit import ensure_compiled
+from engine.render import render
+from engine.settings import RenderSettings
+import engine.integrator as I
+import engine.photonmap as PM
+ensure_compiled()
+with open(PICKLE, "rb") as f:
+    scene = pickle.load(f)
+scene.width, scene.height = W, H
+kernels = set()
+for path in glob.glob(os.path.join(ROOT, "engine", "**", "*.py"), recursive=True):
+    lines = open(path).read().splitlines()
+    for i, line in enumerate(lines):
+        if line.strip() == "@kernel":
+            m = next((re.match(r"\s*def (\w+)", x) for x in lines[i + 1:i + 3]
+                      if re.match(r"\s*def (\w+)", x)), None)
+            if m:
+                kernels.add((os.path.basename(path), m.group(1)))
+count = collections.Counter()
+# (One worker: the wrappers below count from the only thread that calls them.)
+add_gathered, regather, irradiance = I.add_gathered, I._regather, PM.PhotonMap.irradiance
+def counted_add(E, idx, rows, tp, wd, Ey, G, boundary, lt, short, again_ok, again):
+    if again_ok:
+        lvl = sys._getframe(1).f_locals["level"] + 1
+        b, s = boundary.astype(bool), lt < short
+        count[f"lookups {lvl}"] += len(rows)
+        count[f"boundary {lvl}"] += int((b & ~s).sum())
+        count[f"short {lvl}"] += int((s & ~b).sum())
+        count[f"both {lvl}"] += int((s & b).sum())
+    return add_gathered(E, idx, rows, tp, wd, Ey, G, boundary, lt, short, again_ok, again)
+def timed_knn(self, p, *a, **kw):
+    if sys._getframe(1).f_code.co_name != "_secondary_irradiance":
+        return irradiance(self, p, *a, **kw)
+    c0 = time.process_time()
+    out = irradiance(self, p, *a, **kw)
+    count["knn s"] += time.process_time() - c0
+    count["knn queries"] += len(p)
+    return out
+pr = cProfile.Profile(time.process_time)
+def profiled(ctx, E, pending, G, rng, counters, level, *a):
+    if level:
+        return regather(ctx, E, pending, G, rng, counters, level, *a)
+    pr.enable()
+    try:
+        return regather(ctx, E, pending, G, rng, counters, level, *a)
+    finally:
+        pr.disable()
+def timed(ctx, E, pending, G, rng, counters, level, *a):
+    if level:
+        return regather(ctx, E, pending, G, rng, counters, level, *a)
+    c1 = time.process_time()
+    try:
+        return regather(ctx, E, pending, G, rng, counters, level, *a)
+    finally:
+        count["regathers s"] += time.process_time() - c1
+# Two renders of the same bits: one counts and times the regathers without the profiler
+# (whose per-call cost would read as glue; the counting wrappers cost ~1 % of it), one is
+# profiled.
+I.add_gathered, PM.PhotonMap.irradiance, I._regather = counted_add, timed_knn, timed
+c0 = time.process_time()
+film = render(scene, RenderSettings(workers=1))
+cpu = time.process_time() - c0
+I.add_gathered, PM.PhotonMap.irradiance, I._regather = add_gathered, irradiance, profiled
+render(scene, RenderSettings(workers=1))
+pr.create_stats()
+parts = dict(knn=0.0, lookup=0.0, embree=0.0, kernels=0.0, glue=0.0)
+glue = {}
+for (path, line, name), (cc, nc, tt, ct, callers) in pr.stats.items():
+    base = os.path.basename(path)
+    if name == "_irradiance_rows":
+        parts["knn"] += tt
+    elif name in ("_gather_candidates", "morton_order", "_agreeing_lists", "_list_rays",
+                  "_pick_visible"):
+        parts["lookup"] += tt
+    elif base == "accel.py" and name in ("work", "_occluded", "_intersect1"):
+        parts["embree"] += tt
+    elif (base, name) in kernels:
+        parts["kernels"] += tt
+    elif path != "<string>":  # (not this script's wrapper)
+        parts["glue"] += tt
+        key = f"{base}:{name}" if base != "~" else \
+            (name.split("'")[1] if name.startswith("<method '") else name.strip("<>"))
+        glue[key] = glue.get(key, 0.0) + tt
+stages = film.stats.get("ray_stages", {})
+# One Embree traversal of this scene: closest hits of rays from inside its box.
+from engine.render import prepare_context
+ctx = prepare_context(scene, RenderSettings(workers=1))
+rng = np.random.default_rng(1)
+lo, hi = ctx.geo.bounds
+o = lo + (hi - lo) * (0.25 + 0.5 * rng.random((200_000, 3)))
+d = rng.normal(size=(200_000, 3))
+d /= np.linalg.norm(d, axis=1)[:, None]
+acc = ctx.accel.serial()
+ray = float("inf")
+for _ in range(3):
+    c1 = time.process_time()
+    acc.intersect(o, d)
+    ray = min(ray, (time.process_time() - c1) / len(o))
+top = sorted(glue.items(), key=lambda x: -x[1])[:5]
+print(json.dumps(dict(cpu=cpu, count=dict(count), parts=parts, ray_ns=ray * 1e9, top=top,
+                      ends={k: v for k, v in stages.items() if k.startswith("regathered")})))
+"""
+
 COMPILE = r"""
 import json, sys, time
 t0 = time.perf_counter()
@@ -423,6 +535,30 @@ def camera_vs_embree(roots, blends, args, where):
                   f"{r['hash'][:8]} {same} |", flush=True)
 
 
+def regathers(roots, blends, args, where):
+    print(f"\n### The final gather's regathers, default settings, {args.width}x{args.height}, "
+          f"1 worker (after; render and regathers: CPU s unprofiled; their split: cProfile "
+          f"on the process clock, whose own per-call cost lands in the glue)\n")
+    print("| blend | render CPU s | regathers CPU s | ends level 1 / 2 | why regathered "
+          "(boundary / short / both), level 1; level 2 | secondary k-NN queries | us a query "
+          "| Embree ns a ray | traversals a query | profiled: k-NN / lookups / Embree / "
+          "kernels / glue s | largest glue items (s) |")
+    print("|---|---:|---:|---|---|---:|---:|---:|---:|---|---|")
+    for name in blends:
+        r = child(REGATHER, ROOT=roots["after"], PICKLE=exported(name, where), W=args.width,
+                  H=args.height)
+        c, p, e = r["count"], r["parts"], r["ends"]
+        ends = " / ".join(f"{e.get(f'regathered {lv}', 0):,}" for lv in (1, 2))
+        why = "; ".join(" / ".join(f"{c.get(f'{k} {lv}', 0):,}" for k in
+                                   ("boundary", "short", "both")) for lv in (1, 2))
+        q = c.get("knn queries", 0)
+        us = 1e6 * c.get("knn s", 0.0) / max(q, 1)
+        split = " / ".join(f"{p[k]:.2f}" for k in ("knn", "lookup", "embree", "kernels", "glue"))
+        print(f"| {name} | {r['cpu']:.1f} | {c.get('regathers s', 0.0):.2f} | {ends} | {why} | "
+              f"{q:,} | {us:.2f} | {r['ray_ns']:.0f} | {1e3 * us / r['ray_ns']:.0f} | {split} | "
+              f"{', '.join(f'{k} {v:.2f}' for k, v in r['top'])} |", flush=True)
+
+
 def glue_profile(roots, blends, args, where):
     print(f"\n### Where a 1-worker render's CPU goes (cProfile, process clock, "
           f"{args.width}x{args.height}, after)\n")
@@ -490,6 +626,8 @@ def main(argv=None):
         glue_profile(roots, blends, args, args.work)
     if "camera" in only:
         camera_vs_embree(roots, blends, args, args.work)
+    if "regather" in only:
+        regathers(roots, blends, args, args.work)
 
 
 if __name__ == "__main__":
