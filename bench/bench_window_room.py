@@ -4,6 +4,11 @@ by an area light without the window (case a_plain), optionally before / after a 
 
     .venv/bin/python bench/bench_window_room.py [--width 160] [--height 120] [--spp 128]
         [--workers 2] [--cases d_window,a_plain] [--base REV] [--repeat 1]
+        [--seed 0] [--save DIR]
+
+Case o_open is d_window with the window open (no glass slab): Cycles can render it, so
+it is the room to check an estimate against (docs/performance.md, "backside"). --save DIR
+keeps each render's image (DIR/TAG_CASE_sSEED.npy, (H, W, 3) float32) for comparisons.
 
 Each (checkout, case) renders in a fresh child process (its VmHWM is the render's peak,
 engine/resources.estimate_memory's prediction beside it), this checkout's first and --base
@@ -51,13 +56,14 @@ def _box(lo, hi, yaw=0.0):
     return corners, faces
 
 
-def room_scene(window: bool = True, width: int = 160, height: int = 120):
+def room_scene(window: bool = True, width: int = 160, height: int = 120,
+               glass: bool = True):
     """The trial's 4 x 4 x 3 m room of Principled-default walls (planes, one-sided
     geometry seen from both sides) with a red box. window=True (d_window): the right wall
     has a 1 x 1 m window closed by a 2 cm Glass BSDF slab (IOR 1.5, roughness 0), a sun
     (strength 5, angle 1 degree) shines in, the world is (0.05, 0.07, 0.1); False
     (a_plain): the right wall is whole, a 1 m square area light of 200 W hangs under the
-    ceiling, the world is black."""
+    ceiling, the world is black. glass=False (o_open): the window has no slab."""
     from engine.scene import Camera, Light, Material, Mesh, Scene
     L, W, H = 4.0, 4.0, 3.0
     default = Material("Default", (0.8, 0.8, 0.8), roughness=0.5, specular=1.0)
@@ -79,11 +85,12 @@ def room_scene(window: bool = True, width: int = 160, height: int = 120):
     meshes = [Mesh(name, *_rect(c, u, v), materials=["Default"]) for name, c, u, v in planes]
     meshes.append(Mesh("Box", *_box((0.5, 0.5, 0.0), (1.1, 1.1, 0.8), 0.4),
                        materials=["BoxMat"]))
-    if window:
+    if window and glass:
         mats["Glass"] = Material("Glass", (1, 1, 1), roughness=0.0, transmission=1.0,
                                  ior=1.5, specular=1.0, node="glass")
         meshes.append(Mesh("WindowSlab", *_box((x - 0.01, -0.5, 1.0), (x + 0.01, 0.5, 2.0)),
                            materials=["Glass"]))
+    if window:
         sun_dir = np.array([0.0, 0.0, 0.0]) - np.array([6.0, 0.5, 5.0])
         lights = [Light("Sun", "SUN", power=5.0, position=np.array([6.0, 0.5, 5.0]),
                         direction=sun_dir / np.linalg.norm(sun_dir),
@@ -108,10 +115,10 @@ def room_scene(window: bool = True, width: int = 160, height: int = 120):
                  background_is_light=True)
 
 
-CASES = {"d_window": True, "a_plain": False}
+CASES = {"d_window": (True, True), "a_plain": (False, True), "o_open": (True, False)}
 
 
-def child(case, width, height, spp, workers, photons):
+def child(case, width, height, spp, workers, photons, seed=0, save=None):
     """Render one case in this process (the checkout on sys.path[0]); print one JSON line."""
     import time
     sys.path.insert(0, os.getcwd())
@@ -121,8 +128,9 @@ def child(case, width, height, spp, workers, photons):
     jit.ensure_compiled()
     sys.path.insert(0, HERE)
     from procmem import hwm
-    scene = room_scene(CASES[case], width, height)
-    kw = dict(workers=workers, spp=spp)
+    window, glass = CASES[case]
+    scene = room_scene(window, width, height, glass=glass)
+    kw = dict(workers=workers, spp=spp, seed=seed)
     if photons:
         kw["photons"] = photons
     settings = RenderSettings(**kw)
@@ -146,17 +154,24 @@ def child(case, width, height, spp, workers, photons):
                                   "time_photon_map", "global_photons", "gather_rays_used",
                                   "ray_stages")}
     img = film.combined[..., :3].astype(np.float64)
+    if save:
+        np.save(save, img.astype(np.float32))
     out.update(cpu=cpu, wall=wall, peak=hwm(), start_rss=base_rss,
                estimate=None if estimate is None else float(estimate),
                mean=float(img.mean()), engine=os.path.dirname(jit.__file__))
     print("RESULT " + json.dumps(out, default=float))
 
 
-def run(root, case, args):
+def run(root, case, args, tag="this"):
     env = dict(os.environ)
     cmd = [sys.executable, os.path.abspath(__file__), "--child", case, "--width",
            str(args.width), "--height", str(args.height), "--spp", str(args.spp),
-           "--workers", str(args.workers), "--photons", str(args.photons)]
+           "--workers", str(args.workers), "--photons", str(args.photons),
+           "--seed", str(args.seed)]
+    if args.save:
+        os.makedirs(args.save, exist_ok=True)
+        cmd += ["--save", os.path.join(os.path.abspath(args.save),
+                                       f"{tag}_{case}_s{args.seed}.npy")]
     p = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True)
     for line in p.stdout.splitlines():
         if line.startswith("RESULT "):
@@ -184,10 +199,13 @@ def main():
     ap.add_argument("--base-root", default=None,
                     help="an extracted checkout to compare with (its kernels compiled)")
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--save", default=None, help="a folder to keep the images in")
     ap.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(args.child, args.width, args.height, args.spp, args.workers, args.photons)
+        child(args.child, args.width, args.height, args.spp, args.workers, args.photons,
+              args.seed, args.save)
         return
     roots = [("this", ROOT)]
     if args.base:
@@ -199,7 +217,7 @@ def main():
     for _ in range(args.repeat):
         for case in cases:
             for tag, root in roots:
-                r = run(root, case, args)
+                r = run(root, case, args, tag)
                 best = results.get((tag, case))
                 if best is None or r["cpu"] < best["cpu"]:
                     results[(tag, case)] = r

@@ -30,6 +30,18 @@ from .rayoffset import G32_PLANE, ulp32_scalar
 
 NORMAL_AGREEMENT = 0.5
 BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
+# ... or, with few photons, the offset a whole disc's n photons exceed with this
+# probability: |centroid| / r of n points uniform in a disc is about Rayleigh with
+# per-axis variance 1 / (4 n), so P(offset > t) = exp(-2 n t^2), and the limit is
+# sqrt(ln(1 / BOUNDARY_FALSE_ALARM) / (2 n)) where that exceeds BOUNDARY_OFFSET (n < 24).
+# A fixed 0.25 flagged a whole disc of 8 photons 37 % of the time, of 16 14 %, of 32 2 %:
+# the points kept (not gathered again) were those with more photons than their disc's
+# mean, and their lookups read bright: +3 % at 16 photons a disc, +11 % at 8, +32 % at 4
+# (a plane's sparse discs, capped at the search radius; tests/test_two_sided.py,
+# docs/performance.md "backside"). At a fixed false-alarm rate the flag no longer
+# depends on the count, so it selects no estimate.
+BOUNDARY_FALSE_ALARM = 0.05
+BOUNDARY_LOG = math.log(1.0 / BOUNDARY_FALSE_ALARM)
 MAX_CLASSIC_K = 4096
 MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accepted ones
 # The k-NN radius never shrinks below this share of the search radius. A lens focusing a
@@ -515,13 +527,16 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         # but the accepted ones lie off to one side: their centroid, in the tangent plane, is
         # more than BOUNDARY_OFFSET x rk from the point (a half disc gives 0.42 rk; 64 photons
         # of a whole disc scatter it by ~0.08 rk; a gradient needs a 100 % change across rk).
+        # With fewer than ~24 photons the limit grows (BOUNDARY_FALSE_ALARM): a half disc
+        # of n photons (0.42 rk) is still flagged from n ~ 9.
         mm = max(count, 1)
         cx, cy, cz = np.float64(c0) / mm, np.float64(c1) / mm, np.float64(c2) / mm
         fx, fy, fz = n[i, 0], n[i, 1], n[i, 2]
         dn = cx * fx + cy * fy + cz * fz
         cx, cy, cz = cx - dn * fx, cy - dn * fy, cz - dn * fz
         offset = math.sqrt(cx * cx + cy * cy + cz * cz) / rk
-        boundary[i] = b or offset > BOUNDARY_OFFSET
+        limit = max(BOUNDARY_OFFSET, math.sqrt(BOUNDARY_LOG / (2.0 * mm)))
+        boundary[i] = b or offset > limit
 
 
 @register_warm_up

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from engine.parallel import ordered_map
-from engine.photonmap import (BOUNDARY_OFFSET, MAX_CLASSIC_K, MAX_WIDEN_K,
+from engine.photonmap import (BOUNDARY_LOG, BOUNDARY_OFFSET, MAX_CLASSIC_K, MAX_WIDEN_K,
                               MIN_RADIUS_FRACTION, NORMAL_AGREEMENT)
 from engine.photons import Photons
 
@@ -242,12 +242,14 @@ class ReferencePhotonMap:
         # photons, but the accepted ones lie off to one side: their centroid, in the
         # tangent plane, is more than BOUNDARY_OFFSET x r from the point (a half disc
         # gives 0.42 r; 64 photons of a whole disc scatter it by ~0.08 r; a gradient
-        # needs a 100 % change across r to reach it).
+        # needs a 100 % change across r to reach it); with fewer than ~24 photons, more
+        # than a whole disc's n photons exceed with probability BOUNDARY_FALSE_ALARM.
         use = ok & inside
         m = np.maximum(np.count_nonzero(use, axis=1), 1)[:, None]
         rel = (np.take(ph.position, safe, axis=0) - p[:, None, :].astype(np.float32))
         c = np.einsum("nk,nkc->nc", use.astype(np.float32), rel) / m
         c -= np.einsum("nc,nc->n", c, n)[:, None] * n
         offset = np.sqrt(np.einsum("nc,nc->n", c, c)) / d_max[:, 0]
-        boundary |= offset > BOUNDARY_OFFSET
+        limit = np.maximum(BOUNDARY_OFFSET, np.sqrt(BOUNDARY_LOG / (2.0 * m[:, 0])))
+        boundary |= offset > limit
         return E, widen, boundary
