@@ -12,7 +12,8 @@ Sections: rays (engine vs raw embreex on the same rays), photons (per bounce), k
 memory (peak RSS, bytes per photon), workers (1 vs 2, same image), camera_workers (where
 two workers lose in a default render's camera stage: per-thread timeline of the chunks),
 critical_path (issue 13's 2 workers >= 1.8x: per stage the CPU on the critical path,
-traced through engine.parallel.Trace, predicted and measured speed-ups):
+traced through engine.parallel.Trace, predicted and measured speed-ups), faults (the
+minor page faults of a render by Python function / numpy call, 1 worker against 2):
 
     .venv/bin/python bench/bench_scaling.py --only critical_path --repeat 1 \\
         --blends figure6_box,figure7_blocker,principled_spheres_df2 --sizes 160x120,320x240
@@ -578,11 +579,29 @@ def traced_render(scene, settings):
     return stages, film, wall, cpu
 
 
+# Issue 14's Principled spheres (tools/accuracy_scenes.py, "principled_spheres") as the
+# add-on exports them for a render, pickled (the engine's scene, no bpy) when missing.
+_PRINCIPLED = """
+import pickle, sys
+sys.path.insert(0, ROOT)
+from tools import accuracy_scenes
+scene, _ = accuracy_scenes.export_ours("principled_spheres")
+with open(OUT, "wb") as f:
+    pickle.dump(scene, f)
+print("{}")
+"""
+
+
 def _scene(name):
     """/tmp/pk/<name>.pkl (engine scenes pickled without bpy) if present, else the example
-    blend exported through the add-on."""
+    blend exported through the add-on; principled_spheres_df2 (the Principled spheres,
+    rendered at default settings here) is exported once into /tmp/pk when missing."""
     import pickle
     pk = os.path.join("/tmp/pk", name + ".pkl")
+    if not os.path.exists(pk) and name == "principled_spheres_df2":
+        from bench_kernels import child
+        os.makedirs(os.path.dirname(pk), exist_ok=True)
+        child(_PRINCIPLED, ROOT=os.path.dirname(HERE), OUT=pk)
     if os.path.exists(pk):
         with open(pk, "rb") as f:
             return pickle.load(f)
@@ -691,9 +710,65 @@ def _critical_plot(a, sums):
     print(f"(plot: {a.plot})")
 
 
+def fault_profile(scene, settings):
+    """{place: minor page faults} of one render: each thread's faults
+    (getrusage(RUSAGE_THREAD), read at every profiler event of sys.setprofile /
+    threading.setprofile) charged to the Python function it ran, or to the C function
+    it called ("C name <- caller": numpy's allocations and copies); a compiled kernel's
+    faults fall to its dispatcher's name (the first touches of the arrays it writes).
+    Slow (a profiler event per call): for where, not how much time."""
+    faults = {}
+    tls = threading.local()
+    usage, who = resource.getrusage, resource.RUSAGE_THREAD
+
+    def profile(frame, event, arg):
+        now = usage(who).ru_minflt
+        last = getattr(tls, "last", None)
+        if last is not None and now != last:
+            faults[tls.key] = faults.get(tls.key, 0) + now - last
+        if event == "c_call":
+            tls.key = f"C {getattr(arg, '__qualname__', arg)} <- {frame.f_code.co_name}"
+        else:
+            tls.key = (f"{os.path.basename(frame.f_code.co_filename)}:"
+                       f"{frame.f_code.co_name}")
+        tls.last = usage(who).ru_minflt
+
+    threading.setprofile(profile)
+    sys.setprofile(profile)
+    try:
+        render(scene, settings)
+    finally:
+        sys.setprofile(None)
+        threading.setprofile(None)
+    return faults
+
+
+def sec_faults(a):
+    """Where a default render's minor page faults happen, 1 worker against 2 (each
+    thread's faults per Python function / numpy call: fault_profile), the places with the
+    most faults on either: which allocations a second worker's malloc arena makes fault
+    again (issue 13). --blends, --sizes as critical_path (the first size)."""
+    for name in a.blends:
+        scene = _scene(name)
+        scene.width, scene.height = 32, 24
+        render(scene, RenderSettings(workers=2, spp=4))  # kernels loaded, caches warm
+        w_, h_ = (int(x) for x in a.sizes[0].split("x"))
+        scene.width, scene.height = w_, h_
+        counts = {w: fault_profile(scene, RenderSettings(workers=w)) for w in (1, 2)}
+        places = sorted(set(counts[1]) | set(counts[2]),
+                        key=lambda k: -max(counts[1].get(k, 0), counts[2].get(k, 0)))
+        rows = [dict(place=k, faults_1w=counts[1].get(k, 0), faults_2w=counts[2].get(k, 0))
+                for k in places[:25]]
+        rows.append(dict(place="all", faults_1w=sum(counts[1].values()),
+                         faults_2w=sum(counts[2].values())))
+        table(f"minor faults by place, {name} {w_}x{h_} (load {os.getloadavg()[0]:.1f})",
+              rows)
+
+
 SECTIONS = dict(rays=sec_rays, photons=sec_photons, kdtree=sec_kdtree, scaling=sec_scaling,
                 memory=sec_memory, workers=sec_workers,
-                camera_workers=sec_camera_workers, critical_path=sec_critical_path)
+                camera_workers=sec_camera_workers, critical_path=sec_critical_path,
+                faults=sec_faults)
 
 
 def main(argv=None):

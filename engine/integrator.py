@@ -1225,6 +1225,25 @@ class BounceBuffers:
     def __init__(self):
         self.size = -1  # (-1: a first call for 0 rows still makes its empty arrays)
         self.direct = DirectLightBuffers()
+        self.paths = 0  # rows of the path-state arrays (paths_start)
+
+    def paths_start(self, n):
+        """(travelled (n,), org_ns (n,3), org_p (n,3), chain (n,3) int64): zeros, the
+        path state _trace_paths starts a chunk with. Kept by the thread between its
+        chunks: a fresh np.zeros of them on a worker thread (its own malloc arena) is
+        memset page by page, ~10 MB a chunk of first-touch faults (docs/performance.md,
+        "Seventeenth slice"). _trace_paths replaces them before it writes (keep_path_hits,
+        np.take, chain[keep]), so the next chunk finds them as it left them: zeros again
+        after the fill."""
+        if n > self.paths:
+            self.paths = n
+            self.travelled = np.zeros(n)
+            self.org_ns, self.org_p = np.zeros((n, 3)), np.zeros((n, 3))
+            self.chain = np.zeros((n, 3), np.int64)
+        else:
+            for a in (self.travelled, self.org_ns, self.org_p, self.chain):
+                a[:n] = 0
+        return self.travelled[:n], self.org_ns[:n], self.org_p[:n], self.chain[:n]
 
     def take(self, n):
         """(prm (n, N_PACK), sel (n, N_LOBES), p (n, N_LOBES - 1), q (n,), psum (n,),
@@ -1253,11 +1272,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     hw, _ = cam.half_extents(ctx.scene.width, ctx.scene.height)
     pixel = 2.0 * hw / ctx.scene.width
     ortho = cam.kind == "ORTHO"
-    travelled = np.zeros(len(o))
+    # The zeros the path state starts from (travelled, the shading normal and point where
+    # each path left: the world's MIS pdf, the light tree's choice; the chain's bounces),
+    # from the thread's buffers; replaced, never written in place (paths_start).
+    travelled, org_ns, org_p, chain = buffers.paths_start(len(o))
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
     pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
-    org_ns = np.zeros((len(o), 3))  # shading normal where it left (the world's MIS pdf)
-    org_p = np.zeros((len(o), 3))   # ... and the point (the light tree's choice there)
     modes = light_modes(ctx)
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
@@ -1277,7 +1297,6 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # still collects emission and the background where its ray ends (Cycles'
     # PATH_RAY_TERMINATE_AFTER_TRANSPARENT), but that hit is neither shaded nor continued.
     limits = s.bounce_limits
-    chain = np.zeros((len(o), 3), np.int64)  # (total, glossy, transmission) bounces
     # Each path's glass hits left to split (SPLIT_GLASS_HITS; None: the lobe choice
     # everywhere).
     may_split = (np.full(len(o), SPLIT_GLASS_HITS, np.int64)
