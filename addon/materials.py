@@ -13,8 +13,9 @@ on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight,
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
 Emission Color and as a Mix Shader's factor (per hit for two opaque surfaces and for
 cut-outs), and a Normal Map node (tangent or world space) fed by an Image Texture or a
-Bump node on 'Normal' inputs (docs/textures.md). Anything else falls back to its nearest approximation (the
-material's viewport colour when nothing else is known) and is reported once per material
+Bump node on 'Normal' inputs (docs/textures.md). Anything else falls back to its nearest approximation (another
+shader with a Color input: a Diffuse BSDF of that colour; the material's viewport colour
+when nothing else is known) and is reported once per material
 and node in a warning that names both.
 """
 from __future__ import annotations
@@ -504,6 +505,15 @@ class MaterialConverter:
             res.emission, res.emission_texture = _emission_mix(self.pm.shadernodes, 1.0, a,
                                                                1.0, b)
             return res
+        if node.inputs.get("Color") is not None:
+            # Toon, Translucent, Sheen, Subsurface Scattering, Hair ...: the node's own
+            # colour as a Diffuse BSDF is nearer than the viewport colour (a new user's blue
+            # Toon ball rendered grey).
+            self._warn(f"material '{self._mat.name}': shader '{node.name}' ({node.type}) is "
+                       "not supported; approximated by a Diffuse BSDF of its Color")
+            base, tex = self._color(node, "Color")
+            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
+                           normal_map=self._normal(node))
         self._unsupported(node)
         return self._viewport(self._mat)
 

@@ -56,6 +56,7 @@ def build_scene(bpy):
     mod.levels = mod.render_levels = 1
     toon, node = _material(bpy, "ToonMat", "ShaderNodeBsdfToon")
     node.name = "My Toon"
+    node.inputs["Color"].default_value = (0.7, 0.4, 0.2, 1.0)
     cube.data.materials.append(toon)
     # 2. A collection (not in the scene) holding a 1x1 quad, instanced twice.
     coll = bpy.data.collections.new("Inst")
@@ -133,7 +134,9 @@ def test_export_round_trip(fresh_scene, bpy_addon):
     warnings = out.all_warnings()
     hits = [w for w in warnings if "ToonMat" in w and "My Toon" in w]
     assert len(hits) == 1, warnings
-    np.testing.assert_allclose(out.materials["ToonMat"].base_color, (0.1, 0.2, 0.3), atol=1e-6)
+    assert "approximated by a Diffuse BSDF of its Color" in hits[0], hits
+    # Its own colour, not the viewport colour (0.1, 0.2, 0.3).
+    np.testing.assert_allclose(out.materials["ToonMat"].base_color, (0.7, 0.4, 0.2), atol=1e-6)
 
 
 def test_render_reports_export_warning(fresh_scene, bpy_addon):
