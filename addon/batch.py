@@ -104,6 +104,7 @@ class _StatusPrinter:
         self.film = None  # the engine's Film of the finished render
         self.effects = []
         self.warnings = []
+        self.done_line = None  # the engine's closing "Done: ..." in full, printed at close
 
     def _ensure_bar(self):
         if self.bar is None and not self.quiet:
@@ -136,9 +137,14 @@ class _StatusPrinter:
         if event in ("stats", "progress") and not self.quiet:
             bar = self._ensure_bar()
             if event == "stats":
-                if str(value).startswith(COMPILE_MESSAGE):
+                text = str(value)
+                if text.startswith(COMPILE_MESSAGE):
                     self.eta.restart()
-                bar.set_description_str(str(value), refresh=True)
+                if text.startswith("Done: "):
+                    # The bar's description column (46 characters) cut this summary off
+                    # mid-number ("... 139.0 s (+ 5.4"): the bar says Done, close() prints it.
+                    self.done_line, text = text, "Done"
+                bar.set_description_str(text, refresh=True)
             elif event == "progress":
                 self.eta.update(float(value))
                 n = int(round(1000 * min(max(float(value), 0.0), 1.0)))
@@ -155,6 +161,8 @@ class _StatusPrinter:
         # ("Warning: Photon Mapping: ...") in background mode (self.warnings keeps them).
         if not self.quiet:
             if self.status == "done":
+                if self.done_line:
+                    print(self.done_line, file=self.stream)
                 for line in self.effects:
                     print(f"  {line}", file=self.stream)
 

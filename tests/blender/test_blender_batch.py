@@ -33,6 +33,8 @@ def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
         assert phase in err, err[-2000:]
     assert re.search(r"\d+% \[\d\d:\d\d<\d\d:\d\d\]", err), err[-2000:]  # bar with ETA
     assert "100%" in err
+    # the closing summary whole, on its own line (the bar's column cut it off)
+    assert re.search(r"^Done: \d+ triangles, \d+ lights?, [\d.]+ s", err, re.M), err[-2000:]
     assert re.search(r"^  indirect light .*: on", err, re.M), err[-2000:]  # effect report
     assert re.search(r"^  caustics: on", err, re.M)
     # the whole run split: the render, a first run's kernel compile, the rest
