@@ -545,7 +545,10 @@ def _main(argv, interrupt) -> int:
     from addon import engine
     render_s = float(engine.last_render.get("time", 0.0))
     compile_s = float((engine.last_render.get("stats") or {}).get("time_compile") or 0.0)
-    compiled = f", compiling the render kernels {compile_s:.1f} s" if compile_s >= 0.5 else ""
+    words = ("compiling the render kernels"
+             if (engine.last_render.get("stats") or {}).get("kernels_compiled", True)
+             else "loading the compiled render kernels")
+    compiled = f", {words} {compile_s:.1f} s" if compile_s >= 0.5 else ""
     print(f"wrote {out} ({total:.1f} s: rendering {render_s:.1f} s{compiled}, Blender start-up, "
           f"loading the .blend and writing the image "
           f"{max(total - render_s - compile_s, 0.0):.1f} s)")

@@ -40,6 +40,12 @@ last_render: dict = {}
 status_listeners: list = []
 
 
+def _kernel_words(compiled: bool) -> str:
+    """What the kernels' seconds were: a first render compiles them (once per machine),
+    later processes load them from the cache."""
+    return "compiling the kernels" if compiled else "loading the compiled kernels"
+
+
 def _overall_fraction(stage: str, fraction: float, photon_mapping: bool) -> float:
     if not photon_mapping:
         spans = {"export": (0.0, 0.05), "render": (0.05, 0.95)}
@@ -190,7 +196,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         view_layer = depsgraph.view_layer
         self._stats("Loading engine")
         pm = load_engine()
-        if pm.jit.needs_compile():  # ~20 s, once per machine: say why the render waits
+        compiling = pm.jit.needs_compile()
+        if compiling:  # ~20 s, once per machine: say why the render waits
             self._stats(pm.jit.COMPILE_MESSAGE)  # stats line and the batch command's bar
             if not self._listeners:  # the batch's bar shows it; a print would split the bar
                 print(f"Photon Mapping: {pm.jit.COMPILE_MESSAGE}", flush=True)
@@ -251,6 +258,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         # name, the real time; `time` is the render after it).
         stats = dict(film.stats)
         stats["time_compile"] = compile_seconds + float(stats.get("time_compile") or 0.0)
+        # Loading cached kernels takes ~1 s too: "compiling" only when they were compiled.
+        stats["kernels_compiled"] = bool(compiling)
         last_render.clear()
         last_render.update(width=film.width, height=film.height, full_size=(width, height),
                            region=region, stats=stats, warnings=list(film.warnings),
@@ -268,7 +277,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         n = info['lights']
         compiled = stats["time_compile"]
         summary = (f"{info['triangles']} triangles, {n} light{'' if n == 1 else 's'}, "
-                   f"{elapsed:.1f} s" + (f" (+ {compiled:.1f} s compiling the kernels)"
+                   f"{elapsed:.1f} s" + (f" (+ {compiled:.1f} s "
+                                         f"{_kernel_words(compiling)})"
                                          if compiled >= 0.5 else ""))
         if cancelled:
             self.report({"INFO"}, f"Photon Mapping: render cancelled ({summary})")
