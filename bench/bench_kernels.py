@@ -138,6 +138,20 @@ print(json.dumps(dict(ray_us=ray_s / m * 1e6, lookup_us=look_s / hit.sum() * 1e6
                       found=float(np.mean(~B)), Esum=float(E.sum()))))
 """
 
+# The engine's kernels, (module file, function), read from the sources: the child scripts'
+# profiles count time inside them as "kernels".
+KERNEL_NAMES = r"""
+kernels = set()
+for path in glob.glob(os.path.join(ROOT, "engine", "**", "*.py"), recursive=True):
+    lines = open(path).read().splitlines()
+    for i, line in enumerate(lines):
+        if line.strip() == "@kernel":
+            m = next((re.match(r"\s*def (\w+)", x) for x in lines[i + 1:i + 3]
+                      if re.match(r"\s*def (\w+)", x)), None)
+            if m:
+                kernels.add((os.path.basename(path), m.group(1)))
+"""
+
 PROFILE = r"""
 import cProfile, glob, json, os, pickle, re, sys, time
 sys.path.insert(0, ROOT)
@@ -148,15 +162,7 @@ ensure_compiled()
 with open(PICKLE, "rb") as f:
     scene = pickle.load(f)
 scene.width, scene.height = W, H
-kernels = set()
-for path in glob.glob(os.path.join(ROOT, "engine", "**", "*.py"), recursive=True):
-    lines = open(path).read().splitlines()
-    for i, line in enumerate(lines):
-        if line.strip() == "@kernel":
-            m = next((re.match(r"\s*def (\w+)", x) for x in lines[i + 1:i + 3]
-                      if re.match(r"\s*def (\w+)", x)), None)
-            if m:
-                kernels.add((os.path.basename(path), m.group(1)))
+""" + KERNEL_NAMES + r"""
 pr = cProfile.Profile(time.process_time)
 pr.enable()
 film = render(scene, RenderSettings(workers=1))
@@ -283,15 +289,7 @@ ensure_compiled()
 with open(PICKLE, "rb") as f:
     scene = pickle.load(f)
 scene.width, scene.height = W, H
-kernels = set()
-for path in glob.glob(os.path.join(ROOT, "engine", "**", "*.py"), recursive=True):
-    lines = open(path).read().splitlines()
-    for i, line in enumerate(lines):
-        if line.strip() == "@kernel":
-            m = next((re.match(r"\s*def (\w+)", x) for x in lines[i + 1:i + 3]
-                      if re.match(r"\s*def (\w+)", x)), None)
-            if m:
-                kernels.add((os.path.basename(path), m.group(1)))
+""" + KERNEL_NAMES + r"""
 count = collections.Counter()
 # (One worker: the wrappers below count from the only thread that calls them.)
 add_gathered, regather, irradiance = I.add_gathered, I._regather, PM.PhotonMap.irradiance
