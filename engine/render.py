@@ -616,7 +616,9 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
         return []
     parts = []
     # "caustic photons" beside "caustics: off" read as a contradiction (new-user trial).
-    held = "glow photons (Caustic pass)" if glow_only else "caustic photons"
+    # "57 glow photons (Caustic pass)" did not say what glow (new-user trial s17).
+    held = ("photons of soft glow (light through window glass or off rough specular layers: "
+            "the Caustic pass)" if glow_only else "caustic photons")
     if stats.get("global_photons"):
         parts.append(f"{stats['global_photons']:,} global photons stored, search radius "
                      f"{stats['radius_global']:.4g} m")

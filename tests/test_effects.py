@@ -484,7 +484,8 @@ def test_glow_only_caustic_map_is_not_called_caustic_photons():
     stats = dict(global_photons=20_000, radius_global=0.2, caustic_photons=1_500,
                  radius_caustic=0.2)
     line = photon_map_report(RenderSettings(), stats, glow_only=plan.caustics_glow_only)[0]
-    assert "1,500 glow photons (Caustic pass) stored, each estimate from its 64 nearest: " \
+    assert "1,500 photons of soft glow (light through window glass or off rough specular " \
+        "layers: the Caustic pass) stored, each estimate from its 64 nearest: " \
         "as narrow as they lie, at most the global search radius" in line, line
     assert "caustic photons" not in line, line
     sharp = _plan(_room(rough, extra=(("glass", "Ball"),)))
