@@ -545,9 +545,8 @@ def _main(argv, interrupt) -> int:
     from addon import engine
     render_s = float(engine.last_render.get("time", 0.0))
     compile_s = float((engine.last_render.get("stats") or {}).get("time_compile") or 0.0)
-    words = ("compiling the render kernels"
-             if (engine.last_render.get("stats") or {}).get("kernels_compiled", True)
-             else "loading the compiled render kernels")
+    words = engine.kernel_words((engine.last_render.get("stats") or {})
+                                .get("kernels_compiled", True))
     compiled = f", {words} {compile_s:.1f} s" if compile_s >= 0.5 else ""
     print(f"wrote {out} ({total:.1f} s: rendering {render_s:.1f} s{compiled}, Blender start-up, "
           f"loading the .blend and writing the image "

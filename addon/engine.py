@@ -40,9 +40,9 @@ last_render: dict = {}
 status_listeners: list = []
 
 
-def _kernel_words(compiled: bool) -> str:
+def kernel_words(compiled: bool) -> str:
     """What the kernels' seconds were: a first render compiles them (once per machine),
-    later processes load them from the cache."""
+    later processes load them from the cache (the stats line, the batch's last line)."""
     return "compiling the kernels" if compiled else "loading the compiled kernels"
 
 
@@ -278,7 +278,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         compiled = stats["time_compile"]
         summary = (f"{info['triangles']} triangles, {n} light{'' if n == 1 else 's'}, "
                    f"{elapsed:.1f} s" + (f" (+ {compiled:.1f} s "
-                                         f"{_kernel_words(compiling)})"
+                                         f"{kernel_words(compiling)})"
                                          if compiled >= 0.5 else ""))
         if cancelled:
             self.report({"INFO"}, f"Photon Mapping: render cancelled ({summary})")

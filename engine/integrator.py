@@ -117,7 +117,6 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     if n == 0 or not samples:
         return np.zeros((n, 3))
     packed = ctx.packed_lights or pack_lights(ctx.lights)
-    tree = None
     if bsdf is not None:
         fd, prm, sel = bsdf
         if chosen is not None:
@@ -131,10 +130,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
                 np.ascontiguousarray(hit.wo, np.float64), mode,
                 np.ascontiguousarray(sel, np.float64))
-    if chosen is not None:
-        tree = chosen[1]
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
-                           SHADOW, n, shadow=getattr(ctx, "shadow", None), tree=tree,
+                           SHADOW, n, shadow=getattr(ctx, "shadow", None),
+                           tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows)
     counters.shadow_rays += rays
     return E
@@ -1233,8 +1231,8 @@ class BounceBuffers:
         chunks: a fresh np.zeros of them on a worker thread (its own malloc arena) is
         memset page by page, ~10 MB a chunk of first-touch faults (docs/performance.md,
         "Seventeenth slice"). _trace_paths replaces them before it writes (keep_path_hits,
-        np.take, chain[keep]), so the next chunk finds them as it left them: zeros again
-        after the fill."""
+        np.take, chain[keep]); the fill keeps them zero even if it one day writes in place,
+        and costs no faults on pages already mapped."""
         if n > self.paths:
             self.paths = n
             self.travelled = np.zeros(n)

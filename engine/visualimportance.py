@@ -286,13 +286,8 @@ def can_aim(light) -> bool:
 def meets_region(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
                  infinite: bool) -> np.ndarray:
     """(N,) bool: meets_spheres(...).any(axis=1), stopping at the first sphere met."""
-    out = np.empty((len(o), 1 if len(radii) > 1 else len(radii)), np.bool_)
-    if out.shape[1] == 0:
-        return np.zeros(len(o), np.bool_)
-    sphere_meets(np.ascontiguousarray(o, np.float64), np.ascontiguousarray(d, np.float64),
-                 np.ascontiguousarray(centers, np.float64),
-                 np.ascontiguousarray(radii, np.float64), bool(infinite), out)
-    return out[:, 0]
+    met = _sphere_test(o, d, centers, radii, infinite, any_sphere=True)
+    return met[:, 0] if met.shape[1] else np.zeros(len(o), np.bool_)
 
 
 def meets_spheres(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
@@ -301,13 +296,19 @@ def meets_spheres(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.n
     spheres (centers (K,3), radii (K,)) could have drawn, sphere by sphere. Lights at infinity: the line
     passes within the radius of a centre (the sphere's shadow disk, emission.aim_origin);
     finite lights: the direction lies in the cone from the origin holding a sphere, every
-    direction from inside one (emission.aim_direction). One compiled kernel
-    (lights/emission.sphere_meets)."""
-    out = np.empty((len(o), len(radii)), np.bool_)
+    direction from inside one (emission.aim_direction)."""
+    return _sphere_test(o, d, centers, radii, infinite, any_sphere=False)
+
+
+def _sphere_test(o, d, centers, radii, infinite, any_sphere):
+    """lights/emission.sphere_meets on float64 copies where needed: (N, K) bool, or (N, 1)
+    whether any sphere is met when any_sphere (and K > 1)."""
+    K = len(radii)
+    out = np.empty((len(o), 1 if any_sphere and K > 1 else K), np.bool_)
     if out.size:
-        sphere_meets(np.ascontiguousarray(o, np.float64), np.ascontiguousarray(d, np.float64),
-                     np.ascontiguousarray(centers, np.float64),
-                     np.ascontiguousarray(radii, np.float64), bool(infinite), out)
+        c = np.ascontiguousarray
+        sphere_meets(c(o, np.float64), c(d, np.float64), c(centers, np.float64),
+                     c(radii, np.float64), bool(infinite), out)
     return out
 
 

@@ -39,7 +39,7 @@ def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
     assert re.search(r"^  caustics: on", err, re.M)
     # the whole run split: the render, a first run's kernel compile, the rest
     assert re.search(r"wrote .* \([\d.]+ s: rendering [\d.]+ s(, (compiling|loading the "
-                     r"compiled) render kernels [\d.]+ s)?, Blender start-up, loading the "
+                     r"compiled) kernels [\d.]+ s)?, Blender start-up, loading the "
                      r"\.blend and "
                      r"writing the image [\d.]+ s\)", res.stdout), res.stdout[-2000:]
     assert out.is_file()
