@@ -916,15 +916,19 @@ def smooth_min_photons(settings) -> int:
 
 
 def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
-                     per_pixel=None, every=None):
+                     per_pixel=None, every=None, into=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most per_pixel samples per pixel (default
     CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius
     on the surface; a focus is spread over at least that (a point focus hit by few
     samples makes fireflies). every: (N,) bool, rows that take the estimate at every
     sample (unweighted): hits past a rough bounce, where one pixel's samples scatter over
-    the surface and a stride would multiply the estimate's noise; None: none."""
-    out = np.zeros_like(f)
+    the surface and a stride would multiply the estimate's noise; None: none.
+    into: (N,3) float64 to add the estimate to (its rows that take one), returned; None:
+    a fresh array (zero where no estimate is taken). Adding into the caller's sum at the
+    estimated rows only spares an (N,3) array of mostly zeros, its fill and its sum
+    (one row in `stride` takes an estimate; the other rows' x + 0.0 is x)."""
+    out = np.zeros_like(f) if into is None else into
     if pmap is None or len(pmap) == 0:
         return out
     s = ctx.settings
@@ -936,9 +940,14 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     else:
         sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
         weight = smooth_sample_weight(s.spp, stride)
-    E = pmap.irradiance(hit.p[sel], hit.ng[sel], radius, s.k_nearest, smooth_min_photons(s),
-                        s.estimator, r_floor=None if footprint is None else footprint[sel])
-    out[sel] = weight * f[sel] * E
+    # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
+    E = pmap.irradiance(np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0), radius,
+                        s.k_nearest, smooth_min_photons(s), s.estimator,
+                        r_floor=None if footprint is None else np.take(footprint, sel))
+    if into is None:
+        out[sel] = weight * np.take(f, sel, axis=0) * E
+    else:
+        out[sel] += weight * np.take(f, sel, axis=0) * E
     return out
 
 
@@ -985,12 +994,12 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
         return direct, None, None  # (no caustic or indirect term to add)
     if rows is not None:
         hit = hit.take(rows)  # the photon estimates read the rows' fields (copied on read)
-    caustic = np.zeros_like(direct)
-    indirect = np.zeros_like(direct)
     if glossy is not None:
         # Photon estimates only where the diffuse lobe is (glossy-only rows add nothing).
         dsel = np.nonzero(max3(wd) > 0)[0]
         if len(dsel) < len(wd):
+            caustic = np.zeros_like(direct)
+            indirect = np.zeros_like(direct)
             sub = hit.take(dsel)
             if sampler is not None:
                 sampler = sampler.subset(dsel)
@@ -1011,20 +1020,21 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered:
     shade_diffuse's."""
     s = ctx.settings
-    caustic = np.zeros_like(f)
-    indirect = np.zeros_like(f)
-    if s.photon_mapping:
-        caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
-                                   footprint, every=scattered)
-        if ctx.gather_map is not None:
-            indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
-                                           should_cancel=should_cancel)
-            indirect += _smooth_estimate(ctx, ctx.secondary_map,
-                                         ctx.secondary_radius or ctx.global_radius, hit, f,
-                                         sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL)
-        elif ctx.global_map is not None and len(ctx.global_map):
-            indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
-                                                     s.k_nearest, s.min_photons, s.estimator)
+    if not s.photon_mapping:
+        return np.zeros_like(f), np.zeros_like(f)
+    caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
+                               footprint, every=scattered)
+    if ctx.gather_map is not None:
+        indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
+                                       should_cancel=should_cancel)
+        _smooth_estimate(ctx, ctx.secondary_map, ctx.secondary_radius or ctx.global_radius,
+                         hit, f, sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL,
+                         into=indirect)
+    elif ctx.global_map is not None and len(ctx.global_map):
+        indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
+                                                 s.k_nearest, s.min_photons, s.estimator)
+    else:
+        indirect = np.zeros_like(f)
     return caustic, indirect
 
 
