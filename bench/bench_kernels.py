@@ -184,7 +184,35 @@ for (path, line, name), (cc, nc, tt, ct, callers) in pr.stats.items():
             (name.split("'")[1] if name.startswith("<method '") else name.strip("<>"))
         glue[key] = glue.get(key, 0.0) + tt
 top = sorted(glue.items(), key=lambda x: -x[1])[:6]
-print(json.dumps(dict(parts=parts, top=top, camera=film.stats.get("time_camera", 0.0))))
+# Every function by its own time (tottime), named and sorted, with its category; and the
+# camera pass's stages by their inclusive time (cumtime; a recursive stage counted once).
+own = {}
+for (path, line, name), (cc, nc, tt, ct, callers) in pr.stats.items():
+    base = os.path.basename(path)
+    cat = ("kernel" if (base, name) in kernels else
+           "embree" if base == "accel.py" and name in ("work", "_occluded") else
+           "wait / compile" if "acquire" in name or "/numba/" in path or "llvmlite" in path
+           else "glue")
+    key = f"{base}:{name}" if base != "~" else \
+        (name.split("'")[1] if name.startswith("<method '") else name.strip("<>"))
+    o = own.setdefault(key, [cat, 0.0, 0])
+    o[1] += tt
+    o[2] += nc
+ranked = sorted(([k, *v] for k, v in own.items()), key=lambda x: -x[2])[:TOP]
+STAGES = (("render.py", "shoot_photons"), ("render.py", "_build_maps"),
+          ("integrator.py", "render_camera"), ("integrator.py", "direct_irradiance"),
+          ("integrator.py", "gather_indirect"), ("integrator.py", "_regather"),
+          ("integrator.py", "_secondary_irradiance"), ("integrator.py", "_smooth_estimate"),
+          ("photonmap.py", "lookup"), ("photonmap.py", "irradiance"),
+          ("integrator.py", "continue_specular"), ("bsdf.py", "surface_hit_lobes"),
+          ("bsdf.py", "surface_hit"))
+cum = {f"{b}:{n}": 0.0 for b, n in STAGES}
+for (path, line, name), (cc, nc, tt, ct, callers) in pr.stats.items():
+    key = f"{os.path.basename(path)}:{name}"
+    if key in cum:
+        cum[key] += ct
+print(json.dumps(dict(parts=parts, top=top, camera=film.stats.get("time_camera", 0.0),
+                      ranked=ranked, stages=cum)))
 """
 
 MAPS = r"""
@@ -563,9 +591,10 @@ def glue_profile(roots, blends, args, where):
     print("| blend | profiled CPU s | kernels s | Embree s | Python + numpy glue s | glue share "
           "| 2-worker bound | largest glue items (s) |")
     print("|---|---:|---:|---:|---:|---:|---:|---|")
+    ranked = []
     for name in blends:
         r = child(PROFILE, ROOT=roots["after"], PICKLE=exported(name, where), W=args.width,
-                  H=args.height)
+                  H=args.height, TOP=args.top)
         p = r["parts"]
         total = sum(p.values())
         share = p["glue"] / total
@@ -573,6 +602,19 @@ def glue_profile(roots, blends, args, where):
         print(f"| {name} | {total:.1f} | {p['kernels']:.1f} | {p['embree']:.1f} | "
               f"{p['glue']:.1f} | {100 * share:.0f} % | {2 / (1 + share):.2f}x | {top} |",
               flush=True)
+        ranked.append((name, total, r))
+    for name, total, r in ranked:
+        print(f"\n#### {name}: stages (inclusive CPU s, profiled; camera pass "
+              f"{r['stages']['integrator.py:render_camera']:.2f} s)\n")
+        print("| stage | CPU s | share of render |")
+        print("|---|---:|---:|")
+        for k, v in sorted(r["stages"].items(), key=lambda x: -x[1]):
+            print(f"| {k} | {v:.2f} | {100 * v / total:.1f} % |")
+        print(f"\n#### {name}: functions by own CPU (profiled, top {len(r['ranked'])})\n")
+        print("| function | kind | own CPU s | share of render | calls |")
+        print("|---|---|---:|---:|---:|")
+        for k, cat, tt, nc in r["ranked"]:
+            print(f"| {k} | {cat} | {tt:.2f} | {100 * tt / total:.1f} % | {nc:,} |")
 
 
 def main(argv=None):
@@ -593,6 +635,8 @@ def main(argv=None):
     ap.add_argument("--only", default="compile,lookups,end_to_end,maps,memory,profile")
     ap.add_argument("--quick", action="store_true",
                     help="160x120, Figure 7 only, 2 workers, two resolutions, one photon count")
+    ap.add_argument("--top", type=int, default=25,
+                    help="profile: functions listed by their own CPU time")
     ap.add_argument("--work", default=os.path.join(tempfile.gettempdir(), "bench_kernels"))
     args = ap.parse_args(argv)
     args.workers = [int(w) for w in args.workers.split(",")]
