@@ -400,7 +400,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
 
     # --- specular chains -------------------------------------------------------------------
     visible = _visible_specular(scene, geo, table, accel) if spec_tri.any() else []
-    sharp_seen = []
+    sharp_seen, kinds = [], {}
     if not spec_tri.any():
         auto, why = False, "no mirror, glass or glossy coat in the scene"
     elif not visible:
@@ -417,12 +417,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # specular layer)", casts no caustic and shows no mirror image (new-user trial,
         # s17); its highlights (light sampling) and blurred reflections (the same camera
         # paths) are named after.
-        sharp_seen, rough_seen = _split_sharp(geo, table, visible)
+        sharp_seen, rough_seen, kinds = _split_sharp(geo, table, visible)
         through = (" through " + _labelled(geo, table, sharp_seen[:4])
                    + (" ..." if len(sharp_seen) > 4 else "") if sharp_seen
                    else ": no mirror, glass or sharp glossy surface in view")
         rough_part = ("; glossy highlights (light sampling) and blurred reflections, no "
-                      "mirror image, on " + _rough_words(geo, table, rough_seen)
+                      "mirror image, on " + _rough_words(geo, table, rough_seen, kinds)
                       if rough_seen else "")
         bounces = f"{s.camera_depth} bounce" + ("s" if s.camera_depth != 1 else "")
         auto, why = True, f"up to {bounces} ({limit}){through}{rough_part}"
@@ -434,7 +434,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         on = _override(s.specular, auto, "specular reflection / refraction", why, plan)
     plan.specular_depth = s.max_depth if on else 0
     if on:
-        _warn_max_ray_depth(plan, s, geo, table, sharp_seen)
+        _warn_max_ray_depth(plan, s, {n: kinds[n] for n in sharp_seen})
 
     # --- lights: soft shadows, shadow rays ------------------------------------------------
     nothing_occludes = has_tris and _single_flat_surface(geo, np.ones(geo.count, bool))
@@ -518,15 +518,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     return plan
 
 
-def _warn_max_ray_depth(plan: EffectPlan, s, geo: Geometry, table: MaterialTable,
-                        sharp_seen) -> None:
+def _warn_max_ray_depth(plan: EffectPlan, s, kinds: dict) -> None:
     """A warning where Max Ray Depth (settings.max_depth, an extra cap on camera chains)
     stops camera paths through the glass or mirrors in view before the Light Paths limit
     of their kind does: Transmission 12 was silently capped by Max Ray Depth 8 (new-user
     trial, s16; the limits line says it too, but a capped glass chain looks dark, so it
-    is said where a mistake is said)."""
-    ids = {n: i for i, n in enumerate(geo.object_names)}
-    kinds = {n: specular_kind(geo, table, ids[n]) for n in sharp_seen if n in ids}
+    is said where a mistake is said). kinds: {object in view: specular_kind}."""
     plural = "s" if s.max_depth != 1 else ""
     for setting, count, names in (
             ("Transmission", s.transmission_bounces,
@@ -636,17 +633,6 @@ _KIND_ORDER = ("mirror", "glass", "polished metal", "metal", "transparent", "glo
                "rough glossy", "matte")
 
 
-def _sharp_first(geo: Geometry, table: MaterialTable, names) -> list:
-    """names reordered by their specular_kind (_KIND_ORDER; stable within a kind)."""
-    ids = {n: i for i, n in enumerate(geo.object_names)}
-
-    def rank(n):
-        kind = specular_kind(geo, table, ids[n]) if n in ids else ""
-        return _KIND_ORDER.index(kind) if kind in _KIND_ORDER else len(_KIND_ORDER)
-
-    return sorted(names, key=rank)
-
-
 def _quoted(names, most: int | None = 4) -> str:
     """"'a', 'b', 'c', 'd' ..." for a report line: the first `most` names (None: all)
     quoted, " ..." where more were left off."""
@@ -670,29 +656,35 @@ def _labelled(geo: Geometry, table: MaterialTable, names) -> str:
     return ", ".join(out)
 
 
-def _split_sharp(geo: Geometry, table: MaterialTable, names) -> tuple[list, list]:
+def _split_sharp(geo: Geometry, table: MaterialTable, names) -> tuple[list, list, dict]:
     """names split into those sharp enough to be handled as specular (SHARP_KINDS: a
     mirror image, a refraction) and the rough ones (glossy highlights, blurred
-    reflections), each in _sharp_first's order."""
+    reflections), each in _KIND_ORDER (stable within a kind: a room's rough walls
+    listed first hid the mirrors behind "..."); and {name: specular_kind}."""
     ids = {n: i for i, n in enumerate(geo.object_names)}
-    names = _sharp_first(geo, table, names)
-    sharp = [n for n in names if n not in ids or specular_kind(geo, table, ids[n]) in SHARP_KINDS]
-    return sharp, [n for n in names if n not in sharp]
+    # Each object's kind once: specular_kind reads all of the scene's triangles.
+    kinds = {n: specular_kind(geo, table, ids[n]) if n in ids else "" for n in names}
+    rank = {k: i for i, k in enumerate(_KIND_ORDER)}
+    names = sorted(names, key=lambda n: rank.get(kinds[n], len(_KIND_ORDER)))
+    sharp = [n for n in names if kinds[n] in SHARP_KINDS or not kinds[n]]
+    return sharp, [n for n in names if kinds[n] and kinds[n] not in SHARP_KINDS], kinds
 
 
-def _rough_words(geo: Geometry, table: MaterialTable, names) -> str:
+def _rough_words(geo: Geometry, table: MaterialTable, names, kinds: dict) -> str:
     """"the rough specular layers of 'Floor', 'BackWall', rough glossy 'Ball' (Glossy
     BSDF, roughness 0.5)": rough objects for the specular line, a Principled base's or
     coat's layer by name only (its kind, "matte" or "rough glossy", did not read as
-    specular: new-user trial), a rough Glossy BSDF or metal with its closure."""
+    specular: new-user trial), a rough Glossy BSDF or metal with its closure. kinds:
+    {name: specular_kind}."""
     ids = {n: i for i, n in enumerate(geo.object_names)}
-    layers, others = [], []
-    for n in names:
-        kind = specular_kind(geo, table, ids[n])
-        if kind in ("matte", "rough glossy") and not _closure_words(geo, table, ids[n], kind):
-            layers.append(n)
-        else:
-            others.append(n)
+
+    def glossy_node(n):
+        mats = np.unique(geo.material[geo.object_id == ids[n]])
+        return bool(_is_glossy_node(table, mats).any())
+
+    layers = [n for n in names if kinds[n] == "matte"
+              or (kinds[n] == "rough glossy" and not glossy_node(n))]
+    others = [n for n in names if n not in layers]
     parts = []
     if layers:
         parts.append("the rough specular layer" + ("s" if len(layers) > 1 else "") + " of "
