@@ -17,15 +17,17 @@ def test_batch_warnings_in_a_shared_log_start_on_their_own_line(tmp_path):
     # Max Ray Depth 1 below Glossy 4 with the glossy sphere in view: the effect analysis
     # warns (engine/effects.py, _warn_max_ray_depth).
     with open(log, "wb") as f:
-        res = subprocess.run([PYTHON, "-m", "addon.batch", os.path.join(BLENDS, "figure3_sphere.blend"),
-                              "-o", str(tmp_path / "f3.png"), "--samples", "2", "--photons", "5000",
-                              "--caustic-photons", "2000", "--resolution-percentage", "25",
-                              "--max-depth", "1"],
+        res = subprocess.run([PYTHON, "-m", "addon.batch",
+                              os.path.join(BLENDS, "figure3_sphere.blend"),
+                              "-o", str(tmp_path / "f3.png"), "--samples", "2",
+                              "--photons", "5000", "--caustic-photons", "2000",
+                              "--resolution-percentage", "25", "--max-depth", "1"],
                              cwd=ROOT, stdout=f, stderr=subprocess.STDOUT, timeout=300)
     text = log.read_text()
     assert res.returncode == 0, text[-3000:]
     lines = text.split("\n")
-    warned = [i for i, line in enumerate(lines) if "Max Ray Depth 1 stops camera paths after" in line]
+    warned = [i for i, line in enumerate(lines)
+              if "Max Ray Depth 1 stops camera paths after" in line]
     assert len(warned) == 1, text[-3000:]
     assert lines[warned[0]].startswith("Warning: Photon Mapping: Max Ray Depth 1"), \
         repr(lines[warned[0]][:300])
