@@ -71,6 +71,9 @@ if __name__ == "__main__":
         signal.signal(_signal, _early_interrupt)
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
+import re  # noqa: E402
+import threading  # noqa: E402
 import time  # noqa: E402
 
 from engine.cli import CancelOnInterrupt  # noqa: E402
@@ -91,20 +94,42 @@ class BatchInterrupted(BatchError):
     pass
 
 
+# How Blender prints an engine's report (bpy.ops prints the operator's reports on
+# sys.stdout when it returns): "Warning: " + the add-on's "Photon Mapping: " + the text.
+WARNING_LINE = "Warning: Photon Mapping: {}"
+# The add-on's overflow (addon/engine.py, past MAX_REPORTED_WARNINGS): a print each, and
+# one report that points at the console, which is this output.
+OVERFLOW_LINE = "Photon Mapping warning: {}"
+OVERFLOW_REPORT = re.compile(r"Warning: Photon Mapping: \d+ more warnings \(see the system "
+                             r"console\)")
+
+
 class _StatusPrinter:
     """Listener for addon.engine.status_listeners: a tqdm bar on stderr with the phase,
-    the fraction of the whole render and the ETA, then the effect report."""
+    the fraction of the whole render and the ETA, then the effect report.
 
-    def __init__(self, quiet=False, stream=None, interrupt=None):
+    Warnings go to stdout the moment the engine has them (an unsupported shader is said
+    before the long render, not after it), each on a line of its own with the bar
+    continuing below (write_line); Blender's own print of the same reports, when the
+    render operator returns, is then left out (beside_bar). Blender printed them glued
+    to the bar's line where stdout and stderr share a file (`... > log 2>&1`): the bar
+    had been cleared when the warning came, but Blender prints its reports only later,
+    after the bar had redrawn itself (new-user trial, s17)."""
+
+    def __init__(self, quiet=False, stream=None, interrupt=None, out=None):
         self.quiet = quiet
         self.interrupt = interrupt  # its at_once is set while the kernels compile
         self.stream = stream or sys.stderr
+        self.out = out  # where warnings go (None: sys.stdout at the time)
         self.bar = None
         self.status = None  # the engine's "finished" value
         self.film = None  # the engine's Film of the finished render
         self.effects = []
         self.warnings = []
         self.done_line = None  # the engine's closing "Done: ..." in full, printed at close
+        self._shown = []  # lines printed at a warning event, still to come from Blender
+        self._bar_drawn = False  # the bar has drawn on its line since other output
+        self._lock = threading.RLock()
 
     def _ensure_bar(self):
         if self.bar is None and not self.quiet:
@@ -117,6 +142,11 @@ class _StatusPrinter:
         return self.bar
 
     def __call__(self, event, value):
+        # One writer at a time: the bar, the warnings and Blender's lines (write_line).
+        with self._lock:
+            self._event(event, value)
+
+    def _event(self, event, value):
         if event == "finished":
             self.status = value
         elif event == "film":
@@ -125,10 +155,9 @@ class _StatusPrinter:
             self.effects = list(value)
         elif event == "warning":
             self.warnings.append(str(value))
-            if self.bar is not None:
-                # Blender prints the report next on stdout: start it on a clean line, not
-                # glued to the bar (which redraws itself below at its next update).
-                self.bar.clear()
+            if not self.quiet:
+                self.write_line(WARNING_LINE.format(value))
+                self._shown += [WARNING_LINE.format(value), OVERFLOW_LINE.format(value)]
         if event in ("stats", "progress") and self.interrupt is not None:
             # The compile polls nothing for a minute and has nothing to keep: Ctrl-C then
             # stops at once (engine.cli.CancelOnInterrupt.at_once).
@@ -136,6 +165,7 @@ class _StatusPrinter:
                                       and str(value).startswith(COMPILE_MESSAGE))
         if event in ("stats", "progress") and not self.quiet:
             bar = self._ensure_bar()
+            self._bar_drawn = True
             if event == "stats":
                 text = str(value)
                 if text.startswith(COMPILE_MESSAGE):
@@ -151,20 +181,110 @@ class _StatusPrinter:
                 if n > bar.n:
                     bar.update(n - bar.n)
 
+    def write_line(self, line, out=None, end="\n"):
+        """Print one line of other output (a warning, Blender's reports) on a line of its
+        own, the bar continuing below it: on a terminal the bar's line is cleared first
+        and the bar redrawn after (tqdm.write's way); in a file, where a cleared line
+        stays in the text, the bar's line is ended with a newline first and the bar
+        redraws below at its next update."""
+        out = self.out or out or sys.stdout
+        with self._lock:
+            bar = self.bar
+            tty = _isatty(self.stream)
+            if bar is not None and self._bar_drawn:
+                if tty:
+                    bar.clear()
+                else:
+                    self.stream.write("\n")
+                self.stream.flush()
+                self._bar_drawn = False
+            out.write(line + end)
+            out.flush()
+            if bar is not None and tty:
+                bar.refresh()
+                self._bar_drawn = True
+
+    def blender_line(self, line, out, end="\n"):
+        """A line Blender (or the add-on) prints on stdout during the render: left out
+        when it repeats a warning printed when it came, else printed beside the bar."""
+        with self._lock:
+            if line in self._shown:
+                self._shown.remove(line)
+                return
+            if self.warnings and OVERFLOW_REPORT.fullmatch(line):
+                return  # every warning was printed here: "see the system console" is moot
+        self.write_line(line, out, end)
+
+    @contextlib.contextmanager
+    def beside_bar(self):
+        """sys.stdout through blender_line while Blender renders (bpy.ops prints the
+        operator's reports there when it returns), unless quiet."""
+        if self.quiet:
+            yield
+            return
+        real = sys.stdout
+        sys.stdout = _LineWriter(real, self.blender_line)
+        try:
+            yield
+        finally:
+            if isinstance(sys.stdout, _LineWriter):
+                sys.stdout.close_pending()
+            sys.stdout = real
+
     def close(self):
         """Close the bar, then print the effect report of a finished render under it (a
         cancelled or failed render simulated nothing worth reporting)."""
         if self.bar is not None:
             self.bar.close()
             self.bar = None
-        # The warnings are not repeated here: Blender already prints each engine report
-        # ("Warning: Photon Mapping: ...") in background mode (self.warnings keeps them).
+        # The warnings are not repeated here: they were printed when they came
+        # (write_line), or, quiet, by Blender in background mode (self.warnings keeps them).
         if not self.quiet:
             if self.status == "done":
                 if self.done_line:
                     print(self.done_line, file=self.stream)
                 for line in self.effects:
                     print(f"  {line}", file=self.stream)
+
+
+def _isatty(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
+class _LineWriter:
+    """A stand-in for sys.stdout that hands whole lines to line_out(line, out, end) (the
+    printer's blender_line) and is the real stream `out` in everything else."""
+
+    def __init__(self, out, line_out):
+        self._out = out
+        self._line_out = line_out
+        self._pending = ""
+        self._lock = threading.Lock()
+
+    def write(self, text):
+        with self._lock:
+            self._pending += text
+            lines = self._pending.split("\n")
+            self._pending = lines.pop()
+        for line in lines:
+            self._line_out(line, self._out)
+        return len(text)
+
+    def flush(self):
+        self._out.flush()
+
+    def close_pending(self):
+        """The rest of a line written without its newline, as it was."""
+        with self._lock:
+            rest, self._pending = self._pending, ""
+        if rest:
+            self._line_out(rest, self._out, "")
+
+    def __getattr__(self, name):
+        return getattr(self._out, name)
 
 
 def parse_args(argv):
@@ -480,7 +600,7 @@ def _render_still(bpy, scene, out, quiet, interrupt=None):
     engine.test_break_hook = lambda: interrupt.requested or bool(previous_hook and previous_hook())
     engine.status_listeners.append(printer)
     try:
-        with interrupt:
+        with interrupt, printer.beside_bar():
             bpy.ops.render.render(write_still=False)
     except RuntimeError as exc:
         if interrupt.requested:  # a second SIGINT landed inside Blender's render call

@@ -106,6 +106,7 @@ class EffectPlan:
     window_glass: list = field(default_factory=list)    # thin flat glass: shadow rays pass it
     caustics_from_global: bool = False  # caustic map from the global shot, no caustic shot
     caustics_glow_only: bool = False  # the caustic map holds only rough layers' / window glow
+    glow_words: str = ""  # what that glow-only map holds, for the maps line (only what exists)
     trapped: dict = field(default_factory=dict)  # light name -> closed mesh it is shut in
     decisions: list = field(default_factory=list)
     warnings: list = field(default_factory=list)  # students' mistakes, explained
@@ -348,6 +349,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # an unaimed shot), into the Caustic pass; the line says so.
             plan.caustics_from_global = plan.indirect
             plan.caustics_glow_only = True
+            # The maps line names these photons by what this scene has (the line read
+            # "light through window glass or off rough specular layers" in a room without
+            # a window; the caustics line below says which objects, once).
+            plan.glow_words = " and ".join(
+                (["soft glow off rough specular layers"] if rough_reached else [])
+                + (["reflections of window glass"] if plan.window_glass else []))
             source = ("the global photons" if plan.indirect
                       else f"{s.caustic_photons:,} unaimed photons")
             glow = []
@@ -393,6 +400,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
 
     # --- specular chains -------------------------------------------------------------------
     visible = _visible_specular(scene, geo, table, accel) if spec_tri.any() else []
+    sharp_seen, kinds = [], {}
     if not spec_tri.any():
         auto, why = False, "no mirror, glass or glossy coat in the scene"
     elif not visible:
@@ -404,11 +412,20 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                  "transmission: Light Paths" if s.max_depth >= s.max_bounces else
                  f"Max Ray Depth {s.max_depth}, below Light Paths' Total {s.max_bounces}")
         # Mirrors, glass and metals first: a room's rough walls listed first hid them
-        # behind the "..." (new-user trial).
-        visible = _sharp_first(geo, table, visible)
-        auto, why = True, (f"up to {s.camera_depth} bounces ({limit}) through "
-                           + _labelled(geo, table, visible[:4])
-                           + (" ..." if len(visible) > 4 else ""))
+        # behind the "..." (new-user trial). Only what is sharp is listed as specular: a
+        # rough Principled floor's layer, listed there as "matte 'Floor' (its rough
+        # specular layer)", casts no caustic and shows no mirror image (new-user trial,
+        # s17); its highlights (light sampling) and blurred reflections (the same camera
+        # paths) are named after.
+        sharp_seen, rough_seen, kinds = _split_sharp(geo, table, visible)
+        through = (" through " + _labelled(geo, table, sharp_seen[:4])
+                   + (" ..." if len(sharp_seen) > 4 else "") if sharp_seen
+                   else ": no mirror, glass or sharp glossy surface in view")
+        rough_part = ("; glossy highlights (light sampling) and blurred reflections, no "
+                      "mirror image, on " + _rough_words(geo, table, rough_seen, kinds)
+                      if rough_seen else "")
+        bounces = f"{s.camera_depth} bounce" + ("s" if s.camera_depth != 1 else "")
+        auto, why = True, f"up to {bounces} ({limit}){through}{rough_part}"
     if s.method == "local":
         on = False
         plan.add("specular reflection / refraction", False,
@@ -416,6 +433,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     else:
         on = _override(s.specular, auto, "specular reflection / refraction", why, plan)
     plan.specular_depth = s.max_depth if on else 0
+    if on:
+        _warn_max_ray_depth(plan, s, {n: kinds[n] for n in sharp_seen})
 
     # --- lights: soft shadows, shadow rays ------------------------------------------------
     nothing_occludes = has_tris and _single_flat_surface(geo, np.ones(geo.count, bool))
@@ -499,6 +518,28 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     return plan
 
 
+def _warn_max_ray_depth(plan: EffectPlan, s, kinds: dict) -> None:
+    """A warning where Max Ray Depth (settings.max_depth, an extra cap on camera chains)
+    stops camera paths through the glass or mirrors in view before the Light Paths limit
+    of their kind does: Transmission 12 was silently capped by Max Ray Depth 8 (new-user
+    trial, s16; the limits line says it too, but a capped glass chain looks dark, so it
+    is said where a mistake is said). kinds: {object in view: specular_kind}."""
+    plural = "s" if s.max_depth != 1 else ""
+    for setting, count, names in (
+            ("Transmission", s.transmission_bounces,
+             [n for n, k in kinds.items() if k == "glass"]),
+            ("Glossy", s.glossy_bounces,
+             [n for n, k in kinds.items() if k in ("mirror", "polished metal", "glossy")])):
+        limit = min(count, s.max_bounces)
+        if names and s.max_depth < limit:
+            plan.warnings.append(
+                f"Max Ray Depth {s.max_depth} stops camera paths after {s.max_depth} mirror "
+                f"/ glass bounce{plural}, before Light Paths > Max Bounces > {setting} "
+                f"{count} does: what is seen through or in {_quoted(names)} after "
+                f"{s.max_depth} bounce{plural} stays dark; raise Max Ray Depth to {limit} or "
+                "more (its default, 1024, caps nothing)")
+
+
 # Words for a dielectric's specular layer (a Principled base's, a coat's), by its
 # roughness: below SHARP_ROUGHNESS it focuses light and shows sharp highlights ("glossy":
 # plastic, varnish); from MATTE_ROUGHNESS (GGX alpha = roughness^2 >= 0.49, a lobe ~30
@@ -519,24 +560,45 @@ def _layer_roughness(table: MaterialTable, mats) -> np.ndarray:
     return rough
 
 
+def _is_glossy_node(table: MaterialTable, mats) -> np.ndarray:
+    """(len(mats),) bool: materials whose metal lobe is a Glossy (or Anisotropic) BSDF
+    node's (closures/principled.py NODE_GLOSSY: the colour as a constant reflectance), not
+    a Principled metal's: a Glossy BSDF is not necessarily metal."""
+    if table.closure_params is None:
+        return np.zeros(len(mats), bool)
+    from .closures import principled as pr
+    return ((table.closure_params[mats, pr.M_NODE] == pr.NODE_GLOSSY)
+            & (table.metallic[mats] > 0))
+
+
+# A Principled material is called metal only above this Metallic (half metal, half
+# dielectric reads as neither: below it the dielectric layer names it).
+METAL_WORDS = 0.5
+
+
 def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
-    """What a specular object is, in a student's words: 'glass' (transmission),
-    'transparent' (alpha below 1 or an alpha texture: a card, a cut-out), 'mirror'
-    (metallic and mirror-smooth: GGX alpha below ggx.ALPHA_MIN, the engine's delta lobe),
-    'polished metal' (metallic, rough but sharp enough to focus light: is_sharp), 'metal'
-    (metallic and rougher); else a specular layer over a diffuse base (a dielectric
-    Principled, a coat), by its roughness: 'glossy' (sharp enough to focus light: plastic,
-    varnish), 'rough glossy' (up to MATTE_ROUGHNESS) or 'matte' (rougher: its highlight
-    spreads over most of the view)."""
+    """What a specular object is, in a student's words, by its closure: 'glass'
+    (transmission), 'transparent' (alpha below 1 or an alpha texture: a card, a cut-out),
+    'mirror' (a metal or Glossy BSDF lobe that is mirror-smooth: GGX alpha below
+    ggx.ALPHA_MIN, the engine's delta lobe); a Glossy BSDF: 'glossy' (sharp enough to
+    focus light: is_sharp) or 'rough glossy'; a Principled metal (Metallic above
+    METAL_WORDS): 'polished metal' (sharp) or 'metal'; else a specular layer over a
+    diffuse base (a dielectric Principled, a coat), by its roughness: 'glossy' (sharp:
+    plastic, varnish), 'rough glossy' (up to MATTE_ROUGHNESS) or 'matte' (rougher: its
+    highlight spreads over most of the view). A Glossy BSDF at roughness 0.2 was called
+    "polished metal" (new-user trial, s17)."""
     mats = np.unique(geo.material[geo.object_id == oid])
     if np.any(table.transmission[mats] > 0):
         return "glass"
     if np.any(table.alpha[mats] < 1) or np.any(table.has_alpha_texture[mats]):
         return "transparent"
-    metal = table.metallic[mats] >= 0.5
+    glossy = _is_glossy_node(table, mats)
+    metal = (table.metallic[mats] > METAL_WORDS) & ~glossy
     rough = np.asarray(table.roughness[mats], np.float64)
-    if np.any(metal & (rough * rough < ALPHA_MIN)):
+    if np.any((metal | glossy) & (rough * rough < ALPHA_MIN)):
         return "mirror"
+    if np.any(glossy):
+        return "glossy" if np.any(glossy & is_sharp(rough)) else "rough glossy"
     if np.any(metal & is_sharp(rough)):
         return "polished metal"
     if np.any(metal):
@@ -547,20 +609,28 @@ def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
     return "rough glossy" if layer < MATTE_ROUGHNESS - SHARP_TOLERANCE else "matte"
 
 
+# Kinds sharp enough to be handled as specular (a mirror image, a refraction, a caustic);
+# the rough ones show glossy highlights and blurred reflections only.
+SHARP_KINDS = ("mirror", "glass", "polished metal", "transparent", "glossy")
+
+
+def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> str:
+    """" (Glossy BSDF, roughness 0.2)" or " (metallic 1, roughness 0.2)": the closure
+    behind a glossy-node or metal kind, so a student finds the setting; "" otherwise."""
+    mats = np.unique(geo.material[geo.object_id == oid])
+    glossy = _is_glossy_node(table, mats)
+    if glossy.any():
+        return f" (Glossy BSDF, roughness {float(np.min(table.roughness[mats[glossy]])):.2g})"
+    if kind in ("polished metal", "metal"):
+        metal = mats[table.metallic[mats] > METAL_WORDS]
+        return (f" (metallic {float(np.max(table.metallic[metal])):.2g}, roughness "
+                f"{float(np.min(table.roughness[metal])):.2g})")
+    return ""
+
+
 # The order the report names specular objects in: what a student looks for first.
 _KIND_ORDER = ("mirror", "glass", "polished metal", "metal", "transparent", "glossy",
                "rough glossy", "matte")
-
-
-def _sharp_first(geo: Geometry, table: MaterialTable, names) -> list:
-    """names reordered by their specular_kind (_KIND_ORDER; stable within a kind)."""
-    ids = {n: i for i, n in enumerate(geo.object_names)}
-
-    def rank(n):
-        kind = specular_kind(geo, table, ids[n]) if n in ids else ""
-        return _KIND_ORDER.index(kind) if kind in _KIND_ORDER else len(_KIND_ORDER)
-
-    return sorted(names, key=rank)
 
 
 def _quoted(names, most: int | None = 4) -> str:
@@ -582,8 +652,46 @@ def _labelled(geo: Geometry, table: MaterialTable, names) -> str:
             continue
         kind = specular_kind(geo, table, ids[n])
         out.append(f"{kind} '{n}'" + (" (its rough specular layer)" if kind == "matte"
-                                      else ""))
+                                      else _closure_words(geo, table, ids[n], kind)))
     return ", ".join(out)
+
+
+def _split_sharp(geo: Geometry, table: MaterialTable, names) -> tuple[list, list, dict]:
+    """names split into those sharp enough to be handled as specular (SHARP_KINDS: a
+    mirror image, a refraction) and the rough ones (glossy highlights, blurred
+    reflections), each in _KIND_ORDER (stable within a kind: a room's rough walls
+    listed first hid the mirrors behind "..."); and {name: specular_kind}."""
+    ids = {n: i for i, n in enumerate(geo.object_names)}
+    # Each object's kind once: specular_kind reads all of the scene's triangles.
+    kinds = {n: specular_kind(geo, table, ids[n]) if n in ids else "" for n in names}
+    rank = {k: i for i, k in enumerate(_KIND_ORDER)}
+    names = sorted(names, key=lambda n: rank.get(kinds[n], len(_KIND_ORDER)))
+    sharp = [n for n in names if kinds[n] in SHARP_KINDS or not kinds[n]]
+    return sharp, [n for n in names if kinds[n] and kinds[n] not in SHARP_KINDS], kinds
+
+
+def _rough_words(geo: Geometry, table: MaterialTable, names, kinds: dict) -> str:
+    """"the rough specular layers of 'Floor', 'BackWall', rough glossy 'Ball' (Glossy
+    BSDF, roughness 0.5)": rough objects for the specular line, a Principled base's or
+    coat's layer by name only (its kind, "matte" or "rough glossy", did not read as
+    specular: new-user trial), a rough Glossy BSDF or metal with its closure. kinds:
+    {name: specular_kind}."""
+    ids = {n: i for i, n in enumerate(geo.object_names)}
+
+    def glossy_node(n):
+        mats = np.unique(geo.material[geo.object_id == ids[n]])
+        return bool(_is_glossy_node(table, mats).any())
+
+    layers = [n for n in names if kinds[n] == "matte"
+              or (kinds[n] == "rough glossy" and not glossy_node(n))]
+    others = [n for n in names if n not in layers]
+    parts = []
+    if layers:
+        parts.append("the rough specular layer" + ("s" if len(layers) > 1 else "") + " of "
+                     + _quoted(layers))
+    if others:
+        parts.append(_labelled(geo, table, others[:4]) + (" ..." if len(others) > 4 else ""))
+    return ", ".join(parts)
 
 
 def _single_flat_surface(geo: Geometry, mask: np.ndarray) -> bool:

@@ -329,7 +329,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
         ctx.accel.close()
     film.stats["time_compile"] += t_compile
     film.stats.update(effects=ctx.plan.report() + photon_map_report(
-        settings, film.stats, glow_only=ctx.plan.caustics_glow_only),
+        settings, film.stats, glow_only=ctx.plan.caustics_glow_only,
+        glow_words=ctx.plan.glow_words),
                       triangles=ctx.geo.count, lights=len(ctx.lights),
                       extent=ctx.geo.extent, time_prepare=t_prepare,
                       time_total=time.perf_counter() - t_start)
@@ -607,18 +608,21 @@ def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: i
     return out
 
 
-def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = False
-                      ) -> list[str]:
+def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = False,
+                      glow_words: str = "") -> list[str]:
     """One effect-report line with what the photon maps hold and the radius used.
     glow_only: the caustic map holds only the soft glow of rough specular layers and
-    window glass (the report's "caustics: off - nothing focuses light"), named so."""
+    window glass (the report's "caustics: off - nothing focuses light"), named so, by
+    glow_words (EffectPlan.glow_words: only what the scene has) where given."""
     if "radius_global" not in stats:
         return []
     parts = []
     # "caustic photons" beside "caustics: off" read as a contradiction (new-user trial).
-    # "57 glow photons (Caustic pass)" did not say what glow (new-user trial s17).
-    held = ("photons of soft glow (light through window glass or off rough specular layers: "
-            "the Caustic pass)" if glow_only else "caustic photons")
+    # "57 glow photons (Caustic pass)" did not say what glow (new-user trial s17); the
+    # caustics line names the objects, this one what the photons carry, and only what the
+    # scene has (it said "light through window glass" in a room without a window).
+    held = (f"photons of {glow_words or 'soft glow'} (the Caustic pass)" if glow_only
+            else "caustic photons")
     if stats.get("global_photons"):
         parts.append(f"{stats['global_photons']:,} global photons stored, search radius "
                      f"{stats['radius_global']:.4g} m")

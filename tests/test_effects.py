@@ -246,6 +246,9 @@ def _room(floor, wall="white_diffuse", extra=()):
     name) objects on the floor ('mirror' a mirror-smooth metal card, 'glass' a ball)."""
     s = PaperScene(width=24, height=18)
     s.add_material(floor)
+    if isinstance(wall, Material):  # a wall of its own material
+        s.add_material(wall)
+        wall = wall.name
     s.add_plane((0, 0, 0), (0, 0, 1), 6, floor.name, name="Floor")
     s.add_plane((0, 2.0, 1.5), (0, -1, 0), (6, 3), wall, name="BackWall")
     for kind, name in extra:
@@ -285,11 +288,16 @@ def test_a_principled_floor_is_named_by_its_roughness(rough, word):
     geo, table = prepare(s)
     assert specular_kind(geo, table, geo.object_names.index("Floor")) == word
     line = _line(_plan(s), "specular reflection / refraction: on")
-    if word == "matte":
-        assert "matte 'Floor' (its rough specular layer)" in line, line
-        assert "glossy 'Floor'" not in line
+    if word == "glossy":
+        assert " through glossy 'Floor'" in line and "matte" not in line, line
     else:
-        assert f" {word} 'Floor'" in line and "matte" not in line, line
+        # A rough layer is no specular reflector in the effect sense (no caustic, no
+        # mirror image): named for its highlights, not listed as "matte 'Floor' (its
+        # rough specular layer)" (new-user trial, s17).
+        assert ": no mirror, glass or sharp glossy surface in view; glossy highlights " \
+            "(light sampling) and blurred reflections, no mirror image, on the rough " \
+            "specular layer of 'Floor'" in line, line
+        assert "matte" not in line and "glossy 'Floor'" not in line, line
 
 
 def test_a_coat_names_the_layer_by_the_coat_roughness():
@@ -375,6 +383,23 @@ def test_max_ray_depth_is_named_only_where_it_cuts_camera_paths():
     assert "up to 8 bounces (Max Ray Depth 8, below Light Paths' Total 12)" in \
         _line(capped, "specular reflection / refraction: on")
     assert capped.specular_depth == 8 and plan.specular_depth == 1024
+    # The cap cuts the glass ball's chain below Transmission 12: a warning names both
+    # settings (new-user trial: Transmission 12 silently capped by Max Ray Depth 8).
+    assert not plan.warnings
+    [warning] = capped.warnings
+    assert warning.startswith("Max Ray Depth 8 stops camera paths after 8 mirror / glass "
+                              "bounces, before Light Paths > Max Bounces > Transmission 12 "
+                              "does: what is seen through or in 'Ball'"), warning
+    assert "raise Max Ray Depth to 12 or more" in warning
+    # Nothing sharp in view: the cap cuts nothing worth a warning.
+    plain = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    assert not _plan(plain, max_depth=2).warnings
+    # Below Glossy 4 a mirror's chain is cut too; the Light Paths' Total caps the limit.
+    mirror = _room(Material("plain", (0.6, 0.6, 0.6)), extra=(("mirror", "Mirror"),))
+    [warning] = _plan(mirror, max_depth=1).warnings
+    assert "after 1 mirror / glass bounce, before Light Paths > Max Bounces > Glossy 4" \
+        in warning and "'Mirror'" in warning, warning
+    assert not _plan(mirror, max_depth=3, max_bounces=3).warnings
 
 
 def _glass_slabs(n=5):
@@ -483,11 +508,15 @@ def test_glow_only_caustic_map_is_not_called_caustic_photons():
     assert plan.caustics and plan.caustics_glow_only
     stats = dict(global_photons=20_000, radius_global=0.2, caustic_photons=1_500,
                  radius_caustic=0.2)
-    line = photon_map_report(RenderSettings(), stats, glow_only=plan.caustics_glow_only)[0]
-    assert "1,500 photons of soft glow (light through window glass or off rough specular " \
-        "layers: the Caustic pass) stored, each estimate from its 64 nearest: " \
-        "as narrow as they lie, at most the global search radius" in line, line
+    line = photon_map_report(RenderSettings(), stats, glow_only=plan.caustics_glow_only,
+                             glow_words=plan.glow_words)[0]
+    assert "1,500 photons of soft glow off rough specular layers (the Caustic pass) stored, " \
+        "each estimate from its 64 nearest: as narrow as they lie, at most the global " \
+        "search radius" in line, line
     assert "caustic photons" not in line, line
+    # Only what the scene has: no window here (it read "light through window glass or off
+    # rough specular layers" in a plain room, new-user trial s17).
+    assert "window" not in line, line
     sharp = _plan(_room(rough, extra=(("glass", "Ball"),)))
     assert not sharp.caustics_glow_only
 
@@ -501,8 +530,10 @@ def test_specular_line_names_mirrors_and_glass_before_rough_layers():
     for i, (x, y) in enumerate(((-2.5, 2), (2.5, 2), (-2.5, -1), (2.5, -1))):
         s.add_sphere((x, y, 0.4), 0.4, "rough_principled", name=f"Rough{i}", segments=12)
     spec = _line(_plan(s), "specular reflection / refraction:")
-    assert spec.index("mirror 'Mirror'") < spec.index("rough glossy"), spec
+    assert spec.index("mirror 'Mirror'") < spec.index("glass 'Ball'") < \
+        spec.index("the rough specular layers of"), spec
     assert "glass 'Ball'" in spec.split(" ...")[0], spec
+    assert "rough glossy" not in spec, spec
 
 
 def test_world_colour_line_says_what_lights_the_scene_in_plain_words():
@@ -514,3 +545,62 @@ def test_world_colour_line_says_what_lights_the_scene_in_plain_words():
     assert line.startswith("world light: on - the World colour lights the scene from the "
                            "whole sky: two shadow rays a sample"), line
     assert "cosine" not in line
+
+
+def test_a_glossy_bsdf_is_glossy_and_metal_needs_metallic_above_one_half():
+    """A Glossy BSDF ball at roughness 0.2 was named "polished metal" (new-user trial,
+    s17): surfaces are named by their closure, with the setting to look for; metal is a
+    Principled Metallic above 0.5."""
+    s = _room(Material("plain", (0.6, 0.6, 0.6)))
+    for name, mat, x in (("Ball", Material("glossy02", (0.9, 0.7, 0.5), metallic=1.0,
+                                           roughness=0.2, node="glossy"), -1.5),
+                         ("Gold", Material("gold", (1.0, 0.75, 0.3), metallic=1.0,
+                                           roughness=0.2), 0.0),
+                         ("Half", Material("half", (0.5, 0.5, 0.5), metallic=0.5,
+                                           roughness=0.1, specular=1.0), 1.5),
+                         ("Blurry", Material("glossy05", (0.9, 0.9, 0.9), metallic=1.0,
+                                             roughness=0.5, node="glossy"), 3.0)):
+        s.add_material(mat)
+        s.add_sphere((x, 0.5, 0.5), 0.5, mat.name, name=name, segments=16)
+    s.set_camera((0.7, -6, 2.5), (0.7, 0.5, 0.5), view_angle=60)
+    spec = _line(_plan(s), "specular reflection / refraction: on")
+    assert "glossy 'Ball' (Glossy BSDF, roughness 0.2)" in spec, spec
+    assert "polished metal 'Gold' (metallic 1, roughness 0.2)" in spec, spec
+    assert "glossy 'Half'" in spec and "metal 'Half'" not in spec, spec
+    assert "metal 'Ball'" not in spec and "metal 'Blurry'" not in spec, spec
+    # A rough Glossy BSDF: highlights and blurred reflections, named with its closure.
+    sharp, rough = spec.split("; glossy highlights")
+    assert "rough glossy 'Blurry' (Glossy BSDF, roughness 0.5)" in rough, spec
+    assert "'Blurry'" not in sharp and "'Ball'" in sharp, spec
+
+
+def test_rough_layers_are_named_for_their_highlights_not_as_specular():
+    """A room of rough Principled surfaces (0.5 and 1.0) lists nothing as a specular
+    reflector, says what their layers do, and keeps the camera paths' continuation
+    (plan.specular_depth: the estimate is unchanged)."""
+    s = _room(Material("floor05", (0.6, 0.6, 0.6), roughness=0.5, specular=1.0),
+              wall=Material("wall10", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    plan = _plan(s)
+    spec = _line(plan, "specular reflection / refraction: on")
+    assert spec.endswith("(at most 4 glossy, 12 transmission: Light Paths): no mirror, glass "
+                         "or sharp glossy surface in view; glossy highlights (light "
+                         "sampling) and blurred reflections, no mirror image, on the rough "
+                         "specular layers of 'Floor', 'BackWall'"), spec
+    assert "matte" not in spec and "its rough specular layer" not in spec, spec
+    assert plan.specular_depth == RenderSettings().max_depth
+    assert plan.glow_words == "soft glow off rough specular layers"
+
+
+def test_glow_words_name_only_what_the_scene_has():
+    """A window pane over a plain floor: its map holds window reflections, said so."""
+    s = _room(Material("plain", (0.6, 0.6, 0.6)))
+    s.add_material(Material("pane", (1, 1, 1), transmission=1.0, ior=1.5))
+    s.add_box((0, 0, 1.5), (2, 2, 0.02), "pane", name="Window")
+    plan = _plan(s)
+    assert plan.caustics_glow_only and plan.glow_words == "reflections of window glass"
+    from engine.render import photon_map_report
+    line = photon_map_report(RenderSettings(), dict(global_photons=100, radius_global=0.2,
+                                                    caustic_photons=10, radius_caustic=0.2),
+                             glow_only=True, glow_words=plan.glow_words)[0]
+    assert "10 photons of reflections of window glass (the Caustic pass) stored" in line, line
+    assert "rough" not in line, line

@@ -1,0 +1,108 @@
+"""The batch command's output (addon/batch.py, _StatusPrinter): warnings start on a line
+of their own and the progress bar continues below them, also when stdout and stderr share
+one file (`python -m addon.batch ... > log 2>&1`, where Blender's warnings were glued to
+the bar's line: new-user trial, s17). No Blender needed: the printer is fed the engine's
+events and Blender's stdout print as the render operator makes them."""
+import io
+import sys
+
+from addon import batch
+
+WARNINGS = ["material 'toon': shader 'Toon BSDF' (BSDF_TOON) is not supported; "
+            "approximated by a Diffuse BSDF of its Color",
+            "mesh 'NaNMesh': dropped 4 zero-area faces"]
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def _run(shared):
+    """A render's events as addon/engine.py sends them, the bar and the warnings into
+    one stream `shared`, Blender's reports printed on sys.stdout as bpy.ops does when the
+    render operator returns (inside beside_bar); returns the text written."""
+    printer = batch._StatusPrinter(stream=shared, out=shared)
+    with printer.beside_bar():
+        printer("stats", "Exporting 1/7 objects")
+        printer("progress", 0.01)
+        printer("warning", WARNINGS[0])  # the export's: before the long render
+        printer("stats", "Tracing photons 16k/20k")
+        printer("progress", 0.3)
+        printer("stats", "Rendering 43%")
+        printer("progress", 0.9)
+        printer("warning", WARNINGS[1])  # the engine's own, after the render
+        printer("stats", "Done: 4454 triangles, 1 light, 0.5 s")
+        printer("progress", 1.0)
+        printer("effects", ["caustics: off - nothing focuses light"])
+        printer("finished", "done")
+        for w in WARNINGS:  # Blender's print of the operator's reports, sys.stdout
+            print(f"Warning: Photon Mapping: {w}")
+        print("Info: another report")
+    printer.close()
+    return shared.getvalue()
+
+
+def _check(text):
+    lines = text.split("\n")  # a line in a log file: \r does not start one there
+    for w in WARNINGS:
+        where = [i for i, line in enumerate(lines) if w in line]
+        assert len(where) == 1, (w, text)  # said once: Blender's repeat is left out
+        line = lines[where[0]].rsplit("\r", 1)[-1]
+        assert line == f"Warning: Photon Mapping: {w}", repr(lines[where[0]])
+    # Each at the start of its line (no bar drawn before it on that line), the bar below.
+    first = next(i for i, line in enumerate(lines) if WARNINGS[0] in line)
+    assert lines[first].startswith("Warning: ") or lines[first].startswith("\r"), text
+    assert "Tracing photons" in "\n".join(lines[first + 1:]), text  # the bar continues
+    assert any(line.split("\r")[-1] == "Info: another report" for line in lines), text
+    assert lines.index("Done: 4454 triangles, 1 light, 0.5 s") > first
+    assert "  caustics: off - nothing focuses light" in lines
+
+
+def test_warnings_in_a_shared_log_file_start_on_a_line_of_their_own():
+    text = _run(io.StringIO())
+    _check(text)
+    for w in WARNINGS:  # a file keeps what \r would wipe: a real line start, not a \r
+        line = next(line for line in text.split("\n") if w in line)
+        assert line.startswith("Warning: "), repr(line)
+
+
+def test_warnings_on_a_terminal_clear_the_bar_and_it_is_redrawn_below():
+    text = _run(_Terminal())
+    _check(text)
+    before, after = text.split(f"Warning: Photon Mapping: {WARNINGS[0]}\n")
+    assert before.endswith("\r"), repr(before[-80:])  # the bar's line cleared first
+    assert after.startswith("\r") and "% [" in after.split("\n")[0], repr(after[:200])
+
+
+def test_quiet_leaves_blenders_print_alone():
+    shared = io.StringIO()
+    printer = batch._StatusPrinter(quiet=True, stream=shared, out=shared)
+    real = sys.stdout
+    with printer.beside_bar():
+        assert sys.stdout is real
+        printer("warning", WARNINGS[0])
+    printer.close()
+    assert shared.getvalue() == "" and printer.warnings == [WARNINGS[0]]
+
+
+def test_more_warnings_than_blender_reports_are_each_printed_once():
+    """Past the add-on's MAX_REPORTED_WARNINGS the rest are printed by the add-on
+    ("Photon Mapping warning: ...") and one report points at "the system console", which
+    for the batch is this output: both left out, every warning said once when it came."""
+    shared = io.StringIO()
+    printer = batch._StatusPrinter(stream=shared, out=shared)
+    with printer.beside_bar():
+        printer("stats", "Rendering 1%")
+        for w in WARNINGS:
+            printer("warning", w)
+        print(f"Photon Mapping warning: {WARNINGS[1]}")  # during the render
+        print(f"Warning: Photon Mapping: {WARNINGS[0]}")  # when the operator returns
+        print("Warning: Photon Mapping: 1 more warnings (see the system console)")
+        print("half a line", end="")
+    printer.close()
+    text = shared.getvalue()
+    for w in WARNINGS:
+        assert text.count(w) == 1, text
+    assert "system console" not in text and "Photon Mapping warning:" not in text
+    assert "\nhalf a line" in text
