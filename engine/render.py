@@ -484,6 +484,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
         if flag():
             raise Cancelled()
 
+    shot_radius = [0.0]  # the whole shot's spacing (gather_chain)
+
     def gather_chain(flag):
         # The global radius from the global photons' own spacing (local: not the spacing
         # they would have if spread over a huge ground plane they barely light).
@@ -495,6 +497,11 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
         positions = region_photons(shot.position, ctx.importance_region, k)
         r_global = auto_radius(diffuse_area, len(positions), k, geo.extent, positions,
                                workers=workers)
+        # The caustic map's cap stays the whole shot's spacing (caustic_radius): a glow of
+        # light through a rough metal ball under a low Multiple Scattering sun read 4x
+        # noisier with the region's (0.24 m against 0.46 m).
+        shot_radius[0] = r_global if len(positions) == len(shot) else auto_radius(
+            diffuse_area, len(shot), k, geo.extent, shot.position, workers=workers)
         gather_map = None
         if final:
             check(flag)
@@ -590,7 +597,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     # The caustic estimates' cap (photonmap.caustic_radius): each takes its k nearest
     # caustic photons, so a focus is as narrow as its photons; the cap acts where they
     # are sparse.
-    out["caustic_radius"] = s.radius or caustic_radius(r_global, len(shot), len(caustic), k,
+    out["caustic_radius"] = s.radius or caustic_radius(shot_radius[0], len(shot), len(caustic), k,
                                                        diffuse_area, geo.extent)
     out["diffuse_area"] = diffuse_area
     return out
