@@ -29,6 +29,13 @@ loaded from --ref), so ours and Cycles' rows compare directly (lower relMSE x CP
     PYTHONPATH=$PWD python bench/bench_world_light.py --trial3c [--spp 32 64 128]
         [--cycles-spp 16 32 64] [--ref /tmp/case3c_cycles1024.npy] [--ref-spp 1024]
 
+`--sky hosek|ms` (needs bpy): a low-sun Sky Texture scene built in Blender (issue 14, s18
+skynoise: build_sky), ours and Cycles (2 threads) against Cycles at --ref-spp, as --trial3c;
+--elevation sets the sun (degrees, default 7), --save keeps the images and the exported scene.
+
+    PYTHONPATH=$PWD python bench/bench_world_light.py --sky hosek --spp 16 32 64 128
+        --cycles-spp 16 32 64 128 256 --seeds 1 --ref /tmp/hosek_ref2048.npy --ref-spp 2048
+
 relMSE = mean over pixels of (x - ref)^2 / (ref^2 + 0.01) on luminance, as the trial's
 scripts compute it. The reference's own noise adds about relMSE(ref-spp) to every row
 (~0.0003 at 512 spp after issue 14): compare rows, not the absolute floor. Report the

@@ -492,8 +492,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
         # With an aimed shot (visual importance), from the photons inside its region of
         # interest, where 90 % of the camera's lookups are: a sky lights a 40 m ground
         # evenly, and the spacing of the 60 % of photons that land beyond the objects
-        # (1.1 m against 0.21 m near them) made every estimate's disc, the caustic
-        # map's cap among them, 5x too wide (docs/performance.md, "skynoise").
+        # (1.2 m against 0.21 m near them) made the gather map's discs 5x too wide
+        # (docs/performance.md, "skynoise").
         positions = region_photons(shot.position, ctx.importance_region, k)
         r_global = auto_radius(diffuse_area, len(positions), k, geo.extent, positions,
                                workers=workers)
