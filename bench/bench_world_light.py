@@ -29,6 +29,13 @@ loaded from --ref), so ours and Cycles' rows compare directly (lower relMSE x CP
     PYTHONPATH=$PWD python bench/bench_world_light.py --trial3c [--spp 32 64 128]
         [--cycles-spp 16 32 64] [--ref /tmp/case3c_cycles1024.npy] [--ref-spp 1024]
 
+`--sky hosek|ms` (needs bpy): a low-sun Sky Texture scene built in Blender (issue 14, s18
+skynoise: build_sky), ours and Cycles (2 threads) against Cycles at --ref-spp, as --trial3c;
+--elevation sets the sun (degrees, default 7), --save keeps the images and the exported scene.
+
+    PYTHONPATH=$PWD python bench/bench_world_light.py --sky hosek --spp 16 32 64 128
+        --cycles-spp 16 32 64 128 256 --seeds 1 --ref /tmp/hosek_ref2048.npy --ref-spp 2048
+
 relMSE = mean over pixels of (x - ref)^2 / (ref^2 + 0.01) on luminance, as the trial's
 scripts compute it. The reference's own noise adds about relMSE(ref-spp) to every row
 (~0.0003 at 512 spp after issue 14): compare rows, not the absolute floor. Report the
@@ -153,40 +160,41 @@ def run(scene, spp, seed, workers):
     return film, time.process_time() - c0
 
 
-def trial3c(a):
-    """The new-user trial's case 3c in Blender: ours and Cycles against Cycles (see the
-    module docstring)."""
-    import tempfile
+def _blender_material(name, color=(0.8, 0.8, 0.8), **inputs):
+    import bpy
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    n = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    n.inputs["Base Color"].default_value = (*color, 1.0)
+    for k, v in inputs.items():
+        n.inputs[k].default_value = v
+    return m
 
+
+def _blender_put(obj, name, mat):
+    obj.name = name
+    obj.data.materials.append(mat)
+
+
+def _blender_camera(location, target, lens):
     import bpy
     from mathutils import Vector
+    cd = bpy.data.cameras.new("Cam")
+    cd.lens = lens
+    cam = bpy.data.objects.new("Cam", cd)
+    cam.location = location
+    cam.rotation_euler = (Vector(target) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    bpy.context.scene.collection.objects.link(cam)
+    bpy.context.scene.camera = cam
 
-    import addon
-    from addon import export
-    from addon.core import load_engine
-    if not hasattr(bpy.types.Scene, "photonmap"):
-        addon.register()
-    tmp = tempfile.mkdtemp(prefix="bench_world_light_")
+
+def build_trial3c(tmp):
+    """The new-user trial's case 3c in the current (empty) Blender scene."""
+    import bpy
     hdr = os.path.join(tmp, "sunsky.hdr")
     write_rgbe(hdr, sunsky_map())
-    bpy.ops.wm.read_homefile(use_empty=True)
-    sc = bpy.context.scene
-    sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = 160, 120, 100
-
-    def material(name, color=(0.8, 0.8, 0.8), **inputs):
-        m = bpy.data.materials.new(name)
-        if bpy.app.version < (5, 0, 0):
-            m.use_nodes = True
-        n = next(n for n in m.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
-        n.inputs["Base Color"].default_value = (*color, 1.0)
-        for k, v in inputs.items():
-            n.inputs[k].default_value = v
-        return m
-
-    def put(obj, name, mat):
-        obj.name = name
-        obj.data.materials.append(mat)
-
+    material, put = _blender_material, _blender_put
     bpy.ops.mesh.primitive_plane_add(size=30, location=(0, 0, 0))
     put(bpy.context.object, "Ground", material("GroundMat", (0.6, 0.6, 0.6), Roughness=0.8))
     for name, r, loc, mat in (
@@ -199,18 +207,68 @@ def trial3c(a):
     bpy.context.object.scale = (0.7, 0.7, 0.7)
     put(bpy.context.object, "Box", material("BoxMat"))
     w = bpy.data.worlds.new("HDRI")
-    sc.world = w
+    bpy.context.scene.world = w
     env = w.node_tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = bpy.data.images.load(hdr)
     w.node_tree.links.new(env.outputs["Color"], w.node_tree.nodes["Background"].inputs["Color"])
-    cd = bpy.data.cameras.new("Cam")
-    cd.lens = 35
-    cam = bpy.data.objects.new("Cam", cd)
-    cam.location = (0.5, -6.0, 2.2)
-    cam.rotation_euler = (Vector((0.0, 0.3, 0.5)) - cam.location).to_track_quat(
-        "-Z", "Y").to_euler()
-    sc.collection.objects.link(cam)
-    sc.camera = cam
+    _blender_camera((0.5, -6.0, 2.2), (0.0, 0.3, 0.5), 35)
+
+
+def build_sky(sky_type, elevation_deg=7.0, azimuth_deg=60.0):
+    """A scene a Blender user would make under a low sun (issue 14, s18 skynoise): a
+    Principled ground of roughness 0.5, a Principled ball, a metal ball and a box, the
+    camera at eye height; the world a Sky Texture of `sky_type` (HOSEK_WILKIE: the node's
+    sun_direction at `elevation_deg`, turbidity 2.2, ground albedo 0.3; MULTIPLE_SCATTERING:
+    sun_elevation, the sun disc on), the sun `azimuth_deg` from +Y towards +X; no lamps."""
+    import bpy
+    material, put = _blender_material, _blender_put
+    bpy.ops.mesh.primitive_plane_add(size=40, location=(0, 0, 0))
+    put(bpy.context.object, "Ground", material("GroundMat", (0.5, 0.5, 0.5), Roughness=0.5))
+    for name, r, loc, mat in (
+            ("Ball", 0.6, (-1.1, 0.6, 0.6), material("BallMat", (0.7, 0.25, 0.15),
+                                                     Roughness=0.4)),
+            ("Metal", 0.5, (0.9, 0.9, 0.5), material("MetalMat", (0.9, 0.85, 0.8),
+                                                     Metallic=1.0, Roughness=0.25))):
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=r, location=loc, segments=48, ring_count=24)
+        bpy.ops.object.shade_smooth()
+        put(bpy.context.object, name, mat)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.1, -0.6, 0.4), rotation=(0, 0, 0.6))
+    bpy.context.object.scale = (0.8, 0.8, 0.8)
+    put(bpy.context.object, "Box", material("BoxMat", (0.8, 0.8, 0.8), Roughness=0.5))
+    w = bpy.data.worlds.new("Sky")
+    bpy.context.scene.world = w
+    sky = w.node_tree.nodes.new("ShaderNodeTexSky")
+    sky.sky_type = sky_type
+    e, r = np.radians(elevation_deg), np.radians(azimuth_deg)
+    if sky_type == "HOSEK_WILKIE":
+        sky.sun_direction = (np.cos(e) * np.sin(r), np.cos(e) * np.cos(r), np.sin(e))
+        sky.turbidity, sky.ground_albedo = 2.2, 0.3
+    else:
+        sky.sun_elevation, sky.sun_rotation = e, r
+    w.node_tree.links.new(sky.outputs["Color"], w.node_tree.nodes["Background"].inputs["Color"])
+    _blender_camera((0.4, -6.5, 1.6), (0.0, 0.4, 0.5), 35)
+
+
+def blender_case(a):
+    """A scene built in Blender (--trial3c or --sky): ours and Cycles against Cycles (see
+    the module docstring)."""
+    import tempfile
+
+    import bpy
+
+    import addon
+    from addon import export
+    from addon.core import load_engine
+    if not hasattr(bpy.types.Scene, "photonmap"):
+        addon.register()
+    tmp = tempfile.mkdtemp(prefix="bench_world_light_")
+    bpy.ops.wm.read_homefile(use_empty=True)
+    sc = bpy.context.scene
+    sc.render.resolution_x, sc.render.resolution_y, sc.render.resolution_percentage = 160, 120, 100
+    if a.sky:
+        build_sky({"hosek": "HOSEK_WILKIE", "ms": "MULTIPLE_SCATTERING"}[a.sky], a.elevation)
+    else:
+        build_trial3c(tmp)
 
     def cycles(spp, seed):
         sc.render.engine = "CYCLES"
@@ -219,6 +277,7 @@ def trial3c(a):
         c.use_denoising = c.use_adaptive_sampling = False
         c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
         c.blur_glossy = 0.0
+        sc.render.threads_mode, sc.render.threads = "FIXED", 2
         st = sc.render.image_settings
         if hasattr(st, "media_type"):
             st.media_type = "IMAGE"
@@ -253,6 +312,11 @@ def trial3c(a):
     print(f"{'engine':>7} {'spp':>5} {'CPU s':>7} {'relMSE':>9} {'relMSE x CPU':>13} "
           f"{'mean/ref':>9}")
     rows = [("ours", spp) for spp in a.spp] + [("cycles", spp) for spp in a.cycles_spp]
+    saved = {"ref": ref}
+    if a.save:  # the exported scene, for per-pass studies outside Blender
+        import pickle
+        with open(os.path.splitext(a.save)[0] + "_scene.pkl", "wb") as f:
+            pickle.dump((pm_scene, kw), f)
     for who, spp in rows:
         cpus, errs, means = [], [], []
         for seed in range(a.seeds):
@@ -261,14 +325,19 @@ def trial3c(a):
                 film = render(pm_scene, RenderSettings(**kw, spp=spp, seed=1 + seed))
                 cpu = time.process_time() - c0
                 img = np.asarray(film.combined)[..., :3]
+                for name in ("direct", "indirect", "caustic", "specular", "emission"):
+                    saved[f"ours_{spp}_{seed}_{name}"] = np.asarray(getattr(film, name))
             else:
                 img, cpu = cycles(spp, 1 + seed)
+            saved[f"{who}_{spp}_{seed}"] = img
             cpus.append(cpu)
             errs.append(rel_mse(img, ref))
             means.append(float(lum(img).mean() / lum(ref).mean()))
         cpu, err = min(cpus), float(np.mean(errs))
         print(f"{who:>7} {spp:>5} {cpu:>7.2f} {err:>9.5f} {err * cpu:>13.5f} "
               f"{np.mean(means):>9.4f}", flush=True)
+        if a.save:
+            np.savez_compressed(a.save, **saved)
 
 
 def main():
@@ -282,9 +351,15 @@ def main():
     ap.add_argument("--trial3c", action="store_true",
                     help="the trial's case 3c in Blender, ours against Cycles (needs bpy)")
     ap.add_argument("--cycles-spp", type=int, nargs="*", default=[16, 32, 64])
+    ap.add_argument("--sky", choices=("hosek", "ms"), default=None,
+                    help="a low-sun Sky Texture scene built in Blender (hosek: Hosek / Wilkie, "
+                         "ms: Multiple Scattering), ours against Cycles (needs bpy)")
+    ap.add_argument("--elevation", type=float, default=7.0, help="--sky: sun elevation, deg")
+    ap.add_argument("--save", default=None, help="--sky / --trial3c: save the images to "
+                    "this .npz (keys ours_SPP_SEED / cycles_SPP_SEED)")
     a = ap.parse_args()
-    if a.trial3c:
-        return trial3c(a)
+    if a.trial3c or a.sky:
+        return blender_case(a)
     scene = build_scene(sky=a.map)
     run(scene, 1, 0, a.workers)  # compile / load the kernels outside the timings
     if a.ref and os.path.exists(a.ref):
