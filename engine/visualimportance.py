@@ -57,13 +57,18 @@ from .sampling import cosine_hemisphere, dot, luminance, offset_origin, reflect,
 ROI_RAYS = 4096        # camera rays of the pre-pass
 ROI_GATHER = 4         # cosine rays per diffuse camera hit
 ROI_MIRROR_DEPTH = 4   # mirror bounces of a pre-pass camera ray at non-diffuse surfaces
-ROI_COVER = 0.9        # share of the lookups the region holds
+# Share of the lookups the region holds. The lookups left outside lie mostly at the
+# region's edges (the near field of the camera's hits at the frame's border), where the
+# outside's fewer, brighter photons made blotches: light_mesh_emission's block error
+# 0.295 at 0.9 (0.089-0.103 at 0.97 over seeds 0-3; main 0.109-0.143).
+ROI_COVER = 0.97
 ROI_CELLS = 32         # at most this many cells (spheres) in the region
 ROI_PILOT = 4096       # pilot photons per light (up to 8 lights; fewer each beyond)
 ROI_MIN_BOOST = 2.0    # below this photon-density boost the shot is left natural
 ROI_MIN_OUTSIDE = 0.1  # at least this share of the photons outside the region
 ROI_CELL_WEIGHTS = True  # photons per sphere by its own lookups and power (else uniform)
 ROI_MIN_CELL = 0.1     # each sphere's aim probability at least this share of the mean
+ROI_MAX_BOOST = 32.0   # a sphere's photons per watt at most this many times the outside's
 
 
 @dataclass
@@ -110,10 +115,22 @@ def lookup_points(ctx, rays: int = ROI_RAYS, normals: bool = False):
     o = offset_origin(p, ng, d, off)
     t, prim, _, _ = ctx.accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
     ok = prim >= 0
+    ok[ok] = stores_photons(ctx, prim[ok])
     points = o[ok] + t[ok, None] * d[ok]
     if not normals:
         return points
     return points, _facing(ctx.geo.ng[prim[ok]], d[ok])
+
+
+def stores_photons(ctx, prim: np.ndarray) -> np.ndarray:
+    """(N,) bool: triangles prim (N,) whose material has a diffuse lobe, the only
+    surfaces the global map stores photons on (engine/photonkernels.py). A gather ray
+    ending anywhere else (a rough metal floor, an emitting panel, glass) reads no photon:
+    counted as a lookup, it put region spheres where the pilot can send no photon power
+    (a rough metal floor: ~0 % of the light, a 126x boost, the feature case
+    light_area_spread_glossy) or where every photon of a light starts (an emitting
+    panel's sphere holds the light itself: "100 % of the light", light_mesh_emission)."""
+    return np.asarray(ctx.table.has_diffuse)[np.asarray(ctx.geo.material)[prim]]
 
 
 def _facing(ng, d):
@@ -131,10 +148,11 @@ PILOT_NEIGHBOURS = 8
 PILOT_AGREEMENT = 0.5
 # plan_global_shot counts a pilot photon's power for the region only where
 # seen_side_hits says it serves the lookups (False: wherever its line meets a sphere, as
-# before; bench/bench_window_room.py's A/B). Off: on the feature matrix's
-# light_area_spread_glossy (a narrow-spread area light over a rough metal floor) it made
-# the block error 0.136 -> 0.939 against Cycles (CI of 75a7cd6), not yet understood.
-PILOT_SEEN_SIDE = False
+# before; bench/bench_window_room.py's A/B). It once broke light_area_spread_glossy
+# (lookups on a rough metal floor: ~0 % of the light, a 126x boost): lookups now count
+# only on surfaces that store photons (stores_photons) and ROI_MAX_BOOST bounds the boost
+# (docs/performance.md, "seenside").
+PILOT_SEEN_SIDE = True
 
 
 def seen_side_hits(ctx, o, d, region: Region) -> np.ndarray:
@@ -430,12 +448,18 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     # weight sqrt(I_k / P_k), outside sqrt(I_out / P_out). Uniform over the spheres
     # (ROI_CELL_WEIGHTS off): sqrt(I_in / P_in) for all.
     p_cell = cell_power.sum(axis=0)
+    w_out = math.sqrt(i_out / p_out)
     if ROI_CELL_WEIGHTS and region.shares is not None:
         weight = np.sqrt(region.shares / np.maximum(p_cell, 1e-300 * p_in))
         weight = np.where(p_cell > 0, weight, 0.0)
     else:
         weight = np.full(K, math.sqrt(i_in / p_in))
-    w_out = math.sqrt(i_out / p_out)
+    # The boost guard: a sphere the pilot sees getting almost none of the light (a surface lit
+    # only by bounces) would get sqrt(1 / P_k): unbounded photons per watt. Its lookups
+    # read mostly the bounced photons of photons not aimed at it (as heavy as the
+    # outside's), so aiming its own first hits denser gains nothing past a ratio of the
+    # light there to its first-hit light, and takes the photons from everywhere else.
+    weight = np.minimum(weight, ROI_MAX_BOOST * w_out)
     boost = float((p_cell * weight).sum() / p_in) / w_out
     if boost < ROI_MIN_BOOST:
         natural.report = (f"no visual importance: what the camera sees gets "
