@@ -31,7 +31,10 @@ search radius and the estimates' quality. Here:
    exactly where the aimed pdf is positive), so the expected power arriving anywhere is
    the light's own: no bias, and light bouncing in from surfaces outside the region is
    still carried, by fewer, brighter photons. Photons per light follow the power each
-   sends into each sphere and outside, at the densities of step 2.
+   sends into each sphere and outside, at the densities of step 2. A finite light whose
+   photons mostly start inside a sphere (a glowing ball over the floor it lights) emits
+   naturally: from there the aimed photons are heavier than natural ones
+   (origins_inside).
 
 Everything is seeded by the settings' seed and independent of the worker count (the
 pre-pass and the pilot run on the calling thread, the photons keep their per-slot random
