@@ -31,7 +31,10 @@ search radius and the estimates' quality. Here:
    exactly where the aimed pdf is positive), so the expected power arriving anywhere is
    the light's own: no bias, and light bouncing in from surfaces outside the region is
    still carried, by fewer, brighter photons. Photons per light follow the power each
-   sends into each sphere and outside, at the densities of step 2.
+   sends into each sphere and outside, at the densities of step 2. A finite light whose
+   photons mostly start inside a sphere (a glowing ball over the floor it lights) emits
+   naturally: from there the aimed photons are heavier than natural ones
+   (origins_inside).
 
 Everything is seeded by the settings' seed and independent of the worker count (the
 pre-pass and the pilot run on the calling thread, the photons keep their per-slot random
@@ -57,13 +60,23 @@ from .sampling import cosine_hemisphere, dot, luminance, offset_origin, reflect,
 ROI_RAYS = 4096        # camera rays of the pre-pass
 ROI_GATHER = 4         # cosine rays per diffuse camera hit
 ROI_MIRROR_DEPTH = 4   # mirror bounces of a pre-pass camera ray at non-diffuse surfaces
-ROI_COVER = 0.9        # share of the lookups the region holds
+# Share of the lookups the region holds. The lookups left outside lie mostly at the
+# region's edges (the near field of the camera's hits at the frame's border), where the
+# outside's fewer, brighter photons made blotches: light_mesh_emission's block error
+# 0.295 at 0.9 (0.089-0.103 at 0.97 over seeds 0-3; main 0.109-0.143).
+ROI_COVER = 0.97
 ROI_CELLS = 32         # at most this many cells (spheres) in the region
 ROI_PILOT = 4096       # pilot photons per light (up to 8 lights; fewer each beyond)
 ROI_MIN_BOOST = 2.0    # below this photon-density boost the shot is left natural
 ROI_MIN_OUTSIDE = 0.1  # at least this share of the photons outside the region
 ROI_CELL_WEIGHTS = True  # photons per sphere by its own lookups and power (else uniform)
 ROI_MIN_CELL = 0.1     # each sphere's aim probability at least this share of the mean
+# A finite light whose pilot photons start inside a region sphere with more than this
+# share of its power emits naturally (origins_inside): closure_emission's glowing ball
+# 0.56 and light_point_sphere's 0.66 do (block errors within their seed noise); the
+# lights of the feature matrix's window rooms (0.006-0.018) and light_point_radius (0.12)
+# keep aiming as before.
+ROI_MAX_ORIGINS_INSIDE = 0.25
 
 
 @dataclass
@@ -110,10 +123,22 @@ def lookup_points(ctx, rays: int = ROI_RAYS, normals: bool = False):
     o = offset_origin(p, ng, d, off)
     t, prim, _, _ = ctx.accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
     ok = prim >= 0
+    ok[ok] = stores_photons(ctx, prim[ok])
     points = o[ok] + t[ok, None] * d[ok]
     if not normals:
         return points
     return points, _facing(ctx.geo.ng[prim[ok]], d[ok])
+
+
+def stores_photons(ctx, prim: np.ndarray) -> np.ndarray:
+    """(N,) bool: triangles prim (N,) whose material has a diffuse lobe, the only
+    surfaces the global map stores photons on (engine/photonkernels.py). A gather ray
+    ending anywhere else (a rough metal floor, an emitting panel, glass) reads no photon:
+    counted as a lookup, it put region spheres where the pilot can send no photon power
+    (a rough metal floor: ~0 % of the light, a 126x boost, the feature case
+    light_area_spread_glossy) or where every photon of a light starts (an emitting
+    panel's sphere holds the light itself: "100 % of the light", light_mesh_emission)."""
+    return np.asarray(ctx.table.has_diffuse)[np.asarray(ctx.geo.material)[prim]]
 
 
 def _facing(ng, d):
@@ -131,10 +156,12 @@ PILOT_NEIGHBOURS = 8
 PILOT_AGREEMENT = 0.5
 # plan_global_shot counts a pilot photon's power for the region only where
 # seen_side_hits says it serves the lookups (False: wherever its line meets a sphere, as
-# before; bench/bench_window_room.py's A/B). Off: on the feature matrix's
-# light_area_spread_glossy (a narrow-spread area light over a rough metal floor) it made
-# the block error 0.136 -> 0.939 against Cycles (CI of 75a7cd6), not yet understood.
-PILOT_SEEN_SIDE = False
+# before; bench/bench_window_room.py's A/B). It once broke light_area_spread_glossy
+# (lookups on a rough metal floor: ~0 % of the light, a 126x boost): lookups now count
+# only on surfaces that store photons (stores_photons). A clamp on the boost instead (32x)
+# made that case worse, block error 1.874 (unclamped 0.672): the fault was the lookups,
+# not the boost (docs/performance.md, "seenside").
+PILOT_SEEN_SIDE = True
 
 
 def seen_side_hits(ctx, o, d, region: Region) -> np.ndarray:
@@ -312,6 +339,20 @@ def _sphere_test(o, d, centers, radii, infinite, any_sphere):
     return out
 
 
+def origins_inside(o: np.ndarray, region: Region) -> np.ndarray:
+    """(N,) bool: photon origins o (N,3) inside one of the region's spheres. From there
+    every direction counts as meeting the sphere (sphere_meets): the split emission drops
+    all the natural photons and the aimed part spreads the sphere's share of its photons
+    over 4 pi (emission.aim_direction), a weight natural pdf / aimed pdf of up to
+    2 |cos| / prob for the emitting triangles (both sides; 4 cos / prob one-sided) where
+    no other sphere's cone holds the direction: up to 2 / prob times a natural photon's. closure_emission (a glowing ball 0.3 m over the stage, its lower part in
+    the floor's spheres, prob ~0.5-7 %): such photons up to 6.2x the natural photons' power
+    and 85x the aimed area light's, the ball's edge noisier (block error seeds 0-11 median
+    0.124, max 0.297; the ball natural: 0.096, 0.152; docs/performance.md, "emitaim")."""
+    d = np.linalg.norm(np.asarray(o, np.float64)[:, None, :] - region.centers[None], axis=2)
+    return (d <= region.radii[None]).any(axis=1)
+
+
 class RegionEmitter:
     """A light that emits `share` of its photons aimed at the region and the rest
     naturally, minus the natural photons that meet the region (module docstring, step 3).
@@ -414,7 +455,12 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
         many = np.maximum(met.sum(axis=1), 1)
         cell_power[i] = (met * (w / many)[:, None]).sum(axis=0) / total_w * flux
         power_out[i] = float(w[~inside].sum()) / total_w * flux
-        aims[i] = can_aim(light) and inside.any() and not inside.all()
+        # A finite light much of whose power starts inside a sphere stays natural
+        # (origins_inside, ROI_MAX_ORIGINS_INSIDE).
+        aims[i] = (can_aim(light) and inside.any() and not inside.all()
+                   and (isinstance(light, InfiniteLight)
+                        or float(w[origins_inside(o, region)].sum()) / total_w
+                        <= ROI_MAX_ORIGINS_INSIDE))
     power_in = cell_power.sum(axis=1)
     p_in, p_out = power_in.sum(), power_out.sum()
     i_in = region.inside
@@ -430,12 +476,12 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     # weight sqrt(I_k / P_k), outside sqrt(I_out / P_out). Uniform over the spheres
     # (ROI_CELL_WEIGHTS off): sqrt(I_in / P_in) for all.
     p_cell = cell_power.sum(axis=0)
+    w_out = math.sqrt(i_out / p_out)
     if ROI_CELL_WEIGHTS and region.shares is not None:
         weight = np.sqrt(region.shares / np.maximum(p_cell, 1e-300 * p_in))
         weight = np.where(p_cell > 0, weight, 0.0)
     else:
         weight = np.full(K, math.sqrt(i_in / p_in))
-    w_out = math.sqrt(i_out / p_out)
     boost = float((p_cell * weight).sum() / p_in) / w_out
     if boost < ROI_MIN_BOOST:
         natural.report = (f"no visual importance: what the camera sees gets "
