@@ -491,10 +491,10 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
         # The global radius from the global photons' own spacing (local: not the spacing
         # they would have if spread over a huge ground plane they barely light).
         # With an aimed shot (visual importance), from the photons inside its region of
-        # interest, where 90 % of the camera's lookups are: a sky lights a 40 m ground
-        # evenly, and the spacing of the 60 % of photons that land beyond the objects
-        # (1.2 m against 0.21 m near them) made the gather map's discs 5x too wide
-        # (docs/performance.md, "skynoise").
+        # interest, which holds visualimportance.ROI_COVER of the camera's lookups: a sky
+        # lights a 40 m ground evenly, and the spacing of the 60 % of photons that land
+        # beyond the objects (1.2 m against 0.21 m near them) made the gather map's discs
+        # 5x too wide (docs/performance.md, "skynoise").
         positions = region_photons(shot.position, ctx.importance_region, k)
         r_global = auto_radius(diffuse_area, len(positions), k, geo.extent, positions,
                                workers=workers)
