@@ -484,6 +484,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     the map)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
+    lim = ctx.settings.bounce_limits
+    if extra is None and (level + 1 > lim[0] or level + 1 > lim[1]):
+        # This level's rays are a diffuse bounce past a limit: Cycles takes none (a
+        # corner's subset map of no photon still flagged its boundaries, and Diffuse 1
+        # regathered twice: direct light after two diffuse bounces).
+        return E
     pending = []  # the regathers' (target row, tp, wd, prim, u, v, d, extra), per step
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
