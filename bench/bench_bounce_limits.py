@@ -4,8 +4,17 @@ albedo 0.8: the photons' Russian roulette alone would give ~5 bounces on average
 Interleaved, best of 3 by thread CPU time (time.thread_time: one worker).
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_bounce_limits.py [photons]
+
+Mode `ab`: a whole render's CPU seconds (getrusage after jit.ensure_compiled, one worker,
+16 spp) of two checkouts, each run in its own process, interleaved, best of REPS; the scenes
+are pickles of exported blends (/tmp/pk/NAME.pkl, as /work/briefs/filmsha.py writes them);
+SETTINGS a JSON dict of RenderSettings (e.g. '{"glossy_bounces": 1}'):
+
+    .venv/bin/python bench/bench_bounce_limits.py ab ROOT_A ROOT_B NAME[,NAME] REPS [WxH] [SETTINGS]
 """
+import json
 import os
+import subprocess
 import sys
 import time
 
@@ -39,5 +48,39 @@ def main():
         print(f"{name:<18}{best[name]:>18.3f}{k:>12,}{b / max(k, 1):>14.1f}")
 
 
+_CHILD = r"""
+import json, pickle, resource, sys
+from engine.jit import ensure_compiled
+from engine.render import render
+from engine.settings import RenderSettings
+ensure_compiled()
+scene = pickle.load(open(f"/tmp/pk/{sys.argv[1]}.pkl", "rb"))
+scene.width, scene.height = map(int, sys.argv[2].split("x"))
+r0 = resource.getrusage(resource.RUSAGE_SELF)
+render(scene, RenderSettings(workers=1, spp=16, **json.loads(sys.argv[3])))
+r1 = resource.getrusage(resource.RUSAGE_SELF)
+print(r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime)
+"""
+
+
+def ab(root_a, root_b, names, reps, size="160x120", settings="{}"):
+    cpu = {}
+    print(f"load before: {os.getloadavg()}")
+    for _ in range(int(reps)):
+        for name in names.split(","):
+            for root in (root_a, root_b):
+                out = subprocess.run([sys.executable, "-c", _CHILD, name, size, settings],
+                                     capture_output=True, text=True, check=True,
+                                     env=dict(os.environ, PYTHONPATH=root))
+                cpu.setdefault((name, root), []).append(float(out.stdout.split()[-1]))
+    print(f"load after: {os.getloadavg()}; {size}, 16 spp, 1 worker, settings {settings}")
+    for name in names.split(","):
+        a, b = min(cpu[(name, root_a)]), min(cpu[(name, root_b)])
+        print(f"{name}: A {a:.2f} s, B {b:.2f} s, B/A {b / a:.3f} (best of {reps})")
+
+
 if __name__ == "__main__":
-    main()
+    if len(sys.argv) > 1 and sys.argv[1] == "ab":
+        ab(*sys.argv[2:])
+    else:
+        main()

@@ -25,6 +25,7 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
+from . import chaincounts
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -462,7 +463,7 @@ MAX_GATHER_LEVEL = 2
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
-                    level=0, should_cancel=None, lean=_UNSET) -> np.ndarray:
+                    level=0, should_cancel=None, lean=_UNSET, extra=None) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -474,10 +475,22 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     MAX_GATHER_LEVEL) over all G rays and all their continuations are collected and
     gathered in one batch at the end (_regather); their random numbers draw from a
     stream of their own (_spawn: the chunk's stream for the rays of this level is drawn
-    as before)."""
+    as before).
+    extra: (N,4) int64, the hits' bounces beyond this level's own (B_TOTAL order: a
+    camera chain's mirror / glass / glossy / sheen bounces, engine/chaincounts.py; None:
+    none). The gather rays' own continuations add theirs: a lookup past a limit adds
+    nothing, and one whose counts drop more light than its level's map holds
+    (chaincounts.GatherCounts.reroute) gathers again from its end (the last level reads
+    the map)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
-    pending = []  # the regathers' (target row, tp, wd, prim, u, v, d), per gather step
+    lim = ctx.settings.bounce_limits
+    if extra is None and (level + 1 > lim[0] or level + 1 > lim[1]):
+        # This level's rays are a diffuse bounce past a limit: Cycles takes none (a
+        # corner's subset map of no photon still flagged its boundaries, and Diffuse 1
+        # regathered twice: direct light after two diffuse bounces).
+        return E
+    pending = []  # the regathers' (target row, tp, wd, prim, u, v, d, extra), per step
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
     regather = level < MAX_GATHER_LEVEL
@@ -506,6 +519,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             # shadowing term as its light samples do (engine/normalmap.py).
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
+        # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
+        # indexed by idx through the compactions; None: none yet).
+        cnt = None if extra is None else np.array(extra, np.int64)
         for depth in range(ctx.settings.gather_depth + 1):
             if len(idx) == 0:
                 break
@@ -562,6 +578,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if nd and gmap is not None:
                 dsel = dsel[:nd]
                 Ey, boundary = gmap.lookup(lp[:nd], ln[:nd], offset=loff[:nd], scratch=buf)
+                if cnt is not None:
+                    _chain_lookups(ctx, level, cnt[idx[dsel]], Ey, boundary, lt[:nd],
+                                   regather)
                 again = buf.again[:nd]
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
@@ -570,9 +589,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     rows = dsel[again[:n_again]]
                     pending.append((idx[rows], np.take(tp, rows, axis=0),
                                     np.take(wd, rows, axis=0), prim[rows], u[rows],
-                                    v[rows], np.take(d, rows, axis=0)))
+                                    v[rows], np.take(d, rows, axis=0),
+                                    None if cnt is None else cnt[idx[rows]]))
             if depth == ctx.settings.gather_depth:
                 break
+            d_in = d
             if yf is y:
                 keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
             else:
@@ -586,9 +607,50 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     go_u=go_u[full])
                 keep = full[keep]
             idx = idx[keep]
+            cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
+
+
+def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
+    """The gather rays' counts (n,4) per gathering hit after a continuation step
+    (B_TOTAL order, as the camera chain counts them: a bent ray is a bounce of its
+    continued class, sheen's rays (DIFFUSE) a diffuse one as Cycles counts them, a
+    transparent pass none). cnt: (n,4) before (None: zeros), updated in place; idx (K,)
+    the continued rays' hits (one ray a hit); keep (K,) their rows of d_in (N,3)."""
+    if len(keep) == 0:
+        return cnt
+    bent = np.any(d != np.take(d_in, keep, axis=0), axis=1)
+    if cnt is None:
+        if not bent.any():
+            return None
+        cnt = np.zeros((n, 4), np.int64)
+    cls = np.broadcast_to(ray_cls, (len(keep),))
+    cnt[idx, 0] += bent
+    cnt[idx, 1] += bent & (cls == DIFFUSE)
+    cnt[idx, 2] += bent & (cls == GLOSSY)
+    cnt[idx, 3] += bent & (cls == TRANSMISSION)
+    return cnt
+
+
+def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather):
+    """Gather lookups at `level` whose rays have bounces cnt (K,4) beyond the level's own
+    (chaincounts): those past a limit read nothing and are not gathered again (Ey 0,
+    boundary False, lt inf); those whose counts drop more light than the level's map
+    holds gather again from their end (boundary True, with regather). Ey (K,3), boundary,
+    lt (K,): the lookups' arrays, changed in place."""
+    counts = chaincounts.camera_counts(cnt, (level + 1, level + 1, 0, 0))
+    limits = ctx.settings.bounce_limits
+    past = ~chaincounts.within(counts, limits)
+    if past.any():
+        Ey[past] = 0.0
+        boundary[past] = False
+        lt[past] = np.inf
+    if regather and ctx.gather_counts is not None:
+        again = ctx.gather_counts.reroute(level, counts) & ~past
+        if again.any():
+            boundary[again] = True
 
 
 def _deeper(pmap, deeper, level):
@@ -691,15 +753,22 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     rays' hits (surface_hit is row by row: the same values the step had). Random numbers:
     a stream spawned from rng (_spawn, which draws nothing from rng), so the same for any
     worker count as the chunk's own."""
+    extras = [p[7] for p in pending]
+    if all(e is None for e in extras):
+        extra = None
+    else:
+        extra = np.concatenate([np.zeros((len(p[0]), 4), np.int64) if p[7] is None else p[7]
+                                for p in pending])
     target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
-                                     for a in zip(*pending))
+                                     for a in zip(*(p[:7] for p in pending)))
     rng = _spawn(rng)
     # At most REGATHER_BATCH ends at a time (one stream, slice after slice): the level's
     # arrays stay bounded however many ends a chunk regathers.
     for a in range(0, len(target), REGATHER_BATCH):
         b = a + REGATHER_BATCH
         _regather_batch(ctx, E, target[a:b], tp[a:b], wd[a:b], prim[a:b], u[a:b], v[a:b],
-                        d[a:b], G, rng, counters, level, should_cancel, lean)
+                        d[a:b], G, rng, counters, level, should_cancel, lean,
+                        None if extra is None else extra[a:b])
 
 
 # Ends a regather batch holds at most (its surface data, direct-light buffers and the next
@@ -709,8 +778,9 @@ REGATHER_BATCH = 1 << 15
 
 
 def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, level,
-                    should_cancel, lean):
-    """_regather for one slice of its ends (rng: the batch's spawned stream)."""
+                    should_cancel, lean, extra=None):
+    """_regather for one slice of its ends (rng: the batch's spawned stream); extra: the
+    ends' bounces beyond their level's (gather_indirect's; None: none)."""
     y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
@@ -726,8 +796,8 @@ def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, lev
     counters.count("regather shadow", level + 1, counters.shadow_rays - before)
     Esub = (Ed
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
-                              should_cancel=should_cancel, lean=lean)
-            + _secondary_irradiance(ctx, y, rng, level + 1))
+                              should_cancel=should_cancel, lean=lean, extra=extra)
+            + _secondary_irradiance(ctx, y, rng, level + 1, extra))
     c = np.ascontiguousarray
     add_gathered(E, target, np.arange(len(target), dtype=np.int64), c(tp, np.float64),
                  c(wd, np.float64), c(Esub, np.float64), G, _NO_FLAG, _NO_LENGTH, 0.0,
@@ -751,20 +821,25 @@ _NO_ROWS = np.zeros(0, np.int64)
 SECONDARY_REGATHER_FRACTION = 0.1
 
 
-def _secondary_irradiance(ctx, hit, rng, bounces=0):
+def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None):
     """Irradiance (N,3) from caustic light one diffuse bounce back (CAUSTIC_DIFFUSE
     photons) at regathered points, estimated for a random SECONDARY_REGATHER_FRACTION of
     them and weighted by its inverse (zero elsewhere). bounces: the points' diffuse
-    bounces from the camera's hit (the map of that depth: Context.regather_secondary)."""
+    bounces from the camera's hit (the map of that depth: Context.regather_secondary);
+    extra: (N,4) their bounces beyond that (gather_indirect's; None: none), the estimate
+    then from the photons usable for their counts alone (chaincounts.irradiance)."""
     pmap, s = _deeper(ctx.secondary_map, ctx.regather_secondary, bounces), ctx.settings
     out = np.zeros((len(hit.p), 3))
     if pmap is None or len(pmap) == 0:
         return out
     rows = np.nonzero(rng.random(len(hit.p)) < SECONDARY_REGATHER_FRACTION)[0]
     if len(rows):
-        out[rows] = pmap.irradiance(hit.p[rows], hit.ng[rows],
-                                    ctx.secondary_radius or ctx.global_radius, s.k_nearest,
-                                    smooth_min_photons(s), s.estimator) / SECONDARY_REGATHER_FRACTION
+        counts = (None if extra is None else
+                  chaincounts.camera_counts(extra[rows], (bounces, bounces, 0, 0)))
+        out[rows] = chaincounts.irradiance(
+            pmap, s.bounce_limits, counts, hit.p[rows], hit.ng[rows],
+            ctx.secondary_radius or ctx.global_radius, s.k_nearest, smooth_min_photons(s),
+            s.estimator) / SECONDARY_REGATHER_FRACTION
     return out
 
 
@@ -917,7 +992,7 @@ def smooth_min_photons(settings) -> int:
 
 
 def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
-                     per_pixel=None, every=None, into=None):
+                     per_pixel=None, every=None, into=None, counts=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most per_pixel samples per pixel (default
     CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius
@@ -928,7 +1003,10 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     into: (N,3) float64 to add the estimate to (its rows that take one), returned; None:
     a fresh array (zero where no estimate is taken). Adding into the caller's sum at the
     estimated rows only spares an (N,3) array of mostly zeros, its fill and its sum
-    (one row in `stride` takes an estimate; the other rows' x + 0.0 is x)."""
+    (one row in `stride` takes an estimate; the other rows' x + 0.0 is x). counts:
+    (N,4) the rows' camera-side bounces where they differ from the map's (after a
+    specular chain: the photons usable for them alone, chaincounts.irradiance); None:
+    the map's."""
     out = np.zeros_like(f) if into is None else into
     if pmap is None or len(pmap) == 0:
         return out
@@ -942,9 +1020,11 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
         sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
         weight = smooth_sample_weight(s.spp, stride)
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
-    E = pmap.irradiance(np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0), radius,
-                        s.k_nearest, smooth_min_photons(s), s.estimator,
-                        r_floor=None if footprint is None else np.take(footprint, sel))
+    E = chaincounts.irradiance(pmap, s.bounce_limits,
+                               None if counts is None else np.take(counts, sel, axis=0),
+                               np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0),
+                               radius, s.k_nearest, smooth_min_photons(s), s.estimator,
+                               r_floor=None if footprint is None else np.take(footprint, sel))
     if into is None:
         out[sel] = weight * np.take(f, sel, axis=0) * E
     else:
@@ -962,7 +1042,7 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
-                  rows=None, bounce=None):
+                  rows=None, bounce=None, extra=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
@@ -978,7 +1058,10 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     the whole batch's. The same numbers as shade_diffuse(hit.take(rows), ...) with sel
     taken at rows. None: every hit.
     bounce: the camera path's bounce, for counters.stages' ("camera shadow", bounce): the
-    direct stage's shadow rays (the final gather's regathers count their own)."""
+    direct stage's shadow rays (the final gather's regathers count their own).
+    extra: (K,4) int64 per shaded row, the camera chain's bounces before these hits
+    (B_TOTAL order; the photon lookups count only the photons usable after them,
+    engine/chaincounts.py); None: none (the camera's first hits)."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     shadow_rays_before = counters.shadow_rays
@@ -1007,33 +1090,35 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
             c, ind = _photon_terms(ctx, sub, f[dsel], rng, counters, sampler,
                                    None if sample_id is None else sample_id[dsel],
                                    None if footprint is None else footprint[dsel],
-                                   should_cancel, None if scattered is None else scattered[dsel])
+                                   should_cancel, None if scattered is None else scattered[dsel],
+                                   None if extra is None else extra[dsel])
             caustic[dsel] = c
             indirect[dsel] = ind
             return direct, caustic, indirect
     caustic, indirect = _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id,
-                                      footprint, should_cancel, scattered)
+                                      footprint, should_cancel, scattered, extra)
     return direct, caustic, indirect
 
 
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
-                  scattered=None):
-    """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered:
-    shade_diffuse's."""
+                  scattered=None, extra=None):
+    """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered,
+    extra: shade_diffuse's."""
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
     caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
-                               footprint, every=scattered)
+                               footprint, every=scattered, counts=extra)
     if ctx.gather_map is not None:
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
-                                       should_cancel=should_cancel)
+                                       should_cancel=should_cancel, extra=extra)
         _smooth_estimate(ctx, ctx.secondary_map, ctx.secondary_radius or ctx.global_radius,
                          hit, f, sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL,
-                         into=indirect)
+                         into=indirect, counts=extra)
     elif ctx.global_map is not None and len(ctx.global_map):
-        indirect = f * ctx.global_map.irradiance(hit.p, hit.ng, ctx.global_radius,
-                                                 s.k_nearest, s.min_photons, s.estimator)
+        indirect = f * chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra,
+                                              hit.p, hit.ng, ctx.global_radius,
+                                              s.k_nearest, s.min_photons, s.estimator)
     else:
         indirect = np.zeros_like(f)
     return caustic, indirect
@@ -1270,6 +1355,15 @@ class BounceBuffers:
                 self.glossy[:n], self.rows[:n], self.wd[:n])
 
 
+def _chain_counts(chain):
+    """(K,4) int64 camera-side counts in B_TOTAL order (total, diffuse, glossy,
+    transmission) from the camera chain's (K,3) (total, glossy, transmission): its
+    other bounces are sheen's, diffuse in Cycles' count (engine/chaincounts.py)."""
+    chain = np.asarray(chain, np.int64)
+    return np.stack([chain[:, 0], chain[:, 0] - chain[:, 1] - chain[:, 2], chain[:, 1],
+                     chain[:, 2]], axis=1)
+
+
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                  should_cancel, sampler=None, sample_id=None, bsdf_rng=None, buffers=None):
     buffers = buffers or BounceBuffers()
@@ -1399,8 +1493,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             chain = np.take(chain, kept, axis=0)
             if may_split is not None:
                 may_split = may_split[kept]
+        # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
+        # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
-                | (chain[:, 2] > limits[3])) if bounce > 0 else None
+                | (chain[:, 2] > limits[3])
+                | (chain[:, 0] - chain[:, 1] - chain[:, 2] > limits[1])) if bounce > 0 else None
         if over is not None and not over.any():
             over = None
         # A pixel's footprint: only the photon estimates read it.
@@ -1470,7 +1567,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
                 sel=sel if g.any() else None, buffers=buffers.direct,
                 scattered=scattered if every or scattered is None else scattered[dsel],
-                rows=None if every else dsel, bounce=bounce)
+                rows=None if every else dsel, bounce=bounce,
+                extra=None if bounce == 0 else _chain_counts(chain if every else chain[dsel]))
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:

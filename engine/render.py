@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .accel import Accel
+from .chaincounts import GatherCounts
 from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, area_sum, prepare
@@ -52,6 +53,10 @@ class Context:
     # subset map (GatherMap.subset_maps: the same points, that level's photons' irradiance).
     regather_maps: tuple = ()
     regather_secondary: tuple = ()
+    # The gather map's photons' bounce counts and power: which lookups after a specular
+    # chain its precomputed irradiance cannot serve (chaincounts.GatherCounts; None: no
+    # final gathering).
+    gather_counts: object = None
     gather_short: float = 0.0  # gather rays shorter than this gather again from their end
     plan: EffectPlan | None = None
     global_radius: float = 0.0
@@ -160,6 +165,7 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) 
     camera looks (engine/visualimportance.py), but every view's estimates stay unbiased."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     ctx.regather_maps = ctx.regather_secondary = ()
+    ctx.gather_counts = None
     ctx.gather_rays = 0
     s = ctx.settings
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
@@ -456,6 +462,17 @@ def region_photons(positions: np.ndarray, region, k: int) -> np.ndarray:
         inside |= np.einsum("ij,ij->i", d, d) <= r * r
     return positions[inside] if inside.sum() > k else positions
 
+def _counted_map(photons: Photons, workers: int, rows: np.ndarray) -> PhotonMap:
+    """PhotonMap(photons, workers, rows=rows) whose photons keep their bounce counts
+    (Photons.bounces in the map's order), so a lookup after a specular chain counts only
+    the photons usable for its counts (chaincounts.irradiance)."""
+    counted = photons.bounces is not None
+    pm = PhotonMap(photons, workers, rows=rows, keep_source=counted)
+    if counted and pm.tree is not None:
+        pm.photons.bounces = np.take(photons.bounces, pm.source, axis=0)
+        del pm.source
+    return pm
+
 
 def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     """The photon maps and radii of a pass, as Context attributes (name -> value) plus
@@ -542,19 +559,24 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    subsets=masks)
             out_deeper["regather_maps"] = tuple(
                 gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of)
+            if shot.bounces is not None:
+                # Lookups after a specular chain: which ones the map cannot serve.
+                out_deeper["gather_counts"] = GatherCounts(
+                    np.take(shot.bounces, rows, axis=0), np.take(power, rows), limits,
+                    SUBSET_POWER_SHARE)
         return r_global, gather_map
 
     def other_maps(flag):
         out = {}
         if plan.caustics:
             out["caustic_map"] = (
-                PhotonMap(caustic, workers, rows=np.flatnonzero(caustic.usable(limits)))
+                _counted_map(caustic, workers, np.flatnonzero(caustic.usable(limits)))
                 if use_caustic_shot else
-                PhotonMap(shot, workers, rows=np.flatnonzero((shot.kind == CAUSTIC) & at_hit)))
+                _counted_map(shot, workers, np.flatnonzero((shot.kind == CAUSTIC) & at_hit)))
             check(flag)
         if final:
             rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & at_hit)
-            out["secondary_map"] = secondary = PhotonMap(shot, workers, rows=rows)
+            out["secondary_map"] = secondary = _counted_map(shot, workers, rows)
             # Its own photons' spacing: the global radius follows the dense photons of the
             # whole shot (a caustic's pile among them), which leaves the sparser secondary
             # photons below min_photons in much of the disc (zero estimate): walls lit
@@ -570,12 +592,12 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                 ok = shot.usable(limits, camera=(level, level, 0, 0))
                 rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & ok)
                 if not np.array_equal(rows, last[1]):
-                    last = (PhotonMap(shot, workers, rows=rows), rows)
+                    last = (_counted_map(shot, workers, rows), rows)
                 deeper.append(last[0])
             out["regather_secondary"] = tuple(deeper)
         elif plan.indirect and not s.final_gather:
             rows = np.flatnonzero(np.isin(shot.kind, (INDIRECT, CAUSTIC_DIFFUSE)) & at_hit)
-            out["global_map"] = pm = PhotonMap(shot, workers, rows=rows)
+            out["global_map"] = pm = _counted_map(shot, workers, rows)
             out["global_radius"] = s.radius or auto_radius(
                 diffuse_area, len(pm), k, geo.extent, pm.photons.position, pm.tree,
                 workers=workers)

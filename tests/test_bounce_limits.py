@@ -1,6 +1,8 @@
 """Cycles' Light Paths bounce limits (max_bounces, diffuse / glossy / transmission bounces;
 docs/design.md, Bounce limits): the photons' counts, the maps' filtering and the camera
 chain, against geometric series and simple optics."""
+import copy
+
 import numpy as np
 import pytest
 
@@ -230,3 +232,74 @@ def test_regathers_get_maps_of_their_depth_only_where_the_limits_drop_light():
     s.set_camera((0, -4, 2), (0, 0, 0.4), view_angle=50)
     g, deeper = _regather_maps(s)
     assert g is not None and all(m is g for m in deeper)
+
+
+def _inside_sphere_through_a_mirror(albedo):
+    """_inside_sphere with the camera's view filled by a flat mirror that camera rays
+    alone see (every other ray kind, shadow rays and photons pass it): each pixel shows
+    the sphere's wall after one glossy bounce, lit as in _inside_sphere."""
+    s = _inside_sphere(albedo)
+    s.add_material(Material("mirror", (1.0, 1.0, 1.0), metallic=1.0, roughness=0.0))
+    m = s.add_plane((0, 0.2, 0.1), normal=(0, -1, 0), size=1.2, material="mirror",
+                    name="mirror")
+    m.visible_diffuse = m.visible_glossy = m.visible_transmission = False
+    m.visible_shadow = False
+    return s
+
+
+@pytest.mark.parametrize("final_gather", [True, False])
+def test_lookups_after_a_mirror_count_its_bounce(final_gather):
+    """Seen through a mirror (one glossy bounce), the sphere's wall with Max Bounces T
+    shows direct + indirect light of T - 1 bounces: radiance x (1 + a + ... + a^(T-1)),
+    so T = 2 against T = 3 reads (1 + a) / (1 + a + a^2) (0.857 at a = 0.5). Lookups
+    that used the photons of the camera's first hit (c = 0) read (1 + a + a^2) / (1 + a
+    + a^2 + a^3) (0.933): the k-NN maps' photons are counted for the chain's counts
+    (chaincounts.irradiance: the global map without final gathering), the gather map's
+    lookups gather again from their ends (chaincounts.GatherCounts.reroute)."""
+    a = 0.5
+    st = dict(photons=30000, caustic_photons=0, spp=4, seed=3, final_gather=final_gather,
+              **dict(HIGH, diffuse_bounces=1024))
+    spec = {}
+    for total in (2, 3):
+        film = _inside_sphere_through_a_mirror(a).render(
+            RenderSettings(**dict(st, max_bounces=total)))
+        assert film.direct.max() == 0.0  # every pixel sees the mirror
+        spec[total] = film.specular.mean()
+    ratio = spec[2] / spec[3]
+    want = (1 + a) / (1 + a + a * a)
+    assert abs(ratio - want) < 0.02 * want, (ratio, want)
+
+
+def test_chain_lookups_count_only_the_photons_usable_for_each_rows_counts():
+    """chaincounts.irradiance: rows whose counts keep every photon read the map's own
+    estimate (bit for bit), rows whose counts keep none read 0, and the others the
+    estimate of their usable photons alone from the same disc: the bits of a map whose
+    other photons carry no power."""
+    from engine import chaincounts
+    from engine.render import _counted_map
+    ph = shoot(closed_box(0.6, 100.0), RenderSettings(photons=20000, **HIGH))
+    lim = np.array([3, 3, 3, 3])
+    pm = _counted_map(ph, 1, np.flatnonzero(ph.usable(lim)))  # as render._build_maps
+    assert pm.photons.bounces is not None
+    rng = np.random.default_rng(2)
+    p = pm.photons.position[rng.choice(len(pm), 64, replace=False)].astype(np.float64)
+    n = pm.photons.normal[rng.choice(len(pm), 64, replace=False)].astype(np.float64)
+    n = np.where(np.sum(n * n, axis=1, keepdims=True) > 0, n, (0, 0, 1))
+    counts = np.zeros((64, 4), np.int64)
+    counts[16:32] = (1, 1, 0, 0)
+    counts[32:48] = (9, 0, 0, 0)  # past every photon's use
+    counts[48:] = (2, 1, 0, 0)
+    args = (0.3, 32, 1, "knn_simpson")
+    got = chaincounts.irradiance(pm, lim, counts, p, n, *args)
+    plain = pm.irradiance(p, n, *args)
+    np.testing.assert_array_equal(got[:16], plain[:16])  # (0, 0, 0, 0) keeps all (limits 3)
+    assert not got[32:48].any()
+    for rows, key in ((slice(16, 32), (1, 1, 0, 0)), (slice(48, 64), (2, 1, 0, 0))):
+        ok = pm.photons.usable(lim, key)
+        assert 0 < ok.sum() < len(ok)
+        zeroed = copy.copy(pm)
+        zeroed.photons = copy.copy(pm.photons)
+        zeroed.photons.power = np.where(ok[:, None], pm.photons.power, 0).astype(np.float32)
+        np.testing.assert_array_equal(got[rows], zeroed.irradiance(p[rows], n[rows], *args))
+    # Without counts: the map's own call.
+    np.testing.assert_array_equal(chaincounts.irradiance(pm, lim, None, p, n, *args), plain)

@@ -124,9 +124,12 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
 
 @pytest.fixture(scope="module")
 def box():
+    # Limits no path reaches: the numpy stage below predates the bounce counts of the
+    # gather rays' continuations (engine/chaincounts.py, tests/test_bounce_limits.py).
     ctx = prepare_context(cornell_box(32, 24, glass_sphere=True),
                           RenderSettings(workers=1, photons=30_000, caustic_photons=10_000,
-                                         seed=2))
+                                         seed=2, max_bounces=1024, diffuse_bounces=1024,
+                                         glossy_bounces=1024, transmission_bounces=1024))
     _photon_pass(ctx, {}, None, None)
     yield ctx
     ctx.accel.close()

@@ -1,0 +1,137 @@
+"""Photon lookups after a camera chain: only the photons usable for the chain's real bounce
+counts (Cycles' Light Paths limits, docs/design.md, Bounce limits).
+
+The photon maps are filtered at build time for their common lookup (render._build_maps:
+the caustic, secondary and global maps for the camera's first hit, camera-side counts
+c = 0; the gather map for a final-gather ray's end, c = (1, 1, 0, 0); the regathers' maps
+for their depth). A lookup reached after a chain of mirror / glass / glossy / sheen
+bounces, or at the end of a gather ray that itself continued through such a surface, has
+more bounces behind it: `extra`, (K,4) int64 per lookup row in B_TOTAL order (total,
+diffuse, glossy, transmission) on top of the map's own camera counts.
+
+- k-NN maps (caustic, secondary, global): `irradiance` counts only the photons usable
+  for each row's counts (photonkernels.bounce_usable), their disc still found from all
+  of the map's photons (PhotonMap.irradiance's masks: the others' power counted as 0; an
+  unbiased estimate of the usable photons' irradiance, as GatherMap's keep).
+- The gather map's irradiance is precomputed per gather point, so no per-lookup filter:
+  `GatherCounts.reroute` tells the lookups whose counts drop more than
+  render.SUBSET_POWER_SHARE of the power the map's own level keeps; final gathering
+  gathers again from their ends (integrator.gather_indirect), where direct light,
+  the next level's gather and the secondary caustic are all taken with the real counts.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import photonkernels as pk
+
+
+def camera_counts(extra, base=(0, 0, 0, 0)) -> np.ndarray:
+    """(K,4) int64: the camera-side counts of lookups `base` (4,) + extra (K,4)."""
+    return np.asarray(extra, np.int64) + np.asarray(base, np.int64)
+
+
+def within(counts, limits) -> np.ndarray:
+    """(K,) bool: camera-side counts (K,4) whose bounces are all within the limits (4,):
+    the lookup vertex is reached by a path Cycles would still shade."""
+    c = np.asarray(counts, np.int64)
+    return np.all(c <= np.asarray(limits, np.int64)[None, :], axis=1)
+
+
+def _usable(photons, limits, key, cache) -> np.ndarray:
+    """photons.usable(limits, key), cached per key (a dict shared by the map's views;
+    two threads may compute one mask twice, the same values)."""
+    mask = cache.get(key)
+    if mask is None:
+        mask = cache[key] = photons.usable(limits, key)
+    return mask
+
+
+def map_cache(pmap) -> dict:
+    """The per-map dict of usable masks (keyed by camera counts), made on first use."""
+    cache = vars(pmap).get("usable_masks")
+    if cache is None:
+        cache = vars(pmap).setdefault("usable_masks", {})
+    return cache
+
+
+def irradiance(pmap, limits, counts, p, n, *args, **kwargs) -> np.ndarray:
+    """pmap.irradiance(p, n, *args, **kwargs) (M,3) with each row's estimate from the
+    photons usable at its camera-side counts counts (M,4) alone (None: every photon the
+    map holds, the map's own call). Rows whose counts keep every photon take the plain
+    estimate (the same bits), rows whose counts keep none 0; the rest the masked estimate
+    of one call with a mask per distinct count (PhotonMap.irradiance's masks: the same
+    search and disc). pmap.photons.bounces: the map photons' counts (render._build_maps);
+    without them every photon counts."""
+    if (counts is None or pmap is None or len(pmap) == 0
+            or getattr(pmap.photons, "bounces", None) is None):
+        return pmap.irradiance(p, n, *args, **kwargs)
+    counts = np.asarray(counts, np.int64)
+    keys, which = np.unique(counts, axis=0, return_inverse=True)
+    which = which.reshape(-1)
+    cache = map_cache(pmap)
+    masks, slot = [], np.full(len(keys), -1, np.int64)  # -1: every photon; -2: none
+    for j, key in enumerate(keys):
+        mask = _usable(pmap.photons, limits, tuple(int(x) for x in key), cache)
+        if mask.all():
+            continue
+        if not mask.any():
+            slot[j] = -2
+            continue
+        slot[j] = len(masks)
+        masks.append(mask)
+    if not masks:
+        out = pmap.irradiance(p, n, *args, **kwargs)
+        if (slot == -2).any():
+            out = np.where((slot[which] == -2)[:, None], 0.0, out)
+        return out
+    out, masked = pmap.irradiance(p, n, *args, masks=np.stack(masks), **kwargs)
+    s = slot[which]
+    rows = np.nonzero(s >= 0)[0]
+    out[rows] = masked[s[rows], rows]
+    out[s == -2] = 0.0
+    return out
+
+
+class GatherCounts:
+    """The gather map's photons' counts and power (the shot's non-caustic photons:
+    bounces (N,4) uint8, power (N,) float64 summed over RGB), to decide which gather
+    lookups the precomputed irradiance cannot serve (reroute). Shared by the render's
+    threads; its cache is filled as lookups ask (the same answer from any thread)."""
+
+    def __init__(self, bounces, power, limits, share):
+        self.bounces = bounces
+        self.power = np.asarray(power, np.float64)
+        self.limits = np.asarray(limits, np.int64)
+        self.share = share
+        self._cache = {}
+
+    def _mask(self, key):
+        mask = self._cache.get(("mask",) + key)
+        if mask is None:
+            mask = self._cache[("mask",) + key] = pk.bounce_usable(self.bounces, self.limits,
+                                                                   key)
+        return mask
+
+    def drops(self, level, key) -> bool:
+        """Whether lookups at gather level `level` (the map filtered for camera counts
+        (level + 1, level + 1, 0, 0)) reached with camera counts key (4-tuple) would drop
+        more than `share` of the power that level's photons carry."""
+        got = self._cache.get((level,) + key)
+        if got is None:
+            nominal = self._mask((level + 1, level + 1, 0, 0))
+            ok = self._mask(key)
+            kept = float(self.power[nominal].sum())
+            got = float(self.power[nominal & ~ok].sum()) > self.share * kept
+            self._cache[(level,) + key] = got
+        return got
+
+    def reroute(self, level, counts) -> np.ndarray:
+        """(K,) bool for lookups with camera counts (K,4) at gather level `level`."""
+        counts = np.asarray(counts, np.int64)
+        out = np.zeros(len(counts), bool)
+        if not len(counts):
+            return out
+        keys, which = np.unique(counts, axis=0, return_inverse=True)
+        hit = np.array([self.drops(level, tuple(int(x) for x in k)) for k in keys])
+        return hit[which.reshape(-1)]
