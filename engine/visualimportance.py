@@ -425,7 +425,10 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     it does not pay)."""
     natural = ShotPlan(list(lights), list(natural_counts), "")
     if region is None or total <= 0 or not lights:
-        natural.report = "no visual importance: no surface in view to aim photons at"
+        # region None: the camera's gather rays end on no surface that stores photons
+        # (an open scene, or only metal and glass where they end).
+        natural.report = ("no visual importance: the camera's final-gather rays reach no "
+                          "surface that stores photons, so there is nothing to aim at")
         return natural
     rng = np.random.default_rng([ctx.settings.seed, 94])
     K = len(region.radii)

@@ -8,8 +8,8 @@ lit floor) and a halo of spherical aberration (half the power beyond 15 cm of th
 0.24 m^2 brighter than the lit floor) -- the "broad glow" is mostly this halo. The
 reference is tests/ball_lens.py (rays through a perfect sphere, no engine code), binned in
 2 cm cells; the caustic map's k-NN estimate at the cells' centres must match its peak,
-spot width and power (measured: peak 1.057, width 1.000, power 0.996 of the reference,
-profile error 0.129 against 0.148 for the photons' own 2 cm bins;
+spot width and power (measured: the spot's 6 cm peak 0.97-1.05, width 1.000, power
+0.996 of the reference, profile error 0.129 against 0.148 for the photons' own 2 cm bins;
 bench/bench_caustic_radius.py).
 """
 import math
@@ -76,7 +76,12 @@ def test_ball_caustic_matches_the_analytic_spot(ball):
     l1 = np.abs(E - ref).sum() / ref.sum()
     l1_bins = np.abs(bins - ref).sum() / ref.sum()
     assert l1 < 0.18 and l1 < l1_bins, (l1, l1_bins)
-    assert abs(E.max() / ref.max() - 1) < 0.10, (E.max(), ref.max())
+    # The spot's height over the 3 x 3 cells (6 cm) about the reference's peak: one 2 cm
+    # cell's maximum is the photons' noise (0.997-1.147 of the reference over seeds 1-8),
+    # the 6 cm square's mean 0.973-1.053.
+    i, j = np.unravel_index(np.argmax(ref), ref.shape)
+    spot, spot_ref = E[i - 1:i + 2, j - 1:j + 2].mean(), ref[i - 1:i + 2, j - 1:j + 2].mean()
+    assert abs(spot / spot_ref - 1) < 0.08, (spot, spot_ref)
     w, w_ref = encircled_radius(E, XS, YS), encircled_radius(ref, XS, YS)
     assert abs(w / w_ref - 1) < 0.05, (w, w_ref)
     assert abs(E.sum() / ref.sum() - 1) < 0.02, (E.sum(), ref.sum())

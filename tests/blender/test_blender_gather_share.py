@@ -24,8 +24,13 @@ def test_render_reports_the_gather_count(bpy_addon, open_ground):
     dg = bpy_addon.context.evaluated_depsgraph_get()
     scene, _ = export.export_scene(engine, dg, width=32, height=24)
     kwargs = open_ground.photonmap.to_settings_kwargs()
+    kwargs["gather_rays"] = 8
     film = render(scene, RenderSettings(**kwargs))
+    # The ground's light is direct, from the area light: the share over seeds 0-5 reads
+    # 0.035-0.053 at 20k photons (0.039-0.049 at 200k), so 2 to 5 of 8 rays.
     share = film.stats["indirect_share"]
-    assert 0 < share < 0.05, share  # the ground's light: direct, from the area light
-    assert film.stats["gather_rays_used"] == gather_count(kwargs["gather_rays"], share) == 1
-    assert any("final gathering with 1 of 2 ray(s)" in line for line in film.stats["effects"])
+    assert 0 < share < 0.08, share
+    used = film.stats["gather_rays_used"]
+    assert used == gather_count(8, share) < 8, (used, share)
+    assert any(f"final gathering with {used} of 8 ray(s)" in line
+               for line in film.stats["effects"])
