@@ -27,14 +27,10 @@ L = 4.0   # inside size of the room, m
 H = 2.6   # inside height, m
 
 
-def _closed_room(sun=True, world=True, width=32, height=24):
-    """The newuser room (scene_c0_window_sun_outside.py) with the window walled up:
-    six boxes T thick overlapping at the edges and corners (each L + 2T long), a block
-    and a ball inside, camera inside; lit only from outside by a sun from -x, 35 degrees
-    up (it lights the outside of the left wall and the roof) and a bright world."""
-    s = PaperScene(width=width, height=height,
-                   background=(0.3, 0.4, 0.6) if world else (0.0, 0.0, 0.0))
-    s.background_is_light = world
+def add_room_shell(s):
+    """The room's materials ("wall", "wood") and five of its walls in s (a PaperScene):
+    floor, ceiling, back, front and left boxes T thick, each L + 2T long so they overlap at
+    the edges and corners; the right wall (+x) is the caller's. Returns L + 2T."""
     s.add_material(Material("wall", (0.8, 0.8, 0.78)))
     s.add_material(Material("wood", (0.5, 0.3, 0.15)))
     full = L + 2 * T
@@ -43,6 +39,18 @@ def _closed_room(sun=True, world=True, width=32, height=24):
     s.add_box((0, L / 2 + T / 2, H / 2), (full, T, H), "wall", name="back")
     s.add_box((0, -L / 2 - T / 2, H / 2), (full, T, H), "wall", name="front")
     s.add_box((-L / 2 - T / 2, 0, H / 2), (T, full, H), "wall", name="left")
+    return full
+
+
+def _closed_room(sun=True, world=True, width=32, height=24):
+    """The newuser room (scene_c0_window_sun_outside.py) with the window walled up:
+    six boxes T thick overlapping at the edges and corners (each L + 2T long), a block
+    and a ball inside, camera inside; lit only from outside by a sun from -x, 35 degrees
+    up (it lights the outside of the left wall and the roof) and a bright world."""
+    s = PaperScene(width=width, height=height,
+                   background=(0.3, 0.4, 0.6) if world else (0.0, 0.0, 0.0))
+    s.background_is_light = world
+    full = add_room_shell(s)
     s.add_box((L / 2 + T / 2, 0, H / 2), (T, full, H), "wall", name="right")
     s.add_box((-0.5, 0.5, 0.3), (0.6, 0.6, 0.6), "wall", name="block")
     if sun:

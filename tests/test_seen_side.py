@@ -19,10 +19,8 @@ from engine.lights.mesh import MeshLight
 from engine.render import prepare_context, render, shoot_photons
 from engine.scene import Material
 from engine import visualimportance as vi
+from test_leak import H, L, T, add_room_shell
 
-T = 0.1   # wall thickness, m
-L = 4.0   # inside size of the room, m
-H = 2.6   # inside height, m
 WIN = (0.8, 1.8, -0.5, 0.5)  # window in the right wall: z0, z1, y0, y1 (m)
 
 
@@ -33,15 +31,8 @@ def _window_room(sun=True, width=32, height=24):
     the roof, and no ray of it enters through the window (the window faces away)."""
     s = PaperScene(width=width, height=height, background=(0.3, 0.4, 0.6))
     s.background_is_light = True
-    s.add_material(Material("wall", (0.8, 0.8, 0.78)))
-    s.add_material(Material("wood", (0.5, 0.3, 0.15)))
+    full = add_room_shell(s)
     s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.5))
-    full = L + 2 * T
-    s.add_box((0, 0, -T / 2), (full, full, T), "wood", name="floor")
-    s.add_box((0, 0, H + T / 2), (full, full, T), "wall", name="ceiling")
-    s.add_box((0, L / 2 + T / 2, H / 2), (full, T, H), "wall", name="back")
-    s.add_box((0, -L / 2 - T / 2, H / 2), (full, T, H), "wall", name="front")
-    s.add_box((-L / 2 - T / 2, 0, H / 2), (T, full, H), "wall", name="left")
     # The right wall in four boxes round the window.
     z0, z1, y0, y1 = WIN
     x = L / 2 + T / 2
