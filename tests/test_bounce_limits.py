@@ -303,3 +303,23 @@ def test_chain_lookups_count_only_the_photons_usable_for_each_rows_counts():
         np.testing.assert_array_equal(got[rows], zeroed.irradiance(p[rows], n[rows], *args))
     # Without counts: the map's own call.
     np.testing.assert_array_equal(chaincounts.irradiance(pm, lim, None, p, n, *args), plain)
+
+
+def test_unique_counts_are_numpys_unique_rows():
+    """chaincounts.unique_counts: the distinct count rows and each row's index, the very
+    arrays of np.unique(axis=0, return_inverse=True) (whose structured-row sort it
+    replaces), on all-equal rows, packed keys (counts < 2^15) and the general fallback."""
+    from engine.chaincounts import unique_counts
+    rng = np.random.default_rng(3)
+    mixed = np.tile(np.array([[1, 1, 0, 0]]), (500, 1))
+    mixed[::7, 2] += 1
+    mixed[::11, 0] = 1024
+    cases = (np.zeros((0, 4), np.int64), np.tile(np.array([[2, 2, 0, 0]]), (300, 1)), mixed,
+             rng.integers(0, 4, (2000, 4)), rng.integers(0, 40000, (200, 4)),
+             rng.integers(-2, 3, (200, 4)))
+    for c in cases:
+        want_keys, want_which = np.unique(c, axis=0, return_inverse=True)
+        keys, which = unique_counts(c)
+        assert keys.dtype == np.int64 and which.dtype == np.int64
+        np.testing.assert_array_equal(keys, want_keys)
+        np.testing.assert_array_equal(which, want_which.reshape(-1))
