@@ -31,6 +31,32 @@ def camera_counts(extra, base=(0, 0, 0, 0)) -> np.ndarray:
     return np.asarray(extra, np.int64) + np.asarray(base, np.int64)
 
 
+# unique_counts packs a row's four counts into one int64 key, _KEY_BITS bits a count
+# (counts are bounce counts: a photon's saturate at 255, Cycles' limits stop at 1024).
+_KEY_BITS = 15
+_KEY_SHIFTS = np.array([3 * _KEY_BITS, 2 * _KEY_BITS, _KEY_BITS, 0], np.int64)
+
+
+def unique_counts(counts):
+    """(keys (U,4) int64, which (K,) int64): the distinct rows of counts (K,4) in
+    lexicographic order and each row's index into them, the same arrays as
+    np.unique(counts, axis=0, return_inverse=True). That call sorts the rows as a
+    structured dtype (numpy's generic field-by-field compare: ~0.7 ms a gather step's
+    call, 10-18 % of a Figure 6 / 7 render, docs/performance.md camspeed2); rows that all
+    equal the first (most calls) need no sort, and counts in [0, 2^15) sort as one int64
+    key in the same order."""
+    c = np.asarray(counts, np.int64)
+    if len(c) and (c == c[0]).all():
+        return c[:1].copy(), np.zeros(len(c), np.int64)
+    if len(c) and c.min() >= 0 and c.max() < (1 << _KEY_BITS):
+        key = (c << _KEY_SHIFTS).sum(axis=1)  # disjoint bit fields: the sum is their OR
+        u, which = np.unique(key, return_inverse=True)
+        keys = (u[:, None] >> _KEY_SHIFTS) & ((1 << _KEY_BITS) - 1)
+        return keys, which.reshape(-1).astype(np.int64, copy=False)
+    keys, which = np.unique(c, axis=0, return_inverse=True)
+    return keys, which.reshape(-1)
+
+
 def within(counts, limits) -> np.ndarray:
     """(K,) bool: camera-side counts (K,4) whose bounces are all within the limits (4,):
     the lookup vertex is reached by a path Cycles would still shade."""
@@ -66,9 +92,7 @@ def irradiance(pmap, limits, counts, p, n, *args, **kwargs) -> np.ndarray:
     if (counts is None or pmap is None or len(pmap) == 0
             or getattr(pmap.photons, "bounces", None) is None):
         return pmap.irradiance(p, n, *args, **kwargs)
-    counts = np.asarray(counts, np.int64)
-    keys, which = np.unique(counts, axis=0, return_inverse=True)
-    which = which.reshape(-1)
+    keys, which = unique_counts(counts)
     cache = map_cache(pmap)
     masks, slot = [], np.full(len(keys), -1, np.int64)  # -1: every photon; -2: none
     for j, key in enumerate(keys):
@@ -97,7 +121,17 @@ class GatherCounts:
     """The gather map's photons' counts and power (the shot's non-caustic photons:
     bounces (N,4) uint8, power (N,) float64 summed over RGB), to decide which gather
     lookups the precomputed irradiance cannot serve (reroute). Shared by the render's
-    threads; its cache is filled as lookups ask (the same answer from any thread)."""
+    threads; its cache is filled as lookups ask (the same answer from any thread).
+
+    A decision reads the photons by their distinct count rows (a few hundred classes,
+    bounce_usable row by row: the same mask), not photon by photon: Figure 6 asks ~45
+    (level, counts) pairs a render, ~10 ms each over its 0.7 M photons (0.45 CPU s of a
+    25 s render, docs/performance.md camspeed2)."""
+
+    # A decision whose class sums fall this close (relative to the photons' summed |power|)
+    # to the share is taken again from the photons' own sums: the classes' sums round
+    # differently (each within ~N ulps of that total), never by this much.
+    EXACT_MARGIN = 1e-9
 
     def __init__(self, bounces, power, limits, share):
         self.bounces = bounces
@@ -113,16 +147,35 @@ class GatherCounts:
                                                                    key)
         return mask
 
+    def _classes(self):
+        """(rows (U,4) int64, power (U,) float64, scale): the photons' distinct count rows,
+        each one's summed power, and the photons' summed |power|; made on first use (two
+        threads may make it twice: the same values)."""
+        got = self._cache.get("classes")
+        if got is None:
+            rows, which = unique_counts(self.bounces)
+            got = self._cache["classes"] = (
+                rows, np.bincount(which, self.power, minlength=len(rows)),
+                float(np.abs(self.power).sum()))
+        return got
+
     def drops(self, level, key) -> bool:
         """Whether lookups at gather level `level` (the map filtered for camera counts
         (level + 1, level + 1, 0, 0)) reached with camera counts key (4-tuple) would drop
         more than `share` of the power that level's photons carry."""
         got = self._cache.get((level,) + key)
         if got is None:
-            nominal = self._mask((level + 1, level + 1, 0, 0))
-            ok = self._mask(key)
-            kept = float(self.power[nominal].sum())
-            got = float(self.power[nominal & ~ok].sum()) > self.share * kept
+            rows, power, scale = self._classes()
+            nominal = pk.bounce_usable(rows, self.limits, (level + 1, level + 1, 0, 0))
+            ok = pk.bounce_usable(rows, self.limits, key)
+            kept = float(power[nominal].sum())
+            dropped = float(power[nominal & ~ok].sum())
+            if abs(dropped - self.share * kept) <= self.EXACT_MARGIN * scale:
+                nominal = self._mask((level + 1, level + 1, 0, 0))
+                ok = self._mask(key)
+                kept = float(self.power[nominal].sum())
+                dropped = float(self.power[nominal & ~ok].sum())
+            got = dropped > self.share * kept
             self._cache[(level,) + key] = got
         return got
 
@@ -132,6 +185,6 @@ class GatherCounts:
         out = np.zeros(len(counts), bool)
         if not len(counts):
             return out
-        keys, which = np.unique(counts, axis=0, return_inverse=True)
+        keys, which = unique_counts(counts)
         hit = np.array([self.drops(level, tuple(int(x) for x in k)) for k in keys])
-        return hit[which.reshape(-1)]
+        return hit[which]

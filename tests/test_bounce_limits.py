@@ -303,3 +303,57 @@ def test_chain_lookups_count_only_the_photons_usable_for_each_rows_counts():
         np.testing.assert_array_equal(got[rows], zeroed.irradiance(p[rows], n[rows], *args))
     # Without counts: the map's own call.
     np.testing.assert_array_equal(chaincounts.irradiance(pm, lim, None, p, n, *args), plain)
+
+
+def test_unique_counts_are_numpys_unique_rows():
+    """chaincounts.unique_counts: the distinct count rows and each row's index, the very
+    arrays of np.unique(axis=0, return_inverse=True) (whose structured-row sort it
+    replaces), on all-equal rows, packed keys (counts < 2^15) and the general fallback."""
+    from engine.chaincounts import unique_counts
+    rng = np.random.default_rng(3)
+    mixed = np.tile(np.array([[1, 1, 0, 0]]), (500, 1))
+    mixed[::7, 2] += 1
+    mixed[::11, 0] = 1024
+    cases = (np.zeros((0, 4), np.int64), np.tile(np.array([[2, 2, 0, 0]]), (300, 1)), mixed,
+             rng.integers(0, 4, (2000, 4)), rng.integers(0, 40000, (200, 4)),
+             rng.integers(-2, 3, (200, 4)))
+    for c in cases:
+        want_keys, want_which = np.unique(c, axis=0, return_inverse=True)
+        keys, which = unique_counts(c)
+        assert keys.dtype == np.int64 and which.dtype == np.int64
+        np.testing.assert_array_equal(keys, want_keys)
+        np.testing.assert_array_equal(which, want_which.reshape(-1))
+
+
+def test_gather_counts_decide_as_the_photons_own_sums():
+    """GatherCounts.drops reads the photons by their distinct count rows; every decision
+    is the photon-by-photon one (the power of the level's usable photons that the key's
+    counts drop, against share of the level's), also at a share set on the margin, where
+    the class sums' rounding could decide and the photons' own sums are taken."""
+    from engine.chaincounts import GatherCounts
+    rng = np.random.default_rng(4)
+    n = 20000
+    bounces = rng.integers(0, 5, (n, 4)).astype(np.uint8)
+    bounces[::97] = pk.BOUNCE_SATURATED
+    power = rng.random(n) * rng.random(n)
+    lim = np.array([6, 4, 4, 4])
+    keys = [(a, b, c, d) for a in range(1, 5) for b in range(1, a + 1) for c in (0, 1)
+            for d in (0, 2)]
+
+    def by_photons(level, key, share):
+        nominal = pk.bounce_usable(bounces, lim, (level + 1, level + 1, 0, 0))
+        ok = pk.bounce_usable(bounces, lim, key)
+        return float(power[nominal & ~ok].sum()) > share * float(power[nominal].sum())
+
+    g = GatherCounts(bounces, power, lim, 0.005)
+    got = [g.drops(level, key) for level in (0, 1) for key in keys]
+    assert got == [by_photons(level, key, 0.005) for level in (0, 1) for key in keys]
+    assert 0 < sum(got) < len(got)
+    # A share exactly at one key's ratio: the decision is the photons' (False: not more).
+    key = (3, 2, 1, 0)
+    nominal = pk.bounce_usable(bounces, lim, (1, 1, 0, 0))
+    ok = pk.bounce_usable(bounces, lim, key)
+    share = float(power[nominal & ~ok].sum()) / float(power[nominal].sum())
+    edge = GatherCounts(bounces, power, lim, share)
+    assert edge.drops(0, key) == by_photons(0, key, share)
+    assert ("mask",) + key in edge._cache  # decided by the photons' own sums
