@@ -156,7 +156,7 @@ scene.width, scene.height = W, H
 maps, calls, lookups = {}, {}, []
 irradiance, lookup = photonmap.PhotonMap.irradiance, photonmap.GatherMap.lookup
 def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
-           r_floor=None, should_cancel=None):
+           r_floor=None, should_cancel=None, masks=None):
     caller = sys._getframe(1).f_code.co_name
     if id(self) not in maps:
         t, ph = self.tree, self.photons
@@ -165,9 +165,10 @@ def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
                                        ph.kind, ph.emitted))
     calls.setdefault((id(self), caller, radius), []).append(
         (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
-         None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),)))))
+         None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),))),
+         None if masks is None else np.array(masks)))
     return irradiance(self, p, n, radius, k, min_photons, estimator, return_boundary,
-                      r_floor, should_cancel)
+                      r_floor, should_cancel, masks)
 def record_lookup(self, p, n, candidates=8, offset=None, **kw):  # kw: scratch=
     if not lookups:
         lookups.append((self.tree.position, self.tree.axis, self.tree.split,
@@ -223,8 +224,10 @@ for (mid, caller, radius), calls in cap["calls"].items():
     pm.workers, pm.structure, pm.tree = 1, "kdtree", tree(m["tree"])
     pm.photons = Photons(*m["photons"])
     def run():
-        return [pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf)
-                for p, n, k, mp, est, rb, rf in calls]
+        # Captures before the gather map's masks (s18) hold 7 fields.
+        return [pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
+                              **({"masks": more[0]} if more and more[0] is not None else {}))
+                for p, n, k, mp, est, rb, rf, *more in calls]
     t, outs = cpu(run)
     h = hashlib.sha1()
     for out in outs:

@@ -162,7 +162,8 @@ class PhotonMap:
         other photons, for about the cost of one (GatherMap's subsets).
 
         Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K and
-        SCAN_BUDGET entries; 2 MB more once a row widens), however far a query widens.
+        SCAN_BUDGET entries; a widening row whose sphere holds more than MAX_WIDEN_K
+        photons up to 2 MB more while it runs), however far a query widens.
         Raises ValueError for an unknown estimator; should_cancel() is asked between
         blocks of rows, and the kernel polls its stop flag (parallel.stop_flag_of:
         should_cancel's StopFlag, or that of the chunk running on this thread) every
@@ -261,8 +262,7 @@ def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
 
 
 @kernel
-def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, out_d2, out_idx, d2,
-                  idx):
+def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, d2, idx):
     """A widening k-NN row's answer from the sphere a scan listed whole: scan[:nb], the
     photons with squared distance <= r2 (kdtree.ball / hashgrid.ball; nb <= SCAN_BUDGET).
     Into d2 / idx (increasing distance, float64 squared distances from the float32
@@ -279,8 +279,13 @@ def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, out_d2, o
     widest the heap over scan's order (this kernel, as the estimator did before), nb >
     widest return -1 (the caller's kd-tree / grid heap search, whose order differs).
     scan[:found] is compacted in place to the photons strictly inside r2 (their order
-    kept). Scratch: src_d2 (>= nb), hist (>= nb + 1); out_d2 / out_idx (>= nb) when nb >
-    widest; d2 / idx hold at least widest entries."""
+    kept). Scratch: src_d2 (>= widest), hist (>= widest + 1); d2 / idx hold at least widest
+    entries. A sphere of more than widest photons makes its own (4 x 8 B x nb, at most 2 MB
+    while the row runs: the estimator's fixed scratch stays small, tests/
+    test_photon_lookup.py test_widening_has_a_fixed_memory_budget)."""
+    if nb > widest:
+        src_d2 = np.empty(nb, np.float64)
+        hist = np.empty(nb + 1, np.int64)
     found = 0
     for j in range(nb):
         ph = scan[j]
@@ -306,6 +311,8 @@ def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, out_d2, o
         return count
     # More than widest inside: the widest nearest first, then a check that they are one
     # set in one order (strictly increasing, strictly nearer than the rest).
+    out_d2 = np.empty(found, np.float64)
+    out_idx = np.empty(found, np.int64)
     kdtree.nearest_first(src_d2, scan, found, widest, r2, out_d2, out_idx, hist)
     if not kdtree.unique_nearest(out_d2, found, widest):
         return -1
@@ -348,12 +355,11 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     list_idx = np.empty(list_cap, np.int64)
     hist = np.empty(list_cap + 1, np.int64)
     prev_kth = -1.0  # the previous k-NN row's kq-th squared distance (a seed; -1: none)
-    # _widen_listed's scratch, made at a call's first listed widening (most calls have
-    # none): 512 KB each.
-    wide_d2 = np.empty(0, np.float64)
-    wide_hist = np.empty(0, np.int64)
-    wide_out_d2 = np.empty(0, np.float64)
-    wide_out_idx = np.empty(0, np.int64)
+    # _widen_listed's scratch for spheres of at most `widest` photons (made here, not at
+    # a call's first widening: arrays rebound inside the row loop cost every row ~5-8 %,
+    # docs/performance.md "knn").
+    wide_d2 = np.empty(cap, np.float64)
+    wide_hist = np.empty(cap + 1, np.int64)
     for r in range(rows.shape[0]):
         if r % STOP_ROWS == 0 and stop[0]:
             return
@@ -449,14 +455,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     # nearest tie with the rest, takes the heap search.
                     found = -1
                     if nb <= SCAN_BUDGET:
-                        if wide_d2.shape[0] == 0:  # first listed widening of this call
-                            wide_d2 = np.empty(SCAN_BUDGET, np.float64)
-                            wide_hist = np.empty(SCAN_BUDGET + 1, np.int64)
-                        if nb > widest and wide_out_d2.shape[0] == 0:
-                            wide_out_d2 = np.empty(SCAN_BUDGET, np.float64)
-                            wide_out_idx = np.empty(SCAN_BUDGET, np.int64)
                         found = _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, wide_d2,
-                                              wide_hist, wide_out_d2, wide_out_idx, d2, idx)
+                                              wide_hist, d2, idx)
                     if found < 0:
                         found = _knn(kind, pos, nodes, start, grid, qx, qy, qz, widest, r2,
                                      d2, idx, buckets)

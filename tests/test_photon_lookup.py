@@ -670,8 +670,7 @@ def test_widening_lists_the_heap_answer_bitwise():
                          posd[rng.integers(0, len(pos), 30)]])
     big = 8192
     scan = np.empty(big + 1, np.int64)
-    src_d2, hist = np.empty(big), np.empty(big + 1, np.int64)
-    out_d2, out_idx = np.empty(big), np.empty(big, np.int64)
+    src_d2, hist = np.empty(1024), np.empty(1024 + 1, np.int64)  # >= widest
     d2, idx = np.empty(big), np.empty(big, np.int64)
     hd2, hidx = np.empty(big), np.empty(big, np.int64)
     taken = dict(sorted_small=0, sorted_big=0, heap_ties=0, knn_ties=0)
@@ -694,7 +693,7 @@ def test_widening_lists_the_heap_answer_bitwise():
                     want = knn(pos, *t.nodes, q[0], q[1], q[2], widest, r2, hd2, hidx)
                 scan[:nb] = order
                 got = _widen_listed(pos, scan, nb, q[0], q[1], q[2], r2, widest, src_d2, hist,
-                                    out_d2, out_idx, d2, idx)
+                                    d2, idx)
                 near = np.sort(dd[dd < r2])[:widest + 1]  # the widest nearest and the next
                 tie = (np.diff(near) == 0).any()
                 if got < 0:  # left to the caller's kdtree.knn: only where distances tie
