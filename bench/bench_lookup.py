@@ -17,9 +17,11 @@ end), in Embree traversals, split into its parts.
 
     .venv/bin/python bench/bench_lookup.py --render-calls [--base 1b8bc95]
         [--blends figure6_box,figure7_blocker] [--width 160 --height 120]
+        [--saved /tmp/hosek_scene.pkl]
 
 A render's own estimates instead: one 1-worker render of each exported example blend
-(default settings, bench/bench_kernels.py's export) records every PhotonMap.irradiance
+(default settings, bench/bench_kernels.py's export; --saved: a scene bench_world_light.py
+--save exported, at its add-on settings, 16 spp, seed 1) records every PhotonMap.irradiance
 call (its map, its caller, its rows); then each version (this tree and --base, one
 fresh process each) replays those calls, one thread, best of 3 CPU seconds, and prints
 per map and caller: microseconds per estimate, the same in Embree closest-hit
@@ -156,7 +158,7 @@ scene.width, scene.height = W, H
 maps, calls, lookups = {}, {}, []
 irradiance, lookup = photonmap.PhotonMap.irradiance, photonmap.GatherMap.lookup
 def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
-           r_floor=None, should_cancel=None):
+           r_floor=None, should_cancel=None, masks=None):
     caller = sys._getframe(1).f_code.co_name
     if id(self) not in maps:
         t, ph = self.tree, self.photons
@@ -165,9 +167,10 @@ def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
                                        ph.kind, ph.emitted))
     calls.setdefault((id(self), caller, radius), []).append(
         (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
-         None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),)))))
+         None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),))),
+         None if masks is None else np.array(masks)))
     return irradiance(self, p, n, radius, k, min_photons, estimator, return_boundary,
-                      r_floor, should_cancel)
+                      r_floor, should_cancel, masks)
 def record_lookup(self, p, n, candidates=8, offset=None, **kw):  # kw: scratch=
     if not lookups:
         lookups.append((self.tree.position, self.tree.axis, self.tree.split,
@@ -223,8 +226,10 @@ for (mid, caller, radius), calls in cap["calls"].items():
     pm.workers, pm.structure, pm.tree = 1, "kdtree", tree(m["tree"])
     pm.photons = Photons(*m["photons"])
     def run():
-        return [pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf)
-                for p, n, k, mp, est, rb, rf in calls]
+        # Captures before the gather map's masks (s18) hold 7 fields.
+        return [pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
+                              **({"masks": more[0]} if more and more[0] is not None else {}))
+                for p, n, k, mp, est, rb, rf, *more in calls]
     t, outs = cpu(run)
     h = hashlib.sha1()
     for out in outs:
@@ -291,10 +296,22 @@ def render_calls(args):
     print("| scene | estimate at | map photons | radius m | calls | rows | before us / row "
           "| after us / row | gain | after in Embree traversals | answers |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|")
-    for name in args.blends.split(","):
-        pkl = bk.exported(name, where)
+    import pickle
+    names = [n for n in args.blends.split(",") if n] + args.saved
+    for name in names:
+        capture = CAPTURE
+        if name in args.saved:  # a (scene, settings kwargs) pickle: its settings, 16 spp
+            scene, kw = pickle.load(open(name, "rb"))
+            kw = {**kw, "workers": 1, "spp": 16, "seed": 1}
+            name = os.path.splitext(os.path.basename(name))[0]
+            pkl = os.path.join(where, f"{name}.pkl")
+            with open(pkl, "wb") as f:
+                pickle.dump(scene, f)
+            capture = CAPTURE.replace("RenderSettings(workers=1)", f"RenderSettings(**{kw!r})")
+        else:
+            pkl = bk.exported(name, where)
         cap = os.path.join(where, f"{name}-{args.width}x{args.height}.calls")
-        bk.child(CAPTURE, ROOT=ROOT, PICKLE=pkl, W=args.width, H=args.height, OUT=cap)
+        bk.child(capture, ROOT=ROOT, PICKLE=pkl, W=args.width, H=args.height, OUT=cap)
         res = {v: bk.child(REPLAY, ROOT=roots[v], PICKLE=pkl, CAPTURE=cap) for v in roots}
         def key(r):
             return r["caller"], r["photons"], r["radius"]
@@ -318,6 +335,9 @@ def main(argv=None):
                     help="only the table of a render's own estimates, before / after")
     ap.add_argument("--base", default="1b8bc95", help="--render-calls: commit to compare")
     ap.add_argument("--blends", default="figure6_box,figure7_blocker")
+    ap.add_argument("--saved", nargs="*", default=[],
+                    help="--render-calls: also (scene, settings) pickles saved by "
+                         "bench_world_light.py --save (X_scene.pkl), at their own settings")
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--height", type=int, default=120)
     ap.add_argument("--work", default=os.path.join(tempfile.gettempdir(), "bench_kernels"))

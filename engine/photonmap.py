@@ -161,11 +161,13 @@ class PhotonMap:
         counted as 0): the bits of S more calls on maps whose power arrays zero the
         other photons, for about the cost of one (GatherMap's subsets).
 
-        Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K entries),
-        however far a query widens. Raises ValueError for an unknown estimator;
-        should_cancel() is asked between blocks of rows, and the kernel polls its stop
-        flag (parallel.stop_flag_of: should_cancel's StopFlag, or that of the chunk
-        running on this thread) every STOP_ROWS rows; raises parallel.Cancelled."""
+        Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K and
+        SCAN_BUDGET entries; a widening row whose sphere holds more than MAX_WIDEN_K
+        photons up to 2 MB more while it runs), however far a query widens.
+        Raises ValueError for an unknown estimator; should_cancel() is asked between
+        blocks of rows, and the kernel polls its stop flag (parallel.stop_flag_of:
+        should_cancel's StopFlag, or that of the chunk running on this thread) every
+        STOP_ROWS rows; raises parallel.Cancelled."""
         code = ESTIMATOR_CODES.get(estimator)
         if code is None:
             raise ValueError(f"estimator must be one of {', '.join(ESTIMATOR_CODES)}, "
@@ -260,6 +262,67 @@ def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
 
 
 @kernel
+def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, d2, idx):
+    """A widening k-NN row's answer from the sphere a scan listed whole: scan[:nb], the
+    photons with squared distance <= r2 (kdtree.ball / hashgrid.ball; nb <= SCAN_BUDGET).
+    Into d2 / idx (increasing distance, float64 squared distances from the float32
+    positions, as the searches compute them): the `widest` nearest of those strictly
+    inside r2 (the k-NN bound), or all of them if fewer. Returns their count, or -1
+    where the caller must take the heap search instead (kdtree.knn / hashgrid.knn).
+
+    The answer is bitwise the heap's, without its ~log2(widest) sift steps a photon
+    (docs/performance.md "knn"): the distances are listed, then ordered by
+    kdtree.nearest_first (a histogram partial order). Where the distances are all
+    distinct the heap's order is the only increasing one, so both agree. Equal distances
+    (photons at one position: a focus) are ordered by the heap in a way that depends on
+    its insertion order, which no sort reproduces, so such rows take the heap: nb <=
+    widest the heap over scan's order (this kernel, as the estimator did before), nb >
+    widest return -1 (the caller's kd-tree / grid heap search, whose order differs).
+    scan[:found] is compacted in place to the photons strictly inside r2 (their order
+    kept). Scratch: src_d2 (>= widest), hist (>= widest + 1); d2 / idx hold at least widest
+    entries. A sphere of more than widest photons makes its own (4 x 8 B x nb, at most 2 MB
+    while the row runs: the estimator's fixed scratch stays small, tests/
+    test_photon_lookup.py test_widening_has_a_fixed_memory_budget)."""
+    if nb > widest:
+        src_d2 = np.empty(nb, np.float64)
+        hist = np.empty(nb + 1, np.int64)
+    found = 0
+    for j in range(nb):
+        ph = scan[j]
+        dx = qx - np.float64(pos[ph, 0])
+        dy = qy - np.float64(pos[ph, 1])
+        dz = qz - np.float64(pos[ph, 2])
+        dd = dx * dx + dy * dy + dz * dz
+        if dd < r2:  # the k-NN query's bound is strict
+            src_d2[found] = dd
+            scan[found] = ph  # found <= j: an entry not yet read
+            found += 1
+    if found <= widest:
+        kdtree.nearest_first(src_d2, scan, found, found, r2, d2, idx, hist)
+        if kdtree.unique_nearest(d2, found, found) or found == 0:
+            return found
+        if nb > widest:
+            return -1
+        # Equal distances: the heap, fed in scan's order as it always was.
+        count = 0
+        for j in range(found):
+            count = kdtree.heap_insert(d2, idx, count, widest, src_d2[j], scan[j])
+        kdtree.heap_sort(d2, idx, count, widest)
+        return count
+    # More than widest inside: the widest nearest first, then a check that they are one
+    # set in one order (strictly increasing, strictly nearer than the rest).
+    out_d2 = np.empty(found, np.float64)
+    out_idx = np.empty(found, np.int64)
+    kdtree.nearest_first(src_d2, scan, found, widest, r2, out_d2, out_idx, hist)
+    if not kdtree.unique_nearest(out_d2, found, widest):
+        return -1
+    for j in range(widest):
+        d2[j] = out_d2[j]
+        idx[j] = out_idx[j]
+    return widest
+
+
+@kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
                      rows, radius, k, min_photons, code, want_boundary, out, boundary, stop,
                      masks, masked):
@@ -292,6 +355,11 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     list_idx = np.empty(list_cap, np.int64)
     hist = np.empty(list_cap + 1, np.int64)
     prev_kth = -1.0  # the previous k-NN row's kq-th squared distance (a seed; -1: none)
+    # _widen_listed's scratch for spheres of at most `widest` photons (made here, not at
+    # a call's first widening: arrays rebound inside the row loop cost every row ~5-8 %,
+    # docs/performance.md "knn").
+    wide_d2 = np.empty(cap, np.float64)
+    wide_hist = np.empty(cap + 1, np.int64)
     for r in range(rows.shape[0]):
         if r % STOP_ROWS == 0 and stop[0]:
             return
@@ -382,20 +450,14 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                         continue
                     # Each wider query's result is a prefix of the widest one (increasing
                     # distance): one query, then the prefixes are tried in turn. A sphere
-                    # the scan listed whole (at most `widest` photons) is that query's
-                    # answer.
-                    if nb <= widest:
-                        found = 0
-                        for j in range(nb):
-                            ph = scan[j]
-                            dx = qx - np.float64(pos[ph, 0])
-                            dy = qy - np.float64(pos[ph, 1])
-                            dz = qz - np.float64(pos[ph, 2])
-                            dd = dx * dx + dy * dy + dz * dz
-                            if dd < r2:  # the k-NN query's bound is strict
-                                found = kdtree.heap_insert(d2, idx, found, widest, dd, ph)
-                        kdtree.heap_sort(d2, idx, found, widest)
-                    else:
+                    # the scan listed whole is that query's answer, ordered without a heap
+                    # (_widen_listed); a sphere fuller than the scan, or one whose widest
+                    # nearest tie with the rest, takes the heap search.
+                    found = -1
+                    if nb <= SCAN_BUDGET:
+                        found = _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, wide_d2,
+                                              wide_hist, d2, idx)
+                    if found < 0:
                         found = _knn(kind, pos, nodes, start, grid, qx, qy, qz, widest, r2,
                                      d2, idx, buckets)
                 while True:

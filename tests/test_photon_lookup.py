@@ -29,8 +29,9 @@ from engine.kdtree import (BUCKET_MAX, LEAF_SIZE, KdTree, ball, ball_count, ball
                            count_closer, count_closer_in, knn, nearest, nearest_facing,
                            nearest_facing_in, nearest_first, nearest_in, nearest_walk,
                            traversal_stack, unique_nearest)
+from engine.kdtree import heap_insert, heap_sort
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
-                              PhotonMap)
+                              PhotonMap, _widen_listed)
 from engine.photons import Photons
 from engine.render import _photon_pass, prepare_context
 
@@ -647,3 +648,63 @@ def test_unique_nearest_refuses_ties():
     assert not unique_nearest(np.array([1.0, 1.0, 3.0]), 3, 2)  # a tie inside
     assert not unique_nearest(np.array([1.0, 2.0, 2.0]), 3, 2)  # a tie at the k-th
     assert unique_nearest(np.array([1.0, 2.0, 2.0]), 3, 1)
+
+
+def test_widening_lists_the_heap_answer_bitwise():
+    """A widening k-NN row's listed sphere (photonmap._widen_listed: distances listed, then
+    nearest_first) gives the bits the heap gave: fed the same ball scan, the same d2 /
+    idx in the same order as the heap over the scan (nb <= widest) or as kdtree.knn
+    (nb > widest), on a surface with piles of equal points (equal distances, ordered by
+    the heap's insertion order: those rows keep the heap, or return -1 for the caller's
+    kdtree.knn). Every branch is taken (not vacuous)."""
+    rng = np.random.default_rng(19)
+    pts = rng.random((5000, 3)).astype(np.float32)
+    pts[:, 2] = 0.5
+    for c in range(40):  # 40 piles of 12 equal points: ties at any distance
+        pts[100 + 12 * c:112 + 12 * c] = pts[100 + 12 * c]
+    pts[3000:3300] = pts[2999]  # a focus: 301 equal points
+    t = KdTree(pts)
+    pos = t.position
+    posd = pos.astype(np.float64)
+    queries = np.vstack([rng.random((60, 3)) * [1, 1, 0] + [0, 0, 0.5],
+                         posd[rng.integers(0, len(pos), 30)]])
+    big = 8192
+    scan = np.empty(big + 1, np.int64)
+    src_d2, hist = np.empty(1024), np.empty(1024 + 1, np.int64)  # >= widest
+    d2, idx = np.empty(big), np.empty(big, np.int64)
+    hd2, hidx = np.empty(big), np.empty(big, np.int64)
+    taken = dict(sorted_small=0, sorted_big=0, heap_ties=0, knn_ties=0)
+    for q in queries:
+        for r in (0.03, 0.08, 0.2):
+            r2 = r * r
+            nb = ball(pos, *t.nodes, q[0], q[1], q[2], r2, scan, big)
+            assert nb <= big
+            order = scan[:nb].copy()
+            for widest in (16, 128, 1024):
+                dx, dy, dz = q[0] - posd[order, 0], q[1] - posd[order, 1], q[2] - posd[order, 2]
+                dd = dx * dx + dy * dy + dz * dz  # as the kernels compute them
+                if nb <= widest:  # the estimator's heap over the scan, as before
+                    want = 0
+                    for ph, e in zip(order, dd):
+                        if e < r2:
+                            want = heap_insert(hd2, hidx, want, widest, e, ph)
+                    heap_sort(hd2, hidx, want, widest)
+                else:
+                    want = knn(pos, *t.nodes, q[0], q[1], q[2], widest, r2, hd2, hidx)
+                scan[:nb] = order
+                got = _widen_listed(pos, scan, nb, q[0], q[1], q[2], r2, widest, src_d2, hist,
+                                    d2, idx)
+                near = np.sort(dd[dd < r2])[:widest + 1]  # the widest nearest and the next
+                tie = (np.diff(near) == 0).any()
+                if got < 0:  # left to the caller's kdtree.knn: only where distances tie
+                    assert nb > widest and tie
+                    taken["knn_ties"] += 1
+                    continue
+                assert got == want
+                np.testing.assert_array_equal(d2[:got], hd2[:want])
+                np.testing.assert_array_equal(idx[:got], hidx[:want])
+                if tie:
+                    taken["heap_ties"] += 1
+                else:
+                    taken["sorted_small" if nb <= widest else "sorted_big"] += 1
+    assert min(taken.values()) >= 5, taken
