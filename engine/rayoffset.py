@@ -163,10 +163,6 @@ def _offset_row(ex, ey, ez, v0, e1, e2, t, nx, ny, nz, px, py, pz, tilt):
     r2 = max(max(abs(v0[t, 2] - pz), abs(v0[t, 2] + e1[t, 2] - pz)),
              abs(v0[t, 2] + e2[t, 2] - pz))
     plane = G32_PLANE * (anx * r0 + any_ * r1 + anz * r2)
-    if tilt == 0.0:
-        # An axis-aligned float32 plane (tilt32): tilt x far is +0 for the finite corner
-        # distance, so the sum is the one below without its three square roots.
-        return along + plane + tilt
     far = 0.0
     for k in range(3):
         x = v0[t, 0] - px
