@@ -201,3 +201,82 @@ def test_sphere_meets_is_the_cone_and_disk_test(infinite):
     assert np.array_equal(meets_region(o, d, centers, radii, infinite), got.any(axis=1))
     assert np.array_equal(meets_region(o, d, centers[:1], radii[:1], infinite), got[:, 0])
     assert meets_region(o, d, centers[:0], radii[:0], infinite).shape == (n,)
+
+
+def _cone_meets_exact(dist2, along, r):
+    """The cone test of lights/emission written out as both kernels compute it (IEEE
+    doubles, no shortcut): (sphere_meets' answer, _cone_cos / aim_direction's answer)."""
+    dist = math.sqrt(dist2)
+    cos_max = math.sqrt(max(0.0, 1.0 - r * r / max(dist2, 1e-300)))
+    meets = dist <= r or along >= cos_max * dist
+    ds = max(dist, 1e-300)
+    ck = -1.0 if dist <= r else math.sqrt(max(0.0, 1.0 - (r / ds) ** 2))
+    return meets, along >= ck * dist
+
+
+def test_the_cone_tests_quick_miss_never_drops_a_direction_the_exact_test_keeps():
+    """lights/emission.cone_misses answers "misses" without square roots only where the
+    exact cone test (sphere_meets, aim_direction's mixture pdf) says so too: origins
+    from deep inside to just outside the sphere (distance r (1 +- 1e-16 .. 10)),
+    directions from far outside to exactly on the cone's edge (+- 1e-16 .. 1e-1), and
+    tiny scales. Where it says "misses" the kernels skip the exact test, so a wrong
+    answer would drop photons or change the aimed pdf (the stored photons are bit for
+    bit those of the test without it)."""
+    from engine.lights.emission import cone_misses
+    rng = np.random.default_rng(3)
+    quick = cases = 0
+    for r in (0.0, 1e-120, 1e-3, 0.37, 1.0, 250.0):
+        for rel in np.concatenate([-np.logspace(-16, -0.1, 12), [0.0],
+                                   np.logspace(-16, 1, 24)]):
+            dist2 = (r * r) * (1.0 + rel) if r > 0 else 10.0 ** rng.uniform(-320, 2)
+            edge = math.sqrt(max(dist2 - r * r, 0.0))
+            alongs = [0.0, -0.0, -edge, edge, math.sqrt(dist2), -math.sqrt(dist2)]
+            for e in np.logspace(-16, -1, 16):
+                alongs += [edge * (1 - e), edge * (1 + e), np.nextafter(edge, 0.0)]
+            for along in alongs:
+                along = float(along)
+                cases += 1
+                if cone_misses(float(dist2), along, float(r)):
+                    quick += 1
+                    assert not any(_cone_meets_exact(float(dist2), along, float(r))), (
+                        r, dist2, along)
+    assert quick > 0
+    # Away from the edge it answers: random directions from 3 radii out (cone half-angle
+    # 19.5 degrees), nearly every exact miss found quickly.
+    d = rng.normal(size=(2000, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    misses = quick = 0
+    for along in 3.0 * d[:, 0]:
+        if not any(_cone_meets_exact(9.0, float(along), 1.0)):
+            misses += 1
+            quick += bool(cone_misses(9.0, float(along), 1.0))
+    assert quick >= 0.99 * misses
+
+
+def test_the_region_emitters_cull_keeps_the_rows_meets_region_keeps():
+    """lights/emission.drop_meeting (the region emitter's cull, in place) keeps exactly
+    the rows meets_region says miss every sphere, in their order, each row whole."""
+    from engine.lights.emission import drop_meeting
+    from engine.visualimportance import meets_region
+    rng = np.random.default_rng(11)
+    n, K = 5000, 9
+    centers = rng.normal(size=(K, 3)) * 2.0
+    radii = rng.uniform(0.05, 0.8, K)
+    for infinite in (False, True):
+        o32 = rng.normal(size=(n, 3)).astype(np.float32)
+        d = rng.normal(size=(n, 3))
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        d32 = d.astype(np.float32)
+        power = rng.uniform(size=(n, 3))
+        slot = np.arange(n, dtype=np.int64) * 3
+        lo, hi = 100, n - 50
+        keep = ~meets_region(o32[lo:hi].astype(np.float64), d[lo:hi], centers, radii,
+                             infinite)
+        assert 0.05 < keep.mean() < 0.95
+        want = [a.copy() for a in (o32, d32, d, power, slot)]
+        got = [a.copy() for a in want]
+        end = drop_meeting(*got, lo, hi, centers, radii, infinite)
+        assert end == lo + keep.sum()
+        for g, w in zip(got, want):
+            assert np.array_equal(g[:lo], w[:lo])
+            assert np.array_equal(g[lo:end], w[lo:hi][keep])

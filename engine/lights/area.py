@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from ..jit import kernel, register_warm_up
-from .emission import (TWO_PI, Aim, f64, _cone_cos, aim_weights, concentric_disk,
+from .emission import (TWO_PI, Aim, f64, _cone_cos, _misses, aim_weights, concentric_disk,
                        cosine_hemisphere, emit_uniform, pick, put, to_world, uniform_cone)
 from ..scene import AREA, DISK, spread_attenuation
 from . import packing as pk
@@ -269,6 +269,8 @@ def area_aim_direction(centers, radii, probs, cdf, axis, narrow, sin_h, o0, o1, 
         d0, d1, d2 = to_world(l0, l1, l2, t0 / ds, t1 / ds, t2 / ds)
     aimed = 0.0
     for k in range(centers.shape[0]):
+        if _misses(centers, radii, k, o0, o1, o2, d0, d1, d2):
+            continue  # outside sphere k (ck >= 0) and its cone: nothing added
         ck, dk, k0, k1, k2 = _cone_cos(centers[k, 0], centers[k, 1], centers[k, 2], radii[k],
                                        o0, o1, o2)
         if ck < 0.0:
