@@ -14,7 +14,9 @@ The equivalent of `blender --background FILE.blend -E PHOTONMAP -o out -f 1`: op
 file, registers the add-on, selects the engine and renders. The output format follows the
 file extension (.png, .exr, .jpg, .tif). On stderr: the render's phase and a progress bar
 with ETA (the bpy module prints no stats line of its own, so the engine's status is read
-from addon.engine.status_listeners), then the effect report, as the CLI shows them.
+from addon.engine.status_listeners), then the effect report, as the CLI shows them. The
+warnings are printed on stdout when they arise, each once on a line of its own above the
+bar, Python's own (numpy's, numba's) on stderr likewise (engine/console.py).
 
 Output integrity: the output path is checked for writability before the file is opened;
 the image is saved only after a complete render, to a temporary file beside the target

@@ -8,7 +8,12 @@ path is checked before the render starts, and the image replaces the target only
 is completely written (engine/imageio.py). Ctrl-C (or SIGTERM: a job's timeout, a render
 farm's cancel) cancels the render: the target is left untouched (exit status 130; 143 for
 SIGTERM), or with --keep-partial the finished part is written, marked partial in its
-metadata. A second one stops at once, as does the first during the kernel compile."""
+metadata. A second one stops at once, as does the first during the kernel compile.
+
+Warnings are printed on stderr when they arise ("photonmap: warning: ..."), each once on a
+line of its own above the progress bar, also where stdout and stderr share a file; Python's
+own warnings raised during the render (numpy's, numba's, any thread's) likewise
+(engine/console.py, shared with addon/batch.py)."""
 from __future__ import annotations
 
 import argparse
