@@ -476,6 +476,8 @@ def _render(args) -> int:
     # folder behind), before the render.
     check_writable(args.output, on_create=say_created)
 
+    from .console import BarConsole
+    console = BarConsole(sys.stderr)  # the bar and every line beside it (engine/console.py)
     # Warnings are said when they arise, each on a line of its own with the bar below,
     # once each, as the batch command does (addon/batch.py): the scene's (what its file
     # asks that cannot render as asked, broken meshes) now, before the long render; the
@@ -491,8 +493,6 @@ def _render(args) -> int:
         for w in warnings:
             say_one(w)
 
-    from .console import BarConsole
-    console = BarConsole(sys.stderr)  # the bar and every line beside it (engine/console.py)
     say(scene.all_warnings())
     interrupt = CancelOnInterrupt()
     where = {"stage": "preparing", "fraction": 0.0, "passes": 0}
