@@ -4,7 +4,8 @@ inside the render on the main thread and on the engine's worker threads - is pri
 when it arises, on a line of its own before the closing summary, and the progress bar's
 text is never broken by it (engine/console.py; the batch command's twin is
 tests/blender/test_blender_batch_warnings.py). The Python warnings come from a child
-script that patches the engine before it runs the CLI's main()."""
+script that patches the engine before it runs the CLI's main(). The last test checks the
+engine's side alone: render()'s on_warning, which both front ends print from."""
 import re
 import subprocess
 import sys
@@ -173,3 +174,24 @@ def test_cli_quiet_prints_the_warnings_without_a_bar(tmp_path):
     lines = text.split("\n")
     for w in ENGINE_WARNINGS + PYTHON_WARNINGS:
         _own_line(lines, w, text)
+
+
+def test_render_tells_each_warning_once_when_it_arises(tmp_path):
+    """engine.render's on_warning, which both front ends print from: each of
+    film.warnings once; the scene's and the effect analysis' before the first photon is
+    traced (the progress callback's first 'photons' stage)."""
+    from engine import RenderSettings, render
+    from engine.scenefile import load_scene
+    path = tmp_path / "warns.toml"
+    path.write_text(SCENE, encoding="utf-8")
+    scene, overrides = load_scene(str(path))
+    events = []
+    film = render(scene, RenderSettings(**dict(overrides, max_depth=1, workers=1)),
+                  progress=lambda stage, fraction, text: events.append(("stage", stage)),
+                  on_warning=lambda text: events.append(("warning", text)))
+    told = [text for kind, text in events if kind == "warning"]
+    assert sorted(told) == sorted(set(film.warnings)) and len(told) == len(set(told))
+    first_photons = events.index(("stage", "photons"))
+    for w in ENGINE_WARNINGS:
+        where = next(i for i, (kind, text) in enumerate(events) if w in text)
+        assert where < first_photons, events
