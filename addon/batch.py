@@ -14,7 +14,9 @@ The equivalent of `blender --background FILE.blend -E PHOTONMAP -o out -f 1`: op
 file, registers the add-on, selects the engine and renders. The output format follows the
 file extension (.png, .exr, .jpg, .tif). On stderr: the render's phase and a progress bar
 with ETA (the bpy module prints no stats line of its own, so the engine's status is read
-from addon.engine.status_listeners), then the effect report, as the CLI shows them.
+from addon.engine.status_listeners), then the effect report, as the CLI shows them. The
+warnings are printed on stdout when they arise, each once on a line of its own above the
+bar, Python's own (numpy's, numba's) on stderr likewise (engine/console.py).
 
 Output integrity: the output path is checked for writability before the file is opened;
 the image is saved only after a complete render, to a temporary file beside the target
@@ -77,6 +79,7 @@ import threading  # noqa: E402
 import time  # noqa: E402
 
 from engine.cli import CancelOnInterrupt  # noqa: E402
+from engine.console import BarConsole  # noqa: E402
 from engine.imageio import check_writable, replacing, say_created  # noqa: E402
 from engine.jit import COMPILE_MESSAGE  # noqa: E402
 
@@ -110,40 +113,45 @@ class _StatusPrinter:
 
     Warnings go to stdout the moment the engine has them (an unsupported shader is said
     before the long render, not after it), each on a line of its own with the bar
-    continuing below (write_line); Blender's own print of the same reports, when the
-    render operator returns, is then left out (beside_bar). Blender printed them glued
-    to the bar's line where stdout and stderr share a file (`... > log 2>&1`): the bar
-    had been cleared when the warning came, but Blender prints its reports only later,
-    after the bar had redrawn itself (new-user trial, s17)."""
+    continuing below (write_line, engine/console.py); Blender's own print of the same
+    reports, when the render operator returns, is then left out (beside_bar). Blender
+    printed them glued to the bar's line where stdout and stderr share a file (`... > log
+    2>&1`): the bar had been cleared when the warning came, but Blender prints its reports
+    only later, after the bar had redrawn itself (new-user trial, s17). Python's warnings
+    raised during the render (numpy's, numba's, ours) go the same way, on stderr."""
 
     def __init__(self, quiet=False, stream=None, interrupt=None, out=None):
         self.quiet = quiet
         self.interrupt = interrupt  # its at_once is set while the kernels compile
         self.stream = stream or sys.stderr
         self.out = out  # where warnings go (None: sys.stdout at the time)
-        self.bar = None
+        # The bar and every line beside it: one writer, one lock (engine/console.py).
+        self.console = BarConsole(self.stream)
         self.status = None  # the engine's "finished" value
         self.film = None  # the engine's Film of the finished render
         self.effects = []
         self.warnings = []
         self.done_line = None  # the engine's closing "Done: ..." in full, printed at close
         self._shown = []  # lines printed at a warning event, still to come from Blender
-        self._bar_drawn = False  # the bar has drawn on its line since other output
-        self._lock = threading.RLock()
+
+    @property
+    def bar(self):
+        return self.console.bar
 
     def _ensure_bar(self):
-        if self.bar is None and not self.quiet:
+        if self.console.bar is None and not self.quiet:
             from engine.eta import Eta, progress_bar
             # The time left from the rate after the kernel compile and the first chunk
             # (engine/eta.py); tqdm's own {remaining} counted the compile in.
             self.eta = Eta()
-            self.bar = progress_bar("Starting", "{desc:<46.46}{bar}| {percentage:3.0f}% "
-                                    "[{elapsed}<{eta}]", self.stream, self.eta)
-        return self.bar
+            self.console.bar = progress_bar("Starting", "{desc:<46.46}{bar}| "
+                                            "{percentage:3.0f}% [{elapsed}<{eta}]",
+                                            self.stream, self.eta)
+        return self.console.bar
 
     def __call__(self, event, value):
         # One writer at a time: the bar, the warnings and Blender's lines (write_line).
-        with self._lock:
+        with self.console.lock:
             self._event(event, value)
 
     def _event(self, event, value):
@@ -164,50 +172,33 @@ class _StatusPrinter:
             self.interrupt.at_once = (event == "stats"
                                       and str(value).startswith(COMPILE_MESSAGE))
         if event in ("stats", "progress") and not self.quiet:
-            bar = self._ensure_bar()
-            self._bar_drawn = True
-            if event == "stats":
-                text = str(value)
-                if text.startswith(COMPILE_MESSAGE):
-                    self.eta.restart()
-                if text.startswith("Done: "):
-                    # The bar's description column (46 characters) cut this summary off
-                    # mid-number ("... 139.0 s (+ 5.4"): the bar says Done, close() prints it.
-                    self.done_line, text = text, "Done"
-                bar.set_description_str(text, refresh=True)
-            elif event == "progress":
-                self.eta.update(float(value))
-                n = int(round(1000 * min(max(float(value), 0.0), 1.0)))
-                if n > bar.n:
-                    bar.update(n - bar.n)
+            self._ensure_bar()
+            with self.console.drawing() as bar:
+                if event == "stats":
+                    text = str(value)
+                    if text.startswith(COMPILE_MESSAGE):
+                        self.eta.restart()
+                    if text.startswith("Done: "):
+                        # The bar's description column (46 characters) cut this summary
+                        # off mid-number ("... 139.0 s (+ 5.4"): the bar says Done, close()
+                        # prints it.
+                        self.done_line, text = text, "Done"
+                    bar.set_description_str(text, refresh=True)
+                elif event == "progress":
+                    self.eta.update(float(value))
+                    n = int(round(1000 * min(max(float(value), 0.0), 1.0)))
+                    if n > bar.n:
+                        bar.update(n - bar.n)
 
     def write_line(self, line, out=None, end="\n"):
         """Print one line of other output (a warning, Blender's reports) on a line of its
-        own, the bar continuing below it: on a terminal the bar's line is cleared first
-        and the bar redrawn after (tqdm.write's way); in a file, where a cleared line
-        stays in the text, the bar's line is ended with a newline first and the bar
-        redraws below at its next update."""
-        out = self.out or out or sys.stdout
-        with self._lock:
-            bar = self.bar
-            tty = _isatty(self.stream)
-            if bar is not None and self._bar_drawn:
-                if tty:
-                    bar.clear()
-                else:
-                    self.stream.write("\n")
-                self.stream.flush()
-                self._bar_drawn = False
-            out.write(line + end)
-            out.flush()
-            if bar is not None and tty:
-                bar.refresh()
-                self._bar_drawn = True
+        own, the bar continuing below it (engine/console.py, BarConsole.write_line)."""
+        self.console.write_line(line, self.out or out or sys.stdout, end)
 
     def blender_line(self, line, out, end="\n"):
         """A line Blender (or the add-on) prints on stdout during the render: left out
         when it repeats a warning printed when it came, else printed beside the bar."""
-        with self._lock:
+        with self.console.lock:
             if line in self._shown:
                 self._shown.remove(line)
                 return
@@ -218,14 +209,17 @@ class _StatusPrinter:
     @contextlib.contextmanager
     def beside_bar(self):
         """sys.stdout through blender_line while Blender renders (bpy.ops prints the
-        operator's reports there when it returns), unless quiet."""
+        operator's reports there when it returns), and Python's warnings (numpy's,
+        numba's, ours, on any thread) through the console onto lines of their own on
+        stderr, unless quiet. Entered once, on the main thread, around the render."""
         if self.quiet:
             yield
             return
         real = sys.stdout
         sys.stdout = _LineWriter(real, self.blender_line)
         try:
-            yield
+            with self.console.python_warnings():
+                yield
         finally:
             if isinstance(sys.stdout, _LineWriter):
                 sys.stdout.close_pending()
@@ -234,9 +228,7 @@ class _StatusPrinter:
     def close(self):
         """Close the bar, then print the effect report of a finished render under it (a
         cancelled or failed render simulated nothing worth reporting)."""
-        if self.bar is not None:
-            self.bar.close()
-            self.bar = None
+        self.console.close()
         # The warnings are not repeated here: they were printed when they came
         # (write_line), or, quiet, by Blender in background mode (self.warnings keeps them).
         if not self.quiet:
@@ -245,13 +237,6 @@ class _StatusPrinter:
                     print(self.done_line, file=self.stream)
                 for line in self.effects:
                     print(f"  {line}", file=self.stream)
-
-
-def _isatty(stream) -> bool:
-    try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError, OSError):
-        return False
 
 
 class _LineWriter:
@@ -542,7 +527,7 @@ def _teaching_image(bpy, scene, args, out, interrupt=None) -> str:
         # Blender's own SIGINT handler would swallow Ctrl-C: ours turns it into a cancel.
         interrupt = interrupt or CancelOnInterrupt(INTERRUPT_MESSAGE)
         try:
-            with interrupt:
+            with interrupt, printer.beside_bar():
                 tiles, rgb8 = operators.teaching_image(
                     kind, scene, bpy.context.evaluated_depsgraph_get(), args.preview_size,
                     "scene" if explicit else "preview", params, args.sweep_preset or "none",

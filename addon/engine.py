@@ -235,6 +235,15 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         # rather than after it (the end reports only what the engine adds).
         early = list(pm_scene.all_warnings())
         self._report_warnings(early)
+        reported = list(early)
+
+        def on_warning(text):
+            # What the render finds before its long passes (the effect analysis': a Max
+            # Ray Depth that cuts a mirror's chain), said then, not at the end; past the
+            # reports' room, at the end with the others (one "N more warnings" report).
+            if text not in reported and len(reported) < MAX_REPORTED_WARNINGS:
+                self._report_warnings([text], already=len(reported))
+                reported.append(text)
 
         def progress(stage, fraction, text):
             self._progress(_overall_fraction(stage, fraction, settings.uses_photon_maps))
@@ -246,10 +255,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         t0 = time.perf_counter()
         if props.progressive or props.dask_scheduler.strip():  # a cluster renders passes
             film = self._render_progressive(pm, pm_scene, settings, props, progress, region,
-                                            view_layer, render.film_transparent)
+                                            view_layer, render.film_transparent, on_warning)
         else:
             film = pm.render(pm_scene, settings, progress=progress,
-                             should_cancel=self._should_cancel, region=region)
+                             should_cancel=self._should_cancel, region=region,
+                             on_warning=on_warning)
         elapsed = time.perf_counter() - t0
         self._write_result(film, view_layer, render.film_transparent)
         cancelled = bool(film.stats.get("cancelled"))
@@ -271,9 +281,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         if not self._listeners:  # a listener prints them itself
             for line in effects:
                 print(f"Photon Mapping: {line}")  # why each effect is on or off
-        reported = set(early)
         self._report_warnings([w for w in film.warnings if w not in reported],
-                              already=len(early))
+                              already=len(reported))
         n = info['lights']
         compiled = stats["time_compile"]
         summary = (f"{info['triangles']} triangles, {n} light{'' if n == 1 else 's'}, "
@@ -288,7 +297,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         self._emit("finished", "cancelled" if cancelled else "done")
 
     def _render_progressive(self, pm, pm_scene, settings, props, progress, region, view_layer,
-                            transparent):
+                            transparent, on_warning=None):
         """Passes until the budget is spent; the image is updated after every pass and the
         stats line shows pass, photons so far, elapsed time and the error estimate."""
         budget = pm.Budget(passes=props.max_passes or None, seconds=props.time_limit or None,
@@ -327,7 +336,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                                            on_pass=on_pass, region=region)
         return pm.render_progressive(pm_scene, settings, budget, progress=pass_progress,
                                      should_cancel=self._should_cancel, on_pass=on_pass,
-                                     region=region)
+                                     region=region, on_warning=on_warning)
 
     def _add_passes(self, view_layer):
         """Allocate our passes in the render result (update_render_passes only tells the

@@ -8,7 +8,12 @@ path is checked before the render starts, and the image replaces the target only
 is completely written (engine/imageio.py). Ctrl-C (or SIGTERM: a job's timeout, a render
 farm's cancel) cancels the render: the target is left untouched (exit status 130; 143 for
 SIGTERM), or with --keep-partial the finished part is written, marked partial in its
-metadata. A second one stops at once, as does the first during the kernel compile."""
+metadata. A second one stops at once, as does the first during the kernel compile.
+
+Warnings are printed on stderr when they arise ("photonmap: warning: ..."), each once on a
+line of its own above the progress bar, also where stdout and stderr share a file; Python's
+own warnings raised during the render (numpy's, numba's, any thread's) likewise
+(engine/console.py, shared with addon/batch.py)."""
 from __future__ import annotations
 
 import argparse
@@ -359,32 +364,34 @@ def save_composed(rgb8, path):
 def _teaching_run(args, make_tiles, what):
     """Progress bar, Ctrl-C and output of compare / sweep: make_tiles(progress,
     should_cancel) -> tiles, composed and written to args.output."""
+    from .console import BarConsole
     from .parallel import Cancelled
     from .teaching import compose
-    bar = None
+    console = BarConsole(sys.stderr)
     if not args.quiet:
         from tqdm import tqdm
-        bar = tqdm(total=1000, desc="Preparing", unit="",
-                   bar_format="{desc:<44.44}{bar}| {elapsed}", file=sys.stderr)
+        console.bar = tqdm(total=1000, desc="Preparing", unit="",
+                           bar_format="{desc:<44.44}{bar}| {elapsed}", file=sys.stderr)
 
     interrupt = CancelOnInterrupt()
 
     def progress(stage, fraction, text):
         interrupt.at_once = stage == "compile"  # polls nothing for a minute
-        if bar is not None:
-            bar.set_description_str(text)
-            bar.n = int(1000 * fraction)
-            bar.refresh()
+        with console.drawing() as bar:
+            if bar is not None:
+                bar.set_description_str(text)
+                bar.n = int(1000 * fraction)
+                bar.refresh()
 
     try:
-        with interrupt:
+        with interrupt, _python_warnings(console, args.quiet):
             tiles = make_tiles(progress, lambda: interrupt.requested)
     except (Cancelled, KeyboardInterrupt):
+        console.close()
         print(f"photonmap: interrupted: '{args.output}' left untouched", file=sys.stderr)
         return interrupt.status
     finally:
-        if bar is not None:
-            bar.close()
+        console.close()
     save_composed(compose(tiles, args.columns, args.exposure), args.output)
     if not args.quiet:
         for t in tiles:
@@ -438,6 +445,13 @@ def _sweep(args) -> int:
         scene, settings, params, reference, progress, cancel), "sweep")
 
 
+def _python_warnings(console, quiet):
+    """Python's warnings through the console while its bar is shown (engine/console.py);
+    quiet: no bar to keep whole, Python prints them as usual."""
+    import contextlib
+    return contextlib.nullcontext() if quiet else console.python_warnings()
+
+
 def _render(args) -> int:
     from .imageio import FORMATS, write_image
     from .progressive import Budget, render_progressive
@@ -462,7 +476,24 @@ def _render(args) -> int:
     # folder behind), before the render.
     check_writable(args.output, on_create=say_created)
 
-    bar = None
+    from .console import BarConsole
+    console = BarConsole(sys.stderr)  # the bar and every line beside it (engine/console.py)
+    # Warnings are said when they arise, each on a line of its own with the bar below,
+    # once each, as the batch command does (addon/batch.py): the scene's (what its file
+    # asks that cannot render as asked, broken meshes) now, before the long render; the
+    # effect analysis' when the render has it (on_warning), before the photons.
+    said = set()
+
+    def say_one(warning):
+        if warning not in said:
+            said.add(warning)
+            console.write_line(f"photonmap: warning: {warning}", sys.stderr)
+
+    def say(warnings):
+        for w in warnings:
+            say_one(w)
+
+    say(scene.all_warnings())
     interrupt = CancelOnInterrupt()
     where = {"stage": "preparing", "fraction": 0.0, "passes": 0}
     # The bar shows the fraction of the whole render and the time left (engine/eta.py:
@@ -472,8 +503,8 @@ def _render(args) -> int:
            else Eta())
     if not args.quiet:
         from .eta import progress_bar
-        bar = progress_bar("Preparing", "{desc:<42.42}{bar}| {percentage:3.0f}% "
-                           "[{elapsed}<{eta}]", sys.stderr, eta)
+        console.bar = progress_bar("Preparing", "{desc:<42.42}{bar}| {percentage:3.0f}% "
+                                   "[{elapsed}<{eta}]", sys.stderr, eta)
 
     def progress(stage, fraction, text):
         where["stage"], where["fraction"] = stage, fraction
@@ -487,7 +518,9 @@ def _render(args) -> int:
             whole = (where["passes"] + whole) / passes if passes else None
         if whole is not None:
             eta.update(whole)
-        if bar is not None:
+        with console.drawing() as bar:
+            if bar is None:
+                return
             bar.set_description_str(text, refresh=False)
             if whole is None:  # no share of the whole known (--target-error): the stage's
                 bar.n = int(1000 * min(max(fraction, 0.0), 1.0))
@@ -502,12 +535,12 @@ def _render(args) -> int:
 
             def on_pass(film, info):
                 where["passes"] = info["passes"]
-                if bar is not None:
+                if not args.quiet:
                     error = info["error_estimate"]  # two passes are needed to estimate it
                     error = f"{error:.4f}" if math.isfinite(error) else "after pass 2"
-                    bar.write(f"pass {info['passes']}: {info['photons']:,} photons, "
-                              f"{info['elapsed']:.1f} s, estimated relMSE {error}")
-            with interrupt:
+                    console.write_line(f"pass {info['passes']}: {info['photons']:,} photons, "
+                                       f"{info['elapsed']:.1f} s, estimated relMSE {error}")
+            with interrupt, _python_warnings(console, args.quiet):
                 if args.dask:
                     from .distributed import render_distributed
                     film = render_distributed(scene, settings, budget, address=args.dask,
@@ -515,21 +548,21 @@ def _render(args) -> int:
                                               should_cancel=should_cancel)
                 else:
                     film = render_progressive(scene, settings, budget, progress=progress,
-                                              on_pass=on_pass, should_cancel=should_cancel)
+                                              on_pass=on_pass, should_cancel=should_cancel,
+                                              on_warning=say_one)
         else:
-            with interrupt:
-                film = render(scene, settings, progress=progress, should_cancel=should_cancel)
+            with interrupt, _python_warnings(console, args.quiet):
+                film = render(scene, settings, progress=progress, should_cancel=should_cancel,
+                              on_warning=say_one)
+        say(film.warnings)  # those the cluster's passes found (--dask): at the end
     except KeyboardInterrupt:  # a second Ctrl-C, or the first during the kernel compile
-        if bar is not None:
-            bar.close()
-            bar = None
+        console.close()
         again = " (the next run compiles them again)" if where["stage"] == "compile" else ""
         print(f"photonmap: interrupted while {_stage_text(where)}: '{args.output}' left "
               f"untouched{again}", file=sys.stderr)
         return interrupt.status
     finally:
-        if bar is not None:
-            bar.close()
+        console.close()
     partial = None
     # A Ctrl-C that came after the last poll left a complete image: write it as usual.
     if film.stats.get("cancelled"):
@@ -541,8 +574,6 @@ def _render(args) -> int:
                   + ("" if args.keep_partial else " (--keep-partial writes the finished part)"),
                   file=sys.stderr)
             return interrupt.status
-    for w in film.warnings:
-        print(f"photonmap: warning: {w}", file=sys.stderr)
     if not args.quiet:
         for line in film.stats.get("effects", []):
             print(f"  {line}", file=sys.stderr)

@@ -38,7 +38,7 @@ import numpy as np
 
 from .film import EFFECTS, Film
 from .parallel import Cancelled
-from .render import _check_region, prepare_context, render_pass
+from .render import _check_region, prepare_context, render_pass, warning_teller
 from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
@@ -157,9 +157,10 @@ class PassMerger:
 
 def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                        budget: Budget | None = None, progress=None, should_cancel=None,
-                       on_pass=None, region=None) -> Film:
+                       on_pass=None, region=None, on_warning=None) -> Film:
     """Render passes until the budget is spent. on_pass(film, info) is called after every
     pass with the running average (info: pass, photons, elapsed, error_estimate).
+    on_warning(text): each of film.warnings once, when known (engine/render.py, render).
     engine/distributed.py renders the same passes on a Dask cluster (bitwise the same
     image)."""
     settings = settings or RenderSettings()
@@ -168,6 +169,8 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     scene.validate()
     region = _check_region(region, scene.width, scene.height)
     check_resources(scene, settings, region, progressive=True)
+    tell = warning_teller(on_warning)
+    tell(scene.all_warnings())
     w, h = region[2] - region[0], region[3] - region[1]
     merger = PassMerger(w, h, settings.show_photons)
     try:
@@ -177,7 +180,9 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
         film.stats.update(progressive=True, passes=0, photons_total=0, pass_log=[],
                           cancelled=True, time_total=time.perf_counter() - t_start)
         film.warnings = scene.all_warnings()
+        tell(film.warnings)
         return film
+    tell(scene.all_warnings() + ctx.plan.warnings)  # before the first pass
     log = []
     cancelled = False
     i = 0
@@ -213,6 +218,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,
                       effects=ctx.plan.report(), time_total=time.perf_counter() - t_start)
     film.warnings = scene.all_warnings() + ctx.plan.warnings
+    tell(film.warnings)
     return film
 
 

@@ -305,19 +305,40 @@ def small_pages():
                 setter(_PAGES["before"])
 
 
+def warning_teller(on_warning):
+    """tell(warnings): each warning not told before to on_warning(text) (None: nothing),
+    so a front end can print a render's warnings when they arise, once each (engine/
+    cli.py, addon/engine.py) while film.warnings still lists them all at the end."""
+    told = set()
+
+    def tell(warnings):
+        if on_warning is None:
+            return
+        for w in warnings:
+            if w not in told:
+                told.add(w)
+                on_warning(w)
+    return tell
+
+
 def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
-           should_cancel=None, region=None) -> Film:
+           should_cancel=None, region=None, on_warning=None) -> Film:
     """Render `scene`. progress(stage, fraction, text) is called as work advances;
     should_cancel() is polled and, when it returns True, the partial Film is returned
     with film.stats['cancelled'] = True. region=(x0, y0, x1, y1) renders only that window
-    (top-left origin, exclusive max) and the Film has its size. Raises SceneError for a
-    scene that cannot render, ResourceError (engine/resources.py) for one that would not
-    fit in the available memory - both before anything big is allocated."""
+    (top-left origin, exclusive max) and the Film has its size. on_warning(text) is told
+    each of film.warnings once, on the calling thread, as soon as the render knows it:
+    the scene's at the start, the effect analysis' before the photons are shot, the rest
+    at the end. Raises SceneError for a scene that cannot render, ResourceError
+    (engine/resources.py) for one that would not fit in the available memory - both
+    before anything big is allocated."""
     settings = settings or RenderSettings()
     t_start = time.perf_counter()
     scene.validate()
     region = _check_region(region, scene.width, scene.height)
     check_resources(scene, settings, region)
+    tell = warning_teller(on_warning)
+    tell(scene.all_warnings())
     # The kernels load (or compile) before the preparation: their first use would
     # otherwise load them inside a step that polls should_cancel rarely (the effect
     # analysis' probe rays: 1.3 s).
@@ -332,7 +353,9 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
                           time_prepare=time.perf_counter() - t_start,
                           time_total=time.perf_counter() - t_start)
         film.warnings = scene.all_warnings()
+        tell(film.warnings)
         return film
+    tell(scene.all_warnings() + ctx.plan.warnings)  # before the long passes
     t_prepare = time.perf_counter() - t_start - t_compile
     try:
         film = render_pass(ctx, region, progress, should_cancel)
@@ -346,6 +369,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
                       extent=ctx.geo.extent, time_prepare=t_prepare,
                       time_total=time.perf_counter() - t_start)
     film.warnings = scene.all_warnings() + ctx.plan.warnings + film.stats.get("warnings", [])
+    tell(film.warnings)
     return film
 
 

@@ -38,3 +38,97 @@ def test_batch_warnings_in_a_shared_log_start_on_their_own_line(tmp_path):
     assert re.search(r"^Done: \d+ triangles", below, re.M), below[:1000]
     assert re.search(r"^  specular reflection / refraction: on - up to 1 bounce \(", below,
                      re.M), below[-3000:]
+
+
+# Opens figure3_sphere.blend, gives the floor's material a Toon BSDF (not supported: the
+# export warns), saves it, and runs the batch command on it with the engine patched to warn
+# as numpy, scipy or numba would: a UserWarning on the main thread as the render prepares,
+# numpy's RuntimeWarning in every chunk on the worker threads (engine/parallel.py). Prints
+# how many worker chunks warned, after the command's output.
+CHILD = """
+import importlib, os, sys, threading, warnings
+sys.path.insert(0, {root!r})
+import numpy as np
+import bpy
+bpy.ops.wm.open_mainfile(filepath=os.path.join({blends!r}, "figure3_sphere.blend"))
+tree = bpy.data.objects["Floor"].active_material.node_tree
+toon = tree.nodes.new("ShaderNodeBsdfToon")
+out = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+tree.links.new(toon.outputs[0], out.inputs["Surface"])
+bpy.ops.wm.save_as_mainfile(filepath={blend!r})
+parallel = importlib.import_module("engine.parallel")
+render_module = importlib.import_module("engine.render")  # engine.render is the function
+on_workers = []
+_with_flag = parallel._with_flag
+
+
+def with_flag(job, flag):
+    run = _with_flag(job, flag)
+
+    def warned(*args):
+        on_workers.append(threading.current_thread() is not threading.main_thread())
+        np.log(np.zeros(1))  # numpy warns: divide by zero
+        return run(*args)
+    return warned
+
+
+parallel._with_flag = with_flag
+_prepare = render_module.prepare_context
+
+
+def prepare_context(*args, **kwargs):
+    warnings.warn("a warning raised inside the render", UserWarning)
+    return _prepare(*args, **kwargs)
+
+
+render_module.prepare_context = prepare_context
+from addon import batch
+rc = batch.main(sys.argv[1:])
+print(f"worker chunks warned: {{sum(on_workers)}}")
+sys.exit(rc)
+"""
+PYTHON_WARNINGS = ["UserWarning: a warning raised inside the render",
+                   "RuntimeWarning: divide by zero encountered in log"]
+# A whole bar as addon/batch.py draws it: description, bar, percentage, [elapsed<left].
+WHOLE_BAR = re.compile(r"^.{46}.*\| *\d{1,3}% \[[0-9:]+<[^\]]*\]$")
+
+
+def _own_line(lines, text, where):
+    found = [i for i, line in enumerate(lines) if text in line]
+    assert len(found) == 1, (text, where)  # printed once
+    line = lines[found[0]]
+    assert "\r" not in line and "% [" not in line, repr(line)  # on a line of its own
+    return found[0]
+
+
+def test_batch_python_warnings_from_the_render_threads_on_their_own_lines(tmp_path):
+    """A Toon BSDF (the export's warning), Max Ray Depth 1 (the effect analysis'), and
+    Python warnings raised inside the render on the main and the worker threads: each
+    once, on a line of its own before the closing `wrote ...` line, the bar whole."""
+    child = tmp_path / "child.py"
+    child.write_text(CHILD.format(root=ROOT, blends=BLENDS, blend=str(tmp_path / "toon.blend")),
+                     encoding="utf-8")
+    res = subprocess.run([PYTHON, str(child), str(tmp_path / "toon.blend"),
+                          "-o", str(tmp_path / "f3.png"), "--samples", "1",
+                          "--photons", "2000", "--caustic-photons", "1000", "--threads", "2",
+                          "--resolution-percentage", "10", "--max-depth", "1"],
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                         timeout=300)
+    text = res.stdout.decode("utf-8", "replace")
+    assert res.returncode == 0, text[-3000:]
+    lines = text.split("\n")
+    summary = next(i for i, line in enumerate(lines) if line.startswith("wrote "))
+    first_photons = next(i for i, line in enumerate(lines) if "Tracing photons" in line)
+    toon = _own_line(lines, "Toon BSDF", text)
+    depth = _own_line(lines, "Max Ray Depth 1 stops camera paths after", text)
+    for i in (toon, depth):  # when they arose: before the photons are shot
+        assert lines[i].startswith("Warning: Photon Mapping: ") and i < first_photons, text
+    for w in PYTHON_WARNINGS:
+        i = _own_line(lines, w, text)
+        assert lines[i].startswith(str(child)) and i < summary, repr(lines[i])
+    workers = int(re.search(r"^worker chunks warned: (\d+)$", text, re.M).group(1))
+    assert workers >= 2, text
+    drawings = [seg for line in lines for seg in line.split("\r") if "% [" in seg]
+    assert len(drawings) >= 3, text
+    for seg in drawings:
+        assert WHOLE_BAR.match(seg), repr(seg)

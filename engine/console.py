@@ -1,0 +1,115 @@
+"""A command's progress bar and the lines printed beside it: one writer for both front
+ends, the engine's CLI (engine/cli.py) and the Blender batch command (addon/batch.py).
+
+A line printed while a tqdm bar is shown (a scene's warning, a pass's summary, a Python
+warning from numpy, scipy, numba or our code) must start a line of its own and leave the
+bar's text whole, also where stdout and stderr are one file (`cmd > log 2>&1`, a CI
+log): there a cleared line stays in the text, so the bar's line is ended with a newline
+first (new-user trials, s17 and s19). Every write goes through one lock, so the engine's
+worker threads (engine/parallel.py), whose Python warnings come here too, never print
+into the middle of the bar or of another line."""
+from __future__ import annotations
+
+import sys
+import threading
+import warnings
+from contextlib import contextmanager
+
+
+def isatty(stream) -> bool:
+    """True for a terminal; False for a file, a pipe or a stream without isatty."""
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
+class BarConsole:
+    """The progress bar (a tqdm bar on `stream`, or None: quiet) and the lines printed
+    beside it. Draw the bar only inside `with console.drawing() as bar:` and print
+    other lines only with write_line (or print_warnings' Python warnings), all from any
+    thread: the console's lock orders them."""
+
+    def __init__(self, stream=None, bar=None):
+        self.stream = stream or sys.stderr
+        self.lock = threading.RLock()
+        self.bar = bar
+        self._python_seen = set()
+
+    @property
+    def bar(self):
+        return self._bar
+
+    @bar.setter
+    def bar(self, bar):
+        with self.lock:
+            self._bar = bar
+            self._drawn = bar is not None  # tqdm draws a bar when it is made
+
+    @contextmanager
+    def drawing(self):
+        """The bar to update (None when there is none), under the lock; whatever it
+        draws is then on the stream's last line, to be ended before another line."""
+        with self.lock:
+            yield self._bar
+            if self._bar is not None:
+                self._drawn = True
+
+    def write_line(self, line: str, out=None, end: str = "\n") -> None:
+        """Print `line` + `end` to `out` (default: sys.stdout at the time) on a line of its
+        own, the bar continuing below it: on a terminal the bar's line is cleared first
+        and the bar redrawn after (tqdm.write's way); in a file or a pipe, where a
+        cleared line stays in the text, the bar's line is ended with a newline first and
+        the bar redraws below at its next update."""
+        out = out or sys.stdout
+        with self.lock:
+            bar = self._bar
+            tty = isatty(self.stream)
+            if bar is not None and self._drawn:
+                if tty:
+                    bar.clear()
+                else:
+                    self.stream.write("\n")
+                self.stream.flush()
+                self._drawn = False
+            out.write(line + end)
+            out.flush()
+            if bar is not None and tty:
+                bar.refresh()
+                self._drawn = True
+
+    def close(self) -> None:
+        """Close the bar (tqdm ends its line); later lines print as usual."""
+        with self.lock:
+            if self._bar is not None:
+                self._bar.close()
+            self.bar = None
+
+    def show_python_warning(self, message, category, filename, lineno, file=None,
+                            line=None) -> None:
+        """warnings.showwarning's signature: the warning as Python formats it, through
+        write_line to `file` (default: sys.stderr at the time, Python's own place). One
+        print per message, category and place for this console: two worker threads
+        racing through the filter's registry with the same warning print it once."""
+        key = (category, str(message), filename, lineno)
+        with self.lock:
+            if key in self._python_seen:
+                return
+            self._python_seen.add(key)
+            text = warnings.formatwarning(message, category, filename, lineno, line)
+            self.write_line(text.rstrip("\n"), file or sys.stderr)
+
+    @contextmanager
+    def python_warnings(self):
+        """Route Python's warnings (warnings.warn, numpy's RuntimeWarning ...) through
+        show_python_warning while the block runs, on every thread: worker threads look
+        warnings.showwarning up when they warn. The filters are Python's (the default
+        one prints a warning once per place). Enter it once, on the main thread, around
+        the whole render: warnings.catch_warnings swaps module globals, so entering it
+        on a worker thread, or per chunk, would race (Python's documentation)."""
+        if threading.current_thread() is not threading.main_thread():
+            yield  # nothing swapped: another thread's render must not race the main one
+            return
+        with warnings.catch_warnings():
+            warnings.showwarning = self.show_python_warning
+            yield

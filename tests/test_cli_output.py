@@ -1,0 +1,197 @@
+"""The CLI's output with stdout and stderr in one pipe (`photonmap render ... > log 2>&1`,
+a CI log): each warning - the scene's, the effect analysis', and Python warnings raised
+inside the render on the main thread and on the engine's worker threads - is printed once,
+when it arises, on a line of its own before the closing summary, and the progress bar's
+text is never broken by it (engine/console.py; the batch command's twin is
+tests/blender/test_blender_batch_warnings.py). The Python warnings come from a child
+script that patches the engine before it runs the CLI's main(). The last test checks the
+engine's side alone: render()'s on_warning, which both front ends print from."""
+import re
+import subprocess
+import sys
+
+from helpers import ROOT
+
+# A tiny scene that warns: a base colour above 1 and a zero-area face (the scene's, known
+# when it loads), and a mirror in view cut by --max-depth 1 (the effect analysis', known
+# before the photons are shot).
+SCENE = """
+background = [0, 0, 0]
+
+[render]
+width = 24
+height = 18
+photons = 2000
+caustic_photons = 1000
+spp = 1
+
+[camera]
+position = [0, -6, 2.5]
+look_at = [0, 0, 0.8]
+up = [0, 0, 1]
+fov = 40
+
+[materials.hot]
+base_color = [2.0, 0.5, 0.5]
+
+[materials.mirror]
+base_color = [0.9, 0.9, 0.9]
+metallic = 1.0
+roughness = 0.0
+
+[[objects]]
+type = "plane"
+name = "floor"
+center = [0, 0, 0]
+normal = [0, 0, 1]
+size = 10
+material = "hot"
+
+[[objects]]
+type = "sphere"
+name = "ball"
+center = [0, 0, 1]
+radius = 1
+material = "mirror"
+
+[[objects]]
+type = "mesh"
+name = "Sliver"
+vertices = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]]
+faces = [[0, 1, 2], [0, 1, 3]]
+material = "hot"
+
+[[lights]]
+type = "area"
+name = "area"
+position = [0, 0, 4]
+direction = [0, 0, -1]
+size = [1.5, 1.5]
+power = 400
+"""
+
+# Runs engine.cli.main with the engine patched to warn as numpy, scipy or numba would:
+# a UserWarning on the main thread as the render prepares, numpy's RuntimeWarning in every
+# chunk on the worker threads (engine/parallel.py), each from one place (Python's default
+# filter prints it once). Prints how many worker chunks warned, after the CLI's output.
+CHILD = """
+import importlib, sys, threading, warnings
+sys.path.insert(0, {root!r})
+import numpy as np
+parallel = importlib.import_module("engine.parallel")
+render_module = importlib.import_module("engine.render")  # engine.render is the function
+
+on_workers = []
+_with_flag = parallel._with_flag
+
+
+def with_flag(job, flag):
+    run = _with_flag(job, flag)
+
+    def warned(*args):
+        on_workers.append(threading.current_thread() is not threading.main_thread())
+        np.log(np.zeros(1))  # numpy warns: divide by zero
+        return run(*args)
+    return warned
+
+
+parallel._with_flag = with_flag
+_prepare = render_module.prepare_context
+
+
+def prepare_context(*args, **kwargs):
+    warnings.warn("a warning raised inside the render", UserWarning)
+    return _prepare(*args, **kwargs)
+
+
+render_module.prepare_context = prepare_context
+from engine.cli import main
+rc = main(sys.argv[1:])
+print(f"worker chunks warned: {{sum(on_workers)}}")
+sys.exit(rc)
+"""
+
+ENGINE_WARNINGS = ["material 'hot': base colour [2.0, 0.5, 0.5] above 1",
+                   "mesh 'Sliver': dropped 1 zero-area faces",
+                   "Max Ray Depth 1 stops camera paths after 1 mirror / glass bounce"]
+PYTHON_WARNINGS = ["UserWarning: a warning raised inside the render",
+                   "RuntimeWarning: divide by zero encountered in log"]
+# A whole bar as engine/cli.py draws it: description, bar, percentage, [elapsed<left].
+WHOLE_BAR = re.compile(r"^.{42}.*\| *\d{1,3}% \[[0-9:]+<[^\]]*\]$")
+
+
+def _run(tmp_path, *extra):
+    scene = tmp_path / "warns.toml"
+    scene.write_text(SCENE, encoding="utf-8")
+    child = tmp_path / "child.py"
+    child.write_text(CHILD.format(root=str(ROOT)), encoding="utf-8")
+    res = subprocess.run([sys.executable, str(child), "render", str(scene), "-o",
+                          str(tmp_path / "out.png"), "--max-depth", "1", "--workers", "2",
+                          *extra], cwd=ROOT, stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, timeout=600)
+    return res.returncode, res.stdout.decode("utf-8", "replace")
+
+
+def _own_line(lines, text, where):
+    """The index of the one line that holds `text`, checked to hold nothing of the bar."""
+    found = [i for i, line in enumerate(lines) if text in line]
+    assert len(found) == 1, (text, where)  # printed once
+    line = lines[found[0]]
+    assert "\r" not in line and "% [" not in line, repr(line)  # on a line of its own
+    return found[0]
+
+
+def test_cli_warnings_each_on_a_line_of_their_own_in_a_shared_pipe(tmp_path):
+    rc, text = _run(tmp_path)
+    assert rc == 0, text[-3000:]
+    lines = text.split("\n")  # in a log file \r starts no line
+    summary = next(i for i, line in enumerate(lines) if line.startswith("wrote "))
+    first_photons = next(i for i, line in enumerate(lines) if "Tracing photons" in line)
+    for w in ENGINE_WARNINGS:
+        i = _own_line(lines, w, text)
+        assert lines[i].startswith(f"photonmap: warning: {w}"), repr(lines[i])
+        # When it arose: the scene's and the effect analysis' before the photons.
+        assert i < first_photons, text
+    for w in PYTHON_WARNINGS:
+        i = _own_line(lines, w, text)
+        assert i < summary, text
+        assert lines[i].startswith(str(tmp_path / "child.py")), repr(lines[i])
+    # Worker chunks warned from many chunks on worker threads; printed once above.
+    workers = int(re.search(r"^worker chunks warned: (\d+)$", text, re.M).group(1))
+    assert workers >= 2, text
+    # The bar's text whole: every drawing of it (between \r and the line's end or the
+    # next \r) is a complete bar, nothing glued before or after it.
+    drawings = [seg for line in lines for seg in line.split("\r") if "% [" in seg]
+    assert len(drawings) >= 3, text
+    for seg in drawings:
+        assert WHOLE_BAR.match(seg), repr(seg)
+
+
+def test_cli_quiet_prints_the_warnings_without_a_bar(tmp_path):
+    rc, text = _run(tmp_path, "--quiet")
+    assert rc == 0, text[-3000:]
+    assert "% [" not in text and "\r" not in text, text
+    lines = text.split("\n")
+    for w in ENGINE_WARNINGS + PYTHON_WARNINGS:
+        _own_line(lines, w, text)
+
+
+def test_render_tells_each_warning_once_when_it_arises(tmp_path):
+    """engine.render's on_warning, which both front ends print from: each of
+    film.warnings once; the scene's and the effect analysis' before the first photon is
+    traced (the progress callback's first 'photons' stage)."""
+    from engine import RenderSettings, render
+    from engine.scenefile import load_scene
+    path = tmp_path / "warns.toml"
+    path.write_text(SCENE, encoding="utf-8")
+    scene, overrides = load_scene(str(path))
+    events = []
+    film = render(scene, RenderSettings(**dict(overrides, max_depth=1, workers=1)),
+                  progress=lambda stage, fraction, text: events.append(("stage", stage)),
+                  on_warning=lambda text: events.append(("warning", text)))
+    told = [text for kind, text in events if kind == "warning"]
+    assert sorted(told) == sorted(set(film.warnings)) and len(told) == len(set(told))
+    first_photons = events.index(("stage", "photons"))
+    for w in ENGINE_WARNINGS:
+        where = next(i for i, (kind, text) in enumerate(events) if w in text)
+        assert where < first_photons, events
