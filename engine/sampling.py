@@ -220,8 +220,11 @@ class StratifiedSampler:
         # every pixel and seed, a fixed pattern no number of seeds averages away: lobe
         # directions paired so stayed 1.8 % off on a glossy floor mirroring a small
         # bright patch (30 seeds), whose few highlight pixels carry the image. Scrambled:
-        # a splitmix64 finaliser of (pixel, dimension, seed). (The other dimensions keep
-        # the linear hash, so their images stay as they were.) One compiled pass
+        # a splitmix64 finaliser of (pixel, dimension, seed). Every consumer in the camera
+        # pass asks for it (integrator: the bsdf's lobe, the lights' points and choices,
+        # the final gather's directions; the lights' points and the gather were linear
+        # until glossy02, -0.65 % / +0.83 % off at 64 spp: docs/performance.md); the
+        # linear hash stays for callers that ask for no scramble. One compiled pass
         # (_stratified_uv); the jitter is drawn here in the order the numpy stage drew it.
         # One generator call per pair: the same numbers as two calls of n.
         jitter1, jitter2 = self.rng.random((2, n))
