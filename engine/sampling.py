@@ -170,8 +170,9 @@ class StratifiedSampler:
 
     Sample `sub` of a pixel takes cell (sub + shift) mod m^2 of an m x m grid
     (m = floor(sqrt(spp))), jittered inside the cell. The shift is a hash of pixel and
-    dimension, so dimensions (light position, gather direction, ...) are not correlated
-    with each other or with the pixel jitter. Over the spp samples of a pixel every
+    dimension (and of the seed, scrambled: what the camera pass asks for), so dimensions
+    (light position, gather direction, ...) are not correlated with each other or with
+    the pixel jitter, and their pairing with it changes from seed to seed. Over the spp samples of a pixel every
     cell is visited once, which cuts noise in soft shadows and final gathering.
 
     Dimensions are asked for by key (uv(("light", li, si))); `dims` (SampleDimensions)
