@@ -74,10 +74,9 @@ power = 400
 # a UserWarning on the main thread as the render prepares, numpy's RuntimeWarning in every
 # chunk on the worker threads (engine/parallel.py), each from one place (Python's default
 # filter prints it once). Prints how many worker chunks warned, after the CLI's output.
-CHILD = """
-import importlib, sys, threading, warnings
-sys.path.insert(0, {root!r})
-import numpy as np
+# The patches that make a render warn (shared with the batch command's test,
+# tests/blender/test_blender_batch_warnings.py).
+WARNING_PATCHES = """
 parallel = importlib.import_module("engine.parallel")
 render_module = importlib.import_module("engine.render")  # engine.render is the function
 
@@ -105,7 +104,12 @@ def prepare_context(*args, **kwargs):
 
 
 render_module.prepare_context = prepare_context
-from engine.cli import main
+"""
+CHILD = """
+import importlib, sys, threading, warnings
+sys.path.insert(0, {root!r})
+import numpy as np
+""" + WARNING_PATCHES + """from engine.cli import main
 rc = main(sys.argv[1:])
 print(f"worker chunks warned: {{sum(on_workers)}}")
 sys.exit(rc)

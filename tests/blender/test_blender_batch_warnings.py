@@ -8,6 +8,7 @@ import subprocess
 import pytest
 
 from blender_helpers import BLENDS, PYTHON, ROOT
+from test_cli_output import WARNING_PATCHES
 
 pytestmark = pytest.mark.blender
 
@@ -56,33 +57,7 @@ toon = tree.nodes.new("ShaderNodeBsdfToon")
 out = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
 tree.links.new(toon.outputs[0], out.inputs["Surface"])
 bpy.ops.wm.save_as_mainfile(filepath={blend!r})
-parallel = importlib.import_module("engine.parallel")
-render_module = importlib.import_module("engine.render")  # engine.render is the function
-on_workers = []
-_with_flag = parallel._with_flag
-
-
-def with_flag(job, flag):
-    run = _with_flag(job, flag)
-
-    def warned(*args):
-        on_workers.append(threading.current_thread() is not threading.main_thread())
-        np.log(np.zeros(1))  # numpy warns: divide by zero
-        return run(*args)
-    return warned
-
-
-parallel._with_flag = with_flag
-_prepare = render_module.prepare_context
-
-
-def prepare_context(*args, **kwargs):
-    warnings.warn("a warning raised inside the render", UserWarning)
-    return _prepare(*args, **kwargs)
-
-
-render_module.prepare_context = prepare_context
-from addon import batch
+""" + WARNING_PATCHES + """from addon import batch
 rc = batch.main(sys.argv[1:])
 print(f"worker chunks warned: {{sum(on_workers)}}")
 sys.exit(rc)
