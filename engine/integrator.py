@@ -159,9 +159,8 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
         S = selection_samples(ctx.settings)
         for si in range(S):
             if sampler is not None:
-                # The light's point: scrambled for the reason the per-light points are
-                # (below, light_point_numbers).
-                u1, u2 = light_point_numbers(sampler, ("light", 0, si))
+                # The light's point: scrambled, as each light's below.
+                u1, u2 = sampler.uv(("light", 0, si), scrambled=True)
                 # The tree's choice stratified over the pixel's samples: the 2-D cell
                 # read as one of m^2 strata in 1-D. Scrambled: with the linear cell
                 # shift its pairing with the pixel jitter and the light's point was the
@@ -195,7 +194,13 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
                 continue
             sel = None
             if sampler is not None:
-                u1, u2 = light_point_numbers(sampler, ("light", li, si))
+                # Scrambled cells: a light's point and the pixel jitter enter one product
+                # (the lobe's value at the hit toward the point), and with the linear
+                # shift their pairing within a pixel was the same in every seed, a bias no
+                # seed averaged away (a close-up Principled ball of roughness 0.2, direct
+                # pass: linear / scrambled 0.9935 at 64 spp, -10 standard errors over 100
+                # seeds, paired; docs/performance.md "glossy02").
+                u1, u2 = sampler.uv(("light", li, si), scrambled=True)
                 sel = rng.random(n) if light.needs_choice else None
             elif light.needs_choice:
                 u1, u2, sel = rng.random((3, n))  # one draw: u1, u2, sel in this order
@@ -203,22 +208,6 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
                 u1, u2 = rng.random((2, n))
             samples.append((li, traced, count, u1, u2, sel))
     return samples
-
-
-def light_point_numbers(sampler, key):
-    """(u1, u2), each (N,), of a light's point for its shadow samples from the sampler's 2-D
-    dimension `key` (("light", li, si), or the light tree's ("light", 0, si)), the cells
-    visited in the scrambled order (StratifiedSampler.uv).
-
-    Why scrambled: a light's point and the pixel jitter enter one product (the lobe's
-    value at the hit toward the point), and with the linear cell shift their pairing
-    within a pixel was the same in every seed (the jitter's cell order is fixed), a bias
-    no number of seeds averaged away where a few pixels carry the image. Measured on a
-    close-up Principled ball of roughness 0.2 under one area light (12 x 12 pixels, the
-    direct pass's image mean; docs/performance.md "glossy02"): linear / scrambled
-    0.9935 at 64 spp (-10 standard errors, 100 seeds, paired) and 0.9975 at 1024 spp;
-    scrambled 64 spp / scrambled 1024 spp 0.9988 +- 0.0019. tests/test_sampler_scramble.py."""
-    return sampler.uv(key, scrambled=True)
 
 
 def mesh_light_numbers(sampler, key):

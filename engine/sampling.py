@@ -172,8 +172,9 @@ class StratifiedSampler:
     (m = floor(sqrt(spp))), jittered inside the cell. The shift is a hash of pixel and
     dimension (and of the seed, scrambled: what the camera pass asks for), so dimensions
     (light position, gather direction, ...) are not correlated with each other or with
-    the pixel jitter, and their pairing with it changes from seed to seed. Over the spp samples of a pixel every
-    cell is visited once, which cuts noise in soft shadows and final gathering.
+    the pixel jitter, and their pairing with it changes from seed to seed. Over the spp
+    samples of a pixel every cell is visited once, which cuts noise in soft shadows and
+    final gathering.
 
     Dimensions are asked for by key (uv(("light", li, si))); `dims` (SampleDimensions)
     maps keys to numbers, so no two consumers can share a dimension."""
