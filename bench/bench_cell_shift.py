@@ -22,7 +22,7 @@ LINEAR = [False]
 _uv = sampling.StratifiedSampler.uv
 
 
-def _patched(self, key, rng=None, scrambled=False):
+def _patched(self, key, rng=None, scrambled=True):
     # read once per call on the calling thread; the flag is set between renders only
     if LINEAR[0] and key[0] in ("light", "gather"):
         scrambled = False

@@ -160,14 +160,14 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
         for si in range(S):
             if sampler is not None:
                 # The light's point: scrambled, as each light's below.
-                u1, u2 = sampler.uv(("light", 0, si), scrambled=True)
+                u1, u2 = sampler.uv(("light", 0, si))
                 # The tree's choice stratified over the pixel's samples: the 2-D cell
                 # read as one of m^2 strata in 1-D. Scrambled: with the linear cell
                 # shift its pairing with the pixel jitter and the light's point was the
                 # same in every pixel and seed, a bias no seed averaged away (a diffuse
                 # floor under 200 small area lights: +0.49 % against every light
                 # sampled, 18 standard errors over 6 seeds at 16 spp; now -0.03 %).
-                c1, c2 = sampler.uv(("light-select", si), scrambled=True)
+                c1, c2 = sampler.uv(("light-select", si))
                 choose = np.minimum((np.floor(c2 * sampler.m) + c1) / sampler.m, ONE_BELOW)
             else:
                 u1, u2, choose = rng.random((3, n))  # one draw: the same numbers
@@ -200,7 +200,7 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
                 # seed averaged away (a close-up Principled ball of roughness 0.2, direct
                 # pass: linear / scrambled 0.9935 at 64 spp, -10 standard errors over 100
                 # seeds, paired; docs/performance.md "glossy02").
-                u1, u2 = sampler.uv(("light", li, si), scrambled=True)
+                u1, u2 = sampler.uv(("light", li, si))
                 sel = rng.random(n) if light.needs_choice else None
             elif light.needs_choice:
                 u1, u2, sel = rng.random((3, n))  # one draw: u1, u2, sel in this order
@@ -232,7 +232,7 @@ def mesh_light_numbers(sampler, key):
     with the pixel jitter repeats along image rows and columns, so pixels along a seam of
     the emitting box rose and fell together (a 1-D choice so stratified: its direct pass's
     image mean scattered 1.8x as widely over seeds)."""
-    u1, u2 = sampler.uv(key, scrambled=True)
+    u1, u2 = sampler.uv(key)
     m = sampler.m
     if m < 2:
         return u1, u2, u1
@@ -522,7 +522,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # no seed averaged away (ball, floor and wall at 16 x 16 pixels, indirect pass:
         # linear / scrambled 1.0083 at 64 spp, +9 standard errors over 60 seeds, paired;
         # docs/performance.md "glossy02").
-        u1, u2 = (sampler.uv(("gather", g), scrambled=True) if sampler is not None
+        u1, u2 = (sampler.uv(("gather", g)) if sampler is not None
                   else rng.random(out=buf.uv[:2 * n].reshape(2, n)))
         k = gather_rays(c(u1, np.float64), c(u2, np.float64), ns, ng, p, offset, idx, o, d)
         idx, o, d, tp = idx[:k], o[:k], d[:k], tp[:k]
@@ -1627,7 +1627,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # (Jittered by their own generator: the chunk's stream, and so every image
         # without a rough lobe, stays as it was.)
         # (Drawn only if a reflective lobe is sampled: bsdf_rng serves nothing else.)
-        uv = (functools.partial(sampler.uv, ("bsdf",), rng=bsdf_rng, scrambled=True)
+        uv = (functools.partial(sampler.uv, ("bsdf",), rng=bsdf_rng)
               if sampler is not None and bounce == 0 and bsdf_rng is not None else None)
         d_in, pdf_in = d, pdf_b
         cont = continue_specular(ctx, hit, tp, rng, ray_cls, choice=choice, want_pdf=True,

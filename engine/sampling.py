@@ -198,40 +198,33 @@ class StratifiedSampler:
         s.salt = self.salt
         return s
 
-    def uv(self, key, rng=None, scrambled=False) -> tuple[np.ndarray, np.ndarray]:
+    def uv(self, key, rng=None, scrambled=True) -> tuple[np.ndarray, np.ndarray]:
         """(u1, u2), each (N,) in [0, 1), for the dimension named key (SampleDimensions);
         rng: the generator of the jitter inside the cells (default: the sampler's);
-        scrambled: the cell order's offset hashed from pixel, dimension and seed (below)."""
-        dim = self.dims[key]
-        saved = self.rng
-        if rng is not None:
-            self.rng = rng
-        try:
-            return self._uv(dim, scrambled)
-        finally:
-            self.rng = saved
+        scrambled: the cell order's offset hashed from pixel, dimension and seed (below);
+        False gives the linear shift, kept only to measure what the scramble removes
+        (bench/bench_cell_shift.py, tests/test_sampler_scramble.py)."""
+        return self._uv(self.dims[key], scrambled, self.rng if rng is None else rng)
 
-    def _uv(self, dim, scrambled=False):
+    def _uv(self, dim, scrambled, rng):
         n = len(self.sub)
         cells = self.m * self.m
         if cells < 2:
-            u1, u2 = self.rng.random((2, n))  # one draw: the numbers of two
+            u1, u2 = rng.random((2, n))  # one draw: the numbers of two
             return u1, u2
         # The pairing of two dimensions' strata within a pixel is a fixed offset. With
         # the linear hash (pixel * 2654435761 + dim * 40503 + 12345) it is the same in
         # every pixel and seed, a fixed pattern no number of seeds averages away: lobe
         # directions paired so stayed 1.8 % off on a glossy floor mirroring a small
         # bright patch (30 seeds), whose few highlight pixels carry the image. Scrambled:
-        # a splitmix64 finaliser of (pixel, dimension, seed). Every consumer in the camera
-        # pass asks for it (integrator: the bsdf's lobe, the lights' points and choices,
-        # the final gather's directions; the lights' points and the gather were linear
-        # until glossy02, -0.65 % / +0.83 % off at 64 spp: docs/performance.md); the
-        # linear hash stays for callers that ask for no scramble. One compiled pass
+        # a splitmix64 finaliser of (pixel, dimension, seed), the default every consumer
+        # takes (the lights' points and the gather were linear until glossy02, -0.65 % /
+        # +0.83 % off at 64 spp: docs/performance.md). One compiled pass
         # (_stratified_uv); the jitter is drawn here in the order the numpy stage drew it.
         # One generator call per pair: the same numbers as two calls of n.
-        jitter1, jitter2 = self.rng.random((2, n))
+        jitter1, jitter2 = rng.random((2, n))
         n_rest = int(np.count_nonzero(self.sub >= self.full))
-        rest1, rest2 = self.rng.random((2, n_rest)) if n_rest else (_EMPTY, _EMPTY)
+        rest1, rest2 = rng.random((2, n_rest)) if n_rest else (_EMPTY, _EMPTY)
         if scrambled:
             add = np.uint64(((dim + 1) * 0xBF58476D1CE4E5B9 + self.salt * 0xD6E8FEB86659FD93)
                             % (1 << 64))

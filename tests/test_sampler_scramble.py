@@ -49,7 +49,7 @@ def test_cells_paired_with_the_pixel_jitter_change_with_the_seed(lights, monkeyp
     seen = {}
     orig = sampling.StratifiedSampler.uv
 
-    def uv(self, key, rng=None, scrambled=False):
+    def uv(self, key, rng=None, scrambled=True):
         u1, u2 = orig(self, key, rng=rng, scrambled=scrambled)
         first = (self.sub == 0) & np.isin(self.pix, (5, 6, 9, 10))  # the middle 2 x 2
         cells = np.floor(u1 * self.m) + self.m * np.floor(u2 * self.m)
