@@ -64,6 +64,25 @@ def within(counts, limits) -> np.ndarray:
     return np.all(c <= np.asarray(limits, np.int64)[None, :], axis=1)
 
 
+def flat_passages(counts, limits) -> np.ndarray:
+    """(K,) int64: the most flat glass passages a shadow ray from a hit reached with
+    camera-side counts counts (K,4) may cross within the limits (4,) (B_TOTAL order).
+    A shadow ray through a flat passage (engine/shadowtransmittance.py) carries light
+    that Cycles gathers by BSDF sampling: the hit's bounce (counted as diffuse), then two
+    refractions per passage, the last of which reaches the light (the light-sample
+    vertex: no bounce of its kind, as a photon's first scatter, photonkernels.B_TOTAL).
+    So k passages need diffuse + 1 <= Diffuse, total + 2k <= Total and transmission +
+    2k - 1 <= Transmission (path_state_next: a count at the setting + 1 still collects
+    the emission the next ray meets). A floor lit through a pane reads nothing at
+    Transmission 0 in Cycles; it read the pane's full light before
+    (tests/test_bounce_limits.py)."""
+    c = np.asarray(counts, np.int64).reshape(-1, 4)
+    lim = np.asarray(limits, np.int64)
+    k = np.minimum((lim[0] - c[:, 0]) // 2, (lim[3] - c[:, 3] + 1) // 2)
+    k[c[:, 1] + 1 > lim[1]] = 0
+    return np.maximum(k, 0)
+
+
 def _usable(photons, limits, key, cache) -> np.ndarray:
     """photons.usable(limits, key), cached per key (a dict shared by the map's views;
     two threads may compute one mask twice, the same values)."""
