@@ -501,7 +501,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     none). The gather rays' own continuations add theirs: a lookup past a limit adds
     nothing, and one whose counts drop more light than its level's map holds
     (chaincounts.GatherCounts.reroute) gathers again from its end (the last level reads
-    the map)."""
+    the map scaled by the share of its power the counts keep, last_level_scale)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -664,8 +664,10 @@ def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather):
     """Gather lookups at `level` whose rays have bounces cnt (K,4) beyond the level's own
     (chaincounts): those past a limit read nothing and are not gathered again (Ey 0,
     boundary False, lt inf); those whose counts drop more light than the level's map
-    holds gather again from their end (boundary True, with regather). Ey (K,3), boundary,
-    lt (K,): the lookups' arrays, changed in place."""
+    holds gather again from their end (boundary True, with regather), or, at the last
+    level, read Ey scaled by the share of the map's power they keep
+    (GatherCounts.last_level_scale). Ey (K,3), boundary, lt (K,): the lookups' arrays,
+    changed in place."""
     counts = chaincounts.camera_counts(cnt, (level + 1, level + 1, 0, 0))
     limits = ctx.settings.bounce_limits
     past = ~chaincounts.within(counts, limits)
@@ -677,6 +679,15 @@ def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather):
         again = ctx.gather_counts.reroute(level, counts) & ~past
         if again.any():
             boundary[again] = True
+    elif ctx.gather_counts is not None:
+        # The last level gathers no more: the lookups that would go on read the map
+        # scaled by the share of its power their counts keep (it held the photons past
+        # a limit too: Total 5 in a room with a mirror and a glass ball, 19 % of those
+        # lookups' light; docs/performance.md, limits).
+        scale = ctx.gather_counts.last_level_scale(level, counts)
+        cut = np.flatnonzero((scale < 1.0) & ~past)
+        if len(cut):
+            Ey[cut] *= scale[cut, None]
 
 
 def _deeper(pmap, deeper, level):

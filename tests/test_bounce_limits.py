@@ -436,3 +436,32 @@ def test_a_mirror_as_the_photons_first_scatter_is_the_light_vertex():
         assert abs(films[key].caustic.mean() / high - 1.0) < 0.01, key
     for key in ("total0", "d0"):
         assert films[key].caustic.max() == 0.0, key
+
+
+def test_last_level_lookups_read_the_share_of_the_map_their_counts_keep():
+    """At the last gather level no lookup gathers again: one whose counts drop more than
+    the share of the map's power (reroute's decision) reads the map scaled by the share
+    of its photons' power the counts keep (the photons' own sums: a lookup of the level's
+    map after a glass ball at Total 5 keeps those of <= 1 scatter of the map's <= 2),
+    every other lookup the map as it is (scale 1). Before, it read the whole map: a room
+    with a mirror and a glass ball at Total 5 read 1.024x Cycles, now 0.998x
+    (tests/blender/test_blender_bounces.py; docs/performance.md, limits)."""
+    from engine.chaincounts import GatherCounts
+    rng = np.random.default_rng(5)
+    n = 5000
+    total = rng.integers(0, 4, n)
+    bounces = np.zeros((n, 4), np.uint8)
+    bounces[:, 0] = total
+    bounces[:, 1] = np.maximum(total - 1, 0)
+    power = rng.random(n)
+    lim = np.array([5, 1024, 1024, 1024])
+    g = GatherCounts(bounces, power, lim, 0.005)
+    level = 2  # its map: counts (3, 3, 0, 0), photons of <= 2 scatters
+    counts = np.array([[3, 3, 0, 0], [4, 3, 0, 1], [5, 3, 1, 1], [4, 3, 0, 1], [6, 3, 0, 3]])
+    got = g.last_level_scale(level, counts)
+    kept = power[total <= 2].sum()
+    want = [1.0, power[total <= 1].sum() / kept, power[total == 0].sum() / kept]
+    np.testing.assert_allclose(got[:3], want, rtol=1e-12)
+    assert got[3] == got[1]
+    assert got[4] == 0.0  # past the limit (the caller reads nothing there anyway)
+    assert g.reroute(level, counts).tolist() == [False, True, True, True, True]

@@ -298,3 +298,38 @@ def test_light_by_way_of_a_mirror_or_a_pane_at_low_limits_matches_cycles(bpy_add
     for key in set(means) - set(lit):
         cyc, ours = means[key]
         assert ours < 0.01 * means["pane", (12, 1, 0, 1)][1] and cyc < 0.01, means
+
+
+def test_closed_room_with_a_mirror_and_a_glass_ball_at_total_5_matches_cycles(bpy_addon,
+                                                                             tmp_path):
+    """_closed_room with a mirror ball and a glass ball, Max Bounces Total 5 (the others
+    64): final-gather rays through the balls reach the last regather level with more
+    bounces than its map's, whose photons past the limit the lookups read in full
+    (1.024x Cycles, 3 seeds; 0.996x at Total 64); they now read the map scaled by the
+    share of its power their counts keep (chaincounts.GatherCounts.last_level_scale):
+    0.998x. Bound 1.2 %. ~12 s."""
+    bpy = bpy_addon
+    scene = _closed_room(bpy)
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends as mb
+    m, nt, out = mb.empty_material("mirror")
+    n = nt.nodes.new("ShaderNodeBsdfGlossy")
+    n.inputs["Roughness"].default_value = 0.0
+    n.inputs["Color"].default_value = (0.95, 0.95, 0.95, 1)
+    nt.links.new(n.outputs[0], out.inputs["Surface"])
+    mb.sphere("MBall", 0.6, m, (1.0, 1.0, 0.6))
+    mb.sphere("GBall", 0.6, mb.material("glass", "glass", (1, 1, 1), roughness=0.0, ior=1.5),
+              (-1.0, 0.8, 0.6))
+    c = cycles_plain(scene, 512, 5)
+    c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 64
+    scene.render.engine = "CYCLES"
+    cyc = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3].mean()
+    scene.render.engine = "PHOTONMAP"
+    pm = scene.photonmap
+    pm.spp, pm.photons = 16, 100_000
+    ours = []
+    for seed in (0, 1):
+        pm.seed = seed
+        ours.append(read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"o{seed}.exr"))[..., :3])
+    ratio = np.mean([o.mean() for o in ours]) / cyc
+    assert abs(ratio - 1.0) < 0.012, ratio
