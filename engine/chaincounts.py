@@ -18,6 +18,10 @@ diffuse, glossy, transmission) on top of the map's own camera counts.
   render.SUBSET_POWER_SHARE of the power the map's own level keeps; final gathering
   gathers again from their ends (integrator.gather_indirect), where direct light,
   the next level's gather and the secondary caustic are all taken with the real counts.
+  At the last level (no regather) they read the map scaled by the share of its power
+  their counts keep (`GatherCounts.last_level_scale`).
+- Shadow rays through flat glass passages (engine/shadowtransmittance.py) cross only as
+  many as the hit's counts allow (`flat_passages`).
 """
 from __future__ import annotations
 
@@ -62,6 +66,25 @@ def within(counts, limits) -> np.ndarray:
     the lookup vertex is reached by a path Cycles would still shade."""
     c = np.asarray(counts, np.int64)
     return np.all(c <= np.asarray(limits, np.int64)[None, :], axis=1)
+
+
+def flat_passages(counts, limits) -> np.ndarray:
+    """(K,) int64: the most flat glass passages a shadow ray from a hit reached with
+    camera-side counts counts (K,4) may cross within the limits (4,) (B_TOTAL order).
+    A shadow ray through a flat passage (engine/shadowtransmittance.py) carries light
+    that Cycles gathers by BSDF sampling: the hit's bounce (counted as diffuse), then two
+    refractions per passage, the last of which reaches the light (the light-sample
+    vertex: no bounce of its kind, as a photon's first scatter, photonkernels.B_TOTAL).
+    So k passages need diffuse + 1 <= Diffuse, total + 2k <= Total and transmission +
+    2k - 1 <= Transmission (path_state_next: a count at the setting + 1 still collects
+    the emission the next ray meets). A floor lit through a pane reads nothing at
+    Transmission 0 in Cycles; it read the pane's full light before
+    (tests/test_bounce_limits.py)."""
+    c = np.asarray(counts, np.int64).reshape(-1, 4)
+    lim = np.asarray(limits, np.int64)
+    k = np.minimum((lim[0] - c[:, 0]) // 2, (lim[3] - c[:, 3] + 1) // 2)
+    k[c[:, 1] + 1 > lim[1]] = 0
+    return np.maximum(k, 0)
 
 
 def _usable(photons, limits, key, cache) -> np.ndarray:
@@ -178,6 +201,42 @@ class GatherCounts:
             got = dropped > self.share * kept
             self._cache[(level,) + key] = got
         return got
+
+    def kept_share(self, level, key) -> float:
+        """The share of the power lookups at gather level `level` read from its map
+        (counts (level + 1, level + 1, 0, 0)) that photons usable for camera counts key
+        (4-tuple) carry: 1 - dropped / kept of drops, from the photons' count classes."""
+        got = self._cache.get(("share", level) + key)
+        if got is None:
+            rows, power, _ = self._classes()
+            nominal = pk.bounce_usable(rows, self.limits, (level + 1, level + 1, 0, 0))
+            ok = pk.bounce_usable(rows, self.limits, key)
+            kept = float(power[nominal].sum())
+            got = float(power[nominal & ok].sum()) / kept if kept > 0.0 else 1.0
+            self._cache[("share", level) + key] = got
+        return got
+
+    def last_level_scale(self, level, counts) -> np.ndarray:
+        """(K,) float64 for lookups with camera counts (K,4) at the last gather level,
+        where none gathers again: the lookups reroute would send on (their counts drop
+        more than `share` of the map's power) read the map scaled by kept_share, the
+        share of its power their photons carry (the map's irradiance holds the others'
+        too); 1 elsewhere (the map as it is, as at the other levels). The scale is the
+        whole map's: where the dropped photons gather unevenly (a caustic's deeper
+        photons) a lookup keeps their local excess or deficit; an exact answer needs the
+        map's irradiance again for those counts (a subset map per count class, a whole
+        estimate pass each: docs/performance.md, limits)."""
+        counts = np.asarray(counts, np.int64)
+        out = np.ones(len(counts))
+        if not len(counts):
+            return out
+        keys, which = unique_counts(counts)
+        scale = np.ones(len(keys))
+        for j, k in enumerate(keys):
+            key = tuple(int(x) for x in k)
+            if self.drops(level, key):
+                scale[j] = self.kept_share(level, key)
+        return scale[which]
 
     def reroute(self, level, counts) -> np.ndarray:
         """(K,) bool for lookups with camera counts (K,4) at gather level `level`."""

@@ -760,7 +760,7 @@ class DirectLightBuffers:
 
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
-                 bsdf=None, buffers=None, rows=None, transmission=None):
+                 bsdf=None, buffers=None, rows=None, transmission=None, passages=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -780,6 +780,9 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     rows (n,) int64: the n hits are these rows of hit_arrays and of bsdf's prm, wo and sel
     (a batch's shaded rows, read in place; the numbers, fd and E count the n hits);
     None: hit_arrays are the n hits.
+    passages (n,) int64: the most flat glass passages a shadow ray from each hit may
+    cross (the bounce limits, chaincounts.flat_passages; ShadowTransmittance); None: no
+    cap.
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
@@ -829,8 +832,15 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
             accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
                                 cls=shadow_cls)
             if shadow is not None:
+                ray_cap = None
+                if passages is not None:
+                    # Each traced ray's cap, from its hit (entries j < m_all).
+                    ray_cap = np.zeros(m_rays, np.int64)
+                    r = buf.ray[:m_all]
+                    on = r >= 0
+                    ray_cap[r[on]] = np.take(passages, buf.row[:m_all][on])
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
-                                    buf.contrib, buf.ray, m_all, shadow_cls)
+                                    buf.contrib, buf.ray, m_all, shadow_cls, ray_cap)
         if transmission is not None:
             prm, ns, wo, mode, sel = transmission
             pr.accumulate_transmission(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples,

@@ -97,7 +97,8 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
-                      skip_mesh_lights=False, bsdf=None, buffers=None, rows=None) -> np.ndarray:
+                      skip_mesh_lights=False, bsdf=None, buffers=None, rows=None,
+                      counts=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
@@ -111,7 +112,10 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     their sums, valid until their next use; None: fresh arrays).
     rows (K,) int64: shade these rows of hit only (the result, the sampler and bsdf's fd
     are per row of rows; bsdf's prm and sel are the whole batch's, read at rows): the
-    same numbers as hit.take(rows) without copying the rows' fields; None: every hit."""
+    same numbers as hit.take(rows) without copying the rows' fields; None: every hit.
+    counts: (4,) or (n,4) int64, the camera-side bounce counts the hits are reached with
+    (B_TOTAL order; None: none, the camera's first hits): shadow rays through flat glass
+    passages cross only as many as the bounce limits allow (chaincounts.flat_passages)."""
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     samples = light_sample_list(ctx, n, rng, sampler, skip_mesh_lights)
@@ -131,10 +135,19 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         bsdf = (np.ascontiguousarray(fd, np.float64), np.ascontiguousarray(prm),
                 np.ascontiguousarray(hit.wo, np.float64), mode,
                 np.ascontiguousarray(sel, np.float64))
+    shadow = getattr(ctx, "shadow", None)
+    passages = None
+    if shadow is not None and shadow.flat_on:
+        cap = chaincounts.flat_passages((0, 0, 0, 0) if counts is None else counts,
+                                        ctx.settings.bounce_limits)
+        # A passage is two of a shadow ray's max_hits surfaces: caps at or above
+        # max_hits // 2 never bind (the default limits at the camera's hits).
+        if cap.min() < shadow.max_hits // 2:
+            passages = np.ascontiguousarray(np.broadcast_to(cap, (n,)), np.int64)
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
-                           SHADOW, n, shadow=getattr(ctx, "shadow", None),
+                           SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
-                           bsdf=bsdf, buffers=buffers, rows=rows)
+                           bsdf=bsdf, buffers=buffers, rows=rows, passages=passages)
     counters.shadow_rays += rays
     return E
 
@@ -488,7 +501,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     none). The gather rays' own continuations add theirs: a lookup past a limit adds
     nothing, and one whose counts drop more light than its level's map holds
     (chaincounts.GatherCounts.reroute) gathers again from its end (the last level reads
-    the map)."""
+    the map scaled by the share of its power the counts keep, last_level_scale)."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -651,8 +664,10 @@ def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather):
     """Gather lookups at `level` whose rays have bounces cnt (K,4) beyond the level's own
     (chaincounts): those past a limit read nothing and are not gathered again (Ey 0,
     boundary False, lt inf); those whose counts drop more light than the level's map
-    holds gather again from their end (boundary True, with regather). Ey (K,3), boundary,
-    lt (K,): the lookups' arrays, changed in place."""
+    holds gather again from their end (boundary True, with regather), or, at the last
+    level, read Ey scaled by the share of the map's power they keep
+    (GatherCounts.last_level_scale). Ey (K,3), boundary, lt (K,): the lookups' arrays,
+    changed in place."""
     counts = chaincounts.camera_counts(cnt, (level + 1, level + 1, 0, 0))
     limits = ctx.settings.bounce_limits
     past = ~chaincounts.within(counts, limits)
@@ -664,6 +679,15 @@ def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather):
         again = ctx.gather_counts.reroute(level, counts) & ~past
         if again.any():
             boundary[again] = True
+    elif ctx.gather_counts is not None:
+        # The last level gathers no more: the lookups that would go on read the map
+        # scaled by the share of its power their counts keep (it held the photons past
+        # a limit too: Total 5 in a room with a mirror and a glass ball, 19 % of those
+        # lookups' light; docs/performance.md, limits).
+        scale = ctx.gather_counts.last_level_scale(level, counts)
+        cut = np.flatnonzero((scale < 1.0) & ~past)
+        if len(cut):
+            Ey[cut] *= scale[cut, None]
 
 
 def _deeper(pmap, deeper, level):
@@ -805,7 +829,10 @@ def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, lev
     counters.count("regathered", level + 1, len(target))
     before = counters.shadow_rays
     Ed = direct_irradiance(ctx, y, rng, counters, skip_mesh_lights=True,
-                           buffers=_gather_buffers(ctx, level).direct)
+                           buffers=_gather_buffers(ctx, level).direct,
+                           counts=chaincounts.camera_counts(
+                               np.zeros((1, 4), np.int64) if extra is None else extra,
+                               (level + 1, level + 1, 0, 0)))
     counters.count("regather shadow", level + 1, counters.shadow_rays - before)
     Esub = (Ed
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
@@ -1080,10 +1107,10 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     shadow_rays_before = counters.shadow_rays
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
-                                   buffers=buffers, rows=rows)
+                                   buffers=buffers, rows=rows, counts=extra)
     else:
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers,
-                                   rows=rows)
+                                   rows=rows, counts=extra)
         np.multiply(f, direct, out=direct)  # f x E, in place
     if bounce is not None:
         counters.count("camera shadow", bounce, counters.shadow_rays - shadow_rays_before)

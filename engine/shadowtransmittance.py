@@ -463,13 +463,15 @@ class ShadowTransmittance:
             return None
         return cls(geo, table, max_hits)
 
-    def transmittance(self, o32, d32, t32, rows=None, cls=None) -> np.ndarray:
+    def transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None) -> np.ndarray:
         """(R,3) RGB transmittance of the shadow rays `rows` (default: all) from o32 (R,3)
         along d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space),
         through transparent surfaces: the product of (1 - alpha) x transparent tint of the
         surfaces crossed, 0 where an opaque surface or more than max_hits transparent ones
         lie in the way. cls: the rays' class (engine/visibility.py; None: every triangle
-        is seen)."""
+        is seen). passages: (R,) int64 per ray (as o32), the most flat passages it may
+        cross (Cycles' bounce limits: each passage stands for two refractions,
+        chaincounts.flat_passages); more: blocked. None: no cap."""
         if rows is None:
             rows = np.arange(len(o32))
         rows = np.asarray(rows, np.int64)
@@ -478,6 +480,10 @@ class ShadowTransmittance:
         count = np.zeros(n, np.int64)
         if n == 0:
             return trans
+        # The flat passages each ray has crossed, against its cap (None: no cap).
+        cap = (None if passages is None or not self.flat_on
+               else np.asarray(passages, np.int64)[rows])
+        crossed = None if cap is None else np.zeros(n, np.int64)
         o = np.asarray(o32, np.float64)[rows]
         d = np.asarray(d32, np.float64)[rows]
         t = np.asarray(t32, np.float64)[rows]
@@ -515,6 +521,8 @@ class ShadowTransmittance:
                 node_alpha[hit] = material_alpha(self.table, geo, np.take(geo.material, hp),
                                                  hp, hu, hv, constant=False)
             state = np.empty(len(prim), np.int64)
+            # Rays inside glass now: GOING after the step means out of a flat passage.
+            inside = None if cap is None else entry[slot] >= 0
             if self.flat_on:
                 flat = (o, d, np.ascontiguousarray(thit, np.float64), geo.v0, geo.e1, geo.e2,
                         self.object_id, self.flat_mat, self.flat_limit, self.glass,
@@ -524,6 +532,15 @@ class ShadowTransmittance:
             shadow_step(rows, np.ascontiguousarray(tri_material, np.int64), self.mat_alpha,
                         self.mat_tint, node_alpha, slot, trans, count, self.max_hits, state,
                         entry, *flat)
+            if inside is not None and inside.any():
+                out = np.flatnonzero(inside & (state == GOING))
+                crossed[slot[out]] += 1
+                over = out[crossed[slot[out]] > cap[slot[out]]]
+                if len(over):
+                    # One passage more than the limits allow: the light it carries is
+                    # past a transmission / total bounce limit (Cycles has none there).
+                    trans[slot[over]] = 0.0
+                    state[over] = BLOCKED
             go = np.nonzero(state == GOING)[0]
             if len(go) == 0:
                 break
@@ -549,16 +566,18 @@ class ShadowTransmittance:
             trans[slot] = 0.0
         return trans
 
-    def pass_blocked(self, o32, d32, t32, blocked, contrib, ray, m_all, cls=None):
+    def pass_blocked(self, o32, d32, t32, blocked, contrib, ray, m_all, cls=None,
+                     passages=None):
         """After an OCCLUDED query: re-trace the blocked shadow rays through transparent
         surfaces; rays that get through are marked unblocked in `blocked` and the entries
         (j < m_all) of `contrib` that use them scaled by their transmittance (the layout
         of directlight.sample_lights). t32 must hold the rays' distances as they were
-        before the query (Embree overwrites them)."""
+        before the query (Embree overwrites them). passages: (R,) the rays' most flat
+        passages (transmittance's; None: no cap)."""
         rows = np.nonzero(blocked)[0]
         if len(rows) == 0:
             return
-        trans = self.transmittance(o32, d32, t32, rows, cls)
+        trans = self.transmittance(o32, d32, t32, rows, cls, passages)
         through = np.any(trans > 0.0, axis=1)
         if not through.any():
             return

@@ -357,3 +357,111 @@ def test_gather_counts_decide_as_the_photons_own_sums():
     edge = GatherCounts(bounces, power, lim, share)
     assert edge.drops(0, key) == by_photons(0, key, share)
     assert ("mask",) + key in edge._cache  # decided by the photons' own sums
+
+
+def _lit_through(surface: str):
+    """A floor lit only by way of one smooth surface: a point light above a flat glass
+    pane (2 cm thick, a flat passage: shadow rays cross it, engine/shadowtransmittance.py)
+    or below a mirror that faces down (the floor sees no light straight from it: a ring
+    blocks it), the camera looking down at the floor under it."""
+    s = PaperScene(width=16, height=12)
+    s.add_material(Material("floor", (0.8, 0.8, 0.8)))
+    s.add_plane((0, 0, 0), normal=(0, 0, 1), size=6.0, material="floor", name="floor")
+    if surface == "pane":
+        s.add_material(Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0, ior=1.5))
+        s.add_box((0, 0, 1.0), (3.0, 3.0, 0.02), "glass", name="pane")
+        s.add_point_light((0, 0, 1.6), power=100.0)
+    else:
+        s.add_material(Material("mirror", (1, 1, 1), metallic=1.0, roughness=0.0))
+        s.add_plane((0, 0, 3.0), normal=(0, 0, -1), size=3.0, material="mirror", name="m")
+        # a black disc under the light: the floor sees the light only in the mirror
+        s.add_material(Material("black", (0, 0, 0)))
+        s.add_plane((0, 0, 1.95), normal=(0, 0, 1), size=0.4, material="black", name="cap")
+        s.add_plane((0, 0, 1.95), normal=(0, 0, -1), size=0.4, material="black", name="cap2")
+        s.add_point_light((0, 0, 2.0), power=100.0)
+    s.set_camera((0, -0.4, 0.8), (0, 0, 0), view_angle=40)
+    return s
+
+
+def test_flat_passages_need_two_transmission_bounces_but_one_counted():
+    """Light through a flat pane reaches the floor by shadow rays; Cycles reaches it by
+    the floor's diffuse bounce and two refractions, the second of which hits the light
+    (path_state_next: a count at the limit + 1 still collects the emission it meets). So
+    the pane's light needs Transmission >= 1, Total >= 2 and Diffuse >= 1, and is whole
+    there (live Cycles, 40 x 30: 0.0028 / 1.370 / 1.370 at Transmission 0 / 1 / 2, the
+    mean of a floor lit through a pane; ours read 1.397 at all three). The caps are
+    chaincounts.flat_passages: diffuse + 1 <= D, total + 2k <= T, transmission + 2k - 1
+    <= Tr for k passages."""
+    from engine.chaincounts import flat_passages
+    lim = np.array([12, 4, 4, 12])
+    assert flat_passages([[0, 0, 0, 0]], lim).tolist() == [6]
+    assert flat_passages([[0, 0, 0, 0]], [12, 4, 4, 0]).tolist() == [0]
+    assert flat_passages([[0, 0, 0, 0]], [12, 4, 4, 1]).tolist() == [1]
+    assert flat_passages([[0, 0, 0, 0]], [1, 4, 4, 12]).tolist() == [0]
+    assert flat_passages([[0, 0, 0, 0]], [2, 4, 4, 12]).tolist() == [1]
+    assert flat_passages([[0, 0, 0, 0]], [12, 0, 4, 12]).tolist() == [0]
+    assert flat_passages([[3, 3, 0, 1], [2, 1, 1, 0]], lim).tolist() == [4, 5]
+    st = dict(photons=4000, caustic_photons=0, spp=2, seed=1, **HIGH)
+    films = {}
+    for key, extra in (("high", {}), ("t0", dict(transmission_bounces=0)),
+                       ("t1", dict(transmission_bounces=1)), ("total1", dict(max_bounces=1)),
+                       ("total2", dict(max_bounces=2)), ("d0", dict(diffuse_bounces=0))):
+        films[key] = _lit_through("pane").render(RenderSettings(**dict(st, **extra))).direct
+    assert films["high"].mean() > 0.5
+    for key in ("t1", "total2"):
+        np.testing.assert_array_equal(films[key], films["high"])
+    for key in ("t0", "total1", "d0"):
+        assert films[key].mean() < 0.01 * films["high"].mean(), key
+
+
+def test_a_mirror_as_the_photons_first_scatter_is_the_light_vertex():
+    """A floor lit only by way of a mirror (its caustic): Cycles reaches the light from
+    the floor by its diffuse bounce and the mirror's, which hits the light; that glossy
+    bounce is the light-sample vertex (a count at the limit + 1 still collects the
+    emission), so Glossy 0 reads what Glossy 4 reads (live Cycles, 40 x 30 with an area
+    light: 0.6486 at both, 0 at Total 0 or Diffuse 0; tests/blender/
+    test_blender_bounces.py). The photon's first scatter counts toward Total only
+    (photonkernels.B_TOTAL): the caustic stays at Glossy 0 and goes at Total 0 and
+    Diffuse 0."""
+    st = dict(photons=2000, caustic_photons=20000, spp=2, seed=1, indirect="off", **HIGH)
+    films = {}
+    for key, extra in (("high", {}), ("g0", dict(glossy_bounces=0)),
+                       ("total1", dict(max_bounces=1)), ("total0", dict(max_bounces=0)),
+                       ("d0", dict(diffuse_bounces=0))):
+        films[key] = _lit_through("mirror").render(RenderSettings(**dict(st, **extra)))
+    high = films["high"].caustic.mean()
+    assert high > 0.02 and films["high"].direct.max() == 0.0
+    for key in ("g0", "total1"):
+        # (photons past a second mirror hit stop earlier: the same light within 1 %)
+        assert abs(films[key].caustic.mean() / high - 1.0) < 0.01, key
+    for key in ("total0", "d0"):
+        assert films[key].caustic.max() == 0.0, key
+
+
+def test_last_level_lookups_read_the_share_of_the_map_their_counts_keep():
+    """At the last gather level no lookup gathers again: one whose counts drop more than
+    the share of the map's power (reroute's decision) reads the map scaled by the share
+    of its photons' power the counts keep (the photons' own sums: a lookup of the level's
+    map after a glass ball at Total 5 keeps those of <= 1 scatter of the map's <= 2),
+    every other lookup the map as it is (scale 1). Before, it read the whole map: a room
+    with a mirror and a glass ball at Total 5 read 1.024x Cycles, now 0.998x
+    (tests/blender/test_blender_bounces.py; docs/performance.md, limits)."""
+    from engine.chaincounts import GatherCounts
+    rng = np.random.default_rng(5)
+    n = 5000
+    total = rng.integers(0, 4, n)
+    bounces = np.zeros((n, 4), np.uint8)
+    bounces[:, 0] = total
+    bounces[:, 1] = np.maximum(total - 1, 0)
+    power = rng.random(n)
+    lim = np.array([5, 1024, 1024, 1024])
+    g = GatherCounts(bounces, power, lim, 0.005)
+    level = 2  # its map: counts (3, 3, 0, 0), photons of <= 2 scatters
+    counts = np.array([[3, 3, 0, 0], [4, 3, 0, 1], [5, 3, 1, 1], [4, 3, 0, 1], [6, 3, 0, 3]])
+    got = g.last_level_scale(level, counts)
+    kept = power[total <= 2].sum()
+    want = [1.0, power[total <= 1].sum() / kept, power[total == 0].sum() / kept]
+    np.testing.assert_allclose(got[:3], want, rtol=1e-12)
+    assert got[3] == got[1]
+    assert got[4] == 0.0  # past the limit (the caller reads nothing there anyway)
+    assert g.reroute(level, counts).tolist() == [False, True, True, True, True]
