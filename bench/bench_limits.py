@@ -1,11 +1,13 @@
 """CPU cost of the s20 limits changes against the behaviour before them in one process
 (before: GatherCounts.last_level_scale 1, chaincounts.flat_passages never binding),
-interleaved, best of REPS, getrusage user+sys, one worker, 16 spp. Figure 6 is read from
-/tmp/filmsha/figure6_box.pkl (/work/briefs/filmsha.py writes it).
+interleaved, best of REPS, getrusage user+sys, one worker, 16 spp. Figure 6 is exported
+from its blend once by a child Blender process (bench_kernels.exported).
 
     NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_limits.py REPS
 """
-import pickle, resource, sys
+import os, pickle, resource, sys, tempfile
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_kernels import exported
 import numpy as np
 from engine import chaincounts, RenderSettings
 from engine.jit import ensure_compiled
@@ -27,7 +29,11 @@ def pane():
     s.set_camera((0, -0.4, 0.8), (0, 0, 0), view_angle=40)
     return s
 def fig6():
-    s = pickle.load(open("/tmp/filmsha/figure6_box.pkl", "rb")); s.width, s.height = 160, 120
+    where = os.path.join(tempfile.gettempdir(), "bench_limits")
+    os.makedirs(where, exist_ok=True)
+    with open(exported("figure6_box", where), "rb") as f:
+        s = pickle.load(f)
+    s.width, s.height = 160, 120
     return s
 def mirror_glass_room(a=0.8):
     """A Lambertian room 4 x 5 x 3 m with a point light, a mirror ball and a glass ball."""

@@ -3,7 +3,7 @@ Cycles (CSPP=512 spp) against ours with the last regather level's scale
 (chaincounts.GatherCounts.last_level_scale) and without it (the read before), 48 x 36,
 16 spp x 3 seeds (docs/performance.md, "limits").
 
-    NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/limits_room_cycles.py
+    NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_limits_room_cycles.py
 """
 import math, os, sys, tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

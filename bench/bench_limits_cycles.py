@@ -2,7 +2,7 @@
 (docs/performance.md, "limits"): a floor lit only through a mirror, a flat glass pane or a
 glass ball, image means at 40 x 30 (Cycles CSPP=128 spp, ours 16).
 
-    NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/limits_cycles.py mirror|pane|ball
+    NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_limits_cycles.py mirror|pane|ball
 """
 import math, os, sys, tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
