@@ -239,7 +239,9 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
 
         def on_warning(text):
             # What the render finds before its long passes (the effect analysis': a Max
-            # Ray Depth that cuts a mirror's chain), said then, not at the end; past the
+            # Ray Depth that cuts a mirror's chain; a hand-set search radius once the
+            # photon maps are built, before the camera pass; on a Dask cluster each as a
+            # worker finds it), said then, not at the end; past the
             # reports' room, at the end with the others (one "N more warnings" report).
             if text not in reported and len(reported) < MAX_REPORTED_WARNINGS:
                 self._report_warnings([text], already=len(reported))
@@ -333,7 +335,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             return dist.render_distributed(pm_scene, settings, budget, address=address,
                                            progress=pass_progress,
                                            should_cancel=self._should_cancel,
-                                           on_pass=on_pass, region=region)
+                                           on_pass=on_pass, region=region,
+                                           on_warning=on_warning)
         return pm.render_progressive(pm_scene, settings, budget, progress=pass_progress,
                                      should_cancel=self._should_cancel, on_pass=on_pass,
                                      region=region, on_warning=on_warning)
