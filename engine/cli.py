@@ -484,11 +484,14 @@ def _render(args) -> int:
     # effect analysis' when the render has it (on_warning), before the photons; a
     # hand-set search radius' once the photon maps are built, before the camera pass;
     # with --dask each as a worker finds it (engine/distributed.py).
+    # Once each by render.warning_key: a cluster's passes may tell a search radius'
+    # warning in a later pass' words (the first to arrive) than film.warnings lists.
+    from .render import warning_key
     said = set()
 
     def say_one(warning):
-        if warning not in said:
-            said.add(warning)
+        if warning_key(warning) not in said:
+            said.add(warning_key(warning))
             console.write_line(f"photonmap: warning: {warning}", sys.stderr)
 
     def say(warnings):

@@ -286,7 +286,8 @@ def test_render_and_passes_tell_the_radius_warning_before_the_camera_pass():
     pass, listed once in film.warnings."""
     from engine import render
     from engine.progressive import Budget, render_progressive
-    passes = lambda *args, **kw: render_progressive(*args, budget=Budget(passes=3), **kw)  # noqa: E731
+    def passes(*args, **kw):
+        return render_progressive(*args, budget=Budget(passes=3), **kw)
     for call in (render, passes):
         events, film = _stages_and_warnings(call, radius=0.01)
         told = [i for i, (kind, text) in enumerate(events)

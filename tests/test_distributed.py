@@ -174,6 +174,40 @@ def test_workers_warnings_reach_on_warning_while_the_pass_runs(monkeypatch, tmp_
     assert_bitwise(film, local)
 
 
+def test_a_later_pass_told_first_is_still_one_warning(monkeypatch, tmp_path):
+    """Two workers; pass 1 starts only once pass 2's search-radius warning was told: the
+    client tells it in pass 2's words (its own photon count), film.warnings lists pass 1's,
+    the same warning by render.warning_key, by which the front ends print each once
+    (engine/cli.py, addon/engine.py)."""
+    import engine.distributed as dist
+    from engine.render import warning_key
+    scene, settings = _warning_scene(tmp_path)
+    first_seed = settings.seed * 1_000_003 + 1
+    said, waited = [], []
+    real = dist.render_pass
+
+    def radius_told():
+        return any(text.startswith("search radius 0.01 m") for text in said)
+
+    def pass_2_first(ctx, region, *args, **kw):
+        if ctx.settings.seed == first_seed:
+            waited.append(_until(radius_told))
+        return real(ctx, region, *args, **kw)
+
+    monkeypatch.setattr(dist, "render_pass", pass_2_first)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        film = render_distributed(scene, settings, Budget(passes=2), client=c, worker_threads=1,
+                                  on_warning=said.append)
+    assert waited == [True], waited
+    radius = [w for w in said if w.startswith("search radius")]
+    listed = [w for w in film.warnings if w.startswith("search radius")]
+    assert len(radius) == 1 and len(listed) == 1, (said, film.warnings)
+    assert warning_key(radius[0]) == warning_key(listed[0])
+    assert sorted(map(warning_key, said)) == sorted(map(warning_key, film.warnings))
+
+
 def test_pass_and_error_budgets_stop_where_local_stops(client):
     scene = cornell_box(16, 12)
     settings = RenderSettings(**CHEAP)
