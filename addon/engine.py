@@ -235,15 +235,23 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         # rather than after it (the end reports only what the engine adds).
         early = list(pm_scene.all_warnings())
         self._report_warnings(early)
+        # Compared by the engine's warning_key: a cluster's passes may tell a search
+        # radius' warning in other words (another pass' photon count) than film.warnings.
+        import importlib
+        warning_key = importlib.import_module(pm.__name__ + ".render").warning_key
         reported = list(early)
+        reported_keys = {warning_key(w) for w in early}
 
         def on_warning(text):
             # What the render finds before its long passes (the effect analysis': a Max
-            # Ray Depth that cuts a mirror's chain), said then, not at the end; past the
+            # Ray Depth that cuts a mirror's chain; a hand-set search radius once the
+            # photon maps are built, before the camera pass; on a Dask cluster each as a
+            # worker finds it), said then, not at the end; past the
             # reports' room, at the end with the others (one "N more warnings" report).
-            if text not in reported and len(reported) < MAX_REPORTED_WARNINGS:
+            if warning_key(text) not in reported_keys and len(reported) < MAX_REPORTED_WARNINGS:
                 self._report_warnings([text], already=len(reported))
                 reported.append(text)
+                reported_keys.add(warning_key(text))
 
         def progress(stage, fraction, text):
             self._progress(_overall_fraction(stage, fraction, settings.uses_photon_maps))
@@ -281,7 +289,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         if not self._listeners:  # a listener prints them itself
             for line in effects:
                 print(f"Photon Mapping: {line}")  # why each effect is on or off
-        self._report_warnings([w for w in film.warnings if w not in reported],
+        self._report_warnings([w for w in film.warnings if warning_key(w) not in reported_keys],
                               already=len(reported))
         n = info['lights']
         compiled = stats["time_compile"]
@@ -333,7 +341,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             return dist.render_distributed(pm_scene, settings, budget, address=address,
                                            progress=pass_progress,
                                            should_cancel=self._should_cancel,
-                                           on_pass=on_pass, region=region)
+                                           on_pass=on_pass, region=region,
+                                           on_warning=on_warning)
         return pm.render_progressive(pm_scene, settings, budget, progress=pass_progress,
                                      should_cancel=self._should_cancel, on_pass=on_pass,
                                      region=region, on_warning=on_warning)

@@ -481,12 +481,17 @@ def _render(args) -> int:
     # Warnings are said when they arise, each on a line of its own with the bar below,
     # once each, as the batch command does (addon/batch.py): the scene's (what its file
     # asks that cannot render as asked, broken meshes) now, before the long render; the
-    # effect analysis' when the render has it (on_warning), before the photons.
+    # effect analysis' when the render has it (on_warning), before the photons; a
+    # hand-set search radius' once the photon maps are built, before the camera pass;
+    # with --dask each as a worker finds it (engine/distributed.py).
+    # Once each by render.warning_key: a cluster's passes may tell a search radius'
+    # warning in a later pass' words (the first to arrive) than film.warnings lists.
+    from .render import warning_key
     said = set()
 
     def say_one(warning):
-        if warning not in said:
-            said.add(warning)
+        if warning_key(warning) not in said:
+            said.add(warning_key(warning))
             console.write_line(f"photonmap: warning: {warning}", sys.stderr)
 
     def say(warnings):
@@ -545,7 +550,8 @@ def _render(args) -> int:
                     from .distributed import render_distributed
                     film = render_distributed(scene, settings, budget, address=args.dask,
                                               progress=progress, on_pass=on_pass,
-                                              should_cancel=should_cancel)
+                                              should_cancel=should_cancel,
+                                              on_warning=say_one)
                 else:
                     film = render_progressive(scene, settings, budget, progress=progress,
                                               on_pass=on_pass, should_cancel=should_cancel,
@@ -554,7 +560,7 @@ def _render(args) -> int:
             with interrupt, _python_warnings(console, args.quiet):
                 film = render(scene, settings, progress=progress, should_cancel=should_cancel,
                               on_warning=say_one)
-        say(film.warnings)  # those the cluster's passes found (--dask): at the end
+        say(film.warnings)  # each was said when it arose (on_warning): none is left
     except KeyboardInterrupt:  # a second Ctrl-C, or the first during the kernel compile
         console.close()
         again = " (the next run compiles them again)" if where["stage"] == "compile" else ""

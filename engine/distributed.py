@@ -29,7 +29,7 @@ from dataclasses import replace
 
 from .film import Film
 from .progressive import Budget, PassMerger, budget_spent, max_passes_of, pass_settings
-from .render import _check_region, prepare_context, render_pass
+from .render import _check_region, prepare_context, render_pass, warning_key, warning_teller
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -176,23 +176,56 @@ def _threads_here():
     return max(1, (os.cpu_count() or 1) // max(1, per_task))
 
 
+def warning_topic(key: str) -> str:
+    """The Dask event topic on which the passes of render `key` post their warnings."""
+    return f"{key}-warnings"
+
+
+def _warning_poster(key: str):
+    """post(warnings): log a list of warning texts as an event on warning_topic(key)
+    (Worker.log_event, through the scheduler to the client that subscribed), so the
+    client says each when the worker knows it, not when the pass returns. A no-op
+    outside a Dask worker; best effort (the pass' film carries its warnings too)."""
+    try:
+        from distributed import get_worker
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return lambda warnings: None
+    topic = warning_topic(key)
+
+    def post(warnings):
+        if warnings:
+            try:
+                worker.log_event(topic, [str(w) for w in warnings])
+            except Exception:  # noqa: BLE001 - a lost event only delays the warning
+                pass
+    return post
+
+
 def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
              worker_threads: int | None = None) -> Film:
     """The Dask task: render pass i (1-based) of `settings` on this worker and return its
     film (with its photon-hit pass, like every pass). The prepared context is
     cached per render key. Engine threads: worker_threads, else settings.workers, else the
-    cores divided among this worker's task threads; the image does not depend on it."""
+    cores divided among this worker's task threads; the image does not depend on it.
+    film.warnings: the scene's, the effect analysis' and the pass' own (a hand-set search
+    radius), each also posted to the client when known (_warning_poster): the first two
+    once the context is prepared, the pass' once its photon maps are built."""
     threads = int(worker_threads or settings.workers or _threads_here())
     base = settings if threads == settings.workers else replace(settings, workers=threads)
     cache = _cache()
+    post = _warning_poster(key)
     ctx = _take_context(cache, key, scene, base)
     try:
+        known = ctx.scene.all_warnings() + ctx.plan.warnings
+        post(known)
         ctx.settings = pass_settings(base, i)
         t0 = time.perf_counter()
-        film = render_pass(ctx, region, None, _stop_flag(cache, key))
+        film = render_pass(ctx, region, None, _stop_flag(cache, key),
+                           on_warning=lambda w: post([w]))
         film.stats["pass_seconds"] = time.perf_counter() - t0
         film.stats["effects"] = ctx.plan.report()
-        film.warnings = ctx.scene.all_warnings()
+        film.warnings = known + film.stats.get("warnings", [])
     finally:
         _give_back(cache, key, ctx)
     return film
@@ -250,7 +283,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                        budget: Budget | None = None, client=None, address: str | None = None,
                        progress=None, should_cancel=None, on_pass=None, region=None,
                        worker_threads: int | None = None, max_in_flight: int | None = None,
-                       ship_code: bool | None = None) -> Film:
+                       ship_code: bool | None = None, on_warning=None) -> Film:
     """render_progressive on a Dask cluster: bitwise the same Film for the same seed and
     pass count.
 
@@ -264,6 +297,11 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     ship_code: upload the engine to the cluster first (ship_engine_code); default: when
     the engine is not the top-level package 'engine' (a Blender extension). Otherwise
     the workers import the installed engine, which must be the client's version.
+    on_warning(text): each of film.warnings once, on the calling thread, when the client
+    learns it: the scene's before any pass is sent; the effect analysis' and each pass'
+    own (a hand-set search radius) as a worker posts them (run_pass; at the latest when
+    that pass returns, before its progress call), however many workers and passes find
+    them (render.warning_key).
     Raises ValueError for a bad address, ImportError when dask is missing, SceneError for
     a bad scene (checked here, before anything is shipped)."""
     if client is None:
@@ -273,12 +311,15 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
         with connect(address) as (own_client, threads):
             return render_distributed(scene, settings, budget, own_client, None, progress,
                                       should_cancel, on_pass, region,
-                                      worker_threads or threads, max_in_flight, ship_code)
+                                      worker_threads or threads, max_in_flight, ship_code,
+                                      on_warning)
     distributed = _import_distributed()
     settings = settings or RenderSettings()
     budget = budget or Budget()
     region = _check_region(region, scene.width, scene.height)
     scene.validate()
+    tell = warning_teller(on_warning)
+    tell(scene.all_warnings())  # the client's copy: known before anything is sent
     t_start = time.perf_counter()
     max_passes = max_passes_of(budget)
     key = f"photonmap-{uuid.uuid4().hex}"
@@ -294,10 +335,21 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     window = max_in_flight or max(2, 2 * nthreads)
     if ship_code if ship_code is not None else _engine_package() != "engine":
         ship_engine_code(client)
+    # The workers' warnings as they post them (run_pass), queued by the client's event
+    # thread and told from this one (tell_posted), between its waits.
+    posted = deque()
+    topic = warning_topic(key)
+    client.subscribe_topic(topic, posted.append)
+
+    def tell_posted():
+        while posted:
+            _, texts = posted.popleft()
+            tell(texts)
+
     scene_future = client.scatter(scene, broadcast=True, hash=False)
     pending: dict = {}   # pass -> future
     finished: dict = {}  # pass -> Film, waiting for the passes before it
-    log, effects, warnings = [], [], []
+    log, effects, warnings, keys = [], [], [], set()
     cancelled = False
     next_pass = 1
     try:
@@ -327,6 +379,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                                  return_when="FIRST_COMPLETED")
             except TimeoutError:
                 pass
+            tell_posted()
             for i in sorted(pending):
                 if pending[i].done():
                     future = pending.pop(i)
@@ -335,6 +388,8 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                     # form reference cycles that kept finished passes on the workers.
                     future.release()
                     finished[i] = film
+                    # Its warnings whose events have not come (yet): before its progress.
+                    tell(film.warnings)
                     if progress is not None:
                         progress("render", _fraction(budget, max_passes, len(finished) + merger.passes,
                                                      time.perf_counter() - t_start),
@@ -343,7 +398,14 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
             while merger.passes + 1 in finished:
                 one = finished.pop(merger.passes + 1)
                 if not effects:
-                    effects, warnings = one.stats.get("effects", []), one.warnings
+                    effects = one.stats.get("effects", [])
+                # film.warnings as render_progressive lists them, the same from any
+                # cluster: the first pass' (the scene's, the effect analysis', its
+                # own), then what a later pass finds anew (warning_key), in pass order.
+                for w in one.warnings:
+                    if merger.passes == 0 or warning_key(w) not in keys:
+                        warnings.append(w)
+                keys.update(warning_key(w) for w in warnings)
                 merger.add(one)
                 elapsed = time.perf_counter() - t_start
                 info = dict(passes=merger.passes, photons=merger.photons, elapsed=elapsed,
@@ -367,6 +429,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                 future.release()
             scene_future.release()
             client.run(end_render, key, on_error="ignore")
+            client.unsubscribe_topic(topic)
         except Exception:  # noqa: BLE001 - the cluster may be gone; the error before matters
             pass
     film = merger.film
@@ -375,6 +438,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                       effects=effects, time_total=time.perf_counter() - t_start,
                       distributed=dict(workers=len(client.nthreads()), threads=nthreads))
     film.warnings = list(warnings) or scene.all_warnings()
+    tell(film.warnings)
     return film
 
 

@@ -160,7 +160,8 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                        on_pass=None, region=None, on_warning=None) -> Film:
     """Render passes until the budget is spent. on_pass(film, info) is called after every
     pass with the running average (info: pass, photons, elapsed, error_estimate).
-    on_warning(text): each of film.warnings once, when known (engine/render.py, render).
+    on_warning(text): each of film.warnings once, when known (engine/render.py, render;
+    the passes' search-radius warnings once in all, the first pass' words).
     engine/distributed.py renders the same passes on a Dask cluster (bitwise the same
     image)."""
     settings = settings or RenderSettings()
@@ -183,6 +184,14 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
         tell(film.warnings)
         return film
     tell(scene.all_warnings() + ctx.plan.warnings)  # before the first pass
+    # The passes' own warnings (a hand-set search radius: render.radius_warnings), told
+    # as each pass' photon maps are built, before its camera pass; once each
+    # (render.warning_key: every pass words the same advice with its own photon count).
+    pass_warnings = []
+
+    def tell_pass(text):
+        pass_warnings.extend(tell([text]))
+
     log = []
     cancelled = False
     i = 0
@@ -196,7 +205,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                     progress(stage, fraction, f"Pass {_i}: {text}")
 
             t_pass = time.perf_counter()
-            one = render_pass(ctx, region, pass_progress, should_cancel)
+            one = render_pass(ctx, region, pass_progress, should_cancel, on_warning=tell_pass)
             if one.stats.get("cancelled"):
                 cancelled = True
                 i -= 1
@@ -217,7 +226,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     film.stats.update(progressive=True, passes=i, error_estimate=merger.error,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,
                       effects=ctx.plan.report(), time_total=time.perf_counter() - t_start)
-    film.warnings = scene.all_warnings() + ctx.plan.warnings
+    film.warnings = scene.all_warnings() + ctx.plan.warnings + pass_warnings
     tell(film.warnings)
     return film
 

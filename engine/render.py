@@ -156,10 +156,14 @@ def hard_shadow_packing(packed):
     return codes, params, (centroid, np.zeros_like(e1), np.zeros_like(e2), *rest)
 
 
-def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) -> tuple:
+def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
+                  on_warning=None) -> tuple:
     """The photon pass alone: (re)fills ctx's photon maps for ctx.settings and records
     its counts in stats. Returns the stored photons (for the photon-hit pass) as a tuple
-    of Photons, one per shot (global, caustic; empty without photon mapping). Raises
+    of Photons, one per shot (global, caustic; empty without photon mapping). Its
+    warnings (a hand-set search radius that does wrong: radius_warnings) go into
+    stats["warnings"] and, as soon as the maps are built, to on_warning(text) (None:
+    nowhere), on the calling thread, before the camera pass. Raises
     Cancelled. A session may keep the maps of a pass and render other views from them
     (engine/session.py): with visual importance the global photons are denser where this
     camera looks (engine/visualimportance.py), but every view's estimates stay unbiased."""
@@ -169,20 +173,23 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None) 
     ctx.gather_rays = 0
     s = ctx.settings
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
-        return _photon_pass(ctx, stats, progress, should_cancel)
+        return _photon_pass(ctx, stats, progress, should_cancel, on_warning)
     return ()
 
 
 def render_pass(ctx: Context, region, progress=None, should_cancel=None,
-                shoot: bool = True) -> Film:
+                shoot: bool = True, on_warning=None) -> Film:
     """Photon pass + camera pass with ctx.settings into a new Film (raises Cancelled).
-    shoot=False renders with the photon maps already in ctx (shoot_photons). numpy's
-    huge-page advice is off meanwhile (small_pages)."""
+    shoot=False renders with the photon maps already in ctx (shoot_photons). The photon
+    pass' warnings are in film.stats["warnings"] and told to on_warning(text) when known,
+    before the camera pass (shoot_photons). numpy's huge-page advice is off meanwhile
+    (small_pages)."""
     with small_pages():
-        return _render_pass(ctx, region, progress, should_cancel, shoot)
+        return _render_pass(ctx, region, progress, should_cancel, shoot, on_warning)
 
 
-def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool) -> Film:
+def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
+                 on_warning) -> Film:
     settings = ctx.settings
     x0, y0, x1, y1 = region
     film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
@@ -194,7 +201,7 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool) -> 
     try:
         shots = ()
         if shoot:
-            shots = shoot_photons(ctx, stats, progress, should_cancel)
+            shots = shoot_photons(ctx, stats, progress, should_cancel, on_warning)
         # The photon-hit pass, always: with several workers on its own thread, started
         # when the camera pass's last chunk is handed out (it fills a worker the tail
         # leaves idle, when fewer chunks hold memory), else after the camera pass; its
@@ -306,19 +313,34 @@ def small_pages():
 
 
 def warning_teller(on_warning):
-    """tell(warnings): each warning not told before to on_warning(text) (None: nothing),
-    so a front end can print a render's warnings when they arise, once each (engine/
-    cli.py, addon/engine.py) while film.warnings still lists them all at the end."""
+    """tell(warnings): each warning not told before (by warning_key) to on_warning(text)
+    (None: nothing), so a front end can print a render's warnings when they arise, once
+    each (engine/cli.py, addon/engine.py) while film.warnings still lists them all at the
+    end. tell(warnings) returns those of `warnings` it took as new, in order."""
     told = set()
 
     def tell(warnings):
-        if on_warning is None:
-            return
+        new = []
         for w in warnings:
-            if w not in told:
-                told.add(w)
-                on_warning(w)
+            key = warning_key(w)
+            if key not in told:
+                told.add(key)
+                new.append(w)
+                if on_warning is not None:
+                    on_warning(w)
+        return new
     return tell
+
+
+def warning_key(text: str) -> str:
+    """What makes a warning the same as another for telling it once: its text; for a
+    search-radius warning (radius_warnings) the words before its numbers in brackets.
+    Each progressive pass (engine/progressive.py, engine/distributed.py) stores its own
+    photons, so its 'below the photon spacing' warning gives another count and spacing:
+    the same advice, said once (the first pass's words)."""
+    if text.startswith(RADIUS_WARNING_START):
+        return text.split(" (", 1)[0]
+    return text
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
@@ -328,8 +350,9 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     with film.stats['cancelled'] = True. region=(x0, y0, x1, y1) renders only that window
     (top-left origin, exclusive max) and the Film has its size. on_warning(text) is told
     each of film.warnings once, on the calling thread, as soon as the render knows it:
-    the scene's at the start, the effect analysis' before the photons are shot, the rest
-    at the end. Raises SceneError for a scene that cannot render, ResourceError
+    the scene's at the start, the effect analysis' before the photons are shot, the
+    photon pass' (a hand-set search radius) once its maps are built, before the camera
+    pass. Raises SceneError for a scene that cannot render, ResourceError
     (engine/resources.py) for one that would not fit in the available memory - both
     before anything big is allocated."""
     settings = settings or RenderSettings()
@@ -358,7 +381,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     tell(scene.all_warnings() + ctx.plan.warnings)  # before the long passes
     t_prepare = time.perf_counter() - t_start - t_compile
     try:
-        film = render_pass(ctx, region, progress, should_cancel)
+        film = render_pass(ctx, region, progress, should_cancel,
+                           on_warning=lambda w: tell([w]))  # the photon pass' own
     finally:
         ctx.accel.close()
     film.stats["time_compile"] += t_compile
@@ -373,7 +397,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     return film
 
 
-def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
+def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) -> tuple:
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     t0 = time.perf_counter()
     shot = Photons.empty()
@@ -432,8 +456,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel) -> tuple:
     stats["radius_global"] = ctx.global_radius
     stats["radius_caustic"] = ctx.caustic_radius
     if s.radius is not None and plan.indirect:
-        stats.setdefault("warnings", []).extend(radius_warnings(
-            s.radius, geo.extent, diffuse_area, stats.get("global_photons", 0), s.min_photons))
+        warned = radius_warnings(s.radius, geo.extent, diffuse_area,
+                                 stats.get("global_photons", 0), s.min_photons)
+        stats.setdefault("warnings", []).extend(warned)
+        # Said now, not after the camera pass: the user may stop a long render and fix
+        # the radius (issue 14: the CLI printed them only after the camera pass's bar).
+        for w in warned if on_warning is not None else ():
+            on_warning(w)
     if ctx.gather_map is not None and s.gather_by_share:
         share = indirect_share(ctx, shot, ctx.gather_short)
         ctx.gather_rays = gather_count(s.gather_rays, share)
@@ -652,6 +681,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
 
 # A search radius above this share of the scene's size blurs light across objects.
 RADIUS_SCENE_FRACTION = 0.1
+# How every radius_warnings text starts (warning_key).
+RADIUS_WARNING_START = "search radius "
 
 
 def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: int,
@@ -668,7 +699,7 @@ def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: i
         disc_area = math.pi * radius * radius  # inf beyond ~1e154 m
         disc = f"{disc_area:.3g} m^2" if math.isfinite(disc_area) else "beyond any number"
         out.append(
-            f"search radius {radius:.4g} m is {share} the scene's size "
+            f"{RADIUS_WARNING_START}{radius:.4g} m is {share} the scene's size "
             f"({extent:.3g} m across): each estimate spreads photons over a disc of "
             f"{disc}, so indirect light is blurred across corners "
             "and objects (and too dark where the disc is larger than the surface it lands on), "
@@ -678,11 +709,11 @@ def radius_warnings(radius: float, extent: float, diffuse_area: float, stored: i
         spacing = math.sqrt(diffuse_area / stored)
         if radius < spacing:
             out.append(
-                f"search radius {radius:.4g} m is below the photon spacing (~{spacing:.3g} m: "
-                f"{stored:,} photons stored on {diffuse_area:.3g} m^2 of diffuse surface): most "
-                f"estimates find fewer than {min_photons} photons and give no light, so indirect "
-                "light is dark and spotty; raise the radius above the spacing or shoot more "
-                "photons")
+                f"{RADIUS_WARNING_START}{radius:.4g} m is below the photon spacing "
+                f"(~{spacing:.3g} m: {stored:,} photons stored on {diffuse_area:.3g} m^2 of "
+                f"diffuse surface): most estimates find fewer than {min_photons} photons and "
+                "give no light, so indirect light is dark and spotty; raise the radius above "
+                "the spacing or shoot more photons")
     return out
 
 

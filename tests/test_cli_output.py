@@ -4,11 +4,17 @@ inside the render on the main thread and on the engine's worker threads - is pri
 when it arises, on a line of its own before the closing summary, and the progress bar's
 text is never broken by it (engine/console.py; the batch command's twin is
 tests/blender/test_blender_batch_warnings.py). The Python warnings come from a child
-script that patches the engine before it runs the CLI's main(). The last test checks the
-engine's side alone: render()'s on_warning, which both front ends print from."""
+script that patches the engine before it runs the CLI's main(). A hand-set search radius
+that does wrong (`--radius`, known once the photon maps are built) is said before the camera
+pass, once, also over progressive passes and from a Dask cluster's workers. The last tests
+check the engine's side alone: render()'s and render_progressive()'s on_warning, which both
+front ends print from."""
+import os
 import re
 import subprocess
 import sys
+
+import pytest
 
 from helpers import ROOT
 
@@ -110,9 +116,10 @@ import importlib, sys, threading, warnings
 sys.path.insert(0, {root!r})
 import numpy as np
 """ + WARNING_PATCHES + """from engine.cli import main
-rc = main(sys.argv[1:])
-print(f"worker chunks warned: {{sum(on_workers)}}")
-sys.exit(rc)
+if __name__ == "__main__":  # not in --dask's worker processes, which import this file
+    rc = main(sys.argv[1:])
+    print(f"worker chunks warned: {{sum(on_workers)}}")
+    sys.exit(rc)
 """
 
 ENGINE_WARNINGS = ["material 'hot': base colour [2.0, 0.5, 0.5] above 1",
@@ -129,10 +136,13 @@ def _run(tmp_path, *extra):
     scene.write_text(SCENE, encoding="utf-8")
     child = tmp_path / "child.py"
     child.write_text(CHILD.format(root=str(ROOT)), encoding="utf-8")
+    # PYTHONPATH: --dask's worker processes import the engine too.
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p))
     res = subprocess.run([sys.executable, str(child), "render", str(scene), "-o",
                           str(tmp_path / "out.png"), "--max-depth", "1", "--workers", "2",
                           *extra], cwd=ROOT, stdout=subprocess.PIPE,
-                         stderr=subprocess.STDOUT, timeout=600)
+                         stderr=subprocess.STDOUT, timeout=600, env=env)
     return res.returncode, res.stdout.decode("utf-8", "replace")
 
 
@@ -199,3 +209,91 @@ def test_render_tells_each_warning_once_when_it_arises(tmp_path):
     for w in ENGINE_WARNINGS:
         where = next(i for i, (kind, text) in enumerate(events) if w in text)
         assert where < first_photons, events
+
+
+# --radius 0.01 m: far below the spacing of the scene's 2000 global photons (~0.2 m), known
+# once the photon maps are built (engine/render.py, radius_warnings).
+RADIUS = ("--radius", "0.01")
+RADIUS_WARNING = "search radius 0.01 m is below the photon spacing"
+
+
+def _first(lines, text):
+    return next(i for i, line in enumerate(lines) if text in line)
+
+
+def test_cli_radius_warning_before_the_camera_pass(tmp_path):
+    """Said once its photon maps are built: on a line of its own before the camera pass's
+    first bar (`Rendering NN%`), once (it came after the whole camera pass)."""
+    rc, text = _run(tmp_path, *RADIUS)
+    assert rc == 0, text[-3000:]
+    lines = text.split("\n")
+    i = _own_line(lines, RADIUS_WARNING, text)
+    assert lines[i].startswith(f"photonmap: warning: {RADIUS_WARNING}"), repr(lines[i])
+    assert _first(lines, "Building photon map") < i < _first(lines, "Rendering "), text
+
+
+def test_cli_progressive_radius_warning_once_before_the_first_camera_pass(tmp_path):
+    """Every pass stores its own photons and words the warning with its own count: said
+    once, with pass 1's maps, before pass 1's camera pass (progressive passes dropped it)."""
+    rc, text = _run(tmp_path, *RADIUS, "--passes", "2")
+    assert rc == 0, text[-3000:]
+    lines = text.split("\n")
+    i = _own_line(lines, RADIUS_WARNING, text)
+    assert i < _first(lines, "Pass 1: Rendering ") and i < _first(lines, "pass 1: "), text
+    for w in ENGINE_WARNINGS:
+        assert _own_line(lines, w, text) < _first(lines, "Tracing photons"), text
+
+
+def test_cli_dask_warnings_once_as_the_workers_find_them(tmp_path):
+    """--dask local:1, 3 passes: the scene's before anything is sent, the effect analysis'
+    and the search radius' as the worker finds them, each once (not once per pass), before
+    the first pass's bar (`Pass 1 done`) and its `pass 1:` line (they came after the last
+    pass)."""
+    pytest.importorskip("distributed")
+    rc, text = _run(tmp_path, *RADIUS, "--passes", "3", "--dask", "local:1")
+    assert rc == 0, text[-3000:]
+    lines = text.split("\n")
+    first_pass = min(_first(lines, "Pass 1 done"), _first(lines, "pass 1: "))
+    for w in ENGINE_WARNINGS + [RADIUS_WARNING]:
+        i = _own_line(lines, w, text)
+        assert lines[i].startswith(f"photonmap: warning: {w}"), repr(lines[i])
+        assert i < first_pass, text
+    assert _own_line(lines, "pass 3: ", text) < _first(lines, "wrote "), text
+
+
+def _stages_and_warnings(call, **settings):
+    """(events, film) of call(scene, settings, progress=..., on_warning=...) for the
+    warning scene with `settings`: events in order, ("stage", stage) or ("warning", text)."""
+    import tempfile
+
+    from engine import RenderSettings
+    from engine.scenefile import load_scene
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "warns.toml")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(SCENE)
+        scene, overrides = load_scene(path)
+    events = []
+    film = call(scene, RenderSettings(**dict(overrides, max_depth=1, workers=1, **settings)),
+                progress=lambda stage, fraction, text: events.append(("stage", stage)),
+                on_warning=lambda text: events.append(("warning", text)))
+    return events, film
+
+
+def test_render_and_passes_tell_the_radius_warning_before_the_camera_pass():
+    """render(): told between the photon map's build and the camera pass's first
+    progress; render_progressive() over 3 passes: told once, in pass 1 before its camera
+    pass, listed once in film.warnings."""
+    from engine import render
+    from engine.progressive import Budget, render_progressive
+    def passes(*args, **kw):
+        return render_progressive(*args, budget=Budget(passes=3), **kw)
+    for call in (render, passes):
+        events, film = _stages_and_warnings(call, radius=0.01)
+        told = [i for i, (kind, text) in enumerate(events)
+                if kind == "warning" and text.startswith(RADIUS_WARNING)]
+        assert len(told) == 1, events
+        assert events.index(("stage", "photon_map")) < told[0] < events.index(("stage", "render"))
+        assert sum(w.startswith(RADIUS_WARNING) for w in film.warnings) == 1, film.warnings
+        said = [text for kind, text in events if kind == "warning"]
+        assert sorted(said) == sorted(film.warnings), (said, film.warnings)

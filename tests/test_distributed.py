@@ -95,12 +95,12 @@ def test_out_of_order_completion_is_merged_in_pass_order(monkeypatch):
     done = []
     real = dist.render_pass
 
-    def held_back(ctx, region, progress=None, should_cancel=None):
+    def held_back(ctx, region, progress=None, should_cancel=None, **kw):
         if ctx.settings.seed == first_seed:
             t0 = time.perf_counter()
             while len(done) < 2 and time.perf_counter() - t0 < 30:  # poll, no fixed sleep
                 time.sleep(0.01)
-        film = real(ctx, region, progress, should_cancel)
+        film = real(ctx, region, progress, should_cancel, **kw)
         done.append(ctx.settings.seed)
         return film
 
@@ -111,6 +111,101 @@ def test_out_of_order_completion_is_merged_in_pass_order(monkeypatch):
         film = render_distributed(scene, settings, Budget(passes=3), client=c, worker_threads=1)
     assert done[-1] == first_seed, "pass 1 did not finish last"
     assert_bitwise(film, local)
+
+
+def _warning_scene(tmp_path):
+    """tests/test_cli_output.py's scene that warns (the scene's two, the effect
+    analysis' with max_depth 1) with a search radius of 0.01 m (the photon pass')."""
+    from test_cli_output import SCENE
+
+    from engine.scenefile import load_scene
+    path = tmp_path / "warns.toml"
+    path.write_text(SCENE, encoding="utf-8")
+    scene, overrides = load_scene(str(path))
+    return scene, RenderSettings(**dict(overrides, max_depth=1, radius=0.01, workers=1))
+
+
+def _until(done, seconds=30.0):
+    t0 = time.perf_counter()
+    while not done() and time.perf_counter() - t0 < seconds:  # poll, no fixed sleep
+        time.sleep(0.01)
+    return done()
+
+
+def test_workers_warnings_reach_on_warning_while_the_pass_runs(monkeypatch, tmp_path):
+    """The effect analysis' warning reaches the client's on_warning before pass 1 starts
+    its photons, the search radius' before its camera pass (each pass waits for them:
+    the workers post them, engine/distributed.py run_pass); each once over 3 passes, all
+    before the first progress call; film.warnings as render_progressive lists them."""
+    import engine.distributed as dist
+    scene, settings = _warning_scene(tmp_path)
+    local = render_progressive(scene, settings, Budget(passes=3))
+    assert any(w.startswith("Max Ray Depth 1") for w in local.warnings), local.warnings
+    assert any(w.startswith("search radius 0.01 m") for w in local.warnings), local.warnings
+    events, held = [], {"effects": [], "radius": []}
+    real = dist.render_pass
+
+    def told(start):
+        return any(kind == "warning" and text.startswith(start) for kind, text in events)
+
+    def waits_for_the_client(ctx, region, progress=None, should_cancel=None, on_warning=None,
+                             **kw):
+        held["effects"].append(_until(lambda: told("Max Ray Depth 1")))
+
+        def posted(text):  # the radius warning: the camera pass waits until it is told
+            on_warning(text)
+            held["radius"].append(_until(lambda: told(text[:40])))
+        return real(ctx, region, progress, should_cancel, on_warning=posted, **kw)
+
+    monkeypatch.setattr(dist, "render_pass", waits_for_the_client)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        film = render_distributed(scene, settings, Budget(passes=3), client=c, worker_threads=1,
+                                  progress=lambda *a: events.append(("progress", a[2])),
+                                  on_warning=lambda text: events.append(("warning", text)))
+    # Every pass waited for both, each wait ended by the warning told (none timed out).
+    assert held == {"effects": [True] * 3, "radius": [True] * 3}, held
+    said = [text for kind, text in events if kind == "warning"]
+    assert sorted(said) == sorted(film.warnings) and len(set(said)) == len(said), events
+    first = next(i for i, (kind, _) in enumerate(events) if kind == "progress")
+    assert all(kind == "progress" for kind, _ in events[first:]), events
+    assert film.warnings == local.warnings
+    assert_bitwise(film, local)
+
+
+def test_a_later_pass_told_first_is_still_one_warning(monkeypatch, tmp_path):
+    """Two workers; pass 1 starts only once pass 2's search-radius warning was told: the
+    client tells it in pass 2's words (its own photon count), film.warnings lists pass 1's,
+    the same warning by render.warning_key, by which the front ends print each once
+    (engine/cli.py, addon/engine.py)."""
+    import engine.distributed as dist
+    from engine.render import warning_key
+    scene, settings = _warning_scene(tmp_path)
+    first_seed = settings.seed * 1_000_003 + 1
+    said, waited = [], []
+    real = dist.render_pass
+
+    def radius_told():
+        return any(text.startswith("search radius 0.01 m") for text in said)
+
+    def pass_2_first(ctx, region, *args, **kw):
+        if ctx.settings.seed == first_seed:
+            waited.append(_until(radius_told))
+        return real(ctx, region, *args, **kw)
+
+    monkeypatch.setattr(dist, "render_pass", pass_2_first)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as c:
+        film = render_distributed(scene, settings, Budget(passes=2), client=c, worker_threads=1,
+                                  on_warning=said.append)
+    assert waited == [True], waited
+    radius = [w for w in said if w.startswith("search radius")]
+    listed = [w for w in film.warnings if w.startswith("search radius")]
+    assert len(radius) == 1 and len(listed) == 1, (said, film.warnings)
+    assert warning_key(radius[0]) == warning_key(listed[0])
+    assert sorted(map(warning_key, said)) == sorted(map(warning_key, film.warnings))
 
 
 def test_pass_and_error_budgets_stop_where_local_stops(client):
@@ -227,13 +322,13 @@ def test_cancel_stops_a_running_pass(monkeypatch):
     seen = {}
     real = dist.render_pass
 
-    def endless_second_pass(ctx, region, progress=None, should_cancel=None):
+    def endless_second_pass(ctx, region, progress=None, should_cancel=None, **kw):
         if ctx.settings.seed == second_seed:
             t0 = time.perf_counter()
             while not should_cancel() and time.perf_counter() - t0 < 30:
                 time.sleep(0.01)
             seen["stopped"] = should_cancel()
-        return real(ctx, region, progress, should_cancel)
+        return real(ctx, region, progress, should_cancel, **kw)
 
     monkeypatch.setattr(dist, "render_pass", endless_second_pass)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,

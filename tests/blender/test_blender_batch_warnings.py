@@ -107,3 +107,51 @@ def test_batch_python_warnings_from_the_render_threads_on_their_own_lines(tmp_pa
     assert len(drawings) >= 3, text
     for seg in drawings:
         assert WHOLE_BAR.match(seg), repr(seg)
+
+
+RADIUS_WARNING = "search radius 0.01 m is below the photon spacing"
+
+
+def _batch_log(tmp_path, *extra):
+    """The batch command on figure3_sphere.blend with Max Ray Depth 1 (the effect
+    analysis' warning) and a search radius of 0.01 m (the photon pass'), stdout and
+    stderr in one pipe: its lines."""
+    res = subprocess.run([PYTHON, "-m", "addon.batch",
+                          os.path.join(BLENDS, "figure3_sphere.blend"),
+                          "-o", str(tmp_path / "f3.png"), "--samples", "1",
+                          "--photons", "2000", "--caustic-photons", "1000",
+                          "--resolution-percentage", "10", "--max-depth", "1",
+                          "--radius", "0.01", *extra],
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                         timeout=600)
+    text = res.stdout.decode("utf-8", "replace")
+    assert res.returncode == 0, text[-3000:]
+    return text.split("\n"), text
+
+
+def _first(lines, text):
+    return next(i for i, line in enumerate(lines) if text in line)
+
+
+def test_batch_radius_warning_before_the_camera_pass(tmp_path):
+    """The search radius' warning once, on a line of its own, when the photon maps are
+    built: before the camera pass's first bar (`Rendering NN%`); it came after the
+    render."""
+    lines, text = _batch_log(tmp_path)
+    i = _own_line(lines, RADIUS_WARNING, text)
+    assert lines[i].startswith(f"Warning: Photon Mapping: {RADIUS_WARNING}"), repr(lines[i])
+    assert i < _first(lines, "Rendering "), text
+
+
+def test_batch_on_a_scheduler_says_the_workers_warnings_once_before_pass_1(tmp_path):
+    """--dask with a scheduler of 1 worker process, 16 passes: the effect analysis' and
+    the search radius' warnings (found on the worker) each once, before the first pass's
+    bar; they came at the end (the effect analysis' never)."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        lines, text = _batch_log(tmp_path, "--dask", cluster.scheduler_address)
+    first_pass = _first(lines, "Pass 1")
+    for w in ("Max Ray Depth 1 stops camera paths after", RADIUS_WARNING):
+        i = _own_line(lines, w, text)
+        assert lines[i].startswith("Warning: Photon Mapping: ") and i < first_pass, text
