@@ -59,29 +59,33 @@ def open_edges(geo, diffuse: np.ndarray):
     b = np.concatenate([c[:, 1], c[:, 2], c[:, 0]])
     opp = np.concatenate([c[:, 2], c[:, 0], c[:, 1]])
     n = np.tile(ng, (3, 1))
-    # The same edge from two triangles: its ends in a canonical order, as float32 keys
-    # (the meshes' corners are float32 before re-centring: welded where they coincide).
-    a32, b32 = a.astype(np.float32), b.astype(np.float32)
-    first = (a32[:, 0] < b32[:, 0]) | ((a32[:, 0] == b32[:, 0]) & (
-        (a32[:, 1] < b32[:, 1]) | ((a32[:, 1] == b32[:, 1]) & (a32[:, 2] <= b32[:, 2]))))
-    key = np.where(first[:, None], np.concatenate([a32, b32], axis=1),
-                   np.concatenate([b32, a32], axis=1))
-    _, group, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    group = group.ravel()
-    is_open = np.ones(3 * t, bool)
-    shared = np.flatnonzero(counts[group] > 1)
-    if len(shared):
-        # Per shared edge, is there another triangle on it with an agreeing normal? Edges
-        # shared by two triangles (the common case) compare the pair; more, all pairs.
-        order = shared[np.argsort(group[shared], kind="stable")]
-        g = group[order]
-        starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]])
-        ends = np.r_[starts[1:], len(order)]
-        for s, e in zip(starts, ends):
-            rows = order[s:e]
-            dots = n[rows] @ n[rows].T
-            np.fill_diagonal(dots, -2.0)
-            is_open[rows] = dots.max(axis=1) < NORMAL_AGREEMENT
+    # The same edge from two triangles: the corners welded where their float32 positions
+    # coincide (the meshes' corners are float32 before re-centring), an edge keyed by its
+    # two corners' ids in order.
+    corners = np.ascontiguousarray(np.concatenate([a, b]).astype(np.float32)) + np.float32(0.0)  # -0 == 0
+    _, vid = np.unique(corners.view(np.dtype((np.void, 12))).ravel(), return_inverse=True)
+    vid = vid.ravel().astype(np.int64)
+    ia, ib = vid[:3 * t], vid[3 * t:]
+    key = np.minimum(ia, ib) * (int(vid.max()) + 1) + np.maximum(ia, ib)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    first = np.r_[True, ks[1:] != ks[:-1]]
+    group = np.cumsum(first) - 1
+    size = np.bincount(group)[group]  # triangles on each row's edge, in sorted order
+    closed = np.zeros(3 * t, bool)
+    # An edge two triangles share (the common case): closed for both when their normals
+    # agree.
+    two = np.flatnonzero(first & (size == 2))
+    agree = (n[order[two]] * n[order[two + 1]]).sum(axis=1) >= NORMAL_AGREEMENT
+    closed[order[two[agree]]] = True
+    closed[order[two[agree] + 1]] = True
+    # More than two (a fin, a non-manifold seam): every pair.
+    for s in np.flatnonzero(first & (size > 2)):
+        rows = order[s:s + size[s]]
+        dots = n[rows] @ n[rows].T
+        np.fill_diagonal(dots, -2.0)
+        closed[rows] = dots.max(axis=1) >= NORMAL_AGREEMENT
+    is_open = ~closed
     a, b, n, opp = a[is_open], b[is_open], n[is_open], opp[is_open]
     u = b - a
     u /= np.maximum(np.linalg.norm(u, axis=1), 1e-300)[:, None]
@@ -92,6 +96,22 @@ def open_edges(geo, diffuse: np.ndarray):
     return a, b, n, m
 
 
+def _open_edges_kept(geo, diffuse):
+    """open_edges, kept on the Geometry for its next photon pass (progressive passes, a
+    session's re-renders: ~1.7 CPU us a triangle). The same value whichever thread writes
+    it first; keyed by the diffuse mask, which the material table decides."""
+    mask = np.packbits(diffuse).tobytes()
+    kept = getattr(geo, "_open_edges", None)
+    if kept is not None and kept[0] == mask:
+        return kept[1]
+    edges = open_edges(geo, diffuse)
+    try:
+        geo._open_edges = (mask, edges)
+    except AttributeError:  # a read-only stand-in
+        pass
+    return edges
+
+
 def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float):
     """Images (a Photons, possibly empty) of the photons within `radius` (m, the caustic
     estimates' cap) of an open edge of the surface they lie on, mirrored across the
@@ -100,7 +120,7 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     if not len(photons) or radius <= 0.0 or getattr(geo, "shared", None) is not None \
             or not getattr(geo, "count", 0):
         return empty
-    a, b, n, m = open_edges(geo, diffuse)
+    a, b, n, m = _open_edges_kept(geo, diffuse)
     if not len(a):
         return empty
     # Points along every open edge at most radius / 2 apart: a photon within `radius` of

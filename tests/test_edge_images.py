@@ -156,3 +156,17 @@ def test_photons_off_the_plane_get_none(off):
     ph = _photons(np.array([[1.0, 0.01]]), 1.0)
     ph.position[:, 2] = off
     assert len(edge_images(ph, geo, diffuse, accel, R)) == (1 if off < 1e-3 * R else 0)
+
+
+def test_corners_weld_across_signed_zero_and_are_kept():
+    """Corners at -0.0 and 0.0 are one corner (a mesh's mirrored half), and a Geometry's
+    open edges are computed once (kept for the next pass)."""
+    geo, diffuse, accel = _geo([((0, 0, 0), (1, 0, 0), (0, 1, 0)),
+                                ((1, 0, 0), (1, 0, 0), (0, 1, 0))])
+    geo.v0[2:, 2] = -0.0  # the second quad's corners at z = -0
+    assert len(open_edges(geo, diffuse)[0]) == 6
+    ph = _photons(np.array([[1.0, 0.01]]), 1.0)
+    edge_images(ph, geo, diffuse, accel, R)
+    kept = geo._open_edges[1]
+    edge_images(ph, geo, diffuse, accel, R)
+    assert geo._open_edges[1] is kept
