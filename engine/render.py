@@ -21,6 +21,7 @@ from .lights import allocate_photons, prepare_lights
 from .lights.base import InfiniteLight
 from .lights import packing as pk
 from .lights.packing import pack_lights
+from .edgeimages import edge_images
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
@@ -450,9 +451,12 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
     if "global_photons" in maps:
         stats["global_photons"] = maps.pop("global_photons")
     diffuse_area = maps.pop("diffuse_area")
+    images = maps.pop("caustic_images", 0)
     for name, value in maps.items():
         setattr(ctx, name, value)
-    stats["caustic_photons"] = len(ctx.caustic_map) if ctx.caustic_map is not None else 0
+    stats["caustic_photons"] = len(ctx.caustic_map) - images if ctx.caustic_map is not None \
+        else 0
+    stats["caustic_images"] = images
     stats["radius_global"] = ctx.global_radius
     stats["radius_caustic"] = ctx.caustic_radius
     if s.radius is not None and plan.indirect:
@@ -500,6 +504,9 @@ def gather_count(most: int, share: float | None) -> int:
 # this share of the power the level above keeps (below: _build_maps; docs/design.md,
 # Bounce limits).
 SUBSET_POWER_SHARE = 0.005
+# The caustic map's photons get images across the open edges of the surfaces they lie on
+# (engine/edgeimages.py): the reflection method keeps a disc's light at an edge.
+EDGE_IMAGES = True
 
 
 def region_photons(positions: np.ndarray, region, k: int) -> np.ndarray:
@@ -622,10 +629,12 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     def other_maps(flag):
         out = {}
         if plan.caustics:
-            out["caustic_map"] = (
-                _counted_map(caustic, workers, np.flatnonzero(caustic.usable(limits)))
-                if use_caustic_shot else
-                _counted_map(shot, workers, np.flatnonzero((shot.kind == CAUSTIC) & at_hit)))
+            source = (caustic, np.flatnonzero(caustic.usable(limits))) if use_caustic_shot \
+                else (shot, np.flatnonzero((shot.kind == CAUSTIC) & at_hit))
+            if EDGE_IMAGES:
+                out["caustic_source"] = source  # built with its images below
+            else:
+                out["caustic_map"] = _counted_map(source[0], workers, source[1])
             check(flag)
         if final:
             rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & at_hit)
@@ -675,6 +684,22 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
     # are sparse.
     out["caustic_radius"] = s.radius or caustic_radius(shot_radius[0], len(shot), len(caustic), k,
                                                        diffuse_area, geo.extent)
+    if "caustic_source" in out:
+        # Images across the open edges the caustic photons lie near (engine/edgeimages.py):
+        # a disc hanging over a surface's edge keeps the light its photons brought. They
+        # need the estimates' cap (above), so the map is built here, once.
+        check(stop)
+        src, rows = out.pop("caustic_source")
+        photons = src.take(rows)
+        images = edge_images(photons, geo, diffuse_tris, ctx.accel, out["caustic_radius"])
+        if len(images):
+            photons = Photons(*(np.concatenate([getattr(photons, f), getattr(images, f)])
+                                for f in ("position", "power", "direction", "normal", "kind")),
+                              photons.emitted,
+                              None if photons.bounces is None else
+                              np.concatenate([photons.bounces, images.bounces]))
+        out["caustic_map"] = _counted_map(photons, workers, None)
+        out["caustic_images"] = len(images)
     out["diffuse_area"] = diffuse_area
     return out
 

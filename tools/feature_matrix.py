@@ -1525,6 +1525,11 @@ def transparency_window_glass_plane():
 # its exposed top face outside) leaves its bottom face onto the wall below; ours has
 # that light in the caustic map, whose k-NN estimate at the wall's edge is cut by the
 # edge and spread over ~2 pixel rows (the caustic pass there: 0.07-0.3 in the edge row).
+# With the caustic photons' images across the wall's edge (engine/edgeimages.py, s20
+# edges2) the line keeps its power (0.99-1.05 of its photons', was 0.54-0.56): seeds 0-3
+# block error 0.241 / 0.243 / 0.180 / 0.268 -> 0.226 / 0.203 / 0.121 / 0.245, the edge
+# row's three blocks 0.90 / 0.82 / 0.65 -> 0.96 / 0.95 / 0.70 of Cycles (what is left is
+# the 15 cm disc's blur of a ~1 cm line).
 @case("transparency", block_tol=0.40, samples=16384)
 def transparency_window_glass_slab():
     """The window room behind a 2 cm Glass slab."""

@@ -1,0 +1,194 @@
+"""Image photons across a surface's open edges: the reflection (mirror-image) method of
+kernel density estimation at a boundary (Schuster 1985; Silverman 1986, s. 2.10), for the
+caustic map's k-NN estimates.
+
+A k-NN estimate's disc that hangs over the edge of the surface it sits on (a wall's end,
+a table's rim, a floor meeting a wall: nothing beyond takes its light, or the surface
+beyond faces another way and its photons are not accepted) loses the part of each
+photon's kernel that falls beyond the edge. A line of caustic light right at a window
+pane's foot integrates to ~0.52 of its power that way (docs/performance.md "edges"). Each
+photon within the caustic cap R of such an edge gets an image: the same photon mirrored
+across the edge in its surface's plane. The k-NN query then runs over photons and images,
+so the kernel mass a photon loses beyond the edge comes back as its image's mass on the
+surface: on a straight edge, the estimate of even light reads as far from any edge (the
+images continue it) and a line's estimate integrates to its power (at a fixed radius
+exactly; with k-NN radii within ~4 %, bench/bench_edges.py).
+
+Open edges come from the mesh: an edge of a diffuse triangle is open unless another
+diffuse triangle shares it (same corner positions) with a normal that the estimate would
+accept (NORMAL_AGREEMENT). An image is dropped where a diffuse surface facing the same
+way lies at its position (the surface continues past the edge, e.g. a wall made of
+separate planes meeting there): that surface holds its own photons.
+Not handled: instanced rows (Geometry.shared; no images), a photon near two edges (a
+corner: one image, across the nearer edge), curved edges (each triangle edge straight).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .photonmap import NORMAL_AGREEMENT
+from .photons import Photons
+
+PLANE_TOLERANCE = 1e-3  # x R: how far a photon may sit off an edge's triangle plane
+FACING = 0.9  # |photon normal . triangle normal| for the photon to lie on that triangle
+# Edge points a photon looks at: the edges through them are tested exactly. Two edges
+# meet at each corner and a crease's two sides share their points (4 at a corner).
+NEAREST_POINTS = 8
+PROBE_LIFT = 1e-3  # x R: the continuation probe starts this far above the image point
+
+
+def open_edges(geo, diffuse: np.ndarray):
+    """The open edges of the diffuse triangles (docstring above). geo: Geometry with v0,
+    e1, e2 (T,3) per triangle; diffuse (T,) bool. Returns a (E,3), b (E,3) the edge's ends,
+    n (E,3) its triangle's unit normal, m (E,3) the unit direction in the triangle's plane,
+    perpendicular to the edge, pointing into the triangle. Float64, re-centred space."""
+    tri = np.flatnonzero(diffuse)
+    if not len(tri):
+        z = np.zeros((0, 3))
+        return z, z, z, z
+    v0 = np.take(geo.v0, tri, axis=0).astype(np.float64)
+    c = np.stack([v0, v0 + np.take(geo.e1, tri, axis=0), v0 + np.take(geo.e2, tri, axis=0)],
+                 axis=1)  # (T,3,3)
+    ng = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+    length = np.linalg.norm(ng, axis=1)
+    ok = length > 0.0
+    c, ng = c[ok], ng[ok] / length[ok, None]
+    t = len(c)
+    a = np.concatenate([c[:, 0], c[:, 1], c[:, 2]])  # edge j of triangle i: row j t + i
+    b = np.concatenate([c[:, 1], c[:, 2], c[:, 0]])
+    opp = np.concatenate([c[:, 2], c[:, 0], c[:, 1]])
+    n = np.tile(ng, (3, 1))
+    # The same edge from two triangles: the corners welded where their float32 positions
+    # coincide (the meshes' corners are float32 before re-centring), an edge keyed by its
+    # two corners' ids in order.
+    corners = np.ascontiguousarray(np.concatenate([a, b]).astype(np.float32)) + np.float32(0.0)  # -0 == 0
+    _, vid = np.unique(corners.view(np.dtype((np.void, 12))).ravel(), return_inverse=True)
+    vid = vid.ravel().astype(np.int64)
+    ia, ib = vid[:3 * t], vid[3 * t:]
+    key = np.minimum(ia, ib) * (int(vid.max()) + 1) + np.maximum(ia, ib)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    first = np.r_[True, ks[1:] != ks[:-1]]
+    group = np.cumsum(first) - 1
+    size = np.bincount(group)[group]  # triangles on each row's edge, in sorted order
+    closed = np.zeros(3 * t, bool)
+    # An edge two triangles share (the common case): closed for both when their normals
+    # agree.
+    two = np.flatnonzero(first & (size == 2))
+    agree = (n[order[two]] * n[order[two + 1]]).sum(axis=1) >= NORMAL_AGREEMENT
+    closed[order[two[agree]]] = True
+    closed[order[two[agree] + 1]] = True
+    # More than two (a fin, a non-manifold seam): every pair.
+    for s in np.flatnonzero(first & (size > 2)):
+        rows = order[s:s + size[s]]
+        dots = n[rows] @ n[rows].T
+        np.fill_diagonal(dots, -2.0)
+        closed[rows] = dots.max(axis=1) >= NORMAL_AGREEMENT
+    is_open = ~closed
+    a, b, n, opp = a[is_open], b[is_open], n[is_open], opp[is_open]
+    u = b - a
+    u /= np.maximum(np.linalg.norm(u, axis=1), 1e-300)[:, None]
+    m = np.cross(n, u)
+    # Into the triangle: towards its third corner.
+    flip = ((opp - a) * m).sum(axis=1) < 0.0
+    m[flip] *= -1.0
+    return a, b, n, m
+
+
+def _open_edges_kept(geo, diffuse):
+    """open_edges, kept on the Geometry for its next photon pass (progressive passes, a
+    session's re-renders: ~1.7 CPU us a triangle). The same value whichever thread writes
+    it first; keyed by the diffuse mask, which the material table decides."""
+    mask = np.packbits(diffuse).tobytes()
+    kept = getattr(geo, "_open_edges", None)
+    if kept is not None and kept[0] == mask:
+        return kept[1]
+    edges = open_edges(geo, diffuse)
+    try:
+        geo._open_edges = (mask, edges)
+    except AttributeError:  # a read-only stand-in
+        pass
+    return edges
+
+
+def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float):
+    """Images (a Photons, possibly empty) of the photons within `radius` (m, the caustic
+    estimates' cap) of an open edge of the surface they lie on, mirrored across the
+    nearest such edge; power, direction, normal, kind and bounce counts copied."""
+    empty = photons.take(np.zeros(0, np.int64))
+    if not len(photons) or radius <= 0.0 or getattr(geo, "shared", None) is not None \
+            or not getattr(geo, "count", 0):
+        return empty
+    a, b, n, m = _open_edges_kept(geo, diffuse)
+    if not len(a):
+        return empty
+    # Points along every open edge at most radius / 2 apart: a photon within `radius` of
+    # an edge lies within radius + spacing / 2 of one of its points.
+    length = np.linalg.norm(b - a, axis=1)
+    steps = np.maximum(np.ceil(length / (0.5 * radius)).astype(np.int64), 1)
+    edge = np.repeat(np.arange(len(a)), steps + 1)
+    first = np.r_[0, np.cumsum(steps + 1)[:-1]]
+    frac = (np.arange(len(edge)) - np.repeat(first, steps + 1)) / np.repeat(steps, steps + 1)
+    pts = a[edge] + frac[:, None] * (b - a)[edge]
+    reach = radius * 1.25
+    # First the photons in or beside a cell (of side reach) holding an edge point: one
+    # sorted lookup per photon (most of a caustic map's photons lie far from any edge).
+    lo = pts.min(axis=0) - 2.0 * reach
+    cell_pts = np.floor((pts - lo) / reach).astype(np.int64)
+    dims = cell_pts.max(axis=0) + 3
+    shifts = np.stack(np.meshgrid(*([np.arange(-1, 2)] * 3), indexing="ij"), -1).reshape(-1, 3)
+    near_cells = (cell_pts[:, None, :] + shifts[None]).reshape(-1, 3)
+    keys = np.unique((near_cells[:, 0] * dims[1] + near_cells[:, 1]) * dims[2] + near_cells[:, 2])
+    cell_ph = np.floor((photons.position - lo) / reach)
+    inside = np.all((cell_ph >= 0) & (cell_ph < dims), axis=1)
+    cand = np.flatnonzero(inside)
+    c = cell_ph[cand].astype(np.int64)
+    k = (c[:, 0] * dims[1] + c[:, 1]) * dims[2] + c[:, 2]
+    at = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
+    cand = cand[keys[at] == k]
+    if not len(cand):
+        return empty
+    p = photons.position.astype(np.float64)
+    # Each candidate's NEAREST_POINTS nearest edge points within reach, then the edges
+    # through them tested exactly.
+    _, j = cKDTree(pts).query(p[cand], k=NEAREST_POINTS, distance_upper_bound=reach)
+    found = j < len(pts)
+    if not found.any():
+        return empty
+    ph = np.broadcast_to(cand[:, None], j.shape)[found]
+    e = edge[j[found]]
+    pair = np.unique(ph * len(a) + e)  # each (photon, edge) once
+    ph, e = pair // len(a), pair % len(a)
+    rel = p[ph] - a[e]
+    ab = b[e] - a[e]
+    along = (rel * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-300)
+    d = (rel * m[e]).sum(axis=1)  # distance into the triangle's side of the edge
+    off = np.abs((rel * n[e]).sum(axis=1))
+    facing = np.abs((photons.normal[ph].astype(np.float64) * n[e]).sum(axis=1))
+    keep = (along >= 0.0) & (along <= 1.0) & (d >= 0.0) & (d < radius) & \
+        (off <= PLANE_TOLERANCE * radius) & (facing >= FACING)
+    ph, e, d = ph[keep], e[keep], d[keep]
+    if not len(ph):
+        return empty
+    # The nearest edge per photon.
+    order = np.lexsort((d, ph))
+    ph, e, d = ph[order], e[order], d[order]
+    firsts = np.r_[True, ph[1:] != ph[:-1]]
+    ph, e, d = ph[firsts], e[firsts], d[firsts]
+    image = p[ph] - 2.0 * d[:, None] * m[e]
+    # Drop images that land on a diffuse surface facing the same way (it continues).
+    lift = PROBE_LIFT * radius
+    origin = image + lift * n[e]
+    t, prim, _, _ = accel.intersect(origin, -n[e], np.full(len(ph), 2.0 * lift))
+    cont = prim >= 0
+    if cont.any():
+        hit = prim[cont]
+        hn = np.cross(np.take(geo.e1, hit, axis=0), np.take(geo.e2, hit, axis=0))
+        hn /= np.maximum(np.linalg.norm(hn, axis=1), 1e-300)[:, None]
+        same = diffuse[hit] & (np.abs((hn * n[e][cont]).sum(axis=1)) >= NORMAL_AGREEMENT)
+        cont[np.flatnonzero(cont)[~same]] = False
+    ph, image = ph[~cont], image[~cont]
+    out = photons.take(ph)
+    out.position = image.astype(np.float32)
+    return out
