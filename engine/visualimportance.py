@@ -310,6 +310,23 @@ def can_aim(light) -> bool:
     return isinstance(light, (InfiniteLight, AreaLight, PointLight, MeshLight))
 
 
+def _why_natural(lights, p_in: float, p_out: float, cell_power: np.ndarray) -> str:
+    """Why plan_global_shot emits naturally although it has a region: the report's words.
+    cell_power (L,K): the power each light sends into each sphere of the region."""
+    if not p_in > 0:
+        return "the lights send none of their light to what the camera sees"
+    if not p_out > 0:
+        return "the lights send all of their light to what the camera sees"
+    reaching = [light for light, power in zip(lights, cell_power.sum(axis=1)) if power > 0]
+    if not any(can_aim(light) for light in reaching):
+        kinds = sorted({type(light).__name__.removesuffix("Light").lower()
+                        for light in reaching})
+        return (f"the lights that reach what the camera sees ({', '.join(kinds)}) cannot aim "
+                f"their photons (spot lights emit naturally)")
+    return ("the lights that reach what the camera sees start inside it (over "
+            f"{ROI_MAX_ORIGINS_INSIDE:.0%} of their power), so their photons land there anyway")
+
+
 def meets_region(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
                  infinite: bool) -> np.ndarray:
     """(N,) bool: meets_spheres(...).any(axis=1), stopping at the first sphere met."""
@@ -468,9 +485,8 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     # outside keep a finite power; ROI_MIN_OUTSIDE below then sets their share).
     i_out = max(1.0 - i_in, ROI_MIN_OUTSIDE * 0.5)
     if not (p_in > 0 and p_out > 0 and aims.any()):
-        natural.report = ("no visual importance: the lights send "
-                          + ("all" if p_out <= 0 else "none") + " of their light "
-                          "to what the camera sees, so photons go where the lights send them")
+        natural.report = ("no visual importance: " + _why_natural(lights, p_in, p_out, cell_power)
+                          + ", so photons go where the lights send them")
         return natural
     # Photons ~ sqrt(lookups x power) per piece (module docstring): per watt, a sphere's
     # weight sqrt(I_k / P_k), outside sqrt(I_out / P_out). Uniform over the spheres

@@ -159,6 +159,19 @@ def test_a_closed_room_keeps_its_natural_photons():
     assert np.array_equal(ph.power, nat.power)
 
 
+def test_a_spot_light_is_named_as_the_reason_it_stays_natural():
+    """A spot light lighting a wide ground and the balls the camera sees: its photons
+    cannot be aimed (can_aim), and the report says so, not that it sends none of its light
+    there (a new user's scene read "none" while its spot lit what the camera saw)."""
+    s = _ground(background=(0.0, 0.0, 0.0))
+    s.add_spot_light((0, -2, 6), (0, 0, 0), power=800.0, spot_size_degrees=120.0)
+    ph, _, stats = _shoot(s, True, photons=20_000)
+    text = stats["photon_importance"]
+    assert text.startswith("no visual importance: "), text
+    assert "(spot) cannot aim" in text, text
+    assert "none of their light" not in text
+
+
 def test_the_shot_is_the_same_for_any_worker_count():
     scene = _ground(area=True)
     a, _, sa = _shoot(scene, True, photons=60_000, workers=1)
