@@ -1339,17 +1339,15 @@ class BounceBuffers:
         path state _trace_paths starts a chunk with. Kept by the thread between its
         chunks: a fresh np.zeros of them on a worker thread (its own malloc arena) is
         memset page by page, ~10 MB a chunk of first-touch faults (docs/performance.md,
-        "Seventeenth slice"). _trace_paths replaces them before it writes (keep_path_hits,
-        np.take, chain[keep]); the fill keeps them zero even if it one day writes in place,
-        and costs no faults on pages already mapped."""
+        "Seventeenth slice"). Zeroed once, not refilled: _trace_paths only reads them and
+        replaces them before it writes (keep_path_hits, np.take, chain[keep]; ~10 MB of
+        memset a 131,072-sample chunk saved, docs/performance.md "fig8speed"); a render's
+        buffers are checked to stay zero by tests/test_camera_glass.py."""
         if n > self.paths:
             self.paths = n
             self.travelled = np.zeros(n)
             self.org_ns, self.org_p = np.zeros((n, 3)), np.zeros((n, 3))
             self.chain = np.zeros((n, 3), np.int64)
-        else:
-            for a in (self.travelled, self.org_ns, self.org_p, self.chain):
-                a[:n] = 0
         return self.travelled[:n], self.org_ns[:n], self.org_p[:n], self.chain[:n]
 
     def take(self, n):
