@@ -483,7 +483,8 @@ class Accel:
         One Embree scene: traced by a compiled kernel through rtcIntersect1 where the
         probe allows (_intersect_rows), the same arrays bit for bit as embreex's run()
         (_intersect_run, the fallback)."""
-        fn = _kernel_hits_address() if len(self._blocks) == 1 else 0
+        # (_LIBRARY read here too: the scene's address comes through it.)
+        fn = _kernel_hits_address() if len(self._blocks) == 1 and _LIBRARY is not None else 0
         if not fn:
             return self._intersect_run(origins, directions, tmax)
         o = np.ascontiguousarray(origins, dtype=np.float64)
