@@ -189,7 +189,7 @@ if _intrinsic is not None:
         miss), u, v (N,) float64 the float32 barycentrics (0 on a miss): what
         embreex's run() gives and Accel._intersect_run turns into these arrays, without
         its float32 copies of the rays, its per-call answer arrays and the numpy passes
-        over them (~25 ns a ray, docs/performance.md "fig8speed")."""
+        over them (~18 ns a camera-path ray, docs/performance.md "fig8speed")."""
         buf = np.empty(2 * _RAYHIT_WORDS, np.float32)
         start = buf.ctypes.data
         skip = ((start + 15) & ~15) - start  # RTCRayHit is 16-byte aligned
