@@ -490,7 +490,8 @@ class Accel:
         o = np.ascontiguousarray(origins, dtype=np.float64)
         d = np.ascontiguousarray(directions, dtype=np.float64)
         if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
-            raise ValueError(f"Accel: origins {o.shape} and directions {d.shape} must both be (N,3)")
+            raise ValueError(f"Accel: origins {o.shape} and directions {d.shape} must both "
+                             f"be (N,3)")
         n = len(o)
         tm = _UNBOUNDED if tmax is None else np.ascontiguousarray(
             np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
