@@ -125,6 +125,7 @@ _LIBRARY = None if _rtcs is None else _embree_library()
 # miss answers as embreex's (primID and geomID -1, u = v = 0), and _probe_kernel_hits
 # checks that on a probe before the kernel is used.
 _RAYHIT_WORDS = 24
+_F32_MAX = np.float32(np.finfo(np.float32).max)
 
 try:
     from llvmlite import ir as _ir
@@ -177,12 +178,63 @@ if _intrinsic is not None:
             u[i] = rh[15]
             v[i] = rh[16]
 
+    @kernel
+    def _intersect_rows(fn, scene, o, d, tmax, starts, t, prim, u, v):
+        """Accel.intersect's answer for one Embree scene, traced through rtcIntersect1 at
+        address fn on the RTCScene at address scene: rays o, d (N,3) float64, rounded to
+        float32 as Embree takes them; tmax (N,) float64 each ray's tmax, rounded to
+        float32 (NaN -> 0, above float32's max -> its max), or (0,): unbounded (float32's
+        max); starts (G,) int64 each geometry's first triangle row. Writes t (N,) float64
+        the hit distance (inf: a miss), prim (N,) int64 the hit triangle's row (-1: a
+        miss), u, v (N,) float64 the float32 barycentrics (0 on a miss): what
+        embreex's run() gives and Accel._intersect_run turns into these arrays, without
+        its float32 copies of the rays, its per-call answer arrays and the numpy passes
+        over them (~18 ns a camera-path ray, docs/performance.md "fig8speed")."""
+        buf = np.empty(2 * _RAYHIT_WORDS, np.float32)
+        start = buf.ctypes.data
+        skip = ((start + 15) & ~15) - start  # RTCRayHit is 16-byte aligned
+        rh = buf[skip // 4:skip // 4 + _RAYHIT_WORDS]
+        ri = rh.view(np.uint32)
+        at = start + skip
+        none = np.uint32(0xFFFFFFFF)
+        bounded = tmax.shape[0] > 0
+        for i in range(o.shape[0]):
+            rh[0], rh[1], rh[2], rh[3] = o[i, 0], o[i, 1], o[i, 2], 0.0
+            rh[4], rh[5], rh[6], rh[7] = d[i, 0], d[i, 1], d[i, 2], 0.0
+            tf = _F32_MAX
+            if bounded:
+                tf = np.float32(tmax[i])
+                if tf != tf:
+                    tf = np.float32(0.0)
+                elif tf > _F32_MAX:
+                    tf = _F32_MAX
+            rh[8] = tf
+            ri[9], ri[10], ri[11] = none, 0, 0
+            rh[15], rh[16] = 0.0, 0.0
+            ri[17], ri[18], ri[19], ri[20] = none, none, none, none
+            _call_c3(fn, scene, at)
+            geom = ri[18]
+            if geom != none:
+                prim[i] = starts[geom] + np.int64(ri[17])
+                t[i] = np.float64(rh[8])
+            else:
+                prim[i] = -1
+                t[i] = np.inf
+            u[i] = np.float64(rh[15])
+            v[i] = np.float64(rh[16])
+
     @register_warm_up
     def _warm_up():
-        """Compile (or load) the trace kernel (no rays: nothing is called)."""
+        """Compile (or load) the trace kernels (no rays: nothing is called)."""
         z3, z1 = np.zeros((0, 3), np.float32), np.zeros(0, np.float32)
         ids = np.zeros(0, np.int32)
         _intersect1(0, 0, z3, z3, z1, ids, ids, z1, z1)
+        e3, e1 = np.zeros((0, 3)), np.zeros(0)
+        _intersect_rows(0, 0, e3, e3, e1, np.zeros(1, np.int64), e1, np.zeros(0, np.int64),
+                        e1, e1)
+
+
+_UNBOUNDED = np.zeros(0)  # _intersect_rows' tmax: every ray to float32's max
 
 
 def _scene_address(scene) -> int:
@@ -427,7 +479,37 @@ class Accel:
 
     def intersect(self, origins, directions, tmax=None):
         """Closest hits. Returns (t, prim, u, v); prim = -1 where the ray misses.
-        Directions should be unit length: t is in units of |direction|."""
+        Directions should be unit length: t is in units of |direction|.
+        One Embree scene: traced by a compiled kernel through rtcIntersect1 where the
+        probe allows (_intersect_rows), the same arrays bit for bit as embreex's run()
+        (_intersect_run, the fallback)."""
+        # (_LIBRARY read here too: the scene's address comes through it.)
+        fn = _kernel_hits_address() if len(self._blocks) == 1 and _LIBRARY is not None else 0
+        if not fn:
+            return self._intersect_run(origins, directions, tmax)
+        o = np.ascontiguousarray(origins, dtype=np.float64)
+        d = np.ascontiguousarray(directions, dtype=np.float64)
+        if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
+            raise ValueError(f"Accel: origins {o.shape} and directions {d.shape} must both "
+                             f"be (N,3)")
+        n = len(o)
+        tm = _UNBOUNDED if tmax is None else np.ascontiguousarray(
+            np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
+        t, prim, u, v = np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n)
+        if n == 0:
+            return t, prim, u, v
+        block = self._blocks[0]
+        scene, starts = _scene_address(block.scene), block.starts
+
+        def work(a, b):
+            _intersect_rows(fn, scene, o[a:b], d[a:b], tm[a:b] if len(tm) else tm, starts,
+                            t[a:b], prim[a:b], u[a:b], v[a:b])
+
+        self._run(work, n)
+        return t, prim, u, v
+
+    def _intersect_run(self, origins, directions, tmax=None):
+        """intersect through embreex's run() (Embree scenes in blocks, or no kernel)."""
         o, d, tf = self._prepare(origins, directions, tmax)
         n = len(o)
         blocks = self._blocks

@@ -32,7 +32,7 @@ from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, fi
                             film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
                             mirror_survival, pick_lobes, shade_lobes, view_depth)
 from .camerarays import camera_rays_kernel, chunk_samples
-from .gatherkernels import (add_gathered, diffuse_lookups, keep_embree_hits, keep_hits,
+from .gatherkernels import (add_gathered, count_bent, diffuse_lookups, keep_embree_hits, keep_hits,
                             lean_diffuse, lean_materials, rays_f32)
 from .closures import principled as pr
 from .glasslight import rough_transmission_rows, transmitted_light
@@ -647,17 +647,21 @@ def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
     the continued rays' hits (one ray a hit); keep (K,) their rows of d_in (N,3)."""
     if len(keep) == 0:
         return cnt
-    bent = np.any(d != np.take(d_in, keep, axis=0), axis=1)
+    # One compiled pass (gatherkernels.count_bent): the same integer counts.
+    c = np.ascontiguousarray
+    keep, d_in, d = c(keep, np.int64), c(d_in, np.float64), c(d, np.float64)
     if cnt is None:
-        if not bent.any():
+        if not count_bent(_NO_COUNTS, _NO_ROWS, keep, d_in, d, _NO_ROWS, DIFFUSE, GLOSSY,
+                          TRANSMISSION):
             return None
         cnt = np.zeros((n, 4), np.int64)
-    cls = np.broadcast_to(ray_cls, (len(keep),))
-    cnt[idx, 0] += bent
-    cnt[idx, 1] += bent & (cls == DIFFUSE)
-    cnt[idx, 2] += bent & (cls == GLOSSY)
-    cnt[idx, 3] += bent & (cls == TRANSMISSION)
+    cls = c(np.broadcast_to(np.asarray(ray_cls, np.int64), (len(keep),)))
+    count_bent(cnt, c(idx, np.int64), keep, d_in, d, cls, DIFFUSE, GLOSSY, TRANSMISSION)
     return cnt
+
+
+_NO_COUNTS = np.zeros((0, 4), np.int64)  # count_bent: only whether a ray is bent
+_NO_ROWS = np.zeros(0, np.int64)
 
 
 def _chain_lookups(ctx, level, cnt, Ey, boundary, lt, regather):
@@ -1366,17 +1370,15 @@ class BounceBuffers:
         path state _trace_paths starts a chunk with. Kept by the thread between its
         chunks: a fresh np.zeros of them on a worker thread (its own malloc arena) is
         memset page by page, ~10 MB a chunk of first-touch faults (docs/performance.md,
-        "Seventeenth slice"). _trace_paths replaces them before it writes (keep_path_hits,
-        np.take, chain[keep]); the fill keeps them zero even if it one day writes in place,
-        and costs no faults on pages already mapped."""
+        "Seventeenth slice"). Zeroed once, not refilled: _trace_paths only reads them and
+        replaces them before it writes (keep_path_hits, np.take, chain[keep]; ~10 MB of
+        memset a 131,072-sample chunk saved, docs/performance.md "fig8speed"); a render's
+        buffers are checked to stay zero by tests/test_camera_glass.py."""
         if n > self.paths:
             self.paths = n
             self.travelled = np.zeros(n)
             self.org_ns, self.org_p = np.zeros((n, 3)), np.zeros((n, 3))
             self.chain = np.zeros((n, 3), np.int64)
-        else:
-            for a in (self.travelled, self.org_ns, self.org_p, self.chain):
-                a[:n] = 0
         return self.travelled[:n], self.org_ns[:n], self.org_p[:n], self.chain[:n]
 
     def take(self, n):

@@ -281,3 +281,32 @@ def test_rough_glass_split_keeps_the_mean_of_the_choice():
     assert integrator.SPLIT_ROUGH_GLASS
     np.testing.assert_allclose(got[True], got[False], rtol=0.02)
     assert got[True][0] > 0.2  # (light reaches the pixels)
+
+
+@pytest.mark.parametrize("mode", ["transmit", "reflect"])
+def test_camera_paths_start_from_buffers_they_never_write(mode, monkeypatch):
+    """integrator.BounceBuffers.paths_start hands each chunk the zeros its paths start
+    from (travelled, the origin's shading normal and point, the chain's bounces) without
+    refilling them: _trace_paths must only read them. Rendered through glass (a flat
+    passage, its Fresnel split, the mirror's emission; photon mapping on, small chunks
+    on two threads so each thread's buffers serve many chunks), every buffer a chunk
+    started from is still all zeros at the end."""
+    import engine.integrator as integrator
+    seen = []
+    start = integrator.BounceBuffers.paths_start
+
+    def recorded(self, n):
+        out = start(self, n)
+        seen.append(self)
+        return out
+
+    monkeypatch.setattr(integrator.BounceBuffers, "paths_start", recorded)
+    s, _ = _slab_scene(20.0, mode)
+    s.add_plane((0.0, 0.0, -0.6), (0.0, 0.0, 1.0), 20.0, Material("grey", (0.5,) * 3),
+                name="floor")
+    s.add_point_light((0.0, -1.0, 1.0), 50.0, radius=0.1)
+    s.render(RenderSettings(workers=2, spp=16, seed=3, chunk_size=512, photons=5000))
+    assert len(seen) > 4
+    for b in {id(x): x for x in seen}.values():
+        for a in (b.travelled, b.org_ns, b.org_p, b.chain):
+            assert not a.any()

@@ -1,6 +1,7 @@
 """The photon pass's compiled kernels (engine/photonkernels.py): their random stream,
 their surface data against bsdf.surface_hit, and the photon pass's energy."""
 import numpy as np
+import pytest
 
 from engine import RenderSettings
 from engine import photonkernels as pk
@@ -258,6 +259,53 @@ def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():
     for x, y in zip(fresh, again):
         np.testing.assert_array_equal(x, y)
     ctx.accel.close()
+
+
+def test_intersect_traced_in_a_kernel_is_embreex_answer_bit_for_bit():
+    """Accel.intersect through the compiled rtcIntersect1 loop (_intersect_rows) gives
+    the arrays embreex's run() gives (_intersect_run): t, prim, u, v with their dtypes,
+    bit for bit, on a mesh in several pieces (hits in later geometries), for float64 and
+    float32 rays, unbounded and bounded tmax (short rays, NaN, inf, float32's max and
+    above, negative, a scalar), on one thread and split over two."""
+    from engine import accel as accel_mod
+
+    if not accel_mod._kernel_hits_address():
+        pytest.skip("rtcIntersect1 not reachable from a kernel here")
+    s = _scene()
+    v, f, n, _ = sphere_mesh((-0.3, 0.2, 1.3), 0.35, segments=330, rings=210)
+    s.add_triangles(v, f, "ball", name="fine ball", normals=n)
+    s.validate()
+    geo, _ = prepare(s)
+    assert geo.count > 2 * accel_mod.MESH_TRIANGLES
+    rng = np.random.default_rng(22)
+    m = 3 * accel_mod.MIN_PER_THREAD
+    o = np.tile((0.1, -0.2, 1.6) - geo.offset, (m, 1)) + 0.2 * rng.random((m, 3))
+    d = rng.normal(size=(m, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    o[::11] = 1e6  # misses
+    tmax = rng.random(m) * 2.0
+    tmax[::7] = np.nan
+    tmax[1::7] = np.inf
+    tmax[2::7] = 1e300  # above float32's max
+    tmax[3::7] = -1.0
+    tmax[4::7] = np.finfo(np.float32).max
+    for threads in (1, 2):
+        accel = Accel(geo.vertices32, geo.faces32, threads)
+        try:
+            for args in ((o, d, None), (o, d, tmax), (o.astype(np.float32), d, tmax),
+                         (o, d.astype(np.float32), 0.4), (o[::2], d[::2], tmax[::2]),
+                         (o[:0], d[:0], None)):
+                got = accel.intersect(*args)
+                want = accel._intersect_run(*args)
+                for x, y in zip(got, want):
+                    assert x.dtype == y.dtype and x.shape == y.shape
+                    np.testing.assert_array_equal(x.view(np.uint8), y.view(np.uint8))
+                if len(args[0]):
+                    hit = got[1] >= 0
+                    assert 0 < hit.sum() < len(hit)
+                    assert (got[1][hit] >= accel_mod.MESH_TRIANGLES).sum() > 100
+        finally:
+            accel.close()
 
 
 def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():

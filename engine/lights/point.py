@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ..jit import kernel
+from ..jit import kernel, register_warm_up
 from ..sampling import dot
 from .emission import (cosine_hemisphere, f64, emit_uniform, put, to_world, aim_direction,
                        uniform_sphere)
@@ -86,27 +86,54 @@ class PointLight(Light):
         if self.radius <= 0:
             return super().intersect(o, d, tmax)
         n = len(o)
-        rel = o - self.pos
         if self.is_sphere:
+            rel = o - self.pos
             t = sphere_hit(rel, d, self.radius)
             mask = t < tmax
             inside = np.einsum("ij,ij->i", rel, rel) <= self.radius ** 2
         else:
-            dist = np.linalg.norm(rel, axis=1)
-            axis = rel / np.maximum(dist, 1e-300)[:, None]
-            toward = -dot(d, axis)
-            front = toward > 1e-12
-            t = dist / np.where(front, toward, 1.0)
-            on_disk = t[:, None] * d + rel
-            mask = (front & (dist > 0) & (t < tmax)
-                    & (np.einsum("ij,ij->i", on_disk, on_disk) <= self.radius ** 2))
-            t = np.where(front, t, np.inf)
+            # One compiled pass (intersect_disk), the numpy stage's arithmetic.
+            tm = np.asarray(tmax, np.float64)
+            tm = np.full(n, float(tm)) if tm.ndim == 0 else np.ascontiguousarray(tm)
+            mask, t = np.empty(n, np.bool_), np.empty(n)
+            intersect_disk(f64(o), f64(d), tm, f64(self.pos), float(self.radius ** 2), mask, t)
             inside = np.zeros(n, bool)
         L = np.broadcast_to(self.intensity / (math.pi * self.radius ** 2), (n, 3))
         f = self._falloff(-d)
         if f is not None:
             L = L * np.where(inside, 1.0, f)[:, None]
         return mask, t, L
+
+
+@kernel
+def intersect_disk(o, d, tmax, pos, radius2, mask, t):
+    """PointLight.intersect with Soft Falloff for rays o, d (N,3) up to tmax (N,): the
+    disk of squared radius radius2 through pos facing each ray's origin. Writes mask (N,)
+    (the ray meets the disk before tmax) and t (N,) (the distance to the disk's plane
+    along the ray, inf where the ray does not travel towards the centre). The numpy
+    stage's arithmetic operation for operation (np.linalg.norm sums x^2 + y^2 then + z^2,
+    np.einsum's dot products (x + z) + y; np.maximum keeps a NaN), so the same bits
+    (tests/test_soft_falloff.py)."""
+    for i in range(o.shape[0]):
+        r0, r1, r2 = o[i, 0] - pos[0], o[i, 1] - pos[1], o[i, 2] - pos[2]
+        dist = math.sqrt((r0 * r0 + r1 * r1) + r2 * r2)
+        ds = 1e-300 if dist < 1e-300 else dist
+        a0, a1, a2 = r0 / ds, r1 / ds, r2 / ds
+        d0, d1, d2 = d[i, 0], d[i, 1], d[i, 2]
+        toward = -((d0 * a0 + d2 * a2) + d1 * a1)
+        front = toward > 1e-12
+        ti = dist / (toward if front else 1.0)
+        h0, h1, h2 = ti * d0 + r0, ti * d1 + r1, ti * d2 + r2
+        mask[i] = (front and dist > 0 and ti < tmax[i]
+                   and (h0 * h0 + h2 * h2) + h1 * h1 <= radius2)
+        t[i] = ti if front else np.inf
+
+
+@register_warm_up
+def _warm_up():
+    one = np.ones((1, 3))
+    intersect_disk(one, -one, np.ones(1), np.zeros(3), 0.25, np.empty(1, np.bool_),
+                   np.empty(1))
 
 
 def sphere_light_pdf(light, o, d, ns):
