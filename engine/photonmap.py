@@ -267,6 +267,19 @@ def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
 
 
 @kernel
+def _accepted_at_least(direction, normal, idx, cnt, nx, ny, nz, need):
+    """Whether at least `need` of photons idx[:cnt] are accepted (_accepted): stops
+    counting once they are."""
+    acc = 0
+    for j in range(cnt):
+        if acc >= need:
+            return True
+        if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+            acc += 1
+    return acc >= need
+
+
+@kernel
 def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, d2, idx):
     """A widening k-NN row's answer from the sphere a scan listed whole: scan[:nb], the
     photons with squared distance <= r2 (kdtree.ball / hashgrid.ball; nb <= SCAN_BUDGET).
@@ -447,14 +460,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 prev_kth = -1.0
                 if listed >= 0:
                     # The sphere is listed already (list_d2 / list_idx, tree order; listed
-                    # <= list_cap <= widest). Its accepted photons, in that order:
-                    n_acc = 0
-                    for j in range(listed):
-                        if _accepted(direction, normal, list_idx[j], nx, ny, nz)[0]:
-                            acc_d2[n_acc] = list_d2[j]
-                            acc_idx[n_acc] = list_idx[j]
-                            n_acc += 1
-                    if n_acc < min_photons:
+                    # <= list_cap <= widest).
+                    if not _accepted_at_least(direction, normal, list_idx, listed, nx, ny, nz,
+                                              min_photons):
                         continue
                     # The widening below, ordering only as far as it reads: the kq
                     # nearest of a step (nearest_first's prefix, taken where it is one set
@@ -485,6 +493,12 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                         # distance. Their own order is that of the whole sphere's where
                         # their distances are distinct (checked; else the whole sphere is
                         # ordered as before): the same sums, from ~n_acc of ~listed photons.
+                        n_acc = 0
+                        for j in range(listed):  # the accepted ones, in the listing's order
+                            if _accepted(direction, normal, list_idx[j], nx, ny, nz)[0]:
+                                acc_d2[n_acc] = list_d2[j]
+                                acc_idx[n_acc] = list_idx[j]
+                                n_acc += 1
                         kdtree.nearest_first(acc_d2, acc_idx, n_acc, n_acc, r2, d2, idx, hist)
                         only_accepted = True
                         for j in range(n_acc - 1):
