@@ -459,8 +459,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 # regathered points: 2 of 3 tries).
                 prev_kth = -1.0
                 if listed >= 0:
-                    # The sphere is listed already (list_d2 / list_idx, tree order; listed
-                    # <= list_cap <= widest).
+                    # The sphere is listed already (list_d2 / list_idx, tree order; a row
+                    # widens only where k < widest, and then listed <= list_cap <= widest).
                     if not _accepted_at_least(direction, normal, list_idx, listed, nx, ny, nz,
                                               min_photons):
                         continue
@@ -468,7 +468,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     # nearest of a step (nearest_first's prefix, taken where it is one set
                     # in one order: kdtree.unique_nearest, so any sort gives those bits),
                     # else the whole sphere (nearest_first of all, as before).
-                    found = listed
+                    found = min(listed, widest)
                     step = kq  # the last width tried
                     ordered = 0 if WIDEN_ORDER_AS_READ else -1  # d2 / idx's ordered prefix
                     while ordered >= 0:
@@ -487,7 +487,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     if ordered < 0:
                         kdtree.nearest_first(list_d2, list_idx, listed, found, r2, d2, idx,
                                              hist)
-                    elif cnt < kq:
+                    elif cnt < kq and found == listed:
                         # The estimate reads the whole sphere (cnt = found: not `full`, so
                         # not floored): only its accepted photons add to it, in increasing
                         # distance. Their own order is that of the whole sphere's where
@@ -511,7 +511,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                             kdtree.nearest_first(list_d2, list_idx, listed, found, r2, d2,
                                                  idx, hist)
                     elif ordered < cnt:
-                        # kq >= widest with the whole sphere (full): all of it in order.
+                        # The whole sphere read (kq >= widest), all of it in order.
                         kdtree.nearest_first(list_d2, list_idx, listed, found, r2, d2, idx,
                                              hist)
                 else:
