@@ -54,6 +54,11 @@ MIN_RADIUS_FRACTION = 0.01
 # photons (measured: a scan of this many costs less than the MAX_WIDEN_K heap query it
 # saves; bench/bench_lookup.py). 512 KB of scratch per kernel call.
 SCAN_BUDGET = 16 * MAX_WIDEN_K
+# A widening row over a listed sphere orders its photons only as far as its estimate
+# reads them: the kq nearest of each width, and where the estimate reads the whole sphere,
+# its accepted photons alone (the same bits: docs/performance.md "secondary"). False: the
+# whole sphere ordered and summed, as before (tests compare the two).
+WIDEN_ORDER_AS_READ = True
 # A k-NN estimate lists its whole search sphere (then orders its k nearest: no heap) when
 # the sphere holds at most this many times k photons (kdtree.ball_d2, nearest_first).
 LIST_FACTOR = 8
@@ -262,6 +267,19 @@ def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
 
 
 @kernel
+def _accepted_at_least(direction, normal, idx, cnt, nx, ny, nz, need):
+    """Whether at least `need` of photons idx[:cnt] are accepted (_accepted): stops
+    counting once they are."""
+    acc = 0
+    for j in range(cnt):
+        if acc >= need:
+            return True
+        if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+            acc += 1
+    return acc >= need
+
+
+@kernel
 def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, d2, idx):
     """A widening k-NN row's answer from the sphere a scan listed whole: scan[:nb], the
     photons with squared distance <= r2 (kdtree.ball / hashgrid.ball; nb <= SCAN_BUDGET).
@@ -360,6 +378,10 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     # docs/performance.md "knn").
     wide_d2 = np.empty(cap, np.float64)
     wide_hist = np.empty(cap + 1, np.int64)
+    # A listed sphere's accepted photons, in the listing's order (a widening row's
+    # estimate over its whole sphere sums only these: below).
+    acc_d2 = np.empty(list_cap, np.float64)
+    acc_idx = np.empty(list_cap, np.int64)
     for r in range(rows.shape[0]):
         if r % STOP_ROWS == 0 and stop[0]:
             return
@@ -374,6 +396,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         boundary[i] = True
         scale = 1.0
         r_simpson = radius  # the radius estimator's kernel support
+        only_accepted = False  # d2 / idx hold the listed sphere's accepted photons alone
         if knn:
             kq = min(k, P)
             widest = min(P, MAX_WIDEN_K)
@@ -436,12 +459,61 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 # regathered points: 2 of 3 tries).
                 prev_kth = -1.0
                 if listed >= 0:
-                    # The sphere is listed already, in d2 / idx.
-                    if _count_accepted(direction, normal, idx, listed, nx, ny, nz) \
-                            < min_photons:
+                    # The sphere is listed already (list_d2 / list_idx, tree order; a row
+                    # widens only where k < widest, and then listed <= list_cap <= widest).
+                    if not _accepted_at_least(direction, normal, list_idx, listed, nx, ny, nz,
+                                              min_photons):
                         continue
+                    # The widening below, ordering only as far as it reads: the kq
+                    # nearest of a step (nearest_first's prefix, taken where it is one set
+                    # in one order: kdtree.unique_nearest, so any sort gives those bits),
+                    # else the whole sphere (nearest_first of all, as before).
                     found = min(listed, widest)
-                    kdtree.nearest_first(list_d2, list_idx, listed, found, r2, d2, idx, hist)
+                    step = kq  # the last width tried
+                    ordered = 0 if WIDEN_ORDER_AS_READ else -1  # d2 / idx's ordered prefix
+                    while ordered >= 0:
+                        kq = min(4 * step, widest)
+                        cnt = min(found, kq)
+                        if cnt < kq or kq >= widest:
+                            break
+                        kdtree.nearest_first(list_d2, list_idx, listed, kq, r2, d2, idx, hist)
+                        if not kdtree.unique_nearest(d2, listed, kq):
+                            ordered = -1  # ties at the prefix's end
+                            break
+                        ordered = kq
+                        if _count_accepted(direction, normal, idx, cnt, nx, ny, nz) >= k // 2:
+                            break
+                        step = kq
+                    if ordered < 0:
+                        kdtree.nearest_first(list_d2, list_idx, listed, found, r2, d2, idx,
+                                             hist)
+                    elif cnt < kq and found == listed:
+                        # The estimate reads the whole sphere (cnt = found: not `full`, so
+                        # not floored): only its accepted photons add to it, in increasing
+                        # distance. Their own order is that of the whole sphere's where
+                        # their distances are distinct (checked; else the whole sphere is
+                        # ordered as before): the same sums, from ~n_acc of ~listed photons.
+                        n_acc = 0
+                        for j in range(listed):  # the accepted ones, in the listing's order
+                            if _accepted(direction, normal, list_idx[j], nx, ny, nz)[0]:
+                                acc_d2[n_acc] = list_d2[j]
+                                acc_idx[n_acc] = list_idx[j]
+                                n_acc += 1
+                        kdtree.nearest_first(acc_d2, acc_idx, n_acc, n_acc, r2, d2, idx, hist)
+                        only_accepted = True
+                        for j in range(n_acc - 1):
+                            if not d2[j] < d2[j + 1]:
+                                only_accepted = False
+                                break
+                        if only_accepted:
+                            cnt = n_acc
+                        else:
+                            kdtree.nearest_first(list_d2, list_idx, listed, found, r2, d2,
+                                                 idx, hist)
+                    elif ordered < cnt:
+                        # The whole sphere read (kq >= widest), all of it in order.
+                        kdtree.nearest_first(list_d2, list_idx, listed, found, r2, d2, idx,
+                                             hist)
                 else:
                     nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan,
                                SCAN_BUDGET, buckets)
@@ -460,13 +532,18 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     if found < 0:
                         found = _knn(kind, pos, nodes, start, grid, qx, qy, qz, widest, r2,
                                      d2, idx, buckets)
-                while True:
-                    kq = min(4 * kq, widest)
-                    cnt = min(found, kq)
-                    if cnt < kq or kq >= widest:
-                        break
-                    if _count_accepted(direction, normal, idx, cnt, nx, ny, nz) >= k // 2:
-                        break
+                    step = kq
+                    ordered = -1
+                if ordered < 0:
+                    # The whole sphere in order (d2 / idx): its prefixes tried in turn.
+                    kq = step
+                    while True:
+                        kq = min(4 * kq, widest)
+                        cnt = min(found, kq)
+                        if cnt < kq or kq >= widest:
+                            break
+                        if _count_accepted(direction, normal, idx, cnt, nx, ny, nz) >= k // 2:
+                            break
         else:
             c = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets)
             if c < min_photons:
@@ -486,7 +563,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         # here in the loop: a kernel called per row with its ~18 arrays paid ~0.25 us of
         # reference counting (docs/performance.md, "Eighth slice"). k-NN estimators use
         # the k nearest *accepted* photons (facing the query's surface).
-        full = cnt == kq  # the query stopped at kq photons: more may lie beyond
+        full = cnt == kq and not only_accepted  # stopped at kq photons: more may lie beyond
         rk = radius
         floored = False
         if code >= KNN_SIMPSON:
@@ -583,6 +660,13 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     masked[s, i, c] = ms[s, c] * scale
         if not want_boundary:
             continue
+        if only_accepted:
+            # The sum saw no other surface's photons: look for them in the listed sphere.
+            for j in range(listed):
+                if math.sqrt(list_d2[j]) <= rk and \
+                        _accepted(direction, normal, list_idx[j], nx, ny, nz)[1]:
+                    other_inside = True
+                    break
         # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
         b = other_inside or count < min_photons
         # An open edge (a table's rim, the end of a floor) leaves no other surface's photons,

@@ -708,3 +708,55 @@ def test_widening_lists_the_heap_answer_bitwise():
                 else:
                     taken["sorted_small" if nb <= widest else "sorted_big"] += 1
     assert min(taken.values()) >= 5, taken
+
+
+def test_widening_over_a_listed_sphere_sums_the_old_bits(monkeypatch):
+    """A widening row whose sphere is listed (at most LIST_FACTOR k photons) orders only
+    as far as it reads: the kq nearest of a step, and where the estimate reads the whole
+    sphere, its accepted photons alone (docs/performance.md "secondary"). Its estimates,
+    boundary flags and masked estimates are bitwise those of the path that orders the
+    whole sphere and sums every photon of it (WIDEN_ORDER_AS_READ False: the path before).
+    Both run as the kernel's Python function: IEEE arithmetic as written, where the
+    compiled kernel may fuse a multiply-add (the same way on both paths; the captured
+    renders' estimates and the films keep their bits). Corners (a thin wall's far side
+    crowding a sparse floor), a map smaller than MAX_WIDEN_K (widest = P, whole-map
+    spheres) and piles of equal points among the accepted ones (ties: the whole sphere
+    ordered, as before)."""
+    from engine import photonmap
+    rng = np.random.default_rng(20)
+    floor, wall = _plane(3000, rng), _plane(20000, rng, z=0.001, nz=-1.0)
+    piles = _plane(3000, rng)
+    for c in range(60):  # 60 piles of 6 equal floor photons: equal accepted distances
+        piles.position[6 * c:6 * c + 6] = piles.position[6 * c]
+    maps = {"corner": (_join(floor, wall), (0.06, 0.08)),
+            "small": (_join(_plane(200, rng), _plane(200, rng, z=0.001, nz=-1.0)), (0.5, 1.5)),
+            "piles": (_join(piles, wall), (0.06, 0.08))}
+    m = 160
+    q = np.c_[0.1 + 0.8 * rng.random((m, 2)), np.zeros(m)]
+    nq = np.tile([0.0, 0.0, 1.0], (m, 1))
+    r_floor = rng.random(m) * 0.002
+    widened = 0
+    for name, (ph, radii) in maps.items():
+        pm = PhotonMap(ph, 1)
+        masks = rng.random((2, len(ph))) < 0.5
+        pos = pm.photons.position.astype(np.float64)
+        ok = (pm.photons.normal[:, 2] > 0.5) & (pm.photons.direction[:, 2] < 0)
+        for radius in radii:
+            d2 = ((q[:, None, :] - pos[None]) ** 2).sum(axis=2)
+            for i in range(m):
+                near = np.flatnonzero(d2[i] < radius * radius)
+                first = near[np.argsort(d2[i, near])][:64]
+                widened += len(first) == 64 and ok[first].sum() < 32 and len(near) <= 512
+            for est in ("knn_simpson", "knn_cone"):
+                for k, mp in ((64, 8), (16, 1)):
+                    args = (q, nq, radius, k, mp, est)
+                    kw = dict(return_boundary=True, r_floor=r_floor, masks=masks)
+                    with monkeypatch.context() as mpatch:
+                        mpatch.setattr(photonmap, "_irradiance_rows",
+                                       photonmap._irradiance_rows.py_func)
+                        got = pm.irradiance(*args, **kw)
+                        mpatch.setattr(photonmap, "WIDEN_ORDER_AS_READ", False)
+                        want = pm.irradiance(*args, **kw)
+                    for a, b in zip(got, want):
+                        np.testing.assert_array_equal(a, b, f"{name} {radius} {est} {k}")
+    assert widened > 150  # rows that widen over a listed sphere (not vacuous)

@@ -1,0 +1,196 @@
+"""The secondary-caustic k-NN estimates of a render (issue 13, s20 secondary): their share
+of a 1-worker default render, and per row class (seeded, listed, widened and how far)
+their rows, photons listed and CPU us a row, in a base kernel and in this checkout's.
+
+    PYTHONPATH=$PWD python bench/bench_secondary.py capture BLEND W H OUT.calls
+    git show 1a4541d:engine/photonmap.py > /tmp/base_photonmap.py
+    PYTHONPATH=$PWD python bench/bench_secondary.py classes /tmp/base_photonmap.py OUT.calls...
+
+`capture` renders an example blend (exported through the add-on into WORK, default
+/tmp/secondary/work) at its default settings, 1 worker, records the secondary map's
+irradiance calls (at the camera hits: _smooth_estimate's SECONDARY_SAMPLES_PER_PIXEL
+call; at the regathers: _secondary_irradiance) and prints their process CPU against the
+render's. `classes` classifies each captured row with an instrumented copy of the base
+file's _irradiance_rows (its anchors are 1a4541d's kernel), then replays each class's rows
+alone through the base kernel and this checkout's (compiled from source, one thread, best
+of 3 process CPU), and prints a Markdown table. Classes: seeded (the previous row's
+sphere sufficed), listed (the whole sphere listed, <= LIST_FACTOR k photons, no widening),
+heap (fuller sphere: kdtree.knn), widened with no accepted photon (settled empty), widened
+to kq = 256 with >= k / 2 accepted among them, widened over a whole sphere of fewer photons
+than the next width (the estimate reads all of it).
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+WORK = os.environ.get("SECONDARY_WORK", "/tmp/secondary/work")
+
+
+def capture(name, w, h, out):
+    import numpy as np
+    import bench_kernels as bk
+    os.makedirs(WORK, exist_ok=True)
+    pkl = bk.exported(name, WORK)
+    from engine import photonmap
+    from engine.jit import ensure_compiled
+    from engine.render import render
+    from engine.settings import RenderSettings
+    ensure_compiled()
+    scene = pickle.load(open(pkl, "rb"))
+    scene.width, scene.height = w, h
+    irradiance = photonmap.PhotonMap.irradiance
+    maps, calls, cpu = {}, {}, {}
+
+    def which():
+        f = sys._getframe(2)
+        while f is not None:
+            c = f.f_code.co_name
+            if c == "_secondary_irradiance":
+                return "regather"
+            if c == "_smooth_estimate":  # the secondary map's call: 4 samples a pixel
+                return "camera" if f.f_locals.get("per_pixel") == 4 else None
+            if c in ("gather_indirect", "_photon_terms", "__init__"):
+                return None
+            f = f.f_back
+        return None
+
+    def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
+               r_floor=None, should_cancel=None, masks=None):
+        args = (p, n, radius, k, min_photons, estimator, return_boundary, r_floor,
+                should_cancel, masks)
+        w_ = which()
+        if w_ is None:
+            return irradiance(self, *args)
+        if id(self) not in maps:
+            t, ph = self.tree, self.photons
+            maps[id(self)] = dict(tree=(t.position, t.axis, t.split, t.leaf, t.bounds),
+                                  photons=(ph.position, ph.power, ph.direction, ph.normal,
+                                           ph.kind, ph.emitted))
+        calls.setdefault((id(self), w_, radius), []).append(
+            (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
+             None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),))),
+             None if masks is None else np.array(masks)))
+        t0 = time.process_time()
+        try:
+            return irradiance(self, *args)
+        finally:
+            a = cpu.setdefault((w_, len(self.photons), radius), [0, 0.0, 0])
+            a[0] += len(p)
+            a[1] += time.process_time() - t0
+            a[2] += 1
+
+    photonmap.PhotonMap.irradiance = record
+    t0 = time.process_time()
+    render(scene, RenderSettings(workers=1))
+    total = time.process_time() - t0
+    print(f"{name} {w}x{h}: render {total:.2f} CPU s")
+    for (w_, photons, radius), (rows, s, nc) in sorted(cpu.items()):
+        print(f"  {w_} (map {photons:,} photons, r {radius:.3f} m): {nc} calls, {rows:,} rows, "
+              f"{s:.3f} CPU s ({s / total * 100:.1f} %), {s / rows * 1e6:.2f} us a row")
+    with open(out, "wb") as f:
+        pickle.dump(dict(maps=maps, calls=calls), f, protocol=4)
+
+
+NAMES = {0: "seeded", 1: "listed", 2: "heap", 3: "widened: no accepted photon",
+         5: "widened to 256, >= k / 2 accepted", 6: "widened to 1024", 7: "widened to 4096",
+         9: "widened over a whole sphere < next width"}
+
+
+def _source(path):
+    t = open(path).read()
+    i = t.index("@kernel\ndef _irradiance_rows(")
+    return t[i:t.index("@register_warm_up", i)].replace("@kernel\n", "")
+
+
+def classes(base_file, captures):
+    import numba
+    import numpy as np
+    from engine import kdtree, photonmap
+    from engine.jit import ensure_compiled
+    from engine.photons import Photons
+    ensure_compiled()
+    base = _source(base_file)
+    src = base.replace("def _irradiance_rows(", "def _counted(cls, nph, ")
+
+    def ins(anchor, before="", after=""):
+        nonlocal src
+        assert src.count(anchor) == 1, anchor
+        src = src.replace(anchor, before + anchor + after)
+    ins("            if seeded:\n                cnt = kq\n", after="                cls[i] = 0\n")
+    ins("                if 0 <= listed <= list_cap:\n",
+        after="                    cls[i] = 1\n                    nph[i] = listed\n")
+    ins("                    listed = -1\n                    cnt = _knn(",
+        before="                    cls[i] = 2\n                    nph[i] = listed\n")
+    ins("                prev_kth = -1.0\n                if listed >= 0:",
+        before="                cls[i] = 3\n")
+    ins("                    nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan,\n"
+        "                               SCAN_BUDGET, buckets)\n", after="                    nph[i] = nb\n")
+    ins("                    if cnt < kq or kq >= widest:\n                        break\n",
+        before="                    cls[i] = 9 if cnt < kq else 5 + (kq >= 1024) + (kq >= 4096)\n")
+    scope = dict(photonmap.__dict__)
+    exec(src, scope)
+    counted = numba.njit(nogil=True)(scope["_counted"])
+    scope = dict(photonmap.__dict__)
+    exec(base, scope)
+    kernels = {"base": numba.njit(nogil=True)(scope["_irradiance_rows"]),
+               "this": photonmap._irradiance_rows}
+    print("| capture | at | class | rows | share % | photons listed a row | base / this CPU ms "
+          "| base / this us a row |")
+    print("|---|---|---|---:|---:|---:|---:|---:|")
+    for path in captures:
+        cap = pickle.load(open(path, "rb"))
+        for (mid, caller, radius), calls in cap["calls"].items():
+            m = cap["maps"][mid]
+            t = kdtree.KdTree.__new__(kdtree.KdTree)
+            t.position, t.axis, t.split, t.leaf, t.bounds = m["tree"]
+            t.order = None
+            pm = photonmap.PhotonMap.__new__(photonmap.PhotonMap)
+            pm.workers, pm.structure, pm.tree = 1, "kdtree", t
+            pm.photons = Photons(*m["photons"])
+            C, NP = [], []
+            for p, n, k, mp, est, rb, rf, mk in calls:
+                cls, nph = np.full(len(p), -1, np.int64), np.zeros(len(p), np.int64)
+                photonmap._irradiance_rows = lambda *a: counted(cls, nph, *a)
+                pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
+                              masks=mk)
+                C.append(cls)
+                NP.append(nph)
+
+            def run(fn, pick):
+                photonmap._irradiance_rows = fn
+                best = 1e9
+                for _ in range(3):
+                    t0 = time.process_time()
+                    for (p, n, k, mp, est, rb, rf, mk), c in zip(calls, C):
+                        s = pick(c)
+                        if len(s):
+                            pm.irradiance(p[s], n[s], radius, k, mp, est, return_boundary=rb,
+                                          r_floor=None if rf is None else rf[s], masks=mk)
+                    best = min(best, time.process_time() - t0)
+                return best
+            allc, alln = np.concatenate(C), np.concatenate(NP)
+            tag = f"{os.path.basename(path)} | {caller} ({len(pm.photons):,}, {radius:.3f} m)"
+            for cl in [None] + sorted(set(allc.tolist())):
+                pick = ((lambda c: np.arange(len(c))) if cl is None
+                        else (lambda c, cl=cl: np.flatnonzero(c == cl)))
+                sel = np.ones(len(allc), bool) if cl is None else allc == cl
+                tb, tt = (run(kernels[v], pick) for v in ("base", "this"))
+                rows = int(sel.sum())
+                listed = f"{alln[sel].mean():.0f}" if cl else "-"  # (seeded: not counted)
+                print(f"| {tag} | {'all' if cl is None else NAMES[cl]} | {rows:,} | "
+                      f"{sel.mean() * 100:.1f} | {listed} | "
+                      f"{tb * 1e3:.0f} / {tt * 1e3:.0f} | {tb / rows * 1e6:.2f} / "
+                      f"{tt / rows * 1e6:.2f} |", flush=True)
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "capture":
+        capture(sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), sys.argv[5])
+    else:
+        classes(sys.argv[2], sys.argv[3:])
