@@ -863,10 +863,11 @@ def seed_bound(d2):
 
 @kernel
 def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, walked):
-    """nearest(r2)'s answer for the queries p[rows[r]] (p (M,3) float64, rows (R,) in
-    Morton order) into near[r] (-1: no point nearer than sqrt(r2)), most of them without
-    the tree: from g = the previous row's answer, the nearest of g and its neighbour list
-    (neighbour_lists' table nbr, reach) is q's nearest among all points when
+    """nearest(r2)'s answer for the queries p[rows[r]] (p (M,3) float64, or wider rows of
+    which the first three columns are read; rows (R,) in Morton order) into near[r] (-1:
+    no point nearer than sqrt(r2)), most of them without the tree: from g = the previous
+    row's answer, the nearest of g and its neighbour list (neighbour_lists' table nbr,
+    reach) is q's nearest among all points when
     sqrt(d2(q, best)) + |q - g| < reach[g] (an unlisted point p is at least
     reach[g] - |q - g| from q: triangle inequality). Else the walk moves to the best
     point met and tries again, up to `steps` lists, then searches the tree bounded by

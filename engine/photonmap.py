@@ -1066,22 +1066,36 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
     r). nbr, reach: the tree's neighbour lists (kdtree.neighbour_lists). Returns the
     number of rays."""
     P = tree_pos.shape[0]
+    R = rows.shape[0]
     nrays = 0
+    # The rows' queries first copied into their Morton order (position, normal, own
+    # offset: the same values), so the walk and the row loop below read them in sequence.
+    # Read at random inside the walk, behind its dependent loads and branches, they cost
+    # ~40 ns a row more (one read-ahead loop pays them far cheaper): the kernel 227 ->
+    # 163 ns a row on Figure 6's lookups, 253 -> 187 on Figure 7's (docs/performance.md,
+    # "gatherlookup").
+    q = np.empty((R, 7))
+    for r in range(R):
+        i = rows[r]
+        qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+        q[r, 0], q[r, 1], q[r, 2] = qx, qy, qz
+        q[r, 3], q[r, 4], q[r, 5] = n[i, 0], n[i, 1], n[i, 2]
+        q[r, 6] = _query_lift(lift, i, qx, qy, qz)
     # Each row's nearest gather point first, for all rows (kdtree.nearest_walk: from the
     # previous row's answer by its neighbour list, 85-90 % of rows, else the tree; rows
     # come in Morton order, so the previous answer is usually near). The answer is the
     # one an unbounded tree search gives.
-    near = np.empty(rows.shape[0], np.int64)
+    near = np.empty(R, np.int64)
     st_node, st_off = kdtree.traversal_stack()  # the facing searches' scratch
     if P > 0:
-        kdtree.nearest_walk(tree_pos, nodes[0], nodes[1], nodes[2], nbr, reach, p, rows, r2,
-                            WALK_STEPS, near, np.zeros(0, np.bool_))
+        kdtree.nearest_walk(tree_pos, nodes[0], nodes[1], nodes[2], nbr, reach, q,
+                            np.arange(R), r2, WALK_STEPS, near, np.zeros(0, np.bool_))
     # The previous row's chosen gather point (a seed for the facing search).
     prev_cand = -1
-    for r in range(rows.shape[0]):
+    for r in range(R):
         i = rows[r]
-        qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
-        nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
+        qx, qy, qz = q[r, 0], q[r, 1], q[r, 2]
+        nx, ny, nz = q[r, 3], q[r, 4], q[r, 5]
         c = -1
         if P > 0:
             j = near[r]
@@ -1117,8 +1131,8 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
         # The ray's ends from scalars (_ray_ends): a kernel called with arrays pays ~14 ns
         # per array (reference counts) when it is not inlined, ~0.1 us a ray here.
         ox, oy, oz, dx, dy, dz, t = _ray_ends(
-            qx, qy, qz, nx, ny, nz, _query_lift(lift, i, qx, qy, qz), position[c, 0],
-            position[c, 1], position[c, 2], normal[c, 0], normal[c, 1], normal[c, 2])
+            qx, qy, qz, nx, ny, nz, q[r, 6], position[c, 0], position[c, 1],
+            position[c, 2], normal[c, 0], normal[c, 1], normal[c, 2])
         o32[nrays, 0], o32[nrays, 1], o32[nrays, 2] = ox, oy, oz
         d32[nrays, 0], d32[nrays, 1], d32[nrays, 2] = dx, dy, dz
         t32[nrays] = t
