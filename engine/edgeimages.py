@@ -138,6 +138,11 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     cell_pts = np.floor((pts - lo) / reach).astype(np.int64)
     dims = cell_pts.max(axis=0) + 3
     shifts = np.stack(np.meshgrid(*([np.arange(-1, 2)] * 3), indexing="ij"), -1).reshape(-1, 3)
+    # The occupied cells once each before their 27 neighbours are listed: many small
+    # separate faces (foliage, a triangle soup) put millions of edge points in few cells.
+    occupied = np.unique((cell_pts[:, 0] * dims[1] + cell_pts[:, 1]) * dims[2] + cell_pts[:, 2])
+    cell_pts = np.stack([occupied // (dims[1] * dims[2]), (occupied // dims[2]) % dims[1],
+                         occupied % dims[2]], axis=1)
     near_cells = (cell_pts[:, None, :] + shifts[None]).reshape(-1, 3)
     keys = np.unique((near_cells[:, 0] * dims[1] + near_cells[:, 1]) * dims[2] + near_cells[:, 2])
     cell_ph = np.floor((photons.position - lo) / reach)
