@@ -35,6 +35,9 @@ FACING = 0.9  # |photon normal . triangle normal| for the photon to lie on that 
 # Edge points a photon looks at: the edges through them are tested exactly. Two edges
 # meet at each corner and a crease's two sides share their points (4 at a corner).
 NEAREST_POINTS = 8
+# Edge points listed at most (plus two an edge): bounds the listing's memory whatever
+# the radius (a 1e-9 m radius on 10 m of edges asked for 8e10 points).
+EDGE_POINT_BUDGET = 1 << 22
 PROBE_LIFT = 1e-3  # x R: the continuation probe starts this far above the image point
 
 
@@ -123,19 +126,23 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     a, b, n, m = _open_edges_kept(geo, diffuse)
     if not len(a):
         return empty
-    # Points along every open edge at most radius / 2 apart: a photon within `radius` of
-    # an edge lies within radius + spacing / 2 of one of its points.
+    # Points along every open edge `spacing` apart (radius / 2, wider where that would
+    # list more than EDGE_POINT_BUDGET points: a tiny radius on long edges): a photon
+    # within `radius` of an edge lies within reach = radius + spacing / 2 of a point.
     length = np.linalg.norm(b - a, axis=1)
-    steps = np.maximum(np.ceil(length / (0.5 * radius)).astype(np.int64), 1)
+    spacing = max(0.5 * radius, float(length.sum()) / EDGE_POINT_BUDGET)
+    steps = np.maximum(np.ceil(length / spacing).astype(np.int64), 1)
     edge = np.repeat(np.arange(len(a)), steps + 1)
     first = np.r_[0, np.cumsum(steps + 1)[:-1]]
     frac = (np.arange(len(edge)) - np.repeat(first, steps + 1)) / np.repeat(steps, steps + 1)
     pts = a[edge] + frac[:, None] * (b - a)[edge]
-    reach = radius * 1.25
-    # First the photons in or beside a cell (of side reach) holding an edge point: one
-    # sorted lookup per photon (most of a caustic map's photons lie far from any edge).
+    reach = radius + 0.5 * spacing
+    # First the photons in or beside a cell holding an edge point: one sorted lookup per
+    # photon (most of a caustic map's photons lie far from any edge). Cells of side reach,
+    # or wider where more than 2^20 would span the points (their keys stay in int64).
     lo = pts.min(axis=0) - 2.0 * reach
-    cell_pts = np.floor((pts - lo) / reach).astype(np.int64)
+    cell = max(reach, float((pts.max(axis=0) - lo).max() + 2.0 * reach) / (1 << 20))
+    cell_pts = np.floor((pts - lo) / cell).astype(np.int64)
     dims = cell_pts.max(axis=0) + 3
     shifts = np.stack(np.meshgrid(*([np.arange(-1, 2)] * 3), indexing="ij"), -1).reshape(-1, 3)
     # The occupied cells once each before their 27 neighbours are listed: many small
@@ -145,7 +152,7 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
                          occupied % dims[2]], axis=1)
     near_cells = (cell_pts[:, None, :] + shifts[None]).reshape(-1, 3)
     keys = np.unique((near_cells[:, 0] * dims[1] + near_cells[:, 1]) * dims[2] + near_cells[:, 2])
-    cell_ph = np.floor((photons.position - lo) / reach)
+    cell_ph = np.floor((photons.position - lo) / cell)
     inside = np.all((cell_ph >= 0) & (cell_ph < dims), axis=1)
     cand = np.flatnonzero(inside)
     c = cell_ph[cand].astype(np.int64)
