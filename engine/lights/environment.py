@@ -364,6 +364,23 @@ def env_rotate(R, d0, d1, d2):
 
 
 @kernel
+def _wrap(i, n):
+    """i mod n (Repeat; Python's sign convention), n >= 1. Texel indices are at most one
+    texel outside [0, n) (a neighbour, or u = 1 / v = 0 exactly): those are wrapped by a
+    compare, the general case by `%`. Same value as `i % n`, but the sampling kernels do
+    ~20 of these a sample and a 64-bit integer division costs ~40-90 cycles on this
+    machine's Intel cores (the world light's sampling was ~390 ns a row, issue 13)."""
+    if i >= 0:
+        if i < n:
+            return i
+        if i == n:
+            return 0
+    elif i == -1:
+        return n - 1
+    return i % n
+
+
+@kernel
 def env_lookup(px, interp, u, v):
     """Radiance (r, g, b) at image coordinates (u, v): texel centres at (i + 0.5) / W,
     v = 1 at the top row; Repeat extension."""
@@ -372,8 +389,8 @@ def env_lookup(px, interp, u, v):
     x = u * W
     y = (1.0 - v) * H
     if interp == 0:
-        ix = int(math.floor(x)) % W
-        iy = int(math.floor(y)) % H
+        ix = _wrap(int(math.floor(x)), W)
+        iy = _wrap(int(math.floor(y)), H)
         return px[iy, ix, 0], px[iy, ix, 1], px[iy, ix, 2]
     x -= 0.5
     y -= 0.5
@@ -381,10 +398,10 @@ def env_lookup(px, interp, u, v):
     fy0 = math.floor(y)
     fx = x - fx0
     fy = y - fy0
-    x0 = int(fx0) % W
-    y0 = int(fy0) % H
-    x1 = (x0 + 1) % W
-    y1 = (y0 + 1) % H
+    x0 = _wrap(int(fx0), W)
+    y0 = _wrap(int(fy0), H)
+    x1 = x0 + 1 if x0 + 1 < W else 0
+    y1 = y0 + 1 if y0 + 1 < H else 0
     w00 = (1.0 - fx) * (1.0 - fy)
     w10 = fx * (1.0 - fy)
     w01 = (1.0 - fx) * fy
@@ -409,11 +426,32 @@ ONE_BELOW = 0.9999999999999999  # the largest float64 below 1
 @kernel
 def _texel_lum(px, i, j):
     """Luminance of texel (row i, column j), both wrapped (Repeat), as sampling.luminance."""
+    return _lum_at(px, _wrap(i, px.shape[0]), _wrap(j, px.shape[1]))
+
+
+@kernel
+def _lum_at(px, a, b):
+    """Luminance of texel (row a, column b), both in range, as sampling.luminance."""
+    return px[a, b, 0] * 0.2126 + px[a, b, 1] * 0.7152 + px[a, b, 2] * 0.0722
+
+
+@kernel
+def _lum9(px, i, j):
+    """Luminances of the 3 x 3 texels around (row i, column j), wrapped (Repeat):
+    (lmm, lm0, lmp, l0m, l00, l0p, lpm, lp0, lpp), lXY at row offset X, column offset Y
+    (m / 0 / p: -1 / 0 / +1). The neighbours' rows and columns are wrapped once each (4
+    wraps, not 18 as nine _texel_lum calls would)."""
     H = px.shape[0]
     W = px.shape[1]
-    a = i % H
-    b = j % W
-    return px[a, b, 0] * 0.2126 + px[a, b, 1] * 0.7152 + px[a, b, 2] * 0.0722
+    i0 = _wrap(i, H)
+    j0 = _wrap(j, W)
+    im = i0 - 1 if i0 > 0 else H - 1
+    ip = i0 + 1 if i0 + 1 < H else 0
+    jm = j0 - 1 if j0 > 0 else W - 1
+    jp = j0 + 1 if j0 + 1 < W else 0
+    return (_lum_at(px, im, jm), _lum_at(px, im, j0), _lum_at(px, im, jp),
+            _lum_at(px, i0, jm), _lum_at(px, i0, j0), _lum_at(px, i0, jp),
+            _lum_at(px, ip, jm), _lum_at(px, ip, j0), _lum_at(px, ip, jp))
 
 
 @kernel
@@ -460,32 +498,30 @@ def texel_warp(px, interp, i, j, ux, uy):
     0): (ux, uy, 1)."""
     if interp == 0:
         return ux, uy, 1.0
+    # The 3 x 3 neighbourhood's luminances, read once (lXY: row X, column Y; m / 0 / p
+    # for -1 / 0 / +1): the marginal and the conditional below both use all nine.
+    lmm, lm0, lmp, l0m, l00, l0p, lpm, lp0, lpp = _lum9(px, i, j)
     # row sums M_b of the three rows (b = -1, 0, +1) over the texel's width
-    m_m = 0.125 * _texel_lum(px, i - 1, j - 1) + 0.75 * _texel_lum(px, i - 1, j) + \
-        0.125 * _texel_lum(px, i - 1, j + 1)
-    m_0 = 0.125 * _texel_lum(px, i, j - 1) + 0.75 * _texel_lum(px, i, j) + \
-        0.125 * _texel_lum(px, i, j + 1)
-    m_p = 0.125 * _texel_lum(px, i + 1, j - 1) + 0.75 * _texel_lum(px, i + 1, j) + \
-        0.125 * _texel_lum(px, i + 1, j + 1)
+    m_m = 0.125 * lmm + 0.75 * lm0 + 0.125 * lmp
+    m_0 = 0.125 * l0m + 0.75 * l00 + 0.125 * l0p
+    m_p = 0.125 * lpm + 0.75 * lp0 + 0.125 * lpp
     mean = 0.125 * m_m + 0.75 * m_0 + 0.125 * m_p
     if not mean > 0:
         return ux, uy, 1.0
     fy = _sample_tent(uy, 0.5 * (m_m + m_0), m_0, 0.5 * (m_0 + m_p))
-    fx, value = _tent_given_row(px, i, j, fy, ux)
+    fx, value = _tent_given_row(lmm, lm0, lmp, l0m, l00, l0p, lpm, lp0, lpp, fy, ux)
     return fx, fy, value / mean
 
 
 @kernel
-def _tent_given_row(px, i, j, fy, ux):
-    """(fx, value): fx drawn from the interpolated luminance along row offset fy of texel
-    (i, j), and the luminance at (fx, fy)."""
+def _tent_given_row(lmm, lm0, lmp, l0m, l00, l0p, lpm, lp0, lpp, fy, ux):
+    """(fx, value): fx drawn from the interpolated luminance along row offset fy of a
+    texel whose 3 x 3 neighbourhood has luminances lXY (row X, column Y, m / 0 / p for
+    -1 / 0 / +1: texel_warp), and the luminance at (fx, fy)."""
     hm, h0, hp = _hats(fy)
-    r_m = hm * _texel_lum(px, i - 1, j - 1) + h0 * _texel_lum(px, i, j - 1) + \
-        hp * _texel_lum(px, i + 1, j - 1)
-    r_0 = hm * _texel_lum(px, i - 1, j) + h0 * _texel_lum(px, i, j) + \
-        hp * _texel_lum(px, i + 1, j)
-    r_p = hm * _texel_lum(px, i - 1, j + 1) + h0 * _texel_lum(px, i, j + 1) + \
-        hp * _texel_lum(px, i + 1, j + 1)
+    r_m = hm * lmm + h0 * l0m + hp * lpm
+    r_0 = hm * lm0 + h0 * l00 + hp * lp0
+    r_p = hm * lmp + h0 * l0p + hp * lpp
     fx = _sample_tent(ux, 0.5 * (r_m + r_0), r_0, 0.5 * (r_0 + r_p))
     gm, g0, gp = _hats(fx)
     return fx, gm * r_m + g0 * r_0 + gp * r_p
@@ -499,17 +535,31 @@ def texel_ratio(px, interp, i, j, fx, fy):
         return 1.0
     hm, h0, hp = _hats(fy)
     gm, g0, gp = _hats(fx)
+    lmm, lm0, lmp, l0m, l00, l0p, lpm, lp0, lpp = _lum9(px, i, j)
+    # sum over rows b (-1, 0, +1), then columns a, of the hats' weights (value) and of the
+    # tents' means (mean, 1/8 3/4 1/8) times the luminances, in that order (its rounding)
+    c1 = 0.125
+    c0 = 0.75
     value = 0.0
     mean = 0.0
-    for b in range(-1, 2):
-        wy = hm if b < 0 else (h0 if b == 0 else hp)
-        cy = 0.125 if b != 0 else 0.75
-        for a in range(-1, 2):
-            wx = gm if a < 0 else (g0 if a == 0 else gp)
-            cx = 0.125 if a != 0 else 0.75
-            lum = _texel_lum(px, i + b, j + a)
-            value += wy * wx * lum
-            mean += cy * cx * lum
+    value += hm * gm * lmm
+    mean += c1 * c1 * lmm
+    value += hm * g0 * lm0
+    mean += c1 * c0 * lm0
+    value += hm * gp * lmp
+    mean += c1 * c1 * lmp
+    value += h0 * gm * l0m
+    mean += c0 * c1 * l0m
+    value += h0 * g0 * l00
+    mean += c0 * c0 * l00
+    value += h0 * gp * l0p
+    mean += c0 * c1 * l0p
+    value += hp * gm * lpm
+    mean += c1 * c1 * lpm
+    value += hp * g0 * lp0
+    mean += c1 * c0 * lp0
+    value += hp * gp * lpp
+    mean += c1 * c1 * lpp
     if not mean > 0:
         return 1.0
     return value / mean
@@ -551,15 +601,17 @@ def env_pdf(R, px, interp, pdf_uv, d0, d1, d2):
 
 @kernel
 def _find_interval(cdf, n, x):
-    """Largest index i in [0, n-1] with cdf[i] <= x (cdf has n + 1 entries)."""
-    lo, hi = 0, n
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if cdf[mid] <= x:
-            lo = mid + 1
-        else:
-            hi = mid
-    return min(max(lo - 1, 0), n - 1)
+    """Largest index i in [0, n-1] with cdf[i] <= x (cdf has n + 1 entries, non-decreasing);
+    0 when there is none. Branch-free halving (the select compiles to a conditional move):
+    x is random, so a branching search mispredicts about half its steps."""
+    base = 0
+    length = n
+    while length > 1:
+        half = length >> 1
+        if cdf[base + half] <= x:
+            base += half
+        length -= half
+    return base
 
 
 @kernel
@@ -624,21 +676,46 @@ def _cosine_texel_pdf(c_mass, prefix, cell, k, i, j):
     W = prefix.shape[1] - 1
     Hc = cell.shape[0]
     Wc = cell.shape[1]
-    # the texel's cell: the largest I with I H // Hc <= i
-    I = min((i * Hc + Hc - 1) // H, Hc - 1)
-    while I > 0 and (I * H) // Hc > i:
-        I -= 1
-    while I < Hc - 1 and ((I + 1) * H) // Hc <= i:
-        I += 1
-    J = min((j * Wc + Wc - 1) // W, Wc - 1)
-    while J > 0 and (J * W) // Wc > j:
-        J -= 1
-    while J < Wc - 1 and ((J + 1) * W) // Wc <= j:
-        J += 1
+    # the texel's cell: the largest I with I H // Hc <= i (i itself when the map is no
+    # larger than the coarse grid: then cells are texels, and no integer division)
+    if Hc == H:
+        I = i
+    else:
+        I = min((i * Hc + Hc - 1) // H, Hc - 1)
+        while I > 0 and (I * H) // Hc > i:
+            I -= 1
+        while I < Hc - 1 and ((I + 1) * H) // Hc <= i:
+            I += 1
+    if Wc == W:
+        J = j
+    else:
+        J = min((j * Wc + Wc - 1) // W, Wc - 1)
+        while J > 0 and (J * W) // Wc > j:
+            J -= 1
+        while J < Wc - 1 and ((J + 1) * W) // Wc <= j:
+            J += 1
+    return _cell_texel_pdf(c_mass, prefix, cell, k, I, J, i, j)
+
+
+@kernel
+def _cell_texel_pdf(c_mass, prefix, cell, k, I, J, i, j):
+    """_cosine_texel_pdf of texel (i, j) given its coarse cell (I, J) (env_cosine_sample
+    knows it: the search there costs integer divisions)."""
+    H = prefix.shape[0]
+    W = prefix.shape[1] - 1
     cf = cell[I, J]
     if not cf > 0:
         return 0.0
     return c_mass[k, I, J] * (prefix[i, j + 1] - prefix[i, j]) / cf * (H * W)
+
+
+@kernel
+def _cell_start(I, n, n_coarse):
+    """First texel I n // n_coarse of coarse cell I (build_cosine_distributions); I itself,
+    without the integer division, when cells are texels (n == n_coarse)."""
+    if n == n_coarse:
+        return I
+    return (I * n) // n_coarse
 
 
 @kernel
@@ -680,10 +757,10 @@ def env_cosine_sample(R, px, interp, c_rows, c_cols, c_mass, prefix, cell, n_oct
     span = cols[J + 1] - cols[J]
     b = (u2 - cols[J]) / span if span > 0 else 0.5
     b = min(max(b, 0.0), 0.9999999999999999)
-    i0 = (I * H) // Hc
-    i1 = ((I + 1) * H) // Hc
-    j0 = (J * W) // Wc
-    j1 = ((J + 1) * W) // Wc
+    i0 = _cell_start(I, H, Hc)
+    i1 = _cell_start(I + 1, H, Hc)
+    j0 = _cell_start(J, W, Wc)
+    j1 = _cell_start(J + 1, W, Wc)
     # The texel row within the cell: rows in proportion to their function over the cell.
     target = a * cell[I, J]
     acc = 0.0
@@ -716,8 +793,10 @@ def env_cosine_sample(R, px, interp, c_rows, c_cols, c_mass, prefix, cell, n_oct
     fx = (x - prefix[i, j]) / w if w > 0 else 0.5
     fx = min(max(fx, 0.0), 1.0)
     fx, fy, ratio = texel_warp(px, interp, i, j, fx, fy)
+    # (i, j) lies in cell (I, J) by construction (i0 <= i < i1, j0 <= j < j1, the cell
+    # non-empty), which _cosine_texel_pdf's search would find again.
     return texel_direction(i, j, fx, fy, H, W, R,
-                           _cosine_texel_pdf(c_mass, prefix, cell, k, i, j) * ratio)
+                           _cell_texel_pdf(c_mass, prefix, cell, k, I, J, i, j) * ratio)
 
 
 @kernel
