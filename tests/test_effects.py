@@ -199,13 +199,17 @@ def _caustic_map_power(scene, **kw):
     """(total, on the wall) power of the photons in the caustic map, W (RGB mean)."""
     from engine.render import _photon_pass, prepare_context
     ctx = prepare_context(scene, RenderSettings(workers=1, seed=3, **kw))
+    stats = {}
     try:
-        _photon_pass(ctx, {}, None, None)
+        _photon_pass(ctx, stats, None, None)
     finally:
         ctx.accel.close()
+    # The photons stored, without their images across open edges (engine/edgeimages.py:
+    # appended after them, estimator support that copies their power).
     ph = ctx.caustic_map.photons
-    power = ph.power.astype(np.float64).mean(axis=1)
-    wall = ph.normal[:, 1] < -0.9  # the wall faces -y; floor photons face +z
+    stored = len(ph) - stats.get("caustic_images", 0)
+    power = ph.power[:stored].astype(np.float64).mean(axis=1)
+    wall = ph.normal[:stored, 1] < -0.9  # the wall faces -y; floor photons face +z
     return power.sum(), power[wall].sum(), ctx.plan
 
 

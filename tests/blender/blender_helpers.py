@@ -83,6 +83,17 @@ def cheap(scene, width=None, height=None, pct=None, spp=2, photons=20_000,
         scene.render.resolution_percentage = pct
 
 
+def default_photonmap(scene):
+    """Every Photon Mapping setting of scene back to its default (the tests share one
+    Blender session, and a scene built by make_blends.reset keeps what an earlier test
+    set: 10k caustic photons read a mirror-lit floor 4 % darker). Returns scene.photonmap."""
+    pm = scene.photonmap
+    for p in pm.bl_rna.properties:
+        if p.identifier != "rna_type":
+            pm.property_unset(p.identifier)
+    return pm
+
+
 def cycles_plain(scene, spp, bounces):
     """Cycles' sampling as the tests compare against it: CPU, seed 0, `spp` samples, no
     denoising, no adaptive sampling, no clamping, no glossy blur, `bounces` as Light

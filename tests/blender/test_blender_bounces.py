@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from blender_helpers import ROOT, cycles_plain, read_rgba, render_exr
+from blender_helpers import ROOT, cycles_plain, default_photonmap, read_rgba, render_exr
 
 pytestmark = pytest.mark.blender
 
@@ -133,10 +133,7 @@ def test_closed_room_at_cycles_default_limits_matches_cycles(bpy_addon, tmp_path
         c.seed = seed
         cyc.append(read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"c{seed}.exr"))[..., :3])
     scene.render.engine = "PHOTONMAP"
-    pm = scene.photonmap
-    for p in pm.bl_rna.properties:
-        if p.identifier != "rna_type":
-            pm.property_unset(p.identifier)
+    pm = default_photonmap(scene)
     pm.spp, pm.photons = 16, 100_000
     ours = []
     for seed in (0, 1):
@@ -287,7 +284,8 @@ def test_light_by_way_of_a_mirror_or_a_pane_at_low_limits_matches_cycles(bpy_add
             scene.render.engine = "CYCLES"
             cyc = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3]
             scene.render.engine = "PHOTONMAP"
-            scene.photonmap.spp, scene.photonmap.seed = 16, 0
+            pm = default_photonmap(scene)
+            pm.spp, pm.seed = 16, 0
             ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "o.exr"))[..., :3]
             means[surface, lim] = float(cyc.mean()), float(ours.mean())
     lit = {k: v for k, v in means.items() if v[0] > 0.1}
@@ -325,7 +323,7 @@ def test_closed_room_with_a_mirror_and_a_glass_ball_at_total_5_matches_cycles(bp
     scene.render.engine = "CYCLES"
     cyc = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3].mean()
     scene.render.engine = "PHOTONMAP"
-    pm = scene.photonmap
+    pm = default_photonmap(scene)
     pm.spp, pm.photons = 16, 100_000
     ours = []
     for seed in (0, 1):
