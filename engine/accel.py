@@ -469,7 +469,8 @@ class Accel:
         if tmax is None:
             t = np.full(n, np.finfo(np.float32).max, np.float32)
         else:
-            t = np.array(np.broadcast_to(np.asarray(tmax, np.float32), (n,)), np.float32)
+            # Clipped to float32's max before the cast (the same values; no overflow warning).
+            t = np.broadcast_to(np.asarray(tmax, np.float64), (n,))
             t = np.where(np.isnan(t), 0.0, np.minimum(t, np.finfo(np.float32).max)).astype(np.float32)
         return o, d, t
 
