@@ -117,6 +117,19 @@ def _closed_room(bpy, albedo=0.8):
 
 
 @pytest.mark.slow
+def _ours_at_seeds(bpy, scene, tmp_path, seeds=(0, 1)):
+    """Our images (H,W,3) of scene at default settings but 16 spp and 100k photons, one
+    per seed."""
+    scene.render.engine = "PHOTONMAP"
+    pm = default_photonmap(scene)
+    pm.spp, pm.photons = 16, 100_000
+    ours = []
+    for seed in seeds:
+        pm.seed = seed
+        ours.append(read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"o{seed}.exr"))[..., :3])
+    return ours
+
+
 def test_closed_room_at_cycles_default_limits_matches_cycles(bpy_addon, tmp_path):
     """At Cycles' default Light Paths (12 / 4 diffuse / 4 / 12) our closed room reads
     Cycles' brightness (before the limits: 1.41x, all bounces). Measured (64 x 48, two
@@ -132,13 +145,7 @@ def test_closed_room_at_cycles_default_limits_matches_cycles(bpy_addon, tmp_path
     for seed in (0, 1):
         c.seed = seed
         cyc.append(read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"c{seed}.exr"))[..., :3])
-    scene.render.engine = "PHOTONMAP"
-    pm = default_photonmap(scene)
-    pm.spp, pm.photons = 16, 100_000
-    ours = []
-    for seed in (0, 1):
-        pm.seed = seed
-        ours.append(read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"o{seed}.exr"))[..., :3])
+    ours = _ours_at_seeds(bpy, scene, tmp_path)
     ratio = np.mean([o.mean() for o in ours]) / np.mean([x.mean() for x in cyc])
     assert abs(ratio - 1.0) < 0.02, ratio
 
@@ -322,12 +329,6 @@ def test_closed_room_with_a_mirror_and_a_glass_ball_at_total_5_matches_cycles(bp
     c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = 64
     scene.render.engine = "CYCLES"
     cyc = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3].mean()
-    scene.render.engine = "PHOTONMAP"
-    pm = default_photonmap(scene)
-    pm.spp, pm.photons = 16, 100_000
-    ours = []
-    for seed in (0, 1):
-        pm.seed = seed
-        ours.append(read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"o{seed}.exr"))[..., :3])
+    ours = _ours_at_seeds(bpy, scene, tmp_path)
     ratio = np.mean([o.mean() for o in ours]) / cyc
     assert abs(ratio - 1.0) < 0.012, ratio
