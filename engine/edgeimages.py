@@ -16,11 +16,14 @@ exactly; with k-NN radii within ~4 %, bench/bench_edges.py).
 
 Open edges come from the mesh: an edge of a diffuse triangle is open unless another
 diffuse triangle shares it (same corner positions) with a normal that the estimate would
-accept (NORMAL_AGREEMENT). An image is dropped where a diffuse surface facing the same
-way lies at its position (the surface continues past the edge, e.g. a wall made of
-separate planes meeting there): that surface holds its own photons.
-Not handled: instanced rows (Geometry.shared; no images), a photon near two edges (a
-corner: one image, across the nearer edge), curved edges (each triangle edge straight).
+accept (NORMAL_AGREEMENT). An image is dropped where a diffuse surface parallel to its
+own lies within R of it along the normal, first met by a probe from R above it: the
+surface continues past the edge (a wall made of separate planes meeting there), or a
+rug, a step or a mat lies just above or below, whose photons the estimate's sphere
+already reads (an image over it would count them twice).
+Not handled: scenes with shared instances (Geometry.shared: no images anywhere), a photon
+near two edges (a corner: one image, across the nearer edge), curved edges (each triangle
+edge straight), a parallel surface behind the first one the probe meets.
 """
 from __future__ import annotations
 
@@ -38,7 +41,7 @@ NEAREST_POINTS = 8
 # Edge points listed at most (plus two an edge): bounds the listing's memory whatever
 # the radius (a 1e-9 m radius on 10 m of edges asked for 8e10 points).
 EDGE_POINT_BUDGET = 1 << 22
-PROBE_LIFT = 1e-3  # x R: the continuation probe starts this far above the image point
+PROBE_LIFT = 1.0  # x R: the probe starts this far above the image point, goes twice as far
 
 
 def open_edges(geo, diffuse: np.ndarray):
@@ -189,7 +192,8 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     firsts = np.r_[True, ph[1:] != ph[:-1]]
     ph, e, d = ph[firsts], e[firsts], d[firsts]
     image = p[ph] - 2.0 * d[:, None] * m[e]
-    # Drop images that land on a diffuse surface facing the same way (it continues).
+    # Drop images over a parallel diffuse surface within R along the normal (the surface
+    # continues, or lies close enough for the estimate's sphere to read its photons).
     lift = PROBE_LIFT * radius
     origin = image + lift * n[e]
     t, prim, _, _ = accel.intersect(origin, -n[e], np.full(len(ph), 2.0 * lift))

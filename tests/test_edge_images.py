@@ -138,6 +138,21 @@ def test_no_images_where_the_surface_continues():
     np.testing.assert_allclose(im.position[0], [2.05, 0.8, 0.0], atol=1e-6)
 
 
+@pytest.mark.parametrize("height, kept", [(0.001, 0), (0.3, 1)])
+def test_no_images_over_a_parallel_surface_the_estimate_reads(height, kept):
+    """A rug (x in [0.5, 1.5], y in [0.3, 0.7]) `height` above the floor, a photon on it
+    0.05 from its x = 1.5 edge. 1 mm up, the floor's lookups already read the rug's photons
+    (the estimate's sphere of radius R reaches them): an image over the floor would count
+    it twice, so none. 0.3 m up (beyond R = 0.17), a shelf: its image is kept."""
+    geo, diffuse, accel = _geo(FLOOR + [((0.5, 0.3, height), (1, 0, 0), (0, 0.4, 0))])
+    ph = _photons(np.array([[1.45, 0.5]]), 1.0)
+    ph.position[:, 2] = height
+    im = edge_images(ph, geo, diffuse, accel, R)
+    assert len(im) == kept
+    if kept:
+        np.testing.assert_allclose(im.position[0], [1.55, 0.5, height], atol=1e-6)
+
+
 def test_images_copy_what_the_estimate_reads():
     geo, diffuse, accel = _geo(FLOOR)
     ph = _photons(np.array([[1.0, 0.01]]), 0.25)
