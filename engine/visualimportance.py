@@ -310,9 +310,12 @@ def can_aim(light) -> bool:
     return isinstance(light, (InfiniteLight, AreaLight, PointLight, MeshLight))
 
 
-def _why_natural(lights, p_in: float, p_out: float, cell_power: np.ndarray) -> str:
+def _why_natural(lights, p_in: float, p_out: float, cell_power: np.ndarray,
+                 starts_inside: bool) -> str:
     """Why plan_global_shot emits naturally although it has a region: the report's words.
-    cell_power (L,K): the power each light sends into each sphere of the region."""
+    cell_power (L,K): the power each light sends into each sphere of the region;
+    starts_inside: a light that could aim starts inside the region (ROI_MAX_ORIGINS_INSIDE
+    of its power)."""
     if not p_in > 0:
         return "the lights send none of their light to what the camera sees"
     if not p_out > 0:
@@ -323,8 +326,11 @@ def _why_natural(lights, p_in: float, p_out: float, cell_power: np.ndarray) -> s
                         for light in reaching})
         return (f"the lights that reach what the camera sees ({', '.join(kinds)}) cannot aim "
                 f"their photons (spot lights emit naturally)")
-    return ("the lights that reach what the camera sees start inside it (over "
-            f"{ROI_MAX_ORIGINS_INSIDE:.0%} of their power), so their photons land there anyway")
+    if starts_inside:
+        return ("the lights that reach what the camera sees start inside it (over "
+                f"{ROI_MAX_ORIGINS_INSIDE:.0%} of their power), so their photons land there "
+                "anyway")
+    return "the lights that can aim send all of their light to what the camera sees"
 
 
 def meets_region(o: np.ndarray, d: np.ndarray, centers: np.ndarray, radii: np.ndarray,
@@ -449,6 +455,7 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     cell_power = np.zeros((len(lights), K))  # natural power each light sends into each sphere
     power_out = np.zeros(len(lights))
     aims = np.zeros(len(lights), bool)
+    starts_inside_any = False  # a light that could aim starts inside the region (report)
     # ROI_PILOT photons a light for a few lights; with many, fewer each (at least 64).
     pilot = max(64, ROI_PILOT * 8 // max(8, len(lights)))
     for i, light in enumerate(lights):
@@ -474,10 +481,11 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
         power_out[i] = float(w[~inside].sum()) / total_w * flux
         # A finite light much of whose power starts inside a sphere stays natural
         # (origins_inside, ROI_MAX_ORIGINS_INSIDE).
-        aims[i] = (can_aim(light) and inside.any() and not inside.all()
-                   and (isinstance(light, InfiniteLight)
-                        or float(w[origins_inside(o, region)].sum()) / total_w
-                        <= ROI_MAX_ORIGINS_INSIDE))
+        starts_inside = (not isinstance(light, InfiniteLight)
+                         and float(w[origins_inside(o, region)].sum()) / total_w
+                         > ROI_MAX_ORIGINS_INSIDE)
+        aims[i] = can_aim(light) and inside.any() and not inside.all() and not starts_inside
+        starts_inside_any = starts_inside_any or (can_aim(light) and starts_inside)
     power_in = cell_power.sum(axis=1)
     p_in, p_out = power_in.sum(), power_out.sum()
     i_in = region.inside
@@ -485,7 +493,8 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
     # outside keep a finite power; ROI_MIN_OUTSIDE below then sets their share).
     i_out = max(1.0 - i_in, ROI_MIN_OUTSIDE * 0.5)
     if not (p_in > 0 and p_out > 0 and aims.any()):
-        natural.report = ("no visual importance: " + _why_natural(lights, p_in, p_out, cell_power)
+        natural.report = ("no visual importance: "
+                          + _why_natural(lights, p_in, p_out, cell_power, starts_inside_any)
                           + ", so photons go where the lights send them")
         return natural
     # Photons ~ sqrt(lookups x power) per piece (module docstring): per watt, a sphere's
