@@ -64,6 +64,27 @@ class RecordingAccel(Accel):
         return super().occluded_into(o32, d32, tmax32, blocked)
 
 
+def captured_maps(path):
+    """The photon-map estimates a render made, as bench_lookup.py --render-calls captured
+    them into the pickle at path: yields (caller, radius, calls, PhotonMap), the map
+    rebuilt from its saved kd-tree and photons (calls: the irradiance arguments, row by
+    row: p, n, k, min_photons, estimator, return_boundary, r_floor[, masks])."""
+    import pickle
+    from engine import kdtree
+    from engine.photons import Photons
+    with open(path, "rb") as f:
+        cap = pickle.load(f)
+    for (mid, caller, radius), calls in cap["calls"].items():
+        m = cap["maps"][mid]
+        t = kdtree.KdTree.__new__(kdtree.KdTree)
+        t.position, t.axis, t.split, t.leaf, t.bounds = m["tree"]
+        t.order = None
+        pm = PhotonMap.__new__(PhotonMap)
+        pm.workers, pm.structure, pm.tree = 1, "kdtree", t
+        pm.photons = Photons(*m["photons"])
+        yield caller, radius, calls, pm
+
+
 def recording(accel):
     """The RecordingAccel behind a context's accel (prepare_context wraps it in a
     VisibilityAccel, whose `full` BVH answers every class when no object hides from a

@@ -111,9 +111,9 @@ def _source(path):
 def classes(base_file, captures):
     import numba
     import numpy as np
-    from engine import kdtree, photonmap
+    from bench_core import captured_maps
+    from engine import photonmap
     from engine.jit import ensure_compiled
-    from engine.photons import Photons
     ensure_compiled()
     base = _source(base_file)
     src = base.replace("def _irradiance_rows(", "def _counted(cls, nph, ")
@@ -144,15 +144,7 @@ def classes(base_file, captures):
           "| base / this us a row |")
     print("|---|---|---|---:|---:|---:|---:|---:|")
     for path in captures:
-        cap = pickle.load(open(path, "rb"))
-        for (mid, caller, radius), calls in cap["calls"].items():
-            m = cap["maps"][mid]
-            t = kdtree.KdTree.__new__(kdtree.KdTree)
-            t.position, t.axis, t.split, t.leaf, t.bounds = m["tree"]
-            t.order = None
-            pm = photonmap.PhotonMap.__new__(photonmap.PhotonMap)
-            pm.workers, pm.structure, pm.tree = 1, "kdtree", t
-            pm.photons = Photons(*m["photons"])
+        for caller, radius, calls, pm in captured_maps(path):
             C, NP = [], []
             for p, n, k, mp, est, rb, rf, mk in calls:
                 cls, nph = np.full(len(p), -1, np.int64), np.zeros(len(p), np.int64)

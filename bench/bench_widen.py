@@ -76,15 +76,15 @@ def synthetic(roots, repeat):
 
 def paths(captures):
     import inspect
-    import pickle
     import textwrap
 
     import numba
     import numpy as np
     sys.path.insert(0, ROOT)
-    from engine import kdtree, photonmap
+    sys.path.insert(0, os.path.join(ROOT, "bench"))
+    from bench_core import captured_maps
+    from engine import photonmap
     from engine.jit import ensure_compiled
-    from engine.photons import Photons
     ensure_compiled()
     src = textwrap.dedent(inspect.getsource(photonmap._irradiance_rows.py_func))
     src = src.replace("@kernel\n", "").replace("def _irradiance_rows(",
@@ -112,15 +112,7 @@ def paths(captures):
           "settled empty | scan <= 4096 | 4097-65536 | > 65536 | heap search |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for path in captures:
-        cap = pickle.load(open(path, "rb"))
-        for (mid, caller, radius), calls in cap["calls"].items():
-            m = cap["maps"][mid]
-            t = kdtree.KdTree.__new__(kdtree.KdTree)
-            t.position, t.axis, t.split, t.leaf, t.bounds = m["tree"]
-            t.order = None
-            pm = photonmap.PhotonMap.__new__(photonmap.PhotonMap)
-            pm.workers, pm.structure, pm.tree = 1, "kdtree", t
-            pm.photons = Photons(*m["photons"])
+        for caller, radius, calls, pm in captured_maps(path):
             stats[:] = 0
             for p, n, k, mp, est, rb, rf, *more in calls:
                 pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
