@@ -97,7 +97,7 @@ def paths(captures):
     ins("            kq = min(k, P)\n", before="            stats[0] += 1\n")
     ins("                if listed >= 0:\n                    # The sphere is listed already",
         before="                stats[1] += 1\n")
-    ins("                    # The sphere is listed already, in d2 / idx.\n",
+    ins("                    # The sphere is listed already (list_d2 / list_idx, tree order; a row\n",
         after="                    stats[2] += 1\n")
     ins("nx, ny, nz) < min_photons:\n                        continue\n",
         after="                    stats[3 if nb <= widest else 4 if nb <= SCAN_BUDGET "
