@@ -64,6 +64,14 @@ class RecordingAccel(Accel):
         return super().occluded_into(o32, d32, tmax32, blocked)
 
 
+def insert_at(src: str, anchor: str, before: str = "", after: str = "") -> str:
+    """src with `before` / `after` put around its one occurrence of `anchor`: a kernel's
+    source instrumented with counters (bench_widen, bench_secondary). AssertionError
+    naming the anchor where it occurs other than once (the kernel changed)."""
+    assert src.count(anchor) == 1, anchor
+    return src.replace(anchor, before + anchor + after)
+
+
 def captured_maps(path):
     """The photon-map estimates a render made, as bench_lookup.py --render-calls captured
     them into the pickle at path: yields (caller, radius, calls, PhotonMap), the map

@@ -111,7 +111,7 @@ def _source(path):
 def classes(base_file, captures):
     import numba
     import numpy as np
-    from bench_core import captured_maps
+    from bench_core import captured_maps, insert_at
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
@@ -120,8 +120,7 @@ def classes(base_file, captures):
 
     def ins(anchor, before="", after=""):
         nonlocal src
-        assert src.count(anchor) == 1, anchor
-        src = src.replace(anchor, before + anchor + after)
+        src = insert_at(src, anchor, before, after)
     ins("            if seeded:\n                cnt = kq\n", after="                cls[i] = 0\n")
     ins("                if 0 <= listed <= list_cap:\n",
         after="                    cls[i] = 1\n                    nph[i] = listed\n")

@@ -82,7 +82,7 @@ def paths(captures):
     import numpy as np
     sys.path.insert(0, ROOT)
     sys.path.insert(0, os.path.join(ROOT, "bench"))
-    from bench_core import captured_maps
+    from bench_core import captured_maps, insert_at
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
@@ -92,8 +92,7 @@ def paths(captures):
 
     def ins(anchor, before="", after=""):
         nonlocal src
-        assert src.count(anchor) == 1, anchor
-        src = src.replace(anchor, before + anchor + after)
+        src = insert_at(src, anchor, before, after)
     ins("            kq = min(k, P)\n", before="            stats[0] += 1\n")
     ins("                if listed >= 0:\n                    # The sphere is listed already",
         before="                stats[1] += 1\n")

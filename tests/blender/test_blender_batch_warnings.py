@@ -8,7 +8,7 @@ import subprocess
 import pytest
 
 from blender_helpers import BLENDS, PYTHON, ROOT
-from test_cli_output import WARNING_PATCHES
+from test_cli_output import WARNING_PATCHES, _own_line
 
 pytestmark = pytest.mark.blender
 
@@ -66,14 +66,6 @@ PYTHON_WARNINGS = ["UserWarning: a warning raised inside the render",
                    "RuntimeWarning: divide by zero encountered in log"]
 # A whole bar as addon/batch.py draws it: description, bar, percentage, [elapsed<left].
 WHOLE_BAR = re.compile(r"^.{46}.*\| *\d{1,3}% \[[0-9:]+<[^\]]*\]$")
-
-
-def _own_line(lines, text, where):
-    found = [i for i, line in enumerate(lines) if text in line]
-    assert len(found) == 1, (text, where)  # printed once
-    line = lines[found[0]]
-    assert "\r" not in line and "% [" not in line, repr(line)  # on a line of its own
-    return found[0]
 
 
 def test_batch_python_warnings_from_the_render_threads_on_their_own_lines(tmp_path):
