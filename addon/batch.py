@@ -277,12 +277,13 @@ def parse_args(argv):
                                 description="Render a .blend with the Photon Mapping engine.")
     p.add_argument("blend", help="the .blend file to render")
     p.add_argument("-o", "--output", required=True, help="output image (.png, .exr, ...)")
-    p.add_argument("--samples", type=int, help="camera samples per pixel")
+    # The engine CLI's names (--spp, --workers) are accepted as well: one user runs both.
+    p.add_argument("--samples", "--spp", type=int, help="camera samples per pixel")
     p.add_argument("--photons", type=int, help="global photons")
     p.add_argument("--caustic-photons", type=int, help="caustic photons")
     p.add_argument("--max-depth", type=int, help="max specular ray depth")
     p.add_argument("--seed", type=int, help="random seed")
-    p.add_argument("--threads", type=int, help="threads (0 = all cores)")
+    p.add_argument("--threads", "--workers", type=int, help="threads (0 = all cores)")
     p.add_argument("--resolution-percentage", type=int, help="resolution scale in percent")
     p.add_argument("--width", type=int, help="image width in pixels (before percentage)")
     p.add_argument("--height", type=int, help="image height in pixels (before percentage)")
@@ -308,6 +309,12 @@ def parse_args(argv):
                         "frame digits)")
     p.add_argument("--animated-seed", action="store_true",
                    help="a different seed on every frame (the add-on's Animated Seed)")
+    p.add_argument("--progressive", action="store_true",
+                   help="progressive passes (the Progressive panel); implied by --passes / "
+                        "--time-limit")
+    p.add_argument("--passes", type=int, help="progressive: stop after N passes")
+    p.add_argument("--time-limit", type=float, metavar="SECONDS",
+                   help="progressive: stop before a pass would end past this time")
     p.add_argument("--dask", metavar="ADDRESS",
                    help="progressive passes on a Dask cluster: tcp://HOST:8786 or local:W")
     p.add_argument("--quiet", action="store_true",
@@ -414,6 +421,9 @@ def render_file(args, interrupt=None) -> str:
         raise BatchError("--compare / --sweep render one frame: use --frame, not --frames")
     _positive("seed", args.seed, 0)
     _positive("threads", args.threads, 0)
+    _positive("passes", args.passes)
+    if args.time_limit is not None and not (args.time_limit > 0 and args.time_limit < float("inf")):
+        raise BatchError(f"--time-limit must be a number of seconds > 0, got {args.time_limit}")
     if args.radius is not None and not (args.radius >= 0 and args.radius < float("inf")):
         raise BatchError(f"--radius must be a number >= 0 (0 = automatic), got {args.radius}")
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -477,6 +487,14 @@ def render_file(args, interrupt=None) -> str:
         pm.paper_mode = True
     if args.animated_seed:
         pm.use_animated_seed = True
+    if args.progressive or args.passes is not None or args.time_limit is not None:
+        pm.progressive = True
+        if args.passes is not None:
+            pm.max_passes = args.passes
+        if args.time_limit is not None:
+            pm.time_limit = args.time_limit
+            if args.passes is None:
+                pm.max_passes = 0  # as the engine CLI: a time limit alone sets no pass limit
     if args.dask:
         pm.dask_scheduler = args.dask
     if args.method:

@@ -348,6 +348,15 @@ class MaterialConverter:
             depth += 1
         return (node, out)
 
+    def _warn_anisotropy(self, node, name):
+        """Warn when node's anisotropy input `name` (Principled 'Anisotropic', Glossy /
+        Anisotropic BSDF 'Anisotropy') is linked or non-zero: our GGX lobes are isotropic,
+        so brushed metal renders as plain metal of the same roughness."""
+        inp = node.inputs
+        if name in inp and (inp[name].is_linked or abs(self._float(node, name, 0.0)) > 0):
+            self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' is not "
+                       "supported; its highlight is rendered isotropic (as at 0)")
+
     def _shader(self, src, depth) -> Closure:
         if src is None:
             return Closure(base_color=(0.0, 0.0, 0.0), has_bsdf=False)
@@ -397,6 +406,7 @@ class MaterialConverter:
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
                                "is not supported and ignored")
+            self._warn_anisotropy(node, "Anisotropic")
             if c.coat_weight > 0 and "Coat Normal" in inp and inp["Coat Normal"].is_linked:
                 self._warn(f"material '{self._mat.name}': 'Coat Normal' of node "
                            f"'{node.name}' is not supported; the coat uses the surface normal")
@@ -409,6 +419,7 @@ class MaterialConverter:
         if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             base, tex = self._color(node, "Color")
             sc = {}
+            self._warn_anisotropy(node, "Anisotropy")
             return Closure(base_color=base, texture=tex, metallic=1.0, node="glossy",
                            multiscatter=self._distribution(node),
                            normal_map=self._normal(node),

@@ -205,6 +205,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="error against this image (.exr / .npy linear, same size as the tiles) "
                         "instead of against the last tile")
     _setting_options(w, sweeps=True)
+    p.commands = {"render": r, "compare": c, "sweep": w}  # main(): errors in their words
     return p
 
 
@@ -274,7 +275,12 @@ def main(argv=None) -> int:
         # stop elsewhere); engine/__init__ stopped at once only while the imports ran.
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        # Said by the subcommand's parser: its usage lists the options it takes (the
+        # top-level usage named only the subcommands).
+        parser.commands[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
         return {"render": _render, "compare": _compare, "sweep": _sweep}[args.command](args)
     except KeyboardInterrupt:
@@ -607,7 +613,11 @@ def _render(args) -> int:
                       f"{os.path.splitext(args.output)[0]}.strip.png")
     st = film.stats
     if not args.quiet:
-        print(f"wrote {args.output} ({scene.width}x{scene.height}, {settings.spp} spp, "
+        # A progressive render's pixels took spp samples in each of its passes.
+        passes = st.get("passes") if st.get("progressive") else None
+        samples = (f"{passes} passes x {settings.spp} spp" if passes is not None
+                   else f"{settings.spp} spp")
+        print(f"wrote {args.output} ({scene.width}x{scene.height}, {samples}, "
               f"{st.get('time_total', 0):.1f} s)", file=sys.stderr)
     return 0
 

@@ -28,7 +28,8 @@ from contextlib import contextmanager
 from dataclasses import replace
 
 from .film import Film
-from .progressive import Budget, PassMerger, budget_spent, max_passes_of, pass_settings
+from .progressive import (Budget, PassMerger, budget_spent, max_passes_of, overrun_warning,
+                          pass_settings)
 from .render import _check_region, prepare_context, render_pass, warning_key, warning_teller
 from .scene import Scene
 from .settings import RenderSettings
@@ -413,6 +414,10 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                             k_nearest=pass_settings(settings, merger.passes).k_nearest,
                             pass_seconds=one.stats.get("pass_seconds", float("nan")))
                 log.append(info)
+                if merger.passes == 1 and (
+                        overrun := overrun_warning(budget, settings, info["pass_seconds"])):
+                    warnings.append(overrun)
+                    tell([overrun])
                 if on_pass is not None:
                     on_pass(merger.film, info)
                 if budget_spent(budget, merger.passes, merger.error, elapsed):

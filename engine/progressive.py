@@ -99,6 +99,19 @@ def max_passes_of(budget: Budget) -> int | None:
     return budget.passes or (None if (budget.seconds or budget.target_error) else DEFAULT_MAX_PASSES)
 
 
+def overrun_warning(budget: Budget, settings: RenderSettings, pass_seconds: float) -> str | None:
+    """The warning when pass 1 alone took longer than the budget's seconds (None when it
+    did not, or there is no time limit). A pass is a whole render and cannot stop
+    halfway, so a time limit shorter than one pass is overrun by that pass; the user's
+    remedy is fewer samples or photons per pass."""
+    if budget.seconds is None or not pass_seconds > budget.seconds:
+        return None
+    return (f"progressive: pass 1 took {pass_seconds:.1f} s, more than the "
+            f"{budget.seconds:g} s time limit (a pass cannot stop halfway); lower the "
+            f"samples per pass ({settings.spp}) or the photons per pass "
+            f"({settings.photons:,}) so that several passes fit in the limit")
+
+
 def budget_spent(budget: Budget, passes: int, error: float, elapsed: float) -> bool:
     """True when no further pass should start after `passes` merged passes with the
     running error estimate and elapsed seconds: the pass limit is reached, the error
@@ -216,6 +229,8 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                         error_estimate=merger.error, k_nearest=ctx.settings.k_nearest,
                         pass_seconds=time.perf_counter() - t_pass)
             log.append(info)
+            if i == 1 and (overrun := overrun_warning(budget, settings, info["pass_seconds"])):
+                tell_pass(overrun)
             if on_pass is not None:
                 on_pass(merger.film, info)
             if budget_spent(budget, i, merger.error, elapsed):

@@ -242,6 +242,9 @@ def test_cli_progressive_radius_warning_once_before_the_first_camera_pass(tmp_pa
     assert i < _first(lines, "Pass 1: Rendering ") and i < _first(lines, "pass 1: "), text
     for w in ENGINE_WARNINGS:
         assert _own_line(lines, w, text) < _first(lines, "Tracing photons"), text
+    # The summary counts the passes' samples (it said one pass' spp).
+    summary = lines[_first(lines, "wrote ")]
+    assert re.search(r", 2 passes x \d+ spp, ", summary), summary
 
 
 def test_cli_dask_warnings_once_as_the_workers_find_them(tmp_path):

@@ -106,6 +106,10 @@ def test_cli_renders_and_reports_errors(tmp_path):
     for option in ("--width", "--height", "--spp", "--light-samples"):
         r = run_cli("render", "scenes/figure3.toml", "-o", str(out), option, "0")
         assert r.returncode == 2 and option in r.stderr and "must be >= 1" in r.stderr, option
+    # A misspelt option is said by `photonmap render`'s parser, whose usage lists its options.
+    r = run_cli("render", "scenes/figure3.toml", "-o", str(out), "--photonz", "5")
+    assert r.returncode == 2 and "unrecognized arguments: --photonz 5" in r.stderr
+    assert "usage: photonmap render " in r.stderr and "--photons" in r.stderr, r.stderr
 
 
 @pytest.mark.parametrize("ext", [".png", ".exr", ".ppm", ".npy"])

@@ -6,7 +6,8 @@ import pytest
 
 from engine import RenderSettings
 from engine.api import cornell_box
-from engine.progressive import Budget, half_error, relmse, render_progressive
+from engine.progressive import (Budget, half_error, overrun_warning, relmse,
+                                render_progressive)
 
 CHEAP = dict(spp=1, photons=3000, caustic_photons=1500)
 
@@ -42,6 +43,22 @@ def test_time_budget_stops_in_time():
     elapsed = time.perf_counter() - t0
     assert film.stats["passes"] >= 1
     assert elapsed < 3.0 * 1.5 + 1.0  # generous: the last pass is predicted, not interrupted
+
+
+def test_a_first_pass_longer_than_the_time_limit_is_said_with_its_remedy():
+    # A pass cannot stop halfway: a user who keeps a full render's samples per pass and
+    # sets a short time limit gets one pass far over the limit, and must be told why.
+    s = cornell_box(16, 12)
+    said = []
+    settings = RenderSettings(**CHEAP)
+    film = render_progressive(s, settings, Budget(seconds=1e-4), on_warning=said.append)
+    assert film.stats["passes"] == 1
+    overrun = [w for w in film.warnings if w.startswith("progressive: pass 1 took")]
+    assert len(overrun) == 1 and overrun[0] in said
+    assert "0.0001 s time limit" in overrun[0] and "samples per pass (1)" in overrun[0]
+    assert "photons per pass (3,000)" in overrun[0]
+    assert overrun_warning(Budget(seconds=5.0), settings, 4.9) is None
+    assert overrun_warning(Budget(passes=2), settings, 100.0) is None
 
 
 def test_target_error_stops_when_the_estimate_is_reached():

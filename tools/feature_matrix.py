@@ -1765,6 +1765,20 @@ def warned_displacement():
     _sun()
 
 
+@case("warned", status="warned", how="anisotropic highlights render isotropic (Principled "
+      "Anisotropic, Glossy Anisotropy)", warning="Anisotropic")
+def warned_anisotropy():
+    _stage()
+    m, nt, out = _nodes_material("brushed")
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Metallic"].default_value = 1.0
+    p.inputs["Roughness"].default_value = 0.4
+    p.inputs["Anisotropic"].default_value = 0.6
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    mb.box("Cube", 0.8, 0.8, 0.8, m, (0.3, 0.3, 0.4))
+    _sun()
+
+
 @case("warned", status="warned", how="depth of field is ignored (a pinhole camera)",
       warning="depth of field")
 def warned_depth_of_field():

@@ -208,6 +208,9 @@ def test_batch_interrupted_while_loading_is_a_cancel(tmp_path, library, stage):
     ("--photons", "99999999999", "--photons must be from 0 to 2,147,483,647"),  # traceback
     ("--samples", "100000", "--samples must be from 1 to 65,536"),  # clamped silently
     ("--threads", "100000", "--threads must be from 0 to 1,024"),
+    ("--workers", "100000", "--threads must be from 0 to 1,024"),  # the CLI's name
+    ("--passes", "0", "--passes must be >= 1"),
+    ("--time-limit", "0", "--time-limit must be a number of seconds > 0, got 0.0"),
 ])
 def test_batch_refuses_values_outside_blenders_range(bpy_addon, tmp_path, option, value,
                                                      expected):
@@ -223,6 +226,18 @@ def test_batch_refuses_values_outside_blenders_range(bpy_addon, tmp_path, option
         assert not out.exists()
     finally:
         bpy_addon.ops.wm.read_homefile(use_empty=True)
+
+
+def test_batch_takes_the_cli_names_and_renders_progressive_passes(tmp_path):
+    """--spp / --workers (the engine CLI's names) work as --samples / --threads, and
+    --passes renders that many progressive passes (the Progressive panel's settings)."""
+    out = tmp_path / "f3.png"
+    res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), "--spp", "1",
+                 "--workers", "1", "--photons", "3000", "--caustic-photons", "1000",
+                 "--resolution-percentage", "10", "--passes", "2")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "Pass 2" in res.stderr and "Pass 3" not in res.stderr, res.stderr[-2000:]
+    assert out.is_file()
 
 
 def test_batch_ctrl_c_during_the_kernel_compile_stops_at_once():
