@@ -230,8 +230,13 @@ if _intrinsic is not None:
         ids = np.zeros(0, np.int32)
         _intersect1(0, 0, z3, z3, z1, ids, ids, z1, z1)
         e3, e1 = np.zeros((0, 3)), np.zeros(0)
-        _intersect_rows(0, 0, e3, e3, e1, np.zeros(1, np.int64), e1, np.zeros(0, np.int64),
-                        e1, e1)
+        # tmax read-only too: np.broadcast_to's view of one ray's tmax stays read-only
+        # through ascontiguousarray (a one-row array is contiguous whatever its stride).
+        frozen = np.zeros(0)
+        frozen.flags.writeable = False
+        for tmax in (e1, frozen):
+            _intersect_rows(0, 0, e3, e3, tmax, np.zeros(1, np.int64), e1,
+                            np.zeros(0, np.int64), e1, e1)
 
 
 _UNBOUNDED = np.zeros(0)  # _intersect_rows' tmax: every ray to float32's max

@@ -257,6 +257,11 @@ def _warm_up():
         lean_diffuse(mat, tp, np.ones(1, np.bool_), np.ones(1), np.empty((n, 3)), full)
     for counts in (np.zeros((0, 4), np.int64), np.zeros((n, 4), np.int64)):
         count_bent(counts, idx, idx, o, d, idx, 2, 4, 8)
+    # The classes read-only (integrator._count_continuations broadcasts one class: one
+    # continued ray's view stays read-only through ascontiguousarray).
+    frozen = np.zeros(n, np.int64)
+    frozen.flags.writeable = False
+    count_bent(np.zeros((n, 4), np.int64), idx, idx, o, d, frozen, 2, 4, 8)
     for regather in (False, True):
         add_gathered(np.zeros((n, 3)), idx, rows[:k], tp, tp, np.ones((k, 3)), 2,
                      np.zeros(k, np.bool_), lt[:k], 0.5, regather, again)
