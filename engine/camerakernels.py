@@ -176,11 +176,12 @@ def _corner_offset(w0, w1, w2, kx, ky, kz, hx, hy, hz, nx, ny, nz, px, py, pz, t
     plane = G32_PLANE * (anx * r0 + any_ * r1 + anz * r2)
     if tilt == 0.0:
         return along + plane
-    far = 0.0
-    for c in range(3):
-        x, y, z = kx[c] - px, ky[c] - py, kz[c] - pz
-        dd = math.sqrt(x * x + y * y + z * z)
-        far = dd if c == 0 else max(far, dd)
+    x, y, z = kx[0] - px, ky[0] - py, kz[0] - pz
+    far = math.sqrt(x * x + y * y + z * z)
+    x, y, z = kx[1] - px, ky[1] - py, kz[1] - pz
+    far = max(far, math.sqrt(x * x + y * y + z * z))
+    x, y, z = kx[2] - px, ky[2] - py, kz[2] - pz
+    far = max(far, math.sqrt(x * x + y * y + z * z))
     return along + plane + tilt * far
 
 
