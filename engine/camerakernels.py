@@ -49,7 +49,7 @@ from .closures import ggx
 from .closures import principled as pr
 from .directlight import _npmax, _to_world
 from .jit import kernel, register_warm_up
-from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
+from .rayoffset import G32_PLANE, G64, TINY32, U32, tilt32, winding_normal
 
 # Indices into SPEC_LOBES (bsdf.py: LOBE_NAMES[1:], principled's L_* minus one).
 _PASS, _GLASS_R, _GLASS_T = pr.L_PASS - 1, pr.L_GLASS_R - 1, pr.L_GLASS_T - 1
@@ -78,10 +78,12 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
     bary (N,2) = (u, v)."""
     n = prim.shape[0]
     smooth_tables = corner_normals.shape[0] > 0
-    # The unit normal and float32 tilt of the last triangle: a camera chunk's rays come
-    # pixel by pixel, so consecutive hits mostly share a triangle (same values either way).
+    # The unit normal, float32 tilt and corner terms of the offset of the last triangle: a
+    # camera chunk's rays come pixel by pixel, so consecutive hits mostly share a triangle
+    # (same values either way).
     last = -1
     gx = gy = gz = tilt = 0.0
+    kx = ky = kz = hx = hy = hz = (0.0, 0.0, 0.0)
     for i in range(n):
         t = prim[i]
         b1, b2 = u[i], v[i]
@@ -100,6 +102,9 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
             ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
             gx, gy, gz = cx / ln, cy / ln, cz / ln
             tilt = tilt32(a0x, a0y, a0z, a1x, a1y, a1z, a2x, a2y, a2z)
+            kx, hx = _corner_terms(a0x, a1x, a2x)
+            ky, hy = _corner_terms(a0y, a1y, a2y)
+            kz, hz = _corner_terms(a0z, a1z, a2z)
         fr = d[i, 0] * gx + d[i, 1] * gy + d[i, 2] * gz < 0.0
         front[i] = fr
         sign = 1.0 if fr else -1.0
@@ -129,21 +134,55 @@ def hit_geometry(prim, u, v, d, v0, e1, e2, corner_normals, material, base_color
         # (rayoffset.triangle_tilt) computed from the corners here.
         b0 = 1.0 - b1 - b2
         w0, w1, w2 = abs(b0), abs(b1), abs(b2)
-        err0 = _corner_error(w0, w1, w2, a0x, a1x, a2x, px)
-        err1 = _corner_error(w0, w1, w2, a0y, a1y, a2y, py)
-        err2 = _corner_error(w0, w1, w2, a0z, a1z, a2z, pz)
-        offset[i] = _offset_row(err0, err1, err2, v0, e1, e2, t, ng[i, 0], ng[i, 1],
-                                ng[i, 2], px, py, pz, tilt)
+        offset[i] = _corner_offset(w0, w1, w2, kx, ky, kz, hx, hy, hz, ng[i, 0], ng[i, 1],
+                                   ng[i, 2], px, py, pz, tilt)
 
 
 @kernel
-def _corner_error(w0, w1, w2, c0, c1, c2, pc):
-    """One component of rayoffset._point_error: corner c0, edges c1, c2 (v1 - v0, v2 - v0),
-    |barycentrics| w0..w2, point component pc."""
+def _corner_terms(c0, c1, c2):
+    """One component's per-triangle terms of the ray-origin offset: the corners k = (c0,
+    c0 + c1, c0 + c2) (corner c0, edges c1, c2 = v1 - v0, v2 - v0) and their float32
+    rounding bounds 0.5 ulp32(k) (geometry._round32_rows): computed once per triangle
+    (hit_geometry's last triangle), read by _corner_offset at every hit on it."""
     k0, k1, k2 = c0, c0 + c1, c0 + c2
-    interp = G64 * (w0 * abs(k0) + w1 * abs(k1) + w2 * abs(k2))
-    tri32 = w0 * (0.5 * _ulp32(k0)) + w1 * (0.5 * _ulp32(k1)) + w2 * (0.5 * _ulp32(k2))
+    return (k0, k1, k2), (0.5 * _ulp32(k0), 0.5 * _ulp32(k1), 0.5 * _ulp32(k2))
+
+
+@kernel
+def _corner_error(w0, w1, w2, k, h, pc):
+    """One component of rayoffset._point_error: corners k and their rounding bounds h
+    (_corner_terms), |barycentrics| w0..w2, point component pc."""
+    interp = G64 * (w0 * abs(k[0]) + w1 * abs(k[1]) + w2 * abs(k[2]))
+    tri32 = w0 * h[0] + w1 * h[1] + w2 * h[2]
     return interp + tri32 + max(2.0 * U32 * abs(pc), TINY32)
+
+
+@kernel
+def _corner_offset(w0, w1, w2, kx, ky, kz, hx, hy, hz, nx, ny, nz, px, py, pz, tilt):
+    """rayoffset._offset_row of the point (px, py, pz) at |barycentrics| w0..w2 with unit
+    normal n, from the triangle's corner terms (_corner_terms per component) instead of
+    its table rows: the same operations in the same order, so the same bits. A triangle
+    whose float32 plane cannot tilt (tilt 0: every axis-aligned one, the box's walls)
+    skips the three corner distances: along + plane + 0 x far is along + plane (a sum of
+    non-negative terms, never -0.0; far is finite for a finite point)."""
+    ex = _corner_error(w0, w1, w2, kx, hx, px)
+    ey = _corner_error(w0, w1, w2, ky, hy, py)
+    ez = _corner_error(w0, w1, w2, kz, hz, pz)
+    anx, any_, anz = abs(nx), abs(ny), abs(nz)
+    along = anx * ex + any_ * ey + anz * ez
+    r0 = max(max(abs(kx[0] - px), abs(kx[1] - px)), abs(kx[2] - px))
+    r1 = max(max(abs(ky[0] - py), abs(ky[1] - py)), abs(ky[2] - py))
+    r2 = max(max(abs(kz[0] - pz), abs(kz[1] - pz)), abs(kz[2] - pz))
+    plane = G32_PLANE * (anx * r0 + any_ * r1 + anz * r2)
+    if tilt == 0.0:
+        return along + plane
+    x, y, z = kx[0] - px, ky[0] - py, kz[0] - pz
+    far = math.sqrt(x * x + y * y + z * z)
+    x, y, z = kx[1] - px, ky[1] - py, kz[1] - pz
+    far = max(far, math.sqrt(x * x + y * y + z * z))
+    x, y, z = kx[2] - px, ky[2] - py, kz[2] - pz
+    far = max(far, math.sqrt(x * x + y * y + z * z))
+    return along + plane + tilt * far
 
 
 @kernel
@@ -215,6 +254,15 @@ def _diffuse_only(params, r):
 
 
 @kernel
+def _diffuse_only_rows(params):
+    """(M,) bool: _diffuse_only of every material row (read once per call, not per hit)."""
+    out = np.empty(params.shape[0], np.bool_)
+    for r in range(params.shape[0]):
+        out[r] = _diffuse_only(params, r)
+    return out
+
+
+@kernel
 def _max3(a, b, c):
     """sampling.max3 of one row (np.maximum: NaN wins)."""
     return _npmax(_npmax(a, b), c)
@@ -229,9 +277,10 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
 
     Inputs as hit_closures takes them, plus tp (N,3) path throughputs and want_glossy
     (bool: some light takes glossy shadow rays; else no row is glossy).
-    Hits whose material has the diffuse and pass lobes alone skip the closures' set-up
-    (their albedos are written into a scratch row, exactly as principled.setup gives
-    them); the others are set up together (principled.setup on a compacted batch).
+    Hits whose material has the diffuse and pass lobes alone (_diffuse_only, read once a
+    material) skip the closures' set-up: their lobe choice is computed from the two
+    albedos principled.setup would give them, bit for bit; the others are set up
+    together (principled.setup on a compacted batch).
     Out: prm (N, N_PACK) as hit_closures on the hits the set-up saw; q, psum (N,) as
     choose_lobes; p (N, N_LOBES - 1), sel (N, N_LOBES) as choose_lobes where psum > 0
     (the rows a continuation may pick); the diffuse-only rows' prm, the other rows' sel,
@@ -247,11 +296,12 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
     n = ns.shape[0]
     k_lobes = pr.N_LOBES - 1
     per_hit_alpha = hit_alpha.shape[0] > 0
+    plain = np.empty(0, np.bool_) if per_hit else _diffuse_only_rows(params)
     # 1. The hits whose material has more than the diffuse and pass lobes, compacted,
     # with hit_closures' view cosine and glossy normal; principled.setup on them at once.
     nc = 0
     for i in range(n):
-        if not _diffuse_only(params, i if per_hit else mat[i]):
+        if not (_diffuse_only(params, i) if per_hit else plain[mat[i]]):
             nc += 1
     at = np.empty(nc, np.int64)
     rows_c = np.empty(nc, np.int64)
@@ -259,9 +309,9 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
     cos_c, alpha_c = np.empty(nc), np.empty(nc)
     front_c = np.empty(nc, np.bool_)
     j = 0
-    for i in range(n):
+    for i in range(n if nc > 0 else 0):
         r = i if per_hit else mat[i]
-        if _diffuse_only(params, r):
+        if _diffuse_only(params, i) if per_hit else plain[r]:
             continue
         at[j] = i
         rows_c[j] = r
@@ -279,7 +329,6 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
     w_c = np.empty((nc, pr.N_LOBES, 3))
     pr.setup(rows_c, params, base_c, cos_c, front_c, alpha_c, prm_c, w_c)
     # 2. Every hit in order: its packed row, lobe choice, glossy flag and diffuse row.
-    w = np.empty((pr.N_LOBES, 3))  # a diffuse-only hit's albedos
     m = np.empty(k_lobes)
     any_glossy = False
     j = 0
@@ -295,30 +344,46 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
                 gl = pr.has_rough_reflection(prm, i)
             wi = w_c[j]
             j += 1
+            s, qi = _choose_row(wi, tp[i, 0], tp[i, 1], tp[i, 2], m)
+            psum[i] = s
+            q[i] = qi
+            if s > 0:
+                sel[i, 0] = 0.0
+                for jj in range(k_lobes):
+                    p[i, jj] = m[jj]
+                    sel[i, jj + 1] = m[jj] / s * qi
+            d0, d1, d2 = wi[0, 0], wi[0, 1], wi[0, 2]
         else:
-            # setup's albedos for a diffuse-only material, bit for bit (W stays a).
+            # A diffuse-only material: principled.setup's albedos are the pass lobe
+            # (1 - a) x the transparent tint, the diffuse a x base and 0 for every other
+            # lobe (W stays a). _choose_row on them, bit for bit, without the (N_LOBES, 3)
+            # row: each zero lobe adds 0.0 to the sums (which turns -0.0 into 0.0 and
+            # keeps every other value, NaN included) and weighs max3(0, 0, 0) = 0.
             r = i if per_hit else mat[i]
             a = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
-            for lb in range(pr.N_LOBES):
-                for c in range(3):
-                    w[lb, c] = 0.0
-            for c in range(3):
-                w[pr.L_PASS, c] = (1.0 - a) * params[r, pr.M_TTINT + c]
-                w[pr.L_DIFFUSE, c] = a * base[i, c]
-            wi = w
-        s, qi = _choose_row(wi, tp[i, 0], tp[i, 1], tp[i, 2], m)
-        psum[i] = s
-        q[i] = qi
-        if s > 0:
-            sel[i, 0] = 0.0
-            for jj in range(k_lobes):
-                p[i, jj] = m[jj]
-                sel[i, jj + 1] = m[jj] / s * qi
+            t0 = (1.0 - a) * params[r, pr.M_TTINT]
+            t1 = (1.0 - a) * params[r, pr.M_TTINT + 1]
+            t2 = (1.0 - a) * params[r, pr.M_TTINT + 2]
+            m0 = max(max(t0, t1), t2)
+            s = m0 + 0.0
+            qi = 10.0 * max(max(tp[i, 0] * (t0 + 0.0), tp[i, 1] * (t1 + 0.0)),
+                            tp[i, 2] * (t2 + 0.0))
+            qi = min(max(qi, 0.0), 1.0)
+            psum[i] = s
+            q[i] = qi
+            if s > 0:
+                sel[i, 0] = 0.0
+                p[i, 0] = m0
+                sel[i, 1] = m0 / s * qi
+                for jj in range(1, k_lobes):
+                    p[i, jj] = 0.0
+                    sel[i, jj + 1] = 0.0 / s * qi
+            d0, d1, d2 = a * base[i, 0], a * base[i, 1], a * base[i, 2]
         glossy[i] = gl
         any_glossy = any_glossy or gl
-        if _max3(wi[0, 0], wi[0, 1], wi[0, 2]) > 0 or gl:
+        if _max3(d0, d1, d2) > 0 or gl:
             rows[k] = i
-            wd[k, 0], wd[k, 1], wd[k, 2] = wi[0, 0], wi[0, 1], wi[0, 2]
+            wd[k, 0], wd[k, 1], wd[k, 2] = d0, d1, d2
             k += 1
     if any_glossy:
         _fill_unread_rows(ns, ng, wo, mat, params, per_hit, psum, sel, prm)

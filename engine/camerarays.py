@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from .jit import kernel, register_warm_up
+from .sampling import pow2_shift
 
 
 @kernel
@@ -87,6 +88,10 @@ def chunk_samples(start, spp, m, cell_order, jitter, rw, x0, y0, pix, sub, px, p
     n = pix.shape[0]
     if n == 0:
         return
+    # m a power of two: b mod m^2, cell mod m and cell div m by masks and shifts (all
+    # non-negative: the same integers), not three integer divisions a sample.
+    pow2 = m > 0 and (m & (m - 1)) == 0
+    sh = pow2_shift(m)
     # Counters carried from sample to sample instead of six integer divisions each.
     p = start // spp
     b = start % spp
@@ -95,9 +100,14 @@ def chunk_samples(start, spp, m, cell_order, jitter, rw, x0, y0, pix, sub, px, p
     for k in range(n):
         pix[k] = p
         sub[k] = b
-        cell = cell_order[b % cells]
-        jx[k] = (cell % m + jitter[0, k]) / m
-        jy[k] = (cell // m + jitter[1, k]) / m
+        if pow2:
+            cell = cell_order[b & (cells - 1)]
+            jx[k] = ((cell & (m - 1)) + jitter[0, k]) / m
+            jy[k] = ((cell >> sh) + jitter[1, k]) / m
+        else:
+            cell = cell_order[b % cells]
+            jx[k] = (cell % m + jitter[0, k]) / m
+            jy[k] = (cell // m + jitter[1, k]) / m
         px[k] = x0 + col
         py[k] = y0 + row
         b += 1

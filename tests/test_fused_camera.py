@@ -131,8 +131,10 @@ def test_surface_hit_emission_without_emitters_is_zero_and_shared(box_hits):
 
 @pytest.mark.parametrize("start, n, spp, rw, x0, y0", [(0, 5000, 64, 40, 0, 0),
                                                        (131, 4000, 20, 7, 3, 5),
-                                                       (777, 3001, 1, 13, 0, 2)])
+                                                       (777, 3001, 1, 13, 0, 2),
+                                                       (5, 3000, 50, 11, 1, 1)])
 def test_chunk_samples_equals_the_numpy_stage(start, n, spp, rw, x0, y0):
+    # spp 64, 20, 1: a power-of-two grid side m (masks and shifts); 50: m = 7 (divisions).
     from engine.camerarays import chunk_samples
     m = max(1, int(np.sqrt(spp)))
     order = np.random.default_rng(0x5EED).permutation(m * m)
