@@ -138,3 +138,17 @@ def dilate_unconverged(converged: np.ndarray) -> np.ndarray:
     y[1:, :] |= x[:-1, :]
     y[:-1, :] |= x[1:, :]
     return ~y
+
+
+def pixel_hash(pix: np.ndarray, round_index: int, seed: int) -> np.ndarray:
+    """(N,) uint64 hash of region pixels pix (N,) int64, a round and the seed (a
+    splitmix64 finaliser, as sampling._stratified_uv scrambles its cells): the shift of
+    a pixel's jitter cells in an adaptive round (integrator._render_round_chunk)."""
+    add = np.uint64(((round_index + 1) * 0xBF58476D1CE4E5B9 + int(seed) * 0xD6E8FEB86659FD93)
+                    % (1 << 64))
+    with np.errstate(over="ignore"):
+        x = pix.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15) + add
+        x ^= x >> np.uint64(31)
+        x *= np.uint64(0x94D049BB133111EB)
+        x ^= x >> np.uint64(29)
+    return x
