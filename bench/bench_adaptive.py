@@ -13,7 +13,7 @@ the seeds.
 
     NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_adaptive.py \
         [--blends figure6_box,figure7_blocker] [--seeds 0 1] [--workers 1]
-        [--thresholds 0.1 0.05 0.02 0.01] [--fixed 128 64 32]
+        [--thresholds 0.1 0.05 0.02 0.01] [--fixed 128 64 32] [--min-samples 0]
 """
 from __future__ import annotations
 
@@ -59,6 +59,8 @@ def main(argv=None):
     ap.add_argument("--thresholds", type=float, nargs="+", default=[0.1, 0.05, 0.02, 0.01])
     ap.add_argument("--fixed", type=int, nargs="+", default=[128, 64, 32],
                     help="fixed spp rows (the first: the default)")
+    ap.add_argument("--min-samples", type=int, default=0,
+                    help="Min Samples of the threshold rows (0: auto, as Cycles)")
     args = ap.parse_args(argv)
     ensure_compiled()
     print("| blend | setting | mean spp | CPU s | camera s | relMSE | HDR-FLIP |")
@@ -69,7 +71,9 @@ def main(argv=None):
         base = dict(base, workers=args.workers)
         rows = {f"fixed {n} spp": dict(base, spp=n) for n in args.fixed}
         for t in args.thresholds:
-            rows[f"threshold {t:g}"] = dict(base, spp=args.fixed[0], adaptive_threshold=t)
+            label = f"threshold {t:g}" + (f", min {args.min_samples}" if args.min_samples else "")
+            rows[label] = dict(base, spp=args.fixed[0], adaptive_threshold=t,
+                               adaptive_min_samples=args.min_samples)
         res = {k: [] for k in rows}
         for seed in args.seeds:  # interleaved: each seed renders every setting in turn
             for label, kw in rows.items():
