@@ -14,6 +14,12 @@ the seeds.
     NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_adaptive.py \
         [--blends figure6_box,figure7_blocker] [--seeds 0 1] [--workers 1]
         [--thresholds 0.1 0.05 0.02 0.01] [--fixed 128 64 32] [--min-samples 0]
+
+--passes: what rounds cost in stratification: fixed 128 spp against every pixel taking its
+128 samples in 8 adaptive rounds of 16 (threshold 1e-6, Min Samples 4: no pixel converges
+but those of exactly constant colour), per pass (direct, indirect, caustic, specular) its
+image mean over the seeds and its per-pixel noise (std over the seeds, averaged over the
+image).
 """
 from __future__ import annotations
 
@@ -61,8 +67,12 @@ def main(argv=None):
                     help="fixed spp rows (the first: the default)")
     ap.add_argument("--min-samples", type=int, default=0,
                     help="Min Samples of the threshold rows (0: auto, as Cycles)")
+    ap.add_argument("--passes", action="store_true",
+                    help="per-pass mean and noise: fixed 128 spp vs 8 rounds of 16")
     args = ap.parse_args(argv)
     ensure_compiled()
+    if args.passes:
+        return passes(args)
     print("| blend | setting | mean spp | CPU s | camera s | relMSE | HDR-FLIP |")
     print("|---|---|---:|---:|---:|---:|---:|")
     for name in args.blends.split(","):
@@ -82,6 +92,28 @@ def main(argv=None):
             m = {k: float(np.mean([r[k] for r in rs])) for k in rs[0]}
             print(f"| {name} | {label} | {m['spp']:.1f} | {m['cpu']:.2f} | "
                   f"{m['camera']:.2f} | {m['relmse']:.5f} | {m['flip']:.4f} |", flush=True)
+
+
+def passes(args):
+    names = ("direct", "indirect", "caustic", "specular")
+    print("| blend | camera pass | " + " | ".join(f"{n} mean / noise" for n in names) + " |")
+    print("|---|---|" + "---:|" * len(names))
+    for name in args.blends.split(","):
+        scene, base = A.export_ours(name)
+        rows = {"fixed 128 spp": dict(base, workers=args.workers, spp=128),
+                "8 rounds of 16": dict(base, workers=args.workers, spp=128,
+                                       adaptive_threshold=1e-6, adaptive_min_samples=4)}
+        out = {k: [] for k in rows}
+        for seed in args.seeds:
+            for label, kw in rows.items():
+                film = render(scene, RenderSettings(**dict(kw, seed=seed)))
+                out[label].append({n: getattr(film, n).astype(np.float64) for n in names})
+        for label, films in out.items():
+            cells = []
+            for n in names:
+                a = np.array([f[n] for f in films])
+                cells.append(f"{a.mean():.5f} / {a.std(axis=0, ddof=1).mean():.5f}")
+            print(f"| {name} | {label} | " + " | ".join(cells) + " |", flush=True)
 
 
 if __name__ == "__main__":
