@@ -21,6 +21,16 @@ EFFECT_PASSES = (
     ("Emission", "emission"),
 )
 PHOTON_PASS = ("Photon Hits", "photon_hits")
+# Adaptive sampling's per-pixel sample count (engine Film.sample_count), under Cycles'
+# name for its pass; written as the share of Samples (Max Samples) a pixel took, 0..1.
+SAMPLE_COUNT_PASS = "Debug Sample Count"
+
+
+def _adaptive(scene) -> bool:
+    """The render will sample adaptively (Noise Threshold on, not progressive)."""
+    pm = getattr(scene, "photonmap", None)
+    return bool(pm is not None and getattr(pm, "use_adaptive_sampling", False)
+                and not getattr(pm, "progressive", False))
 MAX_REPORTED_WARNINGS = 20
 BACKGROUND_DEPTH = 1e10  # what Cycles writes for "nothing hit"
 
@@ -138,6 +148,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.register_pass(scene, renderlayer, "Depth", 1, "Z", "VALUE")
         if renderlayer.use_pass_normal:
             self.register_pass(scene, renderlayer, "Normal", 3, "XYZ", "VECTOR")
+        if _adaptive(scene):
+            self.register_pass(scene, renderlayer, SAMPLE_COUNT_PASS, 1, "X", "VALUE")
 
     # --- render ---------------------------------------------------------------------
     def render(self, depsgraph):
@@ -293,7 +305,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                               already=len(reported))
         n = info['lights']
         compiled = stats["time_compile"]
+        adaptive = (f"adaptive: {stats['adaptive_mean_spp']:.1f} of {stats['adaptive_spp']} "
+                    "samples a pixel, " if "adaptive_mean_spp" in stats else "")
         summary = (f"{info['triangles']} triangles, {n} light{'' if n == 1 else 's'}, "
+                   + adaptive +
                    f"{elapsed:.1f} s" + (f" (+ {compiled:.1f} s "
                                          f"{kernel_words(compiling)})"
                                          if compiled >= 0.5 else ""))
@@ -347,7 +362,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                                      should_cancel=self._should_cancel, on_pass=on_pass,
                                      region=region, on_warning=on_warning)
 
-    def _add_passes(self, view_layer):
+    def _add_passes(self, view_layer, sample_count=False):
         """Allocate our passes in the render result (update_render_passes only tells the
         compositor which sockets exist)."""
         layer = view_layer.name
@@ -361,10 +376,12 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.add_pass("Depth", 1, "Z", layer=layer)
         if view_layer.use_pass_normal:
             self.add_pass("Normal", 3, "XYZ", layer=layer)
+        if sample_count:
+            self.add_pass(SAMPLE_COUNT_PASS, 1, "X", layer=layer)
 
     def _write_result(self, film, view_layer, transparent: bool):
         h, w = film.height, film.width
-        self._add_passes(view_layer)
+        self._add_passes(view_layer, film.sample_count is not None)
         result = self.begin_result(0, 0, w, h, layer=view_layer.name)
         try:
             layer = result.layers[0]
@@ -378,6 +395,9 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             depth = np.where(np.isfinite(film.depth), film.depth, BACKGROUND_DEPTH)
             buffers["Depth"] = depth[:, :, None]
             buffers["Normal"] = film.normal
+            if film.sample_count is not None:  # the share of Samples each pixel took
+                spp = float(film.stats.get("adaptive_spp") or film.sample_count.max() or 1.0)
+                buffers[SAMPLE_COUNT_PASS] = (film.sample_count / spp)[:, :, None]
             written = set()
             for p in layer.passes:
                 data = buffers.get(p.name)

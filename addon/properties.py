@@ -159,6 +159,25 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         name="Samples", default=128, min=1, soft_max=1024, max=65536,
         update=_preset_edited("spp"),
         description="Camera samples per pixel (jittered, anti-aliasing)")
+    # Adaptive sampling, Cycles' Sampling > Noise Threshold / Min Samples (same names,
+    # ranges and threshold default; engine/adaptive.py). Our own properties, not
+    # scene.cycles': Cycles has adaptive sampling on by default, which would switch it on
+    # for every scene while it is opt-in here (docs/performance.md "adaptive").
+    use_adaptive_sampling: BoolProperty(
+        name="Adaptive Sampling", default=False,
+        description="Automatically reduce the number of samples per pixel based on "
+                    "estimated noise level (as Cycles' Noise Threshold)")
+    adaptive_threshold: FloatProperty(
+        name="Noise Threshold", default=0.01, min=0.0, max=1.0, soft_min=0.001,
+        precision=4, step=0.1,
+        description="Noise level step to stop sampling at, lower values reduce noise at "
+                    "the cost of render time. Zero for automatic setting based on number "
+                    "of AA samples")
+    adaptive_min_samples: IntProperty(
+        name="Min Samples", default=0, min=0, max=65536, soft_max=4096,
+        description="Minimum AA samples for adaptive sampling, to discover noisy features "
+                    "before stopping sampling. Zero for automatic setting based on noise "
+                    "threshold")
     max_depth: IntProperty(
         name="Max Ray Depth", default=1024, min=0, max=1024,
         description="An extra cap on the mirror and glass bounces along a camera path. The "
@@ -266,8 +285,18 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         kwargs = self.to_settings_kwargs(film_transparent)
         kwargs.update(photons=self.viewport_photons,
                       caustic_photons=self.viewport_caustic_photons,
-                      spp=self.viewport_samples, show_photons=False)
+                      spp=self.viewport_samples, show_photons=False,
+                      adaptive_threshold=0.0)  # (a viewport pass takes few samples)
         return kwargs
+
+    def noise_threshold(self) -> float:
+        """RenderSettings.adaptive_threshold: 0 (off) unless Adaptive Sampling is on; a
+        threshold of 0 is automatic as in Cycles, max(0.001, 1 / Samples)
+        (Integrator::get_adaptive_sampling)."""
+        if not self.use_adaptive_sampling:
+            return 0.0
+        t = float(self.adaptive_threshold)
+        return t if t > 0.0 else max(0.001, 1.0 / max(1, self.spp))
     # --- end of the viewport block -------------------------------------------------------
 
     def to_settings_kwargs(self, film_transparent=False):
@@ -285,6 +314,8 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             final_gather=self.final_gather, gather_rays=self.gather_rays,
             gather_by_share=self.gather_by_share,
             spp=self.spp, max_depth=self.max_depth, light_samples=self.light_samples,
+            adaptive_threshold=self.noise_threshold(),
+            adaptive_min_samples=self.adaptive_min_samples,
             transparent_max_bounces=self.transparent_max_bounces,
             max_bounces=self.max_bounces, diffuse_bounces=self.diffuse_bounces,
             glossy_bounces=self.glossy_bounces, transmission_bounces=self.transmission_bounces,

@@ -58,7 +58,19 @@ class PHOTONMAP_PT_sampling(PhotonMapButtonsPanel, bpy.types.Panel):
         layout.prop(pm, "quality_preset")
         layout.prop(pm, "method")
         col = layout.column()
-        col.prop(pm, "spp", text="Samples per Pass" if pm.progressive else "Samples")
+        # Noise Threshold as Cycles draws it (a checkbox heading the threshold), then
+        # Max / Min Samples; adaptive sampling is the plain render's, not the passes'.
+        adaptive = pm.use_adaptive_sampling and not pm.progressive
+        if not pm.progressive:
+            row = col.row(heading="Noise Threshold", align=True)
+            row.prop(pm, "use_adaptive_sampling", text="")
+            sub = row.row()
+            sub.active = pm.use_adaptive_sampling
+            sub.prop(pm, "adaptive_threshold", text="")
+        col.prop(pm, "spp", text="Samples per Pass" if pm.progressive
+                 else ("Max Samples" if adaptive else "Samples"))
+        if adaptive:
+            col.prop(pm, "adaptive_min_samples", text="Min Samples")
         col.prop(pm, "light_samples")
         col.prop(pm, "seed")
         col.prop(pm, "use_animated_seed")

@@ -82,6 +82,15 @@ def _positive_float(text):
     return v
 
 
+def _noise_threshold(text):
+    from .settings import ADAPTIVE_THRESHOLD_MAX
+    v = _finite_float(text)
+    if not 0.0 <= v <= ADAPTIVE_THRESHOLD_MAX:
+        raise argparse.ArgumentTypeError(f"must be from 0 (off) to {ADAPTIVE_THRESHOLD_MAX:g} "
+                                         f"(as Cycles' Noise Threshold), got {text}")
+    return v
+
+
 QUALITY_PRESETS = ("preview", "medium", "high", "reference")
 
 
@@ -106,7 +115,16 @@ def _setting_options(r, method=True, sweeps=False):
     r.add_argument("--min-photons", type=_nonnegative_int, help="fewer photons found -> no estimate")
     r.add_argument("--k", dest="k_nearest", type=_positive_int, help="photons per k-NN estimate")
     r.add_argument("--estimator", choices=ESTIMATORS, help="radiance estimator")
-    r.add_argument("--spp", type=_positive_int, help="camera samples per pixel")
+    r.add_argument("--spp", type=_positive_int, help="camera samples per pixel (adaptive "
+                   "sampling: the most a pixel takes)")
+    # Cycles' Sampling > Noise Threshold / Min Samples (engine/adaptive.py)
+    r.add_argument("--noise-threshold", dest="adaptive_threshold", type=_noise_threshold,
+                   help="adaptive sampling: a pixel stops once its noise is below this (as "
+                        "Cycles' Noise Threshold, e.g. 0.01; default 0: off, every pixel "
+                        "takes --spp)")
+    r.add_argument("--min-samples", dest="adaptive_min_samples", type=_nonnegative_int,
+                   help="adaptive sampling: samples every pixel takes first (Cycles' Min "
+                        "Samples; default 0: auto from the threshold)")
     r.add_argument("--max-depth", type=_nonnegative_int,
                    help="an extra cap on the mirror / glass bounces of camera rays (default "
                         "1024: none, the bounce limits below stop them, as in Cycles)")
@@ -313,7 +331,7 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
     for name in ("photons", "caustic_photons", "radius", "min_photons", "k_nearest", "estimator",
                  "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers",
                  "method", "max_bounces", "diffuse_bounces", "glossy_bounces",
-                 "transmission_bounces"):
+                 "transmission_bounces", "adaptive_threshold", "adaptive_min_samples"):
         v = getattr(args, name, None)
         if v is not None:
             overrides[name] = v
@@ -606,6 +624,10 @@ def _render(args) -> int:
         for name, img in film.passes().items():
             if name in ("combined", "depth", "alpha", "normal"):
                 continue
+            if name == "sample_count":  # grey: the share of --spp a pixel took
+                write_image(np.repeat((img / settings.spp)[..., None], 3, axis=2),
+                            f"{root}.{name}{ext}")
+                continue
             write_image(img, f"{root}.{name}{ext}", args.exposure)
     if args.strip:
         from .teaching import compose, effects_strip
@@ -613,10 +635,15 @@ def _render(args) -> int:
                       f"{os.path.splitext(args.output)[0]}.strip.png")
     st = film.stats
     if not args.quiet:
-        # A progressive render's pixels took spp samples in each of its passes.
+        # A progressive render's pixels took spp samples in each of its passes (adaptive
+        # sampling is off in progressive passes).
         passes = st.get("passes") if st.get("progressive") else None
-        samples = (f"{passes} passes x {settings.spp} spp" if passes is not None
-                   else f"{settings.spp} spp")
+        if passes is not None:
+            samples = f"{passes} passes x {settings.spp} spp"
+        elif "adaptive_mean_spp" in st:
+            samples = f"adaptive: {st['adaptive_mean_spp']:.1f} of {settings.spp} spp a pixel"
+        else:
+            samples = f"{settings.spp} spp"
         print(f"wrote {args.output} ({scene.width}x{scene.height}, {samples}, "
               f"{st.get('time_total', 0):.1f} s)", file=sys.stderr)
     return 0

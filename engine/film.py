@@ -26,6 +26,9 @@ class Film:
     holdout: np.ndarray = None      # fraction of camera samples that met a holdout surface
     depth: np.ndarray = None        # camera distance to the first hit (inf = nothing)
     normal: np.ndarray = None       # world-space shading normal of the first hit
+    # Camera samples each pixel took (H,W) float32, Cycles' "Sample Count" debug pass:
+    # set by adaptive sampling only (engine/adaptive.py; None: every pixel took spp)
+    sample_count: np.ndarray = None
     show_photons: bool = False
     stats: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
@@ -51,6 +54,9 @@ class Film:
         return sum(getattr(self, name) for name in EFFECTS).astype(np.float32)
 
     def passes(self) -> dict[str, np.ndarray]:
-        return {"combined": self.combined, **{n: getattr(self, n) for n in EFFECTS},
-                "photon_hits": self.photon_hits, "depth": self.depth,
-                "normal": self.normal, "alpha": self.alpha}
+        out = {"combined": self.combined, **{n: getattr(self, n) for n in EFFECTS},
+               "photon_hits": self.photon_hits, "depth": self.depth,
+               "normal": self.normal, "alpha": self.alpha}
+        if self.sample_count is not None:
+            out["sample_count"] = self.sample_count
+        return out

@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import math
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from . import chaincounts
+from . import adaptive, chaincounts
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -1057,12 +1057,20 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     s = ctx.settings
     per_pixel = CAUSTIC_SAMPLES_PER_PIXEL if per_pixel is None else per_pixel
     stride = max(1, -(-s.spp // per_pixel)) if sample_id is not None else 1
+    # An adaptive round of R samples a pixel (ctx.camera_round; sample_id its samples'
+    # index in the round): the estimate at sample k * stride stands for its block
+    # [k stride, min((k + 1) stride, R)) and weighs the block's length, so each round, and
+    # any number of rounds a pixel stops after, is unbiased (engine/adaptive.py).
+    block = getattr(ctx, "camera_round", 0) if stride > 1 else 0
     if stride > 1 and every is not None and every.any():
         sel = np.nonzero((sample_id % stride == 0) | every)[0]
-        weight = np.where(every[sel], 1.0, smooth_sample_weight(s.spp, stride))[:, None]
+        w = smooth_sample_weight(s.spp, stride) if not block else \
+            np.minimum(stride, block - sample_id[sel]).astype(np.float64)
+        weight = np.where(every[sel], 1.0, w)[:, None]
     else:
         sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
-        weight = smooth_sample_weight(s.spp, stride)
+        weight = smooth_sample_weight(s.spp, stride) if not block else \
+            np.minimum(stride, block - sample_id[sel]).astype(np.float64)[:, None]
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
     E = chaincounts.irradiance(pmap, s.bounce_limits,
                                None if counts is None else np.take(counts, sel, axis=0),
@@ -1250,6 +1258,8 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
     on_tail(): called once the last chunk has been handed to a worker (parallel.ordered_map
     on_all_started), to start work that fills the workers the tail leaves idle."""
     s = ctx.settings
+    if s.adaptive_threshold > 0:
+        return render_camera_adaptive(ctx, region, film, progress, should_cancel, on_tail)
     x0, y0, x1, y1 = region
     rw, rh = x1 - x0, y1 - y0
     npix = rw * rh
@@ -1264,13 +1274,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
     threads = s.threads
     # Chunks on worker threads ask Embree and the kd-trees on their own thread.
     wctx = ctx.serial() if threads > 1 and len(jobs) > 1 else ctx
-    if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
-        S = selection_samples(s)
-        dims = camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
-                                 + [("bsdf",)])
-    else:
-        dims = camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
-                                                 for li in ctx.lights], [("bsdf",)])
+    dims = _camera_pass_dimensions(ctx)
 
     # One set of bounce arrays per thread, reused by its chunks (dropped with the render).
     buffers = {}
@@ -1289,6 +1293,176 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
     finally:
         _write_film(film, acc, spp, rh, rw)
     return counters
+
+
+def _camera_pass_dimensions(ctx) -> SampleDimensions:
+    """The camera pass's sampler dimensions (camera_dimensions) for ctx's lights."""
+    s = ctx.settings
+    if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
+        S = selection_samples(s)
+        return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
+                                 + [("bsdf",)])
+    return camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
+                                             for li in ctx.lights], [("bsdf",)])
+
+
+def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
+                           on_tail=None) -> Counters:
+    """The camera pass with adaptive sampling (settings.adaptive_threshold > 0; Cycles'
+    Noise Threshold, engine/adaptive.py): rounds of samples over the pixels still active,
+    a convergence check after each round past the min samples; a pixel takes between
+    the min samples and spp samples. Writes film's passes (each pixel's sums over its own
+    sample count) and film.sample_count (H,W) float32, Cycles' "Sample Count" pass; the
+    mean samples per pixel into film.stats["adaptive_mean_spp"].
+
+    Deterministic for any thread count: each round's chunks are cut from the round's
+    sample count (parallel.chunk_length) and own random streams keyed by (seed, round,
+    chunk); which pixels stay active depends on the sums only, merged in chunk order."""
+    s = ctx.settings
+    x0, y0, x1, y1 = region
+    rw, rh = x1 - x0, y1 - y0
+    npix = rw * rh
+    spp = s.spp
+    schedule = adaptive.Schedule(s.adaptive_threshold, s.adaptive_min_samples, spp)
+    rounds = schedule.rounds()
+    strides = [max(1, -(-spp // k)) for k in (CAUSTIC_SAMPLES_PER_PIXEL,
+                                              SECONDARY_SAMPLES_PER_PIXEL)]
+    acc = Accumulator(npix)
+    count = np.zeros(npix, np.int64)    # samples taken, per pixel
+    half = np.zeros((npix, 3))          # radiance summed over half A (adaptive.class_a)
+    count_half = np.zeros(npix, np.int64)
+    active = np.arange(npix, dtype=np.int64)  # region pixels that sample this round
+    counters = Counters()
+    threads = s.threads
+    wctx = ctx.serial() if threads > 1 else ctx
+    dims = _camera_pass_dimensions(ctx)
+    buffers = {}
+    planned = npix * spp  # progress: samples of the whole budget
+    done = 0
+    try:
+        for r, (a, b, check) in enumerate(rounds):
+            if len(active) == 0:
+                break
+            R = b - a
+            rctx = replace(wctx, camera_round=R)
+            total = len(active) * R
+            chunk = chunk_length(total, s.chunk_size)
+            jobs = [(ci, (c, min(total, c + chunk))) for ci, c in enumerate(range(0, total, chunk))]
+            in_a = adaptive.class_a(np.arange(R, dtype=np.int64), r, strides)
+            racc = Accumulator(2 * len(active))  # pixel j's half B at 2 j, half A at 2 j + 1
+
+            def job(item, stop, _r=r, _R=R, _active=active, _rctx=rctx, _in_a=in_a):
+                ci, (start, end) = item
+                own = buffers.setdefault(threading.get_ident(), BounceBuffers())
+                return _render_round_chunk(_rctx, region, _r, _R, _active, _in_a, ci, start,
+                                           end, stop, dims, own)
+
+            last = b == spp
+            for part, part_counters, end in ordered_map(job, jobs, threads, should_cancel,
+                                                        on_tail if last else None):
+                racc.merge(part)
+                counters.add(part_counters)
+                if progress is not None:
+                    f = (done + end) / planned
+                    progress("render", f, f"Rendering {100.0 * f:.0f}% (adaptive, "
+                             f"{len(active):,} pixels at {b} samples)")
+            done += total
+            _add_round(acc, racc, active, half)
+            count[active] += R
+            count_half[active] += int(np.count_nonzero(in_a))
+            if check:
+                # Pixels that stopped earlier stay converged (Cycles: a converged pixel's
+                # error is not computed again) unless the dilation wakes them.
+                converged = np.ones(npix, bool)
+                err = adaptive.pixel_error(_combined(acc, active), count[active],
+                                           half[active], count_half[active])
+                converged[active] = err < schedule.check_threshold
+                converged = adaptive.dilate_unconverged(converged.reshape(rh, rw)).ravel()
+                active = np.nonzero(~converged)[0]
+    finally:
+        _write_film(film, acc, np.maximum(count, 1).astype(np.float64)[:, None], rh, rw)
+        film.sample_count = count.reshape(rh, rw).astype(np.float32)
+        film.stats["adaptive_mean_spp"] = float(count.mean()) if npix else 0.0
+        film.stats["adaptive_min_samples"] = schedule.min_effective
+        film.stats["adaptive_threshold"] = s.adaptive_threshold
+        film.stats["adaptive_spp"] = spp
+    return counters
+
+
+def _combined(acc, rows):
+    """(len(rows),3) the sum of acc's effect passes at rows: the combined radiance."""
+    out = acc.buf[Accumulator.NAMES[0]][rows].copy()
+    for name in Accumulator.NAMES[1:]:
+        out += acc.buf[name][rows]
+    return out
+
+
+def _add_round(acc, racc, active, half):
+    """A round's sums racc (2 rows a pixel: half B, half A) into the pass's acc at the
+    region pixels active (and half A's combined radiance into half (npix,3))."""
+    for name in Accumulator.NAMES:
+        both = racc.buf[name]
+        acc.buf[name][active] += both[0::2] + both[1::2]
+        half[active] += both[1::2]
+    for mine, theirs in ((acc.alpha, racc.alpha), (acc.holdout, racc.holdout),
+                         (acc.depth_sum, racc.depth_sum), (acc.depth_n, racc.depth_n),
+                         (acc.normal, racc.normal)):
+        mine[active] += theirs[0::2] + theirs[1::2]
+
+
+def _render_round_chunk(ctx, region, r, R, active, in_a, ci, start, end, should_cancel,
+                        dims, buffers):
+    """Samples [start, end) of adaptive round r (sample = j * R + sub: the sub-th of the
+    round's R samples of pixel active[j]): like _render_chunk, with the round stratified on
+    its own (an m x m grid, m = floor(sqrt(R)), the sampler's scramble salted by the
+    round) and the sums kept per pixel and half (2 j + in_a[sub]) in an Accumulator over
+    the round's rows. Returns (acc, counters, end)."""
+    s = ctx.settings
+    cam = ctx.scene.camera
+    W, H = ctx.scene.width, ctx.scene.height
+    x0, y0, x1, y1 = region
+    rw = x1 - x0
+    m = max(1, int(math.sqrt(R)))
+    cells = m * m
+    full_rounds = (R // cells) * cells
+    jitter_order = np.random.default_rng(0x5EED).permutation(cells)  # (int64)
+    rng = np.random.default_rng([s.seed, 7, ci, 1 + r])
+    n = end - start
+    counters = Counters()
+    jitter = rng.random((2, n))
+    idx = np.arange(start, end, dtype=np.int64)
+    j, sub = idx // R, idx % R
+    pix = active[j]
+    px, py = x0 + pix % rw, y0 + pix // rw
+    # Pixel jitter: the round's m x m grid in the scrambled order, its start shifted by a
+    # hash of pixel, round and seed. Unshifted, the samples that take the strided caustic
+    # and secondary estimates (sub 0, stride, ...) sat in the same cells of every pixel
+    # and round: the caustic pass came out 3.5 % dark on the Figure 6 box (4 seeds,
+    # docs/performance.md "adaptive").
+    shift = adaptive.pixel_hash(pix, r, s.seed) % np.uint64(cells)
+    cell = ((jitter_order[sub % cells].astype(np.uint64) + shift) % np.uint64(cells)).astype(np.int64)
+    jx = (cell % m + jitter[0]) / m
+    jy = (cell // m + jitter[1]) / m
+    row = 2 * j + in_a[sub]
+    lo = 2 * int(j[0])
+    acc = Accumulator(2 * (int(j[-1]) - int(j[0]) + 1), lo)
+    if full_rounds < R:
+        rest = sub >= full_rounds
+        n_rest = int(np.count_nonzero(rest))
+        if n_rest:
+            jx[rest], jy[rest] = rng.random((2, n_rest))
+    o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy,
+                             filter_table(s.pixel_filter, s.filter_width))
+    counters.camera_rays += len(o)
+    tp = np.ones((len(o), 3))
+    salt = (s.seed + r * 0x9E3779B97F4A7C15) % (1 << 64)
+    sampler = StratifiedSampler(sub, pix, R, rng, dims, salt=salt)
+    forward = -cam.rotation[:, 2]
+    cam_pos = cam.position - ctx.geo.offset
+    _trace_paths(ctx, acc, o, d, tmax, tp, row, rng, counters, cam_pos, forward,
+                 should_cancel, sampler, sub, np.random.default_rng([s.seed, 11, ci, 1 + r]),
+                 buffers)
+    return acc, counters, end
 
 
 def _render_chunk(ctx, region, ci, start, end, should_cancel, dims, buffers=None):
@@ -1340,11 +1514,13 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims, buffers=None
 
 
 def _write_film(film, acc, spp, rh, rw):
+    """acc's sums over spp samples (a number, or (npix,1) per pixel: adaptive) into film."""
     inv = 1.0 / spp
+    inv1 = inv[:, 0] if np.ndim(inv) else inv  # (for the scalar passes)
     for name in Accumulator.NAMES:
         getattr(film, name)[...] = (acc.buf[name] * inv).reshape(rh, rw, 3).astype(np.float32)
-    film.alpha[...] = (acc.alpha * inv).reshape(rh, rw)
-    film.holdout[...] = (acc.holdout * inv).reshape(rh, rw)
+    film.alpha[...] = (acc.alpha * inv1).reshape(rh, rw)
+    film.holdout[...] = (acc.holdout * inv1).reshape(rh, rw)
     with np.errstate(invalid="ignore", divide="ignore"):
         depth = np.where(acc.depth_n > 0, acc.depth_sum / np.maximum(acc.depth_n, 1), np.inf)
         nrm = acc.normal / np.maximum(np.linalg.norm(acc.normal, axis=1), 1e-300)[:, None]

@@ -90,7 +90,15 @@ def pass_settings(settings: RenderSettings, i: int) -> RenderSettings:
     A pass depends on nothing else, so passes can run anywhere in any order
     (engine/distributed.py)."""
     k_i = max(K_MIN, int(round(settings.k_nearest * i ** (ALPHA - 1.0))))
-    return replace(settings, seed=settings.seed * 1_000_003 + i, k_nearest=k_i, min_photons=1)
+    # Adaptive sampling (Noise Threshold) is the plain render's: a pass's few samples are
+    # below its min samples, and its half-buffer estimate would not see the passes' photon
+    # noise (ADAPTIVE_WARNING).
+    return replace(settings, seed=settings.seed * 1_000_003 + i, k_nearest=k_i, min_photons=1,
+                   adaptive_threshold=0.0)
+
+
+ADAPTIVE_WARNING = ("Noise Threshold (adaptive sampling) applies to the plain render only: "
+                    "progressive passes take all their samples")
 
 
 def max_passes_of(budget: Budget) -> int | None:
@@ -204,6 +212,9 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
 
     def tell_pass(text):
         pass_warnings.extend(tell([text]))
+
+    if settings.adaptive_threshold > 0:
+        tell_pass(ADAPTIVE_WARNING)
 
     log = []
     cancelled = False

@@ -74,6 +74,10 @@ class Context:
     shadow: ShadowTransmittance | None = None  # transparent shadows (None: none in the scene)
     # Light trees for many lights (engine/lights/selection.py selector_for), built on use.
     light_selectors: dict = field(default_factory=dict)
+    # Adaptive sampling (engine/adaptive.py): the samples per pixel of the camera round
+    # being rendered (0: the camera pass takes every pixel's spp at once). The smooth
+    # estimates weigh their samples by it (integrator._smooth_estimate).
+    camera_round: int = 0
 
 
     def serial(self) -> "Context":

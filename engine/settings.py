@@ -30,7 +30,10 @@ LIMITS = {
     "max_depth": 1024, "light_samples": 256, "seed": 2**63 - 1, "workers": 1024,
     "chunk_size": 1 << 24, "transparent_max_bounces": 1024, "max_bounces": 1024,
     "diffuse_bounces": 1024, "glossy_bounces": 1024, "transmission_bounces": 1024,
+    "adaptive_min_samples": 65536,
 }
+# Cycles' Noise Threshold property: 0 .. 1 (engine/adaptive.py)
+ADAPTIVE_THRESHOLD_MAX = 1.0
 # Cycles' Light Paths > Max Bounces (its defaults): the setting names and their defaults.
 BOUNCE_LIMITS = (("max_bounces", 12), ("diffuse_bounces", 4), ("glossy_bounces", 4),
                  ("transmission_bounces", 12))
@@ -68,6 +71,12 @@ class RenderSettings:
     gather_by_share: bool = True
     # Pass 2 (camera)
     spp: int = 128                  # camera samples per pixel (jittered, stratified)
+    # Adaptive sampling (engine/adaptive.py), Cycles' Sampling > Noise Threshold and Min
+    # Samples: a pixel stops sampling once its noise estimate is below the threshold, after
+    # at least adaptive_min_samples samples (0: auto as Cycles derives it) and at most spp.
+    # 0 = off (the default here, unlike Cycles' 0.01: opt-in while it is measured).
+    adaptive_threshold: float = 0.0
+    adaptive_min_samples: int = 0
     # An extra cap on the specular bounces along a camera path (the paper's
     # MaxRayTraceDepth), transparent passes included. Off by default (1024, the most
     # Cycles' Total allows): like Cycles, the camera chain stops at the Light Paths limits
@@ -137,7 +146,7 @@ class RenderSettings:
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
                          ("gather_rays", 1), ("transparent_max_bounces", 0),
                          ("max_bounces", 0), ("diffuse_bounces", 0), ("glossy_bounces", 0),
-                         ("transmission_bounces", 0)):
+                         ("transmission_bounces", 0), ("adaptive_min_samples", 0)):
             positive_int(name, lo)
         for name in ("final_gather", "gather_by_share", "photon_mapping", "aim_caustics",
                      "photon_importance",
@@ -181,6 +190,14 @@ class RenderSettings:
                 raise ValueError(f"setting 'radius' must be a positive number or None (auto), "
                                  f"got {self.radius!r}")
             self.radius = r
+        ok = isinstance(self.adaptive_threshold, (int, float, np.floating, np.integer)) \
+            and not isinstance(self.adaptive_threshold, bool)
+        t = float(self.adaptive_threshold) if ok else float("nan")
+        if not (0.0 <= t <= ADAPTIVE_THRESHOLD_MAX):
+            raise ValueError(f"setting 'adaptive_threshold' (Noise Threshold) must be a number "
+                             f"from 0 (off) to {ADAPTIVE_THRESHOLD_MAX:g}, got "
+                             f"{self.adaptive_threshold!r}")
+        self.adaptive_threshold = t
         self.min_photons = min(self.min_photons, self.k_nearest)
         if self.paper_mode:
             self.estimator, self.final_gather = "classic", False

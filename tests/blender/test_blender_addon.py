@@ -137,3 +137,27 @@ def test_batch_missing_file_is_one_line_error(tmp_path):
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "not found" in lines[0] and "nope.blend" in lines[0], res.stderr
     assert not (tmp_path / "x.png").exists()
+
+
+def test_noise_threshold_reaches_the_engine(bpy_addon):
+    """Sampling > Noise Threshold / Min Samples as Cycles names them: off by default (0 to
+    the engine), the threshold and min samples when on, Cycles' automatic threshold
+    max(0.001, 1 / Samples) for 0; never in the viewport's passes."""
+    bpy = bpy_addon
+    from engine.settings import RenderSettings
+    bpy.ops.wm.read_homefile(use_empty=True)
+    pm = bpy.context.scene.photonmap
+    assert pm.to_settings_kwargs()["adaptive_threshold"] == 0.0
+    pm.use_adaptive_sampling = True
+    pm.adaptive_min_samples = 24
+    kw = pm.to_settings_kwargs()
+    assert kw["adaptive_threshold"] == pytest.approx(0.01)
+    assert kw["adaptive_min_samples"] == 24
+    pm.adaptive_threshold = 0.0
+    pm.spp = 200
+    assert pm.to_settings_kwargs()["adaptive_threshold"] == pytest.approx(1 / 200)
+    assert pm.to_viewport_settings_kwargs()["adaptive_threshold"] == 0.0
+    RenderSettings(**pm.to_settings_kwargs())
+    for name in ("use_adaptive_sampling", "adaptive_threshold", "adaptive_min_samples",
+                 "spp"):
+        pm.property_unset(name)

@@ -29,3 +29,22 @@ def test_stats_carry_the_compile_time_under_one_name(open_ground, monkeypatch):
     assert caustics.startswith("caustics: off - nothing focuses light"), caustics
     bounces = next(x for x in lines if x.startswith("bounce limits:"))
     assert bounces.endswith("camera paths stop at these too, as in Cycles"), bounces
+
+
+def test_adaptive_render_reports_its_samples(open_ground):
+    """A render with Noise Threshold on: the stats carry the mean samples a pixel took,
+    between the first check (16 past Min Samples 4) and Samples."""
+    import bpy
+
+    from addon import engine
+    cheap(open_ground, width=16, height=12, spp=32, photons=2000, caustic_photons=500)
+    pm = open_ground.photonmap
+    pm.use_adaptive_sampling, pm.adaptive_threshold, pm.adaptive_min_samples = True, 0.05, 4
+    try:
+        bpy.ops.render.render()
+    finally:
+        for name in ("use_adaptive_sampling", "adaptive_threshold", "adaptive_min_samples"):
+            pm.property_unset(name)
+    stats = engine.last_render["stats"]
+    assert 16 <= stats["adaptive_mean_spp"] <= 32
+    assert stats["adaptive_spp"] == 32
