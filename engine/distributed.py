@@ -28,8 +28,8 @@ from contextlib import contextmanager
 from dataclasses import replace
 
 from .film import Film
-from .progressive import (Budget, PassMerger, budget_spent, max_passes_of, overrun_warning,
-                          pass_settings)
+from .progressive import (ADAPTIVE_WARNING, Budget, PassMerger, budget_spent, max_passes_of,
+                          overrun_warning, pass_settings)
 from .render import _check_region, prepare_context, render_pass, warning_key, warning_teller
 from .scene import Scene
 from .settings import RenderSettings
@@ -321,6 +321,8 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
     scene.validate()
     tell = warning_teller(on_warning)
     tell(scene.all_warnings())  # the client's copy: known before anything is sent
+    if settings.adaptive_threshold > 0:
+        tell([ADAPTIVE_WARNING])
     t_start = time.perf_counter()
     max_passes = max_passes_of(budget)
     key = f"photonmap-{uuid.uuid4().hex}"
@@ -442,7 +444,9 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,
                       effects=effects, time_total=time.perf_counter() - t_start,
                       distributed=dict(workers=len(client.nthreads()), threads=nthreads))
-    film.warnings = list(warnings) or scene.all_warnings()
+    film.warnings = list(warnings or scene.all_warnings())
+    if settings.adaptive_threshold > 0:  # the passes take all their samples (pass_settings)
+        film.warnings.append(ADAPTIVE_WARNING)
     tell(film.warnings)
     return film
 

@@ -72,6 +72,23 @@ def test_same_image_one_pass_in_flight_and_other_thread_count(client, small):
     assert_bitwise(film, local)
 
 
+def test_adaptive_sampling_is_off_in_the_passes_and_said_as_locally(client, small):
+    """Noise Threshold is the plain render's: on a cluster, as in local progressive
+    passes, the passes take all their samples (the same bits) and the user is told."""
+    from dataclasses import replace
+
+    from engine.progressive import ADAPTIVE_WARNING
+    scene, settings, local = small
+    said = []
+    film = render_distributed(scene, replace(settings, adaptive_threshold=0.01),
+                              Budget(passes=2), client=client, worker_threads=1,
+                              on_warning=said.append)
+    two = render_progressive(scene, replace(settings, adaptive_threshold=0.01), Budget(passes=2))
+    assert_bitwise(film, two)
+    assert ADAPTIVE_WARNING in film.warnings and ADAPTIVE_WARNING in two.warnings
+    assert said.count(ADAPTIVE_WARNING) == 1
+
+
 def test_on_pass_sees_the_running_average_in_pass_order(client, small):
     scene, settings, _ = small
     seen_local, seen_dask = [], []
