@@ -463,7 +463,8 @@ class ShadowTransmittance:
             return None
         return cls(geo, table, max_hits)
 
-    def transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None) -> np.ndarray:
+    def transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None,
+                      crossed_out=None) -> np.ndarray:
         """(R,3) RGB transmittance of the shadow rays `rows` (default: all) from o32 (R,3)
         along d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space),
         through transparent surfaces: the product of (1 - alpha) x transparent tint of the
@@ -471,10 +472,13 @@ class ShadowTransmittance:
         lie in the way. cls: the rays' class (engine/visibility.py; None: every triangle
         is seen). passages: (R,) int64 per ray (as o32), the most flat passages it may
         cross (Cycles' bounce limits: each passage stands for two refractions,
-        chaincounts.flat_passages); more: blocked. None: no cap."""
+        chaincounts.flat_passages); more: blocked. None: no cap. crossed_out: (R,) int64
+        or None: written at rows with the flat passages each ray crossed (with a cap only;
+        a ray blocked past its cap counts the passage that blocked it)."""
         if rows is None:
             rows = np.arange(len(o32))
         rows = np.asarray(rows, np.int64)
+        ray_rows = rows  # (the walk below reuses the name for the hits' table rows)
         n = len(rows)
         trans = np.ones((n, 3))
         count = np.zeros(n, np.int64)
@@ -504,6 +508,8 @@ class ShadowTransmittance:
                 go = ~stop
                 o, d, t, slot = o[go], d[go], t[go], slot[go]
         if clear is None:
+            if crossed_out is not None and crossed is not None:
+                crossed_out[ray_rows] = crossed
             return trans
         for _ in range(self.max_hits + 1):
             if len(slot) == 0:
@@ -564,20 +570,23 @@ class ShadowTransmittance:
         else:
             # Unreachable: each step blocks a ray at its (max_hits + 1)-th surface.
             trans[slot] = 0.0
+        if crossed_out is not None and crossed is not None:
+            crossed_out[ray_rows] = crossed
         return trans
 
     def pass_blocked(self, o32, d32, t32, blocked, contrib, ray, m_all, cls=None,
-                     passages=None):
+                     passages=None, crossed_out=None):
         """After an OCCLUDED query: re-trace the blocked shadow rays through transparent
         surfaces; rays that get through are marked unblocked in `blocked` and the entries
         (j < m_all) of `contrib` that use them scaled by their transmittance (the layout
         of directlight.sample_lights). t32 must hold the rays' distances as they were
         before the query (Embree overwrites them). passages: (R,) the rays' most flat
-        passages (transmittance's; None: no cap)."""
+        passages (transmittance's; None: no cap). crossed_out: (R,) int64 or None, the
+        flat passages each re-traced ray crossed (transmittance's; the rest untouched)."""
         rows = np.nonzero(blocked)[0]
         if len(rows) == 0:
             return
-        trans = self.transmittance(o32, d32, t32, rows, cls, passages)
+        trans = self.transmittance(o32, d32, t32, rows, cls, passages, crossed_out)
         through = np.any(trans > 0.0, axis=1)
         if not through.any():
             return
