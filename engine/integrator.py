@@ -1485,7 +1485,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 if bounce > 0 and modes[li] == MODE_MIS and len(rows):
                     # The rays that met the light only (with the light tree each takes
                     # a walk down the tree per light for its choice probability).
-                    L = L * _mis_weight(ctx, li, light, o[rows], d[rows], tl[rows],
+                    om, tm = o[rows], tl[rows]
+                    if passages is not None:
+                        om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
+                    L = L * _mis_weight(ctx, li, light, om, d[rows], tm,
                                         pdf_b[rows], org_ns[rows], org_p[rows])[:, None]
                 acc.add(target, pix, L, tp, rows)
                 t = np.where(mask, tl, t)
@@ -1591,9 +1594,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             Le = hit.emission
             if np.any(Le > 0):
                 if bounce > 0:
+                    op = org_p if kept is None else org_p[kept]
+                    om, tm = o, t
+                    if passages is not None:
+                        om, tm = passages.mis_origin(np.arange(len(o)), o, d, t, op)
                     Le = Le * _mesh_mis_weight(
-                        ctx, modes, prim, o, d, t, hit.ng, pdf_b,
-                        org_p if kept is None else org_p[kept],
+                        ctx, modes, prim, om, d, tm, hit.ng, pdf_b, op,
                         org_ns if kept is None else org_ns[kept])[:, None]
                 acc.add(target, pix, Le, tp)
         if bounce == 0 and MIRROR_NO_ROULETTE:

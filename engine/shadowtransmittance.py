@@ -326,12 +326,16 @@ class CameraPassages:
         self.pre_pdf = np.full(n, np.inf)
         self.pre_ns = np.zeros((n, 3))
         self.pre_p = np.zeros((n, 3))
+        # Rays whose MIS state (org_p) is not the point they left: a flat passage or a
+        # transparent pass lies between (mis_origin).
+        self.moved = np.zeros(n, np.bool_)
         return self
 
     def compact(self, kept):
         if kept is not None:
             self.entry, self.pre_pdf = self.entry[kept], self.pre_pdf[kept]
             self.pre_ns, self.pre_p = self.pre_ns[kept], self.pre_p[kept]
+            self.moved = self.moved[kept]
 
     def step(self, prim, d_in, p, keep, d_out, pdf_in, ns_in, p_in, pdf_out, ns_out, p_out):
         """After continue_specular: pdf_out, ns_out, p_out (K,) rewritten where a flat
@@ -348,6 +352,26 @@ class CameraPassages:
                        self.pre_ns, self.pre_p, pdf_out, ns_out, p_out, entry, pre_pdf,
                        pre_ns, pre_p)
         self.entry, self.pre_pdf, self.pre_ns, self.pre_p = entry, pre_pdf, pre_ns, pre_p
+        self.moved = np.any(p_out != np.take(p, keep, axis=0), axis=1)
+
+    def mis_origin(self, rows, o, d, t, org_p):
+        """(o, t) for the light pdf of continuation rays rows (K,) (into this step's rows)
+        from o (K,3) along d (K,3) that met a light at t (K,) (units of |d|), against the
+        shadow rays from org_p (K,3), the point whose lobe sampled them: the same arrays,
+        except where a flat passage or transparent pass lay between (moved), where the
+        pdf is the light's seen from org_p along d, at t plus the way from org_p to o
+        along d (the slab shifts the ray sideways by at most its thickness). Taken from o,
+        a window 1 m below a light gave the pdf at a fraction of that distance, the
+        continuation most of the MIS weight, and the light through the window counted
+        twice in part (rough glass under a pane read 1.05x the light without the pane)."""
+        far = self.moved[rows]
+        if not far.any():
+            return o, t
+        o, t = o.copy(), np.array(t, np.float64)
+        src, df = org_p[far], d[far]
+        t[far] = t[far] + ((o[far] - src) * df).sum(axis=1) / (df * df).sum(axis=1)
+        o[far] = src
+        return o, t
 
 
 @kernel

@@ -248,7 +248,10 @@ def _floor_lit_through(bpy, surface):
     light facing up at a mirror over it (its back emits nothing), or an area light above
     a flat glass pane (2 cm: a flat passage, shadow rays cross it). Cycles reaches the
     floor's light by the floor's diffuse bounce and the mirror's bounce (or the pane's
-    two refractions), the last of which hits the light."""
+    two refractions), the last of which hits the light. "glossy_pane": the pane over a
+    diffuse + glossy floor (roughness 0.3), the camera on the glossy highlight;
+    "rough_glass": a rough glass sheet (roughness 0.3) under the pane, seen from below
+    (no floor): Cycles finds the light by the sheet's refraction and the pane's two."""
     sys.path.insert(0, os.path.join(ROOT, "example_blends"))
     import make_blends as mb
     scene = mb.reset()
@@ -265,7 +268,22 @@ def _floor_lit_through(bpy, surface):
         glass = mb.material("glass", "glass", (1, 1, 1), roughness=0.0, ior=1.5)
         mb.box("Pane", 2.0, 2.0, 0.02, glass, location=(0, 0, 1.5))
         mb.light("Lamp", "AREA", (0, 0, 2.3), 200.0, look_at=(0, 0, 0), size=0.3)
-    mb.camera((0, -2.5, 1.2), (0, 0.3, 0), fov_deg=50)
+    if surface == "glossy_pane":
+        # the floor diffuse + glossy (a Mix Shader), the camera on its glossy highlight
+        scene.objects["Floor"].data.materials[0] = mb.material(
+            "glossy_floor", "glossy_mix", (0.8, 0.8, 0.8), roughness=0.3)
+        mb.camera((0, -2.5, 1.2), (0, -1.0, 0), fov_deg=50)
+    elif surface == "rough_glass":
+        # a rough glass sheet under the pane, seen from below: no floor
+        bpy.data.objects.remove(scene.objects["Floor"])
+        rough = mb.material("rough", "glass", (1, 1, 1), ior=1.5)
+        for n in rough.node_tree.nodes:
+            if n.bl_idname == "ShaderNodeBsdfGlass":
+                n.inputs["Roughness"].default_value = 0.3
+        mb.plane("Sheet", 4, 4, rough, location=(0, 0, 1.0), rotation=(math.pi, 0, 0))
+        mb.camera((0, -0.6, 0.2), (0, 0, 1.0), fov_deg=50)
+    else:
+        mb.camera((0, -2.5, 1.2), (0, 0.3, 0), fov_deg=50)
     mb.set_world((0, 0, 0))
     scene.render.resolution_x, scene.render.resolution_y = 40, 30
     scene.render.resolution_percentage = 100
