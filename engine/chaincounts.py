@@ -21,7 +21,9 @@ diffuse, glossy, transmission) on top of the map's own camera counts.
   At the last level (no regather) they read the map scaled by the share of its power
   their counts keep (`GatherCounts.last_level_scale`).
 - Shadow rays through flat glass passages (engine/shadowtransmittance.py) cross only as
-  many as the hit's counts allow (`flat_passages`).
+  many as the hit's counts allow (`flat_passages`), per lobe kind: a hit's diffuse and
+  glossy lobes may differ (directlight.accumulate_bsdf), rough glass counts its
+  refraction (engine/glasslight.py).
 """
 from __future__ import annotations
 
@@ -68,22 +70,34 @@ def within(counts, limits) -> np.ndarray:
     return np.all(c <= np.asarray(limits, np.int64)[None, :], axis=1)
 
 
-def flat_passages(counts, limits) -> np.ndarray:
+# The kind of bounce a shaded hit's lobe makes (B_TOTAL columns, photonkernels): which of
+# its counts the flat-passage cap adds the hit's own bounce to.
+DIFFUSE, GLOSSY, TRANSMISSION = 1, 2, 3
+
+
+def flat_passages(counts, limits, lobe=DIFFUSE) -> np.ndarray:
     """(K,) int64: the most flat glass passages a shadow ray from a hit reached with
-    camera-side counts counts (K,4) may cross within the limits (4,) (B_TOTAL order).
+    camera-side counts counts (K,4) may cross within the limits (4,) (B_TOTAL order),
+    for the light a lobe of kind `lobe` (DIFFUSE, GLOSSY or TRANSMISSION) takes from it.
     A shadow ray through a flat passage (engine/shadowtransmittance.py) carries light
-    that Cycles gathers by BSDF sampling: the hit's bounce (counted as diffuse), then two
-    refractions per passage, the last of which reaches the light (the light-sample
-    vertex: no bounce of its kind, as a photon's first scatter, photonkernels.B_TOTAL).
-    So k passages need diffuse + 1 <= Diffuse, total + 2k <= Total and transmission +
-    2k - 1 <= Transmission (path_state_next: a count at the setting + 1 still collects
-    the emission the next ray meets). A floor lit through a pane reads nothing at
-    Transmission 0 in Cycles; it read the pane's full light before
-    (tests/test_bounce_limits.py)."""
+    that Cycles gathers by BSDF sampling: the hit's bounce (counted as the lobe's kind:
+    diffuse and sheen DIFFUSE, the rough reflective lobes GLOSSY, rough glass's
+    refraction TRANSMISSION: path_state_next's labels), then two refractions per
+    passage, the last of which reaches the light (the light-sample vertex: no bounce of
+    its kind, as a photon's first scatter, photonkernels.B_TOTAL). Every bounce before
+    that last one must stay within its limit (path_state_next: a count at the setting + 1
+    still collects the emission the next ray meets, but the ray goes no further). So k
+    passages need lobe + 1 <= its limit, total + 2k <= Total and transmission + 2k - 1
+    (+ 1 for a TRANSMISSION lobe) <= Transmission. A floor lit through a pane reads
+    nothing at Transmission 0 in Cycles; it read the pane's full light before, and a
+    glossy floor's glossy lobe kept it at Glossy 0 (tests/test_bounce_limits.py). No
+    passage (k = 0) needs nothing: that light sample is Cycles' own, taken at every
+    shaded hit whatever its lobes' counts."""
     c = np.asarray(counts, np.int64).reshape(-1, 4)
     lim = np.asarray(limits, np.int64)
-    k = np.minimum((lim[0] - c[:, 0]) // 2, (lim[3] - c[:, 3] + 1) // 2)
-    k[c[:, 1] + 1 > lim[1]] = 0
+    refraction = 1 if lobe == TRANSMISSION else 0
+    k = np.minimum((lim[0] - c[:, 0]) // 2, (lim[3] - c[:, 3] - refraction + 1) // 2)
+    k[c[:, lobe] + 1 > lim[lobe]] = 0
     return np.maximum(k, 0)
 
 

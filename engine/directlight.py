@@ -622,6 +622,12 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     return m_all, m_rays
 
 
+# accumulate_bsdf's cut bits: a shadow ray's light is past the Light Paths limits for the
+# diffuse f and sheen (CUT_DIFFUSE) or for the other rough reflective lobes (CUT_GLOSSY).
+CUT_DIFFUSE, CUT_GLOSSY = 1, 2
+NO_CUT = np.zeros(0, np.int64)
+
+
 @kernel
 def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all, bump):
     """E[row] += contrib * bump * visible / samples of its light, entry by entry (sample
@@ -640,7 +646,7 @@ def accumulate(E, contrib, row, kidx, ray, ksamples, blocked, m_all, bump):
 
 @kernel
 def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, lpdf, kmode,
-                    fd, prm, ns, wo, sel, bump, hrow):
+                    fd, prm, ns, wo, sel, bump, hrow, cut):
     """Radiance instead of irradiance: L[row] += contrib x f x visible / samples, entry by
     entry, where f = fd[row] (the diffuse lobe's f = albedo / pi) plus the rough reflective
     lobes' f(wo, wi) (engine/closures/principled.py, packed per hit in prm; ns, wo (N,3)),
@@ -655,9 +661,14 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
     already holds cos(wi) (with the shading offset), so the glossy term is eval / cos(wi);
     bump (j,) dims the diffuse f alone (Cycles' bump shadowing term; (0,): 1 everywhere).
     hrow (n,) int64: entry row i's hit is row hrow[i] of prm, ns, wo and sel (fd and L
-    are per shaded row i), as sample_lights' hrow; (0,): the same rows."""
+    are per shaded row i), as sample_lights' hrow; (0,): the same rows.
+    cut (R,) int64 per traced ray: the lobes whose light it carries past the Light Paths
+    limits (flat glass passages beyond their caps, direct_light): CUT_DIFFUSE the diffuse
+    f and sheen (Cycles counts a sheen bounce as diffuse), CUT_GLOSSY the other rough
+    reflective lobes; (0,): none."""
     has_bump = bump.shape[0] > 0
     indexed = hrow.shape[0] > 0
+    has_cut = cut.shape[0] > 0
     for j in range(m_all):
         r = ray[j]
         if r >= 0 and blocked[r]:
@@ -668,6 +679,9 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
         h = hrow[i] if indexed else i
         bd = bump[j] if has_bump else 1.0
         f0, f1, f2 = fd[i, 0] * bd, fd[i, 1] * bd, fd[i, 2] * bd
+        kc = cut[r] if has_cut and r >= 0 else 0
+        if kc & CUT_DIFFUSE:
+            f0 = f1 = f2 = 0.0
         mode = kmode[k]
         if mode == 3:
             # A light the tree picked for this hit: a delta light (lpdf inf) in full, a
@@ -679,7 +693,16 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
             ix, iy, iz = pr.frame_local(n0, n1, n2, wdir[j, 0], wdir[j, 1], wdir[j, 2])
             if iz > 0.0:
                 ox, oy, oz = pr.frame_local(n0, n1, n2, wo[h, 0], wo[h, 1], wo[h, 2])
-                g0, g1, g2 = pr.eval_reflection(prm, h, ox, oy, oz, ix, iy, iz)
+                if kc == 0:
+                    g0, g1, g2 = pr.eval_reflection(prm, h, ox, oy, oz, ix, iy, iz)
+                else:
+                    # Past a cap: only the lobes whose bounce kind is within it.
+                    g0, g1, g2, s0, s1, s2 = pr.eval_reflection_parts(prm, h, ox, oy, oz, ix,
+                                                                      iy, iz)
+                    if kc & CUT_GLOSSY:
+                        g0 = g1 = g2 = 0.0
+                    if not kc & CUT_DIFFUSE:
+                        g0, g1, g2 = g0 + s0, g1 + s1, g2 + s2
                 mis = 1.0
                 if mode == 2:
                     pb = pr.bsdf_pdf(prm, sel, h, ox, oy, oz, ix, iy, iz)
@@ -781,8 +804,11 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     (a batch's shaded rows, read in place; the numbers, fd and E count the n hits);
     None: hit_arrays are the n hits.
     passages (n,) int64: the most flat glass passages a shadow ray from each hit may
-    cross (the bounce limits, chaincounts.flat_passages; ShadowTransmittance); None: no
-    cap.
+    cross (the bounce limits, chaincounts.flat_passages; ShadowTransmittance); with bsdf
+    also (n,2): the caps of the diffuse f and sheen (column 0) and of the other rough
+    reflective lobes (column 1), which Cycles counts against different limits (a ray
+    past one cap carries its light to the other lobe alone: accumulate_bsdf's cut);
+    None: no cap.
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
@@ -795,6 +821,9 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     buf = buffers or DirectLightBuffers()
     E = buf.sums(n)
     lobes = bsdf if transmission is None else transmission  # directions and pdfs wanted
+    lobe_caps = passages is not None and np.ndim(passages) == 2
+    if lobe_caps and bsdf is None:
+        raise ValueError("direct_light: per-lobe passages (n,2) need bsdf")
     per_call = max(1, MAX_ENTRIES // n)
     rays = 0
     zeros = None
@@ -826,21 +855,36 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                                       NO_ROWS3 if lobes is None else buf.wdir,
                                       NO_ROWS if lobes is None else buf.lpdf, bump, hrow)
         blocked = buf.blocked[:m_rays]
+        cut = NO_CUT
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.
             t_keep = buf.t32[:m_rays].copy() if shadow is not None else None
             accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
                                 cls=shadow_cls)
             if shadow is not None:
-                ray_cap = None
+                ray_cap = crossed = None
                 if passages is not None:
                     # Each traced ray's cap, from its hit (entries j < m_all).
-                    ray_cap = np.zeros(m_rays, np.int64)
                     r = buf.ray[:m_all]
                     on = r >= 0
-                    ray_cap[r[on]] = np.take(passages, buf.row[:m_all][on])
+                    hits = buf.row[:m_all][on]
+                    if lobe_caps:
+                        # The two lobes' caps: the ray crosses up to the larger, and the
+                        # passages it crossed tell which lobes keep its light.
+                        cap2 = np.zeros((m_rays, 2), np.int64)
+                        cap2[r[on]] = np.take(passages, hits, axis=0)
+                        ray_cap = cap2.max(axis=1)
+                        crossed = np.zeros(m_rays, np.int64)
+                    else:
+                        ray_cap = np.zeros(m_rays, np.int64)
+                        ray_cap[r[on]] = np.take(passages, hits)
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
-                                    buf.contrib, buf.ray, m_all, shadow_cls, ray_cap)
+                                    buf.contrib, buf.ray, m_all, shadow_cls, ray_cap, crossed)
+                if crossed is not None:
+                    over = crossed[:, None] > cap2
+                    if over.any():
+                        cut = (over[:, 0] * CUT_DIFFUSE + over[:, 1] * CUT_GLOSSY).astype(
+                            np.int64)
         if transmission is not None:
             prm, ns, wo, mode, sel = transmission
             pr.accumulate_transmission(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples,
@@ -854,7 +898,7 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
             fd, prm, wo, mode, sel = bsdf
             accumulate_bsdf(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked,
                             m_all, buf.wdir, buf.lpdf, mode[klight], fd, prm, hit_arrays[1], wo,
-                            sel, bump, hrow)
+                            sel, bump, hrow, cut)
         rays += m_rays
     return E, rays
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import chaincounts
 from .closures import principled as pr
 from .directlight import NO_ROWS, NO_ROWS3, direct_light
 from .lights.packing import pack_lights
@@ -36,7 +37,8 @@ def rough_transmission_rows(prm, cand) -> np.ndarray:
     return out[:k]
 
 
-def transmitted_light(ctx, hit, rows, prm, sel, psum, modes, samples, counters) -> np.ndarray:
+def transmitted_light(ctx, hit, rows, prm, sel, psum, modes, samples, counters,
+                      counts=None) -> np.ndarray:
     """Radiance (K,3) towards wo that the rough glass hits rows (K,) int64 of the batch
     `hit` (bsdf.SurfaceHit; prm (N, N_PACK) their packed lobes, sel (N, N_LOBES) the
     continuation's lobe-choice probabilities, valid where psum (N,) > 0: elsewhere no
@@ -45,7 +47,12 @@ def transmitted_light(ctx, hit, rows, prm, sel, psum, modes, samples, counters) 
     refraction f_t and, against the continuation, by multiple importance sampling.
     samples: the K rows' light samples (integrator.light_sample_list with modes: the
     plan's counts, as the reflective lobes take them; lights left to the continuation take
-    none). modes: integrator.light_modes(ctx)."""
+    none). modes: integrator.light_modes(ctx).
+    counts: (K,4) int64, the camera-side bounce counts the rows are reached with (B_TOTAL
+    order; None: none, the camera's first hits): shadow rays through flat glass passages
+    cross only as many as the limits allow after the refraction's own transmission bounce
+    (chaincounts.flat_passages, TRANSMISSION: Cycles finds a light behind a pane beyond
+    rough glass by that refraction and the pane's two)."""
     k_rows = len(rows)
     if k_rows == 0 or not samples:
         return np.zeros((k_rows, 3))
@@ -65,9 +72,17 @@ def transmitted_light(ctx, hit, rows, prm, sel, psum, modes, samples, counters) 
     mode = (np.full(len(ctx.lights), MODE_TREE, np.int64) if chosen is not None
             else np.asarray(modes, np.int64))
     transmission = (c(prm[rows]), ns, c(hit.wo[rows], np.float64), mode, sel_k)
+    shadow = getattr(ctx, "shadow", None)
+    passages = None
+    if shadow is not None and shadow.flat_on:
+        cap = chaincounts.flat_passages((0, 0, 0, 0) if counts is None else counts,
+                                        ctx.settings.bounce_limits, chaincounts.TRANSMISSION)
+        # Caps at or above max_hits // 2 never bind (integrator.direct_irradiance's).
+        if cap.min() < shadow.max_hits // 2:
+            passages = c(np.broadcast_to(cap, (k_rows,)), np.int64)
     out, rays = direct_light(ctx.packed_lights or pack_lights(ctx.lights), arrays, samples,
-                             ctx.accel, SHADOW, k_rows, shadow=getattr(ctx, "shadow", None),
+                             ctx.accel, SHADOW, k_rows, shadow=shadow,
                              tree=None if chosen is None else chosen[1],
-                             transmission=transmission)
+                             transmission=transmission, passages=passages)
     counters.shadow_rays += rays
     return out

@@ -115,7 +115,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     same numbers as hit.take(rows) without copying the rows' fields; None: every hit.
     counts: (4,) or (n,4) int64, the camera-side bounce counts the hits are reached with
     (B_TOTAL order; None: none, the camera's first hits): shadow rays through flat glass
-    passages cross only as many as the bounce limits allow (chaincounts.flat_passages)."""
+    passages cross only as many as the bounce limits allow (chaincounts.flat_passages);
+    with bsdf per lobe kind (the diffuse f and sheen as a diffuse bounce, the other rough
+    reflective lobes as a glossy one: directlight.accumulate_bsdf's cut)."""
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     samples = light_sample_list(ctx, n, rng, sampler, skip_mesh_lights)
@@ -138,12 +140,21 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     shadow = getattr(ctx, "shadow", None)
     passages = None
     if shadow is not None and shadow.flat_on:
-        cap = chaincounts.flat_passages((0, 0, 0, 0) if counts is None else counts,
-                                        ctx.settings.bounce_limits)
+        c = (0, 0, 0, 0) if counts is None else counts
+        limits = ctx.settings.bounce_limits
+        cap = chaincounts.flat_passages(c, limits)
+        gcap = (chaincounts.flat_passages(c, limits, chaincounts.GLOSSY) if bsdf is not None
+                else cap)
         # A passage is two of a shadow ray's max_hits surfaces: caps at or above
         # max_hits // 2 never bind (the default limits at the camera's hits).
-        if cap.min() < shadow.max_hits // 2:
-            passages = np.ascontiguousarray(np.broadcast_to(cap, (n,)), np.int64)
+        bind = shadow.max_hits // 2
+        if min(cap.min(), gcap.min()) < bind:
+            if np.array_equal(np.minimum(cap, bind), np.minimum(gcap, bind)):
+                passages = np.ascontiguousarray(np.broadcast_to(cap, (n,)), np.int64)
+            else:
+                # The lobes' caps differ: both, per hit (directlight.direct_light).
+                passages = np.ascontiguousarray(
+                    np.broadcast_to(np.stack([cap, gcap], axis=-1), (n, 2)), np.int64)
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
@@ -1650,7 +1661,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 if bounce > 0 and modes[li] == MODE_MIS and len(rows):
                     # The rays that met the light only (with the light tree each takes
                     # a walk down the tree per light for its choice probability).
-                    L = L * _mis_weight(ctx, li, light, o[rows], d[rows], tl[rows],
+                    om, tm = o[rows], tl[rows]
+                    if passages is not None:
+                        om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
+                    L = L * _mis_weight(ctx, li, light, om, d[rows], tm,
                                         pdf_b[rows], org_ns[rows], org_p[rows])[:, None]
                 acc.add(target, pix, L, tp, rows)
                 t = np.where(mask, tl, t)
@@ -1756,9 +1770,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             Le = hit.emission
             if np.any(Le > 0):
                 if bounce > 0:
+                    op = org_p if kept is None else org_p[kept]
+                    om, tm = o, t
+                    if passages is not None:
+                        om, tm = passages.mis_origin(np.arange(len(o)), o, d, t, op)
                     Le = Le * _mesh_mis_weight(
-                        ctx, modes, prim, o, d, t, hit.ng, pdf_b,
-                        org_p if kept is None else org_p[kept],
+                        ctx, modes, prim, om, d, tm, hit.ng, pdf_b, op,
                         org_ns if kept is None else org_ns[kept])[:, None]
                 acc.add(target, pix, Le, tp)
         if bounce == 0 and MIRROR_NO_ROULETTE:
@@ -1824,7 +1841,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 Lt = transmitted_light(ctx, hit, gl, prm if hit.prm is None else hit.prm, sel,
                                        psum, modes,
                                        light_sample_list(ctx, len(gl), glass_rng, modes=modes),
-                                       counters)
+                                       counters, counts=None if bounce == 0
+                                       else _chain_counts(np.take(chain, gl, axis=0)))
                 acc.add("direct" if bounce == 0 else "specular", pix, Lt, tp, gl)
         if bounce == depth_limit:
             return

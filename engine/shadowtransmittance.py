@@ -326,12 +326,16 @@ class CameraPassages:
         self.pre_pdf = np.full(n, np.inf)
         self.pre_ns = np.zeros((n, 3))
         self.pre_p = np.zeros((n, 3))
+        # Rays whose MIS state (org_p) is not the point they left: a flat passage or a
+        # transparent pass lies between (mis_origin).
+        self.moved = np.zeros(n, np.bool_)
         return self
 
     def compact(self, kept):
         if kept is not None:
             self.entry, self.pre_pdf = self.entry[kept], self.pre_pdf[kept]
             self.pre_ns, self.pre_p = self.pre_ns[kept], self.pre_p[kept]
+            self.moved = self.moved[kept]
 
     def step(self, prim, d_in, p, keep, d_out, pdf_in, ns_in, p_in, pdf_out, ns_out, p_out):
         """After continue_specular: pdf_out, ns_out, p_out (K,) rewritten where a flat
@@ -348,6 +352,26 @@ class CameraPassages:
                        self.pre_ns, self.pre_p, pdf_out, ns_out, p_out, entry, pre_pdf,
                        pre_ns, pre_p)
         self.entry, self.pre_pdf, self.pre_ns, self.pre_p = entry, pre_pdf, pre_ns, pre_p
+        self.moved = np.any(p_out != np.take(p, keep, axis=0), axis=1)
+
+    def mis_origin(self, rows, o, d, t, org_p):
+        """(o, t) for the light pdf of continuation rays rows (K,) (into this step's rows)
+        from o (K,3) along d (K,3) that met a light at t (K,) (units of |d|), against the
+        shadow rays from org_p (K,3), the point whose lobe sampled them: the same arrays,
+        except where a flat passage or transparent pass lay between (moved), where the
+        pdf is the light's seen from org_p along d, at t plus the way from org_p to o
+        along d (the slab shifts the ray sideways by at most its thickness). Taken from o,
+        a window 1 m below a light gave the pdf at a fraction of that distance, the
+        continuation most of the MIS weight, and the light through the window counted
+        twice in part (rough glass under a pane read 1.05x the light without the pane)."""
+        far = self.moved[rows]
+        if not far.any():
+            return o, t
+        o, t = o.copy(), np.array(t, np.float64)
+        src, df = org_p[far], d[far]
+        t[far] = t[far] + ((o[far] - src) * df).sum(axis=1) / (df * df).sum(axis=1)
+        o[far] = src
+        return o, t
 
 
 @kernel
@@ -463,7 +487,8 @@ class ShadowTransmittance:
             return None
         return cls(geo, table, max_hits)
 
-    def transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None) -> np.ndarray:
+    def transmittance(self, o32, d32, t32, rows=None, cls=None, passages=None,
+                      crossed_out=None) -> np.ndarray:
         """(R,3) RGB transmittance of the shadow rays `rows` (default: all) from o32 (R,3)
         along d32 (R,3) to distance t32 (R,) (units of |d|; re-centred world space),
         through transparent surfaces: the product of (1 - alpha) x transparent tint of the
@@ -471,10 +496,13 @@ class ShadowTransmittance:
         lie in the way. cls: the rays' class (engine/visibility.py; None: every triangle
         is seen). passages: (R,) int64 per ray (as o32), the most flat passages it may
         cross (Cycles' bounce limits: each passage stands for two refractions,
-        chaincounts.flat_passages); more: blocked. None: no cap."""
+        chaincounts.flat_passages); more: blocked. None: no cap. crossed_out: (R,) int64
+        or None: written at rows with the flat passages each ray crossed (with a cap only;
+        a ray blocked past its cap counts the passage that blocked it)."""
         if rows is None:
             rows = np.arange(len(o32))
         rows = np.asarray(rows, np.int64)
+        ray_rows = rows  # (the walk below reuses the name for the hits' table rows)
         n = len(rows)
         trans = np.ones((n, 3))
         count = np.zeros(n, np.int64)
@@ -504,6 +532,8 @@ class ShadowTransmittance:
                 go = ~stop
                 o, d, t, slot = o[go], d[go], t[go], slot[go]
         if clear is None:
+            if crossed_out is not None and crossed is not None:
+                crossed_out[ray_rows] = crossed
             return trans
         for _ in range(self.max_hits + 1):
             if len(slot) == 0:
@@ -564,20 +594,23 @@ class ShadowTransmittance:
         else:
             # Unreachable: each step blocks a ray at its (max_hits + 1)-th surface.
             trans[slot] = 0.0
+        if crossed_out is not None and crossed is not None:
+            crossed_out[ray_rows] = crossed
         return trans
 
     def pass_blocked(self, o32, d32, t32, blocked, contrib, ray, m_all, cls=None,
-                     passages=None):
+                     passages=None, crossed_out=None):
         """After an OCCLUDED query: re-trace the blocked shadow rays through transparent
         surfaces; rays that get through are marked unblocked in `blocked` and the entries
         (j < m_all) of `contrib` that use them scaled by their transmittance (the layout
         of directlight.sample_lights). t32 must hold the rays' distances as they were
         before the query (Embree overwrites them). passages: (R,) the rays' most flat
-        passages (transmittance's; None: no cap)."""
+        passages (transmittance's; None: no cap). crossed_out: (R,) int64 or None, the
+        flat passages each re-traced ray crossed (transmittance's; the rest untouched)."""
         rows = np.nonzero(blocked)[0]
         if len(rows) == 0:
             return
-        trans = self.transmittance(o32, d32, t32, rows, cls, passages)
+        trans = self.transmittance(o32, d32, t32, rows, cls, passages, crossed_out)
         through = np.any(trans > 0.0, axis=1)
         if not through.any():
             return

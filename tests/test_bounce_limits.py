@@ -359,13 +359,14 @@ def test_gather_counts_decide_as_the_photons_own_sums():
     assert ("mask",) + key in edge._cache  # decided by the photons' own sums
 
 
-def _lit_through(surface: str):
+def _lit_through(surface: str, floor=None):
     """A floor lit only by way of one smooth surface: a point light above a flat glass
     pane (2 cm thick, a flat passage: shadow rays cross it, engine/shadowtransmittance.py)
     or below a mirror that faces down (the floor sees no light straight from it: a ring
-    blocks it), the camera looking down at the floor under it."""
+    blocks it), the camera looking down at the floor under it. floor: its Material
+    (named "floor"; None: diffuse 0.8 grey)."""
     s = PaperScene(width=16, height=12)
-    s.add_material(Material("floor", (0.8, 0.8, 0.8)))
+    s.add_material(floor or Material("floor", (0.8, 0.8, 0.8)))
     s.add_plane((0, 0, 0), normal=(0, 0, 1), size=6.0, material="floor", name="floor")
     if surface == "pane":
         s.add_material(Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0, ior=1.5))
@@ -412,6 +413,96 @@ def test_flat_passages_need_two_transmission_bounces_but_one_counted():
         np.testing.assert_array_equal(films[key], films["high"])
     for key in ("t0", "total1", "d0"):
         assert films[key].mean() < 0.01 * films["high"].mean(), key
+
+
+def test_flat_passage_caps_count_the_hits_own_bounce_by_its_lobe():
+    """The hit's own bounce before the passages counts as its lobe's kind (path_state_next's
+    labels): a glossy lobe needs glossy + 1 <= Glossy, rough glass's refraction is a
+    transmission bounce (transmission + 2k <= Transmission: it and all but the last of the
+    pane's refractions within the limit); a diffuse lobe as before."""
+    from engine.chaincounts import DIFFUSE, GLOSSY, TRANSMISSION, flat_passages
+    lim = np.array([12, 4, 4, 12])
+    zero = [[0, 0, 0, 0]]
+    assert flat_passages(zero, lim, GLOSSY).tolist() == [6]
+    assert flat_passages(zero, [12, 4, 0, 12], GLOSSY).tolist() == [0]
+    assert flat_passages(zero, [12, 4, 1, 12], GLOSSY).tolist() == [6]
+    assert flat_passages(zero, [12, 0, 1, 12], GLOSSY).tolist() == [6]
+    assert flat_passages(zero, [12, 0, 1, 12], DIFFUSE).tolist() == [0]
+    assert flat_passages([[2, 0, 1, 1]], [12, 4, 1, 12], GLOSSY).tolist() == [0]
+    for t, k in ((0, 0), (1, 0), (2, 1), (3, 1), (4, 2)):
+        assert flat_passages(zero, [12, 4, 4, t], TRANSMISSION).tolist() == [k], t
+    assert flat_passages([[3, 1, 0, 2]], lim, TRANSMISSION).tolist() == [4]
+    assert flat_passages([[3, 1, 0, 2]], [4, 4, 4, 12], TRANSMISSION).tolist() == [0]
+
+
+def _glossy_floor_under_a_pane():
+    """_lit_through("pane") with a glossy floor (Principled specular 1, roughness 0.3):
+    its diffuse and glossy lobes both take the point light's shadow rays through the
+    pane."""
+    return _lit_through("pane", Material("floor", (0.5, 0.5, 0.5), specular=1.0,
+                                         roughness=0.3))
+
+
+def test_a_glossy_floors_lobes_take_the_panes_light_within_their_own_limits():
+    """A glossy floor under a pane (a point light: shadow rays only): Cycles reaches the
+    light through the pane by the floor's bounce, diffuse or glossy by the lobe it
+    samples, so at Glossy 0 its glossy lobe has none of the pane's light and at Diffuse 0
+    its diffuse lobe none; the two limits together split the image into its two lobes'
+    parts (direct(high) = direct(Glossy 0) + direct(Diffuse 0), the same shadow rays).
+    Before, the cap counted the hit's bounce as diffuse for both: Glossy 0 read the whole
+    image and Diffuse 0 nothing."""
+    st = dict(photons=2000, caustic_photons=0, spp=2, seed=1, indirect="off", **HIGH)
+    films = {}
+    for key, extra in (("high", {}), ("g0", dict(glossy_bounces=0)),
+                       ("g1", dict(glossy_bounces=1)), ("d0", dict(diffuse_bounces=0)),
+                       ("t0", dict(transmission_bounces=0))):
+        scene = _glossy_floor_under_a_pane()
+        films[key] = scene.render(RenderSettings(**dict(st, **extra))).direct
+    high, g0, d0 = films["high"], films["g0"], films["d0"]
+    assert high.mean() > 0.2
+    np.testing.assert_array_equal(films["g1"], high)
+    # each lobe a real share of the light (0.5 grey diffuse, specular 1 at roughness 0.3)
+    assert 0.2 * high.mean() < g0.mean() < 0.95 * high.mean()
+    assert 0.05 * high.mean() < d0.mean() < 0.8 * high.mean()
+    np.testing.assert_allclose(g0 + d0, high, rtol=1e-6)  # (float32 films)
+    assert films["t0"].mean() < 0.01 * high.mean()
+
+
+def _rough_glass_under_a_pane():
+    """A rough glass sheet (roughness 0.3, one plane: light entering it stays inside) seen
+    from below, a flat pane above it and a point light above that: the camera's rough
+    glass hits sample the light on the far side (engine/glasslight.py), their shadow
+    rays crossing the pane."""
+    s = PaperScene(width=16, height=12)
+    s.add_material(Material("rough", (1, 1, 1), transmission=1.0, roughness=0.3, ior=1.5))
+    s.add_plane((0, 0, 1.0), normal=(0, 0, -1), size=4.0, material="rough", name="sheet")
+    s.add_material(Material("glass", (1, 1, 1), transmission=1.0, roughness=0.0, ior=1.5))
+    s.add_box((0, 0, 1.5), (3.0, 3.0, 0.02), "glass", name="pane")
+    s.add_point_light((0, 0, 2.0), power=100.0)
+    s.set_camera((0, -0.3, 0.2), (0, 0, 1.0), view_angle=40)
+    return s
+
+
+def test_rough_glass_light_samples_count_the_refraction_and_the_panes_two():
+    """Rough glass samples the lights behind it (engine/glasslight.py); behind a pane
+    Cycles finds that light by the glass's refraction (a transmission bounce) and the
+    pane's two refractions, the last of which reaches the light: Transmission 2 reads it
+    all, Transmission 1 and 0 none (the pane's entry is past the limit). Before, these
+    shadow rays had no cap: all of it at every limit."""
+    st = dict(photons=2000, caustic_photons=0, spp=2, seed=1, indirect="off", **HIGH)
+    films = {}
+    for key, extra in (("high", {}), ("t0", dict(transmission_bounces=0)),
+                       ("t1", dict(transmission_bounces=1)),
+                       ("t2", dict(transmission_bounces=2)), ("total2", dict(max_bounces=2)),
+                       ("total1", dict(max_bounces=1))):
+        films[key] = _rough_glass_under_a_pane().render(
+            RenderSettings(**dict(st, **extra))).direct
+    high = films["high"]
+    assert high.mean() > 0.05
+    for key in ("t2", "total2"):
+        np.testing.assert_array_equal(films[key], high, err_msg=key)
+    for key in ("t0", "t1", "total1"):
+        assert films[key].mean() < 0.01 * high.mean(), key
 
 
 def test_a_mirror_as_the_photons_first_scatter_is_the_light_vertex():

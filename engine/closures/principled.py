@@ -370,14 +370,24 @@ def glossy_normal_row(ns, ng, wo, i):
 def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
     """f * cos_i (RGB) of hit i's rough reflective lobes (spec, metal, coat on the glossy
     normal P_GN; glass reflection and sheen on the shading normal) for local wo, wi;
-    mirror-like lobes contribute nothing (delta)."""
+    mirror-like lobes contribute nothing (delta): eval_reflection_parts' two parts summed."""
+    r0, r1, r2, s0, s1, s2 = eval_reflection_parts(prm, i, ox, oy, oz, ix, iy, iz)
+    return r0 + s0, r1 + s1, r2 + s2
+
+
+@kernel
+def eval_reflection_parts(prm, i, ox, oy, oz, ix, iy, iz):
+    """eval_reflection in two parts by the bounce kind Cycles counts (path_state_next's
+    labels): (glossy (RGB): spec, metal, coat and glass reflection; sheen (RGB): a
+    diffuse bounce, LABEL_DIFFUSE). For the lobes' separate Light Paths limits through
+    flat glass passages (directlight.accumulate_bsdf)."""
     r0 = r1 = r2 = 0.0
     qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
     jx, jy, jz = _to_glossy(prm, i, ix, iy, iz)
     if qz > 0.0 and jz > 0.0:
         r0, r1, r2 = _eval_glossy(prm, i, qx, qy, qz, jx, jy, jz)
     if oz <= 0.0 or iz <= 0.0:
-        return r0, r1, r2
+        return r0, r1, r2, 0.0, 0.0, 0.0
     a = prm[i, P_GLASS_ALPHA]
     if a >= ggx.ALPHA_MIN and (prm[i, P_GLASS_RW] > 0 or prm[i, P_GLASS_RW + 1] > 0
                                or prm[i, P_GLASS_RW + 2] > 0):
@@ -389,10 +399,9 @@ def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
     if (prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0
             or prm[i, P_SHEEN_W + 2] > 0):
         e, _ = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
-        r0 += prm[i, P_SHEEN_W] * e
-        r1 += prm[i, P_SHEEN_W + 1] * e
-        r2 += prm[i, P_SHEEN_W + 2] * e
-    return r0, r1, r2
+        return (r0, r1, r2, prm[i, P_SHEEN_W] * e, prm[i, P_SHEEN_W + 1] * e,
+                prm[i, P_SHEEN_W + 2] * e)
+    return r0, r1, r2, 0.0, 0.0, 0.0
 
 
 @kernel
