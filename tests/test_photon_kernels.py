@@ -308,6 +308,74 @@ def test_intersect_traced_in_a_kernel_is_embreex_answer_bit_for_bit():
             accel.close()
 
 
+def test_occlusion_traced_in_packets_is_embreex_answer():
+    """Accel.occluded and occluded_into through the packet kernel (rtcOccluded8,
+    _occluded_packets) answer as embreex's run(query="OCCLUDED") one ray at a time, on a
+    room with a fine ball in several mesh pieces: rays between random surface points
+    (lifted by 1e-5 or not at all, ends on the surfaces: the hardest cases for a
+    traversal's rounding), rays grazing the walls in their planes, short, long and
+    zero-length rays, NaN and inf tmax, counts that leave a packet's lanes empty, on
+    one thread and split over two."""
+    from engine import accel as accel_mod
+
+    if not accel_mod._kernel_occluded_address():
+        pytest.skip("rtcOccluded8 not reachable from a kernel here")
+    s = _scene()
+    v, f, n, _ = sphere_mesh((-0.3, 0.2, 1.3), 0.35, segments=330, rings=210)
+    s.add_triangles(v, f, "ball", name="fine ball", normals=n)
+    s.validate()
+    geo, _ = prepare(s)
+    assert geo.count > 2 * accel_mod.MESH_TRIANGLES
+    rng = np.random.default_rng(23)
+    tri = geo.vertices32[geo.faces32].astype(np.float64)  # (T,3,3)
+    m = 3 * accel_mod.MIN_PER_THREAD + 5
+
+    def on_surface(k):
+        t = rng.integers(0, len(tri), k)
+        a, b = rng.random(k), rng.random(k)
+        flip = a + b > 1
+        a[flip], b[flip] = 1 - a[flip], 1 - b[flip]
+        p = tri[t, 0] + a[:, None] * (tri[t, 1] - tri[t, 0]) + b[:, None] * (tri[t, 2] - tri[t, 0])
+        nrm = np.cross(tri[t, 1] - tri[t, 0], tri[t, 2] - tri[t, 0])
+        return p, nrm / np.maximum(np.linalg.norm(nrm, axis=1), 1e-30)[:, None]
+
+    p0, n0 = on_surface(m)
+    p1, n1 = on_surface(m)
+    lift = np.where(rng.random(m) < 0.5, 1e-5, 0.0)[:, None]
+    a, b = p0 + lift * n0, p1 + lift * n1
+    d = b - a
+    t = np.linalg.norm(d, axis=1)
+    d /= np.maximum(t, 1e-300)[:, None]
+    # Grazing: along a wall's plane (the room spans [-1, 1] x [-1, 1] x [0, 2]).
+    g = slice(0, m // 4)
+    a[g, 2] = 0.0
+    d[g, 2] = 0.0
+    d[g] /= np.maximum(np.linalg.norm(d[g], axis=1), 1e-300)[:, None]
+    t[::13] = 0.0
+    t[1::13] = np.inf
+    t[2::13] = np.nan
+    t[3::13] = 50.0
+    o32, d32 = a.astype(np.float32), d.astype(np.float32)
+    blocked_counts = []
+    for threads in (1, 2):
+        accel = Accel(geo.vertices32, geo.faces32, threads)
+        try:
+            for k in (m, m - 3, 7, 1, 0):
+                want = np.asarray(accel._scene.run(
+                    o32[:k], d32[:k], dists=Accel._prepare(o32[:k], d32[:k], t[:k])[2],
+                    query="OCCLUDED")) == 0 if k else np.zeros(0, bool)
+                got = accel.occluded(a[:k], d[:k], t[:k])
+                np.testing.assert_array_equal(got, want)
+                t32 = Accel._prepare(o32[:k], d32[:k], t[:k])[2]
+                into = np.empty(k, bool)
+                accel.occluded_into(o32[:k], d32[:k], t32, into)
+                np.testing.assert_array_equal(into, want)
+                blocked_counts.append(int(want.sum()))
+        finally:
+            accel.close()
+    assert 0.1 * m < blocked_counts[0] < 0.9 * m  # both answers well represented
+
+
 def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
     """Accel.intersect_hits (Embree's own int32 ids and float32 barycentrics, which the
     photon pass hands to scatter) names the triangles and barycentrics Accel.intersect
