@@ -269,3 +269,46 @@ def test_normal_pass_matches_cycles(cases, bpy_addon, tmp_path):
     print(report)
     for name, (med, p90) in report.items():
         assert med < 2.0 and p90 < 8.0, (name, med, p90, report)
+
+
+def _metal_cylinder_scene(bpy):
+    """The trial's case, small: a rough metal cylinder (Principled, metallic 1, roughness
+    0.4) with smooth sides and flat caps, no sharp edge, under an area light, black world;
+    the camera sees the side's highlight (Cycles) where the corner normals see none."""
+    mb = _mb()
+    scene = mb.reset()
+    metal = mb.material("metal", "principled", (0.8, 0.8, 0.82), roughness=0.4, metallic=1.0)
+    _cylinder("Metal", metal)
+    mb.light("Area", "AREA", (0.0, -2.5, 2.6), 300.0, look_at=(0, 0, 0.4), size=1.0)
+    mb.camera((0.0, -4.5, 0.6), (0.0, 0.0, 0.1), fov_deg=35.0)
+    scene.render.resolution_x, scene.render.resolution_y = 48, 40
+    scene.render.film_transparent = True
+    return scene
+
+
+def _side_mean(bpy, scene, rgba):
+    """Mean luminance of the side's pixels (inner columns, between the rims)."""
+    from blender_helpers import luminance
+    r0 = project(bpy, scene, (0, -0.8, 0.7))[0]
+    r1 = project(bpy, scene, (0, -0.8, -0.7))[0]
+    c0 = project(bpy, scene, (-0.55, -0.6, 0.0))[1]
+    c1 = project(bpy, scene, (0.55, -0.6, 0.0))[1]
+    return float(luminance(rgba[r0:r1 + 1, c0:c1 + 1, :3]).mean())
+
+
+def test_metal_cylinder_side_matches_cycles(bpy_addon, tmp_path):
+    """The side of the trial's metal cylinder as bright as in live Cycles (within 5 %):
+    measured 1.050 against Cycles' 1.054 (256 spp); with the corner normals Python
+    reports it read 0.128, x0.12 (the trial's scene: 0.109 against 0.527)."""
+    bpy = bpy_addon
+    from blender_helpers import read_rgba
+    scene = _metal_cylinder_scene(bpy)
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, 256, 1)
+    ref = _side_mean(bpy, scene, read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr")))
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=64, photons=2_000, caustic_photons=2_000)
+    ours = _side_mean(bpy, scene, read_rgba(bpy, render_exr(bpy, scene, tmp_path / "o.exr")))
+    print("side luminance: ours", ours, "Cycles", ref)
+    assert ref > 0.05
+    assert abs(ours / ref - 1.0) < 0.05, (ours, ref)
