@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from .materials import MaterialConverter
+from .normals import shading_normals
 from .world import export_world, sky_sun_lights
 
 
@@ -104,18 +105,8 @@ def extract_geometry(obj) -> LocalGeometry | None:
         faces = _foreach(tris, "vertices", nt, 3, np.int32).astype(np.int64)
         loops = _foreach(tris, "loops", nt, 3, np.int32)
         mat_index = _foreach(tris, "material_index", nt, 1, np.int32)
-        domain = getattr(me, "normals_domain", "CORNER")
-        if domain == "FACE":
-            normals = None  # all faces flat: the engine uses geometric normals
-        elif domain == "POINT":
-            normals = _foreach(me.vertex_normals, "vector", nv, 3, np.float32).astype(np.float64)
-        else:
-            if hasattr(me, "corner_normals"):
-                corner = _foreach(me.corner_normals, "vector", len(me.loops), 3, np.float32)
-                normals = corner[loops].astype(np.float64)
-            else:  # Blender < 4.1
-                normals = _foreach(tris, "split_normals", nt, 9, np.float32)
-                normals = normals.reshape(nt, 3, 3).astype(np.float64)
+        # The normals Cycles shades with, not the ones the viewport draws (addon/normals.py).
+        normals = shading_normals(me, co, faces, loops)
         uvs = None
         tangents = None
         layers = me.uv_layers
