@@ -452,6 +452,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
         stats["global_photons"] = maps.pop("global_photons")
     diffuse_area = maps.pop("diffuse_area")
     images = maps.pop("caustic_images", 0)
+    stats["secondary_images"] = maps.pop("secondary_images", 0)
     for name, value in maps.items():
         setattr(ctx, name, value)
     stats["caustic_photons"] = len(ctx.caustic_map) - images if ctx.caustic_map is not None \
@@ -507,6 +508,20 @@ SUBSET_POWER_SHARE = 0.005
 # The caustic map's photons get images across the open edges of the surfaces they lie on
 # (engine/edgeimages.py): the reflection method keeps a disc's light at an edge.
 EDGE_IMAGES = True
+# The secondary (CAUSTIC_DIFFUSE) map's photons get them too, within its own radius: the
+# same disc cut by the same edges (docs/performance.md "secedges").
+SECONDARY_EDGE_IMAGES = True
+
+
+def _with_images(photons: Photons, images: Photons) -> Photons:
+    """photons with images (engine/edgeimages.py) appended after them, bounce counts too."""
+    if not len(images):
+        return photons
+    return Photons(*(np.concatenate([getattr(photons, f), getattr(images, f)])
+                     for f in ("position", "power", "direction", "normal", "kind")),
+                   photons.emitted,
+                   None if photons.bounces is None else
+                   np.concatenate([photons.bounces, images.bounces]))
 
 
 def region_photons(positions: np.ndarray, region, k: int) -> np.ndarray:
@@ -638,23 +653,41 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             check(flag)
         if final:
             rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & at_hit)
-            out["secondary_map"] = secondary = _counted_map(shot, workers, rows)
             # Its own photons' spacing: the global radius follows the dense photons of the
             # whole shot (a caustic's pile among them), which leaves the sparser secondary
             # photons below min_photons in much of the disc (zero estimate): walls lit
             # from a floor behind a window read 25 % dark against Cycles.
-            out["secondary_radius"] = s.radius or auto_radius(
-                diffuse_area, len(rows), k, geo.extent,
-                np.take(shot.position, rows, axis=0), secondary.tree, workers=workers)
+            source, images = shot, None
+            if SECONDARY_EDGE_IMAGES and geo.count:
+                # The radius first (from the photons alone: the images are estimator
+                # support, not photons), then the images within it, then the maps of
+                # photons and images (same k-NN distances from any tree: auto_radius).
+                radius = s.radius or auto_radius(
+                    diffuse_area, len(rows), k, geo.extent,
+                    np.take(shot.position, rows, axis=0), workers=workers)
+                check(flag)
+                below = shot.take(np.flatnonzero(shot.kind == CAUSTIC_DIFFUSE))
+                images = edge_images(below, geo, diffuse_tris, ctx.accel, radius)
+                source = _with_images(below, images)
+                rows = np.flatnonzero(source.usable(limits))
+                out["secondary_map"] = secondary = _counted_map(source, workers, rows)
+                out["secondary_radius"] = radius
+                out["secondary_images"] = len(images)
+            else:
+                out["secondary_map"] = secondary = _counted_map(shot, workers, rows)
+                out["secondary_radius"] = s.radius or auto_radius(
+                    diffuse_area, len(rows), k, geo.extent,
+                    np.take(shot.position, rows, axis=0), secondary.tree, workers=workers)
             # Read at regathered points, level + 1 diffuse bounces from the camera's hit.
             # A level whose limits keep the same secondary photons (they differ only in
             # others: Figure 6's levels 1 / 2) reads the map above (the same estimates).
             deeper, last = [], (secondary, rows)
             for level in range(1, MAX_GATHER_LEVEL + 1):
-                ok = shot.usable(limits, camera=(level, level, 0, 0))
-                rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & ok)
+                ok = source.usable(limits, camera=(level, level, 0, 0))
+                rows = np.flatnonzero(ok if images is not None else
+                                      (shot.kind == CAUSTIC_DIFFUSE) & ok)
                 if not np.array_equal(rows, last[1]):
-                    last = (_counted_map(shot, workers, rows), rows)
+                    last = (_counted_map(source, workers, rows), rows)
                 deeper.append(last[0])
             out["regather_secondary"] = tuple(deeper)
         elif plan.indirect and not s.final_gather:
@@ -692,12 +725,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
         src, rows = out.pop("caustic_source")
         photons = src.take(rows)
         images = edge_images(photons, geo, diffuse_tris, ctx.accel, out["caustic_radius"])
-        if len(images):
-            photons = Photons(*(np.concatenate([getattr(photons, f), getattr(images, f)])
-                                for f in ("position", "power", "direction", "normal", "kind")),
-                              photons.emitted,
-                              None if photons.bounces is None else
-                              np.concatenate([photons.bounces, images.bounces]))
+        photons = _with_images(photons, images)
         out["caustic_map"] = _counted_map(photons, workers, None)
         out["caustic_images"] = len(images)
     out["diffuse_area"] = diffuse_area
