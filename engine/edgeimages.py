@@ -23,12 +23,15 @@ rug, a step or a mat lies just above or below, whose photons the estimate's sphe
 already reads (an image over it would count them twice).
 A photon near two open edges on different lines (a corner) gets an image across each and,
 where they meet at 60-120 degrees, one across both (CORNERS; the four quadrants of the
-reflection method at a right angle). Used for the caustic map (cap: the caustic radius) and
-the secondary CAUSTIC_DIFFUSE map (cap: its own radius; render._build_maps).
+reflection method at a right angle). Used for the caustic map (cap: the caustic radius);
+the secondary CAUSTIC_DIFFUSE map can take them too (render.SECONDARY_EDGE_IMAGES, off:
+its wide radius carries images across a gap narrower than 2 R, below).
 Not handled: scenes with shared instances (Geometry.shared: no images anywhere), a photon
 near three or more edges (a strip narrower than the cap: the two nearest lines only),
 corners far from a right angle (the two edge images only, no third), curved edges (each
-triangle edge straight), a parallel surface behind the first one the probe meets.
+triangle edge straight), a parallel surface behind the first one the probe meets, a
+coplanar surface across a gap narrower than 2 R (a window opening: its other sides'
+estimates read the images lying in the gap).
 """
 from __future__ import annotations
 

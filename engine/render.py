@@ -508,9 +508,14 @@ SUBSET_POWER_SHARE = 0.005
 # The caustic map's photons get images across the open edges of the surfaces they lie on
 # (engine/edgeimages.py): the reflection method keeps a disc's light at an edge.
 EDGE_IMAGES = True
-# The secondary (CAUSTIC_DIFFUSE) map's photons get them too, within its own radius: the
-# same disc cut by the same edges (docs/performance.md "secedges").
-SECONDARY_EDGE_IMAGES = True
+# The secondary (CAUSTIC_DIFFUSE) map's photons with images too, within its own radius:
+# off. A panel's secondary light then integrates to 1.01-1.03 of its photons' power
+# (0.93-0.96 without), Figures 6 / 7 move +0.2-1.6 % towards Cycles, but that radius
+# (0.15-0.62 m) is wider than a window opening's half-width: the images of the wall below
+# the sill, mirrored into the opening, are read by the wall beside it, and the window
+# room's blocks there read 1.5-1.8 of Cycles (block error 0.357 -> 0.450, seeds 0-3;
+# docs/performance.md "secedges").
+SECONDARY_EDGE_IMAGES = False
 
 
 def _with_images(photons: Photons, images: Photons) -> Photons:
