@@ -133,11 +133,15 @@ def _open_edges_kept(geo, diffuse):
     return edges
 
 
-def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float):
+def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float,
+                gaps: bool = False):
     """Images (a Photons, possibly empty) of the photons within `radius` (m, the k-NN
     estimates' cap) of an open edge of the surface they lie on, mirrored across the
     nearest such edge, and near a corner across the nearest edge on another line and
-    across both (CORNERS); power, direction, normal, kind and bounce counts copied."""
+    across both (CORNERS); power, direction, normal, kind and bounce counts copied.
+    gaps: also drop an image lying within `radius` outside another open edge of a coplanar
+    surface (a gap narrower than 2 radius, e.g. a window opening: that surface's own
+    estimates would read it)."""
     empty = photons.take(np.zeros(0, np.int64))
     if not len(photons) or radius <= 0.0 or getattr(geo, "shared", None) is not None \
             or not getattr(geo, "count", 0):
@@ -183,7 +187,8 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     p = photons.position.astype(np.float64)
     # Each candidate's NEAREST_POINTS nearest edge points within reach, then the edges
     # through them tested exactly.
-    _, j = cKDTree(pts).query(p[cand], k=NEAREST_POINTS, distance_upper_bound=reach)
+    tree = cKDTree(pts)
+    _, j = tree.query(p[cand], k=NEAREST_POINTS, distance_upper_bound=reach)
     found = j < len(pts)
     if not found.any():
         return empty
@@ -211,6 +216,7 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     ph1, e1d, d1 = ph[firsts], e[firsts], d[firsts]
     image = p[ph1] - 2.0 * d1[:, None] * m[e1d]
     images, owners, normals = [image], [ph1], [n[e1d]]
+    used = [np.column_stack([e1d, e1d])]  # the edges each image is mirrored across
     parents = np.zeros((0, 2), np.int64)  # a corner image's two edge images' rows
     if CORNERS:
         # A corner: the nearest edge on another line (not the nearest's own line split
@@ -228,6 +234,7 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
             images.append(p[ph2] - 2.0 * d2[:, None] * m[e2])
             owners.append(ph2)
             normals.append(n[e2])
+            used.append(np.column_stack([e2, e2]))
             square = np.abs((m[e2] * m[e1d[first_of]]).sum(axis=1)) < CORNER_COS
             if square.any():
                 q = image[first_of[square]]
@@ -236,9 +243,30 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
                 images.append(q - 2.0 * off[:, None] * m[e2s])
                 owners.append(ph2[square])
                 normals.append(n[e2s])
+                used.append(np.column_stack([e1d[first_of[square]], e2s]))
                 parents = np.column_stack([first_of[square],
                                            len(ph1) + np.flatnonzero(square)])
     image, ph, nrm = np.concatenate(images), np.concatenate(owners), np.concatenate(normals)
+    used = np.concatenate(used)
+    gap = np.zeros(len(ph), bool)
+    if gaps:
+        _, j = tree.query(image, k=NEAREST_POINTS, distance_upper_bound=reach)
+        found = j < len(pts)
+        im = np.broadcast_to(np.arange(len(ph))[:, None], j.shape)[found]
+        g = edge[j[found]]
+        rel = image[im] - a[g]
+        ab = b[g] - a[g]
+        along = (rel * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-300)
+        dg = (rel * m[g]).sum(axis=1)
+        coplanar = (np.abs((n[g] * nrm[im]).sum(axis=1)) >= FACING) & \
+            (np.abs((rel * n[g]).sum(axis=1)) <= PLANE_TOLERANCE * radius)
+        other = np.ones(len(im), bool)
+        for c in (0, 1):
+            u = used[im, c]
+            other &= ~((np.abs((m[g] * m[u]).sum(axis=1)) > SAME_LINE) &
+                       (np.abs(((a[g] - a[u]) * m[u]).sum(axis=1)) <= PLANE_TOLERANCE * radius))
+        hit = coplanar & other & (along >= 0.0) & (along <= 1.0) & (dg < 0.0) & (dg > -radius)
+        gap[im[hit]] = True
     # Drop images over a parallel diffuse surface within R along the normal (the surface
     # continues, or lies close enough for the estimate's sphere to read its photons).
     lift = PROBE_LIFT * radius
@@ -251,6 +279,7 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
         hn /= np.maximum(np.linalg.norm(hn, axis=1), 1e-300)[:, None]
         same = diffuse[hit] & (np.abs((hn * nrm[cont]).sum(axis=1)) >= NORMAL_AGREEMENT)
         cont[np.flatnonzero(cont)[~same]] = False
+    cont |= gap
     if len(parents):
         # A corner image stands for the light beyond both edges: where either edge's own
         # image is dropped (the surface continues past that edge), that surface's photons

@@ -270,3 +270,19 @@ def test_the_secondary_map_keeps_a_panels_power(monkeypatch, images):
         assert 0.98 < ratio < 1.04
     else:
         assert ratio < 0.975
+
+
+@pytest.mark.parametrize("gap, kept", [(0.1, 0), (0.5, 1)])
+def test_gaps_drop_images_another_coplanar_surface_would_read(gap, kept):
+    """Two coplanar floors `gap` apart along x (a window opening's sides). A photon on the
+    first 0.05 from its x = 1 edge: its image lies in the gap; with gaps=True it is dropped
+    where the second floor's edge lies within R of it (that floor's own estimates would
+    read it), kept across a gap wider than R; gaps=False keeps it either way."""
+    geo, diffuse, accel = _geo([((0, 0, 0), (1, 0, 0), (0, 1, 0)),
+                                ((1 + gap, 0, 0), (1, 0, 0), (0, 1, 0))])
+    ph = _photons(np.array([[0.95, 0.5]]), 1.0)
+    assert len(edge_images(ph, geo, diffuse, accel, R)) == 1
+    im = edge_images(ph, geo, diffuse, accel, R, gaps=True)
+    assert len(im) == kept
+    if kept:
+        np.testing.assert_allclose(im.position[0], [1.05, 0.5, 0.0], atol=1e-6)
