@@ -21,9 +21,17 @@ own lies within R of it along the normal, first met by a probe from R above it: 
 surface continues past the edge (a wall made of separate planes meeting there), or a
 rug, a step or a mat lies just above or below, whose photons the estimate's sphere
 already reads (an image over it would count them twice).
+A photon near two open edges on different lines (a corner) gets an image across each and,
+where they meet at 60-120 degrees, one across both (CORNERS; the four quadrants of the
+reflection method at a right angle). Used for the caustic map (cap: the caustic radius);
+the secondary CAUSTIC_DIFFUSE map can take them too (render.SECONDARY_EDGE_IMAGES, off:
+its wide radius carries images across a gap narrower than 2 R, below).
 Not handled: scenes with shared instances (Geometry.shared: no images anywhere), a photon
-near two edges (a corner: one image, across the nearer edge), curved edges (each triangle
-edge straight), a parallel surface behind the first one the probe meets.
+near three or more edges (a strip narrower than the cap: the two nearest lines only),
+corners far from a right angle (the two edge images only, no third), curved edges (each
+triangle edge straight), a parallel surface behind the first one the probe meets, a
+coplanar surface across a gap narrower than 2 R (a window opening: its other sides'
+estimates read the images lying in the gap).
 """
 from __future__ import annotations
 
@@ -36,12 +44,19 @@ from .photons import Photons
 PLANE_TOLERANCE = 1e-3  # x R: how far a photon may sit off an edge's triangle plane
 FACING = 0.9  # |photon normal . triangle normal| for the photon to lie on that triangle
 # Edge points a photon looks at: the edges through them are tested exactly. Two edges
-# meet at each corner and a crease's two sides share their points (4 at a corner).
-NEAREST_POINTS = 8
+# meet at each corner and a crease's two sides share their points (4 at a corner; a
+# room's floor corner: 6, the walls' vertical edges too), and a photon near a corner must
+# see the points of both its edges (CORNERS: a crease's 4 nearest points were all on it).
+NEAREST_POINTS = 16
 # Edge points listed at most (plus two an edge): bounds the listing's memory whatever
 # the radius (a 1e-9 m radius on 10 m of edges asked for 8e10 points).
 EDGE_POINT_BUDGET = 1 << 22
 PROBE_LIFT = 1.0  # x R: the probe starts this far above the image point, goes twice as far
+# A photon near two open edges (a corner): images across both and across the corner
+# (docs/performance.md "secedges"); False: across the nearer edge only.
+CORNERS = True
+SAME_LINE = 1.0 - 1e-6  # |m . m'| above this (and on the same offset): one line, two segments
+CORNER_COS = 0.5  # |m . m'| below this: the two edges meet at 60-120 degrees, a corner image
 
 
 def open_edges(geo, diffuse: np.ndarray):
@@ -118,10 +133,15 @@ def _open_edges_kept(geo, diffuse):
     return edges
 
 
-def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float):
-    """Images (a Photons, possibly empty) of the photons within `radius` (m, the caustic
+def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float,
+                gaps: bool = False):
+    """Images (a Photons, possibly empty) of the photons within `radius` (m, the k-NN
     estimates' cap) of an open edge of the surface they lie on, mirrored across the
-    nearest such edge; power, direction, normal, kind and bounce counts copied."""
+    nearest such edge, and near a corner across the nearest edge on another line and
+    across both (CORNERS); power, direction, normal, kind and bounce counts copied.
+    gaps: also drop an image lying within `radius` outside another open edge of a coplanar
+    surface (a gap narrower than 2 radius, e.g. a window opening: that surface's own
+    estimates would read it)."""
     empty = photons.take(np.zeros(0, np.int64))
     if not len(photons) or radius <= 0.0 or getattr(geo, "shared", None) is not None \
             or not getattr(geo, "count", 0):
@@ -167,7 +187,8 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     p = photons.position.astype(np.float64)
     # Each candidate's NEAREST_POINTS nearest edge points within reach, then the edges
     # through them tested exactly.
-    _, j = cKDTree(pts).query(p[cand], k=NEAREST_POINTS, distance_upper_bound=reach)
+    tree = cKDTree(pts)
+    _, j = tree.query(p[cand], k=NEAREST_POINTS, distance_upper_bound=reach)
     found = j < len(pts)
     if not found.any():
         return empty
@@ -190,20 +211,80 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     order = np.lexsort((d, ph))
     ph, e, d = ph[order], e[order], d[order]
     firsts = np.r_[True, ph[1:] != ph[:-1]]
-    ph, e, d = ph[firsts], e[firsts], d[firsts]
-    image = p[ph] - 2.0 * d[:, None] * m[e]
+    start = np.cumsum(firsts) - 1  # each row's photon group
+    e1 = e[firsts][start]  # its nearest edge, on every row of the group
+    ph1, e1d, d1 = ph[firsts], e[firsts], d[firsts]
+    image = p[ph1] - 2.0 * d1[:, None] * m[e1d]
+    images, owners, normals = [image], [ph1], [n[e1d]]
+    used = [np.column_stack([e1d, e1d])]  # the edges each image is mirrored across
+    parents = np.zeros((0, 2), np.int64)  # a corner image's two edge images' rows
+    if CORNERS:
+        # A corner: the nearest edge on another line (not the nearest's own line split
+        # into segments at the mesh's vertices) gets its image too, and where the two
+        # lines meet at 60-120 degrees the image across both (the photon reflected across
+        # the first edge, then the second: exact for a right angle, as the reflection
+        # method's four quadrants; a wedge of another angle would need more images).
+        same_line = (np.abs((m[e] * m[e1]).sum(axis=1)) > SAME_LINE) & \
+            (np.abs(((a[e] - a[e1]) * m[e1]).sum(axis=1)) <= PLANE_TOLERANCE * radius)
+        other = np.flatnonzero(~same_line)
+        if len(other):
+            sec = other[np.r_[True, ph[other][1:] != ph[other][:-1]]]
+            ph2, e2, d2 = ph[sec], e[sec], d[sec]
+            first_of = np.searchsorted(ph1, ph2)
+            images.append(p[ph2] - 2.0 * d2[:, None] * m[e2])
+            owners.append(ph2)
+            normals.append(n[e2])
+            used.append(np.column_stack([e2, e2]))
+            square = np.abs((m[e2] * m[e1d[first_of]]).sum(axis=1)) < CORNER_COS
+            if square.any():
+                q = image[first_of[square]]
+                e2s = e2[square]
+                off = ((q - a[e2s]) * m[e2s]).sum(axis=1)
+                images.append(q - 2.0 * off[:, None] * m[e2s])
+                owners.append(ph2[square])
+                normals.append(n[e2s])
+                used.append(np.column_stack([e1d[first_of[square]], e2s]))
+                parents = np.column_stack([first_of[square],
+                                           len(ph1) + np.flatnonzero(square)])
+    image, ph, nrm = np.concatenate(images), np.concatenate(owners), np.concatenate(normals)
+    used = np.concatenate(used)
+    gap = np.zeros(len(ph), bool)
+    if gaps:
+        _, j = tree.query(image, k=NEAREST_POINTS, distance_upper_bound=reach)
+        found = j < len(pts)
+        im = np.broadcast_to(np.arange(len(ph))[:, None], j.shape)[found]
+        g = edge[j[found]]
+        rel = image[im] - a[g]
+        ab = b[g] - a[g]
+        along = (rel * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-300)
+        dg = (rel * m[g]).sum(axis=1)
+        coplanar = (np.abs((n[g] * nrm[im]).sum(axis=1)) >= FACING) & \
+            (np.abs((rel * n[g]).sum(axis=1)) <= PLANE_TOLERANCE * radius)
+        other = np.ones(len(im), bool)
+        for c in (0, 1):
+            u = used[im, c]
+            other &= ~((np.abs((m[g] * m[u]).sum(axis=1)) > SAME_LINE) &
+                       (np.abs(((a[g] - a[u]) * m[u]).sum(axis=1)) <= PLANE_TOLERANCE * radius))
+        hit = coplanar & other & (along >= 0.0) & (along <= 1.0) & (dg < 0.0) & (dg > -radius)
+        gap[im[hit]] = True
     # Drop images over a parallel diffuse surface within R along the normal (the surface
     # continues, or lies close enough for the estimate's sphere to read its photons).
     lift = PROBE_LIFT * radius
-    origin = image + lift * n[e]
-    t, prim, _, _ = accel.intersect(origin, -n[e], np.full(len(ph), 2.0 * lift))
+    origin = image + lift * nrm
+    t, prim, _, _ = accel.intersect(origin, -nrm, np.full(len(ph), 2.0 * lift))
     cont = prim >= 0
     if cont.any():
         hit = prim[cont]
         hn = np.cross(np.take(geo.e1, hit, axis=0), np.take(geo.e2, hit, axis=0))
         hn /= np.maximum(np.linalg.norm(hn, axis=1), 1e-300)[:, None]
-        same = diffuse[hit] & (np.abs((hn * n[e][cont]).sum(axis=1)) >= NORMAL_AGREEMENT)
+        same = diffuse[hit] & (np.abs((hn * nrm[cont]).sum(axis=1)) >= NORMAL_AGREEMENT)
         cont[np.flatnonzero(cont)[~same]] = False
+    cont |= gap
+    if len(parents):
+        # A corner image stands for the light beyond both edges: where either edge's own
+        # image is dropped (the surface continues past that edge), that surface's photons
+        # bring their own images there.
+        cont[len(ph) - len(parents):] |= cont[parents[:, 0]] | cont[parents[:, 1]]
     ph, image = ph[~cont], image[~cont]
     out = photons.take(ph)
     out.position = image.astype(np.float32)

@@ -456,6 +456,7 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
         stats["global_photons"] = maps.pop("global_photons")
     diffuse_area = maps.pop("diffuse_area")
     images = maps.pop("caustic_images", 0)
+    stats["secondary_images"] = maps.pop("secondary_images", 0)
     for name, value in maps.items():
         setattr(ctx, name, value)
     stats["caustic_photons"] = len(ctx.caustic_map) - images if ctx.caustic_map is not None \
@@ -511,6 +512,29 @@ SUBSET_POWER_SHARE = 0.005
 # The caustic map's photons get images across the open edges of the surfaces they lie on
 # (engine/edgeimages.py): the reflection method keeps a disc's light at an edge.
 EDGE_IMAGES = True
+# The secondary (CAUSTIC_DIFFUSE) map's photons with images too, within its own radius:
+# off. A panel's secondary light then integrates to 1.01-1.03 of its photons' power
+# (0.93-0.96 without), Figures 6 / 7 move +0.2-1.6 % towards Cycles, but that radius
+# (0.15-0.62 m) is wider than a window opening's half-width: the images of the wall below
+# the sill, mirrored into the opening, are read by the wall beside it, and the window
+# room's blocks there read 1.5-1.8 of Cycles (block error 0.357 -> 0.450, seeds 0-3;
+# docs/performance.md "secedges"). Dropping the images in such gaps (SECONDARY_GAPS,
+# edge_images' gaps) brought the opening's blocks back to main's; the room's far corners
+# still read 2-9 % brighter than without images (block error 0.357 -> 0.402).
+SECONDARY_EDGE_IMAGES = False
+# With them: drop the images lying in a gap narrower than 2 radius (edgeimages gaps).
+SECONDARY_GAPS = True
+
+
+def _with_images(photons: Photons, images: Photons) -> Photons:
+    """photons with images (engine/edgeimages.py) appended after them, bounce counts too."""
+    if not len(images):
+        return photons
+    return Photons(*(np.concatenate([getattr(photons, f), getattr(images, f)])
+                     for f in ("position", "power", "direction", "normal", "kind")),
+                   photons.emitted,
+                   None if photons.bounces is None else
+                   np.concatenate([photons.bounces, images.bounces]))
 
 
 def region_photons(positions: np.ndarray, region, k: int) -> np.ndarray:
@@ -642,23 +666,42 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             check(flag)
         if final:
             rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & at_hit)
-            out["secondary_map"] = secondary = _counted_map(shot, workers, rows)
             # Its own photons' spacing: the global radius follows the dense photons of the
             # whole shot (a caustic's pile among them), which leaves the sparser secondary
             # photons below min_photons in much of the disc (zero estimate): walls lit
             # from a floor behind a window read 25 % dark against Cycles.
-            out["secondary_radius"] = s.radius or auto_radius(
-                diffuse_area, len(rows), k, geo.extent,
-                np.take(shot.position, rows, axis=0), secondary.tree, workers=workers)
+            source, images = shot, None
+            if SECONDARY_EDGE_IMAGES and geo.count:
+                # The radius first (from the photons alone: the images are estimator
+                # support, not photons), then the images within it, then the maps of
+                # photons and images (same k-NN distances from any tree: auto_radius).
+                radius = s.radius or auto_radius(
+                    diffuse_area, len(rows), k, geo.extent,
+                    np.take(shot.position, rows, axis=0), workers=workers)
+                check(flag)
+                below = shot.take(np.flatnonzero(shot.kind == CAUSTIC_DIFFUSE))
+                images = edge_images(below, geo, diffuse_tris, ctx.accel, radius,
+                                     gaps=SECONDARY_GAPS)
+                source = _with_images(below, images)
+                rows = np.flatnonzero(source.usable(limits))
+                out["secondary_map"] = secondary = _counted_map(source, workers, rows)
+                out["secondary_radius"] = radius
+                out["secondary_images"] = len(images)
+            else:
+                out["secondary_map"] = secondary = _counted_map(shot, workers, rows)
+                out["secondary_radius"] = s.radius or auto_radius(
+                    diffuse_area, len(rows), k, geo.extent,
+                    np.take(shot.position, rows, axis=0), secondary.tree, workers=workers)
             # Read at regathered points, level + 1 diffuse bounces from the camera's hit.
             # A level whose limits keep the same secondary photons (they differ only in
             # others: Figure 6's levels 1 / 2) reads the map above (the same estimates).
             deeper, last = [], (secondary, rows)
             for level in range(1, MAX_GATHER_LEVEL + 1):
-                ok = shot.usable(limits, camera=(level, level, 0, 0))
-                rows = np.flatnonzero((shot.kind == CAUSTIC_DIFFUSE) & ok)
+                ok = source.usable(limits, camera=(level, level, 0, 0))
+                rows = np.flatnonzero(ok if images is not None else
+                                      (shot.kind == CAUSTIC_DIFFUSE) & ok)
                 if not np.array_equal(rows, last[1]):
-                    last = (_counted_map(shot, workers, rows), rows)
+                    last = (_counted_map(source, workers, rows), rows)
                 deeper.append(last[0])
             out["regather_secondary"] = tuple(deeper)
         elif plan.indirect and not s.final_gather:
@@ -696,12 +739,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
         src, rows = out.pop("caustic_source")
         photons = src.take(rows)
         images = edge_images(photons, geo, diffuse_tris, ctx.accel, out["caustic_radius"])
-        if len(images):
-            photons = Photons(*(np.concatenate([getattr(photons, f), getattr(images, f)])
-                                for f in ("position", "power", "direction", "normal", "kind")),
-                              photons.emitted,
-                              None if photons.bounces is None else
-                              np.concatenate([photons.bounces, images.bounces]))
+        photons = _with_images(photons, images)
         out["caustic_map"] = _counted_map(photons, workers, None)
         out["caustic_images"] = len(images)
     out["diffuse_area"] = diffuse_area
