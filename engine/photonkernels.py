@@ -81,9 +81,10 @@ SEGMENT_KINDS = ALL_RAYS & ~CAMERA
 N_DIMS = 6
 MAX_BOUNCES = 1 << 16
 _BLOCK = 256  # hits per closure set-up in scatter
-# Slots of the per-call cache of triangle tilts (_surfaces): a direct-mapped table keyed by
+# Slots of the per-call cache of triangle data (_surfaces): a direct-mapped table keyed by
 # the triangle's row, so photons that hit the same triangles (a room's few walls) compute
-# its float32 plane's tilt once per call instead of per hit; the same value either way.
+# its float32 plane's tilt and its unit winding normal once per call instead of per hit;
+# the same values either way.
 _TILT_SLOTS = 1024
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -152,8 +153,9 @@ def photon_surfaces(prim, u, v, d, v0, e1, e2, corner_normals, material, base_co
 
 @kernel
 def _tilt_cache():
-    """An empty tilt cache for _surfaces: (triangle row of each slot, -1 = empty; tilt)."""
-    return np.full(_TILT_SLOTS, -1, np.int64), np.zeros(_TILT_SLOTS)
+    """An empty triangle cache for _surfaces: (triangle row of each slot, -1 = empty;
+    (_TILT_SLOTS, 4): the triangle's tilt and unit winding normal)."""
+    return np.full(_TILT_SLOTS, -1, np.int64), np.zeros((_TILT_SLOTS, 4))
 
 
 @kernel
@@ -163,7 +165,7 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
     """photon_surfaces for the hits rows[lo:hi] on triangle rows tri[lo:hi], written at
     row i = rows[k] of the outputs, or at k - lo when compact (a block's own buffers).
     u, v: float64 or Embree's float32 (the same values either way). tilt_row, tilt: the
-    call's tilt cache (_tilt_cache), read and filled here."""
+    call's triangle cache (_tilt_cache), read and filled here."""
     smooth = corner_normals.shape[0] > 0
     for k in range(lo, hi):
         i = rows[k]
@@ -173,9 +175,15 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         px = v0[t, 0] + b1 * e1[t, 0] + b2 * e2[t, 0]
         py = v0[t, 1] + b1 * e1[t, 1] + b2 * e2[t, 1]
         pz = v0[t, 2] + b1 * e1[t, 2] + b2 * e2[t, 2]
-        cx, cy, cz = winding_normal(e1, e2, t)
-        ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
-        gx, gy, gz = cx / ln, cy / ln, cz / ln
+        slot = t & (_TILT_SLOTS - 1)
+        if tilt_row[slot] != t:
+            cx, cy, cz = winding_normal(e1, e2, t)
+            ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+            tilt[slot, 0] = _tilt(v0, e1, e2, t)
+            tilt[slot, 1], tilt[slot, 2], tilt[slot, 3] = cx / ln, cy / ln, cz / ln
+            tilt_row[slot] = t
+        tl = tilt[slot, 0]
+        gx, gy, gz = tilt[slot, 1], tilt[slot, 2], tilt[slot, 3]
         dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
         fr = dx * gx + dy * gy + dz * gz < 0.0
         sign = 1.0 if fr else -1.0
@@ -208,13 +216,6 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         ex = _point_error(v0, e1, e2, t, b1, b2, px, 0)
         ey = _point_error(v0, e1, e2, t, b1, b2, py, 1)
         ez = _point_error(v0, e1, e2, t, b1, b2, pz, 2)
-        slot = t & (_TILT_SLOTS - 1)
-        if tilt_row[slot] == t:
-            tl = tilt[slot]
-        else:
-            tl = _tilt(v0, e1, e2, t)
-            tilt_row[slot] = t
-            tilt[slot] = tl
         offset[o] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz, tl)
 
 
