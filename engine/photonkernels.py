@@ -33,6 +33,7 @@ from .closures import principled as pr
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .jit import kernel, register_warm_up
 from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
+from .trig import sincos_turn
 
 # Kinds of path recorded with a stored photon (engine/photons.py explains them).
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
@@ -624,8 +625,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 u1 = uniform(key, slot[i], bounce, 1)
                 u2 = uniform(key, slot[i], bounce, 2)
                 r = math.sqrt(u1)
-                phi = 2.0 * math.pi * u2
-                ox, oy, oz = pr.frame_world(n0, n1, n2, r * math.cos(phi), r * math.sin(phi),
+                cp, sp = sincos_turn(u2)  # cos, sin of phi = 2 pi u2 (engine/trig.py)
+                ox, oy, oz = pr.frame_world(n0, n1, n2, r * cp, r * sp,
                                             math.sqrt(max(0.0, 1.0 - u1)))
                 ok = ox * gx + oy * gy + oz * gz > 0.0
                 k0, k1, k2 = wj[0, 0], wj[0, 1], wj[0, 2]
