@@ -33,6 +33,7 @@ from .closures import principled as pr
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .jit import kernel, register_warm_up
 from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
+from .trig import sincos_turn
 
 # Kinds of path recorded with a stored photon (engine/photons.py explains them).
 DIRECT, CAUSTIC, INDIRECT, CAUSTIC_DIFFUSE = 0, 1, 2, 3
@@ -81,9 +82,10 @@ SEGMENT_KINDS = ALL_RAYS & ~CAMERA
 N_DIMS = 6
 MAX_BOUNCES = 1 << 16
 _BLOCK = 256  # hits per closure set-up in scatter
-# Slots of the per-call cache of triangle tilts (_surfaces): a direct-mapped table keyed by
+# Slots of the per-call cache of triangle data (_surfaces): a direct-mapped table keyed by
 # the triangle's row, so photons that hit the same triangles (a room's few walls) compute
-# its float32 plane's tilt once per call instead of per hit; the same value either way.
+# its float32 plane's tilt and its unit winding normal once per call instead of per hit;
+# the same values either way.
 _TILT_SLOTS = 1024
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -152,8 +154,9 @@ def photon_surfaces(prim, u, v, d, v0, e1, e2, corner_normals, material, base_co
 
 @kernel
 def _tilt_cache():
-    """An empty tilt cache for _surfaces: (triangle row of each slot, -1 = empty; tilt)."""
-    return np.full(_TILT_SLOTS, -1, np.int64), np.zeros(_TILT_SLOTS)
+    """An empty triangle cache for _surfaces: (triangle row of each slot, -1 = empty;
+    (_TILT_SLOTS, 4): the triangle's tilt and unit winding normal)."""
+    return np.full(_TILT_SLOTS, -1, np.int64), np.zeros((_TILT_SLOTS, 4))
 
 
 @kernel
@@ -163,7 +166,7 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
     """photon_surfaces for the hits rows[lo:hi] on triangle rows tri[lo:hi], written at
     row i = rows[k] of the outputs, or at k - lo when compact (a block's own buffers).
     u, v: float64 or Embree's float32 (the same values either way). tilt_row, tilt: the
-    call's tilt cache (_tilt_cache), read and filled here."""
+    call's triangle cache (_tilt_cache), read and filled here."""
     smooth = corner_normals.shape[0] > 0
     for k in range(lo, hi):
         i = rows[k]
@@ -173,9 +176,15 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         px = v0[t, 0] + b1 * e1[t, 0] + b2 * e2[t, 0]
         py = v0[t, 1] + b1 * e1[t, 1] + b2 * e2[t, 1]
         pz = v0[t, 2] + b1 * e1[t, 2] + b2 * e2[t, 2]
-        cx, cy, cz = winding_normal(e1, e2, t)
-        ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
-        gx, gy, gz = cx / ln, cy / ln, cz / ln
+        slot = t & (_TILT_SLOTS - 1)
+        if tilt_row[slot] != t:
+            cx, cy, cz = winding_normal(e1, e2, t)
+            ln = max(math.sqrt(cx * cx + cy * cy + cz * cz), 1e-300)
+            tilt[slot, 0] = _tilt(v0, e1, e2, t)
+            tilt[slot, 1], tilt[slot, 2], tilt[slot, 3] = cx / ln, cy / ln, cz / ln
+            tilt_row[slot] = t
+        tl = tilt[slot, 0]
+        gx, gy, gz = tilt[slot, 1], tilt[slot, 2], tilt[slot, 3]
         dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
         fr = dx * gx + dy * gy + dz * gz < 0.0
         sign = 1.0 if fr else -1.0
@@ -208,13 +217,6 @@ def _surfaces(rows, tri, lo, hi, compact, u, v, d, v0, e1, e2, corner_normals, m
         ex = _point_error(v0, e1, e2, t, b1, b2, px, 0)
         ey = _point_error(v0, e1, e2, t, b1, b2, py, 1)
         ez = _point_error(v0, e1, e2, t, b1, b2, pz, 2)
-        slot = t & (_TILT_SLOTS - 1)
-        if tilt_row[slot] == t:
-            tl = tilt[slot]
-        else:
-            tl = _tilt(v0, e1, e2, t)
-            tilt_row[slot] = t
-            tilt[slot] = tl
         offset[o] = _offset_row(ex, ey, ez, v0, e1, e2, t, gx, gy, gz, px, py, pz, tl)
 
 
@@ -623,8 +625,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 u1 = uniform(key, slot[i], bounce, 1)
                 u2 = uniform(key, slot[i], bounce, 2)
                 r = math.sqrt(u1)
-                phi = 2.0 * math.pi * u2
-                ox, oy, oz = pr.frame_world(n0, n1, n2, r * math.cos(phi), r * math.sin(phi),
+                cp, sp = sincos_turn(u2)  # cos, sin of phi = 2 pi u2 (engine/trig.py)
+                ox, oy, oz = pr.frame_world(n0, n1, n2, r * cp, r * sp,
                                             math.sqrt(max(0.0, 1.0 - u1)))
                 ok = ox * gx + oy * gy + oz * gz > 0.0
                 k0, k1, k2 = wj[0, 0], wj[0, 1], wj[0, 2]

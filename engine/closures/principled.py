@@ -291,6 +291,15 @@ def _glass_F(f0, c, eta):
 
 
 @kernel
+def _glass_F_s(f0, s):
+    """_glass_F with its remap s = schlick_remap(c, eta) given (one per hit, not per
+    channel)."""
+    if f0 < 0.0:
+        return 0.0
+    return f0 + (1.0 - f0) * s
+
+
+@kernel
 def _to_glossy(prm, i, x, y, z):
     """A direction in the shading normal's frame -> the glossy lobes' frame (P_GN)."""
     g0, g1, g2 = prm[i, P_GN], prm[i, P_GN + 1], prm[i, P_GN + 2]
@@ -440,9 +449,12 @@ def _eval_glossy(prm, i, ox, oy, oz, ix, iy, iz):
 @kernel
 def _glass_reflect_share(prm, i, c, eta, inv_eta):
     """Probability that _glass_sample reflects at a microfacet with wo.h = c."""
-    F0 = _glass_F(prm[i, P_GLASS_F0], c, eta)
-    F1 = _glass_F(prm[i, P_GLASS_F0 + 1], c, eta)
-    F2 = _glass_F(prm[i, P_GLASS_F0 + 2], c, eta)
+    # _glass_F per channel, the remap (a real Fresnel, the same for every channel)
+    # computed once: the same bits.
+    s = schlick_remap(c, eta)
+    F0 = _glass_F_s(prm[i, P_GLASS_F0], s)
+    F1 = _glass_F_s(prm[i, P_GLASS_F0 + 1], s)
+    F2 = _glass_F_s(prm[i, P_GLASS_F0 + 2], s)
     sr = prm[i, P_GLASS_RW] * F0 + prm[i, P_GLASS_RW + 1] * F1 + prm[i, P_GLASS_RW + 2] * F2
     if inv_eta * inv_eta * (1.0 - c * c) >= 1.0:
         return 1.0 if sr > 0.0 else 0.0
@@ -680,9 +692,12 @@ def glass_microfacet(prm, i, ox, oy, oz, u1, u2):
     c = ox * hx + oy * hy + oz * hz
     if c <= 0.0:
         return rough, alpha, eta, hx, hy, hz, c, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    F0 = _glass_F(prm[i, P_GLASS_F0], c, eta)
-    F1 = _glass_F(prm[i, P_GLASS_F0 + 1], c, eta)
-    F2 = _glass_F(prm[i, P_GLASS_F0 + 2], c, eta)
+    # _glass_F per channel, the remap (a real Fresnel, the same for every channel)
+    # computed once: the same bits.
+    s = schlick_remap(c, eta)
+    F0 = _glass_F_s(prm[i, P_GLASS_F0], s)
+    F1 = _glass_F_s(prm[i, P_GLASS_F0 + 1], s)
+    F2 = _glass_F_s(prm[i, P_GLASS_F0 + 2], s)
     r0, r1, r2 = prm[i, P_GLASS_RW] * F0, prm[i, P_GLASS_RW + 1] * F1, prm[i, P_GLASS_RW + 2] * F2
     t0 = prm[i, P_GLASS_TW] * (1.0 - F0)
     t1 = prm[i, P_GLASS_TW + 1] * (1.0 - F1)

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..jit import kernel, register_warm_up
 from ..photonkernels import MAX_BOUNCES, N_DIMS, uniform
+from ..trig import sincos_turn
 
 EMIT_BOUNCE = MAX_BOUNCES - 1  # emission counts bounces down from here
 TWO_PI = 2.0 * math.pi
@@ -121,29 +122,32 @@ def drop_meeting(o32, d32, d, power, slot, lo, hi, centers, radii, infinite):
 
 
 # ---------------------------------------------------------------------- sampling, scalar
-# One direction at a time, operation for operation as engine/sampling.py's numpy versions.
+# One direction at a time, operation for operation as engine/sampling.py's numpy versions,
+# but for the azimuth's cos and sin: engine/trig.sincos_turn (not libm; within 2e-16 of
+# the true values, not bitwise numpy's). concentric_disk keeps libm: the camera pass's
+# light sampling (engine/directlight.py) shares it.
 
 @kernel
 def uniform_sphere(u1, u2):
     z = 1.0 - 2.0 * u1
     r = math.sqrt(max(0.0, 1.0 - z * z))
-    phi = TWO_PI * u2
-    return r * math.cos(phi), r * math.sin(phi), z
+    c, s = sincos_turn(u2)
+    return r * c, r * s, z
 
 
 @kernel
 def cosine_hemisphere(u1, u2):
     r = math.sqrt(u1)
-    phi = TWO_PI * u2
-    return r * math.cos(phi), r * math.sin(phi), math.sqrt(max(0.0, 1.0 - u1))
+    c, s = sincos_turn(u2)
+    return r * c, r * s, math.sqrt(max(0.0, 1.0 - u1))
 
 
 @kernel
 def uniform_cone(u1, u2, cos_max):
     z = 1.0 - u1 * (1.0 - cos_max)
     r = math.sqrt(max(0.0, 1.0 - z * z))
-    phi = TWO_PI * u2
-    return r * math.cos(phi), r * math.sin(phi), z
+    c, s = sincos_turn(u2)
+    return r * c, r * s, z
 
 
 @kernel
