@@ -6,6 +6,7 @@ row class, where a row's time goes.
     PYTHONPATH=$PWD python bench/bench_causticknn.py capture BLEND W H OUT.calls
     PYTHONPATH=$PWD python bench/bench_causticknn.py classes OUT.calls...
     PYTHONPATH=$PWD python bench/bench_causticknn.py replay BASE_ROOT OUT.calls...
+    PYTHONPATH=$PWD python bench/bench_causticknn.py paths BASE_FILE CALLERS OUT.calls...
 
 `capture` renders an example blend (exported through the add-on into WORK, default
 /tmp/causticknn/work) at its default settings, 1 worker, records every
@@ -14,8 +15,10 @@ render's. `classes` counts, per caller, the rows whose search sphere (the radius
 holds no photon at all, none accepted (arriving from the front on a surface facing the
 same way), fewer than min_photons accepted, and the k-NN paths taken (seeded, listed,
 heap, widened). `replay` times each caller's captured calls through BASE_ROOT's
-photonmap.py kernel (compiled from source) and this checkout's, interleaved, one
-thread, best of 3 process CPU, and checks that both give the same bits.
+photonmap.py kernel (with its kdtree.py, both compiled from source) and this checkout's,
+interleaved, one thread, best of 3 process CPU, and checks that both give the same bits.
+`paths` splits a caller's rows by the k-NN path BASE_FILE's kernel takes (seeded,
+listed empty / < k / >= k, heap, widened, floored focus) and times each path alone.
 """
 from __future__ import annotations
 
@@ -109,13 +112,32 @@ def _source(path):
 
 
 def _kernel_from(root):
-    """_irradiance_rows compiled from root's engine/photonmap.py (its helpers: this
-    checkout's module)."""
+    """_irradiance_rows compiled from root's engine/photonmap.py, from _widen_listed on
+    (the estimate's own helpers, with root's module constants), over root's
+    engine/kdtree.py (compiled from source too, uncached); the other helpers are this
+    checkout's."""
+    import types
     import numba
     from engine import photonmap
+    src = open(os.path.join(root, "engine", "kdtree.py")).read()
+    src = src.replace("from .jit import kernel, register_warm_up",
+                      "import numba as _numba\nkernel = _numba.njit(nogil=True)\n"
+                      "register_warm_up = lambda f: f")
+    src = src.replace("from .parallel import", "from engine.parallel import")
+    kd = types.ModuleType("kdtree_of_" + root.strip("/").replace("/", "_"))
+    sys.modules[kd.__name__] = kd
+    exec(compile(src, os.path.join(root, "engine", "kdtree.py"), "exec"), kd.__dict__)
+    t = open(os.path.join(root, "engine", "photonmap.py")).read()
+    head = t[:t.index("class PhotonMap")]
+    i = t.index("@kernel\ndef _widen_listed(")
+    seg = t[i:t.index("@register_warm_up", i)].replace("@kernel\n", "@_nj\n")
     scope = dict(photonmap.__dict__)
-    exec(_source(os.path.join(root, "engine", "photonmap.py")), scope)
-    return numba.njit(nogil=True)(scope["_irradiance_rows"])
+    scope["_nj"] = numba.njit(nogil=True)
+    exec("\n".join(x for x in head.splitlines() if not x.startswith(("from ", "import "))),
+         scope)
+    scope["kdtree"] = kd
+    exec(seg, scope)
+    return scope["_irradiance_rows"]
 
 
 def classes(captures):
