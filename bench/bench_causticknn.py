@@ -145,7 +145,6 @@ def classes(captures):
     fewer than min_photons accepted, and the mean photons in the cap's sphere."""
     import numpy as np
     from bench_core import captured_maps
-    from engine import kdtree, photonmap
     print("| capture | caller (map photons, radius) | rows | sphere empty % | none accepted % "
           "| < min accepted % | photons in sphere (mean / median) | k / min |")
     print("|---|---|---:|---:|---:|---:|---:|---|")
@@ -169,32 +168,16 @@ def classes(captures):
                   f"{rows:,} | {(nb == 0).mean() * 100:.1f} | {(acc == 0).mean() * 100:.1f} | "
                   f"{(acc < mp).mean() * 100:.1f} | {nb.mean():.0f} / {np.median(nb):.0f} | "
                   f"{calls[0][2]} / {mp} |", flush=True)
-    del kdtree, photonmap
-
-
-def _sphere_counts_py(pos, axis, split, leaf, direction, normal, p, n, r2, nb, acc):
-    from engine import kdtree
-    from engine.photonmap import _accepted
-    scan = np.empty(1 << 22, np.int64)
-    for i in range(p.shape[0]):
-        c = kdtree.ball(pos, axis, split, leaf, p[i, 0], p[i, 1], p[i, 2], r2 * (1 - 1e-12),
-                        scan, scan.shape[0] - 1)
-        nb[i] = c
-        a = 0
-        nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
-        for j in range(min(c, scan.shape[0] - 1)):
-            if _accepted(direction, normal, scan[j], nx, ny, nz)[0]:
-                a += 1
-        acc[i] = a
 
 
 def _compiled_counts():
+    """A compiled counter: per row, the photons within the radius cap (kdtree.ball) and
+    how many of them are accepted (photonmap._accepted)."""
     import numba
-    g = dict(globals())
     import numpy
     from engine import kdtree
     from engine.photonmap import _accepted
-    g.update(np=numpy, kdtree=kdtree, _accepted=_accepted)
+    g = dict(np=numpy, kdtree=kdtree, _accepted=_accepted)
     src = ("def f(pos, axis, split, leaf, direction, normal, p, n, r2, nb, acc):\n"
            "    scan = np.empty(1 << 22, np.int64)\n"
            "    for i in range(p.shape[0]):\n"
@@ -224,7 +207,6 @@ def _sphere_counts(*a):
 def replay(base_root, captures, repeat=3):
     """Each caller's captured calls through base_root's kernel and this checkout's,
     alternating, best of `repeat` process CPU each; the bits compared."""
-    import numpy as np
     from bench_core import captured_maps
     from engine import photonmap
     from engine.jit import ensure_compiled
@@ -257,7 +239,6 @@ def replay(base_root, captures, repeat=3):
                   f"{radius:.4f} m) | {rows:,} | {tb * 1e3:.0f} / {tt * 1e3:.0f} | "
                   f"{tb / rows * 1e6:.3f} / {tt / rows * 1e6:.3f} | {same} |", flush=True)
             photonmap._irradiance_rows = kernels["this"]
-    del np
 
 
 def _same(a, b):
@@ -345,7 +326,6 @@ def paths(base_file, callers, captures):
 
 
 if __name__ == "__main__":
-    import numpy as np  # noqa: F401 (the compiled counter's module scope)
     if sys.argv[1] == "capture":
         capture(sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), sys.argv[5])
     elif sys.argv[1] == "paths":
