@@ -77,6 +77,7 @@ CAND_ROWS = 32
 CAND_SPAN = 0.25
 CAND_CAP = 512
 CAND_MIN_ROWS = 4
+CAND_BACKOFF = 16
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
 # Estimates between two looks at the stop flag: 64 x ~15 us (a widening row: ~1.5 ms) is
 # far below the 0.2 s a viewport stop may take (issue 19).
@@ -352,14 +353,14 @@ def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, d2, idx):
 
 
 @kernel
-def _block_candidates(pos, nodes, p, rows, r, radius, cand, cx, cy, cz):
+def _block_candidates(pos, nodes, p, rows, r, radius, cand, cx, cy, cz, search):
     """The candidates of the block of k-NN rows starting at rows[r] (engine/kdtree.py
     order): (end, count). end: the block's end in rows (up to CAND_ROWS rows whose
     points' box has a half diagonal of at most CAND_SPAN x radius); count: the photons
     within radius of the box (a superset: the sphere about the box's centre of radius
     radius + the half diagonal, with a margin) into cand[:count] and their float64
-    coordinates into cx, cy, cz, or -1 (more than CAND_CAP, or fewer than CAND_MIN_ROWS
-    rows: the rows search the tree)."""
+    coordinates into cx, cy, cz, or -1 (fewer than CAND_MIN_ROWS rows, or search False:
+    the rows search the tree) or -2 (more than CAND_CAP: the same)."""
     m = rows.shape[0]
     i = rows[r]
     lx, ly, lz = p[i, 0], p[i, 1], p[i, 2]
@@ -375,7 +376,7 @@ def _block_candidates(pos, nodes, p, rows, r, radius, cand, cx, cy, cz):
             break
         lx, ly, lz, hx, hy, hz = ax, ay, az, bx, by, bz
         e += 1
-    if e - r < CAND_MIN_ROWS:
+    if e - r < CAND_MIN_ROWS or not search:
         return e, -1
     ox, oy, oz = 0.5 * (lx + hx), 0.5 * (ly + hy), 0.5 * (lz + hz)
     h = 0.5 * math.sqrt((hx - lx) ** 2 + (hy - ly) ** 2 + (hz - lz) ** 2)
@@ -385,7 +386,7 @@ def _block_candidates(pos, nodes, p, rows, r, radius, cand, cx, cy, cz):
     nc = kdtree.ball(pos, nodes[0], nodes[1], nodes[2], ox, oy, oz, reach * reach, cand,
                      CAND_CAP)
     if nc > CAND_CAP:
-        return e, -1
+        return e, -2
     for j in range(nc):
         ph = cand[j]
         cx[j] = np.float64(pos[ph, 0])
@@ -466,6 +467,11 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     cand_z = np.empty(cand.shape[0], np.float64)
     blk_end = 0
     nc = -1
+    # After a block with too many candidates (a dense map) the next `skip` blocks search
+    # the tree without trying (1, 2, 4 ... CAND_BACKOFF blocks while they keep
+    # overflowing): a dense map pays few wasted searches.
+    skip = 0
+    backoff = 1
     for r in range(rows.shape[0]):
         if r % STOP_ROWS == 0 and stop[0]:
             return
@@ -484,7 +490,14 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         if knn:
             if use_cand and r >= blk_end:
                 blk_end, nc = _block_candidates(pos, nodes, p, rows, r, radius, cand, cand_x,
-                                                cand_y, cand_z)
+                                                cand_y, cand_z, skip == 0)
+                if skip > 0:
+                    skip -= 1
+                elif nc == -2:
+                    skip = backoff
+                    backoff = min(2 * backoff, CAND_BACKOFF)
+                elif nc >= 0:
+                    backoff = 1
             from_cand = use_cand and nc >= 0
             kq = min(k, P)
             widest = min(P, MAX_WIDEN_K)

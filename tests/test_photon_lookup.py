@@ -676,7 +676,8 @@ def test_block_candidates_give_the_tree_answer():
         xyz = [np.empty(CAND_CAP + 1) for _ in range(3)]
         r = 0
         while r < len(order):
-            e, nc = _block_candidates(t.position, t.nodes, q, order, r, radius, cand, *xyz)
+            e, nc = _block_candidates(t.position, t.nodes, q, order, r, radius, cand, *xyz,
+                                      True)
             taken["candidates" if nc >= 0 else "fall-back"] += e - r
             r = e
         for est, k in (("knn_simpson", 32), ("knn_cone", 16), ("knn_simpson", 64)):
