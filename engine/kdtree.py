@@ -579,7 +579,12 @@ def nearest_first(src_d2, src_idx, count, m, r2, d2, idx, hist):
         for j in range(count):
             d2[j] = src_d2[j]
             idx[j] = src_idx[j]
-        _partial_sort(d2, idx, count, m)
+        if count <= INSERTION_SORT:
+            # _partial_sort's own answer for so few (it insertion-sorts them whole),
+            # without its stack's allocation (~40 ns: 12 % of Figure 7's caustic rows).
+            _insertion_sort(d2, idx, 0, count)
+        else:
+            _partial_sort(d2, idx, count, m)
         return
     scale = count / r2
     top = count - 1

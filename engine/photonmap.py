@@ -66,6 +66,18 @@ LIST_FACTOR = 8
 # distance (1.2x the distance; measured on Figure 6's gather map: 1.2x lists 92 photons
 # a row and is taken by 96 % of rows, 1.41x 128 and 91 %, the whole sphere ~243).
 SEED_GROWTH = 1.44
+# Rows in Morton order lie close together: a block of up to CAND_ROWS consecutive k-NN
+# rows within CAND_SPAN x the search radius of their box's centre lists the photons of
+# the sphere that holds all their search spheres once (one kd-tree search), and each row
+# lists its own sphere from those candidates (a scan of at most CAND_CAP photons, float64
+# distances as the tree computes them) instead of a tree search of its own. A block with
+# more candidates, or a row whose answer could depend on the listing's order (equal
+# distances), takes the tree as before (docs/performance.md "causticknn").
+CAND_ROWS = 32
+CAND_SPAN = 0.25
+CAND_CAP = 512
+CAND_MIN_ROWS = 4
+CAND_BACKOFF = 16
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
 # Estimates between two looks at the stop flag: 64 x ~15 us (a widening row: ~1.5 ms) is
 # far below the 0.2 s a viewport stop may take (issue 19).
@@ -341,6 +353,70 @@ def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, d2, idx):
 
 
 @kernel
+def _block_candidates(pos, nodes, p, rows, r, radius, cand, cx, cy, cz, search):
+    """The candidates of the block of k-NN rows starting at rows[r] (engine/kdtree.py
+    order): (end, count). end: the block's end in rows (up to CAND_ROWS rows whose
+    points' box has a half diagonal of at most CAND_SPAN x radius); count: the photons
+    within radius of the box (a superset: the sphere about the box's centre of radius
+    radius + the half diagonal, with a margin) into cand[:count] and their float64
+    coordinates into cx, cy, cz, or -1 (fewer than CAND_MIN_ROWS rows, or search False:
+    the rows search the tree) or -2 (more than CAND_CAP: the same)."""
+    m = rows.shape[0]
+    i = rows[r]
+    lx, ly, lz = p[i, 0], p[i, 1], p[i, 2]
+    hx, hy, hz = lx, ly, lz
+    lim = (CAND_SPAN * radius) ** 2
+    e = r + 1
+    while e < m and e - r < CAND_ROWS:
+        j = rows[e]
+        ax, ay, az = min(lx, p[j, 0]), min(ly, p[j, 1]), min(lz, p[j, 2])
+        bx, by, bz = max(hx, p[j, 0]), max(hy, p[j, 1]), max(hz, p[j, 2])
+        h2 = 0.25 * ((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
+        if not h2 <= lim:
+            break
+        lx, ly, lz, hx, hy, hz = ax, ay, az, bx, by, bz
+        e += 1
+    if e - r < CAND_MIN_ROWS or not search:
+        return e, -1
+    ox, oy, oz = 0.5 * (lx + hx), 0.5 * (ly + hy), 0.5 * (lz + hz)
+    h = 0.5 * math.sqrt((hx - lx) ** 2 + (hy - ly) ** 2 + (hz - lz) ** 2)
+    # The margin covers the rounding of every row's float64 distances (relative 1e-7 of
+    # the reach, and 1e-9 of the coordinates' size for rows far from the origin).
+    reach = (radius + h) * (1.0 + 1e-7) + 1e-9 * max(abs(ox), abs(oy), abs(oz))
+    nc = kdtree.ball(pos, nodes[0], nodes[1], nodes[2], ox, oy, oz, reach * reach, cand,
+                     CAND_CAP)
+    if nc > CAND_CAP:
+        return e, -2
+    for j in range(nc):
+        ph = cand[j]
+        cx[j] = np.float64(pos[ph, 0])
+        cy[j] = np.float64(pos[ph, 1])
+        cz[j] = np.float64(pos[ph, 2])
+    return e, nc
+
+
+@kernel
+def _list_candidates(cand, cx, cy, cz, nc, qx, qy, qz, r2, d2, idx, cap):
+    """kdtree.ball_d2's answer (the points with squared distance < r2, their distances;
+    cap + 1 when more than cap) from a block's candidates cand[:nc] (_block_candidates),
+    in the candidates' order: the same set and distances, not necessarily the same
+    order."""
+    count = 0
+    for j in range(nc):
+        dx = qx - cx[j]
+        dy = qy - cy[j]
+        dz = qz - cz[j]
+        dist2 = dx * dx + dy * dy + dz * dz
+        if dist2 < r2:
+            if count == cap:
+                return cap + 1
+            d2[count] = dist2
+            idx[count] = cand[j]
+            count += 1
+    return count
+
+
+@kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
                      rows, radius, k, min_photons, code, want_boundary, out, boundary, stop,
                      masks, masked):
@@ -382,6 +458,20 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     # estimate over its whole sphere sums only these: below).
     acc_d2 = np.empty(list_cap, np.float64)
     acc_idx = np.empty(list_cap, np.int64)
+    # The current block's candidates (_block_candidates): rows before blk_end use them
+    # where nc >= 0.
+    use_cand = knn and kind == KDTREE
+    cand = np.empty(CAND_CAP + 1 if use_cand else 0, np.int64)
+    cand_x = np.empty(cand.shape[0], np.float64)
+    cand_y = np.empty(cand.shape[0], np.float64)
+    cand_z = np.empty(cand.shape[0], np.float64)
+    blk_end = 0
+    nc = -1
+    # After a block with too many candidates (a dense map) the next `skip` blocks search
+    # the tree without trying (1, 2, 4 ... CAND_BACKOFF blocks while they keep
+    # overflowing): a dense map pays few wasted searches.
+    skip = 0
+    backoff = 1
     for r in range(rows.shape[0]):
         if r % STOP_ROWS == 0 and stop[0]:
             return
@@ -398,6 +488,17 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         r_simpson = radius  # the radius estimator's kernel support
         only_accepted = False  # d2 / idx hold the listed sphere's accepted photons alone
         if knn:
+            if use_cand and r >= blk_end:
+                blk_end, nc = _block_candidates(pos, nodes, p, rows, r, radius, cand, cand_x,
+                                                cand_y, cand_z, skip == 0)
+                if skip > 0:
+                    skip -= 1
+                elif nc == -2:
+                    skip = backoff
+                    backoff = min(2 * backoff, CAND_BACKOFF)
+                elif nc >= 0:
+                    backoff = 1
+            from_cand = use_cand and nc >= 0
             kq = min(k, P)
             widest = min(P, MAX_WIDEN_K)
             # A sphere holding at most list_cap photons is listed whole (ball_d2) and its
@@ -406,7 +507,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             # sphere takes the heap search, bounded by the kq-th distance among the
             # photons listed so far. Rows choose by their own sphere, never by another
             # row's, so the answer does not depend on the rows' order or blocks (the
-            # seeded sphere below is taken only where it proves the same answer).
+            # seeded sphere below is taken only where it proves the same answer; a
+            # block's candidates list the same photons as the tree, their order taken
+            # only where it cannot matter: no equal distances).
             listed = -1
             seeded = False
             if kind == KDTREE and prev_kth > 0.0 and prev_kth * SEED_GROWTH < r2:
@@ -420,8 +523,12 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 # estimates, docs/performance.md "Tenth slice: lookups"). Rows that would widen
                 # take the path below (the widening reads the whole sphere).
                 b2 = prev_kth * SEED_GROWTH
-                got = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, b2,
-                                     list_d2, list_idx, list_cap)
+                if from_cand:  # (the kq nearest below are checked free of ties)
+                    got = _list_candidates(cand, cand_x, cand_y, cand_z, nc, qx, qy, qz, b2,
+                                           list_d2, list_idx, list_cap)
+                else:
+                    got = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, b2,
+                                         list_d2, list_idx, list_cap)
                 if kq <= got <= list_cap:
                     kdtree.nearest_first(list_d2, list_idx, got, kq, b2, d2, idx, hist)
                     seeded = kdtree.unique_nearest(d2, got, kq) and (
@@ -430,10 +537,27 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             if seeded:
                 cnt = kq
             else:
-                if kind == KDTREE:
+                if from_cand:
+                    listed = _list_candidates(cand, cand_x, cand_y, cand_z, nc, qx, qy, qz,
+                                              r2, list_d2, list_idx, list_cap)
+                    if listed <= list_cap:
+                        cnt = min(kq, listed)
+                        kdtree.nearest_first(list_d2, list_idx, listed, cnt, r2, d2, idx,
+                                             hist)
+                        # Equal distances keep the listing's order: the tree's own
+                        # listing decides them, as it always did.
+                        from_cand = cnt == 0 or kdtree.unique_nearest(d2, listed, cnt)
+                    else:
+                        from_cand = False
+                    if not from_cand:
+                        listed = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy,
+                                                qz, r2, list_d2, list_idx, list_cap)
+                elif kind == KDTREE:
                     listed = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz,
                                             r2, list_d2, list_idx, list_cap)
-                if 0 <= listed <= list_cap:
+                if from_cand:
+                    pass  # d2 / idx hold the kq nearest (or the whole sphere) in order
+                elif 0 <= listed <= list_cap:
                     cnt = min(kq, listed)
                     kdtree.nearest_first(list_d2, list_idx, listed, cnt, r2, d2, idx, hist)
                 else:
@@ -458,6 +582,14 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 # its seeded sphere would mostly fail the same test (Figure 7's
                 # regathered points: 2 of 3 tries).
                 prev_kth = -1.0
+                if listed >= 0 and from_cand:
+                    # The widening reads the listing's order only where distances are
+                    # equal: a sphere whose distances all differ widens the same from any
+                    # listing; else the tree's listing (the same photons) decides.
+                    kdtree.nearest_first(list_d2, list_idx, listed, listed, r2, d2, idx, hist)
+                    if not kdtree.unique_nearest(d2, listed, listed):
+                        listed = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy,
+                                                qz, r2, list_d2, list_idx, list_cap)
                 if listed >= 0:
                     # The sphere is listed already (list_d2 / list_idx, tree order; a row
                     # widens only where k < widest, and then listed <= list_cap <= widest).

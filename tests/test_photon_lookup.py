@@ -641,6 +641,57 @@ def test_seeded_sphere_gives_the_unseeded_answer():
                 assert Bi[0] == B[i], f"{name} {est} row {i}"
 
 
+def test_block_candidates_give_the_tree_answer():
+    """Rows in Morton order are taken in blocks (photonmap.CAND_ROWS rows within
+    CAND_SPAN x the radius) that list their spheres from one kd-tree search's candidates
+    (photonmap._block_candidates); a row estimated alone (one row a call: a block too
+    small, the tree) must give the same bits: sparse photons (a caustic's few photons a
+    sphere), a lattice (equal distances: the tree's listing decides), a thin wall's far
+    side (rows that widen), a focus (k photons on one point) and rows beside no photon.
+    The candidate path is taken (not vacuous) and so is its fall-back (a block with more
+    than CAND_CAP candidates)."""
+    from engine.photonmap import CAND_CAP, _block_candidates, morton_order
+    rng = np.random.default_rng(23)
+    g = np.stack(np.meshgrid(np.arange(120), np.arange(120)), -1).reshape(-1, 2) / 120.0
+    lattice = _plane(len(g), rng)
+    lattice.position[:, :2] = g
+    sparse = _plane(2000, rng)
+    sparse.position[:, 0] *= 0.5  # x > 0.5: no photon
+    maps = {"sparse": sparse, "lattice": lattice,
+            "thin wall": _join(_plane(20000, rng), _plane(20000, rng, z=0.001, nz=-1.0)),
+            "focus": _join(_focus(3000), _plane(20000, rng))}
+    # Clusters of rows (a pixel's samples: far closer than the radius), one beside the
+    # focus, one on lattice points (ties), others anywhere (x > 0.5: no sparse photon).
+    centres = np.vstack([rng.random((12, 2)), [[0.5, 0.5]], [[0.25, 0.75]], [[0.8, 0.3]]])
+    q = np.vstack([np.c_[c + rng.normal(scale=0.002, size=(24, 2)), np.full(24, 0.0005)]
+                   for c in centres] + [np.c_[g[::97][:20], np.zeros(20)]])
+    nq = np.tile([0.0, 0.0, 1.0], (len(q), 1))
+    radius = 0.05
+    taken = {"candidates": 0, "fall-back": 0}
+    for name, ph in maps.items():
+        pm = PhotonMap(ph, workers=1)
+        t = pm.tree
+        order = morton_order(q)
+        cand = np.empty(CAND_CAP + 1, np.int64)
+        xyz = [np.empty(CAND_CAP + 1) for _ in range(3)]
+        r = 0
+        while r < len(order):
+            e, nc = _block_candidates(t.position, t.nodes, q, order, r, radius, cand, *xyz,
+                                      True)
+            taken["candidates" if nc >= 0 else "fall-back"] += e - r
+            r = e
+        for est, k in (("knn_simpson", 32), ("knn_cone", 16), ("knn_simpson", 64)):
+            E, B = pm.irradiance(q, nq, radius, k, 1, est, return_boundary=True,
+                                 r_floor=np.full(len(q), 0.002))
+            assert E.any(), name
+            for i in range(len(q)):
+                Ei, Bi = pm.irradiance(q[i:i + 1], nq[i:i + 1], radius, k, 1, est,
+                                       return_boundary=True, r_floor=np.full(1, 0.002))
+                np.testing.assert_array_equal(Ei[0], E[i], err_msg=f"{name} {est} row {i}")
+                assert Bi[0] == B[i], f"{name} {est} row {i}"
+    assert taken["candidates"] > len(q) and taken["fall-back"] > 0, taken
+
+
 def test_unique_nearest_refuses_ties():
     d2 = np.array([1.0, 2.0, 3.0, 5.0, 4.0])
     assert unique_nearest(d2, 5, 3)

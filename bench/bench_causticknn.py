@@ -1,0 +1,336 @@
+"""Every k-NN irradiance estimate of a render (issue 13, s21 causticknn): per caller (the
+caustic map at the camera hits, the secondary map at the camera hits and at the
+regathers, the gather map's estimates at its points), rows, CPU and us a row; then, per
+row class, where a row's time goes.
+
+    PYTHONPATH=$PWD python bench/bench_causticknn.py capture BLEND W H OUT.calls
+    PYTHONPATH=$PWD python bench/bench_causticknn.py classes OUT.calls...
+    PYTHONPATH=$PWD python bench/bench_causticknn.py replay BASE_ROOT OUT.calls...
+    PYTHONPATH=$PWD python bench/bench_causticknn.py paths BASE_FILE CALLERS OUT.calls...
+
+`capture` renders an example blend (exported through the add-on into WORK, default
+/tmp/causticknn/work) at its default settings, 1 worker, records every
+PhotonMap.irradiance call with its caller and prints their process CPU against the
+render's. `classes` counts, per caller, the rows whose search sphere (the radius cap)
+holds no photon at all, none accepted (arriving from the front on a surface facing the
+same way), fewer than min_photons accepted, and the k-NN paths taken (seeded, listed,
+heap, widened). `replay` times each caller's captured calls through BASE_ROOT's
+photonmap.py kernel (with its kdtree.py, both compiled from source) and this checkout's,
+interleaved, one thread, best of 3 process CPU, and checks that both give the same bits.
+`paths` splits a caller's rows by the k-NN path BASE_FILE's kernel takes (seeded,
+listed empty / < k / >= k, heap, widened, floored focus) and times each path alone.
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+WORK = os.environ.get("CAUSTICKNN_WORK", "/tmp/causticknn/work")
+
+
+def _caller(ctx_maps):
+    """The estimate's caller, from the Python stack: caustic / secondary (camera hits),
+    regather (secondary at the regathered points), gathermap (GatherMap's estimates)
+    or other."""
+    f = sys._getframe(3)
+    while f is not None:
+        c = f.f_code.co_name
+        if c == "_secondary_irradiance":
+            return "regather"
+        if c == "_smooth_estimate":
+            pm = f.f_locals.get("pmap")
+            ctx = f.f_locals.get("ctx")
+            if ctx is not None and pm is ctx.caustic_map:
+                return "caustic"
+            return "secondary"
+        if c == "estimate" and "estimating" in f.f_locals:
+            return "gathermap"
+        f = f.f_back
+    return "other"
+
+
+def capture(name, w, h, out):
+    import numpy as np
+    import bench_kernels as bk
+    os.makedirs(WORK, exist_ok=True)
+    pkl = bk.exported(name, WORK)
+    from engine import photonmap
+    from engine.jit import ensure_compiled
+    from engine.render import render
+    from engine.settings import RenderSettings
+    ensure_compiled()
+    scene = pickle.load(open(pkl, "rb"))
+    scene.width, scene.height = w, h
+    irradiance = photonmap.PhotonMap.irradiance
+    maps, calls, cpu = {}, {}, {}
+
+    def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
+               r_floor=None, should_cancel=None, masks=None):
+        args = (p, n, radius, k, min_photons, estimator, return_boundary, r_floor,
+                should_cancel, masks)
+        w_ = _caller(None)
+        if self.tree is not None and self.structure == "kdtree":
+            if id(self) not in maps:
+                t, ph = self.tree, self.photons
+                maps[id(self)] = dict(tree=(t.position, t.axis, t.split, t.leaf, t.bounds),
+                                      photons=(ph.position, ph.power, ph.direction,
+                                               ph.normal, ph.kind, ph.emitted))
+            calls.setdefault((id(self), w_, radius), []).append(
+                (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
+                 None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),))),
+                 None if masks is None else np.array(masks)))
+        t0 = time.process_time()
+        try:
+            return irradiance(self, *args)
+        finally:
+            a = cpu.setdefault((w_, len(self.photons), radius), [0, 0.0, 0])
+            a[0] += len(p)
+            a[1] += time.process_time() - t0
+            a[2] += 1
+
+    photonmap.PhotonMap.irradiance = record
+    t0 = time.process_time()
+    render(scene, RenderSettings(workers=1))
+    total = time.process_time() - t0
+    print(f"{name} {w}x{h}: render {total:.2f} CPU s")
+    for (w_, photons, radius), (rows, s, nc) in sorted(cpu.items()):
+        print(f"  {w_} (map {photons:,} photons, r {radius:.4f} m): {nc} calls, {rows:,} rows,"
+              f" {s:.3f} CPU s ({s / total * 100:.1f} %), {s / max(rows, 1) * 1e6:.2f} us a row")
+    with open(out, "wb") as f:
+        pickle.dump(dict(maps=maps, calls=calls), f, protocol=4)
+
+
+def _source(path):
+    t = open(path).read()
+    i = t.index("@kernel\ndef _irradiance_rows(")
+    return t[i:t.index("@register_warm_up", i)].replace("@kernel\n", "")
+
+
+def _kernel_from(root):
+    """_irradiance_rows compiled from root's engine/photonmap.py, from _widen_listed on
+    (the estimate's own helpers, with root's module constants), over root's
+    engine/kdtree.py (compiled from source too, uncached); the other helpers are this
+    checkout's."""
+    import types
+    import numba
+    from engine import photonmap
+    src = open(os.path.join(root, "engine", "kdtree.py")).read()
+    src = src.replace("from .jit import kernel, register_warm_up",
+                      "import numba as _numba\nkernel = _numba.njit(nogil=True)\n"
+                      "register_warm_up = lambda f: f")
+    src = src.replace("from .parallel import", "from engine.parallel import")
+    kd = types.ModuleType("kdtree_of_" + root.strip("/").replace("/", "_"))
+    sys.modules[kd.__name__] = kd
+    exec(compile(src, os.path.join(root, "engine", "kdtree.py"), "exec"), kd.__dict__)
+    t = open(os.path.join(root, "engine", "photonmap.py")).read()
+    head = t[:t.index("class PhotonMap")]
+    i = t.index("@kernel\ndef _widen_listed(")
+    seg = t[i:t.index("@register_warm_up", i)].replace("@kernel\n", "@_nj\n")
+    scope = dict(photonmap.__dict__)
+    scope["_nj"] = numba.njit(nogil=True)
+    exec("\n".join(x for x in head.splitlines() if not x.startswith(("from ", "import "))),
+         scope)
+    scope["kdtree"] = kd
+    exec(seg, scope)
+    return scope["_irradiance_rows"]
+
+
+def classes(captures):
+    """Per caller: rows, rows with no photon inside the radius cap, none accepted,
+    fewer than min_photons accepted, and the mean photons in the cap's sphere."""
+    import numpy as np
+    from bench_core import captured_maps
+    print("| capture | caller (map photons, radius) | rows | sphere empty % | none accepted % "
+          "| < min accepted % | photons in sphere (mean / median) | k / min |")
+    print("|---|---|---:|---:|---:|---:|---:|---|")
+    for path in captures:
+        for caller, radius, calls, pm in captured_maps(path):
+            t = pm.tree
+            ph = pm.photons
+            nb_all, acc_all = [], []
+            for p, n, k, mp, est, rb, rf, mk in calls:
+                nb = np.empty(len(p), np.int64)
+                acc = np.empty(len(p), np.int64)
+                _sphere_counts(t.position, t.axis, t.split, t.leaf, ph.direction, ph.normal,
+                               np.ascontiguousarray(p, np.float64),
+                               np.ascontiguousarray(n, np.float64), radius * radius, nb, acc)
+                nb_all.append(nb)
+                acc_all.append(acc)
+            nb, acc = np.concatenate(nb_all), np.concatenate(acc_all)
+            rows = len(nb)
+            mp = calls[0][3]
+            print(f"| {os.path.basename(path)} | {caller} ({len(ph):,}, {radius:.4f} m) | "
+                  f"{rows:,} | {(nb == 0).mean() * 100:.1f} | {(acc == 0).mean() * 100:.1f} | "
+                  f"{(acc < mp).mean() * 100:.1f} | {nb.mean():.0f} / {np.median(nb):.0f} | "
+                  f"{calls[0][2]} / {mp} |", flush=True)
+
+
+def _compiled_counts():
+    """A compiled counter: per row, the photons within the radius cap (kdtree.ball) and
+    how many of them are accepted (photonmap._accepted)."""
+    import numba
+    import numpy
+    from engine import kdtree
+    from engine.photonmap import _accepted
+    g = dict(np=numpy, kdtree=kdtree, _accepted=_accepted)
+    src = ("def f(pos, axis, split, leaf, direction, normal, p, n, r2, nb, acc):\n"
+           "    scan = np.empty(1 << 22, np.int64)\n"
+           "    for i in range(p.shape[0]):\n"
+           "        c = kdtree.ball(pos, axis, split, leaf, p[i, 0], p[i, 1], p[i, 2], r2,\n"
+           "                        scan, scan.shape[0] - 1)\n"
+           "        nb[i] = c\n"
+           "        a = 0\n"
+           "        nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])\n"
+           "        for j in range(min(c, scan.shape[0] - 1)):\n"
+           "            if _accepted(direction, normal, scan[j], nx, ny, nz)[0]:\n"
+           "                a += 1\n"
+           "        acc[i] = a\n")
+    exec(src, g)
+    return numba.njit(nogil=True)(g["f"])
+
+
+_sphere_counts_kernel = None
+
+
+def _sphere_counts(*a):
+    global _sphere_counts_kernel
+    if _sphere_counts_kernel is None:
+        _sphere_counts_kernel = _compiled_counts()
+    _sphere_counts_kernel(*a)
+
+
+def replay(base_root, captures, repeat=3):
+    """Each caller's captured calls through base_root's kernel and this checkout's,
+    alternating, best of `repeat` process CPU each; the bits compared."""
+    from bench_core import captured_maps
+    from engine import photonmap
+    from engine.jit import ensure_compiled
+    ensure_compiled()
+    kernels = {"base": _kernel_from(base_root), "this": photonmap._irradiance_rows}
+    print("| capture | caller (map photons, radius) | rows | base / this CPU ms | "
+          "base / this us a row | same bits |")
+    print("|---|---|---:|---:|---:|---|")
+    for path in captures:
+        for caller, radius, calls, pm in captured_maps(path):
+            results = {}
+
+            def run(label):
+                photonmap._irradiance_rows = kernels[label]
+                t0 = time.process_time()
+                res = [pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb,
+                                     r_floor=rf, masks=mk)
+                       for p, n, k, mp, est, rb, rf, mk in calls]
+                dt = time.process_time() - t0
+                results[label] = res
+                return dt
+            best = {"base": 1e9, "this": 1e9}
+            for _ in range(repeat):
+                for label in ("base", "this"):
+                    best[label] = min(best[label], run(label))
+            same = all(_same(a, b) for a, b in zip(results["base"], results["this"]))
+            rows = sum(len(c[0]) for c in calls)
+            tb, tt = best["base"], best["this"]
+            print(f"| {os.path.basename(path)} | {caller} ({len(pm.photons):,}, "
+                  f"{radius:.4f} m) | {rows:,} | {tb * 1e3:.0f} / {tt * 1e3:.0f} | "
+                  f"{tb / rows * 1e6:.3f} / {tt / rows * 1e6:.3f} | {same} |", flush=True)
+            photonmap._irradiance_rows = kernels["this"]
+
+
+def _same(a, b):
+    import numpy as np
+    if isinstance(a, tuple):
+        return all(_same(x, y) for x, y in zip(a, b))
+    return np.array_equal(a, b)
+
+
+PATHS = {0: "seeded", 1: "listed, sphere empty", 2: "listed, 1-63 photons",
+         3: "listed, 64-512 photons", 4: "heap (> 512 photons)", 5: "widened",
+         6: "listed, focus floored"}
+
+
+def paths(base_file, callers, captures):
+    """Per caller in `callers` (comma-separated), each row's k-NN path in base_file's
+    kernel (an instrumented copy), then each path's rows alone through the base kernel
+    and this checkout's: rows, share, CPU us a row (best of 3 process CPU)."""
+    import numba
+    import numpy as np
+    from bench_core import captured_maps, insert_at
+    from engine import photonmap
+    from engine.jit import ensure_compiled
+    ensure_compiled()
+    base = _source(base_file)
+    src = base.replace("def _irradiance_rows(", "def _counted(cls, ")
+
+    def ins(anchor, before="", after=""):
+        nonlocal src
+        src = insert_at(src, anchor, before, after)
+    ins("            if seeded:\n                cnt = kq\n", after="                cls[i] = 0\n")
+    ins("                if 0 <= listed <= list_cap:\n",
+        after="                    cls[i] = 1 if listed == 0 else 2 if listed < kq else 3\n")
+    ins("                    listed = -1\n                    cnt = _knn(",
+        before="                    cls[i] = 4\n")
+    ins("                prev_kth = -1.0\n                if listed >= 0:",
+        before="                cls[i] = 5\n")
+    ins("            in_disc = _ball_count(", before="            cls[i] = 6\n")
+    scope = dict(photonmap.__dict__)
+    exec(src, scope)
+    counted = numba.njit(nogil=True)(scope["_counted"])
+    scope = dict(photonmap.__dict__)
+    exec(base, scope)
+    kernels = {"base": numba.njit(nogil=True)(scope["_irradiance_rows"]),
+               "this": photonmap._irradiance_rows}
+    print("| capture | caller | path | rows | share % | base / this CPU ms "
+          "| base / this us a row |")
+    print("|---|---|---|---:|---:|---:|---:|")
+    for path in captures:
+        for caller, radius, calls, pm in captured_maps(path):
+            if caller not in callers.split(","):
+                continue
+            C = []
+            for p, n, k, mp, est, rb, rf, mk in calls:
+                cls = np.full(len(p), -1, np.int64)
+                photonmap._irradiance_rows = lambda *a: counted(cls, *a)
+                pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
+                              masks=mk)
+                C.append(cls)
+
+            def run(fn, pick):
+                photonmap._irradiance_rows = fn
+                best = 1e9
+                for _ in range(3):
+                    t0 = time.process_time()
+                    for (p, n, k, mp, est, rb, rf, mk), c in zip(calls, C):
+                        s = pick(c)
+                        if len(s):
+                            pm.irradiance(p[s], n[s], radius, k, mp, est, return_boundary=rb,
+                                          r_floor=None if rf is None else rf[s], masks=mk)
+                    best = min(best, time.process_time() - t0)
+                return best
+            allc = np.concatenate(C)
+            tag = f"{os.path.basename(path)} | {caller} ({len(pm.photons):,}, {radius:.4f} m)"
+            for cl in [None] + sorted(set(allc.tolist())):
+                pick = ((lambda c: np.arange(len(c))) if cl is None
+                        else (lambda c, cl=cl: np.flatnonzero(c == cl)))
+                sel = np.ones(len(allc), bool) if cl is None else allc == cl
+                tb, tt = (run(kernels[v], pick) for v in ("base", "this"))
+                rows = int(sel.sum())
+                print(f"| {tag} | {'all' if cl is None else PATHS.get(cl, cl)} | {rows:,} | "
+                      f"{sel.mean() * 100:.1f} | {tb * 1e3:.0f} / {tt * 1e3:.0f} | "
+                      f"{tb / rows * 1e6:.3f} / {tt / rows * 1e6:.3f} |", flush=True)
+            photonmap._irradiance_rows = kernels["this"]
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "capture":
+        capture(sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), sys.argv[5])
+    elif sys.argv[1] == "paths":
+        paths(sys.argv[2], sys.argv[3], sys.argv[4:])
+    elif sys.argv[1] == "classes":
+        classes(sys.argv[2:])
+    else:
+        replay(sys.argv[2], sys.argv[3:])
