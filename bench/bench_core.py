@@ -72,6 +72,66 @@ def insert_at(src: str, anchor: str, before: str = "", after: str = "") -> str:
     return src.replace(anchor, before + anchor + after)
 
 
+def capture_irradiance_calls(name, w, h, out, work, caller, radius_digits=3):
+    """Render example blend `name` at w x h (default settings, 1 worker) with every
+    PhotonMap.irradiance call recorded, print the CPU each caller's calls took, and
+    pickle the maps and calls to `out` (read back by captured_maps). caller(): the
+    calling stage's label from the Python stack (sys._getframe), None to leave a call
+    unrecorded. work: the folder the blend is exported into (bench_kernels.exported)."""
+    import pickle
+    import bench_kernels as bk
+    from engine.jit import ensure_compiled
+    os.makedirs(work, exist_ok=True)
+    pkl = bk.exported(name, work)
+    ensure_compiled()
+    with open(pkl, "rb") as f:
+        scene = pickle.load(f)
+    scene.width, scene.height = w, h
+    irradiance = PhotonMap.irradiance
+    maps, calls, cpu = {}, {}, {}
+
+    def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
+               r_floor=None, should_cancel=None, masks=None):
+        args = (p, n, radius, k, min_photons, estimator, return_boundary, r_floor,
+                should_cancel, masks)
+        label = caller()
+        if label is None:
+            return irradiance(self, *args)
+        if self.tree is not None and self.structure == "kdtree":
+            if id(self) not in maps:
+                t, ph = self.tree, self.photons
+                maps[id(self)] = dict(tree=(t.position, t.axis, t.split, t.leaf, t.bounds),
+                                      photons=(ph.position, ph.power, ph.direction,
+                                               ph.normal, ph.kind, ph.emitted))
+            calls.setdefault((id(self), label, radius), []).append(
+                (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
+                 None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),))),
+                 None if masks is None else np.array(masks)))
+        t0 = time.process_time()
+        try:
+            return irradiance(self, *args)
+        finally:
+            a = cpu.setdefault((label, len(self.photons), radius), [0, 0.0, 0])
+            a[0] += len(p)
+            a[1] += time.process_time() - t0
+            a[2] += 1
+
+    PhotonMap.irradiance = record
+    try:
+        t0 = time.process_time()
+        render(scene, RenderSettings(workers=1))
+        total = time.process_time() - t0
+    finally:
+        PhotonMap.irradiance = irradiance
+    print(f"{name} {w}x{h}: render {total:.2f} CPU s")
+    for (label, photons, radius), (rows, secs, nc) in sorted(cpu.items()):
+        print(f"  {label} (map {photons:,} photons, r {radius:.{radius_digits}f} m): {nc} "
+              f"calls, {rows:,} rows, {secs:.3f} CPU s ({secs / total * 100:.1f} %), "
+              f"{secs / max(rows, 1) * 1e6:.2f} us a row")
+    with open(out, "wb") as f:
+        pickle.dump(dict(maps=maps, calls=calls), f, protocol=4)
+
+
 def captured_maps(path):
     """The photon-map estimates a render made, as bench_lookup.py --render-calls captured
     them into the pickle at path: yields (caller, radius, calls, PhotonMap), the map

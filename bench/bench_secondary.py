@@ -22,7 +22,6 @@ than the next width (the estimate reads all of it).
 from __future__ import annotations
 
 import os
-import pickle
 import sys
 import time
 
@@ -32,69 +31,25 @@ sys.path.insert(0, os.path.join(ROOT, "bench"))
 WORK = os.environ.get("SECONDARY_WORK", "/tmp/secondary/work")
 
 
+def _which():
+    """(capture_irradiance_calls' caller) regather / camera for the secondary map's
+    estimates, None for the other maps' (not recorded)."""
+    f = sys._getframe(2)  # past _which and the recorder
+    while f is not None:
+        c = f.f_code.co_name
+        if c == "_secondary_irradiance":
+            return "regather"
+        if c == "_smooth_estimate":  # the secondary map's call: 4 samples a pixel
+            return "camera" if f.f_locals.get("per_pixel") == 4 else None
+        if c in ("gather_indirect", "_photon_terms", "__init__"):
+            return None
+        f = f.f_back
+    return None
+
+
 def capture(name, w, h, out):
-    import numpy as np
-    import bench_kernels as bk
-    os.makedirs(WORK, exist_ok=True)
-    pkl = bk.exported(name, WORK)
-    from engine import photonmap
-    from engine.jit import ensure_compiled
-    from engine.render import render
-    from engine.settings import RenderSettings
-    ensure_compiled()
-    scene = pickle.load(open(pkl, "rb"))
-    scene.width, scene.height = w, h
-    irradiance = photonmap.PhotonMap.irradiance
-    maps, calls, cpu = {}, {}, {}
-
-    def which():
-        f = sys._getframe(2)
-        while f is not None:
-            c = f.f_code.co_name
-            if c == "_secondary_irradiance":
-                return "regather"
-            if c == "_smooth_estimate":  # the secondary map's call: 4 samples a pixel
-                return "camera" if f.f_locals.get("per_pixel") == 4 else None
-            if c in ("gather_indirect", "_photon_terms", "__init__"):
-                return None
-            f = f.f_back
-        return None
-
-    def record(self, p, n, radius, k, min_photons, estimator, return_boundary=False,
-               r_floor=None, should_cancel=None, masks=None):
-        args = (p, n, radius, k, min_photons, estimator, return_boundary, r_floor,
-                should_cancel, masks)
-        w_ = which()
-        if w_ is None:
-            return irradiance(self, *args)
-        if id(self) not in maps:
-            t, ph = self.tree, self.photons
-            maps[id(self)] = dict(tree=(t.position, t.axis, t.split, t.leaf, t.bounds),
-                                  photons=(ph.position, ph.power, ph.direction, ph.normal,
-                                           ph.kind, ph.emitted))
-        calls.setdefault((id(self), w_, radius), []).append(
-            (np.array(p), np.array(n), k, min_photons, estimator, return_boundary,
-             None if r_floor is None else np.array(np.broadcast_to(r_floor, (len(p),))),
-             None if masks is None else np.array(masks)))
-        t0 = time.process_time()
-        try:
-            return irradiance(self, *args)
-        finally:
-            a = cpu.setdefault((w_, len(self.photons), radius), [0, 0.0, 0])
-            a[0] += len(p)
-            a[1] += time.process_time() - t0
-            a[2] += 1
-
-    photonmap.PhotonMap.irradiance = record
-    t0 = time.process_time()
-    render(scene, RenderSettings(workers=1))
-    total = time.process_time() - t0
-    print(f"{name} {w}x{h}: render {total:.2f} CPU s")
-    for (w_, photons, radius), (rows, s, nc) in sorted(cpu.items()):
-        print(f"  {w_} (map {photons:,} photons, r {radius:.3f} m): {nc} calls, {rows:,} rows, "
-              f"{s:.3f} CPU s ({s / total * 100:.1f} %), {s / rows * 1e6:.2f} us a row")
-    with open(out, "wb") as f:
-        pickle.dump(dict(maps=maps, calls=calls), f, protocol=4)
+    from bench_core import capture_irradiance_calls
+    capture_irradiance_calls(name, w, h, out, WORK, _which)
 
 
 NAMES = {0: "seeded", 1: "listed", 2: "heap", 3: "widened: no accepted photon",

@@ -1429,8 +1429,6 @@ def _render_round_chunk(ctx, region, r, R, active, in_a, ci, start, end, should_
     round) and the sums kept per pixel and half (2 j + in_a[sub]) in an Accumulator over
     the round's rows. Returns (acc, counters, end)."""
     s = ctx.settings
-    cam = ctx.scene.camera
-    W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
     rw = x1 - x0
     m = max(1, int(math.sqrt(R)))
@@ -1462,17 +1460,10 @@ def _render_round_chunk(ctx, region, r, R, active, in_a, ci, start, end, should_
         n_rest = int(np.count_nonzero(rest))
         if n_rest:
             jx[rest], jy[rest] = rng.random((2, n_rest))
-    o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy,
-                             filter_table(s.pixel_filter, s.filter_width))
-    counters.camera_rays += len(o)
-    tp = np.ones((len(o), 3))
     salt = (s.seed + r * 0x9E3779B97F4A7C15) % (1 << 64)
-    sampler = StratifiedSampler(sub, pix, R, rng, dims, salt=salt)
-    forward = -cam.rotation[:, 2]
-    cam_pos = cam.position - ctx.geo.offset
-    _trace_paths(ctx, acc, o, d, tmax, tp, row, rng, counters, cam_pos, forward,
-                 should_cancel, sampler, sub, np.random.default_rng([s.seed, 11, ci, 1 + r]),
-                 buffers)
+    _trace_camera_samples(ctx, acc, row, px, py, jx, jy, sub, pix, R, rng, dims, salt,
+                          np.random.default_rng([s.seed, 11, ci, 1 + r]), counters,
+                          should_cancel, buffers)
     return acc, counters, end
 
 
@@ -1481,8 +1472,6 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims, buffers=None
     returns their sums over the pixels they touch, the ray counters, and `end`.
     buffers: the calling thread's BounceBuffers (None: the chunk's own)."""
     s = ctx.settings
-    cam = ctx.scene.camera
-    W, H = ctx.scene.width, ctx.scene.height
     x0, y0, x1, y1 = region
     rw = x1 - x0
     spp = s.spp
@@ -1509,19 +1498,31 @@ def _render_chunk(ctx, region, ci, start, end, should_cancel, dims, buffers=None
         n_rest = int(np.count_nonzero(rest))
         if n_rest:
             jx[rest], jy[rest] = rng.random((2, n_rest))
+    _trace_camera_samples(ctx, acc, pix, px, py, jx, jy, sub, pix, spp, rng, dims, s.seed,
+                          np.random.default_rng([s.seed, 11, ci]), counters, should_cancel,
+                          buffers or BounceBuffers())
+    return acc, counters, end
+
+
+def _trace_camera_samples(ctx, acc, rows, px, py, jx, jy, sub, pix, spp, rng, dims, salt,
+                          path_rng, counters, should_cancel, buffers):
+    """Camera rays through pixels (px, py) (N,) at their jitter (jx, jy) (N,) in [0,1),
+    traced and summed into acc's rows (N,): sub (N,) each sample's index among the spp
+    samples its pixel pix (N,) takes, stratified by StratifiedSampler(salt); rng the
+    chunk's stream (after the jitter), path_rng its path stream."""
+    s = ctx.settings
+    cam = ctx.scene.camera
     # The stratified numbers become positions by the pixel filter's distribution (Cycles
     # samples its filter by importance: every ray weight 1; engine/pixelfilter.py).
-    o, d, tmax = camera_rays(cam, ctx.geo.offset, W, H, px, py, jx, jy,
-                             filter_table(s.pixel_filter, s.filter_width))
+    o, d, tmax = camera_rays(cam, ctx.geo.offset, ctx.scene.width, ctx.scene.height, px, py,
+                             jx, jy, filter_table(s.pixel_filter, s.filter_width))
     counters.camera_rays += len(o)
     tp = np.ones((len(o), 3))
-    sampler = StratifiedSampler(sub, pix, spp, rng, dims, salt=s.seed)
+    sampler = StratifiedSampler(sub, pix, spp, rng, dims, salt=salt)
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
-    _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler, sub, np.random.default_rng([s.seed, 11, ci]),
-                 buffers or BounceBuffers())
-    return acc, counters, end
+    _trace_paths(ctx, acc, o, d, tmax, tp, rows, rng, counters, cam_pos, forward,
+                 should_cancel, sampler, sub, path_rng, buffers)
 
 
 def _write_film(film, acc, spp, rh, rw):
