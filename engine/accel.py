@@ -768,7 +768,7 @@ class Accel:
         """(N,) bool blocked by one block's scene: o, d (N,3), tf (N,) C-contiguous
         float32 (tf may be overwritten). Traced in packets by _occluded_packets where the
         probe allows (the same answers as run(), which is the fallback)."""
-        fn = _kernel_occluded_address()
+        fn = _kernel_occluded_address() if _LIBRARY is not None else 0
         if fn and o.flags.c_contiguous and d.flags.c_contiguous:
             blocked = np.empty(len(o), np.bool_)
             _occluded_packets(fn, _scene_address(block.scene), o, d,

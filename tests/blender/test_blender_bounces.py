@@ -57,6 +57,8 @@ class _Layout:
     def column(self, **kw):
         return _Layout(self.log)
 
+    row = column  # (the Sampling panel's Noise Threshold row)
+
     def prop(self, owner, name, **kw):
         self.log.append(("prop", owner, name))
 
@@ -96,7 +98,15 @@ def test_light_paths_panel_draws_cycles_properties_and_the_depth_cap(fresh_scene
     from addon.ui import PHOTONMAP_PT_sampling
     layout = _Layout()
     PHOTONMAP_PT_sampling.draw(SimpleNamespace(layout=layout), SimpleNamespace(scene=fresh_scene))
-    assert "max_depth" not in [name for kind, _, name in layout.log if kind == "prop"]
+    drawn = [name for kind, _, name in layout.log if kind == "prop"]
+    assert "max_depth" not in drawn
+    # Noise Threshold as Cycles draws it; Min Samples only with adaptive sampling on.
+    assert "use_adaptive_sampling" in drawn and "adaptive_threshold" in drawn
+    assert "adaptive_min_samples" not in drawn
+    fresh_scene.photonmap.use_adaptive_sampling = True
+    layout = _Layout()
+    PHOTONMAP_PT_sampling.draw(SimpleNamespace(layout=layout), SimpleNamespace(scene=fresh_scene))
+    assert "adaptive_min_samples" in [name for kind, _, name in layout.log if kind == "prop"]
 
 
 def _closed_room(bpy, albedo=0.8):
