@@ -63,12 +63,6 @@ def capture(name, w, h, out):
     capture_irradiance_calls(name, w, h, out, WORK, CALLER, radius_digits=4)
 
 
-def _source(path):
-    t = open(path).read()
-    i = t.index("@kernel\ndef _irradiance_rows(")
-    return t[i:t.index("@register_warm_up", i)].replace("@kernel\n", "")
-
-
 def _kernel_from(root):
     """_irradiance_rows compiled from root's engine/photonmap.py, from _widen_listed on
     (the estimate's own helpers, with root's module constants), over root's
@@ -215,33 +209,21 @@ def paths(base_file, callers, captures):
     """Per caller in `callers` (comma-separated), each row's k-NN path in base_file's
     kernel (an instrumented copy), then each path's rows alone through the base kernel
     and this checkout's: rows, share, CPU us a row (best of 3 process CPU)."""
-    import numba
     import numpy as np
-    from bench_core import captured_maps, insert_at
+    from bench_core import captured_maps, counted_irradiance_rows, irradiance_rows_source
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
-    base = _source(base_file)
-    src = base.replace("def _irradiance_rows(", "def _counted(cls, ")
-
-    def ins(anchor, before="", after=""):
-        nonlocal src
-        src = insert_at(src, anchor, before, after)
-    ins("            if seeded:\n                cnt = kq\n", after="                cls[i] = 0\n")
-    ins("                if 0 <= listed <= list_cap:\n",
-        after="                    cls[i] = 1 if listed == 0 else 2 if listed < kq else 3\n")
-    ins("                    listed = -1\n                    cnt = _knn(",
-        before="                    cls[i] = 4\n")
-    ins("                prev_kth = -1.0\n                if listed >= 0:",
-        before="                cls[i] = 5\n")
-    ins("            in_disc = _ball_count(", before="            cls[i] = 6\n")
-    scope = dict(photonmap.__dict__)
-    exec(src, scope)
-    counted = numba.njit(nogil=True)(scope["_counted"])
-    scope = dict(photonmap.__dict__)
-    exec(base, scope)
-    kernels = {"base": numba.njit(nogil=True)(scope["_irradiance_rows"]),
-               "this": photonmap._irradiance_rows}
+    counted, base = counted_irradiance_rows(irradiance_rows_source(base_file), "cls", [
+        ("            if seeded:\n                cnt = kq\n", "", "                cls[i] = 0\n"),
+        ("                if 0 <= listed <= list_cap:\n", "",
+         "                    cls[i] = 1 if listed == 0 else 2 if listed < kq else 3\n"),
+        ("                    listed = -1\n                    cnt = _knn(",
+         "                    cls[i] = 4\n", ""),
+        ("                prev_kth = -1.0\n                if listed >= 0:",
+         "                cls[i] = 5\n", ""),
+        ("            in_disc = _ball_count(", "            cls[i] = 6\n", "")])
+    kernels = {"base": base, "this": photonmap._irradiance_rows}
     print("| capture | caller | path | rows | share % | base / this CPU ms "
           "| base / this us a row |")
     print("|---|---|---|---:|---:|---:|---:|")

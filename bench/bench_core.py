@@ -132,6 +132,41 @@ def capture_irradiance_calls(name, w, h, out, work, caller, radius_digits=3):
         pickle.dump(dict(maps=maps, calls=calls), f, protocol=4)
 
 
+def irradiance_rows_source(path=None) -> str:
+    """The source of photonmap._irradiance_rows without its @kernel line: from the
+    engine/photonmap.py file at path (a base commit's, `git show C:engine/photonmap.py`),
+    or this checkout's (None)."""
+    if path is None:
+        import inspect
+        import textwrap
+        from engine import photonmap
+        return textwrap.dedent(inspect.getsource(photonmap._irradiance_rows.py_func)
+                               ).replace("@kernel\n", "")
+    with open(path) as f:
+        t = f.read()
+    i = t.index("@kernel\ndef _irradiance_rows(")
+    return t[i:t.index("@register_warm_up", i)].replace("@kernel\n", "")
+
+
+def counted_irradiance_rows(src: str, counters: str, inserts):
+    """(counted, plain): the k-NN estimate kernel of source src compiled in photonmap's
+    module scope (numba.njit(nogil=True), uncached), once with counters and once as it
+    is. counted takes the arrays named by `counters` (e.g. "cls, nph") before
+    _irradiance_rows' own arguments; inserts: (anchor, before, after) triples put into
+    the source by insert_at (each anchor must occur once: the kernel changed otherwise)."""
+    import numba
+    from engine import photonmap
+    body = src.replace("def _irradiance_rows(", f"def _counted({counters}, ")
+    for anchor, before, after in inserts:
+        body = insert_at(body, anchor, before, after)
+    scope = dict(photonmap.__dict__)
+    exec(body, scope)
+    plain = dict(photonmap.__dict__)
+    exec(src, plain)
+    return (numba.njit(nogil=True)(scope["_counted"]),
+            numba.njit(nogil=True)(plain["_irradiance_rows"]))
+
+
 def captured_maps(path):
     """The photon-map estimates a render made, as bench_lookup.py --render-calls captured
     them into the pickle at path: yields (caller, radius, calls, PhotonMap), the map

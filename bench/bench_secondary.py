@@ -57,43 +57,26 @@ NAMES = {0: "seeded", 1: "listed", 2: "heap", 3: "widened: no accepted photon",
          9: "widened over a whole sphere < next width"}
 
 
-def _source(path):
-    t = open(path).read()
-    i = t.index("@kernel\ndef _irradiance_rows(")
-    return t[i:t.index("@register_warm_up", i)].replace("@kernel\n", "")
-
-
 def classes(base_file, captures):
-    import numba
     import numpy as np
-    from bench_core import captured_maps, insert_at
+    from bench_core import captured_maps, counted_irradiance_rows, irradiance_rows_source
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
-    base = _source(base_file)
-    src = base.replace("def _irradiance_rows(", "def _counted(cls, nph, ")
-
-    def ins(anchor, before="", after=""):
-        nonlocal src
-        src = insert_at(src, anchor, before, after)
-    ins("            if seeded:\n                cnt = kq\n", after="                cls[i] = 0\n")
-    ins("                if 0 <= listed <= list_cap:\n",
-        after="                    cls[i] = 1\n                    nph[i] = listed\n")
-    ins("                    listed = -1\n                    cnt = _knn(",
-        before="                    cls[i] = 2\n                    nph[i] = listed\n")
-    ins("                prev_kth = -1.0\n                if listed >= 0:",
-        before="                cls[i] = 3\n")
-    ins("                    nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan,\n"
-        "                               SCAN_BUDGET, buckets)\n", after="                    nph[i] = nb\n")
-    ins("                    if cnt < kq or kq >= widest:\n                        break\n",
-        before="                    cls[i] = 9 if cnt < kq else 5 + (kq >= 1024) + (kq >= 4096)\n")
-    scope = dict(photonmap.__dict__)
-    exec(src, scope)
-    counted = numba.njit(nogil=True)(scope["_counted"])
-    scope = dict(photonmap.__dict__)
-    exec(base, scope)
-    kernels = {"base": numba.njit(nogil=True)(scope["_irradiance_rows"]),
-               "this": photonmap._irradiance_rows}
+    counted, base = counted_irradiance_rows(irradiance_rows_source(base_file), "cls, nph", [
+        ("            if seeded:\n                cnt = kq\n", "", "                cls[i] = 0\n"),
+        ("                if 0 <= listed <= list_cap:\n", "",
+         "                    cls[i] = 1\n                    nph[i] = listed\n"),
+        ("                    listed = -1\n                    cnt = _knn(",
+         "                    cls[i] = 2\n                    nph[i] = listed\n", ""),
+        ("                prev_kth = -1.0\n                if listed >= 0:",
+         "                cls[i] = 3\n", ""),
+        ("                    nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan,\n"
+         "                               SCAN_BUDGET, buckets)\n", "",
+         "                    nph[i] = nb\n"),
+        ("                    if cnt < kq or kq >= widest:\n                        break\n",
+         "                    cls[i] = 9 if cnt < kq else 5 + (kq >= 1024) + (kq >= 4096)\n", "")])
+    kernels = {"base": base, "this": photonmap._irradiance_rows}
     print("| capture | at | class | rows | share % | photons listed a row | base / this CPU ms "
           "| base / this us a row |")
     print("|---|---|---|---:|---:|---:|---:|---:|")

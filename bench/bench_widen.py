@@ -75,36 +75,23 @@ def synthetic(roots, repeat):
 
 
 def paths(captures):
-    import inspect
-    import textwrap
-
-    import numba
     import numpy as np
     sys.path.insert(0, ROOT)
     sys.path.insert(0, os.path.join(ROOT, "bench"))
-    from bench_core import captured_maps, insert_at
+    from bench_core import captured_maps, counted_irradiance_rows, irradiance_rows_source
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
-    src = textwrap.dedent(inspect.getsource(photonmap._irradiance_rows.py_func))
-    src = src.replace("@kernel\n", "").replace("def _irradiance_rows(",
-                                               "def _counted(stats, ")
-
-    def ins(anchor, before="", after=""):
-        nonlocal src
-        src = insert_at(src, anchor, before, after)
-    ins("            kq = min(k, P)\n", before="            stats[0] += 1\n")
-    ins("                if listed >= 0:\n                    # The sphere is listed already",
-        before="                stats[1] += 1\n")
-    ins("                    # The sphere is listed already (list_d2 / list_idx, tree order; a row\n",
-        after="                    stats[2] += 1\n")
-    ins("nx, ny, nz) < min_photons:\n                        continue\n",
-        after="                    stats[3 if nb <= widest else 4 if nb <= SCAN_BUDGET "
-              "else 5] += 1\n")
-    ins("                    if found < 0:\n", after="                        stats[6] += 1\n")
-    scope = dict(photonmap.__dict__)
-    exec(src, scope)
-    counted = numba.njit(nogil=True)(scope["_counted"])
+    counted, _ = counted_irradiance_rows(irradiance_rows_source(), "stats", [
+        ("            kq = min(k, P)\n", "            stats[0] += 1\n", ""),
+        ("                if listed >= 0:\n                    # The sphere is listed already",
+         "                stats[1] += 1\n", ""),
+        ("                    # The sphere is listed already (list_d2 / list_idx, tree order;"
+         " a row\n", "", "                    stats[2] += 1\n"),
+        ("nx, ny, nz) < min_photons:\n                        continue\n", "",
+         "                    stats[3 if nb <= widest else 4 if nb <= SCAN_BUDGET "
+         "else 5] += 1\n"),
+        ("                    if found < 0:\n", "", "                        stats[6] += 1\n")])
     stats = np.zeros(7, np.int64)
     photonmap._irradiance_rows = lambda *a: counted(stats, *a)
     print("| capture | caller | map photons | radius m | k-NN rows | widening | listed | "

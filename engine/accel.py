@@ -122,7 +122,7 @@ _LIBRARY = None if _rtcs is None else _embree_library()
 # 32-bit words: org 0-2, tnear 3, dir 4-6, time 7, tfar 8, mask 9, id 10, flags 11; hit
 # (16-byte aligned) Ng 12-14, u 15, v 16, primID 17, geomID 18, instID 19, instPrimID 20.
 # The rays are set up as embreex sets them (tnear 0, time 0, mask all, no arguments), a
-# miss answers as embreex's (primID and geomID -1, u = v = 0), and _probe_kernel_hits
+# miss answers as embreex's (primID and geomID -1, u = v = 0), and _intersect1_agrees
 # checks that on a probe before the kernel is used.
 _RAYHIT_WORDS = 24
 # Rays an occlusion query traces together (rtcOccluded8): Embree's 8-wide packets are
@@ -315,35 +315,47 @@ def _scene_address(scene) -> int:
     return ctypes.c_void_p.from_address(id(scene) + offset).value
 
 
-_KERNEL_HITS = None  # rtcIntersect1's address once the probe agreed, 0 if it did not
+_KERNEL_ADDRESSES: dict = {}  # Embree symbol -> its address once its probe agreed, 0 if not
+
+
+def _kernel_address(symbol: str, agrees) -> int:
+    """The address of Embree's `symbol` when agrees(address) -> bool finds the kernel that
+    calls it answering as embreex's run() on a probe, else 0 (the caller asks run()
+    instead); probed once a process, any surprise counting as disagreement."""
+    if symbol not in _KERNEL_ADDRESSES:
+        address = 0
+        if _LIBRARY is not None and _intrinsic is not None:
+            lib, _, ctypes = _LIBRARY
+            try:
+                fn = ctypes.cast(getattr(lib, symbol), ctypes.c_void_p).value
+                address = fn if agrees(fn) else 0
+            except Exception:  # noqa: BLE001 - any surprise: run()'s answer instead
+                address = 0
+        _KERNEL_ADDRESSES[symbol] = address
+    return _KERNEL_ADDRESSES[symbol]
+
+
+def _probe_rays(seed: int, n: int, short_every: int):
+    """A probe: (acc, o, d, tf) a random 40-triangle Accel and n float32 rays from in and
+    around it, every short_every-th stopped short (tfar 0.05), the rest unbounded."""
+    rng = np.random.default_rng(seed)
+    acc = Accel(rng.random((30, 3)).astype(np.float32), rng.integers(0, 30, (40, 3)))
+    o = (rng.random((n, 3)) * 1.4 - 0.2).astype(np.float32)
+    d = rng.normal(size=(n, 3)).astype(np.float32)
+    tf = np.full(n, np.finfo(np.float32).max, np.float32)
+    tf[::short_every] = 0.05
+    return acc, o, d, tf
 
 
 def _kernel_hits_address() -> int:
     """rtcIntersect1's address when the trace kernel answers as embreex's run() on a probe
     (hits, misses, a ray stopped short by tfar), else 0 (intersect_hits then copies
     run()'s answer into the output arrays)."""
-    global _KERNEL_HITS
-    if _KERNEL_HITS is None:
-        _KERNEL_HITS = 0
-        if _LIBRARY is not None and _intrinsic is not None:
-            try:
-                _KERNEL_HITS = _probe_kernel_hits()
-            except Exception:  # noqa: BLE001 - any surprise: run()'s answer instead
-                _KERNEL_HITS = 0
-    return _KERNEL_HITS
+    return _kernel_address("rtcIntersect1", _intersect1_agrees)
 
 
-def _probe_kernel_hits() -> int:
-    lib, _, ctypes = _LIBRARY
-    fn = ctypes.cast(lib.rtcIntersect1, ctypes.c_void_p).value
-    rng = np.random.default_rng(5)
-    vertices = rng.random((30, 3)).astype(np.float32)
-    faces = rng.integers(0, 30, (40, 3))
-    acc = Accel(vertices, faces)
-    o = (rng.random((256, 3)) * 1.4 - 0.2).astype(np.float32)
-    d = rng.normal(size=(256, 3)).astype(np.float32)
-    tf = np.full(256, np.finfo(np.float32).max, np.float32)
-    tf[::7] = 0.05
+def _intersect1_agrees(fn) -> bool:
+    acc, o, d, tf = _probe_rays(5, 256, 7)
     res = acc._scene.run(o, d, dists=tf.copy(), output=True)
     want = (res["geomID"], res["primID"], res["u"], res["v"], res["tfar"])
     got = (np.empty(256, np.int32), np.empty(256, np.int32), np.empty(256, np.float32),
@@ -351,43 +363,23 @@ def _probe_kernel_hits() -> int:
     _intersect1(fn, _scene_address(acc._scene), o, d, got[4], *got[:4])
     same = all(np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))
                for a, b in zip(got, want))
-    return fn if same and (want[0] >= 0).any() and (want[0] < 0).any() else 0
-
-
-_KERNEL_OCCLUDED = None  # rtcOccluded8's address once the probe agreed, 0 if it did not
+    return same and (want[0] >= 0).any() and (want[0] < 0).any()
 
 
 def _kernel_occluded_address() -> int:
     """rtcOccluded8's address when the packet kernel (_occluded_packets) answers as
     embreex's run(query="OCCLUDED") on a probe (blocked and clear rays, rays stopped
     short by tfar, a last packet with missing lanes), else 0 (_occluded then asks run())."""
-    global _KERNEL_OCCLUDED
-    if _KERNEL_OCCLUDED is None:
-        _KERNEL_OCCLUDED = 0
-        if _LIBRARY is not None and _intrinsic is not None:
-            try:
-                _KERNEL_OCCLUDED = _probe_kernel_occluded()
-            except Exception:  # noqa: BLE001 - any surprise: run()'s answer instead
-                _KERNEL_OCCLUDED = 0
-    return _KERNEL_OCCLUDED
+    return _kernel_address("rtcOccluded8", _occluded8_agrees)
 
 
-def _probe_kernel_occluded() -> int:
-    lib, _, ctypes = _LIBRARY
-    fn = ctypes.cast(lib.rtcOccluded8, ctypes.c_void_p).value
-    rng = np.random.default_rng(6)
-    vertices = rng.random((30, 3)).astype(np.float32)
-    faces = rng.integers(0, 30, (40, 3))
-    acc = Accel(vertices, faces)
+def _occluded8_agrees(fn) -> bool:
     n = 8 * 64 + 5
-    o = (rng.random((n, 3)) * 1.4 - 0.2).astype(np.float32)
-    d = rng.normal(size=(n, 3)).astype(np.float32)
-    tf = np.full(n, np.finfo(np.float32).max, np.float32)
-    tf[::3] = 0.05
+    acc, o, d, tf = _probe_rays(6, n, 3)
     want = np.asarray(acc._scene.run(o, d, dists=tf.copy(), query="OCCLUDED")) == 0
     got = np.empty(n, np.bool_)
     _occluded_packets(fn, _scene_address(acc._scene), o, d, tf.copy(), got)
-    return fn if np.array_equal(got, want) and want.any() and not want.all() else 0
+    return bool(np.array_equal(got, want) and want.any() and not want.all())
 
 
 def _free_commit(scene, should_cancel, compact=False, shared=()):

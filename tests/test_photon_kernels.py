@@ -261,6 +261,19 @@ def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():
     ctx.accel.close()
 
 
+def _room_with_fine_ball():
+    """(geo, table) of _scene() prepared with a 138,600-triangle ball: more than two
+    Embree mesh pieces (accel.MESH_TRIANGLES), so hits land in later geometries."""
+    from engine import accel as accel_mod
+    s = _scene()
+    v, f, n, _ = sphere_mesh((-0.3, 0.2, 1.3), 0.35, segments=330, rings=210)
+    s.add_triangles(v, f, "ball", name="fine ball", normals=n)
+    s.validate()
+    geo, table = prepare(s)
+    assert geo.count > 2 * accel_mod.MESH_TRIANGLES
+    return geo, table
+
+
 def test_intersect_traced_in_a_kernel_is_embreex_answer_bit_for_bit():
     """Accel.intersect through the compiled rtcIntersect1 loop (_intersect_rows) gives
     the arrays embreex's run() gives (_intersect_run): t, prim, u, v with their dtypes,
@@ -271,12 +284,7 @@ def test_intersect_traced_in_a_kernel_is_embreex_answer_bit_for_bit():
 
     if not accel_mod._kernel_hits_address():
         pytest.skip("rtcIntersect1 not reachable from a kernel here")
-    s = _scene()
-    v, f, n, _ = sphere_mesh((-0.3, 0.2, 1.3), 0.35, segments=330, rings=210)
-    s.add_triangles(v, f, "ball", name="fine ball", normals=n)
-    s.validate()
-    geo, _ = prepare(s)
-    assert geo.count > 2 * accel_mod.MESH_TRIANGLES
+    geo, _ = _room_with_fine_ball()
     rng = np.random.default_rng(22)
     m = 3 * accel_mod.MIN_PER_THREAD
     o = np.tile((0.1, -0.2, 1.6) - geo.offset, (m, 1)) + 0.2 * rng.random((m, 3))
@@ -320,12 +328,7 @@ def test_occlusion_traced_in_packets_is_embreex_answer():
 
     if not accel_mod._kernel_occluded_address():
         pytest.skip("rtcOccluded8 not reachable from a kernel here")
-    s = _scene()
-    v, f, n, _ = sphere_mesh((-0.3, 0.2, 1.3), 0.35, segments=330, rings=210)
-    s.add_triangles(v, f, "ball", name="fine ball", normals=n)
-    s.validate()
-    geo, _ = prepare(s)
-    assert geo.count > 2 * accel_mod.MESH_TRIANGLES
+    geo, _ = _room_with_fine_ball()
     rng = np.random.default_rng(23)
     tri = geo.vertices32[geo.faces32].astype(np.float64)  # (T,3,3)
     m = 3 * accel_mod.MIN_PER_THREAD + 5
@@ -384,12 +387,7 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
     from either answer."""
     from engine import accel as accel_mod
 
-    s = _scene()
-    v, f, n, _ = sphere_mesh((-0.3, 0.2, 1.3), 0.35, segments=330, rings=210)
-    s.add_triangles(v, f, "ball", name="fine ball", normals=n)
-    s.validate()
-    geo, table = prepare(s)
-    assert geo.count > 2 * accel_mod.MESH_TRIANGLES
+    geo, table = _room_with_fine_ball()
     rng = np.random.default_rng(21)
     m = 3 * accel_mod.MIN_PER_THREAD
     o = np.tile((0.1, -0.2, 1.6) - geo.offset, (m, 1)) + 0.2 * rng.random((m, 3))
