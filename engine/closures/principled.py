@@ -107,9 +107,15 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
     """Lobes of N hits. mat (N,) material index, params (M, N_MAT) material columns,
     base (N,3) base colour (texture applied), cos_o (N,) = ns . wo, front (N,) bool: the
     ray arrived on the outside, hit_alpha (N,) the hit's alpha (the material's, or its
-    alpha texture's value there). Writes prm (N, N_PACK) and weights (N, N_LOBES, 3)."""
+    alpha texture's value there). Writes prm (N, N_PACK) and weights (N, N_LOBES, 3).
+    The material's columns are read in place (params[r, col], no row view a hit), and the
+    glass layer's terms that depend on the material and side alone (glass_terms) are
+    computed once for a run of hits of one material on one side: the same operations on
+    the same values as per hit, so the same bits (tests/test_closures_glass_terms.py)."""
+    g = np.empty((2, G_N))
+    g_mat = np.full(2, -1, np.int64)
     for i in range(mat.shape[0]):
-        q = params[mat[i]]
+        r = mat[i]
         mu = min(max(cos_o[i], 0.0), 1.0)
         for c in range(N_PACK):
             prm[i, c] = 0.0
@@ -119,28 +125,28 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
         a = hit_alpha[i]
         # The BSDF lobes' share: alpha x the closure weight (Add Shader); the pass lobe
         # keeps 1 - alpha. x (1.0 + 0.0) is exact: weight 1 changes no bit.
-        W0 = W1 = W2 = a * (1.0 + q[M_ADD])
+        W0 = W1 = W2 = a * (1.0 + params[r, M_ADD])
         for c in range(3):
-            weights[i, L_PASS, c] = (1.0 - a) * q[M_TTINT + c]
-        rough = q[M_ROUGH]
+            weights[i, L_PASS, c] = (1.0 - a) * params[r, M_TTINT + c]
+        rough = params[r, M_ROUGH]
         alpha = rough * rough
-        multi = q[M_MULTI]
-        node = q[M_NODE]
+        multi = params[r, M_MULTI]
+        node = params[r, M_NODE]
         # The GGX albedo tables only where a metal or specular layer reads them (a
         # diffuse-only material skips both lookups; nothing else changes).
         E = E_avg = 0.0
-        if q[M_METALLIC] > 0.0 or q[M_SPEC] > 0.0:
+        if params[r, M_METALLIC] > 0.0 or params[r, M_SPEC] > 0.0:
             E = tables.ggx_E(rough, mu)
             E_avg = tables.ggx_Eavg(rough)
         # --- sheen (the top layer) ---
-        shw = q[M_SHEEN_W]
+        shw = params[r, M_SHEEN_W]
         if shw > 0.0 and a > 0.0:
-            la, lb, alb = sheen.sheen_params(q[M_SHEEN_ROUGH], mu)
+            la, lb, alb = sheen.sheen_params(params[r, M_SHEEN_ROUGH], mu)
             if alb > 0.0:
                 top = 0.0
                 Wsh = (W0, W1, W2)
                 for c in range(3):
-                    wc = shw * max(q[M_SHEEN_TINT + c], 0.0) * Wsh[c] * alb
+                    wc = shw * max(params[r, M_SHEEN_TINT + c], 0.0) * Wsh[c] * alb
                     prm[i, P_SHEEN_W + c] = wc
                     weights[i, L_SHEEN, c] = wc
                     if Wsh[c] > 0.0:
@@ -150,10 +156,10 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
                 keep = min(max(1.0 - top, 0.0), 1.0)
                 W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
         # --- coat ---
-        cw = q[M_COAT_W]
+        cw = params[r, M_COAT_W]
         if cw > 0.0 and a > 0.0:
-            cr = q[M_COAT_ROUGH]
-            cior = max(q[M_COAT_IOR], 1.0)
+            cr = params[r, M_COAT_ROUGH]
+            cior = max(params[r, M_COAT_IOR], 1.0)
             Ec = tables.ggx_E(cr, mu)
             fac, dark = _compensation(1.0, Ec, tables.ggx_Eavg(cr), fresnel_dielectric_Fss(cior))
             f0 = F0_from_ior(cior)
@@ -166,7 +172,7 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
             prm[i, P_COAT_ETA] = cior
             keep = min(max(1.0 - cw * est, 0.0), 1.0)
             W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
-            t0, t1, t2 = q[M_CTINT], q[M_CTINT + 1], q[M_CTINT + 2]
+            t0, t1, t2 = params[r, M_CTINT], params[r, M_CTINT + 1], params[r, M_CTINT + 2]
             if t0 != 1.0 or t1 != 1.0 or t2 != 1.0:
                 cos_t = math.sqrt(max(1.0 - (1.0 - mu * mu) / (cior * cior), 1e-12))
                 depth = 1.0 / cos_t
@@ -174,7 +180,7 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
                 W1 *= 1.0 - cw + cw * max(t1, 0.0) ** depth
                 W2 *= 1.0 - cw + cw * max(t2, 0.0) ** depth
         # --- metal ---
-        m = q[M_METALLIC]
+        m = params[r, M_METALLIC]
         if m > 0.0:
             s5 = tables.schlick5_s(rough, mu)
             Wm = (W0, W1, W2)
@@ -182,10 +188,10 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
                 if node == NODE_GLOSSY:  # constant reflectance = the colour (in the weight)
                     f0 = 1.0
                     b = 0.0
-                    col = q[M_GCOL + c] if q[M_HAS_GCOL] != 0.0 else base[i, c]
+                    col = params[r, M_GCOL + c] if params[r, M_HAS_GCOL] != 0.0 else base[i, c]
                 else:
                     f0 = min(max(base[i, c], 0.0), 1.0)
-                    tint = min(max(q[M_STINT + c], 0.0), 1.0)
+                    tint = min(max(params[r, M_STINT + c], 0.0), 1.0)
                     b = f82_tint_B(f0, tint) if tint != 1.0 else 0.0
                     col = 1.0
                 Fss = col * f82_Fss(f0, b)
@@ -197,17 +203,30 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
             prm[i, P_METAL_ALPHA] = alpha
             W0, W1, W2 = W0 * (1.0 - m), W1 * (1.0 - m), W2 * (1.0 - m)
         # --- transmission (glass) ---
-        tr = q[M_TRANS]
+        tr = params[r, M_TRANS]
         if tr > 0.0:
-            ior = max(q[M_IOR], 1e-5)
-            eta = ior if front[i] else 1.0 / ior
-            Eg, Eg_avg = tables.glass_E(rough, mu, eta)
-            F0g = F0_from_ior(ior)
+            # The terms that depend on the material and side alone (glass_terms), once a
+            # run of hits of one material on one side (g: the last ones of each side).
+            sd = 0 if front[i] else 1
+            if g_mat[sd] != r:
+                glass_terms(params[r], front[i], g[sd])
+                g_mat[sd] = r
+            eta = g[sd, G_ETA]
+            Eg = _glass_E_at(g, sd, mu)
+            Eg_avg = g[sd, G_EAVG]
+            F0g = g[sd, G_F0G]
             # Reflectance estimate: Cycles' table from outside; from inside the real
             # Fresnel at the view angle (total internal reflection included), so that the
             # two estimates add up to the lobe's albedo on both sides (they steer the lobe
             # choice and the photons' Russian roulette).
-            s_n = tables.schlick_ior_s(rough, mu, ior) if eta >= 1.0 else schlick_remap(mu, eta)
+            if eta >= 1.0:
+                s_n = tables.lookup3_at(tables.SCHLICK_IOR_S, g[sd, G_SI], g[sd, G_SFX], mu,
+                                        g[sd, G_SK], g[sd, G_SFZ])
+            else:  # schlick_remap(mu, eta), its F0_from_ior(eta) from glass_terms
+                f0e = g[sd, G_F0E]
+                s_n = 1.0
+                if f0e < 1.0:
+                    s_n = min(max((fresnel_dielectric(mu, eta) - f0e) / (1.0 - f0e), 0.0), 1.0)
             Wg = (W0, W1, W2)
             for c in range(3):
                 if node == NODE_REFRACTION:
@@ -226,7 +245,7 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
                 else:
                     rt = 1.0
                     tt = math.sqrt(min(max(base[i, c], 0.0), 1.0))
-                    f0 = min(F0g * max(q[M_STINT + c], 0.0), 1.0)
+                    f0 = g[sd, G_F0 + c]
                 fac, dark = _compensation(multi, Eg, Eg_avg, tt)
                 prm[i, P_GLASS_RW + c] = tr * Wg[c] * rt * fac
                 prm[i, P_GLASS_TW + c] = tr * Wg[c] * tt * fac
@@ -238,16 +257,19 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
             prm[i, P_GLASS_ETA] = eta
             W0, W1, W2 = W0 * (1.0 - tr), W1 * (1.0 - tr), W2 * (1.0 - tr)
         # --- dielectric specular layer ---
-        sp = q[M_SPEC]
-        ior = max(q[M_IOR], 1e-5)
-        f0s = F0_from_ior(ior)
-        eta_s = ior
-        level = max(q[M_LEVEL], 0.0)
-        if level != 0.5:
-            f0s = f0s * 2.0 * level
-            eta_s = ior_from_F0(f0s)
-            if ior < 1.0:
-                eta_s = 1.0 / eta_s
+        sp = params[r, M_SPEC]
+        f0s = 0.0
+        eta_s = 1.0
+        if sp > 0.0:  # (its IOR terms only where the layer has a weight)
+            ior = max(params[r, M_IOR], 1e-5)
+            f0s = F0_from_ior(ior)
+            eta_s = ior
+            level = max(params[r, M_LEVEL], 0.0)
+            if level != 0.5:
+                f0s = f0s * 2.0 * level
+                eta_s = ior_from_F0(f0s)
+                if ior < 1.0:
+                    eta_s = 1.0 / eta_s
         if sp > 0.0 and eta_s != 1.0 and (W0 > 0.0 or W1 > 0.0 or W2 > 0.0):
             F0r = F0_from_ior(eta_s)
             s_avg = 0.0
@@ -257,7 +279,7 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
             Ws = (W0, W1, W2)
             top = 0.0
             for c in range(3):
-                f0 = min(max(f0s * max(q[M_STINT + c], 0.0), 0.0), 1.0)
+                f0 = min(max(f0s * max(params[r, M_STINT + c], 0.0), 0.0), 1.0)
                 Fss = f0 + (1.0 - f0) * s_avg
                 fac, dark = _compensation(multi, E, E_avg, Fss)
                 est = dark * (f0 + (1.0 - f0) * s)
@@ -273,6 +295,62 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
         weights[i, L_DIFFUSE, 0] = W0 * base[i, 0]
         weights[i, L_DIFFUSE, 1] = W1 * base[i, 1]
         weights[i, L_DIFFUSE, 2] = W2 * base[i, 2]
+
+
+# glass_terms' columns: the glass layer's terms of one material on one side.
+G_ETA, G_INV, G_I, G_FX, G_K, G_FZ, G_EAVG, G_F0G = range(8)
+G_SI, G_SFX, G_SK, G_SFZ, G_F0E = 8, 9, 10, 11, 12
+G_F0 = 13  # 3: Principled's remapped f0 per channel (F0(ior) x specular tint, capped at 1)
+G_N = 16
+
+
+@kernel
+def glass_terms(q, front, out):
+    """The terms of setup's glass layer that depend on the material row q (N_MAT,) and
+    the side (front: the ray arrived on the outside) alone, computed as setup computed
+    them per hit, written to out (G_N,): eta; G_INV 1 where eta < 1 (tables.glass_E reads
+    the inverse tables); the roughness's and z's cells in those tables (tables._coord: the
+    lower index and the fraction, as floats); E_avg; F0(ior); the cells of
+    tables.schlick_ior_s (its reflectance estimate where eta >= 1); F0(eta) (schlick_remap's,
+    where eta < 1); Principled's per-channel f0. Per hit only the view cosine's cell and
+    the table terms are left (_glass_E_at, tables.lookup3_at)."""
+    rough = q[M_ROUGH]
+    ior = max(q[M_IOR], 1e-5)
+    eta = ior if front else 1.0 / ior
+    out[G_ETA] = eta
+    if eta < 1.0:
+        z = tables.z_from_ior(1.0 / eta)
+        out[G_INV] = 1.0
+        out[G_EAVG] = tables.lookup2(tables.GLASS_INV_EAVG, rough, z)
+        i, fx = tables._coord(rough, tables.GLASS_INV_E.shape[0])
+        k, fz = tables._coord(z, tables.GLASS_INV_E.shape[2])
+    else:
+        z = tables.z_from_ior(eta)
+        out[G_INV] = 0.0
+        out[G_EAVG] = tables.lookup2(tables.GLASS_EAVG, rough, z)
+        i, fx = tables._coord(rough, tables.GLASS_E.shape[0])
+        k, fz = tables._coord(z, tables.GLASS_E.shape[2])
+    out[G_I], out[G_FX], out[G_K], out[G_FZ] = i, fx, k, fz
+    F0g = F0_from_ior(ior)
+    out[G_F0G] = F0g
+    zs = tables.z_from_ior(max(ior, 1.0))
+    i, fx = tables._coord(rough, tables.SCHLICK_IOR_S.shape[0])
+    k, fz = tables._coord(zs, tables.SCHLICK_IOR_S.shape[2])
+    out[G_SI], out[G_SFX], out[G_SK], out[G_SFZ] = i, fx, k, fz
+    out[G_F0E] = F0_from_ior(eta)
+    for c in range(3):
+        out[G_F0 + c] = min(F0g * max(q[M_STINT + c], 0.0), 1.0)
+
+
+@kernel
+def _glass_E_at(g, sd, mu):
+    """tables.glass_E's E at view cosine mu for the material and side of glass_terms'
+    row g[sd]: the same bits."""
+    if g[sd, G_INV] != 0.0:
+        return tables.lookup3_at(tables.GLASS_INV_E, g[sd, G_I], g[sd, G_FX], mu, g[sd, G_K],
+                                 g[sd, G_FZ])
+    return tables.lookup3_at(tables.GLASS_E, g[sd, G_I], g[sd, G_FX], mu, g[sd, G_K],
+                             g[sd, G_FZ])
 
 
 @kernel

@@ -116,6 +116,29 @@ def lookup3(tab, x, y, z):
 
 
 @kernel
+def lookup3_at(tab, i, fx, y, k, fz):
+    """lookup3(tab, x, y, z) with x's and z's cells given as _coord returns them (i, fx
+    and k, fz, the indices as floats; principled.glass_terms, once a material): the same
+    terms summed in the same order, so the same bits. Where fx is 0 (x on a grid line:
+    roughness 0, smooth glass) the upper x cell's four terms are skipped: each is
+    0 x a finite table value (+-0.0), and adding +-0.0 leaves the sum as it is (the sum
+    starts at +0.0, so it is never -0.0)."""
+    if tab.shape[0] == 1:
+        return tab[0, 0, 0]
+    ii, kk = int(i), int(k)
+    j, fy = _coord(y, tab.shape[1])
+    out = 0.0
+    for di in range(1 if fx == 0.0 else 2):
+        wx = fx if di else 1.0 - fx
+        for dj in range(2):
+            wy = fy if dj else 1.0 - fy
+            for dk in range(2):
+                wz = fz if dk else 1.0 - fz
+                out += wx * wy * wz * tab[ii + di, j + dj, kk + dk]
+    return out
+
+
+@kernel
 def z_from_ior(ior):
     return math.sqrt(abs((ior - 1.0) / (ior + 1.0)))
 
