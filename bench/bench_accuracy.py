@@ -161,9 +161,11 @@ def main(argv=None):
             continue
         if not any(r["kind"] == "default" for r in scene_rows):
             continue  # measured before the default row existed
-        meta = B.A.load_scene_meta(name)
-        w, h = B.A.SIZES.get(name, (B.A.WIDTH, B.A.HEIGHT))
-        summary.append(summarize(f"[{name}](accuracy_time_{name}.md) ({w}x{h})",
+        judge = B.JUDGE.get(name, name)  # the scene both renderers were scored on
+        meta = B.A.load_scene_meta(judge)
+        w, h = B.A.SIZES.get(judge, (B.A.WIDTH, B.A.HEIGHT))
+        label = name if judge == name else f"{name}, judged on {judge}"
+        summary.append(summarize(f"[{label}](accuracy_time_{name}.md) ({w}x{h})",
                                  scene_rows, reference_text(meta)))
     print_summary(summary)
     write_report(rows, ref_secs, args, summary=summary)

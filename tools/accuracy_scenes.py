@@ -3,7 +3,7 @@
 Shared by tools/make_references.py (Cycles references), bench/bench_accuracy_cycles.py
 (docs/accuracy.md) and tests/test_accuracy_cycles.py. Needs the bpy wheel.
 
-Every scene is set up in the current bpy session by `setup(name)`: the four example blends
+Every scene is set up in the current bpy session by `setup(name)`: the five example blends
 (their camera, lights and materials) and extra scenes built here with bpy. All render at
 WIDTH x HEIGHT (small: references stay tiny, tests stay fast).
 """
@@ -222,6 +222,7 @@ SCENES = {
     "figure6_box": (_blend("figure6_box"), "specular"),
     "figure7_blocker": (_blend("figure7_blocker"), "specular"),
     "figure8_caustic": (_blend("figure8_caustic"), "specular"),
+    "hdri_sphere": (_blend("hdri_sphere"), "specular"),
     "diffuse_box_rect": (_diffuse_box, "diffuse"),
     "sun_point": (_sun_point, "diffuse"),
     "disk_spot": (_disk_spot, "diffuse"),
