@@ -610,11 +610,11 @@ def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
 # the ~1 cm line to 0.70 of Cycles' block (docs/performance.md, "secedges" / "paneedge").
 # So a share of each light's global photons is aimed at spheres covering the rims
 # (RegionEmitter: the split emission, unbiased), the rest emitted as before.
-# Off: on the window room (feature matrix, seeds 0-3, share 0.3) the line's block reads
-# 0.70 -> 0.79 of Cycles and the block error 0.199 -> 0.170 (mean of seeds), but the
-# block beside it 0.95 -> 0.87, the brightness 0.996 -> 0.991, and the photon pass
-# costs ~2.7x (the rims' photons are extra and pipe through up to 32 bounces); the k-NN
-# disc still spans ~9 cm of the ~1 cm line (docs/performance.md, "paneedge").
+# Off: on the window room (feature matrix, seeds 0-7, share 0.3) the line's block reads
+# 0.72 -> 0.86 of Cycles and the block error 0.186 -> 0.159 (mean of seeds), but the
+# photon pass costs ~2.7x (the rims' photons are extra, most land on the outer walls,
+# and those entering pipe through up to 32 bounces), the brightness moves 0.996 -> 0.991,
+# and the k-NN disc still spans ~9 cm of the ~1 cm line (docs/performance.md, "paneedge").
 RIM_AIM = False
 # Photons per watt sent at the rims against the light's mean (the share is RIM_BOOST x
 # the light's power share into the rim spheres), at most RIM_MAX_SHARE of its photons.
