@@ -604,22 +604,25 @@ def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
 # (Cycles shows it under a pane lit from above). The light entering a big face cannot be
 # piped (refracted within the critical angle, it leaves through the other big face), so
 # the line's photons are those that met a rim face: a share of the light of order
-# thickness / pane size (0.5 % of the window room's area light). They are caustic-kind
+# thickness / pane size (0.11 % of the window room's area light enters its rims). They are caustic-kind
 # global photons (the glow's, effects.py: window glass casts no aimed caustic), the line's
 # k-NN discs held at the caustic cap (~15 cm) by fewer than k of them, and the disc blurs
 # the ~1 cm line to 0.70 of Cycles' block (docs/performance.md, "secedges" / "paneedge").
 # So a share of each light's global photons is aimed at spheres covering the rims
 # (RegionEmitter: the split emission, unbiased), the rest emitted as before.
-# Off: on the window room (feature matrix, seeds 0-7, share 0.3) the line's block reads
-# 0.72 -> 0.86 of Cycles and the block error 0.186 -> 0.159 (mean of seeds), but the
-# photon pass costs ~2.7x (the rims' photons are extra, most land on the outer walls,
-# and those entering pipe through up to 32 bounces), the brightness moves 0.996 -> 0.991,
-# and the k-NN disc still spans ~9 cm of the ~1 cm line (docs/performance.md, "paneedge").
+# Off: on the window room (feature matrix, seeds 0-7, share 0.2) the line's block reads
+# 0.72 -> 0.87 of Cycles and the block error 0.186 -> 0.157 (mean of seeds), no other
+# case moves, but there the photon pass takes ~1.8x as long and stores 74 % more photons
+# (the rims' photons are extra, most land on the outer walls round the window, those
+# entering pipe through up to 32 bounces), the brightness moves 0.996 -> 0.991, and the
+# k-NN disc still spans ~9 cm of the ~1 cm line (docs/performance.md, "paneedge").
 RIM_AIM = False
-# Photons per watt sent at the rims against the light's mean (the share is RIM_BOOST x
-# the light's power share into the rim spheres), at most RIM_MAX_SHARE of its photons.
-RIM_BOOST = 1000.0
-RIM_MAX_SHARE = 0.3
+# Photons per watt entering the rims against the light's mean: share = RIM_BOOST x the
+# light's power share entering a rim face / the share of aimed photons that enter one,
+# at most RIM_MAX_SHARE (the window room: 0.11 % of the light enters, 9.8 % of the aimed
+# photons: 0.37 -> 0.2; the share 0.1 / 0.2 / 0.3 gave the line's block 0.77 / 0.87 / 0.86).
+RIM_BOOST = 32.0
+RIM_MAX_SHARE = 0.2
 # The rims' photons added to the light's count (True) or taken from it (False).
 RIM_EXTRA = True
 RIM_MAX_SPHERES = 64   # spheres over all panes' rims (their size doubles until they fit)
@@ -678,7 +681,9 @@ def rim_spheres(geo, window_tri: np.ndarray, max_spheres: int = RIM_MAX_SPHERES)
         for j, p in enumerate(pts):
             size = cell[j] * scale
             key = np.floor((p - p.min(axis=0)) / size).astype(np.int64)
-            _, member = np.unique(key, axis=0, return_inverse=True)
+            # One integer a cell (np.unique(axis=0) sorts rows: ~10x slower).
+            dims = key.max(axis=0) + 1
+            _, member = np.unique(np.ravel_multi_index(key.T, dims), return_inverse=True)
             member = member.ravel()
             k = int(member.max()) + 1
             c = np.zeros((k, 3))
@@ -695,13 +700,16 @@ def rim_spheres(geo, window_tri: np.ndarray, max_spheres: int = RIM_MAX_SPHERES)
 
 def aim_at_rims(ctx, emitters: list, counts: list, window_tri: np.ndarray | None = None):
     """The global shot's emitters with a share of each light's photons aimed at the rims
-    of window glass (RIM_AIM's comment): (emitters, report: a sentence, or "" when
-    nothing is aimed there). Each light that can aim and sends power at the rims emits
-    share = min(RIM_MAX_SHARE, RIM_BOOST x its power share into the rim spheres) of its
-    photons at them (by the light's own rule, every sphere at least ROI_MIN_CELL of the
-    mean), the rest as before: a RegionEmitter keeps its aimed photons per region sphere
-    and its natural photons in the ratio they had, its spheres joined by the rims'. The
-    counts stay the same. Seeded by the settings' seed (the pilot), on the calling thread."""
+    of window glass (RIM_AIM's comment): (emitters, counts, report: a sentence, or ""
+    when nothing is aimed there). Each light that can aim and whose light enters a rim
+    face emits share = min(RIM_MAX_SHARE, RIM_BOOST x p / eff) of its photons at them (p:
+    its power share entering a rim face first, eff: the share of aimed photons doing so;
+    _rim_entry's pilots), each sphere by the power entering there (at least ROI_MIN_CELL
+    of the mean), the rest as before: a RegionEmitter keeps its aimed photons per region
+    sphere and its natural photons in the ratio they had, its spheres joined by the
+    rims'. With RIM_EXTRA the light's count grows by 1 / (1 - share), else it stays.
+    window_tri: effects.window_glass (computed when None). Seeded by the settings' seed
+    (the pilots), on the calling thread."""
     geo, table = ctx.geo, ctx.table
     if window_tri is None:
         from .effects import window_glass
