@@ -882,7 +882,17 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
     # left as it was). None: the shot stays natural, or no light is at infinity.
     if any(isinstance(light, InfiniteLight) for light in ctx.lights):
         ctx.importance_region = shot.region
-    return shot.emitters, shot.counts
+    emitters, counts = shot.emitters, shot.counts
+    # Window glass's rims pipe a line of light to the pane's edges; its photons are the
+    # global shot's where the caustic map is built from it (visualimportance.aim_at_rims).
+    plan = ctx.plan
+    from . import visualimportance
+    if (visualimportance.RIM_AIM and plan.window_glass and plan.caustics
+            and plan.caustics_from_global):
+        emitters, counts, said = visualimportance.aim_at_rims(ctx, emitters, counts)
+        if said:
+            stats["photon_importance"] = "; ".join(x for x in (shot.report, said) if x)
+    return emitters, counts
 
 
 def _allocate_aimed(ctx, targets, total):

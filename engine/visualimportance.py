@@ -594,3 +594,229 @@ def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
     if not total > 0:
         return None
     return float(luminance(Ei).sum()) / total
+
+
+# --- Window glass's rims (effects.window_glass) --------------------------------------------
+# Light that enters a slab of window glass through one of its thin rim faces (the 2 cm
+# edge of a pane) is piped along inside it by total internal reflection (it meets the big
+# faces beyond the critical angle) and leaves through the rim faces across, onto the wall
+# or frame there: a line of light about the slab's thickness wide along the pane's edges
+# (Cycles shows it under a pane lit from above). The light entering a big face cannot be
+# piped (refracted within the critical angle, it leaves through the other big face), so
+# the line's photons are those that met a rim face: a share of the light of order
+# thickness / pane size (0.11 % of the window room's area light enters its rims). They are caustic-kind
+# global photons (the glow's, effects.py: window glass casts no aimed caustic), the line's
+# k-NN discs held at the caustic cap (~15 cm) by fewer than k of them, and the disc blurs
+# the ~1 cm line to 0.70 of Cycles' block (docs/performance.md, "secedges" / "paneedge").
+# So a share of each light's global photons is aimed at spheres covering the rims
+# (RegionEmitter: the split emission, unbiased), the rest emitted as before.
+# Off: on the window room (feature matrix, seeds 0-7, share 0.2) the line's block reads
+# 0.72 -> 0.87 of Cycles and the block error 0.186 -> 0.157 (mean of seeds), no other
+# case moves, but there the photon pass takes ~1.8x as long and stores 74 % more photons
+# (the rims' photons are extra, most land on the outer walls round the window, those
+# entering pipe through up to 32 bounces), the brightness moves 0.996 -> 0.991, and the
+# k-NN disc still spans ~9 cm of the ~1 cm line (docs/performance.md, "paneedge").
+RIM_AIM = False
+# Photons per watt entering the rims against the light's mean: share = RIM_BOOST x the
+# light's power share entering a rim face / the share of aimed photons that enter one,
+# at most RIM_MAX_SHARE (the window room: 0.11 % of the light enters, 9.8 % of the aimed
+# photons: 0.37 -> 0.2; the share 0.1 / 0.2 / 0.3 gave the line's block 0.77 / 0.87 / 0.86).
+RIM_BOOST = 32.0
+RIM_MAX_SHARE = 0.2
+# The rims' photons added to the light's count (True) or taken from it (False).
+RIM_EXTRA = True
+RIM_MAX_SPHERES = 64   # spheres over all panes' rims (their size doubles until they fit)
+RIM_PILOT = 256        # aimed pilot photons a light for its power into the rims
+RIM_COS = 0.5          # a window triangle is a rim face when |n . n_pane| is below this
+
+
+def rim_spheres(geo, window_tri: np.ndarray, max_spheres: int = RIM_MAX_SPHERES):
+    """Spheres covering the rim faces of window glass: (centers (K,3) re-centred world
+    space m, radii (K,) m). window_tri (T,) bool: effects.window_glass. A pane's rim
+    faces are its triangles whose unit normal is within RIM_COS of perpendicular to its
+    largest triangle's; each rim strip is cut into cells about sqrt(3) x the slab's
+    thickness long (a sphere of radius ~ the thickness holding its piece), the cells
+    doubling until the rims of every pane fit in max_spheres. Empty arrays without rims."""
+    empty = (np.zeros((0, 3)), np.zeros(0))
+    if not np.any(window_tri):
+        return empty
+    pts, ids, cell = [], [], []
+    rng = np.random.default_rng(97)  # fixed: the spheres are the geometry's, not a seed's
+    for oid in np.unique(geo.object_id[window_tri]):
+        tris = np.flatnonzero(window_tri & (geo.object_id == oid))
+        e1, e2, v0 = geo.e1[tris], geo.e2[tris], geo.v0[tris]
+        cross = np.cross(e1, e2)
+        area2 = np.linalg.norm(cross, axis=1)
+        big = int(np.argmax(area2))
+        if not area2[big] > 0:
+            continue
+        n0 = cross[big] / area2[big]
+        rim = np.abs(cross @ n0) < RIM_COS * np.maximum(area2, 1e-300)
+        if not rim.any():
+            continue
+        h = np.concatenate([v0 @ n0, (v0 + e1) @ n0, (v0 + e2) @ n0])
+        thick = float(h.max() - h.min())
+        if not thick > 0:
+            continue
+        # Points on the rim faces: their corners and ~256 per cell of the strip's length
+        # (a sphere holds its cell's points and a margin: where one misses a sliver of
+        # a face, those photons stay natural, which costs no bias).
+        a = 0.5 * area2[rim]
+        m = np.clip(np.ceil(256.0 * a / (thick * thick * math.sqrt(3.0))), 8, 16384).astype(int)
+        r = np.repeat(np.flatnonzero(rim), m)
+        u = rng.random((2, len(r)))
+        fold = u[0] + u[1] > 1.0
+        u[:, fold] = 1.0 - u[:, fold]
+        p = v0[r] + u[0, :, None] * e1[r] + u[1, :, None] * e2[r]
+        corners = np.concatenate([v0[rim], v0[rim] + e1[rim], v0[rim] + e2[rim]])
+        p = np.concatenate([p, corners])
+        pts.append(p)
+        ids.append(np.full(len(p), len(cell)))
+        cell.append(math.sqrt(3.0) * thick)
+    if not pts:
+        return empty
+    scale = 1.0
+    while True:
+        centers, radii = [], []
+        for j, p in enumerate(pts):
+            size = cell[j] * scale
+            key = np.floor((p - p.min(axis=0)) / size).astype(np.int64)
+            # One integer a cell (np.unique(axis=0) sorts rows: ~10x slower).
+            dims = key.max(axis=0) + 1
+            _, member = np.unique(np.ravel_multi_index(key.T, dims), return_inverse=True)
+            member = member.ravel()
+            k = int(member.max()) + 1
+            c = np.zeros((k, 3))
+            np.add.at(c, member, p)
+            c /= np.bincount(member, minlength=k)[:, None]
+            rad = np.zeros(k)
+            np.maximum.at(rad, member, np.linalg.norm(p - c[member], axis=1))
+            centers.append(c)
+            radii.append(rad + 0.05 * size)
+        if sum(len(r) for r in radii) <= max_spheres:
+            return np.concatenate(centers), np.concatenate(radii)
+        scale *= 2.0
+
+
+def aim_at_rims(ctx, emitters: list, counts: list, window_tri: np.ndarray | None = None):
+    """The global shot's emitters with a share of each light's photons aimed at the rims
+    of window glass (RIM_AIM's comment): (emitters, counts, report: a sentence, or ""
+    when nothing is aimed there). Each light that can aim and whose light enters a rim
+    face emits share = min(RIM_MAX_SHARE, RIM_BOOST x p / eff) of its photons at them (p:
+    its power share entering a rim face first, eff: the share of aimed photons doing so;
+    _rim_entry's pilots), each sphere by the power entering there (at least ROI_MIN_CELL
+    of the mean), the rest as before: a RegionEmitter keeps its aimed photons per region
+    sphere and its natural photons in the ratio they had, its spheres joined by the
+    rims'. With RIM_EXTRA the light's count grows by 1 / (1 - share), else it stays.
+    window_tri: effects.window_glass (computed when None). Seeded by the settings' seed
+    (the pilots), on the calling thread."""
+    geo, table = ctx.geo, ctx.table
+    if window_tri is None:
+        from .effects import window_glass
+        window_tri = window_glass(geo, table)
+    centers, radii = rim_spheres(geo, window_tri)
+    if not len(radii):
+        return emitters, counts, ""
+    rng = np.random.default_rng([ctx.settings.seed, 93])
+    rim_tri = rim_faces(geo, window_tri)
+    out, aimed, shares, counts_out = [], [], [], list(counts)
+    K = len(radii)
+    rim = Region(centers, radii, 0.0, 0)
+    for i, (emitter, count) in enumerate(zip(emitters, counts)):
+        light = emitter.light if isinstance(emitter, RegionEmitter) else emitter
+        flux = float(luminance(np.asarray(light.photon_flux, np.float64)))
+        if not (can_aim(light) and flux > 0 and count >= 2):
+            out.append(emitter)
+            continue
+        # The pilot, aimed by the light's own rule: the power entering the rim faces
+        # straight from the light (its first hit a rim face) per sphere, and its share
+        # of the flux (the aimed photons' weights make the sum unbiased).
+        own = light.aim(centers, radii).probs
+        enter, o = _rim_entry(ctx, light, rim, rim_tri, own, rng)
+        p_enter = float(enter.sum()) / flux
+        # From inside a rim sphere every direction meets it (origins_inside): natural.
+        if not p_enter > 0 or (not isinstance(light, InfiniteLight) and len(o)
+                               and origins_inside(o, rim).mean() > ROI_MAX_ORIGINS_INSIDE):
+            out.append(emitter)
+            continue
+        probs = np.maximum(enter / enter.sum(), ROI_MIN_CELL / K)
+        probs = probs / probs.sum()
+        # The share of the aimed photons that enter a rim face with these probabilities
+        # (a second pilot): share x eff photons per p_enter of the flux.
+        eff_power, _ = _rim_entry(ctx, light, rim, rim_tri, probs, rng, count_only=True)
+        eff = float(eff_power.sum())
+        if not eff > 0:
+            out.append(emitter)
+            continue
+        share = min(RIM_MAX_SHARE, RIM_BOOST * p_enter / eff)
+        if isinstance(emitter, RegionEmitter):
+            f = emitter.share * (1.0 - share)
+            both = Region(np.concatenate([emitter.region.centers, centers]),
+                          np.concatenate([emitter.region.radii, radii]),
+                          emitter.region.inside, emitter.region.lookups)
+            total = f + share
+            new = RegionEmitter(light, both, total,
+                                np.concatenate([f * emitter.aim.probs, share * probs]) / total)
+        else:
+            new = RegionEmitter(light, rim, share, probs)
+        out.append(new)
+        aimed.append(light.name)
+        shares.append(share)
+        if RIM_EXTRA:
+            # The rims' photons on top of the light's: the rest keep their count (and
+            # the shot's spacing, the global radius, its own).
+            counts_out[i] = int(round(count / (1.0 - share)))
+    if not aimed:
+        return emitters, counts, ""
+    from .effects import _quoted
+    names = [geo.object_names[i] for i in np.unique(geo.object_id[window_tri])]
+    report = (f"{max(shares):.0%} of the photons of {_quoted(aimed)} aimed at the thin edges "
+              f"of window glass {_quoted(names)} ({K} small regions, up to {RIM_BOOST:g}x "
+              "more photons per watt): light entering a pane's edge is piped inside the "
+              "glass to its other edges, a thin line of light where the pane meets the wall")
+    return out, counts_out, report
+
+
+def rim_faces(geo, window_tri: np.ndarray) -> np.ndarray:
+    """(T,) bool: the rim faces of window glass (rim_spheres' rule)."""
+    out = np.zeros(geo.count, bool)
+    for oid in np.unique(geo.object_id[window_tri]):
+        tris = np.flatnonzero(window_tri & (geo.object_id == oid))
+        cross = np.cross(geo.e1[tris], geo.e2[tris])
+        area2 = np.linalg.norm(cross, axis=1)
+        big = int(np.argmax(area2))
+        if area2[big] > 0:
+            n0 = cross[big] / area2[big]
+            out[tris] = np.abs(cross @ n0) < RIM_COS * np.maximum(area2, 1e-300)
+    return out
+
+
+def _rim_entry(ctx, light, rim: Region, rim_tri: np.ndarray, probs, rng,
+               count_only: bool = False):
+    """A pilot of RIM_PILOT photons of light aimed at the rim spheres with probabilities
+    probs (K,): (per sphere (K,): the luminance power (W) of the photons whose first hit
+    is a rim face, the sphere holding the hit; or with count_only the share of the
+    pilot's photons doing so), and the photons' origins (N,3)."""
+    K = len(rim.radii)
+    aim = Aim(*light.aim(rim.centers, rim.radii).arrays[:2], np.asarray(probs, np.float64))
+    from .lights.base import emission_key
+    from .lights.emission import EmissionBuffers
+    buf = EmissionBuffers(RIM_PILOT)
+    m = light._emit(aim, True, emission_key(rng), 0, RIM_PILOT, RIM_PILOT, buf, 0)
+    o32, _, d, power, _ = buf.head(m)
+    o, d = o32.astype(np.float64), d.astype(np.float64)
+    got = np.zeros(K)
+    if m == 0:
+        return got, o
+    t, prim, _, _ = ctx.accel.intersect(o, d, np.full(m, np.inf))
+    hit = prim >= 0
+    hit[hit] = rim_tri[prim[hit]]
+    if not hit.any():
+        return got, o
+    p = o[hit] + t[hit, None] * d[hit]
+    dist = np.linalg.norm(p[:, None, :] - rim.centers[None], axis=2) - rim.radii[None]
+    k = np.argmin(dist, axis=1)
+    w = np.ones(int(hit.sum())) / RIM_PILOT if count_only else luminance(
+        power[hit].astype(np.float64))
+    np.add.at(got, k, w)
+    return got, o

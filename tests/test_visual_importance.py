@@ -293,3 +293,71 @@ def test_the_region_emitters_cull_keeps_the_rows_meets_region_keeps():
         for g, w in zip(got, want):
             assert np.array_equal(g[:lo], w[:lo])
             assert np.array_equal(g[lo:end], w[lo:hi][keep])
+
+
+def _pane_scene():
+    """A 1 m x 1 m pane of 2 cm window glass standing on a floor, an area light above
+    and in front of it: light enters its top rim face and is piped down inside it."""
+    from engine.scene import Material
+    s = PaperScene(width=32, height=24)
+    s.add_material(Material("pane", (1, 1, 1), transmission=1.0, ior=1.5))
+    s.add_plane((0, 0, 0), size=4.0, name="floor")
+    s.add_box((0, 0, 0.6), (1.0, 0.02, 1.0), "pane", name="Window")
+    s.add_rect_area_light((0, -0.8, 2.0), size=(1.0, 1.0), power=200.0,
+                          direction=(0, 0.4, -1))
+    s.set_camera((0, -3, 1.5), (0, 0, 0.5), view_angle=40)
+    return s
+
+
+def _first_hits_rim(ctx, rim_tri, o, d):
+    t, prim, _, _ = ctx.accel.intersect(o, d, np.full(len(o), np.inf))
+    hit = prim >= 0
+    hit[hit] = rim_tri[prim[hit]]
+    return hit
+
+
+def test_window_rims_get_aimed_photons_and_keep_their_power():
+    """visualimportance.aim_at_rims: the spheres cover the pane's rim faces; the aimed
+    emitter carries the light's flux and the power entering the rim faces (first hit a
+    rim face) of the natural emission (the split emission is unbiased), with many more
+    photons entering them."""
+    from engine.effects import window_glass
+    from engine.lights.base import emit_arrays
+    from engine.sampling import luminance
+    ctx = prepare_context(_pane_scene(), RenderSettings(photons=1000, workers=1))
+    try:
+        geo = ctx.geo
+        window = window_glass(geo, ctx.table)
+        assert window.any()
+        rim_tri = vi.rim_faces(geo, window)
+        assert rim_tri.sum() == 8  # a box's four thin faces, two triangles each
+        centers, radii = vi.rim_spheres(geo, window)
+        assert 0 < len(radii) <= vi.RIM_MAX_SPHERES
+        # The rim faces lie in the spheres (all but slivers between the sampled points).
+        rng = np.random.default_rng(1)
+        idx = np.flatnonzero(rim_tri)
+        r = idx[rng.integers(len(idx), size=4000)]
+        u = rng.random((2, len(r)))
+        fold = u.sum(axis=0) > 1
+        u[:, fold] = 1 - u[:, fold]
+        p = geo.v0[r] + u[0, :, None] * geo.e1[r] + u[1, :, None] * geo.e2[r]
+        dist = np.linalg.norm(p[:, None] - centers[None], axis=2)
+        assert (dist <= radii[None]).any(axis=1).mean() > 0.995
+        light = ctx.lights[0]
+        emitters, counts, said = vi.aim_at_rims(ctx, [light], [100_000], window)
+        assert "thin edges of window glass 'Window'" in said, said
+        em = emitters[0]
+        assert isinstance(em, vi.RegionEmitter) and 0 < em.share <= vi.RIM_MAX_SHARE
+        n = 200_000
+        flux = float(luminance(np.asarray(light.photon_flux, np.float64)))
+        o, d, power = emit_arrays(em, n, np.random.default_rng(2))
+        on, dn, pn = emit_arrays(light, n, np.random.default_rng(3))
+        w, wn = luminance(power), luminance(pn)
+        assert abs(w.sum() - flux) < 4 * math.sqrt((w * w).sum()) + 1e-3 * flux
+        hit, hitn = _first_hits_rim(ctx, rim_tri, o, d), _first_hits_rim(ctx, rim_tri, on, dn)
+        E, En = w[hit].sum(), wn[hitn].sum()
+        err = math.hypot(math.sqrt((w[hit] ** 2).sum()), math.sqrt((wn[hitn] ** 2).sum()))
+        assert abs(E - En) < 4 * err, (E, En, err)
+        assert hit.sum() > 10 * hitn.sum(), (hit.sum(), hitn.sum())
+    finally:
+        ctx.accel.close()
