@@ -30,6 +30,8 @@ import math
 import numpy as np
 
 from .closures import principled as pr
+from .closures import tables
+from .closures.fresnel import F0_from_ior, schlick_remap
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .jit import kernel, register_warm_up
 from .rayoffset import G64, TINY32, U32, _offset_row, tilt32, winding_normal
@@ -385,12 +387,112 @@ def flat_tables(geo, table):
     return out
 
 
+# _scatter's argument `plain`: its position in the argument list.
+_PLAIN_ARG = 31
+
+
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
-    passages."""
+    passages. `plain` may be lobe_classes' int8 codes or plain_materials' booleans (True:
+    PLAIN, False: FULL; one compiled kernel for both)."""
+    plain = args[_PLAIN_ARG]
+    if plain.dtype != np.int8:
+        args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
+                + args[_PLAIN_ARG + 1:])
     return _scatter(*args, flat_mat, flat_limit)
+
+
+@kernel
+def _lookup3_x0(tab, y, z):
+    """tables.lookup3(tab, 0, y, z), the same bits: at x = 0 its x weights are 1 and 0,
+    1 x wy is wy, and the second x plane's terms are 0 x ... = +-0, which leave the sum as
+    it is (the tables are finite: tests/test_photon_kernels.py). Half of its terms."""
+    if tab.shape[0] == 1:
+        return tab[0, 0, 0]
+    k, fz = tables._coord(z, tab.shape[2])
+    j, fy = tables._coord(y, tab.shape[1])
+    out = 0.0
+    for dj in range(2):
+        wy = fy if dj else 1.0 - fy
+        for dk in range(2):
+            wz = fz if dk else 1.0 - fz
+            out += wy * wz * tab[0, j + dj, k + dk]
+    return out
+
+
+@kernel
+def _lookup2_x0(tab, y):
+    """tables.lookup2(tab, 0, y), the same bits (a x 1 + b x 0 is a: _lookup3_x0)."""
+    if tab.shape[0] == 1:
+        return tab[0, 0]
+    j, fy = tables._coord(y, tab.shape[1])
+    return tab[0, j] * (1.0 - fy) + tab[0, j + 1] * fy
+
+
+@kernel
+def _glass_tables(rough, mu, eta, ior):
+    """(tables.glass_E(rough, mu, eta), tables.schlick_ior_s(rough, mu, ior)) as
+    principled.setup reads them, the same bits; at rough <= 0 (a coordinate clamped to
+    the tables' first plane) through the x = 0 lookups."""
+    if rough > 0.0:
+        Eg, Eg_avg = tables.glass_E(rough, mu, eta)
+        return Eg, Eg_avg, tables.schlick_ior_s(rough, mu, ior)
+    if eta < 1.0:
+        z = tables.z_from_ior(1.0 / eta)
+        Eg = _lookup3_x0(tables.GLASS_INV_E, mu, z)
+        Eg_avg = _lookup2_x0(tables.GLASS_INV_EAVG, z)
+    else:
+        z = tables.z_from_ior(eta)
+        Eg = _lookup3_x0(tables.GLASS_E, mu, z)
+        Eg_avg = _lookup2_x0(tables.GLASS_EAVG, z)
+    return Eg, Eg_avg, _lookup3_x0(tables.SCHLICK_IOR_S, mu, tables.z_from_ior(max(ior, 1.0)))
+
+
+@kernel
+def smooth_glass(params, m, a, base, j, cos_o, front, gprm, wj):
+    """principled.setup for one hit on a SMOOTH_GLASS material (lobe_classes), the same
+    bits, without its 66 zeroed slots and the layers it would skip: material row m,
+    hit alpha a, base colour base[j] (3,), cos_o = ns . wo, front (arrived outside).
+    Writes the pass, glass (reflection, transmission) and diffuse (0: transmission 1
+    leaves the base nothing) weights to wj[L_*] (N_LOBES, 3), and the glass lobe's
+    packed columns (P_GLASS_*, all _glass_sample reads) to gprm[0]. Glass tables are
+    read only where the energy compensation uses them (Multiscatter GGX)."""
+    mu = min(max(cos_o, 0.0), 1.0)
+    W = a * (1.0 + params[m, pr.M_ADD])
+    for c in range(3):
+        wj[pr.L_PASS, c] = (1.0 - a) * params[m, pr.M_TTINT + c]
+    rough = params[m, pr.M_ROUGH]
+    multi = params[m, pr.M_MULTI]
+    node = params[m, pr.M_NODE]
+    tr = params[m, pr.M_TRANS]
+    ior = max(params[m, pr.M_IOR], 1e-5)
+    eta = ior if front else 1.0 / ior
+    Eg = Eg_avg = s_out = 0.0
+    if multi != 0.0 or eta >= 1.0:
+        Eg, Eg_avg, s_out = _glass_tables(rough, mu, eta, ior)
+    F0g = F0_from_ior(ior)
+    s_n = s_out if eta >= 1.0 else schlick_remap(mu, eta)
+    for c in range(3):
+        if node == pr.NODE_GLASS:
+            rt = tt = max(base[j, c], 0.0)
+            f0 = F0g
+        else:
+            rt = 1.0
+            tt = math.sqrt(min(max(base[j, c], 0.0), 1.0))
+            f0 = min(F0g * max(params[m, pr.M_STINT + c], 0.0), 1.0)
+        fac, dark = pr._compensation(multi, Eg, Eg_avg, tt)
+        gprm[0, pr.P_GLASS_RW + c] = tr * W * rt * fac
+        gprm[0, pr.P_GLASS_TW + c] = tr * W * tt * fac
+        gprm[0, pr.P_GLASS_F0 + c] = f0
+        wj[pr.L_GLASS_R, c] = tr * W * rt * dark * (f0 + (1.0 - f0) * s_n)
+        wj[pr.L_GLASS_T, c] = tr * W * tt * dark * (1.0 - (f0 + (1.0 - f0) * s_n))
+    gprm[0, pr.P_GLASS_ALPHA] = rough * rough
+    gprm[0, pr.P_GLASS_ETA] = eta
+    Wd = W * (1.0 - tr)
+    for c in range(3):
+        wj[pr.L_DIFFUSE, c] = Wd * base[j, c]
 
 
 @kernel
@@ -413,8 +515,10 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     (photon_surfaces' outputs, or bsdf.surface_hit's). bump (m,) the diffuse lobe's bump shadowing
     factor (normalmap.bump_shadowing; 1 without a bent normal), or (0,): 1 for every
     photon (x * 1.0 is x: the same bits without reading it). params, mat_ior: the
-    material table's closure parameters and IOR; plain (M,) bool: the material has only
-    the diffuse and pass lobes (plain_materials), whose weights need no closure set-up.
+    material table's closure parameters and IOR; plain (M,) int8 lobe_classes: PLAIN
+    materials have only the diffuse and pass lobes, whose weights need no closure set-up;
+    SMOOTH_GLASS ones are set up per hit by smooth_glass (both the same bits as
+    principled.setup); FULL ones through principled.setup.
     visibility (T,) ray
     kinds per triangle, used with vis_on. caster (objects,) bool and first_hit_mode (0:
     off, 1: store caustic photons whose first hit is not on a caster, 2: only those whose
@@ -489,6 +593,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     # reference count; plain materials write only their two lobes, the only ones read).
     wj = np.zeros((pr.N_LOBES, 3))
     probs = np.empty(pr.N_LOBES)
+    # A SMOOTH_GLASS hit's packed glass columns (smooth_glass; the others are not read).
+    gprm = np.zeros((1, pr.N_PACK))
     ns_ = 0
     nn = 0
     for b0 in range(0, nh, _BLOCK):
@@ -521,8 +627,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
         nc = 0
         for j in range(nb):
             i = rows[b0 + j]
-            if plain[mat_b[j]]:
-                at[j] = -1
+            cls = plain[mat_b[j]]
+            if cls != FULL:
+                at[j] = -cls  # -1: PLAIN, -2: SMOOTH_GLASS, set up per hit below
                 continue
             at[j] = nc
             mat_h[nc] = mat_b[j]
@@ -537,13 +644,18 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
         for j in range(nb):
             i = rows[b0 + j]
             jc = at[j]
-            if jc < 0:
+            if jc == -PLAIN:
                 # The diffuse and pass weights principled.setup gives a material without
                 # other lobes, bit for bit (its other lobes' weights are 0 and not read).
                 a = alpha_b[j]
                 for c in range(3):
                     wj[pr.L_PASS, c] = (1.0 - a) * params[mat_b[j], pr.M_TTINT + c]
                     wj[pr.L_DIFFUSE, c] = a * base_b[j, c]
+            elif jc == -SMOOTH_GLASS:
+                # Its four lobes' weights (the others are 0 and not read), bit for bit.
+                smooth_glass(params, mat_b[j], alpha_b[j], base_b, j,
+                             -(ns_b[j, 0] * d[i, 0] + ns_b[j, 1] * d[i, 1]
+                               + ns_b[j, 2] * d[i, 2]), front_b[j], gprm, wj)
             else:
                 for l in range(pr.N_LOBES):
                     for c in range(3):
@@ -584,7 +696,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             lobe = pr.N_LOBES  # absorbed
             s = 0.0
             cdf = 0.0
-            if jc < 0:
+            if jc == -PLAIN:
                 # Plain: only the diffuse and pass lobes (0 and 1) can weigh anything; the
                 # others would add exact zeros to s and cdf and never be chosen, so the
                 # sums and the choice are the full loop's, bit for bit.
@@ -602,6 +714,19 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     cdf += probs[pr.L_PASS] if norm == 1.0 else probs[pr.L_PASS] / norm
                     if xi < cdf:
                         lobe = pr.L_PASS
+            elif jc == -SMOOTH_GLASS:
+                # Smooth glass: the diffuse (0 here), pass and glass lobes; the others'
+                # exact zeros would leave s and cdf as they are (a lobe whose cdf does
+                # not grow is never chosen): the full loop's sums and choice, bit for bit.
+                for l in (pr.L_DIFFUSE, pr.L_PASS, pr.L_GLASS_R, pr.L_GLASS_T):
+                    probs[l] = max(wj[l, 0], max(wj[l, 1], wj[l, 2]))
+                    s += probs[l]
+                norm = max(s, 1.0)
+                for l in (pr.L_DIFFUSE, pr.L_PASS, pr.L_GLASS_R, pr.L_GLASS_T):
+                    cdf += probs[l] / norm
+                    if xi < cdf:
+                        lobe = l
+                        break
             else:
                 for l in range(pr.N_LOBES):
                     probs[l] = max(wj[l, 0], max(wj[l, 1], wj[l, 2]))
@@ -642,9 +767,15 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 ok = max(k0, max(k1, k2)) > 0.0
             else:
                 lx, ly, lz = pr.frame_local(n0, n1, n2, -dx, -dy, -dz)
-                ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
-                    prm, jc, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),
-                    uniform(key, slot[i], bounce, 4), uniform(key, slot[i], bounce, 5))
+                if jc == -SMOOTH_GLASS:
+                    # The glass lobe's own sampler; smooth, it reads only its third number
+                    # (reflect or refract): the first two are not drawn.
+                    ix, iy, iz, k0, k1, k2, transmitted = pr._glass_sample(
+                        gprm, 0, lx, ly, lz, 0.0, 0.0, uniform(key, slot[i], bounce, 5))
+                else:
+                    ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
+                        prm, jc, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),
+                        uniform(key, slot[i], bounce, 4), uniform(key, slot[i], bounce, 5))
                 ox, oy, oz = pr.frame_world(n0, n1, n2, ix, iy, iz)
                 ln = math.sqrt(ox * ox + oy * oy + oz * oz)
                 if ln > 0.0:
@@ -798,6 +929,30 @@ def bounce_usable(counts: np.ndarray, limits, camera=(0, 0, 0, 0)) -> np.ndarray
     ok = (total <= lim[0]) & (diff <= lim[1]) & (c[:, 2] + cam[2] <= lim[2]) \
         & (c[:, 3] + cam[3] <= lim[3])
     return ok
+
+
+# lobe_classes' codes: how scatter sets up a material's lobes.
+FULL, PLAIN, SMOOTH_GLASS = 0, 1, 2
+
+
+def lobe_classes(params: np.ndarray) -> np.ndarray:
+    """(M,) int8 per material row of params (MaterialTable.closure_params): PLAIN
+    (plain_materials: diffuse and pass lobes only), SMOOTH_GLASS (transmission exactly 1,
+    delta roughness (alpha = rough^2 below ggx.ALPHA_MIN, as glass_microfacet tests it),
+    no metal, coat or sheen; Principled or Glass BSDF node: the pass and glass lobes
+    alone, set up by smooth_glass and sampled with one number), else FULL
+    (principled.setup). Photon pass only (scatter's `plain`)."""
+    from .closures import ggx
+    params = np.asarray(params)
+    out = plain_materials(params).astype(np.int8)
+    rough = params[:, pr.M_ROUGH]
+    node = params[:, pr.M_NODE]
+    glass = ((params[:, pr.M_TRANS] == 1.0) & (rough * rough < ggx.ALPHA_MIN)
+             & (params[:, pr.M_METALLIC] <= 0.0) & (params[:, pr.M_COAT_W] <= 0.0)
+             & (params[:, pr.M_SHEEN_W] <= 0.0)
+             & ((node == pr.NODE_GLASS) | (node == pr.NODE_PRINCIPLED)))
+    out[glass] = SMOOTH_GLASS
+    return np.ascontiguousarray(out)
 
 
 def plain_materials(params: np.ndarray) -> np.ndarray:

@@ -177,7 +177,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # numpy texture evaluation, and shared instances (their offsets take a floor computed
     # from the points, Geometry.instance_offset_floor).
     given = numpy_hits or geo.shared is not None
-    plain = pk.plain_materials(table.closure_params)
+    plain = pk.lobe_classes(table.closure_params)
     # Buffers for the whole chunk, reused bounce after bounce: the surface data (given
     # only), the stored photons (appended to by each bounce), and two sets of continued
     # rays (one is the bounce's input, the other its output).
@@ -251,7 +251,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 params[rows] = hit.params
                 surf_m[4][:] = np.arange(m)
                 mat_ior = np.ascontiguousarray(params[:, M_IOR])
-                row_plain = pk.plain_materials(params)
+                row_plain = pk.lobe_classes(params)
         # Shared instances: the hits' rows gathered (geometry.Geometry.hit_tables).
         rows, (v0, e1, e2, normals, material, visibility, object_id) = geo.hit_tables(
             prim, "v0", "e1", "e2", "corner_normals", "material", "visibility", "object_id")

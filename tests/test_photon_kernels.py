@@ -195,13 +195,16 @@ def test_plain_materials_scatter_as_with_the_full_set_of_lobes():
     geom, prim32, u32, v32, starts = _embree_layout(prim, u, v)
     plain = pk.plain_materials(table.closure_params)
     assert plain.any() and not plain.all()
+    classes = pk.lobe_classes(table.closure_params)
+    assert (classes == pk.SMOOTH_GLASS).sum() == 1 and np.array_equal(classes == pk.PLAIN, plain)
     mats = table.closure_params.shape[0]
     hit_mat = geo.material[prim[prim >= 0]]
     assert (~plain[hit_mat]).sum() > 100 and plain[hit_mat].sum() > 1000
+    assert (classes[hit_mat] == pk.SMOOTH_GLASS).sum() > 100
     power = rng.random((n, 3))
     flags = rng.integers(0, 16, n).astype(np.int64)
     out = []
-    for row_plain in (plain, np.zeros(mats, np.bool_)):
+    for row_plain in (classes, plain, np.zeros(mats, np.bool_)):
         st, nx = pk.store_arrays(n), pk.next_arrays(2 * n)
         counts = pk.scatter(np.uint64(13), 2, d, power, flags,
                             np.full(n, pk.SEGMENT_KINDS, np.int64), np.arange(n), _NO_BNC(n), geom,
@@ -213,10 +216,66 @@ def test_plain_materials_scatter_as_with_the_full_set_of_lobes():
                             np.zeros(1, np.bool_), 0, False, False, pk._NO_LIMITS, *st, *nx,
                             _scratch_rows(n))
         out.append((counts, [a[:counts[0]] for a in st] + [a[:counts[1]] for a in nx]))
-    (c1, a1), (c2, a2) = out
-    assert c1 == c2 and c1[0] > 1000 and c1[1] > 1000
-    for x, y in zip(a1, a2):
+    (c0, a0), (c1, a1), (c2, a2) = out
+    assert c0 == c1 == c2 and c1[0] > 1000 and c1[1] > 1000
+    for x, y, z in zip(a0, a1, a2):
         np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(x, z)
+
+
+def test_smooth_glass_sets_up_as_principled_setup():
+    """photonkernels.smooth_glass (scatter's SMOOTH_GLASS set-up) writes the weights and
+    glass columns principled.setup writes, bit for bit: Glass and Principled nodes,
+    tinted, translucent (alpha < 1), Add Shader weight, roughness 0 and just above 0
+    (still a delta lobe), with and without Multiscatter GGX, from both sides, at view
+    cosines from grazing (and below 0) to normal; and the glass tables its x = 0 lookups
+    read are finite (their zero terms then change no bit)."""
+    from engine.closures import principled as pr, tables
+    for tab in (tables.GLASS_E, tables.GLASS_EAVG, tables.GLASS_INV_E, tables.GLASS_INV_EAVG,
+                tables.SCHLICK_IOR_S):
+        assert np.all(np.isfinite(tab))
+    rng = np.random.default_rng(21)
+    rows = []
+    for node in (pr.NODE_GLASS, pr.NODE_PRINCIPLED):
+        for rough in (0.0, 0.009):
+            for multi in (0.0, 1.0):
+                for ior in (1.0, 1.45, 2.4, 0.8):
+                    q = np.zeros(pr.N_MAT)
+                    q[pr.M_ALPHA] = 1.0
+                    q[pr.M_TRANS] = 1.0
+                    q[pr.M_ROUGH] = rough
+                    q[pr.M_IOR] = ior
+                    q[pr.M_SPEC] = 1.0
+                    q[pr.M_LEVEL] = 0.5 if ior != 2.4 else 0.7
+                    q[pr.M_STINT:pr.M_STINT + 3] = (1.0, 0.8, 0.5)
+                    q[pr.M_MULTI] = multi
+                    q[pr.M_NODE] = node
+                    q[pr.M_TTINT:pr.M_TTINT + 3] = (1.0, 0.9, 0.7)
+                    q[pr.M_ADD] = 0.0 if ior != 1.45 else 0.5
+                    rows.append(q)
+    params = np.array(rows)
+    assert np.all(pk.lobe_classes(params) == pk.SMOOTH_GLASS)
+    n = 4000
+    mat = rng.integers(0, len(params), n).astype(np.int64)
+    base = rng.random((n, 3))
+    base[::7] = 1.0
+    cos_o = np.concatenate([[-0.1, 0.0, 1e-5, 1.0], rng.random(n - 4)])
+    front = rng.random(n) < 0.5
+    alpha = np.where(rng.random(n) < 0.3, rng.random(n), 1.0)
+    prm = np.zeros((n, pr.N_PACK))
+    w = np.zeros((n, pr.N_LOBES, 3))
+    pr.setup(mat, params, base, cos_o, front, alpha, prm, w)
+    gprm = np.zeros((1, pr.N_PACK))
+    wj = np.zeros((pr.N_LOBES, 3))
+    cols = ([pr.P_GLASS_RW + c for c in range(3)] + [pr.P_GLASS_TW + c for c in range(3)]
+            + [pr.P_GLASS_F0 + c for c in range(3)] + [pr.P_GLASS_ALPHA, pr.P_GLASS_ETA])
+    for i in range(n):
+        pk.smooth_glass(params, mat[i], alpha[i], base, i, cos_o[i], front[i], gprm, wj)
+        for lobe in (pr.L_DIFFUSE, pr.L_PASS, pr.L_GLASS_R, pr.L_GLASS_T):
+            assert wj[lobe].tobytes() == w[i, lobe].tobytes(), (i, lobe)
+        assert gprm[0, cols].tobytes() == prm[i, cols].tobytes(), i
+        for lobe in (pr.L_METAL, pr.L_SPEC, pr.L_COAT, pr.L_SHEEN):
+            assert not np.any(w[i, lobe])
 
 
 def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():

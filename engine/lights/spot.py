@@ -101,17 +101,23 @@ def spot_aim(centers, radii, pos, axis, cos_bound) -> Aim:
 
 
 @kernel
-def _in_aim_cone(centers, radii, k, axis, cos_bound, o0, o1, o2, d0, d1, d2):
-    """(whether unit direction d from o lies in sphere k's aim cone, that cone's solid
-    angle, whether d lies in the sphere's own cone): the aim cone is the sphere's cone or
-    the spot's (cos_bound round axis), the narrower."""
-    ck, dk, k0, k1, k2 = _cone_cos(centers[k, 0], centers[k, 1], centers[k, 2], radii[k],
-                                   o0, o1, o2)
-    in_sphere = d0 * k0 + d1 * k1 + d2 * k2 >= ck * dk
-    if cos_bound > ck:  # the spot's cone is the narrower
-        return (d0 * axis[0] + d1 * axis[1] + d2 * axis[2] >= cos_bound,
-                TWO_PI * (1.0 - cos_bound), in_sphere)
-    return in_sphere, TWO_PI * (1.0 - ck), in_sphere
+def aim_cones(centers, radii, probs, cos_bound, o0, o1, o2):
+    """The aim cones of the spheres (centers (K,3), radii (K,)) from the fixed origin o,
+    computed once for all of a call's photons (the spot's aimed photons all leave from
+    its centre): (K, 7) rows of (the sphere's cone: _cone_cos' cosine, distance and
+    vector o -> c; 1 where the spot's cone (cos_bound) is the narrower, else 0; probs[k]
+    / that aim cone's solid angle, the sphere's share of the aimed pdf)."""
+    K = centers.shape[0]
+    out = np.empty((K, 7))
+    for k in range(K):
+        ck, dk, k0, k1, k2 = _cone_cos(centers[k, 0], centers[k, 1], centers[k, 2], radii[k],
+                                       o0, o1, o2)
+        spot = cos_bound > ck  # the spot's cone is the narrower
+        omega = TWO_PI * (1.0 - cos_bound) if spot else TWO_PI * (1.0 - ck)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3], out[k, 4] = ck, dk, k0, k1, k2
+        out[k, 5] = 1.0 if spot else 0.0
+        out[k, 6] = probs[k] / omega
+    return out
 
 
 @kernel
@@ -122,9 +128,17 @@ def spot_aim_direction(centers, radii, probs, cdf, axis, cos_bound, o0, o1, o2, 
     it (sphere k contributes probs[k] / its aim cone's solid angle); 0 where no sphere is
     aimed at or the direction lies in no sphere's cone (it meets no caster: no power,
     so the aimed photons hold the directions towards the spheres, as aim_direction's)."""
+    return aimed_direction(aim_cones(centers, radii, probs, cos_bound, o0, o1, o2), probs,
+                           cdf, axis, cos_bound, us, u1, u2)
+
+
+@kernel
+def aimed_direction(cones, probs, cdf, axis, cos_bound, us, u1, u2):
+    """spot_aim_direction with the spheres' aim cones from its origin given (aim_cones):
+    the same directions and pdf, bit for bit (the same operations, each sphere's done
+    once per call instead of twice per photon)."""
     j = pick(cdf, us)
-    ck, dk, t0, t1, t2 = _cone_cos(centers[j, 0], centers[j, 1], centers[j, 2], radii[j],
-                                   o0, o1, o2)
+    ck, dk, t0, t1, t2 = cones[j, 0], cones[j, 1], cones[j, 2], cones[j, 3], cones[j, 4]
     if cos_bound > ck:
         l0, l1, l2 = uniform_cone(u1, u2, cos_bound)
         d0, d1, d2 = to_world(l0, l1, l2, axis[0], axis[1], axis[2])
@@ -132,14 +146,16 @@ def spot_aim_direction(centers, radii, probs, cdf, axis, cos_bound, o0, o1, o2, 
         ds = max(dk, 1e-300)
         l0, l1, l2 = uniform_cone(u1, u2, ck)
         d0, d1, d2 = to_world(l0, l1, l2, t0 / ds, t1 / ds, t2 / ds)
+    in_spot = d0 * axis[0] + d1 * axis[1] + d2 * axis[2] >= cos_bound
     aimed = 0.0
     towards = False
-    for k in range(centers.shape[0]):
-        inside, omega, in_sphere = _in_aim_cone(centers, radii, k, axis, cos_bound, o0, o1,
-                                                o2, d0, d1, d2)
+    for k in range(cones.shape[0]):
+        in_sphere = (d0 * cones[k, 2] + d1 * cones[k, 3] + d2 * cones[k, 4]
+                     >= cones[k, 0] * cones[k, 1])
+        inside = in_spot if cones[k, 5] != 0.0 else in_sphere
         towards = towards or in_sphere
         if inside and probs[k] > 0.0:
-            aimed += probs[k] / omega
+            aimed += cones[k, 6]
     return d0, d1, d2, aimed if towards else 0.0
 
 
@@ -155,6 +171,8 @@ def emit_spot(pos, axis, radius, intensity, frame, cos_half, width, cos_bound, c
     disk; aimed: 0 the target, 3, 4 the direction, 5, 6 the disk."""
     j = start
     solid = 2.0 * math.pi * (1.0 - cos_bound)
+    # Every aimed direction leaves from the centre: the spheres' cones from there, once.
+    cones = aim_cones(centers, radii, probs, cos_bound, pos[0], pos[1], pos[2])
     for i in range(n):
         s = first + i
         if not aimed:
@@ -163,11 +181,10 @@ def emit_spot(pos, axis, radius, intensity, frame, cos_half, width, cos_bound, c
             w = solid / count
             k = 2
         else:
-            d0, d1, d2, pdf_aim = spot_aim_direction(centers, radii, probs, cdf, axis, cos_bound,
-                                                     pos[0], pos[1], pos[2],
-                                                     emit_uniform(key, s, 0),
-                                                     emit_uniform(key, s, 3),
-                                                     emit_uniform(key, s, 4))
+            d0, d1, d2, pdf_aim = aimed_direction(cones, probs, cdf, axis, cos_bound,
+                                                  emit_uniform(key, s, 0),
+                                                  emit_uniform(key, s, 3),
+                                                  emit_uniform(key, s, 4))
             w = 1.0 / (count * pdf_aim) if pdf_aim > 0.0 else 0.0
             k = 5
         w *= spot_mask_at(frame, cos_half, width, d0, d1, d2)
