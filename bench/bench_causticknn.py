@@ -6,7 +6,7 @@ row class, where a row's time goes.
     PYTHONPATH=$PWD python bench/bench_causticknn.py capture BLEND W H OUT.calls
     PYTHONPATH=$PWD python bench/bench_causticknn.py classes OUT.calls...
     PYTHONPATH=$PWD python bench/bench_causticknn.py replay BASE_ROOT OUT.calls...
-    PYTHONPATH=$PWD python bench/bench_causticknn.py paths BASE_FILE CALLERS OUT.calls...
+    PYTHONPATH=$PWD python bench/bench_causticknn.py paths BASE_ROOT CALLERS OUT.calls...
 
 `capture` renders an example blend (exported through the add-on into WORK, default
 /tmp/causticknn/work) at its default settings, 1 worker, records every
@@ -17,8 +17,9 @@ same way), fewer than min_photons accepted, and the k-NN paths taken (seeded, li
 heap, widened). `replay` times each caller's captured calls through BASE_ROOT's
 photonmap.py kernel (with its kdtree.py, both compiled from source) and this checkout's,
 interleaved, one thread, best of 3 process CPU, and checks that both give the same bits.
-`paths` splits a caller's rows by the k-NN path BASE_FILE's kernel takes (seeded,
-listed empty / < k / >= k, heap, widened, floored focus) and times each path alone.
+`paths` splits a caller's rows by the k-NN path BASE_ROOT's kernel takes (seeded from
+a block's candidates or the tree, listed from candidates or the tree: empty / < k / >= k,
+heap, widened, floored focus) and times each path alone.
 """
 from __future__ import annotations
 
@@ -63,11 +64,13 @@ def capture(name, w, h, out):
     capture_irradiance_calls(name, w, h, out, WORK, CALLER, radius_digits=4)
 
 
-def _kernel_from(root):
+def _kernel_from(root, counters=None, inserts=()):
     """_irradiance_rows compiled from root's engine/photonmap.py, from _widen_listed on
     (the estimate's own helpers, with root's module constants), over root's
     engine/kdtree.py (compiled from source too, uncached); the other helpers are this
-    checkout's."""
+    checkout's. With counters (e.g. "cls"): (counted, plain), counted the kernel with
+    bench_core.insert_at's (anchor, before, after) inserts, taking the counter arrays
+    first (as bench_core.counted_irradiance_rows)."""
     import types
     import numba
     from engine import photonmap
@@ -89,7 +92,15 @@ def _kernel_from(root):
          scope)
     scope["kdtree"] = kd
     exec(seg, scope)
-    return scope["_irradiance_rows"]
+    if counters is None:
+        return scope["_irradiance_rows"]
+    from bench_core import insert_at, irradiance_rows_source
+    body = irradiance_rows_source(os.path.join(root, "engine", "photonmap.py")).replace(
+        "def _irradiance_rows(", f"def _counted({counters}, ")
+    for anchor, before, after in inserts:
+        body = insert_at(body, anchor, before, after)
+    exec(body, scope)
+    return scope["_nj"](scope["_counted"]), scope["_irradiance_rows"]
 
 
 def classes(captures):
@@ -200,29 +211,38 @@ def _same(a, b):
     return np.array_equal(a, b)
 
 
-PATHS = {0: "seeded", 1: "listed, sphere empty", 2: "listed, 1-63 photons",
-         3: "listed, 64-512 photons", 4: "heap (> 512 photons)", 5: "widened",
-         6: "listed, focus floored"}
+PATHS = {1: "seeded (block candidates)", 2: "seeded (tree)",
+         11: "listed from candidates, sphere empty", 12: "listed from candidates, 1-63",
+         13: "listed from candidates, 64-512", 21: "listed by the tree, sphere empty",
+         22: "listed by the tree, 1-63", 23: "listed by the tree, 64-512",
+         7: "heap (> 512 photons)", 8: "widened", 9: "focus floored"}
+# cls + 100: the row tried a seeded sphere first (the previous row's kq-th distance).
+_SET = "cls[i] = cls[i] - cls[i] % 100 + "
 
 
-def paths(base_file, callers, captures):
-    """Per caller in `callers` (comma-separated), each row's k-NN path in base_file's
-    kernel (an instrumented copy), then each path's rows alone through the base kernel
-    and this checkout's: rows, share, CPU us a row (best of 3 process CPU)."""
+def paths(base_root, callers, captures):
+    """Per caller in `callers` (comma-separated), each row's k-NN path in base_root's
+    kernel (_kernel_from: its photonmap.py and kdtree.py) (an instrumented copy: PATHS, + 100 where a seeded sphere was tried first),
+    then each path's rows alone through the base kernel and this checkout's: rows,
+    share, CPU us a row (best of 3 process CPU). A path's rows replayed alone lose their
+    neighbours (seeds, blocks): their cost alone, not in the render's context."""
     import numpy as np
-    from bench_core import captured_maps, counted_irradiance_rows, irradiance_rows_source
+    from bench_core import captured_maps
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
-    counted, base = counted_irradiance_rows(irradiance_rows_source(base_file), "cls", [
-        ("            if seeded:\n                cnt = kq\n", "", "                cls[i] = 0\n"),
-        ("                if 0 <= listed <= list_cap:\n", "",
-         "                    cls[i] = 1 if listed == 0 else 2 if listed < kq else 3\n"),
-        ("                    listed = -1\n                    cnt = _knn(",
-         "                    cls[i] = 4\n", ""),
-        ("                prev_kth = -1.0\n                if listed >= 0:",
-         "                cls[i] = 5\n", ""),
-        ("            in_disc = _ball_count(", "            cls[i] = 6\n", "")])
+    counted, base = _kernel_from(base_root, "cls", [
+        ("                b2 = prev_kth * SEED_GROWTH\n", "", "                cls[i] = 100\n"),
+        ("            if seeded:\n                cnt = kq\n", "",
+         " " * 16 + _SET + "(1 if from_cand else 2)\n"),
+        ("                if from_cand:\n                    pass", " " * 16 + _SET
+         + "(10 if from_cand else 20) + (1 if listed == 0 else 2 if listed < kq else 3)\n",
+         ""),
+        ("                    listed = -1\n                    cnt = _knn(", " " * 20 + _SET + "7\n",
+         ""),
+        ("                prev_kth = -1.0\n                if listed >= 0 and from_cand:",
+         " " * 16 + _SET + "8\n", ""),
+        ("            in_disc = _ball_count(", " " * 12 + _SET + "9\n", "")])
     kernels = {"base": base, "this": photonmap._irradiance_rows}
     print("| capture | caller | path | rows | share % | base / this CPU ms "
           "| base / this us a row |")
@@ -233,7 +253,7 @@ def paths(base_file, callers, captures):
                 continue
             C = []
             for p, n, k, mp, est, rb, rf, mk in calls:
-                cls = np.full(len(p), -1, np.int64)
+                cls = np.zeros(len(p), np.int64)
                 photonmap._irradiance_rows = lambda *a: counted(cls, *a)
                 pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
                               masks=mk)
@@ -259,7 +279,9 @@ def paths(base_file, callers, captures):
                 sel = np.ones(len(allc), bool) if cl is None else allc == cl
                 tb, tt = (run(kernels[v], pick) for v in ("base", "this"))
                 rows = int(sel.sum())
-                print(f"| {tag} | {'all' if cl is None else PATHS.get(cl, cl)} | {rows:,} | "
+                name = ("all" if cl is None else PATHS.get(cl % 100, cl)
+                        + (", seed tried" if cl >= 100 else ""))
+                print(f"| {tag} | {name} | {rows:,} | "
                       f"{sel.mean() * 100:.1f} | {tb * 1e3:.0f} / {tt * 1e3:.0f} | "
                       f"{tb / rows * 1e6:.3f} / {tt / rows * 1e6:.3f} |", flush=True)
             photonmap._irradiance_rows = kernels["this"]
