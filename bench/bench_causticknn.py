@@ -7,6 +7,7 @@ row class, where a row's time goes.
     PYTHONPATH=$PWD python bench/bench_causticknn.py classes OUT.calls...
     PYTHONPATH=$PWD python bench/bench_causticknn.py replay BASE_ROOT OUT.calls...
     PYTHONPATH=$PWD python bench/bench_causticknn.py paths BASE_ROOT CALLERS OUT.calls...
+    PYTHONPATH=$PWD python bench/bench_causticknn.py ratio BLEND OUT.calls [BASE_ROOT]
 
 `capture` renders an example blend (exported through the add-on into WORK, default
 /tmp/causticknn/work) at its default settings, 1 worker, records every
@@ -20,6 +21,15 @@ interleaved, one thread, best of 3 process CPU, and checks that both give the sa
 `paths` splits a caller's rows by the k-NN path BASE_ROOT's kernel takes (seeded from
 a block's candidates or the tree, listed from candidates or the tree: empty / < k / >= k,
 heap, widened, floored focus) and times each path alone.
+`ratio` is issue 13's "one photon lookup (the default estimator, k = 64) <= 5 Embree
+traversals": the captured caustic estimates at the camera hits (knn_simpson, k = 64) of
+BLEND, all of them and the dense ones (at least k photons within the search radius: the
+estimate reads its k nearest), CPU ns a row (one thread, best of 3, in the calls' own
+rows order), against one Embree traversal of the same scene (BLEND's exported scene,
+the engine's Accel on one thread, best of 3): closest-hit and occlusion rays from those
+dense rows' points into their hemisphere (as the gather rays leave them), and closest
+hits from the middle of the scene's box (bench_lookup.py's rays). With BASE_ROOT, the
+estimates through its kernel too (_kernel_from), interleaved.
 """
 from __future__ import annotations
 
@@ -287,11 +297,103 @@ def paths(base_root, callers, captures):
             photonmap._irradiance_rows = kernels["this"]
 
 
+def ratio(name, path, base_root=None, repeat=3):
+    """The k = 64 caustic estimate against one Embree traversal (module docstring)."""
+    import pickle
+    import numpy as np
+    import bench_kernels as bk
+    from bench_core import captured_maps
+    from engine import RenderSettings, photonmap
+    from engine.jit import ensure_compiled
+    from engine.render import prepare_context
+    ensure_compiled()
+    kernels = {"this": photonmap._irradiance_rows}
+    if base_root:
+        kernels = {"base": _kernel_from(base_root), **kernels}
+    caustic = [(radius, calls, pm) for caller, radius, calls, pm in captured_maps(path)
+               if caller == "caustic"]
+    radius, calls, pm = caustic[0]
+    t, ph = pm.tree, pm.photons
+    dense_calls, pts, nrm = [], [], []
+    for p, n, k, mp, est, rb, rf, mk in calls:
+        nb = np.empty(len(p), np.int64)
+        acc = np.empty(len(p), np.int64)
+        p64, n64 = np.ascontiguousarray(p, np.float64), np.ascontiguousarray(n, np.float64)
+        _sphere_counts(t.position, t.axis, t.split, t.leaf, ph.direction, ph.normal, p64,
+                       n64, radius * radius, nb, acc)
+        s = np.flatnonzero(nb >= k)
+        if len(s):
+            dense_calls.append((p[s], n[s], k, mp, est, rb, None if rf is None else rf[s],
+                                mk))
+            pts.append(p64[s])
+            nrm.append(n64[s])
+    est_of = {calls[0][4]}
+    print(f"{name}: caustic map {len(ph):,} photons, radius {radius:.4f} m, "
+          f"k = {calls[0][2]}, estimator {', '.join(est_of)}")
+
+    def rows_ns(cs, label):
+        photonmap._irradiance_rows = kernels[label]
+        best = 1e9
+        for _ in range(repeat):
+            t0 = time.process_time()
+            for p, n, k, mp, est, rb, rf, mk in cs:
+                pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
+                              masks=mk)
+            best = min(best, time.process_time() - t0)
+        photonmap._irradiance_rows = kernels["this"]
+        return best / sum(len(c[0]) for c in cs) * 1e9
+    est = {}
+    for label in kernels:  # interleaved per set
+        est[("all", label)] = rows_ns(calls, label)
+        est[("dense", label)] = rows_ns(dense_calls, label)
+    # One Embree traversal of the scene the estimates were made in.
+    with open(bk.exported(name, WORK), "rb") as f:
+        scene = pickle.load(f)
+    ctx = prepare_context(scene, RenderSettings(workers=1))
+    acc = ctx.accel.serial()
+    rng = np.random.default_rng(1)
+    P, N = np.vstack(pts), np.vstack(nrm)
+    pick = rng.integers(0, len(P), 200_000)
+    d = rng.normal(size=(len(pick), 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    d *= np.where((d * N[pick]).sum(1) < 0, -1.0, 1.0)[:, None]  # into the hemisphere
+    o = P[pick] + 1e-4 * N[pick]
+    lo, hi = (np.asarray(b, np.float64) for b in ctx.geo.bounds)
+    ob = lo + (hi - lo) * (0.3 + 0.4 * rng.random((len(pick), 3)))
+
+    def ray_ns(fn):
+        fn()
+        best = 1e9
+        for _ in range(repeat):
+            t0 = time.process_time()
+            fn()
+            best = min(best, time.process_time() - t0)
+        return best / len(pick) * 1e9
+    ray = {"closest hit, from the dense rows' points": ray_ns(lambda: acc.intersect(o, d)),
+           "occlusion, from the dense rows' points": ray_ns(
+               lambda: acc.occluded(o, d, np.full(len(pick), 1e30))),
+           "closest hit, from the box's middle": ray_ns(lambda: acc.intersect(ob, d))}
+    ctx.accel.close()
+    ref = ray["closest hit, from the dense rows' points"]
+    rows_all = sum(len(c[0]) for c in calls)
+    rows_dense = sum(len(c[0]) for c in dense_calls)
+    print("| work | rows / rays | CPU ns each | in closest-hit traversals |")
+    print("|---|---:|---:|---:|")
+    for (which, label), ns in est.items():
+        n_rows = rows_all if which == "all" else rows_dense
+        print(f"| caustic estimates, {which} ({label}) | {n_rows:,} | {ns:.0f} | "
+              f"{ns / ref:.1f} |")
+    for what, ns in ray.items():
+        print(f"| Embree {what} | {len(pick):,} | {ns:.0f} | {ns / ref:.2f} |")
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "capture":
         capture(sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), sys.argv[5])
     elif sys.argv[1] == "paths":
         paths(sys.argv[2], sys.argv[3], sys.argv[4:])
+    elif sys.argv[1] == "ratio":
+        ratio(sys.argv[2], sys.argv[3], *sys.argv[4:5])
     elif sys.argv[1] == "classes":
         classes(sys.argv[2:])
     else:

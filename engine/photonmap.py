@@ -486,6 +486,11 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     # estimate over its whole sphere sums only these: below).
     acc_d2 = np.empty(list_cap, np.float64)
     acc_idx = np.empty(list_cap, np.int64)
+    # The row's photons' _accepted answers (accepted, other surface, cos_in), computed once
+    # for the k-th accepted search and the sums (each read them: twice the work).
+    row_ok = np.empty(cap, np.bool_)
+    row_other = np.empty(cap, np.bool_)
+    row_cos = np.empty(cap, direction.dtype)  # cos_in in the photons' precision
     # The current block's candidates (_block_candidates): rows before blk_end use them
     # where nc >= 0.
     use_cand = knn and kind == KDTREE
@@ -742,6 +747,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         full = cnt == kq and not only_accepted  # stopped at kq photons: more may lie beyond
         rk = radius
         floored = False
+        for j in range(cnt):
+            row_ok[j], row_other[j], row_cos[j] = _accepted(direction, normal, idx[j], nx, ny,
+                                                            nz)
         if code >= KNN_SIMPSON:
             # rk: distance to the k-th accepted photon; with fewer accepted, the radius of the
             # disc the query has seen completely (its last photon, or the max radius): that
@@ -749,7 +757,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             acc = 0
             kth = -1
             for j in range(cnt):
-                if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+                if row_ok[j]:
                     acc += 1
                     if acc == k:
                         kth = j
@@ -777,7 +785,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         for j in range(cnt):
             pj = idx[j]
             d = math.sqrt(d2[j])
-            ok, other, cos_in = _accepted(direction, normal, pj, nx, ny, nz)
+            ok, other, cos_in = row_ok[j], row_other[j], row_cos[j]
             inside = d <= rk
             if inside:
                 fetched += 1
