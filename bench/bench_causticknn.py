@@ -232,8 +232,8 @@ _SET = "cls[i] = cls[i] - cls[i] % 100 + "
 
 def paths(base_root, callers, captures):
     """Per caller in `callers` (comma-separated), each row's k-NN path in base_root's
-    kernel (_kernel_from: its photonmap.py and kdtree.py) (an instrumented copy: PATHS, + 100 where a seeded sphere was tried first),
-    then each path's rows alone through the base kernel and this checkout's: rows,
+    kernel (_kernel_from: its photonmap.py and kdtree.py; an instrumented copy: PATHS,
+    + 100 where a seeded sphere was tried first), then each path's rows alone through the base kernel and this checkout's: rows,
     share, CPU us a row (best of 3 process CPU). A path's rows replayed alone lose their
     neighbours (seeds, blocks): their cost alone, not in the render's context."""
     import numpy as np
@@ -248,8 +248,8 @@ def paths(base_root, callers, captures):
         ("                if from_cand:\n                    pass", " " * 16 + _SET
          + "(10 if from_cand else 20) + (1 if listed == 0 else 2 if listed < kq else 3)\n",
          ""),
-        ("                    listed = -1\n                    cnt = _knn(", " " * 20 + _SET + "7\n",
-         ""),
+        ("                    listed = -1\n                    cnt = _knn(",
+         " " * 20 + _SET + "7\n", ""),
         ("                prev_kth = -1.0\n                if listed >= 0 and from_cand:",
          " " * 16 + _SET + "8\n", ""),
         ("            in_disc = _ball_count(", " " * 12 + _SET + "9\n", "")])
