@@ -6,7 +6,8 @@ row class, where a row's time goes.
     PYTHONPATH=$PWD python bench/bench_causticknn.py capture BLEND W H OUT.calls
     PYTHONPATH=$PWD python bench/bench_causticknn.py classes OUT.calls...
     PYTHONPATH=$PWD python bench/bench_causticknn.py replay BASE_ROOT OUT.calls...
-    PYTHONPATH=$PWD python bench/bench_causticknn.py paths BASE_FILE CALLERS OUT.calls...
+    PYTHONPATH=$PWD python bench/bench_causticknn.py paths BASE_ROOT CALLERS OUT.calls...
+    PYTHONPATH=$PWD python bench/bench_causticknn.py ratio BLEND OUT.calls [BASE_ROOT]
 
 `capture` renders an example blend (exported through the add-on into WORK, default
 /tmp/causticknn/work) at its default settings, 1 worker, records every
@@ -17,8 +18,18 @@ same way), fewer than min_photons accepted, and the k-NN paths taken (seeded, li
 heap, widened). `replay` times each caller's captured calls through BASE_ROOT's
 photonmap.py kernel (with its kdtree.py, both compiled from source) and this checkout's,
 interleaved, one thread, best of 3 process CPU, and checks that both give the same bits.
-`paths` splits a caller's rows by the k-NN path BASE_FILE's kernel takes (seeded,
-listed empty / < k / >= k, heap, widened, floored focus) and times each path alone.
+`paths` splits a caller's rows by the k-NN path BASE_ROOT's kernel takes (seeded from
+a block's candidates or the tree, listed from candidates or the tree: empty / < k / >= k,
+heap, widened, floored focus) and times each path alone.
+`ratio` is issue 13's "one photon lookup (the default estimator, k = 64) <= 5 Embree
+traversals": the captured caustic estimates at the camera hits (knn_simpson, k = 64) of
+BLEND, all of them and the dense ones (at least k photons within the search radius: the
+estimate reads its k nearest), CPU ns a row (one thread, best of 3, in the calls' own
+rows order), against one Embree traversal of the same scene (BLEND's exported scene,
+the engine's Accel on one thread, best of 3): closest-hit and occlusion rays from those
+dense rows' points into their hemisphere (as the gather rays leave them), and closest
+hits from the middle of the scene's box (bench_lookup.py's rays). With BASE_ROOT, the
+estimates through its kernel too (_kernel_from), interleaved.
 """
 from __future__ import annotations
 
@@ -63,11 +74,13 @@ def capture(name, w, h, out):
     capture_irradiance_calls(name, w, h, out, WORK, CALLER, radius_digits=4)
 
 
-def _kernel_from(root):
+def _kernel_from(root, counters=None, inserts=()):
     """_irradiance_rows compiled from root's engine/photonmap.py, from _widen_listed on
     (the estimate's own helpers, with root's module constants), over root's
     engine/kdtree.py (compiled from source too, uncached); the other helpers are this
-    checkout's."""
+    checkout's. With counters (e.g. "cls"): (counted, plain), counted the kernel with
+    bench_core.insert_at's (anchor, before, after) inserts, taking the counter arrays
+    first (as bench_core.counted_irradiance_rows)."""
     import types
     import numba
     from engine import photonmap
@@ -89,7 +102,15 @@ def _kernel_from(root):
          scope)
     scope["kdtree"] = kd
     exec(seg, scope)
-    return scope["_irradiance_rows"]
+    if counters is None:
+        return scope["_irradiance_rows"]
+    from bench_core import insert_at, irradiance_rows_source
+    body = irradiance_rows_source(os.path.join(root, "engine", "photonmap.py")).replace(
+        "def _irradiance_rows(", f"def _counted({counters}, ")
+    for anchor, before, after in inserts:
+        body = insert_at(body, anchor, before, after)
+    exec(body, scope)
+    return scope["_nj"](scope["_counted"]), scope["_irradiance_rows"]
 
 
 def classes(captures):
@@ -200,29 +221,38 @@ def _same(a, b):
     return np.array_equal(a, b)
 
 
-PATHS = {0: "seeded", 1: "listed, sphere empty", 2: "listed, 1-63 photons",
-         3: "listed, 64-512 photons", 4: "heap (> 512 photons)", 5: "widened",
-         6: "listed, focus floored"}
+PATHS = {1: "seeded (block candidates)", 2: "seeded (tree)",
+         11: "listed from candidates, sphere empty", 12: "listed from candidates, 1-63",
+         13: "listed from candidates, 64-512", 21: "listed by the tree, sphere empty",
+         22: "listed by the tree, 1-63", 23: "listed by the tree, 64-512",
+         7: "heap (> 512 photons)", 8: "widened", 9: "focus floored"}
+# cls + 100: the row tried a seeded sphere first (the previous row's kq-th distance).
+_SET = "cls[i] = cls[i] - cls[i] % 100 + "
 
 
-def paths(base_file, callers, captures):
-    """Per caller in `callers` (comma-separated), each row's k-NN path in base_file's
-    kernel (an instrumented copy), then each path's rows alone through the base kernel
-    and this checkout's: rows, share, CPU us a row (best of 3 process CPU)."""
+def paths(base_root, callers, captures):
+    """Per caller in `callers` (comma-separated), each row's k-NN path in base_root's
+    kernel (_kernel_from: its photonmap.py and kdtree.py; an instrumented copy: PATHS,
+    + 100 where a seeded sphere was tried first), then each path's rows alone through the base kernel and this checkout's: rows,
+    share, CPU us a row (best of 3 process CPU). A path's rows replayed alone lose their
+    neighbours (seeds, blocks): their cost alone, not in the render's context."""
     import numpy as np
-    from bench_core import captured_maps, counted_irradiance_rows, irradiance_rows_source
+    from bench_core import captured_maps
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
-    counted, base = counted_irradiance_rows(irradiance_rows_source(base_file), "cls", [
-        ("            if seeded:\n                cnt = kq\n", "", "                cls[i] = 0\n"),
-        ("                if 0 <= listed <= list_cap:\n", "",
-         "                    cls[i] = 1 if listed == 0 else 2 if listed < kq else 3\n"),
+    counted, base = _kernel_from(base_root, "cls", [
+        ("                b2 = prev_kth * SEED_GROWTH\n", "", "                cls[i] = 100\n"),
+        ("            if seeded:\n                cnt = kq\n", "",
+         " " * 16 + _SET + "(1 if from_cand else 2)\n"),
+        ("                if from_cand:\n                    pass", " " * 16 + _SET
+         + "(10 if from_cand else 20) + (1 if listed == 0 else 2 if listed < kq else 3)\n",
+         ""),
         ("                    listed = -1\n                    cnt = _knn(",
-         "                    cls[i] = 4\n", ""),
-        ("                prev_kth = -1.0\n                if listed >= 0:",
-         "                cls[i] = 5\n", ""),
-        ("            in_disc = _ball_count(", "            cls[i] = 6\n", "")])
+         " " * 20 + _SET + "7\n", ""),
+        ("                prev_kth = -1.0\n                if listed >= 0 and from_cand:",
+         " " * 16 + _SET + "8\n", ""),
+        ("            in_disc = _ball_count(", " " * 12 + _SET + "9\n", "")])
     kernels = {"base": base, "this": photonmap._irradiance_rows}
     print("| capture | caller | path | rows | share % | base / this CPU ms "
           "| base / this us a row |")
@@ -233,7 +263,7 @@ def paths(base_file, callers, captures):
                 continue
             C = []
             for p, n, k, mp, est, rb, rf, mk in calls:
-                cls = np.full(len(p), -1, np.int64)
+                cls = np.zeros(len(p), np.int64)
                 photonmap._irradiance_rows = lambda *a: counted(cls, *a)
                 pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
                               masks=mk)
@@ -259,10 +289,102 @@ def paths(base_file, callers, captures):
                 sel = np.ones(len(allc), bool) if cl is None else allc == cl
                 tb, tt = (run(kernels[v], pick) for v in ("base", "this"))
                 rows = int(sel.sum())
-                print(f"| {tag} | {'all' if cl is None else PATHS.get(cl, cl)} | {rows:,} | "
+                name = ("all" if cl is None else PATHS.get(cl % 100, cl)
+                        + (", seed tried" if cl >= 100 else ""))
+                print(f"| {tag} | {name} | {rows:,} | "
                       f"{sel.mean() * 100:.1f} | {tb * 1e3:.0f} / {tt * 1e3:.0f} | "
                       f"{tb / rows * 1e6:.3f} / {tt / rows * 1e6:.3f} |", flush=True)
             photonmap._irradiance_rows = kernels["this"]
+
+
+def ratio(name, path, base_root=None, repeat=3):
+    """The k = 64 caustic estimate against one Embree traversal (module docstring)."""
+    import pickle
+    import numpy as np
+    import bench_kernels as bk
+    from bench_core import captured_maps
+    from engine import RenderSettings, photonmap
+    from engine.jit import ensure_compiled
+    from engine.render import prepare_context
+    ensure_compiled()
+    kernels = {"this": photonmap._irradiance_rows}
+    if base_root:
+        kernels = {"base": _kernel_from(base_root), **kernels}
+    caustic = [(radius, calls, pm) for caller, radius, calls, pm in captured_maps(path)
+               if caller == "caustic"]
+    radius, calls, pm = caustic[0]
+    t, ph = pm.tree, pm.photons
+    dense_calls, pts, nrm = [], [], []
+    for p, n, k, mp, est, rb, rf, mk in calls:
+        nb = np.empty(len(p), np.int64)
+        acc = np.empty(len(p), np.int64)
+        p64, n64 = np.ascontiguousarray(p, np.float64), np.ascontiguousarray(n, np.float64)
+        _sphere_counts(t.position, t.axis, t.split, t.leaf, ph.direction, ph.normal, p64,
+                       n64, radius * radius, nb, acc)
+        s = np.flatnonzero(nb >= k)
+        if len(s):
+            dense_calls.append((p[s], n[s], k, mp, est, rb, None if rf is None else rf[s],
+                                mk))
+            pts.append(p64[s])
+            nrm.append(n64[s])
+    est_of = {calls[0][4]}
+    print(f"{name}: caustic map {len(ph):,} photons, radius {radius:.4f} m, "
+          f"k = {calls[0][2]}, estimator {', '.join(est_of)}")
+
+    def rows_ns(cs, label):
+        photonmap._irradiance_rows = kernels[label]
+        best = 1e9
+        for _ in range(repeat):
+            t0 = time.process_time()
+            for p, n, k, mp, est, rb, rf, mk in cs:
+                pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
+                              masks=mk)
+            best = min(best, time.process_time() - t0)
+        photonmap._irradiance_rows = kernels["this"]
+        return best / sum(len(c[0]) for c in cs) * 1e9
+    est = {}
+    for label in kernels:  # interleaved per set
+        est[("all", label)] = rows_ns(calls, label)
+        est[("dense", label)] = rows_ns(dense_calls, label)
+    # One Embree traversal of the scene the estimates were made in.
+    with open(bk.exported(name, WORK), "rb") as f:
+        scene = pickle.load(f)
+    ctx = prepare_context(scene, RenderSettings(workers=1))
+    acc = ctx.accel.serial()
+    rng = np.random.default_rng(1)
+    P, N = np.vstack(pts), np.vstack(nrm)
+    pick = rng.integers(0, len(P), 200_000)
+    d = rng.normal(size=(len(pick), 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    d *= np.where((d * N[pick]).sum(1) < 0, -1.0, 1.0)[:, None]  # into the hemisphere
+    o = P[pick] + 1e-4 * N[pick]
+    lo, hi = (np.asarray(b, np.float64) for b in ctx.geo.bounds)
+    ob = lo + (hi - lo) * (0.3 + 0.4 * rng.random((len(pick), 3)))
+
+    def ray_ns(fn):
+        fn()
+        best = 1e9
+        for _ in range(repeat):
+            t0 = time.process_time()
+            fn()
+            best = min(best, time.process_time() - t0)
+        return best / len(pick) * 1e9
+    ray = {"closest hit, from the dense rows' points": ray_ns(lambda: acc.intersect(o, d)),
+           "occlusion, from the dense rows' points": ray_ns(
+               lambda: acc.occluded(o, d, np.full(len(pick), 1e30))),
+           "closest hit, from the box's middle": ray_ns(lambda: acc.intersect(ob, d))}
+    ctx.accel.close()
+    ref = ray["closest hit, from the dense rows' points"]
+    rows_all = sum(len(c[0]) for c in calls)
+    rows_dense = sum(len(c[0]) for c in dense_calls)
+    print("| work | rows / rays | CPU ns each | in closest-hit traversals |")
+    print("|---|---:|---:|---:|")
+    for (which, label), ns in est.items():
+        n_rows = rows_all if which == "all" else rows_dense
+        print(f"| caustic estimates, {which} ({label}) | {n_rows:,} | {ns:.0f} | "
+              f"{ns / ref:.1f} |")
+    for what, ns in ray.items():
+        print(f"| Embree {what} | {len(pick):,} | {ns:.0f} | {ns / ref:.2f} |")
 
 
 if __name__ == "__main__":
@@ -270,6 +392,8 @@ if __name__ == "__main__":
         capture(sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), sys.argv[5])
     elif sys.argv[1] == "paths":
         paths(sys.argv[2], sys.argv[3], sys.argv[4:])
+    elif sys.argv[1] == "ratio":
+        ratio(sys.argv[2], sys.argv[3], *sys.argv[4:5])
     elif sys.argv[1] == "classes":
         classes(sys.argv[2:])
     else:

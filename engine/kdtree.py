@@ -498,7 +498,7 @@ def count_closer_in(pos, axis, split, leaf, qx, qy, qz, r2, cap, st_node, st_off
 def ball(pos, axis, split, leaf, qx, qy, qz, r2, out, cap):
     """Indices of the points with squared distance <= r2 into out[:min(count, cap)], in
     tree order. Stops scanning once more than cap are found and returns cap + 1; else
-    returns the count."""
+    returns the count. out[count:cap] may be overwritten (scratch)."""
     n = pos.shape[0]
     count = 0
     if n == 0:
@@ -512,7 +512,19 @@ def ball(pos, axis, split, leaf, qx, qy, qz, r2, out, cap):
         ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
         node, sp = _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, r2, True,
                             st_node, st_off, sp)
-        for j in range(leaf[node - inner], leaf[node - inner + 1]):
+        lo, hi = leaf[node - inner], leaf[node - inner + 1]
+        if count + (hi - lo) <= cap:
+            # Room for the whole leaf: written without a branch, the count advanced by
+            # the test (a point inside is a coin flip at a sphere's rim: mispredicted
+            # branches cost more than the writes; docs/performance.md "caustickernel").
+            for j in range(lo, hi):
+                dx = qx - np.float64(pos[j, 0])
+                dy = qy - np.float64(pos[j, 1])
+                dz = qz - np.float64(pos[j, 2])
+                out[count] = j
+                count += dx * dx + dy * dy + dz * dz <= r2
+            continue
+        for j in range(lo, hi):
             dx = qx - np.float64(pos[j, 0])
             dy = qy - np.float64(pos[j, 1])
             dz = qz - np.float64(pos[j, 2])
@@ -530,7 +542,8 @@ def ball_d2(pos, axis, split, leaf, qx, qy, qz, r2, d2, idx, cap):
     into idx[:count], d2[:count], in tree order (the same float64 distances knn
     computes). Stops scanning once more than cap are found and returns cap + 1; else
     returns the count. With nearest_first, the k-NN answer of a sphere that holds few
-    points, without a heap (estimates of a sparse map: engine/photonmap.py)."""
+    points, without a heap (estimates of a sparse map: engine/photonmap.py). d2 / idx
+    beyond count (up to cap) may be overwritten (scratch)."""
     n = pos.shape[0]
     count = 0
     if n == 0:
@@ -544,7 +557,18 @@ def ball_d2(pos, axis, split, leaf, qx, qy, qz, r2, d2, idx, cap):
         ox, oy, oz = st_off[sp, 0], st_off[sp, 1], st_off[sp, 2]
         node, sp = _descend(axis, split, node, rd, ox, oy, oz, qx, qy, qz, r2, False,
                             st_node, st_off, sp)
-        for j in range(leaf[node - inner], leaf[node - inner + 1]):
+        lo, hi = leaf[node - inner], leaf[node - inner + 1]
+        if count + (hi - lo) <= cap:
+            for j in range(lo, hi):  # without a branch, as in ball
+                dx = qx - np.float64(pos[j, 0])
+                dy = qy - np.float64(pos[j, 1])
+                dz = qz - np.float64(pos[j, 2])
+                dist2 = dx * dx + dy * dy + dz * dz
+                d2[count] = dist2
+                idx[count] = j
+                count += dist2 < r2
+            continue
+        for j in range(lo, hi):
             dx = qx - np.float64(pos[j, 0])
             dy = qy - np.float64(pos[j, 1])
             dz = qz - np.float64(pos[j, 2])

@@ -78,6 +78,15 @@ CAND_SPAN = 0.25
 CAND_CAP = 512
 CAND_MIN_ROWS = 4
 CAND_BACKOFF = 16
+# Where a block's candidates overflow (a dense caustic: Figure 8's focus), its rows' seeded
+# spheres (SEED_GROWTH x the previous row's kq-th squared distance) are far smaller than
+# the search sphere: a block of rows within SEED_SPAN x a seed radius of their box's centre,
+# that radius SEED_REACH x the previous row's seeded one, lists the photons of the sphere
+# holding every such seeded sphere once, and each row whose own seeded sphere is no wider
+# lists it from those (docs/performance.md "caustickernel"). Rows whose seeded sphere is
+# wider, or that need their whole sphere, take the tree.
+SEED_REACH = 1.25
+SEED_SPAN = 0.5
 BLOCK_ROWS = 8192  # rows per kernel call when the rows are shared among worker threads
 # Estimates between two looks at the stop flag: 64 x ~15 us (a widening row: ~1.5 ms) is
 # far below the 0.2 s a viewport stop may take (issue 19).
@@ -353,10 +362,11 @@ def _widen_listed(pos, scan, nb, qx, qy, qz, r2, widest, src_d2, hist, d2, idx):
 
 
 @kernel
-def _block_candidates(pos, nodes, p, rows, r, radius, cand, cx, cy, cz, search):
+def _block_candidates(pos, nodes, p, rows, r, radius, span, cand, cx, cy, cz, search):
     """The candidates of the block of k-NN rows starting at rows[r] (engine/kdtree.py
     order): (end, count). end: the block's end in rows (up to CAND_ROWS rows whose
-    points' box has a half diagonal of at most CAND_SPAN x radius); count: the photons
+    points' box has a half diagonal of at most span x radius: CAND_SPAN for the rows'
+    search spheres, SEED_SPAN for their seeded ones); count: the photons
     within radius of the box (a superset: the sphere about the box's centre of radius
     radius + the half diagonal, with a margin) into cand[:count] and their float64
     coordinates into cx, cy, cz, or -1 (fewer than CAND_MIN_ROWS rows, or search False:
@@ -365,7 +375,7 @@ def _block_candidates(pos, nodes, p, rows, r, radius, cand, cx, cy, cz, search):
     i = rows[r]
     lx, ly, lz = p[i, 0], p[i, 1], p[i, 2]
     hx, hy, hz = lx, ly, lz
-    lim = (CAND_SPAN * radius) ** 2
+    lim = (span * radius) ** 2
     e = r + 1
     while e < m and e - r < CAND_ROWS:
         j = rows[e]
@@ -396,11 +406,29 @@ def _block_candidates(pos, nodes, p, rows, r, radius, cand, cx, cy, cz, search):
 
 
 @kernel
-def _list_candidates(cand, cx, cy, cz, nc, qx, qy, qz, r2, d2, idx, cap):
+def _list_candidates(cand, cx, cy, cz, nc, qx, qy, qz, r2, d2, idx, cap, tmp):
     """kdtree.ball_d2's answer (the points with squared distance < r2, their distances;
     cap + 1 when more than cap) from a block's candidates cand[:nc] (_block_candidates),
     in the candidates' order: the same set and distances, not necessarily the same
-    order."""
+    order. tmp: scratch of at least nc; d2 / idx beyond count (up to cap) may be
+    overwritten."""
+    if nc <= cap:
+        # The distances in one loop (vectorised), then the inside ones kept without a
+        # branch: about half the candidates lie inside a row's sphere, and a branch on
+        # each mispredicts (1.9 against 0.45 us for 500 candidates; docs/performance.md
+        # "caustickernel"). The same float64 operations: the same distances.
+        for j in range(nc):
+            dx = qx - cx[j]
+            dy = qy - cy[j]
+            dz = qz - cz[j]
+            tmp[j] = dx * dx + dy * dy + dz * dz
+        count = 0
+        for j in range(nc):
+            dist2 = tmp[j]
+            d2[count] = dist2
+            idx[count] = cand[j]
+            count += dist2 < r2
+        return count
     count = 0
     for j in range(nc):
         dx = qx - cx[j]
@@ -458,6 +486,11 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     # estimate over its whole sphere sums only these: below).
     acc_d2 = np.empty(list_cap, np.float64)
     acc_idx = np.empty(list_cap, np.int64)
+    # The row's photons' _accepted answers (accepted, other surface, cos_in), computed once
+    # for the k-th accepted search and the sums (each read them: twice the work).
+    row_ok = np.empty(cap, np.bool_)
+    row_other = np.empty(cap, np.bool_)
+    row_cos = np.empty(cap, direction.dtype)  # cos_in in the photons' precision
     # The current block's candidates (_block_candidates): rows before blk_end use them
     # where nc >= 0.
     use_cand = knn and kind == KDTREE
@@ -465,8 +498,12 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     cand_x = np.empty(cand.shape[0], np.float64)
     cand_y = np.empty(cand.shape[0], np.float64)
     cand_z = np.empty(cand.shape[0], np.float64)
+    cand_d2 = np.empty(cand.shape[0], np.float64)  # _list_candidates' scratch
     blk_end = 0
     nc = -1
+    # The widest row sphere (squared radius) the block's candidates hold whole: r2 for a
+    # block of search spheres, a seeded sphere's for a block of those (SEED_REACH).
+    cand_r2 = 0.0
     # After a block with too many candidates (a dense map) the next `skip` blocks search
     # the tree without trying (1, 2, 4 ... CAND_BACKOFF blocks while they keep
     # overflowing): a dense map pays few wasted searches.
@@ -489,8 +526,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         only_accepted = False  # d2 / idx hold the listed sphere's accepted photons alone
         if knn:
             if use_cand and r >= blk_end:
-                blk_end, nc = _block_candidates(pos, nodes, p, rows, r, radius, cand, cand_x,
-                                                cand_y, cand_z, skip == 0)
+                blk_end, nc = _block_candidates(pos, nodes, p, rows, r, radius, CAND_SPAN,
+                                                cand, cand_x, cand_y, cand_z, skip == 0)
                 if skip > 0:
                     skip -= 1
                 elif nc == -2:
@@ -498,7 +535,19 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     backoff = min(2 * backoff, CAND_BACKOFF)
                 elif nc >= 0:
                     backoff = 1
-            from_cand = use_cand and nc >= 0
+                cand_r2 = r2
+                if nc < 0 and prev_kth > 0.0 and prev_kth * SEED_GROWTH < r2:
+                    # Too many candidates for the search spheres (or backed off): a block
+                    # of seeded spheres instead, ending where its rows spread wider.
+                    seed_r = SEED_REACH * math.sqrt(prev_kth * SEED_GROWTH)
+                    end, got = _block_candidates(pos, nodes, p, rows, r, seed_r, SEED_SPAN,
+                                                 cand, cand_x, cand_y, cand_z, True)
+                    if got >= 0:
+                        blk_end, nc, cand_r2 = end, got, seed_r * seed_r
+            # Candidates that hold the rows' whole search spheres; (seed_cand) or at least
+            # seeded spheres no wider than cand_r2.
+            seed_cand = use_cand and nc >= 0
+            from_cand = seed_cand and cand_r2 == r2
             kq = min(k, P)
             widest = min(P, MAX_WIDEN_K)
             # A sphere holding at most list_cap photons is listed whole (ball_d2) and its
@@ -523,9 +572,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 # estimates, docs/performance.md "Tenth slice: lookups"). Rows that would widen
                 # take the path below (the widening reads the whole sphere).
                 b2 = prev_kth * SEED_GROWTH
-                if from_cand:  # (the kq nearest below are checked free of ties)
+                if seed_cand and b2 <= cand_r2:  # (the kq nearest are checked free of ties)
                     got = _list_candidates(cand, cand_x, cand_y, cand_z, nc, qx, qy, qz, b2,
-                                           list_d2, list_idx, list_cap)
+                                           list_d2, list_idx, list_cap, cand_d2)
                 else:
                     got = kdtree.ball_d2(pos, nodes[0], nodes[1], nodes[2], qx, qy, qz, b2,
                                          list_d2, list_idx, list_cap)
@@ -539,7 +588,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             else:
                 if from_cand:
                     listed = _list_candidates(cand, cand_x, cand_y, cand_z, nc, qx, qy, qz,
-                                              r2, list_d2, list_idx, list_cap)
+                                              r2, list_d2, list_idx, list_cap, cand_d2)
                     if listed <= list_cap:
                         cnt = min(kq, listed)
                         kdtree.nearest_first(list_d2, list_idx, listed, cnt, r2, d2, idx,
@@ -698,6 +747,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         full = cnt == kq and not only_accepted  # stopped at kq photons: more may lie beyond
         rk = radius
         floored = False
+        for j in range(cnt):
+            row_ok[j], row_other[j], row_cos[j] = _accepted(direction, normal, idx[j], nx, ny,
+                                                            nz)
         if code >= KNN_SIMPSON:
             # rk: distance to the k-th accepted photon; with fewer accepted, the radius of the
             # disc the query has seen completely (its last photon, or the max radius): that
@@ -705,7 +757,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             acc = 0
             kth = -1
             for j in range(cnt):
-                if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+                if row_ok[j]:
                     acc += 1
                     if acc == k:
                         kth = j
@@ -733,7 +785,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         for j in range(cnt):
             pj = idx[j]
             d = math.sqrt(d2[j])
-            ok, other, cos_in = _accepted(direction, normal, pj, nx, ny, nz)
+            ok, other, cos_in = row_ok[j], row_other[j], row_cos[j]
             inside = d <= rk
             if inside:
                 fetched += 1

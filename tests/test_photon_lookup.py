@@ -11,6 +11,7 @@ against scipy's cKDTree and against the numpy estimators they replaced
   the number of worker threads.
 """
 import ast
+import math
 import os
 import subprocess
 import sys
@@ -647,10 +648,14 @@ def test_block_candidates_give_the_tree_answer():
     (photonmap._block_candidates); a row estimated alone (one row a call: a block too
     small, the tree) must give the same bits: sparse photons (a caustic's few photons a
     sphere), a lattice (equal distances: the tree's listing decides), a thin wall's far
-    side (rows that widen), a focus (k photons on one point) and rows beside no photon.
-    The candidate path is taken (not vacuous) and so is its fall-back (a block with more
-    than CAND_CAP candidates)."""
-    from engine.photonmap import CAND_CAP, _block_candidates, morton_order
+    side (rows that widen), a focus (k photons on one point), rows beside no photon and a
+    dense plane (every block of search spheres overflows: blocks of seeded spheres,
+    SEED_REACH, list the seeded rows' spheres). The candidate path is taken (not vacuous)
+    and so is its fall-back (a block with more than CAND_CAP candidates), and on the
+    dense plane a block of seeded spheres holds candidates where one of search spheres
+    overflows."""
+    from engine.photonmap import (CAND_CAP, CAND_SPAN, SEED_GROWTH, SEED_REACH, SEED_SPAN,
+                                  _block_candidates, morton_order)
     rng = np.random.default_rng(23)
     g = np.stack(np.meshgrid(np.arange(120), np.arange(120)), -1).reshape(-1, 2) / 120.0
     lattice = _plane(len(g), rng)
@@ -659,7 +664,8 @@ def test_block_candidates_give_the_tree_answer():
     sparse.position[:, 0] *= 0.5  # x > 0.5: no photon
     maps = {"sparse": sparse, "lattice": lattice,
             "thin wall": _join(_plane(20000, rng), _plane(20000, rng, z=0.001, nz=-1.0)),
-            "focus": _join(_focus(3000), _plane(20000, rng))}
+            "focus": _join(_focus(3000), _plane(20000, rng)),
+            "dense": _plane(300000, rng)}
     # Clusters of rows (a pixel's samples: far closer than the radius), one beside the
     # focus, one on lattice points (ties), others anywhere (x > 0.5: no sparse photon).
     centres = np.vstack([rng.random((12, 2)), [[0.5, 0.5]], [[0.25, 0.75]], [[0.8, 0.3]]])
@@ -676,10 +682,24 @@ def test_block_candidates_give_the_tree_answer():
         xyz = [np.empty(CAND_CAP + 1) for _ in range(3)]
         r = 0
         while r < len(order):
-            e, nc = _block_candidates(t.position, t.nodes, q, order, r, radius, cand, *xyz,
-                                      True)
+            e, nc = _block_candidates(t.position, t.nodes, q, order, r, radius, CAND_SPAN,
+                                      cand, *xyz, True)
             taken["candidates" if nc >= 0 else "fall-back"] += e - r
             r = e
+        if name == "dense":
+            # A seeded sphere of k = 64 holds ~1.44^1.5 x 64 photons (the plane's density
+            # times its area), the search sphere ~2,400: candidates only for the seeds.
+            seed_r = SEED_REACH * math.sqrt(SEED_GROWTH * 64 / (300000 * math.pi))
+            seeds = 0
+            for r in range(len(order)):
+                e, nc = _block_candidates(t.position, t.nodes, q, order, r, radius,
+                                          CAND_SPAN, cand, *xyz, True)
+                assert nc < 0
+                es, ns = _block_candidates(t.position, t.nodes, q, order, r, seed_r,
+                                           SEED_SPAN, cand, *xyz, True)
+                assert ns <= CAND_CAP
+                seeds += ns > 0
+            assert seeds > len(q) // 4, seeds
         for est, k in (("knn_simpson", 32), ("knn_cone", 16), ("knn_simpson", 64)):
             E, B = pm.irradiance(q, nq, radius, k, 1, est, return_boundary=True,
                                  r_floor=np.full(len(q), 0.002))
