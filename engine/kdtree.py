@@ -903,6 +903,7 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
     k = nbr.shape[1]
     record = walked.shape[0] > 0
     st_node, st_off = traversal_stack()  # one for all rows' tree searches
+    dd = np.empty(k)  # a list's squared distances
     prev = -1
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -929,16 +930,31 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
             jump = bd > JUMP_REACH * JUMP_REACH * reach[g] * reach[g]
             for _ in range(0 if jump else steps):
                 dg = bd  # best == g here
-                tie = False
+                # The list's distances first, then their least m and its first entry: the
+                # best and tie a scan in list order finds (strictly nearer replaces, an
+                # equal distance of another point is a tie), without a branch a point
+                # between the loads (-6 to -8 % on the walk, docs/performance.md,
+                # "gathercand2").
                 for t in range(k):
-                    jj = nbr[g, t]
-                    d = _dist2(pos, jj, qx, qy, qz)
-                    if d < bd:
-                        best = jj
-                        bd = d
-                        tie = False
-                    elif d == bd and jj != best:
-                        tie = True
+                    dd[t] = _dist2(pos, nbr[g, t], qx, qy, qz)
+                m = bd
+                for t in range(k):
+                    m = dd[t] if dd[t] < m else m
+                tie = False
+                if m < bd:
+                    first = -1
+                    for t in range(k):
+                        if dd[t] == m:
+                            if first < 0:
+                                first = t
+                            elif nbr[g, t] != nbr[g, first]:
+                                tie = True
+                    best = nbr[g, first]
+                    bd = m
+                else:
+                    for t in range(k):
+                        if dd[t] == bd and nbr[g, t] != best:
+                            tie = True
                 if not tie and np.sqrt(bd) + np.sqrt(dg) < reach[g]:
                     settled = True
                     j = best if bd < r2 else -1
