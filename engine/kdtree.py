@@ -894,8 +894,8 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
       another surface or region), the lists would not settle the row (under 0.01 % of
       such rows did on Figure 6) and the tree is searched at once, bounded by g
       (seed_bound); 4.3 % of Figure 6's rows, ~2.6 lists each saved.
-    Together the walk 130 -> 117 ns a row on Figure 6's lookups (docs/performance.md,
-    "gathercand2").
+    With the two-pass list scan below, the walk 12-17 % cheaper on Figures 6 and 7's
+    lookups (docs/performance.md, "gathercand2").
 
     One kernel for all rows, the walk inline: a per-row call of a kernel with array
     arguments cost ~0.08 us a row in reference counting (docs/performance.md, "Eighth
