@@ -58,6 +58,10 @@ NEIGHBOUR_CHUNK = 8192
 # kth_d2_rows and neighbour_lists list a seeded sphere of up to this many times the
 # points they need before they fall back to the heap search (knn).
 KTH_LIST_FACTOR = 8
+# nearest_walk: a row whose previous answer g lies farther than this many times g's
+# reach searches the tree at once (measured on Figures 6 and 7's lookups: 2.5 saves the
+# most; at 1.5 0.7 % of rows that the lists would have settled go to the tree instead).
+JUMP_REACH = 2.5
 
 
 @kernel
@@ -904,12 +908,26 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
     lists (nearest keeps the one its traversal meets first), so every answer is
     nearest's. walked (R,) bool or (0,): which rows the lists settled (tests, benches).
 
+    Two shortcuts, each exact:
+    - g alone: when |q - g| < |g - h| / 2 for g's nearest other point h (its list's
+      first entry), every other point p is farther from q than g is
+      (|q - p| >= |p - g| - |q - g| > |q - g|), so g is the answer (or none beyond
+      sqrt(r2)) without its list; squared, 4 |q - g|^2 (1 + 1e-8) < |g - h|^2 (a margin
+      far above the float64 rounding, as reach's). 10 % of Figure 6's rows.
+    - A jump: when |q - g| > JUMP_REACH x reach[g] (rows in Morton order jumping to
+      another surface or region), the lists would not settle the row (under 0.01 % of
+      such rows did on Figure 6) and the tree is searched at once, bounded by g
+      (seed_bound); 4.3 % of Figure 6's rows, ~2.6 lists each saved.
+    With the two-pass list scan below, the walk 12-17 % cheaper on Figures 6 and 7's
+    lookups (docs/performance.md, "gathercand2").
+
     One kernel for all rows, the walk inline: a per-row call of a kernel with array
     arguments cost ~0.08 us a row in reference counting (docs/performance.md, "Eighth
     slice")."""
     k = nbr.shape[1]
     record = walked.shape[0] > 0
     st_node, st_off = traversal_stack()  # one for all rows' tree searches
+    dd = np.empty(k)  # a list's squared distances
     prev = -1
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -921,18 +939,46 @@ def nearest_walk(pos, axis, split, leaf, nbr, reach, p, rows, r2, steps, near, w
             g = prev
             best = g
             bd = _dist2(pos, g, qx, qy, qz)
-            for _ in range(steps):
+            h = nbr[g, 0] if k > 0 else g  # g itself: no other point, never passes
+            ex = np.float64(pos[h, 0]) - np.float64(pos[g, 0])
+            ey = np.float64(pos[h, 1]) - np.float64(pos[g, 1])
+            ez = np.float64(pos[h, 2]) - np.float64(pos[g, 2])
+            if 4.0 * bd * (1.0 + 1e-8) < ex * ex + ey * ey + ez * ez:
+                if record:
+                    walked[r] = True
+                j = g if bd < r2 else -1
+                near[r] = j
+                if j >= 0:
+                    prev = j
+                continue
+            jump = bd > JUMP_REACH * JUMP_REACH * reach[g] * reach[g]
+            for _ in range(0 if jump else steps):
                 dg = bd  # best == g here
-                tie = False
+                # The list's distances first, then their least m and its first entry: the
+                # best and tie a scan in list order finds (strictly nearer replaces, an
+                # equal distance of another point is a tie), without a branch a point
+                # between the loads (-6 to -8 % on the walk, docs/performance.md,
+                # "gathercand2").
                 for t in range(k):
-                    jj = nbr[g, t]
-                    d = _dist2(pos, jj, qx, qy, qz)
-                    if d < bd:
-                        best = jj
-                        bd = d
-                        tie = False
-                    elif d == bd and jj != best:
-                        tie = True
+                    dd[t] = _dist2(pos, nbr[g, t], qx, qy, qz)
+                m = bd
+                for t in range(k):
+                    m = dd[t] if dd[t] < m else m
+                tie = False
+                if m < bd:
+                    first = -1
+                    for t in range(k):
+                        if dd[t] == m:
+                            if first < 0:
+                                first = t
+                            elif nbr[g, t] != nbr[g, first]:
+                                tie = True
+                    best = nbr[g, first]
+                    bd = m
+                else:
+                    for t in range(k):
+                        if dd[t] == bd and nbr[g, t] != best:
+                            tie = True
                 if not tie and np.sqrt(bd) + np.sqrt(dg) < reach[g]:
                     settled = True
                     j = best if bd < r2 else -1

@@ -26,10 +26,10 @@ from engine.api import cornell_box
 from engine.hashgrid import HashGrid
 from engine.hashgrid import ball_count as grid_ball_count
 from engine.hashgrid import cells_spanned
-from engine.kdtree import (BUCKET_MAX, LEAF_SIZE, KdTree, ball, ball_count, ball_d2,
-                           count_closer, count_closer_in, knn, nearest, nearest_facing,
-                           nearest_facing_in, nearest_first, nearest_in, nearest_walk,
-                           traversal_stack, unique_nearest)
+from engine.kdtree import (BUCKET_MAX, JUMP_REACH, LEAF_SIZE, KdTree, ball, ball_count,
+                           ball_d2, count_closer, count_closer_in, knn, nearest,
+                           nearest_facing, nearest_facing_in, nearest_first, nearest_in,
+                           nearest_walk, traversal_stack, unique_nearest)
 from engine.kdtree import heap_insert, heap_sort
 from engine.photonmap import (ESTIMATOR_CODES, MAX_WIDEN_K, SCAN_BUDGET, GatherMap,
                               PhotonMap, _widen_listed)
@@ -363,6 +363,17 @@ def test_neighbour_walk_gives_the_nearest_answer():
             if walked[r]:
                 settled_rows += 1
                 assert not tie
+        # The walk's two shortcuts (from g = the last answer): q within half of g's
+        # nearest-neighbour distance is settled by g alone; q beyond JUMP_REACH x g's
+        # reach goes to the tree without the lists. Both met here, both exact (above).
+        prev = np.r_[-1, np.maximum.accumulate(np.where(near >= 0, np.arange(m), -1))[:-1]]
+        has = prev >= 0
+        g = near[prev[has]]
+        dq = ((q[has] - pos[g]) ** 2).sum(axis=1)
+        alone = 4.0 * dq * (1.0 + 1e-8) < ((pos[nbr[g, 0]] - pos[g]) ** 2).sum(axis=1)
+        jump = dq > (JUMP_REACH * reach[g]) ** 2
+        assert walked[has][alone].all() and not walked[has][jump].any()
+        assert alone.sum() > 20 and jump.sum() > 20  # not vacuous: 47 and 750 here
     assert ties >= 100 and settled_rows > 0.3 * 2 * m  # not vacuous: most settle
 
 
