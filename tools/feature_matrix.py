@@ -1356,6 +1356,29 @@ def texture_roughness_map():
 
 
 @case("textures", ours=dict(spp=64))  # a sharp area-light highlight: noisy blocks at 32 spp
+def texture_noise_roughness():
+    """The new user's table (s22): a Principled tile whose Roughness is a Noise Texture
+    (scale 4) through Map Range (to 0.15..0.7), under the area light of
+    texture_roughness_map: the highlight breaks up into smooth and rough patches; the
+    socket's own 0.5 (what an unsupported Map Range fell back to) is one even highlight."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("noisy")
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = (0.15, 0.15, 0.15, 1.0)
+    p.inputs["Roughness"].default_value = 0.5
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 4.0
+    mr = nt.nodes.new("ShaderNodeMapRange")
+    mr.inputs["To Min"].default_value = 0.15
+    mr.inputs["To Max"].default_value = 0.7
+    nt.links.new(noise.outputs[0], mr.inputs["Value"])
+    nt.links.new(mr.outputs["Result"], p.inputs["Roughness"])
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    _highlight_light()
+
+
+@case("textures", ours=dict(spp=64))  # a sharp area-light highlight: noisy blocks at 32 spp
 def texture_metallic_map():
     """A Principled tile (orange, roughness 0.25) whose Metallic is a Non-Color checker
     image (0.2 / 0.8) through Math Greater Than 0.5: metal and dielectric cells. The
