@@ -40,12 +40,10 @@ def _value_text(v) -> str:
     return "(" + ", ".join(f"{float(x):.4g}" for x in np.ravel(v)[:3]) + ")"
 
 
-def _fold(node):
-    """A node whose inputs are all constants, evaluated once to its constant value (float,
-    or an RGB array); any other node as it is."""
-    ins = node.inputs.values() if isinstance(getattr(node, "inputs", None), dict) else \
-        [getattr(node, "temperature", None)]
-    if any(hasattr(x, "evaluate") for x in ins):
+def _fold(node, inputs):
+    """node (an engine shader node) evaluated once to its constant value (float, or an RGB
+    array) when its inputs are all constants; else node itself, evaluated per hit."""
+    if any(hasattr(x, "evaluate") for x in inputs):
         return node
     val = np.asarray(node.evaluate(None, np.zeros(1, np.int64), np.zeros(1), np.zeros(1)),
                      np.float64)
@@ -915,9 +913,10 @@ class MaterialConverter:
             inputs = {k: self._input(n, ins[k], depth) for k in sn.MapRange.SOCKETS
                       if k in ins}
             return _fold(sn.MapRange(inputs, kind=getattr(n, "interpolation_type", "LINEAR"),
-                                     clamp=getattr(n, "clamp", True)))
+                                     clamp=getattr(n, "clamp", True)), inputs.values())
         if t == "BLACKBODY":
-            return _fold(sn.Blackbody(self._input(n, n.inputs["Temperature"], depth)))
+            kelvin = self._input(n, n.inputs["Temperature"], depth)
+            return _fold(sn.Blackbody(kelvin), [kelvin])
         if t in ("SEPARATE_COLOR", "SEPRGB", "SEPXYZ"):
             if getattr(n, "mode", "RGB") != "RGB":
                 return None
