@@ -8,7 +8,8 @@ closure weight 2, exact for Diffuse + Diffuse, Diffuse + Glossy and equal surfac
 transparent shares of an Add are averaged, warned), an Image Texture (its Extension,
 Interpolation, UDIM tiles), a Color Attribute, an RGB / Value node, or a tree of the
 colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
-Separate/Combine, Checker, Gradient, Noise and Voronoi textures, Layer Weight, Fresnel)
+Separate/Combine, Map Range (Float), Blackbody, Checker, Gradient, Noise, Voronoi and Wave
+textures, Layer Weight, Fresnel)
 on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight, Specular
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
 Emission Color and as a Mix Shader's factor (per hit for two opaque surfaces and for
@@ -16,7 +17,8 @@ cut-outs), and a Normal Map node (tangent or world space) fed by an Image Textur
 Bump node on 'Normal' inputs (docs/textures.md). Anything else falls back to its nearest approximation (another
 shader with a Color input: a Diffuse BSDF of that colour; the material's viewport colour
 when nothing else is known) and is reported once per material
-and node in a warning that names both.
+and node in a warning that names both; an input whose feeding node is not supported
+takes the socket's own value, and the warning says which value.
 """
 from __future__ import annotations
 
@@ -29,6 +31,23 @@ SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANI
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
                      "MIX_SHADER", "ADD_SHADER")
 MAX_NODE_DEPTH = 32
+
+
+def _value_text(v) -> str:
+    """A socket value as a warning shows it: 0.5, or (0.8, 0.8, 0.8)."""
+    if np.ndim(v) == 0:
+        return f"{float(v):.4g}"
+    return "(" + ", ".join(f"{float(x):.4g}" for x in np.ravel(v)[:3]) + ")"
+
+
+def _fold(node, inputs):
+    """node (an engine shader node) evaluated once to its constant value (float, or an RGB
+    array) when its inputs are all constants; else node itself, evaluated per hit."""
+    if any(hasattr(x, "evaluate") for x in inputs):
+        return node
+    val = np.asarray(node.evaluate(None, np.zeros(1, np.int64), np.zeros(1), np.zeros(1)),
+                     np.float64)
+    return float(val[0]) if val.ndim == 1 else val[0]
 
 
 class Closure:
@@ -484,7 +503,8 @@ class MaterialConverter:
                 self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes two "
                            "surfaces by a texture, one of them emissive or with alpha; "
                            "per-hit mixing is supported for opaque surfaces and cut-outs: "
-                           "using the factor's own value")
+                           f"using {_value_text(self._default(inp[0]))} (the factor's own "
+                           "value)")
                 fac = None
             if fac is None:
                 fac = self._float_socket(node, inp[0], 0.5) if not self._source(inp[0]) \
@@ -707,19 +727,27 @@ class MaterialConverter:
         return self._float_socket(node, s, default)
 
     def _float_socket(self, node, socket, default) -> float:
+        """A lobe parameter that must be one constant: its own value, or what a node tree
+        of constants feeding it evaluates to (Value, Map Range, Blackbody of constants);
+        a per-hit or unsupported node is warned and the socket's own value used."""
+        try:
+            v = socket.default_value
+            own = float(v if np.ndim(v) == 0 else np.mean(tuple(v)[:3]))
+        except (AttributeError, TypeError):
+            own = float(default)
         src = self._source(socket)
         if src is not None:
             n, out = src
             if n.type == "VALUE":
                 return float(out.default_value)
-            self._warn(f"material '{self._mat.name}': input '{socket.name}' of node "
-                       f"'{node.name}' is driven by node '{n.name}' ({n.type}), which is not "
-                       "supported; using the input's own value")
-        try:
-            v = socket.default_value
-            return float(v if np.ndim(v) == 0 else np.mean(tuple(v)[:3]))
-        except (AttributeError, TypeError):
-            return float(default)
+            val = self._node_output(n, out, 1)
+            if val is not None and not hasattr(val, "evaluate"):
+                return float(val) if np.ndim(val) == 0 else float(np.mean(val))
+            why = "not supported" if val is None else "varies per hit, which this input is not"
+            self._warn(f"material '{self._mat.name}': {socket.name} of '{node.name}': node "
+                       f"'{n.name}' ({n.type}) {why}, using {_value_text(own)} (the "
+                       "socket's own value)")
+        return own
 
     def _const_color(self, node, name, default):
         """A colour input that must be constant (a lobe parameter, not a texture): its
@@ -776,10 +804,11 @@ class MaterialConverter:
             return self._default(socket)
         val = self._node_output(n, out, depth + 1)
         if val is None:
-            self._warn(f"material '{self._mat.name}': node '{n.name}' ({n.type}) feeding "
-                       f"'{socket.name}' of node '{node.name}' is not supported; using the "
-                       "input's own value")
-            return self._default(socket)
+            own = self._default(socket)
+            self._warn(f"material '{self._mat.name}': {socket.name} of '{node.name}': node "
+                       f"'{n.name}' ({n.type}) not supported, using {_value_text(own)} (the "
+                       "socket's own value)")
+            return own
         return val
 
     def _vector(self, node, name, depth):
@@ -839,7 +868,8 @@ class MaterialConverter:
                     continue
                 if sock.is_linked:
                     self._warn(f"material '{self._mat.name}': linked '{k}' of Mapping "
-                               f"'{n.name}' is not supported; using its own value")
+                               f"'{n.name}' is not supported; using "
+                               f"{_value_text(self._default(sock))} (the socket's own value)")
                 consts.append(self._default(sock))
             return sn.Mapping(vec, *consts, kind=getattr(n, "vector_type", "POINT"))
         if t == "MIX":
@@ -876,6 +906,17 @@ class MaterialConverter:
                 return None
             return sn.Math(n.operation, self._input(n, n.inputs[0], depth),
                            self._input(n, n.inputs[1], depth), clamp=n.use_clamp)
+        if t == "MAP_RANGE":
+            if getattr(n, "data_type", "FLOAT") != "FLOAT":
+                return None  # Vector Map Range: not supported (warned by the caller)
+            ins = {i.identifier: i for i in n.inputs}
+            inputs = {k: self._input(n, ins[k], depth) for k in sn.MapRange.SOCKETS
+                      if k in ins}
+            return _fold(sn.MapRange(inputs, kind=getattr(n, "interpolation_type", "LINEAR"),
+                                     clamp=getattr(n, "clamp", True)), inputs.values())
+        if t == "BLACKBODY":
+            kelvin = self._input(n, n.inputs["Temperature"], depth)
+            return _fold(sn.Blackbody(kelvin), [kelvin])
         if t in ("SEPARATE_COLOR", "SEPRGB", "SEPXYZ"):
             if getattr(n, "mode", "RGB") != "RGB":
                 return None
@@ -907,6 +948,17 @@ class MaterialConverter:
                               output="FAC" if oname == "Fac" else "COLOR")
         if t in ("TEX_NOISE", "TEX_VORONOI"):
             return self._procedural(n, oname, depth)
+        if t == "TEX_WAVE":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            kind = n.wave_type
+            inputs = {k: self._input(n, n.inputs[k], depth) for k in sn.Wave.SOCKETS
+                      if k in n.inputs}
+            return sn.Wave(vec, inputs, kind=kind,
+                           direction=n.bands_direction if kind == "BANDS" else n.rings_direction,
+                           profile=n.wave_profile,
+                           output="FAC" if oname in ("Fac", "Factor") else "COLOR")
         if t in ("LAYER_WEIGHT", "FRESNEL"):
             if n.inputs.get("Normal") is not None and self._source(n.inputs["Normal"]):
                 self._warn(f"material '{self._mat.name}': the 'Normal' input of "

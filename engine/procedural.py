@@ -1,4 +1,5 @@
-"""Blender's procedural textures, evaluated per hit in compiled kernels: Noise and Voronoi.
+"""Blender's procedural textures, evaluated per hit in compiled kernels: Noise, Voronoi and
+Wave.
 
 These must reproduce Cycles' patterns, not just look alike: a marble floor made with a
 Noise Texture has to put its veins where Cycles puts them. So the building blocks follow
@@ -18,7 +19,10 @@ fractal_noise.h, noisetex.h, voronoi.h):
 - Voronoi (Worley) cells: one feature point per unit cell, jittered by Randomness (a
   signed-integer PCG hash of the cell index in 2-4D, as Cycles since Blender 4.2); F1,
   F2, Smooth F1 (Quilez' smooth minimum), Distance to Edge, N-Sphere Radius; Euclidean,
-  Manhattan, Chebychev and Minkowski metrics; fractal octaves as in Cycles.
+  Manhattan, Chebychev and Minkowski metrics; fractal octaves as in Cycles;
+- the Wave node (svm_wave.h): bands or rings along an axis (or diagonal / spherical),
+  Phase Offset, a sine, saw or triangle profile, and Distortion by normalised fBM
+  (lacunarity 2) of the same Perlin noise.
 
 Arithmetic is float64 here where Cycles uses float32: the patterns agree except within
 rounding distance of cell borders. Every batch kernel takes per-hit input arrays (any
@@ -38,6 +42,10 @@ NOISE_TYPES = ("FBM", "MULTIFRACTAL", "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTA
                "HETERO_TERRAIN")
 VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE", "N_SPHERE_RADIUS")
 VORONOI_METRICS = ("EUCLIDEAN", "MANHATTAN", "CHEBYCHEV", "MINKOWSKI")
+WAVE_TYPES = ("BANDS", "RINGS")
+WAVE_BANDS_DIRECTIONS = ("X", "Y", "Z", "DIAGONAL")
+WAVE_RINGS_DIRECTIONS = ("X", "Y", "Z", "SPHERICAL")
+WAVE_PROFILES = ("SIN", "SAW", "TRI")
 
 
 # ---------------------------------------------------------------- hashing (lookup3)
@@ -757,6 +765,58 @@ def voronoi_texture(dims, feature, metric, normalize, points, w_in, scale, detai
             w_out[i] = p3 * inv if dims == 4 else 0.0
 
 
+# ---------------------------------------------------------------- Wave
+
+@kernel
+def wave_texture(kind, direction, profile, points, scale, distortion, detail, detail_scale,
+                 detail_roughness, phase, fac_out):
+    """The Wave Texture node for a batch of hits (Cycles svm_wave, kernel/svm/wave.h).
+
+    kind: index into WAVE_TYPES; direction: into WAVE_BANDS_DIRECTIONS (bands) or
+    WAVE_RINGS_DIRECTIONS (rings); profile: into WAVE_PROFILES. points (N,3) texture
+    coordinates; scale, distortion, detail, detail_scale, detail_roughness, phase (N,)
+    socket values per hit. Writes fac_out (N,), in [0, 1] (the Color output is it as grey).
+    """
+    for i in range(points.shape[0]):
+        s = scale[i]
+        # Cycles nudges the scaled coordinates off unit values (precision on cell edges).
+        x = (points[i, 0] * s + 0.000001) * 0.999999
+        y = (points[i, 1] * s + 0.000001) * 0.999999
+        z = (points[i, 2] * s + 0.000001) * 0.999999
+        if kind == 0:  # bands
+            if direction == 0:
+                n = x * 20.0
+            elif direction == 1:
+                n = y * 20.0
+            elif direction == 2:
+                n = z * 20.0
+            else:
+                n = (x + y + z) * 10.0
+        else:  # rings: distance from the axis (or the origin: spherical)
+            rx = 0.0 if direction == 0 else x
+            ry = 0.0 if direction == 1 else y
+            rz = 0.0 if direction == 2 else z
+            n = math.sqrt(rx * rx + ry * ry + rz * rz) * 20.0
+        n += phase[i]
+        dist = distortion[i]
+        if dist != 0.0:
+            ds = detail_scale[i]
+            # Cycles leaves Detail unclamped (its UI keeps it in 0..15); clamped here so a
+            # linked value cannot run away (below 0 its fBM would divide by zero).
+            d = min(max(detail[i], 0.0), 15.0)
+            fbm = fractal(3, 0, x * ds, y * ds, z * ds, 0.0, d, detail_roughness[i], 2.0,
+                          0.0, 0.0, True)
+            n += dist * (fbm * 2.0 - 1.0)
+        if profile == 0:  # sine
+            fac_out[i] = 0.5 + 0.5 * math.sin(n - 0.5 * math.pi)
+        elif profile == 1:  # saw
+            n /= 2.0 * math.pi
+            fac_out[i] = n - math.floor(n)
+        else:  # triangle
+            n /= 2.0 * math.pi
+            fac_out[i] = abs(n - math.floor(n + 0.5)) * 2.0
+
+
 @register_warm_up
 def _warm_up():
     pts = np.zeros((1, 3))
@@ -768,3 +828,4 @@ def _warm_up():
                       noise_offsets(dims), True, val, col)
         voronoi_texture(dims, 0, 0, False, pts, one, one, one, one, one, one, one, one,
                         val, col, np.zeros((1, 3)), np.zeros(1), np.zeros(1))
+    wave_texture(0, 0, 0, pts, one, one, one, one, one, one, val)

@@ -5,7 +5,8 @@ Each node is a small object with evaluate(geo, prim, u, v) over a batch of hits
 colours and vectors come back as (N,3), factors and values as (N,). A node tree is a
 tree of these objects (inputs are nodes or constants); its root is what a Material's
 `texture` holds. Formulas follow Cycles' SVM nodes (intern/cycles/kernel/svm/: mix.h,
-color_util.h, ramp.h, math_util.h, mapping_util.h, checker.h); each class names its node.
+color_util.h, ramp.h, math_util.h, mapping_util.h, checker.h, map_range.h, blackbody.h,
+wave.h); each class names its node.
 """
 from __future__ import annotations
 
@@ -208,6 +209,139 @@ class Math:
         r = MATH_OPS[self.operation](_eval(self.a, geo, prim, u, v, 1),
                                      _eval(self.b, geo, prim, u, v, 1))
         return np.clip(r, 0.0, 1.0) if self.clamp else r
+
+
+def _smoothstep(edge0, edge1, x):
+    """Cycles util/math.h smoothstep: 0 below edge0, 1 from edge1 on, 3t^2 - 2t^3 between."""
+    t = (x - edge0) / np.where(edge1 != edge0, edge1 - edge0, 1.0)
+    return np.where(x < edge0, 0.0, np.where(x >= edge1, 1.0, (3.0 - 2.0 * t) * (t * t)))
+
+
+def _smootherstep(edge0, edge1, x):
+    """Cycles map_range.h smootherstep: t = clamp((x - edge0) / (edge1 - edge0)) (0 where
+    the range is empty: safe_divide), then 6t^5 - 15t^4 + 10t^3."""
+    d = edge1 - edge0
+    t = np.clip(np.where(d != 0, (x - edge0) / np.where(d != 0, d, 1.0), 0.0), 0.0, 1.0)
+    return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+
+
+MAP_RANGE_TYPES = ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP")
+
+
+def map_range(value, from_min, from_max, to_min, to_max, steps=4.0, kind="LINEAR",
+              clamp=True):
+    """Map Range node, Float (Cycles svm_node_map_range; its Clamp is the Clamp node
+    (Range) that Cycles' MapRangeNode::expand puts after it: between To Min and To Max,
+    whichever is larger). Arrays broadcast; an empty From range gives 0 (as Cycles).
+
+    LINEAR        f = (value - from_min) / (from_max - from_min)
+    STEPPED       floor(f (steps + 1)) / steps (0 for steps <= 0)
+    SMOOTHSTEP    smoothstep(from_min, from_max, value) (1 - it, edges swapped, for a
+                  reversed range); SMOOTHERSTEP likewise with 6t^5 - 15t^4 + 10t^3
+    result = to_min + f (to_max - to_min)."""
+    if kind not in MAP_RANGE_TYPES:
+        raise ValueError(f"Map Range interpolation {kind!r}: expected one of "
+                         f"{MAP_RANGE_TYPES}")
+    value, from_min, from_max, to_min, to_max, steps = np.broadcast_arrays(
+        *(np.asarray(x, np.float64) for x in (value, from_min, from_max, to_min, to_max,
+                                               steps)))
+    empty = from_max == from_min
+    span = np.where(empty, 1.0, from_max - from_min)
+    if kind in ("LINEAR", "STEPPED"):
+        f = (value - from_min) / span
+        if kind == "STEPPED":
+            f = np.where(steps > 0.0,
+                         np.floor(f * (steps + 1.0)) / np.where(steps > 0.0, steps, 1.0), 0.0)
+    else:
+        step = _smoothstep if kind == "SMOOTHSTEP" else _smootherstep
+        rev = from_min > from_max
+        f = np.where(rev, 1.0 - step(from_max, from_min, value),
+                     step(from_min, from_max, value))
+    r = to_min + f * (to_max - to_min)
+    if clamp:
+        r = np.clip(r, np.minimum(to_min, to_max), np.maximum(to_min, to_max))
+    return np.where(empty, 0.0, r)
+
+
+class MapRange:
+    """Map Range node (Float): map_range() of its inputs, per hit. inputs: Value, From Min,
+    From Max, To Min, To Max, Steps (nodes or constants); kind one of MAP_RANGE_TYPES."""
+
+    SOCKETS = ("Value", "From Min", "From Max", "To Min", "To Max", "Steps")
+    DEFAULTS = {"Value": 1.0, "From Min": 0.0, "From Max": 1.0, "To Min": 0.0,
+                "To Max": 1.0, "Steps": 4.0}
+
+    def __init__(self, inputs=None, kind="LINEAR", clamp=True):
+        if kind not in MAP_RANGE_TYPES:
+            raise ValueError(f"Map Range interpolation {kind!r}: expected one of "
+                             f"{MAP_RANGE_TYPES}")
+        self.inputs = {**self.DEFAULTS, **(inputs or {})}
+        self.kind, self.clamp = kind, bool(clamp)
+
+    def evaluate(self, geo, prim, u, v):
+        ins = [_eval(self.inputs[k], geo, prim, u, v, 1) for k in self.SOCKETS]
+        return map_range(*ins, kind=self.kind, clamp=self.clamp)
+
+
+# Cycles' blackbody fit (kernel/tables.h blackbody_table_r/g/b, used by
+# svm_math_blackbody_color_rec709 in kernel/svm/math_util.h): per temperature segment,
+# R and G = a / T + b T + c, B = ((a T + b) T + c) T + d, linear Rec.709.
+_BLACKBODY_R = np.array([
+    [1.61919106e+03, -2.05010916e-03, 5.02995757e+00],
+    [2.48845471e+03, -1.11330907e-03, 3.22621544e+00],
+    [3.34143193e+03, -4.86551192e-04, 1.76486769e+00],
+    [4.09461742e+03, -1.27446582e-04, 7.25731635e-01],
+    [4.67028036e+03, 2.91258199e-05, 1.26703442e-01],
+    [4.59509185e+03, 2.87495649e-05, 1.50345020e-01],
+    [3.78717450e+03, 9.35907826e-06, 3.99075871e-01]])
+_BLACKBODY_G = np.array([
+    [-4.88999748e+02, 6.04330754e-04, -7.55807526e-02],
+    [-7.55994277e+02, 3.16730098e-04, 4.78306139e-01],
+    [-1.02363977e+03, 1.20223470e-04, 9.36662319e-01],
+    [-1.26571316e+03, 4.87340896e-06, 1.27054498e+00],
+    [-1.42529332e+03, -4.01150431e-05, 1.43972784e+00],
+    [-1.17554822e+03, -2.16378048e-05, 1.30408023e+00],
+    [-5.00799571e+02, -4.59832026e-06, 1.09098763e+00]])
+_BLACKBODY_B = np.array([
+    [5.96945309e-11, -4.85742887e-08, -9.70622247e-05, -4.07936148e-03],
+    [2.40430366e-11, 5.55021075e-08, -1.98503712e-04, 2.89312858e-02],
+    [-1.40949732e-11, 1.89878968e-07, -3.56632824e-04, 9.10767778e-02],
+    [-3.61460868e-11, 2.84822009e-07, -4.93211319e-04, 1.56723440e-01],
+    [-1.97075738e-11, 1.75359352e-07, -2.50542825e-04, -2.22783266e-02],
+    [-1.61997957e-13, -1.64216008e-08, 3.86216271e-04, -7.38077418e-01],
+    [6.72650283e-13, -2.73078809e-08, 4.24098264e-04, -7.52335691e-01]])
+# Lower bounds (K) of the fit's segments 1..6 (segment 0 from 800 K).
+_BLACKBODY_EDGES = np.array([965.0, 1167.0, 1449.0, 1902.0, 3315.0, 6365.0])
+_BLACKBODY_HOT = np.array([0.8262954810464208, 0.9945080501520986, 1.566307710274283])
+_BLACKBODY_COLD = np.array([5.413294490189271, -0.20319390035873933, -0.0822535242887164])
+
+
+def blackbody_rec709(temperature) -> np.ndarray:
+    """Cycles' svm_math_blackbody_color_rec709: temperature (K, array (N,)) -> (N,3)
+    linear Rec.709 RGB of luminance about 1, not clamped (negative outside the gamut):
+    the fit between 800 K and 12000 K, constants below and above."""
+    t = np.atleast_1d(np.asarray(temperature, np.float64))
+    i = np.searchsorted(_BLACKBODY_EDGES, t, side="right")
+    ts = np.where(t > 0, t, 1.0)
+    r, g, b = _BLACKBODY_R[i], _BLACKBODY_G[i], _BLACKBODY_B[i]
+    rgb = np.stack([r[:, 0] / ts + r[:, 1] * ts + r[:, 2],
+                    g[:, 0] / ts + g[:, 1] * ts + g[:, 2],
+                    ((b[:, 0] * ts + b[:, 1]) * ts + b[:, 2]) * ts + b[:, 3]], axis=1)
+    rgb = np.where((t >= 12000.0)[:, None], _BLACKBODY_HOT, rgb)
+    return np.where((t < 800.0)[:, None], _BLACKBODY_COLD, rgb)
+
+
+class Blackbody:
+    """Blackbody node (Cycles svm_node_blackbody): blackbody_rec709(Temperature) with
+    negatives clamped to 0, as a colour (N,3). The engine's colours are linear Rec.709
+    (Cycles' rec709_to_rgb is the identity in Blender's default scene-linear space)."""
+
+    def __init__(self, temperature=1500.0):
+        self.temperature = temperature
+
+    def evaluate(self, geo, prim, u, v):
+        return np.maximum(blackbody_rec709(_eval(self.temperature, geo, prim, u, v, 1)),
+                          0.0)
 
 
 class SeparateChannel:
@@ -437,6 +571,50 @@ class Voronoi:
             np.ascontiguousarray(pts), *ins, dist, color, position, w_out, radius)
         return {"DISTANCE": dist, "COLOR": color, "POSITION": position, "W": w_out,
                 "RADIUS": radius}[self.output]
+
+
+class Wave:
+    """Wave Texture node (Cycles svm_node_tex_wave; kernel in engine/procedural.py).
+
+    vector     coordinates node (N,3) (the add-on passes Generated when unlinked)
+    inputs     dict of socket values or nodes: Scale, Distortion, Detail, Detail Scale,
+               Detail Roughness, Phase Offset
+    kind       BANDS or RINGS; direction: X, Y, Z, DIAGONAL (bands) or X, Y, Z, SPHERICAL
+               (rings); profile SIN, SAW or TRI; output FAC (N,) or COLOR (N,3) grey."""
+
+    SOCKETS = ("Scale", "Distortion", "Detail", "Detail Scale", "Detail Roughness",
+               "Phase Offset")
+    DEFAULTS = {"Scale": 5.0, "Distortion": 0.0, "Detail": 2.0, "Detail Scale": 1.0,
+                "Detail Roughness": 0.5, "Phase Offset": 0.0}
+
+    def __init__(self, vector, inputs=None, kind="BANDS", direction="X", profile="SIN",
+                 output="FAC"):
+        from . import procedural
+        if kind not in procedural.WAVE_TYPES:
+            raise ValueError(f"Wave Texture type {kind!r}: expected one of "
+                             f"{procedural.WAVE_TYPES}")
+        dirs = (procedural.WAVE_BANDS_DIRECTIONS if kind == "BANDS"
+                else procedural.WAVE_RINGS_DIRECTIONS)
+        if direction not in dirs:
+            raise ValueError(f"Wave Texture {kind.lower()} direction {direction!r}: "
+                             f"expected one of {dirs}")
+        if profile not in procedural.WAVE_PROFILES:
+            raise ValueError(f"Wave Texture profile {profile!r}: expected one of "
+                             f"{procedural.WAVE_PROFILES}")
+        self.vector, self.kind, self.direction, self.profile = vector, kind, direction, profile
+        self._codes = (procedural.WAVE_TYPES.index(kind), dirs.index(direction),
+                       procedural.WAVE_PROFILES.index(profile))
+        self.inputs = {**self.DEFAULTS, **(inputs or {})}
+        self.output = output
+
+    def evaluate(self, geo, prim, u, v):
+        from . import procedural
+        pts = np.ascontiguousarray(_eval(self.vector, geo, prim, u, v, 3))
+        ins = [np.ascontiguousarray(_eval(self.inputs[k], geo, prim, u, v, 1))
+               for k in self.SOCKETS]
+        fac = np.empty(len(prim))
+        procedural.wave_texture(*self._codes, pts, *ins, fac)
+        return np.repeat(fac[:, None], 3, axis=1) if self.output == "COLOR" else fac
 
 
 class ShadingGeometry:

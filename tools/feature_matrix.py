@@ -1162,6 +1162,104 @@ def texture_voronoi():
 
 
 @case("textures")
+def texture_wave():
+    """Wave Texture: bands along X (triangle profile, scale 1, phase offset 0.5, distortion
+    4 with 2.5 octaves of detail at detail scale 1.5) through a Color Ramp into a
+    Principled Base Color on a plane's Generated coordinates; on a box, spherical rings
+    (saw profile, scale 0.6) on Object coordinates into a Diffuse colour. Distortion moves
+    the bands by the Noise node's fBM: only Cycles' own noise puts the wiggles where it
+    does."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("bands")
+    wave = nt.nodes.new("ShaderNodeTexWave")
+    wave.wave_profile = "TRI"
+    for k, v in {"Scale": 1.0, "Phase Offset": 0.5, "Distortion": 4.0, "Detail": 2.5,
+                 "Detail Scale": 1.5}.items():
+        wave.inputs[k].default_value = v
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.6, 0.25, 0.05, 1.0)
+    ramp.color_ramp.elements[1].color = (0.9, 0.8, 0.55, 1.0)
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Roughness"].default_value = 0.6
+    nt.links.new(wave.outputs[1], ramp.inputs["Fac"])  # Fac (4.x) / Factor (5.x)
+    nt.links.new(ramp.outputs["Color"], p.inputs["Base Color"])
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    m2, nt2, out2 = _nodes_material("rings")
+    coord = nt2.nodes.new("ShaderNodeTexCoord")
+    w2 = nt2.nodes.new("ShaderNodeTexWave")
+    w2.wave_type = "RINGS"
+    w2.rings_direction = "SPHERICAL"
+    w2.wave_profile = "SAW"
+    w2.inputs["Scale"].default_value = 0.6
+    d2 = nt2.nodes.new("ShaderNodeBsdfDiffuse")
+    nt2.links.new(coord.outputs["Object"], w2.inputs["Vector"])
+    nt2.links.new(w2.outputs["Color"], d2.inputs["Color"])
+    nt2.links.new(d2.outputs[0], out2.inputs["Surface"])
+    mb.box("Block", 1.0, 1.0, 1.0, m2, (0.6, 0.6, 0.5), (0, 0, math.radians(30)))
+    _sun()
+
+
+@case("textures")
+def texture_map_range_blackbody():
+    """Map Range and Blackbody: a floor tile whose Principled Base Color is a UV Gradient
+    through Map Range Stepped (4 steps, to 0.1..0.8: grey bands); an emissive panel (8 x 5
+    quads) whose Emission Color is Blackbody of a UV Gradient through Map Range Smooth Step
+    (0.2..0.8 to 1200..9000 K): deep red on one side, bluish white on the other, and the
+    floor lit in those colours. The tile's Roughness is a Map Range of constants (0.25
+    mapped to 0.2..0.6): folded to 0.3."""
+    import bmesh
+    _stage(back=False)
+    m, nt, out = _nodes_material("steps")
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    grad = nt.nodes.new("ShaderNodeTexGradient")
+    steps = nt.nodes.new("ShaderNodeMapRange")
+    steps.interpolation_type = "STEPPED"
+    steps.inputs["Steps"].default_value = 4.0
+    steps.inputs["To Min"].default_value = 0.1
+    steps.inputs["To Max"].default_value = 0.8
+    rough = nt.nodes.new("ShaderNodeMapRange")
+    rough.inputs["Value"].default_value = 0.25
+    rough.inputs["To Min"].default_value = 0.2
+    rough.inputs["To Max"].default_value = 0.6
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    L = nt.links.new
+    L(coord.outputs["UV"], grad.inputs["Vector"])
+    L(grad.outputs["Fac"], steps.inputs["Value"])
+    L(steps.outputs["Result"], p.inputs["Base Color"])
+    L(rough.outputs["Result"], p.inputs["Roughness"])
+    L(p.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    m2, nt2, out2 = _nodes_material("glow")
+    c2 = nt2.nodes.new("ShaderNodeTexCoord")
+    g2 = nt2.nodes.new("ShaderNodeTexGradient")
+    kelvin = nt2.nodes.new("ShaderNodeMapRange")
+    kelvin.interpolation_type = "SMOOTHSTEP"
+    kelvin.inputs["From Min"].default_value = 0.2
+    kelvin.inputs["From Max"].default_value = 0.8
+    kelvin.inputs["To Min"].default_value = 1200.0
+    kelvin.inputs["To Max"].default_value = 9000.0
+    bb = nt2.nodes.new("ShaderNodeBlackbody")
+    em = nt2.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 3.0
+    L = nt2.links.new
+    L(c2.outputs["UV"], g2.inputs["Vector"])
+    L(g2.outputs["Fac"], kelvin.inputs["Value"])
+    L(kelvin.outputs["Result"], bb.inputs["Temperature"])
+    L(bb.outputs["Color"], em.inputs["Color"])
+    L(em.outputs[0], out2.inputs["Surface"])
+    me = bpy.data.meshes.new("Panel")
+    bm = bmesh.new()
+    bm.loops.layers.uv.new("UVMap")
+    bmesh.ops.create_grid(bm, x_segments=8, y_segments=5, size=0.5, calc_uvs=True)
+    bmesh.ops.scale(bm, vec=(1.6, 1.0, 1.0), verts=bm.verts)
+    bm.to_mesh(me)
+    bm.free()
+    mb.add_object("Panel", me, m2, (0.0, 0.9, 0.9), (math.radians(70), 0, 0))
+    _sun(strength=1.5)
+
+
+@case("textures")
 def texture_node_tree():
     """What real trees put between textures and a BSDF: UV -> Mapping (scale 2, shift) ->
     Image; a Checker's factor through a Color Ramp (constant stops); Mix Color Multiply of
@@ -1254,6 +1352,29 @@ def texture_roughness_map():
         return inv.inputs["Color"], inv.outputs["Color"]
     _scalar_map_tile("rough", "Roughness", _data_image("gloss", (0.2, 0.9)), invert,
                      **{"Base Color": (0.15, 0.15, 0.15), "Roughness": 0.5})
+    _highlight_light()
+
+
+@case("textures", ours=dict(spp=64))  # a sharp area-light highlight: noisy blocks at 32 spp
+def texture_noise_roughness():
+    """The new user's table (s22): a Principled tile whose Roughness is a Noise Texture
+    (scale 4) through Map Range (to 0.15..0.7), under the area light of
+    texture_roughness_map: the highlight breaks up into smooth and rough patches; the
+    socket's own 0.5 (what an unsupported Map Range fell back to) is one even highlight."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("noisy")
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = (0.15, 0.15, 0.15, 1.0)
+    p.inputs["Roughness"].default_value = 0.5
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 4.0
+    mr = nt.nodes.new("ShaderNodeMapRange")
+    mr.inputs["To Min"].default_value = 0.15
+    mr.inputs["To Max"].default_value = 0.7
+    nt.links.new(noise.outputs[0], mr.inputs["Value"])
+    nt.links.new(mr.outputs["Result"], p.inputs["Roughness"])
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
     _highlight_light()
 
 

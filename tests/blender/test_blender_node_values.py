@@ -1,0 +1,95 @@
+"""Map Range, Blackbody and Wave Texture in Blender node trees (addon/materials.py): a tree
+of constants folds to its value (also on lobe parameters that must be one constant), a
+texture-driven one is evaluated per hit; a node the add-on does not take falls back to
+the socket's own value, and the warning names that value (new-user trial s22: Roughness
+fell back to 0.5 with a warning that did not say so)."""
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+
+def _material(bpy, name):
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    nt = m.node_tree
+    nt.nodes.clear()
+    return m, nt, nt.nodes.new("ShaderNodeOutputMaterial")
+
+
+def _convert(m):
+    from addon.core import load_engine
+    from addon.materials import MaterialConverter
+    return MaterialConverter(load_engine()).convert(m)
+
+
+def _principled(nt, out):
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    return p
+
+
+def test_constant_map_range_into_roughness_and_ior_folds(fresh_scene, bpy_addon):
+    m, nt, out = _material(bpy_addon, "Folded")
+    p = _principled(nt, out)
+    mr = nt.nodes.new("ShaderNodeMapRange")
+    mr.inputs["Value"].default_value = 0.25
+    mr.inputs["To Min"].default_value = 0.2
+    mr.inputs["To Max"].default_value = 0.6
+    nt.links.new(mr.outputs["Result"], p.inputs["Roughness"])
+    ior = nt.nodes.new("ShaderNodeMapRange")
+    ior.interpolation_type = "SMOOTHSTEP"
+    ior.inputs["Value"].default_value = 0.5
+    ior.inputs["To Min"].default_value = 1.3
+    ior.inputs["To Max"].default_value = 1.7
+    nt.links.new(ior.outputs["Result"], p.inputs["IOR"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    assert mat.roughness == pytest.approx(0.3)
+    assert not mat.scalar_textures
+    assert mat.ior == pytest.approx(1.5)
+
+
+def test_blackbody_into_emission_colour(fresh_scene, bpy_addon):
+    from engine.shadernodes import blackbody_rec709
+    m, nt, out = _material(bpy_addon, "Hot")
+    e = nt.nodes.new("ShaderNodeEmission")
+    bb = nt.nodes.new("ShaderNodeBlackbody")
+    bb.inputs["Temperature"].default_value = 1500.0
+    nt.links.new(bb.outputs["Color"], e.inputs["Color"])
+    nt.links.new(e.outputs[0], out.inputs["Surface"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    want = np.maximum(blackbody_rec709([1500.0])[0], 0.0)
+    assert np.allclose(np.asarray(mat.emission) / np.max(mat.emission),
+                       want / want.max(), atol=1e-6)
+
+
+def test_wave_through_map_range_into_roughness_is_per_hit(fresh_scene, bpy_addon):
+    m, nt, out = _material(bpy_addon, "Waves")
+    p = _principled(nt, out)
+    wave = nt.nodes.new("ShaderNodeTexWave")
+    mr = nt.nodes.new("ShaderNodeMapRange")
+    mr.interpolation_type = "STEPPED"
+    nt.links.new(wave.outputs["Fac" if "Fac" in wave.outputs else "Factor"],
+                 mr.inputs["Value"])
+    nt.links.new(mr.outputs["Result"], p.inputs["Roughness"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    node = mat.scalar_textures["roughness"]
+    assert type(node).__name__ == "MapRange" and node.kind == "STEPPED"
+    assert type(node.inputs["Value"]).__name__ == "Wave"
+
+
+def test_unsupported_node_warning_names_the_value_used(fresh_scene, bpy_addon):
+    m, nt, out = _material(bpy_addon, "Fallback")
+    p = _principled(nt, out)
+    p.inputs["Roughness"].default_value = 0.5
+    vec = nt.nodes.new("ShaderNodeMapRange")
+    vec.data_type = "FLOAT_VECTOR"           # Vector Map Range: not taken
+    nt.links.new(vec.outputs["Vector"], p.inputs["Roughness"])
+    mat = _convert(m)
+    assert mat.roughness == pytest.approx(0.5)
+    assert any("Roughness of 'Principled BSDF': node 'Map Range' (MAP_RANGE) not supported, "
+               "using 0.5 (the socket's own value)" in w for w in mat.warnings), mat.warnings
