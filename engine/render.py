@@ -524,6 +524,9 @@ EDGE_IMAGES = True
 SECONDARY_EDGE_IMAGES = False
 # With them: drop the images lying in a gap narrower than 2 radius (edgeimages gaps).
 SECONDARY_GAPS = True
+# With them: weight each image by the density's linear extrapolation across its edge
+# where the light falls significantly towards the edge (edgeimages.flatness_weights).
+SECONDARY_FLATNESS = False
 
 
 def _with_images(photons: Photons, images: Photons) -> Photons:
@@ -681,7 +684,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                 check(flag)
                 below = shot.take(np.flatnonzero(shot.kind == CAUSTIC_DIFFUSE))
                 images = edge_images(below, geo, diffuse_tris, ctx.accel, radius,
-                                     gaps=SECONDARY_GAPS)
+                                     gaps=SECONDARY_GAPS, flatness=SECONDARY_FLATNESS)
                 source = _with_images(below, images)
                 rows = np.flatnonzero(source.usable(limits))
                 out["secondary_map"] = secondary = _counted_map(source, workers, rows)
