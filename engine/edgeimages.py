@@ -25,7 +25,8 @@ A photon near two open edges on different lines (a corner) gets an image across 
 where they meet at 60-120 degrees, one across both (CORNERS; the four quadrants of the
 reflection method at a right angle). Used for the caustic map (cap: the caustic radius);
 the secondary CAUSTIC_DIFFUSE map can take them too (render.SECONDARY_EDGE_IMAGES, off:
-its wide radius carries images across a gap narrower than 2 R, below).
+its wide radius carries images across a gap narrower than 2 R, below). flatness_weights
+tests the reflection's assumption (the density flat across the edge) per image: off.
 Not handled: scenes with shared instances (Geometry.shared: no images anywhere), a photon
 near three or more edges (a strip narrower than the cap: the two nearest lines only),
 corners far from a right angle (the two edge images only, no third), curved edges (each
@@ -134,14 +135,16 @@ def _open_edges_kept(geo, diffuse):
 
 
 def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float,
-                gaps: bool = False):
+                gaps: bool = False, flatness: bool = False):
     """Images (a Photons, possibly empty) of the photons within `radius` (m, the k-NN
     estimates' cap) of an open edge of the surface they lie on, mirrored across the
     nearest such edge, and near a corner across the nearest edge on another line and
     across both (CORNERS); power, direction, normal, kind and bounce counts copied.
     gaps: also drop an image lying within `radius` outside another open edge of a coplanar
     surface (a gap narrower than 2 radius, e.g. a window opening: that surface's own
-    estimates would read it)."""
+    estimates would read it).
+    flatness: each image's power scaled by flatness_weights (the density's linear
+    extrapolation across the edge where it falls significantly towards the edge)."""
     empty = photons.take(np.zeros(0, np.int64))
     if not len(photons) or radius <= 0.0 or getattr(geo, "shared", None) is not None \
             or not getattr(geo, "count", 0):
@@ -285,7 +288,85 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
         # image is dropped (the surface continues past that edge), that surface's photons
         # bring their own images there.
         cont[len(ph) - len(parents):] |= cont[parents[:, 0]] | cont[parents[:, 1]]
-    ph, image = ph[~cont], image[~cont]
+    ph, image, used = ph[~cont], image[~cont], used[~cont]
+    weight = None
+    if flatness and len(ph):
+        weight = flatness_weights(photons, p, ph, used, a, n, m, radius)
+        ph, image, weight = ph[weight > 0.0], image[weight > 0.0], weight[weight > 0.0]
     out = photons.take(ph)
     out.position = image.astype(np.float32)
+    if weight is not None:
+        out.power = (out.power * weight[:, None]).astype(out.power.dtype)
     return out
+
+
+# flatness_weights: the strip of the surface beside an edge whose photons give the slope,
+# STRIP_HALF_LENGTH x radius along the edge either side of the photon's foot, radius deep.
+STRIP_HALF_LENGTH = 2.0
+# A slope acts only beyond this many of its standard errors (a flat density's strip of ~80
+# photons gives the slope s = f'R/f(0) a standard error ~0.4: unshrunk, the weights' noise
+# would blotch every edge by ~20 %).
+SLOPE_SIGMAS = 2.0
+SLOPE_SE_MAX = float("inf")  # see flatness_weights (an experiment: 0.5 ~ 50 photons a strip)
+
+
+def flatness_weights(photons: Photons, p: np.ndarray, ph: np.ndarray, used: np.ndarray,
+                     a, n, m, radius: float) -> np.ndarray:
+    """(I,) weights in [0, 1] of images of photons ph (I,) mirrored across edges used (I,2)
+    (two equal columns: one edge; else a corner image across both: the product).
+
+    The reflection method assumes the density flat across the edge (f'(0) = 0): for a
+    density f(y) = f0 + f1 y (y: distance into the surface) the images continue it as
+    f0 + f1 |y|, and an estimate at the edge reads f0 + ~0.42 f1 R (too bright where the
+    light falls towards the edge: a room's dim corner beside a bright middle). The images
+    of the linear extrapolation f(-y) = 2 f0 - f(y) instead: each image weighted by
+    (2 f0 - f(y)) / f(y) = (1 - s y / R) / (1 + s y / R), s = f1 R / f0, from the power-
+    weighted mean depth of the photons in the strip beside the edge (STRIP_HALF_LENGTH R
+    along it, R deep; E[y] / R = (1/2 + s/3) / (1 + s/2)), shrunk by SLOPE_SIGMAS standard
+    errors towards 0. Only s > 0 (darker at the edge) acts: where the light rises towards
+    the edge (a line at a pane's foot, s < 0) the reflection stays (exact for a line, and
+    never adds more than it)."""
+    corner = used[:, 0] != used[:, 1]
+    pairs = np.unique(np.concatenate([ph * len(a) + used[:, 0],
+                                      ph[corner] * len(a) + used[corner, 1]]))
+    pp, pe = pairs // len(a), pairs % len(a)
+    d = ((p[pp] - a[pe]) * m[pe]).sum(axis=1)
+    u = np.cross(n[pe], m[pe])  # along the edge
+    centre = p[pp] + (0.5 * radius - d)[:, None] * m[pe]
+    half = STRIP_HALF_LENGTH * radius
+    tree = cKDTree(p)
+    lists = tree.query_ball_point(centre, np.hypot(half, 0.5 * radius), return_sorted=False)
+    count = np.fromiter((len(x) for x in lists), np.int64, len(lists))
+    q = np.fromiter((i for x in lists for i in x), np.int64, int(count.sum()))
+    row = np.repeat(np.arange(len(pairs)), count)
+    e = pe[row]
+    rel = p[q] - a[e]
+    y = (rel * m[e]).sum(axis=1)
+    ok = (y >= 0.0) & (y <= radius) & \
+        (np.abs(((p[q] - p[pp[row]]) * u[row]).sum(axis=1)) <= half) & \
+        (np.abs((rel * n[e]).sum(axis=1)) <= PLANE_TOLERANCE * radius) & \
+        (np.abs((photons.normal[q].astype(np.float64) * n[e]).sum(axis=1)) >= FACING)
+    row, y = row[ok], y[ok] / radius
+    pw = photons.power[q[ok]].astype(np.float64).mean(axis=1)
+    sw = np.bincount(row, pw, len(pairs))
+    sw2 = np.bincount(row, pw * pw, len(pairs))
+    mean = np.bincount(row, pw * y, len(pairs)) / np.maximum(sw, 1e-300)
+    var = np.maximum(np.bincount(row, pw * y * y, len(pairs)) / np.maximum(sw, 1e-300)
+                     - mean * mean, 0.0)
+    n_eff = sw * sw / np.maximum(sw2, 1e-300)
+    # The lower bound of the mean depth: s(mean) rises with it (12 at a flat 1/2; infinite
+    # at 2/3, where f0 = 0: no image).
+    se = np.sqrt(var / np.maximum(n_eff - 1.0, 1.0))
+    low = mean - SLOPE_SIGMAS * se
+    # Too few photons beside the edge to tell flat light from a slope (s's standard error,
+    # ~12 that of the mean depth, above SLOPE_SE_MAX): no image (the reflection unchecked).
+    untested = (n_eff < 4.0) | (12.0 * se > SLOPE_SE_MAX)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(low >= 2.0 / 3.0, np.inf, (0.5 - low) / (0.5 * low - 1.0 / 3.0))
+        s = np.maximum(s, 0.0)
+        t = s * np.clip(d / radius, 0.0, 1.0)
+        pair_w = np.where(np.isinf(s) | untested, 0.0,
+                          np.clip((1.0 - t) / (1.0 + t), 0.0, 1.0))
+    w = pair_w[np.searchsorted(pairs, ph * len(a) + used[:, 0])]
+    w[corner] *= pair_w[np.searchsorted(pairs, ph[corner] * len(a) + used[corner, 1])]
+    return w

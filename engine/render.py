@@ -520,10 +520,15 @@ EDGE_IMAGES = True
 # room's blocks there read 1.5-1.8 of Cycles (block error 0.357 -> 0.450, seeds 0-3;
 # docs/performance.md "secedges"). Dropping the images in such gaps (SECONDARY_GAPS,
 # edge_images' gaps) brought the opening's blocks back to main's; the room's far corners
-# still read 2-9 % brighter than without images (block error 0.357 -> 0.402).
+# still read 2-9 % brighter than without images (block error 0.357 -> 0.402). Over 12
+# seeds (docs/performance.md "secgap") images + gaps: 0.337 -> 0.376 (+0.039 +- 0.008),
+# with the flatness test the same: that room is a few secondary radii across.
 SECONDARY_EDGE_IMAGES = False
 # With them: drop the images lying in a gap narrower than 2 radius (edgeimages gaps).
 SECONDARY_GAPS = True
+# With them: weight each image by the density's linear extrapolation across its edge
+# where the light falls significantly towards the edge (edgeimages.flatness_weights).
+SECONDARY_FLATNESS = False
 
 
 def _with_images(photons: Photons, images: Photons) -> Photons:
@@ -681,7 +686,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                 check(flag)
                 below = shot.take(np.flatnonzero(shot.kind == CAUSTIC_DIFFUSE))
                 images = edge_images(below, geo, diffuse_tris, ctx.accel, radius,
-                                     gaps=SECONDARY_GAPS)
+                                     gaps=SECONDARY_GAPS, flatness=SECONDARY_FLATNESS)
                 source = _with_images(below, images)
                 rows = np.flatnonzero(source.usable(limits))
                 out["secondary_map"] = secondary = _counted_map(source, workers, rows)
