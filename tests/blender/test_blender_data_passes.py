@@ -204,3 +204,29 @@ def test_denoise_node_takes_our_passes(bpy_addon, tmp_path):
           rough(b))
     assert abs(b[floor].mean() / a[floor].mean() - 1.0) < 0.01
     assert rough(b) < 0.5 * rough(a)
+
+
+def test_passes_panel_offers_the_data_passes(bpy_addon):
+    """Our Passes panel shows the switches the render reads: Cycles' Denoising Data and
+    the view layer's Diffuse / Glossy / Transmission Color (Cycles' panels are hidden
+    with our engine)."""
+    from types import SimpleNamespace
+
+    from addon.ui import PHOTONMAP_PT_passes
+
+    log = []
+
+    class Layout:
+        use_property_split = use_property_decorate = False
+
+        def column(self, **kw):
+            return self
+
+        def prop(self, owner, name, **kw):
+            log.append(name)
+
+    vl = bpy_addon.context.scene.view_layers[0]
+    PHOTONMAP_PT_passes.draw(SimpleNamespace(layout=Layout()), SimpleNamespace(view_layer=vl))
+    for name in ("denoising_store_passes", "use_pass_diffuse_color",
+                 "use_pass_glossy_color", "use_pass_transmission_color"):
+        assert name in log, (name, log)
