@@ -145,39 +145,50 @@ def add_hits(acc, want, table, hit, pix, tp, t, feat, ftp, on_camera_chain,
     prm, alb = lobe_albedo(table, hit)
     pix = np.ascontiguousarray(pix, np.int64)
     tp = np.ascontiguousarray(tp, np.float64)
+    every_c = len(rows_c) == n  # (the first bounce: every row, no gathers)
     if len(rows_c):
         for (_, key, ch), lobes in zip(COLOR, (DIFFUSE_LOBES, GLOSSY_LOBES,
                                                TRANSMISSION_LOBES)):
-            rgb = np.ascontiguousarray(alb[rows_c][:, lobes].sum(axis=1))
-            film_add(_buf(acc, key, ch), acc.lo, pix, rows_c, tp, rgb)
+            rgb = alb[:, lobes[0]].copy()
+            for lobe in lobes[1:]:
+                rgb += alb[:, lobe]
+            film_add(_buf(acc, key, ch), acc.lo, pix, _NO_ROWS if every_c else rows_c, tp,
+                     rgb if every_c else rgb[rows_c])
     if len(rows_f):
-        a = alb[rows_f]                                   # (K, L, 3)
-        weight = np.abs(a.mean(axis=2))                   # Cycles' sample_weight
-        rough = lobe_alpha(prm[rows_f]) > SPECULAR_ALPHA  # diffuse-like lobes
+        weight = np.abs(alb.sum(axis=2))                  # Cycles' sample_weight (x 3)
+        rough = lobe_alpha(prm) > SPECULAR_ALPHA          # diffuse-like lobes
         total = weight.sum(axis=1)
         nonspec = (weight * rough).sum(axis=1)
         depth = tp[rows_f].mean(axis=1) * np.asarray(t, np.float64)[rows_f]
         film_add_scalar(_buf(acc, "denoising_depth", 1), acc.lo,
                         np.ascontiguousarray(pix[rows_f]), np.ascontiguousarray(depth))
-        stop = (total == 0.0) | (nonspec * 4.0 > total)
-        done = rows_f[stop]
+        stop = np.zeros(n, bool)
+        stop[rows_f] = True
+        stop &= (total == 0.0) | (nonspec * 4.0 > total)
+        done = np.nonzero(stop)[0]
         if len(done):
             # The closures share the shading normal, turned to the ray's side (hit.ns,
             # as Cycles' sd->N on a back face); with no BSDF closure (an emitter alone)
             # Cycles writes a zero normal.
             w = tp[done].mean(axis=1) / np.maximum(ftp[done].mean(axis=1), 1e-300)
-            nrm = np.where((total[stop] > 0.0)[:, None],
-                           (hit.ns[done] @ world_to_camera.T) * w[:, None], 0.0)
+            w[total[done] == 0.0] = 0.0
+            nrm = (hit.ns[done] @ world_to_camera.T) * w[:, None]
             film_add(_buf(acc, "denoising_normal", 3), acc.lo,
                      np.ascontiguousarray(pix[done]), _NO_ROWS, np.zeros((0, 3)),
                      np.ascontiguousarray(nrm))
-            diffuse = (a[stop] * rough[stop][:, :, None]).sum(axis=1)
-            film_add(_buf(acc, "denoising_albedo", 3), acc.lo, pix, done, tp,
-                     np.ascontiguousarray(diffuse))
+            a, r = alb[done], rough[done]
+            diffuse = np.zeros((len(done), 3))
+            for lobe in range(pr.N_LOBES):  # (K,8,3) x mask summed lobe by lobe
+                diffuse += a[:, lobe] * r[:, lobe, None]
+            film_add(_buf(acc, "denoising_albedo", 3), acc.lo, pix, done, tp, diffuse)
             feat = feat.copy()
             feat[done] = False
-        go = rows_f[~stop]
+        go = np.nonzero(feat)[0] if len(done) else rows_f
         if len(go):
             ftp = ftp.copy()
-            ftp[go] *= (a[~stop] * ~rough[~stop][:, :, None]).sum(axis=1)
+            spec = np.zeros((len(go), 3))
+            a, r = alb[go], rough[go]
+            for lobe in range(pr.N_LOBES):
+                spec += a[:, lobe] * ~r[:, lobe, None]
+            ftp[go] *= spec
     return feat, ftp
