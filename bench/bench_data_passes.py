@@ -5,6 +5,7 @@ on an exported example blend (docs/performance.md, "passes").
     PYTHONPATH=$PWD .venv/bin/python bench/bench_data_passes.py figure6_box 160x120 16
 """
 import os
+import pickle
 import sys
 import tempfile
 import time
