@@ -29,4 +29,5 @@ for rep in range(3):
         film = render(scene, RenderSettings(workers=1, spp=spp, data_passes=dp))
         res[dp].append(time.process_time() - t)
 for dp, ts in res.items():
-    print(name, size, spp, dp or "none", "cpu s", [round(x, 2) for x in ts], "median", round(float(np.median(ts)), 2))
+    print(name, size, spp, dp or "none", "cpu s", [round(x, 2) for x in ts], "median",
+          round(float(np.median(ts)), 2))

@@ -63,5 +63,6 @@ class Film:
                "normal": self.normal, "alpha": self.alpha}
         if self.sample_count is not None:
             out["sample_count"] = self.sample_count
-        out.update(self.data)
+        # (self.data, Cycles' data passes, stays apart: the add-on writes them into
+        # Blender's render result; the CLI's --save-passes writes the effect passes.)
         return out
