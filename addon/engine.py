@@ -24,6 +24,89 @@ PHOTON_PASS = ("Photon Hits", "photon_hits")
 # Adaptive sampling's per-pixel sample count (engine Film.sample_count), under Cycles'
 # name for its pass; written as the share of Samples (Max Samples) a pixel took, 0..1.
 SAMPLE_COUNT_PASS = "Debug Sample Count"
+# Cycles' data passes the engine makes (engine/datapasses.py), under Cycles' pass names:
+# (Blender pass name, Film.data key, channels, chan_id, type). Denoising Data (Cycles'
+# view_layer.cycles.denoising_store_passes) feeds the compositor's Denoise node.
+DENOISING_PASSES = (("Denoising Normal", "denoising_normal", 3, "XYZ", "VECTOR"),
+                    ("Denoising Albedo", "denoising_albedo", 3, "RGB", "COLOR"),
+                    ("Denoising Depth", "denoising_depth", 1, "Z", "VALUE"))
+# (view layer switch, Blender pass name, Film.data key): Diffuse / Glossy / Transmission
+# Color under the names Cycles' add-on registers them (Blender 5's; Blender 4 named them
+# DiffCol, GlossCol, TransCol: _color_passes).
+COLOR_PASSES = (("use_pass_diffuse_color", "Diffuse Color", "diffuse_color"),
+                ("use_pass_glossy_color", "Glossy Color", "glossy_color"),
+                ("use_pass_transmission_color", "Transmission Color", "transmission_color"))
+_OLD_COLOR_NAMES = {"Diffuse Color": "DiffCol", "Glossy Color": "GlossCol",
+                    "Transmission Color": "TransCol"}
+
+
+def _color_passes():
+    """COLOR_PASSES with this Blender's pass names."""
+    if bpy.app.version >= (5, 0, 0):
+        return COLOR_PASSES
+    return tuple((sw, _OLD_COLOR_NAMES[name], key) for sw, name, key in COLOR_PASSES)
+# Passes a view layer may ask for that the engine does not make: (owner, switch, the name
+# Blender shows). One warning names those asked for (left empty in the render result).
+UNMADE_PASSES = (
+    ("", "use_pass_vector", "Vector"), ("", "use_pass_position", "Position"),
+    ("", "use_pass_uv", "UV"), ("", "use_pass_mist", "Mist"),
+    ("", "use_pass_object_index", "Object Index"),
+    ("", "use_pass_material_index", "Material Index"), ("", "use_pass_shadow", "Shadow"),
+    ("", "use_pass_ambient_occlusion", "Ambient Occlusion"),
+    ("", "use_pass_emit", "Emission (Cycles'; the Photon Mapping Emission effect pass is ours)"),
+    ("", "use_pass_environment", "Environment"),
+    ("", "use_pass_diffuse_direct", "Diffuse Direct"),
+    ("", "use_pass_diffuse_indirect", "Diffuse Indirect"),
+    ("", "use_pass_glossy_direct", "Glossy Direct"),
+    ("", "use_pass_glossy_indirect", "Glossy Indirect"),
+    ("", "use_pass_transmission_direct", "Transmission Direct"),
+    ("", "use_pass_transmission_indirect", "Transmission Indirect"),
+    ("", "use_pass_subsurface_direct", "Subsurface Direct"),
+    ("", "use_pass_subsurface_indirect", "Subsurface Indirect"),
+    ("", "use_pass_subsurface_color", "Subsurface Color"),
+    ("", "use_pass_cryptomatte_object", "Cryptomatte Object"),
+    ("", "use_pass_cryptomatte_material", "Cryptomatte Material"),
+    ("", "use_pass_cryptomatte_asset", "Cryptomatte Asset"),
+    ("", "use_pass_grease_pencil", "Grease Pencil"),
+    ("cycles", "use_pass_volume_direct", "Volume Direct"),
+    ("cycles", "use_pass_volume_indirect", "Volume Indirect"),
+    ("cycles", "use_pass_shadow_catcher", "Shadow Catcher"),
+    ("cycles", "pass_render_time", "Render Time"),
+)
+
+
+def _denoising_data(view_layer) -> bool:
+    """The view layer asks for Denoising Data (Cycles' switch; False without Cycles)."""
+    return bool(getattr(getattr(view_layer, "cycles", None), "denoising_store_passes", False))
+
+
+def data_passes(view_layer) -> tuple:
+    """RenderSettings.data_passes for the passes view_layer asks for."""
+    out = []
+    if _denoising_data(view_layer):
+        out.append("denoising")
+    if any(getattr(view_layer, switch, False) for switch, _, _ in COLOR_PASSES):
+        out.append("color")
+    return tuple(out)
+
+
+def unmade_passes_warning(view_layer, adaptive: bool = False):
+    """One warning naming the passes view_layer asks for that the engine does not make
+    (they stay empty), or None."""
+    names = []
+    for owner, switch, label in UNMADE_PASSES:
+        holder = getattr(view_layer, owner, None) if owner else view_layer
+        if holder is not None and bool(getattr(holder, switch, False)):
+            names.append(label)
+    cyc = getattr(view_layer, "cycles", None)
+    if not adaptive and bool(getattr(cyc, "pass_debug_sample_count", False)):
+        names.append("Debug Sample Count (made with adaptive sampling only)")
+    names += [f"Shader AOV '{a.name}'" for a in getattr(view_layer, "aovs", ())]
+    names += [f"Light Group '{g.name}'" for g in getattr(view_layer, "lightgroups", ())]
+    if not names:
+        return None
+    return (f"view layer '{view_layer.name}' asks for passes Photon Mapping does not make "
+            f"(left empty): {', '.join(names)}")
 
 
 def _adaptive(scene) -> bool:
@@ -148,6 +231,12 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.register_pass(scene, renderlayer, "Depth", 1, "Z", "VALUE")
         if renderlayer.use_pass_normal:
             self.register_pass(scene, renderlayer, "Normal", 3, "XYZ", "VECTOR")
+        if _denoising_data(renderlayer):
+            for name, _, channels, chan_id, kind in DENOISING_PASSES:
+                self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+        for switch, name, _ in _color_passes():
+            if getattr(renderlayer, switch, False):
+                self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         if _adaptive(scene):
             self.register_pass(scene, renderlayer, SAMPLE_COUNT_PASS, 1, "X", "VALUE")
 
@@ -237,7 +326,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         kwargs = props.to_settings_kwargs(render.film_transparent)
         if props.use_animated_seed:
             kwargs["seed"] = frame_seed(props.seed, scene.frame_current)
+        kwargs["data_passes"] = data_passes(view_layer)
         settings = pm.RenderSettings(**kwargs)
+        unmade = unmade_passes_warning(view_layer, _adaptive(scene))
+        if unmade is not None:  # said with the export's warnings, kept in film.warnings
+            pm_scene.warnings.append(unmade)
         # Refuse what cannot fit before anything big is allocated (Blender's render result
         # included); raises ResourceError with the setting and the estimate.
         pm.resources.check_resources(pm_scene, settings, region, progressive=props.progressive,
@@ -376,6 +469,12 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self.add_pass("Depth", 1, "Z", layer=layer)
         if view_layer.use_pass_normal:
             self.add_pass("Normal", 3, "XYZ", layer=layer)
+        if _denoising_data(view_layer):
+            for name, _, channels, chan_id, _ in DENOISING_PASSES:
+                self.add_pass(name, channels, chan_id, layer=layer)
+        for switch, name, _ in _color_passes():
+            if getattr(view_layer, switch, False):
+                self.add_pass(name, 3, "RGB", layer=layer)
         if sample_count:
             self.add_pass(SAMPLE_COUNT_PASS, 1, "X", layer=layer)
 
@@ -395,6 +494,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             depth = np.where(np.isfinite(film.depth), film.depth, BACKGROUND_DEPTH)
             buffers["Depth"] = depth[:, :, None]
             buffers["Normal"] = film.normal
+            data = getattr(film, "data", None) or {}
+            for name, key in ([(p[0], p[1]) for p in DENOISING_PASSES]
+                              + [(p[1], p[2]) for p in _color_passes()]):
+                if key in data:
+                    buffers[name] = data[key] if data[key].ndim == 3 else data[key][:, :, None]
             if film.sample_count is not None:  # the share of Samples each pixel took
                 spp = float(film.stats.get("adaptive_spp") or film.sample_count.max() or 1.0)
                 buffers[SAMPLE_COUNT_PASS] = (film.sample_count / spp)[:, :, None]

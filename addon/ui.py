@@ -259,6 +259,14 @@ class PHOTONMAP_PT_passes(PhotonMapButtonsPanel, bpy.types.Panel):
         col.prop(vl.photonmap, "use_pass_photon_hits")
         col.prop(vl, "use_pass_z")
         col.prop(vl, "use_pass_normal")
+        # Cycles' data passes we make (engine/datapasses.py); Denoising Data is Cycles'
+        # own switch (absent without Cycles).
+        if getattr(vl, "cycles", None) is not None:
+            col.prop(vl.cycles, "denoising_store_passes", text="Denoising Data")
+        col = layout.column(heading="Color")
+        col.prop(vl, "use_pass_diffuse_color", text="Diffuse")
+        col.prop(vl, "use_pass_glossy_color", text="Glossy")
+        col.prop(vl, "use_pass_transmission_color", text="Transmission")
 
 
 class PHOTONMAP_PT_progressive(PhotonMapButtonsPanel, bpy.types.Panel):

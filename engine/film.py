@@ -29,6 +29,10 @@ class Film:
     # Camera samples each pixel took (H,W) float32, Cycles' "Sample Count" debug pass:
     # set by adaptive sampling only (engine/adaptive.py; None: every pixel took spp)
     sample_count: np.ndarray = None
+    # Cycles' data passes the settings asked for (engine/datapasses.py): key ->
+    # (H,W,3) or (H,W) float32 per-sample averages (Denoising Normal / Albedo / Depth,
+    # Diffuse / Glossy / Transmission Color)
+    data: dict = field(default_factory=dict)
     show_photons: bool = False
     stats: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
@@ -59,4 +63,6 @@ class Film:
                "normal": self.normal, "alpha": self.alpha}
         if self.sample_count is not None:
             out["sample_count"] = self.sample_count
+        # (self.data, Cycles' data passes, stays apart: the add-on writes them into
+        # Blender's render result; the CLI's --save-passes writes the effect passes.)
         return out

@@ -25,7 +25,7 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from . import adaptive, chaincounts
+from . import adaptive, chaincounts, datapasses
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -1203,6 +1203,9 @@ class Accumulator:
         self.depth_sum = np.zeros(npix)
         self.depth_n = np.zeros(npix)
         self.normal = np.zeros((npix, 3))
+        # Cycles' data passes asked for (engine/datapasses.py: key -> (npix,3) or (npix,)
+        # sums), made when a bounce first writes them.
+        self.data = {}
 
     def add(self, name, pix, rgb, tp=None, rows=None):
         """Add rgb (K,3) into pass `name`: at pixels pix (K,), or with rows (K,) int64
@@ -1238,6 +1241,14 @@ class Accumulator:
                              (self.depth_sum, part.depth_sum),
                              (self.depth_n, part.depth_n), (self.normal, part.normal)):
             mine[a:b] += theirs
+        for key, theirs in part.data.items():
+            self._data(key, theirs)[a:b] += theirs
+
+    def _data(self, key, like):
+        """This accumulator's data pass `key`, zeros of like's row shape when new."""
+        if key not in self.data:
+            self.data[key] = np.zeros((self.npix,) + like.shape[1:])
+        return self.data[key]
 
 
 _ALL_ROWS = np.zeros(0, np.int64)  # film_add: every row, in order
@@ -1419,6 +1430,8 @@ def _add_round(acc, racc, active, half):
                          (acc.depth_sum, racc.depth_sum), (acc.depth_n, racc.depth_n),
                          (acc.normal, racc.normal)):
         mine[active] += theirs[0::2] + theirs[1::2]
+    for key, theirs in racc.data.items():
+        acc._data(key, theirs)[active] += theirs[0::2] + theirs[1::2]
 
 
 def _render_round_chunk(ctx, region, r, R, active, in_a, ci, start, end, should_cancel,
@@ -1538,6 +1551,9 @@ def _write_film(film, acc, spp, rh, rw):
         nrm = acc.normal / np.maximum(np.linalg.norm(acc.normal, axis=1), 1e-300)[:, None]
     film.depth[...] = depth.reshape(rh, rw)
     film.normal[...] = nrm.reshape(rh, rw, 3)
+    for key, total in acc.data.items():  # per-sample averages (Cycles' render buffer)
+        per = inv if total.ndim == 2 else inv1
+        film.data[key] = (total * per).reshape((rh, rw) + total.shape[1:]).astype(np.float32)
 
 
 class BounceBuffers:
@@ -1638,6 +1654,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # diffuse-only hit's are left unwritten by shade_lobes).
     glass_mat = np.asarray(ctx.table.closure_params)[:, pr.M_TRANS] > 0
     glass_rng = None  # glasslight's numbers, made when first needed
+    # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
+    # features; the camera's axes as rows (Cycles' worldtocamera for directions).
+    want_data = s.data_passes
+    feat = np.ones(len(o), bool) if "denoising" in want_data else None
+    ftp = np.ones((len(o), 3)) if feat is not None else None
+    to_camera = (np.stack([cam.rotation[:, 0], cam.rotation[:, 1], -cam.rotation[:, 2]])
+                 if want_data else None)
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1668,6 +1691,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     L = L * _mis_weight(ctx, li, light, om, d[rows], tm,
                                         pdf_b[rows], org_ns[rows], org_p[rows])[:, None]
                 acc.add(target, pix, L, tp, rows)
+                datapasses.add_light(acc, pix, rows, tp, ftp, feat, L)
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
@@ -1700,6 +1724,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                         np.take(org_p, missed, axis=0))[:, None]
                             radiance = radiance + sun
                 acc.add(target, pix, radiance, tp, missed)
+                datapasses.add_light(acc, pix, missed, tp, ftp, feat, radiance)
         hitm = prim >= 0
         if has_holdout and hitm.any():
             # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
@@ -1726,6 +1751,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             chain = np.take(chain, kept, axis=0)
             if may_split is not None:
                 may_split = may_split[kept]
+            if feat is not None:
+                feat, ftp = feat[kept], ftp[kept]
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -1779,6 +1806,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         ctx, modes, prim, om, d, tm, hit.ng, pdf_b, op,
                         org_ns if kept is None else org_ns[kept])[:, None]
                 acc.add(target, pix, Le, tp)
+                if feat is not None:
+                    datapasses.add_light(acc, pix, np.arange(len(pix)), tp, ftp, feat, Le)
+        if want_data:
+            # (After the emission, as Cycles; before the limits' cut: it writes these at
+            # every surface it meets.)
+            feat, ftp = datapasses.add_hits(acc, want_data, ctx.table, hit, pix, tp, t, feat,
+                                            ftp, ray_cls == CAMERA, to_camera)
         if bounce == 0 and MIRROR_NO_ROULETTE:
             mirror_survival(prm if hit.prm is None else hit.prm, p, psum, q, sel)
         choice = (sel, q, p, psum)
@@ -1892,5 +1926,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         pix = pix[keep]
         sample_id = sample_id[keep]
         travelled = travelled[keep]
+        if feat is not None:
+            feat, ftp = feat[keep], ftp[keep]
         tmax = None
         counters.specular_rays += len(o)

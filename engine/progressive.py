@@ -149,6 +149,7 @@ class PassMerger:
         self.extra = {"alpha": np.zeros((h, w)), "holdout": np.zeros((h, w)),
                       "normal": np.zeros((h, w, 3)), "photon_hits": np.zeros((h, w, 3))}
         self.depth = np.full((h, w), np.inf)
+        self.data = {}
         self.film = Film(w, h, show_photons=show_photons)
         self.passes = 0
         self.photons = 0
@@ -171,9 +172,15 @@ class PassMerger:
             if value is not None:
                 self.extra[name] += value
         self.depth = np.minimum(self.depth, one.depth)
+        # Cycles' data passes (engine/datapasses.py): averaged over the passes as the
+        # effects are (each pass' film holds its per-sample averages).
+        for key, value in getattr(one, "data", {}).items():
+            self.data[key] = self.data.get(key, 0.0) + value.astype(np.float64)
         if self.counts[0] and self.counts[1]:
             self.error = half_error(self.halves[0] / self.counts[0], self.halves[1] / self.counts[1])
         _fill(self.film, self.sums, self.extra, self.depth, i)
+        for key, total in self.data.items():
+            self.film.data[key] = (total / i).astype(np.float32)
 
 
 def render_progressive(scene: Scene, settings: RenderSettings | None = None,

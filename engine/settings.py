@@ -50,6 +50,10 @@ FILTER_WIDTH_MAX = 500.0  # pixels: Blender's limit for the filter size
 CYCLES_DEFAULT_BOUNCES = (12, 4, 4, 12)
 
 
+# RenderSettings.data_passes' values (engine/datapasses.py)
+DATA_PASSES = ("color", "denoising")
+
+
 @dataclass
 class RenderSettings:
     # Pass 1 (photons)
@@ -116,6 +120,10 @@ class RenderSettings:
     photon_importance: bool = True
     show_photons: bool = False      # the image shows the photon-hit view (Fig. 6 left)
     film_transparent: bool = False  # background not drawn (alpha 0), as Blender's option
+    # Cycles' data passes to make besides the image (engine/datapasses.py): "denoising"
+    # (Denoising Normal / Albedo / Depth), "color" (Diffuse / Glossy / Transmission Color).
+    # Extra outputs: the image's bits do not depend on them.
+    data_passes: tuple = ()
     # The paper's own method (docs/paper_mode.md): its classic estimator (cosine-weighted,
     # fixed radius: `radius` is the paper's MaxPhotonSearchRadius in scene units, metres)
     # and no final gathering; overrides `estimator` and `final_gather`.
@@ -198,6 +206,12 @@ class RenderSettings:
                              f"from 0 (off) to {ADAPTIVE_THRESHOLD_MAX:g}, got "
                              f"{self.adaptive_threshold!r}")
         self.adaptive_threshold = t
+        dp = (self.data_passes,) if isinstance(self.data_passes, str) else self.data_passes
+        dp = tuple(sorted(set(str(v).lower() for v in (dp or ()))))
+        if any(v not in DATA_PASSES for v in dp):
+            raise ValueError(f"setting 'data_passes' takes {', '.join(DATA_PASSES)}, got "
+                             f"{self.data_passes!r}")
+        self.data_passes = dp
         self.min_photons = min(self.min_photons, self.k_nearest)
         if self.paper_mode:
             self.estimator, self.final_gather = "classic", False

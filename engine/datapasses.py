@@ -1,0 +1,194 @@
+"""Cycles' data passes along the camera paths: Denoising Normal / Albedo / Depth and
+Diffuse / Glossy / Transmission Color (RenderSettings.data_passes "denoising", "color").
+
+Extra outputs summed per pixel beside the effect passes and divided by the pixel's
+samples (per-sample averages, as Cycles' render buffer): they draw no random number and
+change no path, so the image keeps its bits.
+
+Definitions, from Cycles' kernel (intern/cycles/kernel/film/denoising_passes.h,
+film_write_denoising_features_surface; kernel/film/data_passes.h, film_write_data_passes;
+kernel/integrator/surface_shader.h, surface_shader_diffuse / _glossy / _transmission):
+
+- Denoising features follow a camera path through near-specular surfaces and are written
+  at the first surface where the non-specular closures hold more than 25 % of the sample
+  weight (a closure is non-specular when its roughness squared alpha^2 exceeds 0.075^2;
+  diffuse and sheen always are). There: albedo = feature throughput x the sum of the
+  non-specular closures' albedo; normal = the closures' normal (camera space: x right,
+  y up, z forward, Cycles' worldtocamera) weighted by sample weight; the path stops
+  writing features. At a near-specular surface the feature throughput is multiplied by
+  the specular closures' albedo and the path goes on. Denoising Depth adds
+  average(feature throughput) x the ray segment's length at every surface the features
+  pass (a direct diffuse hit: its distance from the camera).
+  Here the feature throughput is the path's own throughput tp (the continued lobe's
+  weight / its probability): the same expectation as Cycles' product of specular
+  albedos where the surface has specular closures only (mirrors, clear glass, the
+  transparent pass); where rough closures share a mostly specular surface it differs
+  (Cycles' continuation may take the rough closure, ours never does: docs/compatibility.md).
+- Colour passes: at every surface a camera ray meets, directly or through transparent
+  passes (our CAMERA ray class), throughput x the albedo of the diffuse closures (diffuse,
+  sheen: Cycles counts sheen as diffuse), of the glossy ones (metal, specular layer, coat,
+  the glass lobe's reflection) and of the transmission ones (the glass lobe's
+  refraction). Albedos are the closures' estimates principled.setup gives (Cycles'
+  bsdf_albedo / the closures' sample weights).
+
+Shapes: pix (N,) int64 pixel rows; tp (N,3) float64 path throughput; t (N,) segment
+lengths (m). Passes are stored in Accumulator.data (name -> (P,3) or (P,) float64 sums).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .camerakernels import film_add, film_add_scalar, hit_closures
+from .closures import principled as pr
+
+# Blender pass name -> (Accumulator.data key, channels), in the order they are made.
+DENOISING = (("Denoising Normal", "denoising_normal", 3),
+             ("Denoising Albedo", "denoising_albedo", 3),
+             ("Denoising Depth", "denoising_depth", 1))
+COLOR = (("Diffuse Color", "diffuse_color", 3),
+         ("Glossy Color", "glossy_color", 3),
+         ("Transmission Color", "transmission_color", 3))
+PASSES = {"denoising": DENOISING, "color": COLOR}
+
+# Cycles' cut between specular-like and diffuse-like closures for the denoising features:
+# bsdf_get_specular_roughness_squared(sc) > sqr(0.075f), i.e. GGX alpha > 0.075.
+SPECULAR_ALPHA = 0.075
+# Lobes (principled.L_*) by colour pass (surface_shader_diffuse / _glossy / _transmission).
+DIFFUSE_LOBES = (pr.L_DIFFUSE, pr.L_SHEEN)
+GLOSSY_LOBES = (pr.L_METAL, pr.L_GLASS_R, pr.L_SPEC, pr.L_COAT)
+TRANSMISSION_LOBES = (pr.L_GLASS_T,)
+_NO_ROWS = np.zeros(0, np.int64)
+_NO_ALPHA = np.zeros(0)
+
+
+def keys(data_passes) -> list[tuple[str, str, int]]:
+    """(Blender name, data key, channels) of the passes RenderSettings.data_passes asks for."""
+    return [p for name in ("denoising", "color") if name in data_passes
+            for p in PASSES[name]]
+
+
+def lobe_albedo(table, hit):
+    """(prm (N, N_PACK), albedo (N, N_LOBES, 3)) of the hits, as bsdf.closures computes
+    them, in fresh arrays: the hit keeps its own prm (the camera bounce reads it)."""
+    n = len(hit.mat)
+    per_hit = getattr(hit, "params", None) is not None
+    alpha = getattr(hit, "alpha", None)
+    alpha = _NO_ALPHA if alpha is None else np.ascontiguousarray(alpha, np.float64)
+    prm = np.empty((n, pr.N_PACK))
+    albedo = np.empty((n, pr.N_LOBES, 3))
+    c = np.ascontiguousarray
+    hit_closures(c(hit.ns, np.float64), c(hit.ng, np.float64), c(hit.wo, np.float64),
+                 c(hit.mat, np.int64), hit.params if per_hit else table.closure_params,
+                 per_hit, c(hit.base, np.float64), c(hit.front, np.bool_),
+                 c(table.alpha, np.float64), alpha, prm, albedo)
+    return prm, albedo
+
+
+def lobe_alpha(prm):
+    """(N, N_LOBES) each lobe's GGX alpha (roughness^2); diffuse and sheen 1, the
+    transparent pass 0 (a delta: specular-like, as Cycles' transparent BSDF)."""
+    n = prm.shape[0]
+    a = np.zeros((n, pr.N_LOBES))
+    a[:, pr.L_DIFFUSE] = a[:, pr.L_SHEEN] = 1.0
+    a[:, pr.L_METAL] = prm[:, pr.P_METAL_ALPHA]
+    a[:, pr.L_GLASS_R] = a[:, pr.L_GLASS_T] = prm[:, pr.P_GLASS_ALPHA]
+    a[:, pr.L_SPEC] = prm[:, pr.P_SPEC_ALPHA]
+    a[:, pr.L_COAT] = prm[:, pr.P_COAT_ALPHA]
+    return a
+
+
+def _buf(acc, key, channels):
+    buf = acc.data.get(key)
+    if buf is None:
+        buf = acc.data[key] = np.zeros((acc.npix, 3) if channels == 3 else acc.npix)
+    return buf
+
+
+def add_light(acc, pix, rows, tp, ftp, feat, L):
+    """Emission or background radiance L (K,3) met by paths rows (K,) (before tp):
+    where the paths still carry denoising features, tp x ftp x L into the albedo
+    (Cycles' film_write_emission_or_background_pass: feature throughput x contribution,
+    the contribution being path throughput x L x its MIS weight)."""
+    if feat is None or len(rows) == 0:
+        return
+    keep = feat[rows]
+    if not keep.any():
+        return
+    rows = np.ascontiguousarray(rows[keep], np.int64)
+    rgb = np.ascontiguousarray(np.asarray(L, np.float64)[keep] * ftp[rows])
+    film_add(_buf(acc, "denoising_albedo", 3), acc.lo, np.ascontiguousarray(pix, np.int64),
+             rows, np.ascontiguousarray(tp, np.float64), rgb)
+
+
+def add_hits(acc, want, table, hit, pix, tp, t, feat, ftp, on_camera_chain,
+             world_to_camera):
+    """One bounce's hits into acc's data passes. want: RenderSettings.data_passes; feat
+    (N,) bool: the paths still carrying denoising features (None without "denoising");
+    ftp (N,3): their feature throughput, Cycles' product of the specular albedos met
+    (None without "denoising"); on_camera_chain (N,) bool: reached by the camera ray or
+    transparent passes only; world_to_camera (3,3): rows = the camera's right, up and
+    forward axes. Returns (feat, ftp) after this bounce: feat False where the features
+    were written, ftp times the specular albedo where they go on.
+
+    Weights, so that the expectation over our lobe choice (tp = the chosen lobe's weight
+    / its probability, or a split's weight) is Cycles' over its choice (probability
+    sample weight / all): albedo and depth x tp, as Cycles' x feature throughput; the
+    normal, which Cycles writes unweighted, x average(tp) / average(ftp). Exact where
+    the surfaces passed are specular only."""
+    n = len(pix)
+    if n == 0:
+        return feat, ftp
+    rows_c = np.nonzero(on_camera_chain)[0] if "color" in want else _NO_ROWS
+    rows_f = np.nonzero(feat)[0] if feat is not None else _NO_ROWS
+    if len(rows_c) == 0 and len(rows_f) == 0:
+        return feat, ftp
+    prm, alb = lobe_albedo(table, hit)
+    pix = np.ascontiguousarray(pix, np.int64)
+    tp = np.ascontiguousarray(tp, np.float64)
+    every_c = len(rows_c) == n  # (the first bounce: every row, no gathers)
+    if len(rows_c):
+        for (_, key, ch), lobes in zip(COLOR, (DIFFUSE_LOBES, GLOSSY_LOBES,
+                                               TRANSMISSION_LOBES)):
+            rgb = alb[:, lobes[0]].copy()
+            for lobe in lobes[1:]:
+                rgb += alb[:, lobe]
+            film_add(_buf(acc, key, ch), acc.lo, pix, _NO_ROWS if every_c else rows_c, tp,
+                     rgb if every_c else rgb[rows_c])
+    if len(rows_f):
+        weight = np.abs(alb.sum(axis=2))                  # Cycles' sample_weight (x 3)
+        rough = lobe_alpha(prm) > SPECULAR_ALPHA          # diffuse-like lobes
+        total = weight.sum(axis=1)
+        nonspec = (weight * rough).sum(axis=1)
+        depth = tp[rows_f].mean(axis=1) * np.asarray(t, np.float64)[rows_f]
+        film_add_scalar(_buf(acc, "denoising_depth", 1), acc.lo,
+                        np.ascontiguousarray(pix[rows_f]), np.ascontiguousarray(depth))
+        stop = np.zeros(n, bool)
+        stop[rows_f] = True
+        stop &= (total == 0.0) | (nonspec * 4.0 > total)
+        done = np.nonzero(stop)[0]
+        if len(done):
+            # The closures share the shading normal, turned to the ray's side (hit.ns,
+            # as Cycles' sd->N on a back face); with no BSDF closure (an emitter alone)
+            # Cycles writes a zero normal.
+            w = tp[done].mean(axis=1) / np.maximum(ftp[done].mean(axis=1), 1e-300)
+            w[total[done] == 0.0] = 0.0
+            nrm = (hit.ns[done] @ world_to_camera.T) * w[:, None]
+            film_add(_buf(acc, "denoising_normal", 3), acc.lo,
+                     np.ascontiguousarray(pix[done]), _NO_ROWS, np.zeros((0, 3)),
+                     np.ascontiguousarray(nrm))
+            a, r = alb[done], rough[done]
+            diffuse = np.zeros((len(done), 3))
+            for lobe in range(pr.N_LOBES):  # (K,8,3) x mask summed lobe by lobe
+                diffuse += a[:, lobe] * r[:, lobe, None]
+            film_add(_buf(acc, "denoising_albedo", 3), acc.lo, pix, done, tp, diffuse)
+            feat = feat.copy()
+            feat[done] = False
+        go = np.nonzero(feat)[0] if len(done) else rows_f
+        if len(go):
+            ftp = ftp.copy()
+            spec = np.zeros((len(go), 3))
+            a, r = alb[go], rough[go]
+            for lobe in range(pr.N_LOBES):
+                spec += a[:, lobe] * ~r[:, lobe, None]
+            ftp[go] *= spec
+    return feat, ftp
