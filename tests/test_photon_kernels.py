@@ -416,7 +416,7 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
         np.testing.assert_array_equal(v32.astype(np.float64)[hit], v[hit])
         np.testing.assert_array_equal(tfar[hit].astype(np.float64), t[hit])
         # The same query into the caller's arrays (junk before): traced by the kernel
-        # through rtcIntersect1 (a single Embree scene; the pieces are its geometries),
+        # through rtcIntersect8 (a single Embree scene; the pieces are its geometries),
         # embreex's answer bit for bit, misses and tfar included; some rays end short.
         tmax = np.full(m, np.finfo(np.float32).max, np.float32)
         tmax[::5] = rng.random(len(tmax[::5])).astype(np.float32) * 0.5
@@ -454,8 +454,8 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
 
 
 def test_intersect_hits_into_arrays_uses_the_trace_kernel_and_checks_them():
-    """With the embreex wheel's Embree the probe accepts the trace kernel (rtcIntersect1
-    from compiled code answers as embreex's run()), and intersect_hits refuses output
+    """With the embreex wheel's Embree the probes accept the trace kernels (rtcIntersect1
+    and rtcIntersect8 from compiled code answer as embreex's run()), and intersect_hits refuses output
     arrays of the wrong type or length (a short array would be written past its end)."""
     import pytest
 
@@ -463,6 +463,7 @@ def test_intersect_hits_into_arrays_uses_the_trace_kernel_and_checks_them():
 
     if accel_mod._LIBRARY is not None:
         assert accel_mod._kernel_hits_address() != 0
+        assert accel_mod._kernel_packets_address() != 0
     v = np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1]], np.float32)
     accel = Accel(v, np.array([[0, 1, 2]]))
     o = np.array([[0.2, 0.2, 0.0], [5.0, 5.0, 0.0]], np.float32)
