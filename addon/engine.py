@@ -341,9 +341,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         def on_pass(film, info):
             self._write_result(film, view_layer, transparent)
             err = info["error_estimate"]
-            err_text = f"error ~{err:.4f}" if err == err else "error: after pass 2"
-            self._stats(f"Pass {info['passes']} | {info['photons'] / 1e6:.2f} M photons"
-                        f" | {info['elapsed']:.1f} s | {err_text}")
+            # Short enough for the batch bar's 46 columns ("error: after pass 2" was cut).
+            err_text = f"error ~{err:.4f}" if err == err else "error from pass 2"
+            self._stats(f"Pass {info['passes']}: {info['photons'] / 1e6:.2f} M photons, "
+                        f"{info['elapsed']:.0f} s, {err_text}")
             done = []
             if budget.passes:
                 done.append(info["passes"] / budget.passes)
