@@ -115,27 +115,27 @@ _LIBRARY = None if _rtcs is None else _embree_library()
 
 
 # ---------------------------------------------------------------- closest hits in a kernel
-# Accel.intersect traces through Embree's rtcIntersect1 called from a compiled kernel
-# (_intersect_rows), Accel.intersect_hits with output arrays through rtcIntersect8
-# (_intersect_packets): the Embree call embreex's run() makes per ray, without run()'s
-# per-call output arrays (Ng, tfar, ids, u, v: 36 B a ray, fresh pages every call) and
-# its Python-level answer. The ray-hit record is Embree 4's RTCRayHit (rtcore_ray.h), in
-# 32-bit words: org 0-2, tnear 3, dir 4-6, time 7, tfar 8, mask 9, id 10, flags 11; hit
-# (16-byte aligned) Ng 12-14, u 15, v 16, primID 17, geomID 18, instID 19, instPrimID 20.
-# The rays are set up as embreex sets them (tnear 0, time 0, mask all, no arguments), a
-# miss answers as embreex's (primID and geomID -1, u = v = 0), and _rows_agree /
-# _packets_agree check that on a probe before a kernel is used.
+# Accel.intersect (_intersect_rows) and Accel.intersect_hits with output arrays
+# (_intersect_packets) trace through Embree's rtcIntersect8 called from a compiled
+# kernel: the Embree query embreex's run() makes per ray, without run()'s per-call output
+# arrays (Ng, tfar, ids, u, v: 36 B a ray, fresh pages every call) and its Python-level
+# answer. The ray-hit record is Embree 4's RTCRayHit8 (rtcore_ray.h), in 32-bit words of
+# 8 lanes: org 0-2, tnear 3, dir 4-6, time 7, tfar 8, mask 9, id 10, flags 11; hit Ng
+# 12-14, u 15, v 16, primID 17, geomID 18, instID 19, instPrimID 20. The rays are set up
+# as embreex sets them (tnear 0, time 0, mask all, no arguments), a miss answers as
+# embreex's (primID and geomID -1, u = v = 0), and _rows_agree / _packets_agree check
+# that on a probe before a kernel is used.
 _RAYHIT_WORDS = 24
 # Rays an occlusion query traces together (rtcOccluded8): Embree's 8-wide packets are
 # native on AVX2 and AVX-512 (16 lanes measured 21.4 against 23.4 ns a gather-lookup ray
 # on AVX-512; 4 lanes 39.6, one ray at a time 68).
 OCCLUSION_PACKET = 8
-# Rays a closest-hit query into Embree's layout traces together (rtcIntersect8,
-# intersect_hits): the final gather's rays (a pixel's samples' gather rays, consecutive,
-# start near each other) 116 -> 99 ns a ray, the photon pass's 155 -> 141 (Figure 6; 16
-# lanes 127, 4 lanes 107; the same answers bit for bit, docs/performance.md "packets").
-# Accel.intersect's camera-path rays (_intersect_rows) stay one at a time: packets of
-# them measured 186 against 100 ns a ray.
+# Rays a closest-hit query traces together (rtcIntersect8): consecutive rays start near
+# each other (a pixel's samples, a gather point's rays), and 8 lanes beat one ray at a
+# time on every caller (Figure 6, 160x120, thread CPU ns a ray: the final gather's rays
+# 121 -> 98, the camera paths' 100 -> 79, the photon pass's 153 -> 136; 4 lanes 100 /
+# 81 / 138, 16 lanes 120 / 101 / 164; the same answers bit for bit:
+# bench/bench_packets.py, docs/performance.md "packets").
 INTERSECT_PACKET = 8
 _F32_MAX = np.float32(np.finfo(np.float32).max)
 
@@ -148,26 +148,10 @@ except ImportError:  # pragma: no cover - numba is a dependency of the engine
 
 if _intrinsic is not None:
     @_intrinsic
-    def _call_c3(typingctx, fn, a, b):
-        """fn(a, b, NULL) for the C function void fn(void*, void*, void*) at address fn
-        (a, b addresses): how a kernel calls rtcIntersect1 (scene, rayhit, args)."""
-        sig = _types.void(_types.intp, _types.intp, _types.intp)
-
-        def codegen(context, builder, signature, args):
-            f, x, y = args
-            vp = _ir.IntType(8).as_pointer()
-            fnty = _ir.FunctionType(_ir.VoidType(), [vp, vp, vp])
-            builder.call(builder.inttoptr(f, fnty.as_pointer()),
-                         [builder.inttoptr(x, vp), builder.inttoptr(y, vp),
-                          _ir.Constant(vp, None)])
-            return context.get_dummy_value()
-        return sig, codegen
-
-    @_intrinsic
     def _call_c4(typingctx, fn, a, b, c):
         """fn(a, b, c, NULL) for the C function void fn(void*, void*, void*, void*) at
-        address fn (a, b, c addresses): how a kernel calls rtcOccluded8 (valid, scene,
-        ray packet, args)."""
+        address fn (a, b, c addresses): how a kernel calls rtcOccluded8 / rtcIntersect8
+        (valid, scene, ray packet, args)."""
         sig = _types.void(_types.intp, _types.intp, _types.intp, _types.intp)
 
         def codegen(context, builder, signature, args):
@@ -279,48 +263,69 @@ if _intrinsic is not None:
 
     @kernel
     def _intersect_rows(fn, scene, o, d, tmax, starts, t, prim, u, v):
-        """Accel.intersect's answer for one Embree scene, traced through rtcIntersect1 at
-        address fn on the RTCScene at address scene: rays o, d (N,3) float64, rounded to
-        float32 as Embree takes them; tmax (N,) float64 each ray's tmax, rounded to
-        float32 (NaN -> 0, above float32's max -> its max), or (0,): unbounded (float32's
-        max); starts (G,) int64 each geometry's first triangle row. Writes t (N,) float64
-        the hit distance (inf: a miss), prim (N,) int64 the hit triangle's row (-1: a
-        miss), u, v (N,) float64 the float32 barycentrics (0 on a miss): what
-        embreex's run() gives and Accel._intersect_run turns into these arrays, without
-        its float32 copies of the rays, its per-call answer arrays and the numpy passes
-        over them (~18 ns a camera-path ray, docs/performance.md "fig8speed")."""
-        buf = np.empty(2 * _RAYHIT_WORDS, np.float32)
+        """Accel.intersect's answer for one Embree scene, traced through rtcIntersect8 at
+        address fn on the RTCScene at address scene, INTERSECT_PACKET consecutive rays a
+        call (lanes as in _intersect_packets): rays o, d (N,3) float64, rounded to float32
+        as Embree takes them; tmax (N,) float64 each ray's tmax, rounded to float32 (NaN ->
+        0, above float32's max -> its max), or (0,): unbounded (float32's max); starts (G,)
+        int64 each geometry's first triangle row. Writes t (N,) float64 the hit distance
+        (inf: a miss), prim (N,) int64 the hit triangle's row (-1: a miss), u, v (N,)
+        float64 the float32 barycentrics (0 on a miss): what embreex's run() gives and
+        Accel._intersect_run turns into these arrays, without its float32 copies of the
+        rays, its per-call answer arrays and the numpy passes over them (~18 ns a
+        camera-path ray, docs/performance.md "fig8speed")."""
+        w = INTERSECT_PACKET
+        buf = np.empty(21 * w + 16, np.float32)
         start = buf.ctypes.data
-        skip = ((start + 15) & ~15) - start  # RTCRayHit is 16-byte aligned
-        rh = buf[skip // 4:skip // 4 + _RAYHIT_WORDS]
-        ri = rh.view(np.uint32)
+        skip = ((start + 63) & ~63) - start  # 32-byte alignment for 8 lanes
+        r = buf[skip // 4:skip // 4 + 21 * w]
+        ri = r.view(np.uint32)
         at = start + skip
+        vbuf = np.empty(w + 16, np.int32)
+        vstart = vbuf.ctypes.data
+        vskip = ((vstart + 63) & ~63) - vstart
+        valid = vbuf[vskip // 4:vskip // 4 + w]
+        vat = vstart + vskip
         none = np.uint32(0xFFFFFFFF)
         bounded = tmax.shape[0] > 0
-        for i in range(o.shape[0]):
-            rh[0], rh[1], rh[2], rh[3] = o[i, 0], o[i, 1], o[i, 2], 0.0
-            rh[4], rh[5], rh[6], rh[7] = d[i, 0], d[i, 1], d[i, 2], 0.0
-            tf = _F32_MAX
-            if bounded:
-                tf = np.float32(tmax[i])
-                if tf != tf:
-                    tf = np.float32(0.0)
-                elif tf > _F32_MAX:
+        n = o.shape[0]
+        for s in range(0, n, w):
+            e = min(s + w, n)
+            for lane in range(w):
+                i = s + lane
+                if i < e:
+                    valid[lane] = -1
+                    r[lane], r[w + lane], r[2 * w + lane] = o[i, 0], o[i, 1], o[i, 2]
+                    r[3 * w + lane] = 0.0
+                    r[4 * w + lane], r[5 * w + lane], r[6 * w + lane] = d[i, 0], d[i, 1], \
+                        d[i, 2]
+                    r[7 * w + lane] = 0.0
                     tf = _F32_MAX
-            rh[8] = tf
-            ri[9], ri[10], ri[11] = none, 0, 0
-            rh[15], rh[16] = 0.0, 0.0
-            ri[17], ri[18], ri[19], ri[20] = none, none, none, none
-            _call_c3(fn, scene, at)
-            geom = ri[18]
-            if geom != none:
-                prim[i] = starts[geom] + np.int64(ri[17])
-                t[i] = np.float64(rh[8])
-            else:
-                prim[i] = -1
-                t[i] = np.inf
-            u[i] = np.float64(rh[15])
-            v[i] = np.float64(rh[16])
+                    if bounded:
+                        tf = np.float32(tmax[i])
+                        if tf != tf:
+                            tf = np.float32(0.0)
+                        elif tf > _F32_MAX:
+                            tf = _F32_MAX
+                    r[8 * w + lane] = tf
+                    ri[9 * w + lane], ri[10 * w + lane], ri[11 * w + lane] = none, 0, 0
+                    r[15 * w + lane], r[16 * w + lane] = 0.0, 0.0
+                    ri[17 * w + lane], ri[18 * w + lane] = none, none
+                    ri[19 * w + lane], ri[20 * w + lane] = none, none
+                else:
+                    valid[lane] = 0
+            _call_c4(fn, vat, scene, at)
+            for lane in range(e - s):
+                i = s + lane
+                geom = ri[18 * w + lane]
+                if geom != none:
+                    prim[i] = starts[geom] + np.int64(ri[17 * w + lane])
+                    t[i] = np.float64(r[8 * w + lane])
+                else:
+                    prim[i] = -1
+                    t[i] = np.inf
+                u[i] = np.float64(r[15 * w + lane])
+                v[i] = np.float64(r[16 * w + lane])
 
     @register_warm_up
     def _warm_up():
@@ -348,14 +353,15 @@ def _scene_address(scene) -> int:
     return ctypes.c_void_p.from_address(id(scene) + offset).value
 
 
-_KERNEL_ADDRESSES: dict = {}  # Embree symbol -> its address once its probe agreed, 0 if not
+_KERNEL_ADDRESSES: dict = {}  # (Embree symbol, probe) -> its address once the probe agreed, 0 if not
 
 
 def _kernel_address(symbol: str, agrees) -> int:
     """The address of Embree's `symbol` when agrees(address) -> bool finds the kernel that
     calls it answering as embreex's run() on a probe, else 0 (the caller asks run()
     instead); probed once a process, any surprise counting as disagreement."""
-    if symbol not in _KERNEL_ADDRESSES:
+    key = (symbol, agrees.__name__)  # one Embree function may serve two kernels
+    if key not in _KERNEL_ADDRESSES:
         address = 0
         if _LIBRARY is not None and _intrinsic is not None:
             lib, _, ctypes = _LIBRARY
@@ -364,8 +370,8 @@ def _kernel_address(symbol: str, agrees) -> int:
                 address = fn if agrees(fn) else 0
             except Exception:  # noqa: BLE001 - any surprise: run()'s answer instead
                 address = 0
-        _KERNEL_ADDRESSES[symbol] = address
-    return _KERNEL_ADDRESSES[symbol]
+        _KERNEL_ADDRESSES[key] = address
+    return _KERNEL_ADDRESSES[key]
 
 
 def _probe_rays(seed: int, n: int, short_every: int):
@@ -381,17 +387,18 @@ def _probe_rays(seed: int, n: int, short_every: int):
 
 
 def _kernel_hits_address() -> int:
-    """rtcIntersect1's address when the trace kernel (_intersect_rows) answers as
-    embreex's run() on a probe (hits, misses, a ray stopped short by tmax), else 0
-    (Accel.intersect then asks run())."""
-    return _kernel_address("rtcIntersect1", _rows_agree)
+    """rtcIntersect8's address when the trace kernel (_intersect_rows) answers as
+    embreex's run() on a probe (hits, misses, a ray stopped short by tmax, a last packet
+    with missing lanes), else 0 (Accel.intersect then asks run())."""
+    return _kernel_address("rtcIntersect8", _rows_agree)
 
 
 def _rows_agree(fn) -> bool:
-    acc, o, d, tf = _probe_rays(5, 256, 7)
+    acc, o, d, tf = _probe_rays(5, 8 * 32 + 5, 7)
     tmax = tf.astype(np.float64)
     want = acc._intersect_run(o, d, tmax)
-    got = (np.empty(256), np.empty(256, np.int64), np.empty(256), np.empty(256))
+    n = len(o)
+    got = (np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n))
     _intersect_rows(fn, _scene_address(acc._scene), o.astype(np.float64),
                     d.astype(np.float64), tmax, acc._blocks[0].starts, *got)
     same = all(np.array_equal(a.view(np.uint8), b.view(np.uint8)) for a, b in zip(got, want))
@@ -634,7 +641,7 @@ class Accel:
     def intersect(self, origins, directions, tmax=None):
         """Closest hits. Returns (t, prim, u, v); prim = -1 where the ray misses.
         Directions should be unit length: t is in units of |direction|.
-        One Embree scene: traced by a compiled kernel through rtcIntersect1 where the
+        One Embree scene: traced by a compiled kernel through rtcIntersect8 where the
         probe allows (_intersect_rows), the same arrays bit for bit as embreex's run()
         (_intersect_run, the fallback)."""
         # (_LIBRARY read here too: the scene's address comes through it.)

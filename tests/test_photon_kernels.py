@@ -275,7 +275,7 @@ def _room_with_fine_ball():
 
 
 def test_intersect_traced_in_a_kernel_is_embreex_answer_bit_for_bit():
-    """Accel.intersect through the compiled rtcIntersect1 loop (_intersect_rows) gives
+    """Accel.intersect through the compiled rtcIntersect8 loop (_intersect_rows) gives
     the arrays embreex's run() gives (_intersect_run): t, prim, u, v with their dtypes,
     bit for bit, on a mesh in several pieces (hits in later geometries), for float64 and
     float32 rays, unbounded and bounded tmax (short rays, NaN, inf, float32's max and
@@ -283,7 +283,7 @@ def test_intersect_traced_in_a_kernel_is_embreex_answer_bit_for_bit():
     from engine import accel as accel_mod
 
     if not accel_mod._kernel_hits_address():
-        pytest.skip("rtcIntersect1 not reachable from a kernel here")
+        pytest.skip("rtcIntersect8 not reachable from a kernel here")
     geo, _ = _room_with_fine_ball()
     rng = np.random.default_rng(22)
     m = 3 * accel_mod.MIN_PER_THREAD
@@ -454,8 +454,8 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
 
 
 def test_intersect_hits_into_arrays_uses_the_trace_kernel_and_checks_them():
-    """With the embreex wheel's Embree the probes accept the trace kernels (rtcIntersect1
-    and rtcIntersect8 from compiled code answer as embreex's run()), and intersect_hits refuses output
+    """With the embreex wheel's Embree the probes accept the trace kernels (rtcIntersect8
+    from compiled code answers as embreex's run()), and intersect_hits refuses output
     arrays of the wrong type or length (a short array would be written past its end)."""
     import pytest
 
