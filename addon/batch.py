@@ -273,8 +273,10 @@ class _LineWriter:
 
 
 def parse_args(argv):
+    # No abbreviations (engine/cli.py's reason: '--photon 100' was taken as --photons).
     p = argparse.ArgumentParser(prog="python -m addon.batch",
-                                description="Render a .blend with the Photon Mapping engine.")
+                                description="Render a .blend with the Photon Mapping engine.",
+                                allow_abbrev=False)
     p.add_argument("blend", help="the .blend file to render")
     p.add_argument("-o", "--output", required=True, help="output image (.png, .exr, ...)")
     # The engine CLI's names (--spp, --workers) are accepted as well: one user runs both.

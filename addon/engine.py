@@ -160,6 +160,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self._last_stats = 0.0
+        self._last_stage = None  # a new stage's first text is always shown (not throttled)
         self._listeners = []
         self._viewport = None  # rendered viewport (addon/viewport.py)
 
@@ -209,6 +210,16 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
     def _stats(self, text):
         self.update_stats("", text)
         self._emit("stats", text)
+
+    def _throttled_stats(self, stage, fraction, text):
+        """The stats line at most every 0.1 s, except a stage's first text and its end: a
+        stage that starts right after another finished ("Building photon map" after the
+        last photons) would otherwise show the finished one's text while it runs."""
+        now = time.perf_counter()
+        if stage != self._last_stage or fraction >= 1.0 or now - self._last_stats > 0.1:
+            self._last_stage = stage
+            self._last_stats = now
+            self._stats(text)
 
     def _progress(self, fraction):
         self.update_progress(fraction)
@@ -360,10 +371,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
 
         def progress(stage, fraction, text):
             self._progress(_overall_fraction(stage, fraction, settings.uses_photon_maps))
-            now = time.perf_counter()
-            if now - self._last_stats > 0.1 or fraction >= 1.0:
-                self._last_stats = now
-                self._stats(text)
+            self._throttled_stats(stage, fraction, text)
 
         t0 = time.perf_counter()
         if props.progressive or props.dask_scheduler.strip():  # a cluster renders passes
@@ -387,7 +395,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         last_render.update(width=film.width, height=film.height, full_size=(width, height),
                            region=region, stats=stats, warnings=list(film.warnings),
                            export=dict(info), cancelled=cancelled, time=elapsed)
-        self._progress(1.0)
+        if not cancelled:  # a cancelled render's bar stays where it stopped
+            self._progress(1.0)
         self._emit("film", film)  # the engine's Film, for scripts (batch --save-passes)
         effects = list(film.stats.get("effects", []) or [])
         self._emit("effects", effects)
@@ -420,17 +429,15 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                            target_error=props.target_error or None)
 
         def pass_progress(stage, fraction, text):
-            now = time.perf_counter()
-            if now - self._last_stats > 0.1:
-                self._last_stats = now
-                self._stats(text)
+            self._throttled_stats(stage, fraction, text)
 
         def on_pass(film, info):
             self._write_result(film, view_layer, transparent)
             err = info["error_estimate"]
-            err_text = f"error ~{err:.4f}" if err == err else "error: after pass 2"
-            self._stats(f"Pass {info['passes']} | {info['photons'] / 1e6:.2f} M photons"
-                        f" | {info['elapsed']:.1f} s | {err_text}")
+            # Short enough for the batch bar's 46 columns ("error: after pass 2" was cut).
+            err_text = f"error ~{err:.4f}" if err == err else "error from pass 2"
+            self._stats(f"Pass {info['passes']}: {info['photons'] / 1e6:.2f} M photons, "
+                        f"{info['elapsed']:.0f} s, {err_text}")
             done = []
             if budget.passes:
                 done.append(info["passes"] / budget.passes)

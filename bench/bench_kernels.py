@@ -374,7 +374,7 @@ for (path, line, name), (cc, nc, tt, ct, callers) in pr.stats.items():
     elif name in ("_gather_candidates", "morton_order", "_agreeing_lists", "_list_rays",
                   "_pick_visible"):
         parts["lookup"] += tt
-    elif base == "accel.py" and name in ("work", "_occluded", "_intersect1"):
+    elif base == "accel.py" and name in ("work", "_occluded", "_intersect_packets"):
         parts["embree"] += tt
     elif (base, name) in kernels:
         parts["kernels"] += tt

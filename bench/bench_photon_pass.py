@@ -146,7 +146,7 @@ def print_embree_calls(rec, log):
         calls["Accel.intersect_hits"] = lambda o, d, t: Accel.intersect_hits(acc, o, d, t.copy())
     import inspect
     if "out" in inspect.signature(Accel.intersect_hits).parameters:
-        # Into reused arrays, traced by the kernel through rtcIntersect1 (the photon
+        # Into reused arrays, traced by the kernel through rtcIntersect8 (the photon
         # pass's call since the eleventh slice).
         n = max((len(e[1]) for e in log), default=0)
         ids, uv = np.empty((2, n), np.int32), np.empty((2, n), np.float32)

@@ -115,20 +115,28 @@ _LIBRARY = None if _rtcs is None else _embree_library()
 
 
 # ---------------------------------------------------------------- closest hits in a kernel
-# Accel.intersect_hits with output arrays traces through Embree's rtcIntersect1 called from
-# a compiled kernel: the same Embree call embreex's run() makes per ray, without run()'s
-# per-call output arrays (Ng, tfar, ids, u, v: 36 B a ray, fresh pages every call) and
-# its Python-level answer. The ray-hit record is Embree 4's RTCRayHit (rtcore_ray.h), in
-# 32-bit words: org 0-2, tnear 3, dir 4-6, time 7, tfar 8, mask 9, id 10, flags 11; hit
-# (16-byte aligned) Ng 12-14, u 15, v 16, primID 17, geomID 18, instID 19, instPrimID 20.
-# The rays are set up as embreex sets them (tnear 0, time 0, mask all, no arguments), a
-# miss answers as embreex's (primID and geomID -1, u = v = 0), and _intersect1_agrees
-# checks that on a probe before the kernel is used.
+# Accel.intersect (_intersect_rows) and Accel.intersect_hits with output arrays
+# (_intersect_packets) trace through Embree's rtcIntersect8 called from a compiled
+# kernel: the Embree query embreex's run() makes per ray, without run()'s per-call output
+# arrays (Ng, tfar, ids, u, v: 36 B a ray, fresh pages every call) and its Python-level
+# answer. The ray-hit record is Embree 4's RTCRayHit8 (rtcore_ray.h), in 32-bit words of
+# 8 lanes: org 0-2, tnear 3, dir 4-6, time 7, tfar 8, mask 9, id 10, flags 11; hit Ng
+# 12-14, u 15, v 16, primID 17, geomID 18, instID 19, instPrimID 20. The rays are set up
+# as embreex sets them (tnear 0, time 0, mask all, no arguments), a miss answers as
+# embreex's (primID and geomID -1, u = v = 0), and _rows_agree / _packets_agree check
+# that on a probe before a kernel is used.
 _RAYHIT_WORDS = 24
 # Rays an occlusion query traces together (rtcOccluded8): Embree's 8-wide packets are
 # native on AVX2 and AVX-512 (16 lanes measured 21.4 against 23.4 ns a gather-lookup ray
 # on AVX-512; 4 lanes 39.6, one ray at a time 68).
 OCCLUSION_PACKET = 8
+# Rays a closest-hit query traces together (rtcIntersect8): consecutive rays start near
+# each other (a pixel's samples, a gather point's rays), and 8 lanes beat one ray at a
+# time on every caller (Figure 6, 160x120, thread CPU ns a ray: the final gather's rays
+# 121 -> 98, the camera paths' 100 -> 79, the photon pass's 153 -> 136; 4 lanes 100 /
+# 81 / 138, 16 lanes 120 / 101 / 164; the same answers bit for bit:
+# bench/bench_packets.py, docs/performance.md "packets").
+INTERSECT_PACKET = 8
 _F32_MAX = np.float32(np.finfo(np.float32).max)
 
 try:
@@ -140,26 +148,10 @@ except ImportError:  # pragma: no cover - numba is a dependency of the engine
 
 if _intrinsic is not None:
     @_intrinsic
-    def _call_c3(typingctx, fn, a, b):
-        """fn(a, b, NULL) for the C function void fn(void*, void*, void*) at address fn
-        (a, b addresses): how a kernel calls rtcIntersect1 (scene, rayhit, args)."""
-        sig = _types.void(_types.intp, _types.intp, _types.intp)
-
-        def codegen(context, builder, signature, args):
-            f, x, y = args
-            vp = _ir.IntType(8).as_pointer()
-            fnty = _ir.FunctionType(_ir.VoidType(), [vp, vp, vp])
-            builder.call(builder.inttoptr(f, fnty.as_pointer()),
-                         [builder.inttoptr(x, vp), builder.inttoptr(y, vp),
-                          _ir.Constant(vp, None)])
-            return context.get_dummy_value()
-        return sig, codegen
-
-    @_intrinsic
     def _call_c4(typingctx, fn, a, b, c):
         """fn(a, b, c, NULL) for the C function void fn(void*, void*, void*, void*) at
-        address fn (a, b, c addresses): how a kernel calls rtcOccluded8 (valid, scene,
-        ray packet, args)."""
+        address fn (a, b, c addresses): how a kernel calls rtcOccluded8 / rtcIntersect8
+        (valid, scene, ray packet, args)."""
         sig = _types.void(_types.intp, _types.intp, _types.intp, _types.intp)
 
         def codegen(context, builder, signature, args):
@@ -218,83 +210,129 @@ if _intrinsic is not None:
                 blocked[s + lane] = ray[8 * w + lane] < 0.0
 
     @kernel
-    def _intersect1(fn, scene, o32, d32, tfar32, geom, prim, u, v):
+    def _intersect_packets(fn, scene, o32, d32, tfar32, geom, prim, u, v):
         """Closest hits of rays o32, d32 (N,3) float32 up to tfar32 (N,) (overwritten with
-        the hit distance, as embreex does) through rtcIntersect1 at address fn on the
-        RTCScene at address scene; writes geom, prim (N,) int32 and u, v (N,) float32 as
-        embreex's run() answers them."""
-        buf = np.empty(2 * _RAYHIT_WORDS, np.float32)
+        the hit distance, as embreex does) through rtcIntersect8 at address fn on the
+        RTCScene at address scene, INTERSECT_PACKET consecutive rays a call (the last
+        call's missing lanes invalid); writes geom, prim (N,) int32 and u, v (N,) float32
+        as embreex's run() answers them. Each lane is set up as run() sets up its one ray
+        (tnear 0, time 0, mask all, id 0, flags 0; hit ids -1, u = v = 0). RTCRayHit8
+        (rtcore_ray.h) in 32-bit words, w lanes each: org 0-2, tnear 3, dir 4-6, time 7,
+        tfar 8, mask 9, id 10, flags 11, Ng 12-14, u 15, v 16, primID 17, geomID 18,
+        instID 19, instPrimID 20."""
+        w = INTERSECT_PACKET
+        buf = np.empty(21 * w + 16, np.float32)
         start = buf.ctypes.data
-        skip = ((start + 15) & ~15) - start  # RTCRayHit is 16-byte aligned
-        rh = buf[skip // 4:skip // 4 + _RAYHIT_WORDS]
-        ri = rh.view(np.uint32)
+        skip = ((start + 63) & ~63) - start  # 32-byte alignment for 8 lanes
+        r = buf[skip // 4:skip // 4 + 21 * w]
+        ri = r.view(np.uint32)
         at = start + skip
+        vbuf = np.empty(w + 16, np.int32)
+        vstart = vbuf.ctypes.data
+        vskip = ((vstart + 63) & ~63) - vstart
+        valid = vbuf[vskip // 4:vskip // 4 + w]
+        vat = vstart + vskip
         none = np.uint32(0xFFFFFFFF)
-        for i in range(o32.shape[0]):
-            rh[0], rh[1], rh[2], rh[3] = o32[i, 0], o32[i, 1], o32[i, 2], 0.0
-            rh[4], rh[5], rh[6], rh[7] = d32[i, 0], d32[i, 1], d32[i, 2], 0.0
-            rh[8] = tfar32[i]
-            ri[9], ri[10], ri[11] = none, 0, 0
-            rh[15], rh[16] = 0.0, 0.0
-            ri[17], ri[18], ri[19], ri[20] = none, none, none, none
-            _call_c3(fn, scene, at)
-            tfar32[i] = rh[8]
-            geom[i] = np.int32(ri[18])
-            prim[i] = np.int32(ri[17])
-            u[i] = rh[15]
-            v[i] = rh[16]
+        n = o32.shape[0]
+        for s in range(0, n, w):
+            e = min(s + w, n)
+            for lane in range(w):
+                i = s + lane
+                if i < e:
+                    valid[lane] = -1
+                    r[lane], r[w + lane], r[2 * w + lane] = o32[i, 0], o32[i, 1], o32[i, 2]
+                    r[3 * w + lane] = 0.0
+                    r[4 * w + lane], r[5 * w + lane], r[6 * w + lane] = d32[i, 0], \
+                        d32[i, 1], d32[i, 2]
+                    r[7 * w + lane] = 0.0
+                    r[8 * w + lane] = tfar32[i]
+                    ri[9 * w + lane], ri[10 * w + lane], ri[11 * w + lane] = none, 0, 0
+                    r[15 * w + lane], r[16 * w + lane] = 0.0, 0.0
+                    ri[17 * w + lane], ri[18 * w + lane] = none, none
+                    ri[19 * w + lane], ri[20 * w + lane] = none, none
+                else:
+                    valid[lane] = 0
+            _call_c4(fn, vat, scene, at)
+            for lane in range(e - s):
+                i = s + lane
+                tfar32[i] = r[8 * w + lane]
+                geom[i] = np.int32(ri[18 * w + lane])
+                prim[i] = np.int32(ri[17 * w + lane])
+                u[i] = r[15 * w + lane]
+                v[i] = r[16 * w + lane]
 
     @kernel
     def _intersect_rows(fn, scene, o, d, tmax, starts, t, prim, u, v):
-        """Accel.intersect's answer for one Embree scene, traced through rtcIntersect1 at
-        address fn on the RTCScene at address scene: rays o, d (N,3) float64, rounded to
-        float32 as Embree takes them; tmax (N,) float64 each ray's tmax, rounded to
-        float32 (NaN -> 0, above float32's max -> its max), or (0,): unbounded (float32's
-        max); starts (G,) int64 each geometry's first triangle row. Writes t (N,) float64
-        the hit distance (inf: a miss), prim (N,) int64 the hit triangle's row (-1: a
-        miss), u, v (N,) float64 the float32 barycentrics (0 on a miss): what
-        embreex's run() gives and Accel._intersect_run turns into these arrays, without
-        its float32 copies of the rays, its per-call answer arrays and the numpy passes
-        over them (~18 ns a camera-path ray, docs/performance.md "fig8speed")."""
-        buf = np.empty(2 * _RAYHIT_WORDS, np.float32)
+        """Accel.intersect's answer for one Embree scene, traced through rtcIntersect8 at
+        address fn on the RTCScene at address scene, INTERSECT_PACKET consecutive rays a
+        call (lanes as in _intersect_packets): rays o, d (N,3) float64, rounded to float32
+        as Embree takes them; tmax (N,) float64 each ray's tmax, rounded to float32 (NaN ->
+        0, above float32's max -> its max), or (0,): unbounded (float32's max); starts (G,)
+        int64 each geometry's first triangle row. Writes t (N,) float64 the hit distance
+        (inf: a miss), prim (N,) int64 the hit triangle's row (-1: a miss), u, v (N,)
+        float64 the float32 barycentrics (0 on a miss): what embreex's run() gives and
+        Accel._intersect_run turns into these arrays, without its float32 copies of the
+        rays, its per-call answer arrays and the numpy passes over them (~18 ns a
+        camera-path ray, docs/performance.md "fig8speed")."""
+        w = INTERSECT_PACKET
+        buf = np.empty(21 * w + 16, np.float32)
         start = buf.ctypes.data
-        skip = ((start + 15) & ~15) - start  # RTCRayHit is 16-byte aligned
-        rh = buf[skip // 4:skip // 4 + _RAYHIT_WORDS]
-        ri = rh.view(np.uint32)
+        skip = ((start + 63) & ~63) - start  # 32-byte alignment for 8 lanes
+        r = buf[skip // 4:skip // 4 + 21 * w]
+        ri = r.view(np.uint32)
         at = start + skip
+        vbuf = np.empty(w + 16, np.int32)
+        vstart = vbuf.ctypes.data
+        vskip = ((vstart + 63) & ~63) - vstart
+        valid = vbuf[vskip // 4:vskip // 4 + w]
+        vat = vstart + vskip
         none = np.uint32(0xFFFFFFFF)
         bounded = tmax.shape[0] > 0
-        for i in range(o.shape[0]):
-            rh[0], rh[1], rh[2], rh[3] = o[i, 0], o[i, 1], o[i, 2], 0.0
-            rh[4], rh[5], rh[6], rh[7] = d[i, 0], d[i, 1], d[i, 2], 0.0
-            tf = _F32_MAX
-            if bounded:
-                tf = np.float32(tmax[i])
-                if tf != tf:
-                    tf = np.float32(0.0)
-                elif tf > _F32_MAX:
+        n = o.shape[0]
+        for s in range(0, n, w):
+            e = min(s + w, n)
+            for lane in range(w):
+                i = s + lane
+                if i < e:
+                    valid[lane] = -1
+                    r[lane], r[w + lane], r[2 * w + lane] = o[i, 0], o[i, 1], o[i, 2]
+                    r[3 * w + lane] = 0.0
+                    r[4 * w + lane], r[5 * w + lane], r[6 * w + lane] = d[i, 0], d[i, 1], \
+                        d[i, 2]
+                    r[7 * w + lane] = 0.0
                     tf = _F32_MAX
-            rh[8] = tf
-            ri[9], ri[10], ri[11] = none, 0, 0
-            rh[15], rh[16] = 0.0, 0.0
-            ri[17], ri[18], ri[19], ri[20] = none, none, none, none
-            _call_c3(fn, scene, at)
-            geom = ri[18]
-            if geom != none:
-                prim[i] = starts[geom] + np.int64(ri[17])
-                t[i] = np.float64(rh[8])
-            else:
-                prim[i] = -1
-                t[i] = np.inf
-            u[i] = np.float64(rh[15])
-            v[i] = np.float64(rh[16])
+                    if bounded:
+                        tf = np.float32(tmax[i])
+                        if tf != tf:
+                            tf = np.float32(0.0)
+                        elif tf > _F32_MAX:
+                            tf = _F32_MAX
+                    r[8 * w + lane] = tf
+                    ri[9 * w + lane], ri[10 * w + lane], ri[11 * w + lane] = none, 0, 0
+                    r[15 * w + lane], r[16 * w + lane] = 0.0, 0.0
+                    ri[17 * w + lane], ri[18 * w + lane] = none, none
+                    ri[19 * w + lane], ri[20 * w + lane] = none, none
+                else:
+                    valid[lane] = 0
+            _call_c4(fn, vat, scene, at)
+            for lane in range(e - s):
+                i = s + lane
+                geom = ri[18 * w + lane]
+                if geom != none:
+                    prim[i] = starts[geom] + np.int64(ri[17 * w + lane])
+                    t[i] = np.float64(r[8 * w + lane])
+                else:
+                    prim[i] = -1
+                    t[i] = np.inf
+                u[i] = np.float64(r[15 * w + lane])
+                v[i] = np.float64(r[16 * w + lane])
 
     @register_warm_up
     def _warm_up():
         """Compile (or load) the trace kernels (no rays: nothing is called)."""
         z3, z1 = np.zeros((0, 3), np.float32), np.zeros(0, np.float32)
         ids = np.zeros(0, np.int32)
-        _intersect1(0, 0, z3, z3, z1, ids, ids, z1, z1)
+        _intersect_packets(0, 0, z3, z3, z1, ids, ids, z1, z1)
         _occluded_packets(0, 0, z3, z3, z1, np.zeros(0, np.bool_))
         e3, e1 = np.zeros((0, 3)), np.zeros(0)
         # tmax read-only too: np.broadcast_to's view of one ray's tmax stays read-only
@@ -315,14 +353,15 @@ def _scene_address(scene) -> int:
     return ctypes.c_void_p.from_address(id(scene) + offset).value
 
 
-_KERNEL_ADDRESSES: dict = {}  # Embree symbol -> its address once its probe agreed, 0 if not
+_KERNEL_ADDRESSES: dict = {}  # (Embree symbol, probe) -> its address once the probe agreed, 0 if not
 
 
 def _kernel_address(symbol: str, agrees) -> int:
     """The address of Embree's `symbol` when agrees(address) -> bool finds the kernel that
     calls it answering as embreex's run() on a probe, else 0 (the caller asks run()
     instead); probed once a process, any surprise counting as disagreement."""
-    if symbol not in _KERNEL_ADDRESSES:
+    key = (symbol, agrees.__name__)  # one Embree function may serve two kernels
+    if key not in _KERNEL_ADDRESSES:
         address = 0
         if _LIBRARY is not None and _intrinsic is not None:
             lib, _, ctypes = _LIBRARY
@@ -331,8 +370,8 @@ def _kernel_address(symbol: str, agrees) -> int:
                 address = fn if agrees(fn) else 0
             except Exception:  # noqa: BLE001 - any surprise: run()'s answer instead
                 address = 0
-        _KERNEL_ADDRESSES[symbol] = address
-    return _KERNEL_ADDRESSES[symbol]
+        _KERNEL_ADDRESSES[key] = address
+    return _KERNEL_ADDRESSES[key]
 
 
 def _probe_rays(seed: int, n: int, short_every: int):
@@ -348,19 +387,40 @@ def _probe_rays(seed: int, n: int, short_every: int):
 
 
 def _kernel_hits_address() -> int:
-    """rtcIntersect1's address when the trace kernel answers as embreex's run() on a probe
-    (hits, misses, a ray stopped short by tfar), else 0 (intersect_hits then copies
-    run()'s answer into the output arrays)."""
-    return _kernel_address("rtcIntersect1", _intersect1_agrees)
+    """rtcIntersect8's address when the trace kernel (_intersect_rows) answers as
+    embreex's run() on a probe (hits, misses, a ray stopped short by tmax, a last packet
+    with missing lanes), else 0 (Accel.intersect then asks run())."""
+    return _kernel_address("rtcIntersect8", _rows_agree)
 
 
-def _intersect1_agrees(fn) -> bool:
-    acc, o, d, tf = _probe_rays(5, 256, 7)
+def _rows_agree(fn) -> bool:
+    acc, o, d, tf = _probe_rays(5, 8 * 32 + 5, 7)
+    tmax = tf.astype(np.float64)
+    want = acc._intersect_run(o, d, tmax)
+    n = len(o)
+    got = (np.empty(n), np.empty(n, np.int64), np.empty(n), np.empty(n))
+    _intersect_rows(fn, _scene_address(acc._scene), o.astype(np.float64),
+                    d.astype(np.float64), tmax, acc._blocks[0].starts, *got)
+    same = all(np.array_equal(a.view(np.uint8), b.view(np.uint8)) for a, b in zip(got, want))
+    return same and (want[1] >= 0).any() and (want[1] < 0).any()
+
+
+def _kernel_packets_address() -> int:
+    """rtcIntersect8's address when the packet kernel (_intersect_packets) answers as
+    embreex's run() on a probe (hits, misses, rays stopped short by tfar, a last packet
+    with missing lanes), else 0 (intersect_hits then copies run()'s answer into the
+    output arrays)."""
+    return _kernel_address("rtcIntersect8", _packets_agree)
+
+
+def _packets_agree(fn) -> bool:
+    n = 8 * 32 + 5
+    acc, o, d, tf = _probe_rays(5, n, 7)
     res = acc._scene.run(o, d, dists=tf.copy(), output=True)
     want = (res["geomID"], res["primID"], res["u"], res["v"], res["tfar"])
-    got = (np.empty(256, np.int32), np.empty(256, np.int32), np.empty(256, np.float32),
-           np.empty(256, np.float32), tf.copy())
-    _intersect1(fn, _scene_address(acc._scene), o, d, got[4], *got[:4])
+    got = (np.empty(n, np.int32), np.empty(n, np.int32), np.empty(n, np.float32),
+           np.empty(n, np.float32), tf.copy())
+    _intersect_packets(fn, _scene_address(acc._scene), o, d, got[4], *got[:4])
     same = all(np.array_equal(np.asarray(a).view(np.uint8), np.asarray(b).view(np.uint8))
                for a, b in zip(got, want))
     return same and (want[0] >= 0).any() and (want[0] < 0).any()
@@ -581,7 +641,7 @@ class Accel:
     def intersect(self, origins, directions, tmax=None):
         """Closest hits. Returns (t, prim, u, v); prim = -1 where the ray misses.
         Directions should be unit length: t is in units of |direction|.
-        One Embree scene: traced by a compiled kernel through rtcIntersect1 where the
+        One Embree scene: traced by a compiled kernel through rtcIntersect8 where the
         probe allows (_intersect_rows), the same arrays bit for bit as embreex's run()
         (_intersect_run, the fallback)."""
         # (_LIBRARY read here too: the scene's address comes through it.)
@@ -665,8 +725,8 @@ class Accel:
         starts[geom] + prim; u, v (N,) float32 barycentrics (intersect's u, v are these
         values as float64); starts (G,) int64. out: (geom, prim, u, v) C-contiguous
         arrays of those types and (N,) shape to write the answer into (a caller's
-        reused buffers), returned; traced by a compiled kernel through rtcIntersect1
-        where the probe allows (_kernel_hits_address), the same values bit for bit.
+        reused buffers), returned; traced by a compiled kernel through rtcIntersect8
+        where the probe allows (_kernel_packets_address), the same values bit for bit.
         Raises ValueError on other shapes or types (embreex does not check)."""
         n = len(o32)
         for name, a, shape in (("origins", o32, (n, 3)), ("directions", d32, (n, 3)),
@@ -708,7 +768,7 @@ class Accel:
             if a.dtype != dtype or a.shape != (n,) or not a.flags.c_contiguous:
                 raise ValueError(f"Accel.intersect_hits: out {name} must be C-contiguous "
                                  f"{np.dtype(dtype)} ({n},), got {a.dtype} {a.shape}")
-        fn = _kernel_hits_address() if len(self._blocks) == 1 else 0
+        fn = _kernel_packets_address() if len(self._blocks) == 1 else 0
         if not fn:
             answer = self.intersect_hits(o32, d32, tfar32)
             for dst, src in zip(out, answer):
@@ -718,8 +778,8 @@ class Accel:
         scene = _scene_address(block.scene)
 
         def work(a, b):
-            _intersect1(fn, scene, o32[a:b], d32[a:b], tfar32[a:b], geom[a:b], prim[a:b],
-                        u[a:b], v[a:b])
+            _intersect_packets(fn, scene, o32[a:b], d32[a:b], tfar32[a:b], geom[a:b],
+                               prim[a:b], u[a:b], v[a:b])
 
         self._run(work, n)
         return (*out, block.starts)

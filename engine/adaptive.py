@@ -98,6 +98,26 @@ class Schedule:
         return sample > self.min_effective and (sample & (STEP - 1)) == STEP - 1
 
 
+def schedule_warnings(threshold: float, min_samples: int, spp: int) -> list[str]:
+    """[a warning] when a Noise Threshold (> 0) can stop no pixel early: the first
+    convergence check comes after Min Samples (auto from the threshold) and a round of up to
+    STEP samples, and Max Samples (spp) ends every pixel before it (a new-user trial: 32
+    samples at threshold 0.05, auto minimum 40, rendered exactly as without it). []
+    otherwise, or without a threshold."""
+    if not threshold > 0:
+        return []
+    schedule = Schedule(threshold, min_samples, spp)
+    if any(check for _, _, check in schedule.rounds()):
+        return []
+    first = ((schedule.min_effective + 1) | (STEP - 1)) + 1
+    minimum = (f"Min Samples {max(MIN_SAMPLES_FLOOR, min_samples)}" if min_samples else
+               f"Min Samples, automatic for this threshold: {auto_min_samples(threshold)}")
+    return [f"Noise Threshold {threshold:g} has no effect at Max Samples {spp}: the noise "
+            f"is first checked after sample {first} ({minimum}, rounded up to a multiple "
+            f"of {STEP}, as Cycles does), so every pixel takes all {spp} samples. Raise Max "
+            f"Samples above {first}" + (" or lower Min Samples" if first > STEP else "")]
+
+
 def class_a(sub: np.ndarray, round_index: int, strides) -> np.ndarray:
     """(N,) bool: the samples sub (N,) int64 (a pixel's samples in its round, 0-based) of
     round round_index that go into half A. strides: the strides of the smooth estimates

@@ -176,9 +176,12 @@ def _teaching_options(r):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="photonmap", description="Photon mapping renderer")
+    # No abbreviations: a misspelt '--photon 100' was taken as --photons 100 without a word
+    # (new-user trial, s22); a wrong option name is refused with the usage instead.
+    p = argparse.ArgumentParser(prog="photonmap", description="Photon mapping renderer",
+                                allow_abbrev=False)
     sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("render", help="render a TOML scene file to an image")
+    r = sub.add_parser("render", help="render a TOML scene file to an image", allow_abbrev=False)
     r.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
     r.add_argument("-o", "--output", required=True,
                    help="output image: .png (sRGB), .exr (linear float), .ppm, .npy")
@@ -207,13 +210,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "partial in its metadata) instead of leaving the output untouched")
 
     c = sub.add_parser("compare", help="render a scene with each method (local, raytrace, "
-                                       "photon) and the photon hits into one labelled grid")
+                                       "photon) and the photon hits into one labelled grid",
+                       allow_abbrev=False)
     c.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
     _teaching_options(c)
     _setting_options(c, method=False)
 
     w = sub.add_parser("sweep", help="render a scene for each value of a parameter into one "
-                                     "labelled ladder with times and errors")
+                                     "labelled ladder with times and errors", allow_abbrev=False)
     w.add_argument("scene", help="scene file (.toml, see docs/scene_format.md)")
     _teaching_options(w)
     w.add_argument("--param", action="append", default=[], metavar="NAME=V1,V2,...",

@@ -16,6 +16,11 @@ import warnings
 from contextlib import contextmanager
 
 
+def short_count(n: int) -> str:
+    """A count for a progress line: 950 -> '950', 19200 -> '19k' (photons, pixels)."""
+    return f"{n / 1000:.0f}k" if n >= 1000 else str(n)
+
+
 def isatty(stream) -> bool:
     """True for a terminal; False for a file, a pipe or a stream without isatty."""
     try:

@@ -35,6 +35,7 @@ from .camerarays import camera_rays_kernel, chunk_samples
 from .gatherkernels import (add_gathered, count_bent, diffuse_lookups, keep_embree_hits, keep_hits,
                             lean_diffuse, lean_materials, rays_f32)
 from .closures import principled as pr
+from .console import short_count
 from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
@@ -1311,7 +1312,10 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
             acc.merge(part)
             counters.add(part_counters)
             if progress is not None:
-                progress("render", end / total, f"Rendering {100.0 * end / total:.0f}%")
+                # Pixels, not a percentage: the bars beside this text (Blender's, the
+                # batch's) show the whole render's fraction, which differs from the pass's.
+                progress("render", end / total,
+                         f"Rendering pixels {short_count(end // spp)}/{short_count(npix)}")
     finally:
         _write_film(film, acc, spp, rh, rw)
     return counters
@@ -1386,8 +1390,8 @@ def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
                 counters.add(part_counters)
                 if progress is not None:
                     f = (done + end) / planned
-                    progress("render", f, f"Rendering {100.0 * f:.0f}% (adaptive, "
-                             f"{len(active):,} pixels at {b} samples)")
+                    progress("render", f, f"Rendering adaptively: {len(active):,} "
+                             f"pixels at {b} samples")
             done += total
             _add_round(acc, racc, active, half)
             count[active] += R

@@ -32,6 +32,7 @@ from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
 from .closures.principled import M_IOR
+from .console import short_count
 from .normalmap import bump_shadowing
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
 
@@ -124,7 +125,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
         stored.release()
         if progress is not None:
             label = "caustic photons" if caustic_only else "photons"
-            progress("photons", done / max(total, 1), f"Tracing {label} {_k(done)}/{_k(total)}")
+            progress("photons", done / max(total, 1), f"Tracing {label} {short_count(done)}/{short_count(total)}")
     out = shot.photons()
     out.emitted = total
     return out
@@ -438,5 +439,3 @@ def _needs_numpy_hits(table) -> bool:
                for x in (lst or ()))
 
 
-def _k(n: int) -> str:
-    return f"{n / 1000:.0f}k" if n >= 1000 else str(n)

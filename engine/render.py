@@ -10,6 +10,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from . import adaptive
 from .accel import Accel
 from .chaincounts import GatherCounts
 from .film import Film
@@ -383,7 +384,10 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
         film.warnings = scene.all_warnings()
         tell(film.warnings)
         return film
-    tell(scene.all_warnings() + ctx.plan.warnings)  # before the long passes
+    # Said before the long passes, with the scene's and the effect analysis'.
+    early = adaptive.schedule_warnings(settings.adaptive_threshold,
+                                       settings.adaptive_min_samples, settings.spp)
+    tell(scene.all_warnings() + ctx.plan.warnings + early)
     t_prepare = time.perf_counter() - t_start - t_compile
     try:
         film = render_pass(ctx, region, progress, should_cancel,
@@ -397,7 +401,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
                       triangles=ctx.geo.count, lights=len(ctx.lights),
                       extent=ctx.geo.extent, time_prepare=t_prepare,
                       time_total=time.perf_counter() - t_start)
-    film.warnings = scene.all_warnings() + ctx.plan.warnings + film.stats.get("warnings", [])
+    film.warnings = (scene.all_warnings() + ctx.plan.warnings + early
+                     + film.stats.get("warnings", []))
     tell(film.warnings)
     return film
 

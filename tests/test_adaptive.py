@@ -8,7 +8,7 @@ import pytest
 
 from engine import RenderSettings
 from engine.adaptive import (Schedule, auto_min_samples, class_a, dilate_unconverged,
-                             pixel_error)
+                             pixel_error, schedule_warnings)
 from engine.api import cornell_box
 from engine.integrator import CAUSTIC_SAMPLES_PER_PIXEL, SECONDARY_SAMPLES_PER_PIXEL
 from engine.progressive import pass_settings
@@ -39,6 +39,33 @@ def test_cycles_auto_min_samples_and_schedule():
     assert Schedule(0.1, 0, 100).rounds() == [(0, 48, True), (48, 64, True), (64, 80, True),
                                               (80, 96, True), (96, 100, False)]
     assert Schedule(0.01, 0, 16).rounds() == [(0, 16, False)]  # min samples >= spp
+
+
+def test_a_threshold_that_can_stop_no_pixel_is_said():
+    """A new-user trial set Noise Threshold 0.05 at 32 samples: the automatic Min Samples
+    (40) put the first check after sample 48, so nothing changed, silently. Said now, with
+    what would make it act; not said where a check comes before Max Samples."""
+    (w,) = schedule_warnings(0.05, 0, 32)
+    assert "no effect at Max Samples 32" in w and "automatic for this threshold: 40" in w
+    assert "above 48 or lower Min Samples" in w
+    (w,) = schedule_warnings(0.05, 3, 8)  # Min Samples at its floor: only Max Samples helps
+    assert "above 16" in w and "lower Min Samples" not in w
+    for t, m, spp in ((0.05, 0, 64), (0.05, 8, 32), (0.0, 0, 16), (0.01, 0, 81)):
+        assert schedule_warnings(t, m, spp) == [], (t, m, spp)
+        assert t == 0.0 or any(c for _, _, c in Schedule(t, m, spp).rounds())
+    for t, m, spp in ((0.05, 0, 32), (0.01, 0, 80), (0.1, 20, 32)):
+        assert not any(c for _, _, c in Schedule(t, m, spp).rounds())
+        assert schedule_warnings(t, m, spp)
+
+
+def test_the_warning_comes_with_the_render(box):
+    from engine.render import render
+    told = []
+    film = render(box, RenderSettings(seed=1, photons=2000, caustic_photons=500, spp=8,
+                                      adaptive_threshold=0.05), on_warning=told.append)
+    assert sum("Noise Threshold 0.05 has no effect" in w for w in film.warnings) == 1
+    assert sum("Noise Threshold 0.05 has no effect" in w for w in told) == 1
+    assert (film.sample_count == 8).all()
 
 
 def test_halves_split_the_estimate_taking_samples():

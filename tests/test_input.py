@@ -110,6 +110,14 @@ def test_cli_renders_and_reports_errors(tmp_path):
     r = run_cli("render", "scenes/figure3.toml", "-o", str(out), "--photonz", "5")
     assert r.returncode == 2 and "unrecognized arguments: --photonz 5" in r.stderr
     assert "usage: photonmap render " in r.stderr and "--photons" in r.stderr, r.stderr
+    # An abbreviation is refused too ('--photon 100' was taken as --photons 100, unsaid),
+    # by both commands' parsers (the batch's without loading Blender).
+    r = run_cli("render", "scenes/figure3.toml", "-o", str(out), "--photon", "100")
+    assert r.returncode == 2 and "unrecognized arguments: --photon 100" in r.stderr
+    from addon.batch import parse_args
+    with pytest.raises(SystemExit) as stop:
+        parse_args(["x.blend", "-o", str(out), "--photon", "100"])
+    assert stop.value.code == 2
 
 
 @pytest.mark.parametrize("ext", [".png", ".exr", ".ppm", ".npy"])

@@ -185,8 +185,9 @@ def _interrupted_cli(tmp_path, *extra, sig=signal.SIGINT):
     with Watched([sys.executable, "-m", "engine.cli", "render", str(scene), "-o", str(target),
                   "--width", "160", "--height", "120", "--spp", "256", "--photons", "20000",
                   "--caustic-photons", "10000", *extra], cwd=ROOT) as w:
-        # Interrupt once some of the camera pass is finished (the bar shows 'Rendering N%').
-        assert w.wait_for(r"Rendering [1-9]\d?%"), w.stderr[-2000:]
+        # Interrupt once some of the camera pass is finished (the bar shows 'Rendering
+        # pixels N/M' after each chunk).
+        assert w.wait_for(r"Rendering pixels \d+k?/"), w.stderr[-2000:]
         w.proc.send_signal(sig)
         return target, w.finish(), w.stderr
 

