@@ -49,28 +49,18 @@ def _call_c3(typingctx, fn, a, b):
                      [builder.inttoptr(x, vp), builder.inttoptr(y, vp), ir.Constant(vp, None)])
         return context.get_dummy_value()
     return sig, codegen
-_NONE = np.uint32(0xFFFFFFFF)
 
 
 def _packet_kernel(w: int):
     """A closest-hit kernel of w lanes (rtcIntersect{w}; w = 1: RTCRayHit one ray at a
-    time, laid out as w lanes of one), answering as accel._intersect_packets does."""
+    time, the same record with lanes of one), answering as accel._intersect_packets
+    does, on the engine's packet record (accel._packet_record, _set_lane)."""
     call = accel._call_c4 if w > 1 else _call_c3
     lanes = w
 
     @njit(nogil=True)
     def trace(fn, scene, o32, d32, tfar32, geom, prim, u, v):
-        buf = np.empty(21 * lanes + 32, np.float32)
-        start = buf.ctypes.data
-        skip = ((start + 63) & ~63) - start
-        r = buf[skip // 4:skip // 4 + 21 * lanes + 3]
-        ri = r.view(np.uint32)
-        at = start + skip
-        vbuf = np.empty(lanes + 16, np.int32)
-        vstart = vbuf.ctypes.data
-        vskip = ((vstart + 63) & ~63) - vstart
-        valid = vbuf[vskip // 4:vskip // 4 + lanes]
-        vat = vstart + vskip
+        r, ri, at, valid, vat = accel._packet_record(lanes)
         n = o32.shape[0]
         for s in range(0, n, lanes):
             e = min(s + lanes, n)
@@ -78,17 +68,8 @@ def _packet_kernel(w: int):
                 i = s + lane
                 if i < e:
                     valid[lane] = -1
-                    for k in range(3):
-                        r[k * lanes + lane] = o32[i, k]
-                        r[(4 + k) * lanes + lane] = d32[i, k]
-                    r[3 * lanes + lane] = 0.0
-                    r[7 * lanes + lane] = 0.0
-                    r[8 * lanes + lane] = tfar32[i]
-                    ri[9 * lanes + lane], ri[10 * lanes + lane] = _NONE, 0
-                    ri[11 * lanes + lane] = 0
-                    r[15 * lanes + lane], r[16 * lanes + lane] = 0.0, 0.0
-                    for k in range(17, 21):
-                        ri[k * lanes + lane] = _NONE
+                    accel._set_lane(r, ri, lanes, lane, o32[i, 0], o32[i, 1], o32[i, 2],
+                                    d32[i, 0], d32[i, 1], d32[i, 2], tfar32[i], True)
                 else:
                     valid[lane] = 0
             if lanes == 1:

@@ -165,6 +165,40 @@ if _intrinsic is not None:
         return sig, codegen
 
     @kernel
+    def _packet_record(w):
+        """A ray packet of w lanes for rtcOccluded{w} / rtcIntersect{w} (RTCRayHit{w}: 21
+        fields of w 32-bit words, 64-byte aligned, which 8 and 16 lanes need) and its
+        valid mask: (r (21 w,) float32, ri the same words as uint32, r's address, valid
+        (w,) int32, valid's address). The views keep their buffers alive."""
+        buf = np.empty(21 * w + 16, np.float32)
+        start = buf.ctypes.data
+        skip = ((start + 63) & ~63) - start
+        r = buf[skip // 4:skip // 4 + 21 * w]
+        vbuf = np.empty(w + 16, np.int32)
+        vstart = vbuf.ctypes.data
+        vskip = ((vstart + 63) & ~63) - vstart
+        return r, r.view(np.uint32), start + skip, vbuf[vskip // 4:vskip // 4 + w], \
+            vstart + vskip
+
+    @kernel
+    def _set_lane(r, ri, w, lane, ox, oy, oz, dx, dy, dz, tfar, hit):
+        """Lane `lane` of packet r / ri (_packet_record) set up as embreex's run() sets up
+        its one ray: origin, direction and tfar (each stored as float32), tnear 0, time 0,
+        mask all, id 0, flags 0; with hit (an intersect query) the hit's u = v = 0 and its
+        ids -1 (RTC_INVALID_GEOMETRY_ID), as a miss answers."""
+        none = np.uint32(0xFFFFFFFF)
+        r[lane], r[w + lane], r[2 * w + lane] = ox, oy, oz
+        r[3 * w + lane] = 0.0
+        r[4 * w + lane], r[5 * w + lane], r[6 * w + lane] = dx, dy, dz
+        r[7 * w + lane] = 0.0
+        r[8 * w + lane] = tfar
+        ri[9 * w + lane], ri[10 * w + lane], ri[11 * w + lane] = none, 0, 0
+        if hit:
+            r[15 * w + lane], r[16 * w + lane] = 0.0, 0.0
+            for f in range(17, 21):
+                ri[f * w + lane] = none
+
+    @kernel
     def _occluded_packets(fn, scene, o32, d32, tfar32, blocked):
         """Occlusion of rays o32, d32 (N,3) float32 within [0, tfar32] ((N,) float32, not
         written) through rtcOccluded8 at address fn on the RTCScene at address scene,
@@ -176,18 +210,7 @@ if _intrinsic is not None:
         BVH together: 24-25 ns a ray against 62-82 ns one by one (docs/performance.md,
         "gathercand")."""
         w = OCCLUSION_PACKET
-        buf = np.empty(12 * w + 16, np.float32)  # RTCRay8: 12 fields of w lanes
-        start = buf.ctypes.data
-        skip = ((start + 63) & ~63) - start  # 32-byte alignment for 8 lanes; 64 for 16
-        ray = buf[skip // 4:skip // 4 + 12 * w]
-        rayi = ray.view(np.uint32)
-        at = start + skip
-        vbuf = np.empty(w + 16, np.int32)
-        vstart = vbuf.ctypes.data
-        vskip = ((vstart + 63) & ~63) - vstart
-        valid = vbuf[vskip // 4:vskip // 4 + w]
-        vat = vstart + vskip
-        none = np.uint32(0xFFFFFFFF)
+        ray, rayi, at, valid, vat = _packet_record(w)
         n = o32.shape[0]
         for s in range(0, n, w):
             e = min(s + w, n)
@@ -195,14 +218,8 @@ if _intrinsic is not None:
                 i = s + lane
                 if i < e:
                     valid[lane] = -1
-                    ray[lane], ray[w + lane], ray[2 * w + lane] = o32[i, 0], o32[i, 1], \
-                        o32[i, 2]
-                    ray[3 * w + lane] = 0.0
-                    ray[4 * w + lane], ray[5 * w + lane], ray[6 * w + lane] = d32[i, 0], \
-                        d32[i, 1], d32[i, 2]
-                    ray[7 * w + lane] = 0.0
-                    ray[8 * w + lane] = tfar32[i]
-                    rayi[9 * w + lane], rayi[10 * w + lane], rayi[11 * w + lane] = none, 0, 0
+                    _set_lane(ray, rayi, w, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
+                              d32[i, 1], d32[i, 2], tfar32[i], False)
                 else:
                     valid[lane] = 0
             _call_c4(fn, vat, scene, at)
@@ -221,18 +238,7 @@ if _intrinsic is not None:
         tfar 8, mask 9, id 10, flags 11, Ng 12-14, u 15, v 16, primID 17, geomID 18,
         instID 19, instPrimID 20."""
         w = INTERSECT_PACKET
-        buf = np.empty(21 * w + 16, np.float32)
-        start = buf.ctypes.data
-        skip = ((start + 63) & ~63) - start  # 32-byte alignment for 8 lanes
-        r = buf[skip // 4:skip // 4 + 21 * w]
-        ri = r.view(np.uint32)
-        at = start + skip
-        vbuf = np.empty(w + 16, np.int32)
-        vstart = vbuf.ctypes.data
-        vskip = ((vstart + 63) & ~63) - vstart
-        valid = vbuf[vskip // 4:vskip // 4 + w]
-        vat = vstart + vskip
-        none = np.uint32(0xFFFFFFFF)
+        r, ri, at, valid, vat = _packet_record(w)
         n = o32.shape[0]
         for s in range(0, n, w):
             e = min(s + w, n)
@@ -240,16 +246,8 @@ if _intrinsic is not None:
                 i = s + lane
                 if i < e:
                     valid[lane] = -1
-                    r[lane], r[w + lane], r[2 * w + lane] = o32[i, 0], o32[i, 1], o32[i, 2]
-                    r[3 * w + lane] = 0.0
-                    r[4 * w + lane], r[5 * w + lane], r[6 * w + lane] = d32[i, 0], \
-                        d32[i, 1], d32[i, 2]
-                    r[7 * w + lane] = 0.0
-                    r[8 * w + lane] = tfar32[i]
-                    ri[9 * w + lane], ri[10 * w + lane], ri[11 * w + lane] = none, 0, 0
-                    r[15 * w + lane], r[16 * w + lane] = 0.0, 0.0
-                    ri[17 * w + lane], ri[18 * w + lane] = none, none
-                    ri[19 * w + lane], ri[20 * w + lane] = none, none
+                    _set_lane(r, ri, w, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
+                              d32[i, 1], d32[i, 2], tfar32[i], True)
                 else:
                     valid[lane] = 0
             _call_c4(fn, vat, scene, at)
@@ -275,17 +273,7 @@ if _intrinsic is not None:
         rays, its per-call answer arrays and the numpy passes over them (~18 ns a
         camera-path ray, docs/performance.md "fig8speed")."""
         w = INTERSECT_PACKET
-        buf = np.empty(21 * w + 16, np.float32)
-        start = buf.ctypes.data
-        skip = ((start + 63) & ~63) - start  # 32-byte alignment for 8 lanes
-        r = buf[skip // 4:skip // 4 + 21 * w]
-        ri = r.view(np.uint32)
-        at = start + skip
-        vbuf = np.empty(w + 16, np.int32)
-        vstart = vbuf.ctypes.data
-        vskip = ((vstart + 63) & ~63) - vstart
-        valid = vbuf[vskip // 4:vskip // 4 + w]
-        vat = vstart + vskip
+        r, ri, at, valid, vat = _packet_record(w)
         none = np.uint32(0xFFFFFFFF)
         bounded = tmax.shape[0] > 0
         n = o.shape[0]
@@ -295,11 +283,6 @@ if _intrinsic is not None:
                 i = s + lane
                 if i < e:
                     valid[lane] = -1
-                    r[lane], r[w + lane], r[2 * w + lane] = o[i, 0], o[i, 1], o[i, 2]
-                    r[3 * w + lane] = 0.0
-                    r[4 * w + lane], r[5 * w + lane], r[6 * w + lane] = d[i, 0], d[i, 1], \
-                        d[i, 2]
-                    r[7 * w + lane] = 0.0
                     tf = _F32_MAX
                     if bounded:
                         tf = np.float32(tmax[i])
@@ -307,11 +290,9 @@ if _intrinsic is not None:
                             tf = np.float32(0.0)
                         elif tf > _F32_MAX:
                             tf = _F32_MAX
-                    r[8 * w + lane] = tf
-                    ri[9 * w + lane], ri[10 * w + lane], ri[11 * w + lane] = none, 0, 0
-                    r[15 * w + lane], r[16 * w + lane] = 0.0, 0.0
-                    ri[17 * w + lane], ri[18 * w + lane] = none, none
-                    ri[19 * w + lane], ri[20 * w + lane] = none, none
+                    # o, d float64: rounded to float32 as they are stored
+                    _set_lane(r, ri, w, lane, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1],
+                              d[i, 2], tf, True)
                 else:
                     valid[lane] = 0
             _call_c4(fn, vat, scene, at)
