@@ -510,9 +510,10 @@ def gather_count(most: int, share: float | None) -> int:
     return int(min(most, max(1, math.ceil(most * share / GATHER_SHARE_FULL))))
 
 
-# The regathers' map of a deeper level is made only where its bounce limits drop more than
-# this share of the power the level above keeps (below: _build_maps; docs/design.md,
-# Bounce limits).
+# Gather lookups after a camera chain whose counts drop more than this share of the power
+# their level's map holds gather again (chaincounts.GatherCounts.reroute; docs/design.md,
+# Bounce limits). The regathers' maps of the deeper levels no longer use it (_build_maps:
+# a map wherever a level drops any photon's light).
 SUBSET_POWER_SHARE = 0.005
 # The caustic map's photons get images across the open edges of the surfaces they lie on
 # (engine/edgeimages.py): the reflection method keeps a disc's light at an edge.
@@ -631,19 +632,21 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             # level above keeps, the level-0 map's irradiance from those photons alone at
             # the same gather points (GatherMap subsets: the points' estimates again, not
             # a whole map; whole maps per level doubled Figure 6's map build).
-            # A level whose limits drop under SUBSET_POWER_SHARE of the power the level
-            # above keeps reads that level's map: an open scene's deep photons are few (an
-            # HDRI-lit scene: 0.01 / 0.08 % of the power at levels 1 / 2, a ball on a floor
-            # 0.02 / 0.25 %) and a subset cost it a whole estimate pass (+1.8 s of a 2 s
-            # map); a window-lit room drops 1.0 / 1.4 % (skipping its level 1 put its walls
-            # 2.4 % brighter), Figure 6 7 / 15 %.
+            # Every level whose limits drop any photon's light the level above keeps gets
+            # its subset, however small the dropped share of the whole shot's power: the
+            # deep photons gather where the light is trapped, not evenly. A house on a
+            # sunlit lawn (issue 14, bounces4) dropped 0.03 % of the shot's power at
+            # level 1, nearly all of it inside the house, whose back wall read 1.23-1.31x
+            # Cycles at Diffuse 4 while its regathers read the level-0 map (the share
+            # threshold this replaced, 0.5 %). A subset costs no search of its own (the
+            # masks of one pass, GatherMap): map build CPU the same within 3 %
+            # (docs/performance.md, bounces4).
             masks, level_of = [], []
             last = gathered
             power = shot.power.astype(np.float64).sum(axis=1) * (shot.kind != CAUSTIC)
             for level in range(1, MAX_GATHER_LEVEL + 1):
                 ok = shot.usable(limits, camera=(level + 1, level + 1, 0, 0))
-                kept = float(power[last].sum())
-                if float(power[last & ~ok].sum()) > SUBSET_POWER_SHARE * kept:
+                if np.any(last & ~ok & (power != 0.0)):
                     masks.append(ok)
                     last = ok
                 level_of.append(len(masks) - 1)
