@@ -406,20 +406,10 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT):
 
 @kernel
 def _lookup3_x0(tab, y, z):
-    """tables.lookup3(tab, 0, y, z), the same bits: at x = 0 its x weights are 1 and 0,
-    1 x wy is wy, and the second x plane's terms are 0 x ... = +-0, which leave the sum as
-    it is (the tables are finite: tests/test_photon_kernels.py). Half of its terms."""
-    if tab.shape[0] == 1:
-        return tab[0, 0, 0]
+    """tables.lookup3(tab, 0, y, z), the same bits: tables.lookup3_at with x's cell (0, 0)
+    (roughness 0), which skips the upper x plane's four +-0 terms."""
     k, fz = tables._coord(z, tab.shape[2])
-    j, fy = tables._coord(y, tab.shape[1])
-    out = 0.0
-    for dj in range(2):
-        wy = fy if dj else 1.0 - fy
-        for dk in range(2):
-            wz = fz if dk else 1.0 - fz
-            out += wy * wz * tab[0, j + dj, k + dk]
-    return out
+    return tables.lookup3_at(tab, 0.0, 0.0, y, float(k), fz)
 
 
 @kernel
