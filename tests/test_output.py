@@ -327,23 +327,33 @@ def test_cli_ctrl_c_during_the_kernel_compile_stops_at_once(tmp_path, monkeypatc
         return 60.0
 
     monkeypatch.setattr(render_module, "ensure_compiled", compiling)
-    for command, said in (("render", "interrupted while compiling the render kernels"),
-                          ("compare", "interrupted")):
-        target = tmp_path / "out.png"
-        target.write_bytes(OLD)
-        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
-        t0 = time.monotonic()
-        try:
-            rc = main([command, SCENE, "-o", str(target), "--width", "32", "--height", "24",
-                       "--spp", "1", "--photons", "2000"])
-        finally:
-            timer.cancel()
-        seconds = time.monotonic() - t0
-        err = capsys.readouterr().err
-        assert rc == 130 and seconds < 20, (command, rc, seconds, err[-1500:])
-        assert said in err and "left untouched" in err and "Traceback" not in err, err
-        assert target.read_bytes() == OLD
-        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+    # Python's own Ctrl-C handler, as an interactive start has it (a CI job started in the
+    # background inherits SIGINT ignored; the CLI then restores that instead).
+    started_with = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        for command, said in (("render", "interrupted while compiling the render kernels"),
+                              ("compare", "interrupted")):
+            target = tmp_path / "out.png"
+            target.write_bytes(OLD)
+            timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+            t0 = time.monotonic()
+            try:
+                rc = main([command, SCENE, "-o", str(target), "--width", "32", "--height",
+                           "24", "--spp", "1", "--photons", "2000"])
+            finally:
+                timer.cancel()
+            seconds = time.monotonic() - t0
+            err = capsys.readouterr().err
+            assert rc == 130 and seconds < 20, (command, rc, seconds, err[-1500:])
+            assert said in err and "left untouched" in err and "Traceback" not in err, err
+            assert target.read_bytes() == OLD
+            assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+    finally:
+        signal.signal(signal.SIGINT, started_with)
+
+
+def _default_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def test_cli_ctrl_c_while_the_command_loads_stops_without_a_traceback(tmp_path):
@@ -354,9 +364,13 @@ def test_cli_ctrl_c_while_the_command_loads_stops_without_a_traceback(tmp_path):
     launcher.write_text(f"import sys\nsys.path.insert(0, {ROOT!r})\n"
                         "from engine.cli import main\nsys.exit(main())\n")
     target = tmp_path / "out.png"
+    # A user's shell starts the command with Ctrl-C at its default; a background job of a
+    # non-interactive shell (a CI run started with '&') inherits it ignored, and Python
+    # then rightly keeps ignoring it: start the child as the shell would.
     proc = subprocess.Popen([sys.executable, str(launcher), "render", SCENE, "-o", str(target),
                              "--width", "32", "--height", "24", "--spp", "1", "--quiet"],
-                            cwd=ROOT, stderr=subprocess.PIPE, text=True)
+                            cwd=ROOT, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_default_sigint)
     time.sleep(0.3)  # after Python's own start-up (site), while the engine imports
     proc.send_signal(signal.SIGINT)
     err = proc.communicate(timeout=120)[1]

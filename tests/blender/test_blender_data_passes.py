@@ -171,7 +171,7 @@ def _denoise_tree(bpy, scene):
 
 def test_denoise_node_takes_our_passes(bpy_addon, tmp_path):
     """The compositor's Denoise node (OpenImageDenoise in the bpy wheel) given our Image,
-    Denoising Normal and Albedo: the denoised floor keeps the noisy render's mean (1 %)
+    Denoising Normal and Albedo: the denoised floor keeps the noisy render's mean (3 %)
     and loses most of its pixel-to-pixel noise (the Laplacian's energy)."""
     bpy = bpy_addon
     scene = _scene()
@@ -202,7 +202,9 @@ def test_denoise_node_takes_our_passes(bpy_addon, tmp_path):
     a, b = lum(img), lum(out)
     print("floor mean", a[floor].mean(), b[floor].mean(), "laplacian energy", rough(a),
           rough(b))
-    assert abs(b[floor].mean() / a[floor].mean() - 1.0) < 0.01
+    # OIDN moves a 2-spp floor's mean by 0.2-1.0 % (measured: 1.0736 -> 1.0756 on one run,
+    # 1.1119 -> 1.1007 in CI); a denoiser that lost or added light would be far beyond 3 %.
+    assert abs(b[floor].mean() / a[floor].mean() - 1.0) < 0.03
     assert rough(b) < 0.5 * rough(a)
 
 
