@@ -237,7 +237,7 @@ def paths(base_root, callers, captures):
     share, CPU us a row (best of 3 process CPU). A path's rows replayed alone lose their
     neighbours (seeds, blocks): their cost alone, not in the render's context."""
     import numpy as np
-    from bench_core import captured_maps
+    from bench_core import best_rows_time, captured_maps
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
@@ -270,17 +270,7 @@ def paths(base_root, callers, captures):
                 C.append(cls)
 
             def run(fn, pick):
-                photonmap._irradiance_rows = fn
-                best = 1e9
-                for _ in range(3):
-                    t0 = time.process_time()
-                    for (p, n, k, mp, est, rb, rf, mk), c in zip(calls, C):
-                        s = pick(c)
-                        if len(s):
-                            pm.irradiance(p[s], n[s], radius, k, mp, est, return_boundary=rb,
-                                          r_floor=None if rf is None else rf[s], masks=mk)
-                    best = min(best, time.process_time() - t0)
-                return best
+                return best_rows_time(pm, calls, C, radius, fn, pick)
             allc = np.concatenate(C)
             tag = f"{os.path.basename(path)} | {caller} ({len(pm.photons):,}, {radius:.4f} m)"
             for cl in [None] + sorted(set(allc.tolist())):
@@ -302,7 +292,7 @@ def ratio(name, path, base_root=None, repeat=3):
     import pickle
     import numpy as np
     import bench_kernels as bk
-    from bench_core import captured_maps
+    from bench_core import best_rows_time, captured_maps
     from engine import RenderSettings, photonmap
     from engine.jit import ensure_compiled
     from engine.render import prepare_context
@@ -332,14 +322,7 @@ def ratio(name, path, base_root=None, repeat=3):
           f"k = {calls[0][2]}, estimator {', '.join(est_of)}")
 
     def rows_ns(cs, label):
-        photonmap._irradiance_rows = kernels[label]
-        best = 1e9
-        for _ in range(repeat):
-            t0 = time.process_time()
-            for p, n, k, mp, est, rb, rf, mk in cs:
-                pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
-                              masks=mk)
-            best = min(best, time.process_time() - t0)
+        best = best_rows_time(pm, cs, [None] * len(cs), radius, kernels[label], None, repeat)
         photonmap._irradiance_rows = kernels["this"]
         return best / sum(len(c[0]) for c in cs) * 1e9
     est = {}

@@ -188,6 +188,29 @@ def captured_maps(path):
         yield caller, radius, calls, pm
 
 
+def best_rows_time(pm, calls, classes, radius, rows_kernel, pick, repeat=3) -> float:
+    """Best of `repeat` process-CPU seconds to replay the captured estimates `calls`
+    (captured_maps) on PhotonMap pm with photonmap._irradiance_rows set to rows_kernel,
+    each call on the rows pick(classes[i]) selects (classes: per call, each row's class
+    from a counted run; pick(c) -> row indices), or on all of its rows (pick None)."""
+    from engine import photonmap
+    photonmap._irradiance_rows = rows_kernel
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.process_time()
+        for (p, n, k, mp, est, rb, rf, mk), c in zip(calls, classes):
+            if pick is None:
+                pm.irradiance(p, n, radius, k, mp, est, return_boundary=rb, r_floor=rf,
+                              masks=mk)
+                continue
+            s = pick(c)
+            if len(s):
+                pm.irradiance(p[s], n[s], radius, k, mp, est, return_boundary=rb,
+                              r_floor=None if rf is None else rf[s], masks=mk)
+        best = min(best, time.process_time() - t0)
+    return best
+
+
 def recording(accel):
     """The RecordingAccel behind a context's accel (prepare_context wraps it in a
     VisibilityAccel, whose `full` BVH answers every class when no object hides from a

@@ -54,7 +54,7 @@ def _call_c3(typingctx, fn, a, b):
 def _packet_kernel(w: int):
     """A closest-hit kernel of w lanes (rtcIntersect{w}; w = 1: RTCRayHit one ray at a
     time, the same record with lanes of one), answering as accel._intersect_packets
-    does, on the engine's packet record (accel._packet_record, _set_lane)."""
+    does, on the engine's packet record (accel._packet_record, _fill_packet)."""
     call = accel._call_c4 if w > 1 else _call_c3
     lanes = w
 
@@ -63,15 +63,7 @@ def _packet_kernel(w: int):
         r, ri, at, valid, vat = accel._packet_record(lanes)
         n = o32.shape[0]
         for s in range(0, n, lanes):
-            e = min(s + lanes, n)
-            for lane in range(lanes):
-                i = s + lane
-                if i < e:
-                    valid[lane] = -1
-                    accel._set_lane(r, ri, lanes, lane, o32[i, 0], o32[i, 1], o32[i, 2],
-                                    d32[i, 0], d32[i, 1], d32[i, 2], tfar32[i], True)
-                else:
-                    valid[lane] = 0
+            e = accel._fill_packet(r, ri, valid, lanes, s, o32, d32, tfar32, True)
             if lanes == 1:
                 call(fn, scene, at)
             else:

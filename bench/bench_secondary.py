@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
@@ -59,7 +58,8 @@ NAMES = {0: "seeded", 1: "listed", 2: "heap", 3: "widened: no accepted photon",
 
 def classes(base_file, captures):
     import numpy as np
-    from bench_core import captured_maps, counted_irradiance_rows, irradiance_rows_source
+    from bench_core import (best_rows_time, captured_maps, counted_irradiance_rows,
+                            irradiance_rows_source)
     from engine import photonmap
     from engine.jit import ensure_compiled
     ensure_compiled()
@@ -92,17 +92,7 @@ def classes(base_file, captures):
                 NP.append(nph)
 
             def run(fn, pick):
-                photonmap._irradiance_rows = fn
-                best = 1e9
-                for _ in range(3):
-                    t0 = time.process_time()
-                    for (p, n, k, mp, est, rb, rf, mk), c in zip(calls, C):
-                        s = pick(c)
-                        if len(s):
-                            pm.irradiance(p[s], n[s], radius, k, mp, est, return_boundary=rb,
-                                          r_floor=None if rf is None else rf[s], masks=mk)
-                    best = min(best, time.process_time() - t0)
-                return best
+                return best_rows_time(pm, calls, C, radius, fn, pick)
             allc, alln = np.concatenate(C), np.concatenate(NP)
             tag = f"{os.path.basename(path)} | {caller} ({len(pm.photons):,}, {radius:.3f} m)"
             for cl in [None] + sorted(set(allc.tolist())):

@@ -199,6 +199,22 @@ if _intrinsic is not None:
                 ri[f * w + lane] = none
 
     @kernel
+    def _fill_packet(r, ri, valid, w, s, o32, d32, tfar32, hit):
+        """Packet r / ri (_packet_record) set up with rays s, s + 1, ... of o32, d32 (N,3)
+        float32 and tfar32 (N,) float32 (_set_lane), at most w of them; the lanes past the
+        last ray marked invalid in valid (w,) int32. Returns the end of the rays taken."""
+        e = min(s + w, o32.shape[0])
+        for lane in range(w):
+            i = s + lane
+            if i < e:
+                valid[lane] = -1
+                _set_lane(r, ri, w, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
+                          d32[i, 1], d32[i, 2], tfar32[i], hit)
+            else:
+                valid[lane] = 0
+        return e
+
+    @kernel
     def _occluded_packets(fn, scene, o32, d32, tfar32, blocked):
         """Occlusion of rays o32, d32 (N,3) float32 within [0, tfar32] ((N,) float32, not
         written) through rtcOccluded8 at address fn on the RTCScene at address scene,
@@ -213,15 +229,7 @@ if _intrinsic is not None:
         ray, rayi, at, valid, vat = _packet_record(w)
         n = o32.shape[0]
         for s in range(0, n, w):
-            e = min(s + w, n)
-            for lane in range(w):
-                i = s + lane
-                if i < e:
-                    valid[lane] = -1
-                    _set_lane(ray, rayi, w, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
-                              d32[i, 1], d32[i, 2], tfar32[i], False)
-                else:
-                    valid[lane] = 0
+            e = _fill_packet(ray, rayi, valid, w, s, o32, d32, tfar32, False)
             _call_c4(fn, vat, scene, at)
             for lane in range(e - s):
                 blocked[s + lane] = ray[8 * w + lane] < 0.0
@@ -241,15 +249,7 @@ if _intrinsic is not None:
         r, ri, at, valid, vat = _packet_record(w)
         n = o32.shape[0]
         for s in range(0, n, w):
-            e = min(s + w, n)
-            for lane in range(w):
-                i = s + lane
-                if i < e:
-                    valid[lane] = -1
-                    _set_lane(r, ri, w, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0],
-                              d32[i, 1], d32[i, 2], tfar32[i], True)
-                else:
-                    valid[lane] = 0
+            e = _fill_packet(r, ri, valid, w, s, o32, d32, tfar32, True)
             _call_c4(fn, vat, scene, at)
             for lane in range(e - s):
                 i = s + lane

@@ -181,3 +181,21 @@ def project(bpy, scene, point):
 def luminance(rgb):
     rgb = np.asarray(rgb)
     return 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]
+
+
+def node_material(bpy, name):
+    """(material, node tree, Material Output): a new material with an empty node tree
+    but its output (use_nodes is implied from Blender 5)."""
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    nt = m.node_tree
+    nt.nodes.clear()
+    return m, nt, nt.nodes.new("ShaderNodeOutputMaterial")
+
+
+def convert_material(m):
+    """The add-on's export of material m (addon.materials.MaterialConverter)."""
+    from addon.core import load_engine
+    from addon.materials import MaterialConverter
+    return MaterialConverter(load_engine()).convert(m)

@@ -4,6 +4,8 @@ a per-hit alpha node (engine Material.alpha_texture) that reads the image's alph
 hit's UV, without a warning; what is still approximated warns."""
 import numpy as np
 import pytest
+from blender_helpers import convert_material
+from blender_helpers import node_material as _material
 
 pytestmark = pytest.mark.blender
 
@@ -15,15 +17,6 @@ def _image(bpy, name, n=4):
     px[:, n // 2:, 3] = 0.0
     img.pixels.foreach_set(px.ravel())
     return img
-
-
-def _material(bpy, name):
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    nt = m.node_tree
-    nt.nodes.clear()
-    return m, nt, nt.nodes.new("ShaderNodeOutputMaterial")
 
 
 class _Geo:
@@ -40,12 +33,6 @@ def _alpha_at(mat, us):
                                                   np.full(len(u), 0.5))
 
 
-def _convert(bpy, m):
-    from addon.core import load_engine
-    from addon.materials import MaterialConverter
-    return MaterialConverter(load_engine()).convert(m)
-
-
 def test_image_alpha_into_principled_alpha_is_a_cutout(fresh_scene, bpy_addon):
     bpy = bpy_addon
     m, nt, out = _material(bpy, "Leaf")
@@ -56,7 +43,7 @@ def test_image_alpha_into_principled_alpha_is_a_cutout(fresh_scene, bpy_addon):
     nt.links.new(tex.outputs["Color"], p.inputs["Base Color"])
     nt.links.new(tex.outputs["Alpha"], p.inputs["Alpha"])
     nt.links.new(p.outputs[0], out.inputs["Surface"])
-    mat = _convert(bpy, m)
+    mat = convert_material(m)
     assert mat.alpha_texture is not None and not mat.warnings
     a = np.asarray(_alpha_at(mat, [0.2, 0.8]), np.float64)
     assert np.allclose(a, [1.0, 0.0])
@@ -77,7 +64,7 @@ def test_mix_with_transparent_by_a_texture_is_a_cutout(fresh_scene, bpy_addon,
     nt.links.new(t.outputs[0], mix.inputs[1 if transparent_first else 2])
     nt.links.new(d.outputs[0], mix.inputs[2 if transparent_first else 1])
     nt.links.new(mix.outputs[0], out.inputs["Surface"])
-    mat = _convert(bpy, m)
+    mat = convert_material(m)
     assert mat.alpha_texture is not None and not mat.warnings
     # Factor 1 picks the second shader: the diffuse side's coverage is fac or 1 - fac.
     expect = [1.0, 0.0] if transparent_first else [0.0, 1.0]
@@ -100,11 +87,11 @@ def test_mix_of_two_surfaces_by_a_texture_mixes_per_hit(fresh_scene, bpy_addon):
     nt.links.new(a.outputs[0], mix.inputs[1])
     nt.links.new(b.outputs[0], mix.inputs[2])
     nt.links.new(mix.outputs[0], out.inputs["Surface"])
-    mat = _convert(bpy, m)
+    mat = convert_material(m)
     assert mat.alpha_texture is None and mat.alpha == 1.0
     assert not any("mixes two surfaces by a texture" in w for w in mat.warnings)
     assert set(mat.scalar_textures) == {"metallic"} and mat.node == "glossy"
     e = nt.nodes.new("ShaderNodeEmission")
     nt.links.new(e.outputs[0], mix.inputs[1])
-    mat = _convert(bpy, m)
+    mat = convert_material(m)
     assert any("mixes two surfaces by a texture" in w for w in mat.warnings)

@@ -5,23 +5,12 @@ the socket's own value, and the warning names that value (new-user trial s22: Ro
 fell back to 0.5 with a warning that did not say so)."""
 import numpy as np
 import pytest
+from blender_helpers import convert_material as _convert
+from blender_helpers import node_material as _material
 
 pytestmark = pytest.mark.blender
 
 
-def _material(bpy, name):
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    nt = m.node_tree
-    nt.nodes.clear()
-    return m, nt, nt.nodes.new("ShaderNodeOutputMaterial")
-
-
-def _convert(m):
-    from addon.core import load_engine
-    from addon.materials import MaterialConverter
-    return MaterialConverter(load_engine()).convert(m)
 
 
 def _principled(nt, out):
