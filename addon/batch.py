@@ -37,7 +37,9 @@ methods and the photon hits into one labelled grid, --sweep / --sweep-preset a l
 ladder of one parameter, both at a preview size (--preview-size, the longer side) with
 the Preview quality preset unless --samples / --photons / --caustic-photons are given.
 --strip writes the effect passes side by side with their sum (name.strip.png) beside a
-render, --save-passes each pass as name.direct.png ... (.exr for an .exr output).
+render, --save-passes each pass as name.direct.png ... (.exr for an .exr output) and the view
+layer's data passes (Denoising Data, Diffuse / Glossy / Transmission Color) as
+name.denoising_albedo.exr ...
 """
 from __future__ import annotations
 
@@ -325,7 +327,9 @@ def parse_args(argv):
                    help="local: direct light without shadows, mirrors or glass; raytrace: "
                         "shadows, mirrors and glass (paper Fig. 5b); photon: the full renderer")
     p.add_argument("--save-passes", action="store_true",
-                   help="also write each effect pass next to the output (name.direct.png ...)")
+                   help="also write each effect pass next to the output (name.direct.png ...) "
+                        "and the view layer's data passes as linear OpenEXR "
+                        "(name.denoising_albedo.exr ...)")
     p.add_argument("--strip", action="store_true",
                    help="also write the effect passes and their sum side by side, labelled "
                         "(name.strip.png)")
@@ -586,6 +590,8 @@ def _extras(bpy, film, out, args):
         pass_ext = ext if ext in pm.imageio.FORMATS else ".png"
         for name in pm.film.EFFECTS:
             pm.imageio.write_image(getattr(film, name), f"{root}.{name}{pass_ext}")
+        # The view layer's data passes (Denoising Data, the Color passes) as linear EXR.
+        film.write_data_passes(root)
     if args.strip:
         tiles = pm.teaching.effects_strip(film)
         rgb8 = pm.teaching.compose(tiles, len(tiles), label_mask=operators.blf_label_mask)

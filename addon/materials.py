@@ -907,13 +907,15 @@ class MaterialConverter:
             return sn.Math(n.operation, self._input(n, n.inputs[0], depth),
                            self._input(n, n.inputs[1], depth), clamp=n.use_clamp)
         if t == "MAP_RANGE":
-            if getattr(n, "data_type", "FLOAT") != "FLOAT":
-                return None  # Vector Map Range: not supported (warned by the caller)
+            vector = getattr(n, "data_type", "FLOAT") == "FLOAT_VECTOR"
+            if getattr(n, "data_type", "FLOAT") not in ("FLOAT", "FLOAT_VECTOR"):
+                return None
             ins = {i.identifier: i for i in n.inputs}
-            inputs = {k: self._input(n, ins[k], depth) for k in sn.MapRange.SOCKETS
-                      if k in ins}
+            names = sn.MapRange.VECTOR_SOCKETS if vector else sn.MapRange.SOCKETS
+            inputs = {k: self._input(n, ins[k], depth) for k in names if k in ins}
             return _fold(sn.MapRange(inputs, kind=getattr(n, "interpolation_type", "LINEAR"),
-                                     clamp=getattr(n, "clamp", True)), inputs.values())
+                                     clamp=getattr(n, "clamp", True), vector=vector),
+                         inputs.values())
         if t == "BLACKBODY":
             kelvin = self._input(n, n.inputs["Temperature"], depth)
             return _fold(sn.Blackbody(kelvin), [kelvin])

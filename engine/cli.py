@@ -94,6 +94,17 @@ def _noise_threshold(text):
 QUALITY_PRESETS = ("preview", "medium", "high", "reference")
 
 
+def _data_passes(text: str) -> tuple:
+    """--data-passes' value: comma-separated kinds of RenderSettings.DATA_PASSES."""
+    from .settings import DATA_PASSES
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    bad = [k for k in kinds if k not in DATA_PASSES]
+    if bad or not kinds:
+        raise argparse.ArgumentTypeError(f"takes {', '.join(DATA_PASSES)} (comma-separated), "
+                                         f"got {text!r}")
+    return kinds
+
+
 def _setting_options(r, method=True, sweeps=False):
     """Options that set RenderSettings or the image size, shared by the subcommands."""
     if sweeps:
@@ -201,7 +212,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the photon-hit view (dots by photon kind on black, paper Fig. "
                         "6, left) as the image; --save-passes writes it beside any render")
     r.add_argument("--save-passes", action="store_true",
-                   help="also write each effect pass next to the output (name.direct.png ...)")
+                   help="also write each effect pass next to the output (name.direct.png ...) "
+                        "and any --data-passes as linear OpenEXR (name.denoising_albedo.exr ...)")
+    r.add_argument("--data-passes", type=_data_passes, metavar="KINDS",
+                   help="Cycles' data passes to make, comma-separated: denoising (Denoising "
+                        "Normal / Albedo / Depth), color (Diffuse / Glossy / Transmission "
+                        "Color); written with --save-passes")
     r.add_argument("--strip", action="store_true",
                    help="also write the effect passes and their sum side by side, labelled, "
                         "as name.strip.png (docs/teaching.md)")
@@ -335,7 +351,8 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
     for name in ("photons", "caustic_photons", "radius", "min_photons", "k_nearest", "estimator",
                  "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers",
                  "method", "max_bounces", "diffuse_bounces", "glossy_bounces",
-                 "transmission_bounces", "adaptive_threshold", "adaptive_min_samples"):
+                 "transmission_bounces", "adaptive_threshold", "adaptive_min_samples",
+                 "data_passes"):
         v = getattr(args, name, None)
         if v is not None:
             overrides[name] = v
@@ -633,6 +650,7 @@ def _render(args) -> int:
                             f"{root}.{name}{ext}")
                 continue
             write_image(img, f"{root}.{name}{ext}", args.exposure)
+        film.write_data_passes(root)
     if args.strip:
         from .teaching import compose, effects_strip
         save_composed(compose(effects_strip(film), columns=6, exposure=args.exposure),

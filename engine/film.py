@@ -64,5 +64,18 @@ class Film:
         if self.sample_count is not None:
             out["sample_count"] = self.sample_count
         # (self.data, Cycles' data passes, stays apart: the add-on writes them into
-        # Blender's render result; the CLI's --save-passes writes the effect passes.)
+        # Blender's render result; --save-passes writes them by write_data_passes.)
         return out
+
+    def write_data_passes(self, root: str) -> list[str]:
+        """Write each of Cycles' data passes made (self.data) as linear OpenEXR
+        `root.<key>.exr` (one-channel passes as grey RGB); returns the paths. They are data
+        (signed camera-space normals, depths in metres, albedos), so linear float whatever
+        the image's own format, as Blender's multilayer EXR keeps them."""
+        from .imageio import write_image
+        paths = []
+        for key, img in self.data.items():
+            rgb = img if img.ndim == 3 else np.repeat(img[..., None], 3, axis=2)
+            paths.append(f"{root}.{key}.exr")
+            write_image(rgb, paths[-1])
+        return paths

@@ -25,6 +25,9 @@ measured peak for a set of renders. What each part counts:
   a float32 pdf of the map's size): 8k x 4k texels keep 682 MB (environment_bytes: the
   exact array sizes), and building them takes ENV_BUILD_BYTES_PER_TEXEL more for a moment
   (tests/test_resources_measured.py checks both against the arrays).
+- data passes: Cycles' data passes when asked for (engine/datapasses.py): per pixel and
+  channel a float64 sum, the Film's float32 copy and, in Blender, the render result's
+  float32 pass (BYTES_PER_DATA_CHANNEL...).
 - regather maps: the bounce limits' deeper gather levels (photonmap.GatherMap subsets,
   engine/render.py _build_maps): per level the irradiance and boundary flag of every
   gather point, counted at the most levels (integrator.MAX_GATHER_LEVEL) whenever the
@@ -49,6 +52,11 @@ BYTES_PER_CAMERA_SAMPLE = 1900  # in flight in a chunk; measured 1.5-1.7 K (1-16
 BYTES_PER_PIXEL = 300           # accumulators 168 B + Film 92 B + write-out copies
 BYTES_PER_PIXEL_PROGRESSIVE = 350  # running sums, halves, one pass's Film
 BYTES_PER_PIXEL_BLENDER = 260   # render result passes (float32) and the copies written
+# A data pass's channel (engine/datapasses.py): the float64 sum and the Film's float32
+# copy; in Blender its render result pass (float32) too; progressive: one more float64 sum.
+BYTES_PER_DATA_CHANNEL = 12
+BYTES_PER_DATA_CHANNEL_BLENDER = 4
+BYTES_PER_DATA_CHANNEL_PROGRESSIVE = 8
 BYTES_PER_TRIANGLE = 320        # measured peak 240-290 (bench_memory.py --triangles); tables + BVH
 # Embree's copy and BVH of a triangle (default BVH ~91 B, compact ~61 B; docs/performance.md
 # "Memory per triangle").
@@ -260,6 +268,13 @@ def gather_points(stored: float) -> int:
     return int(math.ceil(-(-n // step) * GATHER_POINT_SPREAD))
 
 
+def data_pass_channels(settings: RenderSettings) -> int:
+    """Channels per pixel of the data passes settings.data_passes asks for (Denoising
+    Normal / Albedo / Depth: 3 + 3 + 1; the three Color passes: 9)."""
+    from .datapasses import keys
+    return sum(channels for _name, _key, channels in keys(settings.data_passes))
+
+
 def estimate_memory(scene, settings: RenderSettings, region=None, progressive=False,
                     in_blender=False) -> MemoryEstimate:
     """Peak memory of rendering `scene` with `settings` (bytes, by part). region =
@@ -301,6 +316,13 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         + (BYTES_PER_PIXEL_BLENDER if in_blender else 0)
     est.parts["image"] = pixels * per_pixel
     est.drivers["image"] = "resolution"
+    channels = data_pass_channels(s)
+    if channels and pixels:
+        per_channel = BYTES_PER_DATA_CHANNEL \
+            + (BYTES_PER_DATA_CHANNEL_PROGRESSIVE if progressive else 0) \
+            + (BYTES_PER_DATA_CHANNEL_BLENDER if in_blender else 0)
+        est.parts["data passes"] = pixels * channels * per_channel
+        est.drivers["data passes"] = "data_passes"
     copies, shared, count = _instanced_triangles(scene)
     saved = 0
     if copies and instance_choice(copies, shared)[0]:

@@ -263,22 +263,63 @@ def map_range(value, from_min, from_max, to_min, to_max, steps=4.0, kind="LINEAR
     return np.where(empty, 0.0, r)
 
 
+def vector_map_range(value, from_min, from_max, to_min, to_max, steps=4.0, kind="LINEAR",
+                     clamp=True):
+    """Map Range node, Vector (Cycles svm_node_vector_map_range), per component: arrays
+    broadcast to (..., 3). Unlike the Float node: an empty From range gives the factor 0
+    (safe_divide: the result is To Min), SMOOTHSTEP / SMOOTHERSTEP clamp the factor to
+    [0, 1] without swapping reversed edges, and Clamp holds for LINEAR and STEPPED only."""
+    if kind not in MAP_RANGE_TYPES:
+        raise ValueError(f"Map Range interpolation {kind!r}: expected one of "
+                         f"{MAP_RANGE_TYPES}")
+    value, from_min, from_max, to_min, to_max, steps = np.broadcast_arrays(
+        *(np.asarray(x, np.float64) for x in (value, from_min, from_max, to_min, to_max,
+                                               steps)))
+    span = from_max - from_min
+    f = np.where(span != 0.0, (value - from_min) / np.where(span != 0.0, span, 1.0), 0.0)
+    if kind == "STEPPED":
+        f = np.where(steps > 0.0, np.floor(f * (steps + 1.0)) / np.where(steps > 0.0, steps, 1.0),
+                     0.0)
+    elif kind == "SMOOTHSTEP":
+        f = np.clip(f, 0.0, 1.0)
+        f = (3.0 - 2.0 * f) * (f * f)
+    elif kind == "SMOOTHERSTEP":
+        f = np.clip(f, 0.0, 1.0)
+        f = f * f * f * (f * (f * 6.0 - 15.0) + 10.0)
+    r = to_min + f * (to_max - to_min)
+    if clamp and kind in ("LINEAR", "STEPPED"):
+        r = np.clip(r, np.minimum(to_min, to_max), np.maximum(to_min, to_max))
+    return r
+
+
 class MapRange:
-    """Map Range node (Float): map_range() of its inputs, per hit. inputs: Value, From Min,
-    From Max, To Min, To Max, Steps (nodes or constants); kind one of MAP_RANGE_TYPES."""
+    """Map Range node: map_range() of its inputs per hit (Float), or vector_map_range()
+    per component (Vector, `vector=True`: (N,3)). inputs: keyed by SOCKETS (Float) or
+    VECTOR_SOCKETS (Blender's socket identifiers of the Vector inputs), nodes or
+    constants; kind one of MAP_RANGE_TYPES."""
 
     SOCKETS = ("Value", "From Min", "From Max", "To Min", "To Max", "Steps")
     DEFAULTS = {"Value": 1.0, "From Min": 0.0, "From Max": 1.0, "To Min": 0.0,
                 "To Max": 1.0, "Steps": 4.0}
+    VECTOR_SOCKETS = ("Vector", "From_Min_FLOAT3", "From_Max_FLOAT3", "To_Min_FLOAT3",
+                      "To_Max_FLOAT3", "Steps_FLOAT3")
+    VECTOR_DEFAULTS = {"Vector": (0.0, 0.0, 0.0), "From_Min_FLOAT3": (0.0, 0.0, 0.0),
+                       "From_Max_FLOAT3": (1.0, 1.0, 1.0), "To_Min_FLOAT3": (0.0, 0.0, 0.0),
+                       "To_Max_FLOAT3": (1.0, 1.0, 1.0), "Steps_FLOAT3": (4.0, 4.0, 4.0)}
 
-    def __init__(self, inputs=None, kind="LINEAR", clamp=True):
+    def __init__(self, inputs=None, kind="LINEAR", clamp=True, vector=False):
         if kind not in MAP_RANGE_TYPES:
             raise ValueError(f"Map Range interpolation {kind!r}: expected one of "
                              f"{MAP_RANGE_TYPES}")
-        self.inputs = {**self.DEFAULTS, **(inputs or {})}
+        self.vector = bool(vector)
+        self.inputs = {**(self.VECTOR_DEFAULTS if self.vector else self.DEFAULTS),
+                       **(inputs or {})}
         self.kind, self.clamp = kind, bool(clamp)
 
     def evaluate(self, geo, prim, u, v):
+        if self.vector:
+            ins = [_eval(self.inputs[k], geo, prim, u, v, 3) for k in self.VECTOR_SOCKETS]
+            return vector_map_range(*ins, kind=self.kind, clamp=self.clamp)
         ins = [_eval(self.inputs[k], geo, prim, u, v, 1) for k in self.SOCKETS]
         return map_range(*ins, kind=self.kind, clamp=self.clamp)
 

@@ -102,3 +102,54 @@ def test_settings_refuse_unknown_pass():
     assert RenderSettings(data_passes="Color").data_passes == ("color",)
     with pytest.raises(ValueError, match="data_passes"):
         RenderSettings(data_passes=("mist",))
+
+
+def test_cli_writes_data_passes_as_exr(tmp_path, capsys):
+    """`photonmap render --data-passes denoising,color --save-passes` writes each data pass
+    as linear OpenEXR beside the image: unit camera-space normals, depths inside the box,
+    albedos of the box's Lambert walls (non-negative; through the glass ball a sample's
+    path throughput can pass 1, its expectation cannot)."""
+    from engine.cli import main
+    from engine.imageio import read_image
+    out = tmp_path / "f6.png"
+    assert main(["render", "scenes/figure6.toml", "-o", str(out), "--width", "16", "--height",
+                 "12", "--spp", "2", "--photons", "3000", "--data-passes", "denoising,color",
+                 "--save-passes", "--quiet"]) == 0
+    names = ("denoising_normal", "denoising_albedo", "denoising_depth", "diffuse_color",
+             "glossy_color", "transmission_color")
+    images = {n: read_image(str(tmp_path / f"f6.{n}.exr")) for n in names}
+    assert all(img.shape == (12, 16, 3) and np.isfinite(img).all() for img in images.values())
+    length = np.linalg.norm(images["denoising_normal"], axis=2)
+    assert np.median(length) == pytest.approx(1.0, abs=0.05)
+    depth = images["denoising_depth"][..., 0]
+    assert (depth > 0).all() and np.allclose(depth, images["denoising_depth"][..., 2])
+    for n in ("denoising_albedo", "diffuse_color"):
+        assert 0.0 <= images[n].min() and 0.1 < images[n].mean() < 1.0
+    # Without --data-passes nothing of the kind is written.
+    assert main(["render", "scenes/figure6.toml", "-o", str(tmp_path / "g.png"), "--width", "8",
+                 "--height", "6", "--spp", "1", "--photons", "1000", "--save-passes",
+                 "--quiet"]) == 0
+    assert not list(tmp_path.glob("g.*.exr"))
+
+
+def test_cli_refuses_unknown_data_pass(capsys):
+    from engine.cli import main
+    with pytest.raises(SystemExit):
+        main(["render", "scenes/figure6.toml", "-o", "x.png", "--data-passes", "albedo"])
+    err = capsys.readouterr().err
+    assert "--data-passes" in err and "'albedo'" in err
+
+
+def test_memory_estimate_counts_data_passes():
+    """The estimate's 'data passes' part holds at least the buffers a render makes: the
+    Film's float32 passes and the accumulator's float64 sums of each channel."""
+    from engine.resources import estimate_memory
+    scene = _plane_scene()
+    settings = _settings(data_passes=("denoising", "color"))
+    film = render(scene, settings)
+    film_bytes = sum(a.nbytes for a in film.data.values())
+    sums = 2 * film_bytes  # float64 against float32, channel for channel
+    part = estimate_memory(scene, settings).parts["data passes"]
+    assert film_bytes + sums <= part <= 1.5 * (film_bytes + sums)
+    assert "data passes" not in estimate_memory(scene, _settings()).parts
+    assert estimate_memory(scene, settings, in_blender=True).parts["data passes"] > part

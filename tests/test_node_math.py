@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from engine.shadernodes import Blackbody, MapRange, Wave, blackbody_rec709, map_range
+from engine.shadernodes import (Blackbody, MapRange, Wave, blackbody_rec709, map_range,
+                                vector_map_range)
 
 
 def _eval(node, n):
@@ -140,6 +141,52 @@ def test_map_range_modes_are_cycles(kind, clamp):
         want = [_cycles_map_range(x, fmin, fmax, tmin, tmax, steps, kind, clamp)
                 for x in xs]
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+def _cycles_vector_map_range(x, fmin, fmax, tmin, tmax, steps, kind, clamp):
+    """One component of Cycles' svm_node_vector_map_range (kernel/svm/map_range.h):
+    safe_divide (0 for an empty range), the smooth kinds clamp the factor and ignore
+    Clamp; no edge swap for reversed ranges."""
+    f = (x - fmin) / (fmax - fmin) if fmax != fmin else 0.0
+    if kind == "STEPPED":
+        f = math.floor(f * (steps + 1.0)) / steps if steps > 0 else 0.0
+    elif kind == "SMOOTHSTEP":
+        f = min(max(f, 0.0), 1.0)
+        f = (3.0 - 2.0 * f) * (f * f)
+    elif kind == "SMOOTHERSTEP":
+        f = min(max(f, 0.0), 1.0)
+        f = f * f * f * (f * (f * 6.0 - 15.0) + 10.0)
+    r = tmin + f * (tmax - tmin)
+    if clamp and kind in ("LINEAR", "STEPPED"):
+        r = min(max(r, tmax), tmin) if tmin > tmax else min(max(r, tmin), tmax)
+    return r
+
+
+@pytest.mark.parametrize("kind", ["LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP"])
+@pytest.mark.parametrize("clamp", [True, False])
+def test_vector_map_range_modes_are_cycles(kind, clamp):
+    """Per component, each with its own range (reversed, empty, zero steps among them)."""
+    xs = np.linspace(-1.0, 2.0, 61)
+    value = np.c_[xs, xs[::-1], 0.5 * xs]
+    fmin, fmax = np.array([0.0, 0.9, 0.5]), np.array([1.0, 0.1, 0.5])
+    tmin, tmax = np.array([0.0, 1.0, 0.2]), np.array([1.0, -0.5, 0.8])
+    steps = np.array([4.0, 2.5, 0.0])
+    got = vector_map_range(value, fmin, fmax, tmin, tmax, steps, kind=kind, clamp=clamp)
+    assert got.shape == (61, 3)
+    want = [[_cycles_vector_map_range(value[i, c], fmin[c], fmax[c], tmin[c], tmax[c],
+                                      steps[c], kind, clamp) for c in range(3)]
+            for i in range(61)]
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
+def test_vector_map_range_node_per_hit():
+    pts = np.array([[-0.5, 0.1, 0.6], [0.2, 1.4, 0.9]])
+    node = MapRange({"Vector": _Points(pts), "To_Min_FLOAT3": (0.2, 0.0, 1.0),
+                     "To_Max_FLOAT3": (0.9, 2.0, 0.0)}, kind="LINEAR", clamp=True,
+                    vector=True)
+    want = np.clip(np.array([0.2, 0.0, 1.0]) + pts * np.array([0.7, 2.0, -1.0]),
+                   [0.2, 0.0, 0.0], [0.9, 2.0, 1.0])
+    np.testing.assert_allclose(_eval(node, 2), want)
 
 
 def test_map_range_known_values():

@@ -119,6 +119,36 @@ def test_data_passes_match_cycles(renders):
     assert abs(n[0]) < 0.02 and n[1] > 0.9 and n[2] < -0.2, n
 
 
+def test_batch_save_passes_writes_the_data_passes(bpy_addon, renders, tmp_path):
+    """`python -m addon.batch scene.blend -o x.png --save-passes` writes the view layer's
+    data passes beside the effect passes as linear EXR, the same values the render result
+    holds (same seed and settings: the batch renders the saved scene)."""
+    import subprocess
+    from blender_helpers import PYTHON
+    from engine.imageio import read_image
+    bpy = bpy_addon
+    scene = _scene()
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=SPP, photons=20_000, caustic_photons=20_000)
+    blend = tmp_path / "passes.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    res = subprocess.run([PYTHON, "-m", "addon.batch", str(blend), "-o", str(tmp_path / "x.png"),
+                          "--save-passes", "--quiet"], cwd=ROOT, capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert (tmp_path / "x.direct.png").is_file()
+    for name, key in (("Denoising Albedo", "denoising_albedo"),
+                      ("Denoising Normal", "denoising_normal"),
+                      ("Diffuse Color", "diffuse_color")):
+        written = read_image(str(tmp_path / f"x.{key}.exr"))
+        held = renders["PHOTONMAP"][name][..., :3]
+        assert written.shape == held.shape, name
+        np.testing.assert_allclose(written, held, atol=1e-4, err_msg=name)
+    depth = read_image(str(tmp_path / "x.denoising_depth.exr"))
+    np.testing.assert_allclose(depth[..., 0], renders["PHOTONMAP"]["Denoising Depth"][..., 0],
+                               rtol=1e-5)
+
+
 def test_unmade_passes_one_warning(bpy_addon, tmp_path):
     """The passes a view layer asks for that we do not make are named, in one warning,
     not silently left empty; the passes we make are not named."""

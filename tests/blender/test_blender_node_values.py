@@ -1,4 +1,4 @@
-"""Map Range, Blackbody and Wave Texture in Blender node trees (addon/materials.py): a tree
+"""Map Range (Float and Vector), Blackbody and Wave Texture in Blender node trees (addon/materials.py): a tree
 of constants folds to its value (also on lobe parameters that must be one constant), a
 texture-driven one is evaluated per hit; a node the add-on does not take falls back to
 the socket's own value, and the warning names that value (new-user trial s22: Roughness
@@ -75,10 +75,31 @@ def test_unsupported_node_warning_names_the_value_used(fresh_scene, bpy_addon):
     m, nt, out = _material(bpy_addon, "Fallback")
     p = _principled(nt, out)
     p.inputs["Roughness"].default_value = 0.5
-    vec = nt.nodes.new("ShaderNodeMapRange")
-    vec.data_type = "FLOAT_VECTOR"           # Vector Map Range: not taken
-    nt.links.new(vec.outputs["Vector"], p.inputs["Roughness"])
+    brick = nt.nodes.new("ShaderNodeTexBrick")   # Brick Texture: not taken
+    nt.links.new(brick.outputs["Fac"], p.inputs["Roughness"])
     mat = _convert(m)
     assert mat.roughness == pytest.approx(0.5)
-    assert any("Roughness of 'Principled BSDF': node 'Map Range' (MAP_RANGE) not supported, "
-               "using 0.5 (the socket's own value)" in w for w in mat.warnings), mat.warnings
+    assert any("Roughness of 'Principled BSDF': node 'Brick Texture' (TEX_BRICK) not "
+               "supported, using 0.5 (the socket's own value)" in w for w in mat.warnings), \
+        mat.warnings
+
+
+def test_vector_map_range_folds_into_base_color(fresh_scene, bpy_addon):
+    """A Vector Map Range of constants (Stepped, per component) folds to Cycles' value."""
+    from engine.shadernodes import vector_map_range
+    m, nt, out = _material(bpy_addon, "VectorRange")
+    p = _principled(nt, out)
+    vec = nt.nodes.new("ShaderNodeMapRange")
+    vec.data_type = "FLOAT_VECTOR"
+    vec.interpolation_type = "STEPPED"
+    ins = {i.identifier: i for i in vec.inputs}   # the Vector inputs share the Float's names
+    ins["Vector"].default_value = (0.3, 0.55, 0.9)
+    ins["To_Min_FLOAT3"].default_value = (0.1, 0.2, 0.0)
+    ins["To_Max_FLOAT3"].default_value = (0.9, 0.6, 0.5)
+    nt.links.new(vec.outputs["Vector"], p.inputs["Base Color"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    want = vector_map_range((0.3, 0.55, 0.9), 0.0, 1.0, (0.1, 0.2, 0.0), (0.9, 0.6, 0.5), 4.0,
+                            kind="STEPPED")
+    assert np.allclose(mat.base_color, want), (mat.base_color, want)
+    assert np.allclose(want, [0.1 + 0.8 * 0.25, 0.2 + 0.4 * 0.5, 0.5])
