@@ -295,6 +295,43 @@ def warn_unsupported_visibility(obj, warnings: list):
 
 # --- lights -------------------------------------------------------------------------
 
+def light_node_tint(pm, nt):
+    """The factor a light's node tree puts on its colour, as Cycles reads it (the
+    light's strength times the shader's emission): Light Output <- Emission whose Color
+    is a constant or a Blackbody node of a constant Temperature (a bulb's colour the
+    way older tutorials set it) and whose Strength is a constant. RGB (3,) linear
+    Rec.709, or None for any other tree (textures, falloff nodes: not supported)."""
+    out = None
+    for target in ("CYCLES", "ALL"):
+        try:
+            out = nt.get_output_node(target)
+        except Exception:  # noqa: BLE001 - older API
+            out = None
+        if out is not None:
+            break
+    surface = out.inputs.get("Surface") if out is not None else None
+    if surface is None or not surface.is_linked:
+        return None
+    emit = surface.links[0].from_node
+    if emit.type != "EMISSION" or emit.inputs["Strength"].is_linked:
+        return None
+    strength = float(emit.inputs["Strength"].default_value)
+    col = emit.inputs["Color"]
+    if not col.is_linked:
+        rgb = np.asarray(tuple(col.default_value)[:3], np.float64)
+    else:
+        src = col.links[0].from_node
+        if src.type != "BLACKBODY" or src.inputs["Temperature"].is_linked:
+            return None
+        import importlib
+        nodes = importlib.import_module(pm.__name__ + ".shadernodes")  # pm: the engine
+        # Cycles' Blackbody node: its fit, negatives clamped (svm_node_blackbody).
+        rgb = np.maximum(nodes.blackbody_rec709(
+            float(src.inputs["Temperature"].default_value))[0], 0.0)
+    tint = rgb * strength
+    return tint if np.all(np.isfinite(tint)) else None
+
+
 def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     """Blender light object -> engine Light with Cycles' units (docs/units.md) and Cycles'
     reading of the object matrix: position = translation, direction = -Z axis (normalised),
@@ -368,8 +405,13 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     if hasattr(L, "normalize"):
         kw["normalize"] = bool(L.normalize)
     if getattr(L, "use_nodes", False) and L.node_tree is not None:
-        warnings.append(f"light '{name}': light node trees are not supported; using the "
-                        "light's colour and power")
+        tint = light_node_tint(pm, L.node_tree)
+        if tint is None:
+            warnings.append(f"light '{name}': light node trees other than an Emission "
+                            "of a constant colour or a Blackbody of a constant temperature "
+                            "are not supported; using the light's colour and power")
+        else:
+            kw["color"] = np.asarray(kw["color"], np.float64) * tint
     if not getattr(L, "use_shadow", True):
         kw["cast_shadow"] = False
         warnings.append(f"light '{name}': 'cast shadow' off: its direct light passes every "
