@@ -225,6 +225,45 @@ def _layer_flag(ob, getter: str, view_layer) -> bool:
         return False
 
 
+def holdout_material(mat) -> bool:
+    """A material whose Surface is a Holdout shader and nothing else (Cycles'
+    holdout closure of weight 1: svm_node_closure_holdout). Such a surface is what an
+    object holdout is - alpha 0 and no colour where the camera sees it, opaque to
+    shadow rays and photons - so an object whose every slot holds one is exported as an
+    object holdout (a product shot's holdout card). A Holdout mixed into other shaders
+    is not one: the material converter warns about it."""
+    nt = getattr(mat, "node_tree", None) if mat is not None else None
+    if nt is None:
+        return False
+    out = None
+    for target in ("CYCLES", "ALL"):
+        try:
+            out = nt.get_output_node(target)
+        except Exception:  # noqa: BLE001 - older API
+            out = None
+        if out is not None:
+            break
+    surface = out.inputs.get("Surface") if out is not None else None
+    if surface is None or not surface.is_linked:
+        return False
+    src = surface.links[0].from_node
+    return src.type == "HOLDOUT" and not getattr(surface.links[0], "is_muted", False)
+
+
+def _all_slots_holdout(obj) -> bool:
+    slots = [slot.material for slot in getattr(obj, "material_slots", ())]
+    return bool(slots) and all(holdout_material(m) for m in slots)
+
+
+def drop_holdout_warning(mat, engine_material):
+    """The converter names a Holdout node 'not supported' (it has no closure for it);
+    for a pure Holdout material the object holdout renders it, so that warning is
+    wrong there."""
+    if holdout_material(mat):
+        engine_material.warnings[:] = [w for w in engine_material.warnings
+                                       if "(HOLDOUT) is not supported" not in w]
+
+
 def ray_visibility(obj, inst, view_layer) -> dict:
     """Mesh keyword arguments for an instance's ray visibility, holdout and indirect-only,
     read as Cycles does (blender/object.cpp sync_object): the object's own flags, ANDed
@@ -240,7 +279,8 @@ def ray_visibility(obj, inst, view_layer) -> dict:
     owner = parent if parent is not None else obj
     out["holdout"] = (bool(getattr(obj, "is_holdout", False))
                       or bool(getattr(owner, "is_holdout", False))
-                      or _layer_flag(owner, "holdout_get", view_layer))
+                      or _layer_flag(owner, "holdout_get", view_layer)
+                      or _all_slots_holdout(obj))
     if _layer_flag(owner, "indirect_only_get", view_layer):
         out["visible_camera"] = False
     return out
@@ -254,6 +294,43 @@ def warn_unsupported_visibility(obj, warnings: list):
 
 
 # --- lights -------------------------------------------------------------------------
+
+def light_node_tint(pm, nt):
+    """The factor a light's node tree puts on its colour, as Cycles reads it (the
+    light's strength times the shader's emission): Light Output <- Emission whose Color
+    is a constant or a Blackbody node of a constant Temperature (a bulb's colour the
+    way older tutorials set it) and whose Strength is a constant. RGB (3,) linear
+    Rec.709, or None for any other tree (textures, falloff nodes: not supported)."""
+    out = None
+    for target in ("CYCLES", "ALL"):
+        try:
+            out = nt.get_output_node(target)
+        except Exception:  # noqa: BLE001 - older API
+            out = None
+        if out is not None:
+            break
+    surface = out.inputs.get("Surface") if out is not None else None
+    if surface is None or not surface.is_linked:
+        return None
+    emit = surface.links[0].from_node
+    if emit.type != "EMISSION" or emit.inputs["Strength"].is_linked:
+        return None
+    strength = float(emit.inputs["Strength"].default_value)
+    col = emit.inputs["Color"]
+    if not col.is_linked:
+        rgb = np.asarray(tuple(col.default_value)[:3], np.float64)
+    else:
+        src = col.links[0].from_node
+        if src.type != "BLACKBODY" or src.inputs["Temperature"].is_linked:
+            return None
+        import importlib
+        nodes = importlib.import_module(pm.__name__ + ".shadernodes")  # pm: the engine
+        # Cycles' Blackbody node: its fit, negatives clamped (svm_node_blackbody).
+        rgb = np.maximum(nodes.blackbody_rec709(
+            float(src.inputs["Temperature"].default_value))[0], 0.0)
+    tint = rgb * strength
+    return tint if np.all(np.isfinite(tint)) else None
+
 
 def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     """Blender light object -> engine Light with Cycles' units (docs/units.md) and Cycles'
@@ -328,8 +405,13 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     if hasattr(L, "normalize"):
         kw["normalize"] = bool(L.normalize)
     if getattr(L, "use_nodes", False) and L.node_tree is not None:
-        warnings.append(f"light '{name}': light node trees are not supported; using the "
-                        "light's colour and power")
+        tint = light_node_tint(pm, L.node_tree)
+        if tint is None:
+            warnings.append(f"light '{name}': light node trees other than an Emission "
+                            "of a constant colour or a Blackbody of a constant temperature "
+                            "are not supported; using the light's colour and power")
+        else:
+            kw["color"] = np.asarray(kw["color"], np.float64) * tint
     if not getattr(L, "use_shadow", True):
         kw["cast_shadow"] = False
         warnings.append(f"light '{name}': 'cast shadow' off: its direct light passes every "
@@ -570,6 +652,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         names = []
         for mat in slot_mats:
             m = converter.convert(mat)
+            drop_holdout_warning(mat, m)
             materials[m.name] = m
             names.append(m.name)
         mids = np.clip(geo.material_index, 0, len(names) - 1)
@@ -756,6 +839,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         names = []
         for mat in [slot.material for slot in obj.material_slots] or [None]:
             m = converter.convert(mat)
+            drop_holdout_warning(mat, m)
             materials[m.name] = m
             names.append(m.name)
         iname = _instance_name(inst, obj, info)

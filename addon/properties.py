@@ -115,11 +115,15 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         description="Photons emitted towards glass and mirrors for the caustic map")
     max_photon_depth: IntProperty(
         name="Max Photon Depth", default=32, min=1, max=1000,
-        description="Bounces a photon may take before it is dropped")
+        description="An extra cap on the bounces a photon may take before it is dropped. "
+                    "Photons also stop at Light Paths > Max Bounces (and Russian roulette "
+                    "ends most sooner), so the default 32 caps nothing at Cycles' defaults")
     # Radiance estimate
     estimator: EnumProperty(
         name="Estimator", items=ESTIMATOR_ITEMS, default="knn_simpson",
-        description="How photons near a point are turned into radiance")
+        description="How the photons near a point are turned into radiance: which "
+                    "photons (the k nearest, or all in the search radius) and how they are "
+                    "weighted by distance")
     use_auto_radius: BoolProperty(
         name="Auto Radius", default=True,
         description="Derive the maximum photon search radius from scene size and photon "
@@ -140,7 +144,8 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     k_nearest: IntProperty(
         name="Nearest Photons", default=64, min=1, max=10_000,
         update=_preset_edited("k_nearest"),
-        description="Photons gathered per k-nearest estimate")
+        description="Photons gathered per k-nearest estimate: more is smoother but "
+                    "blurs shadows and caustics, fewer is sharper but blotchier")
     final_gather: BoolProperty(
         name="Final Gather", default=True,
         description="Estimate indirect light by gather rays into the global map "

@@ -68,6 +68,18 @@ def test_property_defaults_match_engine(bpy_addon):
     RenderSettings(**kwargs)  # accepted by the engine
 
 
+def test_every_setting_has_a_tooltip(bpy_addon):
+    """Every setting of the panels has a tooltip of a sentence (a new user's main help,
+    newuser23's trial); Max Photon Depth says that the Light Paths limits end photons
+    too (its default 32 looked like the limit that counts)."""
+    bpy = bpy_addon
+    rna = bpy.types.Scene.bl_rna.properties["photonmap"].fixed_type
+    short = [p.identifier for p in rna.properties
+             if p.identifier not in ("rna_type", "name") and len(p.description) < 30]
+    assert not short, short
+    assert "Max Bounces" in rna.properties["max_photon_depth"].description
+
+
 def test_estimator_menu_names_are_the_reports(bpy_addon):
     """The effect report names the estimator as the panel's menu does."""
     from addon.properties import ESTIMATOR_ITEMS

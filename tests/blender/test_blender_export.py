@@ -321,3 +321,56 @@ def test_viewport_export_writes_instance_records(fresh_scene, bpy_addon):
     np.testing.assert_allclose(mq[1].matrix[:, 3], (7, 0, 0), atol=1e-6)
     assert mq[1].prototype is quads[0].prototype and mq[1].vertices is None
     moved.validate()
+
+
+def _bulb_colour(bpy, setup):
+    """Export a scene of one Point light set up by setup(light): its engine colour and
+    the export's warnings."""
+    from addon import export
+    from addon.core import load_engine
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    light = bpy.data.lights.new("Bulb", "POINT")
+    light.energy = 100.0
+    ob = bpy.data.objects.new("Bulb", light)
+    scene.collection.objects.link(ob)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    setup(light)
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=6)
+    return np.asarray(out.lights[0].color, np.float64), list(out.warnings)
+
+
+def test_light_node_blackbody_is_the_light_temperature(fresh_scene, bpy_addon):
+    """A bulb coloured by a Blackbody node (2700 K) in its light node tree gets the colour
+    Blender's own light Temperature (2700 K) gives it - Cycles renders both alike
+    (measured: floor R/B 8.11 both ways, /tmp/newuser23/repro_light_blackbody.py) - and
+    an Emission's constant Color and Strength scale it; no 'not supported' warning."""
+    bpy = bpy_addon
+
+    def temperature(light):
+        light.use_temperature = True
+        light.temperature = 2700.0
+
+    def node(light, strength=1.0, color=None):
+        light.use_nodes = True
+        nt = light.node_tree
+        emit = nt.nodes["Emission"]
+        emit.inputs["Strength"].default_value = strength
+        if color is None:
+            bb = nt.nodes.new("ShaderNodeBlackbody")
+            bb.inputs["Temperature"].default_value = 2700.0
+            nt.links.new(bb.outputs[0], emit.inputs["Color"])
+        else:
+            emit.inputs["Color"].default_value = (*color, 1.0)
+
+    want, w0 = _bulb_colour(bpy, temperature)
+    got, w1 = _bulb_colour(bpy, node)
+    assert want[0] > 4 * want[2]  # warm
+    np.testing.assert_allclose(got, want, rtol=1e-4)
+    assert not [w for w in w0 + w1 if "node tree" in w], w0 + w1
+    tinted, w2 = _bulb_colour(bpy, lambda L: node(L, 2.0, (1.0, 0.5, 0.25)))
+    np.testing.assert_allclose(tinted, [2.0, 1.0, 0.5], rtol=1e-6)
+    assert not w2

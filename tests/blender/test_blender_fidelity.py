@@ -398,14 +398,24 @@ def test_shadow_invisible_cube_casts_no_shadow(fresh_scene, bpy_addon, tmp_path)
 
 
 @pytest.mark.parametrize("how,transparent", [("object", True), ("collection", True),
-                                             ("object", False)])
+                                             ("object", False), ("material", True)])
 def test_holdout_gives_alpha_zero(fresh_scene, bpy_addon, tmp_path, how, transparent):
-    """Holdout (object or view-layer collection): the cube's pixels have alpha 0 and no
-    colour, with Film > Transparent or without (as Cycles); the rest is opaque."""
+    """Holdout (object, view-layer collection, or a material that is a Holdout shader: a
+    product shot's holdout card): the cube's pixels have alpha 0 and no colour, with
+    Film > Transparent or without (as Cycles); the rest is opaque."""
     bpy = bpy_addon
     scene, cube = _cube_on_floor(bpy)
     if how == "object":
         cube.is_holdout = True
+    elif how == "material":
+        mat = bpy.data.materials.new("HoldoutCard")
+        nt = mat.node_tree
+        for n in list(nt.nodes):
+            if n.type != "OUTPUT_MATERIAL":
+                nt.nodes.remove(n)
+        hold = nt.nodes.new("ShaderNodeHoldout")
+        nt.links.new(hold.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+        cube.data.materials[0] = mat
     else:
         coll = bpy.data.collections.new("Held out")
         scene.collection.children.link(coll)
@@ -421,6 +431,16 @@ def test_holdout_gives_alpha_zero(fresh_scene, bpy_addon, tmp_path, how, transpa
         assert img[top][..., 3].max() < 0.05, (engine, img[top][..., 3])
         assert img[top][..., :3].max() < 0.05, (engine, img[top][..., :3])
         assert img[lit][..., 3].min() > 0.95 and img[lit][..., :3].mean() > 0.1
+    if how == "material":
+        # The export makes it an object holdout and says nothing is unsupported.
+        from addon import export
+        from addon.core import load_engine
+        sc, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                    width=48, height=36)
+        cube_mesh = [m for m in sc.meshes if m.name.startswith(cube.name)]
+        assert cube_mesh and all(m.holdout for m in cube_mesh)
+        texts = list(sc.warnings) + [w for m in sc.materials.values() for w in m.warnings]
+        assert not [w for w in texts if "HOLDOUT" in w], texts
 
 
 def test_indirect_only_collection(fresh_scene, bpy_addon, tmp_path):
