@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from .materials import MaterialConverter
+from .materials import MaterialConverter, output_node
 from .normals import shading_normals
 from .world import export_world, sky_sun_lights
 
@@ -235,14 +235,7 @@ def holdout_material(mat) -> bool:
     nt = getattr(mat, "node_tree", None) if mat is not None else None
     if nt is None:
         return False
-    out = None
-    for target in ("CYCLES", "ALL"):
-        try:
-            out = nt.get_output_node(target)
-        except Exception:  # noqa: BLE001 - older API
-            out = None
-        if out is not None:
-            break
+    out = output_node(nt)
     surface = out.inputs.get("Surface") if out is not None else None
     if surface is None or not surface.is_linked:
         return False
@@ -301,14 +294,7 @@ def light_node_tint(pm, nt):
     is a constant or a Blackbody node of a constant Temperature (a bulb's colour the
     way older tutorials set it) and whose Strength is a constant. RGB (3,) linear
     Rec.709, or None for any other tree (textures, falloff nodes: not supported)."""
-    out = None
-    for target in ("CYCLES", "ALL"):
-        try:
-            out = nt.get_output_node(target)
-        except Exception:  # noqa: BLE001 - older API
-            out = None
-        if out is not None:
-            break
+    out = output_node(nt, "OUTPUT_LIGHT")
     surface = out.inputs.get("Surface") if out is not None else None
     if surface is None or not surface.is_linked:
         return None
@@ -323,10 +309,8 @@ def light_node_tint(pm, nt):
         src = col.links[0].from_node
         if src.type != "BLACKBODY" or src.inputs["Temperature"].is_linked:
             return None
-        import importlib
-        nodes = importlib.import_module(pm.__name__ + ".shadernodes")  # pm: the engine
         # Cycles' Blackbody node: its fit, negatives clamped (svm_node_blackbody).
-        rgb = np.maximum(nodes.blackbody_rec709(
+        rgb = np.maximum(pm.shadernodes.blackbody_rec709(
             float(src.inputs["Temperature"].default_value))[0], 0.0)
     tint = rgb * strength
     return tint if np.all(np.isfinite(tint)) else None

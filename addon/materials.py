@@ -40,6 +40,21 @@ def _value_text(v) -> str:
     return "(" + ", ".join(f"{float(x):.4g}" for x in np.ravel(v)[:3]) + ")"
 
 
+def output_node(nt, fallback_type="OUTPUT_MATERIAL"):
+    """The output node Cycles renders a node tree with: the active output for the Cycles
+    target, else for All, else EEVEE's; else the first node of fallback_type
+    (OUTPUT_MATERIAL / OUTPUT_WORLD / OUTPUT_LIGHT); None when there is none."""
+    for target in ("CYCLES", "ALL", "EEVEE"):
+        try:
+            out = nt.get_output_node(target)
+        except Exception:  # noqa: BLE001 - older API
+            out = None
+        if out is not None:
+            return out
+    outs = [n for n in nt.nodes if n.type == fallback_type]
+    return outs[0] if outs else None
+
+
 def _fold(node, inputs):
     """node (an engine shader node) evaluated once to its constant value (float, or an RGB
     array) when its inputs are all constants; else node itself, evaluated per hit."""
@@ -313,17 +328,7 @@ class MaterialConverter:
         use_nodes = bpy.app.version >= (5, 0, 0) or getattr(mat, "use_nodes", True)
         if nt is None or not use_nodes:
             return Closure(base_color=tuple(mat.diffuse_color)[:3], roughness=mat.roughness)
-        out = None
-        for target in ("CYCLES", "ALL", "EEVEE"):
-            try:
-                out = nt.get_output_node(target)
-            except Exception:  # noqa: BLE001 - older API
-                out = None
-            if out is not None:
-                break
-        if out is None:
-            outs = [n for n in nt.nodes if n.type == "OUTPUT_MATERIAL"]
-            out = outs[0] if outs else None
+        out = output_node(nt)
         if out is None:
             self._warn(f"material '{mat.name}': no Material Output node; "
                        "using the viewport colour")

@@ -17,7 +17,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from .materials import _pixels
+from .materials import _pixels, output_node
 
 _LINEAR_SPACES = ("Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E",
                   "Linear Rec.2020")
@@ -33,18 +33,6 @@ def _from(socket):
     return node if node.type != "REROUTE" else None
 
 
-def _output_node(nt):
-    for target in ("CYCLES", "ALL", "EEVEE"):
-        try:
-            out = nt.get_output_node(target)
-        except Exception:  # noqa: BLE001
-            out = None
-        if out is not None:
-            return out
-    outs = [n for n in nt.nodes if n.type == "OUTPUT_WORLD"]
-    return outs[0] if outs else None
-
-
 def export_world(pm, world, warnings: list):
     """(background RGB (3,), engine Environment or None) for a Blender world; warnings
     get one line per unsupported node (each naming the world and the node)."""
@@ -55,7 +43,7 @@ def export_world(pm, world, warnings: list):
     nt = world.node_tree if use_nodes else None
     if nt is None:
         return viewport, None
-    out = _output_node(nt)
+    out = output_node(nt, "OUTPUT_WORLD")
     if out is None or not out.inputs["Surface"].is_linked:
         return np.zeros(3), None
     node = _from(out.inputs["Surface"])
