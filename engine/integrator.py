@@ -551,11 +551,17 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                   else rng.random(out=buf.uv[:2 * n].reshape(2, n)))
         k = gather_rays(c(u1, np.float64), c(u2, np.float64), ns, ng, p, offset, idx, o, d)
         idx, o, d, tp = idx[:k], o[:k], d[:k], tp[:k]
-        tp.fill(1.0)
+        # The rays start at throughput 1. The buffer's rows stay ones between steps and
+        # calls (the compactions move ones onto ones; the continuations' throughputs are
+        # new arrays), so they are filled only past the rows known to be ones.
+        if buf.tp_ones < k:
+            tp.fill(1.0)
+            buf.tp_ones = k
         if getattr(hit, "n_smooth", None) is not None:
             # Bent normals: the diffuse lobe's sampled directions take Cycles' bump
             # shadowing term as its light samples do (engine/normalmap.py).
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
+            buf.tp_ones = 0
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
@@ -645,18 +651,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     go_u=go_u[full])
                 keep = full[keep]
             idx = idx[keep]
-            cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
+            cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls, buf)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
 
 
-def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
+def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls, buf=None):
     """The gather rays' counts (n,4) per gathering hit after a continuation step
     (B_TOTAL order, as the camera chain counts them: a bent ray is a bounce of its
     continued class, sheen's rays (DIFFUSE) a diffuse one as Cycles counts them, a
     transparent pass none). cnt: (n,4) before (None: zeros), updated in place; idx (K,)
-    the continued rays' hits (one ray a hit); keep (K,) their rows of d_in (N,3)."""
+    the continued rays' hits (one ray a hit); keep (K,) their rows of d_in (N,3).
+    buf: the level's GatherBuffers, whose counts(n) the zeros are made in (valid until
+    the level's next gather ray; None: a fresh array)."""
     if len(keep) == 0:
         return cnt
     # One compiled pass (gatherkernels.count_bent): the same integer counts.
@@ -666,7 +674,7 @@ def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
         if not count_bent(_NO_COUNTS, _NO_ROWS, keep, d_in, d, _NO_ROWS, DIFFUSE, GLOSSY,
                           TRANSMISSION):
             return None
-        cnt = np.zeros((n, 4), np.int64)
+        cnt = np.zeros((n, 4), np.int64) if buf is None else buf.counts(n)
     cls = c(np.broadcast_to(np.asarray(ray_cls, np.int64), (len(keep),)))
     count_bent(cnt, c(idx, np.int64), keep, d_in, d, cls, DIFFUSE, GLOSSY, TRANSMISSION)
     return cnt
@@ -730,6 +738,21 @@ class GatherBuffers:
         # The regathers' direct light from this level's ends (_regather): its sums are
         # read before the level below (which has its own) runs.
         self.direct = DirectLightBuffers()
+        self.tp_ones = 0  # leading rows of tp known to hold 1.0 (gather_indirect)
+        self.n_counts = -1
+
+    def counts(self, n):
+        """(n,4) int64 zeros: a gather ray's bounce counts per hit (_count_continuations;
+        a fresh np.zeros of ~4 MB a step was first-touch page faults). Read until the
+        level's next gather ray: its copies (_chain_lookups' and the regathers' rows) are
+        taken by fancy indexing."""
+        if n > self.n_counts:
+            self.n_counts = n
+            self.cnt = np.zeros((n, 4), np.int64)
+            return self.cnt[:n]
+        cnt = self.cnt[:n]
+        cnt.fill(0)
+        return cnt
 
     def rays(self, n):
         if n > self.size:
@@ -741,6 +764,7 @@ class GatherBuffers:
             self.loff, self.lt = np.empty(n), np.empty(n)
             self.uv = np.empty(2 * n)
             self.o32, self.d32 = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+            self.tp_ones = 0  # (a new tp: not filled yet)
             self.tf32, self.u32, self.v32 = (np.empty(n, np.float32) for _ in range(3))
             self.geom, self.prim32 = np.empty(n, np.int32), np.empty(n, np.int32)
             self.prim = np.empty(n, np.int64)
@@ -1074,13 +1098,19 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     # [k stride, min((k + 1) stride, R)) and weighs the block's length, so each round, and
     # any number of rounds a pixel stops after, is unbiased (engine/adaptive.py).
     block = getattr(ctx, "camera_round", 0) if stride > 1 else 0
+    if stride > 1:
+        # The samples at multiples of the stride: for a power of two (128 spp: 8 and 32)
+        # the low bits by a mask, the same rows as % (two's complement: x & (s - 1) is x
+        # mod s for any int64) without an integer division a row.
+        on = ((sample_id & (stride - 1)) == 0 if stride & (stride - 1) == 0
+              and sample_id.dtype.kind == "i" else sample_id % stride == 0)
     if stride > 1 and every is not None and every.any():
-        sel = np.nonzero((sample_id % stride == 0) | every)[0]
+        sel = np.nonzero(on | every)[0]
         w = smooth_sample_weight(s.spp, stride) if not block else \
             np.minimum(stride, block - sample_id[sel]).astype(np.float64)
         weight = np.where(every[sel], 1.0, w)[:, None]
     else:
-        sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
+        sel = np.nonzero(on)[0] if stride > 1 else np.arange(len(hit.p))
         weight = smooth_sample_weight(s.spp, stride) if not block else \
             np.minimum(stride, block - sample_id[sel]).astype(np.float64)[:, None]
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
