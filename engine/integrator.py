@@ -1938,7 +1938,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # The bounce's kind (Cycles' path_state_next): a transparent pass (the ray goes on
         # unbent) is none; else glossy or transmission by the continued ray's class.
         chain = np.take(chain, keep, axis=0)
-        bent = np.any(d != np.take(d_in, keep, axis=0), axis=1)
+        # (Component by component: np.any(d != d_in[keep], axis=1)'s booleans, NaN
+        # included, without numpy's slow reduction over a short last axis.)
+        dk = np.take(d_in, keep, axis=0)
+        bent = (d[:, 0] != dk[:, 0]) | (d[:, 1] != dk[:, 1]) | (d[:, 2] != dk[:, 2])
         chain[:, 0] += bent
         chain[:, 1] += bent & (ray_cls == GLOSSY)
         chain[:, 2] += bent & (ray_cls == TRANSMISSION)
