@@ -651,20 +651,18 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     go_u=go_u[full])
                 keep = full[keep]
             idx = idx[keep]
-            cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls, buf)
+            cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
 
 
-def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls, buf=None):
+def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
     """The gather rays' counts (n,4) per gathering hit after a continuation step
     (B_TOTAL order, as the camera chain counts them: a bent ray is a bounce of its
     continued class, sheen's rays (DIFFUSE) a diffuse one as Cycles counts them, a
     transparent pass none). cnt: (n,4) before (None: zeros), updated in place; idx (K,)
-    the continued rays' hits (one ray a hit); keep (K,) their rows of d_in (N,3).
-    buf: the level's GatherBuffers, whose counts(n) the zeros are made in (valid until
-    the level's next gather ray; None: a fresh array)."""
+    the continued rays' hits (one ray a hit); keep (K,) their rows of d_in (N,3)."""
     if len(keep) == 0:
         return cnt
     # One compiled pass (gatherkernels.count_bent): the same integer counts.
@@ -674,7 +672,7 @@ def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls, buf=None):
         if not count_bent(_NO_COUNTS, _NO_ROWS, keep, d_in, d, _NO_ROWS, DIFFUSE, GLOSSY,
                           TRANSMISSION):
             return None
-        cnt = np.zeros((n, 4), np.int64) if buf is None else buf.counts(n)
+        cnt = np.zeros((n, 4), np.int64)
     cls = c(np.broadcast_to(np.asarray(ray_cls, np.int64), (len(keep),)))
     count_bent(cnt, c(idx, np.int64), keep, d_in, d, cls, DIFFUSE, GLOSSY, TRANSMISSION)
     return cnt
@@ -739,20 +737,6 @@ class GatherBuffers:
         # read before the level below (which has its own) runs.
         self.direct = DirectLightBuffers()
         self.tp_ones = 0  # leading rows of tp known to hold 1.0 (gather_indirect)
-        self.n_counts = -1
-
-    def counts(self, n):
-        """(n,4) int64 zeros: a gather ray's bounce counts per hit (_count_continuations;
-        a fresh np.zeros of ~4 MB a step was first-touch page faults). Read until the
-        level's next gather ray: its copies (_chain_lookups' and the regathers' rows) are
-        taken by fancy indexing."""
-        if n > self.n_counts:
-            self.n_counts = n
-            self.cnt = np.zeros((n, 4), np.int64)
-            return self.cnt[:n]
-        cnt = self.cnt[:n]
-        cnt.fill(0)
-        return cnt
 
     def rays(self, n):
         if n > self.size:
@@ -1896,7 +1880,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if getattr(hit, "params", None) is not None:
                 cand = np.nonzero(hit.params[:, pr.M_TRANS] > 0)[0]
             else:
-                cand = np.nonzero(glass_mat[hit.mat])[0] if glass_mat.any() else _NO_ROWS
+                cand = (np.flatnonzero(np.take(glass_mat, hit.mat)) if glass_mat.any()
+                        else _NO_ROWS)
             if over is not None and len(cand):
                 cand = cand[~over[cand]]
             gl = (rough_transmission_rows(prm if hit.prm is None else hit.prm, cand)
