@@ -551,11 +551,17 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                   else rng.random(out=buf.uv[:2 * n].reshape(2, n)))
         k = gather_rays(c(u1, np.float64), c(u2, np.float64), ns, ng, p, offset, idx, o, d)
         idx, o, d, tp = idx[:k], o[:k], d[:k], tp[:k]
-        tp.fill(1.0)
+        # The rays start at throughput 1. The buffer's rows stay ones between steps and
+        # calls (the compactions move ones onto ones; the continuations' throughputs are
+        # new arrays), so they are filled only past the rows known to be ones.
+        if buf.tp_ones < k:
+            tp.fill(1.0)
+            buf.tp_ones = k
         if getattr(hit, "n_smooth", None) is not None:
             # Bent normals: the diffuse lobe's sampled directions take Cycles' bump
             # shadowing term as its light samples do (engine/normalmap.py).
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
+            buf.tp_ones = 0
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
@@ -730,6 +736,7 @@ class GatherBuffers:
         # The regathers' direct light from this level's ends (_regather): its sums are
         # read before the level below (which has its own) runs.
         self.direct = DirectLightBuffers()
+        self.tp_ones = 0  # leading rows of tp known to hold 1.0 (gather_indirect)
 
     def rays(self, n):
         if n > self.size:
@@ -741,6 +748,7 @@ class GatherBuffers:
             self.loff, self.lt = np.empty(n), np.empty(n)
             self.uv = np.empty(2 * n)
             self.o32, self.d32 = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+            self.tp_ones = 0  # (a new tp: not filled yet)
             self.tf32, self.u32, self.v32 = (np.empty(n, np.float32) for _ in range(3))
             self.geom, self.prim32 = np.empty(n, np.int32), np.empty(n, np.int32)
             self.prim = np.empty(n, np.int64)
@@ -1074,13 +1082,19 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     # [k stride, min((k + 1) stride, R)) and weighs the block's length, so each round, and
     # any number of rounds a pixel stops after, is unbiased (engine/adaptive.py).
     block = getattr(ctx, "camera_round", 0) if stride > 1 else 0
+    if stride > 1:
+        # The samples at multiples of the stride: for a power of two (128 spp: 8 and 32)
+        # the low bits by a mask, the same rows as % (two's complement: x & (s - 1) is x
+        # mod s for any int64) without an integer division a row.
+        on = ((sample_id & (stride - 1)) == 0 if stride & (stride - 1) == 0
+              and sample_id.dtype.kind == "i" else sample_id % stride == 0)
     if stride > 1 and every is not None and every.any():
-        sel = np.nonzero((sample_id % stride == 0) | every)[0]
+        sel = np.nonzero(on | every)[0]
         w = smooth_sample_weight(s.spp, stride) if not block else \
             np.minimum(stride, block - sample_id[sel]).astype(np.float64)
         weight = np.where(every[sel], 1.0, w)[:, None]
     else:
-        sel = np.nonzero(sample_id % stride == 0)[0] if stride > 1 else np.arange(len(hit.p))
+        sel = np.nonzero(on)[0] if stride > 1 else np.arange(len(hit.p))
         weight = smooth_sample_weight(s.spp, stride) if not block else \
             np.minimum(stride, block - sample_id[sel]).astype(np.float64)[:, None]
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
@@ -1866,7 +1880,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if getattr(hit, "params", None) is not None:
                 cand = np.nonzero(hit.params[:, pr.M_TRANS] > 0)[0]
             else:
-                cand = np.nonzero(glass_mat[hit.mat])[0] if glass_mat.any() else _NO_ROWS
+                cand = (np.flatnonzero(np.take(glass_mat, hit.mat)) if glass_mat.any()
+                        else _NO_ROWS)
             if over is not None and len(cand):
                 cand = cand[~over[cand]]
             gl = (rough_transmission_rows(prm if hit.prm is None else hit.prm, cand)
@@ -1908,7 +1923,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         # The bounce's kind (Cycles' path_state_next): a transparent pass (the ray goes on
         # unbent) is none; else glossy or transmission by the continued ray's class.
         chain = np.take(chain, keep, axis=0)
-        bent = np.any(d != np.take(d_in, keep, axis=0), axis=1)
+        # (Component by component: np.any(d != d_in[keep], axis=1)'s booleans, NaN
+        # included, without numpy's slow reduction over a short last axis.)
+        dk = np.take(d_in, keep, axis=0)
+        bent = (d[:, 0] != dk[:, 0]) | (d[:, 1] != dk[:, 1]) | (d[:, 2] != dk[:, 2])
         chain[:, 0] += bent
         chain[:, 1] += bent & (ray_cls == GLOSSY)
         chain[:, 2] += bent & (ray_cls == TRANSMISSION)
