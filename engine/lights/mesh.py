@@ -1,5 +1,14 @@
-"""Emissive meshes as one light: every triangle with emission, chosen by area x
-brightness (a CDF over triangles), each emitting its radiance from both sides."""
+"""Emissive meshes as one light: every triangle with emission, each emitting its radiance
+from both sides (Cycles' Emission closure emits from both faces too; only a material's
+Emission Sampling set to Front or Back restricts its light sampling to one).
+
+Photons leave a triangle chosen by area x brightness (a CDF over triangles: the power
+split). Shadow rays choose the triangle by its importance at the shading point instead:
+every emissive triangle is a leaf of the light's own light tree (triangle_tree; its
+bounds, normal and power as Cycles' kernel/light/tree.h and pbrt-v4's
+TriangleLight::Bounds), walked by lights/selection.select_light, so triangles far away or
+seen edge-on are rarely picked; triangle_pmf gives the same probability for multiple
+importance sampling where a BSDF ray meets an emitter."""
 from __future__ import annotations
 
 import math
@@ -42,6 +51,39 @@ class MeshLight(Light):
                    cos_half_angle=1.0, **common)
 
     needs_choice = True
+
+    def triangle_tree(self):
+        """(tree_f, tree_i, leaf_of) of the light tree over this light's triangles
+        (selection.build_tree; LIGHT = the triangle's row in v0 ...): leaf bounds the
+        triangle's box, its normal with cos theta_o = 1 and cos theta_e = 0 (emission
+        reaches the hemisphere), two-sided, power 2 pi area luminance(L) (area alone
+        when every triangle is black). Built once, on first use."""
+        tree = getattr(self, "_triangle_tree", None)
+        if tree is None:
+            from .selection import build_tree
+            a, b, c = self.v0, self.v0 + self.e1, self.v0 + self.e2
+            lo = np.minimum(np.minimum(a, b), c)
+            hi = np.maximum(np.maximum(a, b), c)
+            area = np.asarray(self.tri_area, float)
+            phi = 2.0 * math.pi * area * luminance(np.asarray(self.tri_L, float))
+            if not phi.sum() > 0:
+                phi = area.copy()
+            T = len(area)
+            tree = build_tree(lo, hi, np.asarray(self.tri_ng, float), np.ones(T),
+                              np.zeros(T), phi, np.ones(T, bool))
+            self._triangle_tree = tree
+        return tree
+
+    def triangle_pmf(self, p, n, tri):
+        """Probability (N,) that a shadow ray from point p (N,3) with shading normal n
+        (N,3) picks triangle tri (N,) int (rows of v0 ...): the triangle tree's walk
+        (directlight.sample_lights), without the choice of this light among others."""
+        from .selection import pmf_each
+        tf, ti, leaf_of = self.triangle_tree()
+        p, n = (np.ascontiguousarray(x, np.float64).reshape(-1, 3) for x in (p, n))
+        out = np.empty(len(p))
+        pmf_each(p, n, np.ascontiguousarray(tri, np.int64), tf, ti, leaf_of, out)
+        return out
 
     def pack(self, row) -> int:
         """The triangles travel as arrays (packing.pack_lights); returns the kind code."""
