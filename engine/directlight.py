@@ -26,6 +26,7 @@ from .jit import kernel, register_warm_up
 from .lights import packing as pk
 from .lights.emission import concentric_disk as _concentric_disk, to_world as _to_world
 from .lights.environment import N_OCT, env_cosine_pdf, env_cosine_sample, env_radiance
+from .lights.mesh import solid_angle_sampled, spherical_triangle_sample
 from .lights.selection import NINF, empty_tree, select_light
 from .lights.world import ENV_MAP_FRACTION
 from .normalmap import bump_shadowing_term
@@ -327,6 +328,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 g0, g1, g2 = ng[h, 0], ng[h, 1], ng[h, 2]
             finite = True      # the sample lies at a point y (not at infinity)
             surface = False    # ... on a surface with normal ny and end gap
+            solid = False      # an emissive triangle sampled by solid angle omega
+            omega = 0.0
+            tpmf = 1.0
+            tri = 0
             y0 = y1 = y2 = 0.0
             ny0 = ny1 = ny2 = 0.0
             gap = 0.0
@@ -439,9 +444,30 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     if tri < 0 or not tpmf > 0:
                         continue
                     ur = min(max(ur, 0.0), ONE_BELOW)
-                    sq = math.sqrt(ur)
-                    b1 = 1.0 - sq
-                    b2 = u2 * sq
+                    solid = solid_angle_sampled(p0, p1, p2, m_v0, m_e1, m_e2, m_ng, tri)
+                    if solid:
+                        # A direction uniform in the triangle's solid angle (lights/mesh.py)
+                        # and where it meets the triangle (Moller-Trumbore barycentrics).
+                        sw0, sw1, sw2, omega = spherical_triangle_sample(
+                            p0, p1, p2, m_v0, m_e1, m_e2, tri, ur, u2)
+                        if not omega > 0:
+                            continue
+                        f0, f1, f2 = m_e1[tri, 0], m_e1[tri, 1], m_e1[tri, 2]
+                        k0, k1, k2 = m_e2[tri, 0], m_e2[tri, 1], m_e2[tri, 2]
+                        pv0, pv1, pv2 = sw1 * k2 - sw2 * k1, sw2 * k0 - sw0 * k2, sw0 * k1 - sw1 * k0
+                        det = f0 * pv0 + f1 * pv1 + f2 * pv2
+                        if det == 0.0:
+                            continue
+                        tv0, tv1, tv2 = p0 - m_v0[tri, 0], p1 - m_v0[tri, 1], p2 - m_v0[tri, 2]
+                        b1 = (tv0 * pv0 + tv1 * pv1 + tv2 * pv2) / det
+                        qv0, qv1, qv2 = tv1 * f2 - tv2 * f1, tv2 * f0 - tv0 * f2, tv0 * f1 - tv1 * f0
+                        b2 = (sw0 * qv0 + sw1 * qv1 + sw2 * qv2) / det
+                        b1 = min(max(b1, 0.0), 1.0)
+                        b2 = min(max(b2, 0.0), 1.0 - b1)
+                    else:
+                        sq = math.sqrt(ur)
+                        b1 = 1.0 - sq
+                        b2 = u2 * sq
                     y0 = m_v0[tri, 0] + b1 * m_e1[tri, 0] + b2 * m_e2[tri, 0]
                     y1 = m_v0[tri, 1] + b1 * m_e1[tri, 1] + b2 * m_e2[tri, 1]
                     y2 = m_v0[tri, 2] + b1 * m_e1[tri, 2] + b2 * m_e2[tri, 2]
@@ -534,6 +560,11 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 f = cr * cl / d2
                 e0, e1, e2 = la0 * f, la1 * f, la2 * f
                 lp = d2 / max(cl * inv_pdf_a, 1e-300)
+                if solid:
+                    # By solid angle: L cos / (pmf / omega), pdf pmf / omega.
+                    f = cr * omega / tpmf
+                    e0, e1, e2 = m_L[tri, 0] * f, m_L[tri, 1] * f, m_L[tri, 2] * f
+                    lp = tpmf / omega
                 if code == C_AREA and q[SPREAD_ON] != 0.0:
                     at = _spread_attenuation((-w0) * q[DIR] + (-w1) * q[DIR + 1]
                                              + (-w2) * q[DIR + 2], q)
