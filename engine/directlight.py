@@ -2,7 +2,7 @@
 
 For a batch of diffuse hits, `sample_lights` draws every light sample (area rectangles and
 ellipses with spread clamp and shear, point and spot lights with a radius and the scaled
-spot frame, the sun's disk, emissive triangles by their CDF, the world), computes the
+spot frame, the sun's disk, emissive triangles by their light tree, the world), computes the
 irradiance each would bring ignoring visibility (with Cycles' shading offset), and writes
 the shadow rays of the lit samples, compacted, as float32 straight into the arrays handed
 to Embree's OCCLUDED query (engine/accel.py, Accel.occluded_into). `accumulate` then adds
@@ -26,7 +26,8 @@ from .jit import kernel, register_warm_up
 from .lights import packing as pk
 from .lights.emission import concentric_disk as _concentric_disk, to_world as _to_world
 from .lights.environment import N_OCT, env_cosine_pdf, env_cosine_sample, env_radiance
-from .lights.selection import empty_tree, select_light
+from .lights.mesh import solid_angle_sampled, spherical_triangle_sample
+from .lights.selection import NINF, empty_tree, select_light
 from .lights.world import ENV_MAP_FRACTION
 from .normalmap import bump_shadowing_term
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
@@ -224,7 +225,7 @@ def terminator_lift(prim, bary, ng, smooth, object_id, terminator, v0, e1, e2,
 
 @kernel
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
-                  codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_weight, m_cdf, m_round32,
+                  codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_area, m_tf, m_ti, m_round32,
                   m_tilt32, env_px, env_rows, env_cols, env_mass, env_prefix, env_cell,
                   tree_f, tree_i, inf_idx, inf_f, l_trace, klight, ktrace, U1, U2, SEL,
                   contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf, bump, hrow):
@@ -249,8 +250,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     triangle choice of mesh lights, the strategy choice of an environment-mapped world
     (rescaled, its direction's first coordinate in place of U1),
     the tree's choice (remapped for those) when klight is -1). A mesh light reads SEL and
-    U2 only: SEL picks the triangle and, rescaled within the triangle's CDF bin, is the
-    point's first coordinate, U2 its second (integrator.mesh_light_numbers).
+    U2 only: SEL walks the light's triangle tree (m_tf, m_ti: MeshLight.triangle_tree)
+    at the hit's point and shading normal to a triangle and, remapped on the way
+    (select_light), is the point's first coordinate, U2 its second
+    (integrator.mesh_light_numbers).
     Writes entries j < m_all: contrib (j,3) irradiance without visibility, row (j,) hit,
     kidx (j,) sample k, ray (j,) its shadow ray's index or -1 (not traced), wdir (j,3) the
     unit direction towards the light sample and lpdf (j,) its solid-angle pdf (inf for a
@@ -278,7 +281,9 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     K = klight.shape[0]
     m_all = 0
     m_rays = 0
-    ntri = m_cdf.shape[0]
+    # The triangle tree has no lights at infinity.
+    no_inf = np.zeros(0, np.int64)
+    no_inf_f = np.zeros((0, NINF))
     env_frame = np.zeros((3, 3))
     last = -1
     code = codes[0] if codes.shape[0] > 0 else -1
@@ -323,6 +328,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 g0, g1, g2 = ng[h, 0], ng[h, 1], ng[h, 2]
             finite = True      # the sample lies at a point y (not at infinity)
             surface = False    # ... on a surface with normal ny and end gap
+            solid = False      # an emissive triangle sampled by solid angle omega
+            omega = 0.0
+            tpmf = 1.0
+            tri = 0
             y0 = y1 = y2 = 0.0
             ny0 = ny1 = ny2 = 0.0
             gap = 0.0
@@ -423,27 +432,42 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 surface = True
                 two_sided = code == C_MESH
                 if code == C_MESH:
-                    # searchsorted(cdf, r, side="right"), clipped
-                    rr = selu
-                    lo, hi = 0, ntri
-                    while lo < hi:
-                        mid = (lo + hi) // 2
-                        if m_cdf[mid] <= rr:
-                            lo = mid + 1
-                        else:
-                            hi = mid
-                    tri = min(max(lo, 0), ntri - 1)
-                    # The choice's number rescaled within the triangle's CDF bin is
-                    # uniform on [0, 1) and independent of the choice (pbrt-v4's
-                    # SampleDiscrete, uRemapped): it places the point on the triangle,
-                    # so a stratified choice spreads over the panel as a whole.
-                    c_lo = m_cdf[tri - 1] if tri > 0 else 0.0
-                    c_w = m_cdf[tri] - c_lo
-                    ur = (rr - c_lo) / c_w if c_w > 0.0 else 0.5
+                    # The triangle by its importance at this point and shading normal
+                    # (Cycles' light tree over emissive triangles, pbrt-v4's
+                    # BVHLightSampler): near, facing triangles most often. The number,
+                    # remapped at each node, stays uniform on [0, 1) and independent of
+                    # the choice (pbrt-v4's SampleDiscrete, uRemapped): it places the
+                    # point on the triangle, so a stratified choice spreads over the
+                    # panel as a whole.
+                    tri, tpmf, ur = select_light(m_tf, m_ti, no_inf, no_inf_f, p0, p1, p2,
+                                                 s0, s1, s2, selu)
+                    if tri < 0 or not tpmf > 0:
+                        continue
                     ur = min(max(ur, 0.0), ONE_BELOW)
-                    sq = math.sqrt(ur)
-                    b1 = 1.0 - sq
-                    b2 = u2 * sq
+                    solid = solid_angle_sampled(p0, p1, p2, m_v0, m_e1, m_e2, m_ng, tri)
+                    if solid:
+                        # A direction uniform in the triangle's solid angle (lights/mesh.py)
+                        # and where it meets the triangle (Moller-Trumbore barycentrics).
+                        sw0, sw1, sw2, omega = spherical_triangle_sample(
+                            p0, p1, p2, m_v0, m_e1, m_e2, tri, ur, u2)
+                        if not omega > 0:
+                            continue
+                        f0, f1, f2 = m_e1[tri, 0], m_e1[tri, 1], m_e1[tri, 2]
+                        k0, k1, k2 = m_e2[tri, 0], m_e2[tri, 1], m_e2[tri, 2]
+                        pv0, pv1, pv2 = sw1 * k2 - sw2 * k1, sw2 * k0 - sw0 * k2, sw0 * k1 - sw1 * k0
+                        det = f0 * pv0 + f1 * pv1 + f2 * pv2
+                        if det == 0.0:
+                            continue
+                        tv0, tv1, tv2 = p0 - m_v0[tri, 0], p1 - m_v0[tri, 1], p2 - m_v0[tri, 2]
+                        b1 = (tv0 * pv0 + tv1 * pv1 + tv2 * pv2) / det
+                        qv0, qv1, qv2 = tv1 * f2 - tv2 * f1, tv2 * f0 - tv0 * f2, tv0 * f1 - tv1 * f0
+                        b2 = (sw0 * qv0 + sw1 * qv1 + sw2 * qv2) / det
+                        b1 = min(max(b1, 0.0), 1.0)
+                        b2 = min(max(b2, 0.0), 1.0 - b1)
+                    else:
+                        sq = math.sqrt(ur)
+                        b1 = 1.0 - sq
+                        b2 = u2 * sq
                     y0 = m_v0[tri, 0] + b1 * m_e1[tri, 0] + b2 * m_e2[tri, 0]
                     y1 = m_v0[tri, 1] + b1 * m_e1[tri, 1] + b2 * m_e2[tri, 1]
                     y2 = m_v0[tri, 2] + b1 * m_e1[tri, 2] + b2 * m_e2[tri, 2]
@@ -480,10 +504,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     d2_ = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2)
                     far = max(max(d0, d1), d2_)
                     gap = gap_err + G32_PLANE * plane + m_tilt32[tri] * far
-                    la0 = m_L[tri, 0] * m_weight[tri]
-                    la1 = m_L[tri, 1] * m_weight[tri]
-                    la2 = m_L[tri, 2] * m_weight[tri]
-                    inv_pdf_a = m_weight[tri]
+                    inv_pdf_a = m_area[tri] / tpmf
+                    la0 = m_L[tri, 0] * inv_pdf_a
+                    la1 = m_L[tri, 1] * inv_pdf_a
+                    la2 = m_L[tri, 2] * inv_pdf_a
                 else:  # area light
                     ny0, ny1, ny2 = q[DIR], q[DIR + 1], q[DIR + 2]
                     if q[SPREAD_RECT] != 0.0:
@@ -536,6 +560,11 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 f = cr * cl / d2
                 e0, e1, e2 = la0 * f, la1 * f, la2 * f
                 lp = d2 / max(cl * inv_pdf_a, 1e-300)
+                if solid:
+                    # By solid angle: L cos / (pmf / omega), pdf pmf / omega.
+                    f = cr * omega / tpmf
+                    e0, e1, e2 = m_L[tri, 0] * f, m_L[tri, 1] * f, m_L[tri, 2] * f
+                    lp = tpmf / omega
                 if code == C_AREA and q[SPREAD_ON] != 0.0:
                     at = _spread_attenuation((-w0) * q[DIR] + (-w1) * q[DIR + 1]
                                              + (-w2) * q[DIR + 2], q)

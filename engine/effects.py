@@ -466,7 +466,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                    + ("each emitting triangle's centre" if li.kind == MESH
                       else f"the centre of '{li.name}'"))
         elif li.kind == MESH:
-            why = f"{len(li.tri_index):,} emitting triangles sampled by area x brightness"
+            why = f"{len(li.tri_index):,} emitting triangles, picked by a light tree at each point"
         elif sized:
             rays = n_samples * spp
             why = f"{rays} shadow ray{'s' if rays != 1 else ''} per pixel for '{li.name}'"

@@ -372,8 +372,11 @@ def mis_light_pdf(light, o, d, t, ns=None):
 def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
     """Power-heuristic weight (N,) of continuation rays that met emissive triangles prim
     (1 where the mesh light is not light-sampled with MIS or the lobe was mirror-like):
-    the mesh light's shadow rays pick a triangle by its probability, then a uniform point,
-    so their pdf is prob / area x t^2 / |cos| (directlight.sample_lights). With the light
+    the mesh light's shadow rays pick a triangle by its triangle tree's probability at the
+    point and shading normal they leave (MeshLight.triangle_pmf), then a uniform point
+    (pdf pmf / area x t^2 / |cos|) or, for a triangle large against its distance, a
+    direction uniform in its solid angle (pmf / omega): MeshLight.shadow_pdf, as
+    directlight.sample_lights. With the light
     tree (p, ns (N,3): the points and shading normals the rays left) that pdf takes the
     tree's probability of choosing the mesh light there (LightSelector.pmf)."""
     w = np.ones(len(prim))
@@ -392,13 +395,12 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
             continue
         kk = k[rows]
         cos_l = np.abs(dot(d[rows], ng[rows]))
+        at = (o if p is None else p)[rows]
         if chosen is not None:
-            count = selection_samples(ctx.settings) * chosen[0].pmf(
-                (o if p is None else p)[rows], ns[rows], li)
+            count = selection_samples(ctx.settings) * chosen[0].pmf(at, ns[rows], li)
         else:
             count = ctx.plan.light_samples.get(light.name, 1)
-        pl = (count * light.prob[kk] / light.tri_area[kk]
-              * t[rows] * t[rows] / np.maximum(cos_l, 1e-300))
+        pl = count * light.shadow_pdf(at, ns[rows], kk, t[rows], cos_l)
         pb = pdf_b[rows]
         w[rows] = pb * pb / np.maximum(pb * pb + pl * pl, 1e-300)
     return w

@@ -1,8 +1,10 @@
 """Shadow rays to an emissive mesh choose the triangle by a stratified number (issue 14):
-the pixel's samples spread over a panel's triangles in proportion to their power, and the
-same number, rescaled within the chosen triangle's CDF bin, places the point on it with a
-second stratified number (integrator.mesh_light_numbers, multi-jittered; 
-directlight.sample_lights, pbrt-v4's SampleDiscrete).
+the pixel's samples spread over a panel's triangles (by the triangle tree's pmf at the
+point since meshlight: tests/test_mesh_light_tree.py), and the same number, remapped on
+the way, places the point on the chosen triangle with a second stratified number
+(integrator.mesh_light_numbers, multi-jittered; directlight.sample_lights, pbrt-v4's
+SampleDiscrete). The "choice before" here is still a number of its own, drawn through
+the power CDF.
 
 A panel of one quad and one of 3 x 3 quads (18 triangles), tilted over a floor, direct light only, 16 samples a
 "pixel" (one floor point): the mean matches Lambert's closed form for the panel's polygon,

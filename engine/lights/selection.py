@@ -78,10 +78,12 @@ def light_bounds(light):
         return (corners.min(axis=0), corners.max(axis=0), np.asarray(light.dir, float),
                 1.0, 0.0, phi, False)
     if kind == MESH:
-        pts = np.concatenate([light.v0, light.v0 + light.e1, light.v0 + light.e2])
+        # The root of the light's own triangle tree (MeshLight.triangle_tree): its box
+        # and its triangles' cone of normals (two-sided), the power of the whole light.
+        root = light.triangle_tree()[0][0]
         phi = float(luminance(np.asarray(light.photon_flux)))
-        return (pts.min(axis=0), pts.max(axis=0), np.array([0.0, 0.0, 1.0]), -1.0, 0.0,
-                phi, True)
+        return (root[LO:LO + 3].copy(), root[HI:HI + 3].copy(), root[W:W + 3].copy(),
+                float(root[COS_O]), float(root[COS_E]), phi, True)
     raise ValueError(f"light '{light.name}': kind {kind} has no bounds for the light tree")
 
 
@@ -111,6 +113,57 @@ def _cone_union(wa, ca, wb, cb):
     cx, cy, cz = ky * az - kz * ay, kz * ax - kx * az, kx * ay - ky * ax
     w = np.array([ax * c + cx * s, ay * c + cy * s, az * c + cz * s])
     return w / np.linalg.norm(w), math.cos(to)
+
+
+def build_tree(lo, hi, w, cos_o, cos_e, phi, two):
+    """A light tree over N emitters given by their bounds (lo, hi (N,3) box, w (N,3) unit
+    cone axis, cos_o (N,) cos theta_o, cos_e (N,) cos theta_e, phi (N,) power, two (N,)
+    bool two-sided): (tree_f (2N-1, NF), tree_i (2N-1, NI) with LIGHT = the emitter's
+    index, leaf_of (N,) each emitter's leaf), in LightSelector's layout, the root first
+    and each node before its children; split at the median of the widest axis of the
+    centres, as LightSelector. Used for the triangles of a mesh light (Cycles puts every
+    emissive triangle into its light tree: kernel/light/tree.h), which select_light and
+    light_pmf then walk with empty lights at infinity."""
+    N = len(phi)
+    tf = np.zeros((max(2 * N - 1, 0), NF))
+    ti = np.full((max(2 * N - 1, 0), NI), -1, np.int64)
+    leaf_of = np.full(N, -1, np.int64)
+    centres = 0.5 * (lo + hi)
+    leaves = np.concatenate([lo, hi, w, cos_o[:, None], cos_e[:, None], phi[:, None],
+                             np.asarray(two, float)[:, None]], axis=1)
+    count = [0]
+
+    def rec(idx, parent):
+        node = count[0]
+        count[0] += 1
+        ti[node, PARENT] = parent
+        if len(idx) == 1:
+            k = int(idx[0])
+            tf[node] = leaves[k]
+            ti[node, LIGHT] = k
+            leaf_of[k] = node
+            return node
+        c = centres[idx]
+        axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
+        order = np.argsort(c[:, axis], kind="stable")
+        half = len(idx) // 2
+        a = rec(idx[order[:half]], node)
+        b = rec(idx[order[half:]], node)
+        fa, fb = tf[a], tf[b]
+        wu, cu = _cone_union(fa[W:W + 3], fa[COS_O], fb[W:W + 3], fb[COS_O])
+        tf[node, LO:LO + 3] = np.minimum(fa[LO:LO + 3], fb[LO:LO + 3])
+        tf[node, HI:HI + 3] = np.maximum(fa[HI:HI + 3], fb[HI:HI + 3])
+        tf[node, W:W + 3] = wu
+        tf[node, COS_O] = cu
+        tf[node, COS_E] = min(fa[COS_E], fb[COS_E])
+        tf[node, PHI] = fa[PHI] + fb[PHI]
+        tf[node, TWO] = max(fa[TWO], fb[TWO])
+        ti[node, C0], ti[node, C1] = a, b
+        return node
+
+    if N:
+        rec(np.arange(N), -1)
+    return np.ascontiguousarray(tf), np.ascontiguousarray(ti), leaf_of
 
 
 class LightSelector:
@@ -372,6 +425,17 @@ def pmf_many(p, n, light, tf, ti, infinite, inf_f, leaf_of, out):
                            p[i, 2], n[i, 0], n[i, 1], n[i, 2])
 
 
+@kernel
+def pmf_each(p, n, which, tf, ti, leaf_of, out):
+    """out[i]: probability that select_light (no lights at infinity) picks emitter
+    which[i] of tree (tf, ti, leaf_of: build_tree) at point p[i] with normal n[i]."""
+    no_inf = np.zeros(0, np.int64)
+    no_inf_f = np.zeros((0, NINF))
+    for i in range(p.shape[0]):
+        out[i] = light_pmf(tf, ti, no_inf, no_inf_f, leaf_of, which[i], p[i, 0], p[i, 1],
+                           p[i, 2], n[i, 0], n[i, 1], n[i, 2])
+
+
 def empty_tree():
     """(tree_f, tree_i, infinite, inf_f) of no selector: the kernels' arguments when
     every light is sampled."""
@@ -390,6 +454,8 @@ def _warm_up():
     n = np.array([[0.0, 0.0, 1.0]])
     sel.select(p, n, np.full(1, 0.3))
     sel.pmf(p, n, 1)
+    out = np.empty(1)
+    pmf_each(p, n, np.zeros(1, np.int64), sel.tree_f, sel.tree_i, sel.leaf_of, out)
 
 
 def selection_samples(settings) -> int:
