@@ -942,7 +942,7 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
 # hit. Where the global shot is natural, its caustic photons are used as before.
 GLOW_SHOT = True  # False: the glow from the global shot's photons, as before (A/B benches)
 GLOW_STREAM = 3  # trace_photons' random stream of the glow shot (global 1, caustic 2)
-GLOW_SPLIT = 4.0
+GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one (glow_emitters)
 
 
 def glow_emitters(emitters, counts, natural) -> tuple:
