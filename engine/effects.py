@@ -32,7 +32,7 @@ PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can
 # Blender hands over float32 (0.3 arrives as 0.30000001), so a `<=` made a 0.3 floor rough
 # when exported and a caster when built headless. Aimed at, a rough metal floor of 0.3
 # turned light_area_spread_glossy's block error to 0.58 (docs/compatibility.md); as
-# rough, its glow comes from the global shot with its own map (engine/render.py).
+# rough, its glow comes from unaimed photons (engine/render.py, GLOW_STREAM).
 SHARP_ROUGHNESS = 0.3
 SHARP_TOLERANCE = 1e-6
 
@@ -295,7 +295,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     # Caustic photons are aimed only at casters whose specular lobe is sharp enough to
     # focus light (sharp_specular); light that reaches a diffuse surface by way of rough
     # specular surfaces only first (a glossy floor's coat) is a soft glow: it comes from
-    # unaimed photons (render.py partitions the caustic paths by the object hit first).
+    # unaimed photons (render.py partitions the caustic paths by the object hit first,
+    # and traces them with lighter photons where visual importance aims the global shot:
+    # GLOW_STREAM's comment). The camera side continues every glossy lobe, rough or not,
+    # and reads no photon map there: the glow stays in the caustic map (L S+ D), which
+    # is read at the diffuse surface it lands on (docs/design.md, Photon mapping model).
     if photon_mapping:
         focus_tri = _focusing(table)[mat] if has_tris else np.zeros(0, bool)
         # Window glass (thin slabs, window_glass): passed by shadow rays, so no caustic
@@ -324,11 +328,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         if plan.window_glass:
             rough_note += ("; window glass " + _quoted(plan.window_glass)
                            + ": passed by shadow rays (thin flat glass), not a caustic "
-                           "caster; the global photons carry its reflections")
+                           "caster; unaimed photons carry its reflections")
         if plan.rough_specular:
             rough_note += ("; not aimed at " + _quoted(plan.rough_specular)
                            + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
-                          "light; the global photons carry the soft glow "
+                          "light, so not " + ("caustic casters" if len(plan.rough_specular) > 1
+                                              else "a caustic caster")
+                          + "; unaimed photons carry the soft glow "
                           + ("they reflect)" if len(plan.rough_specular) > 1 else "it reflects)"))
         if not focus_tri.any():
             auto, why = False, ("no specular or refractive materials" if not spec_tri.any()
@@ -355,7 +361,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             plan.glow_words = " and ".join(
                 (["soft glow off rough specular layers"] if rough_reached else [])
                 + (["reflections of window glass"] if plan.window_glass else []))
-            source = ("the global photons" if plan.indirect
+            # Unaimed: the global shot's caustic-kind photons, or, where visual importance
+            # aims the global shot, a lighter glow shot of their own (render.py,
+            # GLOW_STREAM's comment).
+            source = ("unaimed photons" if plan.indirect
                       else f"{s.caustic_photons:,} unaimed photons")
             glow = []
             if rough_reached:

@@ -1,6 +1,7 @@
 """render(): scene -> photon pass -> photon maps -> camera pass -> Film."""
 from __future__ import annotations
 
+import copy
 import importlib
 import math
 import threading
@@ -425,11 +426,24 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
         split[plan.caster_ids] = True
     # The global shot is needed for indirect light; without a separate caustic shot, or
     # for the caustic paths the aimed shot leaves out, it also carries caustic photons.
+    glow = None
     if plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None:
         emitters, counts = global_emitters(ctx, photon_counts(ctx, s.photons), stats)
         shot = trace_photons(ctx, emitters, counts, caustic_only=False, stream=1,
                              progress=progress, should_cancel=should_cancel,
                              first_hit=None if split is None else (split, False))
+        glow_from_global = split is not None or (plan.caustics and not use_caustic_shot)
+        if GLOW_SHOT and glow_from_global and _importance_aimed(emitters):
+            # The glow's caustic paths (light off rough specular layers first, or window
+            # glass: L S+ D, the first S not a caster) from a shot of their own whose
+            # photons are lighter (GLOW_STREAM's comment).
+            g_emitters, g_counts = glow_emitters(emitters, counts,
+                                                 photon_counts(ctx, s.photons))
+            glow = trace_photons(ctx, g_emitters, g_counts, caustic_only=True,
+                                 stream=GLOW_STREAM, progress=progress,
+                                 should_cancel=should_cancel,
+                                 first_hit=None if split is None else (split, False))
+            stats["glow_photons_emitted"] = glow.emitted
     caustic = Photons.empty()
     if use_caustic_shot:
         if targets is None:
@@ -440,13 +454,17 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
                                 progress=progress, should_cancel=should_cancel, targets=targets,
                                 first_hit=None if split is None else (split, True))
         if split is not None and len(shot):
-            # The caustic paths the aimed shot leaves out, from the global shot.
-            rest = shot.select(shot.kind == CAUSTIC)
+            # The caustic paths the aimed shot leaves out, from the global shot (or from
+            # the glow shot where that one is aimed by visual importance).
+            rest = glow if glow is not None else shot.select(shot.kind == CAUSTIC)
             emitted = caustic.emitted
             caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
                                 for f in ("position", "power", "direction", "normal", "kind")),
                               bounces=np.concatenate([caustic.bounces, rest.bounces]))
             caustic.emitted = emitted
+    elif glow is not None:
+        # Nothing focuses light (effects: glow only): the caustic map is the glow shot.
+        caustic, use_caustic_shot = glow, True
     stats["time_photons"] = time.perf_counter() - t0
     stats["photons_emitted"] = shot.emitted
     stats["caustic_photons_emitted"] = caustic.emitted
@@ -906,6 +924,57 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
         if said:
             stats["photon_importance"] = "; ".join(x for x in (shot.report, said) if x)
     return emitters, counts
+
+
+# The glow shot (issue 14, roughglint). Light that reaches a diffuse surface off a rough
+# specular layer first (roughness >= 0.3: effects.is_sharp) or window glass is not aimed
+# at; those L S+ D paths came from the global shot's caustic-kind photons. With visual
+# importance (engine/visualimportance.py) that shot's photons starting outside its region
+# carry count / outside-count of a natural photon's power (~10x at ROI_MIN_OUTSIDE), and
+# few of them turn glossy: sunlit far grass put 222 glow photons into a trial's caustic
+# map (5.5 W against the 2,562 aimed ones' 1.8 W), the heaviest 0.64 W; the caustic
+# estimate takes the k nearest photons, so each made a 1.4 m disc: a sun-coloured blob of
+# +57 % on one seed (docs/performance.md, "sunglint"). Where the global shot is aimed so,
+# those paths (the same partition: trace_photons' first_hit) come from a caustic-only
+# shot of their own, GLOW_SPLIT x the global shot's photons in the region and outside at
+# least GLOW_SPLIT x the natural count (glow_emitters): the same expected light from
+# lighter photons (Jensen's splitting by count), each traced only to its first diffuse
+# hit. Where the global shot is natural, its caustic photons are used as before.
+GLOW_SHOT = True  # False: the glow from the global shot's photons, as before (A/B benches)
+GLOW_STREAM = 3  # trace_photons' random stream of the glow shot (global 1, caustic 2)
+GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one (glow_emitters)
+
+
+def glow_emitters(emitters, counts, natural) -> tuple:
+    """The glow shot's (emitters, counts) from the global shot's (global_emitters: lights
+    or visualimportance.RegionEmitters, in ctx.lights' order) and the natural photon
+    counts per light (photon_counts). A RegionEmitter emits GLOW_SPLIT x its aimed photons
+    (into the region: each 1 / GLOW_SPLIT of the global shot's) and outside at least
+    GLOW_SPLIT x the light's natural count (each at most 1 / GLOW_SPLIT of a natural
+    photon's power); the split of the emission space is the RegionEmitter's, so the
+    expected power anywhere is the light's own. Lights that do not aim keep GLOW_SPLIT x
+    their global counts."""
+    out_e, out_c = [], []
+    for e, c, nat in zip(emitters, counts, natural):
+        if not hasattr(e, "region") or c <= 0:
+            out_e.append(e)
+            out_c.append(int(round(GLOW_SPLIT * c)))
+            continue
+        aimed = GLOW_SPLIT * e.share * c
+        outside = GLOW_SPLIT * max((1.0 - e.share) * c, nat)
+        total = max(int(round(aimed + outside)), 1)
+        g = copy.copy(e)  # the same light, region and sphere probabilities
+        g.share = min(aimed / total, 1.0)
+        out_e.append(g)
+        out_c.append(total)
+    return out_e, out_c
+
+
+def _importance_aimed(emitters) -> bool:
+    """Whether global_emitters' emitters aim by visual importance (a RegionEmitter among
+    them): their photons' power then differs by where they start."""
+    from .visualimportance import RegionEmitter
+    return any(isinstance(e, RegionEmitter) for e in emitters)
 
 
 def _allocate_aimed(ctx, targets, total):

@@ -192,7 +192,7 @@ def test_only_rough_specular_surfaces_take_their_glow_from_the_global_photons():
     # (On in the plan, off in words: nothing focuses light; the glow's estimate stays.)
     assert line.startswith("caustics: off - nothing focuses light"), line
     assert ("the soft glow that the rough specular layer of 'floor' reflects onto other "
-            "surfaces comes from the global photons") in line, line
+            "surfaces comes from unaimed photons") in line, line
 
 
 def _caustic_map_power(scene, **kw):
@@ -326,7 +326,7 @@ def test_a_plain_room_says_caustics_off_and_where_the_glow_comes_from():
     assert line.startswith("caustics: off - nothing focuses light (no mirror, no glass, no "
                            "surface smoother than roughness 0.3)"), line
     assert ("the soft glow that the rough specular layers of 'Floor', 'BackWall' reflect "
-            "onto other surfaces comes from the global photons (Caustic pass)") in line, line
+            "onto other surfaces comes from unaimed photons (Caustic pass)") in line, line
     assert plan.caustics and plan.caustics_from_global and not plan.casters
     forced = _line(_plan(s, caustics="on"), "caustics:")
     assert forced.startswith("caustics: on - forced on (nothing focuses light"), forced
@@ -346,7 +346,7 @@ def test_window_glass_alone_focuses_no_light():
     line = _line(plan, "caustics:")
     assert line == ("caustics: off - nothing focuses light (no mirror, only window glass, no "
                     "surface smoother than roughness 0.3); the reflections of window glass "
-                    "'Window' (passed by shadow rays: thin flat glass) come from the global "
+                    "'Window' (passed by shadow rays: thin flat glass) come from unaimed "
                     "photons (Caustic pass)"), line
 
 
@@ -357,7 +357,8 @@ def test_a_mirror_and_a_glass_ball_are_caustic_casters_by_name():
     line = _line(plan, "caustics:")
     assert line.startswith("caustics: on - 200,000 photons aimed at 'Mirror', 'Ball'"), line
     assert "not aimed at 'Floor' (specular roughness 0.3 or more" in line
-    assert line.endswith("the global photons carry the soft glow it reflects)"), line
+    assert line.endswith("too rough to focus light, so not a caustic caster; unaimed "
+                         "photons carry the soft glow it reflects)"), line
     assert sorted(plan.casters) == ["Ball", "Mirror"]
     spec = _line(plan, "specular reflection / refraction: on")
     assert "mirror 'Mirror'" in spec and "glass 'Ball'" in spec, spec
