@@ -115,6 +115,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     # before it (no copy per chunk); on more, chunks finish out of order and are copied
     # in order (_Shot.append).
     shot = _Shot(total, direct=threads <= 1)
+    plain = pk.lobe_classes(ctx.table.closure_params)  # once a trace, not a chunk
 
     def job(item, stop):
         li, ci, start, n, count, emitter = item
@@ -122,7 +123,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
         if shot.direct:
             shot.begin(n)
         stored = _trace_chunk(ctx, accel, emitter, n, count, rng, caustic_only, targets,
-                              stop, first_hit, pool, shot if shot.direct else None)
+                              stop, first_hit, pool, shot if shot.direct else None, plain)
         if shot.direct:
             shot.commit(stored, n)  # here, on the chunk's thread, before the next starts
         return stored
@@ -141,7 +142,7 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 
 
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
-                 first_hit=None, pool=None, shot=None):
+                 first_hit=None, pool=None, shot=None, plain=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits (a
     _Stored). Between two Embree calls the work is one compiled kernel
     (photonkernels.scatter, which computes the surface data itself); bsdf.surface_hit
@@ -149,7 +150,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     texture, and photonkernels.photon_surfaces with shared instances. pool: the
     trace's _Buffers, which lends the stored-photon and continued-ray buffers (a new
     one without). shot: a direct _Shot the photons are stored into after its rows (the
-    caller commits them), or None: into blocks from the pool."""
+    caller commits them), or None: into blocks from the pool. plain: the table's
+    photonkernels.lobe_classes (computed here without)."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
     pool = pool if pool is not None else _Buffers()
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
@@ -188,7 +190,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # numpy texture evaluation, and shared instances (their offsets take a floor computed
     # from the points, Geometry.instance_offset_floor).
     given = numpy_hits or geo.shared is not None
-    plain = pk.lobe_classes(table.closure_params)
+    if plain is None:
+        plain = pk.lobe_classes(table.closure_params)
     # Buffers for the whole chunk, reused bounce after bounce: the surface data (given
     # only), the stored photons (appended to by each bounce), and two sets of continued
     # rays (one is the bounce's input, the other its output).
@@ -463,11 +466,10 @@ def _factors(m: int):
 
 def _factor_views(factors, m: int):
     """What the bounces use of a _factors set of at least m rows: the bump factors (m,)
-    (set to 1), the tmax (m,), scatter's scratch rows, and Embree's answer arrays (geom,
-    prim, u, v)."""
+    (not set: read only where the bounce sets them, numpy_hits), the tmax (m,),
+    scatter's scratch rows, and Embree's answer arrays (geom, prim, u, v)."""
     bump, tfar, hit_rows, ids, u, v = factors
     bump = bump[:m]
-    bump[:] = 1.0
     return bump, tfar[:m], hit_rows, (ids[0], ids[1], u, v)
 
 
