@@ -110,14 +110,24 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     threads = settings.threads
     accel = ctx.accel.serial() if threads > 1 and len(jobs) > 1 else ctx.accel
     pool = _Buffers()
+    # On one thread the chunks run one after another, in order (parallel.ordered_map:
+    # one in flight), so each stores straight into the shot's arrays after the chunks
+    # before it (no copy per chunk); on more, chunks finish out of order and are copied
+    # in order (_Shot.append).
+    shot = _Shot(total, direct=threads <= 1)
+    plain = pk.lobe_classes(ctx.table.closure_params)  # once a trace, not a chunk
 
     def job(item, stop):
         li, ci, start, n, count, emitter = item
         rng = np.random.default_rng([settings.seed, stream, li, ci])
-        return _trace_chunk(ctx, accel, emitter, n, count, rng, caustic_only, targets, stop,
-                            first_hit, pool)
+        if shot.direct:
+            shot.begin(n)
+        stored = _trace_chunk(ctx, accel, emitter, n, count, rng, caustic_only, targets,
+                              stop, first_hit, pool, shot if shot.direct else None, plain)
+        if shot.direct:
+            shot.commit(stored, n)  # here, on the chunk's thread, before the next starts
+        return stored
 
-    shot = _Shot(total)
     done = 0
     for item, stored in zip(jobs, ordered_map(job, jobs, threads, should_cancel)):
         done += item[3]
@@ -132,14 +142,16 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 
 
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
-                 first_hit=None, pool=None):
+                 first_hit=None, pool=None, shot=None, plain=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits (a
     _Stored). Between two Embree calls the work is one compiled kernel
     (photonkernels.scatter, which computes the surface data itself); bsdf.surface_hit
     supplies the surface data instead where a material has a texture, normal map or alpha
     texture, and photonkernels.photon_surfaces with shared instances. pool: the
     trace's _Buffers, which lends the stored-photon and continued-ray buffers (a new
-    one without)."""
+    one without). shot: a direct _Shot the photons are stored into after its rows (the
+    caller commits them), or None: into blocks from the pool. plain: the table's
+    photonkernels.lobe_classes (computed here without)."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
     pool = pool if pool is not None else _Buffers()
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
@@ -178,14 +190,15 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # numpy texture evaluation, and shared instances (their offsets take a floor computed
     # from the points, Geometry.instance_offset_floor).
     given = numpy_hits or geo.shared is not None
-    plain = pk.lobe_classes(table.closure_params)
+    if plain is None:
+        plain = pk.lobe_classes(table.closure_params)
     # Buffers for the whole chunk, reused bounce after bounce: the surface data (given
     # only), the stored photons (appended to by each bounce), and two sets of continued
     # rays (one is the bounce's input, the other its output).
     surf = pk.surface_arrays(m if given else 0)
     factors = pool.take(_factors, m)
     bump, tfar, hit_rows, hits = _factor_views(factors, m)
-    stored = _Stored(2 * m + 1024, pool)
+    stored = _Stored(2 * m + 1024, pool, shot)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
                  bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
@@ -317,16 +330,20 @@ class _Stored:
     """A chunk's stored photons (pk.store_arrays), appended to bounce by bounce, in blocks:
     when the current block has no room for a bounce, it is kept as it is and a new one
     started (no copy as the chunk's photons grow). Blocks come from the trace's
-    _Buffers and go back to it on release()."""
+    _Buffers and go back to it on release(). With a direct _Shot the photons go into the
+    shot's arrays after its rows instead (count: this chunk's rows there; no blocks)."""
 
-    def __init__(self, capacity: int, pool: _Buffers | None = None):
+    def __init__(self, capacity: int, pool: _Buffers | None = None, shot=None):
         self.pool = pool if pool is not None else _Buffers()
+        self.shot = shot
         self.blocks = []  # full blocks: (arrays, rows used)
-        self.arrays = self.pool.take(pk.store_arrays, capacity)
+        self.arrays = self.pool.take(pk.store_arrays, capacity) if shot is None else ()
         self.count = 0  # rows used in the current block
 
     def room(self, m: int):
         """Views of the current block's rows from `count` on, at least m of them."""
+        if self.shot is not None:
+            return self.shot.room(self.count, m)
         if self.count + m > len(self.arrays[0]):
             self.blocks.append((self.arrays, self.count))
             self.arrays = self.pool.take(pk.store_arrays, max(len(self.arrays[0]), m))
@@ -334,11 +351,15 @@ class _Stored:
         return tuple(a[self.count:] for a in self.arrays)
 
     def parts(self):
-        """[(arrays, rows used)] in storing order."""
+        """[(arrays, rows used)] in storing order (none when stored into a shot)."""
+        if self.shot is not None:
+            return []
         return self.blocks + [(self.arrays, self.count)]
 
     @property
     def total(self) -> int:
+        if self.shot is not None:
+            return self.count
         return sum(n for _, n in self.parts())
 
     def release(self):
@@ -353,29 +374,66 @@ class _Shot:
     from a chunk's buffers into the shot's (no trimmed copy per chunk and concatenation),
     and a chunk's buffers (~2x its rays) go back to the trace's _Buffers once copied.
     The shot's arrays are sized from the photons stored per photon emitted so far (grown
-    if that falls short, trimmed at the end if much is left over)."""
+    if that falls short, trimmed at the end if much is left over).
 
-    def __init__(self, total: int):
+    direct (the trace runs its chunks one after another, in order): each chunk's scatter
+    calls store straight into the shot's arrays after its rows (room), and the chunk
+    commits its rows when it ends; append then copies nothing. The arrays start at
+    DIRECT_ROWS rows per photon of the shot (the pages of a fresh mapping that are never
+    written cost no memory; the spare is cut off in place at the end) and grow as the rate so far asks."""
+
+    DIRECT_ROWS = 2  # stored photons per emitted photon reserved up front (direct)
+
+    def __init__(self, total: int, direct: bool = False):
         self.total = total
+        self.direct = direct
         self.arrays = None
         self.count = 0
+        self.emitted = 0  # photons of the chunks committed so far (direct)
+        self.running = 0  # photons of the chunk storing now (direct)
+
+    def _grow(self, need: int, used: int, emitted: int):
+        """Arrays of at least `need` rows holding the first `used` rows of the current
+        ones; emitted: photons emitted for the rows so far (the rate's denominator)."""
+        # Expected for the whole shot at the rate so far, 5 % spare; at least 1.5x the
+        # arrays it replaces (a rate that keeps rising copies a bounded number of times).
+        expect = int(need * self.total / max(emitted, 1) * 1.05) + 1024
+        if self.arrays is not None:
+            expect = max(expect, len(self.arrays[0]) * 3 // 2)
+        grown = pk.store_arrays(max(need, expect) if emitted < self.total else need)
+        if self.arrays is not None:
+            for new, old in zip(grown, self.arrays):
+                new[:used] = old[:used]
+        self.arrays = grown
+
+    def room(self, rows: int, m: int):
+        """(direct) Views of the shot's arrays after its rows and the current chunk's
+        first `rows`, at least m rows of them."""
+        start = self.count + rows
+        if self.arrays is None:
+            self.arrays = pk.store_arrays(max(self.DIRECT_ROWS * self.total + 1024, start + m))
+        elif start + m > len(self.arrays[0]):
+            self._grow(start + m, start, self.emitted + self.running)
+        return tuple(a[start:] for a in self.arrays)
+
+    def begin(self, n: int):
+        """(direct) A chunk of n photons starts storing."""
+        self.running = n
+
+    def commit(self, stored: _Stored, n: int):
+        """(direct) A chunk of n photons is done: its stored rows become the shot's."""
+        self.count += stored.count
+        self.emitted += n
+        self.running = 0
 
     def append(self, stored: _Stored, emitted: int):
         """Add a chunk's photons; emitted: photons emitted by the chunks appended so far,
-        this one included."""
+        this one included. (A chunk stored into this shot directly is there already.)"""
+        if stored.shot is self:
+            return
         need = self.count + stored.total
         if self.arrays is None or need > len(self.arrays[0]):
-            # Expected for the whole shot at the rate so far, 5 % spare; at least 1.5x
-            # the arrays it replaces (a rate that keeps rising copies a bounded number of
-            # times).
-            expect = int(need * self.total / max(emitted, 1) * 1.05) + 1024
-            if self.arrays is not None:
-                expect = max(expect, len(self.arrays[0]) * 3 // 2)
-            grown = pk.store_arrays(max(need, expect) if emitted < self.total else need)
-            if self.arrays is not None:
-                for new, old in zip(grown, self.arrays):
-                    new[:self.count] = old[:self.count]
-            self.arrays = grown
+            self._grow(need, self.count, emitted)
         for arrays, rows in stored.parts():
             for dst, src in zip(self.arrays, arrays):
                 dst[self.count:self.count + rows] = src[:rows]
@@ -385,10 +443,15 @@ class _Shot:
         if self.arrays is None or self.count == 0:
             return Photons.empty()
         n = self.count
-        if 8 * (len(self.arrays[0]) - n) > n:  # over 1/8 spare: a trimmed copy
-            a = [x[:n].copy() for x in self.arrays]
+        a = list(self.arrays)
+        if 8 * (len(a[0]) - n) > n:
+            # Over 1/8 spare: cut off in place (realloc: no copy). The shot is the only
+            # holder of its arrays (chunks' views of them are gone), so no view dangles.
+            for x in a:
+                x.resize((n,) + x.shape[1:], refcheck=False)
         else:
-            a = [x[:n] for x in self.arrays]
+            a = [x[:n] for x in a]
+        self.arrays = None
         return Photons(*a[:5], bounces=a[5])
 
 
@@ -403,11 +466,10 @@ def _factors(m: int):
 
 def _factor_views(factors, m: int):
     """What the bounces use of a _factors set of at least m rows: the bump factors (m,)
-    (set to 1), the tmax (m,), scatter's scratch rows, and Embree's answer arrays (geom,
-    prim, u, v)."""
+    (not set: read only where the bounce sets them, numpy_hits), the tmax (m,),
+    scatter's scratch rows, and Embree's answer arrays (geom, prim, u, v)."""
     bump, tfar, hit_rows, ids, u, v = factors
     bump = bump[:m]
-    bump[:] = 1.0
     return bump, tfar[:m], hit_rows, (ids[0], ids[1], u, v)
 
 

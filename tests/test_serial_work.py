@@ -205,6 +205,38 @@ def test_stored_blocks_hold_what_one_block_holds():
     assert len(pool.take(store_arrays, sizes[0])[0]) == sizes[0]
 
 
+def test_a_direct_shot_grows_and_trims_and_holds_what_one_block_holds():
+    """A shot stored into directly (one thread, photons._Shot direct) by chunks whose
+    photons outgrow its first reserve (DIRECT_ROWS per photon) holds the chunks' rows in
+    order, and photons() cuts the spare rows off (in place) to C-contiguous arrays."""
+    rng = np.random.default_rng(5)
+    pool = _Buffers()
+    shot = _Shot(10, direct=True)
+    want = [np.empty((0, 3), np.float32)] * 4 + [np.empty(0, np.uint8)]
+    for chunk in range(2):
+        shot.begin(5)
+        stored = _Stored(0, pool, shot)
+        for m in (400, 900, 30):  # past 2 x 10 + 1024 rows in the first chunk
+            rows = int(rng.integers(m // 2, m + 1))
+            arrays = store_arrays(rows)
+            for a in arrays:
+                a[...] = rng.random(a.shape) * 200
+            room = stored.room(m)
+            assert all(len(r) >= m for r in room)
+            for r, a in zip(room, arrays):
+                r[:rows] = a
+            stored.count += rows
+            want = [np.concatenate([w, a]) for w, a in zip(want, arrays)]
+        shot.commit(stored, 5)
+        shot.append(stored, 5 * (chunk + 1))  # copies nothing: already there
+        stored.release()
+    assert not pool._free  # nothing was borrowed
+    got = shot.photons()
+    for w, name in zip(want, ("position", "power", "direction", "normal", "kind")):
+        assert np.array_equal(getattr(got, name), w)
+        assert getattr(got, name).flags.c_contiguous
+
+
 def test_lent_buffers_give_the_photons_of_fresh_ones(monkeypatch):
     """Many chunks on one and two threads reuse each other's buffers; the photons are
     those of a trace that allocates every buffer afresh (the code before the pool)."""
