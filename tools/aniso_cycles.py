@@ -9,6 +9,7 @@ second moments (the elongation direction and the two lengths, pixels).
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import tempfile
@@ -19,7 +20,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 W, H = 96, 72
 
 
-def build(bpy, aniso, rot, node="principled"):
+def build(bpy, aniso, rot, node="principled", wall=False):
     sys.path.insert(0, os.path.join(ROOT, "example_blends"))
     import make_blends as mb
     scene = mb.reset()
@@ -41,14 +42,23 @@ def build(bpy, aniso, rot, node="principled"):
     nt.links.new(n.outputs[0], out.inputs["Surface"])
     mb.plane("Plate", 4.0, 4.0, m, location=(0.3, 0.2, 0.0))
     mb.set_world((0.0, 0.0, 0.0))
-    mb.light("Area", "AREA", (0.9, 0.6, 1.6), 150.0, look_at=(0.9, 0.6, 0.0), size=0.25)
-    mb.camera((0.0, -3.2, 2.6), (0.3, 0.3, 0.0), fov_deg=50.0)
+    if wall:
+        # A white wall the plate's glossy reflection lights (photon pass: caustic photons
+        # off the anisotropic lobe), the light hidden from it behind a blocker.
+        white = mb.material("white", "diffuse", (0.8, 0.8, 0.8))
+        mb.plane("Wall", 4.0, 2.0, white, (0.3, 2.2, 1.0), (math.pi / 2, 0, 0))
+        mb.light("Area", "AREA", (0.3, 0.2, 1.2), 300.0, look_at=(0.3, -0.4, 0.0), size=0.2)
+        mb.plane("Blocker", 1.0, 0.6, white, (0.3, 0.45, 1.2), (math.pi / 2, 0, 0))
+        mb.camera((0.0, -3.2, 2.0), (0.3, 1.5, 0.8), fov_deg=60.0)
+    else:
+        mb.light("Area", "AREA", (0.9, 0.6, 1.6), 150.0, look_at=(0.9, 0.6, 0.0), size=0.25)
+        mb.camera((0.0, -3.2, 2.6), (0.3, 0.3, 0.0), fov_deg=50.0)
     scene.render.resolution_x, scene.render.resolution_y = W, H
     scene.render.resolution_percentage = 100
     return scene
 
 
-def render(bpy, scene, engine, spp):
+def render(bpy, scene, engine, spp, photons=2_000):
     sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))
     import blender_helpers as bh
     if engine == "cycles":
@@ -57,7 +67,7 @@ def render(bpy, scene, engine, spp):
     else:
         scene.render.engine = "PHOTONMAP"
         bh.default_photonmap(scene)
-        bh.cheap(scene, spp=spp, photons=2_000, caustic_photons=1_000)
+        bh.cheap(scene, spp=spp, photons=photons, caustic_photons=photons)
     path = os.path.join(tempfile.mkdtemp(prefix="aniso_"), f"{engine}.exr")
     bh.render_exr(bpy, scene, path)
     return bh.read_rgba(bpy, path)[..., :3].astype(np.float64)
@@ -83,9 +93,9 @@ def regions(img, n=4):
                       for j in range(n)] for i in range(n)])
 
 
-def compare(bpy, spp=64, aniso=0.8, rot=0.0, node="principled"):
-    scene = build(bpy, aniso, rot, node)
-    ours = render(bpy, scene, "ours", spp)
+def compare(bpy, spp=64, aniso=0.8, rot=0.0, node="principled", wall=False, photons=2_000):
+    scene = build(bpy, aniso, rot, node, wall)
+    ours = render(bpy, scene, "ours", spp, photons)
     cyc = render(bpy, scene, "cycles", spp)
     lo, lc = (a @ np.array([0.2126, 0.7152, 0.0722]) for a in (ours, cyc))
     return {"total": float(lo.sum() / lc.sum()), "regions_ours": regions(ours),
@@ -99,13 +109,15 @@ def main():
     ap.add_argument("--aniso", type=float, default=0.8)
     ap.add_argument("--rot", type=float, default=0.0)
     ap.add_argument("--node", default="principled")
+    ap.add_argument("--wall", action="store_true")
+    ap.add_argument("--photons", type=int, default=2_000)
     a = ap.parse_args()
     sys.path.insert(0, ROOT)
     import bpy
     import addon
     if not hasattr(bpy.types.Scene, "photonmap"):
         addon.register()
-    r = compare(bpy, a.spp, a.aniso, a.rot, a.node)
+    r = compare(bpy, a.spp, a.aniso, a.rot, a.node, a.wall, a.photons)
     np.set_printoptions(precision=4, suppress=True)
     print("total ours/cycles", round(r["total"], 4))
     print("regions ours\n", r["regions_ours"])

@@ -384,34 +384,30 @@ def set_tangent_row(prm, i, n0, n1, n2, t0, t1, t2, rot):
 
 
 @kernel
-def _tangent_of(prm, i):
-    """(anisotropic, alpha_x, alpha_y, tx, ty) of hit i's metal and specular lobes."""
-    tx, ty = prm[i, P_TAN], prm[i, P_TAN + 1]
-    on = prm[i, P_AX] > 0.0 and (tx != 0.0 or ty != 0.0)
-    return on, prm[i, P_AX], prm[i, P_AY], tx, ty
-
-
-@kernel
 def _glossy_eval(prm, i, ox, oy, oz, ix, iy, iz, a):
     """ggx.reflect_eval of the metal or specular lobe (alpha a), in the glossy frame;
     anisotropic (ggx.reflect_eval_aniso in the tangent frame x = T, y = N x T) where
-    the hit has a tangent."""
-    on, ax, ay, tx, ty = _tangent_of(prm, i)
-    if not on:
-        return ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
-    return ggx.reflect_eval_aniso(ox * tx + oy * ty, oy * tx - ox * ty, oz,
-                                  ix * tx + iy * ty, iy * tx - ix * ty, iz, ax, ay)
+    the hit has alpha_x, alpha_y (P_AX > 0) and a tangent. (One column read on
+    isotropic rows: the tangent only behind it.)"""
+    if prm[i, P_AX] > 0.0:
+        tx, ty = prm[i, P_TAN], prm[i, P_TAN + 1]
+        if tx != 0.0 or ty != 0.0:
+            return ggx.reflect_eval_aniso(ox * tx + oy * ty, oy * tx - ox * ty, oz,
+                                          ix * tx + iy * ty, iy * tx - ix * ty, iz,
+                                          prm[i, P_AX], prm[i, P_AY])
+    return ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
 
 
 @kernel
 def _glossy_sample(prm, i, ox, oy, oz, a, u1, u2):
     """ggx.reflect_sample of the metal or specular lobe, anisotropic as _glossy_eval."""
-    on, ax, ay, tx, ty = _tangent_of(prm, i)
-    if not on:
-        return ggx.reflect_sample(ox, oy, oz, a, u1, u2)
-    x, y, z, w, pdf, c = ggx.reflect_sample_aniso(ox * tx + oy * ty, oy * tx - ox * ty, oz,
-                                                  ax, ay, u1, u2)
-    return x * tx - y * ty, x * ty + y * tx, z, w, pdf, c
+    if prm[i, P_AX] > 0.0:
+        tx, ty = prm[i, P_TAN], prm[i, P_TAN + 1]
+        if tx != 0.0 or ty != 0.0:
+            x, y, z, w, pdf, c = ggx.reflect_sample_aniso(
+                ox * tx + oy * ty, oy * tx - ox * ty, oz, prm[i, P_AX], prm[i, P_AY], u1, u2)
+            return x * tx - y * ty, x * ty + y * tx, z, w, pdf, c
+    return ggx.reflect_sample(ox, oy, oz, a, u1, u2)
 
 
 # glass_terms' columns: the glass layer's terms of one material on one side.
