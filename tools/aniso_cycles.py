@@ -20,7 +20,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 W, H = 96, 72
 
 
-def build(bpy, aniso, rot, node="principled", wall=False):
+def build(bpy, aniso, rot, node="principled", wall=False, spin=0.0):
     sys.path.insert(0, os.path.join(ROOT, "example_blends"))
     import make_blends as mb
     scene = mb.reset()
@@ -40,7 +40,9 @@ def build(bpy, aniso, rot, node="principled", wall=False):
         n.inputs["Anisotropy"].default_value = aniso
         n.inputs["Rotation"].default_value = rot
     nt.links.new(n.outputs[0], out.inputs["Surface"])
-    mb.plane("Plate", 4.0, 4.0, m, location=(0.3, 0.2, 0.0))
+    # spin (radians) turns the plate about its own Z: the radial tangent turns with the
+    # object (its normal transform), the highlight stays where it was.
+    mb.plane("Plate", 4.0, 4.0, m, location=(0.3, 0.2, 0.0), rotation=(0.0, 0.0, spin))
     mb.set_world((0.0, 0.0, 0.0))
     if wall:
         # A white wall the plate's glossy reflection lights (photon pass: caustic photons
@@ -93,8 +95,9 @@ def regions(img, n=4):
                       for j in range(n)] for i in range(n)])
 
 
-def compare(bpy, spp=64, aniso=0.8, rot=0.0, node="principled", wall=False, photons=2_000):
-    scene = build(bpy, aniso, rot, node, wall)
+def compare(bpy, spp=64, aniso=0.8, rot=0.0, node="principled", wall=False, photons=2_000,
+            spin=0.0):
+    scene = build(bpy, aniso, rot, node, wall, spin)
     ours = render(bpy, scene, "ours", spp, photons)
     cyc = render(bpy, scene, "cycles", spp)
     lo, lc = (a @ np.array([0.2126, 0.7152, 0.0722]) for a in (ours, cyc))
@@ -110,6 +113,7 @@ def main():
     ap.add_argument("--rot", type=float, default=0.0)
     ap.add_argument("--node", default="principled")
     ap.add_argument("--wall", action="store_true")
+    ap.add_argument("--spin", type=float, default=0.0)
     ap.add_argument("--photons", type=int, default=2_000)
     a = ap.parse_args()
     sys.path.insert(0, ROOT)
@@ -117,7 +121,7 @@ def main():
     import addon
     if not hasattr(bpy.types.Scene, "photonmap"):
         addon.register()
-    r = compare(bpy, a.spp, a.aniso, a.rot, a.node, a.wall, a.photons)
+    r = compare(bpy, a.spp, a.aniso, a.rot, a.node, a.wall, a.photons, a.spin)
     np.set_printoptions(precision=4, suppress=True)
     print("total ours/cycles", round(r["total"], 4))
     print("regions ours\n", r["regions_ours"])

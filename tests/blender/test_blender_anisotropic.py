@@ -49,3 +49,13 @@ def test_isotropic_plate_is_round(bpy_addon, tool):
     assert abs(r["total"] - 1.0) < 0.02
     (_, lo, so, _), (_, lc, sc, _) = r["moments_ours"], r["moments_cycles"]
     assert abs(lo / so - lc / sc) < 0.1 and lc / sc < 1.4
+
+
+def test_turned_plate_keeps_its_highlight(bpy_addon, tool):
+    """The plate turned about its own Z axis: the radial tangent turns with the object
+    (the add-on's normal transform), so the highlight matches Cycles' as before."""
+    r = tool.compare(bpy_addon, 64, 0.8, 0.0, "principled", spin=0.6)
+    assert abs(r["total"] - 1.0) < 0.02
+    (ao, lo, so, _), (ac, lc, sc, _) = r["moments_ours"], r["moments_cycles"]
+    assert abs((ao - ac + 90.0) % 180.0 - 90.0) < 3.0, (ao, ac)
+    assert abs(lo / lc - 1.0) < 0.05 and abs(so / sc - 1.0) < 0.05
