@@ -160,14 +160,33 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
     return out
 
 
-def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool) -> dict | None:
+def radial_tangents(g: LocalGeometry, matrix: np.ndarray) -> np.ndarray:
+    """(F,3,3) per-corner world-space radial tangent, the default Tangent of Cycles'
+    anisotropic closures (a Tangent node, Radial, axis Z: svm_node_tangent's
+    (-(g.y - 0.5), g.x - 0.5, 0) of the generated coordinate g, carried to world space by
+    the object's normal transform inv(R)^T), corners as the mesh stores them. Linear in g,
+    so the engine's interpolation over a triangle gives Cycles' value (engine/anisotropy.py)."""
+    gen = texture_coordinates(g, False)["generated"]
+    t = np.stack([-(gen[..., 1] - 0.5), gen[..., 0] - 0.5, np.zeros(gen.shape[:-1])], -1)
+    try:
+        return t @ np.linalg.inv(matrix[:3, :3])  # row form of inv(R)^T t
+    except np.linalg.LinAlgError:
+        return t @ matrix[:3, :3].T
+
+
+def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool,
+                      radial: bool = False) -> dict | None:
     """The mesh's per-corner attributes for engine Mesh.coordinates: the texture
-    coordinates when a material reads them (texture_coordinates), and the MikkTSpace
+    coordinates when a material reads them (texture_coordinates), the radial tangent
+    ('radial_tangent', radial_tangents) when a material is anisotropic, and the MikkTSpace
     tangents in world space ('tangent', and 'tangent_sign' as 3 equal values: the
     bitangent's side, flipped with a mirroring transform) for tangent-space normal maps
     (engine/normalmap.py). Corners in the exported order. None when there are none."""
     flipped = np.linalg.det(matrix[:3, :3]) < 0
     out = texture_coordinates(g, flipped) if coordinates else {}
+    if radial:
+        t = radial_tangents(g, matrix)
+        out["radial_tangent"] = t[:, [0, 2, 1]] if flipped else t
     if g.tangents is not None:
         R = matrix[:3, :3]
         t = g.tangents[..., :3] @ R.T
@@ -545,7 +564,14 @@ def _placeable(geo: LocalGeometry, converter, names) -> bool:
     attribute, no tangents for normal maps and no texture coordinates a material reads
     (those stay per-instance copies with an instance record)."""
     return (geo.colors is None and geo.tangents is None
-            and not any(converter.needs_coordinates(n) for n in names))
+            and not any(converter.needs_coordinates(n) or _radial(converter, n)
+                        for n in names))
+
+
+def _radial(converter, name) -> bool:
+    """The material is anisotropic: its meshes carry the radial tangent (world space)."""
+    f = getattr(converter, "needs_radial_tangent", None)
+    return bool(f and f(name))
 
 
 def _placement(pm, name, prototype, matrix, names, obj, visibility):
@@ -664,7 +690,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
                        uvs=uvs, colors=colors, materials=names, material_ids=mids,
                        coordinates=corner_attributes(geo, matrix, any(
-                           converter.needs_coordinates(n) for n in names)),
+                           converter.needs_coordinates(n) for n in names),
+                           any(_radial(converter, n) for n in names)),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
@@ -829,7 +856,8 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         iname = _instance_name(inst, obj, info)
         matrix = np.array(inst.matrix_world, dtype=np.float64)
         visibility = ray_visibility(obj, inst, view_layer)
-        coords = any(converter.needs_coordinates(n) for n in names)
+        coords = (any(converter.needs_coordinates(n) for n in names),
+                  any(_radial(converter, n) for n in names))
         key = (id(geo), matrix.tobytes(), tuple(names), coords,
                tuple(sorted(visibility.items())), terminator_offset(obj),
                terminator_shading(obj))
@@ -856,7 +884,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             mesh = pm.Mesh(name=iname, vertices=verts, faces=faces, normals=normals, uvs=uvs,
                            colors=colors, materials=names,
                            material_ids=np.clip(geo.material_index, 0, len(names) - 1),
-                           coordinates=corner_attributes(geo, matrix, coords),
+                           coordinates=corner_attributes(geo, matrix, *coords),
                            shadow_terminator_offset=key[5],
                            shadow_terminator_shading_offset=key[6], **visibility)
             if obj.name not in info["geometry_read"]:

@@ -73,13 +73,14 @@ class Closure:
                  "specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
                  "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
                  "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint",
-                 "scalars", "emission_texture", "weight")
+                 "scalars", "emission_texture", "weight", "anisotropic",
+                 "anisotropic_rotation")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
              "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
              "sheen_roughness", "sheen_tint", "transparent_tint", "scalars",
-             "emission_texture", "weight")
+             "emission_texture", "weight", "anisotropic", "anisotropic_rotation")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
@@ -89,7 +90,7 @@ class Closure:
                  multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
                  sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0),
                  transparent_tint=(1.0, 1.0, 1.0), scalars=None, emission_texture=None,
-                 weight=1.0):
+                 weight=1.0, anisotropic=0.0, anisotropic_rotation=0.0):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -125,6 +126,11 @@ class Closure:
         # Cycles' closure weight of the surface (BSDF) part: an Add Shader of two surfaces
         # sums them, i.e. their even mix at weight 2 (engine Material.closure_weight).
         self.weight = float(weight)
+        # Anisotropic GGX of the metal and specular lobes (engine Material.anisotropic:
+        # Principled's Anisotropic, or a Glossy BSDF's Anisotropy for node "glossy") and
+        # the tangent's rotation in turns.
+        self.anisotropic = float(anisotropic)
+        self.anisotropic_rotation = float(anisotropic_rotation)
 
     @property
     def is_clear(self) -> bool:
@@ -231,6 +237,8 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     lead = a if ga >= gb else b
     out.multiscatter = lead.multiscatter
     out.node = lead.node
+    out.anisotropic = lead.anisotropic
+    out.anisotropic_rotation = lead.anisotropic_rotation
     out.base_color = (ta * a.base_color + tb * b.base_color) * (total / (total + da + db))
     if out.node == "glossy":
         # Diffuse + Glossy: the glossy lobe keeps the Glossy BSDF's colour and the diffuse
@@ -269,10 +277,16 @@ class MaterialConverter:
         self.images = {}        # (image name, extension, interpolation) -> ImageTexture
         self.cache = {}         # material name -> engine Material
         self.coordinate_users = set()  # materials reading Generated / Object coordinates
+        self.tangent_users = set()  # materials with anisotropic lobes (radial tangents)
 
     def needs_coordinates(self, material_name) -> bool:
         """Whether meshes with this material must export Generated / Object coordinates."""
         return material_name in self.coordinate_users
+
+    def needs_radial_tangent(self, material_name) -> bool:
+        """Whether meshes with this material must export the radial tangent (the default
+        Tangent of anisotropic lobes, addon/export.py corner_attributes)."""
+        return material_name in self.tangent_users
 
     # --- public -------------------------------------------------------------------
     def convert(self, mat):
@@ -309,7 +323,9 @@ class MaterialConverter:
             scalar_textures=closure.scalars or None,
             emission_texture=(closure.emission_texture
                               if np.any(closure.emission > 0) else None),
-            closure_weight=max(closure.weight, 0.0))
+            closure_weight=max(closure.weight, 0.0),
+            anisotropic=min(max(closure.anisotropic, -1.0), 1.0),
+            anisotropic_rotation=closure.anisotropic_rotation)
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -372,14 +388,25 @@ class MaterialConverter:
             depth += 1
         return (node, out)
 
-    def _warn_anisotropy(self, node, name):
-        """Warn when node's anisotropy input `name` (Principled 'Anisotropic', Glossy /
-        Anisotropic BSDF 'Anisotropy') is linked or non-zero: our GGX lobes are isotropic,
-        so brushed metal renders as plain metal of the same roughness."""
+    def _anisotropy(self, node, c: Closure, name, rotation):
+        """Node's anisotropy input `name` (Principled 'Anisotropic', Glossy / Anisotropic
+        BSDF 'Anisotropy') and its rotation input onto closure c (one constant each: a
+        per-hit texture is warned by _float and its socket's value used). The tangent is
+        Cycles' default, radial about the object's Z axis (exported per corner); a linked
+        Tangent (a UV map's or another Tangent node's) is warned and the default used."""
         inp = node.inputs
-        if name in inp and (inp[name].is_linked or abs(self._float(node, name, 0.0)) > 0):
-            self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' is not "
-                       "supported; its highlight is rendered isotropic (as at 0)")
+        if name not in inp:
+            return
+        a = self._float(node, name, 0.0)
+        if a == 0.0:
+            return
+        c.anisotropic = a
+        c.anisotropic_rotation = self._float(node, rotation, 0.0) if rotation in inp else 0.0
+        self.tangent_users.add(self._mat.name)
+        if "Tangent" in inp and inp["Tangent"].is_linked:
+            self._warn(f"material '{self._mat.name}': the linked 'Tangent' of node "
+                       f"'{node.name}' is not supported; the default radial tangent (about "
+                       "the object's Z axis) is used")
 
     def _shader(self, src, depth) -> Closure:
         if src is None:
@@ -430,7 +457,7 @@ class MaterialConverter:
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
                                "is not supported and ignored")
-            self._warn_anisotropy(node, "Anisotropic")
+            self._anisotropy(node, c, "Anisotropic", "Anisotropic Rotation")
             if c.coat_weight > 0 and "Coat Normal" in inp and inp["Coat Normal"].is_linked:
                 self._warn(f"material '{self._mat.name}': 'Coat Normal' of node "
                            f"'{node.name}' is not supported; the coat uses the surface normal")
@@ -443,12 +470,13 @@ class MaterialConverter:
         if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             base, tex = self._color(node, "Color")
             sc = {}
-            self._warn_anisotropy(node, "Anisotropy")
-            return Closure(base_color=base, texture=tex, metallic=1.0, node="glossy",
-                           multiscatter=self._distribution(node),
-                           normal_map=self._normal(node),
-                           roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
-                           scalars=sc)
+            c = Closure(base_color=base, texture=tex, metallic=1.0, node="glossy",
+                        multiscatter=self._distribution(node),
+                        normal_map=self._normal(node),
+                        roughness=self._scalar(node, "Roughness", 0.5, "roughness", sc),
+                        scalars=sc)
+            self._anisotropy(node, c, "Anisotropy", "Rotation")
+            return c
         if t in ("BSDF_GLASS", "BSDF_REFRACTION"):
             base, tex = self._color(node, "Color")
             sc = {}

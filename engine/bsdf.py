@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .anisotropy import set_hit_tangents
 from .camerakernels import face_shading_normals, hit_closures, hit_geometry, surface_lobes
 from .closures import principled as pr
 from .geometry import Geometry, MaterialTable
@@ -239,12 +240,13 @@ def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, wa
                       offset=offset, bary=bary, prm=prm, emission=emission), k
 
 
-def closures(table: MaterialTable, hit: SurfaceHit):
+def closures(table: MaterialTable, hit: SurfaceHit, geo=None):
     """The hits' lobes as engine/closures/principled.py builds them (Cycles' Principled v2
     layering): (packed per-hit parameters (N, principled.N_PACK), estimated albedo of each
     lobe (N, len(LOBE_NAMES), 3)). Cached on the hit. One compiled kernel
     (camerakernels.hit_closures: the view cosine, Cycles' glossy normal, the closures'
-    set-up)."""
+    set-up). geo: the Geometry, for the tangents of anisotropic lobes (engine/anisotropy.py;
+    None: those lobes stay isotropic)."""
     if hit.prm is None or hit.lobe_albedo is None:
         n = len(hit.mat)
         per_hit = hit.params is not None  # texture-driven scalar inputs: a row per hit
@@ -255,6 +257,8 @@ def closures(table: MaterialTable, hit: SurfaceHit):
                      hit.params if per_hit else table.closure_params, per_hit, hit.base,
                      hit.front, np.ascontiguousarray(table.alpha, np.float64), alpha, prm,
                      albedo)
+        if geo is not None:
+            set_hit_tangents(geo, hit.params if per_hit else table.closure_params, hit, prm)
         hit.prm, hit.lobe_albedo = prm, albedo
     return hit.prm, hit.lobe_albedo
 

@@ -340,6 +340,8 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
                 prm[i, c] = prm_c[j, c]
             for c in range(3):
                 prm[i, pr.P_GN + c] = local_c[j, c]
+            for c in range(pr.P_GN + 3, pr.N_PACK):  # (the anisotropic columns)
+                prm[i, c] = prm_c[j, c]
             if want_glossy:
                 gl = pr.has_rough_reflection(prm, i)
             wi = w_c[j]
@@ -403,6 +405,8 @@ def _fill_unread_rows(ns, ng, wo, mat, params, per_hit, psum, sel, prm):
         if not _diffuse_only(params, i if per_hit else mat[i]):
             continue  # (set up: its packed row is written)
         for c in range(pr.P_GN):
+            prm[i, c] = 0.0
+        for c in range(pr.P_GN + 3, pr.N_PACK):
             prm[i, c] = 0.0
         raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
         prm[i, pr.P_GN] = g0

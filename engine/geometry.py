@@ -136,6 +136,8 @@ def closure_params(materials: list[Material]) -> np.ndarray:
         row[pr.M_SHEEN_TINT:pr.M_SHEEN_TINT + 3] = m.sheen_tint
         row[pr.M_TTINT:pr.M_TTINT + 3] = m.transparent_tint
         row[pr.M_ADD] = m.closure_weight - 1.0
+        row[pr.M_ANISO] = m.anisotropic
+        row[pr.M_AROT] = m.anisotropic_rotation
     return out
 
 

@@ -34,6 +34,7 @@ from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, fi
 from .camerarays import camera_rays_kernel, chunk_samples
 from .gatherkernels import (add_gathered, count_bent, diffuse_lookups, keep_embree_hits, keep_hits,
                             lean_diffuse, lean_materials, rays_f32)
+from .anisotropy import anisotropic_materials, set_hit_tangents
 from .closures import principled as pr
 from .console import short_count
 from .glasslight import rough_transmission_rows, transmitted_light
@@ -949,7 +950,7 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
     index may then appear twice, and a last element is returned, (K,) bool, the rays a
     split made. The same uniform numbers are drawn either way."""
     sel, q, p, psum = (choice if choice is not None
-                       else lobe_choice(closures(ctx.table, hit)[1], tp))
+                       else lobe_choice(closures(ctx.table, hit, ctx.geo)[1], tp))
     go = (psum > 0) & ((rng.random(len(p)) if go_u is None else go_u) < q)
     idx = np.nonzero(go)[0]
     m = len(idx)
@@ -976,7 +977,7 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
             u1 = np.where(refl, u[0][rows_sampled], u1)
             u2 = np.where(refl, u[1][rows_sampled], u2)
     # The camera bounce's hits carry their packed lobes (shade_lobes); others set them up.
-    prm = hit.prm if hit.prm is not None else closures(ctx.table, hit)[0]
+    prm = hit.prm if hit.prm is not None else closures(ctx.table, hit, ctx.geo)[0]
     # A split writes up to two rays for one pick.
     cap = m if split is None else 2 * m
     rows = np.empty(cap, np.int64)
@@ -1656,6 +1657,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     want_glossy = bool(np.any(modes != MODE_CONTINUATION))
     table_alpha = np.ascontiguousarray(ctx.table.alpha, np.float64)
     plain = plain_surfaces(ctx.table)  # no per-hit nodes: surface data and lobes fused
+    aniso_on = bool(anisotropic_materials(ctx.table.closure_params).any())
     cam_pos = np.ascontiguousarray(cam_pos, np.float64)  # (view_depth's signature)
     forward = np.ascontiguousarray(forward, np.float64)
     c = np.ascontiguousarray
@@ -1804,6 +1806,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                              _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64),
                              tp, want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
             hit.prm = prm
+        if aniso_on:  # the anisotropic lobes' tangents (engine/anisotropy.py)
+            set_hit_tangents(ctx.geo, hit.params if hit.params is not None
+                             else ctx.table.closure_params, hit, prm, u, v)
         # Hits reached through a rough lobe (a finite pdf; mirrors, glass and passes: inf):
         # one pixel's samples land all over them, so the caustic estimate's per-pixel
         # stride would only multiply its noise (issue 14's gold ball reflecting the glass

@@ -387,21 +387,25 @@ def flat_tables(geo, table):
     return out
 
 
+_NO_ANISO_TAN = np.zeros((0, 3, 3))
+
 # _scatter's argument `plain`: its position in the argument list.
 _PLAIN_ARG = 31
 
 
-def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT):
+def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
     passages. `plain` may be lobe_classes' int8 codes or plain_materials' booleans (True:
-    PLAIN, False: FULL; one compiled kernel for both)."""
+    PLAIN, False: FULL; one compiled kernel for both). aniso_tan (T,3,3): the
+    anisotropic lobes' per-corner world tangents (anisotropy.triangle_tangents), empty:
+    none (those lobes scatter isotropically)."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
                 + args[_PLAIN_ARG + 1:])
-    return _scatter(*args, flat_mat, flat_limit)
+    return _scatter(*args, flat_mat, flat_limit, aniso_tan)
 
 
 @kernel
@@ -492,7 +496,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              caster, first_hit_mode, caustic_only, vis_on, limits,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, hit_rows,
-             flat_mat, flat_limit):
+             flat_mat, flat_limit, aniso_tan):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -631,6 +635,23 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
         if nc > 0:
             pr.setup(mat_h[:nc], params, base_h[:nc], cos_h[:nc], front_h[:nc],
                      alpha_h[:nc], prm[:nc], w[:nc])
+            if aniso_tan.shape[0] > 0:
+                # Anisotropic lobes: their tangent, interpolated over the triangle (the
+                # camera side's engine/anisotropy.py, the same vector).
+                for j in range(nb):
+                    jc = at[j]
+                    if jc < 0 or not prm[jc, pr.P_AX] > 0.0:
+                        continue
+                    t = tri[b0 + j]
+                    i = rows[b0 + j]
+                    b1, b2 = np.float64(u[i]), np.float64(v[i])
+                    b0w = 1.0 - b1 - b2
+                    pr.set_tangent_row(
+                        prm, jc, ns_b[j, 0], ns_b[j, 1], ns_b[j, 2],
+                        b0w * aniso_tan[t, 0, 0] + b1 * aniso_tan[t, 1, 0] + b2 * aniso_tan[t, 2, 0],
+                        b0w * aniso_tan[t, 0, 1] + b1 * aniso_tan[t, 1, 1] + b2 * aniso_tan[t, 2, 1],
+                        b0w * aniso_tan[t, 0, 2] + b1 * aniso_tan[t, 1, 2] + b2 * aniso_tan[t, 2, 2],
+                        params[mat_h[jc], pr.M_AROT])
         for j in range(nb):
             i = rows[b0 + j]
             jc = at[j]

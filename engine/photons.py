@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .anisotropy import triangle_tangents
 from .lights.base import emission_key
 from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
@@ -222,6 +223,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     alternate between the two buffer sets of nxt_sets (borrowed from pool)."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
+    aniso_tan = triangle_tangents(geo, table.closure_params)
     limits = settings.bounce_limits
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
@@ -291,7 +293,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 params, row_plain, mat_ior,
                                 visibility, object_id, caster, mode, bool(caustic_only),
                                 vis_on, limits, *stored.room(m), *nxt_sets[k], hit_rows,
-                                flat_mat=flat[0], flat_limit=flat[1])
+                                flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan)
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot, bnc = (a[:n_nx] for a in nxt_sets[k])
 

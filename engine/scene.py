@@ -96,6 +96,11 @@ class Material:
       diffuse           Lambert, base colour x what the layers above leave
     Microfacet lobes use GGX with alpha = roughness^2; multiscatter=True adds Cycles'
     multiple-scattering energy compensation (Multiscatter GGX, Principled's default).
+    `anisotropic` stretches the metal and specular lobes along a tangent (Cycles'
+    anisotropic GGX, principled.aniso_alphas): Principled's Anisotropic (0..1), or the
+    Glossy BSDF's Anisotropy (-1..1) for node="glossy"; `anisotropic_rotation` turns the
+    tangent about the normal (turns). The tangent is Blender's default, radial about the
+    object's Z axis (engine/anisotropy.py).
     `alpha` < 1 lets the rest of the light pass straight through (Transparent BSDF),
     tinted by `transparent_tint` (the Transparent BSDF's Color: the pass transmits
     (1 - alpha) x tint per channel, for camera rays, shadow rays and photons alike).
@@ -147,6 +152,8 @@ class Material:
     scalar_textures: dict | None = None
     emission_texture: object | None = None
     closure_weight: float = 1.0
+    anisotropic: float = 0.0
+    anisotropic_rotation: float = 0.0
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -183,6 +190,9 @@ class Material:
                      "coat_roughness", "sheen_roughness"):
             v = _finite(getattr(self, attr), f"{who} {attr}")
             setattr(self, attr, min(max(v, 0.0), 1.0))
+        for attr in ("anisotropic", "anisotropic_rotation"):
+            setattr(self, attr, _finite(getattr(self, attr), f"{who} {attr}"))
+        self.anisotropic = min(max(self.anisotropic, -1.0), 1.0)
         for attr in ("specular_ior_level", "coat_weight", "sheen_weight", "closure_weight"):
             v = _finite(getattr(self, attr), f"{who} {attr}")
             if v < 0:

@@ -1886,8 +1886,9 @@ def warned_displacement():
     _sun()
 
 
-@case("warned", status="warned", how="anisotropic highlights render isotropic (Principled "
-      "Anisotropic, Glossy Anisotropy)", warning="Anisotropic")
+@case("warned", status="warned", how="anisotropic highlights follow the default radial "
+      "tangent; a linked Tangent (UV map) is not supported (Principled Anisotropic and "
+      "Glossy Anisotropy themselves are, tools/aniso_cycles.py)", warning="Tangent")
 def warned_anisotropy():
     _stage()
     m, nt, out = _nodes_material("brushed")
@@ -1895,6 +1896,9 @@ def warned_anisotropy():
     p.inputs["Metallic"].default_value = 1.0
     p.inputs["Roughness"].default_value = 0.4
     p.inputs["Anisotropic"].default_value = 0.6
+    t = nt.nodes.new("ShaderNodeTangent")
+    t.direction_type = "UV_MAP"
+    nt.links.new(t.outputs[0], p.inputs["Tangent"])
     nt.links.new(p.outputs[0], out.inputs["Surface"])
     mb.box("Cube", 0.8, 0.8, 0.8, m, (0.3, 0.3, 0.4))
     _sun()

@@ -113,6 +113,98 @@ def reflect_sample(ox, oy, oz, alpha, u1, u2):
     return ix, iy, iz, (1.0 + lo) / (1.0 + lo + li), pdf, c
 
 
+# --- anisotropic GGX (Cycles' bsdf_microfacet.h with alpha_x != alpha_y) ----------------
+# The tangent frame: x along the closure's tangent T (roughness alpha_x), y = N x T
+# (alpha_y), z the normal. The isotropic kernels above are the alpha_x == alpha_y case;
+# they stay as they are (the same bits for every isotropic material) and the closures call
+# these only for a lobe with a tangent and alpha_x != alpha_y.
+
+
+@kernel
+def lambda_ggx_aniso(x, y, z, ax, ay):
+    """Smith's Λ of anisotropic GGX for the unit direction (x, y, z) in the tangent frame
+    (Heitz 2014, eq. 86: Λ with alpha^2 tan^2 -> (ax^2 x^2 + ay^2 y^2) / z^2)."""
+    z2 = z * z
+    if z2 <= 0.0:
+        return 1e30
+    a2t2 = (ax * ax * x * x + ay * ay * y * y) / z2
+    return 0.5 * (math.sqrt(1.0 + a2t2) - 1.0)
+
+
+@kernel
+def d_ggx_aniso(hx, hy, hz, ax, ay):
+    """Anisotropic GGX D(h) = 1 / (pi ax ay (hx^2/ax^2 + hy^2/ay^2 + hz^2)^2) for the unit
+    half vector h in the tangent frame (Heitz 2014, eq. 85); ax == ay: d_ggx."""
+    sx, sy = hx / ax, hy / ay
+    t = sx * sx + sy * sy + hz * hz
+    return 1.0 / (math.pi * ax * ay * t * t)
+
+
+@kernel
+def sample_vndf_aniso(ox, oy, oz, ax, ay, u1, u2):
+    """sample_vndf with the view direction stretched by (ax, ay, 1) and the sampled
+    normal unstretched by them (Heitz 2018, listing 1): a visible normal of anisotropic
+    GGX in the tangent frame."""
+    vx, vy, vz = ax * ox, ay * oy, oz
+    inv = 1.0 / math.sqrt(vx * vx + vy * vy + vz * vz)
+    vx, vy, vz = vx * inv, vy * inv, vz * inv
+    lensq = vx * vx + vy * vy
+    if lensq > 1e-7:
+        il = 1.0 / math.sqrt(lensq)
+        t1x, t1y, t1z = -vy * il, vx * il, 0.0
+    else:
+        t1x, t1y, t1z = 1.0, 0.0, 0.0
+    t2x = vy * t1z - vz * t1y
+    t2y = vz * t1x - vx * t1z
+    t2z = vx * t1y - vy * t1x
+    r = math.sqrt(u1)
+    phi = 2.0 * math.pi * u2
+    p1 = r * math.cos(phi)
+    p2 = r * math.sin(phi)
+    s = 0.5 * (1.0 + vz)
+    p2 = (1.0 - s) * math.sqrt(max(1.0 - p1 * p1, 0.0)) + s * p2
+    p3 = math.sqrt(max(1.0 - p1 * p1 - p2 * p2, 0.0))
+    hx = p1 * t1x + p2 * t2x + p3 * vx
+    hy = p1 * t1y + p2 * t2y + p3 * vy
+    hz = p1 * t1z + p2 * t2z + p3 * vz
+    hx, hy, hz = ax * hx, ay * hy, max(hz, 0.0)
+    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+    return hx * inv, hy * inv, hz * inv
+
+
+@kernel
+def reflect_eval_aniso(ox, oy, oz, ix, iy, iz, ax, ay):
+    """reflect_eval of anisotropic GGX, wo and wi in the tangent frame: (f * cos_i with
+    F = 1, pdf of wi (visible normals), wo.h)."""
+    if oz <= 0.0 or iz <= 0.0:
+        return 0.0, 0.0, 1.0
+    hx, hy, hz = ox + ix, oy + iy, oz + iz
+    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+    hx, hy, hz = hx * inv, hy * inv, hz * inv
+    D = d_ggx_aniso(hx, hy, hz, ax, ay)
+    lo = lambda_ggx_aniso(ox, oy, oz, ax, ay)
+    li = lambda_ggx_aniso(ix, iy, iz, ax, ay)
+    common = D / oz * 0.25
+    return common / (1.0 + lo + li), common / (1.0 + lo), ox * hx + oy * hy + oz * hz
+
+
+@kernel
+def reflect_sample_aniso(ox, oy, oz, ax, ay, u1, u2):
+    """reflect_sample of anisotropic GGX in the tangent frame: (ix, iy, iz, weight =
+    G2 / G1(wo), pdf, wo.h); weight 0: no valid sample."""
+    if oz <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0, 0.0, 1.0
+    hx, hy, hz = sample_vndf_aniso(ox, oy, oz, ax, ay, u1, u2)
+    c = ox * hx + oy * hy + oz * hz
+    ix, iy, iz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
+    if iz <= 0.0:
+        return ix, iy, iz, 0.0, 0.0, c
+    lo = lambda_ggx_aniso(ox, oy, oz, ax, ay)
+    li = lambda_ggx_aniso(ix, iy, iz, ax, ay)
+    pdf = d_ggx_aniso(hx, hy, hz, ax, ay) / oz * 0.25 / (1.0 + lo)
+    return ix, iy, iz, (1.0 + lo) / (1.0 + lo + li), pdf, c
+
+
 @kernel
 def glass_eval(ox, oy, oz, ix, iy, iz, alpha, eta):
     """Dielectric glass lobe (reflection + refraction, real Fresnel), wo on the side of the
@@ -244,6 +336,22 @@ def _glass_sample_many(wo, alpha, eta, u1, u2, u3, out):
         out[k, 5] = 1.0 if refr else 0.0
 
 
+@kernel
+def _reflect_eval_aniso_many(wo, wi, ax, ay, out):
+    for k in range(wo.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2] = reflect_eval_aniso(wo[k, 0], wo[k, 1], wo[k, 2],
+                                                              wi[k, 0], wi[k, 1], wi[k, 2],
+                                                              ax[k], ay[k])
+
+
+@kernel
+def _reflect_sample_aniso_many(wo, ax, ay, u1, u2, out):
+    for k in range(wo.shape[0]):
+        ix, iy, iz, w, pdf, c = reflect_sample_aniso(wo[k, 0], wo[k, 1], wo[k, 2], ax[k],
+                                                     ay[k], u1[k], u2[k])
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3], out[k, 4], out[k, 5] = ix, iy, iz, w, pdf, c
+
+
 def _rows(n, *arrays):
     return [np.ascontiguousarray(np.broadcast_to(np.asarray(a, np.float64),
                                                  (n,) + np.shape(a)[1:] if np.ndim(a) > 1
@@ -290,3 +398,25 @@ def glass_sample_np(wo, alpha, eta, u1, u2, u3):
     out = np.empty((n, 6))
     _glass_sample_many(wo, alpha, eta, u1, u2, u3, out)
     return out[:, :3], out[:, 3], out[:, 4], out[:, 5] > 0.5
+
+
+def reflect_eval_aniso_np(wo, wi, ax, ay):
+    """Anisotropic reflect_eval_np: (N,3) wo, wi in the tangent frame, ax, ay (N,) or
+    scalars -> (eval (N,), pdf (N,), wo.h (N,))."""
+    wo = np.ascontiguousarray(wo, np.float64)
+    n = len(wo)
+    wi, = _rows(n, wi)
+    ax, ay = _rows(n, ax, ay)
+    out = np.empty((n, 3))
+    _reflect_eval_aniso_many(wo, wi, ax, ay, out)
+    return out[:, 0], out[:, 1], out[:, 2]
+
+
+def reflect_sample_aniso_np(wo, ax, ay, u1, u2):
+    """Anisotropic reflect_sample_np -> (wi (N,3), weight (N,), pdf (N,), wo.h (N,))."""
+    wo = np.ascontiguousarray(wo, np.float64)
+    n = len(wo)
+    ax, ay, u1, u2 = _rows(n, ax, ay, u1, u2)
+    out = np.empty((n, 6))
+    _reflect_sample_aniso_many(wo, ax, ay, u1, u2, out)
+    return out[:, :3], out[:, 3], out[:, 4], out[:, 5]

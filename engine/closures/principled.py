@@ -52,7 +52,10 @@ M_SHEEN_TINT = 24      # 3
 M_TTINT = 27           # 3: Transparent BSDF colour (the pass lobe transmits (1 - alpha) x it)
 M_ADD = 30             # 1: closure weight - 1 (Add Shader sums closures: every BSDF lobe x
                        # (1 + M_ADD); 0 = weight 1, the usual case)
-N_MAT = 31
+M_ANISO = 31          # 1: anisotropy: Principled 'Anisotropic' (0..1) or Glossy BSDF
+                      # 'Anisotropy' (-0.99..0.99), by M_NODE (aniso_alphas)
+M_AROT = 32           # 1: its rotation of the tangent about the normal, in turns
+N_MAT = 33
 # NODE_REFRACTION: the glass lobe transmits only, without Fresnel (Cycles' Refraction BSDF,
 # MicrofacetFresnel::NONE: transmittance = colour) and without energy compensation.
 NODE_PRINCIPLED, NODE_GLOSSY, NODE_GLASS, NODE_REFRACTION = 0, 1, 2, 3
@@ -66,7 +69,12 @@ P_SHEEN_W, P_SHEEN_A, P_SHEEN_B = 34, 37, 38
 P_GN = 39  # 3: the glossy lobes' normal in the shading normal's frame (Cycles'
            # ensure_valid_specular_reflection: glossy_normals); 0, 0, 0: the
            # shading normal itself (setup's default)
-N_PACK = 42
+P_AX, P_AY = 42, 43  # the metal and specular lobes' alpha_x, alpha_y (Cycles' anisotropic
+                     # GGX; 0, 0: isotropic, the lobes' own alpha)
+P_TAN = 44  # 2: their tangent T (alpha_x's axis) in the glossy normal's frame, unit,
+            # in its tangent plane (set_tangents); 0, 0: none yet (the lobes then stay
+            # isotropic at their own alpha)
+N_PACK = 46
 
 
 @kernel
@@ -132,12 +140,22 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
         alpha = rough * rough
         multi = params[r, M_MULTI]
         node = params[r, M_NODE]
+        # Anisotropic metal and specular layers (Cycles: alpha_x, alpha_y and the
+        # tangent): their tables read at sqrt(sqrt(alpha_x alpha_y)), as Cycles'
+        # microfacet_ggx_preserve_energy and bsdf_microfacet_estimate_albedo do; that is
+        # the roughness itself unless a clamp to 1 cut alpha_x.
+        ax = ay = alpha
+        rough_g = rough
+        if params[r, M_ANISO] != 0.0:
+            ax, ay = aniso_alphas(node, params[r, M_ANISO], alpha)
+            if ax != ay:
+                rough_g = math.sqrt(math.sqrt(ax * ay))
         # The GGX albedo tables only where a metal or specular layer reads them (a
         # diffuse-only material skips both lookups; nothing else changes).
         E = E_avg = 0.0
         if params[r, M_METALLIC] > 0.0 or params[r, M_SPEC] > 0.0:
-            E = tables.ggx_E(rough, mu)
-            E_avg = tables.ggx_Eavg(rough)
+            E = tables.ggx_E(rough_g, mu)
+            E_avg = tables.ggx_Eavg(rough_g)
         # --- sheen (the top layer) ---
         shw = params[r, M_SHEEN_W]
         if shw > 0.0 and a > 0.0:
@@ -182,7 +200,7 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
         # --- metal ---
         m = params[r, M_METALLIC]
         if m > 0.0:
-            s5 = tables.schlick5_s(rough, mu)
+            s5 = tables.schlick5_s(rough_g, mu)
             Wm = (W0, W1, W2)
             for c in range(3):
                 if node == NODE_GLOSSY:  # constant reflectance = the colour (in the weight)
@@ -201,6 +219,8 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
                 prm[i, P_METAL_B + c] = b
                 weights[i, L_METAL, c] = m * Wm[c] * col * dark * (f0 + (1.0 - f0) * s5)
             prm[i, P_METAL_ALPHA] = alpha
+            if ax != ay:
+                prm[i, P_AX], prm[i, P_AY] = ax, ay
             W0, W1, W2 = W0 * (1.0 - m), W1 * (1.0 - m), W2 * (1.0 - m)
         # --- transmission (glass) ---
         tr = params[r, M_TRANS]
@@ -275,7 +295,7 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
             s_avg = 0.0
             if F0r < 1.0:
                 s_avg = min(max((fresnel_dielectric_Fss(eta_s) - F0r) / (1.0 - F0r), 0.0), 1.0)
-            s = tables.schlick_ior_s(rough, mu, max(eta_s, 1.0 / eta_s))
+            s = tables.schlick_ior_s(rough_g, mu, max(eta_s, 1.0 / eta_s))
             Ws = (W0, W1, W2)
             top = 0.0
             for c in range(3):
@@ -289,12 +309,105 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
                 top = max(top, sp * est)
             prm[i, P_SPEC_ALPHA] = alpha
             prm[i, P_SPEC_ETA] = eta_s
+            if ax != ay:
+                prm[i, P_AX], prm[i, P_AY] = ax, ay
             keep = min(max(1.0 - top, 0.0), 1.0)
             W0, W1, W2 = W0 * keep, W1 * keep, W2 * keep
         # --- diffuse base ---
         weights[i, L_DIFFUSE, 0] = W0 * base[i, 0]
         weights[i, L_DIFFUSE, 1] = W1 * base[i, 1]
         weights[i, L_DIFFUSE, 2] = W2 * base[i, 2]
+
+
+@kernel
+def aniso_alphas(node, aniso, alpha):
+    """(alpha_x, alpha_y) of the metal and specular lobes from the isotropic alpha =
+    roughness^2 and the material's anisotropy (Cycles' svm/closure.h). Principled:
+    anisotropic clamped to [0, 1], aspect = sqrt(1 - 0.9 anisotropic), alpha_x =
+    alpha / aspect, alpha_y = alpha x aspect (the highlight stretched across T). Glossy
+    BSDF: anisotropy clamped to [-0.99, 0.99], |a| <= 1e-4 isotropic; a > 0: alpha (1 - a),
+    alpha / (1 - a); a < 0: alpha / (1 + a), alpha (1 + a). Both clamped to 1 as
+    bsdf_microfacet_ggx_setup clamps them."""
+    if node == NODE_GLOSSY:
+        a = min(max(aniso, -0.99), 0.99)
+        if abs(a) <= 1e-4:
+            return alpha, alpha
+        if a < 0.0:
+            ax, ay = alpha / (1.0 + a), alpha * (1.0 + a)
+        else:
+            ax, ay = alpha * (1.0 - a), alpha / (1.0 - a)
+    else:
+        a = min(max(aniso, 0.0), 1.0)
+        if a <= 0.0:
+            return alpha, alpha
+        aspect = math.sqrt(1.0 - a * 0.9)
+        ax, ay = alpha / aspect, alpha * aspect
+    return min(ax, 1.0), min(ay, 1.0)
+
+
+@kernel
+def set_tangents(prm, rows, ns, tangent, rot):
+    """The anisotropic lobes' tangent of hits `rows` (int64; hits whose material is
+    anisotropic, after setup and the glossy normal P_GN): tangent (N,3) world-space
+    tangent per hit (not necessarily unit; Blender's Tangent node before its projection),
+    ns (N,3) shading normals, rot (N,) the rotation in turns. As Cycles: the Tangent node
+    projects T onto the shading normal's plane (cross(N, normalize(cross(T, N)))), the
+    closure rotates it about N by 2 pi rot (rotate_around_axis, right-handed), and the
+    microfacet frame (make_orthonormals_tangent) takes T's part in the plane of the
+    glossy normal. Writes P_TAN (0, 0 where T is parallel to the normal: isotropic)."""
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        set_tangent_row(prm, i, ns[i, 0], ns[i, 1], ns[i, 2], tangent[i, 0], tangent[i, 1],
+                        tangent[i, 2], rot[i])
+
+
+@kernel
+def set_tangent_row(prm, i, n0, n1, n2, t0, t1, t2, rot):
+    """set_tangents for packed row i: shading normal n, world tangent t, rotation rot."""
+    prm[i, P_TAN] = 0.0
+    prm[i, P_TAN + 1] = 0.0
+    if not prm[i, P_AX] > 0.0:
+        return
+    lx, ly, _ = frame_local(n0, n1, n2, t0, t1, t2)
+    ln = math.sqrt(lx * lx + ly * ly)
+    if not ln > 0.0:
+        return
+    lx, ly = lx / ln, ly / ln
+    if rot != 0.0:
+        ca, sa = math.cos(2.0 * math.pi * rot), math.sin(2.0 * math.pi * rot)
+        lx, ly = ca * lx - sa * ly, sa * lx + ca * ly
+    qx, qy, _ = _to_glossy(prm, i, lx, ly, 0.0)
+    ln = math.sqrt(qx * qx + qy * qy)
+    if ln > 0.0:
+        prm[i, P_TAN] = qx / ln
+        prm[i, P_TAN + 1] = qy / ln
+
+
+@kernel
+def _glossy_eval(prm, i, ox, oy, oz, ix, iy, iz, a):
+    """ggx.reflect_eval of the metal or specular lobe (alpha a), in the glossy frame;
+    anisotropic (ggx.reflect_eval_aniso in the tangent frame x = T, y = N x T) where
+    the hit has alpha_x, alpha_y (P_AX > 0) and a tangent. (One column read on
+    isotropic rows: the tangent only behind it.)"""
+    if prm[i, P_AX] > 0.0:
+        tx, ty = prm[i, P_TAN], prm[i, P_TAN + 1]
+        if tx != 0.0 or ty != 0.0:
+            return ggx.reflect_eval_aniso(ox * tx + oy * ty, oy * tx - ox * ty, oz,
+                                          ix * tx + iy * ty, iy * tx - ix * ty, iz,
+                                          prm[i, P_AX], prm[i, P_AY])
+    return ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+
+
+@kernel
+def _glossy_sample(prm, i, ox, oy, oz, a, u1, u2):
+    """ggx.reflect_sample of the metal or specular lobe, anisotropic as _glossy_eval."""
+    if prm[i, P_AX] > 0.0:
+        tx, ty = prm[i, P_TAN], prm[i, P_TAN + 1]
+        if tx != 0.0 or ty != 0.0:
+            x, y, z, w, pdf, c = ggx.reflect_sample_aniso(
+                ox * tx + oy * ty, oy * tx - ox * ty, oz, prm[i, P_AX], prm[i, P_AY], u1, u2)
+            return x * tx - y * ty, x * ty + y * tx, z, w, pdf, c
+    return ggx.reflect_sample(ox, oy, oz, a, u1, u2)
 
 
 # glass_terms' columns: the glass layer's terms of one material on one side.
@@ -499,7 +612,7 @@ def _eval_glossy(prm, i, ox, oy, oz, ix, iy, iz):
     a = prm[i, P_SPEC_ALPHA]
     if a >= ggx.ALPHA_MIN and (prm[i, P_SPEC_W] > 0 or prm[i, P_SPEC_W + 1] > 0
                                or prm[i, P_SPEC_W + 2] > 0):
-        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        e, _, c = _glossy_eval(prm, i, ox, oy, oz, ix, iy, iz, a)
         eta = prm[i, P_SPEC_ETA]
         r0 += prm[i, P_SPEC_W] * _remap(prm[i, P_SPEC_F0], c, eta) * e
         r1 += prm[i, P_SPEC_W + 1] * _remap(prm[i, P_SPEC_F0 + 1], c, eta) * e
@@ -507,7 +620,7 @@ def _eval_glossy(prm, i, ox, oy, oz, ix, iy, iz):
     a = prm[i, P_METAL_ALPHA]
     if a >= ggx.ALPHA_MIN and (prm[i, P_METAL_W] > 0 or prm[i, P_METAL_W + 1] > 0
                                or prm[i, P_METAL_W + 2] > 0):
-        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
+        e, _, c = _glossy_eval(prm, i, ox, oy, oz, ix, iy, iz, a)
         r0 += prm[i, P_METAL_W] * fresnel_f82(c, prm[i, P_METAL_F0], prm[i, P_METAL_B]) * e
         r1 += prm[i, P_METAL_W + 1] * fresnel_f82(c, prm[i, P_METAL_F0 + 1],
                                                   prm[i, P_METAL_B + 1]) * e
@@ -556,7 +669,10 @@ def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
             w = sel[i, lobe]
             a = prm[i, a_col]
             if w > 0.0 and a >= ggx.ALPHA_MIN:
-                _, p, _ = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
+                if lobe == L_COAT:
+                    _, p, _ = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
+                else:
+                    _, p, _ = _glossy_eval(prm, i, qx, qy, qz, jx, jy, jz, a)
                 pdf += w * p
     if oz <= 0.0 or iz <= 0.0:
         return pdf
@@ -857,7 +973,10 @@ def _sample_glossy(prm, i, lobe, ox, oy, oz, u1, u2, u3):
         a_col = P_METAL_ALPHA
     else:
         a_col = P_COAT_ALPHA
-    ix, iy, iz, w, pdf, c = ggx.reflect_sample(ox, oy, oz, prm[i, a_col], u1, u2)
+    if lobe == L_SPEC or lobe == L_METAL:
+        ix, iy, iz, w, pdf, c = _glossy_sample(prm, i, ox, oy, oz, prm[i, a_col], u1, u2)
+    else:
+        ix, iy, iz, w, pdf, c = ggx.reflect_sample(ox, oy, oz, prm[i, a_col], u1, u2)
     if w <= 0.0:
         return ix, iy, iz, 0.0, 0.0, 0.0, False
     if lobe == L_SPEC:
@@ -946,6 +1065,7 @@ def _warm_up():
     bsdf_pdf_many(prm, sel, n, wo, d, np.empty(1))
     eval_reflection_many(prm, n, wo, d, np.empty((1, 3)))
     lobe_is_rough(prm, np.full(1, L_SPEC, np.int64))
+    set_tangents(prm, np.zeros(1, np.int64), n, np.array([[1.0, 0.0, 0.0]]), np.zeros(1))
     rough_reflection_rows(prm, np.empty(1, np.bool_))
     glossy_normals(n, np.array([[0.0, 0.6, 0.8]]), wo, np.zeros((1, 3)), np.ones(1))
     wt = np.array([[-0.3, 0.0, -0.95]])
