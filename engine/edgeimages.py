@@ -24,8 +24,8 @@ already reads (an image over it would count them twice).
 A photon near two open edges on different lines (a corner) gets an image across each and,
 where they meet at 60-120 degrees, one across both (CORNERS; the four quadrants of the
 reflection method at a right angle). Used for the caustic map (cap: the caustic radius);
-the secondary CAUSTIC_DIFFUSE map can take them too (render.SECONDARY_EDGE_IMAGES, off:
-its wide radius carries images across a gap narrower than 2 R, below). flatness_weights
+the secondary CAUSTIC_DIFFUSE map takes them too (render.SECONDARY_EDGE_IMAGES, with the
+gaps rule: its wide radius would carry images across a gap narrower than 2 R, below). flatness_weights
 tests the reflection's assumption (the density flat across the edge) per image: off.
 Not handled: scenes with shared instances (Geometry.shared: no images anywhere), a photon
 near three or more edges (a strip narrower than the cap: the two nearest lines only),

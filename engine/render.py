@@ -536,18 +536,18 @@ SUBSET_POWER_SHARE = 0.005
 # The caustic map's photons get images across the open edges of the surfaces they lie on
 # (engine/edgeimages.py): the reflection method keeps a disc's light at an edge.
 EDGE_IMAGES = True
-# The secondary (CAUSTIC_DIFFUSE) map's photons with images too, within its own radius:
-# off. A panel's secondary light then integrates to 1.01-1.03 of its photons' power
-# (0.93-0.96 without), Figures 6 / 7 move +0.2-1.6 % towards Cycles, but that radius
-# (0.15-0.62 m) is wider than a window opening's half-width: the images of the wall below
-# the sill, mirrored into the opening, are read by the wall beside it, and the window
-# room's blocks there read 1.5-1.8 of Cycles (block error 0.357 -> 0.450, seeds 0-3;
-# docs/performance.md "secedges"). Dropping the images in such gaps (SECONDARY_GAPS,
-# edge_images' gaps) brought the opening's blocks back to main's; the room's far corners
-# still read 2-9 % brighter than without images (block error 0.357 -> 0.402). Over 12
-# seeds (docs/performance.md "secgap") images + gaps: 0.337 -> 0.376 (+0.039 +- 0.008),
-# with the flatness test the same: that room is a few secondary radii across.
-SECONDARY_EDGE_IMAGES = False
+# The secondary (CAUSTIC_DIFFUSE) map's photons with images too, within its own radius
+# (the images lying in a gap narrower than 2 R dropped: SECONDARY_GAPS). A panel's
+# secondary light then integrates to 1.01-1.03 of its photons' power (0.93-0.96 without),
+# Figure 7 moves +0.2-1.6 % towards Cycles (docs/performance.md "secedges", "secgap").
+# Kept off in s21 / s22 because the window room (feature case
+# transparency_window_glass_plane) read worse with them, its far corners 1.39 -> 1.47 of
+# Cycles; that was its 1024-spp reference, whose dim corners read 0.68-0.72 of a
+# 16384-spp one (Cycles reaches them only through glass by BSDF sampling: spiky). Against
+# 16384 spp, 12 seeds: corners 0.935-0.947 -> 1.003-1.004, brightness 0.9895 -> 0.9991,
+# mean block deviation 0.0631 -> 0.0608 (-0.0023 +- 0.0010) (docs/performance.md
+# "windowroom").
+SECONDARY_EDGE_IMAGES = True
 # With them: drop the images lying in a gap narrower than 2 radius (edgeimages gaps).
 SECONDARY_GAPS = True
 # With them: weight each image by the density's linear extrapolation across its edge

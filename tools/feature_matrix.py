@@ -1613,7 +1613,13 @@ def transparency_window_open():
 # (issue 13, docs/performance.md "Fourth slice: photon emission"): block error 0.25-0.43
 # with the numpy emission, 0.30-0.45 with the emission kernels (mean 0.994 / 0.993): the
 # largest of 192 block errors moves with the seed; 0.47 holds both distributions.
-@case("transparency", block_tol=0.47)
+# The room's dim far corners read 1.3-1.5 of that 1024-spp reference (issue 14, s23
+# windowroom): Cycles lights the room only through the glass by BSDF-sampled paths, so
+# its dim blocks are spiky and 1024 spp read them at 0.68-0.72 of 16384 spp (two 4096-spp
+# seeds differ by +-10-25 % per block in the upper half). The reference is now 16384 spp;
+# against it, seeds 0-11: block error 0.16-0.33 (mean 0.197), corners 1.00, brightness
+# 0.999 (with the secondary map's edge images, render.SECONDARY_EDGE_IMAGES); bound 0.40.
+@case("transparency", block_tol=0.40, samples=16384)
 def transparency_window_glass_plane():
     """The window room behind a single-plane Glass pane."""
     _window_room("plane")
