@@ -42,6 +42,7 @@ ACCEPT = 0.3  # a lookup reads the nearest photon's estimate within ACCEPT x its
 NORMAL_AGREEMENT = 0.5  # photonmap.NORMAL_AGREEMENT: the same "same surface" test
 MIN_RADIUS_FRACTION = 0.01  # photonmap.MIN_RADIUS_FRACTION: rk's floor (a focus)
 PRE_ROWS = 1 << 15  # photons per precompute job
+LIST_CAP = 512  # photons a precompute sphere lists (photonmap.CAND_CAP)
 BYTES_PER_PHOTON = 16
 OWN_TERM = 0.17
 
@@ -90,29 +91,34 @@ class PrecomputedIrradiance:
         self.radius = float(radius)
         pos64 = ph.position.astype(np.float64)
         n64 = ph.normal.astype(np.float64)
-        E, bnd = pmap.knn_irradiance(pos64, n64, radius, k, min_photons, estimator,
-                                     return_boundary=True, should_cancel=should_cancel)
         rk = np.zeros(m, np.float32)
         axis, split, leaf = t.nodes
+        big = np.abs(ph.position).max() if m else 0.0
+        r_min = max(1e-6 * float(big), MIN_RADIUS_FRACTION * radius, 1e-15)
 
         def job(a, stop):
             b = min(a + PRE_ROWS, m)
-            view = rk[a:b]
             _photon_radii_from(t.position, axis, split, leaf, ph.direction, ph.normal,
-                               int(k), float(radius) ** 2, a, view)
+                               int(k), float(radius) ** 2, r_min * r_min, a, rk[a:b])
             return None
 
         for _ in ordered_map(job, range(0, m, PRE_ROWS), pmap.workers, should_cancel):
             pass
-        r = rk.astype(np.float64)
-        big = np.abs(pos64).max(axis=1)
-        r_min = np.maximum(1e-6 * big, max(MIN_RADIUS_FRACTION * radius, 1e-15))
-        keep = (r > 0) & ~bnd & (r >= r_min) & (E.sum(axis=1) > 0)
-        safe = np.where(keep, r, 1.0)
-        own = 3.0 / (math.pi * safe * safe)[:, None] * ph.power.astype(np.float64) \
-            * OWN_TERM
-        self.E = np.where(keep[:, None], E - own, 0.0).astype(np.float32)
-        self.rk = np.where(keep, rk, np.float32(0.0)).astype(np.float32)
+        # The estimates only where a lookup may read them (rk > 0).
+        rows = np.flatnonzero(rk > 0)
+        E, bnd = pmap.knn_irradiance(
+            np.take(pos64, rows, axis=0), np.take(n64, rows, axis=0), radius, k,
+            min_photons, estimator, return_boundary=True, should_cancel=should_cancel)
+        r = np.take(rk, rows).astype(np.float64)
+        keep = ~bnd & (r >= r_min) & (E.sum(axis=1) > 0)
+        r = np.where(keep, r, 1.0)
+        own = 3.0 / (math.pi * r * r)[:, None] \
+            * np.take(ph.power, rows, axis=0).astype(np.float64) * OWN_TERM
+        self.E = np.zeros((m, 3), np.float32)
+        self.E[rows] = np.where(keep[:, None], E - own, 0.0)
+        self.rk = np.zeros(m, np.float32)
+        self.rk[rows] = np.where(keep, np.take(rk, rows), np.float32(0.0))
+        keep = self.rk > 0
         self.stored = int(keep.sum())
 
     @property
@@ -148,25 +154,65 @@ class PrecomputedIrradiance:
 
 
 @kernel
-def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, a, rk):
-    """_photon_radii for photons a .. a + len(rk) into rk."""
-    d2 = np.empty(k, np.float64)
-    idx = np.empty(k, np.int64)
+def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, r2_min, a, rk):
+    """rk[r] (float32) for photon i = a + r: the radius of the disc its k-NN estimate
+    reads (photonmap._irradiance_rows' rk): the distance to its k-th nearest photon (itself
+    included), or sqrt(r2) (the cap) where fewer than k lie within it; 0 (no estimate
+    stored) where any of those is not accepted at i's surface (photonmap._accepted: the
+    disc holds another surface's or back-facing photons) or where k photons lie within
+    sqrt(r2_min) (a focus: the estimate's rk is floored)."""
+    # kdtree.knn's heap costs ~14-19 us a photon at k = 64 on Figure 8's map; a sphere
+    # listed by ball_d2 and ordered by nearest_first (the estimates' own way) costs a
+    # fraction. The sphere's radius starts at the previous photon's rk (the photons are in
+    # the tree's order: neighbours), doubles while it holds fewer than k and halves
+    # while it overflows LIST_CAP; the k-th distance is the same value knn returns.
+    src_d2 = np.empty(LIST_CAP + 1, np.float64)
+    src_idx = np.empty(LIST_CAP + 1, np.int64)
+    d2 = np.empty(LIST_CAP + 1, np.float64)
+    idx = np.empty(LIST_CAP + 1, np.int64)
+    hist = np.empty(LIST_CAP + 2, np.int64)
+    r_cap = math.sqrt(r2)
+    r_min = math.sqrt(r2_min)
+    seed = r_cap
     for r in range(rk.shape[0]):
         i = a + r
         qx, qy, qz = np.float64(pos[i, 0]), np.float64(pos[i, 1]), np.float64(pos[i, 2])
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-        cnt = kdtree.knn(pos, axis, split, leaf, qx, qy, qz, k, r2, d2, idx)
-        ok = cnt == k
-        for j in range(cnt):
-            if not ok:
+        rk[r] = np.float32(0.0)
+        rt = min(max(seed, r_min), r_cap)
+        cnt = 0
+        found = False
+        for _ in range(64):
+            rt2 = r2 if rt >= r_cap else rt * rt
+            c = kdtree.ball_d2(pos, axis, split, leaf, qx, qy, qz, rt2, src_d2, src_idx,
+                               LIST_CAP)
+            if c > LIST_CAP:
+                if rt <= r_min:
+                    break  # k photons within r_min: a focus (its rk is floored)
+                rt = max(0.5 * rt, r_min)
+                continue
+            if c >= k or rt >= r_cap:
+                cnt = min(c, k)
+                if cnt > 0:
+                    kdtree.nearest_first(src_d2, src_idx, c, cnt, rt2, d2, idx, hist)
+                    found = True
                 break
+            rt = min(2.0 * rt, r_cap)
+        if not found:
+            continue
+        ok = True
+        for j in range(cnt):
             pj = idx[j]
             cos_in = -(direction[pj, 0] * nx + direction[pj, 1] * ny + direction[pj, 2] * nz)
             same = (normal[pj, 0] * nx + normal[pj, 1] * ny + normal[pj, 2] * nz) \
                 > NORMAL_AGREEMENT
-            ok = cos_in > 0 and same
-        rk[r] = np.float32(math.sqrt(d2[cnt - 1])) if ok else np.float32(0.0)
+            if not (cos_in > 0 and same):
+                ok = False
+                break
+        rkr = math.sqrt(d2[k - 1]) if cnt == k else r_cap
+        seed = 1.2 * rkr
+        if ok:
+            rk[r] = np.float32(rkr)
 
 
 def lookup(pmap, p, n, radius, k, min_photons, estimator, return_boundary, r_floor,
