@@ -183,8 +183,9 @@ class PhotonMap:
         """knn_irradiance's answer; with self.lookup == "precomputed" (a kd-tree map, k-NN
         estimators, no masks) through engine/causticcache.py's estimates at the photons
         (the k-NN rows where those cannot answer)."""
-        if (getattr(self, "lookup", "knn") == "precomputed" and masks is None and self.tree is not None
-                and self.structure == "kdtree" and estimator in ("knn_simpson", "knn_cone")
+        if (getattr(self, "lookup", "knn") == "precomputed" and masks is None
+                and self.tree is not None and self.structure == "kdtree"
+                and estimator in ("knn_simpson", "knn_cone")
                 and len(p) and radius > 0 and len(self.photons) >= min_photons):
             from . import causticcache
             return causticcache.lookup(self, p, n, radius, k, min_photons, estimator,
