@@ -26,10 +26,13 @@ traversals": the captured caustic estimates at the camera hits (knn_simpson, k =
 BLEND, all of them and the dense ones (at least k photons within the search radius: the
 estimate reads its k nearest), CPU ns a row (one thread, best of 3, in the calls' own
 rows order), against one Embree traversal of the same scene (BLEND's exported scene,
-the engine's Accel on one thread, best of 3): closest-hit and occlusion rays from those
+Embree's one-ray traversal: raw embreex run() on the engine's scene, one thread, best
+of 3; not Accel.intersect's packet path): closest-hit and occlusion rays from those
 dense rows' points into their hemisphere (as the gather rays leave them), and closest
 hits from the middle of the scene's box (bench_lookup.py's rays). With BASE_ROOT, the
-estimates through its kernel too (_kernel_from), interleaved.
+estimates through its kernel too (_kernel_from), interleaved. Then the same calls
+through settings.caustic_lookup = "precomputed" (engine/causticcache.py): its precompute
+once (CPU s), and the lookups.
 """
 from __future__ import annotations
 
@@ -329,11 +332,41 @@ def ratio(name, path, base_root=None, repeat=3):
     for label in kernels:  # interleaved per set
         est[("all", label)] = rows_ns(calls, label)
         est[("dense", label)] = rows_ns(dense_calls, label)
-    # One Embree traversal of the scene the estimates were made in.
+    # The same calls through the precomputed estimates (settings.caustic_lookup =
+    # "precomputed", engine/causticcache.py): their precompute once, then lookups.
+    from engine import causticcache
+    pm.lookup, pm.precomputed = "precomputed", {}
+    p0, n0, k0, mp0, est0 = calls[0][:5]
+    t_pre = 1e9
+    for _ in range(2):  # the first compiles causticcache's kernels
+        t0 = time.process_time()
+        pre = causticcache.PrecomputedIrradiance(pm, radius, k0, mp0, est0)
+        t_pre = min(t_pre, time.process_time() - t0)
+    pm.precomputed[(float(radius), int(k0), int(mp0), est0)] = pre
+    print(f"precomputed: {pre.stored:,} of {len(ph):,} photons hold an estimate, "
+          f"{t_pre:.3f} CPU s ({t_pre / len(ph) * 1e9:.0f} ns a photon), "
+          f"{pre.nbytes / len(ph):.0f} bytes a photon")
+
+    def lookup_ns(cs):
+        best = 1e9
+        for _ in range(repeat):
+            t0 = time.process_time()
+            for p, n, k, mp, e, rb, rf, mk in cs:
+                pm.irradiance(p, n, radius, k, mp, e, return_boundary=rb, r_floor=rf,
+                              masks=mk)
+            best = min(best, time.process_time() - t0)
+        return best / sum(len(c[0]) for c in cs) * 1e9
+    est[("all", "precomputed")] = lookup_ns(calls)
+    est[("dense", "precomputed")] = lookup_ns(dense_calls)
+    pm.lookup = "knn"
+    # One Embree traversal of the scene the estimates were made in: Embree's own one-ray
+    # traversal (raw embreex run(), rtcIntersect1 / rtcOccluded1 per ray, as
+    # bench_core.raw_embree_time replays), not Accel.intersect's packet path (whose
+    # float32 packet filling and Python wrapper made a ray ~71 ns against Embree's ~49).
     with open(bk.exported(name, WORK), "rb") as f:
         scene = pickle.load(f)
     ctx = prepare_context(scene, RenderSettings(workers=1))
-    acc = ctx.accel.serial()
+    emb = getattr(ctx.accel, "full", ctx.accel)._scene  # (VisibilityAccel: the whole scene)
     rng = np.random.default_rng(1)
     P, N = np.vstack(pts), np.vstack(nrm)
     pick = rng.integers(0, len(P), 200_000)
@@ -343,6 +376,8 @@ def ratio(name, path, base_root=None, repeat=3):
     o = P[pick] + 1e-4 * N[pick]
     lo, hi = (np.asarray(b, np.float64) for b in ctx.geo.bounds)
     ob = lo + (hi - lo) * (0.3 + 0.4 * rng.random((len(pick), 3)))
+    o32, ob32, d32 = (np.ascontiguousarray(a, np.float32) for a in (o, ob, d))
+    far = np.full(len(pick), 1e30, np.float32)
 
     def ray_ns(fn):
         fn()
@@ -352,22 +387,24 @@ def ratio(name, path, base_root=None, repeat=3):
             fn()
             best = min(best, time.process_time() - t0)
         return best / len(pick) * 1e9
-    ray = {"closest hit, from the dense rows' points": ray_ns(lambda: acc.intersect(o, d)),
+    ray = {"closest hit, from the dense rows' points": ray_ns(
+               lambda: emb.run(o32, d32, dists=far.copy(), output=True)),
            "occlusion, from the dense rows' points": ray_ns(
-               lambda: acc.occluded(o, d, np.full(len(pick), 1e30))),
-           "closest hit, from the box's middle": ray_ns(lambda: acc.intersect(ob, d))}
+               lambda: emb.run(o32, d32, dists=far.copy(), query="OCCLUDED")),
+           "closest hit, from the box's middle": ray_ns(
+               lambda: emb.run(ob32, d32, dists=far.copy(), output=True))}
     ctx.accel.close()
     ref = ray["closest hit, from the dense rows' points"]
     rows_all = sum(len(c[0]) for c in calls)
     rows_dense = sum(len(c[0]) for c in dense_calls)
-    print("| work | rows / rays | CPU ns each | in closest-hit traversals |")
+    print("| work | rows / rays | CPU ns each | in one-ray closest-hit traversals |")
     print("|---|---:|---:|---:|")
     for (which, label), ns in est.items():
         n_rows = rows_all if which == "all" else rows_dense
         print(f"| caustic estimates, {which} ({label}) | {n_rows:,} | {ns:.0f} | "
               f"{ns / ref:.1f} |")
     for what, ns in ray.items():
-        print(f"| Embree {what} | {len(pick):,} | {ns:.0f} | {ns / ref:.2f} |")
+        print(f"| Embree one-ray {what} | {len(pick):,} | {ns:.0f} | {ns / ref:.2f} |")
 
 
 if __name__ == "__main__":

@@ -123,6 +123,11 @@ class PhotonMap:
         self.workers = workers
         self.structure = structure
         self.tree = None
+        # "precomputed": k-NN estimates through engine/causticcache.py (the caustic map,
+        # settings.caustic_lookup); its per-parameter estimates live in `precomputed`,
+        # shared with serial() views.
+        self.lookup = "knn"
+        self.precomputed = {}
         position = photons.position if rows is None else np.take(photons.position, rows,
                                                                    axis=0)
         if not len(position):
@@ -150,9 +155,10 @@ class PhotonMap:
     @property
     def nbytes(self) -> int:
         """Bytes held by the map: the photons plus the structure's index arrays."""
+        pre = sum(e.nbytes for e in getattr(self, "precomputed", {}).values())
         if self.tree is None:
-            return self.photons.nbytes
-        return self.photons.nbytes + self.tree.nbytes - self.tree.position.nbytes
+            return self.photons.nbytes + pre
+        return self.photons.nbytes + self.tree.nbytes - self.tree.position.nbytes + pre
 
     def serial(self) -> "PhotonMap":
         """The same map, queried on the calling thread only (the caller runs chunks on
@@ -174,6 +180,23 @@ class PhotonMap:
                    min_photons: int, estimator: str, return_boundary: bool = False,
                    r_floor: np.ndarray | None = None, should_cancel=None,
                    masks: np.ndarray | None = None):
+        """knn_irradiance's answer; with self.lookup == "precomputed" (a kd-tree map, k-NN
+        estimators, no masks) through engine/causticcache.py's estimates at the photons
+        (the k-NN rows where those cannot answer)."""
+        if (getattr(self, "lookup", "knn") == "precomputed" and masks is None
+                and self.tree is not None and self.structure == "kdtree"
+                and estimator in ("knn_simpson", "knn_cone")
+                and len(p) and radius > 0 and len(self.photons) >= min_photons):
+            from . import causticcache
+            return causticcache.lookup(self, p, n, radius, k, min_photons, estimator,
+                                       return_boundary, r_floor, should_cancel)
+        return self.knn_irradiance(p, n, radius, k, min_photons, estimator, return_boundary,
+                                   r_floor, should_cancel, masks)
+
+    def knn_irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
+                       min_photons: int, estimator: str, return_boundary: bool = False,
+                       r_floor: np.ndarray | None = None, should_cancel=None,
+                       masks: np.ndarray | None = None):
         """Irradiance estimate E (W/m^2, (M,3) float64) at points p (M,3) with unit normals
         n (M,3) facing the viewer.
         return_boundary: also return, per point, whether the estimate's disc is not whole:

@@ -773,6 +773,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
         photons = _with_images(photons, images)
         out["caustic_map"] = _counted_map(photons, workers, None)
         out["caustic_images"] = len(images)
+    if out.get("caustic_map") is not None:
+        out["caustic_map"].lookup = s.caustic_lookup  # engine/causticcache.py
     out["diffuse_area"] = diffuse_area
     return out
 

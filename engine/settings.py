@@ -10,6 +10,7 @@ import numpy as np
 from .pixelfilter import PIXEL_FILTERS
 
 ESTIMATORS = ("knn_simpson", "knn_cone", "classic", "radius")
+CAUSTIC_LOOKUPS = ("knn", "precomputed")
 # Their names in the add-on's Estimator menu (addon/properties.py ESTIMATOR_ITEMS), which the
 # effect report uses: a user reads there what the panel shows, not the setting's key.
 ESTIMATOR_LABELS = {"knn_simpson": "k-NN (Simpson kernel)", "knn_cone": "k-NN (cone filter)",
@@ -67,6 +68,10 @@ class RenderSettings:
     # photonmap.caustic_radius, its k-NN radius follows the caustic photons' density)
     min_photons: int = 8            # fewer photons found -> no estimate (paper)
     k_nearest: int = 64             # photons per k-NN estimate
+    # The caustic map's k-NN lookups: "knn" (each lookup its own k-NN estimate) or
+    # "precomputed" (Christensen 1999: the estimate at each caustic photon once, a lookup
+    # reads the nearest facing photon's; engine/causticcache.py)
+    caustic_lookup: str = "knn"
     final_gather: bool = True       # indirect light by gather rays into the global map
     gather_rays: int = 2            # final-gather rays per camera sample (the most, with
     # gather_by_share: fewer where the indirect light is a small share of what the camera
@@ -187,6 +192,9 @@ class RenderSettings:
             raise ValueError(f"setting 'filter_width' must be a number from 0 to "
                              f"{FILTER_WIDTH_MAX:g} (pixels), got {self.filter_width!r}")
         self.filter_width = fw
+        if self.caustic_lookup not in CAUSTIC_LOOKUPS:
+            raise ValueError(f"setting 'caustic_lookup' must be one of "
+                             f"{', '.join(CAUSTIC_LOOKUPS)}, got {self.caustic_lookup!r}")
         if not isinstance(self.estimator, str) or self.estimator not in ESTIMATORS:
             raise ValueError(f"setting 'estimator' must be one of {', '.join(ESTIMATORS)}, "
                              f"got {self.estimator!r}")
