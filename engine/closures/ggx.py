@@ -46,34 +46,9 @@ def d_ggx(cos_h, alpha2):
 
 @kernel
 def sample_vndf(ox, oy, oz, alpha, u1, u2):
-    """A microfacet normal h from GGX's visible normals seen from wo (Heitz 2018)."""
-    vx, vy, vz = alpha * ox, alpha * oy, oz
-    inv = 1.0 / math.sqrt(vx * vx + vy * vy + vz * vz)
-    vx, vy, vz = vx * inv, vy * inv, vz * inv
-    lensq = vx * vx + vy * vy
-    if lensq > 1e-7:
-        il = 1.0 / math.sqrt(lensq)
-        t1x, t1y, t1z = -vy * il, vx * il, 0.0
-    else:
-        t1x, t1y, t1z = 1.0, 0.0, 0.0
-    # T2 = v x T1
-    t2x = vy * t1z - vz * t1y
-    t2y = vz * t1x - vx * t1z
-    t2z = vx * t1y - vy * t1x
-    # uniform disk (polar; the mapping is smooth, which Heitz's derivation assumes)
-    r = math.sqrt(u1)
-    phi = 2.0 * math.pi * u2
-    p1 = r * math.cos(phi)
-    p2 = r * math.sin(phi)
-    s = 0.5 * (1.0 + vz)
-    p2 = (1.0 - s) * math.sqrt(max(1.0 - p1 * p1, 0.0)) + s * p2
-    p3 = math.sqrt(max(1.0 - p1 * p1 - p2 * p2, 0.0))
-    hx = p1 * t1x + p2 * t2x + p3 * vx
-    hy = p1 * t1y + p2 * t2y + p3 * vy
-    hz = p1 * t1z + p2 * t2z + p3 * vz
-    hx, hy, hz = alpha * hx, alpha * hy, max(hz, 0.0)
-    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
-    return hx * inv, hy * inv, hz * inv
+    """A microfacet normal h from GGX's visible normals seen from wo (Heitz 2018): the
+    isotropic case of sample_vndf_aniso (the same arithmetic with ax = ay = alpha)."""
+    return sample_vndf_aniso(ox, oy, oz, alpha, alpha, u1, u2)
 
 
 @kernel
@@ -142,9 +117,10 @@ def d_ggx_aniso(hx, hy, hz, ax, ay):
 
 @kernel
 def sample_vndf_aniso(ox, oy, oz, ax, ay, u1, u2):
-    """sample_vndf with the view direction stretched by (ax, ay, 1) and the sampled
-    normal unstretched by them (Heitz 2018, listing 1): a visible normal of anisotropic
-    GGX in the tangent frame."""
+    """A visible normal of anisotropic GGX in the tangent frame (Heitz 2018, listing 1):
+    the view direction stretched by (ax, ay, 1), a point on the projected hemisphere
+    (uniform disk, polar: the mapping is smooth, which Heitz's derivation assumes), the
+    normal unstretched by them."""
     vx, vy, vz = ax * ox, ay * oy, oz
     inv = 1.0 / math.sqrt(vx * vx + vy * vy + vz * vz)
     vx, vy, vz = vx * inv, vy * inv, vz * inv
