@@ -221,6 +221,6 @@ def ensure_compiled(progress=None) -> float:
 def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
     from . import (camerakernels, camerarays, directlight, gatherkernels,  # noqa: F401
-                   hashgrid,
+                   hashgrid, normalmap,
                    kdtree, photonkernels, photonmap,  # (warm-ups)
                    procedural, rayoffset, shadowtransmittance, toplevel)

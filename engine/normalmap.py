@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from .jit import kernel
+from .jit import kernel, register_warm_up
 from .sampling import dot, normalize
 
 SPACES = ("TANGENT", "WORLD")
@@ -79,11 +79,18 @@ def bump_shadowing(n_smooth, ns, wi, diffuse: bool = True) -> np.ndarray:
     """(N,) bump_shadowing_term row by row: n_smooth (N,3) the hits' smooth normals before
     Normal Map / Bump nodes, ns (N,3) their shading normals, wi (N,3) unit directions
     towards the light (a photon's reversed direction, a gather ray's direction)."""
-    c = np.ascontiguousarray
+    def c(a):  # C-contiguous, writable float64: the one type _bump_shadowing_rows is warmed for
+        return np.require(a, np.float64, ["C", "W"])
     out = np.empty(len(ns))
-    _bump_shadowing_rows(c(n_smooth, np.float64), c(ns, np.float64), c(wi, np.float64),
-                         bool(diffuse), out)
+    _bump_shadowing_rows(c(n_smooth), c(ns), c(wi), bool(diffuse), out)
     return out
+
+
+@register_warm_up
+def _warm_up():
+    # Normal-mapped scenes call this from photons.py and integrator.py (not from a kernel).
+    z = np.array([[0.0, 0.0, 1.0]])
+    bump_shadowing(z, z, z, True)
 
 
 class NormalMapError(ValueError):

@@ -34,3 +34,24 @@ def test_a_render_after_the_warm_up_compiles_no_kernel():
     added = {k: (before.get(k, 0), v) for k, v in after.items() if v != before.get(k, 0)}
     assert not added, f"kernels compiled inside the render (signatures before, after): {added}"
     assert len(directlight.terminator_lift.signatures) == 1
+
+
+def test_renders_of_many_scene_kinds_after_the_warm_up_compile_no_kernel():
+    """A fresh process (earlier tests cannot have compiled the variant already) warms up,
+    then renders tests/warm_up_scenes.py's scenes: a world HDRI, every light kind (point
+    and spot with a radius, sun with an angle, area, an emissive mesh), an image texture
+    and a textured roughness, a normal map, instances, data passes, adaptive sampling, a
+    transparent film. No kernel may gain a signature: a new one is a compile inside the
+    user's first render of such a scene (the new-user trial's "compiling again")."""
+    import json
+    import os
+    import subprocess
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    env = dict(os.environ, PYTHONPATH=str(root))
+    res = subprocess.run([sys.executable, str(root / "tests" / "warm_up_scenes.py")],
+                         cwd=root, env=env, capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stderr[-2000:]
+    added = json.loads(res.stdout.strip().splitlines()[-1])
+    assert added == {}, f"kernels compiled inside a render, by scene: {added}"

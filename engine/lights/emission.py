@@ -394,8 +394,10 @@ def emission_uniforms(key, slots, dims: int) -> np.ndarray:
 
 
 def f64(a) -> np.ndarray:
-    """a as a C-contiguous float64 array (the one layout the kernels are compiled for)."""
-    return np.ascontiguousarray(a, np.float64)
+    """a as a C-contiguous, writable float64 array (the one type the kernels are compiled
+    for: numba compiles a readonly array, e.g. an np.broadcast_to view, as another type,
+    a compile inside the user's first render). Copies only when a is not that already."""
+    return np.require(a, np.float64, ["C", "W"])
 
 
 @register_warm_up

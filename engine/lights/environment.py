@@ -127,9 +127,11 @@ class Environment:
     def cosine_pdf(self, wi: np.ndarray, ns: np.ndarray) -> np.ndarray:
         """Solid-angle pdf (N,) (1/sr) with which `cosine_sample` picks world directions
         wi (N,3) at shading normals ns (N,3)."""
-        wi = np.ascontiguousarray(np.asarray(wi, np.float64).reshape(-1, 3))
-        ns = np.ascontiguousarray(np.broadcast_to(np.asarray(ns, np.float64).reshape(-1, 3),
-                                                  wi.shape))
+        # np.require(..., "W"): one kernel type whether ns was broadcast (a readonly view)
+        # or copied (numba compiles readonly arrays apart: a compile inside a render).
+        wi = np.require(np.asarray(wi, np.float64).reshape(-1, 3), None, ["C", "W"])
+        ns = np.require(np.broadcast_to(np.asarray(ns, np.float64).reshape(-1, 3), wi.shape),
+                        None, ["C", "W"])
         out = np.empty(len(wi))
         _, _, mass, prefix, cell = self.cosine_distributions
         cosine_pdf_many(wi, ns, self.rotation, self.pixels, self.interp_code, mass, prefix,
@@ -140,10 +142,10 @@ class Environment:
         """Directions wi (N,3) drawn from the cosine-weighted distribution of the cluster
         of each shading normal ns (N,3) (build_cosine_distributions), with their
         solid-angle pdfs (N,)."""
-        u1 = np.ascontiguousarray(u1, np.float64)
-        u2 = np.ascontiguousarray(u2, np.float64)
-        ns = np.ascontiguousarray(np.broadcast_to(np.asarray(ns, np.float64).reshape(-1, 3),
-                                                  (len(u1), 3)))
+        u1 = np.require(u1, np.float64, ["C", "W"])
+        u2 = np.require(u2, np.float64, ["C", "W"])
+        ns = np.require(np.broadcast_to(np.asarray(ns, np.float64).reshape(-1, 3),
+                                        (len(u1), 3)), None, ["C", "W"])
         wi = np.empty((len(u1), 3))
         pdf = np.empty(len(u1))
         cosine_sample_many(u1, u2, ns, self.rotation, self.pixels, self.interp_code,

@@ -93,7 +93,7 @@ class PointLight(Light):
             inside = np.einsum("ij,ij->i", rel, rel) <= self.radius ** 2
         else:
             # One compiled pass (intersect_disk), the numpy stage's arithmetic.
-            tm = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
+            tm = f64(np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
             mask, t = np.empty(n, np.bool_), np.empty(n)
             intersect_disk(f64(o), f64(d), tm, f64(self.pos), float(self.radius ** 2), mask, t)
             inside = np.zeros(n, bool)

@@ -1,0 +1,84 @@
+"""Run as a script (tests/test_warm_up.py): jit.ensure_compiled(), then render small scenes
+of many kinds and print, as JSON, every kernel signature the renders added (each one is a
+compile inside a user's first render of such a scene: seconds to minutes). A fresh
+process, so that no earlier test has compiled the variant already."""
+import json
+import sys
+
+import numba
+import numpy as np
+
+from engine.jit import ensure_compiled
+
+
+def signatures() -> dict:
+    out = {}
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("engine") or module is None:
+            continue
+        for value in list(vars(module).values()):
+            if isinstance(value, numba.core.registry.CPUDispatcher):
+                out[f"{value.py_func.__module__}.{value.__name__}"] = {
+                    str(s) for s in value.signatures}
+    return out
+
+
+def scenes():
+    """(name, scene, settings) small scenes covering the light kinds, a world HDRI,
+    textures, a normal map, instances, data passes, adaptive sampling, transparent film."""
+    from engine.api import PaperScene, cornell_box
+    from engine.normalmap import NormalMap
+    from engine.scene import Material
+    from engine.settings import RenderSettings
+    from engine.textures import ImageTexture
+
+    base = dict(workers=1, spp=2, photons=3000, caustic_photons=1000, seed=3)
+    yield ("cornell box, data passes", cornell_box(24, 18),
+           RenderSettings(data_passes=("denoising", "color"), **base))
+    s = PaperScene(24, 18)
+    rng = np.random.default_rng(1)
+    px = rng.random((8, 16, 3)) ** 3
+    px[2, 5] = 200.0  # a sun in the HDRI
+    s.set_environment(px, 0.5)
+    tex = ImageTexture(rng.random((4, 4, 3)).astype(np.float32))
+    s.add_material(Material("bumpy", (0.6, 0.6, 0.6), normal_map=NormalMap(
+        ImageTexture(np.full((2, 2, 3), (0.6, 0.5, 0.9), np.float32)), 1.0, "TANGENT")))
+    s.add_material(Material("textured", (1.0, 1.0, 1.0), texture=tex, scalar_textures={
+        "roughness": ImageTexture(rng.random((4, 4, 3)).astype(np.float32))}))
+    s.add_material(Material("glow", (0.0, 0.0, 0.0), emission=(3.0, 3.0, 3.0)))
+    s.add_box((1.5, 1.5, 1.0), (0.4, 0.4, 0.4), material="glow", name="glow")
+    s.add_plane((0, 0, 0), size=6.0, material="bumpy", name="floor")
+    ball = s.add_sphere((0.0, 0.0, 0.5), 0.5, material="textured", segments=12)
+    for x in (-1.5, 1.5):
+        m = np.eye(4)
+        m[0, 3] = x
+        s.add_instance(ball, m)
+    s.add_point_light((1.0, -1.0, 2.0), power=50.0, radius=0.2)
+    s.add_point_light((-1.0, -1.0, 2.0), power=50.0, radius=0.2, soft_falloff=False)
+    s.add_spot_light((0.0, -2.0, 2.0), (0.0, 0.0, 0.0), power=80.0, radius=0.1)
+    s.add_sun((0.3, 0.2, -1.0), 1.0, angle_degrees=5.0)
+    s.add_rect_area_light((0.0, 1.0, 2.5), (0.5, 0.5), power=40.0)
+    s.set_camera((0.0, -4.0, 2.0), (0.0, 0.0, 0.3), view_angle=50.0)
+    yield ("HDRI, every light kind, texture, normal map, instances", s,
+           RenderSettings(**base))
+    yield ("same, adaptive sampling, transparent film, data passes", s,
+           RenderSettings(adaptive_threshold=0.05, film_transparent=True,
+                          data_passes=("denoising", "color"), **dict(base, spp=4)))
+
+
+def main():
+    from engine.render import render
+    ensure_compiled()
+    added = {}
+    for name, scene, settings in scenes():
+        before = signatures()
+        render(scene, settings)
+        for kernel, sigs in signatures().items():
+            new = sigs - before.get(kernel, set())
+            if new:
+                added.setdefault(name, {})[kernel] = sorted(new)
+    print(json.dumps(added))
+
+
+if __name__ == "__main__":
+    main()
