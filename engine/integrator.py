@@ -25,7 +25,7 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from . import adaptive, chaincounts, datapasses
+from . import adaptive, chaincounts, datapasses, photonvisibility
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -1022,6 +1022,9 @@ MIRROR_NO_ROULETTE = True
 _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 
 
+# Density estimates take only the photons their point can see (engine/photonvisibility.py,
+# issue 14): a surface piercing the estimate's surface stops its disc.
+PHOTON_VISIBILITY = True
 # The caustic estimate is already a smooth kernel average, so it varies little between the
 # samples of one pixel: evaluate it for at most this many samples per pixel (weighted up).
 CAUSTIC_SAMPLES_PER_PIXEL = 16
@@ -1089,6 +1092,14 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
                                np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0),
                                radius, s.k_nearest, smooth_min_photons(s), s.estimator,
                                r_floor=None if footprint is None else np.take(footprint, sel))
+    if PHOTON_VISIBILITY:
+        # Only the photons each point can see (issue 14: a lamp shade piercing a wall).
+        E = photonvisibility.visible_irradiance(
+            E, pmap, ctx.accel, np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0),
+            None if hit.offset is None else np.take(hit.offset, sel), radius, s.k_nearest,
+            smooth_min_photons(s), s.estimator,
+            r_floor=None if footprint is None else np.take(footprint, sel),
+            limits=s.bounce_limits, counts=None if counts is None else np.take(counts, sel, axis=0))
     if into is None:
         out[sel] = weight * np.take(f, sel, axis=0) * E
     else:
@@ -1180,9 +1191,13 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
                          hit, f, sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL,
                          into=indirect, counts=extra)
     elif ctx.global_map is not None and len(ctx.global_map):
-        indirect = f * chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra,
-                                              hit.p, hit.ng, ctx.global_radius,
-                                              s.k_nearest, s.min_photons, s.estimator)
+        E = chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra, hit.p, hit.ng,
+                                   ctx.global_radius, s.k_nearest, s.min_photons, s.estimator)
+        if PHOTON_VISIBILITY:
+            E = photonvisibility.visible_irradiance(
+                E, ctx.global_map, ctx.accel, hit.p, hit.ng, hit.offset, ctx.global_radius,
+                s.k_nearest, s.min_photons, s.estimator, limits=s.bounce_limits, counts=extra)
+        indirect = f * E
     else:
         indirect = np.zeros_like(f)
     return caustic, indirect
