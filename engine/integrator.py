@@ -892,10 +892,15 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None):
     if len(rows):
         counts = (None if extra is None else
                   chaincounts.camera_counts(extra[rows], (bounces, bounces, 0, 0)))
-        out[rows] = chaincounts.irradiance(
-            pmap, s.bounce_limits, counts, hit.p[rows], hit.ng[rows],
-            ctx.secondary_radius or ctx.global_radius, s.k_nearest, smooth_min_photons(s),
-            s.estimator) / SECONDARY_REGATHER_FRACTION
+        radius = ctx.secondary_radius or ctx.global_radius
+        E = chaincounts.irradiance(pmap, s.bounce_limits, counts, hit.p[rows], hit.ng[rows],
+                                   radius, s.k_nearest, smooth_min_photons(s), s.estimator)
+        if PHOTON_VISIBILITY:
+            E = photonvisibility.visible_irradiance(
+                E, pmap, ctx.accel, hit.p[rows], hit.ng[rows],
+                None if hit.offset is None else hit.offset[rows], radius, s.k_nearest,
+                smooth_min_photons(s), s.estimator, limits=s.bounce_limits, counts=counts)
+        out[rows] = E / SECONDARY_REGATHER_FRACTION
     return out
 
 
