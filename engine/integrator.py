@@ -897,9 +897,10 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None):
                                    radius, s.k_nearest, smooth_min_photons(s), s.estimator)
         if PHOTON_VISIBILITY:
             E = photonvisibility.visible_irradiance(
-                E, pmap, ctx.accel, hit.p[rows], hit.ng[rows],
-                None if hit.offset is None else hit.offset[rows], radius, s.k_nearest,
-                smooth_min_photons(s), s.estimator, limits=s.bounce_limits, counts=counts)
+                E, pmap, getattr(ctx, "accel", None), hit.p[rows], hit.ng[rows],
+                None if getattr(hit, "offset", None) is None else hit.offset[rows], radius,
+                s.k_nearest, smooth_min_photons(s), s.estimator, limits=s.bounce_limits,
+                counts=counts)
         out[rows] = E / SECONDARY_REGATHER_FRACTION
     return out
 
@@ -1099,12 +1100,14 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
                                r_floor=None if footprint is None else np.take(footprint, sel))
     if PHOTON_VISIBILITY:
         # Only the photons each point can see (issue 14: a lamp shade piercing a wall).
+        off = getattr(hit, "offset", None)
         E = photonvisibility.visible_irradiance(
-            E, pmap, ctx.accel, np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0),
-            None if hit.offset is None else np.take(hit.offset, sel), radius, s.k_nearest,
-            smooth_min_photons(s), s.estimator,
+            E, pmap, getattr(ctx, "accel", None), np.take(hit.p, sel, axis=0),
+            np.take(hit.ng, sel, axis=0), None if off is None else np.take(off, sel), radius,
+            s.k_nearest, smooth_min_photons(s), s.estimator,
             r_floor=None if footprint is None else np.take(footprint, sel),
-            limits=s.bounce_limits, counts=None if counts is None else np.take(counts, sel, axis=0))
+            limits=s.bounce_limits,
+            counts=None if counts is None else np.take(counts, sel, axis=0))
     if into is None:
         out[sel] = weight * np.take(f, sel, axis=0) * E
     else:
@@ -1200,8 +1203,9 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
                                    ctx.global_radius, s.k_nearest, s.min_photons, s.estimator)
         if PHOTON_VISIBILITY:
             E = photonvisibility.visible_irradiance(
-                E, ctx.global_map, ctx.accel, hit.p, hit.ng, hit.offset, ctx.global_radius,
-                s.k_nearest, s.min_photons, s.estimator, limits=s.bounce_limits, counts=extra)
+                E, ctx.global_map, getattr(ctx, "accel", None), hit.p, hit.ng,
+                getattr(hit, "offset", None), ctx.global_radius, s.k_nearest, s.min_photons,
+                s.estimator, limits=s.bounce_limits, counts=extra)
         indirect = f * E
     else:
         indirect = np.zeros_like(f)
