@@ -18,9 +18,10 @@ the same neighbours and disc), so a point whose whole disc lies behind an occlud
 exactly 0 and a point next to one is biased dark exactly as at a corner, never bright.
 Rows with no hidden photon keep the unmasked estimate bit for bit.
 
-The candidates are the estimate's own: the k nearest accepted photons within the search
-radius, or, for a row whose footprint floor r_floor exceeds the k-th distance, the
-photons within r_floor (up to FLOOR_CAP x k of them).
+The candidates are the estimate's own: the k nearest photons within the search radius
+that photonmap._accepted takes (widening, as the estimate does, up to MAX_WIDEN_K nearest
+to find k), or, for a row whose footprint floor r_floor exceeds the k-th distance, the
+accepted photons within r_floor (up to FLOOR_CAP x k of them).
 """
 from __future__ import annotations
 
@@ -28,7 +29,8 @@ import numpy as np
 
 from . import chaincounts
 from .jit import kernel, register_warm_up
-from .photonmap import HASHGRID, _accepted, _ball, _knn, _query_lift, _ray_ends
+from .photonmap import (HASHGRID, MAX_WIDEN_K, _accepted, _ball, _knn, _query_lift,
+                        _ray_ends)
 from . import hashgrid
 
 # Rows per block of visibility rays (bounds the ray arrays: BLOCK_ROWS x cap rays).
@@ -39,28 +41,48 @@ FLOOR_CAP = 4
 
 @kernel
 def _candidate_rays(kind, pos, nodes, start, grid, direction, normal, p, n, lift, floor,
-                    rows, r2, k, cap, buckets, d2, idx, o32, d32, t32, ray_row, ray_photon):
+                    rows, r2, k, kmax, cap, buckets, d2, idx, o32, d32, t32, ray_row,
+                    ray_photon):
     """Visibility rays from the rows `rows` of p (M,3) / n (M,3) (unit normals facing the
     viewer; lift (M,) or empty: their own offsets) to their estimate's candidate photons
     (module docstring), accepted by photonmap._accepted, in Embree's float32 layout:
     o32, d32 (R,3), t32 (R,); ray_row[j] the row, ray_photon[j] the photon (map order).
-    floor: (M,) footprint radii or empty. Returns the number of rays."""
+    floor: (M,) footprint radii or empty; at most cap rays a row (cap >= k); d2, idx:
+    scratch of max(kmax, cap) + 1. Returns the number of rays."""
     m = 0
     for r in range(rows.shape[0]):
         i = rows[r]
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
-        cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, k, r2, d2, idx, buckets)
+        n32x, n32y, n32z = np.float32(nx), np.float32(ny), np.float32(nz)
+        # As the estimate, widen until k of the nearest are accepted (or kmax photons).
+        kq = k
+        while True:
+            cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+            if cnt < kq or kq >= kmax:
+                break
+            acc = 0
+            for jj in range(cnt):
+                if _accepted(direction, normal, idx[jj], n32x, n32y, n32z)[0]:
+                    acc += 1
+            if acc >= k:
+                break
+            kq = min(2 * kq, kmax)
+        limit = k
         if floor.shape[0] and cnt > 0 and floor[i] * floor[i] > d2[cnt - 1]:
             got = _ball(kind, pos, nodes, start, grid, qx, qy, qz, floor[i] * floor[i], idx,
                         cap, buckets)
             cnt = min(got, cap)
+            limit = cap
         la = _query_lift(lift, i, qx, qy, qz)
-        n32x, n32y, n32z = np.float32(nx), np.float32(ny), np.float32(nz)
+        taken = 0
         for jj in range(cnt):
             j = idx[jj]
+            if taken == limit:
+                break
             if not _accepted(direction, normal, j, n32x, n32y, n32z)[0]:
                 continue
+            taken += 1
             ox, oy, oz, dx, dy, dz, t = _ray_ends(
                 qx, qy, qz, nx, ny, nz, la, np.float64(pos[j, 0]), np.float64(pos[j, 1]),
                 np.float64(pos[j, 2]), np.float64(normal[j, 0]), np.float64(normal[j, 1]),
@@ -96,8 +118,9 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None):
     reach = max(radius, float(floor.max()) if len(floor) else 0.0)
     buckets = np.empty(hashgrid.cells_spanned(grid, reach) if kind == HASHGRID else 0,
                        np.int64)
-    d2 = np.empty(cap + 1, np.float64)
-    idx = np.empty(cap + 1, np.int64)
+    kmax = max(kq, min(MAX_WIDEN_K, len(ph)))
+    d2 = np.empty(max(kmax, cap) + 1, np.float64)
+    idx = np.empty(max(kmax, cap) + 1, np.int64)
     rows_out, photons_out = [], []
     for a in range(0, m, BLOCK_ROWS):
         rows = np.arange(a, min(a + BLOCK_ROWS, m), dtype=np.int64)
@@ -108,7 +131,7 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None):
         ray_row = np.empty(size, np.int64)
         ray_photon = np.empty(size, np.int64)
         nr = _candidate_rays(kind, pos, nodes, start, grid, ph.direction, ph.normal, p, n,
-                             lift, floor, rows, float(radius * radius), kq, cap, buckets,
+                             lift, floor, rows, float(radius * radius), kq, kmax, cap, buckets,
                              d2, idx, o32, d32, t32, ray_row, ray_photon)
         if not nr:
             continue
@@ -167,6 +190,6 @@ def _warm_up():
     o32, d32 = np.empty((8, 3), np.float32), np.empty((8, 3), np.float32)
     _candidate_rays(kind, pos, nodes, start, grid, pmap.photons.direction,
                     pmap.photons.normal, np.zeros((1, 3)), np.float64([[0, 0, 1]]),
-                    np.zeros(0), np.zeros(0), np.zeros(1, np.int64), 1.0, 4, 8,
+                    np.zeros(0), np.zeros(0), np.zeros(1, np.int64), 1.0, 4, 8, 8,
                     np.empty(0, np.int64), np.empty(9), np.empty(9, np.int64), o32, d32,
                     np.empty(8, np.float32), np.empty(8, np.int64), np.empty(8, np.int64))
