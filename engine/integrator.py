@@ -25,7 +25,7 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from . import adaptive, chaincounts, datapasses
+from . import adaptive, chaincounts, datapasses, photonvisibility
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -903,10 +903,16 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None):
     if len(rows):
         counts = (None if extra is None else
                   chaincounts.camera_counts(extra[rows], (bounces, bounces, 0, 0)))
-        out[rows] = chaincounts.irradiance(
-            pmap, s.bounce_limits, counts, hit.p[rows], hit.ng[rows],
-            ctx.secondary_radius or ctx.global_radius, s.k_nearest, smooth_min_photons(s),
-            s.estimator) / SECONDARY_REGATHER_FRACTION
+        radius = ctx.secondary_radius or ctx.global_radius
+        E = chaincounts.irradiance(pmap, s.bounce_limits, counts, hit.p[rows], hit.ng[rows],
+                                   radius, s.k_nearest, smooth_min_photons(s), s.estimator)
+        if PHOTON_VISIBILITY:
+            E = photonvisibility.visible_irradiance(
+                E, pmap, getattr(ctx, "accel", None), hit.p[rows], hit.ng[rows],
+                None if getattr(hit, "offset", None) is None else hit.offset[rows], radius,
+                s.k_nearest, smooth_min_photons(s), s.estimator, limits=s.bounce_limits,
+                counts=counts)
+        out[rows] = E / SECONDARY_REGATHER_FRACTION
     return out
 
 
@@ -1033,6 +1039,9 @@ MIRROR_NO_ROULETTE = True
 _LOBE_CLASS = np.array([SPEC_LOBE_CLASS[name] for name in SPEC_LOBES], np.int64)
 
 
+# Density estimates take only the photons their point can see (engine/photonvisibility.py,
+# issue 14): a surface piercing the estimate's surface stops its disc.
+PHOTON_VISIBILITY = True
 # The caustic estimate is already a smooth kernel average, so it varies little between the
 # samples of one pixel: evaluate it for at most this many samples per pixel (weighted up).
 CAUSTIC_SAMPLES_PER_PIXEL = 16
@@ -1106,6 +1115,16 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
                                np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0),
                                radius, s.k_nearest, smooth_min_photons(s), s.estimator,
                                r_floor=None if footprint is None else np.take(footprint, sel))
+    if PHOTON_VISIBILITY:
+        # Only the photons each point can see (issue 14: a lamp shade piercing a wall).
+        off = getattr(hit, "offset", None)
+        E = photonvisibility.visible_irradiance(
+            E, pmap, getattr(ctx, "accel", None), np.take(hit.p, sel, axis=0),
+            np.take(hit.ng, sel, axis=0), None if off is None else np.take(off, sel), radius,
+            s.k_nearest, smooth_min_photons(s), s.estimator,
+            r_floor=None if footprint is None else np.take(footprint, sel),
+            limits=s.bounce_limits,
+            counts=None if counts is None else np.take(counts, sel, axis=0))
     if into is None:
         out[sel] = weight * np.take(f, sel, axis=0) * E
     else:
@@ -1197,9 +1216,14 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
                          hit, f, sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL,
                          into=indirect, counts=extra)
     elif ctx.global_map is not None and len(ctx.global_map):
-        indirect = f * chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra,
-                                              hit.p, hit.ng, ctx.global_radius,
-                                              s.k_nearest, s.min_photons, s.estimator)
+        E = chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra, hit.p, hit.ng,
+                                   ctx.global_radius, s.k_nearest, s.min_photons, s.estimator)
+        if PHOTON_VISIBILITY:
+            E = photonvisibility.visible_irradiance(
+                E, ctx.global_map, getattr(ctx, "accel", None), hit.p, hit.ng,
+                getattr(hit, "offset", None), ctx.global_radius, s.k_nearest, s.min_photons,
+                s.estimator, limits=s.bounce_limits, counts=extra)
+        indirect = f * E
     else:
         indirect = np.zeros_like(f)
     return caustic, indirect

@@ -222,5 +222,5 @@ def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
     from . import (camerakernels, camerarays, directlight, gatherkernels,  # noqa: F401
                    hashgrid, normalmap,
-                   kdtree, photonkernels, photonmap,  # (warm-ups)
+                   kdtree, photonkernels, photonmap, photonvisibility,  # (warm-ups)
                    procedural, rayoffset, shadowtransmittance, toplevel)

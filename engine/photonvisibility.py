@@ -1,0 +1,195 @@
+"""Photon visibility: a density estimate counts only the photons its point can see.
+
+A photon map's estimate at a point x sums the photons within a disc around x on x's
+surface. When another surface pierces x's surface (a lamp shade whose rim goes into the
+wall, a partition standing on a floor, any intersecting geometry), the disc reaches across
+it and takes photons from the far side: light that cannot reach x. Issue 14's lamp shade
+(a Point light inside a closed metal cone whose rim pierces the back wall) lit a bright
+blob on the wall outside the shade: caustic photons (light -> shade interior -> wall)
+stored on the patch of wall *inside* the shade, 0.19 m (the caustic radius) away at most,
+gathered by wall points just outside it (docs/performance.md, "leak").
+
+The fix is the one the gather map already applies to its gather points
+(photonmap.GatherMap.lookup): a visibility ray from x to each photon of its estimate, both
+ends lifted off their surfaces by bounds on their rounding error (photonmap._ray_ends:
+engine/rayoffset.py's bounds, plus the lift that keeps a chord of a tessellated curved
+surface above it). A hidden photon's power counts as 0 (PhotonMap.irradiance's masks:
+the same neighbours and disc), so a point whose whole disc lies behind an occluder reads
+exactly 0 and a point next to one is biased dark exactly as at a corner, never bright.
+Rows with no hidden photon keep the unmasked estimate bit for bit.
+
+The candidates are the estimate's own: the k nearest photons within the search radius
+that photonmap._accepted takes (widening, as the estimate does, up to MAX_WIDEN_K nearest
+to find k), or, for a row whose footprint floor r_floor exceeds the k-th distance, the
+accepted photons within r_floor (up to FLOOR_CAP x k of them).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import chaincounts
+from .jit import kernel, register_warm_up
+from .photonmap import (HASHGRID, MAX_WIDEN_K, _accepted, _ball, _knn, _query_lift,
+                        _ray_ends)
+from . import hashgrid
+
+# Rows per block of visibility rays (bounds the ray arrays: BLOCK_ROWS x cap rays).
+BLOCK_ROWS = 1024
+# A floored (focus) disc takes at most this many times k candidates.
+FLOOR_CAP = 4
+
+
+@kernel
+def _candidate_rays(kind, pos, nodes, start, grid, direction, normal, p, n, lift, floor,
+                    rows, r2, k, kmax, cap, buckets, d2, idx, o32, d32, t32, ray_row,
+                    ray_photon):
+    """Visibility rays from the rows `rows` of p (M,3) / n (M,3) (unit normals facing the
+    viewer; lift (M,) or empty: their own offsets) to their estimate's candidate photons
+    (module docstring), accepted by photonmap._accepted, in Embree's float32 layout:
+    o32, d32 (R,3), t32 (R,); ray_row[j] the row, ray_photon[j] the photon (map order).
+    floor: (M,) footprint radii or empty; at most cap rays a row (cap >= k); d2, idx:
+    scratch of max(kmax, cap) + 1. Returns the number of rays."""
+    m = 0
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
+        nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
+        n32x, n32y, n32z = np.float32(nx), np.float32(ny), np.float32(nz)
+        # As the estimate, widen until k of the nearest are accepted (or kmax photons).
+        kq = k
+        while True:
+            cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
+            if cnt < kq or kq >= kmax:
+                break
+            acc = 0
+            for jj in range(cnt):
+                if _accepted(direction, normal, idx[jj], n32x, n32y, n32z)[0]:
+                    acc += 1
+            if acc >= k:
+                break
+            kq = min(2 * kq, kmax)
+        limit = k
+        if floor.shape[0] and cnt > 0 and floor[i] * floor[i] > d2[cnt - 1]:
+            got = _ball(kind, pos, nodes, start, grid, qx, qy, qz, floor[i] * floor[i], idx,
+                        cap, buckets)
+            cnt = min(got, cap)
+            limit = cap
+        la = _query_lift(lift, i, qx, qy, qz)
+        taken = 0
+        for jj in range(cnt):
+            j = idx[jj]
+            if taken == limit:
+                break
+            if not _accepted(direction, normal, j, n32x, n32y, n32z)[0]:
+                continue
+            taken += 1
+            ox, oy, oz, dx, dy, dz, t = _ray_ends(
+                qx, qy, qz, nx, ny, nz, la, np.float64(pos[j, 0]), np.float64(pos[j, 1]),
+                np.float64(pos[j, 2]), np.float64(normal[j, 0]), np.float64(normal[j, 1]),
+                np.float64(normal[j, 2]))
+            o32[m, 0], o32[m, 1], o32[m, 2] = ox, oy, oz
+            d32[m, 0], d32[m, 1], d32[m, 2] = dx, dy, dz
+            t32[m] = t
+            ray_row[m] = i
+            ray_photon[m] = j
+            m += 1
+    return m
+
+
+def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None):
+    """(rows (H,) int64, photons (H,) int64): the pairs (query row, map photon) whose
+    visibility ray is blocked, over the candidates of the estimate at p (M,3) with unit
+    normals n (M,3) facing the viewer; lift (M,) their ray offsets (SurfaceHit.offset) or
+    None; radius, k: the estimate's; r_floor: (M,) or None, its footprint floor. Sorted
+    by row."""
+    m = len(p)
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    if pmap is None or pmap.tree is None or m == 0 or radius <= 0 or accel is None:
+        return none
+    kind, pos, nodes, start, grid = pmap._arrays()
+    ph = pmap.photons
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    n = np.ascontiguousarray(n, dtype=np.float64)
+    lift = (np.zeros(0) if lift is None else np.ascontiguousarray(lift, dtype=np.float64))
+    floor = (np.zeros(0) if r_floor is None
+             else np.ascontiguousarray(np.broadcast_to(r_floor, (m,)), dtype=np.float64))
+    kq = max(1, min(int(k), len(ph)))
+    cap = max(kq, min(FLOOR_CAP * kq, len(ph))) if len(floor) else kq
+    reach = max(radius, float(floor.max()) if len(floor) else 0.0)
+    buckets = np.empty(hashgrid.cells_spanned(grid, reach) if kind == HASHGRID else 0,
+                       np.int64)
+    kmax = max(kq, min(MAX_WIDEN_K, len(ph)))
+    d2 = np.empty(max(kmax, cap) + 1, np.float64)
+    idx = np.empty(max(kmax, cap) + 1, np.int64)
+    rows_out, photons_out = [], []
+    for a in range(0, m, BLOCK_ROWS):
+        rows = np.arange(a, min(a + BLOCK_ROWS, m), dtype=np.int64)
+        size = len(rows) * cap
+        o32 = np.empty((size, 3), np.float32)
+        d32 = np.empty((size, 3), np.float32)
+        t32 = np.empty(size, np.float32)
+        ray_row = np.empty(size, np.int64)
+        ray_photon = np.empty(size, np.int64)
+        nr = _candidate_rays(kind, pos, nodes, start, grid, ph.direction, ph.normal, p, n,
+                             lift, floor, rows, float(radius * radius), kq, kmax, cap, buckets,
+                             d2, idx, o32, d32, t32, ray_row, ray_photon)
+        if not nr:
+            continue
+        blocked = np.zeros(nr, bool)
+        accel.occluded_into(o32[:nr], d32[:nr], t32[:nr], blocked)
+        if blocked.any():
+            rows_out.append(ray_row[:nr][blocked])
+            photons_out.append(ray_photon[:nr][blocked])
+    if not rows_out:
+        return none
+    return np.concatenate(rows_out), np.concatenate(photons_out)
+
+
+def visible_irradiance(E, pmap, accel, p, n, lift, radius, k, min_photons, estimator,
+                       r_floor=None, limits=None, counts=None):
+    """E (M,3), the estimate pmap.irradiance (or chaincounts.irradiance with limits and
+    counts (M,4) or None) gave at p / n, with the rows that have hidden photons
+    (hidden_photons) estimated again from their visible photons alone (the hidden ones'
+    power counted as 0, and the photons their camera-side counts cannot use, as
+    chaincounts.irradiance does). Writes into E and returns it; rows without a hidden
+    photon keep their bits."""
+    rows, photons = hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor)
+    if not len(rows):
+        return E
+    cache = chaincounts.map_cache(pmap) if counts is not None else None
+    use_counts = (counts is not None and limits is not None
+                  and getattr(pmap.photons, "bounces", None) is not None)
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    ends = np.r_[starts[1:], len(rows)]
+    for a, b in zip(starts, ends):
+        i = int(rows[a])
+        if use_counts:
+            mask = chaincounts._usable(pmap.photons, limits,
+                                       tuple(int(x) for x in counts[i]), cache).copy()
+        else:
+            mask = np.ones(len(pmap.photons), np.bool_)
+        mask[photons[a:b]] = False
+        _, masked = pmap.irradiance(
+            p[i:i + 1], n[i:i + 1], radius, k, min_photons, estimator,
+            r_floor=None if r_floor is None else np.broadcast_to(r_floor, (len(p),))[i:i + 1],
+            masks=mask[None])
+        E[i] = masked[0, 0]
+    return E
+
+
+@register_warm_up
+def _warm_up():
+    from .photonmap import PhotonMap
+    from .photons import Photons
+    rng = np.random.default_rng(0)
+    ph = Photons(rng.random((8, 3)).astype(np.float32), np.ones((8, 3), np.float32),
+                 np.tile(np.float32([0, 0, -1]), (8, 1)), np.tile(np.float32([0, 0, 1]), (8, 1)),
+                 np.zeros(8, np.uint8), 8)
+    pmap = PhotonMap(ph)
+    kind, pos, nodes, start, grid = pmap._arrays()
+    o32, d32 = np.empty((8, 3), np.float32), np.empty((8, 3), np.float32)
+    _candidate_rays(kind, pos, nodes, start, grid, pmap.photons.direction,
+                    pmap.photons.normal, np.zeros((1, 3)), np.float64([[0, 0, 1]]),
+                    np.zeros(0), np.zeros(0), np.zeros(1, np.int64), 1.0, 4, 8, 8,
+                    np.empty(0, np.int64), np.empty(9), np.empty(9, np.int64), o32, d32,
+                    np.empty(8, np.float32), np.empty(8, np.int64), np.empty(8, np.int64))
