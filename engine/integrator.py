@@ -911,7 +911,7 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None):
                 E, pmap, getattr(ctx, "accel", None), hit.p[rows], hit.ng[rows],
                 None if getattr(hit, "offset", None) is None else hit.offset[rows], radius,
                 s.k_nearest, smooth_min_photons(s), s.estimator, limits=s.bounce_limits,
-                counts=counts)
+                counts=counts, geo=getattr(ctx, "geo", None))
         out[rows] = E / SECONDARY_REGATHER_FRACTION
     return out
 
@@ -1124,7 +1124,8 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
             s.k_nearest, smooth_min_photons(s), s.estimator,
             r_floor=None if footprint is None else np.take(footprint, sel),
             limits=s.bounce_limits,
-            counts=None if counts is None else np.take(counts, sel, axis=0))
+            counts=None if counts is None else np.take(counts, sel, axis=0),
+            geo=getattr(ctx, "geo", None))
     if into is None:
         out[sel] = weight * np.take(f, sel, axis=0) * E
     else:
@@ -1222,7 +1223,8 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
             E = photonvisibility.visible_irradiance(
                 E, ctx.global_map, getattr(ctx, "accel", None), hit.p, hit.ng,
                 getattr(hit, "offset", None), ctx.global_radius, s.k_nearest, s.min_photons,
-                s.estimator, limits=s.bounce_limits, counts=extra)
+                s.estimator, limits=s.bounce_limits, counts=extra,
+                geo=getattr(ctx, "geo", None))
         indirect = f * E
     else:
         indirect = np.zeros_like(f)

@@ -25,6 +25,8 @@ accepted photons within r_floor (up to FLOOR_CAP x k of them).
 """
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from . import chaincounts
@@ -35,6 +37,98 @@ from . import hashgrid
 
 # Rows per block of visibility rays (bounds the ray arrays: BLOCK_ROWS x cap rays).
 BLOCK_ROWS = 1024
+# The pre-test (OneSurfaceCells): its grid's most cells and (triangle, cell) entries;
+# beyond either, every row is tested.
+CELLS_MAX = 1 << 24
+ENTRIES_MAX = 1 << 24
+# Planes closer than this (unit normals' components; offsets in units of the cell) are
+# one plane for the pre-test (a mesh's coplanar triangles round a little differently).
+PLANE_TOLERANCE = 1e-4
+
+
+class OneSurfaceCells:
+    """Which points have only their own flat surface within `cell` of them, so that no
+    occluder can stand between them and the photons of a disc of radius <= cell: the
+    scene's triangles (Geometry v0, e1, e2, ng) binned by their bounding boxes into a grid
+    of side `cell`; a cell is 'busy' when the triangles overlapping it lie in more than
+    one plane; a point is free when no cell of the 3 x 3 x 3 around its own is busy. A
+    segment from a point to a photon within `cell` lies in those 27 cells, and any
+    triangle it crosses overlaps them (its box does), so it would make a cell busy unless
+    it lies in the point's own plane (which the lifted ray passes above). Conservative:
+    a busy neighbourhood only means the rays are traced (Figure 8's caustic rows on its
+    open floor skip them; a lamp shade piercing a wall, corners, curved objects do not).
+    """
+
+    def __init__(self, geo, cell: float):
+        self.cell = float(cell)
+        self.busy = None  # None: test every row
+        v0 = np.asarray(geo.v0, np.float64)
+        if not len(v0) or not self.cell > 0 or getattr(geo, "shared", None) is not None:
+            return
+        v1, v2 = v0 + np.asarray(geo.e1, np.float64), v0 + np.asarray(geo.e2, np.float64)
+        lo = np.minimum(np.minimum(v0, v1), v2)
+        hi = np.maximum(np.maximum(v0, v1), v2)
+        self.origin = lo.min(axis=0) - self.cell
+        dims = np.floor((hi.max(axis=0) + self.cell - self.origin) / self.cell).astype(
+            np.int64) + 1
+        if np.prod(dims.astype(np.float64)) > CELLS_MAX:
+            return
+        a = np.floor((lo - self.origin) / self.cell).astype(np.int64)
+        b = np.floor((hi - self.origin) / self.cell).astype(np.int64)
+        span = b - a + 1
+        count = np.prod(span, axis=1)
+        if count.sum() > ENTRIES_MAX:
+            return
+        ng = np.asarray(geo.ng, np.float64)
+        ng = ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
+        d = np.einsum("ij,ij->i", ng, v0) / self.cell
+        key = np.round(np.column_stack([ng, d]) / PLANE_TOLERANCE).astype(np.int64)
+        _, plane = np.unique(key, axis=0, return_inverse=True)
+        plane = plane.reshape(-1)
+        tri = np.repeat(np.arange(len(v0)), count)
+        local = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
+        sx, sy = span[tri, 0], span[tri, 1]
+        ix = a[tri, 0] + local % sx
+        iy = a[tri, 1] + (local // sx) % sy
+        iz = a[tri, 2] + local // (sx * sy)
+        flat = (ix * dims[1] + iy) * dims[2] + iz
+        # A cell is busy when any of its entries' plane differs from the one written
+        # last there (fancy assignment keeps one of the duplicates: any one will do).
+        some = np.full(int(np.prod(dims)), -1, np.int64)
+        some[flat] = plane[tri]
+        busy = np.zeros(len(some), bool)
+        busy[flat[some[flat] != plane[tri]]] = True
+        from scipy.ndimage import binary_dilation
+        self.dims = dims
+        self.busy = binary_dilation(busy.reshape(tuple(dims)), np.ones((3, 3, 3), bool))
+
+    def free(self, p, reach) -> np.ndarray:
+        """(M,) bool: the points p (M,3) whose discs (radius <= reach (M,)) meet no
+        occluder (class docstring); all False without a grid or for a disc wider than a
+        cell."""
+        p = np.asarray(p, np.float64)
+        out = np.zeros(len(p), bool)
+        if self.busy is None or not len(p):
+            return out
+        c = np.floor((p - self.origin) / self.cell).astype(np.int64)
+        inside = np.all((c >= 0) & (c < self.dims), axis=1) & (np.asarray(reach) <= self.cell)
+        ci = c[inside]
+        out[inside] = ~self.busy[ci[:, 0], ci[:, 1], ci[:, 2]]
+        return out
+
+
+_CELLS_LOCK = threading.Lock()
+
+
+def one_surface_cells(geo, cell: float) -> OneSurfaceCells:
+    """The render's OneSurfaceCells of side `cell`, built once and kept on geo (the
+    render's threads share it)."""
+    with _CELLS_LOCK:
+        cache = geo.__dict__.setdefault("_one_surface_cells", {})
+        got = cache.get(float(cell))
+        if got is None:
+            got = cache[float(cell)] = OneSurfaceCells(geo, cell)
+    return got
 # A floored (focus) disc takes at most this many times k candidates.
 FLOOR_CAP = 4
 
@@ -96,12 +190,13 @@ def _candidate_rays(kind, pos, nodes, start, grid, direction, normal, p, n, lift
     return m
 
 
-def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None):
+def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None):
     """(rows (H,) int64, photons (H,) int64): the pairs (query row, map photon) whose
     visibility ray is blocked, over the candidates of the estimate at p (M,3) with unit
     normals n (M,3) facing the viewer; lift (M,) their ray offsets (SurfaceHit.offset) or
-    None; radius, k: the estimate's; r_floor: (M,) or None, its footprint floor. Sorted
-    by row."""
+    None; radius, k: the estimate's; r_floor: (M,) or None, its footprint floor; geo: the
+    scene's Geometry, for the pre-test (OneSurfaceCells: rows with no other surface near
+    are not traced; None: every row is). Sorted by row."""
     m = len(p)
     none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
     if pmap is None or pmap.tree is None or m == 0 or radius <= 0 or accel is None:
@@ -111,8 +206,9 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None):
     p = np.ascontiguousarray(p, dtype=np.float64)
     n = np.ascontiguousarray(n, dtype=np.float64)
     lift = (np.zeros(0) if lift is None else np.ascontiguousarray(lift, dtype=np.float64))
+    # (writable: a readonly array is another numba type, compiled inside the render)
     floor = (np.zeros(0) if r_floor is None
-             else np.ascontiguousarray(np.broadcast_to(r_floor, (m,)), dtype=np.float64))
+             else np.require(np.broadcast_to(r_floor, (m,)), np.float64, ["C", "W"]))
     kq = max(1, min(int(k), len(ph)))
     cap = max(kq, min(FLOOR_CAP * kq, len(ph))) if len(floor) else kq
     reach = max(radius, float(floor.max()) if len(floor) else 0.0)
@@ -122,8 +218,12 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None):
     d2 = np.empty(max(kmax, cap) + 1, np.float64)
     idx = np.empty(max(kmax, cap) + 1, np.int64)
     rows_out, photons_out = [], []
-    for a in range(0, m, BLOCK_ROWS):
-        rows = np.arange(a, min(a + BLOCK_ROWS, m), dtype=np.int64)
+    todo = np.arange(m, dtype=np.int64)
+    if geo is not None:
+        reach_rows = np.maximum(radius, floor) if len(floor) else np.full(m, float(radius))
+        todo = todo[~one_surface_cells(geo, radius).free(p, reach_rows)]
+    for a in range(0, len(todo), BLOCK_ROWS):
+        rows = todo[a:a + BLOCK_ROWS]
         size = len(rows) * cap
         o32 = np.empty((size, 3), np.float32)
         d32 = np.empty((size, 3), np.float32)
@@ -146,14 +246,14 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None):
 
 
 def visible_irradiance(E, pmap, accel, p, n, lift, radius, k, min_photons, estimator,
-                       r_floor=None, limits=None, counts=None):
+                       r_floor=None, limits=None, counts=None, geo=None):
     """E (M,3), the estimate pmap.irradiance (or chaincounts.irradiance with limits and
     counts (M,4) or None) gave at p / n, with the rows that have hidden photons
     (hidden_photons) estimated again from their visible photons alone (the hidden ones'
     power counted as 0, and the photons their camera-side counts cannot use, as
     chaincounts.irradiance does). Writes into E and returns it; rows without a hidden
     photon keep their bits."""
-    rows, photons = hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor)
+    rows, photons = hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor, geo=geo)
     if not len(rows):
         return E
     cache = chaincounts.map_cache(pmap) if counts is not None else None
