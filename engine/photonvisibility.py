@@ -41,23 +41,26 @@ BLOCK_ROWS = 1024
 # beyond either, every row is tested.
 CELLS_MAX = 1 << 24
 ENTRIES_MAX = 1 << 24
-# Planes closer than this (unit normals' components; offsets in units of the cell) are
-# one plane for the pre-test (a mesh's coplanar triangles round a little differently).
+# Normals closer than this (unit normals' components) are one orientation for the
+# pre-test (a mesh's coplanar triangles round a little differently).
 PLANE_TOLERANCE = 1e-4
 
 
 class OneSurfaceCells:
-    """Which points have only their own flat surface within `cell` of them, so that no
-    occluder can stand between them and the photons of a disc of radius <= cell: the
-    scene's triangles (Geometry v0, e1, e2, ng) binned by their bounding boxes into a grid
-    of side `cell`; a cell is 'busy' when the triangles overlapping it lie in more than
-    one plane; a point is free when no cell of the 3 x 3 x 3 around its own is busy. A
-    segment from a point to a photon within `cell` lies in those 27 cells, and any
-    triangle it crosses overlaps them (its box does), so it would make a cell busy unless
-    it lies in the point's own plane (which the lifted ray passes above). Conservative:
-    a busy neighbourhood only means the rays are traced (Figure 8's caustic rows on its
-    open floor skip them; a lamp shade piercing a wall, corners, curved objects do not).
-    """
+    """Which points have only surfaces parallel to their own within `cell` of them, so
+    that no occluder can stand between them and the photons of a disc of radius <= cell:
+    the scene's triangles (Geometry v0, e1, e2, ng) binned by their bounding boxes into a
+    grid of side `cell`; a cell is 'busy' when the triangles overlapping it have more
+    than one orientation (normals up to sign); a point is free when no cell of the
+    3 x 3 x 3 around its own is busy. A segment from a point to a photon within `cell`
+    lies in those 27 cells, and any triangle it crosses overlaps them (its box does); a
+    triangle parallel to the point's plane cannot cross the segment, which follows that
+    plane a ray offset above it, so a crossing triangle makes a cell busy. (A parallel
+    surface within a ray offset of the plane, closer than any renderer resolves, is the
+    only case a traced ray could read differently.) Conservative otherwise: a busy
+    neighbourhood only means the rays are traced (Figure 8's caustic rows on its open
+    floor and a thin wall's face skip them; a lamp shade piercing a wall, corners,
+    curved objects do not)."""
 
     def __init__(self, geo, cell: float):
         self.cell = float(cell)
@@ -81,8 +84,12 @@ class OneSurfaceCells:
             return
         ng = np.asarray(geo.ng, np.float64)
         ng = ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
-        d = np.einsum("ij,ij->i", ng, v0) / self.cell
-        key = np.round(np.column_stack([ng, d]) / PLANE_TOLERANCE).astype(np.int64)
+        # A triangle's orientation up to sign: parallel planes (a thin wall's back face,
+        # a shelf above a floor) cannot cross the point's own plane, which the lifted
+        # visibility ray follows, so only orientations count.
+        big = np.argmax(np.abs(ng), axis=1)
+        ng = ng * np.where(ng[np.arange(len(ng)), big] < 0, -1.0, 1.0)[:, None]
+        key = np.round(ng / PLANE_TOLERANCE).astype(np.int64)
         _, plane = np.unique(key, axis=0, return_inverse=True)
         plane = plane.reshape(-1)
         tri = np.repeat(np.arange(len(v0)), count)

@@ -99,3 +99,31 @@ def test_lamp_shade_leak_conditions(monkeypatch):
     monkeypatch.setattr(integrator, "PHOTON_VISIBILITY", False)
     film = render(lamp_scene(), RenderSettings(**SETTINGS))
     assert np.count_nonzero(film.caustic) and np.count_nonzero(film.indirect)
+
+
+def test_one_surface_cells_skip_only_rows_with_nothing_to_hide():
+    """The visibility pre-test (photonvisibility.OneSurfaceCells) is conservative: every
+    row it calls free has no hidden photon when traced anyway, the open wall far from the
+    shade is free, and the wall right at the rim is not."""
+    from engine.photonvisibility import hidden_photons, one_surface_cells
+    ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
+    shots = shoot_photons(ctx, {})
+    from engine.photonmap import PhotonMap
+    pmap = PhotonMap(shots[-1])
+    radius = 0.19
+    rng = np.random.default_rng(3)
+    off = ctx.geo.offset
+    # Points on the wall's front face (y = 2), near and far from the shade.
+    x = rng.uniform(-1.9, 1.9, 400)
+    z = rng.uniform(0.1, 2.6, 400)
+    p = np.column_stack([x, np.full(400, 2.0), z]) - off
+    n = np.tile([0.0, -1.0, 0.0], (400, 1))
+    cells = one_surface_cells(ctx.geo, radius)
+    free = cells.free(p, np.full(400, radius))
+    far = np.hypot(x, z - 1.6) > 1.2
+    near = np.hypot(x, z - 1.5) < 0.3
+    assert free[far & (np.abs(x) < 1.4) & (z > 0.8) & (z < 2.2)].all()
+    assert not free[near].any()
+    rows, _ = hidden_photons(pmap, ctx.accel, p, n, None, radius, 64)
+    assert len(rows) > 0                    # the rim's rows do hide photons
+    assert not np.intersect1d(rows, np.flatnonzero(free)).size
