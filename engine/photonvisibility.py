@@ -268,18 +268,25 @@ def visible_irradiance(E, pmap, accel, p, n, lift, radius, k, min_photons, estim
                   and getattr(pmap.photons, "bounces", None) is not None)
     starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
     ends = np.r_[starts[1:], len(rows)]
+    # One working mask per count class (all photons without counts), its row's hidden
+    # photons cleared for the call and restored after: no map-sized array a row.
+    work = {}
     for a, b in zip(starts, ends):
         i = int(rows[a])
-        if use_counts:
-            mask = chaincounts._usable(pmap.photons, limits,
-                                       tuple(int(x) for x in counts[i]), cache).copy()
-        else:
-            mask = np.ones(len(pmap.photons), np.bool_)
-        mask[photons[a:b]] = False
+        key = tuple(int(x) for x in counts[i]) if use_counts else None
+        got = work.get(key)
+        if got is None:
+            base = (chaincounts._usable(pmap.photons, limits, key, cache) if use_counts
+                    else np.ones(len(pmap.photons), np.bool_))
+            got = work[key] = (base, base.copy())
+        base, mask = got
+        hidden = photons[a:b]
+        mask[hidden] = False
         _, masked = pmap.irradiance(
             p[i:i + 1], n[i:i + 1], radius, k, min_photons, estimator,
             r_floor=None if r_floor is None else np.broadcast_to(r_floor, (len(p),))[i:i + 1],
             masks=mask[None])
+        mask[hidden] = base[hidden]
         E[i] = masked[0, 0]
     return E
 
