@@ -122,8 +122,12 @@ class _StatusPrinter:
     only later, after the bar had redrawn itself (new-user trial, s17). Python's warnings
     raised during the render (numpy's, numba's, ours) go the same way, on stderr."""
 
-    def __init__(self, quiet=False, stream=None, interrupt=None, out=None):
+    def __init__(self, quiet=False, stream=None, interrupt=None, out=None,
+                 previous_effects=None):
         self.quiet = quiet
+        # An animation's earlier frame's report: a frame that simulates the same effects
+        # says so in one line instead of repeating the report (--frames).
+        self.previous_effects = previous_effects
         self.interrupt = interrupt  # its at_once is set while the kernels compile
         self.stream = stream or sys.stderr
         self.out = out  # where warnings go (None: sys.stdout at the time)
@@ -237,6 +241,9 @@ class _StatusPrinter:
             if self.status == "done":
                 if self.done_line:
                     print(self.done_line, file=self.stream)
+                if self.effects and self.effects == self.previous_effects:
+                    print("  Effects as the previous frame", file=self.stream)
+                    return
                 for line in self.effects:
                     print(f"  {line}", file=self.stream)
 
@@ -519,11 +526,13 @@ def render_file(args, interrupt=None) -> str:
         return out
     pattern = frame_pattern(out)
     written = []
+    effects = None
     for frame in range(args.frames[0], args.frames[1] + 1):
         scene.frame_set(frame)
         r.filepath = pattern
         path = r.frame_path(frame=frame)  # '#' -> zero-padded frame number
-        film = _render_still(bpy, scene, path, args.quiet, interrupt)
+        film = _render_still(bpy, scene, path, args.quiet, interrupt, effects)
+        effects = list(film.stats.get("effects") or []) if film is not None else None
         _extras(bpy, film, path, args)
         written.append(path)
     return f"{len(written)} frames: {written[0]} .. {written[-1]}"
@@ -599,15 +608,17 @@ def _extras(bpy, film, out, args):
                              f"{root}.strip.png")
 
 
-def _render_still(bpy, scene, out, quiet, interrupt=None):
+def _render_still(bpy, scene, out, quiet, interrupt=None, previous_effects=None):
     """Render the current frame and save it to `out` only when the render is complete.
-    Returns the engine's Film of the render."""
+    previous_effects: the effect report of the frame before (an animation), not repeated
+    when this frame's is the same. Returns the engine's Film of the render."""
     from addon import engine
     # write_still=True would save whatever the render result holds, also after an error
     # or a cancel (an all-black frame over a good one): save it here, only when complete.
     previous_hook = engine.test_break_hook
     interrupt = interrupt or CancelOnInterrupt(INTERRUPT_MESSAGE)
-    printer = _StatusPrinter(quiet=quiet, interrupt=interrupt)
+    printer = _StatusPrinter(quiet=quiet, interrupt=interrupt,
+                             previous_effects=previous_effects)
     engine.test_break_hook = lambda: interrupt.requested or bool(previous_hook and previous_hook())
     engine.status_listeners.append(printer)
     try:

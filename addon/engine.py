@@ -131,6 +131,9 @@ last_render: dict = {}
 # on Blender's main thread; a listener that raises is dropped from this render with a
 # printed traceback, never stops the render.
 status_listeners: list = []
+# The effect report last printed to the console: an animation's frames (Ctrl+F12) simulate
+# the same effects, printed once, not once a frame.
+_printed_effects: list = []
 
 
 def kernel_words(compiled: bool) -> str:
@@ -401,8 +404,13 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         effects = list(film.stats.get("effects", []) or [])
         self._emit("effects", effects)
         if not self._listeners:  # a listener prints them itself
-            for line in effects:
-                print(f"Photon Mapping: {line}")  # why each effect is on or off
+            global _printed_effects
+            if effects and effects == _printed_effects:  # an animation's next frame
+                print("Photon Mapping: effects as the previous render")
+            else:
+                for line in effects:
+                    print(f"Photon Mapping: {line}")  # why each effect is on or off
+            _printed_effects = effects
         self._report_warnings([w for w in film.warnings if warning_key(w) not in reported_keys],
                               already=len(reported))
         n = info['lights']

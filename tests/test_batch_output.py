@@ -106,3 +106,27 @@ def test_more_warnings_than_blender_reports_are_each_printed_once():
         assert text.count(w) == 1, text
     assert "system console" not in text and "Photon Mapping warning:" not in text
     assert "\nhalf a line" in text
+
+
+def _frame_report(previous, effects):
+    shared = io.StringIO()
+    printer = batch._StatusPrinter(stream=shared, out=shared, previous_effects=previous)
+    printer("stats", "Done: 12 triangles, 1 light, 0.1 s")
+    printer("effects", effects)
+    printer("finished", "done")
+    printer.close()
+    return shared.getvalue()
+
+
+def test_an_animations_later_frame_repeats_no_unchanged_effect_report():
+    """--frames: each frame printed the whole effect report again (s23's trial); a frame
+    that simulates what the frame before did says so in one line, a changed one in full."""
+    report = ["caustics: on - 'Glass' focuses light", "final gather: on"]
+    first = _frame_report(None, report)
+    assert all(f"  {line}" in first for line in report)
+    same = _frame_report(list(report), list(report))
+    assert "Effects as the previous frame" in same
+    assert not any(line in same for line in report)
+    changed = _frame_report(report, ["caustics: off - nothing focuses light"])
+    assert "caustics: off - nothing focuses light" in changed
+    assert "previous frame" not in changed

@@ -48,3 +48,22 @@ def test_adaptive_render_reports_its_samples(open_ground):
     stats = engine.last_render["stats"]
     assert 16 <= stats["adaptive_mean_spp"] <= 32
     assert stats["adaptive_spp"] == 32
+
+
+def test_the_next_frame_prints_an_unchanged_effect_report_once(open_ground, capsys):
+    """Ctrl+F12 printed the whole effect report to the console once a frame (s23's trial):
+    a render that simulates what the one before did prints one line instead."""
+    import bpy
+
+    from addon import engine
+    cheap(open_ground, width=16, height=12, spp=1, photons=2000, caustic_photons=500)
+    engine._printed_effects = []
+    bpy.ops.render.render()
+    first = capsys.readouterr().out
+    report = engine.last_render["stats"]["effects"]
+    assert all(f"Photon Mapping: {line}" in first for line in report), first
+    open_ground.frame_set(open_ground.frame_current + 1)
+    bpy.ops.render.render()
+    second = capsys.readouterr().out
+    assert "Photon Mapping: effects as the previous render" in second, second
+    assert not any(f"Photon Mapping: {line}" in second for line in report), second
