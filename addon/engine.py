@@ -64,9 +64,6 @@ UNMADE_PASSES = (
     ("", "use_pass_subsurface_direct", "Subsurface Direct"),
     ("", "use_pass_subsurface_indirect", "Subsurface Indirect"),
     ("", "use_pass_subsurface_color", "Subsurface Color"),
-    ("", "use_pass_cryptomatte_object", "Cryptomatte Object"),
-    ("", "use_pass_cryptomatte_material", "Cryptomatte Material"),
-    ("", "use_pass_cryptomatte_asset", "Cryptomatte Asset"),
     ("", "use_pass_grease_pencil", "Grease Pencil"),
     ("cycles", "use_pass_volume_direct", "Volume Direct"),
     ("cycles", "use_pass_volume_indirect", "Volume Indirect"),
@@ -78,6 +75,30 @@ UNMADE_PASSES = (
 def _denoising_data(view_layer) -> bool:
     """The view layer asks for Denoising Data (Cycles' switch; False without Cycles)."""
     return bool(getattr(getattr(view_layer, "cycles", None), "denoising_store_passes", False))
+
+
+# Cryptomatte layers by the view layer's switch: (switch, engine kind, pass prefix).
+CRYPTOMATTE_LAYERS = (("use_pass_cryptomatte_object", "object", "CryptoObject"),
+                      ("use_pass_cryptomatte_material", "material", "CryptoMaterial"),
+                      ("use_pass_cryptomatte_asset", "asset", "CryptoAsset"))
+
+
+def cryptomatte_passes(view_layer) -> list[tuple[str, str]]:
+    """(engine kind, pass name) of every Cryptomatte pass the view layer asks for:
+    ceil(Levels / 2) RGBA passes a layer, "CryptoObject00", "CryptoObject01", ..."""
+    count = _cryptomatte().pass_count(cryptomatte_levels(view_layer))
+    return [(kind, f"{prefix}{i:02d}") for switch, kind, prefix in CRYPTOMATTE_LAYERS
+            if getattr(view_layer, switch, False) for i in range(count)]
+
+
+def _cryptomatte():
+    """The engine's cryptomatte module (no bpy, loaded with the engine)."""
+    import importlib
+    return importlib.import_module(load_engine().__name__ + ".cryptomatte")
+
+
+def cryptomatte_levels(view_layer) -> int:
+    return int(getattr(view_layer, "pass_cryptomatte_depth", 6) or 6)
 
 
 def data_passes(view_layer) -> tuple:
@@ -253,6 +274,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
         if _adaptive(scene):
             self.register_pass(scene, renderlayer, SAMPLE_COUNT_PASS, 1, "X", "VALUE")
+        for _kind, name in cryptomatte_passes(renderlayer):
+            self.register_pass(scene, renderlayer, name, 4, "rgba", "COLOR")
 
     # --- render ---------------------------------------------------------------------
     def render(self, depsgraph):
@@ -341,6 +364,9 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         if props.use_animated_seed:
             kwargs["seed"] = frame_seed(props.seed, scene.frame_current)
         kwargs["data_passes"] = data_passes(view_layer)
+        kwargs["cryptomatte"] = tuple(k for switch, k, _ in CRYPTOMATTE_LAYERS
+                                      if getattr(view_layer, switch, False))
+        kwargs["cryptomatte_levels"] = min(max(cryptomatte_levels(view_layer), 1), 16)
         settings = pm.RenderSettings(**kwargs)
         unmade = unmade_passes_warning(view_layer, _adaptive(scene))
         if unmade is not None:  # said with the export's warnings, kept in film.warnings
@@ -492,6 +518,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 self.add_pass(name, 3, "RGB", layer=layer)
         if sample_count:
             self.add_pass(SAMPLE_COUNT_PASS, 1, "X", layer=layer)
+        for _kind, name in cryptomatte_passes(view_layer):
+            self.add_pass(name, 4, "rgba", layer=layer)  # lowercase: the Cryptomatte spec
 
     def _write_result(self, film, view_layer, transparent: bool):
         h, w = film.height, film.width
@@ -517,6 +545,19 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             if film.sample_count is not None:  # the share of Samples each pixel took
                 spp = float(film.stats.get("adaptive_spp") or film.sample_count.max() or 1.0)
                 buffers[SAMPLE_COUNT_PASS] = (film.sample_count / spp)[:, :, None]
+            mattes = getattr(film, "cryptomatte", None) or {}
+            for kind, prefix in ((k, p) for _, k, p in CRYPTOMATTE_LAYERS):
+                for i, rgba in enumerate(mattes.get(kind, ())):
+                    buffers[f"{prefix}{i:02d}"] = rgba
+                if kind in mattes:
+                    # The compositor's Cryptomatte node finds the layer and its names in
+                    # the whole render's metadata (get_result: a begin_result tile's own
+                    # stamp data is not kept, as Cycles' stamp_view_layer_metadata).
+                    meta = _cryptomatte().metadata(
+                        view_layer.name, kind, film.cryptomatte_names.get(kind, ()))
+                    whole = self.get_result()
+                    for key, value in meta.items():
+                        whole.stamp_data_add_field(key, value)
             written = set()
             for p in layer.passes:
                 data = buffers.get(p.name)

@@ -574,6 +574,16 @@ def _radial(converter, name) -> bool:
     return bool(f and f(name))
 
 
+def cryptomatte_names(obj) -> dict:
+    """Mesh keywords naming obj in Cryptomatte's object and asset layers: the object's
+    name, which the instances of one object share (Cycles names instances by their real
+    object), and its topmost parent's (Blender's BKE_cryptomatte_asset_hash)."""
+    top = obj
+    while top.parent is not None:
+        top = top.parent
+    return {"cryptomatte_object": obj.name, "cryptomatte_asset": top.name}
+
+
 def _placement(pm, name, prototype, matrix, names, obj, visibility):
     """An engine placement (Mesh.place): the prototype by `matrix`, the object's
     material slots (the last repeated if it has fewer than the prototype uses)."""
@@ -582,7 +592,7 @@ def _placement(pm, name, prototype, matrix, names, obj, visibility):
     return pm.Mesh.place(name, prototype, matrix, materials=names,
                          shadow_terminator_offset=terminator_offset(obj),
                          shadow_terminator_shading_offset=terminator_shading(obj),
-                         **visibility)
+                         **cryptomatte_names(obj), **visibility)
 
 
 def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=None,
@@ -695,7 +705,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
-                       **ray_visibility(obj, inst, view_layer))
+                       **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)  # after dropping degenerate faces
 
@@ -886,7 +896,8 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
                            material_ids=np.clip(geo.material_index, 0, len(names) - 1),
                            coordinates=corner_attributes(geo, matrix, *coords),
                            shadow_terminator_offset=key[5],
-                           shadow_terminator_shading_offset=key[6], **visibility)
+                           shadow_terminator_shading_offset=key[6],
+                           **cryptomatte_names(obj), **visibility)
             if obj.name not in info["geometry_read"]:
                 info["transformed"].append(iname)
             cache.meshes[iname] = (key, mesh)

@@ -33,6 +33,11 @@ class Film:
     # (H,W,3) or (H,W) float32 per-sample averages (Denoising Normal / Albedo / Depth,
     # Diffuse / Glossy / Transmission Color)
     data: dict = field(default_factory=dict)
+    # Cryptomatte ID mattes the settings asked for (engine/cryptomatte.py): kind ->
+    # [(H,W,4) float32 passes, two ranks each], and kind -> the names its ids hash
+    # (the manifest)
+    cryptomatte: dict = field(default_factory=dict)
+    cryptomatte_names: dict = field(default_factory=dict)
     show_photons: bool = False
     stats: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import adaptive
+from . import adaptive, cryptomatte
 from .accel import Accel
 from .chaincounts import GatherCounts
 from .film import Film
@@ -393,6 +393,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     try:
         film = render_pass(ctx, region, progress, should_cancel,
                            on_warning=lambda w: tell([w]))  # the photon pass' own
+        if settings.cryptomatte and not film.stats.get("cancelled"):
+            _cryptomatte(ctx, region, film, should_cancel)
     finally:
         ctx.accel.close()
     film.stats["time_compile"] += t_compile
@@ -406,6 +408,22 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
                      + film.stats.get("warnings", []))
     tell(film.warnings)
     return film
+
+
+def _cryptomatte(ctx: Context, region, film: Film, should_cancel) -> None:
+    """The Cryptomatte passes the settings ask for into film (engine/cryptomatte.py);
+    a cancel leaves them out and marks the film cancelled."""
+    s = ctx.settings
+    t0 = time.perf_counter()
+    try:
+        film.cryptomatte = cryptomatte.render_mattes(ctx, region, s.cryptomatte,
+                                                     s.cryptomatte_levels, s.spp, s.seed,
+                                                     should_cancel)
+    except Cancelled:
+        film.stats["cancelled"] = True
+        return
+    film.cryptomatte_names = {k: cryptomatte.layer_names(ctx.scene, k) for k in film.cryptomatte}
+    film.stats["time_cryptomatte"] = time.perf_counter() - t0
 
 
 def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) -> tuple:

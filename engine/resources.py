@@ -28,6 +28,10 @@ measured peak for a set of renders. What each part counts:
 - data passes: Cycles' data passes when asked for (engine/datapasses.py): per pixel and
   channel a float64 sum, the Film's float32 copy and, in Blender, the render result's
   float32 pass (BYTES_PER_DATA_CHANNEL...).
+- cryptomatte: the ID mattes when asked for (engine/cryptomatte.py): per pixel, layer and
+  rank the hash and coverage (uint32 + float32), the float ids and the Film's float32
+  passes (BYTES_PER_CRYPTOMATTE_RANK; in Blender the render result's passes too), and
+  one chunk of primary rays in flight.
 - regather maps: the bounce limits' deeper gather levels (photonmap.GatherMap subsets,
   engine/render.py _build_maps): per level the irradiance and boundary flag of every
   gather point, counted at the most levels (integrator.MAX_GATHER_LEVEL) whenever the
@@ -57,6 +61,11 @@ BYTES_PER_PIXEL_BLENDER = 260   # render result passes (float32) and the copies 
 BYTES_PER_DATA_CHANNEL = 12
 BYTES_PER_DATA_CHANNEL_BLENDER = 4
 BYTES_PER_DATA_CHANNEL_PROGRESSIVE = 8
+# A Cryptomatte rank (engine/cryptomatte.py): hash and coverage, the float ids, the
+# Film's pass (id, coverage float32); in Blender the render result's pass too.
+BYTES_PER_CRYPTOMATTE_RANK = 20
+BYTES_PER_CRYPTOMATTE_RANK_BLENDER = 8
+BYTES_PER_CRYPTOMATTE_RAY = 160  # a chunk's primary rays: jitter, rays, hits, ids
 BYTES_PER_TRIANGLE = 320        # measured peak 240-290 (bench_memory.py --triangles); tables + BVH
 # Embree's copy and BVH of a triangle (default BVH ~91 B, compact ~61 B; docs/performance.md
 # "Memory per triangle").
@@ -323,6 +332,14 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
             + (BYTES_PER_DATA_CHANNEL_BLENDER if in_blender else 0)
         est.parts["data passes"] = pixels * channels * per_channel
         est.drivers["data passes"] = "data_passes"
+    if s.cryptomatte and pixels:
+        from .cryptomatte import CHUNK_RAYS, pass_count
+        ranks = 2 * pass_count(s.cryptomatte_levels) * len(s.cryptomatte)
+        per_rank = BYTES_PER_CRYPTOMATTE_RANK + (BYTES_PER_CRYPTOMATTE_RANK_BLENDER
+                                                 if in_blender else 0)
+        est.parts["cryptomatte"] = (pixels * ranks * per_rank
+                                    + min(CHUNK_RAYS, samples) * BYTES_PER_CRYPTOMATTE_RAY)
+        est.drivers["cryptomatte"] = "cryptomatte_levels"
     copies, shared, count = _instanced_triangles(scene)
     saved = 0
     if copies and instance_choice(copies, shared)[0]:
@@ -344,7 +361,10 @@ def _setting_text(name, scene, settings) -> str:
         return f"resolution {scene.width}x{scene.height}"
     if name in ("the scene's triangle count", "the environment map's size"):
         return name
-    return f"setting '{name}' = {getattr(settings, name):,}"
+    value = getattr(settings, name)
+    # (data_passes is a tuple: ',' would raise where the message was to be made)
+    return f"setting '{name}' = {value:,}" if isinstance(value, (int, float)) \
+        else f"setting '{name}' = {value!r}"
 
 
 def check_resources(scene, settings: RenderSettings, region=None, progressive=False,

@@ -302,6 +302,10 @@ class Mesh:
     shadow_terminator_shading_offset  Cycles' Shadow Terminator > Shading Offset (>= 0,
               < 2, default 0): pushes the terminator of direct light towards the light
               (Cycles' shift_cos_in, appleseed's fix)
+    cryptomatte_object, cryptomatte_asset  the names Cryptomatte's object and asset layers
+              give this mesh (engine/cryptomatte.py; None: `name`, and the asset the
+              object's): Blender's object name, which instances of one object share, and
+              its topmost parent's
     prototype, matrix  optional instance record: this mesh is `prototype` (object space)
               placed by the (4,4) or (3,4) object-to-world `matrix`; vertices and faces
               are then that placement (faces as the prototype's, corners 0, 2, 1 when the
@@ -332,6 +336,8 @@ class Mesh:
     holdout: bool = False
     shadow_terminator_offset: float = 0.1
     shadow_terminator_shading_offset: float = 0.0
+    cryptomatte_object: str | None = None
+    cryptomatte_asset: str | None = None
     prototype: "Prototype | None" = None
     matrix: np.ndarray | None = None
     warnings: list = field(default_factory=list, repr=False)
@@ -524,7 +530,7 @@ class Mesh:
         flags = {k: getattr(self, k) for k in (
             "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
             "visible_shadow", "holdout", "shadow_terminator_offset",
-            "shadow_terminator_shading_offset")}
+            "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset")}
         return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
                     materials=list(self.materials), material_ids=P.material_ids,
                     prototype=P, matrix=M, **flags)

@@ -53,6 +53,8 @@ CYCLES_DEFAULT_BOUNCES = (12, 4, 4, 12)
 
 # RenderSettings.data_passes' values (engine/datapasses.py)
 DATA_PASSES = ("color", "denoising")
+# RenderSettings.cryptomatte's values (engine/cryptomatte.py KINDS)
+CRYPTOMATTE_KINDS = ("asset", "material", "object")
 
 
 @dataclass
@@ -129,6 +131,11 @@ class RenderSettings:
     # (Denoising Normal / Albedo / Depth), "color" (Diffuse / Glossy / Transmission Color).
     # Extra outputs: the image's bits do not depend on them.
     data_passes: tuple = ()
+    # Cryptomatte ID mattes to make (engine/cryptomatte.py): any of "object", "material",
+    # "asset"; and their Levels (ranks a pixel, 1-16, Blender's default 6). Extra outputs
+    # from primary rays of their own: the image's bits do not depend on them.
+    cryptomatte: tuple = ()
+    cryptomatte_levels: int = 6
     # The paper's own method (docs/paper_mode.md): its classic estimator (cosine-weighted,
     # fixed radius: `radius` is the paper's MaxPhotonSearchRadius in scene units, metres)
     # and no final gathering; overrides `estimator` and `final_gather`.
@@ -220,6 +227,17 @@ class RenderSettings:
             raise ValueError(f"setting 'data_passes' takes {', '.join(DATA_PASSES)}, got "
                              f"{self.data_passes!r}")
         self.data_passes = dp
+        cm = (self.cryptomatte,) if isinstance(self.cryptomatte, str) else self.cryptomatte
+        cm = tuple(sorted(set(str(v).lower() for v in (cm or ()))))
+        if any(v not in CRYPTOMATTE_KINDS for v in cm):
+            raise ValueError(f"setting 'cryptomatte' takes {', '.join(CRYPTOMATTE_KINDS)}, "
+                             f"got {self.cryptomatte!r}")
+        self.cryptomatte = cm
+        lv = self.cryptomatte_levels
+        if isinstance(lv, bool) or not isinstance(lv, (int, np.integer)) or not 1 <= lv <= 16:
+            raise ValueError("setting 'cryptomatte_levels' must be a whole number from 1 to "
+                             f"16, got {lv!r}")
+        self.cryptomatte_levels = int(lv)
         self.min_photons = min(self.min_photons, self.k_nearest)
         if self.paper_mode:
             self.estimator, self.final_gather = "classic", False

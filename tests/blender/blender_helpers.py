@@ -160,7 +160,8 @@ def read_layers(path):
     out = {}
     order = "RGBAXYZV"
     for name, lst in passes.items():
-        lst.sort(key=lambda t: order.index(t[0]) if t[0] in order else 99)
+        # (Cryptomatte's channels are lowercase r, g, b, a: the spec's names)
+        lst.sort(key=lambda t: order.index(t[0].upper()) if t[0].upper() in order else 99)
         out[name] = np.stack([np.asarray(p, dtype=np.float32) for _, p in lst], axis=2)
     return out
 
