@@ -118,3 +118,60 @@ def test_ids_and_coverage_match_cycles(renders, prefix):
         o = cover([ours[f"{prefix}{k:02d}"] for k in range(2)], i)
         assert abs(c.sum() - o.sum()) < 0.02 * max(c.sum(), 1.0) + 4, (prefix, i)
         assert np.abs(c - o).mean() < 0.02, (prefix, i)
+
+
+def test_the_compositors_cryptomatte_node_pulls_a_matte_by_name(renders, bpy_addon, tmp_path):
+    """A user's workflow: Render Layers -> Cryptomatte node (matte 'Ball') -> output. The
+    node finds our layers in the render's metadata and its matte is the Ball's coverage
+    in our CryptoObject passes."""
+    bpy = bpy_addon
+    from blender_helpers import read_rgba
+    ours = renders["PHOTONMAP"][0]
+    scene = _scene()
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=SPP, photons=5000, caustic_photons=0)
+    scene.render.use_compositing = True
+    if hasattr(scene, "compositing_node_group"):  # Blender 5.0+
+        tree = bpy.data.node_groups.new("Matte", "CompositorNodeTree")
+        scene.compositing_node_group = tree
+        out = tree.nodes.new("NodeGroupOutput")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    else:
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        out = tree.nodes.new("CompositorNodeComposite")
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    node = tree.nodes.new("CompositorNodeCryptomatteV2")
+    node.source, node.scene = "RENDER", scene
+    node.matte_id = "Ball"
+    tree.links.new(layers.outputs["Image"], node.inputs[0])
+    tree.links.new(node.outputs["Matte"], out.inputs[0])
+    s = scene.render.image_settings
+    if hasattr(s, "media_type"):
+        s.media_type = "IMAGE"
+    s.file_format, s.color_depth = "OPEN_EXR", "32"
+    path = tmp_path / "matte.exr"
+    scene.render.filepath, scene.render.use_file_extension = str(path), False
+    try:
+        bpy.ops.render.render(write_still=True)
+        items = [i.identifier for i in node.bl_rna.properties["layer_name"].enum_items]
+        assert "CryptoObject" in items, items
+        matte = read_rgba(bpy, path)[..., 0]
+    finally:
+        if hasattr(scene, "compositing_node_group"):
+            scene.compositing_node_group = None
+        else:
+            scene.use_nodes = False
+        scene.render.use_compositing = False
+    ball = np.float32(_hash_float("Ball"))
+    coverage = sum(np.where(p[..., 0] == ball, p[..., 1], 0) + np.where(p[..., 2] == ball,
+                                                                         p[..., 3], 0)
+                   for p in (ours["CryptoObject00"], ours["CryptoObject01"]))
+    assert (matte > 0.5).sum() > 100
+    assert np.abs(matte - coverage).max() < 1e-3
+
+
+def _hash_float(name):
+    from engine import cryptomatte
+    return cryptomatte.hash_to_float(cryptomatte.name_hash(name))
