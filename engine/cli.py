@@ -105,6 +105,17 @@ def _data_passes(text: str) -> tuple:
     return kinds
 
 
+def _cryptomatte(text: str) -> tuple:
+    """--cryptomatte's value: comma-separated kinds of RenderSettings.CRYPTOMATTE_KINDS."""
+    from .settings import CRYPTOMATTE_KINDS
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    bad = [k for k in kinds if k not in CRYPTOMATTE_KINDS]
+    if bad or not kinds:
+        raise argparse.ArgumentTypeError(f"takes {', '.join(CRYPTOMATTE_KINDS)} "
+                                         f"(comma-separated), got {text!r}")
+    return kinds
+
+
 def _setting_options(r, method=True, sweeps=False):
     """Options that set RenderSettings or the image size, shared by the subcommands."""
     if sweeps:
@@ -214,6 +225,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--save-passes", action="store_true",
                    help="also write each effect pass next to the output (name.direct.png ...) "
                         "and any --data-passes as linear OpenEXR (name.denoising_albedo.exr ...)")
+    r.add_argument("--cryptomatte", type=_cryptomatte, metavar="KINDS",
+                   help="Cryptomatte ID mattes to make, comma-separated: object, material, "
+                        "asset; written with --save-passes as name.cryptomatte.exr (the "
+                        "spec's channels and manifest, for Blender, Nuke or Fusion)")
+    r.add_argument("--cryptomatte-levels", type=int, metavar="N",
+                   help="Cryptomatte ranks a pixel, 1-16 (default 6)")
     r.add_argument("--data-passes", type=_data_passes, metavar="KINDS",
                    help="Cycles' data passes to make, comma-separated: denoising (Denoising "
                         "Normal / Albedo / Depth), color (Diffuse / Glossy / Transmission "
@@ -352,7 +369,7 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
                  "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers",
                  "method", "max_bounces", "diffuse_bounces", "glossy_bounces",
                  "transmission_bounces", "adaptive_threshold", "adaptive_min_samples",
-                 "data_passes"):
+                 "data_passes", "cryptomatte", "cryptomatte_levels"):
         v = getattr(args, name, None)
         if v is not None:
             overrides[name] = v
@@ -651,6 +668,10 @@ def _render(args) -> int:
                 continue
             write_image(img, f"{root}.{name}{ext}", args.exposure)
         film.write_data_passes(root)
+        if film.cryptomatte:
+            from .imageio import write_cryptomatte
+            write_cryptomatte(film.cryptomatte, film.cryptomatte_names,
+                              f"{root}.cryptomatte.exr")
     if args.strip:
         from .teaching import compose, effects_strip
         save_composed(compose(effects_strip(film), columns=6, exposure=args.exposure),

@@ -256,6 +256,33 @@ def _write(rgb, path, ext, exposure, alpha, metadata):
             Image.fromarray(img8, "RGB").save(path, **extra)
 
 
+def write_cryptomatte(passes: dict, names: dict, path: str, view_layer: str = "ViewLayer"):
+    """Write Cryptomatte layers as one OpenEXR file the Cryptomatte spec describes (and
+    Blender, Nuke and Fusion read): channels `<view_layer>.CryptoObject00.r/g/b/a` ..., the
+    layers' names and manifests in the header (engine/cryptomatte.metadata). passes: kind
+    -> [(H,W,4) float32]; names: kind -> the names the ids hash. Written beside `path`
+    and moved over it, as write_image. Raises OSError when writing fails."""
+    import OpenEXR
+
+    from .cryptomatte import KINDS, metadata
+    channels, header = {}, {"compression": OpenEXR.ZIP_COMPRESSION,
+                            "type": OpenEXR.scanlineimage}
+    for kind, layers in passes.items():
+        for i, rgba in enumerate(layers):
+            for c, ch in enumerate("rgba"):
+                channels[f"{view_layer}.{KINDS[kind]}{i:02d}.{ch}"] = np.ascontiguousarray(
+                    np.asarray(rgba[..., c], np.float32))
+        header.update(metadata(view_layer, kind, names.get(kind, ())))
+    try:
+        with replacing(path) as tmp:
+            with OpenEXR.File(header, channels) as f:
+                f.write(tmp)
+    except (OSError, RuntimeError) as exc:
+        raise OSError(f"writing '{path}' failed: {getattr(exc, 'strerror', None) or exc}") \
+            from exc
+    return path
+
+
 def read_image(path: str) -> np.ndarray:
     """Read an image as linear float32 HxWx3 (EXR/NPY as stored; PNG/PPM decoded from sRGB)."""
     ext = os.path.splitext(path)[1].lower()

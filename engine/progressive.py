@@ -38,7 +38,8 @@ import numpy as np
 
 from .film import EFFECTS, Film
 from .parallel import Cancelled
-from .render import _check_region, prepare_context, render_pass, warning_teller
+from .render import (_check_region, prepare_context, render_cryptomatte, render_pass,
+                     warning_teller)
 from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
@@ -253,6 +254,9 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                 on_pass(merger.film, info)
             if budget_spent(budget, i, merger.error, elapsed):
                 break
+        if settings.cryptomatte and i > 0 and not cancelled:
+            render_cryptomatte(ctx, region, merger.film, should_cancel)
+            cancelled = bool(merger.film.stats.get("cancelled"))
     finally:
         ctx.accel.close()
     film = merger.film

@@ -394,7 +394,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
         film = render_pass(ctx, region, progress, should_cancel,
                            on_warning=lambda w: tell([w]))  # the photon pass' own
         if settings.cryptomatte and not film.stats.get("cancelled"):
-            _cryptomatte(ctx, region, film, should_cancel)
+            render_cryptomatte(ctx, region, film, should_cancel)
     finally:
         ctx.accel.close()
     film.stats["time_compile"] += t_compile
@@ -410,7 +410,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     return film
 
 
-def _cryptomatte(ctx: Context, region, film: Film, should_cancel) -> None:
+def render_cryptomatte(ctx: Context, region, film: Film, should_cancel) -> None:
     """The Cryptomatte passes the settings ask for into film (engine/cryptomatte.py);
     a cancel leaves them out and marks the film cancelled."""
     s = ctx.settings

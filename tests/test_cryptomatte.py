@@ -150,3 +150,40 @@ def test_the_memory_estimate_counts_the_mattes_and_names_their_setting():
     from engine.resources import _setting_text
     text = _setting_text("data_passes", s, RenderSettings(data_passes=("denoising",)))
     assert text == "setting 'data_passes' = ('denoising',)"
+
+
+def test_the_cli_writes_the_mattes_as_the_specs_exr(tmp_path):
+    """photonmap render --cryptomatte object,material --save-passes: name.cryptomatte.exr
+    with the spec's channel names and the layers' manifests in its header; progressive
+    renders make them too."""
+    import OpenEXR
+
+    from engine.cli import main
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        "[render]\nwidth = 24\nheight = 18\nspp = 2\nphotons = 500\ncaustic_photons = 0\n"
+        "[camera]\nposition = [0, -5, 2.5]\nlook_at = [0, 0, 0.5]\n"
+        "[[lights]]\ntype = \"point\"\nposition = [0, -2, 4]\npower = 200\n"
+        "[[objects]]\nname = \"Floor\"\ntype = \"plane\"\ncenter = [0, 0, 0]\nsize = 20\n"
+        "[[objects]]\nname = \"Box\"\ntype = \"box\"\ncenter = [0, 0, 0.5]\n"
+        "size = [1, 1, 1]\n")
+    for extra in ([], ["--progressive", "--passes", "2"]):
+        out = tmp_path / f"img{len(extra)}.png"
+        code = main(["render", str(scene), "-o", str(out), "--quiet", "--save-passes",
+                     "--cryptomatte", "object,material", "--cryptomatte-levels", "2",
+                     *extra])
+        assert code == 0
+        f = OpenEXR.File(str(tmp_path / f"img{len(extra)}.cryptomatte.exr"),
+                         separate_channels=True)
+        channels = f.parts[0].channels
+        assert {"ViewLayer.CryptoObject00.r", "ViewLayer.CryptoObject00.a",
+                "ViewLayer.CryptoMaterial00.g"} <= set(channels)
+        assert "ViewLayer.CryptoObject01.r" not in channels  # Levels 2: one pass
+        meta = {k: v for k, v in f.parts[0].header.items() if k.startswith("cryptomatte/")}
+        assert sorted(v for k, v in meta.items() if k.endswith("/name")) == [
+            "ViewLayer.CryptoMaterial", "ViewLayer.CryptoObject"]
+        ids = channels["ViewLayer.CryptoObject00.r"].pixels
+        box = np.float32(cm.hash_to_float(cm.name_hash("Box")))
+        assert (ids == box).sum() > 4
+    with pytest.raises(SystemExit):
+        main(["render", str(scene), "-o", str(tmp_path / "x.png"), "--cryptomatte", "objects"])
