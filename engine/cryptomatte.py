@@ -177,8 +177,12 @@ def render_mattes(ctx, region, kinds, levels: int, samples: int, seed: int,
             raise Cancelled()
         b = min(npix, a + chunk)
         local = np.repeat(np.arange(b - a, dtype=np.int64), spp)
-        # Each pixel's spp cells of an m x m grid, a random choice of them, jittered.
-        cells = np.argsort(rng.random((b - a, m * m)), axis=1)[:, :spp].reshape(-1)
+        # Each pixel's spp cells of an m x m grid (a random choice of them when spp is
+        # not a square), jittered.
+        if spp == m * m:
+            cells = np.tile(np.arange(spp), b - a)
+        else:
+            cells = np.argsort(rng.random((b - a, m * m)), axis=1)[:, :spp].reshape(-1)
         jx = (cells % m + rng.random(len(cells))) / m
         jy = (cells // m + rng.random(len(cells))) / m
         px = ((local + a) % w + x0).astype(np.float64)
