@@ -2,18 +2,20 @@
 ours against Cycles in CPU seconds (HDR-FLIP / relMSE against a high-spp Cycles reference).
 
     NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_glossy_product.py \\
-        [--spp 4,16] [--seeds 0,1] [--cycles 16,64] [--ref 1024] [--size 160x120]
+        [--spp 4,16] [--seeds 0,1] [--cycles 16,64,256] [--ref 1024] [--size 160x120]
+        [--gold 0.3] [--split | --trace]
 
 The scene (bpy, `build`): bevelled gold text (a Text object, extrude + bevel, converted to
 a mesh; Principled Metallic 1, gold base colour, roughness 0.3), a row of balls with a Mix
 Shader (fac 0.5) of a Diffuse BSDF and a Glossy BSDF (roughness 0.2), a Principled floor
 (roughness 0.5, Blender's default), one area light and a world colour. The reference is
 Cycles at --ref spp without clamp, glossy filter or denoising (tools/accuracy_scenes
-set_cycles), cached in $TMPDIR by spp and size. Per render: CPU s (time.process_time:
+set_cycles), cached in $TMPDIR by spp, size and gold roughness. Per render: CPU s (time.process_time:
 every thread of this process), mean HDR-FLIP and relMSE against the reference, image mean
 over the reference's, mean HDR-FLIP over the image rows of the text, the balls and the
 floor, and the outlier pixels (ours - ref > 3 (ref + 0.05), luminance) with, for ours,
-each pass's sum over them (which term carries the speckles).
+each pass's sum over them (which term carries the speckles). --split and --trace: the
+diagnostics split_terms and trace_samples instead (docs/accuracy.md "glossygather").
 """
 from __future__ import annotations
 
@@ -134,13 +136,16 @@ BANDS = (("text", 40 / 120, 60 / 120), ("balls", 60 / 120, 85 / 120), ("floor", 
 
 
 def row(label, spp, seed, cpu, img, ref, film=None):
-    fmap = np.asarray(A.flip(img, ref, return_map=True)[1], np.float64)
-    fmap = fmap.reshape(ref.shape)[..., 0] if fmap.size == ref.size else fmap.reshape(
-        ref.shape[:2])
+    import flip_evaluator
+    # The error map itself (applyMagma False: the default is its colour-mapped picture).
+    fmap, mean = flip_evaluator.evaluate(np.ascontiguousarray(ref, np.float32),
+                                         np.ascontiguousarray(img, np.float32), "HDR",
+                                         applyMagma=False)[:2]
+    fmap = np.asarray(fmap, np.float64).reshape(ref.shape[:2])
     h = ref.shape[0]
     bands = " ".join(f"{fmap[int(a * h):int(b * h)].mean():.3f}" for _, a, b in BANDS)
     out = outliers(img, ref)
-    line = (f"{label:7s} {spp:5d} {seed:4d} {cpu:7.1f} {fmap.mean():.4f} {A.relmse(img, ref):.4f}"
+    line = (f"{label:7s} {spp:5d} {seed:4d} {cpu:7.1f} {mean:.4f} {A.relmse(img, ref):.4f}"
             f" {img.mean() / ref.mean():7.4f}  {bands}  {int(out.sum()):4d}")
     if film is not None:
         # The passes' sums over the outlier pixels: which term carries them.
@@ -148,6 +153,75 @@ def row(label, spp, seed, cpu, img, ref, film=None):
             f"{np.asarray(getattr(film, n), np.float64).mean(axis=2)[out].sum():.1f}"
             for n in ("direct", "indirect", "caustic", "specular"))
     print(line, flush=True)
+
+
+def split_terms(pm_scene, kwargs, ref, spp, seed):
+    """Which term of the camera path's secondary hits carries the speckles: renders with
+    the direct (light samples, the rough lobes' included), caustic or indirect (final
+    gather) radiance of integrator.shade_diffuse dropped at camera bounces > 0, one at a
+    time (a diagnostic: those images are dark by design). Prints the specular pass's mean,
+    max and 99.9th percentile and the outlier pixels of each."""
+    import engine.integrator as integrator
+    inner = integrator.shade_diffuse
+    drop = [None]
+
+    def shade(*args, **kw):
+        out = list(inner(*args, **kw))
+        if drop[0] is not None and (kw.get("bounce") or 0) > 0 and out[drop[0]] is not None:
+            out[drop[0]] = np.zeros_like(out[drop[0]])
+        return tuple(out)
+
+    integrator.shade_diffuse = shade
+    try:
+        print("dropped at bounce > 0   specular mean    max  p99.9  outliers")
+        for name, i in (("nothing", None), ("direct", 0), ("caustic", 1), ("indirect", 2)):
+            drop[0] = i
+            film, _ = ours(pm_scene, kwargs, spp, seed)
+            sp = np.asarray(film.specular, np.float64).mean(axis=2)
+            print(f"{name:22s} {sp.mean():14.4f} {sp.max():6.2f} {np.percentile(sp, 99.9):6.3f}"
+                  f" {int(outliers(film.combined, ref).sum()):9d}", flush=True)
+    finally:
+        integrator.shade_diffuse = inner
+
+
+def trace_samples(pm_scene, kwargs, spp, seed, width, floor=3.0):
+    """The specular pass's single samples above `floor` (radiance x throughput, luminance):
+    integrator.Accumulator.add wrapped to log each by the line of integrator that adds it
+    (the light met by a continuation, a secondary hit's shading, ...), the camera bounce,
+    the image row band and the path throughput; prints the counts and the largest."""
+    import collections
+    import sys as _sys
+    import engine.integrator as integrator
+    inner = integrator.Accumulator.add
+    log = []
+
+    def add(self, name, pix, rgb, tp=None, rows=None):
+        if name == "specular" and len(rgb):
+            caller = _sys._getframe(1)
+            r = np.asarray(rgb, np.float64)
+            k = np.arange(len(r)) if rows is None or len(rows) == 0 else np.asarray(rows)
+            t = (np.asarray(tp, np.float64)[k] if tp is not None and len(tp)
+                 else np.ones_like(r))
+            v = (r * t).mean(axis=1)
+            y = np.asarray(pix)[k] // width
+            for i in np.nonzero(v > floor)[0]:
+                band = next((b for b, lo, hi in BANDS
+                             if lo <= y[i] / pm_scene.height < hi), "sky")
+                log.append((float(v[i]), caller.f_lineno, int(caller.f_locals.get("bounce", -1)),
+                            band, float(t[i].mean())))
+        return inner(self, name, pix, rgb, tp, rows)
+
+    integrator.Accumulator.add = add
+    try:
+        ours(pm_scene, {**kwargs, "workers": 1}, spp, seed)
+    finally:
+        integrator.Accumulator.add = inner
+    print(f"specular-pass samples above {floor}: (integrator line, bounce, band) -> count")
+    for key, n in sorted(collections.Counter(e[1:4] for e in log).items()):
+        print(f"  {key}: {n}")
+    print("largest: value, line, bounce, band, throughput")
+    for e in sorted(log, reverse=True)[:12]:
+        print(f"  {e[0]:6.1f} {e[1]:5d} {e[2]:2d} {e[3]:6s} {e[4]:.3f}")
 
 
 def main(argv=None):
@@ -158,6 +232,10 @@ def main(argv=None):
     ap.add_argument("--ref", type=int, default=1024)
     ap.add_argument("--size", default="160x120")
     ap.add_argument("--gold", type=float, default=0.3, help="the gold's roughness")
+    ap.add_argument("--trace", action="store_true",
+                    help="only the diagnostic trace_samples at the first --spp and --seeds")
+    ap.add_argument("--split", action="store_true",
+                    help="only the diagnostic split_terms at the first --spp and --seeds")
     a = ap.parse_args(argv)
     width, height = (int(v) for v in a.size.split("x"))
     ref = reference(a.ref, width, height, a.gold)
@@ -168,6 +246,14 @@ def main(argv=None):
     pm_scene, kwargs = export(width, height, a.gold)
     from engine.jit import ensure_compiled
     ensure_compiled()  # the kernels' load from the cache is not a render's cost
+    if a.trace:
+        trace_samples(pm_scene, kwargs, int(a.spp.split(",")[0]), int(a.seeds.split(",")[0]),
+                      width)
+        return
+    if a.split:
+        split_terms(pm_scene, kwargs, ref, int(a.spp.split(",")[0]),
+                    int(a.seeds.split(",")[0]))
+        return
     for spp in (int(s) for s in a.spp.split(",")):
         for seed in (int(s) for s in a.seeds.split(",")):
             film, cpu = ours(pm_scene, kwargs, spp, seed)
