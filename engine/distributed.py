@@ -30,7 +30,8 @@ from dataclasses import replace
 from .film import Film
 from .progressive import (ADAPTIVE_WARNING, Budget, PassMerger, budget_spent, max_passes_of,
                           overrun_warning, pass_settings)
-from .render import _check_region, prepare_context, render_pass, warning_key, warning_teller
+from .render import (_check_region, prepare_context, render_cryptomatte, render_pass,
+                     warning_key, warning_teller)
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -224,6 +225,8 @@ def run_pass(scene: Scene, settings: RenderSettings, i: int, region, key: str,
         t0 = time.perf_counter()
         film = render_pass(ctx, region, None, _stop_flag(cache, key),
                            on_warning=lambda w: post([w]))
+        if i == 1 and settings.cryptomatte and not film.stats.get("cancelled"):
+            render_cryptomatte(ctx, region, film, _stop_flag(cache, key))  # as progressive
         film.stats["pass_seconds"] = time.perf_counter() - t0
         film.stats["effects"] = ctx.plan.report()
         film.warnings = known + film.stats.get("warnings", [])

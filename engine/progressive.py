@@ -177,6 +177,11 @@ class PassMerger:
         # effects are (each pass' film holds its per-sample averages).
         for key, value in getattr(one, "data", {}).items():
             self.data[key] = self.data.get(key, 0.0) + value.astype(np.float64)
+        if getattr(one, "cryptomatte", None) and not self.film.cryptomatte:
+            # Cryptomatte: the first pass makes the mattes (engine/cryptomatte.py: exact
+            # coverage counts of their own rays, not an average of passes).
+            self.film.cryptomatte = one.cryptomatte
+            self.film.cryptomatte_names = one.cryptomatte_names
         if self.counts[0] and self.counts[1]:
             self.error = half_error(self.halves[0] / self.counts[0], self.halves[1] / self.counts[1])
         _fill(self.film, self.sums, self.extra, self.depth, i)
@@ -238,6 +243,8 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
 
             t_pass = time.perf_counter()
             one = render_pass(ctx, region, pass_progress, should_cancel, on_warning=tell_pass)
+            if i == 1 and settings.cryptomatte and not one.stats.get("cancelled"):
+                render_cryptomatte(ctx, region, one, should_cancel)  # pass 1's, kept
             if one.stats.get("cancelled"):
                 cancelled = True
                 i -= 1
@@ -254,9 +261,6 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                 on_pass(merger.film, info)
             if budget_spent(budget, i, merger.error, elapsed):
                 break
-        if settings.cryptomatte and i > 0 and not cancelled:
-            render_cryptomatte(ctx, region, merger.film, should_cancel)
-            cancelled = bool(merger.film.stats.get("cancelled"))
     finally:
         ctx.accel.close()
     film = merger.film

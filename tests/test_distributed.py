@@ -63,6 +63,22 @@ def test_same_image_as_local(client, small):
     assert set(idle.values()) == {0}
 
 
+def test_cryptomatte_as_local(client):
+    """The mattes come from pass 1 on a worker as locally (engine/cryptomatte.py)."""
+    from dataclasses import replace
+    scene = cornell_box(24, 18)
+    settings = replace(RenderSettings(**CHEAP), cryptomatte=("object", "material"))
+    local = render_progressive(scene, settings, Budget(passes=2))
+    film = render_distributed(scene, settings, Budget(passes=2), client=client,
+                              worker_threads=1)
+    assert set(film.cryptomatte) == {"object", "material"}
+    for kind, passes in local.cryptomatte.items():
+        for a, b in zip(passes, film.cryptomatte[kind]):
+            assert a.tobytes() == b.tobytes(), kind
+    assert film.cryptomatte_names == local.cryptomatte_names
+    assert_bitwise(film, local)
+
+
 def test_same_image_one_pass_in_flight_and_other_thread_count(client, small):
     """Passes strictly one after another, and two engine threads per pass instead of one:
     the same bits."""
