@@ -214,23 +214,17 @@ def plain_surfaces(table: MaterialTable) -> bool:
 
 
 def surface_hit_lobes(geo: Geometry, table: MaterialTable, prim, u, v, d, tp, want_glossy,
-                      out, hit_out=None) -> tuple[SurfaceHit, int]:
+                      out) -> tuple[SurfaceHit, int]:
     """surface_hit and camerakernels.shade_lobes on N hits in one kernel
     (camerakernels.surface_lobes), for tables with plain_surfaces: (the SurfaceHit, with
     prm set to out's packed lobes, K the number of rows to shade). tp (N,3) throughputs,
     want_glossy as shade_lobes; out = (prm, sel, p, q, psum, glossy, rows, wd) the
     arrays shade_lobes writes (integrator.BounceBuffers.take(N)), written as it writes
-    them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py).
-    hit_out: (p, ng, ns, base, front, mat, offset, bary, wo) unwritten arrays of N rows
-    (as _hit_outputs makes them, plus wo (N,3)) that become the SurfaceHit's fields: the
-    caller's thread buffers (integrator.BounceBuffers.surface); None: fresh arrays."""
+    them. Same bits as surface_hit then shade_lobes (tests/test_fused_camera.py)."""
     n = len(prim)
     u, v, d = _as_float64(u, v, d)
-    if hit_out is None:
-        p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
-        wo = np.empty((n, 3))
-    else:
-        p, ng, ns, base, front, mat, offset, bary, wo = hit_out
+    p, ng, ns, base, front, mat, offset, bary = _hit_outputs(geo, n)
+    wo = np.empty((n, 3))
     prm, sel, pw, q, psum, glossy, rows, wd = out
     idx, tabs = geo.hit_tables(prim, "v0", "e1", "e2", "corner_normals", "material")
     k = surface_lobes(idx, u, v, d, *tabs, table.base_color, table.closure_params,

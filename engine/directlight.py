@@ -765,8 +765,8 @@ def _row_ready(u):
 
 class DirectLightBuffers:
     """The arrays one thread reuses between direct_light calls, grown as needed: the
-    compacted entries (ensure), the per-hit sums (sums), the samples' random numbers
-    stacked (numbers) and the hits' terminator rows (terminator). Fresh arrays of this size each call cost more in first-touch page faults
+    compacted entries (ensure), the per-hit sums (sums) and the samples' random numbers
+    stacked (numbers). Fresh arrays of this size each call cost more in first-touch page faults
     than the kernels' own work (docs/performance.md, "Ninth slice"). The sums a call
     returns are valid until the next call with the same buffers."""
 
@@ -774,7 +774,6 @@ class DirectLightBuffers:
         self.size = -1  # (-1: a first call for 0 rows still makes its empty arrays)
         self.n_hits = 0
         self.n_numbers = 0
-        self.n_lift = 0
 
     def ensure(self, m):
         if m > self.size:
@@ -791,17 +790,6 @@ class DirectLightBuffers:
             self.lpdf = np.empty(m)
             self.bump = np.empty(m)
         return self
-
-    def terminator(self, n):
-        """(cutoff (n,), lift (n, 3)): unwritten float64 rows for terminator_lift, valid
-        until the next call (a bounce's per-hit rows: fresh arrays of 32 bytes a hit were
-        ~5,000 first-touch page faults a 160x120 64-spp box render, docs/performance.md
-        "boxcam")."""
-        if n > self.n_lift:
-            self.n_lift = n
-            self.cutoff = np.empty(n)
-            self.lift = np.empty((n, 3))
-        return self.cutoff[:n], self.lift[:n]
 
     def sums(self, n):
         """(n, 3) float64 zeros: a call's irradiance or radiance sums."""

@@ -157,7 +157,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                 # The lobes' caps differ: both, per hit (directlight.direct_light).
                 passages = np.ascontiguousarray(
                     np.broadcast_to(np.stack([cap, gcap], axis=-1), (n, 2)), np.int64)
-    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows, buffers), samples, ctx.accel,
+    E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages)
@@ -447,16 +447,14 @@ def light_shadow_rays(ctx, hit, light_index, rng):
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 
 
-def _hit_arrays(geo, hit, rows=None, buffers=None):
+def _hit_arrays(geo, hit, rows=None):
     """The per-hit inputs of directlight.sample_lights (computed once per batch, not per
     light sample): points, normals, the lit-side normal, origin offsets, Cycles' shading
     offset, the shadow-terminator cut-off and smooth-surface lift of smooth triangles, and
     the smooth normals before Normal Map / Bump nodes (Cycles' bump shadowing term).
     An offset no object has is an empty array (sample_lights reads no rows).
     rows (K,) int64: only these hits are sampled (direct_irradiance's rows): the
-    terminator rows are computed for them alone (the rest stay unwritten and unread).
-    buffers: the calling thread's DirectLightBuffers (the terminator rows are then its
-    rows, valid until their next use; None: fresh arrays)."""
+    terminator rows are computed for them alone (the rest stay unwritten and unread)."""
     n = len(hit.p)
     c = np.ascontiguousarray
     # Per-object offsets: where no object has one (bitwise zero), no per-hit rows to read.
@@ -467,11 +465,8 @@ def _hit_arrays(geo, hit, rows=None, buffers=None):
     lift = NO_ROWS3
     # terminator_lift leaves cutoff and lift 0 unless an object's offset is > 0.
     if hit.bary is not None and n and (geo.object_terminator > 0).any():
-        if buffers is not None:  # (rows written before they are read)
-            cutoff, lift = buffers.terminator(n)
-        else:
-            cutoff = np.empty(n)
-            lift = np.empty((n, 3))
+        cutoff = np.empty(n)  # (every row written)
+        lift = np.empty((n, 3))
         tri, (smooth, object_id, v0, e1, e2, normals) = geo.hit_tables(
             hit.prim, "smooth", "object_id", "v0", "e1", "e2", "corner_normals")
         terminator_lift(tri, c(hit.bary, np.float64), c(hit.ng, np.float64), smooth,
@@ -1620,7 +1615,6 @@ class BounceBuffers:
         self.size = -1  # (-1: a first call for 0 rows still makes its empty arrays)
         self.direct = DirectLightBuffers()
         self.paths = 0  # rows of the path-state arrays (paths_start)
-        self.n_surface = -1  # rows of the surface arrays (surface)
 
     def paths_start(self, n):
         """(travelled (n,), org_ns (n,3), org_p (n,3), chain (n,3) int64): zeros, the
@@ -1637,21 +1631,6 @@ class BounceBuffers:
             self.org_ns, self.org_p = np.zeros((n, 3)), np.zeros((n, 3))
             self.chain = np.zeros((n, 3), np.int64)
         return self.travelled[:n], self.org_ns[:n], self.org_p[:n], self.chain[:n]
-
-    def surface(self, n, mat_dtype):
-        """(p, ng, ns, base (n,3), front (n,) bool, mat (n,) mat_dtype, offset (n,), bary
-        (n,2), wo (n,3)): unwritten rows for bsdf.surface_hit_lobes' SurfaceHit, which the
-        bounce reads until its continuation is made (its rows carried on are copies:
-        np.take, the continuation's kernels). Fresh arrays of ~150 bytes a hit each bounce
-        were ~3,300 first-touch page faults a 160x120 64-spp box render
-        (docs/performance.md "boxcam")."""
-        if n > self.n_surface or self.surface_rows[5].dtype != mat_dtype:
-            self.n_surface = n
-            self.surface_rows = (np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
-                                 np.empty((n, 3)), np.empty(n, np.bool_),
-                                 np.empty(n, mat_dtype), np.empty(n), np.empty((n, 2)),
-                                 np.empty((n, 3)))
-        return tuple(a[:n] for a in self.surface_rows)
 
     def take(self, n):
         """(prm (n, N_PACK), sel (n, N_LOBES), p (n, N_LOBES - 1), q (n,), psum (n,),
@@ -1843,7 +1822,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         prm, sel, p, q, psum, glossy, dsel, wd = bufs
         if plain:
             hit, nd = surface_hit_lobes(ctx.geo, ctx.table, prim, u, v, d, tp, want_glossy,
-                                        bufs, buffers.surface(n, ctx.geo.material.dtype))
+                                        bufs)
         else:
             hit = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             per_hit = hit.params is not None
