@@ -179,7 +179,7 @@ class PhotonMap:
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                    min_photons: int, estimator: str, return_boundary: bool = False,
                    r_floor: np.ndarray | None = None, should_cancel=None,
-                   masks: np.ndarray | None = None):
+                   masks: np.ndarray | None = None, hidden=None):
         """knn_irradiance's answer; with self.lookup == "precomputed" (a kd-tree map, k-NN
         estimators, no masks) through engine/causticcache.py's estimates at the photons
         (the k-NN rows where those cannot answer)."""
@@ -191,12 +191,12 @@ class PhotonMap:
             return causticcache.lookup(self, p, n, radius, k, min_photons, estimator,
                                        return_boundary, r_floor, should_cancel)
         return self.knn_irradiance(p, n, radius, k, min_photons, estimator, return_boundary,
-                                   r_floor, should_cancel, masks)
+                                   r_floor, should_cancel, masks, hidden)
 
     def knn_irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                        min_photons: int, estimator: str, return_boundary: bool = False,
                        r_floor: np.ndarray | None = None, should_cancel=None,
-                       masks: np.ndarray | None = None):
+                       masks: np.ndarray | None = None, hidden=None):
         """Irradiance estimate E (W/m^2, (M,3) float64) at points p (M,3) with unit normals
         n (M,3) facing the viewer.
         return_boundary: also return, per point, whether the estimate's disc is not whole:
@@ -209,6 +209,10 @@ class PhotonMap:
         irradiance of each mask's photons alone from the same search (the others' power
         counted as 0): the bits of S more calls on maps whose power arrays zero the
         other photons, for about the cost of one (GatherMap's subsets).
+        hidden: with masks, (starts (M+1,) int64, photons (H,) int64): row i's photons
+        photons[starts[i]:starts[i+1]] (ascending) are left out of every mask for row i
+        alone (engine/photonvisibility.py: the photons a row cannot see), the bits of
+        one call a row with those photons cleared in its masks, in one call.
 
         Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K and
         SCAN_BUDGET entries; a widening row whose sphere holds more than MAX_WIDEN_K
@@ -234,6 +238,14 @@ class PhotonMap:
                                  f" got {masks.shape}")
             masked = np.zeros((len(masks), m, 3))
             result = (*result, masked) if return_boundary else (out, masked)
+        if hidden is None or not len(masks):
+            hid_start, hid_photon = _NO_HIDDEN
+        else:
+            hid_start = np.ascontiguousarray(hidden[0], dtype=np.int64)
+            hid_photon = np.ascontiguousarray(hidden[1], dtype=np.int64)
+            if hid_start.shape != (m + 1,):
+                raise ValueError(f"irradiance: hidden starts must have shape ({m + 1},), "
+                                 f"got {hid_start.shape}")
         if self.tree is None or m == 0 or radius <= 0 or len(self.photons) < min_photons:
             return result
         p = np.ascontiguousarray(p, dtype=np.float64)
@@ -255,7 +267,8 @@ class PhotonMap:
             b = min(a + rows, m)
             _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
                              p, n, floor, order[a:b], float(radius), int(k), int(min_photons),
-                             code, bool(return_boundary), out, boundary, flag, masks, masked)
+                             code, bool(return_boundary), out, boundary, flag, masks, masked,
+                             hid_start, hid_photon)
             if flag[0]:
                 raise Cancelled()
             return None
@@ -268,6 +281,7 @@ class PhotonMap:
 _NO_NODES = (np.zeros(0, np.uint8), np.zeros(0, np.float32), np.zeros(1, np.int64))
 _NO_MASKS = np.zeros((0, 0), np.bool_)
 _NO_MASKED = np.zeros((0, 0, 3))
+_NO_HIDDEN = (np.zeros(0, np.int64), np.zeros(0, np.int64))
 _NO_START = np.zeros(1, np.int32)
 
 
@@ -470,7 +484,7 @@ def _list_candidates(cand, cx, cy, cz, nc, qx, qy, qz, r2, d2, idx, cap, tmp):
 @kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
                      rows, radius, k, min_photons, code, want_boundary, out, boundary, stop,
-                     masks, masked):
+                     masks, masked, hid_start, hid_photon):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
     r_floor, if not empty) into the same rows of out (E) and boundary. Scratch:
     MAX_WIDEN_K (or k) neighbours, reused by every row. stop: (1,) uint8, polled every
@@ -478,7 +492,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     masks: (S, P) bool over the photons, masked: (S, M, 3) float64: row i's estimate
     from mask s's photons alone into masked[s, i] (the other photons' power counted as
     0; the same neighbours, disc and terms in the same order as an estimate whose power
-    array zeroes them: the same bits). S = 0: none."""
+    array zeroes them: the same bits). S = 0: none. hid_start (M+1,) / hid_photon (H,)
+    int64, or hid_start empty: row i's masks also leave out the photons
+    hid_photon[hid_start[i]:hid_start[i+1]] (ascending; found by bisection)."""
     P = pos.shape[0]
     S = masks.shape[0]
     ms = np.zeros((S, 6))  # per mask: e0, e1, e2, a0, a1, a2 of the row
@@ -805,6 +821,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         fetched = 0
         other_inside = False
         c0 = c1 = c2 = np.float32(0.0)  # float32 sums of the accepted photons' offsets
+        h_lo = h_hi = 0
+        if S and hid_start.shape[0]:
+            h_lo, h_hi = hid_start[i], hid_start[i + 1]
         for j in range(cnt):
             pj = idx[j]
             d = math.sqrt(d2[j])
@@ -816,6 +835,16 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     other_inside = True
             if not ok:
                 continue
+            seen = True  # pj is not among the row's hidden photons
+            if h_hi > h_lo:
+                lo, hi = h_lo, h_hi
+                while lo < hi:
+                    mid = (lo + hi) >> 1
+                    if hid_photon[mid] < pj:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                seen = not (lo < h_hi and hid_photon[lo] == pj)
             if code == CLASSIC:
                 w = cos_in / (math.pi * radius * radius)
             elif code == RADIUS:
@@ -830,7 +859,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             e1 += w * np.float64(power[pj, 1])
             e2 += w * np.float64(power[pj, 2])
             for s in range(S):
-                if masks[s, pj]:
+                if masks[s, pj] and seen:
                     ms[s, 0] += w * np.float64(power[pj, 0])
                     ms[s, 1] += w * np.float64(power[pj, 1])
                     ms[s, 2] += w * np.float64(power[pj, 2])
@@ -841,7 +870,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             a1 += np.float64(power[pj, 1])
             a2 += np.float64(power[pj, 2])
             for s in range(S):
-                if masks[s, pj]:
+                if masks[s, pj] and seen:
                     ms[s, 3] += np.float64(power[pj, 0])
                     ms[s, 4] += np.float64(power[pj, 1])
                     ms[s, 5] += np.float64(power[pj, 2])

@@ -44,6 +44,22 @@ ENTRIES_MAX = 1 << 24
 # Normals closer than this (unit normals' components) are one orientation for the
 # pre-test (a mesh's coplanar triangles round a little differently).
 PLANE_TOLERANCE = 1e-4
+# The own-orientation pre-test's cells (OneSurfaceCells.free with normals): this many to
+# the search radius, and its most cells (each orientation asked for keeps a grid of them).
+FINE_DIVISIONS = 4
+FINE_CELLS_MAX = 1 << 22
+# The most row orientations the own-orientation pre-test keeps a grid for.
+FINE_ORIENTATIONS_MAX = 16
+
+
+def _orientation_keys(normals):
+    """(N,3) int64: unit normals (N,3) up to sign, rounded to PLANE_TOLERANCE (equal keys:
+    one orientation for the pre-tests)."""
+    ng = np.asarray(normals, np.float64)
+    ng = ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
+    big = np.argmax(np.abs(ng), axis=1)
+    ng = ng * np.where(ng[np.arange(len(ng)), big] < 0, -1.0, 1.0)[:, None]
+    return np.round(ng / PLANE_TOLERANCE).astype(np.int64)
 
 
 class OneSurfaceCells:
@@ -82,16 +98,12 @@ class OneSurfaceCells:
         count = np.prod(span, axis=1)
         if count.sum() > ENTRIES_MAX:
             return
-        ng = np.asarray(geo.ng, np.float64)
-        ng = ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
         # A triangle's orientation up to sign: parallel planes (a thin wall's back face,
         # a shelf above a floor) cannot cross the point's own plane, which the lifted
         # visibility ray follows, so only orientations count.
-        big = np.argmax(np.abs(ng), axis=1)
-        ng = ng * np.where(ng[np.arange(len(ng)), big] < 0, -1.0, 1.0)[:, None]
-        key = np.round(ng / PLANE_TOLERANCE).astype(np.int64)
-        _, plane = np.unique(key, axis=0, return_inverse=True)
+        keys, plane = np.unique(_orientation_keys(geo.ng), axis=0, return_inverse=True)
         plane = plane.reshape(-1)
+        self._fine(lo, hi, keys, plane)
         tri = np.repeat(np.arange(len(v0)), count)
         local = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
         sx, sy = span[tri, 0], span[tri, 1]
@@ -109,18 +121,91 @@ class OneSurfaceCells:
         self.dims = dims
         self.busy = binary_dilation(busy.reshape(tuple(dims)), np.ones((3, 3, 3), bool))
 
-    def free(self, p, reach) -> np.ndarray:
+    def _fine(self, lo, hi, keys, plane):
+        """The own-orientation grid: cells of side cell / FINE_DIVISIONS, each the one
+        orientation (index into keys) of the triangles overlapping it, -1 for none, -2
+        for more than one (None: too many cells or entries)."""
+        self.fine = None
+        self.keys = keys
+        self._clear = {}
+        side = self.cell / FINE_DIVISIONS
+        origin = lo.min(axis=0) - self.cell
+        dims = np.floor((hi.max(axis=0) + self.cell - origin) / side).astype(np.int64) + 1
+        if np.prod(dims.astype(np.float64)) > FINE_CELLS_MAX:
+            return
+        a = np.floor((lo - origin) / side).astype(np.int64)
+        b = np.floor((hi - origin) / side).astype(np.int64)
+        span = b - a + 1
+        count = np.prod(span, axis=1)
+        if count.sum() > ENTRIES_MAX:
+            return
+        tri = np.repeat(np.arange(len(lo)), count)
+        local = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
+        sx, sy = span[tri, 0], span[tri, 1]
+        flat = (((a[tri, 0] + local % sx) * dims[1] + a[tri, 1] + (local // sx) % sy)
+                * dims[2] + a[tri, 2] + local // (sx * sy))
+        code = np.full(int(np.prod(dims)), -1, np.int64)
+        code[flat] = plane[tri]
+        mixed = flat[code[flat] != plane[tri]]
+        code[mixed] = -2
+        self.fine = code.reshape(tuple(dims))
+        self.fine_origin, self.fine_side, self.fine_dims = origin, side, dims
+
+    def _clear_of(self, o: int) -> np.ndarray:
+        """The fine grid's cells whose neighbourhood (every cell a disc of radius cell,
+        centred in the cell, can reach, plus one for the rays' lifted ends) holds
+        triangles of orientation o alone, or none."""
+        got = self._clear.get(o)
+        if got is None:
+            from scipy.ndimage import maximum_filter
+            other = ((self.fine != -1) & (self.fine != o)).astype(np.uint8)
+            reach = FINE_DIVISIONS + 1
+            got = self._clear[o] = maximum_filter(other, size=2 * reach + 1,
+                                                  mode="constant") == 0
+        return got
+
+    def free(self, p, reach, n=None) -> np.ndarray:
         """(M,) bool: the points p (M,3) whose discs (radius <= reach (M,)) meet no
         occluder (class docstring); all False without a grid or for a disc wider than a
-        cell."""
+        cell. n: (M,3) the points' unit normals, or None: also free are the points whose
+        disc meets only triangles parallel to their own plane (the fine grid, _fine),
+        which cannot cross the visibility rays, that follow the plane a ray offset
+        above it (the same reasoning as the class docstring's, without needing the
+        point's own surface in each cell the rays cross); at most
+        FINE_ORIENTATIONS_MAX orientations, the commonest among the points."""
         p = np.asarray(p, np.float64)
         out = np.zeros(len(p), bool)
         if self.busy is None or not len(p):
             return out
+        reach = np.broadcast_to(np.asarray(reach, np.float64), (len(p),))
         c = np.floor((p - self.origin) / self.cell).astype(np.int64)
-        inside = np.all((c >= 0) & (c < self.dims), axis=1) & (np.asarray(reach) <= self.cell)
+        inside = np.all((c >= 0) & (c < self.dims), axis=1) & (reach <= self.cell)
         ci = c[inside]
         out[inside] = ~self.busy[ci[:, 0], ci[:, 1], ci[:, 2]]
+        if n is None or self.fine is None:
+            return out
+        f = np.floor((p - self.fine_origin) / self.fine_side).astype(np.int64)
+        ask = (~out & (reach <= self.cell)
+               & np.all((f >= 0) & (f < self.fine_dims), axis=1))
+        if not ask.any():
+            return out
+        rows = np.flatnonzero(ask)
+        rk = _orientation_keys(np.asarray(n)[rows])
+        # The rows' orientations that some triangle has (index into keys, else -1).
+        both, ri = np.unique(rk, axis=0, return_inverse=True)
+        ri = ri.reshape(-1)
+        cmp = np.all(self.keys[None, :, :] == both[:, None, :], axis=2)
+        o_of = np.where(cmp.any(axis=1), np.argmax(cmp, axis=1), -1)[ri]
+        found = o_of >= 0
+        if not found.any():
+            return out
+        common = np.bincount(o_of[found]).argsort()[::-1][:FINE_ORIENTATIONS_MAX]
+        for o in common:
+            here = rows[o_of == o]
+            if not len(here):
+                continue
+            fi = f[here]
+            out[here] = self._clear_of(int(o))[fi[:, 0], fi[:, 1], fi[:, 2]]
         return out
 
 
@@ -228,7 +313,7 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None):
     todo = np.arange(m, dtype=np.int64)
     if geo is not None:
         reach_rows = np.maximum(radius, floor) if len(floor) else np.full(m, float(radius))
-        todo = todo[~one_surface_cells(geo, radius).free(p, reach_rows)]
+        todo = todo[~one_surface_cells(geo, radius).free(p, reach_rows, n)]
     for a in range(0, len(todo), BLOCK_ROWS):
         rows = todo[a:a + BLOCK_ROWS]
         size = len(rows) * cap
@@ -266,28 +351,37 @@ def visible_irradiance(E, pmap, accel, p, n, lift, radius, k, min_photons, estim
     cache = chaincounts.map_cache(pmap) if counts is not None else None
     use_counts = (counts is not None and limits is not None
                   and getattr(pmap.photons, "bounces", None) is not None)
+    # Each row's hidden photons ascending (the estimate kernel bisects them).
+    order = np.lexsort((photons, rows))
+    rows, photons = rows[order], photons[order]
     starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
-    ends = np.r_[starts[1:], len(rows)]
-    # One working mask per count class (all photons without counts), its row's hidden
-    # photons cleared for the call and restored after: no map-sized array a row.
-    work = {}
-    for a, b in zip(starts, ends):
-        i = int(rows[a])
-        key = tuple(int(x) for x in counts[i]) if use_counts else None
-        got = work.get(key)
-        if got is None:
-            base = (chaincounts._usable(pmap.photons, limits, key, cache) if use_counts
-                    else np.ones(len(pmap.photons), np.bool_))
-            got = work[key] = (base, base.copy())
-        base, mask = got
-        hidden = photons[a:b]
-        mask[hidden] = False
+    hiding = rows[starts]
+    # One estimate call per count class (all rows one class without counts): its mask of
+    # usable photons, each row's hidden photons left out for that row alone (the bits of
+    # one call a row with them cleared: PhotonMap.irradiance's hidden).
+    if use_counts:
+        _, cls = np.unique(np.asarray(counts)[hiding], axis=0, return_inverse=True)
+        cls = cls.reshape(-1)
+    else:
+        cls = np.zeros(len(hiding), np.int64)
+    count = np.diff(np.r_[starts, len(rows)])
+    floor = None if r_floor is None else np.broadcast_to(r_floor, (len(p),))
+    for c in np.unique(cls):
+        pick = np.flatnonzero(cls == c)
+        sel = hiding[pick]
+        key = tuple(int(x) for x in counts[sel[0]]) if use_counts else None
+        base = (chaincounts._usable(pmap.photons, limits, key, cache) if use_counts
+                else np.ones(len(pmap.photons), np.bool_))
+        # The picked rows' hidden photons, in their order (CSR by row).
+        n_of = count[pick]
+        sub_starts = np.r_[0, np.cumsum(n_of)].astype(np.int64)
+        take = (np.repeat(starts[pick] - sub_starts[:-1], n_of)
+                + np.arange(sub_starts[-1], dtype=np.int64))
         _, masked = pmap.irradiance(
-            p[i:i + 1], n[i:i + 1], radius, k, min_photons, estimator,
-            r_floor=None if r_floor is None else np.broadcast_to(r_floor, (len(p),))[i:i + 1],
-            masks=mask[None])
-        mask[hidden] = base[hidden]
-        E[i] = masked[0, 0]
+            p[sel], n[sel], radius, k, min_photons, estimator,
+            r_floor=None if floor is None else floor[sel], masks=base[None],
+            hidden=(sub_starts, photons[take]))
+        E[sel] = masked[0]
     return E
 
 

@@ -127,3 +127,66 @@ def test_one_surface_cells_skip_only_rows_with_nothing_to_hide():
     rows, _ = hidden_photons(pmap, ctx.accel, p, n, None, radius, 64)
     assert len(rows) > 0                    # the rim's rows do hide photons
     assert not np.intersect1d(rows, np.flatnonzero(free)).size
+
+
+def test_visible_irradiance_one_call_matches_a_call_a_row():
+    """visible_irradiance re-estimates every row that hides a photon in one estimate call
+    (PhotonMap.irradiance's hidden: each row's hidden photons left out for that row alone):
+    the same bits as the per-row calls it replaced (a86e7af: one pmap.irradiance a row, its
+    hidden photons cleared from the mask), with and without a footprint floor; rows that
+    hide nothing keep the unmasked estimate."""
+    from engine.photonmap import PhotonMap
+    from engine.photonvisibility import hidden_photons, visible_irradiance
+    ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
+    pmap = PhotonMap(shoot_photons(ctx, {})[-1])
+    radius, k = 0.19, 64
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-0.6, 0.6, 300)
+    z = rng.uniform(1.0, 2.1, 300)
+    p = np.column_stack([x, np.full(300, 2.0), z]) - ctx.geo.offset
+    n = np.tile([0.0, -1.0, 0.0], (300, 1))
+    for r_floor in (None, rng.uniform(0.0, 0.3, 300)):
+        E = pmap.irradiance(p, n, radius, k, 1, "knn_simpson", r_floor=r_floor)
+        got = visible_irradiance(E.copy(), pmap, ctx.accel, p, n, None, radius, k, 1,
+                                 "knn_simpson", r_floor=r_floor, geo=ctx.geo)
+        rows, photons = hidden_photons(pmap, ctx.accel, p, n, None, radius, k, r_floor,
+                                       geo=ctx.geo)
+        assert len(np.unique(rows)) > 10
+        want = E.copy()
+        for i in np.unique(rows):
+            mask = np.ones(len(pmap.photons), np.bool_)
+            mask[photons[rows == i]] = False
+            _, masked = pmap.irradiance(
+                p[i:i + 1], n[i:i + 1], radius, k, 1, "knn_simpson",
+                r_floor=None if r_floor is None else r_floor[i:i + 1], masks=mask[None])
+            want[i] = masked[0, 0]
+        assert np.array_equal(got, want)
+        assert not np.array_equal(got, E)  # the hidden photons did count before
+
+
+def test_own_orientation_pretest_keeps_every_hidden_photon():
+    """The pre-test with the points' normals (OneSurfaceCells.free's fine grid: a disc that
+    meets only triangles parallel to its point's plane) frees more rows than the coarse one,
+    and hidden_photons with it finds exactly the pairs it finds tracing every row: points
+    on the floor and the wall, near the wall's foot and the shade's rim and far from them."""
+    from engine.photonmap import PhotonMap
+    from engine.photonvisibility import hidden_photons, one_surface_cells
+    ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
+    pmap = PhotonMap(shoot_photons(ctx, {})[-1])
+    radius, k = 0.19, 64
+    rng = np.random.default_rng(7)
+    wall = np.column_stack([rng.uniform(-1.9, 1.9, 300), np.full(300, 2.0),
+                            rng.uniform(0.01, 2.6, 300)])
+    floor = np.column_stack([rng.uniform(-1.9, 1.9, 300), rng.uniform(0.2, 1.99, 300),
+                             np.zeros(300)])
+    p = np.concatenate([wall, floor]) - ctx.geo.offset
+    n = np.concatenate([np.tile([0.0, -1.0, 0.0], (300, 1)), np.tile([0.0, 0.0, 1.0], (300, 1))])
+    cells = one_surface_cells(ctx.geo, radius)
+    coarse = cells.free(p, np.full(600, radius))
+    fine = cells.free(p, np.full(600, radius), n)
+    assert (fine >= coarse).all() and fine.sum() > coarse.sum()
+    every = hidden_photons(pmap, ctx.accel, p, n, None, radius, k)
+    tested = hidden_photons(pmap, ctx.accel, p, n, None, radius, k, geo=ctx.geo)
+    assert len(every[0]) > 0
+    for a, b in zip(every, tested):
+        assert np.array_equal(a, b)
