@@ -320,6 +320,10 @@ def ratio(name, path, base_root=None, repeat=3):
                                 mk))
             pts.append(p64[s])
             nrm.append(n64[s])
+    # The photon-visibility pass's masked re-estimates (one Python call per few rows,
+    # photonvisibility.visible_irradiance) are filed under "caustic" too; the precomputed
+    # path cannot serve them: "dense, unmasked" leaves them out.
+    dense_unmasked = [c for c in dense_calls if c[7] is None]
     est_of = {calls[0][4]}
     print(f"{name}: caustic map {len(ph):,} photons, radius {radius:.4f} m, "
           f"k = {calls[0][2]}, estimator {', '.join(est_of)}")
@@ -332,6 +336,7 @@ def ratio(name, path, base_root=None, repeat=3):
     for label in kernels:  # interleaved per set
         est[("all", label)] = rows_ns(calls, label)
         est[("dense", label)] = rows_ns(dense_calls, label)
+        est[("dense, unmasked", label)] = rows_ns(dense_unmasked, label)
     # The same calls through the precomputed estimates (settings.caustic_lookup =
     # "precomputed", engine/causticcache.py): their precompute once, then lookups.
     from engine import causticcache
@@ -358,6 +363,7 @@ def ratio(name, path, base_root=None, repeat=3):
         return best / sum(len(c[0]) for c in cs) * 1e9
     est[("all", "precomputed")] = lookup_ns(calls)
     est[("dense", "precomputed")] = lookup_ns(dense_calls)
+    est[("dense, unmasked", "precomputed")] = lookup_ns(dense_unmasked)
     pm.lookup = "knn"
     # One Embree traversal of the scene the estimates were made in: Embree's own one-ray
     # traversal (raw embreex run(), rtcIntersect1 / rtcOccluded1 per ray, as
@@ -395,12 +401,13 @@ def ratio(name, path, base_root=None, repeat=3):
                lambda: emb.run(ob32, d32, dists=far.copy(), output=True))}
     ctx.accel.close()
     ref = ray["closest hit, from the dense rows' points"]
-    rows_all = sum(len(c[0]) for c in calls)
-    rows_dense = sum(len(c[0]) for c in dense_calls)
+    n_rows_of = {"all": sum(len(c[0]) for c in calls),
+                 "dense": sum(len(c[0]) for c in dense_calls),
+                 "dense, unmasked": sum(len(c[0]) for c in dense_unmasked)}
     print("| work | rows / rays | CPU ns each | in one-ray closest-hit traversals |")
     print("|---|---:|---:|---:|")
     for (which, label), ns in est.items():
-        n_rows = rows_all if which == "all" else rows_dense
+        n_rows = n_rows_of[which]
         print(f"| caustic estimates, {which} ({label}) | {n_rows:,} | {ns:.0f} | "
               f"{ns / ref:.1f} |")
     for what, ns in ray.items():

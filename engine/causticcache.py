@@ -8,12 +8,24 @@ Caustic lookups at the camera hits (~1.3M on Figure 8) far outnumber caustic pho
 (~175k), so the precompute pays for itself; a lookup costs a fraction of a k-NN row.
 
 What the k-NN rows guarantee, kept:
-- No bias on flat regions. An estimate taken *at* a photon holds that photon at d = 0 with
-  the kernel's largest weight (3 / (pi rk^2), Simpson and cone alike): +3/k (4.7 % at
-  k = 64) on a uniform caustic. Its own term is subtracted: the other k - 2 photons inside
-  rk (the k-th sits on the disc's rim, weight 0) are uniform in a disc whose radius is the
-  (k - 1)-th other photon's distance, and (m - 1) / (pi r_m^2) with m = k - 1 is the
-  unbiased k-NN density (of a Poisson process seen from one of its points: Palm).
+- No bias on flat regions. An estimate taken *at* photon j holds j itself at d = 0 with
+  the kernel's largest weight (3 / (pi rk^2), Simpson and cone alike): +3/(k - 2) on a
+  uniform caustic. But a lookup reads the photon *nearest* its point x, and the disc
+  B(x, d) around x, d = |x - x_j|, holds no photon: j's estimate misses B's share of its
+  kernel (Voronoi selection: photons with large empty cells are read more often). For a
+  Poisson (uniform) caustic both are exact (own_term_removed): with beta = d^2 / rk^2
+  ~ Beta(1, k - 1) and T = lambda pi rk^2 ~ Gamma(k) independent (the empty disc and the
+  (k - 1)-th other photon's ring are disjoint regions), j's other k - 2 photons inside rk
+  are uniform on its disc minus B, so E[lookup] / lambda = (w + (k - 2) J) / (k - 1),
+  J = E[(1 - I(beta)) / (1 - beta)], I = the kernel's mass inside B. To first order the
+  own term and the empty disc cancel (+3/k, -3/k); the rest (+0.42 % at k = 64, +6 % at
+  k = 16, the kernel's curvature across B) is removed by giving j the weight
+  w = (k - 1) - (k - 2) J instead of 3 (k = 64: the model's mean against a direct
+  Poisson simulation within 0.02 %, tests/test_causticcache.py). The ACCEPT cut below
+  selects rows too (the rows it sends to the k-NN row sit in sparser spots than their
+  photon's disc: -4 % at k = 16); it rejects (1 - ACCEPT^2)^(k - 1) of a uniform
+  caustic's rows, so the lookup is used only where that is below 1 % (k >= MIN_K, 50 at
+  ACCEPT = 0.3): k = 64 rejects 0.26 %.
 - Sharp edges: the nearest photon is accepted only within ACCEPT x its own rk (the
   nearest-photon distance on a uniform disc of k = 64 exceeds 0.3 rk with probability
   exp(-64 x 0.09) = 0.3 %); farther queries (outside a caustic's rim, sparse regions) take
@@ -39,14 +51,58 @@ from .jit import kernel
 from .parallel import ordered_map
 
 ACCEPT = 0.3  # a lookup reads the nearest photon's estimate within ACCEPT x its rk
+# The smallest k whose uniform-caustic rows the ACCEPT cut sends to the k-NN row less than
+# 1 % of the time ((1 - ACCEPT^2)^(k - 1) < 0.01): below it the cut's own selection biases.
+MIN_K = 1 + math.ceil(math.log(0.01) / math.log(1 - ACCEPT * ACCEPT))
 NORMAL_AGREEMENT = 0.5  # photonmap.NORMAL_AGREEMENT: the same "same surface" test
 MIN_RADIUS_FRACTION = 0.01  # photonmap.MIN_RADIUS_FRACTION: rk's floor (a focus)
 PRE_ROWS = 1 << 15  # photons per precompute job
 LIST_CAP = 512  # photons a precompute sphere lists (photonmap.CAND_CAP)
 BYTES_PER_PHOTON = 16
-OWN_TERM = 0.17
 
 _lock = threading.Lock()  # one precompute per map and parameters, whichever thread asks
+
+
+def _kernel_mass_in_empty_disc(beta, estimator):
+    """I(beta): the mass of the unit-radius estimate kernel (knn_simpson: 3/pi (1 - rho^2)^2,
+    knn_cone: 3/pi (1 - rho)) inside the disc of radius s = sqrt(beta) centred at distance s
+    from the kernel's centre (a lookup's empty disc B, its edge through the photon).
+    beta: (M,) floats in [0, 1/4] (B inside the kernel's support). Simpson in closed form
+    (the moments of a disc: (1 - beta)^3 - (1 - 2 beta)^3 + 3 beta^3); the cone by a
+    Gauss-Legendre product rule over B in polar coordinates about its centre."""
+    beta = np.asarray(beta, np.float64)
+    if estimator == "knn_simpson":
+        return (1 - beta) ** 3 - (1 - 2 * beta) ** 3 + 3 * beta ** 3
+    s = np.sqrt(beta)[:, None, None]
+    u, wu = np.polynomial.legendre.leggauss(24)
+    t = 0.5 * (u + 1)  # radius fraction in B
+    th = np.pi * (u + 1)  # angle about B's centre
+    rho = np.sqrt((s + s * t[None, :, None] * np.cos(th)[None, None, :]) ** 2
+                  + (s * t[None, :, None] * np.sin(th)[None, None, :]) ** 2)
+    f = 3 / np.pi * np.clip(1 - rho, 0, None)
+    # dA = (s t) (s dt) dtheta; dt = du / 2, dtheta = pi du
+    return (f * (s * s * t[None, :, None]) * (0.5 * wu)[None, :, None]
+            * (np.pi * wu)[None, None, :]).sum(axis=(1, 2))
+
+
+def own_term_removed(k: int, estimator: str) -> float:
+    """The fraction f of a photon's own kernel term (3 / (pi rk^2) x its power) removed
+    from its stored estimate so that a lookup (the nearest photon's estimate) has the k-NN
+    rows' mean on a uniform (Poisson) caustic: its own weight w = (k - 1) - (k - 2) J,
+    f = (3 - w) / 3 (module docstring; J by quadrature over beta ~ Beta(1, k - 1) on
+    [0, 1/4], where the empty disc lies inside the kernel: beyond it a mass of (3/4)^(k-1),
+    1e-8 at k = 64). k >= 3; f -> 0 as k grows (knn_simpson: k = 64 0.089, 256 0.023;
+    knn_cone: k = 64 0.19)."""
+    if k < 3:
+        return 0.0
+    b_max = 0.25
+    u, wu = np.polynomial.legendre.leggauss(64)
+    beta = 0.5 * b_max * (u + 1)
+    pdf = (k - 1) * (1 - beta) ** (k - 2) * 0.5 * b_max * wu
+    j = (pdf * (1 - _kernel_mass_in_empty_disc(beta, estimator)) / (1 - beta)).sum() \
+        / pdf.sum()
+    w = (k - 1) - (k - 2) * j
+    return float((3.0 - w) / 3.0)
 
 
 @kernel
@@ -113,7 +169,8 @@ class PrecomputedIrradiance:
         keep = ~bnd & (r >= r_min) & (E.sum(axis=1) > 0)
         r = np.where(keep, r, 1.0)
         own = 3.0 / (math.pi * r * r)[:, None] \
-            * np.take(ph.power, rows, axis=0).astype(np.float64) * OWN_TERM
+            * np.take(ph.power, rows, axis=0).astype(np.float64) \
+            * own_term_removed(k, estimator)
         self.E = np.zeros((m, 3), np.float32)
         self.E[rows] = np.where(keep[:, None], E - own, 0.0)
         self.rk = np.zeros(m, np.float32)
@@ -218,7 +275,11 @@ def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, r2_min,
 def lookup(pmap, p, n, radius, k, min_photons, estimator, return_boundary, r_floor,
            should_cancel):
     """pmap.irradiance's answer through pmap's precomputed estimates for these parameters,
-    made on first use (under a lock: render threads share the map)."""
+    made on first use (under a lock: render threads share the map). k < MIN_K: the k-NN
+    rows (module docstring)."""
+    if k < MIN_K:
+        return pmap.knn_irradiance(p, n, radius, k, min_photons, estimator, return_boundary,
+                                   r_floor, should_cancel)
     key = (float(radius), int(k), int(min_photons), estimator)
     cache = pmap.precomputed
     pre = cache.get(key)
