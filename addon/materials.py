@@ -455,8 +455,12 @@ class MaterialConverter:
                 c.emission_texture = etex  # per hit (None: a constant colour)
             for name in ("Subsurface Weight",):
                 if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
+                    # Said with what renders instead: the user decides whether the look
+                    # (no light spreading under the skin) is close enough.
                     self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
-                               "is not supported and ignored")
+                               "is not supported: rendered as a diffuse surface of its Base "
+                               "Color (no light spreads beneath the surface, as Cycles' "
+                               "subsurface scattering does)")
             self._anisotropy(node, c, "Anisotropic", "Anisotropic Rotation")
             if c.coat_weight > 0 and "Coat Normal" in inp and inp["Coat Normal"].is_linked:
                 self._warn(f"material '{self._mat.name}': 'Coat Normal' of node "

@@ -945,6 +945,17 @@ class Camera:
         return half * aspect, half
 
 
+def _used_by(names, shown: int = 3) -> str:
+    """' (used by 'A', 'B', 'C' and 2 more)' for a material warning; '' for no user."""
+    names = list(names)
+    if not names:
+        return ""
+    text = ", ".join(f"'{n}'" for n in names[:shown])
+    if len(names) > shown:
+        text += f" and {len(names) - shown} more"
+    return f" (used by {text})"
+
+
 @dataclass
 class Scene:
     """All scene content. Build with the add_* methods (see engine.api for the paper's
@@ -976,9 +987,14 @@ class Scene:
         return light
 
     def all_warnings(self) -> list[str]:
+        """Every warning of the scene, its materials, meshes and lights, each once. A
+        material's warnings end with the meshes that use it (a user looks for objects,
+        not materials: "... (used by 'Suzanne', 'Cube')"), at most three named."""
         out = list(self.warnings)
+        users = self._material_users() if any(
+            m.warnings for m in self.materials.values()) else {}
         for m in self.materials.values():
-            out += m.warnings
+            out += [w + _used_by(users.get(m.name, ())) for w in m.warnings]
         for m in self.meshes:
             out += m.warnings
         for light in self.lights:
@@ -989,6 +1005,14 @@ class Scene:
                 seen.add(w)
                 unique.append(w)
         return unique
+
+    def _material_users(self) -> dict[str, list[str]]:
+        """Material name -> names of the meshes whose slots hold it (scene order)."""
+        users: dict[str, list[str]] = {}
+        for mesh in self.meshes:
+            for name in dict.fromkeys(mesh.materials):
+                users.setdefault(name, []).append(mesh.name)
+        return users
 
     def validate(self) -> None:
         """Raise SceneError for what cannot render; warn (scene.warnings) for the rest."""

@@ -374,3 +374,29 @@ def test_light_node_blackbody_is_the_light_temperature(fresh_scene, bpy_addon):
     tinted, w2 = _bulb_colour(bpy, lambda L: node(L, 2.0, (1.0, 0.5, 0.25)))
     np.testing.assert_allclose(tinted, [2.0, 1.0, 0.5], rtol=1e-6)
     assert not w2
+
+
+def test_subsurface_warning_says_what_renders_and_names_the_object(fresh_scene, bpy_addon):
+    """A Principled with Subsurface Weight (a skin, a candle): the warning says what is
+    rendered instead and names the object that uses the material (s24 new user)."""
+    bpy = bpy_addon
+    obj = _cube(bpy, "Candle", (0, 0, 0))
+    mat = bpy.data.materials.new("Wax")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    mat.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
+    obj.data.materials.append(mat)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.location = (0, -6, 0)
+    cam.rotation_euler = (math.pi / 2, 0, 0)
+    fresh_scene.collection.objects.link(cam)
+    fresh_scene.camera = cam
+    from addon import export
+    from addon.core import load_engine
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=16, height=12)
+    hits = [w for w in out.all_warnings() if "Subsurface Weight" in w]
+    assert len(hits) == 1, out.all_warnings()
+    assert hits[0].startswith("material 'Wax': 'Subsurface Weight'")
+    assert "rendered as a diffuse surface of its Base Color" in hits[0]
+    assert hits[0].endswith("(used by 'Candle')")
