@@ -83,7 +83,7 @@ import time  # noqa: E402
 from engine.cli import CancelOnInterrupt  # noqa: E402
 from engine.console import BarConsole  # noqa: E402
 from engine.imageio import check_writable, replacing, say_created  # noqa: E402
-from engine.jit import COMPILE_MESSAGE  # noqa: E402
+from engine.jit import is_compile_text  # noqa: E402
 
 INTERRUPT_MESSAGE = "\ninterrupt: cancelling (Ctrl-C again to stop at once)"
 
@@ -175,14 +175,16 @@ class _StatusPrinter:
         if event in ("stats", "progress") and self.interrupt is not None:
             # The compile polls nothing for a minute and has nothing to keep: Ctrl-C then
             # stops at once (engine.cli.CancelOnInterrupt.at_once).
-            self.interrupt.at_once = (event == "stats"
-                                      and str(value).startswith(COMPILE_MESSAGE))
+            self.interrupt.at_once = event == "stats" and is_compile_text(value)
         if event in ("stats", "progress") and not self.quiet:
             self._ensure_bar()
             with self.console.drawing() as bar:
                 if event == "stats":
                     text = str(value)
-                    if text.startswith(COMPILE_MESSAGE):
+                    compiling = is_compile_text(text)
+                    # The bar's clock moves through a compile step that reports nothing.
+                    self.console.keep_alive(compiling)
+                    if compiling:
                         self.eta.restart()
                     if text.startswith("Done: "):
                         # The bar's description column (46 characters) cut this summary

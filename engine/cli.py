@@ -576,6 +576,7 @@ def _render(args) -> int:
     def progress(stage, fraction, text):
         where["stage"], where["fraction"] = stage, fraction
         interrupt.at_once = stage == "compile"  # polls nothing for a minute
+        console.keep_alive(stage == "compile")  # the bar's clock moves through it
         if stage == "compile":
             eta.restart()
         whole = _whole_fraction(stage, fraction, settings.uses_photon_maps)

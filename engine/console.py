@@ -83,8 +83,30 @@ class BarConsole:
                 bar.refresh()
                 self._drawn = True
 
+    def keep_alive(self, on: bool, interval: float = 1.0) -> None:
+        """While on, a daemon thread redraws the bar every `interval` seconds, so its
+        clock moves through a long step that reports nothing (the kernel compile: one
+        module can take minutes on a busy machine). Idempotent; close() stops it."""
+        with self.lock:
+            ticker = getattr(self, "_ticker", None)
+            if on and ticker is None:
+                stop = threading.Event()
+
+                def tick():
+                    while not stop.wait(interval):
+                        with self.drawing() as bar:
+                            if bar is not None:
+                                bar.refresh()
+                thread = threading.Thread(target=tick, daemon=True, name="bar keep-alive")
+                self._ticker = (stop, thread)
+                thread.start()
+            elif not on and ticker is not None:
+                self._ticker = None
+                ticker[0].set()
+
     def close(self) -> None:
         """Close the bar (tqdm ends its line); later lines print as usual."""
+        self.keep_alive(False)
         with self.lock:
             if self._bar is not None:
                 self._bar.close()

@@ -24,6 +24,15 @@ import tempfile
 import time
 
 COMPILE_MESSAGE = "Compiling render kernels (first render only)"
+# The count after each kernel module, short enough for the CLI's and the batch's bar
+# (42 / 46 characters of description: the long message's count was cut off there, and a
+# new user watched "Compiling render kernels (first render only): 0%" for an hour).
+COMPILE_PROGRESS = "Compiling kernels {}/{}, first render only"
+
+
+def is_compile_text(text) -> bool:
+    """True for the stats texts of the kernel compile (COMPILE_MESSAGE, COMPILE_PROGRESS)."""
+    return str(text).startswith((COMPILE_MESSAGE, "Compiling kernels "))
 
 
 def _user_cache_dir() -> str:
@@ -194,9 +203,10 @@ def needs_compile() -> bool:
 def ensure_compiled(progress=None) -> float:
     """Compile (first run on this machine) or load (later processes) every kernel, once
     per process. progress(stage, fraction, text) hears COMPILE_MESSAGE before a compile
-    starts, so the user knows why the first render pauses, and then
-    "COMPILE_MESSAGE: i/n kernel modules" after each module (a compile takes minutes on a
-    busy machine: the bar and its clock move). Returns the seconds spent."""
+    starts, so the user knows why the first render pauses, and then COMPILE_PROGRESS
+    ("Compiling kernels i/n, first render only") after each module (a compile takes
+    minutes on a busy machine: the count moves; the bars also redraw their clock while it
+    runs, engine/console.py keep_alive). Returns the seconds spent."""
     global _warm
     if _warm:
         return 0.0
@@ -208,7 +218,7 @@ def ensure_compiled(progress=None) -> float:
         fn()
         if compiling and progress is not None:
             progress("compile", (i + 1) / len(_warm_ups),
-                     f"{COMPILE_MESSAGE}: {i + 1}/{len(_warm_ups)} kernel modules")
+                     COMPILE_PROGRESS.format(i + 1, len(_warm_ups)))
     _warm = True
     if compiling:
         try:

@@ -130,3 +130,29 @@ def test_an_animations_later_frame_repeats_no_unchanged_effect_report():
     changed = _frame_report(report, ["caustics: off - nothing focuses light"])
     assert "caustics: off - nothing focuses light" in changed
     assert "previous frame" not in changed
+
+
+def test_the_bar_redraws_its_clock_through_the_kernel_compile():
+    """newuser24 watched "Compiling render kernels (first render only): 0%" for an hour:
+    the module count was cut off by the bar's 46 characters and nothing redrew the bar
+    between two modules. The count's text fits, and the bar redraws every second while
+    the compile runs, and stops when the next step reports."""
+    import time
+
+    from engine.jit import COMPILE_MESSAGE, COMPILE_PROGRESS
+    assert len(COMPILE_PROGRESS.format(14, 14)) <= 42
+    shared = _Terminal()
+    printer = batch._StatusPrinter(stream=shared, out=shared)
+    printer("stats", COMPILE_MESSAGE)
+    printer("stats", COMPILE_PROGRESS.format(1, 14))
+    before = shared.getvalue().count("\r")
+    time.sleep(2.5)
+    during = shared.getvalue().count("\r")
+    assert during >= before + 2, (before, during)
+    assert "Compiling kernels 1/14, first render only" in shared.getvalue()
+    printer("stats", "Exporting 1/4 objects")
+    settled = shared.getvalue().count("\r")
+    time.sleep(1.5)
+    assert shared.getvalue().count("\r") == settled
+    printer("finished", "done")
+    printer.close()
