@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from .closures import principled as pr
-from .closures import tables
+from .closures import ggx, tables
 from .closures.fresnel import F0_from_ior, schlick_remap
 from .geometry import CAMERA, DIFFUSE, GLOSSY, SHADOW, TRANSMISSION, ALL_RAYS
 from .jit import kernel, register_warm_up
@@ -408,17 +408,23 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     return _scatter(*args, flat_mat, flat_limit, aniso_tan)
 
 
-@kernel
-def _lookup3_x0(tab, y, z):
-    """tables.lookup3(tab, 0, y, z), the same bits: tables.lookup3_at with x's cell (0, 0)
-    (roughness 0), which skips the upper x plane's four +-0 terms."""
-    k, fz = tables._coord(z, tab.shape[2])
-    return tables.lookup3_at(tab, 0.0, 0.0, y, float(k), fz)
+# smooth_glass's per-(material, side) constants (smooth_glass_consts), columns of a row:
+_SG_SET = 0      # 1: the row is filled
+_SG_ETA = 1      # eta = ior outside, 1 / ior inside
+_SG_F0 = 2       # F0_from_ior(ior)
+_SG_X0 = 3       # 1: rough <= 0, the glass tables read at x = 0 from the columns below
+_SG_EAVG = 4     # GLASS_EAVG / GLASS_INV_EAVG at z (rough <= 0)
+_SG_KE = 5       # the E table's z cell (tables._coord: index as a float, fraction)
+_SG_FZE = 6
+_SG_KS = 7       # SCHLICK_IOR_S's z cell
+_SG_FZS = 8
+SG_N = 9
 
 
 @kernel
 def _lookup2_x0(tab, y):
-    """tables.lookup2(tab, 0, y), the same bits (a x 1 + b x 0 is a: _lookup3_x0)."""
+    """tables.lookup2(tab, 0, y), the same bits (a x 1 + b x 0 is a: lookup3_at at x's
+    cell (0, 0))."""
     if tab.shape[0] == 1:
         return tab[0, 0]
     j, fy = tables._coord(y, tab.shape[1])
@@ -426,22 +432,46 @@ def _lookup2_x0(tab, y):
 
 
 @kernel
-def _glass_tables(rough, mu, eta, ior):
+def smooth_glass_consts(params, m, front, sg, r):
+    """Fill row r of sg (R, SG_N) with smooth_glass's terms of material row m on one side
+    (front: arrived outside) that no hit changes: eta, F0, and at roughness <= 0 the glass
+    tables' z cells and their average albedo (tables.lookup3(tab, 0, y, z) =
+    tables.lookup3_at(tab, 0, 0, y, k, fz) with (k, fz) = tables._coord(z): the same
+    operations on the same values as per hit, so the same bits)."""
+    rough = params[m, pr.M_ROUGH]
+    ior = max(params[m, pr.M_IOR], 1e-5)
+    eta = ior if front else 1.0 / ior
+    sg[r, _SG_ETA] = eta
+    sg[r, _SG_F0] = F0_from_ior(ior)
+    sg[r, _SG_X0] = 0.0 if rough > 0.0 else 1.0  # as setup's `rough > 0` test
+    if sg[r, _SG_X0] != 0.0:
+        if eta < 1.0:
+            z = tables.z_from_ior(1.0 / eta)
+            k, fz = tables._coord(z, tables.GLASS_INV_E.shape[2])
+            sg[r, _SG_EAVG] = _lookup2_x0(tables.GLASS_INV_EAVG, z)
+        else:
+            z = tables.z_from_ior(eta)
+            k, fz = tables._coord(z, tables.GLASS_E.shape[2])
+            sg[r, _SG_EAVG] = _lookup2_x0(tables.GLASS_EAVG, z)
+        sg[r, _SG_KE], sg[r, _SG_FZE] = float(k), fz
+        k, fz = tables._coord(tables.z_from_ior(max(ior, 1.0)), tables.SCHLICK_IOR_S.shape[2])
+        sg[r, _SG_KS], sg[r, _SG_FZS] = float(k), fz
+    sg[r, _SG_SET] = 1.0
+
+
+@kernel
+def _glass_tables(rough, mu, eta, ior, sg, r):
     """(tables.glass_E(rough, mu, eta), tables.schlick_ior_s(rough, mu, ior)) as
     principled.setup reads them, the same bits; at rough <= 0 (a coordinate clamped to
-    the tables' first plane) through the x = 0 lookups."""
-    if rough > 0.0:
+    the tables' first plane) through x = 0 lookups at the z cells of sg[r]
+    (smooth_glass_consts)."""
+    if sg[r, _SG_X0] == 0.0:
         Eg, Eg_avg = tables.glass_E(rough, mu, eta)
         return Eg, Eg_avg, tables.schlick_ior_s(rough, mu, ior)
-    if eta < 1.0:
-        z = tables.z_from_ior(1.0 / eta)
-        Eg = _lookup3_x0(tables.GLASS_INV_E, mu, z)
-        Eg_avg = _lookup2_x0(tables.GLASS_INV_EAVG, z)
-    else:
-        z = tables.z_from_ior(eta)
-        Eg = _lookup3_x0(tables.GLASS_E, mu, z)
-        Eg_avg = _lookup2_x0(tables.GLASS_EAVG, z)
-    return Eg, Eg_avg, _lookup3_x0(tables.SCHLICK_IOR_S, mu, tables.z_from_ior(max(ior, 1.0)))
+    tab = tables.GLASS_INV_E if eta < 1.0 else tables.GLASS_E
+    Eg = tables.lookup3_at(tab, 0.0, 0.0, mu, sg[r, _SG_KE], sg[r, _SG_FZE])
+    s_out = tables.lookup3_at(tables.SCHLICK_IOR_S, 0.0, 0.0, mu, sg[r, _SG_KS], sg[r, _SG_FZS])
+    return Eg, sg[r, _SG_EAVG], s_out
 
 
 @kernel
@@ -452,7 +482,17 @@ def smooth_glass(params, m, a, base, j, cos_o, front, gprm, wj):
     Writes the pass, glass (reflection, transmission) and diffuse (0: transmission 1
     leaves the base nothing) weights to wj[L_*] (N_LOBES, 3), and the glass lobe's
     packed columns (P_GLASS_*, all _glass_sample reads) to gprm[0]. Glass tables are
-    read only where the energy compensation uses them (Multiscatter GGX)."""
+    read only where the energy compensation uses them (Multiscatter GGX). Returns the
+    real-Fresnel remap schlick_remap(mu, eta) where computed (eta < 1), else -1."""
+    sg = np.empty((1, SG_N))
+    smooth_glass_consts(params, m, front, sg, 0)
+    return smooth_glass_at(params, m, a, base, j, cos_o, gprm, wj, sg, 0)
+
+
+@kernel
+def smooth_glass_at(params, m, a, base, j, cos_o, gprm, wj, sg, r):
+    """smooth_glass with the material side's constants sg[r] (smooth_glass_consts) given:
+    scatter fills them once per (material, side) a call."""
     mu = min(max(cos_o, 0.0), 1.0)
     W = a * (1.0 + params[m, pr.M_ADD])
     for c in range(3):
@@ -462,12 +502,16 @@ def smooth_glass(params, m, a, base, j, cos_o, front, gprm, wj):
     node = params[m, pr.M_NODE]
     tr = params[m, pr.M_TRANS]
     ior = max(params[m, pr.M_IOR], 1e-5)
-    eta = ior if front else 1.0 / ior
+    eta = sg[r, _SG_ETA]
     Eg = Eg_avg = s_out = 0.0
     if multi != 0.0 or eta >= 1.0:
-        Eg, Eg_avg, s_out = _glass_tables(rough, mu, eta, ior)
-    F0g = F0_from_ior(ior)
-    s_n = s_out if eta >= 1.0 else schlick_remap(mu, eta)
+        Eg, Eg_avg, s_out = _glass_tables(rough, mu, eta, ior, sg, r)
+    F0g = sg[r, _SG_F0]
+    remap = -1.0
+    if eta >= 1.0:
+        s_n = s_out
+    else:
+        s_n = remap = schlick_remap(mu, eta)
     for c in range(3):
         if node == pr.NODE_GLASS:
             rt = tt = max(base[j, c], 0.0)
@@ -487,6 +531,54 @@ def smooth_glass(params, m, a, base, j, cos_o, front, gprm, wj):
     Wd = W * (1.0 - tr)
     for c in range(3):
         wj[pr.L_DIFFUSE, c] = Wd * base[j, c]
+    return remap
+
+
+@kernel
+def _smooth_glass_sample(gprm, ox, oy, oz, u3, mu, remap):
+    """principled._glass_sample(gprm, 0, ox, oy, oz, 0, 0, u3) of a smooth glass hit (its
+    microfacet normal is the shading normal, c = wo . n), the same operations on the same
+    values, so the same bits; except that the real-Fresnel remap schlick_remap(c, eta) is
+    remap where smooth_glass computed it for the same cosine (c == mu, remap >= 0)."""
+    if gprm[0, pr.P_GLASS_ALPHA] >= ggx.ALPHA_MIN:  # not smooth after all
+        return pr._glass_sample(gprm, 0, ox, oy, oz, 0.0, 0.0, u3)
+    eta = gprm[0, pr.P_GLASS_ETA]
+    hx, hy, hz = 0.0, 0.0, 1.0
+    c = ox * hx + oy * hy + oz * hz
+    if c <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
+    s = remap if (remap >= 0.0 and c == mu) else schlick_remap(c, eta)
+    F0 = pr._glass_F_s(gprm[0, pr.P_GLASS_F0], s)
+    F1 = pr._glass_F_s(gprm[0, pr.P_GLASS_F0 + 1], s)
+    F2 = pr._glass_F_s(gprm[0, pr.P_GLASS_F0 + 2], s)
+    r0 = gprm[0, pr.P_GLASS_RW] * F0
+    r1 = gprm[0, pr.P_GLASS_RW + 1] * F1
+    r2 = gprm[0, pr.P_GLASS_RW + 2] * F2
+    t0 = gprm[0, pr.P_GLASS_TW] * (1.0 - F0)
+    t1 = gprm[0, pr.P_GLASS_TW + 1] * (1.0 - F1)
+    t2 = gprm[0, pr.P_GLASS_TW + 2] * (1.0 - F2)
+    inv_eta = 1.0 / eta
+    s2 = inv_eta * inv_eta * (1.0 - c * c)
+    if s2 >= 1.0:  # total internal reflection
+        t0 = t1 = t2 = 0.0
+    sr = r0 + r1 + r2
+    st = t0 + t1 + t2
+    if sr + st <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, False
+    p_r = sr / (sr + st)
+    if u3 < p_r:
+        ix, iy, iz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
+        if iz <= 0.0:
+            return ix, iy, iz, 0.0, 0.0, 0.0, False
+        k = 1.0 / p_r
+        return ix, iy, iz, r0 * k, r1 * k, r2 * k, False
+    ct = math.sqrt(1.0 - s2)
+    kk = inv_eta * c - ct
+    ix, iy, iz = -inv_eta * ox + kk * hx, -inv_eta * oy + kk * hy, -inv_eta * oz + kk * hz
+    if iz >= 0.0:
+        return ix, iy, iz, 0.0, 0.0, 0.0, True
+    k = 1.0 / (1.0 - p_r)
+    return ix, iy, iz, t0 * k, t1 * k, t2 * k, True
 
 
 @kernel
@@ -589,6 +681,11 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     probs = np.empty(pr.N_LOBES)
     # A SMOOTH_GLASS hit's packed glass columns (smooth_glass; the others are not read).
     gprm = np.zeros((1, pr.N_PACK))
+    # smooth_glass's constants per (material, side), filled at a material side's first
+    # hit (most hits of a call share a few glass materials).
+    sg = np.zeros((2 * params.shape[0], SG_N))  # row 2 x material + arrived outside
+    sg_mu = 0.0
+    sg_remap = -1.0
     ns_ = 0
     nn = 0
     for b0 in range(0, nh, _BLOCK):
@@ -664,9 +761,13 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     wj[pr.L_DIFFUSE, c] = a * base_b[j, c]
             elif jc == -SMOOTH_GLASS:
                 # Its four lobes' weights (the others are 0 and not read), bit for bit.
-                smooth_glass(params, mat_b[j], alpha_b[j], base_b, j,
-                             -(ns_b[j, 0] * d[i, 0] + ns_b[j, 1] * d[i, 1]
-                               + ns_b[j, 2] * d[i, 2]), front_b[j], gprm, wj)
+                sgr = 2 * mat_b[j] + (1 if front_b[j] else 0)
+                if sg[sgr, _SG_SET] == 0.0:
+                    smooth_glass_consts(params, mat_b[j], front_b[j], sg, sgr)
+                cos_o = -(ns_b[j, 0] * d[i, 0] + ns_b[j, 1] * d[i, 1] + ns_b[j, 2] * d[i, 2])
+                sg_mu = min(max(cos_o, 0.0), 1.0)
+                sg_remap = smooth_glass_at(params, mat_b[j], alpha_b[j], base_b, j, cos_o,
+                                           gprm, wj, sg, sgr)
             else:
                 for l in range(pr.N_LOBES):
                     for c in range(3):
@@ -781,8 +882,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 if jc == -SMOOTH_GLASS:
                     # The glass lobe's own sampler; smooth, it reads only its third number
                     # (reflect or refract): the first two are not drawn.
-                    ix, iy, iz, k0, k1, k2, transmitted = pr._glass_sample(
-                        gprm, 0, lx, ly, lz, 0.0, 0.0, uniform(key, slot[i], bounce, 5))
+                    ix, iy, iz, k0, k1, k2, transmitted = _smooth_glass_sample(
+                        gprm, lx, ly, lz, uniform(key, slot[i], bounce, 5), sg_mu, sg_remap)
                 else:
                     ix, iy, iz, k0, k1, k2, transmitted = pr.sample_lobe(
                         prm, jc, lobe, lx, ly, lz, uniform(key, slot[i], bounce, 3),

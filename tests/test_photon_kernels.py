@@ -278,6 +278,50 @@ def test_smooth_glass_sets_up_as_principled_setup():
             assert not np.any(w[i, lobe])
 
 
+def test_smooth_glass_samples_as_principled_glass_sample():
+    """scatter's smooth glass sampler (photonkernels._smooth_glass_sample, given the
+    Fresnel remap smooth_glass returned for the hit's cosine) gives the direction,
+    weight and side of principled._glass_sample, bit for bit: the set-ups above, wo from
+    grazing to normal on both sides, reflect and refract, total internal reflection, and
+    a remap that does not belong to the cosine (recomputed: the same bits)."""
+    from engine.closures import principled as pr
+    rng = np.random.default_rng(22)
+    params = []
+    for node in (pr.NODE_GLASS, pr.NODE_PRINCIPLED):
+        for multi in (0.0, 1.0):
+            for ior in (1.0, 1.45, 2.4, 0.8):
+                q = np.zeros(pr.N_MAT)
+                q[pr.M_ALPHA] = q[pr.M_TRANS] = q[pr.M_SPEC] = 1.0
+                q[pr.M_IOR], q[pr.M_LEVEL], q[pr.M_MULTI], q[pr.M_NODE] = ior, 0.5, multi, node
+                q[pr.M_STINT:pr.M_STINT + 3] = (1.0, 0.8, 0.5)
+                q[pr.M_TTINT:pr.M_TTINT + 3] = (1.0, 0.9, 0.7)
+                params.append(q)
+    params = np.array(params)
+    base = rng.random((1, 3))
+    gprm = np.zeros((1, pr.N_PACK))
+    wj = np.zeros((pr.N_LOBES, 3))
+    seen = set()
+    for k in range(6000):
+        m = int(rng.integers(0, len(params)))
+        front = bool(rng.random() < 0.5)
+        z = (1e-6, 1.0, 0.05)[k] if k < 3 else rng.random()
+        phi = 2 * np.pi * rng.random()
+        r = np.sqrt(max(0.0, 1.0 - z * z))
+        ox, oy, oz = r * np.cos(phi), r * np.sin(phi), z
+        remap = pk.smooth_glass(params, m, 1.0, base, 0, oz, front, gprm, wj)
+        mu = min(max(oz, 0.0), 1.0)
+        u3 = rng.random()
+        want = pr._glass_sample(gprm, 0, ox, oy, oz, 0.0, 0.0, u3)
+        for given in ((mu, remap), (0.5 * mu, remap), (mu, -1.0)):
+            got = pk._smooth_glass_sample(gprm, ox, oy, oz, u3, *given)
+            assert np.array(got[:6]).tobytes() == np.array(want[:6]).tobytes(), (k, given)
+            assert got[6] == want[6]
+        seen.add((want[6], remap >= 0.0, want[3] == 0.0))
+    # reflected and refracted, with and without a remap from the set-up, and TIR's zero
+    assert {(False, False, False), (True, False, False), (False, True, False),
+            (True, True, False)} <= seen
+
+
 def test_a_chunk_traced_with_used_buffers_stores_the_photons_of_fresh_ones():
     """_trace_chunk borrows its emission rows, path flags, ray kinds, bump factors,
     continued rays and stored-photon blocks from the trace's pool: buffers left full of
