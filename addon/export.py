@@ -17,7 +17,7 @@ import numpy as np
 
 from .materials import MaterialConverter, output_node
 from .normals import shading_normals
-from .world import export_world, sky_sun_lights
+from .world import export_world, sky_sun_lights, world_mist
 
 
 
@@ -568,6 +568,12 @@ def _placeable(geo: LocalGeometry, converter, names) -> bool:
                         for n in names))
 
 
+def pass_index(obj) -> int:
+    """The object's Pass Index (Object > Relations; an instance's own object), written by
+    the Object Index data pass (Cycles' object_pass_id)."""
+    return int(getattr(obj, "pass_index", 0) or 0)
+
+
 def _radial(converter, name) -> bool:
     """The material is anisotropic: its meshes carry the radial tangent (world space)."""
     f = getattr(converter, "needs_radial_tangent", None)
@@ -580,6 +586,7 @@ def _placement(pm, name, prototype, matrix, names, obj, visibility):
     slots = int(prototype.material_ids.max()) + 1 if len(prototype.material_ids) else 1
     names = list(names) + [names[-1]] * max(0, slots - len(names))
     return pm.Mesh.place(name, prototype, matrix, materials=names,
+                         pass_index=pass_index(obj),
                          shadow_terminator_offset=terminator_offset(obj),
                          shadow_terminator_shading_offset=terminator_shading(obj),
                          **visibility)
@@ -694,6 +701,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                            any(_radial(converter, n) for n in names)),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
+                       pass_index=pass_index(obj),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
                        **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
@@ -709,7 +717,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         warnings.append("motion blur is not supported and ignored")
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
-                     background_is_light=True, environment=environment)
+                     background_is_light=True, environment=environment,
+                     mist=world_mist(pm, scene_eval.world))
     scene.warnings.extend(warnings)
     info["lights"] = len(lights)
     info["export_time"] = time.perf_counter() - t0
@@ -860,7 +869,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
                   any(_radial(converter, n) for n in names))
         key = (id(geo), matrix.tobytes(), tuple(names), coords,
                tuple(sorted(visibility.items())), terminator_offset(obj),
-               terminator_shading(obj))
+               terminator_shading(obj), pass_index(obj))
         old = cache.meshes.get(iname)
         if old is not None and old[0] == key:
             mesh = old[1]
@@ -886,7 +895,8 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
                            material_ids=np.clip(geo.material_index, 0, len(names) - 1),
                            coordinates=corner_attributes(geo, matrix, *coords),
                            shadow_terminator_offset=key[5],
-                           shadow_terminator_shading_offset=key[6], **visibility)
+                           shadow_terminator_shading_offset=key[6], pass_index=key[7],
+                           **visibility)
             if obj.name not in info["geometry_read"]:
                 info["transformed"].append(iname)
             cache.meshes[iname] = (key, mesh)
@@ -904,7 +914,8 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
-                     background_is_light=True, environment=environment)
+                     background_is_light=True, environment=environment,
+                     mist=world_mist(pm, scene_eval.world))
     scene.warnings.extend(warnings)
     light_names = [li.name for li in lights]
     info.update(

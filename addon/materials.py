@@ -325,7 +325,9 @@ class MaterialConverter:
                               if np.any(closure.emission > 0) else None),
             closure_weight=max(closure.weight, 0.0),
             anisotropic=min(max(closure.anisotropic, -1.0), 1.0),
-            anisotropic_rotation=closure.anisotropic_rotation)
+            anisotropic_rotation=closure.anisotropic_rotation,
+            # Material > Settings > Pass Index: the Material Index data pass
+            pass_index=int(getattr(mat, "pass_index", 0) or 0))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m

@@ -160,7 +160,9 @@ def read_layers(path):
     out = {}
     order = "RGBAXYZV"
     for name, lst in passes.items():
-        lst.sort(key=lambda t: order.index(t[0]) if t[0] in order else 99)
+        # (The UV pass' channels are U, V, A in that order.)
+        seq = "UVA" if {c for c, _ in lst} == {"U", "V", "A"} else order
+        lst.sort(key=lambda t: seq.index(t[0]) if t[0] in seq else 99)
         out[name] = np.stack([np.asarray(p, dtype=np.float32) for _, p in lst], axis=2)
     return out
 
