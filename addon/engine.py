@@ -40,6 +40,27 @@ _OLD_COLOR_NAMES = {"Diffuse Color": "DiffCol", "Glossy Color": "GlossCol",
                     "Transmission Color": "TransCol"}
 
 
+# Cycles' surface data passes (engine/datapasses.py SURFACE): (view layer switch, Blender
+# pass name, Film.data key = RenderSettings.data_passes kind, channels, chan_id, type),
+# as Cycles' add-on registers them (Blender 5's names; Blender 4's index passes are
+# IndexOB / IndexMA: _surface_passes).
+SURFACE_PASSES = (("use_pass_mist", "Mist", "mist", 1, "Z", "VALUE"),
+                  ("use_pass_position", "Position", "position", 3, "XYZ", "VECTOR"),
+                  ("use_pass_uv", "UV", "uv", 3, "UVA", "VECTOR"),
+                  ("use_pass_object_index", "Object Index", "object_index", 1, "X", "VALUE"),
+                  ("use_pass_material_index", "Material Index", "material_index", 1, "X",
+                   "VALUE"))
+_OLD_SURFACE_NAMES = {"Object Index": "IndexOB", "Material Index": "IndexMA"}
+
+
+def _surface_passes():
+    """SURFACE_PASSES with this Blender's pass names."""
+    if bpy.app.version >= (5, 0, 0):
+        return SURFACE_PASSES
+    return tuple((sw, _OLD_SURFACE_NAMES.get(name, name), *rest)
+                 for sw, name, *rest in SURFACE_PASSES)
+
+
 def _color_passes():
     """COLOR_PASSES with this Blender's pass names."""
     if bpy.app.version >= (5, 0, 0):
@@ -48,10 +69,7 @@ def _color_passes():
 # Passes a view layer may ask for that the engine does not make: (owner, switch, the name
 # Blender shows). One warning names those asked for (left empty in the render result).
 UNMADE_PASSES = (
-    ("", "use_pass_vector", "Vector"), ("", "use_pass_position", "Position"),
-    ("", "use_pass_uv", "UV"), ("", "use_pass_mist", "Mist"),
-    ("", "use_pass_object_index", "Object Index"),
-    ("", "use_pass_material_index", "Material Index"), ("", "use_pass_shadow", "Shadow"),
+    ("", "use_pass_vector", "Vector"), ("", "use_pass_shadow", "Shadow"),
     ("", "use_pass_ambient_occlusion", "Ambient Occlusion"),
     ("", "use_pass_emit", "Emission (Cycles'; the Photon Mapping Emission effect pass is ours)"),
     ("", "use_pass_environment", "Environment"),
@@ -108,6 +126,7 @@ def data_passes(view_layer) -> tuple:
         out.append("denoising")
     if any(getattr(view_layer, switch, False) for switch, _, _ in COLOR_PASSES):
         out.append("color")
+    out += [key for switch, _, key, *_ in SURFACE_PASSES if getattr(view_layer, switch, False)]
     return tuple(out)
 
 
@@ -272,6 +291,9 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _ in _color_passes():
             if getattr(renderlayer, switch, False):
                 self.register_pass(scene, renderlayer, name, 3, "RGB", "COLOR")
+        for switch, name, _, channels, chan_id, kind in _surface_passes():
+            if getattr(renderlayer, switch, False):
+                self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
         if _adaptive(scene):
             self.register_pass(scene, renderlayer, SAMPLE_COUNT_PASS, 1, "X", "VALUE")
         for _kind, name in cryptomatte_passes(renderlayer):
@@ -367,6 +389,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         kwargs["cryptomatte"] = tuple(k for switch, k, _ in CRYPTOMATTE_LAYERS
                                       if getattr(view_layer, switch, False))
         kwargs["cryptomatte_levels"] = min(max(cryptomatte_levels(view_layer), 1), 16)
+        kwargs["pass_alpha_threshold"] = float(getattr(view_layer, "pass_alpha_threshold",
+                                                       0.5))
         settings = pm.RenderSettings(**kwargs)
         unmade = unmade_passes_warning(view_layer, _adaptive(scene))
         if unmade is not None:  # said with the export's warnings, kept in film.warnings
@@ -516,6 +540,9 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _ in _color_passes():
             if getattr(view_layer, switch, False):
                 self.add_pass(name, 3, "RGB", layer=layer)
+        for switch, name, _, channels, chan_id, _ in _surface_passes():
+            if getattr(view_layer, switch, False):
+                self.add_pass(name, channels, chan_id, layer=layer)
         if sample_count:
             self.add_pass(SAMPLE_COUNT_PASS, 1, "X", layer=layer)
         for _kind, name in cryptomatte_passes(view_layer):
@@ -539,7 +566,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             buffers["Normal"] = film.normal
             data = getattr(film, "data", None) or {}
             for name, key in ([(p[0], p[1]) for p in DENOISING_PASSES]
-                              + [(p[1], p[2]) for p in _color_passes()]):
+                              + [(p[1], p[2]) for p in _color_passes()]
+                              + [(p[1], p[2]) for p in _surface_passes()]):
                 if key in data:
                     buffers[name] = data[key] if data[key].ndim == 3 else data[key][:, :, None]
             if film.sample_count is not None:  # the share of Samples each pixel took

@@ -17,7 +17,7 @@ import numpy as np
 
 from .materials import MaterialConverter, output_node
 from .normals import shading_normals
-from .world import export_world, sky_sun_lights
+from .world import export_world, sky_sun_lights, world_mist
 
 
 
@@ -35,10 +35,10 @@ class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
     __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
-                 "texspace", "tangents")
+                 "texspace", "tangents", "uv_name")
 
     def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None,
-                 tangents=None):
+                 tangents=None, uv_name=""):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
@@ -48,6 +48,7 @@ class LocalGeometry:
         self.material_index = material_index  # (F,) int32
         self.triangles = len(faces)
         self.tangents = tangents        # None or (F,3,4) MikkTSpace tangent xyz, sign
+        self.uv_name = uv_name          # the render UV map's name ("" without UVs)
 
 
 def _foreach(collection, attr, count, width, dtype):
@@ -67,6 +68,20 @@ def _uses_tangent_normal_maps(obj) -> bool:
             continue
         for node in tree.nodes:
             if node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT":
+                return True
+    return False
+
+
+def _uses_uv_tangents(obj) -> bool:
+    """Some material of the object has a Tangent node in UV Map mode (an anisotropic
+    lobe's tangent may read its MikkTSpace tangents: MaterialConverter.uv_tangent_map)."""
+    for slot in getattr(obj, "material_slots", ()):
+        mat = slot.material
+        tree = getattr(mat, "node_tree", None) if mat is not None else None
+        if tree is None:
+            continue
+        for node in tree.nodes:
+            if node.type == "TANGENT" and getattr(node, "direction_type", "") == "UV_MAP":
                 return True
     return False
 
@@ -117,12 +132,13 @@ def extract_geometry(obj) -> LocalGeometry | None:
                 attr = "vector" if hasattr(layer, "uv") else "uv"
                 uv = _foreach(data, attr, len(me.loops), 2, np.float32)
                 uvs = uv[loops].astype(np.float64)
-                if _uses_tangent_normal_maps(obj):
+                if _uses_tangent_normal_maps(obj) or _uses_uv_tangents(obj):
                     tangents = _corner_tangents(me, layer, loops)
         texspace = (np.array(me.texspace_location, np.float64),
                     np.array(me.texspace_size, np.float64))
         return LocalGeometry(co, faces, normals, uvs, mat_index,
-                             _corner_colors(me, tris, loops, faces), texspace, tangents)
+                             _corner_colors(me, tris, loops, faces), texspace, tangents,
+                             layer.name if uvs is not None else "")
     finally:
         obj.to_mesh_clear()
 
@@ -175,17 +191,29 @@ def radial_tangents(g: LocalGeometry, matrix: np.ndarray) -> np.ndarray:
 
 
 def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool,
-                      radial: bool = False) -> dict | None:
+                      radial: bool = False, uv_slots: tuple = ()) -> dict | None:
     """The mesh's per-corner attributes for engine Mesh.coordinates: the texture
     coordinates when a material reads them (texture_coordinates), the radial tangent
     ('radial_tangent', radial_tangents) when a material is anisotropic, and the MikkTSpace
     tangents in world space ('tangent', and 'tangent_sign' as 3 equal values: the
     bitangent's side, flipped with a mirroring transform) for tangent-space normal maps
-    (engine/normalmap.py). Corners in the exported order. None when there are none."""
+    (engine/normalmap.py). uv_slots: per material slot, True where the material's
+    anisotropy tangent is the UV map's (MaterialConverter.uv_tangent_map): those faces
+    carry the MikkTSpace tangent in 'radial_tangent' instead (Cycles' Tangent node, UV
+    Map mode: the attribute tangent by the object's normal transform, as the radial
+    one: svm_node_tangent). Corners in the
+    exported order. None when there are none."""
     flipped = np.linalg.det(matrix[:3, :3]) < 0
     out = texture_coordinates(g, flipped) if coordinates else {}
     if radial:
         t = radial_tangents(g, matrix)
+        if any(uv_slots) and g.tangents is not None:
+            slots = np.asarray(uv_slots, bool)
+            faces = slots[np.clip(g.material_index, 0, len(slots) - 1)]
+            try:  # svm_node_tangent: object_normal_transform, as the radial one
+                t[faces] = g.tangents[faces][..., :3] @ np.linalg.inv(matrix[:3, :3])
+            except np.linalg.LinAlgError:
+                t[faces] = g.tangents[faces][..., :3] @ matrix[:3, :3].T
         out["radial_tangent"] = t[:, [0, 2, 1]] if flipped else t
     if g.tangents is not None:
         R = matrix[:3, :3]
@@ -568,6 +596,36 @@ def _placeable(geo: LocalGeometry, converter, names) -> bool:
                         for n in names))
 
 
+def pass_index(obj) -> int:
+    """The object's Pass Index (Object > Relations; an instance's own object), written by
+    the Object Index data pass (Cycles' object_pass_id)."""
+    return int(getattr(obj, "pass_index", 0) or 0)
+
+
+def _uv_slots(converter, names) -> tuple:
+    """Per material slot: the material's anisotropy tangent is the UV map's."""
+    f = getattr(converter, "uv_tangent_map", None)
+    return tuple(bool(f and f(n) is not None) for n in names)
+
+
+def uv_tangent_warnings(obj, geo: LocalGeometry, converter, names, warnings):
+    """Warn (naming object and material) where a material wants a UV map's tangent the
+    export cannot give: no UV map / no MikkTSpace tangents (the radial tangent is used),
+    or a Tangent node naming another UV map than the render one (the render map's)."""
+    f = getattr(converter, "uv_tangent_map", None)
+    for n in dict.fromkeys(names):
+        want = f(n) if f else None
+        if want is None:
+            continue
+        if geo.tangents is None:
+            warnings.append(f"object '{obj.name}': the Tangent node of material '{n}' "
+                            "reads a UV map the mesh does not have (or cannot give "
+                            "tangents for); the default radial tangent is used")
+        elif want and want != geo.uv_name:
+            warnings.append(f"object '{obj.name}': material '{n}''s Tangent node names UV "
+                            f"map '{want}'; the render UV map '{geo.uv_name}' is used")
+
+
 def _radial(converter, name) -> bool:
     """The material is anisotropic: its meshes carry the radial tangent (world space)."""
     f = getattr(converter, "needs_radial_tangent", None)
@@ -590,6 +648,7 @@ def _placement(pm, name, prototype, matrix, names, obj, visibility):
     slots = int(prototype.material_ids.max()) + 1 if len(prototype.material_ids) else 1
     names = list(names) + [names[-1]] * max(0, slots - len(names))
     return pm.Mesh.place(name, prototype, matrix, materials=names,
+                         pass_index=pass_index(obj),
                          shadow_terminator_offset=terminator_offset(obj),
                          shadow_terminator_shading_offset=terminator_shading(obj),
                          **cryptomatte_names(obj), **visibility)
@@ -697,13 +756,16 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         name = _instance_name(inst, obj, info)
         info["objects"] += 1
         warn_unsupported_visibility(obj, warnings)
+        uv_tangent_warnings(obj, geo, converter, names, warnings)
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
                        uvs=uvs, colors=colors, materials=names, material_ids=mids,
                        coordinates=corner_attributes(geo, matrix, any(
                            converter.needs_coordinates(n) for n in names),
-                           any(_radial(converter, n) for n in names)),
+                           any(_radial(converter, n) for n in names),
+                           _uv_slots(converter, names)),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
+                       pass_index=pass_index(obj),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
                        **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
@@ -719,7 +781,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         warnings.append("motion blur is not supported and ignored")
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
-                     background_is_light=True, environment=environment)
+                     background_is_light=True, environment=environment,
+                     mist=world_mist(pm, scene_eval.world))
     scene.warnings.extend(warnings)
     info["lights"] = len(lights)
     info["export_time"] = time.perf_counter() - t0
@@ -867,10 +930,10 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         matrix = np.array(inst.matrix_world, dtype=np.float64)
         visibility = ray_visibility(obj, inst, view_layer)
         coords = (any(converter.needs_coordinates(n) for n in names),
-                  any(_radial(converter, n) for n in names))
+                  any(_radial(converter, n) for n in names), _uv_slots(converter, names))
         key = (id(geo), matrix.tobytes(), tuple(names), coords,
                tuple(sorted(visibility.items())), terminator_offset(obj),
-               terminator_shading(obj))
+               terminator_shading(obj), pass_index(obj))
         old = cache.meshes.get(iname)
         if old is not None and old[0] == key:
             mesh = old[1]
@@ -896,12 +959,13 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
                            material_ids=np.clip(geo.material_index, 0, len(names) - 1),
                            coordinates=corner_attributes(geo, matrix, *coords),
                            shadow_terminator_offset=key[5],
-                           shadow_terminator_shading_offset=key[6],
+                           shadow_terminator_shading_offset=key[6], pass_index=key[7],
                            **cryptomatte_names(obj), **visibility)
             if obj.name not in info["geometry_read"]:
                 info["transformed"].append(iname)
             cache.meshes[iname] = (key, mesh)
         warn_unsupported_visibility(obj, warnings)
+        uv_tangent_warnings(obj, geo, converter, names, warnings)
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)
     current = {m.name for m in meshes}
@@ -915,7 +979,8 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
-                     background_is_light=True, environment=environment)
+                     background_is_light=True, environment=environment,
+                     mist=world_mist(pm, scene_eval.world))
     scene.warnings.extend(warnings)
     light_names = [li.name for li in lights]
     info.update(

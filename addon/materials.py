@@ -278,10 +278,19 @@ class MaterialConverter:
         self.cache = {}         # material name -> engine Material
         self.coordinate_users = set()  # materials reading Generated / Object coordinates
         self.tangent_users = set()  # materials with anisotropic lobes (radial tangents)
+        # materials whose anisotropic lobe's Tangent is a Tangent node in UV Map mode:
+        # name -> the node's UV map ("" = the render UV map)
+        self.uv_tangent_users = {}
 
     def needs_coordinates(self, material_name) -> bool:
         """Whether meshes with this material must export Generated / Object coordinates."""
         return material_name in self.coordinate_users
+
+    def uv_tangent_map(self, material_name):
+        """The UV map ("" = the render map) whose MikkTSpace tangent is this material's
+        anisotropy tangent (a Tangent node, UV Map mode, linked to the Tangent input), or
+        None (the default radial tangent)."""
+        return self.uv_tangent_users.get(material_name)
 
     def needs_radial_tangent(self, material_name) -> bool:
         """Whether meshes with this material must export the radial tangent (the default
@@ -325,7 +334,9 @@ class MaterialConverter:
                               if np.any(closure.emission > 0) else None),
             closure_weight=max(closure.weight, 0.0),
             anisotropic=min(max(closure.anisotropic, -1.0), 1.0),
-            anisotropic_rotation=closure.anisotropic_rotation)
+            anisotropic_rotation=closure.anisotropic_rotation,
+            # Material > Settings > Pass Index: the Material Index data pass
+            pass_index=int(getattr(mat, "pass_index", 0) or 0))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -392,8 +403,10 @@ class MaterialConverter:
         """Node's anisotropy input `name` (Principled 'Anisotropic', Glossy / Anisotropic
         BSDF 'Anisotropy') and its rotation input onto closure c (one constant each: a
         per-hit texture is warned by _float and its socket's value used). The tangent is
-        Cycles' default, radial about the object's Z axis (exported per corner); a linked
-        Tangent (a UV map's or another Tangent node's) is warned and the default used."""
+        Cycles' default, radial about the object's Z axis (exported per corner), or a
+        Tangent node in UV Map mode: that map's MikkTSpace tangent (svm_node_tangent's
+        attribute tangent; exported per corner in its place, addon/export.py); any other
+        linked Tangent is warned and the default used."""
         inp = node.inputs
         if name not in inp:
             return
@@ -404,6 +417,12 @@ class MaterialConverter:
         c.anisotropic_rotation = self._float(node, rotation, 0.0) if rotation in inp else 0.0
         self.tangent_users.add(self._mat.name)
         if "Tangent" in inp and inp["Tangent"].is_linked:
+            src = self._source(inp["Tangent"])
+            tnode = src[0] if src is not None else None
+            if (tnode is not None and tnode.type == "TANGENT"
+                    and getattr(tnode, "direction_type", "") == "UV_MAP"):
+                self.uv_tangent_users[self._mat.name] = str(getattr(tnode, "uv_map", ""))
+                return
             self._warn(f"material '{self._mat.name}': the linked 'Tangent' of node "
                        f"'{node.name}' is not supported; the default radial tangent (about "
                        "the object's Z axis) is used")

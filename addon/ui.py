@@ -10,6 +10,7 @@ EXTRA_COMPAT_PANELS = (
     "EEVEE_MATERIAL_PT_context_material",
     "EEVEE_MATERIAL_PT_surface",
     "EEVEE_WORLD_PT_surface",
+    "EEVEE_WORLD_PT_mist",  # World > Mist Pass: the Mist data pass' start / depth / falloff
 )
 # BLENDER_RENDER panels that make no sense for us.
 EXCLUDED_PANELS = {
@@ -263,6 +264,15 @@ class PHOTONMAP_PT_passes(PhotonMapButtonsPanel, bpy.types.Panel):
         # own switch (absent without Cycles).
         if getattr(vl, "cycles", None) is not None:
             col.prop(vl.cycles, "denoising_store_passes", text="Denoising Data")
+        col = layout.column(heading="Data")
+        col.prop(vl, "use_pass_position")
+        col.prop(vl, "use_pass_uv")
+        col.prop(vl, "use_pass_mist")
+        col = layout.column(heading="Indexes")
+        col.prop(vl, "use_pass_object_index")
+        col.prop(vl, "use_pass_material_index")
+        col = layout.column()
+        col.prop(vl, "pass_alpha_threshold")
         col = layout.column(heading="Color")
         col.prop(vl, "use_pass_diffuse_color", text="Diffuse")
         col.prop(vl, "use_pass_glossy_color", text="Glossy")

@@ -33,6 +33,17 @@ def _from(socket):
     return node if node.type != "REROUTE" else None
 
 
+def world_mist(pm, world) -> tuple:
+    """The world's Mist Pass settings as the engine's Scene.mist (start m, depth m,
+    falloff exponent), as Cycles' film reads them (blender/sync.cpp); Cycles' film
+    defaults without a world."""
+    mist = getattr(world, "mist_settings", None)
+    if mist is None:
+        return pm.Scene.__dataclass_fields__["mist"].default
+    return (float(mist.start), float(mist.depth),
+            pm.scene.MIST_FALLOFF.get(mist.falloff, 2.0))
+
+
 def export_world(pm, world, warnings: list):
     """(background RGB (3,), engine Environment or None) for a Blender world; warnings
     get one line per unsupported node (each naming the world and the node)."""

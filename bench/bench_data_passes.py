@@ -1,8 +1,9 @@
 """CPU seconds of a whole render with and without Cycles' data passes (RenderSettings.data_passes:
-Denoising Data + Diffuse / Glossy / Transmission Color, engine/datapasses.py), interleaved runs
-on an exported example blend (docs/performance.md, "passes").
+by default Denoising Data + Diffuse / Glossy / Transmission Color, engine/datapasses.py; an
+optional fourth argument names the kinds, comma-separated), interleaved runs on an exported
+example blend (docs/performance.md, "passes", "blenderbits").
 
-    PYTHONPATH=$PWD .venv/bin/python bench/bench_data_passes.py figure6_box 160x120 16
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_data_passes.py figure6_box 160x120 16 [KINDS]
 """
 import os
 import pickle
@@ -21,8 +22,9 @@ where = os.path.join(tempfile.gettempdir(), "film_hashes")
 name, size, spp = sys.argv[1], sys.argv[2], int(sys.argv[3])
 w, h = (int(v) for v in size.split("x"))
 scene = pickle.load(open(exported(name, where), "rb")); scene.width, scene.height = w, h
-res = {(): [], ("color", "denoising"): []}
-render(scene, RenderSettings(workers=1, spp=2, data_passes=("denoising", "color")))  # warm
+kinds = tuple(sys.argv[4].split(",")) if len(sys.argv) > 4 else ("color", "denoising")
+res = {(): [], kinds: []}
+render(scene, RenderSettings(workers=1, spp=2, data_passes=kinds))  # warm
 for rep in range(3):
     for dp in res:
         t = time.process_time()

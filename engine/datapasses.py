@@ -31,6 +31,23 @@ kernel/integrator/surface_shader.h, surface_shader_diffuse / _glossy / _transmis
   refraction). Albedos are the closures' estimates principled.setup gives (Cycles'
   bsdf_albedo / the closures' sample weights).
 
+- Surface data passes (film_write_data_passes' "single pass" and mist; the film's
+  conversion: scene/pass.cpp, kernel/film/get.h): along the camera ray and its
+  transparent passes (Cycles' PATH_RAY_TRANSPARENT_BACKGROUND; our CAMERA ray class),
+  until the "single pass" is done:
+  * Object Index (object.pass_index, an instance's own), Material Index
+    (material.pass_index) and Position (world space, m) are written by each pixel's
+    first sample only (sample 0, overwriting at every such surface, 0 where it leaves
+    for the background) and are not divided by the samples (pass.cpp: use_filter false);
+  * UV (the active render UV map: u, v, 1 where a surface has one, else 0, 0, 0:
+    kernel/geom/primitive.h primitive_uv) is summed by every sample at the first such
+    surface whose alpha reaches the view layer's Alpha Threshold (or any surface with
+    threshold 0), which ends the single pass; the film divides by the samples.
+  * Mist at every camera-chain surface adds (1 - m) x average(throughput x alpha),
+    m = saturate((d - start) / depth) ^ falloff, d the distance from the camera (the
+    depth along the view axis for an orthographic camera: camera_distance); the film
+    shows saturate(1 - sum / samples) (film_get_pass_pixel_mist): 1 for the background.
+
 Shapes: pix (N,) int64 pixel rows; tp (N,3) float64 path throughput; t (N,) segment
 lengths (m). Passes are stored in Accumulator.data (name -> (P,3) or (P,) float64 sums).
 """
@@ -48,7 +65,17 @@ DENOISING = (("Denoising Normal", "denoising_normal", 3),
 COLOR = (("Diffuse Color", "diffuse_color", 3),
          ("Glossy Color", "glossy_color", 3),
          ("Transmission Color", "transmission_color", 3))
-PASSES = {"denoising": DENOISING, "color": COLOR}
+# One pass each: (Blender 5's pass name, data key, channels); Blender 4 names the two
+# index passes IndexOB / IndexMA (addon/engine.py).
+SURFACE = {"object_index": (("Object Index", "object_index", 1),),
+           "material_index": (("Material Index", "material_index", 1),),
+           "position": (("Position", "position", 3),),
+           "uv": (("UV", "uv", 3),),
+           "mist": (("Mist", "mist", 1),)}
+PASSES = {"denoising": DENOISING, "color": COLOR, **SURFACE}
+ORDER = ("denoising", "color", "object_index", "material_index", "position", "uv", "mist")
+# Written by each pixel's first sample and kept as written (not per-sample averages).
+FIRST_SAMPLE = frozenset(("object_index", "material_index", "position"))
 
 # Cycles' cut between specular-like and diffuse-like closures for the denoising features:
 # bsdf_get_specular_roughness_squared(sc) > sqr(0.075f), i.e. GGX alpha > 0.075.
@@ -59,12 +86,99 @@ GLOSSY_LOBES = (pr.L_METAL, pr.L_GLASS_R, pr.L_SPEC, pr.L_COAT)
 TRANSMISSION_LOBES = (pr.L_GLASS_T,)
 _NO_ROWS = np.zeros(0, np.int64)
 _NO_ALPHA = np.zeros(0)
+_NO_TP = np.zeros((0, 3))
 
 
 def keys(data_passes) -> list[tuple[str, str, int]]:
     """(Blender name, data key, channels) of the passes RenderSettings.data_passes asks for."""
-    return [p for name in ("denoising", "color") if name in data_passes
-            for p in PASSES[name]]
+    return [p for name in ORDER if name in data_passes for p in PASSES[name]]
+
+
+def surface_wanted(data_passes) -> bool:
+    """Some of the surface data passes (SURFACE) is asked for."""
+    return any(name in data_passes for name in SURFACE)
+
+
+def film_value(key, total, inv):
+    """A data pass's film value from its sums total ((P,) or (P,3)) over the samples,
+    inv = 1 / samples (a number, or (P,) / (P,1) per pixel): per-sample averages;
+    FIRST_SAMPLE passes as written; mist as Cycles' film shows it, saturate(1 - mean)."""
+    if key in FIRST_SAMPLE:
+        return total
+    if key == "mist":
+        return np.clip(1.0 - total * inv, 0.0, 1.0)
+    return total * inv
+
+
+def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, done,
+                cam_pos, forward, ortho, mist, threshold):
+    """One bounce's camera-chain hits into the surface data passes (module docstring).
+    rows (K,) int64: the hits reached by the camera ray or transparent passes only;
+    prim, u, v (N,): their triangles and barycentrics; hit.p (N,3) re-centred points
+    (world = p + geo.offset); tp (N,3) path throughput; first (N,) bool: the pixel's
+    first sample; done (N,) bool: the single pass written; cam_pos (3,) re-centred,
+    forward (3,) unit view axis, ortho: orthographic camera; mist: Scene.mist (start m,
+    depth m, falloff exponent); threshold: RenderSettings.pass_alpha_threshold.
+    Returns done after this bounce (a fresh array where it changed)."""
+    if len(rows) == 0:
+        return done
+    rows = np.ascontiguousarray(rows, np.int64)
+    alpha = (np.take(table.alpha, hit.mat[rows]) if getattr(hit, "alpha", None) is None
+             else np.asarray(hit.alpha, np.float64)[rows])
+    if "mist" in want:
+        rel = hit.p[rows] - cam_pos
+        dist = np.abs(rel @ forward) if ortho else np.sqrt(np.einsum("ij,ij->i", rel, rel))
+        start, depth, falloff = mist
+        inv_depth = 1.0 / depth if depth > 0.0 else 0.0
+        m = np.clip((dist - start) * inv_depth, 0.0, 1.0) ** falloff
+        w = (1.0 - m) * (tp[rows] * alpha[:, None]).mean(axis=1)
+        film_add_scalar(_buf(acc, "mist", 1), acc.lo, np.ascontiguousarray(pix[rows]),
+                        np.ascontiguousarray(w))
+    pending = ~done[rows]
+    if not pending.any():
+        return done
+    sel = rows[pending]
+    w0 = sel[first[sel]]
+    if len(w0):
+        b = pix[w0] - acc.lo  # (one first sample a pixel: plain stores overwrite)
+        if "object_index" in want:
+            per_object = geo.object_pass_index
+            _buf(acc, "object_index", 1)[b] = (
+                0.0 if per_object is None
+                else np.take(per_object, np.take(geo.object_id, prim[w0])))
+        if "material_index" in want:
+            _buf(acc, "material_index", 1)[b] = np.take(table.pass_index, hit.mat[w0])
+        if "position" in want:
+            _buf(acc, "position", 3)[b] = hit.p[w0] + geo.offset
+    # Cycles' test: !SD_TRANSPARENT || threshold == 0 || average(alpha) >= threshold.
+    ends = (alpha[pending] >= min(threshold, 1.0)) | (threshold == 0.0)
+    fin = sel[ends]
+    if len(fin):
+        if "uv" in want and geo.corner_uvs is not None:
+            has = (np.ones(len(fin), bool) if geo.object_has_uvs is None else
+                   np.take(geo.object_has_uvs, np.take(geo.object_id, prim[fin])))
+            uvw = np.zeros((len(fin), 3))
+            uvw[:, :2] = geo.uvs(prim[fin], u[fin], v[fin])
+            uvw[:, 2] = 1.0
+            uvw[~has] = 0.0
+            film_add(_buf(acc, "uv", 3), acc.lo, np.ascontiguousarray(pix, np.int64), fin,
+                     _NO_TP, uvw)
+        done = done.copy()
+        done[fin] = True
+    return done
+
+
+def add_background(acc, want, pix, rows, first, done):
+    """Camera-chain rays rows (K,) that left for the background before the single pass
+    was done: their first samples write 0 into Object / Material Index and Position
+    (Cycles' film_write_data_passes_background), over what a transparent surface wrote."""
+    sel = rows[first[rows] & ~done[rows]]
+    if len(sel) == 0:
+        return
+    b = pix[sel] - acc.lo
+    for key, ch in (("object_index", 1), ("material_index", 1), ("position", 3)):
+        if key in want:
+            _buf(acc, key, ch)[b] = 0.0
 
 
 def lobe_albedo(table, hit):

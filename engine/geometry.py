@@ -49,6 +49,7 @@ class MaterialTable:
     emission_textures: list = None  # per material: colour node on the emission, or None
     diffuse_share: np.ndarray = None   # (M,) (1 - metallic)(1 - transmission) at its
                           # largest over the material's textured values (textures.scalar_ranges)
+    pass_index: np.ndarray = None      # (M,) float64 Material.pass_index (Material Index pass)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -64,6 +65,8 @@ class MaterialTable:
                    sheen_weight=np.array([m.sheen_weight for m in materials], np.float64),
                    scalar_textures=[scalar_columns(m) for m in materials],
                    emission_textures=[m.emission_texture for m in materials],
+                   pass_index=np.array([getattr(m, "pass_index", 0) for m in materials],
+                                       np.float64),
                    **cols)
 
     @property
@@ -278,6 +281,10 @@ class Geometry:
     instances: "Instances | None" = None  # meshes placed from a shared prototype
                               # (Mesh.prototype): the rows they occupy, for two-level
                               # tracing (engine/instancing.py); None when there are none
+    object_pass_index: np.ndarray | None = None  # (O,) float64 Mesh.pass_index per object
+                              # (the Object Index data pass); None reads 0
+    object_has_uvs: np.ndarray | None = None  # (O,) bool: the object has a UV map (the
+                              # UV data pass: 0, 0, 0 without one, as Cycles)
 
     def __post_init__(self):
         self.ng = PerTriangle(self, _ng_rows)  # (T,3) unit geometric normals (winding)
@@ -609,6 +616,8 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         material=material, object_id=object_id, object_names=names,
         vertices32=vertices32, faces32=faces32,
         object_terminator=terminator, object_terminator_shading=terminator_shading,
+        object_pass_index=np.array([getattr(m, "pass_index", 0) for m in meshes], np.float64),
+        object_has_uvs=np.array([_has(m, "uvs") for m in meshes], bool),
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=colors,

@@ -1360,7 +1360,7 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
                 progress("render", end / total,
                          f"Rendering pixels {short_count(end // spp)}/{short_count(npix)}")
     finally:
-        _write_film(film, acc, spp, rh, rw)
+        _write_film(film, acc, spp, rh, rw, s.data_passes)
     return counters
 
 
@@ -1413,7 +1413,7 @@ def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
             if len(active) == 0:
                 break
             R = b - a
-            rctx = replace(wctx, camera_round=R)
+            rctx = replace(wctx, camera_round=R, camera_round_index=r)
             total = len(active) * R
             chunk = chunk_length(total, s.chunk_size)
             jobs = [(ci, (c, min(total, c + chunk))) for ci, c in enumerate(range(0, total, chunk))]
@@ -1449,7 +1449,8 @@ def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
                 converged = adaptive.dilate_unconverged(converged.reshape(rh, rw)).ravel()
                 active = np.nonzero(~converged)[0]
     finally:
-        _write_film(film, acc, np.maximum(count, 1).astype(np.float64)[:, None], rh, rw)
+        _write_film(film, acc, np.maximum(count, 1).astype(np.float64)[:, None], rh, rw,
+                    s.data_passes)
         film.sample_count = count.reshape(rh, rw).astype(np.float32)
         film.stats["adaptive_mean_spp"] = float(count.mean()) if npix else 0.0
         film.stats["adaptive_min_samples"] = schedule.min_effective
@@ -1585,8 +1586,9 @@ def _trace_camera_samples(ctx, acc, rows, px, py, jx, jy, sub, pix, spp, rng, di
                  should_cancel, sampler, sub, path_rng, buffers)
 
 
-def _write_film(film, acc, spp, rh, rw):
-    """acc's sums over spp samples (a number, or (npix,1) per pixel: adaptive) into film."""
+def _write_film(film, acc, spp, rh, rw, want=()):
+    """acc's sums over spp samples (a number, or (npix,1) per pixel: adaptive) into film;
+    want: RenderSettings.data_passes (each asked for is written, zero sums if none came)."""
     inv = 1.0 / spp
     inv1 = inv[:, 0] if np.ndim(inv) else inv  # (for the scalar passes)
     for name in Accumulator.NAMES:
@@ -1598,9 +1600,13 @@ def _write_film(film, acc, spp, rh, rw):
         nrm = acc.normal / np.maximum(np.linalg.norm(acc.normal, axis=1), 1e-300)[:, None]
     film.depth[...] = depth.reshape(rh, rw)
     film.normal[...] = nrm.reshape(rh, rw, 3)
+    for _name, key, ch in datapasses.keys(want):  # a pass no sample wrote: its zero sums
+        if key not in acc.data:
+            acc.data[key] = np.zeros((acc.npix, 3) if ch == 3 else acc.npix)
     for key, total in acc.data.items():  # per-sample averages (Cycles' render buffer)
         per = inv if total.ndim == 2 else inv1
-        film.data[key] = (total * per).reshape((rh, rw) + total.shape[1:]).astype(np.float32)
+        film.data[key] = datapasses.film_value(key, total, per).reshape(
+            (rh, rw) + total.shape[1:]).astype(np.float32)
 
 
 class BounceBuffers:
@@ -1709,6 +1715,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ftp = np.ones((len(o), 3)) if feat is not None else None
     to_camera = (np.stack([cam.rotation[:, 0], cam.rotation[:, 1], -cam.rotation[:, 2]])
                  if want_data else None)
+    # The surface data passes (datapasses.add_surface): each path's "single pass" done,
+    # and whether it is its pixel's first sample (the first adaptive round's sample 0).
+    single = first = None
+    if datapasses.surface_wanted(want_data):
+        single = np.zeros(len(o), bool)
+        first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
+                 else np.zeros(len(o), bool))
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1773,6 +1786,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                             radiance = radiance + sun
                 acc.add(target, pix, radiance, tp, missed)
                 datapasses.add_light(acc, pix, missed, tp, ftp, feat, radiance)
+            if single is not None:
+                datapasses.add_background(acc, want_data, pix,
+                                          np.nonzero(miss & (ray_cls == CAMERA))[0], first,
+                                          single)
         hitm = prim >= 0
         if has_holdout and hitm.any():
             # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
@@ -1801,6 +1818,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 may_split = may_split[kept]
             if feat is not None:
                 feat, ftp = feat[kept], ftp[kept]
+            if single is not None:
+                single, first = single[kept], first[kept]
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -1864,6 +1883,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # every surface it meets.)
             feat, ftp = datapasses.add_hits(acc, want_data, ctx.table, hit, pix, tp, t, feat,
                                             ftp, ray_cls == CAMERA, to_camera)
+            if single is not None:
+                single = datapasses.add_surface(
+                    acc, want_data, ctx.geo, ctx.table, hit, prim, u, v, pix, tp,
+                    np.nonzero(ray_cls == CAMERA)[0], first, single, cam_pos, forward, ortho,
+                    ctx.scene.mist, s.pass_alpha_threshold)
         if bounce == 0 and MIRROR_NO_ROULETTE:
             mirror_survival(prm if hit.prm is None else hit.prm, p, psum, q, sel)
         choice = (sel, q, p, psum)
@@ -1983,5 +2007,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         travelled = travelled[keep]
         if feat is not None:
             feat, ftp = feat[keep], ftp[keep]
+        if single is not None:
+            single, first = single[keep], first[keep]
         tmax = None
         counters.specular_rays += len(o)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .datapasses import FIRST_SAMPLE
 from .film import EFFECTS, Film
 from .parallel import Cancelled
 from .render import (_check_region, prepare_context, render_cryptomatte, render_pass,
@@ -174,8 +175,13 @@ class PassMerger:
                 self.extra[name] += value
         self.depth = np.minimum(self.depth, one.depth)
         # Cycles' data passes (engine/datapasses.py): averaged over the passes as the
-        # effects are (each pass' film holds its per-sample averages).
+        # effects are (each pass' film holds its per-sample averages); those written by
+        # a pixel's first sample (FIRST_SAMPLE) kept from the first pass, as Cycles
+        # keeps sample 0's.
         for key, value in getattr(one, "data", {}).items():
+            if key in FIRST_SAMPLE:
+                self.film.data.setdefault(key, value.copy())
+                continue
             self.data[key] = self.data.get(key, 0.0) + value.astype(np.float64)
         if getattr(one, "cryptomatte", None) and not self.film.cryptomatte:
             # Cryptomatte: the first pass makes the mattes (engine/cryptomatte.py: exact

@@ -80,6 +80,9 @@ class Context:
     # being rendered (0: the camera pass takes every pixel's spp at once). The smooth
     # estimates weigh their samples by it (integrator._smooth_estimate).
     camera_round: int = 0
+    # The adaptive round being rendered (0: the first, or no rounds): the data passes
+    # Cycles writes from a pixel's first sample are written in round 0 only.
+    camera_round_index: int = 0
 
 
     def serial(self) -> "Context":

@@ -122,6 +122,8 @@ class Material:
     `scalar_textures` optionally maps scalar inputs (SCALAR_INPUTS: roughness, metallic,
     ...) to nodes evaluated per hit whose value replaces the constant there, camera and
     photon pass alike (engine/textures.py, scalar_params; docs/textures.md).
+    `pass_index`: Blender's material.pass_index, written by the Material Index data
+    pass (engine/datapasses.py); it changes no shading.
     """
 
     name: str = "default"
@@ -154,6 +156,7 @@ class Material:
     closure_weight: float = 1.0
     anisotropic: float = 0.0
     anisotropic_rotation: float = 0.0
+    pass_index: int = 0
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -243,6 +246,9 @@ class Material:
 # reflection and refraction), Refraction BSDF (the glass lobe's refraction alone, colour x
 # refraction, no Fresnel).
 MATERIAL_NODES = ("principled", "glossy", "glass", "refraction")
+# Blender's world.mist_settings.falloff -> Cycles' film mist_falloff exponent
+# (intern/cycles/blender/sync.cpp).
+MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}
 
 # Scalar inputs a node may drive per hit (Material.scalar_textures), with the range
 # Cycles clamps them to (svm/closure.h: saturatef, or fmaxf(x, 0) for the weights and the
@@ -317,6 +323,8 @@ class Mesh:
               material slots, normals and UVs are the prototype's (Prototype), the mesh's
               `materials` fill its slots; the copy is built only if the scene is
               expanded (engine/resources.two_level_instances decides).
+    pass_index  Blender's object.pass_index (an instance's own), written by the Object
+              Index data pass (engine/datapasses.py); it changes no shading
     """
 
     name: str
@@ -340,6 +348,7 @@ class Mesh:
     cryptomatte_asset: str | None = None
     prototype: "Prototype | None" = None
     matrix: np.ndarray | None = None
+    pass_index: int = 0
     warnings: list = field(default_factory=list, repr=False)
 
     @property
@@ -530,7 +539,8 @@ class Mesh:
         flags = {k: getattr(self, k) for k in (
             "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
             "visible_shadow", "holdout", "shadow_terminator_offset",
-            "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset")}
+            "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset",
+            "pass_index")}
         return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
                     materials=list(self.materials), material_ids=P.material_ids,
                     prototype=P, matrix=M, **flags)
@@ -972,6 +982,10 @@ class Scene:
     # An equirectangular environment map (engine/lights/environment.py Environment); when
     # set it replaces `background` as the world's radiance.
     environment: object | None = None
+    # Blender's World > Mist Pass as Cycles' film reads it: (start m, depth m, falloff
+    # exponent: 2 quadratic, 1 linear, 0.5 inverse quadratic); the default is Cycles'
+    # Film's (a scene without a world), Blender's world default is (5, 25, 2).
+    mist: tuple = (0.0, 100.0, 1.0)
     warnings: list = field(default_factory=list)
 
     def add_material(self, material: Material) -> Material:

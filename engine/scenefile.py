@@ -51,8 +51,8 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
-from .scene import (FLOAT32_MAX, MATERIAL_NODES, Light, Material, Mesh, Prototype,
-                    SceneError, euler_rotation)
+from .scene import (FLOAT32_MAX, MATERIAL_NODES, MIST_FALLOFF, Light, Material, Mesh,
+                    Prototype, SceneError, euler_rotation)
 from .settings import RenderSettings
 
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
@@ -163,7 +163,9 @@ MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(no
                           "sheen_weight": _number(0.0), "sheen_roughness": _UNIT,
                           "sheen_tint": _vec3(nonneg=True), "glossy_color": _vec3(nonneg=True),
                           "anisotropic": _number(-1.0, 1.0), "anisotropic_rotation": _number(),
-                          "multiscatter": _BOOL, "node": _choice(*MATERIAL_NODES)})
+                          "multiscatter": _BOOL, "node": _choice(*MATERIAL_NODES),
+                          # Blender's Material > Settings > Pass Index (Material Index pass)
+                          "pass_index": _number(0, 32767, integer=True)})
 MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
 
 CAMERA_SCHEMA = _table({
@@ -181,6 +183,8 @@ _OBJECT_COMMON = {
                          "items": {"type": "number", "not": {"const": 0}}}],
               "what": "a finite, non-zero number or 3 of them"},
     **{key: _BOOL for key in VISIBILITY_KEYS},
+    # Blender's Object > Relations > Pass Index (the Object Index data pass)
+    "pass_index": _number(0, 32767, integer=True),
     # A template is drawn only through its [[instances]] (not itself).
     "template": _BOOL}
 _INLINE = {"type": "array", "maxItems": MAX_INLINE_ELEMENTS,
@@ -239,6 +243,11 @@ def _sections(key) -> dict:
     return {"type": "array", "items": {"type": "object", "what_type": what},
             "what": what, "what_type": what}
 
+# Blender's World > Mist Pass (world.mist_settings): the Mist data pass
+# (engine/datapasses.py; falloff by name, as Blender's enum).
+MIST_SCHEMA = _table({"start": _number(0.0), "depth": _number(0.0),
+                      "falloff": _choice(*MIST_FALLOFF)})
+
 
 def scene_schema() -> dict:
     """The JSON Schema of a whole scene file (objects and lights are checked per kind
@@ -253,7 +262,7 @@ def scene_schema() -> dict:
         "objects": _sections("objects"), "lights": _sections("lights"),
         "instances": _sections("instances"),
         "background": _vec3(nonneg=True), "environment": ENVIRONMENT_SCHEMA,
-        "sky": SKY_SCHEMA})
+        "sky": SKY_SCHEMA, "mist": MIST_SCHEMA})
 
 
 _VALIDATORS = {}
@@ -460,6 +469,10 @@ def _build(data: dict, base: str):
     scene = PaperScene(width=width, height=height, background=background)
     if "environment" in data:
         scene.environment = _environment(data["environment"], base)
+    if "mist" in data:
+        m = data["mist"]
+        scene.mist = (float(m.get("start", 5.0)), float(m.get("depth", 25.0)),
+                      MIST_FALLOFF[m.get("falloff", "QUADRATIC")])
     for name, spec in data.get("materials", {}).items():
         scene.add_material(Material(name, **{k: _material_value(k, v)
                                              for k, v in spec.items()}))
@@ -559,7 +572,7 @@ def _placement(name, P, M, mesh, spec) -> Mesh:
     materials = list(mesh.materials)
     if "material" in spec:
         materials = [spec["material"]] * len(materials)
-    return Mesh.place(name, P, M, materials=materials,
+    return Mesh.place(name, P, M, materials=materials, pass_index=mesh.pass_index,
                       shadow_terminator_offset=mesh.shadow_terminator_offset,
                       shadow_terminator_shading_offset=mesh.shadow_terminator_shading_offset,
                       **flags)
@@ -735,7 +748,7 @@ def _object(scene, obj, i, base):
         path = os.path.join(base, obj["path"])
         mesh = scene.add_mesh(_load_mesh_file(path, name or os.path.basename(path),
                                               scene._material(mat)))
-    for key in VISIBILITY_KEYS:
+    for key in VISIBILITY_KEYS + ("pass_index",):
         if key in obj:
             setattr(mesh, key, obj[key])
     if any(k in obj for k in ("translate", "scale", "rotate")):

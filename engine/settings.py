@@ -52,7 +52,8 @@ CYCLES_DEFAULT_BOUNCES = (12, 4, 4, 12)
 
 
 # RenderSettings.data_passes' values (engine/datapasses.py)
-DATA_PASSES = ("color", "denoising")
+DATA_PASSES = ("color", "denoising", "material_index", "mist", "object_index", "position",
+               "uv")
 # RenderSettings.cryptomatte's values (engine/cryptomatte.py KINDS)
 CRYPTOMATTE_KINDS = ("asset", "material", "object")
 
@@ -128,7 +129,8 @@ class RenderSettings:
     show_photons: bool = False      # the image shows the photon-hit view (Fig. 6 left)
     film_transparent: bool = False  # background not drawn (alpha 0), as Blender's option
     # Cycles' data passes to make besides the image (engine/datapasses.py): "denoising"
-    # (Denoising Normal / Albedo / Depth), "color" (Diffuse / Glossy / Transmission Color).
+    # (Denoising Normal / Albedo / Depth), "color" (Diffuse / Glossy / Transmission Color),
+    # "object_index", "material_index", "position", "uv", "mist" (one pass each).
     # Extra outputs: the image's bits do not depend on them.
     data_passes: tuple = ()
     # Cryptomatte ID mattes to make (engine/cryptomatte.py): any of "object", "material",
@@ -136,6 +138,10 @@ class RenderSettings:
     # from primary rays of their own: the image's bits do not depend on them.
     cryptomatte: tuple = ()
     cryptomatte_levels: int = 6
+    # Blender's View Layer > Passes > Data > Alpha Threshold (pass_alpha_threshold):
+    # the UV pass is written at the first camera-chain surface whose alpha reaches it
+    # (Cycles' film_write_data_passes; 0: the first surface whatever its alpha).
+    pass_alpha_threshold: float = 0.5
     # The paper's own method (docs/paper_mode.md): its classic estimator (cosine-weighted,
     # fixed radius: `radius` is the paper's MaxPhotonSearchRadius in scene units, metres)
     # and no final gathering; overrides `estimator` and `final_gather`.
@@ -238,6 +244,11 @@ class RenderSettings:
             raise ValueError("setting 'cryptomatte_levels' must be a whole number from 1 to "
                              f"16, got {lv!r}")
         self.cryptomatte_levels = int(lv)
+        a = float(self.pass_alpha_threshold)
+        if not 0.0 <= a <= 1.0:
+            raise ValueError(f"setting 'pass_alpha_threshold' takes 0 to 1, got "
+                             f"{self.pass_alpha_threshold!r}")
+        self.pass_alpha_threshold = a
         self.min_photons = min(self.min_photons, self.k_nearest)
         if self.paper_mode:
             self.estimator, self.final_gather = "classic", False

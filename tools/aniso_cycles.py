@@ -20,7 +20,10 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 W, H = 96, 72
 
 
-def build(bpy, aniso, rot, node="principled", wall=False, spin=0.0):
+def build(bpy, aniso, rot, node="principled", wall=False, spin=0.0, uv_angle=None):
+    """uv_angle (radians): the plate gets a UV map whose u axis is turned that far from the
+    plate's x axis, and a Tangent node (UV Map mode) feeds the lobe's Tangent: the
+    highlight follows the UV map's tangent instead of the radial default."""
     sys.path.insert(0, os.path.join(ROOT, "example_blends"))
     import make_blends as mb
     scene = mb.reset()
@@ -40,9 +43,20 @@ def build(bpy, aniso, rot, node="principled", wall=False, spin=0.0):
         n.inputs["Anisotropy"].default_value = aniso
         n.inputs["Rotation"].default_value = rot
     nt.links.new(n.outputs[0], out.inputs["Surface"])
+    if uv_angle is not None:
+        tan = nt.nodes.new("ShaderNodeTangent")
+        tan.direction_type = "UV_MAP"
+        nt.links.new(tan.outputs["Tangent"], n.inputs["Tangent"])
     # spin (radians) turns the plate about its own Z: the radial tangent turns with the
     # object (its normal transform), the highlight stays where it was.
-    mb.plane("Plate", 4.0, 4.0, m, location=(0.3, 0.2, 0.0), rotation=(0.0, 0.0, spin))
+    plate = mb.plane("Plate", 4.0, 4.0, m, location=(0.3, 0.2, 0.0), rotation=(0.0, 0.0, spin))
+    if uv_angle is not None:
+        c, s_ = math.cos(uv_angle), math.sin(uv_angle)
+        uv = plate.data.uv_layers.new(name="brush")
+        for loop in plate.data.loops:
+            x, y, _ = plate.data.vertices[loop.vertex_index].co
+            uv.data[loop.index].uv = (0.5 + (x * c + y * s_) / 4.0,
+                                      0.5 + (-x * s_ + y * c) / 4.0)
     mb.set_world((0.0, 0.0, 0.0))
     if wall:
         # A white wall the plate's glossy reflection lights (photon pass: caustic photons
@@ -96,8 +110,8 @@ def regions(img, n=4):
 
 
 def compare(bpy, spp=64, aniso=0.8, rot=0.0, node="principled", wall=False, photons=2_000,
-            spin=0.0):
-    scene = build(bpy, aniso, rot, node, wall, spin)
+            spin=0.0, uv_angle=None):
+    scene = build(bpy, aniso, rot, node, wall, spin, uv_angle)
     ours = render(bpy, scene, "ours", spp, photons)
     cyc = render(bpy, scene, "cycles", spp)
     lo, lc = (a @ np.array([0.2126, 0.7152, 0.0722]) for a in (ours, cyc))
@@ -115,13 +129,16 @@ def main():
     ap.add_argument("--wall", action="store_true")
     ap.add_argument("--spin", type=float, default=0.0)
     ap.add_argument("--photons", type=int, default=2_000)
+    ap.add_argument("--uv-angle", type=float, default=None,
+                    help="degrees: the tangent from a UV map turned that far (Tangent node)")
     a = ap.parse_args()
     sys.path.insert(0, ROOT)
     import bpy
     import addon
     if not hasattr(bpy.types.Scene, "photonmap"):
         addon.register()
-    r = compare(bpy, a.spp, a.aniso, a.rot, a.node, a.wall, a.photons, a.spin)
+    r = compare(bpy, a.spp, a.aniso, a.rot, a.node, a.wall, a.photons, a.spin,
+                None if a.uv_angle is None else math.radians(a.uv_angle))
     np.set_printoptions(precision=4, suppress=True)
     print("total ours/cycles", round(r["total"], 4))
     print("regions ours\n", r["regions_ours"])

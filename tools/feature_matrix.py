@@ -1892,9 +1892,9 @@ def warned_displacement():
     _sun()
 
 
-@case("warned", status="warned", how="anisotropic highlights follow the default radial "
-      "tangent; a linked Tangent (UV map) is not supported (Principled Anisotropic and "
-      "Glossy Anisotropy themselves are, tools/aniso_cycles.py)", warning="Tangent")
+@case("warned", status="warned", how="a Tangent node (UV Map) on the anisotropic lobe of "
+      "a mesh without a UV map: the default radial tangent is used (with a UV map its "
+      "MikkTSpace tangent is followed, tools/aniso_cycles.py --uv-angle)", warning="Tangent")
 def warned_anisotropy():
     _stage()
     m, nt, out = _nodes_material("brushed")

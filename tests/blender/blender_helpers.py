@@ -160,8 +160,10 @@ def read_layers(path):
     out = {}
     order = "RGBAXYZV"
     for name, lst in passes.items():
-        # (Cryptomatte's channels are lowercase r, g, b, a: the spec's names)
-        lst.sort(key=lambda t: order.index(t[0].upper()) if t[0].upper() in order else 99)
+        # (The UV pass' channels are U, V, A in that order; Cryptomatte's are lowercase
+        # r, g, b, a: the spec's names.)
+        seq = "UVA" if {c for c, _ in lst} == {"U", "V", "A"} else order
+        lst.sort(key=lambda t: seq.index(t[0].upper()) if t[0].upper() in seq else 99)
         out[name] = np.stack([np.asarray(p, dtype=np.float32) for _, p in lst], axis=2)
     return out
 

@@ -158,7 +158,7 @@ def test_unmade_passes_one_warning(bpy_addon, tmp_path):
     scene.render.engine = "PHOTONMAP"
     cheap(scene, width=16, height=12, spp=1, photons=2_000, caustic_photons=200)
     vl = scene.view_layers[0]
-    vl.use_pass_mist = vl.use_pass_ambient_occlusion = True
+    vl.use_pass_vector = vl.use_pass_ambient_occlusion = True
     vl.use_pass_diffuse_direct = True
     vl.use_pass_emit = True
     vl.aovs.add().name = "rust"
@@ -169,13 +169,13 @@ def test_unmade_passes_one_warning(bpy_addon, tmp_path):
         render_exr(bpy, scene, tmp_path / "w.exr", multilayer=True)
     finally:
         addon.engine.status_listeners.remove(listener)
-        vl.use_pass_mist = vl.use_pass_ambient_occlusion = False
+        vl.use_pass_vector = vl.use_pass_ambient_occlusion = False
         vl.use_pass_diffuse_direct = False
         vl.use_pass_emit = False
         vl.aovs.remove(vl.aovs[0])
     unmade = [w for w in seen if "does not make" in w]
     assert len(unmade) == 1, seen
-    for name in ("Mist", "Ambient Occlusion", "Diffuse Direct",
+    for name in ("Vector", "Ambient Occlusion", "Diffuse Direct",
                  "Emission", "'rust'"):
         assert name in unmade[0], (name, unmade[0])
     for name in ("Denoising", "Color", "Normal", "Depth"):
