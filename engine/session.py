@@ -240,6 +240,19 @@ class Session:
 
     # --- the thread ----------------------------------------------------------------------
     def _run(self):
+        # The kernels load (or compile) first, outside the session's flag: an update that
+        # arrives meanwhile cancels the running stage, and a warm-up that polled the flag
+        # (the kd-tree's build) raised Cancelled out of the thread, leaving the session
+        # busy for ever (an edit in the first seconds of a viewport; tests/test_session.py).
+        try:
+            ensure_compiled()
+        except Exception as exc:  # noqa: BLE001 - kept for the caller to show
+            self.error = f"{type(exc).__name__}: {exc}"
+            self._event("error", self.error)
+            with self._cond:
+                self._stopping = True  # nothing will render: waiters return
+                self._cond.notify_all()
+            return
         # Every pool started on this thread belongs to the session's flag (stop() joins
         # them), also where a stage polls it through a plain callable.
         with polled_by(self._cancel):
@@ -247,7 +260,6 @@ class Session:
 
     def _loop(self):
         try:
-            ensure_compiled()
             while True:
                 with self._cond:
                     while self._pending is None and not self._stopping:

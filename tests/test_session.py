@@ -288,3 +288,31 @@ def test_stop_waits_for_its_own_chunks_only(box):
     assert session.counters.cancels == 1
     assert foreign_running and latency < 4.0, latency  # did not wait for the other pool
     assert not any(t.is_alive() for t in foreign)
+
+
+def test_an_edit_while_the_kernels_load_does_not_end_the_session(box, monkeypatch):
+    """The session thread loads the kernels first; the kd-tree's warm-up polls the
+    thread's stop flag, so an update arriving meanwhile (an edit in a viewport's first
+    seconds) raised Cancelled out of the thread: no thread, busy for ever (the viewport
+    test hung on a slower machine). The warm-up now runs outside the session's flag."""
+    from engine import parallel, session as session_module
+    from engine.jit import ensure_compiled
+    ensure_compiled()
+    edited = threading.Event()
+
+    def slow_warm_up(progress=None):
+        assert edited.wait(30)
+        flag = parallel.stop_flag_of(None)
+        if flag is not None and flag.is_set():  # as kdtree.KdTree does mid-build
+            raise parallel.Cancelled()
+        return 0.0
+
+    monkeypatch.setattr(session_module, "ensure_compiled", slow_warm_up)
+    session = Session(box, SETTINGS, passes=1).start()
+    try:
+        session.update_scene(box, geometry=False)  # sets the session's cancel flag
+        edited.set()
+        idle(session)
+        assert session.running
+    finally:
+        session.stop()
