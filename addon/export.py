@@ -58,32 +58,27 @@ def _foreach(collection, attr, count, width, dtype):
     return buf.reshape(count, width) if width > 1 else buf
 
 
-def _uses_tangent_normal_maps(obj) -> bool:
-    """Some material of the object has a tangent-space Normal Map node (its tangents are
-    worth computing)."""
+def _material_nodes(obj):
+    """Every shader node of the object's materials."""
     for slot in getattr(obj, "material_slots", ()):
         mat = slot.material
         tree = getattr(mat, "node_tree", None) if mat is not None else None
-        if tree is None:
-            continue
-        for node in tree.nodes:
-            if node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT":
-                return True
-    return False
+        if tree is not None:
+            yield from tree.nodes
+
+
+def _uses_tangent_normal_maps(obj) -> bool:
+    """Some material of the object has a tangent-space Normal Map node (its tangents are
+    worth computing)."""
+    return any(node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT"
+               for node in _material_nodes(obj))
 
 
 def _uses_uv_tangents(obj) -> bool:
     """Some material of the object has a Tangent node in UV Map mode (an anisotropic
     lobe's tangent may read its MikkTSpace tangents: MaterialConverter.uv_tangent_map)."""
-    for slot in getattr(obj, "material_slots", ()):
-        mat = slot.material
-        tree = getattr(mat, "node_tree", None) if mat is not None else None
-        if tree is None:
-            continue
-        for node in tree.nodes:
-            if node.type == "TANGENT" and getattr(node, "direction_type", "") == "UV_MAP":
-                return True
-    return False
+    return any(node.type == "TANGENT" and getattr(node, "direction_type", "") == "UV_MAP"
+               for node in _material_nodes(obj))
 
 
 def _corner_tangents(me, layer, loops, warnings=None):

@@ -94,26 +94,25 @@ def _noise_threshold(text):
 QUALITY_PRESETS = ("preview", "medium", "high", "reference")
 
 
+def _kinds(text: str, valid) -> tuple:
+    """A comma-separated list of `valid` words (--data-passes, --cryptomatte)."""
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    if not kinds or any(k not in valid for k in kinds):
+        raise argparse.ArgumentTypeError(f"takes {', '.join(valid)} (comma-separated), "
+                                         f"got {text!r}")
+    return kinds
+
+
 def _data_passes(text: str) -> tuple:
     """--data-passes' value: comma-separated kinds of RenderSettings.DATA_PASSES."""
     from .settings import DATA_PASSES
-    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
-    bad = [k for k in kinds if k not in DATA_PASSES]
-    if bad or not kinds:
-        raise argparse.ArgumentTypeError(f"takes {', '.join(DATA_PASSES)} (comma-separated), "
-                                         f"got {text!r}")
-    return kinds
+    return _kinds(text, DATA_PASSES)
 
 
 def _cryptomatte(text: str) -> tuple:
     """--cryptomatte's value: comma-separated kinds of RenderSettings.CRYPTOMATTE_KINDS."""
     from .settings import CRYPTOMATTE_KINDS
-    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
-    bad = [k for k in kinds if k not in CRYPTOMATTE_KINDS]
-    if bad or not kinds:
-        raise argparse.ArgumentTypeError(f"takes {', '.join(CRYPTOMATTE_KINDS)} "
-                                         f"(comma-separated), got {text!r}")
-    return kinds
+    return _kinds(text, CRYPTOMATTE_KINDS)
 
 
 def _setting_options(r, method=True, sweeps=False):
