@@ -8,8 +8,11 @@ the films strictly in pass order with the same PassMerger as the single-machine 
 the image is bitwise the same as render_progressive with the same seed and pass count,
 whatever the number of workers or the order in which they finish.
 
-A worker that dies mid-pass loses nothing: the scheduler hands its task to another worker
-(the scene was broadcast, every worker holds a copy). Budgets (passes, seconds, target
+A worker that dies mid-pass loses nothing: the scheduler hands its task to another worker.
+The scene is broadcast, but Dask's active memory manager (on by default) drops the
+replicas no queued task needs, so the one copy left can die with its worker; the
+scheduler then cancels every pass that needs it, and the client scatters the scene
+again and resubmits those passes (MAX_SCENE_LOSSES times a render). Budgets (passes, seconds, target
 error) and cancel stop the render; pending tasks are cancelled and running ones are told
 to stop (a flag on each worker that the pass polls).
 
@@ -42,6 +45,7 @@ LOCAL_PREFIX = "local:"
 POLL_SECONDS = 0.1       # how often the client asks should_cancel while passes run
 STOPPED_KEPT = 64          # render keys a worker remembers as ended (for passes still running)
 WORKER_WAIT_SECONDS = 30.0  # a scheduler without workers: wait this long for one
+MAX_SCENE_LOSSES = 8        # scene copies a render may lose with dying workers (resubmits)
 
 
 def missing_packages() -> list[str]:
@@ -353,6 +357,17 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
             tell(texts)
 
     scene_future = client.scatter(scene, broadcast=True, hash=False)
+    scene_losses = 0
+
+    def submit(i):
+        # Earlier passes first (higher Dask priority): they are merged first. A pass
+        # resubmitted after the scene was lost gets a key of its own (the old one is
+        # forgotten by the scheduler).
+        return client.submit(run_pass, scene_future, settings, i, region, key, worker_threads,
+                             key=f"{key}-pass-{i}" + (f"-r{scene_losses}" if scene_losses else ""),
+                             priority=-i, pure=False)
+
+    cancelled_error = getattr(distributed.client, "FuturesCancelledError", TimeoutError)
     pending: dict = {}   # pass -> future
     finished: dict = {}  # pass -> Film, waiting for the passes before it
     log, effects, warnings, keys = [], [], [], set()
@@ -362,10 +377,7 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
         while True:
             while (len(pending) + len(finished) < window
                    and (max_passes is None or next_pass <= max_passes)):
-                # Earlier passes first (higher Dask priority): they are merged first.
-                pending[next_pass] = client.submit(
-                    run_pass, scene_future, settings, next_pass, region, key, worker_threads,
-                    key=f"{key}-pass-{next_pass}", priority=-next_pass, pure=False)
+                pending[next_pass] = submit(next_pass)
                 next_pass += 1
             if not pending and not finished:
                 break
@@ -383,9 +395,22 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
             try:
                 distributed.wait(list(pending.values()), timeout=timeout,
                                  return_when="FIRST_COMPLETED")
-            except TimeoutError:
-                pass
+            except (TimeoutError, cancelled_error):
+                pass  # cancelled passes: their scene copy died with a worker (below)
             tell_posted()
+            lost = [i for i in sorted(pending) if pending[i].cancelled()]
+            if lost:
+                scene_losses += 1
+                if scene_losses > MAX_SCENE_LOSSES:
+                    raise RuntimeError(
+                        f"the Dask cluster lost the scene {scene_losses} times (workers "
+                        f"died while holding it); {merger.passes} passes were merged")
+                scene_future.release()
+                scene_future = client.scatter(scene, broadcast=True, hash=False)
+                for i in lost:
+                    pending.pop(i).release()
+                    pending[i] = submit(i)
+                continue
             for i in sorted(pending):
                 if pending[i].done():
                     future = pending.pop(i)

@@ -345,6 +345,30 @@ def test_killed_worker_loses_nothing(client):
     client.wait_for_workers(2, timeout=60)  # the nanny restarted it for the next tests
 
 
+def test_lost_scene_is_scattered_again(client, small):
+    """Dask's active memory manager keeps one copy of a broadcast scene where no queued task
+    needs more, and that copy can die with its worker (CI saw every pass cancelled, "already
+    forgotten"). Here the scene's key is force-cancelled on the scheduler once pass 1 is
+    merged: the client scatters the scene again, resubmits the cancelled passes, and the
+    image is still the local one."""
+    scene, settings, local = small
+    dropped = []
+
+    def drop_the_scene(film, info):
+        if not dropped:
+            keys = client.run_on_scheduler(lambda dask_scheduler: [
+                k for k in dask_scheduler.tasks if str(k).startswith("PaperScene-")])
+            assert len(keys) == 1, keys
+            client.cancel([distributed.Future(keys[0], client)], force=True)
+            dropped.append(keys[0])
+
+    film = render_distributed(scene, settings, Budget(passes=5), client=client,
+                              worker_threads=1, max_in_flight=2, on_pass=drop_the_scene)
+    assert dropped and film.stats["passes"] == 5
+    assert_bitwise(film, local)
+    _wait_until_idle(client)
+
+
 def test_cancel_stops_a_running_pass(monkeypatch):
     """Pass 2 runs until its should_cancel turns True (threads of this process, so the
     patched render_pass is what the workers run): cancelling the render after pass 1 must
