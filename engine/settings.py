@@ -58,6 +58,16 @@ DATA_PASSES = ("color", "denoising", "material_index", "mist", "object_index", "
 CRYPTOMATTE_KINDS = ("asset", "material", "object")
 
 
+def _word_set(name: str, value, valid) -> tuple:
+    """A setting that names some of `valid` (a word, or several): the sorted tuple of
+    them, lower case. Raises ValueError naming the setting and the valid words."""
+    words = (value,) if isinstance(value, str) else value
+    words = tuple(sorted(set(str(v).lower() for v in (words or ()))))
+    if any(v not in valid for v in words):
+        raise ValueError(f"setting '{name}' takes {', '.join(valid)}, got {value!r}")
+    return words
+
+
 @dataclass
 class RenderSettings:
     # Pass 1 (photons)
@@ -227,18 +237,8 @@ class RenderSettings:
                              f"from 0 (off) to {ADAPTIVE_THRESHOLD_MAX:g}, got "
                              f"{self.adaptive_threshold!r}")
         self.adaptive_threshold = t
-        dp = (self.data_passes,) if isinstance(self.data_passes, str) else self.data_passes
-        dp = tuple(sorted(set(str(v).lower() for v in (dp or ()))))
-        if any(v not in DATA_PASSES for v in dp):
-            raise ValueError(f"setting 'data_passes' takes {', '.join(DATA_PASSES)}, got "
-                             f"{self.data_passes!r}")
-        self.data_passes = dp
-        cm = (self.cryptomatte,) if isinstance(self.cryptomatte, str) else self.cryptomatte
-        cm = tuple(sorted(set(str(v).lower() for v in (cm or ()))))
-        if any(v not in CRYPTOMATTE_KINDS for v in cm):
-            raise ValueError(f"setting 'cryptomatte' takes {', '.join(CRYPTOMATTE_KINDS)}, "
-                             f"got {self.cryptomatte!r}")
-        self.cryptomatte = cm
+        self.data_passes = _word_set("data_passes", self.data_passes, DATA_PASSES)
+        self.cryptomatte = _word_set("cryptomatte", self.cryptomatte, CRYPTOMATTE_KINDS)
         lv = self.cryptomatte_levels
         if isinstance(lv, bool) or not isinstance(lv, (int, np.integer)) or not 1 <= lv <= 16:
             raise ValueError("setting 'cryptomatte_levels' must be a whole number from 1 to "
