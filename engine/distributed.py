@@ -26,6 +26,7 @@ import os
 import threading
 import time
 import uuid
+import warnings
 from collections import deque
 from contextlib import contextmanager
 from dataclasses import replace
@@ -250,7 +251,8 @@ def _engine_package() -> str:
 def engine_zip(directory: str) -> str:
     """Write the engine's files into a zip importable under the engine's own package name
     (parent packages as empty __init__.py files) and return its path. The name carries a
-    hash of the contents, so an edited engine is a new upload."""
+    hash of the contents and the package name, so an edited engine is a new upload (and
+    a new folder on the workers: shippedengine.unpack)."""
     import hashlib
     import zipfile
     here = os.path.dirname(os.path.abspath(__file__))
@@ -261,7 +263,7 @@ def engine_zip(directory: str) -> str:
         for name in sorted(names):
             if not name.endswith((".pyc", ".pyo")):
                 files.append(os.path.join(root, name))
-    digest = hashlib.sha1()
+    digest = hashlib.sha1(package.encode())
     for path in files:
         digest.update(os.path.relpath(path, here).encode())
         with open(path, "rb") as f:
@@ -278,13 +280,32 @@ def engine_zip(directory: str) -> str:
 
 
 def ship_engine_code(client) -> None:
-    """Upload the engine (engine_zip) to the scheduler and every worker, also to workers
-    that join later (Client.upload_file), so they import it under the client's module
-    name. Inside a Blender extension that name is bl_ext.<repo>.<id>.engine, which no
-    worker could import otherwise; workers need only the engine's dependencies."""
+    """Ship the engine (engine_zip) to the scheduler and every worker, also to workers
+    that join or restart later, so they import it under the client's module name. Inside
+    a Blender extension that name is bl_ext.<repo>.<id>.engine, which no worker could
+    import otherwise; workers need only the engine's dependencies. The scheduler gets
+    Client.upload_file's copy (it unpickles the passes' tasks); each worker unpacks the
+    zip once per machine into a folder named by its contents (shippedengine.UnpackEngine),
+    so numba's kernel cache serves every render after the first on that machine."""
     import tempfile
+
+    import cloudpickle
+    from distributed.diagnostics.plugin import SchedulerUploadFile
+
+    from . import shippedengine
     with tempfile.TemporaryDirectory() as tmp:
-        client.upload_file(engine_zip(tmp))
+        path = engine_zip(tmp)
+        with open(path, "rb") as f:
+            data = f.read()
+        name = os.path.splitext(os.path.basename(path))[0]
+        with warnings.catch_warnings():  # the same engine again (a later render): harmless
+            warnings.filterwarnings("ignore", message="Scheduler already contains a plugin")
+            client.register_plugin(SchedulerUploadFile(path, load=True),
+                                   name=f"{name}-scheduler")
+    # The workers cannot import the plugin's module by its name: send it by value.
+    cloudpickle.register_pickle_by_value(shippedengine)
+    client.register_plugin(shippedengine.UnpackEngine(data, name, _engine_package()),
+                           name=f"{name}-workers")
 
 
 def render_distributed(scene: Scene, settings: RenderSettings | None = None,

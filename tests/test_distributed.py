@@ -309,6 +309,20 @@ def test_engine_under_an_extension_name_is_shipped(client, small, tmp_path, monk
         assert type(film).__module__ == package + ".engine.film"
         assert_bitwise(film, small[2])
         assert all(client.run(eval, spec, {"importlib": importlib}).values())  # uploaded
+        # Each worker imports it from one folder a machine, named by its contents, with the
+        # client's modification times: numba's cache (source path, mtime) serves every later
+        # render and restarted worker there, instead of a compile in each worker's scratch.
+        folders = importlib.import_module(package + ".engine.shippedengine").engines_folder()
+        jit_file = f"__import__('sys').modules['{package}.engine.jit'].__file__"
+        where = set(client.run(eval, jit_file).values())
+        assert len(where) == 1 and next(iter(where)).startswith(folders + os.sep), where
+        ours = os.path.join(ROOT, "engine", "jit.py")
+        assert abs(os.path.getmtime(next(iter(where))) - os.path.getmtime(ours)) <= 2.0
+        client.restart()
+        again = dist.render_distributed(scene, ext.RenderSettings(**CHEAP), ext.Budget(passes=5),
+                                        client=client, worker_threads=1)
+        assert_bitwise(again, small[2])
+        assert set(client.run(eval, jit_file).values()) == where
     finally:
         for name in [n for n in sys.modules if n.startswith("bl_ext_t")]:
             del sys.modules[name]
