@@ -1,10 +1,13 @@
 """Blender materials (shader node trees) -> engine materials.
 
 Supported: Principled BSDF (Cycles' v2 layers: sheen, coat, metallic with F82 tint,
-transmission, specular IOR level and tint; subsurface warns), Diffuse, Glossy (GGX or
-Multiscatter GGX), Glass, Refraction (refraction alone, no Fresnel, as Cycles), Emission,
-Transparent, Mix Shader and Add Shader of those (Add sums the closures: their even mix at
-closure weight 2, exact for Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
+transmission, specular IOR level and tint; subsurface as a diffuse base of Cycles'
+random-walk albedo, warned), Diffuse, Glossy (GGX or Multiscatter GGX), Glass, Refraction
+(refraction alone, no Fresnel, as Cycles), Emission, Transparent, Mix Shader and Add
+Shader of those (a Mix of two opaque surfaces whose parameters do not blend linearly, e.g.
+a dielectric and a metal, takes one side per hit with the factor's probability, as Cycles'
+closure sampling; Add sums the closures: their even mix at closure weight 2, exact for
+Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
 transparent shares of an Add are averaged, warned), an Image Texture (its Extension,
 Interpolation, UDIM tiles), a Color Attribute, an RGB / Value node, or a tree of the
 colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
@@ -472,14 +475,7 @@ class MaterialConverter:
                 ecol, etex = self._color(node, "Emission Color")
                 c.emission = np.asarray(ecol) * strength
                 c.emission_texture = etex  # per hit (None: a constant colour)
-            for name in ("Subsurface Weight",):
-                if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
-                    # Said with what renders instead: the user decides whether the look
-                    # (no light spreading under the skin) is close enough.
-                    self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
-                               "is not supported: rendered as a diffuse surface of its Base "
-                               "Color (no light spreads beneath the surface, as Cycles' "
-                               "subsurface scattering does)")
+            self._subsurface(node, c)
             self._anisotropy(node, c, "Anisotropic", "Anisotropic Rotation")
             if c.coat_weight > 0 and "Coat Normal" in inp and inp["Coat Normal"].is_linked:
                 self._warn(f"material '{self._mat.name}': 'Coat Normal' of node "
@@ -607,6 +603,38 @@ class MaterialConverter:
                            normal_map=self._normal(node))
         self._unsupported(node)
         return self._viewport(self._mat)
+
+    def _subsurface(self, node, c: Closure):
+        """Principled Subsurface Weight > 0: the diffuse base takes the albedo Cycles'
+        random walk gives a thick object of that Base Color (engine.subsurface; its
+        constant colour, or per hit for a texture or a texture-driven weight). Warned with
+        what renders: no light spreads beneath the surface."""
+        s = node.inputs.get("Subsurface Weight")
+        if s is None or not (s.is_linked or self._float(node, "Subsurface Weight", 0.0) > 0):
+            return
+        if (c.metallic > 0 or c.transmission > 0 or "metallic" in c.scalars
+                or "transmission" in c.scalars):
+            # Base Color is also the metal's F0 and the glass's tint there: left as it is.
+            self._warn(f"material '{self._mat.name}': 'Subsurface Weight' of node "
+                       f"'{node.name}' on a metallic or transmissive surface is not "
+                       "supported: rendered as a diffuse surface of its Base Color (no "
+                       "light spreads beneath the surface, as Cycles' subsurface "
+                       "scattering does)")
+            return
+        w, wnode = self._factor_input(node, "Subsurface Weight", 0.0)
+        ss = self.pm.subsurface
+        if wnode is None and c.texture is None:
+            c.base_color = ss.diffuse_color(c.base_color, w)
+        else:
+            colour = (c.base_color if c.texture is None else
+                      self.pm.shadernodes.MixColor(1.0, c.texture, c.base_color, "MULTIPLY"))
+            c.texture = ss.SubsurfaceColor(colour, w if wnode is None else wnode)
+            c.base_color = np.ones(3)
+        self._warn(f"material '{self._mat.name}': 'Subsurface Weight' of node '{node.name}' "
+                   "is approximated: rendered as a diffuse surface of the albedo Cycles' "
+                   "random-walk subsurface scattering gives a thick object of its Base "
+                   "Color (no light spreads beneath the surface or through thin parts; "
+                   "Subsurface Radius and Scale are not used)")
 
     def _weighted_sum(self, node, a: Closure, b: Closure, wa, wb, ea, eb) -> Closure:
         """wa a + wb b of two surfaces (wa = mix or add weight x closure weight): their
