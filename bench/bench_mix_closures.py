@@ -3,13 +3,14 @@ sun and a uniform world, mixed by a constant factor or by a Noise Texture, rende
 Photon Mapping and with Cycles through the bpy wheel (issue 14, session s25 mixpale).
 
     NUMBA_CACHE_DIR=... PYTHONPATH=. .venv/bin/python bench/bench_mix_closures.py \
-        FACTOR MODE [--res W H]
+        FACTOR MODE [--res W H] [--spp 16] [--threads N]
 
 FACTOR: const (0.5) | noise (Noise Texture, scale 6, Blender's defaults otherwise)
 MODE:   ours | cycles:SPP  (Cycles plain: no denoise, no adaptive, no clamp, seed 0)
 
-Prints `RESULT factor mode R G B cpu_s`: the mean linear RGB of the image (the plane fills
-the frame), CPU s of this process (getrusage, the build not counted).
+Prints `RESULT factor mode R G B cpu_s sha1`: the mean linear RGB of the image (the plane
+fills the frame), CPU s of this process (getrusage, the build not counted) and the
+image's SHA-1 (ours: the same for any --threads).
 """
 from __future__ import annotations
 
@@ -84,6 +85,7 @@ def main():
     ap.add_argument("mode")
     ap.add_argument("--res", type=int, nargs=2, default=(80, 60))
     ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--threads", type=int, default=0, help="ours: worker processes (0: auto)")
     a = ap.parse_args()
     import addon
     addon.register()
@@ -94,6 +96,7 @@ def main():
     if a.mode == "ours":
         r.engine = "PHOTONMAP"
         scene.photonmap.spp = a.spp
+        scene.photonmap.threads = a.threads
     else:
         r.engine = "CYCLES"
         c = scene.cycles
@@ -116,8 +119,10 @@ def main():
     img = bpy.data.images.load(out)
     px = np.array(img.pixels[:], np.float64).reshape(-1, 4)[:, :3]
     m = px.mean(axis=0)
-    print(f"RESULT {a.factor} {a.mode} {m[0]:.4f} {m[1]:.4f} {m[2]:.4f} cpu_s={t:.1f}",
-          flush=True)
+    import hashlib
+    sha = hashlib.sha1(np.ascontiguousarray(px, np.float32).tobytes()).hexdigest()[:12]
+    print(f"RESULT {a.factor} {a.mode} {m[0]:.4f} {m[1]:.4f} {m[2]:.4f} cpu_s={t:.1f} "
+          f"sha1={sha}", flush=True)
 
 
 if __name__ == "__main__":
