@@ -669,15 +669,24 @@ class MaterialConverter:
     @staticmethod
     def _blend_inexact(a: Closure, b: Closure) -> bool:
         """Whether blending two opaque Principled-model surfaces' parameters is not their
-        weighted sum: the lobes are linear in metallic, specular, transmission, coat and
-        sheen weights, but not in the colour or the roughness they share. Exact (False):
-        equal colours and, where both sides have a glossy lobe, equal roughness; or a
+        weighted sum: the lobes are linear in the metallic, specular, transmission, coat
+        and sheen weights for one colour, and linear in the colour for one set of weights
+        (no transmission: its tint is sqrt(colour)), but not in both at once, nor in the
+        roughness. Exact (False): equal colours, or equal lobe weights without
+        transmission; and, where both sides have a glossy lobe, equal roughness; or a
         Diffuse and a Glossy side (the glossy colour model keeps both colours)."""
         blend = _blend(a, b, 0.5, 0.5)
         if blend.node != "principled":
             return False
-        same = (a.texture is None and b.texture is None
-                and np.allclose(a.base_color, b.base_color))
+
+        def side(c, name):
+            return c.scalars.get(name, getattr(c, name))
+        lobes = [(side(a, n), side(b, n)) for n in MaterialConverter.LINEAR_SCALARS]
+        same_lobes = (all(not hasattr(x, "evaluate") and not hasattr(y, "evaluate")
+                          and x == y for x, y in lobes)
+                      and a.transmission == 0.0 and b.transmission == 0.0)
+        same = same_lobes or (a.texture is None and b.texture is None
+                              and np.allclose(a.base_color, b.base_color))
         ka = a.metallic + a.transmission + a.specular
         kb = b.metallic + b.transmission + b.specular
         ra, rb = a.scalars.get("roughness", a.roughness), b.scalars.get("roughness",
@@ -690,8 +699,9 @@ class MaterialConverter:
         """Mix Shader of two opaque surfaces by a factor f (per hit: a texture, Layer
         Weight, Fresnel; or a constant): Cycles weights the closures (1 - f) and f (f
         clamped to [0, 1]). Where the parameters blend linearly (_blend_inexact False:
-        equal colours and roughness, a Diffuse and a Glossy side) they blend per hit with
-        those weights (metallic, specular, transmission, ... as (1 - f) x_a + f x_b,
+        one colour, or one set of lobe weights; a Diffuse and a Glossy side) they blend
+        per hit with those weights (metallic, specular, transmission, ... as
+        (1 - f) x_a + f x_b,
         roughness weighted by each side's glossy share). Otherwise (a blue dielectric and
         a gold metal) each hit takes one of the two surfaces whole, the second with
         probability f (engine.shadernodes.ClosurePick, Cycles' closure sampling): every

@@ -240,3 +240,32 @@ def test_refraction_slab_over_emissive_floor_matches_cycles(fresh_scene, bpy_add
     # Cycles at 4 spp drops one sample in a few pixels (0.984 of colour^2); at 64 spp 0.999.
     np.testing.assert_allclose(ref.reshape(-1, 3).mean(axis=0), np.square(color), rtol=0.01)
     _check(ours, ref, f"refraction {color}")
+
+
+def _nodes_of(node, seen=None):
+    """Every engine node reachable from node through its attributes."""
+    seen = [] if seen is None else seen
+    if hasattr(node, "evaluate") and all(n is not node for n in seen):
+        seen.append(node)
+        for v in vars(node).values():
+            _nodes_of(v, seen)
+    return seen
+
+
+def test_only_unlike_surfaces_pick_a_closure_per_hit(fresh_scene, bpy_addon):
+    """A parameter blend stays where it is exact (no noise added): two Diffuse colours by
+    a texture, a Diffuse and a Glossy; a dielectric and a metal take one side per hit."""
+    from blender_helpers import convert_material
+    from engine.shadernodes import ClosurePick
+    bpy = bpy_addon
+
+    def picks(build):
+        t = convert_material(_material(bpy, "M", build))
+        roots = [t.texture, *(t.scalar_textures or {}).values()]
+        return any(isinstance(n, ClosurePick) for r in roots for n in _nodes_of(r))
+    assert not picks(lambda nd, ln: _noise_mix(nd, ln, _diffuse(nd, (0.7, 0.1, 0.1)),
+                                               _diffuse(nd, (0.1, 0.1, 0.7))))
+    assert not picks(lambda nd, ln: _noise_mix(nd, ln, _diffuse(nd, (0.7, 0.1, 0.1)),
+                                               _glossy(nd, (0.9, 0.9, 0.9), 0.2)))
+    assert picks(lambda nd, ln: _noise_mix(nd, ln, _blue_dielectric(nd), _gold_metal(nd)))
+    assert picks(MIX_CASES["dielectric+metal 0.5"])
