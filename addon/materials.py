@@ -1,10 +1,13 @@
 """Blender materials (shader node trees) -> engine materials.
 
 Supported: Principled BSDF (Cycles' v2 layers: sheen, coat, metallic with F82 tint,
-transmission, specular IOR level and tint; subsurface warns), Diffuse, Glossy (GGX or
-Multiscatter GGX), Glass, Refraction (refraction alone, no Fresnel, as Cycles), Emission,
-Transparent, Mix Shader and Add Shader of those (Add sums the closures: their even mix at
-closure weight 2, exact for Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
+transmission, specular IOR level and tint; subsurface as a diffuse base of Cycles'
+random-walk albedo, warned), Diffuse, Glossy (GGX or Multiscatter GGX), Glass, Refraction
+(refraction alone, no Fresnel, as Cycles), Emission, Transparent, Mix Shader and Add
+Shader of those (a Mix of two opaque surfaces whose parameters do not blend linearly, e.g.
+a dielectric and a metal, takes one side per hit with the factor's probability, as Cycles'
+closure sampling; Add sums the closures: their even mix at closure weight 2, exact for
+Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
 transparent shares of an Add are averaged, warned), an Image Texture (its Extension,
 Interpolation, UDIM tiles), a Color Attribute, an RGB / Value node, or a tree of the
 colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
@@ -472,14 +475,7 @@ class MaterialConverter:
                 ecol, etex = self._color(node, "Emission Color")
                 c.emission = np.asarray(ecol) * strength
                 c.emission_texture = etex  # per hit (None: a constant colour)
-            for name in ("Subsurface Weight",):
-                if name in inp and (inp[name].is_linked or self._float(node, name, 0.0) > 0):
-                    # Said with what renders instead: the user decides whether the look
-                    # (no light spreading under the skin) is close enough.
-                    self._warn(f"material '{self._mat.name}': '{name}' of node '{node.name}' "
-                               "is not supported: rendered as a diffuse surface of its Base "
-                               "Color (no light spreads beneath the surface, as Cycles' "
-                               "subsurface scattering does)")
+            self._subsurface(node, c)
             self._anisotropy(node, c, "Anisotropic", "Anisotropic Rotation")
             if c.coat_weight > 0 and "Coat Normal" in inp and inp["Coat Normal"].is_linked:
                 self._warn(f"material '{self._mat.name}': 'Coat Normal' of node "
@@ -567,6 +563,10 @@ class MaterialConverter:
                     else self._default(inp[0])
             fac = float(np.mean(fac)) if np.ndim(fac) else float(fac)
             fac = min(max(fac, 0.0), 1.0)
+            if (a.weight == 1.0 and b.weight == 1.0 and 0.0 < fac < 1.0
+                    and self._opaque(a) and self._opaque(b) and self._blend_inexact(a, b)):
+                # Two surfaces whose parameter blend is not their mix: pick one per hit.
+                return self._mix_per_hit(a, b, fac)
             if a.weight == 1.0 and b.weight == 1.0:
                 return _blend(a, b, 1.0 - fac, fac, self.pm.shadernodes)
             # A side of closure weight != 1 (an Add Shader): (1 - f) w_a a + f w_b b is
@@ -604,6 +604,38 @@ class MaterialConverter:
         self._unsupported(node)
         return self._viewport(self._mat)
 
+    def _subsurface(self, node, c: Closure):
+        """Principled Subsurface Weight > 0: the diffuse base takes the albedo Cycles'
+        random walk gives a thick object of that Base Color (engine.subsurface; its
+        constant colour, or per hit for a texture or a texture-driven weight). Warned with
+        what renders: no light spreads beneath the surface."""
+        s = node.inputs.get("Subsurface Weight")
+        if s is None or not (s.is_linked or self._float(node, "Subsurface Weight", 0.0) > 0):
+            return
+        if (c.metallic > 0 or c.transmission > 0 or "metallic" in c.scalars
+                or "transmission" in c.scalars):
+            # Base Color is also the metal's F0 and the glass's tint there: left as it is.
+            self._warn(f"material '{self._mat.name}': 'Subsurface Weight' of node "
+                       f"'{node.name}' on a metallic or transmissive surface is not "
+                       "supported: rendered as a diffuse surface of its Base Color (no "
+                       "light spreads beneath the surface, as Cycles' subsurface "
+                       "scattering does)")
+            return
+        w, wnode = self._factor_input(node, "Subsurface Weight", 0.0)
+        ss = self.pm.subsurface
+        if wnode is None and c.texture is None:
+            c.base_color = ss.diffuse_color(c.base_color, w)
+        else:
+            colour = (c.base_color if c.texture is None else
+                      self.pm.shadernodes.MixColor(1.0, c.texture, c.base_color, "MULTIPLY"))
+            c.texture = ss.SubsurfaceColor(colour, w if wnode is None else wnode)
+            c.base_color = np.ones(3)
+        self._warn(f"material '{self._mat.name}': 'Subsurface Weight' of node '{node.name}' "
+                   "is approximated: rendered as a diffuse surface of the albedo Cycles' "
+                   "random-walk subsurface scattering gives a thick object of its Base "
+                   "Color (no light spreads beneath the surface or through thin parts; "
+                   "Subsurface Radius and Scale are not used)")
+
     def _weighted_sum(self, node, a: Closure, b: Closure, wa, wb, ea, eb) -> Closure:
         """wa a + wb b of two surfaces (wa = mix or add weight x closure weight): their
         blend by wa : wb (_blend) at closure weight wa + wb, so that every BSDF lobe of
@@ -629,22 +661,59 @@ class MaterialConverter:
     LINEAR_SCALARS = ("metallic", "specular", "transmission", "specular_ior_level",
                       "coat_weight", "coat_roughness", "sheen_weight", "sheen_roughness")
 
+    @staticmethod
+    def _opaque(c: Closure) -> bool:
+        return (c.has_bsdf and c.alpha == 1.0 and c.alpha_texture is None
+                and not np.any(c.emission > 0))
+
+    @staticmethod
+    def _blend_inexact(a: Closure, b: Closure) -> bool:
+        """Whether blending two opaque Principled-model surfaces' parameters is not their
+        weighted sum: the lobes are linear in the metallic, specular, transmission, coat
+        and sheen weights for one colour, and linear in the colour for one set of weights
+        (no transmission: its tint is sqrt(colour)), but not in both at once, nor in the
+        roughness. Exact (False): equal colours, or equal lobe weights without
+        transmission; and, where both sides have a glossy lobe, equal roughness; or a
+        Diffuse and a Glossy side (the glossy colour model keeps both colours)."""
+        blend = _blend(a, b, 0.5, 0.5)
+        if blend.node != "principled":
+            return False
+
+        def side(c, name):
+            return c.scalars.get(name, getattr(c, name))
+        lobes = [(side(a, n), side(b, n)) for n in MaterialConverter.LINEAR_SCALARS]
+        same_lobes = (all(not hasattr(x, "evaluate") and not hasattr(y, "evaluate")
+                          and x == y for x, y in lobes)
+                      and a.transmission == 0.0 and b.transmission == 0.0)
+        same = same_lobes or (a.texture is None and b.texture is None
+                              and np.allclose(a.base_color, b.base_color))
+        ka = a.metallic + a.transmission + a.specular
+        kb = b.metallic + b.transmission + b.specular
+        ra, rb = a.scalars.get("roughness", a.roughness), b.scalars.get("roughness",
+                                                                         b.roughness)
+        same_rough = (ka == 0 or kb == 0 or (not hasattr(ra, "evaluate")
+                                             and not hasattr(rb, "evaluate") and ra == rb))
+        return not (same and same_rough)
+
     def _mix_per_hit(self, a: Closure, b: Closure, fac):
-        """Mix Shader of two opaque surfaces by a factor evaluated per hit (a texture,
-        Layer Weight, Fresnel): Cycles weights the closures (1 - f) and f (f clamped to
-        [0, 1]); here the lobe parameters blend per hit with the same weights (metallic,
-        specular, transmission, ... as (1 - f) x_a + f x_b, roughness weighted by each
-        side's glossy share, the colour as a Mix Color of the two sides' colours), which
-        is exact for a diffuse and a glossy or Principled side. The two sides' distribution
-        and colour model come from their even mix. None when a side is emissive or not
-        opaque (those keep the factor's own value)."""
-        def opaque(c):
-            return (c.has_bsdf and c.alpha == 1.0 and c.alpha_texture is None
-                    and not np.any(c.emission > 0))
-        if not (opaque(a) and opaque(b)):
+        """Mix Shader of two opaque surfaces by a factor f (per hit: a texture, Layer
+        Weight, Fresnel; or a constant): Cycles weights the closures (1 - f) and f (f
+        clamped to [0, 1]). Where the parameters blend linearly (_blend_inexact False:
+        one colour, or one set of lobe weights; a Diffuse and a Glossy side) they blend
+        per hit with those weights (metallic, specular, transmission, ... as
+        (1 - f) x_a + f x_b,
+        roughness weighted by each side's glossy share). Otherwise (a blue dielectric and
+        a gold metal) each hit takes one of the two surfaces whole, the second with
+        probability f (engine.shadernodes.ClosurePick, Cycles' closure sampling): every
+        lobe parameter and the colour come from that side, so the mean over hits is the
+        weighted sum of the two BSDFs for camera rays and photons alike. The
+        distribution, IOR and colour model come from the sides' even mix. None when a
+        side is emissive or not opaque (those keep the factor's own value)."""
+        if not (self._opaque(a) and self._opaque(b)):
             return None
         sn = self.pm.shadernodes
-        f = sn.Math("MULTIPLY", fac, 1.0, clamp=True)
+        pick = self._blend_inexact(a, b)
+        f = sn.ClosurePick(fac) if pick else sn.Math("MULTIPLY", fac, 1.0, clamp=True)
         g = sn.Math("SUBTRACT", 1.0, f)
         out = _blend(a, b, 0.5, 0.5, sn)
         out.scalars = {}
@@ -667,7 +736,9 @@ class MaterialConverter:
         ka = a.metallic + a.transmission + a.specular
         kb = b.metallic + b.transmission + b.specular
         ra, rb = side(a, "roughness"), side(b, "roughness")
-        if ka > 0 and kb > 0:
+        if pick:
+            rough = per_hit(ra, rb)  # the picked side's, whole
+        elif ka > 0 and kb > 0:
             rough = sn.Math("DIVIDE", per_hit(sn.Math("MULTIPLY", ra, ka),
                                               sn.Math("MULTIPLY", rb, kb)),
                             per_hit(ka, kb))

@@ -378,7 +378,8 @@ def test_light_node_blackbody_is_the_light_temperature(fresh_scene, bpy_addon):
 
 def test_subsurface_warning_says_what_renders_and_names_the_object(fresh_scene, bpy_addon):
     """A Principled with Subsurface Weight (a skin, a candle): the warning says what is
-    rendered instead and names the object that uses the material (s24 new user)."""
+    rendered instead and names the object that uses the material (s24 new user); the
+    diffuse base takes Cycles' random-walk albedo of its Base Color (s25 mixpale)."""
     bpy = bpy_addon
     obj = _cube(bpy, "Candle", (0, 0, 0))
     mat = bpy.data.materials.new("Wax")
@@ -398,5 +399,9 @@ def test_subsurface_warning_says_what_renders_and_names_the_object(fresh_scene, 
     hits = [w for w in out.all_warnings() if "Subsurface Weight" in w]
     assert len(hits) == 1, out.all_warnings()
     assert hits[0].startswith("material 'Wax': 'Subsurface Weight'")
-    assert "rendered as a diffuse surface of its Base Color" in hits[0]
+    assert "rendered as a diffuse surface of the albedo Cycles' random-walk" in hits[0]
+    assert "no light spreads beneath the surface" in hits[0]
     assert hits[0].endswith("(used by 'Candle')")
+    # Base Color 0.8 (the default): Cycles' random walk reflects 0.7896 of the light on a
+    # thick slab (engine/subsurface.py, measured by bench/bench_subsurface_albedo.py).
+    np.testing.assert_allclose(out.materials["Wax"].base_color, [0.7896] * 3, atol=1e-4)
