@@ -528,6 +528,29 @@ def light_path_settings(scene, props) -> dict:
     return {n: int(getattr(src, n)) for n in LIGHT_PATH_LIMITS}
 
 
+# Light Paths > Clamping: Cycles' property names (UI units, 0 = off), which ours share.
+CLAMP_SETTINGS = ("sample_clamp_direct", "sample_clamp_indirect")
+
+
+def clamp_source(scene, props):
+    """Where Light Paths > Clamping comes from: scene.cycles when the Cycles add-on is
+    there (a scene lit and clamped for Cycles renders with its clamp here too), else props
+    (scene.photonmap), as light_path_source."""
+    cycles = getattr(scene, "cycles", None)
+    if cycles is not None and all(hasattr(cycles, n) for n in CLAMP_SETTINGS):
+        return cycles
+    return props
+
+
+def clamp_settings(scene, props) -> dict:
+    """Clamp Direct / Indirect as RenderSettings keywords (clamp_direct, clamp_indirect,
+    Cycles' UI values; engine/sampleclamp.py): Cycles' own properties when the Cycles
+    add-on is there, else ours (clamp_source)."""
+    src = clamp_source(scene, props)
+    return dict(clamp_direct=float(src.sample_clamp_direct),
+                clamp_indirect=float(src.sample_clamp_indirect))
+
+
 def border_region(render, width: int, height: int):
     """Render border as engine region (x0, y0, x1, y1), top-left origin, or None.
 

@@ -213,6 +213,23 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     transmission_bounces: IntProperty(
         name="Transmission", default=12, min=0, max=1024,
         description="Maximum number of refractions (glass, transmission)")
+    # Cycles' Light Paths > Clamping, same names, defaults (Direct 0, Indirect 10) and
+    # meaning: used only where the Cycles add-on is missing, as the bounce limits above
+    # (export.clamp_settings; engine/sampleclamp.py). Indirect 10 as Cycles, so a scene
+    # made without Cycles' settings renders as Cycles would render it.
+    sample_clamp_direct: FloatProperty(
+        name="Direct Light", default=0.0, min=0.0, max=1e8, soft_max=1000.0,
+        description="As Cycles' Clamping > Direct Light: each camera sample's light reaching "
+                    "the first surface it meets (and emitters or the world it sees) is "
+                    "scaled down to at most this brightness per channel on average; "
+                    "0 = off (fireflies kept, unbiased)")
+    sample_clamp_indirect: FloatProperty(
+        name="Indirect Light", default=10.0, min=0.0, max=1e8, soft_max=1000.0,
+        description="As Cycles' Clamping > Indirect Light: each camera sample's light "
+                    "arriving after a further bounce (glossy reflections of lights, photon "
+                    "estimates) is scaled down to at most this brightness per channel on "
+                    "average, which removes fireflies but darkens bright indirect light; "
+                    "0 = off")
     # Modes
     method: EnumProperty(
         name="Method", items=METHOD_ITEMS, default="photon",
@@ -307,7 +324,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     def to_settings_kwargs(self, film_transparent=False):
         """Keyword arguments for engine.settings.RenderSettings (the pixel filter from
         the scene's Film settings: export.pixel_filter_settings)."""
-        from .export import light_path_settings, pixel_filter_settings
+        from .export import clamp_settings, light_path_settings, pixel_filter_settings
         kwargs = dict(
             photons=self.photons, caustic_photons=self.caustic_photons,
             max_photon_depth=self.max_photon_depth, estimator=self.estimator,
@@ -331,6 +348,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
             film_transparent=bool(film_transparent))
         kwargs.update(pixel_filter_settings(self.id_data))
         kwargs.update(light_path_settings(self.id_data, self))
+        kwargs.update(clamp_settings(self.id_data, self))
         return kwargs
 
 

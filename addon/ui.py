@@ -118,6 +118,27 @@ class PHOTONMAP_PT_light_paths_max_bounces(PhotonMapButtonsPanel, bpy.types.Pane
                       icon="INFO")
 
 
+class PHOTONMAP_PT_light_paths_clamping(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Light Paths > Clamping: Cycles' own Direct / Indirect Light when the Cycles add-on
+    is there (the render reads them: addon/export.clamp_settings), else ours with the same
+    names and defaults (engine/sampleclamp.py)."""
+    bl_label = "Clamping"
+    bl_parent_id = "PHOTONMAP_PT_light_paths"
+
+    def draw(self, context):
+        from .export import clamp_source
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        pm = context.scene.photonmap
+        src = clamp_source(context.scene, pm)
+        col = layout.column(align=True)
+        col.prop(src, "sample_clamp_direct", text="Direct Light")
+        col.prop(src, "sample_clamp_indirect", text="Indirect Light")
+        if src is not pm:
+            layout.label(text="Shared with Cycles' Light Paths", icon="LINKED")
+
+
 class PHOTONMAP_PT_photons(PhotonMapButtonsPanel, bpy.types.Panel):
     bl_label = "Photon Mapping"
 
@@ -367,6 +388,7 @@ class PHOTONMAP_PT_viewport(PhotonMapButtonsPanel, bpy.types.Panel):
 
 classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_viewport,
            PHOTONMAP_PT_light_paths, PHOTONMAP_PT_light_paths_max_bounces,
+           PHOTONMAP_PT_light_paths_clamping,
            PHOTONMAP_PT_effects,
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
            PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_distributed,

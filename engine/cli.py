@@ -91,6 +91,15 @@ def _noise_threshold(text):
     return v
 
 
+def _clamp(text):
+    from .settings import CLAMP_MAX
+    v = _finite_float(text)
+    if not 0.0 <= v <= CLAMP_MAX:
+        raise argparse.ArgumentTypeError(f"must be from 0 (off) to {CLAMP_MAX:g} (as Cycles' "
+                                         f"Clamping), got {text}")
+    return v
+
+
 QUALITY_PRESETS = ("preview", "medium", "high", "reference")
 
 
@@ -146,6 +155,14 @@ def _setting_options(r, method=True, sweeps=False):
     r.add_argument("--min-samples", dest="adaptive_min_samples", type=_nonnegative_int,
                    help="adaptive sampling: samples every pixel takes first (Cycles' Min "
                         "Samples; default 0: auto from the threshold)")
+    # Cycles' Light Paths > Clamping (engine/sampleclamp.py)
+    r.add_argument("--clamp-direct", dest="clamp_direct", type=_clamp,
+                   help="each camera sample's direct light at most this per channel on "
+                        "average (Cycles' Clamping > Direct Light; default 0: off)")
+    r.add_argument("--clamp-indirect", dest="clamp_indirect", type=_clamp,
+                   help="each camera sample's indirect light at most this per channel on "
+                        "average (Cycles' Clamping > Indirect Light, 10 in Blender; default "
+                        "0: off)")
     r.add_argument("--max-depth", type=_nonnegative_int,
                    help="an extra cap on the mirror / glass bounces of camera rays (default "
                         "1024: none, the bounce limits below stop them, as in Cycles)")
@@ -369,6 +386,7 @@ def _scene_and_overrides(args, preset_overrides=None, preview=False):
                  "spp", "max_depth", "max_photon_depth", "light_samples", "seed", "workers",
                  "method", "max_bounces", "diffuse_bounces", "glossy_bounces",
                  "transmission_bounces", "adaptive_threshold", "adaptive_min_samples",
+                 "clamp_direct", "clamp_indirect",
                  "data_passes", "cryptomatte", "cryptomatte_levels"):
         v = getattr(args, name, None)
         if v is not None:

@@ -25,7 +25,7 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from . import adaptive, chaincounts, datapasses, photonvisibility
+from . import adaptive, chaincounts, datapasses, photonvisibility, sampleclamp
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -1068,7 +1068,7 @@ def smooth_min_photons(settings) -> int:
 
 
 def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
-                     per_pixel=None, every=None, into=None, counts=None):
+                     per_pixel=None, every=None, into=None, counts=None, clamp_tp=None):
     """f * irradiance from a photon map whose estimate is smooth within a pixel (caustic,
     secondary caustic): evaluated for at most per_pixel samples per pixel (default
     CAUSTIC_SAMPLES_PER_PIXEL) and weighted up accordingly. footprint: the pixel's radius
@@ -1082,7 +1082,9 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
     (one row in `stride` takes an estimate; the other rows' x + 0.0 is x). counts:
     (N,4) the rows' camera-side bounces where they differ from the map's (after a
     specular chain: the photons usable for them alone, chaincounts.irradiance); None:
-    the map's."""
+    the map's. clamp_tp: (N,3) the rows' camera-path throughputs, to hold each sample's
+    estimate to Cycles' Clamp Indirect (engine/sampleclamp.py) before it is weighed up;
+    None: no clamp."""
     out = np.zeros_like(f) if into is None else into
     if pmap is None or len(pmap) == 0:
         return out
@@ -1126,6 +1128,17 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
             limits=s.bounce_limits,
             counts=None if counts is None else np.take(counts, sel, axis=0),
             geo=getattr(ctx, "geo", None))
+    if clamp_tp is not None:
+        # (Per sample, before the weight: each of the block's samples held to the limit.
+        # Nothing over it: the unclamped sum below, bit for bit.)
+        L = np.take(f, sel, axis=0) * E
+        held = sampleclamp.clamp(L, clamp_tp, sel, sampleclamp.limits(s)[1])
+        if held is not L:
+            if into is None:
+                out[sel] = weight * held
+            else:
+                out[sel] += weight * held
+            return out
     if into is None:
         out[sel] = weight * np.take(f, sel, axis=0) * E
     else:
@@ -1143,7 +1156,7 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
-                  rows=None, bounce=None, extra=None):
+                  rows=None, bounce=None, extra=None, clamp_tp=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
@@ -1162,7 +1175,10 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     direct stage's shadow rays (the final gather's regathers count their own).
     extra: (K,4) int64 per shaded row, the camera chain's bounces before these hits
     (B_TOTAL order; the photon lookups count only the photons usable after them,
-    engine/chaincounts.py); None: none (the camera's first hits)."""
+    engine/chaincounts.py); None: none (the camera's first hits).
+    clamp_tp: (K,3) per shaded row, the camera path's throughput: the photon estimates
+    (indirect light) are held to Cycles' Clamp Indirect per sample (engine/sampleclamp.py;
+    the direct term is the caller's to clamp); None: no clamp."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     shadow_rays_before = counters.shadow_rays
@@ -1192,30 +1208,34 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
                                    None if sample_id is None else sample_id[dsel],
                                    None if footprint is None else footprint[dsel],
                                    should_cancel, None if scattered is None else scattered[dsel],
-                                   None if extra is None else extra[dsel])
+                                   None if extra is None else extra[dsel],
+                                   None if clamp_tp is None else clamp_tp[dsel])
             caustic[dsel] = c
             indirect[dsel] = ind
             return direct, caustic, indirect
     caustic, indirect = _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id,
-                                      footprint, should_cancel, scattered, extra)
+                                      footprint, should_cancel, scattered, extra, clamp_tp)
     return direct, caustic, indirect
 
 
 def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, should_cancel,
-                  scattered=None, extra=None):
+                  scattered=None, extra=None, clamp_tp=None):
     """(caustic, indirect) radiance of the diffuse lobe with f = albedo / pi; scattered,
-    extra: shade_diffuse's."""
+    extra, clamp_tp: shade_diffuse's (each estimate clamped on its own, as Cycles clamps
+    each path's contributions apart)."""
     s = ctx.settings
     if not s.photon_mapping:
         return np.zeros_like(f), np.zeros_like(f)
     caustic = _smooth_estimate(ctx, ctx.caustic_map, ctx.caustic_radius, hit, f, sample_id,
-                               footprint, every=scattered, counts=extra)
+                               footprint, every=scattered, counts=extra, clamp_tp=clamp_tp)
     if ctx.gather_map is not None:
         indirect = f * gather_indirect(ctx, hit, rng, counters, sampler,
                                        should_cancel=should_cancel, extra=extra)
+        if clamp_tp is not None:
+            indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
         _smooth_estimate(ctx, ctx.secondary_map, ctx.secondary_radius or ctx.global_radius,
                          hit, f, sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL,
-                         into=indirect, counts=extra)
+                         into=indirect, counts=extra, clamp_tp=clamp_tp)
     elif ctx.global_map is not None and len(ctx.global_map):
         E = chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra, hit.p, hit.ng,
                                    ctx.global_radius, s.k_nearest, s.min_photons, s.estimator)
@@ -1226,6 +1246,8 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
                 s.estimator, limits=s.bounce_limits, counts=extra,
                 geo=getattr(ctx, "geo", None))
         indirect = f * E
+        if clamp_tp is not None:
+            indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
     else:
         indirect = np.zeros_like(f)
     return caustic, indirect
@@ -1700,6 +1722,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # still collects emission and the background where its ray ends (Cycles'
     # PATH_RAY_TERMINATE_AFTER_TRANSPARENT), but that hit is neither shaded nor continued.
     limits = s.bounce_limits
+    # Cycles' Clamp Direct / Indirect (engine/sampleclamp.py): off, nothing is touched.
+    # Cycles' bounce of a contribution is the chain's bent bounces (chain[:, 0]) for light
+    # sampled at a hit, one less for an emitter or the world the ray meets; 0 is direct.
+    clamping = sampleclamp.enabled(s)
     # Each path's glass hits left to split (SPLIT_GLASS_HITS; None: the lobe choice
     # everywhere).
     may_split = (np.full(len(o), SPLIT_GLASS_HITS, np.int64)
@@ -1751,6 +1777,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
                     L = L * _mis_weight(ctx, li, light, om, d[rows], tm,
                                         pdf_b[rows], org_ns[rows], org_p[rows])[:, None]
+                if clamping:
+                    L = sampleclamp.clamp(L, tp, rows, sampleclamp.bounce_limits(
+                        s, np.take(chain[:, 0], rows) - 1))
                 acc.add(target, pix, L, tp, rows)
                 datapasses.add_light(acc, pix, rows, tp, ftp, feat, L)
                 t = np.where(mask, tl, t)
@@ -1784,6 +1813,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                         np.take(org_ns, missed, axis=0),
                                                         np.take(org_p, missed, axis=0))[:, None]
                             radiance = radiance + sun
+                if clamping:
+                    radiance = sampleclamp.clamp(radiance, tp, missed, sampleclamp.bounce_limits(
+                        s, np.take(chain[:, 0], missed) - 1))
                 acc.add(target, pix, radiance, tp, missed)
                 datapasses.add_light(acc, pix, missed, tp, ftp, feat, radiance)
             if single is not None:
@@ -1875,6 +1907,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     Le = Le * _mesh_mis_weight(
                         ctx, modes, prim, om, d, tm, hit.ng, pdf_b, op,
                         org_ns if kept is None else org_ns[kept])[:, None]
+                if clamping:
+                    Le = sampleclamp.clamp(Le, tp, None,
+                                           sampleclamp.bounce_limits(s, chain[:, 0] - 1))
                 acc.add(target, pix, Le, tp)
                 if feat is not None:
                     datapasses.add_light(acc, pix, np.arange(len(pix)), tp, ftp, feat, Le)
@@ -1913,7 +1948,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 sel=sel if g.any() else None, buffers=buffers.direct,
                 scattered=scattered if every or scattered is None else scattered[dsel],
                 rows=None if every else dsel, bounce=bounce,
-                extra=None if bounce == 0 else _chain_counts(chain if every else chain[dsel]))
+                extra=None if bounce == 0 else _chain_counts(chain if every else chain[dsel]),
+                clamp_tp=(tp if every else np.take(tp, dsel, axis=0)) if clamping else None)
+            if clamping:
+                # (A new array: direct may be the direct stage's buffers.)
+                direct = sampleclamp.clamp(direct, tp, dsel, sampleclamp.bounce_limits(
+                    s, np.take(chain[:, 0], dsel)))
             if bounce == 0:
                 acc.add("direct", pix, direct, tp, dsel)
                 if caustic is not None:
@@ -1954,6 +1994,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                        light_sample_list(ctx, len(gl), glass_rng, modes=modes),
                                        counters, counts=None if bounce == 0
                                        else _chain_counts(np.take(chain, gl, axis=0)))
+                if clamping:
+                    Lt = sampleclamp.clamp(Lt, tp, gl, sampleclamp.bounce_limits(
+                        s, np.take(chain[:, 0], gl)))
                 acc.add("direct" if bounce == 0 else "specular", pix, Lt, tp, gl)
         if bounce == depth_limit:
             return

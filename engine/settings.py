@@ -44,6 +44,9 @@ BOUNCE_LIMITS = (("max_bounces", 12), ("diffuse_bounces", 4), ("glossy_bounces",
 # max_depth stopped capping the camera chain by default.
 GATHER_SPECULAR_DEPTH = 8
 FILTER_WIDTH_MAX = 500.0  # pixels: Blender's limit for the filter size
+# Cycles' Light Paths > Clamping (sample_clamp_direct / _indirect) takes 0 .. 1e8 in its UI
+# (RNA soft max 1e8; 0 = off): the same range here (engine/sampleclamp.py).
+CLAMP_MAX = 1e8
 
 
 # Cycles' Light Paths defaults (max, diffuse, glossy, transmission bounces): ours too, so
@@ -98,6 +101,13 @@ class RenderSettings:
     # at least adaptive_min_samples samples (0: auto as Cycles derives it) and at most spp.
     # 0 = off (the default here, unlike Cycles' 0.01: opt-in while it is measured).
     adaptive_threshold: float = 0.0
+    # Cycles' Light Paths > Clamping > Direct / Indirect, in its UI units (0 = off): each
+    # camera sample's contribution of light reaching the first hit (direct) or arriving
+    # after a further bounce (indirect, the photon estimates included) is scaled down so its
+    # R + G + B stays at most 3 x the value (engine/sampleclamp.py). Off here (0, 0) so an
+    # engine render is unbiased; the add-on reads Cycles' own (its default Indirect 10).
+    clamp_direct: float = 0.0
+    clamp_indirect: float = 0.0
     adaptive_min_samples: int = 0
     # An extra cap on the specular bounces along a camera path (the paper's
     # MaxRayTraceDepth), transparent passes included. Off by default (1024, the most
@@ -237,6 +247,14 @@ class RenderSettings:
                              f"from 0 (off) to {ADAPTIVE_THRESHOLD_MAX:g}, got "
                              f"{self.adaptive_threshold!r}")
         self.adaptive_threshold = t
+        for name in ("clamp_direct", "clamp_indirect"):
+            v = getattr(self, name)
+            ok = isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool)
+            c = float(v) if ok else float("nan")
+            if not 0.0 <= c <= CLAMP_MAX:
+                raise ValueError(f"setting '{name}' (Cycles' Clamp {name[6:].title()}) must be "
+                                 f"a number from 0 (off) to {CLAMP_MAX:g}, got {v!r}")
+            setattr(self, name, c)
         self.data_passes = _word_set("data_passes", self.data_passes, DATA_PASSES)
         self.cryptomatte = _word_set("cryptomatte", self.cryptomatte, CRYPTOMATTE_KINDS)
         lv = self.cryptomatte_levels

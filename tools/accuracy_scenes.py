@@ -318,6 +318,11 @@ def set_photonmap_defaults(scene, pixel_filter=COMPARE_FILTER):
                  "volume_bounces", "transparent_max_bounces"):
         if cycles is not None and hasattr(cycles, attr):
             setattr(cycles, attr, COMPARE_BOUNCES)
+    # No clamp, as set_cycles renders the references (the add-on reads Cycles' Clamping,
+    # default Indirect 10, when the Cycles add-on is there: addon/export.clamp_settings).
+    for owner in (pm, cycles):
+        if owner is not None and hasattr(owner, "sample_clamp_indirect"):
+            owner.sample_clamp_direct = owner.sample_clamp_indirect = 0.0
 
 
 def render_rgba(scene):

@@ -1,0 +1,72 @@
+"""Cycles' Light Paths > Clamping: each camera sample's light contributions capped.
+
+Cycles (kernel/film/light_passes.h, film_clamp_light) scales every contribution L a path
+writes to the film (L * throughput, RGB) so that |R| + |G| + |B| <= limit, keeping its
+colour: L *= limit / sum when sum > limit; limit is sample_clamp_direct for light that
+reaches the path's first surface (Cycles' bounce 0: a shadow ray from the first hit, or an
+emitter / the world met by the camera ray or by the first hit's scattered ray) and
+sample_clamp_indirect for everything after a further bounce. scene/integrator.cpp turns the
+UI value v into limit = 3 v (the kernel sums three channels), and v = 0 into no limit.
+
+Here the same limits apply to the camera pass's contributions (engine/integrator.py
+_trace_paths): per camera sample and per contribution (an emitter or background hit, a
+hit's direct light, its caustic estimate, its final gather, its secondary caustic), with
+the camera chain's bent bounces standing for Cycles' bounce. A photon-map estimate is a
+smooth average, far below the spiky single-path values the clamp was made for, so the
+clamp rarely touches it; where the estimate is taken for one sample of a block and weighed
+up by the block's length, the limit is weighed up alike (the block's samples each clamped).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# Cycles' kernel limit per UI unit: the sum of three channels is compared.
+CHANNELS = 3.0
+
+
+def limits(settings) -> tuple[float, float]:
+    """(direct, indirect) limits on a contribution's |R| + |G| + |B| (radiance, W sr^-1 m^-2
+    per sample, before exposure) from settings.clamp_direct / clamp_indirect (Cycles' UI
+    values): 3 x the value, inf for 0 (off). Cycles' scene/integrator.cpp device_update."""
+    return tuple(CHANNELS * v if v > 0 else np.inf
+                 for v in (settings.clamp_direct, settings.clamp_indirect))
+
+
+def enabled(settings) -> bool:
+    """Either clamp is on."""
+    return settings.clamp_direct > 0 or settings.clamp_indirect > 0
+
+
+def bounce_limits(settings, bounces) -> np.ndarray | float:
+    """The limit for each contribution from its Cycles bounce: bounces (K,) int64 (0:
+    direct, > 0: indirect) -> (K,) float64. Both limits equal: that scalar."""
+    direct, indirect = limits(settings)
+    if direct == indirect:
+        return direct
+    return np.where(np.asarray(bounces) > 0, indirect, direct)
+
+
+def clamp(rgb, tp=None, rows=None, limit=np.inf, weight=None) -> np.ndarray:
+    """rgb (K,3) scaled per row so that the contribution tp[rows] * rgb (tp (N,3) path
+    throughput, None: 1; rows (K,) int64 into tp, None: row k is tp's k) has |R| + |G| + |B|
+    at most limit * weight (limit scalar or (K,); weight None, scalar or (K,1) or (K,):
+    the samples the row stands for). Non-finite rows become 0, as Cycles' ensure_finite.
+    Returns a new array when any row changes, rgb itself otherwise (bits kept)."""
+    rgb = np.asarray(rgb, np.float64)
+    if len(rgb) == 0:
+        return rgb
+    c = rgb if tp is None else (tp if rows is None else np.take(tp, rows, axis=0)) * rgb
+    s = np.abs(c).sum(axis=1)
+    cap = np.asarray(limit, np.float64)
+    if weight is not None:
+        w = np.asarray(weight, np.float64)
+        cap = cap * (w.reshape(-1) if w.ndim else w)
+    finite = np.isfinite(s)
+    over = ~finite | (s > cap)
+    if not over.any():
+        return rgb
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(finite, np.where(s > cap, cap / s, 1.0), 0.0)
+        out = rgb * scale[:, None]
+    out[~finite] = 0.0  # (inf * 0 would be NaN)
+    return out
