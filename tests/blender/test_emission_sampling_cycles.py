@@ -1,0 +1,71 @@
+"""Material > Settings > Emission Sampling against Cycles (issue 14, s25 emissamp): a
+4 m white box (Cornell-style, open front) lit only by an emissive 1 m panel 0.6 m under
+its ceiling, its front facing the floor; its back lights the ceiling above it. Cycles'
+Emission Sampling changes only its noise, so one Cycles render (Front and Back) is the
+reference for every mode; ours samples one side (Front: the ceiling's light arrives by
+gather rays alone) or none (None: the whole room's direct light by gather rays), and
+must stay as bright: image mean and the top quarter (the ceiling and the panel) within
+2 % of Cycles."""
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from blender_helpers import ROOT, cycles_plain, default_photonmap, read_rgba, render_exr
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
+
+
+def _room(bpy):
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends as mb
+    scene = mb.reset()
+    white = mb.material("white", "diffuse", (0.8, 0.8, 0.8))
+    mb.cornell_box(white, white, white)
+    lamp, nt, out = mb.empty_material("lamp")
+    e = nt.nodes.new("ShaderNodeEmission")
+    e.inputs["Strength"].default_value = 10.0
+    nt.links.new(e.outputs[0], out.inputs["Surface"])
+    # Rotated half a turn about x: the face normal (the front) points down.
+    mb.plane("Panel", 1.0, 1.0, lamp, (0, 0.5, 3.4), (math.pi, 0, 0))
+    mb.set_world((0.0, 0.0, 0.0))
+    mb.camera((0, -6.5, 2.0), (0, 0, 2.0), fov_deg=45.0)
+    scene.render.resolution_x, scene.render.resolution_y = 40, 30
+    scene.render.resolution_percentage = 100
+    scene.render.filter_size = 1.0
+    return scene, lamp
+
+
+def test_none_and_front_are_as_bright_as_cycles(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    scene, lamp = _room(bpy)
+    lamp.emission_sampling = "FRONT_BACK"
+    cycles_plain(scene, 256, 12)
+    scene.render.engine = "CYCLES"
+    cyc = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "c.exr"))[..., :3]
+    scene.render.engine = "PHOTONMAP"
+    pm = default_photonmap(scene)
+    pm.spp, pm.seed = 32, 0
+    top = slice(0, cyc.shape[0] // 4)
+    ratios = {}
+    for mode in ("NONE", "FRONT", "FRONT_BACK"):
+        lamp.emission_sampling = mode
+        ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"o_{mode}.exr"))[..., :3]
+        ratios[mode] = (float(ours.mean() / cyc.mean()),
+                        float(ours[top].mean() / cyc[top].mean()))
+    for mode, (whole, ceiling) in ratios.items():
+        assert abs(whole - 1.0) < 0.02 and abs(ceiling - 1.0) < 0.02, ratios
+
+
+def test_export_reads_emission_sampling(bpy_addon):
+    bpy = bpy_addon
+    import engine
+    from addon import export
+    scene, lamp = _room(bpy)
+    for mode in ("NONE", "AUTO", "FRONT", "BACK", "FRONT_BACK"):
+        lamp.emission_sampling = mode
+        pm_scene, _ = export.export_scene(engine, bpy.context.evaluated_depsgraph_get())
+        got = {m.name: m.emission_sampling for m in pm_scene.materials.values()}
+        assert got["lamp"] == mode, got
