@@ -345,9 +345,17 @@ class MaterialConverter:
 
     # --- internals ----------------------------------------------------------------
     def _emission_sampling(self, mat, warnings) -> str:
-        """material.emission_sampling ('NONE', 'AUTO', 'FRONT', 'BACK', 'FRONT_BACK'); a
-        value this engine does not know (a later Blender) warns and samples as Auto."""
-        value = str(getattr(mat, "emission_sampling", "AUTO") or "AUTO")
+        """Material > Settings > Emission Sampling: material.cycles.emission_sampling
+        ('NONE', 'AUTO', 'FRONT', 'BACK', 'FRONT_BACK'; Cycles' add-on keeps it, Blender
+        4.2-5.0); a value this engine does not know (a later Blender) warns and samples
+        as Auto."""
+        # Read on the original material: an evaluated copy keeps a property group's old
+        # value until the material is tagged for an update (measured: Blender 5.0).
+        settings = getattr(getattr(mat, "original", None) or mat, "cycles", None)
+        value = getattr(settings, "emission_sampling", None)
+        if value is None:
+            value = getattr(mat, "emission_sampling", "AUTO")
+        value = str(value or "AUTO")
         if value not in self.pm.scene.EMISSION_SAMPLING:
             warnings.append(f"material '{mat.name}': Emission Sampling {value!r} unknown, "
                             "sampled as Auto")

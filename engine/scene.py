@@ -125,7 +125,7 @@ class Material:
     photon pass alike (engine/textures.py, scalar_params; docs/textures.md).
     `pass_index`: Blender's material.pass_index, written by the Material Index data
     pass (engine/datapasses.py); it changes no shading.
-    `emission_sampling`: Blender's material.emission_sampling (EMISSION_SAMPLING): which
+    `emission_sampling`: Blender's material.cycles.emission_sampling (EMISSION_SAMPLING): which
     sides of the emission shadow rays sample (emission_sides); the emission itself leaves
     both sides in every mode, the other sides' light arriving by sampled rays alone.
     """
