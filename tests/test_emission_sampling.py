@@ -138,3 +138,18 @@ def test_emission_sides_follow_cycles():
     assert Material("m", emission_sampling="front").emission_sampling == "FRONT"
     with pytest.raises(SceneError, match="material 'm' emission_sampling"):
         Material("m", emission_sampling="SIDEWAYS")
+
+
+def test_scene_files_carry_emission_sampling(tmp_path):
+    """[materials.NAME] emission_sampling, any case, reaches Material; a wrong word is
+    refused naming the key."""
+    from engine.scenefile import SceneFileError, load_scene
+    head = ('[camera]\nposition = [0, -5, 1]\nlook_at = [0, 0, 1]\n'
+            '[materials.lamp]\nemission = [5, 5, 5]\n')
+    path = tmp_path / "scene.toml"
+    path.write_text(head + 'emission_sampling = "front"\n')
+    scene, _ = load_scene(str(path))
+    assert scene.materials["lamp"].emission_sampling == "FRONT"
+    path.write_text(head + 'emission_sampling = "sideways"\n')
+    with pytest.raises(SceneFileError, match="emission_sampling"):
+        load_scene(str(path))
