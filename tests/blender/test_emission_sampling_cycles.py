@@ -71,3 +71,28 @@ def test_export_reads_emission_sampling(bpy_addon):
         pm_scene, _ = export.export_scene(engine, bpy.context.evaluated_depsgraph_get())
         got = {m.name: m.emission_sampling for m in pm_scene.materials.values()}
         assert got["lamp"] == mode, got
+
+
+def test_material_panel_offers_emission_sampling(bpy_addon):
+    """Our material Settings panel shows Emission Sampling (Cycles' panel is drawn for
+    Cycles alone) and the Pass Index, and is registered."""
+    from types import SimpleNamespace
+
+    from addon.ui import PHOTONMAP_PT_material_settings
+    bpy = bpy_addon
+    assert hasattr(bpy.types, "PHOTONMAP_PT_material_settings")
+    log = []
+
+    class Layout:
+        use_property_split = use_property_decorate = False
+
+        def column(self, **kw):
+            return self
+
+        def prop(self, owner, name, **kw):
+            log.append(name)
+
+    mat = bpy.data.materials.new("panel_probe")
+    PHOTONMAP_PT_material_settings.draw(SimpleNamespace(layout=Layout()),
+                                        SimpleNamespace(material=mat))
+    assert log == ["emission_sampling", "pass_index"], log
