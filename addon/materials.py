@@ -339,12 +339,32 @@ class MaterialConverter:
             anisotropic=min(max(closure.anisotropic, -1.0), 1.0),
             anisotropic_rotation=closure.anisotropic_rotation,
             # Material > Settings > Pass Index: the Material Index data pass
-            pass_index=int(getattr(mat, "pass_index", 0) or 0))
+            pass_index=int(getattr(mat, "pass_index", 0) or 0),
+            # Material > Settings > Emission Sampling: the sides shadow rays sample
+            emission_sampling=self._emission_sampling(mat, warnings))
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
 
     # --- internals ----------------------------------------------------------------
+    def _emission_sampling(self, mat, warnings) -> str:
+        """Material > Settings > Emission Sampling: material.cycles.emission_sampling
+        ('NONE', 'AUTO', 'FRONT', 'BACK', 'FRONT_BACK'; Cycles' add-on keeps it, Blender
+        4.2-5.0); a value this engine does not know (a later Blender) warns and samples
+        as Auto."""
+        # Read on the original material: an evaluated copy keeps a property group's old
+        # value until the material is tagged for an update (measured: Blender 5.0).
+        settings = getattr(getattr(mat, "original", None) or mat, "cycles", None)
+        value = getattr(settings, "emission_sampling", None)
+        if value is None:
+            value = getattr(mat, "emission_sampling", "AUTO")
+        value = str(value or "AUTO")
+        if value not in self.pm.scene.EMISSION_SAMPLING:
+            warnings.append(f"material '{mat.name}': Emission Sampling {value!r} unknown, "
+                            "sampled as Auto")
+            return "AUTO"
+        return value
+
     def _viewport(self, mat) -> Closure:
         return Closure(base_color=tuple(mat.diffuse_color)[:3], metallic=mat.metallic,
                        roughness=mat.roughness, specular=0.0)

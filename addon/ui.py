@@ -386,13 +386,37 @@ class PHOTONMAP_PT_viewport(PhotonMapButtonsPanel, bpy.types.Panel):
 # --- end of the viewport block ------------------------------------------------------------
 
 
+class PHOTONMAP_PT_material_settings(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Material > Settings as Cycles shows them: Emission Sampling (which sides of the
+    emission shadow rays sample, addon/materials.py) and the Material Index pass' Pass
+    Index. Cycles' own panel is drawn for Cycles alone."""
+    bl_label = "Settings"
+    bl_context = "material"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.material is not None
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        mat = context.material
+        col = layout.column()
+        settings = getattr(mat, "cycles", None)
+        if settings is not None and hasattr(settings, "emission_sampling"):
+            col.prop(settings, "emission_sampling")
+        col.prop(mat, "pass_index")
+
+
 classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_viewport,
            PHOTONMAP_PT_light_paths, PHOTONMAP_PT_light_paths_max_bounces,
            PHOTONMAP_PT_light_paths_clamping,
            PHOTONMAP_PT_effects,
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
            PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_distributed,
-           PHOTONMAP_PT_passes, PHOTONMAP_PT_teaching)
+           PHOTONMAP_PT_passes, PHOTONMAP_PT_teaching, PHOTONMAP_PT_material_settings)
 
 _patched = []
 

@@ -226,7 +226,7 @@ def terminator_lift(prim, bary, ng, smooth, object_id, terminator, v0, e1, e2,
 @kernel
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_area, m_tf, m_ti, m_round32,
-                  m_tilt32, env_px, env_rows, env_cols, env_mass, env_prefix, env_cell,
+                  m_tilt32, m_side, env_px, env_rows, env_cols, env_mass, env_prefix, env_cell,
                   tree_f, tree_i, inf_idx, inf_f, l_trace, klight, ktrace, U1, U2, SEL,
                   contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf, bump, hrow):
     """Every light sample of a batch of hits, compacted to the lit ones.
@@ -240,8 +240,9 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     none) and lift (N,3) their smooth-surface lift (terminator_lift); shade_off (0,),
     cutoff (0,) and lift (0,3): no hit has one (nothing to read); nsm (N,3) the smooth
     normal before Normal Map / Bump nodes (equal to ns where no node bent it).
-    codes (L,), params (L,P): packed lights; m_*: emissive triangles, env_*: the world's
-    environment map (packing.pack_lights).
+    codes (L,), params (L,P): packed lights; m_*: emissive triangles (m_side (T,) the
+    sides sampled, scene.emission_sides: a one-sided triangle gives no sample from its
+    other side), env_*: the world's environment map (packing.pack_lights).
     tree_f, tree_i, inf_idx, inf_f: the light tree (lights/selection.py LightSelector;
     empty_tree() without one), l_trace (L,) whether each light's shadows are traced.
     klight (K,) light of sample k, or -1: a light chosen per hit by the tree, its
@@ -431,6 +432,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
             else:
                 surface = True
                 two_sided = code == C_MESH
+                msides = 3  # the sides sampled (a mesh triangle's m_side)
                 if code == C_MESH:
                     # The triangle by its importance at this point and shading normal
                     # (Cycles' light tree over emissive triangles, pbrt-v4's
@@ -472,6 +474,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     y1 = m_v0[tri, 1] + b1 * m_e1[tri, 1] + b2 * m_e2[tri, 1]
                     y2 = m_v0[tri, 2] + b1 * m_e1[tri, 2] + b2 * m_e2[tri, 2]
                     ny0, ny1, ny2 = m_ng[tri, 0], m_ng[tri, 1], m_ng[tri, 2]
+                    msides = m_side[tri]
                     bb0 = abs(1.0 - b1 - b2)
                     ab1, ab2 = abs(b1), abs(b2)
                     far = 0.0
@@ -553,6 +556,11 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
                     1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
                 cl = (-w0) * ny0 + (-w1) * ny1 + (-w2) * ny2
+                if two_sided and msides != 3:
+                    # Emission Sampling Front / Back: the other side's light is left to
+                    # the rays that meet it (MeshLight.unsampled_side).
+                    if msides == 0 or (cl > 0.0) != (msides == 1):
+                        continue
                 cl = abs(cl) if two_sided else _npmax(cl, 0.0)
                 md = 16.0 * (_ulp32(max(max(abs(p0), abs(p1)), abs(p2)))
                              + _ulp32(max(max(abs(y0), abs(y1)), abs(y2))))

@@ -17,7 +17,7 @@ from .sampling import dot, luminance, normalize
 from .parallel import Cancelled
 from .instancing import Instances
 from .sharedrows import RowColumn, SharedRows
-from .scene import Material, Scene
+from .scene import Material, Scene, emission_sides
 from .resources import two_level_instances
 
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
@@ -50,6 +50,8 @@ class MaterialTable:
     diffuse_share: np.ndarray = None   # (M,) (1 - metallic)(1 - transmission) at its
                           # largest over the material's textured values (textures.scalar_ranges)
     pass_index: np.ndarray = None      # (M,) float64 Material.pass_index (Material Index pass)
+    emission_sides: np.ndarray = None  # (M,) int64 sides light sampling covers
+                                       # (scene.emission_sides; None: both)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -67,6 +69,9 @@ class MaterialTable:
                    emission_textures=[m.emission_texture for m in materials],
                    pass_index=np.array([getattr(m, "pass_index", 0) for m in materials],
                                        np.float64),
+                   emission_sides=np.array([emission_sides(getattr(m, "emission_sampling",
+                                                                   "AUTO"), m.emission)
+                                            for m in materials], np.int64),
                    **cols)
 
     @property

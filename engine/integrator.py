@@ -207,6 +207,8 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
             continue
         if not light.ray_kinds & SHADOW:  # the light object's diffuse visibility is off
             continue
+        if not light.shadow_sampled:  # Emission Sampling None on every emissive triangle
+            continue
         if modes is not None and modes[li] == MODE_CONTINUATION:
             continue
         count = plan.light_samples.get(light.name, 1)
@@ -314,7 +316,7 @@ def light_modes(ctx) -> np.ndarray:
     modes = np.zeros(len(ctx.lights), np.int64)
     mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
     for li, light in enumerate(ctx.lights):
-        if not light.ray_kinds & SHADOW:
+        if not light.ray_kinds & SHADOW or not light.shadow_sampled:
             continue
         if not light.has_size:
             modes[li] = MODE_DELTA
@@ -385,12 +387,7 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
     for li, light in enumerate(ctx.lights):
         if light.kind != MESH or modes[li] != MODE_MIS:
             continue
-        lookup = getattr(light, "_tri_lookup", None)
-        if lookup is None or len(lookup) != ctx.geo.count:
-            lookup = np.full(ctx.geo.count, -1, np.int64)
-            lookup[light.tri_index] = np.arange(len(light.tri_index))
-            light._tri_lookup = lookup
-        k = lookup[prim]
+        k = _mesh_rows(ctx, light, prim)
         rows = np.nonzero((k >= 0) & np.isfinite(pdf_b))[0]
         if not len(rows):
             continue
@@ -404,7 +401,49 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
         pl = count * light.shadow_pdf(at, ns[rows], kk, t[rows], cos_l)
         pb = pdf_b[rows]
         w[rows] = pb * pb / np.maximum(pb * pb + pl * pl, 1e-300)
+        # A side shadow rays do not sample (Emission Sampling): its light counts in full.
+        free = light.unsampled_side(kk, d[rows])
+        if free.any():
+            w[rows[free]] = 1.0
     return w
+
+
+def _mesh_rows(ctx, light, prim):
+    """Rows (N,) of the mesh light's triangles (v0 ...) for scene triangles prim (N,) int,
+    -1 where a triangle is not one of them (a lookup over the scene's triangles, built
+    once per light)."""
+    lookup = getattr(light, "_tri_lookup", None)
+    if lookup is None or len(lookup) != ctx.geo.count:
+        lookup = np.full(ctx.geo.count, -1, np.int64)
+        lookup[light.tri_index] = np.arange(len(light.tri_index))
+        light._tri_lookup = lookup
+    return lookup[prim]
+
+
+def _unsampled_meshes(ctx) -> list:
+    """The mesh lights with a side shadow rays do not sample (Emission Sampling None,
+    Front or Back; MeshLight.sides), whose light there diffuse surfaces receive through
+    the gather rays that meet it (unsampled_emission)."""
+    return [light for light in ctx.lights if light.kind == MESH
+            and light.tri_sides is not None and (light.sides() != 3).any()]
+
+
+def unsampled_emission(ctx, meshes, prim, d, Le):
+    """Le (N,3) where rays of direction d (N,3) met emissive triangles prim (N,) on a side
+    the shadow rays do not sample (MeshLight.unsampled_side), 0 elsewhere: the light of
+    those sides reaches a diffuse surface by its gather rays alone, counted in full (as
+    Cycles' shade_surface counts a BSDF hit on an emitter without MIS for that side), so
+    a surface lit by an emitter of Emission Sampling None is as bright as with Front and
+    Back (tests/test_emission_sampling.py)."""
+    out = np.zeros_like(Le)
+    for light in meshes:
+        k = _mesh_rows(ctx, light, prim)
+        rows = np.nonzero(k >= 0)[0]
+        if not len(rows):
+            continue
+        free = rows[light.unsampled_side(k[rows], d[rows])]
+        out[free] = Le[free]
+    return out
 
 
 def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None):
@@ -541,6 +580,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # This thread's arrays for this level's steps (a call of the next level, the
     # regathers', uses its own).
     buf = _gather_buffers(ctx, level)
+    # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
+    # every emitter it meets: its direct light skips the mesh lights).
+    unsampled = _unsampled_meshes(ctx) if level == 0 else []
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -606,6 +648,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if level > 0 and depth == 0:
                 Le = y.emission
                 if np.any(Le > 0):
+                    E[idx] += tp * math.pi * Le / G
+            elif depth == 0 and unsampled:
+                # The emission of sides no shadow ray samples (Emission Sampling): these
+                # rays are the only strategy that finds it (the shadow rays find the rest).
+                Le = y.emission
+                if np.any(Le > 0):
+                    Le = unsampled_emission(ctx, unsampled, prim, d, Le)
                     E[idx] += tp * math.pi * Le / G
             if lean is None:
                 wd = c(lobe_weights(ctx.table, y)["diffuse"], np.float64)

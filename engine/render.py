@@ -127,7 +127,8 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     if shadow is None:
         # Embree holds its own copy; transparent shadows build their BVHs from them lazily.
         geo.release_build_arrays()
-    lights = prepare_lights(scene, geo, table)
+    lights = prepare_lights(scene, geo, table,
+                            gathered=bool(settings.photon_mapping and settings.final_gather))
     ctx = Context(scene, settings, geo, table, accel, lights,
                   packed_lights=packed_lights_for(lights, settings), shadow=shadow)
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
@@ -138,6 +139,21 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
                                    sum(len(f) for _, f in ins.prototypes))
         ctx.plan.add("shared instances", bool(ins.two_level), why)
     return ctx
+
+
+def _sample_every_side(lights) -> bool:
+    """Shadow rays to every side of the emissive meshes, whatever their Emission Sampling
+    (MeshLight.tri_sides), when nothing gathers the sides they leave out (no gather map:
+    final gathering or indirect light off, or no photon to gather): True if a mesh
+    light changed (its light tree is rebuilt). Emission Sampling changes only noise in
+    Cycles; here it must not drop light either."""
+    changed = False
+    for light in lights:
+        if light.kind == "MESH" and light.tri_sides is not None and (light.sides() != 3).any():
+            light.tri_sides = None
+            light.__dict__.pop("_triangle_tree", None)
+            changed = True
+    return changed
 
 
 def packed_lights_for(lights, settings: RenderSettings):
@@ -182,9 +198,15 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     ctx.gather_counts = None
     ctx.gather_rays = 0
     s = ctx.settings
+    shot = ()
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
-        return _photon_pass(ctx, stats, progress, should_cancel, on_warning)
-    return ()
+        shot = _photon_pass(ctx, stats, progress, should_cancel, on_warning)
+    if ctx.gather_map is None and _sample_every_side(ctx.lights):
+        # No final gathering (off, indirect light off, or no photon to gather): no
+        # gather ray brings the unsampled sides' direct light to a diffuse surface.
+        ctx.packed_lights = packed_lights_for(ctx.lights, s)
+        getattr(ctx, "light_selectors", {}).clear()
+    return shot
 
 
 def render_pass(ctx: Context, region, progress=None, should_cancel=None,
@@ -516,7 +538,11 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
         # the radius (issue 14: the CLI printed them only after the camera pass's bar).
         for w in warned if on_warning is not None else ():
             on_warning(w)
-    if ctx.gather_map is not None and s.gather_by_share:
+    # (Emitters with unsampled sides (Emission Sampling) send direct light through the
+    # gather rays too, which the photons' indirect share does not count: every ray.)
+    if ctx.gather_map is not None and s.gather_by_share and not any(
+            light.kind == "MESH" and light.tri_sides is not None
+            and (light.sides() != 3).any() for light in ctx.lights):
         share = indirect_share(ctx, shot, ctx.gather_short)
         ctx.gather_rays = gather_count(s.gather_rays, share)
         stats["indirect_share"] = share

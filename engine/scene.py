@@ -21,7 +21,8 @@ from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
 
 __all__ = [
     "SceneError", "Material", "Mesh", "Prototype", "Light", "Camera", "Scene",
-    "POINT", "SPOT", "AREA", "SUN", "RECTANGLE", "DISK",
+    "POINT", "SPOT", "AREA", "SUN", "RECTANGLE", "DISK", "EMISSION_SAMPLING",
+    "emission_sides",
 ]
 
 POINT, SPOT, AREA, SUN = "POINT", "SPOT", "AREA", "SUN"
@@ -124,6 +125,9 @@ class Material:
     photon pass alike (engine/textures.py, scalar_params; docs/textures.md).
     `pass_index`: Blender's material.pass_index, written by the Material Index data
     pass (engine/datapasses.py); it changes no shading.
+    `emission_sampling`: Blender's material.cycles.emission_sampling (EMISSION_SAMPLING): which
+    sides of the emission shadow rays sample (emission_sides); the emission itself leaves
+    both sides in every mode, the other sides' light arriving by sampled rays alone.
     """
 
     name: str = "default"
@@ -157,6 +161,7 @@ class Material:
     anisotropic: float = 0.0
     anisotropic_rotation: float = 0.0
     pass_index: int = 0
+    emission_sampling: str = "AUTO"
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -220,6 +225,11 @@ class Material:
         self.coat_ior = _finite(self.coat_ior, f"{who} coat_ior")
         if self.coat_ior < 1:
             raise SceneError(f"{who} coat_ior: must be >= 1, got {self.coat_ior}")
+        mode = str(self.emission_sampling).upper()
+        if mode not in EMISSION_SAMPLING:
+            raise SceneError(f"{who} emission_sampling: expected one of "
+                             f"{', '.join(EMISSION_SAMPLING)}, got {self.emission_sampling!r}")
+        self.emission_sampling = mode
         if self.node not in MATERIAL_NODES:
             raise SceneError(f"{who} node: expected one of {', '.join(MATERIAL_NODES)}, got "
                              f"{self.node!r}")
@@ -246,6 +256,31 @@ class Material:
 # reflection and refraction), Refraction BSDF (the glass lobe's refraction alone, colour x
 # refraction, no Fresnel).
 MATERIAL_NODES = ("principled", "glossy", "glass", "refraction")
+
+# Material > Settings > Emission Sampling (Cycles' EmissionSampling, scene/shader.h):
+# which sides of an emissive surface light sampling covers (shadow rays with multiple
+# importance sampling); the sides it leaves out reach the scene through sampled rays
+# only (gather rays, glossy continuations: their hits count in full) and photons.
+EMISSION_SAMPLING = ("NONE", "AUTO", "FRONT", "BACK", "FRONT_BACK")
+SIDE_FRONT, SIDE_BACK = 1, 2  # bits of emission_sides: the side the normal points to, the other
+# Cycles' Shader::estimate_emission: AUTO samples both sides when the largest channel of
+# the emission's estimate exceeds this (W/m^2/sr), none below ("weakly emitting" shaders).
+AUTO_EMISSION_THRESHOLD = 0.5
+
+
+def emission_sides(mode: str, emission) -> int:
+    """Sides of an emissive material that light sampling covers: SIDE_FRONT | SIDE_BACK
+    bits (0: none, 3: both) for Emission Sampling `mode` (EMISSION_SAMPLING) and the
+    material's emission (3,) radiance in W/m^2/sr (its constant: colour x strength, 1 for
+    a colour fed by a texture, as Cycles' output_estimate_emission counts a linked colour).
+    AUTO follows Cycles' Shader::estimate_emission (intern/cycles/scene/shader.cpp): both
+    sides when max(emission) > AUTO_EMISSION_THRESHOLD, else none; black emission: none."""
+    e = np.asarray(emission, np.float64)
+    if not np.any(e > 0) or mode == "NONE":
+        return 0
+    if mode == "AUTO":
+        return SIDE_FRONT | SIDE_BACK if float(e.max()) > AUTO_EMISSION_THRESHOLD else 0
+    return {"FRONT": SIDE_FRONT, "BACK": SIDE_BACK, "FRONT_BACK": SIDE_FRONT | SIDE_BACK}[mode]
 # Blender's world.mist_settings.falloff -> Cycles' film mist_falloff exponent
 # (intern/cycles/blender/sync.cpp).
 MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}

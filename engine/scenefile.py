@@ -51,8 +51,8 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
-from .scene import (FLOAT32_MAX, MATERIAL_NODES, MIST_FALLOFF, Light, Material, Mesh,
-                    Prototype, SceneError, euler_rotation)
+from .scene import (EMISSION_SAMPLING, FLOAT32_MAX, MATERIAL_NODES, MIST_FALLOFF, Light,
+                    Material, Mesh, Prototype, SceneError, euler_rotation)
 from .settings import RenderSettings
 
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
@@ -165,7 +165,9 @@ MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(no
                           "anisotropic": _number(-1.0, 1.0), "anisotropic_rotation": _number(),
                           "multiscatter": _BOOL, "node": _choice(*MATERIAL_NODES),
                           # Blender's Material > Settings > Pass Index (Material Index pass)
-                          "pass_index": _number(0, 32767, integer=True)})
+                          "pass_index": _number(0, 32767, integer=True),
+                          # Material > Settings > Emission Sampling (scene.emission_sides)
+                          "emission_sampling": _choice(*EMISSION_SAMPLING)})
 MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
 
 CAMERA_SCHEMA = _table({
@@ -638,6 +640,8 @@ def _material_value(key, v):
         return _vec(v)
     if key == "node":
         return v.lower()
+    if key == "emission_sampling":
+        return v.upper()
     if isinstance(v, bool):
         return v
     return float(v)

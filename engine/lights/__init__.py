@@ -43,9 +43,14 @@ __all__ = ["LIGHT_KINDS", "DECLARED_KINDS", "Light", "PreparedLight",
            "allocate_photons"]
 
 
-def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable) -> list[Light]:
+def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable,
+                   gathered: bool = True) -> list[Light]:
     """Re-centre the scene's lights and add mesh and world lights: a list of Light, the
-    declared lights in scene order, then the emissive meshes, then the world."""
+    declared lights in scene order, then the emissive meshes, then the world.
+    gathered: final gathering runs (RenderSettings photon_mapping and final_gather), the
+    only way the sides of an emissive mesh shadow rays do not sample (Emission
+    Sampling) reach diffuse surfaces directly; without it shadow rays sample every side
+    (MeshLight.from_geometry)."""
     center = (geo.bounds[0] + geo.bounds[1]) / 2.0
     radius = max(geo.extent / 2.0, 1e-6) * 1.01
     common = dict(center=center, scene_radius=radius)
@@ -54,7 +59,7 @@ def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable) -> list[Li
         prepared = LIGHT_KINDS[light.kind].from_scene(light, geo, common)
         if prepared is not None:
             out.append(prepared)
-    for extra in (MeshLight.from_geometry(geo, table, common),
+    for extra in (MeshLight.from_geometry(geo, table, common, gathered),
                   WorldLight.from_background(scene, common)):
         if extra is not None:
             out.append(extra)

@@ -47,6 +47,9 @@ class Light:
     # The ray kinds (engine/geometry.py bits) that see this light; emissive meshes and the
     # world keep all (a mesh's own visibility lives on its triangles).
     ray_kinds: int = ALL_RAYS
+    # Whether shadow rays sample this light (a mesh light's Emission Sampling can leave
+    # every side to the rays that meet it: MeshLight.shadow_sampled).
+    shadow_sampled: bool = True
     source = None  # the scene's Light (engine/scene.py) a declared light was made from
 
     def __init__(self, name, **kw):

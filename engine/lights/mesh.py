@@ -8,7 +8,15 @@ every emissive triangle is a leaf of the light's own light tree (triangle_tree; 
 bounds, normal and power as Cycles' kernel/light/tree.h and pbrt-v4's
 TriangleLight::Bounds), walked by lights/selection.select_light, so triangles far away or
 seen edge-on are rarely picked; triangle_pmf gives the same probability for multiple
-importance sampling where a BSDF ray meets an emitter."""
+importance sampling where a BSDF ray meets an emitter.
+
+A material's Emission Sampling (scene.emission_sides, Cycles' SD_MIS_FRONT / SD_MIS_BACK)
+restricts which sides shadow rays sample: a one-sided triangle is a one-sided leaf of the
+triangle tree (its normal the sampled side's, Cycles' light tree for one-sided
+emitters) and the shadow-ray kernel takes no sample from its other side; a triangle of
+no sampled side has no power in the tree (never chosen). The emission stays two-sided:
+photons leave every emissive triangle from both sides, and the sides left out reach
+surfaces through rays that meet them (unsampled_side: counted in full, no MIS)."""
 from __future__ import annotations
 
 import math
@@ -25,6 +33,7 @@ from . import packing as pk
 from .base import Light
 
 MESH = "MESH"
+BOTH_SIDES = 3  # scene.SIDE_FRONT | scene.SIDE_BACK
 
 
 class MeshLight(Light):
@@ -32,8 +41,11 @@ class MeshLight(Light):
     declared = False
 
     @classmethod
-    def from_geometry(cls, geo, table, common):
-        """The light of all emissive triangles of geo, or None when there are none."""
+    def from_geometry(cls, geo, table, common, gathered=True):
+        """The light of all emissive triangles of geo, or None when there are none.
+        Shadow rays sample the sides of each triangle its material's Emission Sampling
+        names (table.emission_sides), every side when not gathered (no final gathering:
+        nothing else would bring the other sides' direct light to diffuse surfaces)."""
         idx, L, area = emissive_triangles(geo, table)
         if not len(idx):
             return None
@@ -44,11 +56,44 @@ class MeshLight(Light):
         cdf = np.cumsum(prob)
         cdf[-1] = 1.0
         flux = (2.0 * math.pi * area[:, None] * L).sum(axis=0)
+        if table.emission_sides is None or not gathered:
+            sides = np.full(len(idx), BOTH_SIDES, np.int64)
+        else:
+            sides = np.ascontiguousarray(table.emission_sides[geo.material[idx]], np.int64)
         return cls("emissive meshes", v0=geo.v0[idx], e1=geo.e1[idx], e2=geo.e2[idx],
                    tri_ng=geo.ng[idx], tri_L=L, tri_area=area, prob=prob, cdf=cdf,
                    tri_index=idx, photon_flux=flux, flux=flux, radius=0.0,
                    round32=geo.round32[idx], tilt32=geo.tilt32[idx],
-                   cos_half_angle=1.0, **common)
+                   tri_sides=sides, cos_half_angle=1.0, **common)
+
+    tri_sides = None  # (T,) int64 sides shadow rays sample (scene.emission_sides); None: both
+
+    @property
+    def shadow_sampled(self) -> bool:
+        """Whether shadow rays sample any side of any triangle: with none (Emission
+        Sampling None everywhere) the light takes no shadow ray at all and
+        integrator.light_modes leaves it to the rays that meet it. Its photons still
+        leave (Light.ray_kinds unchanged: a photon's first segment stands for a
+        shadow or diffuse ray from the surface it lands on)."""
+        return self.tri_sides is None or bool(np.any(self.tri_sides))
+
+    def sides(self) -> np.ndarray:
+        """(T,) int64 the sides of each triangle shadow rays sample (scene.SIDE_FRONT |
+        scene.SIDE_BACK bits; 3 for every triangle when none were given)."""
+        if self.tri_sides is None:
+            return np.full(len(self.tri_area), BOTH_SIDES, np.int64)
+        return np.ascontiguousarray(self.tri_sides, np.int64)
+
+    def unsampled_side(self, tri, d) -> np.ndarray:
+        """Whether rays of unit direction d (N,3) meeting triangles tri (N,) (rows of v0
+        ...) arrive at a side shadow rays do not sample (N,) bool: its light there counts
+        in full (Cycles' shade_surface: no MIS where the shader's SD_MIS_FRONT /
+        SD_MIS_BACK flag for the side is unset). The front is the side ng points to."""
+        if self.tri_sides is None:
+            return np.zeros(len(tri), bool)
+        s = np.asarray(self.tri_sides)[tri]
+        front = np.einsum("ij,ij->i", d, np.asarray(self.tri_ng, float)[tri]) < 0
+        return np.where(front, (s & 1) == 0, (s & 2) == 0)
 
     needs_choice = True
 
@@ -57,7 +102,9 @@ class MeshLight(Light):
         (selection.build_tree; LIGHT = the triangle's row in v0 ...): leaf bounds the
         triangle's box, its normal with cos theta_o = 1 and cos theta_e = 0 (emission
         reaches the hemisphere), two-sided, power 2 pi area luminance(L) (area alone
-        when every triangle is black). Built once, on first use."""
+        when every triangle is black). A one-sided triangle (tri_sides) takes the
+        sampled side's normal, one-sided; a triangle of no sampled side power 0 (Cycles
+        leaves it out of its light tree). Built once, on first use."""
         tree = getattr(self, "_triangle_tree", None)
         if tree is None:
             from .selection import build_tree
@@ -69,8 +116,19 @@ class MeshLight(Light):
             if not phi.sum() > 0:
                 phi = area.copy()
             T = len(area)
-            tree = build_tree(lo, hi, np.asarray(self.tri_ng, float), np.ones(T),
-                              np.zeros(T), phi, np.ones(T, bool))
+            w = np.asarray(self.tri_ng, float)
+            two = np.ones(T, bool)
+            if self.tri_sides is not None and (self.sides() != BOTH_SIDES).any():
+                s = self.sides()
+                w = np.where((s == 2)[:, None], -w, w)  # back alone: the back's normal
+                two = s == BOTH_SIDES
+                sampled = s != 0
+                phi = np.where(sampled, phi, 0.0)
+                if not phi.sum() > 0:
+                    phi = np.where(sampled, area, 0.0)
+                if not phi.sum() > 0:
+                    phi = area.copy()  # no sampled side: the tree is never walked
+            tree = build_tree(lo, hi, w, np.ones(T), np.zeros(T), phi, two)
             self._triangle_tree = tree
         return tree
 

@@ -25,7 +25,8 @@ P = 45
 def pack_lights(lights):
     """(codes (L,) int64, params (L,P) float64, arrays) for a list of Light; `arrays` are
     the emissive triangles' (v0, e1, e2, ng, L, area, their light tree's tree_f and
-    tree_i (MeshLight.triangle_tree), round32, tilt32), empty
+    tree_i (MeshLight.triangle_tree), round32, tilt32, sides (T,) int64: the sides shadow
+    rays sample, MeshLight.sides), empty
     without emissive meshes, then the world's environment map (radiance texels (H,W,3)
     float32 and its cosine-weighted distributions: row cdfs (K,Hc+1), column cdfs
     (K,Hc,Wc+1), cell probabilities (K,Hc,Wc), per-row prefix sums (H,W+1), cell sums
@@ -52,9 +53,9 @@ def pack_lights(lights):
         from .selection import NF, NI
         return codes, params, (z3, z3, z3, z3, z3, np.zeros(0), np.zeros((0, NF)),
                                np.zeros((0, NI), np.int64), np.zeros((0, 3, 3)), np.zeros(0),
-                               *env_arrays)
+                               np.zeros(0, np.int64), *env_arrays)
     tree_f, tree_i, _ = mesh.triangle_tree()
     return codes, params, (c(mesh.v0), c(mesh.e1), c(mesh.e2), c(mesh.tri_ng), c(mesh.tri_L),
                            c(np.asarray(mesh.tri_area, np.float64)), tree_f, tree_i,
                            c(mesh.round32), c(np.asarray(mesh.tilt32, np.float64)),
-                           *env_arrays)
+                           mesh.sides(), *env_arrays)

@@ -470,7 +470,8 @@ def tree_members(lights, skip_mesh_lights: bool = False) -> list:
     light tree picks among them); else [] (every light gets its own shadow rays)."""
     from ..geometry import SHADOW
     members = [li for li, light in enumerate(lights)
-               if light.ray_kinds & SHADOW and not (skip_mesh_lights and light.kind == MESH)]
+               if light.ray_kinds & SHADOW and light.shadow_sampled
+               and not (skip_mesh_lights and light.kind == MESH)]
     return members if len(members) > SAMPLE_ALL_UP_TO else []
 
 
