@@ -298,14 +298,17 @@ def ship_engine_code(client) -> None:
         with open(path, "rb") as f:
             data = f.read()
         name = os.path.splitext(os.path.basename(path))[0]
-        with warnings.catch_warnings():  # the same engine again (a later render): harmless
+        # One plugin name per package: a later render (or an edited engine) replaces the
+        # last one instead of piling zips on the scheduler that a restart would replay.
+        plugin = f"photonmap-engine-{_engine_package()}"
+        with warnings.catch_warnings():  # replacing the last render's: expected
             warnings.filterwarnings("ignore", message="Scheduler already contains a plugin")
             client.register_plugin(SchedulerUploadFile(path, load=True),
-                                   name=f"{name}-scheduler")
+                                   name=f"{plugin}-scheduler")
     # The workers cannot import the plugin's module by its name: send it by value.
     cloudpickle.register_pickle_by_value(shippedengine)
     client.register_plugin(shippedengine.UnpackEngine(data, name, _engine_package()),
-                           name=f"{name}-workers")
+                           name=f"{plugin}-workers")
 
 
 def render_distributed(scene: Scene, settings: RenderSettings | None = None,
@@ -434,8 +437,13 @@ def render_distributed(scene: Scene, settings: RenderSettings | None = None,
                 continue
             for i in sorted(pending):
                 if pending[i].done():
+                    try:
+                        film = pending[i].result()  # re-raises the task's error here
+                    except Exception:
+                        if pending[i].cancelled():
+                            continue  # cancelled since the check above: resubmitted next round
+                        raise
                     future = pending.pop(i)
-                    film = future.result()  # re-raises the task's error here
                     # Released now, not when garbage collected: the waits' tracebacks
                     # form reference cycles that kept finished passes on the workers.
                     future.release()

@@ -20,6 +20,7 @@ import importlib
 import io
 import os
 import shutil
+import stat
 import sys
 import tempfile
 import time
@@ -38,27 +39,59 @@ def engines_folder() -> str:
     return os.path.join(tempfile.gettempdir(), f"photonmap_engines_{user}")
 
 
+COMPLETE = ".complete"  # written last: a folder without it (cut short, cleaned) is unpacked again
+
+
+def _private(folder: str) -> bool:
+    """True when folder is a real directory (not a link) that only this user can write:
+    another local user must not be able to plant code a worker would import."""
+    try:
+        st = os.lstat(folder)
+    except OSError:
+        return False
+    if not stat.S_ISDIR(st.st_mode):
+        return False
+    if hasattr(os, "getuid") and (st.st_uid != os.getuid() or st.st_mode & 0o022):
+        return False
+    return True
+
+
+def _extract(data: bytes, folder: str) -> None:
+    with zipfile.ZipFile(io.BytesIO(data)) as z:
+        z.extractall(folder)
+        for info in z.infolist():
+            t = time.mktime(info.date_time + (0, 0, -1))
+            os.utime(os.path.join(folder, info.filename), (t, t))
+    with open(os.path.join(folder, COMPLETE), "w"):
+        pass
+
+
 def unpack(data: bytes, name: str) -> str:
     """Unpack the zip `data` into engines_folder()/name once (name identifies its
     contents) and return that folder. Files keep the modification times stored in the
     zip, so a folder unpacked again (a cleaned temporary folder) matches numba's cache.
     Workers unpacking at the same time each unpack into a folder of their own and the
-    first rename wins."""
-    root = os.path.join(engines_folder(), name)
-    if os.path.isdir(root):
+    first rename wins. Where engines_folder() is not this user's alone (a link, another
+    owner, group- or world-writable), the engine goes to a new private temporary folder
+    (correct, but its kernels compile in each worker)."""
+    base = engines_folder()
+    os.makedirs(base, mode=0o700, exist_ok=True)
+    if not _private(base):
+        scratch = tempfile.mkdtemp(prefix="photonmap_engine_")
+        _extract(data, scratch)
+        return scratch
+    root = os.path.join(base, name)
+    if os.path.isfile(os.path.join(root, COMPLETE)):
         return root
-    os.makedirs(engines_folder(), exist_ok=True)
-    scratch = tempfile.mkdtemp(dir=engines_folder(), prefix=".unpacking-")
+    scratch = tempfile.mkdtemp(dir=base, prefix=".unpacking-")
     try:
-        with zipfile.ZipFile(io.BytesIO(data)) as z:
-            z.extractall(scratch)
-            for info in z.infolist():
-                t = time.mktime(info.date_time + (0, 0, -1))
-                os.utime(os.path.join(scratch, info.filename), (t, t))
+        _extract(data, scratch)
+        if os.path.isdir(root):  # cut short or cleaned by a temp cleaner: replaced
+            shutil.rmtree(root, ignore_errors=True)
         try:
             os.rename(scratch, root)
         except OSError:
-            if not os.path.isdir(root):
+            if not os.path.isfile(os.path.join(root, COMPLETE)):
                 raise
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
@@ -78,7 +111,7 @@ class UnpackEngine(WorkerPlugin):
         self.data, self.name, self.package = data, name, package
 
     def setup(self, worker=None):
-        root = unpack(self.data, self.name)
+        self.root = root = unpack(self.data, self.name)
         if root in sys.path:
             sys.path.remove(root)
         sys.path.insert(0, root)
@@ -89,3 +122,9 @@ class UnpackEngine(WorkerPlugin):
             for module in [m for m in sys.modules if m == top or m.startswith(top + ".")]:
                 del sys.modules[module]
         importlib.invalidate_caches()
+
+    def teardown(self, worker=None):
+        # Replaced by another engine's plugin (the same name) or the worker closing.
+        root = getattr(self, "root", None)
+        if root in sys.path:
+            sys.path.remove(root)

@@ -383,6 +383,43 @@ def test_lost_scene_is_scattered_again(client, small):
     _wait_until_idle(client)
 
 
+def test_shipped_engine_unpacks_once_complete_and_private(tmp_path, monkeypatch):
+    """shippedengine.unpack: two processes unpacking one zip at once leave one complete
+    folder with the zip's modification times; a folder cut short (no marker) is unpacked
+    again; a folder other users may write is not trusted (a private one instead)."""
+    import zipfile
+    from engine import shippedengine
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setattr(shippedengine.tempfile, "tempdir", None)
+    src = tmp_path / "engine.zip"
+    with zipfile.ZipFile(src, "w") as z:
+        info = zipfile.ZipInfo("pkg/engine/jit.py", date_time=(2020, 1, 2, 3, 4, 6))
+        z.writestr(info, "X = 1\n")
+    data = src.read_bytes()
+    code = ("import sys; sys.path.insert(0, %r); from engine import shippedengine; "
+            "print(shippedengine.unpack(open(%r, 'rb').read(), 'photonmap_engine_t'))"
+            % (ROOT, str(src)))
+    env = dict(os.environ, TMPDIR=str(tmp_path))
+    runs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
+                             text=True) for _ in range(2)]
+    roots = {r.communicate(timeout=120)[0].strip() for r in runs}
+    assert all(r.returncode == 0 for r in runs)
+    assert len(roots) == 1
+    root = roots.pop()
+    jit = os.path.join(root, "pkg", "engine", "jit.py")
+    assert open(jit).read() == "X = 1\n"
+    assert os.path.getmtime(jit) == time.mktime((2020, 1, 2, 3, 4, 6, 0, 0, -1))
+    assert sorted(os.listdir(os.path.dirname(root))) == ["photonmap_engine_t"]  # no scratch
+    os.remove(os.path.join(root, shippedengine.COMPLETE))
+    os.remove(jit)
+    assert shippedengine.unpack(data, "photonmap_engine_t") == root and os.path.isfile(jit)
+    if hasattr(os, "getuid"):
+        os.chmod(os.path.dirname(root), 0o777)
+        other = shippedengine.unpack(data, "photonmap_engine_t")
+        assert other != root and not other.startswith(os.path.dirname(root) + os.sep)
+        assert os.path.isfile(os.path.join(other, "pkg", "engine", "jit.py"))
+
+
 def test_cancel_stops_a_running_pass(monkeypatch):
     """Pass 2 runs until its should_cancel turns True (threads of this process, so the
     patched render_pass is what the workers run): cancelling the render after pass 1 must
