@@ -67,7 +67,7 @@ def hidden_on_ball(floor, slab, seed=1):
 
 def test_a_balls_own_photons_are_all_visible():
     """Alone, no photon of the ball is hidden from a point of it (the self-hiding the
-    curvature lift exists for: ~15 % of these rows hid a photon with _ray_ends' lift)."""
+    curvature lift exists for; photonmap._ray_ends' lift, ca876ee, hid 397 pairs here)."""
     _, _, _, _, rows, _ = hidden_on_ball(floor=False, slab=False)
     assert len(rows) == 0
 
@@ -77,7 +77,7 @@ def test_the_underside_above_the_floor_keeps_its_photons():
     floor hides a photon 5 cm or more above it (Figure 3's false occlusions: photons
     0.3-0.7 m up hidden from rows 3-9 cm up). Hidden pairs are left only in the floor's
     contact wedge, both ends within 10 cm of the floor (the gap, ~r^2 / 2 at r from the
-    contact, leaves a two-segment path no room under the ball)."""
+    contact under the unit ball, leaves a two-segment path no room under the ball)."""
     q, _, _, _, rows, hid = hidden_on_ball(floor=True, slab=False)
     under = (q[:, 2] > 0.01) & (q[:, 2] < 0.2)
     assert under.sum() > 20
