@@ -7,6 +7,7 @@ lamp shade (tests/test_leak_lampshade.py's scene plus the repro's sun) pierced /
 clear of the wall: image max and mean.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_photon_visibility.py [--seeds 3]
+        [--blends figure6_box,figure7_blocker,figure8_caustic] [--no-lamp]
 """
 import argparse
 import math
@@ -34,10 +35,10 @@ def lum(a):
     return a[..., 0] * .2126 + a[..., 1] * .7152 + a[..., 2] * .0722
 
 
-def figures(seeds):
+def figures(seeds, blends=("figure6_box", "figure7_blocker", "figure8_caustic")):
     where = os.path.join(tempfile.gettempdir(), "film_hashes")
     os.makedirs(where, exist_ok=True)
-    for name in ("figure6_box", "figure7_blocker", "figure8_caustic"):
+    for name in blends:
         with open(exported(name, where), "rb") as f:
             scene = pickle.load(f)
         ref = np.load(os.path.join(ROOT, "tests", "references", f"{name}.npy"))[..., :3]
@@ -86,7 +87,11 @@ def lamp():
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--blends", default="figure6_box,figure7_blocker,figure8_caustic",
+                    help="any with a tests/references/NAME.npy (figure3_sphere too)")
+    ap.add_argument("--no-lamp", action="store_true", help="the figures only")
     args = ap.parse_args()
     ensure_compiled()
-    lamp()
-    figures(args.seeds)
+    if not args.no_lamp:
+        lamp()
+    figures(args.seeds, args.blends.split(","))

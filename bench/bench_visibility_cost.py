@@ -4,7 +4,7 @@ integrator.PHOTON_VISIBILITY off / on interleaved; CPU s by time.process_time (m
 --repeat), the on run's visibility time split by map (caustic / secondary / global) into
 finding the hidden photons (photonvisibility.hidden_photons: candidates, rays) and the
 re-estimate of the rows that have one, with the rows, the rows traced and the rows that
-hide a photon. Prints a table.
+hide a photon and the hidden (row, photon) pairs. Prints a table.
 
     NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_visibility_cost.py \
         [--size 320x240] [--repeat 1] [--blends figure6_box,figure7_blocker,figure8_caustic]
@@ -66,6 +66,7 @@ def instrument():
         s = STATS[_label[0]]
         s["hidden"] += time.process_time() - c0
         s["hiding rows"] += len(np.unique(rows))
+        s["pairs"] += len(rows)
         return rows, photons
 
     photonvisibility.visible_irradiance = visible_irradiance
@@ -107,8 +108,8 @@ def main(argv=None):
     print(f"\n{width}x{height}, default settings, 1 worker, min of {args.repeat}; "
           "CPU s (time.process_time)\n")
     print("| blend | off | on | cost | map | visibility s | hidden_photons s | "
-          "re-estimate s | rows | rows hiding a photon |")
-    print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|")
+          "re-estimate s | rows | rows hiding a photon | hidden pairs |")
+    print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|")
     for name, off, on, split in rows:
         first = True
         for label in sorted(split):
@@ -117,7 +118,7 @@ def main(argv=None):
                     if first else "| | | | ")
             print(f"{head}| {label} | {s['total']:.2f} | {s['hidden']:.2f} | "
                   f"{s['total'] - s['hidden']:.2f} | {int(s['rows'])} | "
-                  f"{int(s['hiding rows'])} |")
+                  f"{int(s['hiding rows'])} | {int(s['pairs'])} |")
             first = False
 
 

@@ -18,6 +18,11 @@ the same neighbours and disc), so a point whose whole disc lies behind an occlud
 exactly 0 and a point next to one is biased dark exactly as at a corner, never bright.
 Rows with no hidden photon keep the unmasked estimate bit for bit.
 
+On a curved surface the ray is bent (_bent_path): two segments that meet above the
+chord's midpoint, its ends lifted by rounding bounds only, so that neither end is lifted
+across a nearby surface (a ball's underside above its floor) and the chord does not hide
+the surface's own photons.
+
 The candidates are the estimate's own: the k nearest photons within the search radius
 that photonmap._accepted takes (widening, as the estimate does, up to MAX_WIDEN_K nearest
 to find k), or, for a row whose footprint floor r_floor exceeds the k-th distance, the
@@ -25,6 +30,7 @@ accepted photons within r_floor (up to FLOOR_CAP x k of them).
 """
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
@@ -34,6 +40,7 @@ from .jit import kernel, register_warm_up
 from .photonmap import (HASHGRID, MAX_WIDEN_K, _accepted, _ball, _knn, _query_lift,
                         _ray_ends)
 from . import hashgrid
+from .rayoffset import G32_PLANE, ulp32_scalar
 
 # Rows per block of visibility rays (bounds the ray arrays: BLOCK_ROWS x cap rays).
 BLOCK_ROWS = 1024
@@ -223,6 +230,9 @@ def one_surface_cells(geo, cell: float) -> OneSurfaceCells:
     return got
 # A floored (focus) disc takes at most this many times k candidates.
 FLOOR_CAP = 4
+# _bent_path's margin beyond the lift a convex surface needs, in chord |n - m| / 4
+# (photonmap._ray_ends' bend): room for rounding and for meshes only nearly convex.
+BEND_MARGIN = 0.25
 
 
 @kernel
@@ -233,7 +243,10 @@ def _candidate_rays(kind, pos, nodes, start, grid, direction, normal, p, n, lift
     viewer; lift (M,) or empty: their own offsets) to their estimate's candidate photons
     (module docstring), accepted by photonmap._accepted, in Embree's float32 layout:
     o32, d32 (R,3), t32 (R,); ray_row[j] the row, ray_photon[j] the photon (map order).
-    floor: (M,) footprint radii or empty; at most cap rays a row (cap >= k); d2, idx:
+    A candidate with the row's normal gets one ray (photonmap._ray_ends), one with
+    another normal (a curved surface) the two segments of _bent_path, adjacent, both
+    with its row and photon: it is hidden when either is blocked. floor: (M,) footprint
+    radii or empty; at most cap candidates a row (cap >= k; R <= 2 cap a row); d2, idx:
     scratch of max(kmax, cap) + 1. Returns the number of rays."""
     m = 0
     for r in range(rows.shape[0]):
@@ -269,17 +282,84 @@ def _candidate_rays(kind, pos, nodes, start, grid, direction, normal, p, n, lift
             if not _accepted(direction, normal, j, n32x, n32y, n32z)[0]:
                 continue
             taken += 1
-            ox, oy, oz, dx, dy, dz, t = _ray_ends(
-                qx, qy, qz, nx, ny, nz, la, np.float64(pos[j, 0]), np.float64(pos[j, 1]),
-                np.float64(pos[j, 2]), np.float64(normal[j, 0]), np.float64(normal[j, 1]),
-                np.float64(normal[j, 2]))
-            o32[m, 0], o32[m, 1], o32[m, 2] = ox, oy, oz
-            d32[m, 0], d32[m, 1], d32[m, 2] = dx, dy, dz
-            t32[m] = t
-            ray_row[m] = i
-            ray_photon[m] = j
-            m += 1
+            bx, by, bz = np.float64(pos[j, 0]), np.float64(pos[j, 1]), np.float64(pos[j, 2])
+            mx, my, mz = (np.float64(normal[j, 0]), np.float64(normal[j, 1]),
+                          np.float64(normal[j, 2]))
+            if nx == mx and ny == my and nz == mz:
+                # One orientation: photonmap._ray_ends' straight ray (no bend lift).
+                ox, oy, oz, dx, dy, dz, t = _ray_ends(qx, qy, qz, nx, ny, nz, la, bx, by,
+                                                      bz, mx, my, mz)
+                o32[m, 0], o32[m, 1], o32[m, 2] = ox, oy, oz
+                d32[m, 0], d32[m, 1], d32[m, 2] = dx, dy, dz
+                t32[m] = t
+                ray_row[m] = i
+                ray_photon[m] = j
+                m += 1
+                continue
+            ax, ay, az, cx, cy, cz, bx, by, bz = _bent_path(qx, qy, qz, nx, ny, nz, la,
+                                                            bx, by, bz, mx, my, mz)
+            m = _store_segment(ax, ay, az, cx, cy, cz, o32, d32, t32, m)
+            ray_row[m - 1] = i
+            ray_photon[m - 1] = j
+            m = _store_segment(cx, cy, cz, bx, by, bz, o32, d32, t32, m)
+            ray_row[m - 1] = i
+            ray_photon[m - 1] = j
     return m
+
+
+@kernel
+def _store_segment(ax, ay, az, bx, by, bz, o32, d32, t32, m):
+    """The ray from a to b into o32 / d32 / t32 at m (unit direction, length); m + 1."""
+    wx, wy, wz = bx - ax, by - ay, bz - az
+    dist = math.sqrt(wx * wx + wy * wy + wz * wz)
+    inv = max(dist, 1e-300)
+    o32[m, 0], o32[m, 1], o32[m, 2] = ax, ay, az
+    d32[m, 0], d32[m, 1], d32[m, 2] = wx / inv, wy / inv, wz / inv
+    t32[m] = dist
+    return m + 1
+
+
+@kernel
+def _bent_path(qx, qy, qz, nx, ny, nz, la, bx, by, bz, mx, my, mz):
+    """The visibility path from a query q (unit normal n, own offset la: _query_lift) to
+    a photon b (unit normal m != n) on a curved surface: two segments a -> c -> b' that
+    meet above the chord's midpoint, returned as (a, c, b') (9 floats).
+
+    The ends are lifted only by their rounding-error bounds (a = q + la n, b' = b + lb m,
+    lb as photonmap._ray_ends'). photonmap._ray_ends instead lifts both ends by the
+    chord's bend, chord |n - m| / 4, which near another surface puts an end across it: a
+    sphere's underside 3-9 cm above the floor it rests on, lifted 10-22 cm along its
+    normal, started its rays below the floor, which hid 99.7 % of Figure 3's hidden
+    (row, photon) pairs (docs/performance.md "e2e3x"). Here the lift goes to the
+    chord's midpoint, away from both ends' surroundings: c = (q + b) / 2 + t w along the
+    normals' bisector w = (n + m) / |n + m|. For a convex surface, which lies behind
+    each of its tangent planes, a segment in front of q's plane (q, n) and a segment in
+    front of b's plane (b, m) cannot meet it; a lies in front of q's plane and b' of
+    b's, so c must be in front of both: t |n + m| / 2 >= -(b - q).n / 2 and
+    >= (b - q).m / 2 (w.n = w.m = |n + m| / 2), t0 = max(-(b - q).n, (b - q).m, 0) /
+    |n + m| (on a sphere chord tan(theta / 2) / 2, about _ray_ends' bend). With the
+    geometric normals the estimates use (hit.ng, Photons.normal) the planes are the
+    facets' own, so this holds for a tessellated convex mesh as it is. A concave surface
+    needs none (t0 = 0: its chord runs in front of it). The margin beyond t0,
+    BEND_MARGIN of the bend plus both ends' offsets, is room for rounding and meshes
+    only nearly convex. What is left: where another surface comes closer to the chord's
+    midpoint than t (a ball's contact with the floor it rests on, the last ~10 cm, where
+    the gap under the ball is thinner than the path's lift) the photon is still hidden.
+    Scalars only (a kernel called with arrays pays their reference counts)."""
+    ex, ey, ez = bx - qx, by - qy, bz - qz
+    chord = math.sqrt(ex * ex + ey * ey + ez * ez)
+    gx, gy, gz = nx - mx, ny - my, nz - mz
+    bend = 0.25 * chord * math.sqrt(gx * gx + gy * gy + gz * gz)
+    sx, sy, sz = nx + mx, ny + my, nz + mz
+    ls = max(math.sqrt(sx * sx + sy * sy + sz * sz), 1e-300)
+    lb = 4.0 * ulp32_scalar(max(abs(bx), abs(by), abs(bz))) + 2.0 * G32_PLANE * chord
+    t = (max(-(ex * nx + ey * ny + ez * nz), ex * mx + ey * my + ez * mz, 0.0) / ls
+         + BEND_MARGIN * bend + la + lb)
+    cx = 0.5 * (qx + bx) + t * sx / ls
+    cy = 0.5 * (qy + by) + t * sy / ls
+    cz = 0.5 * (qz + bz) + t * sz / ls
+    return (qx + la * nx, qy + la * ny, qz + la * nz, cx, cy, cz, bx + lb * mx,
+            by + lb * my, bz + lb * mz)
 
 
 def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None):
@@ -316,7 +396,7 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None):
         todo = todo[~one_surface_cells(geo, radius).free(p, reach_rows, n)]
     for a in range(0, len(todo), BLOCK_ROWS):
         rows = todo[a:a + BLOCK_ROWS]
-        size = len(rows) * cap
+        size = 2 * len(rows) * cap  # a curved pair's path is two segments
         o32 = np.empty((size, 3), np.float32)
         d32 = np.empty((size, 3), np.float32)
         t32 = np.empty(size, np.float32)
@@ -330,8 +410,13 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None):
         blocked = np.zeros(nr, bool)
         accel.occluded_into(o32[:nr], d32[:nr], t32[:nr], blocked)
         if blocked.any():
-            rows_out.append(ray_row[:nr][blocked])
-            photons_out.append(ray_photon[:nr][blocked])
+            # A pair once, though both its segments are blocked (they are adjacent).
+            hit = np.flatnonzero(blocked)
+            hit = hit[np.r_[True, (hit[1:] != hit[:-1] + 1)
+                            | (ray_row[hit[1:]] != ray_row[hit[:-1]])
+                            | (ray_photon[hit[1:]] != ray_photon[hit[:-1]])]]
+            rows_out.append(ray_row[hit])
+            photons_out.append(ray_photon[hit])
     if not rows_out:
         return none
     return np.concatenate(rows_out), np.concatenate(photons_out)
