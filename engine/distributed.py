@@ -250,31 +250,21 @@ def _engine_package() -> str:
 
 def engine_zip(directory: str) -> str:
     """Write the engine's files into a zip importable under the engine's own package name
-    (parent packages as empty __init__.py files) and return its path. The name carries a
-    hash of the contents and the package name, so an edited engine is a new upload (and
-    a new folder on the workers: shippedengine.unpack)."""
-    import hashlib
+    (parent packages as empty __init__.py files) and return its path. The name carries
+    shippedengine.engine_digest (the files and the package name), so an edited engine is a
+    new upload (and a new folder on the workers: shippedengine.unpack)."""
     import zipfile
+
+    from .shippedengine import engine_digest, engine_files
     here = os.path.dirname(os.path.abspath(__file__))
     package = _engine_package()
-    files = []
-    for root, dirs, names in os.walk(here):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-        for name in sorted(names):
-            if not name.endswith((".pyc", ".pyo")):
-                files.append(os.path.join(root, name))
-    digest = hashlib.sha1(package.encode())
-    for path in files:
-        digest.update(os.path.relpath(path, here).encode())
-        with open(path, "rb") as f:
-            digest.update(f.read())
-    path = os.path.join(directory, f"photonmap_engine_{digest.hexdigest()[:16]}.zip")
+    path = os.path.join(directory, f"photonmap_engine_{engine_digest(here, package)}.zip")
     parts = package.split(".")
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
         for depth in range(1, len(parts)):
             z.writestr("/".join(parts[:depth]) + "/__init__.py", "")
         prefix = "/".join(parts)
-        for f in files:
+        for f in engine_files(here):
             z.write(f, prefix + "/" + os.path.relpath(f, here).replace(os.sep, "/"))
     return path
 
@@ -286,7 +276,9 @@ def ship_engine_code(client) -> None:
     import otherwise; workers need only the engine's dependencies. The scheduler gets
     Client.upload_file's copy (it unpickles the passes' tasks); each worker unpacks the
     zip once per machine into a folder named by its contents (shippedengine.UnpackEngine),
-    so numba's kernel cache serves every render after the first on that machine."""
+    so numba's kernel cache serves every render after the first on that machine; a worker
+    on the client's machine (a local cluster) imports the client's own files instead and
+    loads the kernels the client compiled (shippedengine.local_shim)."""
     import tempfile
 
     import cloudpickle
@@ -307,7 +299,8 @@ def ship_engine_code(client) -> None:
                                    name=f"{plugin}-scheduler")
     # The workers cannot import the plugin's module by its name: send it by value.
     cloudpickle.register_pickle_by_value(shippedengine)
-    client.register_plugin(shippedengine.UnpackEngine(data, name, _engine_package()),
+    source = os.path.realpath(os.path.dirname(os.path.abspath(__file__)))
+    client.register_plugin(shippedengine.UnpackEngine(data, name, _engine_package(), source),
                            name=f"{plugin}-workers")
 
 

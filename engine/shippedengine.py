@@ -8,6 +8,9 @@ compiled every kernel again (minutes of CPU before the first pass). UnpackEngine
 the zip once per machine and user into a folder named by its contents, with the files'
 own modification times, and puts that folder first on the worker's sys.path: every later
 render, worker process and restarted worker on that machine loads the compiled kernels.
+A worker on the client's own machine (a local cluster started from Blender) does better:
+where the client's engine folder is there with the same files, it imports those very files
+under the package's name (local_shim) and loads the kernels the client compiled.
 
 This module is pickled by value (cloudpickle.register_pickle_by_value) because the
 workers cannot import it under its package name: it imports only the standard library and
@@ -16,6 +19,7 @@ distributed, and refers to nothing else of the engine.
 from __future__ import annotations
 
 import getpass
+import hashlib
 import importlib
 import io
 import os
@@ -27,6 +31,28 @@ import time
 import zipfile
 
 from distributed.diagnostics.plugin import WorkerPlugin
+
+
+def engine_files(directory: str) -> list[str]:
+    """The engine's files under directory (its package folder), sorted, without bytecode."""
+    files = []
+    for root, dirs, names in os.walk(directory):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(names):
+            if not name.endswith((".pyc", ".pyo")):
+                files.append(os.path.join(root, name))
+    return files
+
+
+def engine_digest(directory: str, package: str) -> str:
+    """16 hex digits identifying the engine's files under directory (their paths relative
+    to it and contents) and its package name."""
+    digest = hashlib.sha1(package.encode())
+    for path in engine_files(directory):
+        digest.update(os.path.relpath(path, directory).encode())
+        with open(path, "rb") as f:
+            digest.update(f.read())
+    return digest.hexdigest()[:16]
 
 
 def engines_folder() -> str:
@@ -98,28 +124,66 @@ def unpack(data: bytes, name: str) -> str:
     return root
 
 
+def local_shim(source: str, package: str, name: str):
+    """Where the client's own engine folder `source` exists on this machine with the same
+    files (a local cluster: Blender's extension folder), a folder to put on sys.path that
+    imports `package` from those very files: parent packages whose last one's __path__ is
+    source's parent. numba then finds the kernels the client compiled (the same source
+    paths and mtimes; a local cluster's workers inherit its NUMBA_CACHE_DIR). None when
+    source is missing or differs (another machine), or for a top-level package."""
+    parts = package.split(".")
+    if len(parts) < 2 or not os.path.isdir(source) or os.path.basename(source) != parts[-1]:
+        return None
+    if engine_digest(source, package) != name.rpartition("_")[2]:
+        return None
+    base = engines_folder()
+    os.makedirs(base, mode=0o700, exist_ok=True)
+    if not _private(base):
+        return None
+    root = os.path.join(base, name + "-local")
+    init = os.path.join(root, *parts[:-1], "__init__.py")
+    body = f"__path__ = [{os.path.dirname(source)!r}]\n"
+    if not (os.path.isfile(init) and open(init).read() == body):
+        scratch = tempfile.mkdtemp(dir=base, prefix=".shim-")
+        for depth in range(1, len(parts)):
+            folder = os.path.join(scratch, *parts[:depth])
+            os.makedirs(folder, exist_ok=True)
+            with open(os.path.join(folder, "__init__.py"), "w") as f:
+                f.write(body if depth == len(parts) - 1 else "")
+        shutil.rmtree(root, ignore_errors=True)
+        try:
+            os.rename(scratch, root)
+        except OSError:
+            shutil.rmtree(scratch, ignore_errors=True)
+    return root
+
+
 class UnpackEngine(WorkerPlugin):
     """A Dask worker plugin (Client.register_plugin: every worker, also those that join or
-    restart later): unpack the shipped engine (unpack) and import `package` from there.
+    restart later): import `package` from the client's own files where this machine has
+    them unchanged (local_shim), else from the shipped zip unpacked once (unpack).
 
-    data: the zip's bytes; name: a folder name unique to its contents and package;
-    package: the engine's module name, e.g. 'bl_ext.user_default.photonmap.engine'.
+    data: the zip's bytes; name: a folder name unique to its contents and package
+    ('photonmap_engine_<engine_digest>'); package: the engine's module name, e.g.
+    'bl_ext.user_default.photonmap.engine'; source: the client's engine folder.
     Modules of the package's top level imported from elsewhere (an older engine, the
     scheduler's upload) are dropped from sys.modules, so the next task imports this one."""
 
-    def __init__(self, data: bytes, name: str, package: str):
-        self.data, self.name, self.package = data, name, package
+    def __init__(self, data: bytes, name: str, package: str, source: str = ""):
+        self.data, self.name, self.package, self.source = data, name, package, source
 
     def setup(self, worker=None):
-        self.root = root = unpack(self.data, self.name)
+        root = local_shim(self.source, self.package, self.name) if self.source else None
+        self.root = root = root or unpack(self.data, self.name)
         if root in sys.path:
             sys.path.remove(root)
         sys.path.insert(0, root)
         loaded = sys.modules.get(self.package)
-        here = os.path.join(root, "")
-        if loaded is None or not os.path.abspath(getattr(loaded, "__file__", "") or "").startswith(here):
-            top = self.package.split(".")[0]
-            for module in [m for m in sys.modules if m == top or m.startswith(top + ".")]:
+        top = sys.modules.get(self.package.split(".")[0])
+        if loaded is None or os.path.dirname(os.path.abspath(getattr(top, "__file__", "") or "")) \
+                != os.path.join(root, self.package.split(".")[0]):
+            first = self.package.split(".")[0]
+            for module in [m for m in sys.modules if m == first or m.startswith(first + ".")]:
                 del sys.modules[module]
         importlib.invalidate_caches()
 

@@ -309,15 +309,12 @@ def test_engine_under_an_extension_name_is_shipped(client, small, tmp_path, monk
         assert type(film).__module__ == package + ".engine.film"
         assert_bitwise(film, small[2])
         assert all(client.run(eval, spec, {"importlib": importlib}).values())  # uploaded
-        # Each worker imports it from one folder a machine, named by its contents, with the
-        # client's modification times: numba's cache (source path, mtime) serves every later
-        # render and restarted worker there, instead of a compile in each worker's scratch.
-        folders = importlib.import_module(package + ".engine.shippedengine").engines_folder()
+        # The workers share this machine: they import the client's own files (the symlink's
+        # target) under the extension's name, so numba loads the kernels compiled here
+        # (shippedengine.local_shim) instead of compiling them in each worker.
         jit_file = f"__import__('sys').modules['{package}.engine.jit'].__file__"
         where = set(client.run(eval, jit_file).values())
-        assert len(where) == 1 and next(iter(where)).startswith(folders + os.sep), where
-        ours = os.path.join(ROOT, "engine", "jit.py")
-        assert abs(os.path.getmtime(next(iter(where))) - os.path.getmtime(ours)) <= 2.0
+        assert where == {os.path.join(os.path.realpath(ROOT), "engine", "jit.py")}, where
         client.restart()
         again = dist.render_distributed(scene, ext.RenderSettings(**CHEAP), ext.Budget(passes=5),
                                         client=client, worker_threads=1)
@@ -386,7 +383,8 @@ def test_lost_scene_is_scattered_again(client, small):
 def test_shipped_engine_unpacks_once_complete_and_private(tmp_path, monkeypatch):
     """shippedengine.unpack: two processes unpacking one zip at once leave one complete
     folder with the zip's modification times; a folder cut short (no marker) is unpacked
-    again; a folder other users may write is not trusted (a private one instead)."""
+    again; a folder other users may write is not trusted (a private one instead).
+    shippedengine.local_shim: the client's own folder, unchanged, imported in place."""
     import zipfile
     from engine import shippedengine
     monkeypatch.setenv("TMPDIR", str(tmp_path))
@@ -413,6 +411,22 @@ def test_shipped_engine_unpacks_once_complete_and_private(tmp_path, monkeypatch)
     os.remove(os.path.join(root, shippedengine.COMPLETE))
     os.remove(jit)
     assert shippedengine.unpack(data, "photonmap_engine_t") == root and os.path.isfile(jit)
+    # The client's own folder, found unchanged here: a shim imports its files by the
+    # package's name; a folder with other contents (another machine's) is not used.
+    source = tmp_path / "ext" / "engine"
+    source.mkdir(parents=True)
+    (source / "__init__.py").write_text("")
+    (source / "jit.py").write_text("X = 2\n")
+    name = "photonmap_engine_" + shippedengine.engine_digest(str(source), "pkgx.sub.engine")
+    shim = shippedengine.local_shim(str(source), "pkgx.sub.engine", name)
+    imported = subprocess.run(
+        [sys.executable, "-c", "import sys; sys.path.insert(0, %r); import pkgx.sub.engine.jit as j;"
+         " print(j.__file__, j.X)" % shim], capture_output=True, text=True, timeout=60)
+    assert imported.stdout.split() == [str(source / "jit.py"), "2"], imported.stderr
+    assert shippedengine.local_shim(str(source), "pkgx.sub.engine",
+                                    "photonmap_engine_" + "0" * 16) is None
+    (source / "jit.py").write_text("X = 3\n")  # edited: no longer the shipped engine
+    assert shippedengine.local_shim(str(source), "pkgx.sub.engine", name) is None
     if hasattr(os, "getuid"):
         os.chmod(os.path.dirname(root), 0o777)
         other = shippedengine.unpack(data, "photonmap_engine_t")
