@@ -295,6 +295,7 @@ def _images_and_map(ph, geo, diffuse, accel, **kw):
     return im, PhotonMap(both)
 
 
+@pytest.mark.slow  # ~60 / 20 CPU s (16000 photons' strips); flatness is an experiment, off
 def test_flatness_drops_images_where_the_light_falls_to_the_edge():
     """Light falling linearly to 0 at the floor's y = 0 edge (E = y W/m^2, 16000 photons:
     the k-NN radius ~0.3 R). The reflection method assumes the density flat across the
@@ -322,6 +323,7 @@ def test_flatness_drops_images_where_the_light_falls_to_the_edge():
     assert far.sum() > 1000 and im.power[far, 0].mean() > 0.97 * ph.power[0, 0]
 
 
+@pytest.mark.slow  # ~60 / 20 CPU s (16000 photons' strips); flatness is an experiment, off
 def test_flatness_keeps_even_light_and_a_line():
     """Even light and a line at the edge: flatness keeps the images (the slope of even
     light is within its noise but for the few strips past the 2-sigma test; a line rises
