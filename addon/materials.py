@@ -583,6 +583,10 @@ class MaterialConverter:
                     else self._default(inp[0])
             fac = float(np.mean(fac)) if np.ndim(fac) else float(fac)
             fac = min(max(fac, 0.0), 1.0)
+            if (a.weight == 1.0 and b.weight == 1.0 and 0.0 < fac < 1.0
+                    and self._opaque(a) and self._opaque(b) and self._blend_inexact(a, b)):
+                # Two surfaces whose parameter blend is not their mix: pick one per hit.
+                return self._mix_per_hit(a, b, fac)
             if a.weight == 1.0 and b.weight == 1.0:
                 return _blend(a, b, 1.0 - fac, fac, self.pm.shadernodes)
             # A side of closure weight != 1 (an Add Shader): (1 - f) w_a a + f w_b b is
@@ -677,22 +681,59 @@ class MaterialConverter:
     LINEAR_SCALARS = ("metallic", "specular", "transmission", "specular_ior_level",
                       "coat_weight", "coat_roughness", "sheen_weight", "sheen_roughness")
 
+    @staticmethod
+    def _opaque(c: Closure) -> bool:
+        return (c.has_bsdf and c.alpha == 1.0 and c.alpha_texture is None
+                and not np.any(c.emission > 0))
+
+    @staticmethod
+    def _blend_inexact(a: Closure, b: Closure) -> bool:
+        """Whether blending two opaque Principled-model surfaces' parameters is not their
+        weighted sum: the lobes are linear in the metallic, specular, transmission, coat
+        and sheen weights for one colour, and linear in the colour for one set of weights
+        (no transmission: its tint is sqrt(colour)), but not in both at once, nor in the
+        roughness. Exact (False): equal colours, or equal lobe weights without
+        transmission; and, where both sides have a glossy lobe, equal roughness; or a
+        Diffuse and a Glossy side (the glossy colour model keeps both colours)."""
+        blend = _blend(a, b, 0.5, 0.5)
+        if blend.node != "principled":
+            return False
+
+        def side(c, name):
+            return c.scalars.get(name, getattr(c, name))
+        lobes = [(side(a, n), side(b, n)) for n in MaterialConverter.LINEAR_SCALARS]
+        same_lobes = (all(not hasattr(x, "evaluate") and not hasattr(y, "evaluate")
+                          and x == y for x, y in lobes)
+                      and a.transmission == 0.0 and b.transmission == 0.0)
+        same = same_lobes or (a.texture is None and b.texture is None
+                              and np.allclose(a.base_color, b.base_color))
+        ka = a.metallic + a.transmission + a.specular
+        kb = b.metallic + b.transmission + b.specular
+        ra, rb = a.scalars.get("roughness", a.roughness), b.scalars.get("roughness",
+                                                                         b.roughness)
+        same_rough = (ka == 0 or kb == 0 or (not hasattr(ra, "evaluate")
+                                             and not hasattr(rb, "evaluate") and ra == rb))
+        return not (same and same_rough)
+
     def _mix_per_hit(self, a: Closure, b: Closure, fac):
-        """Mix Shader of two opaque surfaces by a factor evaluated per hit (a texture,
-        Layer Weight, Fresnel): Cycles weights the closures (1 - f) and f (f clamped to
-        [0, 1]); here the lobe parameters blend per hit with the same weights (metallic,
-        specular, transmission, ... as (1 - f) x_a + f x_b, roughness weighted by each
-        side's glossy share, the colour as a Mix Color of the two sides' colours), which
-        is exact for a diffuse and a glossy or Principled side. The two sides' distribution
-        and colour model come from their even mix. None when a side is emissive or not
-        opaque (those keep the factor's own value)."""
-        def opaque(c):
-            return (c.has_bsdf and c.alpha == 1.0 and c.alpha_texture is None
-                    and not np.any(c.emission > 0))
-        if not (opaque(a) and opaque(b)):
+        """Mix Shader of two opaque surfaces by a factor f (per hit: a texture, Layer
+        Weight, Fresnel; or a constant): Cycles weights the closures (1 - f) and f (f
+        clamped to [0, 1]). Where the parameters blend linearly (_blend_inexact False:
+        one colour, or one set of lobe weights; a Diffuse and a Glossy side) they blend
+        per hit with those weights (metallic, specular, transmission, ... as
+        (1 - f) x_a + f x_b,
+        roughness weighted by each side's glossy share). Otherwise (a blue dielectric and
+        a gold metal) each hit takes one of the two surfaces whole, the second with
+        probability f (engine.shadernodes.ClosurePick, Cycles' closure sampling): every
+        lobe parameter and the colour come from that side, so the mean over hits is the
+        weighted sum of the two BSDFs for camera rays and photons alike. The
+        distribution, IOR and colour model come from the sides' even mix. None when a
+        side is emissive or not opaque (those keep the factor's own value)."""
+        if not (self._opaque(a) and self._opaque(b)):
             return None
         sn = self.pm.shadernodes
-        f = sn.Math("MULTIPLY", fac, 1.0, clamp=True)
+        pick = self._blend_inexact(a, b)
+        f = sn.ClosurePick(fac) if pick else sn.Math("MULTIPLY", fac, 1.0, clamp=True)
         g = sn.Math("SUBTRACT", 1.0, f)
         out = _blend(a, b, 0.5, 0.5, sn)
         out.scalars = {}
@@ -715,7 +756,9 @@ class MaterialConverter:
         ka = a.metallic + a.transmission + a.specular
         kb = b.metallic + b.transmission + b.specular
         ra, rb = side(a, "roughness"), side(b, "roughness")
-        if ka > 0 and kb > 0:
+        if pick:
+            rough = per_hit(ra, rb)  # the picked side's, whole
+        elif ka > 0 and kb > 0:
             rough = sn.Math("DIVIDE", per_hit(sn.Math("MULTIPLY", ra, ka),
                                               sn.Math("MULTIPLY", rb, kb)),
                             per_hit(ka, kb))

@@ -746,3 +746,45 @@ class Fresnel:
         n, wi, back = _view(geo, prim)
         eta = np.where(back, 1.0 / eta, eta)
         return fresnel_dielectric_cos(np.einsum("ij,ij->i", wi, n), eta)
+
+
+def hit_random(prim, u, v) -> np.ndarray:
+    """(N,) float64 in [0, 1): a hash of the hit (triangle prim, barycentrics u, v as their
+    float64 bits; splitmix64's finaliser, as integrator._mix64), uniform and independent of
+    the sampler's dimensions. A function of the hit point alone, so every evaluation at one
+    hit (its closure, its colour, its light sample and its bounce) agrees, and a render is
+    reproducible without a seed: the camera's jitter and the photons' random streams (both
+    seeded) decide where the hits fall."""
+    p = np.asarray(prim).astype(np.uint64)
+    bu = np.ascontiguousarray(u, np.float64).view(np.uint64)
+    bv = np.ascontiguousarray(v, np.float64).view(np.uint64)
+
+    def mix(h):
+        h = h ^ (h >> np.uint64(30))
+        h = h * np.uint64(0xBF58476D1CE4E5B9)
+        h = h ^ (h >> np.uint64(27))
+        h = h * np.uint64(0x94D049BB133111EB)
+        return h ^ (h >> np.uint64(31))
+    with np.errstate(over="ignore"):
+        h = mix(p * np.uint64(0x9E3779B97F4A7C15) + np.uint64(0x632BE59BD9B4E019))
+        h = mix(h ^ bu)
+        h = mix(h ^ bv)
+    return (h >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+class ClosurePick:
+    """Cycles' closure sampling for a Mix Shader (kernel/closure/alloc.h, the path picks
+    one closure by its weight, svm_node_mix_closure weights them (1 - f) and f): 1 where a
+    hit takes the second closure, with probability the factor (clamped to 0..1), 0 where it
+    takes the first. A Mix Shader of two surfaces whose parameters do not blend linearly
+    (a blue dielectric and a gold metal: their parameter blend is a teal half-metal)
+    selects every lobe parameter and colour by this value, so each hit is one of the two
+    BSDFs and their mean over hits is (1 - f) f_a + f f_b, camera and photon pass alike
+    (the one-sample estimate of the weighted sum; addon/materials.py _mix_per_hit)."""
+
+    def __init__(self, factor):
+        self.factor = factor
+
+    def evaluate(self, geo, prim, u, v):
+        f = np.clip(_eval(self.factor, geo, prim, u, v, 1), 0.0, 1.0)
+        return (hit_random(prim, u, v) < f).astype(np.float64)
