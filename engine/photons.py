@@ -271,9 +271,10 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 row_plain = pk.lobe_classes(params)
                 # Stored wherever the material may have a diffuse lobe, not only where
                 # this hit's values (a Mix Shader's closure pick, a metallic map) give it
-                # one: the camera hit weighs the density by its own diffuse weight.
+                # one: the camera hit weighs the density by its own diffuse weight. Not
+                # where the surface is not there (alpha 0), as before.
                 may_diffuse = np.zeros(m, np.bool_)
-                may_diffuse[rows] = np.take(table.has_diffuse, hit.mat)
+                may_diffuse[rows] = np.take(table.has_diffuse, hit.mat) & (alpha > 0)
         # Shared instances: the hits' rows gathered (geometry.Geometry.hit_tables).
         rows, (v0, e1, e2, normals, material, visibility, object_id) = geo.hit_tables(
             prim, "v0", "e1", "e2", "corner_normals", "material", "visibility", "object_id")
