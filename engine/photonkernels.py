@@ -388,24 +388,30 @@ def flat_tables(geo, table):
 
 
 _NO_ANISO_TAN = np.zeros((0, 3, 3))
+_NO_MAY_DIFFUSE = np.zeros(0, np.bool_)
 
 # _scatter's argument `plain`: its position in the argument list.
 _PLAIN_ARG = 31
 
 
-def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN):
+def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
+            may_diffuse=_NO_MAY_DIFFUSE):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
     passages. `plain` may be lobe_classes' int8 codes or plain_materials' booleans (True:
     PLAIN, False: FULL; one compiled kernel for both). aniso_tan (T,3,3): the
     anisotropic lobes' per-corner world tangents (anisotropy.triangle_tangents), empty:
-    none (those lobes scatter isotropically)."""
+    none (those lobes scatter isotropically). may_diffuse (rows of params,) bool: a
+    photon is stored where its row's flag is set even if the hit's own diffuse weight is
+    0 (a texture-driven metallic map, a Mix Shader's per-hit closure pick: the incident
+    flux does not depend on which closure the hit took); empty (the default): stored
+    where the hit's diffuse weight is > 0."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
                 + args[_PLAIN_ARG + 1:])
-    return _scatter(*args, flat_mat, flat_limit, aniso_tan)
+    return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse)
 
 
 # smooth_glass's per-(material, side) constants (smooth_glass_consts), columns of a row:
@@ -588,7 +594,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              caster, first_hit_mode, caustic_only, vis_on, limits,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, hit_rows,
-             flat_mat, flat_limit, aniso_tan):
+             flat_mat, flat_limit, aniso_tan, may_diffuse):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -636,6 +642,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     reflection, another surface) leaves the path specular."""
     m = geom.shape[0]
     flat_on = flat_mat.shape[0] > 0
+    may_diffuse_on = may_diffuse.shape[0] > 0
     bumped = bump.shape[0] > 0
     if hit_rows.shape[1] < m:
         raise ValueError("scatter: hit_rows has fewer than m columns")
@@ -782,6 +789,12 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             # --- store ---
             wd = max(wj[0, 0], max(wj[0, 1], wj[0, 2]))
             store = wd > 0.0
+            if may_diffuse_on and may_diffuse[mat_b[j]]:
+                # The photon's flux arrives whatever lobes this hit's closure has: a
+                # surface whose diffuse lobe varies per hit (a closure pick, a metallic
+                # map) stores it, or a camera hit reading the density through its own
+                # pick would see the stored share of it twice ((1 - f)^2, not 1 - f).
+                store = True
             if caustic_only and kind != CAUSTIC:
                 store = False
             if first_hit_mode != 0 and kind == CAUSTIC:

@@ -248,6 +248,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             prim = _NO_HITS
         surf_m = tuple(a[:m] for a in surf)
         params, row_plain, mat_ior = table.closure_params, plain, table.ior
+        may_diffuse = _NO_MAY_DIFFUSE
         if numpy_hits:
             bump[:m] = 1.0
             rows = np.nonzero(prim >= 0)[0]
@@ -268,6 +269,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 surf_m[4][:] = np.arange(m)
                 mat_ior = np.ascontiguousarray(params[:, M_IOR])
                 row_plain = pk.lobe_classes(params)
+                # Stored wherever the material may have a diffuse lobe, not only where
+                # this hit's values (a Mix Shader's closure pick, a metallic map) give it
+                # one: the camera hit weighs the density by its own diffuse weight. Not
+                # where the surface is not there (alpha 0), as before.
+                may_diffuse = np.zeros(m, np.bool_)
+                may_diffuse[rows] = np.take(table.has_diffuse, hit.mat) & (alpha > 0)
         # Shared instances: the hits' rows gathered (geometry.Geometry.hit_tables).
         rows, (v0, e1, e2, normals, material, visibility, object_id) = geo.hit_tables(
             prim, "v0", "e1", "e2", "corner_normals", "material", "visibility", "object_id")
@@ -293,7 +300,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 params, row_plain, mat_ior,
                                 visibility, object_id, caster, mode, bool(caustic_only),
                                 vis_on, limits, *stored.room(m), *nxt_sets[k], hit_rows,
-                                flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan)
+                                flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
+                                may_diffuse=may_diffuse)
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot, bnc = (a[:n_nx] for a in nxt_sets[k])
 
@@ -476,6 +484,7 @@ def _factor_views(factors, m: int):
 
 _UNBOUNDED = np.finfo(np.float32).max  # tmax of a photon ray (Accel.intersect's default)
 _NO_HITS = np.zeros(0, np.int64)
+_NO_MAY_DIFFUSE = np.zeros(0, np.bool_)  # scatter: stored where the hit's diffuse weight > 0
 _NO_BUMP = np.zeros(0)  # scatter: no bent normals, every photon's bump factor is 1
 
 

@@ -269,3 +269,51 @@ def test_only_unlike_surfaces_pick_a_closure_per_hit(fresh_scene, bpy_addon):
                                                _glossy(nd, (0.9, 0.9, 0.9), 0.2)))
     assert picks(lambda nd, ln: _noise_mix(nd, ln, _blue_dielectric(nd), _gold_metal(nd)))
     assert picks(MIX_CASES["dielectric+metal 0.5"])
+
+
+@pytest.mark.parametrize("fac", [0.0, 0.5])
+def test_ceiling_lit_by_a_mix_shader_floor_matches_cycles(fresh_scene, bpy_addon, tmp_path,
+                                                          fac):
+    """A white ceiling lit only by what a floor reflects: the floor is a white dielectric
+    or (probability fac) a white metal per hit, under an area light facing down. The
+    ceiling's indirect light is the floor's photon density read by gather rays through
+    the floor's own pick. Issue 14 (review of mixpale): photons were stored only where
+    their own hit took the dielectric side, so the gather read (1 - f)^2 of the floor's
+    diffuse light."""
+    bpy = bpy_addon
+    scene = fresh_scene
+    scene.render.resolution_x = scene.render.resolution_y = 24
+    scene.render.resolution_percentage = 100
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    bpy.context.object.data.materials.append(_material(
+        bpy, "MixFloor", lambda nd, ln: _mix(nd, ln, fac,
+                                             _principled(nd, (0.8, 0.8, 0.8), 0.5),
+                                             _principled(nd, (0.9, 0.9, 0.9), 0.3,
+                                                         metallic=1.0))))
+    bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 0.0, 2.0),
+                                     rotation=(math.pi, 0.0, 0.0))
+    bpy.context.object.data.materials.append(_material(
+        bpy, "Ceiling", lambda nd, ln: _diffuse(nd, (0.8, 0.8, 0.8))))
+    # Facing down (an area light emits along its local -Z): it lights the floor only.
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "AREA"))
+    lamp.data.energy, lamp.data.size = 200.0, 0.5
+    lamp.location = (-1.0, 0.0, 1.0)
+    scene.collection.objects.link(lamp)
+    # Looking up at the ceiling, away from the lamp.
+    _camera(bpy, scene, (0.8, 0.0, 0.5), (math.pi, 0.0, 0.0), ortho=1.2)
+    _black_world(bpy, scene)
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
+    cycles_plain(scene, 1024, 4)
+    c = scene.cycles
+    c.caustics_reflective = c.caustics_refractive = True
+    scene.render.engine = "CYCLES"
+    ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=16, photons=200_000, caustic_photons=200_000)
+    ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "ours.exr"))[..., :3]
+    assert ref.mean() > 0.005
+    got, want = ours.reshape(-1, 3).mean(axis=0), ref.reshape(-1, 3).mean(axis=0)
+    print(f"ceiling over mix {fac}: ours / Cycles {np.round(got / want, 4)} "
+          f"Cycles {np.round(want, 4)}")
+    np.testing.assert_allclose(got, want, rtol=0.03)
