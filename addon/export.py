@@ -511,14 +511,21 @@ LIGHT_PATH_LIMITS = ("max_bounces", "diffuse_bounces", "glossy_bounces",
                      "transmission_bounces", "transparent_max_bounces")
 
 
-def light_path_source(scene, props):
-    """Where the Light Paths limits come from: scene.cycles when the Cycles add-on is
-    there (its properties registered: a scene set to Diffuse 1 for Cycles renders with 1
-    here too, as other render engines read them), else props (scene.photonmap)."""
+def cycles_source(scene, props, names):
+    """Where settings both engines name alike come from: scene.cycles when the Cycles
+    add-on is there with all of `names` registered (a scene set up for Cycles renders
+    with its values here too, as other render engines read them), else props
+    (scene.photonmap, which shares the names)."""
     cycles = getattr(scene, "cycles", None)
-    if cycles is not None and all(hasattr(cycles, n) for n in LIGHT_PATH_LIMITS):
+    if cycles is not None and all(hasattr(cycles, n) for n in names):
         return cycles
     return props
+
+
+def light_path_source(scene, props):
+    """Where the Light Paths limits come from (cycles_source): a scene set to Diffuse 1
+    for Cycles renders with 1 here too."""
+    return cycles_source(scene, props, LIGHT_PATH_LIMITS)
 
 
 def light_path_settings(scene, props) -> dict:
@@ -533,13 +540,9 @@ CLAMP_SETTINGS = ("sample_clamp_direct", "sample_clamp_indirect")
 
 
 def clamp_source(scene, props):
-    """Where Light Paths > Clamping comes from: scene.cycles when the Cycles add-on is
-    there (a scene lit and clamped for Cycles renders with its clamp here too), else props
-    (scene.photonmap), as light_path_source."""
-    cycles = getattr(scene, "cycles", None)
-    if cycles is not None and all(hasattr(cycles, n) for n in CLAMP_SETTINGS):
-        return cycles
-    return props
+    """Where Light Paths > Clamping comes from (cycles_source): a scene clamped for
+    Cycles renders with its clamp here too."""
+    return cycles_source(scene, props, CLAMP_SETTINGS)
 
 
 def clamp_settings(scene, props) -> dict:

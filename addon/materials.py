@@ -191,6 +191,11 @@ def _emission_mix(sn, wa, a: Closure, wb, b: Closure):
     return np.ones(3), sn.MixColor(1.0, colour(a, ea), colour(b, eb), "ADD")
 
 
+def _closure_value(c: Closure, name: str):
+    """A closure's parameter: its per-hit node where one is set, else its constant."""
+    return c.scalars.get(name, getattr(c, name))
+
+
 def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
     """Mix two closures with weights wa, wb (wa + wb = 1 for Mix Shader).
 
@@ -699,9 +704,8 @@ class MaterialConverter:
         if blend.node != "principled":
             return False
 
-        def side(c, name):
-            return c.scalars.get(name, getattr(c, name))
-        lobes = [(side(a, n), side(b, n)) for n in MaterialConverter.LINEAR_SCALARS]
+        lobes = [(_closure_value(a, n), _closure_value(b, n))
+                 for n in MaterialConverter.LINEAR_SCALARS]
         same_lobes = (all(not hasattr(x, "evaluate") and not hasattr(y, "evaluate")
                           and x == y for x, y in lobes)
                       and a.transmission == 0.0 and b.transmission == 0.0)
@@ -709,8 +713,7 @@ class MaterialConverter:
                               and np.allclose(a.base_color, b.base_color))
         ka = a.metallic + a.transmission + a.specular
         kb = b.metallic + b.transmission + b.specular
-        ra, rb = a.scalars.get("roughness", a.roughness), b.scalars.get("roughness",
-                                                                         b.roughness)
+        ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
         same_rough = (ka == 0 or kb == 0 or (not hasattr(ra, "evaluate")
                                              and not hasattr(rb, "evaluate") and ra == rb))
         return not (same and same_rough)
@@ -738,16 +741,13 @@ class MaterialConverter:
         out = _blend(a, b, 0.5, 0.5, sn)
         out.scalars = {}
 
-        def side(c, name):
-            return c.scalars.get(name, getattr(c, name))
-
         def per_hit(xa, xb):
             """(1 - f) xa + f xb, or the constant when both sides agree."""
             if not hasattr(xa, "evaluate") and not hasattr(xb, "evaluate") and xa == xb:
                 return xa
             return sn.Math("ADD", sn.Math("MULTIPLY", g, xa), sn.Math("MULTIPLY", f, xb))
         for name in self.LINEAR_SCALARS:
-            val = per_hit(side(a, name), side(b, name))
+            val = per_hit(_closure_value(a, name), _closure_value(b, name))
             if hasattr(val, "evaluate"):
                 out.scalars[name] = val
             else:
@@ -755,7 +755,7 @@ class MaterialConverter:
         # Roughness belongs to the glossy lobes: a side without one has no say.
         ka = a.metallic + a.transmission + a.specular
         kb = b.metallic + b.transmission + b.specular
-        ra, rb = side(a, "roughness"), side(b, "roughness")
+        ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
         if pick:
             rough = per_hit(ra, rb)  # the picked side's, whole
         elif ka > 0 and kb > 0:

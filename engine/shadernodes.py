@@ -755,16 +755,10 @@ def hit_random(prim, u, v) -> np.ndarray:
     hit (its closure, its colour, its light sample and its bounce) agrees, and a render is
     reproducible without a seed: the camera's jitter and the photons' random streams (both
     seeded) decide where the hits fall."""
+    from .integrator import _mix64 as mix  # splitmix64's finaliser (integrator imports us)
     p = np.asarray(prim).astype(np.uint64)
     bu = np.ascontiguousarray(u, np.float64).view(np.uint64)
     bv = np.ascontiguousarray(v, np.float64).view(np.uint64)
-
-    def mix(h):
-        h = h ^ (h >> np.uint64(30))
-        h = h * np.uint64(0xBF58476D1CE4E5B9)
-        h = h ^ (h >> np.uint64(27))
-        h = h * np.uint64(0x94D049BB133111EB)
-        return h ^ (h >> np.uint64(31))
     with np.errstate(over="ignore"):
         h = mix(p * np.uint64(0x9E3779B97F4A7C15) + np.uint64(0x632BE59BD9B4E019))
         h = mix(h ^ bu)
