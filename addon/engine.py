@@ -167,13 +167,20 @@ last_render: dict = {}
 # for scripts that run through the bpy module, which prints neither (addon/batch.py draws
 # its progress bar from them). Events: ("stats", text), ("progress", fraction 0..1 of the
 # whole render), ("effects", [lines]), ("warning", text), ("film", the engine's Film of
-# a finished render), ("finished", "done" | "cancelled" | "error: <message>"). Called
+# a finished render), ("warnings_repeated", how many of the previous frame's warnings this
+# frame had: not told again), ("finished", "done" | "cancelled" | "error: <message>"). Called
 # on Blender's main thread; a listener that raises is dropped from this render with a
 # printed traceback, never stops the render.
 status_listeners: list = []
 # The effect report last printed to the console: an animation's frames (Ctrl+F12) simulate
 # the same effects, printed once, not once a frame.
 _printed_effects: list = []
+# The warnings of the last render (scene name, frame, warning keys): the next frame of an
+# animation (Ctrl+F12, the batch's --frames: the frame after the last one rendered, by the
+# scene's Frame Step) reports only what is new, and the count of
+# the rest in one line, not the same warnings once a frame. A render of the same frame
+# again (a user fixing what was warned) reports them all.
+_previous_frame_warnings: dict = {}
 
 
 def kernel_words(compiled: bool) -> str:
@@ -400,14 +407,31 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         pm.resources.check_resources(pm_scene, settings, region, progressive=props.progressive,
                                      in_blender=True)
 
-        # What the export could not convert is known now: say it before the long render
-        # rather than after it (the end reports only what the engine adds).
-        early = list(pm_scene.all_warnings())
-        self._report_warnings(early)
         # Compared by the engine's warning_key: a cluster's passes may tell a search
         # radius' warning in other words (another pass' photon count) than film.warnings.
         import importlib
         warning_key = importlib.import_module(pm.__name__ + ".render").warning_key
+        previous = _previous_frame_warnings
+        next_frame = (previous.get("scene") == scene.name and previous.get("frame") is not None
+                      and previous["frame"] + scene.frame_step == scene.frame_current)
+        repeats = set(previous.get("keys", ())) if next_frame else set()
+        repeated_keys = set()  # this render's warnings the previous frame reported
+
+        def new(warnings):
+            """warnings less those the previous frame reported (counted apart)."""
+            out = []
+            for w in warnings:
+                k = warning_key(w)
+                if k in repeats:
+                    repeated_keys.add(k)
+                else:
+                    out.append(w)
+            return out
+
+        # What the export could not convert is known now: say it before the long render
+        # rather than after it (the end reports only what the engine adds).
+        early = list(pm_scene.all_warnings())
+        self._report_warnings(new(early))
         reported = list(early)
         reported_keys = {warning_key(w) for w in early}
 
@@ -418,7 +442,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             # worker finds it), said then, not at the end; past the
             # reports' room, at the end with the others (one "N more warnings" report).
             if warning_key(text) not in reported_keys and len(reported) < MAX_REPORTED_WARNINGS:
-                self._report_warnings([text], already=len(reported))
+                if new([text]):
+                    self._report_warnings([text], already=len(reported))
                 reported.append(text)
                 reported_keys.add(warning_key(text))
 
@@ -461,8 +486,18 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 for line in effects:
                     print(f"Photon Mapping: {line}")  # why each effect is on or off
             _printed_effects = effects
-        self._report_warnings([w for w in film.warnings if warning_key(w) not in reported_keys],
+        self._report_warnings(new([w for w in film.warnings
+                                   if warning_key(w) not in reported_keys]),
                               already=len(reported))
+        if repeated_keys:
+            n = len(repeated_keys)
+            self.report({"INFO"}, f"Photon Mapping: {n} warning{'s' if n != 1 else ''} as "
+                        f"the previous frame (frame {previous['frame']}), not repeated")
+            self._emit("warnings_repeated", n)
+        _previous_frame_warnings.clear()
+        _previous_frame_warnings.update(
+            scene=scene.name, frame=scene.frame_current,
+            keys={warning_key(w) for w in [*early, *film.warnings]})
         n = info['lights']
         compiled = stats["time_compile"]
         adaptive = (f"adaptive: {stats['adaptive_mean_spp']:.1f} of {stats['adaptive_spp']} "

@@ -545,27 +545,22 @@ def film_add_scalar(buf, lo, pix, w):
 
 
 @kernel
-def film_first_hits(lo, pix, depth, ns, front, depth_sum, depth_n, normal):
-    """The first hits' depth and normal passes, one pass over the hits: depth[i] into
-    depth_sum, 1 into depth_n and ns[i] turned to the front side (times 1 or -1 as
-    `front` says) into normal (P,3), at pixel pix[i] - lo; sums formed per pixel from
-    zero in row order, then added, as the np.bincount calls they replace (same bits)."""
-    n_pix = depth_sum.shape[0]
-    sums = np.zeros((n_pix, 5))
+def film_first_normals(lo, pix, ns, front, normal):
+    """The first hits' normal pass: ns[i] turned to the front side (times 1 or -1 as
+    `front` says) into normal (P,3) at pixel pix[i] - lo; sums formed per pixel from zero
+    in row order, then added, as the np.bincount calls they replace (same bits)."""
+    n_pix = normal.shape[0]
+    sums = np.zeros((n_pix, 3))
     for i in range(pix.shape[0]):
         b = pix[i] - lo
         f = 1.0 if front[i] else -1.0
-        sums[b, 0] += depth[i]
-        sums[b, 1] += 1.0
-        sums[b, 2] += ns[i, 0] * f
-        sums[b, 3] += ns[i, 1] * f
-        sums[b, 4] += ns[i, 2] * f
+        sums[b, 0] += ns[i, 0] * f
+        sums[b, 1] += ns[i, 1] * f
+        sums[b, 2] += ns[i, 2] * f
     for b in range(n_pix):
-        depth_sum[b] += sums[b, 0]
-        depth_n[b] += sums[b, 1]
-        normal[b, 0] += sums[b, 2]
-        normal[b, 1] += sums[b, 3]
-        normal[b, 2] += sums[b, 4]
+        normal[b, 0] += sums[b, 0]
+        normal[b, 1] += sums[b, 1]
+        normal[b, 2] += sums[b, 2]
 
 
 @kernel
@@ -936,8 +931,7 @@ def _warm_up():
     film_add(np.zeros((1, 3)), 0, i64, np.zeros(0, np.int64), base, base)
     film_add(np.zeros((1, 3)), 0, i64, np.zeros(0, np.int64), np.zeros((0, 3)), base)
     film_add_scalar(np.zeros(1), 0, i64, np.ones(len(i64)))
-    film_first_hits(0, i64, np.ones(len(i64)), base, np.ones(len(i64), np.bool_), np.zeros(1),
-                    np.zeros(1), np.zeros((1, 3)))
+    film_first_normals(0, i64, base, np.ones(len(i64), np.bool_), np.zeros((1, 3)))
     alb = np.full((1, 8, 3), 0.1)
     sel, q, pl, psum = np.empty((1, 8)), np.empty(1), np.empty((1, 7)), np.empty(1)
     choose_lobes(alb, np.ones((1, 3)), sel, q, pl, psum)

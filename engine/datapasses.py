@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .camerakernels import film_add, film_add_scalar, hit_closures
+from .camerakernels import film_add, film_add_scalar, hit_closures, view_depth
 from .closures import principled as pr
 
 # Blender pass name -> (Accumulator.data key, channels), in the order they are made.
@@ -112,7 +112,8 @@ def film_value(key, total, inv):
 
 def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, done,
                 cam_pos, forward, ortho, mist, threshold):
-    """One bounce's camera-chain hits into the surface data passes (module docstring).
+    """One bounce's camera-chain hits into the Depth pass (acc.depth, always) and the
+    surface data passes asked for (module docstring).
     rows (K,) int64: the hits reached by the camera ray or transparent passes only;
     prim, u, v (N,): their triangles and barycentrics; hit.p (N,3) re-centred points
     (world = p + geo.offset); tp (N,3) path throughput; first (N,) bool: the pixel's
@@ -122,6 +123,8 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
     Returns done after this bounce (a fresh array where it changed)."""
     if len(rows) == 0:
         return done
+    if not surface_wanted(want) and not (first[rows] & ~done[rows]).any():
+        return done  # Depth alone, no first sample still writing: most calls
     rows = np.ascontiguousarray(rows, np.int64)
     alpha = (np.take(table.alpha, hit.mat[rows]) if getattr(hit, "alpha", None) is None
              else np.asarray(hit.alpha, np.float64)[rows])
@@ -141,6 +144,11 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
     w0 = sel[first[sel]]
     if len(w0):
         b = pix[w0] - acc.lo  # (one first sample a pixel: plain stores overwrite)
+        # Cycles' camera_z_depth: along the view axis (its panorama cameras' distance
+        # aside), > 0 past the clip start; 0 stays "no surface" (film: inf).
+        depth = np.empty(len(w0))
+        view_depth(np.ascontiguousarray(hit.p[w0], np.float64), cam_pos, forward, depth)
+        acc.depth[b] = depth
         if "object_index" in want:
             per_object = geo.object_pass_index
             _buf(acc, "object_index", 1)[b] = (
@@ -170,12 +178,14 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
 
 def add_background(acc, want, pix, rows, first, done):
     """Camera-chain rays rows (K,) that left for the background before the single pass
-    was done: their first samples write 0 into Object / Material Index and Position
-    (Cycles' film_write_data_passes_background), over what a transparent surface wrote."""
+    was done: their first samples write 0 into Depth (no surface: Cycles' read gives
+    1e10), Object / Material Index and Position (Cycles' film_write_data_passes_background),
+    over what a transparent surface wrote."""
     sel = rows[first[rows] & ~done[rows]]
     if len(sel) == 0:
         return
     b = pix[sel] - acc.lo
+    acc.depth[b] = 0.0
     for key, ch in (("object_index", 1), ("material_index", 1), ("position", 3)):
         if key in want:
             _buf(acc, key, ch)[b] = 0.0

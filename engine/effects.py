@@ -517,6 +517,15 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                  f"light paths up to {s.max_bounces} bounces: {s.diffuse_bounces} diffuse, "
                  f"{s.glossy_bounces} glossy, {s.transmission_bounces} transmission "
                  f"(Light Paths > Max Bounces, {origin}){cap}")
+    if s.clamp_direct > 0 or s.clamp_indirect > 0:
+        # Clamping trades energy for calm fireflies: said, so a highlight or caustic
+        # darker than the unclamped render points at it (Cycles' default Indirect is 10).
+        def limit(v):
+            return f"{v:g} (R + G + B at most {3 * v:g} per sample)" if v > 0 else "off"
+        plan.add("clamping", True,
+                 f"Light Paths > Clamping: direct light {limit(s.clamp_direct)}, indirect "
+                 f"light and photon estimates {limit(s.clamp_indirect)}; brighter samples "
+                 "are scaled down (less energy, fewer fireflies); 0 turns a clamp off")
     see_through = (table.alpha < 1) | table.has_alpha_texture
     if has_tris and np.any(see_through[mat]):
         names = sorted({table.names[m] for m in np.unique(mat[see_through[mat]])})

@@ -24,7 +24,8 @@ class Film:
     photon_hits: np.ndarray = None  # photon-hit view: dots by photon kind on black (Fig. 6 left)
     alpha: np.ndarray = None        # coverage: 1 where a camera ray hit geometry
     holdout: np.ndarray = None      # fraction of camera samples that met a holdout surface
-    depth: np.ndarray = None        # camera distance to the first hit (inf = nothing)
+    depth: np.ndarray = None        # view-axis depth (m) of the surface each pixel's first
+                                    # sample ended on (Cycles' Depth: sample 0); inf = none
     normal: np.ndarray = None       # world-space shading normal of the first hit
     # Camera samples each pixel took (H,W) float32, Cycles' "Sample Count" debug pass:
     # set by adaptive sampling only (engine/adaptive.py; None: every pixel took spp)

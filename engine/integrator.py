@@ -29,8 +29,8 @@ from . import adaptive, chaincounts, datapasses, photonvisibility, sampleclamp
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
-                            film_add_scalar, film_first_hits, gather_rays, keep_path_hits,
-                            mirror_survival, pick_lobes, shade_lobes, view_depth)
+                            film_add_scalar, film_first_normals, gather_rays, keep_path_hits,
+                            mirror_survival, pick_lobes, shade_lobes)
 from .camerarays import camera_rays_kernel, chunk_samples
 from .gatherkernels import (add_gathered, count_bent, diffuse_lookups, keep_embree_hits, keep_hits,
                             lean_diffuse, lean_materials, rays_f32)
@@ -1304,7 +1304,7 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
 
 class Accumulator:
     """Per-pixel sums for each pass over pixels [lo, lo + npix) of the region, by compiled
-    scatter-adds (camerakernels.film_add, film_add_scalar, film_first_hits) that form
+    scatter-adds (camerakernels.film_add, film_add_scalar, film_first_normals) that form
     each pixel's sum as np.bincount did (the same bits) without holding the GIL."""
 
     NAMES = ("direct", "indirect", "caustic", "specular", "emission")
@@ -1315,8 +1315,10 @@ class Accumulator:
         self.buf = {k: np.zeros((npix, 3)) for k in self.NAMES}
         self.alpha = np.zeros(npix)
         self.holdout = np.zeros(npix)
-        self.depth_sum = np.zeros(npix)
-        self.depth_n = np.zeros(npix)
+        # Cycles' Depth: the view-axis depth of the surface each pixel's first sample
+        # ends its single pass on (datapasses.add_surface), 0 where it met none; written
+        # once a pixel, so chunk and round merges add it.
+        self.depth = np.zeros(npix)
         self.normal = np.zeros((npix, 3))
         # Cycles' data passes asked for (engine/datapasses.py: key -> (npix,3) or (npix,)
         # sums), made when a bounce first writes them.
@@ -1340,12 +1342,11 @@ class Accumulator:
         """Add w (N,) into the scalar pass arr at pixels pix (N,) int64."""
         film_add_scalar(arr, self.lo, pix, np.ascontiguousarray(w, np.float64))
 
-    def add_first_hits(self, pix, depth, ns, front):
-        """The first hits' depth (N,) and front-facing shading normal ns (N,3) (front
-        (N,) bool: ns as is, else negated) into the depth and normal passes."""
-        film_first_hits(self.lo, pix, np.ascontiguousarray(depth, np.float64),
-                        np.ascontiguousarray(ns, np.float64), front, self.depth_sum,
-                        self.depth_n, self.normal)
+    def add_first_normals(self, pix, ns, front):
+        """The first hits' front-facing shading normals ns (N,3) (front (N,) bool: ns as
+        is, else negated) into the normal pass."""
+        film_first_normals(self.lo, pix, np.ascontiguousarray(ns, np.float64), front,
+                           self.normal)
 
     def merge(self, part: "Accumulator"):
         """Add a chunk's sums (its pixels are a window of this accumulator's)."""
@@ -1353,8 +1354,7 @@ class Accumulator:
         for name in self.NAMES:
             self.buf[name][a:b] += part.buf[name]
         for mine, theirs in ((self.alpha, part.alpha), (self.holdout, part.holdout),
-                             (self.depth_sum, part.depth_sum),
-                             (self.depth_n, part.depth_n), (self.normal, part.normal)):
+                             (self.depth, part.depth), (self.normal, part.normal)):
             mine[a:b] += theirs
         for key, theirs in part.data.items():
             self._data(key, theirs)[a:b] += theirs
@@ -1546,8 +1546,7 @@ def _add_round(acc, racc, active, half):
         acc.buf[name][active] += both[0::2] + both[1::2]
         half[active] += both[1::2]
     for mine, theirs in ((acc.alpha, racc.alpha), (acc.holdout, racc.holdout),
-                         (acc.depth_sum, racc.depth_sum), (acc.depth_n, racc.depth_n),
-                         (acc.normal, racc.normal)):
+                         (acc.depth, racc.depth), (acc.normal, racc.normal)):
         mine[active] += theirs[0::2] + theirs[1::2]
     for key, theirs in racc.data.items():
         acc._data(key, theirs)[active] += theirs[0::2] + theirs[1::2]
@@ -1667,7 +1666,7 @@ def _write_film(film, acc, spp, rh, rw, want=()):
     film.alpha[...] = (acc.alpha * inv1).reshape(rh, rw)
     film.holdout[...] = (acc.holdout * inv1).reshape(rh, rw)
     with np.errstate(invalid="ignore", divide="ignore"):
-        depth = np.where(acc.depth_n > 0, acc.depth_sum / np.maximum(acc.depth_n, 1), np.inf)
+        depth = np.where(acc.depth > 0.0, acc.depth, np.inf)
         nrm = acc.normal / np.maximum(np.linalg.norm(acc.normal, axis=1), 1e-300)[:, None]
     film.depth[...] = depth.reshape(rh, rw)
     film.normal[...] = nrm.reshape(rh, rw, 3)
@@ -1790,13 +1789,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ftp = np.ones((len(o), 3)) if feat is not None else None
     to_camera = (np.stack([cam.rotation[:, 0], cam.rotation[:, 1], -cam.rotation[:, 2]])
                  if want_data else None)
-    # The surface data passes (datapasses.add_surface): each path's "single pass" done,
-    # and whether it is its pixel's first sample (the first adaptive round's sample 0).
-    single = first = None
-    if datapasses.surface_wanted(want_data):
-        single = np.zeros(len(o), bool)
-        first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
-                 else np.zeros(len(o), bool))
+    # The depth and surface data passes (datapasses.add_surface): each path's "single
+    # pass" done, and whether it is its pixel's first sample (the first adaptive round's
+    # sample 0), whose surface writes them as Cycles' sample 0 does.
+    single = np.zeros(len(o), bool)
+    first = ((np.asarray(sample_id) == 0) if getattr(ctx, "camera_round_index", 0) == 0
+             else np.zeros(len(o), bool))
     for bounce in range(depth_limit + 1):
         if len(o) == 0:
             return
@@ -1867,10 +1865,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         s, np.take(chain[:, 0], missed) - 1))
                 acc.add(target, pix, radiance, tp, missed)
                 datapasses.add_light(acc, pix, missed, tp, ftp, feat, radiance)
-            if single is not None:
-                datapasses.add_background(acc, want_data, pix,
-                                          np.nonzero(miss & (ray_cls == CAMERA))[0], first,
-                                          single)
+            datapasses.add_background(acc, want_data, pix,
+                                      np.nonzero(miss & (ray_cls == CAMERA))[0], first, single)
         hitm = prim >= 0
         if has_holdout and hitm.any():
             # Camera rays that meet a holdout surface see a hole: no colour, alpha 0.
@@ -1899,8 +1895,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 may_split = may_split[kept]
             if feat is not None:
                 feat, ftp = feat[kept], ftp[kept]
-            if single is not None:
-                single, first = single[kept], first[kept]
+            single, first = single[kept], first[kept]
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -1942,9 +1937,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         scattered = (np.isfinite(pdf_b) if bounce > 0 and CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE
                      else None)
         if bounce == 0:
-            depth = np.empty(n)
-            view_depth(hit.p, cam_pos, forward, depth)
-            acc.add_first_hits(pix, depth, hit.ns, hit.front)
+            acc.add_first_normals(pix, hit.ns, hit.front)
         if emitters:
             Le = hit.emission
             if np.any(Le > 0):
@@ -1967,11 +1960,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # every surface it meets.)
             feat, ftp = datapasses.add_hits(acc, want_data, ctx.table, hit, pix, tp, t, feat,
                                             ftp, ray_cls == CAMERA, to_camera)
-            if single is not None:
-                single = datapasses.add_surface(
-                    acc, want_data, ctx.geo, ctx.table, hit, prim, u, v, pix, tp,
-                    np.nonzero(ray_cls == CAMERA)[0], first, single, cam_pos, forward, ortho,
-                    ctx.scene.mist, s.pass_alpha_threshold)
+        single = datapasses.add_surface(
+            acc, want_data, ctx.geo, ctx.table, hit, prim, u, v, pix, tp,
+            np.nonzero(ray_cls == CAMERA)[0], first, single, cam_pos, forward, ortho,
+            ctx.scene.mist, s.pass_alpha_threshold)
         if bounce == 0 and MIRROR_NO_ROULETTE:
             mirror_survival(prm if hit.prm is None else hit.prm, p, psum, q, sel)
         choice = (sel, q, p, psum)
@@ -2099,7 +2091,6 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         travelled = travelled[keep]
         if feat is not None:
             feat, ftp = feat[keep], ftp[keep]
-        if single is not None:
-            single, first = single[keep], first[keep]
+        single, first = single[keep], first[keep]
         tmax = None
         counters.specular_rays += len(o)

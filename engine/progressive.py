@@ -173,7 +173,8 @@ class PassMerger:
             value = getattr(one, name)
             if value is not None:
                 self.extra[name] += value
-        self.depth = np.minimum(self.depth, one.depth)
+        if i == 1:  # Depth is the first sample's (Cycles' sample 0): the first pass holds it
+            self.depth = np.array(one.depth, np.float64)
         # Cycles' data passes (engine/datapasses.py): averaged over the passes as the
         # effects are (each pass' film holds its per-sample averages); those written by
         # a pixel's first sample (FIRST_SAMPLE) kept from the first pass, as Cycles

@@ -14,7 +14,8 @@ hit's direct light, its caustic estimate, its final gather, its secondary causti
 the camera chain's bent bounces standing for Cycles' bounce. A photon-map estimate is a
 smooth average, far below the spiky single-path values the clamp was made for, so the
 clamp rarely touches it; where the estimate is taken for one sample of a block and weighed
-up by the block's length, the limit is weighed up alike (the block's samples each clamped).
+up by the block's length, it is clamped before the weighing (as each of the block's
+samples would be).
 """
 from __future__ import annotations
 
@@ -46,11 +47,10 @@ def bounce_limits(settings, bounces) -> np.ndarray | float:
     return np.where(np.asarray(bounces) > 0, indirect, direct)
 
 
-def clamp(rgb, tp=None, rows=None, limit=np.inf, weight=None) -> np.ndarray:
+def clamp(rgb, tp=None, rows=None, limit=np.inf) -> np.ndarray:
     """rgb (K,3) scaled per row so that the contribution tp[rows] * rgb (tp (N,3) path
     throughput, None: 1; rows (K,) int64 into tp, None: row k is tp's k) has |R| + |G| + |B|
-    at most limit * weight (limit scalar or (K,); weight None, scalar or (K,1) or (K,):
-    the samples the row stands for). Non-finite rows become 0, as Cycles' ensure_finite.
+    at most limit (scalar or (K,)). Non-finite rows become 0, as Cycles' ensure_finite.
     Returns a new array when any row changes, rgb itself otherwise (bits kept)."""
     rgb = np.asarray(rgb, np.float64)
     if len(rgb) == 0:
@@ -58,9 +58,6 @@ def clamp(rgb, tp=None, rows=None, limit=np.inf, weight=None) -> np.ndarray:
     c = rgb if tp is None else (tp if rows is None else np.take(tp, rows, axis=0)) * rgb
     s = np.abs(c).sum(axis=1)
     cap = np.asarray(limit, np.float64)
-    if weight is not None:
-        w = np.asarray(weight, np.float64)
-        cap = cap * (w.reshape(-1) if w.ndim else w)
     finite = np.isfinite(s)
     over = ~finite | (s > cap)
     if not over.any():

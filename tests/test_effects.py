@@ -1,4 +1,6 @@
 """Simulate only the effects a scene calls for, and say why (engine/effects.py)."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -609,3 +611,19 @@ def test_glow_words_name_only_what_the_scene_has():
                              glow_only=True, glow_words=plan.glow_words)[0]
     assert "10 photons of reflections of window glass (the Caustic pass) stored" in line, line
     assert "rough" not in line, line
+
+
+def test_report_says_when_clamping_is_on():
+    # Clamping takes energy away: the report names it (and its limits) only when it is on.
+    s = PaperScene(width=16, height=16)
+    s.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
+    s.add_sphere((0, 0, 1), 0.5, "white_diffuse", name="ball")
+    s.add_point_light((0, 0, 3), power=10, name="Bulb")
+    s.set_camera((0, -5, 2), (0, 0, 0.5))
+    base = RenderSettings(photons=2000, spp=1)
+    assert "clamping" not in effects(s.render(base))
+    text = effects(s.render(dataclasses.replace(base, clamp_indirect=10.0)))
+    assert ("clamping: on - Light Paths > Clamping: direct light off, indirect light and "
+            "photon estimates 10 (R + G + B at most 30 per sample)") in text
+    text = effects(s.render(dataclasses.replace(base, clamp_direct=2.5)))
+    assert "direct light 2.5 (R + G + B at most 7.5 per sample)" in text

@@ -48,9 +48,9 @@ def test_clamp_scales_colour_keeps_hue_and_zeroes_non_finite():
     assert np.allclose(out[0] * tp[0], [1.0, 2.0, 3.0])
     assert np.array_equal(out[1], rgb[1])
     assert np.array_equal(out[2:], np.zeros((2, 3)))
-    # A row standing for w samples (a smooth estimate weighed up) may reach w x the limit.
-    w = np.array([[4.0], [1.0]])
-    out = sampleclamp.clamp(np.array([[2.0, 2.0, 2.0], [2.0, 2.0, 2.0]]), None, None, 3.0, w)
+    # A limit per row.
+    out = sampleclamp.clamp(np.array([[2.0, 2.0, 2.0], [2.0, 2.0, 2.0]]), None, None,
+                            np.array([12.0, 3.0]))
     assert np.array_equal(out[0], [2.0, 2.0, 2.0]) and np.allclose(out[1], [1.0, 1.0, 1.0])
     # Nothing over: the very array back (bits kept).
     fine = rgb[:2].copy()

@@ -1,6 +1,6 @@
 """The seventh slice's glue cuts (docs/performance.md, "Seventh slice: scaling"), each
 against the numpy stage it replaced, bitwise: the scalar film passes' scatter-adds
-(camerakernels.film_add_scalar, film_first_hits) against np.bincount, the generator drawn
+(camerakernels.film_add_scalar, film_first_normals) against np.bincount, the generator drawn
 in one call against the calls it replaced, Accel.intersect against raw embreex, and the
 photon pass's tilt cache against the uncached offsets."""
 import numpy as np
@@ -8,7 +8,7 @@ import pytest
 
 from engine import photonkernels as pk
 from engine.accel import Accel
-from engine.camerakernels import film_add_scalar, film_first_hits
+from engine.camerakernels import film_add_scalar, film_first_normals
 from engine.geometry import prepare
 from engine.integrator import Accumulator
 
@@ -35,31 +35,25 @@ def test_film_add_scalar_equals_bincount_accumulation():
     assert np.array_equal(acc.alpha, start + _bincount(lo, pix, (w > 1.0).astype(float), npix))
 
 
-def test_film_first_hits_equals_the_bincounts_it_replaced():
+def test_film_first_normals_equals_the_bincounts_it_replaced():
     rng = np.random.default_rng(12)
     n, lo, npix = 6000, 5, 130
     pix = np.sort(lo + rng.integers(0, npix, n))
-    depth = rng.random(n) * np.exp(rng.normal(size=n) * 3)
     ns = rng.normal(size=(n, 3))
     front = rng.random(n) < 0.7
     acc = Accumulator(npix, lo)
-    for a in (acc.depth_sum, acc.depth_n, acc.normal):
-        a[:] = rng.random(a.shape)  # not zero: the sums are added, not assigned
-    ref = [acc.depth_sum.copy(), acc.depth_n.copy(), acc.normal.copy()]
+    acc.normal[:] = rng.random(acc.normal.shape)  # not zero: the sums are added, not assigned
+    ref = acc.normal.copy()
     # The numpy stage (integrator._trace_paths before this slice).
-    ref[0] += _bincount(lo, pix, depth, npix)
-    ref[1] += _bincount(lo, pix, np.ones(n), npix)
     facing = np.where(front, 1.0, -1.0)
     for c in range(3):
-        ref[2][:, c] += _bincount(lo, pix, ns[:, c] * facing, npix)
-    acc.add_first_hits(pix, depth, ns, front)
-    assert np.array_equal(acc.depth_sum, ref[0])
-    assert np.array_equal(acc.depth_n, ref[1])
-    assert np.array_equal(acc.normal, ref[2])
+        ref[:, c] += _bincount(lo, pix, ns[:, c] * facing, npix)
+    acc.add_first_normals(pix, ns, front)
+    assert np.array_equal(acc.normal, ref)
     # An empty batch adds nothing.
-    film_first_hits(lo, np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)),
-                    np.zeros(0, np.bool_), acc.depth_sum, acc.depth_n, acc.normal)
-    assert np.array_equal(acc.depth_sum, ref[0])
+    film_first_normals(lo, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.bool_),
+                       acc.normal)
+    assert np.array_equal(acc.normal, ref)
 
 
 @pytest.mark.parametrize("rows", [3, 0])

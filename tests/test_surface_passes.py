@@ -1,7 +1,8 @@
 """Cycles' surface data passes in the engine (engine/datapasses.py SURFACE): Object Index,
 Material Index, Position, UV and Mist. Analytic values on a UV-mapped plane seen from
 above (at 1 sample a pixel the UV is the map of the Position, the Mist Cycles' formula of
-its distance, all three from the same sample), the background's values, the single pass
+its distance, all three from the same sample), the background's values, Depth as
+Cycles' sample 0 writes it, the single pass
 through half-transparent sheets on either side of the Alpha Threshold, mist through a
 sheet (Cycles' throughput x alpha weighting), the first-sample passes kept as written by
 adaptive and progressive rendering, the image's bits untouched, the scene file's
@@ -128,6 +129,28 @@ def test_single_pass_through_a_sheet(alpha):
         np.testing.assert_allclose(d["uv"][..., 2], 1.0, rtol=1e-6)
 
 
+@pytest.mark.parametrize("alpha", [0.3, 0.7])
+def test_depth_is_the_first_samples_single_pass_surface(alpha):
+    """Cycles writes Depth at sample 0 only, at the surface that ends the single pass
+    (kernel/film/data_passes.h; 0, read as 1e10, where it met none): through a sheet
+    below the Alpha Threshold the floor's depth (HEIGHT m along the view axis), at or
+    above it the sheet's (1 m nearer); a pixel whose first sample missed the floor has
+    none (inf) even where later samples hit it: pixel for pixel where the Object Index
+    (sample 0's too) is not the floor's. It was the average over the samples' first hits
+    (the sheet's depth at either alpha, and a rim pixel's any of whose samples hit)."""
+    film = render(_scene(sheet_alpha=alpha, view=60.0),
+                  _settings(spp=16, data_passes=("object_index",)))
+    depth, index = film.depth, film.data["object_index"]
+    if alpha >= 0.5:
+        np.testing.assert_allclose(depth, HEIGHT - 1.0, rtol=1e-6)
+        np.testing.assert_array_equal(index, 4)
+        return
+    floor = index == 7
+    assert floor.any() and not floor.all()  # the plane's rim in view
+    np.testing.assert_array_equal(np.isfinite(depth), floor)
+    np.testing.assert_allclose(depth[floor], HEIGHT, rtol=1e-6)
+
+
 def test_mist_through_a_sheet():
     """Mist adds (1 - m) x average(throughput x alpha) at every camera-chain surface:
     through a sheet of alpha a over the floor, 1 - [(1 - m_sheet) a + (1 - m_floor)(1 - a)]
@@ -158,9 +181,13 @@ def test_adaptive_and_progressive_keep_the_first_sample():
     passes: the same indices, Position in the plane; UV and Mist averaged as ever."""
     plain = render(_scene(), _settings(spp=8)).data
     adaptive = render(_scene(), _settings(spp=16, adaptive_threshold=0.05,
-                                          adaptive_min_samples=4)).data
-    progressive = render_progressive(_scene(), _settings(spp=4), Budget(passes=3)).data
-    for d in (adaptive, progressive):
+                                          adaptive_min_samples=4))
+    progressive = render_progressive(_scene(), _settings(spp=4), Budget(passes=3))
+    for film in (adaptive, progressive):
+        # Depth is the first sample's as well: finite exactly where it met the floor.
+        d = film.data
+        np.testing.assert_array_equal(np.isfinite(film.depth), d["object_index"] == 7)
+        np.testing.assert_allclose(film.depth[d["object_index"] == 7], HEIGHT, rtol=1e-6)
         assert set(d) == set(SURFACE)
         inner = (plain["object_index"] > 0) & (d["object_index"] > 0)
         assert inner.sum() > 0.5 * inner.size

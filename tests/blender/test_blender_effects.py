@@ -67,3 +67,47 @@ def test_the_next_frame_prints_an_unchanged_effect_report_once(open_ground, caps
     second = capsys.readouterr().out
     assert "Photon Mapping: effects as the previous render" in second, second
     assert not any(f"Photon Mapping: {line}" in second for line in report), second
+
+
+def test_the_next_frame_reports_only_new_warnings(open_ground):
+    """Ctrl+F12 reported every warning again on every frame: the frame after the last one
+    rendered reports only what is new and counts the rest in one line; rendering a frame
+    again (or one that does not follow) reports them all. The render's own list keeps
+    them all."""
+    import bpy
+
+    from addon import engine
+    toon = bpy.data.materials.new("Toon")
+    if bpy.app.version < (5, 0, 0):
+        toon.use_nodes = True
+    nt = toon.node_tree
+    bsdf = nt.nodes.new("ShaderNodeBsdfToon")
+    nt.links.new(bsdf.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bpy.data.objects["Ball"].data.materials.clear()
+    bpy.data.objects["Ball"].data.materials.append(toon)
+    cheap(open_ground, width=16, height=12, spp=1, photons=2000, caustic_photons=500)
+    events = []
+    listener = lambda event, value: events.append((event, value))  # noqa: E731
+
+    def render(frame):
+        open_ground.frame_set(frame)
+        events.clear()
+        engine.status_listeners.append(listener)
+        try:
+            bpy.ops.render.render()
+        finally:
+            engine.status_listeners.remove(listener)
+        told = [v for e, v in events if e == "warning"]
+        repeated = [v for e, v in events if e == "warnings_repeated"]
+        return told, repeated
+
+    told, repeated = render(1)
+    toon_warnings = [w for w in told if "Toon" in w]
+    assert toon_warnings and not repeated, told
+    told, repeated = render(2)  # the next frame: nothing new to say
+    assert not [w for w in told if "Toon" in w] and repeated and repeated[0] >= 1, events
+    assert any("Toon" in w for w in engine.last_render["warnings"])
+    told, repeated = render(2)  # the same frame again: a user fixing what was warned
+    assert [w for w in told if "Toon" in w] == toon_warnings and not repeated
+    told, repeated = render(5)  # not the next frame
+    assert [w for w in told if "Toon" in w] == toon_warnings and not repeated

@@ -1,5 +1,5 @@
 """Cycles' surface data passes through the add-on (issue 14, engine/datapasses.py SURFACE):
-Object Index, Material Index, Position, UV and Mist against live Cycles' same passes at
+Object Index, Material Index, Position, UV, Mist and Depth against live Cycles' same passes at
 1 sample a pixel with the same pixel filter, on a UV-mapped floor, a box without a UV map
 and its linked duplicate (its own Pass Index), a world with Mist Pass settings.
 
@@ -20,7 +20,7 @@ from blender_helpers import ROOT, cheap, cycles_plain, read_layers, render_exr
 pytestmark = pytest.mark.blender
 
 W, H = 64, 48
-PASSES = ("Object Index", "Material Index", "Position", "UV", "Mist")
+PASSES = ("Object Index", "Material Index", "Position", "UV", "Mist", "Depth")
 FLOOR = 8.0
 
 
@@ -54,6 +54,7 @@ def _scene(bpy):
     vl = scene.view_layers[0]
     vl.use_pass_object_index = vl.use_pass_material_index = True
     vl.use_pass_position = vl.use_pass_uv = vl.use_pass_mist = True
+    vl.use_pass_z = True
     return scene
 
 
@@ -123,7 +124,7 @@ def test_surface_passes_match_cycles(renders):
     np.testing.assert_array_equal(np.unique(cyc["Material Index"][..., 0][inside]),
                                   [0, 2, 4])
     report = {}
-    for name in ("Position", "UV", "Mist"):
+    for name in ("Position", "UV", "Mist", "Depth"):
         c, o = cyc[name], ours[name]
         tol = 1.5 * _step(c)[inside] + 1e-4
         diff = np.abs(o - c)[inside].max(axis=1)
@@ -138,6 +139,8 @@ def test_surface_passes_match_cycles(renders):
     bg = inside & (obj == 0)
     assert np.all(ours["Mist"][..., 0][bg] == 1.0) and np.all(cyc["Mist"][..., 0][bg] == 1.0)
     assert not ours["Position"][bg].any() and not ours["UV"][bg].any()
+    # Depth: none is 1e10 (Cycles' film_get_pass_pixel_depth reads its 0 so) in both.
+    assert np.all(ours["Depth"][bg] >= 1e9) and np.all(cyc["Depth"][bg] >= 1e9)
     # The box has no UV map: 0, 0, 0 (Cycles' primitive_uv); the floor's third channel 1.
     box = inside & ((obj == 5) | (obj == 9))
     assert not ours["UV"][box].any() and not cyc["UV"][box].any()
