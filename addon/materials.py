@@ -686,6 +686,16 @@ class MaterialConverter:
     LINEAR_SCALARS = ("metallic", "specular", "transmission", "specular_ior_level",
                       "coat_weight", "coat_roughness", "sheen_weight", "sheen_roughness")
 
+    # Parameters a blend holds at one value per material (the lead side's, or a constant
+    # mix) that a pick takes from its side per hit (engine scene.SCALAR_INPUTS), each
+    # cleaned as convert() cleans the material's constant.
+    PICKED_SCALARS = {"ior": lambda x: x if x > 0 else 1.5,
+                      "coat_ior": lambda x: max(x, 1.0),
+                      "multiscatter": float,
+                      "anisotropic": lambda x: min(max(x, -1.0), 1.0),
+                      "anisotropic_rotation": float}
+    PICKED_COLOURS = ("specular_tint", "coat_tint", "sheen_tint")
+
     @staticmethod
     def _opaque(c: Closure) -> bool:
         return (c.has_bsdf and c.alpha == 1.0 and c.alpha_texture is None
@@ -716,7 +726,34 @@ class MaterialConverter:
         ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
         same_rough = (ka == 0 or kb == 0 or (not hasattr(ra, "evaluate")
                                              and not hasattr(rb, "evaluate") and ra == rb))
-        return not (same and same_rough)
+        return not (same and same_rough and MaterialConverter._same_layers(a, b, ka, kb))
+
+    @staticmethod
+    def _same_layers(a: Closure, b: Closure, ka, kb) -> bool:
+        """Whether the parameters a blend keeps at one value per material agree where
+        they matter: the IOR, distribution and anisotropy where both sides have a glossy
+        lobe (with one, the blend takes its side's); the specular, coat and sheen tints and
+        the coat's IOR where either side has that lobe (the other's default would dilute
+        them)."""
+        def equal(name):
+            x, y = _closure_value(a, name), _closure_value(b, name)
+            if hasattr(x, "evaluate") or hasattr(y, "evaluate"):
+                return x is y
+            return bool(np.allclose(x, y, rtol=0.0, atol=0.0))
+
+        def has(name):
+            return any(hasattr(_closure_value(c, name), "evaluate")
+                       or _closure_value(c, name) > 0 for c in (a, b))
+        names = []
+        if ka > 0 and kb > 0:
+            names += ["ior", "multiscatter", "anisotropic", "anisotropic_rotation"]
+        if ka > 0 or kb > 0:
+            names.append("specular_tint")
+        if has("coat_weight"):
+            names += ["coat_ior", "coat_tint"]
+        if has("sheen_weight"):
+            names.append("sheen_tint")
+        return all(equal(n) for n in names)
 
     def _mix_per_hit(self, a: Closure, b: Closure, fac):
         """Mix Shader of two opaque surfaces by a factor f (per hit: a texture, Layer
@@ -728,10 +765,12 @@ class MaterialConverter:
         roughness weighted by each side's glossy share). Otherwise (a blue dielectric and
         a gold metal) each hit takes one of the two surfaces whole, the second with
         probability f (engine.shadernodes.ClosurePick, Cycles' closure sampling): every
-        lobe parameter and the colour come from that side, so the mean over hits is the
-        weighted sum of the two BSDFs for camera rays and photons alike. The
-        distribution, IOR and colour model come from the sides' even mix. None when a
-        side is emissive or not opaque (those keep the factor's own value)."""
+        lobe parameter, the IOR, distribution, anisotropy, specular / coat / sheen tints
+        and the colour come from that side, so the mean over hits is the weighted sum of
+        the two BSDFs for camera rays and photons alike. Still one per material: the
+        colour model (Principled or Glossy BSDF's, the lead side's), the normal map and
+        the tangent. None when a side is emissive or not opaque (those keep the factor's
+        own value)."""
         if not (self._opaque(a) and self._opaque(b)):
             return None
         sn = self.pm.shadernodes
@@ -768,6 +807,26 @@ class MaterialConverter:
             out.scalars["roughness"] = rough
         else:
             out.roughness = float(rough)
+        if pick:
+            # The rest of the picked side whole too: its IOR, distribution, anisotropy
+            # and tints (the blend's one value per material, e.g. IOR 1.95 of 1.5 and
+            # 2.4, would stand everywhere).
+            def clean(c, name, fix):
+                x = _closure_value(c, name)
+                return x if hasattr(x, "evaluate") else fix(x)
+            for name, fix in self.PICKED_SCALARS.items():
+                val = per_hit(clean(a, name, fix), clean(b, name, fix))
+                if hasattr(val, "evaluate"):
+                    out.scalars[name] = val
+            for name in self.PICKED_COLOURS:
+                ca = clean(a, name, lambda x: np.clip(x, 0.0, None))
+                cb = clean(b, name, lambda x: np.clip(x, 0.0, None))
+                if hasattr(ca, "evaluate") or hasattr(cb, "evaluate") or not np.array_equal(ca, cb):
+                    out.scalars[name] = sn.MixColor(f, ca, cb)
+            # The material's constant row enables the tangents where either side is
+            # anisotropic (anisotropy.anisotropic_materials).
+            xa, xb = a.anisotropic, b.anisotropic
+            out.anisotropic = xa if abs(xa) >= abs(xb) else xb
 
         def colour(c):
             if c.texture is None:
