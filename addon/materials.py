@@ -191,6 +191,12 @@ def _emission_mix(sn, wa, a: Closure, wb, b: Closure):
     return np.ones(3), sn.MixColor(1.0, colour(a, ea), colour(b, eb), "ADD")
 
 
+# Per-hit parameters (Closure.scalars) of a picked Mix Shader side that a blend takes from
+# its lead side, as it takes their constants, and those that are colours.
+_LEAD_SCALARS = ("multiscatter", "anisotropic", "anisotropic_rotation")
+_COLOUR_SCALARS = ("specular_tint", "coat_tint", "sheen_tint")
+
+
 def _closure_value(c: Closure, name: str):
     """A closure's parameter: its per-hit node where one is set, else its constant."""
     return c.scalars.get(name, getattr(c, name))
@@ -260,13 +266,23 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         if na + nb > 0:
             out.base_color = ((na * a.base_color + nb * b.base_color) / (na + nb)
                               * (total / (total + da + db)))
-    # Texture-driven scalar inputs blend with the same constant weights, as node trees.
+    # Texture-driven scalar inputs blend with the same constant weights, as node trees;
+    # the per-hit IOR, tints, distribution and anisotropy of a picked Mix Shader side
+    # (_mix_per_hit) as their constants do: the IOR by glossy share, the tints as colours,
+    # the rest the lead side's.
     for name in set(a.scalars) | set(b.scalars):
+        if name in _LEAD_SCALARS:
+            if name in lead.scalars:
+                out.scalars[name] = lead.scalars[name]
+            continue
         wa_, wb_ = ta, tb
-        if name == "roughness" and ga + gb > 0:
+        if name in ("roughness", "ior") and ga + gb > 0:
             wa_, wb_ = ga / (ga + gb), gb / (ga + gb)
-        val = _weighted(sn, wa_, a.scalars.get(name, getattr(a, name)),
-                        wb_, b.scalars.get(name, getattr(b, name)))
+        xa, xb = a.scalars.get(name, getattr(a, name)), b.scalars.get(name, getattr(b, name))
+        if name in _COLOUR_SCALARS:
+            val = sn.MixColor(wb_, xa, xb) if wa_ * wb_ > 0 else (xa if wb_ == 0 else xb)
+        else:
+            val = _weighted(sn, wa_, xa, wb_, xb)
         if hasattr(val, "evaluate"):
             out.scalars[name] = val
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
@@ -694,7 +710,7 @@ class MaterialConverter:
                       "multiscatter": float,
                       "anisotropic": lambda x: min(max(x, -1.0), 1.0),
                       "anisotropic_rotation": float}
-    PICKED_COLOURS = ("specular_tint", "coat_tint", "sheen_tint")
+    PICKED_COLOURS = _COLOUR_SCALARS
 
     @staticmethod
     def _opaque(c: Closure) -> bool:
@@ -710,8 +726,12 @@ class MaterialConverter:
         roughness. Exact (False): equal colours, or equal lobe weights without
         transmission; and, where both sides have a glossy lobe, equal roughness; or a
         Diffuse and a Glossy side (the glossy colour model keeps both colours)."""
-        blend = _blend(a, b, 0.5, 0.5)
-        if blend.node != "principled":
+        # The colour model of their blend (_blend: the side with more glossy / glass
+        # weight leads), found without building the blend: a side's texture-driven
+        # scalars would need engine nodes for that.
+        ga = a.metallic + a.transmission + a.specular
+        gb = b.metallic + b.transmission + b.specular
+        if (a if ga >= gb else b).node != "principled":
             return False
 
         lobes = [(_closure_value(a, n), _closure_value(b, n))

@@ -303,6 +303,25 @@ def test_only_unlike_surfaces_pick_a_closure_per_hit(fresh_scene, bpy_addon):
     assert not picks(lambda nd, ln: _noise_mix(nd, ln, _diffuse(nd, white),
                                                _principled(nd, white, 0.3, ior=2.4)))
 
+    def textured_rough(nd, ln):
+        # A side with a texture-driven Roughness: deciding the pick built the sides' blend
+        # without engine nodes and raised AttributeError (before mixsides).
+        side = _blue_dielectric(nd)
+        tex = nd.new("ShaderNodeTexNoise")
+        ln.new(tex.outputs["Fac"], side.node.inputs["Roughness"])
+        return _noise_mix(nd, ln, side, _gold_metal(nd))
+    assert picks(textured_rough)
+
+    def nested(nd, ln):
+        # A picked mix (IOR 1.5 / 2.4, one colour) inside an even mix with a Diffuse of
+        # that colour: the outer blend keeps the picked IOR per hit (the Diffuse has no
+        # IOR to dilute it with) and takes the tints as colours.
+        inner = _noise_mix(nd, ln, _principled(nd, white, 0.3, ior=1.5),
+                           _principled(nd, white, 0.3, ior=2.4))
+        return _mix(nd, ln, 0.5, inner, _diffuse(nd, white))
+    t = convert_material(_material(bpy, "N", nested))
+    assert any(isinstance(n, ClosurePick) for n in _nodes_of(t.scalar_textures["ior"]))
+
 
 def test_a_picked_mix_takes_each_sides_own_parameters(fresh_scene, bpy_addon):
     """mixsides: the IOR, coat IOR and tints, distribution and anisotropy of a picked mix
