@@ -122,7 +122,8 @@ class Material:
     layers above describe their even mix).
     `scalar_textures` optionally maps scalar inputs (SCALAR_INPUTS: roughness, metallic,
     ...) to nodes evaluated per hit whose value replaces the constant there, camera and
-    photon pass alike (engine/textures.py, scalar_params; docs/textures.md).
+    photon pass alike (engine/textures.py, scalar_params; docs/textures.md); a colour input
+    (COLOR_INPUTS: the specular, coat and sheen tints) takes the node's RGB.
     `pass_index`: Blender's material.pass_index, written by the Material Index data
     pass (engine/datapasses.py); it changes no shading.
     `emission_sampling`: Blender's material.cycles.emission_sampling (EMISSION_SAMPLING): which

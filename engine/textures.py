@@ -311,8 +311,10 @@ def scalar_ranges(table, geo, seed: int = 0):
     """Summarise each texture-driven scalar input over its material's surface for the
     effect analysis (engine/effects.py reads one value per material): the table's
     constant columns take the extreme that enables a lobe (metallic, transmission, coat
-    and sheen weights at their largest, roughness and coat roughness at their smallest),
-    and table.diffuse_share the largest (1 - metallic)(1 - transmission). Evaluated at
+    and sheen weights at their largest, roughness and coat roughness at their smallest,
+    the anisotropy at its largest magnitude; the other per-hit inputs, a Mix Shader pick's
+    IOR, tints, distribution and rotation, keep the constant), and table.diffuse_share the
+    largest (1 - metallic)(1 - transmission). Evaluated at
     RANGE_SAMPLES uniformly random points of the material's triangles (seeded): an
     estimate for deciding which effects to trace; the render itself evaluates every hit
     (scalar_params)."""
