@@ -584,7 +584,7 @@ class MaterialConverter:
                                                 sn.MixColor(1.0, surf.emission_texture, cover,
                                                             "MULTIPLY"))
                     return out
-                mixed = self._mix_per_hit(a, b, fac)
+                mixed = self._mix_per_hit(a, b, fac, node)
                 if mixed is not None:
                     if a.weight != b.weight:
                         self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' "
@@ -607,7 +607,7 @@ class MaterialConverter:
             if (a.weight == 1.0 and b.weight == 1.0 and 0.0 < fac < 1.0
                     and self._opaque(a) and self._opaque(b) and self._blend_inexact(a, b)):
                 # Two surfaces whose parameter blend is not their mix: pick one per hit.
-                return self._mix_per_hit(a, b, fac)
+                return self._mix_per_hit(a, b, fac, node)
             if a.weight == 1.0 and b.weight == 1.0:
                 return _blend(a, b, 1.0 - fac, fac, self.pm.shadernodes)
             # A side of closure weight != 1 (an Add Shader): (1 - f) w_a a + f w_b b is
@@ -775,7 +775,7 @@ class MaterialConverter:
             names.append("sheen_tint")
         return all(equal(n) for n in names)
 
-    def _mix_per_hit(self, a: Closure, b: Closure, fac):
+    def _mix_per_hit(self, a: Closure, b: Closure, fac, node=None):
         """Mix Shader of two opaque surfaces by a factor f (per hit: a texture, Layer
         Weight, Fresnel; or a constant): Cycles weights the closures (1 - f) and f (f
         clamped to [0, 1]). Where the parameters blend linearly (_blend_inexact False:
@@ -847,6 +847,7 @@ class MaterialConverter:
             # anisotropic (anisotropy.anisotropic_materials).
             xa, xb = a.anisotropic, b.anisotropic
             out.anisotropic = xa if abs(xa) >= abs(xb) else xb
+            self._warn_per_material(a, b, out, node)
 
         def colour(c):
             if c.texture is None:
@@ -861,6 +862,23 @@ class MaterialConverter:
             out.base_color = np.ones(3)
             out.texture = sn.MixColor(f, colour(a), colour(b))
         return out
+
+    def _warn_per_material(self, a: Closure, b: Closure, out: Closure, node):
+        """Warn where a picked Mix Shader's sides differ in what stays one per material:
+        the shading normal (a Normal Map / Bump is evaluated per material, before the
+        closure rows, engine.bsdf.surface_hit) and the colour model (a Glossy BSDF's colour
+        in the metal lobe against Principled's F82 metal: the export's one `node`)."""
+        who = f"Mix Shader '{node.name}'" if node is not None else "a Mix Shader"
+        if a.normal_map is not b.normal_map:
+            self._warn(f"material '{self._mat.name}': {who} picks one of two surfaces per "
+                       "hit, but their 'Normal' inputs differ: one shading normal per "
+                       "material is used for both (the first side's that has one)")
+        if a.node != b.node:
+            model = {"glossy": "Glossy BSDF", "glass": "Glass BSDF",
+                     "refraction": "Refraction BSDF"}.get(out.node, "Principled BSDF")
+            self._warn(f"material '{self._mat.name}': {who} picks one of two surfaces per "
+                       f"hit of different colour models ({a.node}, {b.node}): both sides "
+                       f"render with the {model}'s")
 
     def _normal(self, node):
         """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an

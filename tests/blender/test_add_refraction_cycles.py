@@ -410,3 +410,29 @@ def test_ceiling_lit_by_a_mix_shader_floor_matches_cycles(fresh_scene, bpy_addon
     print(f"ceiling over mix {fac}: ours / Cycles {np.round(got / want, 4)} "
           f"Cycles {np.round(want, 4)}")
     np.testing.assert_allclose(got, want, rtol=0.03)
+
+
+def test_picked_mix_warns_what_stays_one_per_material(fresh_scene, bpy_addon):
+    """mixsides: a picked mix of a Principled and a Glossy BSDF renders both sides with
+    one colour model (the Principled one), and sides with different Normal inputs share
+    one shading normal: both are warned, naming the material and the node; a pick whose
+    sides agree in both warns nothing of the kind."""
+    from blender_helpers import convert_material
+    bpy = bpy_addon
+
+    def models(nd, ln):
+        return _noise_mix(nd, ln, _blue_dielectric(nd), _glossy(nd, (0.9, 0.7, 0.3), 0.2))
+
+    def normals(nd, ln):
+        side = _blue_dielectric(nd)
+        bump = nd.new("ShaderNodeBump")
+        tex = nd.new("ShaderNodeTexNoise")
+        ln.new(tex.outputs["Fac"], bump.inputs["Height"])
+        ln.new(bump.outputs["Normal"], side.node.inputs["Normal"])
+        return _noise_mix(nd, ln, side, _gold_metal(nd))
+    w = convert_material(_material(bpy, "Models", models)).warnings
+    assert any("'Models'" in x and "Mix Shader" in x and "colour models" in x for x in w), w
+    w = convert_material(_material(bpy, "Normals", normals)).warnings
+    assert any("'Normals'" in x and "'Normal' inputs differ" in x for x in w), w
+    w = convert_material(_material(bpy, "Plain", MIX_CASES["dielectric+metal noise"])).warnings
+    assert not any("colour models" in x or "inputs differ" in x for x in w), w
