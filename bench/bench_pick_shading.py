@@ -98,7 +98,6 @@ def main(argv=None):
                             np.stack([i, i + k + 2, i + 1], 1)])
     gen = (verts[faces] + 2.0) / 4.0  # (T,3,3) per-corner generated coordinates
     cached = getattr(sn, "_PickBatch", None)
-    rows = []
     setups = {}
     for name, m in mats.items():
         mesh = Mesh(name=name, vertices=verts, faces=faces, materials=[m.name],
@@ -132,7 +131,7 @@ def main(argv=None):
         cols = table.scalar_textures[0]
         print(f"| {name} | {0 if cols is None else len(cols)} | "
               f"{1e9 * best[name, 'cache'] / n:.0f} | {1e9 * best[name, 'no cache'] / n:.0f} |")
-    return rows
+
 
 
 if __name__ == "__main__":
