@@ -133,6 +133,5 @@ def main(argv=None):
               f"{1e9 * best[name, 'cache'] / n:.0f} | {1e9 * best[name, 'no cache'] / n:.0f} |")
 
 
-
 if __name__ == "__main__":
     main()
