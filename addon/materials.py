@@ -191,6 +191,12 @@ def _emission_mix(sn, wa, a: Closure, wb, b: Closure):
     return np.ones(3), sn.MixColor(1.0, colour(a, ea), colour(b, eb), "ADD")
 
 
+# Per-hit parameters (Closure.scalars) of a picked Mix Shader side that a blend takes from
+# its lead side, as it takes their constants, and those that are colours.
+_LEAD_SCALARS = ("multiscatter", "anisotropic", "anisotropic_rotation")
+_COLOUR_SCALARS = ("specular_tint", "coat_tint", "sheen_tint")
+
+
 def _closure_value(c: Closure, name: str):
     """A closure's parameter: its per-hit node where one is set, else its constant."""
     return c.scalars.get(name, getattr(c, name))
@@ -260,13 +266,23 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         if na + nb > 0:
             out.base_color = ((na * a.base_color + nb * b.base_color) / (na + nb)
                               * (total / (total + da + db)))
-    # Texture-driven scalar inputs blend with the same constant weights, as node trees.
+    # Texture-driven scalar inputs blend with the same constant weights, as node trees;
+    # the per-hit IOR, tints, distribution and anisotropy of a picked Mix Shader side
+    # (_mix_per_hit) as their constants do: the IOR by glossy share, the tints as colours,
+    # the rest the lead side's.
     for name in set(a.scalars) | set(b.scalars):
+        if name in _LEAD_SCALARS:
+            if name in lead.scalars:
+                out.scalars[name] = lead.scalars[name]
+            continue
         wa_, wb_ = ta, tb
-        if name == "roughness" and ga + gb > 0:
+        if name in ("roughness", "ior") and ga + gb > 0:
             wa_, wb_ = ga / (ga + gb), gb / (ga + gb)
-        val = _weighted(sn, wa_, a.scalars.get(name, getattr(a, name)),
-                        wb_, b.scalars.get(name, getattr(b, name)))
+        xa, xb = a.scalars.get(name, getattr(a, name)), b.scalars.get(name, getattr(b, name))
+        if name in _COLOUR_SCALARS:
+            val = sn.MixColor(wb_, xa, xb) if wa_ * wb_ > 0 else (xa if wb_ == 0 else xb)
+        else:
+            val = _weighted(sn, wa_, xa, wb_, xb)
         if hasattr(val, "evaluate"):
             out.scalars[name] = val
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
@@ -568,7 +584,7 @@ class MaterialConverter:
                                                 sn.MixColor(1.0, surf.emission_texture, cover,
                                                             "MULTIPLY"))
                     return out
-                mixed = self._mix_per_hit(a, b, fac)
+                mixed = self._mix_per_hit(a, b, fac, node)
                 if mixed is not None:
                     if a.weight != b.weight:
                         self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' "
@@ -591,7 +607,7 @@ class MaterialConverter:
             if (a.weight == 1.0 and b.weight == 1.0 and 0.0 < fac < 1.0
                     and self._opaque(a) and self._opaque(b) and self._blend_inexact(a, b)):
                 # Two surfaces whose parameter blend is not their mix: pick one per hit.
-                return self._mix_per_hit(a, b, fac)
+                return self._mix_per_hit(a, b, fac, node)
             if a.weight == 1.0 and b.weight == 1.0:
                 return _blend(a, b, 1.0 - fac, fac, self.pm.shadernodes)
             # A side of closure weight != 1 (an Add Shader): (1 - f) w_a a + f w_b b is
@@ -686,6 +702,16 @@ class MaterialConverter:
     LINEAR_SCALARS = ("metallic", "specular", "transmission", "specular_ior_level",
                       "coat_weight", "coat_roughness", "sheen_weight", "sheen_roughness")
 
+    # Parameters a blend holds at one value per material (the lead side's, or a constant
+    # mix) that a pick takes from its side per hit (engine scene.SCALAR_INPUTS), each
+    # cleaned as convert() cleans the material's constant.
+    PICKED_SCALARS = {"ior": lambda x: x if x > 0 else 1.5,
+                      "coat_ior": lambda x: max(x, 1.0),
+                      "multiscatter": float,
+                      "anisotropic": lambda x: min(max(x, -1.0), 1.0),
+                      "anisotropic_rotation": float}
+    PICKED_COLOURS = _COLOUR_SCALARS
+
     @staticmethod
     def _opaque(c: Closure) -> bool:
         return (c.has_bsdf and c.alpha == 1.0 and c.alpha_texture is None
@@ -700,8 +726,12 @@ class MaterialConverter:
         roughness. Exact (False): equal colours, or equal lobe weights without
         transmission; and, where both sides have a glossy lobe, equal roughness; or a
         Diffuse and a Glossy side (the glossy colour model keeps both colours)."""
-        blend = _blend(a, b, 0.5, 0.5)
-        if blend.node != "principled":
+        # The colour model of their blend (_blend: the side with more glossy / glass
+        # weight leads), found without building the blend: a side's texture-driven
+        # scalars would need engine nodes for that.
+        ga = a.metallic + a.transmission + a.specular
+        gb = b.metallic + b.transmission + b.specular
+        if (a if ga >= gb else b).node != "principled":
             return False
 
         lobes = [(_closure_value(a, n), _closure_value(b, n))
@@ -716,9 +746,36 @@ class MaterialConverter:
         ra, rb = _closure_value(a, "roughness"), _closure_value(b, "roughness")
         same_rough = (ka == 0 or kb == 0 or (not hasattr(ra, "evaluate")
                                              and not hasattr(rb, "evaluate") and ra == rb))
-        return not (same and same_rough)
+        return not (same and same_rough and MaterialConverter._same_layers(a, b, ka, kb))
 
-    def _mix_per_hit(self, a: Closure, b: Closure, fac):
+    @staticmethod
+    def _same_layers(a: Closure, b: Closure, ka, kb) -> bool:
+        """Whether the parameters a blend keeps at one value per material agree where
+        they matter: the IOR, distribution and anisotropy where both sides have a glossy
+        lobe (with one, the blend takes its side's); the specular, coat and sheen tints and
+        the coat's IOR where either side has that lobe (the other's default would dilute
+        them)."""
+        def equal(name):
+            x, y = _closure_value(a, name), _closure_value(b, name)
+            if hasattr(x, "evaluate") or hasattr(y, "evaluate"):
+                return x is y
+            return bool(np.allclose(x, y, rtol=0.0, atol=0.0))
+
+        def has(name):
+            return any(hasattr(_closure_value(c, name), "evaluate")
+                       or _closure_value(c, name) > 0 for c in (a, b))
+        names = []
+        if ka > 0 and kb > 0:
+            names += ["ior", "multiscatter", "anisotropic", "anisotropic_rotation"]
+        if ka > 0 or kb > 0:
+            names.append("specular_tint")
+        if has("coat_weight"):
+            names += ["coat_ior", "coat_tint"]
+        if has("sheen_weight"):
+            names.append("sheen_tint")
+        return all(equal(n) for n in names)
+
+    def _mix_per_hit(self, a: Closure, b: Closure, fac, node=None):
         """Mix Shader of two opaque surfaces by a factor f (per hit: a texture, Layer
         Weight, Fresnel; or a constant): Cycles weights the closures (1 - f) and f (f
         clamped to [0, 1]). Where the parameters blend linearly (_blend_inexact False:
@@ -728,10 +785,12 @@ class MaterialConverter:
         roughness weighted by each side's glossy share). Otherwise (a blue dielectric and
         a gold metal) each hit takes one of the two surfaces whole, the second with
         probability f (engine.shadernodes.ClosurePick, Cycles' closure sampling): every
-        lobe parameter and the colour come from that side, so the mean over hits is the
-        weighted sum of the two BSDFs for camera rays and photons alike. The
-        distribution, IOR and colour model come from the sides' even mix. None when a
-        side is emissive or not opaque (those keep the factor's own value)."""
+        lobe parameter, the IOR, distribution, anisotropy, specular / coat / sheen tints
+        and the colour come from that side, so the mean over hits is the weighted sum of
+        the two BSDFs for camera rays and photons alike. Still one per material: the
+        colour model (Principled or Glossy BSDF's, the lead side's), the normal map and
+        the tangent. None when a side is emissive or not opaque (those keep the factor's
+        own value)."""
         if not (self._opaque(a) and self._opaque(b)):
             return None
         sn = self.pm.shadernodes
@@ -768,6 +827,27 @@ class MaterialConverter:
             out.scalars["roughness"] = rough
         else:
             out.roughness = float(rough)
+        if pick:
+            # The rest of the picked side whole too: its IOR, distribution, anisotropy
+            # and tints (the blend's one value per material, e.g. IOR 1.95 of 1.5 and
+            # 2.4, would stand everywhere).
+            def clean(c, name, fix):
+                x = _closure_value(c, name)
+                return x if hasattr(x, "evaluate") else fix(x)
+            for name, fix in self.PICKED_SCALARS.items():
+                val = per_hit(clean(a, name, fix), clean(b, name, fix))
+                if hasattr(val, "evaluate"):
+                    out.scalars[name] = val
+            for name in self.PICKED_COLOURS:
+                ca = clean(a, name, lambda x: np.clip(x, 0.0, None))
+                cb = clean(b, name, lambda x: np.clip(x, 0.0, None))
+                if hasattr(ca, "evaluate") or hasattr(cb, "evaluate") or not np.array_equal(ca, cb):
+                    out.scalars[name] = sn.MixColor(f, ca, cb)
+            # The material's constant row enables the tangents where either side is
+            # anisotropic (anisotropy.anisotropic_materials).
+            xa, xb = a.anisotropic, b.anisotropic
+            out.anisotropic = xa if abs(xa) >= abs(xb) else xb
+            self._warn_per_material(a, b, out, node)
 
         def colour(c):
             if c.texture is None:
@@ -782,6 +862,23 @@ class MaterialConverter:
             out.base_color = np.ones(3)
             out.texture = sn.MixColor(f, colour(a), colour(b))
         return out
+
+    def _warn_per_material(self, a: Closure, b: Closure, out: Closure, node):
+        """Warn where a picked Mix Shader's sides differ in what stays one per material:
+        the shading normal (a Normal Map / Bump is evaluated per material, before the
+        closure rows, engine.bsdf.surface_hit) and the colour model (a Glossy BSDF's colour
+        in the metal lobe against Principled's F82 metal: the export's one `node`)."""
+        who = f"Mix Shader '{node.name}'" if node is not None else "a Mix Shader"
+        if a.normal_map is not b.normal_map:
+            self._warn(f"material '{self._mat.name}': {who} picks one of two surfaces per "
+                       "hit, but their 'Normal' inputs differ: one shading normal per "
+                       "material is used for both (the first side's that has one)")
+        if a.node != b.node:
+            model = {"glossy": "Glossy BSDF", "glass": "Glass BSDF",
+                     "refraction": "Refraction BSDF"}.get(out.node, "Principled BSDF")
+            self._warn(f"material '{self._mat.name}': {who} picks one of two surfaces per "
+                       f"hit of different colour models ({a.node}, {b.node}): both sides "
+                       f"render with the {model}'s")
 
     def _normal(self, node):
         """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an

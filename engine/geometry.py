@@ -101,7 +101,8 @@ class MaterialTable:
 
 def scalar_columns(m: Material):
     """[(closure_params column, node, lo, hi)] of a material's texture-driven scalar
-    inputs (Material.scalar_textures; lo, hi: Cycles' clamp), or None."""
+    inputs (Material.scalar_textures; lo, hi: Cycles' clamp), or None. A colour input
+    (scene.COLOR_INPUTS) has a slice of its three columns for column."""
     if not m.scalar_textures:
         return None
     from .closures import principled as pr
@@ -110,7 +111,12 @@ def scalar_columns(m: Material):
            "transmission": pr.M_TRANS,
            "specular_ior_level": pr.M_LEVEL, "coat_weight": pr.M_COAT_W,
            "coat_roughness": pr.M_COAT_ROUGH, "sheen_weight": pr.M_SHEEN_W,
-           "sheen_roughness": pr.M_SHEEN_ROUGH}
+           "sheen_roughness": pr.M_SHEEN_ROUGH,
+           "ior": pr.M_IOR, "coat_ior": pr.M_COAT_IOR, "multiscatter": pr.M_MULTI,
+           "anisotropic": pr.M_ANISO, "anisotropic_rotation": pr.M_AROT,
+           "specular_tint": slice(pr.M_STINT, pr.M_STINT + 3),
+           "coat_tint": slice(pr.M_CTINT, pr.M_CTINT + 3),
+           "sheen_tint": slice(pr.M_SHEEN_TINT, pr.M_SHEEN_TINT + 3)}
     return [(col[k], node, *SCALAR_INPUTS[k]) for k, node in m.scalar_textures.items()]
 
 

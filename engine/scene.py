@@ -122,7 +122,8 @@ class Material:
     layers above describe their even mix).
     `scalar_textures` optionally maps scalar inputs (SCALAR_INPUTS: roughness, metallic,
     ...) to nodes evaluated per hit whose value replaces the constant there, camera and
-    photon pass alike (engine/textures.py, scalar_params; docs/textures.md).
+    photon pass alike (engine/textures.py, scalar_params; docs/textures.md); a colour input
+    (COLOR_INPUTS: the specular, coat and sheen tints) takes the node's RGB.
     `pass_index`: Blender's material.pass_index, written by the Material Index data
     pass (engine/datapasses.py); it changes no shading.
     `emission_sampling`: Blender's material.cycles.emission_sampling (EMISSION_SAMPLING): which
@@ -291,7 +292,18 @@ MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}
 SCALAR_INPUTS = {"roughness": (0.0, 1.0), "metallic": (0.0, 1.0), "specular": (0.0, 1.0),
                  "transmission": (0.0, 1.0), "specular_ior_level": (0.0, np.inf),
                  "coat_weight": (0.0, np.inf), "coat_roughness": (0.0, 1.0),
-                 "sheen_weight": (0.0, np.inf), "sheen_roughness": (0.0, 1.0)}
+                 "sheen_weight": (0.0, np.inf), "sheen_roughness": (0.0, 1.0),
+                 # Per hit where a Mix Shader picks one of two surfaces whole
+                 # (addon/materials.py _mix_per_hit): each side's own value, clamped as the
+                 # add-on clamps the constants (IOR > 0 as the kernels' max(ior, 1e-5), the
+                 # coat's IOR >= 1, a 0 / 1 distribution flag, anisotropy in [-1, 1]).
+                 "ior": (1e-5, np.inf), "coat_ior": (1.0, np.inf), "multiscatter": (0.0, 1.0),
+                 "anisotropic": (-1.0, 1.0), "anisotropic_rotation": (-np.inf, np.inf),
+                 # Colours (three columns each, per channel >= 0).
+                 "specular_tint": (0.0, np.inf), "coat_tint": (0.0, np.inf),
+                 "sheen_tint": (0.0, np.inf)}
+# The SCALAR_INPUTS that are colours: a colour node's RGB per hit, not its luminance.
+COLOR_INPUTS = ("specular_tint", "coat_tint", "sheen_tint")
 
 
 # The paper's predefined materials (Figures 3-4), in our lobe model.

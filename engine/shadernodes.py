@@ -778,7 +778,65 @@ class ClosurePick:
 
     def __init__(self, factor):
         self.factor = factor
+        # The last batch and its pick (_PickBatch): every parameter of a picked mix is a
+        # Math tree reading this node (about 20 reads a hit set), and the factor (a Noise
+        # Texture) and the hash cost more than all of them. Not pickled.
+        self._last = None
+
+    def __getstate__(self):
+        return {"factor": self.factor, "_last": None}
 
     def evaluate(self, geo, prim, u, v):
+        """(N,) float64, read-only: 1 where the hit takes the second closure, else 0. The
+        same batch again (the same hits seen the same way: equal triangles, barycentrics
+        and, on a ShadingGeometry, view) returns the last value without evaluating
+        anything: the pick is a function of exactly those."""
+        last = self._last
+        if last is not None and last.matches(geo, prim, u, v):
+            return last.pick
         f = np.clip(_eval(self.factor, geo, prim, u, v, 1), 0.0, 1.0)
-        return (hit_random(prim, u, v) < f).astype(np.float64)
+        pick = (hit_random(prim, u, v) < f).astype(np.float64)
+        pick.flags.writeable = False  # shared by every reader of the batch
+        if geo is not None:
+            self._last = _PickBatch(geo, prim, u, v, pick)
+        return pick
+
+
+def _same_array(a, b) -> bool:
+    """a and b hold equal values of one dtype and shape (no NaN). Compared even when a is
+    b: a caller may refill one buffer between two batches."""
+    a, b = np.asarray(a), np.asarray(b)
+    return a.dtype == b.dtype and a.shape == b.shape and bool(np.array_equal(a, b))
+
+
+class _PickBatch:
+    """A ClosurePick's last batch: its Geometry (weakly: a cached pick must not keep a
+    scene alive), the hits' prim, u, v and their view (ShadingGeometry's n, wi,
+    backfacing; None without one), and the pick."""
+
+    __slots__ = ("geo", "prim", "u", "v", "view", "pick")
+
+    def __init__(self, geo, prim, u, v, pick):
+        import weakref
+        base = geo._geo if isinstance(geo, ShadingGeometry) else geo
+        try:
+            self.geo = weakref.ref(base)
+        except TypeError:  # an object without weak references: held while cached
+            self.geo = (lambda obj: (lambda: obj))(base)
+        self.prim, self.u, self.v = prim, u, v
+        self.view = ((geo.n, geo.wi, geo.backfacing) if isinstance(geo, ShadingGeometry)
+                     else None)
+        self.pick = pick
+
+    def matches(self, geo, prim, u, v) -> bool:
+        if geo is None:
+            return False
+        shading = isinstance(geo, ShadingGeometry)
+        base = geo._geo if shading else geo
+        if self.geo() is not base or shading != (self.view is not None):
+            return False
+        if not (_same_array(prim, self.prim) and _same_array(u, self.u)
+                and _same_array(v, self.v)):
+            return False
+        return not shading or all(_same_array(x, y) for x, y in
+                                  zip((geo.n, geo.wi, geo.backfacing), self.view))

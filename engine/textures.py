@@ -263,12 +263,15 @@ def material_alpha(table, geo, mat, prim, u, v, constant: bool = True) -> np.nda
     return out
 
 
-def scalar_values(node, geo, prim, u, v, lo, hi) -> np.ndarray:
+def scalar_values(node, geo, prim, u, v, lo, hi, colour: bool = False) -> np.ndarray:
     """(N,) a scalar input's value at hits: the node's value (a colour read as its
     luminance, Blender's colour-to-float conversion), clamped to [lo, hi] as Cycles clamps
-    that input (svm/closure.h), NaN as lo."""
+    that input (svm/closure.h), NaN as lo. colour=True: (N,3) a colour input's RGB (a
+    value read as grey), each channel clamped so."""
     val = np.asarray(node.evaluate(geo, prim, u, v), np.float64)
-    if val.ndim == 2:
+    if colour:
+        val = np.repeat(val[:, None], 3, axis=1) if val.ndim == 1 else val[:, :3]
+    elif val.ndim == 2:
         val = val[:, :3] @ LUMINANCE
     return np.clip(np.nan_to_num(val, nan=lo, posinf=hi, neginf=lo), lo, hi)
 
@@ -285,21 +288,33 @@ def scalar_params(table, geo, mat, prim, u, v):
     mat = np.asarray(mat, np.int64)
     out = np.take(table.closure_params, mat, axis=0)
     for _, entries, sel in rows_by_material(cols, mat):
+        # One set of row arrays for all the material's inputs: a node they share (a Mix
+        # Shader's closure pick) recognises them and is evaluated once (ClosurePick).
+        g, p, uu, vv = _rows(geo, sel), prim[sel], u[sel], v[sel]
         for col, node, lo, hi in entries:
-            out[sel, col] = scalar_values(node, _rows(geo, sel), prim[sel], u[sel], v[sel],
-                                          lo, hi)
+            out[sel, col] = scalar_values(node, g, p, uu, vv, lo, hi,
+                                          colour=isinstance(col, slice))
     return out
 
 
 RANGE_SAMPLES = 4096  # points per material at which scalar_ranges evaluates its maps
 
 
+def _lobe_columns():
+    from .closures import principled as pr
+    return frozenset((pr.M_ROUGH, pr.M_METALLIC, pr.M_SPEC, pr.M_TRANS, pr.M_LEVEL,
+                      pr.M_COAT_W, pr.M_COAT_ROUGH, pr.M_SHEEN_W, pr.M_SHEEN_ROUGH,
+                      pr.M_ANISO))
+
+
 def scalar_ranges(table, geo, seed: int = 0):
     """Summarise each texture-driven scalar input over its material's surface for the
     effect analysis (engine/effects.py reads one value per material): the table's
     constant columns take the extreme that enables a lobe (metallic, transmission, coat
-    and sheen weights at their largest, roughness and coat roughness at their smallest),
-    and table.diffuse_share the largest (1 - metallic)(1 - transmission). Evaluated at
+    and sheen weights at their largest, roughness and coat roughness at their smallest,
+    the anisotropy at its largest magnitude; the other per-hit inputs, a Mix Shader pick's
+    IOR, tints, distribution and rotation, keep the constant), and table.diffuse_share the
+    largest (1 - metallic)(1 - transmission). Evaluated at
     RANGE_SAMPLES uniformly random points of the material's triangles (seeded): an
     estimate for deciding which effects to trace; the render itself evaluates every hit
     (scalar_params)."""
@@ -330,14 +345,22 @@ def scalar_ranges(table, geo, seed: int = 0):
         wi /= np.maximum(np.linalg.norm(wi, axis=1, keepdims=True), 1e-300)
         wi *= np.where(np.einsum("ij,ij->i", wi, ng) < 0, -1.0, 1.0)[:, None]
         sg = ShadingGeometry(geo, ng, wi, np.zeros(RANGE_SAMPLES, bool))
+        # The inputs that enable a lobe (the IOR, tints, distribution and rotation a Mix
+        # Shader's pick sets per hit keep the material's blended constant).
+        lobe = _lobe_columns()
         vals = {col: scalar_values(node, sg, prim, u, v, lo, hi)
-                for col, node, lo, hi in entries}
+                for col, node, lo, hi in entries
+                if not isinstance(col, slice) and col in lobe}
         metal = vals.get(pr.M_METALLIC, np.full(RANGE_SAMPLES, table.metallic[mi]))
         trans = vals.get(pr.M_TRANS, np.full(RANGE_SAMPLES, table.transmission[mi]))
         share[mi] = float(np.max((1 - metal) * (1 - trans)))
         for col, v_ in vals.items():
             smallest = col in (pr.M_ROUGH, pr.M_COAT_ROUGH, pr.M_SHEEN_ROUGH)
             x = float(v_.min() if smallest else v_.max())
+            if col == pr.M_ANISO:
+                # Anisotropic somewhere (a Glossy BSDF's may be negative): the tangents
+                # are set up for the material (anisotropy.anisotropic_materials).
+                x = float(v_[np.argmax(np.abs(v_))])
             table.closure_params[mi, col] = x
             name = {pr.M_ROUGH: "roughness", pr.M_METALLIC: "metallic",
                     pr.M_TRANS: "transmission", pr.M_COAT_W: "coat_weight",

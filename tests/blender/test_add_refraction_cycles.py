@@ -81,11 +81,18 @@ ADD_CASES = {
 
 
 
-def _principled(nodes, rgb, roughness, metallic=0.0):
+def _principled(nodes, rgb, roughness, metallic=0.0, ior=1.5, coat=None):
+    """coat: (Coat Weight, Coat Tint RGB, Coat IOR, Coat Roughness) or None (no coat)."""
     n = nodes.new("ShaderNodeBsdfPrincipled")
     n.inputs["Base Color"].default_value = (*rgb, 1.0)
     n.inputs["Roughness"].default_value = roughness
     n.inputs["Metallic"].default_value = metallic
+    n.inputs["IOR"].default_value = ior
+    if coat is not None:
+        n.inputs["Coat Weight"].default_value = coat[0]
+        n.inputs["Coat Tint"].default_value = (*coat[1], 1.0)
+        n.inputs["Coat IOR"].default_value = coat[2]
+        n.inputs["Coat Roughness"].default_value = coat[3]
     return n.outputs[0]
 
 
@@ -119,6 +126,18 @@ MIX_CASES = {
     "red diffuse+rough white metal 0.3": lambda nd, ln: _mix(
         nd, ln, 0.3, _diffuse(nd, (0.7, 0.1, 0.1)), _principled(nd, (0.9, 0.9, 0.9), 0.5,
                                                                   metallic=1.0)),
+    # The picked side's IOR, not the blend's (mixsides: one IOR 2.75 per material made
+    # the red side's specular layer 5 x too strong and the white side's too weak).
+    "red IOR 1.5+white IOR 4 noise": lambda nd, ln: _noise_mix(
+        nd, ln, _principled(nd, (0.8, 0.1, 0.1), 0.3, ior=1.5),
+        _principled(nd, (0.8, 0.8, 0.8), 0.3, ior=4.0)),
+    # The picked side's coat tint and IOR (a green-tinted coat on red, no coat on blue:
+    # the blend's tint was halfway to white). A rough coat: no sharp highlight of the sun
+    # in view, whose few pixels would decide the mean.
+    "green-coated red+blue 0.5": lambda nd, ln: _mix(
+        nd, ln, 0.5, _principled(nd, (0.8, 0.2, 0.1), 0.4,
+                                 coat=(1.0, (0.3, 0.9, 0.2), 2.0, 0.3)),
+        _principled(nd, (0.1, 0.3, 0.8), 0.4)),
 }
 
 def _render(bpy, scene, path, engine, spp, bounces):
@@ -269,6 +288,80 @@ def test_only_unlike_surfaces_pick_a_closure_per_hit(fresh_scene, bpy_addon):
                                                _glossy(nd, (0.9, 0.9, 0.9), 0.2)))
     assert picks(lambda nd, ln: _noise_mix(nd, ln, _blue_dielectric(nd), _gold_metal(nd)))
     assert picks(MIX_CASES["dielectric+metal 0.5"])
+    # mixsides: one colour, one set of lobe weights, but a parameter the blend holds at
+    # one value per material differs (the IOR, a coat's tint): pick. A Diffuse side's IOR
+    # has no say (the blend takes the glossy side's): no pick.
+    white = (0.8, 0.8, 0.8)
+    assert picks(lambda nd, ln: _noise_mix(nd, ln, _principled(nd, white, 0.3, ior=1.5),
+                                           _principled(nd, white, 0.3, ior=2.4)))
+    assert picks(lambda nd, ln: _noise_mix(
+        nd, ln, _principled(nd, white, 0.3, coat=(1.0, (0.3, 0.9, 0.2), 1.5, 0.1)),
+        _principled(nd, white, 0.3)))
+    assert not picks(lambda nd, ln: _noise_mix(
+        nd, ln, _principled(nd, white, 0.3, coat=(1.0, (1.0, 1.0, 1.0), 1.5, 0.1)),
+        _principled(nd, white, 0.3)))
+    assert not picks(lambda nd, ln: _noise_mix(nd, ln, _diffuse(nd, white),
+                                               _principled(nd, white, 0.3, ior=2.4)))
+
+    def textured_rough(nd, ln):
+        # A side with a texture-driven Roughness: deciding the pick built the sides' blend
+        # without engine nodes and raised AttributeError (before mixsides).
+        side = _blue_dielectric(nd)
+        tex = nd.new("ShaderNodeTexNoise")
+        ln.new(tex.outputs["Fac"], side.node.inputs["Roughness"])
+        return _noise_mix(nd, ln, side, _gold_metal(nd))
+    assert picks(textured_rough)
+
+    def nested(nd, ln):
+        # A picked mix (IOR 1.5 / 2.4, one colour) inside an even mix with a Diffuse of
+        # that colour: the outer blend keeps the picked IOR per hit (the Diffuse has no
+        # IOR to dilute it with) and takes the tints as colours.
+        inner = _noise_mix(nd, ln, _principled(nd, white, 0.3, ior=1.5),
+                           _principled(nd, white, 0.3, ior=2.4))
+        return _mix(nd, ln, 0.5, inner, _diffuse(nd, white))
+    t = convert_material(_material(bpy, "N", nested))
+    assert any(isinstance(n, ClosurePick) for n in _nodes_of(t.scalar_textures["ior"]))
+
+
+def test_a_picked_mix_takes_each_sides_own_parameters(fresh_scene, bpy_addon):
+    """mixsides: the IOR, coat IOR and tints, distribution and anisotropy of a picked mix
+    come from the side each hit takes (they were one blended value per material)."""
+    from blender_helpers import convert_material
+    from engine.geometry import MaterialTable
+    from engine.textures import scalar_params
+    from engine.closures import principled as pr
+    bpy = bpy_addon
+
+    def build(nd, ln):
+        a = _principled(nd, (0.8, 0.1, 0.1), 0.3, ior=1.5,
+                        coat=(1.0, (0.3, 0.9, 0.2), 1.8, 0.1))
+        b = _principled(nd, (0.1, 0.1, 0.8), 0.3, ior=2.4)
+        nb = b.node
+        nb.inputs["Anisotropic"].default_value = 0.7
+        nb.inputs["Anisotropic Rotation"].default_value = 0.25
+        nb.inputs["Specular Tint"].default_value = (0.2, 0.4, 0.9, 1.0)
+        nb.distribution = "GGX"
+        return _mix(nd, ln, 0.5, a, b)
+    m = convert_material(_material(bpy, "M", build))
+    table = MaterialTable.build([m])
+    rng = np.random.default_rng(5)
+    n = 4000
+    prim = rng.integers(0, 2, n)
+    u, v = rng.random(n) * 0.5, rng.random(n) * 0.5
+    rows = scalar_params(table, None, np.zeros(n, np.int64), prim, u, v)
+    b = rows[:, pr.M_COAT_W] == 0  # the hits that took the second (uncoated) side
+    a = ~b
+    assert 0.4 < b.mean() < 0.6
+    expect = {pr.M_IOR: (1.5, 2.4), pr.M_COAT_IOR: (1.8, None), pr.M_MULTI: (1.0, 0.0),
+              pr.M_ANISO: (0.0, 0.7), pr.M_AROT: (None, 0.25)}
+    for col, (xa, xb) in expect.items():
+        if xa is not None:
+            np.testing.assert_allclose(rows[a, col], xa, err_msg=str(col))
+        if xb is not None:
+            np.testing.assert_allclose(rows[b, col], xb, err_msg=str(col))
+    np.testing.assert_allclose(rows[a, pr.M_CTINT:pr.M_CTINT + 3], [[0.3, 0.9, 0.2]] * a.sum())
+    np.testing.assert_allclose(rows[b, pr.M_STINT:pr.M_STINT + 3], [[0.2, 0.4, 0.9]] * b.sum())
+    np.testing.assert_allclose(rows[a, pr.M_STINT:pr.M_STINT + 3], 1.0)
 
 
 @pytest.mark.parametrize("fac", [0.0, 0.5])
@@ -317,3 +410,29 @@ def test_ceiling_lit_by_a_mix_shader_floor_matches_cycles(fresh_scene, bpy_addon
     print(f"ceiling over mix {fac}: ours / Cycles {np.round(got / want, 4)} "
           f"Cycles {np.round(want, 4)}")
     np.testing.assert_allclose(got, want, rtol=0.03)
+
+
+def test_picked_mix_warns_what_stays_one_per_material(fresh_scene, bpy_addon):
+    """mixsides: a picked mix of a Principled and a Glossy BSDF renders both sides with
+    one colour model (the Principled one), and sides with different Normal inputs share
+    one shading normal: both are warned, naming the material and the node; a pick whose
+    sides agree in both warns nothing of the kind."""
+    from blender_helpers import convert_material
+    bpy = bpy_addon
+
+    def models(nd, ln):
+        return _noise_mix(nd, ln, _blue_dielectric(nd), _glossy(nd, (0.9, 0.7, 0.3), 0.2))
+
+    def normals(nd, ln):
+        side = _blue_dielectric(nd)
+        bump = nd.new("ShaderNodeBump")
+        tex = nd.new("ShaderNodeTexNoise")
+        ln.new(tex.outputs["Fac"], bump.inputs["Height"])
+        ln.new(bump.outputs["Normal"], side.node.inputs["Normal"])
+        return _noise_mix(nd, ln, side, _gold_metal(nd))
+    w = convert_material(_material(bpy, "Models", models)).warnings
+    assert any("'Models'" in x and "Mix Shader" in x and "colour models" in x for x in w), w
+    w = convert_material(_material(bpy, "Normals", normals)).warnings
+    assert any("'Normals'" in x and "'Normal' inputs differ" in x for x in w), w
+    w = convert_material(_material(bpy, "Plain", MIX_CASES["dielectric+metal noise"])).warnings
+    assert not any("colour models" in x or "inputs differ" in x for x in w), w
