@@ -627,3 +627,25 @@ def test_report_says_when_clamping_is_on():
             "photon estimates 10 (R + G + B at most 30 per sample)") in text
     text = effects(s.render(dataclasses.replace(base, clamp_direct=2.5)))
     assert "direct light 2.5 (R + G + B at most 7.5 per sample)" in text
+def test_glass_inside_glass_is_named_in_the_specular_line():
+    """s26's trial: a bottle's coloured liquid (glass in glass: no camera ray hits it
+    first) was left out of "through glass 'Bottle'"; the probe rays go on through glass
+    to what lies behind it. A lone inner ball (without the outer one) was always named;
+    an opaque box in front still hides what is behind it."""
+    def scene(outer, blocker=False):
+        s = _room(Material("white_diffuse", (0.8, 0.8, 0.8)))
+        s.add_material(Material("liquid", (0.9, 0.5, 0.1), transmission=1.0, ior=1.33))
+        if outer:
+            s.add_material(Material("clear_glass", (1, 1, 1), transmission=1.0, ior=1.5))
+            s.add_sphere((0.0, 0.3, 0.6), 0.6, "clear_glass", name="Bottle", segments=32)
+        s.add_sphere((0.0, 0.3, 0.6), 0.5, "liquid", name="Liquid", segments=32)
+        if blocker:
+            s.add_material(Material("grey", (0.5, 0.5, 0.5), specular=0.0))
+            s.add_box((0.0, -1.5, 0.6), (2.0, 0.2, 2.0), "grey", name="Screen")
+        return s
+    line = _line(_plan(scene(outer=True)), "specular reflection / refraction: on")
+    assert "glass 'Bottle'" in line and "glass 'Liquid'" in line, line
+    assert "glass 'Liquid'" in _line(_plan(scene(outer=False)),
+                                     "specular reflection / refraction: on")
+    hidden = _plan(scene(outer=True, blocker=True)).report()
+    assert not any("'Liquid'" in x for x in hidden if x.startswith("specular")), hidden

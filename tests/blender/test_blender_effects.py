@@ -111,3 +111,50 @@ def test_the_next_frame_reports_only_new_warnings(open_ground):
     assert [w for w in told if "Toon" in w] == toon_warnings and not repeated
     told, repeated = render(5)  # not the next frame
     assert [w for w in told if "Toon" in w] == toon_warnings and not repeated
+def test_a_moving_animation_prints_its_effect_report_once(open_ground, capsys):
+    """s26's trial: a 2-frame animation of a turning bottle printed the whole report on
+    both frames, as the photons stored (and the search radius) differ a little when
+    anything moves. Lines whose words are unchanged are not printed again."""
+    import bpy
+
+    from addon import engine
+    cheap(open_ground, width=16, height=12, spp=1, photons=2000, caustic_photons=500)
+    engine._printed_effects = []
+    ball = bpy.data.objects["Ball"]
+    start = ball.location.copy()
+    try:
+        bpy.ops.render.render()
+        first_report = engine.last_render["stats"]["effects"]
+        capsys.readouterr()
+        ball.location.x += 0.7  # the ball moves: other photon counts, the same effects
+        bpy.ops.render.render()
+        second = capsys.readouterr().out
+    finally:
+        ball.location = start
+    report = engine.last_render["stats"]["effects"]
+    assert report != first_report  # the numbers moved (else the s23 test covers it)
+    printed = [x for x in second.splitlines() if x.startswith("Photon Mapping: ")]
+    assert printed[0].startswith("Photon Mapping: effects as the previous render"), second
+    words = engine._NUMBER.sub
+    same = [line for line, old in zip(report, first_report)
+            if words("#", line) == words("#", old)]
+    assert len(same) >= len(report) - 1, (report, first_report)  # the photon maps line at most
+    assert not any(x.endswith(line) for x in printed for line in same), second
+    changed = [line for line in report if line not in same]
+    assert printed[1:len(changed) + 1] == [f"Photon Mapping: {x}" for x in changed], second
+
+
+def test_a_changed_effect_line_is_printed_after_the_unchanged_ones():
+    """Only lines whose words changed are printed again; all changed (or another number of
+    lines): the whole report."""
+    from addon.engine import effect_lines_to_print
+    before = ["caustics: off - nothing focuses light", "photon maps: on - 1,200 photons"]
+    moved = ["caustics: off - nothing focuses light", "photon maps: on - 1,250 photons"]
+    assert effect_lines_to_print(moved, before) == ["effects as the previous render"]
+    switched = ["caustics: on - 500 photons aimed at 'Glass'", "photon maps: on - 1,250 photons"]
+    assert effect_lines_to_print(switched, before) == [
+        "effects as the previous render, except:", "caustics: on - 500 photons aimed at 'Glass'"]
+    assert effect_lines_to_print(before, []) == before
+    assert effect_lines_to_print(before[:1], before) == before[:1]
+    other = ["caustics: on - 9 photons", "photon maps: off - no lights"]
+    assert effect_lines_to_print(other, before) == other
