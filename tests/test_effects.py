@@ -627,6 +627,8 @@ def test_report_says_when_clamping_is_on():
             "photon estimates 10 (R + G + B at most 30 per sample)") in text
     text = effects(s.render(dataclasses.replace(base, clamp_direct=2.5)))
     assert "direct light 2.5 (R + G + B at most 7.5 per sample)" in text
+
+
 def test_glass_inside_glass_is_named_in_the_specular_line():
     """s26's trial: a bottle's coloured liquid (glass in glass: no camera ray hits it
     first) was left out of "through glass 'Bottle'"; the probe rays go on through glass

@@ -111,6 +111,8 @@ def test_the_next_frame_reports_only_new_warnings(open_ground):
     assert [w for w in told if "Toon" in w] == toon_warnings and not repeated
     told, repeated = render(5)  # not the next frame
     assert [w for w in told if "Toon" in w] == toon_warnings and not repeated
+
+
 def test_a_moving_animation_prints_its_effect_report_once(open_ground, capsys):
     """s26's trial: a 2-frame animation of a turning bottle printed the whole report on
     both frames, as the photons stored (and the search radius) differ a little when
