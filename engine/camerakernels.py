@@ -208,12 +208,25 @@ def _view_cosine(ns, wo, i):
 
 
 @kernel
+def keeps_shading_normal(params, r):
+    """Material row r's lobes all stay on the shading normal (no glossy normal raise):
+    rough glass. Cycles raises its glass closure's normal too
+    (maybe_ensure_valid_specular_reflection: the Principled transmission lobe and the Glass
+    BSDF take valid_reflection_N); smooth glass follows it here (a smooth-shaded bottle's
+    rim, whose interpolated normal faces away from the camera, refracts about the raised
+    normal instead of absorbing the ray: s26's new-user trial), rough glass keeps ns until
+    the raise's effect on its albedo is matched (docs/textures.md)."""
+    rough = params[r, pr.M_ROUGH]
+    return params[r, pr.M_TRANS] > 0 and rough * rough >= ggx.ALPHA_MIN
+
+
+@kernel
 def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha,
                  prm, albedo):
     """The lobes of N hits (bsdf.closures), in one pass: the view cosine ns . wo, Cycles'
-    glossy normal (principled.glossy_normals; not for glass, which keeps ns and its view
-    cosine, docs/textures.md), the closures' set-up (principled.setup) and the glossy
-    normal packed into prm's P_GN columns.
+    glossy normal (principled.glossy_normals; not for rough glass, which keeps ns and its
+    view cosine: keeps_shading_normal), the closures' set-up (principled.setup) and the
+    glossy normal packed into prm's P_GN columns.
 
     ns, ng, wo (N,3) float64; mat (N,) material index; params (M, N_MAT) the materials'
     closure rows, or (N, N_MAT) one row per hit when per_hit (texture-driven scalar
@@ -233,7 +246,7 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
     for i in range(n):
         r = i if per_hit else mat[i]
         rows[i] = r
-        if params[r, pr.M_TRANS] > 0:
+        if keeps_shading_normal(params, r):
             local[i, 0], local[i, 1], local[i, 2] = 0.0, 0.0, 0.0
             cos_o[i] = _view_cosine(ns, wo, i)
         alpha[i] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
@@ -316,7 +329,7 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
         at[j] = i
         rows_c[j] = r
         cos = _view_cosine(ns, wo, i)
-        if not params[r, pr.M_TRANS] > 0:  # glass keeps ns (hit_closures)
+        if not keeps_shading_normal(params, r):  # rough glass keeps ns (hit_closures)
             raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
             if raised:
                 local_c[j, 0], local_c[j, 1], local_c[j, 2], cos = g0, g1, g2, c
@@ -699,7 +712,9 @@ def glass_both(prm, i, ox, oy, oz, u1, u2):
     a2 = alpha * alpha
     lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
     rx, ry, rz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
-    if rz <= 0.0:
+    # The side checks against the lobe's normal: ns (z) on rough glass, the (raised)
+    # normal h itself on smooth glass (Cycles' cos_NO; the geometric side: _ray_weight).
+    if (rz if rough else rx * hx + ry * hy + rz * hz) <= 0.0:
         r0 = r1 = r2 = 0.0
     elif rough:
         g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(rz, a2))
@@ -711,7 +726,7 @@ def glass_both(prm, i, ox, oy, oz, u1, u2):
     ct = math.sqrt(1.0 - s2)
     kk = inv_eta * c - ct
     tx, ty, tz = -inv_eta * ox + kk * hx, -inv_eta * oy + kk * hy, -inv_eta * oz + kk * hz
-    if tz >= 0.0:
+    if (tz if rough else tx * hx + ty * hy + tz * hz) >= 0.0:
         t0 = t1 = t2 = 0.0
     elif rough and abs(eta - 1.0) >= 1e-4:
         g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(-tz, a2))

@@ -881,6 +881,10 @@ def glass_microfacet(prm, i, ox, oy, oz, u1, u2):
     rough = alpha >= ggx.ALPHA_MIN
     if rough:
         hx, hy, hz = ggx.sample_vndf(ox, oy, oz, alpha, u1, u2)
+    elif prm[i, P_GN] != 0.0 or prm[i, P_GN + 1] != 0.0 or prm[i, P_GN + 2] != 0.0:
+        # Smooth glass on a raised normal (glossy_normals; camerakernels.
+        # keeps_shading_normal): the mirror and the refraction about it, as Cycles'.
+        hx, hy, hz = prm[i, P_GN], prm[i, P_GN + 1], prm[i, P_GN + 2]
     else:
         hx, hy, hz = 0.0, 0.0, 1.0
     c = ox * hx + oy * hy + oz * hz
@@ -922,7 +926,8 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
     lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
     if u3 < p_r:
         ix, iy, iz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
-        if iz <= 0.0:
+        # (Against the lobe's normal: ns on rough glass, the raised h on smooth.)
+        if (iz if rough else ix * hx + iy * hy + iz * hz) <= 0.0:
             return ix, iy, iz, 0.0, 0.0, 0.0, False
         g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(iz, a2)) if rough else 1.0
         k = g / p_r
@@ -930,7 +935,7 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
     ct = math.sqrt(1.0 - s2)
     kk = inv_eta * c - ct
     ix, iy, iz = -inv_eta * ox + kk * hx, -inv_eta * oy + kk * hy, -inv_eta * oz + kk * hz
-    if iz >= 0.0:
+    if (iz if rough else ix * hx + iy * hy + iz * hz) >= 0.0:
         return ix, iy, iz, 0.0, 0.0, 0.0, True
     g = 1.0
     if rough and abs(eta - 1.0) >= 1e-4:
