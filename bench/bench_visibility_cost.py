@@ -133,7 +133,7 @@ def main(argv=None):
     for name, off, on, split in rows:
         first = True
         for label in sorted(split):
-            s = split[label]
+            s = defaultdict(float, split[label])
             head = (f"| {name} | {off:.2f} | {on:.2f} | {100 * (on / off - 1):+.1f} % "
                     if first else "| | | | ")
             vis = s["total"] - s["estimate"]

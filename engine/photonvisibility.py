@@ -23,10 +23,11 @@ chord's midpoint, its ends lifted by rounding bounds only, so that neither end i
 across a nearby surface (a ball's underside above its floor) and the chord does not hide
 the surface's own photons.
 
-The candidates are the estimate's own: the k nearest photons within the search radius
-that photonmap._accepted takes (widening, as the estimate does, up to MAX_WIDEN_K nearest
-to find k), or, for a row whose footprint floor r_floor exceeds the k-th distance, the
-accepted photons within r_floor (up to FLOOR_CAP x k of them).
+The photons traced are the ones the estimate read, handed back by its own search
+(PhotonMap.knn_irradiance's read lists: the accepted photons inside its disc rk, the only
+ones whose power its sum weighs, whatever the row's kind: k-NN, widened, floored by a
+footprint or MIN_RADIUS_FRACTION, or a fixed-radius estimator), so no row is searched
+twice (docs/performance.md "visreuse"; a second k-NN search a row was most of the cost).
 """
 from __future__ import annotations
 
