@@ -114,3 +114,29 @@ def test_curved_pairs_reads_give_the_old_hidden_pairs():
     print(f"ball: {len(pairs)} hidden pairs, {len({r for r, _ in pairs})} rows, "
           f"{differ} rows read fewer than the old candidates")
     assert len(pairs) > 100   # the wall hides what is across it
+
+
+def test_cut_read_lists_are_read_again_whole(monkeypatch):
+    """Rows whose read list is longer than the list's width (READ_WIDTH x k) are read
+    again as wide as they need: with a one-photon list every row is, and the estimates
+    and hidden pairs are those of the full lists, with and without a footprint floor."""
+    from engine import photonvisibility
+    ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
+    pmap = PhotonMap(shoot_photons(ctx, {})[-1])
+    rng = np.random.default_rng(13)
+    p = np.column_stack([rng.uniform(-0.6, 0.6, 200), np.full(200, 2.0),
+                         rng.uniform(1.0, 2.1, 200)]) - ctx.geo.offset
+    n = np.tile([0.0, -1.0, 0.0], (200, 1))
+    for r_floor in (None, rng.uniform(0.0, 0.3, 200)):
+        want = photonvisibility.visible_irradiance(pmap, ctx.accel, p, n, None, 0.19, 64, 1,
+                                                   "knn_simpson", r_floor=r_floor)
+        pairs = hidden_photons(pmap, ctx.accel, p, n, None, 0.19, 64, r_floor)
+        with monkeypatch.context() as m:
+            m.setattr(photonvisibility, "READ_WIDTH", 0)
+            got = photonvisibility.visible_irradiance(pmap, ctx.accel, p, n, None, 0.19, 64,
+                                                      1, "knn_simpson", r_floor=r_floor)
+            cut = hidden_photons(pmap, ctx.accel, p, n, None, 0.19, 64, r_floor)
+        assert len(pairs[0]) > 100
+        assert np.array_equal(got, want)
+        for a, b in zip(pairs, cut):
+            assert np.array_equal(a, b)
