@@ -1,7 +1,7 @@
 """Photon visibility's hidden-pair census: a blend (the film_hashes export) rendered with
 integrator.PHOTON_VISIBILITY on, default settings, one worker, at --size, with
-photonvisibility.hidden_photons wrapped to count the estimate rows it is given, the rows
-that hide a photon and the hidden (row, photon) pairs. Prints one line per blend.
+photonvisibility._estimate_hidden (the estimate and its hidden pairs) wrapped to count the
+estimate rows it is given, the rows that hide a photon and the hidden (row, photon) pairs. Prints one line per blend.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_hidden_pairs.py \
         [--blends figure3_sphere,figure7_blocker] [--size 160x120]
@@ -36,16 +36,16 @@ def main(argv=None):
     os.makedirs(where, exist_ok=True)
     ensure_compiled()
     count = dict(rows=0, pairs=0, hiding=0)
-    hidden = photonvisibility.hidden_photons
+    hidden = photonvisibility._estimate_hidden
 
     def wrapped(pmap, accel, p, *a, **kw):
-        rows, photons = hidden(pmap, accel, p, *a, **kw)
+        E, rows, photons = hidden(pmap, accel, p, *a, **kw)
         count["rows"] += len(p)
         count["pairs"] += len(rows)
         count["hiding"] += len(np.unique(rows))
-        return rows, photons
+        return E, rows, photons
 
-    photonvisibility.hidden_photons = wrapped
+    photonvisibility._estimate_hidden = wrapped
     integrator.PHOTON_VISIBILITY = True
     for name in args.blends.split(","):
         with open(exported(name, where), "rb") as f:

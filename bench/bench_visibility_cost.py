@@ -1,10 +1,14 @@
 """What photon visibility (engine/photonvisibility.py) costs: Figures 6/7/8 (the film_hashes
 exports) at 320x240 and default settings, one worker, one process, with
 integrator.PHOTON_VISIBILITY off / on interleaved; CPU s by time.process_time (min over
---repeat), the on run's visibility time split by map (caustic / secondary / global) into
-finding the hidden photons (photonvisibility.hidden_photons: candidates, rays) and the
-re-estimate of the rows that have one, with the rows, the rows traced and the rows that
-hide a photon and the hidden (row, photon) pairs. Prints a table.
+--repeat), the on run's visibility time split by map (caustic / secondary / global):
+photonvisibility.visible_irradiance's time ("total", which holds the estimate itself: one
+search a row for the estimate and its rays since visreuse), the estimate with its read
+lists (_estimate_read; the rows whose lists were cut are read again in it), finding the
+hidden photons (the pre-test and the rays: the rest but the re-estimate) and the
+re-estimate of the rows that have one (_reestimate), with the rows, the rows read again
+wider, the rows that hide a photon and the hidden (row, photon) pairs. "visibility s" is
+total - estimate: what visibility adds to the render. Prints a table.
 
     NUMBA_CACHE_DIR=... PYTHONPATH=$PWD .venv/bin/python bench/bench_visibility_cost.py \
         [--size 320x240] [--repeat 1] [--blends figure6_box,figure7_blocker,figure8_caustic]
@@ -49,28 +53,44 @@ def _map_label(pmap):
 
 
 def instrument():
-    """Wrap photonvisibility's entry points to time them by map (process CPU time)."""
-    vis, hid = photonvisibility.visible_irradiance, photonvisibility.hidden_photons
+    """Wrap photonvisibility's stages to time them by map (process CPU time)."""
+    vis = photonvisibility.visible_irradiance
+    est, hid, re = (photonvisibility._estimate_read, photonvisibility._estimate_hidden,
+                    photonvisibility._reestimate)
 
-    def visible_irradiance(E, pmap, accel, p, *a, **kw):
+    def visible_irradiance(pmap, accel, p, *a, **kw):
         _label[0] = label = _map_label(pmap)
         c0 = time.process_time()
-        out = vis(E, pmap, accel, p, *a, **kw)
+        out = vis(pmap, accel, p, *a, **kw)
         STATS[label]["total"] += time.process_time() - c0
         STATS[label]["rows"] += len(p)
         return out
 
-    def hidden_photons(pmap, accel, p, *a, **kw):
+    def _estimate_read(*a, **kw):
         c0 = time.process_time()
-        rows, photons = hid(pmap, accel, p, *a, **kw)
+        out = est(*a, **kw)
         s = STATS[_label[0]]
-        s["hidden"] += time.process_time() - c0
+        s["estimate"] += time.process_time() - c0
+        s["wide rows"] += len(out[3][0])
+        return out
+
+    def _estimate_hidden(*a, **kw):
+        E, rows, photons = hid(*a, **kw)
+        s = STATS[_label[0]]
         s["hiding rows"] += len(np.unique(rows))
         s["pairs"] += len(rows)
-        return rows, photons
+        return E, rows, photons
+
+    def _reestimate(*a, **kw):
+        c0 = time.process_time()
+        out = re(*a, **kw)
+        STATS[_label[0]]["re-estimate"] += time.process_time() - c0
+        return out
 
     photonvisibility.visible_irradiance = visible_irradiance
-    photonvisibility.hidden_photons = hidden_photons
+    photonvisibility._estimate_read = _estimate_read
+    photonvisibility._estimate_hidden = _estimate_hidden
+    photonvisibility._reestimate = _reestimate
 
 
 def main(argv=None):
@@ -107,17 +127,19 @@ def main(argv=None):
     integrator.PHOTON_VISIBILITY = True
     print(f"\n{width}x{height}, default settings, 1 worker, min of {args.repeat}; "
           "CPU s (time.process_time)\n")
-    print("| blend | off | on | cost | map | visibility s | hidden_photons s | "
-          "re-estimate s | rows | rows hiding a photon | hidden pairs |")
-    print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|")
+    print("| blend | off | on | cost | map | estimate s | visibility s | hidden s | "
+          "re-estimate s | rows | rows read again | rows hiding a photon | hidden pairs |")
+    print("|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name, off, on, split in rows:
         first = True
         for label in sorted(split):
-            s = split[label]
+            s = defaultdict(float, split[label])
             head = (f"| {name} | {off:.2f} | {on:.2f} | {100 * (on / off - 1):+.1f} % "
                     if first else "| | | | ")
-            print(f"{head}| {label} | {s['total']:.2f} | {s['hidden']:.2f} | "
-                  f"{s['total'] - s['hidden']:.2f} | {int(s['rows'])} | "
+            vis = s["total"] - s["estimate"]
+            print(f"{head}| {label} | {s['estimate']:.2f} | {vis:.2f} | "
+                  f"{vis - s['re-estimate']:.2f} | {s['re-estimate']:.2f} | "
+                  f"{int(s['rows'])} | {int(s['wide rows'])} | "
                   f"{int(s['hiding rows'])} | {int(s['pairs'])} |")
             first = False
 

@@ -953,14 +953,17 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None):
         counts = (None if extra is None else
                   chaincounts.camera_counts(extra[rows], (bounces, bounces, 0, 0)))
         radius = ctx.secondary_radius or ctx.global_radius
-        E = chaincounts.irradiance(pmap, s.bounce_limits, counts, hit.p[rows], hit.ng[rows],
-                                   radius, s.k_nearest, smooth_min_photons(s), s.estimator)
         if PHOTON_VISIBILITY:
+            # (One search a row for the estimate and its visibility rays.)
             E = photonvisibility.visible_irradiance(
-                E, pmap, getattr(ctx, "accel", None), hit.p[rows], hit.ng[rows],
+                pmap, getattr(ctx, "accel", None), hit.p[rows], hit.ng[rows],
                 None if getattr(hit, "offset", None) is None else hit.offset[rows], radius,
                 s.k_nearest, smooth_min_photons(s), s.estimator, limits=s.bounce_limits,
                 counts=counts, geo=getattr(ctx, "geo", None))
+        else:
+            E = chaincounts.irradiance(pmap, s.bounce_limits, counts, hit.p[rows],
+                                       hit.ng[rows], radius, s.k_nearest,
+                                       smooth_min_photons(s), s.estimator)
         out[rows] = E / SECONDARY_REGATHER_FRACTION
     return out
 
@@ -1161,22 +1164,24 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
         weight = smooth_sample_weight(s.spp, stride) if not block else \
             np.minimum(stride, block - sample_id[sel]).astype(np.float64)[:, None]
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
-    E = chaincounts.irradiance(pmap, s.bounce_limits,
-                               None if counts is None else np.take(counts, sel, axis=0),
-                               np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0),
-                               radius, s.k_nearest, smooth_min_photons(s), s.estimator,
-                               r_floor=None if footprint is None else np.take(footprint, sel))
     if PHOTON_VISIBILITY:
-        # Only the photons each point can see (issue 14: a lamp shade piercing a wall).
+        # Only the photons each point can see (issue 14: a lamp shade piercing a wall);
+        # one search a row for the estimate and its visibility rays.
         off = getattr(hit, "offset", None)
         E = photonvisibility.visible_irradiance(
-            E, pmap, getattr(ctx, "accel", None), np.take(hit.p, sel, axis=0),
+            pmap, getattr(ctx, "accel", None), np.take(hit.p, sel, axis=0),
             np.take(hit.ng, sel, axis=0), None if off is None else np.take(off, sel), radius,
             s.k_nearest, smooth_min_photons(s), s.estimator,
             r_floor=None if footprint is None else np.take(footprint, sel),
             limits=s.bounce_limits,
             counts=None if counts is None else np.take(counts, sel, axis=0),
             geo=getattr(ctx, "geo", None))
+    else:
+        E = chaincounts.irradiance(
+            pmap, s.bounce_limits, None if counts is None else np.take(counts, sel, axis=0),
+            np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0), radius, s.k_nearest,
+            smooth_min_photons(s), s.estimator,
+            r_floor=None if footprint is None else np.take(footprint, sel))
     if clamp_tp is not None:
         # (Per sample, before the weight: each of the block's samples held to the limit.
         # Nothing over it: the unclamped sum below, bit for bit.)
@@ -1286,14 +1291,16 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
                          hit, f, sample_id, footprint, SECONDARY_SAMPLES_PER_PIXEL,
                          into=indirect, counts=extra, clamp_tp=clamp_tp)
     elif ctx.global_map is not None and len(ctx.global_map):
-        E = chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra, hit.p, hit.ng,
-                                   ctx.global_radius, s.k_nearest, s.min_photons, s.estimator)
         if PHOTON_VISIBILITY:
             E = photonvisibility.visible_irradiance(
-                E, ctx.global_map, getattr(ctx, "accel", None), hit.p, hit.ng,
+                ctx.global_map, getattr(ctx, "accel", None), hit.p, hit.ng,
                 getattr(hit, "offset", None), ctx.global_radius, s.k_nearest, s.min_photons,
                 s.estimator, limits=s.bounce_limits, counts=extra,
                 geo=getattr(ctx, "geo", None))
+        else:
+            E = chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra, hit.p, hit.ng,
+                                       ctx.global_radius, s.k_nearest, s.min_photons,
+                                       s.estimator)
         indirect = f * E
         if clamp_tp is not None:
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])

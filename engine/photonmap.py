@@ -179,11 +179,12 @@ class PhotonMap:
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                    min_photons: int, estimator: str, return_boundary: bool = False,
                    r_floor: np.ndarray | None = None, should_cancel=None,
-                   masks: np.ndarray | None = None, hidden=None):
+                   masks: np.ndarray | None = None, hidden=None, read=None):
         """knn_irradiance's answer; with self.lookup == "precomputed" (a kd-tree map, k-NN
-        estimators, no masks) through engine/causticcache.py's estimates at the photons
-        (the k-NN rows where those cannot answer)."""
+        estimators, no masks, no read lists) through engine/causticcache.py's estimates
+        at the photons (the k-NN rows where those cannot answer)."""
         if (getattr(self, "lookup", "knn") == "precomputed" and masks is None
+                and read is None
                 and self.tree is not None and self.structure == "kdtree"
                 and estimator in ("knn_simpson", "knn_cone")
                 and len(p) and radius > 0 and len(self.photons) >= min_photons):
@@ -191,12 +192,12 @@ class PhotonMap:
             return causticcache.lookup(self, p, n, radius, k, min_photons, estimator,
                                        return_boundary, r_floor, should_cancel)
         return self.knn_irradiance(p, n, radius, k, min_photons, estimator, return_boundary,
-                                   r_floor, should_cancel, masks, hidden)
+                                   r_floor, should_cancel, masks, hidden, read)
 
     def knn_irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                        min_photons: int, estimator: str, return_boundary: bool = False,
                        r_floor: np.ndarray | None = None, should_cancel=None,
-                       masks: np.ndarray | None = None, hidden=None):
+                       masks: np.ndarray | None = None, hidden=None, read=None):
         """Irradiance estimate E (W/m^2, (M,3) float64) at points p (M,3) with unit normals
         n (M,3) facing the viewer.
         return_boundary: also return, per point, whether the estimate's disc is not whole:
@@ -213,6 +214,13 @@ class PhotonMap:
         photons[starts[i]:starts[i+1]] (ascending) are left out of every mask for row i
         alone (engine/photonvisibility.py: the photons a row cannot see), the bits of
         one call a row with those photons cleared in its masks, in one call.
+        read: (count (M,) int64, photons (M, W) int64), filled with each row's read
+        photons: the accepted photons inside its estimate's disc (distance <= rk, the
+        k-NN radius or the search radius), in the order the sum reads them, which are
+        all the photons whose power the estimate can weigh (the others' weight is 0):
+        count[i] of them, the first min(count[i], W) into photons[i] (count[i] > W: the
+        list is cut; ask again with a wider W); count[i] = 0 for a row without an
+        estimate (fewer than min_photons). engine/photonvisibility.py traces these.
 
         Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K and
         SCAN_BUDGET entries; a widening row whose sphere holds more than MAX_WIDEN_K
@@ -246,6 +254,16 @@ class PhotonMap:
             if hid_start.shape != (m + 1,):
                 raise ValueError(f"irradiance: hidden starts must have shape ({m + 1},), "
                                  f"got {hid_start.shape}")
+        if read is None:
+            read_count, read_photon = _NO_READ
+        else:
+            read_count, read_photon = read
+            if (read_count.shape != (m,) or read_photon.ndim != 2
+                    or read_photon.shape[0] != m or read_count.dtype != np.int64
+                    or read_photon.dtype != np.int64 or not read_photon.flags.c_contiguous):
+                raise ValueError(f"irradiance: read must be int64 arrays of shapes ({m},) "
+                                 f"and ({m}, W), C-contiguous")
+            read_count[:] = 0
         if self.tree is None or m == 0 or radius <= 0 or len(self.photons) < min_photons:
             return result
         p = np.ascontiguousarray(p, dtype=np.float64)
@@ -268,7 +286,7 @@ class PhotonMap:
             _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
                              p, n, floor, order[a:b], float(radius), int(k), int(min_photons),
                              code, bool(return_boundary), out, boundary, flag, masks, masked,
-                             hid_start, hid_photon)
+                             hid_start, hid_photon, read_count, read_photon)
             if flag[0]:
                 raise Cancelled()
             return None
@@ -282,6 +300,7 @@ _NO_NODES = (np.zeros(0, np.uint8), np.zeros(0, np.float32), np.zeros(1, np.int6
 _NO_MASKS = np.zeros((0, 0), np.bool_)
 _NO_MASKED = np.zeros((0, 0, 3))
 _NO_HIDDEN = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+_NO_READ = (np.zeros(0, np.int64), np.zeros((0, 0), np.int64))
 _NO_START = np.zeros(1, np.int32)
 
 
@@ -484,7 +503,7 @@ def _list_candidates(cand, cx, cy, cz, nc, qx, qy, qz, r2, d2, idx, cap, tmp):
 @kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
                      rows, radius, k, min_photons, code, want_boundary, out, boundary, stop,
-                     masks, masked, hid_start, hid_photon):
+                     masks, masked, hid_start, hid_photon, read_count, read_photon):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
     r_floor, if not empty) into the same rows of out (E) and boundary. Scratch:
     MAX_WIDEN_K (or k) neighbours, reused by every row. stop: (1,) uint8, polled every
@@ -494,9 +513,14 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     0; the same neighbours, disc and terms in the same order as an estimate whose power
     array zeroes them: the same bits). S = 0: none. hid_start (M+1,) / hid_photon (H,)
     int64, or hid_start empty: row i's masks also leave out the photons
-    hid_photon[hid_start[i]:hid_start[i+1]] (ascending; found by bisection)."""
+    hid_photon[hid_start[i]:hid_start[i+1]] (ascending; found by bisection).
+    read_count (M,) / read_photon (M, W) int64, or read_count empty: row i's read photons
+    (the accepted ones inside rk, in the sum's order: PhotonMap.knn_irradiance's read)
+    into read_photon[i, :W], their number into read_count[i] (0 without an estimate)."""
     P = pos.shape[0]
     S = masks.shape[0]
+    rec = read_count.shape[0] > 0
+    W = read_photon.shape[1]
     ms = np.zeros((S, 6))  # per mask: e0, e1, e2, a0, a1, a2 of the row
     cap = max(min(max(k, MAX_WIDEN_K, MAX_CLASSIC_K), P), 1)
     d2 = np.empty(cap, np.float64)
@@ -560,6 +584,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             for c in range(6):
                 ms[s, c] = 0.0
         boundary[i] = True
+        if rec:
+            read_count[i] = 0
         scale = 1.0
         r_simpson = radius  # the radius estimator's kernel support
         only_accepted = False  # d2 / idx hold the listed sphere's accepted photons alone
@@ -865,6 +891,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     ms[s, 2] += w * np.float64(power[pj, 2])
             if not inside:
                 continue  # accepted photons beyond the k-th do not count towards the minimum
+            if rec and count < W:
+                read_photon[i, count] = pj
             count += 1
             a0 += np.float64(power[pj, 0])
             a1 += np.float64(power[pj, 1])
@@ -887,6 +915,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             for s in range(S):
                 for c in range(3):
                     ms[s, c] = f * ms[s, 3 + c]
+        if rec:
+            read_count[i] = count if count >= min_photons else 0
         if count >= min_photons:
             out[i, 0] = e0 * scale
             out[i, 1] = e1 * scale

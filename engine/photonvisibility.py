@@ -23,10 +23,11 @@ chord's midpoint, its ends lifted by rounding bounds only, so that neither end i
 across a nearby surface (a ball's underside above its floor) and the chord does not hide
 the surface's own photons.
 
-The candidates are the estimate's own: the k nearest photons within the search radius
-that photonmap._accepted takes (widening, as the estimate does, up to MAX_WIDEN_K nearest
-to find k), or, for a row whose footprint floor r_floor exceeds the k-th distance, the
-accepted photons within r_floor (up to FLOOR_CAP x k of them).
+The photons traced are the ones the estimate read, handed back by its own search
+(PhotonMap.knn_irradiance's read lists: the accepted photons inside its disc rk, the only
+ones whose power its sum weighs, whatever the row's kind: k-NN, widened, floored by a
+footprint or MIN_RADIUS_FRACTION, or a fixed-radius estimator), so no row is searched
+twice (docs/performance.md "visreuse"; a second k-NN search a row was most of the cost).
 """
 from __future__ import annotations
 
@@ -37,9 +38,7 @@ import numpy as np
 
 from . import chaincounts
 from .jit import kernel, register_warm_up
-from .photonmap import (HASHGRID, MAX_WIDEN_K, _accepted, _ball, _knn, _query_lift,
-                        _ray_ends)
-from . import hashgrid
+from .photonmap import _query_lift, _ray_ends
 from .rayoffset import G32_PLANE, ulp32_scalar
 
 # Rows per block of visibility rays (bounds the ray arrays: BLOCK_ROWS x cap rays).
@@ -228,60 +227,42 @@ def one_surface_cells(geo, cell: float) -> OneSurfaceCells:
         if got is None:
             got = cache[float(cell)] = OneSurfaceCells(geo, cell)
     return got
-# A floored (focus) disc takes at most this many times k candidates.
-FLOOR_CAP = 4
+
+
+# Rows per estimate call of the visibility path: bounds the read lists (READ_ROWS x
+# READ_WIDTH x k photon ids, 16 MB at k = 64; twice photonmap.BLOCK_ROWS, so that a map
+# shared by worker threads still splits a call among them) and the rays of a block
+# (BLOCK_ROWS rows).
+READ_ROWS = 16384
+# A row's read list holds up to this many times k photons; a row that reads more (a
+# footprint floor or MIN_RADIUS_FRACTION wider than its k-th photon) is read again with
+# a list as wide as it needs (a second search for those rows alone).
+READ_WIDTH = 2
 # _bent_path's margin beyond the lift a convex surface needs, in chord |n - m| / 4
 # (photonmap._ray_ends' bend): room for rounding and for meshes only nearly convex.
 BEND_MARGIN = 0.25
 
 
 @kernel
-def _candidate_rays(kind, pos, nodes, start, grid, direction, normal, p, n, lift, floor,
-                    rows, r2, k, kmax, cap, buckets, d2, idx, o32, d32, t32, ray_row,
-                    ray_photon):
+def _read_rays(pos, normal, p, n, lift, rows, slots, count, photons, o32, d32, t32,
+               ray_row, ray_photon):
     """Visibility rays from the rows `rows` of p (M,3) / n (M,3) (unit normals facing the
-    viewer; lift (M,) or empty: their own offsets) to their estimate's candidate photons
-    (module docstring), accepted by photonmap._accepted, in Embree's float32 layout:
-    o32, d32 (R,3), t32 (R,); ray_row[j] the row, ray_photon[j] the photon (map order).
-    A candidate with the row's normal gets one ray (photonmap._ray_ends), one with
-    another normal (a curved surface) the two segments of _bent_path, adjacent, both
-    with its row and photon: it is hidden when either is blocked. floor: (M,) footprint
-    radii or empty; at most cap candidates a row (cap >= k; R <= 2 cap a row); d2, idx:
-    scratch of max(kmax, cap) + 1. Returns the number of rays."""
+    viewer; lift (M,) or empty: their own offsets) to the photons their estimate read:
+    row rows[r]'s are photons[slots[r], :count[slots[r]]] (PhotonMap.knn_irradiance's
+    read lists), in Embree's float32 layout o32, d32 (R,3), t32 (R,); ray_row[j] the row,
+    ray_photon[j] the photon (map order). A photon with the row's normal gets one ray
+    (photonmap._ray_ends), one with another normal (a curved surface) the two segments
+    of _bent_path, adjacent, both with its row and photon: it is hidden when either is
+    blocked. R <= 2 x the rows' photons. Returns the number of rays."""
     m = 0
     for r in range(rows.shape[0]):
         i = rows[r]
+        s = slots[r]
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
-        n32x, n32y, n32z = np.float32(nx), np.float32(ny), np.float32(nz)
-        # As the estimate, widen until k of the nearest are accepted (or kmax photons).
-        kq = k
-        while True:
-            cnt = _knn(kind, pos, nodes, start, grid, qx, qy, qz, kq, r2, d2, idx, buckets)
-            if cnt < kq or kq >= kmax:
-                break
-            acc = 0
-            for jj in range(cnt):
-                if _accepted(direction, normal, idx[jj], n32x, n32y, n32z)[0]:
-                    acc += 1
-            if acc >= k:
-                break
-            kq = min(2 * kq, kmax)
-        limit = k
-        if floor.shape[0] and cnt > 0 and floor[i] * floor[i] > d2[cnt - 1]:
-            got = _ball(kind, pos, nodes, start, grid, qx, qy, qz, floor[i] * floor[i], idx,
-                        cap, buckets)
-            cnt = min(got, cap)
-            limit = cap
         la = _query_lift(lift, i, qx, qy, qz)
-        taken = 0
-        for jj in range(cnt):
-            j = idx[jj]
-            if taken == limit:
-                break
-            if not _accepted(direction, normal, j, n32x, n32y, n32z)[0]:
-                continue
-            taken += 1
+        for jj in range(count[s]):
+            j = photons[s, jj]
             bx, by, bz = np.float64(pos[j, 0]), np.float64(pos[j, 1]), np.float64(pos[j, 2])
             mx, my, mz = (np.float64(normal[j, 0]), np.float64(normal[j, 1]),
                           np.float64(normal[j, 2]))
@@ -362,49 +343,59 @@ def _bent_path(qx, qy, qz, nx, ny, nz, la, bx, by, bz, mx, my, mz):
             by + lb * my, bz + lb * mz)
 
 
-def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None):
-    """(rows (H,) int64, photons (H,) int64): the pairs (query row, map photon) whose
-    visibility ray is blocked, over the candidates of the estimate at p (M,3) with unit
-    normals n (M,3) facing the viewer; lift (M,) their ray offsets (SurfaceHit.offset) or
-    None; radius, k: the estimate's; r_floor: (M,) or None, its footprint floor; geo: the
-    scene's Geometry, for the pre-test (OneSurfaceCells: rows with no other surface near
-    are not traced; None: every row is). Sorted by row."""
+
+
+def _estimate_read(pmap, limits, counts, p, n, radius, k, min_photons, estimator, r_floor):
+    """(E (M,3), count (M,) int64, photons (M, W) int64): chaincounts.irradiance's
+    estimate at p / n (counts (M,4) or None) and each row's read photons
+    (PhotonMap.knn_irradiance's read: count[i] of them in photons[i, :count[i]]). The
+    list is READ_WIDTH x k wide; rows that read more are read again as wide as they need
+    (the same search: the same photons). A map with the precomputed caustic lookup
+    (engine/causticcache.py, which has no search at the query) keeps its estimate, its
+    read lists from the k-NN estimate the masked re-estimate takes.
+    Also (wide (V,) int64, wide_count (V,), wide_photons (V, W')): the rows whose lists
+    were cut, read again whole (W' their longest list)."""
     m = len(p)
-    none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
-    if pmap is None or pmap.tree is None or m == 0 or radius <= 0 or accel is None:
-        return none
-    kind, pos, nodes, start, grid = pmap._arrays()
+    width = max(1, READ_WIDTH * int(k))
+    count = np.zeros(m, np.int64)
+    photons = np.empty((m, width), np.int64)
+    args = (radius, k, min_photons, estimator)
+    if getattr(pmap, "lookup", "knn") == "precomputed":
+        E = chaincounts.irradiance(pmap, limits, counts, p, n, *args, r_floor=r_floor)
+        pmap.knn_irradiance(p, n, *args, r_floor=r_floor, read=(count, photons))
+    else:
+        E = chaincounts.irradiance(pmap, limits, counts, p, n, *args, r_floor=r_floor,
+                                   read=(count, photons))
+    wide = np.flatnonzero(count > width)
+    more_count = np.zeros(len(wide), np.int64)
+    more = np.empty((len(wide), int(count[wide].max()) if len(wide) else 0), np.int64)
+    if len(wide):
+        pmap.knn_irradiance(p[wide], n[wide], *args,
+                            r_floor=None if r_floor is None else r_floor[wide],
+                            read=(more_count, more))
+    return E, count, photons, (wide, more_count, more)
+
+
+def _hidden_pairs(pmap, accel, p, n, lift, rows, slots, count, photons):
+    """(rows (H,) int64, photons (H,) int64): the pairs (row, map photon) among the rows
+    `rows` of p / n (lift (M,) float64, empty: their own offsets) and their read photons
+    (row rows[r]'s: photons[slots[r], :count[slots[r]]], _estimate_read's lists) whose
+    visibility ray is blocked, in the rows' order."""
     ph = pmap.photons
-    p = np.ascontiguousarray(p, dtype=np.float64)
-    n = np.ascontiguousarray(n, dtype=np.float64)
-    lift = (np.zeros(0) if lift is None else np.ascontiguousarray(lift, dtype=np.float64))
-    # (writable: a readonly array is another numba type, compiled inside the render)
-    floor = (np.zeros(0) if r_floor is None
-             else np.require(np.broadcast_to(r_floor, (m,)), np.float64, ["C", "W"]))
-    kq = max(1, min(int(k), len(ph)))
-    cap = max(kq, min(FLOOR_CAP * kq, len(ph))) if len(floor) else kq
-    reach = max(radius, float(floor.max()) if len(floor) else 0.0)
-    buckets = np.empty(hashgrid.cells_spanned(grid, reach) if kind == HASHGRID else 0,
-                       np.int64)
-    kmax = max(kq, min(MAX_WIDEN_K, len(ph)))
-    d2 = np.empty(max(kmax, cap) + 1, np.float64)
-    idx = np.empty(max(kmax, cap) + 1, np.int64)
     rows_out, photons_out = [], []
-    todo = np.arange(m, dtype=np.int64)
-    if geo is not None:
-        reach_rows = np.maximum(radius, floor) if len(floor) else np.full(m, float(radius))
-        todo = todo[~one_surface_cells(geo, radius).free(p, reach_rows, n)]
-    for a in range(0, len(todo), BLOCK_ROWS):
-        rows = todo[a:a + BLOCK_ROWS]
-        size = 2 * len(rows) * cap  # a curved pair's path is two segments
+    for a in range(0, len(rows), BLOCK_ROWS):
+        block = rows[a:a + BLOCK_ROWS]
+        slot = slots[a:a + BLOCK_ROWS]
+        size = 2 * int(count[slot].sum())  # a curved pair's path is two segments
+        if not size:
+            continue
         o32 = np.empty((size, 3), np.float32)
         d32 = np.empty((size, 3), np.float32)
         t32 = np.empty(size, np.float32)
         ray_row = np.empty(size, np.int64)
         ray_photon = np.empty(size, np.int64)
-        nr = _candidate_rays(kind, pos, nodes, start, grid, ph.direction, ph.normal, p, n,
-                             lift, floor, rows, float(radius * radius), kq, kmax, cap, buckets,
-                             d2, idx, o32, d32, t32, ray_row, ray_photon)
+        nr = _read_rays(ph.position, ph.normal, p, n, lift, block, slot, count, photons,
+                        o32, d32, t32, ray_row, ray_photon)
         if not nr:
             continue
         blocked = np.zeros(nr, bool)
@@ -418,21 +409,97 @@ def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None):
             rows_out.append(ray_row[hit])
             photons_out.append(ray_photon[hit])
     if not rows_out:
-        return none
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     return np.concatenate(rows_out), np.concatenate(photons_out)
 
 
-def visible_irradiance(E, pmap, accel, p, n, lift, radius, k, min_photons, estimator,
+def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator, r_floor,
+                     limits, counts, geo):
+    """(E (M,3), rows (H,), photons (H,)): the estimate at p / n (chaincounts.irradiance,
+    counts (M,4) or None) and its hidden (row, photon) pairs, by row: the photons each
+    row's estimate read (_estimate_read) traced from the row (_hidden_pairs), in blocks
+    of READ_ROWS rows (one search a row for both). Rows the pre-test frees (geo:
+    OneSurfaceCells; None: none) are not traced."""
+    m = len(p)
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    n = np.ascontiguousarray(n, dtype=np.float64)
+    lift = (np.zeros(0) if lift is None else np.ascontiguousarray(lift, dtype=np.float64))
+    floor = (None if r_floor is None
+             else np.ascontiguousarray(np.broadcast_to(r_floor, (m,)), dtype=np.float64))
+    traced = np.ones(m, bool)
+    if geo is not None and radius > 0:
+        reach = (np.maximum(radius, floor) if floor is not None
+                 else np.full(m, float(radius)))
+        traced = ~one_surface_cells(geo, radius).free(p, reach, n)
+    E = np.empty((m, 3))
+    rows_out, photons_out = [], []
+    for a in range(0, m, READ_ROWS):
+        b = min(a + READ_ROWS, m)
+        E[a:b], count, photons, (wide, wide_count, wide_photons) = _estimate_read(
+            pmap, limits, None if counts is None else counts[a:b], p[a:b], n[a:b], radius,
+            k, min_photons, estimator, None if floor is None else floor[a:b])
+        if accel is None:
+            continue
+        here = (p[a:b], n[a:b], lift[a:b] if len(lift) else lift)
+        todo = np.flatnonzero(traced[a:b] & (count > 0) & (count <= photons.shape[1]))
+        rows, hid = _hidden_pairs(pmap, accel, *here, todo, todo, count, photons)
+        rows_out.append(rows + a)
+        photons_out.append(hid)
+        if len(wide):
+            slot = np.flatnonzero(traced[a:b][wide])
+            rows, hid = _hidden_pairs(pmap, accel, *here, wide[slot], slot, wide_count,
+                                      wide_photons)
+            rows_out.append(rows + a)
+            photons_out.append(hid)
+    if not rows_out:
+        return E, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    rows, photons = np.concatenate(rows_out), np.concatenate(photons_out)
+    order = np.argsort(rows, kind="stable")  # (the cut rows' pairs came after their block)
+    return E, rows[order], photons[order]
+
+
+def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None,
+                   min_photons=1, estimator="knn_simpson"):
+    """(rows (H,) int64, photons (H,) int64): the pairs (query row, map photon) whose
+    visibility ray is blocked, over the photons the estimate at p (M,3) with unit
+    normals n (M,3) facing the viewer reads (PhotonMap.knn_irradiance's read lists);
+    lift (M,) their ray offsets (SurfaceHit.offset) or None; radius, k, min_photons,
+    estimator, r_floor ((M,) or None, its footprint floor): the estimate's; geo: the
+    scene's Geometry, for the pre-test (OneSurfaceCells: rows with no other surface near
+    are not traced; None: every row is). Sorted by row."""
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    if pmap is None or pmap.tree is None or len(p) == 0 or radius <= 0 or accel is None:
+        return none
+    _, rows, photons = _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons,
+                                        estimator, r_floor, None, None, geo)
+    return rows, photons
+
+
+def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
                        r_floor=None, limits=None, counts=None, geo=None):
-    """E (M,3), the estimate pmap.irradiance (or chaincounts.irradiance with limits and
-    counts (M,4) or None) gave at p / n, with the rows that have hidden photons
-    (hidden_photons) estimated again from their visible photons alone (the hidden ones'
-    power counted as 0, and the photons their camera-side counts cannot use, as
-    chaincounts.irradiance does). Writes into E and returns it; rows without a hidden
-    photon keep their bits."""
-    rows, photons = hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor, geo=geo)
+    """E (M,3) (W/m^2): the estimate pmap.irradiance (or chaincounts.irradiance with
+    limits and counts (M,4) or None) at p / n (unit normals (M,3) facing the viewer;
+    lift (M,) their ray offsets or None), with the rows that have hidden photons
+    (_estimate_hidden: the photons each row's estimate read, traced from it) estimated
+    again from their visible photons alone (the hidden ones' power counted as 0, and the
+    photons their camera-side counts cannot use, as chaincounts.irradiance does). Rows
+    without a hidden photon keep the estimate's bits. accel None: the plain estimate."""
+    if pmap is None or len(pmap) == 0 or pmap.tree is None or len(p) == 0 or radius <= 0:
+        return chaincounts.irradiance(pmap, limits, counts, p, n, radius, k, min_photons,
+                                      estimator, r_floor=r_floor)
+    E, rows, photons = _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons,
+                                        estimator, r_floor, limits, counts, geo)
     if not len(rows):
         return E
+    return _reestimate(E, pmap, p, n, radius, k, min_photons, estimator, r_floor, limits,
+                       counts, rows, photons)
+
+
+def _reestimate(E, pmap, p, n, radius, k, min_photons, estimator, r_floor, limits, counts,
+                rows, photons):
+    """E with the rows `rows` estimated again without their hidden photons (rows (H,),
+    photons (H,): the pairs), in one estimate call per count class (PhotonMap.irradiance's
+    hidden: each row's hidden photons left out for that row alone). Writes into E."""
     cache = chaincounts.map_cache(pmap) if counts is not None else None
     use_counts = (counts is not None and limits is not None
                   and getattr(pmap.photons, "bounces", None) is not None)
@@ -479,10 +546,9 @@ def _warm_up():
                  np.tile(np.float32([0, 0, -1]), (8, 1)), np.tile(np.float32([0, 0, 1]), (8, 1)),
                  np.zeros(8, np.uint8), 8)
     pmap = PhotonMap(ph)
-    kind, pos, nodes, start, grid = pmap._arrays()
     o32, d32 = np.empty((8, 3), np.float32), np.empty((8, 3), np.float32)
-    _candidate_rays(kind, pos, nodes, start, grid, pmap.photons.direction,
-                    pmap.photons.normal, np.zeros((1, 3)), np.float64([[0, 0, 1]]),
-                    np.zeros(0), np.zeros(0), np.zeros(1, np.int64), 1.0, 4, 8, 8,
-                    np.empty(0, np.int64), np.empty(9), np.empty(9, np.int64), o32, d32,
-                    np.empty(8, np.float32), np.empty(8, np.int64), np.empty(8, np.int64))
+    _read_rays(pmap.photons.position, pmap.photons.normal, np.zeros((1, 3)),
+               np.float64([[0, 0, 1]]), np.zeros(0), np.zeros(1, np.int64),
+               np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros((1, 8), np.int64),
+               o32, d32, np.empty(8, np.float32), np.empty(8, np.int64),
+               np.empty(8, np.int64))

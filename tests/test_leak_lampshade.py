@@ -147,8 +147,8 @@ def test_visible_irradiance_one_call_matches_a_call_a_row():
     n = np.tile([0.0, -1.0, 0.0], (300, 1))
     for r_floor in (None, rng.uniform(0.0, 0.3, 300)):
         E = pmap.irradiance(p, n, radius, k, 1, "knn_simpson", r_floor=r_floor)
-        got = visible_irradiance(E.copy(), pmap, ctx.accel, p, n, None, radius, k, 1,
-                                 "knn_simpson", r_floor=r_floor, geo=ctx.geo)
+        got = visible_irradiance(pmap, ctx.accel, p, n, None, radius, k, 1, "knn_simpson",
+                                 r_floor=r_floor, geo=ctx.geo)
         rows, photons = hidden_photons(pmap, ctx.accel, p, n, None, radius, k, r_floor,
                                        geo=ctx.geo)
         assert len(np.unique(rows)) > 10
