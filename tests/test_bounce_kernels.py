@@ -12,6 +12,7 @@ from engine import RenderSettings
 from engine.api import cornell_box
 from engine.bsdf import HitRows, SurfaceHit, _hit_alpha, closures, surface_hit
 from engine.camerakernels import film_add, keep_path_hits
+from engine.closures import ggx
 from engine.closures import principled as pr
 from engine.integrator import Accumulator
 from engine.render import prepare_context
@@ -29,7 +30,11 @@ def _closures_numpy(table, hit):
         params, rows = table.closure_params, hit.mat
     else:
         params, rows = hit.params, np.arange(len(hit.mat))
-    glass = np.nonzero(np.take(params[:, pr.M_TRANS], rows) > 0)[0]
+    # Rough glass keeps the shading normal; smooth glass takes the raised one as the
+    # glossy lobes do (camerakernels.keeps_shading_normal).
+    rough = np.take(params[:, pr.M_ROUGH], rows)
+    glass = np.nonzero((np.take(params[:, pr.M_TRANS], rows) > 0)
+                       & (rough * rough >= ggx.ALPHA_MIN))[0]
     if len(glass):
         local[glass] = 0.0
         cos_o[glass] = np.einsum("ij,ij->i", hit.ns[glass], hit.wo[glass])
