@@ -153,3 +153,38 @@ def test_same_image_for_any_worker_count():
     _, a = _profile(s, spp=16, workers=1)
     _, b = _profile(s, spp=16, workers=2)
     assert np.array_equal(a, b)
+
+
+def test_scene_file_keys(tmp_path):
+    """[camera] aperture_radius, focus_distance (default: the look-at point's distance),
+    aperture_blades, aperture_rotation (degrees), aperture_ratio; bad values refused."""
+    import os
+
+    from engine.scenefile import SceneFileError, load_scene
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    text = open(os.path.join(root, "scenes", "figure6.toml")).read()
+    path = tmp_path / "dof.toml"
+    path.write_text(text.replace("[camera]\n", "[camera]\naperture_radius = 0.02\n"
+                                 "aperture_blades = 6\naperture_rotation = 30\n"
+                                 "aperture_ratio = 1.5\n", 1))
+    scene, _ = load_scene(str(path))
+    cam = scene.camera
+    assert cam.has_dof and cam.aperture_radius == 0.02 and cam.aperture_blades == 6
+    assert cam.aperture_rotation == pytest.approx(math.radians(30.0))
+    assert cam.aperture_ratio == 1.5
+    look = -cam.rotation[:, 2]
+    # The look-at point's distance (on the view axis: the camera aims at it)
+    import tomllib
+    c = tomllib.loads(text)["camera"]
+    want = float(np.linalg.norm(np.subtract(c["look_at"], c["position"])))
+    assert cam.focus_distance == pytest.approx(want)
+    assert np.dot(look, np.subtract(c["look_at"], c["position"])) == pytest.approx(want)
+    path.write_text(text.replace("[camera]\n", "[camera]\nfocus_distance = 2.5\n", 1))
+    scene, _ = load_scene(str(path))
+    assert scene.camera.focus_distance == 2.5 and not scene.camera.has_dof
+    path.write_text(text.replace("[camera]\n", "[camera]\naperture_radius = -1\n"
+                                 "focus_distance = 0\n", 1))
+    with pytest.raises(SceneFileError) as e:
+        load_scene(str(path))
+    text_e = str(e.value)
+    assert "aperture_radius" in text_e and "focus_distance" in text_e

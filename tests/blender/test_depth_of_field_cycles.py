@@ -152,3 +152,47 @@ def test_depth_of_field_matches_cycles(acc, name):
     assert fo_n == pytest.approx(fc_n, rel=0.03), info
     assert fo_f == pytest.approx(fc_f, rel=0.03), info
     assert ours[..., 0].mean() == pytest.approx(cyc[..., 0].mean(), rel=0.03), info
+
+
+def test_export_reads_blenders_depth_of_field(acc):
+    """Cycles' blender/camera.cpp: radius = lens (m) / (2 f-stop) (orthographic
+    1 / (2 f-stop)); a focus object's distance along the view axis; a focus object outside
+    the scene, or a zero focus distance, warn naming the camera (no "not supported")."""
+    from addon import export
+    import engine as pm
+    bpy = acc.bpy
+    scene = _scene(acc, "PERSP", True, 6, 30.0, 1.25)
+    cam = scene.camera
+    cam.location = (0.3, -0.2, 1.0)  # the focus square 7 m along the view axis, off-axis
+    bpy.context.view_layer.update()
+    warnings = []
+    c = export.convert_camera(pm, cam, WIDTH, HEIGHT, scene.render, warnings, scene.objects)
+    assert warnings == []
+    assert c.aperture_radius == pytest.approx(LENS_MM * 1e-3 / (2.0 * FSTOP))
+    assert c.focus_distance == pytest.approx(FAR + 1.0)
+    assert (c.aperture_blades, c.aperture_ratio) == (6, 1.25)
+    assert c.aperture_rotation == pytest.approx(math.radians(30.0))
+    # A focus object outside the scene: still used (as Cycles), with a warning
+    other = bpy.data.objects.new("Elsewhere", None)
+    import mathutils
+    other.matrix_world = mathutils.Matrix.Translation((0.0, 0.0, -3.0))  # not evaluated
+    cam.data.dof.focus_object = other
+    c = export.convert_camera(pm, cam, WIDTH, HEIGHT, scene.render, warnings, scene.objects)
+    assert c.focus_distance == pytest.approx(4.0)
+    assert any("'Camera'" in w and "'Elsewhere'" in w for w in warnings), warnings
+    # Focused at the camera itself: in focus everywhere, warned
+    warnings.clear()
+    cam.data.dof.focus_object = None
+    cam.data.dof.focus_distance = 0.0
+    c = export.convert_camera(pm, cam, WIDTH, HEIGHT, scene.render, warnings, scene.objects)
+    assert not c.has_dof and any("'Camera'" in w for w in warnings), warnings
+    # Off: a pinhole, no warning
+    warnings.clear()
+    cam.data.dof.use_dof = False
+    c = export.convert_camera(pm, cam, WIDTH, HEIGHT, scene.render, warnings, scene.objects)
+    assert not c.has_dof and warnings == []
+    cam.data.type = "ORTHO"
+    cam.data.dof.use_dof = True
+    cam.data.dof.focus_distance = 3.0
+    c = export.convert_camera(pm, cam, WIDTH, HEIGHT, scene.render, warnings, scene.objects)
+    assert c.aperture_radius == pytest.approx(1.0 / (2.0 * FSTOP))
