@@ -447,7 +447,11 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
 
 # --- camera -------------------------------------------------------------------------
 
-def convert_camera(pm, cam_obj, width: int, height: int, render, warnings: list):
+def convert_camera(pm, cam_obj, width: int, height: int, render, warnings: list,
+                   scene_objects=None):
+    """The scene's Camera (engine.scene) from Blender camera object cam_obj; depth of field
+    by camera_dof (scene_objects: the rendered scene's objects, to warn about a focus
+    object outside it). Raises ExportError without a camera."""
     if cam_obj is None:
         raise ExportError("The scene has no active camera: add one and make it active "
                           "(Ctrl+Numpad 0)")
@@ -465,15 +469,56 @@ def convert_camera(pm, cam_obj, width: int, height: int, render, warnings: list)
     # the larger image dimension.
     fit_dim = {"HORIZONTAL": width, "VERTICAL": height}.get(fit, max(width, height))
     shift_scale = fit_dim / max(width, height)
-    if getattr(cd, "dof", None) is not None and cd.dof.use_dof:
-        warnings.append(f"camera '{cam_obj.name}': depth of field is not supported; "
-                        "everything is in focus")
+    dof = camera_dof(cam_obj, cd, kind, warnings, scene_objects)
     if abs(render.pixel_aspect_x - render.pixel_aspect_y) > 1e-6:
         warnings.append("non-square pixel aspect is not supported; using square pixels")
     return pm.Camera(position=M[:3, 3], rotation=M[:3, :3], fov=fov, kind=kind,
                      ortho_scale=cd.ortho_scale, shift_x=cd.shift_x * shift_scale,
                      shift_y=cd.shift_y * shift_scale, sensor_fit=fit,
-                     clip_start=cd.clip_start, clip_end=cd.clip_end)
+                     clip_start=cd.clip_start, clip_end=cd.clip_end, **dof)
+
+
+def camera_dof(cam_obj, cd, kind: str, warnings: list, scene_objects=None) -> dict:
+    """Depth of field as Camera keywords (aperture_radius, focus_distance, aperture_blades,
+    aperture_rotation, aperture_ratio), as Cycles' blender/camera.cpp reads it: the
+    aperture radius is lens / (2 f-stop) with the lens in m (orthographic: 1 / (2 f-stop)),
+    the f-stop at least 1e-5; a focus object gives the distance from the camera to its
+    origin (or its focus bone's head) along the view axis. {} when Depth of Field is off.
+    A focus object outside the scene, a focus bone it lacks, or a zero focus distance
+    warn naming the camera."""
+    d = getattr(cd, "dof", None)
+    if d is None or not d.use_dof:
+        return {}
+    name = cam_obj.name
+    fstop = max(float(d.aperture_fstop), 1e-5)
+    aperture = (1.0 if kind == "ORTHO" else float(cd.lens) * 1e-3) / (2.0 * fstop)
+    focus = float(d.focus_distance)
+    target = d.focus_object
+    if target is not None:
+        M = np.array(target.matrix_world, dtype=np.float64)
+        point = M[:3, 3]
+        bone_name = getattr(d, "focus_subtarget", "")
+        if bone_name and target.pose is not None:
+            bone = target.pose.bones.get(bone_name)
+            if bone is None:
+                warnings.append(f"camera '{name}': focus bone '{bone_name}' is not in "
+                                f"'{target.name}'; focusing on its origin")
+            else:
+                point = (M @ np.append(np.array(bone.head, dtype=np.float64), 1.0))[:3]
+        if scene_objects is not None and target.name not in scene_objects:
+            warnings.append(f"camera '{name}': focus object '{target.name}' is not in the "
+                            "scene; focusing at its position all the same (as Cycles)")
+        C = np.array(cam_obj.matrix_world, dtype=np.float64)
+        view = C[:3, 2] / max(float(np.linalg.norm(C[:3, 2])), 1e-300)
+        focus = abs(float(np.dot(view, C[:3, 3] - point)))
+    if not (focus > 1e-6):
+        warnings.append(f"camera '{name}': depth of field focuses at distance {focus:g} "
+                        "m; rendering everything in focus")
+        return {}
+    return dict(aperture_radius=aperture, focus_distance=focus,
+                aperture_blades=int(d.aperture_blades),
+                aperture_rotation=float(d.aperture_rotation),
+                aperture_ratio=max(float(d.aperture_ratio), 1e-6))
 
 
 # --- scene --------------------------------------------------------------------------
@@ -795,7 +840,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     cam_obj = camera if camera is not None else scene_eval.camera
     if cam_obj is not None:
         cam_obj = cam_obj.evaluated_get(depsgraph)
-    camera_out = convert_camera(pm, cam_obj, width, height, render, warnings)
+    camera_out = convert_camera(pm, cam_obj, width, height, render, warnings,
+                                scene_eval.objects)
     background, environment = export_world(pm, scene_eval.world, warnings)
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     if render.use_motion_blur:

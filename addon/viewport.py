@@ -10,6 +10,7 @@ never waits. Moving the view only re-aims the camera: the session keeps its phot
 from __future__ import annotations
 
 import atexit
+import dataclasses
 import importlib
 import math
 import weakref
@@ -203,6 +204,14 @@ class ViewportRender:
                              rv3d.is_perspective)
         border = None
         space = context.space_data
+        if rv3d.view_perspective == "CAMERA":
+            cam = space.camera if getattr(space, "use_local_camera", False) else bpy_scene.camera
+            if cam is not None and cam.type == "CAMERA":
+                # Through the scene camera its depth of field applies, as in Cycles' viewport
+                # (the view's own lens elsewhere has none); warnings are the render's.
+                dof = export.camera_dof(cam, cam.data, cam.data.type, [], bpy_scene.objects)
+                if dof:
+                    camera = dataclasses.replace(camera, **dof)
         if rv3d.view_perspective == "CAMERA" and bpy_scene.render.use_border:
             cam = space.camera if getattr(space, "use_local_camera", False) else bpy_scene.camera
             if cam is not None:
@@ -230,7 +239,9 @@ def _view_key(view):
     camera, width, height, region = view
     return (camera.position.tobytes(), camera.rotation.tobytes(), camera.kind, camera.fov,
             camera.ortho_scale, camera.shift_x, camera.shift_y, camera.clip_start,
-            camera.clip_end, width, height, region)
+            camera.clip_end, camera.aperture_radius, camera.focus_distance,
+            camera.aperture_blades, camera.aperture_rotation, camera.aperture_ratio, width,
+            height, region)
 
 
 def _ensure_redraw_timer(viewport):

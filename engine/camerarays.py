@@ -33,8 +33,45 @@ def _filter_position(table, u):
 
 
 @kernel
+def aperture_point(u1, u2, blades, rotation, inv_ratio):
+    """A point on the unit aperture for uniform numbers u1, u2 in [0, 1), as Cycles'
+    camera_sample_aperture: blades < 3 the unit disk (concentric map, Shirley and Chiu
+    1997: sample_uniform_disk), else the regular polygon of `blades` corners on the unit
+    circle, turned so that an edge's middle lies at angle `rotation` (rad) from camera x
+    (regular_polygon_sample: the triangle of one edge and the centre picked by u1, a
+    uniform point in it); x then scaled by inv_ratio (Blender's
+    aperture ratio: anamorphic bokeh). Uniform in area. Returns (x, y)."""
+    if blades < 3:
+        a = 2.0 * u1 - 1.0
+        b = 2.0 * u2 - 1.0
+        if a == 0.0 and b == 0.0:
+            return 0.0, 0.0
+        if a * a > b * b:
+            r = a
+            phi = 0.25 * math.pi * (b / a)
+        else:
+            r = b
+            phi = 0.5 * math.pi - 0.25 * math.pi * (a / b)
+        return r * math.cos(phi) * inv_ratio, r * math.sin(phi)
+    corners = float(blades)
+    corner = math.floor(u1 * corners)
+    u = u1 * corners - corner
+    u = math.sqrt(u)
+    v = u2 * u
+    u = 1.0 - u
+    angle = math.pi / corners
+    x = (u + v) * math.cos(angle)
+    y = (u - v) * math.sin(angle)
+    rot = rotation + corner * 2.0 * angle
+    cr = math.cos(rot)
+    sr = math.sin(rot)
+    return (cr * x - sr * y) * inv_ratio, sr * x + cr * y
+
+
+@kernel
 def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip_end,
-                       width, height, px, py, jx, jy, table):
+                       width, height, px, py, jx, jy, table, aperture, focus, blades,
+                       blade_rotation, inv_ratio, lu, lv):
     """Rays through image positions (px + fx, py + fy) (N,), rows top-down, where
     fx = table(jx), fy = table(jy) (engine/pixelfilter.py filter_table; an empty table:
     jx, jy are the positions inside the pixel themselves).
@@ -42,12 +79,19 @@ def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip
     at distance 1 (ortho: world units); R (3,3) camera-to-world rotation (columns: right,
     up, backwards); pos (3,) camera position (re-centred). Blender clips by depth along the
     view axis: clip_start / clip_end are converted to distances along each ray.
+    Depth of field (thin lens, Cycles' camera_sample_perspective / _orthographic): with
+    aperture > 0 (the lens radius, m) and lu, lv (N,) uniform numbers, the ray starts at
+    the lens point aperture * aperture_point(lu, lv) (camera x, y) and passes through the
+    pinhole ray's point at depth `focus` (m, along the view axis); perspective clip
+    distances keep the pinhole ray's depth scale, as Cycles does. Empty lu / lv or aperture 0: pinhole,
+    the arithmetic of the kernel before depth of field (bitwise).
     Returns (origins (N,3), unit directions (N,3), distance limits (N,)), float64."""
     n = px.shape[0]
     o = np.empty((n, 3))
     d = np.empty((n, 3))
     tmax = np.empty(n)
     big = 2.0 * max(hw, hh)
+    lens = aperture > 0.0 and focus > 0.0
     for i in range(n):
         sx = (px[i] + _filter_position(table, jx[i])) / width * 2.0 - 1.0
         sy = 1.0 - (py[i] + _filter_position(table, jy[i])) / height * 2.0
@@ -69,6 +113,30 @@ def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip
                 o[i, c] = pos[c]
         t_start = clip_start * scale
         t_end = clip_end * scale
+        if lens and lu.shape[0] > 0:
+            ax, ay = aperture_point(lu[i], lv[i], blades, blade_rotation, inv_ratio)
+            ax *= aperture
+            ay *= aperture
+            # The ray from the lens point (on the camera plane) through the pinhole ray's
+            # point on the plane of focus at depth `focus` (camera frame, looking along
+            # -z). Perspective: the clip distances keep the pinhole ray's scale, as
+            # Cycles' camera_sample_perspective; orthographic: clip depths along the
+            # slanted ray (Cycles' orthographic focus is measured from the camera plane
+            # too: tests/blender/test_depth_of_field_cycles.py).
+            if ortho:
+                ex, ey, ez = -ax, -ay, -focus
+                lx, ly = x + ax, y + ay
+            else:
+                ex, ey, ez = x * focus - ax, y * focus - ay, -focus
+                lx, ly = ax, ay
+            norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+            ex, ey, ez = ex / norm, ey / norm, ez / norm
+            for c in range(3):
+                o[i, c] = pos[c] + lx * R[c, 0] + ly * R[c, 1]
+                d[i, c] = ex * R[c, 0] + ey * R[c, 1] + ez * R[c, 2]
+            if ortho:
+                t_start = clip_start / -ez
+                t_end = clip_end / -ez
         for c in range(3):
             o[i, c] = o[i, c] + t_start * d[i, c]
         tmax[i] = t_end - t_start
@@ -130,5 +198,7 @@ def _warm_up():
     for ortho in (False, True):
         for px in (np.arange(4), np.arange(4.0)):  # render_camera's ints, effects' floats
             for table in (np.empty(0), np.linspace(-1.0, 2.0, 8)):
-                camera_rays_kernel(ortho, 0.5, 0.4, 0.0, 0.0, R, pos, 0.1, 100.0, 4, 3, px,
-                                   px, np.full(4, 0.5), np.full(4, 0.5), table)
+                for lu in (np.empty(0), np.full(4, 0.3)):  # pinhole, thin lens
+                    camera_rays_kernel(ortho, 0.5, 0.4, 0.0, 0.0, R, pos, 0.1, 100.0, 4, 3,
+                                       px, px, np.full(4, 0.5), np.full(4, 0.5), table,
+                                       0.01 * lu.shape[0], 2.0, 0, 0.0, 1.0, lu, lu)

@@ -187,8 +187,12 @@ def render_mattes(ctx, region, kinds, levels: int, samples: int, seed: int,
         jy = (cells // m + rng.random(len(cells))) / m
         px = ((local + a) % w + x0).astype(np.float64)
         py = ((local + a) // w + y0).astype(np.float64)
+        # With depth of field the mattes blur as the image does (Cycles' cryptomatte
+        # accumulates its lens-sampled camera rays); drawn only then (a pinhole camera's
+        # stream is unchanged).
+        lens = rng.random((2, len(jx))) if ctx.scene.camera.has_dof else None
         o, d, tmax = camera_rays(ctx.scene.camera, geo.offset, ctx.scene.width,
-                                 ctx.scene.height, px, py, jx, jy, table)
+                                 ctx.scene.height, px, py, jx, jy, table, lens)
         _t, prim, _u, _v = ctx.accel.intersect(o, d, tmax, cls=CAMERA)
         hit = prim >= 0
         rows, (object_id, material) = geo.hit_tables(prim[hit], "object_id", "material")

@@ -79,10 +79,13 @@ class Counters:
         return {f"{k[0]} {k[1]}": v for k, v in sorted(self.stages.items())}
 
 
-def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None):
+def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None, lens=None):
     """World rays (re-centred) through image positions (px + jx, py + jy); rows top-down.
     filter_table (engine/pixelfilter.py): jx, jy are uniform numbers in [0, 1) that the
     pixel filter's inverse CDF turns into positions (None or empty: positions as given).
+    lens: (u1, u2) (N,) uniform numbers placing each ray on the camera's aperture (depth
+    of field, Camera.aperture_radius > 0); None: every ray through the lens centre (the
+    pinhole ray, sharp at every depth).
     Returns origins, unit directions, and the distance limits (clip start / end).
     One compiled kernel (engine/camerarays.py)."""
     hw, hh = camera.half_extents(width, height)
@@ -95,7 +98,16 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None
                               np.ascontiguousarray(jx, dtype=np.float64),
                               np.ascontiguousarray(jy, dtype=np.float64),
                               np.ascontiguousarray(np.empty(0) if filter_table is None
-                                                   else filter_table, dtype=np.float64))
+                                                   else filter_table, dtype=np.float64),
+                              float(camera.aperture_radius), float(camera.focus_distance),
+                              int(camera.aperture_blades), float(camera.aperture_rotation),
+                              1.0 / float(camera.aperture_ratio),
+                              *(( _EMPTY_F, _EMPTY_F) if lens is None or not camera.has_dof
+                                else (np.ascontiguousarray(lens[0], dtype=np.float64),
+                                      np.ascontiguousarray(lens[1], dtype=np.float64))))
+
+
+_EMPTY_F = np.zeros(0)
 
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
@@ -1445,12 +1457,14 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
 def _camera_pass_dimensions(ctx) -> SampleDimensions:
     """The camera pass's sampler dimensions (camera_dimensions) for ctx's lights."""
     s = ctx.settings
+    # The lens last: a depth-of-field camera adds a dimension, moving no other.
+    lens = [("lens",)] if ctx.scene.camera.has_dof else []
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
-                                 + [("bsdf",)])
+                                 + [("bsdf",)] + lens)
     return camera_dimensions(s.gather_rays, [ctx.plan.light_samples.get(li.name, 1)
-                                             for li in ctx.lights], [("bsdf",)])
+                                             for li in ctx.lights], [("bsdf",)] + lens)
 
 
 def render_camera_adaptive(ctx, region, film, progress=None, should_cancel=None,
@@ -1652,11 +1666,15 @@ def _trace_camera_samples(ctx, acc, rows, px, py, jx, jy, sub, pix, spp, rng, di
     cam = ctx.scene.camera
     # The stratified numbers become positions by the pixel filter's distribution (Cycles
     # samples its filter by importance: every ray weight 1; engine/pixelfilter.py).
+    sampler = StratifiedSampler(sub, pix, spp, rng, dims, salt=salt)
+    # The lens point: a sampler dimension of its own (("lens",), allocated only with depth
+    # of field, so pinhole renders keep their dimensions and streams), stratified over
+    # the pixel's samples as Cycles' PRNG_LENS dimension.
+    lens = sampler.uv(("lens",)) if cam.has_dof else None
     o, d, tmax = camera_rays(cam, ctx.geo.offset, ctx.scene.width, ctx.scene.height, px, py,
-                             jx, jy, filter_table(s.pixel_filter, s.filter_width))
+                             jx, jy, filter_table(s.pixel_filter, s.filter_width), lens)
     counters.camera_rays += len(o)
     tp = np.ones((len(o), 3))
-    sampler = StratifiedSampler(sub, pix, spp, rng, dims, salt=salt)
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     _trace_paths(ctx, acc, o, d, tmax, tp, rows, rng, counters, cam_pos, forward,

@@ -948,6 +948,15 @@ class Camera:
     sensor_fit: str = "AUTO"  # AUTO (larger dimension), HORIZONTAL or VERTICAL
     clip_start: float = 0.0
     clip_end: float = float("inf")
+    # Depth of field (thin lens, Cycles): aperture radius (m; ORTHO: world units as
+    # Cycles' 1 / (2 f-stop)), 0 = pinhole; focus_distance (m) along the view axis;
+    # aperture_blades >= 3 a polygonal aperture (else round), aperture_rotation (rad),
+    # aperture_ratio (Blender's: > 1 squeezes the bokeh horizontally).
+    aperture_radius: float = 0.0
+    focus_distance: float = 10.0
+    aperture_blades: int = 0
+    aperture_rotation: float = 0.0
+    aperture_ratio: float = 1.0
 
     def __post_init__(self):
         self.position = _vec3(self.position, "camera position")
@@ -972,6 +981,23 @@ class Camera:
         self.sensor_fit = str(self.sensor_fit).upper()
         self.clip_start = max(float(self.clip_start), 0.0)
         self.clip_end = float(self.clip_end) if self.clip_end > 0 else float("inf")
+        self.aperture_radius = _finite(self.aperture_radius, "camera aperture_radius")
+        if self.aperture_radius < 0:
+            raise SceneError("camera aperture_radius: must be >= 0 (0: pinhole)")
+        self.focus_distance = _finite(self.focus_distance, "camera focus_distance")
+        if self.focus_distance <= 0:
+            raise SceneError("camera focus_distance: must be > 0")
+        blades = int(self.aperture_blades)
+        self.aperture_blades = blades if blades >= 3 else 0
+        self.aperture_rotation = _finite(self.aperture_rotation, "camera aperture_rotation")
+        self.aperture_ratio = _finite(self.aperture_ratio, "camera aperture_ratio")
+        if self.aperture_ratio <= 0:
+            raise SceneError("camera aperture_ratio: must be > 0")
+
+    @property
+    def has_dof(self) -> bool:
+        """Whether rays start on a lens (aperture_radius > 0) rather than at a pinhole."""
+        return self.aperture_radius > 0.0
 
     @classmethod
     def look_at(cls, position, look_at, up=(0.0, 0.0, 1.0), fov_degrees=40.0, **kw):

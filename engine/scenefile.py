@@ -174,7 +174,11 @@ CAMERA_SCHEMA = _table({
     "position": _vec3(), "look_at": _vec3(), "up": _vec3(nonzero=True),
     "fov": _number(0.0, 180.0, lo_open=True, hi_open=True), "type": _choice("persp", "ortho"),
     "ortho_scale": _number(0.0, lo_open=True), "shift_x": _number(), "shift_y": _number(),
-    "clip_start": _number(0.0, lo_open=True), "clip_end": _number(0.0, lo_open=True)},
+    "clip_start": _number(0.0, lo_open=True), "clip_end": _number(0.0, lo_open=True),
+    # Depth of field (thin lens, Cycles): radius m, focus m, rotation degrees.
+    "aperture_radius": _number(0.0), "focus_distance": _number(0.0, lo_open=True),
+    "aperture_blades": _number(0, 64, integer=True), "aperture_rotation": _number(),
+    "aperture_ratio": _number(0.0, lo_open=True)},
     required=("position", "look_at"))
 
 _OBJECT_COMMON = {
@@ -671,6 +675,16 @@ def _camera(scene, cam):
             extra[k] = float(cam[k])
     if "clip_end" in cam:
         extra["clip_end"] = float(cam["clip_end"])
+    for k in ("aperture_radius", "aperture_ratio"):
+        if k in cam:
+            extra[k] = float(cam[k])
+    if "aperture_blades" in cam:
+        extra["aperture_blades"] = int(cam["aperture_blades"])
+    if "aperture_rotation" in cam:
+        extra["aperture_rotation"] = math.radians(float(cam["aperture_rotation"]))
+    # Focus: the look-at point's depth unless given (a file's camera aims at its subject).
+    extra["focus_distance"] = float(cam.get("focus_distance", float(np.linalg.norm(
+        look_at - position))))
     scene.set_camera(position, look_at, up, float(cam.get("fov", 40.0)), **extra)
 
 

@@ -227,7 +227,11 @@ def diffuse_camera_hits(ctx, rays: int, rng) -> tuple:
     fx = (gx.ravel() + rng.random(nx * ny)) / nx * W
     fy = (gy.ravel() + rng.random(nx * ny)) / ny * H
     px, py = np.minimum(np.floor(fx), W - 1), np.minimum(np.floor(fy), H - 1)
-    o, d, tmax = camera_rays(scene.camera, geo.offset, W, H, px, py, fx - px, fy - py)
+    # Depth of field: rays from the whole lens, which see round a defocused foreground
+    # (drawn only then: a pinhole camera's stream is unchanged).
+    lens = rng.random((2, len(px))) if scene.camera.has_dof else None
+    o, d, tmax = camera_rays(scene.camera, geo.offset, W, H, px, py, fx - px, fy - py,
+                             None, lens)
     diffuse = table.has_diffuse
     hits = []
     # Each ray sees what its kind sees (docs/scene_format.md, "Ray visibility"): camera
