@@ -36,6 +36,8 @@ estimates read the images lying in the gap).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -52,6 +54,10 @@ NEAREST_POINTS = 16
 # Edge points listed at most (plus two an edge): bounds the listing's memory whatever
 # the radius (a 1e-9 m radius on 10 m of edges asked for 8e10 points).
 EDGE_POINT_BUDGET = 1 << 22
+# Neighbour-cell keys the photon pre-filter lists at most (27 per occupied cell): cells
+# widen until an edge's cells fit. A 1e-9 m radius put each of the 4M points in a cell of
+# its own: 113M keys, 2.7 GB of listing, ~30 CPU s of page faults a map.
+NEIGHBOUR_KEY_BUDGET = 1 << 22
 PROBE_LIFT = 1.0  # x R: the probe starts this far above the image point, goes twice as far
 # A photon near two open edges (a corner): images across both and across the corner
 # (docs/performance.md "secedges"); False: across the nearer edge only.
@@ -165,9 +171,13 @@ def edge_images(photons: Photons, geo, diffuse: np.ndarray, accel, radius: float
     reach = radius + 0.5 * spacing
     # First the photons in or beside a cell holding an edge point: one sorted lookup per
     # photon (most of a caustic map's photons lie far from any edge). Cells of side reach,
-    # or wider where more than 2^20 would span the points (their keys stay in int64).
+    # or wider where more than 2^20 would span the points (their keys stay in int64), or
+    # where the edges' cells' neighbours would list more than NEIGHBOUR_KEY_BUDGET keys (a
+    # segment of length l crosses at most sqrt(3) l / cell + 1 cells; any side >= reach
+    # keeps every photon within reach of a point in a neighbour of the point's cell).
     lo = pts.min(axis=0) - 2.0 * reach
-    cell = max(reach, float((pts.max(axis=0) - lo).max() + 2.0 * reach) / (1 << 20))
+    cell = max(reach, float((pts.max(axis=0) - lo).max() + 2.0 * reach) / (1 << 20),
+               27.0 * math.sqrt(3.0) * float(length.sum()) / NEIGHBOUR_KEY_BUDGET)
     cell_pts = np.floor((pts - lo) / cell).astype(np.int64)
     dims = cell_pts.max(axis=0) + 3
     shifts = np.stack(np.meshgrid(*([np.arange(-1, 2)] * 3), indexing="ij"), -1).reshape(-1, 3)

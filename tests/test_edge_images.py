@@ -213,6 +213,28 @@ def test_even_light_reads_even_at_a_corner(monkeypatch):
     assert abs(both - 1.0) < 0.06
 
 
+def test_wider_prefilter_cells_keep_the_same_images(monkeypatch):
+    """The photon pre-filter's cells widen where their neighbours would list more than
+    NEIGHBOUR_KEY_BUDGET keys (a 1e-9 m radius: 4M edge points, a cell each): any cell at
+    least `reach` wide lists a superset, so the images keep their bits; a tiny radius
+    mirrors only photons that close to an edge."""
+    import engine.edgeimages as ei
+    rng = np.random.default_rng(3)
+    geo, diffuse, accel = _geo(FLOOR)
+    xy = np.concatenate([rng.uniform([0, 0], [2, 1], (4000, 2)), [[1.0, 1e-12], [1e-12, 0.5]]])
+    ph = _photons(xy, 1e-3)
+    wide = edge_images(ph, geo, diffuse, accel, R)
+    monkeypatch.setattr(ei, "NEIGHBOUR_KEY_BUDGET", 64)  # cells ~ 4.4 m: one holds all
+    coarse = edge_images(ph, geo, diffuse, accel, R)
+    assert len(wide) > 100
+    for f in ("position", "power", "normal"):
+        assert np.array_equal(getattr(wide, f), getattr(coarse, f))
+    monkeypatch.setattr(ei, "NEIGHBOUR_KEY_BUDGET", 1 << 22)
+    tiny = edge_images(ph, geo, diffuse, accel, 1e-9)
+    # Only photons within 1e-9 m of an edge could have images (their probes may drop them).
+    assert np.all(np.abs(tiny.position[:, :2]).min(axis=1) < 2e-9)
+
+
 def _panel_scene():
     """A glass ball's caustic on a floor under a point light, and a free-standing diffuse
     panel (1.0 x 0.6 m, all four edges open) lit by the caustic's diffuse bounce: its
