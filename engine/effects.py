@@ -212,7 +212,10 @@ def trapped_lights(scene, geo: Geometry, table: MaterialTable, lights: list, acc
     """{light name: mesh name} for declared lights shut inside a closed opaque mesh that
     the camera is outside of: every photon and shadow ray of such a light stays inside,
     so its light reaches nothing the camera sees. Found with PROBE_RAYS photons per
-    light (all must hit the mesh from inside) and as many rays from the camera."""
+    light (all must hit the mesh from inside) and as many rays from the camera. The
+    probes leave the light's emission points in every direction, not along its emission:
+    a spot or an area light aimed at the back of an open sheet (a bounce card) sends
+    every photon into the sheet's back, yet it is not shut in anything."""
     if geo.count == 0 or scene.camera is None:
         return {}
     out = {}
@@ -220,8 +223,10 @@ def trapped_lights(scene, geo: Geometry, table: MaterialTable, lights: list, acc
     for li in lights:
         if li.source is None or li.kind in (SUN, WORLD):
             continue
-        o, d, _ = li.emit(PROBE_RAYS, rng)
-        oid = _enclosing_object(accel, geo, table, o, d)
+        o, _, _ = li.emit(PROBE_RAYS, rng)
+        d = rng.normal(size=o.shape)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        oid = _enclosing_object(accel, geo, table, np.ascontiguousarray(o), d)
         if oid < 0:
             continue
         if cam is None:

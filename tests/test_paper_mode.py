@@ -230,6 +230,25 @@ def test_a_light_shut_in_a_closed_mesh_is_named_and_indirect_light_is_not_claime
                                   for x in f.stats["effects"])
 
 
+def test_a_spot_aimed_at_the_back_of_a_bounce_card_is_not_called_shut_in():
+    """Every photon of a narrow spot hits the back of an open card (the winding's inside):
+    the card shuts nothing in, so no warning, indirect light stays on and the light the
+    card bounces reaches the floor (the trapped-light probe once followed the emission
+    and turned indirect light off here)."""
+    s = PaperScene(24, 18)
+    s.add_plane((0, 0, 0), (0, 0, 1), 10, "white_diffuse", name="floor")
+    # The card faces +x; the spot at x = -0.5 lights its back (-x side).
+    s.add_plane((1.5, 0, 1), (1, 0, 0), 2.0, "white_diffuse", name="card")
+    s.add_spot_light((-0.5, 0, 1), (1.5, 0, 1), power=200, spot_size_degrees=20,
+                     name="key")
+    s.set_camera((-3, -6, 3), (0.5, 0, 0.5))
+    f = s.render(RenderSettings(spp=1, photons=2000))
+    assert not f.warnings
+    line = next(x for x in f.stats["effects"] if x.startswith("indirect light"))
+    assert line.startswith("indirect light (global map): on")
+    assert f.indirect.mean() > 0 and np.isfinite(f.combined).all()
+
+
 def test_radius_mistakes_are_explained_and_the_report_shows_the_maps():
     s = cornell_box(24, 18)
     cheap = dict(spp=1, photons=4000, caustic_photons=2000, final_gather=False)
