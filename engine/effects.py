@@ -21,6 +21,9 @@ from .scene import AREA, SUN
 from .settings import CYCLES_DEFAULT_BOUNCES
 
 PROBE_RAYS = 512  # rays per (light, caster) pair when testing whether light can reach it
+# A report line names at most this many objects, then says how many more (a scene of
+# hundreds of instances read as a wall of names).
+REPORT_NAMES_MAX = 8
 # A specular lobe focuses light into a caustic only if it is sharp. Our microfacet lobes
 # have alpha = roughness^2, about the lobe's angular half-width in radians: at roughness
 # 0.3 that is ~5 degrees, at Principled's default 0.5 already ~14 degrees, which spreads
@@ -348,7 +351,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         elif not diff_tri.any():
             auto, why = False, "no diffuse surface to receive a caustic"
         elif reached:
-            names_r = _quoted([n for _, _, _, n in reached], most=None)
+            # A forest of 300 instanced glass leaves is named by its first few (the
+            # line listed all 300 in a new user's outdoor scene).
+            names_r = _quoted([n for _, _, _, n in reached], most=REPORT_NAMES_MAX)
             auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
@@ -399,7 +404,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "
-                                + _labelled(geo, table, all_names))
+                                + _labelled(geo, table, all_names[:REPORT_NAMES_MAX])
+                                + (f" ... ({len(all_names) - REPORT_NAMES_MAX:,} more)"
+                                   if len(all_names) > REPORT_NAMES_MAX else ""))
         if auto is not None:
             plan.caustics = _override(s.caustics, auto, "caustics", why, plan)
         if plan.caustics and reached:
@@ -535,7 +542,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     if has_tris and np.any(see_through[mat]):
         names = sorted({table.names[m] for m in np.unique(mat[see_through[mat]])})
         cap = s.transparent_max_bounces
-        plan.add("transparency", True, "alpha below 1 in " + _quoted(names, most=None)
+        plan.add("transparency", True, "alpha below 1 in " + _quoted(names, most=REPORT_NAMES_MAX)
                  + (f"; shadow rays cross up to {cap} transparent surfaces" if cap
                     else "; transparent max bounces 0: they block shadow rays"))
     return plan
@@ -657,11 +664,12 @@ _KIND_ORDER = ("mirror", "glass", "polished metal", "metal", "transparent", "glo
 
 
 def _quoted(names, most: int | None = 4) -> str:
-    """"'a', 'b', 'c', 'd' ..." for a report line: the first `most` names (None: all)
-    quoted, " ..." where more were left off."""
+    """"'a', 'b', 'c', 'd' ... (3 more)" for a report line: the first `most` names (None:
+    all) quoted, " ... (N more)" where N more were left off."""
     names = list(names)
     shown = names if most is None else names[:most]
-    return ", ".join(f"'{n}'" for n in shown) + (" ..." if len(shown) < len(names) else "")
+    left = len(names) - len(shown)
+    return ", ".join(f"'{n}'" for n in shown) + (f" ... ({left:,} more)" if left else "")
 
 
 def _labelled(geo: Geometry, table: MaterialTable, names) -> str:

@@ -651,3 +651,19 @@ def test_glass_inside_glass_is_named_in_the_specular_line():
                                      "specular reflection / refraction: on")
     hidden = _plan(scene(outer=True, blocker=True)).report()
     assert not any("'Liquid'" in x for x in hidden if x.startswith("specular")), hidden
+
+
+def test_many_caustic_casters_are_named_by_the_first_few_and_counted():
+    """Twenty glass beads on a floor: the caustics line names REPORT_NAMES_MAX of them
+    and says how many more (a new user's 300 instanced objects filled the line)."""
+    from engine.effects import REPORT_NAMES_MAX
+    s = _room(Material("plain", (0.6, 0.6, 0.6)))
+    s.add_material(Material("clear_glass", (1, 1, 1), transmission=1.0, ior=1.5))
+    for i in range(20):
+        s.add_sphere((-1.9 + 0.2 * i, 0.0, 0.1), 0.08, "clear_glass", name=f"Bead.{i:03d}",
+                     segments=8)
+    plan = _plan(s)
+    line = _line(plan, "caustics: on")
+    assert len(plan.casters) == 20
+    assert line.count("'Bead.") == REPORT_NAMES_MAX, line
+    assert f" ... ({20 - REPORT_NAMES_MAX} more)" in line, line
