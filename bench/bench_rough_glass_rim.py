@@ -9,7 +9,8 @@ The scene is tests/blender/test_add_refraction_cycles.py's smooth-shaded glass c
 roughness, seen from the side 30 degrees down (its bottom rim's interpolated normals face
 away from the camera, where Cycles raises its glass closure's normal), over an emissive
 floor in a black world, photon mapping off: every pixel is the floor's emission through
-the glass in both engines. --root: the repository whose engine and add-on render ours
+the glass in both engines (--emission-sampling NONE: found by the paths alone, no light
+sampling). --root: the repository whose engine and add-on render ours
 (default: this one; another worktree gives the 'before' column). Cycles' images are
 cached in $TMPDIR. Prints ours / Cycles (mean of the three channels) for the image, the
 lower rows (24..39, the bottom rim's band, as the smooth-glass test checks it) and the
@@ -29,7 +30,7 @@ BANDS = (("image", slice(0, 48)), ("lower rows 24-39", slice(24, 40)),
          ("rim rows 30-37", slice(30, 38)))
 
 
-def build(bpy, rough):
+def build(bpy, rough, sampling="AUTO"):
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
     scene.render.resolution_x = scene.render.resolution_y = 48
@@ -59,7 +60,9 @@ def build(bpy, rough):
         return n.outputs[0]
 
     bpy.ops.mesh.primitive_plane_add(size=40)
-    bpy.context.object.data.materials.append(material("Floor", emission))
+    floor = material("Floor", emission)
+    floor.cycles.emission_sampling = sampling
+    bpy.context.object.data.materials.append(floor)
     bpy.ops.mesh.primitive_cylinder_add(vertices=16, radius=0.5, depth=1.2,
                                         location=(0.0, 0.0, 0.6))
     bpy.ops.object.shade_smooth()
@@ -95,6 +98,8 @@ def main():
     ap.add_argument("--rough", default="0.1,0.3,0.6")
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--ref", type=int, default=512)
+    ap.add_argument("--emission-sampling", default="AUTO",
+                    help="the floor's Emission Sampling (NONE: found by the paths alone)")
     ap.add_argument("--root", default=os.path.dirname(os.path.dirname(
         os.path.abspath(__file__))))
     a = ap.parse_args()
@@ -107,17 +112,17 @@ def main():
     import blender_helpers as H
     addon.register()
     print(f"engine from {os.path.dirname(engine.__file__)}; ours {a.spp} spp, "
-          f"Cycles {a.ref} spp")
+          f"Cycles {a.ref} spp; floor's emission sampling {a.emission_sampling}")
     print(f"{'rough':>6} " + " ".join(f"{name:>17}" for name, _ in BANDS))
     for rough in (float(x) for x in a.rough.split(",")):
         cache = os.path.join(tempfile.gettempdir(),
-                             f"roughglass_cyl_cycles_{rough:g}_{a.ref}.npy")
+                             f"roughglass_cyl_cycles_{rough:g}_{a.ref}_{a.emission_sampling}.npy")
         if os.path.isfile(cache):
             ref = np.load(cache)
         else:
-            ref = render(bpy, H, build(bpy, rough), "CYCLES", a.ref)
+            ref = render(bpy, H, build(bpy, rough, a.emission_sampling), "CYCLES", a.ref)
             np.save(cache, ref)
-        ours = render(bpy, H, build(bpy, rough), "PHOTONMAP", a.spp)
+        ours = render(bpy, H, build(bpy, rough, a.emission_sampling), "PHOTONMAP", a.spp)
         ratios = [ours[b].mean() / ref[b].mean() for _, b in BANDS]
         print(f"{rough:6.2f} " + " ".join(f"{r:17.4f}" for r in ratios))
 
