@@ -208,24 +208,11 @@ def _view_cosine(ns, wo, i):
 
 
 @kernel
-def keeps_shading_normal(params, r):
-    """Material row r's lobes all stay on the shading normal (no glossy normal raise):
-    rough glass. Cycles raises its glass closure's normal too
-    (maybe_ensure_valid_specular_reflection: the Principled transmission lobe and the Glass
-    BSDF take valid_reflection_N); smooth glass follows it here (a smooth-shaded bottle's
-    rim, whose interpolated normal faces away from the camera, refracts about the raised
-    normal instead of absorbing the ray: s26's new-user trial), rough glass keeps ns until
-    the raise's effect on its albedo is matched (docs/textures.md)."""
-    rough = params[r, pr.M_ROUGH]
-    return params[r, pr.M_TRANS] > 0 and rough * rough >= ggx.ALPHA_MIN
-
-
-@kernel
 def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_alpha,
                  prm, albedo):
     """The lobes of N hits (bsdf.closures), in one pass: the view cosine ns . wo, Cycles'
-    glossy normal (principled.glossy_normals; not for rough glass, which keeps ns and its
-    view cosine: keeps_shading_normal), the closures' set-up (principled.setup) and the
+    glossy normal (principled.glossy_normals, for every glossy lobe, glass included:
+    principled.raised_rough_glass), the closures' set-up (principled.setup) and the
     glossy normal packed into prm's P_GN columns.
 
     ns, ng, wo (N,3) float64; mat (N,) material index; params (M, N_MAT) the materials'
@@ -246,9 +233,6 @@ def hit_closures(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit
     for i in range(n):
         r = i if per_hit else mat[i]
         rows[i] = r
-        if keeps_shading_normal(params, r):
-            local[i, 0], local[i, 1], local[i, 2] = 0.0, 0.0, 0.0
-            cos_o[i] = _view_cosine(ns, wo, i)
         alpha[i] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
     pr.setup(rows, params, base, cos_o, front, alpha, prm, albedo)
     for i in range(n):
@@ -329,10 +313,9 @@ def shade_lobes(ns, ng, wo, mat, params, per_hit, base, front, table_alpha, hit_
         at[j] = i
         rows_c[j] = r
         cos = _view_cosine(ns, wo, i)
-        if not keeps_shading_normal(params, r):  # rough glass keeps ns (hit_closures)
-            raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
-            if raised:
-                local_c[j, 0], local_c[j, 1], local_c[j, 2], cos = g0, g1, g2, c
+        raised, g0, g1, g2, c = pr.glossy_normal_row(ns, ng, wo, i)
+        if raised:
+            local_c[j, 0], local_c[j, 1], local_c[j, 2], cos = g0, g1, g2, c
         cos_c[j] = cos
         alpha_c[j] = hit_alpha[i] if per_hit_alpha else table_alpha[mat[i]]
         front_c[j] = front[i]
@@ -699,12 +682,27 @@ def glass_both(prm, i, ox, oy, oz, u1, u2):
     """Both halves of hit i's glass lobe for local wo, each weighted by its Fresnel term
     instead of chosen with it (a split; principled._glass_sample chooses one with the
     probability p_r of its reflectance share and divides by it): one microfacet normal
-    (visible-normal sampled from u1, u2 on rough glass; the shading normal on smooth),
+    (visible-normal sampled from u1, u2 on rough glass, about the raised normal where
+    there is one (principled.raised_rough_glass); the raised or shading normal on smooth),
     then its mirror direction and its refraction. Returns (rx, ry, rz, reflection weight
-    RGB, tx, ty, tz, transmission weight RGB); weights are f cos / pdf of the normal's
-    sampling alone (r x G1 ratio, t x G1 ratio; smooth: the Fresnel-weighted colours), 0
-    where that half has no sample (below the surface, total internal reflection, a
-    Refraction BSDF's reflection). Its expectation equals _glass_sample's, term by term."""
+    RGB, tx, ty, tz, transmission weight RGB) in the shading normal's frame; weights are
+    f cos / pdf of the normal's sampling alone (r x G1 ratio, t x G1 ratio; smooth: the
+    Fresnel-weighted colours), 0 where that half has no sample (below the lobe's normal,
+    total internal reflection, a Refraction BSDF's reflection). Its expectation equals
+    _glass_sample's, term by term."""
+    if pr.raised_rough_glass(prm, i):
+        qx, qy, qz = pr._to_glossy(prm, i, ox, oy, oz)
+        (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2) = _glass_both_local(
+            prm, i, qx, qy, qz, u1, u2)
+        rx, ry, rz = pr._from_glossy(prm, i, rx, ry, rz)
+        tx, ty, tz = pr._from_glossy(prm, i, tx, ty, tz)
+        return (rx, ry, rz, r0, r1, r2, tx, ty, tz, t0, t1, t2)
+    return _glass_both_local(prm, i, ox, oy, oz, u1, u2)
+
+
+@kernel
+def _glass_both_local(prm, i, ox, oy, oz, u1, u2):
+    """glass_both with wo in the lobe's frame (rough: z its normal)."""
     (rough, alpha, eta, hx, hy, hz, c, r0, r1, r2, t0, t1, t2) = pr.glass_microfacet(
         prm, i, ox, oy, oz, u1, u2)
     if c <= 0.0:
@@ -712,7 +710,7 @@ def glass_both(prm, i, ox, oy, oz, u1, u2):
     a2 = alpha * alpha
     lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
     rx, ry, rz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
-    # The side checks against the lobe's normal: ns (z) on rough glass, the (raised)
+    # The side checks against the lobe's normal: z on rough glass, the (raised)
     # normal h itself on smooth glass (Cycles' cos_NO; the geometric side: _ray_weight).
     if (rz if rough else rx * hx + ry * hy + rz * hz) <= 0.0:
         r0 = r1 = r2 = 0.0

@@ -12,7 +12,6 @@ from engine import RenderSettings
 from engine.api import cornell_box
 from engine.bsdf import HitRows, SurfaceHit, _hit_alpha, closures, surface_hit
 from engine.camerakernels import film_add, keep_path_hits
-from engine.closures import ggx
 from engine.closures import principled as pr
 from engine.integrator import Accumulator
 from engine.render import prepare_context
@@ -30,14 +29,8 @@ def _closures_numpy(table, hit):
         params, rows = table.closure_params, hit.mat
     else:
         params, rows = hit.params, np.arange(len(hit.mat))
-    # Rough glass keeps the shading normal; smooth glass takes the raised one as the
-    # glossy lobes do (camerakernels.keeps_shading_normal).
-    rough = np.take(params[:, pr.M_ROUGH], rows)
-    glass = np.nonzero((np.take(params[:, pr.M_TRANS], rows) > 0)
-                       & (rough * rough >= ggx.ALPHA_MIN))[0]
-    if len(glass):
-        local[glass] = 0.0
-        cos_o[glass] = np.einsum("ij,ij->i", hit.ns[glass], hit.wo[glass])
+    # Glass, rough or smooth, takes the raised normal as the glossy lobes do
+    # (principled.raised_rough_glass).
     prm, alb = pr.setup_np(params, rows, hit.base, cos_o, hit.front, _hit_alpha(table, hit))
     prm[:, pr.P_GN:pr.P_GN + 3] = local
     return prm, alb

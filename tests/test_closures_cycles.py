@@ -90,14 +90,24 @@ def render_furnace(spec, spp=64):
 
 
 FURNACES = cc.furnace_cases()
+# Rough glass of IOR 2.4 traps light by total internal reflection and its furnace mean is
+# heavy-tailed (test_closures_sweep.FURNACE_SPP): at 64 spp it read 0.9991 against
+# Cycles' 0.9596 once the ball's smooth-shaded rim took the raised normal
+# (principled.raised_rough_glass), 0.9605 at 16384 spp (~25 CPU s: slow).
+FURNACE_SPP = {"furnace_glass_r0.8_ior2.4": 16384}
 
 
-@pytest.mark.parametrize("name", sorted(FURNACES))
+def _furnace_param(name):
+    return pytest.param(name, marks=[pytest.mark.slow] if name in FURNACE_SPP else [])
+
+
+@pytest.mark.parametrize("name", [_furnace_param(n) for n in sorted(FURNACES)])
 def test_white_furnace_matches_cycles(name):
     """Lossless closures come out at 1 (Multiscatter GGX, glass, the layered Principled),
     lossy ones (plain GGX, a coloured metal) at Cycles' albedo. Monte Carlo noise of the
-    mean over ~150 pixels x 64 samples stays well under the 2 %."""
-    _check(name, render_furnace(FURNACES[name]))
+    mean over ~150 pixels x 64 samples stays well under the 2 % (FURNACE_SPP: the cases
+    that need more)."""
+    _check(name, render_furnace(FURNACES[name], spp=FURNACE_SPP.get(name, 64)))
 
 
 def test_caustic_casters_are_the_sharp_lobes():

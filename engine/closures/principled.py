@@ -513,8 +513,9 @@ def glossy_normals(ns, ng, wo, local, cos_o):
     """Cycles' maybe_ensure_valid_specular_reflection (kernel/closure/bsdf_util.h) for N
     hits: where the shading normal ns (N,3) differs from the geometric normal ng (on the
     viewer's side) and the mirror direction of wo about ns falls below
-    min(0.9 wo.ng, 0.01) over the surface, the glossy lobes (metal, specular, coat; not yet
-    glass, docs/textures.md) take a normal N' rotated towards ng just enough to lift it to that height; the diffuse
+    min(0.9 wo.ng, 0.01) over the surface, the glossy lobes (metal, specular, coat, and
+    glass: Cycles' Principled transmission lobe and Glass BSDF take valid_reflection_N too)
+    take a normal N' rotated towards ng just enough to lift it to that height; the diffuse
     and sheen lobes keep ns. Writes N' in ns's frame to local (N,3) (rows left as they are
     where nothing is raised: zeros = ns itself, prm's P_GN) and wo.N' to cos_o (N,), the
     view cosine the closure set-up then estimates the lobes' albedo with (as Cycles sets
@@ -568,8 +569,8 @@ def glossy_normal_row(ns, ng, wo, i):
 
 @kernel
 def eval_reflection(prm, i, ox, oy, oz, ix, iy, iz):
-    """f * cos_i (RGB) of hit i's rough reflective lobes (spec, metal, coat on the glossy
-    normal P_GN; glass reflection and sheen on the shading normal) for local wo, wi;
+    """f * cos_i (RGB) of hit i's rough reflective lobes (spec, metal, coat and glass
+    reflection on the glossy normal P_GN; sheen on the shading normal) for local wo, wi;
     mirror-like lobes contribute nothing (delta): eval_reflection_parts' two parts summed."""
     r0, r1, r2, s0, s1, s2 = eval_reflection_parts(prm, i, ox, oy, oz, ix, iy, iz)
     return r0 + s0, r1 + s1, r2 + s2
@@ -586,16 +587,18 @@ def eval_reflection_parts(prm, i, ox, oy, oz, ix, iy, iz):
     jx, jy, jz = _to_glossy(prm, i, ix, iy, iz)
     if qz > 0.0 and jz > 0.0:
         r0, r1, r2 = _eval_glossy(prm, i, qx, qy, qz, jx, jy, jz)
+        # Rough glass reflects about the raised normal too (raised_rough_glass); its
+        # side test is the raised normal's (Cycles' cos_NI, cos_NO on the closure's N).
+        a = prm[i, P_GLASS_ALPHA]
+        if a >= ggx.ALPHA_MIN and (prm[i, P_GLASS_RW] > 0 or prm[i, P_GLASS_RW + 1] > 0
+                                   or prm[i, P_GLASS_RW + 2] > 0):
+            e, _, c = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
+            eta = prm[i, P_GLASS_ETA]
+            r0 += prm[i, P_GLASS_RW] * _glass_F(prm[i, P_GLASS_F0], c, eta) * e
+            r1 += prm[i, P_GLASS_RW + 1] * _glass_F(prm[i, P_GLASS_F0 + 1], c, eta) * e
+            r2 += prm[i, P_GLASS_RW + 2] * _glass_F(prm[i, P_GLASS_F0 + 2], c, eta) * e
     if oz <= 0.0 or iz <= 0.0:
         return r0, r1, r2, 0.0, 0.0, 0.0
-    a = prm[i, P_GLASS_ALPHA]
-    if a >= ggx.ALPHA_MIN and (prm[i, P_GLASS_RW] > 0 or prm[i, P_GLASS_RW + 1] > 0
-                               or prm[i, P_GLASS_RW + 2] > 0):
-        e, _, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
-        eta = prm[i, P_GLASS_ETA]
-        r0 += prm[i, P_GLASS_RW] * _glass_F(prm[i, P_GLASS_F0], c, eta) * e
-        r1 += prm[i, P_GLASS_RW + 1] * _glass_F(prm[i, P_GLASS_F0 + 1], c, eta) * e
-        r2 += prm[i, P_GLASS_RW + 2] * _glass_F(prm[i, P_GLASS_F0 + 2], c, eta) * e
     if (prm[i, P_SHEEN_W] > 0 or prm[i, P_SHEEN_W + 1] > 0
             or prm[i, P_SHEEN_W + 2] > 0):
         e, _ = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
@@ -658,8 +661,8 @@ def _glass_reflect_share(prm, i, c, eta, inv_eta):
 def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
     """Solid-angle pdf with which the continuation (sample_lobe, the lobe chosen with
     probability sel[i, lobe]) samples the reflected direction wi of hit i: the mixture of
-    its rough reflective lobes (mirror-like lobes have no density; the metal, specular and
-    coat lobes on the glossy normal P_GN, glass and sheen on the shading normal)."""
+    its rough reflective lobes (mirror-like lobes have no density; the metal, specular,
+    coat and glass lobes on the glossy normal P_GN, sheen on the shading normal)."""
     pdf = 0.0
     qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
     jx, jy, jz = _to_glossy(prm, i, ix, iy, iz)
@@ -674,14 +677,14 @@ def bsdf_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
                 else:
                     _, p, _ = _glossy_eval(prm, i, qx, qy, qz, jx, jy, jz, a)
                 pdf += w * p
+        w = sel[i, L_GLASS_R] + sel[i, L_GLASS_T]
+        a = prm[i, P_GLASS_ALPHA]
+        if w > 0.0 and a >= ggx.ALPHA_MIN:  # (raised_rough_glass)
+            _, p, c = ggx.reflect_eval(qx, qy, qz, jx, jy, jz, a)
+            eta = prm[i, P_GLASS_ETA]
+            pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
     if oz <= 0.0 or iz <= 0.0:
         return pdf
-    w = sel[i, L_GLASS_R] + sel[i, L_GLASS_T]
-    a = prm[i, P_GLASS_ALPHA]
-    if w > 0.0 and a >= ggx.ALPHA_MIN:
-        _, p, c = ggx.reflect_eval(ox, oy, oz, ix, iy, iz, a)
-        eta = prm[i, P_GLASS_ETA]
-        pdf += w * p * _glass_reflect_share(prm, i, c, eta, 1.0 / eta)
     w = sel[i, L_SHEEN]
     if w > 0.0:
         _, p = sheen.sheen_eval(prm[i, P_SHEEN_A], prm[i, P_SHEEN_B], ox, oy, oz, ix, iy, iz)
@@ -716,8 +719,14 @@ def eval_transmission(prm, i, ox, oy, oz, ix, iy, iz):
     the half vector h = -(wo + eta wi), as ggx.glass_eval, with the lobe's transmission
     colours TW x (1 - F) (F Principled's remap at wo.h); the pdf takes the refraction's
     share 1 - p_r at h, so that f / pdf is _glass_sample's weight t G2/G1 / (1 - p_r).
-    Zeros where the pair is no refraction (wrong sides, h facing away, eta 1)."""
-    if oz <= 0.0 or iz >= 0.0 or not has_rough_transmission(prm, i):
+    The lobe's normal is the raised one (raised_rough_glass): wo, wi are taken to its
+    frame first, the sides and |cos_i| are against it. Zeros where the pair is no
+    refraction (wrong sides, h facing away, eta 1)."""
+    if not has_rough_transmission(prm, i):
+        return 0.0, 0.0, 0.0, 0.0
+    ox, oy, oz = _to_glossy(prm, i, ox, oy, oz)
+    ix, iy, iz = _to_glossy(prm, i, ix, iy, iz)
+    if oz <= 0.0 or iz >= 0.0:
         return 0.0, 0.0, 0.0, 0.0
     alpha = prm[i, P_GLASS_ALPHA]
     eta = prm[i, P_GLASS_ETA]
@@ -873,7 +882,9 @@ def rough_reflection_rows(prm, out):
 def glass_microfacet(prm, i, ox, oy, oz, u1, u2):
     """The glass lobe's first step, shared by sampling one half (_glass_sample) and both
     (camerakernels.glass_both): the microfacet normal h (visible-normal sampled from u1, u2
-    on rough glass; the shading normal on smooth), c = wo . h, and the Fresnel-weighted
+    on rough glass, about z: its callers give wo in the raised normal's frame,
+    raised_rough_glass; the raised normal P_GN or the shading normal on smooth glass),
+    c = wo . h, and the Fresnel-weighted
     reflection and transmission colours there. Returns (rough, alpha, eta, hx, hy, hz, c,
     r0, r1, r2, t0, t1, t2); c <= 0: wo sees the microfacet's back (no sample, colours 0)."""
     alpha = prm[i, P_GLASS_ALPHA]
@@ -882,8 +893,8 @@ def glass_microfacet(prm, i, ox, oy, oz, u1, u2):
     if rough:
         hx, hy, hz = ggx.sample_vndf(ox, oy, oz, alpha, u1, u2)
     elif prm[i, P_GN] != 0.0 or prm[i, P_GN + 1] != 0.0 or prm[i, P_GN + 2] != 0.0:
-        # Smooth glass on a raised normal (glossy_normals; camerakernels.
-        # keeps_shading_normal): the mirror and the refraction about it, as Cycles'.
+        # Smooth glass on a raised normal (glossy_normals; rough glass samples in
+        # its frame instead: raised_rough_glass): the mirror and the refraction about it.
         hx, hy, hz = prm[i, P_GN], prm[i, P_GN + 1], prm[i, P_GN + 2]
     else:
         hx, hy, hz = 0.0, 0.0, 1.0
@@ -904,11 +915,36 @@ def glass_microfacet(prm, i, ox, oy, oz, u1, u2):
 
 
 @kernel
+def raised_rough_glass(prm, i):
+    """Hit i's glass lobe is rough and works in the raised normal's frame (P_GN set by
+    glossy_normals; Cycles replaces the microfacet closure's N with valid_reflection_N,
+    bsdf_util.h / bsdf_microfacet.h): its sampling, eval and pdf take wo and wi to that
+    frame (_to_glossy) and its directions back (_from_glossy). False on smooth glass
+    (glass_microfacet reflects and refracts about P_GN itself) and where nothing is
+    raised (P_GN zeros: the frames are the same, the same bits)."""
+    return prm[i, P_GLASS_ALPHA] >= ggx.ALPHA_MIN and (
+        prm[i, P_GN] != 0.0 or prm[i, P_GN + 1] != 0.0 or prm[i, P_GN + 2] != 0.0)
+
+
+@kernel
 def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
     """The glass lobe (reflection + refraction) as one, as Cycles samples it: a visible
     normal, then reflect or refract with probability in proportion to the average
     reflectance / transmittance there (the macro-surface Fresnel can be 1 - total internal
-    reflection - where a rough surface still transmits)."""
+    reflection - where a rough surface still transmits). Rough glass on a raised normal
+    samples in its frame (raised_rough_glass): a reflection below it or a refraction
+    above it is refused (weight 0), as Cycles refuses them against its N."""
+    if raised_rough_glass(prm, i):
+        qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
+        ix, iy, iz, w0, w1, w2, tr = _glass_sample_local(prm, i, qx, qy, qz, u1, u2, u3)
+        ix, iy, iz = _from_glossy(prm, i, ix, iy, iz)
+        return ix, iy, iz, w0, w1, w2, tr
+    return _glass_sample_local(prm, i, ox, oy, oz, u1, u2, u3)
+
+
+@kernel
+def _glass_sample_local(prm, i, ox, oy, oz, u1, u2, u3):
+    """_glass_sample with wo in the lobe's frame (rough: z its normal)."""
     (rough, alpha, eta, hx, hy, hz, c, r0, r1, r2, t0, t1, t2) = glass_microfacet(
         prm, i, ox, oy, oz, u1, u2)
     if c <= 0.0:
@@ -926,7 +962,7 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
     lo = ggx.lambda_ggx(oz, a2) if rough else 0.0
     if u3 < p_r:
         ix, iy, iz = 2.0 * c * hx - ox, 2.0 * c * hy - oy, 2.0 * c * hz - oz
-        # (Against the lobe's normal: ns on rough glass, the raised h on smooth.)
+        # (Against the lobe's normal: z on rough glass, the raised h on smooth.)
         if (iz if rough else ix * hx + iy * hy + iz * hz) <= 0.0:
             return ix, iy, iz, 0.0, 0.0, 0.0, False
         g = (1.0 + lo) / (1.0 + lo + ggx.lambda_ggx(iz, a2)) if rough else 1.0
@@ -948,8 +984,8 @@ def _glass_sample(prm, i, ox, oy, oz, u1, u2, u3):
 def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2, u3):
     """Sample lobe `lobe` (L_METAL, L_SPEC, L_COAT, or L_GLASS_R / L_GLASS_T: both mean
     the whole glass lobe) of hit i for local wo: (ix, iy, iz, weight RGB = f cos / pdf of
-    that lobe alone, transmitted). Weight 0: no sample. The metal, specular and coat lobes
-    sample about the glossy normal (P_GN), glass and sheen about the shading normal."""
+    that lobe alone, transmitted). Weight 0: no sample. The metal, specular, coat and
+    glass lobes sample about the glossy normal (P_GN), sheen about the shading normal."""
     if lobe == L_SHEEN:
         return _sample_sheen(prm, i, ox, oy, oz, u1, u2)
     if lobe == L_GLASS_R or lobe == L_GLASS_T:
