@@ -5,6 +5,12 @@ visibility rays need not be traced.
 Plain Python (numpy, scipy.ndimage): no kernels here, so that editing this module does
 not recompile the engine's kernels (engine/jit.py's stamp hashes only the files that
 define kernels).
+
+Scale (issues 13/14, docs/performance.md "scale"): a scene with many triangle
+orientations (300 randomly rotated rocks and trees on a 200 m ground) has tens of
+thousands of them, and the rows ask for thousands. The rows' orientation lookup compared
+every row orientation with every triangle orientation (a (B, K, 3) bool array, hundreds
+of MB a call); it is now a sort (_orientation_index).
 """
 from __future__ import annotations
 
@@ -35,6 +41,22 @@ def _orientation_keys(normals):
     big = np.argmax(np.abs(ng), axis=1)
     ng = ng * np.where(ng[np.arange(len(ng)), big] < 0, -1.0, 1.0)[:, None]
     return np.round(ng / PLANE_TOLERANCE).astype(np.int64)
+
+
+def _orientation_index(keys, queries):
+    """(Q,) int64: for each row of queries (Q,3) int64, the index of the equal row of keys
+    (K,3) int64 (rows distinct), -1 where keys has none. One sort of both together
+    (np.unique over rows: O((K + Q) log(K + Q)) time, O(K + Q) memory), the same answer
+    as comparing every query with every key (O(K Q))."""
+    keys = np.asarray(keys, np.int64).reshape(-1, 3)
+    queries = np.asarray(queries, np.int64).reshape(-1, 3)
+    if not len(keys) or not len(queries):
+        return np.full(len(queries), -1, np.int64)
+    _, inv = np.unique(np.concatenate([keys, queries]), axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    at = np.full(int(inv.max()) + 1, -1, np.int64)
+    at[inv[:len(keys)]] = np.arange(len(keys))
+    return at[inv[len(keys):]]
 
 
 class OneSurfaceCells:
@@ -165,12 +187,8 @@ class OneSurfaceCells:
         if not ask.any():
             return out
         rows = np.flatnonzero(ask)
-        rk = _orientation_keys(np.asarray(n)[rows])
         # The rows' orientations that some triangle has (index into keys, else -1).
-        both, ri = np.unique(rk, axis=0, return_inverse=True)
-        ri = ri.reshape(-1)
-        cmp = np.all(self.keys[None, :, :] == both[:, None, :], axis=2)
-        o_of = np.where(cmp.any(axis=1), np.argmax(cmp, axis=1), -1)[ri]
+        o_of = _orientation_index(self.keys, _orientation_keys(np.asarray(n)[rows]))
         found = o_of >= 0
         if not found.any():
             return out
