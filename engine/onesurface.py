@@ -10,7 +10,10 @@ Scale (issues 13/14, docs/performance.md "scale"): a scene with many triangle
 orientations (300 randomly rotated rocks and trees on a 200 m ground) has tens of
 thousands of them, and the rows ask for thousands. The rows' orientation lookup compared
 every row orientation with every triangle orientation (a (B, K, 3) bool array, hundreds
-of MB a call); it is now a sort (_orientation_index).
+of MB a call); it is now a sort (_orientation_index). The own-orientation grids were one
+full fine-grid bool array per orientation asked for, kept for the render (thousands of
+them); they are now one int32 grid for every orientation at once (OneSurfaceCells._sole),
+from which any orientation's grid is read exactly.
 """
 from __future__ import annotations
 
@@ -26,10 +29,12 @@ ENTRIES_MAX = 1 << 24
 # pre-test (a mesh's coplanar triangles round a little differently).
 PLANE_TOLERANCE = 1e-4
 # The own-orientation pre-test's cells (OneSurfaceCells.free with normals): this many to
-# the search radius, and its most cells (each orientation asked for keeps a grid of them).
+# the search radius, and its most cells.
 FINE_DIVISIONS = 4
 FINE_CELLS_MAX = 1 << 22
-# The most row orientations the own-orientation pre-test keeps a grid for.
+# The most row orientations the own-orientation pre-test answers in one call (the
+# commonest among the rows; the others' rows are traced). It bounded one grid per
+# orientation before _sole; kept so that the same rows are traced (the film's bits).
 FINE_ORIENTATIONS_MAX = 16
 
 
@@ -124,7 +129,8 @@ class OneSurfaceCells:
         for more than one (None: too many cells or entries)."""
         self.fine = None
         self.keys = keys
-        self._clear = {}
+        self._sole_grid = None
+        self._sole_lock = threading.Lock()
         side = self.cell / FINE_DIVISIONS
         origin = lo.min(axis=0) - self.cell
         dims = np.floor((hi.max(axis=0) + self.cell - origin) / side).astype(np.int64) + 1
@@ -148,18 +154,42 @@ class OneSurfaceCells:
         self.fine = code.reshape(tuple(dims))
         self.fine_origin, self.fine_side, self.fine_dims = origin, side, dims
 
+    def _sole(self) -> np.ndarray:
+        """The fine grid's cells' sole orientation over their neighbourhood (every cell a
+        disc of radius cell, centred in the cell, can reach, plus one for the rays' lifted
+        ends: a cube of 2 (FINE_DIVISIONS + 1) + 1 cells), int32 or int64 (the fine grid's
+        shape): -1 when no triangle overlaps the neighbourhood, o >= 0 when every
+        triangle overlapping it has orientation o, -2 otherwise. A cell is clear for
+        orientation o (the neighbourhood holds triangles of orientation o alone, or none)
+        exactly when its value is -1 or o: one grid for every orientation (_clear_of),
+        built once (thread-safe: the render's worker threads share this object), from
+        the neighbourhood's least and greatest codes (empty cells left out), equal to o
+        exactly when all its codes are o."""
+        got = self._sole_grid
+        if got is not None:
+            return got
+        with self._sole_lock:
+            if self._sole_grid is None:
+                from scipy.ndimage import maximum_filter, minimum_filter
+                dtype = np.int32 if len(self.keys) < np.iinfo(np.int32).max else np.int64
+                none = np.iinfo(dtype).max
+                size = 2 * (FINE_DIVISIONS + 1) + 1
+                code = self.fine.astype(dtype)
+                # Outside the grid: no triangle (the constant mode's cval, as empty cells).
+                hi = maximum_filter(code, size=size, mode="constant", cval=-1)
+                code[code == -1] = none
+                lo = minimum_filter(code, size=size, mode="constant", cval=none)
+                del code
+                sole = np.where(lo == hi, lo, dtype(-2))
+                sole[lo == none] = -1
+                self._sole_grid = sole
+        return self._sole_grid
+
     def _clear_of(self, o: int) -> np.ndarray:
-        """The fine grid's cells whose neighbourhood (every cell a disc of radius cell,
-        centred in the cell, can reach, plus one for the rays' lifted ends) holds
-        triangles of orientation o alone, or none."""
-        got = self._clear.get(o)
-        if got is None:
-            from scipy.ndimage import maximum_filter
-            other = ((self.fine != -1) & (self.fine != o)).astype(np.uint8)
-            reach = FINE_DIVISIONS + 1
-            got = self._clear[o] = maximum_filter(other, size=2 * reach + 1,
-                                                  mode="constant") == 0
-        return got
+        """(fine grid's shape) bool: the fine grid's cells whose neighbourhood (_sole's)
+        holds triangles of orientation o alone, or none."""
+        sole = self._sole()
+        return (sole == -1) | (sole == o)
 
     def free(self, p, reach, n=None) -> np.ndarray:
         """(M,) bool: the points p (M,3) whose discs (radius <= reach (M,)) meet no
@@ -193,12 +223,16 @@ class OneSurfaceCells:
         if not found.any():
             return out
         common = np.bincount(o_of[found]).argsort()[::-1][:FINE_ORIENTATIONS_MAX]
+        sole = None
         for o in common:
             here = rows[o_of == o]
             if not len(here):
                 continue
+            if sole is None:
+                sole = self._sole()
             fi = f[here]
-            out[here] = self._clear_of(int(o))[fi[:, 0], fi[:, 1], fi[:, 2]]
+            s = sole[fi[:, 0], fi[:, 1], fi[:, 2]]
+            out[here] = (s == -1) | (s == o)
         return out
 
 
