@@ -32,6 +32,11 @@ PLANE_TOLERANCE = 1e-4
 # the search radius, and its most cells.
 FINE_DIVISIONS = 4
 FINE_CELLS_MAX = 1 << 22
+# What a OneSurfaceCells keeps at most (bytes): its busy grid (bool, CELLS_MAX cells), its
+# fine grid and sole-orientation grid (int32 each, FINE_CELLS_MAX cells; int64 only past
+# 2^31 orientations). engine/resources.py counts it for each radius photon visibility
+# asks with (the global, caustic and secondary maps').
+KEPT_BYTES_MAX = CELLS_MAX + 8 * FINE_CELLS_MAX
 # The most row orientations the own-orientation pre-test answers in one call (the
 # commonest among the rows; the others' rows are traced). It bounded one grid per
 # orientation before _sole; kept so that the same rows are traced (the film's bits).
@@ -62,6 +67,12 @@ def _orientation_index(keys, queries):
     at = np.full(int(inv.max()) + 1, -1, np.int64)
     at[inv[:len(keys)]] = np.arange(len(keys))
     return at[inv[len(keys):]]
+
+
+def _code_type(orientations: int):
+    """The grids' integer type for codes -2 .. orientations - 1 (int32 but for more than
+    2^31 - 2 orientations: the fine and sole grids' bytes are KEPT_BYTES_MAX's)."""
+    return np.int32 if orientations < np.iinfo(np.int32).max - 1 else np.int64
 
 
 class OneSurfaceCells:
@@ -115,7 +126,7 @@ class OneSurfaceCells:
         flat = (ix * dims[1] + iy) * dims[2] + iz
         # A cell is busy when any of its entries' plane differs from the one written
         # last there (fancy assignment keeps one of the duplicates: any one will do).
-        some = np.full(int(np.prod(dims)), -1, np.int64)
+        some = np.full(int(np.prod(dims)), -1, _code_type(len(keys)))
         some[flat] = plane[tri]
         busy = np.zeros(len(some), bool)
         busy[flat[some[flat] != plane[tri]]] = True
@@ -147,7 +158,7 @@ class OneSurfaceCells:
         sx, sy = span[tri, 0], span[tri, 1]
         flat = (((a[tri, 0] + local % sx) * dims[1] + a[tri, 1] + (local // sx) % sy)
                 * dims[2] + a[tri, 2] + local // (sx * sy))
-        code = np.full(int(np.prod(dims)), -1, np.int64)
+        code = np.full(int(np.prod(dims)), -1, _code_type(len(keys)))
         code[flat] = plane[tri]
         mixed = flat[code[flat] != plane[tri]]
         code[mixed] = -2
@@ -157,7 +168,7 @@ class OneSurfaceCells:
     def _sole(self) -> np.ndarray:
         """The fine grid's cells' sole orientation over their neighbourhood (every cell a
         disc of radius cell, centred in the cell, can reach, plus one for the rays' lifted
-        ends: a cube of 2 (FINE_DIVISIONS + 1) + 1 cells), int32 or int64 (the fine grid's
+        ends: a cube of 2 (FINE_DIVISIONS + 1) + 1 cells), of the fine grid's dtype and
         shape): -1 when no triangle overlaps the neighbourhood, o >= 0 when every
         triangle overlapping it has orientation o, -2 otherwise. A cell is clear for
         orientation o (the neighbourhood holds triangles of orientation o alone, or none)
@@ -171,10 +182,10 @@ class OneSurfaceCells:
         with self._sole_lock:
             if self._sole_grid is None:
                 from scipy.ndimage import maximum_filter, minimum_filter
-                dtype = np.int32 if len(self.keys) < np.iinfo(np.int32).max else np.int64
+                dtype = self.fine.dtype.type
                 none = np.iinfo(dtype).max
                 size = 2 * (FINE_DIVISIONS + 1) + 1
-                code = self.fine.astype(dtype)
+                code = self.fine.copy()
                 # Outside the grid: no triangle (the constant mode's cval, as empty cells).
                 hi = maximum_filter(code, size=size, mode="constant", cval=-1)
                 code[code == -1] = none

@@ -196,6 +196,26 @@ def test_free_is_thread_safe():
     assert onesurface.one_surface_cells(geo, 0.5) is cells
 
 
+def test_kept_bytes_within_the_memory_estimate():
+    """What a OneSurfaceCells keeps (busy bool grid, fine and sole int32 grids) is within
+    onesurface.KEPT_BYTES_MAX at its cell caps (here the caps lowered to the grids' own
+    sizes), and estimate_memory counts that bound for each radius visibility asks with."""
+    from engine import RenderSettings
+    from engine.resources import VISIBILITY_RADII, estimate_memory
+    from engine.scene import Scene
+    geo = _rocks_geometry()
+    cells = OneSurfaceCells(geo, 0.5)
+    p, n = _queries(geo)
+    assert cells.free(p, 0.5, n).any()
+    kept = cells.busy.nbytes + cells.fine.nbytes + cells._sole().nbytes
+    assert cells.fine.dtype == np.int32
+    caps = dict(CELLS_MAX=cells.busy.size, FINE_CELLS_MAX=cells.fine.size)
+    assert kept <= caps["CELLS_MAX"] + 8 * caps["FINE_CELLS_MAX"]
+    assert onesurface.KEPT_BYTES_MAX == onesurface.CELLS_MAX + 8 * onesurface.FINE_CELLS_MAX
+    part = estimate_memory(Scene(), RenderSettings(photons=1000)).parts["visibility pre-test"]
+    assert part == VISIBILITY_RADII * onesurface.KEPT_BYTES_MAX
+
+
 def _rock_field_scene():
     """A small outdoor scene for the render check: a ground, randomly rotated ico-sphere
     rocks (many facet orientations) and boxes, a glass 'water' slab, a sun."""
