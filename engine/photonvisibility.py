@@ -32,201 +32,21 @@ twice (docs/performance.md "visreuse"; a second k-NN search a row was most of th
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 
 from . import chaincounts
 from .jit import kernel, register_warm_up
+# The pre-test (rows with no other surface near are not traced) lives in plain Python,
+# so that editing it does not recompile these kernels; its names are kept here.
+from .onesurface import (CELLS_MAX, ENTRIES_MAX, FINE_CELLS_MAX,  # noqa: F401
+                         FINE_DIVISIONS, FINE_ORIENTATIONS_MAX, PLANE_TOLERANCE,
+                         OneSurfaceCells, _orientation_keys, one_surface_cells)
 from .photonmap import _query_lift, _ray_ends
 from .rayoffset import G32_PLANE, ulp32_scalar
 
 # Rows per block of visibility rays (bounds the ray arrays: BLOCK_ROWS x cap rays).
 BLOCK_ROWS = 1024
-# The pre-test (OneSurfaceCells): its grid's most cells and (triangle, cell) entries;
-# beyond either, every row is tested.
-CELLS_MAX = 1 << 24
-ENTRIES_MAX = 1 << 24
-# Normals closer than this (unit normals' components) are one orientation for the
-# pre-test (a mesh's coplanar triangles round a little differently).
-PLANE_TOLERANCE = 1e-4
-# The own-orientation pre-test's cells (OneSurfaceCells.free with normals): this many to
-# the search radius, and its most cells (each orientation asked for keeps a grid of them).
-FINE_DIVISIONS = 4
-FINE_CELLS_MAX = 1 << 22
-# The most row orientations the own-orientation pre-test keeps a grid for.
-FINE_ORIENTATIONS_MAX = 16
-
-
-def _orientation_keys(normals):
-    """(N,3) int64: unit normals (N,3) up to sign, rounded to PLANE_TOLERANCE (equal keys:
-    one orientation for the pre-tests)."""
-    ng = np.asarray(normals, np.float64)
-    ng = ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-300)
-    big = np.argmax(np.abs(ng), axis=1)
-    ng = ng * np.where(ng[np.arange(len(ng)), big] < 0, -1.0, 1.0)[:, None]
-    return np.round(ng / PLANE_TOLERANCE).astype(np.int64)
-
-
-class OneSurfaceCells:
-    """Which points have only surfaces parallel to their own within `cell` of them, so
-    that no occluder can stand between them and the photons of a disc of radius <= cell:
-    the scene's triangles (Geometry v0, e1, e2, ng) binned by their bounding boxes into a
-    grid of side `cell`; a cell is 'busy' when the triangles overlapping it have more
-    than one orientation (normals up to sign); a point is free when no cell of the
-    3 x 3 x 3 around its own is busy. A segment from a point to a photon within `cell`
-    lies in those 27 cells, and any triangle it crosses overlaps them (its box does); a
-    triangle parallel to the point's plane cannot cross the segment, which follows that
-    plane a ray offset above it, so a crossing triangle makes a cell busy. (A parallel
-    surface within a ray offset of the plane, closer than any renderer resolves, is the
-    only case a traced ray could read differently.) Conservative otherwise: a busy
-    neighbourhood only means the rays are traced (Figure 8's caustic rows on its open
-    floor and a thin wall's face skip them; a lamp shade piercing a wall, corners,
-    curved objects do not)."""
-
-    def __init__(self, geo, cell: float):
-        self.cell = float(cell)
-        self.busy = None  # None: test every row
-        v0 = np.asarray(geo.v0, np.float64)
-        if not len(v0) or not self.cell > 0 or getattr(geo, "shared", None) is not None:
-            return
-        v1, v2 = v0 + np.asarray(geo.e1, np.float64), v0 + np.asarray(geo.e2, np.float64)
-        lo = np.minimum(np.minimum(v0, v1), v2)
-        hi = np.maximum(np.maximum(v0, v1), v2)
-        self.origin = lo.min(axis=0) - self.cell
-        dims = np.floor((hi.max(axis=0) + self.cell - self.origin) / self.cell).astype(
-            np.int64) + 1
-        if np.prod(dims.astype(np.float64)) > CELLS_MAX:
-            return
-        a = np.floor((lo - self.origin) / self.cell).astype(np.int64)
-        b = np.floor((hi - self.origin) / self.cell).astype(np.int64)
-        span = b - a + 1
-        count = np.prod(span, axis=1)
-        if count.sum() > ENTRIES_MAX:
-            return
-        # A triangle's orientation up to sign: parallel planes (a thin wall's back face,
-        # a shelf above a floor) cannot cross the point's own plane, which the lifted
-        # visibility ray follows, so only orientations count.
-        keys, plane = np.unique(_orientation_keys(geo.ng), axis=0, return_inverse=True)
-        plane = plane.reshape(-1)
-        self._fine(lo, hi, keys, plane)
-        tri = np.repeat(np.arange(len(v0)), count)
-        local = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
-        sx, sy = span[tri, 0], span[tri, 1]
-        ix = a[tri, 0] + local % sx
-        iy = a[tri, 1] + (local // sx) % sy
-        iz = a[tri, 2] + local // (sx * sy)
-        flat = (ix * dims[1] + iy) * dims[2] + iz
-        # A cell is busy when any of its entries' plane differs from the one written
-        # last there (fancy assignment keeps one of the duplicates: any one will do).
-        some = np.full(int(np.prod(dims)), -1, np.int64)
-        some[flat] = plane[tri]
-        busy = np.zeros(len(some), bool)
-        busy[flat[some[flat] != plane[tri]]] = True
-        from scipy.ndimage import binary_dilation
-        self.dims = dims
-        self.busy = binary_dilation(busy.reshape(tuple(dims)), np.ones((3, 3, 3), bool))
-
-    def _fine(self, lo, hi, keys, plane):
-        """The own-orientation grid: cells of side cell / FINE_DIVISIONS, each the one
-        orientation (index into keys) of the triangles overlapping it, -1 for none, -2
-        for more than one (None: too many cells or entries)."""
-        self.fine = None
-        self.keys = keys
-        self._clear = {}
-        side = self.cell / FINE_DIVISIONS
-        origin = lo.min(axis=0) - self.cell
-        dims = np.floor((hi.max(axis=0) + self.cell - origin) / side).astype(np.int64) + 1
-        if np.prod(dims.astype(np.float64)) > FINE_CELLS_MAX:
-            return
-        a = np.floor((lo - origin) / side).astype(np.int64)
-        b = np.floor((hi - origin) / side).astype(np.int64)
-        span = b - a + 1
-        count = np.prod(span, axis=1)
-        if count.sum() > ENTRIES_MAX:
-            return
-        tri = np.repeat(np.arange(len(lo)), count)
-        local = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
-        sx, sy = span[tri, 0], span[tri, 1]
-        flat = (((a[tri, 0] + local % sx) * dims[1] + a[tri, 1] + (local // sx) % sy)
-                * dims[2] + a[tri, 2] + local // (sx * sy))
-        code = np.full(int(np.prod(dims)), -1, np.int64)
-        code[flat] = plane[tri]
-        mixed = flat[code[flat] != plane[tri]]
-        code[mixed] = -2
-        self.fine = code.reshape(tuple(dims))
-        self.fine_origin, self.fine_side, self.fine_dims = origin, side, dims
-
-    def _clear_of(self, o: int) -> np.ndarray:
-        """The fine grid's cells whose neighbourhood (every cell a disc of radius cell,
-        centred in the cell, can reach, plus one for the rays' lifted ends) holds
-        triangles of orientation o alone, or none."""
-        got = self._clear.get(o)
-        if got is None:
-            from scipy.ndimage import maximum_filter
-            other = ((self.fine != -1) & (self.fine != o)).astype(np.uint8)
-            reach = FINE_DIVISIONS + 1
-            got = self._clear[o] = maximum_filter(other, size=2 * reach + 1,
-                                                  mode="constant") == 0
-        return got
-
-    def free(self, p, reach, n=None) -> np.ndarray:
-        """(M,) bool: the points p (M,3) whose discs (radius <= reach (M,)) meet no
-        occluder (class docstring); all False without a grid or for a disc wider than a
-        cell. n: (M,3) the points' unit normals, or None: also free are the points whose
-        disc meets only triangles parallel to their own plane (the fine grid, _fine),
-        which cannot cross the visibility rays, that follow the plane a ray offset
-        above it (the same reasoning as the class docstring's, without needing the
-        point's own surface in each cell the rays cross); at most
-        FINE_ORIENTATIONS_MAX orientations, the commonest among the points."""
-        p = np.asarray(p, np.float64)
-        out = np.zeros(len(p), bool)
-        if self.busy is None or not len(p):
-            return out
-        reach = np.broadcast_to(np.asarray(reach, np.float64), (len(p),))
-        c = np.floor((p - self.origin) / self.cell).astype(np.int64)
-        inside = np.all((c >= 0) & (c < self.dims), axis=1) & (reach <= self.cell)
-        ci = c[inside]
-        out[inside] = ~self.busy[ci[:, 0], ci[:, 1], ci[:, 2]]
-        if n is None or self.fine is None:
-            return out
-        f = np.floor((p - self.fine_origin) / self.fine_side).astype(np.int64)
-        ask = (~out & (reach <= self.cell)
-               & np.all((f >= 0) & (f < self.fine_dims), axis=1))
-        if not ask.any():
-            return out
-        rows = np.flatnonzero(ask)
-        rk = _orientation_keys(np.asarray(n)[rows])
-        # The rows' orientations that some triangle has (index into keys, else -1).
-        both, ri = np.unique(rk, axis=0, return_inverse=True)
-        ri = ri.reshape(-1)
-        cmp = np.all(self.keys[None, :, :] == both[:, None, :], axis=2)
-        o_of = np.where(cmp.any(axis=1), np.argmax(cmp, axis=1), -1)[ri]
-        found = o_of >= 0
-        if not found.any():
-            return out
-        common = np.bincount(o_of[found]).argsort()[::-1][:FINE_ORIENTATIONS_MAX]
-        for o in common:
-            here = rows[o_of == o]
-            if not len(here):
-                continue
-            fi = f[here]
-            out[here] = self._clear_of(int(o))[fi[:, 0], fi[:, 1], fi[:, 2]]
-        return out
-
-
-_CELLS_LOCK = threading.Lock()
-
-
-def one_surface_cells(geo, cell: float) -> OneSurfaceCells:
-    """The render's OneSurfaceCells of side `cell`, built once and kept on geo (the
-    render's threads share it)."""
-    with _CELLS_LOCK:
-        cache = geo.__dict__.setdefault("_one_surface_cells", {})
-        got = cache.get(float(cell))
-        if got is None:
-            got = cache[float(cell)] = OneSurfaceCells(geo, cell)
-    return got
 
 
 # Rows per estimate call of the visibility path: bounds the read lists (READ_ROWS x

@@ -32,6 +32,15 @@ measured peak for a set of renders. What each part counts:
   rank the hash and coverage (uint32 + float32), the float ids and the Film's float32
   passes (BYTES_PER_CRYPTOMATTE_RANK; in Blender the render result's passes too), and
   one chunk of primary rays in flight.
+- visibility pre-test: photon visibility's pre-test grids (engine/onesurface.py
+  OneSurfaceCells), kept for the render, one set per radius the estimates use (the global,
+  caustic and secondary maps': VISIBILITY_RADII), each at most onesurface.KEPT_BYTES_MAX
+  (its cell caps); they do not grow with the image, the samples or the orientations asked.
+  Before issues 13/14's fix they did: a 300-object outdoor scene (bench/
+  bench_outdoor_scale.py, 103k triangle orientations) grew 2.7 GB in its 80x60 camera
+  pass (10 KB per in-flight camera sample; tracemalloc: 2.1 GB of it the orientation
+  lookup's pairwise arrays and the per-orientation grids), now 0.48 GB (1.8 KB; the
+  estimate's 1900 B a sample holds), the grids 17 MB (docs/performance.md "scale").
 - regather maps: the bounce limits' deeper gather levels (photonmap.GatherMap subsets,
   engine/render.py _build_maps): per level the irradiance and boundary flag of every
   gather point, counted at the most levels (integrator.MAX_GATHER_LEVEL) whenever the
@@ -96,6 +105,9 @@ BYTES_PER_GATHER_POINT_LEVEL = 24
 # tables for a moment (tracemalloc, 2k x 1k: peak 40.0 B/texel with the cosine tables'
 # 13.1 kept, 53.2 with both distributions' 25.1).
 ENV_BUILD_BYTES_PER_TEXEL = 30
+# Photon visibility's pre-test keeps a grid set for each radius it is asked with: the
+# global, caustic and secondary maps' (engine/integrator.py's visible_irradiance calls).
+VISIBILITY_RADII = 3
 
 
 class ResourceError(ValueError):
@@ -310,6 +322,10 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         est.parts["photon chunks"] = int(in_flight * chunk_length(biggest, s.chunk_size)
                                          * BYTES_PER_TRACED_PHOTON)
         est.drivers["photon chunks"] = "chunk_size"
+        from . import integrator, onesurface
+        if integrator.PHOTON_VISIBILITY:
+            est.parts["visibility pre-test"] = VISIBILITY_RADII * onesurface.KEPT_BYTES_MAX
+            est.drivers["visibility pre-test"] = "photons"
         levels = regather_levels(s)
         if levels:
             est.parts["regather maps"] = (gather_points(s.photons * stores) * levels
