@@ -225,3 +225,22 @@ def test_read_list_sums_take_pairs_in_any_order():
     pv._visible_sums(pmap, None, None, shuffled, rows[perm], rows[perm], hid[perm], read)
     assert np.array_equal(walked, shuffled)
     assert (walked != E).any(1).sum() > 10
+
+
+def test_orientation_keys_unique_as_numpy():
+    """The pre-test's distinct orientations (photonvisibility._unique_keys) are
+    np.unique(axis=0)'s arrays: one orientation, a few, and random normals (keys at both
+    ends of their range)."""
+    from engine.photonvisibility import _orientation_keys, _unique_keys
+    rng = np.random.default_rng(3)
+    cases = [np.tile([0.0, 0.0, 1.0], (50, 1)),
+             np.r_[np.tile([0.0, -1.0, 0.0], (30, 1)), np.tile([1.0, 0.0, 0.0], (20, 1)),
+                   np.tile([0.0, 1.0, 0.0], (5, 1))],
+             rng.normal(size=(2000, 3))]
+    for n in cases:
+        rk = _orientation_keys(n)
+        got, which = _unique_keys(rk)
+        want, inverse = np.unique(rk, axis=0, return_inverse=True)
+        assert np.array_equal(got, want)
+        assert np.array_equal(which, inverse.reshape(-1))
+        assert np.array_equal(got[which], rk)
