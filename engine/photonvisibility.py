@@ -367,7 +367,8 @@ def _estimate_read(pmap, limits, counts, p, n, radius, k, min_photons, estimator
     """(E (M,3), count (M,) int64, photons (M, W) int64, weight (M, W) float64, factor
     (M,) float64): chaincounts.irradiance's estimate at p / n (counts (M,4) or None) and
     each row's read photons (PhotonMap.knn_irradiance's read: count[i] of them in
-    photons[i, :count[i]], with their weights and the row's factor). The
+    photons[i, :count[i]], with their weights and the row's factor; photons and weight
+    are this thread's _read_buffers, valid until its next call here). The
     list is READ_WIDTH x k wide; rows that read more are read again as wide as they need
     (the same search: the same photons). A map with the precomputed caustic lookup
     (engine/causticcache.py, which has no search at the query) keeps its estimate, its
@@ -378,8 +379,7 @@ def _estimate_read(pmap, limits, counts, p, n, radius, k, min_photons, estimator
     m = len(p)
     width = max(1, READ_WIDTH * int(k))
     count = np.zeros(m, np.int64)
-    photons = np.empty((m, width), np.int64)
-    weight = np.empty((m, width))
+    photons, weight = _read_buffers(m, width)
     factor = np.empty(m)
     read = (count, photons, weight, factor)
     args = (radius, k, min_photons, estimator)
@@ -397,6 +397,22 @@ def _estimate_read(pmap, limits, counts, p, n, radius, k, min_photons, estimator
         pmap.knn_irradiance(p[wide], n[wide], *args,
                             r_floor=None if r_floor is None else r_floor[wide], read=more)
     return E, count, photons, weight, factor, (wide, *more)
+
+
+_READ_BUFFERS = threading.local()
+
+
+def _read_buffers(m, width):
+    """This thread's (photons (m, width) int64, weight (m, width) float64) for
+    _estimate_read's lists, valid until its next call on the thread (the callers consume
+    a block's lists before the next). Fresh arrays each call faulted their pages in on
+    every call: ~1 KB a row each (k = 64), 0.3 of Figure 3's 13 CPU s for the two lists.
+    Kept for the thread's life at the largest size asked (at most READ_ROWS rows: 16 MB
+    each at k = 64)."""
+    got = getattr(_READ_BUFFERS, "arrays", None)
+    if got is None or got[0].shape[0] < m or got[0].shape[1] != width:
+        got = _READ_BUFFERS.arrays = (np.empty((m, width), np.int64), np.empty((m, width)))
+    return got[0][:m], got[1][:m]
 
 
 def _hidden_pairs(pmap, accel, p, n, lift, rows, slots, count, photons):
