@@ -53,6 +53,25 @@ def _orientation_keys(normals):
     return np.round(ng / PLANE_TOLERANCE).astype(np.int64)
 
 
+def _unique_keys(rk):
+    """np.unique(rk, axis=0, return_inverse=True) (inverse flat) for orientation keys rk
+    (N,3) int64 (_orientation_keys: |key| <= 1 / PLANE_TOLERANCE): rows that all equal
+    the first need no sort, the others sort as one int64 key (three 15-bit fields, the
+    same order). np.unique's axis=0 sort (structured rows) was 0.38 of Figure 7's 33
+    CPU s."""
+    if len(rk) and (rk == rk[0]).all():
+        return rk[:1].copy(), np.zeros(len(rk), np.int64)
+    off = int(round(1.0 / PLANE_TOLERANCE))
+    if len(rk) and rk.min() >= -off and rk.max() <= off and 2 * off < (1 << 15):
+        key = ((rk[:, 0] + off) << 30) | ((rk[:, 1] + off) << 15) | (rk[:, 2] + off)
+        u, which = np.unique(key, return_inverse=True)
+        both = np.column_stack([(u >> 30) - off, ((u >> 15) & 0x7FFF) - off,
+                                (u & 0x7FFF) - off])
+        return both, which.reshape(-1)
+    both, which = np.unique(rk, axis=0, return_inverse=True)
+    return both, which.reshape(-1)
+
+
 def _orientation_index(keys, queries):
     """(Q,) int64: for each row of queries (Q,3) int64, the index of the equal row of keys
     (K,3) int64 (rows distinct), -1 where keys has none. One sort of both together
@@ -62,8 +81,7 @@ def _orientation_index(keys, queries):
     queries = np.asarray(queries, np.int64).reshape(-1, 3)
     if not len(keys) or not len(queries):
         return np.full(len(queries), -1, np.int64)
-    _, inv = np.unique(np.concatenate([keys, queries]), axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
+    _, inv = _unique_keys(np.concatenate([keys, queries]))
     at = np.full(int(inv.max()) + 1, -1, np.int64)
     at[inv[:len(keys)]] = np.arange(len(keys))
     return at[inv[len(keys):]]
@@ -114,7 +132,7 @@ class OneSurfaceCells:
         # A triangle's orientation up to sign: parallel planes (a thin wall's back face,
         # a shelf above a floor) cannot cross the point's own plane, which the lifted
         # visibility ray follows, so only orientations count.
-        keys, plane = np.unique(_orientation_keys(geo.ng), axis=0, return_inverse=True)
+        keys, plane = _unique_keys(_orientation_keys(geo.ng))
         plane = plane.reshape(-1)
         self._fine(lo, hi, keys, plane)
         tri = np.repeat(np.arange(len(v0)), count)

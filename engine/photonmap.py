@@ -221,6 +221,12 @@ class PhotonMap:
         count[i] of them, the first min(count[i], W) into photons[i] (count[i] > W: the
         list is cut; ask again with a wider W); count[i] = 0 for a row without an
         estimate (fewer than min_photons). engine/photonvisibility.py traces these.
+        read may also hold (weight (M, W) float64, factor (M,) float64): each read
+        photon's kernel weight (1/m^2; 1.0 for a floored focus, whose estimate is its
+        photons' plain sum) and each row's factor, so that the masked estimate of a row
+        with an estimate (count[i] >= 1) whose list is whole is exactly
+        (sum over its read photons kept, in order, of weight x float64(power)) x factor,
+        the bits of masks / hidden without a second search (photonvisibility).
 
         Memory is the output plus a fixed scratch per kernel call (MAX_WIDEN_K and
         SCAN_BUDGET entries; a widening row whose sphere holds more than MAX_WIDEN_K
@@ -256,8 +262,18 @@ class PhotonMap:
                                  f"got {hid_start.shape}")
         if read is None:
             read_count, read_photon = _NO_READ
+            read_weight, read_factor = _NO_WEIGHT
         else:
-            read_count, read_photon = read
+            read_count, read_photon = read[:2]
+            read_weight, read_factor = read[2:] if len(read) > 2 else _NO_WEIGHT
+            if len(read) > 2 and (read_weight.shape != read_photon.shape
+                                  or read_factor.shape != (m,)
+                                  or read_weight.dtype != np.float64
+                                  or read_factor.dtype != np.float64
+                                  or not read_weight.flags.c_contiguous):
+                raise ValueError(f"irradiance: read's weight and factor must be float64 "
+                                 f"arrays of shapes {read_photon.shape} and ({m},), "
+                                 f"C-contiguous")
             if (read_count.shape != (m,) or read_photon.ndim != 2
                     or read_photon.shape[0] != m or read_count.dtype != np.int64
                     or read_photon.dtype != np.int64 or not read_photon.flags.c_contiguous):
@@ -286,7 +302,8 @@ class PhotonMap:
             _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
                              p, n, floor, order[a:b], float(radius), int(k), int(min_photons),
                              code, bool(return_boundary), out, boundary, flag, masks, masked,
-                             hid_start, hid_photon, read_count, read_photon)
+                             hid_start, hid_photon, read_count, read_photon, read_weight,
+                             read_factor)
             if flag[0]:
                 raise Cancelled()
             return None
@@ -301,6 +318,7 @@ _NO_MASKS = np.zeros((0, 0), np.bool_)
 _NO_MASKED = np.zeros((0, 0, 3))
 _NO_HIDDEN = (np.zeros(0, np.int64), np.zeros(0, np.int64))
 _NO_READ = (np.zeros(0, np.int64), np.zeros((0, 0), np.int64))
+_NO_WEIGHT = (np.zeros((0, 0)), np.zeros(0))
 _NO_START = np.zeros(1, np.int32)
 
 
@@ -503,7 +521,8 @@ def _list_candidates(cand, cx, cy, cz, nc, qx, qy, qz, r2, d2, idx, cap, tmp):
 @kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
                      rows, radius, k, min_photons, code, want_boundary, out, boundary, stop,
-                     masks, masked, hid_start, hid_photon, read_count, read_photon):
+                     masks, masked, hid_start, hid_photon, read_count, read_photon,
+                     read_weight, read_factor):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
     r_floor, if not empty) into the same rows of out (E) and boundary. Scratch:
     MAX_WIDEN_K (or k) neighbours, reused by every row. stop: (1,) uint8, polled every
@@ -516,10 +535,13 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     hid_photon[hid_start[i]:hid_start[i+1]] (ascending; found by bisection).
     read_count (M,) / read_photon (M, W) int64, or read_count empty: row i's read photons
     (the accepted ones inside rk, in the sum's order: PhotonMap.knn_irradiance's read)
-    into read_photon[i, :W], their number into read_count[i] (0 without an estimate)."""
+    into read_photon[i, :W], their number into read_count[i] (0 without an estimate);
+    read_weight (M, W) / read_factor (M,) float64, or read_weight empty: their weights
+    and the row's factor (PhotonMap.knn_irradiance's read)."""
     P = pos.shape[0]
     S = masks.shape[0]
     rec = read_count.shape[0] > 0
+    rec_w = rec and read_weight.shape[0] > 0
     W = read_photon.shape[1]
     ms = np.zeros((S, 6))  # per mask: e0, e1, e2, a0, a1, a2 of the row
     cap = max(min(max(k, MAX_WIDEN_K, MAX_CLASSIC_K), P), 1)
@@ -893,6 +915,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 continue  # accepted photons beyond the k-th do not count towards the minimum
             if rec and count < W:
                 read_photon[i, count] = pj
+                if rec_w:
+                    # (a floored focus sums its photons' plain power: below)
+                    read_weight[i, count] = 1.0 if floored else w
             count += 1
             a0 += np.float64(power[pj, 0])
             a1 += np.float64(power[pj, 1])
@@ -911,10 +936,16 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             # power, over pi rk^2 (a box kernel): the focus's light is spread, never dropped.
             in_disc = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, rk * rk, buckets)
             f = in_disc / max(fetched, 1) / area
+            if rec_w:
+                # (masked = f x sum x scale; scale is 1 for the k-NN estimators, the only
+                # ones floored)
+                read_factor[i] = f
             e0, e1, e2 = f * a0, f * a1, f * a2
             for s in range(S):
                 for c in range(3):
                     ms[s, c] = f * ms[s, 3 + c]
+        elif rec_w:
+            read_factor[i] = scale
         if rec:
             read_count[i] = count if count >= min_photons else 0
         if count >= min_photons:

@@ -32,6 +32,7 @@ twice (docs/performance.md "visreuse"; a second k-NN search a row was most of th
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
@@ -41,7 +42,8 @@ from .jit import kernel, register_warm_up
 # so that editing it does not recompile these kernels; its names are kept here.
 from .onesurface import (CELLS_MAX, ENTRIES_MAX, FINE_CELLS_MAX,  # noqa: F401
                          FINE_DIVISIONS, FINE_ORIENTATIONS_MAX, PLANE_TOLERANCE,
-                         OneSurfaceCells, _orientation_keys, one_surface_cells)
+                         OneSurfaceCells, _orientation_keys, _unique_keys,
+                         one_surface_cells)
 from .photonmap import _query_lift, _ray_ends
 from .rayoffset import G32_PLANE, ulp32_scalar
 
@@ -166,34 +168,55 @@ def _bent_path(qx, qy, qz, nx, ny, nz, la, bx, by, bz, mx, my, mz):
 
 
 def _estimate_read(pmap, limits, counts, p, n, radius, k, min_photons, estimator, r_floor):
-    """(E (M,3), count (M,) int64, photons (M, W) int64): chaincounts.irradiance's
-    estimate at p / n (counts (M,4) or None) and each row's read photons
-    (PhotonMap.knn_irradiance's read: count[i] of them in photons[i, :count[i]]). The
+    """(E (M,3), count (M,) int64, photons (M, W) int64, weight (M, W) float64, factor
+    (M,) float64): chaincounts.irradiance's estimate at p / n (counts (M,4) or None) and
+    each row's read photons (PhotonMap.knn_irradiance's read: count[i] of them in
+    photons[i, :count[i]], with their weights and the row's factor; photons and weight
+    are this thread's _read_buffers, valid until its next call here). The
     list is READ_WIDTH x k wide; rows that read more are read again as wide as they need
     (the same search: the same photons). A map with the precomputed caustic lookup
     (engine/causticcache.py, which has no search at the query) keeps its estimate, its
     read lists from the k-NN estimate the masked re-estimate takes.
-    Also (wide (V,) int64, wide_count (V,), wide_photons (V, W')): the rows whose lists
-    were cut, read again whole (W' their longest list)."""
+    Also (wide (V,) int64, wide_count (V,), wide_photons (V, W'), wide_weight (V, W'),
+    wide_factor (V,)): the rows whose lists were cut, read again whole (W' their longest
+    list)."""
     m = len(p)
     width = max(1, READ_WIDTH * int(k))
     count = np.zeros(m, np.int64)
-    photons = np.empty((m, width), np.int64)
+    photons, weight = _read_buffers(m, width)
+    factor = np.empty(m)
+    read = (count, photons, weight, factor)
     args = (radius, k, min_photons, estimator)
     if getattr(pmap, "lookup", "knn") == "precomputed":
         E = chaincounts.irradiance(pmap, limits, counts, p, n, *args, r_floor=r_floor)
-        pmap.knn_irradiance(p, n, *args, r_floor=r_floor, read=(count, photons))
+        pmap.knn_irradiance(p, n, *args, r_floor=r_floor, read=read)
     else:
         E = chaincounts.irradiance(pmap, limits, counts, p, n, *args, r_floor=r_floor,
-                                   read=(count, photons))
+                                   read=read)
     wide = np.flatnonzero(count > width)
-    more_count = np.zeros(len(wide), np.int64)
-    more = np.empty((len(wide), int(count[wide].max()) if len(wide) else 0), np.int64)
+    v, w = len(wide), int(count[wide].max()) if len(wide) else 0
+    more = (np.zeros(v, np.int64), np.empty((v, w), np.int64), np.empty((v, w)),
+            np.empty(v))
     if len(wide):
         pmap.knn_irradiance(p[wide], n[wide], *args,
-                            r_floor=None if r_floor is None else r_floor[wide],
-                            read=(more_count, more))
-    return E, count, photons, (wide, more_count, more)
+                            r_floor=None if r_floor is None else r_floor[wide], read=more)
+    return E, count, photons, weight, factor, (wide, *more)
+
+
+_READ_BUFFERS = threading.local()
+
+
+def _read_buffers(m, width):
+    """This thread's (photons (m, width) int64, weight (m, width) float64) for
+    _estimate_read's lists, valid until its next call on the thread (the callers consume
+    a block's lists before the next). Fresh arrays each call faulted their pages in on
+    every call: ~1 KB a row each (k = 64), 0.3 of Figure 3's 13 CPU s for the two lists.
+    Kept for the thread's life at the largest size asked (at most READ_ROWS rows: 16 MB
+    each at k = 64)."""
+    got = getattr(_READ_BUFFERS, "arrays", None)
+    if got is None or got[0].shape[0] < m or got[0].shape[1] != width:
+        got = _READ_BUFFERS.arrays = (np.empty((m, width), np.int64), np.empty((m, width)))
+    return got[0][:m], got[1][:m]
 
 
 def _hidden_pairs(pmap, accel, p, n, lift, rows, slots, count, photons):
@@ -234,12 +257,14 @@ def _hidden_pairs(pmap, accel, p, n, lift, rows, slots, count, photons):
 
 
 def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator, r_floor,
-                     limits, counts, geo):
+                     limits, counts, geo, visible=False):
     """(E (M,3), rows (H,), photons (H,)): the estimate at p / n (chaincounts.irradiance,
     counts (M,4) or None) and its hidden (row, photon) pairs, by row: the photons each
     row's estimate read (_estimate_read) traced from the row (_hidden_pairs), in blocks
     of READ_ROWS rows (one search a row for both). Rows the pre-test frees (geo:
-    OneSurfaceCells; None: none) are not traced."""
+    OneSurfaceCells; None: none) are not traced. visible: E's rows that hide a photon
+    hold their estimate from their visible photons alone (_visible_sums: from the read
+    lists, the bits of _reestimate's second search)."""
     m = len(p)
     p = np.ascontiguousarray(p, dtype=np.float64)
     n = np.ascontiguousarray(n, dtype=np.float64)
@@ -255,20 +280,27 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     rows_out, photons_out = [], []
     for a in range(0, m, READ_ROWS):
         b = min(a + READ_ROWS, m)
-        E[a:b], count, photons, (wide, wide_count, wide_photons) = _estimate_read(
-            pmap, limits, None if counts is None else counts[a:b], p[a:b], n[a:b], radius,
-            k, min_photons, estimator, None if floor is None else floor[a:b])
+        counts_here = None if counts is None else counts[a:b]
+        E[a:b], count, photons, weight, factor, (wide, *wide_read) = _estimate_read(
+            pmap, limits, counts_here, p[a:b], n[a:b], radius, k, min_photons, estimator,
+            None if floor is None else floor[a:b])
         if accel is None:
             continue
         here = (p[a:b], n[a:b], lift[a:b] if len(lift) else lift)
         todo = np.flatnonzero(traced[a:b] & (count > 0) & (count <= photons.shape[1]))
         rows, hid = _hidden_pairs(pmap, accel, *here, todo, todo, count, photons)
+        if visible and len(rows):
+            _visible_sums(pmap, limits, counts_here, E[a:b], rows, rows, hid,
+                          (count, photons, weight, factor))
         rows_out.append(rows + a)
         photons_out.append(hid)
         if len(wide):
             slot = np.flatnonzero(traced[a:b][wide])
-            rows, hid = _hidden_pairs(pmap, accel, *here, wide[slot], slot, wide_count,
-                                      wide_photons)
+            rows, hid = _hidden_pairs(pmap, accel, *here, wide[slot], slot, *wide_read[:2])
+            if visible and len(rows):
+                # (each wide row's slot: its place in wide, which is ascending)
+                _visible_sums(pmap, limits, counts_here, E[a:b], rows,
+                              np.searchsorted(wide, rows), hid, wide_read)
             rows_out.append(rows + a)
             photons_out.append(hid)
     if not rows_out:
@@ -307,19 +339,124 @@ def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimato
     if pmap is None or len(pmap) == 0 or pmap.tree is None or len(p) == 0 or radius <= 0:
         return chaincounts.irradiance(pmap, limits, counts, p, n, radius, k, min_photons,
                                       estimator, r_floor=r_floor)
-    E, rows, photons = _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons,
-                                        estimator, r_floor, limits, counts, geo)
-    if not len(rows):
-        return E
-    return _reestimate(E, pmap, p, n, radius, k, min_photons, estimator, r_floor, limits,
-                       counts, rows, photons)
+    # The rows that hide a photon summed again over their read lists (_visible_sums):
+    # the bits of a second, masked search (_reestimate) for a fraction of its cost
+    # (Figure 7: 2.4 CPU s of 35 were those searches, docs/performance.md "gatherspeed").
+    E, _, _ = _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
+                               r_floor, limits, counts, geo, visible=True)
+    return E
+
+
+def _visible_sums(pmap, limits, counts, E, rows, slots, photons, read):
+    """E[rows] estimated again from each row's visible photons alone, from its read list:
+    rows (H,) int64 the pairs' rows of E (M,3) (with repeats), photons (H,) the hidden
+    map photons, slots (H,) each pair row's entry in read = (count, photons, weight,
+    factor) (_estimate_read's lists, whole for these rows). The estimate is
+    factor x the sum, in the list's order, of weight x power over the photons that are
+    neither hidden from the row nor unusable at its counts (counts (M,4) or None, with
+    limits: chaincounts' masks): PhotonMap.knn_irradiance's masked sum over the same
+    search (its other photons weigh 0 or are masked), so the bits of _reestimate.
+    Writes into E.
+
+    _hidden_pairs lists each row's pairs together, in its read list's order: the sums
+    walk both lists at once. Pairs in any other order are sorted (by row, then photon)
+    and bisected instead: the same sums."""
+    if len(rows) > 1 and (rows[1:] < rows[:-1]).any():
+        order = np.argsort(rows, kind="stable")
+        rows, photons, slots = rows[order], photons[order], slots[order]
+    args = _visible_args(pmap, limits, counts, rows, photons, slots, read, E)
+    if _visible_rows(*args, False):
+        # (some row's hidden photons not in its list's order) each row's hidden photons
+        # ascending, bisected
+        order = np.lexsort((photons, rows))
+        rows, photons, slots = rows[order], photons[order], slots[order]
+        _visible_rows(*_visible_args(pmap, limits, counts, rows, photons, slots, read, E),
+                      True)
+
+
+def _visible_args(pmap, limits, counts, rows, photons, slots, read, E):
+    """_visible_rows' arguments for _visible_sums' pairs (grouped by row)."""
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    hiding = rows[starts]
+    bounds = np.r_[starts, len(rows)].astype(np.int64)
+    if (counts is not None and limits is not None
+            and getattr(pmap.photons, "bounces", None) is not None):
+        # (chaincounts.unique_counts: np.unique(axis=0)'s arrays without its slow sort)
+        keys, cls = chaincounts.unique_counts(np.asarray(counts)[hiding])
+        cache = chaincounts.map_cache(pmap)
+        usable = np.stack([chaincounts._usable(pmap.photons, limits,
+                                               tuple(int(x) for x in key), cache)
+                           for key in keys])
+        cls = np.ascontiguousarray(cls.reshape(-1), dtype=np.int64)
+    else:
+        usable = _ALL_USABLE
+        cls = np.zeros(len(hiding), np.int64)
+    count, listed, weight, factor = read
+    return (pmap.photons.power, hiding, np.ascontiguousarray(slots[starts]), bounds,
+            np.ascontiguousarray(photons, dtype=np.int64), usable, cls, count, listed,
+            weight, factor, E)
+
+
+_ALL_USABLE = np.zeros((0, 0), np.bool_)  # _visible_rows: every photon usable
+
+
+@kernel
+def _visible_rows(power, rows, slots, bounds, hidden, usable, cls, count, photons, weight,
+                  factor, E, ascending):
+    """_visible_sums' sums: for each r, E[rows[r]] = factor[s] x the sum over the read
+    list s = slots[r] (photons[s, :count[s]], weights weight[s]) of weight x
+    float64(power) for its photons not in hidden[bounds[r]:bounds[r + 1]] and usable
+    (usable[cls[r]], or usable empty: all), in the list's order:
+    photonmap._irradiance_rows' masked sum (its float64 operations in its order).
+    ascending: each row's hidden photons are ascending (bisected); else in the list's
+    order (walked along it). Returns the rows whose hidden photons were not all met
+    in the list's order (not ascending only; their E is then wrong: sort and ask again)."""
+    bad = 0
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        s = slots[r]
+        h_lo, h_hi = bounds[r], bounds[r + 1]
+        h = h_lo  # the next hidden photon the walk expects
+        c = cls[r]
+        e0 = e1 = e2 = 0.0
+        for jj in range(count[s]):
+            pj = photons[s, jj]
+            if not ascending:
+                if h < h_hi and hidden[h] == pj:
+                    h += 1
+                    continue
+            else:
+                lo, hi = h_lo, h_hi
+                while lo < hi:
+                    mid = (lo + hi) >> 1
+                    if hidden[mid] < pj:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                if lo < h_hi and hidden[lo] == pj:
+                    continue
+            if usable.shape[0] and not usable[c, pj]:
+                continue
+            w = weight[s, jj]
+            e0 += w * np.float64(power[pj, 0])
+            e1 += w * np.float64(power[pj, 1])
+            e2 += w * np.float64(power[pj, 2])
+        if not ascending and h != h_hi:
+            bad += 1
+        f = factor[s]
+        E[i, 0] = e0 * f
+        E[i, 1] = e1 * f
+        E[i, 2] = e2 * f
+    return bad
 
 
 def _reestimate(E, pmap, p, n, radius, k, min_photons, estimator, r_floor, limits, counts,
                 rows, photons):
     """E with the rows `rows` estimated again without their hidden photons (rows (H,),
     photons (H,): the pairs), in one estimate call per count class (PhotonMap.irradiance's
-    hidden: each row's hidden photons left out for that row alone). Writes into E."""
+    hidden: each row's hidden photons left out for that row alone). Writes into E.
+    The reference _visible_sums reproduces bit for bit from the first search's read lists
+    (tests/test_photon_visibility_reuse.py); visible_irradiance no longer calls it."""
     cache = chaincounts.map_cache(pmap) if counts is not None else None
     use_counts = (counts is not None and limits is not None
                   and getattr(pmap.photons, "bounces", None) is not None)
@@ -372,3 +509,7 @@ def _warm_up():
                np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros((1, 8), np.int64),
                o32, d32, np.empty(8, np.float32), np.empty(8, np.int64),
                np.empty(8, np.int64))
+    one = np.zeros(1, np.int64)
+    _visible_rows(pmap.photons.power, one, one, np.int64([0, 1]), one, _ALL_USABLE, one,
+                  np.ones(1, np.int64), np.zeros((1, 8), np.int64), np.ones((1, 8)),
+                  np.ones(1), np.zeros((1, 3)), False)

@@ -140,3 +140,107 @@ def test_cut_read_lists_are_read_again_whole(monkeypatch):
         assert np.array_equal(got, want)
         for a, b in zip(pairs, cut):
             assert np.array_equal(a, b)
+
+
+def test_read_list_sums_give_the_masked_searchs_bits(monkeypatch):
+    """visible_irradiance's rows that hide a photon are summed again from their read lists
+    (photonvisibility._visible_sums: each read photon's weight and the row's factor from
+    the first search) instead of a second, masked search (_reestimate): the same bits,
+    with camera-side counts that leave some photons unusable (chaincounts' masks), with a
+    footprint floor (floored foci), and with every list cut and read again whole."""
+    from engine import photonvisibility as pv
+    ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
+    ph = shoot_photons(ctx, {})[-1]
+    rng = np.random.default_rng(21)
+    # Counts per photon (total, diffuse, glossy, transmission) so that the rows' camera
+    # counts below keep some photons and not others.
+    b = rng.integers(0, 3, (len(ph), 4)).astype(np.uint8)
+    b[:, 0] = b[:, 1:].sum(1)
+    pmap = PhotonMap(ph, keep_source=True)
+    pmap.photons.bounces = b[pmap.source]  # (the map's order)
+    m = 300
+    p = np.column_stack([rng.uniform(-0.6, 0.6, m), np.full(m, 2.0),
+                         rng.uniform(1.0, 2.1, m)]) - ctx.geo.offset
+    n = np.tile([0.0, -1.0, 0.0], (m, 1))
+    limits = np.array([4, 3, 3, 3], np.int64)
+    counts = np.zeros((m, 4), np.int64)
+    counts[:, 1] = rng.integers(0, 2, m)
+    counts[:, 0] = counts[:, 1]
+    radius, k = 0.19, 64
+    floors = (None, rng.uniform(0.0, 0.3, m))
+    changed = 0
+    for width in (pv.READ_WIDTH, 0):
+        with monkeypatch.context() as mp:
+            mp.setattr(pv, "READ_WIDTH", width)
+            for r_floor in floors:
+                for lim, cnt in ((None, None), (limits, counts)):
+                    got = pv.visible_irradiance(pmap, ctx.accel, p, n, None, radius, k, 1,
+                                                "knn_simpson", r_floor=r_floor, limits=lim,
+                                                counts=cnt)
+                    E, rows, hid = pv._estimate_hidden(pmap, ctx.accel, p, n, None, radius,
+                                                       k, 1, "knn_simpson", r_floor, lim,
+                                                       cnt, None)
+                    assert len(np.unique(rows)) > 10
+                    plain = E.copy()
+                    want = pv._reestimate(E, pmap, p, n, radius, k, 1, "knn_simpson",
+                                          r_floor, lim, cnt, rows, hid)
+                    assert np.array_equal(got, want)
+                    changed += int((got != plain).any(1).sum())
+                    if cnt is not None:  # the counts' masks do drop photons here
+                        unmasked = pv.visible_irradiance(pmap, ctx.accel, p, n, None,
+                                                         radius, k, 1, "knn_simpson",
+                                                         r_floor=r_floor)
+                        assert not np.array_equal(got, unmasked)
+    assert changed > 100
+    # Floored foci were among the rows (factor != 1: their estimate is f x the plain sum):
+    # the footprint floor exceeds many rows' k-th distance on the lit wall.
+    count = np.zeros(m, np.int64)
+    read = (count, np.empty((m, 8 * k), np.int64), np.empty((m, 8 * k)), np.empty(m))
+    pmap.knn_irradiance(p, n, radius, k, 1, "knn_simpson", r_floor=floors[1], read=read)
+    assert ((read[3] != 1.0) & (count > 0)).sum() > 10
+
+
+def test_read_list_sums_take_pairs_in_any_order():
+    """_visible_sums walks each row's hidden photons along its read list (the order
+    _hidden_pairs gives them); pairs shuffled (rows and photons in any order) are sorted
+    and bisected instead: the same sums, which differ from the unmasked estimate."""
+    from engine import photonvisibility as pv
+    ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
+    pmap = PhotonMap(shoot_photons(ctx, {})[-1])
+    rng = np.random.default_rng(8)
+    m = 200
+    p = np.column_stack([rng.uniform(-0.6, 0.6, m), np.full(m, 2.0),
+                         rng.uniform(1.0, 2.1, m)]) - ctx.geo.offset
+    n = np.tile([0.0, -1.0, 0.0], (m, 1))
+    E, count, photons, weight, factor, _ = pv._estimate_read(
+        pmap, None, None, p, n, 0.19, 64, 1, "knn_simpson", None)
+    todo = np.flatnonzero((count > 0) & (count <= photons.shape[1]))
+    rows, hid = pv._hidden_pairs(pmap, ctx.accel, p, n, np.zeros(0), todo, todo, count,
+                                 photons)
+    assert len(np.unique(rows)) > 10
+    read = (count, photons, weight, factor)
+    walked, shuffled = E.copy(), E.copy()
+    pv._visible_sums(pmap, None, None, walked, rows, rows, hid, read)
+    perm = rng.permutation(len(rows))
+    pv._visible_sums(pmap, None, None, shuffled, rows[perm], rows[perm], hid[perm], read)
+    assert np.array_equal(walked, shuffled)
+    assert (walked != E).any(1).sum() > 10
+
+
+def test_orientation_keys_unique_as_numpy():
+    """The pre-test's distinct orientations (photonvisibility._unique_keys) are
+    np.unique(axis=0)'s arrays: one orientation, a few, and random normals (keys at both
+    ends of their range)."""
+    from engine.photonvisibility import _orientation_keys, _unique_keys
+    rng = np.random.default_rng(3)
+    cases = [np.tile([0.0, 0.0, 1.0], (50, 1)),
+             np.r_[np.tile([0.0, -1.0, 0.0], (30, 1)), np.tile([1.0, 0.0, 0.0], (20, 1)),
+                   np.tile([0.0, 1.0, 0.0], (5, 1))],
+             rng.normal(size=(2000, 3))]
+    for n in cases:
+        rk = _orientation_keys(n)
+        got, which = _unique_keys(rk)
+        want, inverse = np.unique(rk, axis=0, return_inverse=True)
+        assert np.array_equal(got, want)
+        assert np.array_equal(which, inverse.reshape(-1))
+        assert np.array_equal(got[which], rk)
