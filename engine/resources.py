@@ -41,6 +41,9 @@ measured peak for a set of renders. What each part counts:
   pass (10 KB per in-flight camera sample; tracemalloc: 2.1 GB of it the orientation
   lookup's pairwise arrays and the per-orientation grids), now 0.48 GB (1.8 KB; the
   estimate's 1900 B a sample holds), the grids 17 MB (docs/performance.md "scale").
+- visibility read lists: each render thread's photon visibility read lists (photon ids
+  and weights, photonvisibility._read_buffers), kept for the thread's life: 32 MB a thread
+  at k = 64.
 - regather maps: the bounce limits' deeper gather levels (photonmap.GatherMap subsets,
   engine/render.py _build_maps): per level the irradiance and boundary flag of every
   gather point, counted at the most levels (integrator.MAX_GATHER_LEVEL) whenever the
@@ -326,6 +329,12 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         if integrator.PHOTON_VISIBILITY:
             est.parts["visibility pre-test"] = VISIBILITY_RADII * onesurface.KEPT_BYTES_MAX
             est.drivers["visibility pre-test"] = "photons"
+            # Each thread keeps its read lists (photon ids and weights, READ_ROWS rows
+            # READ_WIDTH x k wide) for its life: photonvisibility._read_buffers.
+            from . import photonvisibility as pv
+            est.parts["visibility read lists"] = (threads * pv.READ_ROWS * pv.READ_WIDTH
+                                                  * max(1, int(s.k_nearest)) * 16)
+            est.drivers["visibility read lists"] = "k_nearest"
         levels = regather_levels(s)
         if levels:
             est.parts["regather maps"] = (gather_points(s.photons * stores) * levels

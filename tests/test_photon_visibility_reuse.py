@@ -244,3 +244,27 @@ def test_orientation_keys_unique_as_numpy():
         assert np.array_equal(got, want)
         assert np.array_equal(which, inverse.reshape(-1))
         assert np.array_equal(got[which], rk)
+
+
+def test_estimate_memory_counts_each_threads_read_lists():
+    """Each render thread keeps its visibility read lists (photonvisibility._read_buffers)
+    for its life; estimate_memory counts them, at their largest (READ_ROWS rows, READ_WIDTH
+    x k wide), once per thread."""
+    import threading
+
+    from engine import RenderSettings
+    from engine import photonvisibility as pv
+    from engine.resources import estimate_memory
+    from engine.scene import Scene
+    s = RenderSettings(photons=1000, k_nearest=32, workers=2)
+    got = {}
+
+    def read():
+        ids, weights = pv._read_buffers(pv.READ_ROWS, pv.READ_WIDTH * s.k_nearest)
+        got["bytes"] = ids.nbytes + weights.nbytes
+
+    t = threading.Thread(target=read)
+    t.start()
+    t.join()
+    part = estimate_memory(Scene(), s).parts["visibility read lists"]
+    assert part == s.threads * got["bytes"]
