@@ -646,8 +646,15 @@ SHARP_KINDS = ("mirror", "glass", "polished metal", "transparent", "glossy")
 
 def _closure_words(geo: Geometry, table: MaterialTable, oid: int, kind: str) -> str:
     """" (Glossy BSDF, roughness 0.2)" or " (metallic 1, roughness 0.2)": the closure
-    behind a glossy-node or metal kind, so a student finds the setting; "" otherwise."""
+    behind a glossy-node or metal kind, so a student finds the setting; " (roughness
+    0.2)" for glass that is not smooth (a Principled Transmission 1 at roughness 0.2 read
+    as plain "glass", as if its roughness were ignored: new-user trial, newuser28); ""
+    otherwise."""
     mats = np.unique(geo.material[geo.object_id == oid])
+    if kind == "glass":
+        # The smoothest transmitting material names it; smooth (the delta lobe) says nothing.
+        r = float(np.min(table.roughness[mats[table.transmission[mats] > 0]]))
+        return f" (roughness {r:.2g})" if r * r >= ALPHA_MIN else ""
     glossy = _is_glossy_node(table, mats)
     if glossy.any():
         return f" (Glossy BSDF, roughness {float(np.min(table.roughness[mats[glossy]])):.2g})"

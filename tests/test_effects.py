@@ -581,6 +581,19 @@ def test_a_glossy_bsdf_is_glossy_and_metal_needs_metallic_above_one_half():
     assert "'Blurry'" not in sharp and "'Ball'" in sharp, spec
 
 
+def test_rough_glass_is_named_with_its_roughness_and_clear_glass_without():
+    """A Principled Transmission 1 vase at roughness 0.2 was reported as plain "glass
+    'Vase'", as if its roughness were ignored (new-user trial, newuser28): glass that is
+    not smooth says its roughness, as a Glossy BSDF does; smooth glass says nothing more."""
+    s = _room(Material("plain", (0.6, 0.6, 0.6)), extra=[("glass", "Clear")])
+    s.add_material(Material("rough_glass", (1, 1, 1), transmission=1.0, roughness=0.2,
+                            ior=1.45))
+    s.add_sphere((-0.8, 0.3, 0.5), 0.5, "rough_glass", name="Vase", segments=24)
+    spec = _line(_plan(s), "specular reflection / refraction: on")
+    assert "glass 'Vase' (roughness 0.2)" in spec, spec
+    assert "glass 'Clear'" in spec and "glass 'Clear' (" not in spec, spec
+
+
 def test_rough_layers_are_named_for_their_highlights_not_as_specular():
     """A room of rough Principled surfaces (0.5 and 1.0) lists nothing as a specular
     reflector, says what their layers do, and keeps the camera paths' continuation
