@@ -26,6 +26,7 @@ from .jit import kernel, register_warm_up
 from .lights import packing as pk
 from .lights.emission import concentric_disk as _concentric_disk, to_world as _to_world
 from .lights.environment import N_OCT, env_cosine_pdf, env_cosine_sample, env_radiance
+from .lights.area import MIN_SPHERICAL_SOLID_ANGLE, spherical_rectangle
 from .lights.mesh import solid_angle_sampled, spherical_triangle_sample
 from .lights.selection import NINF, empty_tree, select_light
 from .lights.world import ENV_MAP_FRACTION
@@ -331,6 +332,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
             surface = False    # ... on a surface with normal ny and end gap
             solid = False      # an emissive triangle sampled by solid angle omega
             omega = 0.0
+            solid_rect = False  # a rectangle area light sampled by solid angle rect_omega
+            rect_omega = 0.0
             tpmf = 1.0
             tri = 0
             y0 = y1 = y2 = 0.0
@@ -532,14 +535,27 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                         la0, la1, la2 = q[RGB] * ar, q[RGB + 1] * ar, q[RGB + 2] * ar
                         inv_pdf_a = ar
                     else:
-                        if q[IS_DISK] != 0.0:
-                            x, yy = _concentric_disk(u1, u2)
-                            x, yy = x * q[SIZE_X] / 2, yy * q[SIZE_Y] / 2
-                        else:
-                            x, yy = (u1 - 0.5) * q[SIZE_X], (u2 - 0.5) * q[SIZE_Y]
-                        y0 = q[POS] + x * q[DU] + yy * q[DV]
-                        y1 = q[POS + 1] + x * q[DU + 1] + yy * q[DV + 1]
-                        y2 = q[POS + 2] + x * q[DU + 2] + yy * q[DV + 2]
+                        if q[IS_DISK] == 0.0:
+                            # A rectangle: a direction uniform in its solid angle where
+                            # that is large enough (lights/area.py).
+                            ex0, ex1, ex2 = (q[DU] * q[SIZE_X], q[DU + 1] * q[SIZE_X],
+                                             q[DU + 2] * q[SIZE_X])
+                            ey0, ey1, ey2 = (q[DV] * q[SIZE_Y], q[DV + 1] * q[SIZE_Y],
+                                             q[DV + 2] * q[SIZE_Y])
+                            rect_omega, y0, y1, y2 = spherical_rectangle(
+                                p0, p1, p2, q[POS] - 0.5 * (ex0 + ey0),
+                                q[POS + 1] - 0.5 * (ex1 + ey1), q[POS + 2] - 0.5 * (ex2 + ey2),
+                                ex0, ex1, ex2, ey0, ey1, ey2, u1, u2, True)
+                            solid_rect = rect_omega >= MIN_SPHERICAL_SOLID_ANGLE
+                        if not solid_rect:
+                            if q[IS_DISK] != 0.0:
+                                x, yy = _concentric_disk(u1, u2)
+                                x, yy = x * q[SIZE_X] / 2, yy * q[SIZE_Y] / 2
+                            else:
+                                x, yy = (u1 - 0.5) * q[SIZE_X], (u2 - 0.5) * q[SIZE_Y]
+                            y0 = q[POS] + x * q[DU] + yy * q[DV]
+                            y1 = q[POS + 1] + x * q[DU + 1] + yy * q[DV + 1]
+                            y2 = q[POS + 2] + x * q[DU + 2] + yy * q[DV + 2]
                         la0 = q[RGB] * q[AREA_]
                         la1 = q[RGB + 1] * q[AREA_]
                         la2 = q[RGB + 2] * q[AREA_]
@@ -568,6 +584,12 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 f = cr * cl / d2
                 e0, e1, e2 = la0 * f, la1 * f, la2 * f
                 lp = d2 / max(cl * inv_pdf_a, 1e-300)
+                if solid_rect:
+                    # By solid angle: L cos / (1 / omega) on the emitting side, pdf
+                    # 1 / omega.
+                    f = cr * rect_omega * (1.0 if cl > 0.0 else 0.0)
+                    e0, e1, e2 = q[RGB] * f, q[RGB + 1] * f, q[RGB + 2] * f
+                    lp = 1.0 / rect_omega
                 if solid:
                     # By solid angle: L cos / (pmf / omega), pdf pmf / omega.
                     f = cr * omega / tpmf

@@ -21,6 +21,8 @@ from .directlight import (NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuf
                           direct_light, sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
+from .scene import DISK
+from .lights.area import MIN_SPHERICAL_SOLID_ANGLE, rect_solid_angles
 from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
@@ -381,7 +383,18 @@ def mis_light_pdf(light, o, d, t, ns=None):
         inside = (yu >= x0) & (yu <= x1) & (yv >= y0) & (yv <= y1) & (area > 0)
         with np.errstate(over="ignore", invalid="ignore"):  # rows that missed: t = inf
             return np.where(inside, t * t / np.maximum(cos_l * area, 1e-300), 0.0)
-    return t * t / np.maximum(cos_l * area, 1e-300)
+    by_area = t * t / np.maximum(cos_l * area, 1e-300)
+    if light.kind == AREA and light.shape != DISK:
+        # A rectangle's shadow rays sample its solid angle where it is large enough
+        # (directlight.sample_lights, lights/area.py): pdf 1 / omega there.
+        ex = np.asarray(light.du, np.float64) * float(light.size_x)
+        ey = np.asarray(light.dv, np.float64) * float(light.size_y)
+        omega = np.empty(len(o))
+        rect_solid_angles(np.ascontiguousarray(o, np.float64),
+                          np.asarray(light.pos, np.float64) - 0.5 * (ex + ey), ex, ey, omega)
+        solid = omega >= MIN_SPHERICAL_SOLID_ANGLE
+        return np.where(solid, 1.0 / np.where(solid, omega, 1.0), by_area)
+    return by_area
 
 
 def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
