@@ -37,10 +37,6 @@ FINE_CELLS_MAX = 1 << 22
 # 2^31 orientations). engine/resources.py counts it for each radius photon visibility
 # asks with (the global, caustic and secondary maps').
 KEPT_BYTES_MAX = CELLS_MAX + 8 * FINE_CELLS_MAX
-# The most row orientations the own-orientation pre-test answers in one call (the
-# commonest among the rows; the others' rows are traced). It bounded one grid per
-# orientation before _sole; kept so that the same rows are traced (the film's bits).
-FINE_ORIENTATIONS_MAX = 16
 
 
 def _orientation_keys(normals):
@@ -227,8 +223,7 @@ class OneSurfaceCells:
         disc meets only triangles parallel to their own plane (the fine grid, _fine),
         which cannot cross the visibility rays, that follow the plane a ray offset
         above it (the same reasoning as the class docstring's, without needing the
-        point's own surface in each cell the rays cross); at most
-        FINE_ORIENTATIONS_MAX orientations, the commonest among the points."""
+        point's own surface in each cell the rays cross)."""
         p = np.asarray(p, np.float64)
         out = np.zeros(len(p), bool)
         if self.busy is None or not len(p):
@@ -251,17 +246,12 @@ class OneSurfaceCells:
         found = o_of >= 0
         if not found.any():
             return out
-        common = np.bincount(o_of[found]).argsort()[::-1][:FINE_ORIENTATIONS_MAX]
-        sole = None
-        for o in common:
-            here = rows[o_of == o]
-            if not len(here):
-                continue
-            if sole is None:
-                sole = self._sole()
-            fi = f[here]
-            s = sole[fi[:, 0], fi[:, 1], fi[:, 2]]
-            out[here] = (s == -1) | (s == o)
+        # One sole-orientation grid answers every orientation at once (until s29 the 16
+        # commonest a call: one grid each had been built per orientation).
+        here, o = rows[found], o_of[found]
+        fi = f[here]
+        s = self._sole()[fi[:, 0], fi[:, 1], fi[:, 2]]
+        out[here] = (s == -1) | (s == o)
         return out
 
 

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from engine import onesurface
-from engine.onesurface import (FINE_DIVISIONS, FINE_ORIENTATIONS_MAX, OneSurfaceCells,
+from engine.onesurface import (FINE_DIVISIONS, OneSurfaceCells,
                                _orientation_index, _orientation_keys)
 
 
@@ -47,7 +47,9 @@ def _old_free(cells, p, reach, n):
     found = o_of >= 0
     if not found.any():
         return out
-    for o in np.bincount(o_of[found]).argsort()[::-1][:FINE_ORIENTATIONS_MAX]:
+    # (Before s29 only the 16 commonest orientations of a call were answered; the old
+    # per-orientation grids answer all of them here.)
+    for o in np.unique(o_of[found]):
         here = rows[o_of == o]
         if len(here):
             fi = f[here]
@@ -150,7 +152,7 @@ def test_free_equals_the_old_pretest_with_bounded_memory():
     try:
         got = cells.free(p, reach, n)
         kept_one, _ = tracemalloc.get_traced_memory()
-        # Ask for every orientation, FINE_ORIENTATIONS_MAX at a time.
+        # Ask for every orientation, one at a time.
         o_rows = _orientation_index(cells.keys, _orientation_keys(n))
         asked = 0
         for o in np.unique(o_rows[o_rows >= 0]):
