@@ -5,7 +5,8 @@ Every kernel is `@kernel`: numba's `njit(nogil=True, cache=True)`. nogil lets
 engine/parallel.py's threads run kernels on all cores; there is no parallel=True / prange
 (numba's threading layers conflict with Blender's libtbb and abort on concurrent calls).
 cache=True writes the machine code to NUMBA_CACHE_DIR, so only the first render on a
-machine compiles (seconds); later processes load it (a fraction of a second). The cache
+machine compiles (minutes of CPU, shared out to helper processes on several cores:
+engine/compilepool.py); later processes load it (a few seconds). The cache
 lives in a subfolder named by a hash of all engine sources (numba alone would miss a
 change in a kernel that another module's kernel calls).
 
@@ -156,6 +157,12 @@ if "numba" in sys.modules:  # imported earlier (another add-on): make it see the
 
 import numba  # noqa: E402  (after NUMBA_CACHE_DIR is set)
 
+from . import compilepool  # noqa: E402
+
+# Saves into our cache folders take a lock file: processes compiling at once (the
+# compile's helpers, two first renders) must not give two signatures one data file.
+compilepool.install_save_lock(CACHE_ROOT)
+
 kernel = numba.njit(nogil=True, cache=True)
 
 # Kernel modules register a warm-up (a call on tiny inputs that compiles or loads every
@@ -214,11 +221,25 @@ def ensure_compiled(progress=None) -> float:
     compiling = needs_compile()
     if compiling and progress is not None:
         progress("compile", 0.0, COMPILE_MESSAGE)
+
+    def report(done, total):
+        if compiling and progress is not None:
+            progress("compile", done / total, COMPILE_PROGRESS.format(done, total))
+
+    shared = False
+    if compiling:
+        # A cold compile: helper processes take a share (engine/compilepool.py); the loop
+        # below then loads what they wrote and compiles what is left.
+        processes = compilepool.compile_processes(len(_warm_ups))
+        if processes > 1:
+            compilepool.compile_shared(_warm_ups, processes, progress=report)
+            shared = True
     for i, fn in enumerate(_warm_ups):
         fn()
-        if compiling and progress is not None:
-            progress("compile", (i + 1) / len(_warm_ups),
-                     COMPILE_PROGRESS.format(i + 1, len(_warm_ups)))
+        if not shared:
+            report(i + 1, len(_warm_ups))
+    if shared:
+        report(len(_warm_ups), len(_warm_ups))
     _warm = True
     if compiling:
         try:

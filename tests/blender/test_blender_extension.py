@@ -38,10 +38,12 @@ INSTALL_SCRIPT = textwrap.dedent(r'''
     r.filepath = out_png; r.image_settings.file_format = "PNG"
     bpy.ops.render.render(write_still=True)
     engine_mod = sys.modules.get("bl_ext.user_default.photonmap.engine")
+    pool = sys.modules.get("bl_ext.user_default.photonmap.engine.compilepool")
     import embreex, scipy
     print("RESULT " + json.dumps(dict(
         op=sorted(res), addons=addons,
         engine_file=getattr(engine_mod, "__file__", None),
+        compile_run=getattr(pool, "LAST_RUN", None),
         embreex=embreex.__file__, scipy=scipy.__file__,
         user_ext=bpy.utils.user_resource("EXTENSIONS"))))
 ''')
@@ -78,3 +80,9 @@ def test_install_built_zip_and_render(tmp_path):
     site = os.path.join(info["user_ext"], ".local")
     assert os.path.isdir(site) and any("embreex" in d for _, ds, _ in os.walk(site) for d in ds)
     assert out_png.is_file() and out_png.stat().st_size > 0
+    # The cold compile was shared with helper processes that imported the installed
+    # engine under its extension package name (engine/compilepool.py), where cores allow.
+    if (os.cpu_count() or 1) > 1:
+        run = info["compile_run"]
+        assert run and run["helpers_finished"] == run["processes"] - 1 >= 1, run
+        assert run["run_here"] < run["jobs"], run
