@@ -86,10 +86,22 @@ def test_a_stale_lock_is_taken_over(tmp_path):
 
 
 _SCRIPT = r"""
-import json, os, sys
-from engine import compilepool, jit
+import importlib, json, os, sys, types
+package = os.environ["TEST_ENGINE_PACKAGE"]
+if package != "engine":  # an installed extension's layout: stub its parent packages
+    pkg_dir = os.environ["TEST_ENGINE_DIR"]
+    parts = package.split(".")
+    for k in range(1, len(parts)):
+        here = pkg_dir
+        for _ in range(len(parts) - k):
+            here = os.path.dirname(here)
+        stub = types.ModuleType(".".join(parts[:k]))
+        stub.__path__ = [here]
+        sys.modules[stub.__name__] = stub
+compilepool = importlib.import_module(package + ".compilepool")
+jit = importlib.import_module(package + ".jit")
 jit._import_kernel_modules()
-names = sys.argv[2].split(",")
+names = [package + "." + n for n in sys.argv[2].split(",")]
 picked = [i for i, fn in enumerate(jit._warm_ups) if compilepool.warm_up_name(fn) in names]
 assert len(picked) == len(names), (names, [compilepool.warm_up_name(f) for f in jit._warm_ups])
 if sys.argv[1] == "compile":
@@ -102,7 +114,7 @@ else:  # load: run the warm-ups, count what came from the cache and what was com
         jit._warm_ups[i]()
     hits = misses = 0
     for name, module in list(sys.modules.items()):
-        if not name.startswith("engine") or module is None:
+        if not name.startswith(package) or module is None:
             continue
         for value in vars(module).values():
             if isinstance(value, numba.core.registry.CPUDispatcher) and value.signatures:
@@ -112,13 +124,14 @@ else:  # load: run the warm-ups, count what came from the cache and what was com
 """
 
 # Small warm-ups (a few CPU seconds together).
-_SMALL = ("engine.normalmap._warm_up", "engine.rayoffset._warm_up", "engine.lights.point._warm_up")
+_SMALL = ("normalmap._warm_up", "rayoffset._warm_up", "lights.point._warm_up")
 
 
-def _run(tmp_path, *args):
-    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+def _run(tmp_path, package, engine_dir, *args):
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+               TEST_ENGINE_PACKAGE=package, TEST_ENGINE_DIR=str(engine_dir))
     env.pop(compilepool.PROCESSES_ENV, None)
-    res = subprocess.run([sys.executable, "-c", _SCRIPT, *args], cwd=ROOT, env=env,
+    res = subprocess.run([sys.executable, "-c", _SCRIPT, *args], cwd=tmp_path, env=env,
                          capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, res.stderr[-3000:]
     return json.loads(res.stdout.strip().splitlines()[-1])
@@ -129,11 +142,26 @@ def test_a_helper_compiles_what_a_later_process_loads(tmp_path, join):
     """compile_shared in a fresh cache folder (a helper process, and with join the calling
     one too), then a new process runs the same warm-ups: every kernel comes from the
     cache, none is compiled again."""
-    got = _run(tmp_path, "compile", ",".join(_SMALL), join)
+    got = _run(tmp_path, "engine", ROOT / "engine", "compile", ",".join(_SMALL), join)
     assert got["helpers"] == 1
     if join == "join":
         assert set(got["here"]) <= set(got["picked"])
     else:
         assert got["here"] == []  # the helper did them all
-    loaded = _run(tmp_path, "load", ",".join(_SMALL))
+    loaded = _run(tmp_path, "engine", ROOT / "engine", "load", ",".join(_SMALL))
+    assert loaded["misses"] == 0 and loaded["hits"] > 0, loaded
+
+
+def test_helpers_import_an_installed_extensions_engine_by_its_package_name(tmp_path):
+    """Blender imports the installed engine as bl_ext.<repository>.photonmap.engine: the
+    helpers import it under that name (parents stubbed; the extension's __init__ needs
+    bpy), so the machine code they write is what the caller loads."""
+    import shutil
+    engine_dir = tmp_path / "extensions" / "user_default" / "photonmap" / "engine"
+    shutil.copytree(ROOT / "engine", engine_dir,
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    package = "bl_ext.user_default.photonmap.engine"
+    got = _run(tmp_path, package, engine_dir, "compile", ",".join(_SMALL), "helpers only")
+    assert got["helpers"] == 1 and got["here"] == []
+    loaded = _run(tmp_path, package, engine_dir, "load", ",".join(_SMALL))
     assert loaded["misses"] == 0 and loaded["hits"] > 0, loaded
