@@ -637,8 +637,13 @@ class MaterialConverter:
             # Toon, Translucent, Sheen, Subsurface Scattering, Hair ...: the node's own
             # colour as a Diffuse BSDF is nearer than the viewport colour (a new user's blue
             # Toon ball rendered grey).
+            # Translucent: say what is lost. A lamp shade of it blocks its lamp (the s29
+            # new user's room: 0.82 of Cycles, the shade 0.02).
+            lost = ("; no light passes through it (a lamp shade of it blocks its lamp; "
+                    "a thin Principled with Transmission lets light through)"
+                    if node.type == "BSDF_TRANSLUCENT" else "")
             self._warn(f"material '{self._mat.name}': shader '{node.name}' ({node.type}) is "
-                       "not supported; approximated by a Diffuse BSDF of its Color")
+                       f"not supported; approximated by a Diffuse BSDF of its Color{lost}")
             base, tex = self._color(node, "Color")
             return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
                            normal_map=self._normal(node))

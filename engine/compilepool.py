@@ -36,6 +36,8 @@ PROCESSES_ENV = "PHOTONMAP_COMPILE_PROCESSES"
 # A helper still running after this long is stopped (the calling process compiles what
 # it had claimed and not finished).
 HELPER_TIMEOUT_S = 3600.0
+# A job waits this long at most for the jobs it depends on (run_claimed).
+DEPENDENCY_WAIT_S = 120.0
 # A lock file older than this is a dead process's (a save takes milliseconds).
 STALE_LOCK_S = 60.0
 
@@ -88,20 +90,67 @@ def done_count(folder: str) -> int:
         return 0
 
 
-def run_claimed(jobs, folder: str, on_done=None) -> list[int]:
-    """Run, in order, each of jobs (callables; every process holds the same list) this
-    process claims in `folder` (by position); mark each finished one ("done-j").
-    on_done(): after each. Returns the positions run here."""
+def run_claimed(jobs, folder: str, on_done=None, deps=None) -> list[int]:
+    """Run each of jobs (callables; every process holds the same list) this process claims
+    in `folder` (by position; the first claimable in list order); mark each finished one
+    ("done-j"). deps: per job the positions whose machine code it reuses (job_dependencies):
+    a job is claimed once they are done (else two processes would compile the shared
+    kernels twice), or after DEPENDENCY_WAIT_S of waiting (their process may have died:
+    then compiling them again is only slower). on_done(): after each. Returns the
+    positions run here."""
+    deps = deps or [()] * len(jobs)
     ran = []
-    for j, job in enumerate(jobs):
-        if not claim(folder, j):
-            continue
-        job()
-        open(os.path.join(folder, f"done-{j}"), "w").close()
-        ran.append(j)
-        if on_done is not None:
-            on_done()
+    pending = list(range(len(jobs)))
+    waited_since = None
+    while pending:
+        taken = None
+        patient = waited_since is None or time.monotonic() - waited_since < DEPENDENCY_WAIT_S
+        for j in pending:
+            if os.path.exists(os.path.join(folder, f"claim-{j}")):
+                taken = j  # someone else's: drop it
+                break
+            ready = all(os.path.exists(os.path.join(folder, f"done-{d}")) for d in deps[j])
+            if (ready or not patient) and claim(folder, j):
+                jobs[j]()
+                open(os.path.join(folder, f"done-{j}"), "w").close()
+                ran.append(j)
+                if on_done is not None:
+                    on_done()
+                taken = j
+                break
+        if taken is not None:
+            pending.remove(taken)
+            waited_since = None
+        else:
+            waited_since = waited_since or time.monotonic()
+            time.sleep(0.05)
     return ran
+
+
+def job_dependencies(jobs, registered) -> list[tuple]:
+    """Per job (warm-ups in the shared order), the positions of the jobs whose module its
+    module uses (a kernel module, or a kernel, among its globals) and that were
+    registered before it (registered: jit's list, in import order: a module imports what
+    it calls before it registers its own warm-up, so this order has no cycles)."""
+    import types
+    rank = {id(fn): r for r, fn in enumerate(registered)}
+    position = {}
+    for j, fn in enumerate(jobs):
+        position.setdefault(fn.__module__, []).append(j)
+    out = []
+    for fn in jobs:
+        module = sys.modules.get(fn.__module__)
+        used = set()
+        for value in vars(module).values() if module is not None else ():
+            if isinstance(value, types.ModuleType):
+                used.add(value.__name__)
+            elif hasattr(value, "py_func"):
+                used.add(getattr(value.py_func, "__module__", None))
+        used.discard(fn.__module__)
+        mine = rank.get(id(fn), len(registered))
+        out.append(tuple(sorted(j for name in used for j in position.get(name, ())
+                                if rank.get(id(jobs[j]), len(registered)) < mine)))
+    return out
 
 
 def warm_up_name(fn) -> str:
@@ -160,7 +209,8 @@ def compile_shared(warm_ups, processes: int, progress=None, indices=None, join=T
                 shown[0] = done
                 progress(done, total)
 
-        ran = run_claimed(jobs, folder, on_done=report) if join else []
+        deps = job_dependencies(jobs, warm_ups)
+        ran = run_claimed(jobs, folder, on_done=report, deps=deps) if join else []
         start = time.monotonic()
         # Wait until every warm-up is done (then the helpers' machine code is all saved:
         # a warm-up is marked done after it returns) or every helper has stopped.
@@ -224,7 +274,7 @@ def helper_main(package: str, pkg_dir: str, folder: str, names: str) -> None:
     mine = {warm_up_name(fn): fn for fn in jit._warm_ups}
     # (A name this process lacks is left to the caller, which runs every warm-up.)
     jobs = [mine.get(name, _nothing) for name in names.split(",") if name]
-    run_claimed(jobs, folder)
+    run_claimed(jobs, folder, deps=job_dependencies(jobs, jit._warm_ups))
 
 
 def _nothing():

@@ -35,6 +35,46 @@ def test_claims_give_each_job_to_exactly_one_runner(tmp_path):
     assert compilepool.done_count(str(tmp_path)) == 40
 
 
+def test_a_job_waits_for_the_jobs_it_depends_on(tmp_path):
+    """Job 2 reuses jobs 0 and 1's kernels: no runner starts it before both are done
+    (another runner would compile their kernels again), and every job runs once."""
+    import time
+    log = []
+
+    def job(j, seconds):
+        def run():
+            log.append(("start", j, time.monotonic()))
+            time.sleep(seconds)
+            log.append(("end", j, time.monotonic()))
+        return run
+
+    jobs = [job(0, 0.3), job(1, 0.1), job(2, 0.0), job(3, 0.0)]
+    deps = [(), (), (0, 1), ()]
+    ran = []
+    threads = [threading.Thread(target=lambda: ran.extend(
+        compilepool.run_claimed(jobs, str(tmp_path), deps=deps))) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(ran) == [0, 1, 2, 3]
+    at = {(kind, j): t for kind, j, t in log}
+    assert at[("start", 2)] >= max(at[("end", 0)], at[("end", 1)])
+
+
+def test_dependencies_follow_the_kernel_modules_imports():
+    """The engine's warm-ups: the camera kernels wait for the closures they call, and no
+    job depends on one registered after it (no cycle)."""
+    from engine import jit
+    jit._import_kernel_modules()
+    jobs = list(jit._warm_ups)
+    deps = compilepool.job_dependencies(jobs, jit._warm_ups)
+    names = [compilepool.warm_up_name(fn) for fn in jobs]
+    cam = names.index("engine.camerakernels._warm_up")
+    assert names.index("engine.closures.principled._warm_up") in deps[cam]
+    assert all(d < j for j, ds in enumerate(deps) for d in ds)  # (jobs in import order here)
+
+
 def test_process_count_from_the_environment(monkeypatch):
     monkeypatch.setenv(compilepool.PROCESSES_ENV, "3")
     assert compilepool.compile_processes(10) in (1, 3)  # 1 only without a Python executable
