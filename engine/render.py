@@ -17,6 +17,7 @@ from .chaincounts import GatherCounts
 from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, area_sum, prepare
+from . import integrator as _integrator
 from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
@@ -715,6 +716,17 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                     masks.append(ok)
                     last = ok
                 level_of.append(len(masks) - 1)
+            # The secondary-caustic (CAUSTIC_DIFFUSE) share of each regathering level's
+            # points, from the same searches: a regathered end adds it back from its
+            # lookup's point (integrator._secondary_irradiance) instead of a k-NN
+            # estimate of the secondary map (docs/performance.md, regather29). Level L's
+            # ends are L + 1 diffuse bounces from the camera's hit: the photons of
+            # regather_secondary[L] (other_maps).
+            secondary = []
+            if _integrator.SECONDARY_FROM_GATHER_POINTS:
+                for level in range(MAX_GATHER_LEVEL):
+                    secondary.append((shot.kind == CAUSTIC_DIFFUSE) & shot.usable(
+                        limits, camera=(level + 1, level + 1, 0, 0)))
             # Every non-caustic photon makes the map's points and discs; the irradiance
             # counts those valid one diffuse bounce after the camera's hit (keep).
             rows = np.flatnonzero(shot.kind != CAUSTIC)
@@ -722,9 +734,16 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    s.estimator, accel=ctx.accel, workers=workers,
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
-                                   subsets=masks)
-            out_deeper["regather_maps"] = tuple(
-                gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of)
+                                   subsets=masks, secondary=secondary)
+            deeper = [gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of]
+            if gather_map.secondary_levels:
+                # (a view per level: levels may share a map but not its secondary share)
+                gather_map.secondary_E = gather_map.secondary_levels[0]
+                for j in range(len(deeper)):  # (deeper[j]: level j + 1's lookups)
+                    deeper[j] = view = copy.copy(deeper[j])
+                    view.secondary_E = (gather_map.secondary_levels[j + 1]
+                                        if j + 1 < MAX_GATHER_LEVEL else None)
+            out_deeper["regather_maps"] = tuple(deeper)
             if shot.bounces is not None:
                 # Lookups after a specular chain: which ones the map cannot serve.
                 out_deeper["gather_counts"] = GatherCounts(
