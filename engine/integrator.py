@@ -718,9 +718,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                     np.take(wd, rows, axis=0), prim[rows], u[rows],
                                     v[rows], np.take(d, rows, axis=0),
                                     None if cnt is None else cnt[idx[rows]],
-                                    None if sec_E is None else _point_secondary(
-                                        sec_E, got[2][again[:n_again]],
-                                        None if cnt is None else cnt[idx[rows]])))
+                                    None if sec_E is None else
+                                    _point_secondary(sec_E, got[2][again[:n_again]])))
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d
@@ -989,27 +988,35 @@ SECONDARY_REGATHER_FRACTION = 0.1
 SECONDARY_FROM_GATHER_POINTS = True
 
 
-def _point_secondary(sec_E, point, counts=None):
+def _point_secondary(sec_E, point):
     """(K,3) float64: sec_E[point] (GatherMap.secondary_E at the lookups' gather points),
-    NaN rows (_secondary_irradiance estimates those from the secondary map) where point
-    is -1 (no point found) or, with counts (K,4) (the rays' bounces beyond their level's,
-    gather_indirect's cnt), where a row has any: after a specular chain the photons
-    usable at its counts may be fewer than the points' share holds."""
+    NaN rows where point is -1 (no point found: _secondary_irradiance estimates those)."""
     out = np.take(sec_E, np.maximum(point, 0), axis=0)
-    bad = point < 0
-    if counts is not None:
-        bad |= np.any(counts != 0, axis=1)
-    out[bad] = np.nan
+    out[point < 0] = np.nan
     return out
+
+
+def _counts_keep_all(pmap, limits, counts) -> np.ndarray:
+    """(K,) bool: the rows whose camera-side counts (K,4) leave every photon of pmap
+    usable (chaincounts: their estimate is the map's own), so a share of the map's
+    photons (GatherMap.secondary_E) serves them."""
+    if getattr(pmap.photons, "bounces", None) is None:
+        return np.ones(len(counts), bool)
+    keys, which = chaincounts.unique_counts(counts)
+    cache = chaincounts.map_cache(pmap)
+    whole = np.array([chaincounts._usable(pmap.photons, limits, tuple(int(x) for x in key),
+                                          cache).all() for key in keys], bool)
+    return whole[which]
 
 
 def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None, known=None):
     """Irradiance (N,3) from caustic light one diffuse bounce back (CAUSTIC_DIFFUSE
     photons) at regathered points. known: (N,3) or None, the points' values from their
-    lookups' gather points (GatherMap.secondary_E, _point_secondary), taken as they are;
-    NaN rows (no point) and every row without known are estimated from the secondary
-    map for a random SECONDARY_REGATHER_FRACTION of them and weighted by its inverse
-    (zero elsewhere). bounces: the points' diffuse bounces from the camera's hit (the
+    lookups' gather points (GatherMap.secondary_E, _point_secondary), taken as they are
+    where the rows' counts (extra) keep every photon of the map (_counts_keep_all: after
+    a specular chain some limit may drop some); the other rows, NaN rows (no point) and
+    every row without known are estimated from the secondary map for a random
+    SECONDARY_REGATHER_FRACTION of them and weighted by its inverse (zero elsewhere). bounces: the points' diffuse bounces from the camera's hit (the
     map of that depth: Context.regather_secondary); extra: (N,4) their bounces beyond
     that (gather_indirect's; None: none), the estimate then from the photons usable for
     their counts alone (chaincounts.irradiance)."""
@@ -1021,6 +1028,11 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None, known=None):
     pick = rng.random(len(hit.p)) < SECONDARY_REGATHER_FRACTION
     if known is not None:
         have = ~np.isnan(known[:, 0])
+        if extra is not None:
+            bent = np.flatnonzero(have & np.any(extra != 0, axis=1))
+            if len(bent):
+                have[bent] = _counts_keep_all(pmap, s.bounce_limits, chaincounts.camera_counts(
+                    extra[bent], (bounces, bounces, 0, 0)))
         out[have] = known[have]
         pick &= ~have
     rows = np.nonzero(pick)[0]

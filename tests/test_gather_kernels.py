@@ -18,8 +18,7 @@ from engine.gatherkernels import (add_gathered, diffuse_lookups, keep_embree_hit
                                   lean_diffuse, lean_materials, rays_f32)
 from engine.geometry import MaterialTable
 from engine.scene import Material
-from engine.integrator import (MAX_GATHER_LEVEL, Counters, GatherBuffers, _closest_bvh,
-                               _count_continuations, _deeper,
+from engine.integrator import (MAX_GATHER_LEVEL, Counters, GatherBuffers, _closest_bvh, _deeper,
                                _secondary_irradiance, continue_specular, direct_irradiance,
                                gather_indirect)
 from engine.camerakernels import gather_rays
@@ -44,15 +43,15 @@ def _concat_hits(hits):
 
 
 def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None,
-                           batched=True, extra=None):
+                           batched=True):
     """gather_indirect as it was before gatherkernels (numpy compaction, selection and
     accumulation), with the regathers of all rays and depths in one batch at the end
     (their own stream, rng.spawn) as gather_indirect makes them since issue 13's tenth
     slice; log counts the regathered rows, the regather batches and the per-ray-class
     steps. batched=False: each step's regathers at once, from rng (before the tenth
-    slice; the statistical reference of the batch). extra: (N,4) the hits' bent bounces
-    (gather_indirect's; here only to choose the regathered ends whose secondary caustic
-    comes from their lookups' points: rows with none)."""
+    slice; the statistical reference of the batch). The regathered ends' secondary
+    caustic: their lookups' points' share (GatherMap.secondary_E; the limits here keep
+    every photon at any counts), else estimated."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     pending = []
@@ -70,8 +69,6 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
         if getattr(hit, "n_smooth", None) is not None:
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
         ray_cls = DIFFUSE
-        # the rays' bent bounces (gather_indirect's counts), None: none yet
-        cnt = None if extra is None else np.array(extra, np.int64)
         for depth in range(ctx.settings.gather_depth + 1):
             if len(idx) == 0:
                 break
@@ -103,14 +100,10 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
                     redo = boundary | (t[dsel] < ctx.gather_short)
                     # The regathered ends' secondary caustic: their points' share (NaN:
                     # no point, estimated from the secondary map).
-                    # (none after a bent continuation: rows with counts, cnt)
                     known = None
                     if sec is not None:
                         pt = got[2][redo]
-                        ok = pt >= 0
-                        if cnt is not None:
-                            ok &= ~cnt[idx[dsel[redo]]].any(axis=1)
-                        known = np.where(ok[:, None], sec[np.maximum(pt, 0)], np.nan)
+                        known = np.where((pt >= 0)[:, None], sec[np.maximum(pt, 0)], np.nan)
                     if redo.any() and not batched:
                         ysub = y.take(dsel[redo])
                         Ey[redo] = (direct_irradiance(ctx, ysub, rng, counters,
@@ -122,28 +115,22 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
                     elif redo.any():
                         log["regathered"] += int(redo.sum())
                         rows = dsel[redo]
-                        pending.append((idx[rows], tp[rows], wd[rows], y.take(rows), known,
-                                        None if cnt is None else cnt[idx[rows]]))
+                        pending.append((idx[rows], tp[rows], wd[rows], y.take(rows), known))
                         dsel, Ey = dsel[~redo], Ey[~redo]  # added by the batch below
                 E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G
             if depth == ctx.settings.gather_depth:
                 break
-            d_in = d
             keep, o, d, tp, ray_cls = continue_specular(ctx, y, tp, rng, ray_cls)
             idx = idx[keep]
-            cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
         log["batches"] = log.get("batches", 0) + 1
         target, tps, wds = (np.concatenate([q[i] for q in pending]) for i in range(3))
         ysub = _concat_hits([q[3] for q in pending])
         known = (None if all(q[4] is None for q in pending) else np.concatenate(
             [np.full((len(q[0]), 3), np.nan) if q[4] is None else q[4] for q in pending]))
-        ex = (None if all(q[5] is None for q in pending) else np.concatenate(
-            [np.zeros((len(q[0]), 4), np.int64) if q[5] is None else q[5] for q in pending]))
         sub_rng = rng.spawn(1)[0]
         Esub = (direct_irradiance(ctx, ysub, sub_rng, counters, skip_mesh_lights=True)
-                + _gather_indirect_numpy(ctx, ysub, sub_rng, counters, 1, level + 1, log,
-                                         extra=ex)
+                + _gather_indirect_numpy(ctx, ysub, sub_rng, counters, 1, level + 1, log)
                 + _secondary_irradiance(ctx, ysub, sub_rng, level + 1, known=known))
         np.add.at(E, target, tps * wds * Esub / G)  # in order, as the kernel adds
     return E

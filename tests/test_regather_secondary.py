@@ -7,7 +7,8 @@
   row's (hidden candidates included), -1 where none was found, and the answers are those
   of a lookup without points;
 - _secondary_irradiance takes the known rows as they are and estimates the others (NaN
-  rows) exactly as without them (the same random numbers);
+  rows, and rows whose counts after a specular chain drop some of the map's photons)
+  exactly as without them (the same random numbers);
 - on the Cornell box with a glass ball, the gather points' secondary share and the
   secondary map's k-NN estimate at the same points agree in the mean.
 """
@@ -145,3 +146,23 @@ def test_point_share_agrees_with_the_secondary_maps_estimate(box):
     assert E.sum() > 0
     ratio = share.sum() / E.sum()
     assert 0.85 < ratio < 1.15, ratio
+
+
+def test_rows_whose_counts_drop_photons_are_estimated(box):
+    """A row past a specular chain whose counts leave some of the secondary map's photons
+    unusable takes the map's masked estimate, not its point's share; one whose counts
+    keep them all takes the share."""
+    ctx = box
+    hit = hits_from_inside(ctx, 2000, seed=9)
+    n = len(hit.p)
+    pmap = ctx.regather_secondary[0]
+    assert pmap.photons.bounces is not None
+    extra = np.zeros((n, 4), np.int64)
+    deep = np.arange(n) % 2 == 1
+    extra[deep, 2] = 1  # one transmission bounce beyond the level's own
+    extra[deep, 0] = int(ctx.settings.bounce_limits[0])  # the total limit: drops photons
+    known = np.random.default_rng(1).random((n, 3))
+    want = _secondary_irradiance(ctx, hit, np.random.default_rng(4), 1, extra)
+    got = _secondary_irradiance(ctx, hit, np.random.default_rng(4), 1, extra, known)
+    assert np.array_equal(got[~deep], known[~deep])
+    assert np.array_equal(got[deep], want[deep])
