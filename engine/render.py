@@ -722,11 +722,15 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
             # estimate of the secondary map (docs/performance.md, regather29). Level L's
             # ends are L + 1 diffuse bounces from the camera's hit: the photons of
             # regather_secondary[L] (other_maps).
-            secondary = []
+            secondary, secondary_of = [], []  # distinct masks; each level's
             if _integrator.SECONDARY_FROM_GATHER_POINTS:
                 for level in range(MAX_GATHER_LEVEL):
-                    secondary.append((shot.kind == CAUSTIC_DIFFUSE) & shot.usable(
-                        limits, camera=(level + 1, level + 1, 0, 0)))
+                    mask = (shot.kind == CAUSTIC_DIFFUSE) & shot.usable(
+                        limits, camera=(level + 1, level + 1, 0, 0))
+                    same = [i for i, m in enumerate(secondary) if np.array_equal(m, mask)]
+                    secondary_of.append(same[0] if same else len(secondary))
+                    if not same:
+                        secondary.append(mask)
             # Every non-caustic photon makes the map's points and discs; the irradiance
             # counts those valid one diffuse bounce after the camera's hit (keep).
             rows = np.flatnonzero(shot.kind != CAUSTIC)
@@ -736,13 +740,13 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary)
             deeper = [gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of]
-            if gather_map.secondary_levels:
-                # (a view per level: levels may share a map but not its secondary share)
-                gather_map.secondary_E = gather_map.secondary_levels[0]
-                for j in range(len(deeper)):  # (deeper[j]: level j + 1's lookups)
-                    deeper[j] = view = copy.copy(deeper[j])
-                    view.secondary_E = (gather_map.secondary_levels[j + 1]
-                                        if j + 1 < MAX_GATHER_LEVEL else None)
+            for level in range(len(secondary_of)):  # (the levels that regather)
+                share = gather_map.secondary_levels[secondary_of[level]]
+                view = gather_map if level == 0 else deeper[level - 1]
+                if view.secondary_E is not None and view.secondary_E is not share:
+                    # (levels that share a map but not its secondary share: a view each)
+                    deeper[level - 1] = view = copy.copy(view)
+                view.secondary_E = share
             out_deeper["regather_maps"] = tuple(deeper)
             if shot.bounces is not None:
                 # Lookups after a specular chain: which ones the map cannot serve.

@@ -106,7 +106,6 @@ def test_render_sets_each_regathering_levels_secondary_share(box):
         gmap = _deeper(ctx.gather_map, ctx.regather_maps, level)
         assert gmap.secondary_E is not None and gmap.secondary_E.shape == gmap.E.shape
         assert (gmap.secondary_E >= 0).all() and (gmap.secondary_E <= gmap.E + 1e-9).all()
-    assert _deeper(ctx.gather_map, ctx.regather_maps, MAX_GATHER_LEVEL).secondary_E is None
 
 
 def test_known_rows_are_taken_and_the_others_estimated_as_before(box):
@@ -166,3 +165,20 @@ def test_rows_whose_counts_drop_photons_are_estimated(box):
     got = _secondary_irradiance(ctx, hit, np.random.default_rng(4), 1, extra, known)
     assert np.array_equal(got[~deep], known[~deep])
     assert np.array_equal(got[deep], want[deep])
+
+
+def test_levels_that_share_a_map_share_its_secondary_share():
+    """Limits no photon reaches: every level reads the level-0 map itself (no subset, no
+    view) and its one secondary share serves every regathering level."""
+    ctx = prepare_context(cornell_box(16, 12, glass_sphere=True),
+                          RenderSettings(workers=1, photons=20_000, caustic_photons=5_000,
+                                         seed=3, max_bounces=1024, diffuse_bounces=1024,
+                                         glossy_bounces=1024, transmission_bounces=1024))
+    try:
+        _photon_pass(ctx, {}, None, None)
+        g = ctx.gather_map
+        assert all(m is g for m in ctx.regather_maps)
+        assert g.secondary_E is not None and len(g.secondary_levels) == 1
+        assert (g.secondary_E > 0).any()
+    finally:
+        ctx.accel.close()
