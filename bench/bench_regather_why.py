@@ -18,7 +18,8 @@ name = sys.argv[1]
 import tempfile
 scene = pickle.load(open(os.path.join(tempfile.gettempdir(), "bench_kernels", f"{name}.pkl"), "rb"))
 scene.width, scene.height = 320, 240
-look = collections.defaultdict(list)   # level -> list of (w*Ey (K,3), boundary (K,), short (K,), found (K,))
+# level -> [(w x Ey (K,3), boundary (K,), short (K,), point found (K,))]
+look = collections.defaultdict(list)
 sub = collections.defaultdict(list)    # level -> w*Esub
 parts = collections.defaultdict(lambda: np.zeros(3))
 total = collections.defaultdict(lambda: np.zeros(3))
@@ -59,17 +60,19 @@ for fname in ("_secondary_irradiance", "direct_irradiance", "gather_indirect"):
 t0 = time.process_time()
 render(scene, RenderSettings(workers=1))
 print(f"{name}: render CPU {time.process_time() - t0:.2f}")
+print("\n| level | reason | rows | lookups' sum | regathers' sum | lookup / regather | "
+      "share of the level's gathered light |")
+print("|---:|---|---:|---:|---:|---:|---:|")
 for lvl in sorted(look):
-    L = [np.concatenate([x[i] for x in look[lvl]]) for i in range(4)]
+    wEy, b, s, found = (np.concatenate([x[i] for x in look[lvl]]) for i in range(4))
     S = np.concatenate(sub[lvl]) if sub[lvl] else np.zeros((0, 3))
-    wEy, b, s, found = L
-    print(f"level {lvl}: lookups not regathered sum {total[lvl].sum():.4g}; regathered rows {len(wEy)} sub rows {len(S)}")
-    if len(S) != len(wEy):
-        print("  mismatch"); continue
+    assert len(S) == len(wEy), "regathers out of step with their lookups"
     tot_all = total[lvl].sum() + S.sum()
-    print(f"  regathered share of this level's sum: {S.sum() / tot_all:.4f}")
-    for lab, m in (("boundary only, found", b & ~s & found), ("boundary only, none found", b & ~s & ~found),
-                   ("short only", s & ~b), ("both", s & b)):
-        print(f"  {lab:28s} rows {m.sum():9d}  lookup sum {wEy[m].sum():.4g}  regather sum {S[m].sum():.4g}  ratio lookup/regather {wEy[m].sum() / max(S[m].sum(), 1e-30):.4f}  share of level sum {S[m].sum() / tot_all:.4f}")
+    for lab, m in (("boundary, a point", b & ~s & found), ("boundary, no point", b & ~s & ~found),
+                   ("short only", s & ~b), ("boundary and short", s & b)):
+        print(f"| {lvl} | {lab} | {int(m.sum()):,} | {wEy[m].sum():.4g} | {S[m].sum():.4g} | "
+              f"{wEy[m].sum() / max(S[m].sum(), 1e-30):.4f} | {S[m].sum() / tot_all:.4f} |")
+print("\n| level of the regather | part | sum (tp x wd / G weights) |")
+print("|---:|---|---:|")
 for k in sorted(parts):
-    print(k, parts[k].sum())
+    print(f"| {k[0]} | {k[1]} | {parts[k].sum():.4g} |")

@@ -1016,9 +1016,10 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None, known=None):
     where the rows' counts (extra) keep every photon of the map (_counts_keep_all: after
     a specular chain some limit may drop some); the other rows, NaN rows (no point) and
     every row without known are estimated from the secondary map for a random
-    SECONDARY_REGATHER_FRACTION of them and weighted by its inverse (zero elsewhere). bounces: the points' diffuse bounces from the camera's hit (the
-    map of that depth: Context.regather_secondary); extra: (N,4) their bounces beyond
-    that (gather_indirect's; None: none), the estimate then from the photons usable for
+    SECONDARY_REGATHER_FRACTION of them and weighted by its inverse (zero elsewhere).
+    bounces: the points' diffuse bounces from the camera's hit (the map of that depth:
+    Context.regather_secondary); extra: (N,4) their bounces beyond that
+    (gather_indirect's; None: none), the estimate then from the photons usable for
     their counts alone (chaincounts.irradiance)."""
     pmap, s = _deeper(ctx.secondary_map, ctx.regather_secondary, bounces), ctx.settings
     out = np.zeros((len(hit.p), 3))
@@ -1031,8 +1032,9 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None, known=None):
         if extra is not None:
             bent = np.flatnonzero(have & np.any(extra != 0, axis=1))
             if len(bent):
-                have[bent] = _counts_keep_all(pmap, s.bounce_limits, chaincounts.camera_counts(
-                    extra[bent], (bounces, bounces, 0, 0)))
+                have[bent] = _counts_keep_all(pmap, s.bounce_limits,
+                                              chaincounts.camera_counts(
+                                                  extra[bent], (bounces, bounces, 0, 0)))
         out[have] = known[have]
         pick &= ~have
     rows = np.nonzero(pick)[0]
