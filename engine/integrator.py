@@ -589,7 +589,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # corner's subset map of no photon still flagged its boundaries, and Diffuse 1
         # regathered twice: direct light after two diffuse bounces).
         return E
-    pending = []  # the regathers' (target row, tp, wd, prim, u, v, d, extra), per step
+    pending = []  # the regathers' (target row, tp, wd, prim, u, v, d, extra, secondary),
+    # per step
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
     regather = level < MAX_GATHER_LEVEL
@@ -698,7 +699,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             nd = diffuse_lookups(wd, y.p, y.ng, y.offset, t, dsel, lp, ln, loff, lt)
             if nd and gmap is not None:
                 dsel = dsel[:nd]
-                Ey, boundary = gmap.lookup(lp[:nd], ln[:nd], offset=loff[:nd], scratch=buf)
+                # The regathers add the secondary caustic back from the lookups' own
+                # points where the map holds it (_point_secondary).
+                sec_E = gmap.secondary_E if regather else None
+                got = gmap.lookup(lp[:nd], ln[:nd], offset=loff[:nd], scratch=buf,
+                                  points=sec_E is not None)
+                Ey, boundary = got[:2]
                 if cnt is not None:
                     _chain_lookups(ctx, level, cnt[idx[dsel]], Ey, boundary, lt[:nd],
                                    regather)
@@ -711,7 +717,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     pending.append((idx[rows], np.take(tp, rows, axis=0),
                                     np.take(wd, rows, axis=0), prim[rows], u[rows],
                                     v[rows], np.take(d, rows, axis=0),
-                                    None if cnt is None else cnt[idx[rows]]))
+                                    None if cnt is None else cnt[idx[rows]],
+                                    None if sec_E is None else
+                                    _point_secondary(sec_E, got[2][again[:n_again]])))
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d
@@ -833,15 +841,16 @@ class GatherBuffers:
             self.q_out = np.empty((n, 3))
             self.q_boundary, self.q_blocked = np.empty(n, np.bool_), np.empty(n, np.bool_)
             self.q_row = np.empty(n, np.int64)
+            self.q_point = np.empty(n, np.int64)
         return self.idx[:n], self.o[:n], self.d[:n], self.tp[:n]
 
     def scratch_arrays(self, m):
         """GatherMap.lookup's arrays for m rows (m <= size): (out (m,3), boundary (m,)
         bool, o32, d32 (m,3) float32, t32 (m,) float32, ray_row (m,) int64, blocked (m,)
-        bool). Its visibility rays reuse the step's Embree rays (o32, d32, tf32), which
-        the step has read by then (keep_embree_hits)."""
+        bool, point (m,) int64). Its visibility rays reuse the step's Embree rays (o32,
+        d32, tf32), which the step has read by then (keep_embree_hits)."""
         return (self.q_out[:m], self.q_boundary[:m], self.o32[:m], self.d32[:m],
-                self.tf32[:m], self.q_row[:m], self.q_blocked[:m])
+                self.tf32[:m], self.q_row[:m], self.q_blocked[:m], self.q_point[:m])
 
 
 def _closest_bvh(vis, ray_cls):
@@ -887,8 +896,10 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     light by shadow rays, one gather ray of level + 1 and the secondary caustic at the
     ends, added into E (M,3) at their target rows with weight tp x wd / G (several ends
     may add to one row). pending: per gather step (target (K,) int64, tp (K,3), wd (K,3),
-    prim (K,), u, v (K,), d (K,3)) of the ends. The surface data are recomputed from the
-    rays' hits (surface_hit is row by row: the same values the step had). Random numbers:
+    prim (K,), u, v (K,), d (K,3), extra (K,4) or None, secondary (K,3) or None: the
+    secondary caustic of the lookups' points, NaN rows none: _point_secondary) of the
+    ends. The surface data are recomputed from the rays' hits (surface_hit is row by row:
+    the same values the step had). Random numbers:
     a stream spawned from rng (_spawn, which draws nothing from rng), so the same for any
     worker count as the chunk's own."""
     extras = [p[7] for p in pending]
@@ -896,6 +907,11 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
         extra = None
     else:
         extra = np.concatenate([np.zeros((len(p[0]), 4), np.int64) if p[7] is None else p[7]
+                                for p in pending])
+    if all(p[8] is None for p in pending):
+        known = None
+    else:
+        known = np.concatenate([np.full((len(p[0]), 3), np.nan) if p[8] is None else p[8]
                                 for p in pending])
     target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
                                      for a in zip(*(p[:7] for p in pending)))
@@ -906,7 +922,8 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
         b = a + REGATHER_BATCH
         _regather_batch(ctx, E, target[a:b], tp[a:b], wd[a:b], prim[a:b], u[a:b], v[a:b],
                         d[a:b], G, rng, counters, level, should_cancel, lean,
-                        None if extra is None else extra[a:b])
+                        None if extra is None else extra[a:b],
+                        None if known is None else known[a:b])
 
 
 # Ends a regather batch holds at most (its surface data, direct-light buffers and the next
@@ -916,9 +933,10 @@ REGATHER_BATCH = 1 << 15
 
 
 def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, level,
-                    should_cancel, lean, extra=None):
+                    should_cancel, lean, extra=None, known=None):
     """_regather for one slice of its ends (rng: the batch's spawned stream); extra: the
-    ends' bounces beyond their level's (gather_indirect's; None: none)."""
+    ends' bounces beyond their level's (gather_indirect's; None: none); known: (K,3) the
+    ends' secondary caustic from their lookups' points, NaN rows none (None: none)."""
     y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
     # The lookup held light from caustics one bounce back (the CAUSTIC_DIFFUSE photons);
     # the gather below cannot see caustics (kept out of the gather map), so add that
@@ -938,7 +956,7 @@ def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, lev
     Esub = (Ed
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
                               should_cancel=should_cancel, lean=lean, extra=extra)
-            + _secondary_irradiance(ctx, y, rng, level + 1, extra))
+            + _secondary_irradiance(ctx, y, rng, level + 1, extra, known))
     c = np.ascontiguousarray
     add_gathered(E, target, np.arange(len(target), dtype=np.int64), c(tp, np.float64),
                  c(wd, np.float64), c(Esub, np.float64), G, _NO_FLAG, _NO_LENGTH, 0.0,
@@ -961,19 +979,65 @@ _NO_ROWS = np.zeros(0, np.int64)
 # HDR-FLIP (docs/accuracy_time_principled_spheres.md).
 SECONDARY_REGATHER_FRACTION = 0.1
 
+# A regathered end's secondary caustic from the gather point its lookup found
+# (GatherMap.secondary_E: the CAUSTIC_DIFFUSE photons' share of that point's estimate, from
+# the map build's own searches), at every end; the k-NN estimate above only where the
+# lookup found no point. The term is ~0.2 % of Figure 7's gathered light and its k-NN
+# estimate at a tenth of the ends was ~12 % of the render (docs/performance.md,
+# regather29). False: the k-NN estimate at every end (a tenth of them), as before.
+SECONDARY_FROM_GATHER_POINTS = True
 
-def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None):
+
+def _point_secondary(sec_E, point):
+    """(K,3) float64: sec_E[point] (GatherMap.secondary_E at the lookups' gather points),
+    NaN rows where point is -1 (no point found: _secondary_irradiance estimates those)."""
+    out = np.take(sec_E, np.maximum(point, 0), axis=0)
+    out[point < 0] = np.nan
+    return out
+
+
+def _counts_keep_all(pmap, limits, counts) -> np.ndarray:
+    """(K,) bool: the rows whose camera-side counts (K,4) leave every photon of pmap
+    usable (chaincounts: their estimate is the map's own), so a share of the map's
+    photons (GatherMap.secondary_E) serves them."""
+    if getattr(pmap.photons, "bounces", None) is None:
+        return np.ones(len(counts), bool)
+    keys, which = chaincounts.unique_counts(counts)
+    cache = chaincounts.map_cache(pmap)
+    whole = np.array([chaincounts._usable(pmap.photons, limits, tuple(int(x) for x in key),
+                                          cache).all() for key in keys], bool)
+    return whole[which]
+
+
+def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None, known=None):
     """Irradiance (N,3) from caustic light one diffuse bounce back (CAUSTIC_DIFFUSE
-    photons) at regathered points, estimated for a random SECONDARY_REGATHER_FRACTION of
-    them and weighted by its inverse (zero elsewhere). bounces: the points' diffuse
-    bounces from the camera's hit (the map of that depth: Context.regather_secondary);
-    extra: (N,4) their bounces beyond that (gather_indirect's; None: none), the estimate
-    then from the photons usable for their counts alone (chaincounts.irradiance)."""
+    photons) at regathered points. known: (N,3) or None, the points' values from their
+    lookups' gather points (GatherMap.secondary_E, _point_secondary), taken as they are
+    where the rows' counts (extra) keep every photon of the map (_counts_keep_all: after
+    a specular chain some limit may drop some); the other rows, NaN rows (no point) and
+    every row without known are estimated from the secondary map for a random
+    SECONDARY_REGATHER_FRACTION of them and weighted by its inverse (zero elsewhere).
+    bounces: the points' diffuse bounces from the camera's hit (the map of that depth:
+    Context.regather_secondary); extra: (N,4) their bounces beyond that
+    (gather_indirect's; None: none), the estimate then from the photons usable for
+    their counts alone (chaincounts.irradiance)."""
     pmap, s = _deeper(ctx.secondary_map, ctx.regather_secondary, bounces), ctx.settings
     out = np.zeros((len(hit.p), 3))
     if pmap is None or len(pmap) == 0:
         return out
-    rows = np.nonzero(rng.random(len(hit.p)) < SECONDARY_REGATHER_FRACTION)[0]
+    # (the numbers are drawn for every row, known or not)
+    pick = rng.random(len(hit.p)) < SECONDARY_REGATHER_FRACTION
+    if known is not None:
+        have = ~np.isnan(known[:, 0])
+        if extra is not None:
+            bent = np.flatnonzero(have & np.any(extra != 0, axis=1))
+            if len(bent):
+                have[bent] = _counts_keep_all(pmap, s.bounce_limits,
+                                              chaincounts.camera_counts(
+                                                  extra[bent], (bounces, bounces, 0, 0)))
+        out[have] = known[have]
+        pick &= ~have
+    rows = np.nonzero(pick)[0]
     if len(rows):
         counts = (None if extra is None else
                   chaincounts.camera_counts(extra[rows], (bounces, bounces, 0, 0)))

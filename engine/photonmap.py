@@ -1019,12 +1019,20 @@ class GatherMap:
     of the room 5 % dark against Cycles, docs/accuracy_time_figure7_mirror.md).
     min_photons: photons an estimate needs (fewer: no estimate, flagged);
     integrator.smooth_min_photons gives 1 outside paper mode.
+
+    secondary_E: (P,3) float64 or None, per gather point (self.position's order) the
+    irradiance of the secondary-caustic (CAUSTIC_DIFFUSE) photons alone from the point's
+    own estimate: the share of E that a regathered end must add back
+    (integrator._secondary_irradiance). Set by the caller from secondary_levels; None:
+    the regathers estimate it from the secondary map.
     """
+
+    secondary_E = None
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
                  workers: int = 1, should_cancel=None, rows: np.ndarray | None = None,
-                 keep: np.ndarray | None = None, subsets=()):
+                 keep: np.ndarray | None = None, subsets=(), secondary=()):
         """rows: (K,) int, build from photons.take(rows) only (gathered once, straight into
         the trees' order). The independent steps run side by side on `workers` threads
         (parallel.run_tasks: the two kd-trees, then the points' irradiance and their
@@ -1039,9 +1047,13 @@ class GatherMap:
         subsets: (N,) bool masks over `photons` like keep, for the bounce limits' deeper
         levels; self.subset_maps then holds, per mask, this map with that mask's
         irradiance at the same points, for about the cost of the points' estimates
-        instead of a whole map's."""
+        instead of a whole map's.
+        secondary: (N,) bool masks over `photons` like keep; self.secondary_levels then
+        holds, per mask, the points' irradiance (P,3) from that mask's photons alone
+        (the same searches: another mask of the estimate pass; [] without)."""
         self.workers = workers
         self.subset_maps = []
+        self.secondary_levels = []
         # With an Accel, a lookup only takes a gather point it can see: a point on the
         # other side of a wall (e.g. the ground outside a room, coplanar with the floor
         # inside) would otherwise leak light under the wall (docs/stability.md).
@@ -1071,7 +1083,8 @@ class GatherMap:
                  kdtree.KdTree(pts, workers=workers),
                  lambda stop, rows_=np.take(rows, others), scale_=scale:
                  PhotonMap(photons, workers, rows=rows_, power_scale=scale_,
-                           keep_source=keep is not None or bool(len(subsets)))]
+                           keep_source=(keep is not None or bool(len(subsets))
+                                        or bool(len(secondary))))]
         del position, share, is_point, others, scale
         tree, estimating = run_tasks(trees, workers, should_cancel)
         del trees
@@ -1085,7 +1098,7 @@ class GatherMap:
         # discs and boundary flags depend on the photons' places and directions only,
         # never on their power (PhotonMap.irradiance's masks: the same bits as an estimate
         # pass per mask, for about the cost of one).
-        masks = ([] if keep is None else [keep]) + list(subsets)
+        masks = ([] if keep is None else [keep]) + list(subsets) + list(secondary)
 
         def estimate(stop):
             chosen = None
@@ -1104,12 +1117,15 @@ class GatherMap:
         E, self.boundary = done[0], done[1]
         levels = list(done[2]) if masks else []
         self.E = E if keep is None else levels.pop(0)
+        if len(secondary):
+            self.secondary_levels = levels[len(levels) - len(secondary):]
+            levels = levels[:len(levels) - len(secondary)]
         self.radius = radius
         self.tree = tree
         for E in levels:
             # The same points, trees, neighbour lists and boundary flags (shared).
             view = copy.copy(self)
-            view.E, view.subset_maps = E, []
+            view.E, view.subset_maps, view.secondary_levels = E, [], []
             self.subset_maps.append(view)
 
     def serial(self) -> "GatherMap":
@@ -1121,7 +1137,7 @@ class GatherMap:
         return view
 
     def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
-               offset: np.ndarray | None = None, scratch=None):
+               offset: np.ndarray | None = None, scratch=None, points: bool = False):
         """(irradiance, boundary) at the nearest visible gather point facing the same way
         (normal . n > GATHER_AGREEMENT), among the 8 x candidates nearest within the radius.
         boundary: that point's estimate met another surface (a corner or contact), where
@@ -1133,7 +1149,9 @@ class GatherMap:
         resolution at p. Returns ((M,3) float64, (M,) bool). scratch: an object whose
         scratch_arrays(M) hands out the arrays to write into (integrator.GatherBuffers:
         the calling thread's, reused between calls; the answers are then valid until its
-        next use); default: fresh arrays.
+        next use); default: fresh arrays. points: also return, third, each row's gather
+        point ((M,) int64 index into the map's points, -1 where none was found: the
+        point whose E and flag the row took; secondary_E reads by it).
 
         One kernel (_gather_candidates) finds the nearest point (a walk over the gather
         points' neighbour lists from the previous row's answer, else the kd-tree), tests
@@ -1142,9 +1160,10 @@ class GatherMap:
         candidate is hidden take their next visible one (_next_visible)."""
         m = len(p)
         if self.tree is None or m == 0:
-            return np.zeros((m, 3)), np.ones(m, bool)
+            none = (np.zeros((m, 3)), np.ones(m, bool))
+            return (*none, np.full(m, -1, np.int64)) if points else none
         if scratch is not None:
-            out, boundary, o32, d32, t32, ray_row, blocked = scratch.scratch_arrays(m)
+            out, boundary, o32, d32, t32, ray_row, blocked, point = scratch.scratch_arrays(m)
         else:
             out = np.empty((m, 3))  # every row is written by the kernel
             boundary = np.empty(m, bool)
@@ -1153,6 +1172,8 @@ class GatherMap:
             t32 = np.empty(m, np.float32)
             ray_row = np.empty(m, np.int64)
             blocked = np.empty(m, bool)
+            point = np.empty(m, np.int64)
+        point = point if points else _NO_POINT
         p = np.ascontiguousarray(p, dtype=np.float64)
         n = np.ascontiguousarray(n, dtype=np.float64)
         lift = (_NO_LIFT if offset is None
@@ -1164,16 +1185,15 @@ class GatherMap:
         nrays = _gather_candidates(self.tree.position, self.tree.nodes, *self.neighbours,
                                    self.position, self.normal, self.E, self.boundary, p, n,
                                    lift, rows, r2, kmax, want_rays, out, boundary, o32, d32,
-                                   t32, ray_row)
-        if not nrays:
-            return out, boundary
-        self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked[:nrays])
-        hidden = rows[ray_row[:nrays][blocked[:nrays]]]
-        if len(hidden):
-            self._next_visible(p, n, lift, hidden, kmax, out, boundary)
-        return out, boundary
+                                   t32, ray_row, point)
+        if nrays:
+            self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked[:nrays])
+            hidden = rows[ray_row[:nrays][blocked[:nrays]]]
+            if len(hidden):
+                self._next_visible(p, n, lift, hidden, kmax, out, boundary, point)
+        return (out, boundary, point) if points else (out, boundary)
 
-    def _next_visible(self, p, n, lift, hidden, kmax, out, boundary):
+    def _next_visible(self, p, n, lift, hidden, kmax, out, boundary, point=None):
         """Rows `hidden` (indices into p) whose candidate is hidden take the next visible
         agreeing gather point, in increasing distance among the kmax nearest (the answer
         of asking again candidate by candidate): the agreeing candidates are listed once
@@ -1181,6 +1201,10 @@ class GatherMap:
         one Embree call per batch."""
         out[hidden] = 0.0
         boundary[hidden] = True
+        if point is None:
+            point = _NO_POINT
+        elif len(point):
+            point[hidden] = -1
         lists = np.empty((len(hidden), max(kmax, 1)), np.int64)
         counts = np.empty(len(hidden), np.int64)
         _agreeing_lists(self.tree.position, self.tree.nodes, self.normal, p, n, hidden,
@@ -1199,7 +1223,7 @@ class GatherMap:
             blocked = np.zeros(nrays, bool)
             self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked)
             pending = _pick_visible(self.E, self.boundary, hidden, lists, counts, pending, nxt,
-                                    batch, blocked, slot[:nrays], out, boundary)
+                                    batch, blocked, slot[:nrays], out, boundary, point)
             batch *= 4
 
 
@@ -1209,6 +1233,7 @@ GATHER_AGREEMENT = 0.7
 # 3 settles 3-5 % more rows than 2 on Figures 6 and 7).
 WALK_STEPS = 3
 _NO_LIFT = np.zeros(0)
+_NO_POINT = np.zeros(0, np.int64)  # _gather_candidates / _pick_visible: no point indices
 
 # Gather points a lookup disc of the search radius should hold where photons are sparse
 # (below ~12 photons a disc the share stops at MAX_POINT_SHARE: 8 photons give 4 points,
@@ -1355,13 +1380,13 @@ PRIMES = np.array([hashgrid.P1, hashgrid.P2, hashgrid.P3], np.int64)
 @kernel
 def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_boundary, p, n,
                        lift, rows, r2, kmax, want_rays, out, boundary, o32, d32, t32,
-                       ray_row):
+                       ray_row, point):
     """For each row i = rows[r]: the candidate c = the nearest gather point within
     sqrt(r2) whose normal agrees with n[i], if it is among the kmax nearest; out[i] = E[c]
     and boundary[i] = E_boundary[c] (no candidate: 0 and True); and, if want_rays, the
     ray from p[i] to c into o32 / d32 / t32 (float32, compacted, _ray_ends; ray_row =
-    r). nbr, reach: the tree's neighbour lists (kdtree.neighbour_lists). Returns the
-    number of rays."""
+    r). nbr, reach: the tree's neighbour lists (kdtree.neighbour_lists). point (M,)
+    int64, or empty: point[i] = c (-1: none). Returns the number of rays."""
     P = tree_pos.shape[0]
     R = rows.shape[0]
     nrays = 0
@@ -1416,6 +1441,8 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
                                                          nodes[2], qx, qy, qz, dd, kmax,
                                                          st_node, st_off) < kmax:
                         c = j
+        if point.shape[0]:
+            point[i] = c
         if c < 0:
             out[i, 0] = out[i, 1] = out[i, 2] = 0.0
             boundary[i] = True
@@ -1529,10 +1556,11 @@ def _list_rays(position, normal, p, n, lift, rows, lists, counts, pending, nxt, 
 
 @kernel
 def _pick_visible(E, E_boundary, rows, lists, counts, pending, nxt, batch, blocked, slot,
-                  out, boundary):
+                  out, boundary, point):
     """After _list_rays: each pending row takes its first entry whose ray is clear
-    (out = its E, boundary its flag); rows with none clear and entries left stay pending
-    (nxt advanced by batch). Returns the rows still pending."""
+    (out = its E, boundary its flag, point (if not empty) its index); rows with none
+    clear and entries left stay pending (nxt advanced by batch). Returns the rows still
+    pending."""
     still = np.empty(pending.shape[0], np.int64)
     s = 0
     k = 0
@@ -1546,6 +1574,8 @@ def _pick_visible(E, E_boundary, rows, lists, counts, pending, nxt, batch, block
                 i = rows[r]
                 out[i, 0], out[i, 1], out[i, 2] = E[c, 0], E[c, 1], E[c, 2]
                 boundary[i] = E_boundary[c]
+                if point.shape[0]:
+                    point[i] = c
                 found = True
             k += 1
         if not found and end < counts[r]:
@@ -1578,6 +1608,7 @@ def _warm_up_gather():
     nq = np.tile([0.0, 0.0, 1.0], (4, 1))
     g.lookup(q, nq)
     g.lookup(q, nq, offset=np.full(4, 1e-6))
+    g.lookup(q, nq, offset=np.full(4, 1e-6), points=True)
     # The hidden-candidate steps (they run only with an Accel).
     rows = np.arange(4)
     lists = np.empty((4, 8), np.int64)
@@ -1593,8 +1624,9 @@ def _warm_up_gather():
     for lift in (_NO_LIFT, np.full(4, 1e-6)):
         k = _list_rays(g.position, g.normal, q, nq, lift, rows, lists, counts, pending, nxt,
                        4, o32, d32, t32, slot)
-        _pick_visible(g.E, g.boundary, rows, lists, counts, pending, nxt, 4,
-                      np.zeros(k, bool), slot[:k], out, boundary)
+        for point in (_NO_POINT, np.empty(4, np.int64)):
+            _pick_visible(g.E, g.boundary, rows, lists, counts, pending, nxt, 4,
+                          np.zeros(k, bool), slot[:k], out, boundary, point)
 
 
 # Photons whose k-NN distance sets the automatic radius (a strided sample: enough for a

@@ -17,6 +17,7 @@ from .chaincounts import GatherCounts
 from .film import Film
 from .effects import EffectPlan, analyse
 from .geometry import Geometry, MaterialTable, area_sum, prepare
+from . import integrator as _integrator
 from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
 from .jit import ensure_compiled
 from .lights import allocate_photons, prepare_lights
@@ -715,6 +716,21 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                     masks.append(ok)
                     last = ok
                 level_of.append(len(masks) - 1)
+            # The secondary-caustic (CAUSTIC_DIFFUSE) share of each regathering level's
+            # points, from the same searches: a regathered end adds it back from its
+            # lookup's point (integrator._secondary_irradiance) instead of a k-NN
+            # estimate of the secondary map (docs/performance.md, regather29). Level L's
+            # ends are L + 1 diffuse bounces from the camera's hit: the photons of
+            # regather_secondary[L] (other_maps).
+            secondary, secondary_of = [], []  # distinct masks; each level's
+            if _integrator.SECONDARY_FROM_GATHER_POINTS:
+                for level in range(MAX_GATHER_LEVEL):
+                    mask = (shot.kind == CAUSTIC_DIFFUSE) & shot.usable(
+                        limits, camera=(level + 1, level + 1, 0, 0))
+                    same = [i for i, m in enumerate(secondary) if np.array_equal(m, mask)]
+                    secondary_of.append(same[0] if same else len(secondary))
+                    if not same:
+                        secondary.append(mask)
             # Every non-caustic photon makes the map's points and discs; the irradiance
             # counts those valid one diffuse bounce after the camera's hit (keep).
             rows = np.flatnonzero(shot.kind != CAUSTIC)
@@ -722,9 +738,16 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    s.estimator, accel=ctx.accel, workers=workers,
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
-                                   subsets=masks)
-            out_deeper["regather_maps"] = tuple(
-                gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of)
+                                   subsets=masks, secondary=secondary)
+            deeper = [gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of]
+            for level in range(len(secondary_of)):  # (the levels that regather)
+                share = gather_map.secondary_levels[secondary_of[level]]
+                view = gather_map if level == 0 else deeper[level - 1]
+                if view.secondary_E is not None and view.secondary_E is not share:
+                    # (levels that share a map but not its secondary share: a view each)
+                    deeper[level - 1] = view = copy.copy(view)
+                view.secondary_E = share
+            out_deeper["regather_maps"] = tuple(deeper)
             if shot.bounces is not None:
                 # Lookups after a specular chain: which ones the map cannot serve.
                 out_deeper["gather_counts"] = GatherCounts(

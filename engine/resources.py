@@ -48,6 +48,9 @@ measured peak for a set of renders. What each part counts:
   engine/render.py _build_maps): per level the irradiance and boundary flag of every
   gather point, counted at the most levels (integrator.MAX_GATHER_LEVEL) whenever the
   limits can drop photons.
+- regather secondary shares: per regathering level (integrator.MAX_GATHER_LEVEL) the
+  secondary-caustic share of every gather point's irradiance (GatherMap.secondary_levels,
+  read by the regathered ends: integrator.SECONDARY_FROM_GATHER_POINTS).
 """
 from __future__ import annotations
 
@@ -340,6 +343,14 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
             est.parts["regather maps"] = (gather_points(s.photons * stores) * levels
                                           * BYTES_PER_GATHER_POINT_LEVEL)
             est.drivers["regather maps"] = "photons"
+        if s.final_gather and s.photons and integrator.SECONDARY_FROM_GATHER_POINTS:
+            # Each regathering level's secondary-caustic share of the gather points'
+            # estimates ((P,3) float64 a level: GatherMap.secondary_levels).
+            from .integrator import MAX_GATHER_LEVEL
+            est.parts["regather secondary shares"] = (
+                gather_points(s.photons * stores) * MAX_GATHER_LEVEL
+                * BYTES_PER_GATHER_POINT_LEVEL)
+            est.drivers["regather secondary shares"] = "photons"
 
     samples = pixels * s.spp
     if samples:

@@ -49,7 +49,9 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
     (their own stream, rng.spawn) as gather_indirect makes them since issue 13's tenth
     slice; log counts the regathered rows, the regather batches and the per-ray-class
     steps. batched=False: each step's regathers at once, from rng (before the tenth
-    slice; the statistical reference of the batch)."""
+    slice; the statistical reference of the batch). The regathered ends' secondary
+    caustic: their lookups' points' share (GatherMap.secondary_E; the limits here keep
+    every photon at any counts), else estimated."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     pending = []
@@ -89,21 +91,31 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
             dsel = np.nonzero(max3(wd) > 0)[0]
             if len(dsel):
                 # (the map of this level's depth under the bounce limits, as the kernel)
-                Ey, boundary = _deeper(ctx.gather_map, ctx.regather_maps, level).lookup(
-                    y.p[dsel], y.ng[dsel], offset=y.offset[dsel])
+                gmap = _deeper(ctx.gather_map, ctx.regather_maps, level)
+                sec = gmap.secondary_E if level < MAX_GATHER_LEVEL else None
+                got = gmap.lookup(y.p[dsel], y.ng[dsel], offset=y.offset[dsel],
+                                  points=sec is not None)
+                Ey, boundary = got[:2]
                 if level < MAX_GATHER_LEVEL:
                     redo = boundary | (t[dsel] < ctx.gather_short)
+                    # The regathered ends' secondary caustic: their points' share (NaN:
+                    # no point, estimated from the secondary map).
+                    known = None
+                    if sec is not None:
+                        pt = got[2][redo]
+                        known = np.where((pt >= 0)[:, None], sec[np.maximum(pt, 0)], np.nan)
                     if redo.any() and not batched:
                         ysub = y.take(dsel[redo])
                         Ey[redo] = (direct_irradiance(ctx, ysub, rng, counters,
                                                       skip_mesh_lights=True)
                                     + _gather_indirect_numpy(ctx, ysub, rng, counters, 1,
                                                              level + 1, log, False)
-                                    + _secondary_irradiance(ctx, ysub, rng, level + 1))
+                                    + _secondary_irradiance(ctx, ysub, rng, level + 1,
+                                                            known=known))
                     elif redo.any():
                         log["regathered"] += int(redo.sum())
                         rows = dsel[redo]
-                        pending.append((idx[rows], tp[rows], wd[rows], y.take(rows)))
+                        pending.append((idx[rows], tp[rows], wd[rows], y.take(rows), known))
                         dsel, Ey = dsel[~redo], Ey[~redo]  # added by the batch below
                 E[idx[dsel]] += tp[dsel] * wd[dsel] * Ey / G
             if depth == ctx.settings.gather_depth:
@@ -114,10 +126,12 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
         log["batches"] = log.get("batches", 0) + 1
         target, tps, wds = (np.concatenate([q[i] for q in pending]) for i in range(3))
         ysub = _concat_hits([q[3] for q in pending])
+        known = (None if all(q[4] is None for q in pending) else np.concatenate(
+            [np.full((len(q[0]), 3), np.nan) if q[4] is None else q[4] for q in pending]))
         sub_rng = rng.spawn(1)[0]
         Esub = (direct_irradiance(ctx, ysub, sub_rng, counters, skip_mesh_lights=True)
                 + _gather_indirect_numpy(ctx, ysub, sub_rng, counters, 1, level + 1, log)
-                + _secondary_irradiance(ctx, ysub, sub_rng, level + 1))
+                + _secondary_irradiance(ctx, ysub, sub_rng, level + 1, known=known))
         np.add.at(E, target, tps * wds * Esub / G)  # in order, as the kernel adds
     return E
 
