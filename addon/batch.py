@@ -516,6 +516,10 @@ def render_file(args, interrupt=None) -> str:
         pm.method = args.method
     if args.frame is not None:
         scene.frame_set(args.frame)
+    if hasattr(r.image_settings, "media_type"):
+        # Blender 5: the media type limits the formats (a .blend saved with OpenEXR
+        # MultiLayer output offers that format alone: "PNG" was refused, a traceback).
+        r.image_settings.media_type = "IMAGE"
     r.image_settings.file_format = FORMATS[ext]
     r.use_file_extension = False
     if scene.camera is None:

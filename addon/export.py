@@ -602,13 +602,20 @@ def clamp_settings(scene, props) -> dict:
 def border_region(render, width: int, height: int):
     """Render border as engine region (x0, y0, x1, y1), top-left origin, or None.
 
-    Same rounding as Blender (render_init_from_main: border * size, truncated)."""
+    Same rounding as Blender (render_init_from_main: border * size in float32, truncated).
+    In double precision 0.9 x 120 is 107.99999 -> 107 where Blender gets 108: the region
+    was a row or column off Blender's, so the film landed one pixel off in the result
+    Blender allocates for its own border (new-user trial, newuser29)."""
     if not render.use_border:
         return None
-    x0 = int(render.border_min_x * width)
-    x1 = int(render.border_max_x * width)
-    yb0 = int(render.border_min_y * height)
-    yb1 = int(render.border_max_y * height)
+
+    def px(fraction, size):
+        return int(np.float32(fraction) * np.float32(size))
+
+    x0 = px(render.border_min_x, width)
+    x1 = px(render.border_max_x, width)
+    yb0 = px(render.border_min_y, height)
+    yb1 = px(render.border_max_y, height)
     if x1 <= x0 or yb1 <= yb0:
         return None
     if (x0, yb0, x1, yb1) == (0, 0, width, height):

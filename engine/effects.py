@@ -385,7 +385,19 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             if plan.window_glass:
                 glow.append("the reflections of window glass "
                             + _quoted(plan.window_glass) + " (passed by shadow rays: thin flat glass)")
-            sharp_none = (f"no mirror, {'only window' if plan.window_glass else 'no'} glass, "
+            # Rough glass (a frosted lamp shade) is glass too: "no glass" beside the
+            # specular line's "through glass 'Shade' (roughness 0.5)" read as a
+            # contradiction (new-user trial, newuser29).
+            ids_of = {n: i for i, n in enumerate(geo.object_names)}
+            rough_glass = [n for n in plan.rough_specular
+                           if specular_kind(geo, table, ids_of[n]) == "glass"]
+            glass_words = " and ".join((["window"] if plan.window_glass else [])
+                                       + (["rough"] if rough_glass else []))
+            glass_words = (f"only {glass_words} glass"
+                           + (" " + _quoted(rough_glass, most=REPORT_NAMES_MAX)
+                              if rough_glass else "")
+                           if glass_words else "no glass")
+            sharp_none = (f"no mirror, {glass_words}, "
                           f"no surface smoother than roughness {SHARP_ROUGHNESS:g}")
             carried = (f"{' and '.join(glow)} come"
                        + ("s" if len(glow) == 1 and rough_reached else "")

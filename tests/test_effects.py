@@ -352,6 +352,24 @@ def test_window_glass_alone_focuses_no_light():
                     "photons (Caustic pass)"), line
 
 
+def test_rough_glass_alone_is_named_in_the_caustics_line():
+    """A rough glass lamp shade (Principled Transmission 1, roughness 0.5) is the only
+    glass: the caustics line said "nothing focuses light (no mirror, no glass, ...)"
+    while the specular line beside it said "through glass 'Shade' (roughness 0.5)"
+    (new-user trial, newuser29). It now names the rough glass."""
+    s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0))
+    s.add_material(Material("frosted", (0.9, 0.7, 0.4), transmission=1.0, ior=1.5,
+                            roughness=0.5))
+    s.add_sphere((0.8, 0.3, 0.5), 0.5, "frosted", name="Shade", segments=24)
+    plan = _plan(s)
+    line = _line(plan, "caustics:")
+    assert line.startswith("caustics: off - nothing focuses light (no mirror, only rough "
+                           "glass 'Shade', no surface smoother than roughness 0.3)"), line
+    assert "no glass" not in line, line
+    assert "through glass 'Shade' (roughness 0.5)" in _line(plan, "specular reflection"), \
+        _line(plan, "specular reflection")
+
+
 def test_a_mirror_and_a_glass_ball_are_caustic_casters_by_name():
     s = _room(Material("rough_principled", (0.6, 0.6, 0.6), roughness=1.0, specular=1.0),
               extra=(("mirror", "Mirror"), ("glass", "Ball")))

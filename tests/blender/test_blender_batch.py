@@ -287,3 +287,27 @@ def test_batch_engine_refusal_is_said_once(tmp_path):
     lines = [ln for ln in res.stderr.splitlines() if ln.startswith("error: render failed")]
     assert len(lines) == 1 and lines[0].count("would need about") == 1, res.stderr[-3000:]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("ext, magic", [(".png", b"\x89PNG"), (".exr", b"v/1\x01")])
+def test_batch_renders_a_blend_saved_with_multilayer_exr_output(bpy_addon, tmp_path, ext,
+                                                                magic):
+    """A .blend whose Output is OpenEXR MultiLayer (Blender 5: media type Multi-Layer
+    Image) rendered with `-o out.png` stopped on a traceback, 'enum "PNG" not found in
+    ('OPEN_EXR_MULTILAYER')': the media type limits the formats, and only file_format was
+    set (new-user trial, newuser29)."""
+    bpy = bpy_addon
+    bpy.ops.wm.open_mainfile(filepath=os.path.join(BLENDS, "figure3_sphere.blend"),
+                             load_ui=False)
+    s = bpy.context.scene.render.image_settings
+    if not hasattr(s, "media_type"):
+        pytest.skip("Blender before 5.0 has no media type")
+    s.media_type = "MULTI_LAYER_IMAGE"
+    s.file_format = "OPEN_EXR_MULTILAYER"
+    blend = tmp_path / "multilayer_output.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    out = tmp_path / f"out{ext}"
+    res = _batch(str(blend), "-o", str(out), *SMALL, "--quiet")
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "Traceback" not in res.stderr, res.stderr[-2000:]
+    assert out.read_bytes()[:4] == magic

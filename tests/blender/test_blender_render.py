@@ -61,6 +61,36 @@ def test_resolution_percentage_and_border(bpy_addon, tmp_path):
     r.use_border = False
 
 
+def test_border_covers_the_pixels_cycles_renders(open_ground, tmp_path):
+    """Render Region: the rows and columns we fill are the ones Cycles fills. Blender
+    multiplies the border (float32) by the size in float32 and truncates; in double
+    0.9 x 120 is 107.99999 -> 107, one row short of Blender's 108 (new-user trial,
+    newuser29: a region of 0.4..0.9 rendered rows 13..71 where Cycles renders 12..71)."""
+    import bpy
+    from addon import engine
+    scene = open_ground
+    cheap(scene, width=160, height=120, pct=100, spp=1, photons=2000, caustic_photons=0)
+    r = scene.render
+    r.use_border, r.use_crop_to_border = True, False
+    r.border_min_x, r.border_max_x = 0.35, 0.7
+    r.border_min_y, r.border_max_y = 0.45, 0.9
+    try:
+        ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "ours.exr"))
+        assert engine.last_render["region"] is not None
+        scene.render.engine = "CYCLES"
+        scene.cycles.samples, scene.cycles.use_denoising = 1, False
+        theirs = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))
+    finally:
+        scene.render.engine = "PHOTONMAP"
+        r.use_border = False
+    filled = lambda img: (np.nonzero(img[..., 3].max(axis=1) > 0)[0],
+                          np.nonzero(img[..., 3].max(axis=0) > 0)[0])
+    (rows_c, cols_c), (rows_o, cols_o) = filled(theirs), filled(ours)
+    assert (rows_c[0], rows_c[-1], cols_c[0], cols_c[-1]) == (12, 65, 56, 111)  # Blender's
+    assert (rows_o[0], rows_o[-1], cols_o[0], cols_o[-1]) == (12, 65, 56, 111)
+    assert engine.last_render["region"] == (56, 12, 112, 66)
+
+
 def _caustic_contrast(bpy, scene, img):
     lum = luminance(img[..., :3])
     r0, c0 = project(bpy, scene, (0, 0, 0))
