@@ -376,6 +376,20 @@ def test_light_node_blackbody_is_the_light_temperature(fresh_scene, bpy_addon):
     assert not w2
 
 
+def _export_before_a_camera(bpy, scene):
+    """Export the scene (16 x 12) seen by a camera 6 m in front of the origin."""
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.location = (0, -6, 0)
+    cam.rotation_euler = (math.pi / 2, 0, 0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    from addon import export
+    from addon.core import load_engine
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=16, height=12)
+    return out
+
+
 def test_subsurface_warning_says_what_renders_and_names_the_object(fresh_scene, bpy_addon):
     """A Principled with Subsurface Weight (a skin, a candle): the warning says what is
     rendered instead and names the object that uses the material (s24 new user); the
@@ -387,15 +401,7 @@ def test_subsurface_warning_says_what_renders_and_names_the_object(fresh_scene, 
         mat.use_nodes = True
     mat.node_tree.nodes["Principled BSDF"].inputs["Subsurface Weight"].default_value = 1.0
     obj.data.materials.append(mat)
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.location = (0, -6, 0)
-    cam.rotation_euler = (math.pi / 2, 0, 0)
-    fresh_scene.collection.objects.link(cam)
-    fresh_scene.camera = cam
-    from addon import export
-    from addon.core import load_engine
-    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
-                                 width=16, height=12)
+    out = _export_before_a_camera(bpy, fresh_scene)
     hits = [w for w in out.all_warnings() if "Subsurface Weight" in w]
     assert len(hits) == 1, out.all_warnings()
     assert hits[0].startswith("material 'Wax': 'Subsurface Weight'")
@@ -416,15 +422,7 @@ def test_translucent_warning_says_no_light_passes_through(fresh_scene, bpy_addon
     mat, node = _material(bpy, "ShadeCloth", "ShaderNodeBsdfTranslucent")
     node.inputs["Color"].default_value = (0.9, 0.8, 0.6, 1.0)
     obj.data.materials.append(mat)
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.location = (0, -6, 0)
-    cam.rotation_euler = (math.pi / 2, 0, 0)
-    fresh_scene.collection.objects.link(cam)
-    fresh_scene.camera = cam
-    from addon import export
-    from addon.core import load_engine
-    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
-                                 width=16, height=12)
+    out = _export_before_a_camera(bpy, fresh_scene)
     hits = [w for w in out.all_warnings() if "ShadeCloth" in w]
     assert len(hits) == 1, out.all_warnings()
     assert "approximated by a Diffuse BSDF of its Color" in hits[0]
