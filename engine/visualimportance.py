@@ -314,6 +314,18 @@ def can_aim(light) -> bool:
     return isinstance(light, (InfiniteLight, AreaLight, PointLight, MeshLight))
 
 
+def no_gain_report(light_share: float, lookup_share: float, boost: float) -> str:
+    """The effect report's words when aiming photons at what the camera sees does not pay:
+    light_share, lookup_share (0..1) of the light and of the camera's photon lookups there,
+    boost the density gain aiming would give (< ROI_MIN_BOOST). Below 1 it would thin them
+    out there ("0.2x denser" read as a gain to the s29 new user)."""
+    gain = (f"make them only {boost:.1f}x denser" if boost >= 1.0 else
+            f"make them sparser there, not denser ({boost:.1f}x)")
+    return (f"no visual importance: what the camera sees gets {light_share:.0%} of the "
+            f"light for {lookup_share:.0%} of the photon lookups, so aiming photons there "
+            f"would {gain} (it pays from {ROI_MIN_BOOST:g}x)")
+
+
 def _why_natural(lights, p_in: float, p_out: float, cell_power: np.ndarray,
                  starts_inside: bool) -> str:
     """Why plan_global_shot emits naturally although it has a region: the report's words.
@@ -513,10 +525,7 @@ def plan_global_shot(ctx, lights, total: int, natural_counts, region: Region | N
         weight = np.full(K, math.sqrt(i_in / p_in))
     boost = float((p_cell * weight).sum() / p_in) / w_out
     if boost < ROI_MIN_BOOST:
-        natural.report = (f"no visual importance: what the camera sees gets "
-                          f"{p_in / (p_in + p_out):.0%} of the light for {i_in:.0%} of the "
-                          f"photon lookups, so aiming photons there would make them only "
-                          f"{boost:.1f}x denser (it pays from {ROI_MIN_BOOST:g}x)")
+        natural.report = no_gain_report(p_in / (p_in + p_out), i_in, boost)
         return natural
     # Photons per light: inside sum_k P_ik w_k, outside P_out w_out. A light that cannot
     # aim emits naturally: its photons as bright as the others' outside if it sends

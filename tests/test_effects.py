@@ -698,3 +698,16 @@ def test_many_caustic_casters_are_named_by_the_first_few_and_counted():
     assert len(plan.casters) == 20
     assert line.count("'Bead.") == REPORT_NAMES_MAX, line
     assert f" ... ({20 - REPORT_NAMES_MAX} more)" in line, line
+
+
+def test_visual_importance_that_would_thin_photons_out_says_so():
+    """Aiming photons where a lamp-lit room's camera looks would have made them 0.2x as
+    dense there: the report said "only 0.2x denser" (read as a small gain, s29 new user);
+    below 1 it says sparser."""
+    from engine.visualimportance import ROI_MIN_BOOST, no_gain_report
+    thin = no_gain_report(0.9, 0.4, 0.2)
+    assert "sparser there, not denser (0.2x)" in thin and "only" not in thin, thin
+    assert thin.startswith("no visual importance: what the camera sees gets 90% of the "
+                           "light for 40% of the photon lookups"), thin
+    small = no_gain_report(0.3, 0.5, 1.2)
+    assert "only 1.2x denser" in small and f"it pays from {ROI_MIN_BOOST:g}x" in small, small
