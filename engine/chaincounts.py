@@ -128,6 +128,19 @@ def map_cache(pmap) -> dict:
     return cache
 
 
+def keeps_every_photon(pmap, limits, counts) -> np.ndarray:
+    """(K,) bool: the rows whose camera-side counts (K,4) leave every photon of pmap usable,
+    so that the map's own values (its estimate, a share of it) serve them as they are
+    (without pmap.photons.bounces every photon counts: all True)."""
+    if getattr(pmap.photons, "bounces", None) is None:
+        return np.ones(len(counts), bool)
+    keys, which = unique_counts(counts)
+    cache = map_cache(pmap)
+    whole = np.array([_usable(pmap.photons, limits, tuple(int(x) for x in key), cache).all()
+                      for key in keys], bool)
+    return whole[which]
+
+
 def irradiance(pmap, limits, counts, p, n, *args, **kwargs) -> np.ndarray:
     """pmap.irradiance(p, n, *args, **kwargs) (M,3) with each row's estimate from the
     photons usable at its camera-side counts counts (M,4) alone (None: every photon the

@@ -21,6 +21,7 @@ folder.
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -177,7 +178,8 @@ def compile_shared(warm_ups, processes: int, progress=None, indices=None, join=T
     only). Returns (helpers that ran to the end, the positions in warm_ups run here).
     The caller runs every warm-up afterwards (ensure_compiled): it loads what the helpers
     wrote and compiles what they did not."""
-    order = [i for i in heaviest_first(warm_ups) if indices is None or i in set(indices)]
+    wanted = None if indices is None else set(indices)
+    order = [i for i in heaviest_first(warm_ups) if wanted is None or i in wanted]
     jobs = [warm_ups[i] for i in order]
     names = [warm_up_name(fn) for fn in jobs]
     if processes <= 1 or len(order) <= 1 or len(set(names)) < len(names):
@@ -195,12 +197,19 @@ def compile_shared(warm_ups, processes: int, progress=None, indices=None, join=T
         logs = []
         for k in range(processes - 1):
             # stderr to a file: an unread pipe would block a helper that writes much.
-            logs.append(open(os.path.join(folder, f"helper-{k}.log"), "w+b"))
-            helpers.append(subprocess.Popen(
-                [sys.executable, "-c", _HELPER_CODE, package, pkg_dir, folder,
-                 ",".join(names)],
-                env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                stderr=logs[-1], creationflags=flags))
+            log = open(os.path.join(folder, f"helper-{k}.log"), "w+b")
+            try:
+                helpers.append(subprocess.Popen(
+                    [sys.executable, "-c", _HELPER_CODE, package, pkg_dir, folder,
+                     ",".join(names)],
+                    env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                    stderr=log, creationflags=flags))
+            except OSError as e:  # (no process may be started here: compile alone)
+                log.close()
+                warnings.warn(f"Kernel compile helpers could not start ({e}); this process "
+                              "compiles them.")
+                break
+            logs.append(log)
         shown = [-1]
 
         def report():
@@ -243,12 +252,7 @@ def compile_shared(warm_ups, processes: int, progress=None, indices=None, join=T
             if h.poll() is None:
                 h.kill()
                 h.wait()
-        _remove_folder(folder)
-
-
-def _remove_folder(folder):
-    import shutil
-    shutil.rmtree(folder, ignore_errors=True)
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def helper_main(package: str, pkg_dir: str, folder: str, names: str) -> None:

@@ -391,12 +391,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             ids_of = {n: i for i, n in enumerate(geo.object_names)}
             rough_glass = [n for n in plan.rough_specular
                            if specular_kind(geo, table, ids_of[n]) == "glass"]
-            glass_words = " and ".join((["window"] if plan.window_glass else [])
-                                       + (["rough"] if rough_glass else []))
-            glass_words = (f"only {glass_words} glass"
-                           + (" " + _quoted(rough_glass, most=REPORT_NAMES_MAX)
-                              if rough_glass else "")
-                           if glass_words else "no glass")
+            kinds = (["window"] if plan.window_glass else []) + (["rough"] if rough_glass else [])
+            glass_words = f"only {' and '.join(kinds)} glass" if kinds else "no glass"
+            if rough_glass:
+                glass_words += " " + _quoted(rough_glass, most=REPORT_NAMES_MAX)
             sharp_none = (f"no mirror, {glass_words}, "
                           f"no surface smoother than roughness {SHARP_ROUGHNESS:g}")
             carried = (f"{' and '.join(glow)} come"
@@ -416,9 +414,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         else:
             all_names = list(names) + plan.rough_specular
             auto, why = False, ("no light reaches the specular object(s) "
-                                + _labelled(geo, table, all_names[:REPORT_NAMES_MAX])
-                                + (f" ... ({len(all_names) - REPORT_NAMES_MAX:,} more)"
-                                   if len(all_names) > REPORT_NAMES_MAX else ""))
+                                + _labelled(geo, table, all_names, most=REPORT_NAMES_MAX))
         if auto is not None:
             plan.caustics = _override(s.caustics, auto, "caustics", why, plan)
         if plan.caustics and reached:
@@ -691,9 +687,13 @@ def _quoted(names, most: int | None = 4) -> str:
     return ", ".join(f"'{n}'" for n in shown) + (f" ... ({left:,} more)" if left else "")
 
 
-def _labelled(geo: Geometry, table: MaterialTable, names) -> str:
+def _labelled(geo: Geometry, table: MaterialTable, names, most: int | None = None) -> str:
     """"glass 'ball', glossy 'vase'" for object names (a matte one with the specular
-    layer that puts it in the list: "matte 'floor' (its rough specular layer)")."""
+    layer that puts it in the list: "matte 'floor' (its rough specular layer)"); the
+    first `most` (None: all), then " ... (N more)" as _quoted."""
+    names = list(names)
+    left = 0 if most is None else max(len(names) - most, 0)
+    names = names[:len(names) - left]
     ids = {n: i for i, n in enumerate(geo.object_names)}
     out = []
     for n in names:
@@ -703,7 +703,7 @@ def _labelled(geo: Geometry, table: MaterialTable, names) -> str:
         kind = specular_kind(geo, table, ids[n])
         out.append(f"{kind} '{n}'" + (" (its rough specular layer)" if kind == "matte"
                                       else _closure_words(geo, table, ids[n], kind)))
-    return ", ".join(out)
+    return ", ".join(out) + (f" ... ({left:,} more)" if left else "")
 
 
 def _split_sharp(geo: Geometry, table: MaterialTable, names) -> tuple[list, list, dict]:

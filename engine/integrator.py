@@ -996,24 +996,11 @@ def _point_secondary(sec_E, point):
     return out
 
 
-def _counts_keep_all(pmap, limits, counts) -> np.ndarray:
-    """(K,) bool: the rows whose camera-side counts (K,4) leave every photon of pmap
-    usable (chaincounts: their estimate is the map's own), so a share of the map's
-    photons (GatherMap.secondary_E) serves them."""
-    if getattr(pmap.photons, "bounces", None) is None:
-        return np.ones(len(counts), bool)
-    keys, which = chaincounts.unique_counts(counts)
-    cache = chaincounts.map_cache(pmap)
-    whole = np.array([chaincounts._usable(pmap.photons, limits, tuple(int(x) for x in key),
-                                          cache).all() for key in keys], bool)
-    return whole[which]
-
-
 def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None, known=None):
     """Irradiance (N,3) from caustic light one diffuse bounce back (CAUSTIC_DIFFUSE
     photons) at regathered points. known: (N,3) or None, the points' values from their
     lookups' gather points (GatherMap.secondary_E, _point_secondary), taken as they are
-    where the rows' counts (extra) keep every photon of the map (_counts_keep_all: after
+    where the rows' counts (extra) keep every photon of the map (chaincounts.keeps_every_photon: after
     a specular chain some limit may drop some); the other rows, NaN rows (no point) and
     every row without known are estimated from the secondary map for a random
     SECONDARY_REGATHER_FRACTION of them and weighted by its inverse (zero elsewhere).
@@ -1032,9 +1019,9 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None, known=None):
         if extra is not None:
             bent = np.flatnonzero(have & np.any(extra != 0, axis=1))
             if len(bent):
-                have[bent] = _counts_keep_all(pmap, s.bounce_limits,
-                                              chaincounts.camera_counts(
-                                                  extra[bent], (bounces, bounces, 0, 0)))
+                have[bent] = chaincounts.keeps_every_photon(
+                    pmap, s.bounce_limits,
+                    chaincounts.camera_counts(extra[bent], (bounces, bounces, 0, 0)))
         out[have] = known[have]
         pick &= ~have
     rows = np.nonzero(pick)[0]

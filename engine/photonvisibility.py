@@ -38,12 +38,9 @@ import numpy as np
 
 from . import chaincounts
 from .jit import kernel, register_warm_up
-# The pre-test (rows with no other surface near are not traced) lives in plain Python,
-# so that editing it does not recompile these kernels; its names are kept here.
-from .onesurface import (CELLS_MAX, ENTRIES_MAX, FINE_CELLS_MAX,  # noqa: F401
-                         FINE_DIVISIONS, PLANE_TOLERANCE,
-                         OneSurfaceCells, _orientation_keys, _unique_keys,
-                         one_surface_cells)
+# The pre-test (rows with no other surface near are not traced) lives in plain Python
+# (engine/onesurface.py), so that editing it does not recompile these kernels.
+from .onesurface import one_surface_cells
 from .photonmap import _query_lift, _ray_ends
 from .rayoffset import G32_PLANE, ulp32_scalar
 

@@ -346,9 +346,8 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         if s.final_gather and s.photons and integrator.SECONDARY_FROM_GATHER_POINTS:
             # Each regathering level's secondary-caustic share of the gather points'
             # estimates ((P,3) float64 a level: GatherMap.secondary_levels).
-            from .integrator import MAX_GATHER_LEVEL
             est.parts["regather secondary shares"] = (
-                gather_points(s.photons * stores) * MAX_GATHER_LEVEL
+                gather_points(s.photons * stores) * integrator.MAX_GATHER_LEVEL
                 * BYTES_PER_GATHER_POINT_LEVEL)
             est.drivers["regather secondary shares"] = "photons"
 

@@ -75,6 +75,26 @@ def test_dependencies_follow_the_kernel_modules_imports():
     assert all(d < j for j, ds in enumerate(deps) for d in ds)  # (jobs in import order here)
 
 
+def test_helpers_that_cannot_start_leave_the_compile_to_this_process(monkeypatch):
+    """Where no process may be started (a sandbox), the caller runs every warm-up itself
+    and says why, instead of failing the render."""
+    ran = []
+
+    def first():
+        ran.append("first")
+
+    def second():
+        ran.append("second")
+
+    def refuse(*args, **kwargs):
+        raise PermissionError("not allowed here")
+
+    monkeypatch.setattr(compilepool.subprocess, "Popen", refuse)
+    with pytest.warns(UserWarning, match="could not start"):
+        helpers, here = compilepool.compile_shared([first, second], 3)
+    assert helpers == 0 and sorted(here) == [0, 1] and sorted(ran) == ["first", "second"]
+
+
 def test_process_count_from_the_environment(monkeypatch):
     monkeypatch.setenv(compilepool.PROCESSES_ENV, "3")
     assert compilepool.compile_processes(10) in (1, 3)  # 1 only without a Python executable

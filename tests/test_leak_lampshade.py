@@ -102,10 +102,11 @@ def test_lamp_shade_leak_conditions(monkeypatch):
 
 
 def test_one_surface_cells_skip_only_rows_with_nothing_to_hide():
-    """The visibility pre-test (photonvisibility.OneSurfaceCells) is conservative: every
+    """The visibility pre-test (onesurface.OneSurfaceCells) is conservative: every
     row it calls free has no hidden photon when traced anyway, the open wall far from the
     shade is free, and the wall right at the rim is not."""
-    from engine.photonvisibility import hidden_photons, one_surface_cells
+    from engine.onesurface import one_surface_cells
+    from engine.photonvisibility import hidden_photons
     ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
     shots = shoot_photons(ctx, {})
     from engine.photonmap import PhotonMap
@@ -170,7 +171,8 @@ def test_own_orientation_pretest_keeps_every_hidden_photon():
     and hidden_photons with it finds exactly the pairs it finds tracing every row: points
     on the floor and the wall, near the wall's foot and the shade's rim and far from them."""
     from engine.photonmap import PhotonMap
-    from engine.photonvisibility import hidden_photons, one_surface_cells
+    from engine.onesurface import one_surface_cells
+    from engine.photonvisibility import hidden_photons
     ctx = prepare_context(lamp_scene(), RenderSettings(**SETTINGS))
     pmap = PhotonMap(shoot_photons(ctx, {})[-1])
     radius, k = 0.19, 64

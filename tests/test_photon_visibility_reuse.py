@@ -228,10 +228,10 @@ def test_read_list_sums_take_pairs_in_any_order():
 
 
 def test_orientation_keys_unique_as_numpy():
-    """The pre-test's distinct orientations (photonvisibility._unique_keys) are
+    """The pre-test's distinct orientations (onesurface._unique_keys) are
     np.unique(axis=0)'s arrays: one orientation, a few, and random normals (keys at both
     ends of their range)."""
-    from engine.photonvisibility import _orientation_keys, _unique_keys
+    from engine.onesurface import _orientation_keys, _unique_keys
     rng = np.random.default_rng(3)
     cases = [np.tile([0.0, 0.0, 1.0], (50, 1)),
              np.r_[np.tile([0.0, -1.0, 0.0], (30, 1)), np.tile([1.0, 0.0, 0.0], (20, 1)),
