@@ -740,8 +740,12 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary)
             deeper = [gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of]
-            for level in range(len(secondary_of)):  # (the levels that regather)
-                share = gather_map.secondary_levels[secondary_of[level]]
+            # (A map of fewer than two photons, or too few to split into points, has no
+            # levels: a room lit only through a translucent or rough glass shade, whose
+            # photons are all caustic-kind. Its regathers search as before.)
+            levels = gather_map.secondary_levels
+            for level in range(len(secondary_of) if levels else 0):  # (those that regather)
+                share = levels[secondary_of[level]]
                 view = gather_map if level == 0 else deeper[level - 1]
                 if view.secondary_E is not None and view.secondary_E is not share:
                     # (levels that share a map but not its secondary share: a view each)
