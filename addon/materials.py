@@ -32,7 +32,7 @@ import numpy as np
 
 SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
-                     "MIX_SHADER", "ADD_SHADER")
+                     "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT")
 MAX_NODE_DEPTH = 32
 
 
@@ -77,13 +77,14 @@ class Closure:
                  "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color",
                  "sheen_weight", "sheen_roughness", "sheen_tint", "transparent_tint",
                  "scalars", "emission_texture", "weight", "anisotropic",
-                 "anisotropic_rotation")
+                 "anisotropic_rotation", "translucent", "translucent_color")
 
     # Lobe parameters of Principled v2 beyond the basic ones (engine Material fields).
     EXTRA = ("specular_ior_level", "specular_tint", "coat_weight", "coat_roughness",
              "coat_ior", "coat_tint", "multiscatter", "node", "glossy_color", "sheen_weight",
              "sheen_roughness", "sheen_tint", "transparent_tint", "scalars",
-             "emission_texture", "weight", "anisotropic", "anisotropic_rotation")
+             "emission_texture", "weight", "anisotropic", "anisotropic_rotation",
+             "translucent", "translucent_color")
 
     def __init__(self, base_color=(0.8, 0.8, 0.8), metallic=0.0, roughness=0.5,
                  transmission=0.0, ior=1.5, specular=0.0, emission=(0.0, 0.0, 0.0),
@@ -93,7 +94,8 @@ class Closure:
                  multiscatter=True, node="principled", glossy_color=None, sheen_weight=0.0,
                  sheen_roughness=0.5, sheen_tint=(1.0, 1.0, 1.0),
                  transparent_tint=(1.0, 1.0, 1.0), scalars=None, emission_texture=None,
-                 weight=1.0, anisotropic=0.0, anisotropic_rotation=0.0):
+                 weight=1.0, anisotropic=0.0, anisotropic_rotation=0.0, translucent=0.0,
+                 translucent_color=None):
         self.base_color = np.asarray(base_color, dtype=np.float64)[:3]
         self.metallic = float(metallic)
         self.roughness = float(roughness)
@@ -134,6 +136,11 @@ class Closure:
         # the tangent's rotation in turns.
         self.anisotropic = float(anisotropic)
         self.anisotropic_rotation = float(anisotropic_rotation)
+        # The Translucent BSDF's share of the surface (diffuse transmission) and its
+        # colour (None: the base colour, texture applied: a Translucent BSDF alone).
+        self.translucent = float(translucent)
+        self.translucent_color = (None if translucent_color is None
+                                  else np.asarray(translucent_color, np.float64)[:3])
 
     @property
     def is_clear(self) -> bool:
@@ -231,6 +238,20 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
         out.texture = a.texture if a.texture is not None else b.texture
         return out
     ta, tb = sa / total, sb / total
+    # A Translucent BSDF side is a share of the surface beside everything else
+    # (principled.setup takes it first): the shares add up, its colour is kept apart,
+    # and the other lobes blend over the sides' non-translucent parts alone, so a Mix of
+    # any surface and a Translucent BSDF is exact.
+    la, lb = ta * a.translucent, tb * b.translucent
+    out.translucent = la + lb
+    if out.translucent > 0:
+        def tl_colour(c):
+            return c.translucent_color if c.translucent_color is not None else c.base_color
+        if out.translucent < 1 or a.translucent_color is not None \
+                or b.translucent_color is not None:
+            out.translucent_color = (la * tl_colour(a) + lb * tl_colour(b)) / out.translucent
+        if out.translucent < 1:
+            ta, tb = (ta - la) / (1 - out.translucent), (tb - lb) / (1 - out.translucent)
     for name in ("metallic", "transmission", "specular", "specular_ior_level",
                  "specular_tint", "coat_weight", "coat_roughness", "coat_ior", "coat_tint",
                  "sheen_weight", "sheen_roughness", "sheen_tint"):
@@ -285,6 +306,10 @@ def _blend(a: Closure, b: Closure, wa: float, wb: float, sn=None) -> Closure:
             val = _weighted(sn, wa_, xa, wb_, xb)
         if hasattr(val, "evaluate"):
             out.scalars[name] = val
+    # (A texture on a mixed-in Translucent BSDF's colour would tint the other side's
+    # base: its constant colour stands instead, out.translucent_color.)
+    if out.translucent < 1:
+        sa, sb = sa * (1 - a.translucent), sb * (1 - b.translucent)
     out.texture = a.texture if (a.texture is not None and sa > 0) else (
         b.texture if sb > 0 else None)
     # One shading normal per material: the first side's map that has a surface.
@@ -359,6 +384,9 @@ class MaterialConverter:
             closure_weight=max(closure.weight, 0.0),
             anisotropic=min(max(closure.anisotropic, -1.0), 1.0),
             anisotropic_rotation=closure.anisotropic_rotation,
+            translucent=min(max(closure.translucent, 0.0), 1.0),
+            translucent_color=(None if closure.translucent_color is None
+                               else np.clip(closure.translucent_color, 0.0, None)),
             # Material > Settings > Pass Index: the Material Index data pass
             pass_index=int(getattr(mat, "pass_index", 0) or 0),
             # Material > Settings > Emission Sampling: the sides shadow rays sample
@@ -563,6 +591,12 @@ class MaterialConverter:
             a = self._shader(self._source(inp[1]), depth + 1)
             b = self._shader(self._source(inp[2]), depth + 1)
             fac = self._input(node, inp[0], depth) if self._source(inp[0]) else None
+            if hasattr(fac, "evaluate") and (a.translucent > 0 or b.translucent > 0):
+                self._warn(f"material '{self._mat.name}': Mix Shader '{node.name}' mixes a "
+                           "Translucent BSDF by a texture; per-hit mixing of translucency "
+                           f"is not supported: using {_value_text(self._default(inp[0]))} "
+                           "(the factor's own value)")
+                fac = None
             if hasattr(fac, "evaluate"):
                 sn = self.pm.shadernodes
                 if a.is_clear or b.is_clear:
@@ -633,17 +667,17 @@ class MaterialConverter:
             res.emission, res.emission_texture = _emission_mix(self.pm.shadernodes, 1.0, a,
                                                                1.0, b)
             return res
+        if t == "BSDF_TRANSLUCENT":
+            # Cycles' diffuse transmission (bsdf_translucent): Lambert on the far side.
+            base, tex = self._color(node, "Color")
+            return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
+                           translucent=1.0, normal_map=self._normal(node))
         if node.inputs.get("Color") is not None:
-            # Toon, Translucent, Sheen, Subsurface Scattering, Hair ...: the node's own
-            # colour as a Diffuse BSDF is nearer than the viewport colour (a new user's blue
-            # Toon ball rendered grey).
-            # Translucent: say what is lost. A lamp shade of it blocks its lamp (the s29
-            # new user's room: 0.82 of Cycles, the shade 0.02).
-            lost = ("; no light passes through it (a lamp shade of it blocks its lamp; "
-                    "a thin Principled with Transmission lets light through)"
-                    if node.type == "BSDF_TRANSLUCENT" else "")
+            # Toon, Sheen, Subsurface Scattering, Hair ...: the node's own colour as a
+            # Diffuse BSDF is nearer than the viewport colour (a new user's blue Toon ball
+            # rendered grey).
             self._warn(f"material '{self._mat.name}': shader '{node.name}' ({node.type}) is "
-                       f"not supported; approximated by a Diffuse BSDF of its Color{lost}")
+                       f"not supported; approximated by a Diffuse BSDF of its Color")
             base, tex = self._color(node, "Color")
             return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
                            normal_map=self._normal(node))
@@ -737,6 +771,10 @@ class MaterialConverter:
         ga = a.metallic + a.transmission + a.specular
         gb = b.metallic + b.transmission + b.specular
         if (a if ga >= gb else b).node != "principled":
+            return False
+        if a.translucent > 0 or b.translucent > 0:
+            # _blend keeps a Translucent BSDF's share and colour apart (exact when one
+            # side is wholly translucent).
             return False
 
         lobes = [(_closure_value(a, n), _closure_value(b, n))

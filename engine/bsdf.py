@@ -25,7 +25,8 @@ from .shadernodes import ShadingGeometry
 from .textures import hit_emission, material_alpha, rows_by_material, scalar_params
 
 # Lobe names in engine/closures/principled.py's order (its L_* indices).
-LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat", "sheen")
+LOBE_NAMES = ("diffuse", "pass", "metal", "glass_r", "glass_t", "spec", "coat", "sheen",
+              "translucent")
 SPEC_LOBES = LOBE_NAMES[1:]  # the lobes a path continues through
 # glass_r and glass_t are one lobe when sampled (sample_specular): chosen with their
 # summed probability, then reflected or refracted.

@@ -53,6 +53,7 @@ from .rayoffset import G32_PLANE, G64, TINY32, U32, tilt32, winding_normal
 
 # Indices into SPEC_LOBES (bsdf.py: LOBE_NAMES[1:], principled's L_* minus one).
 _PASS, _GLASS_R, _GLASS_T = pr.L_PASS - 1, pr.L_GLASS_R - 1, pr.L_GLASS_T - 1
+_TRANSL = pr.L_TRANSL - 1
 
 
 @kernel
@@ -247,7 +248,8 @@ def _diffuse_only(params, r):
     leave every packed column 0 (photonkernels.plain_materials, per row)."""
     return not (params[r, pr.M_SHEEN_W] > 0.0 or params[r, pr.M_COAT_W] > 0.0
                 or params[r, pr.M_METALLIC] > 0.0 or params[r, pr.M_TRANS] > 0.0
-                or params[r, pr.M_SPEC] > 0.0 or params[r, pr.M_ADD] != 0.0)
+                or params[r, pr.M_SPEC] > 0.0 or params[r, pr.M_ADD] != 0.0
+                or params[r, pr.M_TL] > 0.0)
 
 
 @kernel
@@ -852,7 +854,8 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
             rows_out[kept] = k
             if want_pdf:
                 pdf = np.inf
-                if (not htr or lh == _GLASS_T) and pr.is_rough(prm, row, lh + 1):
+                if (not htr or lh == _GLASS_T or lh == _TRANSL) and pr.is_rough(prm, row,
+                                                                                lh + 1):
                     n0, n1, n2 = ns[row, 0], ns[row, 1], ns[row, 2]
                     ox, oy, oz = pr.frame_local(n0, n1, n2, wo[row, 0], wo[row, 1],
                                                 wo[row, 2])
@@ -860,9 +863,9 @@ def continue_lobes(idx, lobe, prob, u1, u2, u3, prm, sel, mat, closure_params, t
                     if not htr:
                         pdf = pr.bsdf_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
                     else:
-                        # Rough glass's refraction: light sampling reaches it too
-                        # (engine/glasslight.py), so the rays that meet a light take MIS
-                        # weights.
+                        # Rough glass's refraction and the translucent lobe: light
+                        # sampling reaches them too (engine/glasslight.py), so the rays
+                        # that meet a light take MIS weights.
                         pdf = pr.transmission_pdf(prm, sel, row, ox, oy, oz, ix, iy, iz)
                 pdf_out[kept] = pdf
             if split_out.shape[0] > 0:
@@ -945,8 +948,9 @@ def _warm_up():
     film_add(np.zeros((1, 3)), 0, i64, np.zeros(0, np.int64), np.zeros((0, 3)), base)
     film_add_scalar(np.zeros(1), 0, i64, np.ones(len(i64)))
     film_first_normals(0, i64, base, np.ones(len(i64), np.bool_), np.zeros((1, 3)))
-    alb = np.full((1, 8, 3), 0.1)
-    sel, q, pl, psum = np.empty((1, 8)), np.empty(1), np.empty((1, 7)), np.empty(1)
+    alb = np.full((1, pr.N_LOBES, 3), 0.1)
+    sel, q, psum = np.empty((1, pr.N_LOBES)), np.empty(1), np.empty(1)
+    pl = np.empty((1, pr.N_LOBES - 1))
     choose_lobes(alb, np.ones((1, 3)), sel, q, pl, psum)
     idx = np.zeros(1, np.int64)
     lobe = np.empty(1, np.int64)

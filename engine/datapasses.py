@@ -81,7 +81,7 @@ FIRST_SAMPLE = frozenset(("object_index", "material_index", "position"))
 # bsdf_get_specular_roughness_squared(sc) > sqr(0.075f), i.e. GGX alpha > 0.075.
 SPECULAR_ALPHA = 0.075
 # Lobes (principled.L_*) by colour pass (surface_shader_diffuse / _glossy / _transmission).
-DIFFUSE_LOBES = (pr.L_DIFFUSE, pr.L_SHEEN)
+DIFFUSE_LOBES = (pr.L_DIFFUSE, pr.L_SHEEN, pr.L_TRANSL)  # (Cycles' diffuse closures)
 GLOSSY_LOBES = (pr.L_METAL, pr.L_GLASS_R, pr.L_SPEC, pr.L_COAT)
 TRANSMISSION_LOBES = (pr.L_GLASS_T,)
 _NO_ROWS = np.zeros(0, np.int64)
@@ -209,11 +209,11 @@ def lobe_albedo(table, hit):
 
 
 def lobe_alpha(prm):
-    """(N, N_LOBES) each lobe's GGX alpha (roughness^2); diffuse and sheen 1, the
+    """(N, N_LOBES) each lobe's GGX alpha (roughness^2); diffuse, sheen, translucent 1, the
     transparent pass 0 (a delta: specular-like, as Cycles' transparent BSDF)."""
     n = prm.shape[0]
     a = np.zeros((n, pr.N_LOBES))
-    a[:, pr.L_DIFFUSE] = a[:, pr.L_SHEEN] = 1.0
+    a[:, pr.L_DIFFUSE] = a[:, pr.L_SHEEN] = a[:, pr.L_TRANSL] = 1.0
     a[:, pr.L_METAL] = prm[:, pr.P_METAL_ALPHA]
     a[:, pr.L_GLASS_R] = a[:, pr.L_GLASS_T] = prm[:, pr.P_GLASS_ALPHA]
     a[:, pr.L_SPEC] = prm[:, pr.P_SPEC_ALPHA]

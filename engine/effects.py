@@ -64,12 +64,16 @@ def sharp_specular(table: MaterialTable) -> np.ndarray:
 
 
 def _focusing(table: MaterialTable) -> np.ndarray:
-    """(M,) bool: materials with a mirror, glass or coat lobe (has_specular without the
-    transparent pass, which camera rays continue through but which focuses nothing)."""
+    """(M,) bool: materials with a mirror, glass, coat or translucent lobe (has_specular
+    without the transparent pass, which camera rays continue through but which focuses
+    nothing). A translucent lobe focuses nothing either, but the light it lets through
+    travels as caustic-kind photons (the camera side continues the lobe, as a rough
+    glossy one), so it is planned as a rough lobe's glow: never aimed at (not sharp)."""
     dielectric = (1 - table.metallic) * (1 - table.transmission)
     coat = (table.coat_weight > 0) if table.coat_weight is not None else False
+    tl = (table.translucent > 0) if table.translucent is not None else False
     return ((table.metallic * table.base_color.max(axis=1) > 0) | (table.transmission > 0)
-            | (dielectric * table.specular > 0) | coat)
+            | (dielectric * table.specular > 0) | coat | tl)
 
 
 # What each teaching method does: the effect report's first line (settings.METHODS).
@@ -321,6 +325,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         ids, centers, radii, names = _object_spheres(geo, sharp_tri) if sharp_tri.any() else ([], np.zeros((0, 3)), np.zeros(0), [])
         rough_ids = np.setdiff1d(np.unique(geo.object_id[rough_tri]), ids) if rough_tri.any() else []
         plan.rough_specular = [geo.object_names[i] for i in rough_ids]
+        # Translucent objects (a lamp shade of Translucent BSDF) are said apart: they
+        # let light through, spread; "specular roughness" would name the wrong thing.
+        ids_of = {n: i for i, n in enumerate(geo.object_names)}
+        translucent = [n for n in plan.rough_specular
+                       if specular_kind(geo, table, ids_of[n]) == "translucent"]
+        glossy_rough = [n for n in plan.rough_specular if n not in translucent]
         reached = []
         if len(ids) and emitting and diff_tri.any():
             for oid, c, r, name in zip(ids, centers, radii, names):
@@ -337,13 +347,18 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             rough_note += ("; window glass " + _quoted(plan.window_glass)
                            + ": passed by shadow rays (thin flat glass), not a caustic "
                            "caster; unaimed photons carry its reflections")
-        if plan.rough_specular:
-            rough_note += ("; not aimed at " + _quoted(plan.rough_specular)
+        if glossy_rough:
+            rough_note += ("; not aimed at " + _quoted(glossy_rough)
                            + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
-                          "light, so not " + ("caustic casters" if len(plan.rough_specular) > 1
+                          "light, so not " + ("caustic casters" if len(glossy_rough) > 1
                                               else "a caustic caster")
                           + "; unaimed photons carry the soft glow "
-                          + ("they reflect)" if len(plan.rough_specular) > 1 else "it reflects)"))
+                          + ("they reflect)" if len(glossy_rough) > 1 else "it reflects)"))
+        if translucent:
+            rough_note += ("; not aimed at translucent " + _quoted(translucent)
+                           + " (diffuse transmission spreads light, focuses none; unaimed "
+                           "photons carry the light " + ("they let" if len(translucent) > 1
+                                                         else "it lets") + " through)")
         if not focus_tri.any():
             auto, why = False, ("no specular or refractive materials" if not spec_tri.any()
                                 else "no mirror, glass or coat: light through transparent "
@@ -368,8 +383,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             # The maps line names these photons by what this scene has (the line read
             # "light through window glass or off rough specular layers" in a room without
             # a window; the caustics line below says which objects, once).
+            tl_reached = [n for n in rough_reached if n in translucent]
+            gl_reached = [n for n in rough_reached if n not in translucent]
             plan.glow_words = " and ".join(
-                (["soft glow off rough specular layers"] if rough_reached else [])
+                (["soft glow off rough specular layers"] if gl_reached else [])
+                + (["light through translucent surfaces"] if tl_reached else [])
                 + (["reflections of window glass"] if plan.window_glass else []))
             # Unaimed: the global shot's caustic-kind photons, or, where visual importance
             # aims the global shot, a lighter glow shot of their own (render.py,
@@ -377,18 +395,20 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             source = ("unaimed photons" if plan.indirect
                       else f"{s.caustic_photons:,} unaimed photons")
             glow = []
-            if rough_reached:
+            if gl_reached:
                 glow.append("the soft glow that the rough specular layer"
-                            + ("s" if len(rough_reached) > 1 else "") + " of "
-                            + _quoted(rough_reached) + " reflect" + ("" if len(rough_reached) > 1 else "s")
+                            + ("s" if len(gl_reached) > 1 else "") + " of "
+                            + _quoted(gl_reached) + " reflect" + ("" if len(gl_reached) > 1 else "s")
                             + " onto other surfaces")
+            if tl_reached:
+                glow.append("the light that translucent " + _quoted(tl_reached)
+                            + (" let" if len(tl_reached) > 1 else " lets") + " through")
             if plan.window_glass:
                 glow.append("the reflections of window glass "
                             + _quoted(plan.window_glass) + " (passed by shadow rays: thin flat glass)")
             # Rough glass (a frosted lamp shade) is glass too: "no glass" beside the
             # specular line's "through glass 'Shade' (roughness 0.5)" read as a
             # contradiction (new-user trial, newuser29).
-            ids_of = {n: i for i, n in enumerate(geo.object_names)}
             rough_glass = [n for n in plan.rough_specular
                            if specular_kind(geo, table, ids_of[n]) == "glass"]
             kinds = (["window"] if plan.window_glass else []) + (["rough"] if rough_glass else [])
@@ -398,7 +418,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             sharp_none = (f"no mirror, {glass_words}, "
                           f"no surface smoother than roughness {SHARP_ROUGHNESS:g}")
             carried = (f"{' and '.join(glow)} come"
-                       + ("s" if len(glow) == 1 and rough_reached else "")
+                       + ("s" if len(glow) == 1 and (gl_reached or tl_reached) else "")
                        + f" from {source} (Caustic pass)")
             if s.caustics == "off":
                 plan.caustics = _override(s.caustics, True, "caustics", "", plan)
@@ -450,9 +470,15 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         through = (" through " + _labelled(geo, table, sharp_seen[:4])
                    + (" ..." if len(sharp_seen) > 4 else "") if sharp_seen
                    else ": no mirror, glass or sharp glossy surface in view")
+        # Translucent surfaces are said apart: what they show is light through them.
+        tl_seen = [n for n in rough_seen if kinds.get(n) == "translucent"]
+        rough_seen = [n for n in rough_seen if kinds.get(n) != "translucent"]
         rough_part = ("; glossy highlights (light sampling) and blurred reflections, no "
                       "mirror image, on " + _rough_words(geo, table, rough_seen, kinds)
                       if rough_seen else "")
+        if tl_seen:
+            rough_part += ("; light through translucent " + _quoted(tl_seen, most=4)
+                           + " (diffuse transmission: light sampling from its far side)")
         bounces = f"{s.camera_depth} bounce" + ("s" if s.camera_depth != 1 else "")
         auto, why = True, f"up to {bounces} ({limit}){through}{rough_part}"
     if s.method == "local":
@@ -617,6 +643,7 @@ METAL_WORDS = 0.5
 def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
     """What a specular object is, in a student's words, by its closure: 'glass'
     (transmission), 'transparent' (alpha below 1 or an alpha texture: a card, a cut-out),
+    'translucent' (a Translucent BSDF share: diffuse transmission),
     'mirror' (a metal or Glossy BSDF lobe that is mirror-smooth: GGX alpha below
     ggx.ALPHA_MIN, the engine's delta lobe); a Glossy BSDF: 'glossy' (sharp enough to
     focus light: is_sharp) or 'rough glossy'; a Principled metal (Metallic above
@@ -630,6 +657,8 @@ def specular_kind(geo: Geometry, table: MaterialTable, oid: int) -> str:
         return "glass"
     if np.any(table.alpha[mats] < 1) or np.any(table.has_alpha_texture[mats]):
         return "transparent"
+    if table.translucent is not None and np.any(table.translucent[mats] > 0):
+        return "translucent"
     glossy = _is_glossy_node(table, mats)
     metal = (table.metallic[mats] > METAL_WORDS) & ~glossy
     rough = np.asarray(table.roughness[mats], np.float64)

@@ -55,7 +55,7 @@ def lean_materials(table) -> np.ndarray | None:
     lean = ((np.asarray(table.alpha, np.float64) == 1.0)
             & (q[:, pr.M_METALLIC] <= 0.0) & (q[:, pr.M_TRANS] <= 0.0)
             & (q[:, pr.M_SPEC] <= 0.0) & (q[:, pr.M_COAT_W] <= 0.0)
-            & (q[:, pr.M_SHEEN_W] <= 0.0) & (q[:, pr.M_ADD] == 0.0)
+            & (q[:, pr.M_SHEEN_W] <= 0.0) & (q[:, pr.M_ADD] == 0.0) & (q[:, pr.M_TL] <= 0.0)
             & np.isfinite(q[:, pr.M_TTINT:pr.M_TTINT + 3]).all(axis=1)
             & (np.asarray(table.emission, np.float64) == 0.0).all(axis=1)
             & untextured(table.textures) & untextured(table.normal_maps)

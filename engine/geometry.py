@@ -45,6 +45,7 @@ class MaterialTable:
     closure_params: np.ndarray = None  # (M, principled.N_MAT): the closures' columns
     coat_weight: np.ndarray = None     # (M,)
     sheen_weight: np.ndarray = None    # (M,)
+    translucent: np.ndarray = None     # (M,) the translucent lobe's share (Material.translucent)
     scalar_textures: list = None  # per material: [(closure column, node, lo, hi)] or None
     emission_textures: list = None  # per material: colour node on the emission, or None
     diffuse_share: np.ndarray = None   # (M,) (1 - metallic)(1 - transmission) at its
@@ -65,6 +66,8 @@ class MaterialTable:
                    closure_params=closure_params(materials),
                    coat_weight=np.array([m.coat_weight for m in materials], np.float64),
                    sheen_weight=np.array([m.sheen_weight for m in materials], np.float64),
+                   translucent=np.array([getattr(m, "translucent", 0.0) for m in materials],
+                                        np.float64),
                    scalar_textures=[scalar_columns(m) for m in materials],
                    emission_textures=[m.emission_texture for m in materials],
                    pass_index=np.array([getattr(m, "pass_index", 0) for m in materials],
@@ -82,14 +85,18 @@ class MaterialTable:
     def has_diffuse(self) -> np.ndarray:
         share = (self.diffuse_share if self.diffuse_share is not None
                  else (1 - self.metallic) * (1 - self.transmission))
+        if self.translucent is not None:
+            share = share * (1 - self.translucent)
         return (share * self.alpha * self.base_color.max(axis=1)) > 0
 
     @property
     def has_specular(self) -> np.ndarray:
-        """Materials with a mirror-like or refractive lobe (caustic casters)."""
+        """Materials with a lobe the camera side continues (mirror-like, refractive, glossy,
+        sheen, translucent or a transparent pass)."""
         dielectric = (1 - self.metallic) * (1 - self.transmission)
+        tl = self.translucent if self.translucent is not None else 0.0
         return ((self.metallic * self.base_color.max(axis=1) > 0) | (self.transmission > 0)
-                | (dielectric * self.specular > 0) | (self.alpha < 1)
+                | (dielectric * self.specular > 0) | (self.alpha < 1) | (tl > 0)
                 | (self.coat_weight > 0) | (self.sheen_weight > 0) | self.has_alpha_texture) & True
 
     @property
@@ -152,6 +159,11 @@ def closure_params(materials: list[Material]) -> np.ndarray:
         row[pr.M_ADD] = m.closure_weight - 1.0
         row[pr.M_ANISO] = m.anisotropic
         row[pr.M_AROT] = m.anisotropic_rotation
+        row[pr.M_TL] = getattr(m, "translucent", 0.0)
+        tcol = getattr(m, "translucent_color", None)
+        if tcol is not None:
+            row[pr.M_TLCOL:pr.M_TLCOL + 3] = tcol
+            row[pr.M_HAS_TLCOL] = 1.0
     return out
 
 

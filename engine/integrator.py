@@ -1813,6 +1813,12 @@ class BounceBuffers:
                 self.glossy[:n], self.rows[:n], self.wd[:n])
 
 
+def _transmitting(params) -> np.ndarray:
+    """(M,) bool per row of closure parameters (M, N_MAT): a glass or translucent lobe
+    (light sampling through the surface may apply: engine/glasslight.py)."""
+    return (params[:, pr.M_TRANS] > 0) | (params[:, pr.M_TL] > 0)
+
+
 def _chain_counts(chain):
     """(K,4) int64 camera-side counts in B_TOTAL order (total, diffuse, glossy,
     transmission) from the camera chain's (K,3) (total, glossy, transmission): its
@@ -1867,9 +1873,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # everywhere).
     may_split = (np.full(len(o), SPLIT_GLASS_HITS, np.int64)
                  if SPLIT_GLASS_HITS > 0 else None)
-    # Materials with a glass lobe (the rows whose packed lobes glasslight reads; a
-    # diffuse-only hit's are left unwritten by shade_lobes).
-    glass_mat = np.asarray(ctx.table.closure_params)[:, pr.M_TRANS] > 0
+    # Materials with a glass or translucent lobe (the rows whose packed lobes glasslight
+    # reads; a diffuse-only hit's are left unwritten by shade_lobes).
+    glass_mat = _transmitting(np.asarray(ctx.table.closure_params))
     glass_rng = None  # glasslight's numbers, made when first needed
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
@@ -2105,7 +2111,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # sampling at every non-delta vertex; engine/glasslight.py). No rough glass:
             # no rows, no number drawn.
             if getattr(hit, "params", None) is not None:
-                cand = np.nonzero(hit.params[:, pr.M_TRANS] > 0)[0]
+                cand = np.nonzero(_transmitting(hit.params))[0]
             else:
                 cand = (np.flatnonzero(np.take(glass_mat, hit.mat)) if glass_mat.any()
                         else _NO_ROWS)
@@ -2166,10 +2172,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         org_ns = np.take(hit.ns, keep, axis=0)
         org_p = np.take(hit.p, keep, axis=0)
         if GLASS_LIGHT_SAMPLING:
-            # Rays refracted by rough glass (a finite pdf) left the far side: the lights'
-            # pdf there (world, sphere lights, the light tree) is that of the samples
+            # Rays refracted by rough glass or sent through a translucent lobe (a finite
+            # pdf, below the geometric normal) left the far side: the lights' pdf there
+            # (world, sphere lights, the light tree) is that of the samples
             # glasslight.transmitted_light takes, about the flipped normal.
-            through = (ray_cls == TRANSMISSION) & np.isfinite(pdf_b)
+            ngk = np.take(hit.ng, keep, axis=0)
+            through = np.isfinite(pdf_b) & (
+                d[:, 0] * ngk[:, 0] + d[:, 1] * ngk[:, 1] + d[:, 2] * ngk[:, 2] < 0.0)
             if through.any():
                 org_ns[through] = -org_ns[through]
         if passages is not None:

@@ -238,8 +238,8 @@ def _point_error(v0, e1, e2, t, b1, b2, pc, c):
 # (principled.L_*; visibility.SPEC_LOBE_CLASS): the diffuse lobe's is set per photon
 # (shadow rays for direct light, else diffuse rays); a transparent pass keeps the
 # incoming kinds.
-_LOBE_CLASS = np.array([0, 0, GLOSSY, GLOSSY, TRANSMISSION, GLOSSY, GLOSSY, DIFFUSE],
-                       np.int64)
+_LOBE_CLASS = np.array([0, 0, GLOSSY, GLOSSY, TRANSMISSION, GLOSSY, GLOSSY, DIFFUSE,
+                        DIFFUSE], np.int64)
 
 
 @kernel
@@ -300,7 +300,7 @@ def flat_glass_materials(table) -> np.ndarray:
     ok = ((params[:, pr.M_TRANS] >= 1.0) & (rough * rough < ggx.ALPHA_MIN)
           & (np.asarray(table.alpha) >= 1.0) & (params[:, pr.M_METALLIC] <= 0.0)
           & (params[:, pr.M_COAT_W] <= 0.0) & (params[:, pr.M_SHEEN_W] <= 0.0)
-          & (params[:, pr.M_ADD] == 0.0))
+          & (params[:, pr.M_ADD] == 0.0) & (params[:, pr.M_TL] <= 0.0))
     for attr in ("textures", "normal_maps", "alpha_textures", "scalar_textures"):
         nodes = getattr(table, attr, None)
         if nodes is not None and len(nodes) == M:
@@ -927,7 +927,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 first_scatter = (bn & _B_MASK) == 0
                 bn = _count_bounce(bn, B_TOTAL)
                 if not first_scatter:
-                    if lobe == pr.L_DIFFUSE:
+                    if lobe == pr.L_DIFFUSE or lobe == pr.L_TRANSL:
+                        # (Cycles counts its Translucent BSDF a diffuse bounce)
                         bn = _count_bounce(bn, B_DIFFUSE)
                     elif transmitted:
                         bn = _count_bounce(bn, B_TRANSMISSION)
@@ -1074,7 +1075,7 @@ def lobe_classes(params: np.ndarray) -> np.ndarray:
     node = params[:, pr.M_NODE]
     glass = ((params[:, pr.M_TRANS] == 1.0) & (rough * rough < ggx.ALPHA_MIN)
              & (params[:, pr.M_METALLIC] <= 0.0) & (params[:, pr.M_COAT_W] <= 0.0)
-             & (params[:, pr.M_SHEEN_W] <= 0.0)
+             & (params[:, pr.M_SHEEN_W] <= 0.0) & (params[:, pr.M_TL] <= 0.0)
              & ((node == pr.NODE_GLASS) | (node == pr.NODE_PRINCIPLED)))
     out[glass] = SMOOTH_GLASS
     return np.ascontiguousarray(out)
@@ -1084,7 +1085,7 @@ def plain_materials(params: np.ndarray) -> np.ndarray:
     """(M,) bool: materials whose closures are the diffuse and pass lobes alone (no sheen,
     coat, metal, transmission or specular layer: principled.setup skips each of them
     unless its weight is > 0), for scatter's set-up-free path."""
-    layers = (pr.M_SHEEN_W, pr.M_COAT_W, pr.M_METALLIC, pr.M_TRANS, pr.M_SPEC)
+    layers = (pr.M_SHEEN_W, pr.M_COAT_W, pr.M_METALLIC, pr.M_TRANS, pr.M_SPEC, pr.M_TL)
     return np.ascontiguousarray(~np.any(params[:, layers] > 0.0, axis=1)
                                 & (params[:, pr.M_ADD] == 0.0))  # closure weight 1
 

@@ -81,6 +81,11 @@ def _finite(value, what: str) -> float:
 class Material:
     """A Principled-v2 surface with Cycles' meaning (engine/closures/principled.py builds
     its layers, top first):
+      translucent       share of Lambertian diffuse transmission (Cycles' Translucent
+                        BSDF: light through the surface, spread as cosine on the far
+                        side), coloured translucent_color (or the base colour when None;
+                        a Mix of Diffuse and Translucent keeps both colours); every layer
+                        below keeps 1 - translucent
       sheen_weight      Cycles' microfiber sheen (sheen_roughness, tinted sheen_tint)
       coat_weight       a clear dielectric coat (coat_roughness, coat_ior) tinting what is
                         below it with coat_tint along the refracted path
@@ -152,6 +157,8 @@ class Material:
     sheen_weight: float = 0.0
     sheen_roughness: float = 0.5
     sheen_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
+    translucent: float = 0.0
+    translucent_color: tuple | np.ndarray | None = None
     transparent_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
     normal_map: NormalMap | Bump | None = None
@@ -196,7 +203,7 @@ class Material:
                                  "above 1 reflects more light than it receives (as in "
                                  "Cycles)")
         for attr in ("metallic", "roughness", "transmission", "specular", "alpha",
-                     "coat_roughness", "sheen_roughness"):
+                     "coat_roughness", "sheen_roughness", "translucent"):
             v = _finite(getattr(self, attr), f"{who} {attr}")
             setattr(self, attr, min(max(v, 0.0), 1.0))
         for attr in ("anisotropic", "anisotropic_rotation"):
@@ -238,6 +245,11 @@ class Material:
         if self.glossy_color is not None:
             self.glossy_color = np.clip(_vec3(self.glossy_color, f"{who} glossy_color"), 0.0,
                                         1.0)
+        if self.translucent_color is not None:
+            tc = _vec3(self.translucent_color, f"{who} translucent_color")
+            if np.any(tc < 0):
+                raise SceneError(f"{who} translucent_color: must be >= 0, got {tc.tolist()}")
+            self.translucent_color = tc
         if self.texture is not None:
             try:
                 self.texture = as_texture(self.texture, name=f"{self.name} texture")

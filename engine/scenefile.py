@@ -162,6 +162,7 @@ MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(no
                           "coat_ior": _number(1.0), "coat_tint": _vec3(nonneg=True),
                           "sheen_weight": _number(0.0), "sheen_roughness": _UNIT,
                           "sheen_tint": _vec3(nonneg=True), "glossy_color": _vec3(nonneg=True),
+                          "translucent": _UNIT, "translucent_color": _vec3(nonneg=True),
                           "anisotropic": _number(-1.0, 1.0), "anisotropic_rotation": _number(),
                           "multiscatter": _BOOL, "node": _choice(*MATERIAL_NODES),
                           # Blender's Material > Settings > Pass Index (Material Index pass)

@@ -33,7 +33,9 @@ CLASS_NAMES = {CAMERA: "camera", DIFFUSE: "diffuse", GLOSSY: "glossy",
 # Ray class after each specular lobe of bsdf.SPEC_LOBES; 0 = keep the incoming class
 # (a transparent pass-through continues the same ray, as in Cycles).
 SPEC_LOBE_CLASS = {"pass": 0, "metal": GLOSSY, "glass_r": GLOSSY, "glass_t": TRANSMISSION,
-                   "spec": GLOSSY, "coat": GLOSSY, "sheen": DIFFUSE}
+                   "spec": GLOSSY, "coat": GLOSSY, "sheen": DIFFUSE,
+                   # Cycles' Translucent BSDF is a diffuse closure: a diffuse bounce
+                   "translucent": DIFFUSE}
 
 
 class _Subset:

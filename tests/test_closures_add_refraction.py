@@ -63,7 +63,7 @@ def test_closure_weight_on_diffuse_is_the_colour_doubled_in_both_passes():
 
 def test_closure_setup_scales_every_bsdf_lobe_not_the_pass_lobe():
     m = Material("p", (0.5, 0.4, 0.3), metallic=0.3, roughness=0.4, transmission=0.2,
-                 specular=1.0, coat_weight=0.5, sheen_weight=0.4, alpha=0.7)
+                 specular=1.0, coat_weight=0.5, sheen_weight=0.4, alpha=0.7, translucent=0.2)
     q1 = closure_params([m])
     m.closure_weight = 2.0
     q2 = closure_params([m])

@@ -5,6 +5,9 @@ Per hit, `setup` turns a material (a row of MaterialTable.closure_params) and th
 cosine into lobes, top layer first, each attenuating the ones below it by its estimated
 albedo (Cycles' closure_layering_weight):
     pass      (1 - alpha) x transparent tint (Transparent BSDF share and colour)
+    transl    Lambertian diffuse transmission (Cycles' Translucent BSDF, bsdf_translucent:
+              f = colour / pi on the far side): translucency x the translucent colour (or
+              the base colour); every layer below keeps 1 - translucency
     sheen     Cycles' microfiber sheen (engine/closures/sheen.py), weight x tint
     coat      GGX, real dielectric Fresnel (coat IOR), energy-compensated; then the coat
               tint tints the layers below along the refracted path (tint^(1/cos_t))
@@ -35,8 +38,8 @@ from .fresnel import (F0_from_ior, f82_Fss, f82_tint_B, fresnel_dielectric,
                       fresnel_dielectric_Fss, fresnel_f82, ior_from_F0, schlick_remap)
 
 # Lobes in the weights array (the order of bsdf.LOBE_NAMES).
-L_DIFFUSE, L_PASS, L_METAL, L_GLASS_R, L_GLASS_T, L_SPEC, L_COAT, L_SHEEN = range(8)
-N_LOBES = 8
+L_DIFFUSE, L_PASS, L_METAL, L_GLASS_R, L_GLASS_T, L_SPEC, L_COAT, L_SHEEN, L_TRANSL = range(9)
+N_LOBES = 9
 
 # Material parameter columns (MaterialTable.closure_params).
 M_ALPHA, M_METALLIC, M_ROUGH, M_TRANS, M_IOR, M_SPEC, M_LEVEL = range(7)
@@ -55,7 +58,10 @@ M_ADD = 30             # 1: closure weight - 1 (Add Shader sums closures: every 
 M_ANISO = 31          # 1: anisotropy: Principled 'Anisotropic' (0..1) or Glossy BSDF
                       # 'Anisotropy' (-0.99..0.99), by M_NODE (aniso_alphas)
 M_AROT = 32           # 1: its rotation of the tangent about the normal, in turns
-N_MAT = 33
+M_TL = 33             # 1: translucency, the Translucent BSDF's share of the surface
+M_TLCOL = 34          # 3: the translucent colour ...
+M_HAS_TLCOL = 37      # ... when 1 (else the base colour, texture applied)
+N_MAT = 38
 # NODE_REFRACTION: the glass lobe transmits only, without Fresnel (Cycles' Refraction BSDF,
 # MicrofacetFresnel::NONE: transmittance = colour) and without energy compensation.
 NODE_PRINCIPLED, NODE_GLOSSY, NODE_GLASS, NODE_REFRACTION = 0, 1, 2, 3
@@ -74,7 +80,8 @@ P_AX, P_AY = 42, 43  # the metal and specular lobes' alpha_x, alpha_y (Cycles' a
 P_TAN = 44  # 2: their tangent T (alpha_x's axis) in the glossy normal's frame, unit,
             # in its tangent plane (set_tangents); 0, 0: none yet (the lobes then stay
             # isotropic at their own alpha)
-N_PACK = 46
+P_TL_W = 46  # 3: the translucent lobe's colour weight (f = P_TL_W / pi on the far side)
+N_PACK = 49
 
 
 @kernel
@@ -156,6 +163,19 @@ def setup(mat, params, base, cos_o, front, hit_alpha, prm, weights):
         if params[r, M_METALLIC] > 0.0 or params[r, M_SPEC] > 0.0:
             E = tables.ggx_E(rough_g, mu)
             E_avg = tables.ggx_Eavg(rough_g)
+        # --- translucent: diffuse transmission, a share of the whole surface beside the
+        # layers below (a Mix of any surface and a Translucent BSDF, exactly) ---
+        tl = params[r, M_TL]
+        if tl > 0.0:
+            Wt = (W0, W1, W2)
+            for c in range(3):
+                col = (params[r, M_TLCOL + c] if params[r, M_HAS_TLCOL] != 0.0
+                       else base[i, c])
+                # Lambert transmits all it does not absorb: the albedo is exact.
+                wc = tl * Wt[c] * max(col, 0.0)
+                prm[i, P_TL_W + c] = wc
+                weights[i, L_TRANSL, c] = wc
+            W0, W1, W2 = W0 * (1.0 - tl), W1 * (1.0 - tl), W2 * (1.0 - tl)
         # --- sheen (the top layer) ---
         shw = params[r, M_SHEEN_W]
         if shw > 0.0 and a > 0.0:
@@ -703,16 +723,52 @@ def bsdf_pdf_many(prm, sel, ns, wo, wi, out):
 
 
 @kernel
-def has_rough_transmission(prm, i):
+def has_translucent(prm, i):
+    """Hit i has a translucent lobe (diffuse transmission with some weight)."""
+    return prm[i, P_TL_W] > 0 or prm[i, P_TL_W + 1] > 0 or prm[i, P_TL_W + 2] > 0
+
+
+@kernel
+def _has_rough_glass_t(prm, i):
     """Hit i's glass lobe refracts with a density (rough, not index-matched, some
-    transmission weight): light sampling can reach it through the surface."""
+    transmission weight)."""
     return (prm[i, P_GLASS_ALPHA] >= ggx.ALPHA_MIN and abs(prm[i, P_GLASS_ETA] - 1.0) >= 1e-4
             and (prm[i, P_GLASS_TW] > 0 or prm[i, P_GLASS_TW + 1] > 0
                  or prm[i, P_GLASS_TW + 2] > 0))
 
 
 @kernel
+def has_rough_transmission(prm, i):
+    """Hit i transmits with a density: its glass lobe refracts roughly (_has_rough_glass_t)
+    or it has a translucent lobe. Light sampling can reach it through the surface."""
+    return _has_rough_glass_t(prm, i) or has_translucent(prm, i)
+
+
+@kernel
+def eval_translucent(prm, i, oz, iz):
+    """Hit i's translucent lobe for local wo above (oz > 0) and wi below (iz < 0) the
+    shading normal: (f * |cos_i| RGB = P_TL_W |cos_i| / pi, the lobe's own solid-angle
+    pdf |cos_i| / pi: cosine sampling of the far hemisphere). Cycles' bsdf_translucent
+    (kernel/closure/bsdf_diffuse.h). Zeros on the same side or without the lobe."""
+    if oz <= 0.0 or iz >= 0.0 or not has_translucent(prm, i):
+        return 0.0, 0.0, 0.0, 0.0
+    k = -iz / math.pi
+    return prm[i, P_TL_W] * k, prm[i, P_TL_W + 1] * k, prm[i, P_TL_W + 2] * k, k
+
+
+@kernel
 def eval_transmission(prm, i, ox, oy, oz, ix, iy, iz):
+    """The glass refraction (eval_glass_transmission) plus the translucent lobe
+    (eval_translucent) for local wo above and wi below the shading normal: (f * |cos_i|
+    RGB summed, the glass lobe's own pdf (eval_glass_transmission's), the translucent
+    lobe's own pdf)."""
+    t0, t1, t2, pg = eval_glass_transmission(prm, i, ox, oy, oz, ix, iy, iz)
+    l0, l1, l2, pl = eval_translucent(prm, i, oz, iz)
+    return t0 + l0, t1 + l1, t2 + l2, pg, pl
+
+
+@kernel
+def eval_glass_transmission(prm, i, ox, oy, oz, ix, iy, iz):
     """Hit i's rough glass refraction for local wo above (oz > 0) and wi below (iz < 0)
     the shading normal: (f * |cos_i| RGB, the solid-angle pdf with which the glass lobe's
     sampling (_glass_sample, the lobe alone) refracts into wi). Walter et al. 2007 with
@@ -722,7 +778,7 @@ def eval_transmission(prm, i, ox, oy, oz, ix, iy, iz):
     The lobe's normal is the raised one (raised_rough_glass): wo, wi are taken to its
     frame first, the sides and |cos_i| are against it. Zeros where the pair is no
     refraction (wrong sides, h facing away, eta 1)."""
-    if not has_rough_transmission(prm, i):
+    if not _has_rough_glass_t(prm, i):
         return 0.0, 0.0, 0.0, 0.0
     ox, oy, oz = _to_glossy(prm, i, ox, oy, oz)
     ix, iy, iz = _to_glossy(prm, i, ix, iy, iz)
@@ -760,13 +816,14 @@ def eval_transmission(prm, i, ox, oy, oz, ix, iy, iz):
 @kernel
 def transmission_pdf(prm, sel, i, ox, oy, oz, ix, iy, iz):
     """Solid-angle pdf with which the continuation (the glass lobe chosen with probability
-    sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) refracts into wi (local, iz < 0) at hit i:
-    bsdf_pdf's counterpart through the surface; inf where the refraction has no density
-    (smooth or index-matched glass: light sampling cannot produce it)."""
+    sel[i, L_GLASS_R] + sel[i, L_GLASS_T], the translucent lobe with sel[i, L_TRANSL])
+    goes through the surface into wi (local, iz < 0) at hit i: bsdf_pdf's counterpart
+    through the surface; inf where the transmission has no density (smooth or
+    index-matched glass alone: light sampling cannot produce it)."""
     if not has_rough_transmission(prm, i):
         return np.inf
-    _, _, _, p = eval_transmission(prm, i, ox, oy, oz, ix, iy, iz)
-    return (sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) * p
+    _, _, _, pg, pl = eval_transmission(prm, i, ox, oy, oz, ix, iy, iz)
+    return (sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) * pg + sel[i, L_TRANSL] * pl
 
 
 @kernel
@@ -784,9 +841,10 @@ def rough_transmission_rows(prm, cand, out):
 @kernel
 def accumulate_transmission(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, lpdf,
                             kmode, prm, ns, wo, sel):
-    """Radiance through rough glass from light samples taken on the far side of the
-    surface (engine/glasslight.py): L[row] += contrib x f_t x visible / samples, entry by
-    entry, with f_t the glass lobe's refraction (eval_transmission; prm, sel per row of
+    """Radiance through rough glass and translucent surfaces from light samples taken on
+    the far side of the surface (engine/glasslight.py): L[row] += contrib x f_t x visible
+    / samples, entry by entry, with f_t the glass lobe's refraction plus the translucent
+    lobe (eval_transmission; prm, sel per row of
     L, ns (N,3) the shading normals on wo's side, wo (N,3)); contrib holds the light's
     radiance x |cos_i| / light pdf (directlight.sample_lights, taken with the normals
     flipped). kmode[k] as directlight.accumulate_bsdf's: 1 full weight (a delta light),
@@ -808,11 +866,11 @@ def accumulate_transmission(L, contrib, row, kidx, ray, ksamples, blocked, m_all
         if iz >= 0.0:
             continue
         ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
-        t0, t1, t2, pt = eval_transmission(prm, i, ox, oy, oz, ix, iy, iz)
+        t0, t1, t2, pg, pl = eval_transmission(prm, i, ox, oy, oz, ix, iy, iz)
         s = ksamples[k]
         w = 1.0
         if mode == 2:
-            pb = (sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) * pt
+            pb = (sel[i, L_GLASS_R] + sel[i, L_GLASS_T]) * pg + sel[i, L_TRANSL] * pl
             pl = s * lpdf[j]
             w = pl * pl / (pl * pl + pb * pb) if pl > 0.0 else 0.0
         w = w / (-iz * s)  # contrib holds |cos_i|, f_t * |cos_i| is the eval
@@ -823,13 +881,24 @@ def accumulate_transmission(L, contrib, row, kidx, ray, ksamples, blocked, m_all
 
 @kernel
 def eval_transmission_many(prm, ns, wo, wi, out):
-    """Batch of eval_transmission in world space: out (N,4) = f * |cos_i| RGB, pdf."""
+    """Batch of eval_glass_transmission in world space: out (N,4) = f * |cos_i| RGB, pdf
+    of the glass refraction alone."""
     for i in range(ns.shape[0]):
         n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
         ox, oy, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
         ix, iy, iz = frame_local(n0, n1, n2, wi[i, 0], wi[i, 1], wi[i, 2])
-        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = eval_transmission(prm, i, ox, oy, oz,
-                                                                       ix, iy, iz)
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = eval_glass_transmission(
+            prm, i, ox, oy, oz, ix, iy, iz)
+
+
+@kernel
+def eval_translucent_many(prm, ns, wo, wi, out):
+    """Batch of eval_translucent in world space: out (N,4) = f * |cos_i| RGB, pdf."""
+    for i in range(ns.shape[0]):
+        n0, n1, n2 = ns[i, 0], ns[i, 1], ns[i, 2]
+        _, _, oz = frame_local(n0, n1, n2, wo[i, 0], wo[i, 1], wo[i, 2])
+        _, _, iz = frame_local(n0, n1, n2, wi[i, 0], wi[i, 1], wi[i, 2])
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = eval_translucent(prm, i, oz, iz)
 
 
 @kernel
@@ -843,7 +912,7 @@ def is_rough(prm, i, l):
         a = prm[i, P_COAT_ALPHA]
     elif l == L_GLASS_R or l == L_GLASS_T:
         a = prm[i, P_GLASS_ALPHA]
-    elif l == L_SHEEN:
+    elif l == L_SHEEN or l == L_TRANSL:
         a = 1.0
     else:
         a = 0.0
@@ -982,12 +1051,15 @@ def _glass_sample_local(prm, i, ox, oy, oz, u1, u2, u3):
 
 @kernel
 def sample_lobe(prm, i, lobe, ox, oy, oz, u1, u2, u3):
-    """Sample lobe `lobe` (L_METAL, L_SPEC, L_COAT, or L_GLASS_R / L_GLASS_T: both mean
-    the whole glass lobe) of hit i for local wo: (ix, iy, iz, weight RGB = f cos / pdf of
-    that lobe alone, transmitted). Weight 0: no sample. The metal, specular, coat and
-    glass lobes sample about the glossy normal (P_GN), sheen about the shading normal."""
+    """Sample lobe `lobe` (L_METAL, L_SPEC, L_COAT, L_SHEEN, L_TRANSL, or L_GLASS_R /
+    L_GLASS_T: both mean the whole glass lobe) of hit i for local wo: (ix, iy, iz,
+    weight RGB = f cos / pdf of that lobe alone, transmitted). Weight 0: no sample. The
+    metal, specular, coat and glass lobes sample about the glossy normal (P_GN), sheen
+    and translucent about the shading normal."""
     if lobe == L_SHEEN:
         return _sample_sheen(prm, i, ox, oy, oz, u1, u2)
+    if lobe == L_TRANSL:
+        return _sample_translucent(prm, i, oz, u1, u2)
     if lobe == L_GLASS_R or lobe == L_GLASS_T:
         return _glass_sample(prm, i, ox, oy, oz, u1, u2, u3)
     qx, qy, qz = _to_glossy(prm, i, ox, oy, oz)
@@ -1003,6 +1075,21 @@ def _sample_sheen(prm, i, ox, oy, oz, u1, u2):
     if iz <= 0.0 or pdf <= 0.0:
         return ix, iy, iz, 0.0, 0.0, 0.0, False
     return ix, iy, iz, prm[i, P_SHEEN_W], prm[i, P_SHEEN_W + 1], prm[i, P_SHEEN_W + 2], False
+
+
+@kernel
+def _sample_translucent(prm, i, oz, u1, u2):
+    """The translucent lobe: a cosine-distributed direction in the far hemisphere (Cycles'
+    bsdf_translucent_sample); weight f cos / pdf = the lobe's colour weight P_TL_W."""
+    if oz <= 0.0:
+        return 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, True
+    r = math.sqrt(u1)
+    phi = 2.0 * math.pi * u2
+    iz = -math.sqrt(max(0.0, 1.0 - u1))
+    if iz >= 0.0:
+        return 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, True
+    return (r * math.cos(phi), r * math.sin(phi), iz, prm[i, P_TL_W], prm[i, P_TL_W + 1],
+            prm[i, P_TL_W + 2], True)
 
 
 @kernel
@@ -1094,6 +1181,7 @@ def _warm_up():
     params[0, [M_SHEEN_W, M_SHEEN_ROUGH]] = (0.5, 0.5)
     params[0, M_SHEEN_TINT:M_SHEEN_TINT + 3] = 1.0
     params[0, M_TTINT:M_TTINT + 3] = 1.0
+    params[0, M_TL] = 0.2
     one = np.ones(1)
     prm, _ = setup_np(params, np.zeros(1, np.int64), np.full((1, 3), 0.5), np.full(1, 0.8),
                       np.ones(1, np.bool_))
@@ -1111,6 +1199,7 @@ def _warm_up():
     glossy_normals(n, np.array([[0.0, 0.6, 0.8]]), wo, np.zeros((1, 3)), np.ones(1))
     wt = np.array([[-0.3, 0.0, -0.95]])
     eval_transmission_many(prm, n, wo, wt, np.empty((1, 4)))
+    eval_translucent_many(prm, n, wo, wt, np.empty((1, 4)))
     rows = np.empty(1, np.int64)
     rough_transmission_rows(prm, np.zeros(1, np.int64), rows)
     accumulate_transmission(np.zeros((1, 3)), np.ones((1, 3)), np.zeros(1, np.int64),
