@@ -182,3 +182,26 @@ def test_levels_that_share_a_map_share_its_secondary_share():
         assert (g.secondary_E > 0).any()
     finally:
         ctx.accel.close()
+
+
+def test_a_gather_map_of_caustic_photons_only_renders():
+    """Every stored photon caustic-kind (a floor lit only through a rough Refraction BSDF
+    sheet, which reflects nothing back): the global map has no point, so no secondary
+    levels; the render indexed them anyway (IndexError) and now regathers as before.
+    The floor is lit and finite."""
+    from engine.api import PaperScene
+    from engine.scene import Material
+    s = PaperScene(width=16, height=16)
+    s.add_material(Material("frost", (1, 1, 1), transmission=1.0, roughness=0.6,
+                            specular=1.0, node="refraction", ior=1.0001))
+    s.add_material(Material("grey", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 1.0), (0, 0, 1), 8, "frost", name="ceiling")
+    s.add_plane((0, 0, 0), (0, 0, 1), 8, "grey", name="floor")
+    s.add_sun(direction=(0, 0, -1), strength=2.0)
+    s.set_camera((0, 0, 0.6), (0, 0, 0), up=(0, 1, 0), view_angle=60)
+    film = s.render(RenderSettings(spp=2, photons=100_000, seed=1))
+    # (every stored photon is of the caustic kind)
+    assert film.stats["caustic_photons"] == film.stats["global_photons"] > 0
+    assert np.all(np.isfinite(film.combined))
+    # Most of the sun's light reaches the floor through the index-matched sheet.
+    assert film.combined.mean() > 0.5 * 0.5 / np.pi * 2.0
