@@ -450,3 +450,32 @@ def test_translucent_bsdf_exports_as_diffuse_transmission(fresh_scene, bpy_addon
     assert m.translucent == pytest.approx(0.3)
     np.testing.assert_allclose(m.translucent_color, (0.7, 0.5, 0.1), atol=1e-6)
     np.testing.assert_allclose(m.base_color, (0.2, 0.4, 0.6), atol=1e-6)
+
+
+def test_translucent_mixed_by_a_texture_uses_the_factors_value_and_says_so(fresh_scene,
+                                                                           bpy_addon):
+    """Per-hit mixing of a Translucent BSDF is not supported: the factor's own value
+    stands and the warning says so (no silent loss of the translucency)."""
+    bpy = bpy_addon
+    obj = _cube(bpy, "Leaf", (0, 0, 0))
+    mat = bpy.data.materials.new("LeafMix")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    trans = nt.nodes.new("ShaderNodeBsdfTranslucent")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.4
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs["Fac"], mix.inputs[0])
+    nt.links.new(diffuse.outputs[0], mix.inputs[1])
+    nt.links.new(trans.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    obj.data.materials.append(mat)
+    out = _export_before_a_camera(bpy, fresh_scene)
+    hits = [w for w in out.all_warnings() if "LeafMix" in w]
+    assert len(hits) == 1 and "per-hit mixing of translucency is not supported" in hits[0], \
+        out.all_warnings()
+    assert out.materials["LeafMix"].translucent == pytest.approx(0.4)
