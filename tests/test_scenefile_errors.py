@@ -232,6 +232,17 @@ def test_principled_v2_material_keys(tmp_path):
         _load(tmp_path, CAMERA + '[materials.m]\nnode = "metal"\n')
 
 
+def test_translucent_material_keys(tmp_path):
+    """A Translucent BSDF's share and colour load into the Material; a share outside
+    0..1 is refused with its key named."""
+    mat = '[materials.m]\ntranslucent = 0.4\ntranslucent_color = [0.9, 0.7, 0.2]\n'
+    scene, _ = _load(tmp_path, CAMERA + mat)
+    m = scene.materials["m"]
+    assert m.translucent == 0.4 and list(m.translucent_color) == [0.9, 0.7, 0.2]
+    with pytest.raises(SceneFileError, match="'translucent' must be"):
+        _load(tmp_path, CAMERA + '[materials.m]\ntranslucent = 1.5\n')
+
+
 def test_every_refused_key_of_a_file_is_reported_at_once(tmp_path):
     """A bad camera key does not hide the other problems: each refused key (its first
     problem) on its own line, naming the file, the table and the key."""
