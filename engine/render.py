@@ -452,6 +452,31 @@ def render_cryptomatte(ctx: Context, region, film: Film, should_cancel) -> None:
     film.stats["time_cryptomatte"] = time.perf_counter() - t0
 
 
+def level_maps(gather_map: GatherMap, level_of: list, secondary_of: list) -> tuple:
+    """The map each regathering level reads (render context's regather_maps), with each
+    level's secondary-caustic share set (GatherMap.secondary_E).
+
+    level_of: per level 1..MAX_GATHER_LEVEL the index of its subset map in
+    gather_map.subset_maps, -1 for the level-0 map itself; secondary_of: per regathering
+    level 0..MAX_GATHER_LEVEL - 1 the index of its share in gather_map.secondary_levels
+    ([] without). Returns a tuple of len(level_of) maps (views where two levels share a
+    map but not its share). A map without points (fewer than two non-caustic photons, or
+    all of them points: GatherMap's early return) has no subset maps and no shares: it
+    serves every level as it is and its lookups find nothing (indexing its empty lists
+    raised IndexError on a shot whose only usable photons were caustic ones: feature
+    case visibility_light_diffuse_off at seed 2, one caustic photon stored)."""
+    empty = gather_map.tree is None
+    deeper = [gather_map if i < 0 or empty else gather_map.subset_maps[i] for i in level_of]
+    for level in range(0 if empty else len(secondary_of)):  # (the levels that regather)
+        share = gather_map.secondary_levels[secondary_of[level]]
+        view = gather_map if level == 0 else deeper[level - 1]
+        if view.secondary_E is not None and view.secondary_E is not share:
+            # (levels that share a map but not its secondary share: a view each)
+            deeper[level - 1] = view = copy.copy(view)
+        view.secondary_E = share
+    return tuple(deeper)
+
+
 def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) -> tuple:
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     t0 = time.perf_counter()
@@ -739,19 +764,7 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary)
-            deeper = [gather_map if i < 0 else gather_map.subset_maps[i] for i in level_of]
-            # (A map of fewer than two photons, or too few to split into points, has no
-            # levels: a room lit only through a translucent or rough glass shade, whose
-            # photons are all caustic-kind. Its regathers search as before.)
-            levels = gather_map.secondary_levels
-            for level in range(len(secondary_of) if levels else 0):  # (those that regather)
-                share = levels[secondary_of[level]]
-                view = gather_map if level == 0 else deeper[level - 1]
-                if view.secondary_E is not None and view.secondary_E is not share:
-                    # (levels that share a map but not its secondary share: a view each)
-                    deeper[level - 1] = view = copy.copy(view)
-                view.secondary_E = share
-            out_deeper["regather_maps"] = tuple(deeper)
+            out_deeper["regather_maps"] = level_maps(gather_map, level_of, secondary_of)
             if shot.bounces is not None:
                 # Lookups after a specular chain: which ones the map cannot serve.
                 out_deeper["gather_counts"] = GatherCounts(

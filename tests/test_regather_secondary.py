@@ -25,7 +25,7 @@ from engine.integrator import (MAX_GATHER_LEVEL, _deeper, _point_secondary,
                                _secondary_irradiance)
 from engine.photonmap import GatherMap
 from engine.photons import CAUSTIC_DIFFUSE, Photons
-from engine.render import _photon_pass, prepare_context
+from engine.render import _photon_pass, level_maps, prepare_context
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from helpers import hits_from_inside  # noqa: E402
@@ -205,3 +205,32 @@ def test_a_gather_map_of_caustic_photons_only_renders():
     assert np.all(np.isfinite(film.combined))
     # Most of the sun's light reaches the floor through the index-matched sheet.
     assert film.combined.mean() > 0.5 * 0.5 / np.pi * 2.0
+
+
+def test_a_map_without_points_serves_every_level():
+    """A gather map of fewer than two non-caustic photons has no points, subset maps or
+    secondary shares (GatherMap's early return): level_maps hands that map to every level
+    and sets no share, where indexing its empty lists raised IndexError (feature case
+    visibility_light_diffuse_off at seed 2: its shot held one caustic photon). With points
+    the same call reads the subset maps and sets each level's share."""
+    ph = _two_planes(np.random.default_rng(5), n=3000)
+    sec = ph.kind == CAUSTIC_DIFFUSE
+    level_of = [0] * MAX_GATHER_LEVEL          # every deeper level: subset map 0
+    secondary_of = list(range(MAX_GATHER_LEVEL))  # a share of its own per level
+    args = (ph, 0.05, 32, 1, "knn_simpson")
+    kw = dict(subsets=[~sec], secondary=[sec] * MAX_GATHER_LEVEL)
+    for rows in (np.zeros(0, np.int64), np.array([7])):
+        g = GatherMap(*args, rows=rows, **kw)
+        assert g.tree is None and not g.subset_maps and not g.secondary_levels
+        maps = level_maps(g, level_of, secondary_of)
+        assert len(maps) == MAX_GATHER_LEVEL and all(m is g for m in maps)
+        assert g.secondary_E is None
+        E, boundary, point = g.lookup(ph.position[:5].astype(np.float64),
+                                      ph.normal[:5].astype(np.float64), points=True)
+        assert not E.any() and boundary.all() and (point == -1).all()
+    g = GatherMap(*args, max_points=400, **kw)
+    maps = level_maps(g, level_of, secondary_of)
+    assert all(m.E is g.subset_maps[0].E for m in maps)
+    assert g.secondary_E is g.secondary_levels[0]
+    for level in range(1, MAX_GATHER_LEVEL):
+        assert maps[level - 1].secondary_E is g.secondary_levels[level]

@@ -56,6 +56,10 @@ class Case:
     status: str = "supported"          # supported | approximated | warned
     how: str = ""                      # what is approximated, or what the warning says
     block_tol: float = 0.25            # max relative block error
+    # The metric's block size in pixels, a multiple of BLOCK (the stored means are
+    # averaged BLOCK-wise: 8 = 2 x 2 stored blocks). Larger only where one rare bright
+    # sample (a firefly) moves a 4-px block past block_tol (measured spread over seeds).
+    block: int = BLOCK
     mean_tol: float = 0.05             # |mean ours / mean Cycles - 1|
     warning: str | None = None         # a warning that must be reported (substring)
     known_issue: str | None = None     # not fixed yet: the test expects the failure
@@ -141,7 +145,12 @@ def light_point_sphere():
              use_soft_falloff=False)
 
 
-@case("lights")
+# 128 spp: at 32 the block error over seeds 0-69 read mean 0.172, max 0.317, 3 of 70 over
+# 0.25; at 128 over seeds 0-99 mean 0.056, 99th percentile 0.092, max 0.105 (~0.2 s more
+# a render). Wrong renders at 128 spp (seeds 0-1): Soft Falloff taken as on 0.91
+# (brightness 0.84), radius 0.4 for 0.5 0.45, blend 0.2 for 0.3 0.36-0.38 (brightness
+# 1.06), power x 0.9 0.11-0.13 but brightness 0.90: each fails.
+@case("lights", ours=dict(spp=128))
 def light_spot_sphere():
     """A wide spot with a radius and Soft Falloff off (a sphere, masked along each ray)."""
     _stage(back=False)
@@ -157,7 +166,10 @@ def light_spot():
              spot_size=math.radians(40), spot_blend=0.3, shadow_soft_size=0.0)
 
 
-@case("lights", block_tol=0.35)  # the cone's hard rim crosses blocks (round: error 25)
+# 128 spp: at 32 the block error over seeds 0-9 read up to 0.233; at 128 over seeds 0-39
+# mean 0.042, max 0.089 (0.2 s a render). Wrong at 128: the scale ignored (round) 24.6,
+# scale x 1.8 for 2.0 0.90 (brightness 0.92).
+@case("lights", ours=dict(spp=128), block_tol=0.35)  # the cone's hard rim crosses blocks
 def light_spot_scaled():
     """Cycles (since 3.5) scales the cone by the object's scale: an ellipse on the floor."""
     _stage(back=False)
@@ -237,7 +249,12 @@ def light_sun_angle():
     _sun(angle=math.radians(15))
 
 
-@case("lights")
+# 128 spp: at 32 the block error over seeds 0-29 read mean 0.139, max 0.253 (1 of 30 over
+# 0.25); at 128 over seeds 0-59 mean 0.061, 99th percentile 0.110, max 0.126 (~0.4 s more
+# a render). Wrong renders at 128 spp (bench/feature_sensitivity.py, seeds 0-1): Strength
+# x 0.9 / x 1.1 fail on brightness (0.900 / 1.100; block error 0.13-0.16); red x 0.9
+# passes (0.13-0.14, brightness 0.96) as at 32: the case is blind to a 10 % tint.
+@case("lights", ours=dict(spp=128))
 def light_mesh_emission():
     _stage()
     m = _shader("panel", "ShaderNodeEmission", Color=(1.0, 0.9, 0.8), Strength=8.0)
@@ -572,7 +589,22 @@ def closure_glass_tinted_rough03():
 # median 0.5x Cycles', its mean 0.9-1.7x with the seed. Block error against Cycles 4096 spp
 # at 128 spp: 0.06-0.18 over seeds 0-5 (brightness 0.996-0.999); with that light sampling
 # off (integrator.GLASS_LIGHT_SAMPLING) 0.51-0.52 over seeds 0-2.
-@case("closures", ours=dict(spp=128), samples=4096)
+# The metric (bench/feature_seeds.py). On 4-px blocks at 128 spp the block error over
+# seeds 0-99 was heavy-tailed (mean 0.18, median 0.13, 99th percentile 0.63, max 1.80; 14
+# of 100 over the 0.25 then allowed): one rare bright sample (the sun through the rough
+# glass) lifts a 4-px block. Which seeds fail moves with the scene's build: Blender hands
+# the ball over with its vertex normals a float32 ulp apart (and its polygons in another
+# order now and then) from one build to the next in a session, and such a sample comes or
+# goes: seed 0 read 0.133 in 15 of 16 builds and 0.380 in one (a full test run's failure),
+# seed 12 0.518 or 0.174. Our engine renders one exported scene bitwise alike (twice, 1 or
+# 2 workers, its triangles in any order). On 8-px blocks at 256 spp, seeds 0-99: mean
+# 0.048, 99th percentile 0.086, max 0.093 (seed 0: 0.042 in 16 of 16 builds); a tail fit
+# (generalised Pareto over the top 20 %) puts P(> 0.15) at ~2e-5 a run. The stored
+# reference's own noise there (mirror-image blocks of this symmetric scene): <= 0.02.
+# Wrong renders on 8-px blocks at 256 spp score 0.21 (roughness 0.0 for 0.2), 0.25-0.26
+# (0.4), 0.26-0.29 (0.3), 0.24-0.27 (Glass Color 0.9, brightness 0.95): block_tol 0.15
+# fails each of them. 256 spp: 4-px blocks there still read up to 0.43 (6 of 100 over 0.25).
+@case("closures", ours=dict(spp=256), samples=4096, block=8, block_tol=0.15)
 def closure_glass_rough_sun_behind():
     """A Glass BSDF ball (roughness 0.2, IOR 1.5) under a small sun behind the camera."""
     _stage()
@@ -947,7 +979,12 @@ def texture_normal_map_inward():
     _sun()
 
 
-@case("textures")
+# 128 spp: at 32 the block error over seeds 0-29 read mean 0.158, max 0.256 (1 of 30 over
+# 0.25); at 128 over seeds 0-59 mean 0.092, 99th percentile 0.129, max 0.134 (~0.2 s more
+# a render). Wrong renders at 128 spp (bench/feature_sensitivity.py, seeds 0-1): Distance
+# 0.12 2.11, Strength 0.8 2.34: fail; Distance 0.18 0.09-0.11 passes (its dark slopes stay
+# dark under the grazing sun: the case does not see a bump too strong, at any spp).
+@case("textures", ours=dict(spp=128))
 def texture_bump():
     """Bump node: a triangle-wave height (8 texel columns 0, 1, 0, 1..., bilinear) times
     distance 0.15 under a grazing sun from +x: slopes facing the sun bright, the others
@@ -1964,7 +2001,9 @@ def visibility_light_diffuse_off():
     _lamp_over_mirror().visible_diffuse = False
 
 
-@case("visibility")
+# 128 spp: at 32 the block error over seeds 0-9 read up to 0.177; at 128 over seeds 0-39
+# mean 0.043, max 0.089 (0.55 s a render). Wrong at 128: glossy visibility ignored 2518.
+@case("visibility", ours=dict(spp=128))
 def visibility_light_glossy_off():
     """The light object's glossy visibility off: gone from the mirror, the floor still lit."""
     _lamp_over_mirror().visible_glossy = False
@@ -2020,11 +2059,23 @@ def blocks(img: np.ndarray, size: int = BLOCK) -> np.ndarray:
         .mean(axis=(1, 3))
 
 
-def score(ours_blocks: np.ndarray, ref_blocks: np.ndarray) -> dict:
+def merge_blocks(b: np.ndarray, block: int = BLOCK) -> np.ndarray:
+    """(H/BLOCK, W/BLOCK, C) block means -> (H/block, W/block, C) means of `block` px
+    blocks (block a multiple of BLOCK dividing both image sides); ValueError otherwise."""
+    f, rest = divmod(block, BLOCK)
+    h, w, c = b.shape
+    if f < 1 or rest or h % f or w % f:
+        raise ValueError(f"block {block} px: not a multiple of {BLOCK} dividing {w} x {h}")
+    return b if f == 1 else b.reshape(h // f, f, w // f, f, c).mean(axis=(1, 3))
+
+
+def score(ours_blocks: np.ndarray, ref_blocks: np.ndarray, block: int = BLOCK) -> dict:
     """Block error (max over blocks and RGB of |o - r| / (r + 0.1 * mean)), alpha error
-    (max |o - r| of the block alpha) and the brightness ratio (mean ours / mean Cycles)."""
-    o = np.asarray(ours_blocks, np.float64)
-    r = np.asarray(ref_blocks, np.float64)
+    (max |o - r| of the block alpha) and the brightness ratio (mean ours / mean Cycles).
+    ours_blocks, ref_blocks: (H/BLOCK, W/BLOCK, 4) means (blocks()); block: the metric's
+    block size in pixels (Case.block), the means merged to it first (merge_blocks)."""
+    o = merge_blocks(np.asarray(ours_blocks, np.float64), block)
+    r = merge_blocks(np.asarray(ref_blocks, np.float64), block)
     mean_r = float(r[..., :3].mean())
     floor = 0.1 * max(mean_r, 1e-3)
     err = np.abs(o[..., :3] - r[..., :3]) / (r[..., :3] + floor)
@@ -2092,7 +2143,7 @@ def run_matrix(names, seed=0):
     for name in names:
         c = CASES[name]
         img, seconds, warnings = render_ours(name, seed)
-        s = score(blocks(img), refs[name]) if name in refs else None
+        s = score(blocks(img), refs[name], c.block) if name in refs else None
         fails = verdict(c, s, warnings)
         rows.append(dict(case=c, score=s, fails=fails, seconds=seconds, warnings=warnings))
         state = "ok" if not fails else "FAIL: " + "; ".join(fails)
@@ -2135,7 +2186,8 @@ def write_report(rows, path=DOC_PATH):
         f"per feature, rendered by our engine ({OURS['spp']} spp, {OURS['photons']:,} + "
         f"{OURS['caustic_photons']:,} photons) and by Cycles",
         f"({CYCLES_SAMPLES} spp, CPU, no denoising) at {WIDTH} x {HEIGHT}, compared in "
-        f"blocks of {BLOCK} x {BLOCK} pixels. Both use a 1-pixel box filter, except the",
+        f"blocks of {BLOCK} x {BLOCK} pixels (larger where a case's notes say so). Both use "
+        "a 1-pixel box filter, except the",
         "camera_pixel_filter cases (Film > Pixel Filter, which the add-on reads as Cycles does).",
         "Cycles renders with Light Paths > Caustics > Filter Glossy 0 (its default 1.0 blurs",
         "glossy and glass paths to cut noise: a few % on a caustic seen directly, but a room",
@@ -2171,6 +2223,8 @@ def write_report(rows, path=DOC_PATH):
         note = c.how or " ".join((c.build.__doc__ or "").split())
         if c.known_issue:
             note = c.known_issue
+        if c.block != BLOCK:
+            note = (note + " " if note else "") + f"(blocks of {c.block} x {c.block} px)"
         if row["fails"]:
             note = (note + " " if note else "") + "(" + "; ".join(row["fails"]) + ")"
         if s is None:

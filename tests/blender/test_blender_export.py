@@ -289,7 +289,7 @@ def test_instancing_cases_traced_two_level_match_cycles(bpy_addon, monkeypatch, 
     assert built, "the scene was not traced two-level"
     # The export wrote placements (records on a shared prototype), not world copies.
     assert len(placed) >= 2, "the instances were exported as copies"
-    s = fm.score(fm.blocks(img), fm.load_references()[name])
+    s = fm.score(fm.blocks(img), fm.load_references()[name], fm.CASES[name].block)
     assert not fm.verdict(fm.CASES[name], s, warnings), s
 
 

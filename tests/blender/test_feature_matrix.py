@@ -41,6 +41,7 @@ def test_every_case_has_a_reference(fm):
             continue
         b = refs[name]
         assert b.shape == (fm.HEIGHT // fm.BLOCK, fm.WIDTH // fm.BLOCK, 4), name
+        fm.merge_blocks(b, c.block)  # ValueError unless the case's block fits the image
         assert np.isfinite(b).all() and (b >= 0).all(), name
 
 
@@ -51,7 +52,7 @@ def test_feature_matches_cycles(fm, name):
     img, seconds, warnings = fm.render_ours(name)
     assert img.shape == (fm.HEIGHT, fm.WIDTH, 4)
     assert np.isfinite(img).all()
-    s = fm.score(fm.blocks(img), refs[name]) if name in refs else None
+    s = fm.score(fm.blocks(img), refs[name], c.block) if name in refs else None
     fails = fm.verdict(c, s, warnings)
     info = f"{name}: {s} in {seconds:.1f} s; warnings: {warnings[:3]}"
     if c.known_issue:
