@@ -38,6 +38,7 @@ from .gatherkernels import (add_gathered, count_bent, diffuse_lookups, keep_embr
                             lean_diffuse, lean_materials, rays_f32)
 from .anisotropy import anisotropic_materials, set_hit_tangents
 from .closures import principled as pr
+from .coincident import CoincidentSurfaces
 from .console import short_count
 from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
@@ -1871,6 +1872,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # diffuse-only hit's are left unwritten by shade_lobes).
     glass_mat = np.asarray(ctx.table.closure_params)[:, pr.M_TRANS] > 0
     glass_rng = None  # glasslight's numbers, made when first needed
+    # Surfaces coinciding with a glass face (None: no glass, nothing to meet).
+    coincident = CoincidentSurfaces.for_context(ctx) if glass_mat.any() else None
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
     want_data = s.data_passes
@@ -1892,6 +1895,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         target = "emission" if bounce == 0 else "specular"
         counters.count("paths", bounce, len(o))
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
+        if bounce > 0 and coincident is not None:
+            # Rays refracted through a glass face that another surface touches (a bottle
+            # standing on the floor) meet that surface there, as in Cycles
+            # (engine/coincident.py).
+            coincident.meet(o, d, org_p, ray_cls, t, prim, u, v)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
         for li, light in enumerate(ctx.lights):
