@@ -1,28 +1,39 @@
-"""Refracted camera rays meet a surface that coincides with the glass face they cross.
+"""Rays that leave a glass face another surface touches meet that surface there.
 
 A glass object resting on a floor (a bottle whose bottom cap lies in the floor's plane, as
-Blender users place it) has two surfaces at the same place. A ray refracted out through
-the cap starts a rounding-error offset to the side it leaves (pbrt-v4's OffsetRayOrigin,
-engine/rayoffset.py): past the floor's plane too, so it never meets the floor and sees
-whatever lies under it (the world, in a product shot). Cycles offsets no origin: it skips
-only the primitive the ray leaves (kernel/bvh/util.h intersection_skip_self), so the ray
-meets the floor right there. Measured (issue 14 product shot, product29): red-emitting
+Blender users place it) has two surfaces at the same place. A ray leaving either of them
+starts a rounding-error offset to the side it leaves (pbrt-v4's OffsetRayOrigin,
+engine/rayoffset.py): past the other surface too, so it never meets it. A ray refracted
+out through the cap sees whatever lies under the floor (the world, in a product shot), a
+photon refracted out through it is lost there, and a ray leaving the floor upwards
+starts inside the glass without being refracted into it (and is then totally reflected
+at the glass's far faces it would have left). Cycles offsets no origin: it skips only the
+primitive the ray leaves (kernel/bvh/util.h intersection_skip_self), so the ray meets the
+other surface right there. Measured (issue 14 product shot, product29): red-emitting
 floor and green world, the camera ray through the top of a smooth-shaded glass cylinder
-standing on the floor, pixels' colours floor / world: Cycles 0.96 / 0.04, ours 0.73 / 0.27;
-the cylinder lifted 3 mm: Cycles 0.92 / 0.05, ours 0.93 / 0.04. In the lit shot those
-pixels read 0.2 where Cycles reads 0.01 (the floor under the bottle, which no shadow ray
-reaches), 78 % of the image's relMSE against Cycles.
+standing on the floor, pixels' colours floor / world: Cycles 0.96 / 0.04, ours 0.73 /
+0.27; the cylinder lifted 3 mm: Cycles 0.92 / 0.05, ours 0.93 / 0.04.
 
-`CoincidentSurfaces.meet` gives camera-path rays of the transmission class (refracted
-through glass, entering or leaving) what Cycles gives them: a short probe from the
-mirror image of the ray's origin (the other side of the face it crossed, as far from it)
-along the ray, against a BVH of every triangle that is not glass; a hit within twice the
-offset's reach is a surface at the crossing point, and the ray meets it there (t = 0).
-Glass triangles are left out of that BVH so the probe cannot stop at the face the ray
-crossed (embreex has no per-ray primitive filter; two coplanar triangles at the same
-distance are returned in the BVH's order). Glass touching glass, final-gather rays and
-photons keep the offset's behaviour (a photon refracted out through the cap is lost
-under the floor, which leaves the floor under the bottle dark, as Cycles' is).
+`CoincidentSurfaces` gives every ray that leaves such a pair (camera paths,
+final-gather and regather continuations, photons) what Cycles gives it: a short probe
+from the mirror image of the ray's origin (the other side of the face it left, as far
+from it) along the ray, against a BVH of the partner surfaces; a hit within twice the
+offset's reach is a surface at the point the ray left, and the ray meets it there
+(t = 0). The pairs:
+
+- a ray leaving a glass triangle (any material with a transmission lobe) outwards
+  (d . n > 0, n its winding normal: refracted out, or reflected off its outside) probes
+  the non-glass triangles that touch glass: the floor under a bottle;
+- a ray leaving a non-glass triangle that touches glass probes the glass triangles that
+  touch a non-glass one, and meets one only from its outside (d . n < 0): it is
+  refracted into the bottle (or reflected back down to the floor by Fresnel).
+
+"Touch" is a bounding-box test padded by TOUCH_PAD of the coordinates (a cost filter:
+the probe's reach decides); each kind probes only the BVH of the other, so the probe
+cannot stop at the face the ray left (embreex has no per-ray primitive filter). A scene
+whose glass touches nothing gets no instance (for_context: None) and costs nothing.
+Not handled (the offset's behaviour kept): glass touching glass, shared instances
+(two-level BVHs), meshes whose winding points inwards.
 """
 from __future__ import annotations
 
@@ -34,29 +45,60 @@ from .accel import Accel
 from .closures import principled as pr
 from .geometry import TRANSMISSION
 
-# Probe reach, in offsets along the crossed face's normal: the mirrored origin is one
+# Probe reach, in offsets along the left face's normal: the mirrored origin is one
 # offset behind the face; a surface within one more offset past it coincides with it.
 REACH = 2.0
 # Directions more grazing than this cosine to the face take this cosine's reach (a probe
 # of at most REACH / MIN_COS offsets: micrometres).
 MIN_COS = 1e-3
+# Bounding boxes closer than this share of the largest coordinate (plus as much of the
+# scene's size) touch: ~1e-5, 100x the offsets' 1e-7 (rayoffset.G32_PLANE), so every pair
+# the probe can find is kept; a larger pad costs only probes that find nothing.
+TOUCH_PAD = 1e-5
+# Glass x other pairs tested in one numpy block (bounded scratch memory), and the most
+# tested at all: beyond it every near triangle counts as touching (more probes, the same
+# answers).
+# leave_glass_first's window along the ray, a share of (t + the hit's largest coordinate):
+# 64 float32 roundings (Embree's distances to two coincident planes differ by a few).
+TIE = 64 * 2.0 ** -24
+PAIR_BLOCK = 1 << 22
+PAIR_LIMIT = 1 << 28
+
+NONE, GLASS, OTHER = 0, 1, 2  # a triangle's side of a touching pair (CoincidentSurfaces.side)
 
 _LOCK = threading.Lock()
 
 
-class CoincidentSurfaces:
-    """The non-glass triangles' BVH (Accel, single-threaded: safe to share between the
-    camera pass's threads) and its triangle indices into the full table (K,) int64."""
+class _Partners:
+    """One kind's BVH (Accel, single-threaded: safe to share between threads), its
+    triangle rows into the full table (K,) int64, their padded bounding box (2,3)."""
 
-    def __init__(self, accel: Accel, tri: np.ndarray):
-        self.accel = accel
+    def __init__(self, geo, tri, pad):
+        corners = [np.take(c, tri, axis=0) for c in (geo.v0, geo.v0 + geo.e1, geo.v0 + geo.e2)]
+        verts = np.stack(corners, axis=1).reshape(-1, 3).astype(np.float32)
+        faces = np.arange(len(verts), dtype=np.int32).reshape(-1, 3)
+        self.accel = Accel(verts, faces, threads=1)
         self.tri = tri
+        self.box = np.stack([np.minimum.reduce(corners).min(axis=0) - pad,
+                             np.maximum.reduce(corners).max(axis=0) + pad])
+
+
+class CoincidentSurfaces:
+    """The touching pairs of a prepared scene: side (T,) int8 per triangle (NONE, GLASS:
+    a glass triangle some non-glass one touches, OTHER: a non-glass triangle touching
+    glass), the BVH of each kind (`glass`, `others`: _Partners) and the geometry."""
+
+    def __init__(self, geo, side, glass, others):
+        self.geo = geo
+        self.side = side
+        self.glass = glass
+        self.others = others
 
     @classmethod
     def for_context(cls, ctx) -> "CoincidentSurfaces | None":
         """The scene's instance, built once per prepared geometry on first use; None when
-        the scene has no glass, no other triangle, or shared instances (a two-level BVH:
-        not handled, the offset's behaviour kept)."""
+        no glass triangle touches another one (no glass, nothing near it), or with shared
+        instances (a two-level BVH: not handled)."""
         geo = ctx.geo
         cached = geo.__dict__.get("_coincident", False)
         if cached is not False:
@@ -68,63 +110,223 @@ class CoincidentSurfaces:
             made = None
             params = np.asarray(ctx.table.closure_params)
             glass = params[:, pr.M_TRANS] > 0
-            if glass.any() and getattr(geo, "instances", None) is None:
-                tri_glass = np.take(glass, np.asarray(geo.material, np.int64))
-                seen = (np.asarray(geo.visibility, np.int64) & TRANSMISSION) != 0
-                tri = np.nonzero(seen & ~tri_glass)[0].astype(np.int64)
-                if tri_glass.any() and len(tri):
-                    made = cls._build(geo, tri, np.nonzero(tri_glass)[0])
+            if (glass.any() and getattr(geo, "instances", None) is None
+                    and getattr(geo, "shared", None) is None):
+                made = cls._build(geo, glass)
             geo.__dict__["_coincident"] = made
             return made
 
     @classmethod
-    def _build(cls, geo, tri, glass_tri):
-        """Over the triangles tri (K,) that reach into the glass triangles' bounding box
-        (a surface touching a glass face lies there; the floor of a product shot is one
-        or two of them): corners from the Geometry's float64 v0, e1, e2 (exact: the
-        float32 corners' differences), unshared. None when none reaches it."""
-        corners = (geo.v0, geo.v0 + geo.e1, geo.v0 + geo.e2)
-        g = np.take(np.asarray(geo.v0), glass_tri, axis=0)
-        lo = np.minimum.reduce([np.take(c, glass_tri, axis=0).min(axis=0) for c in corners])
-        hi = np.maximum.reduce([np.take(c, glass_tri, axis=0).max(axis=0) for c in corners])
-        pad = 1e-4 * max(float(geo.extent), 1e-6) + 1e-6 * float(np.abs(g).max(initial=0.0))
-        lo, hi = lo - pad, hi + pad
-        c = [np.take(cc, tri, axis=0) for cc in corners]
-        tlo = np.minimum(np.minimum(c[0], c[1]), c[2])
-        thi = np.maximum(np.maximum(c[0], c[1]), c[2])
-        near = np.all((thi >= lo) & (tlo <= hi), axis=1)
-        if not near.any():
+    def _build(cls, geo, glass_mat):
+        """The touching pairs over the triangles the transmission rays see (corners from
+        the Geometry's float64 v0, e1, e2; the BVHs' corners unshared). None when none."""
+        seen = (np.asarray(geo.visibility, np.int64) & TRANSMISSION) != 0
+        is_glass = np.take(glass_mat, np.asarray(geo.material, np.int64)) & seen
+        g_tri = np.nonzero(is_glass)[0]
+        o_tri = np.nonzero(seen & ~is_glass)[0]
+        if not len(g_tri) or not len(o_tri):
             return None
-        tri = tri[near]
-        verts = np.stack([cc[near] for cc in c], axis=1).reshape(-1, 3).astype(np.float32)
-        faces = np.arange(len(verts), dtype=np.int32).reshape(-1, 3)
-        return cls(Accel(verts, faces, threads=1), tri)
+        corners = (geo.v0, geo.v0 + geo.e1, geo.v0 + geo.e2)
 
-    def meet(self, o, d, org_p, ray_cls, t, prim, u, v) -> int:
-        """In place on one camera bounce's intersection (t, prim, u, v (N,)) of rays o, d
-        (N,3) that left the points org_p (N,3) (the previous hits, o = org_p moved off
-        the face by its offset): transmission-class rows with a non-glass surface at
-        their crossing point meet it at t = 0. Returns how many rows changed."""
-        rows = np.nonzero(ray_cls == TRANSMISSION)[0]
-        if len(rows) == 0:
-            return 0
-        p = np.take(org_p, rows, axis=0)
-        off = np.take(o, rows, axis=0) - p
-        reach = np.sqrt(np.einsum("ij,ij->i", off, off))
-        dr = np.take(d, rows, axis=0)
-        cos = np.abs(np.einsum("ij,ij->i", off, dr)) / np.where(reach > 0, reach, 1.0)
-        ok = (reach > 0) & np.isfinite(reach)
-        if not ok.any():
-            return 0
-        rows, p, off, reach, dr, cos = rows[ok], p[ok], off[ok], reach[ok], dr[ok], cos[ok]
-        tmax = REACH * reach / np.maximum(cos, MIN_COS)
-        tp, hp, up, vp = self.accel.intersect(p - off, dr, tmax)
+        def boxes(tri):
+            c = [np.take(x, tri, axis=0) for x in corners]
+            return np.minimum.reduce(c), np.maximum.reduce(c)
+
+        glo, ghi = boxes(g_tri)
+        scale = max(float(np.abs(glo).max(initial=0.0)), float(np.abs(ghi).max(initial=0.0)))
+        pad = TOUCH_PAD * (scale + max(float(geo.extent), 0.0))
+        olo, ohi = boxes(o_tri)
+        # The others that reach into the glass's box at all.
+        near = np.all((ohi >= glo.min(axis=0) - pad) & (olo <= ghi.max(axis=0) + pad), axis=1)
+        o_tri, olo, ohi = o_tri[near], olo[near], ohi[near]
+        if not len(o_tri):
+            return None
+        g_touch = np.zeros(len(g_tri), bool)
+        o_touch = np.zeros(len(o_tri), bool)
+        if len(g_tri) * len(o_tri) > PAIR_LIMIT:
+            g_touch[:] = o_touch[:] = True
+        else:
+            step = max(1, PAIR_BLOCK // len(o_tri))
+            for a in range(0, len(g_tri), step):
+                b = min(a + step, len(g_tri))
+                hit = np.all((ohi[None] >= glo[a:b, None] - pad)
+                             & (olo[None] <= ghi[a:b, None] + pad), axis=2)
+                g_touch[a:b] |= hit.any(axis=1)
+                o_touch |= hit.any(axis=0)
+        if not g_touch.any():
+            return None
+        side = np.zeros(geo.count, np.int8)
+        g_tri, o_tri = g_tri[g_touch], o_tri[o_touch]
+        side[g_tri] = GLASS
+        side[o_tri] = OTHER
+        return cls(geo, side, _Partners(geo, g_tri, pad), _Partners(geo, o_tri, pad))
+
+    def may_meet(self, org_p, org_prim) -> bool:
+        """Whether any ray that left the points org_p (N,3) on triangles org_prim (N,)
+        int64 (>= 0) may meet a touching surface there: it left one of a pair, inside
+        its partners' box (probe's first tests; False lets a caller keep a faster path)."""
+        side = np.take(self.side, org_prim)
+        for kind, partners in ((GLASS, self.others), (OTHER, self.glass)):
+            rows = np.nonzero(side == kind)[0]
+            if len(rows):
+                p = np.take(org_p, rows, axis=0)
+                if np.all((p >= partners.box[0]) & (p <= partners.box[1]), axis=1).any():
+                    return True
+        return False
+
+    def probe(self, p, off, d, from_tri):
+        """Where rays leaving the points p (N,3) (hits on triangles from_tri (N,) int64,
+        < 0: none), their origins moved off the face by off (N,3) (o = p + off), in
+        directions d (N,3), meet a touching surface at the point they leave. Returns
+        (rows (K,) int64 into the N, tri (K,) int64 the met triangles' rows, u, v (K,)
+        float32 barycentrics there); K = 0 mostly."""
+        side = np.take(self.side, np.maximum(from_tri, 0))
+        side[from_tri < 0] = NONE
+        out = []
+        for kind, partners in ((GLASS, self.others), (OTHER, self.glass)):
+            rows = np.nonzero(side == kind)[0]
+            if not len(rows):
+                continue
+            pr_ = np.take(p, rows, axis=0)
+            box = partners.box
+            inside = np.all((pr_ >= box[0]) & (pr_ <= box[1]), axis=1)
+            if not inside.any():
+                continue
+            rows, pr_ = rows[inside], pr_[inside]
+            dr = np.take(d, rows, axis=0)
+            if kind == GLASS:
+                # Only rays moving out of the glass (refracted out, or reflected off its
+                # outside) can meet what lies against its outside.
+                out_ = np.einsum("ij,ij->i", self.geo.ng[from_tri[rows]], dr) > 0.0
+                rows, pr_, dr = rows[out_], pr_[out_], dr[out_]
+                if not len(rows):
+                    continue
+            of = np.take(off, rows, axis=0)
+            reach = np.sqrt(np.einsum("ij,ij->i", of, of))
+            ok = (reach > 0) & np.isfinite(reach)
+            if not ok.all():
+                rows, pr_, dr, of, reach = rows[ok], pr_[ok], dr[ok], of[ok], reach[ok]
+            if not len(rows):
+                continue
+            cos = np.abs(np.einsum("ij,ij->i", of, dr)) / reach
+            tmax = REACH * reach / np.maximum(cos, MIN_COS)
+            _, hp, up, vp = partners.accel.intersect(pr_ - of, dr, tmax)
+            found = hp >= 0
+            if not found.any():
+                continue
+            rows, tri = rows[found], partners.tri[hp[found]]
+            up, vp = up[found], vp[found]
+            if kind == OTHER:
+                # Met from the glass's outside only: the ray goes into the glass (a ray
+                # leaving the floor downwards has no glass in front of it).
+                into = np.einsum("ij,ij->i", self.geo.ng[tri], np.take(d, rows, axis=0)) < 0.0
+                rows, tri, up, vp = rows[into], tri[into], up[into], vp[into]
+            out.append((rows, tri, up, vp))
+        if not out:
+            return _NONE
+        return tuple(np.concatenate(a) for a in zip(*out))
+
+    def leave_glass_first(self, o, d, t, tri):
+        """Rays o, d (N,3) whose closest hit (t (N,), tri (N,) int64, < 0: none) is a
+        non-glass triangle touching glass, at a point where a touching glass face lies
+        too and the ray crosses that face outwards (d . n > 0): a ray inside the bottle
+        reaching its cap, where Embree returns the floor or the cap (the same distance)
+        in its BVH's order. They meet the glass face first (refracted out there, then
+        meeting the floor by probe). Returns (rows (K,) int64, tri, u, v, t (K,)): the
+        glass hits within TIE x (t + the point's largest coordinate) of t (a bound on
+        Embree's float32 distances to two coincident planes, 64 roundings)."""
+        rows = np.nonzero(np.take(self.side, np.maximum(tri, 0)) == OTHER)[0]
+        rows = rows[np.take(tri, rows) >= 0]
+        if not len(rows):
+            return _NONE_T
+        tr = np.take(t, rows).astype(np.float64)
+        dr = np.take(d, rows, axis=0).astype(np.float64)
+        q = np.take(o, rows, axis=0) + tr[:, None] * dr
+        box = self.glass.box
+        inside = np.all((q >= box[0]) & (q <= box[1]), axis=1)
+        if not inside.any():
+            return _NONE_T
+        rows, tr, dr, q = rows[inside], tr[inside], dr[inside], q[inside]
+        s = TIE * (np.abs(tr) + np.abs(q).max(axis=1))
+        tp, hp, up, vp = self.glass.accel.intersect(q - s[:, None] * dr, dr, 2.0 * s)
         found = hp >= 0
         if not found.any():
-            return 0
-        rows = rows[found]
-        t[rows] = 0.0
-        prim[rows] = self.tri[hp[found]]
-        u[rows] = up[found]
-        v[rows] = vp[found]
-        return len(rows)
+            return _NONE_T
+        rows, tr, s, dr = rows[found], tr[found], s[found], dr[found]
+        gtri, up, vp, tp = self.glass.tri[hp[found]], up[found], vp[found], tp[found]
+        out_ = np.einsum("ij,ij->i", self.geo.ng[gtri], dr) > 0.0
+        return (rows[out_], gtri[out_], up[out_], vp[out_],
+                np.maximum(tr - s + tp, 0.0)[out_])
+
+    def meet(self, o, d, org_p, org_prim, t, prim, u, v) -> int:
+        """In place on an Accel.intersect answer (t, prim, u, v (N,)) of rays o, d (N,3)
+        that left the points org_p (N,3) on the triangles org_prim (N,) int64 (< 0: the
+        camera; o = org_p moved off the face by its offset; org_prim None: no ray left a
+        touching surface): the rows that meet a touching surface where they left (probe)
+        meet it at t = 0; the others that reach a touching floor where they should first
+        leave the glass lying on it meet the glass face (leave_glass_first). Returns how
+        many rows changed."""
+        done = np.zeros(0, np.int64)
+        if org_prim is not None:
+            cand = (np.take(self.side, np.maximum(org_prim, 0)) != NONE) & (org_prim >= 0)
+            if cand.any():
+                rows = np.nonzero(cand)[0]
+                p = np.take(org_p, rows, axis=0)
+                met, tri, up, vp = self.probe(p, np.take(o, rows, axis=0) - p,
+                                              np.take(d, rows, axis=0),
+                                              np.take(org_prim, rows))
+                if len(met):
+                    done = rows[met]
+                    t[done] = 0.0
+                    prim[done] = tri
+                    u[done] = up
+                    v[done] = vp
+        tri = np.asarray(prim, np.int64)
+        if len(done):
+            tri = tri.copy()
+            tri[done] = -1  # met by the probe: already where they belong
+        rows, gtri, up, vp, tg = self.leave_glass_first(o, d, t, tri)
+        t[rows] = tg
+        prim[rows] = gtri
+        u[rows] = up
+        v[rows] = vp
+        return len(done) + len(rows)
+
+    def meet_hits(self, o32, d, from_tri, off, geom, prim32, u32, v32, tfar, starts) -> int:
+        """meet on an Accel.intersect_hits answer (geom, prim32 (N,) int32, u32, v32, tfar
+        (N,) float32, starts (G,) int64 over the full table's rows) of photon rays o32
+        (N,3) float32, d (N,3) that left triangles from_tri (N,) int64 (< 0: a light) at
+        o32 - off, off (N,3) the origins' offsets (photonkernels.scatter's nx_from,
+        nx_off). Returns how many rows changed."""
+        # meet's two steps, the changed rows written back in Embree's layout.
+        tri = np.where(geom >= 0, np.take(starts, np.maximum(geom, 0)) + prim32, -1)
+        n = 0
+        changed = []
+        cand = (np.take(self.side, np.maximum(from_tri, 0)) != NONE) & (from_tri >= 0)
+        done = np.zeros(0, np.int64)
+        if cand.any():
+            rows = np.nonzero(cand)[0]
+            of = np.take(off, rows, axis=0)
+            met, mtri, up, vp = self.probe(np.take(o32, rows, axis=0) - of, of,
+                                           np.take(d, rows, axis=0), np.take(from_tri, rows))
+            if len(met):
+                done = rows[met]
+                changed.append((done, mtri, up, vp))
+        if len(done):
+            tri[done] = -1
+        rows, gtri, up, vp, _ = self.leave_glass_first(o32, d, tfar, tri)
+        if len(rows):
+            changed.append((rows, gtri, up, vp))
+        for rows, mtri, up, vp in changed:
+            g = np.searchsorted(starts, mtri, side="right") - 1
+            geom[rows] = g
+            prim32[rows] = mtri - np.take(starts, g)
+            u32[rows] = up
+            v32[rows] = vp
+            n += len(rows)
+        return n
+
+
+_NONE = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32),
+         np.zeros(0, np.float32))
+_NONE_T = _NONE + (np.zeros(0),)

@@ -610,6 +610,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
     # every emitter it meets: its direct light skips the mesh lights).
     unsampled = _unsampled_meshes(ctx) if level == 0 else []
+    # Surfaces touching glass (engine/coincident.py; None: no glass touches anything).
+    coincident = CoincidentSurfaces.for_context(ctx)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -638,6 +640,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
+        # The point and triangle each ray left (the coincident probe's), while needed.
+        if coincident is not None:
+            org_p = np.take(p, idx, axis=0)
+            org_prim = np.take(np.asarray(hit.prim, np.int64), idx)
         for depth in range(ctx.settings.gather_depth + 1):
             if len(idx) == 0:
                 break
@@ -650,7 +656,17 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             cls = c(ray_cls, np.int64) if per_ray else _NO_CLASS
             tp = c(tp, np.float64)
             bvh = _closest_bvh(ctx.accel, ray_cls)
-            if bvh is not None:
+            meet = coincident is not None and coincident.may_meet(org_p, org_prim)
+            if meet:
+                # Rays leaving a glass face another surface touches, or that surface into
+                # the glass, meet the other one there, and rays inside the glass reaching
+                # the floor under it leave the glass first (engine/coincident.py): the
+                # hits as Accel.intersect answers them (the same values as below), the
+                # probe's hits put in, then compacted.
+                t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
+                coincident.meet(o, d, org_p, org_prim, t, prim, u, v)
+                m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
+            elif bvh is not None:
                 # Embree from a kernel into this thread's buffers (Accel.intersect_hits),
                 # the hits compacted from its answer (gatherkernels.keep_embree_hits):
                 # intersect's numbers without its conversions and fresh arrays.
@@ -671,6 +687,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     ray_cls = cls[:m]
             if m == 0:
                 break
+            if coincident is not None and not meet:
+                # Rays inside a glass standing on the floor that reach the floor under it
+                # leave the glass first (engine/coincident.py).
+                coincident.meet(o, d, None, None, t, prim, u, v)
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
                 Le = y.emission
@@ -736,6 +756,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
                     go_u=go_u[full])
                 keep = full[keep]
+            if coincident is not None:
+                org_p = np.take(y.p, keep, axis=0)
+                org_prim = np.take(prim, keep)
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
@@ -1872,8 +1895,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # diffuse-only hit's are left unwritten by shade_lobes).
     glass_mat = np.asarray(ctx.table.closure_params)[:, pr.M_TRANS] > 0
     glass_rng = None  # glasslight's numbers, made when first needed
-    # Surfaces coinciding with a glass face (None: no glass, nothing to meet).
+    # Surfaces touching a glass face (engine/coincident.py; None: no glass touches
+    # anything), and the triangle each path left (-1: the camera) while there are.
     coincident = CoincidentSurfaces.for_context(ctx) if glass_mat.any() else None
+    org_prim = np.full(len(o), -1, np.int64) if coincident is not None else None
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
     want_data = s.data_passes
@@ -1896,10 +1921,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         counters.count("paths", bounce, len(o))
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
         if bounce > 0 and coincident is not None:
-            # Rays refracted through a glass face that another surface touches (a bottle
-            # standing on the floor) meet that surface there, as in Cycles
-            # (engine/coincident.py).
-            coincident.meet(o, d, org_p, ray_cls, t, prim, u, v)
+            # Rays leaving a glass face that another surface touches (a bottle standing
+            # on the floor), or that surface into the glass, meet the other one there,
+            # as in Cycles; rays inside the glass reaching the floor under it leave the
+            # glass first (engine/coincident.py).
+            coincident.meet(o, d, org_p, org_prim, t, prim, u, v)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
         for li, light in enumerate(ctx.lights):
@@ -2173,6 +2199,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         org_p_in = org_p if kept is None else np.take(org_p, kept, axis=0)
         org_ns = np.take(hit.ns, keep, axis=0)
         org_p = np.take(hit.p, keep, axis=0)
+        if org_prim is not None:
+            org_prim = np.take(np.asarray(hit.prim, np.int64), keep)
         if GLASS_LIGHT_SAMPLING:
             # Rays refracted by rough glass (a finite pdf) left the far side: the lights'
             # pdf there (world, sphere lights, the light tree) is that of the samples

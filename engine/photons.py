@@ -32,6 +32,7 @@ from .parallel import Cancelled, chunk_length, ordered_map
 from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
+from .coincident import CoincidentSurfaces
 from .closures.principled import M_IOR
 from .console import short_count
 from .normalmap import bump_shadowing
@@ -171,9 +172,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         m = light.emit_into(key, 0, n, count, out, 0)
     else:
         m = light.emit_towards_into(key, 0, n, count, targets, out, 0)
-    o, d32, d, power, flags, kinds, slot, bnc = (a[:m] for a in first)
+    o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:m] for a in first)
     flags[:] = 0
     bnc[:] = 0  # no bounce yet
+    frm[:] = -1  # from a light, not a triangle
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
     # surface stands for the camera-side ray that leaves that surface backwards; `kinds`
     # holds, per photon, the ray kinds for which the segment so far is a valid camera-side
@@ -202,7 +204,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     stored = _Stored(2 * m + 1024, pool, shot)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-                 bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
+                 bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
                  hits, stored, nxt_sets, pool, caustic_only, should_cancel)
     except BaseException:
         stored.release()
@@ -216,7 +218,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
 
 
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-             bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
+             bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
              hits, stored, nxt_sets, pool, caustic_only, should_cancel):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
@@ -225,6 +227,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
     limits = settings.bounce_limits
+    # Surfaces touching glass (engine/coincident.py; None: no glass touches anything).
+    coincident = CoincidentSurfaces.for_context(ctx)
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
             raise Cancelled()
@@ -239,6 +243,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         # are (Accel.intersect_hits).
         geom, prim32, u, v, starts = _closest_hits(accel, o, d32, tfar[:m],
                                                    tuple(a[:m] for a in hits))
+        if coincident is not None:
+            # Photons leaving a glass face another surface touches (refracted out
+            # through a bottle's cap onto the floor), or that surface into the glass,
+            # meet the other one there; photons inside the glass reaching the floor
+            # under it leave the glass first (engine/coincident.py).
+            coincident.meet_hits(o, d, frm, off, geom, prim32, u, v, tfar[:m], starts)
         if given:
             # Triangle rows and float64 barycentrics for numpy and instance paths (the
             # same values as Accel.intersect's).
@@ -303,7 +313,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
                                 may_diffuse=may_diffuse)
         stored.count += n_st
-        o, d32, d, power, flags, kinds, slot, bnc = (a[:n_nx] for a in nxt_sets[k])
+        o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
 
 
 class _Buffers:
