@@ -86,11 +86,13 @@ class _Partners:
 class CoincidentSurfaces:
     """The touching pairs of a prepared scene: side (T,) int8 per triangle (NONE, GLASS:
     a glass triangle some non-glass one touches, OTHER: a non-glass triangle touching
-    glass), the BVH of each kind (`glass`, `others`: _Partners) and the geometry."""
+    glass), is_glass (T,) bool every glass triangle, the BVH of each kind (`glass`,
+    `others`: _Partners) and the geometry."""
 
-    def __init__(self, geo, side, glass, others):
+    def __init__(self, geo, side, is_glass, glass, others):
         self.geo = geo
         self.side = side
+        self.is_glass = is_glass
         self.glass = glass
         self.others = others
 
@@ -156,10 +158,11 @@ class CoincidentSurfaces:
         if not g_touch.any():
             return None
         side = np.zeros(geo.count, np.int8)
-        g_tri, o_tri = g_tri[g_touch], o_tri[o_touch]
-        side[g_tri] = GLASS
-        side[o_tri] = OTHER
-        return cls(geo, side, _Partners(geo, g_tri, pad), _Partners(geo, o_tri, pad))
+        side[g_tri[g_touch]] = GLASS
+        side[o_tri[o_touch]] = OTHER
+        any_glass = np.take(glass_mat, np.asarray(geo.material, np.int64))
+        return cls(geo, side, any_glass, _Partners(geo, g_tri[g_touch], pad),
+                   _Partners(geo, o_tri[o_touch], pad))
 
     def may_meet(self, org_p, org_prim) -> bool:
         """Whether any ray that left the points org_p (N,3) on triangles org_prim (N,)
@@ -226,17 +229,24 @@ class CoincidentSurfaces:
             return _NONE
         return tuple(np.concatenate(a) for a in zip(*out))
 
-    def leave_glass_first(self, o, d, t, tri):
-        """Rays o, d (N,3) whose closest hit (t (N,), tri (N,) int64, < 0: none) is a
-        non-glass triangle touching glass, at a point where a touching glass face lies
-        too and the ray crosses that face outwards (d . n > 0): a ray inside the bottle
-        reaching its cap, where Embree returns the floor or the cap (the same distance)
-        in its BVH's order. They meet the glass face first (refracted out there, then
-        meeting the floor by probe). Returns (rows (K,) int64, tri, u, v, t (K,)): the
-        glass hits within TIE x (t + the point's largest coordinate) of t (a bound on
-        Embree's float32 distances to two coincident planes, 64 roundings)."""
-        rows = np.nonzero(np.take(self.side, np.maximum(tri, 0)) == OTHER)[0]
-        rows = rows[np.take(tri, rows) >= 0]
+    def leave_glass_first(self, o, d, t, tri, from_tri, rows=None):
+        """Rays o, d (N,3) that left a glass triangle (from_tri (N,) int64, < 0: none)
+        and whose closest hit (t (N,), tri (N,) int64, < 0: none) is a non-glass triangle
+        touching glass, at a point where a touching glass face lies too and the ray
+        crosses that face outwards (d . n > 0): a ray inside the bottle reaching its cap,
+        where Embree returns the floor or the cap (the same distance) in its BVH's order.
+        They meet the glass face first (refracted out there, then meeting the floor by
+        probe). rows: the rows to consider (None: all). Returns (rows (K,) int64, tri, u,
+        v, t (K,)): the glass hits within TIE x (t + the point's largest coordinate) of t
+        (a bound on Embree's float32 distances to two coincident planes, 64 roundings).
+        (A ray inside the glass last left a glass face: only those rows are read.)"""
+        if rows is None:
+            rows = np.nonzero(np.take(self.is_glass, np.maximum(from_tri, 0))
+                              & (from_tri >= 0))[0]
+        if not len(rows):
+            return _NONE_T
+        tri_r = np.take(tri, rows)
+        rows = rows[(np.take(self.side, np.maximum(tri_r, 0)) == OTHER) & (tri_r >= 0)]
         if not len(rows):
             return _NONE_T
         tr = np.take(t, rows).astype(np.float64)
@@ -258,16 +268,16 @@ class CoincidentSurfaces:
         return (rows[out_], gtri[out_], up[out_], vp[out_],
                 np.maximum(tr - s + tp, 0.0)[out_])
 
-    def meet(self, o, d, org_p, org_prim, t, prim, u, v) -> int:
+    def meet(self, o, d, org_p, org_prim, t, prim, u, v, leaving=True) -> int:
         """In place on an Accel.intersect answer (t, prim, u, v (N,)) of rays o, d (N,3)
         that left the points org_p (N,3) on the triangles org_prim (N,) int64 (< 0: the
-        camera; o = org_p moved off the face by its offset; org_prim None: no ray left a
-        touching surface): the rows that meet a touching surface where they left (probe)
-        meet it at t = 0; the others that reach a touching floor where they should first
-        leave the glass lying on it meet the glass face (leave_glass_first). Returns how
-        many rows changed."""
+        camera; o = org_p moved off the face by its offset): the rows that meet a
+        touching surface where they left (probe; leaving False: none can, may_meet) meet
+        it at t = 0; the others that reach a touching floor where they should first leave
+        the glass lying on it meet the glass face (leave_glass_first). Returns how many
+        rows changed."""
         done = np.zeros(0, np.int64)
-        if org_prim is not None:
+        if leaving:
             cand = (np.take(self.side, np.maximum(org_prim, 0)) != NONE) & (org_prim >= 0)
             if cand.any():
                 rows = np.nonzero(cand)[0]
@@ -285,7 +295,7 @@ class CoincidentSurfaces:
         if len(done):
             tri = tri.copy()
             tri[done] = -1  # met by the probe: already where they belong
-        rows, gtri, up, vp, tg = self.leave_glass_first(o, d, t, tri)
+        rows, gtri, up, vp, tg = self.leave_glass_first(o, d, t, tri, org_prim)
         t[rows] = tg
         prim[rows] = gtri
         u[rows] = up
@@ -299,10 +309,10 @@ class CoincidentSurfaces:
         o32 - off, off (N,3) the origins' offsets (photonkernels.scatter's nx_from,
         nx_off). Returns how many rows changed."""
         # meet's two steps, the changed rows written back in Embree's layout.
-        tri = np.where(geom >= 0, np.take(starts, np.maximum(geom, 0)) + prim32, -1)
         n = 0
         changed = []
-        cand = (np.take(self.side, np.maximum(from_tri, 0)) != NONE) & (from_tri >= 0)
+        ft = np.maximum(from_tri, 0)
+        cand = (np.take(self.side, ft) != NONE) & (from_tri >= 0)
         done = np.zeros(0, np.int64)
         if cand.any():
             rows = np.nonzero(cand)[0]
@@ -312,11 +322,18 @@ class CoincidentSurfaces:
             if len(met):
                 done = rows[met]
                 changed.append((done, mtri, up, vp))
+        inside = np.take(self.is_glass, ft) & (from_tri >= 0)
         if len(done):
-            tri[done] = -1
-        rows, gtri, up, vp, _ = self.leave_glass_first(o32, d, tfar, tri)
+            inside[done] = False  # met by the probe: already where they belong
+        rows = np.nonzero(inside)[0]
         if len(rows):
-            changed.append((rows, gtri, up, vp))
+            g = np.take(geom, rows)
+            tri = np.full(len(geom), -1, np.int64)
+            tri[rows] = np.where(g >= 0, np.take(starts, np.maximum(g, 0))
+                                 + np.take(prim32, rows), -1)
+            rows, gtri, up, vp, _ = self.leave_glass_first(o32, d, tfar, tri, from_tri, rows)
+            if len(rows):
+                changed.append((rows, gtri, up, vp))
         for rows, mtri, up, vp in changed:
             g = np.searchsorted(starts, mtri, side="right") - 1
             geom[rows] = g

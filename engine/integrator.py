@@ -644,6 +644,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         if coincident is not None:
             org_p = np.take(p, idx, axis=0)
             org_prim = np.take(np.asarray(hit.prim, np.int64), idx)
+            from_h = np.empty(n, np.int64)  # org_prim by hit row (one ray a hit a step)
         for depth in range(ctx.settings.gather_depth + 1):
             if len(idx) == 0:
                 break
@@ -657,6 +658,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             tp = c(tp, np.float64)
             bvh = _closest_bvh(ctx.accel, ray_cls)
             meet = coincident is not None and coincident.may_meet(org_p, org_prim)
+            if coincident is not None and not meet:
+                from_h[idx] = org_prim  # (idx is compacted in place below)
             if meet:
                 # Rays leaving a glass face another surface touches, or that surface into
                 # the glass, meet the other one there, and rays inside the glass reaching
@@ -690,7 +693,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if coincident is not None and not meet:
                 # Rays inside a glass standing on the floor that reach the floor under it
                 # leave the glass first (engine/coincident.py).
-                coincident.meet(o, d, None, None, t, prim, u, v)
+                coincident.meet(o, d, None, np.take(from_h, idx), t, prim, u, v,
+                                leaving=False)
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
                 Le = y.emission
