@@ -1,9 +1,9 @@
 """What the touching-glass probe (engine/coincident.py) costs in a render: per scene, whether
 the scene has a touching pair (CoincidentSurfaces built), its triangles, the build's
 milliseconds, and in one 1-worker render the calls and rows of CoincidentSurfaces.meet /
-meet_hits and the rows they changed, the final gather's steps and how many of them took the
-Accel.intersect path (may_meet True: a ray left a touching pair near its partner), the
-probe's CPU seconds (meet, meet_hits, may_meet) and that share of the render's CPU.
+meet_hits and the rows they changed, the rows `near` read and those it found near a
+partner (a final-gather step with one traces its rays by Accel.intersect), the probe's CPU
+seconds (meet, meet_hits, near, each outermost call) and that share of the render's CPU.
 A scene whose glass touches nothing must show no instance and no calls.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_coincident.py \\
@@ -34,7 +34,7 @@ def measured(scene, settings):
     render CPU s) of one render with the probe's methods timed (process CPU)."""
     from engine import coincident as C
     from engine.render import render
-    stats = {"meet": [0, 0, 0, 0.0], "meet_hits": [0, 0, 0, 0.0], "may_meet": [0, 0, 0, 0.0]}
+    stats = {"meet": [0, 0, 0, 0.0], "meet_hits": [0, 0, 0, 0.0], "near": [0, 0, 0, 0.0]}
     saved = {k: getattr(C.CoincidentSurfaces, k) for k in stats}
     built = {}
     saved_for = C.CoincidentSurfaces.for_context.__func__
@@ -48,17 +48,24 @@ def measured(scene, settings):
             built["made"] = out
         return out
 
+    depth = [0]  # calls under way: a nested call's time is its caller's
+
     def timed(name):
         f = saved[name]
 
         def call(self, o, *a, **kw):
             c0 = time.process_time()
-            n = f(self, o, *a, **kw)
+            depth[0] += 1
+            try:
+                n = f(self, o, *a, **kw)
+            finally:
+                depth[0] -= 1
             s = stats[name]
             s[0] += 1
             s[1] += len(o)
-            s[2] += int(n)  # may_meet: True counts the step (its rays traced by intersect)
-            s[3] += time.process_time() - c0
+            s[2] += int(n.sum()) if name == "near" else n  # near: rows that may meet
+            if depth[0] == 0:
+                s[3] += time.process_time() - c0
             return n
         return call
 
@@ -105,17 +112,17 @@ def main(argv=None):
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; 1 worker, "
           f"{args.spp} spp")
     print("| scene | pairs (glass / other triangles) | build ms | meet calls / rows / changed "
-          "| meet_hits calls / rows / changed | gather steps / by intersect | probe CPU s "
+          "| meet_hits calls / rows / changed | near rows / may meet | probe CPU s "
           "| render CPU s | share |")
     print("|---|---|---:|---|---|---|---:|---:|---:|")
     for name, scene, kw in jobs:
         made, ms, st, cpu = measured(scene, RenderSettings(**kw))
         pairs = ("none" if made is None else
                  f"{len(made.glass.tri)} / {len(made.others.tri)}")
-        probe = st["meet"][3] + st["meet_hits"][3] + st["may_meet"][3]
+        probe = st["meet"][3] + st["meet_hits"][3] + st["near"][3]
         print(f"| {name} | {pairs} | {ms:.1f} | {st['meet'][0]} / {st['meet'][1]} / "
               f"{st['meet'][2]} | {st['meet_hits'][0]} / {st['meet_hits'][1]} / "
-              f"{st['meet_hits'][2]} | {st['may_meet'][0]} / {st['may_meet'][2]} | "
+              f"{st['meet_hits'][2]} | {st['near'][1]} / {st['near'][2]} | "
               f"{probe:.2f} | {cpu:.1f} | {probe / cpu:.1%} |", flush=True)
 
 

@@ -12,7 +12,10 @@ primitive the ray leaves (kernel/bvh/util.h intersection_skip_self), so the ray 
 other surface right there. Measured (issue 14 product shot, product29): red-emitting
 floor and green world, the camera ray through the top of a smooth-shaded glass cylinder
 standing on the floor, pixels' colours floor / world: Cycles 0.96 / 0.04, ours 0.73 /
-0.27; the cylinder lifted 3 mm: Cycles 0.92 / 0.05, ours 0.93 / 0.04.
+0.27; the cylinder lifted 3 mm: Cycles 0.92 / 0.05, ours 0.93 / 0.04. Cycles' own light
+through the contact depends on its rounding there (a floor at z = 0 loses it, the same
+scene moved up 1.913 m or the glass lifted 0.1 mm does not: docs/accuracy.md, contact30);
+ours now reads at contact as with a small gap.
 
 `CoincidentSurfaces` gives every ray that leaves such a pair (camera paths,
 final-gather and regather continuations, photons) what Cycles gives it: a short probe
@@ -26,14 +29,21 @@ offset's reach is a surface at the point the ray left, and the ray meets it ther
   the non-glass triangles that touch glass: the floor under a bottle;
 - a ray leaving a non-glass triangle that touches glass probes the glass triangles that
   touch a non-glass one, and meets one only from its outside (d . n < 0): it is
-  refracted into the bottle (or reflected back down to the floor by Fresnel).
+  refracted into the bottle (or reflected back down to the floor by Fresnel);
+- a ray that left a glass triangle and whose closest hit is a touching non-glass one
+  where a glass face lies too, crossed outwards, meets that glass face first
+  (leave_glass_first): Embree returns either of two coincident triangles, and a photon
+  inside the bottle that met the floor directly kept the entry's 1 / n^2.
 
-"Touch" is a bounding-box test padded by TOUCH_PAD of the coordinates (a cost filter:
-the probe's reach decides); each kind probes only the BVH of the other, so the probe
+"Touch" is faces in contact: boxes that meet and the glass triangle's corners in the
+other's plane, both to TOUCH_PAD of the coordinates (a cost filter: the probe's reach
+decides; a ball resting on the floor touches it at a point, where no probe would find
+anything, and makes no pair); each kind probes only the BVH of the other, so the probe
 cannot stop at the face the ray left (embreex has no per-ray primitive filter). A scene
 whose glass touches nothing gets no instance (for_context: None) and costs nothing.
 Not handled (the offset's behaviour kept): glass touching glass, shared instances
-(two-level BVHs), meshes whose winding points inwards.
+(two-level BVHs), meshes whose winding points inwards, rays inside the glass that last
+left something else (an object inside the bottle).
 """
 from __future__ import annotations
 
@@ -148,13 +158,26 @@ class CoincidentSurfaces:
         if len(g_tri) * len(o_tri) > PAIR_LIMIT:
             g_touch[:] = o_touch[:] = True
         else:
+            # A pair: boxes that meet, and the glass triangle in the other's plane (all
+            # three corners within the pad): faces in contact. A ball resting on the
+            # floor (one corner on it) or a box's side faces (an edge on it) touch only
+            # along a set of no area, where no probe would find anything.
+            gc = [np.take(x, g_tri, axis=0) for x in corners]
+            on = np.cross(np.take(geo.e1, o_tri, axis=0), np.take(geo.e2, o_tri, axis=0))
+            on /= np.maximum(np.linalg.norm(on, axis=1), 1e-300)[:, None]
+            od = np.einsum("ij,ij->i", on, np.take(geo.v0, o_tri, axis=0))
             step = max(1, PAIR_BLOCK // len(o_tri))
             for a in range(0, len(g_tri), step):
                 b = min(a + step, len(g_tri))
                 hit = np.all((ohi[None] >= glo[a:b, None] - pad)
                              & (olo[None] <= ghi[a:b, None] + pad), axis=2)
-                g_touch[a:b] |= hit.any(axis=1)
-                o_touch |= hit.any(axis=0)
+                gi, oi = np.nonzero(hit)
+                flat = np.ones(len(gi), bool)
+                for c in gc:
+                    dist = np.einsum("ij,ij->i", c[a + gi], on[oi]) - od[oi]
+                    flat &= np.abs(dist) <= pad
+                g_touch[a + gi[flat]] = True
+                o_touch[oi[flat]] = True
         if not g_touch.any():
             return None
         side = np.zeros(geo.count, np.int8)
@@ -164,18 +187,24 @@ class CoincidentSurfaces:
         return cls(geo, side, any_glass, _Partners(geo, g_tri[g_touch], pad),
                    _Partners(geo, o_tri[o_touch], pad))
 
-    def may_meet(self, org_p, org_prim) -> bool:
-        """Whether any ray that left the points org_p (N,3) on triangles org_prim (N,)
-        int64 (>= 0) may meet a touching surface there: it left one of a pair, inside
-        its partners' box (probe's first tests; False lets a caller keep a faster path)."""
-        side = np.take(self.side, org_prim)
+    def near(self, p, tri) -> np.ndarray:
+        """(N,) bool: rays leaving the points p (N,3) (float32 or float64; a ray origin
+        will do: the boxes' pad is ~100 offsets) on triangles tri (N,) int64 (< 0: none)
+        may meet a touching surface there: tri is one of a pair and p lies in its
+        partners' box (probe's first tests, one axis at a time; False everywhere lets a
+        caller keep a faster path)."""
+        out = np.zeros(len(tri), bool)
+        side = np.take(self.side, np.maximum(tri, 0))
+        side[tri < 0] = NONE
         for kind, partners in ((GLASS, self.others), (OTHER, self.glass)):
             rows = np.nonzero(side == kind)[0]
-            if len(rows):
-                p = np.take(org_p, rows, axis=0)
-                if np.all((p >= partners.box[0]) & (p <= partners.box[1]), axis=1).any():
-                    return True
-        return False
+            for c in range(3):
+                if not len(rows):
+                    break
+                x = np.take(p[:, c], rows)
+                rows = rows[(x >= partners.box[0, c]) & (x <= partners.box[1, c])]
+            out[rows] = True
+        return out
 
     def probe(self, p, off, d, from_tri):
         """Where rays leaving the points p (N,3) (hits on triangles from_tri (N,) int64,
@@ -278,9 +307,8 @@ class CoincidentSurfaces:
         rows changed."""
         done = np.zeros(0, np.int64)
         if leaving:
-            cand = (np.take(self.side, np.maximum(org_prim, 0)) != NONE) & (org_prim >= 0)
-            if cand.any():
-                rows = np.nonzero(cand)[0]
+            rows = np.nonzero(self.near(org_p, org_prim))[0]
+            if len(rows):
                 p = np.take(org_p, rows, axis=0)
                 met, tri, up, vp = self.probe(p, np.take(o, rows, axis=0) - p,
                                               np.take(d, rows, axis=0),
@@ -312,10 +340,9 @@ class CoincidentSurfaces:
         n = 0
         changed = []
         ft = np.maximum(from_tri, 0)
-        cand = (np.take(self.side, ft) != NONE) & (from_tri >= 0)
+        rows = np.nonzero(self.near(o32, from_tri))[0]
         done = np.zeros(0, np.int64)
-        if cand.any():
-            rows = np.nonzero(cand)[0]
+        if len(rows):
             of = np.take(off, rows, axis=0)
             met, mtri, up, vp = self.probe(np.take(o32, rows, axis=0) - of, of,
                                            np.take(d, rows, axis=0), np.take(from_tri, rows))

@@ -610,8 +610,15 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
     # every emitter it meets: its direct light skips the mesh lights).
     unsampled = _unsampled_meshes(ctx) if level == 0 else []
-    # Surfaces touching glass (engine/coincident.py; None: no glass touches anything).
+    # Surfaces touching glass (engine/coincident.py; None: no glass touches anything):
+    # per gathering hit, whether its rays may meet one where they leave (near) and
+    # whether it is glass (its rays may be inside the glass), once for all G rays.
     coincident = CoincidentSurfaces.for_context(ctx)
+    if coincident is not None:
+        hit_prim = np.asarray(hit.prim, np.int64)
+        near_h = coincident.near(p, hit_prim)
+        glass_h = np.take(coincident.is_glass, hit_prim)
+        from_h = np.empty(n, np.int64)  # the triangle each ray left, by hit row
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -640,11 +647,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
-        # The point and triangle each ray left (the coincident probe's), while needed.
+        # The point (None: the gathering hits', p[idx]) and triangle each ray left, and
+        # whether any may meet a touching surface there or be inside glass (the
+        # coincident probe's).
         if coincident is not None:
-            org_p = np.take(p, idx, axis=0)
-            org_prim = np.take(np.asarray(hit.prim, np.int64), idx)
-            from_h = np.empty(n, np.int64)  # org_prim by hit row (one ray a hit a step)
+            org_p, org_prim = None, np.take(hit_prim, idx)
+            near, inside = np.take(near_h, idx), np.take(glass_h, idx)
         for depth in range(ctx.settings.gather_depth + 1):
             if len(idx) == 0:
                 break
@@ -657,10 +665,14 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             cls = c(ray_cls, np.int64) if per_ray else _NO_CLASS
             tp = c(tp, np.float64)
             bvh = _closest_bvh(ctx.accel, ray_cls)
-            meet = coincident is not None and coincident.may_meet(org_p, org_prim)
-            if coincident is not None and not meet:
-                from_h[idx] = org_prim  # (idx is compacted in place below)
+            meet = coincident is not None and bool(near.any())
+            glass_from = coincident is not None and not meet and bool(inside.any())
+            if glass_from:
+                # (idx is compacted in place below: the rays' origins by hit row)
+                from_h[idx] = org_prim
             if meet:
+                if org_p is None:
+                    org_p = np.take(p, idx, axis=0)
                 # Rays leaving a glass face another surface touches, or that surface into
                 # the glass, meet the other one there, and rays inside the glass reaching
                 # the floor under it leave the glass first (engine/coincident.py): the
@@ -690,7 +702,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     ray_cls = cls[:m]
             if m == 0:
                 break
-            if coincident is not None and not meet:
+            if glass_from:
                 # Rays inside a glass standing on the floor that reach the floor under it
                 # leave the glass first (engine/coincident.py).
                 coincident.meet(o, d, None, np.take(from_h, idx), t, prim, u, v,
@@ -763,6 +775,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if coincident is not None:
                 org_p = np.take(y.p, keep, axis=0)
                 org_prim = np.take(prim, keep)
+                near = coincident.near(org_p, org_prim)
+                inside = np.take(coincident.is_glass, org_prim)
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:

@@ -72,9 +72,10 @@ def test_photons_refracted_out_onto_a_touching_floor_land_on_it():
 
 
 def test_touching_pairs_are_found_only_where_glass_touches():
-    """The slab on the floor: its bottom face and the floor are a pair (its side faces
-    reach the floor too); raised by 1 cm, or not glass, or a glass ball in the air: no
-    instance (the probe costs nothing)."""
+    """The slab on the floor: its bottom face and the floor are a pair (its side faces,
+    whose edges only lie on the floor, are not); raised by 1 cm, or not glass, or a glass
+    ball in the air or resting on the floor (a point contact): no instance (the probe
+    costs nothing)."""
     settings = RenderSettings(photons=1000)
     ctx = _context(_slab_on_floor(), settings)
     co = CoincidentSurfaces.for_context(ctx)
@@ -87,18 +88,25 @@ def test_touching_pairs_are_found_only_where_glass_touches():
     bottom = slab & (np.asarray(geo.ng)[:, 2] < -0.99)
     top = slab & (np.asarray(geo.ng)[:, 2] > 0.99)
     assert bottom.sum() == 2 and np.all(co.side[bottom] == GLASS)
-    assert np.all(co.side[top] == 0)
+    assert np.all(co.side[slab & ~bottom] == 0) and top.sum() == 2
     assert CoincidentSurfaces.for_context(ctx) is co  # built once
     for scene in (_slab_on_floor(gap=0.01), _slab_on_floor(glass=False)):
         assert CoincidentSurfaces.for_context(_context(scene, settings)) is None
-    s = PaperScene(width=8, height=8)
-    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
-    s.add_material(Material("glass", (1, 1, 1), transmission=1.0, ior=1.5))
-    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor")
-    s.add_sphere((0, 0, 1.0), 0.5, "glass")
-    s.add_sun((0, 0, -1), strength=SUN_E)
-    s.set_camera((0, -5, 3), (0, 0, 0))
-    assert CoincidentSurfaces.for_context(_context(s, settings)) is None
+    for z in (1.0, 0.5):
+        s = PaperScene(width=8, height=8)
+        s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+        s.add_material(Material("glass", (1, 1, 1), transmission=1.0, ior=1.5))
+        s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "floor", name="floor")
+        s.add_sphere((0, 0, z), 0.5, "glass", name="ball")
+        s.add_sun((0, 0, -1), strength=SUN_E)
+        s.set_camera((0, -5, 3), (0, 0, 0))
+        ctx = _context(s, settings)
+        # (resting: the ball's lowest point on the floor's plane)
+        ball = np.asarray(ctx.geo.object_id) == list(ctx.geo.object_names).index("ball")
+        low = min(float((np.asarray(c)[ball, 2] + ctx.geo.offset[2]).min())
+                  for c in (ctx.geo.v0, ctx.geo.v0 + ctx.geo.e1, ctx.geo.v0 + ctx.geo.e2))
+        assert z == 1.0 or abs(low) < 1e-9, low
+        assert CoincidentSurfaces.for_context(ctx) is None
 
 
 def _block_view(gap):
