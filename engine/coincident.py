@@ -96,8 +96,8 @@ class _Partners:
 class CoincidentSurfaces:
     """The touching pairs of a prepared scene: side (T,) int8 per triangle (NONE, GLASS:
     a glass triangle some non-glass one touches, OTHER: a non-glass triangle touching
-    glass), is_glass (T,) bool every glass triangle, the BVH of each kind (`glass`,
-    `others`: _Partners) and the geometry."""
+    glass), is_glass (T,) bool the glass triangles of the objects with a pair, the BVH of
+    each kind (`glass`, `others`: _Partners) and the geometry."""
 
     def __init__(self, geo, side, is_glass, glass, others):
         self.geo = geo
@@ -183,8 +183,12 @@ class CoincidentSurfaces:
         side = np.zeros(geo.count, np.int8)
         side[g_tri[g_touch]] = GLASS
         side[o_tri[o_touch]] = OTHER
-        any_glass = np.take(glass_mat, np.asarray(geo.material, np.int64))
-        return cls(geo, side, any_glass, _Partners(geo, g_tri[g_touch], pad),
+        # The triangles a ray inside a paired glass object last left: that object's glass
+        # (leave_glass_first; a ray inside another glass object leaves it first).
+        oid = np.asarray(geo.object_id, np.int64)
+        paired = np.isin(oid, np.unique(np.take(oid, g_tri[g_touch])))
+        in_pair = np.take(glass_mat, np.asarray(geo.material, np.int64)) & paired
+        return cls(geo, side, in_pair, _Partners(geo, g_tri[g_touch], pad),
                    _Partners(geo, o_tri[o_touch], pad))
 
     def near(self, p, tri) -> np.ndarray:
