@@ -137,3 +137,10 @@ def test_the_floor_under_a_standing_block_reads_as_under_a_small_gap():
     gap = float(np.mean(render(_block_view(0.001), settings).combined))
     assert gap > 0.2
     assert touch == pytest.approx(gap, rel=0.02), (touch, gap)
+    # The probe is per ray (photons per chunk): the same bits on two workers.
+    two = render(_block_view(0.0), RenderSettings(seed=2, photons=60_000,
+                                                  caustic_photons=60_000, spp=8, workers=2))
+    assert np.array_equal(two.combined,
+                          render(_block_view(0.0), RenderSettings(
+                              seed=2, photons=60_000, caustic_photons=60_000, spp=8,
+                              workers=1)).combined)
