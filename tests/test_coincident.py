@@ -144,3 +144,27 @@ def test_the_floor_under_a_standing_block_reads_as_under_a_small_gap():
                           render(_block_view(0.0), RenderSettings(
                               seed=2, photons=60_000, caustic_photons=60_000, spp=8,
                               workers=1)).combined)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "shadow rays from the floor under a thin (flat-passage) slab lying on it start inside "
+    "the glass: the transparent-shadow walk (engine/shadowtransmittance.py) meets the top "
+    "face's exit without the bottom face's entry and blocks them, so that floor has no "
+    "direct light at contact (0.0000 against the 1 mm gap's 0.4393; main 6e93ddb: 0.256, "
+    "camera rays leaking under the floor or meeting it unrefracted). Not handled by "
+    "engine/coincident.py yet"))
+def test_the_floor_under_a_thin_slab_lying_on_it_reads_as_under_a_small_gap():
+    """The 5 cm slab (a flat passage: shadow rays cross it, docs/design.md Transparent
+    shadows) lying on the floor, seen straight down through it under a sun: the image
+    should read as with a 1 mm gap (within 2 %)."""
+    from engine.render import render
+    settings = RenderSettings(seed=2, photons=60_000, caustic_photons=60_000, spp=8)
+    got = []
+    for gap in (0.0, 0.001):
+        scene = _slab_on_floor(gap)
+        scene.width, scene.height = 12, 12
+        scene.set_camera((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), view_angle=20.0)
+        got.append(float(np.mean(render(scene, settings).combined)))
+    touch, gap = got
+    assert gap > 0.2
+    assert touch == pytest.approx(gap, rel=0.02), (touch, gap)
