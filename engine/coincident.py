@@ -301,6 +301,34 @@ class CoincidentSurfaces:
         return (rows[out_], gtri[out_], up[out_], vp[out_],
                 np.maximum(tr - s + tp, 0.0)[out_])
 
+    def started_inside(self, o, d):
+        """Shadow rays o, d (N,3) (origins already offset off their surface) that start
+        just inside a glass object, past a touching glass face they cross inwards: a
+        shadow ray from the floor under a glass slab lying on it (the floor's offset takes
+        its origin past the slab's bottom too). A short probe backwards (along -d, TIE x
+        the origin's largest coordinate / MIN_COS: past the offset at any angle) against
+        the touching glass faces; met from their outside (d . n < 0). Returns (rows (K,)
+        int64, tri (K,) int64 the glass faces), for the transparent-shadow walk to start
+        those rays as having entered the glass there (shadowtransmittance)."""
+        o = np.asarray(o, np.float64)
+        rows = np.arange(len(o))
+        box = self.glass.box
+        for c in range(3):
+            if not len(rows):
+                return _NONE[:2]
+            x = o[rows, c]
+            rows = rows[(x >= box[0, c]) & (x <= box[1, c])]
+        if not len(rows):
+            return _NONE[:2]
+        orow = o[rows]
+        dr = np.asarray(d, np.float64)[rows]
+        s = TIE * np.abs(orow).max(axis=1) / MIN_COS
+        _, hp, _, _ = self.glass.accel.intersect(orow, -dr, s)
+        found = hp >= 0
+        rows, tri = rows[found], self.glass.tri[hp[found]]
+        into = np.einsum("ij,ij->i", self.geo.ng[tri], dr[found]) < 0.0
+        return rows[into], tri[into]
+
     def meet(self, o, d, org_p, org_prim, t, prim, u, v, leaving=True) -> int:
         """In place on an Accel.intersect answer (t, prim, u, v (N,)) of rays o, d (N,3)
         that left the points org_p (N,3) on the triangles org_prim (N,) int64 (< 0: the

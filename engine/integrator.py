@@ -1915,8 +1915,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     glass_rng = None  # glasslight's numbers, made when first needed
     # Surfaces touching a glass face (engine/coincident.py; None: no glass touches
     # anything), and the triangle each path left (-1: the camera) while there are.
+    # (org_p is not that point after a flat passage: CameraPassages gives it the point
+    # before the glass, for MIS.)
     coincident = CoincidentSurfaces.for_context(ctx) if glass_mat.any() else None
     org_prim = np.full(len(o), -1, np.int64) if coincident is not None else None
+    left_p = None  # the point each path left (its previous hit), while coincident
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
     want_data = s.data_passes
@@ -1943,7 +1946,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # on the floor), or that surface into the glass, meet the other one there,
             # as in Cycles; rays inside the glass reaching the floor under it leave the
             # glass first (engine/coincident.py).
-            coincident.meet(o, d, org_p, org_prim, t, prim, u, v)
+            coincident.meet(o, d, left_p, org_prim, t, prim, u, v)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
         for li, light in enumerate(ctx.lights):
@@ -2219,6 +2222,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         org_p = np.take(hit.p, keep, axis=0)
         if org_prim is not None:
             org_prim = np.take(np.asarray(hit.prim, np.int64), keep)
+            left_p = np.take(hit.p, keep, axis=0)
         if GLASS_LIGHT_SAMPLING:
             # Rays refracted by rough glass (a finite pdf) left the far side: the lights'
             # pdf there (world, sphere lights, the light tree) is that of the samples
