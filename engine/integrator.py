@@ -38,6 +38,7 @@ from .gatherkernels import (add_gathered, count_bent, diffuse_lookups, keep_embr
                             lean_diffuse, lean_materials, rays_f32)
 from .anisotropy import anisotropic_materials, set_hit_tangents
 from .closures import principled as pr
+from .coincident import CoincidentSurfaces
 from .console import short_count
 from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
@@ -609,6 +610,15 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
     # every emitter it meets: its direct light skips the mesh lights).
     unsampled = _unsampled_meshes(ctx) if level == 0 else []
+    # Surfaces touching glass (engine/coincident.py; None: no glass touches anything):
+    # per gathering hit, whether its rays may meet one where they leave (near) and
+    # whether it is glass (its rays may be inside the glass), once for all G rays.
+    coincident = CoincidentSurfaces.for_context(ctx)
+    if coincident is not None:
+        hit_prim = np.asarray(hit.prim, np.int64)
+        near_h = coincident.near(p, hit_prim)
+        glass_h = np.take(coincident.is_glass, hit_prim)
+        from_h = np.empty(n, np.int64)  # the triangle each ray left, by hit row
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -637,6 +647,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
+        # The point (None: the gathering hits', p[idx]) and triangle each ray left, and
+        # whether any may meet a touching surface there or be inside glass (the
+        # coincident probe's).
+        if coincident is not None:
+            org_p, org_prim = None, np.take(hit_prim, idx)
+            near, inside = np.take(near_h, idx), np.take(glass_h, idx)
         for depth in range(ctx.settings.gather_depth + 1):
             if len(idx) == 0:
                 break
@@ -649,7 +665,23 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             cls = c(ray_cls, np.int64) if per_ray else _NO_CLASS
             tp = c(tp, np.float64)
             bvh = _closest_bvh(ctx.accel, ray_cls)
-            if bvh is not None:
+            meet = coincident is not None and bool(near.any())
+            glass_from = coincident is not None and not meet and bool(inside.any())
+            if glass_from:
+                # (idx is compacted in place below: the rays' origins by hit row)
+                from_h[idx] = org_prim
+            if meet:
+                if org_p is None:
+                    org_p = np.take(p, idx, axis=0)
+                # Rays leaving a glass face another surface touches, or that surface into
+                # the glass, meet the other one there, and rays inside the glass reaching
+                # the floor under it leave the glass first (engine/coincident.py): the
+                # hits as Accel.intersect answers them (the same values as below), the
+                # probe's hits put in, then compacted.
+                t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
+                coincident.meet(o, d, org_p, org_prim, t, prim, u, v)
+                m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
+            elif bvh is not None:
                 # Embree from a kernel into this thread's buffers (Accel.intersect_hits),
                 # the hits compacted from its answer (gatherkernels.keep_embree_hits):
                 # intersect's numbers without its conversions and fresh arrays.
@@ -670,6 +702,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     ray_cls = cls[:m]
             if m == 0:
                 break
+            if glass_from:
+                # Rays inside a glass standing on the floor that reach the floor under it
+                # leave the glass first (engine/coincident.py).
+                coincident.meet(o, d, None, np.take(from_h, idx), t, prim, u, v,
+                                leaving=False)
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
                 Le = y.emission
@@ -735,6 +772,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     ctx, yf, tp[full], rng, ray_cls[full] if np.ndim(ray_cls) else ray_cls,
                     go_u=go_u[full])
                 keep = full[keep]
+            if coincident is not None:
+                org_p = np.take(y.p, keep, axis=0)
+                org_prim = np.take(prim, keep)
+                near = coincident.near(org_p, org_prim)
+                inside = np.take(coincident.is_glass, org_prim)
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
@@ -1877,6 +1919,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # reads; a diffuse-only hit's are left unwritten by shade_lobes).
     glass_mat = _transmitting(np.asarray(ctx.table.closure_params))
     glass_rng = None  # glasslight's numbers, made when first needed
+    # Surfaces touching a glass face (engine/coincident.py; None: no glass touches
+    # anything), and the triangle each path left (-1: the camera) while there are.
+    # (org_p is not that point after a flat passage: CameraPassages gives it the point
+    # before the glass, for MIS.)
+    coincident = CoincidentSurfaces.for_context(ctx) if glass_mat.any() else None
+    org_prim = np.full(len(o), -1, np.int64) if coincident is not None else None
+    left_p = None  # the point each path left (its previous hit), while coincident
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
     want_data = s.data_passes
@@ -1898,6 +1947,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         target = "emission" if bounce == 0 else "specular"
         counters.count("paths", bounce, len(o))
         t, prim, u, v = ctx.accel.intersect(o, d, tmax, cls=ray_cls)
+        if bounce > 0 and coincident is not None:
+            # Rays leaving a glass face that another surface touches (a bottle standing
+            # on the floor), or that surface into the glass, meet the other one there,
+            # as in Cycles; rays inside the glass reaching the floor under it leave the
+            # glass first (engine/coincident.py).
+            coincident.meet(o, d, left_p, org_prim, t, prim, u, v)
         # Light surfaces, seen by the ray kinds the light is visible to (Light.ray_kinds:
         # by default not camera rays, but mirrors and glass).
         for li, light in enumerate(ctx.lights):
@@ -2171,6 +2226,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         org_p_in = org_p if kept is None else np.take(org_p, kept, axis=0)
         org_ns = np.take(hit.ns, keep, axis=0)
         org_p = np.take(hit.p, keep, axis=0)
+        if org_prim is not None:
+            org_prim = np.take(np.asarray(hit.prim, np.int64), keep)
+            left_p = np.take(hit.p, keep, axis=0)
         if GLASS_LIGHT_SAMPLING:
             # Rays refracted by rough glass or sent through a translucent lobe (a finite
             # pdf, below the geometric normal) left the far side: the lights' pdf there

@@ -593,8 +593,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              mat, base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id,
              caster, first_hit_mode, caustic_only, vis_on, limits,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc,
-             nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, hit_rows,
-             flat_mat, flat_limit, aniso_tan, may_diffuse):
+             nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
+             nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -622,8 +622,11 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     Writes the stored photons (float32 position, power, direction of travel, normal on
     the arriving side; uint8 kind; (4,) uint8 bounce counts) to st_* (m rows at most) and
     the continued photons (float32 origins and directions for Embree, float64 directions,
-    power, flags, kinds, slots, packed bounce counts) to nx_* (2m rows at most: the
-    continuations, then the copies that pass
+    power, flags, kinds, slots, packed bounce counts; the triangle row each left, -1 for
+    the copies below, and its origin's offset off the hit point (3,) float64, o = p + off,
+    0 for the copies: engine/coincident.py's probe, written only where nx_from has rows,
+    next_arrays(m, True)) to nx_* (2m rows at most: the continuations, then the
+    copies that pass
     surfaces some of their ray kinds do not see). Returns (stored, continued) counts.
     hit_rows (2, >= m) int64: scratch for the hits' rows and triangle rows (lent by the
     trace's buffer pool: fresh arrays per call cost page faults; contents ignored).
@@ -641,6 +644,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     rays carry that light (engine/shadowtransmittance.py). Any other next event (an inner
     reflection, another surface) leaves the path specular."""
     m = geom.shape[0]
+    keep_from = nx_from.shape[0] > 0
     flat_on = flat_mat.shape[0] > 0
     may_diffuse_on = may_diffuse.shape[0] > 0
     bumped = bump.shape[0] > 0
@@ -982,6 +986,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             nx_o[nn, 0] = p_b[j, 0] + off * gx
             nx_o[nn, 1] = p_b[j, 1] + off * gy
             nx_o[nn, 2] = p_b[j, 2] + off * gz
+            if keep_from:
+                nx_from[nn] = t
+                nx_off[nn, 0], nx_off[nn, 1], nx_off[nn, 2] = off * gx, off * gy, off * gz
             nx_d32[nn, 0], nx_d32[nn, 1], nx_d32[nn, 2] = ox, oy, oz
             nx_d[nn, 0], nx_d[nn, 1], nx_d[nn, 2] = ox, oy, oz
             nx_power[nn, 0], nx_power[nn, 1], nx_power[nn, 2] = q0, q1, q2
@@ -1008,6 +1015,9 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             nx_kinds[nn] = kinds[i] & ~np.int64(visibility[t])
             nx_slot[nn] = slot[i]
             nx_bnc[nn] = bnc[i]
+            if keep_from:
+                nx_from[nn] = -1
+                nx_off[nn, 0], nx_off[nn, 1], nx_off[nn, 2] = 0.0, 0.0, 0.0
             nn += 1
     return ns_, nn
 
@@ -1104,12 +1114,21 @@ def store_arrays(m: int):
             np.empty((m, 4), np.uint8))
 
 
-def next_arrays(m: int):
+def next_arrays(m: int, origins: bool = False):
     """Buffers for up to m continued photons (origin32, direction32, direction, power,
-    flags, kinds, slot, packed bounce counts)."""
+    flags, kinds, slot, packed bounce counts, the triangle left, the origin's offset);
+    the last two have 0 rows unless `origins` (a scene with glass touching something,
+    engine/coincident.py: 32 B a row the others do not pay)."""
+    k = m if origins else 0
     return (np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty((m, 3)),
             np.empty((m, 3)), np.empty(m, np.int64), np.empty(m, np.int64),
-            np.empty(m, np.int64), np.empty(m, np.int64))
+            np.empty(m, np.int64), np.empty(m, np.int64), np.empty(k, np.int64),
+            np.empty((k, 3)))
+
+
+def next_arrays_from(m: int):
+    """next_arrays(m, True): with the triangle each photon left and its offset."""
+    return next_arrays(m, True)
 
 
 _NO_LIMITS = np.full(4, 1 << 20, np.int64)  # limits no count reaches

@@ -32,6 +32,7 @@ from .parallel import Cancelled, chunk_length, ordered_map
 from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
+from .coincident import CoincidentSurfaces
 from .closures.principled import M_IOR
 from .console import short_count
 from .normalmap import bump_shadowing
@@ -164,16 +165,21 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # The emitted rays go straight into a continued-ray set of the pool (fresh arrays
     # per chunk cost page faults), with the path flags and ray kinds of its columns; the
     # set becomes the second bounce's output (nxt_sets[1]) once bounce 0 has read it.
-    first = pool.take(pk.next_arrays, n)
+    # Surfaces touching glass (engine/coincident.py; None: no glass touches anything):
+    # with them the continued rays keep the triangle they left and their offset.
+    coincident = CoincidentSurfaces.for_context(ctx)
+    make_next = pk.next_arrays if coincident is None else pk.next_arrays_from
+    first = pool.take(make_next, n)
     out = EmissionBuffers(n, (first[0], first[1], first[2], first[3], first[6]))
     nxt_sets = [None, first]
     if targets is None:
         m = light.emit_into(key, 0, n, count, out, 0)
     else:
         m = light.emit_towards_into(key, 0, n, count, targets, out, 0)
-    o, d32, d, power, flags, kinds, slot, bnc = (a[:m] for a in first)
+    o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:m] for a in first)
     flags[:] = 0
     bnc[:] = 0  # no bounce yet
+    frm[:] = -1  # from a light, not a triangle
     # Ray visibility (docs/scene_format.md, "Ray visibility"). A segment arriving at a
     # surface stands for the camera-side ray that leaves that surface backwards; `kinds`
     # holds, per photon, the ray kinds for which the segment so far is a valid camera-side
@@ -202,25 +208,28 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     stored = _Stored(2 * m + 1024, pool, shot)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-                 bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
-                 hits, stored, nxt_sets, pool, caustic_only, should_cancel)
+                 bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,
+                 tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
+                 coincident, make_next)
     except BaseException:
         stored.release()
         raise
     finally:
         for arrays in nxt_sets:
             if arrays is not None:
-                pool.give(arrays, pk.next_arrays)
+                pool.give(arrays, make_next)
         pool.give(factors, _factors)
     return stored
 
 
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
-             bnc, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar, hit_rows,
-             hits, stored, nxt_sets, pool, caustic_only, should_cancel):
+             bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
+             hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
+             make_next):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
-    alternate between the two buffer sets of nxt_sets (borrowed from pool)."""
+    alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
+    make_next); coincident: the scene's CoincidentSurfaces or None."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
@@ -239,6 +248,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         # are (Accel.intersect_hits).
         geom, prim32, u, v, starts = _closest_hits(accel, o, d32, tfar[:m],
                                                    tuple(a[:m] for a in hits))
+        if coincident is not None:
+            # Photons leaving a glass face another surface touches (refracted out
+            # through a bottle's cap onto the floor), or that surface into the glass,
+            # meet the other one there; photons inside the glass reaching the floor
+            # under it leave the glass first (engine/coincident.py).
+            coincident.meet_hits(o, d, frm, off, geom, prim32, u, v, tfar[:m], starts)
         if given:
             # Triangle rows and float64 barycentrics for numpy and instance paths (the
             # same values as Accel.intersect's).
@@ -291,9 +306,9 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         k = bounce % 2
         if nxt_sets[k] is None or len(nxt_sets[k][0]) < need:
             if nxt_sets[k] is not None:
-                pool.give(nxt_sets[k], pk.next_arrays)
+                pool.give(nxt_sets[k], make_next)
             nxt_sets[k] = None
-            nxt_sets[k] = pool.take(pk.next_arrays, need)
+            nxt_sets[k] = pool.take(make_next, need)
         n_st, n_nx = pk.scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim32,
                                 starts, u, v, v0, e1, e2, normals, material, table.base_color,
                                 table.alpha, given, *surf_m, bump[:m] if numpy_hits else _NO_BUMP,
@@ -303,7 +318,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
                                 may_diffuse=may_diffuse)
         stored.count += n_st
-        o, d32, d, power, flags, kinds, slot, bnc = (a[:n_nx] for a in nxt_sets[k])
+        o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
 
 
 class _Buffers:

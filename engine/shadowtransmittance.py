@@ -40,6 +40,7 @@ from . import photonkernels as pk
 from .accel import Accel
 from .closures import principled as pr
 from .closures import tables
+from .coincident import CoincidentSurfaces
 from .geometry import ALL_RAYS
 from .jit import kernel, register_warm_up
 from .rayoffset import offset_along_normal, winding_normal
@@ -535,6 +536,16 @@ class ShadowTransmittance:
             if crossed_out is not None and crossed is not None:
                 crossed_out[ray_rows] = crossed
             return trans
+        if self.flat_on and not self.shared and len(slot):
+            # Rays from a surface a glass slab lies on (engine/coincident.py) start just
+            # inside the glass, past its face: they entered it there (counted as the
+            # walk counts an entry; the two refractions are weighed at the exit).
+            co = CoincidentSurfaces.for_context(self)
+            if co is not None:
+                k, g = co.started_inside(o, d)
+                flat = self.flat_mat[np.take(self.tri_material, g)]
+                entry[slot[k[flat]]] = g[flat]
+                count[slot[k[flat]]] += 1
         for _ in range(self.max_hits + 1):
             if len(slot) == 0:
                 break
