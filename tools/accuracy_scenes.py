@@ -126,8 +126,13 @@ def _mirror_glass():
     mb.cornell_box(white, red, blue)
     mb.box("MirrorPanel", 1.6, 0.05, 2.2, mirror, (-0.8, 1.3, 1.1),
            (0, 0, math.radians(25)))
-    mb.box("GlassBlock", 0.8, 0.8, 1.0, glass, (0.9, -0.3, 0.5), (0, 0, math.radians(30)))
-    mb.sphere("GlassBall", 0.45, glass, (-0.5, -0.8, 0.45), segments=48, rings=24)
+    # The block and the ball stand 0.1 mm above the floor: at exact contact Cycles' image
+    # is a rounding discontinuity (moving the whole scene up 1.913 m, or lifting the glass
+    # 0.1 mm, gives the same image, 2.6 % brighter than at z = 0: light refracted out
+    # through the block's bottom is lost there), which the test should not measure
+    # (docs/accuracy.md, contact30). Ours is the same at contact and lifted.
+    mb.box("GlassBlock", 0.8, 0.8, 1.0, glass, (0.9, -0.3, 0.5001), (0, 0, math.radians(30)))
+    mb.sphere("GlassBall", 0.45, glass, (-0.5, -0.8, 0.4501), segments=48, rings=24)
     mb.light("CeilingLight", "AREA", (0, 0, 3.98), 150.0, rotation=(0, 0, 0),
              shape="SQUARE", size=1.0)
     mb.camera((0, -7.6, 2.0), (0, 0, 2.0), 38.0)
