@@ -1,0 +1,121 @@
+"""A lamp shade of rough glass against Cycles (issue 14, lamp30: the night living room's
+walls read 1.05-1.06 of Cycles with a thin rough-glass Principled shade around the lamp).
+
+A point lamp inside an open tall cylinder of Principled glass (Transmission 1, thin:
+single-sided), a white Diffuse panel beside it, black world. The panel sees the lamp only
+through the glass (the shade's openings light it nowhere): every bit of its light is a
+caustic photon refracted out of the shade. Cycles' Multiscatter GGX scales the glass lobe
+by its energy compensation at its view direction (microfacet_ggx_glass_albedo_scaling at
+sd->I), here the panel's side of the shade; the photons took it on the lamp's side, where
+the shade is seen from inside (eta < 1: a much larger factor), so the panel read +6 %
+(roughness 0.5) and +59 % (roughness 1) of Cycles. photonkernels.glass_adjoint takes the
+factor at the side the photon leaves to.
+
+- roughness 0.5, Multiscatter GGX: the panel within 4 % of Cycles (was 1.063; the same
+  panel behind a Translucent BSDF shade reads 1.037, the estimate's own bias here).
+- roughness 1: the compensation's effect (Multiscatter GGX over plain GGX) within 3 % of
+  Cycles' (was 1.80x Cycles'). Plain GGX alone reads 0.88 of Cycles at roughness 1 (0.96
+  at 0.75): a deficit of the single-scattering photon transport through very rough glass,
+  not this test's (docs/accuracy.md, lamp30).
+"""
+import math
+
+import numpy as np
+import pytest
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
+
+
+def _material(bpy, name, build):
+    m = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        m.use_nodes = True
+    nt = m.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(build(nt.nodes), out.inputs["Surface"])
+    return m
+
+
+def _glass(roughness, distribution):
+    def build(nodes):
+        n = nodes.new("ShaderNodeBsdfPrincipled")
+        n.inputs["Base Color"].default_value = (0.95, 0.85, 0.7, 1.0)
+        n.inputs["Roughness"].default_value = roughness
+        n.inputs["Transmission Weight"].default_value = 1.0
+        n.distribution = distribution
+        return n.outputs[0]
+    return build
+
+
+def _diffuse(nodes):
+    n = nodes.new("ShaderNodeBsdfDiffuse")
+    n.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    return n.outputs[0]
+
+
+def _shade_scene(bpy, roughness, distribution):
+    """The panel (x = 1 m, facing the lamp), the 1 m tall shade of radius 0.22 m around a
+    100 W point lamp of radius 0.05 m at the origin, the camera seeing the panel only."""
+    from mathutils import Vector
+    bpy.ops.wm.read_homefile(use_empty=True)
+    from addon import engine
+    engine._previous_frame_warnings.clear()
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 48, 36
+    scene.render.resolution_percentage = 100
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
+        "Strength"].default_value = 0.0
+    bpy.ops.mesh.primitive_plane_add(size=1, location=(1.0, 0.0, 0.0),
+                                     rotation=(0.0, -math.pi / 2, 0.0))
+    panel = bpy.context.active_object
+    panel.scale = (3.0, 3.0, 1.0)
+    panel.data.materials.append(_material(bpy, "Panel", _diffuse))
+    bpy.ops.mesh.primitive_cylinder_add(radius=0.22, depth=1.0, location=(0.0, 0.0, 0.0),
+                                        vertices=32, end_fill_type="NOTHING")
+    shade = bpy.context.active_object
+    shade.data.materials.append(_material(bpy, "Shade", _glass(roughness, distribution)))
+    bpy.ops.object.shade_smooth()
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    lamp.data.energy, lamp.data.shadow_soft_size = 100.0, 0.05
+    scene.collection.objects.link(lamp)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location = (0.0, -1.2, 0.0)
+    cam.data.lens = 35.0
+    cam.rotation_euler = (Vector((1.0, 0.0, 0.0)) - cam.location).to_track_quat(
+        "-Z", "Y").to_euler()
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return scene
+
+
+def _mean(bpy, scene, path, engine):
+    from blender_helpers import cycles_plain, default_photonmap, read_rgba, render_exr
+    c = cycles_plain(scene, 1024, 12)  # the add-on reads the same Light Paths
+    c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = 4, 4, 12
+    scene.render.engine = engine
+    if engine == "PHOTONMAP":
+        default_photonmap(scene).spp = 16
+    return float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
+
+
+def test_panel_lit_through_a_rough_glass_shade_matches_cycles(bpy_addon, tmp_path):
+    bpy = bpy_addon
+    got = {}
+    for roughness, dist in ((0.5, "MULTI_GGX"), (1.0, "MULTI_GGX"), (1.0, "GGX")):
+        for engine in ("PHOTONMAP", "CYCLES"):
+            scene = _shade_scene(bpy, roughness, dist)
+            got[roughness, dist, engine] = _mean(
+                bpy, scene, tmp_path / f"{engine}_{roughness}_{dist}.exr", engine)
+    ratio = {k[:2]: got[k[:2] + ("PHOTONMAP",)] / got[k[:2] + ("CYCLES",)] for k in got}
+    effect = ratio[1.0, "MULTI_GGX"] / ratio[1.0, "GGX"]
+    print("ours / Cycles:", {k: round(v, 4) for k, v in ratio.items()},
+          "compensation's effect, ours / Cycles':", round(effect, 4))
+    assert all(v > 0.05 for v in got.values()), got  # the panel is lit in every case
+    assert abs(ratio[0.5, "MULTI_GGX"] - 1.0) < 0.04, ratio
+    assert abs(effect - 1.0) < 0.03, (effect, ratio)
