@@ -460,8 +460,11 @@ def _glass_cylinder(bpy, scene, roughness):
 
     bpy.ops.mesh.primitive_plane_add(size=40)
     bpy.context.object.data.materials.append(_material(bpy, "Floor", emission))
+    # 0.1 mm above the floor: at exact contact Cycles' image is a rounding discontinuity
+    # (rays inside the glass meet the cap and the floor at one distance; docs/accuracy.md,
+    # contact30), and these tests are about the rims' raised normals.
     bpy.ops.mesh.primitive_cylinder_add(vertices=16, radius=0.5, depth=1.2,
-                                        location=(0.0, 0.0, 0.6))
+                                        location=(0.0, 0.0, 0.6001))
     cyl = bpy.context.object
     bpy.ops.object.shade_smooth()
     cyl.data.materials.append(_material(bpy, "Glass", glass))
