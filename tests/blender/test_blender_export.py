@@ -413,6 +413,22 @@ def test_subsurface_warning_says_what_renders_and_names_the_object(fresh_scene, 
     np.testing.assert_allclose(out.materials["Wax"].base_color, [0.7896] * 3, atol=1e-4)
 
 
+def _diffuse_translucent_mix(bpy, name, fac, diffuse_rgb, translucent_rgb):
+    """A material: Mix Shader (factor fac) of a Diffuse BSDF and a Translucent BSDF."""
+    from blender_helpers import node_material
+    m, nt, out = node_material(bpy, name)
+    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse.inputs["Color"].default_value = (*diffuse_rgb, 1.0)
+    trans = nt.nodes.new("ShaderNodeBsdfTranslucent")
+    trans.inputs["Color"].default_value = (*translucent_rgb, 1.0)
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = fac
+    nt.links.new(diffuse.outputs[0], mix.inputs[1])
+    nt.links.new(trans.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return m
+
+
 def test_translucent_bsdf_exports_as_diffuse_transmission(fresh_scene, bpy_addon):
     """A Translucent BSDF (a lamp shade) exports as the translucent lobe of its Color,
     without a warning (s29 it rendered as a Diffuse BSDF: the lamp stayed dark inside its
@@ -424,22 +440,8 @@ def test_translucent_bsdf_exports_as_diffuse_transmission(fresh_scene, bpy_addon
     node.inputs["Color"].default_value = (0.9, 0.8, 0.6, 1.0)
     obj.data.materials.append(mat)
     paper = _cube(bpy, "Paper", (3, 0, 0))
-    mixed = bpy.data.materials.new("Paper")
-    if bpy.app.version < (5, 0, 0):
-        mixed.use_nodes = True
-    nt = mixed.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
-    trans = nt.nodes.new("ShaderNodeBsdfTranslucent")
-    trans.inputs["Color"].default_value = (0.7, 0.5, 0.1, 1.0)
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    mix.inputs[0].default_value = 0.3
-    nt.links.new(diffuse.outputs[0], mix.inputs[1])
-    nt.links.new(trans.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
-    paper.data.materials.append(mixed)
+    paper.data.materials.append(_diffuse_translucent_mix(bpy, "Paper", 0.3, (0.2, 0.4, 0.6),
+                                                         (0.7, 0.5, 0.1)))
     out = _export_before_a_camera(bpy, fresh_scene)
     assert not [w for w in out.all_warnings() if "ShadeCloth" in w or "Paper" in w], \
         out.all_warnings()
@@ -458,21 +460,10 @@ def test_translucent_mixed_by_a_texture_uses_the_factors_value_and_says_so(fresh
     stands and the warning says so (no silent loss of the translucency)."""
     bpy = bpy_addon
     obj = _cube(bpy, "Leaf", (0, 0, 0))
-    mat = bpy.data.materials.new("LeafMix")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
+    mat = _diffuse_translucent_mix(bpy, "LeafMix", 0.4, (0.8, 0.8, 0.8), (0.8, 0.8, 0.8))
     nt = mat.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    trans = nt.nodes.new("ShaderNodeBsdfTranslucent")
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    mix.inputs[0].default_value = 0.4
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    nt.links.new(noise.outputs["Fac"], mix.inputs[0])
-    nt.links.new(diffuse.outputs[0], mix.inputs[1])
-    nt.links.new(trans.outputs[0], mix.inputs[2])
-    nt.links.new(mix.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    mix = next(n for n in nt.nodes if n.type == "MIX_SHADER")
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], mix.inputs[0])
     obj.data.materials.append(mat)
     out = _export_before_a_camera(bpy, fresh_scene)
     hits = [w for w in out.all_warnings() if "LeafMix" in w]

@@ -18,13 +18,9 @@ pytestmark = pytest.mark.blender
 
 
 def _material(bpy, name, build):
-    m = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        m.use_nodes = True
-    nt = m.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    """A material whose Surface is build(nodes, links) (-> the output socket)."""
+    from blender_helpers import node_material
+    m, nt, out = node_material(bpy, name)
     nt.links.new(build(nt.nodes, nt.links), out.inputs["Surface"])
     return m
 
