@@ -15,9 +15,9 @@ caustic search radius of the render.
 Measured 2026-12-04 on 6e8d13f (ball, near floor, caustic radius): R 0.05: 0.450, 0.643,
 0.243 m; R 0.1: 0.489, 0.852, 0.244 m; R 0.2: 0.838, 0.997, 0.128 m; R 0.5: 0.974, 1.035,
 0.109 m
-(k-NN with 64 photons, the radius capped where photons are sparse: on a small
-object fewer than k photons with agreeing normals lie within the cap, and the sum is
-divided by the whole disc's area).
+Suspected cause, not verified: the k-NN estimate (64 photons, its radius capped where
+photons are sparse): on a small object fewer than k photons with agreeing normals lie
+within the cap, and the sum is divided by the whole disc's area.
 """
 from __future__ import annotations
 
