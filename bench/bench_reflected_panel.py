@@ -36,7 +36,8 @@ def scene_for(rough, dist, kind):
     sc.render.resolution_x, sc.render.resolution_y = 48, 36
     sc.render.resolution_percentage = 100
     w = bpy.data.worlds.new("W"); sc.world = w
-    next(n for n in w.node_tree.nodes if n.type == "BACKGROUND").inputs["Strength"].default_value = 0.0
+    bg = next(n for n in w.node_tree.nodes if n.type == "BACKGROUND")
+    bg.inputs["Strength"].default_value = 0.0
     def metal(nodes):
         n = nodes.new("ShaderNodeBsdfPrincipled")
         n.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)

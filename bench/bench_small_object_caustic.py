@@ -50,7 +50,8 @@ def main():
     p.add_argument("--radii", default="0.05,0.1,0.2,0.5")
     p.add_argument("--seed", type=int, default=1)
     a = p.parse_args()
-    print("| ball radius m | ball: sheet / direct | near floor: sheet / direct | caustic radius m |")
+    print("| ball radius m | ball: sheet / direct | near floor: sheet / direct "
+          "| caustic radius m |")
     print("|---:|---:|---:|---:|")
     for radius in (float(x) for x in a.radii.split(",")):
         img, stats = {}, None
