@@ -65,12 +65,12 @@ MIN_COS = 1e-3
 # scene's size) touch: ~1e-5, 100x the offsets' 1e-7 (rayoffset.G32_PLANE), so every pair
 # the probe can find is kept; a larger pad costs only probes that find nothing.
 TOUCH_PAD = 1e-5
-# Glass x other pairs tested in one numpy block (bounded scratch memory), and the most
-# tested at all: beyond it every near triangle counts as touching (more probes, the same
-# answers).
 # leave_glass_first's window along the ray, a share of (t + the hit's largest coordinate):
 # 64 float32 roundings (Embree's distances to two coincident planes differ by a few).
 TIE = 64 * 2.0 ** -24
+# Glass x other pairs tested in one numpy block (bounded scratch memory), and the most
+# tested at all: beyond it every near triangle counts as touching (more probes, the same
+# answers).
 PAIR_BLOCK = 1 << 22
 PAIR_LIMIT = 1 << 28
 

@@ -2228,7 +2228,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         org_p = np.take(hit.p, keep, axis=0)
         if org_prim is not None:
             org_prim = np.take(np.asarray(hit.prim, np.int64), keep)
-            left_p = np.take(hit.p, keep, axis=0)
+            # (passages.step rewrites org_p in place after a flat passage)
+            left_p = org_p if passages is None else org_p.copy()
         if GLASS_LIGHT_SAMPLING:
             # Rays refracted by rough glass or sent through a translucent lobe (a finite
             # pdf, below the geometric normal) left the far side: the lights' pdf there

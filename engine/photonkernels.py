@@ -518,12 +518,19 @@ def glass_adjoint(params, m, base, j, eta_in, mu_in, mu_out, transmitted):
     eta_out = 1.0 / eta_in if transmitted else eta_in
     e_in, ea_in = tables.glass_E(rough, min(max(mu_in, 0.0), 1.0), eta_in)
     e_out, ea_out = tables.glass_E(rough, min(max(mu_out, 0.0), 1.0), eta_out)
-    g = np.empty(3)
-    for c in range(3):
-        tt = (max(base[j, c], 0.0) if node == pr.NODE_GLASS
-              else math.sqrt(min(max(base[j, c], 0.0), 1.0)))
-        g[c] = ggx.energy_factor(e_out, ea_out, tt) / ggx.energy_factor(e_in, ea_in, tt)
-    return g[0], g[1], g[2]
+    # (Per channel as scalars: no array allocated per scattered photon.)
+    glass_node = node == pr.NODE_GLASS
+    return (_adjoint_channel(e_in, ea_in, e_out, ea_out, base[j, 0], glass_node),
+            _adjoint_channel(e_in, ea_in, e_out, ea_out, base[j, 1], glass_node),
+            _adjoint_channel(e_in, ea_in, e_out, ea_out, base[j, 2], glass_node))
+
+
+@kernel
+def _adjoint_channel(e_in, ea_in, e_out, ea_out, colour, glass_node):
+    """glass_adjoint's factor for one channel of base colour `colour`: the transmission
+    tint is the colour (Glass BSDF) or sqrt(colour) (Principled)."""
+    tt = max(colour, 0.0) if glass_node else math.sqrt(min(max(colour, 0.0), 1.0))
+    return ggx.energy_factor(e_out, ea_out, tt) / ggx.energy_factor(e_in, ea_in, tt)
 
 
 @kernel
