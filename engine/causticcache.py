@@ -214,8 +214,8 @@ class PrecomputedIrradiance:
 def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, r2_min, a, rk):
     """rk[r] (float32) for photon i = a + r: the radius of the disc its k-NN estimate
     reads (photonmap._irradiance_rows' rk): the distance to its k-th nearest photon (itself
-    included), or sqrt(r2) (the cap) where fewer than k lie within it; 0 (no estimate
-    stored) where any of those is not accepted at i's surface (photonmap._accepted: the
+    included); 0 (no estimate stored) where fewer than k lie within sqrt(r2) (the cap),
+    where any of those is not accepted at i's surface (photonmap._accepted: the
     disc holds another surface's or back-facing photons) or where k photons lie within
     sqrt(r2_min) (a focus: the estimate's rk is floored)."""
     # kdtree.knn's heap costs ~14-19 us a photon at k = 64 on Figure 8's map; a sphere
@@ -268,7 +268,10 @@ def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, r2_min,
                 break
         rkr = math.sqrt(d2[k - 1]) if cnt == k else r_cap
         seed = 1.2 * rkr
-        if ok:
+        # (Fewer than k in the cap: the row's rk is its last accepted photon's distance,
+        # photonmap.SPARSE_MIN_ACCEPTED, which the own-term model does not describe: the
+        # k-NN row answers there.)
+        if ok and cnt == k:
             rk[r] = np.float32(rkr)
 
 

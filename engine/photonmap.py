@@ -43,6 +43,17 @@ BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as c
 BOUNDARY_FALSE_ALARM = 0.05
 BOUNDARY_LOG = math.log(1.0 / BOUNDARY_FALSE_ALARM)
 MAX_CLASSIC_K = 4096
+# A k-NN row with fewer than k accepted photons in its search sphere takes its radius from
+# its last accepted photon when it has at least this many (_irradiance_rows). Then the
+# estimate is unbiased wherever those photons lie uniformly around the query, whatever the
+# area of their surface: N uniform in a disc of radius R put the last at d^2 = R^2 max(U),
+# E[1 / max(U)] = N / (N - 1), and Simpson's kernel gives the last weight 0, so E[estimate]
+# = (N - 1) / (pi R^2) x N / (N - 1) = N / (pi R^2); on a sphere the surface within chord
+# distance d is exactly pi d^2 (Archimedes), so the same holds on a ball. Its variance is
+# finite from N = 3 (E[1 / max(U)^2] = N / (N - 2)): with 2 the rare close pair makes
+# fireflies (a plane with 2 photons a disc: max 84 x its mean, 34 x at 3, 6.9 x with the
+# max radius). docs/accuracy.md "caustic31".
+SPARSE_MIN_ACCEPTED = 3
 MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accepted ones
 # The k-NN radius never shrinks below this share of the search radius. A lens focusing a
 # point light piles k photons onto a point; a smaller disc makes the estimate there huge,
@@ -838,19 +849,23 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             row_ok[j], row_other[j], row_cos[j] = _accepted(direction, normal, idx[j], nx, ny,
                                                             nz)
         if code >= KNN_SIMPSON:
-            # rk: distance to the k-th accepted photon; with fewer accepted, the radius of the
-            # disc the query has seen completely (its last photon, or the max radius): that
-            # still gives an unbiased estimate from the accepted photons in it.
+            # rk: distance to the k-th accepted photon; with fewer accepted (acc of them, at
+            # least SPARSE_MIN_ACCEPTED), to the last accepted one: the k-NN estimate with
+            # k = acc. The disc the query has seen (the max radius) is the right area only
+            # where the accepted photons' surface fills it; a small object's does not (a
+            # 5 cm ball's accepted cap is 1/24 of a 0.24 m disc: it read 0.1 of its light,
+            # issue 14). With fewer, the disc the query has seen completely (its last
+            # photon, or the max radius), as before.
             acc = 0
-            kth = -1
+            last = -1
             for j in range(cnt):
                 if row_ok[j]:
                     acc += 1
+                    last = j
                     if acc == k:
-                        kth = j
                         break
-            if kth >= 0:
-                rk = math.sqrt(d2[kth])
+            if acc >= min(k, SPARSE_MIN_ACCEPTED):
+                rk = math.sqrt(d2[last])
             elif full:
                 rk = math.sqrt(d2[cnt - 1])
             # k photons on (nearly) the query point, as a focusing lens makes: the k-th

@@ -14,7 +14,8 @@ from scipy.spatial import cKDTree
 
 from engine.parallel import ordered_map
 from engine.photonmap import (BOUNDARY_LOG, BOUNDARY_OFFSET, MAX_CLASSIC_K, MAX_WIDEN_K,
-                              MIN_RADIUS_FRACTION, NORMAL_AGREEMENT)
+                              MIN_RADIUS_FRACTION, NORMAL_AGREEMENT,
+                              SPARSE_MIN_ACCEPTED)
 from engine.photons import Photons
 
 QUERY_BUDGET = 1 << 21  # rows * k per kd-tree query call: bounds memory
@@ -185,11 +186,15 @@ class ReferencePhotonMap:
             x = np.clip(1.0 - (np.where(found, dist, rs) / rs) ** 2, 0.0, 1.0)
             weight = np.where(ok, 3.0 / (math.pi * rs * rs) * x * x, 0.0)
         else:
-            # r: distance to the k-th accepted photon; with fewer accepted, the radius of
-            # the disc the query has seen completely (its last photon, or the max radius).
+            # r: distance to the k-th accepted photon; with fewer accepted (at least
+            # SPARSE_MIN_ACCEPTED), to the last accepted one (the k-NN estimate with k =
+            # their count: a small object's surface need not fill the max radius's disc);
+            # with fewer still, the radius of the disc the query has seen completely (its
+            # last photon, or the max radius).
             accepted = np.cumsum(ok, axis=1)
-            have_k = accepted[:, -1] >= k
-            kth = np.argmax(accepted >= k, axis=1)
+            m_acc = np.minimum(accepted[:, -1], k)
+            have_k = m_acc >= min(k, SPARSE_MIN_ACCEPTED)
+            kth = np.argmax(accepted >= np.maximum(m_acc, 1)[:, None], axis=1)
             full = found[:, -1]  # the query stopped at kq photons: more may lie beyond
             # Fewer than k accepted: the disc the query has seen (radius of its last
             # photon) still gives an unbiased estimate from the accepted photons in it,
