@@ -14,10 +14,18 @@ caustic search radius of the render.
 
 Measured 2026-12-04 on 6e8d13f (ball, near floor, caustic radius): R 0.05: 0.450, 0.643,
 0.243 m; R 0.1: 0.489, 0.852, 0.244 m; R 0.2: 0.838, 0.997, 0.128 m; R 0.5: 0.974, 1.035,
-0.109 m
-Suspected cause, not verified: the k-NN estimate (64 photons, its radius capped where
-photons are sparse): on a small object fewer than k photons with agreeing normals lie
-within the cap, and the sum is divided by the whole disc's area.
+0.109 m. One seed is noisy (the 5 cm ball holds ~7 caustic photons, the near floor's
+k-NN disc ~64 shared by all its pixels): ball at seeds 1 / 2 / 3 on 75e287d,
+R 0.05: 0.450 / 0.687 / 0.530, R 0.1: 0.489 / 0.691 / 0.545; near floor R 0.05:
+0.643 / 0.913 / 0.925, R 0.1: 0.852 / 0.771 / 1.044 (photon noise and the ball's shadow
+in the floor's disc, not a bias of the estimate: the floor's photons there are 0.68 of
+their mean density at seed 1).
+caustic31 (docs/accuracy.md "caustic31"), the sparse k-NN radius from the last accepted
+photon (photonmap.SPARSE_MIN_ACCEPTED): R 0.05: 0.450 / 0.876 / 0.587, R 0.1:
+0.554 / 0.940 / 0.672, R 0.2: 0.839 / 0.856 / 1.024, R 0.5: 0.974 / 0.939 / 1.081;
+near floor unchanged. Still dark: the floor's photons under the ball's upper half pass
+the normal test (normal . N > 0.5) and set its estimate's radius, and the 5 cm ball at
+seed 1 holds 3 photons (7 expected).
 """
 from __future__ import annotations
 
