@@ -13,8 +13,7 @@ last distance). Seeded.
 
 Measured 2026-12-04 (3 s): the cap 0.103 / 0.376 (ball R 0.05 / 0.1), plane 0.997, 5.2,
 6.7; n0 = 2: 0.873 / 0.944, 0.998, 12.5, 84.4; n0 = 3 (chosen): 0.770 / 0.944, 1.000,
-8.6, 30.3; n0 = 4: 0.613 / 0.942, 0.998, 7.3, 15.5. (photonmap.py's comment quotes an
-earlier run of this model over other draws: 84 / 34 / 6.9 x.)
+8.6, 30.3; n0 = 4: 0.613 / 0.942, 0.998, 7.3, 15.5.
 """
 import math
 

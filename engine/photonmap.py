@@ -51,7 +51,7 @@ MAX_CLASSIC_K = 4096
 # = (N - 1) / (pi R^2) x N / (N - 1) = N / (pi R^2); on a sphere the surface within chord
 # distance d is exactly pi d^2 (Archimedes), so the same holds on a ball. Its variance is
 # finite from N = 3 (E[1 / max(U)^2] = N / (N - 2)): with 2 the rare close pair makes
-# fireflies (a plane with 2 photons a disc: max 84 x its mean, 34 x at 3, 6.9 x with the
+# fireflies (a plane with 2 photons a disc: max 84 x its mean, 30 x at 3, 6.7 x with the
 # max radius). docs/accuracy.md "caustic31".
 SPARSE_MIN_ACCEPTED = 3
 MAX_WIDEN_K = 4096  # k-NN queries widen up to this many photons to find k accepted ones
