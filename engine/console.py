@@ -71,14 +71,16 @@ class BarConsole:
         draw = bar.display
 
         def display(msg=None, pos=None):
+            # Not under self.lock: tqdm's monitor thread draws holding tqdm's lock, which
+            # the drawing() block takes after self.lock (the other order: a deadlock).
+            # tqdm's own lock orders its draws.
             if msg is not None:  # (a clear, never used in a file: passed on)
                 return draw(msg, pos)
-            with self.lock:
-                state = _frame_state(bar)
-                if state == self._last_frame:
-                    return True
-                self._last_frame = state
-                return draw(msg, pos)
+            state = _frame_state(bar)
+            if state == self._last_frame:
+                return True
+            self._last_frame = state
+            return draw(msg, pos)
 
         bar.display = display  # (tqdm draws through self.display: refresh, update, close)
 
