@@ -17,6 +17,13 @@ load one signature's machine code for the other). Helpers compiling different wa
 save the same shared kernels (closures, lights), and so can two Blender sessions rendering
 for the first time: install_save_lock serialises those saves with a lock file per cache
 folder.
+
+A helper ends soon after the calling process dies, however it dies (Blender killed with
+SIGKILL, a crash): its stdin is a pipe whose writing end only the caller holds, and a
+thread in the helper that waits on it sees the end of the pipe when the caller's end is
+closed, by the caller or by the system as it dies, and ends the helper (watch_parent).
+A pipe's end of file works alike on Linux, macOS and Windows; before it, helpers ran on
+up to HELPER_TIMEOUT_S compiling for nobody.
 """
 from __future__ import annotations
 
@@ -202,7 +209,9 @@ def compile_shared(warm_ups, processes: int, progress=None, indices=None, join=T
                 helpers.append(subprocess.Popen(
                     [sys.executable, "-c", _HELPER_CODE, package, pkg_dir, folder,
                      ",".join(names)],
-                    env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                    # stdin: the pipe whose end tells the helper this process is gone
+                    # (watch_parent); written never, closed when the helpers are done.
+                    env=env, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                     stderr=log, creationflags=flags))
             except OSError as e:  # (no process may be started here: compile alone)
                 log.close()
@@ -252,13 +261,19 @@ def compile_shared(warm_ups, processes: int, progress=None, indices=None, join=T
             if h.poll() is None:
                 h.kill()
                 h.wait()
+            try:
+                h.stdin.close()
+            except OSError:
+                pass
         shutil.rmtree(folder, ignore_errors=True)
 
 
 def helper_main(package: str, pkg_dir: str, folder: str, names: str) -> None:
     """A helper process: import the engine as `package` from pkg_dir (its parent packages
     stubbed, so that no add-on code runs: the kernels' module names, and so their cached
-    machine code, are the caller's), then run the warm-ups it claims."""
+    machine code, are the caller's), then run the warm-ups it claims. Ends as soon as its
+    caller is gone (watch_parent)."""
+    watch_parent()
     import importlib
     import types
     parts = package.split(".")
@@ -283,6 +298,41 @@ def helper_main(package: str, pkg_dir: str, folder: str, names: str) -> None:
 
 def _nothing():
     pass
+
+
+# A helper's exit status when its caller died (the caller, if alive, would report it).
+PARENT_GONE_EXIT = 3
+
+
+def watch_parent(stream=None) -> threading.Thread:
+    """In a helper: a daemon thread that reads `stream` (default: this process's stdin,
+    the pipe compile_shared holds open and never writes) until its end, which comes when
+    the caller closes it or dies, and then ends this process at once (os._exit: a compile
+    in progress is dropped; numba writes its cache files whole, by a replace, and the
+    save lock this process holds is released first). Returns the thread."""
+    fd = (stream if stream is not None else sys.stdin).fileno()
+
+    def watch():
+        try:
+            while os.read(fd, 4096):
+                pass
+        except OSError:
+            pass  # (a closed or broken pipe: its caller is gone as well)
+        # Release the save lock held here, if any (another process may wait on it): the
+        # saves lock through the engine's own copy of this module (install_save_lock),
+        # which a helper imports besides the copy it runs (_HELPER_CODE).
+        for name, module in list(sys.modules.items()):
+            if name.endswith("compilepool"):
+                for path in list(getattr(module, "_HELD_LOCKS", ())):
+                    try:
+                        os.unlink(path)
+                    except OSError:
+                        pass
+        os._exit(PARENT_GONE_EXIT)
+
+    thread = threading.Thread(target=watch, daemon=True, name="compile helper: caller alive")
+    thread.start()
+    return thread
 
 
 _HELPER_CODE = (
@@ -325,6 +375,10 @@ def install_save_lock(cache_root: str) -> None:
         roots.add(os.path.normcase(os.path.abspath(cache_root)))
 
 
+# The lock files this process holds (a helper whose caller died releases them as it ends).
+_HELD_LOCKS: set = set()
+
+
 class folder_lock:
     """An inter-process lock: the file `.save.lock` in folder, created exclusively; a
     lock older than STALE_LOCK_S is taken over (its holder died). Threads of one process
@@ -338,6 +392,7 @@ class folder_lock:
         while True:
             try:
                 os.close(os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+                _HELD_LOCKS.add(self.path)
                 return self
             except FileExistsError:
                 try:
@@ -350,6 +405,7 @@ class folder_lock:
                 delay = min(delay * 2, 0.05)
 
     def __exit__(self, *exc):
+        _HELD_LOCKS.discard(self.path)
         try:
             os.unlink(self.path)
         except OSError:

@@ -7,9 +7,15 @@ bar's text whole, also where stdout and stderr are one file (`cmd > log 2>&1`, a
 log): there a cleared line stays in the text, so the bar's line is ended with a newline
 first (new-user trials, s17 and s19). Every write goes through one lock, so the engine's
 worker threads (engine/parallel.py), whose Python warnings come here too, never print
-into the middle of the bar or of another line."""
+into the middle of the bar or of another line.
+
+In a file or a pipe every frame the bar draws stays in the text, so there a frame that
+says what the last one said, its clock aside, is not drawn: a stage's text and then its
+first progress step drew one state twice, and closing the bar drew its last state again,
+below the lines printed after it ("Cancelled" twice in a log, s30)."""
 from __future__ import annotations
 
+import re
 import sys
 import threading
 import warnings
@@ -19,6 +25,10 @@ from contextlib import contextmanager
 def short_count(n: int) -> str:
     """A count for a progress line: 950 -> '950', 19200 -> '19k' (photons, pixels)."""
     return f"{n / 1000:.0f}k" if n >= 1000 else str(n)
+
+
+# The bar's clock at the end of its frame ("[00:05<00:06]", the elapsed time and the ETA).
+_CLOCK = re.compile(r"\s*\[[^\[\]]*\]\s*$")
 
 
 def isatty(stream) -> bool:
@@ -50,6 +60,29 @@ class BarConsole:
         with self.lock:
             self._bar = bar
             self._drawn = bar is not None  # tqdm draws a bar when it is made
+            self._last_frame = None
+            if bar is not None and not isatty(self.stream):
+                self._last_frame = _frame_state(bar)
+                self._draw_changes_only(bar)
+
+    def _draw_changes_only(self, bar) -> None:
+        """Make `bar` (drawing into a file or a pipe) skip a frame that says what the
+        frame last drawn said, its clock aside (module docstring)."""
+        draw = bar.display
+
+        def display(msg=None, pos=None):
+            # Not under self.lock: tqdm's monitor thread draws holding tqdm's lock, which
+            # the drawing() block takes after self.lock (the other order: a deadlock).
+            # tqdm's own lock orders its draws.
+            if msg is not None:  # (a clear, never used in a file: passed on)
+                return draw(msg, pos)
+            state = _frame_state(bar)
+            if state == self._last_frame:
+                return True
+            self._last_frame = state
+            return draw(msg, pos)
+
+        bar.display = display  # (tqdm draws through self.display: refresh, update, close)
 
     @contextmanager
     def drawing(self):
@@ -108,8 +141,14 @@ class BarConsole:
         """Close the bar (tqdm ends its line); later lines print as usual."""
         self.keep_alive(False)
         with self.lock:
-            if self._bar is not None:
-                self._bar.close()
+            bar = self._bar
+            if bar is not None:
+                if (not self._drawn and not isatty(self.stream)
+                        and _frame_state(bar) == self._last_frame):
+                    # Its last state is on a line above the lines printed since: tqdm's
+                    # closing frame and newline would repeat it below them.
+                    bar.fp = _Discard()
+                bar.close()
             self.bar = None
 
     def show_python_warning(self, message, category, filename, lineno, file=None,
@@ -140,3 +179,18 @@ class BarConsole:
         with warnings.catch_warnings():
             warnings.showwarning = self.show_python_warning
             yield
+
+
+def _frame_state(bar) -> str:
+    """What a bar's frame says, its clock aside (what a file needs to be shown again)."""
+    return _CLOCK.sub("", str(bar)).rstrip()
+
+
+class _Discard:
+    """A stream that keeps nothing (a closing bar's repeat of its last frame)."""
+
+    def write(self, text):
+        return len(text)
+
+    def flush(self):
+        pass

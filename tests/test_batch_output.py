@@ -156,3 +156,64 @@ def test_the_bar_redraws_its_clock_through_the_kernel_compile():
     assert shared.getvalue().count("\r") == settled
     printer("finished", "done")
     printer.close()
+
+
+def _frames(text):
+    """Each frame the bar drew and each other line, in a file's text, the clock aside."""
+    import re
+    return [re.sub(r"\s*\[[^\[\]]*\]\s*$", "", f).rstrip()
+            for f in re.split(r"[\r\n]", text) if f.strip()]
+
+
+def test_a_cancelled_render_in_a_log_file_says_each_state_once():
+    """In a log file (stderr redirected, a pipe) "Cancelled" and each progress state
+    were drawn twice (s30): a stage's text and its first progress step drew one state in
+    two frames, and closing the bar drew its last state again below Blender's report."""
+    shared = io.StringIO()  # a file: every frame stays in the text
+    printer = batch._StatusPrinter(stream=shared, out=shared)
+    with printer.beside_bar():
+        printer("stats", "Loading engine")
+        printer("stats", "Exporting 1/4 objects")
+        printer("progress", 0.005)  # 0 % still: the same state
+        printer("stats", "Exporting 4/4 objects")
+        printer("progress", 0.02)
+        printer("stats", "Rendering pixels 512/5k")
+        printer("progress", 0.41)
+        printer("stats", "Cancelled")
+        printer("finished", "cancelled")
+        # Blender's print of the engine's report when the render operator returns
+        print("Info: Photon Mapping: render cancelled (12 triangles, 1 light, 0.5 s)")
+    printer.close()
+    frames = _frames(shared.getvalue())
+    assert sum(f.startswith("Cancelled") for f in frames) == 1, frames
+    assert len(frames) == len(set(frames)), frames  # no state drawn twice
+    for text in ("Loading engine", "Exporting 1/4 objects", "Exporting 4/4 objects",
+                 "Rendering pixels 512/5k"):
+        assert sum(f.startswith(text) for f in frames) == 1, (text, frames)
+    assert frames[-1].startswith("Info: Photon Mapping: render cancelled"), frames
+    assert shared.getvalue().endswith("s)\n")  # the bar's line ended, nothing after
+
+
+def test_a_finished_render_in_a_log_file_draws_its_last_state_once():
+    shared = io.StringIO()
+    printer = batch._StatusPrinter(stream=shared, out=shared)
+    printer("stats", "Rendering pixels 5k/5k")
+    printer("progress", 1.0)
+    printer("stats", "Done: 12 triangles, 1 light, 0.1 s")
+    printer("finished", "done")
+    printer.close()
+    frames = _frames(shared.getvalue())
+    assert sum(f.startswith("Done ") for f in frames) == 1, frames
+    assert "Done: 12 triangles, 1 light, 0.1 s" in frames  # close()'s summary line
+
+
+def test_on_a_terminal_the_bar_still_redraws_an_unchanged_state():
+    """A terminal overwrites each frame: there every draw is kept (the clock moves)."""
+    shared = _Terminal()
+    printer = batch._StatusPrinter(stream=shared, out=shared)
+    printer("stats", "Exporting 1/4 objects")
+    printer("progress", 0.005)
+    printer("stats", "Cancelled")
+    printer("finished", "cancelled")
+    printer.close()
+    assert shared.getvalue().count("Cancelled") >= 2  # its frame, then tqdm's closing one

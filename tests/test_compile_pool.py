@@ -225,3 +225,97 @@ def test_helpers_import_an_installed_extensions_engine_by_its_package_name(tmp_p
     assert got["helpers"] == 1 and got["here"] == []
     loaded = _run(tmp_path, package, engine_dir, "load", ",".join(_SMALL))
     assert loaded["misses"] == 0 and loaded["hits"] > 0, loaded
+
+
+def test_a_helper_ends_when_its_callers_pipe_closes():
+    """watch_parent: the end of stdin (the caller closed it, or died and the system
+    closed it) ends the helper at once, whatever its main thread is doing."""
+    code = ("import sys, time\n"
+            f"sys.path.insert(0, {str(ROOT)!r})\n"
+            "from engine import compilepool\n"
+            "compilepool.watch_parent()\n"
+            "print('watching', flush=True)\n"
+            "time.sleep(120)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "watching"
+        assert proc.poll() is None  # an open pipe: the helper works on
+        proc.stdin.close()
+        assert proc.wait(timeout=10) == compilepool.PARENT_GONE_EXIT
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+_KILLED_PARENT = r"""
+import sys
+from engine import jit, compilepool
+jit._import_kernel_modules()
+# Helpers only (join=False): every claim in the compile folder is a helper's.
+compilepool.compile_shared(jit._warm_ups, 3, join=False)
+"""
+
+
+def _children(pid):
+    """The pids whose parent is pid (Linux /proc)."""
+    out = []
+    for name in os.listdir("/proc"):
+        if name.isdigit():
+            try:
+                stat = Path("/proc", name, "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                out.append(int(name))
+    return out
+
+
+def _running(pid):
+    """pid is a live process (not gone, not a zombie left for its new parent to reap)."""
+    try:
+        os.kill(pid, 0)
+        state = Path("/proc", str(pid), "stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, ProcessLookupError):
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads /proc (Linux)")
+def test_helpers_end_soon_after_their_caller_is_killed(tmp_path):
+    """Blender hard-killed (SIGKILL) during the first render's compile: its helpers ran
+    on compiling for nobody, up to HELPER_TIMEOUT_S (an hour). They end within seconds."""
+    import signal
+    import time
+    env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+               TMPDIR=str(tmp_path))  # a cold cache: the helpers really compile
+    env.pop(compilepool.PROCESSES_ENV, None)
+    parent = subprocess.Popen([sys.executable, "-c", _KILLED_PARENT], cwd=ROOT, env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    helpers = []
+    try:
+        end = time.monotonic() + 120
+        # Until a helper has claimed a warm-up (it is compiling), and both are seen.
+        while time.monotonic() < end and parent.poll() is None:
+            claims = list(tmp_path.glob("photonmap-compile-*/claim-*"))
+            helpers = _children(parent.pid)
+            if claims and len(helpers) == 2:
+                break
+            time.sleep(0.1)
+        assert parent.poll() is None and len(helpers) == 2 and claims, (
+            helpers, parent.stderr.read().decode()[-2000:] if parent.poll() is not None else "")
+        assert all(_running(pid) for pid in helpers)
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+        end = time.monotonic() + 10
+        while time.monotonic() < end and any(_running(pid) for pid in helpers):
+            time.sleep(0.1)
+        assert not any(_running(pid) for pid in helpers), helpers
+    finally:
+        for pid in helpers:  # (a failed assertion must not leave them compiling)
+            if _running(pid):
+                os.kill(pid, signal.SIGKILL)
+        if parent.poll() is None:
+            parent.kill()
+            parent.wait()

@@ -24,6 +24,13 @@ def _batch(*args):
                           capture_output=True, text=True, timeout=300)
 
 
+def _states(err):
+    """The bar's frames and the other lines of a captured stderr (a pipe: every frame
+    stays in the text), each without the bar's clock."""
+    return [re.sub(r"\s*\[[^\[\]]*\]\s*$", "", f).rstrip()
+            for f in re.split(r"[\r\n]", err) if f.strip()]
+
+
 def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
     out = tmp_path / "f3.png"
     res = _batch(os.path.join(BLENDS, "figure3_sphere.blend"), "-o", str(out), *SMALL)
@@ -37,6 +44,9 @@ def test_batch_shows_phase_progress_with_eta_and_the_effect_report(tmp_path):
     assert re.search(r"^Done: \d+ triangles, \d+ lights?, [\d.]+ s", err, re.M), err[-2000:]
     assert re.search(r"^  indirect light .*: on", err, re.M), err[-2000:]  # effect report
     assert re.search(r"^  caustics: on", err, re.M)
+    states = _states(err)  # each drawn once in a log (s30: each twice)
+    assert len(states) == len(set(states)), states
+    assert sum(s.startswith("Done ") for s in states) == 1, states
     # the whole run split: the render, a first run's kernel compile, the rest
     assert re.search(r"wrote .* \([\d.]+ s: rendering [\d.]+ s(, (compiling|loading the "
                      r"compiled) kernels [\d.]+ s)?, Blender start-up, loading the "
@@ -78,6 +88,9 @@ def test_batch_interrupted_exits_non_zero_and_keeps_the_old_file(tmp_path, sig, 
     assert out.read_bytes() == OLD
     assert "interrupted" in err and "left as it was" in err, err[-2000:]
     assert "Traceback" not in err
+    states = _states(err)  # "Cancelled" and each state once in a log (s30: twice)
+    assert sum(s.startswith("Cancelled") for s in states) == 1, states
+    assert len(states) == len(set(states)), states
     assert "indirect light" not in err  # no effect report for a render that did not finish
     assert sorted(os.listdir(tmp_path)) == [out.name]  # no temporary file left behind
     # The bar stays where the render stopped (it jumped to 100 % on a cancel).
