@@ -138,3 +138,40 @@ def test_image_keeps_its_brightness_near_the_pane_edge():
     assert on[2] < 0.02 * on[0]
     print("on (combined, direct, caustic):", on, "off:", off)
     assert on[0] == pytest.approx(off[0], rel=0.03), (on, off)
+
+
+@pytest.mark.parametrize("case", ["rough", "bent", "area light"])
+def test_scenes_without_a_sun_pane_render_the_same_bits(case):
+    """Rough glass (not smooth), a bent sheet (two planes) or a pane under an area light
+    instead of a sun: no pane, the film is bit for bit the one with panes switched off."""
+    films = []
+    for on in (True, False):
+        old = panelight.ENABLED
+        panelight.ENABLED = on
+        try:
+            s = PaperScene(width=16, height=16)
+            s.add_material(Material("floor", (ALBEDO,) * 3))
+            s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=IOR,
+                                    roughness=0.3 if case == "rough" else 0.0))
+            s.add_plane((0, 0, 0), (0, 0, 1), 10.0, "floor", name="floor")
+            if case == "bent":
+                # One object of two faces folded 17 degrees along y = 0 (a roof ridge).
+                v = np.array([[-2, -2, 1.0], [0, -2, 1.3], [0, 2, 1.3], [-2, 2, 1.0],
+                              [2, -2, 1.0], [2, 2, 1.0]])
+                s.add_triangles(v, np.array([[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]]),
+                                "glass", name="pane")
+            else:
+                s.add_plane((0, 0, 1.0), (0, 0, 1), 4.0, "glass", name="pane")
+            if case == "area light":
+                s.add_rect_area_light((0.5, 0, 3.0), (1.0, 1.0), power=300.0,
+                                      direction=(0, 0, -1), name="lamp")
+            else:
+                s.add_sun((0.3, 0.0, -1.0), strength=SUN_E, angle_degrees=ANGLE)
+            s.camera = Camera(position=(0, 0, 0.8), rotation=np.eye(3), kind="ORTHO",
+                              ortho_scale=2.0)
+            films.append(s.render(RenderSettings(spp=2, photons=20_000,
+                                                 caustic_photons=20_000, seed=1)).combined)
+        finally:
+            panelight.ENABLED = old
+    assert films[0].mean() > 0
+    assert np.array_equal(films[0], films[1])
