@@ -76,7 +76,9 @@ class Panes:
     def photon_tri(self, light) -> np.ndarray:
         """pane_tri for photons of `light` (a sun: the table; any other light: empty, its
         light through a pane stays caustic)."""
-        return self.pane_tri if any(light is s for s in self.suns) else _NO_PANE_TRI
+        # (visual importance wraps a light in a RegionEmitter: its .light is the sun)
+        inner = getattr(light, "light", light)
+        return self.pane_tri if any(inner is s for s in self.suns) else _NO_PANE_TRI
 
 
 def _transmittance_table(glass, m):

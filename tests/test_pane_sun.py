@@ -175,3 +175,24 @@ def test_scenes_without_a_sun_pane_render_the_same_bits(case):
             panelight.ENABLED = old
     assert films[0].mean() > 0
     assert np.array_equal(films[0], films[1])
+
+
+def test_aimed_sun_photons_through_a_pane_are_direct():
+    """Visual importance wraps the sun in a RegionEmitter (photons aimed at the camera's
+    region): those photons through the pane are direct too. (They stayed caustic at
+    first: the window room of bench/bench_window_pane.py read its sun patch twice,
+    table 1.85x Cycles.)"""
+    from engine.visualimportance import Region, RegionEmitter
+    scene = _floor_under_pane(pane=4.0, angle=0.0, tilt=0.0)
+    scene.validate()
+    geo, table = prepare(scene)
+    accel = Accel(geo.vertices32, geo.faces32, 1)
+    lights = prepare_lights(scene, geo, table)
+    ctx = Context(scene, RenderSettings(photons=50_000, seed=3), geo, table, accel, lights)
+    region = Region(np.array([[0.0, 0.0, 0.0]]) - geo.offset, np.array([1.0]), 0.9, 100)
+    ph = trace_photons(ctx, [RegionEmitter(lights[0], region, 0.5)], [50_000], False, 1)
+    floor = np.abs(ph.position[:, 2] - ph.position[:, 2].min()) < 1e-3
+    xy = ph.position[:, :2].astype(np.float64) + geo.offset[:2]
+    under = floor & np.all(np.abs(xy) < 2.0, axis=1)
+    assert np.count_nonzero(under & (ph.kind == DIRECT)) > 1000
+    assert not np.any(under & (ph.kind == CAUSTIC))
