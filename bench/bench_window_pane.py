@@ -99,7 +99,7 @@ def build(sun_angle):
     w.name = "WindowPane"
     w.scale = (1.2, 1.0, 1)
     w.data.materials.append(pane)
-    box("Table", (0.2, -0.9, 0.35), (0.8, 0.6, 0.7), wood)
+    box("Table", (0.5, -1.0, 0.35), (0.8, 0.6, 0.7), wood)
     bpy.ops.mesh.primitive_cylinder_add(vertices=32, radius=0.2, depth=0.8,
                                         location=(-1.1, 0.1, 0.4))
     c = bpy.context.active_object
@@ -131,14 +131,28 @@ def build(sun_angle):
 
 
 def masks(scene, w, h):
-    """(H, W) object names' ids per pixel centre (row 0 at the top), and the names."""
+    """(H, W) object names' ids per pixel centre (row 0 at the top), the names, and (H, W)
+    bool: the point is in the sun patch (a ray from it back along the sun's central
+    direction refracted by the pane meets the pane first)."""
     import bpy
+    from mathutils import Vector
     dg = bpy.context.evaluated_depsgraph_get()
+    sun = bpy.data.objects["Sun"]
+    travel = (sun.matrix_world.to_3x3() @ Vector((0, 0, -1))).normalized()
+    pane = bpy.data.objects["WindowPane"]
+    n = (pane.matrix_world.to_3x3() @ Vector((0, 0, 1))).normalized()
+    ci = -travel.dot(n)
+    eta = 1.0 / 1.5 if ci > 0 else 1.5
+    ns = n if ci > 0 else -n
+    ci = abs(ci)
+    ct = math.sqrt(max(1.0 - eta * eta * (1.0 - ci * ci), 0.0))
+    back = -(eta * travel + (eta * ci - ct) * ns)  # towards the pane from the room
     cam = scene.camera
     tr, br, bl, tl = [cam.matrix_world @ v for v in cam.data.view_frame(scene=scene)]
     origin = cam.matrix_world.translation
     names, ids = [], -np.ones((h, w), np.int32)
     pts = np.zeros((h, w, 3))
+    lit = np.zeros((h, w), bool)
     for j in range(h):
         for i in range(w):
             u, v = (i + 0.5) / w, (j + 0.5) / h
@@ -149,7 +163,9 @@ def masks(scene, w, h):
                     names.append(ob.name)
                 ids[j, i] = names.index(ob.name)
                 pts[j, i] = tuple(loc)
-    return ids, names, pts
+                h2, _, _, _, ob2, _ = scene.ray_cast(dg, loc + 1e-4 * back, back)
+                lit[j, i] = bool(h2) and ob2.name == "WindowPane"
+    return ids, names, pts, lit
 
 
 def child(a):
@@ -161,9 +177,10 @@ def child(a):
     r.resolution_x, r.resolution_y = a.res
     r.resolution_percentage = 100
     if a.child == "masks":
-        ids, names, pts = masks(scene, *a.res)
+        ids, names, pts, lit = masks(scene, *a.res)
         np.save(os.path.join(a.out, "masks.npy"), ids)
         np.save(os.path.join(a.out, "points.npy"), pts)
+        np.save(os.path.join(a.out, "lit.npy"), lit)
         with open(os.path.join(a.out, "masks.json"), "w") as f:
             json.dump(names, f)
         return
@@ -177,6 +194,7 @@ def child(a):
     r.filter_size = 1.5
     if a.child.startswith("cycles"):
         r.engine = "CYCLES"
+        c.samples = int(a.child[len("cycles"):])
     else:
         from engine import panelight
         panelight.ENABLED = a.child == "after"
@@ -221,6 +239,9 @@ def main():
     ap.add_argument("--spp", type=int, default=128)
     ap.add_argument("--sun-angle", type=float, default=3.0)
     ap.add_argument("--out", default="/tmp/bench_window_pane")
+    ap.add_argument("--cycles-equal", type=int, default=256,
+                    help="Cycles at about ours' CPU time: its block ratios against the "
+                    "reference too (0: none)")
     ap.add_argument("--child")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -231,42 +252,62 @@ def main():
     times = {}
     if not os.path.exists(ref_path):
         times[cyc_name] = run(a, cyc_name)
-    if not os.path.exists(os.path.join(a.out, "masks.npy")):
+    if not os.path.exists(os.path.join(a.out, "lit.npy")):
         run(a, "masks")
-    for what in ("before", "after"):
+    runs = ["before", "after"]
+    if a.cycles_equal:
+        runs.append(f"cycles{a.cycles_equal}")
+    for what in runs:
         times[what] = run(a, what)
     ref = np.load(ref_path).astype(np.float64).mean(axis=2)
     ids = np.load(os.path.join(a.out, "masks.npy"))
-    pts = np.load(os.path.join(a.out, "points.npy"))
+    lit = np.load(os.path.join(a.out, "lit.npy"))
     names = json.load(open(os.path.join(a.out, "masks.json")))
     nid = {n: i for i, n in enumerate(names)}
     floor = ids == nid.get("Floor", -9)
-    lit = ref > 3.0 * np.median(ref[floor]) if floor.any() else np.zeros_like(floor)
+    print(f"sun patch: {int((floor & lit).sum())} floor pixels")
     walls = np.isin(ids, [i for n, i in nid.items() if "Wall" in n or n == "Ceiling"])
+    objects = np.isin(ids, [nid.get("Table", -9), nid.get("Cylinder", -9)])
     regions = {"floor, sun patch": floor & lit, "floor, shade": floor & ~lit,
-               "walls + ceiling": walls,
-               "table + cylinder": np.isin(ids, [nid.get("Table", -9), nid.get("Cylinder", -9)]),
-               "whole image": np.ones_like(floor)}
+               "table top in sun": objects & lit, "objects in shade": objects & ~lit,
+               "walls + ceiling": walls, "whole image": np.ones_like(floor)}
     print(f"room {a.res[0]}x{a.res[1]}, sun 40 deg elevation, angle {a.sun_angle} deg; "
           f"ours {a.spp} spp (add-on defaults otherwise), Cycles {a.cycles_spp} spp"
           + (f" ({times[cyc_name]:.0f} CPU s)" if cyc_name in times else " (kept)"))
-    print(f"{'region':20s} {'pixels':>6s} {'before':>8s} {'after':>8s}   (ours / Cycles)")
+    print(f"{'region':20s} {'pixels':>6s} " + " ".join(f"{w:>10s}" for w in runs)
+          + "   (/ Cycles reference)")
     imgs = {w: np.load(os.path.join(a.out, w + ".npy")).astype(np.float64).mean(axis=2)
-            for w in ("before", "after")}
+            for w in runs}
     for name, m in regions.items():
         if not m.any():
             continue
-        row = [imgs[w][m].mean() / max(ref[m].mean(), 1e-12) for w in ("before", "after")]
-        print(f"{name:20s} {int(m.sum()):6d} {row[0]:8.3f} {row[1]:8.3f}")
+        row = [imgs[w][m].mean() / max(ref[m].mean(), 1e-12) for w in runs]
+        print(f"{name:20s} {int(m.sum()):6d} " + " ".join(f"{x:10.3f}" for x in row))
     rb = blocks(ref)
     ok = rb > 0.05 * ref.mean()
-    print(f"10x10 block ratios ours / Cycles ({int(ok.sum())} blocks): "
-          "median, p5-p95, min-max")
-    for w in ("before", "after"):
+    print(f"10x10 block ratios / Cycles reference ({int(ok.sum())} blocks): "
+          "median, p5-p95, min-max; the sun patch's blocks (half or more of the block lit)")
+    patch = blocks(lit.astype(np.float64)) >= 0.5
+    for w in runs:
         q = blocks(imgs[w])[ok] / rb[ok]
         print(f"  {w:6s} {np.median(q):.3f}  {np.percentile(q, 5):.3f}-"
               f"{np.percentile(q, 95):.3f}  {q.min():.3f}-{q.max():.3f}   "
               f"CPU {times[w]:.0f} s")
+        if patch.any():
+            q = blocks(imgs[w])[patch] / rb[patch]
+            # Cycles-free: the lit floor's 2x2-pixel block means' relative spread (the
+            # patch is evenly lit: its variation is noise and blotches).
+            # (pixels whose 8 neighbours are lit floor too: not the sun's penumbra)
+            inner = floor & lit
+            inner[1:-1, 1:-1] &= np.all([np.roll(np.roll(floor & lit, dy, 0), dx, 1)
+                                         [1:-1, 1:-1] for dy in (-1, 0, 1)
+                                         for dx in (-1, 0, 1)], axis=0)
+            inner[[0, -1], :] = False
+            inner[:, [0, -1]] = False
+            fl = imgs[w][inner]
+            spread = fl.std() / fl.mean() if inner.any() else float("nan")
+            print(f"         patch ({int(patch.sum())} blocks): {q.min():.3f}-{q.max():.3f};"
+                  f" lit floor's inner {int(inner.sum())} pixels: std / mean {spread:.3f}")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-pytestmark = [pytest.mark.blender, pytest.mark.slow]
+pytestmark = pytest.mark.blender
 
 
 def _material(bpy, name, kind, rgb):
