@@ -15,6 +15,7 @@ from .closures.ggx import ALPHA_MIN
 from .geometry import PIECE_TRIANGLES, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
+from .panelight import find_panes
 from .rayoffset import ulp32
 from .sampling import luminance
 from .scene import AREA, SUN
@@ -111,6 +112,7 @@ class EffectPlan:
     caster_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # their object ids
     rough_specular: list = field(default_factory=list)  # specular objects too rough to focus
     window_glass: list = field(default_factory=list)    # thin flat glass: shadow rays pass it
+    pane_glass: list = field(default_factory=list)      # single-plane glass only suns light
     caustics_from_global: bool = False  # caustic map from the global shot, no caustic shot
     caustics_glow_only: bool = False  # the caustic map holds only rough layers' / window glow
     glow_words: str = ""  # what that glow-only map holds, for the maps line (only what exists)
@@ -319,6 +321,15 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         window_tri = window_glass(geo, table) if has_tris else np.zeros(0, bool)
         plan.window_glass = ([geo.object_names[i] for i in np.unique(geo.object_id[window_tri])]
                              if window_tri.any() else [])
+        # Single-plane glass panes (engine/panelight.py) when every emitting light is a
+        # sun whose shadow rays refract through them: the light through them is direct,
+        # so they are no caustic casters either (their reflections: unaimed photons).
+        panes = find_panes(geo, table, lights) if has_tris else None
+        if (panes is not None and emitting
+                and all(any(li is sun for sun in panes.suns) for li in emitting)):
+            pane_tri = panes.pane_tri >= 0
+            plan.pane_glass = [p.name for p in panes.panes]
+            window_tri = window_tri | pane_tri
         sharp_tri = ((sharp_specular(table)[mat] if has_tris else np.zeros(0, bool))
                      & focus_tri & ~window_tri)
         rough_tri = focus_tri & ~sharp_tri & ~window_tri
@@ -347,6 +358,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             rough_note += ("; window glass " + _quoted(plan.window_glass)
                            + ": passed by shadow rays (thin flat glass), not a caustic "
                            "caster; unaimed photons carry its reflections")
+        if plan.pane_glass:
+            rough_note += ("; single-plane glass " + _quoted(plan.pane_glass)
+                           + ": the sun reaches through it by shadow rays, not a caustic "
+                           "caster; unaimed photons carry its reflections")
         if glossy_rough:
             rough_note += ("; not aimed at " + _quoted(glossy_rough)
                            + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
@@ -372,7 +387,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = True, (f"{s.caustic_photons:,} photons aimed at {names_r}{rough_note}"
                                if s.aim_caustics
                                else f"{s.caustic_photons:,} photons, from {names_r}{rough_note}")
-        elif rough_reached or (plan.window_glass and emitting):
+        elif rough_reached or ((plan.window_glass or plan.pane_glass) and emitting):
             # Nothing focuses light: no caustic in a student's sense (a plain room's rough
             # Principled walls read "caustics: on" to a new user). Their specular layers
             # still reflect a soft glow onto the other surfaces, and that light is
@@ -388,7 +403,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             plan.glow_words = " and ".join(
                 (["soft glow off rough specular layers"] if gl_reached else [])
                 + (["light through translucent surfaces"] if tl_reached else [])
-                + (["reflections of window glass"] if plan.window_glass else []))
+                + (["reflections of window glass"]
+                   if plan.window_glass or plan.pane_glass else []))
             # Unaimed: the global shot's caustic-kind photons, or, where visual importance
             # aims the global shot, a lighter glow shot of their own (render.py,
             # GLOW_STREAM's comment).
@@ -406,12 +422,18 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             if plan.window_glass:
                 glow.append("the reflections of window glass "
                             + _quoted(plan.window_glass) + " (passed by shadow rays: thin flat glass)")
+            if plan.pane_glass:
+                glow.append("the reflections of single-plane glass "
+                            + _quoted(plan.pane_glass) + " (the sun reaches through it by "
+                            "shadow rays)")
             # Rough glass (a frosted lamp shade) is glass too: "no glass" beside the
             # specular line's "through glass 'Shade' (roughness 0.5)" read as a
             # contradiction (new-user trial, newuser29).
             rough_glass = [n for n in plan.rough_specular
                            if specular_kind(geo, table, ids_of[n]) == "glass"]
-            kinds = (["window"] if plan.window_glass else []) + (["rough"] if rough_glass else [])
+            kinds = ((["window"] if plan.window_glass else [])
+                     + (["single-plane"] if plan.pane_glass else [])
+                     + (["rough"] if rough_glass else []))
             glass_words = f"only {' and '.join(kinds)} glass" if kinds else "no glass"
             if rough_glass:
                 glass_words += " " + _quoted(rough_glass, most=REPORT_NAMES_MAX)
@@ -533,6 +555,17 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         if not casts:
             plan.add(f"shadow rays '{li.name}'", False, "the light's 'Cast Shadow' is off")
         plan.shadows[li.name] = casts and not nothing_occludes and s.method != "local"
+    # Suns through single-plane glass panes (engine/panelight.py): their shadow rays
+    # refract through the pane instead of stopping at it.
+    panes = find_panes(geo, table, lights) if has_tris and s.method != "local" else None
+    if panes is not None:
+        names = _quoted([p.name for p in panes.panes], most=REPORT_NAMES_MAX)
+        for li in panes.suns:
+            if plan.shadows.get(li.name, True):
+                plan.add(f"sun through glass '{li.name}'", True,
+                         f"reaches through single-plane glass {names} by shadow rays "
+                         "refracted through it; its photons through the glass are direct "
+                         "light, not caustics")
     if s.method == "local" and lights:
         # No shadow rays: a light's samples only integrate over its area.
         for i, d in enumerate(plan.decisions):

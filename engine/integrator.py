@@ -44,6 +44,7 @@ from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
+from .panelight import pane_irradiance, panes_for
 from .shadowtransmittance import CameraPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
@@ -177,6 +178,17 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages)
     counters.shadow_rays += rays
+    panes = panes_for(ctx)
+    if panes is not None:
+        # Suns through single-plane glass panes (engine/panelight.py): the diffuse lobe's
+        # light, which the photons through the panes no longer carry as caustics.
+        take = (lambda a: a) if rows is None else (lambda a: np.take(a, rows, axis=0))
+        Ep, rays = pane_irradiance(ctx, panes, take(np.asarray(hit.p, np.float64)),
+                                   take(np.asarray(hit.ns, np.float64)),
+                                   take(np.asarray(hit.ng, np.float64)),
+                                   take(np.asarray(hit.offset, np.float64)), samples)
+        counters.shadow_rays += rays
+        E += Ep if bsdf is None else Ep * bsdf[0]
     return E
 
 

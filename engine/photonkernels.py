@@ -50,6 +50,12 @@ F_PATH = 15        # the bits above: the path's own state
 # from before the glass (bits 8-11) and the entry triangle's row (bits 32-62), so that
 # the exit through the slab's parallel face restores the path as it was (no caustic).
 F_IN_GLASS = 16
+# A sun's photon that crossed a next-event pane (engine/panelight.py) as its first scatter
+# and is still direct: a transparent pass or a second crossing after it makes it caustic
+# (the pane's shadow rays cross neither).
+F_PANE = 32
+# The path's own kind bits (F_PATH without F_FIRST_CASTER).
+_F_KIND = 7
 _PRE_SHIFT = 8
 _TRI_SHIFT = 32
 # The flat-passage test (shared with engine/shadowtransmittance.py): the exit face's
@@ -330,6 +336,7 @@ def flat_thickness_limits(geo) -> np.ndarray:
 
 
 _NO_FLAT_MAT = np.zeros(0, np.bool_)
+_NO_PANE_TRI = np.zeros(0, np.int64)
 _NO_FLAT_LIMIT = np.zeros(0)
 
 
@@ -395,7 +402,7 @@ _PLAIN_ARG = 31
 
 
 def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_NO_ANISO_TAN,
-            may_diffuse=_NO_MAY_DIFFUSE):
+            may_diffuse=_NO_MAY_DIFFUSE, pane_tri=_NO_PANE_TRI):
     """_scatter (the kernel) with the flat-passage tables: flat_mat (M,) bool
     (flat_glass_materials) and flat_limit (objects,) (flat_thickness_limits), triangle
     rows being the scene's own (no shared instances); empty (the default): no flat
@@ -406,12 +413,14 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     photon is stored where its row's flag is set even if the hit's own diffuse weight is
     0 (a texture-driven metallic map, a Mix Shader's per-hit closure pick: the incident
     flux does not depend on which closure the hit took); empty (the default): stored
-    where the hit's diffuse weight is > 0."""
+    where the hit's diffuse weight is > 0. pane_tri (T,) int64: the next-event pane
+    (engine/panelight.py) of each triangle row, -1 for none; empty (the default, and for
+    photons of lights other than suns): no panes."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
         args = (args[:_PLAIN_ARG] + (np.ascontiguousarray(plain, np.int8),)
                 + args[_PLAIN_ARG + 1:])
-    return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse)
+    return _scatter(*args, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri)
 
 
 # smooth_glass's per-(material, side) constants (smooth_glass_consts), columns of a row:
@@ -689,7 +698,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              caster, first_hit_mode, caustic_only, vis_on, limits,
              st_pos, st_power, st_dir, st_normal, st_kind, st_bnc,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
-             nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse):
+             nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
     ray kinds, slots and packed bounce counts bnc (m,) int64 (B_TOTAL ...), at the hits
     as Embree answers them (Accel.intersect_hits):
@@ -741,6 +750,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     m = geom.shape[0]
     keep_from = nx_from.shape[0] > 0
     flat_on = flat_mat.shape[0] > 0
+    pane_on = pane_tri.shape[0] > 0
     may_diffuse_on = may_diffuse.shape[0] > 0
     bumped = bump.shape[0] > 0
     if hit_rows.shape[1] < m:
@@ -1072,6 +1082,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             # --- path flags ---
             nf = fl & ~np.int64(F_IN_GLASS) & ((np.int64(1) << _PRE_SHIFT) - 1)
             passage = fl & F_IN_GLASS
+            pane = fl & F_PANE
+            nf &= ~np.int64(F_PANE)
             if lobe == pr.L_DIFFUSE:
                 # The first diffuse bounce after a caustic path starts L S+ D; any further
                 # diffuse bounce makes it ordinary indirect light.
@@ -1080,7 +1092,12 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 elif fl & F_SPECULAR:
                     nf |= F_CAUSTIC_DIFF
                 nf |= F_DIFFUSE
-            elif lobe != pr.L_PASS:
+            elif lobe == pr.L_PASS:
+                if pane:
+                    # Past a pane, a transparent pass: the pane's shadow rays do not cross
+                    # it (engine/panelight.py), so this light is the caustic map's.
+                    nf |= F_SPECULAR
+            else:
                 # Every other lobe is continued by the camera side too (which reads no photon
                 # map at a glossy lobe), so light by way of it is caustic light however rough
                 # the lobe. A transparent pass leaves the kind as it was: shadow rays cross
@@ -1091,10 +1108,15 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                         fl >> _TRI_SHIFT, t, dx, dy, dz, p_b[j, 0], p_b[j, 1], p_b[j, 2])):
                     # Out of a flat passage: the path as it was before the glass.
                     nf = (fl >> _PRE_SHIFT) & F_PATH
+                elif (pane_on and glass and transmitted and not passage and not pane
+                      and (fl & _F_KIND) == 0 and pane_tri[t] >= 0):
+                    # A sun's light refracted straight through a next-event pane: still
+                    # direct (the pane's shadow rays carry it; engine/panelight.py).
+                    nf |= F_PANE
                 else:
                     pre = nf
                     nf |= F_SPECULAR
-                    if (flat_on and glass and transmitted
+                    if (flat_on and glass and transmitted and not pane
                             and flat_entry(e1, e2, material, flat_mat, t, dx, dy, dz)):
                         nf |= F_IN_GLASS | (pre << _PRE_SHIFT) | (t << _TRI_SHIFT)
             # --- the continued ray, its origin cleared of this triangle (pbrt-v4) ---

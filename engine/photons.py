@@ -36,6 +36,7 @@ from .coincident import CoincidentSurfaces
 from .closures.principled import M_IOR
 from .console import short_count
 from .normalmap import bump_shadowing
+from .panelight import panes_for
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
 
 LOBES = LOBE_NAMES
@@ -206,11 +207,14 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     factors = pool.take(_factors, m)
     bump, tfar, hit_rows, hits = _factor_views(factors, m)
     stored = _Stored(2 * m + 1024, pool, shot)
+    # A sun's photons refracted through a next-event pane stay direct (engine/panelight.py).
+    panes = panes_for(ctx)
+    pane_tri = panes.photon_tri(light) if panes is not None else None
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
                  bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,
                  tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
-                 coincident, make_next)
+                 coincident, make_next, pane_tri)
     except BaseException:
         stored.release()
         raise
@@ -225,11 +229,13 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
              bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
              hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
-             make_next):
+             make_next, pane_tri=None):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
-    make_next); coincident: the scene's CoincidentSurfaces or None."""
+    make_next); coincident: the scene's CoincidentSurfaces or None; pane_tri: the
+    next-event panes' triangle table for this light's photons (panelight.Panes.photon_tri)
+    or None."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
@@ -316,7 +322,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 visibility, object_id, caster, mode, bool(caustic_only),
                                 vis_on, limits, *stored.room(m), *nxt_sets[k], hit_rows,
                                 flat_mat=flat[0], flat_limit=flat[1], aniso_tan=aniso_tan,
-                                may_diffuse=may_diffuse)
+                                may_diffuse=may_diffuse,
+                                **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
 

@@ -1,8 +1,9 @@
 """Flat passages through thin glass (docs/design.md, Transparent shadows): shadow rays
 cross a thin smooth glass slab with the transmittance of its two refractions,
 TW^2 (1 - F)^2 (Glass BSDF: TW = its colour), and photons that pass straight through
-it keep their path state (direct light, not caustic); a glass cube, a ball and
-single-plane glass keep blocking shadow rays and keep their caustics."""
+it keep their path state (direct light, not caustic); a glass cube and a ball keep
+blocking shadow rays and keep their caustics (single-plane glass under a sun is a
+next-event pane: engine/panelight.py)."""
 import math
 
 import numpy as np
@@ -105,10 +106,11 @@ def test_photons_through_thin_slab_are_direct_with_the_same_transmittance():
     assert np.all(caustic_under < 0.01 * direct_under)
 
 
-def test_glass_cube_ball_and_single_plane_still_block_and_cast_caustics():
-    """A 1 m glass cube (thickness 58 % of its diagonal), a ball and single-plane glass
-    are not flat: shadow rays under them are blocked, the light there is caustic."""
-    for shape in ("cube", "ball", "plane"):
+def test_glass_cube_and_ball_still_block_and_cast_caustics():
+    """A 1 m glass cube (thickness 58 % of its diagonal) and a ball are not flat: shadow
+    rays under them are blocked, the light there is caustic. (Single-plane glass under a
+    sun is a next-event pane since pane31: test_single_plane_is_a_sun_pane.)"""
+    for shape in ("cube", "ball"):
         ctx = _sun_under(shape)
         hit = _floor_hits(ctx, 200, half=0.2)
         E = direct_irradiance(ctx, hit, np.random.default_rng(1), Counters())
@@ -118,6 +120,22 @@ def test_glass_cube_ball_and_single_plane_still_block_and_cast_caustics():
         under = (np.abs(pos[:, 2]) < 1e-3) & np.all(np.abs(pos[:, :2]) < 0.3, axis=1)
         assert np.any(under & (ph.kind == CAUSTIC)), shape
         assert not np.any(under & (ph.kind == DIRECT)), shape
+
+
+def test_single_plane_is_a_sun_pane():
+    """Single-plane glass bends the sun's light for good: not a flat passage, but a pane
+    (engine/panelight.py): the sun's shadow rays refract through it, E = E_sun (1 - F0)
+    / n^2 at normal incidence (the photons' convention, docs/units.md), and the sun's
+    photons through it are direct, not caustic."""
+    ctx = _sun_under("plane")
+    hit = _floor_hits(ctx, 200, half=0.2)
+    E = direct_irradiance(ctx, hit, np.random.default_rng(1), Counters())
+    np.testing.assert_allclose(E, 2.0 * (1.0 - _fresnel(1.0, IOR)) / IOR ** 2, rtol=1e-3)
+    ph = trace_photons(ctx, ctx.lights, [40_000], caustic_only=False, stream=1)
+    pos = ph.position.astype(np.float64) + ctx.geo.offset
+    under = (np.abs(pos[:, 2]) < 1e-3) & np.all(np.abs(pos[:, :2]) < 0.3, axis=1)
+    assert np.any(under & (ph.kind == DIRECT))
+    assert not np.any(under & (ph.kind == CAUSTIC))
 
 
 def test_slab_counts_two_transparent_bounces():
