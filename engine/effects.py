@@ -559,13 +559,29 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     # refract through the pane instead of stopping at it.
     panes = find_panes(geo, table, lights) if has_tris and s.method != "local" else None
     if panes is not None:
-        names = _quoted([p.name for p in panes.panes], most=REPORT_NAMES_MAX)
         for li in panes.suns:
-            if plan.shadows.get(li.name, True):
-                plan.add(f"sun through glass '{li.name}'", True,
-                         f"reaches through single-plane glass {names} by shadow rays "
-                         "refracted through it; its photons through the glass are direct "
-                         "light, not caustics")
+            if not plan.shadows.get(li.name, True):
+                continue
+            reflected = panes.total_reflections(li)
+            if len(reflected) == len(panes.panes):
+                # Every pane faces away from this sun: physically right (Cycles agrees),
+                # but a new user's window plane rotated the wrong way (pane31's bench).
+                name, inc, crit, ior = reflected[0]
+                plan.add(f"sun through glass '{li.name}'", False,
+                         f"single-plane glass {_quoted([r[0] for r in reflected])} faces "
+                         f"away from the sun: its light meets '{name}' from the glass "
+                         f"side at {inc:.0f} degrees, beyond the critical angle "
+                         f"{crit:.1f} degrees (IOR {ior:g}), and is totally reflected, as "
+                         "in Cycles; flip the plane's normals (Edit Mode > Mesh > Normals "
+                         "> Flip) to let the sun in")
+                continue
+            through = _quoted([p.name for p in panes.panes
+                               if p.name not in {r[0] for r in reflected}],
+                              most=REPORT_NAMES_MAX)
+            plan.add(f"sun through glass '{li.name}'", True,
+                     f"reaches through single-plane glass {through} by shadow rays "
+                     "refracted through it; its photons through the glass are direct "
+                     "light, not caustics")
     if s.method == "local" and lights:
         # No shadow rays: a light's samples only integrate over its area.
         for i, d in enumerate(plan.decisions):

@@ -73,6 +73,29 @@ class Panes:
         self.pane_tri = pane_tri
         self.suns = suns
 
+    def total_reflections(self, light) -> list:
+        """[(pane name, incidence deg, critical deg, ior)] for the panes that reflect all of
+        sun `light`'s central direction: it meets them from their glass side (against
+        the winding normal) beyond the critical angle asin(1 / ior). A plane rotated into
+        a wall with its normal into the room does that to a sun higher than the critical
+        angle, in Cycles too: the room stays dark (pane31's bench)."""
+        inner = getattr(light, "light", light)
+        d = np.asarray(getattr(inner, "dir", (0.0, 0.0, 0.0)), np.float64)
+        norm = float(np.linalg.norm(d))
+        if not norm > 0.0:
+            return []
+        w = -d / norm  # towards the sun
+        out = []
+        for pane in self.panes:
+            dn = float(w @ pane.n)
+            if dn >= 0.0 or not pane.ior > 1.0:
+                continue  # from the air side (or no denser side): refracted in
+            critical = math.degrees(math.asin(1.0 / pane.ior))
+            incidence = math.degrees(math.acos(min(-dn, 1.0)))
+            if incidence > critical:
+                out.append((pane.name, incidence, critical, pane.ior))
+        return out
+
     def photon_tri(self, light) -> np.ndarray:
         """pane_tri for photons of `light` (a sun: the table; any other light: empty, its
         light through a pane stays caustic)."""
