@@ -122,9 +122,12 @@ def find_panes(geo, table, lights, settings=None):
     one material), all their triangles in one plane with one winding (single-plane glass,
     not a slab: window_triangles has those), while the scene has a sun, no shared
     instances, and no light tree (each sun is sampled on its own). At most MAX_PANES,
-    largest area first."""
+    largest area first. settings (RenderSettings or None): method 'local' has no
+    shadow rays and no refraction, so no panes."""
     if geo.count == 0 or getattr(geo, "shared", None) is not None:
         return None
+    if settings is not None and getattr(settings, "method", None) == "local":
+        return None  # (its direct light is unoccluded: a pane's light would add to it)
     from .geometry import SHADOW
     from .lights.selection import SAMPLE_ALL_UP_TO
     if len(lights) > SAMPLE_ALL_UP_TO:

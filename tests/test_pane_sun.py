@@ -222,3 +222,15 @@ def test_effect_report_names_a_pane_that_totally_reflects_the_sun():
     assert "Normals > Flip" in line
     # Physically right: nothing comes through (the Direct pass is dark).
     assert float(film.direct.mean()) == 0.0
+
+
+def test_local_illumination_traces_no_pane_shadow_rays():
+    """Method 'local' has no shadow rays and no refraction (effects.METHOD_TEXT): the floor
+    under the pane reads the sun's unoccluded rho / pi E cos, with panes as without, and
+    no shadow ray is traced (the pane's refracted light is not added on top: it read
+    rho / pi E cos + rho / pi E cos T / n^2, 0.589 for 0.413)."""
+    s = _floor_under_pane()
+    film = s.render(RenderSettings(method="local", spp=2, seed=2))
+    want = ALBEDO / math.pi * SUN_E * math.cos(math.radians(TILT))
+    assert float(film.direct.mean()) == pytest.approx(want, rel=1e-3)
+    assert film.stats["shadow_rays"] == 0
