@@ -49,6 +49,7 @@ PLANE_TOL = 1e-5
 # Transmittance table resolution over cos(theta_i) in [0, 1] (np.interp between rows).
 T_ROWS = 2049
 
+_T_GRID = np.linspace(0.0, 1.0, T_ROWS)  # the tables' cos(theta_i) rows
 _lock = threading.Lock()
 _NO_PANE_TRI = np.zeros(0, np.int64)
 
@@ -57,7 +58,8 @@ class Pane:
     """One pane plane: unit winding normal n (3,), a point c (3,) on it, its triangle rows,
     material m, IOR, object name and T[side] (2, T_ROWS, 3): the smooth interface's RGB
     transmittance from outside (side 0, arriving against n) and from inside (side 1)
-    against cos(theta_i) on a uniform grid of [0, 1]."""
+    against cos(theta_i) on a uniform grid of [0, 1]; find_panes adds lo, hi (3,): its
+    padded bounds."""
 
     def __init__(self, name, n, c, rows, m, ior, T):
         self.name, self.n, self.c, self.rows, self.m, self.ior, self.T = (
@@ -178,9 +180,16 @@ def find_panes(geo, table, lights, settings=None):
     panes = []
     pane_tri = np.full(geo.count, -1, np.int64)
     for k, (_, oid, n, c, tris, m) in enumerate(cand[:MAX_PANES]):
-        panes.append(Pane(geo.object_names[oid], np.asarray(n, np.float64),
-                          np.asarray(c, np.float64), tris, m, float(table.ior[m]),
-                          _transmittance_table(glass, m)))
+        pane = Pane(geo.object_names[oid], np.asarray(n, np.float64),
+                    np.asarray(c, np.float64), tris, m, float(table.ior[m]),
+                    _transmittance_table(glass, m))
+        # Its bounds, padded: a shadow ray whose plane crossing lies outside cannot meet
+        # it, and skips the closest-hit query (pane_irradiance).
+        corners = np.concatenate([geo.v0[tris], geo.v0[tris] + geo.e1[tris],
+                                  geo.v0[tris] + geo.e2[tris]])
+        pad = 1e-4 * max(float(geo.extent), 1e-9)
+        pane.lo, pane.hi = corners.min(axis=0) - pad, corners.max(axis=0) + pad
+        panes.append(pane)
         pane_tri[tris] = k
     return Panes(panes, np.ascontiguousarray(pane_tri), [lights[i] for i in suns])
 
@@ -273,6 +282,8 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             d = wt[idx]
             t_plane = ((pane.c - o) @ pane.n) / (d @ pane.n)
             good = np.isfinite(t_plane) & (t_plane > 0.0)
+            y = o + np.where(good, t_plane, 0.0)[:, None] * d
+            good &= np.all((y >= pane.lo) & (y <= pane.hi), axis=1)  # within its bounds
             idx, o, d, t_plane = idx[good], o[good], d[good], t_plane[good]
             if not len(idx):
                 continue
@@ -306,12 +317,11 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             ci, ct = cos_i[idx], cos_t[idx]
             sd = side[idx]
             T = np.empty((len(idx), 3))
-            grid = np.linspace(0.0, 1.0, T_ROWS)
             for s in (0, 1):
                 m_ = sd == s
                 if m_.any():
                     for c in range(3):
-                        T[m_, c] = np.interp(ci[m_], grid, pane.T[s, :, c])
+                        T[m_, c] = np.interp(ci[m_], _T_GRID, pane.T[s, :, c])
             f = eta2[idx] * ci / np.maximum(ct, 1e-12) * cr[idx] / count
             E[idx] += (f[:, None] * T * trans) * rgb[None, :]
     if counters is not None:

@@ -234,3 +234,16 @@ def test_local_illumination_traces_no_pane_shadow_rays():
     want = ALBEDO / math.pi * SUN_E * math.cos(math.radians(TILT))
     assert float(film.direct.mean()) == pytest.approx(want, rel=1e-3)
     assert film.stats["shadow_rays"] == 0
+
+
+def test_a_lamp_beside_the_sun_keeps_its_aimed_caustic_photons():
+    """A sun and a dim area lamp over a pane: the pane stays a caustic caster for the
+    lamp, and the caustic shot's photons go to the lamp (the sun's through the pane are
+    direct, which the caustic shot does not keep: 68 of 100,000 were stored before)."""
+    s = _floor_under_pane()
+    s.add_rect_area_light((3.0, 3.0, 3.0), (0.2, 0.2), power=1.0, direction=(0, 0, -1),
+                          name="lamp")
+    film = s.render(RenderSettings(spp=1, photons=20_000, caustic_photons=100_000, seed=2))
+    assert film.stats["caustic_photons"] > 20_000
+    want = _expected_radiance()
+    assert float(film.direct.astype(np.float64).mean()) == pytest.approx(want, rel=0.02)
