@@ -37,6 +37,7 @@ from .closures.principled import M_IOR
 from .console import short_count
 from .normalmap import bump_shadowing
 from .panelight import panes_for
+from .scene import POINT, SPOT
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
 
 LOBES = LOBE_NAMES
@@ -214,7 +215,7 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
                  bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,
                  tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
-                 coincident, make_next, pane_tri)
+                 coincident, make_next, pane_tri, soft_falloff_sources(light, n))
     except BaseException:
         stored.release()
         raise
@@ -229,13 +230,13 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
              bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
              hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
-             make_next, pane_tri=None):
+             make_next, pane_tri=None, soft=None):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
     make_next); coincident: the scene's CoincidentSurfaces or None; pane_tri: the
     next-event panes' triangle table for this light's photons (panelight.Panes.photon_tri)
-    or None."""
+    or None; soft: soft_falloff_sources' (centre, r^2) per emission slot, or None."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
@@ -254,6 +255,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         # are (Accel.intersect_hits).
         geom, prim32, u, v, starts = _closest_hits(accel, o, d32, tfar[:m],
                                                    tuple(a[:m] for a in hits))
+        if bounce == 0 and soft is not None:
+            _soft_falloff_at_first_hit(soft, o, d, tfar[:m], geom, slot, power)
         if coincident is not None:
             # Photons leaving a glass face another surface touches (refracted out
             # through a bottle's cap onto the floor), or that surface into the glass,
@@ -510,6 +513,53 @@ _NO_MAY_DIFFUSE = np.zeros(0, np.bool_)  # scatter: stored where the hit's diffu
 _NO_BUMP = np.zeros(0)  # scatter: no bent normals, every photon's bump factor is 1
 
 
+def soft_falloff_sources(emitter, n):
+    """(centre (n,3), r^2 (n,)) float64 per emission slot of a photon job of n photons, for
+    point and spot lights with a radius and Blender's Soft Falloff (Cycles'
+    point_light_sample without is_sphere: a disk of radius r through the centre facing the
+    shading point, so a point at distance d receives I / (d^2 + r^2) face-on); r^2 = 0
+    for the job's other lights. None where no light of the job has it. emitter: a light,
+    a visual-importance RegionEmitter (its .light) or a LightGroup (its members' slots in
+    order)."""
+    members = (list(zip(emitter.lights, emitter.counts)) if hasattr(emitter, "counts")
+               and hasattr(emitter, "lights") else [(getattr(emitter, "light", emitter), n)])
+    if not any(_is_soft(li) for li, _ in members):
+        return None
+    centre, r2 = np.zeros((n, 3)), np.zeros(n)
+    at = 0
+    for li, c in members:
+        if _is_soft(li):
+            centre[at:at + c] = li.pos
+            r2[at:at + c] = float(li.radius) ** 2
+        at += c
+    return centre, r2
+
+
+def _is_soft(light) -> bool:
+    return (getattr(light, "kind", None) in (POINT, SPOT)
+            and float(getattr(light, "radius", 0.0)) > 0.0 and not light.is_sphere)
+
+
+def _soft_falloff_at_first_hit(soft, o32, d, t32, geom, slot, power):
+    """Photons leave the light's sphere of radius r (engine/lights/point.py), whose light
+    falls as I / d^2; with Soft Falloff the camera side takes Cycles' facing disk, I / (d^2
+    + r^2). So each photon's power at its first hit, at distance d from the light's
+    centre, is scaled by d^2 / (d^2 + r^2): both passes then give the same irradiance
+    (within a few radii of the light: a lamp shade read 1.19x Cycles without it,
+    newuser31). o32, d (M,3) the emitted rays, t32 (M,) their hit distances, geom (M,)
+    < 0 for a miss, slot (M,) each photon's emission slot; power (M,3) scaled in place."""
+    centre, r2 = soft
+    rows = np.nonzero(geom >= 0)[0]
+    if not len(rows):
+        return
+    s = slot[rows]
+    keep = r2[s] > 0.0
+    rows, s = rows[keep], s[keep]
+    p = o32[rows].astype(np.float64) + t32[rows].astype(np.float64)[:, None] * d[rows]
+    dist2 = np.einsum("ij,ij->i", p - centre[s], p - centre[s])
+    power[rows] *= (dist2 / (dist2 + r2[s]))[:, None].astype(power.dtype)
+
+
 def _closest_hits(accel, o32, d32, tfar32, out):
     """Closest hits of the photon rays o32, d32 (N,3) float32 over every triangle, as
     Accel.intersect_hits answers: (geom, prim (N,) int32, u, v (N,) float32, starts),
@@ -520,7 +570,8 @@ def _closest_hits(accel, o32, d32, tfar32, out):
     full = getattr(accel, "full", accel)
     if hasattr(full, "intersect_hits"):
         return full.intersect_hits(o32, d32, tfar32, out)
-    _, prim, u, v = accel.intersect(o32, d32)  # unbounded, as tfar32
+    t, prim, u, v = accel.intersect(o32, d32)  # unbounded, as tfar32
+    tfar32[:] = t  # the hit distance, as Embree writes it (inf: a miss)
     geom, prim32, starts = rows_as_hits(prim)
     return geom, prim32, u.astype(np.float32), v.astype(np.float32), starts
 

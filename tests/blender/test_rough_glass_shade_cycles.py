@@ -11,8 +11,15 @@ the shade is seen from inside (eta < 1: a much larger factor), so the panel read
 (roughness 0.5) and +59 % (roughness 1) of Cycles. photonkernels.glass_adjoint takes the
 factor at the side the photon leaves to.
 
-- roughness 0.5, Multiscatter GGX: the panel within 4 % of Cycles (was 1.063; the same
-  panel behind a Translucent BSDF shade reads 1.037, the estimate's own bias here).
+- roughness 0.5, Multiscatter GGX: the panel within 3 % of 0.954 x Cycles. Cycles 5.0
+  evaluates refraction pairs no microfacet makes ("TODO: check if the refraction
+  configuration is valid", bsdf_microfacet.h), which its light samples see: a rough sheet
+  with a radius-0 lamp behind it reads 0.954 of Cycles at roughness 0.5, exactly what the
+  two evaluation functions predict (bench/bench_rough_sheet_eval.py; docs/compatibility.md
+  "roughlobes31": we keep the valid-pair evaluation). Before s31 the photons ignored the
+  lamp's Soft Falloff (photons.soft_falloff_sources), +5 % here, which hid that gap: the
+  panel read 1.008 (and 1.063 before glass_adjoint); a Translucent BSDF shade, which has
+  no such gap, read 1.037 and reads 0.998 since (newuser31).
 - roughness 1: the compensation's effect (Multiscatter GGX over plain GGX) within 3 % of
   Cycles' (was 1.80x Cycles'). Plain GGX alone reads 0.88 of Cycles at roughness 1 (0.96
   at 0.75): a deficit of the single-scattering photon transport through very rough glass,
@@ -24,6 +31,11 @@ import numpy as np
 import pytest
 
 pytestmark = [pytest.mark.blender, pytest.mark.slow]
+
+# Ours / Cycles where Cycles' light samples count its invalid refraction pairs: a rough
+# sheet (roughness 0.5) with a radius-0 lamp behind it, predicted from the two evaluation
+# functions and measured (bench/bench_rough_sheet_eval.py, docs/accuracy.md roughlobes31).
+CYCLES_UNCHECKED_PAIRS = 0.954
 
 
 def _material(bpy, name, build):
@@ -113,5 +125,5 @@ def test_panel_lit_through_a_rough_glass_shade_matches_cycles(bpy_addon, tmp_pat
     print("ours / Cycles:", {k: round(v, 4) for k, v in ratio.items()},
           "compensation's effect, ours / Cycles':", round(effect, 4))
     assert all(v > 0.05 for v in got.values()), got  # the panel is lit in every case
-    assert abs(ratio[0.5, "MULTI_GGX"] - 1.0) < 0.04, ratio
+    assert abs(ratio[0.5, "MULTI_GGX"] / CYCLES_UNCHECKED_PAIRS - 1.0) < 0.03, ratio
     assert abs(effect - 1.0) < 0.03, (effect, ratio)
