@@ -578,10 +578,22 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             through = _quoted([p.name for p in panes.panes
                                if p.name not in {r[0] for r in reflected}],
                               most=REPORT_NAMES_MAX)
+            # One plane is the surface of a block of glass, not a window: the room lies
+            # inside the glass, the sun bent and dimmed by 1 / n^2 (newuser31's study:
+            # ~0.3x a real window). Say by how much, and what makes a window.
+            first = next(p for p in panes.panes
+                         if p.name not in {r[0] for r in reflected})
+            bent = panes.bend(li, first)
+            how = ""
+            if bent is not None:
+                how = (f" ('{first.name}': from {bent[0]:.0f} to {bent[1]:.0f} degrees off "
+                       f"its normal, {bent[2]:.2f} of the sun's radiance: one plane is the "
+                       "surface of a block of glass, what lies behind it inside the glass; "
+                       "a window pane has two faces, e.g. a Solidify modifier)")
             plan.add(f"sun through glass '{li.name}'", True,
                      f"reaches through single-plane glass {through} by shadow rays "
-                     "refracted through it; its photons through the glass are direct "
-                     "light, not caustics")
+                     f"refracted through it{how}; its photons through the glass are "
+                     "direct light, not caustics")
     if s.method == "local" and lights:
         # No shadow rays: a light's samples only integrate over its area.
         for i, d in enumerate(plan.decisions):

@@ -98,6 +98,24 @@ class Panes:
                 out.append((pane.name, incidence, critical, pane.ior))
         return out
 
+    def bend(self, light, pane) -> tuple | None:
+        """(incidence deg, refracted deg, radiance factor) of sun `light`'s central
+        direction through `pane` (off its normal), or None where it does not pass (total
+        internal reflection, grazing): the radiance factor T (eta_i / eta_t)^2 of the
+        photons' convention (docs/units.md "Refraction"), for the effect report."""
+        inner = getattr(light, "light", light)
+        d = np.asarray(getattr(inner, "dir", (0.0, 0.0, 0.0)), np.float64)
+        norm = float(np.linalg.norm(d))
+        if not norm > 0.0:
+            return None
+        w = (-d / norm)[None, :]
+        _, cos_i, cos_t, eta2, side, ok = refract_sun(w, pane.n, pane.ior)
+        if not ok[0]:
+            return None
+        T = np.interp(cos_i[0], _T_GRID, pane.T[int(side[0]), :, 1])  # green channel
+        return (math.degrees(math.acos(min(cos_i[0], 1.0))),
+                math.degrees(math.acos(min(cos_t[0], 1.0))), float(T * eta2[0]))
+
     def photon_tri(self, light) -> np.ndarray:
         """pane_tri for photons of `light` (a sun: the table; any other light: empty, its
         light through a pane stays caustic)."""

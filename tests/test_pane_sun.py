@@ -207,6 +207,14 @@ def test_effect_report_says_the_sun_comes_through_the_pane():
                                                      caustic_photons=2_000, seed=1))
     line = _effect_line(film, "sun through glass 'sun'")
     assert ": on - reaches through single-plane glass 'pane' by shadow rays" in line
+    # The bend and the dimming, and what makes a window (a single plane is a block's
+    # surface): 30 degrees -> asin(sin 30 / 1.5) = 19.5, T (1 / 1.5)^2.
+    bent = math.degrees(math.asin(math.sin(math.radians(TILT)) / IOR))
+    c = math.cos(math.radians(TILT))
+    F = float(fresnel_dielectric(np.array([c]), np.array([IOR]))[0])
+    assert (f"'pane': from {TILT:.0f} to {bent:.0f} degrees off its normal, "
+            f"{(1.0 - F) / IOR ** 2:.2f} of the sun's radiance") in line
+    assert "Solidify" in line
 
 
 def test_effect_report_names_a_pane_that_totally_reflects_the_sun():
