@@ -257,6 +257,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     emitting = [li for li in lights if float(luminance(np.asarray(li.photon_flux))) > 0]
     spec_tri = table.has_specular[mat] if has_tris else np.zeros(0, bool)
     diff_tri = table.has_diffuse[mat] if has_tris else np.zeros(0, bool)
+    # Single-plane glass panes whose suns' shadow rays refract through them
+    # (engine/panelight.py; none under method 'local'): the caustics and sun lines read it.
+    panes = find_panes(geo, table, lights, s) if has_tris else None
 
     # --- lights shut inside a closed mesh (a student's mistake, explained) -------------
     plan.trapped = trapped_lights(scene, geo, table, emitting, accel,
@@ -324,7 +327,6 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         # Single-plane glass panes (engine/panelight.py) when every emitting light is a
         # sun whose shadow rays refract through them: the light through them is direct,
         # so they are no caustic casters either (their reflections: unaimed photons).
-        panes = find_panes(geo, table, lights) if has_tris else None
         if (panes is not None and emitting
                 and all(any(li is sun for sun in panes.suns) for li in emitting)):
             pane_tri = panes.pane_tri >= 0
@@ -557,7 +559,6 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         plan.shadows[li.name] = casts and not nothing_occludes and s.method != "local"
     # Suns through single-plane glass panes (engine/panelight.py): their shadow rays
     # refract through the pane instead of stopping at it.
-    panes = find_panes(geo, table, lights) if has_tris and s.method != "local" else None
     if panes is not None:
         for li in panes.suns:
             if not plan.shadows.get(li.name, True):

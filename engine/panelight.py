@@ -58,12 +58,23 @@ class Pane:
     """One pane plane: unit winding normal n (3,), a point c (3,) on it, its triangle rows,
     material m, IOR, object name and T[side] (2, T_ROWS, 3): the smooth interface's RGB
     transmittance from outside (side 0, arriving against n) and from inside (side 1)
-    against cos(theta_i) on a uniform grid of [0, 1]; find_panes adds lo, hi (3,): its
-    padded bounds."""
+    against cos(theta_i) on a uniform grid of [0, 1]; lo, hi (3,): its padded bounds (a
+    shadow ray whose plane crossing lies outside cannot meet it: pane_irradiance skips
+    its closest-hit query)."""
 
-    def __init__(self, name, n, c, rows, m, ior, T):
+    def __init__(self, name, n, c, rows, m, ior, T, lo, hi):
         self.name, self.n, self.c, self.rows, self.m, self.ior, self.T = (
             name, n, c, rows, m, ior, T)
+        self.lo, self.hi = lo, hi
+
+
+def _toward_sun(light):
+    """(3,) unit direction towards sun `light`'s centre (a RegionEmitter: its .light), or
+    None for a light without one."""
+    inner = getattr(light, "light", light)
+    d = np.asarray(getattr(inner, "dir", (0.0, 0.0, 0.0)), np.float64)
+    norm = float(np.linalg.norm(d))
+    return -d / norm if norm > 0.0 else None
 
 
 class Panes:
@@ -81,12 +92,9 @@ class Panes:
         the winding normal) beyond the critical angle asin(1 / ior). A plane rotated into
         a wall with its normal into the room does that to a sun higher than the critical
         angle, in Cycles too: the room stays dark (pane31's bench)."""
-        inner = getattr(light, "light", light)
-        d = np.asarray(getattr(inner, "dir", (0.0, 0.0, 0.0)), np.float64)
-        norm = float(np.linalg.norm(d))
-        if not norm > 0.0:
+        w = _toward_sun(light)
+        if w is None:
             return []
-        w = -d / norm  # towards the sun
         out = []
         for pane in self.panes:
             dn = float(w @ pane.n)
@@ -103,13 +111,10 @@ class Panes:
         direction through `pane` (off its normal), or None where it does not pass (total
         internal reflection, grazing): the radiance factor T (eta_i / eta_t)^2 of the
         photons' convention (docs/units.md "Refraction"), for the effect report."""
-        inner = getattr(light, "light", light)
-        d = np.asarray(getattr(inner, "dir", (0.0, 0.0, 0.0)), np.float64)
-        norm = float(np.linalg.norm(d))
-        if not norm > 0.0:
+        w = _toward_sun(light)
+        if w is None:
             return None
-        w = (-d / norm)[None, :]
-        _, cos_i, cos_t, eta2, side, ok = refract_sun(w, pane.n, pane.ior)
+        _, cos_i, cos_t, eta2, side, ok = refract_sun(w[None, :], pane.n, pane.ior)
         if not ok[0]:
             return None
         T = np.interp(cos_i[0], _T_GRID, pane.T[int(side[0]), :, 1])  # green channel
@@ -126,7 +131,7 @@ class Panes:
 
 def _transmittance_table(glass, m):
     from .shadowtransmittance import _crossing
-    mu = np.linspace(0.0, 1.0, T_ROWS)
+    mu = _T_GRID
     T = np.zeros((2, T_ROWS, 3))
     out = np.empty(3)
     for side in range(2):
@@ -189,7 +194,8 @@ def find_panes(geo, table, lights, settings=None):
                                   geo.v0[tris] + geo.e2[tris]])
         if np.max(np.abs((corners - c) @ n)) > tol:
             continue
-        cand.append((0.5 * float(area.sum()), int(oid), n, c, tris, int(mats[0])))
+        cand.append((0.5 * float(area.sum()), int(oid), n, c, tris, int(mats[0]),
+                     corners.min(axis=0), corners.max(axis=0)))
     if not cand:
         return None
     cand.sort(key=lambda x: -x[0])
@@ -197,17 +203,11 @@ def find_panes(geo, table, lights, settings=None):
     glass = glass_crossings(table.closure_params, table.base_color)
     panes = []
     pane_tri = np.full(geo.count, -1, np.int64)
-    for k, (_, oid, n, c, tris, m) in enumerate(cand[:MAX_PANES]):
-        pane = Pane(geo.object_names[oid], np.asarray(n, np.float64),
-                    np.asarray(c, np.float64), tris, m, float(table.ior[m]),
-                    _transmittance_table(glass, m))
-        # Its bounds, padded: a shadow ray whose plane crossing lies outside cannot meet
-        # it, and skips the closest-hit query (pane_irradiance).
-        corners = np.concatenate([geo.v0[tris], geo.v0[tris] + geo.e1[tris],
-                                  geo.v0[tris] + geo.e2[tris]])
-        pad = 1e-4 * max(float(geo.extent), 1e-9)
-        pane.lo, pane.hi = corners.min(axis=0) - pad, corners.max(axis=0) + pad
-        panes.append(pane)
+    pad = 1e-4 * max(float(geo.extent), 1e-9)
+    for k, (_, oid, n, c, tris, m, lo, hi) in enumerate(cand[:MAX_PANES]):
+        panes.append(Pane(geo.object_names[oid], np.asarray(n, np.float64),
+                          np.asarray(c, np.float64), tris, m, float(table.ior[m]),
+                          _transmittance_table(glass, m), lo - pad, hi + pad))
         pane_tri[tris] = k
     return Panes(panes, np.ascontiguousarray(pane_tri), [lights[i] for i in suns])
 

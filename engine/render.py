@@ -28,6 +28,7 @@ from .edgeimages import edge_images
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
+from .panelight import panes_for
 from .parallel import Cancelled, run_cancellable, run_tasks
 from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
 from .resources import check_resources
@@ -1073,7 +1074,6 @@ def _allocate_aimed(ctx, targets, total):
     its photons through them are direct, which the caustic shot does not keep (a sun and a
     lamp over a pane: 68 of 100,000 caustic photons stored, the sun's share all lost)."""
     rng = np.random.default_rng([ctx.settings.seed, 98])
-    from .panelight import panes_for
     panes = panes_for(ctx)
     others = None  # the targets that are not panes, for the panes' suns
     if panes is not None:
