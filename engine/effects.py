@@ -16,6 +16,7 @@ from .geometry import PIECE_TRIANGLES, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
+from .shadelight import find_shades
 from .rayoffset import ulp32
 from .sampling import luminance
 from .scene import AREA, SUN
@@ -260,6 +261,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     # Single-plane glass panes whose suns' shadow rays refract through them
     # (engine/panelight.py; none under method 'local'): the caustics and sun lines read it.
     panes = find_panes(geo, table, lights, s) if has_tris else None
+    # Lamps through Translucent BSDF shades by shadow rays (engine/shadelight.py).
+    shades = find_shades(geo, table, lights, s) if has_tris else None
 
     # --- lights shut inside a closed mesh (a student's mistake, explained) -------------
     plan.trapped = trapped_lights(scene, geo, table, emitting, accel,
@@ -371,6 +374,19 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                                               else "a caustic caster")
                           + "; unaimed photons carry the soft glow "
                           + ("they reflect)" if len(glossy_rough) > 1 else "it reflects)"))
+        # Shades the lamps reach through by shadow rays (engine/shadelight.py): their
+        # light is direct; photons carry only what crosses one twice or after a bounce.
+        shaded = [n for n in translucent if shades is not None and n in shades.names]
+        shade_note = ""
+        if shaded:
+            lamps = [li.name for li in shades.lights if li in emitting]
+            shade_note = ("; " + ("lamps " if len(lamps) > 1 else "lamp ")
+                          + _quoted(lamps, most=REPORT_NAMES_MAX)
+                          + (" reach" if len(lamps) > 1 else " reaches")
+                          + " through translucent " + _quoted(shaded)
+                          + " by shadow rays (sampled where the light lands on "
+                          + ("them)" if len(shaded) > 1 else "it)"))
+            rough_note += shade_note
         if translucent:
             rough_note += ("; not aimed at translucent " + _quoted(translucent)
                            + " (diffuse transmission spreads light, focuses none; unaimed "
@@ -420,7 +436,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                             + " onto other surfaces")
             if tl_reached:
                 glow.append("the light that translucent " + _quoted(tl_reached)
-                            + (" let" if len(tl_reached) > 1 else " lets") + " through")
+                            + (" let" if len(tl_reached) > 1 else " lets") + " through"
+                            + (" twice or after another bounce"
+                               if shades is not None and all(n in shades.names
+                                                             for n in tl_reached) else ""))
             if plan.window_glass:
                 glow.append("the reflections of window glass "
                             + _quoted(plan.window_glass) + " (passed by shadow rays: thin flat glass)")
@@ -443,7 +462,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                           f"no surface smoother than roughness {SHARP_ROUGHNESS:g}")
             carried = (f"{' and '.join(glow)} come"
                        + ("s" if len(glow) == 1 and (gl_reached or tl_reached) else "")
-                       + f" from {source} (Caustic pass)")
+                       + f" from {source} (Caustic pass)" + shade_note)
             if s.caustics == "off":
                 plan.caustics = _override(s.caustics, True, "caustics", "", plan)
             elif s.caustics == "on":

@@ -45,6 +45,7 @@ from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .panelight import pane_irradiance, panes_for
+from .shadelight import shade_irradiance, shades_for
 from .shadowtransmittance import CameraPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
@@ -189,6 +190,21 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                                    take(np.asarray(hit.offset, np.float64)), samples)
         counters.shadow_rays += rays
         E += Ep if bsdf is None else Ep * bsdf[0]
+    shades = shades_for(ctx)
+    if shades is not None and rng is not None:
+        # Lamps through Translucent BSDF shades (engine/shadelight.py): the diffuse lobe's
+        # light, which the photons through the shades no longer carry as caustics.
+        take = (lambda a: a) if rows is None else (lambda a: np.take(a, rows, axis=0))
+        pts = np.arange(n) if bsdf is None else np.flatnonzero(bsdf[0].max(axis=1) > 0.0)
+        if len(pts):
+            sub = [(li, tr, cnt, u1[pts], u2[pts], None if s3 is None else s3[pts])
+                   for li, tr, cnt, u1, u2, s3 in samples]
+            Es, rays = shade_irradiance(
+                ctx, shades, *(np.take(take(np.asarray(a, np.float64)), pts, axis=0)
+                               for a in (hit.p, hit.ns, hit.ng)),
+                np.take(take(np.asarray(hit.offset, np.float64)), pts), sub, rng)
+            counters.shadow_rays += rays
+            E[pts] += Es if bsdf is None else Es * bsdf[0][pts]
     return E
 
 

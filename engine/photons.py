@@ -37,6 +37,7 @@ from .closures.principled import M_IOR
 from .console import short_count
 from .normalmap import bump_shadowing
 from .panelight import panes_for
+from .shadelight import shades_for
 from .scene import POINT, SPOT
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
 
@@ -211,6 +212,10 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     # A sun's photons refracted through a next-event pane stay direct (engine/panelight.py).
     panes = panes_for(ctx)
     pane_tri = panes.photon_tri(light) if panes is not None else None
+    # A lamp's photons through a Translucent BSDF shade stay direct (engine/shadelight.py).
+    shades = shades_for(ctx)
+    if shades is not None:
+        pane_tri = shades.photon_tri(light, pane_tri)
     try:
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
                  bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,
