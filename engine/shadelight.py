@@ -9,16 +9,25 @@ radiance is computed on the fly, as the sun through a single-plane pane
 (engine/panelight.py) is a shadow ray through a transmissive surface.
 
 Estimator (at a diffuse shading point x, normal N, for each light sample the direct
-light takes of a served lamp): a point y uniform in area over the shade's triangles (pdf
-1 / A, A the shades' total area); the closest hit from x towards y must be a shade
-triangle at y's distance (nothing in between: the shade is opaque to shadow rays); from
-y, the lamp is sampled on the shade's far side by the direct light's own kernels
+light takes of a served lamp): y is a point where the lamp's light lands on the shade,
+chosen from the lamp's side: a direction from the lamp's centre (half cosine about the
+direction to x, half uniform over the sphere; the sample's stratified numbers), y its
+first hit, which must be a shade triangle, so y's area pdf is pdf_omega cos_in / r^2
+(r, cos_in: the centre's distance and incidence at y). The closest hit from x towards y
+must be the shade at y (nothing in between: the shade is opaque to shadow rays); from
+y the lamp is sampled on the shade's far side by the direct light's own kernels
 (directlight.direct_light with the normals flipped, as engine/glasslight.py samples
 lights through rough glass): E_back(y), irradiance on the lamp's side. The Translucent
 BSDF is Lambertian transmission, f_t = T / pi (T: its colour x its share), so the
 shade's radiance towards x is L(y -> x) = T E_back(y) / pi and
 
-    E(x) += T E_back(y) / pi * max(N . w, 0) |n_y . w| / d^2 * A,   w = (y - x) / d.
+    E(x) += T E_back(y) / pi * max(N . w, 0) |n_y . w| / (d^2 pdf_A(y)),   w = (y - x) / d.
+
+For a point lamp E_back / pdf_A is nearly constant: what varies is the geometry towards
+x. Choosing y from the lamp's side rather than x's (a cone towards the shade's
+bounding sphere) matters for a tall open tube, whose radiance peaks at the lamp's
+height: two tubes over a floor (tests/test_shade_light.py, 16 spp) read pixel std /
+mean 0.44 sampled from x, 0.21 from the lamp, 0.15 with the stratified numbers.
 
 Accounting (path classes and the estimator that counts each; x a camera-side diffuse
 point, S the shade's translucent lobe, L a served lamp):
@@ -43,9 +52,12 @@ point, S the shade's translucent lobe, L a served lamp):
 Which shades: materials that are all Translucent BSDF (share 1, opaque, no texture,
 normal map or emission; a Mix with another surface keeps its photons), in a scene
 without shared instances and with few enough lights that each is sampled on its own (no
-light tree), rendered with shadow rays (not method 'local'). Served lamps: point, spot
-and area lights whose shadow rays are sampled. Rough glass shades are not served (their
-light stays caustic): the photon kernel knows a SHADE_GLASS code for them, unused yet.
+light tree), rendered with shadow rays (not method 'local'). Served lamps: point and
+spot lights whose shadow rays are sampled (y is chosen from the lamp's centre: a lamp
+with a radius is sampled over its size from y, but a shade point its centre cannot see,
+behind an occluder right at the lamp, is missed; an area light is not served: its light
+through a shade stays caustic). Rough glass shades are not served either (their light
+stays caustic): the photon kernel knows a SHADE_GLASS code for them, unused yet.
 """
 from __future__ import annotations
 
@@ -65,25 +77,19 @@ SERVED_KINDS = ("POINT", "SPOT")
 LAMP_COSINE_SHARE = 0.5
 
 _lock = threading.Lock()
-_NO_TRI = np.zeros(0, np.int64)
 _NO_ROWS = np.zeros(0, np.int64)
 _NO_ROWS3 = np.zeros((0, 3))
 
 
 class Shades:
-    """The scene's next-event shades: per shade object k (connected by object id) its
-    triangle rows `rows[k]` (int64), bounding sphere `centre[k]` (3,) and `radius[k]`
-    (m); `tl` (M,3) each material's translucent transmittance T (0: not a shade
-    material); `served` the light indices (into ctx.lights) sampled through them,
-    `lights` those Light objects, `choose[li]` (K,) the probability that a sample of
-    served light li goes to each shade (by the share of the light's sphere of directions
-    its bounding sphere fills: _light_shares); `names` the shade objects' names; `code`
-    (T,) int64 the photon kernel's pane_tri codes (-1, or photonkernels.SHADE_TRANSLUCENT
-    on a shade triangle)."""
+    """The scene's next-event shades: `tl` (M,3) each material's translucent
+    transmittance T (0: not a shade material); `served` the light indices (into
+    ctx.lights) sampled through them (a frozenset), `lights` those Light objects; `names`
+    the shade objects' names; `code` (T,) int64 the photon kernel's pane_tri codes (-1, or
+    photonkernels.SHADE_TRANSLUCENT on a shade triangle)."""
 
-    def __init__(self, rows, centre, radius, tl, served, lights, choose, names, code):
-        self.rows, self.centre, self.radius, self.tl = rows, centre, radius, tl
-        self.served, self.lights, self.choose = served, lights, choose
+    def __init__(self, tl, served, lights, names, code):
+        self.tl, self.served, self.lights = tl, frozenset(served), lights
         self.names, self.code = names, code
         self._merged = {}
 
@@ -103,17 +109,6 @@ class Shades:
             merged[self.code == pk.SHADE_TRANSLUCENT] = pk.SHADE_TRANSLUCENT
             got = self._merged[key] = (pane_tri, merged)
         return got[1]
-
-
-def _light_shares(pos, centre, radius) -> np.ndarray:
-    """(K,) the share of the sphere of directions around point pos (3,) that each
-    bounding sphere (centre (K,3), radius (K,)) fills: 1 from inside, else the cap's
-    (1 - cos theta_max) / 2."""
-    dist = np.linalg.norm(centre - pos, axis=1)
-    inside = dist <= radius
-    s = np.clip(radius / np.maximum(dist, 1e-300), 0.0, 1.0)
-    cap = 0.5 * (1.0 - np.sqrt(np.maximum(0.0, 1.0 - s * s)))
-    return np.where(inside, 1.0, cap)
 
 
 def shade_materials(table) -> tuple[np.ndarray, np.ndarray]:
@@ -166,28 +161,10 @@ def find_shades(geo, table, lights, settings=None):
     tri = tri[area > 0.0]
     if not len(tri):
         return None
-    oid = np.asarray(geo.object_id)[tri]
-    rows, centre, radius, names = [], [], [], []
-    for o in np.unique(oid):
-        r = tri[oid == o]
-        v = np.concatenate([geo.v0[r], geo.v0[r] + geo.e1[r], geo.v0[r] + geo.e2[r]])
-        c = 0.5 * (v.min(axis=0) + v.max(axis=0))
-        rad = float(np.sqrt(((v - c) ** 2).sum(axis=1).max()))
-        rows.append(r)
-        centre.append(c)
-        radius.append(rad * (1.0 + 1e-6) + 1e-7 * max(float(geo.extent), 1e-9))
-        names.append(geo.object_names[o])
-    centre, radius = np.asarray(centre, np.float64), np.asarray(radius, np.float64)
-    choose = {}
-    for i in served:
-        pos = getattr(lights[i], "pos", None)  # re-centred, as the geometry
-        pos = centre.mean(axis=0) if pos is None else np.asarray(pos, np.float64).reshape(3)
-        q = _light_shares(pos, centre, radius)
-        choose[i] = q / q.sum()
     code = np.full(geo.count, -1, np.int64)
     code[tri] = pk.SHADE_TRANSLUCENT
-    return Shades(rows, centre, radius, tl, served, [lights[i] for i in served], choose,
-                  names, np.ascontiguousarray(code))
+    names = [geo.object_names[o] for o in np.unique(np.asarray(geo.object_id)[tri])]
+    return Shades(tl, served, [lights[i] for i in served], names, np.ascontiguousarray(code))
 
 
 def shades_for(ctx):
@@ -201,27 +178,6 @@ def shades_for(ctx):
             got = find_shades(ctx.geo, ctx.table, ctx.lights, ctx.settings)
             ctx._shades = got
     return got
-
-
-def _direction_pdf(shades, li, p, ns, w) -> np.ndarray:
-    """(N,) the solid-angle pdf of directions w (N,3) from points p (N,3) (shading
-    normals ns) under shade_irradiance's sampling for light li: the mixture over the
-    shades (Shades.choose[li]) of a uniform cone around each bounding sphere seen from
-    outside, or the cosine hemisphere about ns from inside it."""
-    pdf = np.zeros(len(p))
-    cos_n = np.maximum(np.einsum("ij,ij->i", w, ns), 0.0)
-    for k, pk_ in enumerate(shades.choose[li]):
-        if pk_ <= 0.0:
-            continue
-        to_c = shades.centre[k] - p
-        dist = np.sqrt(np.einsum("ij,ij->i", to_c, to_c))
-        inside = dist <= shades.radius[k]
-        s = np.clip(shades.radius[k] / np.maximum(dist, 1e-300), 0.0, 1.0)
-        cos_max = np.sqrt(np.maximum(0.0, 1.0 - s * s))
-        in_cone = np.einsum("ij,ij->i", w, to_c) >= cos_max * dist
-        solid = 2.0 * math.pi * np.maximum(1.0 - cos_max, 1e-300)
-        pdf += pk_ * np.where(inside, cos_n / math.pi, np.where(in_cone, 1.0 / solid, 0.0))
-    return pdf
 
 
 def _frame_rows(a):
@@ -286,7 +242,7 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     rays = 0
     c = np.ascontiguousarray
     for li, traced, count, u1, u2, sel in samples:
-        if li < 0 or li not in shades.choose:
+        if li < 0 or li not in shades.served:
             continue
         centre = np.asarray(ctx.lights[li].pos, np.float64).reshape(3)
         # The direction from the lamp takes the sample's stratified numbers (u1, u2);

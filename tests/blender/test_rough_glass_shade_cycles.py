@@ -63,9 +63,11 @@ def _diffuse(nodes):
     return n.outputs[0]
 
 
-def _shade_scene(bpy, roughness, distribution):
+def _shade_scene(bpy, roughness, distribution, shade=None):
     """The panel (x = 1 m, facing the lamp), the 1 m tall shade of radius 0.22 m around a
-    100 W point lamp of radius 0.05 m at the origin, the camera seeing the panel only."""
+    100 W point lamp of radius 0.05 m at the origin, the camera seeing the panel only.
+    shade: the shade's surface, build(nodes) -> output socket (None: the glass of
+    `roughness` and `distribution`)."""
     from mathutils import Vector
     bpy.ops.wm.read_homefile(use_empty=True)
     from addon import engine
@@ -84,10 +86,12 @@ def _shade_scene(bpy, roughness, distribution):
     panel = bpy.context.active_object
     panel.scale = (3.0, 3.0, 1.0)
     panel.data.materials.append(_material(bpy, "Panel", _diffuse))
+    shade_build = shade
     bpy.ops.mesh.primitive_cylinder_add(radius=0.22, depth=1.0, location=(0.0, 0.0, 0.0),
                                         vertices=32, end_fill_type="NOTHING")
     shade = bpy.context.active_object
-    shade.data.materials.append(_material(bpy, "Shade", _glass(roughness, distribution)))
+    shade.data.materials.append(_material(bpy, "Shade", shade_build or _glass(roughness,
+                                                                             distribution)))
     bpy.ops.object.shade_smooth()
     lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
     lamp.data.energy, lamp.data.shadow_soft_size = 100.0, 0.05
