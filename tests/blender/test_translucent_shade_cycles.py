@@ -9,9 +9,10 @@ shade. Before shade32 it was the caustic map's k-NN estimate (the same brightnes
 of Cycles, lamp30's control, but blotchy).
 
 - brightness: ours / Cycles (1024 spp) within 2 %;
-- smoothness: the panel's 8 x 8 pixel blocks, ours / Cycles' per block, max / min.
-  Measured (ours 16 spp, the test's settings; Cycles 1024 spp): main 9898fc1 and shade32
-  in docs/accuracy.md "## shade32".
+- smoothness: the panel's lit 8 x 8 pixel blocks, ours (64 spp) / Cycles' per block,
+  max / min. Against Cycles 8192 spp (bench/bench_shade_panel.py, docs/accuracy.md
+  "## shade32"): main 9898fc1 1.138 at 64 spp (1.13 at any spp: the photon estimate's
+  blotches), shade32 1.019 (Cycles 1024 spp itself 1.022).
 """
 import numpy as np
 import pytest
@@ -48,10 +49,12 @@ def _blocks(img):
 def test_panel_lit_through_a_translucent_shade_matches_cycles_and_is_smooth(bpy_addon,
                                                                            tmp_path):
     bpy = bpy_addon
-    ours = _render(bpy, tmp_path / "ours.exr", "PHOTONMAP", 16)
+    ours = _render(bpy, tmp_path / "ours.exr", "PHOTONMAP", 64)
     cyc = _render(bpy, tmp_path / "cycles.exr", "CYCLES", 1024)
     ratio = float(ours.mean() / cyc.mean())
-    per_block = _blocks(ours) / _blocks(cyc)
+    cb = _blocks(cyc)
+    # The lit blocks (the panel's far edge is dark: Cycles' own noise there is +-10 %).
+    per_block = (_blocks(ours) / cb)[cb > 0.25 * cb.max()]
     spread = float(per_block.max() / per_block.min())
     print("ours / Cycles:", round(ratio, 4), "8x8 blocks ours / Cycles max / min:",
           round(spread, 4))
@@ -60,6 +63,5 @@ def test_panel_lit_through_a_translucent_shade_matches_cycles_and_is_smooth(bpy_
     assert spread < SMOOTH, (spread, per_block)
 
 
-# The blocks' spread, ours / Cycles 1024 spp (whose own block noise is about +-1 %):
-# main read 1.13 (the caustic estimate's blotches), shade32 1.04 (docs/accuracy.md).
-SMOOTH = 1.08
+# The lit blocks' spread, ours / Cycles 1024 spp (whose own spread is about 1.02).
+SMOOTH = 1.06
