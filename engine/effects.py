@@ -203,8 +203,10 @@ def _light_reaches(light: PreparedLight, accel, geo: Geometry, oid: int, center,
 
 def _enclosing_object(accel, geo: Geometry, table: MaterialTable, o, d) -> int:
     """The object that rays (o, d) all hit first from its inside (the back of its
-    triangles, by winding) when it is opaque (no transmission, alpha 1): the closed mesh
-    the origins are shut in. -1 if any ray escapes or meets anything else."""
+    triangles, by winding) when it is opaque (no transmission or translucency, alpha 1):
+    the closed mesh the origins are shut in. -1 if any ray escapes or meets anything
+    else. (A closed globe of Translucent BSDF around a lamp lets its light out: it read
+    as a trap, which switched the indirect light off and left the room black.)"""
     _, prim, _, _ = accel.intersect(o, d)
     if len(prim) == 0 or np.any(prim < 0):
         return -1
@@ -213,6 +215,8 @@ def _enclosing_object(accel, geo: Geometry, table: MaterialTable, o, d) -> int:
         return -1
     mat = geo.material[prim]
     if np.any(table.transmission[mat] > 0) or np.any(table.alpha[mat] < 1):
+        return -1
+    if table.translucent is not None and np.any(table.translucent[mat] > 0):
         return -1
     return int(ids[0])
 
