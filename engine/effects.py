@@ -395,7 +395,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             rough_note += ("; not aimed at translucent " + _quoted(translucent)
                            + " (diffuse transmission spreads light, focuses none; unaimed "
                            "photons carry the light " + ("they let" if len(translucent) > 1
-                                                         else "it lets") + " through)")
+                                                         else "it lets") + " through"
+                           + (" twice or after another bounce"
+                              if shaded and len(shaded) == len(translucent) else "") + ")")
         if not focus_tri.any():
             auto, why = False, ("no specular or refractive materials" if not spec_tri.any()
                                 else "no mirror, glass or coat: light through transparent "
