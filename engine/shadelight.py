@@ -46,8 +46,12 @@ point, S the shade's translucent lobe, L a served lamp):
   shade is the final gather, whose rays continue through the translucent lobe
   (continue_specular) but never add a lamp's emission (lamps are not in the BVH; a gather
   counts mesh emission only on its own first hit at levels > 0).
-- Paths crossing the shade twice, or after a transparent pass, another bounce first, or
-  from a lamp not served (a mesh light, the world, a sun): caustic photons, as before.
+- Paths crossing the shade twice, or a transparent pass after it, another bounce first,
+  or from a lamp not served (a mesh light, the world, a sun): caustic photons, as before.
+- Known gap: a Transparent BSDF surface between the lamp and the shade. Its photons
+  keep their kind through the pass and stay direct at the shade, but the lamp-side ray
+  that picks y stops at that surface, so this light is counted by neither (not
+  measured; no test scene has one).
 
 Which shades: materials that are all Translucent BSDF (share 1, opaque, no texture,
 normal map or emission; a Mix with another surface keeps its photons), in a scene
