@@ -50,16 +50,23 @@ WORLD_ENABLED = True
 # own distribution outside, OUTSIDE the cosine hemisphere about the shading normal
 # outside, both refracted in through the pane; INSIDE the cosine hemisphere inside, AREA
 # a point uniform over the panes' area (a portal), both refracted back out. A constant
-# world has no map. Measured (pixel noise of the Direct pass, paneworld32 in
+# world has no map. Per point, OUTSIDE's and AREA's shares together are split by the
+# panes' projected solid angle over pi (Panes.projection, clipped to [ADAPT_MIN,
+# 1 - ADAPT_MIN]): OUTSIDE's samples all pass under a skylight, AREA's under a small
+# window. Measured (pixel noise of the Direct pass at 4 spp, paneworld32 in
 # docs/accuracy.md): a 1.2 x 1.0 m window in a 4 x 3 m room, white world: OUTSIDE alone
-# 1.85, AREA alone 0.19, half each 0.34; a floor 1 m under a 60 m skylight: OUTSIDE alone
-# 0.017, AREA alone 6.6, half each 0.029; with a sky map (a 17-degree bright patch or
-# none), (0.5, 0, 0, 0.5) beat (0.5, 0.5, 0, 0), (0.4, 0.2, 0, 0.4) and map-heavier
-# mixtures in both scenes. INSIDE wastes the directions beyond the critical angle (56 %
-# of them under a horizontal pane) and never won: share 0.
+# 1.85, AREA alone 0.19, half each 0.34, split by the projection 0.22; a floor 1 m under a
+# 6 m skylight: OUTSIDE alone 0.036, AREA alone 1.36, half each 0.127, split 0.060. With a map, MAP's share
+# trades a bright spot's noise against a flat sky's in a small window: MAP 0.5 / 0.6 /
+# 0.7 / 0.8, the rest split: skylight with a bright texel 0.335 / 0.293 / 0.233 / 0.202,
+# the room under a sky without a sun 0.61 / 0.82 / 0.92 / 1.22 (with a 17-degree bright
+# patch 2.3-2.6 throughout: its penumbra). INSIDE wastes the directions beyond the
+# critical angle (56 % of them under a horizontal pane) and never won: share 0.
 MAP, OUTSIDE, INSIDE, AREA = 0, 1, 2, 3
-WORLD_SHARES_ENV = (0.5, 0.0, 0.0, 0.5)
+WORLD_SHARES_ENV = (0.6, 0.2, 0.0, 0.2)
 WORLD_SHARES = (0.0, 0.5, 0.0, 0.5)
+WORLD_ADAPT = True
+ADAPT_MIN = 0.02
 # The most pane planes that take shadow rays; the rest stay caustic (largest first).
 MAX_PANES = 4
 # A pane's triangles lie within this share of the scene's extent of its plane.
@@ -120,7 +127,26 @@ class Panes:
                                          for k, q in enumerate(panes)])
             a = 0.5 * np.linalg.norm(np.cross(self.tri_e1, self.tri_e2), axis=1)
             self.area = float(a.sum())
+            mid = self.tri_v0 + (self.tri_e1 + self.tri_e2) / 3.0
+            self.areas = [float(a[self.tri_k == k].sum()) for k in range(len(panes))]
+            self.centres = [(mid[self.tri_k == k] * a[self.tri_k == k, None]).sum(axis=0)
+                            / max(self.areas[k], 1e-300) for k in range(len(panes))]
             self.tri_cdf = np.cumsum(a) / max(self.area, 1e-300)
+
+    def projection(self, p, ns) -> np.ndarray:
+        """(N,) the panes' projected solid angle over pi at points p (N,3) with normals ns
+        (N,3), from each pane's centre, A cos_pane cos_n / (pi d^2), summed: a rough
+        guide to the share of a cosine-distributed direction that meets a pane (a
+        heuristic for the strategies' shares only, never a weight)."""
+        q = np.zeros(len(p))
+        for pane, c, a in zip(self.panes, self.centres, self.areas):
+            v = c - p
+            d2 = np.maximum(np.einsum("ij,ij->i", v, v), 1e-300)
+            inv = 1.0 / np.sqrt(d2)
+            cp = np.abs(v @ pane.n) * inv
+            cn = np.maximum(np.einsum("ij,ij->i", v, ns), 0.0) * inv
+            q += a * cp * cn / (math.pi * d2)
+        return q
 
     def sample_points(self, u1, u2):
         """Points (N,3) uniform over the panes' area from uniform numbers u1, u2 (N,) (the
@@ -485,9 +511,19 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             if not panes.area > 0.0:
                 shares = np.where(np.arange(4) == AREA, 0.0, shares)
             shares = shares / shares.sum()
-            top = np.cumsum(shares)
-            strat = np.minimum(np.searchsorted(top, x, side="right"), AREA)
-            a = np.clip((x - (top - shares)[strat]) / np.maximum(shares[strat], 1e-300),
+            S = np.repeat(shares[None, :], N, axis=0)  # (N,4): each point's shares
+            if WORLD_ADAPT and panes.area > 0.0:
+                # OUTSIDE and AREA split by the panes' projected solid angle at the point
+                # (Panes.projection): a skylight over the point, OUTSIDE; a window across
+                # the room, AREA (a portal).
+                q = np.clip(panes.projection(p, ns), ADAPT_MIN, 1.0 - ADAPT_MIN)
+                r = shares[OUTSIDE] + shares[AREA]
+                S[:, OUTSIDE], S[:, AREA] = r * q, r * (1.0 - q)
+            top = np.cumsum(S, axis=1)
+            strat = np.minimum((x[:, None] >= top).sum(axis=1), AREA)
+            rows_ = np.arange(N)
+            share = S[rows_, strat]
+            a = np.clip((x - (top - S)[rows_, strat]) / np.maximum(share, 1e-300),
                         0.0, ONE_BELOW)
             b = np.asarray(u2, np.float64)
             wc = _cosine_directions(a, b, ns)  # OUTSIDE's w and INSIDE's w_t
@@ -525,13 +561,14 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
                 # The mixture's pdf per sr of inside directions (outside pdfs through the
                 # Jacobian cos_t / (eta2 cos_i); AREA's t^2 / (A cos_t), cos_t the inside
                 # direction's cosine to the pane, A all the panes' area).
-                p_out = shares[OUTSIDE] * np.maximum(np.einsum("ij,ij->i", wk, ns[idx]),
-                                                     0.0) / math.pi
+                Sk = S[idx]
+                p_out = Sk[:, OUTSIDE] * np.maximum(np.einsum("ij,ij->i", wk, ns[idx]),
+                                                    0.0) / math.pi
                 if shares[MAP] > 0.0:
-                    p_out = p_out + shares[MAP] * env.pdf(wk)
-                pdf = shares[INSIDE] * cr / math.pi + p_out * ct / (eta2[idx] * ci)
-                if shares[AREA] > 0.0:
-                    pdf = pdf + shares[AREA] * t_plane * t_plane / (panes.area * ct)
+                    p_out = p_out + Sk[:, MAP] * env.pdf(wk)
+                pdf = Sk[:, INSIDE] * cr / math.pi + p_out * ct / (eta2[idx] * ci)
+                if panes.area > 0.0:
+                    pdf = pdf + Sk[:, AREA] * t_plane * t_plane / (panes.area * ct)
                 L = (env.radiance(wk) if env is not None else
                      np.broadcast_to(np.asarray(world.radiance, np.float64), (len(idx), 3)))
                 g = np.where(pdf > 0.0, cr / np.maximum(pdf, 1e-300), 0.0) / count
