@@ -300,7 +300,8 @@ def main():
     names = json.load(open(os.path.join(a.out, "masks.json")))
     nid = {n: i for i, n in enumerate(names)}
     floor = ids == nid.get("Floor", -9)
-    print(f"sun patch: {int((floor & lit).sum())} floor pixels")
+    if a.world == "none":
+        print(f"sun patch: {int((floor & lit).sum())} floor pixels")
     walls = np.isin(ids, [i for n, i in nid.items() if "Wall" in n or n == "Ceiling"])
     objects = np.isin(ids, [nid.get("Table", -9), nid.get("Cylinder", -9)])
     regions = {"floor, sun patch": floor & lit, "floor, shade": floor & ~lit,

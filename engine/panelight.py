@@ -1,4 +1,5 @@
-"""Sunlight through single-plane glass panes by next-event estimation (issue 14).
+"""Sunlight and the world's light through single-plane glass panes by next-event
+estimation (issue 14: pane31 for suns, paneworld32 for the world).
 
 A window modelled as one plane of smooth glass bends the light for good: the room lies on
 the glass side of a single interface. A sun's light is parallel, so the refracted
@@ -29,6 +30,34 @@ shadow rays carry, and the gather map gets it as direct photons (final gathering
 Only the diffuse lobe takes this light (and the irradiance of direct_irradiance without
 a BSDF): a camera path's rough reflective lobes keep finding the sun through the pane by
 their continuation (a delta refraction: full weight, integrator._trace_paths), as before.
+
+The world (paneworld32: Background colour, Environment Texture, Sky Texture's map) is
+the same with one difference: its light arrives from every direction, so each sample
+picks an inside direction w_t by one of four strategies and weights it by one-sample MIS
+(pane_irradiance; the shares: WORLD_SHARES, measured). The radiance along w_t is
+T(theta_i) L_world(w) (w the outside direction it refracts from; the photons' convention),
+and a pdf over outside directions becomes one over inside directions by the Jacobian
+
+    d w_t / d w_i = (eta_i / eta_t)^2 cos(theta_i) / cos(theta_t)
+
+(Snell's law sin t = eta sin i differentiated: cos t dtheta_t = eta cos i dtheta_i, the
+azimuth unchanged, and dw = sin theta dtheta dphi; Veach 1997, sec. 5.2; pbrt-v4
+sec. 9.5.2). Under a horizontal pane a white world gives E = pi L <T> / n^2, <T> the
+cosine-weighted mean of T over the hemisphere (tests/test_pane_world.py).
+
+Accounting (nothing counted twice, nothing lost), per path that reaches the world through
+a pane as its first scatter:
+  - the diffuse lobe at a camera hit, and the irradiance of the gathers' and regathers'
+    direct light: these shadow rays (the ordinary world shadow rays stop at the pane);
+  - the photons: a world photon refracted by a pane as its first scatter is direct-kind
+    (photonkernels.F_PANE, as a sun's): the caustic map no longer holds it, the gather
+    map does (the final-gather rays read it one bounce later, as any direct light);
+  - final-gather rays that pass the pane and miss everything read nothing (gather_indirect
+    keeps hits only), so they add no world light of their own;
+  - a camera path's rough reflective lobes: their continuation through the pane (a delta
+    refraction, pdf infinite) meets the world with MIS weight 1, as before; these shadow
+    rays are added to the diffuse lobe only, so the two do not overlap.
+Lamps (point, spot, area, mesh lights) through a pane stay caustic (their photons too).
 """
 from __future__ import annotations
 
