@@ -471,25 +471,29 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
     A sun sample: w from the sun's cone, w_t its refraction; weight (module docstring)
     E_sun T (eta_i / eta_t)^2 cos_i / cos_t (N . w_t).
 
-    A world sample: one-sample MIS (Veach 1997, sec. 9.2.4; balance heuristic) of two
-    strategies over inside directions w_t, the sample's third number choosing:
-      map     (probability WORLD_MAP_FRACTION, environment maps only) w from the map's
-              own distribution (Environment.sample, pdf p_map(w) per sr outside), w_t
-              its refraction through each pane in turn; per sr inside its pdf is
-              p_map(w) / (d w_t / d w), with (Snell: sin t = eta sin i, so
-              cos t dtheta_t = eta cos i dtheta_i, dphi unchanged)
-                  d w_t / d w = sin t dtheta_t dphi / (sin i dtheta_i dphi)
-                              = (eta_i / eta_t)^2 cos_i / cos_t
-              (Veach 1997, sec. 5.2, eq. 5.4; pbrt-v4 sec. 9.5.2)
-      cosine  w_t cosine-distributed about the shading normal, pdf (N . w_t) / pi, w its
-              refraction back out of the pane the ray meets (total internal reflection:
-              none)
-    The radiance along w_t is T L_world(w) (radiance invariant across the interface,
-    as Cycles and the photons: docs/units.md "Refraction"), so each pane's term is
-        T(cos_i) L(w) (N . w_t) / (f p_map(w) cos_t / (eta2 cos_i) + (1 - f) (N . w_t) / pi)
-    at a direction whose first surface is that pane (f = WORLD_MAP_FRACTION, 0 for a
-    constant world: then T L pi). A w_t meets one pane first, so summing the panes'
-    terms counts each direction once.
+    A world sample: one-sample MIS (Veach 1997, sec. 9.2.4; balance heuristic) of four
+    strategies over inside directions w_t, one number choosing (an environment's third
+    number, else u1) with the point's shares S (WORLD_SHARES, split by Panes.projection):
+      MAP      w from the map's own distribution (Environment.sample, pdf p_map(w) per sr
+               outside), w_t its refraction through each pane in turn
+      OUTSIDE  w cosine-distributed about the shading normal (pdf max(N . w, 0) / pi),
+               refracted in alike
+      INSIDE   w_t cosine-distributed about the shading normal, pdf (N . w_t) / pi, w its
+               refraction back out of the pane (total internal reflection: none)
+      AREA     w_t towards a point uniform over the panes' area A (a portal), pdf
+               t^2 / (A cos_t) per sr (t the distance to the plane, cos_t w_t's cosine to
+               the pane's normal), refracted back out alike
+    An outside pdf p(w) is p(w) / (d w_t / d w) per sr inside, with (Snell:
+    sin t = eta sin i, so cos t dtheta_t = eta cos i dtheta_i, dphi unchanged)
+        d w_t / d w = sin t dtheta_t dphi / (sin i dtheta_i dphi)
+                    = (eta_i / eta_t)^2 cos_i / cos_t
+    (Veach 1997, sec. 5.2, eq. 5.4; pbrt-v4 sec. 9.5.2). The radiance along w_t is
+    T L_world(w) (radiance invariant across the interface, as Cycles and the photons:
+    docs/units.md "Refraction"), so each pane's term is
+        T(cos_i) L(w) (N . w_t) / sum_s S_s p_s(w_t)
+    at a direction whose first surface is that pane. A w_t meets one pane first, so
+    summing the panes' terms counts each direction once (an AREA point on another pane
+    counts for that pane only).
     Returns (E, rays traced)."""
     N = len(p)
     E = np.zeros((N, 3))
