@@ -214,3 +214,21 @@ def test_black_world_and_sun_scenes_keep_their_bits():
     b = _render(s, on=False, spp=2, photons=20_000, caustic_photons=20_000).combined
     assert a.mean() > 0
     assert np.array_equal(a, b)
+
+
+def test_sun_and_world_through_the_pane_add_up():
+    """A sun (30 degrees off the zenith) and the white world through the same pane: the
+    Direct pass is the sum of the two analytic values (rho / pi E_sun cos T / n^2 and
+    rho L <T> / n^2), nothing counted twice."""
+    s = _box_under_pane()
+    tilt = math.radians(30.0)
+    s.add_sun((math.sin(tilt), 0.0, -math.cos(tilt)), strength=3.0, angle_degrees=3.0)
+    c = math.cos(tilt)
+    F = float(fresnel_dielectric(np.array([c]), np.array([IOR]))[0])
+    want = (ALBEDO / math.pi * 3.0 * c * (1.0 - F) / IOR ** 2
+            + ALBEDO * L * _t_mean() / IOR ** 2)
+    film = _render(s)
+    got = float(film.direct.astype(np.float64).mean())
+    print(f"direct {got:.5f} want {want:.5f}")
+    assert got == pytest.approx(want, rel=0.01)
+    assert float(film.caustic.mean()) < 0.01 * want
