@@ -559,9 +559,13 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             a = np.clip((x - (top - S)[rows_, strat]) / np.maximum(share, 1e-300),
                         0.0, ONE_BELOW)
             b = np.asarray(u2, np.float64)
-            wc = _cosine_directions(a, b, ns)  # OUTSIDE's w and INSIDE's w_t
             by_map, by_area = strat == MAP, strat == AREA
             by_in = (strat == INSIDE) | by_area  # samples of w_t: refracted back out
+            # wc: OUTSIDE's w, INSIDE's and AREA's w_t; w0: MAP's and OUTSIDE's w.
+            wc = np.zeros((N, 3))
+            m_ = np.nonzero((strat == OUTSIDE) | (strat == INSIDE))[0]
+            if len(m_):
+                wc[m_] = _cosine_directions(a[m_], b[m_], ns[m_])
             on_k = np.full(N, -1, np.int64)    # AREA: the pane of the point
             if by_area.any():
                 m_ = np.nonzero(by_area)[0]
@@ -572,16 +576,21 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             if by_map.any():
                 m_ = np.nonzero(by_map)[0]
                 w0[m_] = env.sample(a[m_], b[m_])[0]
+            inside = np.nonzero(by_in)[0]
             for k, pane in enumerate(panes.panes):
                 # The outside direction: the map's or the outside cosine sample, or the
                 # inside sample (cosine, or towards a point on a pane) refracted back
                 # out (refract_sun of -w_t: light arriving from the receiver's side).
-                back, _, _, _, _, ok_b = refract_sun(-wc, pane.n, pane.ior)
-                w = np.where(by_in[:, None], -back, w0)
+                w = w0.copy()
+                ok_b = np.ones(N, bool)
+                if len(inside):
+                    back, _, _, _, _, ok_b[inside] = refract_sun(-wc[inside], pane.n,
+                                                                 pane.ior)
+                    w[inside] = -back
                 wt, cos_i, cos_t, eta2, side, ok = refract_sun(w, pane.n, pane.ior)
-                ok &= ~by_in | ok_b
+                ok &= ok_b
                 ok &= ~by_area | (on_k == k)  # a point on another pane: that pane's
-                wt = np.where(by_in[:, None], wc, wt)
+                wt[inside] = wc[inside]
                 idx, trans, cr, n_rays, t_plane = _through(
                     ctx, tri_pane, k, pane, p, ns, ng, offset, w, wt, side, ok, shadow,
                     scale, want_t=True)
