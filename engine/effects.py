@@ -258,8 +258,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     emitting = [li for li in lights if float(luminance(np.asarray(li.photon_flux))) > 0]
     spec_tri = table.has_specular[mat] if has_tris else np.zeros(0, bool)
     diff_tri = table.has_diffuse[mat] if has_tris else np.zeros(0, bool)
-    # Single-plane glass panes whose suns' shadow rays refract through them
-    # (engine/panelight.py; none under method 'local'): the caustics and sun lines read it.
+    # Single-plane glass panes whose suns' and world's shadow rays refract through them
+    # (engine/panelight.py; none under method 'local'): the caustics, sun and world lines
+    # read it.
     panes = find_panes(geo, table, lights, s) if has_tris else None
 
     # --- lights shut inside a closed mesh (a student's mistake, explained) -------------
@@ -326,7 +327,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         plan.window_glass = ([geo.object_names[i] for i in np.unique(geo.object_id[window_tri])]
                              if window_tri.any() else [])
         # Single-plane glass panes (engine/panelight.py) when every emitting light is a
-        # sun whose shadow rays refract through them: the light through them is direct,
+        # sun or the world whose shadow rays refract through them: the light through
+        # them is direct,
         # so they are no caustic casters either (their reflections: unaimed photons).
         if (panes is not None and emitting
                 and all(panes.serves(li) for li in emitting)):
