@@ -328,8 +328,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                              if window_tri.any() else [])
         # Single-plane glass panes (engine/panelight.py) when every emitting light is a
         # sun or the world whose shadow rays refract through them: the light through
-        # them is direct,
-        # so they are no caustic casters either (their reflections: unaimed photons).
+        # them is direct, so they are no caustic casters either (their reflections:
+        # unaimed photons).
         if (panes is not None and emitting
                 and all(panes.serves(li) for li in emitting)):
             pane_tri = panes.pane_tri >= 0
