@@ -1,9 +1,15 @@
-"""A new user's room lit by a sun through a single-plane Glass BSDF window pane
-(issue 14, pane31: engine/panelight.py), before / after next-event estimation through the
-pane, against live Cycles.
+"""A new user's room lit by a sun (or the world: --world) through a single-plane Glass BSDF
+window pane (issue 14, pane31 and paneworld32: engine/panelight.py), before / after
+next-event estimation through the pane, against live Cycles.
 
     PYTHONPATH=$PWD /work/main/.venv/bin/python bench/bench_window_pane.py \
-        [--res 160 120] [--cycles-spp 1024] [--spp 128] [--sun-angle 3] [--out DIR]
+        [--res 160 120] [--cycles-spp 1024] [--spp 128] [--sun-angle 3] [--out DIR] \
+        [--world none|color|hdri]
+
+--world color: no sun, a white world of strength 1 (Background colour); hdri: no sun, a
+small generated sky (example_blends/make_blends.sky_hdri's gradient, 64 x 32) with a
+bright 3 x 3 texel patch (~17 degrees) outside the window, 30 degrees up, giving 2 W/m^2
+face-on. Use a --out of its own per --world (the masks and the Cycles render are kept).
 
 The room: 4 x 3 x 2.6 m of white plaster (Principled, roughness 0.8) built from boxes, a
 1.2 x 1.0 m opening in the +Y wall closed by one plane of Glass BSDF (IOR 1.5, roughness
@@ -43,7 +49,23 @@ def _cpu():
     return r.ru_utime + r.ru_stime + c.ru_utime + c.ru_stime
 
 
-def build(sun_angle):
+def _hdri():
+    """The --world hdri sky (64 x 32, top row first): make_blends' gradient without its
+    one-texel sun, and a 3 x 3 texel bright patch (2 W/m^2 face-on in all) centred 30
+    degrees above the horizon at azimuth 75 degrees (towards +Y: outside the window)."""
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends
+    img = make_blends.sky_hdri(64, 32, sun_irradiance=0.0).astype(np.float64)
+    H, W = img.shape[:2]
+    i0 = int((90.0 - 30.0) / 180.0 * H) - 1
+    j0 = int((0.5 - 75.0 / 360.0) % 1.0 * W) - 1
+    th0, th1 = np.pi * i0 / H, np.pi * (i0 + 3) / H
+    omega = (np.cos(th0) - np.cos(th1)) * 2 * np.pi / W * 3
+    img[i0:i0 + 3, j0:j0 + 3] = 2.0 / omega * np.array([1.0, 0.93, 0.82])
+    return img.astype(np.float32)
+
+
+def build(sun_angle, world_kind="none"):
     import bpy
     from mathutils import Vector
     bpy.ops.wm.read_homefile(use_empty=True)
@@ -120,6 +142,15 @@ def build(sun_angle):
         world.use_nodes = True
     bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
     bg.inputs["Strength"].default_value = 0.0
+    if world_kind != "none":
+        # World-lit: no sun; the world (colour or HDRI) through the window alone.
+        bpy.data.objects.remove(sun)
+        sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+        import make_blends
+        if world_kind == "color":
+            make_blends.set_world((1.0, 1.0, 1.0), 1.0)
+        else:
+            make_blends.set_world_hdri(_hdri(), 1.0)
     # From the window's corner, looking into the room: the sun patch on the floor and
     # the front wall, the table in it, the cylinder in the shade.
     bpy.ops.object.camera_add(location=(1.8, 1.3, 2.0))
@@ -137,8 +168,9 @@ def masks(scene, w, h):
     import bpy
     from mathutils import Vector
     dg = bpy.context.evaluated_depsgraph_get()
-    sun = bpy.data.objects["Sun"]
-    travel = (sun.matrix_world.to_3x3() @ Vector((0, 0, -1))).normalized()
+    sun = bpy.data.objects.get("Sun")
+    travel = (sun.matrix_world.to_3x3() @ Vector((0, 0, -1))).normalized() if sun else \
+        Vector((0.0, -0.6, -0.8))  # (no sun: its patch is not read)
     pane = bpy.data.objects["WindowPane"]
     n = (pane.matrix_world.to_3x3() @ Vector((0, 0, 1))).normalized()
     ci = -travel.dot(n)
@@ -172,7 +204,7 @@ def child(a):
     import bpy
     import addon
     addon.register()
-    scene = build(a.sun_angle)
+    scene = build(a.sun_angle, a.world)
     r = scene.render
     r.resolution_x, r.resolution_y = a.res
     r.resolution_percentage = 100
@@ -218,7 +250,8 @@ def child(a):
 def run(a, what):
     cmd = [sys.executable, os.path.abspath(__file__), "--child", what, "--out", a.out,
            "--res", str(a.res[0]), str(a.res[1]), "--spp", str(a.spp),
-           "--cycles-spp", str(a.cycles_spp), "--sun-angle", str(a.sun_angle)]
+           "--cycles-spp", str(a.cycles_spp), "--sun-angle", str(a.sun_angle),
+           "--world", a.world]
     out = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
     line = [x for x in out.stdout.splitlines() if x.startswith("RESULT")]
     if what != "masks" and not line:
@@ -242,6 +275,8 @@ def main():
     ap.add_argument("--cycles-equal", type=int, default=256,
                     help="Cycles at about ours' CPU time: its block ratios against the "
                     "reference too (0: none)")
+    ap.add_argument("--world", default="none", choices=("none", "color", "hdri"),
+                    help="light the room by the world through the window instead of a sun")
     ap.add_argument("--child")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -265,13 +300,21 @@ def main():
     names = json.load(open(os.path.join(a.out, "masks.json")))
     nid = {n: i for i, n in enumerate(names)}
     floor = ids == nid.get("Floor", -9)
-    print(f"sun patch: {int((floor & lit).sum())} floor pixels")
+    if a.world == "none":
+        print(f"sun patch: {int((floor & lit).sum())} floor pixels")
     walls = np.isin(ids, [i for n, i in nid.items() if "Wall" in n or n == "Ceiling"])
     objects = np.isin(ids, [nid.get("Table", -9), nid.get("Cylinder", -9)])
     regions = {"floor, sun patch": floor & lit, "floor, shade": floor & ~lit,
                "table top in sun": objects & lit, "objects in shade": objects & ~lit,
                "walls + ceiling": walls, "whole image": np.ones_like(floor)}
-    print(f"room {a.res[0]}x{a.res[1]}, sun 40 deg elevation, angle {a.sun_angle} deg; "
+    if a.world != "none":
+        lit = np.zeros_like(lit)  # no sun patch: the world through the window
+        regions = {"floor": floor, "objects": objects, "walls + ceiling": walls,
+                   "whole image": np.ones_like(floor)}
+    light = (f"sun 40 deg elevation, angle {a.sun_angle} deg" if a.world == "none" else
+             {"color": "white world of strength 1",
+              "hdri": "64x32 sky, 17-degree bright patch 30 deg up"}[a.world])
+    print(f"room {a.res[0]}x{a.res[1]}, {light}; "
           f"ours {a.spp} spp (add-on defaults otherwise), Cycles {a.cycles_spp} spp"
           + (f" ({times[cyc_name]:.0f} CPU s)" if cyc_name in times else " (kept)"))
     print(f"{'region':20s} {'pixels':>6s} " + " ".join(f"{w:>10s}" for w in runs)

@@ -7,6 +7,7 @@ the add-on shows, and the Film's stats record. Each effect can be forced on or o
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -262,8 +263,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     emitting = [li for li in lights if float(luminance(np.asarray(li.photon_flux))) > 0]
     spec_tri = table.has_specular[mat] if has_tris else np.zeros(0, bool)
     diff_tri = table.has_diffuse[mat] if has_tris else np.zeros(0, bool)
-    # Single-plane glass panes whose suns' shadow rays refract through them
-    # (engine/panelight.py; none under method 'local'): the caustics and sun lines read it.
+    # Single-plane glass panes whose suns' and world's shadow rays refract through them
+    # (engine/panelight.py; none under method 'local'): the caustics, sun and world lines
+    # read it.
     panes = find_panes(geo, table, lights, s) if has_tris else None
     # Lamps through Translucent BSDF shades by shadow rays (engine/shadelight.py).
     shades = find_shades(geo, table, lights, s) if has_tris else None
@@ -332,12 +334,16 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         plan.window_glass = ([geo.object_names[i] for i in np.unique(geo.object_id[window_tri])]
                              if window_tri.any() else [])
         # Single-plane glass panes (engine/panelight.py) when every emitting light is a
-        # sun whose shadow rays refract through them: the light through them is direct,
-        # so they are no caustic casters either (their reflections: unaimed photons).
+        # sun or the world whose shadow rays refract through them: the light through
+        # them is direct, so they are no caustic casters either (their reflections:
+        # unaimed photons).
         if (panes is not None and emitting
-                and all(any(li is sun for sun in panes.suns) for li in emitting)):
+                and all(panes.serves(li) for li in emitting)):
             pane_tri = panes.pane_tri >= 0
             plan.pane_glass = [p.name for p in panes.panes]
+            pane_lights = ("the sun and the world reach" if panes.suns and panes.world
+                           is not None else "the world reaches" if panes.world is not None
+                           else "the sun reaches")
             window_tri = window_tri | pane_tri
         sharp_tri = ((sharp_specular(table)[mat] if has_tris else np.zeros(0, bool))
                      & focus_tri & ~window_tri)
@@ -369,8 +375,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                            "caster; unaimed photons carry its reflections")
         if plan.pane_glass:
             rough_note += ("; single-plane glass " + _quoted(plan.pane_glass)
-                           + ": the sun reaches through it by shadow rays, not a caustic "
-                           "caster; unaimed photons carry its reflections")
+                           + f": {pane_lights} through it by shadow rays, not a "
+                           "caustic caster; unaimed photons carry its reflections")
         if glossy_rough:
             rough_note += ("; not aimed at " + _quoted(glossy_rough)
                            + f" (specular roughness {SHARP_ROUGHNESS:g} or more: too rough to focus "
@@ -451,8 +457,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                             + _quoted(plan.window_glass) + " (passed by shadow rays: thin flat glass)")
             if plan.pane_glass:
                 glow.append("the reflections of single-plane glass "
-                            + _quoted(plan.pane_glass) + " (the sun reaches through it by "
-                            "shadow rays)")
+                            + _quoted(plan.pane_glass) + f" ({pane_lights} through it "
+                            "by shadow rays)")
             # Rough glass (a frosted lamp shade) is glass too: "no glass" beside the
             # specular line's "through glass 'Shade' (roughness 0.5)" read as a
             # contradiction (new-user trial, newuser29).
@@ -617,6 +623,25 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                        "surface of a block of glass, what lies behind it inside the glass; "
                        "a window pane has two faces, e.g. a Solidify modifier)")
             plan.add(f"sun through glass '{li.name}'", True,
+                     f"reaches through single-plane glass {through} by shadow rays "
+                     f"refracted through it{how}; its photons through the glass are "
+                     "direct light, not caustics")
+        world = panes.world
+        if world is not None and plan.shadows.get(world.name, True):
+            # The world's light through a pane (paneworld32): the whole sky outside the
+            # plane bent into the critical cone, at eta2 <T> of its light (a white
+            # world's irradiance under the pane over that without it).
+            first = panes.panes[0]
+            through = _quoted([p.name for p in panes.panes], most=REPORT_NAMES_MAX)
+            how = ""
+            if first.ior > 1.0:
+                crit = math.degrees(math.asin(1.0 / first.ior))
+                keep = panes.world_share(first)
+                how = (f" ('{first.name}': the sky outside it bent into {crit:.0f} degrees "
+                       f"of its normal, {keep:.2f} of its light: one plane is the surface "
+                       "of a block of glass, what lies behind it inside the glass; a "
+                       "window pane has two faces, e.g. a Solidify modifier)")
+            plan.add("world through glass", True,
                      f"reaches through single-plane glass {through} by shadow rays "
                      f"refracted through it{how}; its photons through the glass are "
                      "direct light, not caustics")

@@ -1,4 +1,5 @@
-"""Sunlight through single-plane glass panes by next-event estimation (issue 14).
+"""Sunlight and the world's light through single-plane glass panes by next-event
+estimation (issue 14: pane31 for suns, paneworld32 for the world).
 
 A window modelled as one plane of smooth glass bends the light for good: the room lies on
 the glass side of a single interface. A sun's light is parallel, so the refracted
@@ -29,6 +30,34 @@ shadow rays carry, and the gather map gets it as direct photons (final gathering
 Only the diffuse lobe takes this light (and the irradiance of direct_irradiance without
 a BSDF): a camera path's rough reflective lobes keep finding the sun through the pane by
 their continuation (a delta refraction: full weight, integrator._trace_paths), as before.
+
+The world (paneworld32: Background colour, Environment Texture, Sky Texture's map) is
+the same with one difference: its light arrives from every direction, so each sample
+picks an inside direction w_t by one of four strategies and weights it by one-sample MIS
+(pane_irradiance; the shares: WORLD_SHARES, measured). The radiance along w_t is
+T(theta_i) L_world(w) (w the outside direction it refracts from; the photons' convention),
+and a pdf over outside directions becomes one over inside directions by the Jacobian
+
+    d w_t / d w_i = (eta_i / eta_t)^2 cos(theta_i) / cos(theta_t)
+
+(Snell's law sin t = eta sin i differentiated: cos t dtheta_t = eta cos i dtheta_i, the
+azimuth unchanged, and dw = sin theta dtheta dphi; Veach 1997, sec. 5.2; pbrt-v4
+sec. 9.5.2). Under a horizontal pane a white world gives E = pi L <T> / n^2, <T> the
+cosine-weighted mean of T over the hemisphere (tests/test_pane_world.py).
+
+Accounting (nothing counted twice, nothing lost), per path that reaches the world through
+a pane as its first scatter:
+  - the diffuse lobe at a camera hit, and the irradiance of the gathers' and regathers'
+    direct light: these shadow rays (the ordinary world shadow rays stop at the pane);
+  - the photons: a world photon refracted by a pane as its first scatter is direct-kind
+    (photonkernels.F_PANE, as a sun's): the caustic map no longer holds it, the gather
+    map does (the final-gather rays read it one bounce later, as any direct light);
+  - final-gather rays that pass the pane and miss everything read nothing (gather_indirect
+    keeps hits only), so they add no world light of their own;
+  - a camera path's rough reflective lobes: their continuation through the pane (a delta
+    refraction, pdf infinite) meets the world with MIS weight 1, as before; these shadow
+    rays are added to the diffuse lobe only, so the two do not overlap.
+Lamps (point, spot, area, mesh lights) through a pane stay caustic (their photons too).
 """
 from __future__ import annotations
 
@@ -42,6 +71,31 @@ from .lights import packing as lpk
 
 # Off: every pane stays caustic, as before (for A/B measurements: bench/bench_window_pane.py).
 ENABLED = True
+# Off: the world's light through a pane stays caustic, as before paneworld32 (the suns'
+# does not), for A/B measurements.
+WORLD_ENABLED = True
+# A world sample through the panes picks one of four strategies (pane_irradiance;
+# one-sample MIS, balance heuristic) with these probabilities: MAP the environment map's
+# own distribution outside, OUTSIDE the cosine hemisphere about the shading normal
+# outside, both refracted in through the pane; INSIDE the cosine hemisphere inside, AREA
+# a point uniform over the panes' area (a portal), both refracted back out. A constant
+# world has no map. Per point, OUTSIDE's and AREA's shares together are split by the
+# panes' projected solid angle over pi (Panes.projection, clipped to [ADAPT_MIN,
+# 1 - ADAPT_MIN]): OUTSIDE's samples all pass under a skylight, AREA's under a small
+# window. Measured (pixel noise of the Direct pass at 4 spp, paneworld32 in
+# docs/accuracy.md): a 1.2 x 1.0 m window in a 4 x 3 m room, white world: OUTSIDE alone
+# 1.85, AREA alone 0.19, half each 0.34, split by the projection 0.22; a floor 1 m under a
+# 6 m skylight: OUTSIDE alone 0.036, AREA alone 1.36, half each 0.127, split 0.060. With a map, MAP's share
+# trades a bright spot's noise against a flat sky's in a small window: MAP 0.5 / 0.6 /
+# 0.7 / 0.8, the rest split: skylight with a bright texel 0.335 / 0.293 / 0.233 / 0.202,
+# the room under a sky without a sun 0.61 / 0.82 / 0.92 / 1.22 (with a 17-degree bright
+# patch 2.3-2.6 throughout: its penumbra). INSIDE wastes the directions beyond the
+# critical angle (56 % of them under a horizontal pane) and never won: share 0.
+MAP, OUTSIDE, INSIDE, AREA = 0, 1, 2, 3
+WORLD_SHARES_ENV = (0.6, 0.2, 0.0, 0.2)
+WORLD_SHARES = (0.0, 0.5, 0.0, 0.5)
+WORLD_ADAPT = True
+ADAPT_MIN = 0.02
 # The most pane planes that take shadow rays; the rest stay caustic (largest first).
 MAX_PANES = 4
 # A pane's triangles lie within this share of the scene's extent of its plane.
@@ -50,6 +104,7 @@ PLANE_TOL = 1e-5
 T_ROWS = 2049
 
 _T_GRID = np.linspace(0.0, 1.0, T_ROWS)  # the tables' cos(theta_i) rows
+ONE_BELOW = float(np.nextafter(1.0, 0.0))
 _lock = threading.Lock()
 _NO_PANE_TRI = np.zeros(0, np.int64)
 
@@ -79,12 +134,61 @@ def _toward_sun(light):
 
 class Panes:
     """The scene's NEE panes: `panes` (list of Pane), `pane_tri` (T,) int64 the pane index
-    of every triangle row (-1: none), and the suns they serve (`suns`: Light objects)."""
+    of every triangle row (-1: none), the suns they serve (`suns`: Light objects) and the
+    world light (`world`: the WorldLight, or None when it takes no shadow rays);
+    `lights`: the suns and the world, the lights whose light through a pane is direct."""
 
-    def __init__(self, panes, pane_tri, suns):
+    def __init__(self, panes, pane_tri, suns, world=None, geo=None):
         self.panes = panes
         self.pane_tri = pane_tri
         self.suns = suns
+        self.world = world
+        self.lights = list(suns) + ([world] if world is not None else [])
+        # The panes' triangles for the world's PANE strategy (sample_points): corners
+        # v0, edges e1, e2 (M,3), pane index (M,), area CDF (M,) and total area (m^2).
+        self.area = 0.0
+        if geo is not None and panes:
+            rows = np.concatenate([q.rows for q in panes])
+            self.tri_v0 = np.asarray(geo.v0[rows], np.float64)
+            self.tri_e1 = np.asarray(geo.e1[rows], np.float64)
+            self.tri_e2 = np.asarray(geo.e2[rows], np.float64)
+            self.tri_k = np.concatenate([np.full(len(q.rows), k, np.int64)
+                                         for k, q in enumerate(panes)])
+            a = 0.5 * np.linalg.norm(np.cross(self.tri_e1, self.tri_e2), axis=1)
+            self.area = float(a.sum())
+            mid = self.tri_v0 + (self.tri_e1 + self.tri_e2) / 3.0
+            self.areas = [float(a[self.tri_k == k].sum()) for k in range(len(panes))]
+            self.centres = [(mid[self.tri_k == k] * a[self.tri_k == k, None]).sum(axis=0)
+                            / max(self.areas[k], 1e-300) for k in range(len(panes))]
+            self.tri_cdf = np.cumsum(a) / max(self.area, 1e-300)
+
+    def projection(self, p, ns) -> np.ndarray:
+        """(N,) the panes' projected solid angle over pi at points p (N,3) with normals ns
+        (N,3), from each pane's centre, A cos_pane cos_n / (pi d^2), summed: a rough
+        guide to the share of a cosine-distributed direction that meets a pane (a
+        heuristic for the strategies' shares only, never a weight)."""
+        q = np.zeros(len(p))
+        for pane, c, a in zip(self.panes, self.centres, self.areas):
+            v = c - p
+            d2 = np.maximum(np.einsum("ij,ij->i", v, v), 1e-300)
+            inv = 1.0 / np.sqrt(d2)
+            cp = np.abs(v @ pane.n) * inv
+            cn = np.maximum(np.einsum("ij,ij->i", v, ns), 0.0) * inv
+            q += a * cp * cn / (math.pi * d2)
+        return q
+
+    def sample_points(self, u1, u2):
+        """Points (N,3) uniform over the panes' area from uniform numbers u1, u2 (N,) (the
+        triangle by u1 and the area CDF, u1 rescaled within its bin; Shirley's square-root
+        map, pbrt-v4 SampleUniformTriangle), and each point's pane index (N,). Their
+        density is 1 / self.area per m^2."""
+        j = np.minimum(np.searchsorted(self.tri_cdf, u1, side="right"), len(self.tri_cdf) - 1)
+        lo = np.where(j > 0, self.tri_cdf[np.maximum(j - 1, 0)], 0.0)
+        r1 = np.clip((u1 - lo) / np.maximum(self.tri_cdf[j] - lo, 1e-300), 0.0, 1.0)
+        s = np.sqrt(r1)
+        y = (self.tri_v0[j] + (s * (1.0 - u2))[:, None] * self.tri_e1[j]
+             + (s * u2)[:, None] * self.tri_e2[j])
+        return y, self.tri_k[j]
 
     def total_reflections(self, light) -> list:
         """[(pane name, incidence deg, critical deg, ior)] for the panes that reflect all of
@@ -121,12 +225,25 @@ class Panes:
         return (math.degrees(math.acos(min(cos_i[0], 1.0))),
                 math.degrees(math.acos(min(cos_t[0], 1.0))), float(T * eta2[0]))
 
-    def photon_tri(self, light) -> np.ndarray:
-        """pane_tri for photons of `light` (a sun: the table; any other light: empty, its
-        light through a pane stays caustic)."""
+    def serves(self, light) -> bool:
+        """Whether `light` (or the light a RegionEmitter wraps) is a sun or the world whose
+        shadow rays refract through the panes."""
         # (visual importance wraps a light in a RegionEmitter: its .light is the sun)
         inner = getattr(light, "light", light)
-        return self.pane_tri if any(inner is s for s in self.suns) else _NO_PANE_TRI
+        return any(inner is s for s in self.lights)
+
+    def world_share(self, pane) -> float:
+        """The share of a white world's light that `pane` lets through to a receiver
+        facing it under it (green channel): (eta_i / eta_t)^2 times the cosine-weighted
+        hemispherical mean of T from outside, 2 int_0^1 T(mu) mu dmu (E = pi L that,
+        the photons' convention: docs/units.md "Refraction"). For the effect report."""
+        T = pane.T[0, :, 1]
+        return float(2.0 * np.trapz(T * _T_GRID, _T_GRID) / pane.ior ** 2)
+
+    def photon_tri(self, light) -> np.ndarray:
+        """pane_tri for photons of `light` (a sun or the world: the table; any other
+        light, a lamp: empty, its light through a pane stays caustic)."""
+        return self.pane_tri if self.serves(light) else _NO_PANE_TRI
 
 
 def _transmittance_table(glass, m):
@@ -145,8 +262,9 @@ def _transmittance_table(glass, m):
 def find_panes(geo, table, lights, settings=None):
     """Panes or None: objects wholly of smooth glass (photonkernels.flat_glass_materials,
     one material), all their triangles in one plane with one winding (single-plane glass,
-    not a slab: window_triangles has those), while the scene has a sun, no shared
-    instances, and no light tree (each sun is sampled on its own). At most MAX_PANES,
+    not a slab: window_triangles has those), while the scene has a sun or a world light
+    whose shadow rays are sampled, no shared instances, and no light tree (each light is
+    sampled on its own). At most MAX_PANES,
     largest area first. settings (RenderSettings or None): method 'local' has no
     shadow rays and no refraction, so no panes."""
     if geo.count == 0 or getattr(geo, "shared", None) is not None:
@@ -160,7 +278,10 @@ def find_panes(geo, table, lights, settings=None):
     # Suns whose shadow rays are sampled (integrator.light_sample_list takes them).
     suns = [i for i, li in enumerate(lights) if getattr(li, "kind", None) == "SUN"
             and int(li.ray_kinds) & SHADOW and li.shadow_sampled]
-    if not suns:
+    world = next((li for li in lights if getattr(li, "kind", None) == "WORLD"
+                  and int(li.ray_kinds) & SHADOW and li.shadow_sampled
+                  and WORLD_ENABLED), None)
+    if not suns and world is None:
         return None
     if not ENABLED:
         return None
@@ -209,7 +330,8 @@ def find_panes(geo, table, lights, settings=None):
                           np.asarray(c, np.float64), tris, m, float(table.ior[m]),
                           _transmittance_table(glass, m), lo - pad, hi + pad))
         pane_tri[tris] = k
-    return Panes(panes, np.ascontiguousarray(pane_tri), [lights[i] for i in suns])
+    return Panes(panes, np.ascontiguousarray(pane_tri), [lights[i] for i in suns], world,
+                 geo)
 
 
 def panes_for(ctx):
@@ -252,96 +374,247 @@ def refract_sun(w, n, ior):
     return -tdir, cos_i, cos_t, eta * eta, side, ok
 
 
+def _cosine_directions(u1, u2, ns):
+    """(N,3) cosine-distributed unit directions about unit normals ns (N,3) from uniform
+    numbers u1, u2 (N,) (Malley's method; the frame: Duff et al. 2017, "Building an
+    Orthonormal Basis, Revisited"); their pdf is (w . ns) / pi."""
+    r = np.sqrt(u1)
+    phi = 2.0 * math.pi * u2
+    x, y = r * np.cos(phi), r * np.sin(phi)
+    z = np.sqrt(np.maximum(0.0, 1.0 - u1))
+    n0, n1, n2 = ns[:, 0], ns[:, 1], ns[:, 2]
+    sgn = np.where(n2 >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sgn + n2)
+    b = n0 * n1 * a
+    t = np.stack([1.0 + sgn * n0 * n0 * a, sgn * b, -sgn * n0], axis=1)
+    s = np.stack([b, sgn + n1 * n1 * a, -n1], axis=1)
+    return x[:, None] * t + y[:, None] * s + z[:, None] * ns
+
+
+def _transmittance(pane, cos_i, side):
+    """(N,3) the pane's Fresnel transmittance at cos_i (N,) from side (N,) (its table)."""
+    T = np.empty((len(cos_i), 3))
+    for s in (0, 1):
+        m_ = side == s
+        if m_.any():
+            for c in range(3):
+                T[m_, c] = np.interp(cos_i[m_], _T_GRID, pane.T[s, :, c])
+    return T
+
+
+def _through(ctx, tri_pane, k, pane, p, ns, ng, offset, w, wt, side, ok, shadow, scale,
+             want_t=False):
+    """The rows of points p (N,3) whose light from outside direction w (N,3) reaches them
+    along inside direction wt (N,3) through pane k: the receiver on the far side of the
+    plane from w, facing wt; the first surface along wt this pane, at the plane; the ray on
+    from just past the plane along w unoccluded (transparent shadows: ctx.shadow).
+    Returns (rows (M,) int64, trans (M,3) the shadows' transmittance, cos(wt, ns) at the
+    rows (M,), rays traced), and with want_t the distances (M,) to the plane (m)."""
+    empty = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0), 0) + (
+        (np.zeros(0),) if want_t else ())
+    from .geometry import SHADOW
+    accel = ctx.accel
+    h = (p - pane.c) @ pane.n
+    far = np.where(side == 0, h < 0.0, h > 0.0)
+    cr = np.einsum("ij,ij->i", wt, ns)
+    cg = np.einsum("ij,ij->i", wt, ng)
+    idx = np.nonzero(ok & far & (cr > 0.0) & (cg > 0.0))[0]
+    if not len(idx):
+        return empty
+    o = p[idx] + offset[idx, None] * ng[idx]
+    d = wt[idx]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_plane = ((pane.c - o) @ pane.n) / (d @ pane.n)
+    good = np.isfinite(t_plane) & (t_plane > 0.0)
+    y = o + np.where(good, t_plane, 0.0)[:, None] * d
+    good &= np.all((y >= pane.lo) & (y <= pane.hi), axis=1)  # within its bounds
+    idx, o, d, t_plane = idx[good], o[good], d[good], t_plane[good]
+    if not len(idx):
+        return empty
+    # First surface along w_t: this pane, at the plane.
+    t_hit, prim, _, _ = accel.intersect(o, d, t_plane * (1.0 + 1e-3) + 1e-6 * scale,
+                                        cls=SHADOW)
+    rays = len(idx)
+    hit = (prim >= 0) & (np.take(tri_pane, np.maximum(prim, 0)) == k)
+    hit &= np.abs(t_hit - t_plane) <= 1e-3 * t_plane + 1e-5 * scale
+    idx, o, d, t_plane = idx[hit], o[hit], d[hit], t_plane[hit]
+    if not len(idx):
+        return (empty[0], empty[1], empty[2], rays) + empty[4:]
+    y = o + t_plane[:, None] * d
+    # Past the plane on the light's side, clear of the pane.
+    sn = np.where(side[idx, None] == 0, pane.n, -pane.n)
+    lift = 1e-6 * scale + 4e-7 * np.max(np.abs(y), axis=1)
+    y2 = y + lift[:, None] * sn
+    o32 = np.ascontiguousarray(y2, np.float32)
+    d32 = np.ascontiguousarray(w[idx], np.float32)
+    t32 = np.full(len(idx), np.finfo(np.float32).max, np.float32)
+    blocked = np.empty(len(idx), np.bool_)
+    keep_t = t32.copy()
+    accel.occluded_into(o32, d32, t32, blocked, cls=SHADOW)
+    rays += len(idx)
+    trans = np.ones((len(idx), 3))
+    trans[blocked] = 0.0
+    if shadow is not None and blocked.any():
+        b = np.nonzero(blocked)[0]
+        trans[b] = shadow.transmittance(o32[b], d32[b], keep_t[b], cls=SHADOW)
+    return (idx, trans, cr[idx], rays) + ((t_plane,) if want_t else ())
+
+
 def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
     """(N,3) irradiance at points p (N,3) (shading normals ns, geometric normals ng on the
-    lit side, origin offsets offset (N,)) from the suns' samples among `samples`
-    (integrator.light_sample_list entries) through the panes. Each sample's shadow rays:
-    a closest-hit query along w_t that must meet the pane at the plane's distance (it is
-    the first surface), then an occlusion query from just past the plane towards the sun
-    (transparent shadows: ctx.shadow). Returns (E, rays traced)."""
-    from .geometry import SHADOW
+    lit side, origin offsets offset (N,)) from the suns' and the world's samples among
+    `samples` (integrator.light_sample_list entries) through the panes. Each sample's
+    shadow rays: a closest-hit query along the inside direction w_t that must meet the
+    pane at the plane's distance (it is the first surface), then an occlusion query from
+    just past the plane along the outside direction w (transparent shadows: ctx.shadow).
+
+    A sun sample: w from the sun's cone, w_t its refraction; weight (module docstring)
+    E_sun T (eta_i / eta_t)^2 cos_i / cos_t (N . w_t).
+
+    A world sample: one-sample MIS (Veach 1997, sec. 9.2.4; balance heuristic) of four
+    strategies over inside directions w_t, one number choosing (an environment's third
+    number, else u1) with the point's shares S (WORLD_SHARES, split by Panes.projection):
+      MAP      w from the map's own distribution (Environment.sample, pdf p_map(w) per sr
+               outside), w_t its refraction through each pane in turn
+      OUTSIDE  w cosine-distributed about the shading normal (pdf max(N . w, 0) / pi),
+               refracted in alike
+      INSIDE   w_t cosine-distributed about the shading normal, pdf (N . w_t) / pi, w its
+               refraction back out of the pane (total internal reflection: none)
+      AREA     w_t towards a point uniform over the panes' area A (a portal), pdf
+               t^2 / (A cos_t) per sr (t the distance to the plane, cos_t w_t's cosine to
+               the pane's normal), refracted back out alike
+    An outside pdf p(w) is p(w) / (d w_t / d w) per sr inside, with (Snell:
+    sin t = eta sin i, so cos t dtheta_t = eta cos i dtheta_i, dphi unchanged)
+        d w_t / d w = sin t dtheta_t dphi / (sin i dtheta_i dphi)
+                    = (eta_i / eta_t)^2 cos_i / cos_t
+    (Veach 1997, sec. 5.2, eq. 5.4; pbrt-v4 sec. 9.5.2). The radiance along w_t is
+    T L_world(w) (radiance invariant across the interface, as Cycles and the photons:
+    docs/units.md "Refraction"), so each pane's term is
+        T(cos_i) L(w) (N . w_t) / sum_s S_s p_s(w_t)
+    at a direction whose first surface is that pane. A w_t meets one pane first, so
+    summing the panes' terms counts each direction once (an AREA point on another pane
+    counts for that pane only).
+    Returns (E, rays traced)."""
     N = len(p)
     E = np.zeros((N, 3))
     if N == 0 or panes is None:
         return E, 0
     from .lights.packing import pack_lights
     codes, params, _ = ctx.packed_lights or pack_lights(ctx.lights)
-    accel = ctx.accel
     shadow = getattr(ctx, "shadow", None)
     rays = 0
     tri_pane = panes.pane_tri
     scale = max(float(ctx.geo.extent), 1e-9)
-    for li, traced, count, u1, u2, _sel in samples:
-        if li < 0 or codes[li] != lpk.CODE_SUN:
+    for li, traced, count, u1, u2, sel in samples:
+        if li < 0:
             continue
-        q = params[li]
-        a = -q[lpk.DIR:lpk.DIR + 3]
-        a = a / np.linalg.norm(a)
-        cos_half = q[lpk.COS_HALF]
-        z = 1.0 - u1 * (1.0 - cos_half)
-        r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
-        phi = 2.0 * math.pi * u2
-        bu, bv = _frame(a)
-        w = ((r * np.cos(phi))[:, None] * bu + (r * np.sin(phi))[:, None] * bv
-             + z[:, None] * a)
-        rgb = q[lpk.RGB:lpk.RGB + 3]
-        for k, pane in enumerate(panes.panes):
-            wt, cos_i, cos_t, eta2, side, ok = refract_sun(w, pane.n, pane.ior)
-            # The receiver on the far side of the plane from the sun, facing w_t.
-            h = (p - pane.c) @ pane.n
-            far = np.where(side == 0, h < 0.0, h > 0.0)
-            cr = np.einsum("ij,ij->i", wt, ns)
-            cg = np.einsum("ij,ij->i", wt, ng)
-            go = ok & far & (cr > 0.0) & (cg > 0.0)
-            idx = np.nonzero(go)[0]
-            if not len(idx):
-                continue
-            o = p[idx] + offset[idx, None] * ng[idx]
-            d = wt[idx]
-            t_plane = ((pane.c - o) @ pane.n) / (d @ pane.n)
-            good = np.isfinite(t_plane) & (t_plane > 0.0)
-            y = o + np.where(good, t_plane, 0.0)[:, None] * d
-            good &= np.all((y >= pane.lo) & (y <= pane.hi), axis=1)  # within its bounds
-            idx, o, d, t_plane = idx[good], o[good], d[good], t_plane[good]
-            if not len(idx):
-                continue
-            # First surface along w_t: this pane, at the plane.
-            t_hit, prim, _, _ = accel.intersect(o, d, t_plane * (1.0 + 1e-3) + 1e-6 * scale,
-                                                cls=SHADOW)
-            rays += len(idx)
-            hit = (prim >= 0) & (np.take(tri_pane, np.maximum(prim, 0)) == k)
-            hit &= np.abs(t_hit - t_plane) <= 1e-3 * t_plane + 1e-5 * scale
-            idx, o, d, t_plane = idx[hit], o[hit], d[hit], t_plane[hit]
-            if not len(idx):
-                continue
-            y = o + t_plane[:, None] * d
-            wk = w[idx]
-            # Past the plane on the sun's side, clear of the pane.
-            sn = np.where(side[idx, None] == 0, pane.n, -pane.n)
-            lift = 1e-6 * scale + 4e-7 * np.max(np.abs(y), axis=1)
-            y2 = y + lift[:, None] * sn
-            o32 = np.ascontiguousarray(y2, np.float32)
-            d32 = np.ascontiguousarray(wk, np.float32)
-            t32 = np.full(len(idx), np.finfo(np.float32).max, np.float32)
-            blocked = np.empty(len(idx), np.bool_)
-            keep_t = t32.copy()
-            accel.occluded_into(o32, d32, t32, blocked, cls=SHADOW)
-            rays += len(idx)
-            trans = np.ones((len(idx), 3))
-            trans[blocked] = 0.0
-            if shadow is not None and blocked.any():
-                b = np.nonzero(blocked)[0]
-                trans[b] = shadow.transmittance(o32[b], d32[b], keep_t[b], cls=SHADOW)
-            ci, ct = cos_i[idx], cos_t[idx]
-            sd = side[idx]
-            T = np.empty((len(idx), 3))
-            for s in (0, 1):
-                m_ = sd == s
-                if m_.any():
-                    for c in range(3):
-                        T[m_, c] = np.interp(ci[m_], _T_GRID, pane.T[s, :, c])
-            f = eta2[idx] * ci / np.maximum(ct, 1e-12) * cr[idx] / count
-            E[idx] += (f[:, None] * T * trans) * rgb[None, :]
+        if codes[li] == lpk.CODE_SUN:
+            q = params[li]
+            a = -q[lpk.DIR:lpk.DIR + 3]
+            a = a / np.linalg.norm(a)
+            cos_half = q[lpk.COS_HALF]
+            z = 1.0 - u1 * (1.0 - cos_half)
+            r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+            phi = 2.0 * math.pi * u2
+            bu, bv = _frame(a)
+            w = ((r * np.cos(phi))[:, None] * bu + (r * np.sin(phi))[:, None] * bv
+                 + z[:, None] * a)
+            rgb = q[lpk.RGB:lpk.RGB + 3]
+            for k, pane in enumerate(panes.panes):
+                wt, cos_i, cos_t, eta2, side, ok = refract_sun(w, pane.n, pane.ior)
+                idx, trans, cr, n_rays = _through(ctx, tri_pane, k, pane, p, ns, ng, offset,
+                                                  w, wt, side, ok, shadow, scale)
+                rays += n_rays
+                if not len(idx):
+                    continue
+                ci, ct = cos_i[idx], cos_t[idx]
+                T = _transmittance(pane, ci, side[idx])
+                f = eta2[idx] * ci / np.maximum(ct, 1e-12) * cr / count
+                E[idx] += (f[:, None] * T * trans) * rgb[None, :]
+        elif codes[li] == lpk.CODE_WORLD and panes.world is not None:
+            world = panes.world
+            env = world.environment
+            shares = np.asarray(WORLD_SHARES_ENV if env is not None else WORLD_SHARES,
+                                np.float64)
+            # The strategy by one number, which then gives the first coordinate rescaled
+            # within its share: an environment's third number (stratified with u1, not
+            # independent of it: integrator.mesh_light_numbers; directlight.sample_lights
+            # does the same), else u1 itself.
+            x = np.asarray(sel if env is not None and sel is not None else u1, np.float64)
+            if not panes.area > 0.0:
+                shares = np.where(np.arange(4) == AREA, 0.0, shares)
+            shares = shares / shares.sum()
+            S = np.repeat(shares[None, :], N, axis=0)  # (N,4): each point's shares
+            if WORLD_ADAPT and panes.area > 0.0:
+                # OUTSIDE and AREA split by the panes' projected solid angle at the point
+                # (Panes.projection): a skylight over the point, OUTSIDE; a window across
+                # the room, AREA (a portal).
+                q = np.clip(panes.projection(p, ns), ADAPT_MIN, 1.0 - ADAPT_MIN)
+                r = shares[OUTSIDE] + shares[AREA]
+                S[:, OUTSIDE], S[:, AREA] = r * q, r * (1.0 - q)
+            top = np.cumsum(S, axis=1)
+            strat = np.minimum((x[:, None] >= top).sum(axis=1), AREA)
+            rows_ = np.arange(N)
+            share = S[rows_, strat]
+            a = np.clip((x - (top - S)[rows_, strat]) / np.maximum(share, 1e-300),
+                        0.0, ONE_BELOW)
+            b = np.asarray(u2, np.float64)
+            by_map, by_area = strat == MAP, strat == AREA
+            by_in = (strat == INSIDE) | by_area  # samples of w_t: refracted back out
+            # wc: OUTSIDE's w, INSIDE's and AREA's w_t; w0: MAP's and OUTSIDE's w.
+            wc = np.zeros((N, 3))
+            m_ = np.nonzero((strat == OUTSIDE) | (strat == INSIDE))[0]
+            if len(m_):
+                wc[m_] = _cosine_directions(a[m_], b[m_], ns[m_])
+            on_k = np.full(N, -1, np.int64)    # AREA: the pane of the point
+            if by_area.any():
+                m_ = np.nonzero(by_area)[0]
+                y, on_k[m_] = panes.sample_points(a[m_], b[m_])
+                v = y - p[m_]
+                wc[m_] = v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
+            w0 = wc.copy()
+            if by_map.any():
+                m_ = np.nonzero(by_map)[0]
+                w0[m_] = env.sample(a[m_], b[m_])[0]
+            inside = np.nonzero(by_in)[0]
+            for k, pane in enumerate(panes.panes):
+                # The outside direction: the map's or the outside cosine sample, or the
+                # inside sample (cosine, or towards a point on a pane) refracted back
+                # out (refract_sun of -w_t: light arriving from the receiver's side).
+                w = w0.copy()
+                ok_b = np.ones(N, bool)
+                if len(inside):
+                    back, _, _, _, _, ok_b[inside] = refract_sun(-wc[inside], pane.n,
+                                                                 pane.ior)
+                    w[inside] = -back
+                wt, cos_i, cos_t, eta2, side, ok = refract_sun(w, pane.n, pane.ior)
+                ok &= ok_b
+                ok &= ~by_area | (on_k == k)  # a point on another pane: that pane's
+                wt[inside] = wc[inside]
+                idx, trans, cr, n_rays, t_plane = _through(
+                    ctx, tri_pane, k, pane, p, ns, ng, offset, w, wt, side, ok, shadow,
+                    scale, want_t=True)
+                rays += n_rays
+                if not len(idx):
+                    continue
+                wk = w[idx]
+                ci, ct = cos_i[idx], np.maximum(cos_t[idx], 1e-12)
+                T = _transmittance(pane, ci, side[idx])
+                # The mixture's pdf per sr of inside directions (outside pdfs through the
+                # Jacobian cos_t / (eta2 cos_i); AREA's t^2 / (A cos_t), cos_t the inside
+                # direction's cosine to the pane, A all the panes' area).
+                Sk = S[idx]
+                p_out = Sk[:, OUTSIDE] * np.maximum(np.einsum("ij,ij->i", wk, ns[idx]),
+                                                    0.0) / math.pi
+                if shares[MAP] > 0.0:
+                    p_out = p_out + Sk[:, MAP] * env.pdf(wk)
+                pdf = Sk[:, INSIDE] * cr / math.pi + p_out * ct / (eta2[idx] * ci)
+                if panes.area > 0.0:
+                    pdf = pdf + Sk[:, AREA] * t_plane * t_plane / (panes.area * ct)
+                L = (env.radiance(wk) if env is not None else
+                     np.broadcast_to(np.asarray(world.radiance, np.float64), (len(idx), 3)))
+                g = np.where(pdf > 0.0, cr / np.maximum(pdf, 1e-300), 0.0) / count
+                E[idx] += g[:, None] * T * trans * L
     if counters is not None:
         counters.shadow_rays += rays
     return E, rays

@@ -209,7 +209,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     factors = pool.take(_factors, m)
     bump, tfar, hit_rows, hits = _factor_views(factors, m)
     stored = _Stored(2 * m + 1024, pool, shot)
-    # A sun's photons refracted through a next-event pane stay direct (engine/panelight.py).
+    # A sun's or the world's photons refracted through a next-event pane stay direct
+    # (engine/panelight.py).
     panes = panes_for(ctx)
     pane_tri = panes.photon_tri(light) if panes is not None else None
     # A lamp's photons through a Translucent BSDF shade stay direct (engine/shadelight.py).

@@ -1072,10 +1072,11 @@ def _allocate_aimed(ctx, targets, total):
     (estimated with a small pilot batch of aimed photons). A sun's power at the
     single-plane panes its shadow rays refract through (engine/panelight.py) is left out:
     its photons through them are direct, which the caustic shot does not keep (a sun and a
-    lamp over a pane: 68 of 100,000 caustic photons stored, the sun's share all lost)."""
+    lamp over a pane: 68 of 100,000 caustic photons stored, the sun's share all lost); the
+    world's likewise (paneworld32)."""
     rng = np.random.default_rng([ctx.settings.seed, 98])
     panes = panes_for(ctx)
-    others = None  # the targets that are not panes, for the panes' suns
+    others = None  # the targets that are not panes, for the panes' suns and world
     if panes is not None:
         pane_ids = {int(ctx.geo.object_id[p.rows[0]]) for p in panes.panes}
         keep = np.array([int(i) not in pane_ids for i in ctx.plan.caster_ids], bool)
@@ -1084,7 +1085,7 @@ def _allocate_aimed(ctx, targets, total):
     weights = []
     for light in ctx.lights:
         aim = targets
-        if others is not None and any(light is sun for sun in panes.suns):
+        if others is not None and panes.serves(light):
             if not len(others[1]):
                 weights.append(0.0)
                 continue
