@@ -116,7 +116,8 @@ class PhotonMap:
 
     The photons are kept in the structure's order (self.photons is that permutation of
     the input), so a search result indexes the photon arrays directly: the map adds under
-    2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49.
+    2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49 (53
+    with their surfaces, Photons.surface: 4 B).
     structure: "kdtree" or "hashgrid"; cell: the hash grid's cell size (the search radius
     it serves best), required for "hashgrid". Raises ValueError for anything else.
     rows: (K,) int, the map holds only those photons (photons.take(rows), gathered once
@@ -325,7 +326,8 @@ class PhotonMap:
             flag = stop.array if isinstance(stop, StopFlag) else stop_array(should_cancel)
             b = min(a + rows, m)
             _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
-                             surf, p, n, qsurf, floor, order[a:b], float(radius), int(k), int(min_photons),
+                             surf, p, n, qsurf, floor, order[a:b], float(radius), int(k),
+                             int(min_photons),
                              code, bool(return_boundary), out, boundary, flag, masks, masked,
                              hid_start, hid_photon, read_count, read_photon, read_weight,
                              read_factor)
@@ -550,7 +552,8 @@ def _list_candidates(cand, cx, cy, cz, nc, qx, qy, qz, r2, d2, idx, cap, tmp):
 
 @kernel
 def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, surface, p, n,
-                     qsurf, r_floor, rows, radius, k, min_photons, code, want_boundary, out, boundary, stop,
+                     qsurf, r_floor, rows, radius, k, min_photons, code, want_boundary, out,
+                     boundary, stop,
                      masks, masked, hid_start, hid_photon, read_count, read_photon,
                      read_weight, read_factor):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
@@ -703,7 +706,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                     kdtree.nearest_first(list_d2, list_idx, got, kq, b2, d2, idx, hist)
                     seeded = kdtree.unique_nearest(d2, got, kq) and (
                         kq >= widest
-                        or _count_accepted(direction, normal, surface, pos, idx, kq, nx, ny, nz, qs, qx, qy, qz) >= k // 2)
+                        or _count_accepted(direction, normal, surface, pos, idx, kq, nx, ny,
+                                           nz, qs, qx, qy, qz) >= k // 2)
             if seeded:
                 cnt = kq
             else:
@@ -742,7 +746,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                                buckets)
             prev_kth = d2[kq - 1] if cnt == kq else -1.0
             if not seeded and cnt == kq and kq < widest and \
-                    _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs, qx, qy, qz) < k // 2:
+                    _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs,
+                                    qx, qy, qz) < k // 2:
                 # Widen (x4 up to MAX_WIDEN_K) while fewer than k / 2 of the nearest are
                 # accepted (a crowded neighbour surface). First, a row whose sphere holds
                 # fewer than min_photons accepted photons has no estimate at any width
@@ -763,7 +768,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                 if listed >= 0:
                     # The sphere is listed already (list_d2 / list_idx, tree order; a row
                     # widens only where k < widest, and then listed <= list_cap <= widest).
-                    if not _accepted_at_least(direction, normal, surface, pos, list_idx, listed, nx, ny, nz, qs, qx, qy, qz,
+                    if not _accepted_at_least(direction, normal, surface, pos, list_idx,
+                                              listed, nx, ny, nz, qs, qx, qy, qz,
                                               min_photons):
                         continue
                     # The widening below, ordering only as far as it reads: the kq
@@ -783,7 +789,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                             ordered = -1  # ties at the prefix's end
                             break
                         ordered = kq
-                        if _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs, qx, qy, qz) >= k // 2:
+                        if _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny,
+                                           nz, qs, qx, qy, qz) >= k // 2:
                             break
                         step = kq
                     if ordered < 0:
@@ -797,7 +804,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                         # ordered as before): the same sums, from ~n_acc of ~listed photons.
                         n_acc = 0
                         for j in range(listed):  # the accepted ones, in the listing's order
-                            if _accepted(direction, normal, surface, pos, list_idx[j], nx, ny, nz, qs, qx, qy, qz)[0]:
+                            if _accepted(direction, normal, surface, pos, list_idx[j], nx, ny,
+                                         nz, qs, qx, qy, qz)[0]:
                                 acc_d2[n_acc] = list_d2[j]
                                 acc_idx[n_acc] = list_idx[j]
                                 n_acc += 1
@@ -819,8 +827,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                 else:
                     nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan,
                                SCAN_BUDGET, buckets)
-                    if nb <= SCAN_BUDGET and _count_accepted(direction, normal, surface, pos, scan, nb,
-                                                             nx, ny, nz, qs, qx, qy, qz) < min_photons:
+                    if nb <= SCAN_BUDGET and _count_accepted(
+                            direction, normal, surface, pos, scan, nb, nx, ny, nz, qs, qx, qy,
+                            qz) < min_photons:
                         continue
                     # Each wider query's result is a prefix of the widest one (increasing
                     # distance): one query, then the prefixes are tried in turn. A sphere
@@ -844,7 +853,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
                         cnt = min(found, kq)
                         if cnt < kq or kq >= widest:
                             break
-                        if _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs, qx, qy, qz) >= k // 2:
+                        if _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny,
+                                           nz, qs, qx, qy, qz) >= k // 2:
                             break
         else:
             c = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets)
@@ -869,8 +879,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
         rk = radius
         floored = False
         for j in range(cnt):
-            row_ok[j], row_other[j], row_cos[j] = _accepted(direction, normal, surface, pos, idx[j], nx, ny,
-                                                            nz, qs, qx, qy, qz)
+            row_ok[j], row_other[j], row_cos[j] = _accepted(direction, normal, surface, pos,
+                                                            idx[j], nx, ny, nz, qs, qx, qy,
+                                                            qz)
         if code >= KNN_SIMPSON:
             # rk: distance to the k-th accepted photon; with fewer accepted (acc of them, at
             # least SPARSE_MIN_ACCEPTED), to the last accepted one: the k-NN estimate with
@@ -999,7 +1010,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
             # The sum saw no other surface's photons: look for them in the listed sphere.
             for j in range(listed):
                 if math.sqrt(list_d2[j]) <= rk and \
-                        _accepted(direction, normal, surface, pos, list_idx[j], nx, ny, nz, qs, qx, qy, qz)[1]:
+                        _accepted(direction, normal, surface, pos, list_idx[j], nx, ny, nz, qs,
+                                  qx, qy, qz)[1]:
                     other_inside = True
                     break
         # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
@@ -1689,8 +1701,7 @@ def _warm_up_gather():
     lists = np.empty((4, 8), np.int64)
     counts = np.empty(4, np.int64)
     _agreeing_lists(g.tree.position, g.tree.nodes, g.normal, NO_SURFACE, q, nq, NO_SURFACE,
-                    rows, 0.25, 8, lists,
-                    counts)
+                    rows, 0.25, 8, lists, counts)
     pending = np.nonzero(counts > 1)[0]
     nxt = np.ones(4, np.int64)
     o32, d32, t32 = np.empty((32, 3), np.float32), np.empty((32, 3), np.float32), \
