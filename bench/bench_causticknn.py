@@ -153,10 +153,10 @@ def _compiled_counts():
     import numpy
     from engine import kdtree
     from engine.photonmap import _accepted
-    from engine.samesurface import NO_SURFACE
-    g = dict(np=numpy, kdtree=kdtree, _accepted=_accepted, NO_SURFACE=NO_SURFACE)
+    g = dict(np=numpy, kdtree=kdtree, _accepted=_accepted)
     src = ("def f(pos, axis, split, leaf, direction, normal, p, n, r2, nb, acc):\n"
            "    scan = np.empty(1 << 22, np.int64)\n"
+           "    unknown = np.full(pos.shape[0], -1, np.int32)  # no surfaces: the normal test\n"
            "    for i in range(p.shape[0]):\n"
            "        c = kdtree.ball(pos, axis, split, leaf, p[i, 0], p[i, 1], p[i, 2], r2,\n"
            "                        scan, scan.shape[0] - 1)\n"
@@ -164,7 +164,7 @@ def _compiled_counts():
            "        a = 0\n"
            "        nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])\n"
            "        for j in range(min(c, scan.shape[0] - 1)):\n"
-           "            if _accepted(direction, normal, NO_SURFACE, pos, scan[j], nx, ny, nz,\n"
+           "            if _accepted(direction, normal, unknown, pos, scan[j], nx, ny, nz,\n"
            "                         -1, p[i, 0], p[i, 1], p[i, 2])[0]:\n"
            "                a += 1\n"
            "        acc[i] = a\n")

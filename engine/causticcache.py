@@ -50,7 +50,7 @@ from . import kdtree
 from .jit import kernel
 from .parallel import ordered_map
 from .photonmap import _accepted
-from .samesurface import NO_SURFACE, same_surface
+from .samesurface import NO_SURFACE, same_surface, surface_ids
 
 ACCEPT = 0.3  # a lookup reads the nearest photon's estimate within ACCEPT x its rk
 # The smallest k whose uniform-caustic rows the ACCEPT cut sends to the k-NN row less than
@@ -163,8 +163,9 @@ class PrecomputedIrradiance:
         axis, split, leaf = t.nodes
         big = np.abs(ph.position).max() if m else 0.0
         r_min = max(1e-6 * float(big), MIN_RADIUS_FRACTION * radius, 1e-15)
-        surf = (np.ascontiguousarray(ph.surface, dtype=np.int32)
-                if surfaces and ph.surface is not None else NO_SURFACE)
+        surfaces = surfaces and ph.surface is not None
+        # (-1: unknown; photonmap._accepted reads a photon's surface without a branch)
+        surf = surface_ids(ph) if surfaces else np.full(m, -1, np.int32)
 
         def job(a, stop):
             b = min(a + PRE_ROWS, m)
@@ -179,7 +180,7 @@ class PrecomputedIrradiance:
         E, bnd = pmap.knn_irradiance(
             np.take(pos64, rows, axis=0), np.take(n64, rows, axis=0), radius, k,
             min_photons, estimator, return_boundary=True, should_cancel=should_cancel,
-            surface=np.take(surf, rows) if len(surf) else None)
+            surface=np.take(surf, rows) if surfaces else None)
         r = np.take(rk, rows).astype(np.float64)
         keep = ~bnd & (r >= r_min) & (E.sum(axis=1) > 0)
         r = np.where(keep, r, 1.0)
@@ -241,7 +242,7 @@ def _photon_radii_from(pos, axis, split, leaf, direction, normal, surface, k, r2
     reads (photonmap._irradiance_rows' rk): the distance to its k-th nearest photon (itself
     included); 0 (no estimate stored) where fewer than k lie within sqrt(r2) (the cap),
     where any of those is not accepted at i's surface (photonmap._accepted, with the
-    photons' surfaces (P,) int32, empty: unknown: the disc holds another surface's or
+    photons' surfaces (P,) int32, -1: unknown: the disc holds another surface's or
     back-facing photons) or where k photons lie within sqrt(r2_min) (a focus: the
     estimate's rk is floored)."""
     # kdtree.knn's heap costs ~14-19 us a photon at k = 64 on Figure 8's map; a sphere
@@ -261,7 +262,7 @@ def _photon_radii_from(pos, axis, split, leaf, direction, normal, surface, k, r2
         i = a + r
         qx, qy, qz = np.float64(pos[i, 0]), np.float64(pos[i, 1]), np.float64(pos[i, 2])
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-        qs = np.int64(surface[i]) if surface.shape[0] else np.int64(-1)
+        qs = np.int64(surface[i])
         rk[r] = np.float32(0.0)
         rt = min(max(seed, r_min), r_cap)
         cnt = 0

@@ -27,7 +27,8 @@ from .mortontree import morton_order  # noqa: F401 (query order; tests, benches)
 from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
-from .samesurface import NO_SURFACE, same_surface
+from .samesurface import (COPLANAR_COS, COPLANAR_SIN2, NO_SURFACE, POSITION_RESOLUTION,
+                          same_surface, surface_ids)
 
 NORMAL_AGREEMENT = 0.5
 BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
@@ -174,6 +175,11 @@ class PhotonMap:
             return self.photons.nbytes + pre
         return self.photons.nbytes + self.tree.nbytes - self.tree.position.nbytes + pre
 
+    def surface_ids(self) -> np.ndarray:
+        """(N,) int32 the photons' surfaces for the estimate kernels: Photons.surface, or
+        all -1 (unknown: kept on the map) where the photons have none."""
+        return surface_ids(self.photons)
+
     def serial(self) -> "PhotonMap":
         """The same map, queried on the calling thread only (the caller runs chunks on
         threads already, engine/parallel.py)."""
@@ -302,11 +308,10 @@ class PhotonMap:
             read_count[:] = 0
         if self.tree is None or m == 0 or radius <= 0 or len(self.photons) < min_photons:
             return result
-        surf = self.photons.surface
-        if surface is None or surf is None:
-            surf = qsurf = NO_SURFACE
+        surf = self.surface_ids()
+        if surface is None or self.photons.surface is None:
+            qsurf = NO_SURFACE
         else:
-            surf = np.ascontiguousarray(surf, dtype=np.int32)
             qsurf = np.ascontiguousarray(np.broadcast_to(surface, (m,)), dtype=np.int32)
         p = np.ascontiguousarray(p, dtype=np.float64)
         n = np.ascontiguousarray(n, dtype=np.float64)
@@ -375,12 +380,23 @@ def _accepted(direction, normal, surface, pos, j, nx, ny, nz, qs, qx, qy, qz):
     """(accepted, other_surface, cos_in) for photon j at a query at (qx, qy, qz) with
     float32 normal (nx, ny, nz) on surface qs (object id, < 0: unknown): it arrived from
     the front (d.N < 0) and lies on a surface facing the same way, the query's own or one
-    continuing its plane (samesurface.same_surface; surface empty: not tested)."""
+    continuing its plane (samesurface.same_surface's rule). surface: (P,) int32, -1 where
+    unknown (PhotonMap.surface_ids: never empty)."""
     cos_in = -(direction[j, 0] * nx + direction[j, 1] * ny + direction[j, 2] * nz)
-    other = (normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz) <= NORMAL_AGREEMENT
-    if not other:
-        other = not same_surface(surface, pos, normal, j, qs, qx, qy, qz, nx, ny, nz)
-    return (cos_in > 0) and not other, other, cos_in
+    agree = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
+    # samesurface.same_surface without branches or calls: the loops over a row's photons
+    # stay vectorised (a branch calling continues_plane cost the k-NN rows 1.6x, even
+    # where it was never taken).
+    dx = np.float64(pos[j, 0]) - qx
+    dy = np.float64(pos[j, 1]) - qy
+    dz = np.float64(pos[j, 2]) - qz
+    h = dx * nx + dy * ny + dz * nz
+    res = POSITION_RESOLUTION * max(abs(qx), abs(qy), abs(qz))
+    off = h * h > COPLANAR_SIN2 * (dx * dx + dy * dy + dz * dz) + res * res
+    sj = surface[j]
+    foreign = (sj != qs) & (sj >= 0) & (qs >= 0) & ((agree < COPLANAR_COS) | off)
+    other = (agree <= NORMAL_AGREEMENT) | foreign
+    return (cos_in > 0) & (not other), other, cos_in
 
 
 @kernel
@@ -571,10 +587,10 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, su
     into read_photon[i, :W], their number into read_count[i] (0 without an estimate);
     read_weight (M, W) / read_factor (M,) float64, or read_weight empty: their weights
     and the row's factor (PhotonMap.knn_irradiance's read).
-    surface (P,) int32 the photons' surfaces and qsurf (M,) int32 the queries' (either
-    empty: unknown): _accepted's surface test."""
+    surface (P,) int32 the photons' surfaces (-1: unknown) and qsurf (M,) int32 the
+    queries' (empty: unknown): _accepted's surface test."""
     P = pos.shape[0]
-    test_surface = surface.shape[0] > 0 and qsurf.shape[0] > 0
+    test_surface = qsurf.shape[0] > 0
     S = masks.shape[0]
     rec = read_count.shape[0] > 0
     rec_w = rec and read_weight.shape[0] > 0
