@@ -69,6 +69,35 @@ def test_the_rule_accepts_the_own_object_and_a_coplanar_other_only():
     assert not _rule([[0.1, 0.0, 0.0020]], [UP], [4], 0, 3, q, n)
 
 
+def test_the_estimates_branchless_test_is_the_rule():
+    """photonmap._accepted (the per-photon test of the k-NN rows and the precomputed
+    cache, written without branches) flags another surface exactly where the normal test
+    or samesurface.same_surface does: random photons near coplanar, tilted and offset
+    planes of several objects, queries of known and unknown surface."""
+    from engine.photonmap import NORMAL_AGREEMENT, _accepted
+    rng = np.random.default_rng(3)
+    n = 4000
+    pos = np.c_[rng.uniform(-0.3, 0.3, (n, 2)), rng.normal(0, 0.004, n)].astype(np.float32)
+    pos[::3, 2] = 0.0  # exactly in the query's plane
+    tilt = np.radians(rng.choice([0.0, 0.5, 2.0, 70.0], n))
+    nrm = np.c_[np.sin(tilt), np.zeros(n), np.cos(tilt)].astype(np.float32)
+    surf = rng.integers(-1, 3, n).astype(np.int32)
+    d = -nrm
+    kinds = set()
+    for qs in (-1, 0, 1):
+        q = (0.01, -0.02, 0.0)
+        nq = np.float32(0.0), np.float32(0.0), np.float32(1.0)
+        for j in range(n):
+            ok, other, _ = _accepted(d, nrm, surf, pos, j, *nq, qs, *q)
+            facing = float(nrm[j] @ np.float32([0, 0, 1])) > NORMAL_AGREEMENT
+            same = samesurface.same_surface(surf, pos, nrm, j, qs, *q, *map(float, nq))
+            assert other == (not facing or not same), (qs, j)
+            assert ok == (facing and same)
+            if facing and qs >= 0 and surf[j] >= 0 and surf[j] != qs:
+                kinds.add(bool(same))
+    assert kinds == {True, False}  # another object's photons both accepted and not
+
+
 @pytest.mark.parametrize("tiles", [2, 4])
 def test_a_floor_of_coplanar_tiles_reads_as_one_floor_across_its_seams(tiles):
     """Two tiles (x < 0, x >= 0) or four (quadrants), each its own object, uniform
