@@ -2,7 +2,7 @@
 k-NN caustic estimate (k = 64, Simpson, cap 0.25 m) and the gather map's lookups on
 photons uniform on synthetic surfaces, each ratio estimate / true irradiance (1 = right).
 
-    PYTHONPATH=$PWD .venv/bin/python bench/bench_same_surface.py [--seed 14]
+    PYTHONPATH=$PWD .venv/bin/python bench/bench_same_surface.py [--seed 14] [--speed]
 
 Candidates (columns):
   normal    the normal test alone (before: Photons.surface unknown)
@@ -189,11 +189,38 @@ def fold_scene(rng, angle_deg, same_object, label):
          ("0.15-0.3 m", (dist >= 0.15) & (dist < 0.3)), ("beyond 0.3 m", dist >= 0.3)])
 
 
+def speed(rng):
+    """CPU ns a k-NN row (k = 64, radius 0.1 m, best of 3) on 1M photons uniform on a
+    plane of one object or two tiles, queries with and without their surfaces. Run it on
+    another checkout (without surfaces: Photons has no surface there) for a before."""
+    import time
+    n, m = 1_000_000, 100_000
+    pos = np.c_[rng.uniform(-2, 2, (n, 2)), np.zeros(n)].astype(np.float32)
+    q = np.c_[rng.uniform(-1.5, 1.5, (m, 2)), np.zeros(m)]
+    qn = np.tile([0.0, 0.0, 1.0], (m, 1))
+    print("| photons' objects | queries | ns a row |\n|---|---|---:|")
+    for tiles in (1, 2):
+        surf = (pos[:, 0] >= 0).astype(np.int32) if tiles == 2 else np.zeros(n, np.int32)
+        pm = PhotonMap(photons(pos, (0, 0, 1), surf))
+        qs = (q[:, 0] >= 0).astype(np.int32) if tiles == 2 else np.zeros(m, np.int32)
+        for label, kw in (("no surface", {}), ("with surfaces", {"surface": qs})):
+            best = 1e9
+            for _ in range(3):
+                t = time.process_time()
+                pm.irradiance(q, qn, 0.1, K, 1, "knn_simpson", True, **kw)
+                best = min(best, time.process_time() - t)
+            print(f"| {tiles} | {label} | {best / m * 1e9:.0f} |", flush=True)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed", type=int, default=14)
+    p.add_argument("--speed", action="store_true", help="the k-NN rows' cost instead")
     a = p.parse_args()
     rng = np.random.default_rng(a.seed)
+    if a.speed:
+        speed(rng)
+        return
     print("| scene | queries | n | " + " | ".join(f"E {c}" for c in CANDIDATES) + " | "
           + " | ".join(f"boundary {c}" for c in CANDIDATES) + " | "
           + " | ".join(f"gather {c}" for c in CANDIDATES) + " |")
