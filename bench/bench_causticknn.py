@@ -156,6 +156,7 @@ def _compiled_counts():
     g = dict(np=numpy, kdtree=kdtree, _accepted=_accepted)
     src = ("def f(pos, axis, split, leaf, direction, normal, p, n, r2, nb, acc):\n"
            "    scan = np.empty(1 << 22, np.int64)\n"
+           "    unknown = np.full(pos.shape[0], -1, np.int32)  # no surfaces: the normal test\n"
            "    for i in range(p.shape[0]):\n"
            "        c = kdtree.ball(pos, axis, split, leaf, p[i, 0], p[i, 1], p[i, 2], r2,\n"
            "                        scan, scan.shape[0] - 1)\n"
@@ -163,7 +164,8 @@ def _compiled_counts():
            "        a = 0\n"
            "        nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])\n"
            "        for j in range(min(c, scan.shape[0] - 1)):\n"
-           "            if _accepted(direction, normal, scan[j], nx, ny, nz)[0]:\n"
+           "            if _accepted(direction, normal, unknown, pos, scan[j], nx, ny, nz,\n"
+           "                         -1, p[i, 0], p[i, 1], p[i, 2])[0]:\n"
            "                a += 1\n"
            "        acc[i] = a\n")
     exec(src, g)
@@ -345,9 +347,12 @@ def ratio(name, path, base_root=None, repeat=3):
     t_pre = 1e9
     for _ in range(2):  # the first compiles causticcache's kernels
         t0 = time.process_time()
-        pre = causticcache.PrecomputedIrradiance(pm, radius, k0, mp0, est0)
+        pre = causticcache.PrecomputedIrradiance(pm, radius, k0, mp0, est0,
+                                                 surfaces=False)
         t_pre = min(t_pre, time.process_time() - t0)
-    pm.precomputed[(float(radius), int(k0), int(mp0), est0)] = pre
+    # (the calls give no query surfaces: the estimates without the surface test)
+    pre_surfaces = False
+    pm.precomputed[(float(radius), int(k0), int(mp0), est0, pre_surfaces)] = pre
     print(f"precomputed: {pre.stored:,} of {len(ph):,} photons hold an estimate, "
           f"{t_pre:.3f} CPU s ({t_pre / len(ph) * 1e9:.0f} ns a photon), "
           f"{pre.nbytes / len(ph):.0f} bytes a photon")

@@ -55,10 +55,12 @@ def main():
     calls = []
     lookup = GatherMap.lookup
 
-    def capture(self, p, n, candidates=8, offset=None, scratch=None, points=False):
+    def capture(self, p, n, candidates=8, offset=None, scratch=None, points=False,
+                surface=None):
         calls.append((self, np.array(p), np.array(n), candidates,
-                      None if offset is None else np.array(offset)))
-        return lookup(self, p, n, candidates, offset, scratch, points)
+                      None if offset is None else np.array(offset),
+                      None if surface is None else np.array(surface)))
+        return lookup(self, p, n, candidates, offset, scratch, points, surface)
     GatherMap.lookup = capture
     try:
         render(scene, RenderSettings(workers=1))
@@ -67,11 +69,13 @@ def main():
     cpu = dict.fromkeys(("lookup", "morton", "kernel", "walk", "embree", "next_visible"), 0.0)
     count = dict.fromkeys(("rays", "blocked", "no candidate"), 0)
     rows_total = 0
-    for g, p, n, candidates, off in calls:
+    for g, p, n, candidates, off, qs in calls:
         g = g.serial()
         m = len(p)
         rows_total += m
-        cpu["lookup"] += best_cpu(lambda: g.lookup(p, n, candidates, off), args.repeat)
+        cpu["lookup"] += best_cpu(lambda: g.lookup(p, n, candidates, off, surface=qs),
+                                  args.repeat)
+        surf, qsurf = g._surfaces(qs, m)
         rows = morton_order(p)
         cpu["morton"] += best_cpu(lambda: morton_order(p), args.repeat)
         out, boundary = np.empty((m, 3)), np.empty(m, bool)
@@ -85,9 +89,9 @@ def main():
 
         def kernel():
             return _gather_candidates(g.tree.position, g.tree.nodes, *g.neighbours,
-                                      g.position, g.normal, g.E, g.boundary, p, n, lift,
-                                      rows, r2, kmax, want, out, boundary, o32, d32, t32,
-                                      ray_row, point)
+                                      g.position, g.normal, surf, g.E, g.boundary, p, n,
+                                      qsurf, lift, rows, r2, kmax, want, out, boundary, o32,
+                                      d32, t32, ray_row, point)
         cpu["kernel"] += best_cpu(kernel, args.repeat)
         nr = kernel()
         q = np.ascontiguousarray(p[rows])
@@ -106,7 +110,7 @@ def main():
         count["blocked"] += len(hidden)
         if len(hidden):
             cpu["next_visible"] += best_cpu(lambda: g._next_visible(
-                p, n, lift, hidden, kmax, out.copy(), boundary.copy(), point.copy()),
+                p, n, lift, hidden, kmax, out.copy(), boundary.copy(), point.copy(), qsurf),
                 args.repeat)
     print(f"{args.blend} {args.width}x{args.height}, 1 worker: {len(calls)} lookup calls, "
           f"{rows_total} rows ({rows_total / max(len(calls), 1):.0f} a call), "

@@ -49,6 +49,8 @@ import numpy as np
 from . import kdtree
 from .jit import kernel
 from .parallel import ordered_map
+from .photonmap import _accepted
+from .samesurface import NO_SURFACE, same_surface, surface_ids
 
 ACCEPT = 0.3  # a lookup reads the nearest photon's estimate within ACCEPT x its rk
 # The smallest k whose uniform-caustic rows the ACCEPT cut sends to the k-NN row less than
@@ -106,24 +108,31 @@ def own_term_removed(k: int, estimator: str) -> float:
 
 
 @kernel
-def _lookup_rows(pos, axis, split, leaf, normal, E, rk, p, n, r_floor, r2, accept, out,
-                 boundary, miss):
+def _lookup_rows(pos, axis, split, leaf, normal, surface, E, rk, p, n, qsurf, r_floor, r2,
+                 accept, out, boundary, miss):
     """Rows i of p / n (float64 (M,3)): the nearest photon j facing n[i] within sqrt(r2)
     with rk[j] > 0, |p - x_j| <= accept rk[j] and r_floor[i] <= rk[j] (r_floor empty:
-    none) gives out[i] = E[j], boundary[i] = False; other rows set miss[i] = True (the
-    caller takes their k-NN rows)."""
+    none), on the query's surface qsurf[i] (samesurface.same_surface; surface or qsurf
+    empty: not tested), gives out[i] = E[j], boundary[i] = False; other rows set
+    miss[i] = True (the caller takes their k-NN rows)."""
     st_node, st_off = kdtree.traversal_stack()
     use_floor = r_floor.shape[0] > 0
+    test_surface = surface.shape[0] > 0 and qsurf.shape[0] > 0
     a2 = accept * accept
     for i in range(p.shape[0]):
+        nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
         j, dj = kdtree.nearest_facing_in(pos, axis, split, leaf, normal, p[i, 0], p[i, 1],
-                                         p[i, 2], np.float32(n[i, 0]), np.float32(n[i, 1]),
-                                         np.float32(n[i, 2]), NORMAL_AGREEMENT, r2,
+                                         p[i, 2], nx, ny, nz, NORMAL_AGREEMENT, r2,
                                          st_node, st_off)
         hit = j >= 0
         if hit:
             rj = np.float64(rk[j])
             hit = rj > 0.0 and dj <= a2 * rj * rj and not (use_floor and r_floor[i] > rj)
+        if hit and test_surface:
+            # The nearest facing photon lies on another surface (a floor photon under a
+            # small ball's top): the k-NN row answers, as it would by its photons.
+            hit = same_surface(surface, pos, normal, j, np.int64(qsurf[i]), p[i, 0], p[i, 1],
+                               p[i, 2], nx, ny, nz)
         if hit:
             out[i, 0] = E[j, 0]
             out[i, 1] = E[j, 1]
@@ -140,7 +149,10 @@ class PrecomputedIrradiance:
     from them, its k-NN rows where they cannot answer (module docstring)."""
 
     def __init__(self, pmap, radius: float, k: int, min_photons: int, estimator: str,
-                 should_cancel=None):
+                 should_cancel=None, surfaces: bool = True):
+        """surfaces: the estimates test the photons' surfaces (Photons.surface, where
+        known: each photon's estimate at its own surface); False: the normal test alone,
+        for queries that give no surface."""
         ph = pmap.photons
         t = pmap.tree
         m = len(ph)
@@ -151,10 +163,13 @@ class PrecomputedIrradiance:
         axis, split, leaf = t.nodes
         big = np.abs(ph.position).max() if m else 0.0
         r_min = max(1e-6 * float(big), MIN_RADIUS_FRACTION * radius, 1e-15)
+        surfaces = surfaces and ph.surface is not None
+        # (-1: unknown; photonmap._accepted reads a photon's surface without a branch)
+        surf = surface_ids(ph) if surfaces else np.full(m, -1, np.int32)
 
         def job(a, stop):
             b = min(a + PRE_ROWS, m)
-            _photon_radii_from(t.position, axis, split, leaf, ph.direction, ph.normal,
+            _photon_radii_from(t.position, axis, split, leaf, ph.direction, ph.normal, surf,
                                int(k), float(radius) ** 2, r_min * r_min, a, rk[a:b])
             return None
 
@@ -164,7 +179,8 @@ class PrecomputedIrradiance:
         rows = np.flatnonzero(rk > 0)
         E, bnd = pmap.knn_irradiance(
             np.take(pos64, rows, axis=0), np.take(n64, rows, axis=0), radius, k,
-            min_photons, estimator, return_boundary=True, should_cancel=should_cancel)
+            min_photons, estimator, return_boundary=True, should_cancel=should_cancel,
+            surface=np.take(surf, rows) if surfaces else None)
         r = np.take(rk, rows).astype(np.float64)
         keep = ~bnd & (r >= r_min) & (E.sum(axis=1) > 0)
         r = np.where(keep, r, 1.0)
@@ -183,9 +199,10 @@ class PrecomputedIrradiance:
         return self.E.nbytes + self.rk.nbytes
 
     def estimate(self, pmap, p, n, radius, k, min_photons, estimator, return_boundary,
-                 r_floor, should_cancel):
+                 r_floor, should_cancel, surface=None):
         """PhotonMap.irradiance(p, n, ...) without masks, through the precomputed
-        estimates (rows they cannot answer: pmap.knn_irradiance)."""
+        estimates (rows they cannot answer: pmap.knn_irradiance). surface: the queries'
+        (M,) object ids, as PhotonMap.knn_irradiance's."""
         m = len(p)
         out = np.zeros((m, 3))
         boundary = np.ones(m, bool)
@@ -196,28 +213,38 @@ class PrecomputedIrradiance:
                  else np.ascontiguousarray(np.broadcast_to(r_floor, (m,)), dtype=np.float64))
         t = pmap.tree
         axis, split, leaf = t.nodes
-        _lookup_rows(t.position, axis, split, leaf, pmap.photons.normal, self.E, self.rk, p,
-                     n, floor, float(radius) ** 2, ACCEPT, out, boundary, miss)
+        surf = pmap.photons.surface
+        if surface is None or surf is None:
+            surf = qsurf = NO_SURFACE
+        else:
+            surf = np.ascontiguousarray(surf, dtype=np.int32)
+            qsurf = np.ascontiguousarray(np.broadcast_to(surface, (m,)), dtype=np.int32)
+        _lookup_rows(t.position, axis, split, leaf, pmap.photons.normal, surf, self.E,
+                     self.rk, p, n, qsurf, floor, float(radius) ** 2, ACCEPT, out, boundary,
+                     miss)
         rows = np.nonzero(miss)[0]
         if len(rows):
             e, b = pmap.knn_irradiance(
                 np.take(p, rows, axis=0), np.take(n, rows, axis=0), radius, k, min_photons,
                 estimator, return_boundary=True,
                 r_floor=None if r_floor is None else np.take(floor, rows),
-                should_cancel=should_cancel)
+                should_cancel=should_cancel,
+                surface=np.take(qsurf, rows) if len(qsurf) else None)
             out[rows] = e
             boundary[rows] = b
         return (out, boundary) if return_boundary else out
 
 
 @kernel
-def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, r2_min, a, rk):
+def _photon_radii_from(pos, axis, split, leaf, direction, normal, surface, k, r2, r2_min, a,
+                       rk):
     """rk[r] (float32) for photon i = a + r: the radius of the disc its k-NN estimate
     reads (photonmap._irradiance_rows' rk): the distance to its k-th nearest photon (itself
     included); 0 (no estimate stored) where fewer than k lie within sqrt(r2) (the cap),
-    where any of those is not accepted at i's surface (photonmap._accepted: the
-    disc holds another surface's or back-facing photons) or where k photons lie within
-    sqrt(r2_min) (a focus: the estimate's rk is floored)."""
+    where any of those is not accepted at i's surface (photonmap._accepted, with the
+    photons' surfaces (P,) int32, -1: unknown: the disc holds another surface's or
+    back-facing photons) or where k photons lie within sqrt(r2_min) (a focus: the
+    estimate's rk is floored)."""
     # kdtree.knn's heap costs ~14-19 us a photon at k = 64 on Figure 8's map; a sphere
     # listed by ball_d2 and ordered by nearest_first (the estimates' own way) costs a
     # fraction. The sphere's radius starts at the previous photon's rk (the photons are in
@@ -235,6 +262,7 @@ def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, r2_min,
         i = a + r
         qx, qy, qz = np.float64(pos[i, 0]), np.float64(pos[i, 1]), np.float64(pos[i, 2])
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        qs = np.int64(surface[i])
         rk[r] = np.float32(0.0)
         rt = min(max(seed, r_min), r_cap)
         cnt = 0
@@ -259,11 +287,8 @@ def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, r2_min,
             continue
         ok = True
         for j in range(cnt):
-            pj = idx[j]
-            cos_in = -(direction[pj, 0] * nx + direction[pj, 1] * ny + direction[pj, 2] * nz)
-            same = (normal[pj, 0] * nx + normal[pj, 1] * ny + normal[pj, 2] * nz) \
-                > NORMAL_AGREEMENT
-            if not (cos_in > 0 and same):
+            if not _accepted(direction, normal, surface, pos, idx[j], nx, ny, nz, qs, qx, qy,
+                             qz)[0]:
                 ok = False
                 break
         rkr = math.sqrt(d2[k - 1]) if cnt == k else r_cap
@@ -276,14 +301,16 @@ def _photon_radii_from(pos, axis, split, leaf, direction, normal, k, r2, r2_min,
 
 
 def lookup(pmap, p, n, radius, k, min_photons, estimator, return_boundary, r_floor,
-           should_cancel):
+           should_cancel, surface=None):
     """pmap.irradiance's answer through pmap's precomputed estimates for these parameters,
     made on first use (under a lock: render threads share the map). k < MIN_K: the k-NN
-    rows (module docstring)."""
+    rows (module docstring). surface: the queries' object ids (PhotonMap.knn_irradiance);
+    None: estimates made without the surface test."""
     if k < MIN_K:
         return pmap.knn_irradiance(p, n, radius, k, min_photons, estimator, return_boundary,
-                                   r_floor, should_cancel)
-    key = (float(radius), int(k), int(min_photons), estimator)
+                                   r_floor, should_cancel, surface=surface)
+    surfaces = surface is not None and pmap.photons.surface is not None
+    key = (float(radius), int(k), int(min_photons), estimator, surfaces)
     cache = pmap.precomputed
     pre = cache.get(key)
     if pre is None:
@@ -291,7 +318,7 @@ def lookup(pmap, p, n, radius, k, min_photons, estimator, return_boundary, r_flo
             pre = cache.get(key)
             if pre is None:
                 pre = PrecomputedIrradiance(pmap, radius, k, min_photons, estimator,
-                                            should_cancel)
+                                            should_cancel, surfaces)
                 cache[key] = pre
     return pre.estimate(pmap, p, n, radius, k, min_photons, estimator, return_boundary,
-                        r_floor, should_cancel)
+                        r_floor, should_cancel, surface if surfaces else None)

@@ -768,7 +768,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # points where the map holds it (_point_secondary).
                 sec_E = gmap.secondary_E if regather else None
                 got = gmap.lookup(lp[:nd], ln[:nd], offset=loff[:nd], scratch=buf,
-                                  points=sec_E is not None)
+                                  points=sec_E is not None,
+                                  surface=hit_surfaces(ctx, np.take(y.prim, dsel)))
                 Ey, boundary = got[:2]
                 if cnt is not None:
                     _chain_lookups(ctx, level, cnt[idx[dsel]], Ey, boundary, lt[:nd],
@@ -1099,17 +1100,19 @@ def _secondary_irradiance(ctx, hit, rng, bounces=0, extra=None, known=None):
         counts = (None if extra is None else
                   chaincounts.camera_counts(extra[rows], (bounces, bounces, 0, 0)))
         radius = ctx.secondary_radius or ctx.global_radius
+        prim = getattr(hit, "prim", None)
+        surface = hit_surfaces(ctx, None if prim is None else prim[rows])
         if PHOTON_VISIBILITY:
             # (One search a row for the estimate and its visibility rays.)
             E = photonvisibility.visible_irradiance(
                 pmap, getattr(ctx, "accel", None), hit.p[rows], hit.ng[rows],
                 None if getattr(hit, "offset", None) is None else hit.offset[rows], radius,
                 s.k_nearest, smooth_min_photons(s), s.estimator, limits=s.bounce_limits,
-                counts=counts, geo=getattr(ctx, "geo", None))
+                counts=counts, geo=getattr(ctx, "geo", None), surface=surface)
         else:
             E = chaincounts.irradiance(pmap, s.bounce_limits, counts, hit.p[rows],
                                        hit.ng[rows], radius, s.k_nearest,
-                                       smooth_min_photons(s), s.estimator)
+                                       smooth_min_photons(s), s.estimator, surface=surface)
         out[rows] = E / SECONDARY_REGATHER_FRACTION
     return out
 
@@ -1255,6 +1258,19 @@ SECONDARY_SAMPLES_PER_PIXEL = 4
 CAUSTIC_EVERY_SAMPLE_PAST_BOUNCE = True
 
 
+def hit_surfaces(ctx, prim):
+    """(M,) int32 the object ids (Geometry.object_id; an instance's own) of the hit
+    triangles prim (M,) int, for the photon estimates' surface test
+    (PhotonMap.knn_irradiance's surface); None without a scene Geometry (tests' bare
+    contexts): the normal test alone."""
+    geo = getattr(ctx, "geo", None)
+    if geo is None or prim is None:
+        return None
+    prim = np.asarray(prim, np.int64)
+    ids = np.asarray(geo.object_id[np.maximum(prim, 0)], np.int32)
+    return np.where(prim >= 0, ids, np.int32(-1)).astype(np.int32)
+
+
 def smooth_min_photons(settings) -> int:
     """Photons a caustic or secondary-caustic estimate needs (fewer: no estimate). The
     paper's min_photons in paper mode; else 1: with fewer than k photons the k-NN estimate
@@ -1310,6 +1326,8 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
         weight = smooth_sample_weight(s.spp, stride) if not block else \
             np.minimum(stride, block - sample_id[sel]).astype(np.float64)[:, None]
     # (np.take(axis=0) gathers rows several times faster than fancy indexing.)
+    surface = hit_surfaces(ctx, None if getattr(hit, "prim", None) is None
+                           else np.take(hit.prim, sel))
     if PHOTON_VISIBILITY:
         # Only the photons each point can see (issue 14: a lamp shade piercing a wall);
         # one search a row for the estimate and its visibility rays.
@@ -1321,13 +1339,13 @@ def _smooth_estimate(ctx, pmap, radius, hit, f, sample_id, footprint=None,
             r_floor=None if footprint is None else np.take(footprint, sel),
             limits=s.bounce_limits,
             counts=None if counts is None else np.take(counts, sel, axis=0),
-            geo=getattr(ctx, "geo", None))
+            geo=getattr(ctx, "geo", None), surface=surface)
     else:
         E = chaincounts.irradiance(
             pmap, s.bounce_limits, None if counts is None else np.take(counts, sel, axis=0),
             np.take(hit.p, sel, axis=0), np.take(hit.ng, sel, axis=0), radius, s.k_nearest,
             smooth_min_photons(s), s.estimator,
-            r_floor=None if footprint is None else np.take(footprint, sel))
+            r_floor=None if footprint is None else np.take(footprint, sel), surface=surface)
     if clamp_tp is not None:
         # (Per sample, before the weight: each of the block's samples held to the limit.
         # Nothing over it: the unclamped sum below, bit for bit.)
@@ -1442,11 +1460,13 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
                 ctx.global_map, getattr(ctx, "accel", None), hit.p, hit.ng,
                 getattr(hit, "offset", None), ctx.global_radius, s.k_nearest, s.min_photons,
                 s.estimator, limits=s.bounce_limits, counts=extra,
-                geo=getattr(ctx, "geo", None))
+                geo=getattr(ctx, "geo", None),
+                surface=hit_surfaces(ctx, getattr(hit, "prim", None)))
         else:
             E = chaincounts.irradiance(ctx.global_map, s.bounce_limits, extra, hit.p, hit.ng,
                                        ctx.global_radius, s.k_nearest, s.min_photons,
-                                       s.estimator)
+                                       s.estimator,
+                                       surface=hit_surfaces(ctx, getattr(hit, "prim", None)))
         indirect = f * E
         if clamp_tp is not None:
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])

@@ -45,6 +45,7 @@ import numpy as np
 
 from .jit import kernel, register_warm_up
 from .parallel import Cancelled, ordered_map, stop_array
+from .samesurface import continues_plane
 
 STACK = 64  # traversal stack: one entry per tree level (a tree of 2^63 points at most)
 LEAF_SIZE = 8  # points per leaf at most (measured: 8 and 16 within 5 %, 4 slower)
@@ -435,6 +436,20 @@ def nearest_facing(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, agree
 def nearest_facing_in(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, agreement, r2,
                       st_node, st_off):
     """nearest_facing with a caller's traversal_stack (st_node, st_off) as scratch."""
+    return nearest_facing_on_in(pos, axis, split, leaf, normal, _ANY_SURFACE, -1, qx, qy, qz,
+                                nx, ny, nz, agreement, r2, st_node, st_off)
+
+
+_ANY_SURFACE = np.zeros(0, np.int32)  # nearest_facing_on_in without the surface test
+
+
+@kernel
+def nearest_facing_on_in(pos, axis, split, leaf, normal, surface, qs, qx, qy, qz, nx, ny, nz,
+                         agreement, r2, st_node, st_off):
+    """nearest_facing_in's answer among the points on the query's surface qs as well
+    (samesurface.same_surface over surface (N,) int32, the points' object ids in the
+    tree's order; qs < 0: every facing point, nearest_facing_in's; surface may be empty
+    only then)."""
     n = pos.shape[0]
     best = -1
     bound = r2
@@ -457,7 +472,9 @@ def nearest_facing_in(pos, axis, split, leaf, normal, qx, qy, qz, nx, ny, nz, ag
             dz = qz - np.float64(pos[j, 2])
             dist2 = dx * dx + dy * dy + dz * dz
             if dist2 < bound and \
-                    normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz > agreement:
+                    normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz > agreement \
+                    and (qs < 0 or surface[j] == qs or surface[j] < 0
+                         or continues_plane(pos, normal, j, qx, qy, qz, nx, ny, nz)):
                 best = j
                 bound = dist2
     return best, bound

@@ -703,7 +703,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
              e1, e2, corner_normals, material, base_color, mat_alpha, given, p, ng, ns, front,
              mat, base, alpha, offset, bump, params, plain, mat_ior, visibility, object_id,
              caster, first_hit_mode, caustic_only, vis_on, limits,
-             st_pos, st_power, st_dir, st_normal, st_kind, st_bnc,
+             st_pos, st_power, st_dir, st_normal, st_kind, st_bnc, st_surface,
              nx_o, nx_d32, nx_d, nx_power, nx_flags, nx_kinds, nx_slot, nx_bnc, nx_from,
              nx_off, hit_rows, flat_mat, flat_limit, aniso_tan, may_diffuse, pane_tri):
     """One bounce of m photons that arrived along d (m,3) with power (m,3) W, path flags,
@@ -731,7 +731,8 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
     no camera-side bounce) is not continued.
 
     Writes the stored photons (float32 position, power, direction of travel, normal on
-    the arriving side; uint8 kind; (4,) uint8 bounce counts) to st_* (m rows at most) and
+    the arriving side; uint8 kind; (4,) uint8 bounce counts; int32 surface: the hit's
+    object_id, Photons.surface) to st_* (m rows at most) and
     the continued photons (float32 origins and directions for Embree, float64 directions,
     power, flags, kinds, slots, packed bounce counts; the triangle row each left, -1 for
     the copies below, and its origin's offset off the hit point (3,) float64, o = p + off,
@@ -933,6 +934,7 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 bi = bnc[i]
                 for c in range(4):
                     st_bnc[ns_, c] = min((bi >> (_B_BITS * c)) & _B_MASK, BOUNCE_SATURATED)
+                st_surface[ns_] = object_id[t]
                 ns_ += 1
             # --- Russian roulette over the lobes ---
             xi = uniform(key, slot[i], bounce, 0)
@@ -1256,10 +1258,10 @@ def surface_arrays(m: int):
 
 def store_arrays(m: int):
     """Buffers for up to m stored photons (position, power, direction, normal, kind,
-    bounce counts (m,4) uint8)."""
+    bounce counts (m,4) uint8, surface (m,) int32: Photons' fields in order)."""
     return (np.empty((m, 3), np.float32), np.empty((m, 3), np.float32),
             np.empty((m, 3), np.float32), np.empty((m, 3), np.float32), np.empty(m, np.uint8),
-            np.empty((m, 4), np.uint8))
+            np.empty((m, 4), np.uint8), np.empty(m, np.int32))
 
 
 def next_arrays(m: int, origins: bool = False):

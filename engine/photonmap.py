@@ -27,6 +27,8 @@ from .mortontree import morton_order  # noqa: F401 (query order; tests, benches)
 from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
+from .samesurface import (COPLANAR_COS, COPLANAR_SIN2, NO_SURFACE, POSITION_RESOLUTION,
+                          same_surface, surface_ids)
 
 NORMAL_AGREEMENT = 0.5
 BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
@@ -115,7 +117,8 @@ class PhotonMap:
 
     The photons are kept in the structure's order (self.photons is that permutation of
     the input), so a search result indexes the photon arrays directly: the map adds under
-    2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49.
+    2 bytes (kd-tree nodes) or 4-8 bytes (hash grid) per photon to the photons' 49 (53
+    with their surfaces, Photons.surface: 4 B).
     structure: "kdtree" or "hashgrid"; cell: the hash grid's cell size (the search radius
     it serves best), required for "hashgrid". Raises ValueError for anything else.
     rows: (K,) int, the map holds only those photons (photons.take(rows), gathered once
@@ -158,7 +161,8 @@ class PhotonMap:
             power *= np.take(np.asarray(power_scale, np.float32), order)[:, None]
         self.photons = Photons(self.tree.position, power, *(
             np.take(a, source, axis=0) for a in (photons.direction, photons.normal,
-                                                 photons.kind)), photons.emitted)
+                                                 photons.kind)), photons.emitted,
+            surface=None if photons.surface is None else np.take(photons.surface, source))
 
     def __len__(self):
         return len(self.photons)
@@ -170,6 +174,11 @@ class PhotonMap:
         if self.tree is None:
             return self.photons.nbytes + pre
         return self.photons.nbytes + self.tree.nbytes - self.tree.position.nbytes + pre
+
+    def surface_ids(self) -> np.ndarray:
+        """(N,) int32 the photons' surfaces for the estimate kernels: Photons.surface, or
+        all -1 (unknown: kept on the map) where the photons have none."""
+        return surface_ids(self.photons)
 
     def serial(self) -> "PhotonMap":
         """The same map, queried on the calling thread only (the caller runs chunks on
@@ -190,7 +199,7 @@ class PhotonMap:
     def irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                    min_photons: int, estimator: str, return_boundary: bool = False,
                    r_floor: np.ndarray | None = None, should_cancel=None,
-                   masks: np.ndarray | None = None, hidden=None, read=None):
+                   masks: np.ndarray | None = None, hidden=None, read=None, surface=None):
         """knn_irradiance's answer; with self.lookup == "precomputed" (a kd-tree map, k-NN
         estimators, no masks, no read lists) through engine/causticcache.py's estimates
         at the photons (the k-NN rows where those cannot answer)."""
@@ -201,16 +210,22 @@ class PhotonMap:
                 and len(p) and radius > 0 and len(self.photons) >= min_photons):
             from . import causticcache
             return causticcache.lookup(self, p, n, radius, k, min_photons, estimator,
-                                       return_boundary, r_floor, should_cancel)
+                                       return_boundary, r_floor, should_cancel, surface)
         return self.knn_irradiance(p, n, radius, k, min_photons, estimator, return_boundary,
-                                   r_floor, should_cancel, masks, hidden, read)
+                                   r_floor, should_cancel, masks, hidden, read, surface)
 
     def knn_irradiance(self, p: np.ndarray, n: np.ndarray, radius: float, k: int,
                        min_photons: int, estimator: str, return_boundary: bool = False,
                        r_floor: np.ndarray | None = None, should_cancel=None,
-                       masks: np.ndarray | None = None, hidden=None, read=None):
+                       masks: np.ndarray | None = None, hidden=None, read=None,
+                       surface=None):
         """Irradiance estimate E (W/m^2, (M,3) float64) at points p (M,3) with unit normals
         n (M,3) facing the viewer.
+        surface: (M,) int, the object id of each point's surface (Geometry.object_id of
+        the hit triangle; < 0: unknown), or None: a photon counts only where it lies on the
+        query's own surface or on another continuing its plane (engine/samesurface.py),
+        where the map's photons know theirs (Photons.surface); else the normal test
+        alone decides.
         return_boundary: also return, per point, whether the estimate's disc is not whole:
         photons of another surface lay inside it (a corner or contact) or its photons lie
         off to one side (an open edge), or it had too few photons for an estimate (0).
@@ -293,6 +308,11 @@ class PhotonMap:
             read_count[:] = 0
         if self.tree is None or m == 0 or radius <= 0 or len(self.photons) < min_photons:
             return result
+        surf = self.surface_ids()
+        if surface is None or self.photons.surface is None:
+            qsurf = NO_SURFACE
+        else:
+            qsurf = np.ascontiguousarray(np.broadcast_to(surface, (m,)), dtype=np.int32)
         p = np.ascontiguousarray(p, dtype=np.float64)
         n = np.ascontiguousarray(n, dtype=np.float64)
         floor = (np.zeros(0) if r_floor is None
@@ -311,7 +331,8 @@ class PhotonMap:
             flag = stop.array if isinstance(stop, StopFlag) else stop_array(should_cancel)
             b = min(a + rows, m)
             _irradiance_rows(kind, pos, nodes, start, grid, ph.power, ph.direction, ph.normal,
-                             p, n, floor, order[a:b], float(radius), int(k), int(min_photons),
+                             surf, p, n, qsurf, floor, order[a:b], float(radius), int(k),
+                             int(min_photons),
                              code, bool(return_boundary), out, boundary, flag, masks, masked,
                              hid_start, hid_photon, read_count, read_photon, read_weight,
                              read_factor)
@@ -355,32 +376,48 @@ def _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets):
 
 
 @kernel
-def _accepted(direction, normal, j, nx, ny, nz):
-    """(accepted, other_surface) for photon j at a query with float32 normal (nx, ny, nz):
-    it arrived from the front (d.N < 0) and lies on a surface facing the same way."""
+def _accepted(direction, normal, surface, pos, j, nx, ny, nz, qs, qx, qy, qz):
+    """(accepted, other_surface, cos_in) for photon j at a query at (qx, qy, qz) with
+    float32 normal (nx, ny, nz) on surface qs (object id, < 0: unknown): it arrived from
+    the front (d.N < 0) and lies on a surface facing the same way, the query's own or one
+    continuing its plane (samesurface.same_surface's rule). surface: (P,) int32, -1 where
+    unknown (PhotonMap.surface_ids: never empty)."""
     cos_in = -(direction[j, 0] * nx + direction[j, 1] * ny + direction[j, 2] * nz)
-    other = (normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz) <= NORMAL_AGREEMENT
-    return (cos_in > 0) and not other, other, cos_in
+    agree = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
+    # samesurface.same_surface without branches or calls: the loops over a row's photons
+    # stay vectorised (a branch calling continues_plane cost the k-NN rows 1.6x, even
+    # where it was never taken).
+    dx = np.float64(pos[j, 0]) - qx
+    dy = np.float64(pos[j, 1]) - qy
+    dz = np.float64(pos[j, 2]) - qz
+    h = dx * nx + dy * ny + dz * nz
+    res = POSITION_RESOLUTION * max(abs(qx), abs(qy), abs(qz))
+    off = h * h > COPLANAR_SIN2 * (dx * dx + dy * dy + dz * dz) + res * res
+    sj = surface[j]
+    foreign = (sj != qs) & (sj >= 0) & (qs >= 0) & ((agree < COPLANAR_COS) | off)
+    other = (agree <= NORMAL_AGREEMENT) | foreign
+    return (cos_in > 0) & (not other), other, cos_in
 
 
 @kernel
-def _count_accepted(direction, normal, idx, cnt, nx, ny, nz):
+def _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs, qx, qy, qz):
     acc = 0
     for j in range(cnt):
-        if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+        if _accepted(direction, normal, surface, pos, idx[j], nx, ny, nz, qs, qx, qy, qz)[0]:
             acc += 1
     return acc
 
 
 @kernel
-def _accepted_at_least(direction, normal, idx, cnt, nx, ny, nz, need):
+def _accepted_at_least(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs, qx, qy, qz,
+                       need):
     """Whether at least `need` of photons idx[:cnt] are accepted (_accepted): stops
     counting once they are."""
     acc = 0
     for j in range(cnt):
         if acc >= need:
             return True
-        if _accepted(direction, normal, idx[j], nx, ny, nz)[0]:
+        if _accepted(direction, normal, surface, pos, idx[j], nx, ny, nz, qs, qx, qy, qz)[0]:
             acc += 1
     return acc >= need
 
@@ -530,8 +567,9 @@ def _list_candidates(cand, cx, cy, cz, nc, qx, qy, qz, r2, d2, idx, cap, tmp):
 
 
 @kernel
-def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p, n, r_floor,
-                     rows, radius, k, min_photons, code, want_boundary, out, boundary, stop,
+def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, surface, p, n,
+                     qsurf, r_floor, rows, radius, k, min_photons, code, want_boundary, out,
+                     boundary, stop,
                      masks, masked, hid_start, hid_photon, read_count, read_photon,
                      read_weight, read_factor):
     """The estimators of this module's docstring for the rows `rows` of p / n (and
@@ -548,8 +586,11 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
     (the accepted ones inside rk, in the sum's order: PhotonMap.knn_irradiance's read)
     into read_photon[i, :W], their number into read_count[i] (0 without an estimate);
     read_weight (M, W) / read_factor (M,) float64, or read_weight empty: their weights
-    and the row's factor (PhotonMap.knn_irradiance's read)."""
+    and the row's factor (PhotonMap.knn_irradiance's read).
+    surface (P,) int32 the photons' surfaces (-1: unknown) and qsurf (M,) int32 the
+    queries' (empty: unknown): _accepted's surface test."""
     P = pos.shape[0]
+    test_surface = qsurf.shape[0] > 0
     S = masks.shape[0]
     rec = read_count.shape[0] > 0
     rec_w = rec and read_weight.shape[0] > 0
@@ -611,6 +652,7 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         i = rows[r]
         qx, qy, qz = p[i, 0], p[i, 1], p[i, 2]
         nx, ny, nz = np.float32(n[i, 0]), np.float32(n[i, 1]), np.float32(n[i, 2])
+        qs = np.int64(qsurf[i]) if test_surface else np.int64(-1)
         out[i, 0] = out[i, 1] = out[i, 2] = 0.0
         for s in range(S):
             masked[s, i, 0] = masked[s, i, 1] = masked[s, i, 2] = 0.0
@@ -680,7 +722,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                     kdtree.nearest_first(list_d2, list_idx, got, kq, b2, d2, idx, hist)
                     seeded = kdtree.unique_nearest(d2, got, kq) and (
                         kq >= widest
-                        or _count_accepted(direction, normal, idx, kq, nx, ny, nz) >= k // 2)
+                        or _count_accepted(direction, normal, surface, pos, idx, kq, nx, ny,
+                                           nz, qs, qx, qy, qz) >= k // 2)
             if seeded:
                 cnt = kq
             else:
@@ -719,7 +762,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                                buckets)
             prev_kth = d2[kq - 1] if cnt == kq else -1.0
             if not seeded and cnt == kq and kq < widest and \
-                    _count_accepted(direction, normal, idx, cnt, nx, ny, nz) < k // 2:
+                    _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny, nz, qs,
+                                    qx, qy, qz) < k // 2:
                 # Widen (x4 up to MAX_WIDEN_K) while fewer than k / 2 of the nearest are
                 # accepted (a crowded neighbour surface). First, a row whose sphere holds
                 # fewer than min_photons accepted photons has no estimate at any width
@@ -740,7 +784,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 if listed >= 0:
                     # The sphere is listed already (list_d2 / list_idx, tree order; a row
                     # widens only where k < widest, and then listed <= list_cap <= widest).
-                    if not _accepted_at_least(direction, normal, list_idx, listed, nx, ny, nz,
+                    if not _accepted_at_least(direction, normal, surface, pos, list_idx,
+                                              listed, nx, ny, nz, qs, qx, qy, qz,
                                               min_photons):
                         continue
                     # The widening below, ordering only as far as it reads: the kq
@@ -760,7 +805,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                             ordered = -1  # ties at the prefix's end
                             break
                         ordered = kq
-                        if _count_accepted(direction, normal, idx, cnt, nx, ny, nz) >= k // 2:
+                        if _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny,
+                                           nz, qs, qx, qy, qz) >= k // 2:
                             break
                         step = kq
                     if ordered < 0:
@@ -774,7 +820,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                         # ordered as before): the same sums, from ~n_acc of ~listed photons.
                         n_acc = 0
                         for j in range(listed):  # the accepted ones, in the listing's order
-                            if _accepted(direction, normal, list_idx[j], nx, ny, nz)[0]:
+                            if _accepted(direction, normal, surface, pos, list_idx[j], nx, ny,
+                                         nz, qs, qx, qy, qz)[0]:
                                 acc_d2[n_acc] = list_d2[j]
                                 acc_idx[n_acc] = list_idx[j]
                                 n_acc += 1
@@ -796,8 +843,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                 else:
                     nb = _ball(kind, pos, nodes, start, grid, qx, qy, qz, r2, scan,
                                SCAN_BUDGET, buckets)
-                    if nb <= SCAN_BUDGET and _count_accepted(direction, normal, scan, nb,
-                                                             nx, ny, nz) < min_photons:
+                    if nb <= SCAN_BUDGET and _count_accepted(
+                            direction, normal, surface, pos, scan, nb, nx, ny, nz, qs, qx, qy,
+                            qz) < min_photons:
                         continue
                     # Each wider query's result is a prefix of the widest one (increasing
                     # distance): one query, then the prefixes are tried in turn. A sphere
@@ -821,7 +869,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
                         cnt = min(found, kq)
                         if cnt < kq or kq >= widest:
                             break
-                        if _count_accepted(direction, normal, idx, cnt, nx, ny, nz) >= k // 2:
+                        if _count_accepted(direction, normal, surface, pos, idx, cnt, nx, ny,
+                                           nz, qs, qx, qy, qz) >= k // 2:
                             break
         else:
             c = _ball_count(kind, pos, nodes, start, grid, qx, qy, qz, r2, buckets)
@@ -846,8 +895,9 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
         rk = radius
         floored = False
         for j in range(cnt):
-            row_ok[j], row_other[j], row_cos[j] = _accepted(direction, normal, idx[j], nx, ny,
-                                                            nz)
+            row_ok[j], row_other[j], row_cos[j] = _accepted(direction, normal, surface, pos,
+                                                            idx[j], nx, ny, nz, qs, qx, qy,
+                                                            qz)
         if code >= KNN_SIMPSON:
             # rk: distance to the k-th accepted photon; with fewer accepted (acc of them, at
             # least SPARSE_MIN_ACCEPTED), to the last accepted one: the k-NN estimate with
@@ -976,7 +1026,8 @@ def _irradiance_rows(kind, pos, nodes, start, grid, power, direction, normal, p,
             # The sum saw no other surface's photons: look for them in the listed sphere.
             for j in range(listed):
                 if math.sqrt(list_d2[j]) <= rk and \
-                        _accepted(direction, normal, list_idx[j], nx, ny, nz)[1]:
+                        _accepted(direction, normal, surface, pos, list_idx[j], nx, ny, nz, qs,
+                                  qx, qy, qz)[1]:
                     other_inside = True
                     break
         # Too few photons for an estimate (E = 0) counts as boundary too: gather again.
@@ -1043,6 +1094,7 @@ class GatherMap:
     """
 
     secondary_E = None
+    surface = NO_SURFACE  # the points' surfaces (set with the points)
 
     def __init__(self, photons: Photons, radius: float, k: int, min_photons: int,
                  estimator: str, max_points: int = 60_000, accel=None,
@@ -1105,8 +1157,15 @@ class GatherMap:
         del trees
         # Kept in the tree's order: a search result indexes these arrays directly.
         self.position = tree.position.astype(np.float64)
-        self.normal = np.take(photons.normal, np.take(rows, np.take(points, tree.order)),
-                              axis=0).astype(np.float64)
+        chosen_rows = np.take(rows, np.take(points, tree.order))
+        self.normal = np.take(photons.normal, chosen_rows, axis=0).astype(np.float64)
+        # Each point's surface (its photon's, Photons.surface): its own estimate reads its
+        # surface's photons, and a lookup takes only a point on its own surface
+        # (engine/samesurface.py). NO_SURFACE: unknown, the normal tests alone.
+        self.surface = (NO_SURFACE if photons.surface is None else
+                        np.ascontiguousarray(np.take(photons.surface, chosen_rows),
+                                             dtype=np.int32))
+        del chosen_rows
         tree.order = None
 
         # keep's and the subsets' irradiance from one search per point: the neighbours,
@@ -1123,7 +1182,8 @@ class GatherMap:
                     np.take(mask, estimating.source, out=row)
             return estimating.irradiance(self.position, self.normal, radius, k, min_photons,
                                          estimator, return_boundary=True, should_cancel=stop,
-                                         masks=chosen)
+                                         masks=chosen,
+                                         surface=self.surface if len(self.surface) else None)
 
         def neighbours(stop):
             return tree.neighbour_lists(workers=workers, should_cancel=stop)
@@ -1152,7 +1212,8 @@ class GatherMap:
         return view
 
     def lookup(self, p: np.ndarray, n: np.ndarray, candidates: int = 8,
-               offset: np.ndarray | None = None, scratch=None, points: bool = False):
+               offset: np.ndarray | None = None, scratch=None, points: bool = False,
+               surface=None):
         """(irradiance, boundary) at the nearest visible gather point facing the same way
         (normal . n > GATHER_AGREEMENT), among the 8 x candidates nearest within the radius.
         boundary: that point's estimate met another surface (a corner or contact), where
@@ -1166,7 +1227,9 @@ class GatherMap:
         the calling thread's, reused between calls; the answers are then valid until its
         next use); default: fresh arrays. points: also return, third, each row's gather
         point ((M,) int64 index into the map's points, -1 where none was found: the
-        point whose E and flag the row took; secondary_E reads by it).
+        point whose E and flag the row took; secondary_E reads by it). surface: (M,) int
+        the rows' object ids (PhotonMap.knn_irradiance's): a row takes only a point on its
+        own surface or on one continuing its plane (engine/samesurface.py); None: any.
 
         One kernel (_gather_candidates) finds the nearest point (a walk over the gather
         points' neighbour lists from the previous row's answer, else the kd-tree), tests
@@ -1197,18 +1260,28 @@ class GatherMap:
         rows = morton_order(p)  # cache-friendly query order; same answers
         want_rays = self.accel is not None
         r2 = self.radius * self.radius
+        surf, qsurf = self._surfaces(surface, m)
         nrays = _gather_candidates(self.tree.position, self.tree.nodes, *self.neighbours,
-                                   self.position, self.normal, self.E, self.boundary, p, n,
-                                   lift, rows, r2, kmax, want_rays, out, boundary, o32, d32,
-                                   t32, ray_row, point)
+                                   self.position, self.normal, surf, self.E, self.boundary,
+                                   p, n, qsurf, lift, rows, r2, kmax, want_rays, out, boundary,
+                                   o32, d32, t32, ray_row, point)
         if nrays:
             self.accel.occluded_into(o32[:nrays], d32[:nrays], t32[:nrays], blocked[:nrays])
             hidden = rows[ray_row[:nrays][blocked[:nrays]]]
             if len(hidden):
-                self._next_visible(p, n, lift, hidden, kmax, out, boundary, point)
+                self._next_visible(p, n, lift, hidden, kmax, out, boundary, point, qsurf)
         return (out, boundary, point) if points else (out, boundary)
 
-    def _next_visible(self, p, n, lift, hidden, kmax, out, boundary, point=None):
+    def _surfaces(self, surface, m):
+        """(points' surfaces, queries' (m,) int32) for the lookup kernels; both NO_SURFACE
+        where either is unknown (the normal test alone)."""
+        surf = getattr(self, "surface", NO_SURFACE)
+        if surface is None or not len(surf):
+            return NO_SURFACE, NO_SURFACE
+        return surf, np.ascontiguousarray(np.broadcast_to(surface, (m,)), dtype=np.int32)
+
+    def _next_visible(self, p, n, lift, hidden, kmax, out, boundary, point=None,
+                      qsurf=NO_SURFACE):
         """Rows `hidden` (indices into p) whose candidate is hidden take the next visible
         agreeing gather point, in increasing distance among the kmax nearest (the answer
         of asking again candidate by candidate): the agreeing candidates are listed once
@@ -1222,8 +1295,9 @@ class GatherMap:
             point[hidden] = -1
         lists = np.empty((len(hidden), max(kmax, 1)), np.int64)
         counts = np.empty(len(hidden), np.int64)
-        _agreeing_lists(self.tree.position, self.tree.nodes, self.normal, p, n, hidden,
-                        self.radius * self.radius, kmax, lists, counts)
+        surf = self.surface if len(qsurf) else NO_SURFACE
+        _agreeing_lists(self.tree.position, self.tree.nodes, self.normal, surf, p, n, qsurf,
+                        hidden, self.radius * self.radius, kmax, lists, counts)
         pending = np.nonzero(counts > 1)[0]  # entry 0 is the hidden candidate
         nxt = np.ones(len(hidden), np.int64)
         batch = 1
@@ -1393,11 +1467,13 @@ PRIMES = np.array([hashgrid.P1, hashgrid.P2, hashgrid.P3], np.int64)
 
 
 @kernel
-def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_boundary, p, n,
-                       lift, rows, r2, kmax, want_rays, out, boundary, o32, d32, t32,
-                       ray_row, point):
+def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, surface, E, E_boundary,
+                       p, n, qsurf, lift, rows, r2, kmax, want_rays, out, boundary, o32, d32,
+                       t32, ray_row, point):
     """For each row i = rows[r]: the candidate c = the nearest gather point within
-    sqrt(r2) whose normal agrees with n[i], if it is among the kmax nearest; out[i] = E[c]
+    sqrt(r2) whose normal agrees with n[i] and that lies on its surface (the points'
+    surface (P,) int32 and the rows' qsurf (M,) int32, samesurface.same_surface; either
+    empty: not tested), if it is among the kmax nearest; out[i] = E[c]
     and boundary[i] = E_boundary[c] (no candidate: 0 and True); and, if want_rays, the
     ray from p[i] to c into o32 / d32 / t32 (float32, compacted, _ray_ends; ray_row =
     r). nbr, reach: the tree's neighbour lists (kdtree.neighbour_lists). point (M,)
@@ -1429,29 +1505,35 @@ def _gather_candidates(tree_pos, nodes, nbr, reach, position, normal, E, E_bound
                             np.arange(R), r2, WALK_STEPS, near, np.zeros(0, np.bool_))
     # The previous row's chosen gather point (a seed for the facing search).
     prev_cand = -1
+    test_surface = surface.shape[0] > 0 and qsurf.shape[0] > 0
     for r in range(R):
         i = rows[r]
         qx, qy, qz = q[r, 0], q[r, 1], q[r, 2]
         nx, ny, nz = q[r, 3], q[r, 4], q[r, 5]
+        qs = np.int64(qsurf[i]) if test_surface else np.int64(-1)
         c = -1
         if P > 0:
             j = near[r]
             if j >= 0:
                 if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz \
-                        > GATHER_AGREEMENT:
+                        > GATHER_AGREEMENT and \
+                        same_surface(surface, tree_pos, normal, j, qs, qx, qy, qz, nx, ny, nz):
                     c = j
                 elif kmax > 1:
-                    # The nearest faces another way: the nearest facing point, if it is
-                    # among the kmax nearest (fewer than kmax points nearer).
+                    # The nearest faces another way (or lies on another surface): the
+                    # nearest facing point on the row's surface, if it is among the kmax
+                    # nearest (fewer than kmax points nearer).
                     bound = r2
                     if prev_cand >= 0 and normal[prev_cand, 0] * nx \
                             + normal[prev_cand, 1] * ny + normal[prev_cand, 2] * nz \
-                            > GATHER_AGREEMENT:
+                            > GATHER_AGREEMENT and \
+                            same_surface(surface, tree_pos, normal, prev_cand, qs, qx, qy,
+                                         qz, nx, ny, nz):
                         bound = min(bound, _seed_bound(tree_pos, prev_cand, qx, qy, qz))
-                    j, dd = kdtree.nearest_facing_in(tree_pos, nodes[0], nodes[1],
-                                                     nodes[2], normal, qx, qy, qz, nx, ny,
-                                                     nz, GATHER_AGREEMENT, bound, st_node,
-                                                     st_off)
+                    j, dd = kdtree.nearest_facing_on_in(tree_pos, nodes[0], nodes[1],
+                                                        nodes[2], normal, surface, qs, qx, qy,
+                                                        qz, nx, ny, nz, GATHER_AGREEMENT,
+                                                        bound, st_node, st_off)
                     if j >= 0 and kdtree.count_closer_in(tree_pos, nodes[0], nodes[1],
                                                          nodes[2], qx, qy, qz, dd, kmax,
                                                          st_node, st_off) < kmax:
@@ -1525,20 +1607,26 @@ def _ray_ends(qx, qy, qz, nx, ny, nz, la, bx, by, bz, mx, my, mz):
 
 
 @kernel
-def _agreeing_lists(tree_pos, nodes, normal, p, n, rows, r2, kmax, lists, counts):
+def _agreeing_lists(tree_pos, nodes, normal, surface, p, n, qsurf, rows, r2, kmax, lists,
+                    counts):
     """For each row i = rows[r]: the gather points among the kmax nearest within sqrt(r2)
-    whose normal agrees with n[i], in increasing distance, into lists[r, :counts[r]]."""
+    whose normal agrees with n[i] and that lie on its surface (_gather_candidates'
+    surface test), in increasing distance, into lists[r, :counts[r]]."""
+    test_surface = surface.shape[0] > 0 and qsurf.shape[0] > 0
     d2 = np.empty(max(kmax, 1), np.float64)
     idx = np.empty(max(kmax, 1), np.int64)
     for r in range(rows.shape[0]):
         i = rows[r]
         nx, ny, nz = n[i, 0], n[i, 1], n[i, 2]
+        qs = np.int64(qsurf[i]) if test_surface else np.int64(-1)
         cnt = kdtree.knn(tree_pos, nodes[0], nodes[1], nodes[2], p[i, 0], p[i, 1], p[i, 2],
                          kmax, r2, d2, idx)
         m = 0
         for jj in range(cnt):
             j = idx[jj]
-            if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz > GATHER_AGREEMENT:
+            if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz > GATHER_AGREEMENT \
+                    and same_surface(surface, tree_pos, normal, j, qs, p[i, 0], p[i, 1],
+                                     p[i, 2], nx, ny, nz):
                 lists[r, m] = j
                 m += 1
         counts[r] = m
@@ -1628,8 +1716,8 @@ def _warm_up_gather():
     rows = np.arange(4)
     lists = np.empty((4, 8), np.int64)
     counts = np.empty(4, np.int64)
-    _agreeing_lists(g.tree.position, g.tree.nodes, g.normal, q, nq, rows, 0.25, 8, lists,
-                    counts)
+    _agreeing_lists(g.tree.position, g.tree.nodes, g.normal, NO_SURFACE, q, nq, NO_SURFACE,
+                    rows, 0.25, 8, lists, counts)
     pending = np.nonzero(counts > 1)[0]
     nxt = np.ones(4, np.int64)
     o32, d32, t32 = np.empty((32, 3), np.float32), np.empty((32, 3), np.float32), \

@@ -57,12 +57,18 @@ class Photons:
     # 255), for the bounce limits (photonkernels.bounce_usable); None: not counted (no
     # limit applies)
     bounces: np.ndarray | None = None
+    # (N,) int32 the surface each photon lies on: the object_id (Geometry.object_id, the
+    # instance's own for an instance) of the triangle it was stored on. The estimates
+    # accept only the query's own surface's photons, and another's where it lies in the
+    # query's tangent plane (engine/samesurface.py). None: unknown (any surface's photon
+    # passes, the normal test alone decides).
+    surface: np.ndarray | None = None
 
     @classmethod
     def empty(cls):
         z = np.zeros((0, 3), np.float32)
         return cls(z, z.copy(), z.copy(), z.copy(), np.zeros(0, np.uint8),
-                   bounces=np.zeros((0, 4), np.uint8))
+                   bounces=np.zeros((0, 4), np.uint8), surface=np.zeros(0, np.int32))
 
     def __len__(self):
         return len(self.position)
@@ -77,13 +83,15 @@ class Photons:
         fancy indexing for (N,3) rows)."""
         return Photons(*(np.take(a, rows, axis=0) for a in (
             self.position, self.power, self.direction, self.normal, self.kind)), self.emitted,
-            None if self.bounces is None else np.take(self.bounces, rows, axis=0))
+            None if self.bounces is None else np.take(self.bounces, rows, axis=0),
+            None if self.surface is None else np.take(self.surface, rows))
 
     @property
     def nbytes(self) -> int:
         return sum(a.nbytes for a in (self.position, self.power, self.direction,
                                       self.normal, self.kind)) + \
-            (0 if self.bounces is None else self.bounces.nbytes)
+            (0 if self.bounces is None else self.bounces.nbytes) + \
+            (0 if self.surface is None else self.surface.nbytes)
 
     def usable(self, limits, camera=(0, 0, 0, 0)) -> np.ndarray:
         """(N,) bool: the photons whose light read at a camera-side vertex reached with
@@ -92,6 +100,14 @@ class Photons:
         if self.bounces is None:
             return np.ones(len(self), bool)
         return pk.bounce_usable(self.bounces, limits, camera)
+
+
+def concat_surfaces(*parts: Photons) -> np.ndarray | None:
+    """The parts' Photons.surface concatenated in order, or None where a part has none
+    (a map of photons with and without surfaces: none is known)."""
+    if any(p.surface is None for p in parts):
+        return None
+    return np.concatenate([p.surface for p in parts])
 
 
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
@@ -492,7 +508,7 @@ class _Shot:
         else:
             a = [x[:n] for x in self.arrays]
         self.arrays = None
-        return Photons(*a[:5], bounces=a[5])
+        return Photons(*a[:5], bounces=a[5], surface=a[6])
 
 
 def _factors(m: int):

@@ -164,14 +164,16 @@ def _bent_path(qx, qy, qz, nx, ny, nz, la, bx, by, bz, mx, my, mz):
 
 
 
-def _estimate_read(pmap, limits, counts, p, n, radius, k, min_photons, estimator, r_floor):
+def _estimate_read(pmap, limits, counts, p, n, radius, k, min_photons, estimator, r_floor,
+                   surface=None):
     """(E (M,3), count (M,) int64, photons (M, W) int64, weight (M, W) float64, factor
     (M,) float64): chaincounts.irradiance's estimate at p / n (counts (M,4) or None) and
     each row's read photons (PhotonMap.knn_irradiance's read: count[i] of them in
     photons[i, :count[i]], with their weights and the row's factor; photons and weight
     are this thread's _read_buffers, valid until its next call here). The
     list is READ_WIDTH x k wide; rows that read more are read again as wide as they need
-    (the same search: the same photons). A map with the precomputed caustic lookup
+    (the same search: the same photons). surface: the rows' (M,) object ids
+    (PhotonMap.knn_irradiance) or None. A map with the precomputed caustic lookup
     (engine/causticcache.py, which has no search at the query) keeps its estimate, its
     read lists from the k-NN estimate the masked re-estimate takes.
     Also (wide (V,) int64, wide_count (V,), wide_photons (V, W'), wide_weight (V, W'),
@@ -185,18 +187,20 @@ def _estimate_read(pmap, limits, counts, p, n, radius, k, min_photons, estimator
     read = (count, photons, weight, factor)
     args = (radius, k, min_photons, estimator)
     if getattr(pmap, "lookup", "knn") == "precomputed":
-        E = chaincounts.irradiance(pmap, limits, counts, p, n, *args, r_floor=r_floor)
-        pmap.knn_irradiance(p, n, *args, r_floor=r_floor, read=read)
+        E = chaincounts.irradiance(pmap, limits, counts, p, n, *args, r_floor=r_floor,
+                                   surface=surface)
+        pmap.knn_irradiance(p, n, *args, r_floor=r_floor, read=read, surface=surface)
     else:
         E = chaincounts.irradiance(pmap, limits, counts, p, n, *args, r_floor=r_floor,
-                                   read=read)
+                                   read=read, surface=surface)
     wide = np.flatnonzero(count > width)
     v, w = len(wide), int(count[wide].max()) if len(wide) else 0
     more = (np.zeros(v, np.int64), np.empty((v, w), np.int64), np.empty((v, w)),
             np.empty(v))
     if len(wide):
         pmap.knn_irradiance(p[wide], n[wide], *args,
-                            r_floor=None if r_floor is None else r_floor[wide], read=more)
+                            r_floor=None if r_floor is None else r_floor[wide], read=more,
+                            surface=None if surface is None else surface[wide])
     return E, count, photons, weight, factor, (wide, *more)
 
 
@@ -254,15 +258,18 @@ def _hidden_pairs(pmap, accel, p, n, lift, rows, slots, count, photons):
 
 
 def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator, r_floor,
-                     limits, counts, geo, visible=False):
+                     limits, counts, geo, visible=False, surface=None):
     """(E (M,3), rows (H,), photons (H,)): the estimate at p / n (chaincounts.irradiance,
     counts (M,4) or None) and its hidden (row, photon) pairs, by row: the photons each
     row's estimate read (_estimate_read) traced from the row (_hidden_pairs), in blocks
     of READ_ROWS rows (one search a row for both). Rows the pre-test frees (geo:
     OneSurfaceCells; None: none) are not traced. visible: E's rows that hide a photon
     hold their estimate from their visible photons alone (_visible_sums: from the read
-    lists, the bits of _reestimate's second search)."""
+    lists, the bits of _reestimate's second search). surface: the rows' (M,) object ids
+    (PhotonMap.knn_irradiance) or None."""
     m = len(p)
+    if surface is not None:
+        surface = np.broadcast_to(np.asarray(surface), (m,))
     p = np.ascontiguousarray(p, dtype=np.float64)
     n = np.ascontiguousarray(n, dtype=np.float64)
     lift = (np.zeros(0) if lift is None else np.ascontiguousarray(lift, dtype=np.float64))
@@ -280,7 +287,8 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
         counts_here = None if counts is None else counts[a:b]
         E[a:b], count, photons, weight, factor, (wide, *wide_read) = _estimate_read(
             pmap, limits, counts_here, p[a:b], n[a:b], radius, k, min_photons, estimator,
-            None if floor is None else floor[a:b])
+            None if floor is None else floor[a:b],
+            None if surface is None else surface[a:b])
         if accel is None:
             continue
         here = (p[a:b], n[a:b], lift[a:b] if len(lift) else lift)
@@ -308,39 +316,42 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
 
 
 def hidden_photons(pmap, accel, p, n, lift, radius, k, r_floor=None, geo=None,
-                   min_photons=1, estimator="knn_simpson"):
+                   min_photons=1, estimator="knn_simpson", surface=None):
     """(rows (H,) int64, photons (H,) int64): the pairs (query row, map photon) whose
     visibility ray is blocked, over the photons the estimate at p (M,3) with unit
     normals n (M,3) facing the viewer reads (PhotonMap.knn_irradiance's read lists);
     lift (M,) their ray offsets (SurfaceHit.offset) or None; radius, k, min_photons,
     estimator, r_floor ((M,) or None, its footprint floor): the estimate's; geo: the
     scene's Geometry, for the pre-test (OneSurfaceCells: rows with no other surface near
-    are not traced; None: every row is). Sorted by row."""
+    are not traced; None: every row is); surface: the rows' object ids or None
+    (PhotonMap.knn_irradiance). Sorted by row."""
     none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
     if pmap is None or pmap.tree is None or len(p) == 0 or radius <= 0 or accel is None:
         return none
     _, rows, photons = _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons,
-                                        estimator, r_floor, None, None, geo)
+                                        estimator, r_floor, None, None, geo,
+                                        surface=surface)
     return rows, photons
 
 
 def visible_irradiance(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
-                       r_floor=None, limits=None, counts=None, geo=None):
+                       r_floor=None, limits=None, counts=None, geo=None, surface=None):
     """E (M,3) (W/m^2): the estimate pmap.irradiance (or chaincounts.irradiance with
     limits and counts (M,4) or None) at p / n (unit normals (M,3) facing the viewer;
     lift (M,) their ray offsets or None), with the rows that have hidden photons
     (_estimate_hidden: the photons each row's estimate read, traced from it) estimated
     again from their visible photons alone (the hidden ones' power counted as 0, and the
     photons their camera-side counts cannot use, as chaincounts.irradiance does). Rows
-    without a hidden photon keep the estimate's bits. accel None: the plain estimate."""
+    without a hidden photon keep the estimate's bits. accel None: the plain estimate.
+    surface: the rows' (M,) object ids (PhotonMap.knn_irradiance) or None."""
     if pmap is None or len(pmap) == 0 or pmap.tree is None or len(p) == 0 or radius <= 0:
         return chaincounts.irradiance(pmap, limits, counts, p, n, radius, k, min_photons,
-                                      estimator, r_floor=r_floor)
+                                      estimator, r_floor=r_floor, surface=surface)
     # The rows that hide a photon summed again over their read lists (_visible_sums):
     # the bits of a second, masked search (_reestimate) for a fraction of its cost
     # (Figure 7: 2.4 CPU s of 35 were those searches, docs/performance.md "gatherspeed").
     E, _, _ = _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
-                               r_floor, limits, counts, geo, visible=True)
+                               r_floor, limits, counts, geo, visible=True, surface=surface)
     return E
 
 
@@ -448,7 +459,7 @@ def _visible_rows(power, rows, slots, bounds, hidden, usable, cls, count, photon
 
 
 def _reestimate(E, pmap, p, n, radius, k, min_photons, estimator, r_floor, limits, counts,
-                rows, photons):
+                rows, photons, surface=None):
     """E with the rows `rows` estimated again without their hidden photons (rows (H,),
     photons (H,): the pairs), in one estimate call per count class (PhotonMap.irradiance's
     hidden: each row's hidden photons left out for that row alone). Writes into E.
@@ -486,7 +497,8 @@ def _reestimate(E, pmap, p, n, radius, k, min_photons, estimator, r_floor, limit
         _, masked = pmap.irradiance(
             p[sel], n[sel], radius, k, min_photons, estimator,
             r_floor=None if floor is None else floor[sel], masks=base[None],
-            hidden=(sub_starts, photons[take]))
+            hidden=(sub_starts, photons[take]),
+            surface=None if surface is None else np.asarray(surface)[sel])
         E[sel] = masked[0]
     return E
 

@@ -30,7 +30,8 @@ from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
 from .panelight import panes_for
 from .parallel import Cancelled, run_cancellable, run_tasks
-from .photons import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, trace_photons
+from .photons import (CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, Photons, concat_surfaces,
+                      trace_photons)
 from .resources import check_resources
 from .scene import Scene
 from .settings import ESTIMATOR_LABELS, RenderSettings
@@ -530,7 +531,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
             emitted = caustic.emitted
             caustic = Photons(*(np.concatenate([getattr(caustic, f), getattr(rest, f)])
                                 for f in ("position", "power", "direction", "normal", "kind")),
-                              bounces=np.concatenate([caustic.bounces, rest.bounces]))
+                              bounces=np.concatenate([caustic.bounces, rest.bounces]),
+                              surface=concat_surfaces(caustic, rest))
             caustic.emitted = emitted
     elif glow is not None:
         # Nothing focuses light (effects: glow only): the caustic map is the glow shot.
@@ -637,7 +639,8 @@ def _with_images(photons: Photons, images: Photons) -> Photons:
                      for f in ("position", "power", "direction", "normal", "kind")),
                    photons.emitted,
                    None if photons.bounces is None else
-                   np.concatenate([photons.bounces, images.bounces]))
+                   np.concatenate([photons.bounces, images.bounces]),
+                   concat_surfaces(photons, images))
 
 
 def region_photons(positions: np.ndarray, region, k: int) -> np.ndarray:

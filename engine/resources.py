@@ -7,11 +7,12 @@ The per-item costs are measured peak resident memory (ru_maxrss) of renders that
 one size at a time, rounded up; `bench/bench_memory.py` prints the estimate beside the
 measured peak for a set of renders. What each part counts:
 
-- photons: each stored photon (53 B of arrays: 4 of them its bounce counts) with its
-  copies, the kd-trees over it and the gather map. A global shot stores a photon at every
-  diffuse hit until Russian roulette (or a bounce limit) ends it: measured 2.1 stored per
-  emitted photon in the closed Figure 6 box, 0.7 in the open Figure 3 scene; the estimate
-  takes STORES_PER_PHOTON. A caustic shot stores at most one per emitted photon.
+- photons: each stored photon (57 B of arrays: 4 of them its bounce counts, 4 its
+  surface's object id) with its copies, the kd-trees over it and the gather map. A
+  global shot stores a photon at every diffuse hit until Russian roulette (or a bounce
+  limit) ends it: measured 2.1 stored per emitted photon in the closed Figure 6 box, 0.7
+  in the open Figure 3 scene; the estimate takes STORES_PER_PHOTON. A caustic shot
+  stores at most one per emitted photon.
 - photon chunks / camera chunks: the arrays of the photons or camera samples that are
   being traced at the same time (one chunk per worker thread, engine/parallel.py).
 - image: the per-pixel accumulators (float64), the Film (float32 per pass) and, for a

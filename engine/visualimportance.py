@@ -601,7 +601,7 @@ def indirect_share(ctx, shot, radius: float, rays: int = SHARE_RAYS,
     ph = pm.photons
     indirect = (ph.kind == INDIRECT).astype(np.float32)[:, None]
     pm.photons = Photons(ph.position, ph.power * indirect, ph.direction, ph.normal, ph.kind,
-                         ph.emitted)
+                         ph.emitted, surface=ph.surface)
     Ei = pm.irradiance(p, ng, r, s.k_nearest, 1, s.estimator)
     total = float(luminance(E).sum())
     if not total > 0:
