@@ -179,7 +179,20 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages)
     counters.shadow_rays += rays
-    panes = panes_for(ctx)
+    panes, shades = panes_for(ctx), shades_for(ctx)
+    if panes is None and (shades is None or rng is None):
+        return E
+    # Light through a pane or a shade is, to Cycles, a diffuse bounce at the hit that BSDF
+    # sampling continues (the pane's refraction / the shade's direct light are the light's
+    # side): Light Paths' Diffuse and Max must allow one more bounce, as for the final
+    # gather (review32, live Cycles: at Diffuse 0 it reads 0 there; at Diffuse 1 our
+    # regathered points took their pane light beyond the limit, +17 %). Rows beyond the
+    # limits take none.
+    c = np.zeros((n, 4), np.int64) if counts is None else np.broadcast_to(counts, (n, 4))
+    reach = chaincounts.within(c + np.array([1, 1, 0, 0], np.int64),
+                               ctx.settings.bounce_limits)
+    if not reach.any():
+        return E
     if panes is not None:
         # Suns through single-plane glass panes (engine/panelight.py): the diffuse lobe's
         # light, which the photons through the panes no longer carry as caustics.
@@ -189,13 +202,13 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                                    take(np.asarray(hit.ng, np.float64)),
                                    take(np.asarray(hit.offset, np.float64)), samples)
         counters.shadow_rays += rays
+        Ep[~reach] = 0.0
         E += Ep if bsdf is None else Ep * bsdf[0]
-    shades = shades_for(ctx)
     if shades is not None and rng is not None:
         # Lamps through Translucent BSDF shades (engine/shadelight.py): the diffuse lobe's
         # light, which the photons through the shades no longer carry as caustics.
         take = (lambda a: a) if rows is None else (lambda a: np.take(a, rows, axis=0))
-        pts = np.arange(n) if bsdf is None else np.flatnonzero(bsdf[0].max(axis=1) > 0.0)
+        pts = np.flatnonzero(reach if bsdf is None else reach & (bsdf[0].max(axis=1) > 0.0))
         if len(pts):
             sub = [(li, tr, cnt, u1[pts], u2[pts], None if s3 is None else s3[pts])
                    for li, tr, cnt, u1, u2, s3 in samples]
