@@ -194,8 +194,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     if not reach.any():
         return E
     if panes is not None:
-        # Suns through single-plane glass panes (engine/panelight.py): the diffuse lobe's
-        # light, which the photons through the panes no longer carry as caustics.
+        # Suns and the world through single-plane glass panes (engine/panelight.py): the
+        # diffuse lobe's light, which the photons through the panes no longer carry as caustics.
         take = (lambda a: a) if rows is None else (lambda a: np.take(a, rows, axis=0))
         Ep, rays = pane_irradiance(ctx, panes, take(np.asarray(hit.p, np.float64)),
                                    take(np.asarray(hit.ns, np.float64)),

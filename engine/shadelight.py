@@ -71,6 +71,7 @@ import threading
 import numpy as np
 
 from . import photonkernels as pk
+from .sampling import orthonormal_basis
 
 # Off: every shade stays caustic, as before (A/B measurements: bench/bench_lamp_room.py).
 ENABLED = True
@@ -95,24 +96,17 @@ class Shades:
     def __init__(self, tl, served, lights, names, code):
         self.tl, self.served, self.lights = tl, frozenset(served), lights
         self.names, self.code = names, code
-        self._merged = {}
 
     def photon_tri(self, light, pane_tri=None) -> np.ndarray | None:
-        """pane_tri for the photons of `light` (photonkernels.scatter): pane_tri (the
-        panes' table, or None / empty) with this scene's shade triangles marked
-        SHADE_TRANSLUCENT where `light` is served; else pane_tri unchanged."""
+        """pane_tri for the photons of `light` (photonkernels.scatter): this scene's shade
+        triangle codes (SHADE_TRANSLUCENT) where `light` is served, else pane_tri (the
+        panes' table or None) unchanged. Panes serve suns and the world only
+        (engine/panelight.py) and shades point and spot lamps, so no light needs both."""
         inner = getattr(light, "light", light)  # (a RegionEmitter wraps the light)
         if not any(inner is s for s in self.lights):
             return pane_tri
-        if pane_tri is None or len(pane_tri) == 0:
-            return self.code
-        key = id(pane_tri)
-        got = self._merged.get(key)
-        if got is None or got[0] is not pane_tri:
-            merged = np.array(pane_tri, np.int64)
-            merged[self.code == pk.SHADE_TRANSLUCENT] = pk.SHADE_TRANSLUCENT
-            got = self._merged[key] = (pane_tri, merged)
-        return got[1]
+        assert pane_tri is None or len(pane_tri) == 0, "a light served by panes and shades"
+        return self.code
 
 
 def shade_materials(table) -> tuple[np.ndarray, np.ndarray]:
@@ -143,7 +137,7 @@ def shade_materials(table) -> tuple[np.ndarray, np.ndarray]:
 
 def find_shades(geo, table, lights, settings=None):
     """Shades or None (the module docstring's conditions): the triangles of Translucent
-    BSDF materials, with the point, spot and area lights they serve."""
+    BSDF materials, with the point and spot lights they serve (SERVED_KINDS)."""
     if not ENABLED or geo.count == 0 or getattr(geo, "shared", None) is not None:
         return None
     if settings is not None and getattr(settings, "method", None) == "local":
@@ -184,20 +178,13 @@ def shades_for(ctx):
     return got
 
 
-def _frame_rows(a):
-    """Two unit vectors per row perpendicular to unit rows a (N,3)."""
-    t = np.where((np.abs(a[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    u = np.cross(a, t)
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    return u, np.cross(a, u)
-
-
 def _lamp_directions(a, r):
     """(N,3) unit directions from a lamp's centre and their solid-angle pdf (N,), from
-    numbers r = (r0, r1) (each (N,)): the one-sample mixture, by r0 < LAMP_COSINE_SHARE, of the cosine lobe about the unit axes a (N,3)
-    (towards the shading points) and the uniform sphere; pdf = share cos+ / pi + (1 - share) / (4 pi)
-    (the uniform half keeps every direction's pdf >= 1 / (8 pi): the shade's faces the
-    cosine lobe misses, the tube's ends above a floor point, stay sampled)."""
+    numbers r = (r0, r1) (each (N,)): the one-sample mixture, by r0 < LAMP_COSINE_SHARE,
+    of the cosine lobe about the unit axes a (N,3) (towards the shading points) and the
+    uniform sphere; pdf = share cos+ / pi + (1 - share) / (4 pi) (the uniform half keeps
+    every direction's pdf >= 1 / (8 pi): the shade's faces the cosine lobe misses, the
+    tube's ends above a floor point, stay sampled)."""
     # One number picks the strategy and, rescaled within its share, the polar angle:
     # the pixel's stratified numbers stay stratified over both.
     share = LAMP_COSINE_SHARE
@@ -207,7 +194,7 @@ def _lamp_directions(a, r):
     ct = np.where(cosine, np.sqrt(v), 1.0 - 2.0 * v)
     st = np.sqrt(np.maximum(0.0, 1.0 - ct * ct))
     phi = 2.0 * math.pi * r[1]
-    bu, bv = _frame_rows(a)
+    bu, bv = orthonormal_basis(a)
     w = (st * np.cos(phi))[:, None] * bu + (st * np.sin(phi))[:, None] * bv + ct[:, None] * a
     cos_a = np.maximum(np.einsum("ij,ij->i", w, a), 0.0)
     return w, LAMP_COSINE_SHARE * cos_a / math.pi + (1.0 - LAMP_COSINE_SHARE) * 0.25 / math.pi

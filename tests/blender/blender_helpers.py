@@ -199,6 +199,19 @@ def node_material(bpy, name):
     return m, nt, nt.nodes.new("ShaderNodeOutputMaterial")
 
 
+def glass_or_diffuse_material(bpy, name, kind, rgb, ior=1.5):
+    """A material of one node: a smooth Glass BSDF (kind "glass", IOR ior) or a Diffuse
+    BSDF, of colour rgb (3,) (the panes' and their floors' in the pane tests)."""
+    m, nt, out = node_material(bpy, name)
+    n = nt.nodes.new("ShaderNodeBsdfGlass" if kind == "glass" else "ShaderNodeBsdfDiffuse")
+    n.inputs["Color"].default_value = (*rgb, 1.0)
+    if kind == "glass":
+        n.inputs["Roughness"].default_value = 0.0
+        n.inputs["IOR"].default_value = ior
+    nt.links.new(n.outputs[0], out.inputs["Surface"])
+    return m
+
+
 def convert_material(m):
     """The add-on's export of material m (addon.materials.MaterialConverter)."""
     from addon.core import load_engine

@@ -14,28 +14,19 @@ import math
 
 import numpy as np
 import pytest
+from blender_helpers import glass_or_diffuse_material
 
 pytestmark = pytest.mark.blender
 
 
-def _material(bpy, name, kind, rgb):
-    from blender_helpers import node_material
-    m, nt, out = node_material(bpy, name)
-    n = nt.nodes.new("ShaderNodeBsdfGlass" if kind == "glass" else "ShaderNodeBsdfDiffuse")
-    n.inputs["Color"].default_value = (*rgb, 1.0)
-    if kind == "glass":
-        n.inputs["Roughness"].default_value = 0.0
-        n.inputs["IOR"].default_value = 1.5
-    nt.links.new(n.outputs[0], out.inputs["Surface"])
-    return m
-
-
 def _scene(bpy, scene):
     bpy.ops.mesh.primitive_plane_add(size=20)
-    bpy.context.object.data.materials.append(_material(bpy, "Floor", "diffuse", (0.5,) * 3))
+    bpy.context.object.data.materials.append(
+        glass_or_diffuse_material(bpy, "Floor", "diffuse", (0.5,) * 3))
     bpy.ops.mesh.primitive_plane_add(size=8, location=(0.0, 0.0, 1.0))
     bpy.context.object.name = "Pane"
-    bpy.context.object.data.materials.append(_material(bpy, "Glass", "glass", (1.0,) * 3))
+    bpy.context.object.data.materials.append(
+        glass_or_diffuse_material(bpy, "Glass", "glass", (1.0,) * 3))
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     sun.data.energy, sun.data.angle = 3.0, math.radians(15.0)
     sun.rotation_euler = (0.0, math.radians(30.0), 0.0)

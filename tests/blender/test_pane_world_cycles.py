@@ -15,20 +15,9 @@ import math
 
 import numpy as np
 import pytest
+from blender_helpers import glass_or_diffuse_material
 
 pytestmark = pytest.mark.blender
-
-
-def _material(bpy, name, kind, rgb):
-    from blender_helpers import node_material
-    m, nt, out = node_material(bpy, name)
-    n = nt.nodes.new("ShaderNodeBsdfGlass" if kind == "glass" else "ShaderNodeBsdfDiffuse")
-    n.inputs["Color"].default_value = (*rgb, 1.0)
-    if kind == "glass":
-        n.inputs["Roughness"].default_value = 0.0
-        n.inputs["IOR"].default_value = 1.5
-    nt.links.new(n.outputs[0], out.inputs["Surface"])
-    return m
 
 
 def _sky(H=32, W=64):
@@ -47,7 +36,7 @@ def _scene(bpy, scene, world):
     sys.path.insert(0, f"{ROOT}/example_blends")
     import make_blends
     bpy.ops.mesh.primitive_plane_add(size=6)
-    floor = _material(bpy, "Floor", "diffuse", (0.5,) * 3)
+    floor = glass_or_diffuse_material(bpy, "Floor", "diffuse", (0.5,) * 3)
     bpy.context.object.data.materials.append(floor)
     for k in range(4):
         # 6 x 1 m walls from the floor to the pane, facing in
@@ -59,7 +48,8 @@ def _scene(bpy, scene, world):
         bpy.context.object.data.materials.append(floor)
     bpy.ops.mesh.primitive_plane_add(size=6, location=(0.0, 0.0, 1.0))
     bpy.context.object.name = "Pane"
-    bpy.context.object.data.materials.append(_material(bpy, "Glass", "glass", (1.0,) * 3))
+    bpy.context.object.data.materials.append(
+        glass_or_diffuse_material(bpy, "Glass", "glass", (1.0,) * 3))
     cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
     cam.data.type, cam.data.ortho_scale = "ORTHO", 2.0
     cam.location = (0.0, 0.0, 0.8)
