@@ -50,7 +50,7 @@ from . import kdtree
 from .jit import kernel
 from .parallel import ordered_map
 from .photonmap import _accepted
-from .samesurface import NO_SURFACE, same_surface, surface_ids
+from .samesurface import NO_SURFACE, query_surfaces, same_surface, surface_ids
 
 ACCEPT = 0.3  # a lookup reads the nearest photon's estimate within ACCEPT x its rk
 # The smallest k whose uniform-caustic rows the ACCEPT cut sends to the k-NN row less than
@@ -218,7 +218,7 @@ class PrecomputedIrradiance:
             surf = qsurf = NO_SURFACE
         else:
             surf = np.ascontiguousarray(surf, dtype=np.int32)
-            qsurf = np.ascontiguousarray(np.broadcast_to(surface, (m,)), dtype=np.int32)
+            qsurf = query_surfaces(surface, m)
         _lookup_rows(t.position, axis, split, leaf, pmap.photons.normal, surf, self.E,
                      self.rk, p, n, qsurf, floor, float(radius) ** 2, ACCEPT, out, boundary,
                      miss)

@@ -28,7 +28,7 @@ from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
 from .samesurface import (COPLANAR_COS, COPLANAR_SIN2, NO_SURFACE, POSITION_RESOLUTION,
-                          same_surface, surface_ids)
+                          query_surfaces, same_surface, surface_ids)
 
 NORMAL_AGREEMENT = 0.5
 BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
@@ -312,7 +312,7 @@ class PhotonMap:
         if surface is None or self.photons.surface is None:
             qsurf = NO_SURFACE
         else:
-            qsurf = np.ascontiguousarray(np.broadcast_to(surface, (m,)), dtype=np.int32)
+            qsurf = query_surfaces(surface, m)
         p = np.ascontiguousarray(p, dtype=np.float64)
         n = np.ascontiguousarray(n, dtype=np.float64)
         floor = (np.zeros(0) if r_floor is None
@@ -1278,7 +1278,7 @@ class GatherMap:
         surf = getattr(self, "surface", NO_SURFACE)
         if surface is None or not len(surf):
             return NO_SURFACE, NO_SURFACE
-        return surf, np.ascontiguousarray(np.broadcast_to(surface, (m,)), dtype=np.int32)
+        return surf, query_surfaces(surface, m)
 
     def _next_visible(self, p, n, lift, hidden, kmax, out, boundary, point=None,
                       qsurf=NO_SURFACE):

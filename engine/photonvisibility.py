@@ -43,6 +43,7 @@ from .jit import kernel, register_warm_up
 from .onesurface import one_surface_cells
 from .photonmap import _query_lift, _ray_ends
 from .rayoffset import G32_PLANE, ulp32_scalar
+from .samesurface import query_surfaces
 
 # Rows per block of visibility rays (bounds the ray arrays: BLOCK_ROWS x cap rays).
 BLOCK_ROWS = 1024
@@ -269,7 +270,7 @@ def _estimate_hidden(pmap, accel, p, n, lift, radius, k, min_photons, estimator,
     (PhotonMap.knn_irradiance) or None."""
     m = len(p)
     if surface is not None:
-        surface = np.broadcast_to(np.asarray(surface), (m,))
+        surface = query_surfaces(surface, m)
     p = np.ascontiguousarray(p, dtype=np.float64)
     n = np.ascontiguousarray(n, dtype=np.float64)
     lift = (np.zeros(0) if lift is None else np.ascontiguousarray(lift, dtype=np.float64))

@@ -50,6 +50,14 @@ def surface_ids(photons) -> np.ndarray:
     return got
 
 
+def query_surfaces(surface, m) -> np.ndarray:
+    """(m,) int32, C-contiguous and writable: the queries' surfaces `surface` (an (m,)
+    array or one id for all). Always a fresh writable array, so the kernels that take it
+    see one array type (a broadcast view is read-only: a second compiled variant, which
+    the warm-up compile did not make: tests/test_warm_up.py)."""
+    return np.array(np.broadcast_to(np.asarray(surface), (m,)), dtype=np.int32, order="C")
+
+
 @kernel
 def continues_plane(pos, normal, j, qx, qy, qz, nx, ny, nz):
     """Whether point j (pos (N,3), normal (N,3)) continues the plane of the query at
