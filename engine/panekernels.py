@@ -72,11 +72,13 @@ def world_strategies(x, u2, shares, adapt, adapt_min, p, ns, pane_n, centres, ar
     """Per point i of x, u2 (N,) (uniform numbers; x picks the strategy): S (N,4) <- the
     point's shares (shares (4,), summing to 1; with adapt, OUTSIDE's and AREA's together
     split by the panes' projected solid angle over pi, clipped to [adapt_min,
-    1 - adapt_min]: panelight.Panes.projection), strat (N,) <- the strategy, a (N,) <- x
-    rescaled within its share (< 1), wc (N,3) <- OUTSIDE's outside / INSIDE's inside
-    cosine direction about ns, AREA's unit direction towards a point uniform over the
-    panes' triangles (v0, e1, e2 (M,3), area CDF (M,), pane tri_k (M,)), on_k (N,) <- that
-    point's pane (-1 for the other strategies). MAP rows' wc stay zero."""
+    1 - adapt_min]: A cos_pane cos_n / (pi d^2) from each pane's centre (pane_n,
+    centres (K,3), areas (K,)), summed), strat (N,) <- the strategy, a (N,) <- x rescaled
+    within its share (< 1), wc (N,3) <- OUTSIDE's outside / INSIDE's inside cosine
+    direction about ns, AREA's unit direction towards a point uniform over the panes'
+    triangles (v0, e1, e2 (M,3), area CDF (M,), pane tri_k (M,); Shirley's square-root
+    map), on_k (N,) <- that point's pane (-1 for the other strategies). MAP rows' wc stay
+    zero (panelight.pane_irradiance fills w from the map)."""
     K = len(areas)
     M = len(tri_cdf)
     r_split = shares[_OUTSIDE] + shares[_AREA]
