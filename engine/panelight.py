@@ -58,6 +58,9 @@ a pane as its first scatter:
     refraction, pdf infinite) meets the world with MIS weight 1, as before; these shadow
     rays are added to the diffuse lobe only, so the two do not overlap.
 Lamps (point, spot, area, mesh lights) through a pane stay caustic (their photons too).
+
+The per-sample stages between pane_irradiance's Embree calls are kernels in
+engine/panekernels.py (panespeed32); this module keeps their description.
 """
 from __future__ import annotations
 
