@@ -253,5 +253,6 @@ def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
     from . import (camerakernels, camerarays, directlight, gatherkernels,  # noqa: F401
                    hashgrid, normalmap,
-                   kdtree, photonkernels, photonmap, photonvisibility,  # (warm-ups)
+                   kdtree, panekernels, photonkernels, photonmap,  # (warm-ups)
+                   photonvisibility,
                    procedural, rayoffset, shadowtransmittance, toplevel)

@@ -58,6 +58,9 @@ a pane as its first scatter:
     refraction, pdf infinite) meets the world with MIS weight 1, as before; these shadow
     rays are added to the diffuse lobe only, so the two do not overlap.
 Lamps (point, spot, area, mesh lights) through a pane stay caustic (their photons too).
+
+The per-sample stages between pane_irradiance's Embree calls are kernels in
+engine/panekernels.py (panespeed32); this module keeps their description.
 """
 from __future__ import annotations
 
@@ -66,6 +69,7 @@ import threading
 
 import numpy as np
 
+from . import panekernels as pkk
 from . import photonkernels as pk
 from .lights import packing as lpk
 
@@ -80,7 +84,7 @@ WORLD_ENABLED = True
 # outside, both refracted in through the pane; INSIDE the cosine hemisphere inside, AREA
 # a point uniform over the panes' area (a portal), both refracted back out. A constant
 # world has no map. Per point, OUTSIDE's and AREA's shares together are split by the
-# panes' projected solid angle over pi (Panes.projection, clipped to [ADAPT_MIN,
+# panes' projected solid angle over pi (Panes.kernel_arrays, clipped to [ADAPT_MIN,
 # 1 - ADAPT_MIN]): OUTSIDE's samples all pass under a skylight, AREA's under a small
 # window. Measured (pixel noise of the Direct pass at 4 spp, paneworld32 in
 # docs/accuracy.md): a 1.2 x 1.0 m window in a 4 x 3 m room, white world: OUTSIDE alone
@@ -107,6 +111,9 @@ _T_GRID = np.linspace(0.0, 1.0, T_ROWS)  # the tables' cos(theta_i) rows
 ONE_BELOW = float(np.nextafter(1.0, 0.0))
 _lock = threading.Lock()
 _NO_PANE_TRI = np.zeros(0, np.int64)
+_NO_ROWS = np.zeros(0, np.int64)
+_NO_TRANS = np.zeros((0, 3))
+_EMPTY = np.zeros(0)
 
 
 class Pane:
@@ -120,7 +127,8 @@ class Pane:
     def __init__(self, name, n, c, rows, m, ior, T, lo, hi):
         self.name, self.n, self.c, self.rows, self.m, self.ior, self.T = (
             name, n, c, rows, m, ior, T)
-        self.lo, self.hi = lo, hi
+        # float64 (panekernels.first_rays' types; the values as found)
+        self.lo, self.hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
 
 
 def _toward_sun(light):
@@ -144,7 +152,7 @@ class Panes:
         self.suns = suns
         self.world = world
         self.lights = list(suns) + ([world] if world is not None else [])
-        # The panes' triangles for the world's PANE strategy (sample_points): corners
+        # The panes' triangles for the world's AREA strategy (kernel_arrays): corners
         # v0, edges e1, e2 (M,3), pane index (M,), area CDF (M,) and total area (m^2).
         self.area = 0.0
         if geo is not None and panes:
@@ -162,33 +170,27 @@ class Panes:
                             / max(self.areas[k], 1e-300) for k in range(len(panes))]
             self.tri_cdf = np.cumsum(a) / max(self.area, 1e-300)
 
-    def projection(self, p, ns) -> np.ndarray:
-        """(N,) the panes' projected solid angle over pi at points p (N,3) with normals ns
-        (N,3), from each pane's centre, A cos_pane cos_n / (pi d^2), summed: a rough
-        guide to the share of a cosine-distributed direction that meets a pane (a
-        heuristic for the strategies' shares only, never a weight)."""
-        q = np.zeros(len(p))
-        for pane, c, a in zip(self.panes, self.centres, self.areas):
-            v = c - p
-            d2 = np.maximum(np.einsum("ij,ij->i", v, v), 1e-300)
-            inv = 1.0 / np.sqrt(d2)
-            cp = np.abs(v @ pane.n) * inv
-            cn = np.maximum(np.einsum("ij,ij->i", v, ns), 0.0) * inv
-            q += a * cp * cn / (math.pi * d2)
-        return q
-
-    def sample_points(self, u1, u2):
-        """Points (N,3) uniform over the panes' area from uniform numbers u1, u2 (N,) (the
-        triangle by u1 and the area CDF, u1 rescaled within its bin; Shirley's square-root
-        map, pbrt-v4 SampleUniformTriangle), and each point's pane index (N,). Their
-        density is 1 / self.area per m^2."""
-        j = np.minimum(np.searchsorted(self.tri_cdf, u1, side="right"), len(self.tri_cdf) - 1)
-        lo = np.where(j > 0, self.tri_cdf[np.maximum(j - 1, 0)], 0.0)
-        r1 = np.clip((u1 - lo) / np.maximum(self.tri_cdf[j] - lo, 1e-300), 0.0, 1.0)
-        s = np.sqrt(r1)
-        y = (self.tri_v0[j] + (s * (1.0 - u2))[:, None] * self.tri_e1[j]
-             + (s * u2)[:, None] * self.tri_e2[j])
-        return y, self.tri_k[j]
+    def kernel_arrays(self) -> tuple:
+        """The world strategies' pane arrays for panekernels.world_strategies, C-contiguous
+        float64 / int64: pane normals (K,3), area-weighted centres (K,3), areas (K,) (the
+        projected solid angle that splits OUTSIDE's and AREA's shares: A cos_pane cos_n /
+        (pi d^2) from each pane's centre, summed; a heuristic for the shares only, never a
+        weight), and the triangles v0, e1, e2 (M,3), area CDF (M,), pane (M,) (AREA's
+        points, uniform over the area: the triangle by the CDF, the number rescaled within
+        its bin; Shirley's square-root map, pbrt-v4 SampleUniformTriangle; density
+        1 / self.area per m^2). Without area: empty ones (AREA and the split unused)."""
+        got = getattr(self, "_kernel_arrays", None)
+        if got is None:
+            if self.area > 0.0:
+                got = tuple(np.ascontiguousarray(x) for x in (
+                    np.array([q.n for q in self.panes], np.float64),
+                    np.array(self.centres, np.float64), np.array(self.areas, np.float64),
+                    self.tri_v0, self.tri_e1, self.tri_e2, self.tri_cdf, self.tri_k))
+            else:
+                z3 = np.zeros((0, 3))
+                got = (z3, z3, np.zeros(0), z3, z3, z3, np.zeros(0), np.zeros(0, np.int64))
+            self._kernel_arrays = got
+        return got
 
     def total_reflections(self, light) -> list:
         """[(pane name, incidence deg, critical deg, ior)] for the panes that reflect all of
@@ -374,90 +376,57 @@ def refract_sun(w, n, ior):
     return -tdir, cos_i, cos_t, eta * eta, side, ok
 
 
-def _cosine_directions(u1, u2, ns):
-    """(N,3) cosine-distributed unit directions about unit normals ns (N,3) from uniform
-    numbers u1, u2 (N,) (Malley's method; the frame: Duff et al. 2017, "Building an
-    Orthonormal Basis, Revisited"); their pdf is (w . ns) / pi."""
-    r = np.sqrt(u1)
-    phi = 2.0 * math.pi * u2
-    x, y = r * np.cos(phi), r * np.sin(phi)
-    z = np.sqrt(np.maximum(0.0, 1.0 - u1))
-    n0, n1, n2 = ns[:, 0], ns[:, 1], ns[:, 2]
-    sgn = np.where(n2 >= 0.0, 1.0, -1.0)
-    a = -1.0 / (sgn + n2)
-    b = n0 * n1 * a
-    t = np.stack([1.0 + sgn * n0 * n0 * a, sgn * b, -sgn * n0], axis=1)
-    s = np.stack([b, sgn + n1 * n1 * a, -n1], axis=1)
-    return x[:, None] * t + y[:, None] * s + z[:, None] * ns
+class _Rays:
+    """first_rays' compacted rows for N points (engine/panekernels.py): idx (row), w (the
+    outside direction), cos_i, cos_t, eta2, side, cr (N . w_t), the closest-hit rays o, d,
+    t_plane, tmax; reused by each pane and sample of one pane_irradiance call."""
+
+    def __init__(self, N):
+        self.idx, self.side = np.empty(N, np.int64), np.empty(N, np.int64)
+        self.w, self.o, self.d = np.empty((N, 3)), np.empty((N, 3)), np.empty((N, 3))
+        self.cos_i, self.cos_t, self.eta2, self.cr, self.t_plane, self.tmax = (
+            np.empty(N) for _ in range(6))
 
 
-def _transmittance(pane, cos_i, side):
-    """(N,3) the pane's Fresnel transmittance at cos_i (N,) from side (N,) (its table)."""
-    T = np.empty((len(cos_i), 3))
-    for s in (0, 1):
-        m_ = side == s
-        if m_.any():
-            for c in range(3):
-                T[m_, c] = np.interp(cos_i[m_], _T_GRID, pane.T[s, :, c])
-    return T
-
-
-def _through(ctx, tri_pane, k, pane, p, ns, ng, offset, w, wt, side, ok, shadow, scale,
-             want_t=False):
-    """The rows of points p (N,3) whose light from outside direction w (N,3) reaches them
-    along inside direction wt (N,3) through pane k: the receiver on the far side of the
-    plane from w, facing wt; the first surface along wt this pane, at the plane; the ray on
-    from just past the plane along w unoccluded (transparent shadows: ctx.shadow).
-    Returns (rows (M,) int64, trans (M,3) the shadows' transmittance, cos(wt, ns) at the
-    rows (M,), rays traced), and with want_t the distances (M,) to the plane (m)."""
-    empty = (np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0), 0) + (
-        (np.zeros(0),) if want_t else ())
+def _through(ctx, panes, k, pane, p, ns, ng, offset, w0, wc, inside, on_k, shadow, scale,
+             buf):
+    """The rows of points p (N,3) whose light from outside direction w reaches them along
+    inside direction w_t through pane k: w = w0 (N,3), w_t its refraction, or where inside
+    (N,) w_t = wc (N,3), w its refraction back out; on_k (N,) the pane a row must meet
+    (-1: any). The receiver on the far side of the plane from w, facing w_t; the first
+    surface along w_t this pane, at the plane; the ray on from just past the plane along
+    w unoccluded (transparent shadows: ctx.shadow). Fills buf (panekernels.first_rays)
+    and returns (keep (M2,) int64 the lit rows of buf, trans (M2,3) the shadows'
+    transmittance, rays traced)."""
     from .geometry import SHADOW
-    accel = ctx.accel
-    h = (p - pane.c) @ pane.n
-    far = np.where(side == 0, h < 0.0, h > 0.0)
-    cr = np.einsum("ij,ij->i", wt, ns)
-    cg = np.einsum("ij,ij->i", wt, ng)
-    idx = np.nonzero(ok & far & (cr > 0.0) & (cg > 0.0))[0]
-    if not len(idx):
-        return empty
-    o = p[idx] + offset[idx, None] * ng[idx]
-    d = wt[idx]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t_plane = ((pane.c - o) @ pane.n) / (d @ pane.n)
-    good = np.isfinite(t_plane) & (t_plane > 0.0)
-    y = o + np.where(good, t_plane, 0.0)[:, None] * d
-    good &= np.all((y >= pane.lo) & (y <= pane.hi), axis=1)  # within its bounds
-    idx, o, d, t_plane = idx[good], o[good], d[good], t_plane[good]
-    if not len(idx):
-        return empty
+    M = pkk.first_rays(p, ns, ng, offset, w0, wc, inside, on_k, k, pane.n, pane.c,
+                       float(pane.ior), pane.lo, pane.hi, scale, buf.idx, buf.w, buf.cos_i,
+                       buf.cos_t, buf.eta2, buf.side, buf.cr, buf.o, buf.d, buf.t_plane,
+                       buf.tmax)
+    if not M:
+        return _NO_ROWS, _NO_TRANS, 0
     # First surface along w_t: this pane, at the plane.
-    t_hit, prim, _, _ = accel.intersect(o, d, t_plane * (1.0 + 1e-3) + 1e-6 * scale,
-                                        cls=SHADOW)
-    rays = len(idx)
-    hit = (prim >= 0) & (np.take(tri_pane, np.maximum(prim, 0)) == k)
-    hit &= np.abs(t_hit - t_plane) <= 1e-3 * t_plane + 1e-5 * scale
-    idx, o, d, t_plane = idx[hit], o[hit], d[hit], t_plane[hit]
-    if not len(idx):
-        return (empty[0], empty[1], empty[2], rays) + empty[4:]
-    y = o + t_plane[:, None] * d
+    t_hit, prim, _, _ = ctx.accel.intersect(buf.o[:M], buf.d[:M], buf.tmax[:M], cls=SHADOW)
+    keep = np.empty(M, np.int64)
+    o32, d32 = np.empty((M, 3), np.float32), np.empty((M, 3), np.float32)
+    t32 = np.empty(M, np.float32)
     # Past the plane on the light's side, clear of the pane.
-    sn = np.where(side[idx, None] == 0, pane.n, -pane.n)
-    lift = 1e-6 * scale + 4e-7 * np.max(np.abs(y), axis=1)
-    y2 = y + lift[:, None] * sn
-    o32 = np.ascontiguousarray(y2, np.float32)
-    d32 = np.ascontiguousarray(w[idx], np.float32)
-    t32 = np.full(len(idx), np.finfo(np.float32).max, np.float32)
-    blocked = np.empty(len(idx), np.bool_)
+    M2 = pkk.second_rays(np.ascontiguousarray(t_hit, np.float64),
+                         np.ascontiguousarray(prim, np.int64), panes.pane_tri, k,
+                         buf.t_plane, buf.o, buf.d, buf.side, buf.w, pane.n, scale,
+                         keep, o32, d32, t32)
+    if not M2:
+        return _NO_ROWS, _NO_TRANS, M
+    keep, o32, d32, t32 = keep[:M2], o32[:M2], d32[:M2], t32[:M2]
+    blocked = np.empty(M2, np.bool_)
     keep_t = t32.copy()
-    accel.occluded_into(o32, d32, t32, blocked, cls=SHADOW)
-    rays += len(idx)
-    trans = np.ones((len(idx), 3))
+    ctx.accel.occluded_into(o32, d32, t32, blocked, cls=SHADOW)
+    trans = np.ones((M2, 3))
     trans[blocked] = 0.0
     if shadow is not None and blocked.any():
-        b = np.nonzero(blocked)[0]
-        trans[b] = shadow.transmittance(o32[b], d32[b], keep_t[b], cls=SHADOW)
-    return (idx, trans, cr[idx], rays) + ((t_plane,) if want_t else ())
+        bl = np.nonzero(blocked)[0]
+        trans[bl] = shadow.transmittance(o32[bl], d32[bl], keep_t[bl], cls=SHADOW)
+    return keep, trans, M + M2
 
 
 def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
@@ -473,7 +442,8 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
 
     A world sample: one-sample MIS (Veach 1997, sec. 9.2.4; balance heuristic) of four
     strategies over inside directions w_t, one number choosing (an environment's third
-    number, else u1) with the point's shares S (WORLD_SHARES, split by Panes.projection):
+    number, else u1) with the point's shares S (WORLD_SHARES, OUTSIDE's and AREA's split
+    by the panes' projected solid angle: Panes.kernel_arrays):
       MAP      w from the map's own distribution (Environment.sample, pdf p_map(w) per sr
                outside), w_t its refraction through each pane in turn
       OUTSIDE  w cosine-distributed about the shading normal (pdf max(N . w, 0) / pi),
@@ -503,8 +473,13 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
     codes, params, _ = ctx.packed_lights or pack_lights(ctx.lights)
     shadow = getattr(ctx, "shadow", None)
     rays = 0
-    tri_pane = panes.pane_tri
     scale = max(float(ctx.geo.extent), 1e-9)
+    p, ns, ng, offset = (np.ascontiguousarray(a, np.float64) for a in (p, ns, ng, offset))
+    # The stages between Embree's calls are kernels (engine/panekernels.py): one pass each,
+    # into these buffers (first_rays' compacted rows, at most N).
+    buf = _Rays(N)
+    no_k = np.full(N, -1, np.int64)
+    not_inside = np.zeros(N, np.bool_)
     for li, traced, count, u1, u2, sel in samples:
         if li < 0:
             continue
@@ -512,25 +487,20 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             q = params[li]
             a = -q[lpk.DIR:lpk.DIR + 3]
             a = a / np.linalg.norm(a)
-            cos_half = q[lpk.COS_HALF]
-            z = 1.0 - u1 * (1.0 - cos_half)
-            r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
-            phi = 2.0 * math.pi * u2
             bu, bv = _frame(a)
-            w = ((r * np.cos(phi))[:, None] * bu + (r * np.sin(phi))[:, None] * bv
-                 + z[:, None] * a)
-            rgb = q[lpk.RGB:lpk.RGB + 3]
+            w = np.empty((N, 3))
+            pkk.sun_directions(np.ascontiguousarray(u1, np.float64),
+                               np.ascontiguousarray(u2, np.float64), a, bu, bv,
+                               float(q[lpk.COS_HALF]), w)
+            rgb = np.ascontiguousarray(q[lpk.RGB:lpk.RGB + 3], np.float64)
             for k, pane in enumerate(panes.panes):
-                wt, cos_i, cos_t, eta2, side, ok = refract_sun(w, pane.n, pane.ior)
-                idx, trans, cr, n_rays = _through(ctx, tri_pane, k, pane, p, ns, ng, offset,
-                                                  w, wt, side, ok, shadow, scale)
+                keep, trans, n_rays = _through(ctx, panes, k, pane, p, ns, ng, offset, w, w,
+                                               not_inside, no_k, shadow, scale, buf)
                 rays += n_rays
-                if not len(idx):
-                    continue
-                ci, ct = cos_i[idx], cos_t[idx]
-                T = _transmittance(pane, ci, side[idx])
-                f = eta2[idx] * ci / np.maximum(ct, 1e-12) * cr / count
-                E[idx] += (f[:, None] * T * trans) * rgb[None, :]
+                if len(keep):
+                    pkk.sun_accumulate(E, buf.idx, keep, buf.cos_i, buf.cos_t, buf.eta2,
+                                       buf.side, buf.cr, pane.T, _T_GRID, trans, rgb,
+                                       float(count))
         elif codes[li] == lpk.CODE_WORLD and panes.world is not None:
             world = panes.world
             env = world.environment
@@ -540,81 +510,50 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             # within its share: an environment's third number (stratified with u1, not
             # independent of it: integrator.mesh_light_numbers; directlight.sample_lights
             # does the same), else u1 itself.
-            x = np.asarray(sel if env is not None and sel is not None else u1, np.float64)
+            x = np.ascontiguousarray(sel if env is not None and sel is not None else u1,
+                                     np.float64)
             if not panes.area > 0.0:
                 shares = np.where(np.arange(4) == AREA, 0.0, shares)
             shares = shares / shares.sum()
-            S = np.repeat(shares[None, :], N, axis=0)  # (N,4): each point's shares
-            if WORLD_ADAPT and panes.area > 0.0:
-                # OUTSIDE and AREA split by the panes' projected solid angle at the point
-                # (Panes.projection): a skylight over the point, OUTSIDE; a window across
-                # the room, AREA (a portal).
-                q = np.clip(panes.projection(p, ns), ADAPT_MIN, 1.0 - ADAPT_MIN)
-                r = shares[OUTSIDE] + shares[AREA]
-                S[:, OUTSIDE], S[:, AREA] = r * q, r * (1.0 - q)
-            top = np.cumsum(S, axis=1)
-            strat = np.minimum((x[:, None] >= top).sum(axis=1), AREA)
-            rows_ = np.arange(N)
-            share = S[rows_, strat]
-            a = np.clip((x - (top - S)[rows_, strat]) / np.maximum(share, 1e-300),
-                        0.0, ONE_BELOW)
-            b = np.asarray(u2, np.float64)
-            by_map, by_area = strat == MAP, strat == AREA
-            by_in = (strat == INSIDE) | by_area  # samples of w_t: refracted back out
-            # wc: OUTSIDE's w, INSIDE's and AREA's w_t; w0: MAP's and OUTSIDE's w.
-            wc = np.zeros((N, 3))
-            m_ = np.nonzero((strat == OUTSIDE) | (strat == INSIDE))[0]
-            if len(m_):
-                wc[m_] = _cosine_directions(a[m_], b[m_], ns[m_])
-            on_k = np.full(N, -1, np.int64)    # AREA: the pane of the point
-            if by_area.any():
-                m_ = np.nonzero(by_area)[0]
-                y, on_k[m_] = panes.sample_points(a[m_], b[m_])
-                v = y - p[m_]
-                wc[m_] = v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
-            w0 = wc.copy()
-            if by_map.any():
-                m_ = np.nonzero(by_map)[0]
-                w0[m_] = env.sample(a[m_], b[m_])[0]
-            inside = np.nonzero(by_in)[0]
+            b = np.ascontiguousarray(u2, np.float64)
+            # Each point's shares S (N,4) (WORLD_ADAPT: OUTSIDE and AREA split by the
+            # panes' projected solid angle at the point, Panes.kernel_arrays: a skylight over
+            # the point, OUTSIDE; a window across the room, AREA, a portal), its strategy,
+            # the first coordinate within its share, wc: OUTSIDE's w, INSIDE's and AREA's
+            # w_t (AREA: towards a point uniform over the panes' area, on pane on_k).
+            S, strat, a = np.empty((N, 4)), np.empty(N, np.int64), np.empty(N)
+            wc, on_k = np.empty((N, 3)), np.empty(N, np.int64)
+            pkk.world_strategies(x, b, shares, bool(WORLD_ADAPT and panes.area > 0.0),
+                                 ADAPT_MIN, p, ns, *panes.kernel_arrays(), ONE_BELOW,
+                                 S, strat, a, wc, on_k)
+            # w0: MAP's and OUTSIDE's w (the map's sample: the environment's own code)
+            by_map = np.nonzero(strat == MAP)[0]
+            w0 = wc
+            if len(by_map):
+                w0 = wc.copy()
+                w0[by_map] = env.sample(a[by_map], b[by_map])[0]
+            inside = (strat == INSIDE) | (strat == AREA)  # samples of w_t: refracted out
+            use_map = bool(shares[MAP] > 0.0)
             for k, pane in enumerate(panes.panes):
                 # The outside direction: the map's or the outside cosine sample, or the
-                # inside sample (cosine, or towards a point on a pane) refracted back
-                # out (refract_sun of -w_t: light arriving from the receiver's side).
-                w = w0.copy()
-                ok_b = np.ones(N, bool)
-                if len(inside):
-                    back, _, _, _, _, ok_b[inside] = refract_sun(-wc[inside], pane.n,
-                                                                 pane.ior)
-                    w[inside] = -back
-                wt, cos_i, cos_t, eta2, side, ok = refract_sun(w, pane.n, pane.ior)
-                ok &= ok_b
-                ok &= ~by_area | (on_k == k)  # a point on another pane: that pane's
-                wt[inside] = wc[inside]
-                idx, trans, cr, n_rays, t_plane = _through(
-                    ctx, tri_pane, k, pane, p, ns, ng, offset, w, wt, side, ok, shadow,
-                    scale, want_t=True)
+                # inside sample (cosine, or towards a point on a pane) refracted back out.
+                keep, trans, n_rays = _through(ctx, panes, k, pane, p, ns, ng, offset, w0,
+                                               wc, inside, on_k, shadow, scale, buf)
                 rays += n_rays
-                if not len(idx):
+                if not len(keep):
                     continue
-                wk = w[idx]
-                ci, ct = cos_i[idx], np.maximum(cos_t[idx], 1e-12)
-                T = _transmittance(pane, ci, side[idx])
+                wk = buf.w[keep]
                 # The mixture's pdf per sr of inside directions (outside pdfs through the
                 # Jacobian cos_t / (eta2 cos_i); AREA's t^2 / (A cos_t), cos_t the inside
-                # direction's cosine to the pane, A all the panes' area).
-                Sk = S[idx]
-                p_out = Sk[:, OUTSIDE] * np.maximum(np.einsum("ij,ij->i", wk, ns[idx]),
-                                                    0.0) / math.pi
-                if shares[MAP] > 0.0:
-                    p_out = p_out + Sk[:, MAP] * env.pdf(wk)
-                pdf = Sk[:, INSIDE] * cr / math.pi + p_out * ct / (eta2[idx] * ci)
-                if panes.area > 0.0:
-                    pdf = pdf + Sk[:, AREA] * t_plane * t_plane / (panes.area * ct)
+                # direction's cosine to the pane, A all the panes' area): world_accumulate.
+                env_pdf = (np.ascontiguousarray(env.pdf(wk), np.float64) if use_map
+                           else _EMPTY)
                 L = (env.radiance(wk) if env is not None else
-                     np.broadcast_to(np.asarray(world.radiance, np.float64), (len(idx), 3)))
-                g = np.where(pdf > 0.0, cr / np.maximum(pdf, 1e-300), 0.0) / count
-                E[idx] += g[:, None] * T * trans * L
+                     np.broadcast_to(np.asarray(world.radiance, np.float64), (len(keep), 3)))
+                pkk.world_accumulate(E, buf.idx, keep, buf.w, buf.cos_i, buf.cos_t,
+                                     buf.eta2, buf.side, buf.cr, buf.t_plane, S, ns, env_pdf,
+                                     use_map, float(panes.area), pane.T, _T_GRID, trans,
+                                     np.ascontiguousarray(L, np.float64), float(count))
     if counters is not None:
         counters.shadow_rays += rays
     return E, rays

@@ -650,6 +650,8 @@ def _warm_up():
                 np.array([[0.0, 0.0, 1.0]]), np.full(1, 0.01), np.zeros((1, 3)), *tri,
                 np.zeros(1, np.int64), np.ones(1, np.bool_), np.full(1, 0.1),
                 glass_crossings(params, np.ones((1, 3))), np.full(1, 1.5))
+    # called from Python too: panelight._transmittance_table (the panes' T tables)
+    _crossing(glass_crossings(params, np.ones((1, 3))), 0, 0, 0.5, np.ones(3))
     scale_entries(np.ones((1, 3)), np.zeros(1, np.int64), 1, np.full((1, 3), 0.5))
     one3 = np.zeros((1, 3))
     camera_passage(np.zeros((1, 3)), *tri, np.zeros(1, np.int64), np.zeros(1, np.int64),

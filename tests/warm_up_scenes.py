@@ -25,7 +25,8 @@ def signatures() -> dict:
 
 def scenes():
     """(name, scene, settings) small scenes covering the light kinds, a world HDRI,
-    textures, a normal map, instances, data passes, adaptive sampling, transparent film."""
+    textures, a normal map, instances, data passes, adaptive sampling, transparent film,
+    a glass pane's shadow rays."""
     from engine.api import PaperScene, cornell_box
     from engine.normalmap import NormalMap
     from engine.scene import Material
@@ -64,6 +65,28 @@ def scenes():
     yield ("same, adaptive sampling, transparent film, data passes", s,
            RenderSettings(adaptive_threshold=0.05, film_transparent=True,
                           data_passes=("denoising", "color"), **dict(base, spp=4)))
+    # A room with a window of one glass plane (engine/panelight.py: the pane's shadow
+    # rays, engine/panekernels.py): a sun and an HDRI world, then a constant world.
+    for world in ("sun and HDRI", "constant world"):
+        r = PaperScene(24, 18, background=(1.0, 1.0, 1.0))
+        r.add_material(Material("plaster", (0.8, 0.8, 0.8)))
+        r.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.5,
+                                roughness=0.0))
+        for c, sz in (((0, 0, -0.05), (4.2, 3.2, 0.1)), ((0, 0, 2.65), (4.2, 3.2, 0.1)),
+                      ((-2.05, 0, 1.3), (0.1, 3.2, 2.6)), ((2.05, 0, 1.3), (0.1, 3.2, 2.6)),
+                      ((0, -1.55, 1.3), (4.0, 0.1, 2.6)), ((0, 1.55, 0.45), (4.0, 0.1, 0.9)),
+                      ((0, 1.55, 2.25), (4.0, 0.1, 0.7)),
+                      ((-1.3, 1.55, 1.4), (1.4, 0.1, 1.0)),
+                      ((1.3, 1.55, 1.4), (1.4, 0.1, 1.0))):
+            r.add_box(c, sz, "plaster")
+        v = np.array([[-0.6, 1.55, 0.9], [0.6, 1.55, 0.9], [0.6, 1.55, 1.9],
+                      [-0.6, 1.55, 1.9]])
+        r.add_triangles(v, np.array([[0, 2, 1], [0, 3, 2]]), "glass", name="pane")
+        if world == "sun and HDRI":
+            r.set_environment(px, 0.5)
+            r.add_sun((-0.26, -0.72, -0.64), 4.0, angle_degrees=3.0)
+        r.set_camera((1.8, 1.3, 2.0), (-0.2, -1.1, 2.7), view_angle=90.0)
+        yield (f"window pane, {world}", r, RenderSettings(**base))
 
 
 def main():
