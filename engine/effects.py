@@ -472,6 +472,22 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                 glass_words += " " + _quoted(rough_glass, most=REPORT_NAMES_MAX)
             sharp_none = (f"no mirror, {glass_words}, "
                           f"no surface smoother than roughness {SHARP_ROUGHNESS:g}")
+            # Sharp casters that no light's photons reach first (a glass ball in a room
+            # lit through a single-plane window: the pane is hit first) do focus light:
+            # "nothing focuses light (... only single-plane glass ...)" beside the
+            # specular line's "through glass 'GlassBall'" read as a contradiction
+            # (new-user trial newuser32). Their caustic comes from unaimed photons.
+            if len(names):
+                via = (f"only through single-plane glass {_quoted(plan.pane_glass)} "
+                       "(caustic photons are not aimed through it; unaimed ones carry "
+                       "the caustic)" if plan.pane_glass else
+                       "(no caustic photons aimed at "
+                       + ("them" if len(names) > 1 else "it") + ")")
+                head = (f"no light reaches "
+                        f"{_labelled(geo, table, names, most=REPORT_NAMES_MAX)} directly"
+                        + (", " if plan.pane_glass else " ") + via)
+            else:
+                head = f"nothing focuses light ({sharp_none})"
             carried = (f"{' and '.join(glow)} come"
                        + ("s" if len(glow) == 1 and (gl_reached or tl_reached) else "")
                        + f" from {source} (Caustic pass)" + shade_note)
@@ -479,12 +495,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                 plan.caustics = _override(s.caustics, True, "caustics", "", plan)
             elif s.caustics == "on":
                 plan.caustics = True
-                plan.add("caustics", True, f"forced on (nothing focuses light: "
-                         f"{sharp_none}); {carried}")
+                plan.add("caustics", True, "forced on (" + (
+                    head if len(names) else f"nothing focuses light: {sharp_none}")
+                    + f"); {carried}")
             else:
                 plan.caustics = True  # the glow's estimate (above), as before
-                plan.add("caustics", False, f"nothing focuses light ({sharp_none}); "
-                         f"{carried}")
+                plan.add("caustics", False, f"{head}; {carried}")
             auto = None
         else:
             all_names = list(names) + plan.rough_specular

@@ -232,3 +232,20 @@ def test_sun_and_world_through_the_pane_add_up():
     print(f"direct {got:.5f} want {want:.5f}")
     assert got == pytest.approx(want, rel=0.01)
     assert float(film.caustic.mean()) < 0.01 * want
+
+
+def test_effect_report_names_a_glass_ball_lit_only_through_the_pane():
+    """A smooth glass ball inside the box, lit by the world only through the pane: no
+    photon of it reaches the ball first, so no caustic photons are aimed at it (the
+    pane's shadow rays carry the world's light). The caustics line said "nothing focuses
+    light (no mirror, only single-plane glass, ...)" beside the specular line's "through
+    glass 'ball'" (new-user trial newuser32: a glass sphere on a table in a room lit
+    through a window); it names the ball and why it gets no aimed photons."""
+    s = _box_under_pane()
+    s.add_sphere((0.0, 0.0, 0.2), 0.2, "glass", name="ball", segments=16)
+    film = _render(s, spp=1, photons=2_000, caustic_photons=2_000)
+    line = next(x for x in film.stats["effects"] if x.startswith("caustics"))
+    print(line)
+    assert line.startswith("caustics: off - ")
+    assert "nothing focuses light" not in line
+    assert "glass 'ball'" in line and "only through single-plane glass 'pane'" in line
