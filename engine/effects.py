@@ -333,12 +333,20 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         window_tri = window_glass(geo, table) if has_tris else np.zeros(0, bool)
         plan.window_glass = ([geo.object_names[i] for i in np.unique(geo.object_id[window_tri])]
                              if window_tri.any() else [])
-        # Single-plane glass panes (engine/panelight.py) when every emitting light is a
-        # sun or the world whose shadow rays refract through them: the light through
-        # them is direct, so they are no caustic casters either (their reflections:
-        # unaimed photons).
-        if (panes is not None and emitting
-                and all(panes.serves(li) for li in emitting)):
+        # Single-plane glass panes (engine/panelight.py) when every emitting light that
+        # reaches them is a sun or the world whose shadow rays refract through them: the
+        # light through them is direct, so they are no caustic casters either (their
+        # reflections: unaimed photons). A lamp that cannot reach a pane (inside its
+        # shade, newuser32's evening room: 200,000 photons were aimed at the window for
+        # 10,288 stored) does not make it one.
+        if panes is not None and emitting:
+            others = [li for li in emitting if not panes.serves(li)]
+            if others:
+                p_ids, p_c, p_r, _ = _object_spheres(geo, panes.pane_tri >= 0)
+                others = [li for li in others
+                          if any(_light_reaches(li, accel, geo, oid, c, r, rng)
+                                 for oid, c, r in zip(p_ids, p_c, p_r))]
+        if panes is not None and emitting and not others:
             pane_tri = panes.pane_tri >= 0
             plan.pane_glass = [p.name for p in panes.panes]
             pane_lights = ("the sun and the world reach" if panes.suns and panes.world

@@ -249,3 +249,20 @@ def test_effect_report_names_a_glass_ball_lit_only_through_the_pane():
     assert line.startswith("caustics: off - ")
     assert "nothing focuses light" not in line
     assert "glass 'ball'" in line and "only through single-plane glass 'pane'" in line
+
+
+@pytest.mark.parametrize("shaded", [True, False])
+def test_a_lamp_that_cannot_reach_the_pane_does_not_make_it_a_caustic_caster(shaded):
+    """The world through the pane is the panes' light; a lamp in the room makes the pane a
+    caustic caster only if its light reaches the pane. newuser32's evening room (a lamp
+    inside a Translucent shade, a dim world): 200,000 caustic photons were aimed at the
+    window and 10,288 stored; the lamp's own light never met it."""
+    s = _box_under_pane()
+    s.add_material(Material("shade", (0.8, 0.8, 0.8), translucent=1.0))
+    s.add_point_light((1.5, 1.5, 0.3), power=20.0, name="lamp")
+    if shaded:
+        s.add_box((1.5, 1.5, 0.3), (0.2, 0.2, 0.2), "shade", name="globe")
+    film = _render(s, spp=1, photons=2_000, caustic_photons=2_000)
+    line = next(x for x in film.stats["effects"] if x.startswith("caustics"))
+    print(line)
+    assert ("aimed at 'pane'" in line) != shaded
