@@ -66,14 +66,17 @@ def _cosine_direction(u1, u2, n0, n1, n2, out, i):
 
 
 @kernel
-def world_strategies(x, u2, shares, adapt, adapt_min, p, ns, pane_n, centres, areas,
+def world_strategies(x, u2, shares, adapt, adapt_min, inside_tilt, p, ns, pane_n, centres, areas,
                      tri_v0, tri_e1, tri_e2, tri_cdf, tri_k, one_below,
                      S, strat, a, wc, on_k):
     """Per point i of x, u2 (N,) (uniform numbers; x picks the strategy): S (N,4) <- the
     point's shares (shares (4,), summing to 1; with adapt, OUTSIDE's and AREA's together
     split by the panes' projected solid angle over pi, clipped to [adapt_min,
     1 - adapt_min]: A cos_pane cos_n / (pi d^2) from each pane's centre (pane_n,
-    centres (K,3), areas (K,)), summed), strat (N,) <- the strategy, a (N,) <- x rescaled
+    centres (K,3), areas (K,)), summed; and inside_tilt x the largest |sin 2 theta| over
+    the panes, theta between ns and a pane's normal, moved from them to INSIDE: a tilted
+    receiver sees directions OUTSIDE cannot draw, N . w <= 0 < N . w_t, which only AREA's
+    small share covered, as rare bright samples), strat (N,) <- the strategy, a (N,) <- x rescaled
     within its share (< 1), wc (N,3) <- OUTSIDE's outside / INSIDE's inside cosine
     direction about ns, AREA's unit direction towards a point uniform over the panes'
     triangles (v0, e1, e2 (M,3), area CDF (M,), pane tri_k (M,); Shirley's square-root
@@ -98,8 +101,15 @@ def world_strategies(x, u2, shares, adapt, adapt_min, p, ns, pane_n, centres, ar
                 cn = max(v0 * ns[i, 0] + v1 * ns[i, 1] + v2 * ns[i, 2], 0.0) * inv
                 q += areas[k] * cp * cn / (math.pi * d2)
             q = min(max(q, adapt_min), 1.0 - adapt_min)
-            Si[_OUTSIDE] = r_split * q
-            Si[_AREA] = r_split * (1.0 - q)
+            tilt = 0.0
+            for k in range(K):
+                c = abs(ns[i, 0] * pane_n[k, 0] + ns[i, 1] * pane_n[k, 1]
+                        + ns[i, 2] * pane_n[k, 2])
+                tilt = max(tilt, 2.0 * c * math.sqrt(max(1.0 - c * c, 0.0)))
+            moved = min(inside_tilt * tilt, r_split)
+            Si[_INSIDE] = shares[_INSIDE] + moved
+            Si[_OUTSIDE] = (r_split - moved) * q
+            Si[_AREA] = (r_split - moved) * (1.0 - q)
         # np.cumsum of the shares, then the count of tops at or below x (capped)
         top = 0.0
         cnt = 0
@@ -351,7 +361,7 @@ def _warm_up():
     w = np.empty((n, 3))
     sun_directions(f8, f8, a3, a3, a3, 0.9, w)
     S = np.empty((n, 4))
-    world_strategies(f8, f8, np.full(4, 0.25), True, 0.02, v3, v3, v3[:1], v3[:1],
+    world_strategies(f8, f8, np.full(4, 0.25), True, 0.02, 0.1, v3, v3, v3[:1], v3[:1],
                      np.ones(1), v3, v3, v3, np.ones(n), i8, 0.5, S, i8.copy(), f8.copy(),
                      np.empty((n, 3)), i8.copy())
     first_rays(v3, v3, v3, f8, v3, v3, b1, i8, 0, a3, a3, 1.5, a3, a3, 1.0,

@@ -89,17 +89,27 @@ WORLD_ENABLED = True
 # window. Measured (pixel noise of the Direct pass at 4 spp, paneworld32 in
 # docs/accuracy.md): a 1.2 x 1.0 m window in a 4 x 3 m room, white world: OUTSIDE alone
 # 1.85, AREA alone 0.19, half each 0.34, split by the projection 0.22; a floor 1 m under a
-# 6 m skylight: OUTSIDE alone 0.036, AREA alone 1.36, half each 0.127, split 0.060. With a map, MAP's share
-# trades a bright spot's noise against a flat sky's in a small window: MAP 0.5 / 0.6 /
-# 0.7 / 0.8, the rest split: skylight with a bright texel 0.335 / 0.293 / 0.233 / 0.202,
-# the room under a sky without a sun 0.61 / 0.82 / 0.92 / 1.22 (with a 17-degree bright
-# patch 2.3-2.6 throughout: its penumbra). INSIDE wastes the directions beyond the
-# critical angle (56 % of them under a horizontal pane) and never won: share 0.
+# 6 m skylight: OUTSIDE alone 0.036, AREA alone 1.36, half each 0.127, split 0.060. With
+# a map, MAP's share trades a bright spot's noise against a flat sky's in a small
+# window: MAP 0.5 / 0.6 / 0.7 / 0.8, the rest split: skylight with a bright texel
+# 0.335 / 0.293 / 0.233 / 0.202, the room under a sky without a sun 0.61 / 0.82 / 0.92 /
+# 1.22 (with a 17-degree bright patch 2.3-2.6 throughout: its penumbra). INSIDE wastes
+# the directions beyond the critical angle (56 % of them under a horizontal pane) and
+# never won as a constant share: it takes a share only on receivers tilted to a pane (INSIDE_TILT).
 MAP, OUTSIDE, INSIDE, AREA = 0, 1, 2, 3
 WORLD_SHARES_ENV = (0.6, 0.2, 0.0, 0.2)
 WORLD_SHARES = (0.0, 0.5, 0.0, 0.5)
 WORLD_ADAPT = True
 ADAPT_MIN = 0.02
+# Per point, this share x |sin 2 theta| (theta: the shading normal against a pane's, the
+# largest over the panes) moves from OUTSIDE and AREA to INSIDE. A receiver tilted to a
+# pane sees directions w_t with N . w <= 0 < N . w_t, which OUTSIDE cannot draw; only
+# AREA's share (as low as ADAPT_MIN) covered them, as rare bright samples (review32: a
+# point with N 45 degrees to a horizontal pane, 200k samples: std/mean a sample 5.40,
+# max/mean 744; with this 1.39, 32). Floors and walls (N along or across the pane's normal,
+# where OUTSIDE draws every direction) keep their shares (their 0.18 would be 0.30 with a
+# constant INSIDE share of 0.1).
+INSIDE_TILT = 0.1
 # The most pane planes that take shadow rays; the rest stay caustic (largest first).
 MAX_PANES = 4
 # A pane's triangles lie within this share of the scene's extent of its plane.
@@ -524,7 +534,8 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             S, strat, a = np.empty((N, 4)), np.empty(N, np.int64), np.empty(N)
             wc, on_k = np.empty((N, 3)), np.empty(N, np.int64)
             pkk.world_strategies(x, b, shares, bool(WORLD_ADAPT and panes.area > 0.0),
-                                 ADAPT_MIN, p, ns, *panes.kernel_arrays(), ONE_BELOW,
+                                 ADAPT_MIN, INSIDE_TILT, p, ns, *panes.kernel_arrays(),
+                                 ONE_BELOW,
                                  S, strat, a, wc, on_k)
             # w0: MAP's and OUTSIDE's w (the map's sample: the environment's own code)
             by_map = np.nonzero(strat == MAP)[0]
