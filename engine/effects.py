@@ -394,17 +394,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                           + ("they reflect)" if len(glossy_rough) > 1 else "it reflects)"))
         # Shades the lamps reach through by shadow rays (engine/shadelight.py): their
         # light is direct; photons carry only what crosses one twice or after a bounce.
+        # (their own line: "lamp through shade", below)
         shaded = [n for n in translucent if shades is not None and n in shades.names]
-        shade_note = ""
-        if shaded:
-            lamps = [li.name for li in shades.lights if li in emitting]
-            shade_note = ("; " + ("lamps " if len(lamps) > 1 else "lamp ")
-                          + _quoted(lamps, most=REPORT_NAMES_MAX)
-                          + (" reach" if len(lamps) > 1 else " reaches")
-                          + " through translucent " + _quoted(shaded)
-                          + " by shadow rays (sampled where the light lands on "
-                          + ("them)" if len(shaded) > 1 else "it)"))
-            rough_note += shade_note
         if translucent:
             rough_note += ("; not aimed at translucent " + _quoted(translucent)
                            + " (diffuse transmission spreads light, focuses none; unaimed "
@@ -498,7 +489,7 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                 head = f"nothing focuses light ({sharp_none})"
             carried = (f"{' and '.join(glow)} come"
                        + ("s" if len(glow) == 1 and (gl_reached or tl_reached) else "")
-                       + f" from {source} (Caustic pass)" + shade_note)
+                       + f" from {source} (Caustic pass)")
             if s.caustics == "off":
                 plan.caustics = _override(s.caustics, True, "caustics", "", plan)
             elif s.caustics == "on":
@@ -669,6 +660,17 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                      f"reaches through single-plane glass {through} by shadow rays "
                      f"refracted through it{how}; its photons through the glass are "
                      "direct light, not caustics")
+    # Lamps through Translucent BSDF shades (engine/shadelight.py): a line of their own
+    # (newuser32 found it inside the caustics line).
+    if shades is not None:
+        for li in shades.lights:
+            if not any(li is e for e in emitting) or not plan.shadows.get(li.name, True):
+                continue
+            plan.add(f"lamp through shade '{li.name}'", True,
+                     "reaches through translucent " + _quoted(shades.names,
+                                                              most=REPORT_NAMES_MAX)
+                     + " by shadow rays, sampled where its light lands on the shade; its "
+                     "photons through the shade are direct light, not caustics")
     if s.method == "local" and lights:
         # No shadow rays: a light's samples only integrate over its area.
         for i, d in enumerate(plan.decisions):

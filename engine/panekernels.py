@@ -28,6 +28,7 @@ import math
 import numpy as np
 
 from .jit import kernel, register_warm_up
+from .lights.emission import pick
 
 _MAP, _OUTSIDE, _INSIDE, _AREA = 0, 1, 2, 3   # panelight's strategy indices
 
@@ -83,7 +84,6 @@ def world_strategies(x, u2, shares, adapt, adapt_min, inside_tilt, p, ns, pane_n
     map), on_k (N,) <- that point's pane (-1 for the other strategies). MAP rows' wc stay
     zero (panelight.pane_irradiance fills w from the map)."""
     K = len(areas)
-    M = len(tri_cdf)
     r_split = shares[_OUTSIDE] + shares[_AREA]
     for i in range(len(x)):
         Si = S[i]
@@ -134,14 +134,7 @@ def world_strategies(x, u2, shares, adapt, adapt_min, inside_tilt, p, ns, pane_n
             _cosine_direction(ai, u2[i], ns[i, 0], ns[i, 1], ns[i, 2], wc, i)
         elif s == _AREA:
             # the triangle: np.searchsorted(cdf, ai, 'right'), ai rescaled within its bin
-            lo_j, hi_j = 0, M
-            while lo_j < hi_j:
-                mid = (lo_j + hi_j) // 2
-                if tri_cdf[mid] <= ai:
-                    lo_j = mid + 1
-                else:
-                    hi_j = mid
-            j = min(lo_j, M - 1)
+            j = pick(tri_cdf, ai)
             c0 = tri_cdf[j - 1] if j > 0 else 0.0
             r1 = min(max((ai - c0) / max(tri_cdf[j] - c0, 1e-300), 0.0), 1.0)
             sq = math.sqrt(r1)

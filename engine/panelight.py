@@ -65,12 +65,12 @@ engine/panekernels.py (panespeed32); this module keeps their description.
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 
 from . import panekernels as pkk
 from . import photonkernels as pk
+from .parallel import once_on
 from .lights import packing as lpk
 
 # Off: every pane stays caustic, as before (for A/B measurements: bench/bench_window_pane.py).
@@ -119,7 +119,6 @@ T_ROWS = 2049
 
 _T_GRID = np.linspace(0.0, 1.0, T_ROWS)  # the tables' cos(theta_i) rows
 ONE_BELOW = float(np.nextafter(1.0, 0.0))
-_lock = threading.Lock()
 _NO_PANE_TRI = np.zeros(0, np.int64)
 _NO_ROWS = np.zeros(0, np.int64)
 _NO_TRANS = np.zeros((0, 3))
@@ -348,15 +347,8 @@ def find_panes(geo, table, lights, settings=None):
 
 def panes_for(ctx):
     """The context's Panes (or None), found once and kept on it."""
-    got = getattr(ctx, "_panes", False)
-    if got is not False:
-        return got
-    with _lock:
-        got = getattr(ctx, "_panes", False)
-        if got is False:
-            got = find_panes(ctx.geo, ctx.table, ctx.lights, ctx.settings)
-            ctx._panes = got
-    return got
+    return once_on(ctx, "_panes",
+                   lambda: find_panes(ctx.geo, ctx.table, ctx.lights, ctx.settings))
 
 
 def _frame(a):

@@ -276,6 +276,26 @@ MIN_CHUNKS = 4
 MIN_CHUNK = 16384
 
 
+_once_lock = threading.Lock()
+
+
+def once_on(obj, attr: str, make):
+    """make()'s result, made once per object and kept on it as obj.<attr> (double-checked
+    under a lock: the camera's and the photons' worker threads ask for it alike)."""
+    got = getattr(obj, attr, _UNSET)
+    if got is not _UNSET:
+        return got
+    with _once_lock:
+        got = getattr(obj, attr, _UNSET)
+        if got is _UNSET:
+            got = make()
+            setattr(obj, attr, got)
+    return got
+
+
+_UNSET = object()
+
+
 def chunk_length(total: int, limit: int) -> int:
     """Items per chunk for `total` items, at most `limit` (settings.chunk_size: memory).
     It depends on the job and the settings only, never on the number of threads, so each

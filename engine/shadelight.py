@@ -66,11 +66,11 @@ stays caustic): the photon kernel knows a SHADE_GLASS code for them, unused yet.
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 
 from . import photonkernels as pk
+from .parallel import once_on
 from .sampling import orthonormal_basis
 
 # Off: every shade stays caustic, as before (A/B measurements: bench/bench_lamp_room.py).
@@ -81,7 +81,6 @@ SERVED_KINDS = ("POINT", "SPOT")
 # (_lamp_directions); the rest uniform over the sphere.
 LAMP_COSINE_SHARE = 0.5
 
-_lock = threading.Lock()
 _NO_ROWS = np.zeros(0, np.int64)
 _NO_ROWS3 = np.zeros((0, 3))
 
@@ -167,15 +166,8 @@ def find_shades(geo, table, lights, settings=None):
 
 def shades_for(ctx):
     """The context's Shades (or None), found once and kept on it."""
-    got = getattr(ctx, "_shades", False)
-    if got is not False:
-        return got
-    with _lock:
-        got = getattr(ctx, "_shades", False)
-        if got is False:
-            got = find_shades(ctx.geo, ctx.table, ctx.lights, ctx.settings)
-            ctx._shades = got
-    return got
+    return once_on(ctx, "_shades",
+                   lambda: find_shades(ctx.geo, ctx.table, ctx.lights, ctx.settings))
 
 
 def _lamp_directions(a, r):

@@ -112,8 +112,9 @@ def test_floor_lit_through_translucent_shades_matches_the_integral(rendered):
     # No double count with photons (would read ~2), nothing lost.
     assert np.allclose(mean, 1.0, atol=0.025), mean
     # The effect report says the lamps reach through the shades by shadow rays.
-    assert any("reach through translucent" in line and "by shadow rays" in line
-               for line in film.stats["effects"]), film.stats["effects"]
+    assert any(line.startswith("lamp through shade") and "reaches through translucent" in line
+               and "by shadow rays" in line for line in film.stats["effects"]), \
+        film.stats["effects"]
 
 
 def test_floor_lit_through_translucent_shades_is_smooth(rendered):
@@ -154,3 +155,17 @@ def test_a_closed_translucent_globe_lights_the_floor_as_its_lamp_times_t():
     assert r.std() / r.mean() < 0.12, r.std() / r.mean()
     assert not any("shut inside" in line for line in film.stats["effects"]), \
         film.stats["effects"]
+
+
+def test_effect_report_says_each_lamp_reaches_through_its_shade_on_a_line_of_its_own():
+    """newuser32 found "lamp 'FloorLamp' reaches through translucent 'LampShade' by shadow
+    rays" inside the caustics line; it is a light's path, said as the panes' suns are."""
+    film = _scene().render(RenderSettings(spp=1, photons=2_000, seed=1))
+    lines = film.stats["effects"]
+    shade_lines = [x for x in lines if x.startswith("lamp through shade")]
+    print(*shade_lines, sep="\n")
+    assert len(shade_lines) == 2  # two lamps, each in its tube
+    assert all(": on - reaches through translucent 'shade" in x
+               and "by shadow rays" in x for x in shade_lines)
+    caustics = next(x for x in lines if x.startswith("caustics"))
+    assert "by shadow rays, sampled" not in caustics
