@@ -191,33 +191,31 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     c = np.zeros((n, 4), np.int64) if counts is None else np.broadcast_to(counts, (n, 4))
     reach = chaincounts.within(c + np.array([1, 1, 0, 0], np.int64),
                                ctx.settings.bounce_limits)
-    if not reach.any():
+    # The rows that take it: within the limits, with a diffuse lobe. Their hit data and
+    # light samples are gathered once for both estimators.
+    pts = np.flatnonzero(reach if bsdf is None else reach & (bsdf[0].max(axis=1) > 0.0))
+    if not len(pts):
         return E
+    at = pts if rows is None else np.take(rows, pts)
+    p_, ns_, ng_ = (np.take(np.asarray(a, np.float64), at, axis=0)
+                    for a in (hit.p, hit.ns, hit.ng))
+    offset_ = np.take(np.asarray(hit.offset, np.float64), at)
+    sub = [(li, tr, cnt, u1[pts], u2[pts], None if s3 is None else s3[pts])
+           for li, tr, cnt, u1, u2, s3 in samples]
+    fd = None if bsdf is None else bsdf[0][pts]
     if panes is not None:
         # Suns and the world through single-plane glass panes (engine/panelight.py): the
-        # diffuse lobe's light, which the photons through the panes no longer carry as caustics.
-        take = (lambda a: a) if rows is None else (lambda a: np.take(a, rows, axis=0))
-        Ep, rays = pane_irradiance(ctx, panes, take(np.asarray(hit.p, np.float64)),
-                                   take(np.asarray(hit.ns, np.float64)),
-                                   take(np.asarray(hit.ng, np.float64)),
-                                   take(np.asarray(hit.offset, np.float64)), samples)
+        # diffuse lobe's light, which the photons through the panes no longer carry as
+        # caustics.
+        Ep, rays = pane_irradiance(ctx, panes, p_, ns_, ng_, offset_, sub)
         counters.shadow_rays += rays
-        Ep[~reach] = 0.0
-        E += Ep if bsdf is None else Ep * bsdf[0]
+        E[pts] += Ep if fd is None else Ep * fd
     if shades is not None and rng is not None:
         # Lamps through Translucent BSDF shades (engine/shadelight.py): the diffuse lobe's
         # light, which the photons through the shades no longer carry as caustics.
-        take = (lambda a: a) if rows is None else (lambda a: np.take(a, rows, axis=0))
-        pts = np.flatnonzero(reach if bsdf is None else reach & (bsdf[0].max(axis=1) > 0.0))
-        if len(pts):
-            sub = [(li, tr, cnt, u1[pts], u2[pts], None if s3 is None else s3[pts])
-                   for li, tr, cnt, u1, u2, s3 in samples]
-            Es, rays = shade_irradiance(
-                ctx, shades, *(np.take(take(np.asarray(a, np.float64)), pts, axis=0)
-                               for a in (hit.p, hit.ns, hit.ng)),
-                np.take(take(np.asarray(hit.offset, np.float64)), pts), sub, rng)
-            counters.shadow_rays += rays
-            E[pts] += Es if bsdf is None else Es * bsdf[0][pts]
+        Es, rays = shade_irradiance(ctx, shades, p_, ns_, ng_, offset_, sub, rng)
+        counters.shadow_rays += rays
+        E[pts] += Es if fd is None else Es * fd
     return E
 
 

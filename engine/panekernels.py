@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from .jit import kernel, register_warm_up
-from .lights.emission import pick
+from .lights.emission import pick, to_world
 
 _MAP, _OUTSIDE, _INSIDE, _AREA = 0, 1, 2, 3   # panelight's strategy indices
 
@@ -49,21 +49,12 @@ def sun_directions(u1, u2, a, bu, bv, cos_half, w):
 
 @kernel
 def _cosine_direction(u1, u2, n0, n1, n2, out, i):
-    """out[i] <- a cosine-distributed direction about unit (n0, n1, n2) (Malley's method;
-    the frame: Duff et al. 2017)."""
+    """out[i] <- a cosine-distributed direction about unit (n0, n1, n2) (Malley's method,
+    in lights.emission.to_world's frame)."""
     r = math.sqrt(u1)
     phi = 2.0 * math.pi * u2
-    x = r * math.cos(phi)
-    y = r * math.sin(phi)
-    z = math.sqrt(max(0.0, 1.0 - u1))
-    sgn = 1.0 if n2 >= 0.0 else -1.0
-    a = -1.0 / (sgn + n2)
-    b = n0 * n1 * a
-    t0, t1, t2 = 1.0 + sgn * n0 * n0 * a, sgn * b, -sgn * n0
-    s0, s1, s2 = b, sgn + n1 * n1 * a, -n1
-    out[i, 0] = x * t0 + y * s0 + z * n0
-    out[i, 1] = x * t1 + y * s1 + z * n1
-    out[i, 2] = x * t2 + y * s2 + z * n2
+    out[i, 0], out[i, 1], out[i, 2] = to_world(r * math.cos(phi), r * math.sin(phi),
+                                               math.sqrt(max(0.0, 1.0 - u1)), n0, n1, n2)
 
 
 @kernel

@@ -71,6 +71,7 @@ import numpy as np
 from . import panekernels as pkk
 from . import photonkernels as pk
 from .parallel import once_on
+from .sampling import orthonormal_basis
 from .lights import packing as lpk
 
 # Off: every pane stays caustic, as before (for A/B measurements: bench/bench_window_pane.py).
@@ -351,14 +352,6 @@ def panes_for(ctx):
                    lambda: find_panes(ctx.geo, ctx.table, ctx.lights, ctx.settings))
 
 
-def _frame(a):
-    """Two unit vectors perpendicular to unit a (3,)."""
-    t = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(a, t)
-    u /= np.linalg.norm(u)
-    return u, np.cross(a, u)
-
-
 def refract_sun(w, n, ior):
     """Refraction of sunlight arriving from directions w (N,3) (unit, towards the sun)
     through a plane of unit winding normal n (3,) and IOR ior: (w_t (N,3) the unit
@@ -489,7 +482,7 @@ def pane_irradiance(ctx, panes, p, ns, ng, offset, samples, counters=None):
             q = params[li]
             a = -q[lpk.DIR:lpk.DIR + 3]
             a = a / np.linalg.norm(a)
-            bu, bv = _frame(a)
+            bu, bv = orthonormal_basis(a)
             w = np.empty((N, 3))
             pkk.sun_directions(np.ascontiguousarray(u1, np.float64),
                                np.ascontiguousarray(u2, np.float64), a, bu, bv,

@@ -27,8 +27,8 @@ from .mortontree import morton_order  # noqa: F401 (query order; tests, benches)
 from .parallel import Cancelled, StopFlag, ordered_map, run_tasks, stop_array
 from .photons import Photons
 from .rayoffset import G32_PLANE, ulp32_scalar
-from .samesurface import (COPLANAR_COS, COPLANAR_SIN2, NO_SURFACE, POSITION_RESOLUTION,
-                          query_surfaces, same_surface, surface_ids)
+from .samesurface import (COPLANAR_COS, NO_SURFACE, off_plane, query_surfaces, same_surface,
+                          surface_ids)
 
 NORMAL_AGREEMENT = 0.5
 BOUNDARY_OFFSET = 0.25  # centroid offset / r that marks an estimate's disc as cut off
@@ -384,15 +384,10 @@ def _accepted(direction, normal, surface, pos, j, nx, ny, nz, qs, qx, qy, qz):
     unknown (PhotonMap.surface_ids: never empty)."""
     cos_in = -(direction[j, 0] * nx + direction[j, 1] * ny + direction[j, 2] * nz)
     agree = normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz
-    # samesurface.same_surface without branches or calls: the loops over a row's photons
-    # stay vectorised (a branch calling continues_plane cost the k-NN rows 1.6x, even
-    # where it was never taken).
-    dx = np.float64(pos[j, 0]) - qx
-    dy = np.float64(pos[j, 1]) - qy
-    dz = np.float64(pos[j, 2]) - qz
-    h = dx * nx + dy * ny + dz * nz
-    res = POSITION_RESOLUTION * max(abs(qx), abs(qy), abs(qz))
-    off = h * h > COPLANAR_SIN2 * (dx * dx + dy * dy + dz * dz) + res * res
+    # samesurface.same_surface without branches: the loops over a row's photons stay
+    # vectorised (a branch calling continues_plane cost the k-NN rows 1.6x, even where
+    # it was never taken).
+    off = off_plane(pos, j, qx, qy, qz, nx, ny, nz)
     sj = surface[j]
     foreign = (sj != qs) & (sj >= 0) & (qs >= 0) & ((agree < COPLANAR_COS) | off)
     other = (agree <= NORMAL_AGREEMENT) | foreign

@@ -66,12 +66,21 @@ def continues_plane(pos, normal, j, qx, qy, qz, nx, ny, nz):
     from the query, with the float32 resolution of the positions (module docstring)."""
     if normal[j, 0] * nx + normal[j, 1] * ny + normal[j, 2] * nz < COPLANAR_COS:
         return False
+    return not off_plane(pos, j, qx, qy, qz, nx, ny, nz)
+
+
+@kernel
+def off_plane(pos, j, qx, qy, qz, nx, ny, nz):
+    """Whether point j of pos (N,3) lies farther than COPLANAR_ANGLE off the plane through
+    (qx, qy, qz) float64 with unit normal (nx, ny, nz), seen from that point, beyond the
+    float32 resolution of the positions (module docstring). Branch-free, so the loops
+    that call it stay vectorised (photonmap._accepted)."""
     dx = np.float64(pos[j, 0]) - qx
     dy = np.float64(pos[j, 1]) - qy
     dz = np.float64(pos[j, 2]) - qz
     h = dx * nx + dy * ny + dz * nz
     res = POSITION_RESOLUTION * max(abs(qx), abs(qy), abs(qz))
-    return h * h <= COPLANAR_SIN2 * (dx * dx + dy * dy + dz * dz) + res * res
+    return h * h > COPLANAR_SIN2 * (dx * dx + dy * dy + dz * dz) + res * res
 
 
 @kernel

@@ -61,7 +61,7 @@ spot lights whose shadow rays are sampled (y is chosen from the lamp's centre: a
 with a radius is sampled over its size from y, but a shade point its centre cannot see,
 behind an occluder right at the lamp, is missed; an area light is not served: its light
 through a shade stays caustic). Rough glass shades are not served either (their light
-stays caustic): the photon kernel knows a SHADE_GLASS code for them, unused yet.
+stays caustic).
 """
 from __future__ import annotations
 
