@@ -250,7 +250,7 @@ def _point_error(v0, e1, e2, t, b1, b2, pc, c):
 # (shadow rays for direct light, else diffuse rays); a transparent pass keeps the
 # incoming kinds.
 _LOBE_CLASS = np.array([0, 0, GLOSSY, GLOSSY, TRANSMISSION, GLOSSY, GLOSSY, DIFFUSE,
-                        DIFFUSE], np.int64)
+                        TRANSMISSION], np.int64)
 
 
 @kernel
@@ -1065,11 +1065,14 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                 first_scatter = (bn & _B_MASK) == 0
                 bn = _count_bounce(bn, B_TOTAL)
                 if not first_scatter:
-                    if lobe == pr.L_DIFFUSE or lobe == pr.L_TRANSL:
-                        # (Cycles counts its Translucent BSDF a diffuse bounce)
-                        bn = _count_bounce(bn, B_DIFFUSE)
-                    elif transmitted:
+                    # Cycles' path_state_next by the sampled label: any transmission (a
+                    # Translucent BSDF's too, LABEL_TRANSMIT | LABEL_DIFFUSE) is a
+                    # transmission bounce; a diffuse reflection (Diffuse, Sheen) a
+                    # diffuse one; the other reflections glossy.
+                    if transmitted:
                         bn = _count_bounce(bn, B_TRANSMISSION)
+                    elif lobe == pr.L_DIFFUSE or lobe == pr.L_SHEEN:
+                        bn = _count_bounce(bn, B_DIFFUSE)
                     else:
                         bn = _count_bounce(bn, B_GLOSSY)
                 if not _counts_usable(bn, limits):

@@ -34,8 +34,11 @@ CLASS_NAMES = {CAMERA: "camera", DIFFUSE: "diffuse", GLOSSY: "glossy",
 # (a transparent pass-through continues the same ray, as in Cycles).
 SPEC_LOBE_CLASS = {"pass": 0, "metal": GLOSSY, "glass_r": GLOSSY, "glass_t": TRANSMISSION,
                    "spec": GLOSSY, "coat": GLOSSY, "sheen": DIFFUSE,
-                   # Cycles' Translucent BSDF is a diffuse closure: a diffuse bounce
-                   "translucent": DIFFUSE}
+                   # Cycles' Translucent BSDF samples LABEL_TRANSMIT | LABEL_DIFFUSE:
+                   # path_state_next counts a transmission bounce, and its rays see
+                   # what transmission rays see (path_state_ray_visibility drops the
+                   # diffuse flag of a transmitted ray)
+                   "translucent": TRANSMISSION}
 
 
 class _Subset:

@@ -163,8 +163,7 @@ def test_room_lit_through_a_translucent_lamp_shade_matches_cycles(fresh_scene, b
     _camera(bpy, scene, (-1.7, -1.7, 1.6), (0.3, 0.4, 0.9), lens=20.0)
     scene.photonmap.spp = 16
     # One set of Light Paths for both (the add-on reads Cycles' own): a white room needs
-    # many diffuse bounces, and the shade's is one of them (Cycles counts translucent as
-    # diffuse).
+    # many diffuse bounces (the shade's is a transmission bounce, as Cycles counts it).
     from blender_helpers import cycles_plain
     c = cycles_plain(scene, 1024, 8)
     c.diffuse_bounces = c.transmission_bounces = c.glossy_bounces = 8

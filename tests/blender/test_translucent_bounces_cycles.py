@@ -1,0 +1,163 @@
+"""Light Paths count a Translucent BSDF bounce as Cycles does: a transmission bounce.
+
+Cycles' bsdf_translucent_sample labels its rays LABEL_TRANSMIT | LABEL_DIFFUSE, and
+path_state_next counts a diffuse bounce only for a reflection (LABEL_REFLECT |
+LABEL_DIFFUSE: Diffuse, Sheen); every transmission, the translucent one included, is a
+transmission bounce (intern/cycles/kernel/integrator/path_state.h). The photons counted it
+as a diffuse bounce (s33): at Transmission 0 they kept the light a lamp sends through a
+Translucent panel after a bounce on a reflector (Cycles drops it: 1.63 against 1.15), and
+at Diffuse 1 they dropped it (Cycles keeps it: 1.15 against 1.63).
+
+Scene: a 100 W point lamp between a white reflector (above) and a Translucent panel
+(below); the camera between the panel and a white floor looks down at the floor, whose
+light comes through the panel: the lamp's own (a light sample at the panel, counted at
+any Transmission) and the reflector's (a bounce at the panel that continues).
+"""
+import math
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+
+def _material(bpy, name, kind, rgb):
+    from blender_helpers import node_material
+    m, nt, out = node_material(bpy, name)
+    n = nt.nodes.new(kind)
+    n.inputs["Color"].default_value = (*rgb, 1.0)
+    nt.links.new(n.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def _scene(bpy, scene):
+    white = _material(bpy, "White", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8))
+    panel = _material(bpy, "Panel", "ShaderNodeBsdfTranslucent", (0.9, 0.9, 0.9))
+    for z, size, mat in ((0.0, 4.0, panel), (1.0, 4.0, white), (-1.0, 6.0, white)):
+        bpy.ops.mesh.primitive_plane_add(size=size, location=(0.0, 0.0, z))
+        bpy.context.object.data.materials.append(mat)
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    lamp.data.energy, lamp.data.shadow_soft_size = 100.0, 0.0
+    lamp.location = (0.0, 0.0, 0.5)
+    scene.collection.objects.link(lamp)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location, cam.rotation_euler = (0.0, 0.0, -0.3), (0.0, 0.0, 0.0)  # looks down
+    cam.data.lens = 20.0
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
+        "Strength"].default_value = 0.0
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    scene.render.resolution_percentage = 100
+
+
+def _mean(bpy, scene, path, engine, diffuse, transmission):
+    from blender_helpers import cycles_plain, read_rgba, render_exr
+    c = cycles_plain(scene, 256, 12)  # the add-on reads Cycles' Light Paths too
+    c.diffuse_bounces, c.transmission_bounces = diffuse, transmission
+    scene.render.engine = engine
+    return float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
+
+
+def test_translucent_bounce_is_a_transmission_bounce(fresh_scene, bpy_addon, tmp_path):
+    from blender_helpers import default_photonmap
+    bpy = bpy_addon
+    scene = fresh_scene
+    default_photonmap(scene).spp = 16
+    _scene(bpy, scene)
+    got = {}
+    for d, t in ((4, 12), (4, 0), (1, 12)):
+        ours = _mean(bpy, scene, tmp_path / f"ours_{d}_{t}.exr", "PHOTONMAP", d, t)
+        ref = _mean(bpy, scene, tmp_path / f"cycles_{d}_{t}.exr", "CYCLES", d, t)
+        got[d, t] = (ours, ref)
+    print({k: (round(o, 4), round(r, 4), round(o / r, 4)) for k, (o, r) in got.items()})
+    for (d, t), (ours, ref) in got.items():
+        assert ref > 0.5 and math.isfinite(ours)
+        assert abs(ours / ref - 1.0) < 0.03, ((d, t), ours, ref)
+    # Transmission 0 drops the reflector's light through the panel, Diffuse 1 keeps it
+    # (Cycles: 0.65 and 0.92 of the full light): the panel's bounce is no diffuse one.
+    (full, full_ref), (t0, t0_ref), (d1, d1_ref) = got[4, 12], got[4, 0], got[1, 12]
+    assert t0 / full < 0.75 and t0_ref / full_ref < 0.75
+    assert d1 / full > 0.88 and d1_ref / full_ref > 0.88
+
+
+def _sheen_room(bpy, scene):
+    """A lamp between two black discs lights two white side walls only; their light
+    reaches the floor directly and by a bounce on a Sheen-only ceiling (Principled: black
+    base, Sheen Weight 1, Specular IOR Level 0)."""
+    from blender_helpers import node_material
+    white = _material(bpy, "White", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8))
+    black = _material(bpy, "Black", "ShaderNodeBsdfDiffuse", (0.0, 0.0, 0.0))
+    sheen, nt, out = node_material(bpy, "Sheen")
+    p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    p.inputs["Specular IOR Level"].default_value = 0.0
+    p.inputs["Sheen Weight"].default_value = 1.0
+    p.inputs["Sheen Roughness"].default_value = 0.5
+    p.inputs["Sheen Tint"].default_value = (1.0, 1.0, 1.0, 1.0)
+    nt.links.new(p.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 0.0, 0.0))
+    bpy.context.object.data.materials.append(white)
+    bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 0.0, 2.0))
+    bpy.context.object.data.materials.append(sheen)
+    for x in (-2.0, 2.0):
+        bpy.ops.mesh.primitive_plane_add(size=4.0, location=(x, 0.0, 1.0),
+                                         rotation=(0.0, math.pi / 2, 0.0))
+        bpy.context.object.data.materials.append(white)
+    for z in (0.9, 1.1):
+        bpy.ops.mesh.primitive_circle_add(radius=0.6, location=(0.0, 0.0, z),
+                                          fill_type="NGON", vertices=32)
+        bpy.context.object.data.materials.append(black)
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    lamp.data.energy, lamp.data.shadow_soft_size = 300.0, 0.0
+    lamp.location = (0.0, 0.0, 1.0)
+    scene.collection.objects.link(lamp)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location, cam.rotation_euler = (0.0, 0.0, 0.6), (0.0, 0.0, 0.0)  # looks down
+    cam.data.lens = 20.0
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
+        "Strength"].default_value = 0.0
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    scene.render.resolution_percentage = 100
+
+
+def _mean_limits(bpy, scene, path, engine, diffuse, glossy):
+    from blender_helpers import cycles_plain, read_rgba, render_exr
+    c = cycles_plain(scene, 512, 12)
+    c.diffuse_bounces, c.glossy_bounces = diffuse, glossy
+    scene.render.engine = engine
+    return float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
+
+
+def test_sheen_bounce_is_a_diffuse_bounce(fresh_scene, bpy_addon, tmp_path):
+    """Cycles' bsdf_sheen_sample labels LABEL_REFLECT | LABEL_DIFFUSE: a diffuse bounce.
+    The camera side counted it so; the photons counted a glossy one, so Glossy 0 dropped
+    the walls' light the Sheen ceiling sends down."""
+    from blender_helpers import default_photonmap
+    bpy = bpy_addon
+    scene = fresh_scene
+    default_photonmap(scene).spp = 16
+    _sheen_room(bpy, scene)
+    got = {}
+    for d, g in ((4, 4), (4, 0), (1, 4)):
+        ours = _mean_limits(bpy, scene, tmp_path / f"ours_{d}_{g}.exr", "PHOTONMAP", d, g)
+        ref = _mean_limits(bpy, scene, tmp_path / f"cycles_{d}_{g}.exr", "CYCLES", d, g)
+        got[d, g] = (ours, ref)
+    print({k: (round(o, 4), round(r, 4), round(o / r, 4)) for k, (o, r) in got.items()})
+    for (d, g), (ours, ref) in got.items():
+        assert ref > 0.01 and math.isfinite(ours)
+        assert abs(ours / ref - 1.0) < 0.04, ((d, g), ours, ref)
+    # Glossy 0 keeps the Sheen bounce's light in both (Cycles 1.000 of Glossy 4; the
+    # photons' glossy count read 0.988: the same photons, some dropped).
+    full, g0 = got[4, 4], got[4, 0]
+    assert abs(g0[0] / full[0] - g0[1] / full[1]) < 0.004, got
