@@ -3,7 +3,8 @@
 Supported: Principled BSDF (Cycles' v2 layers: sheen, coat, metallic with F82 tint,
 transmission, specular IOR level and tint; subsurface as a diffuse base of Cycles'
 random-walk albedo, warned), Diffuse, Glossy (GGX or Multiscatter GGX), Glass, Refraction
-(refraction alone, no Fresnel, as Cycles), Emission, Transparent, Mix Shader and Add
+(refraction alone, no Fresnel, as Cycles), Translucent, Sheen (Microfiber), Emission,
+Transparent, Mix Shader and Add
 Shader of those (a Mix of two opaque surfaces whose parameters do not blend linearly, e.g.
 a dielectric and a metal, takes one side per hit with the factor's probability, as Cycles'
 closure sampling; Add sums the closures: their even mix at closure weight 2, exact for
@@ -32,7 +33,7 @@ import numpy as np
 
 SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANISOTROPIC",
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
-                     "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT")
+                     "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT", "BSDF_SHEEN")
 MAX_NODE_DEPTH = 32
 
 
@@ -672,8 +673,21 @@ class MaterialConverter:
             base, tex = self._color(node, "Color")
             return Closure(base_color=base, texture=tex, roughness=1.0, specular=0.0,
                            translucent=1.0, normal_map=self._normal(node))
+        if t == "BSDF_SHEEN":
+            # Cycles' bsdf_sheen (Microfiber, the node's default): the lobe the Principled
+            # BSDF's sheen layer uses, alone (no base, no specular layer under it).
+            if getattr(node, "distribution", "MICROFIBER") != "MICROFIBER":
+                self._warn(f"material '{self._mat.name}': {node.distribution} distribution "
+                           f"of Sheen BSDF '{node.name}' is rendered as Microfiber")
+            sc = {}
+            return Closure(base_color=(0.0, 0.0, 0.0), roughness=1.0, specular=0.0,
+                           sheen_weight=1.0,
+                           sheen_roughness=self._scalar(node, "Roughness", 0.5,
+                                                        "sheen_roughness", sc),
+                           sheen_tint=self._const_color(node, "Color", (0.8, 0.8, 0.8)),
+                           normal_map=self._normal(node), scalars=sc)
         if node.inputs.get("Color") is not None:
-            # Toon, Sheen, Subsurface Scattering, Hair ...: the node's own colour as a
+            # Toon, Subsurface Scattering, Hair ...: the node's own colour as a
             # Diffuse BSDF is nearer than the viewport colour (a new user's blue Toon ball
             # rendered grey).
             self._warn(f"material '{self._mat.name}': shader '{node.name}' ({node.type}) is "
