@@ -35,6 +35,9 @@ SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANI
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
                      "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT", "BSDF_SHEEN")
 MAX_NODE_DEPTH = 32
+# Cycles' RAMP_TABLE_SIZE (scene/shader_nodes.h): Color Ramps and curves are baked at
+# this many + 1 steps.
+RAMP_TABLE_SIZE = 256
 
 
 def _value_text(v) -> str:
@@ -1119,6 +1122,31 @@ class MaterialConverter:
             return None
         return self._input(node, s, depth)
 
+    def _curves(self, n, depth):
+        """RGB Curves / Float Curve baked as Cycles bakes them (blender/util.h
+        curvemapping_color_to_array, curvemapping_float_to_array): the curves evaluated by
+        Blender at RAMP_TABLE_SIZE + 1 steps over the range of their points (RGB: each of
+        R, G, B applied to the combined curve C), read by the kernel's table lookup."""
+        sn = self.pm.shadernodes
+        m = n.mapping
+        m.initialize()
+        m.update()
+        rgb = n.type == "CURVE_RGB"
+        curves = list(m.curves)[:4 if rgb else 1]
+        lo = min(c.points[0].location[0] for c in curves)
+        hi = max(c.points[-1].location[0] for c in curves)
+        xs = [lo + i / RAMP_TABLE_SIZE * (hi - lo) for i in range(RAMP_TABLE_SIZE + 1)]
+        extrapolate = m.extend == "EXTRAPOLATED"
+        fac = self._input(n, n.inputs["Fac" if rgb else "Factor"], depth)
+        if rgb:
+            r, g, b, c = curves
+            table = [[m.evaluate(ch, m.evaluate(c, x)) for ch in (r, g, b)] for x in xs]
+            return sn.RGBCurves(fac, self._input(n, n.inputs["Color"], depth), table,
+                                lo, hi, extrapolate)
+        table = [m.evaluate(curves[0], x) for x in xs]
+        return sn.FloatCurve(fac, self._input(n, n.inputs["Value"], depth), table, lo, hi,
+                             extrapolate)
+
     def _node_output(self, n, out, depth):
         """Engine node (or constant) for output `out` of Blender node n; None = not
         supported. Evaluated per hit in engine/shadernodes.py (numpy over hits)."""
@@ -1191,22 +1219,35 @@ class MaterialConverter:
             return sn.Invert(self._input(n, n.inputs["Fac"], depth),
                              self._input(n, n.inputs["Color"], depth))
         if t == "VALTORGB":
+            # Baked as Cycles bakes it (blender/util.h colorramp_to_array): Blender's own
+            # evaluation at RAMP_TABLE_SIZE + 1 steps, so every interpolation reads alike.
             ramp = n.color_ramp
-            interp = ramp.interpolation
-            if interp not in ("LINEAR", "CONSTANT"):
-                self._warn(f"material '{self._mat.name}': Color Ramp '{n.name}' "
-                           f"interpolation '{interp}' is read as Linear")
-                interp = "LINEAR"
-            els = list(ramp.elements)
-            return sn.ColorRamp(self._input(n, n.inputs["Fac"], depth),
-                                [e.position for e in els], [tuple(e.color)[:3] for e in els],
-                                [e.color[3] for e in els], interpolation=interp,
+            table = [tuple(ramp.evaluate(i / RAMP_TABLE_SIZE))
+                     for i in range(RAMP_TABLE_SIZE + 1)]
+            return sn.RampTable(self._input(n, n.inputs["Fac"], depth), table,
+                                interpolate=ramp.interpolation != "CONSTANT",
                                 output="ALPHA" if oname == "Alpha" else "COLOR")
+        if t in ("CURVE_RGB", "CURVE_FLOAT"):
+            return self._curves(n, depth)
+        if t == "BRIGHTCONTRAST":
+            return sn.BrightContrast(self._input(n, n.inputs["Color"], depth),
+                                     self._input(n, n.inputs["Bright"], depth),
+                                     self._input(n, n.inputs["Contrast"], depth))
+        if t == "GAMMA":
+            return sn.Gamma(self._input(n, n.inputs["Color"], depth),
+                            self._input(n, n.inputs["Gamma"], depth))
+        if t == "RGBTOBW":
+            return sn.ToGray(self._input(n, n.inputs["Color"], depth))
+        if t == "CLAMP":
+            return sn.Clamp(self._input(n, n.inputs["Value"], depth),
+                            self._input(n, n.inputs["Min"], depth),
+                            self._input(n, n.inputs["Max"], depth), kind=n.clamp_type)
         if t == "MATH":
             if n.operation not in sn.MATH_OPS:
                 return None
             return sn.Math(n.operation, self._input(n, n.inputs[0], depth),
-                           self._input(n, n.inputs[1], depth), clamp=n.use_clamp)
+                           self._input(n, n.inputs[1], depth), clamp=n.use_clamp,
+                           c=self._input(n, n.inputs[2], depth))
         if t == "MAP_RANGE":
             vector = getattr(n, "data_type", "FLOAT") == "FLOAT_VECTOR"
             if getattr(n, "data_type", "FLOAT") not in ("FLOAT", "FLOAT_VECTOR"):

@@ -180,35 +180,245 @@ class ColorRamp:
         return out[:, 3] if self.output == "ALPHA" else out[:, :3]
 
 
+def _safe_divide(a, b):
+    return np.where(b != 0, a / np.where(b != 0, b, 1.0), 0.0)
+
+
+def _safe_power(a, b):
+    # util/math.h safe_powf: a negative base takes integer exponents only.
+    return np.where((a < 0) & (b != np.trunc(b)), 0.0, np.power(a, b))
+
+
+def _safe_log(a, b):
+    # safe_logf: 0 unless both are positive; then log a / log b (safe_divide).
+    ok = (a > 0) & (b > 0)
+    return np.where(ok, _safe_divide(np.log(np.where(ok, a, 1.0)),
+                                     np.log(np.where(ok, b, 2.0))), 0.0)
+
+
+def _wrap(value, vmax, vmin):
+    # wrapf(value, max, min)
+    r = vmax - vmin
+    return np.where(r != 0, value - r * np.floor(_safe_divide(value - vmin, r)), vmin)
+
+
+def _pingpong(a, b):
+    # pingpongf: |fract((a - b) / 2b) 2b - b|, 0 for b = 0
+    q = _safe_divide(a - b, b * 2.0)
+    return np.where(b != 0, np.abs((q - np.floor(q)) * b * 2.0 - b), 0.0)
+
+
+def _smooth_min(a, b, k):
+    # smoothminf: min(a, b) - h^3 k / 6, h = max(k - |a - b|, 0) / k (k != 0)
+    h = _safe_divide(np.maximum(k - np.abs(a - b), 0.0), k)
+    return np.where(k != 0, np.minimum(a, b) - h * h * h * k / 6.0, np.minimum(a, b))
+
+
+# Cycles' svm_math (kernel/svm/math_util.h) by Blender's operation name: f(a, b, c), the
+# node's three inputs (most read one or two).
 MATH_OPS = {
-    "ADD": lambda a, b: a + b, "SUBTRACT": lambda a, b: a - b,
-    "MULTIPLY": lambda a, b: a * b,
-    "DIVIDE": lambda a, b: np.where(b != 0, a / np.where(b != 0, b, 1), 0.0),
-    "POWER": lambda a, b: np.where(a >= 0, np.power(np.abs(a), b), 0.0),
-    "MINIMUM": np.minimum, "MAXIMUM": np.maximum,
-    "LESS_THAN": lambda a, b: (a < b).astype(np.float64),
-    "GREATER_THAN": lambda a, b: (a > b).astype(np.float64),
-    "ABSOLUTE": lambda a, b: np.abs(a),
-    "FLOOR": lambda a, b: np.floor(a),
-    "FRACT": lambda a, b: a - np.floor(a),
-    "MODULO": lambda a, b: np.where(b != 0, np.fmod(a, np.where(b != 0, b, 1)), 0.0),
-    "SINE": lambda a, b: np.sin(a), "COSINE": lambda a, b: np.cos(a),
+    "ADD": lambda a, b, c: a + b, "SUBTRACT": lambda a, b, c: a - b,
+    "MULTIPLY": lambda a, b, c: a * b,
+    "DIVIDE": lambda a, b, c: _safe_divide(a, b),
+    "MULTIPLY_ADD": lambda a, b, c: a * b + c,
+    "POWER": lambda a, b, c: _safe_power(a, b),
+    "LOGARITHM": lambda a, b, c: _safe_log(a, b),
+    "SQRT": lambda a, b, c: np.sqrt(np.maximum(a, 0.0)),
+    "INVERSE_SQRT": lambda a, b, c: np.where(a > 0, 1.0 / np.sqrt(np.where(a > 0, a, 1.0)),
+                                             0.0),
+    "ABSOLUTE": lambda a, b, c: np.abs(a),
+    "EXPONENT": lambda a, b, c: np.exp(a),
+    "MINIMUM": lambda a, b, c: np.minimum(a, b),
+    "MAXIMUM": lambda a, b, c: np.maximum(a, b),
+    "LESS_THAN": lambda a, b, c: (a < b).astype(np.float64),
+    "GREATER_THAN": lambda a, b, c: (a > b).astype(np.float64),
+    "SIGN": lambda a, b, c: np.sign(a),
+    "COMPARE": lambda a, b, c: ((a == b) | (np.abs(a - b) <= np.maximum(
+        c, np.finfo(np.float32).eps))).astype(np.float64),
+    "SMOOTH_MIN": lambda a, b, c: _smooth_min(a, b, c),
+    "SMOOTH_MAX": lambda a, b, c: -_smooth_min(-a, -b, c),
+    "ROUND": lambda a, b, c: np.floor(a + 0.5),
+    "FLOOR": lambda a, b, c: np.floor(a),
+    "CEIL": lambda a, b, c: np.ceil(a),
+    "TRUNC": lambda a, b, c: np.trunc(a),
+    "FRACT": lambda a, b, c: a - np.floor(a),
+    "MODULO": lambda a, b, c: np.where(b != 0, np.fmod(a, np.where(b != 0, b, 1)), 0.0),
+    "FLOORED_MODULO": lambda a, b, c: np.where(
+        b != 0, a - np.floor(_safe_divide(a, b)) * b, 0.0),
+    "WRAP": lambda a, b, c: _wrap(a, b, c),
+    "SNAP": lambda a, b, c: np.floor(_safe_divide(a, b)) * b,
+    "PINGPONG": lambda a, b, c: _pingpong(a, b),
+    "SINE": lambda a, b, c: np.sin(a), "COSINE": lambda a, b, c: np.cos(a),
+    "TANGENT": lambda a, b, c: np.tan(a),
+    "ARCSINE": lambda a, b, c: np.arcsin(np.clip(a, -1.0, 1.0)),
+    "ARCCOSINE": lambda a, b, c: np.arccos(np.clip(a, -1.0, 1.0)),
+    "ARCTANGENT": lambda a, b, c: np.arctan(a),
+    "ARCTAN2": lambda a, b, c: np.arctan2(a, b),
+    "SINH": lambda a, b, c: np.sinh(a), "COSH": lambda a, b, c: np.cosh(a),
+    "TANH": lambda a, b, c: np.tanh(a),
+    "RADIANS": lambda a, b, c: a * (np.pi / 180.0),
+    "DEGREES": lambda a, b, c: a * (180.0 / np.pi),
 }
 
 
 class Math:
-    """Math node (value): a <operation> b, optionally clamped to 0..1."""
+    """Math node (value): <operation>(a, b, c) as Cycles' svm_math, optionally clamped to
+    0..1."""
 
-    def __init__(self, operation, a, b=0.0, clamp=False):
+    def __init__(self, operation, a, b=0.0, clamp=False, c=0.0):
         if operation not in MATH_OPS:
             raise ValueError(f"Math operation {operation!r} is not supported "
                              f"(supported: {', '.join(MATH_OPS)})")
-        self.operation, self.a, self.b, self.clamp = operation, a, b, clamp
+        self.operation, self.a, self.b, self.c, self.clamp = operation, a, b, c, clamp
 
     def evaluate(self, geo, prim, u, v):
-        r = MATH_OPS[self.operation](_eval(self.a, geo, prim, u, v, 1),
-                                     _eval(self.b, geo, prim, u, v, 1))
+        with np.errstate(all="ignore"):
+            r = MATH_OPS[self.operation](_eval(self.a, geo, prim, u, v, 1),
+                                         _eval(self.b, geo, prim, u, v, 1),
+                                         _eval(self.c, geo, prim, u, v, 1))
         return np.clip(r, 0.0, 1.0) if self.clamp else r
+
+
+def ramp_lookup(table, f, interpolate=True, extrapolate=False):
+    """Cycles' rgb_ramp_lookup / float_ramp_lookup (kernel/svm/ramp.h) of a baked table
+    (K,) or (K,C) at positions f (N,): f in 0..1 reads between entries (linearly with
+    interpolate, else the entry at or below); outside, the end entry, or with extrapolate
+    the line through the two end entries. NaN reads entry 0 (saturatef). Returns (N,) or
+    (N,C)."""
+    table = np.asarray(table, np.float64)
+    f = np.asarray(f, np.float64)
+    n = len(table)
+    g = np.clip(np.nan_to_num(f, nan=0.0), 0.0, 1.0) * (n - 1)
+    i = np.clip(np.floor(g).astype(np.int64), 0, n - 1)
+    t = g - i
+    out = table[i]
+    if interpolate:
+        j = np.minimum(i + 1, n - 1)
+        w = (t if table.ndim == 1 else t[:, None])
+        out = np.where(w > 0, (1.0 - w) * out + w * table[j], out)
+    if extrapolate:
+        lo, hi = f < 0.0, f > 1.0
+        if lo.any():
+            d = (-f[lo]) * (n - 1)
+            out[lo] = table[0] + (table[0] - table[1]) * (d if table.ndim == 1 else d[:, None])
+        if hi.any():
+            d = (f[hi] - 1.0) * (n - 1)
+            out[hi] = table[-1] + (table[-1] - table[-2]) * (
+                d if table.ndim == 1 else d[:, None])
+    return out
+
+
+class RampTable:
+    """Color Ramp node as Cycles renders it: the table Blender's ColorRamp.evaluate gives
+    at K equal steps (intern/cycles/blender/util.h colorramp_to_array, K = 257), looked
+    up by ramp_lookup (every interpolation mode: Linear, Ease, Cardinal, B-Spline read
+    linearly between the baked entries; Constant reads the entry at or below). table
+    (K,4) RGBA; output COLOR or ALPHA."""
+
+    def __init__(self, factor, table, interpolate=True, output="COLOR"):
+        self.factor, self.interpolate, self.output = factor, bool(interpolate), output
+        self.table = np.asarray(table, np.float64).reshape(-1, 4)
+
+    def evaluate(self, geo, prim, u, v):
+        out = ramp_lookup(self.table, _eval(self.factor, geo, prim, u, v, 1),
+                          self.interpolate)
+        return out[:, 3] if self.output == "ALPHA" else out[:, :3]
+
+
+class RGBCurves:
+    """RGB Curves node (svm_node_curves): each channel c of the colour reads the baked
+    table (K,3) (Blender's curves R, G, B applied to the combined curve C, at K equal
+    steps of min_x .. max_x: curvemapping_color_to_array) at (c - min_x) / (max_x -
+    min_x), with the mapping's extrapolation; mix(colour, result, factor)."""
+
+    def __init__(self, factor, color, table, min_x=0.0, max_x=1.0, extrapolate=False):
+        self.factor, self.color = factor, color
+        self.table = np.asarray(table, np.float64).reshape(-1, 3)
+        self.min_x, self.max_x, self.extrapolate = float(min_x), float(max_x), extrapolate
+
+    def evaluate(self, geo, prim, u, v):
+        fac = _eval(self.factor, geo, prim, u, v, 1)[:, None]
+        c = _eval(self.color, geo, prim, u, v, 3)
+        rel = (c - self.min_x) / (self.max_x - self.min_x)
+        out = np.stack([ramp_lookup(self.table[:, k], rel[:, k], True, self.extrapolate)
+                        for k in range(3)], axis=1)
+        return (1.0 - fac) * c + fac * out
+
+
+class FloatCurve:
+    """Float Curve node (svm_node_curve): the value reads the baked table (K,) of the
+    curve over min_x .. max_x; mix(value, result, factor)."""
+
+    def __init__(self, factor, value, table, min_x=0.0, max_x=1.0, extrapolate=False):
+        self.factor, self.value = factor, value
+        self.table = np.asarray(table, np.float64).ravel()
+        self.min_x, self.max_x, self.extrapolate = float(min_x), float(max_x), extrapolate
+
+    def evaluate(self, geo, prim, u, v):
+        fac = _eval(self.factor, geo, prim, u, v, 1)
+        x = _eval(self.value, geo, prim, u, v, 1)
+        out = ramp_lookup(self.table, (x - self.min_x) / (self.max_x - self.min_x), True,
+                          self.extrapolate)
+        return (1.0 - fac) * x + fac * out
+
+
+class BrightContrast:
+    """Bright/Contrast node (svm_brightness_contrast): max((1 + contrast) c + bright -
+    contrast / 2, 0) per channel."""
+
+    def __init__(self, color, bright, contrast):
+        self.color, self.bright, self.contrast = color, bright, contrast
+
+    def evaluate(self, geo, prim, u, v):
+        c = _eval(self.color, geo, prim, u, v, 3)
+        k = _eval(self.contrast, geo, prim, u, v, 1)[:, None]
+        b = _eval(self.bright, geo, prim, u, v, 1)[:, None]
+        return np.maximum((1.0 + k) * c + (b - 0.5 * k), 0.0)
+
+
+class Gamma:
+    """Gamma node (svm_math_gamma_color): c^gamma for the positive channels (the others as
+    they are); white for gamma 0."""
+
+    def __init__(self, color, gamma):
+        self.color, self.gamma = color, gamma
+
+    def evaluate(self, geo, prim, u, v):
+        c = _eval(self.color, geo, prim, u, v, 3)
+        g = _eval(self.gamma, geo, prim, u, v, 1)[:, None]
+        with np.errstate(all="ignore"):
+            out = np.where(c > 0, np.power(np.where(c > 0, c, 1.0), g), c)
+        return np.where(g == 0, 1.0, out)
+
+
+class ToGray:
+    """RGB to BW node: the colour's luminance (Rec.709 weights, Cycles' linear_rgb_to_gray
+    in the scene's linear space), (N,)."""
+
+    def __init__(self, color):
+        self.color = color
+
+    def evaluate(self, geo, prim, u, v):
+        return _eval(self.color, geo, prim, u, v, 3) @ np.array([0.2126, 0.7152, 0.0722])
+
+
+class Clamp:
+    """Clamp node (svm_node_clamp): MINMAX clamp(value, min, max) (min wins where they
+    cross); RANGE swaps min and max where min > max."""
+
+    def __init__(self, value, vmin, vmax, kind="MINMAX"):
+        if kind not in ("MINMAX", "RANGE"):
+            raise ValueError(f"Clamp type {kind!r}: expected MINMAX or RANGE")
+        self.value, self.vmin, self.vmax, self.kind = value, vmin, vmax, kind
+
+    def evaluate(self, geo, prim, u, v):
+        x = _eval(self.value, geo, prim, u, v, 1)
+        lo = _eval(self.vmin, geo, prim, u, v, 1)
+        hi = _eval(self.vmax, geo, prim, u, v, 1)
+        if self.kind == "RANGE":
+            lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+        # util/math.h clamp(a, mn, mx) = min(max(a, mn), mx)
+        return np.minimum(np.maximum(x, lo), hi)
 
 
 def _smoothstep(edge0, edge1, x):

@@ -1,0 +1,258 @@
+"""Colour and value nodes against Cycles, texel by texel (issue 14: Blender fidelity on the
+node trees real materials use).
+
+An emissive plane (Emission Strength 1: what the camera sees is the node tree's colour)
+fills an orthographic view; a Gradient Texture along the plane's x feeds the node under
+test, through a Map Range to -0.5 .. 1.5 where the node's behaviour outside 0 .. 1
+matters. 64 x 4 pixels, 16 samples near each pixel's centre in both renderers: every
+pixel within 0.005 (and 0.5 %) of Cycles'.
+
+Cycles bakes Color Ramps and curves into tables of 257 entries from Blender's own
+evaluation (intern/cycles/blender/util.h colorramp_to_array, curvemapping_color_to_array;
+the kernel's svm/ramp.h reads them): so does the add-on, so every Color Ramp
+interpolation and every curve shape reads as in Cycles.
+"""
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+W, H = 64, 4
+
+
+def _gradient(nodes, links, lo=0.0, hi=1.0):
+    """The Gradient Texture's factor along the plane, mapped to lo .. hi (unclamped)."""
+    g = nodes.new("ShaderNodeTexGradient")
+    if lo == 0.0 and hi == 1.0:
+        return g.outputs["Fac"]
+    mr = nodes.new("ShaderNodeMapRange")
+    mr.clamp = False
+    mr.inputs["To Min"].default_value = lo
+    mr.inputs["To Max"].default_value = hi
+    links.new(g.outputs["Fac"], mr.inputs["Value"])
+    return mr.outputs["Result"]
+
+
+def _colour(nodes, links, lo=0.0, hi=1.0):
+    """A colour that varies along the plane: (f, 1 - f, 0.3 + 0.4 f), f = the gradient."""
+    f = _gradient(nodes, links, lo, hi)
+    inv = nodes.new("ShaderNodeMath")
+    inv.operation = "SUBTRACT"
+    inv.inputs[0].default_value = 1.0
+    links.new(f, inv.inputs[1])
+    blue = nodes.new("ShaderNodeMath")
+    blue.operation = "MULTIPLY_ADD"
+    blue.inputs[1].default_value = 0.4
+    blue.inputs[2].default_value = 0.3
+    links.new(f, blue.inputs[0])
+    c = nodes.new("ShaderNodeCombineColor")
+    links.new(f, c.inputs[0])
+    links.new(inv.outputs[0], c.inputs[1])
+    links.new(blue.outputs[0], c.inputs[2])
+    return c.outputs[0]
+
+
+def _ramp(interpolation):
+    def build(nodes, links):
+        r = nodes.new("ShaderNodeValToRGB")
+        ramp = r.color_ramp
+        ramp.interpolation = interpolation
+        ramp.elements[0].position, ramp.elements[0].color = 0.1, (0.9, 0.2, 0.1, 1.0)
+        ramp.elements[1].position, ramp.elements[1].color = 0.85, (0.1, 0.3, 0.8, 1.0)
+        e = ramp.elements.new(0.4)
+        e.color = (0.2, 0.9, 0.3, 1.0)
+        links.new(_gradient(nodes, links), r.inputs["Fac"])
+        return r.outputs["Color"]
+    return build
+
+
+def _curves(extrapolate):
+    """RGB Curves: a bent combined curve and a lifted red one, factor 0.8."""
+    def build(nodes, links):
+        c = nodes.new("ShaderNodeRGBCurve")
+        m = c.mapping
+        m.curves[3].points.new(0.35, 0.6)   # combined (C)
+        m.curves[0].points.new(0.5, 0.25)   # red
+        m.curves[0].points[0].location = (0.0, 0.15)
+        m.extend = "EXTRAPOLATED" if extrapolate else "HORIZONTAL"
+        m.update()
+        c.inputs["Fac"].default_value = 0.8
+        lo, hi = (-0.5, 1.5) if extrapolate else (0.0, 1.0)
+        links.new(_colour(nodes, links, lo, hi), c.inputs["Color"])
+        return c.outputs["Color"]
+    return build
+
+
+def _float_curve(nodes, links):
+    c = nodes.new("ShaderNodeFloatCurve")
+    pts = c.mapping.curves[0].points
+    pts[-1].location = (1.0, 0.2)
+    pts.new(0.3, 0.7)
+    c.mapping.update()
+    links.new(_gradient(nodes, links), c.inputs["Value"])
+    return c.outputs["Value"]
+
+
+def _bright_contrast(nodes, links):
+    b = nodes.new("ShaderNodeBrightContrast")
+    b.inputs["Bright"].default_value = 0.1
+    b.inputs["Contrast"].default_value = 0.6
+    links.new(_colour(nodes, links), b.inputs["Color"])
+    return b.outputs["Color"]
+
+
+def _gamma(nodes, links):
+    g = nodes.new("ShaderNodeGamma")
+    g.inputs["Gamma"].default_value = 2.2
+    links.new(_colour(nodes, links, -0.5, 1.5), g.inputs["Color"])
+    return g.outputs["Color"]
+
+
+def _rgb_to_bw(nodes, links):
+    b = nodes.new("ShaderNodeRGBToBW")
+    links.new(_colour(nodes, links), b.inputs["Color"])
+    return b.outputs["Val"]
+
+
+def _clamp(kind):
+    def build(nodes, links):
+        c = nodes.new("ShaderNodeClamp")
+        c.clamp_type = kind
+        c.inputs["Min"].default_value = 0.8 if kind == "RANGE" else 0.2
+        c.inputs["Max"].default_value = 0.3 if kind == "RANGE" else 0.9
+        links.new(_gradient(nodes, links, -0.5, 1.5), c.inputs["Value"])
+        return c.outputs["Result"]
+    return build
+
+
+def _math(op, b=0.7, c=0.25, lo=-1.5, hi=1.5, scale=1.0):
+    """Math op on the gradient mapped to lo .. hi, shifted into 0.1 .. 1 for display."""
+    def build(nodes, links):
+        m = nodes.new("ShaderNodeMath")
+        m.operation = op
+        m.inputs[1].default_value = b
+        m.inputs[2].default_value = c
+        links.new(_gradient(nodes, links, lo, hi), m.inputs[0])
+        shown = nodes.new("ShaderNodeMath")
+        shown.operation = "MULTIPLY_ADD"
+        shown.inputs[1].default_value = scale
+        shown.inputs[2].default_value = 0.5
+        links.new(m.outputs[0], shown.inputs[0])
+        return shown.outputs[0]
+    return build
+
+
+CASES = {
+    "ramp_linear": _ramp("LINEAR"),
+    "ramp_constant": _ramp("CONSTANT"),
+    "ramp_ease": _ramp("EASE"),
+    "ramp_cardinal": _ramp("CARDINAL"),
+    "ramp_b_spline": _ramp("B_SPLINE"),
+    "rgb_curves": _curves(False),
+    "rgb_curves_extrapolated": _curves(True),
+    "float_curve": _float_curve,
+    "bright_contrast": _bright_contrast,
+    "gamma": _gamma,
+    "rgb_to_bw": _rgb_to_bw,
+    "clamp_minmax": _clamp("MINMAX"),
+    "clamp_range": _clamp("RANGE"),
+    "math_power": _math("POWER", b=2.0),
+    "math_power_fraction": _math("POWER", b=0.5),
+    "math_multiply_add": _math("MULTIPLY_ADD"),
+    "math_sqrt": _math("SQRT"),
+    "math_inverse_sqrt": _math("INVERSE_SQRT", lo=0.2, hi=2.0, scale=0.2),
+    "math_exponent": _math("EXPONENT", scale=0.1),
+    "math_logarithm": _math("LOGARITHM", b=2.0, lo=0.1, hi=3.0, scale=0.2),
+    "math_sign": _math("SIGN", scale=0.3),
+    "math_round": _math("ROUND", lo=-2.0, hi=2.0, scale=0.2),
+    "math_ceil": _math("CEIL", lo=-2.0, hi=2.0, scale=0.2),
+    "math_trunc": _math("TRUNC", lo=-2.0, hi=2.0, scale=0.2),
+    "math_floored_modulo": _math("FLOORED_MODULO", b=0.6),
+    "math_snap": _math("SNAP", b=0.4),
+    "math_wrap": _math("WRAP", b=0.6, c=-0.3),
+    "math_pingpong": _math("PINGPONG", b=0.45),
+    "math_compare": _math("COMPARE", b=0.2, c=0.3, scale=0.3),
+    "math_smooth_min": _math("SMOOTH_MIN", b=0.3, c=0.5),
+    "math_smooth_max": _math("SMOOTH_MAX", b=0.3, c=0.5),
+    "math_tangent": _math("TANGENT", lo=-1.2, hi=1.2, scale=0.1),
+    "math_arcsine": _math("ARCSINE", lo=-1.2, hi=1.2, scale=0.3),
+    "math_arccosine": _math("ARCCOSINE", lo=-1.2, hi=1.2, scale=0.3),
+    "math_arctangent": _math("ARCTANGENT", scale=0.3),
+    "math_arctan2": _math("ARCTAN2", b=-0.4, scale=0.15),
+    "math_sinh": _math("SINH", scale=0.2),
+    "math_cosh": _math("COSH", scale=0.2),
+    "math_tanh": _math("TANH", scale=0.4),
+    "math_radians": _math("RADIANS", scale=10.0),
+    "math_degrees": _math("DEGREES", scale=0.005),
+}
+
+
+def _render(bpy, scene, path, engine):
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    scene.render.engine = engine
+    # Samples near each pixel's centre in both (a step between two centres reads alike).
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 0.01
+    if engine == "CYCLES":
+        cycles_plain(scene, 16, 0)
+    else:
+        cheap(scene, spp=16, photons=1_000, caustic_photons=0)
+        scene.photonmap.photon_mapping = False
+    return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3]
+
+
+# Emission below 0 renders as 0 here (a light of negative power): cases whose output
+# goes below 0 are shown lifted by LIFT (a Mix Color, Add) and compared less LIFT.
+LIFT = 2.0
+NEGATIVE = {"gamma", "math_multiply_add", "math_smooth_min", "math_snap",
+            "rgb_curves_extrapolated", "float_curve"}
+
+
+def _plane_scene(bpy, scene, build, lift=0.0):
+    from blender_helpers import node_material
+    m, nt, out = node_material(bpy, "Nodes")
+    e = nt.nodes.new("ShaderNodeEmission")
+    e.inputs["Strength"].default_value = 1.0
+    sock = build(nt.nodes, nt.links)
+    if lift:
+        mix = nt.nodes.new("ShaderNodeMix")
+        mix.data_type, mix.blend_type = "RGBA", "ADD"
+        mix.inputs["Factor"].default_value = 1.0
+        mix.inputs[7].default_value = (lift, lift, lift, 1.0)  # B (colour)
+        nt.links.new(sock, mix.inputs[6])  # A (colour)
+        sock = mix.outputs[2]  # Result (colour)
+    nt.links.new(sock, e.inputs["Color"])
+    nt.links.new(e.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    bpy.context.object.data.materials.append(m)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 1.9  # inside the plane
+    cam.location = (0.0, 0.0, 3.0)  # looks down -Z; x across the image
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
+        "Strength"].default_value = 0.0
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    scene.render.resolution_percentage = 100
+    return m
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_node_matches_cycles_texel_by_texel(fresh_scene, bpy_addon, tmp_path, case):
+    bpy = bpy_addon
+    scene = fresh_scene
+    lift = LIFT if case in NEGATIVE else 0.0
+    _plane_scene(bpy, scene, CASES[case], lift)
+    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP") - lift
+    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES") - lift
+    row_o, row_r = ours.mean(axis=0), ref.mean(axis=0)  # (W, 3) along the gradient
+    err = np.abs(row_o - row_r)
+    print(f"{case}: max |ours - Cycles| {err.max():.5f}, Cycles range "
+          f"{row_r.min():.3f} .. {row_r.max():.3f}")
+    assert np.all(np.isfinite(ours))
+    assert np.ptp(row_r) > 0.05  # the case varies along the plane
+    assert np.all(err <= 0.005 + 0.005 * np.abs(row_r)), np.argwhere(
+        err > 0.005 + 0.005 * np.abs(row_r))[:5]
