@@ -1141,11 +1141,11 @@ class MaterialConverter:
         if rgb:
             r, g, b, c = curves
             table = [[m.evaluate(ch, m.evaluate(c, x)) for ch in (r, g, b)] for x in xs]
-            return sn.RGBCurves(fac, self._input(n, n.inputs["Color"], depth), table,
-                                lo, hi, extrapolate)
+            col = self._input(n, n.inputs["Color"], depth)
+            return _fold(sn.RGBCurves(fac, col, table, lo, hi, extrapolate), [fac, col])
         table = [m.evaluate(curves[0], x) for x in xs]
-        return sn.FloatCurve(fac, self._input(n, n.inputs["Value"], depth), table, lo, hi,
-                             extrapolate)
+        val = self._input(n, n.inputs["Value"], depth)
+        return _fold(sn.FloatCurve(fac, val, table, lo, hi, extrapolate), [fac, val])
 
     def _node_output(self, n, out, depth):
         """Engine node (or constant) for output `out` of Blender node n; None = not
@@ -1224,30 +1224,30 @@ class MaterialConverter:
             ramp = n.color_ramp
             table = [tuple(ramp.evaluate(i / RAMP_TABLE_SIZE))
                      for i in range(RAMP_TABLE_SIZE + 1)]
-            return sn.RampTable(self._input(n, n.inputs["Fac"], depth), table,
-                                interpolate=ramp.interpolation != "CONSTANT",
-                                output="ALPHA" if oname == "Alpha" else "COLOR")
+            fac = self._input(n, n.inputs["Fac"], depth)
+            return _fold(sn.RampTable(fac, table, interpolate=ramp.interpolation != "CONSTANT",
+                                      output="ALPHA" if oname == "Alpha" else "COLOR"), [fac])
         if t in ("CURVE_RGB", "CURVE_FLOAT"):
             return self._curves(n, depth)
+        # (A tree fed only by constants is evaluated once here: _fold.)
         if t == "BRIGHTCONTRAST":
-            return sn.BrightContrast(self._input(n, n.inputs["Color"], depth),
-                                     self._input(n, n.inputs["Bright"], depth),
-                                     self._input(n, n.inputs["Contrast"], depth))
+            ins = [self._input(n, n.inputs[k], depth) for k in ("Color", "Bright", "Contrast")]
+            return _fold(sn.BrightContrast(*ins), ins)
         if t == "GAMMA":
-            return sn.Gamma(self._input(n, n.inputs["Color"], depth),
-                            self._input(n, n.inputs["Gamma"], depth))
+            ins = [self._input(n, n.inputs[k], depth) for k in ("Color", "Gamma")]
+            return _fold(sn.Gamma(*ins), ins)
         if t == "RGBTOBW":
-            return sn.ToGray(self._input(n, n.inputs["Color"], depth))
+            ins = [self._input(n, n.inputs["Color"], depth)]
+            return _fold(sn.ToGray(*ins), ins)
         if t == "CLAMP":
-            return sn.Clamp(self._input(n, n.inputs["Value"], depth),
-                            self._input(n, n.inputs["Min"], depth),
-                            self._input(n, n.inputs["Max"], depth), kind=n.clamp_type)
+            ins = [self._input(n, n.inputs[k], depth) for k in ("Value", "Min", "Max")]
+            return _fold(sn.Clamp(*ins, kind=n.clamp_type), ins)
         if t == "MATH":
             if n.operation not in sn.MATH_OPS:
                 return None
-            return sn.Math(n.operation, self._input(n, n.inputs[0], depth),
-                           self._input(n, n.inputs[1], depth), clamp=n.use_clamp,
-                           c=self._input(n, n.inputs[2], depth))
+            ins = [self._input(n, n.inputs[k], depth) for k in range(3)]
+            return _fold(sn.Math(n.operation, ins[0], ins[1], clamp=n.use_clamp, c=ins[2]),
+                         ins)
         if t == "MAP_RANGE":
             vector = getattr(n, "data_type", "FLOAT") == "FLOAT_VECTOR"
             if getattr(n, "data_type", "FLOAT") not in ("FLOAT", "FLOAT_VECTOR"):

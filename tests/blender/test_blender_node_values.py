@@ -103,3 +103,25 @@ def test_vector_map_range_folds_into_base_color(fresh_scene, bpy_addon):
                             kind="STEPPED")
     assert np.allclose(mat.base_color, want), (mat.base_color, want)
     assert np.allclose(want, [0.1 + 0.8 * 0.25, 0.2 + 0.4 * 0.5, 0.5])
+
+
+def test_constant_math_and_curve_trees_fold(fresh_scene, bpy_addon):
+    """Math, Gamma, Color Ramp and RGB Curves fed only by constants are evaluated once at
+    export: an IOR (which must be one constant) from a Math node, a Base Color from a
+    Gamma of a constant colour, and no per-hit texture left."""
+    m, nt, out = _material(bpy_addon, "FoldedMath")
+    p = _principled(nt, out)
+    add = nt.nodes.new("ShaderNodeMath")
+    add.operation = "MULTIPLY_ADD"
+    add.inputs[0].default_value, add.inputs[1].default_value = 0.5, 0.9
+    add.inputs[2].default_value = 1.0
+    nt.links.new(add.outputs[0], p.inputs["IOR"])
+    g = nt.nodes.new("ShaderNodeGamma")
+    g.inputs["Color"].default_value = (0.5, 0.25, 1.0, 1.0)
+    g.inputs["Gamma"].default_value = 2.0
+    nt.links.new(g.outputs[0], p.inputs["Base Color"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    assert mat.ior == pytest.approx(1.45)
+    assert np.allclose(mat.base_color, (0.25, 0.0625, 1.0))
+    assert mat.texture is None and not mat.scalar_textures
