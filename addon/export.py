@@ -715,13 +715,53 @@ def cryptomatte_names(obj) -> dict:
     return {"cryptomatte_object": obj.name, "cryptomatte_asset": top.name}
 
 
-def _placement(pm, name, prototype, matrix, names, obj, visibility):
+def _rot32(x, k):
+    return ((x << k) | (x >> (32 - k))) & 0xFFFFFFFF
+
+
+def cycles_name_random_id(name: str) -> int:
+    """Cycles' random_id of an object that is not an instance: hash_uint2(hash_string(
+    name), 0) (intern/cycles/blender/object.cpp; util/hash.h: hash_string's i * 37 + c over
+    the name's bytes as C chars, then lookup3's final mix of a = kx, b = ky on the seed
+    0xdeadbeef + (2 << 2) + 13). The depsgraph's random_id is 0 for such objects."""
+    h = 0
+    for byte in name.encode("utf-8"):
+        c = byte - 256 if byte >= 128 else byte  # a signed char, widened to uint
+        h = (h * 37 + c) & 0xFFFFFFFF
+    m = 0xFFFFFFFF
+    a = b = c = (0xDEADBEEF + (2 << 2) + 13) & m
+    a, b = (a + h) & m, (b + 0) & m
+    c = (c ^ b) & m; c = (c - _rot32(b, 14)) & m  # noqa: E702 (lookup3 final())
+    a = (a ^ c) & m; a = (a - _rot32(c, 11)) & m  # noqa: E702
+    b = (b ^ a) & m; b = (b - _rot32(a, 25)) & m  # noqa: E702
+    c = (c ^ b) & m; c = (c - _rot32(b, 16)) & m  # noqa: E702
+    a = (a ^ c) & m; a = (a - _rot32(c, 4)) & m  # noqa: E702
+    b = (b ^ a) & m; b = (b - _rot32(a, 14)) & m  # noqa: E702
+    c = (c ^ b) & m; c = (c - _rot32(b, 24)) & m  # noqa: E702
+    return c
+
+
+def object_info(obj, inst) -> dict:
+    """Mesh keywords of the Object Info node: random (Cycles' random_number: the
+    random_id / (2^32 - 1) in float32, scene/object.cpp; an instance's random_id from the
+    depsgraph, an object's from its name: cycles_name_random_id) and object_color
+    (object.color RGBA)."""
+    if inst.is_instance:
+        rid = int(getattr(inst, "random_id", 0) or 0) & 0xFFFFFFFF
+    else:
+        rid = cycles_name_random_id(obj.name)
+    random = float(np.float32(rid) * np.float32(1.0 / 0xFFFFFFFF))
+    color = tuple(float(c) for c in getattr(obj, "color", (1.0, 1.0, 1.0, 1.0)))[:4]
+    return dict(random=random, object_color=color)
+
+
+def _placement(pm, name, prototype, matrix, names, obj, visibility, info=None):
     """An engine placement (Mesh.place): the prototype by `matrix`, the object's
     material slots (the last repeated if it has fewer than the prototype uses)."""
     slots = int(prototype.material_ids.max()) + 1 if len(prototype.material_ids) else 1
     names = list(names) + [names[-1]] * max(0, slots - len(names))
     return pm.Mesh.place(name, prototype, matrix, materials=names,
-                         pass_index=pass_index(obj),
+                         pass_index=pass_index(obj), **(info or {}),
                          shadow_terminator_offset=terminator_offset(obj),
                          shadow_terminator_shading_offset=terminator_shading(obj),
                          **cryptomatte_names(obj), **visibility)
@@ -817,7 +857,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             info["objects"] += 1
             warn_unsupported_visibility(obj, warnings)
             mesh = _placement(pm, name, prototypes[key], matrix, names, obj,
-                              ray_visibility(obj, inst, view_layer))
+                              ray_visibility(obj, inst, view_layer), object_info(obj, inst))
             meshes.append(mesh)
             info["triangles"] += len(mesh.faces)
             continue
@@ -838,7 +878,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                            _uv_slots(converter, names)),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
-                       pass_index=pass_index(obj),
+                       pass_index=pass_index(obj), **object_info(obj, inst),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
                        **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
@@ -1005,9 +1045,10 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         visibility = ray_visibility(obj, inst, view_layer)
         coords = (any(converter.needs_coordinates(n) for n in names),
                   any(_radial(converter, n) for n in names), _uv_slots(converter, names))
+        oinfo = object_info(obj, inst)
         key = (id(geo), matrix.tobytes(), tuple(names), coords,
                tuple(sorted(visibility.items())), terminator_offset(obj),
-               terminator_shading(obj), pass_index(obj))
+               terminator_shading(obj), pass_index(obj), tuple(sorted(oinfo.items())))
         old = cache.meshes.get(iname)
         if old is not None and old[0] == key:
             mesh = old[1]
@@ -1019,7 +1060,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             if proto is None or proto[0] is not geo:
                 mids = np.clip(geo.material_index, 0, len(names) - 1)
                 proto = cache.prototypes[gkey] = (geo, _prototype(pm, obj.name, geo, mids))
-            mesh = _placement(pm, iname, proto[1], matrix, names, obj, visibility)
+            mesh = _placement(pm, iname, proto[1], matrix, names, obj, visibility, oinfo)
             if obj.name not in info["geometry_read"]:
                 info["transformed"].append(iname)
             cache.meshes[iname] = (key, mesh)
@@ -1034,7 +1075,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
                            coordinates=corner_attributes(geo, matrix, *coords),
                            shadow_terminator_offset=key[5],
                            shadow_terminator_shading_offset=key[6], pass_index=key[7],
-                           **cryptomatte_names(obj), **visibility)
+                           **oinfo, **cryptomatte_names(obj), **visibility)
             if obj.name not in info["geometry_read"]:
                 info["transformed"].append(iname)
             cache.meshes[iname] = (key, mesh)

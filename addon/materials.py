@@ -1229,6 +1229,10 @@ class MaterialConverter:
                                       output="ALPHA" if oname == "Alpha" else "COLOR"), [fac])
         if t in ("CURVE_RGB", "CURVE_FLOAT"):
             return self._curves(n, depth)
+        if t == "OBJECT_INFO":
+            out_kind = {"Random": "RANDOM", "Color": "COLOR", "Alpha": "ALPHA",
+                        "Object Index": "OBJECT_INDEX"}.get(oname)
+            return None if out_kind is None else sn.ObjectInfo(out_kind)
         # (A tree fed only by constants is evaluated once here: _fold.)
         if t == "BRIGHTCONTRAST":
             ins = [self._input(n, n.inputs[k], depth) for k in ("Color", "Bright", "Contrast")]

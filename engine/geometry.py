@@ -308,6 +308,10 @@ class Geometry:
                               # (the Object Index data pass); None reads 0
     object_has_uvs: np.ndarray | None = None  # (O,) bool: the object has a UV map (the
                               # UV data pass: 0, 0, 0 without one, as Cycles)
+    object_random: np.ndarray | None = None  # (O,) float64 Mesh.random (Object Info
+                              # Random); None reads 0
+    object_color: np.ndarray | None = None  # (O,4) float64 Mesh.object_color (Object
+                              # Info Color, Alpha); None reads white
 
     def __post_init__(self):
         self.ng = PerTriangle(self, _ng_rows)  # (T,3) unit geometric normals (winding)
@@ -641,6 +645,9 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         object_terminator=terminator, object_terminator_shading=terminator_shading,
         object_pass_index=np.array([getattr(m, "pass_index", 0) for m in meshes], np.float64),
         object_has_uvs=np.array([_has(m, "uvs") for m in meshes], bool),
+        object_random=np.array([getattr(m, "random", 0.0) for m in meshes], np.float64),
+        object_color=np.array([getattr(m, "object_color", (1.0, 1.0, 1.0, 1.0))
+                               for m in meshes], np.float64).reshape(-1, 4),
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=colors,

@@ -383,7 +383,10 @@ class Mesh:
               `materials` fill its slots; the copy is built only if the scene is
               expanded (engine/resources.two_level_instances decides).
     pass_index  Blender's object.pass_index (an instance's own), written by the Object
-              Index data pass (engine/datapasses.py); it changes no shading
+              Index data pass (engine/datapasses.py) and read by an Object Info node
+    random    the Object Info node's Random output, 0..1: Blender's instance random_id
+              / (2^32 - 1) (Cycles' object random_number; an instance's own)
+    object_color  the Object Info node's Color and Alpha: Blender's object.color RGBA
     """
 
     name: str
@@ -408,6 +411,8 @@ class Mesh:
     prototype: "Prototype | None" = None
     matrix: np.ndarray | None = None
     pass_index: int = 0
+    random: float = 0.0
+    object_color: tuple = (1.0, 1.0, 1.0, 1.0)
     warnings: list = field(default_factory=list, repr=False)
 
     @property
@@ -599,7 +604,7 @@ class Mesh:
             "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
             "visible_shadow", "holdout", "shadow_terminator_offset",
             "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset",
-            "pass_index")}
+            "pass_index", "random", "object_color")}
         return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
                     materials=list(self.materials), material_ids=P.material_ids,
                     prototype=P, matrix=M, **flags)

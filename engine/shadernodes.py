@@ -402,6 +402,31 @@ class ToGray:
         return _eval(self.color, geo, prim, u, v, 3) @ np.array([0.2126, 0.7152, 0.0722])
 
 
+class ObjectInfo:
+    """Object Info node (svm_node_object_info) per hit, from the hit triangle's object
+    (Geometry.object_id; an instance's own): RANDOM (Mesh.random, 0..1), COLOR, ALPHA
+    (Mesh.object_color) or OBJECT_INDEX (Mesh.pass_index). Without a Geometry (a
+    constant fold) or its tables: 0, white, 1, 0."""
+
+    OUTPUTS = ("RANDOM", "COLOR", "ALPHA", "OBJECT_INDEX")
+
+    def __init__(self, output="RANDOM"):
+        if output not in self.OUTPUTS:
+            raise ValueError(f"Object Info output {output!r}: expected one of {self.OUTPUTS}")
+        self.output = output
+
+    def evaluate(self, geo, prim, u, v):
+        n = len(prim)
+        oid = None if geo is None else np.take(geo.object_id, np.asarray(prim, np.int64))
+        if self.output == "COLOR" or self.output == "ALPHA":
+            table = None if geo is None else getattr(geo, "object_color", None)
+            rgba = np.ones((n, 4)) if table is None else np.take(table, oid, axis=0)
+            return rgba[:, :3] if self.output == "COLOR" else rgba[:, 3]
+        name = "object_random" if self.output == "RANDOM" else "object_pass_index"
+        table = None if geo is None else getattr(geo, name, None)
+        return np.zeros(n) if table is None else np.take(table, oid)
+
+
 class Clamp:
     """Clamp node (svm_node_clamp): MINMAX clamp(value, min, max) (min wins where they
     cross); RANGE swaps min and max where min > max."""

@@ -1,0 +1,122 @@
+"""Object Info node against Cycles: Random (Cycles' random_number, the instance's
+random_id / (2^32 - 1)), Color and Alpha (object.color), Object Index (pass_index), per
+object and per instance (meshes sharing data are placed from one prototype). It fell
+back to the socket's value before (a new user's scattered rocks all one colour).
+
+Eight emissive cubes in a row seen from above by an orthographic camera: four single
+meshes and four linked duplicates; each cube's pixel colour within 0.002 of Cycles'.
+"""
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.blender
+
+N = 8
+
+
+def _material(bpy, name, output):
+    """Emission of Color Ramp(Object Info <output>) (a ramp makes Random visible in
+    colour) or of the Color output itself."""
+    from blender_helpers import node_material
+    m, nt, out = node_material(bpy, name)
+    e = nt.nodes.new("ShaderNodeEmission")
+    info = nt.nodes.new("ShaderNodeObjectInfo")
+    if output == "Color":
+        nt.links.new(info.outputs["Color"], e.inputs["Color"])
+    else:
+        ramp = nt.nodes.new("ShaderNodeValToRGB")
+        ramp.color_ramp.elements[0].color = (0.05, 0.1, 0.9, 1.0)
+        ramp.color_ramp.elements[1].color = (0.95, 0.6, 0.1, 1.0)
+        src = info.outputs[output]
+        if output == "Object Index":
+            scale = nt.nodes.new("ShaderNodeMath")
+            scale.operation = "DIVIDE"
+            scale.inputs[1].default_value = float(N)
+            nt.links.new(src, scale.inputs[0])
+            src = scale.outputs[0]
+        nt.links.new(src, ramp.inputs["Fac"])
+        nt.links.new(ramp.outputs["Color"], e.inputs["Color"])
+    nt.links.new(e.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def _row(bpy, scene, mat):
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.0, 0.0, 0.0))
+    shared = bpy.context.object
+    shared.data.materials.append(mat)
+    for i in range(N):
+        if i % 2 == 0:
+            ob = shared if i == 0 else bpy.data.objects.new(f"Linked{i}", shared.data)
+            if i:
+                scene.collection.objects.link(ob)
+        else:
+            bpy.ops.mesh.primitive_cube_add(size=0.8)
+            ob = bpy.context.object
+            ob.data.materials.append(mat)
+        ob.location = (i - (N - 1) / 2.0, 0.0, 0.0)
+        ob.color = (0.1 + 0.1 * i, 0.9 - 0.1 * i, 0.5, 1.0)
+        ob.pass_index = i
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", float(N)
+    cam.location = (0.0, 0.0, 5.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
+        "Strength"].default_value = 0.0
+    scene.render.resolution_x, scene.render.resolution_y = 8 * N, 8
+    scene.render.resolution_percentage = 100
+
+
+def _cube_colours(bpy, scene, path, engine):
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    scene.render.engine = engine
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 0.01
+    if engine == "CYCLES":
+        cycles_plain(scene, 4, 0)
+    else:
+        cheap(scene, spp=4, photons=1_000, caustic_photons=0)
+        scene.photonmap.photon_mapping = False
+    img = read_rgba(bpy, render_exr(bpy, scene, path))[..., :3]
+    # Each cube covers the middle of its 8-pixel column block.
+    return np.array([img[2:6, 8 * i + 2:8 * i + 6].reshape(-1, 3).mean(axis=0)
+                     for i in range(N)])
+
+
+@pytest.mark.parametrize("output", ["Random", "Color", "Object Index"])
+def test_object_info_matches_cycles_per_object(fresh_scene, bpy_addon, tmp_path, output):
+    bpy = bpy_addon
+    scene = fresh_scene
+    _row(bpy, scene, _material(bpy, "Info", output))
+    ours = _cube_colours(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")
+    ref = _cube_colours(bpy, scene, tmp_path / "cycles.exr", "CYCLES")
+    print(output, np.round(ours, 4).tolist(), np.round(ref, 4).tolist())
+    assert np.ptp(ref[:, 0]) > 0.1  # the cubes differ
+    assert np.abs(ours - ref).max() < 0.002, np.abs(ours - ref).max(axis=1)
+
+
+def test_object_info_random_of_collection_instances_matches_cycles(fresh_scene, bpy_addon,
+                                                                   tmp_path):
+    """Instances (a collection instanced by empties) take the depsgraph's random_id."""
+    bpy = bpy_addon
+    scene = fresh_scene
+    mat = _material(bpy, "Info", "Random")
+    _row(bpy, scene, mat)
+    coll = bpy.data.collections.new("Rock")
+    src = bpy.data.objects.new("RockMesh", bpy.data.objects["Cube"].data)
+    coll.objects.link(src)
+    for ob in [o for o in scene.objects if o.type == "MESH"]:
+        bpy.data.objects.remove(ob)
+    for i in range(N):
+        e = bpy.data.objects.new(f"Place{i}", None)
+        e.instance_type, e.instance_collection = "COLLECTION", coll
+        e.location = (i - (N - 1) / 2.0, 0.0, 0.0)
+        scene.collection.objects.link(e)
+    ours = _cube_colours(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")
+    ref = _cube_colours(bpy, scene, tmp_path / "cycles.exr", "CYCLES")
+    print(np.round(ours, 4).tolist(), np.round(ref, 4).tolist())
+    assert np.ptp(ref[:, 0]) > 0.1
+    assert np.abs(ours - ref).max() < 0.002, np.abs(ours - ref).max(axis=1)
