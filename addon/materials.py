@@ -1201,6 +1201,25 @@ class MaterialConverter:
                                f"{_value_text(self._default(sock))} (the socket's own value)")
                 consts.append(self._default(sock))
             return sn.Mapping(vec, *consts, kind=getattr(n, "vector_type", "POINT"))
+        if t == "MIX" and getattr(n, "data_type", "RGBA") in ("FLOAT", "VECTOR"):
+            ins = {i.identifier: i for i in n.inputs}
+            vec = n.data_type == "VECTOR"
+            uniform = not vec or getattr(n, "factor_mode", "UNIFORM") == "UNIFORM"
+            fac = self._input(n, ins["Factor_Float" if uniform else "Factor_Vector"], depth)
+            suffix = "_Vector" if vec else "_Float"
+            a = self._input(n, ins["A" + suffix], depth)
+            b = self._input(n, ins["B" + suffix], depth)
+            return _fold(sn.MixValue(fac, a, b, width=3 if vec else 1,
+                                     clamp_factor=getattr(n, "clamp_factor", True),
+                                     uniform=uniform), [fac, a, b])
+        if t == "VECT_MATH":
+            if n.operation not in sn.VECTOR_MATH_OPS:
+                return None
+            ins = [self._input(n, n.inputs[k], depth) for k in range(3)]
+            scale = self._input(n, n.inputs[3], depth)  # Scale (named IOR for Refract)
+            return _fold(sn.VectorMath(n.operation, *ins, scale=scale,
+                                       output="VALUE" if oname == "Value" else "VECTOR"),
+                         ins + [scale])
         if t == "MIX":
             if getattr(n, "data_type", "RGBA") != "RGBA":
                 return None

@@ -114,7 +114,51 @@ MIX_BLENDS = {
     "LIGHTEN": lambda a, b, t: a + t * (np.maximum(a, b) - a),
     "DIVIDE": lambda a, b, t: np.where(b != 0, a * (1.0 - t) + t * a / np.where(b != 0, b, 1),
                                        a),
+    "OVERLAY": lambda a, b, t: np.where(a < 0.5, a * (1.0 - t + 2.0 * t * b),
+                                        1.0 - (1.0 - t + 2.0 * t * (1.0 - b)) * (1.0 - a)),
+    "EXCLUSION": lambda a, b, t: np.maximum(a + t * (a + b - 2.0 * a * b - a), 0.0),
+    "DODGE": lambda a, b, t: _dodge(a, b, t),
+    "BURN": lambda a, b, t: _burn(a, b, t),
+    "HUE": lambda a, b, t: _mix_hsv(a, b, t, "HUE"),
+    "SATURATION": lambda a, b, t: _mix_hsv(a, b, t, "SATURATION"),
+    "VALUE": lambda a, b, t: _mix_hsv(a, b, t, "VALUE"),
+    "COLOR": lambda a, b, t: _mix_hsv(a, b, t, "COLOR"),
+    "SOFT_LIGHT": lambda a, b, t: (1.0 - t) * a + t * ((1.0 - a) * b * a
+                                                       + a * (1.0 - (1.0 - b) * (1.0 - a))),
+    "LINEAR_LIGHT": lambda a, b, t: a + t * (2.0 * b - 1.0),
 }
+
+
+def _dodge(a, b, t):
+    # svm_mix_dodge: a / (1 - t b), 1 where that is >= 1 or the divisor <= 0; a = 0 stays
+    d = 1.0 - t * b
+    q = np.where(d > 0, a / np.where(d > 0, d, 1.0), 1.0)
+    return np.where(a != 0, np.minimum(q, 1.0), a)
+
+
+def _burn(a, b, t):
+    # svm_mix_burn: 1 - (1 - a) / (1 - t + t b), clamped to 0..1; 0 where the divisor <= 0
+    d = 1.0 - t + t * b
+    q = 1.0 - (1.0 - a) / np.where(d > 0, d, 1.0)
+    return np.where(d > 0, np.clip(q, 0.0, 1.0), 0.0)
+
+
+def _mix_hsv(a, b, t, kind):
+    # svm_mix_hue / _sat / _val / _color (util/color.h rgb_to_hsv, hsv_to_rgb)
+    hsv, hsv2 = rgb_to_hsv(a), rgb_to_hsv(b)
+    tt = t[:, 0] if np.ndim(t) == 2 else np.broadcast_to(t, len(a))
+    if kind == "VALUE":
+        hsv[:, 2] = (1.0 - tt) * hsv[:, 2] + tt * hsv2[:, 2]
+        return hsv_to_rgb(hsv)
+    if kind == "SATURATION":
+        out = hsv.copy()
+        out[:, 1] = (1.0 - tt) * hsv[:, 1] + tt * hsv2[:, 1]
+        return np.where((hsv[:, 1] != 0)[:, None], hsv_to_rgb(out), a)
+    hsv[:, 0] = hsv2[:, 0]
+    if kind == "COLOR":
+        hsv[:, 1] = hsv2[:, 1]
+    mixed = a + tt[:, None] * (hsv_to_rgb(hsv) - a)
+    return np.where((hsv2[:, 1] != 0)[:, None], mixed, a)
 
 
 class MixColor:
@@ -135,6 +179,98 @@ class MixColor:
         out = MIX_BLENDS[self.blend](_eval(self.a, geo, prim, u, v, 3),
                                      _eval(self.b, geo, prim, u, v, 3), t[:, None])
         return np.clip(out, 0.0, 1.0) if self.clamp_result else out
+
+
+class MixValue:
+    """Mix node of floats (svm_node_mix_float) or vectors (svm_node_mix_vector, Uniform or
+    Non-Uniform factor): a + t (b - a), t clamped to 0..1 when clamp_factor. width 1
+    (floats, (N,)) or 3 (vectors, (N,3)); a non-uniform factor is a vector."""
+
+    def __init__(self, factor, a, b, width=1, clamp_factor=True, uniform=True):
+        self.factor, self.a, self.b = factor, a, b
+        self.width, self.clamp_factor, self.uniform = width, clamp_factor, uniform
+
+    def evaluate(self, geo, prim, u, v):
+        w = self.width
+        t = _eval(self.factor, geo, prim, u, v, 1 if (w == 1 or self.uniform) else 3)
+        if self.clamp_factor:
+            t = np.clip(t, 0.0, 1.0)
+        if w == 3 and t.ndim == 1:
+            t = t[:, None]
+        a, b = _eval(self.a, geo, prim, u, v, w), _eval(self.b, geo, prim, u, v, w)
+        return a * (1.0 - t) + b * t
+
+
+def _safe_normalize(a):
+    n = np.linalg.norm(a, axis=1, keepdims=True)
+    return np.where(n != 0, a / np.where(n != 0, n, 1.0), a)
+
+
+def _vector_op(op, a, b, c, scale):
+    """Cycles' svm_vector_math (kernel/svm/math_util.h): (vector (N,3), value (N,))."""
+    zero_v, zero_s = np.zeros_like(a), np.zeros(len(a))
+    dot = np.einsum("ij,ij->i", a, b)
+    if op == "DOT_PRODUCT":
+        return zero_v, dot
+    if op == "DISTANCE":
+        return zero_v, np.linalg.norm(a - b, axis=1)
+    if op == "LENGTH":
+        return zero_v, np.linalg.norm(a, axis=1)
+    if op == "PROJECT":
+        bb = np.einsum("ij,ij->i", b, b)
+        return np.where((bb != 0)[:, None], b * (dot / np.where(bb != 0, bb, 1.0))[:, None],
+                        0.0), zero_s
+    if op == "REFLECT":
+        n = _safe_normalize(b)
+        return a - 2.0 * np.einsum("ij,ij->i", a, n)[:, None] * n, zero_s
+    if op == "REFRACT":
+        n = _safe_normalize(b)
+        d = np.einsum("ij,ij->i", n, a)
+        k = 1.0 - scale * scale * (1.0 - d * d)
+        out = scale[:, None] * a - (scale * d + np.sqrt(np.maximum(k, 0.0)))[:, None] * n
+        return np.where((k < 0)[:, None], 0.0, out), zero_s
+    if op == "FACEFORWARD":
+        return np.where((np.einsum("ij,ij->i", c, b) < 0)[:, None], a, -a), zero_s
+    ops = {
+        "ADD": lambda: a + b, "SUBTRACT": lambda: a - b, "MULTIPLY": lambda: a * b,
+        "DIVIDE": lambda: _safe_divide(a, b), "MULTIPLY_ADD": lambda: a * b + c,
+        "CROSS_PRODUCT": lambda: np.cross(a, b), "SCALE": lambda: a * scale[:, None],
+        "NORMALIZE": lambda: _safe_normalize(a),
+        "SNAP": lambda: np.floor(_safe_divide(a, b)) * b,
+        "FLOOR": lambda: np.floor(a), "CEIL": lambda: np.ceil(a),
+        "MODULO": lambda: np.where(b != 0, np.fmod(a, np.where(b != 0, b, 1.0)), 0.0),
+        "WRAP": lambda: _wrap(a, b, c), "FRACTION": lambda: a - np.floor(a),
+        "ABSOLUTE": lambda: np.abs(a), "MINIMUM": lambda: np.minimum(a, b),
+        "MAXIMUM": lambda: np.maximum(a, b), "SINE": lambda: np.sin(a),
+        "COSINE": lambda: np.cos(a), "TANGENT": lambda: np.tan(a),
+        "POWER": lambda: _safe_power(a, b), "SIGN": lambda: np.sign(a),
+    }
+    return ops[op](), zero_s
+
+
+VECTOR_MATH_OPS = ("ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "CROSS_PRODUCT",
+                   "PROJECT", "REFLECT", "REFRACT", "FACEFORWARD", "DOT_PRODUCT", "DISTANCE",
+                   "LENGTH", "SCALE", "NORMALIZE", "SNAP", "FLOOR", "CEIL", "MODULO", "WRAP",
+                   "FRACTION", "ABSOLUTE", "MINIMUM", "MAXIMUM", "SINE", "COSINE", "TANGENT",
+                   "POWER", "SIGN")
+
+
+class VectorMath:
+    """Vector Math node (svm_node_vector_math): <operation>(a, b, c, scale) with output
+    VECTOR ((N,3)) or VALUE ((N,): Dot Product, Distance, Length; 0 for the others)."""
+
+    def __init__(self, operation, a, b=0.0, c=0.0, scale=1.0, output="VECTOR"):
+        if operation not in VECTOR_MATH_OPS:
+            raise ValueError(f"Vector Math operation {operation!r} is not supported")
+        self.operation, self.a, self.b, self.c = operation, a, b, c
+        self.scale, self.output = scale, output
+
+    def evaluate(self, geo, prim, u, v):
+        a, b, c = (_eval(x, geo, prim, u, v, 3) for x in (self.a, self.b, self.c))
+        scale = _eval(self.scale, geo, prim, u, v, 1)
+        with np.errstate(all="ignore"):
+            vec, val = _vector_op(self.operation, a, b, c, scale)
+        return val if self.output == "VALUE" else vec
 
 
 class Invert:

@@ -4,8 +4,8 @@ node trees real materials use).
 An emissive plane (Emission Strength 1: what the camera sees is the node tree's colour)
 fills an orthographic view; a Gradient Texture along the plane's x feeds the node under
 test, through a Map Range to -0.5 .. 1.5 where the node's behaviour outside 0 .. 1
-matters. 64 x 4 pixels, 16 samples near each pixel's centre in both renderers: every
-pixel within 0.005 (and 0.5 %) of Cycles'.
+matters (vectors: Combine XYZ of it). 64 x 4 pixels, 16 samples near each pixel's centre
+in both renderers: every pixel within 0.005 (and 0.5 %) of Cycles'.
 
 Cycles bakes Color Ramps and curves into tables of 257 entries from Blender's own
 evaluation (intern/cycles/blender/util.h colorramp_to_array, curvemapping_color_to_array;
@@ -142,6 +142,76 @@ def _math(op, b=0.7, c=0.25, lo=-1.5, hi=1.5, scale=1.0):
     return build
 
 
+def _vector(nodes, links, lo=-1.0, hi=1.0):
+    """A vector that varies along the plane: (f, 1 - f, 0.3 + 0.4 f), f from lo to hi."""
+    f = _gradient(nodes, links, lo, hi)
+    inv = nodes.new("ShaderNodeMath")
+    inv.operation = "SUBTRACT"
+    inv.inputs[0].default_value = 1.0
+    links.new(f, inv.inputs[1])
+    third = nodes.new("ShaderNodeMath")
+    third.operation = "MULTIPLY_ADD"
+    third.inputs[1].default_value = 0.4
+    third.inputs[2].default_value = 0.3
+    links.new(f, third.inputs[0])
+    c = nodes.new("ShaderNodeCombineXYZ")
+    links.new(f, c.inputs[0])
+    links.new(inv.outputs[0], c.inputs[1])
+    links.new(third.outputs[0], c.inputs[2])
+    return c.outputs[0]
+
+
+def _blend(kind):
+    def build(nodes, links):
+        m = nodes.new("ShaderNodeMix")
+        m.data_type, m.blend_type = "RGBA", kind
+        m.inputs["Factor"].default_value = 0.7
+        links.new(_colour(nodes, links), m.inputs[6])
+        m.inputs[7].default_value = (0.2, 0.7, 0.45, 1.0)
+        return m.outputs[2]
+    return build
+
+
+def _mix_value(data_type, uniform=True):
+    def build(nodes, links):
+        m = nodes.new("ShaderNodeMix")
+        m.data_type = data_type
+        if data_type == "FLOAT":
+            links.new(_gradient(nodes, links), m.inputs[2])
+            m.inputs[3].default_value = 0.8  # B (float)
+            m.inputs[0].default_value = 0.3
+            return m.outputs[0]
+        if not uniform:
+            m.factor_mode = "NON_UNIFORM"
+            m.inputs[1].default_value = (0.2, 0.5, 0.9)  # Factor (vector)
+        else:
+            m.inputs[0].default_value = 0.4
+        links.new(_vector(nodes, links, 0.0, 1.0), m.inputs[4])  # A (vector)
+        m.inputs[5].default_value = (0.9, 0.1, 0.6)  # B (vector)
+        return m.outputs[1]
+    return build
+
+
+def _vector_math(op, b=(0.6, -0.3, 0.8), c=(0.2, 0.4, -0.5), scale=1.3, value=False,
+                 shown=1.0, lo=-1.0, hi=1.0):
+    def build(nodes, links):
+        m = nodes.new("ShaderNodeVectorMath")
+        m.operation = op
+        links.new(_vector(nodes, links, lo, hi), m.inputs[0])
+        m.inputs[1].default_value = b
+        m.inputs[2].default_value = c
+        m.inputs[3].default_value = scale
+        out = m.outputs["Value" if value else "Vector"]
+        if shown != 1.0:
+            k = nodes.new("ShaderNodeVectorMath")
+            k.operation = "SCALE"
+            k.inputs[3].default_value = shown
+            links.new(out, k.inputs[0])
+            out = k.outputs[0]
+        return out
+    return build
+
+
 CASES = {
     "ramp_linear": _ramp("LINEAR"),
     "ramp_constant": _ramp("CONSTANT"),
@@ -184,6 +254,21 @@ CASES = {
     "math_tanh": _math("TANH", scale=0.4),
     "math_radians": _math("RADIANS", scale=10.0),
     "math_degrees": _math("DEGREES", scale=0.005),
+    **{f"mix_{k.lower()}": _blend(k) for k in (
+        "OVERLAY", "EXCLUSION", "DODGE", "BURN", "HUE", "SATURATION", "VALUE", "COLOR",
+        "SOFT_LIGHT", "LINEAR_LIGHT", "SCREEN", "DIVIDE", "DIFFERENCE")},
+    "mix_float": _mix_value("FLOAT"),
+    "mix_vector": _mix_value("VECTOR"),
+    "mix_vector_non_uniform": _mix_value("VECTOR", uniform=False),
+    **{f"vector_{k.lower()}": _vector_math(k) for k in (
+        "ADD", "SUBTRACT", "MULTIPLY", "MULTIPLY_ADD", "CROSS_PRODUCT", "PROJECT",
+        "REFLECT", "REFRACT", "FACEFORWARD", "SCALE", "NORMALIZE", "SNAP", "FLOOR", "CEIL",
+        "MODULO", "WRAP", "FRACTION", "ABSOLUTE", "MINIMUM", "MAXIMUM", "SINE", "COSINE",
+        "POWER", "SIGN")},
+    "vector_divide": _vector_math("DIVIDE", shown=0.25),
+    "vector_tangent": _vector_math("TANGENT", shown=0.1, lo=-0.5, hi=0.5),
+    **{f"vector_{k.lower()}": _vector_math(k, value=True, shown=0.5) for k in (
+        "DOT_PRODUCT", "DISTANCE", "LENGTH")},
 }
 
 
@@ -200,11 +285,9 @@ def _render(bpy, scene, path, engine):
     return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3]
 
 
-# Emission below 0 renders as 0 here (a light of negative power): cases whose output
-# goes below 0 are shown lifted by LIFT (a Mix Color, Add) and compared less LIFT.
-LIFT = 2.0
-NEGATIVE = {"gamma", "math_multiply_add", "math_smooth_min", "math_snap",
-            "rgb_curves_extrapolated", "float_curve"}
+# Emission below 0 renders as 0 here (a light of negative power): every case is shown
+# lifted by LIFT (a Mix Color, Add) and compared less LIFT.
+LIFT = 4.0
 
 
 def _plane_scene(bpy, scene, build, lift=0.0):
@@ -244,7 +327,7 @@ def _plane_scene(bpy, scene, build, lift=0.0):
 def test_node_matches_cycles_texel_by_texel(fresh_scene, bpy_addon, tmp_path, case):
     bpy = bpy_addon
     scene = fresh_scene
-    lift = LIFT if case in NEGATIVE else 0.0
+    lift = LIFT
     _plane_scene(bpy, scene, CASES[case], lift)
     ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP") - lift
     ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES") - lift
