@@ -1285,17 +1285,18 @@ class MaterialConverter:
             kelvin = self._input(n, n.inputs["Temperature"], depth)
             return _fold(sn.Blackbody(kelvin), [kelvin])
         if t in ("SEPARATE_COLOR", "SEPRGB", "SEPXYZ"):
-            if getattr(n, "mode", "RGB") != "RGB":
-                return None
-            channel = {"Red": 0, "R": 0, "X": 0, "Green": 1, "G": 1, "Y": 1,
-                       "Blue": 2, "B": 2, "Z": 2}.get(oname)
+            # (HSV / HSL outputs are named Hue, Saturation, Value / Lightness)
+            channel = {"Red": 0, "R": 0, "X": 0, "Hue": 0, "Green": 1, "G": 1, "Y": 1,
+                       "Saturation": 1, "Blue": 2, "B": 2, "Z": 2, "Value": 2,
+                       "Lightness": 2}.get(oname)
             if channel is None:
                 return None
-            return sn.SeparateChannel(self._input(n, n.inputs[0], depth), channel)
+            src = self._input(n, n.inputs[0], depth)
+            return _fold(sn.SeparateChannel(src, channel, mode=getattr(n, "mode", "RGB")),
+                         [src])
         if t in ("COMBINE_COLOR", "COMBRGB", "COMBXYZ"):
-            if getattr(n, "mode", "RGB") != "RGB":
-                return None
-            return sn.Combine(*(self._input(n, n.inputs[i], depth) for i in range(3)))
+            ins = [self._input(n, n.inputs[i], depth) for i in range(3)]
+            return _fold(sn.Combine(*ins, mode=getattr(n, "mode", "RGB")), ins)
         if t == "HUE_SAT":
             i = n.inputs
             return sn.HueSaturation(*(self._input(n, i[k], depth)

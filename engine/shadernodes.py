@@ -756,24 +756,41 @@ class Blackbody:
                           0.0)
 
 
-class SeparateChannel:
-    """Separate Color (RGB) / Separate XYZ: one channel (0, 1, 2) of a colour or vector."""
+COLOR_MODES = ("RGB", "HSV", "HSL")
 
-    def __init__(self, source, channel):
-        self.source, self.channel = source, int(channel)
+
+class SeparateChannel:
+    """Separate Color / Separate XYZ: one channel (0, 1, 2) of a colour or vector; the
+    colour's HSV or HSL channel for mode HSV / HSL (Cycles svm_separate_color)."""
+
+    def __init__(self, source, channel, mode="RGB"):
+        if mode not in COLOR_MODES:
+            raise ValueError(f"Separate Color mode {mode!r}: expected one of {COLOR_MODES}")
+        self.source, self.channel, self.mode = source, int(channel), mode
 
     def evaluate(self, geo, prim, u, v):
-        return _eval(self.source, geo, prim, u, v, 3)[:, self.channel]
+        c = _eval(self.source, geo, prim, u, v, 3)
+        if self.mode == "HSV":
+            c = rgb_to_hsv(c)
+        elif self.mode == "HSL":
+            c = rgb_to_hsl(c)
+        return c[:, self.channel]
 
 
 class Combine:
-    """Combine Color (RGB) / Combine XYZ: three factors into a colour or vector."""
+    """Combine Color / Combine XYZ: three factors into a colour or vector; for mode HSV /
+    HSL the factors are hue, saturation and value / lightness (svm_combine_color)."""
 
-    def __init__(self, x, y, z):
-        self.parts = (x, y, z)
+    def __init__(self, x, y, z, mode="RGB"):
+        if mode not in COLOR_MODES:
+            raise ValueError(f"Combine Color mode {mode!r}: expected one of {COLOR_MODES}")
+        self.parts, self.mode = (x, y, z), mode
 
     def evaluate(self, geo, prim, u, v):
-        return np.stack([_eval(p, geo, prim, u, v, 1) for p in self.parts], axis=1)
+        c = np.stack([_eval(p, geo, prim, u, v, 1) for p in self.parts], axis=1)
+        if self.mode == "HSV":
+            return hsv_to_rgb(c)
+        return hsl_to_rgb(c) if self.mode == "HSL" else c
 
 
 class Checker:
@@ -828,6 +845,31 @@ def hsv_to_rgb(hsv: np.ndarray) -> np.ndarray:
                       np.stack([p, q, v], 1), np.stack([t, p, v], 1), np.stack([v, p, q], 1)])
     rgb = table[i, np.arange(len(i))]
     return np.where((s != 0)[:, None], rgb, v[:, None])
+
+
+def rgb_to_hsl(c: np.ndarray) -> np.ndarray:
+    """(N,3) RGB -> HSL (Cycles util/color.h rgb_to_hsl: lightness at most 1)."""
+    cmax, cmin = c.max(axis=1), c.min(axis=1)
+    lum = np.minimum(1.0, (cmax + cmin) / 2.0)
+    d = cmax - cmin
+    grey = d == 0
+    sd = np.where(grey, 1.0, d)
+    with np.errstate(all="ignore"):
+        s = np.where(lum > 0.5, d / (2.0 - cmax - cmin), d / (cmax + cmin))
+    r, g, b = c[:, 0], c[:, 1], c[:, 2]
+    h = np.where(cmax == r, (g - b) / sd + np.where(g < b, 6.0, 0.0),
+                 np.where(cmax == g, (b - r) / sd + 2.0, (r - g) / sd + 4.0))
+    return np.stack([np.where(grey, 0.0, h) / 6.0, np.where(grey, 0.0, s), lum], axis=1)
+
+
+def hsl_to_rgb(hsl: np.ndarray) -> np.ndarray:
+    """(N,3) HSL -> RGB (Cycles util/color.h hsl_to_rgb)."""
+    h, s, lum = hsl[:, 0], hsl[:, 1], hsl[:, 2]
+    nr = np.clip(np.abs(h * 6.0 - 3.0) - 1.0, 0.0, 1.0)
+    ng = np.clip(2.0 - np.abs(h * 6.0 - 2.0), 0.0, 1.0)
+    nb = np.clip(2.0 - np.abs(h * 6.0 - 4.0), 0.0, 1.0)
+    chroma = (1.0 - np.abs(2.0 * lum - 1.0)) * s
+    return np.stack([(n - 0.5) * chroma + lum for n in (nr, ng, nb)], axis=1)
 
 
 class HueSaturation:

@@ -212,6 +212,34 @@ def _vector_math(op, b=(0.6, -0.3, 0.8), c=(0.2, 0.4, -0.5), scale=1.3, value=Fa
     return build
 
 
+def _separate(mode, channel):
+    def build(nodes, links):
+        sep = nodes.new("ShaderNodeSeparateColor")
+        sep.mode = mode
+        links.new(_ramp("LINEAR")(nodes, links), sep.inputs[0])  # hue, saturation and
+        # lightness all vary along it
+        return sep.outputs[channel]
+    return build
+
+
+def _combine(mode):
+    """Combine Color HSV / HSL of (f, 0.8, 0.3 + 0.4 f): a hue sweep."""
+    def build(nodes, links):
+        comb = nodes.new("ShaderNodeCombineColor")
+        comb.mode = mode
+        f = _gradient(nodes, links)
+        links.new(f, comb.inputs[0])
+        comb.inputs[1].default_value = 0.8
+        third = nodes.new("ShaderNodeMath")
+        third.operation = "MULTIPLY_ADD"
+        third.inputs[1].default_value = 0.4
+        third.inputs[2].default_value = 0.3
+        links.new(f, third.inputs[0])
+        links.new(third.outputs[0], comb.inputs[2])
+        return comb.outputs[0]
+    return build
+
+
 CASES = {
     "ramp_linear": _ramp("LINEAR"),
     "ramp_constant": _ramp("CONSTANT"),
@@ -257,6 +285,10 @@ CASES = {
     **{f"mix_{k.lower()}": _blend(k) for k in (
         "OVERLAY", "EXCLUSION", "DODGE", "BURN", "HUE", "SATURATION", "VALUE", "COLOR",
         "SOFT_LIGHT", "LINEAR_LIGHT", "SCREEN", "DIVIDE", "DIFFERENCE")},
+    **{f"separate_{m.lower()}_{k}": _separate(m, k) for m in ("HSV", "HSL")
+       for k in range(3)},
+    "combine_hsv": _combine("HSV"),
+    "combine_hsl": _combine("HSL"),
     "mix_float": _mix_value("FLOAT"),
     "mix_vector": _mix_value("VECTOR"),
     "mix_vector_non_uniform": _mix_value("VECTOR", uniform=False),
