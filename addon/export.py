@@ -158,14 +158,29 @@ def _corner_colors(me, tris, loops, faces):
     return None
 
 
+def object_normals(g: LocalGeometry) -> np.ndarray:
+    """(F,3,3) per-corner object-space normals: the shading normals where the mesh has
+    them, else each face's geometric normal (a flat face's N in Cycles)."""
+    if g.normals is not None:
+        n = np.asarray(g.normals, np.float64)
+        return n if n.ndim == 3 else n[g.faces]
+    p = g.co[g.faces]
+    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    return np.repeat(fn[:, None, :], 3, axis=1)
+
+
 def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
-    """Per-corner 'object' (local position) and 'generated' (position in the mesh's
+    """Per-corner 'object' (local position), 'generated' (position in the mesh's
     texture space, 0..1 over its bounds: (co - location) / (2 size) + 0.5, as Cycles
-    syncs ATTR_STD_GENERATED) coordinates, (F,3,3) each, corners in the exported order."""
+    syncs ATTR_STD_GENERATED) coordinates and 'normal' (object_normals: the Texture
+    Coordinate node's Normal, Box projection), (F,3,3) each, corners in the exported
+    order."""
     local = g.co[g.faces]
     loc, size = g.texspace
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
-    out = {"object": local, "generated": (local - loc) / (2.0 * size) + 0.5}
+    out = {"object": local, "generated": (local - loc) / (2.0 * size) + 0.5,
+           "normal": object_normals(g)}
     if flipped:
         out = {k: a[:, [0, 2, 1]] for k, a in out.items()}
     return out

@@ -1168,12 +1168,20 @@ class MaterialConverter:
             if tex is None:
                 return None
             vec = self._vector(n, "Vector", depth)
-            if vec is None and oname == "Color":
+            projection = getattr(n, "projection", "FLAT")
+            output = "ALPHA" if oname == "Alpha" else "COLOR"
+            if projection == "BOX":
+                normal = sn.ObjectNormal(self._coordinates("normal"))
+                return sn.BoxLookup(tex, vec, normal, getattr(n, "projection_blend", 0.0),
+                                    output=output)
+            if vec is None and oname == "Color" and projection == "FLAT":
                 return tex  # UVs of the active render map
-            return sn.ImageLookup(tex, vec, output="ALPHA" if oname == "Alpha" else "COLOR")
+            return sn.ImageLookup(tex, vec, output=output, projection=projection)
         if t == "TEX_COORD":
             if oname == "UV":
                 return sn.UVCoord()
+            if oname == "Normal":
+                return sn.ObjectNormal(self._coordinates("normal"))
             if oname in ("Generated", "Object"):
                 if getattr(n, "object", None) is not None and oname == "Object":
                     self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' "
@@ -1375,9 +1383,6 @@ class MaterialConverter:
             return None
         extension = str(getattr(node, "extension", "REPEAT"))
         interpolation = str(getattr(node, "interpolation", "Linear"))
-        if getattr(node, "projection", "FLAT") != "FLAT":
-            self._warn(f"material '{self._mat.name}': image node '{node.name}' projection "
-                       f"'{node.projection}' is not supported; using Flat (UV)")
         key = (img.name, extension, interpolation)
         if key in self.images:
             return self.images[key]

@@ -85,17 +85,124 @@ class Mapping:
         return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
 
 
-class ImageLookup:
-    """Image Texture node with its Vector input: output COLOR (N,3) or ALPHA (N,)."""
+def map_to_tube(co):
+    """Cycles util/math.h map_to_tube: (N,3) -> (N,2) uv."""
+    ln = np.sqrt(co[:, 0] ** 2 + co[:, 1] ** 2)
+    ok = ln > 0
+    s = np.where(ok, ln, 1.0)
+    u = (1.0 - np.arctan2(co[:, 0] / s, co[:, 1] / s) / np.pi) * 0.5
+    return np.stack([np.where(ok, u, 0.0), np.where(ok, (co[:, 2] + 1.0) * 0.5, 0.0)], axis=1)
 
-    def __init__(self, texture: ImageTexture, vector=None, output="COLOR"):
+
+def map_to_sphere(co):
+    """Cycles util/math.h map_to_sphere: (N,3) -> (N,2) uv."""
+    l2 = np.einsum("ij,ij->i", co, co)
+    ok = l2 > 0
+    pole = (co[:, 0] == 0) & (co[:, 1] == 0)
+    u = np.where(pole, 0.0, 0.5 - np.arctan2(co[:, 0], co[:, 1]) / (2.0 * np.pi))
+    v = 1.0 - np.arccos(np.clip(co[:, 2] / np.sqrt(np.where(ok, l2, 1.0)), -1.0, 1.0)) / np.pi
+    return np.stack([np.where(ok, u, 0.0), np.where(ok, v, 0.0)], axis=1)
+
+
+class ImageLookup:
+    """Image Texture node with its Vector input: output COLOR (N,3) or ALPHA (N,).
+    projection FLAT (the vector's x, y), SPHERE or TUBE (Cycles svm_node_tex_image_mapping:
+    the vector remapped from 0..1 to -1..1, then map_to_sphere / map_to_tube)."""
+
+    def __init__(self, texture: ImageTexture, vector=None, output="COLOR", projection="FLAT"):
+        if projection not in ("FLAT", "SPHERE", "TUBE"):
+            raise ValueError(f"Image projection {projection!r}: expected FLAT, SPHERE or "
+                             "TUBE (BOX: BoxLookup)")
         self.texture = texture
         self.vector = vector if vector is not None else UVCoord()
-        self.output = output
+        self.output, self.projection = output, projection
 
     def evaluate(self, geo, prim, u, v):
         uvw = _eval(self.vector, geo, prim, u, v, 3)
-        rgba = self.texture.sample_rgba(uvw[:, :2])
+        if self.projection == "SPHERE":
+            uv = map_to_sphere((uvw - 0.5) * 2.0)
+        elif self.projection == "TUBE":
+            uv = map_to_tube((uvw - 0.5) * 2.0)
+        else:
+            uv = uvw[:, :2]
+        rgba = self.texture.sample_rgba(uv)
+        return rgba[:, 3] if self.output == "ALPHA" else rgba[:, :3]
+
+
+class ObjectNormal:
+    """Texture Coordinate node, Normal output: the hit's object-space normal (Cycles
+    svm_node_tex_coord: sd->N by the object's inverse normal transform, normalised), from
+    the per-corner object-space normals (a Coordinates node of 'normal', interpolated).
+    Front-facing: a back face's flipped N is not followed."""
+
+    def __init__(self, normals):
+        self.normals = normals
+
+    def evaluate(self, geo, prim, u, v):
+        n = _eval(self.normals, geo, prim, u, v, 3)
+        ln = np.linalg.norm(n, axis=1, keepdims=True)
+        return np.where(ln > 0, n / np.where(ln > 0, ln, 1.0), n)
+
+
+def box_weights(n, blend):
+    """Cycles svm_node_tex_image_box's weights (N,3) of the x, y, z projections for
+    object-space normals n (N,3) and the node's Blend (0..1)."""
+    a = np.abs(n)
+    a = a / np.maximum(a.sum(axis=1, keepdims=True), 1e-300)
+    x, y, z = a[:, 0], a[:, 1], a[:, 2]
+    limit = 0.5 * (1.0 + blend)
+    w = np.zeros_like(a)
+    todo = np.ones(len(a), bool)
+
+    def take(mask, wx, wy, wz):
+        m = todo & mask
+        w[m, 0], w[m, 1], w[m, 2] = (np.broadcast_to(c, x.shape)[m] for c in (wx, wy, wz))
+        todo[m] = False
+
+    with np.errstate(all="ignore"):
+        take((x > limit * (x + y)) & (x > limit * (x + z)), 1.0, 0.0, 0.0)
+        take((y > limit * (x + y)) & (y > limit * (y + z)), 0.0, 1.0, 0.0)
+        take((z > limit * (x + z)) & (z > limit * (y + z)), 0.0, 0.0, 1.0)
+        if blend > 0.0:
+            def ramp(t):
+                return np.clip((t - 0.5 * (1.0 - blend)) / blend, 0.0, 1.0)
+            wxy = ramp(x / (x + y))
+            take(z < (1.0 - limit) * (y + x), wxy, 1.0 - wxy, 0.0)
+            wyz = ramp(y / (y + z))
+            take(x < (1.0 - limit) * (y + z), 0.0, wyz, 1.0 - wyz)
+            wxz = ramp(x / (x + z))
+            take(y < (1.0 - limit) * (x + z), wxz, 0.0, 1.0 - wxz)
+            k = (limit - 1.0) / (2.0 * limit - 1.0)
+            g = (2.0 - limit) / (2.0 * limit - 1.0)
+            take(np.ones(len(a), bool), g * x + k, g * y + k, g * z + k)
+        else:
+            take(np.ones(len(a), bool), 1.0, 0.0, 0.0)  # Cycles' "desperate mode"
+    return w
+
+
+class BoxLookup:
+    """Image Texture node with Box projection (Cycles svm_node_tex_image_box): the image
+    on each axis' plane of the vector (x: (y, z), y: (x, z), z: (y, x), mirrored on the
+    faces whose normal points the other way, so no face reads flipped), weighted by
+    box_weights of the object-space normal and Blend."""
+
+    def __init__(self, texture: ImageTexture, vector, normal, blend=0.0, output="COLOR"):
+        self.texture, self.normal = texture, normal
+        self.vector = vector if vector is not None else UVCoord()
+        self.blend, self.output = float(blend), output
+
+    def evaluate(self, geo, prim, u, v):
+        co = _eval(self.vector, geo, prim, u, v, 3)
+        n = _eval(self.normal, geo, prim, u, v, 3)
+        w = box_weights(n, self.blend)
+        planes = (np.stack([np.where(n[:, 0] < 0, 1.0 - co[:, 1], co[:, 1]), co[:, 2]], 1),
+                  np.stack([np.where(n[:, 1] > 0, 1.0 - co[:, 0], co[:, 0]), co[:, 2]], 1),
+                  np.stack([np.where(n[:, 2] > 0, 1.0 - co[:, 1], co[:, 1]), co[:, 0]], 1))
+        rgba = np.zeros((len(co), 4))
+        for k, uv in enumerate(planes):
+            m = w[:, k] > 0
+            if m.any():
+                rgba[m] += w[m, k, None] * self.texture.sample_rgba(uv[m])
         return rgba[:, 3] if self.output == "ALPHA" else rgba[:, :3]
 
 
