@@ -1256,6 +1256,11 @@ class MaterialConverter:
                                       output="ALPHA" if oname == "Alpha" else "COLOR"), [fac])
         if t in ("CURVE_RGB", "CURVE_FLOAT"):
             return self._curves(n, depth)
+        if t == "NEW_GEOMETRY":  # the Geometry node
+            out_kind = {"Position": "POSITION", "Normal": "NORMAL",
+                        "True Normal": "TRUE_NORMAL", "Incoming": "INCOMING",
+                        "Backfacing": "BACKFACING"}.get(oname)
+            return None if out_kind is None else sn.GeometryInfo(out_kind)
         if t == "OBJECT_INFO":
             out_kind = {"Random": "RANDOM", "Color": "COLOR", "Alpha": "ALPHA",
                         "Object Index": "OBJECT_INDEX"}.get(oname)

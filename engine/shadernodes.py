@@ -1212,6 +1212,39 @@ def _view(geo, prim):
     return ng, ng, np.zeros(len(ng), bool)
 
 
+class GeometryInfo:
+    """Geometry node (svm_node_geometry) per hit: POSITION (world space, m), NORMAL
+    (sd->N: the smooth shading normal turned to the arriving ray's side), TRUE_NORMAL
+    (sd->Ng, turned alike), INCOMING (sd->wi, back along the arriving ray) or BACKFACING
+    (1 on a triangle's back). Normal and Incoming read the ShadingGeometry's view (without
+    one: the geometric normal head-on, _view)."""
+
+    OUTPUTS = ("POSITION", "NORMAL", "TRUE_NORMAL", "INCOMING", "BACKFACING")
+
+    def __init__(self, output):
+        if output not in self.OUTPUTS:
+            raise ValueError(f"Geometry output {output!r}: expected one of {self.OUTPUTS}")
+        self.output = output
+
+    def evaluate(self, geo, prim, u, v):
+        prim = np.asarray(prim, np.int64)
+        if geo is None:
+            return np.zeros(len(prim)) if self.output == "BACKFACING" else np.zeros(
+                (len(prim), 3))
+        if self.output == "POSITION":
+            return geo.hit_points(prim, np.asarray(u, np.float64),
+                                  np.asarray(v, np.float64)) + np.asarray(geo.offset)
+        n, wi, back = _view(geo, prim)
+        if self.output == "NORMAL":
+            return np.asarray(n, np.float64)
+        if self.output == "INCOMING":
+            return np.asarray(wi, np.float64)
+        if self.output == "BACKFACING":
+            return np.asarray(back, np.float64)
+        ng = np.asarray(geo.ng[prim], np.float64).reshape(-1, 3)
+        return np.where(np.asarray(back)[:, None], -ng, ng)
+
+
 def fresnel_dielectric_cos(cosi, eta):
     """Cycles' fresnel_dielectric_cos (kernel/closure/bsdf_util.h): unpolarised dielectric
     reflectance for |cosi| and relative IOR eta; 1 under total internal reflection."""

@@ -2,8 +2,9 @@
 
 Box projection (Cycles svm_node_tex_image_box: three planar lookups weighted by the
 object-space normal, with Blend) on a rotated cube and a smooth sphere, Sphere and Tube
-projections (svm_node_tex_image_mapping) on a sphere, and the object-space Normal output
-on a rotated, non-uniformly scaled sphere; before, Box / Sphere / Tube read Flat UVs
+projections (svm_node_tex_image_mapping) on a sphere, the object-space Normal output
+on a rotated, non-uniformly scaled sphere, and the Geometry node's Position, Normal and
+True Normal (world space); before, Box / Sphere / Tube read Flat UVs
 (warned) and Normal fell back to the socket's value. Emission shaders seen head-on by an
 orthographic camera, 48 x 48, 16 samples near each pixel's centre: the mean absolute
 difference over the object's pixels within 0.004 and 98 % of them within 0.02 (edges,
@@ -99,12 +100,27 @@ def _render(bpy, scene, path, engine):
     return read_rgba(bpy, render_exr(bpy, scene, path))
 
 
+def _geometry_shown(output, scale=0.5):
+    def build(nodes, links):
+        g = nodes.new("ShaderNodeNewGeometry")
+        k = nodes.new("ShaderNodeVectorMath")
+        k.operation = "MULTIPLY_ADD"  # x scale + 0.5: every component shown
+        k.inputs[1].default_value = (scale, scale, scale)
+        k.inputs[2].default_value = (0.5, 0.5, 0.5)
+        links.new(g.outputs[output], k.inputs[0])
+        return k.outputs[0]
+    return lambda bpy: _emission(bpy, build)
+
+
 CASES = {
     "box_cube": lambda bpy: (_textured(bpy, "BOX"), "cube"),
     "box_sphere_blend": lambda bpy: (_textured(bpy, "BOX", 0.25), "sphere"),
     "sphere_projection": lambda bpy: (_textured(bpy, "SPHERE", coords="Generated"), "sphere"),
     "tube_projection": lambda bpy: (_textured(bpy, "TUBE", coords="Generated"), "sphere"),
     "normal_output": lambda bpy: (_normal_shown(bpy), "sphere"),
+    "geometry_position": lambda bpy: (_geometry_shown("Position", 0.4)(bpy), "sphere"),
+    "geometry_normal": lambda bpy: (_geometry_shown("Normal")(bpy), "sphere"),
+    "geometry_true_normal": lambda bpy: (_geometry_shown("True Normal")(bpy), "cube"),
 }
 
 
