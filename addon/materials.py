@@ -360,7 +360,14 @@ class MaterialConverter:
         if mat is None:
             closure = Closure()
         else:
-            closure = self._material_closure(mat, warnings)
+            try:
+                closure = self._material_closure(mat, warnings)
+            except Exception as exc:  # noqa: BLE001 - a tree this converter cannot read
+                # (a Blender version's socket it does not know, ...) must not stop the
+                # render: the material renders as its viewport colour, warned.
+                warnings.append(f"material '{mat.name}': its node tree could not be read "
+                                f"({type(exc).__name__}: {exc}); using the viewport colour")
+                closure = self._viewport(mat)
         m = self.pm.Material(
             name=key,
             base_color=np.clip(closure.base_color, 0.0, None),
@@ -1329,6 +1336,14 @@ class MaterialConverter:
                               output="FAC" if oname == "Fac" else "COLOR")
         if t in ("TEX_NOISE", "TEX_VORONOI"):
             return self._procedural(n, oname, depth)
+        if t == "TEX_WHITE_NOISE":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            dims = int(str(getattr(n, "noise_dimensions", "3D"))[0])
+            w_in = n.inputs.get("W")  # (no W socket by name unless 1D / 4D)
+            w = 0.0 if w_in is None else self._input(n, w_in, depth)
+            return sn.WhiteNoise(vec, w, dims, output="COLOR" if oname == "Color" else "VALUE")
         if t == "TEX_WAVE":
             vec = self._vector(n, "Vector", depth)
             if vec is None:

@@ -1,5 +1,5 @@
-"""Blender's procedural textures, evaluated per hit in compiled kernels: Noise, Voronoi and
-Wave.
+"""Blender's procedural textures, evaluated per hit in compiled kernels: Noise, Voronoi,
+Wave and White Noise.
 
 These must reproduce Cycles' patterns, not just look alike: a marble floor made with a
 Noise Texture has to put its veins where Cycles puts them. So the building blocks follow
@@ -817,6 +817,39 @@ def wave_texture(kind, direction, profile, points, scale, distortion, detail, de
             fac_out[i] = abs(n - math.floor(n + 0.5)) * 2.0
 
 
+@kernel
+def white_noise_texture(dims, points, w_in, value_out, color_out):
+    """The White Noise Texture node for a batch of hits (Cycles svm_node_tex_white_noise,
+    kernel/svm/white_noise.h): Value = hash_floatN_to_float of the dims-D input (1D: W;
+    2D: x, y; 3D: x, y, z; 4D: x, y, z, W), Color = hash_floatN_to_float3 (util/hash.h:
+    the value, then the same hash with the constants 1 and 2 appended, or in 4D the
+    inputs permuted). points (N,3), w_in (N,); writes value_out (N,), color_out (N,3).
+    A hash of the float32 bits: it matches Cycles where the inputs round to the same
+    float32 (integer or snapped coordinates, object random numbers), not elsewhere."""
+    for i in range(points.shape[0]):
+        x, y, z, w = points[i, 0], points[i, 1], points[i, 2], w_in[i]
+        if dims == 1:
+            a = hash_float(1, w, 0.0, 0.0, 0.0)
+            b = hash_float(2, w, 1.0, 0.0, 0.0)
+            c = hash_float(2, w, 2.0, 0.0, 0.0)
+        elif dims == 2:
+            a = hash_float(2, x, y, 0.0, 0.0)
+            b = hash_float(3, x, y, 1.0, 0.0)
+            c = hash_float(3, x, y, 2.0, 0.0)
+        elif dims == 3:
+            a = hash_float(3, x, y, z, 0.0)
+            b = hash_float(4, x, y, z, 1.0)
+            c = hash_float(4, x, y, z, 2.0)
+        else:
+            a = hash_float(4, x, y, z, w)
+            b = hash_float(4, z, x, w, y)
+            c = hash_float(4, w, z, y, x)
+        value_out[i] = a
+        color_out[i, 0] = a
+        color_out[i, 1] = b
+        color_out[i, 2] = c
+
+
 @register_warm_up
 def _warm_up():
     pts = np.zeros((1, 3))
@@ -829,3 +862,5 @@ def _warm_up():
         voronoi_texture(dims, 0, 0, False, pts, one, one, one, one, one, one, one, one,
                         val, col, np.zeros((1, 3)), np.zeros(1), np.zeros(1))
     wave_texture(0, 0, 0, pts, one, one, one, one, one, one, val)
+    for dims in (1, 2, 3, 4):
+        white_noise_texture(dims, pts, one, val, col)

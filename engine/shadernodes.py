@@ -1178,6 +1178,25 @@ class Wave:
         return np.repeat(fac[:, None], 3, axis=1) if self.output == "COLOR" else fac
 
 
+class WhiteNoise:
+    """White Noise Texture node (Cycles svm_node_tex_white_noise; kernel in
+    engine/procedural.py): dims 1-4, vector (N,3) coordinates node, w the W socket;
+    output VALUE (N,) or COLOR (N,3)."""
+
+    def __init__(self, vector, w=0.0, dims=3, output="VALUE"):
+        if dims not in (1, 2, 3, 4):
+            raise ValueError(f"White Noise dimensions {dims!r}: expected 1, 2, 3 or 4")
+        self.vector, self.w, self.dims, self.output = vector, w, int(dims), output
+
+    def evaluate(self, geo, prim, u, v):
+        from . import procedural
+        pts = np.ascontiguousarray(_eval(self.vector, geo, prim, u, v, 3))
+        w = np.ascontiguousarray(_eval(self.w, geo, prim, u, v, 1))
+        val, col = np.empty(len(pts)), np.empty((len(pts), 3))
+        procedural.white_noise_texture(self.dims, pts, w, val, col)
+        return col if self.output == "COLOR" else val
+
+
 class ShadingGeometry:
     """A Geometry seen from a batch of hits: every attribute of `geo`, plus what the
     view-dependent nodes (LayerWeight, Fresnel) read per hit, row for row with the

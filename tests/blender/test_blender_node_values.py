@@ -125,3 +125,22 @@ def test_constant_math_and_curve_trees_fold(fresh_scene, bpy_addon):
     assert mat.ior == pytest.approx(1.45)
     assert np.allclose(mat.base_color, (0.25, 0.0625, 1.0))
     assert mat.texture is None and not mat.scalar_textures
+
+
+def test_a_node_tree_the_converter_cannot_read_falls_back_with_a_warning(
+        fresh_scene, bpy_addon, monkeypatch):
+    """An exception while reading a material's tree (s33: White Noise's W socket, absent
+    by name in 3D, failed the whole render) renders the material as its viewport colour,
+    warned with the material's name, and the render goes on."""
+    from addon import materials
+    m, nt, out = _material(bpy_addon, "Unreadable")
+    _principled(nt, out)
+    m.diffuse_color = (0.2, 0.4, 0.6, 1.0)
+
+    def broken(self, *args, **kw):
+        raise KeyError('bpy_prop_collection[key]: key "W" not found')
+    monkeypatch.setattr(materials.MaterialConverter, "_shader", broken)
+    mat = _convert(m)
+    assert np.allclose(mat.base_color, (0.2, 0.4, 0.6))
+    assert any("'Unreadable'" in w and "could not be read" in w and "KeyError" in w
+               for w in mat.warnings), mat.warnings

@@ -240,6 +240,27 @@ def _combine(mode):
     return build
 
 
+def _white_noise(dims, output):
+    """White Noise of snapped coordinates (the hash needs the float32 bits Cycles sees:
+    Snap of Generated x by 1/16 gives sixteen exact cells along the plane)."""
+    def build(nodes, links):
+        tc = nodes.new("ShaderNodeTexCoord")
+        snap = nodes.new("ShaderNodeVectorMath")
+        snap.operation = "SNAP"
+        snap.inputs[1].default_value = (0.0625, 1.0, 1.0)
+        links.new(tc.outputs["Generated"], snap.inputs[0])
+        wn = nodes.new("ShaderNodeTexWhiteNoise")
+        wn.noise_dimensions = dims
+        if dims != "1D":
+            links.new(snap.outputs[0], wn.inputs["Vector"])
+        if dims in ("1D", "4D"):
+            sx = nodes.new("ShaderNodeSeparateXYZ")
+            links.new(snap.outputs[0], sx.inputs[0])
+            links.new(sx.outputs[0], wn.inputs["W"])
+        return wn.outputs[output]
+    return build
+
+
 CASES = {
     "ramp_linear": _ramp("LINEAR"),
     "ramp_constant": _ramp("CONSTANT"),
@@ -289,6 +310,8 @@ CASES = {
        for k in range(3)},
     "combine_hsv": _combine("HSV"),
     "combine_hsl": _combine("HSL"),
+    **{f"white_noise_{d.lower()}_{o.lower()}": _white_noise(d, o)
+       for d in ("1D", "2D", "3D", "4D") for o in ("Value", "Color")},
     "mix_float": _mix_value("FLOAT"),
     "mix_vector": _mix_value("VECTOR"),
     "mix_vector_non_uniform": _mix_value("VECTOR", uniform=False),
