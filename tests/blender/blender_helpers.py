@@ -217,3 +217,43 @@ def convert_material(m):
     from addon.core import load_engine
     from addon.materials import MaterialConverter
     return MaterialConverter(load_engine()).convert(m)
+
+
+def black_world(bpy, scene, strength=0.0):
+    """A new World of Background strength `strength` (0: black) on scene."""
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if bpy.app.version < (5, 0, 0):
+        world.use_nodes = True
+    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
+        "Strength"].default_value = strength
+    return world
+
+
+def looking_down_camera(bpy, scene, height, ortho_scale=None, lens=None):
+    """A camera at (0, 0, height) looking down -Z (x across the image), orthographic of
+    width ortho_scale, or perspective of focal length lens; the scene's camera."""
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    if ortho_scale is not None:
+        cam.data.type, cam.data.ortho_scale = "ORTHO", float(ortho_scale)
+    if lens is not None:
+        cam.data.lens = float(lens)
+    cam.location = (0.0, 0.0, float(height))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return cam
+
+
+def render_pixel_centres(bpy, scene, path, engine, spp=16):
+    """RGBA (H,W,4) of a direct-light-only render whose samples all sit near the pixels'
+    centres (a Gaussian pixel filter 0.01 px wide, both engines): a node tree's value
+    per pixel, with steps between two centres reading alike in both. Cycles plain
+    (no bounces); ours with photon mapping off."""
+    scene.render.engine = engine
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 0.01
+    if engine == "CYCLES":
+        cycles_plain(scene, spp, 0)
+    else:
+        cheap(scene, spp=spp, photons=1_000, caustic_photons=0)
+        scene.photonmap.photon_mapping = False
+    return read_rgba(bpy, render_exr(bpy, scene, path))

@@ -327,19 +327,6 @@ CASES = {
 }
 
 
-def _render(bpy, scene, path, engine):
-    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
-    scene.render.engine = engine
-    # Samples near each pixel's centre in both (a step between two centres reads alike).
-    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 0.01
-    if engine == "CYCLES":
-        cycles_plain(scene, 16, 0)
-    else:
-        cheap(scene, spp=16, photons=1_000, caustic_photons=0)
-        scene.photonmap.photon_mapping = False
-    return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3]
-
-
 # Emission below 0 renders as 0 here (a light of negative power): every case is shown
 # lifted by LIFT (a Mix Color, Add) and compared less LIFT.
 LIFT = 4.0
@@ -362,17 +349,9 @@ def _plane_scene(bpy, scene, build, lift=0.0):
     nt.links.new(e.outputs[0], out.inputs["Surface"])
     bpy.ops.mesh.primitive_plane_add(size=2.0)
     bpy.context.object.data.materials.append(m)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 1.9  # inside the plane
-    cam.location = (0.0, 0.0, 3.0)  # looks down -Z; x across the image
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
-        "Strength"].default_value = 0.0
+    from blender_helpers import black_world, looking_down_camera
+    looking_down_camera(bpy, scene, 3.0, ortho_scale=1.9)  # inside the plane
+    black_world(bpy, scene)
     scene.render.resolution_x, scene.render.resolution_y = W, H
     scene.render.resolution_percentage = 100
     return m
@@ -384,8 +363,9 @@ def test_node_matches_cycles_texel_by_texel(fresh_scene, bpy_addon, tmp_path, ca
     scene = fresh_scene
     lift = LIFT
     _plane_scene(bpy, scene, CASES[case], lift)
-    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP") - lift
-    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES") - lift
+    from blender_helpers import render_pixel_centres
+    ours = render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")[..., :3] - lift
+    ref = render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES")[..., :3] - lift
     row_o, row_r = ours.mean(axis=0), ref.mean(axis=0)  # (W, 3) along the gradient
     err = np.abs(row_o - row_r)
     print(f"{case}: max |ours - Cycles| {err.max():.5f}, Cycles range "

@@ -10,7 +10,6 @@ orthographic camera, 48 x 48, 16 samples near each pixel's centre: the mean abso
 difference over the object's pixels within 0.004 and 98 % of them within 0.02 (edges,
 where a pixel's samples straddle two faces, differ more).
 """
-import math
 
 import numpy as np
 import pytest
@@ -73,31 +72,11 @@ def _setup(bpy, scene, mat, shape, rotation=(0.5, 0.35, 0.7), scale=(1.0, 1.0, 1
     ob = bpy.context.object
     ob.rotation_euler, ob.scale = rotation, scale
     ob.data.materials.append(mat)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 2.2
-    cam.location = (0.0, 0.0, 5.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
-        "Strength"].default_value = 0.0
+    from blender_helpers import black_world, looking_down_camera
+    looking_down_camera(bpy, scene, 5.0, ortho_scale=2.2)
+    black_world(bpy, scene)
     scene.render.resolution_x = scene.render.resolution_y = W
     scene.render.resolution_percentage = 100
-
-
-def _render(bpy, scene, path, engine):
-    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
-    scene.render.engine = engine
-    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 0.01
-    if engine == "CYCLES":
-        cycles_plain(scene, 16, 0)
-    else:
-        cheap(scene, spp=16, photons=1_000, caustic_photons=0)
-        scene.photonmap.photon_mapping = False
-    return read_rgba(bpy, render_exr(bpy, scene, path))
 
 
 def _geometry_shown(output, scale=0.5):
@@ -131,8 +110,9 @@ def test_projection_matches_cycles(fresh_scene, bpy_addon, tmp_path, case):
     mat, shape = CASES[case](bpy)
     scale = (1.3, 0.8, 1.0) if case == "normal_output" else (1.0, 1.0, 1.0)
     _setup(bpy, scene, mat, shape, scale=scale)
-    ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")
-    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES")
+    from blender_helpers import render_pixel_centres
+    ours = render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")
+    ref = render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES")
     inside = (ref[..., :3].max(axis=-1) > 1e-3) | (ours[..., :3].max(axis=-1) > 1e-3)
     err = np.abs(ours[..., :3] - ref[..., :3]).max(axis=-1)[inside]
     print(f"{case}: {inside.sum()} px, mean {err.mean():.5f}, 98 % {np.quantile(err, 0.98):.5f}"

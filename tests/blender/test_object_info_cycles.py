@@ -56,31 +56,16 @@ def _row(bpy, scene, mat):
         ob.location = (i - (N - 1) / 2.0, 0.0, 0.0)
         ob.color = (0.1 + 0.1 * i, 0.9 - 0.1 * i, 0.5, 1.0)
         ob.pass_index = i
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", float(N)
-    cam.location = (0.0, 0.0, 5.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
-        "Strength"].default_value = 0.0
+    from blender_helpers import black_world, looking_down_camera
+    looking_down_camera(bpy, scene, 5.0, ortho_scale=N)
+    black_world(bpy, scene)
     scene.render.resolution_x, scene.render.resolution_y = 8 * N, 8
     scene.render.resolution_percentage = 100
 
 
 def _cube_colours(bpy, scene, path, engine):
-    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
-    scene.render.engine = engine
-    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "GAUSSIAN", 0.01
-    if engine == "CYCLES":
-        cycles_plain(scene, 4, 0)
-    else:
-        cheap(scene, spp=4, photons=1_000, caustic_photons=0)
-        scene.photonmap.photon_mapping = False
-    img = read_rgba(bpy, render_exr(bpy, scene, path))[..., :3]
+    from blender_helpers import render_pixel_centres
+    img = render_pixel_centres(bpy, scene, path, engine, spp=4)[..., :3]
     # Each cube covers the middle of its 8-pixel column block.
     return np.array([img[2:6, 8 * i + 2:8 * i + 6].reshape(-1, 3).mean(axis=0)
                      for i in range(N)])

@@ -52,12 +52,8 @@ def _sun_and_camera(bpy, scene, view_deg):
         "-Z", "Y").to_euler()
     scene.collection.objects.link(cam)
     scene.camera = cam
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
-        "Strength"].default_value = 0.0
+    from blender_helpers import black_world
+    black_world(bpy, scene)
 
 
 @pytest.mark.parametrize("roughness, diffuse_mix", [(0.2, 0.0), (0.5, 0.0), (1.0, 0.0),

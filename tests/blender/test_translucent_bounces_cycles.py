@@ -15,7 +15,6 @@ any Transmission) and the reflector's (a bounce at the panel that continues).
 """
 import math
 
-import numpy as np
 import pytest
 
 pytestmark = pytest.mark.blender
@@ -40,17 +39,9 @@ def _scene(bpy, scene):
     lamp.data.energy, lamp.data.shadow_soft_size = 100.0, 0.0
     lamp.location = (0.0, 0.0, 0.5)
     scene.collection.objects.link(lamp)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.location, cam.rotation_euler = (0.0, 0.0, -0.3), (0.0, 0.0, 0.0)  # looks down
-    cam.data.lens = 20.0
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
-        "Strength"].default_value = 0.0
+    from blender_helpers import black_world, looking_down_camera
+    looking_down_camera(bpy, scene, -0.3, lens=20.0)
+    black_world(bpy, scene)
     scene.render.resolution_x = scene.render.resolution_y = 32
     scene.render.resolution_percentage = 100
 
@@ -116,17 +107,9 @@ def _sheen_room(bpy, scene):
     lamp.data.energy, lamp.data.shadow_soft_size = 300.0, 0.0
     lamp.location = (0.0, 0.0, 1.0)
     scene.collection.objects.link(lamp)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.location, cam.rotation_euler = (0.0, 0.0, 0.6), (0.0, 0.0, 0.0)  # looks down
-    cam.data.lens = 20.0
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
-        "Strength"].default_value = 0.0
+    from blender_helpers import black_world, looking_down_camera
+    looking_down_camera(bpy, scene, 0.6, lens=20.0)
+    black_world(bpy, scene)
     scene.render.resolution_x = scene.render.resolution_y = 32
     scene.render.resolution_percentage = 100
 
