@@ -33,8 +33,9 @@ def _gradient(nodes, links, lo=0.0, hi=1.0):
     return mr.outputs["Result"]
 
 
-def _colour(nodes, links, lo=0.0, hi=1.0):
-    """A colour that varies along the plane: (f, 1 - f, 0.3 + 0.4 f), f = the gradient."""
+def _colour(nodes, links, lo=0.0, hi=1.0, combine="ShaderNodeCombineColor"):
+    """A colour (or with combine="ShaderNodeCombineXYZ" a vector) that varies along the
+    plane: (f, 1 - f, 0.3 + 0.4 f), f = the gradient mapped to lo .. hi."""
     f = _gradient(nodes, links, lo, hi)
     inv = nodes.new("ShaderNodeMath")
     inv.operation = "SUBTRACT"
@@ -45,7 +46,7 @@ def _colour(nodes, links, lo=0.0, hi=1.0):
     blue.inputs[1].default_value = 0.4
     blue.inputs[2].default_value = 0.3
     links.new(f, blue.inputs[0])
-    c = nodes.new("ShaderNodeCombineColor")
+    c = nodes.new(combine)
     links.new(f, c.inputs[0])
     links.new(inv.outputs[0], c.inputs[1])
     links.new(blue.outputs[0], c.inputs[2])
@@ -144,21 +145,7 @@ def _math(op, b=0.7, c=0.25, lo=-1.5, hi=1.5, scale=1.0):
 
 def _vector(nodes, links, lo=-1.0, hi=1.0):
     """A vector that varies along the plane: (f, 1 - f, 0.3 + 0.4 f), f from lo to hi."""
-    f = _gradient(nodes, links, lo, hi)
-    inv = nodes.new("ShaderNodeMath")
-    inv.operation = "SUBTRACT"
-    inv.inputs[0].default_value = 1.0
-    links.new(f, inv.inputs[1])
-    third = nodes.new("ShaderNodeMath")
-    third.operation = "MULTIPLY_ADD"
-    third.inputs[1].default_value = 0.4
-    third.inputs[2].default_value = 0.3
-    links.new(f, third.inputs[0])
-    c = nodes.new("ShaderNodeCombineXYZ")
-    links.new(f, c.inputs[0])
-    links.new(inv.outputs[0], c.inputs[1])
-    links.new(third.outputs[0], c.inputs[2])
-    return c.outputs[0]
+    return _colour(nodes, links, lo, hi, combine="ShaderNodeCombineXYZ")
 
 
 def _blend(kind):
