@@ -46,12 +46,23 @@ def _scene(bpy, scene):
     scene.render.resolution_percentage = 100
 
 
-def _mean(bpy, scene, path, engine, diffuse, transmission):
+def _means(bpy, scene, tmp_path, spp, limits):
+    """{name: (ours, Cycles)} image means for each Light Paths setting in limits
+    ({name: {property: value}} on scene.cycles, which the add-on reads too)."""
     from blender_helpers import cycles_plain, read_rgba, render_exr
-    c = cycles_plain(scene, 256, 12)  # the add-on reads Cycles' Light Paths too
-    c.diffuse_bounces, c.transmission_bounces = diffuse, transmission
-    scene.render.engine = engine
-    return float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
+    got = {}
+    for name, values in limits.items():
+        pair = []
+        for engine in ("PHOTONMAP", "CYCLES"):
+            c = cycles_plain(scene, spp, 12)
+            for k, val in values.items():
+                setattr(c, k, val)
+            scene.render.engine = engine
+            path = tmp_path / f"{engine}_{name}.exr"
+            pair.append(float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean()))
+        got[name] = tuple(pair)
+    print({k: (round(o, 4), round(r, 4), round(o / r, 4)) for k, (o, r) in got.items()})
+    return got
 
 
 def test_translucent_bounce_is_a_transmission_bounce(fresh_scene, bpy_addon, tmp_path):
@@ -60,12 +71,9 @@ def test_translucent_bounce_is_a_transmission_bounce(fresh_scene, bpy_addon, tmp
     scene = fresh_scene
     default_photonmap(scene).spp = 16
     _scene(bpy, scene)
-    got = {}
-    for d, t in ((4, 12), (4, 0), (1, 12)):
-        ours = _mean(bpy, scene, tmp_path / f"ours_{d}_{t}.exr", "PHOTONMAP", d, t)
-        ref = _mean(bpy, scene, tmp_path / f"cycles_{d}_{t}.exr", "CYCLES", d, t)
-        got[d, t] = (ours, ref)
-    print({k: (round(o, 4), round(r, 4), round(o / r, 4)) for k, (o, r) in got.items()})
+    got = _means(bpy, scene, tmp_path, 256, {
+        (d, t): dict(diffuse_bounces=d, transmission_bounces=t)
+        for d, t in ((4, 12), (4, 0), (1, 12))})
     for (d, t), (ours, ref) in got.items():
         assert ref > 0.5 and math.isfinite(ours)
         assert abs(ours / ref - 1.0) < 0.03, ((d, t), ours, ref)
@@ -114,14 +122,6 @@ def _sheen_room(bpy, scene):
     scene.render.resolution_percentage = 100
 
 
-def _mean_limits(bpy, scene, path, engine, diffuse, glossy):
-    from blender_helpers import cycles_plain, read_rgba, render_exr
-    c = cycles_plain(scene, 512, 12)
-    c.diffuse_bounces, c.glossy_bounces = diffuse, glossy
-    scene.render.engine = engine
-    return float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
-
-
 def test_sheen_bounce_is_a_diffuse_bounce(fresh_scene, bpy_addon, tmp_path):
     """Cycles' bsdf_sheen_sample labels LABEL_REFLECT | LABEL_DIFFUSE: a diffuse bounce.
     The camera side counted it so; the photons counted a glossy one, so Glossy 0 dropped
@@ -131,12 +131,8 @@ def test_sheen_bounce_is_a_diffuse_bounce(fresh_scene, bpy_addon, tmp_path):
     scene = fresh_scene
     default_photonmap(scene).spp = 16
     _sheen_room(bpy, scene)
-    got = {}
-    for d, g in ((4, 4), (4, 0), (1, 4)):
-        ours = _mean_limits(bpy, scene, tmp_path / f"ours_{d}_{g}.exr", "PHOTONMAP", d, g)
-        ref = _mean_limits(bpy, scene, tmp_path / f"cycles_{d}_{g}.exr", "CYCLES", d, g)
-        got[d, g] = (ours, ref)
-    print({k: (round(o, 4), round(r, 4), round(o / r, 4)) for k, (o, r) in got.items()})
+    got = _means(bpy, scene, tmp_path, 512, {
+        (d, g): dict(diffuse_bounces=d, glossy_bounces=g) for d, g in ((4, 4), (4, 0), (1, 4))})
     for (d, g), (ours, ref) in got.items():
         assert ref > 0.01 and math.isfinite(ours)
         assert abs(ours / ref - 1.0) < 0.04, ((d, g), ours, ref)
