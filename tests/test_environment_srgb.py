@@ -142,3 +142,18 @@ def test_image_texture_decodes_float_srgb_values_above_one_after_interpolating()
     ends = tex.sample(np.array([[0.25, 0.5], [0.75, 0.5]]))[:, 0]
     assert ends == pytest.approx([((0.2 + 0.055) / 1.055) ** 2.4,
                                   ((5.0 + 0.055) / 1.055) ** 2.4], rel=1e-6)
+
+
+def test_a_pickle_from_before_srgb_maps_looks_up_its_linear_texels():
+    import pickle
+    env = Environment(np.random.default_rng(2).random((4, 8, 3)), strength=1.7)
+    state = dict(env.__dict__)
+    for k in ("stored", "scale", "srgb"):
+        del state[k]
+    old = Environment.__new__(Environment)
+    old.__setstate__(state)
+    d, _, _ = sphere_grid(8, 16)
+    assert np.array_equal(old.radiance(d), env.radiance(d))
+    again = pickle.loads(pickle.dumps(Environment(_sun_sky(), srgb=True)))
+    assert again.srgb and again.stored is not again.pixels
+    assert np.array_equal(again.radiance(d), Environment(_sun_sky(), srgb=True).radiance(d))

@@ -132,6 +132,13 @@ class Environment:
         self._distribution = None
         self._cosine = None
 
+    def __setstate__(self, state):
+        # A pickle from before sRGB-stored maps (e.g. tools/film_hashes' exported
+        # scenes) holds linear texels only: its lookup reads them.
+        self.__dict__.update(state)
+        if "stored" not in state:
+            self.stored, self.scale, self.srgb = self.pixels, np.ones(3), False
+
     @property
     def height(self) -> int:
         return self.pixels.shape[0]
