@@ -18,12 +18,15 @@ cycles_stores_srgb) is looked up as Cycles does: the stored encoded texels are
 interpolated and the result decoded after (scene/image.cpp ImageMetaData::detect_colorspace
 sets compress_as_srgb; svm/image.h svm_image_texture applies color_srgb_to_linear_v4 to
 the interpolated value), then times the strength. Decoding after is darker than decoding
-first wherever neighbouring texels differ (the decode is convex): 10 % at a sun's edge.
-Closest lookups read one texel, for which both orders agree.
+first wherever neighbouring texels differ (the decode is convex): newuser32's sky read a
+horizon band 1.105 of Cycles decoded first, 8 x 8 pixel blocks at a sharp sun's edge up
+to 1.62 (tests/blender/test_srgb_float_cycles.py). Closest lookups read one texel, for
+which both orders agree.
 
 Sampling: the distribution's function on texel (row i, column j) is the mean of the
-bilinearly interpolated luminance of the linear (decoded) texels over the texel (a 3 x 3 filter of texel luminances,
-so every direction with radiance has a non-zero pdf; Closest: the texel's luminance)
+bilinearly interpolated luminance of the linear (decoded) texels over the texel (a 3 x 3
+filter of texel luminances, so every direction with radiance has a non-zero pdf;
+Closest: the texel's luminance)
 times sin(theta) at the row centre. Within the texel a Linear map's directions follow
 the bilinear interpolation of the luminance itself (texel_warp: a tent in each axis,
 sampled exactly), so a direction's pdf is proportional to the radiance it looks up, and
@@ -202,8 +205,9 @@ class Environment:
         """RGB integral of radiance over the sphere (W / m^2): the sum of texel radiance x
         texel solid angle (of the decoded texels for an sRGB map: an upper bound of its
         decoded-after interpolation's, by a few % at sharp edges; it only apportions
-        photons and light choices, whose estimators divide by what they chose). The flux crossing a disk of radius R from all directions is
-        this x pi R^2 (the world's photon flux)."""
+        photons and light choices, whose estimators divide by what they chose). The flux
+        crossing a disk of radius R from all directions is this x pi R^2 (the world's
+        photon flux)."""
         H, W = self.height, self.width
         theta0 = PI * np.arange(H) / H
         theta1 = PI * (np.arange(H) + 1) / H

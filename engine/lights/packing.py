@@ -29,9 +29,10 @@ def pack_lights(lights):
     rays sample, MeshLight.sides), empty
     without emissive meshes, then the world's environment map (radiance texels (H,W,3)
     float32, the texels its lookup reads and their scale (Environment.stored, (H,W,3)
-    float32, and Environment.scale, (3,) float64) and its cosine-weighted distributions: row cdfs (K,Hc+1), column cdfs
-    (K,Hc,Wc+1), cell probabilities (K,Hc,Wc), per-row prefix sums (H,W+1), cell sums
-    (Hc,Wc): environment.build_cosine_distributions), one black texel without one."""
+    float32, and Environment.scale, (3,) float64) and its cosine-weighted
+    distributions: row cdfs (K,Hc+1), column cdfs (K,Hc,Wc+1), cell probabilities
+    (K,Hc,Wc), per-row prefix sums (H,W+1), cell sums (Hc,Wc):
+    environment.build_cosine_distributions), one black texel without one."""
     codes = np.zeros(len(lights), np.int64)
     params = np.zeros((len(lights), P))
     mesh = None

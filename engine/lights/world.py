@@ -128,18 +128,18 @@ class WorldLight(InfiniteLight):
 
 
 @kernel
-def emit_world(env_on, rotation, pixels, stored, scale, interp, rows, cols, pdf_uv, flux, center,
-               R, centers, radii, probs, cdf, aimed, key, first, n, count, o32, d32, d, power,
-               slot, start):
+def emit_world(env_on, rotation, pixels, stored, scale, interp, rows, cols, pdf_uv, flux,
+               center, R, centers, radii, probs, cdf, aimed, key, first, n, count, o32, d32,
+               d, power, slot, start):
     """Photons of the world. A constant background: directions uniform over the sphere,
     each flux / count (flux: the radiance through the natural disk of radius R from every
     direction). An environment map (env_on; its rotation, radiance texels, interpolation
     and distribution: environment.py): directions from the map's distribution, power
     L / pdf x pi R^2 / count (pixels: its linear texels, which the distribution samples;
-    stored, scale: what its lookup reads, Environment.stored / scale). Photons travel against the sampled direction, from the
-    natural disk (emission.disk_origin) or, aimed, a caster's shadow disk
-    (emission.aim_origin). Dimensions: 0, 1 the direction, 2, 3 the origin; aimed: 2 the
-    target, 3, 4 the origin."""
+    stored, scale: what its lookup reads, Environment.stored / scale). Photons travel
+    against the sampled direction, from the natural disk (emission.disk_origin) or,
+    aimed, a caster's shadow disk (emission.aim_origin). Dimensions: 0, 1 the direction,
+    2, 3 the origin; aimed: 2 the target, 3, 4 the origin."""
     j = start
     f0, f1, f2 = flux[0] / count, flux[1] / count, flux[2] / count
     area = math.pi * R * R
