@@ -1414,6 +1414,12 @@ class MaterialConverter:
                 pixels = None
             else:
                 tiles, pixels = None, _pixels(img)
+            if srgb and img.is_float:
+                # Blender decoded the file's sRGB values at load; Cycles reads them as
+                # stored (cycles_stores_srgb): encode back (exact to float rounding).
+                encode = _srgb_encoder(self.pm)
+                for px in ([pixels] if tiles is None else tiles.values()):
+                    px[:, :, :3] = encode(px[:, :, :3])
             tex = self.pm.ImageTexture(pixels, tiles=tiles, extension=extension,
                                        interpolation=interpolation, srgb=srgb,
                                        name=img.name)
@@ -1425,18 +1431,16 @@ class MaterialConverter:
         return tex
 
     def _stored_as_srgb(self, img) -> bool:
-        """True when the pixels are 8-bit sRGB-encoded (Cycles interpolates those as
-        stored and converts after); float images are linear already in Blender."""
-        if img.is_float:
-            return False
+        """True when Cycles keeps the image's texels sRGB-encoded (interpolates those as
+        stored and converts after): cycles_stores_srgb; an 8-bit image in a colour space
+        other than sRGB and the linear ones warns."""
+        srgb = cycles_stores_srgb(img)
         space = img.colorspace_settings.name
-        if space in ("Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E",
-                     "Linear Rec.2020"):
-            return False
-        if space not in ("sRGB", "sRGB EOTF", "Filmic sRGB", "AgX Base sRGB"):
+        if srgb and not img.is_float and space not in ("sRGB", "sRGB EOTF", "Filmic sRGB",
+                                                        "AgX Base sRGB"):
             self._warn(f"material '{self._mat.name}': image '{img.name}' colour space "
                        f"'{space}' is treated as sRGB")
-        return True
+        return srgb
 
     def _udim_tiles(self, img) -> dict:
         """{tile number: pixels} of a UDIM image, each tile read from its own file
@@ -1460,6 +1464,44 @@ class MaterialConverter:
         if not tiles:
             raise ValueError("no UDIM tile could be read")
         return tiles
+
+
+# Colour spaces Cycles reads as stored (scene/colorspace.cpp detect_known_colorspace: an
+# identity conversion to scene linear is u_colorspace_raw).
+LINEAR_SPACES = ("Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E",
+                 "Linear Rec.2020", "Working Space")
+
+
+def cycles_builtin(img) -> bool:
+    """Whether Cycles reads the image through Blender (BlenderImageLoader: packed,
+    generated, a movie, or a UDIM image with a generated tile; blender/util.h
+    image_is_builtin) rather than from its file (OIIOImageLoader)."""
+    if img.source == "TILED" and any(getattr(t, "is_generated_tile", False)
+                                     for t in img.tiles):
+        return True
+    return bool(img.packed_file) or img.source in ("GENERATED", "MOVIE")
+
+
+def cycles_stores_srgb(img) -> bool:
+    """Whether Cycles keeps the image's texels sRGB-encoded and decodes them after
+    interpolating (scene/image.cpp ImageMetaData::detect_colorspace: compress_as_srgb when
+    detect_known_colorspace finds sRGB; svm/image.h: color_srgb_to_linear after the
+    lookup). An 8-bit image in any space but the linear ones (others than sRGB are read
+    as sRGB here). A float image read from its file and tagged sRGB (Blender 5's
+    Image.save() writes such EXRs; Blender decodes them to linear at load, Cycles does
+    not); a float image Cycles reads through Blender is linear already
+    (BlenderImageLoader: "Float images are already converted on the Blender side",
+    colorspace raw), as is one in any other space (converted to scene linear at load)."""
+    space = img.colorspace_settings.name
+    if not img.is_float:
+        return space not in LINEAR_SPACES
+    return space == "sRGB" and not cycles_builtin(img)
+
+
+def _srgb_encoder(pm):
+    """The engine's imageio.srgb_encode (Cycles' color_linear_to_srgb, not clipped)."""
+    from importlib import import_module
+    return import_module(pm.__name__ + ".imageio").srgb_encode
 
 
 def _pixels(img) -> np.ndarray:

@@ -17,10 +17,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from .materials import _pixels, output_node
-
-_LINEAR_SPACES = ("Non-Color", "Linear Rec.709", "Linear", "Raw", "Linear CIE-XYZ E",
-                  "Linear Rec.2020")
+from .materials import _pixels, _srgb_encoder, cycles_stores_srgb, output_node
 
 
 def _from(socket):
@@ -116,14 +113,19 @@ def _environment(pm, world, node, strength, warnings):
         warnings.append(f"{who}: image '{img.name}' could not be read ({exc}); using the "
                         "Background colour")
         return None
-    rgb = np.asarray(rgba[:, :, :3], np.float32)
-    if not img.is_float and img.colorspace_settings.name not in _LINEAR_SPACES:
-        # 8-bit sRGB texels: Cycles interpolates the stored values and converts after;
-        # here they are converted first (a difference only at texel scale).
-        rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((np.clip(rgb, 0, 1) + 0.055) / 1.055) ** 2.4)
-    rgb = np.nan_to_num(np.maximum(rgb, 0.0), nan=0.0, posinf=0.0)
+    rgb = np.nan_to_num(np.maximum(np.asarray(rgba[:, :, :3], np.float32), 0.0), nan=0.0,
+                        posinf=0.0)
+    srgb = cycles_stores_srgb(img)
+    if srgb and img.is_float:
+        # A float file tagged sRGB: Blender decoded it at load, Cycles keeps the file's
+        # encoded values (addon/materials.py cycles_stores_srgb); encode back (exact to
+        # float rounding). 8-bit texels are the stored encoded values already.
+        rgb = _srgb_encoder(pm)(rgb).astype(np.float32)
     try:
-        return pm.Environment(rgb, strength, rotation, interpolation, name=img.name)
+        # srgb: the engine interpolates the encoded texels and decodes after, as Cycles
+        # (engine/lights/environment.py).
+        return pm.Environment(rgb, strength, rotation, interpolation, name=img.name,
+                              srgb=srgb)
     except ValueError as exc:
         warnings.append(f"{who}: {exc}; using the Background colour")
         return None

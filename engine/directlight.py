@@ -227,7 +227,8 @@ def terminator_lift(prim, bary, ng, smooth, object_id, terminator, v0, e1, e2,
 @kernel
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_area, m_tf, m_ti, m_round32,
-                  m_tilt32, m_side, env_px, env_rows, env_cols, env_mass, env_prefix, env_cell,
+                  m_tilt32, m_side, env_px, env_stored, env_scale, env_rows, env_cols, env_mass,
+                  env_prefix, env_cell,
                   tree_f, tree_i, inf_idx, inf_f, l_trace, klight, ktrace, U1, U2, SEL,
                   contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf, bump, hrow):
     """Every light sample of a batch of hits, compacted to the lit ones.
@@ -392,7 +393,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
                     pdf = ENV_MAP_FRACTION * pe + (1.0 - ENV_MAP_FRACTION) * max(cs, 0.0) / PI
                     if cs > 0 and pdf > 0 and ok > 0:
-                        L0, L1, L2 = env_radiance(R, env_px, int(q[ENV_INTERP]), w0, w1, w2)
+                        L0, L1, L2 = env_radiance(R, env_stored, int(q[ENV_INTERP]), env_scale,
+                                                  w0, w1, w2)
                         f = cs / pdf
                         e0, e1, e2 = L0 * f, L1 * f, L2 * f
                     lp = pdf

@@ -28,6 +28,25 @@ def srgb_to_linear(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
+def srgb_decode(c: np.ndarray) -> np.ndarray:
+    """Cycles' color_srgb_to_linear (util/color.h) elementwise, as its kernels decode an
+    image stored sRGB-encoded after the lookup: c / 12.92 below 0.04045 (0 below 0),
+    ((c + 0.055) / 1.055)^2.4 above, not clipped above 1 (a float image's encoded values
+    may exceed 1). float64 array of c's shape."""
+    c = np.asarray(c, np.float64)
+    return np.where(c < 0.04045, np.maximum(c, 0.0) / 12.92,
+                    ((np.maximum(c, 0.04045) + 0.055) / 1.055) ** 2.4)
+
+
+def srgb_encode(x: np.ndarray) -> np.ndarray:
+    """Cycles' color_linear_to_srgb elementwise (srgb_decode's inverse): 12.92 x below
+    0.0031308 (0 below 0), 1.055 x^(1/2.4) - 0.055 above, not clipped above 1 (unlike
+    linear_to_srgb, the display encoding). float64 array of x's shape."""
+    x = np.asarray(x, np.float64)
+    return np.where(x < 0.0031308, 12.92 * np.maximum(x, 0.0),
+                    1.055 * np.maximum(x, 0.0031308) ** (1.0 / 2.4) - 0.055)
+
+
 def to_8bit(rgb: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     """Linear radiance -> sRGB-encoded 8 bit (clipped, like Blender's 'Standard' view)."""
     scaled = np.asarray(rgb, np.float64) * (2.0 ** exposure)

@@ -10,10 +10,13 @@ with the node's settings, and turns UV coordinates into linear RGBA:
   interpolation  Linear (bilinear), Closest (nearest texel), Cubic (uniform cubic
                  B-spline, Cycles' `cubic_weights`), Smart (Cubic, as Cycles renders it
                  without mip-maps).
-  srgb           the pixels are 8-bit sRGB-encoded values: Cycles stores those as bytes,
-                 interpolates the encoded values and converts to linear after, so a
-                 filtered edge between dark and bright texels is darker than converting
-                 first (a checker at texel scale: 1.68x too bright the other way round).
+  srgb           the pixels are the sRGB-encoded values of an image Cycles keeps stored
+                 as sRGB (8-bit sRGB, or a float file tagged sRGB: addon/materials.py
+                 cycles_stores_srgb): Cycles interpolates the encoded values and converts
+                 to linear after (color_srgb_to_linear: 0 below 0, not clipped above 1,
+                 so a float image's encoded 5.75 is 60), so a filtered edge between dark
+                 and bright texels is darker than converting first (a checker at texel
+                 scale: 1.68x too bright the other way round).
   tiles          UDIM: {1001: pixels, 1002: ...}; a coordinate reads tile
                  1001 + floor(u) + 10 floor(v) at its fractional part; a coordinate with
                  no tile (u < 0, v < 0, u >= 10 or a tile not in the set) reads Cycles'
@@ -28,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .imageio import srgb_to_linear
+from .imageio import srgb_decode
 
 EXTENSIONS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")
 INTERPOLATIONS = ("Linear", "Closest", "Cubic", "Smart")
@@ -79,7 +82,7 @@ class ImageTexture:
     """One Image Texture node's image and settings; see the module docstring.
 
     pixels         HxW, HxWx3 or HxWx4 stored values, top row first (float; sRGB-encoded
-                   when srgb=True, else linear or non-colour data).
+                   when srgb=True, possibly above 1, else linear or non-colour data).
     tiles          optional {udim number (>= 1001): pixels} for a UDIM image; pixels is
                    then ignored (pass None).
     Raises TextureError (naming `name`) on a bad shape, mode or tile number.
@@ -159,7 +162,7 @@ class ImageTexture:
 
     def _to_linear(self, rgba: np.ndarray) -> np.ndarray:
         if self.srgb:
-            rgba[:, :3] = srgb_to_linear(np.clip(rgba[:, :3], 0.0, 1.0))
+            rgba[:, :3] = srgb_decode(rgba[:, :3])
         return rgba
 
     def _lookup(self, px: np.ndarray, uv: np.ndarray) -> np.ndarray:

@@ -12,9 +12,21 @@ docs/compatibility.md, world cases):
 Texel centres sit at (i + 0.5) / width; Linear (bilinear) or Closest lookups with the
 image repeated in both directions (the node's fixed extension mode).
 
+An image Cycles keeps stored as sRGB (srgb=True: an 8-bit sRGB image, or a float file
+tagged sRGB such as the EXR Blender 5's Image.save() writes; addon/materials.py
+cycles_stores_srgb) is looked up as Cycles does: the stored encoded texels are
+interpolated and the result decoded after (scene/image.cpp ImageMetaData::detect_colorspace
+sets compress_as_srgb; svm/image.h svm_image_texture applies color_srgb_to_linear_v4 to
+the interpolated value), then times the strength. Decoding after is darker than decoding
+first wherever neighbouring texels differ (the decode is convex): newuser32's sky read a
+horizon band 1.105 of Cycles decoded first, 8 x 8 pixel blocks at a sharp sun's edge up
+to 1.62 (tests/blender/test_srgb_float_cycles.py). Closest lookups read one texel, for
+which both orders agree.
+
 Sampling: the distribution's function on texel (row i, column j) is the mean of the
-bilinearly interpolated luminance over the texel (a 3 x 3 filter of texel luminances,
-so every direction with radiance has a non-zero pdf; Closest: the texel's luminance)
+bilinearly interpolated luminance of the linear (decoded) texels over the texel (a 3 x 3
+filter of texel luminances, so every direction with radiance has a non-zero pdf;
+Closest: the texel's luminance)
 times sin(theta) at the row centre. Within the texel a Linear map's directions follow
 the bilinear interpolation of the luminance itself (texel_warp: a tent in each axis,
 sampled exactly), so a direction's pdf is proportional to the radiance it looks up, and
@@ -23,7 +35,10 @@ no longer weigh their directions unevenly (they were 70 % of the variance of a
 map x cosine shadow ray under a 2-degree sun of radiance 1200: issue 14); a Closest
 map's are uniform over the texel.
 A direction's solid-angle pdf is pdf_uv x ratio / (2 pi^2 sin theta), ratio the
-interpolated luminance over its mean over the texel (1 for Closest).
+interpolated luminance over its mean over the texel (1 for Closest). For an sRGB-stored
+map the radiance is the decoded interpolation of the encoded texels, which the
+interpolation of the decoded texels bounds from above and follows closely; the pdf is
+the distribution's own, exactly, so the estimators stay unbiased.
 
 The lookups and the sampling are compiled kernels (engine/jit.py) shared by the
 direct-light kernel (engine/directlight.py), photon emission and escaped rays, so the
@@ -35,13 +50,17 @@ import math
 
 import numpy as np
 
+from ..imageio import srgb_decode
 from ..jit import kernel, register_warm_up
 from ..sampling import luminance
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
 HALF_PI = 0.5 * math.pi
-INTERP_CLOSEST, INTERP_LINEAR = 0, 1
+# Lookup codes of the kernels: INTERP_LINEAR_SRGB is a Linear lookup of sRGB-encoded
+# texels, decoded after the interpolation and scaled by the strength (Cycles'
+# NODE_IMAGE_COMPRESS_AS_SRGB); the sampling kernels treat it as INTERP_LINEAR.
+INTERP_CLOSEST, INTERP_LINEAR, INTERP_LINEAR_SRGB = 0, 1, 2
 INTERPOLATIONS = {"Closest": INTERP_CLOSEST, "Linear": INTERP_LINEAR}
 
 
@@ -49,16 +68,27 @@ class Environment:
     """An equirectangular image lighting the scene from infinity.
 
     pixels         (H, W, 3) (or (H, W, 4): alpha ignored) linear RGB radiance per unit
-                   strength, top row first (the sky's zenith); kept as float32
+                   strength, top row first (the sky's zenith); kept as float32. With
+                   srgb: the sRGB-encoded values the image stores (see the module
+                   docstring; >= 0, may exceed 1)
     strength       scalar or RGB multiplier (the Background node's Strength x colour)
     rotation       (3, 3) rotation taking world directions to texture directions (the
                    Mapping node); None = identity. Must be a rotation (orthonormal, det 1)
     interpolation  "Linear" (default, Cycles' default) or "Closest"
+    srgb           the image is stored sRGB-encoded and Cycles decodes after
+                   interpolating (module docstring)
     Raises ValueError naming `name` and the argument for bad input.
+
+    Attributes: `pixels` (H, W, 3) float32 linear radiance texels x strength (decoded
+    for an sRGB map: the sampling distribution and the integral read these);
+    `stored` (H, W, 3) float32 the texels the lookup interpolates (`pixels` itself, or
+    the encoded values of an sRGB map looked up Linear); `scale` (3,) float64 what
+    multiplies a decoded lookup (the strength; ones when `stored` is `pixels`, whose
+    texels hold it); `interp_code` the kernels' lookup code (INTERP_*).
     """
 
     def __init__(self, pixels, strength=1.0, rotation=None, interpolation="Linear",
-                 name="environment"):
+                 name="environment", srgb=False):
         self.name = name
         who = f"environment '{name}'"
         a = np.asarray(pixels, dtype=np.float32)
@@ -81,6 +111,10 @@ class Environment:
         if interpolation not in INTERPOLATIONS:
             raise ValueError(f"{who} interpolation: expected one of {tuple(INTERPOLATIONS)}, "
                              f"got {interpolation!r}")
+        self.srgb = bool(srgb)
+        encoded = a
+        if self.srgb:
+            a = srgb_decode(a).astype(np.float32)
         # Strength folded in: radiance texels, float32 like the image files (an 8k x 4k
         # HDRI: 400 MB as float32, twice that as float64).
         self.pixels = np.ascontiguousarray(a * s.astype(np.float32))
@@ -90,8 +124,23 @@ class Environment:
         self.rotation = np.ascontiguousarray(R)
         self.interpolation = interpolation
         self.interp_code = INTERPOLATIONS[interpolation]
+        self.stored = self.pixels
+        self.scale = np.ones(3)
+        if self.srgb and interpolation == "Linear":
+            # The encoded texels are interpolated, decoded after and scaled by the
+            # strength (a Closest lookup reads one texel: decoded first is the same).
+            self.stored = np.ascontiguousarray(encoded)
+            self.scale = s.copy()
+            self.interp_code = INTERP_LINEAR_SRGB
         self._distribution = None
         self._cosine = None
+
+    def __setstate__(self, state):
+        # A pickle from before sRGB-stored maps (e.g. tools/film_hashes' exported
+        # scenes) holds linear texels only: its lookup reads them.
+        self.__dict__.update(state)
+        if "stored" not in state:
+            self.stored, self.scale, self.srgb = self.pixels, np.ones(3), False
 
     @property
     def height(self) -> int:
@@ -112,7 +161,7 @@ class Environment:
         piecewise-constant distribution (see the module docstring); built once."""
         if self._distribution is None:
             self._distribution = build_distribution(self.pixels,
-                                                    self.interp_code == INTERP_LINEAR)
+                                                    self.interp_code != INTERP_CLOSEST)
         return self._distribution
 
     @property
@@ -121,7 +170,7 @@ class Environment:
         once."""
         if getattr(self, "_cosine", None) is None:
             self._cosine = build_cosine_distributions(self.pixels,
-                                                      self.interp_code == INTERP_LINEAR)
+                                                      self.interp_code != INTERP_CLOSEST)
         return self._cosine
 
     def cosine_pdf(self, wi: np.ndarray, ns: np.ndarray) -> np.ndarray:
@@ -154,8 +203,11 @@ class Environment:
 
     def integral(self) -> np.ndarray:
         """RGB integral of radiance over the sphere (W / m^2): the sum of texel radiance x
-        texel solid angle. The flux crossing a disk of radius R from all directions is
-        this x pi R^2 (the world's photon flux)."""
+        texel solid angle (of the decoded texels for an sRGB map: an upper bound of its
+        decoded-after interpolation's, by a few % at sharp edges; it only apportions
+        photons and light choices, whose estimators divide by what they chose). The flux
+        crossing a disk of radius R from all directions is this x pi R^2 (the world's
+        photon flux)."""
         H, W = self.height, self.width
         theta0 = PI * np.arange(H) / H
         theta1 = PI * (np.arange(H) + 1) / H
@@ -171,7 +223,7 @@ class Environment:
         """Radiance (N,3) seen along world directions d (N,3) (need not be unit)."""
         d = np.ascontiguousarray(np.asarray(d, np.float64).reshape(-1, 3))
         out = np.empty((len(d), 3))
-        radiance_many(d, self.rotation, self.pixels, self.interp_code, out)
+        radiance_many(d, self.rotation, self.stored, self.interp_code, self.scale, out)
         return out
 
     def pdf(self, wi: np.ndarray) -> np.ndarray:
@@ -383,9 +435,18 @@ def _wrap(i, n):
 
 
 @kernel
+def srgb_decode_value(c):
+    """Cycles' color_srgb_to_linear (util/color.h) of one value (imageio.srgb_decode's
+    kernel): 0 below 0, no clip above 1."""
+    if c < 0.04045:
+        return c / 12.92 if c > 0.0 else 0.0
+    return ((c + 0.055) / 1.055) ** 2.4
+
+
+@kernel
 def env_lookup(px, interp, u, v):
-    """Radiance (r, g, b) at image coordinates (u, v): texel centres at (i + 0.5) / W,
-    v = 1 at the top row; Repeat extension."""
+    """Texel values (r, g, b) at image coordinates (u, v): texel centres at (i + 0.5) / W,
+    v = 1 at the top row; Repeat extension. Closest (interp 0) or bilinear (else)."""
     H = px.shape[0]
     W = px.shape[1]
     x = u * W
@@ -415,11 +476,16 @@ def env_lookup(px, interp, u, v):
 
 
 @kernel
-def env_radiance(R, px, interp, d0, d1, d2):
-    """Radiance along world direction d."""
+def env_radiance(R, stored, interp, scale, d0, d1, d2):
+    """Radiance along world direction d: the lookup of Environment.stored, decoded after
+    and times scale (3,) for INTERP_LINEAR_SRGB (svm_image_texture's order)."""
     t0, t1, t2 = env_rotate(R, d0, d1, d2)
     u, v = env_uv(t0, t1, t2)
-    return env_lookup(px, interp, u, v)
+    r, g, b = env_lookup(stored, interp, u, v)
+    if interp == INTERP_LINEAR_SRGB:
+        return (srgb_decode_value(r) * scale[0], srgb_decode_value(g) * scale[1],
+                srgb_decode_value(b) * scale[2])
+    return r, g, b
 
 
 ONE_BELOW = 0.9999999999999999  # the largest float64 below 1
@@ -818,9 +884,10 @@ def cosine_sample_many(u1, u2, ns, R, px, interp, c_rows, c_cols, c_mass, prefix
 
 
 @kernel
-def radiance_many(d, R, px, interp, out):
+def radiance_many(d, R, stored, interp, scale, out):
     for n in range(d.shape[0]):
-        out[n, 0], out[n, 1], out[n, 2] = env_radiance(R, px, interp, d[n, 0], d[n, 1], d[n, 2])
+        out[n, 0], out[n, 1], out[n, 2] = env_radiance(R, stored, interp, scale, d[n, 0],
+                                                       d[n, 1], d[n, 2])
 
 
 @kernel
@@ -841,6 +908,7 @@ def _warm_up():
     env = Environment(np.ones((2, 4, 3)))
     d = np.array([[0.0, 0.0, 1.0]])
     env.radiance(d)
+    Environment(np.ones((2, 4, 3)), srgb=True).radiance(d)
     env.pdf(d)
     env.sample(np.full(1, 0.3), np.full(1, 0.6))
     env.cosine_pdf(d, d)

@@ -28,9 +28,11 @@ def pack_lights(lights):
     tree_i (MeshLight.triangle_tree), round32, tilt32, sides (T,) int64: the sides shadow
     rays sample, MeshLight.sides), empty
     without emissive meshes, then the world's environment map (radiance texels (H,W,3)
-    float32 and its cosine-weighted distributions: row cdfs (K,Hc+1), column cdfs
-    (K,Hc,Wc+1), cell probabilities (K,Hc,Wc), per-row prefix sums (H,W+1), cell sums
-    (Hc,Wc): environment.build_cosine_distributions), one black texel without one."""
+    float32, the texels its lookup reads and their scale (Environment.stored, (H,W,3)
+    float32, and Environment.scale, (3,) float64) and its cosine-weighted
+    distributions: row cdfs (K,Hc+1), column cdfs (K,Hc,Wc+1), cell probabilities
+    (K,Hc,Wc), per-row prefix sums (H,W+1), cell sums (Hc,Wc):
+    environment.build_cosine_distributions), one black texel without one."""
     codes = np.zeros(len(lights), np.int64)
     params = np.zeros((len(lights), P))
     mesh = None
@@ -42,11 +44,12 @@ def pack_lights(lights):
         elif codes[i] == CODE_WORLD and getattr(light, "environment", None) is not None:
             env = light.environment
     if env is None:
-        env_arrays = (np.zeros((1, 1, 3), np.float32), np.array([[0.0, 1.0]]),
+        none = np.zeros((1, 1, 3), np.float32)
+        env_arrays = (none, none, np.ones(3), np.array([[0.0, 1.0]]),
                       np.array([[[0.0, 1.0]]]), np.zeros((1, 1, 1)), np.zeros((1, 2)),
                       np.zeros((1, 1)))
     else:
-        env_arrays = (env.pixels, *env.cosine_distributions)
+        env_arrays = (env.pixels, env.stored, env.scale, *env.cosine_distributions)
     c = np.ascontiguousarray
     if mesh is None:
         z3 = np.zeros((0, 3))

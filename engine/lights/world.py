@@ -115,28 +115,31 @@ class WorldLight(InfiniteLight):
     def _emit(self, aim, aimed, key, first, n, count, out, start):
         env = self.environment
         if env is None:
-            arrays = (np.eye(3), np.zeros((1, 1, 3), np.float32), 0, np.array([0.0, 1.0]),
+            none = np.zeros((1, 1, 3), np.float32)
+            arrays = (np.eye(3), none, none, np.ones(3), 0, np.array([0.0, 1.0]),
                       np.array([[0.0, 1.0]]), np.zeros((1, 1), np.float32))
         else:
             rows, cols, pdf_uv = env.distribution
-            arrays = (env.rotation, env.pixels, int(env.interp_code), rows, cols, pdf_uv)
+            arrays = (env.rotation, env.pixels, env.stored, env.scale, int(env.interp_code),
+                      rows, cols, pdf_uv)
         return emit_world(env is not None, *arrays, f64(self.photon_flux), f64(self.center),
                           float(self.scene_radius), *aim.arrays, aimed, key,
                           first, n, float(count), *out.arrays, start)
 
 
 @kernel
-def emit_world(env_on, rotation, pixels, interp, rows, cols, pdf_uv, flux, center, R, centers,
-               radii, probs, cdf, aimed, key, first, n, count, o32, d32, d, power, slot,
-               start):
+def emit_world(env_on, rotation, pixels, stored, scale, interp, rows, cols, pdf_uv, flux,
+               center, R, centers, radii, probs, cdf, aimed, key, first, n, count, o32, d32,
+               d, power, slot, start):
     """Photons of the world. A constant background: directions uniform over the sphere,
     each flux / count (flux: the radiance through the natural disk of radius R from every
     direction). An environment map (env_on; its rotation, radiance texels, interpolation
     and distribution: environment.py): directions from the map's distribution, power
-    L / pdf x pi R^2 / count. Photons travel against the sampled direction, from the
-    natural disk (emission.disk_origin) or, aimed, a caster's shadow disk
-    (emission.aim_origin). Dimensions: 0, 1 the direction, 2, 3 the origin; aimed: 2 the
-    target, 3, 4 the origin."""
+    L / pdf x pi R^2 / count (pixels: its linear texels, which the distribution samples;
+    stored, scale: what its lookup reads, Environment.stored / scale). Photons travel
+    against the sampled direction, from the natural disk (emission.disk_origin) or,
+    aimed, a caster's shadow disk (emission.aim_origin). Dimensions: 0, 1 the direction,
+    2, 3 the origin; aimed: 2 the target, 3, 4 the origin."""
     j = start
     f0, f1, f2 = flux[0] / count, flux[1] / count, flux[2] / count
     area = math.pi * R * R
@@ -146,7 +149,7 @@ def emit_world(env_on, rotation, pixels, interp, rows, cols, pdf_uv, flux, cente
         u2 = emit_uniform(key, s, 1)
         if env_on:
             w0, w1, w2, pdf = env_sample(rotation, pixels, interp, rows, cols, pdf_uv, u1, u2)
-            L0, L1, L2 = env_radiance(rotation, pixels, interp, w0, w1, w2)
+            L0, L1, L2 = env_radiance(rotation, stored, interp, scale, w0, w1, w2)
             inv = 1.0 / max(pdf, 1e-300) if pdf > 0 else 0.0
             g = inv * area / count
             p0, p1, p2 = L0 * g, L1 * g, L2 * g
