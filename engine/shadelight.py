@@ -1,4 +1,5 @@
-"""Lamp light through a Translucent BSDF shade by next-event estimation (issue 14, shade32).
+"""Lamp light through a Translucent BSDF or rough glass shade by next-event estimation
+(issue 14, shade32; rough glass: roughshade33).
 
 A lamp inside a shade (an open cylinder of Translucent BSDF) lights the room only through
 the shade. Before, that light reached the room's diffuse surfaces only as caustic-kind
@@ -23,6 +24,25 @@ shade's radiance towards x is L(y -> x) = T E_back(y) / pi and
 
     E(x) += T E_back(y) / pi * max(N . w, 0) |n_y . w| / (d^2 pdf_A(y)),   w = (y - x) / d.
 
+A single-surface rough glass shade (a Glass BSDF, or Principled at Transmission 1,
+roughness GLASS_ROUGH_MIN .. 1: an open cylinder or a cone without thickness) is the
+same estimator with the glass's refraction for the Lambertian transmission: y's radiance
+towards x is the lamp's light refracted by the rough glass lobe,
+
+    L(y -> x) = f_t(w_lamp, w_x) L_lamp |n_y . w_lamp| / pdf_lamp
+
+over the lamp samples from y's far side, by the camera side's own evaluation
+(engine/glasslight.py: directlight.direct_light with `transmission`,
+principled.accumulate_transmission at full weight), its lobes set up at y for the view
+towards x (bsdf.closures): the Multiscatter GGX compensation is taken on x's side, as
+Cycles' path from x takes it and as the photons' glass_adjoint documents; the
+interface's eta and which side the lamp is on follow the winding normals, as the camera
+side's. The lobe is peaky (roughness 0.3: alpha 0.09), so besides the lamp-side choice
+of y a share GLASS_PEAK_SHARE of the samples is drawn in a cos^n lobe about the lamp
+direction the glass refracts straight towards x (_refracted_axes: one more ray from the
+lamp towards x finds the shade's face there), the pdf being the mixture's
+(docs/accuracy.md "## roughshade33" measures both).
+
 For a point lamp E_back / pdf_A is nearly constant: what varies is the geometry towards
 x. Choosing y from the lamp's side rather than x's (a cone towards the shade's
 bounding sphere) matters for a tall open tube, whose radiance peaks at the lamp's
@@ -31,10 +51,15 @@ mean 0.44 sampled from x, 0.21 from the lamp, 0.15 with the stratified numbers.
 
 Accounting (path classes and the estimator that counts each; x a camera-side diffuse
 point, S the shade's translucent lobe, L a served lamp):
-- L S x (lamp -> shade -> x, one crossing as the first scatter). Before: the caustic map
-  at x (its photons kind CAUSTIC). After: this estimator alone; the photons of that path
-  stay direct-kind (photonkernels: SHADE_TRANSLUCENT in pane_tri sets F_PANE, as a pane's
+- L S x (lamp -> shade -> x, one crossing as the first scatter: the translucent lobe, or
+  a rough glass shade's refraction). Before: the caustic map at x (its photons kind
+  CAUSTIC). After: this estimator alone; the photons of that path stay direct-kind
+  (photonkernels: SHADE_TRANSLUCENT / SHADE_GLASS in pane_tri sets F_PANE, as a pane's
   sun photon), so neither the caustic map nor the glow shot holds them.
+- L R x, R a rough glass shade's reflection (the lamp's light off the shade's inside,
+  out through its openings; or a second crossing after it): caustic photons, as before
+  (their scatter is not the refraction, so SHADE_GLASS leaves their kind; no shadow ray
+  carries reflected light).
 - L S z x (one diffuse bounce z after the shade). Before: the secondary map at x (kind
   CAUSTIC_DIFFUSE). After: the final gather from x reads the gather map at z, which now
   holds those photons as direct-kind (as every direct photon), and regathered points
@@ -54,14 +79,18 @@ point, S the shade's translucent lobe, L a served lamp):
   measured; no test scene has one).
 
 Which shades: materials that are all Translucent BSDF (share 1, opaque, no texture,
-normal map or emission; a Mix with another surface keeps its photons), in a scene
+normal map or emission; a Mix with another surface keeps its photons) or all rough glass
+(glass_shade_materials: roughness GLASS_ROUGH_MIN .. 1; smoother glass stays caustic, the
+caustic map focuses it better), in a scene
 without shared instances and with few enough lights that each is sampled on its own (no
 light tree), rendered with shadow rays (not method 'local'). Served lamps: point and
 spot lights whose shadow rays are sampled (y is chosen from the lamp's centre: a lamp
 with a radius is sampled over its size from y, but a shade point its centre cannot see,
 behind an occluder right at the lamp, is missed; an area light is not served: its light
-through a shade stays caustic). Rough glass shades are not served either (their light
-stays caustic).
+through a shade stays caustic). A rough glass shade with thickness (two surfaces):
+the light crossing both is a second crossing, caustic photons as before, and the
+estimator finds only what the inner face sends out through the openings (not measured:
+shades of one surface are the common case).
 """
 from __future__ import annotations
 
@@ -81,20 +110,33 @@ SERVED_KINDS = ("POINT", "SPOT")
 # (_lamp_directions); the rest uniform over the sphere.
 LAMP_COSINE_SHARE = 0.5
 
+# Rough glass shades (single surface, Glass BSDF or Principled Transmission 1): served
+# from this roughness up (below it the lobe is too peaky for y chosen from the lamp;
+# the caustic map keeps that light: docs/accuracy.md "## roughshade33").
+GLASS_ROUGH_MIN = 0.3
+# The share of a glass shade's samples drawn in the lobe about the lamp's direction
+# that the glass refracts towards the shading point (_refracted_axes); GLASS_PEAK_WIDTH:
+# that lobe's angular spread over the glass's alpha (cos^n lobe, n = 2 / (k alpha)^2).
+GLASS_PEAK_SHARE = 0.5
+GLASS_PEAK_WIDTH = 1.0
+
 _NO_ROWS = np.zeros(0, np.int64)
 _NO_ROWS3 = np.zeros((0, 3))
 
 
 class Shades:
     """The scene's next-event shades: `tl` (M,3) each material's translucent
-    transmittance T (0: not a shade material); `served` the light indices (into
-    ctx.lights) sampled through them (a frozenset), `lights` those Light objects; `names`
-    the shade objects' names; `code` (T,) int64 the photon kernel's pane_tri codes (-1, or
-    photonkernels.SHADE_TRANSLUCENT on a shade triangle)."""
+    transmittance T (0: not a translucent shade material); `served` the light indices
+    (into ctx.lights) sampled through them (a frozenset), `lights` those Light objects;
+    `names` the shade objects' names (`glass_names` those of rough glass); `code` (T,)
+    int64 the photon kernel's pane_tri codes (-1, or photonkernels.SHADE_TRANSLUCENT /
+    SHADE_GLASS on a shade triangle)."""
 
-    def __init__(self, tl, served, lights, names, code):
+    def __init__(self, tl, served, lights, names, code, glass_names=()):
         self.tl, self.served, self.lights = tl, frozenset(served), lights
         self.names, self.code = names, code
+        self.glass_names = list(glass_names)
+        self.has_glass = bool(np.any(code == pk.SHADE_GLASS))
 
     def photon_tri(self, light, pane_tri=None) -> np.ndarray | None:
         """pane_tri for the photons of `light` (photonkernels.scatter): this scene's shade
@@ -134,6 +176,37 @@ def shade_materials(table) -> tuple[np.ndarray, np.ndarray]:
     return ok & (tl.max(axis=1) > 0.0), tl
 
 
+def glass_shade_materials(table) -> np.ndarray:
+    """(M,) bool: the materials that are rough glass alone: a Glass BSDF, a Refraction
+    BSDF or a Principled BSDF at Transmission 1 (no metallic, coat, sheen or translucent
+    share, isotropic), roughness GLASS_ROUGH_MIN .. 1, opaque, untextured, no normal map
+    or emission, closure weight 1. On a single surface (an open cylinder, a cone without
+    thickness) the interface's sides follow its normals, as the camera side's
+    (engine/glasslight.py)."""
+    from .closures import principled as pr
+    q = np.asarray(table.closure_params, np.float64)
+    M = len(q)
+    if M == 0:
+        return np.zeros(0, bool)
+
+    def untextured(nodes):
+        return np.array([x is None for x in (nodes or [None] * M)], bool)
+
+    node = q[:, pr.M_NODE]
+    glass_node = (node == pr.NODE_GLASS) | (node == pr.NODE_REFRACTION)
+    principled = ((node == pr.NODE_PRINCIPLED) & (q[:, pr.M_METALLIC] == 0.0)
+                  & (q[:, pr.M_COAT_W] == 0.0) & (q[:, pr.M_SHEEN_W] == 0.0))
+    return ((glass_node | principled) & (q[:, pr.M_TRANS] >= 1.0) & (q[:, pr.M_TL] == 0.0)
+            & (q[:, pr.M_ANISO] == 0.0)
+            & (q[:, pr.M_ROUGH] >= GLASS_ROUGH_MIN) & (q[:, pr.M_ROUGH] <= 1.0)
+            & (np.asarray(table.alpha, np.float64) >= 1.0) & (q[:, pr.M_ADD] == 0.0)
+            & (np.asarray(table.emission, np.float64) == 0.0).all(axis=1)
+            & (np.asarray(table.base_color, np.float64).max(axis=1) > 0.0)
+            & untextured(table.textures) & untextured(table.normal_maps)
+            & untextured(table.alpha_textures) & untextured(table.scalar_textures)
+            & untextured(getattr(table, "emission_textures", None)))
+
+
 def find_shades(geo, table, lights, settings=None):
     """Shades or None (the module docstring's conditions): the triangles of Translucent
     BSDF materials, with the point and spot lights they serve (SERVED_KINDS)."""
@@ -150,18 +223,24 @@ def find_shades(geo, table, lights, settings=None):
     if not served:
         return None
     ok, tl = shade_materials(table)
-    if not ok.any():
+    glass = glass_shade_materials(table) & ~ok
+    if not (ok.any() or glass.any()):
         return None
     mat = np.asarray(geo.material)
-    tri = np.flatnonzero(ok[mat]).astype(np.int64)
-    area = 0.5 * np.linalg.norm(np.cross(geo.e1[tri], geo.e2[tri]), axis=1)
-    tri = tri[area > 0.0]
-    if not len(tri):
-        return None
     code = np.full(geo.count, -1, np.int64)
-    code[tri] = pk.SHADE_TRANSLUCENT
-    names = [geo.object_names[o] for o in np.unique(np.asarray(geo.object_id)[tri])]
-    return Shades(tl, served, [lights[i] for i in served], names, np.ascontiguousarray(code))
+    obj = np.asarray(geo.object_id)
+    names, glass_names = [], []
+    for kind, sel, out in ((pk.SHADE_TRANSLUCENT, ok, names),
+                           (pk.SHADE_GLASS, glass, glass_names)):
+        tri = np.flatnonzero(sel[mat]).astype(np.int64)
+        area = 0.5 * np.linalg.norm(np.cross(geo.e1[tri], geo.e2[tri]), axis=1)
+        tri = tri[area > 0.0]
+        code[tri] = kind
+        out += [geo.object_names[o] for o in np.unique(obj[tri])]
+    if not (code < -1).any():
+        return None
+    return Shades(tl, served, [lights[i] for i in served], names + glass_names,
+                  np.ascontiguousarray(code), glass_names)
 
 
 def shades_for(ctx):
@@ -192,6 +271,86 @@ def _lamp_directions(a, r):
     return w, LAMP_COSINE_SHARE * cos_a / math.pi + (1.0 - LAMP_COSINE_SHARE) * 0.25 / math.pi
 
 
+def _refracted_axes(ctx, shades, centre, a, x):
+    """((N,3) lamp directions, (N,) bool valid, (N,) int64 y0's material): for each
+    shading point x (N,3) seen from the lamp's centre along a (N,3), the direction from
+    the lamp whose light the rough glass shade refracts straight towards x. The lamp's
+    ray along a meets the shade at y0 (one ray; valid where that is a SHADE_GLASS
+    triangle); the ray from x to y0 refracts through y0's geometric normal (the
+    interface's sides by the winding, eta 1 / ior entering the front, as
+    principled.glass_terms), t, and the lamp's light that leaves towards x arrives
+    along -t (reversibility). An approximation of the lobe's peak (y0, not the peak's
+    own point, and the flat face's normal): it only centres the mixture's peaked lobe
+    (_shade_directions), whose estimate stays unbiased."""
+    from .closures import principled as pr
+    from .geometry import SHADOW
+    geo, c = ctx.geo, np.ascontiguousarray
+    n = len(a)
+    o = c(np.broadcast_to(centre, (n, 3)))
+    t, prim, _, _ = ctx.accel.intersect(o, c(a), None, cls=SHADOW)
+    ok = (prim >= 0) & np.isfinite(t) & (t > 0.0)
+    ok &= np.take(shades.code, np.maximum(prim, 0)) == pk.SHADE_GLASS
+    out = a.copy()
+    mat = np.take(np.asarray(geo.material), np.maximum(prim, 0))
+    if not ok.any():
+        return out, ok, mat
+    k = np.flatnonzero(ok)
+    pk_ = prim[k]
+    ng = np.cross(np.take(geo.e1, pk_, axis=0), np.take(geo.e2, pk_, axis=0))
+    ng /= np.linalg.norm(ng, axis=1)[:, None]
+    y0 = centre + t[k, None] * a[k]
+    wo = x[k] - y0
+    wo /= np.maximum(np.linalg.norm(wo, axis=1), 1e-300)[:, None]
+    cos_o = np.einsum("ij,ij->i", wo, ng)
+    front = cos_o > 0.0
+    ior = np.take(np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_IOR], mat[k])
+    ior = np.maximum(ior, 1e-5)
+    eta = np.where(front, 1.0 / ior, ior)  # n(x's side) / n(the lamp's side)
+    nf = ng * np.where(front, 1.0, -1.0)[:, None]
+    ci = np.abs(cos_o)
+    sin2 = eta * eta * (1.0 - ci * ci)
+    good = sin2 < 1.0
+    tdir = (-eta[:, None] * wo
+            + (eta * ci - np.sqrt(np.maximum(1.0 - sin2, 0.0)))[:, None] * nf)
+    tdir /= np.maximum(np.linalg.norm(tdir, axis=1), 1e-300)[:, None]
+    out[k[good]] = -tdir[good]
+    ok[k[~good]] = False  # (total internal reflection: no refracted peak)
+    return out, ok, mat
+
+
+def _shade_directions(a, r, a2, has2, n_pow):
+    """(N,3) unit directions from a lamp's centre and their solid-angle pdf (N,): where
+    has2 (N,) bool, the one-sample mixture of GLASS_PEAK_SHARE of a cos^n_pow lobe about
+    a2 (N,3) (_refracted_axes: the rough glass's peak) and the rest _lamp_directions
+    about a; elsewhere _lamp_directions alone, with the same numbers r = (r0, r1) as
+    before (a scene without glass shades draws what it drew). The pdf is the mixture's
+    (both strategies' densities at the direction drawn)."""
+    share = GLASS_PEAK_SHARE
+    peak = has2 & (r[0] < share)
+    r0 = np.where(has2, np.where(peak, 0.0, (r[0] - share) / (1.0 - share)), r[0])
+    w, pdf = _lamp_directions(a, (np.clip(r0, 0.0, 1.0), r[1]))
+    if not has2.any():
+        return w, pdf
+    # The peaked lobe: cos theta = v^(1 / (n + 1)) about a2.
+    k = np.flatnonzero(peak)
+    if len(k):
+        v = np.clip(r[0][k] / share, 1e-300, 1.0)
+        ct = v ** (1.0 / (n_pow[k] + 1.0))
+        st = np.sqrt(np.maximum(0.0, 1.0 - ct * ct))
+        phi = 2.0 * math.pi * r[1][k]
+        bu, bv = orthonormal_basis(a2[k])
+        w[k] = ((st * np.cos(phi))[:, None] * bu + (st * np.sin(phi))[:, None] * bv
+                + ct[:, None] * a2[k])
+    h = np.flatnonzero(has2)
+    wh = w[h]
+    cos_a = np.maximum(np.einsum("ij,ij->i", wh, a[h]), 0.0)
+    broad = LAMP_COSINE_SHARE * cos_a / math.pi + (1.0 - LAMP_COSINE_SHARE) * 0.25 / math.pi
+    cos2 = np.maximum(np.einsum("ij,ij->i", wh, a2[h]), 0.0)
+    lobe = (n_pow[h] + 1.0) / (2.0 * math.pi) * cos2 ** n_pow[h]
+    pdf[h] = share * lobe + (1.0 - share) * broad
+    return w, pdf
+
+
 def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     """(N,3) irradiance at points p (N,3) (shading normals ns, geometric normals ng on the
     viewer's side, origin offsets offset (N,)) from the served lights' samples among
@@ -201,16 +360,23 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     numbers per point and sample.
 
     Each sample picks y where the lamp's light lands: a direction from the lamp's centre
-    (_lamp_directions, about the direction to the shading point), y its first hit, which
-    must be a shade triangle; the area pdf of y is pdf_omega cos_in / r^2 (cos_in at y's
-    geometric normal, r the centre's distance), so a point lamp's E_in(y) / pdf is
-    nearly constant and only the geometry towards x varies. Then the closest hit from x
-    towards y must be y's shade at y's distance (shadow ray), the lamp is sampled from
-    y's far side (E_back, directlight.direct_light with the normals flipped), and
-    E += T E_back / pi max(N . w, 0) |n_y . w| / (d^2 pdf_A). A lamp with a radius is
+    (_lamp_directions, about the direction to the shading point; with a rough glass
+    shade, _shade_directions' mixture with a lobe about the direction the glass refracts
+    towards x), y its first hit, which must be a shade triangle; the area pdf of y is
+    pdf_omega cos_in / r^2 (cos_in at y's geometric normal, r the centre's distance), so
+    a point lamp's E_in(y) / pdf is nearly constant and only the geometry towards x
+    varies. Then the closest hit from x towards y must be y's shade at y's distance
+    (shadow ray), and the lamp is sampled from y's far side (directlight.direct_light
+    with the normals flipped) for y's radiance towards x: a translucent shade's T E_back
+    / pi, a rough glass shade's L(y -> x) = f_t(w_lamp, w_x) L_lamp |cos| / pdf
+    (principled.accumulate_transmission, the camera side's evaluation
+    (engine/glasslight.py) with the view towards x, its lobes set up at y for that view:
+    the Multiscatter GGX compensation on x's side, as Cycles' path from x takes it); then
+    E += L(y -> x) max(N . w, 0) |n_y . w| / (d^2 pdf_A). A lamp with a radius is
     sampled over its whole size at y, but y is chosen from its centre: a shade point the
     centre cannot see (an occluder right at the lamp) is missed."""
-    from .bsdf import surface_hit
+    from .bsdf import closures, surface_hit
+    from .closures import principled as pr
     from .directlight import direct_light
     from .geometry import SHADOW
     from .lights.packing import pack_lights
@@ -224,6 +390,14 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     scale = max(float(geo.extent), 1e-9)
     rays = 0
     c = np.ascontiguousarray
+    # Rough glass: each light sample at full weight (no MIS: this estimator alone counts
+    # the lamp -> shade -> x paths), the lobe-choice probabilities unused.
+    full = np.ones(max(len(ctx.lights), 1), np.int64)
+    n_pow_mat = None
+    if shades.has_glass:
+        rough = np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_ROUGH]
+        alpha = np.maximum(rough * rough, 1e-3)
+        n_pow_mat = 2.0 / (GLASS_PEAK_WIDTH * alpha) ** 2
     for li, traced, count, u1, u2, sel in samples:
         if li < 0 or li not in shades.served:
             continue
@@ -236,12 +410,20 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
         idx = np.flatnonzero(dx > 1e-9 * scale)
         if not len(idx):
             continue
-        wl, pdf_w = _lamp_directions(to_x[idx] / dx[idx, None], (u1[idx], u2[idx]))
+        a = to_x[idx] / dx[idx, None]
+        if shades.has_glass and GLASS_PEAK_SHARE > 0.0:
+            a2, has2, mat0 = _refracted_axes(ctx, shades, centre, a, p[idx])
+            rays += len(idx)
+            # (the peaked lobe's exponent: of the glass the lamp's ray towards x meets)
+            wl, pdf_w = _shade_directions(a, (u1[idx], u2[idx]), a2, has2,
+                                          np.take(n_pow_mat, mat0))
+        else:
+            wl, pdf_w = _lamp_directions(a, (u1[idx], u2[idx]))
         # Where the lamp's light lands: its first hit, a shade triangle.
         o_l = c(np.broadcast_to(centre, (len(idx), 3)))
         t_l, prim, hu, hv = accel.intersect(o_l, c(wl), None, cls=SHADOW)
         rays += len(idx)
-        good = (prim >= 0) & (np.take(shades.code, np.maximum(prim, 0)) == pk.SHADE_TRANSLUCENT)
+        good = (prim >= 0) & (np.take(shades.code, np.maximum(prim, 0)) < -1)
         good &= np.isfinite(t_l) & (t_l > 0.0)
         idx, wl, pdf_w, t_l, prim, hu, hv = (a_[good] for a_ in
                                              (idx, wl, pdf_w, t_l, prim, hu, hv))
@@ -263,28 +445,50 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
         t_hit, prim_x, _, _ = accel.intersect(c(o), c(w), dist * (1.0 + 1e-3) + 1e-5 * scale,
                                               cls=SHADOW)
         rays += len(idx)
-        seen = (prim_x >= 0) & (np.take(shades.code, np.maximum(prim_x, 0))
-                                == pk.SHADE_TRANSLUCENT)
+        seen = (prim_x >= 0) & (np.take(shades.code, np.maximum(prim_x, 0)) < -1)
         seen &= np.abs(t_hit - dist) <= 1e-3 * dist + 1e-5 * scale
         idx, wl, pdf_w, t_l, prim, hu, hv, w, dist, cr = (
             a_[seen] for a_ in (idx, wl, pdf_w, t_l, prim, hu, hv, w, dist, cr))
         if not len(idx):
             continue
-        # y's surface as the ray from x meets it: normals turned towards x.
-        Y = surface_hit(geo, ctx.table, prim, hu, hv, w)
-        yng = np.asarray(Y.ng, np.float64)
-        cos_in = np.abs(np.einsum("ij,ij->i", wl, yng))
-        cos_y = np.abs(np.einsum("ij,ij->i", w, yng))
-        # The lamp on the shade's far side: normals flipped (engine/glasslight.py).
-        yns = c(-np.asarray(Y.ns, np.float64))
-        arrays = (c(Y.p, np.float64), yns, _NO_ROWS3, c(-yng), c(Y.offset, np.float64),
-                  _NO_ROWS, _NO_ROWS, _NO_ROWS3, yns)
-        entry = [(li, traced, count, c(lamp_u[0, idx]), c(lamp_u[1, idx]),
-                  None if sel is None else c(sel[idx], np.float64))]
-        Eb, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(idx), shadow=shadow)
-        rays += nr
-        pdf_a = pdf_w * cos_in / (t_l * t_l)
-        T = shades.tl[np.asarray(Y.mat)]
-        g = cr * cos_y / (math.pi * dist * dist * np.maximum(pdf_a, 1e-300))
-        E[idx] += T * Eb * g[:, None]
+        glass = np.take(shades.code, prim) == pk.SHADE_GLASS
+        for on_glass in (False, True):
+            part = glass if on_glass else ~glass
+            if not part.any():
+                continue
+            if part.all():
+                jdx, jl, jpdf, jt, jprim, ju, jv, jw, jdist, jcr = (
+                    idx, wl, pdf_w, t_l, prim, hu, hv, w, dist, cr)
+            else:
+                jdx, jl, jpdf, jt, jprim, ju, jv, jw, jdist, jcr = (
+                    a_[part] for a_ in (idx, wl, pdf_w, t_l, prim, hu, hv, w, dist, cr))
+            # y's surface as the ray from x meets it: normals turned towards x.
+            Y = surface_hit(geo, ctx.table, jprim, ju, jv, jw)
+            yng = np.asarray(Y.ng, np.float64)
+            cos_in = np.abs(np.einsum("ij,ij->i", jl, yng))
+            cos_y = np.abs(np.einsum("ij,ij->i", jw, yng))
+            # The lamp on the shade's far side: normals flipped (engine/glasslight.py).
+            yns = c(-np.asarray(Y.ns, np.float64))
+            arrays = (c(Y.p, np.float64), yns, _NO_ROWS3, c(-yng), c(Y.offset, np.float64),
+                      _NO_ROWS, _NO_ROWS, _NO_ROWS3, yns)
+            entry = [(li, traced, count, c(lamp_u[0, jdx]), c(lamp_u[1, jdx]),
+                      None if sel is None else c(sel[jdx], np.float64))]
+            pdf_a = jpdf * cos_in / (jt * jt)
+            if on_glass:
+                # L(y -> x): the glass lobes set up for the view towards x.
+                prm, _ = closures(ctx.table, Y, geo)
+                transmission = (c(prm), c(Y.ns, np.float64), c(Y.wo, np.float64), full,
+                                np.zeros((len(jdx), pr.N_LOBES)))
+                Ly, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(jdx),
+                                      shadow=shadow, transmission=transmission)
+                rays += nr
+                g = jcr * cos_y / (jdist * jdist * np.maximum(pdf_a, 1e-300))
+                E[jdx] += Ly * g[:, None]
+            else:
+                Eb, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(jdx),
+                                      shadow=shadow)
+                rays += nr
+                T = shades.tl[np.asarray(Y.mat)]
+                g = jcr * cos_y / (math.pi * jdist * jdist * np.maximum(pdf_a, 1e-300))
+                E[jdx] += T * Eb * g[:, None]
     return E, rays
