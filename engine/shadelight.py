@@ -117,8 +117,11 @@ GLASS_ROUGH_MIN = 0.3
 # The share of a glass shade's samples drawn in the lobe about the lamp's direction
 # that the glass refracts towards the shading point (_refracted_axes); GLASS_PEAK_WIDTH:
 # that lobe's angular spread over the glass's alpha (cos^n lobe, n = 2 / (k alpha)^2).
-GLASS_PEAK_SHARE = 0.5
+GLASS_PEAK_SHARE = 0.75
 GLASS_PEAK_WIDTH = 1.0
+# _refracted_axes' fixed-point steps after its first ray (0: the peak read at the point
+# where the lamp's ray towards x meets the shade).
+GLASS_PEAK_STEPS = 1
 
 _NO_ROWS = np.zeros(0, np.int64)
 _NO_ROWS3 = np.zeros((0, 3))
@@ -272,50 +275,59 @@ def _lamp_directions(a, r):
 
 
 def _refracted_axes(ctx, shades, centre, a, x):
-    """((N,3) lamp directions, (N,) bool valid, (N,) int64 y0's material): for each
-    shading point x (N,3) seen from the lamp's centre along a (N,3), the direction from
-    the lamp whose light the rough glass shade refracts straight towards x. The lamp's
-    ray along a meets the shade at y0 (one ray; valid where that is a SHADE_GLASS
-    triangle); the ray from x to y0 refracts through y0's geometric normal (the
-    interface's sides by the winding, eta 1 / ior entering the front, as
-    principled.glass_terms), t, and the lamp's light that leaves towards x arrives
-    along -t (reversibility). An approximation of the lobe's peak (y0, not the peak's
-    own point, and the flat face's normal): it only centres the mixture's peaked lobe
+    """((N,3) lamp directions, (N,) bool valid, (N,) int64 the glass's material, rays
+    traced): for each shading point x (N,3) seen from the lamp's centre along a (N,3),
+    the direction from the lamp whose light the rough glass shade refracts straight
+    towards x, found by fixed-point steps: the lamp's ray along the current axis meets
+    the shade at y0 (valid where that is a SHADE_GLASS triangle), the ray from x to y0
+    refracts through y0's geometric normal (the interface's sides by the winding, eta 1 /
+    ior entering the front, as principled.glass_terms) into t, and the lamp's light that
+    leaves y0 towards x arrives along -t (reversibility): the next axis. 1 +
+    GLASS_PEAK_STEPS rays; a step that leaves the glass or meets total internal
+    reflection keeps the axis before it. It only centres the mixture's peaked lobe
     (_shade_directions), whose estimate stays unbiased."""
     from .closures import principled as pr
     from .geometry import SHADOW
     geo, c = ctx.geo, np.ascontiguousarray
     n = len(a)
     o = c(np.broadcast_to(centre, (n, 3)))
-    t, prim, _, _ = ctx.accel.intersect(o, c(a), None, cls=SHADOW)
-    ok = (prim >= 0) & np.isfinite(t) & (t > 0.0)
-    ok &= np.take(shades.code, np.maximum(prim, 0)) == pk.SHADE_GLASS
+    ior_mat = np.maximum(np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_IOR], 1e-5)
     out = a.copy()
-    mat = np.take(np.asarray(geo.material), np.maximum(prim, 0))
-    if not ok.any():
-        return out, ok, mat
-    k = np.flatnonzero(ok)
-    pk_ = prim[k]
-    ng = np.cross(np.take(geo.e1, pk_, axis=0), np.take(geo.e2, pk_, axis=0))
-    ng /= np.linalg.norm(ng, axis=1)[:, None]
-    y0 = centre + t[k, None] * a[k]
-    wo = x[k] - y0
-    wo /= np.maximum(np.linalg.norm(wo, axis=1), 1e-300)[:, None]
-    cos_o = np.einsum("ij,ij->i", wo, ng)
-    front = cos_o > 0.0
-    ior = np.take(np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_IOR], mat[k])
-    ior = np.maximum(ior, 1e-5)
-    eta = np.where(front, 1.0 / ior, ior)  # n(x's side) / n(the lamp's side)
-    nf = ng * np.where(front, 1.0, -1.0)[:, None]
-    ci = np.abs(cos_o)
-    sin2 = eta * eta * (1.0 - ci * ci)
-    good = sin2 < 1.0
-    tdir = (-eta[:, None] * wo
-            + (eta * ci - np.sqrt(np.maximum(1.0 - sin2, 0.0)))[:, None] * nf)
-    tdir /= np.maximum(np.linalg.norm(tdir, axis=1), 1e-300)[:, None]
-    out[k[good]] = -tdir[good]
-    ok[k[~good]] = False  # (total internal reflection: no refracted peak)
-    return out, ok, mat
+    valid = np.zeros(n, bool)
+    mat = np.zeros(n, np.int64)
+    live = np.arange(n)
+    rays = 0
+    for step in range(1 + GLASS_PEAK_STEPS):
+        if not len(live):
+            break
+        t, prim, _, _ = ctx.accel.intersect(c(o[live]), c(out[live]), None, cls=SHADOW)
+        rays += len(live)
+        ok = (prim >= 0) & np.isfinite(t) & (t > 0.0)
+        ok &= np.take(shades.code, np.maximum(prim, 0)) == pk.SHADE_GLASS
+        live, t, prim = live[ok], t[ok], prim[ok]
+        if not len(live):
+            break
+        m_ = np.take(np.asarray(geo.material), prim)
+        ng = np.cross(np.take(geo.e1, prim, axis=0), np.take(geo.e2, prim, axis=0))
+        ng /= np.linalg.norm(ng, axis=1)[:, None]
+        wo = x[live] - (centre + t[:, None] * out[live])
+        wo /= np.maximum(np.linalg.norm(wo, axis=1), 1e-300)[:, None]
+        cos_o = np.einsum("ij,ij->i", wo, ng)
+        front = cos_o > 0.0
+        ior = np.take(ior_mat, m_)
+        eta = np.where(front, 1.0 / ior, ior)  # n(x's side) / n(the lamp's side)
+        nf = ng * np.where(front, 1.0, -1.0)[:, None]
+        ci = np.abs(cos_o)
+        sin2 = eta * eta * (1.0 - ci * ci)
+        good = sin2 < 1.0  # (else total internal reflection: no refracted peak)
+        tdir = (-eta[:, None] * wo
+                + (eta * ci - np.sqrt(np.maximum(1.0 - sin2, 0.0)))[:, None] * nf)
+        tdir /= np.maximum(np.linalg.norm(tdir, axis=1), 1e-300)[:, None]
+        live = live[good]
+        out[live] = -tdir[good]
+        valid[live] = True
+        mat[live] = m_[good]
+    return out, valid, mat, rays
 
 
 def _shade_directions(a, r, a2, has2, n_pow):
@@ -412,8 +424,8 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
             continue
         a = to_x[idx] / dx[idx, None]
         if shades.has_glass and GLASS_PEAK_SHARE > 0.0:
-            a2, has2, mat0 = _refracted_axes(ctx, shades, centre, a, p[idx])
-            rays += len(idx)
+            a2, has2, mat0, nr = _refracted_axes(ctx, shades, centre, a, p[idx])
+            rays += nr
             # (the peaked lobe's exponent: of the glass the lamp's ray towards x meets)
             wl, pdf_w = _shade_directions(a, (u1[idx], u2[idx]), a2, has2,
                                           np.take(n_pow_mat, mat0))
