@@ -122,6 +122,11 @@ GLASS_PEAK_WIDTH = 1.0
 # _refracted_axes' fixed-point steps after its first ray (0: the peak read at the point
 # where the lamp's ray towards x meets the shade).
 GLASS_PEAK_STEPS = 1
+# Where the lamp's ray towards x misses the shade (x above or below it: the light leaves
+# the shade's wall towards x, the ray passes through an opening), the steps start from
+# the glass triangle whose centroid is closest in angle to that ray, among at most this
+# many (evenly taken) triangles.
+GLASS_START_POINTS = 1024
 
 _NO_ROWS = np.zeros(0, np.int64)
 _NO_ROWS3 = np.zeros((0, 3))
@@ -135,11 +140,15 @@ class Shades:
     int64 the photon kernel's pane_tri codes (-1, or photonkernels.SHADE_TRANSLUCENT /
     SHADE_GLASS on a shade triangle)."""
 
-    def __init__(self, tl, served, lights, names, code, glass_names=()):
+    def __init__(self, tl, served, lights, names, code, glass_names=(), glass_centroids=None):
         self.tl, self.served, self.lights = tl, frozenset(served), lights
         self.names, self.code = names, code
         self.glass_names = list(glass_names)
         self.has_glass = bool(np.any(code == pk.SHADE_GLASS))
+        # (K,3) centroids of (at most GLASS_START_POINTS of) the glass shade triangles:
+        # _refracted_axes' start where the lamp's ray towards x misses the shade.
+        self.glass_centroids = (np.zeros((0, 3)) if glass_centroids is None
+                                else glass_centroids)
 
     def photon_tri(self, light, pane_tri=None) -> np.ndarray | None:
         """pane_tri for the photons of `light` (photonkernels.scatter): this scene's shade
@@ -242,8 +251,13 @@ def find_shades(geo, table, lights, settings=None):
         out += [geo.object_names[o] for o in np.unique(obj[tri])]
     if not (code < -1).any():
         return None
+    gt = np.flatnonzero(code == pk.SHADE_GLASS)
+    if len(gt) > GLASS_START_POINTS:
+        gt = gt[np.linspace(0, len(gt) - 1, GLASS_START_POINTS).astype(np.int64)]
+    centroids = np.asarray(geo.v0, np.float64)[gt] + (np.asarray(geo.e1, np.float64)[gt]
+                                                      + np.asarray(geo.e2, np.float64)[gt]) / 3.0
     return Shades(tl, served, [lights[i] for i in served], names + glass_names,
-                  np.ascontiguousarray(code), glass_names)
+                  np.ascontiguousarray(code), glass_names, np.ascontiguousarray(centroids))
 
 
 def shades_for(ctx):
@@ -278,26 +292,44 @@ def _refracted_axes(ctx, shades, centre, a, x):
     """((N,3) lamp directions, (N,) bool valid, (N,) int64 the glass's material, rays
     traced): for each shading point x (N,3) seen from the lamp's centre along a (N,3),
     the direction from the lamp whose light the rough glass shade refracts straight
-    towards x, found by fixed-point steps: the lamp's ray along the current axis meets
-    the shade at y0 (valid where that is a SHADE_GLASS triangle), the ray from x to y0
-    refracts through y0's geometric normal (the interface's sides by the winding, eta 1 /
-    ior entering the front, as principled.glass_terms) into t, and the lamp's light that
-    leaves y0 towards x arrives along -t (reversibility): the next axis. 1 +
-    GLASS_PEAK_STEPS rays; a step that leaves the glass or meets total internal
-    reflection keeps the axis before it. It only centres the mixture's peaked lobe
-    (_shade_directions), whose estimate stays unbiased."""
+    towards x, by _peak_steps from a; where the lamp's ray along a misses the glass (x
+    above or below the shade), from the direction to the glass triangle centroid
+    closest in angle to a (Shades.glass_centroids). It only centres the mixture's peaked
+    lobe (_shade_directions), whose estimate stays unbiased."""
+    out, valid, mat, rays = _peak_steps(ctx, shades, centre, a, x)
+    miss = np.flatnonzero(~valid)
+    cen = shades.glass_centroids
+    if len(miss) and len(cen):
+        to_c = cen - centre
+        to_c /= np.maximum(np.linalg.norm(to_c, axis=1), 1e-300)[:, None]
+        start = to_c[np.argmax(a[miss] @ to_c.T, axis=1)]
+        o2, v2, m2, r2 = _peak_steps(ctx, shades, centre, start, x[miss])
+        out[miss], valid[miss], mat[miss] = o2, v2, m2
+        rays += r2
+    return out, valid, mat, rays
+
+
+def _peak_steps(ctx, shades, centre, a, x):
+    """_refracted_axes' fixed-point steps from the directions a (N,3): the lamp's ray
+    along the current axis meets the shade at y0 (valid where that is a SHADE_GLASS
+    triangle), the ray from x to y0 refracts through y0's geometric normal (the
+    interface's sides by the winding, eta 1 / ior entering the front, as
+    principled.glass_terms) into t, and the lamp's light that leaves y0 towards x
+    arrives along -t (reversibility): the next axis. 1 + GLASS_PEAK_STEPS rays; a step
+    that leaves the glass or meets total internal reflection keeps the axis before it
+    (none: not valid). Returns (axes (N,3), valid (N,), material (N,), rays)."""
     from .closures import principled as pr
     from .geometry import SHADOW
     geo, c = ctx.geo, np.ascontiguousarray
     n = len(a)
     o = c(np.broadcast_to(centre, (n, 3)))
     ior_mat = np.maximum(np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_IOR], 1e-5)
-    out = a.copy()
+    out = np.array(a, np.float64)
     valid = np.zeros(n, bool)
     mat = np.zeros(n, np.int64)
     live = np.arange(n)
     rays = 0
-    for step in range(1 + GLASS_PEAK_STEPS):
+    for _ in range(1 + GLASS_PEAK_STEPS):
         if not len(live):
             break
         t, prim, _, _ = ctx.accel.intersect(c(o[live]), c(out[live]), None, cls=SHADOW)
@@ -327,6 +359,7 @@ def _refracted_axes(ctx, shades, centre, a, x):
         out[live] = -tdir[good]
         valid[live] = True
         mat[live] = m_[good]
+    out[~valid] = a[~valid]
     return out, valid, mat, rays
 
 
