@@ -6,7 +6,8 @@ over a grey floor).
 Table 1, the choice of y (per shading point, 40,000 samples, seed 11): the estimator's
 mean / the grid integral, per-sample std / mean and max / mean at three points, for the
 lamp-side choice alone (GLASS_PEAK_SHARE 0) and mixtures with the lobe about the
-refracted peak (share, width k: cos^n, n = 2 / (k alpha)^2).
+refracted peak (share, width k = GLASS_PEAK_WIDTH: the lamp has radius 0, so the lobe is
+GGX's distribution of slope 0.5 k alpha).
 
 Table 2, the roughness range: the floor beside the tube (x = 1.3 .. 2.7 m), 64 spp seed 1,
 the estimator on (GLASS_ROUGH_MIN lowered to serve every roughness) and off (caustic
@@ -20,7 +21,7 @@ cylinder, radius 0.22 m, 0.35 m tall, roughness 0.5, the lamp at its centre, rad
 Translucent shade and for the glass with the lamp-side choice alone, the peaked lobe
 without its start from the nearest glass triangle (GLASS_START_POINTS 0: points above
 and below the shade, whose ray from the lamp leaves through an opening, get no peak),
-and as served.
+with one point on the lamp per y (GLASS_LAMP_SAMPLES 1), and as served.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_glass_shade.py [--rough 0.1,0.2,0.3,0.5,1]
         [--skip-y] [--skip-floor] [--skip-room]
@@ -57,7 +58,8 @@ def y_choice(rough, m=40_000):
             for x, n in POINTS]
     old = shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_PEAK_WIDTH
     try:
-        for share, width in ((0.0, 1.0), (0.5, 0.5), (0.5, 1.0), (0.5, 2.0), (0.75, 1.0)):
+        for share, width in ((0.0, 1.0), (0.5, 1.0), (0.75, 1.0), (0.9, 0.7), (0.9, 1.0),
+                             (0.9, 1.4)):
             shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_PEAK_WIDTH = share, width
             cells = []
             for (x, n), wv in zip(POINTS, want):
@@ -143,14 +145,17 @@ def room_shade(kind, radius):
 
 def room(m=100_000):
     from engine import shadelight
-    old = shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_START_POINTS
+    old = (shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_START_POINTS,
+           shadelight.GLASS_LAMP_SAMPLES)
     try:
-        for label, kind, share, starts in (
-                ("translucent", "translucent", old[0], old[1]),
-                ("glass, lamp side alone", "glass", 0.0, old[1]),
-                ("glass, no nearest-triangle start", "glass", old[0], 0),
-                ("glass, as served", "glass", old[0], old[1])):
-            shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_START_POINTS = share, starts
+        for label, kind, share, starts, k in (
+                ("translucent", "translucent", old[0], old[1], old[2]),
+                ("glass, lamp side alone", "glass", 0.0, old[1], old[2]),
+                ("glass, no nearest-triangle start", "glass", old[0], 0, old[2]),
+                ("glass, one point on the lamp per y", "glass", old[0], old[1], 1),
+                ("glass, as served", "glass", old[0], old[1], old[2])):
+            (shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_START_POINTS,
+             shadelight.GLASS_LAMP_SAMPLES) = share, starts, k
             for radius in (0.0, 0.05):
                 ctx, shades = room_shade(kind, radius)
                 cells = []
@@ -167,7 +172,8 @@ def room(m=100_000):
                                  f"{e.max() / e.mean():.0f}")
                 print(f"| {label} | {radius} | " + " | ".join(cells) + " |", flush=True)
     finally:
-        shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_START_POINTS = old
+        (shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_START_POINTS,
+         shadelight.GLASS_LAMP_SAMPLES) = old
 
 
 def main():

@@ -39,9 +39,14 @@ Cycles' path from x takes it and as the photons' glass_adjoint documents; the
 interface's eta and which side the lamp is on follow the winding normals, as the camera
 side's. The lobe is peaky (roughness 0.3: alpha 0.09), so besides the lamp-side choice
 of y a share GLASS_PEAK_SHARE of the samples is drawn in a cos^n lobe about the lamp
-direction the glass refracts straight towards x (_refracted_axes: one more ray from the
-lamp towards x finds the shade's face there), the pdf being the mixture's
-(docs/accuracy.md "## roughshade33" measures both).
+direction the glass refracts straight towards x (_refracted_axes: two rays from the lamp
+find it by a fixed-point step, starting towards x or, where that ray leaves through an
+opening, towards the nearest glass triangle), the pdf being the mixture's. Per-sample
+std / mean at roughness 0.3, three points by a tube: 11-20 from the lamp side alone,
+2.4-4.7 with the mixture; at 0.5, 5-8.5 -> 1.1-1.8 (docs/accuracy.md "## roughshade33",
+bench/bench_glass_shade.py). Below roughness 0.3 (GLASS_ROUGH_MIN) the estimator's
+pixel noise exceeds the caustic photons' (at 0.2: pixel std / mean 3.4 at 64 spp): that
+glass stays caustic.
 
 For a point lamp E_back / pdf_A is nearly constant: what varies is the geometry towards
 x. Choosing y from the lamp's side rather than x's (a cone towards the shade's
@@ -117,8 +122,18 @@ GLASS_ROUGH_MIN = 0.3
 # The share of a glass shade's samples drawn in the lobe about the lamp's direction
 # that the glass refracts towards the shading point (_refracted_axes); GLASS_PEAK_WIDTH:
 # that lobe's angular spread over the glass's alpha (cos^n lobe, n = 2 / (k alpha)^2).
-GLASS_PEAK_SHARE = 0.75
+GLASS_PEAK_SHARE = 0.9
 GLASS_PEAK_WIDTH = 1.0
+# The peaked lobe's shape: GGX's distribution about the axis for a lamp of radius 0 (its
+# heavier tails follow the glass's own), a cos^n lobe for a lamp with a radius (whose
+# size smears the peak); None: by the lamp, or "ggx" / "cos" for all. Their spreads:
+# GLASS_PEAK_WIDTH x GLASS_PEAK_BASE[lobe] x alpha (bench/bench_glass_shade.py).
+GLASS_PEAK_LOBE = None
+GLASS_PEAK_BASE = {"ggx": 0.5, "cos": 1.0}
+# Points on a lamp with a radius sampled from each y on a glass shade (their shadow rays
+# and f_t evaluations; the rays choosing y are shared): the point on the lamp moves the
+# glass's peak (one per y left std / mean 1.6-2.5 by a radius-0.05 m lamp, 8: 0.8-1.0).
+GLASS_LAMP_SAMPLES = 8
 # _refracted_axes' fixed-point steps after its first ray (0: the peak read at the point
 # where the lamp's ray towards x meets the shade).
 GLASS_PEAK_STEPS = 1
@@ -363,12 +378,13 @@ def _peak_steps(ctx, shades, centre, a, x):
     return out, valid, mat, rays
 
 
-def _shade_directions(a, r, a2, has2, n_pow):
+def _shade_directions(a, r, a2, has2, n_pow, lobe_kind="cos"):
     """(N,3) unit directions from a lamp's centre and their solid-angle pdf (N,): where
-    has2 (N,) bool, the one-sample mixture of GLASS_PEAK_SHARE of a cos^n_pow lobe about
-    a2 (N,3) (_refracted_axes: the rough glass's peak) and the rest _lamp_directions
-    about a; elsewhere _lamp_directions alone, with the same numbers r = (r0, r1) as
-    before (a scene without glass shades draws what it drew). The pdf is the mixture's
+    has2 (N,) bool, the one-sample mixture of GLASS_PEAK_SHARE of a lobe about a2 (N,3)
+    (_refracted_axes: the rough glass's peak; lobe_kind "cos": cos^n_pow, "ggx": GGX's
+    distribution of slope sqrt(2 / n_pow), Walter et al. 2007) and the rest
+    _lamp_directions about a; elsewhere _lamp_directions alone, with the same numbers r =
+    (r0, r1) as before (a scene without glass shades draws what it drew). The pdf is the mixture's
     (both strategies' densities at the direction drawn)."""
     share = GLASS_PEAK_SHARE
     peak = has2 & (r[0] < share)
@@ -376,11 +392,17 @@ def _shade_directions(a, r, a2, has2, n_pow):
     w, pdf = _lamp_directions(a, (np.clip(r0, 0.0, 1.0), r[1]))
     if not has2.any():
         return w, pdf
-    # The peaked lobe: cos theta = v^(1 / (n + 1)) about a2.
+    # The peaked lobe about a2: cos theta = v^(1 / (n + 1)) (cos^n), or GGX's
+    # tan^2 theta = s^2 v / (1 - v), s = sqrt(2 / n) (its heavier tails).
+    ggx_lobe = lobe_kind == "ggx"
     k = np.flatnonzero(peak)
     if len(k):
         v = np.clip(r[0][k] / share, 1e-300, 1.0)
-        ct = v ** (1.0 / (n_pow[k] + 1.0))
+        if ggx_lobe:
+            t2 = (2.0 / n_pow[k]) * v / np.maximum(1.0 - v, 1e-300)
+            ct = 1.0 / np.sqrt(1.0 + t2)
+        else:
+            ct = v ** (1.0 / (n_pow[k] + 1.0))
         st = np.sqrt(np.maximum(0.0, 1.0 - ct * ct))
         phi = 2.0 * math.pi * r[1][k]
         bu, bv = orthonormal_basis(a2[k])
@@ -391,7 +413,16 @@ def _shade_directions(a, r, a2, has2, n_pow):
     cos_a = np.maximum(np.einsum("ij,ij->i", wh, a[h]), 0.0)
     broad = LAMP_COSINE_SHARE * cos_a / math.pi + (1.0 - LAMP_COSINE_SHARE) * 0.25 / math.pi
     cos2 = np.maximum(np.einsum("ij,ij->i", wh, a2[h]), 0.0)
-    lobe = (n_pow[h] + 1.0) / (2.0 * math.pi) * cos2 ** n_pow[h]
+    if ggx_lobe:
+        # D(theta) cos theta, D = s^2 / (pi cos^4 (s^2 + tan^2)^2) (Walter et al. 2007)
+        s2 = 2.0 / n_pow[h]
+        c2 = np.maximum(cos2 * cos2, 1e-300)
+        t2 = np.minimum((1.0 - c2) / c2, 1e100)
+        with np.errstate(divide="ignore", over="ignore"):
+            lobe = np.where(cos2 > 1e-30, s2 / (math.pi * c2 * np.maximum(cos2, 1e-30)
+                                                * (s2 + t2) ** 2), 0.0)
+    else:
+        lobe = (n_pow[h] + 1.0) / (2.0 * math.pi) * cos2 ** n_pow[h]
     pdf[h] = share * lobe + (1.0 - share) * broad
     return w, pdf
 
@@ -438,15 +469,15 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     # Rough glass: each light sample at full weight (no MIS: this estimator alone counts
     # the lamp -> shade -> x paths), the lobe-choice probabilities unused.
     full = np.ones(max(len(ctx.lights), 1), np.int64)
-    n_pow_mat = None
+    alpha_mat = None
     if shades.has_glass:
         rough = np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_ROUGH]
-        alpha = np.maximum(rough * rough, 1e-3)
-        n_pow_mat = 2.0 / (GLASS_PEAK_WIDTH * alpha) ** 2
+        alpha_mat = np.maximum(rough * rough, 1e-3)
     for li, traced, count, u1, u2, sel in samples:
         if li < 0 or li not in shades.served:
             continue
         centre = np.asarray(ctx.lights[li].pos, np.float64).reshape(3)
+        lamp_r = float(getattr(ctx.lights[li], "radius", 0.0) or 0.0)
         # The direction from the lamp takes the sample's stratified numbers (u1, u2);
         # the point on the lamp seen from y, fresh ones.
         lamp_u = rng.random((2, N))
@@ -459,9 +490,11 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
         if shades.has_glass and GLASS_PEAK_SHARE > 0.0:
             a2, has2, mat0, nr = _refracted_axes(ctx, shades, centre, a, p[idx])
             rays += nr
-            # (the peaked lobe's exponent: of the glass the lamp's ray towards x meets)
+            # (the peaked lobe's spread: of the glass the lamp's ray towards x meets)
+            kind = GLASS_PEAK_LOBE or ("ggx" if lamp_r == 0.0 else "cos")
+            spread = GLASS_PEAK_WIDTH * GLASS_PEAK_BASE[kind] * np.take(alpha_mat, mat0)
             wl, pdf_w = _shade_directions(a, (u1[idx], u2[idx]), a2, has2,
-                                          np.take(n_pow_mat, mat0))
+                                          2.0 / spread ** 2, kind)
         else:
             wl, pdf_w = _lamp_directions(a, (u1[idx], u2[idx]))
         # Where the lamp's light lands: its first hit, a shade triangle.
@@ -518,6 +551,13 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
                       _NO_ROWS, _NO_ROWS, _NO_ROWS3, yns)
             entry = [(li, traced, count, c(lamp_u[0, jdx]), c(lamp_u[1, jdx]),
                       None if sel is None else c(sel[jdx], np.float64))]
+            if on_glass and GLASS_LAMP_SAMPLES > 1 and lamp_r > 0.0:
+                # The point on a lamp with a radius moves the glass's peak: several per y
+                # (each weighted 1 / GLASS_LAMP_SAMPLES by direct_light's sample count).
+                more = rng.random((2 * (GLASS_LAMP_SAMPLES - 1), len(jdx)))
+                entry = [(li, traced, count * GLASS_LAMP_SAMPLES, e[3] if j == 0 else
+                          c(more[2 * j - 2]), e[4] if j == 0 else c(more[2 * j - 1]), e[5])
+                         for e in entry for j in range(GLASS_LAMP_SAMPLES)]
             pdf_a = jpdf * cos_in / (jt * jt)
             if on_glass:
                 # L(y -> x): the glass lobes set up for the view towards x.

@@ -106,28 +106,47 @@ def _shade_scene(bpy, roughness, distribution, shade=None):
     return scene
 
 
-def _mean(bpy, scene, path, engine):
+def _image(bpy, scene, path, engine):
+    """The render's (H, W) grey image."""
     from blender_helpers import cycles_plain, default_photonmap, read_rgba, render_exr
     c = cycles_plain(scene, 1024, 12)  # the add-on reads the same Light Paths
     c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = 4, 4, 12
     scene.render.engine = engine
     if engine == "PHOTONMAP":
         default_photonmap(scene).spp = 16
-    return float(read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean())
+    return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3].mean(axis=2)
+
+
+def _block_spread(ours, cycles):
+    """max / min of ours / Cycles over the panel's lit 8 x 8 pixel blocks (brighter than
+    a quarter of Cycles' brightest; bench/bench_shade_panel.py's measure)."""
+    def blocks(img):
+        h, w = (img.shape[0] // 8) * 8, (img.shape[1] // 8) * 8
+        return img[:h, :w].reshape(h // 8, 8, w // 8, 8).mean(axis=(1, 3))
+    bc = blocks(cycles)
+    r = (blocks(ours) / np.maximum(bc, 1e-12))[bc > 0.25 * bc.max()]
+    return float(r.max() / r.min())
 
 
 def test_panel_lit_through_a_rough_glass_shade_matches_cycles(bpy_addon, tmp_path):
     bpy = bpy_addon
-    got = {}
+    got, img = {}, {}
     for roughness, dist in ((0.5, "MULTI_GGX"), (1.0, "MULTI_GGX"), (1.0, "GGX")):
         for engine in ("PHOTONMAP", "CYCLES"):
             scene = _shade_scene(bpy, roughness, dist)
-            got[roughness, dist, engine] = _mean(
+            img[roughness, dist, engine] = _image(
                 bpy, scene, tmp_path / f"{engine}_{roughness}_{dist}.exr", engine)
+            got[roughness, dist, engine] = float(img[roughness, dist, engine].mean())
     ratio = {k[:2]: got[k[:2] + ("PHOTONMAP",)] / got[k[:2] + ("CYCLES",)] for k in got}
     effect = ratio[1.0, "MULTI_GGX"] / ratio[1.0, "GGX"]
+    spread = {k: _block_spread(img[k + ("PHOTONMAP",)], img[k + ("CYCLES",)]) for k in ratio}
     print("ours / Cycles:", {k: round(v, 4) for k, v in ratio.items()},
-          "compensation's effect, ours / Cycles':", round(effect, 4))
+          "compensation's effect, ours / Cycles':", round(effect, 4),
+          "lit blocks' spread:", {k: round(v, 4) for k, v in spread.items()})
     assert all(v > 0.05 for v in got.values()), got  # the panel is lit in every case
     assert abs(ratio[0.5, "MULTI_GGX"] / CYCLES_UNCHECKED_PAIRS - 1.0) < 0.03, ratio
     assert abs(effect - 1.0) < 0.03, (effect, ratio)
+    # The panel's light through the shade by shadow rays (engine/shadelight.py,
+    # roughshade33), not caustic photons: its blocks far smoother than main's.
+    for k, most in MAIN_SPREAD.items():
+        assert spread[k] - 1.0 < 0.6 * (most - 1.0), (k, spread, MAIN_SPREAD)
