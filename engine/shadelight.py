@@ -38,15 +38,17 @@ towards x (bsdf.closures): the Multiscatter GGX compensation is taken on x's sid
 Cycles' path from x takes it and as the photons' glass_adjoint documents; the
 interface's eta and which side the lamp is on follow the winding normals, as the camera
 side's. The lobe is peaky (roughness 0.3: alpha 0.09), so besides the lamp-side choice
-of y a share GLASS_PEAK_SHARE of the samples is drawn in a cos^n lobe about the lamp
-direction the glass refracts straight towards x (_refracted_axes: two rays from the lamp
-find it by a fixed-point step, starting towards x or, where that ray leaves through an
-opening, towards the nearest glass triangle), the pdf being the mixture's. Per-sample
-std / mean at roughness 0.3, three points by a tube: 11-20 from the lamp side alone,
-2.4-4.7 with the mixture; at 0.5, 5-8.5 -> 1.1-1.8 (docs/accuracy.md "## roughshade33",
-bench/bench_glass_shade.py). Below roughness 0.3 (GLASS_ROUGH_MIN) the estimator's
-pixel noise exceeds the caustic photons' (at 0.2: pixel std / mean 3.4 at 64 spp): that
-glass stays caustic.
+of y a share GLASS_PEAK_SHARE of the samples is drawn in a lobe about the lamp direction
+the glass refracts straight towards x (_refracted_axes: two rays from the lamp find it by
+a fixed-point step, starting towards x or, where that ray leaves through an opening,
+towards the nearest glass triangle; GGX's distribution for a radius-0 lamp, cos^n for a
+lamp with a radius, which also takes GLASS_LAMP_SAMPLES points on the lamp per y), the
+pdf being the mixture's. Per-sample std / mean at roughness 0.3, three points by a tube:
+11-20 from the lamp side alone, 1.7-4.6 with the mixture; at 0.5, 5-8.5 -> 0.9-1.3; by
+the living room's shade 0.6-1.5 (Translucent: 1.1-1.6) (docs/accuracy.md
+"## roughshade33", bench/bench_glass_shade.py). Below roughness 0.3 (GLASS_ROUGH_MIN) the
+estimator's pixel noise exceeds the caustic photons' (at 0.2: pixel std / mean 1.6 at 64
+spp, the photons' 1.3): that glass stays caustic.
 
 For a point lamp E_back / pdf_A is nearly constant: what varies is the geometry towards
 x. Choosing y from the lamp's side rather than x's (a cone towards the shade's
