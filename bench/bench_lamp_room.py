@@ -23,7 +23,10 @@ docs/accuracy.md "## shade32", another reference): ours default relMSE 0.0133 ->
 FLIP 0.089 -> 0.072 in 33 CPU s; Cycles 1024 spp 0.035, 0.108 in 95 CPU s.
 --shadelight off: the lamp's light through the shade by caustic photons alone, as before
 shade32 / roughshade33 (engine.shadelight.ENABLED; the A/B of docs/accuracy.md
-"## roughshade33", whose glass shade the estimator serves since).
+"## roughshade33", whose glass shade the estimator serves since). roughshade33, --shade
+glass against a Cycles 1024-spp reference (whose own noise dominates relMSE and FLIP):
+walls 0.980 -> 0.984, floor 0.984 -> 0.977, CPU 36 -> 55 s at the default 128 spp; the
+walls' Caustic pass 0.319 -> 0.032, Direct 0.078 -> 0.366.
 """
 import argparse
 import math
