@@ -319,7 +319,10 @@ def _refracted_axes(ctx, shades, centre, a, x):
     if len(miss) and len(cen):
         to_c = cen - centre
         to_c /= np.maximum(np.linalg.norm(to_c, axis=1), 1e-300)[:, None]
-        start = to_c[np.argmax(a[miss] @ to_c.T, axis=1)]
+        # (in chunks: the (rows, centroids) cosines stay a few MB)
+        step = max(1, (1 << 20) // len(cen))
+        start = np.concatenate([to_c[np.argmax(a[miss[i:i + step]] @ to_c.T, axis=1)]
+                                for i in range(0, len(miss), step)])
         o2, v2, m2, r2 = _peak_steps(ctx, shades, centre, start, x[miss])
         out[miss], valid[miss], mat[miss] = o2, v2, m2
         rays += r2
