@@ -11,7 +11,7 @@ no clamping, Filter Glossy 0, no denoising or adaptive sampling.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_lamp_room.py [--shade translucent]
         [--ref REF.exr] [--save-ref REF.exr] [--ref-spp 4096] [--ours 32,default,512]
-        [--cycles 16,64,256,1024] [--width 160 --height 120]
+        [--cycles 16,64,256,1024] [--width 160 --height 120] [--shadelight off]
 
 --ref reuses a reference EXR (a render by this script's --save-ref); without it the
 reference is rendered first (4096 spp at 160 x 120: ~450 CPU s). CPU seconds are the
@@ -21,6 +21,12 @@ Measured (docs/accuracy.md, lamp30): translucent shade, ours 128 spp (default) r
 shade32 (the lamp through the shade by next-event estimation, engine/shadelight.py;
 docs/accuracy.md "## shade32", another reference): ours default relMSE 0.0133 -> 0.0120,
 FLIP 0.089 -> 0.072 in 33 CPU s; Cycles 1024 spp 0.035, 0.108 in 95 CPU s.
+--shadelight off: the lamp's light through the shade by caustic photons alone, as before
+shade32 / roughshade33 (engine.shadelight.ENABLED; the A/B of docs/accuracy.md
+"## roughshade33", whose glass shade the estimator serves since). roughshade33, --shade
+glass against a Cycles 1024-spp reference (whose own noise dominates relMSE and FLIP):
+walls 0.980 -> 0.984, floor 0.984 -> 0.977, CPU 36 -> 55 s at the default 128 spp; the
+walls' Caustic pass 0.319 -> 0.032, Direct 0.078 -> 0.366.
 """
 import argparse
 import math
@@ -210,7 +216,10 @@ def main():
     ap.add_argument("--cycles", default="16,64,256,1024")
     ap.add_argument("--width", type=int, default=160)
     ap.add_argument("--height", type=int, default=120)
+    ap.add_argument("--shadelight", default="on", choices=("on", "off"))
     a = ap.parse_args()
+    from engine import shadelight
+    shadelight.ENABLED = a.shadelight == "on"
     import bpy
     import addon
     from accuracy_scenes import flip, relmse
@@ -234,7 +243,8 @@ def main():
     names = [n for k, n in OBJ.items() if (inner == k).sum() >= 4]
     rows = [("ours", s) for s in a.ours.split(",") if s] + [
         ("Cycles", s) for s in a.cycles.split(",") if s]
-    print(f"shade: {a.shade}, {a.width} x {a.height}; per object: ours / reference mean")
+    print(f"shade: {a.shade}, {a.width} x {a.height}, shadelight {a.shadelight}; per object: "
+          "ours / reference mean")
     print("| run | CPU s | relMSE | HDR-FLIP | brightness | " + " | ".join(names) + " |")
     print("|---" * (5 + len(names)) + "|")
     for who, s in rows:

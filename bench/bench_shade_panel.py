@@ -9,6 +9,12 @@ brighter than a quarter of the brightest (the panel's far edge is dark). The ref
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_shade_panel.py [--ours 4,16,64]
         [--cycles 64,256,1024,4096] [--ref-spp 16384] [--ref REF.exr]
+        [--shade translucent|glass] [--shadelight on|off]
+
+--shade glass: tests/blender/test_rough_glass_shade_cycles.py's shade instead (Principled,
+Transmission 1, roughness 0.5, Multiscatter GGX; roughshade33). --shadelight off: the
+light through the shade by caustic photons alone (engine.shadelight.ENABLED), as main
+before shade32 / roughshade33.
 
 --ref: the reference's EXR, rendered and saved there when the file is missing (to
 compare two checkouts against one reference).
@@ -27,11 +33,15 @@ sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))
 
 
-def run(bpy, engine, spp, seed, path):
+def run(bpy, engine, spp, seed, path, shade="translucent"):
     """(image (H,W) grey, CPU seconds of the render call)."""
     from blender_helpers import cycles_plain, default_photonmap, read_rgba, render_exr
-    from test_translucent_shade_cycles import _shade_scene, _translucent
-    scene = _shade_scene(bpy, 0.0, "GGX", shade=_translucent)
+    if shade == "glass":
+        from test_rough_glass_shade_cycles import _shade_scene
+        scene = _shade_scene(bpy, 0.5, "MULTI_GGX")
+    else:
+        from test_translucent_shade_cycles import _shade_scene, _translucent
+        scene = _shade_scene(bpy, 0.0, "GGX", shade=_translucent)
     c = cycles_plain(scene, spp, 12)
     c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = 4, 4, 12
     c.seed = seed
@@ -56,7 +66,11 @@ def main():
     ap.add_argument("--cycles", default="64,256,1024,4096")
     ap.add_argument("--ref-spp", type=int, default=16384)
     ap.add_argument("--ref")
+    ap.add_argument("--shade", default="translucent", choices=("translucent", "glass"))
+    ap.add_argument("--shadelight", default="on", choices=("on", "off"))
     a = ap.parse_args()
+    from engine import shadelight
+    shadelight.ENABLED = a.shadelight == "on"
     import bpy  # noqa: F401
     import addon
     if not hasattr(bpy.types.Scene, "photonmap"):
@@ -67,7 +81,8 @@ def main():
         ref = read_rgba(bpy, a.ref)[..., :3].mean(axis=2)
         print(f"reference: {a.ref}")
     else:
-        ref, cpu = run(bpy, "CYCLES", a.ref_spp, 0, a.ref or os.path.join(tmp, "ref.exr"))
+        ref, cpu = run(bpy, "CYCLES", a.ref_spp, 0, a.ref or os.path.join(tmp, "ref.exr"),
+                       a.shade)
         print(f"reference: Cycles {a.ref_spp} spp, {cpu:.1f} CPU s")
     rb = blocks(ref)
     # The panel's lit blocks (its far edge, beyond the first block column, is dark).
@@ -78,7 +93,7 @@ def main():
         ("Cycles", s) for s in a.cycles.split(",") if s]
     for who, s in rows:
         img, cpu = run(bpy, "PHOTONMAP" if who == "ours" else "CYCLES", int(s), 1,
-                       os.path.join(tmp, f"{who}_{s}.exr"))
+                       os.path.join(tmp, f"{who}_{s}.exr"), a.shade)
         b = (blocks(img) / rb)[lit]
         rel = float(np.mean((img - ref) ** 2 / (ref ** 2 + 0.01)))
         print(f"| {who} {s} spp | {cpu:.1f} | {img.mean() / ref.mean():.4f} | {rel:.5f} | "

@@ -660,17 +660,25 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                      f"reaches through single-plane glass {through} by shadow rays "
                      f"refracted through it{how}; its photons through the glass are "
                      "direct light, not caustics")
-    # Lamps through Translucent BSDF shades (engine/shadelight.py): a line of their own
+    # Lamps through Translucent BSDF or rough glass shades (engine/shadelight.py): a line
+    # of their own
     # (newuser32 found it inside the caustics line).
     if shades is not None:
         for li in shades.lights:
             if not any(li is e for e in emitting) or not plan.shadows.get(li.name, True):
                 continue
+            tl_names = [n for n in shades.names if n not in shades.glass_names]
+            through = " and ".join(
+                (["translucent " + _quoted(tl_names, most=REPORT_NAMES_MAX)]
+                 if tl_names else [])
+                + (["rough glass " + _quoted(shades.glass_names, most=REPORT_NAMES_MAX)]
+                   if shades.glass_names else []))
             plan.add(f"lamp through shade '{li.name}'", True,
-                     "reaches through translucent " + _quoted(shades.names,
-                                                              most=REPORT_NAMES_MAX)
+                     "reaches through " + through
                      + " by shadow rays, sampled where its light lands on the shade; its "
-                     "photons through the shade are direct light, not caustics")
+                     "photons through the shade are direct light, not caustics"
+                     + ("; those the glass reflects stay caustics" if shades.glass_names
+                        else ""))
     if s.method == "local" and lights:
         # No shadow rays: a light's samples only integrate over its area.
         for i, d in enumerate(plan.decisions):

@@ -55,10 +55,13 @@ F_IN_GLASS = 16
 # direct: a transparent pass or a second crossing after it makes it caustic
 # (the pane's shadow rays cross neither).
 F_PANE = 32
-# pane_tri's code of a next-event lamp shade's triangles (engine/shadelight.py): a lamp's
-# photon whose first scatter is the shade's translucent lobe stays direct as through a
-# pane (F_PANE): the shade's shadow rays carry that light.
+# pane_tri's codes of a next-event lamp shade's triangles (engine/shadelight.py): a lamp's
+# photon whose first scatter is the shade's translucent lobe (SHADE_TRANSLUCENT) or, on a
+# single-surface rough glass shade, its glass refraction (SHADE_GLASS) stays direct as
+# through a pane (F_PANE): the shade's shadow rays carry that light. (The glass shade's
+# reflection stays caustic: no shadow ray carries it.)
 SHADE_TRANSLUCENT = -2
+SHADE_GLASS = -3
 # The path's own kind bits (F_PATH without F_FIRST_CASTER).
 _F_KIND = 7
 _PRE_SHIFT = 8
@@ -419,8 +422,8 @@ def scatter(*args, flat_mat=_NO_FLAT_MAT, flat_limit=_NO_FLAT_LIMIT, aniso_tan=_
     0 (a texture-driven metallic map, a Mix Shader's per-hit closure pick: the incident
     flux does not depend on which closure the hit took); empty (the default): stored
     where the hit's diffuse weight is > 0. pane_tri (T,) int64: the next-event pane
-    (engine/panelight.py) of each triangle row, -1 for none, SHADE_TRANSLUCENT a
-    next-event lamp shade's (engine/shadelight.py); empty (the default, and
+    (engine/panelight.py) of each triangle row, -1 for none, SHADE_TRANSLUCENT or
+    SHADE_GLASS a next-event lamp shade's (engine/shadelight.py); empty (the default, and
     for photons of lights served by neither): none."""
     plain = args[_PLAIN_ARG]
     if plain.dtype != np.int8:
@@ -1120,11 +1123,13 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     # Out of a flat passage: the path as it was before the glass.
                     nf = (fl >> _PRE_SHIFT) & F_PATH
                 elif (pane_on and not passage and not pane and (fl & _F_KIND) == 0
-                      and ((glass and transmitted and pane_tri[t] >= 0)
+                      and ((glass and transmitted
+                            and (pane_tri[t] >= 0 or pane_tri[t] == SHADE_GLASS))
                            or (lobe == pr.L_TRANSL and pane_tri[t] == SHADE_TRANSLUCENT))):
                     # A sun's light refracted straight through a next-event pane, or a
-                    # lamp's through its shade: still direct (the pane's / the shade's
-                    # shadow rays carry it; engine/panelight.py, engine/shadelight.py).
+                    # lamp's through its shade (translucent, or refracted by rough glass):
+                    # still direct (the pane's / the shade's shadow rays carry it;
+                    # engine/panelight.py, engine/shadelight.py).
                     nf |= F_PANE
                 else:
                     pre = nf

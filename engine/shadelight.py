@@ -1,4 +1,5 @@
-"""Lamp light through a Translucent BSDF shade by next-event estimation (issue 14, shade32).
+"""Lamp light through a Translucent BSDF or rough glass shade by next-event estimation
+(issue 14, shade32; rough glass: roughshade33).
 
 A lamp inside a shade (an open cylinder of Translucent BSDF) lights the room only through
 the shade. Before, that light reached the room's diffuse surfaces only as caustic-kind
@@ -23,6 +24,32 @@ shade's radiance towards x is L(y -> x) = T E_back(y) / pi and
 
     E(x) += T E_back(y) / pi * max(N . w, 0) |n_y . w| / (d^2 pdf_A(y)),   w = (y - x) / d.
 
+A single-surface rough glass shade (a Glass BSDF, or Principled at Transmission 1,
+roughness GLASS_ROUGH_MIN .. 1: an open cylinder or a cone without thickness) is the
+same estimator with the glass's refraction for the Lambertian transmission: y's radiance
+towards x is the lamp's light refracted by the rough glass lobe,
+
+    L(y -> x) = f_t(w_lamp, w_x) L_lamp |n_y . w_lamp| / pdf_lamp
+
+over the lamp samples from y's far side, by the camera side's own evaluation
+(engine/glasslight.py: directlight.direct_light with `transmission`,
+principled.accumulate_transmission at full weight), its lobes set up at y for the view
+towards x (bsdf.closures): the Multiscatter GGX compensation is taken on x's side, as
+Cycles' path from x takes it and as the photons' glass_adjoint documents; the
+interface's eta and which side the lamp is on follow the winding normals, as the camera
+side's. The lobe is peaky (roughness 0.3: alpha 0.09), so besides the lamp-side choice
+of y a share GLASS_PEAK_SHARE of the samples is drawn in a lobe about the lamp direction
+the glass refracts straight towards x (_refracted_axes: two rays from the lamp find it by
+a fixed-point step, starting towards x or, where that ray leaves through an opening,
+towards the nearest glass triangle; GGX's distribution for a radius-0 lamp, cos^n for a
+lamp with a radius, which also takes GLASS_LAMP_SAMPLES points on the lamp per y), the
+pdf being the mixture's. Per-sample std / mean at roughness 0.3, three points by a tube:
+11-20 from the lamp side alone, 1.7-4.6 with the mixture; at 0.5, 5-8.5 -> 0.9-1.3; by
+the living room's shade 0.6-1.5 (Translucent: 1.1-1.6) (docs/accuracy.md
+"## roughshade33", bench/bench_glass_shade.py). Below roughness 0.3 (GLASS_ROUGH_MIN) the
+estimator's pixel noise exceeds the caustic photons' (at 0.2: pixel std / mean 1.6 at 64
+spp, the photons' 1.3): that glass stays caustic.
+
 For a point lamp E_back / pdf_A is nearly constant: what varies is the geometry towards
 x. Choosing y from the lamp's side rather than x's (a cone towards the shade's
 bounding sphere) matters for a tall open tube, whose radiance peaks at the lamp's
@@ -31,10 +58,15 @@ mean 0.44 sampled from x, 0.21 from the lamp, 0.15 with the stratified numbers.
 
 Accounting (path classes and the estimator that counts each; x a camera-side diffuse
 point, S the shade's translucent lobe, L a served lamp):
-- L S x (lamp -> shade -> x, one crossing as the first scatter). Before: the caustic map
-  at x (its photons kind CAUSTIC). After: this estimator alone; the photons of that path
-  stay direct-kind (photonkernels: SHADE_TRANSLUCENT in pane_tri sets F_PANE, as a pane's
+- L S x (lamp -> shade -> x, one crossing as the first scatter: the translucent lobe, or
+  a rough glass shade's refraction). Before: the caustic map at x (its photons kind
+  CAUSTIC). After: this estimator alone; the photons of that path stay direct-kind
+  (photonkernels: SHADE_TRANSLUCENT / SHADE_GLASS in pane_tri sets F_PANE, as a pane's
   sun photon), so neither the caustic map nor the glow shot holds them.
+- L R x, R a rough glass shade's reflection (the lamp's light off the shade's inside,
+  out through its openings; or a second crossing after it): caustic photons, as before
+  (their scatter is not the refraction, so SHADE_GLASS leaves their kind; no shadow ray
+  carries reflected light).
 - L S z x (one diffuse bounce z after the shade). Before: the secondary map at x (kind
   CAUSTIC_DIFFUSE). After: the final gather from x reads the gather map at z, which now
   holds those photons as direct-kind (as every direct photon), and regathered points
@@ -54,14 +86,18 @@ point, S the shade's translucent lobe, L a served lamp):
   measured; no test scene has one).
 
 Which shades: materials that are all Translucent BSDF (share 1, opaque, no texture,
-normal map or emission; a Mix with another surface keeps its photons), in a scene
+normal map or emission; a Mix with another surface keeps its photons) or all rough glass
+(glass_shade_materials: roughness GLASS_ROUGH_MIN .. 1; smoother glass stays caustic, the
+caustic map focuses it better), in a scene
 without shared instances and with few enough lights that each is sampled on its own (no
 light tree), rendered with shadow rays (not method 'local'). Served lamps: point and
 spot lights whose shadow rays are sampled (y is chosen from the lamp's centre: a lamp
 with a radius is sampled over its size from y, but a shade point its centre cannot see,
 behind an occluder right at the lamp, is missed; an area light is not served: its light
-through a shade stays caustic). Rough glass shades are not served either (their light
-stays caustic).
+through a shade stays caustic). A rough glass shade with thickness (two surfaces):
+the light crossing both is a second crossing, caustic photons as before, and the
+estimator finds only what the inner face sends out through the openings (not measured:
+shades of one surface are the common case).
 """
 from __future__ import annotations
 
@@ -81,20 +117,55 @@ SERVED_KINDS = ("POINT", "SPOT")
 # (_lamp_directions); the rest uniform over the sphere.
 LAMP_COSINE_SHARE = 0.5
 
+# Rough glass shades (single surface, Glass BSDF or Principled Transmission 1): served
+# from this roughness up (below it the lobe is too peaky for y chosen from the lamp;
+# the caustic map keeps that light: docs/accuracy.md "## roughshade33").
+GLASS_ROUGH_MIN = 0.3
+# The share of a glass shade's samples drawn in the lobe about the lamp's direction
+# that the glass refracts towards the shading point (_refracted_axes); GLASS_PEAK_WIDTH:
+# that lobe's angular spread over the glass's alpha (cos^n lobe, n = 2 / (k alpha)^2).
+GLASS_PEAK_SHARE = 0.9
+GLASS_PEAK_WIDTH = 1.0
+# The peaked lobe's shape: GGX's distribution about the axis for a lamp of radius 0 (its
+# heavier tails follow the glass's own), a cos^n lobe for a lamp with a radius (whose
+# size smears the peak); None: by the lamp, or "ggx" / "cos" for all. Their spreads:
+# GLASS_PEAK_WIDTH x GLASS_PEAK_BASE[lobe] x alpha (bench/bench_glass_shade.py).
+GLASS_PEAK_LOBE = None
+GLASS_PEAK_BASE = {"ggx": 0.5, "cos": 1.0}
+# Points on a lamp with a radius sampled from each y on a glass shade (their shadow rays
+# and f_t evaluations; the rays choosing y are shared): the point on the lamp moves the
+# glass's peak (one per y left std / mean 1.6-2.5 by a radius-0.05 m lamp, 8: 0.8-1.0).
+GLASS_LAMP_SAMPLES = 8
+# _refracted_axes' fixed-point steps after its first ray (0: the peak read at the point
+# where the lamp's ray towards x meets the shade).
+GLASS_PEAK_STEPS = 1
+# Where the lamp's ray towards x misses the shade (x above or below it: the light leaves
+# the shade's wall towards x, the ray passes through an opening), the steps start from
+# the glass triangle whose centroid is closest in angle to that ray, among at most this
+# many (evenly taken) triangles.
+GLASS_START_POINTS = 1024
+
 _NO_ROWS = np.zeros(0, np.int64)
 _NO_ROWS3 = np.zeros((0, 3))
 
 
 class Shades:
     """The scene's next-event shades: `tl` (M,3) each material's translucent
-    transmittance T (0: not a shade material); `served` the light indices (into
-    ctx.lights) sampled through them (a frozenset), `lights` those Light objects; `names`
-    the shade objects' names; `code` (T,) int64 the photon kernel's pane_tri codes (-1, or
-    photonkernels.SHADE_TRANSLUCENT on a shade triangle)."""
+    transmittance T (0: not a translucent shade material); `served` the light indices
+    (into ctx.lights) sampled through them (a frozenset), `lights` those Light objects;
+    `names` the shade objects' names (`glass_names` those of rough glass); `code` (T,)
+    int64 the photon kernel's pane_tri codes (-1, or photonkernels.SHADE_TRANSLUCENT /
+    SHADE_GLASS on a shade triangle)."""
 
-    def __init__(self, tl, served, lights, names, code):
+    def __init__(self, tl, served, lights, names, code, glass_names=(), glass_centroids=None):
         self.tl, self.served, self.lights = tl, frozenset(served), lights
         self.names, self.code = names, code
+        self.glass_names = list(glass_names)
+        self.has_glass = bool(np.any(code == pk.SHADE_GLASS))
+        # (K,3) centroids of (at most GLASS_START_POINTS of) the glass shade triangles:
+        # _refracted_axes' start where the lamp's ray towards x misses the shade.
+        self.glass_centroids = (np.zeros((0, 3)) if glass_centroids is None
+                                else glass_centroids)
 
     def photon_tri(self, light, pane_tri=None) -> np.ndarray | None:
         """pane_tri for the photons of `light` (photonkernels.scatter): this scene's shade
@@ -134,6 +205,37 @@ def shade_materials(table) -> tuple[np.ndarray, np.ndarray]:
     return ok & (tl.max(axis=1) > 0.0), tl
 
 
+def glass_shade_materials(table) -> np.ndarray:
+    """(M,) bool: the materials that are rough glass alone: a Glass BSDF, a Refraction
+    BSDF or a Principled BSDF at Transmission 1 (no metallic, coat, sheen or translucent
+    share, isotropic), roughness GLASS_ROUGH_MIN .. 1, opaque, untextured, no normal map
+    or emission, closure weight 1. On a single surface (an open cylinder, a cone without
+    thickness) the interface's sides follow its normals, as the camera side's
+    (engine/glasslight.py)."""
+    from .closures import principled as pr
+    q = np.asarray(table.closure_params, np.float64)
+    M = len(q)
+    if M == 0:
+        return np.zeros(0, bool)
+
+    def untextured(nodes):
+        return np.array([x is None for x in (nodes or [None] * M)], bool)
+
+    node = q[:, pr.M_NODE]
+    glass_node = (node == pr.NODE_GLASS) | (node == pr.NODE_REFRACTION)
+    principled = ((node == pr.NODE_PRINCIPLED) & (q[:, pr.M_METALLIC] == 0.0)
+                  & (q[:, pr.M_COAT_W] == 0.0) & (q[:, pr.M_SHEEN_W] == 0.0))
+    return ((glass_node | principled) & (q[:, pr.M_TRANS] >= 1.0) & (q[:, pr.M_TL] == 0.0)
+            & (q[:, pr.M_ANISO] == 0.0)
+            & (q[:, pr.M_ROUGH] >= GLASS_ROUGH_MIN) & (q[:, pr.M_ROUGH] <= 1.0)
+            & (np.asarray(table.alpha, np.float64) >= 1.0) & (q[:, pr.M_ADD] == 0.0)
+            & (np.asarray(table.emission, np.float64) == 0.0).all(axis=1)
+            & (np.asarray(table.base_color, np.float64).max(axis=1) > 0.0)
+            & untextured(table.textures) & untextured(table.normal_maps)
+            & untextured(table.alpha_textures) & untextured(table.scalar_textures)
+            & untextured(getattr(table, "emission_textures", None)))
+
+
 def find_shades(geo, table, lights, settings=None):
     """Shades or None (the module docstring's conditions): the triangles of Translucent
     BSDF materials, with the point and spot lights they serve (SERVED_KINDS)."""
@@ -150,18 +252,29 @@ def find_shades(geo, table, lights, settings=None):
     if not served:
         return None
     ok, tl = shade_materials(table)
-    if not ok.any():
+    glass = glass_shade_materials(table) & ~ok
+    if not (ok.any() or glass.any()):
         return None
     mat = np.asarray(geo.material)
-    tri = np.flatnonzero(ok[mat]).astype(np.int64)
-    area = 0.5 * np.linalg.norm(np.cross(geo.e1[tri], geo.e2[tri]), axis=1)
-    tri = tri[area > 0.0]
-    if not len(tri):
-        return None
     code = np.full(geo.count, -1, np.int64)
-    code[tri] = pk.SHADE_TRANSLUCENT
-    names = [geo.object_names[o] for o in np.unique(np.asarray(geo.object_id)[tri])]
-    return Shades(tl, served, [lights[i] for i in served], names, np.ascontiguousarray(code))
+    obj = np.asarray(geo.object_id)
+    names, glass_names = [], []
+    for kind, sel, out in ((pk.SHADE_TRANSLUCENT, ok, names),
+                           (pk.SHADE_GLASS, glass, glass_names)):
+        tri = np.flatnonzero(sel[mat]).astype(np.int64)
+        area = 0.5 * np.linalg.norm(np.cross(geo.e1[tri], geo.e2[tri]), axis=1)
+        tri = tri[area > 0.0]
+        code[tri] = kind
+        out += [geo.object_names[o] for o in np.unique(obj[tri])]
+    if not (code < -1).any():
+        return None
+    gt = np.flatnonzero(code == pk.SHADE_GLASS)
+    if len(gt) > GLASS_START_POINTS:
+        gt = gt[np.linspace(0, len(gt) - 1, GLASS_START_POINTS).astype(np.int64)]
+    centroids = np.asarray(geo.v0, np.float64)[gt] + (np.asarray(geo.e1, np.float64)[gt]
+                                                      + np.asarray(geo.e2, np.float64)[gt]) / 3.0
+    return Shades(tl, served, [lights[i] for i in served], names + glass_names,
+                  np.ascontiguousarray(code), glass_names, np.ascontiguousarray(centroids))
 
 
 def shades_for(ctx):
@@ -192,6 +305,133 @@ def _lamp_directions(a, r):
     return w, LAMP_COSINE_SHARE * cos_a / math.pi + (1.0 - LAMP_COSINE_SHARE) * 0.25 / math.pi
 
 
+def _refracted_axes(ctx, shades, centre, a, x):
+    """((N,3) lamp directions, (N,) bool valid, (N,) int64 the glass's material, rays
+    traced): for each shading point x (N,3) seen from the lamp's centre along a (N,3),
+    the direction from the lamp whose light the rough glass shade refracts straight
+    towards x, by _peak_steps from a; where the lamp's ray along a misses the glass (x
+    above or below the shade), from the direction to the glass triangle centroid
+    closest in angle to a (Shades.glass_centroids). It only centres the mixture's peaked
+    lobe (_shade_directions), whose estimate stays unbiased."""
+    out, valid, mat, rays = _peak_steps(ctx, shades, centre, a, x)
+    miss = np.flatnonzero(~valid)
+    cen = shades.glass_centroids
+    if len(miss) and len(cen):
+        to_c = cen - centre
+        to_c /= np.maximum(np.linalg.norm(to_c, axis=1), 1e-300)[:, None]
+        # (in chunks: the (rows, centroids) cosines stay a few MB)
+        step = max(1, (1 << 20) // len(cen))
+        start = np.concatenate([to_c[np.argmax(a[miss[i:i + step]] @ to_c.T, axis=1)]
+                                for i in range(0, len(miss), step)])
+        o2, v2, m2, r2 = _peak_steps(ctx, shades, centre, start, x[miss])
+        out[miss], valid[miss], mat[miss] = o2, v2, m2
+        rays += r2
+    return out, valid, mat, rays
+
+
+def _peak_steps(ctx, shades, centre, a, x):
+    """_refracted_axes' fixed-point steps from the directions a (N,3): the lamp's ray
+    along the current axis meets the shade at y0 (valid where that is a SHADE_GLASS
+    triangle), the ray from x to y0 refracts through y0's geometric normal (the
+    interface's sides by the winding, eta 1 / ior entering the front, as
+    principled.glass_terms) into t, and the lamp's light that leaves y0 towards x
+    arrives along -t (reversibility): the next axis. 1 + GLASS_PEAK_STEPS rays; a step
+    that leaves the glass or meets total internal reflection keeps the axis before it
+    (none: not valid). Returns (axes (N,3), valid (N,), material (N,), rays)."""
+    from .closures import principled as pr
+    from .geometry import SHADOW
+    geo, c = ctx.geo, np.ascontiguousarray
+    n = len(a)
+    o = c(np.broadcast_to(centre, (n, 3)))
+    ior_mat = np.maximum(np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_IOR], 1e-5)
+    out = np.array(a, np.float64)
+    valid = np.zeros(n, bool)
+    mat = np.zeros(n, np.int64)
+    live = np.arange(n)
+    rays = 0
+    for _ in range(1 + GLASS_PEAK_STEPS):
+        if not len(live):
+            break
+        t, prim, _, _ = ctx.accel.intersect(c(o[live]), c(out[live]), None, cls=SHADOW)
+        rays += len(live)
+        ok = (prim >= 0) & np.isfinite(t) & (t > 0.0)
+        ok &= np.take(shades.code, np.maximum(prim, 0)) == pk.SHADE_GLASS
+        live, t, prim = live[ok], t[ok], prim[ok]
+        if not len(live):
+            break
+        m_ = np.take(np.asarray(geo.material), prim)
+        ng = np.cross(np.take(geo.e1, prim, axis=0), np.take(geo.e2, prim, axis=0))
+        ng /= np.linalg.norm(ng, axis=1)[:, None]
+        wo = x[live] - (centre + t[:, None] * out[live])
+        wo /= np.maximum(np.linalg.norm(wo, axis=1), 1e-300)[:, None]
+        cos_o = np.einsum("ij,ij->i", wo, ng)
+        front = cos_o > 0.0
+        ior = np.take(ior_mat, m_)
+        eta = np.where(front, 1.0 / ior, ior)  # n(x's side) / n(the lamp's side)
+        nf = ng * np.where(front, 1.0, -1.0)[:, None]
+        ci = np.abs(cos_o)
+        sin2 = eta * eta * (1.0 - ci * ci)
+        good = sin2 < 1.0  # (else total internal reflection: no refracted peak)
+        tdir = (-eta[:, None] * wo
+                + (eta * ci - np.sqrt(np.maximum(1.0 - sin2, 0.0)))[:, None] * nf)
+        tdir /= np.maximum(np.linalg.norm(tdir, axis=1), 1e-300)[:, None]
+        live = live[good]
+        out[live] = -tdir[good]
+        valid[live] = True
+        mat[live] = m_[good]
+    out[~valid] = a[~valid]
+    return out, valid, mat, rays
+
+
+def _shade_directions(a, r, a2, has2, n_pow, lobe_kind="cos"):
+    """(N,3) unit directions from a lamp's centre and their solid-angle pdf (N,): where
+    has2 (N,) bool, the one-sample mixture of GLASS_PEAK_SHARE of a lobe about a2 (N,3)
+    (_refracted_axes: the rough glass's peak; lobe_kind "cos": cos^n_pow, "ggx": GGX's
+    distribution of slope sqrt(2 / n_pow), Walter et al. 2007) and the rest
+    _lamp_directions about a; elsewhere _lamp_directions alone, with the same numbers r =
+    (r0, r1) as before (a scene without glass shades draws what it drew). The pdf is the mixture's
+    (both strategies' densities at the direction drawn)."""
+    share = GLASS_PEAK_SHARE
+    peak = has2 & (r[0] < share)
+    r0 = np.where(has2, np.where(peak, 0.0, (r[0] - share) / (1.0 - share)), r[0])
+    w, pdf = _lamp_directions(a, (np.clip(r0, 0.0, 1.0), r[1]))
+    if not has2.any():
+        return w, pdf
+    # The peaked lobe about a2: cos theta = v^(1 / (n + 1)) (cos^n), or GGX's
+    # tan^2 theta = s^2 v / (1 - v), s = sqrt(2 / n) (its heavier tails).
+    ggx_lobe = lobe_kind == "ggx"
+    k = np.flatnonzero(peak)
+    if len(k):
+        v = np.clip(r[0][k] / share, 1e-300, 1.0)
+        if ggx_lobe:
+            t2 = (2.0 / n_pow[k]) * v / np.maximum(1.0 - v, 1e-300)
+            ct = 1.0 / np.sqrt(1.0 + t2)
+        else:
+            ct = v ** (1.0 / (n_pow[k] + 1.0))
+        st = np.sqrt(np.maximum(0.0, 1.0 - ct * ct))
+        phi = 2.0 * math.pi * r[1][k]
+        bu, bv = orthonormal_basis(a2[k])
+        w[k] = ((st * np.cos(phi))[:, None] * bu + (st * np.sin(phi))[:, None] * bv
+                + ct[:, None] * a2[k])
+    h = np.flatnonzero(has2)
+    wh = w[h]
+    cos_a = np.maximum(np.einsum("ij,ij->i", wh, a[h]), 0.0)
+    broad = LAMP_COSINE_SHARE * cos_a / math.pi + (1.0 - LAMP_COSINE_SHARE) * 0.25 / math.pi
+    cos2 = np.maximum(np.einsum("ij,ij->i", wh, a2[h]), 0.0)
+    if ggx_lobe:
+        # D(theta) cos theta, D = s^2 / (pi cos^4 (s^2 + tan^2)^2) (Walter et al. 2007)
+        s2 = 2.0 / n_pow[h]
+        c2 = np.maximum(cos2 * cos2, 1e-300)
+        t2 = np.minimum((1.0 - c2) / c2, 1e100)
+        with np.errstate(divide="ignore", over="ignore"):
+            lobe = np.where(cos2 > 1e-30, s2 / (math.pi * c2 * np.maximum(cos2, 1e-30)
+                                                * (s2 + t2) ** 2), 0.0)
+    else:
+        lobe = (n_pow[h] + 1.0) / (2.0 * math.pi) * cos2 ** n_pow[h]
+    pdf[h] = share * lobe + (1.0 - share) * broad
+    return w, pdf
+
+
 def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     """(N,3) irradiance at points p (N,3) (shading normals ns, geometric normals ng on the
     viewer's side, origin offsets offset (N,)) from the served lights' samples among
@@ -201,16 +441,23 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     numbers per point and sample.
 
     Each sample picks y where the lamp's light lands: a direction from the lamp's centre
-    (_lamp_directions, about the direction to the shading point), y its first hit, which
-    must be a shade triangle; the area pdf of y is pdf_omega cos_in / r^2 (cos_in at y's
-    geometric normal, r the centre's distance), so a point lamp's E_in(y) / pdf is
-    nearly constant and only the geometry towards x varies. Then the closest hit from x
-    towards y must be y's shade at y's distance (shadow ray), the lamp is sampled from
-    y's far side (E_back, directlight.direct_light with the normals flipped), and
-    E += T E_back / pi max(N . w, 0) |n_y . w| / (d^2 pdf_A). A lamp with a radius is
+    (_lamp_directions, about the direction to the shading point; with a rough glass
+    shade, _shade_directions' mixture with a lobe about the direction the glass refracts
+    towards x), y its first hit, which must be a shade triangle; the area pdf of y is
+    pdf_omega cos_in / r^2 (cos_in at y's geometric normal, r the centre's distance), so
+    a point lamp's E_in(y) / pdf is nearly constant and only the geometry towards x
+    varies. Then the closest hit from x towards y must be y's shade at y's distance
+    (shadow ray), and the lamp is sampled from y's far side (directlight.direct_light
+    with the normals flipped) for y's radiance towards x: a translucent shade's T E_back
+    / pi, a rough glass shade's L(y -> x) = f_t(w_lamp, w_x) L_lamp |cos| / pdf
+    (principled.accumulate_transmission, the camera side's evaluation
+    (engine/glasslight.py) with the view towards x, its lobes set up at y for that view:
+    the Multiscatter GGX compensation on x's side, as Cycles' path from x takes it); then
+    E += L(y -> x) max(N . w, 0) |n_y . w| / (d^2 pdf_A). A lamp with a radius is
     sampled over its whole size at y, but y is chosen from its centre: a shade point the
     centre cannot see (an occluder right at the lamp) is missed."""
-    from .bsdf import surface_hit
+    from .bsdf import closures, surface_hit
+    from .closures import principled as pr
     from .directlight import direct_light
     from .geometry import SHADOW
     from .lights.packing import pack_lights
@@ -224,10 +471,18 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     scale = max(float(geo.extent), 1e-9)
     rays = 0
     c = np.ascontiguousarray
+    # Rough glass: each light sample at full weight (no MIS: this estimator alone counts
+    # the lamp -> shade -> x paths), the lobe-choice probabilities unused.
+    full = np.ones(max(len(ctx.lights), 1), np.int64)
+    alpha_mat = None
+    if shades.has_glass:
+        rough = np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_ROUGH]
+        alpha_mat = np.maximum(rough * rough, 1e-3)
     for li, traced, count, u1, u2, sel in samples:
         if li < 0 or li not in shades.served:
             continue
         centre = np.asarray(ctx.lights[li].pos, np.float64).reshape(3)
+        lamp_r = float(getattr(ctx.lights[li], "radius", 0.0) or 0.0)
         # The direction from the lamp takes the sample's stratified numbers (u1, u2);
         # the point on the lamp seen from y, fresh ones.
         lamp_u = rng.random((2, N))
@@ -236,12 +491,22 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
         idx = np.flatnonzero(dx > 1e-9 * scale)
         if not len(idx):
             continue
-        wl, pdf_w = _lamp_directions(to_x[idx] / dx[idx, None], (u1[idx], u2[idx]))
+        a = to_x[idx] / dx[idx, None]
+        if shades.has_glass and GLASS_PEAK_SHARE > 0.0:
+            a2, has2, mat0, nr = _refracted_axes(ctx, shades, centre, a, p[idx])
+            rays += nr
+            # (the peaked lobe's spread: of the glass the lamp's ray towards x meets)
+            kind = GLASS_PEAK_LOBE or ("ggx" if lamp_r == 0.0 else "cos")
+            spread = GLASS_PEAK_WIDTH * GLASS_PEAK_BASE[kind] * np.take(alpha_mat, mat0)
+            wl, pdf_w = _shade_directions(a, (u1[idx], u2[idx]), a2, has2,
+                                          2.0 / spread ** 2, kind)
+        else:
+            wl, pdf_w = _lamp_directions(a, (u1[idx], u2[idx]))
         # Where the lamp's light lands: its first hit, a shade triangle.
         o_l = c(np.broadcast_to(centre, (len(idx), 3)))
         t_l, prim, hu, hv = accel.intersect(o_l, c(wl), None, cls=SHADOW)
         rays += len(idx)
-        good = (prim >= 0) & (np.take(shades.code, np.maximum(prim, 0)) == pk.SHADE_TRANSLUCENT)
+        good = (prim >= 0) & (np.take(shades.code, np.maximum(prim, 0)) < -1)
         good &= np.isfinite(t_l) & (t_l > 0.0)
         idx, wl, pdf_w, t_l, prim, hu, hv = (a_[good] for a_ in
                                              (idx, wl, pdf_w, t_l, prim, hu, hv))
@@ -263,28 +528,57 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
         t_hit, prim_x, _, _ = accel.intersect(c(o), c(w), dist * (1.0 + 1e-3) + 1e-5 * scale,
                                               cls=SHADOW)
         rays += len(idx)
-        seen = (prim_x >= 0) & (np.take(shades.code, np.maximum(prim_x, 0))
-                                == pk.SHADE_TRANSLUCENT)
+        seen = (prim_x >= 0) & (np.take(shades.code, np.maximum(prim_x, 0)) < -1)
         seen &= np.abs(t_hit - dist) <= 1e-3 * dist + 1e-5 * scale
         idx, wl, pdf_w, t_l, prim, hu, hv, w, dist, cr = (
             a_[seen] for a_ in (idx, wl, pdf_w, t_l, prim, hu, hv, w, dist, cr))
         if not len(idx):
             continue
-        # y's surface as the ray from x meets it: normals turned towards x.
-        Y = surface_hit(geo, ctx.table, prim, hu, hv, w)
-        yng = np.asarray(Y.ng, np.float64)
-        cos_in = np.abs(np.einsum("ij,ij->i", wl, yng))
-        cos_y = np.abs(np.einsum("ij,ij->i", w, yng))
-        # The lamp on the shade's far side: normals flipped (engine/glasslight.py).
-        yns = c(-np.asarray(Y.ns, np.float64))
-        arrays = (c(Y.p, np.float64), yns, _NO_ROWS3, c(-yng), c(Y.offset, np.float64),
-                  _NO_ROWS, _NO_ROWS, _NO_ROWS3, yns)
-        entry = [(li, traced, count, c(lamp_u[0, idx]), c(lamp_u[1, idx]),
-                  None if sel is None else c(sel[idx], np.float64))]
-        Eb, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(idx), shadow=shadow)
-        rays += nr
-        pdf_a = pdf_w * cos_in / (t_l * t_l)
-        T = shades.tl[np.asarray(Y.mat)]
-        g = cr * cos_y / (math.pi * dist * dist * np.maximum(pdf_a, 1e-300))
-        E[idx] += T * Eb * g[:, None]
+        glass = np.take(shades.code, prim) == pk.SHADE_GLASS
+        for on_glass in (False, True):
+            part = glass if on_glass else ~glass
+            if not part.any():
+                continue
+            if part.all():
+                jdx, jl, jpdf, jt, jprim, ju, jv, jw, jdist, jcr = (
+                    idx, wl, pdf_w, t_l, prim, hu, hv, w, dist, cr)
+            else:
+                jdx, jl, jpdf, jt, jprim, ju, jv, jw, jdist, jcr = (
+                    a_[part] for a_ in (idx, wl, pdf_w, t_l, prim, hu, hv, w, dist, cr))
+            # y's surface as the ray from x meets it: normals turned towards x.
+            Y = surface_hit(geo, ctx.table, jprim, ju, jv, jw)
+            yng = np.asarray(Y.ng, np.float64)
+            cos_in = np.abs(np.einsum("ij,ij->i", jl, yng))
+            cos_y = np.abs(np.einsum("ij,ij->i", jw, yng))
+            # The lamp on the shade's far side: normals flipped (engine/glasslight.py).
+            yns = c(-np.asarray(Y.ns, np.float64))
+            arrays = (c(Y.p, np.float64), yns, _NO_ROWS3, c(-yng), c(Y.offset, np.float64),
+                      _NO_ROWS, _NO_ROWS, _NO_ROWS3, yns)
+            entry = [(li, traced, count, c(lamp_u[0, jdx]), c(lamp_u[1, jdx]),
+                      None if sel is None else c(sel[jdx], np.float64))]
+            if on_glass and GLASS_LAMP_SAMPLES > 1 and lamp_r > 0.0:
+                # The point on a lamp with a radius moves the glass's peak: several per y
+                # (each weighted 1 / GLASS_LAMP_SAMPLES by direct_light's sample count).
+                more = rng.random((2 * (GLASS_LAMP_SAMPLES - 1), len(jdx)))
+                entry = [(li, traced, count * GLASS_LAMP_SAMPLES, e[3] if j == 0 else
+                          c(more[2 * j - 2]), e[4] if j == 0 else c(more[2 * j - 1]), e[5])
+                         for e in entry for j in range(GLASS_LAMP_SAMPLES)]
+            pdf_a = jpdf * cos_in / (jt * jt)
+            if on_glass:
+                # L(y -> x): the glass lobes set up for the view towards x.
+                prm, _ = closures(ctx.table, Y, geo)
+                transmission = (c(prm), c(Y.ns, np.float64), c(Y.wo, np.float64), full,
+                                np.zeros((len(jdx), pr.N_LOBES)))
+                Ly, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(jdx),
+                                      shadow=shadow, transmission=transmission)
+                rays += nr
+                g = jcr * cos_y / (jdist * jdist * np.maximum(pdf_a, 1e-300))
+                E[jdx] += Ly * g[:, None]
+            else:
+                Eb, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(jdx),
+                                      shadow=shadow)
+                rays += nr
+                T = shades.tl[np.asarray(Y.mat)]
+                g = jcr * cos_y / (math.pi * jdist * jdist * np.maximum(pdf_a, 1e-300))
+                E[jdx] += T * Eb * g[:, None]
     return E, rays
