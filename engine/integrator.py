@@ -600,6 +600,9 @@ _UNSET = object()  # gather_indirect's lean: not given
 # gather once more from their end, up to this many levels deep (Jensen's advice for
 # short gather rays). Deeper, the lookup is used as it is.
 MAX_GATHER_LEVEL = 2
+# Guided gather directions (engine/guiding.py) at the regathers' levels too (True), or at
+# level 0 only
+GUIDE_REGATHERS = False
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
@@ -661,8 +664,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         from_h = np.empty(n, np.int64)  # the triangle each ray left, by hit row
     # Photon-guided directions (engine/guiding.py; setting gather_guiding): level 0 only
     # (the regathers' rays keep the cosine lobe). Each hit's tables, once for its G rays.
-    guide = getattr(ctx.gather_map, "guide", None) if level == 0 else None
-    if guide is not None and n:
+    guide = (getattr(ctx.gather_map, "guide", None) if n and (level == 0 or GUIDE_REGATHERS)
+             else None)
+    if guide is not None:
         g_rows, g_cols = guide.tables(guide.points_for(p, ns))
     for g in range(G):
         idx, o, d, tp = buf.rays(n)

@@ -775,7 +775,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                 # the nearest point's.
                 gather_map.guide = GatherGuide(gather_map.position, gather_map.normal, shot,
                                                gather_map.radius, k,
-                                               s.gather_guide_share)
+                                               s.gather_guide_share,
+                                               s.gather_guide_source)
             out_deeper["regather_maps"] = level_maps(gather_map, level_of, secondary_of)
             if shot.bounces is not None:
                 # Lookups after a specular chain: which ones the map cannot serve.

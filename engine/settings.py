@@ -100,6 +100,10 @@ class RenderSettings:
     # cos / (pi pdf): unbiased.
     gather_guiding: bool = False
     gather_guide_share: float = 0.5
+    # The grids' source: "indirect" (Jensen: the INDIRECT photons' incoming directions at
+    # the point) or "flux" (the stored photons as small diffuse emitters, their form
+    # factors to the point)
+    gather_guide_source: str = "indirect"
     # Pass 2 (camera)
     spp: int = 128                  # camera samples per pixel (jittered, stratified)
     # Adaptive sampling (engine/adaptive.py), Cycles' Sampling > Noise Threshold and Min
@@ -222,6 +226,9 @@ class RenderSettings:
             raise ValueError("setting 'gather_guide_share' must be a number in [0, 1), "
                              f"got {share!r}")
         self.gather_guide_share = float(share)
+        if self.gather_guide_source not in ("indirect", "flux"):
+            raise ValueError("setting 'gather_guide_source' must be indirect or flux, "
+                             f"got {self.gather_guide_source!r}")
         if not isinstance(self.method, str) or self.method.lower() not in METHODS:
             raise ValueError(f"setting 'method' must be one of {', '.join(METHODS)}, "
                              f"got {self.method!r}")
