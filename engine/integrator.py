@@ -662,8 +662,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         near_h = coincident.near(p, hit_prim)
         glass_h = np.take(coincident.is_glass, hit_prim)
         from_h = np.empty(n, np.int64)  # the triangle each ray left, by hit row
-    # Photon-guided directions (engine/guiding.py; setting gather_guiding): level 0 only
-    # (the regathers' rays keep the cosine lobe). Each hit's tables, once for its G rays.
+    # Photon-guided directions (engine/guiding.py; setting gather_guiding): level 0 (the
+    # regathers keep the cosine lobe unless GUIDE_REGATHERS). Each hit's tables, once for
+    # its G rays.
     guide = (getattr(ctx.gather_map, "guide", None) if n and (level == 0 or GUIDE_REGATHERS)
              else None)
     if guide is not None:

@@ -771,8 +771,8 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    subsets=masks, secondary=secondary)
             if s.gather_guiding and gather_map.tree is not None:
                 # Photon-guided gather directions (engine/guiding.py): each gather point's
-                # grid of its INDIRECT photons' incoming flux; the level-0 gather rays read
-                # the nearest point's.
+                # grid of the flux coming in (its INDIRECT photons', or the photons' as
+                # emitters); the level-0 gather rays read their nearest facing point's.
                 gather_map.guide = GatherGuide(gather_map.position, gather_map.normal, shot,
                                                gather_map.radius, k,
                                                s.gather_guide_share,
