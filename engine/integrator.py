@@ -43,6 +43,7 @@ from .console import short_count
 from .glasslight import rough_transmission_rows, transmitted_light
 from .parallel import Cancelled, chunk_length, ordered_map
 from .pixelfilter import filter_table
+from .guiding import warp as guide_warp
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .panelight import pane_irradiance, panes_for
 from .shadelight import shade_irradiance, shades_for
@@ -599,6 +600,9 @@ _UNSET = object()  # gather_indirect's lean: not given
 # gather once more from their end, up to this many levels deep (Jensen's advice for
 # short gather rays). Deeper, the lookup is used as it is.
 MAX_GATHER_LEVEL = 2
+# Guided gather directions (engine/guiding.py) at the regathers' levels too (True), or at
+# level 0 only
+GUIDE_REGATHERS = False
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
@@ -658,6 +662,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         near_h = coincident.near(p, hit_prim)
         glass_h = np.take(coincident.is_glass, hit_prim)
         from_h = np.empty(n, np.int64)  # the triangle each ray left, by hit row
+    # Photon-guided directions (engine/guiding.py; setting gather_guiding): level 0 (the
+    # regathers keep the cosine lobe unless GUIDE_REGATHERS). Each hit's tables, once for
+    # its G rays.
+    guide = (getattr(ctx.gather_map, "guide", None) if n and (level == 0 or GUIDE_REGATHERS)
+             else None)
+    if guide is not None:
+        g_rows, g_cols = guide.tables(guide.points_for(p, ns))
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -669,6 +680,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         # docs/performance.md "glossy02").
         u1, u2 = (sampler.uv(("gather", g)) if sampler is not None
                   else rng.random(out=buf.uv[:2 * n].reshape(2, n)))
+        if guide is not None:
+            # The mixture's (u1, u2) and each ray's weight cos / (pi pdf) = 1 / q.
+            u1, u2, g_w = guide_warp(np.asarray(u1, np.float64), np.asarray(u2, np.float64),
+                                     g_rows, g_cols)
         k = gather_rays(c(u1, np.float64), c(u2, np.float64), ns, ng, p, offset, idx, o, d)
         idx, o, d, tp = idx[:k], o[:k], d[:k], tp[:k]
         # The rays start at throughput 1. The buffer's rows stay ones between steps and
@@ -677,6 +692,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         if buf.tp_ones < k:
             tp.fill(1.0)
             buf.tp_ones = k
+        if guide is not None:
+            tp *= np.take(g_w, idx)[:, None]
+            buf.tp_ones = 0
         if getattr(hit, "n_smooth", None) is not None:
             # Bent normals: the diffuse lobe's sampled directions take Cycles' bump
             # shadowing term as its light samples do (engine/normalmap.py).

@@ -25,6 +25,7 @@ from .lights.base import InfiniteLight
 from .lights import packing as pk
 from .lights.packing import pack_lights
 from .edgeimages import edge_images
+from .guiding import GatherGuide
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
 from .rayoffset import G32_T, ulp32
 from .sampling import luminance, max3
@@ -768,6 +769,14 @@ def _build_maps(ctx, shot, caustic, use_caustic_shot, stop) -> dict:
                                    should_cancel=flag, rows=rows,
                                    keep=None if gathered[rows].all() else gathered,
                                    subsets=masks, secondary=secondary)
+            if s.gather_guiding and gather_map.tree is not None:
+                # Photon-guided gather directions (engine/guiding.py): each gather point's
+                # grid of the flux coming in (its INDIRECT photons', or the photons' as
+                # emitters); the level-0 gather rays read their nearest facing point's.
+                gather_map.guide = GatherGuide(gather_map.position, gather_map.normal, shot,
+                                               gather_map.radius, k,
+                                               s.gather_guide_share,
+                                               s.gather_guide_source)
             out_deeper["regather_maps"] = level_maps(gather_map, level_of, secondary_of)
             if shot.bounces is not None:
                 # Lookups after a specular chain: which ones the map cannot serve.

@@ -94,6 +94,16 @@ class RenderSettings:
     # sees, measured from the global photons after the photon pass; engine/render.py
     # gather_count)
     gather_by_share: bool = True
+    # Photon-guided gather directions (Jensen 1995; engine/guiding.py): the level-0 gather
+    # rays drawn from a mixture of the cosine lobe and the nearest gather point's grid of
+    # its indirect photons' incoming flux (share: the grid's part), each weighted by
+    # cos / (pi pdf): unbiased.
+    gather_guiding: bool = False
+    gather_guide_share: float = 0.5
+    # The grids' source: "indirect" (Jensen: the INDIRECT photons' incoming directions at
+    # the point) or "flux" (the stored photons as small diffuse emitters, their form
+    # factors to the point)
+    gather_guide_source: str = "indirect"
     # Pass 2 (camera)
     spp: int = 128                  # camera samples per pixel (jittered, stratified)
     # Adaptive sampling (engine/adaptive.py), Cycles' Sampling > Noise Threshold and Min
@@ -194,7 +204,8 @@ class RenderSettings:
                          ("max_bounces", 0), ("diffuse_bounces", 0), ("glossy_bounces", 0),
                          ("transmission_bounces", 0), ("adaptive_min_samples", 0)):
             positive_int(name, lo)
-        for name in ("final_gather", "gather_by_share", "photon_mapping", "aim_caustics",
+        for name in ("final_gather", "gather_by_share", "gather_guiding", "photon_mapping",
+                     "aim_caustics",
                      "photon_importance",
                      "show_photons", "film_transparent", "paper_mode"):
             v = getattr(self, name)
@@ -209,6 +220,15 @@ class RenderSettings:
             if v not in ("auto", "on", "off"):
                 raise ValueError(f"setting '{name}' must be auto, on or off, got {v!r}")
             setattr(self, name, v)
+        share = self.gather_guide_share
+        if isinstance(share, bool) or not isinstance(share, (int, float, np.floating)) \
+                or not 0.0 <= float(share) < 1.0:
+            raise ValueError("setting 'gather_guide_share' must be a number in [0, 1), "
+                             f"got {share!r}")
+        self.gather_guide_share = float(share)
+        if self.gather_guide_source not in ("indirect", "flux"):
+            raise ValueError("setting 'gather_guide_source' must be indirect or flux, "
+                             f"got {self.gather_guide_source!r}")
         if not isinstance(self.method, str) or self.method.lower() not in METHODS:
             raise ValueError(f"setting 'method' must be one of {', '.join(METHODS)}, "
                              f"got {self.method!r}")

@@ -1,0 +1,218 @@
+"""Photon-guided final-gather directions (Jensen 1995, "Importance Driven Path Tracing
+using the Photon Map", Rendering Techniques '95; Jensen's book "Realistic Image Synthesis
+Using Photon Mapping" §9.x, importance sampling with the photon map).
+
+A final-gather ray's cosine direction comes from (u1, u2) in [0, 1)^2: sin^2(theta) = u1,
+phi = 2 pi u2 (Malley: sampling.cosine_hemisphere). Cut that square into ROWS x COLS
+cells (rows in u1, columns in u2): each cell is an equal share of the cosine lobe. At each
+gather point (the gather map's points, photonmap.GatherMap) the INDIRECT photons around it
+(light that left a diffuse surface: what a gather ray can find; DIRECT photons came from
+the lights, which shadow rays take) add their power into the cell of their incoming
+direction. Photon flux per cell is the integral of L cos over the cell's solid angle, so
+over the square's uniform measure (cos dw / pi) the cells' flux shares are the density
+proportional to L: the zero-variance density of a gather ray's cos-weighted radiance,
+piecewise constant.
+
+A gather ray draws its (u1, u2) from the mixture density over the square
+    q(u) = (1 - share) + share * CELLS * f_c        (f_c: cell c's flux share, sum 1)
+(piecewise constant; sampled row by inverting the rows' marginal, then column by the
+row's conditional: monotone in u1 and in u2, so the sampler's strata stay strata) and is
+weighted 1 / q(u): the cosine lobe's pdf cancels (cos / (pi pdf) = 1 / q). q >= 1 - share
+> 0 everywhere, so the estimate is unbiased whatever the photons say; a gathering hit with
+no gather point nearby facing its way takes q = 1 (the plain cosine rays).
+
+The grid is that of the nearest of the hit's CANDIDATES nearest gather points whose
+normal agrees with its own (one k-NN search per point at build time, one query per
+gathering hit), read in the hit's own shading frame (sampling.orthonormal_basis of its
+normal, the frame the gather_rays kernel uses).
+
+source="flux" fills the grids from the stored photons taken as small emitters instead
+(_flux_grids). Measured (docs/accuracy.md, "guide33"): both halve the gathered noise of a
+closed room lit by a small patch, neither wins at equal time on the example blends or a
+daylit room, so the setting is off.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .photonkernels import CAUSTIC, INDIRECT
+from .sampling import orthonormal_basis
+
+ROWS, COLS = 4, 8   # cells in u1 (sin^2 theta) and u2 (phi / 2 pi)
+CELLS = ROWS * COLS
+# A hit takes the nearest gather point's grid only if their normals agree this well (the
+# same surface; a corner's other wall would point the rays wrongly: still unbiased).
+AGREEMENT = 0.9
+# A hit's candidates: its nearest gather points (the nearest facing its way among them).
+# A thin wall's other side holds points as near as its own (a daylit room's outside, lit
+# by the sky, held 95 % of the points; the nearest alone left most hits unguided).
+CANDIDATES = 8
+_ONE_BELOW = np.nextafter(1.0, 0.0)
+
+
+class GatherGuide:
+    """Per gather point (P of them) the mixture density's tables for guided gather rays.
+
+    position, normal: (P,3) the gather points (world space, unit normals); photons: a
+    photons.Photons (the shot); radius: the gather map's search radius (m): the grid of a
+    point counts the k nearest INDIRECT photons within 2 x radius on its own side
+    (photon normal . point normal > AGREEMENT); share: the mixture's guided share in
+    [0, 1]. Deterministic (no random numbers; the same for any thread count)."""
+
+    def __init__(self, position, normal, photons, radius: float, k: int = 64,
+                 share: float = 0.5, source: str = "indirect", emitters: int = 512):
+        self.share = float(share)
+        self.radius = float(radius)
+        position = np.asarray(position, np.float64)
+        self.normal = np.asarray(normal, np.float64)
+        p = len(position)
+        self.tree = cKDTree(position) if p else None
+        flux = np.zeros((p, CELLS))
+        rows = np.flatnonzero(photons.kind == INDIRECT)
+        if source == "flux":
+            flux = _flux_grids(position, self.normal, photons, radius, emitters)
+        elif p and len(rows):
+            ppos = np.take(photons.position, rows, axis=0).astype(np.float64)
+            k = min(k, len(rows))
+            dist, j = cKDTree(ppos).query(position, k=k, distance_upper_bound=2.0 * radius)
+            dist, j = dist.reshape(p, k), j.reshape(p, k)
+            found = np.isfinite(dist)
+            jj = np.where(found, j, 0)
+            # Incoming direction (towards where the photon came from) in each point's frame.
+            wi = -np.take(photons.direction, rows, axis=0).astype(np.float64)[jj]
+            pn = np.take(photons.normal, rows, axis=0).astype(np.float64)[jj]
+            n = self.normal[:, None, :]
+            t, b = orthonormal_basis(self.normal)
+            l0 = np.einsum("pkc,pc->pk", wi, t)
+            l1 = np.einsum("pkc,pc->pk", wi, b)
+            l2 = np.einsum("pkc,pkc->pk", wi, np.broadcast_to(n, wi.shape))
+            ok = found & (np.einsum("pkc,pkc->pk", pn, np.broadcast_to(n, pn.shape))
+                          > AGREEMENT) & (l2 > 0.0)
+            u1 = np.clip(l0 * l0 + l1 * l1, 0.0, _ONE_BELOW)
+            u2 = (np.arctan2(l1, l0) / (2.0 * np.pi)) % 1.0
+            cell = (np.minimum((u1 * ROWS).astype(np.int64), ROWS - 1) * COLS
+                    + np.minimum((u2 * COLS).astype(np.int64), COLS - 1))
+            pw = np.take(photons.power, rows, axis=0).astype(np.float64)[jj]
+            lum = pw @ np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance
+            w = np.where(ok, lum, 0.0)
+            flat = (np.arange(p)[:, None] * CELLS + cell).ravel()
+            flux = np.bincount(flat, weights=w.ravel(), minlength=p * CELLS).reshape(p, CELLS)
+        total = flux.sum(axis=1, keepdims=True)
+        f = np.where(total > 0.0, flux / np.where(total > 0.0, total, 1.0), 1.0 / CELLS)
+        # Cell probabilities of the mixture (sum 1); q = CELLS * prob.
+        prob = ((1.0 - self.share) / CELLS + self.share * f).reshape(p, ROWS, COLS)
+        self.row_prob = prob.sum(axis=2)                              # (P, ROWS)
+        self.col_prob = prob / self.row_prob[:, :, None]              # (P, ROWS, COLS)
+        self.guided_points = int(np.count_nonzero(total[:, 0] > 0.0))
+
+    @property
+    def nbytes(self) -> int:
+        return self.row_prob.nbytes + self.col_prob.nbytes + self.normal.nbytes
+
+    def points_for(self, p: np.ndarray, ns: np.ndarray) -> np.ndarray:
+        """(N,) int64 each gathering hit's gather point (the nearest within 2 x radius
+        whose normal agrees with ns (N,3)), -1 where none: those rows sample the cosine
+        lobe."""
+        n = len(p)
+        if self.tree is None or n == 0:
+            return np.full(n, -1, np.int64)
+        kq = min(CANDIDATES, len(self.normal))
+        _, j = self.tree.query(np.asarray(p, np.float64), k=kq,
+                               distance_upper_bound=2.0 * self.radius)
+        j = np.asarray(j, np.int64).reshape(n, kq)
+        found = j < len(self.normal)
+        jj = np.where(found, j, 0)
+        agree = found & (np.einsum("ikc,ic->ik", np.take(self.normal, jj, axis=0), ns)
+                         > AGREEMENT)
+        first = np.argmax(agree, axis=1)
+        return np.where(agree.any(axis=1), jj[np.arange(n), first], -1)
+
+    def tables(self, point: np.ndarray):
+        """(row_prob (N,ROWS), col_prob (N,ROWS,COLS)) for the rows' points (-1: the
+        cosine lobe's, all cells equal)."""
+        ok = point >= 0
+        jj = np.where(ok, point, 0)
+        rp = np.take(self.row_prob, jj, axis=0)
+        cp = np.take(self.col_prob, jj, axis=0)
+        rp[~ok] = 1.0 / ROWS
+        cp[~ok] = 1.0 / COLS
+        return rp, cp
+
+
+def _cells(l0, l1, l2):
+    """Cell index (ROWS x COLS, row-major) of local directions (l2 > 0) in the cosine-warped
+    square: u1 = sin^2 theta, u2 = phi / 2 pi."""
+    u1 = np.clip(l0 * l0 + l1 * l1, 0.0, _ONE_BELOW)
+    u2 = (np.arctan2(l1, l0) / (2.0 * np.pi)) % 1.0
+    return (np.minimum((u1 * ROWS).astype(np.int64), ROWS - 1) * COLS
+            + np.minimum((u2 * COLS).astype(np.int64), COLS - 1))
+
+
+def _flux_grids(position, normal, photons, radius, emitters, chunk=256):
+    """(P, CELLS) per gather point the irradiance its cells would receive from the stored
+    non-caustic photons taken as small diffuse emitters (each reflects its power from
+    where it lies: the light a gather ray's end reads, one bounce on): `emitters` of them
+    drawn by power (systematic sampling over the cumulative luminance: deterministic),
+    each carrying total / emitters; a pair adds P cos_x cos_y / (pi max(r^2, radius^2))
+    (the point-to-point form factor, Cohen & Wallace, "Radiosity and Realistic Image
+    Synthesis" 1993; the disc of one radius bounds it near), visibility ignored: a wall
+    between them only wastes rays, the estimate stays unbiased (the cosine lobe's share)."""
+    p = len(position)
+    out = np.zeros((p, CELLS))
+    rows = np.flatnonzero(photons.kind != CAUSTIC)
+    if not p or not len(rows):
+        return out
+    lum = (np.take(photons.power, rows, axis=0).astype(np.float64)
+           @ np.array([0.2126, 0.7152, 0.0722]))
+    cum = np.cumsum(lum)
+    if cum[-1] <= 0.0:
+        return out
+    pick = np.searchsorted(cum, (np.arange(emitters) + 0.5) / emitters * cum[-1], side="right")
+    pick = np.take(rows, np.minimum(pick, len(rows) - 1))
+    ey = np.take(photons.position, pick, axis=0).astype(np.float64)
+    ny = np.take(photons.normal, pick, axis=0).astype(np.float64)
+    r2min = radius * radius
+    t, b = orthonormal_basis(normal)
+    for a in range(0, p, chunk):
+        z = slice(a, min(a + chunk, p))
+        v = ey[None, :, :] - position[z, None, :]                  # (c, M, 3)
+        r2 = np.einsum("cmk,cmk->cm", v, v)
+        inv = 1.0 / np.sqrt(np.maximum(r2, 1e-30))
+        cx = np.einsum("cmk,ck->cm", v, normal[z]) * inv
+        cy = -np.einsum("cmk,mk->cm", v, ny) * inv
+        w = np.where((cx > 0.0) & (cy > 0.0), cx * cy / np.maximum(r2, r2min), 0.0)
+        l0 = np.einsum("cmk,ck->cm", v, t[z]) * inv
+        l1 = np.einsum("cmk,ck->cm", v, b[z]) * inv
+        cell = _cells(l0, l1, np.maximum(cx, 0.0))
+        flat = ((np.arange(z.stop - a)[:, None] * CELLS) + cell).ravel()
+        out[z] = np.bincount(flat, weights=w.ravel(),
+                             minlength=(z.stop - a) * CELLS).reshape(-1, CELLS)
+    return out
+
+
+def warp(u1: np.ndarray, u2: np.ndarray, row_prob: np.ndarray, col_prob: np.ndarray):
+    """(u1', u2', weight): (u1, u2) (N,) uniform in [0, 1) mapped to the piecewise-constant
+    density q over the ROWS x COLS cells (row by the marginal row_prob (N,ROWS), column by
+    the conditional col_prob (N,ROWS,COLS)), weight = 1 / q(u') (N,): a cosine gather
+    ray's weight for a ray from u' (the cosine lobe's pdf cancels)."""
+    n = len(u1)
+    ar = np.arange(n)
+    rc = np.cumsum(row_prob, axis=1)
+    rc[:, -1] = 1.0
+    i = np.minimum((rc <= u1[:, None]).sum(axis=1), ROWS - 1)
+    pr = row_prob[ar, i]
+    lo = rc[ar, i] - pr
+    fr = np.clip((u1 - lo) / pr, 0.0, _ONE_BELOW)
+    cprob = col_prob[ar, i]                                            # (N, COLS)
+    cc = np.cumsum(cprob, axis=1)
+    cc[:, -1] = 1.0
+    jcol = np.minimum((cc <= u2[:, None]).sum(axis=1), COLS - 1)
+    pc = cprob[ar, jcol]
+    lo = cc[ar, jcol] - pc
+    fc = np.clip((u2 - lo) / pc, 0.0, _ONE_BELOW)
+    v1 = np.minimum((i + fr) / ROWS, _ONE_BELOW)
+    v2 = np.minimum((jcol + fc) / COLS, _ONE_BELOW)
+    weight = 1.0 / (CELLS * pr * pc)
+    return v1, v2, weight
