@@ -59,10 +59,13 @@ class GatherGuide:
     photons.Photons (the shot); radius: the gather map's search radius (m): the grid of a
     point counts the k nearest INDIRECT photons within 2 x radius on its own side
     (photon normal . point normal > AGREEMENT); share: the mixture's guided share in
-    [0, 1]. Deterministic (no random numbers; the same for any thread count)."""
+    [0, 1) (at 1 a cell without flux would have q = 0: infinite weights; ValueError).
+    Deterministic (no random numbers; the same for any thread count)."""
 
     def __init__(self, position, normal, photons, radius: float, k: int = 64,
                  share: float = 0.5, source: str = "indirect", emitters: int = 512):
+        if not 0.0 <= float(share) < 1.0:
+            raise ValueError(f"gather guide share {share!r}: expected 0 <= share < 1")
         self.share = float(share)
         self.radius = float(radius)
         position = np.asarray(position, np.float64)
@@ -124,8 +127,12 @@ class GatherGuide:
         j = np.asarray(j, np.int64).reshape(n, kq)
         found = j < len(self.normal)
         jj = np.where(found, j, 0)
-        agree = found & (np.einsum("ikc,ic->ik", np.take(self.normal, jj, axis=0), ns)
-                         > AGREEMENT)
+        nj = np.take(self.normal, jj, axis=0)
+        # The grid is read in the hit's tangent frame (sampling.orthonormal_basis, Duff
+        # et al.), which turns by 180 degrees where n_z changes sign: a point on the other
+        # side of that cut would guide the rays the wrong way (review33).
+        same_frame = (nj[..., 2] >= 0.0) == (np.asarray(ns)[:, None, 2] >= 0.0)
+        agree = found & same_frame & (np.einsum("ikc,ic->ik", nj, ns) > AGREEMENT)
         first = np.argmax(agree, axis=1)
         return np.where(agree.any(axis=1), jj[np.arange(n), first], -1)
 

@@ -212,8 +212,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         counters.shadow_rays += rays
         E[pts] += Ep if fd is None else Ep * fd
     if shades is not None and rng is not None:
-        # Lamps through Translucent BSDF shades (engine/shadelight.py): the diffuse lobe's
-        # light, which the photons through the shades no longer carry as caustics.
+        # Lamps through Translucent BSDF and rough glass shades (engine/shadelight.py):
+        # the diffuse lobe's light, which the photons through the shades no longer carry
+        # as caustics.
         Es, rays = shade_irradiance(ctx, shades, p_, ns_, ng_, offset_, sub, rng)
         counters.shadow_rays += rays
         E[pts] += Es if fd is None else Es * fd

@@ -1084,6 +1084,12 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
             if vis_on:
                 if lobe == pr.L_DIFFUSE:
                     use = SHADOW if kind == DIRECT else DIFFUSE
+                elif lobe == pr.L_TRANSL and kind == DIRECT:
+                    # The light's own segment is Cycles' light sample at the translucent
+                    # surface, which a diffuse closure takes: the light's diffuse
+                    # visibility (_surface_shader_exclude: CLOSURE_IS_BSDF_DIFFUSE spans
+                    # DIFFUSE..TRANSLUCENT); later segments are transmission rays.
+                    use = SHADOW
                 else:
                     use = _LOBE_CLASS[lobe]
                 if lobe != pr.L_PASS and kin & use == 0:

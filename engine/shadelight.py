@@ -169,8 +169,8 @@ class Shades:
 
     def photon_tri(self, light, pane_tri=None) -> np.ndarray | None:
         """pane_tri for the photons of `light` (photonkernels.scatter): this scene's shade
-        triangle codes (SHADE_TRANSLUCENT) where `light` is served, else pane_tri (the
-        panes' table or None) unchanged. Panes serve suns and the world only
+        triangle codes (SHADE_TRANSLUCENT, SHADE_GLASS) where `light` is served, else
+        pane_tri (the panes' table or None) unchanged. Panes serve suns and the world only
         (engine/panelight.py) and shades point and spot lamps, so no light needs both."""
         inner = getattr(light, "light", light)  # (a RegionEmitter wraps the light)
         if not any(inner is s for s in self.lights):
@@ -238,7 +238,8 @@ def glass_shade_materials(table) -> np.ndarray:
 
 def find_shades(geo, table, lights, settings=None):
     """Shades or None (the module docstring's conditions): the triangles of Translucent
-    BSDF materials, with the point and spot lights they serve (SERVED_KINDS)."""
+    BSDF and single-surface rough glass shade materials, with the point and spot lights
+    they serve (SERVED_KINDS)."""
     if not ENABLED or geo.count == 0 or getattr(geo, "shared", None) is not None:
         return None
     if settings is not None and getattr(settings, "method", None) == "local":

@@ -132,8 +132,9 @@ class ImageLookup:
 class ObjectNormal:
     """Texture Coordinate node, Normal output: the hit's object-space normal (Cycles
     svm_node_tex_coord: sd->N by the object's inverse normal transform, normalised), from
-    the per-corner object-space normals (a Coordinates node of 'normal', interpolated).
-    Front-facing: a back face's flipped N is not followed."""
+    the per-corner object-space normals (a Coordinates node of 'normal', interpolated),
+    negated on a back face as Cycles flips sd->N there (the ShadingGeometry's backfacing;
+    without a view, front)."""
 
     def __init__(self, normals):
         self.normals = normals
@@ -141,7 +142,11 @@ class ObjectNormal:
     def evaluate(self, geo, prim, u, v):
         n = _eval(self.normals, geo, prim, u, v, 3)
         ln = np.linalg.norm(n, axis=1, keepdims=True)
-        return np.where(ln > 0, n / np.where(ln > 0, ln, 1.0), n)
+        n = np.where(ln > 0, n / np.where(ln > 0, ln, 1.0), n)
+        if geo is not None:
+            back = np.asarray(_view(geo, prim)[2], bool)
+            n = np.where(back[:, None], -n, n)
+        return n
 
 
 def box_weights(n, blend):
@@ -393,9 +398,13 @@ class Invert:
 
 
 class ColorRamp:
-    """Color Ramp node on a factor: positions (K,) ascending, colors (K,3); interpolation
-    LINEAR or CONSTANT (a stop's colour up to the next stop); output COLOR or ALPHA
-    (alphas (K,))."""
+    """Color Ramp node from its stops (the engine API's form; the add-on bakes Blender's
+    own evaluation into a RampTable): positions (K,) ascending, colors (K,3), alphas (K,);
+    interpolation LINEAR or CONSTANT (a stop's colour up to the next stop); output COLOR
+    or ALPHA. Baked at RAMP_STEPS + 1 equal steps and read as a RampTable (Cycles' table
+    and lookup, so the two forms cannot disagree)."""
+
+    RAMP_STEPS = 256
 
     def __init__(self, factor, positions, colors, alphas=None, interpolation="LINEAR",
                  output="COLOR"):
@@ -403,24 +412,22 @@ class ColorRamp:
             raise ValueError(f"Color Ramp interpolation {interpolation!r} is not supported "
                              "(LINEAR, CONSTANT)")
         order = np.argsort(np.asarray(positions, np.float64), kind="stable")
-        self.factor = factor
-        self.positions = np.asarray(positions, np.float64)[order]
-        self.colors = np.asarray(colors, np.float64).reshape(-1, 3)[order]
-        a = np.ones(len(order)) if alphas is None else np.asarray(alphas, np.float64)
-        self.alphas = a[order]
-        self.interpolation, self.output = interpolation, output
+        pos = np.asarray(positions, np.float64)[order]
+        a = np.ones(len(order)) if alphas is None else np.asarray(alphas, np.float64)[order]
+        stops = np.concatenate([np.asarray(colors, np.float64).reshape(-1, 3)[order],
+                                a[:, None]], axis=1)
+        x = np.arange(self.RAMP_STEPS + 1) / self.RAMP_STEPS
+        if interpolation == "CONSTANT":
+            i = np.clip(np.searchsorted(pos, x, side="right") - 1, 0, len(pos) - 1)
+            table = stops[i]
+        else:
+            table = np.stack([np.interp(x, pos, stops[:, k]) for k in range(4)], axis=1)
+        self._table = RampTable(factor, table, interpolate=interpolation != "CONSTANT",
+                                output=output)
+        self.factor, self.interpolation, self.output = factor, interpolation, output
 
     def evaluate(self, geo, prim, u, v):
-        t = np.clip(_eval(self.factor, geo, prim, u, v, 1), 0.0, 1.0)
-        table = np.concatenate([self.colors, self.alphas[:, None]], axis=1)
-        if self.interpolation == "CONSTANT":
-            i = np.clip(np.searchsorted(self.positions, t, side="right") - 1, 0,
-                        len(self.positions) - 1)
-            out = table[i]
-        else:
-            out = np.stack([np.interp(t, self.positions, table[:, k]) for k in range(4)],
-                           axis=1)
-        return out[:, 3] if self.output == "ALPHA" else out[:, :3]
+        return self._table.evaluate(geo, prim, u, v)
 
 
 def _safe_divide(a, b):

@@ -3,13 +3,15 @@
 Box projection (Cycles svm_node_tex_image_box: three planar lookups weighted by the
 object-space normal, with Blend) on a rotated cube and a smooth sphere, Sphere and Tube
 projections (svm_node_tex_image_mapping) on a sphere, the object-space Normal output
-on a rotated, non-uniformly scaled sphere, and the Geometry node's Position, Normal and
-True Normal (world space); before, Box / Sphere / Tube read Flat UVs
+on a rotated, non-uniformly scaled sphere, the Geometry node's Position, Normal and
+True Normal (world space), and back faces (a plane seen from behind: Cycles flips N); before, Box / Sphere / Tube read Flat UVs
 (warned) and Normal fell back to the socket's value. Emission shaders seen head-on by an
 orthographic camera, 48 x 48, 16 samples near each pixel's centre: the mean absolute
 difference over the object's pixels within 0.004 and 98 % of them within 0.02 (edges,
 where a pixel's samples straddle two faces, differ more).
 """
+
+import math
 
 import numpy as np
 import pytest
@@ -66,6 +68,9 @@ def _normal_shown(bpy):
 def _setup(bpy, scene, mat, shape, rotation=(0.5, 0.35, 0.7), scale=(1.0, 1.0, 1.0)):
     if shape == "cube":
         bpy.ops.mesh.primitive_cube_add(size=1.2)
+    elif shape == "plane_back":  # a plane turned away: the camera sees its back
+        bpy.ops.mesh.primitive_plane_add(size=1.6)
+        rotation = (math.pi + 0.3, 0.25, 0.4)
     else:
         bpy.ops.mesh.primitive_uv_sphere_add(radius=0.7, segments=48, ring_count=24)
         bpy.ops.object.shade_smooth()
@@ -100,6 +105,10 @@ CASES = {
     "geometry_position": lambda bpy: (_geometry_shown("Position", 0.4)(bpy), "sphere"),
     "geometry_normal": lambda bpy: (_geometry_shown("Normal")(bpy), "sphere"),
     "geometry_true_normal": lambda bpy: (_geometry_shown("True Normal")(bpy), "cube"),
+    # Back faces: Cycles flips sd->N there before the nodes read it (review33: the Normal
+    # output and Box projection's mirroring followed the front).
+    "normal_output_back": lambda bpy: (_normal_shown(bpy), "plane_back"),
+    "box_plane_back": lambda bpy: (_textured(bpy, "BOX", 0.2), "plane_back"),
 }
 
 
