@@ -27,6 +27,7 @@ takes the socket's own value, and the warning says which value.
 from __future__ import annotations
 
 import os
+import traceback
 
 import bpy
 import numpy as np
@@ -364,9 +365,13 @@ class MaterialConverter:
                 closure = self._material_closure(mat, warnings)
             except Exception as exc:  # noqa: BLE001 - a tree this converter cannot read
                 # (a Blender version's socket it does not know, ...) must not stop the
-                # render: the material renders as its viewport colour, warned.
+                # render: the material renders as its viewport colour, warned with where
+                # the converter failed (a bug report's first line).
+                where = traceback.extract_tb(exc.__traceback__)[-1]
                 warnings.append(f"material '{mat.name}': its node tree could not be read "
-                                f"({type(exc).__name__}: {exc}); using the viewport colour")
+                                f"({type(exc).__name__}: {exc}, at "
+                                f"{os.path.basename(where.filename)}:{where.lineno}); "
+                                "using the viewport colour")
                 closure = self._viewport(mat)
         m = self.pm.Material(
             name=key,

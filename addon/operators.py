@@ -170,7 +170,7 @@ def load_reference(path: str) -> np.ndarray:
         image.pixels.foreach_get(px)
         rgb = px.reshape(h, w, image.channels)[::-1, :, :3]
         if not image.is_float:  # byte images hold their sRGB-encoded values
-            rgb = load_engine().imageio.srgb_to_linear(rgb)
+            rgb = load_engine().imageio.srgb_decode(rgb)
     finally:
         bpy.data.images.remove(image)
     return np.ascontiguousarray(rgb, np.float32)

@@ -93,10 +93,7 @@ class GatherGuide:
             l2 = np.einsum("pkc,pkc->pk", wi, np.broadcast_to(n, wi.shape))
             ok = found & (np.einsum("pkc,pkc->pk", pn, np.broadcast_to(n, pn.shape))
                           > AGREEMENT) & (l2 > 0.0)
-            u1 = np.clip(l0 * l0 + l1 * l1, 0.0, _ONE_BELOW)
-            u2 = (np.arctan2(l1, l0) / (2.0 * np.pi)) % 1.0
-            cell = (np.minimum((u1 * ROWS).astype(np.int64), ROWS - 1) * COLS
-                    + np.minimum((u2 * COLS).astype(np.int64), COLS - 1))
+            cell = _cells(l0, l1)
             pw = np.take(photons.power, rows, axis=0).astype(np.float64)[jj]
             lum = pw @ np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance
             w = np.where(ok, lum, 0.0)
@@ -148,9 +145,9 @@ class GatherGuide:
         return rp, cp
 
 
-def _cells(l0, l1, l2):
-    """Cell index (ROWS x COLS, row-major) of local directions (l2 > 0) in the cosine-warped
-    square: u1 = sin^2 theta, u2 = phi / 2 pi."""
+def _cells(l0, l1):
+    """Cell index (ROWS x COLS, row-major) of local unit directions (l0, l1, l2 > 0) in the
+    cosine-warped square: u1 = sin^2 theta = l0^2 + l1^2, u2 = phi / 2 pi."""
     u1 = np.clip(l0 * l0 + l1 * l1, 0.0, _ONE_BELOW)
     u2 = (np.arctan2(l1, l0) / (2.0 * np.pi)) % 1.0
     return (np.minimum((u1 * ROWS).astype(np.int64), ROWS - 1) * COLS
@@ -192,11 +189,23 @@ def _flux_grids(position, normal, photons, radius, emitters, chunk=256):
         w = np.where((cx > 0.0) & (cy > 0.0), cx * cy / np.maximum(r2, r2min), 0.0)
         l0 = np.einsum("cmk,ck->cm", v, t[z]) * inv
         l1 = np.einsum("cmk,ck->cm", v, b[z]) * inv
-        cell = _cells(l0, l1, np.maximum(cx, 0.0))
+        cell = _cells(l0, l1)
         flat = ((np.arange(z.stop - a)[:, None] * CELLS) + cell).ravel()
         out[z] = np.bincount(flat, weights=w.ravel(),
                              minlength=(z.stop - a) * CELLS).reshape(-1, CELLS)
     return out
+
+
+def _invert(prob, u):
+    """Inverse of a piecewise-constant distribution per row: prob (N,K) (rows sum to 1),
+    u (N,) in [0, 1) -> (cell k (N,), its probability (N,), u's fraction within it)."""
+    ar = np.arange(len(u))
+    cdf = np.cumsum(prob, axis=1)
+    cdf[:, -1] = 1.0
+    k = np.minimum((cdf <= u[:, None]).sum(axis=1), prob.shape[1] - 1)
+    p = prob[ar, k]
+    frac = np.clip((u - (cdf[ar, k] - p)) / p, 0.0, _ONE_BELOW)
+    return k, p, frac
 
 
 def warp(u1: np.ndarray, u2: np.ndarray, row_prob: np.ndarray, col_prob: np.ndarray):
@@ -204,21 +213,9 @@ def warp(u1: np.ndarray, u2: np.ndarray, row_prob: np.ndarray, col_prob: np.ndar
     density q over the ROWS x COLS cells (row by the marginal row_prob (N,ROWS), column by
     the conditional col_prob (N,ROWS,COLS)), weight = 1 / q(u') (N,): a cosine gather
     ray's weight for a ray from u' (the cosine lobe's pdf cancels)."""
-    n = len(u1)
-    ar = np.arange(n)
-    rc = np.cumsum(row_prob, axis=1)
-    rc[:, -1] = 1.0
-    i = np.minimum((rc <= u1[:, None]).sum(axis=1), ROWS - 1)
-    pr = row_prob[ar, i]
-    lo = rc[ar, i] - pr
-    fr = np.clip((u1 - lo) / pr, 0.0, _ONE_BELOW)
-    cprob = col_prob[ar, i]                                            # (N, COLS)
-    cc = np.cumsum(cprob, axis=1)
-    cc[:, -1] = 1.0
-    jcol = np.minimum((cc <= u2[:, None]).sum(axis=1), COLS - 1)
-    pc = cprob[ar, jcol]
-    lo = cc[ar, jcol] - pc
-    fc = np.clip((u2 - lo) / pc, 0.0, _ONE_BELOW)
+    ar = np.arange(len(u1))
+    i, pr, fr = _invert(row_prob, u1)
+    jcol, pc, fc = _invert(col_prob[ar, i], u2)                       # (N, COLS) given i
     v1 = np.minimum((i + fr) / ROWS, _ONE_BELOW)
     v2 = np.minimum((jcol + fc) / COLS, _ONE_BELOW)
     weight = 1.0 / (CELLS * pr * pc)

@@ -23,11 +23,6 @@ def linear_to_srgb(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
 
 
-def srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    x = np.asarray(x, np.float64)
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
-
-
 def srgb_decode(c: np.ndarray) -> np.ndarray:
     """Cycles' color_srgb_to_linear (util/color.h) elementwise, as its kernels decode an
     image stored sRGB-encoded after the lookup: c / 12.92 below 0.04045 (0 below 0),
@@ -321,7 +316,7 @@ def read_image(path: str) -> np.ndarray:
             raise ValueError(f"{path}: no RGB channels (found {', '.join(ch)})")
     from PIL import Image
     arr = np.asarray(Image.open(path).convert("RGB"), np.float64) / 255.0
-    return srgb_to_linear(arr).astype(np.float32)
+    return srgb_decode(arr).astype(np.float32)
 
 
 def say_created(folder: str) -> None:

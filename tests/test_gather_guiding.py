@@ -190,8 +190,14 @@ def test_guided_gather_is_deterministic_for_any_worker_count():
 def test_guide_share_out_of_range_is_refused(share):
     with pytest.raises(ValueError, match="gather_guide_share"):
         RenderSettings(gather_guide_share=share)
+
+
+def test_guide_source_and_share_one_are_refused():
     with pytest.raises(ValueError, match="gather_guide_source"):
         RenderSettings(gather_guide_source="paths")
+    with pytest.raises(ValueError, match="share"):  # q = 0 in a cell without flux
+        GatherGuide(np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), None, 1.0,
+                            share=1.0)
 
 
 def test_guided_gather_with_specular_chains():

@@ -7,7 +7,7 @@ import pytest
 from engine.bsdf import surface_hit
 from engine.geometry import prepare
 from engine.scene import Material, Mesh, Scene, SceneError
-from engine.imageio import srgb_to_linear
+from engine.imageio import srgb_decode
 from engine.textures import ColorAttribute, ImageTexture, TextureError
 
 # A 1-row image of 4 texels (stored top row first; one row so v does not matter).
@@ -77,8 +77,8 @@ def test_srgb_is_converted_after_interpolation():
     # the 0.5 of converting first (the issue-15 checker that came out 1.68x too bright).
     img = np.array([[[0.0] * 3, [1.0] * 3]], np.float32)
     t = ImageTexture(img, srgb=True, extension="EXTEND")
-    np.testing.assert_allclose(_red(t, [0.5]), srgb_to_linear(0.5), atol=1e-6)
-    np.testing.assert_allclose(srgb_to_linear(0.5), 0.21404, atol=1e-5)
+    np.testing.assert_allclose(_red(t, [0.5]), srgb_decode(0.5), atol=1e-6)
+    np.testing.assert_allclose(srgb_decode(0.5), 0.21404, atol=1e-5)
     np.testing.assert_allclose(_red(t, [0.25, 0.75], ), [0.0, 1.0], atol=1e-6)
 
 
@@ -90,7 +90,7 @@ def test_udim_tiles_use_their_own_image_and_missing_tiles_are_magenta():
     np.testing.assert_allclose(got[:3, 0], [0.2, 0.6, 0.9], atol=1e-6)
     np.testing.assert_allclose(got[3:], [[1, 0, 1], [1, 0, 1]], atol=1e-6)
     ts = ImageTexture(tiles={1001: np.full((2, 2, 3), 0.5)}, srgb=True)
-    np.testing.assert_allclose(ts.sample(uv[[0, 3]]), [[srgb_to_linear(0.5)] * 3, [1, 0, 1]],
+    np.testing.assert_allclose(ts.sample(uv[[0, 3]]), [[srgb_decode(0.5)] * 3, [1, 0, 1]],
                                atol=1e-6)
 
 

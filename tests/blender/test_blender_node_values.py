@@ -143,4 +143,4 @@ def test_a_node_tree_the_converter_cannot_read_falls_back_with_a_warning(
     mat = _convert(m)
     assert np.allclose(mat.base_color, (0.2, 0.4, 0.6))
     assert any("'Unreadable'" in w and "could not be read" in w and "KeyError" in w
-               for w in mat.warnings), mat.warnings
+               and "test_blender_node_values.py:" in w for w in mat.warnings), mat.warnings
