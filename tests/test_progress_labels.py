@@ -22,3 +22,4 @@ def test_glow_shot_is_traced_as_glow_photons_when_caustics_are_off():
     assert not any("caustic photons" in t for t in tracing), tracing
     # The global shot keeps its name.
     assert any(t.startswith("Tracing photons ") for t in tracing), tracing
+
