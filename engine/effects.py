@@ -678,7 +678,15 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                      + " by shadow rays, sampled where its light lands on the shade; its "
                      "photons through the shade are direct light, not caustics"
                      + ("; those the glass reflects stay caustics" if shades.glass_names
-                        else ""))
+                        else "")
+                     # Only the diffuse lobe takes the shade estimator (engine/shadelight.py);
+                     # through rough glass the glossy layers' reflected rays meet a peaky
+                     # lobe: newuser33's floor and walls sparkled at 128 and 512 spp with
+                     # nothing saying why (the Specular pass: 73-100 % of their noise).
+                     + ("; glossy reflections of the lamp through the glass (rough "
+                        "specular layers, sheen) come from reflected rays alone and may "
+                        "sparkle (Light Paths > Clamping > Indirect trims them)"
+                        if shades.glass_names else ""))
     if s.method == "local" and lights:
         # No shadow rays: a light's samples only integrate over its area.
         for i, d in enumerate(plan.decisions):

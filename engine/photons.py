@@ -111,7 +111,7 @@ def concat_surfaces(*parts: Photons) -> np.ndarray | None:
 
 
 def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress=None,
-                  should_cancel=None, targets=None, first_hit=None) -> Photons:
+                  should_cancel=None, targets=None, first_hit=None, label=None) -> Photons:
     """Emit counts[i] photons from lights[i] and trace them. caustic_only: keep L S+ D
     paths only and stop a photon as soon as it scatters diffusely (the caustic shot).
     targets=(centers, radii): aim the photons at these bounding spheres (caustic casters).
@@ -119,7 +119,9 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     photons only if whether the first surface they hit belongs to a caster equals keep.
     An aimed shot (keep=True) and an unaimed one (keep=False) thus split the L S+ D paths
     between them without overlap: a path whose first hit is a caster starts inside that
-    caster's bounding sphere, which the aimed shot covers (engine/render.py)."""
+    caster's bounding sphere, which the aimed shot covers (engine/render.py).
+    label: what the progress text calls the photons ("Tracing {label} 62k/400k");
+    default "caustic photons" for a caustic_only shot, else "photons"."""
     settings = ctx.settings
     total = int(sum(counts))
     jobs = []
@@ -155,7 +157,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
         shot.append(stored, done)
         stored.release()
         if progress is not None:
-            label = "caustic photons" if caustic_only else "photons"
+            if label is None:
+                label = "caustic photons" if caustic_only else "photons"
             progress("photons", done / max(total, 1), f"Tracing {label} {short_count(done)}/{short_count(total)}")
     out = shot.photons()
     out.emitted = total

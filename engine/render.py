@@ -511,10 +511,13 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
             # photons are lighter (GLOW_STREAM's comment).
             g_emitters, g_counts = glow_emitters(emitters, counts,
                                                  photon_counts(ctx, s.photons))
+            # Named as the report names them: "Tracing caustic photons 2156k" beside
+            # "caustics: off - nothing focuses light" read as a contradiction (newuser33).
             glow = trace_photons(ctx, g_emitters, g_counts, caustic_only=True,
                                  stream=GLOW_STREAM, progress=progress,
                                  should_cancel=should_cancel,
-                                 first_hit=None if split is None else (split, False))
+                                 first_hit=None if split is None else (split, False),
+                                 label="glow photons")
             stats["glow_photons_emitted"] = glow.emitted
     caustic = Photons.empty()
     if use_caustic_shot:

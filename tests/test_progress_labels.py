@@ -1,0 +1,25 @@
+"""The progress text names each photon shot as the effect report names what it holds: the
+glow shot (light off rough specular layers first, engine/render.py GLOW_SHOT) is "glow
+photons", not "caustic photons", which beside the report's "caustics: off - nothing
+focuses light" read as a contradiction (newuser33: a room lit by a lamp in a frosted
+shade showed "Tracing caustic photons 2156k/2156k")."""
+from engine import RenderSettings
+from engine.render import render
+from test_leak_lampshade import lamp_scene
+
+
+def test_glow_shot_is_traced_as_glow_photons_when_caustics_are_off():
+    texts = []
+    film = render(lamp_scene(24, 18),
+                  RenderSettings(spp=1, photons=20_000, caustic_photons=5_000, seed=1,
+                                 workers=1),
+                  progress=lambda stage, fraction, text: texts.append(text))
+    report = "\n".join(film.stats["effects"])
+    assert "caustics: off" in report, report
+    assert film.stats.get("glow_photons_emitted", 0) > 0, film.stats  # the shot ran
+    tracing = [t for t in texts if t.startswith("Tracing")]
+    assert any(t.startswith("Tracing glow photons ") for t in tracing), tracing
+    assert not any("caustic photons" in t for t in tracing), tracing
+    # The global shot keeps its name.
+    assert any(t.startswith("Tracing photons ") for t in tracing), tracing
+
