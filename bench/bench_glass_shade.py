@@ -63,14 +63,7 @@ def y_choice(rough, m=40_000):
             shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_PEAK_WIDTH = share, width
             cells = []
             for (x, n), wv in zip(POINTS, want):
-                rng = np.random.default_rng(11)
-                N = np.array(n, float) / np.linalg.norm(n)
-                p = np.tile(np.array(x, float) - ctx.geo.offset, (m, 1))
-                ns = np.tile(N, (m, 1))
-                u1, u2 = rng.random((2, m))
-                e = shadelight.shade_irradiance(ctx, shades, p, ns, ns.copy(),
-                                                np.full(m, 1e-6),
-                                                [(0, True, 1, u1, u2, None)], rng)[0][:, 1]
+                e = _irradiance_samples(ctx, shades, x, n, m, 11)
                 cells.append(f"{e.mean() / wv:.3f} / {e.std() / e.mean():.2f} / "
                              f"{e.max() / e.mean():.0f}")
             print(f"| {rough} | {share} | {width} | " + " | ".join(cells) + " |", flush=True)
@@ -160,20 +153,26 @@ def room(m=100_000):
                 ctx, shades = room_shade(kind, radius)
                 cells = []
                 for x, n in ROOM_POINTS:
-                    rng = np.random.default_rng(3)
-                    N = np.array(n, float)
-                    p = np.tile(np.array(x, float) - ctx.geo.offset, (m, 1))
-                    ns = np.tile(N, (m, 1))
-                    u1, u2 = rng.random((2, m))
-                    e = shadelight.shade_irradiance(ctx, shades, p, ns, ns.copy(),
-                                                    np.full(m, 1e-6),
-                                                    [(0, True, 1, u1, u2, None)], rng)[0][:, 1]
+                    e = _irradiance_samples(ctx, shades, x, n, m, 3)
                     cells.append(f"{e.mean():.3g} / {e.std() / e.mean():.1f} / "
                                  f"{e.max() / e.mean():.0f}")
                 print(f"| {label} | {radius} | " + " | ".join(cells) + " |", flush=True)
     finally:
         (shadelight.GLASS_PEAK_SHARE, shadelight.GLASS_START_POINTS,
          shadelight.GLASS_LAMP_SAMPLES) = old
+
+
+def _irradiance_samples(ctx, shades, x, n, m, seed):
+    """(m,) green-channel shade irradiance samples at point x (world space) with normal n
+    (normalised here), one light sample each (shadelight.shade_irradiance)."""
+    from engine import shadelight
+    rng = np.random.default_rng(seed)
+    N = np.array(n, float) / np.linalg.norm(n)
+    p = np.tile(np.array(x, float) - ctx.geo.offset, (m, 1))
+    ns = np.tile(N, (m, 1))
+    u1, u2 = rng.random((2, m))
+    return shadelight.shade_irradiance(ctx, shades, p, ns, ns.copy(), np.full(m, 1e-6),
+                                       [(0, True, 1, u1, u2, None)], rng)[0][:, 1]
 
 
 def main():
