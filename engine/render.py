@@ -480,6 +480,21 @@ def level_maps(gather_map: GatherMap, level_of: list, secondary_of: list) -> tup
     return tuple(deeper)
 
 
+def _shot_progress(progress, sizes, k):
+    """The progress callback for shot k of a photon pass whose shots emit sizes (global,
+    glow, caustic; 0: not traced) photons: the shot's own fraction placed after the shots
+    before it, as a fraction of the whole pass (at most 1: a caustic shot's allocation may
+    differ from its planned size by rounding). None without a progress callback."""
+    if progress is None:
+        return None
+    total = max(sum(sizes), 1)
+    before, size = sum(sizes[:k]), sizes[k]
+
+    def report(stage, fraction, text):
+        progress(stage, min((before + fraction * size) / total, 1.0), text)
+    return report
+
+
 def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) -> tuple:
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     t0 = time.perf_counter()
@@ -499,22 +514,33 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
     # The global shot is needed for indirect light; without a separate caustic shot, or
     # for the caustic paths the aimed shot leaves out, it also carries caustic photons.
     glow = None
-    if plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None:
+    # The shots' sizes first, so the progress moves through the whole pass once (the glow
+    # shot, up to GLOW_SPLIT x the global one, parked the bar at the end of its photon
+    # span with no estimate: newuser33).
+    global_shot = plan.indirect or (plan.caustics and not use_caustic_shot) or split is not None
+    emitters = counts = g_emitters = g_counts = None
+    if global_shot:
         emitters, counts = global_emitters(ctx, photon_counts(ctx, s.photons), stats)
-        shot = trace_photons(ctx, emitters, counts, caustic_only=False, stream=1,
-                             progress=progress, should_cancel=should_cancel,
-                             first_hit=None if split is None else (split, False))
         glow_from_global = split is not None or (plan.caustics and not use_caustic_shot)
         if GLOW_SHOT and glow_from_global and _importance_aimed(emitters):
+            g_emitters, g_counts = glow_emitters(emitters, counts,
+                                                 photon_counts(ctx, s.photons))
+    sizes = (int(sum(counts)) if global_shot else 0,
+             int(sum(g_counts)) if g_emitters is not None else 0,
+             int(s.caustic_photons) if use_caustic_shot else 0)
+    if global_shot:
+        shot = trace_photons(ctx, emitters, counts, caustic_only=False, stream=1,
+                             progress=_shot_progress(progress, sizes, 0),
+                             should_cancel=should_cancel,
+                             first_hit=None if split is None else (split, False))
+        if g_emitters is not None:
             # The glow's caustic paths (light off rough specular layers first, or window
             # glass: L S+ D, the first S not a caster) from a shot of their own whose
             # photons are lighter (GLOW_STREAM's comment).
-            g_emitters, g_counts = glow_emitters(emitters, counts,
-                                                 photon_counts(ctx, s.photons))
             # Named as the report names them: "Tracing caustic photons 2156k" beside
             # "caustics: off - nothing focuses light" read as a contradiction (newuser33).
             glow = trace_photons(ctx, g_emitters, g_counts, caustic_only=True,
-                                 stream=GLOW_STREAM, progress=progress,
+                                 stream=GLOW_STREAM, progress=_shot_progress(progress, sizes, 1),
                                  should_cancel=should_cancel,
                                  first_hit=None if split is None else (split, False),
                                  label="glow photons")
@@ -526,7 +552,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
         else:
             ccounts = _allocate_aimed(ctx, targets, s.caustic_photons)
         caustic = trace_photons(ctx, ctx.lights, ccounts, caustic_only=True, stream=2,
-                                progress=progress, should_cancel=should_cancel, targets=targets,
+                                progress=_shot_progress(progress, sizes, 2),
+                                should_cancel=should_cancel, targets=targets,
                                 first_hit=None if split is None else (split, True))
         if split is not None and len(shot):
             # The caustic paths the aimed shot leaves out, from the global shot (or from

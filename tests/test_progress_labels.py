@@ -23,3 +23,20 @@ def test_glow_shot_is_traced_as_glow_photons_when_caustics_are_off():
     # The global shot keeps its name.
     assert any(t.startswith("Tracing photons ") for t in tracing), tracing
 
+
+
+def test_photon_progress_moves_once_through_all_shots():
+    """The photon stage's fraction rises steadily over the global and the glow shot and
+    ends at 1 (each shot ran 0 -> 1 on its own: the glow shot, several times the global
+    one here, held the bar at the end of the photon span; newuser33)."""
+    seen = []
+    render(lamp_scene(24, 18),
+           RenderSettings(spp=1, photons=20_000, caustic_photons=5_000, seed=1, workers=1),
+           progress=lambda stage, fraction, text: seen.append((stage, fraction, text)))
+    photons = [(f, t) for stage, f, t in seen if stage == "photons"]
+    fractions = [f for f, _ in photons]
+    assert any(t.startswith("Tracing glow photons") for _, t in photons)
+    assert all(b >= a for a, b in zip(fractions, fractions[1:])), fractions
+    assert abs(fractions[-1] - 1.0) < 1e-9, fractions[-1]
+    first_glow = next(f for f, t in photons if t.startswith("Tracing glow photons"))
+    assert 0.0 < first_glow < 1.0, first_glow
