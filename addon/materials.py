@@ -36,6 +36,9 @@ SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANI
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
                      "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT", "BSDF_SHEEN")
 MAX_NODE_DEPTH = 32
+# Tests set this: a node tree the converter cannot read raises instead of falling back to
+# the viewport colour (so a converter bug fails the test that meets it, not only its image).
+RAISE_UNREADABLE_TREES = False
 # Cycles' RAMP_TABLE_SIZE (scene/shader_nodes.h): Color Ramps and curves are baked at
 # this many + 1 steps.
 RAMP_TABLE_SIZE = 256
@@ -364,6 +367,8 @@ class MaterialConverter:
             try:
                 closure = self._material_closure(mat, warnings)
             except Exception as exc:  # noqa: BLE001 - a tree this converter cannot read
+                if RAISE_UNREADABLE_TREES:
+                    raise
                 # (a Blender version's socket it does not know, ...) must not stop the
                 # render: the material renders as its viewport colour, warned with where
                 # the converter failed (a bug report's first line).
