@@ -343,21 +343,19 @@ def _vector_op(op, a, b, c, scale):
         return np.where((k < 0)[:, None], 0.0, out), zero_s
     if op == "FACEFORWARD":
         return np.where((np.einsum("ij,ij->i", c, b) < 0)[:, None], a, -a), zero_s
-    ops = {
-        "ADD": lambda: a + b, "SUBTRACT": lambda: a - b, "MULTIPLY": lambda: a * b,
-        "DIVIDE": lambda: _safe_divide(a, b), "MULTIPLY_ADD": lambda: a * b + c,
-        "CROSS_PRODUCT": lambda: np.cross(a, b), "SCALE": lambda: a * scale[:, None],
-        "NORMALIZE": lambda: _safe_normalize(a),
-        "SNAP": lambda: np.floor(_safe_divide(a, b)) * b,
-        "FLOOR": lambda: np.floor(a), "CEIL": lambda: np.ceil(a),
-        "MODULO": lambda: np.where(b != 0, np.fmod(a, np.where(b != 0, b, 1.0)), 0.0),
-        "WRAP": lambda: _wrap(a, b, c), "FRACTION": lambda: a - np.floor(a),
-        "ABSOLUTE": lambda: np.abs(a), "MINIMUM": lambda: np.minimum(a, b),
-        "MAXIMUM": lambda: np.maximum(a, b), "SINE": lambda: np.sin(a),
-        "COSINE": lambda: np.cos(a), "TANGENT": lambda: np.tan(a),
-        "POWER": lambda: _safe_power(a, b), "SIGN": lambda: np.sign(a),
-    }
-    return ops[op](), zero_s
+    if op == "CROSS_PRODUCT":
+        return np.cross(a, b), zero_s
+    if op == "SCALE":
+        return a * scale[:, None], zero_s
+    if op == "NORMALIZE":
+        return _safe_normalize(a), zero_s
+    # The rest are the Math node's operations per component (svm_vector_math calls the
+    # same safe_* functions component by component).
+    return MATH_OPS[_VECTOR_AS_MATH.get(op, op)](a, b, c), zero_s
+
+
+# Vector Math operations whose Math node twin has another name.
+_VECTOR_AS_MATH = {"FRACTION": "FRACT"}
 
 
 VECTOR_MATH_OPS = ("ADD", "SUBTRACT", "MULTIPLY", "DIVIDE", "MULTIPLY_ADD", "CROSS_PRODUCT",
