@@ -216,37 +216,9 @@ def kernel_words(compiled: bool) -> str:
     return "compiling the kernels" if compiled else "loading the compiled kernels"
 
 
-# The bar's share of the export (before the render's settings are known).
+# The bar's share of the export (before the render's settings are known); the render's
+# stages share the rest in proportion to their work (engine/stagespans.py).
 EXPORT_SHARE = 0.02
-# CPU per emitted photon (tracing and the maps' build) over CPU per camera sample, on the
-# paper's Figure 6 at the defaults (docs/performance.md "e2e28": 1.6 s for 600k photons,
-# 25.8 s for 320 x 240 x 128 samples): about 1. Scenes differ (a new user's room spent
-# 5 % on photons where this says 20 %), but fixed shares were further off: 30 % of the bar
-# for photons that took 3-7 % of the time left the bar at 35 % while pixels rendered
-# (newuser29).
-PHOTON_COST_PER_SAMPLE = 1.0
-
-
-def stage_spans(photon_mapping: bool, photons: int = 0, samples: int = 1) -> dict:
-    """The progress bar's (start, width) per stage: the export first, then the photon
-    pass, the photon maps' build and the camera pass in proportion to their work (emitted
-    photons x PHOTON_COST_PER_SAMPLE against camera samples, pixels x spp). photons: all
-    emitted (global + caustic); samples: the camera samples of the render."""
-    rest = 1.0 - EXPORT_SHARE
-    if not photon_mapping or photons <= 0:
-        return {"export": (0.0, EXPORT_SHARE), "render": (EXPORT_SHARE, rest)}
-    work = photons * PHOTON_COST_PER_SAMPLE
-    share = rest * work / (work + max(samples, 1))
-    trace, build = 0.6 * share, 0.4 * share  # (Figure 6: 0.6 s tracing, 1.0 s maps)
-    return {"export": (0.0, EXPORT_SHARE), "photons": (EXPORT_SHARE, trace),
-            "photon_map": (EXPORT_SHARE + trace, build),
-            "render": (EXPORT_SHARE + share, rest - share)}
-
-
-def _overall_fraction(stage: str, fraction: float, spans: dict) -> float:
-    """The bar's position for `fraction` (0..1) of `stage` (stage_spans)."""
-    base, span = spans.get(stage, (0.0, 1.0))
-    return min(1.0, max(0.0, base + span * min(max(fraction, 0.0), 1.0)))
 
 
 class PhotonMapRenderEngine(bpy.types.RenderEngine):
@@ -426,8 +398,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
 
         def export_progress(done, total):
             self._stats(f"Exporting {done}/{total} objects")
-            self._progress(_overall_fraction("export", done / max(total, 1),
-                                             stage_spans(False)))
+            self._progress(EXPORT_SHARE * done / max(total, 1))
 
         try:
             pm_scene, info = export.export_scene(
@@ -500,12 +471,17 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
 
         rows = (region[3] - region[1]) if region is not None else height
         cols = (region[2] - region[0]) if region is not None else width
-        spans = stage_spans(settings.uses_photon_maps,
-                            settings.photons + settings.caustic_photons,
-                            max(rows, 1) * max(cols, 1) * settings.spp)
+        # Sized from the settings' photon counts, re-sized by the render's plan (a glow
+        # shot can be several times the global one) before any photon is traced.
+        spans = pm.stagespans.StageSpans(settings.uses_photon_maps,
+                                         settings.photons + settings.caustic_photons,
+                                         max(rows, 1) * max(cols, 1) * settings.spp,
+                                         start=EXPORT_SHARE)
 
         def progress(stage, fraction, text):
-            self._progress(_overall_fraction(stage, fraction, spans))
+            whole = spans.whole(stage, fraction)
+            if whole is not None:  # the kernel compile is outside the render's work
+                self._progress(whole)
             self._throttled_stats(stage, fraction, text)
 
         t0 = time.perf_counter()
@@ -515,7 +491,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         else:
             film = pm.render(pm_scene, settings, progress=progress,
                              should_cancel=self._should_cancel, region=region,
-                             on_warning=on_warning)
+                             on_warning=on_warning, on_plan=spans.plan)
         elapsed = time.perf_counter() - t0
         self._write_result(film, view_layer, render.film_transparent)
         cancelled = bool(film.stats.get("cancelled"))

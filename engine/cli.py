@@ -581,6 +581,11 @@ def _render(args) -> int:
     say(scene.all_warnings())
     interrupt = CancelOnInterrupt()
     where = {"stage": "preparing", "fraction": 0.0, "passes": 0}
+    # The stages' shares of the bar by their work (engine/stagespans.py), re-sized by the
+    # render's photon plan (render's on_plan; a progressive pass keeps the settings').
+    from .stagespans import StageSpans
+    spans = StageSpans(settings.uses_photon_maps, settings.photons + settings.caustic_photons,
+                       scene.width * scene.height * settings.spp)
     # The bar shows the fraction of the whole render and the time left (engine/eta.py:
     # measured after the kernel compile and the first chunk, not from the start).
     passes = args.passes if progressive and not args.dask else None
@@ -597,7 +602,7 @@ def _render(args) -> int:
         console.keep_alive(stage == "compile")  # the bar's clock moves through it
         if stage == "compile":
             eta.restart()
-        whole = _whole_fraction(stage, fraction, settings.uses_photon_maps)
+        whole = spans.whole(stage, fraction)
         if whole is not None and args.dask:
             whole = fraction  # the cluster reports the fraction of the budget
         elif whole is not None and progressive:
@@ -640,7 +645,7 @@ def _render(args) -> int:
         else:
             with interrupt, _python_warnings(console, args.quiet):
                 film = render(scene, settings, progress=progress, should_cancel=should_cancel,
-                              on_warning=say_one)
+                              on_warning=say_one, on_plan=spans.plan)
         say(film.warnings)  # each was said when it arose (on_warning): none is left
     except KeyboardInterrupt:  # a second Ctrl-C, or the first during the kernel compile
         console.close()
@@ -709,22 +714,6 @@ def _render(args) -> int:
         print(f"wrote {args.output} ({scene.width}x{scene.height}, {samples}, "
               f"{st.get('time_total', 0):.1f} s)", file=sys.stderr)
     return 0
-
-
-# Shares of a render's time by stage, for the fraction of the whole render that the bar
-# and the time left follow (as the add-on's bar, addon/engine.py). A stage reports its own
-# fraction 0..1 (each photon shot anew): the whole never moves back (Eta, the bar).
-_STAGE_SPANS = {"photons": (0.0, 0.35), "photon_map": (0.35, 0.05), "render": (0.40, 0.60)}
-
-
-def _whole_fraction(stage, fraction, photon_maps: bool):
-    """The fraction of the whole render at `fraction` of `stage`, None for a stage
-    outside the work (the kernel compile)."""
-    if stage not in _STAGE_SPANS:
-        return None
-    base, span = _STAGE_SPANS[stage] if photon_maps else {"render": (0.0, 1.0)}.get(
-        stage, (0.0, 0.0))
-    return base + span * min(max(float(fraction), 0.0), 1.0)
 
 
 class _TimeLeft:

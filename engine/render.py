@@ -187,7 +187,7 @@ def hard_shadow_packing(packed):
 
 
 def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
-                  on_warning=None) -> tuple:
+                  on_warning=None, on_plan=None) -> tuple:
     """The photon pass alone: (re)fills ctx's photon maps for ctx.settings and records
     its counts in stats. Returns the stored photons (for the photon-hit pass) as a tuple
     of Photons, one per shot (global, caustic; empty without photon mapping). Its
@@ -196,7 +196,10 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     nowhere), on the calling thread, before the camera pass. Raises
     Cancelled. A session may keep the maps of a pass and render other views from them
     (engine/session.py): with visual importance the global photons are denser where this
-    camera looks (engine/visualimportance.py), but every view's estimates stay unbiased."""
+    camera looks (engine/visualimportance.py), but every view's estimates stay unbiased.
+    on_plan({"photons": n}) is told, before the first photon is traced, how many photons
+    the pass will emit over all its shots (global, glow, caustic: the effect analysis
+    decides which), so a progress bar can size the photon stage (None: nobody)."""
     ctx.global_map = ctx.caustic_map = ctx.gather_map = ctx.secondary_map = None
     ctx.regather_maps = ctx.regather_secondary = ()
     ctx.gather_counts = None
@@ -204,7 +207,7 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
     s = ctx.settings
     shot = ()
     if s.photon_mapping and ctx.lights and (ctx.plan.indirect or ctx.plan.caustics):
-        shot = _photon_pass(ctx, stats, progress, should_cancel, on_warning)
+        shot = _photon_pass(ctx, stats, progress, should_cancel, on_warning, on_plan)
     if ctx.gather_map is None and _sample_every_side(ctx.lights):
         # No final gathering (off, indirect light off, or no photon to gather): no
         # gather ray brings the unsampled sides' direct light to a diffuse surface.
@@ -214,18 +217,18 @@ def shoot_photons(ctx: Context, stats: dict, progress=None, should_cancel=None,
 
 
 def render_pass(ctx: Context, region, progress=None, should_cancel=None,
-                shoot: bool = True, on_warning=None) -> Film:
+                shoot: bool = True, on_warning=None, on_plan=None) -> Film:
     """Photon pass + camera pass with ctx.settings into a new Film (raises Cancelled).
     shoot=False renders with the photon maps already in ctx (shoot_photons). The photon
     pass' warnings are in film.stats["warnings"] and told to on_warning(text) when known,
-    before the camera pass (shoot_photons). numpy's huge-page advice is off meanwhile
-    (small_pages)."""
+    before the camera pass (shoot_photons), as the photon count to on_plan. numpy's
+    huge-page advice is off meanwhile (small_pages)."""
     with small_pages():
-        return _render_pass(ctx, region, progress, should_cancel, shoot, on_warning)
+        return _render_pass(ctx, region, progress, should_cancel, shoot, on_warning, on_plan)
 
 
 def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
-                 on_warning) -> Film:
+                 on_warning, on_plan=None) -> Film:
     settings = ctx.settings
     x0, y0, x1, y1 = region
     film = Film(x1 - x0, y1 - y0, show_photons=settings.show_photons)
@@ -237,7 +240,7 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
     try:
         shots = ()
         if shoot:
-            shots = shoot_photons(ctx, stats, progress, should_cancel, on_warning)
+            shots = shoot_photons(ctx, stats, progress, should_cancel, on_warning, on_plan)
         # The photon-hit pass, always: with several workers on its own thread, started
         # when the camera pass's last chunk is handed out (it fills a worker the tail
         # leaves idle, when fewer chunks hold memory), else after the camera pass; its
@@ -380,7 +383,7 @@ def warning_key(text: str) -> str:
 
 
 def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
-           should_cancel=None, region=None, on_warning=None) -> Film:
+           should_cancel=None, region=None, on_warning=None, on_plan=None) -> Film:
     """Render `scene`. progress(stage, fraction, text) is called as work advances;
     should_cancel() is polled and, when it returns True, the partial Film is returned
     with film.stats['cancelled'] = True. region=(x0, y0, x1, y1) renders only that window
@@ -388,7 +391,9 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     each of film.warnings once, on the calling thread, as soon as the render knows it:
     the scene's at the start, the effect analysis' before the photons are shot, the
     photon pass' (a hand-set search radius) once its maps are built, before the camera
-    pass. Raises SceneError for a scene that cannot render, ResourceError
+    pass. on_plan({"photons": n}) is told the photons the photon pass will emit, before
+    it traces any (shoot_photons; not called without a photon pass), so a progress bar
+    can size its photon stage (engine/stagespans.py). Raises SceneError for a scene that cannot render, ResourceError
     (engine/resources.py) for one that would not fit in the available memory - both
     before anything big is allocated."""
     settings = settings or RenderSettings()
@@ -421,7 +426,8 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     t_prepare = time.perf_counter() - t_start - t_compile
     try:
         film = render_pass(ctx, region, progress, should_cancel,
-                           on_warning=lambda w: tell([w]))  # the photon pass' own
+                           on_warning=lambda w: tell([w]),  # the photon pass' own
+                           on_plan=on_plan)
         if settings.cryptomatte and not film.stats.get("cancelled"):
             render_cryptomatte(ctx, region, film, should_cancel)
     finally:
@@ -495,7 +501,8 @@ def _shot_progress(progress, sizes, k):
     return report
 
 
-def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) -> tuple:
+def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
+                 on_plan=None) -> tuple:
     s, geo, plan = ctx.settings, ctx.geo, ctx.plan
     t0 = time.perf_counter()
     shot = Photons.empty()
@@ -528,6 +535,8 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None) 
     sizes = (int(sum(counts)) if global_shot else 0,
              int(sum(g_counts)) if g_emitters is not None else 0,
              int(s.caustic_photons) if use_caustic_shot else 0)
+    if on_plan is not None:
+        on_plan({"photons": int(sum(sizes))})
     if global_shot:
         shot = trace_photons(ctx, emitters, counts, caustic_only=False, stream=1,
                              progress=_shot_progress(progress, sizes, 0),

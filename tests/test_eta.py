@@ -82,14 +82,16 @@ def test_format_seconds():
 
 def test_cli_bar_shows_the_fraction_of_the_whole_render_and_the_time_left(tmp_path,
                                                                            capsys):
-    from engine.cli import _whole_fraction, main
+    from engine.cli import main
+    from engine.stagespans import StageSpans
     # The stages' own fractions map onto one rising fraction of the render.
-    marks = [_whole_fraction(s, f, True) for s, f in (("photons", 0.0), ("photons", 1.0),
-                                                      ("photon_map", 0.0), ("render", 0.5),
-                                                      ("render", 1.0))]
+    spans = StageSpans(True, 2000, 32 * 24)
+    marks = [spans.whole(s, f) for s, f in (("photons", 0.0), ("photons", 1.0),
+                                            ("photon_map", 0.0), ("render", 0.5),
+                                            ("render", 1.0))]
     assert marks == sorted(marks) and marks[0] == 0.0 and marks[-1] == 1.0
-    assert _whole_fraction("compile", 0.0, True) is None
-    assert _whole_fraction("render", 0.25, False) == 0.25
+    assert spans.whole("compile", 0.0) is None
+    assert StageSpans(False).whole("render", 0.25) == 0.25
     out = tmp_path / "f.png"
     assert main(["render", "scenes/figure3.toml", "-o", str(out), "--width", "32", "--height",
                  "24", "--spp", "1", "--photons", "2000"]) == 0

@@ -3,6 +3,8 @@ glow shot (light off rough specular layers first, engine/render.py GLOW_SHOT) is
 photons", not "caustic photons", which beside the report's "caustics: off - nothing
 focuses light" read as a contradiction (newuser33: a room lit by a lamp in a frosted
 shade showed "Tracing caustic photons 2156k/2156k")."""
+import pytest
+
 from engine import RenderSettings
 from engine.render import render
 from test_leak_lampshade import lamp_scene
@@ -40,3 +42,41 @@ def test_photon_progress_moves_once_through_all_shots():
     assert abs(fractions[-1] - 1.0) < 1e-9, fractions[-1]
     first_glow = next(f for f, t in photons if t.startswith("Tracing glow photons"))
     assert 0.0 < first_glow < 1.0, first_glow
+
+
+def test_the_render_tells_its_photon_plan_before_tracing_and_the_bar_follows_it():
+    """on_plan is told the photons of every shot (the glow shot included) before the first
+    is traced; StageSpans re-sized by it gives the photon stage its real share (the
+    settings' global + caustic counts left out a glow shot several times their size:
+    newuser33's bar crawled through the photon span, then jumped)."""
+    from engine.stagespans import StageSpans
+    settings = RenderSettings(spp=1, photons=20_000, caustic_photons=5_000, seed=1,
+                              workers=1)
+    samples = 24 * 18 * settings.spp
+    spans = StageSpans(True, settings.photons + settings.caustic_photons, samples)
+    before = spans.spans["photons"]
+    events = []
+
+    def on_plan(work):
+        events.append(("plan", work["photons"]))
+        spans.plan(work)
+
+    film = render(lamp_scene(24, 18), settings, on_plan=on_plan,
+                  progress=lambda stage, fraction, text: events.append(
+                      (stage, spans.whole(stage, fraction))))
+    st = film.stats
+    # Caustics off: the glow shot is the caustic map (its photons counted once).
+    assert "caustics: off" in "\n".join(st["effects"])
+    emitted = st["photons_emitted"] + st["glow_photons_emitted"]
+    plans = [e for e in events if e[0] == "plan"]
+    assert len(plans) == 1 and plans[0][1] == emitted, (plans, emitted)
+    assert st["glow_photons_emitted"] > settings.photons  # the shot the settings miss
+    first_photon = next(i for i, e in enumerate(events) if e[0] == "photons")
+    assert events.index(plans[0]) < first_photon
+    # The bar: rising, 0 -> 1, the photon stage's share by the plan's count.
+    marks = [w for stage, w in events if stage != "plan" and w is not None]
+    assert all(b >= a - 1e-12 for a, b in zip(marks, marks[1:])), marks
+    assert marks[-1] == 1.0
+    work = float(emitted)
+    assert spans.spans["render"][0] == pytest.approx(work / (work + samples))
+    assert spans.spans["photons"][1] > before[1]
