@@ -782,12 +782,49 @@ def _placement(pm, name, prototype, matrix, names, obj, visibility, info=None):
                          **cryptomatte_names(obj), **visibility)
 
 
+def render_enabled_objects(view_layer) -> set:
+    """The as_pointer() of every original object a final render of view_layer may show by
+    its collections: those in a collection that is neither excluded from the view layer
+    nor disabled in renders (Collection.hide_render), itself and its parents. (An
+    object's own hide_render is checked apart: render_hidden.)"""
+    enabled = set()
+
+    def walk(layer_collection, on):
+        on = on and not layer_collection.exclude and not layer_collection.collection.hide_render
+        if on:
+            enabled.update(o.as_pointer() for o in layer_collection.collection.objects)
+        for child in layer_collection.children:
+            walk(child, on)
+    walk(view_layer.layer_collection, True)
+    return enabled
+
+
+def render_hidden(inst, enabled: set) -> bool:
+    """Whether a final render leaves out this depsgraph instance that a viewport
+    depsgraph holds: its object (or, for an instance, the object instancing it) is
+    disabled in renders (hide_render) or only in collections that are (enabled:
+    render_enabled_objects); an instanced object disabled in renders is left out too."""
+    obj = inst.object.original
+    if obj.hide_render:
+        return True
+    if inst.is_instance:
+        parent = inst.parent.original
+        return parent.hide_render or parent.as_pointer() not in enabled
+    return obj.as_pointer() not in enabled
+
+
 def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=None,
-                 should_cancel=None):
+                 should_cancel=None, render_visibility: bool = False):
     """Build an engine Scene from an evaluated depsgraph.
 
     progress(done, total) is called per object; should_cancel() is polled and raises
-    ExportCancelled when it returns True. Returns (scene, info dict)."""
+    ExportCancelled when it returns True. render_visibility: leave out what a final render
+    leaves out (objects and collections disabled in renders: render_hidden) though the
+    depsgraph holds it: for a viewport depsgraph (bpy.context.evaluated_depsgraph_get())
+    that stands for an F12 render (the teaching images, scripts; a render's own depsgraph
+    has already left them out, the rendered viewport shows them as Cycles' does).
+    Modifiers keep the depsgraph's levels (a viewport depsgraph's Subdivision Surface
+    evaluates its Levels Viewport). Returns (scene, info dict)."""
     scene_eval = depsgraph.scene_eval if hasattr(depsgraph, "scene_eval") else depsgraph.scene
     scene_orig = depsgraph.scene
     render = scene_orig.render
@@ -816,6 +853,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     last_poll = time.perf_counter()
     hair_warned = set()
     view_layer = getattr(depsgraph, "view_layer", None)
+    enabled = (render_enabled_objects(view_layer) if render_visibility and view_layer
+               is not None else None)
     for i, inst in enumerate(depsgraph.object_instances):
         now = time.perf_counter()
         if should_cancel is not None and now - last_poll > 0.2:
@@ -827,6 +866,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         obj = inst.object
         otype = obj.type
         if not inst.is_instance and not getattr(inst, "show_self", True):
+            continue
+        if enabled is not None and render_hidden(inst, enabled):
             continue
         if otype == "LIGHT":
             matrix = np.array(inst.matrix_world, dtype=np.float64)

@@ -115,8 +115,9 @@ def teaching_image(kind: str, scene, depsgraph, preview_size: int = 160,
     if preview_size < 1:
         raise ValueError(f"preview size must be >= 1 pixel, got {preview_size}")
     width, height = _preview_size(scene.render, preview_size)
+    # The images stand for F12 renders: what is disabled in renders stays out.
     pm_scene, _ = export.export_scene(pm, depsgraph, camera=scene.camera, width=width,
-                                      height=height)
+                                      height=height, render_visibility=True)
     props = scene.photonmap
     kwargs = props.to_settings_kwargs(scene.render.film_transparent)
     if quality == "preview":

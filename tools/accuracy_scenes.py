@@ -424,7 +424,7 @@ def export_ours(name):
     set_photonmap_defaults(scene)
     dg = bpy.context.evaluated_depsgraph_get()
     w, h = ex.render_size(scene.render)
-    pm_scene, _ = ex.export_scene(engine, dg, width=w, height=h)
+    pm_scene, _ = ex.export_scene(engine, dg, width=w, height=h, render_visibility=True)
     return pm_scene, scene.photonmap.to_settings_kwargs(scene.render.film_transparent)
 
 

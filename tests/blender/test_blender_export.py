@@ -470,3 +470,61 @@ def test_translucent_mixed_by_a_texture_uses_the_factors_value_and_says_so(fresh
     assert len(hits) == 1 and "per-hit mixing of translucency is not supported" in hits[0], \
         out.all_warnings()
     assert out.materials["LeafMix"].translucent == pytest.approx(0.4)
+
+
+def test_render_visibility_leaves_out_what_a_final_render_does(fresh_scene):
+    """A viewport depsgraph (bpy.context.evaluated_depsgraph_get(), the teaching images'
+    and scripts') holds objects and lights disabled in renders; exported with
+    render_visibility they stay out, as from F12's depsgraph (s34: the day room's
+    render-disabled floor lamp lit a script's export 16x brighter than F12)."""
+    import bpy
+    from addon import export
+    from addon.core import load_engine
+    scene = fresh_scene
+    _cube(bpy, "Shown", (0, 0, 0))
+    _cube(bpy, "NotRendered", (3, 0, 0)).hide_render = True
+    off = bpy.data.collections.new("OffInRenders")
+    off.hide_render = True
+    scene.collection.children.link(off)
+    hidden_in_coll = _cube(bpy, "InOffCollection", (6, 0, 0))
+    scene.collection.objects.unlink(hidden_in_coll)
+    off.objects.link(hidden_in_coll)
+    # A source collection excluded from the view layer, instanced twice: its objects
+    # render through the shown instancer (not through the one disabled in renders); an
+    # instanced object disabled in renders stays out.
+    src = bpy.data.collections.new("Source")
+    scene.collection.children.link(src)
+    for name, hide in (("Part", False), ("HiddenPart", True)):
+        o = _cube(bpy, name, (0, 5, 0))
+        scene.collection.objects.unlink(o)
+        src.objects.link(o)
+        o.hide_render = hide
+    scene.view_layers[0].layer_collection.children["Source"].exclude = True
+    for name, hide in (("Instancer", False), ("HiddenInstancer", True)):
+        empty = bpy.data.objects.new(name, None)
+        empty.instance_type, empty.instance_collection = "COLLECTION", src
+        empty.hide_render = hide
+        scene.collection.objects.link(empty)
+    _light(bpy, "Lamp", "POINT", (0, 0, 4), energy=100.0)
+    _light(bpy, "LampNotRendered", "POINT", (0, 0, 5), energy=100.0).hide_render = True
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.location = (0, -10, 2)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    pm = load_engine()
+    dg = bpy.context.evaluated_depsgraph_get()
+
+    def names(render_visibility):
+        s, _ = export.export_scene(pm, dg, width=8, height=8,
+                                   render_visibility=render_visibility)
+        return [m.name for m in s.meshes], [li.name for li in s.lights]
+
+    meshes, lights = names(True)
+    joined = " ".join(meshes)
+    assert "Shown" in meshes and lights == ["Lamp"], (meshes, lights)
+    for gone in ("NotRendered", "InOffCollection", "HiddenPart", "HiddenInstancer"):
+        assert gone not in joined, (gone, meshes)
+    assert sum("Part" in m for m in meshes) == 1, meshes  # through "Instancer" only
+    # Without it the viewport depsgraph's content, as the rendered viewport shows it.
+    meshes, lights = names(False)
+    assert "LampNotRendered" in lights and "NotRendered" in meshes, (meshes, lights)
