@@ -844,7 +844,8 @@ class DirectLightBuffers:
 
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
-                 bsdf=None, buffers=None, rows=None, transmission=None, passages=None):
+                 bsdf=None, buffers=None, rows=None, transmission=None, passages=None,
+                 light_cut=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -870,6 +871,10 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     reflective lobes (column 1), which Cycles counts against different limits (a ray
     past one cap carries its light to the other lobe alone: accumulate_bsdf's cut);
     None: no cap.
+    light_cut (L,) int64, with bsdf: per light the lobes its samples may not light
+    (CUT_DIFFUSE, CUT_GLOSSY as accumulate_bsdf's cut: Cycles' _shader_bsdf_exclude by
+    the light's ray visibility); a light with a cut must be traced (its samples' traced
+    flag True) and sampled by light index (not by the tree); None: every lobe.
     Returns (E or radiance, number of shadow rays traced)."""
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
@@ -946,6 +951,14 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                     if over.any():
                         cut = (over[:, 0] * CUT_DIFFUSE + over[:, 1] * CUT_GLOSSY).astype(
                             np.int64)
+        if light_cut is not None and m_rays:
+            # Each traced ray's light's excluded lobes, beside the passages' cuts.
+            r = buf.ray[:m_all]
+            on = r >= 0
+            own = np.zeros(m_rays, np.int64)
+            kl = klight[buf.kidx[:m_all][on]]
+            own[r[on]] = np.where(kl >= 0, light_cut[np.maximum(kl, 0)], 0)  # -1: the tree
+            cut = own if len(cut) == 0 else cut | own
         if transmission is not None:
             prm, ns, wo, mode, sel = transmission
             pr.accumulate_transmission(E, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples,

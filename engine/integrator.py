@@ -17,8 +17,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .directlight import (NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW, DirectLightBuffers,
-                          direct_light, sample_lights, terminator_lift)
+from .directlight import (CUT_DIFFUSE, CUT_GLOSSY, NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW,
+                          DirectLightBuffers, direct_light, sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
 from .lights import AREA, MESH, POINT, SPOT, SUN
 from .scene import DISK
@@ -137,10 +137,18 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     (B_TOTAL order; None: none, the camera's first hits): shadow rays through flat glass
     passages cross only as many as the bounce limits allow (chaincounts.flat_passages);
     with bsdf per lobe kind (the diffuse f and sheen as a diffuse bounce, the other rough
-    reflective lobes as a glossy one: directlight.accumulate_bsdf's cut)."""
+    reflective lobes as a glossy one: directlight.accumulate_bsdf's cut).
+    With bsdf, a light lights only the lobes its ray visibility allows (lobe_cut), each
+    light sampled on its own (with the light tree its members light every lobe)."""
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
-    samples = light_sample_list(ctx, n, rng, sampler, skip_mesh_lights)
+    light_cut = None
+    if bsdf is not None and chosen is None:
+        light_cut = np.array([lobe_cut(light) for light in ctx.lights], np.int64)
+        if not light_cut.any():
+            light_cut = None
+    samples = light_sample_list(ctx, n, rng, sampler, skip_mesh_lights,
+                                reflection=light_cut is not None)
     if n == 0 or not samples:
         return np.zeros((n, 3))
     packed = ctx.packed_lights or pack_lights(ctx.lights)
@@ -178,7 +186,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     E, rays = direct_light(packed, _hit_arrays(ctx.geo, hit, rows), samples, ctx.accel,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
-                           bsdf=bsdf, buffers=buffers, rows=rows, passages=passages)
+                           bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
+                           light_cut=light_cut)
     counters.shadow_rays += rays
     panes, shades = panes_for(ctx), shades_for(ctx)
     if panes is None and (shades is None or rng is None):
@@ -221,7 +230,24 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     return E
 
 
-def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=None) -> list:
+def lobe_cut(light) -> int:
+    """The lobes a light's shadow rays may not light (directlight.CUT_DIFFUSE,
+    CUT_GLOSSY), by its ray visibility, as Cycles' _shader_bsdf_exclude at a light sample
+    (kernel/closure/bsdf.h... surface_shader.h: SHADER_EXCLUDE_DIFFUSE drops the diffuse,
+    sheen and translucent closures, SHADER_EXCLUDE_GLOSSY the glossy ones): a lamp with
+    Glossy visibility off lights a diffuse surface but throws no highlight; one with
+    Diffuse off only highlights. Emissive meshes and the world: none (their visibility
+    lives on their triangles)."""
+    cut = 0
+    if not light.ray_kinds & SHADOW:
+        cut |= CUT_DIFFUSE
+    if not light.ray_kinds & GLOSSY:
+        cut |= CUT_GLOSSY
+    return cut
+
+
+def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=None,
+                      reflection=False) -> list:
     """The light samples of n hits, as directlight.direct_light takes them: a list of
     (light index, traced?, the light's sample count, u1 (n,), u2 (n,), third number (n,)
     or None), in the order they are drawn and summed. With many lights (the light tree,
@@ -233,7 +259,11 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
     the third number together, in this order).
     skip_mesh_lights: no samples of emissive meshes (a recursive gather finds them by its
     own rays). modes (L,) int (light_modes): lights left to the continuation
-    (MODE_CONTINUATION) take no sample (glasslight.transmitted_light); None: every light."""
+    (MODE_CONTINUATION) take no sample (glasslight.transmitted_light); None: every light.
+    reflection: the caller weighs the samples by the reflective lobes and cuts each
+    light's by lobe_cut (directlight.direct_light's light_cut): a delta light with only
+    its glossy visibility on is sampled too, and every light with a cut is traced (the
+    cut is applied per shadow ray)."""
     chosen = selector_for(ctx, skip_mesh_lights)
     samples = []
     if chosen is not None:
@@ -261,14 +291,19 @@ def light_sample_list(ctx, n, rng, sampler=None, skip_mesh_lights=False, modes=N
     for li, light in enumerate(ctx.lights):
         if skip_mesh_lights and light.kind == MESH:
             continue
-        if not light.ray_kinds & SHADOW:  # the light object's diffuse visibility is off
+        cut = lobe_cut(light) if reflection else 0
+        if not light.ray_kinds & SHADOW and not (
+                cut == CUT_DIFFUSE and not light.has_size):
+            # The light object's diffuse visibility is off (a lamp that only highlights:
+            # sampled for the glossy lobes when it is a delta light, else the glossy
+            # continuation finds it).
             continue
         if not light.shadow_sampled:  # Emission Sampling None on every emissive triangle
             continue
         if modes is not None and modes[li] == MODE_CONTINUATION:
             continue
         count = plan.light_samples.get(light.name, 1)
-        traced = plan.shadows.get(light.name, True)
+        traced = plan.shadows.get(light.name, True) or cut != 0
         for si in range(count):
             if sampler is not None and light.needs_choice:
                 # A mesh light's triangle, an environment-mapped world's strategy: the
@@ -372,7 +407,10 @@ def light_modes(ctx) -> np.ndarray:
     modes = np.zeros(len(ctx.lights), np.int64)
     mis = MODE_MIS if ctx.plan.specular_depth > 0 else MODE_DELTA
     for li, light in enumerate(ctx.lights):
-        if not light.ray_kinds & SHADOW or not light.shadow_sampled:
+        # A delta lamp seen by glossy rays but not diffuse ones is sampled for the glossy
+        # lobes (light_sample_list's reflection), in full: no continuation meets it.
+        glossy_only = lobe_cut(light) == CUT_DIFFUSE and not light.has_size
+        if not (light.ray_kinds & SHADOW or glossy_only) or not light.shadow_sampled:
             continue
         if not light.has_size:
             modes[li] = MODE_DELTA
