@@ -233,8 +233,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
 def lobe_cut(light) -> int:
     """The lobes a light's shadow rays may not light (directlight.CUT_DIFFUSE,
     CUT_GLOSSY), by its ray visibility, as Cycles' _shader_bsdf_exclude at a light sample
-    (kernel/closure/bsdf.h... surface_shader.h: SHADER_EXCLUDE_DIFFUSE drops the diffuse,
-    sheen and translucent closures, SHADER_EXCLUDE_GLOSSY the glossy ones): a lamp with
+    (intern/cycles/kernel/integrator/surface_shader.h: SHADER_EXCLUDE_DIFFUSE drops the
+    diffuse, sheen and translucent closures, SHADER_EXCLUDE_GLOSSY the glossy ones; a
+    reflected ray sees the lamp by is_light_shader_visible_to_path): a lamp with
     Glossy visibility off lights a diffuse surface but throws no highlight; one with
     Diffuse off only highlights. Emissive meshes and the world: none (their visibility
     lives on their triangles)."""
