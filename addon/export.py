@@ -759,15 +759,17 @@ def cycles_name_random_id(name: str) -> int:
 def object_info(obj, inst) -> dict:
     """Mesh keywords of the Object Info node: random (Cycles' random_number: the
     random_id / (2^32 - 1) in float32, scene/object.cpp; an instance's random_id from the
-    depsgraph, an object's from its name: cycles_name_random_id) and object_color
-    (object.color RGBA)."""
+    depsgraph, an object's from its name: cycles_name_random_id), object_color
+    (object.color RGBA) and location (the instance's world-space origin)."""
     if inst.is_instance:
         rid = int(getattr(inst, "random_id", 0) or 0) & 0xFFFFFFFF
     else:
         rid = cycles_name_random_id(obj.name)
     random = float(np.float32(rid) * np.float32(1.0 / 0xFFFFFFFF))
     color = tuple(float(c) for c in getattr(obj, "color", (1.0, 1.0, 1.0, 1.0)))[:4]
-    return dict(random=random, object_color=color)
+    # Object Info Location: Cycles' object_location, the object matrix's translation.
+    location = tuple(float(x) for x in np.array(inst.matrix_world, np.float64)[:3, 3])
+    return dict(random=random, object_color=color, location=location)
 
 
 def _placement(pm, name, prototype, matrix, names, obj, visibility, info=None):

@@ -1204,8 +1204,11 @@ class MaterialConverter:
                     self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' "
                                "relative to another object is read in the mesh's own space")
                 return self._coordinates(oname.lower())
+            if oname in ("Camera", "Window", "Reflection"):
+                return sn.ViewCoordinates(oname.upper())
             self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' output "
-                       f"'{oname}' is not supported (UV, Generated, Object are)")
+                       f"'{oname}' is not supported (UV, Generated, Object, Normal, Camera, "
+                       "Window, Reflection are)")
             return None
         if t == "UVMAP":
             if getattr(n, "uv_map", ""):
@@ -1279,8 +1282,12 @@ class MaterialConverter:
                         "Backfacing": "BACKFACING"}.get(oname)
             return None if out_kind is None else sn.GeometryInfo(out_kind)
         if t == "OBJECT_INFO":
+            if oname == "Material Index":
+                # Cycles' shader_pass_id: the pass index of the material whose tree this
+                # is, one constant per tree.
+                return float(getattr(self._mat, "pass_index", 0) or 0)
             out_kind = {"Random": "RANDOM", "Color": "COLOR", "Alpha": "ALPHA",
-                        "Object Index": "OBJECT_INDEX"}.get(oname)
+                        "Object Index": "OBJECT_INDEX", "Location": "LOCATION"}.get(oname)
             return None if out_kind is None else sn.ObjectInfo(out_kind)
         # (A tree fed only by constants is evaluated once here: _fold.)
         if t == "BRIGHTCONTRAST":

@@ -653,10 +653,13 @@ class ToGray:
 class ObjectInfo:
     """Object Info node (svm_node_object_info) per hit, from the hit triangle's object
     (Geometry.object_id; an instance's own): RANDOM (Mesh.random, 0..1), COLOR, ALPHA
-    (Mesh.object_color) or OBJECT_INDEX (Mesh.pass_index). Without a Geometry (a
-    constant fold) or its tables: 0, white, 1, 0."""
+    (Mesh.object_color), OBJECT_INDEX (Mesh.pass_index) or LOCATION ((N,3) world-space
+    origin of the object, m: Cycles' object_location, the translation of its object
+    matrix; Mesh.location). Without a Geometry (a constant fold) or its tables: 0,
+    white, 1, 0, the origin. (Material Index is the material's pass index, a constant
+    of the tree: the add-on reads it.)"""
 
-    OUTPUTS = ("RANDOM", "COLOR", "ALPHA", "OBJECT_INDEX")
+    OUTPUTS = ("RANDOM", "COLOR", "ALPHA", "OBJECT_INDEX", "LOCATION")
 
     def __init__(self, output="RANDOM"):
         if output not in self.OUTPUTS:
@@ -666,6 +669,9 @@ class ObjectInfo:
     def evaluate(self, geo, prim, u, v):
         n = len(prim)
         oid = None if geo is None else np.take(geo.object_id, np.asarray(prim, np.int64))
+        if self.output == "LOCATION":
+            table = None if geo is None else getattr(geo, "object_location", None)
+            return np.zeros((n, 3)) if table is None else np.take(table, oid, axis=0)
         if self.output == "COLOR" or self.output == "ALPHA":
             table = None if geo is None else getattr(geo, "object_color", None)
             rgba = np.ones((n, 4)) if table is None else np.take(table, oid, axis=0)
@@ -1267,6 +1273,74 @@ class GeometryInfo:
             return np.asarray(back, np.float64)
         ng = np.asarray(geo.ng[prim], np.float64).reshape(-1, 3)
         return np.where(np.asarray(back)[:, None], -ng, ng)
+
+
+class CameraView:
+    """What the Texture Coordinate node's Camera and Window outputs need of the camera
+    (Cycles' kernel_data.cam.worldtocamera and worldtondc, scene/camera.cpp), from an
+    engine Camera (scene.Camera: world-space position, rotation columns right, up, back)
+    and the full frame's width and height in pixels."""
+
+    def __init__(self, camera, width: int, height: int):
+        self.position = np.asarray(camera.position, np.float64)
+        self.rotation = np.asarray(camera.rotation, np.float64)
+        self.ortho = camera.kind == "ORTHO"
+        self.hw, self.hh = camera.half_extents(int(width), int(height))
+        big = 2.0 * max(self.hw, self.hh)  # shift is in units of the larger dimension
+        self.shift = np.array([camera.shift_x * big, camera.shift_y * big])
+
+    def to_camera(self, p):
+        """(N,3) world points (m) in Cycles' camera space: x right, y up, z along the view
+        (Blender's camera matrix with z negated, blender/camera.cpp), m."""
+        c = (np.asarray(p, np.float64) - self.position) @ self.rotation
+        c[:, 2] = -c[:, 2]
+        return c
+
+    def to_ndc(self, p):
+        """(N,3) world points in normalised device coordinates (Cycles' camera_world_to_ndc
+        for a perspective or orthographic camera): x, y 0..1 across the full frame from its
+        lower left corner, shift included; z 0 (the Window output sets it so)."""
+        c = self.to_camera(p)
+        xy = c[:, :2]
+        if not self.ortho:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                xy = xy / c[:, 2:3]
+        ndc = np.zeros_like(c)
+        ndc[:, 0] = 0.5 * ((xy[:, 0] - self.shift[0]) / self.hw + 1.0)
+        ndc[:, 1] = 0.5 * ((xy[:, 1] - self.shift[1]) / self.hh + 1.0)
+        return ndc
+
+
+class ViewCoordinates:
+    """Texture Coordinate node, output CAMERA (the hit in Cycles' camera space, m),
+    WINDOW (its normalised device coordinates, 0..1 across the frame, z 0) or REFLECTION
+    (the direction back along the ray mirrored about sd->N, world space: 2 (N . wi) N -
+    wi), as Cycles' svm_node_tex_coord (kernel/svm/tex_coord.h). Camera and Window read
+    the Geometry's camera_view (a CameraView; without one: zeros); Reflection reads the
+    hits' view (_view: without one, the geometric normal head-on gives N)."""
+
+    OUTPUTS = ("CAMERA", "WINDOW", "REFLECTION")
+
+    def __init__(self, output):
+        if output not in self.OUTPUTS:
+            raise ValueError(f"Texture Coordinate output {output!r}: expected one of "
+                             f"{self.OUTPUTS}")
+        self.output = output
+
+    def evaluate(self, geo, prim, u, v):
+        prim = np.asarray(prim, np.int64)
+        if geo is None:
+            return np.zeros((len(prim), 3))
+        if self.output == "REFLECTION":
+            n, wi, _ = _view(geo, prim)
+            n, wi = np.asarray(n, np.float64), np.asarray(wi, np.float64)
+            return 2.0 * np.einsum("ij,ij->i", n, wi)[:, None] * n - wi
+        view = getattr(geo, "camera_view", None)
+        if view is None:
+            return np.zeros((len(prim), 3))
+        p = geo.hit_points(prim, np.asarray(u, np.float64),
+                           np.asarray(v, np.float64)) + np.asarray(geo.offset)
+        return view.to_camera(p) if self.output == "CAMERA" else view.to_ndc(p)
 
 
 def fresnel_dielectric_cos(cosi, eta):

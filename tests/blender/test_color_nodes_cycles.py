@@ -248,7 +248,20 @@ def _white_noise(dims, output):
     return build
 
 
+def _tex_coord(output):
+    """A Texture Coordinate output as the colour (Camera: camera space, m; Window: the
+    frame's 0..1; Reflection: a world-space direction)."""
+    def build(nodes, links):
+        return nodes.new("ShaderNodeTexCoord").outputs[output]
+    return build
+
+
 CASES = {
+    "texcoord_camera": _tex_coord("Camera"),
+    "texcoord_window": _tex_coord("Window"),
+    "texcoord_camera_perspective": _tex_coord("Camera"),
+    "texcoord_window_perspective": _tex_coord("Window"),
+    "texcoord_reflection_perspective": _tex_coord("Reflection"),
     "ramp_linear": _ramp("LINEAR"),
     "ramp_constant": _ramp("CONSTANT"),
     "ramp_ease": _ramp("EASE"),
@@ -314,12 +327,18 @@ CASES = {
 }
 
 
+# Cases seen by a perspective camera (focal length, mm; shift along x, in units of the
+# frame's width) instead of the orthographic one: the view direction varies over the plane.
+PERSPECTIVE = {"texcoord_camera_perspective": (70.0, 0.0),
+               "texcoord_window_perspective": (70.0, 0.06),
+               "texcoord_reflection_perspective": (70.0, 0.0)}
+
 # Emission below 0 renders as 0 here (a light of negative power): every case is shown
 # lifted by LIFT (a Mix Color, Add) and compared less LIFT.
 LIFT = 4.0
 
 
-def _plane_scene(bpy, scene, build, lift=0.0):
+def _plane_scene(bpy, scene, build, lift=0.0, perspective=None):
     from blender_helpers import node_material
     m, nt, out = node_material(bpy, "Nodes")
     e = nt.nodes.new("ShaderNodeEmission")
@@ -337,7 +356,11 @@ def _plane_scene(bpy, scene, build, lift=0.0):
     bpy.ops.mesh.primitive_plane_add(size=2.0)
     bpy.context.object.data.materials.append(m)
     from blender_helpers import black_world, looking_down_camera
-    looking_down_camera(bpy, scene, 3.0, ortho_scale=1.9)  # inside the plane
+    if perspective is None:
+        looking_down_camera(bpy, scene, 3.0, ortho_scale=1.9)  # inside the plane
+    else:
+        lens, shift_x = perspective
+        looking_down_camera(bpy, scene, 3.0, lens=lens).data.shift_x = shift_x
     black_world(bpy, scene)
     scene.render.resolution_x, scene.render.resolution_y = W, H
     scene.render.resolution_percentage = 100
@@ -349,7 +372,7 @@ def test_node_matches_cycles_texel_by_texel(fresh_scene, bpy_addon, tmp_path, ca
     bpy = bpy_addon
     scene = fresh_scene
     lift = LIFT
-    _plane_scene(bpy, scene, CASES[case], lift)
+    _plane_scene(bpy, scene, CASES[case], lift, PERSPECTIVE.get(case))
     from blender_helpers import render_pixel_centres
     ours = render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")[..., :3] - lift
     ref = render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES")[..., :3] - lift
