@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from .materials import MaterialConverter, output_node
+from .materials import CYCLES_STANDARD_ATTRIBUTES, MaterialConverter, output_node
 from .normals import shading_normals
 from .world import export_world, sky_sun_lights, world_mist
 
@@ -35,10 +35,10 @@ class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
     __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
-                 "texspace", "tangents", "uv_name")
+                 "texspace", "tangents", "uv_name", "attributes")
 
     def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None,
-                 tangents=None, uv_name=""):
+                 tangents=None, uv_name="", attributes=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
@@ -49,6 +49,9 @@ class LocalGeometry:
         self.triangles = len(faces)
         self.tangents = tangents        # None or (F,3,4) MikkTSpace tangent xyz, sign
         self.uv_name = uv_name          # the render UV map's name ("" without UVs)
+        # Named attributes an Attribute / Color Attribute node reads (named_attributes):
+        # name -> (vector (F,3,3), fac (F,3), alpha (F,3)) per corner
+        self.attributes = attributes or {}
 
 
 def _foreach(collection, attr, count, width, dtype):
@@ -72,6 +75,79 @@ def _uses_tangent_normal_maps(obj) -> bool:
     worth computing)."""
     return any(node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT"
                for node in _material_nodes(obj))
+
+
+def attribute_requests(obj) -> set:
+    """Names of the mesh attributes the object's materials read by name: Attribute nodes
+    of type Geometry (attribute_name) and Color Attribute nodes ("" = the render colour
+    attribute)."""
+    names = set()
+    for node in _material_nodes(obj):
+        if node.type == "ATTRIBUTE" and getattr(node, "attribute_type", "") == "GEOMETRY":
+            if str(node.attribute_name) not in CYCLES_STANDARD_ATTRIBUTES:
+                names.add(str(node.attribute_name))
+        elif node.type == "VERTEX_COLOR":
+            names.add(str(getattr(node, "layer_name", "")))
+    return names
+
+
+# Generic attribute data types read by name, and the RNA property holding their values
+# (colours: `color`, scene linear for byte and float colours alike).
+_ATTRIBUTE_VALUES = {"FLOAT": ("value", 1), "INT": ("value", 1), "INT8": ("value", 1),
+                     "BOOLEAN": ("value", 1), "FLOAT2": ("vector", 2),
+                     "FLOAT_VECTOR": ("vector", 3), "FLOAT_COLOR": ("color", 4),
+                     "BYTE_COLOR": ("color", 4)}
+
+
+def named_attributes(me, names, tris, loops, faces) -> dict:
+    """{name: (vector (F,3,3), fac (F,3), alpha (F,3))} at the triangle corners of the mesh
+    attributes `names` ("" = the render colour attribute) as Cycles' Attribute node reads
+    them (kernel/svm/attribute.h svm_node_attr): a float f gives (f, f, f), Fac f; a 2-D
+    vector (a UV map) (x, y, 0), Fac x; a 3-D vector itself, Fac its average; a colour its
+    RGB, Fac their average, Alpha its alpha (else 1). Point, corner and face domains (a
+    face's value on each of its triangles); names the mesh lacks are left out (they read
+    0, alpha 1)."""
+    out = {}
+    attrs = me.attributes
+    colours = getattr(me, "color_attributes", None)
+    for name in names:
+        attr = None
+        if name == "":
+            if colours is not None and len(colours):
+                idx = getattr(colours, "render_color_index", -1)
+                attr = colours[idx] if 0 <= idx < len(colours) else (
+                    colours.active_color or colours[0])
+        else:
+            attr = attrs.get(name)
+        if attr is None or attr.data_type not in _ATTRIBUTE_VALUES:
+            continue
+        prop, width = _ATTRIBUTE_VALUES[attr.data_type]
+        count = {"POINT": len(me.vertices), "CORNER": len(me.loops),
+                 "FACE": len(me.polygons)}.get(attr.domain)
+        if count is None:  # (edge attributes: Cycles does not read them either)
+            continue
+        raw = _foreach(attr.data, prop, count, width,
+                       np.float32 if attr.data_type != "BOOLEAN" else bool).astype(np.float64)
+        raw = raw.reshape(count, width)
+        if attr.domain == "POINT":
+            vals = raw[faces]
+        elif attr.domain == "CORNER":
+            vals = raw[loops]
+        else:
+            poly = _foreach(tris, "polygon_index", len(tris), 1, np.int32)
+            vals = np.repeat(raw[poly][:, None, :], 3, axis=1)
+        alpha = np.ones(vals.shape[:2])
+        if width == 1:
+            vec, fac = np.repeat(vals, 3, axis=2), vals[..., 0]
+        elif width == 2:
+            vec = np.concatenate([vals, np.zeros(vals.shape[:2] + (1,))], axis=2)
+            fac = vals[..., 0]
+        else:
+            vec, fac = vals[..., :3], vals[..., :3].mean(axis=2)
+            if width == 4:
+                alpha = vals[..., 3]
+        out[name] = (vec, fac, alpha)
+    return out
 
 
 def _uses_uv_tangents(obj) -> bool:
@@ -131,9 +207,12 @@ def extract_geometry(obj) -> LocalGeometry | None:
                     tangents = _corner_tangents(me, layer, loops)
         texspace = (np.array(me.texspace_location, np.float64),
                     np.array(me.texspace_size, np.float64))
+        requests = attribute_requests(obj)
         return LocalGeometry(co, faces, normals, uvs, mat_index,
                              _corner_colors(me, tris, loops, faces), texspace, tangents,
-                             layer.name if uvs is not None else "")
+                             layer.name if uvs is not None else "",
+                             named_attributes(me, requests, tris, loops, faces)
+                             if requests else None)
     finally:
         obj.to_mesh_clear()
 
@@ -175,12 +254,18 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
     texture space, 0..1 over its bounds: (co - location) / (2 size) + 0.5, as Cycles
     syncs ATTR_STD_GENERATED) coordinates and 'normal' (object_normals: the Texture
     Coordinate node's Normal, Box projection), (F,3,3) each, corners in the exported
-    order."""
+    order; and per named attribute (LocalGeometry.attributes) 'attr:NAME' (its vector or
+    colour), 'attr:NAME.fac' and 'attr:NAME.transparency' (1 - alpha, so a mesh without
+    the attribute reads alpha 1 as Cycles), the last two repeated over the 3 columns."""
     local = g.co[g.faces]
     loc, size = g.texspace
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
     out = {"object": local, "generated": (local - loc) / (2.0 * size) + 0.5,
            "normal": object_normals(g)}
+    for name, (vec, fac, alpha) in (getattr(g, "attributes", None) or {}).items():
+        out[f"attr:{name}"] = vec
+        out[f"attr:{name}.fac"] = np.repeat(fac[..., None], 3, axis=2)
+        out[f"attr:{name}.transparency"] = np.repeat(1.0 - alpha[..., None], 3, axis=2)
     if flipped:
         out = {k: a[:, [0, 2, 1]] for k, a in out.items()}
     return out

@@ -10,7 +10,8 @@ a dielectric and a metal, takes one side per hit with the factor's probability, 
 closure sampling; Add sums the closures: their even mix at closure weight 2, exact for
 Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
 transparent shares of an Add are averaged, warned), an Image Texture (its Extension,
-Interpolation, UDIM tiles), a Color Attribute, an RGB / Value node, or a tree of the
+Interpolation, UDIM tiles), a Color Attribute or Attribute node (a mesh attribute by
+name), an RGB / Value node, or a tree of the
 colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
 Separate/Combine, Map Range (Float), Blackbody, Checker, Gradient, Noise, Voronoi and Wave
 textures, Layer Weight, Fresnel)
@@ -39,6 +40,22 @@ MAX_NODE_DEPTH = 32
 # Tests set this: a node tree the converter cannot read raises instead of falling back to
 # the viewport colour (so a converter bug fails the test that meets it, not only its image).
 RAISE_UNREADABLE_TREES = False
+# Cycles' standard attribute names (scene/attribute.cpp Attribute::standard_name): an
+# Attribute node of one of these names reads Cycles' standard attribute, never a mesh
+# attribute of that name (AttributeRequestSet::add_standard). On a mesh, those of
+# volumes, hair, point clouds and motion blur are absent (0, alpha 1).
+CYCLES_STANDARD_ATTRIBUTES = (
+    "N", "Ng", "uv", "generated", "generated_transform", "tangent", "tangent_sign",
+    "vertex_color", "undeformed", "undisplaced", "motion_P", "motion_N", "particle",
+    "curve_intercept", "curve_length", "curve_random", "point_random", "ptex_face_id",
+    "ptex_uv", "density", "color", "flame", "heat", "temperature", "velocity",
+    "velocity_x", "velocity_y", "velocity_z", "pointiness", "random_per_island",
+    "shadow_transparency")
+_ABSENT_ON_MESHES = ("generated_transform", "motion_P", "motion_N", "particle",
+                     "curve_intercept", "curve_length", "curve_random", "point_random",
+                     "ptex_face_id", "ptex_uv", "density", "color", "flame", "heat",
+                     "temperature", "velocity", "velocity_x", "velocity_y", "velocity_z",
+                     "shadow_transparency")
 # Cycles' RAMP_TABLE_SIZE (scene/shader_nodes.h): Color Ramps and curves are baked at
 # this many + 1 steps.
 RAMP_TABLE_SIZE = 256
@@ -1177,9 +1194,20 @@ class MaterialConverter:
         if t == "VALUE":
             return float(out.default_value)
         if t == "VERTEX_COLOR":  # the Color Attribute node
-            if oname != "Color":
+            name = str(getattr(n, "layer_name", ""))
+            if oname == "Color" and not name:
+                return self.pm.ColorAttribute("")  # the render colour attribute
+            # (a name here is a mesh attribute's, never Cycles' standard one:
+            # VertexColorNode::attributes adds it as it is)
+            return self._attribute(name, "Alpha" if oname == "Alpha" else "Color",
+                                   standard=False)
+        if t == "ATTRIBUTE":
+            kind = getattr(n, "attribute_type", "GEOMETRY")
+            if kind != "GEOMETRY":
+                self._warn(f"material '{self._mat.name}': Attribute '{n.name}' of type "
+                           f"{kind} is not supported (Geometry is)")
                 return None
-            return self.pm.ColorAttribute(getattr(n, "layer_name", ""))
+            return self._attribute(str(n.attribute_name), oname)
         if t == "TEX_IMAGE":
             tex = self._image(n)
             if tex is None:
@@ -1399,6 +1427,35 @@ class MaterialConverter:
         return sn.Voronoi(vec, inputs, dims=int(n.voronoi_dimensions[0]), feature=n.feature,
                           metric=n.distance, normalize=getattr(n, "normalize", False),
                           output=oname.upper())
+
+    def _attribute(self, name, output, standard=True):
+        """A mesh attribute by name (addon/export.py named_attributes; "" the render
+        colour attribute) at the hits, as Cycles' svm_node_attr: output Color / Vector
+        (N,3), Fac (N,) or Alpha (N,); 0 (alpha 1) on meshes without it."""
+        sn = self.pm.shadernodes
+        fac = output in ("Fac", "Factor")  # (Blender 5 names it Factor)
+        if standard and name in CYCLES_STANDARD_ATTRIBUTES:
+            if name in _ABSENT_ON_MESHES:
+                self._warn(f"material '{self._mat.name}': attribute '{name}' is a Cycles "
+                           "standard attribute that meshes lack: reads 0 (as in Cycles)")
+                return 1.0 if output == "Alpha" else 0.0 if fac else np.zeros(3)
+            if output == "Alpha":
+                return 1.0
+            if name == "uv":  # the render UV map: Fac is u
+                return sn.SeparateChannel(sn.UVCoord(), 0) if fac else sn.UVCoord()
+            if name == "generated":  # Fac the average, as for any 3-D vector
+                g = self._coordinates("generated")
+                return sn.VectorMath("DOT_PRODUCT", g, np.full(3, 1.0 / 3.0),
+                                     output="VALUE") if fac else g
+            self._warn(f"material '{self._mat.name}': Cycles' standard attribute '{name}' "
+                       "is not supported")
+            return None
+        if fac:
+            return sn.SeparateChannel(self._coordinates(f"attr:{name}.fac"), 0)
+        if output == "Alpha":
+            return sn.Math("SUBTRACT", 1.0, sn.SeparateChannel(
+                self._coordinates(f"attr:{name}.transparency"), 0))
+        return self._coordinates(f"attr:{name}")
 
     def _coordinates(self, name):
         self.coordinate_users.add(self._mat.name)
