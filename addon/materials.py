@@ -1157,21 +1157,29 @@ class MaterialConverter:
         return self._input(node, s, depth)
 
     def _curves(self, n, depth):
-        """RGB Curves / Float Curve baked as Cycles bakes them (blender/util.h
-        curvemapping_color_to_array, curvemapping_float_to_array): the curves evaluated by
-        Blender at RAMP_TABLE_SIZE + 1 steps over the range of their points (RGB: each of
-        R, G, B applied to the combined curve C), read by the kernel's table lookup."""
+        """RGB Curves / Vector Curves / Float Curve baked as Cycles bakes them
+        (blender/util.h curvemapping_color_to_array, curvemapping_float_to_array): the
+        curves evaluated by Blender at RAMP_TABLE_SIZE + 1 steps over the range of their
+        points (RGB: each of R, G, B applied to the combined curve C; Vector: X, Y, Z
+        each alone), read by the kernel's table lookup (svm_node_curves: the vector's
+        components as a colour's)."""
         sn = self.pm.shadernodes
         m = n.mapping
         m.initialize()
         m.update()
         rgb = n.type == "CURVE_RGB"
-        curves = list(m.curves)[:4 if rgb else 1]
+        vector = n.type == "CURVE_VEC"
+        curves = list(m.curves)[:4 if rgb else 3 if vector else 1]
         lo = min(c.points[0].location[0] for c in curves)
         hi = max(c.points[-1].location[0] for c in curves)
         xs = [lo + i / RAMP_TABLE_SIZE * (hi - lo) for i in range(RAMP_TABLE_SIZE + 1)]
         extrapolate = m.extend == "EXTRAPOLATED"
-        fac = self._input(n, n.inputs["Fac" if rgb else "Factor"], depth)
+        fac_in = n.inputs.get("Fac") or n.inputs.get("Factor") or n.inputs[0]
+        fac = self._input(n, fac_in, depth)
+        if vector:
+            table = [[m.evaluate(ch, x) for ch in curves] for x in xs]
+            vec = self._input(n, n.inputs["Vector"], depth)
+            return _fold(sn.RGBCurves(fac, vec, table, lo, hi, extrapolate), [fac, vec])
         if rgb:
             r, g, b, c = curves
             table = [[m.evaluate(ch, m.evaluate(c, x)) for ch in (r, g, b)] for x in xs]
@@ -1302,7 +1310,7 @@ class MaterialConverter:
             fac = self._input(n, n.inputs["Fac"], depth)
             return _fold(sn.RampTable(fac, table, interpolate=ramp.interpolation != "CONSTANT",
                                       output="ALPHA" if oname == "Alpha" else "COLOR"), [fac])
-        if t in ("CURVE_RGB", "CURVE_FLOAT"):
+        if t in ("CURVE_RGB", "CURVE_FLOAT", "CURVE_VEC"):
             return self._curves(n, depth)
         if t == "NEW_GEOMETRY":  # the Geometry node
             out_kind = {"Position": "POSITION", "Normal": "NORMAL",

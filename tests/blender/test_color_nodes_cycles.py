@@ -84,6 +84,23 @@ def _curves(extrapolate):
     return build
 
 
+def _vector_curves(extrapolate):
+    """Vector Curves: X bent, Y lifted, Z left straight, factor 0.9, on a vector from
+    -1.2 to 1.2 (past the curves' -1 .. 1 range: the extension shows)."""
+    def build(nodes, links):
+        c = nodes.new("ShaderNodeVectorCurve")
+        m = c.mapping
+        m.curves[0].points.new(0.2, -0.5)
+        m.curves[1].points.new(-0.3, 0.4)
+        m.curves[1].points[0].location = (-1.0, -0.6)
+        m.extend = "EXTRAPOLATED" if extrapolate else "HORIZONTAL"
+        m.update()
+        c.inputs[0].default_value = 0.9  # Factor
+        links.new(_vector(nodes, links, -1.2, 1.2), c.inputs["Vector"])
+        return c.outputs["Vector"]
+    return build
+
+
 def _float_curve(nodes, links):
     c = nodes.new("ShaderNodeFloatCurve")
     pts = c.mapping.curves[0].points
@@ -270,6 +287,8 @@ CASES = {
     "rgb_curves": _curves(False),
     "rgb_curves_extrapolated": _curves(True),
     "float_curve": _float_curve,
+    "vector_curves": _vector_curves(False),
+    "vector_curves_extrapolated": _vector_curves(True),
     "bright_contrast": _bright_contrast,
     "gamma": _gamma,
     "rgb_to_bw": _rgb_to_bw,
