@@ -13,7 +13,7 @@ transparent shares of an Add are averaged, warned), an Image Texture (its Extens
 Interpolation, UDIM tiles), a Color Attribute or Attribute node (a mesh attribute by
 name), an RGB / Value node, or a tree of the
 colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
-Separate/Combine, Map Range (Float), Blackbody, Checker, Gradient, Noise, Voronoi and Wave
+Separate/Combine, Map Range (Float), Blackbody, Checker, Gradient, Noise, Voronoi, Wave, Brick and Magic
 textures, Layer Weight, Fresnel)
 on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight, Specular
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
@@ -1397,6 +1397,23 @@ class MaterialConverter:
             w_in = n.inputs.get("W")  # (no W socket by name unless 1D / 4D)
             w = 0.0 if w_in is None else self._input(n, w_in, depth)
             return sn.WhiteNoise(vec, w, dims, output="COLOR" if oname == "Color" else "VALUE")
+        if t == "TEX_BRICK":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            inputs = {k: self._input(n, n.inputs[k], depth) for k in sn.Brick.SOCKETS
+                      if k in n.inputs}
+            return sn.Brick(vec, inputs, offset=n.offset, offset_frequency=n.offset_frequency,
+                            squash=n.squash, squash_frequency=n.squash_frequency,
+                            output="FAC" if oname in ("Fac", "Factor") else "COLOR")
+        if t == "TEX_MAGIC":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            return sn.Magic(vec, self._input(n, n.inputs["Scale"], depth),
+                            self._input(n, n.inputs["Distortion"], depth),
+                            depth=n.turbulence_depth,
+                            output="FAC" if oname in ("Fac", "Factor") else "COLOR")
         if t == "TEX_WAVE":
             vec = self._vector(n, "Vector", depth)
             if vec is None:

@@ -1208,6 +1208,150 @@ class WhiteNoise:
         return col if self.output == "COLOR" else val
 
 
+def brick_noise(n):
+    """Cycles' brick_noise (kernel/svm/brick.h): fast integer noise of uint32 n (N,) ->
+    (N,) in [0, 1), wrapping uint32 arithmetic as in C."""
+    n = np.asarray(n).astype(np.uint32)
+    with np.errstate(over="ignore"):
+        n = (n + np.uint32(1013)) & np.uint32(0x7FFFFFFF)
+        n = (n >> np.uint32(13)) ^ n
+        nn = (n * (n * n * np.uint32(60493) + np.uint32(19990303)) + np.uint32(1376312589)) \
+            & np.uint32(0x7FFFFFFF)
+    # (float)nn rounds to float32 in Cycles
+    return 0.5 * (nn.astype(np.float32).astype(np.float64) / 1073741824.0)
+
+
+def svm_brick(p, mortar_size, mortar_smooth, bias, brick_width, row_height, offset_amount,
+              offset_frequency, squash_amount, squash_frequency):
+    """Cycles' svm_brick (kernel/svm/brick.h) per point: p (N,3) scaled coordinates, the
+    other inputs (N,) or scalars (frequencies ints). Returns (tint (N,), mortar (N,)):
+    the brick's random tint (brick_noise of its row and column, plus bias, clamped) and
+    the mortar factor (1 within mortar_size of a brick's edge, smoothed by
+    mortar_smooth with the clamped smoothstep)."""
+    x0, y0 = p[:, 0], p[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rownum = np.floor(y0 / row_height)
+        width = np.broadcast_to(np.asarray(brick_width, np.float64), x0.shape).copy()
+        offset = np.zeros_like(x0)
+        if offset_frequency and squash_frequency:
+            # (C's int % only matters for being 0, which Python's agrees on)
+            width = np.where(np.fmod(rownum, squash_frequency) != 0, width,
+                             width * squash_amount)
+            offset = np.where(np.fmod(rownum, offset_frequency) != 0, 0.0,
+                              width * offset_amount)
+        bricknum = np.floor((x0 + offset) / width)
+        x = (x0 + offset) - width * bricknum
+        y = y0 - row_height * rownum
+    rn = np.nan_to_num(rownum).astype(np.int64)
+    bn = np.nan_to_num(bricknum).astype(np.int64)
+    h = ((rn << 16) + (bn & 0xFFFF)) & 0xFFFFFFFF
+    tint = np.clip(brick_noise(h) + bias, 0.0, 1.0)
+    min_dist = np.minimum(np.minimum(x, y), np.minimum(width - x, row_height - y))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = (1.0 - min_dist / mortar_size) / mortar_smooth
+    smooth = np.where(f <= 0.0, 0.0, np.where(f >= 1.0, 1.0, (3.0 - 2.0 * f) * f * f))
+    mortar = np.where(min_dist >= mortar_size, 0.0,
+                      np.where(np.asarray(mortar_smooth) == 0.0, 1.0, smooth))
+    return tint, mortar
+
+
+class Brick:
+    """Brick Texture node (Cycles svm_node_tex_brick, kernel/svm/brick.h).
+
+    vector   coordinates node (N,3) (the add-on passes Generated when unlinked)
+    inputs   dict of socket values or nodes: Color1, Color2, Mortar (colours), Scale,
+             Mortar Size, Mortar Smooth, Bias, Brick Width, Row Height
+    offset, offset_frequency, squash, squash_frequency: the node's properties
+    output   COLOR (N,3): mix(Color1, Color2, tint) off the mortar, blended to Mortar by
+             the mortar factor; FAC (N,): the mortar factor."""
+
+    SOCKETS = ("Color1", "Color2", "Mortar", "Scale", "Mortar Size", "Mortar Smooth",
+               "Bias", "Brick Width", "Row Height")
+    DEFAULTS = {"Color1": (0.8, 0.8, 0.8), "Color2": (0.2, 0.2, 0.2),
+                "Mortar": (0.0, 0.0, 0.0), "Scale": 5.0, "Mortar Size": 0.02,
+                "Mortar Smooth": 0.1, "Bias": 0.0, "Brick Width": 0.5, "Row Height": 0.25}
+
+    def __init__(self, vector, inputs=None, offset=0.5, offset_frequency=2, squash=1.0,
+                 squash_frequency=2, output="COLOR"):
+        if output not in ("COLOR", "FAC"):
+            raise ValueError(f"Brick Texture output {output!r}: expected COLOR or FAC")
+        self.vector, self.inputs = vector, {**self.DEFAULTS, **(inputs or {})}
+        self.offset, self.offset_frequency = float(offset), int(offset_frequency)
+        self.squash, self.squash_frequency = float(squash), int(squash_frequency)
+        self.output = output
+
+    def evaluate(self, geo, prim, u, v):
+        ins = {k: _eval(self.inputs[k], geo, prim, u, v, 3 if k in ("Color1", "Color2",
+                                                                      "Mortar") else 1)
+               for k in self.SOCKETS}
+        p = _eval(self.vector, geo, prim, u, v, 3) * ins["Scale"][:, None]
+        tint, f = svm_brick(p, ins["Mortar Size"], ins["Mortar Smooth"], ins["Bias"],
+                            ins["Brick Width"], ins["Row Height"], self.offset,
+                            self.offset_frequency, self.squash, self.squash_frequency)
+        if self.output == "FAC":
+            return f
+        c1 = np.where((f != 1.0)[:, None], (1.0 - tint)[:, None] * ins["Color1"]
+                      + tint[:, None] * ins["Color2"], ins["Color1"])
+        return c1 * (1.0 - f)[:, None] + ins["Mortar"] * f[:, None]
+
+
+def svm_magic(p, scale, depth, distortion):
+    """Cycles' svm_magic (kernel/svm/magic.h) per point: p (N,3), scale and distortion
+    (N,), depth 0..10 (the node's turbulence depth). Returns (N,3) colours. The
+    coordinates are reduced by fmod(p, 2 pi) before the scale, as Blender 5.0's Cycles
+    does (a later Cycles reduces p scale instead: the pattern differs wherever a
+    coordinate passes 2 pi unless 5 scale is an integer)."""
+    two_pi = 2.0 * np.pi
+    q = np.fmod(p, two_pi) * (5.0 * scale[:, None])
+    px, py, pz = q[:, 0], q[:, 1], q[:, 2]
+    x = np.sin(px + py + pz)
+    y = np.cos(-px + py - pz)
+    z = -np.cos(-px - py + pz)
+    d = distortion
+    if depth > 0:
+        x, y, z = x * d, y * d, z * d
+        y = -np.cos(x - y + z) * d
+        steps = (("x", lambda x, y, z: np.cos(x - y - z)),
+                 ("z", lambda x, y, z: np.sin(-x - y - z)),
+                 ("x", lambda x, y, z: -np.cos(-x + y - z)),
+                 ("y", lambda x, y, z: -np.sin(-x + y + z)),
+                 ("y", lambda x, y, z: -np.cos(-x + y + z)),
+                 ("x", lambda x, y, z: np.cos(x + y + z)),
+                 ("z", lambda x, y, z: np.sin(x + y - z)),
+                 ("x", lambda x, y, z: -np.cos(-x - y + z)),
+                 ("y", lambda x, y, z: -np.sin(x - y + z)))
+        for name, f in steps[:depth - 1]:
+            val = f(x, y, z) * d
+            if name == "x":
+                x = val
+            elif name == "y":
+                y = val
+            else:
+                z = val
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(d != 0.0, 2.0 * d, 1.0)
+        x, y, z = x / k, y / k, z / k
+    return np.stack([0.5 - x, 0.5 - y, 0.5 - z], axis=1)
+
+
+class Magic:
+    """Magic Texture node (Cycles svm_node_tex_magic, kernel/svm/magic.h): vector (N,3)
+    coordinates node, scale and distortion (socket values or nodes), depth 0..10;
+    output COLOR (N,3) or FAC (N,), the colour's average."""
+
+    def __init__(self, vector, scale=5.0, distortion=1.0, depth=2, output="COLOR"):
+        if output not in ("COLOR", "FAC"):
+            raise ValueError(f"Magic Texture output {output!r}: expected COLOR or FAC")
+        self.vector, self.scale, self.distortion = vector, scale, distortion
+        self.depth, self.output = min(max(int(depth), 0), 10), output
+
+    def evaluate(self, geo, prim, u, v):
+        c = svm_magic(_eval(self.vector, geo, prim, u, v, 3),
+                      _eval(self.scale, geo, prim, u, v, 1), self.depth,
+                      _eval(self.distortion, geo, prim, u, v, 1))
+        return c.mean(axis=1) if self.output == "FAC" else c
+
+
 class ShadingGeometry:
     """A Geometry seen from a batch of hits: every attribute of `geo`, plus what the
     view-dependent nodes (LayerWeight, Fresnel) read per hit, row for row with the

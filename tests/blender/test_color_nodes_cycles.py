@@ -273,7 +273,61 @@ def _tex_coord(output):
     return build
 
 
+def _turned(nodes, links, scale=1.0):
+    """Generated coordinates turned 0.6 rad about z (and scaled): x and y both vary
+    along the plane, so a pattern's rows and columns both show."""
+    tc = nodes.new("ShaderNodeTexCoord")
+    m = nodes.new("ShaderNodeMapping")
+    m.inputs["Rotation"].default_value = (0.0, 0.0, 0.6)
+    m.inputs["Scale"].default_value = (scale, scale, scale)
+    links.new(tc.outputs["Generated"], m.inputs["Vector"])
+    return m.outputs["Vector"]
+
+
+def _brick(output, smooth=1.0, **props):
+    """Brick Texture on turned coordinates: mortar 0.1 wide, smoothed `smooth` (fully: a
+    steeper mortar edge meets Cycles' rare sample a third of a pixel from the centre),
+    bias 0.1, three colours; props set the node's offset / squash properties."""
+    def build(nodes, links):
+        b = nodes.new("ShaderNodeTexBrick")
+        for k, val in props.items():
+            setattr(b, k, val)
+        b.inputs["Color1"].default_value = (0.9, 0.5, 0.2, 1.0)
+        b.inputs["Color2"].default_value = (0.2, 0.4, 0.8, 1.0)
+        b.inputs["Mortar"].default_value = (0.1, 0.7, 0.3, 1.0)
+        b.inputs["Scale"].default_value = 2.0
+        b.inputs["Mortar Size"].default_value = 0.1
+        b.inputs["Mortar Smooth"].default_value = smooth
+        b.inputs["Bias"].default_value = 0.1
+        links.new(_turned(nodes, links), b.inputs["Vector"])
+        return b.outputs[output]
+    return build
+
+
+def _magic(output, depth, distortion=1.3, scale=1.0, magic_scale=1.7):
+    """Magic Texture on turned coordinates (scale > 1: past 2 pi, where Cycles reduces
+    the scaled coordinates by fmod)."""
+    def build(nodes, links):
+        m = nodes.new("ShaderNodeTexMagic")
+        m.turbulence_depth = depth
+        m.inputs["Scale"].default_value = magic_scale
+        m.inputs["Distortion"].default_value = distortion
+        links.new(_turned(nodes, links, scale), m.inputs["Vector"])
+        return m.outputs[output]
+    return build
+
+
 CASES = {
+    "brick_color": _brick("Color"),
+    "brick_fac": _brick("Factor"),
+    "brick_squash_offset": _brick("Color", offset=0.3, offset_frequency=3, squash=0.6,
+                                  squash_frequency=3),
+    "brick_squashed_fac": _brick("Factor", squash=1.4),
+    "magic_color": _magic("Color", 2),
+    "magic_depth_0": _magic("Color", 0),
+    "magic_depth_10_fac": _magic("Factor", 10, distortion=2.2, magic_scale=0.8),
+    "magic_no_distortion": _magic("Color", 0, distortion=0.0),
+    "magic_far_coordinates": _magic("Color", 3, scale=7.5, magic_scale=0.5),
     "texcoord_camera": _tex_coord("Camera"),
     "texcoord_window": _tex_coord("Window"),
     "texcoord_camera_perspective": _tex_coord("Camera"),
