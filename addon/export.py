@@ -84,12 +84,19 @@ def attribute_requests(obj) -> set:
     names = set()
     for node in _material_nodes(obj):
         if node.type == "ATTRIBUTE" and getattr(node, "attribute_type", "") == "GEOMETRY":
-            if str(node.attribute_name) not in CYCLES_STANDARD_ATTRIBUTES:
-                names.add(str(node.attribute_name))
+            name = str(node.attribute_name)
+            if name not in CYCLES_STANDARD_ATTRIBUTES or name == ISLAND:
+                names.add(name)
+        elif node.type == "NEW_GEOMETRY":
+            out = node.outputs.get("Random Per Island")
+            if out is not None and out.is_linked:
+                names.add(ISLAND)
         elif node.type == "VERTEX_COLOR":
             names.add(str(getattr(node, "layer_name", "")))
     return names
 
+
+ISLAND = "random_per_island"  # Cycles' standard name of the Random Per Island attribute
 
 # Generic attribute data types read by name, and the RNA property holding their values
 # (colours: `color`, scene linear for byte and float colours alike).
@@ -112,6 +119,10 @@ def named_attributes(me, names, tris, loops, faces) -> dict:
     colours = getattr(me, "color_attributes", None)
     for name in names:
         attr = None
+        if name == ISLAND:  # Cycles' standard attribute, computed from the topology
+            r = np.repeat(random_per_island(me, faces)[:, None], 3, axis=1)
+            out[name] = (np.repeat(r[..., None], 3, axis=2), r, np.ones_like(r))
+            continue
         if name == "":
             if colours is not None and len(colours):
                 idx = getattr(colours, "render_color_index", -1)
@@ -819,6 +830,62 @@ def _rot32(x, k):
     return ((x << k) | (x >> (32 - k))) & 0xFFFFFFFF
 
 
+def _lookup3_final(a, b, c):
+    """Bob Jenkins' lookup3 final() mix of uint32 a, b, c (Python ints or int64 arrays
+    holding uint32 values); returns c (util/hash.h)."""
+    m = 0xFFFFFFFF
+    c = (c ^ b) & m; c = (c - _rot32(b, 14)) & m  # noqa: E702
+    a = (a ^ c) & m; a = (a - _rot32(c, 11)) & m  # noqa: E702
+    b = (b ^ a) & m; b = (b - _rot32(a, 25)) & m  # noqa: E702
+    c = (c ^ b) & m; c = (c - _rot32(b, 16)) & m  # noqa: E702
+    a = (a ^ c) & m; a = (a - _rot32(c, 4)) & m  # noqa: E702
+    b = (b ^ a) & m; b = (b - _rot32(a, 14)) & m  # noqa: E702
+    c = (c ^ b) & m; c = (c - _rot32(b, 24)) & m  # noqa: E702
+    return c
+
+
+def hash_uint_to_float(kx) -> np.ndarray:
+    """Cycles' hash_uint_to_float (util/hash.h) of uint32 values kx (array): lookup3's
+    hash_uint, (float)h / (float)0xFFFFFFFF in float32."""
+    m = 0xFFFFFFFF
+    init = (0xDEADBEEF + (1 << 2) + 13) & m
+    k = np.asarray(kx, np.int64) & m
+    h = _lookup3_final((init + k) & m, np.full_like(k, init), np.full_like(k, init))
+    return (h.astype(np.float32) / np.float32(4294967295.0)).astype(np.float64)
+
+
+def random_per_island(me, faces) -> np.ndarray:
+    """(F,) Cycles' Random Per Island of each loop triangle (blender/mesh.cpp
+    attr_create_random_per_island): the mesh's vertices joined along its edges in a
+    disjoint set (util/disjoint_set.h: union by rank, the first argument's root kept on
+    a tie), each triangle's value hash_uint_to_float of the root of its first vertex.
+    faces: (F,3) the loop triangles' vertices as Blender orders them."""
+    n = len(me.vertices)
+    edges = _foreach(me.edges, "vertices", len(me.edges), 2, np.int32).tolist()
+    parent = list(range(n))
+    rank = [0] * n
+
+    def find(x):
+        root = x
+        while parent[root] != root:
+            root = parent[root]
+        while parent[x] != root:
+            parent[x], x = root, parent[x]
+        return root
+
+    for x, y in edges:
+        rx, ry = find(x), find(y)
+        if rx == ry:
+            continue
+        if rank[rx] < rank[ry]:
+            rx, ry = ry, rx
+        parent[ry] = rx
+        if rank[rx] == rank[ry]:
+            rank[rx] += 1
+    roots = np.array([find(v) for v in range(n)], np.int64)
+    return hash_uint_to_float(roots[np.asarray(faces)[:, 0]])
+
+
 def cycles_name_random_id(name: str) -> int:
     """Cycles' random_id of an object that is not an instance: hash_uint2(hash_string(
     name), 0) (intern/cycles/blender/object.cpp; util/hash.h: hash_string's i * 37 + c over
@@ -830,15 +897,7 @@ def cycles_name_random_id(name: str) -> int:
         h = (h * 37 + c) & 0xFFFFFFFF
     m = 0xFFFFFFFF
     a = b = c = (0xDEADBEEF + (2 << 2) + 13) & m
-    a, b = (a + h) & m, (b + 0) & m
-    c = (c ^ b) & m; c = (c - _rot32(b, 14)) & m  # noqa: E702 (lookup3 final())
-    a = (a ^ c) & m; a = (a - _rot32(c, 11)) & m  # noqa: E702
-    b = (b ^ a) & m; b = (b - _rot32(a, 25)) & m  # noqa: E702
-    c = (c ^ b) & m; c = (c - _rot32(b, 16)) & m  # noqa: E702
-    a = (a ^ c) & m; a = (a - _rot32(c, 4)) & m  # noqa: E702
-    b = (b ^ a) & m; b = (b - _rot32(a, 14)) & m  # noqa: E702
-    c = (c ^ b) & m; c = (c - _rot32(b, 24)) & m  # noqa: E702
-    return c
+    return _lookup3_final((a + h) & m, (b + 0) & m, c)
 
 
 def object_info(obj, inst) -> dict:

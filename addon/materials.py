@@ -1313,6 +1313,8 @@ class MaterialConverter:
         if t in ("CURVE_RGB", "CURVE_FLOAT", "CURVE_VEC"):
             return self._curves(n, depth)
         if t == "NEW_GEOMETRY":  # the Geometry node
+            if oname == "Random Per Island":  # (addon/export.py random_per_island)
+                return self._attribute("random_per_island", "Factor")
             out_kind = {"Position": "POSITION", "Normal": "NORMAL",
                         "True Normal": "TRUE_NORMAL", "Incoming": "INCOMING",
                         "Backfacing": "BACKFACING"}.get(oname)
@@ -1468,6 +1470,9 @@ class MaterialConverter:
                 return 1.0
             if name == "uv":  # the render UV map: Fac is u
                 return sn.SeparateChannel(sn.UVCoord(), 0) if fac else sn.UVCoord()
+            if name == "random_per_island":  # exported as a face attribute
+                return (sn.SeparateChannel(self._coordinates(f"attr:{name}.fac"), 0) if fac
+                        else self._coordinates(f"attr:{name}"))
             if name == "generated":  # Fac the average, as for any 3-D vector
                 g = self._coordinates("generated")
                 return sn.VectorMath("DOT_PRODUCT", g, np.full(3, 1.0 / 3.0),

@@ -117,3 +117,57 @@ def test_cycles_standard_name_reads_cycles_attribute_not_the_mesh_one(fresh_scen
     ours = render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")[..., :3] - LIFT
     ref = render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES")[..., :3] - LIFT
     assert np.abs(ref).max() < 1e-4 and np.abs(ours).max() < 1e-4
+
+
+def _islands(bpy):
+    """Replace the harness' plane by one mesh of islands along x: strips of 1 to 3 quads
+    (vertices listed in a shuffled order, so which vertex the disjoint set keeps as an
+    island's root matters), 20 quads in all, with the harness' material."""
+    plane = bpy.context.object
+    mat = plane.data.materials[0]
+    bpy.data.objects.remove(plane)
+    rng = np.random.default_rng(34)
+    verts, faces, x = [], [], -1.0
+    for n in (1, 2, 3, 1, 2, 1, 3, 2, 1, 2, 1, 1):
+        order = rng.permutation(2 * (n + 1))  # this strip's vertices, shuffled
+        base = len(verts)
+        pos = [None] * (2 * (n + 1))
+        for i in range(n + 1):
+            for j, y in enumerate((-0.5, 0.5)):
+                pos[order[2 * i + j]] = (x + i * 2.0 / 20.0, y, 0.0)
+        verts += pos
+        for i in range(n):
+            a, b, c, d = 2 * i, 2 * i + 2, 2 * i + 3, 2 * i + 1
+            faces.append((base + int(order[a]), base + int(order[b]), base + int(order[c]),
+                          base + int(order[d])))
+        x += n * 2.0 / 20.0
+    me = bpy.data.meshes.new("Islands")
+    me.from_pydata(verts, [], faces)
+    me.update()
+    me.materials.append(mat)
+    ob = bpy.data.objects.new("Islands", me)
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
+
+
+@pytest.mark.parametrize("source", ["geometry", "attribute"])
+def test_random_per_island_matches_cycles(fresh_scene, bpy_addon, tmp_path, source):
+    """Geometry > Random Per Island (and the Attribute node of its standard name): Cycles'
+    hash of each island's disjoint-set root, one value per island, identical texel by
+    texel."""
+    bpy = bpy_addon
+    scene = fresh_scene
+
+    def build(nodes, links):
+        if source == "geometry":
+            return nodes.new("ShaderNodeNewGeometry").outputs["Random Per Island"]
+        return _attribute_node("random_per_island", "Color")(nodes, links)
+    _plane_scene(bpy, scene, build, LIFT)
+    _islands(bpy)
+    from blender_helpers import render_pixel_centres
+    ours = render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")[..., :3] - LIFT
+    ref = render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES")[..., :3] - LIFT
+    row_o, row_r = ours.mean(axis=0), ref.mean(axis=0)
+    print(source, np.round(row_r[::4, 0], 4).tolist(), np.abs(row_o - row_r).max())
+    assert len(np.unique(np.round(row_r[:, 0], 3))) >= 8  # the islands differ
+    assert np.abs(row_o - row_r).max() < 0.002
