@@ -1408,6 +1408,16 @@ class MaterialConverter:
             return sn.Brick(vec, inputs, offset=n.offset, offset_frequency=n.offset_frequency,
                             squash=n.squash, squash_frequency=n.squash_frequency,
                             output="FAC" if oname in ("Fac", "Factor") else "COLOR")
+        if t == "TEX_GABOR":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            # (Both Orientation sockets are named "Orientation": by identifier.)
+            ins = {i.identifier: i for i in n.inputs}
+            inputs = {k: self._input(n, ins[k], depth) for k in sn.Gabor.SOCKETS
+                      if k in ins}
+            return sn.Gabor(vec, inputs, dims=3 if n.gabor_type == "3D" else 2,
+                            output=oname.upper())
         if t == "TEX_MAGIC":
             vec = self._vector(n, "Vector", depth)
             if vec is None:

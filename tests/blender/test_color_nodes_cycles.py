@@ -317,7 +317,31 @@ def _magic(output, depth, distortion=1.3, scale=1.0, magic_scale=1.7):
     return build
 
 
+def _gabor(output, kind="2D", anisotropy=1.0, frequency=2.0):
+    """Gabor Texture on turned coordinates (scale 4): anisotropy 1 keeps every kernel
+    along the Orientation, less turns them by hashed angles."""
+    def build(nodes, links):
+        g = nodes.new("ShaderNodeTexGabor")
+        g.gabor_type = kind
+        ins = {i.identifier: i for i in g.inputs}
+        ins["Scale"].default_value = 4.0
+        ins["Frequency"].default_value = frequency
+        ins["Anisotropy"].default_value = anisotropy
+        ins["Orientation 2D"].default_value = 0.4
+        ins["Orientation 3D"].default_value = (0.3, 0.8, 0.5)
+        links.new(_turned(nodes, links), g.inputs["Vector"])
+        return g.outputs[output]
+    return build
+
+
 CASES = {
+    "gabor_2d_value": _gabor("Value"),
+    "gabor_2d_phase": _gabor("Phase", frequency=0.7),
+    "gabor_2d_intensity": _gabor("Intensity"),
+    "gabor_2d_isotropic": _gabor("Value", anisotropy=0.2),
+    "gabor_3d_value": _gabor("Value", "3D"),
+    "gabor_3d_isotropic": _gabor("Value", "3D", anisotropy=0.4),
+    "gabor_3d_intensity": _gabor("Intensity", "3D", anisotropy=0.0),
     "brick_color": _brick("Color"),
     "brick_fac": _brick("Factor"),
     "brick_squash_offset": _brick("Color", offset=0.3, offset_frequency=3, squash=0.6,
