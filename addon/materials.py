@@ -12,9 +12,9 @@ Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
 transparent shares of an Add are averaged, warned), an Image Texture (its Extension,
 Interpolation, UDIM tiles), a Color Attribute or Attribute node (a mesh attribute by
 name), an RGB / Value node, or a tree of the
-colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
-Separate/Combine, Map Range (Float), Blackbody, Checker, Gradient, Noise, Voronoi, Wave, Brick and Magic
-textures, Layer Weight, Fresnel)
+colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp,
+Math, Separate/Combine, Map Range (Float), Blackbody, Checker, Gradient, Noise, Voronoi,
+Wave, Brick, Magic and Gabor textures, Layer Weight, Fresnel)
 on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight, Specular
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
 Emission Color and as a Mix Shader's factor (per hit for two opaque surfaces and for

@@ -1352,113 +1352,9 @@ class Magic:
         return c.mean(axis=1) if self.output == "FAC" else c
 
 
-def _rot32(x, k):
-    return (x << np.uint32(k)) | (x >> np.uint32(32 - k))
-
-
-def hash_floats(*keys) -> np.ndarray:
-    """Cycles' hash_floatN_to_float (util/hash.h) of N = 3 or 4 float keys (arrays,
-    broadcast): Bob Jenkins' lookup3 of the keys' float32 bit patterns, (float)h /
-    (float)0xFFFFFFFF in float32. Returns float64 in [0, 1]."""
-    bits = np.broadcast_arrays(*[np.asarray(k, np.float32) for k in keys])
-    k = [np.ascontiguousarray(b).view(np.uint32) for b in bits]
-    init = np.uint32((0xDEADBEEF + (len(k) << 2) + 13) & 0xFFFFFFFF)
-    a = np.full(k[0].shape, init, np.uint32)
-    b, c = a.copy(), a.copy()
-    with np.errstate(over="ignore"):
-        a, b, c = a + k[0], b + k[1], c + k[2]
-        if len(k) == 4:  # lookup3 mix(), then the fourth word
-            a -= c; a ^= _rot32(c, 4); c += b  # noqa: E702
-            b -= a; b ^= _rot32(a, 6); a += c  # noqa: E702
-            c -= b; c ^= _rot32(b, 8); b += a  # noqa: E702
-            a -= c; a ^= _rot32(c, 16); c += b  # noqa: E702
-            b -= a; b ^= _rot32(a, 19); a += c  # noqa: E702
-            c -= b; c ^= _rot32(b, 4); b += a  # noqa: E702
-            a = a + k[3]
-        c ^= b; c -= _rot32(b, 14)  # noqa: E702 (lookup3 final())
-        a ^= c; a -= _rot32(c, 11)  # noqa: E702
-        b ^= a; b -= _rot32(a, 25)  # noqa: E702
-        c ^= b; c -= _rot32(b, 16)  # noqa: E702
-        a ^= c; a -= _rot32(c, 4)  # noqa: E702
-        b ^= a; b -= _rot32(a, 14)  # noqa: E702
-        c ^= b; c -= _rot32(b, 24)  # noqa: E702
-    return (c.astype(np.float32) / np.float32(4294967295.0)).astype(np.float64)
-
-
-GABOR_IMPULSES = 8  # Cycles' IMPULSES_COUNT (impulses per cell)
-
-
-def _gabor_kernel(p, fvec):
-    """Cycles' compute_2d_gabor_kernel / compute_3d_gabor_kernel: the Hann-windowed
-    Gaussian times the phasor (cos, sin) of 2 pi p . fvec; p, fvec (M,D). (M,2)."""
-    d2 = np.einsum("ij,ij->i", p, p)
-    envelope = np.exp(-np.pi * d2) * (0.5 + 0.5 * np.cos(np.pi * d2))
-    angle = 2.0 * np.pi * np.einsum("ij,ij->i", p, fvec)
-    return envelope[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-
-
-def gabor_noise(coords, frequency, isotropy, orientation, dims):
-    """Cycles' compute_2d_gabor_noise / compute_3d_gabor_noise (kernel/svm/gabor.h) per
-    point: coords (N,dims) scaled coordinates, frequency, isotropy (N,), orientation
-    (N,) angle (2D) or (N,3) unit vector (3D). The sum of GABOR_IMPULSES kernels in each
-    cell of the 3^dims neighbourhood, each at a hashed centre in its cell, of hashed
-    sign and (isotropy > 0) hashed orientation, the seeds the cell's float coordinates
-    and 3 i, 3 i + 1, 3 i + 2 as Cycles' (hash_floats). Returns the phasor (N,2)."""
-    cell = np.floor(coords)
-    local = coords - cell
-    # The hashes depend on the cell alone: hash each distinct cell once.
-    cells, inv = np.unique(cell, axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
-    out = np.zeros((len(coords), 2))
-    offsets = np.stack(np.meshgrid(*[[-1.0, 0.0, 1.0]] * dims, indexing="ij"),
-                       -1).reshape(-1, dims)[:, ::-1]  # x fastest, as Cycles' loops
-    if dims == 3:
-        o = orientation
-        inclination = np.arccos(np.clip(o[:, 2], -1.0, 1.0))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            azimuth = np.where(o[:, 1] < 0.0, -1.0, 1.0) * np.arccos(
-                o[:, 0] / np.hypot(o[:, 0], o[:, 1]))
-    for off in offsets:
-        c = [cells[:, d] + off[d] for d in range(dims)]
-        pos = local - off
-        for i in range(GABOR_IMPULSES):
-            s0, s1, s2 = float(3 * i), float(3 * i + 1), float(3 * i + 2)
-            if dims == 2:
-                centre = np.stack([hash_floats(c[0], c[1], s1),
-                                   hash_floats(s1, c[0], c[1])], axis=1)
-            else:
-                centre = np.stack([hash_floats(c[0], c[1], c[2], s1),
-                                   hash_floats(c[2], c[0], s1, c[1]),
-                                   hash_floats(s1, c[2], c[1], c[0])], axis=1)
-            pk = pos - centre[inv]
-            near = np.nonzero(np.einsum("ij,ij->i", pk, pk) < 1.0)[0]  # windowed beyond 1
-            if not len(near):
-                continue
-            cn = inv[near]
-            wgt = hash_floats(*(c + [s2]))[cn]
-            sign = np.where(wgt < 0.5, -1.0, 1.0)
-            iso = isotropy[near]
-            if dims == 2:
-                rnd = (hash_floats(c[0], c[1], s0)[cn] - 0.5) * np.pi
-                ang = orientation[near] + rnd * iso
-                fvec = frequency[near, None] * np.stack([np.cos(ang), np.sin(ang)], 1)
-            else:
-                r0 = hash_floats(c[0], c[1], c[2], s0)[cn] * np.pi
-                r1 = hash_floats(c[2], c[0], s0, c[1])[cn] * np.pi
-                inc = inclination[near] + r0 * iso
-                azi = azimuth[near] + r1 * iso
-                turned = np.stack([np.sin(inc) * np.cos(azi), np.sin(inc) * np.sin(azi),
-                                   np.cos(inc)], axis=1)
-                unit = np.where((iso == 0.0)[:, None], orientation[near], turned)
-                fvec = frequency[near, None] * unit
-            out[near] += sign[:, None] * _gabor_kernel(pk[near], fvec)
-    return out
-
-
 class Gabor:
-    """Gabor Texture node (Cycles svm_node_tex_gabor, kernel/svm/gabor.h: Lagae et al.
-    2009 sparse Gabor convolution with Tavernier et al. 2019's Bernoulli weights and
-    Tricard et al. 2019's phasor).
+    """Gabor Texture node (Cycles svm_node_tex_gabor, kernel/svm/gabor.h; kernel in
+    engine/procedural.py gabor_texture).
 
     vector   coordinates node (N,3) (the add-on passes Generated when unlinked)
     inputs   dict of socket values or nodes: Scale, Frequency, Anisotropy,
@@ -1483,24 +1379,16 @@ class Gabor:
     def evaluate(self, geo, prim, u, v):
         ins = {k: _eval(self.inputs[k], geo, prim, u, v, 3 if k == "Orientation 3D" else 1)
                for k in self.SOCKETS}
-        co = _eval(self.vector, geo, prim, u, v, 3) * ins["Scale"][:, None]
-        isotropy = 1.0 - np.clip(ins["Anisotropy"], 0.0, 1.0)
-        frequency = np.maximum(0.001, ins["Frequency"])
-        if self.dims == 2:
-            phasor = gabor_noise(co[:, :2], frequency, isotropy, ins["Orientation 2D"], 2)
-            sigma = np.sqrt(GABOR_IMPULSES * 0.5 * 0.25)
-        else:
-            o = ins["Orientation 3D"]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                o = o / np.linalg.norm(o, axis=1, keepdims=True)
-            phasor = gabor_noise(co, frequency, isotropy, o, 3)
-            sigma = np.sqrt(GABOR_IMPULSES * 0.5 / (4.0 * np.sqrt(2.0)))
-        norm = 6.0 * sigma  # Cycles' empirical normalisation
-        if self.output == "VALUE":
-            return phasor[:, 1] / norm * 0.5 + 0.5
-        if self.output == "PHASE":
-            return (np.arctan2(phasor[:, 1], phasor[:, 0]) + np.pi) / (2.0 * np.pi)
-        return np.linalg.norm(phasor, axis=1) / norm
+        from . import procedural
+        pts = np.ascontiguousarray(_eval(self.vector, geo, prim, u, v, 3))
+        # Visit the hits cell by cell: the kernel hashes a cell's neighbourhood once.
+        cell = np.floor(pts * ins["Scale"][:, None])
+        order = np.lexsort((cell[:, 2], cell[:, 1], cell[:, 0])).astype(np.int64)
+        out = np.empty(len(prim))
+        procedural.gabor_texture(self.dims, pts,
+                                 *(np.ascontiguousarray(ins[k]) for k in self.SOCKETS),
+                                 self.OUTPUTS.index(self.output), order, out)
+        return out
 
 
 class ShadingGeometry:

@@ -29,8 +29,8 @@ def _attribute_node(name, output, node="ShaderNodeAttribute"):
 
 
 # (attribute name, data type, domain) added to the grid, values seeded per element.
-ATTRIBUTES = [("warmth", "FLOAT", "POINT"), ("heat", "FLOAT", "POINT"), ("flow", "FLOAT_VECTOR", "CORNER"),
-              ("tint", "FLOAT_COLOR", "POINT"), ("paint", "BYTE_COLOR", "CORNER"),
+ATTRIBUTES = [("warmth", "FLOAT", "POINT"), ("heat", "FLOAT", "POINT"),
+              ("flow", "FLOAT_VECTOR", "CORNER"), ("tint", "FLOAT_COLOR", "POINT"), ("paint", "BYTE_COLOR", "CORNER"),
               ("cell", "FLOAT", "FACE"), ("mask", "INT", "FACE")]
 
 CASES = {
