@@ -1080,7 +1080,12 @@ class MaterialConverter:
                 return float(out.default_value)
             val = self._node_output(n, out, 1)
             if val is not None and not hasattr(val, "evaluate"):
-                return float(val) if np.ndim(val) == 0 else float(np.mean(val))
+                if np.ndim(val) == 0:
+                    return float(val)
+                # Cycles' conversion: a vector's average, a colour's luminance
+                return (float(np.mean(val)) if getattr(out, "type", "") == "VECTOR"
+                        else float(np.asarray(val, np.float64)[:3]
+                                   @ np.array([0.2126, 0.7152, 0.0722])))
             why = "not supported" if val is None else "varies per hit, which this input is not"
             self._warn(f"material '{self._mat.name}': {socket.name} of '{node.name}': node "
                        f"'{n.name}' ({n.type}) {why}, using {_value_text(own)} (the "
@@ -1147,7 +1152,18 @@ class MaterialConverter:
                        f"'{n.name}' ({n.type}) not supported, using {_value_text(own)} (the "
                        "socket's own value)")
             return own
+        if getattr(out, "type", "") == "VECTOR" and getattr(socket, "type", "") == "VALUE":
+            return self._vector_to_value(val)
         return val
+
+    def _vector_to_value(self, val):
+        """A vector into a value socket: the average of its components, as Cycles'
+        ConvertNode (svm/convert.h NODE_CONVERT_VF: average(f); a colour takes its
+        luminance instead, NODE_CONVERT_CF, which the engine's nodes do by default)."""
+        if hasattr(val, "evaluate"):
+            return self.pm.shadernodes.VectorMath("DOT_PRODUCT", val, np.full(3, 1.0 / 3.0),
+                                                  output="VALUE")
+        return float(np.mean(np.broadcast_to(np.asarray(val, np.float64), (3,))))
 
     def _vector(self, node, name, depth):
         """A Vector input; None when unlinked (the node's default coordinates)."""

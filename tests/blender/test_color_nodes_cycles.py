@@ -334,7 +334,25 @@ def _gabor(output, kind="2D", anisotropy=1.0, frequency=2.0):
     return build
 
 
+def _vector_into_value(source):
+    """A vector output into a Math node's value input: Cycles converts it to the average
+    of its components (a colour would give its luminance)."""
+    def build(nodes, links):
+        if source == "texcoord":
+            vec = _turned(nodes, links, 1.3)
+        else:  # a Combine XYZ: the components differ the most
+            vec = _vector(nodes, links, -0.5, 1.5)
+        m = nodes.new("ShaderNodeMath")
+        m.operation = "MULTIPLY"
+        m.inputs[1].default_value = 1.0
+        links.new(vec, m.inputs[0])
+        return m.outputs[0]
+    return build
+
+
 CASES = {
+    "vector_into_value_mapping": _vector_into_value("texcoord"),
+    "vector_into_value_combine": _vector_into_value("combine"),
     "gabor_2d_value": _gabor("Value"),
     "gabor_2d_phase": _gabor("Phase", frequency=0.7),
     "gabor_2d_intensity": _gabor("Intensity"),
