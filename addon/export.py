@@ -15,7 +15,8 @@ import time
 
 import numpy as np
 
-from .materials import CYCLES_STANDARD_ATTRIBUTES, MaterialConverter, output_node
+from .materials import (CYCLES_STANDARD_ATTRIBUTES, MaterialConverter, object_attribute_key,
+                        output_node)
 from .normals import shading_normals
 from .world import export_world, sky_sun_lights, world_mist
 
@@ -900,11 +901,12 @@ def cycles_name_random_id(name: str) -> int:
     return _lookup3_final((a + h) & m, (b + 0) & m, c)
 
 
-def object_info(obj, inst) -> dict:
+def object_info(obj, inst, attribute_requests=()) -> dict:
     """Mesh keywords of the Object Info node: random (Cycles' random_number: the
     random_id / (2^32 - 1) in float32, scene/object.cpp; an instance's random_id from the
     depsgraph, an object's from its name: cycles_name_random_id), object_color
-    (object.color RGBA) and location (the instance's world-space origin)."""
+    (object.color RGBA), location (the instance's world-space origin) and
+    object_attributes (object_attributes of attribute_requests)."""
     if inst.is_instance:
         rid = int(getattr(inst, "random_id", 0) or 0) & 0xFFFFFFFF
     else:
@@ -913,7 +915,64 @@ def object_info(obj, inst) -> dict:
     color = tuple(float(c) for c in getattr(obj, "color", (1.0, 1.0, 1.0, 1.0)))[:4]
     # Object Info Location: Cycles' object_location, the object matrix's translation.
     location = tuple(float(x) for x in np.array(inst.matrix_world, np.float64)[:3, 3])
-    return dict(random=random, object_color=color, location=location)
+    return dict(random=random, object_color=color, location=location,
+                object_attributes=object_attributes(obj, inst, attribute_requests))
+
+
+def _property_rgba(idblock, name):
+    """RGBA of an ID's custom property or RNA path `name` as Blender converts it for
+    Cycles' object attributes (blenkernel object_dupli.cc find_property_rgba): a number
+    or boolean f gives (f, f, f, 1); a float or int array of up to 4 fills (0, 0, 0, 1)
+    from the start; None when there is no such property or it is of another kind."""
+    if idblock is None:
+        return None
+    val = None
+    try:
+        if name in idblock.keys():  # custom properties first
+            val = idblock[name]
+    except (TypeError, AttributeError):
+        val = None
+    if val is None:
+        try:
+            val = idblock.path_resolve(name)
+        except (ValueError, TypeError, AttributeError):
+            return None
+    if isinstance(val, bool):
+        f = 1.0 if val else 0.0
+        return (f, f, f, 1.0)
+    if isinstance(val, (int, float)):
+        return (float(val),) * 3 + (1.0,)
+    try:
+        items = list(val)
+    except TypeError:
+        return None
+    if not items or len(items) > 4 or any(isinstance(x, bool) or not isinstance(x, (int, float))
+                                          for x in items):
+        return None
+    out = [0.0, 0.0, 0.0, 1.0]
+    out[:len(items)] = [float(x) for x in items]
+    return tuple(out)
+
+
+def object_attributes(obj, inst, requests) -> dict | None:
+    """Mesh.object_attributes of an object (an instance) for the Attribute nodes of type
+    Object / Instancer its scene's materials hold (requests: (name, instancer) pairs), as
+    Cycles' lookup_instance_property (blender/object.cpp) and Blender's
+    BKE_object_dupli_find_rgba_attribute find them: for Instancer, the instancing
+    object's property first; then the object's, then its data's (the mesh); (0, 0, 0,
+    0) when none has it. (A particle system's settings and geometry-nodes instance
+    attributes, which Instancer reads first, are not read.)"""
+    if not requests:
+        return None
+    out = {}
+    for name, instancer in requests:
+        ids = [obj, getattr(obj, "data", None)]
+        if instancer and inst.is_instance:
+            ids.insert(0, inst.parent)
+        value = next((v for v in (_property_rgba(i, name) for i in ids) if v is not None),
+                     (0.0, 0.0, 0.0, 0.0))
+        out[object_attribute_key(name, instancer)] = value
+    return out
 
 
 def _placement(pm, name, prototype, matrix, names, obj, visibility, info=None):
@@ -1018,7 +1077,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             info["objects"] += 1
             warn_unsupported_visibility(obj, warnings)
             mesh = _placement(pm, name, prototypes[key], matrix, names, obj,
-                              ray_visibility(obj, inst, view_layer), object_info(obj, inst))
+                              ray_visibility(obj, inst, view_layer),
+                              object_info(obj, inst, converter.object_attribute_names))
             meshes.append(mesh)
             info["triangles"] += len(mesh.faces)
             continue
@@ -1039,7 +1099,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                            _uv_slots(converter, names)),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
-                       pass_index=pass_index(obj), **object_info(obj, inst),
+                       pass_index=pass_index(obj),
+                       **object_info(obj, inst, converter.object_attribute_names),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
                        **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
@@ -1206,7 +1267,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         visibility = ray_visibility(obj, inst, view_layer)
         coords = (any(converter.needs_coordinates(n) for n in names),
                   any(_radial(converter, n) for n in names), _uv_slots(converter, names))
-        oinfo = object_info(obj, inst)
+        oinfo = object_info(obj, inst, converter.object_attribute_names)
         key = (id(geo), matrix.tobytes(), tuple(names), coords,
                tuple(sorted(visibility.items())), terminator_offset(obj),
                terminator_shading(obj), pass_index(obj), tuple(sorted(oinfo.items())))

@@ -61,6 +61,12 @@ _ABSENT_ON_MESHES = ("generated_transform", "motion_P", "motion_N", "particle",
 RAMP_TABLE_SIZE = 256
 
 
+def object_attribute_key(name: str, instancer: bool) -> str:
+    """The engine's key (Mesh.object_attributes) of an Attribute node of type Object
+    (the name) or Instancer ('instancer:' and the name)."""
+    return ("instancer:" if instancer else "") + name
+
+
 def _value_text(v) -> str:
     """A socket value as a warning shows it: 0.5, or (0.8, 0.8, 0.8)."""
     if np.ndim(v) == 0:
@@ -351,6 +357,8 @@ class MaterialConverter:
         self.images = {}        # (image name, extension, interpolation) -> ImageTexture
         self.cache = {}         # material name -> engine Material
         self.coordinate_users = set()  # materials reading Generated / Object coordinates
+        # (name, from the instancer) of the Attribute nodes of type Object / Instancer
+        self.object_attribute_names = set()
         self.tangent_users = set()  # materials with anisotropic lobes (radial tangents)
         # materials whose anisotropic lobe's Tangent is a Tangent node in UV Map mode:
         # name -> the node's UV map ("" = the render UV map)
@@ -1227,9 +1235,16 @@ class MaterialConverter:
                                    standard=False)
         if t == "ATTRIBUTE":
             kind = getattr(n, "attribute_type", "GEOMETRY")
+            if kind in ("OBJECT", "INSTANCER"):
+                # Per object (addon/export.py object_attribute): the names export reads
+                name = str(n.attribute_name)
+                self.object_attribute_names.add((name, kind == "INSTANCER"))
+                return sn.ObjectAttribute(
+                    object_attribute_key(name, kind == "INSTANCER"),
+                    {"Alpha": "ALPHA", "Fac": "FAC", "Factor": "FAC"}.get(oname, "COLOR"))
             if kind != "GEOMETRY":
                 self._warn(f"material '{self._mat.name}': Attribute '{n.name}' of type "
-                           f"{kind} is not supported (Geometry is)")
+                           f"{kind} is not supported (Geometry, Object, Instancer are)")
                 return None
             return self._attribute(str(n.attribute_name), oname)
         if t == "TEX_IMAGE":

@@ -314,6 +314,8 @@ class Geometry:
                               # Info Color, Alpha); None reads white
     object_location: np.ndarray | None = None  # (O,3) float64 Mesh.location, world space
                               # (Object Info Location); None reads the origin
+    object_attributes: dict | None = None  # name -> (O,4) float64 Mesh.object_attributes
+                              # (Attribute node, type Object / Instancer); absent: zeros
     camera_view: "object | None" = None  # shadernodes.CameraView of the scene's camera
                               # and frame (Texture Coordinate Camera / Window); None reads
                               # zeros. Set by prepare and again when a view moves
@@ -656,6 +658,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
                                for m in meshes], np.float64).reshape(-1, 4),
         object_location=np.array([getattr(m, "location", (0.0, 0.0, 0.0))
                                   for m in meshes], np.float64).reshape(-1, 3),
+        object_attributes=_object_attributes(meshes),
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=colors,
@@ -668,6 +671,16 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     from .textures import scalar_ranges
     scalar_ranges(table, geo)
     return geo, table
+
+
+def _object_attributes(meshes) -> dict | None:
+    """name -> (O,4) RGBA of every Mesh.object_attributes name over the meshes (zeros
+    where a mesh has no value: Cycles' value of a property not found)."""
+    names = sorted({k for m in meshes for k in (getattr(m, "object_attributes", None) or {})})
+    if not names:
+        return None
+    return {k: np.array([(getattr(m, "object_attributes", None) or {}).get(
+        k, (0.0, 0.0, 0.0, 0.0)) for m in meshes], np.float64).reshape(-1, 4) for k in names}
 
 
 def set_camera_view(geo: Geometry, scene: Scene) -> None:

@@ -681,6 +681,30 @@ class ObjectInfo:
         return np.zeros(n) if table is None else np.take(table, oid)
 
 
+class ObjectAttribute:
+    """Attribute node of type Object or Instancer (Cycles' ATTR_ELEMENT_OBJECT attribute,
+    svm_node_attr on a float4): the hit object's RGBA of that name (Geometry.
+    object_attributes, from Blender's object, instancer or mesh property); output COLOR
+    (N,3), FAC (N,) the average of RGB, or ALPHA (N,). An object without it reads 0."""
+
+    def __init__(self, name, output="COLOR"):
+        if output not in ("COLOR", "FAC", "ALPHA"):
+            raise ValueError(f"Attribute output {output!r}: expected COLOR, FAC or ALPHA")
+        self.name, self.output = str(name), output
+
+    def evaluate(self, geo, prim, u, v):
+        n = len(prim)
+        table = None if geo is None else (getattr(geo, "object_attributes", None)
+                                          or {}).get(self.name)
+        if table is None:
+            rgba = np.zeros((n, 4))
+        else:
+            rgba = np.take(table, np.take(geo.object_id, np.asarray(prim, np.int64)), axis=0)
+        if self.output == "ALPHA":
+            return rgba[:, 3]
+        return rgba[:, :3].mean(axis=1) if self.output == "FAC" else rgba[:, :3]
+
+
 class Clamp:
     """Clamp node (svm_node_clamp): MINMAX clamp(value, min, max) (min wins where they
     cross); RANGE swaps min and max where min > max."""
