@@ -15,7 +15,8 @@ import time
 
 import numpy as np
 
-from .materials import MaterialConverter, output_node
+from .materials import (CYCLES_STANDARD_ATTRIBUTES, MaterialConverter, object_attribute_key,
+                        output_node)
 from .normals import shading_normals
 from .world import export_world, sky_sun_lights, world_mist
 
@@ -35,10 +36,10 @@ class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
     __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
-                 "texspace", "tangents", "uv_name")
+                 "texspace", "tangents", "uv_name", "attributes")
 
     def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None,
-                 tangents=None, uv_name=""):
+                 tangents=None, uv_name="", attributes=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
@@ -49,6 +50,9 @@ class LocalGeometry:
         self.triangles = len(faces)
         self.tangents = tangents        # None or (F,3,4) MikkTSpace tangent xyz, sign
         self.uv_name = uv_name          # the render UV map's name ("" without UVs)
+        # Named attributes an Attribute / Color Attribute node reads (named_attributes):
+        # name -> (vector (F,3,3), fac (F,3), alpha (F,3)) per corner
+        self.attributes = attributes or {}
 
 
 def _foreach(collection, attr, count, width, dtype):
@@ -72,6 +76,90 @@ def _uses_tangent_normal_maps(obj) -> bool:
     worth computing)."""
     return any(node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT"
                for node in _material_nodes(obj))
+
+
+def attribute_requests(obj) -> set:
+    """Names of the mesh attributes the object's materials read by name: Attribute nodes
+    of type Geometry (attribute_name) and Color Attribute nodes ("" = the render colour
+    attribute)."""
+    names = set()
+    for node in _material_nodes(obj):
+        if node.type == "ATTRIBUTE" and getattr(node, "attribute_type", "") == "GEOMETRY":
+            name = str(node.attribute_name)
+            if name not in CYCLES_STANDARD_ATTRIBUTES or name == ISLAND:
+                names.add(name)
+        elif node.type == "NEW_GEOMETRY":
+            out = node.outputs.get("Random Per Island")
+            if out is not None and out.is_linked:
+                names.add(ISLAND)
+        elif node.type == "VERTEX_COLOR":
+            names.add(str(getattr(node, "layer_name", "")))
+    return names
+
+
+ISLAND = "random_per_island"  # Cycles' standard name of the Random Per Island attribute
+
+# Generic attribute data types read by name, and the RNA property holding their values
+# (colours: `color`, scene linear for byte and float colours alike).
+_ATTRIBUTE_VALUES = {"FLOAT": ("value", 1), "INT": ("value", 1), "INT8": ("value", 1),
+                     "BOOLEAN": ("value", 1), "FLOAT2": ("vector", 2),
+                     "FLOAT_VECTOR": ("vector", 3), "FLOAT_COLOR": ("color", 4),
+                     "BYTE_COLOR": ("color", 4)}
+
+
+def named_attributes(me, names, tris, loops, faces) -> dict:
+    """{name: (vector (F,3,3), fac (F,3), alpha (F,3))} at the triangle corners of the mesh
+    attributes `names` ("" = the render colour attribute) as Cycles' Attribute node reads
+    them (kernel/svm/attribute.h svm_node_attr): a float f gives (f, f, f), Fac f; a 2-D
+    vector (a UV map) (x, y, 0), Fac x; a 3-D vector itself, Fac its average; a colour its
+    RGB, Fac their average, Alpha its alpha (else 1). Point, corner and face domains (a
+    face's value on each of its triangles); names the mesh lacks are left out (they read
+    0, alpha 1)."""
+    out = {}
+    attrs = me.attributes
+    colours = getattr(me, "color_attributes", None)
+    for name in names:
+        attr = None
+        if name == ISLAND:  # Cycles' standard attribute, computed from the topology
+            r = np.repeat(random_per_island(me, faces)[:, None], 3, axis=1)
+            out[name] = (np.repeat(r[..., None], 3, axis=2), r, np.ones_like(r))
+            continue
+        if name == "":
+            if colours is not None and len(colours):
+                idx = getattr(colours, "render_color_index", -1)
+                attr = colours[idx] if 0 <= idx < len(colours) else (
+                    colours.active_color or colours[0])
+        else:
+            attr = attrs.get(name)
+        if attr is None or attr.data_type not in _ATTRIBUTE_VALUES:
+            continue
+        prop, width = _ATTRIBUTE_VALUES[attr.data_type]
+        count = {"POINT": len(me.vertices), "CORNER": len(me.loops),
+                 "FACE": len(me.polygons)}.get(attr.domain)
+        if count is None:  # (edge attributes: Cycles does not read them either)
+            continue
+        raw = _foreach(attr.data, prop, count, width,
+                       np.float32 if attr.data_type != "BOOLEAN" else bool).astype(np.float64)
+        raw = raw.reshape(count, width)
+        if attr.domain == "POINT":
+            vals = raw[faces]
+        elif attr.domain == "CORNER":
+            vals = raw[loops]
+        else:
+            poly = _foreach(tris, "polygon_index", len(tris), 1, np.int32)
+            vals = np.repeat(raw[poly][:, None, :], 3, axis=1)
+        alpha = np.ones(vals.shape[:2])
+        if width == 1:
+            vec, fac = np.repeat(vals, 3, axis=2), vals[..., 0]
+        elif width == 2:
+            vec = np.concatenate([vals, np.zeros(vals.shape[:2] + (1,))], axis=2)
+            fac = vals[..., 0]
+        else:
+            vec, fac = vals[..., :3], vals[..., :3].mean(axis=2)
+            if width == 4:
+                alpha = vals[..., 3]
+        out[name] = (vec, fac, alpha)
+    return out
 
 
 def _uses_uv_tangents(obj) -> bool:
@@ -131,9 +219,12 @@ def extract_geometry(obj) -> LocalGeometry | None:
                     tangents = _corner_tangents(me, layer, loops)
         texspace = (np.array(me.texspace_location, np.float64),
                     np.array(me.texspace_size, np.float64))
+        requests = attribute_requests(obj)
         return LocalGeometry(co, faces, normals, uvs, mat_index,
                              _corner_colors(me, tris, loops, faces), texspace, tangents,
-                             layer.name if uvs is not None else "")
+                             layer.name if uvs is not None else "",
+                             named_attributes(me, requests, tris, loops, faces)
+                             if requests else None)
     finally:
         obj.to_mesh_clear()
 
@@ -175,12 +266,18 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
     texture space, 0..1 over its bounds: (co - location) / (2 size) + 0.5, as Cycles
     syncs ATTR_STD_GENERATED) coordinates and 'normal' (object_normals: the Texture
     Coordinate node's Normal, Box projection), (F,3,3) each, corners in the exported
-    order."""
+    order; and per named attribute (LocalGeometry.attributes) 'attr:NAME' (its vector or
+    colour), 'attr:NAME.fac' and 'attr:NAME.transparency' (1 - alpha, so a mesh without
+    the attribute reads alpha 1 as Cycles), the last two repeated over the 3 columns."""
     local = g.co[g.faces]
     loc, size = g.texspace
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
     out = {"object": local, "generated": (local - loc) / (2.0 * size) + 0.5,
            "normal": object_normals(g)}
+    for name, (vec, fac, alpha) in (getattr(g, "attributes", None) or {}).items():
+        out[f"attr:{name}"] = vec
+        out[f"attr:{name}.fac"] = np.repeat(fac[..., None], 3, axis=2)
+        out[f"attr:{name}.transparency"] = np.repeat(1.0 - alpha[..., None], 3, axis=2)
     if flipped:
         out = {k: a[:, [0, 2, 1]] for k, a in out.items()}
     return out
@@ -734,6 +831,62 @@ def _rot32(x, k):
     return ((x << k) | (x >> (32 - k))) & 0xFFFFFFFF
 
 
+def _lookup3_final(a, b, c):
+    """Bob Jenkins' lookup3 final() mix of uint32 a, b, c (Python ints or int64 arrays
+    holding uint32 values); returns c (util/hash.h)."""
+    m = 0xFFFFFFFF
+    c = (c ^ b) & m; c = (c - _rot32(b, 14)) & m  # noqa: E702
+    a = (a ^ c) & m; a = (a - _rot32(c, 11)) & m  # noqa: E702
+    b = (b ^ a) & m; b = (b - _rot32(a, 25)) & m  # noqa: E702
+    c = (c ^ b) & m; c = (c - _rot32(b, 16)) & m  # noqa: E702
+    a = (a ^ c) & m; a = (a - _rot32(c, 4)) & m  # noqa: E702
+    b = (b ^ a) & m; b = (b - _rot32(a, 14)) & m  # noqa: E702
+    c = (c ^ b) & m; c = (c - _rot32(b, 24)) & m  # noqa: E702
+    return c
+
+
+def hash_uint_to_float(kx) -> np.ndarray:
+    """Cycles' hash_uint_to_float (util/hash.h) of uint32 values kx (array): lookup3's
+    hash_uint, (float)h / (float)0xFFFFFFFF in float32."""
+    m = 0xFFFFFFFF
+    init = (0xDEADBEEF + (1 << 2) + 13) & m
+    k = np.asarray(kx, np.int64) & m
+    h = _lookup3_final((init + k) & m, np.full_like(k, init), np.full_like(k, init))
+    return (h.astype(np.float32) / np.float32(4294967295.0)).astype(np.float64)
+
+
+def random_per_island(me, faces) -> np.ndarray:
+    """(F,) Cycles' Random Per Island of each loop triangle (blender/mesh.cpp
+    attr_create_random_per_island): the mesh's vertices joined along its edges in a
+    disjoint set (util/disjoint_set.h: union by rank, the first argument's root kept on
+    a tie), each triangle's value hash_uint_to_float of the root of its first vertex.
+    faces: (F,3) the loop triangles' vertices as Blender orders them."""
+    n = len(me.vertices)
+    edges = _foreach(me.edges, "vertices", len(me.edges), 2, np.int32).tolist()
+    parent = list(range(n))
+    rank = [0] * n
+
+    def find(x):
+        root = x
+        while parent[root] != root:
+            root = parent[root]
+        while parent[x] != root:
+            parent[x], x = root, parent[x]
+        return root
+
+    for x, y in edges:
+        rx, ry = find(x), find(y)
+        if rx == ry:
+            continue
+        if rank[rx] < rank[ry]:
+            rx, ry = ry, rx
+        parent[ry] = rx
+        if rank[rx] == rank[ry]:
+            rank[rx] += 1
+    roots = np.array([find(v) for v in range(n)], np.int64)
+    return hash_uint_to_float(roots[np.asarray(faces)[:, 0]])
+
+
 def cycles_name_random_id(name: str) -> int:
     """Cycles' random_id of an object that is not an instance: hash_uint2(hash_string(
     name), 0) (intern/cycles/blender/object.cpp; util/hash.h: hash_string's i * 37 + c over
@@ -745,29 +898,81 @@ def cycles_name_random_id(name: str) -> int:
         h = (h * 37 + c) & 0xFFFFFFFF
     m = 0xFFFFFFFF
     a = b = c = (0xDEADBEEF + (2 << 2) + 13) & m
-    a, b = (a + h) & m, (b + 0) & m
-    c = (c ^ b) & m; c = (c - _rot32(b, 14)) & m  # noqa: E702 (lookup3 final())
-    a = (a ^ c) & m; a = (a - _rot32(c, 11)) & m  # noqa: E702
-    b = (b ^ a) & m; b = (b - _rot32(a, 25)) & m  # noqa: E702
-    c = (c ^ b) & m; c = (c - _rot32(b, 16)) & m  # noqa: E702
-    a = (a ^ c) & m; a = (a - _rot32(c, 4)) & m  # noqa: E702
-    b = (b ^ a) & m; b = (b - _rot32(a, 14)) & m  # noqa: E702
-    c = (c ^ b) & m; c = (c - _rot32(b, 24)) & m  # noqa: E702
-    return c
+    return _lookup3_final((a + h) & m, (b + 0) & m, c)
 
 
-def object_info(obj, inst) -> dict:
+def object_info(obj, inst, attribute_requests=()) -> dict:
     """Mesh keywords of the Object Info node: random (Cycles' random_number: the
     random_id / (2^32 - 1) in float32, scene/object.cpp; an instance's random_id from the
-    depsgraph, an object's from its name: cycles_name_random_id) and object_color
-    (object.color RGBA)."""
+    depsgraph, an object's from its name: cycles_name_random_id), object_color
+    (object.color RGBA), location (the instance's world-space origin) and
+    object_attributes (object_attributes of attribute_requests)."""
     if inst.is_instance:
         rid = int(getattr(inst, "random_id", 0) or 0) & 0xFFFFFFFF
     else:
         rid = cycles_name_random_id(obj.name)
     random = float(np.float32(rid) * np.float32(1.0 / 0xFFFFFFFF))
     color = tuple(float(c) for c in getattr(obj, "color", (1.0, 1.0, 1.0, 1.0)))[:4]
-    return dict(random=random, object_color=color)
+    # Object Info Location: Cycles' object_location, the object matrix's translation.
+    location = tuple(float(x) for x in np.array(inst.matrix_world, np.float64)[:3, 3])
+    return dict(random=random, object_color=color, location=location,
+                object_attributes=object_attributes(obj, inst, attribute_requests))
+
+
+def _property_rgba(idblock, name):
+    """RGBA of an ID's custom property or RNA path `name` as Blender converts it for
+    Cycles' object attributes (blenkernel object_dupli.cc find_property_rgba): a number
+    or boolean f gives (f, f, f, 1); a float or int array of up to 4 fills (0, 0, 0, 1)
+    from the start; None when there is no such property or it is of another kind."""
+    if idblock is None:
+        return None
+    val = None
+    try:
+        if name in idblock.keys():  # custom properties first
+            val = idblock[name]
+    except (TypeError, AttributeError):
+        val = None
+    if val is None:
+        try:
+            val = idblock.path_resolve(name)
+        except (ValueError, TypeError, AttributeError):
+            return None
+    if isinstance(val, bool):
+        f = 1.0 if val else 0.0
+        return (f, f, f, 1.0)
+    if isinstance(val, (int, float)):
+        return (float(val),) * 3 + (1.0,)
+    try:
+        items = list(val)
+    except TypeError:
+        return None
+    if not items or len(items) > 4 or any(isinstance(x, bool) or not isinstance(x, (int, float))
+                                          for x in items):
+        return None
+    out = [0.0, 0.0, 0.0, 1.0]
+    out[:len(items)] = [float(x) for x in items]
+    return tuple(out)
+
+
+def object_attributes(obj, inst, requests) -> dict | None:
+    """Mesh.object_attributes of an object (an instance) for the Attribute nodes of type
+    Object / Instancer its scene's materials hold (requests: (name, instancer) pairs), as
+    Cycles' lookup_instance_property (blender/object.cpp) and Blender's
+    BKE_object_dupli_find_rgba_attribute find them: for Instancer, the instancing
+    object's property first; then the object's, then its data's (the mesh); (0, 0, 0,
+    0) when none has it. (A particle system's settings and geometry-nodes instance
+    attributes, which Instancer reads first, are not read.)"""
+    if not requests:
+        return None
+    out = {}
+    for name, instancer in requests:
+        ids = [obj, getattr(obj, "data", None)]
+        if instancer and inst.is_instance:
+            ids.insert(0, inst.parent)
+        value = next((v for v in (_property_rgba(i, name) for i in ids) if v is not None),
+                     (0.0, 0.0, 0.0, 0.0))
+        out[object_attribute_key(name, instancer)] = value
+    return out
 
 
 def _placement(pm, name, prototype, matrix, names, obj, visibility, info=None):
@@ -913,7 +1118,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             info["objects"] += 1
             warn_unsupported_visibility(obj, warnings)
             mesh = _placement(pm, name, prototypes[key], matrix, names, obj,
-                              ray_visibility(obj, inst, view_layer), object_info(obj, inst))
+                              ray_visibility(obj, inst, view_layer),
+                              object_info(obj, inst, converter.object_attribute_names))
             meshes.append(mesh)
             info["triangles"] += len(mesh.faces)
             continue
@@ -934,7 +1140,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                            _uv_slots(converter, names)),
                        shadow_terminator_offset=terminator_offset(obj),
                        shadow_terminator_shading_offset=terminator_shading(obj),
-                       pass_index=pass_index(obj), **object_info(obj, inst),
+                       pass_index=pass_index(obj),
+                       **object_info(obj, inst, converter.object_attribute_names),
                        prototype=prototypes.get(key), matrix=matrix if key in prototypes else None,
                        **cryptomatte_names(obj), **ray_visibility(obj, inst, view_layer))
         meshes.append(mesh)
@@ -1101,7 +1308,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         visibility = ray_visibility(obj, inst, view_layer)
         coords = (any(converter.needs_coordinates(n) for n in names),
                   any(_radial(converter, n) for n in names), _uv_slots(converter, names))
-        oinfo = object_info(obj, inst)
+        oinfo = object_info(obj, inst, converter.object_attribute_names)
         key = (id(geo), matrix.tobytes(), tuple(names), coords,
                tuple(sorted(visibility.items())), terminator_offset(obj),
                terminator_shading(obj), pass_index(obj), tuple(sorted(oinfo.items())))

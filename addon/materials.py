@@ -10,10 +10,11 @@ a dielectric and a metal, takes one side per hit with the factor's probability, 
 closure sampling; Add sums the closures: their even mix at closure weight 2, exact for
 Diffuse + Diffuse, Diffuse + Glossy and equal surfaces; the
 transparent shares of an Add are averaged, warned), an Image Texture (its Extension,
-Interpolation, UDIM tiles), a Color Attribute, an RGB / Value node, or a tree of the
-colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp, Math,
-Separate/Combine, Map Range (Float), Blackbody, Checker, Gradient, Noise, Voronoi and Wave
-textures, Layer Weight, Fresnel)
+Interpolation, UDIM tiles), a Color Attribute or Attribute node (a mesh attribute by
+name), an RGB / Value node, or a tree of the
+colour nodes in engine/shadernodes.py (Mapping, Mix, Invert, Hue/Saturation, Color Ramp,
+Math, Separate/Combine, Map Range (Float), Blackbody, Checker, Gradient, Noise, Voronoi,
+Wave, Brick, Magic and Gabor textures, Layer Weight, Fresnel)
 on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight, Specular
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
 Emission Color and as a Mix Shader's factor (per hit for two opaque surfaces and for
@@ -39,9 +40,31 @@ MAX_NODE_DEPTH = 32
 # Tests set this: a node tree the converter cannot read raises instead of falling back to
 # the viewport colour (so a converter bug fails the test that meets it, not only its image).
 RAISE_UNREADABLE_TREES = False
+# Cycles' standard attribute names (scene/attribute.cpp Attribute::standard_name): an
+# Attribute node of one of these names reads Cycles' standard attribute, never a mesh
+# attribute of that name (AttributeRequestSet::add_standard). On a mesh, those of
+# volumes, hair, point clouds and motion blur are absent (0, alpha 1).
+CYCLES_STANDARD_ATTRIBUTES = (
+    "N", "Ng", "uv", "generated", "generated_transform", "tangent", "tangent_sign",
+    "vertex_color", "undeformed", "undisplaced", "motion_P", "motion_N", "particle",
+    "curve_intercept", "curve_length", "curve_random", "point_random", "ptex_face_id",
+    "ptex_uv", "density", "color", "flame", "heat", "temperature", "velocity",
+    "velocity_x", "velocity_y", "velocity_z", "pointiness", "random_per_island",
+    "shadow_transparency")
+_ABSENT_ON_MESHES = ("generated_transform", "motion_P", "motion_N", "particle",
+                     "curve_intercept", "curve_length", "curve_random", "point_random",
+                     "ptex_face_id", "ptex_uv", "density", "color", "flame", "heat",
+                     "temperature", "velocity", "velocity_x", "velocity_y", "velocity_z",
+                     "shadow_transparency")
 # Cycles' RAMP_TABLE_SIZE (scene/shader_nodes.h): Color Ramps and curves are baked at
 # this many + 1 steps.
 RAMP_TABLE_SIZE = 256
+
+
+def object_attribute_key(name: str, instancer: bool) -> str:
+    """The engine's key (Mesh.object_attributes) of an Attribute node of type Object
+    (the name) or Instancer ('instancer:' and the name)."""
+    return ("instancer:" if instancer else "") + name
 
 
 def _value_text(v) -> str:
@@ -334,6 +357,8 @@ class MaterialConverter:
         self.images = {}        # (image name, extension, interpolation) -> ImageTexture
         self.cache = {}         # material name -> engine Material
         self.coordinate_users = set()  # materials reading Generated / Object coordinates
+        # (name, from the instancer) of the Attribute nodes of type Object / Instancer
+        self.object_attribute_names = set()
         self.tangent_users = set()  # materials with anisotropic lobes (radial tangents)
         # materials whose anisotropic lobe's Tangent is a Tangent node in UV Map mode:
         # name -> the node's UV map ("" = the render UV map)
@@ -1063,7 +1088,12 @@ class MaterialConverter:
                 return float(out.default_value)
             val = self._node_output(n, out, 1)
             if val is not None and not hasattr(val, "evaluate"):
-                return float(val) if np.ndim(val) == 0 else float(np.mean(val))
+                if np.ndim(val) == 0:
+                    return float(val)
+                # Cycles' conversion: a vector's average, a colour's luminance
+                return (float(np.mean(val)) if getattr(out, "type", "") == "VECTOR"
+                        else float(np.asarray(val, np.float64)[:3]
+                                   @ np.array([0.2126, 0.7152, 0.0722])))
             why = "not supported" if val is None else "varies per hit, which this input is not"
             self._warn(f"material '{self._mat.name}': {socket.name} of '{node.name}': node "
                        f"'{n.name}' ({n.type}) {why}, using {_value_text(own)} (the "
@@ -1130,7 +1160,18 @@ class MaterialConverter:
                        f"'{n.name}' ({n.type}) not supported, using {_value_text(own)} (the "
                        "socket's own value)")
             return own
+        if getattr(out, "type", "") == "VECTOR" and getattr(socket, "type", "") == "VALUE":
+            return self._vector_to_value(val)
         return val
+
+    def _vector_to_value(self, val):
+        """A vector into a value socket: the average of its components, as Cycles'
+        ConvertNode (svm/convert.h NODE_CONVERT_VF: average(f); a colour takes its
+        luminance instead, NODE_CONVERT_CF, which the engine's nodes do by default)."""
+        if hasattr(val, "evaluate"):
+            return self.pm.shadernodes.VectorMath("DOT_PRODUCT", val, np.full(3, 1.0 / 3.0),
+                                                  output="VALUE")
+        return float(np.mean(np.broadcast_to(np.asarray(val, np.float64), (3,))))
 
     def _vector(self, node, name, depth):
         """A Vector input; None when unlinked (the node's default coordinates)."""
@@ -1140,21 +1181,29 @@ class MaterialConverter:
         return self._input(node, s, depth)
 
     def _curves(self, n, depth):
-        """RGB Curves / Float Curve baked as Cycles bakes them (blender/util.h
-        curvemapping_color_to_array, curvemapping_float_to_array): the curves evaluated by
-        Blender at RAMP_TABLE_SIZE + 1 steps over the range of their points (RGB: each of
-        R, G, B applied to the combined curve C), read by the kernel's table lookup."""
+        """RGB Curves / Vector Curves / Float Curve baked as Cycles bakes them
+        (blender/util.h curvemapping_color_to_array, curvemapping_float_to_array): the
+        curves evaluated by Blender at RAMP_TABLE_SIZE + 1 steps over the range of their
+        points (RGB: each of R, G, B applied to the combined curve C; Vector: X, Y, Z
+        each alone), read by the kernel's table lookup (svm_node_curves: the vector's
+        components as a colour's)."""
         sn = self.pm.shadernodes
         m = n.mapping
         m.initialize()
         m.update()
         rgb = n.type == "CURVE_RGB"
-        curves = list(m.curves)[:4 if rgb else 1]
+        vector = n.type == "CURVE_VEC"
+        curves = list(m.curves)[:4 if rgb else 3 if vector else 1]
         lo = min(c.points[0].location[0] for c in curves)
         hi = max(c.points[-1].location[0] for c in curves)
         xs = [lo + i / RAMP_TABLE_SIZE * (hi - lo) for i in range(RAMP_TABLE_SIZE + 1)]
         extrapolate = m.extend == "EXTRAPOLATED"
-        fac = self._input(n, n.inputs["Fac" if rgb else "Factor"], depth)
+        fac_in = n.inputs.get("Fac") or n.inputs.get("Factor") or n.inputs[0]
+        fac = self._input(n, fac_in, depth)
+        if vector:
+            table = [[m.evaluate(ch, x) for ch in curves] for x in xs]
+            vec = self._input(n, n.inputs["Vector"], depth)
+            return _fold(sn.RGBCurves(fac, vec, table, lo, hi, extrapolate), [fac, vec])
         if rgb:
             r, g, b, c = curves
             table = [[m.evaluate(ch, m.evaluate(c, x)) for ch in (r, g, b)] for x in xs]
@@ -1177,9 +1226,27 @@ class MaterialConverter:
         if t == "VALUE":
             return float(out.default_value)
         if t == "VERTEX_COLOR":  # the Color Attribute node
-            if oname != "Color":
+            name = str(getattr(n, "layer_name", ""))
+            if oname == "Color" and not name:
+                return self.pm.ColorAttribute("")  # the render colour attribute
+            # (a name here is a mesh attribute's, never Cycles' standard one:
+            # VertexColorNode::attributes adds it as it is)
+            return self._attribute(name, "Alpha" if oname == "Alpha" else "Color",
+                                   standard=False)
+        if t == "ATTRIBUTE":
+            kind = getattr(n, "attribute_type", "GEOMETRY")
+            if kind in ("OBJECT", "INSTANCER"):
+                # Per object (addon/export.py object_attribute): the names export reads
+                name = str(n.attribute_name)
+                self.object_attribute_names.add((name, kind == "INSTANCER"))
+                return sn.ObjectAttribute(
+                    object_attribute_key(name, kind == "INSTANCER"),
+                    {"Alpha": "ALPHA", "Fac": "FAC", "Factor": "FAC"}.get(oname, "COLOR"))
+            if kind != "GEOMETRY":
+                self._warn(f"material '{self._mat.name}': Attribute '{n.name}' of type "
+                           f"{kind} is not supported (Geometry, Object, Instancer are)")
                 return None
-            return self.pm.ColorAttribute(getattr(n, "layer_name", ""))
+            return self._attribute(str(n.attribute_name), oname)
         if t == "TEX_IMAGE":
             tex = self._image(n)
             if tex is None:
@@ -1204,8 +1271,11 @@ class MaterialConverter:
                     self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' "
                                "relative to another object is read in the mesh's own space")
                 return self._coordinates(oname.lower())
+            if oname in ("Camera", "Window", "Reflection"):
+                return sn.ViewCoordinates(oname.upper())
             self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' output "
-                       f"'{oname}' is not supported (UV, Generated, Object are)")
+                       f"'{oname}' is not supported (UV, Generated, Object, Normal, Camera, "
+                       "Window, Reflection are)")
             return None
         if t == "UVMAP":
             if getattr(n, "uv_map", ""):
@@ -1271,16 +1341,22 @@ class MaterialConverter:
             fac = self._input(n, n.inputs["Fac"], depth)
             return _fold(sn.RampTable(fac, table, interpolate=ramp.interpolation != "CONSTANT",
                                       output="ALPHA" if oname == "Alpha" else "COLOR"), [fac])
-        if t in ("CURVE_RGB", "CURVE_FLOAT"):
+        if t in ("CURVE_RGB", "CURVE_FLOAT", "CURVE_VEC"):
             return self._curves(n, depth)
         if t == "NEW_GEOMETRY":  # the Geometry node
+            if oname == "Random Per Island":  # (addon/export.py random_per_island)
+                return self._attribute("random_per_island", "Factor")
             out_kind = {"Position": "POSITION", "Normal": "NORMAL",
                         "True Normal": "TRUE_NORMAL", "Incoming": "INCOMING",
                         "Backfacing": "BACKFACING"}.get(oname)
             return None if out_kind is None else sn.GeometryInfo(out_kind)
         if t == "OBJECT_INFO":
+            if oname == "Material Index":
+                # Cycles' shader_pass_id: the pass index of the material whose tree this
+                # is, one constant per tree.
+                return float(getattr(self._mat, "pass_index", 0) or 0)
             out_kind = {"Random": "RANDOM", "Color": "COLOR", "Alpha": "ALPHA",
-                        "Object Index": "OBJECT_INDEX"}.get(oname)
+                        "Object Index": "OBJECT_INDEX", "Location": "LOCATION"}.get(oname)
             return None if out_kind is None else sn.ObjectInfo(out_kind)
         # (A tree fed only by constants is evaluated once here: _fold.)
         if t == "BRIGHTCONTRAST":
@@ -1354,6 +1430,33 @@ class MaterialConverter:
             w_in = n.inputs.get("W")  # (no W socket by name unless 1D / 4D)
             w = 0.0 if w_in is None else self._input(n, w_in, depth)
             return sn.WhiteNoise(vec, w, dims, output="COLOR" if oname == "Color" else "VALUE")
+        if t == "TEX_BRICK":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            inputs = {k: self._input(n, n.inputs[k], depth) for k in sn.Brick.SOCKETS
+                      if k in n.inputs}
+            return sn.Brick(vec, inputs, offset=n.offset, offset_frequency=n.offset_frequency,
+                            squash=n.squash, squash_frequency=n.squash_frequency,
+                            output="FAC" if oname in ("Fac", "Factor") else "COLOR")
+        if t == "TEX_GABOR":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            # (Both Orientation sockets are named "Orientation": by identifier.)
+            ins = {i.identifier: i for i in n.inputs}
+            inputs = {k: self._input(n, ins[k], depth) for k in sn.Gabor.SOCKETS
+                      if k in ins}
+            return sn.Gabor(vec, inputs, dims=3 if n.gabor_type == "3D" else 2,
+                            output=oname.upper())
+        if t == "TEX_MAGIC":
+            vec = self._vector(n, "Vector", depth)
+            if vec is None:
+                vec = self._coordinates("generated")  # procedural textures' default
+            return sn.Magic(vec, self._input(n, n.inputs["Scale"], depth),
+                            self._input(n, n.inputs["Distortion"], depth),
+                            depth=n.turbulence_depth,
+                            output="FAC" if oname in ("Fac", "Factor") else "COLOR")
         if t == "TEX_WAVE":
             vec = self._vector(n, "Vector", depth)
             if vec is None:
@@ -1392,6 +1495,38 @@ class MaterialConverter:
         return sn.Voronoi(vec, inputs, dims=int(n.voronoi_dimensions[0]), feature=n.feature,
                           metric=n.distance, normalize=getattr(n, "normalize", False),
                           output=oname.upper())
+
+    def _attribute(self, name, output, standard=True):
+        """A mesh attribute by name (addon/export.py named_attributes; "" the render
+        colour attribute) at the hits, as Cycles' svm_node_attr: output Color / Vector
+        (N,3), Fac (N,) or Alpha (N,); 0 (alpha 1) on meshes without it."""
+        sn = self.pm.shadernodes
+        fac = output in ("Fac", "Factor")  # (Blender 5 names it Factor)
+        if standard and name in CYCLES_STANDARD_ATTRIBUTES:
+            if name in _ABSENT_ON_MESHES:
+                self._warn(f"material '{self._mat.name}': attribute '{name}' is a Cycles "
+                           "standard attribute that meshes lack: reads 0 (as in Cycles)")
+                return 1.0 if output == "Alpha" else 0.0 if fac else np.zeros(3)
+            if output == "Alpha":
+                return 1.0
+            if name == "uv":  # the render UV map: Fac is u
+                return sn.SeparateChannel(sn.UVCoord(), 0) if fac else sn.UVCoord()
+            if name == "random_per_island":  # exported as a face attribute
+                return (sn.SeparateChannel(self._coordinates(f"attr:{name}.fac"), 0) if fac
+                        else self._coordinates(f"attr:{name}"))
+            if name == "generated":  # Fac the average, as for any 3-D vector
+                g = self._coordinates("generated")
+                return sn.VectorMath("DOT_PRODUCT", g, np.full(3, 1.0 / 3.0),
+                                     output="VALUE") if fac else g
+            self._warn(f"material '{self._mat.name}': Cycles' standard attribute '{name}' "
+                       "is not supported")
+            return None
+        if fac:
+            return sn.SeparateChannel(self._coordinates(f"attr:{name}.fac"), 0)
+        if output == "Alpha":
+            return sn.Math("SUBTRACT", 1.0, sn.SeparateChannel(
+                self._coordinates(f"attr:{name}.transparency"), 0))
+        return self._coordinates(f"attr:{name}")
 
     def _coordinates(self, name):
         self.coordinate_users.add(self._mat.name)

@@ -312,6 +312,14 @@ class Geometry:
                               # Random); None reads 0
     object_color: np.ndarray | None = None  # (O,4) float64 Mesh.object_color (Object
                               # Info Color, Alpha); None reads white
+    object_location: np.ndarray | None = None  # (O,3) float64 Mesh.location, world space
+                              # (Object Info Location); None reads the origin
+    object_attributes: dict | None = None  # name -> (O,4) float64 Mesh.object_attributes
+                              # (Attribute node, type Object / Instancer); absent: zeros
+    camera_view: "object | None" = None  # shadernodes.CameraView of the scene's camera
+                              # and frame (Texture Coordinate Camera / Window); None reads
+                              # zeros. Set by prepare and again when a view moves
+                              # (set_camera_view)
 
     def __post_init__(self):
         self.ng = PerTriangle(self, _ng_rows)  # (T,3) unit geometric normals (winding)
@@ -648,6 +656,9 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         object_random=np.array([getattr(m, "random", 0.0) for m in meshes], np.float64),
         object_color=np.array([getattr(m, "object_color", (1.0, 1.0, 1.0, 1.0))
                                for m in meshes], np.float64).reshape(-1, 4),
+        object_location=np.array([getattr(m, "location", (0.0, 0.0, 0.0))
+                                  for m in meshes], np.float64).reshape(-1, 3),
+        object_attributes=_object_attributes(meshes),
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
         corner_colors=colors,
@@ -655,10 +666,29 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
         instances=instances,
         shared=rows if shared else None,
     )
+    set_camera_view(geo, scene)
     # Texture-driven scalar inputs: one value per material for the effect analysis.
     from .textures import scalar_ranges
     scalar_ranges(table, geo)
     return geo, table
+
+
+def _object_attributes(meshes) -> dict | None:
+    """name -> (O,4) RGBA of every Mesh.object_attributes name over the meshes (zeros
+    where a mesh has no value: Cycles' value of a property not found)."""
+    names = sorted({k for m in meshes for k in (getattr(m, "object_attributes", None) or {})})
+    if not names:
+        return None
+    return {k: np.array([(getattr(m, "object_attributes", None) or {}).get(
+        k, (0.0, 0.0, 0.0, 0.0)) for m in meshes], np.float64).reshape(-1, 4) for k in names}
+
+
+def set_camera_view(geo: Geometry, scene: Scene) -> None:
+    """geo.camera_view for the scene's camera and image size (None without a camera):
+    what the Texture Coordinate node's Camera and Window outputs read."""
+    from .shadernodes import CameraView
+    cam = scene.camera
+    geo.camera_view = None if cam is None else CameraView(cam, scene.width, scene.height)
 
 
 def _instances(meshes, offset):

@@ -1,5 +1,5 @@
 """Blender's procedural textures, evaluated per hit in compiled kernels: Noise, Voronoi,
-Wave and White Noise.
+Wave, White Noise and Gabor.
 
 These must reproduce Cycles' patterns, not just look alike: a marble floor made with a
 Noise Texture has to put its veins where Cycles puts them. So the building blocks follow
@@ -22,7 +22,9 @@ fractal_noise.h, noisetex.h, voronoi.h):
   Manhattan, Chebychev and Minkowski metrics; fractal octaves as in Cycles;
 - the Wave node (svm_wave.h): bands or rings along an axis (or diagonal / spherical),
   Phase Offset, a sine, saw or triangle profile, and Distortion by normalised fBM
-  (lacunarity 2) of the same Perlin noise.
+  (lacunarity 2) of the same Perlin noise;
+- the Gabor node (svm/gabor.h): 8 windowed Gabor kernels per cell at hashed centres with
+  hashed signs and turns, summed as a phasor (Value, Phase, Intensity).
 
 Arithmetic is float64 here where Cycles uses float32: the patterns agree except within
 rounding distance of cell borders. Every batch kernel takes per-hit input arrays (any
@@ -850,6 +852,144 @@ def white_noise_texture(dims, points, w_in, value_out, color_out):
         color_out[i, 2] = c
 
 
+# ---------------------------------------------------------------- Gabor (svm/gabor.h)
+
+GABOR_IMPULSES = 8  # Cycles' IMPULSES_COUNT: kernels per cell (stratified Poisson)
+
+
+@kernel
+def _hash32(dims, x0, x1, x2, x3):
+    """hash_floatN_to_float as Cycles rounds it: (float)h / (float)0xFFFFFFFF in float32
+    (the Gabor impulses' centres, signs and turns)."""
+    h = hash_uint(dims, float_bits(x0), float_bits(x1), float_bits(x2), float_bits(x3))
+    return float(np.float32(h) / np.float32(4294967295.0))
+
+
+@kernel
+def _gabor_kernel(dx, dy, dz, fx, fy, fz):
+    """Cycles' compute_2d/3d_gabor_kernel at offset d from the impulse, frequency vector
+    f: the Hann-windowed Gaussian exp(-pi |d|^2) (0.5 + 0.5 cos(pi |d|^2)) times the
+    phasor of 2 pi d . f. Returns (cos part, sin part)."""
+    d2 = dx * dx + dy * dy + dz * dz
+    env = math.exp(-math.pi * d2) * (0.5 + 0.5 * math.cos(math.pi * d2))
+    angle = 2.0 * math.pi * (dx * fx + dy * fy + dz * fz)
+    return env * math.cos(angle), env * math.sin(angle)
+
+
+@kernel
+def _gabor_cell_table(dims, cx, cy, cz, table):
+    """The impulses of the 3^dims cells around cell (cx, cy, cz) as Cycles seeds them
+    (compute_2d/3d_gabor_noise_cell): table[c * GABOR_IMPULSES + k] = (centre x, y, z,
+    sign, turn 1, turn 2) of impulse k of neighbour c (x fastest, then y, then z)."""
+    c = 0
+    for kk in range(-1, 2) if dims == 3 else range(0, 1):
+        for j in range(-1, 2):
+            for i in range(-1, 2):
+                x, y, z = cx + i, cy + j, cz + kk
+                for k in range(GABOR_IMPULSES):
+                    s0, s1, s2 = 3.0 * k, 3.0 * k + 1.0, 3.0 * k + 2.0
+                    row = table[c * GABOR_IMPULSES + k]
+                    if dims == 2:
+                        row[0] = _hash32(3, x, y, s1, 0.0)
+                        row[1] = _hash32(3, s1, x, y, 0.0)
+                        row[2] = 0.0
+                        row[3] = -1.0 if _hash32(3, x, y, s2, 0.0) < 0.5 else 1.0
+                        row[4] = (_hash32(3, x, y, s0, 0.0) - 0.5) * math.pi
+                        row[5] = 0.0
+                    else:
+                        row[0] = _hash32(4, x, y, z, s1)
+                        row[1] = _hash32(4, z, x, s1, y)
+                        row[2] = _hash32(4, s1, z, y, x)
+                        row[3] = -1.0 if _hash32(4, x, y, z, s2) < 0.5 else 1.0
+                        row[4] = _hash32(4, x, y, z, s0) * math.pi
+                        row[5] = _hash32(4, z, x, s0, y) * math.pi
+                c += 1
+
+
+@kernel
+def gabor_texture(dims, points, scale, frequency, anisotropy, orientation_2d,
+                  orientation_3d, output, order, out):
+    """The Gabor Texture node for a batch of hits (Cycles svm_node_tex_gabor,
+    kernel/svm/gabor.h: Lagae et al. 2009 sparse Gabor convolution, Tavernier et al. 2019
+    Bernoulli weights and normalisation, Tricard et al. 2019 phasor). dims 2 or 3;
+    points (N,3) coordinates, scale, frequency, anisotropy, orientation_2d (radians) (N,),
+    orientation_3d (N,3) (normalised here); output 0 Value, 1 Phase, 2 Intensity into
+    out (N,). Each cell of the 3^dims neighbourhood of the scaled point holds
+    GABOR_IMPULSES kernels at hashed centres, of hashed sign and, with isotropy = 1 -
+    anisotropy > 0, hashed turns of the orientation; the seeds are the cell's float
+    coordinates and 3 i, 3 i + 1, 3 i + 2 (the impulse i), hashed as Cycles hashes them,
+    so the pattern is Cycles'. The hits are visited in `order` (N,) (sorted by cell: the
+    hashes of a cell's neighbourhood are computed once per run of hits in it)."""
+    if dims == 2:
+        norm = 6.0 * math.sqrt(GABOR_IMPULSES * 0.5 * 0.25)
+        cells = 9
+    else:
+        norm = 6.0 * math.sqrt(GABOR_IMPULSES * 0.5 / (4.0 * math.sqrt(2.0)))
+        cells = 27
+    table = np.empty((cells * GABOR_IMPULSES, 6))
+    have = False
+    lx, ly, lz = 0.0, 0.0, 0.0
+    for m in range(order.shape[0]):
+        n = order[m]
+        s = scale[n]
+        px, py, pz = points[n, 0] * s, points[n, 1] * s, points[n, 2] * s
+        if dims == 2:
+            pz = 0.0
+        cx, cy, cz = math.floor(px), math.floor(py), math.floor(pz)
+        if not have or cx != lx or cy != ly or cz != lz:
+            _gabor_cell_table(dims, cx, cy, cz, table)
+            have = True
+            lx, ly, lz = cx, cy, cz
+        iso = 1.0 - min(max(anisotropy[n], 0.0), 1.0)
+        f = max(0.001, frequency[n])
+        if dims == 2:
+            ox, oy, oz = math.cos(orientation_2d[n]), math.sin(orientation_2d[n]), 0.0
+            inclination, azimuth = 0.0, 0.0
+        else:
+            ox, oy, oz = orientation_3d[n, 0], orientation_3d[n, 1], orientation_3d[n, 2]
+            ln = math.sqrt(ox * ox + oy * oy + oz * oz)
+            if ln > 0.0:
+                ox, oy, oz = ox / ln, oy / ln, oz / ln
+            inclination = math.acos(min(max(oz, -1.0), 1.0))
+            lxy = math.sqrt(ox * ox + oy * oy)
+            azimuth = math.nan  # Cycles' 0 / 0 for an orientation along z
+            if lxy > 0.0:
+                azimuth = (-1.0 if oy < 0.0 else 1.0) * math.acos(min(max(ox / lxy, -1.0),
+                                                                     1.0))
+        re = 0.0
+        im = 0.0
+        c = 0
+        for kk in range(-1, 2) if dims == 3 else range(0, 1):
+            for j in range(-1, 2):
+                for i in range(-1, 2):
+                    qx, qy, qz = px - cx - i, py - cy - j, pz - cz - kk
+                    for k in range(GABOR_IMPULSES):
+                        row = table[c * GABOR_IMPULSES + k]
+                        dx, dy, dz = qx - row[0], qy - row[1], qz - row[2]
+                        if dx * dx + dy * dy + dz * dz >= 1.0:
+                            continue
+                        ux, uy, uz = ox, oy, oz
+                        if dims == 2:
+                            o = orientation_2d[n] + row[4] * iso
+                            ux, uy = math.cos(o), math.sin(o)
+                        elif iso != 0.0:  # compute_3d_orientation
+                            inc = inclination + row[4] * iso
+                            azi = azimuth + row[5] * iso
+                            ux = math.sin(inc) * math.cos(azi)
+                            uy = math.sin(inc) * math.sin(azi)
+                            uz = math.cos(inc)
+                        a, b = _gabor_kernel(dx, dy, dz, f * ux, f * uy, f * uz)
+                        re += row[3] * a
+                        im += row[3] * b
+                    c += 1
+        if output == 0:
+            out[n] = im / norm * 0.5 + 0.5
+        elif output == 1:
+            out[n] = (math.atan2(im, re) + math.pi) / (2.0 * math.pi)
+        else:
+            out[n] = math.sqrt(re * re + im * im) / norm
+
+
 @register_warm_up
 def _warm_up():
     pts = np.zeros((1, 3))
@@ -864,3 +1004,6 @@ def _warm_up():
     wave_texture(0, 0, 0, pts, one, one, one, one, one, one, val)
     for dims in (1, 2, 3, 4):
         white_noise_texture(dims, pts, one, val, col)
+    for dims in (2, 3):
+        gabor_texture(dims, pts, one, one, one, one, np.ones((1, 3)), 0,
+                      np.zeros(1, np.int64), val)

@@ -387,6 +387,11 @@ class Mesh:
     random    the Object Info node's Random output, 0..1: Blender's instance random_id
               / (2^32 - 1) (Cycles' object random_number; an instance's own)
     object_color  the Object Info node's Color and Alpha: Blender's object.color RGBA
+    location  the Object Info node's Location: the object's (an instance's own) origin in
+              world space, m (the translation of its object-to-world matrix)
+    object_attributes  {name: RGBA} the Attribute node of type Object / Instancer reads
+              per object (Blender's object, instancer or mesh property of that name);
+              a name a mesh lacks reads (0, 0, 0, 0)
     """
 
     name: str
@@ -413,6 +418,8 @@ class Mesh:
     pass_index: int = 0
     random: float = 0.0
     object_color: tuple = (1.0, 1.0, 1.0, 1.0)
+    location: tuple = (0.0, 0.0, 0.0)
+    object_attributes: dict | None = None
     warnings: list = field(default_factory=list, repr=False)
 
     @property
@@ -604,7 +611,7 @@ class Mesh:
             "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
             "visible_shadow", "holdout", "shadow_terminator_offset",
             "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset",
-            "pass_index", "random", "object_color")}
+            "pass_index", "random", "object_color", "location", "object_attributes")}
         return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
                     materials=list(self.materials), material_ids=P.material_ids,
                     prototype=P, matrix=M, **flags)

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from .effects import analyse
-from .geometry import MaterialTable, prepare
+from .geometry import MaterialTable, prepare, set_camera_view
 from .jit import ensure_compiled
 from .lights import prepare_lights
 from .shadowtransmittance import ShadowTransmittance
@@ -345,6 +345,8 @@ class Session:
             self._scene_dirty = self._geometry_dirty = False
         else:
             ctx.scene = scene
+        # The view may have moved without a rebuild: Camera / Window coordinates follow it.
+        set_camera_view(ctx.geo, scene)
         ctx.settings = s
         ctx.plan = analyse(scene, ctx.geo, ctx.table, ctx.lights, ctx.accel, s)
         key = _photon_plan_key(ctx.plan)

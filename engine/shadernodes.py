@@ -653,10 +653,13 @@ class ToGray:
 class ObjectInfo:
     """Object Info node (svm_node_object_info) per hit, from the hit triangle's object
     (Geometry.object_id; an instance's own): RANDOM (Mesh.random, 0..1), COLOR, ALPHA
-    (Mesh.object_color) or OBJECT_INDEX (Mesh.pass_index). Without a Geometry (a
-    constant fold) or its tables: 0, white, 1, 0."""
+    (Mesh.object_color), OBJECT_INDEX (Mesh.pass_index) or LOCATION ((N,3) world-space
+    origin of the object, m: Cycles' object_location, the translation of its object
+    matrix; Mesh.location). Without a Geometry (a constant fold) or its tables: 0,
+    white, 1, 0, the origin. (Material Index is the material's pass index, a constant
+    of the tree: the add-on reads it.)"""
 
-    OUTPUTS = ("RANDOM", "COLOR", "ALPHA", "OBJECT_INDEX")
+    OUTPUTS = ("RANDOM", "COLOR", "ALPHA", "OBJECT_INDEX", "LOCATION")
 
     def __init__(self, output="RANDOM"):
         if output not in self.OUTPUTS:
@@ -666,6 +669,9 @@ class ObjectInfo:
     def evaluate(self, geo, prim, u, v):
         n = len(prim)
         oid = None if geo is None else np.take(geo.object_id, np.asarray(prim, np.int64))
+        if self.output == "LOCATION":
+            table = None if geo is None else getattr(geo, "object_location", None)
+            return np.zeros((n, 3)) if table is None else np.take(table, oid, axis=0)
         if self.output == "COLOR" or self.output == "ALPHA":
             table = None if geo is None else getattr(geo, "object_color", None)
             rgba = np.ones((n, 4)) if table is None else np.take(table, oid, axis=0)
@@ -673,6 +679,30 @@ class ObjectInfo:
         name = "object_random" if self.output == "RANDOM" else "object_pass_index"
         table = None if geo is None else getattr(geo, name, None)
         return np.zeros(n) if table is None else np.take(table, oid)
+
+
+class ObjectAttribute:
+    """Attribute node of type Object or Instancer (Cycles' ATTR_ELEMENT_OBJECT attribute,
+    svm_node_attr on a float4): the hit object's RGBA of that name (Geometry.
+    object_attributes, from Blender's object, instancer or mesh property); output COLOR
+    (N,3), FAC (N,) the average of RGB, or ALPHA (N,). An object without it reads 0."""
+
+    def __init__(self, name, output="COLOR"):
+        if output not in ("COLOR", "FAC", "ALPHA"):
+            raise ValueError(f"Attribute output {output!r}: expected COLOR, FAC or ALPHA")
+        self.name, self.output = str(name), output
+
+    def evaluate(self, geo, prim, u, v):
+        n = len(prim)
+        table = None if geo is None else (getattr(geo, "object_attributes", None)
+                                          or {}).get(self.name)
+        if table is None:
+            rgba = np.zeros((n, 4))
+        else:
+            rgba = np.take(table, np.take(geo.object_id, np.asarray(prim, np.int64)), axis=0)
+        if self.output == "ALPHA":
+            return rgba[:, 3]
+        return rgba[:, :3].mean(axis=1) if self.output == "FAC" else rgba[:, :3]
 
 
 class Clamp:
@@ -1202,6 +1232,189 @@ class WhiteNoise:
         return col if self.output == "COLOR" else val
 
 
+def brick_noise(n):
+    """Cycles' brick_noise (kernel/svm/brick.h): fast integer noise of uint32 n (N,) ->
+    (N,) in [0, 1), wrapping uint32 arithmetic as in C."""
+    n = np.asarray(n).astype(np.uint32)
+    with np.errstate(over="ignore"):
+        n = (n + np.uint32(1013)) & np.uint32(0x7FFFFFFF)
+        n = (n >> np.uint32(13)) ^ n
+        nn = (n * (n * n * np.uint32(60493) + np.uint32(19990303)) + np.uint32(1376312589)) \
+            & np.uint32(0x7FFFFFFF)
+    # (float)nn rounds to float32 in Cycles
+    return 0.5 * (nn.astype(np.float32).astype(np.float64) / 1073741824.0)
+
+
+def svm_brick(p, mortar_size, mortar_smooth, bias, brick_width, row_height, offset_amount,
+              offset_frequency, squash_amount, squash_frequency):
+    """Cycles' svm_brick (kernel/svm/brick.h) per point: p (N,3) scaled coordinates, the
+    other inputs (N,) or scalars (frequencies ints). Returns (tint (N,), mortar (N,)):
+    the brick's random tint (brick_noise of its row and column, plus bias, clamped) and
+    the mortar factor (1 within mortar_size of a brick's edge, smoothed by
+    mortar_smooth with the clamped smoothstep)."""
+    x0, y0 = p[:, 0], p[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rownum = np.floor(y0 / row_height)
+        width = np.broadcast_to(np.asarray(brick_width, np.float64), x0.shape).copy()
+        offset = np.zeros_like(x0)
+        if offset_frequency and squash_frequency:
+            # (C's int % only matters for being 0, which Python's agrees on)
+            width = np.where(np.fmod(rownum, squash_frequency) != 0, width,
+                             width * squash_amount)
+            offset = np.where(np.fmod(rownum, offset_frequency) != 0, 0.0,
+                              width * offset_amount)
+        bricknum = np.floor((x0 + offset) / width)
+        x = (x0 + offset) - width * bricknum
+        y = y0 - row_height * rownum
+    rn = np.nan_to_num(rownum).astype(np.int64)
+    bn = np.nan_to_num(bricknum).astype(np.int64)
+    h = ((rn << 16) + (bn & 0xFFFF)) & 0xFFFFFFFF
+    tint = np.clip(brick_noise(h) + bias, 0.0, 1.0)
+    min_dist = np.minimum(np.minimum(x, y), np.minimum(width - x, row_height - y))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = (1.0 - min_dist / mortar_size) / mortar_smooth
+    smooth = np.where(f <= 0.0, 0.0, np.where(f >= 1.0, 1.0, (3.0 - 2.0 * f) * f * f))
+    mortar = np.where(min_dist >= mortar_size, 0.0,
+                      np.where(np.asarray(mortar_smooth) == 0.0, 1.0, smooth))
+    return tint, mortar
+
+
+class Brick:
+    """Brick Texture node (Cycles svm_node_tex_brick, kernel/svm/brick.h).
+
+    vector   coordinates node (N,3) (the add-on passes Generated when unlinked)
+    inputs   dict of socket values or nodes: Color1, Color2, Mortar (colours), Scale,
+             Mortar Size, Mortar Smooth, Bias, Brick Width, Row Height
+    offset, offset_frequency, squash, squash_frequency: the node's properties
+    output   COLOR (N,3): mix(Color1, Color2, tint) off the mortar, blended to Mortar by
+             the mortar factor; FAC (N,): the mortar factor."""
+
+    SOCKETS = ("Color1", "Color2", "Mortar", "Scale", "Mortar Size", "Mortar Smooth",
+               "Bias", "Brick Width", "Row Height")
+    DEFAULTS = {"Color1": (0.8, 0.8, 0.8), "Color2": (0.2, 0.2, 0.2),
+                "Mortar": (0.0, 0.0, 0.0), "Scale": 5.0, "Mortar Size": 0.02,
+                "Mortar Smooth": 0.1, "Bias": 0.0, "Brick Width": 0.5, "Row Height": 0.25}
+
+    def __init__(self, vector, inputs=None, offset=0.5, offset_frequency=2, squash=1.0,
+                 squash_frequency=2, output="COLOR"):
+        if output not in ("COLOR", "FAC"):
+            raise ValueError(f"Brick Texture output {output!r}: expected COLOR or FAC")
+        self.vector, self.inputs = vector, {**self.DEFAULTS, **(inputs or {})}
+        self.offset, self.offset_frequency = float(offset), int(offset_frequency)
+        self.squash, self.squash_frequency = float(squash), int(squash_frequency)
+        self.output = output
+
+    def evaluate(self, geo, prim, u, v):
+        ins = {k: _eval(self.inputs[k], geo, prim, u, v, 3 if k in ("Color1", "Color2",
+                                                                      "Mortar") else 1)
+               for k in self.SOCKETS}
+        p = _eval(self.vector, geo, prim, u, v, 3) * ins["Scale"][:, None]
+        tint, f = svm_brick(p, ins["Mortar Size"], ins["Mortar Smooth"], ins["Bias"],
+                            ins["Brick Width"], ins["Row Height"], self.offset,
+                            self.offset_frequency, self.squash, self.squash_frequency)
+        if self.output == "FAC":
+            return f
+        c1 = np.where((f != 1.0)[:, None], (1.0 - tint)[:, None] * ins["Color1"]
+                      + tint[:, None] * ins["Color2"], ins["Color1"])
+        return c1 * (1.0 - f)[:, None] + ins["Mortar"] * f[:, None]
+
+
+def svm_magic(p, scale, depth, distortion):
+    """Cycles' svm_magic (kernel/svm/magic.h) per point: p (N,3), scale and distortion
+    (N,), depth 0..10 (the node's turbulence depth). Returns (N,3) colours. The
+    coordinates are reduced by fmod(p, 2 pi) before the scale, as Blender 5.0's Cycles
+    does (a later Cycles reduces p scale instead: the pattern differs wherever a
+    coordinate passes 2 pi unless 5 scale is an integer)."""
+    two_pi = 2.0 * np.pi
+    q = np.fmod(p, two_pi) * (5.0 * scale[:, None])
+    px, py, pz = q[:, 0], q[:, 1], q[:, 2]
+    x = np.sin(px + py + pz)
+    y = np.cos(-px + py - pz)
+    z = -np.cos(-px - py + pz)
+    d = distortion
+    if depth > 0:
+        x, y, z = x * d, y * d, z * d
+        y = -np.cos(x - y + z) * d
+        steps = (("x", lambda x, y, z: np.cos(x - y - z)),
+                 ("z", lambda x, y, z: np.sin(-x - y - z)),
+                 ("x", lambda x, y, z: -np.cos(-x + y - z)),
+                 ("y", lambda x, y, z: -np.sin(-x + y + z)),
+                 ("y", lambda x, y, z: -np.cos(-x + y + z)),
+                 ("x", lambda x, y, z: np.cos(x + y + z)),
+                 ("z", lambda x, y, z: np.sin(x + y - z)),
+                 ("x", lambda x, y, z: -np.cos(-x - y + z)),
+                 ("y", lambda x, y, z: -np.sin(x - y + z)))
+        for name, f in steps[:depth - 1]:
+            val = f(x, y, z) * d
+            if name == "x":
+                x = val
+            elif name == "y":
+                y = val
+            else:
+                z = val
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(d != 0.0, 2.0 * d, 1.0)
+        x, y, z = x / k, y / k, z / k
+    return np.stack([0.5 - x, 0.5 - y, 0.5 - z], axis=1)
+
+
+class Magic:
+    """Magic Texture node (Cycles svm_node_tex_magic, kernel/svm/magic.h): vector (N,3)
+    coordinates node, scale and distortion (socket values or nodes), depth 0..10;
+    output COLOR (N,3) or FAC (N,), the colour's average."""
+
+    def __init__(self, vector, scale=5.0, distortion=1.0, depth=2, output="COLOR"):
+        if output not in ("COLOR", "FAC"):
+            raise ValueError(f"Magic Texture output {output!r}: expected COLOR or FAC")
+        self.vector, self.scale, self.distortion = vector, scale, distortion
+        self.depth, self.output = min(max(int(depth), 0), 10), output
+
+    def evaluate(self, geo, prim, u, v):
+        c = svm_magic(_eval(self.vector, geo, prim, u, v, 3),
+                      _eval(self.scale, geo, prim, u, v, 1), self.depth,
+                      _eval(self.distortion, geo, prim, u, v, 1))
+        return c.mean(axis=1) if self.output == "FAC" else c
+
+
+class Gabor:
+    """Gabor Texture node (Cycles svm_node_tex_gabor, kernel/svm/gabor.h; kernel in
+    engine/procedural.py gabor_texture).
+
+    vector   coordinates node (N,3) (the add-on passes Generated when unlinked)
+    inputs   dict of socket values or nodes: Scale, Frequency, Anisotropy,
+             Orientation 2D (radians), Orientation 3D (a vector, normalised)
+    dims     2 or 3; output VALUE (phasor's sine / (6 sigma), to 0..1), PHASE (its
+             angle, 0..1) or INTENSITY (its length / (6 sigma)), (N,)."""
+
+    SOCKETS = ("Scale", "Frequency", "Anisotropy", "Orientation 2D", "Orientation 3D")
+    DEFAULTS = {"Scale": 5.0, "Frequency": 2.0, "Anisotropy": 1.0,
+                "Orientation 2D": np.pi / 4.0, "Orientation 3D": (2 ** 0.5, 2 ** 0.5, 0.0)}
+    OUTPUTS = ("VALUE", "PHASE", "INTENSITY")
+
+    def __init__(self, vector, inputs=None, dims=2, output="VALUE"):
+        if dims not in (2, 3):
+            raise ValueError(f"Gabor Texture type: expected 2 or 3 dimensions, got {dims!r}")
+        if output not in self.OUTPUTS:
+            raise ValueError(f"Gabor Texture output {output!r}: expected one of "
+                             f"{self.OUTPUTS}")
+        self.vector, self.inputs = vector, {**self.DEFAULTS, **(inputs or {})}
+        self.dims, self.output = int(dims), output
+
+    def evaluate(self, geo, prim, u, v):
+        ins = {k: _eval(self.inputs[k], geo, prim, u, v, 3 if k == "Orientation 3D" else 1)
+               for k in self.SOCKETS}
+        from . import procedural
+        pts = np.ascontiguousarray(_eval(self.vector, geo, prim, u, v, 3))
+        # Visit the hits cell by cell: the kernel hashes a cell's neighbourhood once.
+        cell = np.floor(pts * ins["Scale"][:, None])
+        order = np.lexsort((cell[:, 2], cell[:, 1], cell[:, 0])).astype(np.int64)
+        out = np.empty(len(prim))
+        procedural.gabor_texture(self.dims, pts,
+                                 *(np.ascontiguousarray(ins[k]) for k in self.SOCKETS),
+                                 self.OUTPUTS.index(self.output), order, out)
+        return out
+
+
 class ShadingGeometry:
     """A Geometry seen from a batch of hits: every attribute of `geo`, plus what the
     view-dependent nodes (LayerWeight, Fresnel) read per hit, row for row with the
@@ -1267,6 +1480,74 @@ class GeometryInfo:
             return np.asarray(back, np.float64)
         ng = np.asarray(geo.ng[prim], np.float64).reshape(-1, 3)
         return np.where(np.asarray(back)[:, None], -ng, ng)
+
+
+class CameraView:
+    """What the Texture Coordinate node's Camera and Window outputs need of the camera
+    (Cycles' kernel_data.cam.worldtocamera and worldtondc, scene/camera.cpp), from an
+    engine Camera (scene.Camera: world-space position, rotation columns right, up, back)
+    and the full frame's width and height in pixels."""
+
+    def __init__(self, camera, width: int, height: int):
+        self.position = np.asarray(camera.position, np.float64)
+        self.rotation = np.asarray(camera.rotation, np.float64)
+        self.ortho = camera.kind == "ORTHO"
+        self.hw, self.hh = camera.half_extents(int(width), int(height))
+        big = 2.0 * max(self.hw, self.hh)  # shift is in units of the larger dimension
+        self.shift = np.array([camera.shift_x * big, camera.shift_y * big])
+
+    def to_camera(self, p):
+        """(N,3) world points (m) in Cycles' camera space: x right, y up, z along the view
+        (Blender's camera matrix with z negated, blender/camera.cpp), m."""
+        c = (np.asarray(p, np.float64) - self.position) @ self.rotation
+        c[:, 2] = -c[:, 2]
+        return c
+
+    def to_ndc(self, p):
+        """(N,3) world points in normalised device coordinates (Cycles' camera_world_to_ndc
+        for a perspective or orthographic camera): x, y 0..1 across the full frame from its
+        lower left corner, shift included; z 0 (the Window output sets it so)."""
+        c = self.to_camera(p)
+        xy = c[:, :2]
+        if not self.ortho:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                xy = xy / c[:, 2:3]
+        ndc = np.zeros_like(c)
+        ndc[:, 0] = 0.5 * ((xy[:, 0] - self.shift[0]) / self.hw + 1.0)
+        ndc[:, 1] = 0.5 * ((xy[:, 1] - self.shift[1]) / self.hh + 1.0)
+        return ndc
+
+
+class ViewCoordinates:
+    """Texture Coordinate node, output CAMERA (the hit in Cycles' camera space, m),
+    WINDOW (its normalised device coordinates, 0..1 across the frame, z 0) or REFLECTION
+    (the direction back along the ray mirrored about sd->N, world space: 2 (N . wi) N -
+    wi), as Cycles' svm_node_tex_coord (kernel/svm/tex_coord.h). Camera and Window read
+    the Geometry's camera_view (a CameraView; without one: zeros); Reflection reads the
+    hits' view (_view: without one, the geometric normal head-on gives N)."""
+
+    OUTPUTS = ("CAMERA", "WINDOW", "REFLECTION")
+
+    def __init__(self, output):
+        if output not in self.OUTPUTS:
+            raise ValueError(f"Texture Coordinate output {output!r}: expected one of "
+                             f"{self.OUTPUTS}")
+        self.output = output
+
+    def evaluate(self, geo, prim, u, v):
+        prim = np.asarray(prim, np.int64)
+        if geo is None:
+            return np.zeros((len(prim), 3))
+        if self.output == "REFLECTION":
+            n, wi, _ = _view(geo, prim)
+            n, wi = np.asarray(n, np.float64), np.asarray(wi, np.float64)
+            return 2.0 * np.einsum("ij,ij->i", n, wi)[:, None] * n - wi
+        view = getattr(geo, "camera_view", None)
+        if view is None:
+            return np.zeros((len(prim), 3))
+        p = geo.hit_points(prim, np.asarray(u, np.float64),
+                           np.asarray(v, np.float64)) + np.asarray(geo.offset)
+        return view.to_camera(p) if self.output == "CAMERA" else view.to_ndc(p)
 
 
 def fresnel_dielectric_cos(cosi, eta):

@@ -72,16 +72,22 @@ def test_wave_through_map_range_into_roughness_is_per_hit(fresh_scene, bpy_addon
 
 
 def test_unsupported_node_warning_names_the_value_used(fresh_scene, bpy_addon):
+    """Ambient Occlusion and Bevel need rays inside the shader (not read): the warning
+    names the material, the input, the node and the value used instead."""
     m, nt, out = _material(bpy_addon, "Fallback")
     p = _principled(nt, out)
     p.inputs["Roughness"].default_value = 0.5
-    brick = nt.nodes.new("ShaderNodeTexBrick")   # Brick Texture: not taken
-    nt.links.new(brick.outputs["Fac"], p.inputs["Roughness"])
+    ao = nt.nodes.new("ShaderNodeAmbientOcclusion")   # not taken
+    nt.links.new(ao.outputs["AO"], p.inputs["Roughness"])
+    bevel = nt.nodes.new("ShaderNodeBevel")   # not taken
+    nt.links.new(bevel.outputs["Normal"], p.inputs["Normal"])
     mat = _convert(m)
     assert mat.roughness == pytest.approx(0.5)
-    assert any("Roughness of 'Principled BSDF': node 'Brick Texture' (TEX_BRICK) not "
-               "supported, using 0.5 (the socket's own value)" in w for w in mat.warnings), \
-        mat.warnings
+    assert any("material 'Fallback': Roughness of 'Principled BSDF': node 'Ambient "
+               "Occlusion' (AMBIENT_OCCLUSION) not supported, using 0.5 (the socket's own "
+               "value)" in w for w in mat.warnings), mat.warnings
+    assert any("material 'Fallback'" in w and "'Bevel'" in w and "BEVEL" in w
+               for w in mat.warnings), mat.warnings
 
 
 def test_vector_map_range_folds_into_base_color(fresh_scene, bpy_addon):

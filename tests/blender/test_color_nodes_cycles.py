@@ -84,6 +84,23 @@ def _curves(extrapolate):
     return build
 
 
+def _vector_curves(extrapolate):
+    """Vector Curves: X bent, Y lifted, Z left straight, factor 0.9, on a vector from
+    -1.2 to 1.2 (past the curves' -1 .. 1 range: the extension shows)."""
+    def build(nodes, links):
+        c = nodes.new("ShaderNodeVectorCurve")
+        m = c.mapping
+        m.curves[0].points.new(0.2, -0.5)
+        m.curves[1].points.new(-0.3, 0.4)
+        m.curves[1].points[0].location = (-1.0, -0.6)
+        m.extend = "EXTRAPOLATED" if extrapolate else "HORIZONTAL"
+        m.update()
+        c.inputs[0].default_value = 0.9  # Factor
+        links.new(_vector(nodes, links, -1.2, 1.2), c.inputs["Vector"])
+        return c.outputs["Vector"]
+    return build
+
+
 def _float_curve(nodes, links):
     c = nodes.new("ShaderNodeFloatCurve")
     pts = c.mapping.curves[0].points
@@ -248,7 +265,116 @@ def _white_noise(dims, output):
     return build
 
 
+def _tex_coord(output):
+    """A Texture Coordinate output as the colour (Camera: camera space, m; Window: the
+    frame's 0..1; Reflection: a world-space direction)."""
+    def build(nodes, links):
+        return nodes.new("ShaderNodeTexCoord").outputs[output]
+    return build
+
+
+def _turned(nodes, links, scale=1.0):
+    """Generated coordinates turned 0.6 rad about z (and scaled): x and y both vary
+    along the plane, so a pattern's rows and columns both show."""
+    tc = nodes.new("ShaderNodeTexCoord")
+    m = nodes.new("ShaderNodeMapping")
+    m.inputs["Rotation"].default_value = (0.0, 0.0, 0.6)
+    m.inputs["Scale"].default_value = (scale, scale, scale)
+    links.new(tc.outputs["Generated"], m.inputs["Vector"])
+    return m.outputs["Vector"]
+
+
+def _brick(output, smooth=1.0, **props):
+    """Brick Texture on turned coordinates: mortar 0.1 wide, smoothed `smooth` (fully: a
+    steeper mortar edge meets Cycles' rare sample a third of a pixel from the centre),
+    bias 0.1, three colours; props set the node's offset / squash properties."""
+    def build(nodes, links):
+        b = nodes.new("ShaderNodeTexBrick")
+        for k, val in props.items():
+            setattr(b, k, val)
+        b.inputs["Color1"].default_value = (0.9, 0.5, 0.2, 1.0)
+        b.inputs["Color2"].default_value = (0.2, 0.4, 0.8, 1.0)
+        b.inputs["Mortar"].default_value = (0.1, 0.7, 0.3, 1.0)
+        b.inputs["Scale"].default_value = 2.0
+        b.inputs["Mortar Size"].default_value = 0.1
+        b.inputs["Mortar Smooth"].default_value = smooth
+        b.inputs["Bias"].default_value = 0.1
+        links.new(_turned(nodes, links), b.inputs["Vector"])
+        return b.outputs[output]
+    return build
+
+
+def _magic(output, depth, distortion=1.3, scale=1.0, magic_scale=1.7):
+    """Magic Texture on turned coordinates (scale > 1: past 2 pi, where Cycles reduces
+    the scaled coordinates by fmod)."""
+    def build(nodes, links):
+        m = nodes.new("ShaderNodeTexMagic")
+        m.turbulence_depth = depth
+        m.inputs["Scale"].default_value = magic_scale
+        m.inputs["Distortion"].default_value = distortion
+        links.new(_turned(nodes, links, scale), m.inputs["Vector"])
+        return m.outputs[output]
+    return build
+
+
+def _gabor(output, kind="2D", anisotropy=1.0, frequency=2.0):
+    """Gabor Texture on turned coordinates (scale 4): anisotropy 1 keeps every kernel
+    along the Orientation, less turns them by hashed angles."""
+    def build(nodes, links):
+        g = nodes.new("ShaderNodeTexGabor")
+        g.gabor_type = kind
+        ins = {i.identifier: i for i in g.inputs}
+        ins["Scale"].default_value = 4.0
+        ins["Frequency"].default_value = frequency
+        ins["Anisotropy"].default_value = anisotropy
+        ins["Orientation 2D"].default_value = 0.4
+        ins["Orientation 3D"].default_value = (0.3, 0.8, 0.5)
+        links.new(_turned(nodes, links), g.inputs["Vector"])
+        return g.outputs[output]
+    return build
+
+
+def _vector_into_value(source):
+    """A vector output into a Math node's value input: Cycles converts it to the average
+    of its components (a colour would give its luminance)."""
+    def build(nodes, links):
+        if source == "texcoord":
+            vec = _turned(nodes, links, 1.3)
+        else:  # a Combine XYZ: the components differ the most
+            vec = _vector(nodes, links, -0.5, 1.5)
+        m = nodes.new("ShaderNodeMath")
+        m.operation = "MULTIPLY"
+        m.inputs[1].default_value = 1.0
+        links.new(vec, m.inputs[0])
+        return m.outputs[0]
+    return build
+
+
 CASES = {
+    "vector_into_value_mapping": _vector_into_value("texcoord"),
+    "vector_into_value_combine": _vector_into_value("combine"),
+    "gabor_2d_value": _gabor("Value"),
+    "gabor_2d_phase": _gabor("Phase", frequency=0.7),
+    "gabor_2d_intensity": _gabor("Intensity"),
+    "gabor_2d_isotropic": _gabor("Value", anisotropy=0.2),
+    "gabor_3d_value": _gabor("Value", "3D"),
+    "gabor_3d_isotropic": _gabor("Value", "3D", anisotropy=0.4),
+    "gabor_3d_intensity": _gabor("Intensity", "3D", anisotropy=0.0),
+    "brick_color": _brick("Color"),
+    "brick_fac": _brick("Factor"),
+    "brick_squash_offset": _brick("Color", offset=0.3, offset_frequency=3, squash=0.6,
+                                  squash_frequency=3),
+    "brick_squashed_fac": _brick("Factor", squash=1.4),
+    "magic_color": _magic("Color", 2),
+    "magic_depth_0": _magic("Color", 0),
+    "magic_depth_10_fac": _magic("Factor", 10, distortion=2.2, magic_scale=0.8),
+    "magic_no_distortion": _magic("Color", 0, distortion=0.0),
+    "magic_far_coordinates": _magic("Color", 3, scale=7.5, magic_scale=0.5),
+    "texcoord_camera": _tex_coord("Camera"),
+    "texcoord_window": _tex_coord("Window"),
+    "texcoord_camera_perspective": _tex_coord("Camera"),
+    "texcoord_window_perspective": _tex_coord("Window"),
+    "texcoord_reflection_perspective": _tex_coord("Reflection"),
     "ramp_linear": _ramp("LINEAR"),
     "ramp_constant": _ramp("CONSTANT"),
     "ramp_ease": _ramp("EASE"),
@@ -257,6 +383,8 @@ CASES = {
     "rgb_curves": _curves(False),
     "rgb_curves_extrapolated": _curves(True),
     "float_curve": _float_curve,
+    "vector_curves": _vector_curves(False),
+    "vector_curves_extrapolated": _vector_curves(True),
     "bright_contrast": _bright_contrast,
     "gamma": _gamma,
     "rgb_to_bw": _rgb_to_bw,
@@ -314,12 +442,18 @@ CASES = {
 }
 
 
+# Cases seen by a perspective camera (focal length, mm; shift along x, in units of the
+# frame's width) instead of the orthographic one: the view direction varies over the plane.
+PERSPECTIVE = {"texcoord_camera_perspective": (70.0, 0.0),
+               "texcoord_window_perspective": (70.0, 0.06),
+               "texcoord_reflection_perspective": (70.0, 0.0)}
+
 # Emission below 0 renders as 0 here (a light of negative power): every case is shown
 # lifted by LIFT (a Mix Color, Add) and compared less LIFT.
 LIFT = 4.0
 
 
-def _plane_scene(bpy, scene, build, lift=0.0):
+def _plane_scene(bpy, scene, build, lift=0.0, perspective=None):
     from blender_helpers import node_material
     m, nt, out = node_material(bpy, "Nodes")
     e = nt.nodes.new("ShaderNodeEmission")
@@ -337,7 +471,11 @@ def _plane_scene(bpy, scene, build, lift=0.0):
     bpy.ops.mesh.primitive_plane_add(size=2.0)
     bpy.context.object.data.materials.append(m)
     from blender_helpers import black_world, looking_down_camera
-    looking_down_camera(bpy, scene, 3.0, ortho_scale=1.9)  # inside the plane
+    if perspective is None:
+        looking_down_camera(bpy, scene, 3.0, ortho_scale=1.9)  # inside the plane
+    else:
+        lens, shift_x = perspective
+        looking_down_camera(bpy, scene, 3.0, lens=lens).data.shift_x = shift_x
     black_world(bpy, scene)
     scene.render.resolution_x, scene.render.resolution_y = W, H
     scene.render.resolution_percentage = 100
@@ -349,7 +487,7 @@ def test_node_matches_cycles_texel_by_texel(fresh_scene, bpy_addon, tmp_path, ca
     bpy = bpy_addon
     scene = fresh_scene
     lift = LIFT
-    _plane_scene(bpy, scene, CASES[case], lift)
+    _plane_scene(bpy, scene, CASES[case], lift, PERSPECTIVE.get(case))
     from blender_helpers import render_pixel_centres
     ours = render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")[..., :3] - lift
     ref = render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES")[..., :3] - lift
