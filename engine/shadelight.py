@@ -71,13 +71,37 @@ point, S the shade's translucent lobe, L a served lamp):
   CAUSTIC_DIFFUSE). After: the final gather from x reads the gather map at z, which now
   holds those photons as direct-kind (as every direct photon), and regathered points
   take this estimator in their direct light (integrator.direct_irradiance).
-- x's rough reflective lobes (a wall's specular layer, sheen) towards the shade: their
-  continuation meets the shade and samples the lamp through it (engine/glasslight.py),
-  unchanged; only the diffuse lobe takes this estimator (as the pane's), so no path is
-  counted twice. No MIS is needed: the diffuse lobe's only other strategy through the
-  shade is the final gather, whose rays continue through the translucent lobe
-  (continue_specular) but never add a lamp's emission (lamps are not in the BVH; a gather
-  counts mesh emission only on its own first hit at levels > 0).
+- L S x', x' a camera point's rough reflective lobes (Principled specular layer, metal,
+  coat, sheen; Glossy BSDF: whatever principled.eval_reflection evaluates for the direct
+  light) seen from the camera (glossshade34). Two strategies find it, combined by
+  multiple importance sampling with the power heuristic (Veach 1997, ch. 9):
+  (a) light side, shade_light(glossy=): the same shade samples y as the diffuse lobe's,
+  Lg += L(y -> x) f(wo, w) cos / pdf_w x w_a, pdf_w = pdf_A(y) d^2 / |n_y . w| (y's
+  area pdf converted to solid angle at x), w_a = (n pdf_w)^2 / ((n pdf_w)^2 + pdf_b^2),
+  n the lamp's light samples, pdf_b principled.bsdf_pdf (the continuation's mixture over
+  its lobes with its lobe-choice probabilities sel, as directlight.accumulate_bsdf's MIS);
+  (b) BSDF side: the continuation reflected at x meets the shade at y (its first hit),
+  where the camera path takes the lamp through the shade by NEE
+  (engine/glasslight.py, itself MIS'd against y's refraction) and, next bounce, the
+  lamp's sphere met by that refraction: both are the path's estimate of L(y -> x) and
+  both take w_b = pdf_b^2 / (pdf_b^2 + (n pdf_w)^2) (shade_bsdf_weights; integrator's
+  shade_W in the glass stage, lamp_w at the lamp's hit), pdf_w computed for that y as
+  (a) would have drawn it (_strategy, direction_pdf: the same mixture, the same lamp-side
+  first-hit condition; 0 where (a) cannot draw y: then w_b = 1). w_a + w_b = 1 for every
+  y both can reach (tests/test_glossy_shade_light.py: each side alone and the MIS sum
+  equal a grid integral). Only the served lamps' light through the shade is weighted:
+  other lights y passes on, y's reflection and what follows keep their full weight.
+  Mirror-like lobes (no density: pdf_b inf) keep w_b = 1 and take no light-side sample;
+  a continuation through x (refraction) is not reflected, w_b = 1. The light side takes
+  the same bounce limits as the continuation's hit at y (a glossy bounce: x's counts +
+  (1, 0, 1, 0)); integrator.shade_diffuse's shade_glossy marks the rows that took it,
+  whose reflected rays alone are weighted (at the camera's depth limit no continuation
+  follows and the light side keeps w_a, as accumulate_bsdf's MIS lights do there). Not
+  handled: a continuation that crosses a flat glass passage before the shade (its x is
+  moved, CameraPassages) takes x's weight as if it had not (no test scene has one). Before:
+  (b) alone at full weight, the glass's peaky lobe met rarely (newuser33's sparkles).
+  The diffuse lobe's own estimate stays as it was (no MIS: its only other strategy
+  through the shade is the final gather, which adds no lamp's emission).
 - Paths crossing the shade twice, or a transparent pass after it, another bounce first,
   or from a lamp not served (a mesh light, the world, a sun): caustic photons, as before.
 - Known gap: a Transparent BSDF surface between the lamp and the shade. Its photons
@@ -114,7 +138,7 @@ ENABLED = True
 # The camera points' rough reflective lobes (specular, metal, coat, sheen, Glossy BSDF)
 # take the shade samples too, by MIS against the continuation that meets the shade
 # (glossshade34); False: the diffuse lobe alone, the glossy lobes' light through the
-# shade from reflected rays alone, as before (A/B: bench/bench_glossy_shade.py).
+# shade from reflected rays alone, as before (A/B: docs/accuracy.md "## glossshade34").
 SERVE_GLOSSY = True
 # Light kinds served (their photons through a shade stay direct).
 SERVED_KINDS = ("POINT", "SPOT")
