@@ -165,6 +165,12 @@ GLASS_PEAK_BASE = {"ggx": 0.5, "cos": 1.0}
 # and f_t evaluations; the rays choosing y are shared): the point on the lamp moves the
 # glass's peak (one per y left std / mean 1.6-2.5 by a radius-0.05 m lamp, 8: 0.8-1.0).
 GLASS_LAMP_SAMPLES = 8
+# Which lamps take the glass peak (Shades.near_glass): a centre inside a glass shade
+# object's bounding box grown by this share of its largest side. The peak finds the
+# direction a lamp's light refracts towards x through its own shade; a lamp across the
+# room from a glass shade sampled its peak for every point (_refracted_axes' rays) for
+# the little light it sends through that glass, which the lamp-side choice still finds.
+GLASS_NEAR = 0.5
 # _refracted_axes' fixed-point steps after its first ray (0: the peak read at the point
 # where the lamp's ray towards x meets the shade).
 GLASS_PEAK_STEPS = 1
@@ -186,7 +192,8 @@ class Shades:
     int64 the photon kernel's pane_tri codes (-1, or photonkernels.SHADE_TRANSLUCENT /
     SHADE_GLASS on a shade triangle)."""
 
-    def __init__(self, tl, served, lights, names, code, glass_names=(), glass_centroids=None):
+    def __init__(self, tl, served, lights, names, code, glass_names=(), glass_centroids=None,
+                 glass_boxes=None):
         self.tl, self.served, self.lights = tl, frozenset(served), lights
         self.names, self.code = names, code
         self.glass_names = list(glass_names)
@@ -195,6 +202,17 @@ class Shades:
         # _refracted_axes' start where the lamp's ray towards x misses the shade.
         self.glass_centroids = (np.zeros((0, 3)) if glass_centroids is None
                                 else glass_centroids)
+        # (G,2,3) each glass shade object's bounding box grown by GLASS_NEAR x its largest
+        # side: the lamps whose centre lies in one take the glass peak (near_glass).
+        self.glass_boxes = np.zeros((0, 2, 3)) if glass_boxes is None else glass_boxes
+
+    def near_glass(self, centre) -> bool:
+        """Whether a lamp at centre (3,) is near a rough glass shade (inside a grown box of
+        glass_boxes): only those lamps' samples take the glass peak (_strategy); a lamp
+        elsewhere samples the shades from its side alone, no _refracted_axes rays."""
+        b = self.glass_boxes
+        return bool(len(b) and np.any(np.all((b[:, 0] <= centre) & (centre <= b[:, 1]),
+                                              axis=1)))
 
     def photon_tri(self, light, pane_tri=None) -> np.ndarray | None:
         """pane_tri for the photons of `light` (photonkernels.scatter): this scene's shade
@@ -303,8 +321,19 @@ def find_shades(geo, table, lights, settings=None):
         gt = gt[np.linspace(0, len(gt) - 1, GLASS_START_POINTS).astype(np.int64)]
     centroids = np.asarray(geo.v0, np.float64)[gt] + (np.asarray(geo.e1, np.float64)[gt]
                                                       + np.asarray(geo.e2, np.float64)[gt]) / 3.0
+    boxes = []
+    all_glass = np.flatnonzero(code == pk.SHADE_GLASS)
+    for ob in np.unique(obj[all_glass]):
+        t_ = all_glass[obj[all_glass] == ob]
+        pts = np.concatenate([np.asarray(geo.v0, np.float64)[t_],
+                              np.asarray(geo.v0, np.float64)[t_] + np.asarray(geo.e1)[t_],
+                              np.asarray(geo.v0, np.float64)[t_] + np.asarray(geo.e2)[t_]])
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        grow = GLASS_NEAR * float((hi - lo).max())
+        boxes.append((lo - grow, hi + grow))
     return Shades(tl, served, [lights[i] for i in served], names + glass_names,
-                  np.ascontiguousarray(code), glass_names, np.ascontiguousarray(centroids))
+                  np.ascontiguousarray(code), glass_names, np.ascontiguousarray(centroids),
+                  np.asarray(boxes, np.float64).reshape(-1, 2, 3))
 
 
 def shades_for(ctx):
@@ -658,7 +687,8 @@ def _strategy(ctx, shades, li, p):
     dx = np.sqrt(np.einsum("ij,ij->i", to_x, to_x))
     idx = np.flatnonzero(dx > 1e-9 * scale)
     a = to_x[idx] / dx[idx, None]
-    if not (len(idx) and shades.has_glass and GLASS_PEAK_SHARE > 0.0):
+    if not (len(idx) and shades.has_glass and GLASS_PEAK_SHARE > 0.0
+            and shades.near_glass(centre)):
         return centre, lamp_r, idx, a, None, 0
     rough = np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_ROUGH]
     alpha_mat = np.maximum(rough * rough, 1e-3)

@@ -267,3 +267,33 @@ def test_glossy_floor_under_a_rough_glass_shade_does_not_sparkle(glossy_floor_fi
     print("sparkles, pixel noise / mean: on", got[True], "off", got[False])
     assert got[True][0] < 0.4 * got[False][0], got
     assert got[True][1] < 0.6 * got[False][1], got
+
+
+def test_only_lamps_near_a_glass_shade_take_its_peak():
+    """The glass peak (_refracted_axes' rays for every point and sample) is for the lamps
+    in or near a glass shade (Shades.near_glass: its bounding box grown by GLASS_NEAR x
+    its largest side); a second lamp 3 m away samples the shade from its side alone (no
+    peak rays) and its light through the shade still reaches the floor."""
+    s = _scene()
+    s.add_point_light((3.0, 0.0, 1.0), power=P)
+    s.validate()
+    geo, table = prepare(s)
+    accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, Accel, threads=1)
+    lights = prepare_lights(s, geo, table)
+    ctx = Context(s, RenderSettings(photons=1000, seed=3), geo, table, accel, lights)
+    shades = shadelight.find_shades(geo, table, lights)
+    assert shades is not None and shades.served == {0, 1}
+    p = np.array([[0.6, 0.2, 0.0], [1.0, -0.3, 0.0]]) - geo.offset
+    near = shadelight._strategy(ctx, shades, 0, p)
+    far = shadelight._strategy(ctx, shades, 1, p)
+    assert near[4] is not None and near[5] > 0
+    assert far[4] is None and far[5] == 0
+    # The far lamp's light through the tube (seen from the floor beyond it) is found.
+    m = 20_000
+    x = np.tile(np.array([-1.0, 0.0, 0.0]) - geo.offset, (m, 1))
+    ns = np.tile([0.0, 0.0, 1.0], (m, 1))
+    rng = np.random.default_rng(2)
+    u1, u2 = rng.random((2, m))
+    e, _ = shadelight.shade_irradiance(ctx, shades, x, ns, ns.copy(), np.full(m, 1e-6),
+                                       [(1, True, 1, u1, u2, None)], rng)
+    assert e.mean() > 0.0
