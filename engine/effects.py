@@ -17,6 +17,7 @@ from .geometry import PIECE_TRIANGLES, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
+from . import shadelight
 from .shadelight import find_shades
 from .rayoffset import ulp32
 from .sampling import luminance
@@ -679,14 +680,18 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                      "photons through the shade are direct light, not caustics"
                      + ("; those the glass reflects stay caustics" if shades.glass_names
                         else "")
-                     # Only the diffuse lobe takes the shade estimator (engine/shadelight.py);
-                     # through rough glass the glossy layers' reflected rays meet a peaky
-                     # lobe: newuser33's floor and walls sparkled at 128 and 512 spp with
-                     # nothing saying why (the Specular pass: 73-100 % of their noise).
-                     + ("; glossy reflections of the lamp through the glass (rough "
-                        "specular layers, sheen) come from reflected rays alone and may "
-                        "sparkle (Light Paths > Clamping > Indirect trims them)"
-                        if shades.glass_names else ""))
+                     # The glossy lobes take the shade samples too, by MIS with their
+                     # reflected rays (engine/shadelight.py, glossshade34); without it
+                     # (SERVE_GLOSSY off) those rays meet a peaky lobe alone: newuser33's
+                     # floor and walls sparkled at 128 and 512 spp with nothing saying why.
+                     + (("; glossy reflections of the lamp through the shade (rough "
+                         "specular layers, sheen) take these samples too, shared with "
+                         "their reflected rays by multiple importance sampling")
+                        if shadelight.SERVE_GLOSSY else
+                        ("; glossy reflections of the lamp through the glass (rough "
+                         "specular layers, sheen) come from reflected rays alone and may "
+                         "sparkle (Light Paths > Clamping > Indirect trims them)"
+                         if shades.glass_names else "")))
     if s.method == "local" and lights:
         # No shadow rays: a light's samples only integrate over its area.
         for i, d in enumerate(plan.decisions):

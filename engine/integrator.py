@@ -27,7 +27,7 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from . import adaptive, chaincounts, datapasses, photonvisibility, sampleclamp
+from . import adaptive, chaincounts, datapasses, photonvisibility, sampleclamp, shadelight
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -46,7 +46,7 @@ from .pixelfilter import filter_table
 from .guiding import warp as guide_warp
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .panelight import pane_irradiance, panes_for
-from .shadelight import shade_irradiance, shades_for
+from .shadelight import shade_bsdf_weights, shade_light, shades_for
 from .shadowtransmittance import CameraPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
@@ -118,7 +118,7 @@ _EMPTY_F = np.zeros(0)
 
 def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                       skip_mesh_lights=False, bsdf=None, buffers=None, rows=None,
-                      counts=None) -> np.ndarray:
+                      counts=None, shade_glossy=None) -> np.ndarray:
     """Irradiance (N,3) at the hits from all lights by shadow rays (one ray per sample,
     tested for occlusion), in the compiled kernels of engine/directlight.py.
     skip_mesh_lights: leave emissive meshes to the caller (a recursive gather finds them
@@ -139,7 +139,11 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
     with bsdf per lobe kind (the diffuse f and sheen as a diffuse bounce, the other rough
     reflective lobes as a glossy one: directlight.accumulate_bsdf's cut).
     With bsdf, a light lights only the lobes its ray visibility allows (lobe_cut), each
-    light sampled on its own (with the light tree its members light every lobe)."""
+    light sampled on its own (with the light tree its members light every lobe).
+    shade_glossy: None, or an (n,) bool array set True at the rows whose rough reflective
+    lobes took the lamps through shades (shadelight.shade_light's glossy: the
+    continuation that meets the shade from them is then MIS-weighted,
+    shadelight.shade_bsdf_weights); False elsewhere."""
     n = len(hit.p) if rows is None else len(rows)
     chosen = selector_for(ctx, skip_mesh_lights)
     light_cut = None
@@ -189,6 +193,8 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
                            light_cut=light_cut)
     counters.shadow_rays += rays
+    if shade_glossy is not None:
+        shade_glossy[:] = False
     panes, shades = panes_for(ctx), shades_for(ctx)
     if panes is None and (shades is None or rng is None):
         return E
@@ -203,7 +209,21 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                                ctx.settings.bounce_limits)
     # The rows that take it: within the limits, with a diffuse lobe. Their hit data and
     # light samples are gathered once for both estimators.
-    pts = np.flatnonzero(reach if bsdf is None else reach & (bsdf[0].max(axis=1) > 0.0))
+    diffuse = reach if bsdf is None else reach & (bsdf[0].max(axis=1) > 0.0)
+    # The rough reflective lobes take the lamps through shades too (shadelight.shade_light,
+    # MIS against the continuation that meets the shade): light through a shade is to
+    # them a glossy bounce (Cycles' count: as the continuation's), so their limits are
+    # those of a glossy bounce, which the continuation's own hit checks.
+    gloss = None
+    if bsdf is not None and shades is not None and rng is not None and shadelight.SERVE_GLOSSY:
+        prm_b = bsdf[1] if rows is None else np.take(bsdf[1], rows, axis=0)
+        rough = np.empty(n, np.bool_)
+        pr.rough_reflection_rows(np.ascontiguousarray(prm_b), rough)
+        gloss = rough & chaincounts.within(c + np.array([1, 0, 1, 0], np.int64),
+                                           ctx.settings.bounce_limits)
+        if not gloss.any():
+            gloss = None
+    pts = np.flatnonzero(diffuse if gloss is None else diffuse | gloss)
     if not len(pts):
         return E
     at = pts if rows is None else np.take(rows, pts)
@@ -224,9 +244,25 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
         # Lamps through Translucent BSDF and rough glass shades (engine/shadelight.py):
         # the diffuse lobe's light, which the photons through the shades no longer carry
         # as caustics.
-        Es, rays = shade_irradiance(ctx, shades, p_, ns_, ng_, offset_, sub, rng)
+        glossy = None
+        if gloss is not None:
+            # The continuation's lobe-choice probabilities (none where it makes none:
+            # psum 0 rows carry sel 0 from lobe_choice) and whether it exists at all:
+            # without continuation (specular effects off) the samples count in full.
+            glossy = (np.take(bsdf[1], at, axis=0), np.take(bsdf[4], at, axis=0),
+                      np.take(np.asarray(hit.wo, np.float64), at, axis=0),
+                      ctx.plan.specular_depth > 0)
+        Es, Lg, rays = shade_light(ctx, shades, p_, ns_, ng_, offset_, sub, rng, glossy)
         counters.shadow_rays += rays
-        E[pts] += Es if fd is None else Es * fd
+        if fd is not None:
+            Es = Es * fd
+        if gloss is not None:
+            Es[~diffuse[pts]] = 0.0
+            g_on = gloss[pts]
+            Es[g_on] += Lg[g_on]
+            if shade_glossy is not None:
+                shade_glossy[pts[g_on]] = True
+        E[pts] += Es
     return E
 
 
@@ -1443,7 +1479,7 @@ def smooth_sample_weight(spp: int, stride: int) -> float:
 
 def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, footprint=None,
                   should_cancel=None, glossy=None, sel=None, buffers=None, scattered=None,
-                  rows=None, bounce=None, extra=None, clamp_tp=None):
+                  rows=None, bounce=None, extra=None, clamp_tp=None, shade_glossy=None):
     """Radiance from the diffuse lobe, split into (direct, caustic, indirect); caustic and
     indirect are None without photon mapping. glossy (N,)
     bool: hits whose rough reflective lobes also take shadow rays (light_modes); the direct
@@ -1465,13 +1501,16 @@ def shade_diffuse(ctx, hit, wd, rng, counters, sampler=None, sample_id=None, foo
     engine/chaincounts.py); None: none (the camera's first hits).
     clamp_tp: (K,3) per shaded row, the camera path's throughput: the photon estimates
     (indirect light) are held to Cycles' Clamp Indirect per sample (engine/sampleclamp.py;
-    the direct term is the caller's to clamp); None: no clamp."""
+    the direct term is the caller's to clamp); None: no clamp.
+    shade_glossy: direct_irradiance's (the rows whose glossy lobes took the lamps through
+    shades), written when glossy rows take shadow rays; None: not asked."""
     f = wd / math.pi
     counters.diffuse_hits += len(hit.p) if rows is None else len(rows)
     shadow_rays_before = counters.shadow_rays
     if glossy is not None and glossy.any():
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, bsdf=(f, hit.prm, sel),
-                                   buffers=buffers, rows=rows, counts=extra)
+                                   buffers=buffers, rows=rows, counts=extra,
+                                   shade_glossy=shade_glossy)
     else:
         direct = direct_irradiance(ctx, hit, rng, counters, sampler, buffers=buffers,
                                    rows=rows, counts=extra)
@@ -2005,6 +2044,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     ray_cls = np.full(len(o), CAMERA, np.int64)  # camera rays until a glossy / refraction
     pdf_b = np.full(len(o), np.inf)  # pdf of the continuation that made each ray (MIS)
     modes = light_modes(ctx)
+    # Lamps through shades (engine/shadelight.py): the glossy lobes' shade samples and
+    # the continuation that meets the shade share the light by MIS. shade_from: the
+    # paths whose ray left a hit whose glossy lobes took the shade samples, by a
+    # reflection (None: none); lamp_w (N, L): the weight of each light's emission the
+    # path's ray may meet (set after a shade hit those paths met; None: 1).
+    shades = shades_for(ctx)
+    shade_from = lamp_w = None
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
     has_holdout = bool(ctx.geo.holdout.any())
@@ -2091,6 +2137,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
                     L = L * _mis_weight(ctx, li, light, om, d[rows], tm,
                                         pdf_b[rows], org_ns[rows], org_p[rows])[:, None]
+                if lamp_w is not None and len(rows):
+                    # Its light through the shade the path left: shared with the shade
+                    # samples of the glossy hit before (shadelight.shade_bsdf_weights).
+                    L = L * lamp_w[rows, li][:, None]
                 if clamping:
                     L = sampleclamp.clamp(L, tp, rows, sampleclamp.bounce_limits(
                         s, np.take(chain[:, 0], rows) - 1))
@@ -2158,6 +2208,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if passages is not None:
                 passages.compact(kept)
             chain = np.take(chain, kept, axis=0)
+            if shade_from is not None:
+                shade_from = shade_from[kept]
             if may_split is not None:
                 may_split = may_split[kept]
             if feat is not None:
@@ -2231,6 +2283,21 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc, want_data, ctx.geo, ctx.table, hit, prim, u, v, pix, tp,
             np.nonzero(ray_cls == CAMERA)[0], first, single, cam_pos, forward, ortho,
             ctx.scene.mist, s.pass_alpha_threshold)
+        # The paths from a glossy hit that took the shade samples, meeting a shade: each
+        # served lamp's light through it weighted against those samples (its NEE here in
+        # the glass stage, its emission met by the refraction next bounce: lamp_w).
+        shade_W = None
+        shade_rows = None  # (n,) the hits whose glossy lobes take the shade samples
+        if shade_from is not None and shade_from.any():
+            sf = np.flatnonzero(shade_from)
+            op = org_p if kept is None else org_p[kept]
+            on = org_ns if kept is None else org_ns[kept]
+            Wsf, nr = shade_bsdf_weights(ctx, shades, op[sf], on[sf], o[sf], d[sf], t[sf],
+                                         np.asarray(prim)[sf], pdf_b[sf])
+            counters.shadow_rays += nr
+            if (Wsf != 1.0).any():
+                shade_W = np.ones((n, Wsf.shape[1]))
+                shade_W[sf] = Wsf
         if bounce == 0 and MIRROR_NO_ROULETTE:
             mirror_survival(prm if hit.prm is None else hit.prm, p, psum, q, sel)
         choice = (sel, q, p, psum)
@@ -2250,6 +2317,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # The shaded rows read in place (rows=dsel), or the batch itself: no copies of
             # their fields for the direct stage.
             counters.count("shaded", bounce, nd)
+            sg = (np.zeros(nd, np.bool_) if shades is not None and bounce < depth_limit
+                  and g.any() else None)
             direct, caustic, indirect = shade_diffuse(
                 ctx, hit, wd, rng, counters, strat, sample_id if every else sample_id[dsel],
                 None if footprint is None else footprint[dsel], should_cancel, glossy=g,
@@ -2257,7 +2326,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 scattered=scattered if every or scattered is None else scattered[dsel],
                 rows=None if every else dsel, bounce=bounce,
                 extra=None if bounce == 0 else _chain_counts(chain if every else chain[dsel]),
-                clamp_tp=(tp if every else np.take(tp, dsel, axis=0)) if clamping else None)
+                clamp_tp=(tp if every else np.take(tp, dsel, axis=0)) if clamping else None,
+                shade_glossy=sg)
+            if sg is not None and sg.any():
+                shade_rows = np.zeros(n, np.bool_)
+                shade_rows[dsel[sg]] = True
             if clamping:
                 # (A new array: direct may be the direct stage's buffers.)
                 direct = sampleclamp.clamp(direct, tp, dsel, sampleclamp.bounce_limits(
@@ -2297,11 +2370,23 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # every path that meets no rough glass keeps its numbers.
                     glass_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
                                  else np.random.default_rng(rng.integers(1 << 62)))
-                Lt = transmitted_light(ctx, hit, gl, prm if hit.prm is None else hit.prm, sel,
-                                       psum, modes,
-                                       light_sample_list(ctx, len(gl), glass_rng, modes=modes),
-                                       counters, counts=None if bounce == 0
-                                       else _chain_counts(np.take(chain, gl, axis=0)))
+                gsamples = light_sample_list(ctx, len(gl), glass_rng, modes=modes)
+                glargs = (prm if hit.prm is None else hit.prm, sel, psum, modes)
+                gcounts = None if bounce == 0 else _chain_counts(np.take(chain, gl, axis=0))
+                Wg = None if shade_W is None else shade_W[gl]
+                if Wg is None or (Wg == 1.0).all():
+                    Lt = transmitted_light(ctx, hit, gl, *glargs, gsamples, counters,
+                                           counts=gcounts)
+                else:
+                    # The served lamps' light apart, each by its weight (the same samples).
+                    weighted = [li for li in sorted(shades.served) if (Wg[:, li] != 1.0).any()]
+                    Lt = transmitted_light(ctx, hit, gl, *glargs,
+                                           [e for e in gsamples if e[0] not in weighted],
+                                           counters, counts=gcounts)
+                    for li in weighted:
+                        Lt = Lt + Wg[:, li][:, None] * transmitted_light(
+                            ctx, hit, gl, *glargs, [e for e in gsamples if e[0] == li],
+                            counters, counts=gcounts)
                 if clamping:
                     Lt = sampleclamp.clamp(Lt, tp, gl, sampleclamp.bounce_limits(
                         s, np.take(chain[:, 0], gl)))
@@ -2357,6 +2442,17 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 d[:, 0] * ngk[:, 0] + d[:, 1] * ngk[:, 1] + d[:, 2] * ngk[:, 2] < 0.0)
             if through.any():
                 org_ns[through] = -org_ns[through]
+        if shades is not None:
+            ngk = np.take(hit.ng, keep, axis=0)
+            up = (d[:, 0] * ngk[:, 0] + d[:, 1] * ngk[:, 1] + d[:, 2] * ngk[:, 2]) > 0.0
+            # Reflected rays of the hits whose glossy lobes took the shade samples.
+            shade_from = (shade_rows[keep] & up & np.isfinite(pdf_b)
+                          if shade_rows is not None else None)
+            # Rays through a shade those paths met: its lamps' emission they meet is
+            # weighted as the NEE there was.
+            lamp_w = None
+            if shade_W is not None:
+                lamp_w = np.where((~up)[:, None], np.take(shade_W, keep, axis=0), 1.0)
         if passages is not None:
             passages.step(prim, d_in, hit.p, keep, d, pdf_in, org_ns_in, org_p_in, pdf_b,
                           org_ns, org_p)

@@ -71,13 +71,37 @@ point, S the shade's translucent lobe, L a served lamp):
   CAUSTIC_DIFFUSE). After: the final gather from x reads the gather map at z, which now
   holds those photons as direct-kind (as every direct photon), and regathered points
   take this estimator in their direct light (integrator.direct_irradiance).
-- x's rough reflective lobes (a wall's specular layer, sheen) towards the shade: their
-  continuation meets the shade and samples the lamp through it (engine/glasslight.py),
-  unchanged; only the diffuse lobe takes this estimator (as the pane's), so no path is
-  counted twice. No MIS is needed: the diffuse lobe's only other strategy through the
-  shade is the final gather, whose rays continue through the translucent lobe
-  (continue_specular) but never add a lamp's emission (lamps are not in the BVH; a gather
-  counts mesh emission only on its own first hit at levels > 0).
+- L S x', x' a camera point's rough reflective lobes (Principled specular layer, metal,
+  coat, sheen; Glossy BSDF: whatever principled.eval_reflection evaluates for the direct
+  light) seen from the camera (glossshade34). Two strategies find it, combined by
+  multiple importance sampling with the power heuristic (Veach 1997, ch. 9):
+  (a) light side, shade_light(glossy=): the same shade samples y as the diffuse lobe's,
+  Lg += L(y -> x) f(wo, w) cos / pdf_w x w_a, pdf_w = pdf_A(y) d^2 / |n_y . w| (y's
+  area pdf converted to solid angle at x), w_a = (n pdf_w)^2 / ((n pdf_w)^2 + pdf_b^2),
+  n the lamp's light samples, pdf_b principled.bsdf_pdf (the continuation's mixture over
+  its lobes with its lobe-choice probabilities sel, as directlight.accumulate_bsdf's MIS);
+  (b) BSDF side: the continuation reflected at x meets the shade at y (its first hit),
+  where the camera path takes the lamp through the shade by NEE
+  (engine/glasslight.py, itself MIS'd against y's refraction) and, next bounce, the
+  lamp's sphere met by that refraction: both are the path's estimate of L(y -> x) and
+  both take w_b = pdf_b^2 / (pdf_b^2 + (n pdf_w)^2) (shade_bsdf_weights; integrator's
+  shade_W in the glass stage, lamp_w at the lamp's hit), pdf_w computed for that y as
+  (a) would have drawn it (_strategy, direction_pdf: the same mixture, the same lamp-side
+  first-hit condition; 0 where (a) cannot draw y: then w_b = 1). w_a + w_b = 1 for every
+  y both can reach (tests/test_glossy_shade_light.py: each side alone and the MIS sum
+  equal a grid integral). Only the served lamps' light through the shade is weighted:
+  other lights y passes on, y's reflection and what follows keep their full weight.
+  Mirror-like lobes (no density: pdf_b inf) keep w_b = 1 and take no light-side sample;
+  a continuation through x (refraction) is not reflected, w_b = 1. The light side takes
+  the same bounce limits as the continuation's hit at y (a glossy bounce: x's counts +
+  (1, 0, 1, 0)); integrator.shade_diffuse's shade_glossy marks the rows that took it,
+  whose reflected rays alone are weighted (at the camera's depth limit no continuation
+  follows and the light side keeps w_a, as accumulate_bsdf's MIS lights do there). Not
+  handled: a continuation that crosses a flat glass passage before the shade (its x is
+  moved, CameraPassages) takes x's weight as if it had not (no test scene has one). Before:
+  (b) alone at full weight, the glass's peaky lobe met rarely (newuser33's sparkles).
+  The diffuse lobe's own estimate stays as it was (no MIS: its only other strategy
+  through the shade is the final gather, which adds no lamp's emission).
 - Paths crossing the shade twice, or a transparent pass after it, another bounce first,
   or from a lamp not served (a mesh light, the world, a sun): caustic photons, as before.
 - Known gap: a Transparent BSDF surface between the lamp and the shade. Its photons
@@ -111,6 +135,11 @@ from .sampling import orthonormal_basis
 
 # Off: every shade stays caustic, as before (A/B measurements: bench/bench_lamp_room.py).
 ENABLED = True
+# The camera points' rough reflective lobes (specular, metal, coat, sheen, Glossy BSDF)
+# take the shade samples too, by MIS against the continuation that meets the shade
+# (glossshade34); False: the diffuse lobe alone, the glossy lobes' light through the
+# shade from reflected rays alone, as before (A/B: docs/accuracy.md "## glossshade34").
+SERVE_GLOSSY = True
 # Light kinds served (their photons through a shade stay direct).
 SERVED_KINDS = ("POINT", "SPOT")
 # The share of shade samples drawn about the direction to the shading point
@@ -135,7 +164,14 @@ GLASS_PEAK_BASE = {"ggx": 0.5, "cos": 1.0}
 # Points on a lamp with a radius sampled from each y on a glass shade (their shadow rays
 # and f_t evaluations; the rays choosing y are shared): the point on the lamp moves the
 # glass's peak (one per y left std / mean 1.6-2.5 by a radius-0.05 m lamp, 8: 0.8-1.0).
+# newuser33's corner (glossshade34): 4 per y -7 % CPU, +67 % seed-pair noise; 8 stays.
 GLASS_LAMP_SAMPLES = 8
+# Which lamps take the glass peak (Shades.near_glass): a centre inside a glass shade
+# object's bounding box grown by this share of its largest side. The peak finds the
+# direction a lamp's light refracts towards x through its own shade; a lamp across the
+# room from a glass shade sampled its peak for every point (_refracted_axes' rays) for
+# the little light it sends through that glass, which the lamp-side choice still finds.
+GLASS_NEAR = 0.5
 # _refracted_axes' fixed-point steps after its first ray (0: the peak read at the point
 # where the lamp's ray towards x meets the shade).
 GLASS_PEAK_STEPS = 1
@@ -157,7 +193,8 @@ class Shades:
     int64 the photon kernel's pane_tri codes (-1, or photonkernels.SHADE_TRANSLUCENT /
     SHADE_GLASS on a shade triangle)."""
 
-    def __init__(self, tl, served, lights, names, code, glass_names=(), glass_centroids=None):
+    def __init__(self, tl, served, lights, names, code, glass_names=(), glass_centroids=None,
+                 glass_boxes=None):
         self.tl, self.served, self.lights = tl, frozenset(served), lights
         self.names, self.code = names, code
         self.glass_names = list(glass_names)
@@ -166,6 +203,17 @@ class Shades:
         # _refracted_axes' start where the lamp's ray towards x misses the shade.
         self.glass_centroids = (np.zeros((0, 3)) if glass_centroids is None
                                 else glass_centroids)
+        # (G,2,3) each glass shade object's bounding box grown by GLASS_NEAR x its largest
+        # side: the lamps whose centre lies in one take the glass peak (near_glass).
+        self.glass_boxes = np.zeros((0, 2, 3)) if glass_boxes is None else glass_boxes
+
+    def near_glass(self, centre) -> bool:
+        """Whether a lamp at centre (3,) is near a rough glass shade (inside a grown box of
+        glass_boxes): only those lamps' samples take the glass peak (_strategy); a lamp
+        elsewhere samples the shades from its side alone, no _refracted_axes rays."""
+        b = self.glass_boxes
+        return bool(len(b) and np.any(np.all((b[:, 0] <= centre) & (centre <= b[:, 1]),
+                                              axis=1)))
 
     def photon_tri(self, light, pane_tri=None) -> np.ndarray | None:
         """pane_tri for the photons of `light` (photonkernels.scatter): this scene's shade
@@ -274,8 +322,19 @@ def find_shades(geo, table, lights, settings=None):
         gt = gt[np.linspace(0, len(gt) - 1, GLASS_START_POINTS).astype(np.int64)]
     centroids = np.asarray(geo.v0, np.float64)[gt] + (np.asarray(geo.e1, np.float64)[gt]
                                                       + np.asarray(geo.e2, np.float64)[gt]) / 3.0
+    boxes = []
+    all_glass = np.flatnonzero(code == pk.SHADE_GLASS)
+    for ob in np.unique(obj[all_glass]):
+        t_ = all_glass[obj[all_glass] == ob]
+        pts = np.concatenate([np.asarray(geo.v0, np.float64)[t_],
+                              np.asarray(geo.v0, np.float64)[t_] + np.asarray(geo.e1)[t_],
+                              np.asarray(geo.v0, np.float64)[t_] + np.asarray(geo.e2)[t_]])
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        grow = GLASS_NEAR * float((hi - lo).max())
+        boxes.append((lo - grow, hi + grow))
     return Shades(tl, served, [lights[i] for i in served], names + glass_names,
-                  np.ascontiguousarray(code), glass_names, np.ascontiguousarray(centroids))
+                  np.ascontiguousarray(code), glass_names, np.ascontiguousarray(centroids),
+                  np.asarray(boxes, np.float64).reshape(-1, 2, 3))
 
 
 def shades_for(ctx):
@@ -414,6 +473,18 @@ def _shade_directions(a, r, a2, has2, n_pow, lobe_kind="cos"):
         bu, bv = orthonormal_basis(a2[k])
         w[k] = ((st * np.cos(phi))[:, None] * bu + (st * np.sin(phi))[:, None] * bv
                 + ct[:, None] * a2[k])
+    pdf[has2] = _peak_mixture_pdf(w, a, a2, has2, n_pow, lobe_kind)
+    return w, pdf
+
+
+def _peak_mixture_pdf(w, a, a2, has2, n_pow, lobe_kind):
+    """(H,) solid-angle pdf of _shade_directions' mixture at the unit directions w (N,3)
+    from the lamp's centre, on the H rows where has2 (N,) (the other rows' pdf is
+    _lamp_directions' alone): GLASS_PEAK_SHARE of the peaked lobe about a2 plus the rest
+    of _lamp_directions' about a. Shared by the sampling and by the BSDF side's MIS
+    weight (direction_pdf), so both read the same mixture."""
+    share = GLASS_PEAK_SHARE
+    ggx_lobe = lobe_kind == "ggx"
     h = np.flatnonzero(has2)
     wh = w[h]
     cos_a = np.maximum(np.einsum("ij,ij->i", wh, a[h]), 0.0)
@@ -429,11 +500,16 @@ def _shade_directions(a, r, a2, has2, n_pow, lobe_kind="cos"):
                                                 * (s2 + t2) ** 2), 0.0)
     else:
         lobe = (n_pow[h] + 1.0) / (2.0 * math.pi) * cos2 ** n_pow[h]
-    pdf[h] = share * lobe + (1.0 - share) * broad
-    return w, pdf
+    return share * lobe + (1.0 - share) * broad
 
 
 def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
+    """shade_light's irradiance alone: ((N,3) E, rays traced)."""
+    E, _, rays = shade_light(ctx, shades, p, ns, ng, offset, samples, rng)
+    return E, rays
+
+
+def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None):
     """(N,3) irradiance at points p (N,3) (shading normals ns, geometric normals ng on the
     viewer's side, origin offsets offset (N,)) from the served lights' samples among
     `samples` (integrator.light_sample_list entries: each one's u1, u2 choose the point
@@ -456,7 +532,17 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     the Multiscatter GGX compensation on x's side, as Cycles' path from x takes it); then
     E += L(y -> x) max(N . w, 0) |n_y . w| / (d^2 pdf_A). A lamp with a radius is
     sampled over its whole size at y, but y is chosen from its centre: a shade point the
-    centre cannot see (an occluder right at the lamp) is missed."""
+    centre cannot see (an occluder right at the lamp) is missed.
+
+    glossy: None, or (prm (N, N_PACK), sel (N, N_LOBES), wo (N,3), mis): the points' packed
+    lobes (bsdf.closures), the continuation's lobe-choice probabilities (0 where it makes
+    none) and view directions; then the same samples also serve the points' rough
+    reflective lobes (principled.eval_reflection, the direct light's own evaluation):
+    Lg += L(y -> x) f(wo, w) cos / pdf_w(y) x w_light, pdf_w = pdf_A d^2 / |n_y . w| the
+    sample's solid-angle pdf at x, w_light = (n pdf_w)^2 / ((n pdf_w)^2 + pdf_b^2) (the
+    power heuristic, n the lamp's light samples, pdf_b principled.bsdf_pdf with sel: the
+    continuation's; mis False: w_light 1). Returns ((N,3) E, (N,3) Lg (zeros without
+    glossy), rays traced)."""
     from .bsdf import closures, surface_hit
     from .closures import principled as pr
     from .directlight import direct_light
@@ -464,8 +550,9 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     from .lights.packing import pack_lights
     N = len(p)
     E = np.zeros((N, 3))
+    Lg = np.zeros((N, 3))
     if N == 0 or shades is None:
-        return E, 0
+        return E, Lg, 0
     packed = ctx.packed_lights or pack_lights(ctx.lights)
     geo, accel = ctx.geo, ctx.accel
     shadow = getattr(ctx, "shadow", None)
@@ -475,32 +562,18 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
     # Rough glass: each light sample at full weight (no MIS: this estimator alone counts
     # the lamp -> shade -> x paths), the lobe-choice probabilities unused.
     full = np.ones(max(len(ctx.lights), 1), np.int64)
-    alpha_mat = None
-    if shades.has_glass:
-        rough = np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_ROUGH]
-        alpha_mat = np.maximum(rough * rough, 1e-3)
     for li, traced, count, u1, u2, sel in samples:
         if li < 0 or li not in shades.served:
             continue
-        centre = np.asarray(ctx.lights[li].pos, np.float64).reshape(3)
-        lamp_r = float(getattr(ctx.lights[li], "radius", 0.0) or 0.0)
         # The direction from the lamp takes the sample's stratified numbers (u1, u2);
         # the point on the lamp seen from y, fresh ones.
         lamp_u = rng.random((2, N))
-        to_x = p - centre
-        dx = np.sqrt(np.einsum("ij,ij->i", to_x, to_x))
-        idx = np.flatnonzero(dx > 1e-9 * scale)
+        centre, lamp_r, idx, a, peak, nr = _strategy(ctx, shades, li, p)
+        rays += nr
         if not len(idx):
             continue
-        a = to_x[idx] / dx[idx, None]
-        if shades.has_glass and GLASS_PEAK_SHARE > 0.0:
-            a2, has2, mat0, nr = _refracted_axes(ctx, shades, centre, a, p[idx])
-            rays += nr
-            # (the peaked lobe's spread: of the glass the lamp's ray towards x meets)
-            kind = GLASS_PEAK_LOBE or ("ggx" if lamp_r == 0.0 else "cos")
-            spread = GLASS_PEAK_WIDTH * GLASS_PEAK_BASE[kind] * np.take(alpha_mat, mat0)
-            wl, pdf_w = _shade_directions(a, (u1[idx], u2[idx]), a2, has2,
-                                          2.0 / spread ** 2, kind)
+        if peak is not None:
+            wl, pdf_w = _shade_directions(a, (u1[idx], u2[idx]), *peak)
         else:
             wl, pdf_w = _lamp_directions(a, (u1[idx], u2[idx]))
         # Where the lamp's light lands: its first hit, a shade triangle.
@@ -573,13 +646,125 @@ def shade_irradiance(ctx, shades, p, ns, ng, offset, samples, rng):
                 Ly, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(jdx),
                                       shadow=shadow, transmission=transmission)
                 rays += nr
-                g = jcr * cos_y / (jdist * jdist * np.maximum(pdf_a, 1e-300))
-                E[jdx] += Ly * g[:, None]
             else:
                 Eb, nr = direct_light(packed, arrays, entry, accel, SHADOW, len(jdx),
                                       shadow=shadow)
                 rays += nr
-                T = shades.tl[np.asarray(Y.mat)]
-                g = jcr * cos_y / (math.pi * jdist * jdist * np.maximum(pdf_a, 1e-300))
-                E[jdx] += T * Eb * g[:, None]
-    return E, rays
+                Ly = shades.tl[np.asarray(Y.mat)] * Eb / math.pi  # T E_back / pi
+            g = jcr * cos_y / (jdist * jdist * np.maximum(pdf_a, 1e-300))
+            E[jdx] += Ly * g[:, None]
+            if glossy is not None:
+                # x's rough reflective lobes towards y, by the direct light's evaluation
+                # (f cos at x), over y's solid-angle pdf at x, MIS-weighted against the
+                # continuation that meets the shade (shade_bsdf_weights: its side).
+                gp, gsel, gwo, mis = glossy
+                prm_x = c(gp[jdx])
+                fr = np.empty((len(jdx), 3))
+                pr.eval_reflection_many(prm_x, c(ns[jdx]), c(gwo[jdx]), c(jw), fr)
+                pdf_x = np.maximum(pdf_a, 1e-300) * jdist * jdist / np.maximum(cos_y, 1e-300)
+                wgt = 1.0 / pdf_x
+                if mis:
+                    pb = np.empty(len(jdx))
+                    pr.bsdf_pdf_many(prm_x, c(gsel[jdx]), c(ns[jdx]), c(gwo[jdx]), c(jw), pb)
+                    pl = count * pdf_x
+                    wgt = wgt * (pl * pl / (pl * pl + pb * pb))
+                Lg[jdx] += Ly * fr * wgt[:, None]
+    return E, Lg, rays
+
+
+def _strategy(ctx, shades, li, p):
+    """How the shade samples of served light li are drawn for the points p (N,3): (centre
+    (3,), lamp radius, idx (K,) the points far enough from the centre, a (K,3) their unit
+    directions from it, peak: None (_lamp_directions) or the glass peak's
+    (a2, has2, n_pow, lobe_kind) for _shade_directions, rays traced (_refracted_axes)).
+    The light side (shade_light) and the BSDF side's weights (shade_bsdf_weights) both
+    take it, so each reads the other's pdf."""
+    from .closures import principled as pr
+    light = ctx.lights[li]
+    centre = np.asarray(light.pos, np.float64).reshape(3)
+    lamp_r = float(getattr(light, "radius", 0.0) or 0.0)
+    scale = max(float(ctx.geo.extent), 1e-9)
+    to_x = p - centre
+    dx = np.sqrt(np.einsum("ij,ij->i", to_x, to_x))
+    idx = np.flatnonzero(dx > 1e-9 * scale)
+    a = to_x[idx] / dx[idx, None]
+    if not (len(idx) and shades.has_glass and GLASS_PEAK_SHARE > 0.0
+            and shades.near_glass(centre)):
+        return centre, lamp_r, idx, a, None, 0
+    rough = np.asarray(ctx.table.closure_params, np.float64)[:, pr.M_ROUGH]
+    alpha_mat = np.maximum(rough * rough, 1e-3)
+    a2, has2, mat0, nr = _refracted_axes(ctx, shades, centre, a, p[idx])
+    # (the peaked lobe's spread: of the glass the lamp's ray towards x meets)
+    kind = GLASS_PEAK_LOBE or ("ggx" if lamp_r == 0.0 else "cos")
+    spread = GLASS_PEAK_WIDTH * GLASS_PEAK_BASE[kind] * np.take(alpha_mat, mat0)
+    return centre, lamp_r, idx, a, (a2, has2, 2.0 / spread ** 2, kind), nr
+
+
+def direction_pdf(w, a, peak):
+    """(K,) solid-angle pdf with which the shade samples (_strategy's a, peak) draw the
+    unit directions w (K,3) from the lamp's centre: _lamp_directions' mixture, or with a
+    glass peak _shade_directions'."""
+    cos_a = np.maximum(np.einsum("ij,ij->i", w, a), 0.0)
+    pdf = LAMP_COSINE_SHARE * cos_a / math.pi + (1.0 - LAMP_COSINE_SHARE) * 0.25 / math.pi
+    if peak is not None and peak[1].any():
+        pdf[peak[1]] = _peak_mixture_pdf(w, a, *peak)
+    return pdf
+
+
+def shade_bsdf_weights(ctx, shades, x, x_ns, o, d, t, prim, pdf_b):
+    """The BSDF side of the glossy lobes' MIS (shade_light's glossy): for K continuation
+    rays from camera points x (K,3) (shading normals x_ns (K,3)) whose glossy lobes took
+    the shade samples, leaving from o (K,3) along d (K,3) with pdf pdf_b (K,) (the
+    continuation's, principled.bsdf_pdf; inf: a mirror-like lobe) and meeting triangle
+    prim (K,) at distance t (K,): ((K, L) weights of each light's light through the shade
+    met there, (the power heuristic pdf_b^2 / (pdf_b^2 + (n pdf_w)^2), pdf_w the shade
+    sample's solid-angle pdf at x of that point, n the light's samples; 1 for lights not
+    served, rows not on a shade, mirror-like lobes and points the shade samples cannot
+    draw), rays traced). The point y = o + t d must be the first hit from the lamp's
+    centre towards it, as where shade_light's lamp-side ray lands."""
+    from .geometry import SHADOW
+    K = len(x)
+    W = np.ones((K, max(len(ctx.lights), 1)))
+    rays = 0
+    on = (prim >= 0) & np.isfinite(pdf_b) & np.isfinite(t)
+    on &= np.take(shades.code, np.maximum(prim, 0)) < -1
+    rows = np.flatnonzero(on)
+    if not len(rows):
+        return W, rays
+    geo = ctx.geo
+    c = np.ascontiguousarray
+    scale = max(float(geo.extent), 1e-9)
+    y = o[rows] + t[rows, None] * d[rows]
+    w = d[rows]
+    dist = t[rows]
+    cr = np.einsum("ij,ij->i", w, x_ns[rows])
+    yng = np.cross(np.take(geo.e1, prim[rows], axis=0), np.take(geo.e2, prim[rows], axis=0))
+    yng /= np.maximum(np.linalg.norm(yng, axis=1), 1e-300)[:, None]
+    cos_y = np.abs(np.einsum("ij,ij->i", w, yng))
+    ok = (cr > 0.0) & (dist > 1e-6 * scale) & (cos_y > 0.0)
+    for li in sorted(shades.served):
+        plan = getattr(ctx, "plan", None)  # (None: one sample, as a bare estimator call)
+        n_l = 1 if plan is None else plan.light_samples.get(ctx.lights[li].name, 1)
+        centre, _, idx, a, peak, nr = _strategy(ctx, shades, li, x[rows])
+        rays += nr
+        if not len(idx):
+            continue
+        to_y = y[idx] - centre
+        r = np.sqrt(np.einsum("ij,ij->i", to_y, to_y))
+        wl = to_y / np.maximum(r, 1e-300)[:, None]
+        pdf_w = direction_pdf(wl, a, peak)
+        # y must be where the lamp-side ray lands: its first hit from the centre.
+        t_l, prim_l, _, _ = ctx.accel.intersect(c(np.broadcast_to(centre, (len(idx), 3))),
+                                                c(wl), None, cls=SHADOW)
+        rays += len(idx)
+        land = (prim_l == prim[rows][idx]) & np.isfinite(t_l)
+        land &= np.abs(t_l - r) <= 1e-3 * r + 1e-5 * scale
+        cos_in = np.abs(np.einsum("ij,ij->i", wl, yng[idx]))
+        pdf_a = pdf_w * cos_in / np.maximum(r * r, 1e-300)
+        pl = n_l * pdf_a * dist[idx] ** 2 / np.maximum(cos_y[idx], 1e-300)
+        pl = np.where(land & ok[idx], pl, 0.0)
+        pb = pdf_b[rows][idx]
+        with np.errstate(invalid="ignore", over="ignore"):
+            wb = np.nan_to_num(pb * pb / (pb * pb + pl * pl), nan=1.0)
+        W[rows[idx], li] = wb
+    return W, rays

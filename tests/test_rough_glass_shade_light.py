@@ -252,10 +252,12 @@ def test_floor_under_a_rough_glass_shade_is_smooth(floors):
     assert got["on"][0] < 0.7 * got["off"][0], got
 
 
-def test_rough_glass_shade_line_says_glossy_reflections_are_not_served():
+@pytest.mark.parametrize("glossy", [True, False])
+def test_rough_glass_shade_line_says_how_glossy_reflections_are_served(glossy):
     """The report's lamp-through-shade line says which light the shade estimator serves:
-    the diffuse surfaces'; the glossy layers' reflections of the lamp through rough glass
-    come from reflected rays (engine/shadelight.py's accounting), which sparkle."""
+    the glossy layers' reflections of the lamp through rough glass take its samples too,
+    by MIS with their reflected rays (glossshade34); with SERVE_GLOSSY off they come
+    from reflected rays alone (engine/shadelight.py's accounting), which sparkle."""
     from engine.render import render
     s = PaperScene(width=16, height=12)
     s.add_material(Material("shade", (1, 1, 1), roughness=0.4, transmission=1.0, ior=1.5))
@@ -265,9 +267,18 @@ def test_rough_glass_shade_line_says_glossy_reflections_are_not_served():
     s.add_triangles(v, f, "shade", name="shade")
     s.add_point_light((0, 0, H), power=40, radius=0.03)
     s.set_camera(position=(0, -3, 1.5), look_at=(0, 0, 0.3), up=(0, 0, 1), view_angle=50)
-    film = render(s, RenderSettings(spp=1, photons=5_000, caustic_photons=2_000, seed=1,
-                                    workers=1))
+    old = shadelight.SERVE_GLOSSY
+    try:
+        shadelight.SERVE_GLOSSY = glossy
+        film = render(s, RenderSettings(spp=1, photons=5_000, caustic_photons=2_000, seed=1,
+                                        workers=1))
+    finally:
+        shadelight.SERVE_GLOSSY = old
     line = next(x for x in film.stats["effects"] if x.startswith("lamp through shade"))
     assert "rough glass 'shade'" in line and "by shadow rays" in line, line
-    assert "glossy reflections of the lamp through the glass" in line, line
-    assert "sparkle" in line, line
+    if glossy:
+        assert "glossy reflections of the lamp through the shade" in line, line
+        assert "multiple importance sampling" in line and "sparkle" not in line, line
+    else:
+        assert "glossy reflections of the lamp through the glass" in line, line
+        assert "sparkle" in line, line
