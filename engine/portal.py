@@ -103,15 +103,6 @@ class Portals:
             out[:, k] = np.where(hit, c, out[:, k])
         return out
 
-    def points(self, u0, u1, u2):
-        """Points (N,3) uniform over the panes' area (a triangle by its area, then
-        uniform within it: pbrt-v4 SampleUniformTriangle) and their pane (N,)."""
-        m = np.minimum(np.searchsorted(self.tri_cdf, u0, side="right"), len(self.tri_cdf) - 1)
-        s = np.sqrt(u1)
-        b1, b2 = 1.0 - s, u2 * s
-        x = self.v0[m] + b1[:, None] * self.e1[m] + b2[:, None] * self.e2[m]
-        return x, self.tri_k[m]
-
 
 def _disk_plane_origin(x, d, center, R):
     """The point upstream of x along -d on the natural disk's plane (emission.disk_origin:

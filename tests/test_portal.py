@@ -122,6 +122,42 @@ def test_uniform_sky_through_the_opening_carries_pi_L_A():
     assert np.all(c3[:5_000]) and not np.any(c3[5_000:])
 
 
+def test_environment_map_through_the_opening_matches_brute_force():
+    """An environment map (a sky of 0.4 over a ground of 0.1 with one bright texel near
+    the zenith): the portal's photons (the map x cosine about the pane's outward normal,
+    mixed with the cosine) carry the map's int L cos dw x A, as the natural disk's photons
+    crossing the pane do, and as the map's texel sum says (Closest: constant per texel)."""
+    H_, W_ = 16, 32
+    img = np.full((H_, W_, 3), 0.4, np.float32)
+    img[H_ // 2:] = 0.1
+    img[2, 5] = (60.0, 50.0, 40.0)
+    scene = _room()
+    scene.set_environment(img, interpolation="Closest")
+    ctx, lights = _context(scene)
+    _, P = _portals(ctx)
+    world = next(li for li in lights if li.kind == "WORLD")
+    # The upper hemisphere's int L cos dw per texel row (midpoint rule in theta).
+    want = np.zeros(3)
+    sub = 256
+    for i in range(H_ // 2):
+        th = (i + (np.arange(sub) + 0.5) / sub) * math.pi / H_
+        row = float(np.sum(np.cos(th) * np.sin(th)) * (math.pi / H_ / sub) * (2 * math.pi / W_))
+        want += img[i].astype(np.float64).sum(axis=0) * row
+    want *= A
+    n = 200_000
+    o, d, power = _emit(portal.PortalEmitter(world, P, 1.0), n)
+    got = power.sum(axis=0)
+    rel = power[:, 1].std() * math.sqrt(n) / got[1]
+    o2, d2, p2 = _emit(world, 2_000_000, natural=True, seed=1)
+    cross = P.crossings(o2, d2)[:, 0] > 0
+    brute = p2[cross].sum(axis=0)
+    brute_err = np.sqrt((p2[cross] ** 2).sum(axis=0))
+    print(f"portal {got.round(4)} (+- {rel / math.sqrt(n):.4f} rel) brute force "
+          f"{brute.round(4)} +- {brute_err.round(4)} want {want.round(4)}")
+    np.testing.assert_allclose(got, want, rtol=max(4 * rel / math.sqrt(n), 0.005))
+    assert np.all(np.abs(brute - want) < 4 * brute_err)
+
+
 @pytest.mark.parametrize("theta", [0.0, 30.0, 60.0])
 def test_sun_through_the_opening_carries_E_A_cos(theta):
     E = 3.0
