@@ -237,13 +237,17 @@ class PortalEmitter:
         else:
             env = light.environment
             w = to_world(cosine_hemisphere(u[:, 3], u[:, 4]), outward)
+            drawn = np.ones(n, bool)
             if env is not None:
                 from .lights.world import ENV_MAP_FRACTION as f
                 by_map = np.flatnonzero(u[:, 5] < f)
                 if len(by_map):
-                    w[by_map] = env.cosine_sample(u[by_map, 3], u[by_map, 4],
-                                                  outward[by_map])[0]
-                L = env.radiance(w)
+                    w[by_map], pdf = env.cosine_sample(u[by_map, 3], u[by_map, 4],
+                                                       outward[by_map])
+                    # (pdf 0: the map's part has nothing to draw there, and its density
+                    # is 0 in the mixture too: the sample carries nothing)
+                    drawn[by_map] = pdf > 0
+                L = env.radiance(w) * drawn[:, None]
             else:
                 L = np.broadcast_to(np.asarray(light.radiance, np.float64), (n, 3))
             d = -w
