@@ -64,26 +64,30 @@ DIMS = 6
 
 
 class Portals:
-    """The panes as portals: inward unit normals n_in (K,3) (towards the room: the side
-    holding most of the camera's lookups), areas (K,) m^2, their triangles v0, e1, e2
-    (M,3) with pane index tri_k (M,) and area CDF over all panes tri_cdf (M,), the total
-    area (m^2); `names` the panes' object names; `sky` the share of the lookups' sky
-    seen through the panes."""
+    """The portals: window panes (panelight's) and Cycles light portals (openings,
+    engine.scene.LightPortal), K of them: `names` (K,), inward unit normals n_in (K,3)
+    (towards the room: a pane's side holding most of the camera's lookups, a light
+    portal's own normal), areas (K,) m^2, their triangles v0, e1, e2 (M,3) (re-centred
+    world space) with portal index tri_k (M,) and the area CDF over all of them tri_cdf
+    (M,), the total area (m^2); `panes` how many of the K are panes (the first); `sky`
+    the share of the lookups' sky seen through them."""
 
-    def __init__(self, panes, n_in, sky):
-        self.panes = panes
-        self.names = [p.name for p in panes.panes]
-        self.n_in = np.asarray(n_in, np.float64)
-        self.v0, self.e1, self.e2 = panes.tri_v0, panes.tri_e1, panes.tri_e2
-        self.tri_k, self.tri_cdf = panes.tri_k, panes.tri_cdf
-        self.areas = np.asarray(panes.areas, np.float64)
-        self.area = float(panes.area)
+    def __init__(self, names, v0, e1, e2, tri_k, n_in, panes=0, sky=1.0):
+        self.names = list(names)
+        self.v0, self.e1, self.e2 = (np.ascontiguousarray(x, np.float64) for x in (v0, e1, e2))
+        self.tri_k = np.asarray(tri_k, np.int64)
+        self.n_in = np.asarray(n_in, np.float64).reshape(-1, 3)
+        a = 0.5 * np.linalg.norm(np.cross(self.e1, self.e2), axis=1)
+        self.areas = np.bincount(self.tri_k, weights=a, minlength=len(self.n_in))
+        self.area = float(a.sum())
+        self.tri_cdf = np.cumsum(a) / max(self.area, 1e-300)
+        self.panes = int(panes)
         self.sky = float(sky)
 
-    def crossings(self, o, d) -> np.ndarray:
-        """(N,K) cos_k = d . n_in_k where the line o + t d (t > 0) crosses pane k into the
-        room, else 0 (Moller-Trumbore per triangle; a line crosses a plane once, so at
-        most one of a pane's triangles counts but on a shared edge, a set of measure 0)."""
+    def hits(self, o, d) -> np.ndarray:
+        """(N,K) d . n_in_k where the line o + t d (t > 0) meets portal k, else 0
+        (Moller-Trumbore per triangle; a line meets a plane once, so at most one of a
+        portal's triangles counts but on a shared edge, a set of measure 0)."""
         N, K = len(o), len(self.areas)
         out = np.zeros((N, K))
         for m in range(len(self.v0)):
@@ -99,9 +103,45 @@ class Portals:
             t = (q @ e2) * inv
             k = int(self.tri_k[m])
             c = d @ self.n_in[k]
-            hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (c > 0)
+            hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (c != 0)
             out[:, k] = np.where(hit, c, out[:, k])
         return out
+
+    def crossings(self, o, d) -> np.ndarray:
+        """(N,K) cos_k = d . n_in_k where the line o + t d (t > 0) crosses portal k into
+        the room, else 0."""
+        return np.maximum(self.hits(o, d), 0.0)
+
+
+def portals_from(geo, panes, n_in_panes, light_portals) -> Portals | None:
+    """Portals of the panes (panelight.Panes or None; their inward normals n_in_panes
+    (K,3)) and the scene's light portals (engine.scene.LightPortal list: each rectangle
+    two triangles, re-centred by geo.offset), or None without any."""
+    names, v0, e1, e2, k, n_in = [], [], [], [], [], []
+    K = 0
+    if panes is not None and panes.area > 0.0:
+        names += [p.name for p in panes.panes]
+        v0.append(panes.tri_v0)
+        e1.append(panes.tri_e1)
+        e2.append(panes.tri_e2)
+        k.append(panes.tri_k)
+        n_in += list(np.asarray(n_in_panes, np.float64).reshape(-1, 3))
+        K = len(panes.panes)
+    n_panes = K
+    off = np.asarray(getattr(geo, "offset", np.zeros(3)), np.float64)
+    for lp in light_portals or ():
+        c = lp.corners - off
+        v0.append(np.array([c[0], c[0]]))
+        e1.append(np.array([c[1] - c[0], c[2] - c[0]]))
+        e2.append(np.array([c[2] - c[0], c[3] - c[0]]))
+        k.append(np.array([K, K]))
+        names.append(lp.name)
+        n_in.append(lp.normal)
+        K += 1
+    if K == 0:
+        return None
+    return Portals(names, np.concatenate(v0), np.concatenate(e1), np.concatenate(e2),
+                   np.concatenate(k), np.array(n_in), panes=n_panes)
 
 
 def _disk_plane_origin(x, d, center, R):
@@ -276,12 +316,13 @@ class PortalEmitter:
         return j
 
 
-def sky_through_panes(ctx, panes, points, normals, n_in):
+def sky_through_portals(ctx, portals: Portals, pane_tri, points, normals):
     """The share of the sky that the lookups at points (N,3) with normals (N,3) see
-    through the panes: one cosine ray each (seeded: settings' seed, PORTAL_STREAM), a
-    ray that misses everything sees the sky directly, one whose first hit is a pane from
-    the room's side (against its n_in) and then misses sees it through the panes. None
-    when no ray sees the sky."""
+    through the portals: one cosine ray each (seeded: settings' seed, PORTAL_STREAM). A
+    ray that misses everything sees the sky: through a light portal if its line meets
+    one on the way out (against its n_in), else directly; one whose first hit is a pane
+    (pane_tri (T,): the pane of each triangle, -1 none) from the room's side and then
+    misses sees it through that pane. None when no ray sees the sky."""
     if len(points) == 0:
         return None
     rng = np.random.default_rng([ctx.settings.seed, PORTAL_STREAM])
@@ -290,34 +331,44 @@ def sky_through_panes(ctx, panes, points, normals, n_in):
     scale = max(float(ctx.geo.extent), 1e-9)
     o = points + 1e-5 * scale * normals
     t, prim, _, _ = ctx.accel.intersect(o, d, np.full(len(o), np.inf))
-    direct = prim < 0
-    k = np.where(prim >= 0, panes.pane_tri[np.maximum(prim, 0)], -1)
-    on_pane = (k >= 0)
-    on_pane[on_pane] = np.einsum("ij,ij->i", d[on_pane], n_in[k[on_pane]]) < 0
+    sky = prim < 0
     through = np.zeros(len(o), bool)
-    if on_pane.any():
-        r = np.flatnonzero(on_pane)
-        o2 = o[r] + (t[r] + 1e-5 * scale)[:, None] * d[r]
-        _, p2, _, _ = ctx.accel.intersect(o2, d[r], np.full(len(r), np.inf))
-        through[r] = p2 < 0
-    seen = int(direct.sum() + through.sum())
+    if sky.any() and len(portals.n_in) > portals.panes:
+        r = np.flatnonzero(sky)
+        through[r] = (portals.hits(o[r], d[r])[:, portals.panes:] < 0).any(axis=1)
+    if pane_tri is not None:
+        k = np.where(prim >= 0, pane_tri[np.maximum(prim, 0)], -1)
+        on_pane = k >= 0
+        on_pane[on_pane] = np.einsum("ij,ij->i", d[on_pane], portals.n_in[k[on_pane]]) < 0
+        if on_pane.any():
+            r = np.flatnonzero(on_pane)
+            o2 = o[r] + (t[r] + 1e-5 * scale)[:, None] * d[r]
+            _, p2, _, _ = ctx.accel.intersect(o2, d[r], np.full(len(r), np.inf))
+            through[r] = p2 < 0
+            sky[r] = p2 < 0
+    seen = int(sky.sum())
     return None if seen == 0 else float(through.sum()) / seen
 
 
 def portal_plan(ctx, emitters: list, counts: list, region=None):
-    """The global shot's emitters with the world's and suns' photons started on the panes
-    where the scene is a room lit through them: (emitters, counts, report sentence or
-    ""). region: visual importance's Region (its lookups), else the pre-pass runs here.
-    A light served by the panes (panelight.Panes.lights: its shadow rays refract through
-    them) becomes a PortalEmitter with share min(sky, PORTAL_SHARE_MAX) when the share of
-    the sky its lookups see through the panes, sky, is at least PORTAL_MIN_SKY; its
-    count is kept."""
+    """The global shot's emitters with the world's and suns' photons started on the
+    portals (window panes: panelight's; Cycles light portals: ctx.scene.portals) where
+    the scene is a room lit through them: (emitters, counts, report sentence or "").
+    region: visual importance's Region (its lookups), else the pre-pass runs here. Each
+    light at infinity with power (a sun: whose direction enters through a portal) becomes
+    a PortalEmitter with share min(sky, PORTAL_SHARE_MAX) when the share of the sky the
+    lookups see through the portals, sky, is at least PORTAL_MIN_SKY; its count is
+    kept. Portal emission only re-samples the light's rays (the kinds its photons take
+    through a pane are the tracing's), so it needs no shadow rays of the light."""
     from .panelight import panes_for
     from .visualimportance import RegionEmitter, lookup_points
     if not ENABLED:
         return emitters, counts, ""
     panes = panes_for(ctx)
-    if panes is None or not panes.area > 0.0:
+    if panes is not None and not panes.area > 0.0:
+        panes = None
+    light_portals = list(getattr(ctx.scene, "portals", None) or ())
+    if panes is None and not light_portals:
         return emitters, counts, ""
     if region is not None and region.points is not None:
         pts, nrm = region.points, region.normals
@@ -325,26 +376,28 @@ def portal_plan(ctx, emitters: list, counts: list, region=None):
         pts, nrm = lookup_points(ctx, normals=True)
     if len(pts) == 0:
         return emitters, counts, ""
-    # The room's side of each pane: the side most lookups lie on.
+    # A pane's room side: the side most lookups lie on.
     n_in = []
-    for q in panes.panes:
+    for q in (panes.panes if panes is not None else ()):
         side = (pts - q.c) @ q.n
         n_in.append(q.n if np.sum(side > 0) >= np.sum(side < 0) else -q.n)
-    n_in = np.array(n_in)
-    sky = sky_through_panes(ctx, panes, pts, nrm, n_in)
-    names = ", ".join(f"'{p.name}'" for p in panes.panes)
+    portals = portals_from(ctx.geo, panes, np.array(n_in), light_portals)
+    sky = sky_through_portals(ctx, portals, None if panes is None else panes.pane_tri,
+                              pts, nrm)
+    names = ", ".join(f"'{x}'" for x in portals.names)
+    what = ("window panes" if not light_portals else
+            "light portals" if panes is None else "window panes and light portals")
     if sky is None or sky < PORTAL_MIN_SKY:
         seen = "none" if sky is None else f"{sky:.0%}"
         return emitters, counts, (f"photon portals: off - the sky the camera sees is mostly "
-                                  f"not through the panes {names} ({seen} through them): "
+                                  f"not through the {what} {names} ({seen} through them): "
                                   "the world's and suns' photons as before")
-    portals = Portals(panes, n_in, sky)
+    portals.sky = sky
     share = min(sky, PORTAL_SHARE_MAX)
     out, used = [], []
     for e in emitters:
         light = e.light if isinstance(e, RegionEmitter) else e
-        if (isinstance(light, InfiniteLight) and panes.serves(light)
-                and PortalEmitter.aims(light, portals)
+        if (isinstance(light, InfiniteLight) and PortalEmitter.aims(light, portals)
                 and float(luminance(np.asarray(light.photon_flux, np.float64))) > 0):
             out.append(PortalEmitter(light, portals, share))
             used.append(light.name)
@@ -354,5 +407,5 @@ def portal_plan(ctx, emitters: list, counts: list, region=None):
         return emitters, counts, ""
     who = ", ".join(f"'{u}'" for u in used)
     return out, counts, (f"photon portals: on - {share:.0%} of the photons of {who} start "
-                         f"on the window panes {names} ({sky:.0%} of the sky the camera's "
+                         f"on the {what} {names} ({sky:.0%} of the sky the camera's "
                          "surfaces see is through them), the rest as before")

@@ -24,7 +24,7 @@ from engine.lights import prepare_lights
 from engine.lights.base import emission_key
 from engine.lights.emission import EmissionBuffers
 from engine.render import Context
-from engine.scene import Camera, Light, Material
+from engine.scene import Camera, Light, LightPortal, Material
 
 R = importlib.import_module("engine.render")
 
@@ -33,13 +33,15 @@ HALF, H, W = 2.0, 2.0, 0.5   # room half width, height, the window's half width 
 A = (2 * W) ** 2             # the window's area (m^2)
 
 
-def _room(sun=None, background=(L, L, L), open_top=False, open_side=False):
+def _room(sun=None, background=(L, L, L), open_top=False, open_side=False, pane=True,
+          light_portal=False):
     """A 4 x 4 x 2 m closed room (albedo 0.5; zero-thickness walls, as Blender users
     model them) with a 1 x 1 m single-plane glass pane (IOR 1.5) in the middle of its
     roof, under a world of radiance L (and a sun: (direction, strength)); an
     orthographic camera inside looking down at the floor. open_top: no roof (an open
     box: the sky seen mostly directly); open_side: one wall 1 m high (a 4 x 1 m opening
-    above it: light by another route)."""
+    above it: light by another route); pane=False: an open window (no glass);
+    light_portal: a Cycles light portal over the window, facing down into the room."""
     s = PaperScene(width=32, height=32, background=background)
     s.add_material(Material("wall", (0.5,) * 3))
     s.add_material(Material("glass", (1.0, 1.0, 1.0), transmission=1.0, ior=1.5,
@@ -59,7 +61,11 @@ def _room(sun=None, background=(L, L, L), open_top=False, open_side=False):
         f = np.array([[0, 4, 1], [1, 4, 5], [1, 5, 2], [2, 5, 6], [2, 6, 3], [3, 6, 7],
                       [3, 7, 0], [0, 7, 4]])
         s.add_triangles(v, f, "wall", name="roof")
-    s.add_plane((0, 0, H), (0, 0, 1), 2 * W, "glass", name="pane")
+    if pane:
+        s.add_plane((0, 0, H), (0, 0, 1), 2 * W, "glass", name="pane")
+    if light_portal:
+        s.portals.append(LightPortal("Portal", [(-W, -W, H), (W, -W, H), (W, W, H),
+                                                (-W, W, H)], (0.0, 0.0, -1.0)))
     if sun is not None:
         d, strength = sun
         s.add_light(Light("sun", "SUN", power=strength, direction=d))
@@ -81,7 +87,7 @@ def _portals(ctx):
     panes = panelight.panes_for(ctx)
     assert panes is not None and [p.name for p in panes.panes] == ["pane"]
     n_in = np.array([[0.0, 0.0, -1.0]])  # down into the room
-    return panes, portal.Portals(panes, n_in, 1.0)
+    return panes, portal.portals_from(ctx.geo, panes, n_in, [])
 
 
 def _emit(emitter, n, count=None, seed=0, natural=False):
@@ -283,3 +289,42 @@ def test_portal_split_is_unbiased_with_another_way_in(monkeypatch):
           f"against natural {np.round(got[False], 3)} mean {w0:.4f}")
     assert 0 < share < 90
     assert w1 == pytest.approx(w0, rel=0.03)
+
+
+def test_light_portal_over_an_opening_carries_pi_L_A():
+    """A Cycles light portal over the open 1 x 1 m roof window (no glass): the portal
+    photons carry pi L A exactly, as the natural disk's photons crossing the opening do."""
+    ctx, lights = _context(_room(pane=False, light_portal=True))
+    P = portal.portals_from(ctx.geo, None, np.zeros((0, 3)), ctx.scene.portals)
+    assert P.names == ["Portal"] and P.area == pytest.approx(A)
+    world = next(li for li in lights if li.kind == "WORLD")
+    o, d, power = _emit(portal.PortalEmitter(world, P, 1.0), 20_000)
+    want = math.pi * L * A
+    np.testing.assert_allclose(power.sum(axis=0), want, rtol=1e-9)
+    o2, d2, p2 = _emit(world, 2_000_000, natural=True, seed=1)
+    cross = P.crossings(o2, d2)[:, 0] > 0
+    got = float(p2[cross, 1].sum())
+    err = got / math.sqrt(cross.sum())
+    print(f"light portal {power[:, 1].sum():.5f} brute force {got:.5f} +- {err:.5f}")
+    assert abs(got - want) < 4 * err
+
+
+def test_light_portal_fills_the_room():
+    """The open roof window with a light portal: many times main's photons inside, the
+    same power as natural emission (20x the photons); without the light portal an open
+    window is not found (no glass: panelight finds panes only)."""
+    film, ph, geo = _render_spy(_room(pane=False, light_portal=True), True, spp=1)
+    _, p0, g0 = _render_spy(_room(pane=False, light_portal=True), False, spp=1)
+    _, pr, gr = _render_spy(_room(pane=False), False, spp=1, photon_importance=False,
+                            photons=400_000)
+    i1, i0, ir = _inside(ph, geo), _inside(p0, g0), _inside(pr, gr)
+    w1, wr = (p.power[i].astype(np.float64).sum() for p, i in ((ph, i1), (pr, ir)))
+    print(f"inside photons {i1.sum()} vs {i0.sum()}; power inside {w1:.4f}, natural 400k "
+          f"{wr:.4f} ({ir.sum()})")
+    line = next(x for x in film.stats["effects"] if x.startswith("photon maps"))
+    assert "start on the light portals 'Portal'" in line
+    assert i1.sum() > 20 * i0.sum()
+    assert w1 == pytest.approx(wr, rel=0.05)
+    f2, _, _ = _render_spy(_room(pane=False), True, spp=1)
+    assert "photon portals" not in next(x for x in f2.stats["effects"]
+                                       if x.startswith("photon maps"))
