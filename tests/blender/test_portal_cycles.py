@@ -103,3 +103,43 @@ def test_room_lit_through_a_roof_window_matches_cycles(fresh_scene, bpy_addon, t
     assert want > 0.005
     assert got == pytest.approx(want, rel=0.03)
     assert noise(True) < noise(False)
+
+
+def test_a_light_portal_emits_nothing_as_in_cycles(fresh_scene, bpy_addon, tmp_path):
+    """An Area light of 1000 W with Portal on over a grey floor under a black world:
+    Cycles renders black (a portal only guides its background sampling), and so do we
+    (before portal34 it lit the floor as an area light)."""
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    bpy = bpy_addon
+    scene = fresh_scene
+    grey = glass_or_diffuse_material(bpy, "Grey", "diffuse", (0.6,) * 3)
+    _plane(bpy, 4, (0, 0, 0), (0, 0, 0), (1, 1, 1), grey, "Floor")
+    ld = bpy.data.lights.new("Portal", "AREA")
+    ld.energy, ld.size = 1000.0, 1.0
+    ld.cycles.is_portal = True
+    ob = bpy.data.objects.new("Portal", ld)
+    ob.location = (0.0, 0.0, 1.0)
+    scene.collection.objects.link(ob)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 3.0
+    cam.location = (0.0, 0.0, 2.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    import sys
+    from blender_helpers import ROOT
+    sys.path.insert(0, f"{ROOT}/example_blends")
+    import make_blends
+    scene.world = bpy.data.worlds.new("World")
+    make_blends.set_world((0.0, 0.0, 0.0), 0.0)
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    scene.render.resolution_percentage = 100
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=2, photons=2_000, caustic_photons=1_000)
+    ours = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "ours.exr"))[..., :3]
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, 16, 12)
+    ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
+    print(f"a 1000 W portal light: Cycles mean {float(ref.mean()):.6f}, ours "
+          f"{float(ours.mean()):.6f}")
+    assert float(ref.max()) == 0.0
+    assert float(ours.max()) == 0.0
