@@ -475,9 +475,13 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     reading of the object matrix: position = translation, direction = -Z axis (normalised),
     area size = size x length of the X / Y axes (so negative scale flips only what it
     flips in Cycles), point radius and sun strength / angle unscaled, spot cone stretched
-    by the scale (measured against Cycles 5.0 in tests/blender/test_blender_fidelity.py)."""
+    by the scale (measured against Cycles 5.0 in tests/blender/test_blender_fidelity.py).
+    An Area light with Cycles' Portal on emits nothing: an engine LightPortal instead
+    (light_portal; export_scene parts them from the lights: split_portals)."""
     L = obj.data
     kind = L.type
+    if kind == "AREA" and getattr(getattr(L, "cycles", None), "is_portal", False):
+        return light_portal(pm, L, matrix, name, warnings)
     if kind not in pm.DECLARED_KINDS:  # the engine's light registry (engine/lights/)
         warnings.append(f"light '{name}': type {kind} is not supported and skipped")
         return None
@@ -555,6 +559,33 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
         warnings.append(f"light '{name}': 'cast shadow' off: its direct light passes every "
                         "object, as in Cycles; its indirect light (photons) is still shadowed")
     return pm.Light(**kw)
+
+
+def light_portal(pm, L, matrix: np.ndarray, name: str, warnings: list):
+    """An Area light with Cycles' Portal on (light data L, world matrix (4,4)): emits
+    nothing in Cycles, so no light here either; a rectangle (Square / Rectangle; an
+    Ellipse / Disk portal as its bounding rectangle is not Cycles' shape: skipped with a
+    warning) as engine.scene.LightPortal, its normal the light's local -Z (into the
+    room), or None."""
+    if L.shape not in ("SQUARE", "RECTANGLE"):
+        warnings.append(f"light portal '{name}': shape {L.shape} is not supported (only "
+                        "Square and Rectangle portals); it is left out (it emits nothing)")
+        return None
+    R = matrix[:3, :3]
+    hx = 0.5 * float(L.size) * R[:, 0]
+    hy = 0.5 * float(L.size_y if L.shape == "RECTANGLE" else L.size) * R[:, 1]
+    c = matrix[:3, 3]
+    corners = np.array([c - hx - hy, c + hx - hy, c + hx + hy, c - hx + hy])
+    normal = -R[:, 2]
+    if not (np.linalg.norm(np.cross(hx, hy)) > 0 and np.linalg.norm(normal) > 0):
+        return None
+    return pm.LightPortal(name=name, corners=corners, normal=normal)
+
+
+def split_portals(pm, lights: list) -> tuple:
+    """(lights, portals): convert_light's results parted into lights and LightPortals."""
+    portals = [x for x in lights if isinstance(x, pm.LightPortal)]
+    return [x for x in lights if not isinstance(x, pm.LightPortal)], portals
 
 
 # --- camera -------------------------------------------------------------------------
@@ -1153,13 +1184,14 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     camera_out = convert_camera(pm, cam_obj, width, height, render, warnings,
                                 scene_eval.objects)
     background, environment = export_world(pm, scene_eval.world, warnings)
+    lights, portals = split_portals(pm, lights)
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     if render.use_motion_blur:
         warnings.append("motion blur is not supported and ignored")
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
                      background_is_light=True, environment=environment,
-                     mist=world_mist(pm, scene_eval.world))
+                     mist=world_mist(pm, scene_eval.world), portals=portals)
     scene.warnings.extend(warnings)
     info["lights"] = len(lights)
     info["export_time"] = time.perf_counter() - t0
@@ -1354,11 +1386,12 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         del cache.geometry[gkey]
         cache.prototypes.pop(gkey, None)
     background, environment = export_world(pm, scene_eval.world, warnings)
+    lights, portals = split_portals(pm, lights)
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
                      background_is_light=True, environment=environment,
-                     mist=world_mist(pm, scene_eval.world))
+                     mist=world_mist(pm, scene_eval.world), portals=portals)
     scene.warnings.extend(warnings)
     light_names = [li.name for li in lights]
     info.update(

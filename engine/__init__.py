@@ -31,7 +31,7 @@ from .lights.environment import Environment  # noqa: E402
 from .progressive import Budget, render_progressive  # noqa: E402
 from .render import render  # noqa: E402
 from .resources import ResourceError  # noqa: E402
-from .scene import Camera, Light, Material, Mesh, Prototype, Scene, SceneError  # noqa: E402
+from .scene import Camera, Light, LightPortal, Material, Mesh, Prototype, Scene, SceneError  # noqa: E402
 from .settings import RenderSettings  # noqa: E402
 from .normalmap import Bump, NormalMap  # noqa: E402
 from .textures import ColorAttribute, ImageTexture, TextureError  # noqa: E402

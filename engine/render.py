@@ -978,6 +978,8 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
         parts.append(_caustic_radius_words(settings, stats, held))
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])
+    if stats.get("photon_portals"):
+        parts.append(stats["photon_portals"])
     if stats.get("gather_rays_used"):
         share = stats.get("indirect_share")
         seen = ("share not measured" if share is None else
@@ -1042,6 +1044,14 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
     s = ctx.settings
     if not (s.photon_importance and ctx.plan.indirect and s.final_gather
             and not s.paper_mode and not getattr(ctx.scene, "photons_per_light", None)):
+        if s.photon_importance and ctx.plan.indirect and not s.paper_mode:
+            # Portals keep each light's count and where its photons land inside: they
+            # only drop the photons that meet the room's outside (engine/portal.py).
+            from .portal import portal_plan
+            emitters, counts, said = portal_plan(ctx, list(ctx.lights), counts)
+            if said:
+                stats["photon_portals"] = said
+            return emitters, counts
         return ctx.lights, counts
     from .visualimportance import plan_global_shot, region_of_interest
     region = region_of_interest(ctx)
@@ -1055,6 +1065,15 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
     if any(isinstance(light, InfiniteLight) for light in ctx.lights):
         ctx.importance_region = shot.region
     emitters, counts = shot.emitters, shot.counts
+    # The world's and suns' photons from the window panes in a room lit through them
+    # (engine/portal.py).
+    from .portal import portal_plan
+    emitters, counts, said = portal_plan(ctx, emitters, counts, region)
+    if said:
+        stats["photon_portals"] = said
+        from .visualimportance import RegionEmitter
+        if shot.report and not any(isinstance(e, RegionEmitter) for e in emitters):
+            stats.pop("photon_importance", None)  # (its aimed lights now start on the panes)
     # Window glass's rims pipe a line of light to the pane's edges; its photons are the
     # global shot's where the caustic map is built from it (visualimportance.aim_at_rims).
     plan = ctx.plan
@@ -1088,7 +1107,7 @@ GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one 
 
 def glow_emitters(emitters, counts, natural) -> tuple:
     """The glow shot's (emitters, counts) from the global shot's (global_emitters: lights
-    or visualimportance.RegionEmitters, in ctx.lights' order) and the natural photon
+    or visualimportance.RegionEmitters / portal.PortalEmitters, in ctx.lights' order) and the natural photon
     counts per light (photon_counts). A RegionEmitter emits GLOW_SPLIT x its aimed photons
     (into the region: each 1 / GLOW_SPLIT of the global shot's) and outside at least
     GLOW_SPLIT x the light's natural count (each at most 1 / GLOW_SPLIT of a natural
@@ -1097,7 +1116,7 @@ def glow_emitters(emitters, counts, natural) -> tuple:
     their global counts."""
     out_e, out_c = [], []
     for e, c, nat in zip(emitters, counts, natural):
-        if not hasattr(e, "region") or c <= 0:
+        if getattr(e, "share", None) is None or c <= 0:
             out_e.append(e)
             out_c.append(int(round(GLOW_SPLIT * c)))
             continue
@@ -1114,8 +1133,9 @@ def glow_emitters(emitters, counts, natural) -> tuple:
 def _importance_aimed(emitters) -> bool:
     """Whether global_emitters' emitters aim by visual importance (a RegionEmitter among
     them): their photons' power then differs by where they start."""
+    from .portal import PortalEmitter
     from .visualimportance import RegionEmitter
-    return any(isinstance(e, RegionEmitter) for e in emitters)
+    return any(isinstance(e, (RegionEmitter, PortalEmitter)) for e in emitters)
 
 
 def _allocate_aimed(ctx, targets, total):

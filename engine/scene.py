@@ -953,6 +953,28 @@ def spot_cone_fraction_frame(spot_size: float, spot_blend: float, frame: np.ndar
 
 
 @dataclass
+class LightPortal:
+    """A Cycles light portal (an Area light with Portal on: Light > Cycles > Portal): a
+    rectangle over an opening that emits nothing and tells where the world's light enters
+    a room. corners (4,3) world space (m), in order round the rectangle; normal (3,) unit,
+    the light's local -Z: into the room. Cycles samples the background through it; here
+    the world's and suns' photons may start on it (engine/portal.py)."""
+
+    name: str
+    corners: np.ndarray
+    normal: np.ndarray
+
+    def __post_init__(self):
+        self.corners = np.asarray(self.corners, np.float64).reshape(4, 3)
+        n = np.asarray(self.normal, np.float64).reshape(3)
+        norm = float(np.linalg.norm(n))
+        if not (np.all(np.isfinite(self.corners)) and norm > 0.0 and math.isfinite(norm)):
+            raise SceneError(f"light portal '{self.name}': corners and normal must be "
+                             "finite, the normal non-zero")
+        self.normal = n / norm
+
+
+@dataclass
 class Camera:
     """Pinhole or orthographic camera, Blender conventions.
 
@@ -1084,6 +1106,8 @@ class Scene:
     # Film's (a scene without a world), Blender's world default is (5, 25, 2).
     mist: tuple = (0.0, 100.0, 1.0)
     warnings: list = field(default_factory=list)
+    # Cycles light portals (LightPortal): openings the world's light enters by.
+    portals: list = field(default_factory=list)
 
     def add_material(self, material: Material) -> Material:
         self.materials[material.name] = material

@@ -528,3 +528,32 @@ def test_render_visibility_leaves_out_what_a_final_render_does(fresh_scene):
     # Without it the viewport depsgraph's content, as the rendered viewport shows it.
     meshes, lights = names(False)
     assert "LampNotRendered" in lights and "NotRendered" in meshes, (meshes, lights)
+
+
+def test_cycles_light_portal_is_a_portal_not_a_light(fresh_scene, bpy_addon):
+    """An Area light with Cycles' Portal on emits nothing in Cycles: it exports as an
+    engine LightPortal (its rectangle and its -Z, into the room), not a light; before
+    portal34 it became a 10 W area light. A Disk portal is left out with a warning."""
+    from addon import export
+    from addon.core import load_engine
+    bpy = bpy_addon
+    scene = fresh_scene
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    ob = _light(bpy, "Window", "AREA", (1.0, 2.0, 3.0), rotation=(math.pi, 0, 0),
+                scale=(2.0, 1.0, 1.0), shape="RECTANGLE", size=1.0, size_y=0.5, energy=10.0)
+    ob.data.cycles.is_portal = True
+    disk = _light(bpy, "Round", "AREA", (0.0, 0.0, 3.0), shape="DISK", size=1.0)
+    disk.data.cycles.is_portal = True
+    _light(bpy, "Lamp", "POINT", (0.0, 0.0, 1.0), energy=5.0)
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=6)
+    assert [li.name for li in out.lights] == ["Lamp"]
+    assert [p.name for p in out.portals] == ["Window"]
+    p = out.portals[0]
+    np.testing.assert_allclose(p.normal, (0.0, 0.0, 1.0), atol=1e-6)  # -Z turned over
+    lo, hi = p.corners.min(axis=0), p.corners.max(axis=0)
+    np.testing.assert_allclose(lo, (0.0, 1.75, 3.0), atol=1e-6)  # 2 x 0.5 m round (1, 2, 3)
+    np.testing.assert_allclose(hi, (2.0, 2.25, 3.0), atol=1e-6)
+    assert any("light portal 'Round'" in w for w in out.warnings)
