@@ -954,6 +954,18 @@ def _property_rgba(idblock, name):
     return tuple(out)
 
 
+def view_layer_attribute(scene, view_layer, name) -> tuple:
+    """RGBA of an Attribute node of type View Layer (Blender's
+    BKE_view_layer_find_rgba_attribute, which Cycles reads): the view layer's property
+    `name` (custom or RNA path, _property_rgba), else the scene's, else its world's;
+    (0, 0, 0, 0) when none has it."""
+    for owner in (view_layer, scene, getattr(scene, "world", None)):
+        value = _property_rgba(owner, name)
+        if value is not None:
+            return value
+    return (0.0, 0.0, 0.0, 0.0)
+
+
 def object_attributes(obj, inst, requests) -> dict | None:
     """Mesh.object_attributes of an object (an instance) for the Attribute nodes of type
     Object / Instancer its scene's materials hold (requests: (name, instancer) pairs), as
@@ -1000,6 +1012,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         width, height = render_size(render)
     warnings: list[str] = []
     converter = MaterialConverter(pm)
+    converter.view_layer = (scene_eval, getattr(depsgraph, "view_layer", None))
     materials: dict = {}
     meshes = []
     lights = []
@@ -1213,6 +1226,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     first = updates is None
     updates = updates or ViewportUpdates()
     converter = cache.converter
+    converter.view_layer = (scene_eval, view_layer)
     if updates.all_materials:
         converter.cache.clear()
         converter.images.clear()

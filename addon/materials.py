@@ -359,6 +359,9 @@ class MaterialConverter:
         self.coordinate_users = set()  # materials reading Generated / Object coordinates
         # (name, from the instancer) of the Attribute nodes of type Object / Instancer
         self.object_attribute_names = set()
+        # (scene, view layer) an Attribute node of type View Layer reads (set by the
+        # exporter; None: not known, warned)
+        self.view_layer = None
         self.tangent_users = set()  # materials with anisotropic lobes (radial tangents)
         # materials whose anisotropic lobe's Tangent is a Tangent node in UV Map mode:
         # name -> the node's UV map ("" = the render UV map)
@@ -1242,9 +1245,18 @@ class MaterialConverter:
                 return sn.ObjectAttribute(
                     object_attribute_key(name, kind == "INSTANCER"),
                     {"Alpha": "ALPHA", "Fac": "FAC", "Factor": "FAC"}.get(oname, "COLOR"))
+            if kind == "VIEW_LAYER" and self.view_layer is not None:
+                # One constant per render (addon/export.py view_layer_attribute)
+                from .export import view_layer_attribute
+                rgba = np.asarray(view_layer_attribute(*self.view_layer,
+                                                       str(n.attribute_name)), np.float64)
+                if oname == "Alpha":
+                    return float(rgba[3])
+                return float(rgba[:3].mean()) if oname in ("Fac", "Factor") else rgba[:3]
             if kind != "GEOMETRY":
                 self._warn(f"material '{self._mat.name}': Attribute '{n.name}' of type "
-                           f"{kind} is not supported (Geometry, Object, Instancer are)")
+                           f"{kind} is not supported (Geometry, Object, Instancer, View Layer "
+                           "are)")
                 return None
             return self._attribute(str(n.attribute_name), oname)
         if t == "TEX_IMAGE":
