@@ -1279,9 +1279,17 @@ class MaterialConverter:
             if oname == "Normal":
                 return sn.ObjectNormal(self._coordinates("normal"))
             if oname in ("Generated", "Object"):
-                if getattr(n, "object", None) is not None and oname == "Object":
-                    self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' "
-                               "relative to another object is read in the mesh's own space")
+                other = getattr(n, "object", None)
+                if other is not None and oname == "Object":
+                    # Cycles' ob_itfm: world positions into that object's space (its
+                    # matrix when the material is converted)
+                    matrix = np.array(other.matrix_world, np.float64)
+                    try:
+                        return sn.ObjectSpacePosition(np.linalg.inv(matrix))
+                    except np.linalg.LinAlgError:
+                        self._warn(f"material '{self._mat.name}': Texture Coordinate "
+                                   f"'{n.name}' relative to object '{other.name}', whose "
+                                   "matrix is singular: read in the mesh's own space")
                 return self._coordinates(oname.lower())
             if oname in ("Camera", "Window", "Reflection"):
                 return sn.ViewCoordinates(oname.upper())
