@@ -267,8 +267,10 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
     syncs ATTR_STD_GENERATED) coordinates and 'normal' (object_normals: the Texture
     Coordinate node's Normal, Box projection), (F,3,3) each, corners in the exported
     order; and per named attribute (LocalGeometry.attributes) 'attr:NAME' (its vector or
-    colour), 'attr:NAME.fac' and 'attr:NAME.transparency' (1 - alpha, so a mesh without
-    the attribute reads alpha 1 as Cycles), the last two repeated over the 3 columns."""
+    colour), 'attr:NAME.fac', 'attr:NAME.transparency' (1 - alpha, so a mesh without
+    the attribute reads alpha 1 as Cycles' Attribute node) and 'attr:NAME.alpha' (0 on a
+    mesh without it, as Cycles' Color Attribute node), the last three repeated over the 3
+    columns."""
     local = g.co[g.faces]
     loc, size = g.texspace
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
@@ -278,6 +280,7 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
         out[f"attr:{name}"] = vec
         out[f"attr:{name}.fac"] = np.repeat(fac[..., None], 3, axis=2)
         out[f"attr:{name}.transparency"] = np.repeat(1.0 - alpha[..., None], 3, axis=2)
+        out[f"attr:{name}.alpha"] = np.repeat(alpha[..., None], 3, axis=2)
     if flipped:
         out = {k: a[:, [0, 2, 1]] for k, a in out.items()}
     return out

@@ -1232,10 +1232,12 @@ class MaterialConverter:
             name = str(getattr(n, "layer_name", ""))
             if oname == "Color" and not name:
                 return self.pm.ColorAttribute("")  # the render colour attribute
+            if oname == "Alpha":  # 0 where the mesh lacks it (svm_node_vertex_color)
+                return self.pm.shadernodes.SeparateChannel(
+                    self._coordinates(f"attr:{name}.alpha"), 0)
             # (a name here is a mesh attribute's, never Cycles' standard one:
             # VertexColorNode::attributes adds it as it is)
-            return self._attribute(name, "Alpha" if oname == "Alpha" else "Color",
-                                   standard=False)
+            return self._attribute(name, "Color", standard=False)
         if t == "ATTRIBUTE":
             kind = getattr(n, "attribute_type", "GEOMETRY")
             if kind in ("OBJECT", "INSTANCER"):

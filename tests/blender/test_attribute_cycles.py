@@ -28,6 +28,25 @@ def _attribute_node(name, output, node="ShaderNodeAttribute"):
     return build
 
 
+def _absent_alphas(nodes, links):
+    """Alpha of an attribute the mesh lacks: 1 from the Attribute node, 0 from the Color
+    Attribute node (svm_node_attr / svm_node_vertex_color), summed with 0.5 x their sum
+    on a varying factor (so the case varies along the plane)."""
+    a = _attribute_node("absent", "Alpha")(nodes, links)
+    b = _attribute_node("absent", "Alpha", "ShaderNodeVertexColor")(nodes, links)
+    w = _attribute_node("warmth", "Factor")(nodes, links)
+    add = nodes.new("ShaderNodeMath")
+    add.operation = "MULTIPLY_ADD"
+    add.inputs[1].default_value = 0.5
+    links.new(b, add.inputs[0])
+    links.new(w, add.inputs[2])
+    total = nodes.new("ShaderNodeMath")
+    total.operation = "ADD"
+    links.new(a, total.inputs[0])
+    links.new(add.outputs[0], total.inputs[1])
+    return total.outputs[0]
+
+
 # (attribute name, data type, domain) added to the grid, values seeded per element.
 ATTRIBUTES = [("warmth", "FLOAT", "POINT"), ("heat", "FLOAT", "POINT"),
               ("flow", "FLOAT_VECTOR", "CORNER"), ("tint", "FLOAT_COLOR", "POINT"), ("paint", "BYTE_COLOR", "CORNER"),
@@ -53,6 +72,7 @@ CASES = {
     "uv_by_name_fac": _attribute_node("uv", "Factor"),
     "color_attribute_node_by_name": _attribute_node("paint", "Color", "ShaderNodeVertexColor"),
     "color_attribute_node_alpha": _attribute_node("tint", "Alpha", "ShaderNodeVertexColor"),
+    "absent_alphas": _absent_alphas,
 }
 
 
