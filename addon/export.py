@@ -80,8 +80,8 @@ def _uses_tangent_normal_maps(obj) -> bool:
 
 def attribute_requests(obj) -> set:
     """Names of the mesh attributes the object's materials read by name: Attribute nodes
-    of type Geometry (attribute_name) and Color Attribute nodes ("" = the render colour
-    attribute)."""
+    of type Geometry (attribute_name), Color Attribute nodes ("" = the render colour
+    attribute) and UV Map nodes naming a map."""
     names = set()
     for node in _material_nodes(obj):
         if node.type == "ATTRIBUTE" and getattr(node, "attribute_type", "") == "GEOMETRY":
@@ -94,6 +94,8 @@ def attribute_requests(obj) -> set:
                 names.add(ISLAND)
         elif node.type == "VERTEX_COLOR":
             names.add(str(getattr(node, "layer_name", "")))
+        elif node.type == "UVMAP" and getattr(node, "uv_map", ""):
+            names.add(str(node.uv_map))
     return names
 
 

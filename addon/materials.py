@@ -1300,9 +1300,11 @@ class MaterialConverter:
                        "Window, Reflection are)")
             return None
         if t == "UVMAP":
-            if getattr(n, "uv_map", ""):
-                self._warn(f"material '{self._mat.name}': UV Map node '{n.name}' map "
-                           f"'{n.uv_map}' is read as the active render UV map")
+            name = str(getattr(n, "uv_map", "") or "")
+            if name:
+                # A named map: the mesh attribute of that name (Cycles' UVMapNode asks
+                # for it by name; a mesh without it reads 0)
+                return self._attribute(name, "Vector", standard=False)
             return sn.UVCoord()
         if t == "MAPPING":
             vec = self._input(n, n.inputs["Vector"], depth)  # unlinked: its own value

@@ -28,6 +28,29 @@ def _attribute_node(name, output, node="ShaderNodeAttribute"):
     return build
 
 
+def _uv_map_node(name, image=False):
+    """UV Map node naming a map other than the render one (alone, or placing a
+    generated 8 x 8 colour grid image)."""
+    def build(nodes, links):
+        uv = nodes.new("ShaderNodeUVMap")
+        uv.uv_map = name
+        if not image:
+            return uv.outputs["UV"]
+        import bpy
+        img = bpy.data.images.new("Grid", 8, 8, float_buffer=True)
+        img.colorspace_settings.name = "Non-Color"
+        px = np.random.default_rng(5).uniform(0.1, 1.0, (8 * 8, 4)).astype(np.float32)
+        px[:, 3] = 1.0
+        img.pixels.foreach_set(px.ravel())
+        img.update()
+        img.pack()
+        tex = nodes.new("ShaderNodeTexImage")
+        tex.image, tex.interpolation = img, "Linear"
+        links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        return tex.outputs["Color"]
+    return build
+
+
 def _absent_alphas(nodes, links):
     """Alpha of an attribute the mesh lacks: 1 from the Attribute node, 0 from the Color
     Attribute node (svm_node_attr / svm_node_vertex_color), summed with 0.5 x their sum
@@ -73,6 +96,8 @@ CASES = {
     "color_attribute_node_by_name": _attribute_node("paint", "Color", "ShaderNodeVertexColor"),
     "color_attribute_node_alpha": _attribute_node("tint", "Alpha", "ShaderNodeVertexColor"),
     "absent_alphas": _absent_alphas,
+    "uv_map_node_by_name": _uv_map_node("Second"),
+    "uv_map_node_through_image": _uv_map_node("Second", image=True),
 }
 
 
