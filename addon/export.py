@@ -80,8 +80,8 @@ def _uses_tangent_normal_maps(obj) -> bool:
 
 def attribute_requests(obj) -> set:
     """Names of the mesh attributes the object's materials read by name: Attribute nodes
-    of type Geometry (attribute_name) and Color Attribute nodes ("" = the render colour
-    attribute)."""
+    of type Geometry (attribute_name), Color Attribute nodes ("" = the render colour
+    attribute) and UV Map nodes naming a map."""
     names = set()
     for node in _material_nodes(obj):
         if node.type == "ATTRIBUTE" and getattr(node, "attribute_type", "") == "GEOMETRY":
@@ -94,6 +94,8 @@ def attribute_requests(obj) -> set:
                 names.add(ISLAND)
         elif node.type == "VERTEX_COLOR":
             names.add(str(getattr(node, "layer_name", "")))
+        elif node.type == "UVMAP" and getattr(node, "uv_map", ""):
+            names.add(str(node.uv_map))
     return names
 
 
@@ -267,8 +269,10 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
     syncs ATTR_STD_GENERATED) coordinates and 'normal' (object_normals: the Texture
     Coordinate node's Normal, Box projection), (F,3,3) each, corners in the exported
     order; and per named attribute (LocalGeometry.attributes) 'attr:NAME' (its vector or
-    colour), 'attr:NAME.fac' and 'attr:NAME.transparency' (1 - alpha, so a mesh without
-    the attribute reads alpha 1 as Cycles), the last two repeated over the 3 columns."""
+    colour), 'attr:NAME.fac', 'attr:NAME.transparency' (1 - alpha, so a mesh without
+    the attribute reads alpha 1 as Cycles' Attribute node) and 'attr:NAME.alpha' (0 on a
+    mesh without it, as Cycles' Color Attribute node), the last three repeated over the 3
+    columns."""
     local = g.co[g.faces]
     loc, size = g.texspace
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
@@ -278,6 +282,7 @@ def texture_coordinates(g: LocalGeometry, flipped: bool) -> dict:
         out[f"attr:{name}"] = vec
         out[f"attr:{name}.fac"] = np.repeat(fac[..., None], 3, axis=2)
         out[f"attr:{name}.transparency"] = np.repeat(1.0 - alpha[..., None], 3, axis=2)
+        out[f"attr:{name}.alpha"] = np.repeat(alpha[..., None], 3, axis=2)
     if flipped:
         out = {k: a[:, [0, 2, 1]] for k, a in out.items()}
     return out
@@ -985,6 +990,18 @@ def _property_rgba(idblock, name):
     return tuple(out)
 
 
+def view_layer_attribute(scene, view_layer, name) -> tuple:
+    """RGBA of an Attribute node of type View Layer (Blender's
+    BKE_view_layer_find_rgba_attribute, which Cycles reads): the view layer's property
+    `name` (custom or RNA path, _property_rgba), else the scene's, else its world's;
+    (0, 0, 0, 0) when none has it."""
+    for owner in (view_layer, scene, getattr(scene, "world", None)):
+        value = _property_rgba(owner, name)
+        if value is not None:
+            return value
+    return (0.0, 0.0, 0.0, 0.0)
+
+
 def object_attributes(obj, inst, requests) -> dict | None:
     """Mesh.object_attributes of an object (an instance) for the Attribute nodes of type
     Object / Instancer its scene's materials hold (requests: (name, instancer) pairs), as
@@ -1068,6 +1085,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         width, height = render_size(render)
     warnings: list[str] = []
     converter = MaterialConverter(pm)
+    converter.view_layer = (scene_eval, getattr(depsgraph, "view_layer", None))
     materials: dict = {}
     meshes = []
     lights = []
@@ -1286,6 +1304,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     first = updates is None
     updates = updates or ViewportUpdates()
     converter = cache.converter
+    converter.view_layer = (scene_eval, view_layer)
     if updates.all_materials:
         converter.cache.clear()
         converter.images.clear()

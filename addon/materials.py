@@ -359,6 +359,9 @@ class MaterialConverter:
         self.coordinate_users = set()  # materials reading Generated / Object coordinates
         # (name, from the instancer) of the Attribute nodes of type Object / Instancer
         self.object_attribute_names = set()
+        # (scene, view layer) an Attribute node of type View Layer reads (set by the
+        # exporter; None: not known, warned)
+        self.view_layer = None
         self.tangent_users = set()  # materials with anisotropic lobes (radial tangents)
         # materials whose anisotropic lobe's Tangent is a Tangent node in UV Map mode:
         # name -> the node's UV map ("" = the render UV map)
@@ -1229,10 +1232,12 @@ class MaterialConverter:
             name = str(getattr(n, "layer_name", ""))
             if oname == "Color" and not name:
                 return self.pm.ColorAttribute("")  # the render colour attribute
+            if oname == "Alpha":  # 0 where the mesh lacks it (svm_node_vertex_color)
+                return self.pm.shadernodes.SeparateChannel(
+                    self._coordinates(f"attr:{name}.alpha"), 0)
             # (a name here is a mesh attribute's, never Cycles' standard one:
             # VertexColorNode::attributes adds it as it is)
-            return self._attribute(name, "Alpha" if oname == "Alpha" else "Color",
-                                   standard=False)
+            return self._attribute(name, "Color", standard=False)
         if t == "ATTRIBUTE":
             kind = getattr(n, "attribute_type", "GEOMETRY")
             if kind in ("OBJECT", "INSTANCER"):
@@ -1242,9 +1247,18 @@ class MaterialConverter:
                 return sn.ObjectAttribute(
                     object_attribute_key(name, kind == "INSTANCER"),
                     {"Alpha": "ALPHA", "Fac": "FAC", "Factor": "FAC"}.get(oname, "COLOR"))
+            if kind == "VIEW_LAYER" and self.view_layer is not None:
+                # One constant per render (addon/export.py view_layer_attribute)
+                from .export import view_layer_attribute
+                rgba = np.asarray(view_layer_attribute(*self.view_layer,
+                                                       str(n.attribute_name)), np.float64)
+                if oname == "Alpha":
+                    return float(rgba[3])
+                return float(rgba[:3].mean()) if oname in ("Fac", "Factor") else rgba[:3]
             if kind != "GEOMETRY":
                 self._warn(f"material '{self._mat.name}': Attribute '{n.name}' of type "
-                           f"{kind} is not supported (Geometry, Object, Instancer are)")
+                           f"{kind} is not supported (Geometry, Object, Instancer, View Layer "
+                           "are)")
                 return None
             return self._attribute(str(n.attribute_name), oname)
         if t == "TEX_IMAGE":
@@ -1267,9 +1281,17 @@ class MaterialConverter:
             if oname == "Normal":
                 return sn.ObjectNormal(self._coordinates("normal"))
             if oname in ("Generated", "Object"):
-                if getattr(n, "object", None) is not None and oname == "Object":
-                    self._warn(f"material '{self._mat.name}': Texture Coordinate '{n.name}' "
-                               "relative to another object is read in the mesh's own space")
+                other = getattr(n, "object", None)
+                if other is not None and oname == "Object":
+                    # Cycles' ob_itfm: world positions into that object's space (its
+                    # matrix when the material is converted)
+                    matrix = np.array(other.matrix_world, np.float64)
+                    try:
+                        return sn.ObjectSpacePosition(np.linalg.inv(matrix))
+                    except np.linalg.LinAlgError:
+                        self._warn(f"material '{self._mat.name}': Texture Coordinate "
+                                   f"'{n.name}' relative to object '{other.name}', whose "
+                                   "matrix is singular: read in the mesh's own space")
                 return self._coordinates(oname.lower())
             if oname in ("Camera", "Window", "Reflection"):
                 return sn.ViewCoordinates(oname.upper())
@@ -1278,9 +1300,11 @@ class MaterialConverter:
                        "Window, Reflection are)")
             return None
         if t == "UVMAP":
-            if getattr(n, "uv_map", ""):
-                self._warn(f"material '{self._mat.name}': UV Map node '{n.name}' map "
-                           f"'{n.uv_map}' is read as the active render UV map")
+            name = str(getattr(n, "uv_map", "") or "")
+            if name:
+                # A named map: the mesh attribute of that name (Cycles' UVMapNode asks
+                # for it by name; a mesh without it reads 0)
+                return self._attribute(name, "Vector", standard=False)
             return sn.UVCoord()
         if t == "MAPPING":
             vec = self._input(n, n.inputs["Vector"], depth)  # unlinked: its own value

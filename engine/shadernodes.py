@@ -54,6 +54,25 @@ class Coordinates:
         return geo.coordinates(self.name, prim, u, v)
 
 
+class ObjectSpacePosition:
+    """Texture Coordinate node, Object output relative to another object (Cycles'
+    svm_node_tex_coord NODE_TEXCO_OBJECT with a transform: the hit's world position
+    by the inverse of that object's matrix): `world_to_object` (3,4) or (4,4). (N,3);
+    zeros without a Geometry."""
+
+    def __init__(self, world_to_object):
+        m = np.asarray(world_to_object, np.float64)
+        self.rot, self.shift = m[:3, :3], m[:3, 3]
+
+    def evaluate(self, geo, prim, u, v):
+        prim = np.asarray(prim, np.int64)
+        if geo is None:
+            return np.zeros((len(prim), 3))
+        p = geo.hit_points(prim, np.asarray(u, np.float64),
+                           np.asarray(v, np.float64)) + np.asarray(geo.offset)
+        return p @ self.rot.T + self.shift
+
+
 class Mapping:
     """Mapping node. kind POINT: R(S v) + T; TEXTURE: the inverse, S^-1 R^-1 (v - T);
     VECTOR: R(S v); NORMAL: normalize(R(v / S)). location / rotation (XYZ Euler, radians)

@@ -28,6 +28,48 @@ def _attribute_node(name, output, node="ShaderNodeAttribute"):
     return build
 
 
+def _uv_map_node(name, image=False):
+    """UV Map node naming a map other than the render one (alone, or placing a
+    generated 8 x 8 colour grid image)."""
+    def build(nodes, links):
+        uv = nodes.new("ShaderNodeUVMap")
+        uv.uv_map = name
+        if not image:
+            return uv.outputs["UV"]
+        import bpy
+        img = bpy.data.images.new("Grid", 8, 8, float_buffer=True)
+        img.colorspace_settings.name = "Non-Color"
+        px = np.random.default_rng(5).uniform(0.1, 1.0, (8 * 8, 4)).astype(np.float32)
+        px[:, 3] = 1.0
+        img.pixels.foreach_set(px.ravel())
+        img.update()
+        img.pack()
+        tex = nodes.new("ShaderNodeTexImage")
+        tex.image, tex.interpolation = img, "Linear"
+        links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        return tex.outputs["Color"]
+    return build
+
+
+def _absent_alphas(nodes, links):
+    """Alpha of an attribute the mesh lacks: 1 from the Attribute node, 0 from the Color
+    Attribute node (svm_node_attr / svm_node_vertex_color), summed with 0.5 x their sum
+    on a varying factor (so the case varies along the plane)."""
+    a = _attribute_node("absent", "Alpha")(nodes, links)
+    b = _attribute_node("absent", "Alpha", "ShaderNodeVertexColor")(nodes, links)
+    w = _attribute_node("warmth", "Factor")(nodes, links)
+    add = nodes.new("ShaderNodeMath")
+    add.operation = "MULTIPLY_ADD"
+    add.inputs[1].default_value = 0.5
+    links.new(b, add.inputs[0])
+    links.new(w, add.inputs[2])
+    total = nodes.new("ShaderNodeMath")
+    total.operation = "ADD"
+    links.new(a, total.inputs[0])
+    links.new(add.outputs[0], total.inputs[1])
+    return total.outputs[0]
+
+
 # (attribute name, data type, domain) added to the grid, values seeded per element.
 ATTRIBUTES = [("warmth", "FLOAT", "POINT"), ("heat", "FLOAT", "POINT"),
               ("flow", "FLOAT_VECTOR", "CORNER"), ("tint", "FLOAT_COLOR", "POINT"), ("paint", "BYTE_COLOR", "CORNER"),
@@ -53,6 +95,9 @@ CASES = {
     "uv_by_name_fac": _attribute_node("uv", "Factor"),
     "color_attribute_node_by_name": _attribute_node("paint", "Color", "ShaderNodeVertexColor"),
     "color_attribute_node_alpha": _attribute_node("tint", "Alpha", "ShaderNodeVertexColor"),
+    "absent_alphas": _absent_alphas,
+    "uv_map_node_by_name": _uv_map_node("Second"),
+    "uv_map_node_through_image": _uv_map_node("Second", image=True),
 }
 
 

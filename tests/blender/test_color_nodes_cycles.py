@@ -350,7 +350,22 @@ def _vector_into_value(source):
     return build
 
 
+def _object_relative(nodes, links):
+    """Texture Coordinate Object relative to an empty (moved, turned, scaled): the hit in
+    the empty's space."""
+    import bpy
+    empty = bpy.data.objects.new("Frame", None)
+    empty.location = (0.3, -0.2, 0.5)
+    empty.rotation_euler = (0.2, -0.4, 0.7)
+    empty.scale = (0.8, 1.5, 1.2)
+    bpy.context.scene.collection.objects.link(empty)
+    tc = nodes.new("ShaderNodeTexCoord")
+    tc.object = empty
+    return tc.outputs["Object"]
+
+
 CASES = {
+    "texcoord_object_relative": _object_relative,
     "vector_into_value_mapping": _vector_into_value("texcoord"),
     "vector_into_value_combine": _vector_into_value("combine"),
     "gabor_2d_value": _gabor("Value"),

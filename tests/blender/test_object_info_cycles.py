@@ -211,3 +211,23 @@ def test_instancer_attribute_matches_cycles(fresh_scene, bpy_addon, tmp_path):
     print(np.round(ours, 4).tolist(), np.round(ref, 4).tolist())
     assert np.ptp(ref[:, 0]) > 0.1
     assert np.abs(ours - ref).max() < 0.002, np.abs(ours - ref).max(axis=1)
+
+
+@pytest.mark.parametrize("owner,output", [("view_layer", "Color"), ("scene", "Factor"),
+                                          ("world", "Color"), ("none", "Alpha")])
+def test_view_layer_attribute_matches_cycles(fresh_scene, bpy_addon, tmp_path, owner,
+                                             output):
+    """Attribute node, type View Layer: the view layer's property, else the scene's,
+    else the world's (a custom property; none: 0, alpha 0), one value for every cube."""
+    bpy = bpy_addon
+    scene = fresh_scene
+    _row(bpy, scene, _attribute_material(bpy, "LayerAttr", "mood", "VIEW_LAYER", output))
+    target = {"view_layer": bpy.context.view_layer, "scene": scene, "world": scene.world,
+              "none": None}[owner]
+    if target is not None:
+        target["mood"] = (0.7, 0.25, 0.55)
+    ours = _cube_colours(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")
+    ref = _cube_colours(bpy, scene, tmp_path / "cycles.exr", "CYCLES")
+    print(owner, output, np.round(ours[0], 4).tolist(), np.round(ref[0], 4).tolist())
+    assert np.abs(ref[0] - 4.0).max() > 0.1 or owner == "none"  # the property shows
+    assert np.abs(ours - ref).max() < 0.002, np.abs(ours - ref).max(axis=1)
