@@ -42,8 +42,9 @@ of y a share GLASS_PEAK_SHARE of the samples is drawn in a lobe about the lamp d
 the glass refracts straight towards x (_refracted_axes: two rays from the lamp find it by
 a fixed-point step, starting towards x or, where that ray leaves through an opening,
 towards the nearest glass triangle; GGX's distribution for a radius-0 lamp, cos^n for a
-lamp with a radius, which also takes GLASS_LAMP_SAMPLES points on the lamp per y), the
-pdf being the mixture's. Per-sample std / mean at roughness 0.3, three points by a tube:
+lamp with a radius, which also takes GLASS_LAMP_SAMPLES points on the lamp per y, in
+jittered strata), the pdf being the mixture's; only lamps near a glass shade
+(Shades.near_glass) take the peak. Per-sample std / mean at roughness 0.3, three points by a tube:
 11-20 from the lamp side alone, 1.7-4.6 with the mixture; at 0.5, 5-8.5 -> 0.9-1.3; by
 the living room's shade 0.6-1.5 (Translucent: 1.1-1.6) (docs/accuracy.md
 "## roughshade33", bench/bench_glass_shade.py). Below roughness 0.3 (GLASS_ROUGH_MIN) the
