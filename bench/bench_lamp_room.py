@@ -28,7 +28,7 @@ glass against a Cycles 1024-spp reference (whose own noise dominates relMSE and 
 walls 0.980 -> 0.984, floor 0.984 -> 0.977, CPU 36 -> 55 s at the default 128 spp; the
 walls' Caustic pass 0.319 -> 0.032, Direct 0.078 -> 0.366. glossshade34 (the glossy lobes
 take the shade samples, MIS with their reflected rays), --shade glass, same reference:
-59.7 -> 64.0 CPU s, relMSE 1.159 -> 0.855, sofa 0.934 -> 0.973, TV body 0.789 -> 0.931
+59.7 -> 62.7 CPU s, relMSE 1.159 -> 0.855, sofa 0.934 -> 0.973, TV body 0.789 -> 0.974
 (docs/accuracy.md "## glossshade34").
 """
 import argparse

@@ -42,8 +42,9 @@ of y a share GLASS_PEAK_SHARE of the samples is drawn in a lobe about the lamp d
 the glass refracts straight towards x (_refracted_axes: two rays from the lamp find it by
 a fixed-point step, starting towards x or, where that ray leaves through an opening,
 towards the nearest glass triangle; GGX's distribution for a radius-0 lamp, cos^n for a
-lamp with a radius, which also takes GLASS_LAMP_SAMPLES points on the lamp per y), the
-pdf being the mixture's. Per-sample std / mean at roughness 0.3, three points by a tube:
+lamp with a radius, which also takes GLASS_LAMP_SAMPLES points on the lamp per y, in
+jittered strata), the pdf being the mixture's; only lamps near a glass shade
+(Shades.near_glass) take the peak. Per-sample std / mean at roughness 0.3, three points by a tube:
 11-20 from the lamp side alone, 1.7-4.6 with the mixture; at 0.5, 5-8.5 -> 0.9-1.3; by
 the living room's shade 0.6-1.5 (Translucent: 1.1-1.6) (docs/accuracy.md
 "## roughshade33", bench/bench_glass_shade.py). Below roughness 0.3 (GLASS_ROUGH_MIN) the
@@ -164,7 +165,8 @@ GLASS_PEAK_BASE = {"ggx": 0.5, "cos": 1.0}
 # Points on a lamp with a radius sampled from each y on a glass shade (their shadow rays
 # and f_t evaluations; the rays choosing y are shared): the point on the lamp moves the
 # glass's peak (one per y left std / mean 1.6-2.5 by a radius-0.05 m lamp, 8: 0.8-1.0).
-# newuser33's corner (glossshade34): 4 per y -7 % CPU, +67 % seed-pair noise; 8 stays.
+# newuser33's corner (glossshade34): 4 per y -7 % CPU, +67 % seed-pair noise; 8 stays;
+# stratified (GLASS_LAMP_STRATIFIED) its seed-pair noise 0.0094 -> 0.0074 at the same CPU.
 GLASS_LAMP_SAMPLES = 8
 # Which lamps take the glass peak (Shades.near_glass): a centre inside a glass shade
 # object's bounding box grown by this share of its largest side. The peak finds the
@@ -172,6 +174,9 @@ GLASS_LAMP_SAMPLES = 8
 # room from a glass shade sampled its peak for every point (_refracted_axes' rays) for
 # the little light it sends through that glass, which the lamp-side choice still finds.
 GLASS_NEAR = 0.5
+# The GLASS_LAMP_SAMPLES points on the lamp seen from y in jittered strata of its
+# sampling square (_strata: nx x ny cells; a count with no such grid: 1 x n).
+GLASS_LAMP_STRATIFIED = True
 # _refracted_axes' fixed-point steps after its first ray (0: the peak read at the point
 # where the lamp's ray towards x meets the shade).
 GLASS_PEAK_STEPS = 1
@@ -634,8 +639,15 @@ def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None):
                 # The point on a lamp with a radius moves the glass's peak: several per y
                 # (each weighted 1 / GLASS_LAMP_SAMPLES by direct_light's sample count).
                 more = rng.random((2 * (GLASS_LAMP_SAMPLES - 1), len(jdx)))
-                entry = [(li, traced, count * GLASS_LAMP_SAMPLES, e[3] if j == 0 else
-                          c(more[2 * j - 2]), e[4] if j == 0 else c(more[2 * j - 1]), e[5])
+                u_1 = [entry[0][3]] + [more[2 * j - 2] for j in range(1, GLASS_LAMP_SAMPLES)]
+                u_2 = [entry[0][4]] + [more[2 * j - 1] for j in range(1, GLASS_LAMP_SAMPLES)]
+                if GLASS_LAMP_STRATIFIED:
+                    # Jittered strata of the lamp's sampling square (each point still
+                    # uniform: unbiased), the same numbers as the jitters.
+                    nx, ny = _strata(GLASS_LAMP_SAMPLES)
+                    u_1 = [(j % nx + u) / nx for j, u in enumerate(u_1)]
+                    u_2 = [(j // nx + u) / ny for j, u in enumerate(u_2)]
+                entry = [(li, traced, count * GLASS_LAMP_SAMPLES, c(u_1[j]), c(u_2[j]), e[5])
                          for e in entry for j in range(GLASS_LAMP_SAMPLES)]
             pdf_a = jpdf * cos_in / (jt * jt)
             if on_glass:
@@ -670,6 +682,14 @@ def shade_light(ctx, shades, p, ns, ng, offset, samples, rng, glossy=None):
                     wgt = wgt * (pl * pl / (pl * pl + pb * pb))
                 Lg[jdx] += Ly * fr * wgt[:, None]
     return E, Lg, rays
+
+
+def _strata(n):
+    """(nx, ny), nx * ny = n, the most nearly square grid (nx >= ny)."""
+    ny = int(math.isqrt(n))
+    while n % ny:
+        ny -= 1
+    return n // ny, ny
 
 
 def _strategy(ctx, shades, li, p):

@@ -62,8 +62,8 @@ def _scene(radius=0.0, floor_rough=FLOOR_ROUGH, width=16, shade="glass"):
     return s
 
 
-def _context():
-    s = _scene()
+def _context(radius=0.0):
+    s = _scene(radius=radius)
     s.validate()
     geo, table = prepare(s)
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, Accel, threads=1)
@@ -302,3 +302,32 @@ def test_only_lamps_near_a_glass_shade_take_its_peak():
     e, _ = shadelight.shade_irradiance(ctx, shades, x, ns, ns.copy(), np.full(m, 1e-6),
                                        [(1, True, 1, u1, u2, None)], rng)
     assert e.mean() > 0.0
+
+
+def test_stratified_lamp_points_keep_the_mean_and_lower_the_noise():
+    """The GLASS_LAMP_SAMPLES points on a lamp of radius 0.03 m seen from y in jittered
+    strata (GLASS_LAMP_STRATIFIED) against independent ones: the same mean of
+    shade_irradiance at a floor point (within 4 standard errors), no more per-sample
+    spread. Measured (seed 9, 100,000 samples): printed."""
+    ctx = _context(radius=0.03)
+    shades = shadelight.find_shades(ctx.geo, ctx.table, ctx.lights)
+    m = 100_000
+    p = np.tile(np.array([0.6, 0.2, 0.0]) - ctx.geo.offset, (m, 1))
+    ns = np.tile([0.0, 0.0, 1.0], (m, 1))
+    got = {}
+    old = shadelight.GLASS_LAMP_STRATIFIED
+    try:
+        for strat in (True, False):
+            shadelight.GLASS_LAMP_STRATIFIED = strat
+            rng = np.random.default_rng(9)
+            u1, u2 = rng.random((2, m))
+            e, _ = shadelight.shade_irradiance(ctx, shades, p, ns, ns.copy(),
+                                               np.full(m, 1e-6),
+                                               [(0, True, 1, u1, u2, None)], rng)
+            got[strat] = (e[:, 1].mean(), e[:, 1].std())
+    finally:
+        shadelight.GLASS_LAMP_STRATIFIED = old
+    print("stratified (mean, std)", got[True], "independent", got[False])
+    se = math.hypot(got[True][1], got[False][1]) / math.sqrt(m)
+    assert abs(got[True][0] - got[False][0]) < 4.0 * se
+    assert got[True][1] <= 1.02 * got[False][1]
