@@ -219,15 +219,22 @@ class PortalEmitter:
             out[:, k] += f * env.cosine_pdf(w, np.broadcast_to(s[k], w.shape))
         return out
 
-    def density(self, o, d):
+    def density(self, o, d, cos=None):
         """(N,) the portal's density (module docstring; per sr x m^2 of the disk's plane)
         of rays o + t d, 0 where none crosses a pane into the room with a positive pane
-        probability."""
-        cos = self.portals.crossings(o, d)
-        pdf = self._direction_pdfs(-d)
-        terms = np.where(cos > 0, self.probs[None, :] * pdf
-                         / (self.portals.areas[None, :] * np.where(cos > 0, cos, 1.0)), 0.0)
-        return terms.sum(axis=1)
+        probability. cos: their crossings (Portals.crossings) when known. The direction
+        pdfs only at the rows that cross (most natural photons do not)."""
+        if cos is None:
+            cos = self.portals.crossings(o, d)
+        on = (cos > 0) & (self.probs[None, :] > 0)
+        out = np.zeros(len(o))
+        rows = np.flatnonzero(on.any(axis=1))
+        if len(rows):
+            c, pdf = cos[rows], self._direction_pdfs(-d[rows])
+            terms = np.where(on[rows], self.probs[None, :] * pdf
+                             / (self.portals.areas[None, :] * np.where(c > 0, c, 1.0)), 0.0)
+            out[rows] = terms.sum(axis=1)
+        return out
 
     # ---------------------------------------------------------------- emission
     def emit_into(self, key, first: int, n: int, count: int, out, start: int) -> int:
@@ -293,15 +300,15 @@ class PortalEmitter:
             d = -w
         o = _disk_plane_origin(x, d, np.asarray(light.center, np.float64),
                                float(light.scene_radius))
-        dens = self.density(o, d)
-        # The line through x crosses its own pane (by construction; a point on an edge
-        # may round outside it): that pane's term at least.
+        # The line through x crosses its own portal k (by construction: no test, which a
+        # point on an edge may round outside of), the others where their test says so.
         cos_k = np.einsum("ij,ij->i", d, P.n_in[k])
-        if (dens <= 0).any():
-            own = np.where(cos_k > 0, self.probs[k]
-                           * self._direction_pdfs(w)[np.arange(n), k]
-                           / (P.areas[k] * np.where(cos_k > 0, cos_k, 1.0)), 0.0)
-            dens = np.where(dens > 0, dens, own)
+        if len(P.areas) > 1:
+            cos = P.crossings(o, d)
+        else:
+            cos = np.zeros((n, 1))
+        cos[np.arange(n), k] = np.maximum(cos_k, 0.0)
+        dens = self.density(o, d, cos)
         ok = (cos_k > 0) & (dens > 0) & np.all(np.isfinite(L), axis=1)
         power = np.where(ok[:, None], L / (count * np.where(ok, dens, 1.0))[:, None], 0.0)
         ok &= np.any(power > 0, axis=1)
