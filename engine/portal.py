@@ -1,12 +1,15 @@
-"""Window panes as portals for the photons of the world and suns (issues 13/14, portal34).
+"""Window panes and light portals as portals for the photons of the world and suns
+(issues 13/14, portal34).
 
 A room lit by the sky through its windows: the world's and suns' photons leave a disk
 beyond the scene's bounding sphere (lights/world.py, lights/sun.py), aimed by visual
 importance at spheres round the camera's lookups (visualimportance.py); those whose line
 meets the room's walls from outside light nothing the camera reads. Here a share of such
-a light's photons start on a window pane instead (a portal: Bitterli et al. 2015,
-"Portal-masked environment map sampling"; pbrt-v4's PortalImageInfiniteLight): a point x
-uniform over the panes' area, a direction w towards the sky on the pane's outer side
+a light's photons start on a portal instead (Bitterli et al. 2015, "Portal-Masked
+Environment Map Sampling"; pbrt-v4's PortalImageInfiniteLight): a window pane
+(panelight's single-plane glass) or a Cycles light portal over an opening
+(engine.scene.LightPortal: an Area light with Portal on); a point x uniform over the
+portals' area, a direction w towards the sky on the portal's outer side
 (the world: the environment map's cosine-weighted distribution about the pane's outward
 normal, mixed with the cosine (lights/world.ENV_MAP_FRACTION), a constant world the cosine
 alone; a sun: its own cone), and the photon starts on the natural disk's plane upstream
@@ -25,7 +28,7 @@ natural power x natural density / portal density:
 
     world:  L(w) / (count p_portal)       (one pane: L A cos / (count p(w)): a uniform sky
                                            L through an opening of area A facing up
-                                           carries pi L A, Bitterli eq. 4)
+                                           carries pi L A)
     sun:    E / (count sum_k P_k / (A_k cos_k))   (one pane: E A cos / count)
 
 The portal part and the natural part split the rays between them (RegionEmitter's
@@ -51,11 +54,11 @@ from .sampling import cosine_hemisphere, luminance, to_world, uniform_cone
 
 # Off: the world's and suns' photons are emitted as before portal34 (A/B benches).
 ENABLED = True
-# At most this share of a light's global photons starts on the panes; the rest are
-# natural (minus those crossing a pane into the room): light by other routes.
+# At most this share of a light's global photons starts on the portals; the rest are
+# natural (minus those crossing a portal into the room): light by other routes.
 PORTAL_SHARE_MAX = 0.9
 # Portals are used when at least this share of the sky the camera's lookups see is seen
-# through the panes (the rest directly: an open scene, an outdoor one).
+# through them (the rest directly: an open scene, an outdoor one).
 PORTAL_MIN_SKY = 0.5
 PORTAL_STREAM = 98  # the lookups' sky rays' seed stream
 # Emission numbers of a portal photon: 0 the triangle, 1, 2 the point, 3, 4 the
@@ -153,8 +156,8 @@ def _disk_plane_origin(x, d, center, R):
 
 class PortalEmitter:
     """A light at infinity (the world or a sun) that emits `share` of its photons from the
-    panes (module docstring) and the rest naturally, minus the natural photons whose line
-    crosses a pane into the room where the portal density is positive. Each chunk of n of
+    portals (module docstring) and the rest naturally, minus the natural photons whose line
+    crosses a portal into the room where the portal density is positive. Each chunk of n of
     the light's `count` photons carries n / count of its flux (RegionEmitter's contract)."""
 
     def __init__(self, light, portals: Portals, share: float):
