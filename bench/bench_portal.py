@@ -2,11 +2,12 @@
 (engine/portal.py, portal34): per row the photons stored, those that arrived from inside
 the room (the point just before the hit inside the room's box), those of them in the gather
 map (not caustic), their effective count (sum w)^2 / sum w^2 (w: a photon's power; equal
-powers give the count), the power inside (W, RGB summed: the same in expectation) and the
-CPU seconds of the render (1 spp). Prints a table.
+powers give the count), the power inside (W, RGB summed: the same in expectation), the
+photon pass' wall seconds (its stats' time_photons) and the CPU seconds of the render
+(1 spp). Prints a table.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_portal.py [--blend ROOM.blend
-        --box X0,Y0,Z0,X1,Y1,Z1] [--seed 0] [--spp 1]
+        --box X0,Y0,Z0,X1,Y1,Z1] [--seed 0] [--spp 1] [--workers N]
 
 Default: tests/test_portal.py's 4 x 4 x 2 m room with a 1 x 1 m glass pane in its roof
 (uniform sky). --blend: a .blend rendered through the add-on's export (objects hidden for
@@ -67,12 +68,15 @@ def main(argv=None):
     ap.add_argument("--box", default="-2.5,-2,0,2.5,2,2.6")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--spp", type=int, default=1)
+    ap.add_argument("--workers", type=int, default=0, help="0: the settings' (all cores)")
     args = ap.parse_args(argv)
     scene, kw, lo, hi = scene_and_settings(args)
     kw = {**kw, "spp": args.spp, "seed": args.seed}
+    if args.workers:
+        kw["workers"] = args.workers
     print("| portals | stored | inside | inside, gather map | effective count inside | "
-          "power inside (W) | CPU s |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+          "power inside (W) | photon pass s | CPU s |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for on in (False, True):
         got = {}
         orig, old = R.trace_photons, portal.ENABLED
@@ -84,7 +88,7 @@ def main(argv=None):
         R.trace_photons, portal.ENABLED = spy, on
         t0 = cpu()
         try:
-            R.render(scene, RenderSettings(**kw))
+            film = R.render(scene, RenderSettings(**kw))
         finally:
             R.trace_photons, portal.ENABLED = orig, old
         t = cpu() - t0
@@ -96,7 +100,8 @@ def main(argv=None):
         ess = w.sum() ** 2 / max((w * w).sum(), 1e-300)
         power = ph.power[inside].astype(np.float64).sum()
         print(f"| {'on' if on else 'off'} | {len(ph):,} | {int(inside.sum()):,} | "
-              f"{int(gather.sum()):,} | {ess:,.0f} | {power:.4g} | {t:.1f} |")
+              f"{int(gather.sum()):,} | {ess:,.0f} | {power:.4g} | "
+              f"{film.stats.get('time_photons', float('nan')):.2f} | {t:.1f} |")
 
 
 if __name__ == "__main__":

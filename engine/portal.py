@@ -1,12 +1,15 @@
-"""Window panes as portals for the photons of the world and suns (issues 13/14, portal34).
+"""Window panes and light portals as portals for the photons of the world and suns
+(issues 13/14, portal34).
 
 A room lit by the sky through its windows: the world's and suns' photons leave a disk
 beyond the scene's bounding sphere (lights/world.py, lights/sun.py), aimed by visual
 importance at spheres round the camera's lookups (visualimportance.py); those whose line
 meets the room's walls from outside light nothing the camera reads. Here a share of such
-a light's photons start on a window pane instead (a portal: Bitterli et al. 2015,
-"Portal-masked environment map sampling"; pbrt-v4's PortalImageInfiniteLight): a point x
-uniform over the panes' area, a direction w towards the sky on the pane's outer side
+a light's photons start on a portal instead (Bitterli et al. 2015, "Portal-Masked
+Environment Map Sampling"; pbrt-v4's PortalImageInfiniteLight): a window pane
+(panelight's single-plane glass) or a Cycles light portal over an opening
+(engine.scene.LightPortal: an Area light with Portal on); a point x uniform over the
+portals' area, a direction w towards the sky on the portal's outer side
 (the world: the environment map's cosine-weighted distribution about the pane's outward
 normal, mixed with the cosine (lights/world.ENV_MAP_FRACTION), a constant world the cosine
 alone; a sun: its own cone), and the photon starts on the natural disk's plane upstream
@@ -25,7 +28,7 @@ natural power x natural density / portal density:
 
     world:  L(w) / (count p_portal)       (one pane: L A cos / (count p(w)): a uniform sky
                                            L through an opening of area A facing up
-                                           carries pi L A, Bitterli eq. 4)
+                                           carries pi L A)
     sun:    E / (count sum_k P_k / (A_k cos_k))   (one pane: E A cos / count)
 
 The portal part and the natural part split the rays between them (RegionEmitter's
@@ -51,11 +54,11 @@ from .sampling import cosine_hemisphere, luminance, to_world, uniform_cone
 
 # Off: the world's and suns' photons are emitted as before portal34 (A/B benches).
 ENABLED = True
-# At most this share of a light's global photons starts on the panes; the rest are
-# natural (minus those crossing a pane into the room): light by other routes.
+# At most this share of a light's global photons starts on the portals; the rest are
+# natural (minus those crossing a portal into the room): light by other routes.
 PORTAL_SHARE_MAX = 0.9
 # Portals are used when at least this share of the sky the camera's lookups see is seen
-# through the panes (the rest directly: an open scene, an outdoor one).
+# through them (the rest directly: an open scene, an outdoor one).
 PORTAL_MIN_SKY = 0.5
 PORTAL_STREAM = 98  # the lookups' sky rays' seed stream
 # Emission numbers of a portal photon: 0 the triangle, 1, 2 the point, 3, 4 the
@@ -153,8 +156,8 @@ def _disk_plane_origin(x, d, center, R):
 
 class PortalEmitter:
     """A light at infinity (the world or a sun) that emits `share` of its photons from the
-    panes (module docstring) and the rest naturally, minus the natural photons whose line
-    crosses a pane into the room where the portal density is positive. Each chunk of n of
+    portals (module docstring) and the rest naturally, minus the natural photons whose line
+    crosses a portal into the room where the portal density is positive. Each chunk of n of
     the light's `count` photons carries n / count of its flux (RegionEmitter's contract)."""
 
     def __init__(self, light, portals: Portals, share: float):
@@ -219,15 +222,22 @@ class PortalEmitter:
             out[:, k] += f * env.cosine_pdf(w, np.broadcast_to(s[k], w.shape))
         return out
 
-    def density(self, o, d):
+    def density(self, o, d, cos=None):
         """(N,) the portal's density (module docstring; per sr x m^2 of the disk's plane)
         of rays o + t d, 0 where none crosses a pane into the room with a positive pane
-        probability."""
-        cos = self.portals.crossings(o, d)
-        pdf = self._direction_pdfs(-d)
-        terms = np.where(cos > 0, self.probs[None, :] * pdf
-                         / (self.portals.areas[None, :] * np.where(cos > 0, cos, 1.0)), 0.0)
-        return terms.sum(axis=1)
+        probability. cos: their crossings (Portals.crossings) when known. The direction
+        pdfs only at the rows that cross (most natural photons do not)."""
+        if cos is None:
+            cos = self.portals.crossings(o, d)
+        on = (cos > 0) & (self.probs[None, :] > 0)
+        out = np.zeros(len(o))
+        rows = np.flatnonzero(on.any(axis=1))
+        if len(rows):
+            c, pdf = cos[rows], self._direction_pdfs(-d[rows])
+            terms = np.where(on[rows], self.probs[None, :] * pdf
+                             / (self.portals.areas[None, :] * np.where(c > 0, c, 1.0)), 0.0)
+            out[rows] = terms.sum(axis=1)
+        return out
 
     # ---------------------------------------------------------------- emission
     def emit_into(self, key, first: int, n: int, count: int, out, start: int) -> int:
@@ -293,15 +303,15 @@ class PortalEmitter:
             d = -w
         o = _disk_plane_origin(x, d, np.asarray(light.center, np.float64),
                                float(light.scene_radius))
-        dens = self.density(o, d)
-        # The line through x crosses its own pane (by construction; a point on an edge
-        # may round outside it): that pane's term at least.
+        # The line through x crosses its own portal k (by construction: no test, which a
+        # point on an edge may round outside of), the others where their test says so.
         cos_k = np.einsum("ij,ij->i", d, P.n_in[k])
-        if (dens <= 0).any():
-            own = np.where(cos_k > 0, self.probs[k]
-                           * self._direction_pdfs(w)[np.arange(n), k]
-                           / (P.areas[k] * np.where(cos_k > 0, cos_k, 1.0)), 0.0)
-            dens = np.where(dens > 0, dens, own)
+        if len(P.areas) > 1:
+            cos = P.crossings(o, d)
+        else:
+            cos = np.zeros((n, 1))
+        cos[np.arange(n), k] = np.maximum(cos_k, 0.0)
+        dens = self.density(o, d, cos)
         ok = (cos_k > 0) & (dens > 0) & np.all(np.isfinite(L), axis=1)
         power = np.where(ok[:, None], L / (count * np.where(ok, dens, 1.0))[:, None], 0.0)
         ok &= np.any(power > 0, axis=1)

@@ -328,3 +328,23 @@ def test_light_portal_fills_the_room():
     f2, _, _ = _render_spy(_room(pane=False), True, spp=1)
     assert "photon portals" not in next(x for x in f2.stats["effects"]
                                        if x.startswith("photon maps"))
+
+
+def test_sun_photons_through_the_roof_pane_fill_the_room():
+    """A sun (E = 3, 30 degrees off the zenith) through the roof pane under a black sky:
+    many times main's photons inside, the same power as natural emission (20x the
+    photons)."""
+    sun = ((math.sin(math.radians(30)), 0.0, -math.cos(math.radians(30))), 3.0)
+    room = dict(sun=sun, background=(0.0, 0.0, 0.0))
+    film, ph, geo = _render_spy(_room(**room), True, spp=1)
+    _, p0, g0 = _render_spy(_room(**room), False, spp=1)
+    _, pr, gr = _render_spy(_room(**room), False, spp=1, photon_importance=False,
+                            photons=400_000)
+    i1, i0, ir = _inside(ph, geo), _inside(p0, g0), _inside(pr, gr)
+    w1, wr = (p.power[i].astype(np.float64).sum() for p, i in ((ph, i1), (pr, ir)))
+    print(f"inside photons {i1.sum()} vs {i0.sum()}; power inside {w1:.4f}, natural 400k "
+          f"{wr:.4f} ({ir.sum()})")
+    line = next(x for x in film.stats["effects"] if x.startswith("photon maps"))
+    assert "photons of 'sun' start on the window panes 'pane'" in line
+    assert i1.sum() > 20 * i0.sum()
+    assert w1 == pytest.approx(wr, rel=0.05)

@@ -84,7 +84,6 @@ def test_room_lit_through_a_roof_window_matches_cycles(fresh_scene, bpy_addon, t
     keep[11:21, 11:21] = False
     for k in films:
         films[k] = films[k] * keep[..., None]
-    ours, before = films[True, 0], films[False, 0]
 
     def noise(on):
         """The two seeds' difference: per 8 x 8 block, std / mean."""
