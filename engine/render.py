@@ -1068,12 +1068,13 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
     # The world's and suns' photons from the window panes in a room lit through them
     # (engine/portal.py).
     from .portal import portal_plan
+    from .visualimportance import RegionEmitter
+    aimed = any(isinstance(e, RegionEmitter) for e in emitters)
     emitters, counts, said = portal_plan(ctx, emitters, counts, region)
     if said:
         stats["photon_portals"] = said
-        from .visualimportance import RegionEmitter
-        if shot.report and not any(isinstance(e, RegionEmitter) for e in emitters):
-            stats.pop("photon_importance", None)  # (its aimed lights now start on the panes)
+        if aimed and not any(isinstance(e, RegionEmitter) for e in emitters):
+            stats.pop("photon_importance", None)  # (its aimed lights now start on portals)
     # Window glass's rims pipe a line of light to the pane's edges; its photons are the
     # global shot's where the caustic map is built from it (visualimportance.aim_at_rims).
     plan = ctx.plan
