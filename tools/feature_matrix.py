@@ -2177,7 +2177,22 @@ region means (floor, mirror, glass ball, background) within 0.01 / 0.02 / 0.06 /
 """
 
 
+def hand_written_sections(path=DOC_PATH) -> str:
+    """The report's sections after its generated Render passes table: written by hand
+    (a feature's measurements against Cycles, e.g. "## pane31"), kept by write_report
+    (a regeneration dropped them). "" without the file or such sections."""
+    try:
+        with open(path) as f:
+            text = f.read()
+    except FileNotFoundError:
+        return ""
+    start = text.find("\n## Render passes")
+    after = text.find("\n## ", start + 1) if start >= 0 else -1
+    return text[after + 1:] if after >= 0 else ""
+
+
 def write_report(rows, path=DOC_PATH):
+    kept = hand_written_sections(path)
     lines = [
         "# Compatibility with Blender / Cycles",
         "",
@@ -2236,6 +2251,8 @@ def write_report(rows, path=DOC_PATH):
                      f"| {note} |")
     lines.append("")
     lines += PASSES_TABLE.split("\n")
+    if kept:
+        lines.append(kept.rstrip("\n") + "\n")
     with open(path, "w") as f:
         f.write("\n".join(lines))
     print(f"wrote {path}")

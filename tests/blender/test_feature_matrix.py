@@ -85,3 +85,22 @@ def test_window_room_corners_and_walls_match_cycles(fm):
     walls = ours[upper].sum() / ref[upper].sum()
     assert abs(corner - 1.0) < 0.09, (corner, [round(ours[c] / ref[c], 3) for c in corners])
     assert abs(walls - 1.0) < 0.06, walls
+
+
+def test_report_keeps_the_hand_written_sections(fm, tmp_path):
+    """docs/compatibility.md's sections after the generated Render passes table are
+    written by hand (pane31, portal34, ...): a regeneration keeps them, once."""
+    path = tmp_path / "compatibility.md"
+    assert fm.hand_written_sections(str(path)) == ""  # no file yet
+    fm.write_report([], str(path))
+    assert fm.hand_written_sections(str(path)) == ""  # nothing by hand yet
+    hand = "## pane31: measured by hand\n\nA paragraph.\n\n## portal34: another\n\nText.\n"
+    path.write_text(path.read_text() + "\n" + hand)
+    for _ in range(2):
+        fm.write_report([], str(path))
+        text = path.read_text()
+        assert text.count("## pane31: measured by hand") == 1
+        assert text.endswith("Text.\n") and "## Render passes" in text
+    # The repository's own report holds such sections: none is lost on a regeneration.
+    kept = fm.hand_written_sections()
+    assert "## pane31" in kept and "## portal34" in kept
