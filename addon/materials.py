@@ -1183,6 +1183,13 @@ class MaterialConverter:
             return None
         return self._input(node, s, depth)
 
+    def _texture_vector(self, n, depth):
+        """A texture node's Vector input, or Generated coordinates when it is unlinked
+        (Cycles: the texture nodes' Vector sockets are LINK_TEXTURE_GENERATED,
+        scene/shader_nodes.cpp)."""
+        vec = self._vector(n, "Vector", depth)
+        return self._coordinates("generated") if vec is None else vec
+
     def _curves(self, n, depth):
         """RGB Curves / Vector Curves / Float Curve baked as Cycles bakes them
         (blender/util.h curvemapping_color_to_array, curvemapping_float_to_array): the
@@ -1432,14 +1439,10 @@ class MaterialConverter:
             return sn.HueSaturation(*(self._input(n, i[k], depth)
                                       for k in ("Hue", "Saturation", "Value", "Fac", "Color")))
         if t == "TEX_GRADIENT":
-            vec = self._vector(n, "Vector", depth)
-            if vec is None:
-                vec = self._coordinates("generated")  # procedural textures' default
+            vec = self._texture_vector(n, depth)
             return sn.Gradient(vec, n.gradient_type, output="FAC" if oname == "Fac" else "COLOR")
         if t == "TEX_CHECKER":
-            vec = self._vector(n, "Vector", depth)
-            if vec is None:
-                vec = self._coordinates("generated")  # procedural textures' default
+            vec = self._texture_vector(n, depth)
             return sn.Checker(vec, self._input(n, n.inputs["Color1"], depth),
                               self._input(n, n.inputs["Color2"], depth),
                               self._input(n, n.inputs["Scale"], depth),
@@ -1447,26 +1450,20 @@ class MaterialConverter:
         if t in ("TEX_NOISE", "TEX_VORONOI"):
             return self._procedural(n, oname, depth)
         if t == "TEX_WHITE_NOISE":
-            vec = self._vector(n, "Vector", depth)
-            if vec is None:
-                vec = self._coordinates("generated")  # procedural textures' default
+            vec = self._texture_vector(n, depth)
             dims = int(str(getattr(n, "noise_dimensions", "3D"))[0])
             w_in = n.inputs.get("W")  # (no W socket by name unless 1D / 4D)
             w = 0.0 if w_in is None else self._input(n, w_in, depth)
             return sn.WhiteNoise(vec, w, dims, output="COLOR" if oname == "Color" else "VALUE")
         if t == "TEX_BRICK":
-            vec = self._vector(n, "Vector", depth)
-            if vec is None:
-                vec = self._coordinates("generated")  # procedural textures' default
+            vec = self._texture_vector(n, depth)
             inputs = {k: self._input(n, n.inputs[k], depth) for k in sn.Brick.SOCKETS
                       if k in n.inputs}
             return sn.Brick(vec, inputs, offset=n.offset, offset_frequency=n.offset_frequency,
                             squash=n.squash, squash_frequency=n.squash_frequency,
                             output="FAC" if oname in ("Fac", "Factor") else "COLOR")
         if t == "TEX_GABOR":
-            vec = self._vector(n, "Vector", depth)
-            if vec is None:
-                vec = self._coordinates("generated")  # procedural textures' default
+            vec = self._texture_vector(n, depth)
             # (Both Orientation sockets are named "Orientation": by identifier.)
             ins = {i.identifier: i for i in n.inputs}
             inputs = {k: self._input(n, ins[k], depth) for k in sn.Gabor.SOCKETS
@@ -1474,17 +1471,13 @@ class MaterialConverter:
             return sn.Gabor(vec, inputs, dims=3 if n.gabor_type == "3D" else 2,
                             output=oname.upper())
         if t == "TEX_MAGIC":
-            vec = self._vector(n, "Vector", depth)
-            if vec is None:
-                vec = self._coordinates("generated")  # procedural textures' default
+            vec = self._texture_vector(n, depth)
             return sn.Magic(vec, self._input(n, n.inputs["Scale"], depth),
                             self._input(n, n.inputs["Distortion"], depth),
                             depth=n.turbulence_depth,
                             output="FAC" if oname in ("Fac", "Factor") else "COLOR")
         if t == "TEX_WAVE":
-            vec = self._vector(n, "Vector", depth)
-            if vec is None:
-                vec = self._coordinates("generated")  # procedural textures' default
+            vec = self._texture_vector(n, depth)
             kind = n.wave_type
             inputs = {k: self._input(n, n.inputs[k], depth) for k in sn.Wave.SOCKETS
                       if k in n.inputs}
@@ -1505,9 +1498,7 @@ class MaterialConverter:
     def _procedural(self, n, oname, depth):
         """Noise or Voronoi Texture node: evaluated per hit (engine/procedural.py)."""
         sn = self.pm.shadernodes
-        vec = self._vector(n, "Vector", depth)
-        if vec is None:
-            vec = self._coordinates("generated")  # procedural textures' default
+        vec = self._texture_vector(n, depth)
         noise = n.type == "TEX_NOISE"
         names = sn.Noise.SOCKETS if noise else sn.Voronoi.SOCKETS
         inputs = {k: self._input(n, n.inputs[k], depth) for k in names if k in n.inputs}

@@ -11,13 +11,14 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from engine import shadernodes as sn  # noqa: E402
+from bench_textures import best_of  # noqa: E402  (the best of n timings)
 
 
 class _Points:
@@ -28,15 +29,6 @@ class _Points:
 
     def evaluate(self, geo, prim, u, v):
         return self.pts[prim]
-
-
-def best_of(fn, n=3):
-    best = float("inf")
-    for _ in range(n):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main(argv=None):
