@@ -34,6 +34,10 @@ LIGHT_KINDS: dict[str, type[Light]] = {
     cls.kind: cls for cls in (PointLight, SpotLight, AreaLight, SunLight, MeshLight, WorldLight)}
 DECLARED_KINDS: tuple[str, ...] = tuple(k for k, c in LIGHT_KINDS.items() if c.declared)
 
+# Off: the world's shadow rays ignore the scene's light portals, as before lightportal34
+# (for A/B measurements: bench/bench_light_portal.py).
+SHADOW_PORTALS = True
+
 # The old single class, kept as the name of the interface.
 PreparedLight = Light
 
@@ -63,6 +67,10 @@ def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable,
                   WorldLight.from_background(scene, common)):
         if extra is not None:
             out.append(extra)
+    world = out[-1] if out and out[-1].kind == WORLD else None
+    if world is not None and SHADOW_PORTALS and getattr(scene, "portals", None):
+        # Cycles light portals: the world's shadow rays sample them (lights/world.py)
+        world.set_portals(scene.portals, geo.offset)
     return out
 
 
