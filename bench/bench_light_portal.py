@@ -13,7 +13,8 @@ block spread (std of the block means' difference between two seeds / sqrt 2 / me
 the combined image and of the Direct pass, the share of the combined pixel variance that
 is the Direct pass's, CPU s per render. Regions come from the camera's rays against the
 room's box (floor, walls; the window's pixels left out). Cycles: bench/cycles_scene.py's
-scene plus an Area light with Portal on (uniform world only; the HDRI is ours only).
+scene plus an Area light with Portal on (the HDRI as a packed float image in an
+Environment Texture).
 """
 from __future__ import annotations
 
@@ -129,8 +130,27 @@ def render_ours(world, on, seed, spp, size):
             passes["direct"][..., :3].astype(np.float64), cpu)
 
 
-def render_cycles(spp, size, seed=0):
-    """Cycles' combined image (H,W,3) of the uniform-world room with its portal, CPU s."""
+def _cycles_world(bpy, sc, pixels):
+    """The world's node tree: Environment Texture of `pixels` (H,W,3) linear, row 0 the
+    top (+Z; docs/lights.md orientation, as Cycles') -> Background of strength 1."""
+    H, W = pixels.shape[:2]
+    img = bpy.data.images.new("sky", W, H, float_buffer=True, alpha=True)
+    img.colorspace_settings.name = "Linear Rec.709"
+    rgba = np.ones((H, W, 4), np.float32)
+    rgba[..., :3] = pixels[::-1]  # Blender's rows bottom-up
+    img.pixels.foreach_set(rgba.ravel())
+    img.pack()
+    nt = sc.world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = img
+    env.interpolation = "Linear"
+    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 1.0
+
+
+def render_cycles(spp, size, seed=0, world="uniform"):
+    """Cycles' combined image (H,W,3) of the room with its portal, CPU s."""
     import bpy
     import mathutils
     sys.path.insert(0, HERE)
@@ -141,6 +161,10 @@ def render_cycles(spp, size, seed=0):
 
     def with_portal(sc_in):
         sc = orig(sc_in)
+        if world == "hdri":
+            if sc.world.node_tree is None:
+                sc.world.use_nodes = True
+            _cycles_world(bpy, sc, hdri())
         ld = bpy.data.lights.new("Portal", "AREA")
         ld.shape = "RECTANGLE"
         ld.size, ld.size_y = WIN_Y[1] - WIN_Y[0], WIN_Z[1] - WIN_Z[0]
@@ -197,14 +221,15 @@ def main(argv=None):
     floor, walls = regions(room("uniform", *size))
     print(f"{size[0]}x{size[1]}, {args.spp} spp, seeds {seeds}; floor {floor.sum()} px, "
           f"walls {walls.sum()} px")
-    ref = None
-    if args.cycles:
-        ref, ccpu = render_cycles(args.cycles, size)
-        print(f"Cycles {args.cycles} spp (portal): floor {ref[floor].mean():.4f} walls "
-              f"{ref[walls].mean():.4f}  CPU {ccpu:.1f} s")
+    refs = {}
+    for world in args.worlds.split(",") if args.cycles else ():
+        ref, ccpu = render_cycles(args.cycles, size, world=world)
+        refs[world] = ref
+        print(f"Cycles {args.cycles} spp (portal), {world}: floor {ref[floor].mean():.4f} "
+              f"walls {ref[walls].mean():.4f}  CPU {ccpu:.1f} s")
         if args.save:
             os.makedirs(args.save, exist_ok=True)
-            np.save(os.path.join(args.save, f"cycles_{args.cycles}.npy"), ref)
+            np.save(os.path.join(args.save, f"cycles_{world}_{args.cycles}.npy"), ref)
     print("world    mode floor   walls   /Cyc.fl /Cyc.wa direct  px-noise blk-noise "
           "dir.px  dir.blk  var.dir  CPU s")
     for world in args.worlds.split(","):
@@ -221,7 +246,8 @@ def main(argv=None):
             vd = np.var((da - db).mean(axis=2)[room_px])
             cpu = np.mean([x[2] for x in imgs])
             rf = rw = float("nan")
-            if ref is not None and world == "uniform":
+            ref = refs.get(world)
+            if ref is not None:
                 rf = mean[floor].mean() / ref[floor].mean()
                 rw = mean[walls].mean() / ref[walls].mean()
             print(f"{world:8s} {mode:4s} {mean[floor].mean():.4f}  {mean[walls].mean():.4f}  "
