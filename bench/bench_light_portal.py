@@ -6,7 +6,7 @@ sampling the portal (on) and without (off: engine.lights.SHADOW_PORTALS = False,
 trial34), optionally against Cycles (with the portal).
 
     .venv/bin/python bench/bench_light_portal.py [--spp 16] [--seeds 0,1]
-        [--worlds uniform,hdri] [--cycles 1024] [--size 96x64] [--save DIR]
+        [--worlds uniform,hdri] [--cycles 1024] [--size 96x64] [--save DIR] [--glossy]
 
 Per case: floor / walls mean (combined), the Direct pass's mean, pixel std/mean and 8x8
 block spread (std of the block means' difference between two seeds / sqrt 2 / mean) of
@@ -55,8 +55,12 @@ def hdri(H=32, W=64):
     return img
 
 
+GLOSSY = False  # --glossy: the walls and floor Principled, specular 1, roughness 0.3
+
+
 def room(world="uniform", width=96, height=64, portal=True):
-    """The room (module docstring) as an engine Scene."""
+    """The room (module docstring) as an engine Scene (GLOSSY: rough specular surfaces,
+    whose glossy lobes take the world's samples by MIS with their continuation)."""
     from engine.scene import Camera, LightPortal, Material, Mesh, Scene
     from engine.lights.environment import Environment
     h, H = HALF, HEIGHT
@@ -71,7 +75,8 @@ def room(world="uniform", width=96, height=64, portal=True):
              "WinLeft": _rect((-h, WIN_Z[0]), (WIN_Y[0], WIN_Z[1]), 0, h, True),
              "WinRight": _rect((WIN_Y[1], WIN_Z[0]), (h, WIN_Z[1]), 0, h, True)}
     meshes = [Mesh(n, v, f, materials=["Grey"]) for n, (v, f) in parts.items()]
-    mats = {"Grey": Material("Grey", (0.6, 0.6, 0.6))}
+    mats = {"Grey": Material("Grey", (0.6, 0.6, 0.6), **(
+        dict(specular=1.0, roughness=0.3) if GLOSSY else {}))}
     # from inside near the back wall, looking down at the floor towards the window wall
     eye, at = np.array([-1.7, -0.3, 2.1]), np.array([1.0, 0.2, 0.2])
     back = eye - at
@@ -213,7 +218,10 @@ def main(argv=None):
     ap.add_argument("--cycles", type=int, default=0, help="Cycles spp (0: none)")
     ap.add_argument("--size", default="96x64")
     ap.add_argument("--save", default=None)
+    ap.add_argument("--glossy", action="store_true", help="rough specular surfaces")
     args = ap.parse_args(argv)
+    global GLOSSY
+    GLOSSY = args.glossy
     size = tuple(int(x) for x in args.size.split("x"))
     seeds = [int(x) for x in args.seeds.split(",")]
     from engine import jit
