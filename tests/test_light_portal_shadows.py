@@ -247,3 +247,45 @@ def test_a_portal_over_a_glass_pane_is_left_to_the_pane(monkeypatch):
     ctx, li = _context(_room(), True, monkeypatch)
     assert len(ctx.lights[li].portal_rects) == 1
     assert not portal_covered(ctx.geo, _room().portals[0])
+
+
+def test_the_light_tree_picks_the_world_with_its_portal_unbiased(monkeypatch):
+    """With more lights than SAMPLE_ALL_UP_TO the light tree picks one per shadow ray
+    (its number, remapped, then picks the world's strategy): 20 point lights under the
+    floor (they light nothing on it) and the world with its portal; the floor's
+    irradiance is still pi L F (within 4 standard errors and 1 %)."""
+    from engine.lights.selection import SAMPLE_ALL_UP_TO, selector_for
+    from engine.scene import Light
+    s = _room()
+    for k in range(SAMPLE_ALL_UP_TO + 4):
+        s.add_light(Light(f"lamp{k}", "POINT", power=1.0,
+                          position=(-1.5 + 0.15 * k, 0.3, -1.0)))
+    ctx, _ = _context(s, True, monkeypatch)
+    chosen = selector_for(ctx)
+    assert chosen is not None
+    n = 200_000
+    point = (0.4, -0.3, 0.0)
+    hit = _floor_hits(ctx, np.tile(point, (n, 1)))
+    rng = np.random.default_rng(4)
+    u1, u2, sel = rng.random((3, n))
+    buf = DirectLightBuffers().ensure(n)
+    codes, params, mesh = pack_lights(ctx.lights)
+    m_all, m_rays = sample_lights(*_hit_arrays(ctx.geo, hit), codes, params, *mesh,
+                                  *chosen[1], np.array([-1], np.int64),
+                                  np.ones(1, np.bool_), u1[None], u2[None], sel[None],
+                                  buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
+                                  buf.t32, buf.wdir, buf.lpdf, buf.bump, NO_HROWS)
+    ray = buf.ray[:m_all]
+    traced = ray >= 0
+    blocked = np.empty(m_rays, np.bool_)
+    ctx.accel.occluded_into(buf.o32[:m_rays].copy(), buf.d32[:m_rays].copy(),
+                            buf.t32[:m_rays].copy(), blocked, cls=SHADOW)
+    lit = np.ones(m_all, bool)
+    lit[traced] = ~blocked[ray[traced]]
+    e = np.zeros(n)
+    np.add.at(e, buf.row[:m_all], buf.contrib[:m_all, 1] * lit)
+    want = _opening_irradiance(*point[:2])
+    se = e.std() / math.sqrt(n)
+    print(f"mean/want {e.mean() / want:.4f} se/want {se / want:.4f}")
+    assert abs(e.mean() - want) < 4 * se
+    assert e.mean() == pytest.approx(want, rel=0.01)
