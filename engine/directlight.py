@@ -29,7 +29,7 @@ from .lights.environment import N_OCT, env_cosine_pdf, env_cosine_sample, env_ra
 from .lights.area import MIN_SPHERICAL_SOLID_ANGLE, spherical_rectangle
 from .lights.mesh import solid_angle_sampled, spherical_triangle_sample
 from .lights.selection import NINF, empty_tree, select_light
-from .lights.world import ENV_MAP_FRACTION
+from .lights.world import ENV_MAP_FRACTION, portal_crossings, portal_sample, portal_shares
 from .normalmap import bump_shadowing_term
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
 
@@ -288,6 +288,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     no_inf = np.zeros(0, np.int64)
     no_inf_f = np.zeros((0, NINF))
     env_frame = np.zeros((3, 3))
+    pom = np.zeros(pk.MAX_PORTALS)  # the world's light portals' solid angles at a hit
     last = -1
     code = codes[0] if codes.shape[0] > 0 else -1
     q = params[0] if params.shape[0] > 0 else np.zeros(pk.P)
@@ -356,6 +357,60 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     e0, e1, e2 = q[RGB] * cr, q[RGB + 1] * cr, q[RGB + 2] * cr
                     if q[COS_HALF] < 1.0:
                         lp = 1.0 / (TWO_PI * (1.0 - q[COS_HALF]))
+                elif q[pk.PORTAL_N] > 0.0:
+                    # Light portals (lights/world.py, lightportal34): with probability
+                    # s_p a direction uniform in the solid angle of the portals seen,
+                    # else the strategies below; SEL picks and, rescaled, is the first
+                    # coordinate. One-sample MIS (balance heuristic) over the mixture
+                    # (1 - s_p) pdf_before + s_p n(w) / Omega.
+                    ptot, sp = portal_shares(q, p0, p1, p2, s0, s1, s2, pom)
+                    pp = 0.0
+                    by_portal = selu < sp
+                    rest = selu
+                    if by_portal:
+                        w0, w1, w2, pp = portal_sample(q, p0, p1, p2,
+                                                       min(selu / sp, ONE_BELOW), u2, pom,
+                                                       ptot)
+                    elif sp > 0.0:
+                        rest = min((selu - sp) / (1.0 - sp), ONE_BELOW)
+                    R = env_frame
+                    env = q[ENV_ON] != 0.0
+                    pe = 0.0
+                    if not by_portal:
+                        if env and rest < ENV_MAP_FRACTION:
+                            w0, w1, w2, pe = env_cosine_sample(
+                                R, env_px, int(q[ENV_INTERP]), env_rows, env_cols,
+                                env_mass, env_prefix, env_cell, N_OCT, s0, s1, s2,
+                                min(rest / ENV_MAP_FRACTION, ONE_BELOW), u2)
+                        else:
+                            x = (min((rest - ENV_MAP_FRACTION) / (1.0 - ENV_MAP_FRACTION),
+                                     ONE_BELOW) if env else rest)
+                            r = math.sqrt(x)
+                            phi = TWO_PI * u2
+                            z = math.sqrt(max(0.0, 1.0 - x))
+                            w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z,
+                                                   s0, s1, s2)
+                        if sp > 0.0:
+                            pp = portal_crossings(q, p0, p1, p2, w0, w1, w2, pom, -1) / ptot
+                    cs = w0 * s0 + w1 * s1 + w2 * s2
+                    ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
+                    pdf = max(cs, 0.0) / PI
+                    if env:
+                        if by_portal or not rest < ENV_MAP_FRACTION:
+                            pe = env_cosine_pdf(R, env_px, int(q[ENV_INTERP]), env_mass,
+                                                env_prefix, env_cell, N_OCT,
+                                                w0, w1, w2, s0, s1, s2)
+                        pdf = ENV_MAP_FRACTION * pe + (1.0 - ENV_MAP_FRACTION) * pdf
+                    pdf = (1.0 - sp) * pdf + sp * pp
+                    if cs > 0 and pdf > 0 and ok > 0:
+                        if env:
+                            L0, L1, L2 = env_radiance(R, env_stored, int(q[ENV_INTERP]),
+                                                      env_scale, w0, w1, w2)
+                        else:
+                            L0, L1, L2 = q[RGB], q[RGB + 1], q[RGB + 2]
+                        f = cs / pdf
+                        e0, e1, e2 = L0 * f, L1 * f, L2 * f
+                    lp = pdf
                 elif q[ENV_ON] == 0.0:
                     r = math.sqrt(u1)
                     phi = TWO_PI * u2

@@ -457,16 +457,17 @@ def light_modes(ctx) -> np.ndarray:
     return modes
 
 
-def mis_light_pdf(light, o, d, t, ns=None):
+def mis_light_pdf(light, o, d, t, ns=None, p=None):
     """Solid-angle pdf (N,) with which the light's shadow-ray samples (directlight.
     sample_lights) pick direction d from o, for continuation rays that met the light at
     distance t (sun, world: escaping rays; ns (N,3): the shading normals at o, around
     which the world's shadow rays are cosine-distributed, and a sphere light's from inside
-    it)."""
+    it; p (N,3): the shading points the rays left, where the world's light portals are
+    seen from (WorldLight.pdf), o where None)."""
     if light.kind == SUN:
         return np.full(len(d), 1.0 / light.solid_angle)
     if light.kind == WORLD:
-        return light.pdf(d, ns)
+        return light.pdf(d, ns, o if p is None else p)
     if light.kind in (POINT, SPOT) and light.is_sphere:
         return sphere_light_pdf(light, o, d, ns)
     if light.kind in (POINT, SPOT):
@@ -598,11 +599,11 @@ def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None):
     with np.errstate(invalid="ignore", over="ignore"):  # rows that missed it: t = inf
         if chosen is not None:
             n = selection_samples(ctx.settings)
-            pl = n * mis_light_pdf(light, o, d, t, ns) * chosen[0].pmf(
+            pl = n * mis_light_pdf(light, o, d, t, ns, p) * chosen[0].pmf(
                 o if p is None else p, ns, li)
         else:
             n = ctx.plan.light_samples.get(light.name, 1)
-            pl = n * mis_light_pdf(light, o, d, t, ns)
+            pl = n * mis_light_pdf(light, o, d, t, ns, p)
         w = pdf_b * pdf_b / (pdf_b * pdf_b + pl * pl)
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
 

@@ -19,7 +19,14 @@ SPOT_COS_HALF, SPOT_WIDTH, SPOT_FRAME = 31, 32, 33  # frame: 9 slots, row-major
 ENV_FRAME = SPOT_FRAME      # world: the environment's rotation (world -> texture), 9 slots
 ENV_ON, ENV_INTERP = 42, 43  # world: 1 with an environment map; its interpolation code
 SPHERE = 44                 # point / spot: 1 for a sphere (Soft Falloff off), 0 a facing disk
-P = 45
+# world: Cycles light portals (engine/lights/world.py, lightportal34): how many (0: none,
+# the shadow rays as before), the portal strategy's share bounds, then MAX_PORTALS
+# rectangles of PORTAL_STRIDE slots: corner s, edges ex, ey (re-centred world space, m)
+# and the unit normal into the room.
+PORTAL_N, PORTAL_LO, PORTAL_HI, PORTAL0 = 45, 46, 47, 48
+PORTAL_STRIDE = 12
+MAX_PORTALS = 4
+P = PORTAL0 + PORTAL_STRIDE * MAX_PORTALS
 
 
 def pack_lights(lights):

@@ -1,0 +1,272 @@
+"""The world's light through an open window with a Cycles light portal, on the camera
+side (lightportal34, issue 14): a closed 4 x 4 x 2.6 m grey room (single-plane walls)
+with a 1.2 x 1.0 m hole in one wall and a light portal in it, lit by a uniform world
+(L = 1) or a small HDRI (a sky with a sun-like patch), ours with the world's shadow rays
+sampling the portal (on) and without (off: engine.lights.SHADOW_PORTALS = False, as on
+trial34), optionally against Cycles (with the portal).
+
+    .venv/bin/python bench/bench_light_portal.py [--spp 16] [--seeds 0,1]
+        [--worlds uniform,hdri] [--cycles 1024] [--size 96x64] [--save DIR] [--glossy]
+
+Per case: floor / walls mean (combined), the Direct pass's mean, pixel std/mean and 8x8
+block spread (std of the block means' difference between two seeds / sqrt 2 / mean) of
+the combined image and of the Direct pass, the share of the combined pixel variance that
+is the Direct pass's, CPU s per render. Regions come from the camera's rays against the
+room's box (floor, walls; the window's pixels left out). Cycles: bench/cycles_scene.py's
+scene plus an Area light with Portal on (the HDRI as a packed float image in an
+Environment Texture).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(HERE))
+
+HALF, HEIGHT = 2.0, 2.6            # room half width, height (m)
+WIN_Y, WIN_Z = (-0.6, 0.6), (0.8, 1.8)  # the hole in the wall x = +HALF (m)
+
+
+def _rect(lo, hi, axis, at, flip=False):
+    """A rectangle in the plane coordinate[axis] = at spanning lo..hi (2,) in the other two
+    axes (in order), as (vertices (4,3), faces (2,3))."""
+    a, b = [k for k in range(3) if k != axis]
+    v = np.zeros((4, 3))
+    for i, (x, y) in enumerate(((lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]),
+                                (lo[0], hi[1]))):
+        v[i, axis], v[i, a], v[i, b] = at, x, y
+    f = np.array([[0, 1, 2], [0, 2, 3]])
+    return v, (f[:, ::-1] if flip else f)
+
+
+def hdri(H=32, W=64):
+    """A small equirectangular sky: 0.6 above the horizon, 0.15 below, a 5x5-texel patch
+    of 40 low in the sky (a soft sun)."""
+    img = np.full((H, W, 3), 0.6, np.float32)
+    img[:, :, 2] = 0.8
+    img[H // 2:] = 0.15
+    img[11:16, 20:25] = (40.0, 36.0, 30.0)
+    return img
+
+
+GLOSSY = False  # --glossy: the walls and floor Principled, specular 1, roughness 0.3
+
+
+def room(world="uniform", width=96, height=64, portal=True):
+    """The room (module docstring) as an engine Scene (GLOSSY: rough specular surfaces,
+    whose glossy lobes take the world's samples by MIS with their continuation)."""
+    from engine.scene import Camera, LightPortal, Material, Mesh, Scene
+    from engine.lights.environment import Environment
+    h, H = HALF, HEIGHT
+    parts = {"Floor": _rect((-h, -h), (h, h), 2, 0.0),
+             "Ceiling": _rect((-h, -h), (h, h), 2, H, True),
+             "WallNeg": _rect((-h, 0.0), (h, H), 0, -h),
+             "WallY0": _rect((-h, 0.0), (h, H), 1, -h),
+             "WallY1": _rect((-h, 0.0), (h, H), 1, h, True),
+             # the window wall round the hole
+             "WinBelow": _rect((-h, 0.0), (h, WIN_Z[0]), 0, h, True),
+             "WinAbove": _rect((-h, WIN_Z[1]), (h, H), 0, h, True),
+             "WinLeft": _rect((-h, WIN_Z[0]), (WIN_Y[0], WIN_Z[1]), 0, h, True),
+             "WinRight": _rect((WIN_Y[1], WIN_Z[0]), (h, WIN_Z[1]), 0, h, True)}
+    meshes = [Mesh(n, v, f, materials=["Grey"]) for n, (v, f) in parts.items()]
+    mats = {"Grey": Material("Grey", (0.6, 0.6, 0.6), **(
+        dict(specular=1.0, roughness=0.3) if GLOSSY else {}))}
+    # from inside near the back wall, looking down at the floor towards the window wall
+    eye, at = np.array([-1.7, -0.3, 2.1]), np.array([1.0, 0.2, 0.2])
+    back = eye - at
+    back /= np.linalg.norm(back)
+    right = np.cross([0.0, 0.0, 1.0], back)
+    right /= np.linalg.norm(right)
+    up = np.cross(back, right)
+    cam = Camera(position=eye, rotation=np.column_stack([right, up, back]),
+                 fov=math.radians(80.0))
+    s = Scene(meshes=meshes, materials=mats, lights=[], camera=cam, width=width,
+              height=height, background=np.ones(3), background_is_light=True)
+    if world == "hdri":
+        s.environment = Environment(hdri())
+    if portal:
+        x = h
+        s.portals.append(LightPortal("Portal", [(x, WIN_Y[0], WIN_Z[0]), (x, WIN_Y[1], WIN_Z[0]),
+                                                (x, WIN_Y[1], WIN_Z[1]), (x, WIN_Y[0], WIN_Z[1])],
+                                     (-1.0, 0.0, 0.0)))
+    return s
+
+
+def regions(scene):
+    """(floor, walls) boolean (H, W) masks of the pixels whose camera ray's first surface
+    is the floor / a wall or the ceiling (the window's pixels in neither)."""
+    from engine.integrator import camera_rays
+    W, H = scene.width, scene.height
+    py, px = np.mgrid[0:H, 0:W]
+    px, py = px.ravel().astype(np.float64), py.ravel().astype(np.float64)
+    half = np.full(len(px), 0.5)
+    o, d, _ = camera_rays(scene.camera, np.zeros(3), W, H, px, py, half, half)
+    lo = np.array([-HALF, -HALF, 0.0])
+    hi = np.array([HALF, HALF, HEIGHT])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(d > 0, (hi - o) / d, (lo - o) / d)
+    t = np.where(np.isfinite(t) & (t > 0), t, np.inf)
+    k = np.argmin(t, axis=1)
+    y = o + np.min(t, axis=1)[:, None] * d
+    floor = (k == 2) & (d[:, 2] < 0)
+    window = ((k == 0) & (d[:, 0] > 0) & (y[:, 1] > WIN_Y[0]) & (y[:, 1] < WIN_Y[1])
+              & (y[:, 2] > WIN_Z[0]) & (y[:, 2] < WIN_Z[1]))
+    return floor.reshape(H, W), (~floor & ~window).reshape(H, W)
+
+
+def render_ours(world, on, seed, spp, size):
+    """(combined (H,W,3), direct (H,W,3), CPU s)."""
+    import engine.lights as el
+    from engine.render import render
+    from engine.settings import RenderSettings
+    el.SHADOW_PORTALS = on
+    scene = room(world, *size)
+    c0 = time.process_time()
+    film = render(scene, RenderSettings(spp=spp, seed=seed, workers=1))
+    cpu = time.process_time() - c0
+    passes = film.passes()
+    return (film.combined[..., :3].astype(np.float64),
+            passes["direct"][..., :3].astype(np.float64), cpu)
+
+
+def _cycles_world(bpy, sc, pixels):
+    """The world's node tree: Environment Texture of `pixels` (H,W,3) linear, row 0 the
+    top (+Z; docs/lights.md orientation, as Cycles') -> Background of strength 1."""
+    H, W = pixels.shape[:2]
+    img = bpy.data.images.new("sky", W, H, float_buffer=True, alpha=True)
+    img.colorspace_settings.name = "Linear Rec.709"
+    rgba = np.ones((H, W, 4), np.float32)
+    rgba[..., :3] = pixels[::-1]  # Blender's rows bottom-up
+    img.pixels.foreach_set(rgba.ravel())
+    img.pack()
+    nt = sc.world.node_tree
+    bg = next(n for n in nt.nodes if n.type == "BACKGROUND")
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = img
+    env.interpolation = "Linear"
+    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 1.0
+
+
+def render_cycles(spp, size, seed=0, world="uniform"):
+    """Cycles' combined image (H,W,3) of the room with its portal, CPU s."""
+    import bpy
+    import mathutils
+    sys.path.insert(0, HERE)
+    import cycles_scene
+    scene = room("uniform", *size, portal=True)
+    build = cycles_scene.build
+    orig = cycles_scene.build
+
+    def with_portal(sc_in):
+        sc = orig(sc_in)
+        if world == "hdri":
+            if sc.world.node_tree is None:
+                sc.world.use_nodes = True
+            _cycles_world(bpy, sc, hdri())
+        ld = bpy.data.lights.new("Portal", "AREA")
+        ld.shape = "RECTANGLE"
+        ld.size, ld.size_y = WIN_Y[1] - WIN_Y[0], WIN_Z[1] - WIN_Z[0]
+        ld.cycles.is_portal = True
+        ob = bpy.data.objects.new("Portal", ld)
+        # local -Z (the portal's direction) into the room: -x; local X along y
+        x_ax, z_ax = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])
+        y_ax = np.cross(z_ax, x_ax)
+        M = np.eye(4)
+        M[:3, 0], M[:3, 1], M[:3, 2] = x_ax, y_ax, z_ax
+        M[:3, 3] = (HALF, 0.5 * sum(WIN_Y), 0.5 * sum(WIN_Z))
+        ob.matrix_world = mathutils.Matrix(M.tolist())
+        sc.collection.objects.link(ob)
+        return sc
+
+    cycles_scene.build = with_portal
+    try:
+        c0 = time.process_time()
+        img, _ = cycles_scene.render(scene, spp, seed)
+        cpu = time.process_time() - c0
+    finally:
+        cycles_scene.build = build
+    return np.asarray(img, np.float64)[..., :3], cpu
+
+
+def noise(a, b, mask, block=8):
+    """(pixel std/mean, 8x8 block std/mean) of two seeds' images over mask (luminance)."""
+    la, lb = a.mean(axis=2), b.mean(axis=2)
+    m = 0.5 * (la + lb)[mask].mean()
+    px = np.std((la - lb)[mask]) / math.sqrt(2) / m
+    H, W = la.shape
+    H8, W8 = H // block * block, W // block * block
+    da = (la - lb)[:H8, :W8].reshape(H8 // block, block, W8 // block, block)
+    mk = mask[:H8, :W8].reshape(H8 // block, block, W8 // block, block)
+    full = mk.all(axis=(1, 3))
+    blk = da.mean(axis=(1, 3))[full]
+    return px, (np.std(blk) / math.sqrt(2) / m if len(blk) > 1 else float("nan"))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--seeds", default="0,1")
+    ap.add_argument("--worlds", default="uniform,hdri")
+    ap.add_argument("--modes", default="off,on")
+    ap.add_argument("--cycles", type=int, default=0, help="Cycles spp (0: none)")
+    ap.add_argument("--size", default="96x64")
+    ap.add_argument("--save", default=None)
+    ap.add_argument("--glossy", action="store_true", help="rough specular surfaces")
+    args = ap.parse_args(argv)
+    global GLOSSY
+    GLOSSY = args.glossy
+    size = tuple(int(x) for x in args.size.split("x"))
+    seeds = [int(x) for x in args.seeds.split(",")]
+    from engine import jit
+    jit.ensure_compiled()
+    floor, walls = regions(room("uniform", *size))
+    print(f"{size[0]}x{size[1]}, {args.spp} spp, seeds {seeds}; floor {floor.sum()} px, "
+          f"walls {walls.sum()} px")
+    refs = {}
+    for world in args.worlds.split(",") if args.cycles else ():
+        ref, ccpu = render_cycles(args.cycles, size, world=world)
+        refs[world] = ref
+        print(f"Cycles {args.cycles} spp (portal), {world}: floor {ref[floor].mean():.4f} "
+              f"walls {ref[walls].mean():.4f}  CPU {ccpu:.1f} s")
+        if args.save:
+            os.makedirs(args.save, exist_ok=True)
+            np.save(os.path.join(args.save, f"cycles_{world}_{args.cycles}.npy"), ref)
+    print("world    mode floor   walls   /Cyc.fl /Cyc.wa direct  px-noise blk-noise "
+          "dir.px  dir.blk  var.dir  CPU s")
+    for world in args.worlds.split(","):
+        for mode in args.modes.split(","):
+            imgs = [render_ours(world, mode == "on", s, args.spp, size) for s in seeds]
+            a, b = imgs[0][0], imgs[1][0] if len(imgs) > 1 else imgs[0][0]
+            da, db = imgs[0][1], imgs[1][1] if len(imgs) > 1 else imgs[0][1]
+            mean = 0.5 * (a + b)
+            room_px = floor | walls
+            px, blk = noise(a, b, room_px)
+            dpx, dblk = noise(da, db, room_px)
+            # share of the combined pixel variance that is the Direct pass's
+            vc = np.var((a - b).mean(axis=2)[room_px])
+            vd = np.var((da - db).mean(axis=2)[room_px])
+            cpu = np.mean([x[2] for x in imgs])
+            rf = rw = float("nan")
+            ref = refs.get(world)
+            if ref is not None:
+                rf = mean[floor].mean() / ref[floor].mean()
+                rw = mean[walls].mean() / ref[walls].mean()
+            print(f"{world:8s} {mode:4s} {mean[floor].mean():.4f}  {mean[walls].mean():.4f}  "
+                  f"{rf:.4f}  {rw:.4f}  {0.5 * (da + db)[room_px].mean():.4f}  "
+                  f"{px:.4f}   {blk:.4f}    {dpx:.4f}  {dblk:.4f}  {vd / vc:.3f}    "
+                  f"{cpu:.1f}")
+            if args.save:
+                os.makedirs(args.save, exist_ok=True)
+                for s, (c, d, _) in zip(seeds, imgs):
+                    np.save(os.path.join(args.save, f"{world}_{mode}_s{s}.npy"), c)
+
+
+if __name__ == "__main__":
+    main()

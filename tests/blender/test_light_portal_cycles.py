@@ -1,0 +1,98 @@
+"""The world's shadow rays through a Cycles light portal (engine/lights/world.py,
+lightportal34) against live Cycles: a 4 x 4 x 2 m closed grey room (zero-thickness
+walls) with an open 1 x 1 m hole in its roof (no glass) and an Area light with Portal on
+over it, under a white world; an orthographic camera inside looking down at the floor.
+Brightness within 3 % of Cycles (1024 spp, with the portal; two seeds' mean), and the
+pixel noise between two seeds well under that of the shadow rays without the portal
+(engine.lights.SHADOW_PORTALS off: trial34's cosine sampling).
+"""
+import math
+
+import numpy as np
+import pytest
+from blender_helpers import glass_or_diffuse_material
+
+pytestmark = pytest.mark.blender
+
+
+def _plane(bpy, loc, rot, scale, mat):
+    bpy.ops.mesh.primitive_plane_add(size=1, location=loc, rotation=rot)
+    ob = bpy.context.object
+    ob.scale = scale
+    ob.data.materials.append(mat)
+    return ob
+
+
+def _scene(bpy, scene):
+    import sys
+    from blender_helpers import ROOT
+    sys.path.insert(0, f"{ROOT}/example_blends")
+    import make_blends
+    grey = glass_or_diffuse_material(bpy, "Grey", "diffuse", (0.6,) * 3)
+    _plane(bpy, (0, 0, 0), (0, 0, 0), (4.0, 4.0, 1.0), grey)
+    for k in range(4):
+        a = k * math.pi / 2
+        _plane(bpy, (2.0 * math.cos(a), 2.0 * math.sin(a), 1.0), (0.0, math.pi / 2, a),
+               (2.0, 4.0, 1.0), grey)
+    # the roof round the open 1 x 1 m hole
+    for y in (1.25, -1.25):
+        _plane(bpy, (0, y, 2.0), (0, 0, 0), (4.0, 1.5, 1.0), grey)
+    for x in (1.25, -1.25):
+        _plane(bpy, (x, 0, 2.0), (0, 0, 0), (1.5, 1.0, 1.0), grey)
+    # the portal over the hole: an Area light's -Z (down) into the room
+    ld = bpy.data.lights.new("Portal", "AREA")
+    ld.size = 1.0
+    ld.cycles.is_portal = True
+    ob = bpy.data.objects.new("Portal", ld)
+    ob.location = (0.0, 0.0, 2.0)
+    scene.collection.objects.link(ob)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 3.6
+    cam.location = (0.0, 0.0, 1.5)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.world = bpy.data.worlds.new("World")
+    make_blends.set_world((1.0, 1.0, 1.0), 1.0)
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    scene.render.resolution_percentage = 100
+
+
+def test_room_lit_through_an_open_roof_window_with_a_portal_matches_cycles(
+        fresh_scene, bpy_addon, tmp_path):
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    import engine.lights as el
+    bpy = bpy_addon
+    scene = fresh_scene
+    _scene(bpy, scene)
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=16, photons=50_000, caustic_photons=20_000)
+    films = {}
+    old = el.SHADOW_PORTALS
+    try:
+        for on in (True, False):
+            el.SHADOW_PORTALS = on
+            for seed in (0, 1):
+                scene.photonmap.seed = seed
+                films[on, seed] = read_rgba(bpy, render_exr(
+                    bpy, scene, tmp_path / f"ours{on}{seed}.exr"))[..., :3].astype(np.float64)
+    finally:
+        el.SHADOW_PORTALS = old
+        scene.photonmap.seed = 0
+
+    def noise(on):
+        """The two seeds' pixel difference: std / mean."""
+        d = (films[on, 0] - films[on, 1]).mean(axis=2) / math.sqrt(2.0)
+        return float(d.std() / films[on, 0].mean())
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, 1024, 12)
+    ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
+    want = float(ref.mean())
+    got = 0.5 * float(films[True, 0].mean() + films[True, 1].mean())
+    off = 0.5 * float(films[False, 0].mean() + films[False, 1].mean())
+    print(f"floor under an open roof window with a portal (Cycles {want:.5f}): ours / "
+          f"Cycles {got / want:.4f} (shadow rays without the portal {off / want:.4f}); "
+          f"pixel noise (two seeds) on {noise(True):.4f} off {noise(False):.4f}")
+    assert want > 0.01
+    assert got == pytest.approx(want, rel=0.03)
+    assert noise(True) < 0.5 * noise(False)
