@@ -15,11 +15,15 @@ shown yet, so the bar never moves back.
 """
 from __future__ import annotations
 
-# CPU per emitted photon (tracing and the maps' build) over CPU per camera sample, on the
-# paper's Figure 6 at the defaults (docs/performance.md "e2e28": 1.6 s for 600k photons,
-# 25.8 s for 320 x 240 x 128 samples): about 1. Scenes differ (a new user's room spent 5 %
-# on photons where this says 20 %), but far less than fixed shares did.
-PHOTON_COST_PER_SAMPLE = 1.0
+# CPU per emitted photon (tracing and the maps' build) over CPU per camera sample. It
+# differs by scene far more than by photon: the paper's Figure 6 at the defaults 1.0
+# (docs/performance.md "e2e28": 1.6 s for 600k photons, 25.8 s for 320 x 240 x 128
+# samples), newuser29's room ~0.2 (5 % of its time on photons where 1.0 said 20 %),
+# newuser34's lamp-and-window room 0.012 (1.6 us a photon, 3.3M of them with the glow
+# shot, against 132 us a camera sample: 1.0 put the bar at 57 % after 6 of 332 s). A
+# photon share too small only hurries the bar through a short stage; one too large parks
+# it for minutes: the low side, 0.2.
+PHOTON_COST_PER_SAMPLE = 0.2
 # The photon stage's split between tracing and building the maps (Figure 6: 0.6 s
 # tracing, 1.0 s maps).
 TRACE_SHARE = 0.6

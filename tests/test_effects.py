@@ -711,3 +711,27 @@ def test_visual_importance_that_would_thin_photons_out_says_so():
                            "light for 40% of the photon lookups"), thin
     small = no_gain_report(0.3, 0.5, 1.2)
     assert "only 1.2x denser" in small and f"it pays from {ROI_MIN_BOOST:g}x" in small, small
+
+
+def test_clamping_line_says_cycles_clamps_light_through_shades_and_panes():
+    """Light through a lamp shade (or window glass) is indirect light to Cycles, which its
+    Clamp Indirect cuts hard; ours takes it by shadow rays and keeps it (newuser34: a
+    frosted shade's room 1.46x Cycles at Indirect 10, 0.99x with both clamps off). The
+    clamping line says so when both meet, and only then."""
+    from test_shade_light import _scene as shade_scene
+    s = shade_scene()
+    base = RenderSettings(photons=2000, caustic_photons=0, spp=1)
+    text = effects(s.render(dataclasses.replace(base, clamp_indirect=10.0)))
+    clamp = next(line for line in text.split("\n") if line.startswith("clamping: on"))
+    assert "lamp through shade" in text
+    assert "light through window glass and lamp shades (lamp through shade) is indirect " \
+           "light to Cycles" in clamp, clamp
+    assert "set Indirect to 0 in both" in clamp
+    # No shade or pane: the plain line; a shade without clamping: no line at all.
+    plain = PaperScene(width=16, height=16)
+    plain.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
+    plain.add_point_light((0, 0, 3), power=10, name="Bulb")
+    plain.set_camera((0, -5, 2), (0, 0, 0.5))
+    text = effects(plain.render(dataclasses.replace(base, clamp_indirect=10.0)))
+    assert "clamping: on" in text and "lamp shades" not in text
+    assert "clamping" not in effects(s.render(base))

@@ -77,6 +77,7 @@ def test_the_render_tells_its_photon_plan_before_tracing_and_the_bar_follows_it(
     marks = [w for stage, w in events if stage != "plan" and w is not None]
     assert all(b >= a - 1e-12 for a, b in zip(marks, marks[1:])), marks
     assert marks[-1] == 1.0
-    work = float(emitted)
+    from engine.stagespans import PHOTON_COST_PER_SAMPLE
+    work = emitted * PHOTON_COST_PER_SAMPLE
     assert spans.spans["render"][0] == pytest.approx(work / (work + samples))
     assert spans.spans["photons"][1] > before[1]
