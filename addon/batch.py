@@ -567,11 +567,15 @@ def _teaching_image(bpy, scene, args, out, interrupt=None) -> str:
         interrupt = interrupt or CancelOnInterrupt(INTERRUPT_MESSAGE)
         try:
             with interrupt, printer.beside_bar():
+                t0 = time.perf_counter()
                 tiles, rgb8 = operators.teaching_image(
                     kind, scene, bpy.context.evaluated_depsgraph_get(), args.preview_size,
                     "scene" if explicit else "preview", params, args.sweep_preset or "none",
                     progress, reference=args.reference or "",
                     should_cancel=lambda: interrupt.requested)
+                # The grid's renders (its tiles) are the run's rendering time: they do not
+                # go through the render engine, so engine.last_render does not hold them.
+                _RUN_TIMES["render"] += time.perf_counter() - t0
         finally:
             printer.close()
     except KeyboardInterrupt:
@@ -640,6 +644,10 @@ def _render_still(bpy, scene, out, quiet, interrupt=None, previous_effects=None)
         engine.status_listeners.remove(printer)
         engine.test_break_hook = previous_hook
         printer.close()
+    # Every frame's render and kernel load count in the run's closing time split.
+    stats = engine.last_render.get("stats") or {}
+    _RUN_TIMES["render"] += float(engine.last_render.get("time", 0.0))
+    _RUN_TIMES["compile"] += float(stats.get("time_compile") or 0.0)
     status = printer.status
     if interrupt.requested and status != "done":
         raise BatchInterrupted(f"interrupted: render cancelled; {_untouched(out)}")
@@ -655,6 +663,11 @@ def _render_still(bpy, scene, out, quiet, interrupt=None, previous_effects=None)
         raise BatchError(f"cannot write {out}: {str(exc).strip()}; "
                          f"{_untouched(out)}") from None
     return printer.film
+
+
+# Seconds this run spent rendering (the engine's renders, every frame of --frames; the
+# teaching grid's tiles) and loading or compiling kernels, for _main's closing time split.
+_RUN_TIMES = {"render": 0.0, "compile": 0.0}
 
 
 def _untouched(out):
@@ -675,6 +688,7 @@ def main(argv=None) -> int:
 def _main(argv, interrupt) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     t0 = time.perf_counter()
+    _RUN_TIMES.update(render=0.0, compile=0.0)
     try:
         out = render_file(args, interrupt)
     except BatchInterrupted as exc:
@@ -691,8 +705,7 @@ def _main(argv, interrupt) -> int:
     # (a first render's kernel compile would otherwise read as a slow .blend load).
     total = time.perf_counter() - t0
     from addon import engine
-    render_s = float(engine.last_render.get("time", 0.0))
-    compile_s = float((engine.last_render.get("stats") or {}).get("time_compile") or 0.0)
+    render_s, compile_s = _RUN_TIMES["render"], _RUN_TIMES["compile"]
     words = engine.kernel_words((engine.last_render.get("stats") or {})
                                 .get("kernels_compiled", True))
     compiled = f", {words} {compile_s:.1f} s" if compile_s >= 0.5 else ""

@@ -324,3 +324,35 @@ def test_batch_renders_a_blend_saved_with_multilayer_exr_output(bpy_addon, tmp_p
     assert res.returncode == 0, res.stderr[-2000:]
     assert "Traceback" not in res.stderr, res.stderr[-2000:]
     assert out.read_bytes()[:4] == magic
+
+
+def _run_split(stdout):
+    """(total, rendering) seconds of the batch command's closing 'wrote ...' line."""
+    m = re.search(r"wrote .* \(([\d.]+) s: rendering ([\d.]+) s", stdout)
+    assert m, stdout[-2000:]
+    return float(m.group(1)), float(m.group(2))
+
+
+def test_batch_time_split_counts_every_render_of_the_run(tmp_path):
+    """The closing line's 'rendering' is every render the run made: the teaching grid's
+    tiles (--compare) and each frame of --frames, not the last still render alone (it read
+    0.0 s for --compare and put the tiles' time under 'Blender start-up, loading the
+    .blend', newuser34)."""
+    blend = os.path.join(BLENDS, "figure3_sphere.blend")
+    res = _batch(blend, "--compare", "-o", str(tmp_path / "grid.png"), "--preview-size", "64",
+                 "--samples", "16", "--photons", "20000", "--caustic-photons", "5000")
+    assert res.returncode == 0, res.stderr[-2000:]
+    tiles = [float(t) for t in re.findall(r"^  [A-Za-z ]+ \| ([\d.]+) s,", res.stderr, re.M)]
+    assert len(tiles) == 3, res.stderr[-2000:]  # local, ray tracing, photon mapping
+    total, rendering = _run_split(res.stdout)
+    # (the tiles' times are printed to 0.1 s; the grid's call also loads the kernels)
+    assert rendering >= max(sum(tiles) - 0.15, 0.1), (rendering, tiles, res.stdout)
+    assert rendering <= total
+    res = _batch(blend, "-o", str(tmp_path / "f_####.png"), "--frames", "1..2", *SMALL)
+    assert res.returncode == 0, res.stderr[-2000:]
+    frames = [float(t) for t in re.findall(r"^Done: \d+ triangles, \d+ lights?, ([\d.]+) s",
+                                           res.stderr, re.M)]
+    assert len(frames) == 2, res.stderr[-2000:]
+    total, rendering = _run_split(res.stdout)
+    assert rendering >= sum(frames) - 0.1, (rendering, frames, res.stdout)
+    assert rendering <= total
