@@ -162,7 +162,9 @@ class PassMerger:
         photon_hits=None (all zero, not worth shipping): adding zeros changes nothing."""
         self.passes += 1
         i = self.passes
-        self.photons += one.stats.get("photons_emitted", 0) + one.stats.get("caustic_photons_emitted", 0)
+        st = one.stats  # every shot's photons, each once (render._photon_pass)
+        self.photons += st.get("photons_emitted_all", st.get("photons_emitted", 0)
+                               + st.get("caustic_photons_emitted", 0))
         # The render's sum (not the photon-hit view that combined is with show_photons).
         combined = sum(getattr(one, name) for name in EFFECTS).astype(np.float64)
         for name in EFFECTS:

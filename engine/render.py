@@ -580,6 +580,10 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
     stats["time_photons"] = time.perf_counter() - t0
     stats["photons_emitted"] = shot.emitted
     stats["caustic_photons_emitted"] = caustic.emitted
+    # Every shot's emitted photons, each once (the glow shot may be the caustic map):
+    # what the pass traced, as on_plan announced it.
+    stats["photons_emitted_all"] = int(shot.emitted) + int(caustic.emitted) + (
+        int(glow.emitted) if glow is not None and caustic is not glow else 0)
     if progress is not None:
         progress("photon_map", 0.0, "Building photon map")
     t0 = time.perf_counter()

@@ -107,6 +107,10 @@ def brightness_difference(img: np.ndarray, ref: np.ndarray) -> float:
 
 
 def _photons_emitted(stats) -> int:
+    """The photons a render's photon pass traced over all its shots (the glow shot
+    included: render._photon_pass's photons_emitted_all)."""
+    if "photons_emitted_all" in stats:
+        return int(stats["photons_emitted_all"])
     return int(stats.get("photons_emitted", 0) or 0) + int(
         stats.get("caustic_photons_emitted", 0) or 0)
 

@@ -70,6 +70,7 @@ def test_the_render_tells_its_photon_plan_before_tracing_and_the_bar_follows_it(
     emitted = st["photons_emitted"] + st["glow_photons_emitted"]
     plans = [e for e in events if e[0] == "plan"]
     assert len(plans) == 1 and plans[0][1] == emitted, (plans, emitted)
+    assert st["photons_emitted_all"] == emitted  # (the teaching tiles' count)
     assert st["glow_photons_emitted"] > settings.photons  # the shot the settings miss
     first_photon = next(i for i, e in enumerate(events) if e[0] == "photons")
     assert events.index(plans[0]) < first_photon
