@@ -401,7 +401,8 @@ def portal_plan(ctx, emitters: list, counts: list, region=None):
         seen = "none" if sky is None else f"{sky:.0%}"
         return emitters, counts, (f"photon portals: off - the sky the camera sees is mostly "
                                   f"not through the {what} {names} ({seen} through them): "
-                                  "the world's and suns' photons as before")
+                                  "the world's and suns' photons start on the disc "
+                                  "beyond the scene, as in a scene without windows")
     portals.sky = sky
     share = min(sky, PORTAL_SHARE_MAX)
     out, used = [], []
@@ -418,4 +419,6 @@ def portal_plan(ctx, emitters: list, counts: list, region=None):
     who = ", ".join(f"'{u}'" for u in used)
     return out, counts, (f"photon portals: on - {share:.0%} of the photons of {who} start "
                          f"on the {what} {names} ({sky:.0%} of the sky the camera's "
-                         "surfaces see is through them), the rest as before")
+                         "surfaces see is through them); the other "
+                         f"{1 - share:.0%} start on the disc beyond the scene, as in a scene "
+                         "without windows")
