@@ -257,3 +257,55 @@ def render_pixel_centres(bpy, scene, path, engine, spp=16):
         cheap(scene, spp=spp, photons=1_000, caustic_photons=0)
         scene.photonmap.photon_mapping = False
     return read_rgba(bpy, render_exr(bpy, scene, path))
+
+
+def roof_window_room(bpy, scene):
+    """A 4 x 4 x 2 m closed grey room (albedo 0.6, zero-thickness walls, as users model
+    them) whose roof has a 1 x 1 m hole centred over the floor's middle, under a white
+    world of strength 1; 32 x 32 px. The caller fills the hole (a pane, a light portal or
+    nothing) and sets the camera. Returns the grey material."""
+    import math
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends
+
+    def plane(loc, rot, scale):
+        bpy.ops.mesh.primitive_plane_add(size=1, location=loc, rotation=rot)
+        ob = bpy.context.object
+        ob.scale = scale
+        ob.data.materials.append(grey)
+        return ob
+    grey = glass_or_diffuse_material(bpy, "Grey", "diffuse", (0.6,) * 3)
+    plane((0, 0, 0), (0, 0, 0), (4.0, 4.0, 1.0)).name = "Floor"
+    for k in range(4):
+        a = k * math.pi / 2
+        plane((2.0 * math.cos(a), 2.0 * math.sin(a), 1.0), (0.0, math.pi / 2, a),
+              (2.0, 4.0, 1.0))
+    # the roof round the hole: two 4 x 1.5 strips and two 1.5 x 1 strips
+    for y in (1.25, -1.25):
+        plane((0, y, 2.0), (0, 0, 0), (4.0, 1.5, 1.0))
+    for x in (1.25, -1.25):
+        plane((x, 0, 2.0), (0, 0, 0), (1.5, 1.0, 1.0))
+    scene.world = bpy.data.worlds.new("World")
+    make_blends.set_world((1.0, 1.0, 1.0), 1.0)
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    scene.render.resolution_percentage = 100
+    return grey
+
+
+def renders_by_switch(bpy, scene, tmp_path, module, name, seeds=(0, 1)):
+    """{(on, seed): (H, W, 3) float64} of our renders of scene with module.name (an
+    engine switch, e.g. engine.portal.ENABLED) True and False at each seed; the switch and
+    the seed restored after."""
+    old = getattr(module, name)
+    films = {}
+    try:
+        for on in (True, False):
+            setattr(module, name, on)
+            for seed in seeds:
+                scene.photonmap.seed = seed
+                films[on, seed] = read_rgba(bpy, render_exr(
+                    bpy, scene, tmp_path / f"ours{on}{seed}.exr"))[..., :3].astype(np.float64)
+    finally:
+        setattr(module, name, old)
+        scene.photonmap.seed = 0
+    return films

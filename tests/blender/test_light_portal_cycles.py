@@ -8,37 +8,14 @@ pixel noise between two seeds well under that of the shadow rays without the por
 """
 import math
 
-import numpy as np
 import pytest
-from blender_helpers import glass_or_diffuse_material
+from blender_helpers import renders_by_switch, roof_window_room
 
 pytestmark = pytest.mark.blender
 
 
-def _plane(bpy, loc, rot, scale, mat):
-    bpy.ops.mesh.primitive_plane_add(size=1, location=loc, rotation=rot)
-    ob = bpy.context.object
-    ob.scale = scale
-    ob.data.materials.append(mat)
-    return ob
-
-
 def _scene(bpy, scene):
-    import sys
-    from blender_helpers import ROOT
-    sys.path.insert(0, f"{ROOT}/example_blends")
-    import make_blends
-    grey = glass_or_diffuse_material(bpy, "Grey", "diffuse", (0.6,) * 3)
-    _plane(bpy, (0, 0, 0), (0, 0, 0), (4.0, 4.0, 1.0), grey)
-    for k in range(4):
-        a = k * math.pi / 2
-        _plane(bpy, (2.0 * math.cos(a), 2.0 * math.sin(a), 1.0), (0.0, math.pi / 2, a),
-               (2.0, 4.0, 1.0), grey)
-    # the roof round the open 1 x 1 m hole
-    for y in (1.25, -1.25):
-        _plane(bpy, (0, y, 2.0), (0, 0, 0), (4.0, 1.5, 1.0), grey)
-    for x in (1.25, -1.25):
-        _plane(bpy, (x, 0, 2.0), (0, 0, 0), (1.5, 1.0, 1.0), grey)
+    roof_window_room(bpy, scene)
     # the portal over the hole: an Area light's -Z (down) into the room
     ld = bpy.data.lights.new("Portal", "AREA")
     ld.size = 1.0
@@ -51,10 +28,6 @@ def _scene(bpy, scene):
     cam.location = (0.0, 0.0, 1.5)
     scene.collection.objects.link(cam)
     scene.camera = cam
-    scene.world = bpy.data.worlds.new("World")
-    make_blends.set_world((1.0, 1.0, 1.0), 1.0)
-    scene.render.resolution_x = scene.render.resolution_y = 32
-    scene.render.resolution_percentage = 100
 
 
 def test_room_lit_through_an_open_roof_window_with_a_portal_matches_cycles(
@@ -67,18 +40,7 @@ def test_room_lit_through_an_open_roof_window_with_a_portal_matches_cycles(
     scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
     scene.render.engine = "PHOTONMAP"
     cheap(scene, spp=16, photons=50_000, caustic_photons=20_000)
-    films = {}
-    old = el.SHADOW_PORTALS
-    try:
-        for on in (True, False):
-            el.SHADOW_PORTALS = on
-            for seed in (0, 1):
-                scene.photonmap.seed = seed
-                films[on, seed] = read_rgba(bpy, render_exr(
-                    bpy, scene, tmp_path / f"ours{on}{seed}.exr"))[..., :3].astype(np.float64)
-    finally:
-        el.SHADOW_PORTALS = old
-        scene.photonmap.seed = 0
+    films = renders_by_switch(bpy, scene, tmp_path, el, "SHADOW_PORTALS")
 
     def noise(on):
         """The two seeds' pixel difference: std / mean."""

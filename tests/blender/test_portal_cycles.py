@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from blender_helpers import glass_or_diffuse_material
+from blender_helpers import glass_or_diffuse_material, renders_by_switch, roof_window_room
 
 pytestmark = pytest.mark.blender
 
@@ -28,21 +28,7 @@ def _plane(bpy, size, loc, rot, scale, mat, name=None):
 
 
 def _scene(bpy, scene):
-    import sys
-    from blender_helpers import ROOT
-    sys.path.insert(0, f"{ROOT}/example_blends")
-    import make_blends
-    grey = glass_or_diffuse_material(bpy, "Grey", "diffuse", (0.6,) * 3)
-    _plane(bpy, 4, (0, 0, 0), (0, 0, 0), (1, 1, 1), grey, "Floor")
-    for k in range(4):
-        a = k * math.pi / 2
-        _plane(bpy, 1, (2.0 * math.cos(a), 2.0 * math.sin(a), 1.0), (0.0, math.pi / 2, a),
-               (2.0, 4.0, 1.0), grey)
-    # the roof round the 1 x 1 m window: two 4 x 1.5 strips and two 1.5 x 1 strips
-    for y in (1.25, -1.25):
-        _plane(bpy, 1, (0, y, 2.0), (0, 0, 0), (4.0, 1.5, 1.0), grey)
-    for x in (1.25, -1.25):
-        _plane(bpy, 1, (x, 0, 2.0), (0, 0, 0), (1.5, 1.0, 1.0), grey)
+    roof_window_room(bpy, scene)
     _plane(bpy, 1, (0, 0, 2.0), (0, 0, 0), (1, 1, 1),
            glass_or_diffuse_material(bpy, "Glass", "glass", (1.0,) * 3), "Pane")
     # looking up at the ceiling (lit by the room's indirect light only) round the pane
@@ -52,10 +38,6 @@ def _scene(bpy, scene):
     cam.rotation_euler = (math.pi, 0.0, 0.0)
     scene.collection.objects.link(cam)
     scene.camera = cam
-    scene.world = bpy.data.worlds.new("World")
-    make_blends.set_world((1.0, 1.0, 1.0), 1.0)
-    scene.render.resolution_x = scene.render.resolution_y = 32
-    scene.render.resolution_percentage = 100
 
 
 def test_room_lit_through_a_roof_window_matches_cycles(fresh_scene, bpy_addon, tmp_path):
@@ -67,18 +49,7 @@ def test_room_lit_through_a_roof_window_matches_cycles(fresh_scene, bpy_addon, t
     scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
     scene.render.engine = "PHOTONMAP"
     cheap(scene, spp=16, photons=50_000, caustic_photons=20_000)
-    films = {}
-    old = portal.ENABLED
-    try:
-        for on in (True, False):
-            portal.ENABLED = on
-            for seed in (0, 1):
-                scene.photonmap.seed = seed
-                films[on, seed] = read_rgba(bpy, render_exr(
-                    bpy, scene, tmp_path / f"ours{on}{seed}.exr"))[..., :3].astype(np.float64)
-    finally:
-        portal.ENABLED = old
-        scene.photonmap.seed = 0
+    films = renders_by_switch(bpy, scene, tmp_path, portal, "ENABLED")
     # the ceiling only: the pane (the sky through it) in the middle 10 x 10 pixels left out
     keep = np.ones((32, 32), bool)
     keep[11:21, 11:21] = False
