@@ -18,17 +18,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 from engine import shadernodes as sn  # noqa: E402
+from bench_node_values import _Points  # noqa: E402  (fixed coordinates per hit)
 from bench_textures import best_of  # noqa: E402  (the best of n timings)
-
-
-class _Points:
-    """A coordinates node of fixed points (what Generated coordinates give per hit)."""
-
-    def __init__(self, pts):
-        self.pts = pts
-
-    def evaluate(self, geo, prim, u, v):
-        return self.pts[prim]
 
 
 def main(argv=None):

@@ -37,7 +37,7 @@ from engine.scene import Material
 from engine.visibility import VisibilityAccel
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_rough_glass_shade_light import H, IOR, R, SIDES, TUBE, _tube  # noqa: E402
+from test_rough_glass_shade_light import H, IOR, _faces_facing, _tube  # noqa: E402
 
 P = 100.0
 SHADE_ROUGH, FLOOR_ROUGH = 0.5, 0.5
@@ -107,20 +107,8 @@ def _glass_radiance(table, y, n_out, w_x):
 def _integral(table, x, wo, n_a=24, n_z=240):
     """(3,) the module docstring's glossy radiance at x (3,) towards wo (3,), on an
     n_a x n_z grid of each outer face facing x."""
-    lamp = np.array([0.0, 0.0, H])
-    s = (np.arange(n_a) + 0.5) / n_a
-    z = (np.arange(n_z) + 0.5) / n_z * TUBE - TUBE / 2
     total = np.zeros(3)
-    for i in range(SIDES):
-        a0, a1 = 2 * math.pi * i / SIDES, 2 * math.pi * (i + 1) / SIDES
-        p0 = lamp + [R * math.cos(a0), R * math.sin(a0), 0.0]
-        p1 = lamp + [R * math.cos(a1), R * math.sin(a1), 0.0]
-        n_out = np.array([math.cos(0.5 * (a0 + a1)), math.sin(0.5 * (a0 + a1)), 0.0])
-        if np.dot(x - p0, n_out) <= 0.0:
-            continue
-        y = (p0 + s[:, None, None] * (p1 - p0) + z[None, :, None] * [0.0, 0.0, 1.0])
-        y = y.reshape(-1, 3)
-        dA = float(np.linalg.norm(p1 - p0)) * TUBE / (n_a * n_z)
+    for y, n_out, dA in _faces_facing(x, n_a, n_z):
         w = y - x
         dist = np.linalg.norm(w, axis=1)
         w /= dist[:, None]

@@ -309,18 +309,27 @@ def test_light_portal_over_an_opening_carries_pi_L_A():
     assert abs(got - want) < 4 * err
 
 
-def test_light_portal_fills_the_room():
-    """The open roof window with a light portal: many times main's photons inside, the
-    same power as natural emission (20x the photons); without the light portal an open
-    window is not found (no glass: panelight finds panes only)."""
-    film, ph, geo = _render_spy(_room(pane=False, light_portal=True), True, spp=1)
-    _, p0, g0 = _render_spy(_room(pane=False, light_portal=True), False, spp=1)
-    _, pr, gr = _render_spy(_room(pane=False), False, spp=1, photon_importance=False,
-                            photons=400_000)
+def _against_natural(room_kw, natural_kw=None):
+    """The room _room(**room_kw) rendered (1 spp) with portals and without, and natural
+    emission (no visual importance, 400k photons) in _room(**natural_kw) (default: the
+    same room): (the portal render's film, its photons inside (bool), main's photons
+    inside, the power inside with portals, naturally)."""
+    film, ph, geo = _render_spy(_room(**room_kw), True, spp=1)
+    _, p0, g0 = _render_spy(_room(**room_kw), False, spp=1)
+    _, pr, gr = _render_spy(_room(**(room_kw if natural_kw is None else natural_kw)), False,
+                            spp=1, photon_importance=False, photons=400_000)
     i1, i0, ir = _inside(ph, geo), _inside(p0, g0), _inside(pr, gr)
     w1, wr = (p.power[i].astype(np.float64).sum() for p, i in ((ph, i1), (pr, ir)))
     print(f"inside photons {i1.sum()} vs {i0.sum()}; power inside {w1:.4f}, natural 400k "
           f"{wr:.4f} ({ir.sum()})")
+    return film, i1, i0, w1, wr
+
+def test_light_portal_fills_the_room():
+    """The open roof window with a light portal: many times main's photons inside, the
+    same power as natural emission (20x the photons); without the light portal an open
+    window is not found (no glass: panelight finds panes only)."""
+    film, i1, i0, w1, wr = _against_natural(dict(pane=False, light_portal=True),
+                                            dict(pane=False))
     line = next(x for x in film.stats["effects"] if x.startswith("photon maps"))
     assert "start on the light portals 'Portal'" in line
     assert i1.sum() > 20 * i0.sum()
@@ -336,14 +345,7 @@ def test_sun_photons_through_the_roof_pane_fill_the_room():
     photons)."""
     sun = ((math.sin(math.radians(30)), 0.0, -math.cos(math.radians(30))), 3.0)
     room = dict(sun=sun, background=(0.0, 0.0, 0.0))
-    film, ph, geo = _render_spy(_room(**room), True, spp=1)
-    _, p0, g0 = _render_spy(_room(**room), False, spp=1)
-    _, pr, gr = _render_spy(_room(**room), False, spp=1, photon_importance=False,
-                            photons=400_000)
-    i1, i0, ir = _inside(ph, geo), _inside(p0, g0), _inside(pr, gr)
-    w1, wr = (p.power[i].astype(np.float64).sum() for p, i in ((ph, i1), (pr, ir)))
-    print(f"inside photons {i1.sum()} vs {i0.sum()}; power inside {w1:.4f}, natural 400k "
-          f"{wr:.4f} ({ir.sum()})")
+    film, i1, i0, w1, wr = _against_natural(room)
     line = next(x for x in film.stats["effects"] if x.startswith("photon maps"))
     assert "photons of 'sun' start on the window panes 'pane'" in line
     assert i1.sum() > 20 * i0.sum()

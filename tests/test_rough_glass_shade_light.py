@@ -83,6 +83,24 @@ def _context(rough, inward=False):
     return Context(s, RenderSettings(photons=1000, seed=3), geo, table, accel, lights)
 
 
+def _faces_facing(x, n_a, n_z):
+    """For each outer face of the tube that faces x (3,) (the others are hidden, or seen
+    from the lamp's side: nothing towards x): (its n_a x n_z grid's midpoints (M,3), its
+    outward normal (3,), the area of one grid cell)."""
+    lamp = np.array([0.0, 0.0, H])
+    s = (np.arange(n_a) + 0.5) / n_a
+    z = (np.arange(n_z) + 0.5) / n_z * TUBE - TUBE / 2
+    for i in range(SIDES):
+        a0, a1 = 2 * math.pi * i / SIDES, 2 * math.pi * (i + 1) / SIDES
+        p0 = lamp + [R * math.cos(a0), R * math.sin(a0), 0.0]
+        p1 = lamp + [R * math.cos(a1), R * math.sin(a1), 0.0]
+        n_out = np.array([math.cos(0.5 * (a0 + a1)), math.sin(0.5 * (a0 + a1)), 0.0])
+        if np.dot(x - p0, n_out) <= 0.0:
+            continue
+        y = (p0 + s[:, None, None] * (p1 - p0) + z[None, :, None] * [0.0, 0.0, 1.0])
+        yield y.reshape(-1, 3), n_out, float(np.linalg.norm(p1 - p0)) * TUBE / (n_a * n_z)
+
+
 def _integral(table, x, normal, n_a=16, n_z=160, inward=False):
     """(3,) irradiance at x (3,) (unit normal (3,)) through the tube's outer faces that
     face x: the module docstring's integral on an n_a x n_z grid of each face."""
@@ -91,19 +109,8 @@ def _integral(table, x, normal, n_a=16, n_z=160, inward=False):
     params = np.asarray(table.closure_params, np.float64)
     mat = table.names.index("shade")
     base = np.asarray(table.base_color, np.float64)[mat]
-    s = (np.arange(n_a) + 0.5) / n_a
-    z = (np.arange(n_z) + 0.5) / n_z * TUBE - TUBE / 2
     total = np.zeros(3)
-    for i in range(SIDES):
-        a0, a1 = 2 * math.pi * i / SIDES, 2 * math.pi * (i + 1) / SIDES
-        p0 = lamp + [R * math.cos(a0), R * math.sin(a0), 0.0]
-        p1 = lamp + [R * math.cos(a1), R * math.sin(a1), 0.0]
-        n_out = np.array([math.cos(0.5 * (a0 + a1)), math.sin(0.5 * (a0 + a1)), 0.0])
-        if np.dot(x - p0, n_out) <= 0.0:
-            continue  # hidden, or seen from the lamp's side: nothing towards x
-        y = (p0 + s[:, None, None] * (p1 - p0) + z[None, :, None] * [0.0, 0.0, 1.0])
-        y = y.reshape(-1, 3)
-        dA = float(np.linalg.norm(p1 - p0)) * TUBE / (n_a * n_z)
+    for y, n_out, dA in _faces_facing(x, n_a, n_z):
         wo = x - y
         dist = np.linalg.norm(wo, axis=1)
         wo /= dist[:, None]

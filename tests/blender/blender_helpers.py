@@ -309,3 +309,15 @@ def renders_by_switch(bpy, scene, tmp_path, module, name, seeds=(0, 1)):
         setattr(module, name, old)
         scene.photonmap.seed = 0
     return films
+
+
+def light_portal(bpy, scene, location, size=1.0, energy=10.0):
+    """A square Area light of side `size` with Cycles' Portal on at `location`, its -Z
+    (down) into the room; the object."""
+    ld = bpy.data.lights.new("Portal", "AREA")
+    ld.energy, ld.size = energy, size
+    ld.cycles.is_portal = True
+    ob = bpy.data.objects.new("Portal", ld)
+    ob.location = location
+    scene.collection.objects.link(ob)
+    return ob

@@ -9,25 +9,16 @@ pixel noise between two seeds well under that of the shadow rays without the por
 import math
 
 import pytest
-from blender_helpers import renders_by_switch, roof_window_room
+from blender_helpers import (light_portal, looking_down_camera, renders_by_switch,
+                             roof_window_room)
 
 pytestmark = pytest.mark.blender
 
 
 def _scene(bpy, scene):
     roof_window_room(bpy, scene)
-    # the portal over the hole: an Area light's -Z (down) into the room
-    ld = bpy.data.lights.new("Portal", "AREA")
-    ld.size = 1.0
-    ld.cycles.is_portal = True
-    ob = bpy.data.objects.new("Portal", ld)
-    ob.location = (0.0, 0.0, 2.0)
-    scene.collection.objects.link(ob)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 3.6
-    cam.location = (0.0, 0.0, 1.5)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    light_portal(bpy, scene, (0.0, 0.0, 2.0))  # over the hole, its -Z into the room
+    looking_down_camera(bpy, scene, 1.5, ortho_scale=3.6)
 
 
 def test_room_lit_through_an_open_roof_window_with_a_portal_matches_cycles(

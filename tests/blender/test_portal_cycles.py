@@ -12,7 +12,8 @@ import math
 
 import numpy as np
 import pytest
-from blender_helpers import glass_or_diffuse_material, renders_by_switch, roof_window_room
+from blender_helpers import (black_world, glass_or_diffuse_material, light_portal,
+                             looking_down_camera, renders_by_switch, roof_window_room)
 
 pytestmark = pytest.mark.blender
 
@@ -84,23 +85,9 @@ def test_a_light_portal_emits_nothing_as_in_cycles(fresh_scene, bpy_addon, tmp_p
     scene = fresh_scene
     grey = glass_or_diffuse_material(bpy, "Grey", "diffuse", (0.6,) * 3)
     _plane(bpy, 4, (0, 0, 0), (0, 0, 0), (1, 1, 1), grey, "Floor")
-    ld = bpy.data.lights.new("Portal", "AREA")
-    ld.energy, ld.size = 1000.0, 1.0
-    ld.cycles.is_portal = True
-    ob = bpy.data.objects.new("Portal", ld)
-    ob.location = (0.0, 0.0, 1.0)
-    scene.collection.objects.link(ob)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.type, cam.data.ortho_scale = "ORTHO", 3.0
-    cam.location = (0.0, 0.0, 2.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    import sys
-    from blender_helpers import ROOT
-    sys.path.insert(0, f"{ROOT}/example_blends")
-    import make_blends
-    scene.world = bpy.data.worlds.new("World")
-    make_blends.set_world((0.0, 0.0, 0.0), 0.0)
+    light_portal(bpy, scene, (0.0, 0.0, 1.0), energy=1000.0)
+    looking_down_camera(bpy, scene, 2.0, ortho_scale=3.0)
+    black_world(bpy, scene)
     scene.render.resolution_x = scene.render.resolution_y = 16
     scene.render.resolution_percentage = 100
     scene.render.engine = "PHOTONMAP"
