@@ -941,7 +941,8 @@ def object_info(obj, inst, attribute_requests=()) -> dict:
     """Mesh keywords of the Object Info node: random (Cycles' random_number: the
     random_id / (2^32 - 1) in float32, scene/object.cpp; an instance's random_id from the
     depsgraph, an object's from its name: cycles_name_random_id), object_color
-    (object.color RGBA), location (the instance's world-space origin) and
+    (object.color RGBA), location (the instance's world-space origin), object_linear (its
+    matrix's 3x3 linear part: the Displacement node's Object space) and
     object_attributes (object_attributes of attribute_requests)."""
     if inst.is_instance:
         rid = int(getattr(inst, "random_id", 0) or 0) & 0xFFFFFFFF
@@ -950,8 +951,11 @@ def object_info(obj, inst, attribute_requests=()) -> dict:
     random = float(np.float32(rid) * np.float32(1.0 / 0xFFFFFFFF))
     color = tuple(float(c) for c in getattr(obj, "color", (1.0, 1.0, 1.0, 1.0)))[:4]
     # Object Info Location: Cycles' object_location, the object matrix's translation.
-    location = tuple(float(x) for x in np.array(inst.matrix_world, np.float64)[:3, 3])
-    return dict(random=random, object_color=color, location=location,
+    matrix = np.array(inst.matrix_world, np.float64)
+    location = tuple(float(x) for x in matrix[:3, 3])
+    # A Displacement node's Object space: the matrix's linear part.
+    linear = tuple(tuple(float(x) for x in row) for row in matrix[:3, :3])
+    return dict(random=random, object_color=color, location=location, object_linear=linear,
                 object_attributes=object_attributes(obj, inst, attribute_requests))
 
 

@@ -482,15 +482,93 @@ class MaterialConverter:
                        "using the viewport colour")
             return self._viewport(mat)
         # Warn before anything else: a volume-only material (fog in a box) has no surface.
-        if out.inputs.get("Displacement") is not None and out.inputs["Displacement"].is_linked:
-            self._warn(f"material '{mat.name}': displacement is not supported and ignored")
         if out.inputs.get("Volume") is not None and out.inputs["Volume"].is_linked:
             self._warn(f"material '{mat.name}': volume shaders are not supported and ignored")
         surface = out.inputs.get("Surface")
         if surface is None or not surface.is_linked:
             # Cycles renders an unconnected surface black.
             return Closure(base_color=(0.0, 0.0, 0.0))
-        return self._shader(self._source(surface), 0)
+        closure = self._shader(self._source(surface), 0)
+        disp = out.inputs.get("Displacement")
+        if disp is not None and disp.is_linked:
+            self._displacement(mat, disp, closure)
+        return closure
+
+    def _displacement(self, mat, socket, closure: Closure) -> None:
+        """Material Output > Displacement as Cycles renders it with the material's
+        Displacement method "Bump Only" (the default) or "Displacement and Bump": a bump
+        of the shading normal by the displacement's height along the normal
+        (engine/displacement.py), before the BSDF's own Bump node; a BSDF's Normal Map
+        keeps its own normal, as in Cycles. True displacement (moving the surface) is
+        not made: warned."""
+        method = str(getattr(mat, "displacement_method", "")
+                     or getattr(getattr(mat, "cycles", None), "displacement_method", "BUMP")
+                     or "BUMP")
+        if method == "DISPLACEMENT":
+            self._warn(f"material '{mat.name}': Displacement method 'Displacement Only' "
+                       "(moving the surface) is not supported; the surface renders flat "
+                       "(set it to 'Bump Only' for Cycles' bump from the displacement)")
+            return
+        if method == "BOTH":
+            self._warn(f"material '{mat.name}': Displacement method 'Displacement and "
+                       "Bump': the surface is not moved, only bumped")
+        vec = self._displacement_vector(socket)
+        if vec is None:
+            return
+        dp = self.pm.displacement
+        height = dp.DisplacementHeight(vec)
+        try:
+            bump = self.pm.Bump(height, strength=1.0, distance=1.0)
+        except ValueError as exc:
+            self._warn(f"material '{mat.name}': displacement: {exc}")
+            return
+        own = closure.normal_map
+        if own is None or isinstance(own, self.pm.Bump):
+            # sd->N bumped; a BSDF's Bump node bumps it again (its Normal input is sd->N).
+            closure.normal_map = dp.DisplacedNormals(bump, own)
+        # A Normal Map builds its normal from the interpolated vertex normal, not from
+        # sd->N (Cycles' svm_node_normal_map): the displacement's bump does not show.
+
+    def _displacement_vector(self, socket):
+        """The engine node of the world-space displacement vectors feeding `socket` (a
+        Displacement or Vector Displacement node, or any vector / value), or None (a
+        constant displacement: no bump; a node not read: warned)."""
+        src = self._source(socket)
+        if src is None:
+            return None
+        n, out = src
+        dp = self.pm.displacement
+        who = f"material '{self._mat.name}'"
+        if n.type == "DISPLACEMENT":
+            height = self._input(n, n.inputs["Height"], 1)
+            if not hasattr(height, "evaluate"):
+                return None  # a constant height: a flat offset, no bump
+            normal = self._vector(n, "Normal", 1)
+            space = str(getattr(n, "space", "OBJECT"))
+            if space not in dp.SPACES:
+                self._warn(f"{who}: Displacement '{n.name}' space '{space}' is not "
+                           "supported; using Object")
+                space = "OBJECT"
+            return dp.Displacement(height, self._input(n, n.inputs["Midlevel"], 1),
+                                   self._input(n, n.inputs["Scale"], 1),
+                                   normal if hasattr(normal, "evaluate") else None, space)
+        if n.type == "VECTOR_DISPLACEMENT":
+            space = str(getattr(n, "space", "TANGENT"))
+            if space not in dp.SPACES:
+                self._warn(f"{who}: Vector Displacement '{n.name}' in {space.title()} "
+                           "space is not supported (World and Object are); no bump")
+                return None
+            vector = self._input(n, n.inputs["Vector"], 1)
+            if not hasattr(vector, "evaluate"):
+                return None
+            return dp.VectorDisplacement(vector, self._input(n, n.inputs["Midlevel"], 1),
+                                         self._input(n, n.inputs["Scale"], 1), space)
+        val = self._node_output(n, out, 1)
+        if val is None:
+            self._warn(f"{who}: Displacement from node '{n.name}' ({n.type}) is not "
+                       "supported; no bump")
+            return None
+        return val if hasattr(val, "evaluate") else None
 
     def _warn(self, text):
         if text not in self._warned:

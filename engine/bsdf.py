@@ -18,6 +18,7 @@ import numpy as np
 from .anisotropy import set_hit_tangents
 from .camerakernels import face_shading_normals, hit_closures, hit_geometry, surface_lobes
 from .closures import principled as pr
+from .displacement import DisplacedNormals
 from .geometry import Geometry, MaterialTable
 from .rayoffset import offset_along_normal
 from .sampling import dot, max3, normalize
@@ -167,6 +168,16 @@ def surface_hit(geo: Geometry, table: MaterialTable, prim, u, v, d) -> SurfaceHi
     for _, nmap, sel in rows_by_material(table.normal_maps, mat):
         if n_smooth is None:
             n_smooth, bent = ns.copy(), np.zeros(len(ns), bool)
+        if isinstance(nmap, DisplacedNormals):
+            # The displacement's bump sets Cycles' sd->N itself: the smooth normal the
+            # view-dependent nodes and the bump shadowing term read.
+            # Kept where the viewer is below it, as a bumped normal (bent).
+            ns[sel] = nmap.bump.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
+            n_smooth[sel] = ns[sel]
+            bent[sel] = True
+            nmap = nmap.then
+            if nmap is None:
+                continue
         ns[sel] = nmap.perturb(geo, prim[sel], u[sel], v[sel], ns[sel])
         bent[sel] = True
     # Shading normals turned to the ray's side; the geometric normal where they would put

@@ -314,6 +314,8 @@ class Geometry:
                               # Info Color, Alpha); None reads white
     object_location: np.ndarray | None = None  # (O,3) float64 Mesh.location, world space
                               # (Object Info Location); None reads the origin
+    object_linear: np.ndarray | None = None  # (O,3,3) float64 Mesh.object_linear (the
+                              # Displacement node's Object space); None reads identities
     object_attributes: dict | None = None  # name -> (O,4) float64 Mesh.object_attributes
                               # (Attribute node, type Object / Instancer); absent: zeros
     camera_view: "object | None" = None  # shadernodes.CameraView of the scene's camera
@@ -658,6 +660,7 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
                                for m in meshes], np.float64).reshape(-1, 4),
         object_location=np.array([getattr(m, "location", (0.0, 0.0, 0.0))
                                   for m in meshes], np.float64).reshape(-1, 3),
+        object_linear=_object_linear(meshes),
         object_attributes=_object_attributes(meshes),
         visibility=visibility, holdout=holdout,
         bounds=np.stack([lo - offset, hi - offset]),
@@ -671,6 +674,18 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     from .textures import scalar_ranges
     scalar_ranges(table, geo)
     return geo, table
+
+
+def _object_linear(meshes) -> np.ndarray:
+    """(O,3,3) each mesh's Mesh.object_linear (identity where None or not finite)."""
+    out = np.tile(np.eye(3), (len(meshes), 1, 1))
+    for i, m in enumerate(meshes):
+        lin = getattr(m, "object_linear", None)
+        if lin is not None:
+            a = np.asarray(lin, np.float64)
+            if a.shape == (3, 3) and np.isfinite(a).all():
+                out[i] = a
+    return out
 
 
 def _object_attributes(meshes) -> dict | None:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .displacement import DisplacedNormals
 from .normalmap import Bump, NormalMap
 from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
 
@@ -113,8 +114,8 @@ class Material:
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
     `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
     image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
-    `normal_map` is an optional engine.normalmap.NormalMap or Bump perturbing the shading
-    normal.
+    `normal_map` is an optional engine.normalmap.NormalMap or Bump (or an
+    engine.displacement.DisplacedNormals: a displacement's bump) perturbing the shading normal.
     `alpha_texture` is an optional node (evaluate(geo, prim, u, v): an
     engine.shadernodes.ImageLookup of an image's Alpha, a Math node, ...) whose value per
     hit multiplies `alpha`: alpha cut-outs (leaves, fences) for camera rays, shadow rays
@@ -161,7 +162,7 @@ class Material:
     translucent_color: tuple | np.ndarray | None = None
     transparent_tint: tuple | np.ndarray = (1.0, 1.0, 1.0)
     texture: ImageTexture | ColorAttribute | np.ndarray | None = None
-    normal_map: NormalMap | Bump | None = None
+    normal_map: NormalMap | Bump | DisplacedNormals | None = None
     alpha_texture: object | None = None
     scalar_textures: dict | None = None
     emission_texture: object | None = None
@@ -255,8 +256,10 @@ class Material:
                 self.texture = as_texture(self.texture, name=f"{self.name} texture")
             except TextureError as exc:
                 raise SceneError(f"{who} {exc}") from None
-        if self.normal_map is not None and not isinstance(self.normal_map, (NormalMap, Bump)):
-            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap or Bump, got "
+        if self.normal_map is not None and not isinstance(self.normal_map,
+                                                          (NormalMap, Bump, DisplacedNormals)):
+            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap, Bump "
+                             "or engine.displacement.DisplacedNormals, got "
                              f"{type(self.normal_map).__name__}")
 
     @property
@@ -389,6 +392,9 @@ class Mesh:
     object_color  the Object Info node's Color and Alpha: Blender's object.color RGBA
     location  the Object Info node's Location: the object's (an instance's own) origin in
               world space, m (the translation of its object-to-world matrix)
+    object_linear  the linear part (3x3, row-major nested tuples) of the object's (an
+              instance's own) object-to-world matrix: a Displacement node's Object space
+              (engine/displacement.py); None: the identity
     object_attributes  {name: RGBA} the Attribute node of type Object / Instancer reads
               per object (Blender's object, instancer or mesh property of that name);
               a name a mesh lacks reads (0, 0, 0, 0)
@@ -419,6 +425,7 @@ class Mesh:
     random: float = 0.0
     object_color: tuple = (1.0, 1.0, 1.0, 1.0)
     location: tuple = (0.0, 0.0, 0.0)
+    object_linear: tuple | None = None
     object_attributes: dict | None = None
     warnings: list = field(default_factory=list, repr=False)
 
@@ -611,7 +618,8 @@ class Mesh:
             "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
             "visible_shadow", "holdout", "shadow_terminator_offset",
             "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset",
-            "pass_index", "random", "object_color", "location", "object_attributes")}
+            "pass_index", "random", "object_color", "location", "object_linear",
+            "object_attributes")}
         return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
                     materials=list(self.materials), material_ids=P.material_ids,
                     prototype=P, matrix=M, **flags)
