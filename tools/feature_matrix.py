@@ -1007,6 +1007,73 @@ def texture_bump():
     _sun(rotation=(0, math.radians(70), 0))
 
 
+@case("textures", ours=dict(spp=128))
+def texture_displacement_bump():
+    """Material Output > Displacement with the material's default method, Bump Only: the
+    texture_bump case's triangle-wave height through a Displacement node (Object space,
+    midlevel 0, scale 0.075) on a tile of half the size scaled by 2, so the height in
+    world units is 0.15 as there (Cycles' bump_from_displacement: the displacement's
+    height along the normal bumps the shading normal at distance 1). Ignoring the
+    displacement renders uniform grey, ignoring the object's scale halves the slopes."""
+    _stage(back=False)
+    h = np.zeros((8, 8, 3), np.float32)
+    h[:, 1::2] = 1.0
+    im = _image("height", h)
+    im.colorspace_settings.name = "Non-Color"
+    m, nt, out = _nodes_material("displaced")
+    m.displacement_method = "BUMP"
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = im
+    disp = nt.nodes.new("ShaderNodeDisplacement")
+    disp.space = "OBJECT"
+    disp.inputs["Midlevel"].default_value = 0.0
+    disp.inputs["Scale"].default_value = 0.075
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(tex.outputs["Color"], disp.inputs["Height"])
+    nt.links.new(disp.outputs["Displacement"], out.inputs["Displacement"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    ob = _uv_tile(m, size=1.5)
+    ob.scale = (2.0, 2.0, 2.0)
+    _sun(rotation=(0, math.radians(70), 0))
+
+
+@case("textures", ours=dict(spp=128))
+def texture_displacement_under_bump():
+    """A displacement (World space, a triangle wave across the tile's columns, height
+    0.15) and, on the BSDF's Normal, a Bump node (a triangle wave across its rows,
+    distance 0.1) under a sun from +x and -y: Cycles' Bump node bumps sd->N, which the
+    displacement's bump set, so the two slopes add up; either ignored loses a set of
+    stripes."""
+    _stage(back=False)
+    cols = np.zeros((8, 8, 3), np.float32)
+    cols[:, 1::2] = 1.0
+    rows = np.zeros((8, 8, 3), np.float32)
+    rows[1::2, :] = 1.0
+    m, nt, out = _nodes_material("displaced_bumped")
+    m.displacement_method = "BUMP"
+    texes = []
+    for name, img in (("columns", cols), ("rows", rows)):
+        im = _image(name, img)
+        im.colorspace_settings.name = "Non-Color"
+        t = nt.nodes.new("ShaderNodeTexImage")
+        t.image = im
+        texes.append(t)
+    disp = nt.nodes.new("ShaderNodeDisplacement")
+    disp.space = "WORLD"
+    disp.inputs["Midlevel"].default_value = 0.0
+    disp.inputs["Scale"].default_value = 0.15
+    bump = nt.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.1
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(texes[0].outputs["Color"], disp.inputs["Height"])
+    nt.links.new(disp.outputs["Displacement"], out.inputs["Displacement"])
+    nt.links.new(texes[1].outputs["Color"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], d.inputs["Normal"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    _uv_tile(m)
+    _sun(rotation=(math.radians(45), math.radians(55), 0))
+
+
 @case("textures")
 def texture_normal_map_mikktspace():
     """Tangent-space Normal Map on a low-poly smooth UV sphere (12 x 6) under a side sun:
@@ -1930,11 +1997,13 @@ def warned_volume():
     _sun()
 
 
-@case("warned", status="warned", how="displacement is ignored (bump-free, flat surface)",
-      warning="displacement")
+@case("warned", status="warned", how="true displacement (Displacement Only) is not made: "
+      "the surface renders flat (Bump Only, Blender's default, is: texture_displacement_bump)",
+      warning="Displacement Only")
 def warned_displacement():
     _stage()
     m, nt, out = _nodes_material("bumpy")
+    m.displacement_method = "DISPLACEMENT"
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
     nt.links.new(d.outputs[0], out.inputs["Surface"])
     disp = nt.nodes.new("ShaderNodeDisplacement")
