@@ -608,22 +608,46 @@ def convert_camera(pm, cam_obj, width: int, height: int, render, warnings: list,
     fit = cd.sensor_fit
     sensor = cd.sensor_height if fit == "VERTICAL" else cd.sensor_width
     kind = cd.type
-    if kind == "PANO":
-        warnings.append(f"camera '{cam_obj.name}': panoramic cameras are not supported; "
-                        "rendering as perspective")
-        kind = "PERSP"
+    panorama = None
     fov = 2.0 * math.atan(sensor / (2.0 * cd.lens))
     # Blender's shift is in units of the sensor-fit dimension; the engine's in units of
-    # the larger image dimension.
+    # the larger image dimension (a panorama's: of the image, as Cycles adds it).
     fit_dim = {"HORIZONTAL": width, "VERTICAL": height}.get(fit, max(width, height))
     shift_scale = fit_dim / max(width, height)
+    if kind == "PANO":
+        panorama = camera_panorama(pm, cd)
+        shift_scale = 1.0
+        if getattr(render, "use_multiview", False):
+            warnings.append(f"camera '{cam_obj.name}': stereoscopy is not supported; "
+                            "rendering one panorama from the camera's centre")
     dof = camera_dof(cam_obj, cd, kind, warnings, scene_objects)
     if abs(render.pixel_aspect_x - render.pixel_aspect_y) > 1e-6:
         warnings.append("non-square pixel aspect is not supported; using square pixels")
     return pm.Camera(position=M[:3, 3], rotation=M[:3, :3], fov=fov, kind=kind,
                      ortho_scale=cd.ortho_scale, shift_x=cd.shift_x * shift_scale,
                      shift_y=cd.shift_y * shift_scale, sensor_fit=fit,
-                     clip_start=cd.clip_start, clip_end=cd.clip_end, **dof)
+                     clip_start=cd.clip_start, clip_end=cd.clip_end, panorama=panorama,
+                     **dof)
+
+
+def camera_panorama(pm, cd):
+    """engine.panorama.Panorama of a panoramic Blender camera (data cd): its Panorama Type
+    and that type's settings, as Cycles' blender/camera.cpp reads them (Blender 4.x
+    stores them on the camera data)."""
+    g = (lambda name, default: float(getattr(cd, name, default)))
+    return pm.panorama.Panorama(
+        kind=str(getattr(cd, "panorama_type", "FISHEYE_EQUISOLID")),
+        fisheye_fov=g("fisheye_fov", math.pi), fisheye_lens=g("fisheye_lens", 10.5),
+        sensor_width=g("sensor_width", 36.0), sensor_height=g("sensor_height", 24.0),
+        latitude_min=g("latitude_min", -0.5 * math.pi),
+        latitude_max=g("latitude_max", 0.5 * math.pi),
+        longitude_min=g("longitude_min", -math.pi), longitude_max=g("longitude_max", math.pi),
+        fisheye_polynomial=tuple(g(f"fisheye_polynomial_k{i}", 0.0) for i in range(5)),
+        cylindrical_range=(g("central_cylindrical_range_u_min", -math.pi),
+                           g("central_cylindrical_range_u_max", math.pi),
+                           g("central_cylindrical_range_v_min", -1.0),
+                           g("central_cylindrical_range_v_max", 1.0)),
+        cylindrical_radius=g("central_cylindrical_radius", 1.0))
 
 
 def camera_dof(cam_obj, cd, kind: str, warnings: list, scene_objects=None) -> dict:

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from .jit import kernel, register_warm_up
+from .panorama import P_FRAME, Panorama, panorama_direction
 from .sampling import pow2_shift
 
 
@@ -71,7 +72,7 @@ def aperture_point(u1, u2, blades, rotation, inv_ratio):
 @kernel
 def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip_end,
                        width, height, px, py, jx, jy, table, aperture, focus, blades,
-                       blade_rotation, inv_ratio, lu, lv):
+                       blade_rotation, inv_ratio, lu, lv, pano):
     """Rays through image positions (px + fx, py + fy) (N,), rows top-down, where
     fx = table(jx), fy = table(jy) (engine/pixelfilter.py filter_table; an empty table:
     jx, jy are the positions inside the pixel themselves).
@@ -85,6 +86,11 @@ def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip
     pinhole ray's point at depth `focus` (m, along the view axis); perspective clip
     distances keep the pinhole ray's depth scale, as Cycles does. Empty lu / lv or aperture 0: pinhole,
     the arithmetic of the kernel before depth of field (bitwise).
+    pano: a panoramic camera's packed parameters (engine/panorama.py Panorama.pack; empty:
+    perspective or orthographic): the image position (u, v) = (shift_x + x / width,
+    shift_y + 1 - y / height) maps to a direction (panorama_direction), turned by the
+    panorama's frame and R; clip distances along the ray (Cycles' camera_sample_panorama);
+    outside the lens the ray points along the view axis with distance limit 0 (no light).
     Returns (origins (N,3), unit directions (N,3), distance limits (N,)), float64."""
     n = px.shape[0]
     o = np.empty((n, 3))
@@ -92,6 +98,11 @@ def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip
     tmax = np.empty(n)
     big = 2.0 * max(hw, hh)
     lens = aperture > 0.0 and focus > 0.0
+    if pano.shape[0] > 0:
+        _panorama_rays(R, pos, clip_start, clip_end, width, height, px, py, jx, jy, table,
+                       aperture, focus, blades, blade_rotation, inv_ratio, lu, lv, pano,
+                       shift_x, shift_y, o, d, tmax)
+        return o, d, tmax
     for i in range(n):
         sx = (px[i] + _filter_position(table, jx[i])) / width * 2.0 - 1.0
         sy = 1.0 - (py[i] + _filter_position(table, jy[i])) / height * 2.0
@@ -141,6 +152,58 @@ def camera_rays_kernel(ortho, hw, hh, shift_x, shift_y, R, pos, clip_start, clip
             o[i, c] = o[i, c] + t_start * d[i, c]
         tmax[i] = t_end - t_start
     return o, d, tmax
+
+
+@kernel
+def _panorama_rays(R, pos, clip_start, clip_end, width, height, px, py, jx, jy, table,
+                   aperture, focus, blades, blade_rotation, inv_ratio, lu, lv, pano,
+                   shift_x, shift_y, o, d, tmax):
+    """camera_rays_kernel's panoramic camera (its docstring), into o, d, tmax."""
+    F = pano[P_FRAME:P_FRAME + 9]
+    lens = aperture > 0.0 and focus > 0.0 and lu.shape[0] > 0
+    for i in range(px.shape[0]):
+        u = shift_x + (px[i] + _filter_position(table, jx[i])) / width
+        v = shift_y + 1.0 - (py[i] + _filter_position(table, jy[i])) / height
+        x, y, z = panorama_direction(pano, u, v)
+        norm = math.sqrt(x * x + y * y + z * z)
+        if not norm > 0.0:
+            for c in range(3):
+                o[i, c] = pos[c]
+                d[i, c] = -R[c, 2]
+            tmax[i] = 0.0
+            continue
+        x, y, z = x / norm, y / norm, z / norm
+        lx, ly, lz = 0.0, 0.0, 0.0
+        if lens:
+            # Cycles: the lens in the plane across the direction, U from the frame's x.
+            ax, ay = aperture_point(lu[i], lv[i], blades, blade_rotation, inv_ratio)
+            ax *= aperture
+            ay *= aperture
+            ux, uy, uz = 1.0 - x * x, -x * y, -x * z
+            un = math.sqrt(ux * ux + uy * uy + uz * uz)
+            if un < 1e-12:  # looking along the frame's x: any axis across it
+                ux, uy, uz, un = 0.0, 1.0, 0.0, 1.0
+            ux, uy, uz = ux / un, uy / un, uz / un
+            vx, vy, vz = y * uz - z * uy, z * ux - x * uz, x * uy - y * ux
+            lx, ly, lz = ux * ax + vx * ay, uy * ax + vy * ay, uz * ax + vz * ay
+            ex, ey, ez = x * focus - lx, y * focus - ly, z * focus - lz
+            en = math.sqrt(ex * ex + ey * ey + ez * ez)
+            x, y, z = ex / en, ey / en, ez / en
+        # frame -> camera object axes -> world
+        cx = F[0] * x + F[1] * y + F[2] * z
+        cy = F[3] * x + F[4] * y + F[5] * z
+        cz = F[6] * x + F[7] * y + F[8] * z
+        qx = F[0] * lx + F[1] * ly + F[2] * lz
+        qy = F[3] * lx + F[4] * ly + F[5] * lz
+        qz = F[6] * lx + F[7] * ly + F[8] * lz
+        for c in range(3):
+            d[i, c] = cx * R[c, 0] + cy * R[c, 1] + cz * R[c, 2]
+            o[i, c] = pos[c] + qx * R[c, 0] + qy * R[c, 1] + qz * R[c, 2]
+        dn = math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
+        for c in range(3):
+            d[i, c] = d[i, c] / dn
+            o[i, c] = o[i, c] + clip_start * d[i, c]
+        tmax[i] = clip_end - clip_start
 
 
 @kernel
@@ -201,4 +264,8 @@ def _warm_up():
                 for lu in (np.empty(0), np.full(4, 0.3)):  # pinhole, thin lens
                     camera_rays_kernel(ortho, 0.5, 0.4, 0.0, 0.0, R, pos, 0.1, 100.0, 4, 3,
                                        px, px, np.full(4, 0.5), np.full(4, 0.5), table,
-                                       0.01 * lu.shape[0], 2.0, 0, 0.0, 1.0, lu, lu)
+                                       0.01 * lu.shape[0], 2.0, 0, 0.0, 1.0, lu, lu,
+                                       np.empty(0) if ortho else _WARM_PANO)
+
+
+_WARM_PANO = Panorama().pack(4, 3, "AUTO")

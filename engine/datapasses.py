@@ -111,7 +111,7 @@ def film_value(key, total, inv):
 
 
 def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, done,
-                cam_pos, forward, ortho, mist, threshold):
+                cam_pos, forward, ortho, mist, threshold, pano=False):
     """One bounce's camera-chain hits into the Depth pass (acc.depth, always) and the
     surface data passes asked for (module docstring).
     rows (K,) int64: the hits reached by the camera ray or transparent passes only;
@@ -119,7 +119,8 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
     (world = p + geo.offset); tp (N,3) path throughput; first (N,) bool: the pixel's
     first sample; done (N,) bool: the single pass written; cam_pos (3,) re-centred,
     forward (3,) unit view axis, ortho: orthographic camera; mist: Scene.mist (start m,
-    depth m, falloff exponent); threshold: RenderSettings.pass_alpha_threshold.
+    depth m, falloff exponent); threshold: RenderSettings.pass_alpha_threshold; pano: a
+    panoramic camera (its Depth is the distance, Cycles' camera_z_depth).
     Returns done after this bounce (a fresh array where it changed)."""
     if len(rows) == 0:
         return done
@@ -147,7 +148,11 @@ def add_surface(acc, want, geo, table, hit, prim, u, v, pix, tp, rows, first, do
         # Cycles' camera_z_depth: along the view axis (its panorama cameras' distance
         # aside), > 0 past the clip start; 0 stays "no surface" (film: inf).
         depth = np.empty(len(w0))
-        view_depth(np.ascontiguousarray(hit.p[w0], np.float64), cam_pos, forward, depth)
+        if pano:
+            rel = hit.p[w0] - cam_pos
+            depth[:] = np.sqrt(np.einsum("ij,ij->i", rel, rel))
+        else:
+            view_depth(np.ascontiguousarray(hit.p[w0], np.float64), cam_pos, forward, depth)
         acc.depth[b] = depth
         if "object_index" in want:
             per_object = geo.object_pass_index

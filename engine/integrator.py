@@ -92,6 +92,8 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None
     lens: (u1, u2) (N,) uniform numbers placing each ray on the camera's aperture (depth
     of field, Camera.aperture_radius > 0); None: every ray through the lens centre (the
     pinhole ray, sharp at every depth).
+    A panoramic camera (Camera.panorama) maps the positions to directions
+    (engine/panorama.py); outside its lens a ray's distance limit is 0.
     Returns origins, unit directions, and the distance limits (clip start / end).
     One compiled kernel (engine/camerarays.py)."""
     hw, hh = camera.half_extents(width, height)
@@ -110,7 +112,9 @@ def camera_rays(camera, offset, width, height, px, py, jx, jy, filter_table=None
                               1.0 / float(camera.aperture_ratio),
                               *(( _EMPTY_F, _EMPTY_F) if lens is None or not camera.has_dof
                                 else (np.ascontiguousarray(lens[0], dtype=np.float64),
-                                      np.ascontiguousarray(lens[1], dtype=np.float64))))
+                                      np.ascontiguousarray(lens[1], dtype=np.float64))),
+                              _EMPTY_F if camera.panorama is None
+                              else camera.panorama.pack(width, height, camera.sensor_fit))
 
 
 _EMPTY_F = np.zeros(0)
@@ -1938,6 +1942,8 @@ def _trace_camera_samples(ctx, acc, rows, px, py, jx, jy, sub, pix, spp, rng, di
                              jx, jy, filter_table(s.pixel_filter, s.filter_width), lens)
     counters.camera_rays += len(o)
     tp = np.ones((len(o), 3))
+    if cam.panorama is not None:
+        tp[tmax <= 0.0] = 0.0  # outside a fisheye's circle: no light (Cycles' tmax 0)
     forward = -cam.rotation[:, 2]
     cam_pos = cam.position - ctx.geo.offset
     _trace_paths(ctx, acc, o, d, tmax, tp, rows, rng, counters, cam_pos, forward,
@@ -2095,8 +2101,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     want_data = s.data_passes
     feat = np.ones(len(o), bool) if "denoising" in want_data else None
     ftp = np.ones((len(o), 3)) if feat is not None else None
-    to_camera = (np.stack([cam.rotation[:, 0], cam.rotation[:, 1], -cam.rotation[:, 2]])
-                 if want_data else None)
+    to_camera = None
+    if want_data:
+        # A panorama's camera space is its frame's (Cycles: tfm times the frame matrix).
+        to_camera = ((cam.rotation @ cam.panorama.frame).T if cam.panorama is not None else
+                     np.stack([cam.rotation[:, 0], cam.rotation[:, 1], -cam.rotation[:, 2]]))
     # The depth and surface data passes (datapasses.add_surface): each path's "single
     # pass" done, and whether it is its pixel's first sample (the first adaptive round's
     # sample 0), whose surface writes them as Cycles' sample 0 does.
@@ -2283,7 +2292,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         single = datapasses.add_surface(
             acc, want_data, ctx.geo, ctx.table, hit, prim, u, v, pix, tp,
             np.nonzero(ray_cls == CAMERA)[0], first, single, cam_pos, forward, ortho,
-            ctx.scene.mist, s.pass_alpha_threshold)
+            ctx.scene.mist, s.pass_alpha_threshold, pano=cam.panorama is not None)
         # The paths from a glossy hit that took the shade samples, meeting a shade: each
         # served lamp's light through it weighted against those samples (its NEE here in
         # the glass stage, its emission met by the refraction next bounce: lamp_w).

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import adaptive, cryptomatte
+from . import adaptive, cryptomatte, panorama
 from .accel import Accel
 from .chaincounts import GatherCounts
 from .film import Film
@@ -1227,20 +1227,31 @@ def _photon_hit_view(ctx: Context, shots, region, width: int, height: int):
     n = len(position)
     frame = np.zeros(n, bool)
     cols, rows_ = [], []
+    pano = None if cam.panorama is None else cam.panorama.pack(W, H, cam.sensor_fit)
     for a in range(0, n, VIEW_ROWS):
         lb = local[a:a + VIEW_ROWS]
         z = -lb[:, 2]
-        if cam.kind == "ORTHO":
-            x, y = lb[:, 0], lb[:, 1]
+        if pano is not None:
+            # The panorama's image coordinates of the photon's direction (its frame:
+            # object axes = frame @ d, so d = object axes @ frame as rows).
+            uv = panorama.directions_to_uv(pano, lb @ panorama.frame(pano))
+            with np.errstate(invalid="ignore"):
+                px = np.floor((uv[:, 0] - cam.shift_x) * W)
+                py = np.floor((1.0 - (uv[:, 1] - cam.shift_y)) * H)
+            z = np.where(np.isfinite(px + py), 1.0, 0.0)
         else:
-            x = lb[:, 0] / np.maximum(z, 1e-300)
-            y = lb[:, 1] / np.maximum(z, 1e-300)
-        sx = (x - cam.shift_x * big) / hw
-        sy = (y - cam.shift_y * big) / hh
+            if cam.kind == "ORTHO":
+                x, y = lb[:, 0], lb[:, 1]
+            else:
+                x = lb[:, 0] / np.maximum(z, 1e-300)
+                y = lb[:, 1] / np.maximum(z, 1e-300)
+            sx = (x - cam.shift_x * big) / hw
+            sy = (y - cam.shift_y * big) / hh
+            with np.errstate(invalid="ignore"):
+                px = np.floor((sx + 1.0) / 2.0 * W)
+                py = np.floor((1.0 - sy) / 2.0 * H)
         with np.errstate(invalid="ignore"):
-            px = np.floor((sx + 1.0) / 2.0 * W)
-            py = np.floor((1.0 - sy) / 2.0 * H)
-        fb = (z > 0) & (px >= 0) & (px < W) & (py >= 0) & (py < H)
+            fb = (z > 0) & (px >= 0) & (px < W) & (py >= 0) & (py < H)
         frame[a:a + VIEW_ROWS] = fb
         cols.append(px[fb].astype(np.int64))
         rows_.append(py[fb].astype(np.int64))

@@ -18,6 +18,7 @@ import numpy as np
 
 from .displacement import DisplacedNormals
 from .normalmap import Bump, NormalMap
+from .panorama import Panorama
 from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
 
 __all__ = [
@@ -984,12 +985,15 @@ class LightPortal:
 
 @dataclass
 class Camera:
-    """Pinhole or orthographic camera, Blender conventions.
+    """Pinhole, orthographic or panoramic camera, Blender conventions.
 
     position, and a rotation whose columns are the camera's right (x), up (y) and back
     (z) axes in world space: the camera looks along -z. `fov` is the full angle across the
     larger image dimension (Blender's sensor fit AUTO); `ortho_scale` likewise in world
-    units. shift_x / shift_y are in units of the larger image dimension (as Blender's).
+    units. shift_x / shift_y are in units of the larger image dimension (as Blender's);
+    a panoramic camera's (kind "PANO") in units of the image's width and height, as
+    Cycles adds them to its image coordinates. `panorama`: the engine.panorama.Panorama
+    of a PANO camera (a dict of its fields is taken too; None: an equirectangular one).
     """
 
     position: tuple | np.ndarray = (0.0, 0.0, 5.0)
@@ -1011,6 +1015,7 @@ class Camera:
     aperture_blades: int = 0
     aperture_rotation: float = 0.0
     aperture_ratio: float = 1.0
+    panorama: Panorama | None = None
 
     def __post_init__(self):
         self.position = _vec3(self.position, "camera position")
@@ -1024,8 +1029,21 @@ class Camera:
         y = np.cross(z, x)
         self.rotation = np.stack([x, y, z], axis=1)
         self.kind = str(self.kind).upper()
-        if self.kind not in ("PERSP", "ORTHO"):
-            raise SceneError(f"camera kind: must be PERSP or ORTHO, got {self.kind}")
+        if self.kind not in ("PERSP", "ORTHO", "PANO"):
+            raise SceneError(f"camera kind: must be PERSP, ORTHO or PANO, got {self.kind}")
+        if self.kind == "PANO":
+            try:
+                if self.panorama is None:
+                    self.panorama = Panorama()
+                elif isinstance(self.panorama, dict):
+                    self.panorama = Panorama(**self.panorama)
+                elif not isinstance(self.panorama, Panorama):
+                    raise ValueError("expected an engine.panorama.Panorama, got "
+                                     f"{type(self.panorama).__name__}")
+            except (TypeError, ValueError) as exc:
+                raise SceneError(f"camera panorama: {exc}") from None
+        else:
+            self.panorama = None
         self.fov = min(max(_finite(self.fov, "camera fov"), 1e-6), math.pi - 1e-6)
         self.ortho_scale = _finite(self.ortho_scale, "camera ortho_scale")
         if self.ortho_scale <= 0:
@@ -1071,7 +1089,12 @@ class Camera:
         return cls(position=p, rotation=rot, fov=math.radians(fov_degrees), **kw)
 
     def half_extents(self, width: int, height: int) -> tuple[float, float]:
-        """Half width and height of the image plane at distance 1 (ortho: world units)."""
+        """Half width and height of the image plane at distance 1 (ortho: world units;
+        a panorama: half its pixel angle (rad) times the image's width and height, so
+        that 2 hw / width is the pixel's angular size, the ray footprint's measure)."""
+        if self.panorama is not None:
+            a = 0.5 * self.panorama.pixel_angle(width, height)
+            return a * width, a * height
         aspect = width / height
         fit = self.sensor_fit
         if fit == "AUTO":

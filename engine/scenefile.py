@@ -51,6 +51,7 @@ import numpy as np
 
 from .api import PaperScene
 from .lights import DECLARED_KINDS
+from .panorama import KINDS as PANORAMA_KINDS, Panorama
 from .scene import (EMISSION_SAMPLING, FLOAT32_MAX, MATERIAL_NODES, MIST_FALLOFF, Light,
                     Material, Mesh, Prototype, SceneError, euler_rotation)
 from .settings import RenderSettings
@@ -173,7 +174,14 @@ MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
 
 CAMERA_SCHEMA = _table({
     "position": _vec3(), "look_at": _vec3(), "up": _vec3(nonzero=True),
-    "fov": _number(0.0, 180.0, lo_open=True, hi_open=True), "type": _choice("persp", "ortho"),
+    "fov": _number(0.0, 180.0, lo_open=True, hi_open=True),
+    "type": _choice("persp", "ortho", "pano"),
+    # Panoramic cameras (type "pano", engine/panorama.py): angles in degrees, mm.
+    "panorama_type": _choice(*(k.lower() for k in PANORAMA_KINDS)),
+    "fisheye_fov": _number(0.0, 360.0, lo_open=True), "fisheye_lens": _number(0.0, lo_open=True),
+    "sensor_width": _number(0.0, lo_open=True), "sensor_height": _number(0.0, lo_open=True),
+    "latitude_min": _number(-90.0, 90.0), "latitude_max": _number(-90.0, 90.0),
+    "longitude_min": _number(-360.0, 360.0), "longitude_max": _number(-360.0, 360.0),
     "ortho_scale": _number(0.0, lo_open=True), "shift_x": _number(), "shift_y": _number(),
     "clip_start": _number(0.0, lo_open=True), "clip_end": _number(0.0, lo_open=True),
     # Depth of field (thin lens, Cycles): radius m, focus m, rotation degrees.
@@ -670,7 +678,17 @@ def _camera(scene, cam):
     up = _vec(cam.get("up", (0, 0, 1)))
     extra = {}
     if "type" in cam:
-        extra["kind"] = "ORTHO" if cam["type"].lower() == "ortho" else "PERSP"
+        extra["kind"] = {"ortho": "ORTHO", "pano": "PANO"}.get(cam["type"].lower(), "PERSP")
+    if extra.get("kind") == "PANO":
+        pano = {"kind": str(cam.get("panorama_type", "equirectangular")).upper()}
+        for k in ("fisheye_fov", "latitude_min", "latitude_max", "longitude_min",
+                  "longitude_max"):
+            if k in cam:
+                pano[k] = math.radians(float(cam[k]))
+        for k in ("fisheye_lens", "sensor_width", "sensor_height"):
+            if k in cam:
+                pano[k] = float(cam[k])
+        extra["panorama"] = Panorama(**pano)
     for k in ("ortho_scale", "shift_x", "shift_y", "clip_start"):
         if k in cam:
             extra[k] = float(cam[k])

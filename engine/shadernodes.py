@@ -1511,22 +1511,38 @@ class CameraView:
         self.position = np.asarray(camera.position, np.float64)
         self.rotation = np.asarray(camera.rotation, np.float64)
         self.ortho = camera.kind == "ORTHO"
+        # A panorama: its frame in the camera axes and its packed projection
+        # (engine/panorama.py): Cycles' camera space and ndc are the panorama's.
+        pano = getattr(camera, "panorama", None)
+        self.pano = None if pano is None else pano.pack(int(width), int(height),
+                                                        camera.sensor_fit)
+        self.frame = None if pano is None else pano.frame
         self.hw, self.hh = camera.half_extents(int(width), int(height))
         big = 2.0 * max(self.hw, self.hh)  # shift is in units of the larger dimension
         self.shift = np.array([camera.shift_x * big, camera.shift_y * big])
 
     def to_camera(self, p):
         """(N,3) world points (m) in Cycles' camera space: x right, y up, z along the view
-        (Blender's camera matrix with z negated, blender/camera.cpp), m."""
+        (Blender's camera matrix with z negated, blender/camera.cpp), m; a panorama's:
+        its frame's axes (x along the view, z up)."""
         c = (np.asarray(p, np.float64) - self.position) @ self.rotation
+        if self.frame is not None:
+            return c @ self.frame
         c[:, 2] = -c[:, 2]
         return c
 
     def to_ndc(self, p):
         """(N,3) world points in normalised device coordinates (Cycles' camera_world_to_ndc
         for a perspective or orthographic camera): x, y 0..1 across the full frame from its
-        lower left corner, shift included; z 0 (the Window output sets it so)."""
+        lower left corner, shift included; z 0 (the Window output sets it so). A
+        panorama: its image coordinates of the direction (direction_to_panorama, no
+        shift, as Cycles; 0 where none maps there)."""
         c = self.to_camera(p)
+        if self.pano is not None:
+            from .panorama import directions_to_uv
+            ndc = np.zeros_like(c)
+            ndc[:, :2] = np.nan_to_num(directions_to_uv(self.pano, c), nan=0.0)
+            return ndc
         xy = c[:, :2]
         if not self.ortho:
             with np.errstate(divide="ignore", invalid="ignore"):
