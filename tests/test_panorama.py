@@ -117,3 +117,45 @@ def test_camera_validation_names_the_problem():
         Camera(kind="PANO", panorama=dict(kind="STEREOGRAPHIC"))
     with pytest.raises(SceneError, match="panorama"):
         Camera(kind="PANO", panorama=dict(fisheye_lens=-1.0))
+
+
+def test_depth_of_field_rays_meet_at_the_focus_distance():
+    # Cycles' camera_sample_panorama: the lens lies across the pixel's direction, every
+    # ray of a pixel passes the pinhole ray's point at the focus distance.
+    cam = _pano_camera("FISHEYE_EQUISOLID")
+    cam.aperture_radius, cam.focus_distance = 0.2, 3.0
+    n = 64
+    rng = np.random.default_rng(4)
+    px, py = np.full(n, 20.3), np.full(n, 11.7)
+    o0, d0, _ = camera_rays(cam, np.zeros(3), 48, 32, px, py, np.zeros(n), np.zeros(n))
+    o, d, tmax = camera_rays(cam, np.zeros(3), 48, 32, px, py, np.zeros(n), np.zeros(n),
+                             lens=(rng.random(n), rng.random(n)))
+    focus = cam.position + 3.0 * d0[0]
+    t = np.einsum("ij,ij->i", focus - o, d)
+    np.testing.assert_allclose(o + t[:, None] * d, np.broadcast_to(focus, o.shape), atol=1e-9)
+    spread = np.linalg.norm(o - cam.position, axis=1)
+    assert spread.max() <= 0.2 + 1e-12 and spread.max() > 0.05
+    np.testing.assert_allclose((o - cam.position) @ d0[0], 0.0, atol=1e-12)  # across it
+
+
+def test_depth_pass_is_the_distance_to_the_camera():
+    # Cycles' camera_z_depth of a panorama: the distance, not the depth along an axis.
+    from engine.scene import Material, Mesh
+    cam = _pano_camera()
+    cx, cy, cz = cam.position
+    v = np.array([[cx - 50, cy - 50, cz - 2.0], [cx + 50, cy - 50, cz - 2.0],
+                  [cx + 50, cy + 50, cz - 2.0], [cx - 50, cy + 50, cz - 2.0]])
+    scene = Scene(camera=cam, width=48, height=24,
+                  meshes=[Mesh("floor", v, np.array([[0, 1, 2], [0, 2, 3]]))],
+                  materials={"default": Material("default")})
+    film = render(scene, RenderSettings(spp=1, seed=2, photons=0, caustic_photons=0,
+                                        pixel_filter="box", filter_width=1.0))
+    depth = np.asarray(film.depth)
+    assert np.isinf(depth[:10]).all()  # the upper half sees no floor
+    # The floor 2 m below at distance d is seen asin(2 / d) below the horizon: inside the
+    # pixel's row of the equirectangular image (its sample lies somewhere in the pixel),
+    # for every column, ahead and behind alike (a depth along the view axis would not).
+    rows = np.arange(14, 24)
+    lat = -np.degrees(np.arcsin(np.clip(2.0 / depth[rows], -1, 1)))
+    row_of = (90.0 - lat) / 180.0 * 24
+    assert np.all(row_of >= rows[:, None] - 1e-6) and np.all(row_of <= rows[:, None] + 1 + 1e-6)
