@@ -86,12 +86,13 @@ def attribute_requests(obj) -> set:
     for node in _material_nodes(obj):
         if node.type == "ATTRIBUTE" and getattr(node, "attribute_type", "") == "GEOMETRY":
             name = str(node.attribute_name)
-            if name not in CYCLES_STANDARD_ATTRIBUTES or name == ISLAND:
+            if name not in CYCLES_STANDARD_ATTRIBUTES or name in (ISLAND, POINTINESS):
                 names.add(name)
         elif node.type == "NEW_GEOMETRY":
-            out = node.outputs.get("Random Per Island")
-            if out is not None and out.is_linked:
-                names.add(ISLAND)
+            for out_name, attr in (("Random Per Island", ISLAND), ("Pointiness", POINTINESS)):
+                out = node.outputs.get(out_name)
+                if out is not None and out.is_linked:
+                    names.add(attr)
         elif node.type == "VERTEX_COLOR":
             names.add(str(getattr(node, "layer_name", "")))
         elif node.type == "UVMAP" and getattr(node, "uv_map", ""):
@@ -100,6 +101,7 @@ def attribute_requests(obj) -> set:
 
 
 ISLAND = "random_per_island"  # Cycles' standard name of the Random Per Island attribute
+POINTINESS = "pointiness"  # and of the Geometry node's Pointiness (engine/pointiness.py)
 
 # Generic attribute data types read by name, and the RNA property holding their values
 # (colours: `color`, scene linear for byte and float colours alike).
@@ -125,6 +127,10 @@ def named_attributes(me, names, tris, loops, faces) -> dict:
         if name == ISLAND:  # Cycles' standard attribute, computed from the topology
             r = np.repeat(random_per_island(me, faces)[:, None], 3, axis=1)
             out[name] = (np.repeat(r[..., None], 3, axis=2), r, np.ones_like(r))
+            continue
+        if name == POINTINESS:  # Cycles' standard attribute, per vertex (interpolated)
+            p = mesh_pointiness(me)[faces].astype(np.float64)
+            out[name] = (np.repeat(p[..., None], 3, axis=2), p, np.ones_like(p))
             continue
         if name == "":
             if colours is not None and len(colours):
@@ -162,6 +168,19 @@ def named_attributes(me, names, tris, loops, faces) -> dict:
                 alpha = vals[..., 3]
         out[name] = (vec, fac, alpha)
     return out
+
+
+def mesh_pointiness(me) -> np.ndarray:
+    """(V,) Cycles' pointiness of a Blender mesh's vertices (engine/pointiness.py: from its
+    positions, Blender's vertex normals and its edges, as blender/mesh.cpp reads them)."""
+    from .core import load_engine
+    nv = len(me.vertices)
+    co = _foreach(me.vertices, "co", nv, 3, np.float32)
+    normals = getattr(me, "vertex_normals", None)  # (Blender 4.1+; before: vertex.normal)
+    nrm = (_foreach(normals, "vector", nv, 3, np.float32) if normals is not None
+           else _foreach(me.vertices, "normal", nv, 3, np.float32))
+    edges = _foreach(me.edges, "vertices", len(me.edges), 2, np.int32)
+    return load_engine().pointiness.pointiness(co, nrm, edges.reshape(-1, 2))
 
 
 def _uses_uv_tangents(obj) -> bool:

@@ -1377,6 +1377,8 @@ class MaterialConverter:
         if t == "NEW_GEOMETRY":  # the Geometry node
             if oname == "Random Per Island":  # (addon/export.py random_per_island)
                 return self._attribute("random_per_island", "Factor")
+            if oname == "Pointiness":  # per vertex (addon/export.py mesh_pointiness)
+                return self._attribute("pointiness", "Factor")
             out_kind = {"Position": "POSITION", "Normal": "NORMAL",
                         "True Normal": "TRUE_NORMAL", "Incoming": "INCOMING",
                         "Backfacing": "BACKFACING"}.get(oname)
@@ -1526,7 +1528,7 @@ class MaterialConverter:
                 return 1.0
             if name == "uv":  # the render UV map: Fac is u
                 return sn.SeparateChannel(sn.UVCoord(), 0) if fac else sn.UVCoord()
-            if name == "random_per_island":  # exported as a face attribute
+            if name in ("random_per_island", "pointiness"):  # exported by addon/export.py
                 return (sn.SeparateChannel(self._coordinates(f"attr:{name}.fac"), 0) if fac
                         else self._coordinates(f"attr:{name}"))
             if name == "generated":  # Fac the average, as for any 3-D vector
