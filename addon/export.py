@@ -36,10 +36,10 @@ class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
     __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
-                 "texspace", "tangents", "uv_name", "attributes")
+                 "texspace", "tangents", "uv_name", "attributes", "named_tangents")
 
     def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None,
-                 tangents=None, uv_name="", attributes=None):
+                 tangents=None, uv_name="", attributes=None, named_tangents=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
@@ -53,6 +53,9 @@ class LocalGeometry:
         # Named attributes an Attribute / Color Attribute node reads (named_attributes):
         # name -> (vector (F,3,3), fac (F,3), alpha (F,3)) per corner
         self.attributes = attributes or {}
+        # MikkTSpace tangents of the UV maps Normal Map nodes name (normal_map_uv_names):
+        # name -> (F,3,4) as `tangents`
+        self.named_tangents = named_tangents or {}
 
 
 def _foreach(collection, attr, count, width, dtype):
@@ -76,6 +79,15 @@ def _uses_tangent_normal_maps(obj) -> bool:
     worth computing)."""
     return any(node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT"
                for node in _material_nodes(obj))
+
+
+def normal_map_uv_names(obj) -> set:
+    """The UV maps that tangent-space Normal Map nodes of the object's materials name
+    (their uv_map; "" = the render map, left out): Cycles reads each one's tangent
+    attributes (NormalMapNode::attributes, NAME.tangent / NAME.tangent_sign)."""
+    return {str(node.uv_map) for node in _material_nodes(obj)
+            if node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT"
+            and getattr(node, "uv_map", "")}
 
 
 def attribute_requests(obj) -> set:
@@ -238,6 +250,12 @@ def extract_geometry(obj) -> LocalGeometry | None:
                 uvs = uv[loops].astype(np.float64)
                 if _uses_tangent_normal_maps(obj) or _uses_uv_tangents(obj):
                     tangents = _corner_tangents(me, layer, loops)
+        named_tangents = {}
+        for name in sorted(normal_map_uv_names(obj)):
+            named = layers.get(name)  # (a map the mesh lacks: none, as in Cycles)
+            t = _corner_tangents(me, named, loops) if named is not None else None
+            if t is not None:
+                named_tangents[name] = t
         texspace = (np.array(me.texspace_location, np.float64),
                     np.array(me.texspace_size, np.float64))
         requests = attribute_requests(obj)
@@ -245,7 +263,7 @@ def extract_geometry(obj) -> LocalGeometry | None:
                              _corner_colors(me, tris, loops, faces), texspace, tangents,
                              layer.name if uvs is not None else "",
                              named_attributes(me, requests, tris, loops, faces)
-                             if requests else None)
+                             if requests else None, named_tangents)
     finally:
         obj.to_mesh_clear()
 
@@ -328,7 +346,8 @@ def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool,
     ('radial_tangent', radial_tangents) when a material is anisotropic, and the MikkTSpace
     tangents in world space ('tangent', and 'tangent_sign' as 3 equal values: the
     bitangent's side, flipped with a mirroring transform) for tangent-space normal maps
-    (engine/normalmap.py). uv_slots: per material slot, True where the material's
+    (engine/normalmap.py), and those of the UV maps Normal Map nodes name
+    ('tangent:NAME', 'tangent_sign:NAME': LocalGeometry.named_tangents). uv_slots: per material slot, True where the material's
     anisotropy tangent is the UV map's (MaterialConverter.uv_tangent_map): those faces
     carry the MikkTSpace tangent in 'radial_tangent' instead (Cycles' Tangent node, UV
     Map mode: the attribute tangent by the object's normal transform, as the radial
@@ -346,13 +365,16 @@ def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool,
             except np.linalg.LinAlgError:
                 t[faces] = g.tangents[faces][..., :3] @ matrix[:3, :3].T
         out["radial_tangent"] = t[:, [0, 2, 1]] if flipped else t
-    if g.tangents is not None:
+    named = getattr(g, "named_tangents", None) or {}
+    for suffix, tangents in [("", g.tangents)] + [(":" + k, v) for k, v in named.items()]:
+        if tangents is None:
+            continue
         R = matrix[:3, :3]
-        t = g.tangents[..., :3] @ R.T
-        sign = np.repeat(g.tangents[..., 3:4] * (-1.0 if flipped else 1.0), 3, axis=-1)
+        t = tangents[..., :3] @ R.T
+        sign = np.repeat(tangents[..., 3:4] * (-1.0 if flipped else 1.0), 3, axis=-1)
         if flipped:
             t, sign = t[:, [0, 2, 1]], sign[:, [0, 2, 1]]
-        out["tangent"], out["tangent_sign"] = t, sign
+        out["tangent" + suffix], out["tangent_sign" + suffix] = t, sign
     return out or None
 
 
@@ -831,7 +853,7 @@ def _placeable(geo: LocalGeometry, converter, names) -> bool:
     """Geometry a placement without a copy can carry (engine Mesh.place): no colour
     attribute, no tangents for normal maps and no texture coordinates a material reads
     (those stay per-instance copies with an instance record)."""
-    return (geo.colors is None and geo.tangents is None
+    return (geo.colors is None and geo.tangents is None and not geo.named_tangents
             and not any(converter.needs_coordinates(n) or _radial(converter, n)
                         for n in names))
 

@@ -471,6 +471,7 @@ class MaterialConverter:
         self._mat = mat
         self._warnings = warnings
         self._warned = set()
+        self._ao_cores = {}  # Ambient Occlusion node name -> its OcclusionCore
         nt = mat.node_tree
         # Blender 5 always uses the node tree (use_nodes is deprecated there).
         use_nodes = bpy.app.version >= (5, 0, 0) or getattr(mat, "use_nodes", True)
@@ -1006,9 +1007,9 @@ class MaterialConverter:
             self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' space '{space}' "
                        "is not supported; using the surface normal")
             return None
-        if getattr(n, "uv_map", ""):
-            self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' UV map "
-                       f"'{n.uv_map}' is read as the active render UV map")
+        # A named UV map: its tangents (addon/export.py normal_map_uv_names); the image
+        # is placed by its own Vector input (a UV Map node naming the map, usually).
+        uv_map = str(getattr(n, "uv_map", "") or "") if space == "TANGENT" else ""
         col = self._source(n.inputs["Color"])
         if col is None:
             return None  # the default colour (0.5, 0.5, 1) is the unperturbed normal
@@ -1020,9 +1021,12 @@ class MaterialConverter:
                            f"node '{cn.name}' ({cn.type}) is not supported; using the "
                            "surface normal")
             return None
+        # The image as its node reads it: through its Vector input and projection (the
+        # ImageTexture itself on the render UVs).
+        tex = self._node_output(cn, cout, 1)
         strength = self._float(n, "Strength", 1.0)
         try:
-            return self.pm.NormalMap(tex, strength=strength, space=space)
+            return self.pm.NormalMap(tex, strength=strength, space=space, uv_map=uv_map)
         except ValueError as exc:
             self._warn(f"material '{self._mat.name}': Normal Map '{n.name}': {exc}")
             return None
@@ -1487,6 +1491,8 @@ class MaterialConverter:
                            direction=n.bands_direction if kind == "BANDS" else n.rings_direction,
                            profile=n.wave_profile,
                            output="FAC" if oname in ("Fac", "Factor") else "COLOR")
+        if t == "AMBIENT_OCCLUSION":
+            return self._ambient_occlusion(n, oname, depth)
         if t in ("LAYER_WEIGHT", "FRESNEL"):
             if n.inputs.get("Normal") is not None and self._source(n.inputs["Normal"]):
                 self._warn(f"material '{self._mat.name}': the 'Normal' input of "
@@ -1496,6 +1502,23 @@ class MaterialConverter:
             return sn.LayerWeight(self._input(n, n.inputs["Blend"], depth),
                                   output="FACING" if oname == "Facing" else "FRESNEL")
         return None
+
+    def _ambient_occlusion(self, n, oname, depth):
+        """Ambient Occlusion node (engine/ambientocclusion.py: rays from each hit, Samples,
+        Distance, Normal, Inside and Only Local as Cycles' svm_ao): output Color (AO x
+        Color) or AO; both outputs of one node share its rays."""
+        ao = self.pm.ambientocclusion
+        core = self._ao_cores.get(n.name)
+        if core is None:
+            core = ao.OcclusionCore(self._input(n, n.inputs["Distance"], depth),
+                                    self._vector(n, "Normal", depth),
+                                    samples=int(getattr(n, "samples", 16)),
+                                    inside=bool(getattr(n, "inside", False)),
+                                    only_local=bool(getattr(n, "only_local", False)))
+            self._ao_cores[n.name] = core
+        if oname == "AO":
+            return core
+        return ao.AmbientOcclusion(core, self._input(n, n.inputs["Color"], depth))
 
     def _procedural(self, n, oname, depth):
         """Noise or Voronoi Texture node: evaluated per hit (engine/procedural.py)."""
