@@ -142,3 +142,21 @@ def test_directions_are_cosine_weighted_about_the_normal():
     assert abs((cos ** 2).mean() - 0.5) < 0.01 and abs(cos.mean() - 2.0 / 3.0) < 0.01
     xy = concentric_disk(np.array([0.5, 1.0, 0.5]), np.array([0.5, 0.5, 1.0]))
     np.testing.assert_allclose(xy, [[0, 0], [1, 0], [0, 1]], atol=1e-12)
+
+
+def test_worker_count_does_not_change_an_ao_image():
+    """A sun-lit floor with a box on it, the floor's colour the AO node (read by the
+    photon pass and the camera pass alike): one worker or two, the same image."""
+    s = _room(ceiling=False)
+    core = OcclusionCore(1.5, samples=8)
+    s.materials["dirt"] = Material("dirt", (1.0, 1.0, 1.0), texture=AmbientOcclusion(
+        core, (0.9, 0.7, 0.5)))
+    s.meshes[0].materials = ["dirt"]
+    s.add_box((0.3, 0.2, 0.25), (0.5, 0.5, 0.5), "grey")
+    s.add_sun(direction=(0.3, 0.2, -1.0), strength=2.0)
+    s.set_camera((0, -0.6, 0.9), (0.3, 0.2, 0.0), view_angle=60)
+    st = dict(photons=4000, caustic_photons=0, spp=2, seed=3)
+    one = s.render(RenderSettings(workers=1, **st)).combined
+    two = s.render(RenderSettings(workers=2, **st)).combined
+    np.testing.assert_array_equal(one, two)
+    assert np.ptp(one) > 0  # something rendered
