@@ -997,6 +997,8 @@ class MaterialConverter:
         n, _ = src
         if n.type == "BUMP":
             return self._bump(n)
+        if n.type == "BEVEL":
+            return self._bevel(n)
         if n.type != "NORMAL_MAP":
             self._warn(f"material '{self._mat.name}': 'Normal' input of node '{node.name}' "
                        f"is driven by node '{n.name}' ({n.type}), which is not supported; "
@@ -1030,6 +1032,13 @@ class MaterialConverter:
         except ValueError as exc:
             self._warn(f"material '{self._mat.name}': Normal Map '{n.name}': {exc}")
             return None
+
+    def _bevel(self, n):
+        """engine Bevel for a Bevel node (engine/bevel.py: rays around each hit, Radius per
+        hit, Samples), offsetting the normal of a Normal Map / Bump on its Normal input."""
+        inner = self._normal(n)  # (its own 'Normal' input: None when unlinked)
+        return self.pm.bevel.Bevel(self._input(n, n.inputs["Radius"], 0),
+                                   samples=int(getattr(n, "samples", 4)), normal=inner)
 
     def _bump(self, n):
         """engine Bump for a Bump node (its Height evaluated per hit), or None."""

@@ -43,16 +43,17 @@ def attach_tracer(geo, accel) -> None:
     geo.tracer = None if accel is None else accel.serial()
 
 
-def _hash_pair(prim, u, v):
+def hash_pair(prim, u, v, salt: int = 0x94D049BB133111EB):
     """(N,) two independent uniforms in [0, 1) per hit: hashes of the triangle and the
     barycentrics' float64 bits (splitmix64's finaliser, as shadernodes.hit_random, with
-    other constants so they do not coincide with a Mix Shader's pick)."""
+    other constants so they do not coincide with a Mix Shader's pick); salt tells the
+    nodes that use them apart (AO, Bevel)."""
     from .integrator import _mix64 as mix  # (integrator imports shadernodes)
     p = np.asarray(prim).astype(np.uint64)
     bu = np.ascontiguousarray(u, np.float64).view(np.uint64)
     bv = np.ascontiguousarray(v, np.float64).view(np.uint64)
     with np.errstate(over="ignore"):
-        h = mix(p * np.uint64(0xBF58476D1CE4E5B9) + np.uint64(0x94D049BB133111EB))
+        h = mix(p * np.uint64(0xBF58476D1CE4E5B9) + np.uint64(salt))
         h = mix(h ^ bu)
         h = mix(h ^ bv)
         h2 = mix(h ^ np.uint64(0x9E3779B97F4A7C15))
@@ -83,7 +84,7 @@ def ao_directions(n, samples: int, prim, u, v):
     hemisphere in n's frame (Cycles' make_orthonormals)."""
     n = np.asarray(n, np.float64)
     s = np.arange(samples, dtype=np.float64)
-    h1, h2 = _hash_pair(prim, u, v)
+    h1, h2 = hash_pair(prim, u, v)
     a = np.mod((s[None, :] + 0.5) / samples + h1[:, None], 1.0)
     b = np.mod(s[None, :] * _GOLDEN + h2[:, None], 1.0)
     d = concentric_disk(a.ravel(), b.ravel()).reshape(len(n), samples, 2)

@@ -113,8 +113,8 @@ class Material:
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
     `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
     image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
-    `normal_map` is an optional engine.normalmap.NormalMap or Bump perturbing the shading
-    normal.
+    `normal_map` is an optional engine.normalmap.NormalMap, Bump or engine.bevel.Bevel
+    perturbing the shading normal.
     `alpha_texture` is an optional node (evaluate(geo, prim, u, v): an
     engine.shadernodes.ImageLookup of an image's Alpha, a Math node, ...) whose value per
     hit multiplies `alpha`: alpha cut-outs (leaves, fences) for camera rays, shadow rays
@@ -255,9 +255,11 @@ class Material:
                 self.texture = as_texture(self.texture, name=f"{self.name} texture")
             except TextureError as exc:
                 raise SceneError(f"{who} {exc}") from None
-        if self.normal_map is not None and not isinstance(self.normal_map, (NormalMap, Bump)):
-            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap or Bump, got "
-                             f"{type(self.normal_map).__name__}")
+        from .bevel import Bevel  # (bevel -> ambientocclusion -> geometry imports scene)
+        if self.normal_map is not None and not isinstance(self.normal_map,
+                                                          (NormalMap, Bump, Bevel)):
+            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap, Bump "
+                             f"or engine.bevel.Bevel, got {type(self.normal_map).__name__}")
 
     @property
     def is_emissive(self) -> bool:
