@@ -1514,12 +1514,21 @@ class MaterialConverter:
 
     def _ambient_occlusion(self, n, oname, depth):
         """Ambient Occlusion node (engine/ambientocclusion.py: rays from each hit, Samples,
-        Distance, Normal, Inside and Only Local as Cycles' svm_ao): output Color (AO x
-        Color) or AO; both outputs of one node share its rays."""
+        Distance, Normal, Inside and Only Local as Cycles' svm_ao; an unlinked Distance of
+        0 reads the world's AO distance, as Cycles): output Color (AO x Color) or AO; both
+        outputs of one node share its rays."""
         ao = self.pm.ambientocclusion
         core = self._ao_cores.get(n.name)
         if core is None:
-            core = ao.OcclusionCore(self._input(n, n.inputs["Distance"], depth),
+            distance = self._input(n, n.inputs["Distance"], depth)
+            if not n.inputs["Distance"].is_linked and distance == 0.0:
+                # Cycles' NODE_AO_GLOBAL_RADIUS: World > Settings > Ambient Occlusion >
+                # Distance (its integrator's ao_distance; 10 m without a world)
+                scene = self.view_layer[0] if self.view_layer is not None else None
+                world = getattr(scene, "world", None)
+                distance = (float(world.light_settings.distance) if world is not None
+                            else 10.0)
+            core = ao.OcclusionCore(distance,
                                     self._vector(n, "Normal", depth),
                                     samples=int(getattr(n, "samples", 16)),
                                     inside=bool(getattr(n, "inside", False)),

@@ -72,6 +72,8 @@ CASES = {
     "only_local_apart": dict(build=_ao_node("Color", only_local=True)),
     # Box and wall joined into the floor's object: Only Local sees them
     "only_local_joined": dict(build=_ao_node("Color", only_local=True), join=True),
+    # Distance 0 (unlinked): World > Settings > Ambient Occlusion > Distance (0.35 m)
+    "world_distance": dict(build=_ao_node("Color", distance=0.0), world_distance=0.35),
 }
 
 
@@ -83,6 +85,8 @@ def test_ambient_occlusion_matches_cycles(fresh_scene, bpy_addon, tmp_path, case
     _plane_scene(bpy, scene, spec["build"])
     floor = bpy.context.object
     _obstacles(bpy, join_to=floor if spec.get("join") else None)
+    if "world_distance" in spec:
+        scene.world.light_settings.distance = spec["world_distance"]
     ours, ref, err = _compare(bpy, scene, tmp_path, case)
     assert abs(ours.mean() - ref.mean()) <= 0.01 * ref.mean()
     assert err.max() <= 0.03
