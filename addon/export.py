@@ -53,7 +53,7 @@ class LocalGeometry:
         # Named attributes an Attribute / Color Attribute node reads (named_attributes):
         # name -> (vector (F,3,3), fac (F,3), alpha (F,3)) per corner
         self.attributes = attributes or {}
-        # MikkTSpace tangents of the UV maps Normal Map nodes name (normal_map_uv_names):
+        # MikkTSpace tangents of the UV maps nodes name (named_tangent_maps):
         # name -> (F,3,4) as `tangents`
         self.named_tangents = named_tangents or {}
 
@@ -81,13 +81,16 @@ def _uses_tangent_normal_maps(obj) -> bool:
                for node in _material_nodes(obj))
 
 
-def normal_map_uv_names(obj) -> set:
-    """The UV maps that tangent-space Normal Map nodes of the object's materials name
-    (their uv_map; "" = the render map, left out): Cycles reads each one's tangent
-    attributes (NormalMapNode::attributes, NAME.tangent / NAME.tangent_sign)."""
+def named_tangent_maps(obj) -> set:
+    """The UV maps whose MikkTSpace tangents the object's materials read by name: those
+    that tangent-space Normal Map nodes and Tangent nodes in UV Map mode name (their
+    uv_map; "" = the render map, left out), as Cycles reads each one's tangent attribute
+    (NormalMapNode / TangentNode::attributes: NAME.tangent, NAME.tangent_sign)."""
     return {str(node.uv_map) for node in _material_nodes(obj)
-            if node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT"
-            and getattr(node, "uv_map", "")}
+            if getattr(node, "uv_map", "") and (
+                (node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT")
+                or (node.type == "TANGENT"
+                    and getattr(node, "direction_type", "") == "UV_MAP"))}
 
 
 def attribute_requests(obj) -> set:
@@ -251,7 +254,7 @@ def extract_geometry(obj) -> LocalGeometry | None:
                 if _uses_tangent_normal_maps(obj) or _uses_uv_tangents(obj):
                     tangents = _corner_tangents(me, layer, loops)
         named_tangents = {}
-        for name in sorted(normal_map_uv_names(obj)):
+        for name in sorted(named_tangent_maps(obj)):
             named = layers.get(name)  # (a map the mesh lacks: none, as in Cycles)
             t = _corner_tangents(me, named, loops) if named is not None else None
             if t is not None:
@@ -346,24 +349,29 @@ def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool,
     ('radial_tangent', radial_tangents) when a material is anisotropic, and the MikkTSpace
     tangents in world space ('tangent', and 'tangent_sign' as 3 equal values: the
     bitangent's side, flipped with a mirroring transform) for tangent-space normal maps
-    (engine/normalmap.py), and those of the UV maps Normal Map nodes name
-    ('tangent:NAME', 'tangent_sign:NAME': LocalGeometry.named_tangents). uv_slots: per material slot, True where the material's
-    anisotropy tangent is the UV map's (MaterialConverter.uv_tangent_map): those faces
-    carry the MikkTSpace tangent in 'radial_tangent' instead (Cycles' Tangent node, UV
-    Map mode: the attribute tangent by the object's normal transform, as the radial
-    one: svm_node_tangent). Corners in the
-    exported order. None when there are none."""
+    (engine/normalmap.py), and those of the UV maps nodes name ('tangent:NAME',
+    'tangent_sign:NAME': LocalGeometry.named_tangents). uv_slots: per material slot, the
+    UV map whose tangent is the material's anisotropy tangent (MaterialConverter.
+    uv_tangent_map: "" the render map; None the radial default): those faces carry that
+    MikkTSpace tangent in 'radial_tangent' instead (Cycles' Tangent node, UV Map mode: the
+    attribute tangent by the object's normal transform, as the radial one:
+    svm_node_tangent); a map the mesh lacks keeps the radial one (warned:
+    uv_tangent_warnings). Corners in the exported order. None when there are none."""
     flipped = np.linalg.det(matrix[:3, :3]) < 0
     out = texture_coordinates(g, flipped) if coordinates else {}
     if radial:
         t = radial_tangents(g, matrix)
-        if any(uv_slots) and g.tangents is not None:
-            slots = np.asarray(uv_slots, bool)
-            faces = slots[np.clip(g.material_index, 0, len(slots) - 1)]
+        named = getattr(g, "named_tangents", None) or {}
+        slot_of = np.clip(g.material_index, 0, max(len(uv_slots) - 1, 0))
+        for slot, want in enumerate(uv_slots):
+            src = g.tangents if want == "" else named.get(want) if want else None
+            if src is None:
+                continue
+            faces = slot_of == slot
             try:  # svm_node_tangent: object_normal_transform, as the radial one
-                t[faces] = g.tangents[faces][..., :3] @ np.linalg.inv(matrix[:3, :3])
+                t[faces] = src[faces][..., :3] @ np.linalg.inv(matrix[:3, :3])
             except np.linalg.LinAlgError:
-                t[faces] = g.tangents[faces][..., :3] @ matrix[:3, :3].T
+                t[faces] = src[faces][..., :3] @ matrix[:3, :3].T
         out["radial_tangent"] = t[:, [0, 2, 1]] if flipped else t
     named = getattr(g, "named_tangents", None) or {}
     for suffix, tangents in [("", g.tangents)] + [(":" + k, v) for k, v in named.items()]:
@@ -865,27 +873,29 @@ def pass_index(obj) -> int:
 
 
 def _uv_slots(converter, names) -> tuple:
-    """Per material slot: the material's anisotropy tangent is the UV map's."""
+    """Per material slot: the UV map whose tangent is the material's anisotropy tangent
+    ("" the render map), or None (the radial default)."""
     f = getattr(converter, "uv_tangent_map", None)
-    return tuple(bool(f and f(n) is not None) for n in names)
+    return tuple(f(n) if f else None for n in names)
 
 
 def uv_tangent_warnings(obj, geo: LocalGeometry, converter, names, warnings):
     """Warn (naming object and material) where a material wants a UV map's tangent the
-    export cannot give: no UV map / no MikkTSpace tangents (the radial tangent is used),
-    or a Tangent node naming another UV map than the render one (the render map's)."""
+    export cannot give: no UV map / no MikkTSpace tangents, or a Tangent node naming a
+    map the mesh lacks (the radial tangent is used)."""
     f = getattr(converter, "uv_tangent_map", None)
     for n in dict.fromkeys(names):
         want = f(n) if f else None
         if want is None:
             continue
-        if geo.tangents is None:
+        if want == "" and geo.tangents is None:
             warnings.append(f"object '{obj.name}': the Tangent node of material '{n}' "
                             "reads a UV map the mesh does not have (or cannot give "
                             "tangents for); the default radial tangent is used")
-        elif want and want != geo.uv_name:
+        elif want and want not in geo.named_tangents:
             warnings.append(f"object '{obj.name}': material '{n}''s Tangent node names UV "
-                            f"map '{want}'; the render UV map '{geo.uv_name}' is used")
+                            f"map '{want}', which the mesh does not have (or cannot give "
+                            "tangents for); the default radial tangent is used")
 
 
 def _radial(converter, name) -> bool:

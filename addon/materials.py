@@ -1009,7 +1009,7 @@ class MaterialConverter:
             self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' space '{space}' "
                        "is not supported; using the surface normal")
             return None
-        # A named UV map: its tangents (addon/export.py normal_map_uv_names); the image
+        # A named UV map: its tangents (addon/export.py named_tangent_maps); the image
         # is placed by its own Vector input (a UV Map node naming the map, usually).
         uv_map = str(getattr(n, "uv_map", "") or "") if space == "TANGENT" else ""
         col = self._source(n.inputs["Color"])
