@@ -882,7 +882,8 @@ def _uv_slots(converter, names) -> tuple:
 def uv_tangent_warnings(obj, geo: LocalGeometry, converter, names, warnings):
     """Warn (naming object and material) where a material wants a UV map's tangent the
     export cannot give: no UV map / no MikkTSpace tangents, or a Tangent node naming a
-    map the mesh lacks (the radial tangent is used)."""
+    map the mesh lacks (the radial tangent is used); a Normal Map naming a map the mesh
+    lacks (no perturbation, as Cycles renders it)."""
     f = getattr(converter, "uv_tangent_map", None)
     for n in dict.fromkeys(names):
         want = f(n) if f else None
@@ -896,6 +897,13 @@ def uv_tangent_warnings(obj, geo: LocalGeometry, converter, names, warnings):
             warnings.append(f"object '{obj.name}': material '{n}''s Tangent node names UV "
                             f"map '{want}', which the mesh does not have (or cannot give "
                             "tangents for); the default radial tangent is used")
+    normal_maps = getattr(converter, "normal_map_uvs", {})
+    for n in dict.fromkeys(names):
+        want = normal_maps.get(n)
+        if want and want not in geo.named_tangents:
+            warnings.append(f"object '{obj.name}': material '{n}''s Normal Map names UV map "
+                            f"'{want}', which the mesh does not have (or cannot give "
+                            "tangents for): its normal is not perturbed there (as in Cycles)")
 
 
 def _radial(converter, name) -> bool:

@@ -366,6 +366,8 @@ class MaterialConverter:
         # materials whose anisotropic lobe's Tangent is a Tangent node in UV Map mode:
         # name -> the node's UV map ("" = the render UV map)
         self.uv_tangent_users = {}
+        # materials whose tangent-space Normal Map names a UV map: name -> that map
+        self.normal_map_uvs = {}
 
     def needs_coordinates(self, material_name) -> bool:
         """Whether meshes with this material must export Generated / Object coordinates."""
@@ -1027,6 +1029,8 @@ class MaterialConverter:
         # ImageTexture itself on the render UVs).
         tex = self._node_output(cn, cout, 1)
         strength = self._float(n, "Strength", 1.0)
+        if uv_map:
+            self.normal_map_uvs[self._mat.name] = uv_map
         try:
             return self.pm.NormalMap(tex, strength=strength, space=space, uv_map=uv_map)
         except ValueError as exc:

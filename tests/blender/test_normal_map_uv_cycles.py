@@ -89,4 +89,10 @@ def test_named_uv_map_tangents_match_cycles(fresh_scene, bpy_addon, tmp_path, uv
         assert np.ptp(rows) > 0.3  # bright and dark stripes across y
     else:
         assert np.ptp(ref) < 1e-3  # no perturbation: a uniform floor
+        from addon import export
+        from addon.core import load_engine
+        out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                     width=8, height=8)
+        assert any("Normal Map names UV map 'Absent', which the mesh does not have" in w
+                   for w in out.warnings), out.warnings
     assert np.all(err <= 0.005 + 0.01 * ref)
