@@ -36,10 +36,10 @@ class LocalGeometry:
     """Triangles of one evaluated object in its local space."""
 
     __slots__ = ("co", "faces", "normals", "uvs", "material_index", "triangles", "colors",
-                 "texspace", "tangents", "uv_name", "attributes")
+                 "texspace", "tangents", "uv_name", "attributes", "named_tangents")
 
     def __init__(self, co, faces, normals, uvs, material_index, colors=None, texspace=None,
-                 tangents=None, uv_name="", attributes=None):
+                 tangents=None, uv_name="", attributes=None, named_tangents=None):
         self.co = co                    # (V,3) float64
         self.faces = faces              # (F,3) int64
         self.normals = normals          # None (flat), (V,3) or (F,3,3)
@@ -53,6 +53,9 @@ class LocalGeometry:
         # Named attributes an Attribute / Color Attribute node reads (named_attributes):
         # name -> (vector (F,3,3), fac (F,3), alpha (F,3)) per corner
         self.attributes = attributes or {}
+        # MikkTSpace tangents of the UV maps nodes name (named_tangent_maps):
+        # name -> (F,3,4) as `tangents`
+        self.named_tangents = named_tangents or {}
 
 
 def _foreach(collection, attr, count, width, dtype):
@@ -78,6 +81,18 @@ def _uses_tangent_normal_maps(obj) -> bool:
                for node in _material_nodes(obj))
 
 
+def named_tangent_maps(obj) -> set:
+    """The UV maps whose MikkTSpace tangents the object's materials read by name: those
+    that tangent-space Normal Map nodes and Tangent nodes in UV Map mode name (their
+    uv_map; "" = the render map, left out), as Cycles reads each one's tangent attribute
+    (NormalMapNode / TangentNode::attributes: NAME.tangent, NAME.tangent_sign)."""
+    return {str(node.uv_map) for node in _material_nodes(obj)
+            if getattr(node, "uv_map", "") and (
+                (node.type == "NORMAL_MAP" and getattr(node, "space", "TANGENT") == "TANGENT")
+                or (node.type == "TANGENT"
+                    and getattr(node, "direction_type", "") == "UV_MAP"))}
+
+
 def attribute_requests(obj) -> set:
     """Names of the mesh attributes the object's materials read by name: Attribute nodes
     of type Geometry (attribute_name), Color Attribute nodes ("" = the render colour
@@ -86,12 +101,13 @@ def attribute_requests(obj) -> set:
     for node in _material_nodes(obj):
         if node.type == "ATTRIBUTE" and getattr(node, "attribute_type", "") == "GEOMETRY":
             name = str(node.attribute_name)
-            if name not in CYCLES_STANDARD_ATTRIBUTES or name == ISLAND:
+            if name not in CYCLES_STANDARD_ATTRIBUTES or name in (ISLAND, POINTINESS):
                 names.add(name)
         elif node.type == "NEW_GEOMETRY":
-            out = node.outputs.get("Random Per Island")
-            if out is not None and out.is_linked:
-                names.add(ISLAND)
+            for out_name, attr in (("Random Per Island", ISLAND), ("Pointiness", POINTINESS)):
+                out = node.outputs.get(out_name)
+                if out is not None and out.is_linked:
+                    names.add(attr)
         elif node.type == "VERTEX_COLOR":
             names.add(str(getattr(node, "layer_name", "")))
         elif node.type == "UVMAP" and getattr(node, "uv_map", ""):
@@ -100,6 +116,7 @@ def attribute_requests(obj) -> set:
 
 
 ISLAND = "random_per_island"  # Cycles' standard name of the Random Per Island attribute
+POINTINESS = "pointiness"  # and of the Geometry node's Pointiness (engine/pointiness.py)
 
 # Generic attribute data types read by name, and the RNA property holding their values
 # (colours: `color`, scene linear for byte and float colours alike).
@@ -125,6 +142,10 @@ def named_attributes(me, names, tris, loops, faces) -> dict:
         if name == ISLAND:  # Cycles' standard attribute, computed from the topology
             r = np.repeat(random_per_island(me, faces)[:, None], 3, axis=1)
             out[name] = (np.repeat(r[..., None], 3, axis=2), r, np.ones_like(r))
+            continue
+        if name == POINTINESS:  # Cycles' standard attribute, per vertex (interpolated)
+            p = mesh_pointiness(me)[faces].astype(np.float64)
+            out[name] = (np.repeat(p[..., None], 3, axis=2), p, np.ones_like(p))
             continue
         if name == "":
             if colours is not None and len(colours):
@@ -162,6 +183,19 @@ def named_attributes(me, names, tris, loops, faces) -> dict:
                 alpha = vals[..., 3]
         out[name] = (vec, fac, alpha)
     return out
+
+
+def mesh_pointiness(me) -> np.ndarray:
+    """(V,) Cycles' pointiness of a Blender mesh's vertices (engine/pointiness.py: from its
+    positions, Blender's vertex normals and its edges, as blender/mesh.cpp reads them)."""
+    from .core import load_engine
+    nv = len(me.vertices)
+    co = _foreach(me.vertices, "co", nv, 3, np.float32)
+    normals = getattr(me, "vertex_normals", None)  # (Blender 4.1+; before: vertex.normal)
+    nrm = (_foreach(normals, "vector", nv, 3, np.float32) if normals is not None
+           else _foreach(me.vertices, "normal", nv, 3, np.float32))
+    edges = _foreach(me.edges, "vertices", len(me.edges), 2, np.int32)
+    return load_engine().pointiness.pointiness(co, nrm, edges.reshape(-1, 2))
 
 
 def _uses_uv_tangents(obj) -> bool:
@@ -219,6 +253,12 @@ def extract_geometry(obj) -> LocalGeometry | None:
                 uvs = uv[loops].astype(np.float64)
                 if _uses_tangent_normal_maps(obj) or _uses_uv_tangents(obj):
                     tangents = _corner_tangents(me, layer, loops)
+        named_tangents = {}
+        for name in sorted(named_tangent_maps(obj)):
+            named = layers.get(name)  # (a map the mesh lacks: none, as in Cycles)
+            t = _corner_tangents(me, named, loops) if named is not None else None
+            if t is not None:
+                named_tangents[name] = t
         texspace = (np.array(me.texspace_location, np.float64),
                     np.array(me.texspace_size, np.float64))
         requests = attribute_requests(obj)
@@ -226,7 +266,7 @@ def extract_geometry(obj) -> LocalGeometry | None:
                              _corner_colors(me, tris, loops, faces), texspace, tangents,
                              layer.name if uvs is not None else "",
                              named_attributes(me, requests, tris, loops, faces)
-                             if requests else None)
+                             if requests else None, named_tangents)
     finally:
         obj.to_mesh_clear()
 
@@ -309,31 +349,40 @@ def corner_attributes(g: LocalGeometry, matrix: np.ndarray, coordinates: bool,
     ('radial_tangent', radial_tangents) when a material is anisotropic, and the MikkTSpace
     tangents in world space ('tangent', and 'tangent_sign' as 3 equal values: the
     bitangent's side, flipped with a mirroring transform) for tangent-space normal maps
-    (engine/normalmap.py). uv_slots: per material slot, True where the material's
-    anisotropy tangent is the UV map's (MaterialConverter.uv_tangent_map): those faces
-    carry the MikkTSpace tangent in 'radial_tangent' instead (Cycles' Tangent node, UV
-    Map mode: the attribute tangent by the object's normal transform, as the radial
-    one: svm_node_tangent). Corners in the
-    exported order. None when there are none."""
+    (engine/normalmap.py), and those of the UV maps nodes name ('tangent:NAME',
+    'tangent_sign:NAME': LocalGeometry.named_tangents). uv_slots: per material slot, the
+    UV map whose tangent is the material's anisotropy tangent (MaterialConverter.
+    uv_tangent_map: "" the render map; None the radial default): those faces carry that
+    MikkTSpace tangent in 'radial_tangent' instead (Cycles' Tangent node, UV Map mode: the
+    attribute tangent by the object's normal transform, as the radial one:
+    svm_node_tangent); a map the mesh lacks keeps the radial one (warned:
+    uv_tangent_warnings). Corners in the exported order. None when there are none."""
     flipped = np.linalg.det(matrix[:3, :3]) < 0
     out = texture_coordinates(g, flipped) if coordinates else {}
     if radial:
         t = radial_tangents(g, matrix)
-        if any(uv_slots) and g.tangents is not None:
-            slots = np.asarray(uv_slots, bool)
-            faces = slots[np.clip(g.material_index, 0, len(slots) - 1)]
+        named = getattr(g, "named_tangents", None) or {}
+        slot_of = np.clip(g.material_index, 0, max(len(uv_slots) - 1, 0))
+        for slot, want in enumerate(uv_slots):
+            src = g.tangents if want == "" else named.get(want) if want else None
+            if src is None:
+                continue
+            faces = slot_of == slot
             try:  # svm_node_tangent: object_normal_transform, as the radial one
-                t[faces] = g.tangents[faces][..., :3] @ np.linalg.inv(matrix[:3, :3])
+                t[faces] = src[faces][..., :3] @ np.linalg.inv(matrix[:3, :3])
             except np.linalg.LinAlgError:
-                t[faces] = g.tangents[faces][..., :3] @ matrix[:3, :3].T
+                t[faces] = src[faces][..., :3] @ matrix[:3, :3].T
         out["radial_tangent"] = t[:, [0, 2, 1]] if flipped else t
-    if g.tangents is not None:
+    named = getattr(g, "named_tangents", None) or {}
+    for suffix, tangents in [("", g.tangents)] + [(":" + k, v) for k, v in named.items()]:
+        if tangents is None:
+            continue
         R = matrix[:3, :3]
-        t = g.tangents[..., :3] @ R.T
-        sign = np.repeat(g.tangents[..., 3:4] * (-1.0 if flipped else 1.0), 3, axis=-1)
+        t = tangents[..., :3] @ R.T
+        sign = np.repeat(tangents[..., 3:4] * (-1.0 if flipped else 1.0), 3, axis=-1)
         if flipped:
             t, sign = t[:, [0, 2, 1]], sign[:, [0, 2, 1]]
-        out["tangent"], out["tangent_sign"] = t, sign
+        out["tangent" + suffix], out["tangent_sign" + suffix] = t, sign
     return out or None
 
 
@@ -836,7 +885,7 @@ def _placeable(geo: LocalGeometry, converter, names) -> bool:
     """Geometry a placement without a copy can carry (engine Mesh.place): no colour
     attribute, no tangents for normal maps and no texture coordinates a material reads
     (those stay per-instance copies with an instance record)."""
-    return (geo.colors is None and geo.tangents is None
+    return (geo.colors is None and geo.tangents is None and not geo.named_tangents
             and not any(converter.needs_coordinates(n) or _radial(converter, n)
                         for n in names))
 
@@ -848,27 +897,37 @@ def pass_index(obj) -> int:
 
 
 def _uv_slots(converter, names) -> tuple:
-    """Per material slot: the material's anisotropy tangent is the UV map's."""
+    """Per material slot: the UV map whose tangent is the material's anisotropy tangent
+    ("" the render map), or None (the radial default)."""
     f = getattr(converter, "uv_tangent_map", None)
-    return tuple(bool(f and f(n) is not None) for n in names)
+    return tuple(f(n) if f else None for n in names)
 
 
 def uv_tangent_warnings(obj, geo: LocalGeometry, converter, names, warnings):
     """Warn (naming object and material) where a material wants a UV map's tangent the
-    export cannot give: no UV map / no MikkTSpace tangents (the radial tangent is used),
-    or a Tangent node naming another UV map than the render one (the render map's)."""
+    export cannot give: no UV map / no MikkTSpace tangents, or a Tangent node naming a
+    map the mesh lacks (the radial tangent is used); a Normal Map naming a map the mesh
+    lacks (no perturbation, as Cycles renders it)."""
     f = getattr(converter, "uv_tangent_map", None)
     for n in dict.fromkeys(names):
         want = f(n) if f else None
         if want is None:
             continue
-        if geo.tangents is None:
+        if want == "" and geo.tangents is None:
             warnings.append(f"object '{obj.name}': the Tangent node of material '{n}' "
                             "reads a UV map the mesh does not have (or cannot give "
                             "tangents for); the default radial tangent is used")
-        elif want and want != geo.uv_name:
+        elif want and want not in geo.named_tangents:
             warnings.append(f"object '{obj.name}': material '{n}''s Tangent node names UV "
-                            f"map '{want}'; the render UV map '{geo.uv_name}' is used")
+                            f"map '{want}', which the mesh does not have (or cannot give "
+                            "tangents for); the default radial tangent is used")
+    normal_maps = getattr(converter, "normal_map_uvs", {})
+    for n in dict.fromkeys(names):
+        want = normal_maps.get(n)
+        if want and want not in geo.named_tangents:
+            warnings.append(f"object '{obj.name}': material '{n}''s Normal Map names UV map "
+                            f"'{want}', which the mesh does not have (or cannot give "
+                            "tangents for): its normal is not perturbed there (as in Cycles)")
 
 
 def _radial(converter, name) -> bool:

@@ -366,6 +366,8 @@ class MaterialConverter:
         # materials whose anisotropic lobe's Tangent is a Tangent node in UV Map mode:
         # name -> the node's UV map ("" = the render UV map)
         self.uv_tangent_users = {}
+        # materials whose tangent-space Normal Map names a UV map: name -> that map
+        self.normal_map_uvs = {}
 
     def needs_coordinates(self, material_name) -> bool:
         """Whether meshes with this material must export Generated / Object coordinates."""
@@ -471,6 +473,7 @@ class MaterialConverter:
         self._mat = mat
         self._warnings = warnings
         self._warned = set()
+        self._ao_cores = {}  # Ambient Occlusion node name -> its OcclusionCore
         nt = mat.node_tree
         # Blender 5 always uses the node tree (use_nodes is deprecated there).
         use_nodes = bpy.app.version >= (5, 0, 0) or getattr(mat, "use_nodes", True)
@@ -1074,6 +1077,8 @@ class MaterialConverter:
         n, _ = src
         if n.type == "BUMP":
             return self._bump(n)
+        if n.type == "BEVEL":
+            return self._bevel(n)
         if n.type != "NORMAL_MAP":
             self._warn(f"material '{self._mat.name}': 'Normal' input of node '{node.name}' "
                        f"is driven by node '{n.name}' ({n.type}), which is not supported; "
@@ -1084,9 +1089,9 @@ class MaterialConverter:
             self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' space '{space}' "
                        "is not supported; using the surface normal")
             return None
-        if getattr(n, "uv_map", ""):
-            self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' UV map "
-                       f"'{n.uv_map}' is read as the active render UV map")
+        # A named UV map: its tangents (addon/export.py named_tangent_maps); the image
+        # is placed by its own Vector input (a UV Map node naming the map, usually).
+        uv_map = str(getattr(n, "uv_map", "") or "") if space == "TANGENT" else ""
         col = self._source(n.inputs["Color"])
         if col is None:
             return None  # the default colour (0.5, 0.5, 1) is the unperturbed normal
@@ -1098,12 +1103,24 @@ class MaterialConverter:
                            f"node '{cn.name}' ({cn.type}) is not supported; using the "
                            "surface normal")
             return None
+        # The image as its node reads it: through its Vector input and projection (the
+        # ImageTexture itself on the render UVs).
+        tex = self._node_output(cn, cout, 1)
         strength = self._float(n, "Strength", 1.0)
+        if uv_map:
+            self.normal_map_uvs[self._mat.name] = uv_map
         try:
-            return self.pm.NormalMap(tex, strength=strength, space=space)
+            return self.pm.NormalMap(tex, strength=strength, space=space, uv_map=uv_map)
         except ValueError as exc:
             self._warn(f"material '{self._mat.name}': Normal Map '{n.name}': {exc}")
             return None
+
+    def _bevel(self, n):
+        """engine Bevel for a Bevel node (engine/bevel.py: rays around each hit, Radius per
+        hit, Samples), offsetting the normal of a Normal Map / Bump on its Normal input."""
+        inner = self._normal(n)  # (its own 'Normal' input: None when unlinked)
+        return self.pm.bevel.Bevel(self._input(n, n.inputs["Radius"], 0),
+                                   samples=int(getattr(n, "samples", 4)), normal=inner)
 
     def _bump(self, n):
         """engine Bump for a Bump node (its Height evaluated per hit), or None."""
@@ -1455,6 +1472,8 @@ class MaterialConverter:
         if t == "NEW_GEOMETRY":  # the Geometry node
             if oname == "Random Per Island":  # (addon/export.py random_per_island)
                 return self._attribute("random_per_island", "Factor")
+            if oname == "Pointiness":  # per vertex (addon/export.py mesh_pointiness)
+                return self._attribute("pointiness", "Factor")
             out_kind = {"Position": "POSITION", "Normal": "NORMAL",
                         "True Normal": "TRUE_NORMAL", "Incoming": "INCOMING",
                         "Backfacing": "BACKFACING"}.get(oname)
@@ -1563,6 +1582,8 @@ class MaterialConverter:
                            direction=n.bands_direction if kind == "BANDS" else n.rings_direction,
                            profile=n.wave_profile,
                            output="FAC" if oname in ("Fac", "Factor") else "COLOR")
+        if t == "AMBIENT_OCCLUSION":
+            return self._ambient_occlusion(n, oname, depth)
         if t in ("LAYER_WEIGHT", "FRESNEL"):
             if n.inputs.get("Normal") is not None and self._source(n.inputs["Normal"]):
                 self._warn(f"material '{self._mat.name}': the 'Normal' input of "
@@ -1572,6 +1593,32 @@ class MaterialConverter:
             return sn.LayerWeight(self._input(n, n.inputs["Blend"], depth),
                                   output="FACING" if oname == "Facing" else "FRESNEL")
         return None
+
+    def _ambient_occlusion(self, n, oname, depth):
+        """Ambient Occlusion node (engine/ambientocclusion.py: rays from each hit, Samples,
+        Distance, Normal, Inside and Only Local as Cycles' svm_ao; an unlinked Distance of
+        0 reads the world's AO distance, as Cycles): output Color (AO x Color) or AO; both
+        outputs of one node share its rays."""
+        ao = self.pm.ambientocclusion
+        core = self._ao_cores.get(n.name)
+        if core is None:
+            distance = self._input(n, n.inputs["Distance"], depth)
+            if not n.inputs["Distance"].is_linked and distance == 0.0:
+                # Cycles' NODE_AO_GLOBAL_RADIUS: World > Settings > Ambient Occlusion >
+                # Distance (its integrator's ao_distance; 10 m without a world)
+                scene = self.view_layer[0] if self.view_layer is not None else None
+                world = getattr(scene, "world", None)
+                distance = (float(world.light_settings.distance) if world is not None
+                            else 10.0)
+            core = ao.OcclusionCore(distance,
+                                    self._vector(n, "Normal", depth),
+                                    samples=int(getattr(n, "samples", 16)),
+                                    inside=bool(getattr(n, "inside", False)),
+                                    only_local=bool(getattr(n, "only_local", False)))
+            self._ao_cores[n.name] = core
+        if oname == "AO":
+            return core
+        return ao.AmbientOcclusion(core, self._input(n, n.inputs["Color"], depth))
 
     def _procedural(self, n, oname, depth):
         """Noise or Voronoi Texture node: evaluated per hit (engine/procedural.py)."""
@@ -1604,7 +1651,7 @@ class MaterialConverter:
                 return 1.0
             if name == "uv":  # the render UV map: Fac is u
                 return sn.SeparateChannel(sn.UVCoord(), 0) if fac else sn.UVCoord()
-            if name == "random_per_island":  # exported as a face attribute
+            if name in ("random_per_island", "pointiness"):  # exported by addon/export.py
                 return (sn.SeparateChannel(self._coordinates(f"attr:{name}.fac"), 0) if fac
                         else self._coordinates(f"attr:{name}"))
             if name == "generated":  # Fac the average, as for any 3-D vector

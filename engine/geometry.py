@@ -322,6 +322,9 @@ class Geometry:
                               # and frame (Texture Coordinate Camera / Window); None reads
                               # zeros. Set by prepare and again when a view moves
                               # (set_camera_view)
+    tracer: "object | None" = None  # the render's BVH, answering on the calling thread,
+                              # for shader nodes that trace rays (Ambient Occlusion:
+                              # ambientocclusion.attach_tracer); None before it is built
 
     def __post_init__(self):
         self.ng = PerTriangle(self, _ng_rows)  # (T,3) unit geometric normals (winding)

@@ -5,8 +5,10 @@ A `NormalMap` turns a texture's colour c (read as stored, normally Non-Color) in
 direction 2c - 1 and that into the shading normal:
   TANGENT  n' = normalize(x T + y B + z N) (Cycles svm_node_normal_map): N the smooth
            normal and T Blender's MikkTSpace tangent, both interpolated and not
-           normalised, B = sign cross(N, T) with sign the UV map's orientation; without
-           exported tangents T is the triangle's UV tangent dP/du made orthogonal to N.
+           normalised, B = sign cross(N, T) with sign the UV map's orientation (the
+           render UV map's, or the one the node names: NormalMap.uv_map); without
+           exported tangents T is the triangle's UV tangent dP/du made orthogonal to N
+           (render map only).
            Strength s scales x and y and blends z from 1: (s x, s y, 1 + (z - 1) min(s, 1));
   WORLD    n' = normalize(2c - 1) (world-space directions); strength s != 1 blends the
            normals: n'' = normalize(N + s (n' - N)).
@@ -100,9 +102,17 @@ class NormalMapError(ValueError):
 class NormalMap:
     """texture  an object with evaluate(geo, prim, u, v) -> (N,3) (engine.textures)
     strength    >= 0 (Cycles' Strength input)
-    space       TANGENT or WORLD"""
+    space       TANGENT or WORLD
+    uv_map      TANGENT only: "" the render UV map's tangents ('tangent', 'tangent_sign'
+                corner coordinates, else per triangle from the UVs); a name: that UV map's
+                MikkTSpace tangents, the corner coordinates 'tangent:NAME' and
+                'tangent_sign:NAME' (Cycles' attributes NAME.tangent / NAME.tangent_sign,
+                NormalMapNode::attributes); where a mesh lacks them the normal stays
+                unperturbed, as svm_node_normal_map falls back when the attribute is
+                not found."""
 
-    def __init__(self, texture, strength: float = 1.0, space: str = "TANGENT"):
+    def __init__(self, texture, strength: float = 1.0, space: str = "TANGENT",
+                 uv_map: str = ""):
         if texture is None or not hasattr(texture, "evaluate"):
             raise NormalMapError("normal map: texture must be an engine.textures object, "
                                  f"got {type(texture).__name__}")
@@ -115,6 +125,7 @@ class NormalMap:
         self.texture = texture
         self.strength = max(strength, 0.0)
         self.space = space
+        self.uv_map = str(uv_map or "")
 
     def perturb(self, geo, prim, u, v, n: np.ndarray) -> np.ndarray:
         """(N,3) unit shading normals at hits (triangle prim, barycentrics u, v), from the
@@ -130,21 +141,29 @@ class NormalMap:
             s = self.strength
             c = np.column_stack([c[:, 0] * s, c[:, 1] * s,
                                  1.0 + (c[:, 2] - 1.0) * min(s, 1.0)])
-            t, sign = geo.uv_tangents(prim)
-            t = t - n * dot(n, t)[:, None]
-            tl = np.linalg.norm(t, axis=1)
-            ok = tl > 1e-12  # no usable UVs: keep the normal (Cycles reads a zero tangent)
-            t = t / np.maximum(tl, 1e-300)[:, None]
+            named = bool(self.uv_map)
+            key, sign_key = (("tangent:" + self.uv_map, "tangent_sign:" + self.uv_map)
+                             if named else ("tangent", "tangent_sign"))
+            if named:  # only that map's tangents: none, no perturbation (Cycles)
+                t, sign = np.zeros_like(n), np.ones(len(n))
+                ok = np.zeros(len(n), bool)
+            else:
+                t, sign = geo.uv_tangents(prim)
+                t = t - n * dot(n, t)[:, None]
+                tl = np.linalg.norm(t, axis=1)
+                ok = tl > 1e-12  # no usable UVs: keep the normal (Cycles reads zero)
+                t = t / np.maximum(tl, 1e-300)[:, None]
             nz = n
-            mikk = (geo.corner_coordinates or {}).get("tangent") is not None
+            mikk = (geo.corner_coordinates or {}).get(key) is not None
             if mikk:
                 # Blender's MikkTSpace tangents (exported per corner) and the smooth
                 # normal, both interpolated and NOT normalised, as Cycles'
                 # svm_node_normal_map uses them: on a curved low-poly mesh both are
                 # shorter than 1 inside a face, which changes the mapped direction.
-                tm = geo.coordinates("tangent", prim, u, v)
-                sm = geo.coordinates("tangent_sign", prim, u, v)[:, 0]
-                has = np.linalg.norm(tm, axis=1) > 1e-12  # meshes without them: per triangle
+                tm = geo.coordinates(key, prim, u, v)
+                sm = geo.coordinates(sign_key, prim, u, v)[:, 0]
+                # meshes without them: per triangle (render map) or unperturbed (named)
+                has = np.linalg.norm(tm, axis=1) > 1e-12
                 t = np.where(has[:, None], tm, t)
                 sign = np.where(has, np.where(sm < 0, -1.0, 1.0), sign)
                 ok = ok | has

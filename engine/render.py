@@ -13,6 +13,7 @@ import numpy as np
 
 from . import adaptive, cryptomatte, panorama
 from .accel import Accel
+from .ambientocclusion import attach_tracer
 from .chaincounts import GatherCounts
 from .film import Film
 from .effects import EffectPlan, analyse
@@ -127,6 +128,7 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
     accel = VisibilityAccel(geo.vertices32, geo.faces32, geo.visibility, accel_class,
                             threads=settings.threads, should_cancel=should_cancel,
                             instances=geo.instances)
+    attach_tracer(geo, accel)  # (Ambient Occlusion nodes trace from their hits)
     shadow = ShadowTransmittance.for_scene(geo, table, settings.transparent_max_bounces)
     if shadow is None:
         # Embree holds its own copy; transparent shadows build their BVHs from them lazily.

@@ -115,8 +115,9 @@ class Material:
     `emission` is radiance (W/m^2/sr) leaving the front and back of the surface.
     `texture` is an optional engine.textures.ImageTexture (or a bare HxWx3 linear float
     image: Repeat, Linear) or ColorAttribute, multiplied onto base colour per hit.
-    `normal_map` is an optional engine.normalmap.NormalMap or Bump (or an
-    engine.displacement.DisplacedNormals: a displacement's bump) perturbing the shading normal.
+    `normal_map` is an optional engine.normalmap.NormalMap, Bump or engine.bevel.Bevel
+    (or an engine.displacement.DisplacedNormals: a displacement's bump, then one of
+    those) perturbing the shading normal.
     `alpha_texture` is an optional node (evaluate(geo, prim, u, v): an
     engine.shadernodes.ImageLookup of an image's Alpha, a Math node, ...) whose value per
     hit multiplies `alpha`: alpha cut-outs (leaves, fences) for camera rays, shadow rays
@@ -257,10 +258,11 @@ class Material:
                 self.texture = as_texture(self.texture, name=f"{self.name} texture")
             except TextureError as exc:
                 raise SceneError(f"{who} {exc}") from None
-        if self.normal_map is not None and not isinstance(self.normal_map,
-                                                          (NormalMap, Bump, DisplacedNormals)):
-            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap, Bump "
-                             "or engine.displacement.DisplacedNormals, got "
+        from .bevel import Bevel  # (bevel -> ambientocclusion -> geometry imports scene)
+        if self.normal_map is not None and not isinstance(
+                self.normal_map, (NormalMap, Bump, Bevel, DisplacedNormals)):
+            raise SceneError(f"{who} normal_map: expected an engine.normalmap.NormalMap, Bump, "
+                             "engine.bevel.Bevel or engine.displacement.DisplacedNormals, got "
                              f"{type(self.normal_map).__name__}")
 
     @property

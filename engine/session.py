@@ -44,6 +44,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from .effects import analyse
+from .ambientocclusion import attach_tracer
 from .geometry import MaterialTable, prepare, set_camera_view
 from .jit import ensure_compiled
 from .lights import prepare_lights
@@ -336,6 +337,7 @@ class Session:
             else:
                 geo, accel = ctx.geo, ctx.accel
                 table = MaterialTable.build([scene.materials[n] for n in scene.materials])
+            attach_tracer(geo, accel)  # (Ambient Occlusion nodes trace from their hits)
             lights = prepare_lights(scene, geo, table)
             self.counters.light_builds += 1
             self._event("lights", len(lights))

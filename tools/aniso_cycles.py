@@ -20,10 +20,13 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 W, H = 96, 72
 
 
-def build(bpy, aniso, rot, node="principled", wall=False, spin=0.0, uv_angle=None):
+def build(bpy, aniso, rot, node="principled", wall=False, spin=0.0, uv_angle=None,
+          named=False):
     """uv_angle (radians): the plate gets a UV map whose u axis is turned that far from the
     plate's x axis, and a Tangent node (UV Map mode) feeds the lobe's Tangent: the
-    highlight follows the UV map's tangent instead of the radial default."""
+    highlight follows the UV map's tangent instead of the radial default. named: that map
+    is a second one ('brush', after an unturned render map 'UVMap'), which the Tangent
+    node names."""
     sys.path.insert(0, os.path.join(ROOT, "example_blends"))
     import make_blends as mb
     scene = mb.reset()
@@ -46,12 +49,20 @@ def build(bpy, aniso, rot, node="principled", wall=False, spin=0.0, uv_angle=Non
     if uv_angle is not None:
         tan = nt.nodes.new("ShaderNodeTangent")
         tan.direction_type = "UV_MAP"
+        if named:
+            tan.uv_map = "brush"
         nt.links.new(tan.outputs["Tangent"], n.inputs["Tangent"])
     # spin (radians) turns the plate about its own Z: the radial tangent turns with the
     # object (its normal transform), the highlight stays where it was.
     plate = mb.plane("Plate", 4.0, 4.0, m, location=(0.3, 0.2, 0.0), rotation=(0.0, 0.0, spin))
     if uv_angle is not None:
         c, s_ = math.cos(uv_angle), math.sin(uv_angle)
+        if named:  # the render map first, unturned
+            plain = plate.data.uv_layers.new(name="UVMap")
+            for loop in plate.data.loops:
+                x, y, _ = plate.data.vertices[loop.vertex_index].co
+                plain.data[loop.index].uv = (0.5 + x / 4.0, 0.5 + y / 4.0)
+            plain.active_render = True
         uv = plate.data.uv_layers.new(name="brush")
         for loop in plate.data.loops:
             x, y, _ = plate.data.vertices[loop.vertex_index].co
@@ -110,8 +121,8 @@ def regions(img, n=4):
 
 
 def compare(bpy, spp=64, aniso=0.8, rot=0.0, node="principled", wall=False, photons=2_000,
-            spin=0.0, uv_angle=None):
-    scene = build(bpy, aniso, rot, node, wall, spin, uv_angle)
+            spin=0.0, uv_angle=None, named=False):
+    scene = build(bpy, aniso, rot, node, wall, spin, uv_angle, named)
     ours = render(bpy, scene, "ours", spp, photons)
     cyc = render(bpy, scene, "cycles", spp)
     lo, lc = (a @ np.array([0.2126, 0.7152, 0.0722]) for a in (ours, cyc))

@@ -72,22 +72,65 @@ def test_wave_through_map_range_into_roughness_is_per_hit(fresh_scene, bpy_addon
 
 
 def test_unsupported_node_warning_names_the_value_used(fresh_scene, bpy_addon):
-    """Ambient Occlusion and Bevel need rays inside the shader (not read): the warning
-    names the material, the input, the node and the value used instead."""
+    """An IES Texture (not read) and a Geometry node's Normal on a BSDF's Normal input
+    (not read there): the warning names the material, the input, the node and the value
+    used instead."""
     m, nt, out = _material(bpy_addon, "Fallback")
     p = _principled(nt, out)
     p.inputs["Roughness"].default_value = 0.5
-    ao = nt.nodes.new("ShaderNodeAmbientOcclusion")   # not taken
-    nt.links.new(ao.outputs["AO"], p.inputs["Roughness"])
-    bevel = nt.nodes.new("ShaderNodeBevel")   # not taken
-    nt.links.new(bevel.outputs["Normal"], p.inputs["Normal"])
+    ies = nt.nodes.new("ShaderNodeTexIES")   # not taken
+    nt.links.new(ies.outputs["Fac"], p.inputs["Roughness"])
+    geometry = nt.nodes.new("ShaderNodeNewGeometry")   # not taken
+    nt.links.new(geometry.outputs["Normal"], p.inputs["Normal"])
     mat = _convert(m)
     assert mat.roughness == pytest.approx(0.5)
-    assert any("material 'Fallback': Roughness of 'Principled BSDF': node 'Ambient "
-               "Occlusion' (AMBIENT_OCCLUSION) not supported, using 0.5 (the socket's own "
+    assert any("material 'Fallback': Roughness of 'Principled BSDF': node 'IES "
+               "Texture' (TEX_IES) not supported, using 0.5 (the socket's own "
                "value)" in w for w in mat.warnings), mat.warnings
-    assert any("material 'Fallback'" in w and "'Bevel'" in w and "BEVEL" in w
+    assert any("material 'Fallback'" in w and "'Geometry'" in w and "NEW_GEOMETRY" in w
                for w in mat.warnings), mat.warnings
+
+
+def test_bevel_node_is_read_with_its_chained_normal(fresh_scene, bpy_addon):
+    """A Bevel on a BSDF's Normal (engine/bevel.py), its Radius and Samples, and a Bump on
+    its own Normal input (the normal it offsets)."""
+    m, nt, out = _material(bpy_addon, "Rounded")
+    p = _principled(nt, out)
+    bevel = nt.nodes.new("ShaderNodeBevel")
+    bevel.samples = 6
+    bevel.inputs["Radius"].default_value = 0.02
+    bump = nt.nodes.new("ShaderNodeBump")
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], bevel.inputs["Normal"])
+    nt.links.new(bevel.outputs["Normal"], p.inputs["Normal"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    b = mat.normal_map
+    assert type(b).__name__ == "Bevel" and b.samples == 6
+    assert b.radius == pytest.approx(0.02) and type(b.normal).__name__ == "Bump"
+
+
+def test_ambient_occlusion_outputs_share_one_node(fresh_scene, bpy_addon):
+    """The Ambient Occlusion node is read per hit (engine/ambientocclusion.py): its AO
+    output into Roughness and its Color output into Base Color share one OcclusionCore
+    (one set of rays a hit), with the node's Samples, Distance, Inside and Only Local."""
+    m, nt, out = _material(bpy_addon, "Dirt")
+    p = _principled(nt, out)
+    ao = nt.nodes.new("ShaderNodeAmbientOcclusion")
+    ao.samples, ao.inside, ao.only_local = 7, True, True
+    ao.inputs["Distance"].default_value = 0.25
+    ao.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
+    nt.links.new(ao.outputs["AO"], p.inputs["Roughness"])
+    nt.links.new(ao.outputs["Color"], p.inputs["Base Color"])
+    mat = _convert(m)
+    assert not mat.warnings, mat.warnings
+    core = mat.scalar_textures["roughness"]
+    assert type(core).__name__ == "OcclusionCore"
+    assert (core.samples, core.inside, core.only_local) == (7, True, True)
+    assert core.distance == pytest.approx(0.25) and core.normal is None
+    assert type(mat.texture).__name__ == "AmbientOcclusion" and mat.texture.core is core
+    assert np.allclose(mat.texture.color, (0.2, 0.4, 0.6))
 
 
 def test_vector_map_range_folds_into_base_color(fresh_scene, bpy_addon):
