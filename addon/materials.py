@@ -526,8 +526,8 @@ class MaterialConverter:
             self._warn(f"material '{mat.name}': displacement: {exc}")
             return
         own = closure.normal_map
-        if own is None or isinstance(own, self.pm.Bump):
-            # sd->N bumped; a BSDF's Bump node bumps it again (its Normal input is sd->N).
+        if own is None or isinstance(own, (self.pm.Bump, self.pm.bevel.Bevel)):
+            # sd->N bumped; a BSDF's Bump or Bevel node takes it as its Normal (sd->N).
             closure.normal_map = dp.DisplacedNormals(bump, own)
         # A Normal Map builds its normal from the interpolated vertex normal, not from
         # sd->N (Cycles' svm_node_normal_map): the displacement's bump does not show.

@@ -9,7 +9,7 @@ ShaderGraph::bump_from_displacement: three copies of the displacement graph, dot
 with the Geometry node's Normal, a Bump node with distance 1 whose output sets sd->N before
 any closure reads it). So:
   - a BSDF whose Normal input is unlinked shades with the bumped normal;
-  - a BSDF fed by a Bump node bumps that normal again (the Bump node's own Normal input
+  - a BSDF fed by a Bump or Bevel node bumps that normal again (their Normal input
     defaults to sd->N);
   - a BSDF fed by a Normal Map keeps the Normal Map's normal (svm_node_normal_map builds
     it from the interpolated vertex normal, not sd->N).

@@ -13,7 +13,8 @@ pytestmark = pytest.mark.blender
 
 def _displaced(bpy, name, method="BUMP", normal=None, height="noise"):
     """A Diffuse BSDF material whose Displacement is a Displacement node of a Noise
-    Texture (or a constant height); normal: None, "bump" or "normal_map" into the BSDF."""
+    Texture (or a constant height); normal: None, "bump", "bevel" or "normal_map" into
+    the BSDF."""
     m, nt, out = _material(bpy, name)
     m.displacement_method = method
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
@@ -29,6 +30,9 @@ def _displaced(bpy, name, method="BUMP", normal=None, height="noise"):
         b = nt.nodes.new("ShaderNodeBump")
         wave = nt.nodes.new("ShaderNodeTexWave")
         nt.links.new(wave.outputs["Fac"], b.inputs["Height"])
+        nt.links.new(b.outputs["Normal"], d.inputs["Normal"])
+    elif normal == "bevel":
+        b = nt.nodes.new("ShaderNodeBevel")
         nt.links.new(b.outputs["Normal"], d.inputs["Normal"])
     elif normal == "normal_map":
         nm = nt.nodes.new("ShaderNodeNormalMap")
@@ -54,13 +58,17 @@ def test_bump_only_bumps_the_normal_without_a_warning(fresh_scene, bpy_addon):
     assert mat.normal_map.bump.distance == 1.0 and mat.normal_map.bump.strength == 1.0
 
 
-def test_a_bump_node_goes_under_the_displacement_a_normal_map_replaces_it(fresh_scene,
-                                                                          bpy_addon):
+def test_bump_and_bevel_nodes_go_under_the_displacement_a_normal_map_replaces_it(
+        fresh_scene, bpy_addon):
     from engine import displacement as dp
     from engine.normalmap import Bump, NormalMap
     chained = _convert(_displaced(bpy_addon, "Chained", normal="bump"))
     assert isinstance(chained.normal_map, dp.DisplacedNormals)
     assert isinstance(chained.normal_map.then, Bump)
+    bevelled = _convert(_displaced(bpy_addon, "Bevelled", normal="bevel"))
+    from engine.bevel import Bevel
+    assert isinstance(bevelled.normal_map, dp.DisplacedNormals)
+    assert isinstance(bevelled.normal_map.then, Bevel)  # its Normal: sd->N, displaced
     mapped = _convert(_displaced(bpy_addon, "Mapped", normal="normal_map"))
     assert isinstance(mapped.normal_map, NormalMap)  # Cycles: built from the vertex normal
 
