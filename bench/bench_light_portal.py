@@ -225,6 +225,70 @@ def render_cycles(spp, size, seed=0, world="uniform"):
     return np.asarray(img, np.float64)[..., :3], cpu
 
 
+def sample_cost(world, mode, n=200_000, repeat=5):
+    """ns per world shadow-ray sample of directlight.sample_lights (the best of `repeat`
+    calls) at n points on the room's floor (a grid over it, normal up) for mode as
+    render_ours', and the seconds the portal tables took to build (0 without)."""
+    import engine.lights as el
+    import engine.lights.world as wl
+    from engine.bsdf import surface_hit
+    from engine.directlight import DirectLightBuffers, sample_lights
+    from engine.integrator import NO_HROWS, _hit_arrays
+    from engine.lights.packing import pack_lights
+    from engine.lights.selection import empty_tree
+    from engine.render import prepare_context
+    from engine.settings import RenderSettings
+    el.SHADOW_PORTALS = mode != "off"
+    wl.PORTAL_MAP_SAMPLING = mode == "on"
+    ctx = prepare_context(room(world, 16, 16), RenderSettings(workers=1,
+                                                              photon_mapping=False))
+    li = next(i for i, x in enumerate(ctx.lights) if x.kind == "WORLD")
+    light = ctx.lights[li]
+    build = 0.0
+    if light.portal_tables is not None:
+        from engine.lights.portalmap import build_portal_tables
+        t0 = time.perf_counter()
+        build_portal_tables(light.environment, light.portal_rects)
+        build = time.perf_counter() - t0
+    side = int(math.sqrt(n))
+    g = (np.arange(side) + 0.5) / side * (2 * HALF - 0.2) - (HALF - 0.1)
+    X, Y = np.meshgrid(g, g)
+    o = np.column_stack([X.ravel(), Y.ravel(), np.full(X.size, 0.5)]) - ctx.geo.offset
+    down = np.tile([0.0, 0.0, -1.0], (len(o), 1))
+    _, prim, u, v = ctx.accel.intersect(o, down)
+    hit = surface_hit(ctx.geo, ctx.table, prim, u, v, down)
+    m = len(hit.p)
+    rng = np.random.default_rng(1)
+    u1, u2, sel = rng.random((3, 1, m))
+    buf = DirectLightBuffers().ensure(m)
+    codes, params, mesh = pack_lights(ctx.lights)
+    arrays = _hit_arrays(ctx.geo, hit)
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        sample_lights(*arrays, codes, params, *mesh, *empty_tree(),
+                      np.ones(len(codes), np.bool_), np.array([li], np.int64),
+                      np.ones(1, np.bool_), u1, u2, sel, buf.contrib, buf.row, buf.kidx,
+                      buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf, buf.bump,
+                      NO_HROWS)
+        best = min(best, time.perf_counter() - t0)
+    return best / m * 1e9, build
+
+
+def table_build_seconds(rows):
+    """Seconds to build one portal's table (lights/portalmap.py) under a rows x 2 rows
+    map (bench's sun_hdri resampled), and the table's side N."""
+    from engine.lights.environment import Environment
+    from engine.lights.portalmap import build_portal_tables, table_size
+    env = Environment(sun_hdri(rows, 2 * rows))
+    rect = np.array([[[HALF, WIN_Y[0], WIN_Z[0]], [0.0, WIN_Y[1] - WIN_Y[0], 0.0],
+                      [0.0, 0.0, WIN_Z[1] - WIN_Z[0]], [-1.0, 0.0, 0.0]]])
+    build_portal_tables(Environment(sun_hdri(8, 16)), rect)  # (compiled or loaded)
+    t0 = time.perf_counter()
+    build_portal_tables(env, rect)
+    return time.perf_counter() - t0, table_size(rows)[0]
+
+
 def noise(a, b, mask, block=8):
     """(pixel std/mean, 8x8 block std/mean) of two seeds' images over mask (luminance)."""
     la, lb = a.mean(axis=2), b.mean(axis=2)
@@ -253,6 +317,9 @@ def main(argv=None):
     ap.add_argument("--load", default=None, help="a --save DIR: its Cycles images (same "
                     "--cycles and --size) instead of rendering them again")
     ap.add_argument("--glossy", action="store_true", help="rough specular surfaces")
+    ap.add_argument("--cost", action="store_true", help="only the world shadow rays' "
+                    "ns per sample by mode and world, and the portal table's build time "
+                    "by map size")
     args = ap.parse_args(argv)
     global GLOSSY
     GLOSSY = args.glossy
@@ -260,6 +327,17 @@ def main(argv=None):
     seeds = [int(x) for x in args.seeds.split(",")]
     from engine import jit
     jit.ensure_compiled()
+    if args.cost:
+        print("world    mode  ns/sample  table build s")
+        for world in args.worlds.split(","):
+            for mode in args.modes.split(","):
+                ns, build = sample_cost(world, mode)
+                print(f"{world:8s} {mode:5s} {ns:9.1f}  {build:.3f}")
+        print("map rows  table N  build s (one portal)")
+        for rows in (32, 128, 512, 1024, 2048):
+            sec, n = table_build_seconds(rows)
+            print(f"{rows:8d} {n:8d}  {sec:.3f}")
+        return
     floor, walls = regions(room("uniform", *size))
     print(f"{size[0]}x{size[1]}, {args.spp} spp, seeds {seeds}; floor {floor.sum()} px, "
           f"walls {walls.sum()} px")

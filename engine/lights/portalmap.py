@@ -177,14 +177,19 @@ def window_integral(sat, k, u0, u1, v0, v1):
 
 
 @kernel
-def _column_at(sat, k, c, y):
-    """The integral of portal k's f over column c ([c/N, (c+1)/N]) x [0, y]."""
+def _sat_edge(sat, k, c, y):
+    """The integral of portal k's f over [0, c/N] x [0, y] (c an integer column edge)."""
     n = sat.shape[1] - 1
     Y = min(max(y, 0.0), 1.0) * n
     r = min(int(Y), n - 1)
     fy = Y - r
-    return ((1.0 - fy) * (sat[k, r, c + 1] - sat[k, r, c])
-            + fy * (sat[k, r + 1, c + 1] - sat[k, r + 1, c]))
+    return (1.0 - fy) * sat[k, r, c] + fy * sat[k, r + 1, c]
+
+
+@kernel
+def _column_at(sat, k, c, y):
+    """The integral of portal k's f over column c ([c/N, (c+1)/N]) x [0, y]."""
+    return _sat_edge(sat, k, c + 1, y) - _sat_edge(sat, k, c, y)
 
 
 @kernel
@@ -282,12 +287,14 @@ def portal_map_sample(q, pf, sat, p0, p1, p2, x, u2, mass, tot):
     u0, u1, v0, v1 = portal_window(q, b, p0, p1, p2)
     I = mass[k]
     t = min(max(xt - acc, 0.0), I)
-    # Column: the largest c whose left edge's cumulative (within the window) is <= t.
+    # Column: the largest c whose left edge's cumulative (within the window) is <= t;
+    # at a column's edge the summed-area table is interpolated in v alone.
+    left = _sat_at(sat, k, u0, v1) - _sat_at(sat, k, u0, v0)
     lo = min(int(u0 * n), n - 1)
     hi = min(int(u1 * n), n - 1)
     while lo < hi:
         mid = (lo + hi + 1) >> 1
-        if window_integral(sat, k, u0, mid / n, v0, v1) <= t:
+        if _sat_edge(sat, k, mid, v1) - _sat_edge(sat, k, mid, v0) - left <= t:
             lo = mid
         else:
             hi = mid - 1
