@@ -29,7 +29,7 @@ from .lights.environment import N_OCT, env_cosine_pdf, env_cosine_sample, env_ra
 from .lights.area import MIN_SPHERICAL_SOLID_ANGLE, spherical_rectangle
 from .lights.mesh import solid_angle_sampled, spherical_triangle_sample
 from .lights.selection import NINF, empty_tree, select_light
-from .lights.world import ENV_MAP_FRACTION, portal_crossings, portal_sample, portal_shares
+from .lights.world import ENV_MAP_FRACTION, portal_choice, portal_density, portal_draw
 from .normalmap import bump_shadowing_term
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
 
@@ -228,7 +228,7 @@ def terminator_lift(prim, bary, ng, smooth, object_id, terminator, v0, e1, e2,
 def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                   codes, params, m_v0, m_e1, m_e2, m_ng, m_L, m_area, m_tf, m_ti, m_round32,
                   m_tilt32, m_side, env_px, env_stored, env_scale, env_rows, env_cols, env_mass,
-                  env_prefix, env_cell,
+                  env_prefix, env_cell, pt_f, pt_sat,
                   tree_f, tree_i, inf_idx, inf_f, l_trace, klight, ktrace, U1, U2, SEL,
                   contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf, bump, hrow):
     """Every light sample of a batch of hits, compacted to the lit ones.
@@ -244,7 +244,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     normal before Normal Map / Bump nodes (equal to ns where no node bent it).
     codes (L,), params (L,P): packed lights; m_*: emissive triangles (m_side (T,) the
     sides sampled, scene.emission_sides: a one-sided triangle gives no sample from its
-    other side), env_*: the world's environment map (packing.pack_lights).
+    other side), env_*: the world's environment map, pt_f, pt_sat: its light portals'
+    tables (lights/portalmap.py; packing.pack_lights).
     tree_f, tree_i, inf_idx, inf_f: the light tree (lights/selection.py LightSelector;
     empty_tree() without one), l_trace (L,) whether each light's shadows are traced.
     klight (K,) light of sample k, or -1: a light chosen per hit by the tree, its
@@ -289,6 +290,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     no_inf_f = np.zeros((0, NINF))
     env_frame = np.zeros((3, 3))
     pom = np.zeros(pk.MAX_PORTALS)  # the world's light portals' solid angles at a hit
+    pmass = np.zeros(pk.MAX_PORTALS)  # ... and their map integrals (portalmap.py)
     last = -1
     code = codes[0] if codes.shape[0] > 0 else -1
     q = params[0] if params.shape[0] > 0 else np.zeros(pk.P)
@@ -359,18 +361,19 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                         lp = 1.0 / (TWO_PI * (1.0 - q[COS_HALF]))
                 elif q[pk.PORTAL_N] > 0.0:
                     # Light portals (lights/world.py, lightportal34): with probability
-                    # s_p a direction uniform in the solid angle of the portals seen,
-                    # else the strategies below; SEL picks and, rescaled, is the first
-                    # coordinate. One-sample MIS (balance heuristic) over the mixture
-                    # (1 - s_p) pdf_before + s_p n(w) / Omega.
-                    ptot, sp = portal_shares(q, p0, p1, p2, s0, s1, s2, pom)
+                    # s_p a direction through the portals seen (uniform in their solid
+                    # angle; with a map, in proportion to the map seen through them:
+                    # portalmap.py, portalenv35), else the strategies below; SEL picks
+                    # and, rescaled, is the first coordinate. One-sample MIS (balance
+                    # heuristic) over the mixture (1 - s_p) pdf_before + s_p pdf_portal.
+                    ptot, sp = portal_choice(q, pt_sat, p0, p1, p2, s0, s1, s2, pom, pmass)
                     pp = 0.0
                     by_portal = selu < sp
                     rest = selu
                     if by_portal:
-                        w0, w1, w2, pp = portal_sample(q, p0, p1, p2,
-                                                       min(selu / sp, ONE_BELOW), u2, pom,
-                                                       ptot)
+                        w0, w1, w2, pp = portal_draw(q, pt_f, pt_sat, p0, p1, p2,
+                                                     min(selu / sp, ONE_BELOW), u2, pom,
+                                                     pmass, ptot)
                     elif sp > 0.0:
                         rest = min((selu - sp) / (1.0 - sp), ONE_BELOW)
                     R = env_frame
@@ -391,7 +394,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                             w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z,
                                                    s0, s1, s2)
                         if sp > 0.0:
-                            pp = portal_crossings(q, p0, p1, p2, w0, w1, w2, pom, -1) / ptot
+                            pp = portal_density(q, pt_f, p0, p1, p2, w0, w1, w2, pom, pmass,
+                                                ptot)
                     cs = w0 * s0 + w1 * s1 + w2 * s2
                     ok = 1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0
                     pdf = max(cs, 0.0) / PI
@@ -402,7 +406,8 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                                                 w0, w1, w2, s0, s1, s2)
                         pdf = ENV_MAP_FRACTION * pe + (1.0 - ENV_MAP_FRACTION) * pdf
                     pdf = (1.0 - sp) * pdf + sp * pp
-                    if cs > 0 and pdf > 0 and ok > 0:
+                    # (a portal draw that found nothing, pdf 0, brings nothing)
+                    if cs > 0 and pdf > 0 and ok > 0 and (pp > 0.0 or not by_portal):
                         if env:
                             L0, L1, L2 = env_radiance(R, env_stored, int(q[ENV_INTERP]),
                                                       env_scale, w0, w1, w2)

@@ -187,8 +187,10 @@ def test_environment_map_through_the_portal_is_unbiased(row, monkeypatch):
     out of view), the floor's mean irradiance is the same with and without the portal
     strategy (within 4 standard errors). Noise: with the bright texel out of view the
     flat sky through the opening is all there is, 1/4 of the noise at most (measured
-    5.10 -> 0.64); in view the map's share is smaller (PORTAL_SHARE_ENV_HI), 1.3x at most
-    (measured 1.88 -> 2.25)."""
+    5.10 -> 0.64 sampling the portal uniformly in solid angle, lightportal34; 0.33 by the
+    map, portalenv35); in view the portal's samples follow the map seen through it
+    (lights/portalmap.py), half at most (measured 1.88 -> 0.64; uniformly in solid
+    angle with the map's share kept, PORTAL_SHARE_ENV_*: 2.25)."""
     img = np.full((16, 32, 3), 0.4, np.float32)
     img[8:] = 0.1
     img[row, 5] = (60.0, 50.0, 40.0)
@@ -203,7 +205,7 @@ def test_environment_map_through_the_portal_is_unbiased(row, monkeypatch):
     print(f"on {a.mean():.5f} off {b.mean():.5f} se {se:.5f} std/mean on {r_on:.3f} "
           f"off {r_off:.3f}")
     assert abs(a.mean() - b.mean()) < 4 * se
-    assert r_on < (1.3 * r_off if row == 1 else 0.25 * r_off)
+    assert r_on < (0.5 * r_off if row == 1 else 0.25 * r_off)
 
 
 def test_points_outside_the_room_and_scenes_without_portals_sample_as_before(monkeypatch):
@@ -222,7 +224,7 @@ def test_points_outside_the_room_and_scenes_without_portals_sample_as_before(mon
     ns = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
     w = np.array([[0.0, 0.0, 1.0]] * 3)
     share, pdf = np.empty(3), np.empty(3)
-    portal_pdfs(row, p, ns, w, share, pdf)
+    portal_pdfs(row, np.zeros((1, 1, 1)), np.zeros((1, 2, 2)), p, ns, w, share, pdf)
     # above the roof: not on the room side; the floor-facing ceiling point: all corners
     # below its horizon
     assert share[0] == 0.0 and share[2] == 0.0 and pdf[0] == 0.0

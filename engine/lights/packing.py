@@ -20,10 +20,11 @@ ENV_FRAME = SPOT_FRAME      # world: the environment's rotation (world -> textur
 ENV_ON, ENV_INTERP = 42, 43  # world: 1 with an environment map; its interpolation code
 SPHERE = 44                 # point / spot: 1 for a sphere (Soft Falloff off), 0 a facing disk
 # world: Cycles light portals (engine/lights/world.py, lightportal34): how many (0: none,
-# the shadow rays as before), the portal strategy's share bounds, then MAX_PORTALS
-# rectangles of PORTAL_STRIDE slots: corner s, edges ex, ey (re-centred world space, m)
-# and the unit normal into the room.
-PORTAL_N, PORTAL_LO, PORTAL_HI, PORTAL0 = 45, 46, 47, 48
+# the shadow rays as before), the portal strategy's share bounds, 1 when the portals are
+# sampled by the environment map seen through them (lights/portalmap.py, portalenv35; 0:
+# uniform in their solid angle), then MAX_PORTALS rectangles of PORTAL_STRIDE slots:
+# corner s, edges ex, ey (re-centred world space, m) and the unit normal into the room.
+PORTAL_N, PORTAL_LO, PORTAL_HI, PORTAL_MAP, PORTAL0 = 45, 46, 47, 48, 49
 PORTAL_STRIDE = 12
 MAX_PORTALS = 4
 P = PORTAL0 + PORTAL_STRIDE * MAX_PORTALS
@@ -39,17 +40,21 @@ def pack_lights(lights):
     float32, and Environment.scale, (3,) float64) and its cosine-weighted
     distributions: row cdfs (K,Hc+1), column cdfs (K,Hc,Wc+1), cell probabilities
     (K,Hc,Wc), per-row prefix sums (H,W+1), cell sums (Hc,Wc):
-    environment.build_cosine_distributions), one black texel without one."""
+    environment.build_cosine_distributions), one black texel without one; then the
+    world's light portal tables (lights/portalmap.py: f (K,N,N), sat (K,N+1,N+1) float64;
+    (1,1,1) and (1,2,2) zeros without an environment map and portals)."""
     codes = np.zeros(len(lights), np.int64)
     params = np.zeros((len(lights), P))
     mesh = None
     env = None
+    portal_tables = None
     for i, light in enumerate(lights):
         codes[i] = light.pack(params[i])
         if codes[i] == CODE_MESH:
             mesh = light
         elif codes[i] == CODE_WORLD and getattr(light, "environment", None) is not None:
             env = light.environment
+            portal_tables = light.portal_tables
     if env is None:
         none = np.zeros((1, 1, 3), np.float32)
         env_arrays = (none, none, np.ones(3), np.array([[0.0, 1.0]]),
@@ -57,6 +62,9 @@ def pack_lights(lights):
                       np.zeros((1, 1)))
     else:
         env_arrays = (env.pixels, env.stored, env.scale, *env.cosine_distributions)
+    if portal_tables is None:
+        portal_tables = (np.zeros((1, 1, 1)), np.zeros((1, 2, 2)))
+    env_arrays = (*env_arrays, *portal_tables)
     c = np.ascontiguousarray
     if mesh is None:
         z3 = np.zeros((0, 3))

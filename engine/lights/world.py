@@ -32,13 +32,23 @@ heuristic) over the mixture
 portal_sampling_pdf; Veach 1997, sec. 9.2.4). The share s_p per point is 1 - Phi / pi
 (Phi = sum omega_k cos(N, centre_k)^+: the portals' projected solid angle, roughly the
 share of the cosine strategy's samples that pass them; panelight's AREA / OUTSIDE split
-alike), clipped to [PORTAL_SHARE_LO, PORTAL_SHARE_HI] (an environment map:
-PORTAL_SHARE_ENV_*); s_p = 0 where no portal is seen
-(the point outside all of them, every corner below its tangent plane, or a solid angle
+alike), clipped to [PORTAL_SHARE_LO, PORTAL_SHARE_HI] (an environment map sampled
+uniformly through the portals: PORTAL_SHARE_ENV_*); s_p = 0 where no portal is seen (the
+point outside all of them, every corner below its tangent plane, or a solid angle
 under MIN_SPHERICAL_SOLID_ANGLE): the shadow rays as before there. The continuation's
 MIS weight (integrator.mis_light_pdf: WorldLight.pdf with the origin point) uses the same
 mixture (portal_pdfs), so nothing is counted twice. Portals beyond MAX_PORTALS (the
 largest kept) and non-rectangular ones (spherical_rectangle's omega 0) are left out.
+
+With an environment map (portalenv35) the portal strategy samples the map as seen through
+the portals instead of their solid angle uniformly (engine/lights/portalmap.py: pbrt-v4's
+PortalImageInfiniteLight, a table per portal over its rectangle's parameterization
+restricted to the point's window): a portal by the luminance integral I_k of the map
+through it, a direction in proportion to the map there, pdf p_map(w) (portalmap's
+formula, exact per point) in place of n(w) / Omega; the same seen portals, share s_p
+(bounds PORTAL_SHARE_LO / HI, as a constant world) and mixture. A constant world keeps
+the uniform solid angle (there the two agree: a constant map's per-sample noise is the
+constant world's, and the spherical rectangle is exact without a table).
 """
 from __future__ import annotations
 
@@ -46,13 +56,14 @@ import math
 
 import numpy as np
 
-from ..jit import kernel
+from ..jit import kernel, register_warm_up
 from ..sampling import dot
 from .emission import f64, aim_origin, disk_origin, emit_uniform, put, uniform_sphere
 from .environment import env_radiance, env_sample
 from . import packing as pk
 from .area import MIN_SPHERICAL_SOLID_ANGLE, spherical_rectangle
 from .base import InfiniteLight
+from .portalmap import build_portal_tables, portal_map_pdf, portal_map_sample, portal_masses
 
 WORLD = "WORLD"
 # Probability that a shadow ray of an environment-mapped world samples the map's
@@ -67,10 +78,13 @@ WORLD = "WORLD"
 # favour 0.9 (0.010 against 0.018 at 0.95).)
 ENV_MAP_FRACTION = 0.9
 # Light portals (lightportal34): the bounds of the portal strategy's share s_p where a
-# portal is seen (module docstring), for a constant world and for an environment map.
-# The ceiling keeps a share for the cosine strategy's samples, which find the light of
-# openings without a portal; with a map, for the map's, which find a sun seen through
-# the opening (the portal's samples are uniform in its solid angle). Measured
+# portal is seen (module docstring), for a constant world and for an environment map
+# sampled through the portals by the map (portalenv35), and (PORTAL_SHARE_ENV_*) for an
+# environment map with the portals sampled uniformly in solid angle (lightportal34;
+# PORTAL_MAP_SAMPLING off). The ceiling keeps a share for the cosine strategy's
+# samples, which find the light of openings without a portal; with a map sampled
+# uniformly through the portals, for the map's, which find a sun seen through the
+# opening. Measured
 # (tests/test_light_portal_shadows.py's room, 1 x 1 m roof opening, per-sample
 # std/mean of the floor's irradiance at a point 2 m under it / one 2.6 m off to the side;
 # cosine alone 3.63 / 8.49): uniform sky, bounds 0.1-0.9 0.32 / 0.34, 0.1-0.95 0.27 /
@@ -78,10 +92,20 @@ ENV_MAP_FRACTION = 0.9
 # the zenith, seen through the opening from the first point; map x cosine and cosine
 # alone 1.88 / 9.52; the texel moved out of view 5.10 / 10.5): 0.1-0.9 2.61 / 0.34 (hidden
 # 0.33 / 0.34), 0.2-0.7 2.25 / 0.66 (0.64 / 0.66), 0.1-0.6 2.13 / 0.82 (0.80 / 0.82).
+# The portals sampled by the map (portalenv35; the same texel in view / out of view;
+# a 128 x 256 map with a sun of radius 1.5 degrees 8 degrees from the zenith in view of
+# the first point / in view of the second / of neither; map x cosine and cosine alone
+# 0.56 / 1.36 / 6.26): 0.1-0.9 0.64 / 0.34 (0.33 / 0.34), sun 0.33 / 0.37 / 0.33,
+# 0.1-0.95 0.62 / 0.24 (0.27 / 0.24), sun 0.32 / 0.31 / 0.28; 0.2 or 0.5 for the floor
+# the same (the projected solid angle is small there): the constant world's bounds, whose
+# ceiling keeps the share for openings without a portal.
 PORTAL_SHARE_LO = 0.1
 PORTAL_SHARE_HI = 0.9
 PORTAL_SHARE_ENV_LO = 0.2
 PORTAL_SHARE_ENV_HI = 0.7
+# Off: an environment map's portal strategy is uniform in the portals' solid angle, as
+# before portalenv35 (for A/B measurements: bench/bench_light_portal.py).
+PORTAL_MAP_SAMPLING = True
 _ONE_BELOW = float(np.nextafter(1.0, 0.0))
 
 
@@ -187,19 +211,54 @@ def portal_sample(q, p0, p1, p2, x, u2, om, tot):
 
 
 @kernel
-def portal_pdfs(q, p, ns, w, share, pdf):
+def portal_choice(q, pt_sat, p0, p1, p2, s0, s1, s2, om, mass):
+    """The portal strategy at point p with shading normal s: (its normaliser, s_p).
+    Uniform in solid angle (q[PORTAL_MAP] 0): portal_shares (om, Omega, s_p). By the map
+    (portalmap.py): also each seen portal's mass (MAX_PORTALS,) (portal_masses, the
+    tables' summed-area tables pt_sat) and their sum in place of Omega; s_p 0 where no
+    seen portal has any (a black map through them)."""
+    tot, sp = portal_shares(q, p0, p1, p2, s0, s1, s2, om)
+    if q[pk.PORTAL_MAP] != 0.0 and sp > 0.0:
+        m = portal_masses(q, pt_sat, p0, p1, p2, om, mass)
+        if not m > 0.0:
+            return 0.0, 0.0
+        return m, sp
+    return tot, sp
+
+
+@kernel
+def portal_draw(q, pt_f, pt_sat, p0, p1, p2, x, u2, om, mass, tot):
+    """A direction of the portal strategy (portal_choice's om, mass, tot at p) for
+    numbers x, u2 in [0, 1): (w0, w1, w2, pdf per sr)."""
+    if q[pk.PORTAL_MAP] != 0.0:
+        return portal_map_sample(q, pt_f, pt_sat, p0, p1, p2, x, u2, mass, tot)
+    return portal_sample(q, p0, p1, p2, x, u2, om, tot)
+
+
+@kernel
+def portal_density(q, pt_f, p0, p1, p2, w0, w1, w2, om, mass, tot):
+    """The portal strategy's solid-angle pdf (1/sr) of unit direction w from p
+    (portal_choice's om, mass, tot there)."""
+    if q[pk.PORTAL_MAP] != 0.0:
+        return portal_map_pdf(q, pt_f, p0, p1, p2, w0, w1, w2, mass, tot, -1, 0, 0)
+    return portal_crossings(q, p0, p1, p2, w0, w1, w2, om, -1) / tot
+
+
+@kernel
+def portal_pdfs(q, pt_f, pt_sat, p, ns, w, share, pdf):
     """For points p (N,3), shading normals ns (N,3) and unit directions w (N,3): share
-    (N,) the portal strategy's s_p there and pdf (N,) its solid-angle pdf n(w) / Omega
-    of w (1/sr; portal_shares, portal_crossings)."""
+    (N,) the portal strategy's s_p there and pdf (N,) its solid-angle pdf of w (1/sr;
+    portal_choice, portal_density; pt_f, pt_sat: the portal tables, packing.pack_lights)."""
     om = np.zeros(pk.MAX_PORTALS)
+    mass = np.zeros(pk.MAX_PORTALS)
     for i in range(p.shape[0]):
-        tot, sp = portal_shares(q, p[i, 0], p[i, 1], p[i, 2], ns[i, 0], ns[i, 1], ns[i, 2],
-                                om)
+        tot, sp = portal_choice(q, pt_sat, p[i, 0], p[i, 1], p[i, 2], ns[i, 0], ns[i, 1],
+                                ns[i, 2], om, mass)
         share[i] = sp
         pdf[i] = 0.0
         if sp > 0.0:
-            pdf[i] = portal_crossings(q, p[i, 0], p[i, 1], p[i, 2], w[i, 0], w[i, 1],
-                                      w[i, 2], om, -1) / tot
+            pdf[i] = portal_density(q, pt_f, p[i, 0], p[i, 1], p[i, 2], w[i, 0], w[i, 1],
+                                    w[i, 2], om, mass, tot)
 
 
 def background_radiance(scene, d: np.ndarray) -> np.ndarray:
@@ -220,6 +279,7 @@ class WorldLight(InfiniteLight):
     # Light portals for the shadow rays (set_portals): (K,4,3) corner s, edges ex, ey and
     # the normal into the room, re-centred; K = 0 without.
     portal_rects = np.zeros((0, 4, 3))
+    _portal_tables = None
 
     def set_portals(self, portals, offset) -> None:
         """Take the scene's light portals (engine.scene.LightPortal list) for the shadow
@@ -236,6 +296,19 @@ class WorldLight(InfiniteLight):
         rects.sort(key=lambda r: -r[0])
         self.portal_rects = (np.array([r[1] for r in rects[:pk.MAX_PORTALS]], np.float64)
                              .reshape(-1, 4, 3))
+        self._portal_tables = None
+
+    @property
+    def portal_tables(self):
+        """(f, sat) of portalmap.build_portal_tables for the portals under the
+        environment map (built once), or None (no map, no portals, or
+        PORTAL_MAP_SAMPLING off)."""
+        if (self.environment is None or not len(self.portal_rects)
+                or not PORTAL_MAP_SAMPLING):
+            return None
+        if self._portal_tables is None:
+            self._portal_tables = build_portal_tables(self.environment, self.portal_rects)
+        return self._portal_tables
 
     @classmethod
     def from_background(cls, scene, common):
@@ -273,8 +346,11 @@ class WorldLight(InfiniteLight):
         K = len(self.portal_rects)
         if K:
             row[pk.PORTAL_N] = K
+            by_map = self.environment is not None and PORTAL_MAP_SAMPLING
+            row[pk.PORTAL_MAP] = 1.0 if by_map else 0.0
             row[pk.PORTAL_LO], row[pk.PORTAL_HI] = (
-                (PORTAL_SHARE_ENV_LO, PORTAL_SHARE_ENV_HI) if self.environment is not None
+                (PORTAL_SHARE_ENV_LO, PORTAL_SHARE_ENV_HI)
+                if self.environment is not None and not by_map
                 else (PORTAL_SHARE_LO, PORTAL_SHARE_HI))
             row[pk.PORTAL0:pk.PORTAL0 + pk.PORTAL_STRIDE * K] = self.portal_rects.ravel()
         return pk.CODE_WORLD
@@ -288,7 +364,8 @@ class WorldLight(InfiniteLight):
         (engine/lights/selection.py) for the full light-sampling pdf of a BSDF-sampled ray
         that escapes (power or balance heuristic, pbrt-v4's PathIntegrator).
         With light portals, p (N,3) the (re-centred) points the directions leave: the
-        mixture (1 - s_p) that + s_p n(w) / Omega (module docstring); p is required then
+        mixture (1 - s_p) that + s_p p_portal(w) (module docstring: n(w) / Omega, or the
+        map-weighted portalmap pdf with an environment map); p is required then
         (ValueError)."""
         wi = np.asarray(wi, np.float64).reshape(-1, 3)
         cos_pdf = np.maximum(dot(wi, np.asarray(ns, np.float64).reshape(-1, 3)), 0.0) / math.pi
@@ -305,7 +382,8 @@ class WorldLight(InfiniteLight):
         self.pack(row)
         c = np.ascontiguousarray
         share, pp = np.empty(len(wi)), np.empty(len(wi))
-        portal_pdfs(row, c(np.asarray(p, np.float64).reshape(-1, 3)),
+        tables = self.portal_tables or (np.zeros((1, 1, 1)), np.zeros((1, 2, 2)))
+        portal_pdfs(row, *tables, c(np.asarray(p, np.float64).reshape(-1, 3)),
                     c(np.asarray(ns, np.float64).reshape(-1, 3)), c(wi), share, pp)
         return (1.0 - share) * before + share * pp
 
@@ -367,3 +445,21 @@ def emit_world(env_on, rotation, pixels, stored, scale, interp, rows, cols, pdf_
             p0, p1, p2 = p0 * w, p1 * w, p2 * w
         j = put(o32, d32, d, power, slot, j, o0, o1, o2, d0, d1, d2, p0, p1, p2, s)
     return j
+
+
+@register_warm_up
+def _warm_up():
+    """Compile (or load) the light portals' kernels outside directlight.sample_lights:
+    the portal tables under a map and WorldLight.pdf's portal_pdfs (the continuation's
+    MIS weight) for a map and for a constant world."""
+    from ..scene import LightPortal
+    from .environment import Environment
+    portal = LightPortal("portal", [(-0.5, -0.5, 1.0), (0.5, -0.5, 1.0), (0.5, 0.5, 1.0),
+                                    (-0.5, 0.5, 1.0)], (0.0, 0.0, -1.0))
+    common = dict(center=np.zeros(3), scene_radius=2.0, radius=0.0, cos_half_angle=1.0,
+                  photon_flux=np.ones(3), radiance=np.ones(3))
+    w = np.array([[0.0, 0.0, 1.0]])
+    for env in (Environment(np.ones((2, 4, 3))), None):
+        light = WorldLight("world", environment=env, **common)
+        light.set_portals([portal], np.zeros(3))
+        light.pdf(w, w, np.zeros((1, 3)))

@@ -49,3 +49,43 @@ def test_room_lit_through_an_open_roof_window_with_a_portal_matches_cycles(
     assert want > 0.01
     assert got == pytest.approx(want, rel=0.03)
     assert noise(True) < 0.5 * noise(False)
+
+
+def test_hdri_room_with_a_sun_through_the_portal_matches_cycles(fresh_scene, bpy_addon,
+                                                                tmp_path):
+    """The same room under an HDRI (example_blends/make_blends.sky_hdri, 128 x 64: a sky
+    gradient and a one-texel sun of 3 W/m^2 80 degrees high, which shines through the hole
+    onto the floor) with the portal sampled by the map seen through it (portalenv35,
+    engine/lights/portalmap.py): brightness within 3 % of Cycles (512 spp, with the
+    portal; two seeds' mean), and the two seeds' pixel noise under 0.7 x that of the
+    portal sampled uniformly in solid angle (engine.lights.world.PORTAL_MAP_SAMPLING
+    off, lightportal34)."""
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    import engine.lights.world as wl
+    bpy = bpy_addon
+    scene = fresh_scene
+    _scene(bpy, scene)
+    import make_blends  # (on the path: roof_window_room)
+    make_blends.set_world_hdri(make_blends.sky_hdri(128, 64, sun_elevation=80.0,
+                                                    sun_azimuth=0.0, sun_irradiance=3.0))
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=16, photons=50_000, caustic_photons=20_000)
+    films = renders_by_switch(bpy, scene, tmp_path, wl, "PORTAL_MAP_SAMPLING")
+
+    def noise(on):
+        d = (films[on, 0] - films[on, 1]).mean(axis=2) / math.sqrt(2.0)
+        return float(d.std() / films[on, 0].mean())
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, 512, 12)
+    ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
+    want = float(ref.mean())
+    got = 0.5 * float(films[True, 0].mean() + films[True, 1].mean())
+    solid = 0.5 * float(films[False, 0].mean() + films[False, 1].mean())
+    print(f"HDRI room with a sun through an open roof window and a portal (Cycles "
+          f"{want:.5f}): ours / Cycles {got / want:.4f} (portal by solid angle "
+          f"{solid / want:.4f}); pixel noise (two seeds) by the map {noise(True):.4f}, by "
+          f"solid angle {noise(False):.4f}")
+    assert want > 0.01
+    assert got == pytest.approx(want, rel=0.03)
+    assert noise(True) < 0.7 * noise(False)
