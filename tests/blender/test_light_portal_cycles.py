@@ -21,34 +21,42 @@ def _scene(bpy, scene):
     looking_down_camera(bpy, scene, 1.5, ortho_scale=3.6)
 
 
+def _switch_against_cycles(bpy, scene, tmp_path, module, switch, cycles_spp):
+    """Ours with engine switch module.switch on and off (two seeds each,
+    renders_by_switch) and Cycles (cycles_spp): (ours on / Cycles, ours off / Cycles,
+    Cycles' mean, {on: the two seeds' pixel noise std / mean}), printed by the caller."""
+    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
+    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
+    scene.render.engine = "PHOTONMAP"
+    cheap(scene, spp=16, photons=50_000, caustic_photons=20_000)
+    films = renders_by_switch(bpy, scene, tmp_path, module, switch)
+    noise = {}
+    for on in (True, False):
+        d = (films[on, 0] - films[on, 1]).mean(axis=2) / math.sqrt(2.0)
+        noise[on] = float(d.std() / films[on, 0].mean())
+    scene.render.engine = "CYCLES"
+    cycles_plain(scene, cycles_spp, 12)
+    ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
+    want = float(ref.mean())
+    ours = {on: 0.5 * float(films[on, 0].mean() + films[on, 1].mean()) / want
+            for on in (True, False)}
+    return ours[True], ours[False], want, noise
+
+
 def test_room_lit_through_an_open_roof_window_with_a_portal_matches_cycles(
         fresh_scene, bpy_addon, tmp_path):
-    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
     import engine.lights as el
     bpy = bpy_addon
     scene = fresh_scene
     _scene(bpy, scene)
-    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
-    scene.render.engine = "PHOTONMAP"
-    cheap(scene, spp=16, photons=50_000, caustic_photons=20_000)
-    films = renders_by_switch(bpy, scene, tmp_path, el, "SHADOW_PORTALS")
-
-    def noise(on):
-        """The two seeds' pixel difference: std / mean."""
-        d = (films[on, 0] - films[on, 1]).mean(axis=2) / math.sqrt(2.0)
-        return float(d.std() / films[on, 0].mean())
-    scene.render.engine = "CYCLES"
-    cycles_plain(scene, 1024, 12)
-    ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
-    want = float(ref.mean())
-    got = 0.5 * float(films[True, 0].mean() + films[True, 1].mean())
-    off = 0.5 * float(films[False, 0].mean() + films[False, 1].mean())
+    got, off, want, noise = _switch_against_cycles(bpy, scene, tmp_path, el,
+                                                   "SHADOW_PORTALS", 1024)
     print(f"floor under an open roof window with a portal (Cycles {want:.5f}): ours / "
-          f"Cycles {got / want:.4f} (shadow rays without the portal {off / want:.4f}); "
-          f"pixel noise (two seeds) on {noise(True):.4f} off {noise(False):.4f}")
+          f"Cycles {got:.4f} (shadow rays without the portal {off:.4f}); "
+          f"pixel noise (two seeds) on {noise[True]:.4f} off {noise[False]:.4f}")
     assert want > 0.01
-    assert got == pytest.approx(want, rel=0.03)
-    assert noise(True) < 0.5 * noise(False)
+    assert got == pytest.approx(1.0, rel=0.03)
+    assert noise[True] < 0.5 * noise[False]
 
 
 def test_hdri_room_with_a_sun_through_the_portal_matches_cycles(fresh_scene, bpy_addon,
@@ -60,7 +68,6 @@ def test_hdri_room_with_a_sun_through_the_portal_matches_cycles(fresh_scene, bpy
     portal; two seeds' mean), and the two seeds' pixel noise under 0.7 x that of the
     portal sampled uniformly in solid angle (engine.lights.world.PORTAL_MAP_SAMPLING
     off, lightportal34)."""
-    from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
     import engine.lights.world as wl
     bpy = bpy_addon
     scene = fresh_scene
@@ -68,24 +75,12 @@ def test_hdri_room_with_a_sun_through_the_portal_matches_cycles(fresh_scene, bpy
     import make_blends  # (on the path: roof_window_room)
     make_blends.set_world_hdri(make_blends.sky_hdri(128, 64, sun_elevation=80.0,
                                                     sun_azimuth=0.0, sun_irradiance=3.0))
-    scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
-    scene.render.engine = "PHOTONMAP"
-    cheap(scene, spp=16, photons=50_000, caustic_photons=20_000)
-    films = renders_by_switch(bpy, scene, tmp_path, wl, "PORTAL_MAP_SAMPLING")
-
-    def noise(on):
-        d = (films[on, 0] - films[on, 1]).mean(axis=2) / math.sqrt(2.0)
-        return float(d.std() / films[on, 0].mean())
-    scene.render.engine = "CYCLES"
-    cycles_plain(scene, 512, 12)
-    ref = read_rgba(bpy, render_exr(bpy, scene, tmp_path / "cycles.exr"))[..., :3]
-    want = float(ref.mean())
-    got = 0.5 * float(films[True, 0].mean() + films[True, 1].mean())
-    solid = 0.5 * float(films[False, 0].mean() + films[False, 1].mean())
+    got, solid, want, noise = _switch_against_cycles(bpy, scene, tmp_path, wl,
+                                                     "PORTAL_MAP_SAMPLING", 512)
     print(f"HDRI room with a sun through an open roof window and a portal (Cycles "
-          f"{want:.5f}): ours / Cycles {got / want:.4f} (portal by solid angle "
-          f"{solid / want:.4f}); pixel noise (two seeds) by the map {noise(True):.4f}, by "
-          f"solid angle {noise(False):.4f}")
+          f"{want:.5f}): ours / Cycles {got:.4f} (portal by solid angle {solid:.4f}); "
+          f"pixel noise (two seeds) by the map {noise[True]:.4f}, by solid angle "
+          f"{noise[False]:.4f}")
     assert want > 0.01
-    assert got == pytest.approx(want, rel=0.03)
-    assert noise(True) < 0.7 * noise(False)
+    assert got == pytest.approx(1.0, rel=0.03)
+    assert noise[True] < 0.7 * noise[False]
