@@ -2285,8 +2285,9 @@ def run_matrix(names, seed=0):
     return rows
 
 
-# The passes table after the feature rows (hand-written: the passes are checked by
-# tests/blender/test_blender_data_passes.py, not by the matrix).
+# The passes table after the feature rows for a new report (hand-written: the passes are
+# checked by tests/blender/test_blender_data_passes.py and test_blender_surface_passes.py,
+# not by the matrix); a report already written keeps its own (passes_section).
 PASSES_TABLE = """## Render passes
 
 View Layer > Passes as the add-on makes them (addon/engine.py; engine/datapasses.py for
@@ -2299,14 +2300,34 @@ region means (floor, mirror, glass ball, background) within 0.01 / 0.02 / 0.06 /
 | pass | status | notes |
 |---|---|---|
 | Combined | supported | the sum of our effect passes |
-| Z (Depth) | supported | camera-axis depth of the first hit; 1e10 where nothing is hit, as Cycles |
+| Z (Depth) | supported | Cycles' camera_z_depth (along the camera axis) of the surface each pixel's first sample ends its single pass on, as Object Index / Position below (Cycles writes Depth at sample 0 only: an edge pixel holds one surface's depth, never a blend of two); 1e10 where that sample met none, as Cycles. Matched against Cycles in tests/blender/test_blender_surface_passes.py |
 | Normal | supported | world-space shading normal of the first hit |
 | Denoising Data (Denoising Normal, Albedo, Depth) | supported | Cycles' definitions (denoising_passes.h): written at the first surface whose non-specular closures (GGX alpha > 0.075, diffuse, sheen) hold more than 25 % of the sample weight, through mirrors, clear glass and transparent passes with their throughput; the background and emitters met on the way add their radiance to the albedo; normal in camera space (x right, y up, z forward); depth = throughput-weighted ray lengths. Same expectation as Cycles where the surfaces passed are specular only; where rough closures hold under 25 % of a mostly specular surface Cycles' path may continue through them, ours does not. Feeds the compositor's Denoise node. |
 | Diffuse / Glossy / Transmission Color | supported | the closures' albedo at every surface the camera ray meets directly or through transparent passes (sheen counts as diffuse, glass reflection as glossy, its refraction as transmission) |
+| Object Index, Material Index, Position | supported | Cycles' film_write_data_passes: each pixel's first sample (the first adaptive round's, the first progressive pass'), at the first surface the camera ray meets directly or through transparent passes, as written (not averaged: Cycles' use_filter off); object.pass_index (an instance's own object's), material.pass_index, world-space position in m; 0 where the sample leaves for the background. Through a surface below the view layer's Alpha Threshold Cycles' sample stops there with its closure choice's probability; our camera chain always passes it (it continues specular lobes only), so the indices / Position are the next surface's, the likelier of Cycles' two outcomes |
+| UV | supported | the active render UV map's u, v and 1 (0, 0, 0 on a mesh without a UV map), averaged over the samples, at the first camera-chain surface whose alpha reaches the Alpha Threshold (View Layer > Passes > Data) |
+| Mist | supported | World > Mist Pass start / depth / falloff (quadratic, linear, inverse quadratic): 1 - the samples' average of (1 - m) x throughput x alpha over every camera-chain surface, m = saturate((distance - start) / depth)^falloff, distance along the view axis for an orthographic camera; 1 for the background. Measured against Cycles (tests/blender/test_blender_surface_passes.py, 1 spp): within 1.23 x Cycles' own change to the next pixel, as Position and UV, the indices equal on every pixel inside one object |
 | Debug Sample Count | supported with adaptive sampling | the share of Samples a pixel took; asked for without adaptive sampling: warned |
 | Direct, Indirect, Caustic, Specular, Emission, Photon Hits | ours | the engine's per-effect passes (Passes > Effects / Photon Hits); our Emission is emitters and background seen directly, not Cycles' Emit |
-| Emission (Cycles' Emit), Environment, Ambient Occlusion, Shadow, Mist, Diffuse / Glossy / Transmission Direct and Indirect, Subsurface, Volume, Vector, UV, Position, Object / Material Index, Cryptomatte, Grease Pencil, Shadow Catcher, Render Time, Shader AOVs, Light Groups | warned | not made: one warning per render names every such pass the view layer asks for (they stay empty) |
+| Cryptomatte (Object, Material, Asset; Levels) | supported | Blender's layout and metadata (passes CryptoObject00.. of two ranks each, MurmurHash3 ids, the manifest the compositor's Cryptomatte node reads; engine/cryptomatte.py): ids equal to Cycles' where a pixel sees one object, coverage within 0.02 of Cycles' at 16 samples (tests/blender/test_blender_cryptomatte.py). From primary rays of their own (at most 64 a pixel), exact counts, the same for any worker count; a Transparent BSDF surface counts fully (Cycles splits it by transparency); ids past the Levels are dropped (Cycles lumps them into the last rank). Instances share their object's name, the asset is the topmost parent. |
+| Emission (Cycles' Emit), Environment, Ambient Occlusion, Shadow, Diffuse / Glossy / Transmission Direct and Indirect, Subsurface, Volume, Vector, Grease Pencil, Shadow Catcher, Render Time, Shader AOVs, Light Groups | warned | not made: one warning per render names every such pass the view layer asks for (they stay empty) |
 """
+
+
+def passes_section(path=DOC_PATH) -> str:
+    """The report's Render passes section as the file has it (edited by hand as the
+    passes grow: kept by write_report, so a regeneration cannot revert it to
+    PASSES_TABLE, the text for a new file); PASSES_TABLE without the file or section."""
+    try:
+        with open(path) as f:
+            text = f.read()
+    except FileNotFoundError:
+        return PASSES_TABLE
+    start = text.find("\n## Render passes")
+    if start < 0:
+        return PASSES_TABLE
+    after = text.find("\n## ", start + 1)
+    return text[start + 1:after + 1] if after >= 0 else text[start + 1:]
 
 
 def hand_written_sections(path=DOC_PATH) -> str:
@@ -2325,6 +2346,7 @@ def hand_written_sections(path=DOC_PATH) -> str:
 
 def write_report(rows, path=DOC_PATH):
     kept = hand_written_sections(path)
+    passes = passes_section(path)
     lines = [
         "# Compatibility with Blender / Cycles",
         "",
@@ -2382,7 +2404,7 @@ def write_report(rows, path=DOC_PATH):
                      f"{s['alpha_error']:.2f} | {s['brightness']:.3f} | {row['seconds']:.1f} "
                      f"| {note} |")
     lines.append("")
-    lines += PASSES_TABLE.split("\n")
+    lines += passes.rstrip("\n").split("\n") + [""]
     if kept:
         lines.append(kept.rstrip("\n") + "\n")
     with open(path, "w") as f:

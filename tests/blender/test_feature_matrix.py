@@ -101,6 +101,15 @@ def test_report_keeps_the_hand_written_sections(fm, tmp_path):
         text = path.read_text()
         assert text.count("## pane31: measured by hand") == 1
         assert text.endswith("Text.\n") and "## Render passes" in text
+    # The Render passes table as edited by hand is kept too (a regeneration had put
+    # PASSES_TABLE's older rows back, s35).
+    assert fm.passes_section(str(path)).strip() == fm.PASSES_TABLE.strip()
+    text = path.read_text().replace("| Combined | supported |", "| Combined | edited |")
+    path.write_text(text)
+    fm.write_report([], str(path))
+    assert "| Combined | edited |" in path.read_text()
+    assert path.read_text().count("## Render passes") == 1
     # The repository's own report holds such sections: none is lost on a regeneration.
     kept = fm.hand_written_sections()
     assert "## pane31" in kept and "## portal34" in kept
+    assert "camera_z_depth" in fm.passes_section()  # the hand-edited Z (Depth) row
