@@ -27,7 +27,8 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from . import adaptive, chaincounts, datapasses, photonvisibility, sampleclamp, shadelight
+from . import (adaptive, chaincounts, datapasses, media, photonvisibility, sampleclamp,
+               shadelight)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -2066,6 +2067,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     c = np.ascontiguousarray
     # Flat passages through thin glass (engine/shadowtransmittance.py): None without them.
     passages = CameraPassages.for_context(ctx, len(o))
+    # Absorbing media inside objects (engine/media.py; NO_SIGMA: none, nothing done).
+    sigma = media.absorption_table(ctx.table)
     # Cycles' bounce limits on the camera chain (docs/design.md, Bounce limits): each
     # path's glossy / transmission bounces so far and their total; a path past a limit
     # still collects emission and the background where its ray ends (Cycles'
@@ -2216,6 +2219,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if feat is not None:
                 feat, ftp = feat[kept], ftp[kept]
             single, first = single[kept], first[kept]
+        if sigma.shape[0]:
+            # A path that leaves an absorbing object's medium (it meets a back face) has
+            # crossed it: its throughput keeps exp(-sigma_a s) of the segment, before
+            # this hit is shaded and continued (engine/media.py).
+            tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])

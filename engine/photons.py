@@ -29,6 +29,7 @@ from .lights.base import emission_key
 from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
+from . import media
 from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
@@ -265,6 +266,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
+    # Absorbing media inside objects (engine/media.py; NO_SIGMA: none, nothing done).
+    sigma = media.absorption_table(table)
     limits = settings.bounce_limits
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
@@ -330,6 +333,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         if geo.shared is not None:
             # scatter reads the gathered rows: hit i is on row i (-1: a miss).
             geom, prim32, starts = rows_as_hits(rows)
+        if sigma.shape[0]:
+            # A photon that leaves an absorbing object's medium (it meets a back face)
+            # has crossed it: its power keeps exp(-sigma_a s) of the segment (Beer-Lambert),
+            # before the scatter stores or continues it.
+            media.attenuate_photons(geom, prim32, starts, material, e1, e2, sigma, d,
+                                    tfar[:m], power)
         if given and not numpy_hits:
             pk.photon_surfaces(rows, u64, v64, d, v0, e1, e2, normals, material,
                                table.base_color, table.alpha, *surf_m)
