@@ -145,7 +145,7 @@ def test_camera_rays_through_an_absorbing_glass_box():
     medium; the inner reflections' share is < 0.2 %."""
     img = _camera_through("glass", 0.25, 64)
     expect = (1.0 - _fresnel0(IOR)) ** 2 * np.exp(-SIGMA * 0.25)
-    np.testing.assert_allclose(img.reshape(-1, 3).mean(axis=0), expect, rtol=0.02)
+    np.testing.assert_allclose(img.reshape(-1, 3).mean(axis=0), expect, rtol=0.01)
 
 
 def test_camera_inside_the_medium():

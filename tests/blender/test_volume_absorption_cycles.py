@@ -40,10 +40,11 @@ def _absorbing(bpy, name, glass):
 def _scene(bpy, glass):
     import sys
     import os
-    from blender_helpers import ROOT, black_world
+    from blender_helpers import ROOT, black_world, default_photonmap
     sys.path.insert(0, os.path.join(ROOT, "example_blends"))
     import make_blends as mb
     scene = mb.reset()
+    default_photonmap(scene)  # (the session's scene keeps what an earlier test set)
     white = mb.material("white", "diffuse", (0.8, 0.8, 0.8))
     mb.plane("Floor", 8, 8, white)
     medium = _absorbing(bpy, "medium", glass)
@@ -67,12 +68,12 @@ def _scene(bpy, glass):
 def _render(bpy, scene, path, engine, spp, bounces, **pm):
     from blender_helpers import cheap, cycles_plain, read_rgba, render_exr
     scene.render.engine = engine
-    if engine == "CYCLES":
-        c = cycles_plain(scene, spp, bounces)
-        c.diffuse_bounces = c.glossy_bounces = min(bounces, 4)
-        c.transmission_bounces = c.transparent_max_bounces = bounces
-        c.caustics_reflective = c.caustics_refractive = True
-    else:
+    # Light Paths for both engines (the add-on reads Cycles' bounce limits).
+    c = cycles_plain(scene, spp, bounces)
+    c.diffuse_bounces = c.glossy_bounces = min(bounces, 4)
+    c.transmission_bounces = bounces
+    c.caustics_reflective = c.caustics_refractive = True
+    if engine != "CYCLES":
         cheap(scene, spp=spp, **pm)
     return read_rgba(bpy, render_exr(bpy, scene, path))[..., :3]
 
@@ -105,17 +106,25 @@ def test_volume_only_box_over_a_floor_matches_cycles(bpy_addon, tmp_path):
 
 
 def test_tinted_glass_cube_matches_cycles(bpy_addon, tmp_path):
+    """Measured (Cycles 2048 spp): the cube's front face 1.011 / 1.008 / 1.002 of Cycles
+    (R, G, B), the caustic in its shadow 0.984 / 0.981 / 0.976; the same scene with clear
+    glass reads 0.999 and 0.972 there (the caustic estimate's own share), so the medium
+    adds at most 1.2 %. Cycles at 2048 spp: its caustic through the cube is path traced
+    (noisy at fewer samples: 0.92 read at 512)."""
     bpy = bpy_addon
     from blender_helpers import project
     scene = _scene(bpy, glass=True)
     ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 16, 8, photons=100_000,
                    caustic_photons=200_000)
-    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 512, 8)
+    ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 2048, 8)
     cube = project(bpy, scene, (0.0, -0.3, 0.7))      # its front face
     # The cube's shadow: the light (1.2, 0, 3) through the cube's centre meets the floor
     # at x = -0.375: the caustic of the light through the cube's top and bottom.
     shadow = project(bpy, scene, (-0.4, 0.0, 0.0))
-    for where, rc in (("cube", cube), ("shadow", shadow)):
+    for where, rc, tol in (("cube", cube, 0.03), ("shadow", shadow, 0.04)):
         a, b = _block(ours, rc, 2), _block(ref, rc, 2)
         print(where, a.round(4), b.round(4), (a / b).round(3))
-        np.testing.assert_allclose(a, b, rtol=0.06, err_msg=where)
+        np.testing.assert_allclose(a, b, rtol=tol, err_msg=where)
+    # The colour: the medium's tint (blue passes, red is absorbed) in both.
+    a = _block(ours, shadow, 2)
+    assert a[2] > 1.8 * a[0]
