@@ -716,6 +716,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
     regather = level < MAX_GATHER_LEVEL
+    sigma = media.absorption_table(ctx.table)  # absorbing media (NO_SIGMA: none)
     # The hits' fields as the kernel reads them, once for all G rays.
     ns, ng, p, offset = (c(a, np.float64) for a in (hit.ns, hit.ng, hit.p, hit.offset))
     # Plain diffuse materials: their hits skip the closures' set-up and the continuation
@@ -842,6 +843,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # leave the glass first (engine/coincident.py).
                 coincident.meet(o, d, None, np.take(from_h, idx), t, prim, u, v,
                                 leaving=False)
+            if sigma.shape[0]:
+                # Gather rays leaving an absorbing medium (a back face: the local rule of
+                # engine/media.py, no medium carried) keep exp(-sigma_a s) of the segment.
+                tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp,
+                                      np.full(len(prim), -1, np.int64))
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
                 Le = y.emission
@@ -2067,8 +2073,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     c = np.ascontiguousarray
     # Flat passages through thin glass (engine/shadowtransmittance.py): None without them.
     passages = CameraPassages.for_context(ctx, len(o))
-    # Absorbing media inside objects (engine/media.py; NO_SIGMA: none, nothing done).
+    # Absorbing media inside objects (engine/media.py; NO_SIGMA: none, nothing done), and
+    # the medium each path is in (-1: none known; a camera inside one: the local rule).
     sigma = media.absorption_table(ctx.table)
+    medium = np.full(len(o), -1, np.int64) if sigma.shape[0] else None
     # Cycles' bounce limits on the camera chain (docs/design.md, Bounce limits): each
     # path's glossy / transmission bounces so far and their total; a path past a limit
     # still collects emission and the background where its ray ends (Cycles'
@@ -2219,11 +2227,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if feat is not None:
                 feat, ftp = feat[kept], ftp[kept]
             single, first = single[kept], first[kept]
-        if sigma.shape[0]:
-            # A path that leaves an absorbing object's medium (it meets a back face) has
-            # crossed it: its throughput keeps exp(-sigma_a s) of the segment, before
-            # this hit is shaded and continued (engine/media.py).
-            tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp)
+        if medium is not None:
+            # A path that travelled inside an absorbing object's medium keeps
+            # exp(-sigma_a s) of its throughput over the segment, before this hit is
+            # shaded and continued (engine/media.py).
+            if kept is not None:
+                medium = medium[kept]
+            tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -2419,6 +2429,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                               pdf_b))
             if may_split is not None:
                 cont = cont[:6] + (cont[6][go],)
+        if medium is not None:
+            # Refracted or passed into a medium, or out of it (engine/media.py).
+            medium = media.after_continuation(ctx.geo, sigma, prim, d_in, keep, d, medium)
         if may_split is not None:
             # A split path's two rays have one split less left.
             may_split = may_split[keep] - cont[6]

@@ -160,3 +160,30 @@ def test_camera_inside_the_medium():
     img = np.asarray(film.combined, np.float64)[..., :3]
     np.testing.assert_allclose(img, np.broadcast_to(np.exp(-SIGMA * 0.7), img.shape),
                                rtol=1e-6)
+
+
+def test_a_surface_inside_the_medium_is_seen_and_lit_through_it():
+    """A floor running through a volume-only box (z -0.2 .. 0.3: a submerged surface)
+    under a straight-down sun: the camera path enters the box through its top face and
+    meets the floor inside, the medium carried from the crossing (engine/media.py); the
+    sun's shadow rays leave through the top (a back face), its photons enter through
+    it. Both ways 0.3 m: the floor reads 0.8 / pi x 2 x exp(-2 sigma_a 0.3)."""
+    s = PaperScene(8, 8)
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "white_diffuse", name="floor")
+    s.add_box((0, 0, 0.05), (2.0, 2.0, 0.5), _medium("volume"), name="box")
+    s.add_sun((0, 0, -1), 2.0)
+    s.set_camera((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    film = render(s, RenderSettings(workers=1, spp=1, photon_mapping=False, seed=2))
+    img = np.asarray(film.combined, np.float64)[..., :3]
+    expect = 0.8 / math.pi * 2.0 * np.exp(-2 * SIGMA * 0.3)
+    np.testing.assert_allclose(img, np.broadcast_to(expect, img.shape), rtol=1e-5)
+    ctx = prepare_context(s, RenderSettings(workers=1))
+    ph = trace_photons(ctx, ctx.lights, [20_000], caustic_only=False, stream=3)
+    pos = ph.position.astype(np.float64) + ctx.geo.offset
+    under = (np.abs(pos[:, 2]) < 1e-3) & np.all(np.abs(pos[:, :2]) < 0.8, axis=1)
+    first = under & (ph.kind == DIRECT)
+    # Every photon that reached the floor there first crossed the same 0.3 m of medium.
+    power = ph.power[first].astype(np.float64)
+    beside = (np.abs(pos[:, 2]) < 1e-3) & (np.abs(pos[:, 0]) > 1.2) & (ph.kind == DIRECT)
+    ratio = power.mean(axis=0) / ph.power[beside].astype(np.float64).mean(axis=0)
+    np.testing.assert_allclose(ratio, np.exp(-SIGMA * 0.3), rtol=1e-5)
