@@ -1930,8 +1930,7 @@ def _absorption_material(name, surface, volume_node="ShaderNodeVolumeAbsorption"
     return m
 
 
-@case("volumes", ours=dict(spp=128, photons=100_000, caustic_photons=200_000),
-      block_tol=0.35)
+@case("volumes", ours=dict(spp=128, photons=100_000, caustic_photons=200_000))
 def volume_absorption_glass():
     """A tinted glass cube (Glass BSDF + Volume Absorption) over the floor under a sun
     with an angle: Beer-Lambert along the refracted paths (camera) and in its caustic
@@ -1945,11 +1944,15 @@ def volume_absorption_glass():
 def volume_only_absorption():
     """A volume-only box (Principled Volume, absorption only; the Surface unlinked),
     scaled 1.5 in z, in front of the back wall: invisible surfaces, Beer-Lambert along
-    the camera rays and the sun's shadow rays through it."""
+    the camera rays and the sun's shadow rays through it. It floats 2 cm over the floor:
+    standing on it, its bottom face and the floor coincide, and the image there is
+    darker than Beer-Lambert along the box's foot in both engines and unlike (a z-fight:
+    Cycles colour-neutral 0.54-0.9 of the value at 1024 spp, ours 0.67-0.95), not
+    a medium to compare."""
     _stage()
     box = mb.box("Medium", 0.8, 0.8, 0.8,
                  _absorption_material("medium", None, "ShaderNodeVolumePrincipled"),
-                 (0.3, 0.3, 0.6))
+                 (0.3, 0.3, 0.62))
     box.scale = (1.0, 1.0, 1.5)
     _sun()
 

@@ -106,10 +106,10 @@ def test_volume_only_box_over_a_floor_matches_cycles(bpy_addon, tmp_path):
 
 
 def test_tinted_glass_cube_matches_cycles(bpy_addon, tmp_path):
-    """Measured (Cycles 2048 spp): the cube's front face 1.011 / 1.008 / 1.002 of Cycles
-    (R, G, B), the caustic in its shadow 0.984 / 0.981 / 0.976; the same scene with clear
-    glass reads 0.999 and 0.972 there (the caustic estimate's own share), so the medium
-    adds at most 1.2 %. Cycles at 2048 spp: its caustic through the cube is path traced
+    """Measured (Cycles 2048 spp): the cube's front face 0.999 / 0.999 / 1.000 of Cycles
+    (R, G, B), the caustic in its shadow 0.973 / 0.974 / 0.974; the same scene with clear
+    glass reads 0.999 and 0.972 there (the caustic estimate's own share): the medium's
+    colour matches. Cycles at 2048 spp: its caustic through the cube is path traced
     (noisy at fewer samples: 0.92 read at 512)."""
     bpy = bpy_addon
     from blender_helpers import project
