@@ -128,3 +128,55 @@ def test_tinted_glass_cube_matches_cycles(bpy_addon, tmp_path):
     # The colour: the medium's tint (blue passes, red is absorbed) in both.
     a = _block(ours, shadow, 2)
     assert a[2] > 1.8 * a[0]
+
+
+def test_volume_export_and_its_warnings(bpy_addon):
+    """The add-on's export of volume trees (addon/materials.py _volume): Cycles' sigma_a
+    of each node, Add / Mix, and a warning naming the material for what is left out."""
+    bpy = bpy_addon
+    from blender_helpers import convert_material, node_material
+
+    def material(name, build, surface=False):
+        m, nt, out = node_material(bpy, name)
+        nt.links.new(build(nt), out.inputs["Volume"])
+        if surface:
+            g = nt.nodes.new("ShaderNodeBsdfGlass")
+            nt.links.new(g.outputs[0], out.inputs["Surface"])
+        return m
+
+    def absorption(nt, rgb, density):
+        v = nt.nodes.new("ShaderNodeVolumeAbsorption")
+        v.inputs["Color"].default_value = (*rgb, 1.0)
+        v.inputs["Density"].default_value = density
+        return v
+
+    # Principled Volume at its defaults: Color 0.5 (scattering: warned), Absorption
+    # Color black, Density 1: sigma_a = 1 x (1 - 0.5) x (1 - sqrt(0)) = 0.5.
+    m = convert_material(material("pv", lambda nt: nt.nodes.new(
+        "ShaderNodeVolumePrincipled").outputs[0]))
+    np.testing.assert_allclose(m.absorption, 0.5)
+    assert m.volume_only
+    assert any("scattering of Principled Volume" in w and "'pv'" in w for w in m.warnings)
+    m = convert_material(material("scatter", lambda nt: nt.nodes.new(
+        "ShaderNodeVolumeScatter").outputs[0]))
+    assert np.all(m.absorption == 0.0)
+    assert any("volume scattering" in w and "'scatter'" in w for w in m.warnings)
+
+    def mixed(nt):
+        mix = nt.nodes.new("ShaderNodeMixShader")
+        mix.inputs[0].default_value = 0.25
+        nt.links.new(absorption(nt, (0.5, 0.5, 0.5), 2.0).outputs[0], mix.inputs[1])
+        nt.links.new(absorption(nt, (0.0, 1.0, 1.0), 4.0).outputs[0], mix.inputs[2])
+        return mix.outputs[0]
+    m = convert_material(material("mixed", mixed, surface=True))
+    np.testing.assert_allclose(m.absorption, 0.75 * 1.0 + 0.25 * np.array([4.0, 0.0, 0.0]))
+    assert not m.volume_only and m.transmission == 1.0 and not m.warnings
+
+    def textured(nt):
+        v = absorption(nt, (0.2, 0.4, 0.6), 3.0)
+        noise = nt.nodes.new("ShaderNodeTexNoise")
+        nt.links.new(noise.outputs[0], v.inputs["Density"])
+        return v.outputs[0]
+    m = convert_material(material("textured", textured))
+    np.testing.assert_allclose(m.absorption, 3.0 * (1.0 - np.array([0.2, 0.4, 0.6])))
+    assert any("'textured'" in w and "Density" in w for w in m.warnings)
