@@ -187,3 +187,10 @@ def test_a_surface_inside_the_medium_is_seen_and_lit_through_it():
     beside = (np.abs(pos[:, 2]) < 1e-3) & (np.abs(pos[:, 0]) > 1.2) & (ph.kind == DIRECT)
     ratio = power.mean(axis=0) / ph.power[beside].astype(np.float64).mean(axis=0)
     np.testing.assert_allclose(ratio, np.exp(-SIGMA * 0.3), rtol=1e-5)
+
+
+def test_the_effect_report_names_the_media():
+    ctx = _sun_under_box("volume", 0.2)
+    lines = [e for e in ctx.plan.decisions if e.effect == "volume absorption"]
+    assert len(lines) == 1 and lines[0].enabled and "'medium'" in lines[0].reason
+    assert "0.5, 2, 6 /m" in lines[0].reason  # sigma_a per channel
