@@ -748,6 +748,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
              else None)
     if guide is not None:
         g_rows, g_cols = guide.tables(guide.points_for(p, ns))
+    # The medium each ray is in, by hit row (a hit has one ray a step; -1: none known,
+    # the back-face rule; engine/media.py). None: no absorbing material.
+    medium_h = np.empty(n, np.int64) if sigma.shape[0] else None
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -780,6 +783,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
             buf.tp_ones = 0
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
+        if medium_h is not None:
+            medium_h[idx] = -1  # from the gathering surface: not known
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
@@ -843,11 +848,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # leave the glass first (engine/coincident.py).
                 coincident.meet(o, d, None, np.take(from_h, idx), t, prim, u, v,
                                 leaving=False)
-            if sigma.shape[0]:
-                # Gather rays leaving an absorbing medium (a back face: the local rule of
-                # engine/media.py, no medium carried) keep exp(-sigma_a s) of the segment.
-                tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp,
-                                      np.full(len(prim), -1, np.int64))
+            if medium_h is not None:
+                # Gather rays that travelled inside an absorbing medium keep
+                # exp(-sigma_a s) of the segment (engine/media.py). (A new array: the
+                # buffer's throughput rows stay ones.)
+                tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium_h[idx])
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
                 Le = y.emission
@@ -919,6 +924,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 org_prim = np.take(prim, keep)
                 near = coincident.near(org_p, org_prim)
                 inside = np.take(coincident.is_glass, org_prim)
+            if medium_h is not None:
+                # Refracted or passed into a medium, or out of it.
+                medium_h[idx[keep]] = media.after_continuation(ctx.geo, sigma, prim, d_in,
+                                                               keep, d, medium_h[idx])
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
