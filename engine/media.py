@@ -16,7 +16,8 @@ continued direction is on the far side) enters that medium through a front face 
 winding's outside, d . (e1 x e2) < 0) and leaves it through a back face (media_after);
 a reflection keeps the medium. Each segment is attenuated by its ray's medium where the
 segment ends (the camera paths after each intersection, engine/integrator.py
-_trace_paths; the photons before each scatter, engine/photons.py _bounces), so a surface
+_trace_paths, and the final-gather rays, gather_indirect; the photons before each
+scatter, engine/photons.py _bounces), so a surface
 inside the medium (a floor under a liquid, a straw in a drink, a box standing on the
 floor) is seen and lit through it. A ray whose medium is not known (a camera inside a
 liquid, a shadow ray from a point inside one) takes the local rule: its segment was
