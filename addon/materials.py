@@ -391,6 +391,7 @@ class MaterialConverter:
         if key in self.cache:
             return self.cache[key]
         warnings: list[str] = []
+        self._medium = (np.zeros(3), False)  # (sigma_a (3,) 1/m, volume-only): _volume
         if mat is None:
             closure = Closure()
         else:
@@ -441,7 +442,10 @@ class MaterialConverter:
             # Material > Settings > Pass Index: the Material Index data pass
             pass_index=int(getattr(mat, "pass_index", 0) or 0),
             # Material > Settings > Emission Sampling: the sides shadow rays sample
-            emission_sampling=self._emission_sampling(mat, warnings))
+            emission_sampling=self._emission_sampling(mat, warnings),
+            # the medium inside (Volume Absorption / Principled Volume) and whether the
+            # material has no surface (engine/media.py)
+            absorption=self._medium[0], volume_only=self._medium[1])
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -485,8 +489,13 @@ class MaterialConverter:
                        "using the viewport colour")
             return self._viewport(mat)
         # Warn before anything else: a volume-only material (fog in a box) has no surface.
-        if out.inputs.get("Volume") is not None and out.inputs["Volume"].is_linked:
-            self._warn(f"material '{mat.name}': volume shaders are not supported and ignored")
+        volume = out.inputs.get("Volume")
+        if volume is not None and volume.is_linked:
+            # The medium inside the object: its absorption (engine/media.py); a material
+            # without a surface lets every ray through to it (Material.volume_only).
+            sigma = np.clip(self._volume(self._source(volume), 0), 0.0, None)
+            only = out.inputs.get("Surface") is None or not out.inputs["Surface"].is_linked
+            self._medium = (sigma, only)
         surface = out.inputs.get("Surface")
         if surface is None or not surface.is_linked:
             # Cycles renders an unconnected surface black.
@@ -572,6 +581,71 @@ class MaterialConverter:
                        "supported; no bump")
             return None
         return val if hasattr(val, "evaluate") else None
+
+    def _volume(self, src, depth) -> np.ndarray:
+        """(3,) absorption coefficient sigma_a (1/m) of the volume shader tree src feeding
+        the Material Output's Volume, as Cycles builds its extinction
+        (intern/cycles/kernel/svm/closure.h): Volume Absorption density x (1 - Color)
+        (svm_node_closure_volume); Principled Volume density x max(1 - Color, 0) x
+        max(1 - sqrt(Absorption Color), 0) (svm_node_principled_volume); Add Shader sums,
+        Mix Shader weighs by its factor (the mix weight scales the density). Scattering
+        (Volume Scatter, Principled Volume's Color) and emission are warned and left out;
+        a texture on an input is warned and the socket's own value used (a homogeneous
+        medium)."""
+        zero = np.zeros(3)
+        if src is None or depth > MAX_NODE_DEPTH:
+            return zero
+        node, _ = src
+        name = self._mat.name
+        if getattr(node, "mute", False):
+            for inp in node.inputs:
+                if inp.type == "SHADER":
+                    return self._volume(self._source(inp), depth + 1)
+            return zero
+        t = node.type
+        if t == "VOLUME_ABSORPTION":
+            color = self._volume_color(node, "Color")
+            return max(self._float(node, "Density", 1.0), 0.0) * (1.0 - color)
+        if t == "PRINCIPLED_VOLUME":
+            color = self._volume_color(node, "Color")
+            density = max(self._float(node, "Density", 1.0), 0.0)
+            absorb = np.sqrt(np.clip(self._volume_color(node, "Absorption Color"), 0.0, None))
+            if density > 0 and np.any(color > 0):
+                self._warn(f"material '{name}': the scattering of Principled Volume "
+                           f"'{node.name}' (its Color) is not supported and ignored; only "
+                           "its absorption is rendered")
+            if (self._float(node, "Emission Strength", 0.0) > 0
+                    or self._float(node, "Blackbody Intensity", 0.0) > 0):
+                self._warn(f"material '{name}': the emission of Principled Volume "
+                           f"'{node.name}' is not supported and ignored")
+            return (density * np.clip(1.0 - color, 0.0, None)
+                    * np.clip(1.0 - absorb, 0.0, None))
+        if t == "ADD_SHADER":
+            return (self._volume(self._source(node.inputs[0]), depth + 1)
+                    + self._volume(self._source(node.inputs[1]), depth + 1))
+        if t == "MIX_SHADER":
+            fac = min(max(self._float_socket(node, node.inputs[0], 0.5), 0.0), 1.0)
+            return ((1.0 - fac) * self._volume(self._source(node.inputs[1]), depth + 1)
+                    + fac * self._volume(self._source(node.inputs[2]), depth + 1))
+        if t == "VOLUME_SCATTER":
+            self._warn(f"material '{name}': volume scattering (node '{node.name}') is not "
+                       "supported and ignored")
+            return zero
+        self._warn(f"material '{name}': volume node '{node.name}' ({t}) is not supported "
+                   "and ignored")
+        return zero
+
+    def _volume_color(self, node, name) -> np.ndarray:
+        """A volume node's colour input as one constant (a homogeneous medium): a texture
+        on it is warned and the socket's own colour used."""
+        rgb, tex = self._color(node, name)
+        if tex is None:
+            return np.asarray(rgb, np.float64)
+        own = self._default(node.inputs[name])
+        self._warn(f"material '{self._mat.name}': the texture on '{name}' of node "
+                   f"'{node.name}' varies per point, which a homogeneous medium does not; "
+                   f"using its own value {_value_text(own)}")
+        return np.full(3, float(own)) if np.ndim(own) == 0 else np.asarray(own, np.float64)
 
     def _warn(self, text):
         if text not in self._warned:

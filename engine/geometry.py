@@ -53,6 +53,8 @@ class MaterialTable:
     pass_index: np.ndarray = None      # (M,) float64 Material.pass_index (Material Index pass)
     emission_sides: np.ndarray = None  # (M,) int64 sides light sampling covers
                                        # (scene.emission_sides; None: both)
+    absorption: np.ndarray = None      # (M,3) float64 sigma_a (1/m) of the medium inside
+                                       # (Material.absorption; engine/media.py)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -75,6 +77,8 @@ class MaterialTable:
                    emission_sides=np.array([emission_sides(getattr(m, "emission_sampling",
                                                                    "AUTO"), m.emission)
                                             for m in materials], np.int64),
+                   absorption=np.array([getattr(m, "absorption", (0.0, 0.0, 0.0))
+                                        for m in materials], np.float64).reshape(-1, 3),
                    **cols)
 
     @property

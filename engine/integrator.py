@@ -27,7 +27,8 @@ from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
-from . import adaptive, chaincounts, datapasses, photonvisibility, sampleclamp, shadelight
+from . import (adaptive, chaincounts, datapasses, media, photonvisibility, sampleclamp,
+               shadelight)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -719,6 +720,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     G = rays or ctx.settings.gather_rays
     c = np.ascontiguousarray
     regather = level < MAX_GATHER_LEVEL
+    sigma = media.absorption_table(ctx.table)  # absorbing media (NO_SIGMA: none)
     # The hits' fields as the kernel reads them, once for all G rays.
     ns, ng, p, offset = (c(a, np.float64) for a in (hit.ns, hit.ng, hit.p, hit.offset))
     # Plain diffuse materials: their hits skip the closures' set-up and the continuation
@@ -750,6 +752,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
              else None)
     if guide is not None:
         g_rows, g_cols = guide.tables(guide.points_for(p, ns))
+    # The medium each ray is in, by hit row (a hit has one ray a step; -1: none known,
+    # the back-face rule; engine/media.py). None: no absorbing material.
+    medium_h = np.empty(n, np.int64) if sigma.shape[0] else None
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -782,6 +787,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             tp *= bump_shadowing(hit.n_smooth[idx], hit.ns[idx], d)[:, None]
             buf.tp_ones = 0
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
+        if medium_h is not None:
+            medium_h[idx] = -1  # from the gathering surface: not known
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
@@ -845,6 +852,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # leave the glass first (engine/coincident.py).
                 coincident.meet(o, d, None, np.take(from_h, idx), t, prim, u, v,
                                 leaving=False)
+            if medium_h is not None:
+                # Gather rays that travelled inside an absorbing medium keep
+                # exp(-sigma_a s) of the segment (engine/media.py). (A new array: the
+                # buffer's throughput rows stay ones.)
+                tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium_h[idx])
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
                 Le = y.emission
@@ -916,6 +928,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 org_prim = np.take(prim, keep)
                 near = coincident.near(org_p, org_prim)
                 inside = np.take(coincident.is_glass, org_prim)
+            if medium_h is not None:
+                # Refracted or passed into a medium, or out of it.
+                medium_h[idx[keep]] = media.after_continuation(ctx.geo, sigma, prim, d_in,
+                                                               keep, d, medium_h[idx])
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
@@ -2072,6 +2088,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     c = np.ascontiguousarray
     # Flat passages through thin glass (engine/shadowtransmittance.py): None without them.
     passages = CameraPassages.for_context(ctx, len(o))
+    # Absorbing media inside objects (engine/media.py; NO_SIGMA: none, nothing done), and
+    # the medium each path is in (-1: none known; a camera inside one: the local rule).
+    sigma = media.absorption_table(ctx.table)
+    medium = np.full(len(o), -1, np.int64) if sigma.shape[0] else None
     # Cycles' bounce limits on the camera chain (docs/design.md, Bounce limits): each
     # path's glossy / transmission bounces so far and their total; a path past a limit
     # still collects emission and the background where its ray ends (Cycles'
@@ -2225,6 +2245,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if feat is not None:
                 feat, ftp = feat[kept], ftp[kept]
             single, first = single[kept], first[kept]
+        if medium is not None:
+            # A path that travelled inside an absorbing object's medium keeps
+            # exp(-sigma_a s) of its throughput over the segment, before this hit is
+            # shaded and continued (engine/media.py).
+            if kept is not None:
+                medium = medium[kept]
+            tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -2420,6 +2447,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                               pdf_b))
             if may_split is not None:
                 cont = cont[:6] + (cont[6][go],)
+        if medium is not None:
+            # Refracted or passed into a medium, or out of it (engine/media.py).
+            medium = media.after_continuation(ctx.geo, sigma, prim, d_in, keep, d, medium)
         if may_split is not None:
             # A split path's two rays have one split less left.
             may_split = may_split[keep] - cont[6]

@@ -253,6 +253,6 @@ def _import_kernel_modules():
     # The modules that define kernels (each registers its warm-up when imported).
     from . import (camerakernels, camerarays, directlight, gatherkernels,  # noqa: F401
                    hashgrid, normalmap,
-                   kdtree, panekernels, photonkernels, photonmap,  # (warm-ups)
+                   kdtree, media, panekernels, photonkernels, photonmap,  # (warm-ups)
                    photonvisibility,
                    procedural, rayoffset, shadowtransmittance, toplevel)

@@ -29,6 +29,7 @@ from .lights.base import emission_key
 from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
+from . import media
 from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
@@ -265,6 +266,11 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
+    # Absorbing media inside objects (engine/media.py): each photon's medium by its slot
+    # (None: no absorbing material, nothing done).
+    sigma = media.absorption_table(table)
+    pmed = (media.PhotonMedia(sigma, int(slot.max()) + 1 if len(slot) else 0)
+            if sigma.shape[0] else None)
     limits = settings.bounce_limits
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
@@ -330,6 +336,11 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         if geo.shared is not None:
             # scatter reads the gathered rows: hit i is on row i (-1: a miss).
             geom, prim32, starts = rows_as_hits(rows)
+        if pmed is not None:
+            # A photon that travelled inside an absorbing object's medium keeps
+            # exp(-sigma_a s) of its power over the segment (Beer-Lambert), before the
+            # scatter stores or continues it.
+            pmed.attenuate(geom, prim32, starts, material, e1, e2, d, tfar[:m], power, slot)
         if given and not numpy_hits:
             pk.photon_surfaces(rows, u64, v64, d, v0, e1, e2, normals, material,
                                table.base_color, table.alpha, *surf_m)
@@ -354,6 +365,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
+        if pmed is not None:
+            pmed.after_scatter(slot, d)  # refracted in or out of a medium
 
 
 class _Buffers:

@@ -137,6 +137,14 @@ class Material:
     `emission_sampling`: Blender's material.cycles.emission_sampling (EMISSION_SAMPLING): which
     sides of the emission shadow rays sample (emission_sides); the emission itself leaves
     both sides in every mode, the other sides' light arriving by sampled rays alone.
+    `absorption` (3,) 1/m: the homogeneous absorption coefficient sigma_a per channel of
+    the medium inside the object (a Volume Absorption or Principled Volume on the
+    Material Output's Volume): light travelling a distance d (world units, object scale
+    included) inside it keeps exp(-sigma_a d) (Beer-Lambert), for camera paths, photons
+    and shadow rays alike (engine/media.py; docs/compatibility.md, Volume absorption).
+    `volume_only`: the material has a volume but no surface (Surface unlinked): Cycles
+    renders the surface invisible, rays pass it unbent and only the medium acts; here
+    that is a transparent pass (alpha 0, white tint, no emission, black base).
     """
 
     name: str = "default"
@@ -173,6 +181,8 @@ class Material:
     anisotropic_rotation: float = 0.0
     pass_index: int = 0
     emission_sampling: str = "AUTO"
+    absorption: tuple | np.ndarray = (0.0, 0.0, 0.0)
+    volume_only: bool = False
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -241,6 +251,19 @@ class Material:
             raise SceneError(f"{who} emission_sampling: expected one of "
                              f"{', '.join(EMISSION_SAMPLING)}, got {self.emission_sampling!r}")
         self.emission_sampling = mode
+        self.absorption = _vec3(self.absorption, f"{who} absorption")
+        if np.any(self.absorption < 0):
+            raise SceneError(f"{who} absorption: must be >= 0 (1/m), got "
+                             f"{self.absorption.tolist()}")
+        self.volume_only = bool(self.volume_only)
+        if self.volume_only:
+            # No surface: every ray passes it unbent and untinted (a transparent pass).
+            self.alpha = 0.0
+            self.alpha_texture = None
+            self.transparent_tint = np.ones(3)
+            self.base_color = np.zeros(3)
+            self.emission = np.zeros(3)
+            self.emission_texture = None
         if self.node not in MATERIAL_NODES:
             raise SceneError(f"{who} node: expected one of {', '.join(MATERIAL_NODES)}, got "
                              f"{self.node!r}")

@@ -169,7 +169,10 @@ MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(no
                           # Blender's Material > Settings > Pass Index (Material Index pass)
                           "pass_index": _number(0, 32767, integer=True),
                           # Material > Settings > Emission Sampling (scene.emission_sides)
-                          "emission_sampling": _choice(*EMISSION_SAMPLING)})
+                          "emission_sampling": _choice(*EMISSION_SAMPLING),
+                          # the medium inside: sigma_a per channel in 1/m (engine/media.py),
+                          # and no surface at all (a volume-only material)
+                          "absorption": _vec3(nonneg=True), "volume_only": _BOOL})
 MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
 
 CAMERA_SCHEMA = _table({

@@ -36,6 +36,7 @@ import threading
 
 import numpy as np
 
+from . import media
 from . import photonkernels as pk
 from .accel import Accel
 from .closures import principled as pr
@@ -56,6 +57,7 @@ CLEAR, BLOCKED, GOING = 0, 1, 2
 # compensation's Fss = the transmission tint (3), and its Fresnel f0 (3; < 0: Refraction).
 G_ETA, G_ROUGH, G_MULTI, G_TW, G_TT, G_F0 = 0, 1, 2, 3, 6, 9
 G_N = 12
+_NO_E, _NO_T = np.zeros((0, 3)), np.zeros(0)  # no media: the medium arguments' stand-ins
 _NO_FLAT = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)),
             np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.bool_),
             np.zeros(0), np.zeros((0, 2, G_N)), np.zeros(0))
@@ -131,7 +133,7 @@ def _crossing(glass, m, side, cos_o, out):
 @kernel
 def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans, count,
                 max_hits, state, entry, o, d, thit, v0, e1, e2, object_id, flat_mat,
-                flat_limit, glass, mat_ior):
+                flat_limit, glass, mat_ior, mat_sigma, seg_d, seg_t, seg_e1, seg_e2):
     """One surface along each travelling shadow ray.
 
     prim (n,) the triangle hit (-1: none before the ray's end); tri_material (T,);
@@ -149,8 +151,17 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
     flat_exit); glass (M, 2, G_N) the materials' glass_crossings, mat_ior (M,) their IOR. A ray entering such glass crosses it (two surfaces counted) if its next
     surface is the exit of a flat passage, with the transmittance of the two refractions
     (_crossing at the entry and the refracted angle); otherwise (another surface, or
-    none: single-plane glass) it is blocked."""
+    none: single-plane glass) it is blocked.
+
+    Absorbing media (mat_sigma (M,3) media.absorption_table, 0 rows: none): a ray that
+    crosses a surface it meets on its back face (it leaves the object: a flat passage's
+    exit, a volume-only box's far side) was inside that object's medium since its last
+    surface and keeps exp(-sigma_a s) of it (media.leaving_transmittance); seg_d (n,3)
+    the rays' directions, seg_t (n,) their hit distances (units of |d|), seg_e1, seg_e2
+    the edge tables read by prim's rows."""
     flat_on = flat_mat.shape[0] > 0
+    media_on = mat_sigma.shape[0] > 0
+    med = np.empty(3)
     out = np.empty(3)
     for i in range(prim.shape[0]):
         p = prim[i]
@@ -179,6 +190,13 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
                 out[0] = out[1] = out[2] = 1.0
                 _crossing(glass, m, 0, ci, out)
                 _crossing(glass, m, 1, ct, out)
+                if media_on and media.leaving_transmittance(
+                        seg_e1, seg_e2, p, tri_material[p], mat_sigma, seg_d[i, 0],
+                        seg_d[i, 1], seg_d[i, 2], seg_t[i], med):
+                    # The way through the slab's medium (the refracted segment).
+                    out[0] *= med[0]
+                    out[1] *= med[1]
+                    out[2] *= med[2]
                 ok = out[0] > 0.0 or out[1] > 0.0 or out[2] > 0.0
             if not ok:
                 trans[r, 0] = 0.0
@@ -214,6 +232,12 @@ def shadow_step(prim, tri_material, mat_alpha, mat_tint, node_alpha, slot, trans
         t0 = through * mat_tint[m, 0]
         t1 = through * mat_tint[m, 1]
         t2 = through * mat_tint[m, 2]
+        if media_on and media.leaving_transmittance(seg_e1, seg_e2, p, m, mat_sigma,
+                                                    seg_d[i, 0], seg_d[i, 1], seg_d[i, 2],
+                                                    seg_t[i], med):
+            t0 *= med[0]
+            t1 *= med[1]
+            t2 *= med[2]
         if not (t0 > 0.0 or t1 > 0.0 or t2 > 0.0) or count[r] >= max_hits:
             trans[r, 0] = 0.0
             trans[r, 1] = 0.0
@@ -403,6 +427,8 @@ class ShadowTransmittance:
         self.max_hits = max_hits
         self.mat_alpha = np.ascontiguousarray(table.alpha, np.float64)
         self.mat_tint = np.ascontiguousarray(transparent_tints(table))
+        # Absorbing media inside objects (engine/media.py; 0 rows: none).
+        self.sigma = media.absorption_table(table)
         # Shared instances (engine/sharedrows.py): no per-triangle tables; the rays walk
         # the class's two-level BVH surface by surface instead (_walk_bvh).
         self.shared = getattr(geo, "shared", None) is not None
@@ -554,8 +580,20 @@ class ShadowTransmittance:
             if clear_idx is not None:
                 prim[hit] = clear_idx[prim[hit]]
             # The hits' material rows (gathered for shared instances: hit_tables).
-            rows, (tri_material,) = (geo.hit_tables(prim, "material") if self.shared
-                                     else (prim, (self.tri_material,)))
+            media_on = self.sigma.shape[0] > 0
+            if self.shared:
+                rows, tabs = geo.hit_tables(prim, *(("material", "e1", "e2") if media_on
+                                                    else ("material",)))
+                tri_material = tabs[0]
+                seg_e = tuple(np.ascontiguousarray(x, np.float64) for x in tabs[1:])
+            else:
+                rows, tri_material = prim, self.tri_material
+                seg_e = ((np.ascontiguousarray(geo.e1, np.float64),
+                          np.ascontiguousarray(geo.e2, np.float64)) if media_on else ())
+            if not media_on:
+                seg_e = (_NO_E, _NO_E)
+            seg = ((np.ascontiguousarray(d, np.float64), np.ascontiguousarray(thit, np.float64))
+                   if media_on else (_NO_E, _NO_T))
             node_alpha = np.ones(len(prim))
             if hit.any():
                 hp, hu, hv = prim[hit], u[hit], v[hit]
@@ -572,7 +610,7 @@ class ShadowTransmittance:
                 flat = _NO_FLAT
             shadow_step(rows, np.ascontiguousarray(tri_material, np.int64), self.mat_alpha,
                         self.mat_tint, node_alpha, slot, trans, count, self.max_hits, state,
-                        entry, *flat)
+                        entry, *flat, self.sigma, *seg, *seg_e)
             if inside is not None and inside.any():
                 out = np.flatnonzero(inside & (state == GOING))
                 crossed[slot[out]] += 1
@@ -639,7 +677,9 @@ def _warm_up():
     state = np.empty(1, np.int64)
     shadow_step(np.zeros(1, np.int64), np.zeros(1, np.int64), np.full(1, 0.5),
                 np.ones((1, 3)), np.ones(1), np.zeros(1, np.int64), trans, count,
-                DEFAULT_MAX_HITS, state, np.full(1, -1, np.int64), *_NO_FLAT)
+                DEFAULT_MAX_HITS, state, np.full(1, -1, np.int64), *_NO_FLAT,
+                np.ones((1, 3)), np.array([[0.0, 0.0, 1.0]]), np.ones(1),
+                np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
     params = np.zeros((1, pr.N_MAT))
     params[0, pr.M_TRANS] = params[0, pr.M_ALPHA] = 1.0
     params[0, pr.M_IOR] = 1.5
@@ -649,7 +689,8 @@ def _warm_up():
                 DEFAULT_MAX_HITS, state, np.zeros(1, np.int64), np.zeros((1, 3)),
                 np.array([[0.0, 0.0, 1.0]]), np.full(1, 0.01), np.zeros((1, 3)), *tri,
                 np.zeros(1, np.int64), np.ones(1, np.bool_), np.full(1, 0.1),
-                glass_crossings(params, np.ones((1, 3))), np.full(1, 1.5))
+                glass_crossings(params, np.ones((1, 3))), np.full(1, 1.5), _NO_E,
+                _NO_E, _NO_T, _NO_E, _NO_E)
     # called from Python too: panelight._transmittance_table (the panes' T tables)
     _crossing(glass_crossings(params, np.ones((1, 3))), 0, 0, 0.5, np.ones(3))
     scale_entries(np.ones((1, 3)), np.zeros(1, np.int64), 1, np.full((1, 3), 0.5))

@@ -26,7 +26,7 @@ def signatures() -> dict:
 def scenes():
     """(name, scene, settings) small scenes covering the light kinds, a world HDRI,
     textures, a normal map, instances, data passes, adaptive sampling, transparent film,
-    a glass pane's shadow rays."""
+    a glass pane's shadow rays, absorbing media."""
     from engine.api import PaperScene, cornell_box
     from engine.normalmap import NormalMap
     from engine.scene import Material
@@ -87,6 +87,22 @@ def scenes():
             r.add_sun((-0.26, -0.72, -0.64), 4.0, angle_degrees=3.0)
         r.set_camera((1.8, 1.3, 2.0), (-0.2, -1.1, 2.7), view_angle=90.0)
         yield (f"window pane, {world}", r, RenderSettings(**base))
+    # Absorbing media (engine/media.py): a tinted glass ball, a thin absorbing glass slab
+    # (a flat passage for shadow rays) and a volume-only box, with instances (shared rows).
+    v = PaperScene(24, 18)
+    v.add_plane((0, 0, 0), (0, 0, 1), 6.0, "white_diffuse", name="floor")
+    v.add_material(Material("tinted", (1.0, 1.0, 1.0), transmission=1.0, ior=1.45,
+                            absorption=(1.0, 0.5, 0.1)))
+    v.add_material(Material("liquid", volume_only=True, absorption=(0.2, 0.8, 1.5)))
+    tinted = v.add_sphere((0.0, 0.0, 0.6), 0.5, "tinted", segments=12)
+    m = np.eye(4)
+    m[0, 3] = 1.3
+    v.add_instance(tinted, m)
+    v.add_box((0.0, 0.0, 1.6), (1.5, 1.5, 0.02), "tinted", name="slab")
+    v.add_box((-1.3, 0.0, 0.3), (0.6, 0.6, 0.6), "liquid", name="liquid")
+    v.add_sun((0.3, 0.2, -1.0), 2.0)
+    v.set_camera((0.0, -4.0, 2.0), (0.0, 0.0, 0.3), view_angle=50.0)
+    yield ("absorbing media", v, RenderSettings(**base))
 
 
 def main():
