@@ -7,10 +7,12 @@ one heap, so a worker's arena maps new heaps, and glibc unmaps each heap again a
 it is empty (heap_trim keeps only M_TOP_PAD bytes, 128 KB by default); an array that does
 not fit the heap's free top is mapped on its own (at or above the dynamic mmap threshold)
 and unmapped when freed. Either way the next chunk's arrays land on fresh pages that the
-kernel faults in and zeroes page by page: on Figure 6 at 160x120 a two-worker render
-mapped and unmapped ~120 heaps (strace), and its camera stage took 2-3x the minor faults
-and several times the system time of a one-worker render, whose chunks run on the main
-thread's brk heap (it keeps its free top up to the trim threshold).
+kernel faults in and zeroes page by page: on Figure 6 at 160x120 a process's first
+two-worker render mapped and unmapped ~120 heaps (strace), and two-worker camera stages
+took 1.5-6x the minor faults of one-worker ones, whose chunks run on the main thread's brk
+heap (it keeps its free top up to the trim threshold). Measured with this module: CPU
+time the same within the noise of a loaded machine, the fault / system-time tail of a
+first render capped, a process's RSS after a render about halved.
 
 What (render_heap, for as long as any render runs): M_TOP_PAD = 64 MB, so heap_trim
 neither unmaps nor shrinks a worker's heap (it keeps at least the pad, and a heap is at
