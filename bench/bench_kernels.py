@@ -437,6 +437,7 @@ def base_tree(commit: str, where: str) -> str:
 def exported(name: str, where: str) -> str:
     out = os.path.join(where, f"{name}.pkl")
     if not os.path.exists(out):
+        os.makedirs(where, exist_ok=True)  # a fresh machine's /tmp has no such folder
         child(EXPORT, ROOT=ROOT, NAME=name, OUT=out)
     return out
 

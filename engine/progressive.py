@@ -38,6 +38,7 @@ import numpy as np
 
 from .datapasses import FIRST_SAMPLE
 from .film import EFFECTS, Film
+from .mallocheap import render_heap
 from .parallel import Cancelled
 from .render import (_check_region, prepare_context, render_cryptomatte, render_pass,
                      warning_teller)
@@ -242,34 +243,37 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
     cancelled = False
     i = 0
     try:
-        while True:
-            i += 1
-            ctx.settings = pass_settings(settings, i)
+        # One malloc setting over all the passes (engine/mallocheap.py): the heaps a
+        # pass grew serve the next, trimmed once at the end, not after every pass.
+        with render_heap():
+            while True:
+                i += 1
+                ctx.settings = pass_settings(settings, i)
 
-            def pass_progress(stage, fraction, text, _i=i):
-                if progress is not None:
-                    progress(stage, fraction, f"Pass {_i}: {text}")
+                def pass_progress(stage, fraction, text, _i=i):
+                    if progress is not None:
+                        progress(stage, fraction, f"Pass {_i}: {text}")
 
-            t_pass = time.perf_counter()
-            one = render_pass(ctx, region, pass_progress, should_cancel, on_warning=tell_pass)
-            if i == 1 and settings.cryptomatte and not one.stats.get("cancelled"):
-                render_cryptomatte(ctx, region, one, should_cancel)  # pass 1's, kept
-            if one.stats.get("cancelled"):
-                cancelled = True
-                i -= 1
-                break
-            merger.add(one)
-            elapsed = time.perf_counter() - t_start
-            info = dict(passes=i, photons=merger.photons, elapsed=elapsed,
-                        error_estimate=merger.error, k_nearest=ctx.settings.k_nearest,
-                        pass_seconds=time.perf_counter() - t_pass)
-            log.append(info)
-            if i == 1 and (overrun := overrun_warning(budget, settings, info["pass_seconds"])):
-                tell_pass(overrun)
-            if on_pass is not None:
-                on_pass(merger.film, info)
-            if budget_spent(budget, i, merger.error, elapsed):
-                break
+                t_pass = time.perf_counter()
+                one = render_pass(ctx, region, pass_progress, should_cancel, on_warning=tell_pass)
+                if i == 1 and settings.cryptomatte and not one.stats.get("cancelled"):
+                    render_cryptomatte(ctx, region, one, should_cancel)  # pass 1's, kept
+                if one.stats.get("cancelled"):
+                    cancelled = True
+                    i -= 1
+                    break
+                merger.add(one)
+                elapsed = time.perf_counter() - t_start
+                info = dict(passes=i, photons=merger.photons, elapsed=elapsed,
+                            error_estimate=merger.error, k_nearest=ctx.settings.k_nearest,
+                            pass_seconds=time.perf_counter() - t_pass)
+                log.append(info)
+                if i == 1 and (overrun := overrun_warning(budget, settings, info["pass_seconds"])):
+                    tell_pass(overrun)
+                if on_pass is not None:
+                    on_pass(merger.film, info)
+                if budget_spent(budget, i, merger.error, elapsed):
+                    break
     finally:
         ctx.accel.close()
     film = merger.film

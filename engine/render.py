@@ -25,6 +25,7 @@ from .lights import allocate_photons, prepare_lights
 from .lights.base import InfiniteLight
 from .lights import packing as pk
 from .lights.packing import pack_lights
+from .mallocheap import render_heap
 from .edgeimages import edge_images
 from .guiding import GatherGuide
 from .photonmap import GatherMap, PhotonMap, auto_radius, caustic_radius
@@ -224,8 +225,9 @@ def render_pass(ctx: Context, region, progress=None, should_cancel=None,
     shoot=False renders with the photon maps already in ctx (shoot_photons). The photon
     pass' warnings are in film.stats["warnings"] and told to on_warning(text) when known,
     before the camera pass (shoot_photons), as the photon count to on_plan. numpy's
-    huge-page advice is off meanwhile (small_pages)."""
-    with small_pages():
+    huge-page advice is off meanwhile (small_pages), and glibc's malloc keeps the worker
+    threads' heaps (engine/mallocheap.py)."""
+    with small_pages(), render_heap():
         return _render_pass(ctx, region, progress, should_cancel, shoot, on_warning, on_plan)
 
 
@@ -427,11 +429,13 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
     tell(scene.all_warnings() + ctx.plan.warnings + early)
     t_prepare = time.perf_counter() - t_start - t_compile
     try:
-        film = render_pass(ctx, region, progress, should_cancel,
-                           on_warning=lambda w: tell([w]),  # the photon pass' own
-                           on_plan=on_plan)
-        if settings.cryptomatte and not film.stats.get("cancelled"):
-            render_cryptomatte(ctx, region, film, should_cancel)
+        # One malloc setting over the pass and the mattes: trimmed once, at their end.
+        with render_heap():
+            film = render_pass(ctx, region, progress, should_cancel,
+                               on_warning=lambda w: tell([w]),  # the photon pass' own
+                               on_plan=on_plan)
+            if settings.cryptomatte and not film.stats.get("cancelled"):
+                render_cryptomatte(ctx, region, film, should_cancel)
     finally:
         ctx.accel.close()
     film.stats["time_compile"] += t_compile

@@ -51,6 +51,7 @@ from .lights import prepare_lights
 from .shadowtransmittance import ShadowTransmittance
 from .parallel import Cancelled, StopFlag, drain, polled_by
 from .progressive import PassMerger, pass_settings
+from .mallocheap import render_heap
 from .render import Context, _check_region, packed_lights_for, render_pass, shoot_photons
 from .resources import check_resources
 from .scene import Camera, Scene
@@ -393,23 +394,27 @@ class Session:
         merger = PassMerger(x1 - x0, y1 - y0)
         t0 = time.perf_counter()
         i = 0
-        while self.passes == 0 or i < self.passes:
-            i += 1
-            self._check()
-            ctx.settings = pass_settings(s, i)
-            photon_stats = self._maps(i)
-            if i == 1:
-                for scale in self.preview_scales:
-                    self._preview(scale, scene, region, photon_stats, t0, generation)
-            film = render_pass(ctx, region, None, self._cancel.is_set, shoot=False)
-            if film.stats.get("cancelled"):
-                raise Cancelled()
-            film.stats.update(photon_stats)
-            merger.add(film)
-            self.counters.passes += 1
-            done = self.passes > 0 and i >= self.passes
-            self._publish(merger.film, region, (W, H), 1, i, merger.photons, t0, generation,
-                          done)
+        # One malloc setting over this view's passes and maps (engine/mallocheap.py):
+        # the heaps a pass grew serve the next; trimmed once when they end or an edit
+        # cancels them, not after every pass.
+        with render_heap():
+            while self.passes == 0 or i < self.passes:
+                i += 1
+                self._check()
+                ctx.settings = pass_settings(s, i)
+                photon_stats = self._maps(i)
+                if i == 1:
+                    for scale in self.preview_scales:
+                        self._preview(scale, scene, region, photon_stats, t0, generation)
+                film = render_pass(ctx, region, None, self._cancel.is_set, shoot=False)
+                if film.stats.get("cancelled"):
+                    raise Cancelled()
+                film.stats.update(photon_stats)
+                merger.add(film)
+                self.counters.passes += 1
+                done = self.passes > 0 and i >= self.passes
+                self._publish(merger.film, region, (W, H), 1, i, merger.photons, t0, generation,
+                              done)
 
     def _preview(self, scale, scene, region, photon_stats, t0, generation):
         W, H = scene.width, scene.height
