@@ -97,3 +97,13 @@ def sphere_grid(n_theta, n_phi):
     t, p = np.meshgrid(th, ph, indexing="ij")
     d = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
     return d, np.sin(t).reshape(-1), (math.pi / n_theta) * (2 * math.pi / n_phi)
+
+
+def assert_unbiased(e, want, label="", rel=0.01):
+    """Samples e (N,) of an estimator against the exact value want: the mean within 4
+    standard errors and within rel of it (printed with the per-sample std / mean)."""
+    se = e.std() / math.sqrt(len(e))
+    print(label, f"mean/want {e.mean() / want:.4f} se/want {se / want:.4f} "
+          f"std/mean {e.std() / e.mean():.3f}")
+    assert abs(e.mean() - want) < 4 * se
+    assert abs(e.mean() / want - 1.0) <= rel

@@ -24,6 +24,7 @@ from engine.lights.selection import empty_tree
 from engine.render import prepare_context
 from engine.api import PaperScene
 from engine.scene import Camera, LightPortal, Material
+from helpers import assert_unbiased
 
 L = 0.8
 HALF, H, W = 2.0, 2.0, 0.5   # room half width, height, the opening's half width (m)
@@ -111,11 +112,7 @@ def test_floor_under_the_opening_gets_L_times_its_projected_solid_angle(point, m
     assert len(ctx.lights[li].portal_rects) == 1
     e = _samples(ctx, li, (*point, 0.0), 200_000, 5)
     want = _opening_irradiance(*point)
-    se = e.std() / math.sqrt(len(e))
-    print(point, f"mean/want {e.mean() / want:.4f} se/want {se / want:.4f} "
-          f"std/mean {e.std() / e.mean():.3f}")
-    assert abs(e.mean() - want) < 4 * se
-    assert e.mean() == pytest.approx(want, rel=0.01)
+    assert_unbiased(e, want, point)
 
 
 def test_portal_sampling_cuts_the_floor_noise(monkeypatch):

@@ -19,6 +19,7 @@ from engine.lights.environment import Environment
 from engine.lights.packing import pack_lights
 from engine.lights.portalmap import table_size
 from engine.scene import LightPortal
+from helpers import assert_unbiased
 from test_light_portal_shadows import (H, W, _context, _floor_hits, _room, _sample_with_pdfs,
                                        _samples)
 
@@ -85,11 +86,7 @@ def test_floor_under_a_sun_through_the_portal_gets_the_grid_integral(case, rotat
     assert ctx.lights[li].portal_tables is not None
     e = _samples(ctx, li, (*point, 0.0), 200_000, 11)
     want = _grid_irradiance(img, point, R)
-    se = e.std() / math.sqrt(len(e))
-    print(case, f"mean/want {e.mean() / want:.4f} se/want {se / want:.4f} "
-          f"std/mean {e.std() / e.mean():.3f}")
-    assert abs(e.mean() - want) < 4 * se
-    assert e.mean() == pytest.approx(want, rel=0.01)
+    assert_unbiased(e, want, case)
 
 
 def _overlapping_portals(scene):
@@ -113,11 +110,7 @@ def test_overlapping_portals_stay_unbiased_and_their_pdf_is_the_continuations():
     assert len(ctx.lights[li].portal_rects) == 3
     e = _samples(ctx, li, (*point, 0.0), 200_000, 12)
     want = _grid_irradiance(img, point)
-    se = e.std() / math.sqrt(len(e))
-    print(f"mean/want {e.mean() / want:.4f} se/want {se / want:.4f} "
-          f"std/mean {e.std() / e.mean():.3f}")
-    assert abs(e.mean() - want) < 4 * se
-    assert e.mean() == pytest.approx(want, rel=0.01)
+    assert_unbiased(e, want)
     rng = np.random.default_rng(3)
     n = 4000
     pts = np.column_stack([rng.uniform(-1.9, 1.9, n), rng.uniform(-1.9, 1.9, n), np.zeros(n)])
