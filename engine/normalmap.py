@@ -65,7 +65,12 @@ def bump_shadowing_term(m0, m1, m2, n0, n1, n2, i0, i1, i2, diffuse):
         return 1.0
     if cos_i < 1e-6:
         return 0.0
-    alpha2 = min(max(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0), 1.0)
+    # tan^2(theta_d) / 8 reaches the clamp at cos^2 = 1/9: there (a normal bent 90
+    # degrees, as a Bevel at an axis-aligned cube's edge gives) 1, without dividing by 0.
+    if cos_d * cos_d <= 1.0 / 9.0:
+        alpha2 = 1.0
+    else:
+        alpha2 = min(max(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0), 1.0)
     lam = 0.5 * (math.sqrt(1.0 + alpha2 * max(1.0 / (cos_i * cos_i) - 1.0, 0.0)) - 1.0)
     return 1.0 / (1.0 + lam)
 

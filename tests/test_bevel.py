@@ -62,3 +62,25 @@ def test_at_an_edge_the_normal_leans_half_way(cube):
     # A batch's reverse gives every hit the same normal (samples hash the hit).
     rev = Bevel(0.1, samples=16).perturb(cube.geo, prim[::-1], u[::-1], v[::-1], n)
     np.testing.assert_array_equal(out, rev[::-1])
+
+
+def test_an_axis_aligned_cube_renders_with_photons():
+    """A Bevel at an axis-aligned cube's edge can bend the normal to the next face's, 90
+    degrees off the smooth one: the bump shadowing term's tan^2 / 8 clamps to 1 there
+    (it divided by cos = 0 and stopped the render in the photon pass: new-user trial s35,
+    Blender's default cube with a Bevel into its BSDF's Normal)."""
+    from engine import render
+    from engine.normalmap import bump_shadowing_term
+    assert bump_shadowing_term(0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.6, 0.0, 0.8, True) == \
+        pytest.approx(bump_shadowing_term(0.0, 0.0, 1.0, 0.8, 0.0, 0.33, 0.6, 0.0, 0.8, True))
+    s = PaperScene(width=24, height=18)
+    s.add_material(Material("bevelled", (0.6, 0.6, 0.6), normal_map=Bevel(radius=0.2)))
+    s.add_material(Material("floor", (0.5, 0.5, 0.5)))
+    s.add_box((0, 0, 0.5), (1, 1, 1), "bevelled", name="cube")
+    s.add_box((0, 0, -0.05), (6, 6, 0.1), "floor", name="floor")
+    s.add_point_light((2.0, -2.0, 4.0), 800.0)
+    s.set_camera((3.0, -4.0, 3.0), (0, 0, 0.5), view_angle=40)
+    film = render(s, RenderSettings(spp=4, photons=20_000, caustic_photons=5_000, seed=1,
+                                    workers=1))
+    img = np.asarray(film.combined)
+    assert np.isfinite(img).all() and img[..., :3].mean() > 0.01
