@@ -208,9 +208,12 @@ def test_a_constant_map_is_as_quiet_as_a_constant_world(monkeypatch):
     noisier than the constant world of the same radiance (the portal uniform in its solid
     angle, pbrt-v4's spherical rectangle: the strategy a constant world keeps): within 5 %
     at a point under the opening and one at the room's edge (measured 0.324 / 0.319,
-    0.341 / 0.338)."""
+    0.341 / 0.338), the portal strategy's share bounded alike (a map's own bounds,
+    PORTAL_SHARE_MAP_*, are a policy for suns seen through windows, not the sampling's)."""
     import engine.lights as el
     from test_light_portal_shadows import L
+    monkeypatch.setattr(wl, "PORTAL_SHARE_MAP_LO", wl.PORTAL_SHARE_LO)
+    monkeypatch.setattr(wl, "PORTAL_SHARE_MAP_HI", wl.PORTAL_SHARE_HI)
     flat = np.full((16, 32, 3), L, np.float32)
     for point in ((0.3, -0.2), (-1.8, 1.5)):
         r_map, m_map = _noise(flat, point, monkeypatch)
