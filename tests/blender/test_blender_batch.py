@@ -333,6 +333,13 @@ def _run_split(stdout):
     return float(m.group(1)), float(m.group(2))
 
 
+def _rounding(parts) -> float:
+    """The most that times printed to 0.1 s (each part and their total) can lose against
+    their sum: 0.05 apiece (CI s35: two frames of 0.16 s printed 0.2 + 0.2, the run's
+    0.32 s printed 0.3)."""
+    return 0.05 * (len(parts) + 1) + 1e-9
+
+
 def test_batch_time_split_counts_every_render_of_the_run(tmp_path):
     """The closing line's 'rendering' is every render the run made: the teaching grid's
     tiles (--compare) and each frame of --frames, not the last still render alone (it read
@@ -345,8 +352,9 @@ def test_batch_time_split_counts_every_render_of_the_run(tmp_path):
     tiles = [float(t) for t in re.findall(r"^  [A-Za-z ]+ \| ([\d.]+) s,", res.stderr, re.M)]
     assert len(tiles) == 3, res.stderr[-2000:]  # local, ray tracing, photon mapping
     total, rendering = _run_split(res.stdout)
-    # (the tiles' times are printed to 0.1 s; the grid's call also loads the kernels)
-    assert rendering >= max(sum(tiles) - 0.15, 0.1), (rendering, tiles, res.stdout)
+    # (each time is printed to 0.1 s: the parts' and the total's roundings, 0.05 each,
+    # may add up against the sum; the grid's call also loads the kernels)
+    assert rendering >= max(sum(tiles) - _rounding(tiles), 0.1), (rendering, tiles, res.stdout)
     assert rendering <= total
     res = _batch(blend, "-o", str(tmp_path / "f_####.png"), "--frames", "1..2", *SMALL)
     assert res.returncode == 0, res.stderr[-2000:]
@@ -354,5 +362,5 @@ def test_batch_time_split_counts_every_render_of_the_run(tmp_path):
                                            res.stderr, re.M)]
     assert len(frames) == 2, res.stderr[-2000:]
     total, rendering = _run_split(res.stdout)
-    assert rendering >= sum(frames) - 0.1, (rendering, frames, res.stdout)
+    assert rendering >= sum(frames) - _rounding(frames), (rendering, frames, res.stdout)
     assert rendering <= total
