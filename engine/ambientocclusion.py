@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import SHADOW
+from .rayoffset import offset_along_normal
 from .shadernodes import _PickBatch, _eval, _view
 
 # Only Local: the most surfaces of other objects a ray passes before it counts as
@@ -190,9 +191,8 @@ class OcclusionCore:
             # Continue from just beyond the other object's surface.
             p = geo.hit_points(hp, hu, hv)
             ng = np.asarray(np.take(geo.ng, hp, axis=0), np.float64).reshape(-1, 3)
-            gap = geo.origin_offset(hp, hu, hv, p, ng)
-            side = np.where(np.einsum("ij,ij->i", d[live], ng) < 0, -1.0, 1.0)
-            o[live] = p + (side * gap)[:, None] * ng
+            o[live] = offset_along_normal(p, ng, d[live],
+                                          geo.origin_offset(hp, hu, hv, p, ng))
             tmax[live] = tmax[live] - t
             keep = tmax[live] > 0
             live = live[keep]

@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from .ambientocclusion import hash_pair
+from .rayoffset import offset_along_normal
 
 # The most surfaces one probe ray collects (closest-hit queries along it)
 PROBE_LAYERS = 8
@@ -165,9 +166,8 @@ class Bevel:
                 nh = geo.shading_normals(hp[mine], hu[mine], hv[mine])
                 np.add.at(sum_n, rep[k], w[:, None] * nh)
             # On past this surface, whichever object it belongs to.
-            gap = geo.origin_offset(hp, hu, hv, hit_p, hit_ng)
-            side = np.where(np.einsum("ij,ij->i", d[live], hit_ng) < 0, -1.0, 1.0)
-            o[live] = hit_p + (side * gap)[:, None] * hit_ng
+            o[live] = offset_along_normal(hit_p, hit_ng, d[live],
+                                          geo.origin_offset(hp, hu, hv, hit_p, hit_ng))
             left[live] = left[live] - th
             live = live[left[live] > 0]
         ln = np.linalg.norm(sum_n, axis=1, keepdims=True)
