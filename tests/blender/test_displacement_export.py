@@ -1,8 +1,9 @@
 """Material Output > Displacement in the add-on (addon/materials.py _displacement): Cycles'
 "Bump Only" (the default method) and "Displacement and Bump" bump the shading normal by the
 displacement's height along the normal (engine/displacement.py), under the BSDF's own Bump
-node; a BSDF's Normal Map keeps its normal; "Displacement Only" and Tangent-space vector
-displacement are warned. The rendered match with Cycles: tools/feature_matrix.py
+node; a BSDF's Normal Map keeps its normal; "Displacement Only" and "Displacement and
+Bump" move the vertices (Material.displacement); Tangent-space vector displacement is
+warned. The rendered match with Cycles: tools/feature_matrix.py
 texture_displacement_bump and texture_displacement_under_bump (test_feature_matrix.py)."""
 import pytest
 from blender_helpers import convert_material as _convert
@@ -73,14 +74,22 @@ def test_bump_and_bevel_nodes_go_under_the_displacement_a_normal_map_replaces_it
     assert isinstance(mapped.normal_map, NormalMap)  # Cycles: built from the vertex normal
 
 
-def test_methods_that_move_the_surface_are_warned(fresh_scene, bpy_addon):
+def test_methods_that_move_the_surface_set_the_material_displacement(fresh_scene, bpy_addon):
+    """Displacement Only: the vertices move (Material.displacement), no bump; Displacement
+    and Bump: both; a constant height moves a truly displaced surface (an offset along
+    the normal) but bumps nothing. The moved render: test_true_displacement_cycles.py."""
     from engine import displacement as dp
     only = _convert(_displaced(bpy_addon, "TrueOnly", method="DISPLACEMENT"))
-    assert only.normal_map is None
-    assert any("Displacement Only" in w for w in only.warnings), only.warnings
+    assert only.normal_map is None and not only.warnings, only.warnings
+    assert isinstance(only.displacement, dp.Displacement)
+    assert only.displacement_method == "DISPLACEMENT" and dp.moves_vertices(only)
     both = _convert(_displaced(bpy_addon, "Both", method="BOTH"))
-    assert isinstance(both.normal_map, dp.DisplacedNormals)
-    assert any("not moved, only bumped" in w for w in both.warnings), both.warnings
+    assert isinstance(both.normal_map, dp.DisplacedNormals) and not both.warnings
+    assert isinstance(both.displacement, dp.Displacement) and both.displacement_method == "BOTH"
+    flat = _convert(_displaced(bpy_addon, "Offset", method="DISPLACEMENT", height=0.7))
+    assert flat.normal_map is None and dp.moves_vertices(flat)
+    bump = _convert(_displaced(bpy_addon, "BumpOnly2"))
+    assert bump.displacement is None and not dp.moves_vertices(bump)
 
 
 def test_constant_displacement_makes_no_bump(fresh_scene, bpy_addon):
