@@ -131,3 +131,27 @@ def test_a_texture_straight_into_displacement_is_its_vector(fresh_scene, bpy_add
     assert isinstance(mat.normal_map, dp.DisplacedNormals)
     assert not isinstance(mat.normal_map.bump.height.displacement,
                           (dp.Displacement, dp.VectorDisplacement))
+
+
+def test_adaptive_subdivision_is_warned_and_the_render_levels_used(fresh_scene, bpy_addon):
+    """Cycles dices a mesh whose last Subdivision modifier is adaptive to its pixel size;
+    Blender hands the exporter the modifier's render levels: warned, naming the object."""
+    bpy = bpy_addon
+    from addon import export
+    from addon.core import load_engine
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=2, y_subdivisions=2)
+    ob = bpy.context.object
+    ob.name = "Terrain"
+    mod = ob.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels = mod.render_levels = 2
+    from blender_helpers import looking_down_camera
+    looking_down_camera(bpy, fresh_scene, 3.0)
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=8)
+    assert not [w for w in out.warnings if "Adaptive" in w]
+    mod.use_adaptive_subdivision = True
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=8)
+    assert any("object 'Terrain': Adaptive Subdivision is not made" in w
+               and "render levels (2)" in w for w in out.warnings), out.warnings
+    assert sum(len(m.faces) for m in out.meshes) == 2 * 16 * 4  # 4 quads, 2 levels
