@@ -179,6 +179,14 @@ def filter_glossy_alpha(filter_glossy, diffuse_pdf) -> np.ndarray:
                     0.0)
 
 
+def _strong_reflector(geo: Geometry, table: MaterialTable, oid: int) -> bool:
+    """Whether object oid reflects or refracts much of the light it meets by a specular
+    lobe: glass, a mirror, a metal (specular_kind), or a Glossy BSDF."""
+    if specular_kind(geo, table, oid) in ("glass", "mirror", "polished metal", "metal"):
+        return True
+    return bool(np.any(_is_glossy_node(table, np.unique(geo.material[geo.object_id == oid]))))
+
+
 def _filter_glossy_note(plan: EffectPlan, filter_glossy: float, names) -> None:
     """The "glossy blur" line: Cycles' Filter Glossy (the scene's, read by the add-on) is
     on and light reaches diffuse surfaces off specular ones here (the caustic map's L S+ D
@@ -551,9 +559,11 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             plan.caster_ids = np.asarray(ids, np.int64)
             plan.casters = names
         if plan.caustics and s.cycles_filter_glossy > 0:
-            _filter_glossy_note(plan, s.cycles_filter_glossy,
-                                [n for _, _, _, n in reached]
-                                + [n for n in rough_reached if n not in translucent])
+            # Only strong reflectors: a dielectric specular layer (a Principled wall's
+            # ~4 %) throws too little light for the blur to show.
+            _filter_glossy_note(plan, s.cycles_filter_glossy, [
+                n for n in [n for _, _, _, n in reached] + rough_reached
+                if _strong_reflector(geo, table, ids_of[n])])
 
     # --- specular chains -------------------------------------------------------------------
     visible = _visible_specular(scene, geo, table, accel) if spec_tri.any() else []

@@ -766,13 +766,17 @@ def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_ima
         assert "'Block' throws onto diffuse surfaces" in line, line
         assert "matches Cycles with Filter Glossy 0" in line, line
     assert not any(r.startswith("glossy blur") for r in _plan(_metal_block_scene(0.4)).report())
-    # Nothing specular: nothing for Cycles to blur, no line.
-    plain = PaperScene(width=16, height=12)
-    plain.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
-    plain.add_point_light((0, 0, 3), power=10, name="Bulb")
-    plain.set_camera((0, -5, 2), (0, 0, 0.5))
-    assert not any(r.startswith("glossy blur")
-                   for r in _plan(plain, cycles_filter_glossy=1.0).report())
+    # Nothing specular, or only a dielectric specular layer (~4 % reflected: too little
+    # for the blur to show): no line.
+    for ball in ("white_diffuse", "plastic"):
+        plain = PaperScene(width=16, height=12)
+        plain.add_material(Material("plastic", (0.8, 0.2, 0.2), roughness=0.4, specular=1.0))
+        plain.add_plane((0, 0, 0), (0, 0, 1), 4, "white_diffuse", name="floor")
+        plain.add_sphere((0, 0, 0.5), 0.5, ball, name="Ball", segments=16)
+        plain.add_point_light((0, 0, 3), power=10, name="Bulb")
+        plain.set_camera((0, -5, 2), (0, 0, 0.5))
+        assert not any(r.startswith("glossy blur")
+                       for r in _plan(plain, cycles_filter_glossy=1.0).report()), ball
     # Cycles' formula: 0.5 sqrt(1 - pdf / Filter Glossy), none once pdf reaches it.
     a = filter_glossy_alpha([1.0, 1.0, 0.5, 0.0], [1 / np.pi, 0.0, 0.6, 0.1])
     assert np.allclose(a, [0.5 * np.sqrt(1 - 1 / np.pi), 0.5, 0.0, 0.0])
