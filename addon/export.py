@@ -831,6 +831,14 @@ def clamp_settings(scene, props) -> dict:
                 clamp_indirect=float(src.sample_clamp_indirect))
 
 
+def filter_glossy_settings(scene) -> dict:
+    """Cycles' Light Paths > Caustics > Filter Glossy as the RenderSettings keyword
+    cycles_filter_glossy (0 without the Cycles add-on): not simulated, only named by the
+    effect report where it changes Cycles' image (engine/settings.py)."""
+    cycles = getattr(scene, "cycles", None)
+    return dict(cycles_filter_glossy=float(getattr(cycles, "blur_glossy", 0.0) or 0.0))
+
+
 def border_region(render, width: int, height: int):
     """Render border as engine region (x0, y0, x1, y1), top-left origin, or None.
 

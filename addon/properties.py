@@ -324,7 +324,8 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
     def to_settings_kwargs(self, film_transparent=False):
         """Keyword arguments for engine.settings.RenderSettings (the pixel filter from
         the scene's Film settings: export.pixel_filter_settings)."""
-        from .export import clamp_settings, light_path_settings, pixel_filter_settings
+        from .export import (clamp_settings, filter_glossy_settings, light_path_settings,
+                             pixel_filter_settings)
         kwargs = dict(
             photons=self.photons, caustic_photons=self.caustic_photons,
             max_photon_depth=self.max_photon_depth, estimator=self.estimator,
@@ -349,6 +350,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         kwargs.update(pixel_filter_settings(self.id_data))
         kwargs.update(light_path_settings(self.id_data, self))
         kwargs.update(clamp_settings(self.id_data, self))
+        kwargs.update(filter_glossy_settings(self.id_data))
         return kwargs
 
 

@@ -1048,6 +1048,22 @@ def _scatter(key, bounce, d, power, flags, kinds, slot, bnc, geom, prim, starts,
                     ox, oy, oz = ox / ln, oy / ln, oz / ln
                 side = ox * gx + oy * gy + oz * gz
                 ok = ((side < 0.0) if transmitted else (side > 0.0)) and math.isfinite(ln)
+                if ok and not transmitted and not glass and lobe != pr.L_TRANSL:
+                    # Shading normals are not symmetric: the camera side weighs light by
+                    # its cosine to the shading normal, while photons arrive and leave a
+                    # surface by its true (geometric) area, so a photon's reflection
+                    # takes f |wi.Ns| |wo.Ng| / (|wi.Ng| pdf) (Veach 1997, sec. 5.3, the
+                    # adjoint BSDF), not f |wo.Ns| / pdf. Without it the light off a
+                    # normal-mapped metal onto the floor beside it read 1.14x Cycles,
+                    # whose paths meet the metal from the floor (docs/accuracy.md, glow36).
+                    cs_in = -(dx * n0 + dy * n1 + dz * n2)
+                    cg_in = -(dx * gx + dy * gy + dz * gz)
+                    cs_out = ox * n0 + oy * n1 + oz * n2
+                    if cg_in > 0.0 and cs_out > 0.0:
+                        sh = (cs_in * side) / (cg_in * cs_out)
+                        k0, k1, k2 = k0 * sh, k1 * sh, k2 * sh
+                    else:
+                        ok = False
                 ok = ok and max(k0, max(k1, k2)) > 0.0
                 if glass:
                     lobe = pr.L_GLASS_T if transmitted else pr.L_GLASS_R

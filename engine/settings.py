@@ -47,6 +47,8 @@ FILTER_WIDTH_MAX = 500.0  # pixels: Blender's limit for the filter size
 # Cycles' Light Paths > Clamping (sample_clamp_direct / _indirect) takes 0 .. 1e8 in its UI
 # (RNA soft max 1e8; 0 = off): the same range here (engine/sampleclamp.py).
 CLAMP_MAX = 1e8
+# Cycles' Light Paths > Caustics > Filter Glossy takes 0 .. 10 (RNA hard max; 0 = off).
+FILTER_GLOSSY_MAX = 10.0
 
 
 # Cycles' Light Paths defaults (max, diffuse, glossy, transmission bounces): ours too, so
@@ -118,6 +120,14 @@ class RenderSettings:
     # engine render is unbiased; the add-on reads Cycles' own (its default Indirect 10).
     clamp_direct: float = 0.0
     clamp_indirect: float = 0.0
+    # Cycles' Light Paths > Caustics > Filter Glossy of the scene (0 = off; Cycles' default
+    # 1.0), read by the add-on only so the effect report can say where Cycles' image
+    # differs: Cycles widens every glossy, mirror and glass lobe its paths meet after a
+    # diffuse bounce (to GGX alpha 0.41-0.5 at 1.0: surface_shader_prepare_closures), which
+    # dims the light a rough metal throws onto the floor beside it by up to ~18 %
+    # (docs/accuracy.md, glow36). Not simulated: the engine renders that light unblurred,
+    # as Cycles with Filter Glossy 0.
+    cycles_filter_glossy: float = 0.0
     adaptive_min_samples: int = 0
     # An extra cap on the specular bounces along a camera path (the paper's
     # MaxRayTraceDepth), transparent passes included. Off by default (1024, the most
@@ -275,6 +285,13 @@ class RenderSettings:
                 raise ValueError(f"setting '{name}' (Cycles' Clamp {name[6:].title()}) must be "
                                  f"a number from 0 (off) to {CLAMP_MAX:g}, got {v!r}")
             setattr(self, name, c)
+        v = self.cycles_filter_glossy
+        ok = isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool)
+        fg = float(v) if ok else float("nan")
+        if not 0.0 <= fg <= FILTER_GLOSSY_MAX:
+            raise ValueError("setting 'cycles_filter_glossy' (Cycles' Filter Glossy) must be a "
+                             f"number from 0 (off) to {FILTER_GLOSSY_MAX:g}, got {v!r}")
+        self.cycles_filter_glossy = fg
         self.data_passes = _word_set("data_passes", self.data_passes, DATA_PASSES)
         self.cryptomatte = _word_set("cryptomatte", self.cryptomatte, CRYPTOMATTE_KINDS)
         lv = self.cryptomatte_levels
