@@ -628,23 +628,24 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
 
 def light_portal(pm, L, matrix: np.ndarray, name: str, warnings: list):
     """An Area light with Cycles' Portal on (light data L, world matrix (4,4)): emits
-    nothing in Cycles, so no light here either; a rectangle (Square / Rectangle; an
-    Ellipse / Disk portal as its bounding rectangle is not Cycles' shape: skipped with a
-    warning) as engine.scene.LightPortal, its normal the light's local -Z (into the
-    room), or None."""
-    if L.shape not in ("SQUARE", "RECTANGLE"):
+    nothing in Cycles, so no light here either; its rectangle (Square / Rectangle, or
+    the one a Disk / Ellipse portal is inscribed in, round: Cycles' is_round portals) as
+    engine.scene.LightPortal, its normal the light's local -Z (into the room), or None."""
+    rnd = L.shape in ("DISK", "ELLIPSE")
+    if not (rnd or L.shape in ("SQUARE", "RECTANGLE")):
         warnings.append(f"light portal '{name}': shape {L.shape} is not supported (only "
-                        "Square and Rectangle portals); it is left out (it emits nothing)")
+                        "Square, Rectangle, Disk and Ellipse portals); it is left out "
+                        "(it emits nothing)")
         return None
     R = matrix[:3, :3]
     hx = 0.5 * float(L.size) * R[:, 0]
-    hy = 0.5 * float(L.size_y if L.shape == "RECTANGLE" else L.size) * R[:, 1]
+    hy = 0.5 * float(L.size_y if L.shape in ("RECTANGLE", "ELLIPSE") else L.size) * R[:, 1]
     c = matrix[:3, 3]
     corners = np.array([c - hx - hy, c + hx - hy, c + hx + hy, c - hx + hy])
     normal = -R[:, 2]
     if not (np.linalg.norm(np.cross(hx, hy)) > 0 and np.linalg.norm(normal) > 0):
         return None
-    return pm.LightPortal(name=name, corners=corners, normal=normal)
+    return pm.LightPortal(name=name, corners=corners, normal=normal, round=rnd)
 
 
 def split_portals(pm, lights: list) -> tuple:

@@ -627,6 +627,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                      "each surface, where the sky lights it most" if env is None else
                      f"environment map '{env.name}' ({env.width}x{env.height}) lights the "
                      "scene (shadow rays importance-sample the map)")
+            leak = _portal_leak_note(li)
+            if leak:
+                plan.warnings.append(leak)
             continue
         sized = li.has_size
         if s.soft_shadows == "off":
@@ -816,6 +819,21 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                  "along camera paths, photons and shadow rays; volume scattering is not "
                  "simulated")
     return plan
+
+
+def _portal_leak_note(world) -> str:
+    """A warning naming the light portals whose opening reaches past them
+    (lights.portal_leaks), or ''."""
+    names = getattr(world, "portal_leaks", None)
+    if not names:
+        return ""
+    many = len(names) > 1
+    quoted = ", ".join(f"'{n}'" for n in names)
+    return (f"light portal{'s' if many else ''} {quoted}: the opening reaches past "
+            f"{'their' if many else 'its'} edges, so the sky seen there is found without "
+            "the portal's help and fewer shadow rays are aimed through the portals (more "
+            f"noise); make {'each' if many else 'the'} portal cover its whole window "
+            "(Size X / Size Y along the opening's sides)")
 
 
 def _warn_max_ray_depth(plan: EffectPlan, s, kinds: dict) -> None:

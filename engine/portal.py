@@ -61,6 +61,9 @@ PORTAL_SHARE_MAX = 0.9
 # through them (the rest directly: an open scene, an outdoor one).
 PORTAL_MIN_SKY = 0.5
 PORTAL_STREAM = 98  # the lookups' sky rays' seed stream
+# A round light portal's photons start on the ROUND_SIDES-gon inscribed in its ellipse
+# (99.4 % of its area; a triangle each, Portals.hits tests them one by one).
+ROUND_SIDES = 32
 # Emission numbers of a portal photon: 0 the triangle, 1, 2 the point, 3, 4 the
 # direction, 5 the world's strategy (map x cosine or cosine).
 DIMS = 6
@@ -119,7 +122,7 @@ class Portals:
 def portals_from(geo, panes, n_in_panes, light_portals) -> Portals | None:
     """Portals of the panes (panelight.Panes or None; their inward normals n_in_panes
     (K,3)) and the scene's light portals (engine.scene.LightPortal list: each rectangle
-    two triangles, re-centred by geo.offset), or None without any."""
+    two triangles, a round one the fan of its ROUND_SIDES-gon; re-centred by geo.offset), or None without any."""
     names, v0, e1, e2, k, n_in = [], [], [], [], [], []
     K = 0
     if panes is not None and panes.area > 0.0:
@@ -134,10 +137,23 @@ def portals_from(geo, panes, n_in_panes, light_portals) -> Portals | None:
     off = np.asarray(getattr(geo, "offset", np.zeros(3)), np.float64)
     for lp in light_portals or ():
         c = lp.corners - off
-        v0.append(np.array([c[0], c[0]]))
-        e1.append(np.array([c[1] - c[0], c[2] - c[0]]))
-        e2.append(np.array([c[2] - c[0], c[3] - c[0]]))
-        k.append(np.array([K, K]))
+        if getattr(lp, "round", False):
+            # A round portal (Disk / Ellipse): the fan of the ROUND_SIDES-gon inscribed
+            # in its ellipse. The split stays exact: the natural photons crossing the
+            # slivers between the polygon and the ellipse are kept (not on a portal).
+            a = 2.0 * math.pi * np.arange(ROUND_SIDES + 1) / ROUND_SIDES
+            rim = (c[0] + np.outer(0.5 + 0.5 * np.cos(a), c[1] - c[0])
+                   + np.outer(0.5 + 0.5 * np.sin(a), c[3] - c[0]))
+            centre = 0.5 * (c[0] + c[2])
+            v0.append(np.repeat(centre[None], ROUND_SIDES, axis=0))
+            e1.append(rim[:-1] - centre)
+            e2.append(rim[1:] - centre)
+            k.append(np.full(ROUND_SIDES, K))
+        else:
+            v0.append(np.array([c[0], c[0]]))
+            e1.append(np.array([c[1] - c[0], c[2] - c[0]]))
+            e2.append(np.array([c[2] - c[0], c[3] - c[0]]))
+            k.append(np.array([K, K]))
         names.append(lp.name)
         n_in.append(lp.normal)
         K += 1

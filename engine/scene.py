@@ -1008,12 +1008,15 @@ class LightPortal:
     """A Cycles light portal (an Area light with Portal on: Light > Cycles > Portal): a
     rectangle over an opening that emits nothing and tells where the world's light enters
     a room. corners (4,3) world space (m), in order round the rectangle; normal (3,) unit,
-    the light's local -Z: into the room. Cycles samples the background through it; here
-    the world's and suns' photons may start on it (engine/portal.py)."""
+    the light's local -Z: into the room; round: a Disk / Ellipse portal (Cycles'
+    is_round), the ellipse inscribed in the rectangle. Cycles samples the background
+    through it; here the world's shadow rays (lights/world.py) and the world's and suns'
+    photons (engine/portal.py) may too."""
 
     name: str
     corners: np.ndarray
     normal: np.ndarray
+    round: bool = False
 
     def __post_init__(self):
         self.corners = np.asarray(self.corners, np.float64).reshape(4, 3)
@@ -1023,6 +1026,7 @@ class LightPortal:
             raise SceneError(f"light portal '{self.name}': corners and normal must be "
                              "finite, the normal non-zero")
         self.normal = n / norm
+        self.round = bool(self.round)
 
 
 @dataclass

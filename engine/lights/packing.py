@@ -22,10 +22,13 @@ SPHERE = 44                 # point / spot: 1 for a sphere (Soft Falloff off), 0
 # world: Cycles light portals (engine/lights/world.py, lightportal34): how many (0: none,
 # the shadow rays as before), the portal strategy's share bounds, 1 when the portals are
 # sampled by the environment map seen through them (lights/portalmap.py, portalenv35; 0:
-# uniform in their solid angle), then MAX_PORTALS rectangles of PORTAL_STRIDE slots:
-# corner s, edges ex, ey (re-centred world space, m) and the unit normal into the room.
-PORTAL_N, PORTAL_LO, PORTAL_HI, PORTAL_MAP, PORTAL0 = 45, 46, 47, 48, 49
-PORTAL_STRIDE = 12
+# uniform in their solid angle), the share rule (world.PORTAL_RULE_*), then MAX_PORTALS
+# portals of PORTAL_STRIDE slots: corner s, edges ex, ey (re-centred world space, m), the
+# unit normal into the room and 1 for a round portal (the ellipse inscribed in the
+# rectangle, portals36), else 0.
+PORTAL_N, PORTAL_LO, PORTAL_HI, PORTAL_MAP, PORTAL_RULE, PORTAL0 = 45, 46, 47, 48, 49, 50
+PORTAL_STRIDE = 13
+PORTAL_ROUND = 12  # (within a portal's slots)
 MAX_PORTALS = 4
 P = PORTAL0 + PORTAL_STRIDE * MAX_PORTALS
 

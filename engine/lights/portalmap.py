@@ -65,7 +65,10 @@ non-zero pdf.
 """
 from __future__ import annotations
 
+import hashlib
 import math
+import weakref
+from collections import OrderedDict
 
 import numpy as np
 
@@ -97,6 +100,50 @@ def table_size(map_height: int) -> tuple[int, int]:
     return n, PORTAL_TABLE_SUB
 
 
+# Tables kept between prepares (portals36): a re-render, a progressive pass or a second
+# prepare of the same portals under the same map reuses them (0.2-1.4 s a portal to
+# build); at most PORTAL_TABLE_KEPT sets (16 (2 N + 1)^2 bytes a portal, 67 MB at N 1024).
+# One: the set a render uses stays for the next render (in Blender's process too), and
+# no second set doubles that (up to ~270 MB with four portals at N 1024).
+PORTAL_TABLE_KEPT = 1
+_kept: OrderedDict = OrderedDict()
+_map_keys: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+# Portal tables built (one a portal) since the process started: tests read it.
+tables_built = 0
+
+
+def map_key(environment) -> bytes:
+    """A digest of what an environment's tables read (its stored texels, their scale,
+    rotation and lookup code), once per Environment object."""
+    key = _map_keys.get(environment)
+    if key is None:
+        h = hashlib.blake2b(digest_size=16)
+        h.update(np.ascontiguousarray(environment.stored).view(np.uint8).ravel())
+        for a in (environment.scale, environment.rotation):
+            h.update(np.ascontiguousarray(a, np.float64).tobytes())
+        h.update(repr((int(environment.interp_code), environment.stored.shape,
+                       str(environment.stored.dtype))).encode())
+        key = h.digest()
+        _map_keys[environment] = key
+    return key
+
+
+def portal_tables(environment, rects: np.ndarray):
+    """build_portal_tables' (f, sat), kept: the same portal rectangles (the same bytes)
+    under a map of the same content at the same table size are not built again."""
+    rects = np.ascontiguousarray(rects, np.float64).reshape(-1, 4, 3)
+    key = (rects.tobytes(), map_key(environment), table_size(environment.height))
+    hit = _kept.get(key)
+    if hit is not None:
+        _kept.move_to_end(key)
+        return hit
+    tables = build_portal_tables(environment, rects)
+    _kept[key] = tables
+    while len(_kept) > PORTAL_TABLE_KEPT:
+        _kept.popitem(last=False)
+    return tables
+
+
 def build_portal_tables(environment, rects: np.ndarray):
     """The tables of portals rects (K,4,3) (corner s, edges ex, ey, unit normal into the
     room; WorldLight.portal_rects) under `environment` (an engine Environment):
@@ -106,6 +153,8 @@ def build_portal_tables(environment, rects: np.ndarray):
     K = len(rects)
     n, sub = table_size(environment.height)
     f = np.zeros((K, n, n))
+    global tables_built
+    tables_built += K
     for k in range(K):
         fill_table(environment.rotation, environment.stored, int(environment.interp_code),
                    np.ascontiguousarray(environment.scale, np.float64), rects[k], sub, f[k])

@@ -533,7 +533,9 @@ def test_render_visibility_leaves_out_what_a_final_render_does(fresh_scene):
 def test_cycles_light_portal_is_a_portal_not_a_light(fresh_scene, bpy_addon):
     """An Area light with Cycles' Portal on emits nothing in Cycles: it exports as an
     engine LightPortal (its rectangle and its -Z, into the room), not a light; before
-    portal34 it became a 10 W area light. A Disk portal is left out with a warning."""
+    portal34 it became a 10 W area light. A Disk portal exports as a round LightPortal
+    (Cycles' is_round; left out with a warning before portals36), its square the disk's
+    bounding one; an Ellipse takes its two sizes."""
     from addon import export
     from addon.core import load_engine
     bpy = bpy_addon
@@ -546,14 +548,23 @@ def test_cycles_light_portal_is_a_portal_not_a_light(fresh_scene, bpy_addon):
     ob.data.cycles.is_portal = True
     disk = _light(bpy, "Round", "AREA", (0.0, 0.0, 3.0), shape="DISK", size=1.0)
     disk.data.cycles.is_portal = True
+    oval = _light(bpy, "Oval", "AREA", (0.0, 0.0, 4.0), shape="ELLIPSE", size=1.0,
+                  size_y=0.4)
+    oval.data.cycles.is_portal = True
     _light(bpy, "Lamp", "POINT", (0.0, 0.0, 1.0), energy=5.0)
     out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
                                  width=8, height=6)
     assert [li.name for li in out.lights] == ["Lamp"]
-    assert [p.name for p in out.portals] == ["Window"]
-    p = out.portals[0]
+    assert sorted(p.name for p in out.portals) == ["Oval", "Round", "Window"]
+    by = {p.name: p for p in out.portals}
+    assert not by["Window"].round and by["Round"].round and by["Oval"].round
+    for name, half in (("Round", (0.5, 0.5)), ("Oval", (0.5, 0.2))):
+        c = by[name].corners
+        np.testing.assert_allclose(c.max(axis=0)[:2], half, atol=1e-6)
+        np.testing.assert_allclose(c.min(axis=0)[:2], (-half[0], -half[1]), atol=1e-6)
+    assert not any("light portal" in w for w in out.warnings)
+    p = by["Window"]
     np.testing.assert_allclose(p.normal, (0.0, 0.0, 1.0), atol=1e-6)  # -Z turned over
     lo, hi = p.corners.min(axis=0), p.corners.max(axis=0)
     np.testing.assert_allclose(lo, (0.0, 1.75, 3.0), atol=1e-6)  # 2 x 0.5 m round (1, 2, 3)
     np.testing.assert_allclose(hi, (2.0, 2.25, 3.0), atol=1e-6)
-    assert any("light portal 'Round'" in w for w in out.warnings)
