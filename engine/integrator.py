@@ -28,7 +28,7 @@ from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
 from . import (adaptive, chaincounts, datapasses, media, photonvisibility, sampleclamp,
-               shadelight)
+               shadelight, volumescatter)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -755,6 +755,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # The medium each ray is in, by hit row (a hit has one ray a step; -1: none known,
     # the back-face rule; engine/media.py). None: no absorbing material.
     medium_h = np.empty(n, np.int64) if sigma.shape[0] else None
+    # Scattering media (engine/volumescatter.py; None: no material scatters).
+    scatter = (volumescatter.CameraScattering.for_context(ctx) if medium_h is not None
+               else None)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -856,7 +859,14 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # Gather rays that travelled inside an absorbing medium keep
                 # exp(-sigma_a s) of the segment (engine/media.py). (A new array: the
                 # buffer's throughput rows stay ones.)
+                tp_seg = tp
                 tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium_h[idx])
+                if scatter is not None:
+                    # The lamps' light a scattering medium sends along the ray (single
+                    # scattering, engine/volumescatter.py): the fog's glow on the surface.
+                    src, Ls = scatter.radiance(prim, o, d, t, medium_h[idx], rng, counters)
+                    if len(src):
+                        E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
                 Le = y.emission
@@ -2092,6 +2102,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # the medium each path is in (-1: none known; a camera inside one: the local rule).
     sigma = media.absorption_table(ctx.table)
     medium = np.full(len(o), -1, np.int64) if sigma.shape[0] else None
+    # Light scattered towards the camera inside scattering media (engine/volumescatter.py;
+    # None: no material scatters), from its own stream of numbers (made when first needed).
+    scatter = volumescatter.CameraScattering.for_context(ctx) if medium is not None else None
+    vol_rng = None
     # Cycles' bounce limits on the camera chain (docs/design.md, Bounce limits): each
     # path's glossy / transmission bounces so far and their total; a path past a limit
     # still collects emission and the background where its ray ends (Cycles'
@@ -2251,7 +2265,17 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # shaded and continued (engine/media.py).
             if kept is not None:
                 medium = medium[kept]
+            tp_seg = tp  # (attenuated returns a new array when it dims any row)
             tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium)
+            if scatter is not None:
+                # The light the medium scatters into the segment (single scattering of
+                # the lamps' light, weighted by the throughput at its start).
+                if vol_rng is None:
+                    # A child of bsdf_rng's stream (left as it was), as glass_rng.
+                    vol_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
+                               else np.random.default_rng(rng.integers(1 << 62)))
+                scatter.add(acc, "direct" if bounce == 0 else "specular", pix, prim, o, d, t,
+                            medium, tp_seg, vol_rng, counters)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
