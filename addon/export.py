@@ -788,6 +788,23 @@ def cycles_source(scene, props, names):
     return props
 
 
+def volume_bounces_warning(scene, materials, warnings) -> None:
+    """Light Paths > Volume bounces above 0 (scene.cycles.volume_bounces; Cycles' default
+    is 0) with a scattering medium in the scene: the media scatter once here
+    (engine/volumescatter.py: single scattering, what Cycles renders at 0), warned with
+    the materials named, as the extra bounces' light is missing."""
+    bounces = int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0) or 0)
+    if bounces <= 0:
+        return
+    names = sorted(name for name, m in materials.items()
+                   if np.any(np.asarray(getattr(m, "scattering", 0.0)) > 0))
+    if names:
+        shown = ", ".join(f"'{n}'" for n in names[:3]) + (", ..." if len(names) > 3 else "")
+        warnings.append(f"Light Paths > Volume bounces is {bounces}: multiple volume "
+                        f"scattering is not simulated; the media of {shown} scatter the "
+                        "lamps' light once (as Cycles at Volume bounces 0)")
+
+
 def light_path_source(scene, props):
     """Where the Light Paths limits come from (cycles_source): a scene set to Diffuse 1
     for Cycles renders with 1 here too."""
@@ -1293,6 +1310,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     if render.use_motion_blur:
         warnings.append("motion blur is not supported and ignored")
+    volume_bounces_warning(scene_eval, materials, warnings)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
                      background_is_light=True, environment=environment,

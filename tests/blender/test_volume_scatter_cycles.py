@@ -95,3 +95,18 @@ def test_fog_box_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path):
     ratio = ours.reshape(-1, 3).sum(axis=0) / ref.reshape(-1, 3).sum(axis=0)
     print("image sum ratio", ratio.round(4))
     np.testing.assert_allclose(ratio, 1.0, rtol=0.01)
+
+
+def test_volume_bounces_above_zero_are_warned(bpy_addon, tmp_path):
+    """Light Paths > Volume bounces 2 with a scattering fog: warned (the media scatter
+    once here, as Cycles at its default 0), naming the material; at 0 no warning."""
+    bpy = bpy_addon
+    from addon import engine
+    scene = _scene(bpy)
+    for bounces, warned in ((2, True), (0, False)):
+        scene.cycles.volume_bounces = bounces
+        _render(bpy, scene, tmp_path / f"vb{bounces}.exr", "PHOTONMAP", 1)
+        found = [w for w in engine.last_render.get("warnings", []) if "Volume bounces" in w]
+        assert bool(found) == warned, found
+        if warned:
+            assert "'fog'" in found[0] and "is 2" in found[0]
