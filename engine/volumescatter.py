@@ -17,7 +17,10 @@ arriving from wi (g > 0: forward scattering, the glow around a light seen throug
 
 One distance a segment (sample_segments): s drawn from the exponential of the channels'
 mean extinction truncated to [0, S] (pbrt-v4's ratio-free homogeneous sampling, its pdf
-exact), the estimate T(s) sigma_s / pdf(s) per channel. At that point the lights are
+exact) or, for half the segments when the scene has point or spot lights, equiangularly
+towards one of them (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path
+Tracing in Participating Media": the 1 / r^2 near a lamp sampled where it peaks), the
+pdf the strategies' mixture; the estimate T(s) sigma_s / pdf(s) per channel. At that point the lights are
 sampled as at a surface (engine/directlight.py sample_lights, every light kind, the light
 tree), with the point's "normal" the ray's direction and its opposite in two halves
 (the surface's cosine, which sample_lights folds into its irradiance, divided out again;
@@ -43,9 +46,16 @@ import numpy as np
 from . import media
 from .directlight import DirectLightBuffers, NO_HROWS, NO_ROWS, NO_ROWS3, sample_lights
 from .jit import kernel, register_warm_up
+from .lights import packing as pk
+from .lights.packing import pack_lights
 from .lights.selection import empty_tree
 
 FOUR_PI = 4.0 * math.pi
+# Equiangular sampling towards point and spot lights, half the segments' distances
+# (sample_segments); False: the exponential alone (docs/accuracy.md, volscatter36).
+EQUIANGULAR = True
+MAX_EQUIANGULAR = 8  # the strongest point / spot lights it aims at
+NO_POINTS = np.zeros((0, 3))
 
 
 def scattering_tables(table):
@@ -72,18 +82,34 @@ def hg_phase(cos_theta, g):
 
 
 @kernel
-def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u,
-                    src, p, w, seg_m):
+def _equiangular(ox, oy, oz, dx, dy, dz, S, cx, cy, cz):
+    """(t0, D, theta_a, theta_b) of equiangular sampling (Kulla & Fajardo 2012) on the
+    segment o + s d, s in [0, S] (d unit), towards the point c: t0 the foot of c on the
+    line, D its distance (floored), theta_a, theta_b the angles of the segment's ends."""
+    t0 = (cx - ox) * dx + (cy - oy) * dy + (cz - oz) * dz
+    qx, qy, qz = ox + t0 * dx - cx, oy + t0 * dy - cy, oz + t0 * dz - cz
+    D = max(math.sqrt(qx * qx + qy * qy + qz * qz), 1e-9)
+    return t0, D, math.atan2(-t0, D), math.atan2(S - t0, D)
+
+
+@kernel
+def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u, u_pick,
+                    eq_pos, src, p, w, seg_m):
     """One in-scattering point per camera segment inside a scattering medium.
 
     rows (n,) int64 the triangle each ray met (< 0: none), material (T,) int32, e1, e2
     (T,3) edges; medium (n,) int64 each ray's medium (-1: not known: the segment was inside
     the medium of the object whose back face it ends on, media.leaving_transmittance's
-    rule); o, d (n,3) the rays, t (n,) their hit distances in units of |d|; u (n,) uniform
-    numbers. Writes, compacted over the segments in a medium with sigma_s > 0: src (K,)
-    the ray, p (K,3) the point, w (K,3) T(s) sigma_s / pdf(s) (1/m x m: dimensionless per
-    unit of in-scattered radiance), seg_m (K,) the medium. Returns K."""
+    rule); o, d (n,3) the rays, t (n,) their hit distances in units of |d|; u, u_pick (n,)
+    uniform numbers. The distance s: from the exponential of the channels' mean
+    extinction truncated to the segment, or (eq_pos (K,3), K > 0: the point and spot
+    lights' positions) with probability 1/2 equiangular towards one of them picked
+    uniformly (Kulla & Fajardo 2012), its pdf the mixture of all K + 1 (one-sample MIS,
+    balance heuristic: each light's 1 / r^2 peak is sampled where it is). Writes,
+    compacted over the segments in a medium with sigma_s > 0: src (K,) the ray, p (K,3)
+    the point, w (K,3) T(s) sigma_s / pdf(s), seg_m (K,) the medium. Returns the count."""
     k = 0
+    n_eq = eq_pos.shape[0]
     for i in range(rows.shape[0]):
         r = rows[i]
         if r < 0:
@@ -108,23 +134,37 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
         S = max(t[i], 0.0) * dl
         if not S > 0.0:
             continue
+        ux, uy, uz = dx / dl, dy / dl, dz / dl
         t0, t1, t2 = sigma_t[m, 0], sigma_t[m, 1], sigma_t[m, 2]
         sb = (t0 + t1 + t2) / 3.0  # the sampling extinction: the channels' mean
         tau = sb * S
-        if tau > 1e-6:
-            # Exponential truncated to [0, S]: s = -ln(1 - u (1 - e^-tau)) / sb.
-            one_minus = -math.expm1(-tau)
-            s = -math.log1p(-u[i] * one_minus) / sb
-            s = min(max(s, 0.0), S)
-            pdf = sb * math.exp(-sb * s) / one_minus
+        thin = not tau > 1e-6
+        one_minus = 0.0 if thin else -math.expm1(-tau)
+        share = 0.5 if n_eq > 0 else 1.0  # the exponential's share of the mixture
+        up = u_pick[i]
+        if up < share:
+            # Exponential truncated to [0, S]: s = -ln(1 - u (1 - e^-tau)) / sb (an
+            # optically thin segment: uniform, its limit).
+            s = u[i] * S if thin else -math.log1p(-u[i] * one_minus) / sb
         else:
-            s = u[i] * S  # an optically thin segment: uniform (the limit of the above)
-            pdf = 1.0 / S
+            j = min(int((up - share) / (1.0 - share) * n_eq), n_eq - 1)
+            ta, D, tha, thb = _equiangular(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S,
+                                           eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2])
+            s = ta + D * math.tan(tha + u[i] * (thb - tha))
+        s = min(max(s, 0.0), S)
+        pdf = share * (1.0 / S if thin else sb * math.exp(-sb * s) / one_minus)
+        for j in range(n_eq):
+            ta, D, tha, thb = _equiangular(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S,
+                                           eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2])
+            if thb > tha:
+                x = s - ta
+                pdf += (1.0 - share) / n_eq * D / ((thb - tha) * (D * D + x * x))
+        if not pdf > 0.0:
+            continue
         src[k] = i
-        f = s / dl
-        p[k, 0] = o[i, 0] + dx * f
-        p[k, 1] = o[i, 1] + dy * f
-        p[k, 2] = o[i, 2] + dz * f
+        p[k, 0] = o[i, 0] + ux * s
+        p[k, 1] = o[i, 1] + uy * s
+        p[k, 2] = o[i, 2] + uz * s
         w[k, 0] = math.exp(-t0 * s) * s0 / pdf
         w[k, 1] = math.exp(-t1 * s) * s1 / pdf
         w[k, 2] = math.exp(-t2 * s) * s2 / pdf
@@ -178,7 +218,6 @@ def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None) -> np
     ctx.shadow; inside the points' own medium, extinction sigma_t (n,3): a shadow ray
     that meets no surface keeps exp(-sigma_t length), accumulate_phase)."""
     from .integrator import SHADOW, light_sample_list, selector_for
-    from .lights.packing import pack_lights
     n = len(p)
     L = np.zeros((n, 3))
     if n == 0:
@@ -240,6 +279,17 @@ class CameraScattering:
     def __init__(self, ctx, tables):
         self.ctx = ctx
         self.sigma_t, self.sigma_s, self.g = tables
+        # The point and spot lights' positions for equiangular sampling (sample_segments;
+        # the strongest MAX_EQUIANGULAR by power; none: exponential alone).
+        self.eq_pos = NO_POINTS
+        if EQUIANGULAR and ctx.lights:
+            codes, params, _ = ctx.packed_lights or pack_lights(ctx.lights)
+            rows = np.flatnonzero((codes == pk.CODE_POINT) | (codes == pk.CODE_SPOT))
+            if len(rows):
+                power = params[rows, pk.RGB:pk.RGB + 3].sum(axis=1)
+                rows = rows[np.argsort(-power, kind="stable")[:MAX_EQUIANGULAR]]
+                self.eq_pos = np.ascontiguousarray(params[rows, pk.POS:pk.POS + 3],
+                                                   np.float64)
 
     @classmethod
     def for_context(cls, ctx):
@@ -262,7 +312,7 @@ class CameraScattering:
         pts = np.empty((n, 3))
         w = np.empty((n, 3))
         seg_m = np.empty(n, np.int64)
-        u = rng.random(n)
+        u, u_pick = rng.random((2, n))
         k = sample_segments(np.ascontiguousarray(rows, np.int64),
                             np.ascontiguousarray(material, np.int32),
                             np.ascontiguousarray(e1, np.float64),
@@ -270,7 +320,8 @@ class CameraScattering:
                             np.ascontiguousarray(medium, np.int64),
                             np.ascontiguousarray(o, np.float64),
                             np.ascontiguousarray(d, np.float64),
-                            np.ascontiguousarray(t, np.float64), u, src, pts, w, seg_m)
+                            np.ascontiguousarray(t, np.float64), u, u_pick, self.eq_pos,
+                            src, pts, w, seg_m)
         if k == 0:
             return np.zeros(0, np.int64), np.zeros((0, 3))
         src, pts, w, seg_m = src[:k], pts[:k], w[:k], seg_m[:k]
@@ -298,10 +349,12 @@ def _warm_up():
     one = np.ones((1, 3))
     d = np.array([[0.0, 0.0, 1.0]])
     out = np.empty((1, 3))
-    sample_segments(np.zeros(1, np.int64), np.zeros(1, np.int32), e1, e2, one, one,
-                    np.full(1, -1, np.int64), np.zeros((1, 3)), d, np.ones(1),
-                    np.full(1, 0.5), np.empty(1, np.int64), out, np.empty((1, 3)),
-                    np.empty(1, np.int64))
+    u2 = np.random.default_rng(0).random((2, 1))
+    for eq in (NO_POINTS, np.array([[0.5, 0.0, 0.5]])):
+        sample_segments(np.zeros(1, np.int64), np.zeros(1, np.int32), e1, e2, one, one,
+                        np.full(1, -1, np.int64), np.zeros((1, 3)), d, np.ones(1), u2[0],
+                        u2[1], eq, np.empty(1, np.int64), out, np.empty((1, 3)),
+                        np.empty(1, np.int64))
     accumulate_phase(np.zeros((1, 3)), one, np.zeros(1, np.int64), np.zeros(1, np.int64),
                      np.zeros(1, np.int64), np.ones(1), np.zeros(1, np.bool_), 1, d,
                      np.concatenate([d, -d]), d, np.zeros(1), 1, np.ones(1, np.bool_),
