@@ -48,6 +48,7 @@ from .guiding import warp as guide_warp
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .panelight import pane_irradiance, panes_for
 from .shadelight import shade_bsdf_weights, shade_light, shades_for
+from .mediumstart import point_medium
 from .shadowtransmittance import CameraPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
@@ -2101,7 +2102,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # Absorbing media inside objects (engine/media.py; NO_SIGMA: none, nothing done), and
     # the medium each path is in (-1: none known; a camera inside one: the local rule).
     sigma = media.absorption_table(ctx.table)
-    medium = np.full(len(o), -1, np.int64) if sigma.shape[0] else None
+    medium = None
+    if sigma.shape[0]:
+        # A camera inside a medium object (a fog cube around the scene) starts its paths
+        # in it (engine/mediumstart.py; an orthographic camera's rays start apart: -1).
+        medium = np.full(len(o), -1 if ortho else point_medium(ctx, cam_pos, sigma),
+                         np.int64)
     # Light scattered towards the camera inside scattering media (engine/volumescatter.py;
     # None: no material scatters), from its own stream of numbers (made when first needed).
     scatter = volumescatter.CameraScattering.for_context(ctx) if medium is not None else None

@@ -185,3 +185,31 @@ def test_furnace_albedo_one_keeps_the_energy_single_scattering_carries(sig, H):
     # Energy: never more than the enclosure's 1, and more than the unscattered e^{-tau}.
     assert math.exp(-sig * H) < expect < 1.0
     assert img.max() < 1.0
+
+
+def _camera_in_fog(scattering):
+    """A perspective camera at z 2 inside a 6 x 6 x 4 m volume-only box (z -1..3) looking
+    straight down (view angle 4 degrees) at an emissive floor (radiance 1) at z 0 inside
+    it; the medium sigma_a (0.5, 0.3, 0.1) /m, and scattering (0.4 /m, isotropic) or none."""
+    s = PaperScene(8, 8)
+    s.add_material(Material("fog", volume_only=True, absorption=(0.5, 0.3, 0.1),
+                            scattering=(0.4, 0.4, 0.4) if scattering else (0.0, 0.0, 0.0)))
+    s.add_box((0, 0, 1.0), (6.0, 6.0, 4.0), "fog", name="fog")
+    s.add_material(Material("glow", (0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 4.0, "glow", name="floor")
+    s.set_camera((0, 0, 2.0), (0, 0, 0), up=(0, 1, 0), view_angle=4.0)
+    film = render(s, RenderSettings(workers=1, spp=16, photon_mapping=False, seed=3))
+    return np.asarray(film.combined, np.float64)[..., :3].reshape(-1, 3).mean(axis=0)
+
+
+def test_a_camera_inside_the_fog_starts_its_paths_in_it():
+    """engine/mediumstart.py: the camera's first segments, to a floor inside the fog (a
+    front face of no medium, which media.py's back-face rule would not see), keep
+    exp(-sigma_t 2) (the rays' slant at 2 degrees off the axis: < 0.1 %), and with
+    scattering the fog's glow adds on top."""
+    absorbing = _camera_in_fog(False)
+    np.testing.assert_allclose(absorbing, np.exp(-np.array([0.5, 0.3, 0.1]) * 2.0),
+                               rtol=2e-3)
+    foggy = _camera_in_fog(True)
+    dimmed = np.exp(-(np.array([0.5, 0.3, 0.1]) + 0.4) * 2.0)
+    assert np.all(foggy > dimmed * 1.05)  # the floor's light scattered back up the ray
