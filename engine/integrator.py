@@ -197,7 +197,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
-                           light_cut=light_cut)
+                           light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows))
     counters.shadow_rays += rays
     if shade_glossy is not None:
         shade_glossy[:] = False
@@ -270,6 +270,25 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                 shade_glossy[pts[g_on]] = True
         E[pts] += Es
     return E
+
+
+def _medium_sigma(ctx, hit, rows):
+    """(n,3) the extinction of the medium each shaded hit (rows of hit, None: all) is in
+    (hit.medium, set by the camera paths; a hit on the medium's own surface, or in no
+    known medium: 0), or None when no hit is in one: the shadow rays that meet no surface
+    on their way lie wholly in it (directlight.direct_light)."""
+    med = getattr(hit, "medium", None)
+    if med is None:
+        return None
+    med = np.asarray(med if rows is None else np.take(med, rows), np.int64)
+    mat = np.asarray(hit.mat if rows is None else np.take(hit.mat, rows), np.int64)
+    inside = (med >= 0) & (med != mat)
+    if not inside.any():
+        return None
+    sigma = media.absorption_table(ctx.table)
+    out = np.zeros((len(med), 3))
+    out[inside] = sigma[med[inside]]
+    return out
 
 
 def lobe_cut(light) -> int:
@@ -756,6 +775,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # The medium each ray is in, by hit row (a hit has one ray a step; -1: none known,
     # the back-face rule; engine/media.py). None: no absorbing material.
     medium_h = np.empty(n, np.int64) if sigma.shape[0] else None
+    start_medium = None
+    if medium_h is not None and getattr(hit, "medium", None) is not None:
+        start_medium = np.where(np.asarray(hit.medium, np.int64)
+                                == np.asarray(hit.mat, np.int64), -1,
+                                np.asarray(hit.medium, np.int64))
     # Scattering media (engine/volumescatter.py; None: no material scatters).
     scatter = (volumescatter.CameraScattering.for_context(ctx) if medium_h is not None
                else None)
@@ -792,7 +816,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             buf.tp_ones = 0
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         if medium_h is not None:
-            medium_h[idx] = -1  # from the gathering surface: not known
+            # From the gathering surface: the medium its camera path was in (a floor
+            # inside a fog cube; not its own medium's surface), else not known.
+            medium_h[idx] = -1 if start_medium is None else np.take(start_medium, idx)
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
@@ -2313,6 +2339,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                              _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64),
                              tp, want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
             hit.prm = prm
+        if medium is not None:
+            # The medium each hit point is in: its shadow and gather rays start there
+            # (directlight.direct_light's medium_sigma, gather_indirect).
+            hit.medium = medium
         if aniso_on:  # the anisotropic lobes' tangents (engine/anisotropy.py)
             set_hit_tangents(ctx.geo, hit.params if hit.params is not None
                              else ctx.table.closure_params, hit, prm, u, v)

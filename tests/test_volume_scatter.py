@@ -213,3 +213,52 @@ def test_a_camera_inside_the_fog_starts_its_paths_in_it():
     foggy = _camera_in_fog(True)
     dimmed = np.exp(-(np.array([0.5, 0.3, 0.1]) + 0.4) * 2.0)
     assert np.all(foggy > dimmed * 1.05)  # the floor's light scattered back up the ray
+
+
+def _fog_cube(sigma_a, view_angle=2.0):
+    """A fog cube around the whole scene (a 6 x 6 x 4 m volume-only box, z -1..3, absorbing
+    sigma_a per channel): a white floor at z 0 inside it, a 100 W point light at z 1 and
+    a perspective camera at z 2 inside it, looking straight down (view angle 2 degrees)."""
+    s = PaperScene(8, 8)
+    s.add_material(Material("fog", volume_only=True, absorption=sigma_a))
+    s.add_box((0, 0, 1.0), (6.0, 6.0, 4.0), "fog", name="fog")
+    s.add_plane((0, 0, 0), (0, 0, 1), 4.0, "white_diffuse", name="floor")
+    s.add_point_light((0.0, 0.0, 1.0), power=100.0)
+    s.set_camera((0, 0, 2.0), (0, 0, 0), up=(0, 1, 0), view_angle=view_angle)
+    return s
+
+
+def test_a_floor_inside_a_fog_cube_is_lit_and_seen_through_the_fog():
+    """Everything inside the fog: the floor under the lamp takes I / 1 m^2 x exp(-sigma 1)
+    (its shadow rays meet no surface: wholly in the hit's medium, directlight.direct_light
+    medium_sigma) and the camera sees it through exp(-sigma 2): 0.8 / pi x 100 / 4 pi x
+    exp(-3 sigma) within 0.3 % (the 1-degree half view: cos^3 > 0.9995)."""
+    sigma = np.array([0.4, 0.2, 0.05])
+    film = render(_fog_cube(sigma), RenderSettings(workers=1, spp=4, photon_mapping=False,
+                                                   seed=2))
+    img = np.asarray(film.combined, np.float64)[..., :3].reshape(-1, 3).mean(axis=0)
+    expect = 0.8 / math.pi * 100.0 / (4 * math.pi) * np.exp(-3.0 * sigma)
+    np.testing.assert_allclose(img, expect, rtol=3e-3)
+
+
+def test_photons_of_a_lamp_inside_the_fog_start_in_it():
+    """engine/photons.py _light_medium: the point light's photons start in the fog cube's
+    medium, so their first segment to the floor (a front face of no medium) is
+    attenuated: the floor's first-hit power under the lamp over the same scene with a
+    clear medium (the same seed: the same paths) is exp(-sigma r) for r ~ 1 m."""
+    from engine.photons import DIRECT, trace_photons
+    from engine.render import prepare_context
+    sigma = np.array([0.4, 0.2, 0.05])
+
+    def floor_power(sig):
+        ctx = prepare_context(_fog_cube(sig), RenderSettings(workers=1))
+        ph = trace_photons(ctx, ctx.lights, [40_000], caustic_only=False, stream=3)
+        pos = ph.position.astype(np.float64) + ctx.geo.offset
+        under = ((np.abs(pos[:, 2]) < 1e-3) & (np.hypot(pos[:, 0], pos[:, 1]) < 0.1)
+                 & (ph.kind == DIRECT))
+        return ph.power[under].astype(np.float64).sum(axis=0), pos[under]
+    fog, where = floor_power(sigma)
+    clear, _ = floor_power(np.full(3, 1e-9))
+    r = np.sqrt(1.0 + (where[:, 0] ** 2 + where[:, 1] ** 2))
+    expect = np.exp(-sigma[None, :] * r[:, None]).mean(axis=0)
+    np.testing.assert_allclose(fog / clear, expect, rtol=2e-3)
