@@ -262,3 +262,27 @@ def test_photons_of_a_lamp_inside_the_fog_start_in_it():
     r = np.sqrt(1.0 + (where[:, 0] ** 2 + where[:, 1] ** 2))
     expect = np.exp(-sigma[None, :] * r[:, None]).mean(axis=0)
     np.testing.assert_allclose(fog / clear, expect, rtol=2e-3)
+
+
+def test_a_lamp_inside_a_fog_box_lights_the_floor_outside_through_it():
+    """A point light at the centre of an absorbing volume-only box (z 0.5..1.5) over a
+    white floor, seen from above (orthographic, 0.5 m, through the box: exp(-sigma 1)):
+    the floor's shadow rays enter the box through its bottom (a front face) and end at
+    the lamp inside, which no back face closes (shadowtransmittance: the medium entered
+    and not left dims the way from the entry to the end, exp(-sigma 0.5 r)). Expected
+    by quadrature over the film: 0.8 / pi x I cos / r^2 x exp(-sigma 0.5 r) x exp(-sigma)."""
+    sigma = np.array([0.8, 0.4, 0.1])
+    s = PaperScene(8, 8)
+    s.add_material(Material("fog", volume_only=True, absorption=sigma))
+    s.add_box((0, 0, 1.0), (3.0, 3.0, 1.0), "fog", name="fog")
+    s.add_plane((0, 0, 0), (0, 0, 1), 6.0, "white_diffuse", name="floor")
+    s.add_point_light((0.0, 0.0, 1.0), power=100.0)
+    s.set_camera((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=0.5)
+    film = render(s, RenderSettings(workers=1, spp=16, photon_mapping=False, seed=2))
+    img = np.asarray(film.combined, np.float64)[..., :3].reshape(-1, 3).mean(axis=0)
+    xs = (np.arange(64) + 0.5) / 64 * 0.5 - 0.25
+    X, Y = np.meshgrid(xs, xs)
+    r = np.sqrt(X ** 2 + Y ** 2 + 1.0)
+    E = (100.0 / (4 * math.pi) / r ** 3)[..., None] * np.exp(-sigma * 0.5 * r[..., None])
+    expect = (0.8 / math.pi * E * np.exp(-sigma)).reshape(-1, 3).mean(axis=0)
+    np.testing.assert_allclose(img, expect, rtol=5e-3)
