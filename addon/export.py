@@ -790,9 +790,11 @@ def cycles_source(scene, props, names):
 
 def volume_bounces_warning(scene, materials, warnings) -> None:
     """Light Paths > Volume bounces above 0 (scene.cycles.volume_bounces; Cycles' default
-    is 0) with a scattering medium in the scene: the media scatter once here
-    (engine/volumescatter.py: single scattering, what Cycles renders at 0), warned with
-    the materials named, as the extra bounces' light is missing."""
+    is 0) with a scattering medium in the scene: the camera paths scatter that many more
+    times inside the medium, each scatter lit by the lamps (engine/volumescatter.py), but
+    photons do not scatter in it and a path does not go on from the medium to a surface:
+    warned with the materials named, as that part of the extra bounces' light is
+    missing."""
     bounces = int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0) or 0)
     if bounces <= 0:
         return
@@ -800,9 +802,11 @@ def volume_bounces_warning(scene, materials, warnings) -> None:
                    if np.any(np.asarray(getattr(m, "scattering", 0.0)) > 0))
     if names:
         shown = ", ".join(f"'{n}'" for n in names[:3]) + (", ..." if len(names) > 3 else "")
-        warnings.append(f"Light Paths > Volume bounces is {bounces}: multiple volume "
-                        f"scattering is not simulated; the media of {shown} scatter the "
-                        "lamps' light once (as Cycles at Volume bounces 0)")
+        warnings.append(f"Light Paths > Volume bounces is {bounces}: the media of {shown} "
+                        "scatter the lamps' light up to that many more times along camera "
+                        "paths, but their light reaching surfaces after a scatter in the "
+                        "medium (photons) and surfaces' light scattered in them are not "
+                        "simulated")
 
 
 def light_path_source(scene, props):
@@ -815,7 +819,12 @@ def light_path_settings(scene, props) -> dict:
     """The Light Paths limits as RenderSettings keywords (LIGHT_PATH_LIMITS): Cycles' own
     properties when the Cycles add-on is there, else ours (light_path_source)."""
     src = light_path_source(scene, props)
-    return {n: int(getattr(src, n)) for n in LIGHT_PATH_LIMITS}
+    out = {n: int(getattr(src, n)) for n in LIGHT_PATH_LIMITS}
+    # Cycles' Volume bounces (default 0), read from Cycles' settings only (ours has no
+    # such property: without the Cycles add-on, 0).
+    out["volume_bounces"] = int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0)
+                                or 0)
+    return out
 
 
 # Light Paths > Clamping: Cycles' property names (UI units, 0 = off), which ours share.

@@ -30,11 +30,16 @@ through the box's back face and keeps exp(-sigma_t distance); one that meets no 
 lies wholly in the fog, a lamp inside it, and keeps exp(-sigma_t length)), and weighted
 by the phase function (accumulate_phase). The surface behind keeps T(S) (media.attenuated).
 
-Limits (docs/compatibility.md, Volume scattering): single scattering from light samples
-only. Photons and final-gather rays are dimmed by the extinction but do not scatter in the
-medium (the light the fog scatters a second time, and the glow it sends onto the
-surfaces, are missing: measured in docs/accuracy.md, volscatter36); the camera path does
-not continue from a medium point. Seeded: the numbers come from the camera path's own
+Volume bounces (Cycles' Light Paths > Volume bounces, default 0): from the first scatter
+point the path scatters on inside the medium that many more times (CameraScattering.walk:
+a Henyey-Greenstein direction, a distance in the segment to the next surface, the lamps'
+light at each point), the medium-only part of multiple scattering.
+
+Limits (docs/compatibility.md, Volume scattering): the lamps' light only, at points inside
+the medium. Photons and final-gather rays are dimmed by the extinction but do not scatter
+in the medium (the fog's glow after a second scatter onto the surfaces, and the surfaces'
+light scattered in the fog, are missing: measured in docs/accuracy.md, volscatter36); a
+walk whose distance falls beyond its segment ends there. Seeded: the numbers come from the camera path's own
 stream (integrator._trace_paths), so an image is the same for any worker count.
 """
 from __future__ import annotations
@@ -272,6 +277,30 @@ def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None) -> np
     return L
 
 
+def sample_hg(d, g, u1, u2) -> np.ndarray:
+    """(n,3) unit directions drawn by the Henyey-Greenstein phase function of g (n,)
+    about the propagation directions d (n,3) unit (cos = d . w_new, hg_phase's
+    convention; pbrt-v4's SampleHenyeyGreenstein, Cycles' henyey_greenstein_sample), from
+    u1, u2 (n,) uniform: phase / pdf = 1."""
+    g = np.asarray(g, np.float64)
+    iso = np.abs(g) < 1e-3
+    gs = np.where(iso, 1.0, g)
+    sq = (1.0 - gs * gs) / (1.0 - gs + 2.0 * gs * u1)
+    cos_t = np.where(iso, 1.0 - 2.0 * u1, (1.0 + gs * gs - sq * sq) / (2.0 * gs))
+    cos_t = np.clip(cos_t, -1.0, 1.0)
+    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    phi = 2.0 * math.pi * u2
+    # An orthonormal frame about d (Duff et al. 2017, "Building an Orthonormal Basis").
+    sign = np.where(d[:, 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + d[:, 2])
+    b = d[:, 0] * d[:, 1] * a
+    t1 = np.stack([1.0 + sign * d[:, 0] ** 2 * a, sign * b, -sign * d[:, 0]], axis=1)
+    t2 = np.stack([b, sign + d[:, 1] ** 2 * a, -d[:, 1]], axis=1)
+    w = (sin_t * np.cos(phi))[:, None] * t1 + (sin_t * np.sin(phi))[:, None] * t2 \
+        + cos_t[:, None] * d
+    return np.ascontiguousarray(w / np.linalg.norm(w, axis=1, keepdims=True))
+
+
 class CameraScattering:
     """The camera paths' single scattering for one render context (None from
     for_context when no material scatters)."""
@@ -279,6 +308,8 @@ class CameraScattering:
     def __init__(self, ctx, tables):
         self.ctx = ctx
         self.sigma_t, self.sigma_s, self.g = tables
+        # Cycles' Light Paths > Volume bounces: the scatters after the first (walk).
+        self.bounces = int(getattr(ctx.settings, "volume_bounces", 0) or 0)
         # The point and spot lights' positions for equiangular sampling (sample_segments;
         # the strongest MAX_EQUIANGULAR by power; none: exponential alone).
         self.eq_pos = NO_POINTS
@@ -329,7 +360,50 @@ class CameraScattering:
         wo = wo / np.linalg.norm(wo, axis=1, keepdims=True)
         Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
                            counters)
-        return src, Lin * w
+        L = Lin * w
+        if self.bounces > 0:
+            self.walk(L, pts, wo, w, seg_m, rng, counters)
+        return src, L
+
+    def walk(self, L, pts, wo, beta, seg_m, rng, counters=None):
+        """Volume bounces: from each first scatter point pts (K,3) (the path arriving
+        along wo (K,3), weight beta (K,3), in medium seg_m (K,)) the path scatters on
+        inside the medium up to self.bounces more times: a direction by the
+        Henyey-Greenstein phase (sample_hg: its weight phase / pdf is 1), the segment to
+        the next surface, a distance in it (sample_segments; a path whose distance falls
+        beyond the medium's segment ends, its light there being the surface's, which is
+        not followed), the lamps' light there (in_scattered) added to L (K,3) in place."""
+        idx = np.arange(len(pts))
+        x, d_in, m, beta = pts, wo, seg_m, beta
+        geo = self.ctx.geo
+        for _ in range(self.bounces):
+            if len(idx) == 0:
+                return
+            u1, u2 = rng.random((2, len(idx)))
+            d_new = sample_hg(d_in, self.g[m], u1, u2)
+            t, prim, _, _ = self.ctx.accel.intersect(x, d_new)
+            rows, (material, e1, e2) = geo.hit_tables(prim, "material", "e1", "e2")
+            n = len(idx)
+            src = np.empty(n, np.int64)
+            p2 = np.empty((n, 3))
+            w2 = np.empty((n, 3))
+            m2 = np.empty(n, np.int64)
+            u, u_pick = rng.random((2, n))
+            k = sample_segments(np.ascontiguousarray(rows, np.int64),
+                                np.ascontiguousarray(material, np.int32),
+                                np.ascontiguousarray(e1, np.float64),
+                                np.ascontiguousarray(e2, np.float64), self.sigma_t,
+                                self.sigma_s, np.ascontiguousarray(m, np.int64),
+                                np.ascontiguousarray(x, np.float64), d_new,
+                                np.ascontiguousarray(t, np.float64), u, u_pick, self.eq_pos,
+                                src, p2, w2, m2)
+            src = src[:k]
+            idx, x, d_in, m = idx[src], p2[:k], d_new[src], m2[:k]
+            beta = beta[src] * w2[:k]
+            if k == 0:
+                return
+            Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters)
+            L[idx] += beta * Lin
 
     def add(self, acc, target, pix, prim, o, d, t, medium, tp, rng, counters=None):
         """radiance()'s light into pass `target` of the Accumulator acc at pixels pix (n,),

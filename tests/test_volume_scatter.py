@@ -286,3 +286,42 @@ def test_a_lamp_inside_a_fog_box_lights_the_floor_outside_through_it():
     E = (100.0 / (4 * math.pi) / r ** 3)[..., None] * np.exp(-sigma * 0.5 * r[..., None])
     expect = (0.8 / math.pi * E * np.exp(-sigma)).reshape(-1, 3).mean(axis=0)
     np.testing.assert_allclose(img, expect, rtol=5e-3)
+
+
+@pytest.mark.parametrize("sig, H", [(1.0, 1.0), (2.0, 1.0)])
+def test_furnace_with_volume_bounces_keeps_all_the_energy(sig, H):
+    """The furnace slab (albedo 1, isotropic, radiance 1 all round) with Volume bounces
+    64 (engine/volumescatter.py CameraScattering.walk: the path scatters on inside the
+    medium, the lamps' light at every point): no energy is lost along a path, so the
+    image reads 1 (the enclosure's radiance), where single scattering kept 0.616 / 0.349.
+    Measured, mean of 6 seeds at 128 spp: Volume bounces 0 / 1 / 4 / 64: 0.616 / 0.764 /
+    0.945 / 1.0004 at optical depth 1, 0.349 / 0.498 / 0.763 / 1.0006 at 2 (sd per seed
+    0.006 / 0.010 at 64): within 2.5 % at 256 spp (> 3.5 sd)."""
+    s = PaperScene(8, 8, background=(1.0, 1.0, 1.0))
+    s.add_material(Material("fog", volume_only=True, scattering=(sig, sig, sig)))
+    s.add_box((0, 0, H / 2 + 0.1), (40.0, 40.0, H), "fog", name="slab")
+    s.add_material(Material("glow", (0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 400.0, "glow", name="floor")
+    s.set_camera((0, 0, H + 1.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    film = render(s, RenderSettings(workers=1, spp=256, photon_mapping=False, seed=1,
+                                    volume_bounces=64))
+    img = np.asarray(film.combined, np.float64)[..., :3].reshape(-1, 3).mean(axis=0)
+    np.testing.assert_allclose(img, 1.0, rtol=0.025)
+
+
+@pytest.mark.parametrize("g", [0.0, 0.6, -0.3])
+def test_phase_sampling_follows_the_phase_function(g):
+    """sample_hg's directions about d: the mean cosine is g and the histogram of cos
+    follows 2 pi hg_phase (its density in cos), within the sampling noise."""
+    from engine.volumescatter import sample_hg
+    rng = np.random.default_rng(5)
+    n = 200_000
+    d = np.tile(np.array([0.3, -0.5, 0.81]) / np.linalg.norm([0.3, -0.5, 0.81]), (n, 1))
+    w = sample_hg(d, np.full(n, g), *rng.random((2, n)))
+    np.testing.assert_allclose(np.linalg.norm(w, axis=1), 1.0, rtol=1e-12)
+    cos = (w * d).sum(axis=1)
+    assert cos.mean() == pytest.approx(g, abs=0.01)
+    hist, edges = np.histogram(cos, bins=20, range=(-1.0, 1.0), density=True)
+    mid = 0.5 * (edges[1:] + edges[:-1])
+    expect = np.array([2 * math.pi * hg_phase(c, g) for c in mid])
+    np.testing.assert_allclose(hist, expect, rtol=0.05, atol=0.01)
