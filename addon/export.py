@@ -487,11 +487,22 @@ def ray_visibility(obj, inst, view_layer) -> dict:
     return out
 
 
-def warn_unsupported_visibility(obj, warnings: list):
-    """Options of Object > Visibility this engine cannot honour, once per object."""
+def warn_unsupported_object_options(obj, warnings: list):
+    """Object options this engine cannot honour, once per object: Visibility > Shadow
+    Catcher, the last Subdivision modifier's Adaptive Subdivision."""
     if getattr(obj, "is_shadow_catcher", False):
         warnings.append(f"object '{obj.name}': shadow catcher is not supported; "
                         "rendered as an ordinary object")
+    mods = getattr(obj, "modifiers", None) or ()
+    last = mods[-1] if len(mods) else None
+    if (last is not None and getattr(last, "type", "") == "SUBSURF"
+            and getattr(last, "use_adaptive_subdivision", False)
+            and getattr(last, "show_render", True)):
+        # Cycles dices such a mesh to its pixel size (Blender 5.0: the modifier's
+        # Adaptive Subdivision); Blender hands us the modifier's Render levels instead.
+        warnings.append(f"object '{obj.name}': Adaptive Subdivision is not made; the "
+                        f"Subdivision modifier's render levels ({last.render_levels}) are "
+                        "used, so true displacement is only as fine as those")
 
 
 # --- lights -------------------------------------------------------------------------
@@ -1278,7 +1289,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             # Placed more than once: a record (prototype, matrix), no world-space copy.
             name = _instance_name(inst, obj, info)
             info["objects"] += 1
-            warn_unsupported_visibility(obj, warnings)
+            warn_unsupported_object_options(obj, warnings)
             mesh = _placement(pm, name, prototypes[key], matrix, names, obj,
                               ray_visibility(obj, inst, view_layer),
                               object_info(obj, inst, converter.object_attribute_names))
@@ -1292,7 +1303,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             colors = colors[:, [0, 2, 1]]  # same corner order as the flipped faces
         name = _instance_name(inst, obj, info)
         info["objects"] += 1
-        warn_unsupported_visibility(obj, warnings)
+        warn_unsupported_object_options(obj, warnings)
         uv_tangent_warnings(obj, geo, converter, names, warnings)
         mesh = pm.Mesh(name=name, vertices=verts, faces=faces, normals=normals,
                        uvs=uvs, colors=colors, materials=names, material_ids=mids,
@@ -1507,7 +1518,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             if obj.name not in info["geometry_read"]:
                 info["transformed"].append(iname)
             cache.meshes[iname] = (key, mesh)
-        warn_unsupported_visibility(obj, warnings)
+        warn_unsupported_object_options(obj, warnings)
         uv_tangent_warnings(obj, geo, converter, names, warnings)
         meshes.append(mesh)
         info["triangles"] += len(mesh.faces)

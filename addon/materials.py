@@ -18,7 +18,7 @@ Wave, Brick, Magic and Gabor textures, Layer Weight, Fresnel)
 on colour inputs, on the scalar inputs Roughness, Metallic, Transmission Weight, Specular
 IOR Level, Coat Weight / Roughness, Sheen Weight / Roughness (evaluated per hit), on
 Emission Color and as a Mix Shader's factor (per hit for two opaque surfaces and for
-cut-outs), and a Normal Map node (tangent or world space) fed by an Image Texture or a
+cut-outs), and a Normal Map node (tangent or world space) fed by an image or any colour node tree, or a
 Bump node on 'Normal' inputs (docs/textures.md). Anything else falls back to its nearest approximation (another
 shader with a Color input: a Diffuse BSDF of that colour; the material's viewport colour
 when nothing else is known) and is reported once per material
@@ -395,6 +395,7 @@ class MaterialConverter:
         warnings: list[str] = []
         # (sigma_a (3,) 1/m, volume-only, sigma_s (3,) 1/m, HG g): _volume
         self._medium = (np.zeros(3), False, np.zeros(3), 0.0)
+        self._displace = (None, "BUMP")  # (vectors node, method): _displacement
         if mat is None:
             closure = Closure()
         else:
@@ -449,7 +450,9 @@ class MaterialConverter:
             # the medium inside (Volume Absorption / Principled Volume) and whether the
             # material has no surface (engine/media.py)
             absorption=self._medium[0], volume_only=self._medium[1],
-            scattering=self._medium[2], anisotropy=self._medium[3])
+            scattering=self._medium[2], anisotropy=self._medium[3],
+            # true displacement (Displacement Only / and Bump): vertices moved at prepare
+            displacement=self._displace[0], displacement_method=self._displace[1])
         m.warnings[:0] = warnings
         self.cache[key] = m
         return m
@@ -517,22 +520,25 @@ class MaterialConverter:
 
     def _displacement(self, mat, socket, closure: Closure) -> None:
         """Material Output > Displacement as Cycles renders it with the material's
-        Displacement method "Bump Only" (the default) or "Displacement and Bump": a bump
-        of the shading normal by the displacement's height along the normal
-        (engine/displacement.py), before the BSDF's own Bump node; a BSDF's Normal Map
-        keeps its own normal, as in Cycles. True displacement (moving the surface) is
-        not made: warned."""
+        Displacement method: "Bump Only" (the default) bumps the shading normal by the
+        displacement's height along the normal (engine/displacement.py), before the
+        BSDF's own Bump node (a BSDF's Normal Map keeps its own normal, as in Cycles);
+        "Displacement Only" moves the mesh's vertices (self._displace: the engine
+        Material's displacement); "Displacement and Bump" does both."""
         method = str(getattr(mat, "displacement_method", "")
                      or getattr(getattr(mat, "cycles", None), "displacement_method", "BUMP")
                      or "BUMP")
-        if method == "DISPLACEMENT":
-            self._warn(f"material '{mat.name}': Displacement method 'Displacement Only' "
-                       "(moving the surface) is not supported; the surface renders flat "
-                       "(set it to 'Bump Only' for Cycles' bump from the displacement)")
-            return
-        if method == "BOTH":
-            self._warn(f"material '{mat.name}': Displacement method 'Displacement and "
-                       "Bump': the surface is not moved, only bumped")
+        if method not in ("BUMP", "DISPLACEMENT", "BOTH"):
+            self._warn(f"material '{mat.name}': Displacement method '{method}' is not "
+                       "known; using Bump Only")
+            method = "BUMP"
+        if method != "BUMP":
+            # Vertices move: only as finely as the mesh is tessellated (Cycles alike).
+            moved = self._displacement_vector(socket, moving=True)
+            if moved is not None:
+                self._displace = (moved, method)
+            if method == "DISPLACEMENT":
+                return
         vec = self._displacement_vector(socket)
         if vec is None:
             return
@@ -550,10 +556,11 @@ class MaterialConverter:
         # A Normal Map builds its normal from the interpolated vertex normal, not from
         # sd->N (Cycles' svm_node_normal_map): the displacement's bump does not show.
 
-    def _displacement_vector(self, socket):
+    def _displacement_vector(self, socket, moving=False):
         """The engine node of the world-space displacement vectors feeding `socket` (a
-        Displacement or Vector Displacement node, or any vector / value), or None (a
-        constant displacement: no bump; a node not read: warned)."""
+        Displacement or Vector Displacement node, or any vector / value), or None (a node
+        not read: warned; a constant displacement unless `moving`: it bumps nothing,
+        though it moves a truly displaced surface)."""
         src = self._source(socket)
         if src is None:
             return None
@@ -562,7 +569,7 @@ class MaterialConverter:
         who = f"material '{self._mat.name}'"
         if n.type == "DISPLACEMENT":
             height = self._input(n, n.inputs["Height"], 1)
-            if not hasattr(height, "evaluate"):
+            if not hasattr(height, "evaluate") and not moving:
                 return None  # a constant height: a flat offset, no bump
             normal = self._vector(n, "Normal", 1)
             space = str(getattr(n, "space", "OBJECT"))
@@ -580,7 +587,7 @@ class MaterialConverter:
                            "space is not supported (World and Object are); no bump")
                 return None
             vector = self._input(n, n.inputs["Vector"], 1)
-            if not hasattr(vector, "evaluate"):
+            if not hasattr(vector, "evaluate") and not moving:
                 return None
             return dp.VectorDisplacement(vector, self._input(n, n.inputs["Midlevel"], 1),
                                          self._input(n, n.inputs["Scale"], 1), space)
@@ -589,7 +596,10 @@ class MaterialConverter:
             self._warn(f"{who}: Displacement from node '{n.name}' ({n.type}) is not "
                        "supported; no bump")
             return None
-        return val if hasattr(val, "evaluate") else None
+        if hasattr(val, "evaluate"):
+            return val
+        # a constant vector (or value v: (v, v, v)) as it is, in world space
+        return dp.VectorDisplacement(val, 0.0, 1.0, "WORLD") if moving else None
 
     def _volume(self, src, depth):
         """(sigma_a, sigma_s, sigma_s x g), each (3,) in 1/m, of the volume shader tree src
@@ -1172,7 +1182,7 @@ class MaterialConverter:
 
     def _normal(self, node):
         """engine NormalMap for a BSDF's 'Normal' input (a Normal Map node fed by an
-        Image Texture), or None (the surface's own normal) after warning what is not
+        image, a procedural texture or any colour the tree evaluates), or None (the surface's own normal) after warning what is not
         supported."""
         s = node.inputs.get("Normal")
         src = self._source(s) if s is not None else None
@@ -1196,20 +1206,18 @@ class MaterialConverter:
         # A named UV map: its tangents (addon/export.py named_tangent_maps); the image
         # is placed by its own Vector input (a UV Map node naming the map, usually).
         uv_map = str(getattr(n, "uv_map", "") or "") if space == "TANGENT" else ""
-        col = self._source(n.inputs["Color"])
-        if col is None:
+        if self._source(n.inputs["Color"]) is None:
             return None  # the default colour (0.5, 0.5, 1) is the unperturbed normal
-        cn, cout = col
-        tex = self._image(cn) if cn.type == "TEX_IMAGE" else None
-        if tex is None or cout.name != "Color":
-            if cn.type != "TEX_IMAGE" or cout.name != "Color":
-                self._warn(f"material '{self._mat.name}': Normal Map '{n.name}' colour from "
-                           f"node '{cn.name}' ({cn.type}) is not supported; using the "
-                           "surface normal")
-            return None
-        # The image as its node reads it: through its Vector input and projection (the
-        # ImageTexture itself on the render UVs).
-        tex = self._node_output(cn, cout, 1)
+        # Any colour the tree makes (an image through its own Vector and projection, a
+        # procedural texture, a Mix / Combine Color of them; a value reads as grey, as
+        # Cycles converts it): evaluated per hit like a BSDF's colour. What cannot be
+        # evaluated is warned by _input and gives the socket's own value.
+        tex = self._input(n, n.inputs["Color"], 0)
+        if not hasattr(tex, "evaluate"):
+            c = np.broadcast_to(np.asarray(tex, np.float64).ravel()[:3], (3,))
+            if np.allclose(c, (0.5, 0.5, 1.0)):
+                return None  # the unperturbed normal
+            tex = c  # a constant colour tilts every normal alike
         strength = self._float(n, "Strength", 1.0)
         if uv_map:
             self.normal_map_uvs[self._mat.name] = uv_map

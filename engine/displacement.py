@@ -27,6 +27,8 @@ Heights are in metres, as the bump's distance is 1.
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from .sampling import dot, normalize
@@ -146,3 +148,173 @@ class DisplacedNormals:
     def perturb(self, geo, prim, u, v, n: np.ndarray) -> np.ndarray:
         out = self.bump.perturb(geo, prim, u, v, n)
         return out if self.then is None else self.then.perturb(geo, prim, u, v, out)
+
+
+# --- True displacement: "Displacement Only" and "Displacement and Bump" -------------------
+METHODS = ("BUMP", "DISPLACEMENT", "BOTH")
+
+
+def _face_material_names(mesh) -> np.ndarray:
+    """(F,) object array: the material name of each face of `mesh`."""
+    names = np.asarray(list(mesh.materials), dtype=object)
+    if mesh.material_ids is None or not len(names):
+        return np.full(len(mesh.faces), names[0] if len(names) else "default", dtype=object)
+    return names[np.clip(np.asarray(mesh.material_ids, np.int64), 0, len(names) - 1)]
+
+
+def moves_vertices(material) -> bool:
+    """True for a material (engine.scene.Material) whose true displacement moves the
+    vertices of its faces ("DISPLACEMENT" or "BOTH" with a displacement node)."""
+    return (material is not None and getattr(material, "displacement", None) is not None
+            and getattr(material, "displacement_method", "BUMP") in ("DISPLACEMENT", "BOTH"))
+
+
+def _vertex_offsets(mesh, materials, moved_faces) -> np.ndarray:
+    """(V,3) world-space displacement (m) of each vertex of the world-space `mesh` (a copy,
+    not a placement) that a moved face uses; zeros elsewhere. As Cycles'
+    GeometryManager::displace (intern/cycles/scene/mesh_displace.cpp): each vertex once,
+    by the first moved triangle in face order that uses it, at that triangle's corner
+    (its attributes, its smooth normal or, flat, its face normal); non-finite vectors
+    read 0 (ensure_finite)."""
+    from . import geometry
+    from .scene import Scene
+    offsets = np.zeros((len(mesh.vertices), 3))
+    faces = np.asarray(mesh.faces, np.int64)
+    rows = np.nonzero(moved_faces)[0]
+    if not len(rows):
+        return offsets
+    # The mesh alone, its materials without displacement (no recursion), re-centred as
+    # prepare does: the nodes read positions, normals, UVs and object data from it.
+    mats = {}
+    for name in dict.fromkeys(mesh.materials):
+        m = copy.copy(materials[name])
+        m.displacement = None
+        mats[name] = m
+    geo, _ = geometry.prepare(Scene(meshes=[mesh], materials=mats))
+    if geo.count != len(faces):
+        raise ValueError(f"mesh '{mesh.name}': its triangles could not be matched for "
+                         "displacement")
+    corners = faces[rows].reshape(-1)
+    vert, first = np.unique(corners, return_index=True)
+    prim = rows[first // 3]
+    corner = first % 3
+    u = (corner == 1).astype(np.float64)  # barycentrics of corners 1 and 2
+    v = (corner == 2).astype(np.float64)
+    face_mat = _face_material_names(mesh)[prim]
+    for name in dict.fromkeys(face_mat):
+        sel = face_mat == name
+        d = _eval(materials[name].displacement, geo, prim[sel], u[sel], v[sel])
+        if d.ndim == 1:  # a value v displaces by (v, v, v), Cycles' float-to-vector
+            d = np.repeat(d[:, None], 3, axis=1)
+        offsets[vert[sel]] = np.where(np.isfinite(d), d, 0.0)
+    return offsets
+
+
+def _recomputed_normals(vertices, faces, normals, true_faces):
+    """Mesh normals after displacement, as Cycles recomputes them where a face's method is
+    "Displacement Only" (true_faces (F,) bool): a vertex of such faces takes the
+    normalised sum of their unit face normals (Cycles sums them unweighted); normals of
+    "Displacement and Bump" faces stay (their bump already bends the shading normal).
+    normals: None (flat: kept), (V,3) per vertex, or (F,3,3) per corner (corners that
+    shared a normal share the new one: sharp edges stay sharp)."""
+    if normals is None or not true_faces.any():
+        return normals
+    f = np.asarray(faces, np.int64)[true_faces]
+    tri = vertices[f]
+    fn = normalize(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+    fn = np.where(np.isfinite(fn), fn, 0.0)
+    normals = np.array(normals, np.float64)
+    if normals.ndim == 2:
+        acc = np.zeros((len(vertices), 3))
+        np.add.at(acc, f.reshape(-1), np.repeat(fn, 3, axis=0))
+        touched = np.unique(f)
+        new = normalize(acc[touched])
+        good = np.isfinite(new).all(axis=1)
+        normals[touched[good]] = new[good]
+        return normals
+    # Per corner: a group is a vertex with one original normal.
+    old = normals[true_faces].reshape(-1, 3)
+    key = np.column_stack([f.reshape(-1), np.round(old * 1e5).astype(np.int64)])
+    _, group = np.unique(key, axis=0, return_inverse=True)
+    group = group.reshape(-1)
+    acc = np.zeros((group.max() + 1, 3))
+    np.add.at(acc, group, np.repeat(fn, 3, axis=0))
+    new = normalize(acc[group])
+    new = np.where(np.isfinite(new).all(axis=1)[:, None], new, old)
+    normals[true_faces] = new.reshape(-1, 3, 3)
+    return normals
+
+
+def displace_meshes(meshes, materials, should_cancel=None) -> list:
+    """`meshes` (engine.scene.Mesh list) with the vertices that faces of a material with
+    true displacement (Material.displacement, displacement_method "DISPLACEMENT" or
+    "BOTH") use moved by its world-space vectors, normals recomputed for "DISPLACEMENT"
+    (_recomputed_normals); the list itself when nothing moves. New Mesh objects: the
+    caller's are not changed. Instances share their prototype's displacement, as Cycles
+    displaces mesh data once (evaluated at the first placement, brought back to object
+    space). Raises engine.parallel.Cancelled when should_cancel() says so between meshes.
+    The surface moves only as finely as it is tessellated (a Subdivision modifier in
+    Blender): each vertex is displaced, not each shading point."""
+    from dataclasses import replace
+    from .parallel import Cancelled
+    from .scene import Mesh, Prototype, place
+    if not any(moves_vertices(m) for m in materials.values()):
+        return meshes
+    stop = should_cancel if should_cancel is not None else (lambda: False)
+    out = list(meshes)
+    displaced = {}  # id(prototype) -> displaced Prototype
+
+    def face_flags(mesh):
+        names = _face_material_names(mesh)
+        moved = np.array([moves_vertices(materials.get(n)) for n in names], bool)
+        true = np.array([moves_vertices(materials.get(n)) and materials[n].displacement_method
+                         == "DISPLACEMENT" for n in names], bool)
+        return moved, true
+
+    for i, mesh in enumerate(meshes):
+        if not len(mesh.faces):
+            continue
+        if stop():
+            raise Cancelled()
+        P = mesh.prototype
+        if P is None:
+            moved, true = face_flags(mesh)
+            if not moved.any():
+                continue
+            verts = np.asarray(mesh.vertices, np.float64) + _vertex_offsets(mesh, materials, moved)
+            out[i] = replace(mesh, vertices=verts,
+                             normals=_recomputed_normals(verts, mesh.faces, mesh.normals, true))
+            continue
+        if id(P) not in displaced:
+            world = mesh.expanded()
+            moved, true = face_flags(world)
+            if not moved.any():
+                displaced[id(P)] = P
+                continue
+            m3 = np.asarray(mesh.matrix, np.float64)[:3, :3]
+            d_obj = _vertex_offsets(world, materials, moved) @ np.linalg.inv(m3).T
+            pv = np.asarray(P.vertices, np.float64) + d_obj
+            displaced[id(P)] = Prototype(P.name, pv, P.faces,
+                                         normals=_recomputed_normals(pv, P.faces, P.normals, true),
+                                         uvs=P.uvs, material_ids=P.material_ids)
+        Pd = displaced[id(P)]
+        if Pd is P:
+            continue
+        if mesh.copyless:
+            flags = {k: getattr(mesh, k) for k in _PLACEMENT_FLAGS}
+            out[i] = Mesh.place(mesh.name, Pd, mesh.matrix, materials=list(mesh.materials),
+                                **flags)
+        else:
+            verts, _ = place(Pd, mesh.matrix)
+            _, true = face_flags(mesh)
+            out[i] = replace(mesh, vertices=verts, prototype=Pd,
+                             normals=_recomputed_normals(verts, mesh.faces, mesh.normals, true))
+    return out
+
+
+# What a placement carries besides its prototype, matrix and materials (Mesh.expanded's).
+_PLACEMENT_FLAGS = ("visible_camera", "visible_diffuse", "visible_glossy",
+                    "visible_transmission", "visible_shadow", "holdout",
+                    "shadow_terminator_offset", "shadow_terminator_shading_offset",
+                    "cryptomatte_object", "cryptomatte_asset", "pass_index", "random",
+                    "object_color", "location", "object_linear", "object_attributes")

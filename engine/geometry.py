@@ -19,6 +19,7 @@ from .instancing import Instances
 from .sharedrows import RowColumn, SharedRows
 from .scene import Material, Scene, emission_sides
 from .resources import two_level_instances
+from .displacement import displace_meshes
 
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
 CAMERA, DIFFUSE, GLOSSY, TRANSMISSION, SHADOW = 1, 2, 4, 8, 16
@@ -521,7 +522,9 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     mats_list = [scene.materials[n] for n in mat_names]
     mat_index = {n: i for i, n in enumerate(mat_names)}
     table = MaterialTable.build(mats_list)
-    meshes = scene.meshes
+    # Cycles' true displacement ("Displacement Only" / "Displacement and Bump") moves
+    # the vertices before anything is merged (engine/displacement.py).
+    meshes = displace_meshes(scene.meshes, scene.materials, should_cancel)
     names = [mesh.name for mesh in meshes]
 
     # Bounds of the corners (vertices no face uses do not count).

@@ -104,8 +104,20 @@ class NormalMapError(ValueError):
     """Bad normal-map input (names the argument)."""
 
 
+class _ConstantColour:
+    """A Normal Map's colour that is the same at every hit (an RGB node, a socket value)."""
+
+    def __init__(self, colour):
+        self.colour = np.array(colour, np.float64)
+
+    def evaluate(self, geo, prim, u, v):
+        return np.broadcast_to(self.colour, (len(prim), 3))
+
+
 class NormalMap:
-    """texture  an object with evaluate(geo, prim, u, v) -> (N,3) (engine.textures)
+    """texture  an object with evaluate(geo, prim, u, v) -> (N,3) colours or (N,) values
+                (engine.textures, engine.shadernodes: an image or a procedural tree; a
+                value reads as grey), or a constant colour (3,)
     strength    >= 0 (Cycles' Strength input)
     space       TANGENT or WORLD
     uv_map      TANGENT only: "" the render UV map's tangents ('tangent', 'tangent_sign'
@@ -118,9 +130,19 @@ class NormalMap:
 
     def __init__(self, texture, strength: float = 1.0, space: str = "TANGENT",
                  uv_map: str = ""):
-        if texture is None or not hasattr(texture, "evaluate"):
-            raise NormalMapError("normal map: texture must be an engine.textures object, "
-                                 f"got {type(texture).__name__}")
+        if texture is None:
+            raise NormalMapError("normal map: texture must be an engine texture / shader "
+                                 "node or a constant colour, got None")
+        if not hasattr(texture, "evaluate"):
+            try:
+                const = np.broadcast_to(np.asarray(texture, np.float64).ravel()[:3], (3,))
+            except (TypeError, ValueError):
+                raise NormalMapError("normal map: texture must be an engine texture / shader "
+                                     "node or a constant colour (3,), got "
+                                     f"{type(texture).__name__}") from None
+            if not np.all(np.isfinite(const)):
+                raise NormalMapError(f"normal map colour: must be finite, got {const}")
+            texture = _ConstantColour(const)
         strength = float(strength)
         if not np.isfinite(strength):
             raise NormalMapError(f"normal map strength: must be finite, got {strength}")
@@ -135,7 +157,10 @@ class NormalMap:
     def perturb(self, geo, prim, u, v, n: np.ndarray) -> np.ndarray:
         """(N,3) unit shading normals at hits (triangle prim, barycentrics u, v), from the
         unperturbed unit shading normals n (N,3), both on the winding-order side."""
-        c = 2.0 * self.texture.evaluate(geo, prim, u, v) - 1.0
+        c = np.asarray(self.texture.evaluate(geo, prim, u, v), np.float64)
+        if c.ndim == 1:  # a value into the Color socket reads as grey (Cycles' convert)
+            c = np.repeat(c[:, None], 3, axis=1)
+        c = 2.0 * c[:, :3] - 1.0
         if self.space == "WORLD":
             out = normalize(c)
             if self.strength != 1.0:
@@ -217,7 +242,12 @@ class Bump:
         return h @ np.array([0.2126, 0.7152, 0.0722]) if h.ndim == 2 else h
 
     def perturb(self, geo, prim, u, v, n: np.ndarray) -> np.ndarray:
-        """(N,3) unit shading normals at hits; n (N,3) the unperturbed ones (winding side)."""
+        """(N,3) unit shading normals at hits; n (N,3) the unperturbed ones (winding side).
+        Seen from a back face the bumped normal is turned over with the rest
+        (engine.bsdf.surface_hit), which is what Cycles renders: the bands of a bumped
+        plane seen from below under a sun from below read as Cycles' (column profiles
+        correlate 0.99; a tilt mirrored instead would read -0.99:
+        tests/blender/test_bump_back_face_cycles.py)."""
         e = self.STEP
         dh_du = (self._h(geo, prim, u + e, v) - self._h(geo, prim, u - e, v)) / (2 * e)
         dh_dv = (self._h(geo, prim, u, v + e) - self._h(geo, prim, u, v - e)) / (2 * e)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .displacement import DisplacedNormals
+from .displacement import METHODS as DISPLACEMENT_METHODS, DisplacedNormals
 from .normalmap import Bump, NormalMap
 from .panorama import Panorama
 from .textures import ColorAttribute, ImageTexture, TextureError, as_texture
@@ -150,6 +150,14 @@ class Material:
     `volume_only`: the material has a volume but no surface (Surface unlinked): Cycles
     renders the surface invisible, rays pass it unbent and only the medium acts; here
     that is a transparent pass (alpha 0, white tint, no emission, black base).
+    `displacement`, `displacement_method`: Cycles' true displacement (Material > Settings >
+    Displacement): with "DISPLACEMENT" (Displacement Only) or "BOTH" (Displacement and
+    Bump), the vertices of this material's faces move by the world-space vectors (m) of
+    `displacement` (an engine node: engine.displacement.Displacement, VectorDisplacement
+    or any vector / value node) before the triangles are merged, as Cycles displaces
+    mesh vertices (engine/displacement.displace_meshes; "DISPLACEMENT" recomputes the
+    normals, "BOTH" keeps them and bumps through `normal_map`); "BUMP" (Blender's
+    default) moves nothing: the bump is `normal_map`'s DisplacedNormals alone.
     """
 
     name: str = "default"
@@ -190,6 +198,8 @@ class Material:
     scattering: tuple | np.ndarray = (0.0, 0.0, 0.0)
     anisotropy: float = 0.0
     volume_only: bool = False
+    displacement: object | None = None
+    displacement_method: str = "BUMP"
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -295,6 +305,13 @@ class Material:
                 self.texture = as_texture(self.texture, name=f"{self.name} texture")
             except TextureError as exc:
                 raise SceneError(f"{who} {exc}") from None
+        if self.displacement_method not in DISPLACEMENT_METHODS:
+            raise SceneError(f"{who} displacement_method: expected one of "
+                             f"{DISPLACEMENT_METHODS}, got {self.displacement_method!r}")
+        if self.displacement is not None and not hasattr(self.displacement, "evaluate"):
+            raise SceneError(f"{who} displacement: expected an engine node with evaluate() "
+                             "(engine.displacement.Displacement, VectorDisplacement, any "
+                             f"vector node), got {type(self.displacement).__name__}")
         from .bevel import Bevel  # (bevel -> ambientocclusion -> geometry imports scene)
         if self.normal_map is not None and not isinstance(
                 self.normal_map, (NormalMap, Bump, Bevel, DisplacedNormals)):

@@ -48,6 +48,7 @@ from .ambientocclusion import attach_tracer
 from .geometry import MaterialTable, prepare, set_camera_view
 from .jit import ensure_compiled
 from .lights import prepare_lights
+from .displacement import moves_vertices
 from .shadowtransmittance import ShadowTransmittance
 from .parallel import Cancelled, StopFlag, drain, polled_by
 from .progressive import PassMerger, pass_settings
@@ -184,6 +185,13 @@ class Session:
         the same meshes (triangles, visibility and material names) as before, so only
         materials, lights and the world are rebuilt. Returns at once. Raises RuntimeError
         (the session was stopped)."""
+        # A material with true displacement moves vertices: a new one (or one gone) is
+        # a geometry change whatever the caller knows (engine/displacement.py).
+        old = self._scene.materials if self._scene is not None else {}
+        moved = {n for n, m in scene.materials.items() if moves_vertices(m)}
+        moved |= {n for n, m in old.items() if moves_vertices(m)}
+        if any(scene.materials.get(n) is not old.get(n) for n in moved):
+            geometry = True
         self._request(scene=_copy_scene(scene), geometry=bool(geometry))
 
     def stop(self) -> float:

@@ -316,3 +316,37 @@ def test_an_edit_while_the_kernels_load_does_not_end_the_session(box, monkeypatc
         assert session.running
     finally:
         session.stop()
+
+
+def test_a_displacement_edit_merges_the_triangles_again(box):
+    """A material whose true displacement moves vertices: its edit is a geometry change
+    even when the caller says geometry=False (the add-on's material update), so the
+    image is the displaced scene's; other material edits keep the geometry."""
+    from engine.displacement import VectorDisplacement
+    scene = _scene_with(box, meshes=list(box.meshes), materials=dict(box.materials),
+                        lights=list(box.lights))
+    session = Session(scene, SETTINGS, passes=PASSES).start()
+    try:
+        idle(session)
+        name = next(m.materials[0] for m in scene.meshes if m.name == "block")
+        materials = dict(scene.materials)
+        materials[name] = replace(materials[name], warnings=[],
+                                  displacement=VectorDisplacement(np.array([0.0, 0.0, 0.3]),
+                                                                  0.0, 1.0, "WORLD"),
+                                  displacement_method="DISPLACEMENT")
+        scene = _scene_with(scene, materials=materials)
+        before = snapshot(session)
+        session.update_scene(scene, geometry=False)
+        frame = idle(session)
+        assert delta(before, snapshot(session))["geometry"] == 1
+        np.testing.assert_array_equal(frame.rgba[..., :3], progressive(scene))
+        other = next(n for n in materials if n != name)
+        materials = dict(materials)
+        materials[other] = replace(materials[other], warnings=[], base_color=(0.3, 0.3, 0.3))
+        scene = _scene_with(scene, materials=materials)
+        before = snapshot(session)
+        session.update_scene(scene, geometry=False)
+        idle(session)
+        assert delta(before, snapshot(session))["geometry"] == 0
+    finally:
+        session.stop()

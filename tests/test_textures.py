@@ -285,11 +285,47 @@ def test_bump_tilts_against_the_height_gradient():
                                atol=1e-6)
 
 
+def test_bump_seen_from_the_back_is_the_front_bumped_normal_turned_over():
+    """From a back face the shading normal is the front's bumped normal turned over,
+    -normalize(n - d grad h), as Cycles renders it (tests/blender/
+    test_bump_back_face_cycles.py: the tilt mirrored instead reads against Cycles')."""
+    from engine import shadernodes as sn
+    from engine.normalmap import Bump
+    h = sn.Math("MULTIPLY", sn.SeparateChannel(sn.UVCoord(), 0), 0.5)  # grad h = (0.5, 0, 0)
+    want = np.array([0.4, 0, -1]) / np.hypot(0.4, 1)
+    for prim_uv in ([0.3, 0.2], [0.2, 0.6]):
+        got = _bumped(Bump(h, distance=0.8), prim_uv, d=[0.0, 0, 1])
+        np.testing.assert_allclose(got, want, atol=1e-6)
+
+
+def test_normal_map_takes_procedural_values_and_constant_colours():
+    """A Normal Map's Color from any node: a procedural colour (per hit), a value (grey,
+    as Cycles converts a float into a colour) or a constant colour; bad constants raise."""
+    from engine import shadernodes as sn
+    from engine.normalmap import NormalMap, NormalMapError
+    th = np.radians(30)
+    tilt_u = np.array([0.5 + 0.5 * np.sin(th), 0.5, 0.5 + 0.5 * np.cos(th)])
+    chk = sn.Checker(sn.UVCoord(), tuple(tilt_u), (0.5, 0.5, 1.0), scale=2.0)  # 0.5 cells
+    got = np.array([_bumped(NormalMap(chk), xy) for xy in ([0.25, 0.1], [0.75, 0.1])])
+    np.testing.assert_allclose(got, [[0, 0, 1], [np.sin(th), 0, np.cos(th)]], atol=1e-6)
+    grey = sn.Math("ADD", sn.Math("MULTIPLY", sn.SeparateChannel(sn.UVCoord(), 0), 0.0), 0.7)
+    want = normalize_(np.full(3, 2 * 0.7 - 1))  # x T + y B + z N with x = y = z = 0.4
+    np.testing.assert_allclose(_bumped(NormalMap(grey), [0.3, 0.2]), want, atol=1e-6)
+    np.testing.assert_allclose(_bumped(NormalMap(tilt_u), [0.3, 0.2]),
+                               [np.sin(th), 0, np.cos(th)], atol=1e-6)
+    np.testing.assert_allclose(_bumped(NormalMap(tilt_u, space="WORLD"), [0.2, 0.6]),
+                               [np.sin(th), 0, np.cos(th)], atol=1e-6)
+    with pytest.raises(NormalMapError, match="finite"):
+        NormalMap([np.nan, 0.5, 1.0])
+    with pytest.raises(NormalMapError, match="constant colour"):
+        NormalMap("blue")
+
+
 def normalize_(x):
     return x / np.linalg.norm(x)
 
 
-def _bumped(nmap, xy):
+def _bumped(nmap, xy, d=(0.0, 0, -1)):
     s = Scene()
     s.add_material(Material("b", (0.8,) * 3, normal_map=nmap))
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
@@ -301,7 +337,7 @@ def _bumped(nmap, xy):
     else:        # triangle 1 (corners 0, 2, 3): p = (u, u + v)
         prim, bu, bv = 1, x, y - x
     return surface_hit(geo, table, np.array([prim]), np.array([bu]), np.array([bv]),
-                       np.array([[0.0, 0, -1]])).ns[0]
+                       np.array([d], float)).ns[0]
 
 
 def test_hue_saturation_and_gradient():

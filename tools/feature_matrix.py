@@ -1110,6 +1110,38 @@ def texture_displacement_bump():
 
 
 @case("textures", ours=dict(spp=128))
+def texture_displacement_true():
+    """Material > Settings > Displacement "Displacement Only" on a tessellated tile (a grid
+    of 40 x 40 quads, 2.4 m, smooth shading, scaled 1.25): a Wave texture's bands along x
+    (Object space, midlevel 0.5, scale 0.2) move the vertices up and down as Cycles
+    displaces mesh vertices, the normals recomputed from the moved faces. Under a low sun
+    from +x the ridges shade and shadow the troughs; the flat tile (true displacement
+    ignored, as before s36) reads uniform."""
+    _stage(back=False)
+    m, nt, out = _nodes_material("relief")
+    m.displacement_method = "DISPLACEMENT"
+    wave = nt.nodes.new("ShaderNodeTexWave")
+    wave.wave_type, wave.bands_direction = "BANDS", "X"
+    wave.inputs["Scale"].default_value = 1.0
+    disp = nt.nodes.new("ShaderNodeDisplacement")
+    disp.space = "OBJECT"
+    disp.inputs["Scale"].default_value = 0.2
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    nt.links.new(wave.outputs["Fac"], disp.inputs["Height"])
+    nt.links.new(disp.outputs["Displacement"], out.inputs["Displacement"])
+    nt.links.new(d.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=40, y_subdivisions=40, size=2.4,
+                                    location=(0.0, 0.0, 0.15))
+    ob = bpy.context.object
+    ob.name = "Relief"
+    ob.scale = (1.25, 1.25, 1.25)
+    ob.data.materials.append(m)
+    for poly in ob.data.polygons:
+        poly.use_smooth = True
+    _sun(rotation=(0, math.radians(65), 0))
+
+
+@case("textures", ours=dict(spp=128))
 def texture_displacement_under_bump():
     """A displacement (World space, a triangle wave across the tile's columns, height
     0.15) and, on the BSDF's Normal, a Bump node (a triangle wave across its rows,
@@ -2139,23 +2171,6 @@ def warned_volume():
     v = nt.nodes.new("ShaderNodeEmission")
     nt.links.new(v.outputs[0], out.inputs["Volume"])
     mb.box("Fog", 0.8, 0.8, 0.8, m, (0.3, 0.3, 0.4))
-    _sun()
-
-
-@case("warned", status="warned", how="true displacement (Displacement Only) is not made: "
-      "the surface renders flat (Bump Only, Blender's default, is: texture_displacement_bump)",
-      warning="Displacement Only")
-def warned_displacement():
-    _stage()
-    m, nt, out = _nodes_material("bumpy")
-    m.displacement_method = "DISPLACEMENT"
-    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    nt.links.new(d.outputs[0], out.inputs["Surface"])
-    disp = nt.nodes.new("ShaderNodeDisplacement")
-    noise = nt.nodes.new("ShaderNodeTexNoise")
-    nt.links.new(noise.outputs[0], disp.inputs["Height"])
-    nt.links.new(disp.outputs[0], out.inputs["Displacement"])
-    mb.box("Cube", 0.8, 0.8, 0.8, m, (0.3, 0.3, 0.4))
     _sun()
 
 

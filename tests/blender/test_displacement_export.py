@@ -1,8 +1,9 @@
 """Material Output > Displacement in the add-on (addon/materials.py _displacement): Cycles'
 "Bump Only" (the default method) and "Displacement and Bump" bump the shading normal by the
 displacement's height along the normal (engine/displacement.py), under the BSDF's own Bump
-node; a BSDF's Normal Map keeps its normal; "Displacement Only" and Tangent-space vector
-displacement are warned. The rendered match with Cycles: tools/feature_matrix.py
+node; a BSDF's Normal Map keeps its normal; "Displacement Only" and "Displacement and
+Bump" move the vertices (Material.displacement); Tangent-space vector displacement is
+warned. The rendered match with Cycles: tools/feature_matrix.py
 texture_displacement_bump and texture_displacement_under_bump (test_feature_matrix.py)."""
 import pytest
 from blender_helpers import convert_material as _convert
@@ -73,14 +74,22 @@ def test_bump_and_bevel_nodes_go_under_the_displacement_a_normal_map_replaces_it
     assert isinstance(mapped.normal_map, NormalMap)  # Cycles: built from the vertex normal
 
 
-def test_methods_that_move_the_surface_are_warned(fresh_scene, bpy_addon):
+def test_methods_that_move_the_surface_set_the_material_displacement(fresh_scene, bpy_addon):
+    """Displacement Only: the vertices move (Material.displacement), no bump; Displacement
+    and Bump: both; a constant height moves a truly displaced surface (an offset along
+    the normal) but bumps nothing. The moved render: test_true_displacement_cycles.py."""
     from engine import displacement as dp
     only = _convert(_displaced(bpy_addon, "TrueOnly", method="DISPLACEMENT"))
-    assert only.normal_map is None
-    assert any("Displacement Only" in w for w in only.warnings), only.warnings
+    assert only.normal_map is None and not only.warnings, only.warnings
+    assert isinstance(only.displacement, dp.Displacement)
+    assert only.displacement_method == "DISPLACEMENT" and dp.moves_vertices(only)
     both = _convert(_displaced(bpy_addon, "Both", method="BOTH"))
-    assert isinstance(both.normal_map, dp.DisplacedNormals)
-    assert any("not moved, only bumped" in w for w in both.warnings), both.warnings
+    assert isinstance(both.normal_map, dp.DisplacedNormals) and not both.warnings
+    assert isinstance(both.displacement, dp.Displacement) and both.displacement_method == "BOTH"
+    flat = _convert(_displaced(bpy_addon, "Offset", method="DISPLACEMENT", height=0.7))
+    assert flat.normal_map is None and dp.moves_vertices(flat)
+    bump = _convert(_displaced(bpy_addon, "BumpOnly2"))
+    assert bump.displacement is None and not dp.moves_vertices(bump)
 
 
 def test_constant_displacement_makes_no_bump(fresh_scene, bpy_addon):
@@ -122,3 +131,27 @@ def test_a_texture_straight_into_displacement_is_its_vector(fresh_scene, bpy_add
     assert isinstance(mat.normal_map, dp.DisplacedNormals)
     assert not isinstance(mat.normal_map.bump.height.displacement,
                           (dp.Displacement, dp.VectorDisplacement))
+
+
+def test_adaptive_subdivision_is_warned_and_the_render_levels_used(fresh_scene, bpy_addon):
+    """Cycles dices a mesh whose last Subdivision modifier is adaptive to its pixel size;
+    Blender hands the exporter the modifier's render levels: warned, naming the object."""
+    bpy = bpy_addon
+    from addon import export
+    from addon.core import load_engine
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=2, y_subdivisions=2)
+    ob = bpy.context.object
+    ob.name = "Terrain"
+    mod = ob.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels = mod.render_levels = 2
+    from blender_helpers import looking_down_camera
+    looking_down_camera(bpy, fresh_scene, 3.0)
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=8)
+    assert not [w for w in out.warnings if "Adaptive" in w]
+    mod.use_adaptive_subdivision = True
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=8)
+    assert any("object 'Terrain': Adaptive Subdivision is not made" in w
+               and "render levels (2)" in w for w in out.warnings), out.warnings
+    assert sum(len(m.faces) for m in out.meshes) == 2 * 16 * 4  # 4 quads, 2 levels
