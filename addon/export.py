@@ -800,6 +800,27 @@ def cycles_source(scene, props, names):
     return props
 
 
+def volume_bounces_warning(scene, materials, warnings) -> None:
+    """Light Paths > Volume bounces above 0 (scene.cycles.volume_bounces; Cycles' default
+    is 0) with a scattering medium in the scene: the camera paths scatter that many more
+    times inside the medium, each scatter lit by the lamps (engine/volumescatter.py), but
+    photons do not scatter in it and a path does not go on from the medium to a surface:
+    warned with the materials named, as that part of the extra bounces' light is
+    missing."""
+    bounces = int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0) or 0)
+    if bounces <= 0:
+        return
+    names = sorted(name for name, m in materials.items()
+                   if np.any(np.asarray(getattr(m, "scattering", 0.0)) > 0))
+    if names:
+        shown = ", ".join(f"'{n}'" for n in names[:3]) + (", ..." if len(names) > 3 else "")
+        warnings.append(f"Light Paths > Volume bounces is {bounces}: the media of {shown} "
+                        "scatter the lamps' light up to that many more times along camera "
+                        "paths, but their light reaching surfaces after a scatter in the "
+                        "medium (photons) and surfaces' light scattered in them are not "
+                        "simulated")
+
+
 def light_path_source(scene, props):
     """Where the Light Paths limits come from (cycles_source): a scene set to Diffuse 1
     for Cycles renders with 1 here too."""
@@ -810,7 +831,12 @@ def light_path_settings(scene, props) -> dict:
     """The Light Paths limits as RenderSettings keywords (LIGHT_PATH_LIMITS): Cycles' own
     properties when the Cycles add-on is there, else ours (light_path_source)."""
     src = light_path_source(scene, props)
-    return {n: int(getattr(src, n)) for n in LIGHT_PATH_LIMITS}
+    out = {n: int(getattr(src, n)) for n in LIGHT_PATH_LIMITS}
+    # Cycles' Volume bounces (default 0), read from Cycles' settings only (ours has no
+    # such property: without the Cycles add-on, 0).
+    out["volume_bounces"] = int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0)
+                                or 0)
+    return out
 
 
 # Light Paths > Clamping: Cycles' property names (UI units, 0 = off), which ours share.
@@ -1313,6 +1339,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     if render.use_motion_blur:
         warnings.append("motion blur is not supported and ignored")
+    volume_bounces_warning(scene_eval, materials, warnings)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
                      background_is_light=True, environment=environment,

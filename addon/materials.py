@@ -37,6 +37,8 @@ SUPPORTED_SHADERS = ("BSDF_PRINCIPLED", "BSDF_DIFFUSE", "BSDF_GLOSSY", "BSDF_ANI
                      "BSDF_GLASS", "BSDF_REFRACTION", "EMISSION", "BSDF_TRANSPARENT",
                      "MIX_SHADER", "ADD_SHADER", "BSDF_TRANSLUCENT", "BSDF_SHEEN")
 MAX_NODE_DEPTH = 32
+# Cycles' largest Henyey-Greenstein |g| (volume_henyey_greenstein_setup: 1 - 1e-3).
+G_LIMIT = 0.999
 # Tests set this: a node tree the converter cannot read raises instead of falling back to
 # the viewport colour (so a converter bug fails the test that meets it, not only its image).
 RAISE_UNREADABLE_TREES = False
@@ -391,7 +393,8 @@ class MaterialConverter:
         if key in self.cache:
             return self.cache[key]
         warnings: list[str] = []
-        self._medium = (np.zeros(3), False)  # (sigma_a (3,) 1/m, volume-only): _volume
+        # (sigma_a (3,) 1/m, volume-only, sigma_s (3,) 1/m, HG g): _volume
+        self._medium = (np.zeros(3), False, np.zeros(3), 0.0)
         self._displace = (None, "BUMP")  # (vectors node, method): _displacement
         if mat is None:
             closure = Closure()
@@ -447,6 +450,7 @@ class MaterialConverter:
             # the medium inside (Volume Absorption / Principled Volume) and whether the
             # material has no surface (engine/media.py)
             absorption=self._medium[0], volume_only=self._medium[1],
+            scattering=self._medium[2], anisotropy=self._medium[3],
             # true displacement (Displacement Only / and Bump): vertices moved at prepare
             displacement=self._displace[0], displacement_method=self._displace[1])
         m.warnings[:0] = warnings
@@ -496,9 +500,14 @@ class MaterialConverter:
         if volume is not None and volume.is_linked:
             # The medium inside the object: its absorption (engine/media.py); a material
             # without a surface lets every ray through to it (Material.volume_only).
-            sigma = np.clip(self._volume(self._source(volume), 0), 0.0, None)
+            absorb, scatter, g_scatter = self._volume(self._source(volume), 0)
+            sigma = np.clip(absorb, 0.0, None)
+            scatter = np.clip(scatter, 0.0, None)
+            # One phase function for the medium: the scattering-weighted mean of its
+            # Henyey-Greenstein g (a single scatter node: its own g).
+            g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
             only = out.inputs.get("Surface") is None or not out.inputs["Surface"].is_linked
-            self._medium = (sigma, only)
+            self._medium = (sigma, only, scatter, min(max(g, -G_LIMIT), G_LIMIT))
         surface = out.inputs.get("Surface")
         if surface is None or not surface.is_linked:
             # Cycles renders an unconnected surface black.
@@ -592,17 +601,19 @@ class MaterialConverter:
         # a constant vector (or value v: (v, v, v)) as it is, in world space
         return dp.VectorDisplacement(val, 0.0, 1.0, "WORLD") if moving else None
 
-    def _volume(self, src, depth) -> np.ndarray:
-        """(3,) absorption coefficient sigma_a (1/m) of the volume shader tree src feeding
-        the Material Output's Volume, as Cycles builds its extinction
-        (intern/cycles/kernel/svm/closure.h): Volume Absorption density x (1 - Color)
-        (svm_node_closure_volume); Principled Volume density x max(1 - Color, 0) x
-        max(1 - sqrt(Absorption Color), 0) (svm_node_principled_volume); Add Shader sums,
-        Mix Shader weighs by its factor (the mix weight scales the density). Scattering
-        (Volume Scatter, Principled Volume's Color) and emission are warned and left out;
-        a texture on an input is warned and the socket's own value used (a homogeneous
-        medium)."""
-        zero = np.zeros(3)
+    def _volume(self, src, depth):
+        """(sigma_a, sigma_s, sigma_s x g), each (3,) in 1/m, of the volume shader tree src
+        feeding the Material Output's Volume, as Cycles builds its closures
+        (intern/cycles/kernel/svm/closure.h): Volume Absorption sigma_a = density x
+        (1 - Color) (svm_node_closure_volume); Volume Scatter sigma_s = density x Color
+        with a Henyey-Greenstein phase of its Anisotropy; Principled Volume sigma_s =
+        density x Color and sigma_a = density x max(1 - Color, 0) x max(1 - sqrt(Absorption
+        Color), 0) (svm_node_principled_volume: its extinction is their sum); Add Shader
+        sums, Mix Shader weighs by its factor (the mix weight scales the density). The
+        anisotropy g is clamped to +-0.999 as Cycles' volume_henyey_greenstein_setup does.
+        Emission, a phase function other than Henyey-Greenstein and a texture on an input
+        (the socket's own value used: a homogeneous medium) are warned."""
+        zero = (np.zeros(3), np.zeros(3), np.zeros(3))
         if src is None or depth > MAX_NODE_DEPTH:
             return zero
         node, _ = src
@@ -615,35 +626,54 @@ class MaterialConverter:
         t = node.type
         if t == "VOLUME_ABSORPTION":
             color = self._volume_color(node, "Color")
-            return max(self._float(node, "Density", 1.0), 0.0) * (1.0 - color)
+            return (max(self._float(node, "Density", 1.0), 0.0) * (1.0 - color), np.zeros(3),
+                    np.zeros(3))
         if t == "PRINCIPLED_VOLUME":
-            color = self._volume_color(node, "Color")
+            color = np.clip(self._volume_color(node, "Color"), 0.0, None)
             density = max(self._float(node, "Density", 1.0), 0.0)
             absorb = np.sqrt(np.clip(self._volume_color(node, "Absorption Color"), 0.0, None))
-            if density > 0 and np.any(color > 0):
-                self._warn(f"material '{name}': the scattering of Principled Volume "
-                           f"'{node.name}' (its Color) is not supported and ignored; only "
-                           "its absorption is rendered")
+            g = self._anisotropy_g(node)
             if (self._float(node, "Emission Strength", 0.0) > 0
                     or self._float(node, "Blackbody Intensity", 0.0) > 0):
                 self._warn(f"material '{name}': the emission of Principled Volume "
                            f"'{node.name}' is not supported and ignored")
+            scatter = density * color
             return (density * np.clip(1.0 - color, 0.0, None)
-                    * np.clip(1.0 - absorb, 0.0, None))
+                    * np.clip(1.0 - absorb, 0.0, None), scatter, scatter * g)
         if t == "ADD_SHADER":
-            return (self._volume(self._source(node.inputs[0]), depth + 1)
-                    + self._volume(self._source(node.inputs[1]), depth + 1))
+            a = self._volume(self._source(node.inputs[0]), depth + 1)
+            b = self._volume(self._source(node.inputs[1]), depth + 1)
+            return tuple(x + y for x, y in zip(a, b))
         if t == "MIX_SHADER":
             fac = min(max(self._float_socket(node, node.inputs[0], 0.5), 0.0), 1.0)
-            return ((1.0 - fac) * self._volume(self._source(node.inputs[1]), depth + 1)
-                    + fac * self._volume(self._source(node.inputs[2]), depth + 1))
+            a = self._volume(self._source(node.inputs[1]), depth + 1)
+            b = self._volume(self._source(node.inputs[2]), depth + 1)
+            return tuple((1.0 - fac) * x + fac * y for x, y in zip(a, b))
         if t == "VOLUME_SCATTER":
-            self._warn(f"material '{name}': volume scattering (node '{node.name}') is not "
+            phase = str(getattr(node, "phase", "HENYEY_GREENSTEIN") or "HENYEY_GREENSTEIN")
+            if phase != "HENYEY_GREENSTEIN":
+                self._warn(f"material '{name}': the {phase.replace('_', '-').title()} phase "
+                           f"of Volume Scatter '{node.name}' is not supported; rendered "
+                           "with the Henyey-Greenstein phase of its Anisotropy")
+            color = np.clip(self._volume_color(node, "Color"), 0.0, None)
+            scatter = max(self._float(node, "Density", 1.0), 0.0) * color
+            return np.zeros(3), scatter, scatter * self._anisotropy_g(node)
+        if t == "EMISSION" or t == "VOLUME_EMISSION" or "EMISSION" in t:
+            self._warn(f"material '{name}': volume emission (node '{node.name}') is not "
                        "supported and ignored")
             return zero
         self._warn(f"material '{name}': volume node '{node.name}' ({t}) is not supported "
                    "and ignored")
         return zero
+
+    def _anisotropy_g(self, node) -> float:
+        """A volume node's Anisotropy as the Henyey-Greenstein g Cycles uses: clamped to
+        +-(1 - 1e-3) (volume_henyey_greenstein_setup), warned outside (-1, 1)."""
+        g = self._float(node, "Anisotropy", 0.0)
+        if not -1.0 < g < 1.0:
+            self._warn(f"material '{self._mat.name}': the Anisotropy {g:g} of '{node.name}' "
+                       f"lies outside (-1, 1); clamped to {np.sign(g) * G_LIMIT:g}")
+        return min(max(g, -G_LIMIT), G_LIMIT)
 
     def _volume_color(self, node, name) -> np.ndarray:
         """A volume node's colour input as one constant (a homogeneous medium): a texture

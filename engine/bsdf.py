@@ -86,6 +86,9 @@ class SurfaceHit:
                           # (textures.scalar_params); None: the materials' rows
     emission: np.ndarray | None = None  # (N,3) emitted radiance (emission textures applied;
                           # a read-only zero-stride view of zeros when no material emits)
+    medium: np.ndarray | None = None  # (N,) int64 the medium the hit point is in (a material
+                          # row, -1: none known; engine/media.py), set by the camera paths:
+                          # shadow and gather rays from it start in that medium
 
     def clear(self, rows, d) -> np.ndarray:
         """Origins for rays leaving hits[rows] in directions d: p moved off its triangle

@@ -905,7 +905,7 @@ class DirectLightBuffers:
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
                  bsdf=None, buffers=None, rows=None, transmission=None, passages=None,
-                 light_cut=None):
+                 light_cut=None, medium_sigma=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -931,6 +931,10 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     reflective lobes (column 1), which Cycles counts against different limits (a ray
     past one cap carries its light to the other lobe alone: accumulate_bsdf's cut);
     None: no cap.
+    medium_sigma (n,3): the extinction (1/m) of the medium each hit is in (engine/media.py;
+    0: none): a traced shadow ray that meets no surface on its way lies wholly in it and
+    keeps exp(-sigma_t length) (a floor inside a fog cube lit by a lamp inside it; rays
+    that cross surfaces take ShadowTransmittance's back-face rule); None: no medium.
     light_cut (L,) int64, with bsdf: per light the lobes its samples may not light
     (CUT_DIFFUSE, CUT_GLOSSY as accumulate_bsdf's cut: Cycles' _shader_bsdf_exclude by
     the light's ray visibility); a light with a cut must be traced (its samples' traced
@@ -984,9 +988,12 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
         cut = NO_CUT
         if m_rays:
             # Embree overwrites the distances: keep them for the transparent re-trace.
-            t_keep = buf.t32[:m_rays].copy() if shadow is not None else None
+            t_keep = (buf.t32[:m_rays].copy() if shadow is not None or medium_sigma is not None
+                      else None)
             accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
                                 cls=shadow_cls)
+            if medium_sigma is not None:
+                _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma)
             if shadow is not None:
                 ray_cap = crossed = None
                 if passages is not None:
@@ -1035,6 +1042,26 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                             sel, bump, hrow, cut)
         rays += m_rays
     return E, rays
+
+
+def _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma):
+    """The entries (j < m_all) whose shadow ray the OCCLUDED query found clear: x
+    exp(-sigma_t length), sigma_t their hit's medium_sigma row (direct_light)."""
+    r = buf.ray[:m_all]
+    j = np.flatnonzero(r >= 0)
+    rr = r[j]
+    clear = ~blocked[rr]
+    j, rr = j[clear], rr[clear]
+    if not len(j):
+        return
+    sig = np.take(medium_sigma, buf.row[j], axis=0)
+    on = sig.max(axis=1) > 0.0
+    if not on.any():
+        return
+    j, rr, sig = j[on], rr[on], sig[on]
+    length = t_keep[rr].astype(np.float64) * np.linalg.norm(
+        buf.d32[rr].astype(np.float64), axis=1)
+    buf.contrib[j] *= np.exp(-sig * length[:, None])
 
 
 @register_warm_up

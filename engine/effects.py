@@ -805,19 +805,25 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                  + (f"; shadow rays cross up to {cap} transparent surfaces" if cap
                     else "; transparent max bounces 0: they block shadow rays"))
     sigma = getattr(table, "absorption", None)
+    scat = getattr(table, "scattering", None)
+    if sigma is not None and scat is not None:
+        sigma = np.asarray(sigma) + np.asarray(scat)  # the extinction (engine/media.py)
     used = (np.asarray(geo.used_materials(), np.int64) if has_tris and sigma is not None
             and np.any(sigma > 0) else np.zeros(0, np.int64))
     used = used[np.any(np.asarray(sigma)[used] > 0, axis=1)] if len(used) else used
     if len(used):
-        # Absorbing media inside objects (engine/media.py): said, with the strongest
-        # absorption's colour, so a user sees the Volume Absorption was read.
+        # Media inside objects (engine/media.py): said, with the strongest extinction's
+        # colour, so a user sees the Volume Absorption / Scatter was read.
         names = sorted({table.names[m] for m in used})
         top = np.max(sigma[used], axis=0)
+        scattering = scat is not None and bool(np.any(np.asarray(scat)[used] > 0))
         plan.add("volume absorption", True,
                  "Beer-Lambert inside " + _quoted(names, most=REPORT_NAMES_MAX)
-                 + " (sigma_a up to " + ", ".join(f"{x:.3g}" for x in top) + " /m, RGB) "
-                 "along camera paths, photons and shadow rays; volume scattering is not "
-                 "simulated")
+                 + " (sigma_t up to " + ", ".join(f"{x:.3g}" for x in top) + " /m, RGB) "
+                 "along camera paths, photons and shadow rays; "
+                 + ("single scattering of the lamps' light towards the camera "
+                    "(engine/volumescatter.py); photons and gather rays do not scatter in "
+                    "the medium" if scattering else "volume scattering is not simulated"))
     return plan
 
 

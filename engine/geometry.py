@@ -56,6 +56,10 @@ class MaterialTable:
                                        # (scene.emission_sides; None: both)
     absorption: np.ndarray = None      # (M,3) float64 sigma_a (1/m) of the medium inside
                                        # (Material.absorption; engine/media.py)
+    scattering: np.ndarray = None      # (M,3) float64 sigma_s (1/m) of that medium
+    anisotropy: np.ndarray = None      # (M,) float64 its Henyey-Greenstein g
+                                       # (Material.scattering, .anisotropy;
+                                       # engine/volumescatter.py)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -80,6 +84,10 @@ class MaterialTable:
                                             for m in materials], np.int64),
                    absorption=np.array([getattr(m, "absorption", (0.0, 0.0, 0.0))
                                         for m in materials], np.float64).reshape(-1, 3),
+                   scattering=np.array([getattr(m, "scattering", (0.0, 0.0, 0.0))
+                                        for m in materials], np.float64).reshape(-1, 3),
+                   anisotropy=np.array([getattr(m, "anisotropy", 0.0) for m in materials],
+                                       np.float64),
                    **cols)
 
     @property

@@ -28,7 +28,7 @@ from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD, background_radiance
 from .lights.packing import pack_lights
 from . import (adaptive, chaincounts, datapasses, media, photonvisibility, sampleclamp,
-               shadelight)
+               shadelight, volumescatter)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -48,6 +48,7 @@ from .guiding import warp as guide_warp
 from .sampling import SampleDimensions, StratifiedSampler, dot, max3
 from .panelight import pane_irradiance, panes_for
 from .shadelight import shade_bsdf_weights, shade_light, shades_for
+from .mediumstart import point_medium
 from .shadowtransmittance import CameraPassages
 from .visibility import CAMERA, DIFFUSE, GLOSSY, SHADOW, SPEC_LOBE_CLASS, TRANSMISSION
 
@@ -196,7 +197,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
-                           light_cut=light_cut)
+                           light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows))
     counters.shadow_rays += rays
     if shade_glossy is not None:
         shade_glossy[:] = False
@@ -269,6 +270,25 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                 shade_glossy[pts[g_on]] = True
         E[pts] += Es
     return E
+
+
+def _medium_sigma(ctx, hit, rows):
+    """(n,3) the extinction of the medium each shaded hit (rows of hit, None: all) is in
+    (hit.medium, set by the camera paths; a hit on the medium's own surface, or in no
+    known medium: 0), or None when no hit is in one: the shadow rays that meet no surface
+    on their way lie wholly in it (directlight.direct_light)."""
+    med = getattr(hit, "medium", None)
+    if med is None:
+        return None
+    med = np.asarray(med if rows is None else np.take(med, rows), np.int64)
+    mat = np.asarray(hit.mat if rows is None else np.take(hit.mat, rows), np.int64)
+    inside = (med >= 0) & (med != mat)
+    if not inside.any():
+        return None
+    sigma = media.absorption_table(ctx.table)
+    out = np.zeros((len(med), 3))
+    out[inside] = sigma[med[inside]]
+    return out
 
 
 def lobe_cut(light) -> int:
@@ -755,6 +775,14 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # The medium each ray is in, by hit row (a hit has one ray a step; -1: none known,
     # the back-face rule; engine/media.py). None: no absorbing material.
     medium_h = np.empty(n, np.int64) if sigma.shape[0] else None
+    start_medium = None
+    if medium_h is not None and getattr(hit, "medium", None) is not None:
+        start_medium = np.where(np.asarray(hit.medium, np.int64)
+                                == np.asarray(hit.mat, np.int64), -1,
+                                np.asarray(hit.medium, np.int64))
+    # Scattering media (engine/volumescatter.py; None: no material scatters).
+    scatter = (volumescatter.CameraScattering.for_context(ctx) if medium_h is not None
+               else None)
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -788,7 +816,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             buf.tp_ones = 0
         ray_cls = DIFFUSE  # then glossy / transmission after a specular bounce
         if medium_h is not None:
-            medium_h[idx] = -1  # from the gathering surface: not known
+            # From the gathering surface: the medium its camera path was in (a floor
+            # inside a fog cube; not its own medium's surface), else not known.
+            medium_h[idx] = -1 if start_medium is None else np.take(start_medium, idx)
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
@@ -856,7 +886,14 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # Gather rays that travelled inside an absorbing medium keep
                 # exp(-sigma_a s) of the segment (engine/media.py). (A new array: the
                 # buffer's throughput rows stay ones.)
+                tp_seg = tp
                 tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium_h[idx])
+                if scatter is not None:
+                    # The lamps' light a scattering medium sends along the ray (single
+                    # scattering, engine/volumescatter.py): the fog's glow on the surface.
+                    src, Ls = scatter.radiance(prim, o, d, t, medium_h[idx], rng, counters)
+                    if len(src):
+                        E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
                 Le = y.emission
@@ -2091,7 +2128,16 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # Absorbing media inside objects (engine/media.py; NO_SIGMA: none, nothing done), and
     # the medium each path is in (-1: none known; a camera inside one: the local rule).
     sigma = media.absorption_table(ctx.table)
-    medium = np.full(len(o), -1, np.int64) if sigma.shape[0] else None
+    medium = None
+    if sigma.shape[0]:
+        # A camera inside a medium object (a fog cube around the scene) starts its paths
+        # in it (engine/mediumstart.py; an orthographic camera's rays start apart: -1).
+        medium = np.full(len(o), -1 if ortho else point_medium(ctx, cam_pos, sigma),
+                         np.int64)
+    # Light scattered towards the camera inside scattering media (engine/volumescatter.py;
+    # None: no material scatters), from its own stream of numbers (made when first needed).
+    scatter = volumescatter.CameraScattering.for_context(ctx) if medium is not None else None
+    vol_rng = None
     # Cycles' bounce limits on the camera chain (docs/design.md, Bounce limits): each
     # path's glossy / transmission bounces so far and their total; a path past a limit
     # still collects emission and the background where its ray ends (Cycles'
@@ -2251,7 +2297,17 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # shaded and continued (engine/media.py).
             if kept is not None:
                 medium = medium[kept]
+            tp_seg = tp  # (attenuated returns a new array when it dims any row)
             tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium)
+            if scatter is not None:
+                # The light the medium scatters into the segment (single scattering of
+                # the lamps' light, weighted by the throughput at its start).
+                if vol_rng is None:
+                    # A child of bsdf_rng's stream (left as it was), as glass_rng.
+                    vol_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
+                               else np.random.default_rng(rng.integers(1 << 62)))
+                scatter.add(acc, "direct" if bounce == 0 else "specular", pix, prim, o, d, t,
+                            medium, tp_seg, vol_rng, counters)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -2283,6 +2339,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                              _NO_ALPHA if hit.alpha is None else c(hit.alpha, np.float64),
                              tp, want_glossy, prm, sel, q, p, psum, glossy, dsel, wd)
             hit.prm = prm
+        if medium is not None:
+            # The medium each hit point is in: its shadow and gather rays start there
+            # (directlight.direct_light's medium_sigma, gather_indirect).
+            hit.medium = medium
         if aniso_on:  # the anisotropic lobes' tangents (engine/anisotropy.py)
             set_hit_tangents(ctx.geo, hit.params if hit.params is not None
                              else ctx.table.closure_params, hit, prm, u, v)

@@ -1,8 +1,10 @@
-"""Homogeneous absorbing media inside objects: coloured glass and liquids (Beer-Lambert).
+"""Homogeneous media inside objects: coloured glass, liquids, fog (Beer-Lambert extinction).
 
 A material's `absorption` (Material.absorption, sigma_a (3,) in 1/m, per channel) is the
 medium filling the object it is on. Light that travels a distance s inside that medium
-keeps T = exp(-sigma_a s) of its power (Cycles' homogeneous volumes: the extinction
+keeps T = exp(-sigma_t s) of its power, sigma_t = sigma_a + sigma_s the extinction of
+an absorbing and scattering medium (absorption_table; the light scattered into the ray is
+engine/volumescatter.py's) (Cycles' homogeneous volumes: the extinction
 closure volume_extinction_setup, integrated analytically along the segment; for a Volume
 Absorption node sigma_a = density x (1 - colour), svm_node_closure_volume in
 intern/cycles/kernel/svm/closure.h; Principled Volume: svm_node_principled_volume,
@@ -40,16 +42,23 @@ NO_SIGMA = np.zeros((0, 3))  # no absorbing material: nothing to do
 
 
 def absorption_table(table) -> np.ndarray:
-    """(M,3) float64 sigma_a (1/m) of the material table's rows (MaterialTable.absorption;
-    zeros where a material has no medium), or NO_SIGMA (0 rows) when no material absorbs,
-    which the kernels read as "no media" (they then touch nothing)."""
+    """(M,3) float64 extinction sigma_t = sigma_a + sigma_s (1/m) of the material table's
+    rows (MaterialTable.absorption plus MaterialTable.scattering, as Cycles' extinction
+    closure sums both: svm_node_principled_volume; zeros where a material has no medium),
+    or NO_SIGMA (0 rows) when no material has a medium, which the kernels read as "no
+    media" (they then touch nothing). Every segment inside a medium keeps
+    exp(-sigma_t s): the light a scattering medium scatters out of a ray is what
+    engine/volumescatter.py adds back as in-scattering."""
     sigma = getattr(table, "absorption", None)
     if sigma is None:
         return NO_SIGMA
     sigma = np.ascontiguousarray(sigma, np.float64).reshape(-1, 3)
+    scat = getattr(table, "scattering", None)
+    if scat is not None:
+        sigma = sigma + np.asarray(scat, np.float64).reshape(-1, 3)
     if not np.any(sigma > 0):
         return NO_SIGMA
-    return sigma
+    return np.ascontiguousarray(sigma)
 
 
 @kernel

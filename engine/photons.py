@@ -39,7 +39,8 @@ from .console import short_count
 from .normalmap import bump_shadowing
 from .panelight import panes_for
 from .shadelight import shades_for
-from .scene import POINT, SPOT
+from .mediumstart import point_medium
+from .scene import AREA, POINT, SPOT
 from .photonkernels import CAUSTIC, CAUSTIC_DIFFUSE, DIRECT, INDIRECT, SEGMENT_KINDS
 
 LOBES = LOBE_NAMES
@@ -241,7 +242,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
         _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
                  bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,
                  tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
-                 coincident, make_next, pane_tri, soft_falloff_sources(light, n))
+                 coincident, make_next, pane_tri, soft_falloff_sources(light, n),
+                 start_medium=_light_medium(ctx, light))
     except BaseException:
         stored.release()
         raise
@@ -253,16 +255,28 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     return stored
 
 
+def _light_medium(ctx, light) -> int:
+    """The medium (a material row) a point, spot or area light's position is in
+    (engine/mediumstart.py), -1: none, or another kind of light."""
+    if getattr(light, "kind", None) not in (POINT, SPOT, AREA) or not hasattr(light, "pos"):
+        return -1
+    sigma = media.absorption_table(ctx.table)
+    if not sigma.shape[0]:
+        return -1
+    return point_medium(ctx, np.asarray(light.pos, np.float64), sigma)
+
+
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
              bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
              hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
-             make_next, pane_tri=None, soft=None):
+             make_next, pane_tri=None, soft=None, start_medium=-1):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
     make_next); coincident: the scene's CoincidentSurfaces or None; pane_tri: the
     next-event panes' triangle table for this light's photons (panelight.Panes.photon_tri)
-    or None; soft: soft_falloff_sources' (centre, r^2) per emission slot, or None."""
+    or None; soft: soft_falloff_sources' (centre, r^2) per emission slot, or None;
+    start_medium: the medium the light is in (_light_medium; -1: none known)."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
@@ -271,6 +285,8 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     sigma = media.absorption_table(table)
     pmed = (media.PhotonMedia(sigma, int(slot.max()) + 1 if len(slot) else 0)
             if sigma.shape[0] else None)
+    if pmed is not None and start_medium >= 0:
+        pmed.medium[:] = start_medium  # a lamp inside a fog cube: its photons start in it
     limits = settings.bounce_limits
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():

@@ -142,6 +142,11 @@ class Material:
     Material Output's Volume): light travelling a distance d (world units, object scale
     included) inside it keeps exp(-sigma_a d) (Beer-Lambert), for camera paths, photons
     and shadow rays alike (engine/media.py; docs/compatibility.md, Volume absorption).
+    `scattering` (3,) 1/m: the medium's scattering coefficient sigma_s per channel (Volume
+    Scatter density x colour, Principled Volume density x Color: Cycles'
+    svm_node_principled_volume); its extinction is sigma_a + sigma_s, and the light it
+    scatters follows the Henyey-Greenstein phase function of `anisotropy` g in (-1, 1)
+    (Cycles' volume_henyey_greenstein; engine/volumescatter.py).
     `volume_only`: the material has a volume but no surface (Surface unlinked): Cycles
     renders the surface invisible, rays pass it unbent and only the medium acts; here
     that is a transparent pass (alpha 0, white tint, no emission, black base).
@@ -190,6 +195,8 @@ class Material:
     pass_index: int = 0
     emission_sampling: str = "AUTO"
     absorption: tuple | np.ndarray = (0.0, 0.0, 0.0)
+    scattering: tuple | np.ndarray = (0.0, 0.0, 0.0)
+    anisotropy: float = 0.0
     volume_only: bool = False
     displacement: object | None = None
     displacement_method: str = "BUMP"
@@ -265,6 +272,13 @@ class Material:
         if np.any(self.absorption < 0):
             raise SceneError(f"{who} absorption: must be >= 0 (1/m), got "
                              f"{self.absorption.tolist()}")
+        self.scattering = _vec3(self.scattering, f"{who} scattering")
+        if np.any(self.scattering < 0):
+            raise SceneError(f"{who} scattering: must be >= 0 (1/m), got "
+                             f"{self.scattering.tolist()}")
+        self.anisotropy = float(self.anisotropy)
+        if not -1.0 < self.anisotropy < 1.0:
+            raise SceneError(f"{who} anisotropy: must lie in (-1, 1), got {self.anisotropy}")
         self.volume_only = bool(self.volume_only)
         if self.volume_only:
             # No surface: every ray passes it unbent and untinted (a transparent pass).

@@ -172,7 +172,11 @@ MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(no
                           "emission_sampling": _choice(*EMISSION_SAMPLING),
                           # the medium inside: sigma_a per channel in 1/m (engine/media.py),
                           # and no surface at all (a volume-only material)
-                          "absorption": _vec3(nonneg=True), "volume_only": _BOOL})
+                          "absorption": _vec3(nonneg=True), "volume_only": _BOOL,
+                          # its scattering sigma_s (1/m) and Henyey-Greenstein g
+                          # (engine/volumescatter.py)
+                          "scattering": _vec3(nonneg=True),
+                          "anisotropy": _number(-1.0, 1.0, lo_open=True, hi_open=True)})
 MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
 
 CAMERA_SCHEMA = _table({

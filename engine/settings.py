@@ -31,7 +31,7 @@ LIMITS = {
     "max_depth": 1024, "light_samples": 256, "seed": 2**63 - 1, "workers": 1024,
     "chunk_size": 1 << 24, "transparent_max_bounces": 1024, "max_bounces": 1024,
     "diffuse_bounces": 1024, "glossy_bounces": 1024, "transmission_bounces": 1024,
-    "adaptive_min_samples": 65536,
+    "volume_bounces": 1024, "adaptive_min_samples": 65536,
 }
 # Cycles' Noise Threshold property: 0 .. 1 (engine/adaptive.py)
 ADAPTIVE_THRESHOLD_MAX = 1.0
@@ -154,6 +154,10 @@ class RenderSettings:
     diffuse_bounces: int = 4
     glossy_bounces: int = 4
     transmission_bounces: int = 12
+    # Cycles' Light Paths > Volume bounces (default 0: single scattering): the scatters in
+    # a medium a camera path takes after its first, each lit by the lamps
+    # (engine/volumescatter.py; photons do not scatter in media).
+    volume_bounces: int = 0
     # Modes
     photon_mapping: bool = True     # False = the paper's plain ray tracer (Fig. 5b)
     method: str = "photon"          # local | raytrace | photon (METHODS)
@@ -212,7 +216,8 @@ class RenderSettings:
                          ("light_samples", 1), ("seed", 0), ("workers", 0), ("chunk_size", 256),
                          ("gather_rays", 1), ("transparent_max_bounces", 0),
                          ("max_bounces", 0), ("diffuse_bounces", 0), ("glossy_bounces", 0),
-                         ("transmission_bounces", 0), ("adaptive_min_samples", 0)):
+                         ("transmission_bounces", 0), ("volume_bounces", 0),
+                         ("adaptive_min_samples", 0)):
             positive_int(name, lo)
         for name in ("final_gather", "gather_by_share", "gather_guiding", "photon_mapping",
                      "aim_caustics",

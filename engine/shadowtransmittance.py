@@ -546,6 +546,12 @@ class ShadowTransmittance:
         dd = np.maximum((d * d).sum(axis=1), 1e-300)
         slot = np.arange(n, dtype=np.int64)
         entry = np.full(n, -1, np.int64)  # the glass each ray is inside (-1: none)
+        # The medium each ray entered through a front face and has not left (-1: none),
+        # and where: a ray that ends inside it (a lamp inside a fog box, lit from outside)
+        # keeps exp(-sigma_t distance) from there to its end (the back-face rule in
+        # shadow_step sees no exit).
+        in_medium = np.full(n, -1, np.int64) if self.sigma.shape[0] else None
+        entered_at = np.zeros((n, 3)) if in_medium is not None else None
         geo = self.geo
         if self.shared:
             opaque, clear, clear_idx = None, self._walk_bvh(cls), None
@@ -631,6 +637,20 @@ class ShadowTransmittance:
             off = geo.origin_offset(gp, gu, gv, p, ng)
             dg = d[go]
             o = offset_along_normal(p, ng, dg, off)
+            if in_medium is not None:
+                # Crossings of a medium's surface: a front face enters it, a back face
+                # leaves it (shadow_step attenuated the way inside).
+                r = rows[go]
+                mm = np.asarray(tri_material, np.int64)[r]
+                has = self.sigma[mm].max(axis=1) > 0.0
+                if has.any():
+                    e1r, e2r = seg_e[0][r], seg_e[1][r]
+                    front = (dg * np.cross(e1r, e2r)).sum(axis=1) < 0.0
+                    sg = slot[go]
+                    enter = has & front
+                    in_medium[sg[enter]] = mm[enter]
+                    entered_at[sg[enter]] = p[enter]
+                    in_medium[sg[has & ~front]] = -1
             slot = slot[go]
             d = dg
             t = ((end[slot] - o) * d).sum(axis=1) / dd[slot]
@@ -643,6 +663,11 @@ class ShadowTransmittance:
         else:
             # Unreachable: each step blocks a ray at its (max_hits + 1)-th surface.
             trans[slot] = 0.0
+        if in_medium is not None:
+            ends_in = np.flatnonzero((in_medium >= 0) & (trans.max(axis=1) > 0.0))
+            if len(ends_in):
+                length = np.linalg.norm(end[ends_in] - entered_at[ends_in], axis=1)
+                trans[ends_in] *= np.exp(-self.sigma[in_medium[ends_in]] * length[:, None])
         if crossed_out is not None and crossed is not None:
             crossed_out[ray_rows] = crossed
         return trans

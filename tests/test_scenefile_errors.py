@@ -19,6 +19,15 @@ def _load(tmp_path, text):
     return load_scene(str(path))
 
 
+def test_a_fog_material_loads(tmp_path):
+    scene, _ = _load(tmp_path, CAMERA + '[materials.fog]\nvolume_only = true\n'
+                     'absorption = [0.1, 0.1, 0.2]\nscattering = [0.5, 0.5, 0.4]\n'
+                     'anisotropy = 0.3\n' + SPHERE + 'material = "fog"\n')
+    fog = scene.materials["fog"]
+    assert fog.volume_only and fog.anisotropy == 0.3
+    assert list(fog.scattering) == [0.5, 0.5, 0.4]
+
+
 def test_a_valid_scene_still_loads(tmp_path):
     scene, settings = _load(tmp_path, '[render]\nwidth = 32\nheight = 24\nfinal_gather = false\n'
                             + CAMERA + SPHERE + 'translate = [0, 0, 1]\nscale = 2\nsegments = 8\n'
@@ -68,6 +77,10 @@ CASES = [
      "[materials.red]: 'base_color' must be 3 finite numbers"),
     ("material range", CAMERA + '[materials.red]\nmetallic = 2\n',
      "'metallic' must be a number >= 0 and <= 1"),
+    ("anisotropy 1", CAMERA + '[materials.fog]\nvolume_only = true\nscattering = [1, 1, 1]\n'
+     'anisotropy = 1\n', "'anisotropy' must be a number > -1 and < 1"),
+    ("negative scattering", CAMERA + '[materials.fog]\nscattering = [1, -1, 1]\n',
+     "[materials.fog]: 'scattering'"),
     ("background", 'background = [0, 0]\n' + CAMERA, "'background' must be 3 finite numbers"),
     ("camera type", CAMERA + 'type = "fisheye"\n', "'type' must be one of persp, ortho"),
     ("camera at look_at", '[camera]\nposition = [1, 1, 1]\nlook_at = [1, 1, 1]\n',

@@ -103,6 +103,17 @@ def scenes():
     v.add_sun((0.3, 0.2, -1.0), 2.0)
     v.set_camera((0.0, -4.0, 2.0), (0.0, 0.0, 0.3), view_angle=50.0)
     yield ("absorbing media", v, RenderSettings(**base))
+    # A scattering fog box (engine/volumescatter.py) under a spot and a point light inside
+    # it, seen from outside: camera and final-gather segments' single scattering.
+    f = PaperScene(24, 18)
+    f.add_plane((0, 0, 0), (0, 0, 1), 6.0, "white_diffuse", name="floor")
+    f.add_material(Material("fog", volume_only=True, absorption=(0.1, 0.1, 0.2),
+                            scattering=(0.5, 0.5, 0.4), anisotropy=0.3))
+    f.add_box((0.0, 0.0, 1.0), (1.6, 1.6, 1.2), "fog", name="fog")
+    f.add_spot_light((0.0, 0.0, 2.5), (0, 0, 0), power=300.0, spot_size_degrees=40.0)
+    f.add_point_light((0.3, 0.2, 1.0), power=20.0)
+    f.set_camera((0.0, -4.0, 1.5), (0.0, 0.0, 0.8), view_angle=50.0)
+    yield ("scattering fog", f, RenderSettings(**base))
 
 
 def main():

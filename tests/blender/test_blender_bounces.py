@@ -43,7 +43,11 @@ def test_light_paths_properties_default_to_cycles_and_export(fresh_scene, bpy_ad
     pm.glossy_bounces, pm.transmission_bounces, pm.transparent_max_bounces = 2, 3, 1
     assert light_path_settings(bare, pm) == dict(
         max_bounces=30, diffuse_bounces=9, glossy_bounces=2, transmission_bounces=3,
-        transparent_max_bounces=1)
+        transparent_max_bounces=1, volume_bounces=0)
+    # Volume bounces: Cycles' own only (ours has no such property).
+    c.volume_bounces = 3
+    assert RenderSettings(**pm.to_settings_kwargs()).volume_bounces == 3
+    c.volume_bounces = 0
     assert hasattr(bpy_addon.types, "PHOTONMAP_PT_light_paths_max_bounces")
 
 

@@ -131,8 +131,9 @@ def test_tinted_glass_cube_matches_cycles(bpy_addon, tmp_path):
 
 
 def test_volume_export_and_its_warnings(bpy_addon):
-    """The add-on's export of volume trees (addon/materials.py _volume): Cycles' sigma_a
-    of each node, Add / Mix, and a warning naming the material for what is left out."""
+    """The add-on's export of volume trees (addon/materials.py _volume): Cycles' sigma_a,
+    sigma_s and Henyey-Greenstein g of each node, Add / Mix, and a warning naming the
+    material for what is left out."""
     bpy = bpy_addon
     from blender_helpers import convert_material, node_material
 
@@ -150,17 +151,41 @@ def test_volume_export_and_its_warnings(bpy_addon):
         v.inputs["Density"].default_value = density
         return v
 
-    # Principled Volume at its defaults: Color 0.5 (scattering: warned), Absorption
-    # Color black, Density 1: sigma_a = 1 x (1 - 0.5) x (1 - sqrt(0)) = 0.5.
+    # Principled Volume at its defaults: Color 0.5, Absorption Color black, Density 1:
+    # sigma_a = 1 x (1 - 0.5) x (1 - sqrt(0)) = 0.5, sigma_s = 1 x 0.5 (rendered since
+    # volscatter36: no warning), Anisotropy 0.
     m = convert_material(material("pv", lambda nt: nt.nodes.new(
         "ShaderNodeVolumePrincipled").outputs[0]))
     np.testing.assert_allclose(m.absorption, 0.5)
-    assert m.volume_only
-    assert any("scattering of Principled Volume" in w and "'pv'" in w for w in m.warnings)
-    m = convert_material(material("scatter", lambda nt: nt.nodes.new(
-        "ShaderNodeVolumeScatter").outputs[0]))
-    assert np.all(m.absorption == 0.0)
-    assert any("volume scattering" in w and "'scatter'" in w for w in m.warnings)
+    np.testing.assert_allclose(m.scattering, 0.5)
+    assert m.volume_only and m.anisotropy == 0.0 and not m.warnings
+
+    def scatter(nt, phase=None, g=0.0):
+        v = nt.nodes.new("ShaderNodeVolumeScatter")
+        v.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1.0)
+        v.inputs["Density"].default_value = 2.0
+        v.inputs["Anisotropy"].default_value = g
+        if phase is not None:
+            v.phase = phase
+        return v.outputs[0]
+    m = convert_material(material("scatter", lambda nt: scatter(nt, g=0.4)))
+    assert np.all(m.absorption == 0.0) and not m.warnings
+    np.testing.assert_allclose(m.scattering, [0.4, 0.8, 1.2])
+    assert m.anisotropy == pytest.approx(0.4)
+    # Another phase function: warned, rendered with Henyey-Greenstein.
+    m = convert_material(material("rayleigh", lambda nt: scatter(nt, phase="RAYLEIGH")))
+    np.testing.assert_allclose(m.scattering, [0.4, 0.8, 1.2])
+    assert any("'rayleigh'" in w and "phase" in w for w in m.warnings)
+
+    def two_scatters(nt):
+        add = nt.nodes.new("ShaderNodeAddShader")
+        nt.links.new(scatter(nt, g=0.8), add.inputs[0])
+        nt.links.new(scatter(nt, g=-0.4), add.inputs[1])
+        return add.outputs[0]
+    # Two scatter nodes: their sigma_s add, g their scattering-weighted mean.
+    m = convert_material(material("two", two_scatters))
+    np.testing.assert_allclose(m.scattering, [0.8, 1.6, 2.4])
+    assert m.anisotropy == pytest.approx(0.2)
 
     def mixed(nt):
         mix = nt.nodes.new("ShaderNodeMixShader")

@@ -1,0 +1,436 @@
+"""Single scattering in homogeneous media, seen by the camera: fog in a box lit by lamps.
+
+A medium (engine/media.py) with a scattering coefficient sigma_s (Material.scattering,
+(3,) 1/m) scatters light into every camera segment that crosses it. Along a segment of
+length S inside the medium, with the path's throughput beta at its start, the radiance
+added is (the volume rendering equation's single-scattering term; Cycles:
+intern/cycles/kernel/integrator/shade_volume.h, homogeneous media)
+
+    L_s = beta  integral_0^S  T(s) sigma_s  L_in(x(s))  ds,
+    L_in(x) = integral_sphere  p(wo, wi)  L_light(x, wi)  T_shadow(x, wi)  dwi,
+
+T(s) = exp(-sigma_t s) per channel (sigma_t = sigma_a + sigma_s, media.absorption_table)
+and p the Henyey-Greenstein phase function of the material's anisotropy g (Cycles'
+phase_henyey_greenstein, intern/cycles/kernel/closure/volume_util.h):
+p = (1 - g^2) / (4 pi (1 + g^2 - 2 g cos)^1.5), cos = d . wi for a ray along d and light
+arriving from wi (g > 0: forward scattering, the glow around a light seen through fog).
+
+One distance a segment (sample_segments): s drawn from the exponential of the channels'
+mean extinction truncated to [0, S] (pbrt-v4's ratio-free homogeneous sampling, its pdf
+exact) or, for half the segments when the scene has point or spot lights, equiangularly
+towards one of them (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path
+Tracing in Participating Media": the 1 / r^2 near a lamp sampled where it peaks), the
+pdf the strategies' mixture; the estimate T(s) sigma_s / pdf(s) per channel. At that point the lights are
+sampled as at a surface (engine/directlight.py sample_lights, every light kind, the light
+tree), with the point's "normal" the ray's direction and its opposite in two halves
+(the surface's cosine, which sample_lights folds into its irradiance, divided out again;
+each half an unbiased estimate of its hemisphere's light), shadow rays through the
+scene's transparent surfaces and media (shadowtransmittance: a shadow ray leaves the fog
+through the box's back face and keeps exp(-sigma_t distance); one that meets no surface
+lies wholly in the fog, a lamp inside it, and keeps exp(-sigma_t length)), and weighted
+by the phase function (accumulate_phase). The surface behind keeps T(S) (media.attenuated).
+
+Volume bounces (Cycles' Light Paths > Volume bounces, default 0): from the first scatter
+point the path scatters on inside the medium that many more times (CameraScattering.walk:
+a Henyey-Greenstein direction, a distance in the segment to the next surface, the lamps'
+light at each point), the medium-only part of multiple scattering.
+
+Limits (docs/compatibility.md, Volume scattering): the lamps' light only, at points inside
+the medium. Photons and final-gather rays are dimmed by the extinction but do not scatter
+in the medium (the fog's glow after a second scatter onto the surfaces, and the surfaces'
+light scattered in the fog, are missing: measured in docs/accuracy.md, volscatter36); a
+walk whose distance falls beyond its segment ends there. Seeded: the numbers come from the camera path's own
+stream (integrator._trace_paths), so an image is the same for any worker count.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import media
+from .directlight import DirectLightBuffers, NO_HROWS, NO_ROWS, NO_ROWS3, sample_lights
+from .jit import kernel, register_warm_up
+from .lights import packing as pk
+from .lights.packing import pack_lights
+from .lights.selection import empty_tree
+
+FOUR_PI = 4.0 * math.pi
+# Equiangular sampling towards point and spot lights, half the segments' distances
+# (sample_segments); False: the exponential alone (docs/accuracy.md, volscatter36).
+EQUIANGULAR = True
+MAX_EQUIANGULAR = 8  # the strongest point / spot lights it aims at
+NO_POINTS = np.zeros((0, 3))
+
+
+def scattering_tables(table):
+    """(sigma_t (M,3), sigma_s (M,3), g (M,)) float64 of the material table, or None when
+    no material scatters (then nothing in this module runs)."""
+    scat = getattr(table, "scattering", None)
+    if scat is None:
+        return None
+    scat = np.ascontiguousarray(scat, np.float64).reshape(-1, 3)
+    if not np.any(scat > 0):
+        return None
+    g = getattr(table, "anisotropy", None)
+    g = (np.zeros(len(scat)) if g is None
+         else np.clip(np.ascontiguousarray(g, np.float64), -0.999, 0.999))
+    return media.absorption_table(table), scat, np.ascontiguousarray(g)
+
+
+@kernel
+def hg_phase(cos_theta, g):
+    """Henyey-Greenstein phase function (1/sr) at cos_theta = d . wi (Cycles'
+    phase_henyey_greenstein; isotropic 1 / 4 pi at g = 0)."""
+    t = 1.0 + g * g - 2.0 * g * cos_theta
+    return (1.0 - g * g) / (FOUR_PI * t * math.sqrt(max(t, 1e-300)))
+
+
+@kernel
+def _equiangular(ox, oy, oz, dx, dy, dz, S, cx, cy, cz):
+    """(t0, D, theta_a, theta_b) of equiangular sampling (Kulla & Fajardo 2012) on the
+    segment o + s d, s in [0, S] (d unit), towards the point c: t0 the foot of c on the
+    line, D its distance (floored), theta_a, theta_b the angles of the segment's ends."""
+    t0 = (cx - ox) * dx + (cy - oy) * dy + (cz - oz) * dz
+    qx, qy, qz = ox + t0 * dx - cx, oy + t0 * dy - cy, oz + t0 * dz - cz
+    D = max(math.sqrt(qx * qx + qy * qy + qz * qz), 1e-9)
+    return t0, D, math.atan2(-t0, D), math.atan2(S - t0, D)
+
+
+@kernel
+def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u, u_pick,
+                    eq_pos, src, p, w, seg_m):
+    """One in-scattering point per camera segment inside a scattering medium.
+
+    rows (n,) int64 the triangle each ray met (< 0: none), material (T,) int32, e1, e2
+    (T,3) edges; medium (n,) int64 each ray's medium (-1: not known: the segment was inside
+    the medium of the object whose back face it ends on, media.leaving_transmittance's
+    rule); o, d (n,3) the rays, t (n,) their hit distances in units of |d|; u, u_pick (n,)
+    uniform numbers. The distance s: from the exponential of the channels' mean
+    extinction truncated to the segment, or (eq_pos (K,3), K > 0: the point and spot
+    lights' positions) with probability 1/2 equiangular towards one of them picked
+    uniformly (Kulla & Fajardo 2012), its pdf the mixture of all K + 1 (one-sample MIS,
+    balance heuristic: each light's 1 / r^2 peak is sampled where it is). Writes,
+    compacted over the segments in a medium with sigma_s > 0: src (K,) the ray, p (K,3)
+    the point, w (K,3) T(s) sigma_s / pdf(s), seg_m (K,) the medium. Returns the count."""
+    k = 0
+    n_eq = eq_pos.shape[0]
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        if r < 0:
+            continue
+        dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
+        m = medium[i]
+        if m < 0:
+            mh = material[r]
+            nx = e1[r, 1] * e2[r, 2] - e1[r, 2] * e2[r, 1]
+            ny = e1[r, 2] * e2[r, 0] - e1[r, 0] * e2[r, 2]
+            nz = e1[r, 0] * e2[r, 1] - e1[r, 1] * e2[r, 0]
+            if dx * nx + dy * ny + dz * nz > 0.0:
+                m = mh
+        if m < 0:
+            continue
+        s0, s1, s2 = sigma_s[m, 0], sigma_s[m, 1], sigma_s[m, 2]
+        if not (s0 > 0.0 or s1 > 0.0 or s2 > 0.0):
+            continue
+        dl = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if not dl > 0.0:
+            continue
+        S = max(t[i], 0.0) * dl
+        if not S > 0.0:
+            continue
+        ux, uy, uz = dx / dl, dy / dl, dz / dl
+        t0, t1, t2 = sigma_t[m, 0], sigma_t[m, 1], sigma_t[m, 2]
+        sb = (t0 + t1 + t2) / 3.0  # the sampling extinction: the channels' mean
+        tau = sb * S
+        thin = not tau > 1e-6
+        one_minus = 0.0 if thin else -math.expm1(-tau)
+        share = 0.5 if n_eq > 0 else 1.0  # the exponential's share of the mixture
+        up = u_pick[i]
+        if up < share:
+            # Exponential truncated to [0, S]: s = -ln(1 - u (1 - e^-tau)) / sb (an
+            # optically thin segment: uniform, its limit).
+            s = u[i] * S if thin else -math.log1p(-u[i] * one_minus) / sb
+        else:
+            j = min(int((up - share) / (1.0 - share) * n_eq), n_eq - 1)
+            ta, D, tha, thb = _equiangular(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S,
+                                           eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2])
+            s = ta + D * math.tan(tha + u[i] * (thb - tha))
+        s = min(max(s, 0.0), S)
+        pdf = share * (1.0 / S if thin else sb * math.exp(-sb * s) / one_minus)
+        for j in range(n_eq):
+            ta, D, tha, thb = _equiangular(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S,
+                                           eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2])
+            if thb > tha:
+                x = s - ta
+                pdf += (1.0 - share) / n_eq * D / ((thb - tha) * (D * D + x * x))
+        if not pdf > 0.0:
+            continue
+        src[k] = i
+        p[k, 0] = o[i, 0] + ux * s
+        p[k, 1] = o[i, 1] + uy * s
+        p[k, 2] = o[i, 2] + uz * s
+        w[k, 0] = math.exp(-t0 * s) * s0 / pdf
+        w[k, 1] = math.exp(-t1 * s) * s1 / pdf
+        w[k, 2] = math.exp(-t2 * s) * s2 / pdf
+        seg_m[k] = m
+        k += 1
+    return k
+
+
+@kernel
+def accumulate_phase(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, nrm, wo,
+                     g, n, clear, t_ray, d_ray, sigma_t):
+    """L[row mod n] += contrib / (nrm . wdir) x phase(wo . wdir, g) x visible / samples,
+    entry by entry (sample order): sample_lights' irradiance at a point whose "normal"
+    nrm (2n,3) was the ray's direction (rows < n) or its opposite (rows >= n), the
+    cosine divided out and the Henyey-Greenstein phase (hg_phase) of the ray direction wo
+    (n,3) unit and g (n,) applied. L (n,3): the in-scattered radiance L_in.
+    A shadow ray the first OCCLUDED query found clear (clear (R,)) met no surface on its
+    way (t_ray (R,) its length in units of |d_ray| (R,3)): it lies wholly inside the
+    point's medium (sigma_t (n,3) its extinction) and keeps exp(-sigma_t length) (a lamp
+    inside the fog); a ray that crossed surfaces took its media from
+    ShadowTransmittance's back-face rule (it left the point's medium through one)."""
+    for j in range(m_all):
+        r = ray[j]
+        if r >= 0 and blocked[r]:
+            continue
+        i = row[j]
+        c = nrm[i, 0] * wdir[j, 0] + nrm[i, 1] * wdir[j, 1] + nrm[i, 2] * wdir[j, 2]
+        if not c > 0.0:
+            continue
+        h = i % n
+        cos_t = wo[h, 0] * wdir[j, 0] + wo[h, 1] * wdir[j, 1] + wo[h, 2] * wdir[j, 2]
+        f = hg_phase(cos_t, g[h]) / (c * ksamples[kidx[j]])
+        f0 = f1 = f2 = f
+        if r >= 0 and clear[r]:
+            dl = math.sqrt(float(d_ray[r, 0]) ** 2 + float(d_ray[r, 1]) ** 2
+                           + float(d_ray[r, 2]) ** 2)
+            s = float(t_ray[r]) * dl
+            f0 = f * math.exp(-sigma_t[h, 0] * s)
+            f1 = f * math.exp(-sigma_t[h, 1] * s)
+            f2 = f * math.exp(-sigma_t[h, 2] * s)
+        L[h, 0] += contrib[j, 0] * f0
+        L[h, 1] += contrib[j, 1] * f1
+        L[h, 2] += contrib[j, 2] * f2
+
+
+def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None) -> np.ndarray:
+    """(n,3) the light L_in (W / m^2 sr, radiance units) the lamps scatter at points p
+    (n,3) towards -wo (wo (n,3) unit: the camera ray's direction), through the phase
+    function of anisotropy g (n,), from one sample of each light (light_sample_list's
+    numbers, rng) with shadow rays (transparent surfaces and media crossed:
+    ctx.shadow; inside the points' own medium, extinction sigma_t (n,3): a shadow ray
+    that meets no surface keeps exp(-sigma_t length), accumulate_phase)."""
+    from .integrator import SHADOW, light_sample_list, selector_for
+    n = len(p)
+    L = np.zeros((n, 3))
+    if n == 0:
+        return L
+    samples = light_sample_list(ctx, n, rng)
+    if not samples:
+        return L
+    packed = ctx.packed_lights or pack_lights(ctx.lights)
+    codes, params, mesh = packed
+    chosen = selector_for(ctx, False)
+    tree = ((*empty_tree(), np.ones(len(codes), np.bool_)) if chosen is None else chosen[1])
+    # The two halves: "normal" +wo, then -wo, at the same points and numbers.
+    nrm = np.ascontiguousarray(np.concatenate([wo, -wo]), np.float64)
+    p2 = np.ascontiguousarray(np.concatenate([p, p]), np.float64)
+    zeros = np.zeros(2 * n)
+    hit_arrays = (p2, nrm, NO_ROWS3, nrm, zeros, NO_ROWS, NO_ROWS, NO_ROWS3, nrm)
+    buf = buffers or DirectLightBuffers()
+    shadow = getattr(ctx, "shadow", None)
+    wo = np.ascontiguousarray(wo, np.float64)
+    g = np.ascontiguousarray(g, np.float64)
+    K = len(samples)
+    klight = np.array([s[0] for s in samples], np.int64)
+    ktrace = np.array([s[1] for s in samples], np.bool_)
+    ksamples = np.array([float(s[2]) for s in samples])
+    U1 = np.ascontiguousarray(np.tile(np.stack([s[3] for s in samples]), (1, 2)))
+    U2 = np.ascontiguousarray(np.tile(np.stack([s[4] for s in samples]), (1, 2)))
+    if any(s[5] is not None for s in samples):
+        SEL = np.ascontiguousarray(np.tile(np.stack(
+            [np.zeros(n) if s[5] is None else s[5] for s in samples]), (1, 2)))
+    else:
+        SEL = np.zeros((K, 1))
+    buf.ensure(K * 2 * n)
+    m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight, ktrace,
+                                  U1, U2, SEL, buf.contrib, buf.row, buf.kidx, buf.ray,
+                                  buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf, NO_ROWS,
+                                  NO_HROWS)
+    blocked = buf.blocked[:m_rays]
+    t_keep = buf.t32[:m_rays].copy()  # (Embree overwrites the distances)
+    clear = np.zeros(m_rays, np.bool_)
+    if m_rays:
+        ctx.accel.occluded_into(buf.o32[:m_rays], buf.d32[:m_rays], buf.t32[:m_rays], blocked,
+                                cls=SHADOW)
+        np.logical_not(blocked, out=clear)
+        if shadow is not None:
+            shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
+                                buf.contrib, buf.ray, m_all, SHADOW)
+        if counters is not None:
+            counters.shadow_rays += m_rays
+    accumulate_phase(L, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all,
+                     buf.wdir, nrm, wo, g, n, clear, t_keep, buf.d32[:m_rays],
+                     np.ascontiguousarray(sigma_t, np.float64))
+    return L
+
+
+def sample_hg(d, g, u1, u2) -> np.ndarray:
+    """(n,3) unit directions drawn by the Henyey-Greenstein phase function of g (n,)
+    about the propagation directions d (n,3) unit (cos = d . w_new, hg_phase's
+    convention; pbrt-v4's SampleHenyeyGreenstein, Cycles' henyey_greenstein_sample), from
+    u1, u2 (n,) uniform: phase / pdf = 1."""
+    g = np.asarray(g, np.float64)
+    iso = np.abs(g) < 1e-3
+    gs = np.where(iso, 1.0, g)
+    sq = (1.0 - gs * gs) / (1.0 - gs + 2.0 * gs * u1)
+    cos_t = np.where(iso, 1.0 - 2.0 * u1, (1.0 + gs * gs - sq * sq) / (2.0 * gs))
+    cos_t = np.clip(cos_t, -1.0, 1.0)
+    sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    phi = 2.0 * math.pi * u2
+    # An orthonormal frame about d (Duff et al. 2017, "Building an Orthonormal Basis").
+    sign = np.where(d[:, 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + d[:, 2])
+    b = d[:, 0] * d[:, 1] * a
+    t1 = np.stack([1.0 + sign * d[:, 0] ** 2 * a, sign * b, -sign * d[:, 0]], axis=1)
+    t2 = np.stack([b, sign + d[:, 1] ** 2 * a, -d[:, 1]], axis=1)
+    w = (sin_t * np.cos(phi))[:, None] * t1 + (sin_t * np.sin(phi))[:, None] * t2 \
+        + cos_t[:, None] * d
+    return np.ascontiguousarray(w / np.linalg.norm(w, axis=1, keepdims=True))
+
+
+class CameraScattering:
+    """The camera paths' single scattering for one render context (None from
+    for_context when no material scatters)."""
+
+    def __init__(self, ctx, tables):
+        self.ctx = ctx
+        self.sigma_t, self.sigma_s, self.g = tables
+        # Cycles' Light Paths > Volume bounces: the scatters after the first (walk).
+        self.bounces = int(getattr(ctx.settings, "volume_bounces", 0) or 0)
+        # The point and spot lights' positions for equiangular sampling (sample_segments;
+        # the strongest MAX_EQUIANGULAR by power; none: exponential alone).
+        self.eq_pos = NO_POINTS
+        if EQUIANGULAR and ctx.lights:
+            codes, params, _ = ctx.packed_lights or pack_lights(ctx.lights)
+            rows = np.flatnonzero((codes == pk.CODE_POINT) | (codes == pk.CODE_SPOT))
+            if len(rows):
+                power = params[rows, pk.RGB:pk.RGB + 3].sum(axis=1)
+                rows = rows[np.argsort(-power, kind="stable")[:MAX_EQUIANGULAR]]
+                self.eq_pos = np.ascontiguousarray(params[rows, pk.POS:pk.POS + 3],
+                                                   np.float64)
+
+    @classmethod
+    def for_context(cls, ctx):
+        tables = scattering_tables(ctx.table)
+        return None if tables is None else cls(ctx, tables)
+
+    def radiance(self, prim, o, d, t, medium, rng, counters=None):
+        """(src (K,) int64, L (K,3)): the radiance scattered towards the ray's origin
+        along the segments of the rays src of o, d (n,3) (t (n,) in units of |d|, ending
+        on triangles prim (n,), in media medium (n,) int64, -1: not known) that lie in a
+        scattering medium, one distance sample each (sample_segments) and one sample of
+        each light there (in_scattered); per unit of throughput at the segment's start.
+        rng: the numbers (n distances, then the light samples')."""
+        n = len(prim)
+        if n == 0:
+            return np.zeros(0, np.int64), np.zeros((0, 3))
+        geo = self.ctx.geo
+        rows, (material, e1, e2) = geo.hit_tables(prim, "material", "e1", "e2")
+        src = np.empty(n, np.int64)
+        pts = np.empty((n, 3))
+        w = np.empty((n, 3))
+        seg_m = np.empty(n, np.int64)
+        u, u_pick = rng.random((2, n))
+        k = sample_segments(np.ascontiguousarray(rows, np.int64),
+                            np.ascontiguousarray(material, np.int32),
+                            np.ascontiguousarray(e1, np.float64),
+                            np.ascontiguousarray(e2, np.float64), self.sigma_t, self.sigma_s,
+                            np.ascontiguousarray(medium, np.int64),
+                            np.ascontiguousarray(o, np.float64),
+                            np.ascontiguousarray(d, np.float64),
+                            np.ascontiguousarray(t, np.float64), u, u_pick, self.eq_pos,
+                            src, pts, w, seg_m)
+        if k == 0:
+            return np.zeros(0, np.int64), np.zeros((0, 3))
+        src, pts, w, seg_m = src[:k], pts[:k], w[:k], seg_m[:k]
+        wo = np.take(np.asarray(d, np.float64), src, axis=0)
+        wo = wo / np.linalg.norm(wo, axis=1, keepdims=True)
+        Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
+                           counters)
+        L = Lin * w
+        if self.bounces > 0:
+            self.walk(L, pts, wo, w, seg_m, rng, counters)
+        return src, L
+
+    def walk(self, L, pts, wo, beta, seg_m, rng, counters=None):
+        """Volume bounces: from each first scatter point pts (K,3) (the path arriving
+        along wo (K,3), weight beta (K,3), in medium seg_m (K,)) the path scatters on
+        inside the medium up to self.bounces more times: a direction by the
+        Henyey-Greenstein phase (sample_hg: its weight phase / pdf is 1), the segment to
+        the next surface, a distance in it (sample_segments; a path whose distance falls
+        beyond the medium's segment ends, its light there being the surface's, which is
+        not followed), the lamps' light there (in_scattered) added to L (K,3) in place."""
+        idx = np.arange(len(pts))
+        x, d_in, m, beta = pts, wo, seg_m, beta
+        geo = self.ctx.geo
+        for _ in range(self.bounces):
+            if len(idx) == 0:
+                return
+            u1, u2 = rng.random((2, len(idx)))
+            d_new = sample_hg(d_in, self.g[m], u1, u2)
+            t, prim, _, _ = self.ctx.accel.intersect(x, d_new)
+            rows, (material, e1, e2) = geo.hit_tables(prim, "material", "e1", "e2")
+            n = len(idx)
+            src = np.empty(n, np.int64)
+            p2 = np.empty((n, 3))
+            w2 = np.empty((n, 3))
+            m2 = np.empty(n, np.int64)
+            u, u_pick = rng.random((2, n))
+            k = sample_segments(np.ascontiguousarray(rows, np.int64),
+                                np.ascontiguousarray(material, np.int32),
+                                np.ascontiguousarray(e1, np.float64),
+                                np.ascontiguousarray(e2, np.float64), self.sigma_t,
+                                self.sigma_s, np.ascontiguousarray(m, np.int64),
+                                np.ascontiguousarray(x, np.float64), d_new,
+                                np.ascontiguousarray(t, np.float64), u, u_pick, self.eq_pos,
+                                src, p2, w2, m2)
+            src = src[:k]
+            idx, x, d_in, m = idx[src], p2[:k], d_new[src], m2[:k]
+            beta = beta[src] * w2[:k]
+            if k == 0:
+                return
+            Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters)
+            L[idx] += beta * Lin
+
+    def add(self, acc, target, pix, prim, o, d, t, medium, tp, rng, counters=None):
+        """radiance()'s light into pass `target` of the Accumulator acc at pixels pix (n,),
+        weighted by the throughput tp (n,3) at the segment's start. Returns the segments
+        lit."""
+        src, L = self.radiance(prim, o, d, t, medium, rng, counters)
+        if len(src):
+            acc.add(target, pix, L, np.ascontiguousarray(tp, np.float64), src)
+        return len(src)
+
+
+@register_warm_up
+def _warm_up():
+    """Compile (or load) the kernels on one segment through a unit triangle."""
+    e1 = np.array([[1.0, 0.0, 0.0]])
+    e2 = np.array([[0.0, 1.0, 0.0]])
+    one = np.ones((1, 3))
+    d = np.array([[0.0, 0.0, 1.0]])
+    out = np.empty((1, 3))
+    u2 = np.random.default_rng(0).random((2, 1))
+    for eq in (NO_POINTS, np.array([[0.5, 0.0, 0.5]])):
+        sample_segments(np.zeros(1, np.int64), np.zeros(1, np.int32), e1, e2, one, one,
+                        np.full(1, -1, np.int64), np.zeros((1, 3)), d, np.ones(1), u2[0],
+                        u2[1], eq, np.empty(1, np.int64), out, np.empty((1, 3)),
+                        np.empty(1, np.int64))
+    accumulate_phase(np.zeros((1, 3)), one, np.zeros(1, np.int64), np.zeros(1, np.int64),
+                     np.zeros(1, np.int64), np.ones(1), np.zeros(1, np.bool_), 1, d,
+                     np.concatenate([d, -d]), d, np.zeros(1), 1, np.ones(1, np.bool_),
+                     np.ones(1, np.float32), np.ones((1, 3), np.float32), one)
+    hg_phase(0.5, 0.3)
