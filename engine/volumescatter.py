@@ -337,8 +337,25 @@ class CameraScattering:
         n = len(prim)
         if n == 0:
             return np.zeros(0, np.int64), np.zeros((0, 3))
-        geo = self.ctx.geo
-        rows, (material, e1, e2) = geo.hit_tables(prim, "material", "e1", "e2")
+        src, pts, w, seg_m = self._scatter_points(prim, o, d, t, medium, rng)
+        if len(src) == 0:
+            return np.zeros(0, np.int64), np.zeros((0, 3))
+        wo = np.take(np.asarray(d, np.float64), src, axis=0)
+        wo = wo / np.linalg.norm(wo, axis=1, keepdims=True)
+        Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
+                           counters)
+        L = Lin * w
+        if self.bounces > 0:
+            self.walk(L, pts, wo, w, seg_m, rng, counters)
+        return src, L
+
+    def _scatter_points(self, prim, o, d, t, medium, rng):
+        """One distance sample on each ray's segment (sample_segments; rays src of o, d
+        (n,3), t (n,) in units of |d|, ending on triangles prim (n,), in media medium
+        (n,)): (src (K,) int64, points (K,3), weights (K,3), media (K,)) for the K that
+        scatter, in order. rng: n pairs of numbers."""
+        rows, (material, e1, e2) = self.ctx.geo.hit_tables(prim, "material", "e1", "e2")
+        n = len(prim)
         src = np.empty(n, np.int64)
         pts = np.empty((n, 3))
         w = np.empty((n, 3))
@@ -353,17 +370,7 @@ class CameraScattering:
                             np.ascontiguousarray(d, np.float64),
                             np.ascontiguousarray(t, np.float64), u, u_pick, self.eq_pos,
                             src, pts, w, seg_m)
-        if k == 0:
-            return np.zeros(0, np.int64), np.zeros((0, 3))
-        src, pts, w, seg_m = src[:k], pts[:k], w[:k], seg_m[:k]
-        wo = np.take(np.asarray(d, np.float64), src, axis=0)
-        wo = wo / np.linalg.norm(wo, axis=1, keepdims=True)
-        Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
-                           counters)
-        L = Lin * w
-        if self.bounces > 0:
-            self.walk(L, pts, wo, w, seg_m, rng, counters)
-        return src, L
+        return src[:k], pts[:k], w[:k], seg_m[:k]
 
     def walk(self, L, pts, wo, beta, seg_m, rng, counters=None):
         """Volume bounces: from each first scatter point pts (K,3) (the path arriving
@@ -375,32 +382,16 @@ class CameraScattering:
         not followed), the lamps' light there (in_scattered) added to L (K,3) in place."""
         idx = np.arange(len(pts))
         x, d_in, m, beta = pts, wo, seg_m, beta
-        geo = self.ctx.geo
         for _ in range(self.bounces):
             if len(idx) == 0:
                 return
             u1, u2 = rng.random((2, len(idx)))
             d_new = sample_hg(d_in, self.g[m], u1, u2)
             t, prim, _, _ = self.ctx.accel.intersect(x, d_new)
-            rows, (material, e1, e2) = geo.hit_tables(prim, "material", "e1", "e2")
-            n = len(idx)
-            src = np.empty(n, np.int64)
-            p2 = np.empty((n, 3))
-            w2 = np.empty((n, 3))
-            m2 = np.empty(n, np.int64)
-            u, u_pick = rng.random((2, n))
-            k = sample_segments(np.ascontiguousarray(rows, np.int64),
-                                np.ascontiguousarray(material, np.int32),
-                                np.ascontiguousarray(e1, np.float64),
-                                np.ascontiguousarray(e2, np.float64), self.sigma_t,
-                                self.sigma_s, np.ascontiguousarray(m, np.int64),
-                                np.ascontiguousarray(x, np.float64), d_new,
-                                np.ascontiguousarray(t, np.float64), u, u_pick, self.eq_pos,
-                                src, p2, w2, m2)
-            src = src[:k]
-            idx, x, d_in, m = idx[src], p2[:k], d_new[src], m2[:k]
-            beta = beta[src] * w2[:k]
-            if k == 0:
+            src, p2, w2, m2 = self._scatter_points(prim, x, d_new, t, m, rng)
+            idx, x, d_in, m = idx[src], p2, d_new[src], m2
+            beta = beta[src] * w2
+            if len(src) == 0:
                 return
             Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters)
             L[idx] += beta * Lin

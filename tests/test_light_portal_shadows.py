@@ -30,8 +30,8 @@ L = 0.8
 HALF, H, W = 2.0, 2.0, 0.5   # room half width, height, the opening's half width (m)
 
 
-def _room(portal=True, env=None):
-    """The room (module docstring); env: an equirectangular map (H,W,3) for the world."""
+def _floor_and_walls():
+    """The room's floor and four walls (grey 0.5) under a world of radiance L, no roof."""
     s = PaperScene(width=16, height=16, background=(L, L, L))
     s.add_material(Material("wall", (0.5,) * 3))
     s.add_plane((0, 0, 0), (0, 0, 1), 2 * HALF, "wall", name="floor")
@@ -41,6 +41,13 @@ def _room(portal=True, env=None):
         v = np.array([[a[0], a[1], 0.0], [b[0], b[1], 0.0], [b[0], b[1], H],
                       [a[0], a[1], H]])
         s.add_triangles(v, np.array([[0, 1, 2], [0, 2, 3]]), "wall", name=f"wall{k}")
+    return s
+
+
+def _room(portal=True, env=None):
+    """The room (module docstring); env: an equirectangular map (H,W,3) for the world."""
+    s = _floor_and_walls()
+    h = HALF
     v = np.array([[-h, -h, H], [h, -h, H], [h, h, H], [-h, h, H],
                   [-W, -W, H], [W, -W, H], [W, W, H], [-W, W, H]])
     f = np.array([[0, 4, 1], [1, 4, 5], [1, 5, 2], [2, 5, 6], [2, 6, 3], [3, 6, 7],

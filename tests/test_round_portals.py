@@ -15,11 +15,10 @@ import numpy as np
 import pytest
 
 import engine.lights.portalmap as portalmap
-from engine.api import PaperScene
-from engine.scene import Camera, LightPortal, Material
+from engine.scene import Camera, LightPortal
 from helpers import assert_unbiased
-from test_light_portal_shadows import (H, HALF, L, _context, _floor_hits, _room,
-                                       _sample_with_pdfs, _samples)
+from test_light_portal_shadows import (H, HALF, L, _context, _floor_and_walls, _floor_hits,
+                                       _room, _sample_with_pdfs, _samples)
 
 W = 0.5
 SIDES = 64
@@ -35,15 +34,8 @@ def _round_room(portal=True, env=None):
     """The room (module docstring): its roof the ring of quads between the hole and the
     square's edge (the points of the edge at the hole's vertices' angles; SIDES a
     multiple of 8, so the square's corners are among them)."""
-    s = PaperScene(width=16, height=16, background=(L, L, L))
-    s.add_material(Material("wall", (0.5,) * 3))
-    s.add_plane((0, 0, 0), (0, 0, 1), 2 * HALF, "wall", name="floor")
+    s = _floor_and_walls()
     h = HALF
-    for k, (a, b) in enumerate((((-h, -h), (h, -h)), ((h, -h), (h, h)),
-                                ((h, h), (-h, h)), ((-h, h), (-h, -h)))):
-        v = np.array([[a[0], a[1], 0.0], [b[0], b[1], 0.0], [b[0], b[1], H],
-                      [a[0], a[1], H]])
-        s.add_triangles(v, np.array([[0, 1, 2], [0, 2, 3]]), "wall", name=f"wall{k}")
     inner = _hole()
     d = inner[:, :2] / W
     outer = np.column_stack([d * (h / np.abs(d).max(axis=1))[:, None], np.full(SIDES, H)])

@@ -230,6 +230,25 @@ def black_world(bpy, scene, strength=0.0):
     return world
 
 
+def sun_light(bpy, scene, rotation, energy=3.0):
+    """A Sun of strength `energy` turned by the Euler angles `rotation` (radians; the
+    light travels along the turned -Z), linked to scene. Returns the object."""
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = float(energy)
+    sun.rotation_euler = tuple(rotation)
+    scene.collection.objects.link(sun)
+    return sun
+
+
+def export_warnings(bpy) -> list:
+    """The warnings the add-on's export gives for the current scene (8 x 8, no render)."""
+    from addon import export
+    from addon.core import load_engine
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=8)
+    return out.warnings
+
+
 def looking_down_camera(bpy, scene, height, ortho_scale=None, lens=None):
     """A camera at (0, 0, height) looking down -Z (x across the image), orthographic of
     width ortho_scale, or perspective of focal length lens; the scene's camera."""

@@ -19,7 +19,7 @@ SPP = 64
 
 
 def _scene(bpy, scene, chained_bump=False):
-    from blender_helpers import black_world, looking_down_camera, node_material
+    from blender_helpers import black_world, looking_down_camera, node_material, sun_light
     m, nt, out = node_material(bpy, "Rounded")
     d = nt.nodes.new("ShaderNodeBsdfDiffuse")
     d.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
@@ -40,11 +40,7 @@ def _scene(bpy, scene, chained_bump=False):
     cube = bpy.context.object
     cube.rotation_euler = (math.radians(35.0), math.radians(-25.0), math.radians(20.0))
     cube.data.materials.append(m)
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = 3.0
-    sun_ob = bpy.data.objects.new("Sun", sun)
-    sun_ob.rotation_euler = (math.radians(40.0), math.radians(30.0), 0.0)
-    scene.collection.objects.link(sun_ob)
+    sun_light(bpy, scene, (math.radians(40.0), math.radians(30.0), 0.0))
     looking_down_camera(bpy, scene, 3.0, ortho_scale=1.8)
     black_world(bpy, scene)
     scene.render.resolution_x, scene.render.resolution_y = W, H

@@ -19,7 +19,7 @@ W = H = 32
 
 
 def _scene(bpy, scene, side):
-    from blender_helpers import black_world, looking_down_camera, node_material
+    from blender_helpers import black_world, looking_down_camera, node_material, sun_light
     m, nt, out = node_material(bpy, "Bumped")
     wave = nt.nodes.new("ShaderNodeTexWave")
     wave.wave_type, wave.bands_direction = "BANDS", "X"
@@ -33,12 +33,8 @@ def _scene(bpy, scene, side):
     nt.links.new(d.outputs[0], out.inputs["Surface"])
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=2.0)
     bpy.context.object.data.materials.append(m)
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = 3.0
-    sun_ob = bpy.data.objects.new("Sun", sun)
     # light travelling to -x and down (front) or up (back), 70 degrees off the normal
-    sun_ob.rotation_euler = (0.0, math.radians(70.0 if side == "front" else 110.0), 0.0)
-    scene.collection.objects.link(sun_ob)
+    sun_light(bpy, scene, (0.0, math.radians(70.0 if side == "front" else 110.0), 0.0))
     cam = looking_down_camera(bpy, scene, 3.0, ortho_scale=2.0)
     if side == "back":  # under the plane, looking up
         cam.location.z = -3.0

@@ -23,7 +23,7 @@ LEAN = math.radians(35)
 
 
 def _scene(bpy, scene, kind):
-    from blender_helpers import black_world, looking_down_camera, node_material
+    from blender_helpers import black_world, looking_down_camera, node_material, sun_light
     m, nt, out = node_material(bpy, f"Procedural {kind}")
     nmap = nt.nodes.new("ShaderNodeNormalMap")
     if kind == "checker":
@@ -54,11 +54,7 @@ def _scene(bpy, scene, kind):
     nt.links.new(d.outputs[0], out.inputs["Surface"])
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=2.0)
     bpy.context.object.data.materials.append(m)
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = 3.0
-    sun_ob = bpy.data.objects.new("Sun", sun)
-    sun_ob.rotation_euler = (0.0, math.radians(70.0), 0.0)  # light travels to -x, down
-    scene.collection.objects.link(sun_ob)
+    sun_light(bpy, scene, (0.0, math.radians(70.0), 0.0))  # light travels to -x, down
     cam = looking_down_camera(bpy, scene, 3.0, ortho_scale=2.0)
     cam.location.x += 0.02
     cam.location.y += 0.02
@@ -81,12 +77,9 @@ def test_procedural_normal_map_matches_cycles(fresh_scene, bpy_addon, tmp_path, 
     bpy = bpy_addon
     scene = fresh_scene
     _scene(bpy, scene, kind)
-    from addon import export
-    from addon.core import load_engine
-    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
-                                 width=8, height=8)
-    assert not [w for w in out.warnings if "Normal Map" in w], out.warnings
-    from blender_helpers import render_pixel_centres
+    from blender_helpers import export_warnings, render_pixel_centres
+    warnings = export_warnings(bpy)
+    assert not [w for w in warnings if "Normal Map" in w], warnings
     ours = render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")[..., :3]
     ref = render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES")[..., :3]
     err = np.abs(ours - ref)

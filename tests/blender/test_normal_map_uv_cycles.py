@@ -22,7 +22,7 @@ W = H = 32
 
 
 def _scene(bpy, scene, uv_map):
-    from blender_helpers import black_world, looking_down_camera, node_material
+    from blender_helpers import black_world, looking_down_camera, node_material, sun_light
     th = math.radians(35)
     px = np.zeros((8, 8, 4), np.float32)  # rows = v, columns = u
     lean = np.where((np.arange(8) // 2) % 2 == 0, 1.0, -1.0)[None, :]
@@ -58,11 +58,7 @@ def _scene(bpy, scene, uv_map):
                                            1).astype(np.float32).ravel())
     me.uv_layers["UVMap"].active_render = True
     me.update()
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = 3.0
-    sun_ob = bpy.data.objects.new("Sun", sun)
-    sun_ob.rotation_euler = (math.radians(-70.0), 0.0, 0.0)  # light travels to -y, down
-    scene.collection.objects.link(sun_ob)
+    sun_light(bpy, scene, (math.radians(-70.0), 0.0, 0.0))  # light travels to -y, down
     # 2 m across 32 pixels: the texel edges (every 4 pixels) fall between pixel centres.
     # Moved a third of a pixel: the centres on the quads' diagonals (where camera rays
     # meet the edge two triangles share) read one sample in 16 black in ours, whichever

@@ -19,7 +19,7 @@ W, H = 48, 36
 
 
 def _scene(bpy, scene, method):
-    from blender_helpers import black_world, node_material
+    from blender_helpers import black_world, node_material, sun_light
     from mathutils import Vector
     m, nt, out = node_material(bpy, "Displaced")
     m.displacement_method = method
@@ -38,11 +38,7 @@ def _scene(bpy, scene, method):
     ob.scale = (1.2, 1.2, 1.2)
     bpy.ops.object.shade_smooth()
     ob.data.materials.append(m)
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = 3.0
-    sun_ob = bpy.data.objects.new("Sun", sun)
-    sun_ob.rotation_euler = (0.0, math.radians(55.0), 0.0)  # from +x, 55 degrees low
-    scene.collection.objects.link(sun_ob)
+    sun_light(bpy, scene, (0.0, math.radians(55.0), 0.0))  # from +x, 55 degrees low
     cam_data = bpy.data.cameras.new("Cam")
     cam = bpy.data.objects.new("Cam", cam_data)
     cam.location = (0.3, -2.6, 2.2)
@@ -60,12 +56,9 @@ def test_true_displacement_matches_cycles(fresh_scene, bpy_addon, tmp_path, meth
     bpy = bpy_addon
     scene = fresh_scene
     _scene(bpy, scene, method)
-    from addon import export
-    from addon.core import load_engine
-    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
-                                 width=8, height=8)
-    assert not [w for w in out.warnings if "isplacement" in w], out.warnings
-    from blender_helpers import render_pixel_centres
+    from blender_helpers import export_warnings, render_pixel_centres
+    warnings = export_warnings(bpy)
+    assert not [w for w in warnings if "isplacement" in w], warnings
     ours = render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP")[..., :3]
     ref = render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES")[..., :3]
     bpy.data.materials["Displaced"].displacement_method = "BUMP"
