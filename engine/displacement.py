@@ -210,13 +210,41 @@ def _vertex_offsets(mesh, materials, moved_faces) -> np.ndarray:
     return offsets
 
 
-def _recomputed_normals(vertices, faces, normals, true_faces):
-    """Mesh normals after displacement, as Cycles recomputes them where a face's method is
-    "Displacement Only" (true_faces (F,) bool): a vertex of such faces takes the
+def _vertex_normals(vertices, faces) -> np.ndarray:
+    """(V,3) Blender's vertex normals of a mesh: the faces' unit normals weighted by the
+    corner angle at the vertex (zero where no face uses it)."""
+    f = np.asarray(faces, np.int64)
+    tri = np.asarray(vertices, np.float64)[f]
+    fn = normalize(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+    fn = np.where(np.isfinite(fn), fn, 0.0)
+    acc = np.zeros((len(vertices), 3))
+    for c in range(3):
+        a = normalize(tri[:, (c + 1) % 3] - tri[:, c])
+        b = normalize(tri[:, (c + 2) % 3] - tri[:, c])
+        angle = np.arccos(np.clip(np.nan_to_num(dot(a, b)), -1.0, 1.0))
+        np.add.at(acc, f[:, c], fn * angle[:, None])
+    n = normalize(acc)
+    return np.where(np.isfinite(n), n, 0.0)
+
+
+def _recomputed_normals(vertices, faces, normals, true_faces, both_faces=None,
+                        original=None):
+    """Mesh normals after displacement, as Cycles shades them. Where a face's method is
+    "Displacement Only" (true_faces (F,) bool) a vertex of such faces takes the
     normalised sum of their unit face normals (Cycles sums them unweighted); normals of
-    "Displacement and Bump" faces stay (their bump already bends the shading normal).
-    normals: None (flat: kept), (V,3) per vertex, or (F,3,3) per corner (corners that
-    shared a normal share the new one: sharp edges stay sharp)."""
+    "Displacement and Bump" faces (both_faces) stay (their bump already bends the
+    shading normal), and on a flat-shaded mesh they become the undisplaced mesh's vertex
+    normals (original: its (V,3) vertices): Cycles shades such faces smooth with the
+    normals from before the move (measured: flat and smooth shading render the same).
+    normals: None (flat: kept flat elsewhere), (V,3) per vertex, or (F,3,3) per corner
+    (corners that shared a normal share the new one: sharp edges stay sharp)."""
+    if normals is None and both_faces is not None and both_faces.any() and original is not None:
+        f = np.asarray(faces, np.int64)
+        tri = np.asarray(vertices, np.float64)[f]
+        fn = normalize(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+        corner = np.repeat(np.where(np.isfinite(fn), fn, 0.0)[:, None, :], 3, axis=1)
+        corner[both_faces] = _vertex_normals(original, f)[f[both_faces]]
+        return corner
     if normals is None or not true_faces.any():
         return normals
     f = np.asarray(faces, np.int64)[true_faces]
@@ -265,6 +293,7 @@ def displace_meshes(meshes, materials, should_cancel=None) -> list:
     displaced = {}  # id(prototype) -> displaced Prototype
 
     def face_flags(mesh):
+        """(moved, Displacement Only) (F,) bool per face of mesh."""
         names = _face_material_names(mesh)
         moved = np.array([moves_vertices(materials.get(n)) for n in names], bool)
         true = np.array([moves_vertices(materials.get(n)) and materials[n].displacement_method
@@ -282,8 +311,8 @@ def displace_meshes(meshes, materials, should_cancel=None) -> list:
             if not moved.any():
                 continue
             verts = np.asarray(mesh.vertices, np.float64) + _vertex_offsets(mesh, materials, moved)
-            out[i] = replace(mesh, vertices=verts,
-                             normals=_recomputed_normals(verts, mesh.faces, mesh.normals, true))
+            out[i] = replace(mesh, vertices=verts, normals=_recomputed_normals(
+                verts, mesh.faces, mesh.normals, true, moved & ~true, mesh.vertices))
             continue
         if id(P) not in displaced:
             world = mesh.expanded()
@@ -294,9 +323,10 @@ def displace_meshes(meshes, materials, should_cancel=None) -> list:
             m3 = np.asarray(mesh.matrix, np.float64)[:3, :3]
             d_obj = _vertex_offsets(world, materials, moved) @ np.linalg.inv(m3).T
             pv = np.asarray(P.vertices, np.float64) + d_obj
-            displaced[id(P)] = Prototype(P.name, pv, P.faces,
-                                         normals=_recomputed_normals(pv, P.faces, P.normals, true),
-                                         uvs=P.uvs, material_ids=P.material_ids)
+            normals = _recomputed_normals(pv, P.faces, P.normals, true, moved & ~true,
+                                          P.vertices)
+            displaced[id(P)] = Prototype(P.name, pv, P.faces, normals=normals, uvs=P.uvs,
+                                         material_ids=P.material_ids)
         Pd = displaced[id(P)]
         if Pd is P:
             continue
@@ -306,9 +336,9 @@ def displace_meshes(meshes, materials, should_cancel=None) -> list:
                                 **flags)
         else:
             verts, _ = place(Pd, mesh.matrix)
-            _, true = face_flags(mesh)
-            out[i] = replace(mesh, vertices=verts, prototype=Pd,
-                             normals=_recomputed_normals(verts, mesh.faces, mesh.normals, true))
+            moved, true = face_flags(mesh)
+            out[i] = replace(mesh, vertices=verts, prototype=Pd, normals=_recomputed_normals(
+                verts, mesh.faces, mesh.normals, true, moved & ~true, mesh.vertices))
     return out
 
 

@@ -240,3 +240,24 @@ def test_prepare_merges_the_displaced_triangles_and_bad_vectors_move_nothing():
     scene.materials["m"].displacement = Bad()
     geo, _ = prepare(scene)
     np.testing.assert_allclose(geo.vertices32[:, 2] + geo.offset[2], 0.0, atol=1e-6)
+
+
+def test_displacement_and_bump_on_a_flat_mesh_shades_with_the_normals_from_before():
+    """Cycles shades "Displacement and Bump" faces of a flat-shaded mesh smooth with the
+    undisplaced vertex normals (its flat and smooth renders are the same,
+    tests/blender/test_true_displacement_cycles.py); Displacement Only faces stay flat
+    facets of the moved surface."""
+    v, f, _ = _grid(n=4)
+    disp = dp.Displacement(_wave_height(), midlevel=0.5, scale=0.2, space="WORLD")
+    ids = (v[f].mean(axis=1)[:, 0] > 0).astype(int)  # right half Displacement Only
+    mats = {"b": Material("b", displacement=disp, displacement_method="BOTH"),
+            "d": Material("d", displacement=disp, displacement_method="DISPLACEMENT")}
+    out = dp.displace_meshes([Mesh("g", v, f, materials=["b", "d"], material_ids=ids)], mats)
+    n = out[0].normals
+    assert n.shape == (len(f), 3, 3)
+    np.testing.assert_allclose(n[ids == 0], np.broadcast_to([0.0, 0.0, 1.0], n[ids == 0].shape),
+                               atol=1e-12)
+    tri = out[0].vertices[f[ids == 1]]
+    facet = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    facet /= np.linalg.norm(facet, axis=1, keepdims=True)
+    np.testing.assert_allclose(n[ids == 1], np.repeat(facet[:, None], 3, axis=1), atol=1e-12)
