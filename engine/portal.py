@@ -61,6 +61,9 @@ PORTAL_SHARE_MAX = 0.9
 # through them (the rest directly: an open scene, an outdoor one).
 PORTAL_MIN_SKY = 0.5
 PORTAL_STREAM = 98  # the lookups' sky rays' seed stream
+# A light portal crossed by at least this many of the lookups' sky rays, all of them
+# along its normal (out of the room), is said to face out (facing_out_warning).
+FACING_OUT_MIN_RAYS = 3
 # A round light portal's photons start on the ROUND_SIDES-gon inscribed in its ellipse
 # (99.4 % of its area; a triangle each, Portals.hits tests them one by one).
 ROUND_SIDES = 32
@@ -89,6 +92,7 @@ class Portals:
         self.tri_cdf = np.cumsum(a) / max(self.area, 1e-300)
         self.panes = int(panes)
         self.sky = float(sky)
+        self.facing_out = []  # light portals seen only from their back: sky_through_portals
 
     def hits(self, o, d) -> np.ndarray:
         """(N,K) d . n_in_k where the line o + t d (t > 0) meets portal k, else 0
@@ -361,7 +365,13 @@ def sky_through_portals(ctx, portals: Portals, pane_tri, points, normals):
     through = np.zeros(len(o), bool)
     if sky.any() and len(portals.n_in) > portals.panes:
         r = np.flatnonzero(sky)
-        through[r] = (portals.hits(o[r], d[r])[:, portals.panes:] < 0).any(axis=1)
+        h = portals.hits(o[r], d[r])[:, portals.panes:]
+        through[r] = (h < 0).any(axis=1)
+        # A light portal the lookups' sky rays cross only along its normal faces out of
+        # the room: it is never used (a Blender portal's arrow must point inwards).
+        out_only = ((h > 0).sum(axis=0) >= FACING_OUT_MIN_RAYS) & ~(h < 0).any(axis=0)
+        portals.facing_out = [portals.names[portals.panes + k]
+                              for k in np.flatnonzero(out_only)]
     if pane_tri is not None:
         k = np.where(prim >= 0, pane_tri[np.maximum(prim, 0)], -1)
         on_pane = k >= 0
@@ -374,6 +384,19 @@ def sky_through_portals(ctx, portals: Portals, pane_tri, points, normals):
             sky[r] = p2 < 0
     seen = int(sky.sum())
     return None if seen == 0 else float(through.sum()) / seen
+
+
+def facing_out_warning(names) -> str:
+    """The warning for light portals that face out of the room (Portals.facing_out), or
+    ''."""
+    if not names:
+        return ""
+    many = len(names) > 1
+    return (f"light portal{'s' if many else ''} " + ", ".join(f"'{n}'" for n in names)
+            + f": {'they face' if many else 'it faces'} out of the room (the surfaces the "
+            "camera sees meet the sky through it only from its back), so it helps no "
+            "shadow ray or photon; turn it over so its arrow (the light's -Z) points "
+            "into the room")
 
 
 def portal_plan(ctx, emitters: list, counts: list, region=None):
@@ -410,6 +433,10 @@ def portal_plan(ctx, emitters: list, counts: list, region=None):
     portals = portals_from(ctx.geo, panes, np.array(n_in), light_portals)
     sky = sky_through_portals(ctx, portals, None if panes is None else panes.pane_tri,
                               pts, nrm)
+    warn = facing_out_warning(portals.facing_out)
+    plan_warnings = getattr(getattr(ctx, "plan", None), "warnings", None)
+    if warn and plan_warnings is not None and warn not in plan_warnings:
+        plan_warnings.append(warn)  # (told with the effect analysis' at the pass' end)
     names = ", ".join(f"'{x}'" for x in portals.names)
     what = ("window panes" if not light_portals else
             "light portals" if panes is None else "window panes and light portals")

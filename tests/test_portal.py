@@ -350,3 +350,17 @@ def test_sun_photons_through_the_roof_pane_fill_the_room():
     assert "photons of 'sun' start on the window panes 'pane'" in line
     assert i1.sum() > 20 * i0.sum()
     assert w1 == pytest.approx(wr, rel=0.05)
+
+
+def test_a_light_portal_facing_out_of_the_room_is_warned():
+    """A light portal turned over (its normal out of the room: the new-user trial's
+    mistake) is used by no shadow ray and no photon; the lookups' sky rays cross it only
+    along its normal, and a warning names it. The right way round: no warning."""
+    s = _room(pane=False, light_portal=True)
+    s.portals[0].normal = np.array([0.0, 0.0, 1.0])
+    film = s.render(RenderSettings(spp=1, photons=5_000, seed=1))
+    assert any("light portal 'Portal': it faces out of the room" in w
+               for w in film.warnings), film.warnings
+    good = _room(pane=False, light_portal=True).render(RenderSettings(spp=1, photons=5_000,
+                                                                      seed=1))
+    assert not any("faces out" in w for w in good.warnings), good.warnings

@@ -568,3 +568,10 @@ def test_cycles_light_portal_is_a_portal_not_a_light(fresh_scene, bpy_addon):
     lo, hi = p.corners.min(axis=0), p.corners.max(axis=0)
     np.testing.assert_allclose(lo, (0.0, 1.75, 3.0), atol=1e-6)  # 2 x 0.5 m round (1, 2, 3)
     np.testing.assert_allclose(hi, (2.0, 2.25, 3.0), atol=1e-6)
+    # A portal of size zero: left out, warned (Cycles lights the room far darker with it).
+    flat = _light(bpy, "Flat", "AREA", (0.0, 0.0, 5.0), shape="SQUARE", size=0.0)
+    flat.data.cycles.is_portal = True
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=6)
+    assert "Flat" not in [p.name for p in out.portals]
+    assert any("light portal 'Flat': its size is zero" in w for w in out.warnings), out.warnings
