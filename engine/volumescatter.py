@@ -19,8 +19,9 @@ One distance a segment (sample_segments): s drawn from the exponential of the ch
 mean extinction truncated to [0, S] (pbrt-v4's ratio-free homogeneous sampling, its pdf
 exact) or, for half the segments when the scene has point or spot lights, equiangularly
 towards one of them (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path
-Tracing in Participating Media": the 1 / r^2 near a lamp sampled where it peaks), the
-pdf the strategies' mixture; the estimate T(s) sigma_s / pdf(s) per channel. At that point the lights are
+Tracing in Participating Media": the 1 / r^2 near a lamp sampled where it peaks) over the
+part of the segment it can light (a spot's cone: lit_interval, as Cycles'
+spot_light_valid_ray_segment), the pdf the strategies' mixture; the estimate T(s) sigma_s / pdf(s) per channel. At that point the lights are
 sampled as at a surface (engine/directlight.py sample_lights, every light kind, the light
 tree), with the point's "normal" the ray's direction and its opposite in two halves
 (the surface's cosine, which sample_lights folds into its irradiance, divided out again;
@@ -60,7 +61,7 @@ FOUR_PI = 4.0 * math.pi
 # (sample_segments); False: the exponential alone (docs/accuracy.md, volscatter36).
 EQUIANGULAR = True
 MAX_EQUIANGULAR = 8  # the strongest point / spot lights it aims at
-NO_POINTS = np.zeros((0, 3))
+NO_POINTS = np.zeros((0, 8))  # no equiangular lights (EQ_COLUMNS)
 
 
 def scattering_tables(table):
@@ -97,6 +98,70 @@ def _equiangular(ox, oy, oz, dx, dy, dz, S, cx, cy, cz):
     return t0, D, math.atan2(-t0, D), math.atan2(S - t0, D)
 
 
+# eq rows (equiangular lights): position 0-2, the spot's axis 3-5, the cosine of its
+# bounding cone 6 (<= 0: a point light, or a cone too wide to clip), the apex's pull-back
+# along the axis 7 (a spot of radius r emits from a disk: the cone through its rim).
+EQ_COLUMNS = 8
+
+
+@kernel
+def lit_interval(ox, oy, oz, ux, uy, uz, S, eq, j):
+    """(a, b) the part of the segment o + s u, s in [0, S] (u unit), that light row j of
+    eq (EQ_COLUMNS) can light: all of it for a point light, else where the segment is
+    inside the spot's bounding cone (apex pulled back by eq[j, 7]); a > b: none. As
+    Cycles clips a ray segment to the spot's cone before equiangular sampling
+    (kernel/light/spot.h spot_light_valid_ray_segment). The cone's forward nappe is
+    convex, so the inside of a line is one interval: the segment is cut at the roots of
+    the cone's quadric and the apex plane, and the pieces whose midpoints are inside
+    are joined."""
+    c = eq[j, 6]
+    if not c > 0.0:
+        return 0.0, S
+    ax, ay, az = eq[j, 3], eq[j, 4], eq[j, 5]
+    px = eq[j, 0] - ax * eq[j, 7]
+    py = eq[j, 1] - ay * eq[j, 7]
+    pz = eq[j, 2] - az * eq[j, 7]
+    wx, wy, wz = ox - px, oy - py, oz - pz
+    wa = wx * ax + wy * ay + wz * az
+    ua = ux * ax + uy * ay + uz * az
+    wu = wx * ux + wy * uy + wz * uz
+    ww = wx * wx + wy * wy + wz * wz
+    c2 = c * c
+    qa = ua * ua - c2
+    qb = 2.0 * (wa * ua - c2 * wu)
+    qc = wa * wa - c2 * ww
+    cuts = np.empty(5)
+    cuts[0] = 0.0
+    cuts[1] = S
+    nc = 2
+    if abs(qa) > 1e-12:
+        disc = qb * qb - 4.0 * qa * qc
+        if disc >= 0.0:
+            r = math.sqrt(disc)
+            cuts[nc] = (-qb - r) / (2.0 * qa)
+            cuts[nc + 1] = (-qb + r) / (2.0 * qa)
+            nc += 2
+    elif abs(qb) > 1e-12:
+        cuts[nc] = -qc / qb
+        nc += 1
+    if abs(ua) > 1e-12:
+        cuts[nc] = -wa / ua
+        nc += 1
+    cs = np.sort(cuts[:nc])
+    a, b = S, 0.0
+    for k in range(nc - 1):
+        s0 = min(max(cs[k], 0.0), S)
+        s1 = min(max(cs[k + 1], 0.0), S)
+        if not s1 > s0:
+            continue
+        sm = 0.5 * (s0 + s1)
+        h = wa + sm * ua
+        if h > 0.0 and h * h >= c2 * (ww + 2.0 * sm * wu + sm * sm):
+            a = min(a, s0)
+            b = max(b, s1)
+    return a, b
+
+
 @kernel
 def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u, u_pick,
                     eq_pos, src, p, w, seg_m):
@@ -107,14 +172,18 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
     the medium of the object whose back face it ends on, media.leaving_transmittance's
     rule); o, d (n,3) the rays, t (n,) their hit distances in units of |d|; u, u_pick (n,)
     uniform numbers. The distance s: from the exponential of the channels' mean
-    extinction truncated to the segment, or (eq_pos (K,3), K > 0: the point and spot
-    lights' positions) with probability 1/2 equiangular towards one of them picked
-    uniformly (Kulla & Fajardo 2012), its pdf the mixture of all K + 1 (one-sample MIS,
-    balance heuristic: each light's 1 / r^2 peak is sampled where it is). Writes,
+    extinction truncated to the segment, or (eq_pos (K,EQ_COLUMNS), K > 0: the point and
+    spot lights) with probability 1/2 equiangular towards one of the lights that can
+    light part of the segment (lit_interval: a spot's cone), picked uniformly, over that
+    part only (Kulla & Fajardo 2012), its pdf the mixture of the exponential and those
+    lights' (one-sample MIS, balance heuristic: each light's 1 / r^2 peak is sampled
+    where it is; no such light: the exponential alone). Writes,
     compacted over the segments in a medium with sigma_s > 0: src (K,) the ray, p (K,3)
     the point, w (K,3) T(s) sigma_s / pdf(s), seg_m (K,) the medium. Returns the count."""
     k = 0
     n_eq = eq_pos.shape[0]
+    lo = np.empty(max(n_eq, 1))
+    hi = np.empty(max(n_eq, 1))
     for i in range(rows.shape[0]):
         r = rows[i]
         if r < 0:
@@ -145,25 +214,45 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
         tau = sb * S
         thin = not tau > 1e-6
         one_minus = 0.0 if thin else -math.expm1(-tau)
-        share = 0.5 if n_eq > 0 else 1.0  # the exponential's share of the mixture
+        # The lights that can light part of the segment, and those parts.
+        n_lit = 0
+        for j in range(n_eq):
+            a, b = lit_interval(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S, eq_pos, j)
+            lo[j], hi[j] = a, b
+            if b > a:
+                n_lit += 1
+        share = 0.5 if n_lit > 0 else 1.0  # the exponential's share of the mixture
         up = u_pick[i]
         if up < share:
             # Exponential truncated to [0, S]: s = -ln(1 - u (1 - e^-tau)) / sb (an
             # optically thin segment: uniform, its limit).
             s = u[i] * S if thin else -math.log1p(-u[i] * one_minus) / sb
         else:
-            j = min(int((up - share) / (1.0 - share) * n_eq), n_eq - 1)
-            ta, D, tha, thb = _equiangular(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S,
+            pick = min(int((up - share) / (1.0 - share) * n_lit), n_lit - 1)
+            j = 0
+            for jj in range(n_eq):
+                if hi[jj] > lo[jj]:
+                    if pick == 0:
+                        j = jj
+                        break
+                    pick -= 1
+            a = lo[j]
+            ta, D, tha, thb = _equiangular(o[i, 0] + ux * a, o[i, 1] + uy * a,
+                                           o[i, 2] + uz * a, ux, uy, uz, hi[j] - a,
                                            eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2])
-            s = ta + D * math.tan(tha + u[i] * (thb - tha))
+            s = a + ta + D * math.tan(tha + u[i] * (thb - tha))
         s = min(max(s, 0.0), S)
         pdf = share * (1.0 / S if thin else sb * math.exp(-sb * s) / one_minus)
         for j in range(n_eq):
-            ta, D, tha, thb = _equiangular(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S,
+            a = lo[j]
+            if not (hi[j] > a and a <= s <= hi[j]):
+                continue
+            ta, D, tha, thb = _equiangular(o[i, 0] + ux * a, o[i, 1] + uy * a,
+                                           o[i, 2] + uz * a, ux, uy, uz, hi[j] - a,
                                            eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2])
             if thb > tha:
-                x = s - ta
-                pdf += (1.0 - share) / n_eq * D / ((thb - tha) * (D * D + x * x))
+                x = s - a - ta
+                pdf += (1.0 - share) / n_lit * D / ((thb - tha) * (D * D + x * x))
         if not pdf > 0.0:
             continue
         src[k] = i
@@ -301,6 +390,32 @@ def sample_hg(d, g, u1, u2) -> np.ndarray:
     return np.ascontiguousarray(w / np.linalg.norm(w, axis=1, keepdims=True))
 
 
+def equiangular_rows(lights, codes, params, rows) -> np.ndarray:
+    """(K, EQ_COLUMNS) float64 sample_segments' equiangular lights: the packed light
+    rows `rows` (point or spot; lights, codes, params as pack_lights gave them). A spot
+    carries its axis and bounding cone (SpotLight.spot_cos_bound, an elliptical cone's
+    circular bound) widened by 1e-3 rad, the apex pulled back by radius / sin(angle) so
+    the cone holds the light's disk; a point light, or a cone of 90 degrees or more,
+    cosine -1 (not clipped)."""
+    out = np.zeros((len(rows), EQ_COLUMNS))
+    out[:, 6] = -1.0
+    for k, r in enumerate(rows):
+        out[k, 0:3] = params[r, pk.POS:pk.POS + 3]
+        if codes[r] != pk.CODE_SPOT:
+            continue
+        light = lights[r]
+        axis = np.asarray(getattr(light, "dir", np.zeros(3)), np.float64)
+        n = float(np.linalg.norm(axis))
+        angle = math.acos(min(max(float(getattr(light, "spot_cos_bound", -1.0)), -1.0),
+                              1.0)) + 1e-3
+        if not n > 0 or angle >= 0.5 * math.pi - 1e-3:
+            continue
+        out[k, 3:6] = axis / n
+        out[k, 6] = math.cos(angle)
+        out[k, 7] = float(getattr(light, "radius", 0.0)) / math.sin(angle)
+    return np.ascontiguousarray(out)
+
+
 class CameraScattering:
     """The camera paths' single scattering for one render context (None from
     for_context when no material scatters)."""
@@ -319,8 +434,7 @@ class CameraScattering:
             if len(rows):
                 power = params[rows, pk.RGB:pk.RGB + 3].sum(axis=1)
                 rows = rows[np.argsort(-power, kind="stable")[:MAX_EQUIANGULAR]]
-                self.eq_pos = np.ascontiguousarray(params[rows, pk.POS:pk.POS + 3],
-                                                   np.float64)
+                self.eq_pos = equiangular_rows(ctx.lights, codes, params, rows)
 
     @classmethod
     def for_context(cls, ctx):
@@ -415,7 +529,8 @@ def _warm_up():
     d = np.array([[0.0, 0.0, 1.0]])
     out = np.empty((1, 3))
     u2 = np.random.default_rng(0).random((2, 1))
-    for eq in (NO_POINTS, np.array([[0.5, 0.0, 0.5]])):
+    spot = np.array([[0.5, 0.0, 0.5, 0.0, 0.0, -1.0, 0.7, 0.1]])
+    for eq in (NO_POINTS, spot):
         sample_segments(np.zeros(1, np.int64), np.zeros(1, np.int32), e1, e2, one, one,
                         np.full(1, -1, np.int64), np.zeros((1, 3)), d, np.ones(1), u2[0],
                         u2[1], eq, np.empty(1, np.int64), out, np.empty((1, 3)),

@@ -325,3 +325,59 @@ def test_phase_sampling_follows_the_phase_function(g):
     mid = 0.5 * (edges[1:] + edges[:-1])
     expect = np.array([2 * math.pi * hg_phase(c, g) for c in mid])
     np.testing.assert_allclose(hist, expect, rtol=0.05, atol=0.01)
+
+
+def _spot_row(pos, axis, cos_bound, pullback=0.0):
+    from engine.volumescatter import EQ_COLUMNS
+    row = np.zeros((1, EQ_COLUMNS))
+    row[0, 0:3], row[0, 3:6], row[0, 6], row[0, 7] = pos, axis, cos_bound, pullback
+    return row
+
+
+def test_lit_interval_is_the_part_of_the_segment_inside_the_spots_cone():
+    """Cycles clips a segment to the spot's cone before equiangular sampling
+    (spot_light_valid_ray_segment): a ray 2 m under a spot pointing down meets the cone
+    of half-angle acos 0.9 over |x| <= 2 tan; a ray above the apex, none; along the
+    axis, from the apex on; a point light (cosine -1), all of it."""
+    from engine.volumescatter import lit_interval
+    spot = _spot_row((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), 0.9)
+    half = 2.0 * math.tan(math.acos(0.9))
+    a, b = lit_interval(-5.0, 0.0, -2.0, 1.0, 0.0, 0.0, 10.0, spot, 0)
+    assert a == pytest.approx(5.0 - half, abs=1e-9) and b == pytest.approx(5.0 + half, abs=1e-9)
+    a, b = lit_interval(-5.0, 0.0, 1.0, 1.0, 0.0, 0.0, 10.0, spot, 0)
+    assert not b > a
+    a, b = lit_interval(0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 4.0, spot, 0)
+    assert a == pytest.approx(1.0, abs=1e-9) and b == pytest.approx(4.0, abs=1e-9)
+    a, b = lit_interval(-5.0, 0.0, -2.0, 1.0, 0.0, 0.0, 3.0, spot, 0)  # ends before the cone
+    assert not b > a
+    point = _spot_row((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), -1.0)
+    assert lit_interval(-5.0, 0.0, -2.0, 1.0, 0.0, 0.0, 10.0, point, 0) == (0.0, 10.0)
+
+
+def test_distances_clipped_to_a_spots_cone_stay_unbiased():
+    """sample_segments with a spot: the weights T(s) sigma_s / pdf(s) integrate both the
+    whole segment (1 - e^-tau) and its lit part (e^-sigma a - e^-sigma b), the pdf being
+    the mixture of the exponential and the cone-clipped equiangular strategy."""
+    from engine.volumescatter import sample_segments
+    n = 200_000
+    sigma = 0.1
+    spot = _spot_row((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), 0.9)
+    rng = np.random.default_rng(5)
+    u, up = rng.random(n), rng.random(n)
+    src, p, w, m = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)),
+                    np.empty(n, np.int64))
+    e = np.array([[1.0, 0.0, 0.0]])
+    k = sample_segments(np.zeros(n, np.int64), np.zeros(1, np.int32), e,
+                        np.array([[0.0, 1.0, 0.0]]), np.full((1, 3), sigma),
+                        np.full((1, 3), sigma), np.zeros(n, np.int64),
+                        np.tile([-5.0, 0.0, -2.0], (n, 1)), np.tile([1.0, 0.0, 0.0], (n, 1)),
+                        np.full(n, 10.0), u, up, spot, src, p, w, m)
+    assert k == n
+    s = p[:, 0] + 5.0
+    half = 2.0 * math.tan(math.acos(0.9))
+    a, b = 5.0 - half, 5.0 + half
+    inside = (s >= a) & (s <= b)
+    assert w[:, 0].mean() == pytest.approx(1.0 - math.exp(-1.0), rel=0.01)
+    assert (w[:, 0] * inside).mean() == pytest.approx(math.exp(-sigma * a)
+                                                     - math.exp(-sigma * b), rel=0.01)
+    assert inside.mean() > 0.55  # 0.5 + 0.5 x 0.19 aim at the cone (unclipped: ~0.29)
