@@ -799,9 +799,19 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                  + glass_note)
     see_through = (table.alpha < 1) | table.has_alpha_texture
     if has_tris and np.any(see_through[mat]):
-        names = sorted({table.names[m] for m in np.unique(mat[see_through[mat]])})
+        seen = np.unique(mat[see_through[mat]])
+        # A volume without a surface is a transparent pass too, but no user set an
+        # alpha there (newuser36: "alpha below 1 in 'Fog'" read as a mistake).
+        vol = (np.asarray(table.volume_only, bool) if table.volume_only is not None
+               else np.zeros(len(table.names), bool))
+        names = sorted({table.names[m] for m in seen if not vol[m]})
+        volumes = sorted({table.names[m] for m in seen if vol[m]})
+        what = "; ".join(x for x in (
+            "alpha below 1 in " + _quoted(names, most=REPORT_NAMES_MAX) if names else "",
+            "the surfaces of volume-only " + _quoted(volumes, most=REPORT_NAMES_MAX)
+            + " (invisible, as in Cycles)" if volumes else "") if x)
         cap = s.transparent_max_bounces
-        plan.add("transparency", True, "alpha below 1 in " + _quoted(names, most=REPORT_NAMES_MAX)
+        plan.add("transparency", True, what
                  + (f"; shadow rays cross up to {cap} transparent surfaces" if cap
                     else "; transparent max bounces 0: they block shadow rays"))
     sigma = getattr(table, "absorption", None)
@@ -817,13 +827,17 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         names = sorted({table.names[m] for m in used})
         top = np.max(sigma[used], axis=0)
         scattering = scat is not None and bool(np.any(np.asarray(scat)[used] > 0))
-        plan.add("volume absorption", True,
+        bounces = int(getattr(s, "volume_bounces", 0) or 0)
+        plan.add("volume scattering" if scattering else "volume absorption", True,
                  "Beer-Lambert inside " + _quoted(names, most=REPORT_NAMES_MAX)
                  + " (sigma_t up to " + ", ".join(f"{x:.3g}" for x in top) + " /m, RGB) "
                  "along camera paths, photons and shadow rays; "
-                 + ("single scattering of the lamps' light towards the camera "
-                    "(engine/volumescatter.py); photons and gather rays do not scatter in "
-                    "the medium" if scattering else "volume scattering is not simulated"))
+                 + ("the lamps' light scattered once towards the camera and along "
+                    "final-gather rays (engine/volumescatter.py)"
+                    + (f", then up to {bounces} more times along camera paths (Light "
+                       "Paths > Volume bounces)" if bounces > 0 else "")
+                    + "; photons do not scatter in the medium" if scattering
+                    else "volume scattering is not simulated"))
     return plan
 
 

@@ -60,6 +60,8 @@ class MaterialTable:
     anisotropy: np.ndarray = None      # (M,) float64 its Henyey-Greenstein g
                                        # (Material.scattering, .anisotropy;
                                        # engine/volumescatter.py)
+    volume_only: np.ndarray = None     # (M,) bool a volume without a surface (its
+                                       # surface a transparent pass: Material.volume_only)
 
     @classmethod
     def build(cls, materials: list[Material]) -> "MaterialTable":
@@ -88,6 +90,8 @@ class MaterialTable:
                                         for m in materials], np.float64).reshape(-1, 3),
                    anisotropy=np.array([getattr(m, "anisotropy", 0.0) for m in materials],
                                        np.float64),
+                   volume_only=np.array([bool(getattr(m, "volume_only", False))
+                                         for m in materials], np.bool_),
                    **cols)
 
     @property

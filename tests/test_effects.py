@@ -788,3 +788,24 @@ def test_glossy_blur_line_names_cycles_filter_glossy_where_it_changes_cycles_ima
     b = _metal_block_scene(0.4).render(dataclasses.replace(base, cycles_filter_glossy=1.0))
     assert np.array_equal(a.combined, b.combined) and a.combined.max() > 0
     assert "glossy blur" in effects(b) and "glossy blur" not in effects(a)
+
+
+def test_a_volume_only_fog_box_is_not_reported_as_alpha():
+    """The surfaces of a volume-only material are a transparent pass (invisible, as in
+    Cycles): the transparency line names them as such, not as "alpha below 1"
+    (newuser36), and still says how far shadow rays cross them; a real cut-out keeps
+    "alpha below 1"."""
+    s = _room(Material("floor", (0.6, 0.6, 0.6)))
+    s.add_material(Material("Fog", volume_only=True, scattering=(0.2, 0.2, 0.2)))
+    s.add_box((0.0, 0.5, 1.0), (2.0, 2.0, 2.0), "Fog", name="FogBox")
+    line = _line(_plan(s), "transparency")
+    assert "the surfaces of volume-only 'Fog' (invisible, as in Cycles)" in line, line
+    assert "alpha below 1" not in line and "shadow rays cross up to" in line
+    vol = _line(_plan(s), "volume scattering")
+    assert "scattered once towards the camera" in vol and "more times" not in vol, vol
+    vol = _line(_plan(s, volume_bounces=2), "volume scattering")
+    assert "then up to 2 more times along camera paths" in vol, vol
+    s.add_material(Material("card", (0.8, 0.8, 0.8), alpha=0.5))
+    s.add_plane((1.5, 0.5, 0.5), (0, -1, 0), (0.5, 0.5), "card", name="Card")
+    line = _line(_plan(s), "transparency")
+    assert "alpha below 1 in 'card'" in line and "volume-only 'Fog'" in line, line
