@@ -154,17 +154,18 @@ def _sample_with_pdfs(ctx, li, hit, rng):
     return buf.row[:m_all].copy(), buf.wdir[:m_all].copy(), buf.lpdf[:m_all].copy()
 
 
-@pytest.mark.parametrize("env", [False, True])
-def test_shadow_ray_pdf_is_the_continuations(env, monkeypatch):
-    """The pdf the kernel's world sample carries (for the glossy lobes' MIS) equals
-    WorldLight.pdf at the same direction, point and shading normal (the continuation's
-    MIS weight, integrator.mis_light_pdf): the portal mixture on both sides."""
-    img = None
-    if env:
-        img = np.full((16, 32, 3), 0.4, np.float32)
-        img[8:] = 0.1
-        img[3, 5] = (60.0, 50.0, 40.0)
-    ctx, li = _context(_room(env=img), True, monkeypatch)
+def _sun_map():
+    """A 16 x 32 map: sky 0.4, ground 0.1, one bright texel in the sky."""
+    img = np.full((16, 32, 3), 0.4, np.float32)
+    img[8:] = 0.1
+    img[3, 5] = (60.0, 50.0, 40.0)
+    return img
+
+
+def _floor_pdfs_agree(ctx, li):
+    """World shadow samples at 4000 random floor points: asserts nearly all sample and
+    their kernel pdf equals WorldLight.pdf (the continuation's MIS weight) at the same
+    point, normal and direction; returns (light, hit, rows, wdir)."""
     rng = np.random.default_rng(2)
     n = 4000
     pts = np.column_stack([rng.uniform(-1.9, 1.9, n), rng.uniform(-1.9, 1.9, n), np.zeros(n)])
@@ -172,8 +173,17 @@ def test_shadow_ray_pdf_is_the_continuations(env, monkeypatch):
     rows, wdir, lpdf = _sample_with_pdfs(ctx, li, hit, rng)
     assert len(rows) > 0.9 * n
     light = ctx.lights[li]
-    pdf = light.pdf(wdir, hit.ns[rows], hit.p[rows])
-    np.testing.assert_allclose(lpdf, pdf, rtol=1e-9)
+    np.testing.assert_allclose(lpdf, light.pdf(wdir, hit.ns[rows], hit.p[rows]), rtol=1e-9)
+    return light, hit, rows, wdir
+
+
+@pytest.mark.parametrize("env", [False, True])
+def test_shadow_ray_pdf_is_the_continuations(env, monkeypatch):
+    """The pdf the kernel's world sample carries (for the glossy lobes' MIS) equals
+    WorldLight.pdf at the same direction, point and shading normal (the continuation's
+    MIS weight, integrator.mis_light_pdf): the portal mixture on both sides."""
+    ctx, li = _context(_room(env=_sun_map() if env else None), True, monkeypatch)
+    light, hit, rows, wdir = _floor_pdfs_agree(ctx, li)
     with pytest.raises(ValueError):  # (with portals the points are required)
         light.pdf(wdir, hit.ns[rows])
     up = wdir[:, 2] > 0

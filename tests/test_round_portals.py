@@ -17,8 +17,8 @@ import pytest
 import engine.lights.portalmap as portalmap
 from engine.scene import Camera, LightPortal
 from helpers import assert_unbiased
-from test_light_portal_shadows import (H, HALF, L, _context, _floor_and_walls, _floor_hits,
-                                       _room, _sample_with_pdfs, _samples)
+from test_light_portal_shadows import (H, HALF, L, _context, _floor_and_walls,
+                                       _floor_pdfs_agree, _room, _samples, _sun_map)
 
 W = 0.5
 SIDES = 64
@@ -102,12 +102,7 @@ def test_round_portal_pdf_is_the_continuations(env, monkeypatch):
     weight) at the same point, normal and direction, a round and a square portal
     overlapping (a direction through both sums both terms); under a map the round
     portal turns the map sampling off (uniform: no table)."""
-    img = None
-    if env:
-        img = np.full((16, 32, 3), 0.4, np.float32)
-        img[8:] = 0.1
-        img[3, 5] = (60.0, 50.0, 40.0)
-    scene = _round_room(env=img)
+    scene = _round_room(env=_sun_map() if env else None)
     scene.portals.append(LightPortal("Square", [(-0.3, -0.3, H), (0.6, -0.3, H),
                                                 (0.6, 0.3, H), (-0.3, 0.3, H)],
                                      (0.0, 0.0, -1.0)))
@@ -115,14 +110,7 @@ def test_round_portal_pdf_is_the_continuations(env, monkeypatch):
     light = ctx.lights[li]
     assert sorted(light.portal_round.tolist()) == [False, True]
     assert light.portal_tables is None
-    rng = np.random.default_rng(2)
-    n = 4000
-    pts = np.column_stack([rng.uniform(-1.9, 1.9, n), rng.uniform(-1.9, 1.9, n), np.zeros(n)])
-    hit = _floor_hits(ctx, pts)
-    rows, wdir, lpdf = _sample_with_pdfs(ctx, li, hit, rng)
-    assert len(rows) > 0.9 * n
-    pdf = light.pdf(wdir, hit.ns[rows], hit.p[rows])
-    np.testing.assert_allclose(lpdf, pdf, rtol=1e-9)
+    _, hit, rows, wdir = _floor_pdfs_agree(ctx, li)
     up = wdir[:, 2] > 0
     pw = hit.p[rows] + ctx.geo.offset
     t = (H - pw[:, 2]) / np.where(up, wdir[:, 2], 1.0)
@@ -229,9 +217,7 @@ def test_portal_tables_are_kept_between_prepares(monkeypatch):
     """A second prepare of the same scene (a re-render, a progressive pass) builds no
     portal table (portalmap.tables_built unchanged) and gets the same arrays; a moved
     portal or a changed map builds its table again."""
-    img = np.full((16, 32, 3), 0.4, np.float32)
-    img[8:] = 0.1
-    img[3, 5] = (60.0, 50.0, 40.0)
+    img = _sun_map()
     ctx, li = _context(_room(env=img), True, monkeypatch)
     first = ctx.lights[li].portal_tables
     built = portalmap.tables_built

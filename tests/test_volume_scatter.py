@@ -162,6 +162,19 @@ def _furnace_single_scattering(sig, H, n_s=4000):
     return math.exp(-sig * H) + float(np.sum(np.exp(-sig * s) * sig * lin) * ds)
 
 
+def _furnace_slab(sig, H):
+    """An albedo-1 isotropic slab (sigma_s sig, H thick, 40 m wide) over an emissive floor
+    of radiance 1 under a white world of radiance 1, seen from above by an orthographic
+    camera: a uniform enclosure of radiance 1."""
+    s = PaperScene(8, 8, background=(1.0, 1.0, 1.0))
+    s.add_material(Material("fog", volume_only=True, scattering=(sig, sig, sig)))
+    s.add_box((0, 0, H / 2 + 0.1), (40.0, 40.0, H), "fog", name="slab")
+    s.add_material(Material("glow", (0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 400.0, "glow", name="floor")
+    s.set_camera((0, 0, H + 1.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    return s
+
+
 @pytest.mark.parametrize("sig, H", [(0.2, 0.5), (1.0, 1.0), (2.0, 1.0)])
 def test_furnace_albedo_one_keeps_the_energy_single_scattering_carries(sig, H):
     """Albedo 1, isotropic phase, a 40 x 40 m slab between a uniform white world
@@ -172,12 +185,7 @@ def test_furnace_albedo_one_keeps_the_energy_single_scattering_carries(sig, H):
     image against the quadrature of T + single scattering within 1 % (measured
     0.9986-1.0022 at 64-256 spp); the energy kept: 0.9845 at optical depth 0.1 (1 - T
     alone: 0.905), 0.616 at 1, 0.349 at 2."""
-    s = PaperScene(8, 8, background=(1.0, 1.0, 1.0))
-    s.add_material(Material("fog", volume_only=True, scattering=(sig, sig, sig)))
-    s.add_box((0, 0, H / 2 + 0.1), (40.0, 40.0, H), "fog", name="slab")
-    s.add_material(Material("glow", (0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0)))
-    s.add_plane((0, 0, 0), (0, 0, 1), 400.0, "glow", name="floor")
-    s.set_camera((0, 0, H + 1.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    s = _furnace_slab(sig, H)
     film = render(s, RenderSettings(workers=1, spp=128, photon_mapping=False, seed=1))
     img = np.asarray(film.combined, np.float64)[..., :3].reshape(-1, 3).mean(axis=0)
     expect = _furnace_single_scattering(sig, H)
@@ -297,12 +305,7 @@ def test_furnace_with_volume_bounces_keeps_all_the_energy(sig, H):
     Measured, mean of 6 seeds at 128 spp: Volume bounces 0 / 1 / 4 / 64: 0.616 / 0.764 /
     0.945 / 1.0004 at optical depth 1, 0.349 / 0.498 / 0.763 / 1.0006 at 2 (sd per seed
     0.006 / 0.010 at 64): within 2.5 % at 256 spp (> 3.5 sd)."""
-    s = PaperScene(8, 8, background=(1.0, 1.0, 1.0))
-    s.add_material(Material("fog", volume_only=True, scattering=(sig, sig, sig)))
-    s.add_box((0, 0, H / 2 + 0.1), (40.0, 40.0, H), "fog", name="slab")
-    s.add_material(Material("glow", (0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0)))
-    s.add_plane((0, 0, 0), (0, 0, 1), 400.0, "glow", name="floor")
-    s.set_camera((0, 0, H + 1.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    s = _furnace_slab(sig, H)
     film = render(s, RenderSettings(workers=1, spp=256, photon_mapping=False, seed=1,
                                     volume_bounces=64))
     img = np.asarray(film.combined, np.float64)[..., :3].reshape(-1, 3).mean(axis=0)
