@@ -152,7 +152,7 @@ class _StatusPrinter:
             self.eta = Eta()
             self.console.bar = progress_bar("Starting", "{desc:<46.46}{bar}| "
                                             "{percentage:3.0f}% [{elapsed}<{eta}]",
-                                            self.stream, self.eta)
+                                            self.console.bar_file, self.eta)
         return self.console.bar
 
     def __call__(self, event, value):

@@ -451,7 +451,7 @@ def _teaching_run(args, make_tiles, what):
     if not args.quiet:
         from tqdm import tqdm
         console.bar = tqdm(total=1000, desc="Preparing", unit="",
-                           bar_format="{desc:<44.44}{bar}| {elapsed}", file=sys.stderr)
+                           bar_format="{desc:<44.44}{bar}| {elapsed}", file=console.bar_file)
 
     interrupt = CancelOnInterrupt()
 
@@ -594,7 +594,7 @@ def _render(args) -> int:
     if not args.quiet:
         from .eta import progress_bar
         console.bar = progress_bar("Preparing", "{desc:<42.42}{bar}| {percentage:3.0f}% "
-                                   "[{elapsed}<{eta}]", sys.stderr, eta)
+                                   "[{elapsed}<{eta}]", console.bar_file, eta)
 
     def progress(stage, fraction, text):
         where["stage"], where["fraction"] = stage, fraction

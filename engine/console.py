@@ -9,15 +9,19 @@ first (new-user trials, s17 and s19). Every write goes through one lock, so the 
 worker threads (engine/parallel.py), whose Python warnings come here too, never print
 into the middle of the bar or of another line.
 
-In a file or a pipe every frame the bar draws stays in the text, so there a frame that
-says what the last one said, its clock aside, is not drawn: a stage's text and then its
-first progress step drew one state twice, and closing the bar drew its last state again,
-below the lines printed after it ("Cancelled" twice in a log, s30)."""
+In a file or a pipe every frame the bar draws stays in the text, so there each frame is a
+line of its own (tqdm's "\r" before a frame starts no line in a log viewer: a render's
+frames were one line of thousands of characters, s36), and a frame is drawn only when the
+stage changes (its text, counts aside), every LOG_FRAME_SECONDS otherwise, and at the
+close; never twice with the same text, its clock aside (a stage's text and then its first
+progress step drew one state twice, and closing the bar drew its last state again, below
+the lines printed after it: "Cancelled" twice in a log, s30)."""
 from __future__ import annotations
 
 import re
 import sys
 import threading
+import time
 import warnings
 from contextlib import contextmanager
 
@@ -29,6 +33,9 @@ def short_count(n: int) -> str:
 
 # The bar's clock at the end of its frame ("[00:05<00:06]", the elapsed time and the ETA).
 _CLOCK = re.compile(r"\s*\[[^\[\]]*\]\s*$")
+# In a file or a pipe, a frame of the same stage at most this often (seconds): a minute's
+# render logs a handful of lines, not one per chunk.
+LOG_FRAME_SECONDS = 10.0
 
 
 def isatty(stream) -> bool:
@@ -48,6 +55,8 @@ class BarConsole:
     def __init__(self, stream=None, bar=None):
         self.stream = stream or sys.stderr
         self.lock = threading.RLock()
+        # What a bar draws into: the stream on a terminal, else one frame a line.
+        self.bar_file = self.stream if isatty(self.stream) else _LogLines(self.stream)
         self.bar = bar
         self._python_seen = set()
 
@@ -61,13 +70,22 @@ class BarConsole:
             self._bar = bar
             self._drawn = bar is not None  # tqdm draws a bar when it is made
             self._last_frame = None
+            self._closing = False
             if bar is not None and not isatty(self.stream):
+                if getattr(bar.fp, "_wrapped", bar.fp) is not self.bar_file:
+                    # Made on the stream itself: its frames go through bar_file from now
+                    # on (tqdm prints through sp, made from the file at __init__).
+                    self.bar_file.open = True  # the frame tqdm drew when it was made
+                    bar.fp, bar.sp = self.bar_file, bar.status_printer(self.bar_file)
                 self._last_frame = _frame_state(bar)
+                self._last_stage = _stage(bar)
+                self._last_time = time.monotonic()
                 self._draw_changes_only(bar)
 
     def _draw_changes_only(self, bar) -> None:
-        """Make `bar` (drawing into a file or a pipe) skip a frame that says what the
-        frame last drawn said, its clock aside (module docstring)."""
+        """Make `bar` (drawing into a file or a pipe) draw a frame only at a new stage,
+        every LOG_FRAME_SECONDS and at the close, and never one that says what the frame
+        last drawn said, its clock aside (module docstring)."""
         draw = bar.display
 
         def display(msg=None, pos=None):
@@ -76,10 +94,12 @@ class BarConsole:
             # tqdm's own lock orders its draws.
             if msg is not None:  # (a clear, never used in a file: passed on)
                 return draw(msg, pos)
-            state = _frame_state(bar)
-            if state == self._last_frame:
+            state, stage, now = _frame_state(bar), _stage(bar), time.monotonic()
+            if state == self._last_frame or (
+                    stage == self._last_stage and not self._closing
+                    and now - self._last_time < LOG_FRAME_SECONDS):
                 return True
-            self._last_frame = state
+            self._last_frame, self._last_stage, self._last_time = state, stage, now
             return draw(msg, pos)
 
         bar.display = display  # (tqdm draws through self.display: refresh, update, close)
@@ -107,7 +127,7 @@ class BarConsole:
                 if tty:
                     bar.clear()
                 else:
-                    self.stream.write("\n")
+                    self.bar_file.end_line()
                 self.stream.flush()
                 self._drawn = False
             out.write(line + end)
@@ -143,6 +163,7 @@ class BarConsole:
         with self.lock:
             bar = self._bar
             if bar is not None:
+                self._closing = True  # the last state is drawn, whatever its stage
                 if (not self._drawn and not isatty(self.stream)
                         and _frame_state(bar) == self._last_frame):
                     # Its last state is on a line above the lines printed since: tqdm's
@@ -184,6 +205,41 @@ class BarConsole:
 def _frame_state(bar) -> str:
     """What a bar's frame says, its clock aside (what a file needs to be shown again)."""
     return _CLOCK.sub("", str(bar)).rstrip()
+
+
+def _stage(bar) -> str:
+    """A bar's text without its counts: 'Tracing photons 100k/400k' -> 'Tracing photons
+    k/k' (one stage however far it got)."""
+    return re.sub(r"[0-9.,]+", "", bar.desc)
+
+
+class _LogLines:
+    """What a bar draws into in a file or a pipe: tqdm's frames ("\\r" + frame +
+    padding) each on a line of its own, its closing newline passed on."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self.open = False  # a frame is the stream's last text, its line not ended
+
+    def write(self, text):
+        if text.startswith("\r"):
+            frame = text.lstrip("\r").rstrip(" ")
+            if frame:  # (a clear writes blanks only: nothing to keep in a file)
+                self.stream.write(("\n" if self.open else "") + frame)
+                self.open = True
+        elif text:
+            self.stream.write(text)
+            self.open = self.open and not text.endswith("\n")
+        return len(text)
+
+    def end_line(self) -> None:
+        """End the last frame's line (a line is printed below it)."""
+        if self.open:
+            self.stream.write("\n")
+            self.open = False
+
+    def flush(self):
+        self.stream.flush()
 
 
 class _Discard:
