@@ -121,13 +121,51 @@ def lookup_points(ctx, rays: int = ROI_RAYS, normals: bool = False):
     u = rng.random((2, len(p)))
     d = to_world(cosine_hemisphere(u[0], u[1]), ng)
     o = offset_origin(p, ng, d, off)
-    t, prim, _, _ = ctx.accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
+    o, t, prim, _, _ = _past_invisible(ctx, o, d, DIFFUSE)
     ok = prim >= 0
     ok[ok] = stores_photons(ctx, prim[ok])
     points = o[ok] + t[ok, None] * d[ok]
     if not normals:
         return points
     return points, _facing(ctx.geo.ng[prim[ok]], d[ok])
+
+
+# How many invisible surfaces (a volume-only material's boundary: a fog box's walls) a
+# pre-pass ray passes before the hit it uses.
+INVISIBLE_DEPTH = 4
+
+
+def invisible_materials(table) -> np.ndarray:
+    """(M,) bool: materials whose surface every ray passes unbent (a volume without a
+    surface: Material.volume_only). The pre-pass treated a fog box's walls as mirrors
+    and its gather rays as ending there: a floor in the fog read as "no surface that
+    stores photons" (newuser36)."""
+    vol = table.volume_only
+    return (np.zeros(len(table.names), bool) if vol is None else np.asarray(vol, bool))
+
+
+def _past_invisible(ctx, o, d, cls, tmax=None):
+    """Rays o, d (N,3) traced past up to INVISIBLE_DEPTH invisible surfaces
+    (invisible_materials): (origins (N,3) of the last segment, its hit distances (N,),
+    the primitives hit (N,), -1 for none, its barycentrics u, v (N,))."""
+    o = np.array(o, np.float64)
+    d = np.asarray(d, np.float64)
+    tmax = np.full(len(o), np.inf) if tmax is None else np.array(tmax, np.float64)
+    t, prim, u, v = (np.array(a) for a in ctx.accel.intersect(o, d, tmax, cls=cls))
+    invisible = invisible_materials(ctx.table)
+    if not invisible.any():
+        return o, t, prim, u, v
+    for _ in range(INVISIBLE_DEPTH):
+        rows = np.flatnonzero(prim >= 0)
+        rows = rows[invisible[np.asarray(ctx.geo.material)[prim[rows]]]]
+        if len(rows) == 0:
+            break
+        hit = surface_hit(ctx.geo, ctx.table, prim[rows], u[rows], v[rows], d[rows])
+        o[rows] = offset_origin(hit.p, hit.ng, d[rows], hit.offset)
+        tmax[rows] = tmax[rows] - t[rows]
+        t[rows], prim[rows], u[rows], v[rows] = ctx.accel.intersect(o[rows], d[rows],
+                                                                    tmax[rows], cls=cls)
+    return o, t, prim, u, v
 
 
 def stores_photons(ctx, prim: np.ndarray) -> np.ndarray:
@@ -187,7 +225,7 @@ def seen_side_hits(ctx, o, d, region: Region) -> np.ndarray:
     for _ in range(PILOT_SPECULAR_DEPTH + 1):
         if len(rows) == 0:
             break
-        _, prim, u, v = accel.intersect(o, d, np.full(len(o), np.inf), cls=DIFFUSE)
+        o, _, prim, u, v = _past_invisible(ctx, o, d, DIFFUSE)
         keep = prim >= 0
         rows, o, d, prim, u, v = rows[keep], o[keep], d[keep], prim[keep], u[keep], v[keep]
         if len(rows) == 0:
@@ -215,7 +253,8 @@ def seen_side_hits(ctx, o, d, region: Region) -> np.ndarray:
 
 def diffuse_camera_hits(ctx, rays: int, rng) -> tuple:
     """The pre-pass' camera paths: a jittered grid of about `rays` camera rays (rng draws
-    the jitter), mirrored on at surfaces without a diffuse lobe (ROI_MIRROR_DEPTH times).
+    the jitter), mirrored on at surfaces without a diffuse lobe (ROI_MIRROR_DEPTH times),
+    passing invisible ones (invisible_materials).
     Returns (p, ng, offset) of the hits on surfaces with a diffuse lobe: (N,3) re-centred
     positions (m), (N,3) unit geometric normals facing the ray, (N,) origin offsets (m)."""
     from .integrator import camera_rays
@@ -240,7 +279,8 @@ def diffuse_camera_hits(ctx, rays: int, rng) -> tuple:
     for _ in range(ROI_MIRROR_DEPTH + 1):
         if len(o) == 0:
             break
-        _, prim, u, v = accel.intersect(o, d, tmax, cls=ray_cls)
+        # Past invisible surfaces (a fog box's walls), as every ray passes them.
+        o, _, prim, u, v = _past_invisible(ctx, o, d, ray_cls, tmax)
         ray_cls = GLOSSY
         keep = prim >= 0
         if not keep.any():

@@ -361,3 +361,37 @@ def test_window_rims_get_aimed_photons_and_keep_their_power():
         assert hit.sum() > 10 * hitn.sum(), (hit.sum(), hitn.sum())
     finally:
         ctx.accel.close()
+
+
+def _lookups(scene):
+    ctx = prepare_context(scene, RenderSettings(photons=1000, workers=1))
+    try:
+        region = vi.region_of_interest(ctx)
+        centers = None if region is None else region.centers + ctx.geo.offset
+        return vi.lookup_points(ctx) + ctx.geo.offset, centers, ctx.table
+    finally:
+        ctx.accel.close()
+
+
+def test_a_fog_box_round_the_scene_is_seen_through_by_the_pre_pass(monkeypatch):
+    """A volume-only fog box round the balls and the plane (camera outside it): its walls
+    are invisible to every ray, so the pre-pass' camera rays and the gather rays pass
+    them: the same lookups as without the box. It mirrored camera rays there and ended
+    gather rays on them: "no visual importance: the camera's final-gather rays reach no
+    surface that stores photons" with a floor in view (newuser36's fog box)."""
+    from engine.scene import Material
+
+    def fogged():
+        scene = _ground(area=True)
+        scene.add_material(Material("fog", volume_only=True, scattering=(0.05, 0.05, 0.05)))
+        scene.add_box((0, 0, 2.0), (12.0, 12.0, 4.2), "fog", name="fog box")
+        return scene
+    clear, clear_region, _ = _lookups(_ground(area=True))
+    points, region, table = _lookups(fogged())
+    assert vi.invisible_materials(table)[table.names.index("fog")]
+    assert len(points) == len(clear) > 1000, (len(points), len(clear))
+    assert np.abs(points - clear).max() < 1e-3  # (the walls' origin offsets aside)
+    assert region is not None and np.allclose(region, clear_region, atol=1e-3)
+    monkeypatch.setattr(vi, "INVISIBLE_DEPTH", 0)  # the walls as before: no lookups
+    points, region, _ = _lookups(fogged())
+    assert len(points) == 0 and region is None, len(points)
