@@ -622,11 +622,26 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             plan.light_samples[li.name] = s.light_samples * (2 if li.environment is None else 1)
             plan.shadows[li.name] = has_tris and s.method != "local"
             env = li.environment
-            plan.add("world light", True, "the World colour lights the scene from the whole "
-                     "sky: two shadow rays a sample, aimed more often straight out from "
-                     "each surface, where the sky lights it most" if env is None else
-                     f"environment map '{env.name}' ({env.width}x{env.height}) lights the "
-                     "scene (shadow rays importance-sample the map)")
+            portals = len(getattr(li, "portal_rects", ()))
+            if portals:
+                # Not "from the whole sky": the shadow rays are aimed through the
+                # portals (newuser36's round window).
+                how = (f"the World colour lights the scene through {portals} light "
+                       f"portal{'s' if portals > 1 else ''}: two shadow rays a sample, "
+                       "aimed through the portals where a surface sees the sky through "
+                       "them, straight out from it elsewhere" if env is None else
+                       f"environment map '{env.name}' ({env.width}x{env.height}) lights "
+                       f"the scene through {portals} light portal"
+                       f"{'s' if portals > 1 else ''} (shadow rays aimed through them, "
+                       + ("by the map seen through them)" if li.by_map else
+                          "uniformly over their solid angle, and by the map)"))
+            else:
+                how = ("the World colour lights the scene from the whole sky: two shadow "
+                       "rays a sample, aimed more often straight out from each surface, "
+                       "where the sky lights it most" if env is None else
+                       f"environment map '{env.name}' ({env.width}x{env.height}) lights "
+                       "the scene (shadow rays importance-sample the map)")
+            plan.add("world light", True, how)
             leak = _portal_leak_note(li)
             if leak:
                 plan.warnings.append(leak)

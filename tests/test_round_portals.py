@@ -262,3 +262,20 @@ def test_a_portal_smaller_than_its_opening_is_found_and_takes_the_leaky_share(mo
     from test_light_portal_shadows import _opening_irradiance
     e = _samples(ctx, li, (*point, 0.0), 200_000, 6)
     assert_unbiased(e, _opening_irradiance(*point), point)
+
+
+def test_the_effect_report_says_the_world_lights_through_the_portals():
+    """With light portals the world line said "from the whole sky" (newuser36's round
+    window): it names the portals' count and how the shadow rays aim."""
+    from engine import RenderSettings
+    from engine.render import prepare_context
+
+    def world_line(scene):
+        ctx = prepare_context(scene, RenderSettings(photons=2000, workers=1))
+        ctx.accel.close()
+        return next(r for r in ctx.plan.report() if r.startswith("world light"))
+    with_portal = world_line(_round_room())
+    assert "through 1 light portal:" in with_portal and "whole sky" not in with_portal, \
+        with_portal
+    without = world_line(_round_room(portal=False))
+    assert "from the whole sky" in without and "portal" not in without, without
