@@ -52,10 +52,18 @@ def export_world(pm, world, warnings: list):
     if nt is None:
         return viewport, None
     out = output_node(nt, "OUTPUT_WORLD")
+    who = f"world '{world.name}'"
+    volume = _from(out.inputs["Volume"]) if out is not None and "Volume" in out.inputs \
+        else None
+    if volume is not None:
+        # It was dropped without a word (s37). In Cycles it fills all space, and the
+        # world's surface and sun lamps then light nothing (Blender manual, World).
+        warnings.append(f"{who}: the World Volume ('{volume.name}', {volume.type}) is not "
+                        "supported and is ignored; for fog, give a large cube round the "
+                        "scene a Principled Volume material")
     if out is None or not out.inputs["Surface"].is_linked:
         return np.zeros(3), None
     node = _from(out.inputs["Surface"])
-    who = f"world '{world.name}'"
     if node is None or node.type != "BACKGROUND":
         what = f"'{node.name}' ({node.type})" if node is not None else "(none)"
         warnings.append(f"{who}: surface node {what} is not supported; using the world "

@@ -87,6 +87,24 @@ def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):
     assert len(hits) == 1 and coord.name in hits[0]
 
 
+def test_a_world_volume_warns_naming_the_node(mb, bpy_addon):
+    """A World Volume was dropped without a word (s37): a warning names the world and
+    the node; the background stays."""
+    bpy = bpy_addon
+    mb.set_world((0.2, 0.2, 0.2), 1.0)
+    nt = bpy.context.scene.world.node_tree
+    assert not [w for w in _export(bpy).all_warnings() if "Volume" in w]
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
+    fog = nt.nodes.new("ShaderNodeVolumePrincipled")
+    fog.name = "Haze"
+    nt.links.new(fog.outputs["Volume"], out.inputs["Volume"])
+    scene = _export(bpy)
+    hits = [w for w in scene.all_warnings() if "World Volume" in w]
+    world = bpy.context.scene.world.name
+    assert len(hits) == 1 and "'Haze'" in hits[0] and f"world '{world}'" in hits[0], hits
+    np.testing.assert_allclose(scene.background, (0.2, 0.2, 0.2), rtol=1e-6)
+
+
 @pytest.mark.slow
 def test_hdri_example_blend_renders(bpy_addon, tmp_path):
     bpy = bpy_addon
