@@ -489,7 +489,8 @@ def ray_visibility(obj, inst, view_layer) -> dict:
 
 def warn_unsupported_object_options(obj, warnings: list):
     """Object options this engine cannot honour, once per object: Visibility > Shadow
-    Catcher, the last Subdivision modifier's Adaptive Subdivision."""
+    Catcher, the last Subdivision modifier's Adaptive Subdivision, Light / Shadow
+    Linking."""
     if getattr(obj, "is_shadow_catcher", False):
         warnings.append(f"object '{obj.name}': shadow catcher is not supported; "
                         "rendered as an ordinary object")
@@ -503,6 +504,22 @@ def warn_unsupported_object_options(obj, warnings: list):
         warnings.append(f"object '{obj.name}': Adaptive Subdivision is not made; the "
                         f"Subdivision modifier's render levels ({last.render_levels}) are "
                         "used, so true displacement is only as fine as those")
+    warn_light_linking(obj, warnings)
+
+
+def warn_light_linking(obj, warnings: list, who=None):
+    """Object > Shading > Light Linking / Shadow Linking (Blender 4.0+, on lights and
+    emitting objects): not simulated, said once per object (it was dropped silently,
+    s37): the light lights every object and every object shadows it."""
+    linking = getattr(obj, "light_linking", None)
+    who = who or f"object '{obj.name}'"
+    for attr, what, effect in (
+            ("receiver_collection", "Light Linking", "it lights every object"),
+            ("blocker_collection", "Shadow Linking", "every object casts its shadows")):
+        coll = getattr(linking, attr, None) if linking is not None else None
+        if coll is not None:
+            warnings.append(f"{who}: {what} (collection '{coll.name}') is not supported; "
+                            f"{effect}")
 
 
 # --- lights -------------------------------------------------------------------------
@@ -545,6 +562,7 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     (light_portal; export_scene parts them from the lights: split_portals)."""
     L = obj.data
     kind = L.type
+    warn_light_linking(obj, warnings, f"light '{name}'")
     if kind == "AREA" and getattr(getattr(L, "cycles", None), "is_portal", False):
         return light_portal(pm, L, matrix, name, warnings)
     if kind not in pm.DECLARED_KINDS:  # the engine's light registry (engine/lights/)

@@ -2232,6 +2232,27 @@ def visibility_light_glossy_off():
     _lamp_over_mirror().visible_glossy = False
 
 
+@case("warned", status="warned", how="Light Linking and Shadow Linking (Blender 4.0+) "
+      "are ignored: the light lights every object, every object shadows it",
+      warning="Light Linking")
+def warned_light_linking():
+    _vis_scene()
+    sun = bpy.data.objects["Sun"]
+    sun.light_linking.receiver_collection = bpy.data.collections.new("Lit by the sun")
+    sun.light_linking.blocker_collection = bpy.data.collections.new("Sun blockers")
+
+
+@case("warned", status="warned", how="a World Volume is ignored (in Cycles it fills all "
+      "space, and the world's surface and sun lamps then light nothing)",
+      warning="World Volume")
+def warned_world_volume():
+    _vis_scene()
+    nt = bpy.context.scene.world.node_tree
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
+    haze = nt.nodes.new("ShaderNodeVolumePrincipled")
+    nt.links.new(haze.outputs[0], out.inputs["Volume"])
+
+
 @case("warned", status="warned", how="hair curves are skipped", warning="hair curves")
 def warned_hair_curves():
     cube = _vis_scene()

@@ -575,3 +575,30 @@ def test_cycles_light_portal_is_a_portal_not_a_light(fresh_scene, bpy_addon):
                                  width=8, height=6)
     assert "Flat" not in [p.name for p in out.portals]
     assert any("light portal 'Flat': its size is zero" in w for w in out.warnings), out.warnings
+
+
+def test_light_and_shadow_linking_warn_naming_the_light_and_collection(fresh_scene,
+                                                                        bpy_addon):
+    """Light Linking / Shadow Linking (Blender 4.0+) were dropped silently (s37): one
+    warning each, naming the light (or emitting object) and the collection; unlinked
+    lights say nothing."""
+    bpy = bpy_addon
+    from blender_helpers import export_warnings
+    build_scene(bpy)
+    key = _light(bpy, "KeyLamp", "POINT", (0, 0, 4), energy=100.0)
+    _light(bpy, "FillLamp", "POINT", (1, 0, 4), energy=100.0)
+    glow = _cube(bpy, "GlowCube", (3, 0, 1))
+    assert not [w for w in export_warnings(bpy) if "Linking" in w]
+    lit = bpy.data.collections.new("LitOnly")
+    blockers = bpy.data.collections.new("Blockers")
+    key.light_linking.receiver_collection = lit
+    key.light_linking.blocker_collection = blockers
+    glow.light_linking.receiver_collection = lit
+    warnings = [w for w in export_warnings(bpy) if "Linking" in w]
+    assert sorted(warnings) == sorted([
+        "light 'KeyLamp': Light Linking (collection 'LitOnly') is not supported; it "
+        "lights every object",
+        "light 'KeyLamp': Shadow Linking (collection 'Blockers') is not supported; every "
+        "object casts its shadows",
+        "object 'GlowCube': Light Linking (collection 'LitOnly') is not supported; it "
+        "lights every object"]), warnings
