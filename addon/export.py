@@ -271,6 +271,35 @@ def extract_geometry(obj) -> LocalGeometry | None:
         obj.to_mesh_clear()
 
 
+def extract_hair_geometry(pm, obj) -> LocalGeometry | None:
+    """A Curves object's (hair's) strands as triangle tubes in its local space
+    (engine/hair.py: Cycles' Catmull-Rom curves through the control points, of the
+    point attribute "radius" or Cycles' 0.005 m), smooth-shaded; the curve attribute
+    "material_index" picks each strand's slot. None when no strand has 2 points."""
+    curves = obj.data
+    n_points, n_curves = len(curves.points), len(curves.curves)
+    if n_points < 2 or n_curves == 0:
+        return None
+    points = _foreach(curves.position_data, "vector", n_points, 3, np.float32)
+    offsets = _foreach(curves.curve_offset_data, "value", n_curves + 1, 1, np.int32)
+    attrs = curves.attributes
+    rad = attrs.get("radius")
+    if rad is not None and rad.domain == "POINT" and rad.data_type == "FLOAT":
+        radius = _foreach(rad.data, "value", n_points, 1, np.float32)
+    else:
+        radius = np.full(n_points, pm.hair.DEFAULT_RADIUS)
+    verts, faces, normals, curve = pm.hair.tube_mesh(points, radius, offsets)
+    if len(faces) == 0:
+        return None
+    mi = attrs.get("material_index")
+    mat_index = np.zeros(len(faces), np.int32)
+    if mi is not None and mi.domain == "CURVE" and mi.data_type == "INT":
+        mat_index = _foreach(mi.data, "value", n_curves, 1, np.int32)[curve]
+    lo, hi = verts.min(axis=0), verts.max(axis=0)
+    texspace = ((lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-6))  # Blender's auto space
+    return LocalGeometry(verts, faces, normals, None, mat_index, texspace=texspace)
+
+
 def _corner_colors(me, tris, loops, faces):
     """(F,3,4) linear RGBA of the mesh's render colour attribute at each triangle corner
     (the one Cycles' Color Attribute node reads when its name is empty), or None."""
@@ -489,8 +518,8 @@ def ray_visibility(obj, inst, view_layer) -> dict:
 
 def warn_unsupported_object_options(obj, warnings: list):
     """Object options this engine cannot honour, once per object: Visibility > Shadow
-    Catcher, the last Subdivision modifier's Adaptive Subdivision, Light / Shadow
-    Linking."""
+    Catcher, the last Subdivision modifier's Adaptive Subdivision, particle hair, Light /
+    Shadow Linking."""
     if getattr(obj, "is_shadow_catcher", False):
         warnings.append(f"object '{obj.name}': shadow catcher is not supported; "
                         "rendered as an ordinary object")
@@ -504,7 +533,24 @@ def warn_unsupported_object_options(obj, warnings: list):
         warnings.append(f"object '{obj.name}': Adaptive Subdivision is not made; the "
                         f"Subdivision modifier's render levels ({last.render_levels}) are "
                         "used, so true displacement is only as fine as those")
+    for psys in getattr(obj, "particle_systems", None) or ():
+        settings = psys.settings
+        if settings.type == "HAIR" and settings.render_type == "PATH" and \
+                _particle_modifier_renders(obj, psys):
+            # Curves objects (Blender's hair since 3.5) render; the old particle hair
+            # would need its strands computed per particle in Python.
+            warnings.append(f"object '{obj.name}': particle hair '{psys.name}' is not "
+                            "rendered; convert it to a Curves object (Object > Convert > "
+                            "Curves) to render it")
     warn_light_linking(obj, warnings)
+
+
+def _particle_modifier_renders(obj, psys) -> bool:
+    """Whether the Particle System modifier holding psys is on in renders."""
+    for mod in getattr(obj, "modifiers", None) or ():
+        if mod.type == "PARTICLE_SYSTEM" and mod.particle_system == psys:
+            return bool(mod.show_render)
+    return True
 
 
 def warn_light_linking(obj, warnings: list, who=None):
@@ -1258,12 +1304,11 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     total = 0
     for inst in depsgraph.object_instances:
         total += 1
-        if inst.object.type == "MESH":
+        if inst.object.type in ("MESH", "CURVES"):
             key = _geometry_key(inst.object)
             uses[key] = uses.get(key, 0) + 1
     prototypes: dict = {}
     last_poll = time.perf_counter()
-    hair_warned = set()
     view_layer = getattr(depsgraph, "view_layer", None)
     enabled = (render_enabled_objects(view_layer) if render_visibility and view_layer
                is not None else None)
@@ -1289,11 +1334,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             if light is not None:
                 lights.append(light)
             continue
-        if otype == "CURVES" and obj.name not in hair_warned:
-            hair_warned.add(obj.name)
-            warnings.append(f"object '{obj.name}': hair curves are not supported and skipped")
-            continue
-        if otype != "MESH":
+        if otype != "MESH" and otype != "CURVES":
             # Curve, surface, text and metaball objects: the depsgraph also yields their
             # evaluated geometry as MESH instances (parent = the object). Like Cycles
             # (blender/object.cpp, object_is_geometry: only Mesh data is geometry), the
@@ -1301,7 +1342,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
             continue
         key = _geometry_key(obj)
         if key not in cache:
-            cache[key] = extract_geometry(obj)
+            cache[key] = (extract_hair_geometry(pm, obj) if otype == "CURVES"
+                          else extract_geometry(obj))
         geo = cache[key]
         if geo is None:
             continue
@@ -1489,19 +1531,15 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
             if light is not None:
                 lights.append(light)
             continue
-        if obj.type == "CURVES":
-            msg = f"object '{obj.name}': hair curves are not supported and skipped"
-            if msg not in warnings:
-                warnings.append(msg)
-            continue
-        if obj.type != "MESH":
+        if obj.type not in ("MESH", "CURVES"):
             continue  # the depsgraph yields other geometry as MESH instances (export_scene)
         data = getattr(obj, "data", None)
         gkey = (obj.name, data.as_pointer() if data is not None else 0)
         if (obj.name in updates.geometry or (data is not None and data.name in updates.data)
                 or gkey not in cache.geometry):
             if gkey not in seen:
-                cache.geometry[gkey] = extract_geometry(obj)
+                cache.geometry[gkey] = (extract_hair_geometry(pm, obj) if obj.type == "CURVES"
+                                        else extract_geometry(obj))
                 info["geometry_read"].append(obj.name)
         seen.add(gkey)
         geo = cache.geometry[gkey]
