@@ -288,7 +288,9 @@ def extract_hair_geometry(pm, obj) -> LocalGeometry | None:
         radius = _foreach(rad.data, "value", n_points, 1, np.float32)
     else:
         radius = np.full(n_points, pm.hair.DEFAULT_RADIUS)
-    verts, faces, normals, curve = pm.hair.tube_mesh(points, radius, offsets)
+    info = any(node.type == "HAIR_INFO" for node in _material_nodes(obj))
+    verts, faces, normals, curve, *per_vertex = pm.hair.tube_mesh(points, radius, offsets,
+                                                                 params=info)
     if len(faces) == 0:
         return None
     mi = attrs.get("material_index")
@@ -297,7 +299,39 @@ def extract_hair_geometry(pm, obj) -> LocalGeometry | None:
         mat_index = _foreach(mi.data, "value", n_curves, 1, np.int32)[curve]
     lo, hi = verts.min(axis=0), verts.max(axis=0)
     texspace = ((lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-6))  # Blender's auto space
-    return LocalGeometry(verts, faces, normals, None, mat_index, texspace=texspace)
+    attributes = curves_info(points, offsets, faces, curve, *per_vertex) if info else None
+    return LocalGeometry(verts, faces, normals, None, mat_index, texspace=texspace,
+                         attributes=attributes)
+
+
+def curves_info(points, offsets, faces, curve, intercept, radius) -> dict:
+    """The Curves Info node's outputs per corner of a hair's tubes, as LocalGeometry
+    attributes (read by addon/materials.py, HAIR_INFO): 'curves_info' = (Intercept,
+    Length, Random), 'curves_info2' = (Thickness, Is Strand 1, 0). Cycles
+    (blender/curves.cpp export_hair_curves): Intercept the share of the key polyline's
+    length from the root (engine/hair.py), Length that polyline's length, Random
+    hash_uint2_to_float(curve index, 0), Thickness 2 x the radius (object space).
+    points (P,3), offsets (C+1,), faces (F,3), curve (F,) the faces' curves, intercept and
+    radius (V,) per tube vertex."""
+    pts = np.asarray(points, np.float64)
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    run = np.concatenate([[0.0], np.cumsum(seg)])
+    offsets = np.asarray(offsets, np.int64)
+    length = run[offsets[1:] - 1] - run[offsets[:-1]]  # (C,), over each curve's keys
+    m = 0xFFFFFFFF
+    init = (0xDEADBEEF + (2 << 2) + 13) & m
+    k = np.arange(len(length), dtype=np.int64)
+    h = _lookup3_final((init + k) & m, np.full_like(k, init), np.full_like(k, init))
+    random = (h.astype(np.float32) / np.float32(4294967295.0)).astype(np.float64)
+    per_face = np.stack([length[curve], random[curve]], 1)  # (F,2)
+    vec = np.empty(faces.shape + (3,))
+    vec[..., 0] = intercept[faces]
+    vec[..., 1:] = per_face[:, None, :]
+    vec2 = np.zeros(faces.shape + (3,))
+    vec2[..., 0] = 2.0 * radius[faces]
+    vec2[..., 1] = 1.0
+    ones = np.ones(faces.shape)
+    return {"curves_info": (vec, vec[..., 0], ones), "curves_info2": (vec2, vec2[..., 0], ones)}
 
 
 def _corner_colors(me, tris, loops, faces):

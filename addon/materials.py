@@ -1452,6 +1452,18 @@ class MaterialConverter:
             # (a name here is a mesh attribute's, never Cycles' standard one:
             # VertexColorNode::attributes adds it as it is)
             return self._attribute(name, "Color", standard=False)
+        if t == "HAIR_INFO":
+            # Curves Info: per corner on hair (addon/export.py extract_hair_geometry:
+            # 'curves_info' = Intercept, Length, Random; 'curves_info2' = Thickness, Is
+            # Strand); meshes lack them and read 0, as Cycles' svm_node_hair_info there.
+            where = {"Intercept": ("curves_info", 0), "Length": ("curves_info", 1),
+                     "Random": ("curves_info", 2), "Thickness": ("curves_info2", 0),
+                     "Is Strand": ("curves_info2", 1)}.get(oname)
+            if where is None:
+                self._warn(f"material '{self._mat.name}': output '{oname}' of Curves Info "
+                           f"'{n.name}' is not supported; reads 0")
+                return np.zeros(3)
+            return sn.SeparateChannel(self._coordinates(f"attr:{where[0]}"), where[1])
         if t == "ATTRIBUTE":
             kind = getattr(n, "attribute_type", "GEOMETRY")
             if kind in ("OBJECT", "INSTANCER"):

@@ -103,7 +103,7 @@ def _frames(pts, roll):
 
 
 def tube_mesh(points, radius, offsets, sides: int | None = None,
-              substeps: int | None = None):
+              substeps: int | None = None, params: bool = False):
     """Triangle tubes round hair curves.
 
     points (P,3) float control points, radius (P,) float radii (m) at them, offsets (C+1,)
@@ -111,7 +111,10 @@ def tube_mesh(points, radius, offsets, sides: int | None = None,
     curve_offset_data). sides / substeps: the polygon's corners and the spline pieces per
     key interval (None: `tessellation` of the object's key intervals).
     Returns (vertices (V,3) float64, faces (F,3) int64 wound outwards, normals (V,3) unit,
-    straight out from the axis, curve (F,) int64 the curve each face belongs to).
+    straight out from the axis, curve (F,) int64 the curve each face belongs to); with
+    params also (intercept (V,), radius (V,) m): the share of the strand's key polyline
+    length from its root, linear between keys (Cycles' Curves Info Intercept,
+    ATTR_STD_CURVE_INTERCEPT) and the spline's radius at the vertex's ring.
     Curves of fewer than 2 points and non-finite points (the whole curve) are left out;
     negative or non-finite radii read 0. Raises ValueError on inconsistent offsets."""
     points = np.asarray(points, np.float64).reshape(-1, 3)
@@ -134,7 +137,7 @@ def tube_mesh(points, radius, offsets, sides: int | None = None,
         raise ValueError(f"hair: sides {sides} (>= 3) and substeps {substeps} (>= 1)")
     theta = 2.0 * math.pi * np.arange(sides) / sides
     cos_t, sin_t = np.cos(theta), np.sin(theta)
-    verts, faces, normals, curve_of = [], [], [], []
+    verts, faces, normals, curve_of, intercepts, radii = [], [], [], [], [], []
     base = 0
     for n in np.unique(counts[curve_ok]):
         which = np.flatnonzero(curve_ok & (counts == n))
@@ -156,6 +159,13 @@ def tube_mesh(points, radius, offsets, sides: int | None = None,
         m, ns = pts.shape[:2]
         verts.append((pts[:, :, None, :] + rr[:, :, None, None] * out).reshape(-1, 3))
         normals.append(out.reshape(-1, 3))
+        if params:
+            seg = np.linalg.norm(np.diff(points[idx], axis=1), axis=2)  # (m, n - 1)
+            run = np.concatenate([np.zeros((len(which), 1)), np.cumsum(seg, axis=1)], 1)
+            total = np.where(run[:, -1:] > 0, run[:, -1:], 1.0)
+            at = (run[:, i] * (1.0 - t) + run[:, i + 1] * t) / total  # (m, ns)
+            intercepts.append(np.repeat(at.reshape(-1), sides))
+            radii.append(np.repeat(r.reshape(-1), sides))
         # Quads between rings j, j + 1 and corners k, k + 1: (a, b, c), (a, c, d).
         j = np.arange(ns - 1)[:, None]
         k = np.arange(sides)[None, :]
@@ -169,7 +179,9 @@ def tube_mesh(points, radius, offsets, sides: int | None = None,
         curve_of.append(np.repeat(which, len(quad)))
         base += m * ns * sides
     if not verts:
-        return (np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)),
-                np.zeros(0, np.int64))
-    return (np.concatenate(verts), np.concatenate(faces).astype(np.int64),
-            np.concatenate(normals), np.concatenate(curve_of).astype(np.int64))
+        empty = (np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)),
+                 np.zeros(0, np.int64))
+        return empty + (np.zeros(0), np.zeros(0)) if params else empty
+    out = (np.concatenate(verts), np.concatenate(faces).astype(np.int64),
+           np.concatenate(normals), np.concatenate(curve_of).astype(np.int64))
+    return out + (np.concatenate(intercepts), np.concatenate(radii)) if params else out
