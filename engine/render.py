@@ -311,9 +311,11 @@ def _render_alone(ctx: Context, region, film: Film, progress, should_cancel) -> 
     alone = ctx.catcher_alone
     alone.settings = shadowcatcher.alone_settings(ctx.settings)
 
-    def told(stage, fraction, text):
+    def told(_stage, fraction, text):
+        # (A stage of its own: the progress bars' photon and render spans are the main
+        # pass', which this one would run back over.)
         if progress is not None:
-            progress(stage, fraction, f"Shadow catcher: {text}")
+            progress("shadow catcher", fraction, f"Shadow catcher: {text}")
 
     one = _render_pass(alone, region, told, should_cancel, True, None)
     if one.stats.get("cancelled"):
