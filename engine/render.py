@@ -17,7 +17,7 @@ from .ambientocclusion import attach_tracer
 from .chaincounts import GatherCounts
 from .film import Film
 from .effects import EffectPlan, analyse
-from .geometry import Geometry, MaterialTable, area_sum, prepare
+from .geometry import Geometry, MaterialTable, area_sum, prepare, set_camera_view
 from . import integrator as _integrator
 from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
 from .jit import ensure_compiled
@@ -310,6 +310,16 @@ def _render_alone(ctx: Context, region, film: Film, progress, should_cancel) -> 
     t0 = time.perf_counter()
     alone = ctx.catcher_alone
     alone.settings = shadowcatcher.alone_settings(ctx.settings)
+    scene = ctx.scene
+    if (alone.scene.camera is not scene.camera or alone.scene.width != scene.width
+            or alone.scene.height != scene.height):
+        # The main scene's view (a viewport session's moved camera, its small previews).
+        alone.scene = replace(alone.scene, camera=scene.camera, width=scene.width,
+                              height=scene.height)
+        set_camera_view(alone.geo, alone.scene)
+        # (The effect analysis looks from the camera: where the photons are aimed.)
+        alone.plan = analyse(alone.scene, alone.geo, alone.table, alone.lights, alone.accel,
+                             alone.settings)
 
     def told(_stage, fraction, text):
         # (A stage of its own: the progress bars' photon and render spans are the main

@@ -132,3 +132,38 @@ def test_scene_file_flag_and_cli_output(tmp_path):
     assert shade.shape[:2] == (12, 16) and (shade[..., :3] < 0.5).any()
     # The shadow's pixels are the opaque ones beside the cube's: alpha 1 - shadow there.
     assert (rgba[..., 3] > 0.3).any() and (rgba[..., 3] < 0.05).mean() > 0.5
+
+
+def test_viewport_session_shows_the_catcher_and_follows_the_view():
+    """The rendered viewport (engine/session.py) shows Cycles' approximate shadow catcher,
+    the same bits as a progressive render, and follows the view (the catchers-alone
+    scene takes the new camera)."""
+    from engine import Camera
+    from engine.session import Session, _scene_with
+    settings = _settings(film_transparent=True, spp=1)
+    scene = _scene(roof=True, cube=True, world_light=True)
+    # A lamp, not the sun: the floor's light varies across the image, so a catchers-alone
+    # scene left at the old view would compare the wrong points.
+    scene.lights.clear()
+    scene.add_point_light((0.8, 0.3, 2.5), power=400.0)
+
+    def reference(sc):
+        film = render_progressive(_scene_with(sc), settings, Budget(passes=2))
+        return combined_rgba(film, True)
+
+    session = Session(scene, settings, passes=2).start()
+    try:
+        assert session.wait_idle(120) and session.error is None, session.error
+        np.testing.assert_array_equal(session.frame.rgba, reference(scene))
+        cam = Camera.look_at((0.5, -0.5, 5.0), (0.2, 0.0, 0.0), up=(0, 1, 0),
+                             fov_degrees=35.0)
+        session.update_view(cam, 24, 24)
+        assert session.wait_idle(120) and session.error is None, session.error
+        # (Not the same bits: the session keeps the photons the first view aimed, with or
+        # without a catcher.)
+        ref = reference(_scene_with(scene, camera=cam))
+        diff = np.abs(session.frame.rgba[..., 3] - ref[..., 3])
+        # Measured 0.003; an alone scene left at the old view: 0.026.
+        assert diff.mean() < 0.01, diff.mean()
+    finally:
+        session.stop()
