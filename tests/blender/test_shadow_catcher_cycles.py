@@ -173,3 +173,46 @@ def test_shadow_catcher_pass(renders):
     assert np.allclose(_mean(ours["Shadow Catcher"], shadow),
                        _mean(cyc["Shadow Catcher"], shadow), rtol=0.05), (
         _mean(ours["Shadow Catcher"], shadow), _mean(cyc["Shadow Catcher"], shadow))
+
+
+class _Layout:
+    """A stand-in for a panel's layout: records the properties drawn."""
+
+    def __init__(self, log=None):
+        self.log = [] if log is None else log
+        self.use_property_split = self.use_property_decorate = False
+
+    def column(self, **kw):
+        return _Layout(self.log)
+
+    def prop(self, owner, name, **kw):
+        assert hasattr(owner, name), name  # a real property of this Blender
+        self.log.append(name)
+
+
+def test_panels_show_the_catcher_switches(bpy_addon):
+    """With our engine the object's Visibility panel offers Shadow Catcher and Holdout
+    and the ray visibility the add-on reads (Blender's own panel shows them for Cycles
+    and EEVEE only); View Layer > Passes offers the Shadow Catcher pass."""
+    from types import SimpleNamespace
+
+    from addon.ui import PHOTONMAP_PT_object_visibility, PHOTONMAP_PT_passes
+    bpy = bpy_addon
+    scene, floor, _ = _scene(bpy)
+    scene.render.engine = "PHOTONMAP"
+    ctx = SimpleNamespace(engine="PHOTONMAP", object=floor, scene=scene,
+                          view_layer=scene.view_layers[0])
+    assert PHOTONMAP_PT_object_visibility.poll(ctx)
+    layout = _Layout()
+    PHOTONMAP_PT_object_visibility.draw(SimpleNamespace(layout=layout), ctx)
+    assert {"is_shadow_catcher", "is_holdout", "visible_camera", "visible_shadow"} <= set(
+        layout.log)
+    sun = next(o for o in scene.objects if o.type == "LIGHT")
+    layout = _Layout()
+    PHOTONMAP_PT_object_visibility.draw(SimpleNamespace(layout=layout),
+                                        SimpleNamespace(object=sun))
+    assert "is_shadow_catcher" not in layout.log and "visible_diffuse" in layout.log
+    layout = _Layout()
+    PHOTONMAP_PT_passes.draw(SimpleNamespace(layout=layout), ctx)
+    assert "use_pass_shadow_catcher" in layout.log
+    assert bpy.types.PHOTONMAP_PT_object_visibility.bl_parent_id == "OBJECT_PT_visibility"
