@@ -60,7 +60,7 @@ def alone_settings(settings):
     """The settings the catcher-only render takes: the film's, with the world not drawn
     (its camera rays that miss add nothing: the "without" is the catchers' light only),
     and none of the extra outputs (Cryptomatte, data passes, photon-hit view)."""
-    return replace(settings, film_transparent=True, cryptomatte=False, data_passes=(),
+    return replace(settings, film_transparent=True, cryptomatte=(), data_passes=(),
                    show_photons=False)
 
 

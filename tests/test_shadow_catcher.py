@@ -167,3 +167,15 @@ def test_viewport_session_shows_the_catcher_and_follows_the_view():
         assert diff.mean() < 0.01, diff.mean()
     finally:
         session.stop()
+
+
+def test_adaptive_sampling_and_cryptomatte_keep_the_catcher():
+    """Adaptive sampling's rounds keep the catcher sums per pixel (integrator._add_round)
+    and the Cryptomatte / data passes of the main render are not asked of the
+    catchers-alone pass: the full shadow still reads alpha 1, the lit floor 0."""
+    film = _scene(roof=True).render(_settings(
+        film_transparent=True, spp=16, adaptive_threshold=0.05, adaptive_min_samples=4,
+        cryptomatte=("object",), data_passes=("denoising",)))
+    assert film.sample_count is not None and film.cryptomatte
+    rgba = combined_rgba(film, True)
+    assert np.allclose(rgba[:, 2:10, 3], 1.0) and np.abs(rgba[:, 14:22]).max() < 1e-6
