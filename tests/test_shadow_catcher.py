@@ -179,3 +179,16 @@ def test_adaptive_sampling_and_cryptomatte_keep_the_catcher():
     assert film.sample_count is not None and film.cryptomatte
     rgba = combined_rgba(film, True)
     assert np.allclose(rgba[:, 2:10, 3], 1.0) and np.abs(rgba[:, 14:22]).max() < 1e-6
+
+
+def test_memory_estimate_counts_the_catchers_alone_maps():
+    """The catchers-alone pass' photon maps are held with the scene's: the estimate
+    (engine/resources.py) counts one stored photon per emitted photon for them."""
+    from engine.resources import BYTES_PER_STORED_PHOTON, estimate_memory
+    s = _settings(photons=100_000)
+    scene = _scene(cube=True)
+    with_catcher = estimate_memory(scene, s).parts
+    scene.meshes[0].shadow_catcher = False
+    without = estimate_memory(scene, s).parts
+    assert "shadow catcher maps" not in without
+    assert with_catcher["shadow catcher maps"] == 100_000 * BYTES_PER_STORED_PHOTON
