@@ -35,6 +35,7 @@ the second scene costs a photon pass and a camera pass of its own (a plane: litt
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import replace
 
 import numpy as np
@@ -51,8 +52,14 @@ def alone_scene(scene):
     """The scene Cycles' catcher paths see: its shadow catcher meshes only (as ordinary
     surfaces), with its lights, world, camera and materials; no warnings (the whole
     scene's are told once)."""
-    meshes = [replace(m, shadow_catcher=False, warnings=[]) for m in scene.meshes
-              if m.shadow_catcher]
+    meshes = []
+    for m in scene.meshes:
+        if m.shadow_catcher:
+            # (A shallow copy: a placement's faces come from its prototype, which
+            # dataclasses.replace would hand back to it as its own; arrays are shared.)
+            c = copy.copy(m)
+            c.shadow_catcher, c.warnings = False, []
+            meshes.append(c)
     return replace(scene, meshes=meshes, warnings=[])
 
 

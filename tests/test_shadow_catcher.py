@@ -192,3 +192,28 @@ def test_memory_estimate_counts_the_catchers_alone_maps():
     without = estimate_memory(scene, s).parts
     assert "shadow catcher maps" not in without
     assert with_catcher["shadow catcher maps"] == 100_000 * BYTES_PER_STORED_PHOTON
+
+
+def test_instances_take_the_flag_from_their_object_or_their_own(tmp_path):
+    """A template object marked shadow_catcher: its instances are catchers unless one
+    says otherwise (placements without a world-space copy: the catchers-alone scene
+    keeps their prototype)."""
+    from engine.render import render
+    from engine.scenefile import load_scene
+    f = tmp_path / "s.toml"
+    f.write_text('[render]\nwidth = 16\nheight = 12\n'
+                 '[camera]\nposition = [0, -4, 3]\nlook_at = [0, 0, 0]\n'
+                 '[[lights]]\ntype = "sun"\ndirection = [0.3, 0.2, -1]\nstrength = 3\n'
+                 '[[objects]]\ntype = "plane"\nname = "tile"\ncenter = [0, 0, 0]\n'
+                 'size = 4\ntemplate = true\nshadow_catcher = true\n'
+                 '[[instances]]\nobject = "tile"\ntranslate = [-2, 0, 0]\n'
+                 '[[instances]]\nobject = "tile"\ntranslate = [2, 0, 0]\n'
+                 'shadow_catcher = false\n'
+                 '[[objects]]\ntype = "box"\nname = "cube"\ncenter = [0, 0, 0.5]\n')
+    scene, _ = load_scene(str(f))
+    flags = {m.name: m.shadow_catcher for m in scene.meshes}
+    assert flags == {"cube": False, "tile.instance.000": True, "tile.instance.001": False}
+    film = render(scene, _settings(spp=2, photons=5000, film_transparent=True))
+    alpha = combined_rgba(film, True)[..., 3]
+    assert np.abs(alpha[8:, :4]).max() < 1e-6     # the catcher tile (left), lit
+    assert np.allclose(alpha[8:, 12:], 1.0)       # the ordinary tile (right)
