@@ -2287,9 +2287,22 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
         if miss.any():
-            if not (bounce == 0 and s.film_transparent):
+            drawn = miss
+            if s.film_transparent:
+                # Cycles' transparent background (PATH_RAY_TRANSPARENT_BACKGROUND): camera
+                # rays, and those continued through transparent surfaces (still CAMERA),
+                # see no world. Past the first bounce they give back the coverage their
+                # first hit counted, by their throughput's mean (film_write_transparent:
+                # average(throughput)): an alpha-0.4 card over nothing has alpha 0.4.
+                through = miss & (ray_cls == CAMERA)
+                if bounce > 0 and through.any():
+                    rows = np.nonzero(through)[0]
+                    acc.add_scalar(acc.alpha, np.take(pix, rows),
+                                   -np.take(tp, rows, axis=0).mean(axis=1))
+                drawn = miss & ~through
+            if drawn.any():
                 # (The rows by np.take: a boolean mask gathers (N,3) rows ~2x slower.)
-                missed = np.nonzero(miss)[0]
+                missed = np.nonzero(drawn)[0]
                 d_miss = np.take(d, missed, axis=0)
                 radiance = background_radiance(ctx.scene, d_miss)
                 if bounce > 0 and world:
@@ -2329,7 +2342,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if hole.any():
                 prim = np.where(hole, -3, prim)
                 hitm &= ~hole
-                acc.add_scalar(acc.holdout, pix[hole], np.ones(int(hole.sum())))
+                # By the throughput's mean (1 at the first hit; a holdout behind an
+                # alpha-0.4 card holds out 0.6: Cycles' average(throughput)); past the
+                # first bounce the coverage the first hit counted is given back too.
+                held = np.take(tp, np.nonzero(hole)[0], axis=0).mean(axis=1)
+                acc.add_scalar(acc.holdout, pix[hole], held)
+                if bounce > 0:
+                    acc.add_scalar(acc.alpha, pix[hole], -held)
         if bounce == 0 and split_catchers and catchers is not None:
             # Camera rays meeting a shadow catcher first: Cycles' split (integrator/
             # shadow_catcher.h): their light is the catcher's "with the objects"
