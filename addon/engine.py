@@ -22,6 +22,16 @@ EFFECT_PASSES = (
     ("Emission", "emission"),
 )
 PHOTON_PASS = ("Photon Hits", "photon_hits")
+# Cycles' Shadow Catcher pass (View Layer > Passes > Light > Shadow Catcher): the shadow
+# catchers' light with the objects over without them (engine/shadowcatcher.py). Asked
+# for, it also leaves the shadow out of Combined, as in Cycles.
+SHADOW_CATCHER_PASS = "Shadow Catcher"
+
+
+def _shadow_catcher_pass(view_layer) -> bool:
+    """The view layer asks for Cycles' Shadow Catcher pass (False without Cycles)."""
+    return bool(getattr(getattr(view_layer, "cycles", None), "use_pass_shadow_catcher",
+                        False))
 # Adaptive sampling's per-pixel sample count (engine Film.sample_count), under Cycles'
 # name for its pass; written as the share of Samples (Max Samples) a pixel took, 0..1.
 SAMPLE_COUNT_PASS = "Debug Sample Count"
@@ -86,7 +96,6 @@ UNMADE_PASSES = (
     ("", "use_pass_grease_pencil", "Grease Pencil"),
     ("cycles", "use_pass_volume_direct", "Volume Direct"),
     ("cycles", "use_pass_volume_indirect", "Volume Indirect"),
-    ("cycles", "use_pass_shadow_catcher", "Shadow Catcher"),
     ("cycles", "pass_render_time", "Render Time"),
 )
 
@@ -108,6 +117,12 @@ def cryptomatte_passes(view_layer) -> list[tuple[str, str]]:
     count = _cryptomatte().pass_count(cryptomatte_levels(view_layer))
     return [(kind, f"{prefix}{i:02d}") for switch, kind, prefix in CRYPTOMATTE_LAYERS
             if getattr(view_layer, switch, False) for i in range(count)]
+
+
+def _shadowcatcher():
+    """The engine's shadowcatcher module (no bpy, loaded with the engine)."""
+    import importlib
+    return importlib.import_module(load_engine().__name__ + ".shadowcatcher")
 
 
 def _cryptomatte():
@@ -323,6 +338,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _, channels, chan_id, kind in _surface_passes():
             if getattr(renderlayer, switch, False):
                 self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+        if _shadow_catcher_pass(renderlayer):
+            self.register_pass(scene, renderlayer, SHADOW_CATCHER_PASS, 3, "RGB", "COLOR")
         if _adaptive(scene):
             self.register_pass(scene, renderlayer, SAMPLE_COUNT_PASS, 1, "X", "VALUE")
         for _kind, name in cryptomatte_passes(renderlayer):
@@ -609,6 +626,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for switch, name, _, channels, chan_id, _ in _surface_passes():
             if getattr(view_layer, switch, False):
                 self.add_pass(name, channels, chan_id, layer=layer)
+        if _shadow_catcher_pass(view_layer):
+            self.add_pass(SHADOW_CATCHER_PASS, 3, "RGB", layer=layer)
         if sample_count:
             self.add_pass(SAMPLE_COUNT_PASS, 1, "X", layer=layer)
         for _kind, name in cryptomatte_passes(view_layer):
@@ -624,7 +643,17 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             # Holdout surfaces make alpha 0 with or without a transparent film (Cycles).
             alpha = film.alpha if transparent else 1.0 - film.holdout
             rgba = np.concatenate([rgb, alpha[:, :, None]], axis=2)
+            catcher = _shadowcatcher()
+            with_pass = _shadow_catcher_pass(view_layer)
+            if not film.show_photons:
+                # Shadow catchers: Combined as Cycles makes it (the shadow as alpha or over
+                # the world; without it when the Shadow Catcher pass carries it); None
+                # without catchers.
+                caught = catcher.combined_rgba(film, transparent, approximate=not with_pass)
+                rgba = rgba if caught is None else caught
             buffers = {"Combined": rgba}
+            if with_pass:
+                buffers[SHADOW_CATCHER_PASS] = catcher.shadow_catcher_pass(film, transparent)
             for name, attr in EFFECT_PASSES + (PHOTON_PASS,):
                 buffers[name] = getattr(film, attr)
             depth = np.where(np.isfinite(film.depth), film.depth, BACKGROUND_DEPTH)

@@ -547,16 +547,16 @@ def ray_visibility(obj, inst, view_layer) -> dict:
                       or _all_slots_holdout(obj))
     if _layer_flag(owner, "indirect_only_get", view_layer):
         out["visible_camera"] = False
+    # Object > Visibility > Shadow Catcher, the instancer's for its instances as Cycles
+    # reads it (blender/object.cpp: the parent's or the object's own).
+    out["shadow_catcher"] = (bool(getattr(obj, "is_shadow_catcher", False))
+                             or bool(getattr(owner, "is_shadow_catcher", False)))
     return out
 
 
 def warn_unsupported_object_options(obj, warnings: list):
-    """Object options this engine cannot honour, once per object: Visibility > Shadow
-    Catcher, the last Subdivision modifier's Adaptive Subdivision, particle hair, Light /
-    Shadow Linking."""
-    if getattr(obj, "is_shadow_catcher", False):
-        warnings.append(f"object '{obj.name}': shadow catcher is not supported; "
-                        "rendered as an ordinary object")
+    """Object options this engine cannot honour, once per object: the last Subdivision
+    modifier's Adaptive Subdivision, particle hair, Light / Shadow Linking."""
     mods = getattr(obj, "modifiers", None) or ()
     last = mods[-1] if len(mods) else None
     if (last is not None and getattr(last, "type", "") == "SUBSURF"

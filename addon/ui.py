@@ -298,6 +298,48 @@ class PHOTONMAP_PT_passes(PhotonMapButtonsPanel, bpy.types.Panel):
         col.prop(vl, "use_pass_diffuse_color", text="Diffuse")
         col.prop(vl, "use_pass_glossy_color", text="Glossy")
         col.prop(vl, "use_pass_transmission_color", text="Transmission")
+        if getattr(vl, "cycles", None) is not None:
+            # Cycles' switch (engine/shadowcatcher.py): the pass, and Combined without
+            # the shadow.
+            col = layout.column(heading="Light")
+            col.prop(vl.cycles, "use_pass_shadow_catcher")
+
+
+# Object types with surfaces (Cycles' has_geometry_visibility, less its light case).
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES", "POINTCLOUD",
+                  "VOLUME"}
+
+
+class PHOTONMAP_PT_object_visibility(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Object > Visibility's ray visibility and masks as Cycles shows them (the add-on
+    reads them: addon/export.py ray_visibility); Blender's own Visibility panel shows
+    them for Cycles and EEVEE only."""
+    bl_label = "Ray Visibility and Mask"
+    bl_context = "object"
+    bl_parent_id = "OBJECT_PT_visibility"
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.object
+        return (context.engine in cls.COMPAT_ENGINES and ob is not None
+                and (ob.type in GEOMETRY_TYPES or ob.type == "LIGHT"))
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        ob = context.object
+        col = layout.column(heading="Ray Visibility")
+        if ob.type != "LIGHT":
+            col.prop(ob, "visible_camera", text="Camera")
+        col.prop(ob, "visible_diffuse", text="Diffuse")
+        col.prop(ob, "visible_glossy", text="Glossy")
+        col.prop(ob, "visible_transmission", text="Transmission")
+        if ob.type != "LIGHT":
+            col.prop(ob, "visible_shadow", text="Shadow")
+            col = layout.column(heading="Mask")
+            col.prop(ob, "is_shadow_catcher")
+            col.prop(ob, "is_holdout")
 
 
 class PHOTONMAP_PT_progressive(PhotonMapButtonsPanel, bpy.types.Panel):
@@ -416,7 +458,8 @@ classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_viewpor
            PHOTONMAP_PT_effects,
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
            PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_distributed,
-           PHOTONMAP_PT_passes, PHOTONMAP_PT_teaching, PHOTONMAP_PT_material_settings)
+           PHOTONMAP_PT_passes, PHOTONMAP_PT_teaching, PHOTONMAP_PT_material_settings,
+           PHOTONMAP_PT_object_visibility)
 
 _patched = []
 

@@ -25,6 +25,7 @@ import threading
 
 import numpy as np
 
+from . import shadowcatcher
 from .eta import Eta
 from .settings import ESTIMATORS, METHODS, RenderSettings
 from .teaching import SWEEP_PRESETS
@@ -676,7 +677,13 @@ def _render(args) -> int:
     # RGBA where the image has transparency to carry (a transparent film, holdouts), as
     # Blender writes it; .ppm has no alpha channel.
     alpha = film.alpha if (settings.film_transparent or bool(np.any(film.holdout > 0))) else None
-    write_image(film.combined, args.output, args.exposure, metadata=meta, alpha=alpha)
+    rgb = film.combined
+    caught = None if film.show_photons else shadowcatcher.combined_rgba(
+        film, settings.film_transparent)
+    if caught is not None:  # shadow catchers: Cycles' approximate shadow catcher
+        rgb = caught[..., :3]
+        alpha = caught[..., 3] if settings.film_transparent else None
+    write_image(rgb, args.output, args.exposure, metadata=meta, alpha=alpha)
     if partial is not None:
         print(f"photonmap: interrupted: wrote the partial image to '{args.output}' ({partial}; "
               "marked 'photonmap:partial' in its metadata)", file=sys.stderr)
@@ -692,6 +699,9 @@ def _render(args) -> int:
                 continue
             write_image(img, f"{root}.{name}{ext}", args.exposure)
         film.write_data_passes(root)
+        if film.catcher is not None:  # Cycles' Shadow Catcher pass: data, linear EXR
+            write_image(shadowcatcher.shadow_catcher_pass(film, settings.film_transparent),
+                         f"{root}.shadow_catcher.exr")
         if film.cryptomatte:
             from .imageio import write_cryptomatte
             write_cryptomatte(film.cryptomatte, film.cryptomatte_names,

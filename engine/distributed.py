@@ -34,8 +34,8 @@ from dataclasses import replace
 from .film import Film
 from .progressive import (ADAPTIVE_WARNING, Budget, PassMerger, budget_spent, max_passes_of,
                           overrun_warning, pass_settings)
-from .render import (_check_region, prepare_context, render_cryptomatte, render_pass,
-                     warning_key, warning_teller)
+from .render import (_check_region, close_context, prepare_context, render_cryptomatte,
+                     render_pass, warning_key, warning_teller)
 from .scene import Scene
 from .settings import RenderSettings
 
@@ -131,7 +131,7 @@ def _take_context(cache, key, scene, settings):
         if key != cache["key"]:  # a new render: drop the idle contexts of older ones
             for old in [k for k in cache["idle"] if k != key]:
                 for ctx in cache["idle"].pop(old):
-                    ctx.accel.close()
+                    close_context(ctx)
             cache["key"] = key
         idle = cache["idle"].setdefault(key, [])
         if idle:
@@ -145,7 +145,7 @@ def _give_back(cache, key, ctx):
             if key == cache["key"]:
                 cache["idle"].setdefault(key, []).append(ctx)
                 return
-    ctx.accel.close()
+    close_context(ctx)
 
 
 def end_render(key: str, dask_worker=None) -> int:
@@ -162,7 +162,7 @@ def end_render(key: str, dask_worker=None) -> int:
         if cache["key"] == key:
             cache["key"] = None
     for ctx in idle:
-        ctx.accel.close()
+        close_context(ctx)
     return len(idle)
 
 

@@ -39,6 +39,12 @@ class Film:
     # (the manifest)
     cryptomatte: dict = field(default_factory=dict)
     cryptomatte_names: dict = field(default_factory=dict)
+    # Shadow catchers (engine/shadowcatcher.py; None: the scene has none): per-sample
+    # means "light" (H,W,3) of the camera samples whose first hit is a catcher,
+    # "coverage" (H,W) their share, "background" (H,W,3) the world behind the catchers
+    # (without a transparent film), "alone" (H,W,3) / "alone_coverage" (H,W) the
+    # catcher-only render's radiance and coverage
+    catcher: dict | None = None
     show_photons: bool = False
     stats: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)

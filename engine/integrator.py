@@ -1641,6 +1641,38 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
     return caustic, indirect
 
 
+def _split_catcher_paths(ctx, acc, caught, miss, o, d, tmax, tp, pix, rng, counters,
+                         cam_pos, forward, should_cancel, sampler, sample_id, bsdf_rng,
+                         buffers):
+    """The camera rays `caught` (N,) bool of a first bounce, whose first hit is a shadow
+    catcher, traced on by _trace_paths of their own into a second Accumulator: their
+    light goes into acc's sums as always and also into acc.catcher's "light", their count
+    into its "coverage" (Cycles' shadow catcher sample count). Without a transparent
+    film the world seen along every ray that meets a catcher or nothing goes into its
+    "background" (Cycles' Background pass, which its approximate shadow catcher
+    composites the shadow onto). miss (N,) bool: the rays that met nothing."""
+    rows = np.nonzero(caught)[0]
+    sums = acc.catcher_sums()
+    if not ctx.settings.film_transparent:
+        seen = np.nonzero(caught | miss)[0]
+        if len(seen):
+            acc.add("catcher_background", pix, background_radiance(
+                ctx.scene, np.take(d, seen, axis=0)), tp, seen)
+    if not len(rows):
+        return
+    acc.add_scalar(sums["coverage"], np.take(pix, rows), np.ones(len(rows)))
+    part = Accumulator(acc.npix, acc.lo)
+    _trace_paths(ctx, part, np.take(o, rows, axis=0), np.take(d, rows, axis=0),
+                 np.take(tmax, rows), np.take(tp, rows, axis=0), np.take(pix, rows), rng,
+                 counters, cam_pos, forward, should_cancel,
+                 None if sampler is None else sampler.subset(rows),
+                 None if sample_id is None else np.take(sample_id, rows), bsdf_rng, buffers,
+                 split_catchers=False)
+    for name in Accumulator.NAMES:
+        sums["light"] += part.buf[name]
+    acc.merge(part)
+
+
 class Accumulator:
     """Per-pixel sums for each pass over pixels [lo, lo + npix) of the region, by compiled
     scatter-adds (camerakernels.film_add, film_add_scalar, film_first_normals) that form
@@ -1662,6 +1694,19 @@ class Accumulator:
         # Cycles' data passes asked for (engine/datapasses.py: key -> (npix,3) or (npix,)
         # sums), made when a bounce first writes them.
         self.data = {}
+        # Shadow catchers (engine/shadowcatcher.py): "light" (npix,3) the light of the
+        # camera rays that met a catcher first, "coverage" (npix,) their count,
+        # "background" (npix,3) the world along the rays that met a catcher or nothing
+        # (without a transparent film); None until a bounce meets one.
+        self.catcher = None
+
+    def catcher_sums(self) -> dict:
+        """This accumulator's shadow catcher sums (self.catcher), made when first asked."""
+        if self.catcher is None:
+            n = self.npix
+            self.catcher = {"light": np.zeros((n, 3)), "coverage": np.zeros(n),
+                            "background": np.zeros((n, 3))}
+        return self.catcher
 
     def add(self, name, pix, rgb, tp=None, rows=None):
         """Add rgb (K,3) into pass `name`: at pixels pix (K,), or with rows (K,) int64
@@ -1674,7 +1719,9 @@ class Accumulator:
             # A read-only array (one row of a broadcast colour is contiguous already) would
             # be a second kernel signature, compiled inside the render.
             rgb = rgb.copy()
-        film_add(self.buf[name], self.lo, pix, _ALL_ROWS if rows is None else rows,
+        buf = (self.catcher_sums()["background"] if name == "catcher_background"
+               else self.buf[name])
+        film_add(buf, self.lo, pix, _ALL_ROWS if rows is None else rows,
                  _NO_TP if tp is None else tp, rgb)
 
     def add_scalar(self, arr, pix, w):
@@ -1697,6 +1744,9 @@ class Accumulator:
             mine[a:b] += theirs
         for key, theirs in part.data.items():
             self._data(key, theirs)[a:b] += theirs
+        if part.catcher is not None:
+            for key, theirs in part.catcher.items():
+                self.catcher_sums()[key][a:b] += theirs
 
     def _data(self, key, like):
         """This accumulator's data pass `key`, zeros of like's row shape when new."""
@@ -1891,6 +1941,9 @@ def _add_round(acc, racc, active, half):
         mine[active] += theirs[0::2] + theirs[1::2]
     for key, theirs in racc.data.items():
         acc._data(key, theirs)[active] += theirs[0::2] + theirs[1::2]
+    if racc.catcher is not None:
+        for key, theirs in racc.catcher.items():
+            acc.catcher_sums()[key][active] += theirs[0::2] + theirs[1::2]
 
 
 def _render_round_chunk(ctx, region, r, R, active, in_a, ci, start, end, should_cancel,
@@ -2024,6 +2077,9 @@ def _write_film(film, acc, spp, rh, rw, want=()):
         per = inv if total.ndim == 2 else inv1
         film.data[key] = datapasses.film_value(key, total, per).reshape(
             (rh, rw) + total.shape[1:]).astype(np.float32)
+    if acc.catcher is not None:  # per-sample averages too (engine/shadowcatcher.py)
+        film.catcher = {key: (total * (inv if total.ndim == 2 else inv1)).reshape(
+            (rh, rw) + total.shape[1:]) for key, total in acc.catcher.items()}
 
 
 class BounceBuffers:
@@ -2087,7 +2143,10 @@ def _chain_counts(chain):
 
 
 def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
-                 should_cancel, sampler=None, sample_id=None, bsdf_rng=None, buffers=None):
+                 should_cancel, sampler=None, sample_id=None, bsdf_rng=None, buffers=None,
+                 split_catchers=True):
+    # split_catchers: camera rays whose first hit is a shadow catcher are traced on by a
+    # call of their own into acc's catcher sums (_split_catcher_paths); False in that call.
     buffers = buffers or BounceBuffers()
     s = ctx.settings
     depth_limit = ctx.plan.specular_depth
@@ -2114,6 +2173,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     world = [li for li, light in enumerate(ctx.lights)
              if light.kind == WORLD and modes[li] == MODE_MIS]
     has_holdout = bool(ctx.geo.holdout.any())
+    # (O,) bool: the shadow catcher objects (None: none; engine/shadowcatcher.py).
+    catchers = getattr(ctx, "catcher_objects", None)
     # No material emits: no emission rows to gather or test (surface_hit's are zeros).
     emitters = bool(ctx.table.emission.any())
     want_glossy = bool(np.any(modes != MODE_CONTINUATION))
@@ -2226,9 +2287,22 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
         if miss.any():
-            if not (bounce == 0 and s.film_transparent):
+            drawn = miss
+            if s.film_transparent:
+                # Cycles' transparent background (PATH_RAY_TRANSPARENT_BACKGROUND): camera
+                # rays, and those continued through transparent surfaces (still CAMERA),
+                # see no world. Past the first bounce they give back the coverage their
+                # first hit counted, by their throughput's mean (film_write_transparent:
+                # average(throughput)): an alpha-0.4 card over nothing has alpha 0.4.
+                through = miss & (ray_cls == CAMERA)
+                if bounce > 0 and through.any():
+                    rows = np.nonzero(through)[0]
+                    acc.add_scalar(acc.alpha, np.take(pix, rows),
+                                   -np.take(tp, rows, axis=0).mean(axis=1))
+                drawn = miss & ~through
+            if drawn.any():
                 # (The rows by np.take: a boolean mask gathers (N,3) rows ~2x slower.)
-                missed = np.nonzero(miss)[0]
+                missed = np.nonzero(drawn)[0]
                 d_miss = np.take(d, missed, axis=0)
                 radiance = background_radiance(ctx.scene, d_miss)
                 if bounce > 0 and world:
@@ -2268,7 +2342,27 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if hole.any():
                 prim = np.where(hole, -3, prim)
                 hitm &= ~hole
-                acc.add_scalar(acc.holdout, pix[hole], np.ones(int(hole.sum())))
+                # By the throughput's mean (1 at the first hit; a holdout behind an
+                # alpha-0.4 card holds out 0.6: Cycles' average(throughput)); past the
+                # first bounce the coverage the first hit counted is given back too.
+                held = np.take(tp, np.nonzero(hole)[0], axis=0).mean(axis=1)
+                acc.add_scalar(acc.holdout, pix[hole], held)
+                if bounce > 0:
+                    acc.add_scalar(acc.alpha, pix[hole], -held)
+        if bounce == 0 and split_catchers and catchers is not None:
+            # Camera rays meeting a shadow catcher first: Cycles' split (integrator/
+            # shadow_catcher.h): their light is the catcher's "with the objects"
+            # radiance, kept apart (engine/shadowcatcher.py); they leave this batch.
+            caught = np.zeros(len(prim), bool)
+            if hitm.any():
+                caught[hitm] = np.take(catchers, np.take(ctx.geo.object_id, prim[hitm])) & (
+                    ray_cls[hitm] == CAMERA)
+            if caught.any() or not s.film_transparent:
+                _split_catcher_paths(ctx, acc, caught, miss, o, d, tmax, tp, pix, rng,
+                                     counters, cam_pos, forward, should_cancel, sampler,
+                                     sample_id, bsdf_rng, buffers)
+                prim = np.where(caught, -3, prim)
+                hitm &= ~caught
         if bounce == 0:
             acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
         if not hitm.any():

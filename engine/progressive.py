@@ -40,8 +40,8 @@ from .datapasses import FIRST_SAMPLE
 from .film import EFFECTS, Film
 from .mallocheap import render_heap
 from .parallel import Cancelled
-from .render import (_check_region, prepare_context, render_cryptomatte, render_pass,
-                     warning_teller)
+from .render import (_check_region, close_context, prepare_context, render_cryptomatte,
+                     render_pass, warning_teller)
 from .resources import check_resources
 from .scene import Scene
 from .settings import RenderSettings
@@ -153,6 +153,7 @@ class PassMerger:
                       "normal": np.zeros((h, w, 3)), "photon_hits": np.zeros((h, w, 3))}
         self.depth = np.full((h, w), np.inf)
         self.data = {}
+        self.catcher = {}
         self.film = Film(w, h, show_photons=show_photons)
         self.passes = 0
         self.photons = 0
@@ -192,6 +193,12 @@ class PassMerger:
             # coverage counts of their own rays, not an average of passes).
             self.film.cryptomatte = one.cryptomatte
             self.film.cryptomatte_names = one.cryptomatte_names
+        if getattr(one, "catcher", None) is not None:
+            # Shadow catchers: their per-sample means averaged over the passes as the
+            # effects are (engine/shadowcatcher.py forms the ratio from the averages).
+            for key, value in one.catcher.items():
+                self.catcher[key] = self.catcher.get(key, 0.0) + np.asarray(value, np.float64)
+            self.film.catcher = {key: total / i for key, total in self.catcher.items()}
         if self.counts[0] and self.counts[1]:
             self.error = half_error(self.halves[0] / self.counts[0], self.halves[1] / self.counts[1])
         _fill(self.film, self.sums, self.extra, self.depth, i)
@@ -275,7 +282,7 @@ def render_progressive(scene: Scene, settings: RenderSettings | None = None,
                 if budget_spent(budget, i, merger.error, elapsed):
                     break
     finally:
-        ctx.accel.close()
+        close_context(ctx)
     film = merger.film
     film.stats.update(progressive=True, passes=i, error_estimate=merger.error,
                       photons_total=merger.photons, pass_log=log, cancelled=cancelled,

@@ -11,13 +11,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import adaptive, cryptomatte, panorama
+from . import adaptive, cryptomatte, panorama, shadowcatcher
 from .accel import Accel
 from .ambientocclusion import attach_tracer
 from .chaincounts import GatherCounts
 from .film import Film
 from .effects import EffectPlan, analyse
-from .geometry import Geometry, MaterialTable, area_sum, prepare
+from .geometry import Geometry, MaterialTable, area_sum, prepare, set_camera_view
 from . import integrator as _integrator
 from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
 from .jit import ensure_compiled
@@ -89,6 +89,11 @@ class Context:
     # The adaptive round being rendered (0: the first, or no rounds): the data passes
     # Cycles writes from a pixel's first sample are written in round 0 only.
     camera_round_index: int = 0
+    # Shadow catchers (engine/shadowcatcher.py): (O,) bool over the objects (None: none),
+    # and the context of the scene with only them, which the camera pass' catcher samples
+    # are measured against (its settings set per pass by _render_pass).
+    catcher_objects: np.ndarray | None = None
+    catcher_alone: "Context | None" = None
 
 
     def serial(self) -> "Context":
@@ -145,7 +150,28 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
         two, why = instance_choice(ins.instanced_triangles(),
                                    sum(len(f) for _, f in ins.prototypes))
         ctx.plan.add("shared instances", bool(ins.two_level), why)
+    ctx.catcher_objects = shadowcatcher.catcher_objects(scene)
+    if ctx.catcher_objects is not None:
+        try:
+            ctx.catcher_alone = prepare_context(shadowcatcher.alone_scene(scene),
+                                                shadowcatcher.alone_settings(settings),
+                                                accel_class, should_cancel)
+        except BaseException:
+            ctx.accel.close()
+            raise
+        n = int(ctx.catcher_objects.sum())
+        ctx.plan.add("shadow catcher", True,
+                     f"{n} shadow catcher object{'s' if n > 1 else ''}: the camera sees "
+                     "on them only the shadows the other objects cast (a second photon "
+                     "and camera pass renders the catchers alone to compare)")
     return ctx
+
+
+def close_context(ctx: Context) -> None:
+    """Release ctx's Embree scenes (and its catcher-only context's)."""
+    ctx.accel.close()
+    if ctx.catcher_alone is not None:
+        ctx.catcher_alone.accel.close()
 
 
 def _sample_every_side(lights) -> bool:
@@ -270,9 +296,42 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
             film.photon_hits[...] = view
         stats["photon_hits_shown"] = shown
         stats["photon_hits_fraction"] = fraction
+        if ctx.catcher_alone is not None:
+            _render_alone(ctx, region, film, progress, should_cancel)
     except Cancelled:
         stats["cancelled"] = True  # the film holds what was finished
     return film
+
+
+def _render_alone(ctx: Context, region, film: Film, progress, should_cancel) -> None:
+    """The catcher-only scene's photon and camera pass with this pass' settings (its
+    seed, photon counts), recorded in film.catcher (engine/shadowcatcher.py); raises
+    Cancelled."""
+    t0 = time.perf_counter()
+    alone = ctx.catcher_alone
+    alone.settings = shadowcatcher.alone_settings(ctx.settings)
+    scene = ctx.scene
+    if (alone.scene.camera is not scene.camera or alone.scene.width != scene.width
+            or alone.scene.height != scene.height):
+        # The main scene's view (a viewport session's moved camera, its small previews).
+        alone.scene = replace(alone.scene, camera=scene.camera, width=scene.width,
+                              height=scene.height)
+        set_camera_view(alone.geo, alone.scene)
+        # (The effect analysis looks from the camera: where the photons are aimed.)
+        alone.plan = analyse(alone.scene, alone.geo, alone.table, alone.lights, alone.accel,
+                             alone.settings)
+
+    def told(_stage, fraction, text):
+        # (A stage of its own: the progress bars' photon and render spans are the main
+        # pass', which this one would run back over.)
+        if progress is not None:
+            progress("shadow catcher", fraction, f"Shadow catcher: {text}")
+
+    one = _render_pass(alone, region, told, should_cancel, True, None)
+    if one.stats.get("cancelled"):
+        raise Cancelled()
+    shadowcatcher.add_alone(film, one)
+    film.stats["time_shadow_catcher"] = time.perf_counter() - t0
 
 
 class _side_job:
@@ -437,7 +496,7 @@ def render(scene: Scene, settings: RenderSettings | None = None, progress=None,
             if settings.cryptomatte and not film.stats.get("cancelled"):
                 render_cryptomatte(ctx, region, film, should_cancel)
     finally:
-        ctx.accel.close()
+        close_context(ctx)
     film.stats["time_compile"] += t_compile
     film.stats.update(effects=ctx.plan.report() + photon_map_report(
         settings, film.stats, glow_only=ctx.plan.caustics_glow_only,

@@ -324,6 +324,12 @@ def estimate_memory(scene, settings: RenderSettings, region=None, progressive=Fa
         est.parts["photon maps"] = int(stored * BYTES_PER_STORED_PHOTON)
         est.drivers["photon maps"] = ("photons" if s.photons * stores >= s.caustic_photons
                                       else "caustic_photons")
+        if any(getattr(m, "shadow_catcher", False) for m in scene.meshes):
+            # The catchers-alone pass' maps, held with the scene's (engine/shadowcatcher.py):
+            # a ground plane stores each photon once (it cannot send one back to itself).
+            est.parts["shadow catcher maps"] = int((s.photons + s.caustic_photons)
+                                                   * BYTES_PER_STORED_PHOTON)
+            est.drivers["shadow catcher maps"] = "photons"
         biggest = max(s.photons, s.caustic_photons)
         in_flight = min(threads, -(-biggest // chunk_length(biggest, s.chunk_size)))
         est.parts["photon chunks"] = int(in_flight * chunk_length(biggest, s.chunk_size)

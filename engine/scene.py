@@ -420,6 +420,10 @@ class Mesh:
               through transparent surfaces) that hit it give alpha 0 and no colour; every
               other ray sees its material, so it still bounces and reflects light (Cycles'
               holdout applies only to rays that can reach the transparent background)
+    shadow_catcher  Blender's Object > Visibility > Shadow Catcher: camera rays that meet
+              the mesh first show only the shadows (and, in the Shadow Catcher pass, the
+              light) the other objects cast on it, as Cycles' shadow catcher does; every
+              other ray sees it as an ordinary surface (engine/shadowcatcher.py)
     shadow_terminator_offset  Cycles' object setting Shadow Terminator > Geometry Offset
               (`shadow_terminator_geometry_offset`, >= 0, Blender's default 0.1): shadow
               rays from smooth-shaded triangles at grazing light leave from the smooth
@@ -472,6 +476,7 @@ class Mesh:
     visible_transmission: bool = True
     visible_shadow: bool = True
     holdout: bool = False
+    shadow_catcher: bool = False
     shadow_terminator_offset: float = 0.1
     shadow_terminator_shading_offset: float = 0.0
     cryptomatte_object: str | None = None
@@ -500,7 +505,7 @@ class Mesh:
     def __post_init__(self):
         who = f"mesh '{self.name}'"
         for attr in ("visible_camera", "visible_diffuse", "visible_glossy",
-                     "visible_transmission", "visible_shadow", "holdout"):
+                     "visible_transmission", "visible_shadow", "holdout", "shadow_catcher"):
             setattr(self, attr, bool(getattr(self, attr)))
         try:
             sto = float(self.shadow_terminator_offset)
@@ -673,7 +678,7 @@ class Mesh:
             normals = corners(normals)
         flags = {k: getattr(self, k) for k in (
             "visible_camera", "visible_diffuse", "visible_glossy", "visible_transmission",
-            "visible_shadow", "holdout", "shadow_terminator_offset",
+            "visible_shadow", "holdout", "shadow_catcher", "shadow_terminator_offset",
             "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset",
             "pass_index", "random", "object_color", "location", "object_linear",
             "object_attributes")}

@@ -60,9 +60,10 @@ MAX_RESOLUTION = 65536    # pixels per side, as Blender
 MAX_SEGMENTS = 2048       # sphere segments: 2048 x 1024 x 2 = 4M triangles
 MAX_INLINE_ELEMENTS = 10_000_000  # vertices / faces written into the scene file itself
 OBJECT_KINDS = ("sphere", "plane", "box", "mesh", "file")
-# Ray visibility and holdout per object (engine.scene.Mesh; docs/scene_format.md).
+# Ray visibility, holdout and shadow catcher per object (engine.scene.Mesh;
+# docs/scene_format.md).
 VISIBILITY_KEYS = ("visible_camera", "visible_diffuse", "visible_glossy",
-                   "visible_transmission", "visible_shadow", "holdout")
+                   "visible_transmission", "visible_shadow", "holdout", "shadow_catcher")
 
 
 class SceneFileError(ValueError):

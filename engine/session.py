@@ -43,6 +43,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+from . import shadowcatcher
 from .effects import analyse
 from .ambientocclusion import attach_tracer
 from .geometry import MaterialTable, prepare, set_camera_view
@@ -53,7 +54,8 @@ from .shadowtransmittance import ShadowTransmittance
 from .parallel import Cancelled, StopFlag, drain, polled_by
 from .progressive import PassMerger, pass_settings
 from .mallocheap import render_heap
-from .render import Context, _check_region, packed_lights_for, render_pass, shoot_photons
+from .render import (Context, _check_region, packed_lights_for, prepare_context, render_pass,
+                     shoot_photons)
 from .resources import check_resources
 from .scene import Camera, Scene
 from .settings import RenderSettings
@@ -295,6 +297,8 @@ class Session:
         finally:
             if self._ctx is not None:
                 self._ctx.accel.close(wait=True)  # no query thread outlives stop()
+                if self._ctx.catcher_alone is not None:
+                    self._ctx.catcher_alone.accel.close(wait=True)
                 self._ctx = None
             self._photons.clear()
             with self._cond:
@@ -350,9 +354,20 @@ class Session:
             lights = prepare_lights(scene, geo, table)
             self.counters.light_builds += 1
             self._event("lights", len(lights))
+            if ctx is not None and ctx.catcher_alone is not None:
+                ctx.catcher_alone.accel.close(wait=True)
+                ctx.catcher_alone = None
             self._ctx = ctx = Context(
                 scene, s, geo, table, accel, lights, packed_lights=packed_lights_for(lights, s),
                 shadow=ShadowTransmittance.for_scene(geo, table, s.transparent_max_bounces))
+            # Shadow catchers: the catchers-alone scene the camera pass compares with
+            # (engine/shadowcatcher.py), rebuilt with the scene; it follows the view
+            # (render._render_alone).
+            ctx.catcher_objects = shadowcatcher.catcher_objects(scene)
+            if ctx.catcher_objects is not None:
+                ctx.catcher_alone = prepare_context(
+                    shadowcatcher.alone_scene(scene), shadowcatcher.alone_settings(s),
+                    _accel_class(), self._cancel.is_set)
             self._scene_dirty = self._geometry_dirty = False
         else:
             ctx.scene = scene
@@ -449,6 +464,9 @@ class Session:
         rgb = film.combined
         alpha = film.alpha if self.settings.film_transparent else 1.0 - film.holdout
         rgba = np.concatenate([rgb, alpha[:, :, None].astype(np.float32)], axis=2)
+        # Shadow catchers: Combined as Cycles' approximate shadow catcher (None: none).
+        caught = shadowcatcher.combined_rgba(film, self.settings.film_transparent)
+        rgba = rgba if caught is None else caught
         self.frame = Frame(rgba=rgba, region=tuple(region), full_size=tuple(full_size),
                            scale=scale, passes=passes, photons=int(photons),
                            elapsed=time.perf_counter() - t0, generation=generation,

@@ -79,6 +79,23 @@ def test_cryptomatte_as_local(client):
     assert_bitwise(film, local)
 
 
+def test_shadow_catcher_as_local(client):
+    """A shadow catcher's sums (engine/shadowcatcher.py: the camera pass' split and the
+    catchers-alone pass of each pass) travel with the pass films: the same bits."""
+    from engine.shadowcatcher import combined_rgba
+    scene = cornell_box(24, 18)
+    scene.meshes[0].shadow_catcher = True  # the floor
+    settings = RenderSettings(**CHEAP)
+    local = render_progressive(scene, settings, Budget(passes=2))
+    film = render_distributed(scene, settings, Budget(passes=2), client=client,
+                              worker_threads=1)
+    assert_bitwise(film, local)
+    assert set(film.catcher) == set(local.catcher)
+    for key, value in local.catcher.items():
+        assert value.tobytes() == film.catcher[key].tobytes(), key
+    assert combined_rgba(film, False).tobytes() == combined_rgba(local, False).tobytes()
+
+
 def test_same_image_one_pass_in_flight_and_other_thread_count(client, small):
     """Passes strictly one after another, and two engine threads per pass instead of one:
     the same bits."""

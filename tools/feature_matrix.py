@@ -540,6 +540,30 @@ def visibility_holdout():
 
 
 @case("visibility")
+def visibility_shadow_catcher():
+    """The floor (no back wall) a Shadow Catcher, Film Transparent: only the cube and its
+    shadow on the floor (as alpha) remain (engine/shadowcatcher.py)."""
+    _catcher_scene()
+    bpy.context.scene.render.film_transparent = True
+
+
+@case("visibility")
+def visibility_shadow_catcher_world():
+    """The same catcher floor without Film Transparent under a blue world: Cycles'
+    approximate shadow catcher shows the world behind the floor, darkened by the shadows."""
+    _catcher_scene()
+    mb.set_world((0.2, 0.3, 0.5))
+
+
+def _catcher_scene():
+    """_vis_scene's cube and sun on the floor alone, the floor a Shadow Catcher."""
+    _stage(back=False)
+    mb.box("Cube", 0.8, 0.8, 0.8, _red(), (0.3, 0.0, 0.8))
+    _sun()
+    bpy.data.objects["Floor"].is_shadow_catcher = True
+
+
+@case("visibility")
 def visibility_collection_indirect_only():
     _stage(floor_color=(0.8, 0.8, 0.8))
     coll = bpy.data.collections.new("Bounce")
@@ -2221,12 +2245,6 @@ def warned_anisotropy():
 
 
 
-@case("warned", status="warned", how="shadow catcher objects render as ordinary surfaces",
-      warning="shadow catcher")
-def warned_shadow_catcher():
-    _vis_scene().is_shadow_catcher = True
-
-
 @case("lights", status="approximated", how="direct light passes every object as in "
       "Cycles; its photons (indirect light) are still shadowed", warning="cast shadow")
 def light_cast_shadow_off():
@@ -2438,7 +2456,7 @@ region means (floor, mirror, glass ball, background) within 0.01 / 0.02 / 0.06 /
 
 | pass | status | notes |
 |---|---|---|
-| Combined | supported | the sum of our effect passes |
+| Combined | supported | the sum of our effect passes; with shadow catchers the matte and the shadow as Cycles' approximate shadow catcher forms them (engine/shadowcatcher.py) |
 | Z (Depth) | supported | Cycles' camera_z_depth (along the camera axis; a panoramic camera's: the distance) of the surface each pixel's first sample ends its single pass on, as Object Index / Position below (Cycles writes Depth at sample 0 only: an edge pixel holds one surface's depth, never a blend of two); 1e10 where that sample met none, as Cycles. Matched against Cycles in tests/blender/test_blender_surface_passes.py |
 | Normal | supported | world-space shading normal of the first hit |
 | Denoising Data (Denoising Normal, Albedo, Depth) | supported | Cycles' definitions (denoising_passes.h): written at the first surface whose non-specular closures (GGX alpha > 0.075, diffuse, sheen) hold more than 25 % of the sample weight, through mirrors, clear glass and transparent passes with their throughput; the background and emitters met on the way add their radiance to the albedo; normal in camera space (x right, y up, z forward); depth = throughput-weighted ray lengths. Same expectation as Cycles where the surfaces passed are specular only; where rough closures hold under 25 % of a mostly specular surface Cycles' path may continue through them, ours does not. Feeds the compositor's Denoise node. |
@@ -2448,8 +2466,9 @@ region means (floor, mirror, glass ball, background) within 0.01 / 0.02 / 0.06 /
 | Mist | supported | World > Mist Pass start / depth / falloff (quadratic, linear, inverse quadratic): 1 - the samples' average of (1 - m) x throughput x alpha over every camera-chain surface, m = saturate((distance - start) / depth)^falloff, distance along the view axis for an orthographic camera; 1 for the background. Measured against Cycles (tests/blender/test_blender_surface_passes.py, 1 spp): within 1.23 x Cycles' own change to the next pixel, as Position and UV, the indices equal on every pixel inside one object |
 | Debug Sample Count | supported with adaptive sampling | the share of Samples a pixel took; asked for without adaptive sampling: warned |
 | Direct, Indirect, Caustic, Specular, Emission, Photon Hits | ours | the engine's per-effect passes (Passes > Effects / Photon Hits); our Emission is emitters and background seen directly, not Cycles' Emit |
+| Shadow Catcher | supported | Cycles' film_calculate_shadow_catcher: the shadow catchers' light with the other objects over without them (a second photon and camera pass renders the catchers alone), per channel, alpha-over white by Combined's alpha; 1 where no sample met a catcher. Asked for, Combined leaves the shadow out (alpha 0 on the catcher) as Cycles does; matched against Cycles in tests/blender/test_shadow_catcher_cycles.py |
 | Cryptomatte (Object, Material, Asset; Levels) | supported | Blender's layout and metadata (passes CryptoObject00.. of two ranks each, MurmurHash3 ids, the manifest the compositor's Cryptomatte node reads; engine/cryptomatte.py): ids equal to Cycles' where a pixel sees one object, coverage within 0.02 of Cycles' at 16 samples (tests/blender/test_blender_cryptomatte.py). From primary rays of their own (at most 64 a pixel), exact counts, the same for any worker count; a Transparent BSDF surface counts fully (Cycles splits it by transparency); ids past the Levels are dropped (Cycles lumps them into the last rank). Instances share their object's name, the asset is the topmost parent. |
-| Emission (Cycles' Emit), Environment, Ambient Occlusion, Shadow, Diffuse / Glossy / Transmission Direct and Indirect, Subsurface, Volume, Vector, Grease Pencil, Shadow Catcher, Render Time, Shader AOVs, Light Groups | warned | not made: one warning per render names every such pass the view layer asks for (they stay empty) |
+| Emission (Cycles' Emit), Environment, Ambient Occlusion, Shadow, Diffuse / Glossy / Transmission Direct and Indirect, Subsurface, Volume, Vector, Grease Pencil, Render Time, Shader AOVs, Light Groups | warned | not made: one warning per render names every such pass the view layer asks for (they stay empty) |
 """
 
 

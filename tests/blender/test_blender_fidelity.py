@@ -551,7 +551,9 @@ def test_diffuse_invisible_wall_bleeds_no_colour(fresh_scene, bpy_addon, tmp_pat
         assert ratios[engine, False] < 1.03, ratios  # none when invisible to diffuse
 
 
-def test_visibility_we_cannot_honour_warns_once(fresh_scene, bpy_addon):
+def test_shadow_catcher_and_light_visibility_exported(fresh_scene, bpy_addon):
+    """Shadow Catcher is read into the Mesh (no warning any more: engine/shadowcatcher.py,
+    tests/blender/test_shadow_catcher_cycles.py), as is a light's ray visibility."""
     bpy = bpy_addon
     scene, cube = _cube_on_floor(bpy)
     cube.is_shadow_catcher = True
@@ -559,8 +561,8 @@ def test_visibility_we_cannot_honour_warns_once(fresh_scene, bpy_addon):
     sun.visible_diffuse = False
     out, _ = _export(bpy)
     warnings = out.all_warnings()
-    catcher = [w for w in warnings if cube.name in w and "shadow catcher" in w]
-    assert len(catcher) == 1, warnings
+    assert not [w for w in warnings if "shadow catcher" in w.lower()], warnings
+    assert {m.name: m.shadow_catcher for m in out.meshes}[cube.name], out.meshes
     # A light object's ray visibility is honoured now (no warning), read into the Light.
     assert not [w for w in warnings if sun.name in w], warnings
     light = next(li for li in out.lights if li.name == sun.name)
