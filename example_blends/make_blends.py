@@ -223,6 +223,30 @@ def sphere(name, radius, mat, location, segments=48, rings=24):
     return add_object(name, me, mat, location)
 
 
+def tuft(name, mat, count, keys, spread, height, lean, radius, seed):
+    """A tuft of hair: a Curves object of `count` strands of `keys` points rooted
+    uniformly in [-spread, spread]^2 at z 0, rising to `height`, bent sideways by a
+    normal(0, lean) offset times (s^2) along the strand (s 0..1), the point attribute
+    "radius" going from radius[0] at the root to radius[1] at the tip; seeded."""
+    rng = np.random.default_rng(seed)
+    curves = bpy.data.hair_curves.new(name)
+    curves.add_curves([keys] * count)
+    s = np.linspace(0.0, 1.0, keys)
+    root = rng.uniform(-spread, spread, (count, 2))
+    bend = rng.normal(0.0, lean, (count, 2))
+    pos = np.zeros((count, keys, 3))
+    pos[..., :2] = root[:, None] + bend[:, None] * (s * s)[None, :, None]
+    pos[..., 2] = height * s
+    curves.position_data.foreach_set("vector", pos.reshape(-1).astype(np.float32))
+    r = curves.attributes.new("radius", "FLOAT", "POINT")
+    r.data.foreach_set("value", np.tile(np.linspace(*radius, keys), count).astype(np.float32))
+    if mat is not None:
+        curves.materials.append(mat)
+    obj = bpy.data.objects.new(name, curves)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
 def camera(location, look_at, fov_deg=40.0):
     cd = bpy.data.cameras.new("Camera")
     cd.sensor_fit = "AUTO"

@@ -2035,24 +2035,9 @@ def geometry_hair_curves():
     curve shape (Ribbons): strands as 8-sided tubes of the circle's mean width
     (engine/hair.py)."""
     _stage()
-    rng = np.random.default_rng(5)
-    n, keys = 300, 4
-    curves = bpy.data.hair_curves.new("Tuft")
-    curves.add_curves([keys] * n)
-    s = np.linspace(0.0, 1.0, keys)
-    root = rng.uniform(-0.7, 0.7, (n, 2))
-    lean = rng.normal(0.0, 0.2, (n, 2))
-    pos = np.zeros((n, keys, 3))
-    pos[..., :2] = root[:, None] + lean[:, None] * (s * s)[None, :, None]
-    pos[..., 2] = 0.9 * s
-    curves.position_data.foreach_set("vector", pos.reshape(-1).astype(np.float32))
-    radius = curves.attributes.new("radius", "FLOAT", "POINT")
-    radius.data.foreach_set("value", np.tile(np.linspace(0.02, 0.006, keys), n)
-                            .astype(np.float32))
-    curves.materials.append(mb.material("hair", "principled", (0.8, 0.35, 0.1),
-                                        roughness=0.6))
-    obj = bpy.data.objects.new("Tuft", curves)
-    bpy.context.scene.collection.objects.link(obj)
+    mb.tuft("Tuft", mb.material("hair", "principled", (0.8, 0.35, 0.1), roughness=0.6),
+            count=300, keys=4, spread=0.7, height=0.9, lean=0.2, radius=(0.02, 0.006),
+            seed=5)
     _sun()
 
 

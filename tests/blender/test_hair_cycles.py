@@ -10,11 +10,13 @@ ours 32 spp (default photons): whole image 0.990 of Cycles (both shapes), 12 x 1
 0.95-0.97 with the photons' indirect light, 0.97-0.98 with 4x the photons (their
 estimates among the strands and at the roots)."""
 import math
+import os
+import sys
 
 import numpy as np
 import pytest
 
-from blender_helpers import cycles_plain, read_rgba, render_exr
+from blender_helpers import ROOT, cycles_plain, read_rgba, render_exr
 
 pytestmark = pytest.mark.blender
 
@@ -31,22 +33,10 @@ def _tuft(bpy, shape):
     floor_mesh.from_pydata([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], [], [(0, 1, 2, 3)])
     sc.collection.objects.link(bpy.data.objects.new("Floor", floor_mesh))
     floor_mesh.materials.append(_principled(bpy, "Grey", (0.5, 0.5, 0.5), 0.5))
-    rng = np.random.default_rng(3)
-    n, keys = 400, 5
-    curves = bpy.data.hair_curves.new("Tuft")
-    curves.add_curves([keys] * n)
-    root = rng.uniform(-0.8, 0.8, (n, 2))
-    lean = rng.normal(0.0, 0.15, (n, 2))
-    s = np.linspace(0.0, 1.0, keys)
-    pos = np.zeros((n, keys, 3))
-    pos[..., :2] = root[:, None] + lean[:, None] * (s * s)[None, :, None]
-    pos[..., 2] = 0.6 * s
-    curves.position_data.foreach_set("vector", pos.reshape(-1).astype(np.float32))
-    radius = curves.attributes.new("radius", "FLOAT", "POINT")
-    radius.data.foreach_set("value", np.tile(np.linspace(0.012, 0.004, keys), n)
-                            .astype(np.float32))
-    curves.materials.append(_principled(bpy, "Hair", (0.8, 0.3, 0.1), 0.6))
-    sc.collection.objects.link(bpy.data.objects.new("Tuft", curves))
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends
+    make_blends.tuft("Tuft", _principled(bpy, "Hair", (0.8, 0.3, 0.1), 0.6), count=400,
+                     keys=5, spread=0.8, height=0.6, lean=0.15, radius=(0.012, 0.004), seed=3)
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     sun.data.energy = 3.0
     sun.rotation_euler = (math.radians(40), 0, math.radians(30))
