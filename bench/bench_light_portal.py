@@ -233,7 +233,7 @@ def sample_cost(world, mode, n=200_000, repeat=5):
     import engine.lights.world as wl
     from engine.bsdf import surface_hit
     from engine.directlight import DirectLightBuffers, sample_lights
-    from engine.integrator import NO_HROWS, _hit_arrays
+    from engine.integrator import NO_HROWS, NO_ROWS3, _hit_arrays
     from engine.lights.packing import pack_lights
     from engine.lights.selection import empty_tree
     from engine.render import prepare_context
@@ -270,7 +270,7 @@ def sample_cost(world, mode, n=200_000, repeat=5):
                       np.ones(len(codes), np.bool_), np.array([li], np.int64),
                       np.ones(1, np.bool_), u1, u2, sel, buf.contrib, buf.row, buf.kidx,
                       buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf, buf.bump,
-                      NO_HROWS)
+                      NO_HROWS, NO_ROWS3)
         best = min(best, time.perf_counter() - t0)
     return best / m * 1e9, build
 

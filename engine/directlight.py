@@ -230,7 +230,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                   m_tilt32, m_side, env_px, env_stored, env_scale, env_rows, env_cols, env_mass,
                   env_prefix, env_cell, pt_f, pt_sat,
                   tree_f, tree_i, inf_idx, inf_f, l_trace, klight, ktrace, U1, U2, SEL,
-                  contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf, bump, hrow):
+                  contrib, row, kidx, ray, o32, d32, t32, wdir, lpdf, bump, hrow, gn):
     """Every light sample of a batch of hits, compacted to the lit ones.
 
     p, ns, gate, ng (N,3): hit points, shading normals, the normal whose hemisphere may
@@ -272,8 +272,18 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
     i < m_rays: o32, d32 (i,3), t32 (i,). Returns (m_all, m_rays).
     hrow (n,) int64: the hits are rows hrow of the per-hit arrays above (a camera
     bounce's shaded rows read in place, no compacted copies; row[j] and U1..SEL's
-    columns count the n shaded hits); (0,): the per-hit arrays are the n hits."""
+    columns count the n shaded hits); (0,): the per-hit arrays are the n hits.
+    gn (N,3): the glossy lobes' raised normal in world space where the hit has one
+    (principled.glossy_normals, Cycles' valid_reflection_N; a zero row: none), or (0,3):
+    no hit has one. A raised hit's glossy lobes take light from the raised normal's side
+    even where it lies below the shading normal ns, so its entries change meaning
+    (accumulate_bsdf reads them so): contrib is the light's radiance / pdf without a
+    cosine, and bump holds the diffuse lobe's cos(wi, ns) x bump shadowing term (0 where
+    the diffuse lobe gets none of it), stored as -1 - that value where the glossy lobes
+    get none of it (Cycles' bump_shadowing_term with the raised normal: light from below
+    the smooth surface). Such an entry is made when either side receives the light."""
     indexed = hrow.shape[0] > 0
+    has_gn = gn.shape[0] > 0
     n = hrow.shape[0] if indexed else p.shape[0]
     want_bump = bump.shape[0] > 0
     own_gate = gate.shape[0] == 0
@@ -332,6 +342,14 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 g0, g1, g2 = s0, s1, s2
             else:
                 g0, g1, g2 = ng[h, 0], ng[h, 1], ng[h, 2]
+            # The normal whose cosine the light's irradiance carries: the shading normal,
+            # or for a hit with a raised glossy normal the gate's (every entry lies above
+            # it, so its cosine divides out again, below: the lobes take their own).
+            raised = has_gn and (gn[h, 0] != 0.0 or gn[h, 1] != 0.0 or gn[h, 2] != 0.0)
+            if raised:
+                cs0, cs1, cs2 = g0, g1, g2
+            else:
+                cs0, cs1, cs2 = s0, s1, s2
             finite = True      # the sample lies at a point y (not at infinity)
             surface = False    # ... on a surface with normal ny and end gap
             solid = False      # an emissive triangle sampled by solid angle omega
@@ -354,7 +372,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     phi = TWO_PI * u2
                     w0, w1, w2 = _to_world(r * math.cos(phi), r * math.sin(phi), z,
                                            -q[DIR], -q[DIR + 1], -q[DIR + 2])
-                    cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
+                    cr = _npmax(w0 * cs0 + w1 * cs1 + w2 * cs2, 0.0) * (
                         1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
                     e0, e1, e2 = q[RGB] * cr, q[RGB + 1] * cr, q[RGB + 2] * cr
                     if q[COS_HALF] < 1.0:
@@ -460,7 +478,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     lp = pdf
             elif (code == C_POINT or code == C_SPOT) and q[SPHERE] != 0.0 and q[RADIUS] > 0:
                 y0, y1, y2, w0, w1, w2, e0, e1, e2, lp = _sphere_light_sample(
-                    p0, p1, p2, s0, s1, s2, g0, g1, g2, u1, u2, q, code == C_SPOT)
+                    p0, p1, p2, cs0, cs1, cs2, g0, g1, g2, u1, u2, q, code == C_SPOT)
             elif code == C_POINT or code == C_SPOT:
                 t0, t1, t2 = p0 - q[POS], p1 - q[POS + 1], p2 - q[POS + 2]
                 dc = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
@@ -481,7 +499,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 dist = math.sqrt(v0_ * v0_ + v1_ * v1_ + v2_ * v2_)
                 ds = max(dist, 1e-300)
                 w0, w1, w2 = v0_ / ds, v1_ / ds, v2_ / ds
-                cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
+                cr = _npmax(w0 * cs0 + w1 * cs1 + w2 * cs2, 0.0) * (
                     1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
                 cl = _npmax((-w0) * a0 + (-w1) * a1 + (-w2) * a2, 0.0) if rad > 0 else 1.0
                 md = 16.0 * (_ulp32(max(max(abs(p0), abs(p1)), abs(p2)))
@@ -631,7 +649,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 dist = math.sqrt(v0_ * v0_ + v1_ * v1_ + v2_ * v2_)
                 ds = max(dist, 1e-300)
                 w0, w1, w2 = v0_ / ds, v1_ / ds, v2_ / ds
-                cr = _npmax(w0 * s0 + w1 * s1 + w2 * s2, 0.0) * (
+                cr = _npmax(w0 * cs0 + w1 * cs1 + w2 * cs2, 0.0) * (
                     1.0 if w0 * g0 + w1 * g1 + w2 * g2 > 0 else 0.0)
                 cl = (-w0) * ny0 + (-w1) * ny1 + (-w2) * ny2
                 if two_sided and msides != 3:
@@ -661,14 +679,44 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     at = _spread_attenuation((-w0) * q[DIR] + (-w1) * q[DIR + 1]
                                              + (-w2) * q[DIR + 2], q)
                     e0, e1, e2 = e0 * at, e1 * at, e2 * at
-            if has_shade and shade_off[h] > 0:
+            if has_shade and shade_off[h] > 0 and not raised:
                 sh = _shift_cos_in(w0 * s0 + w1 * s1 + w2 * s2, shade_off[h])
                 e0, e1, e2 = e0 * sh, e1 * sh, e2 * sh
             if pmf != 1.0:
                 e0, e1, e2 = e0 / pmf, e1 / pmf, e2 / pmf
             bd = 1.0
             m0, m1, m2 = nsm[h, 0], nsm[h, 1], nsm[h, 2]
-            if m0 != s0 or m1 != s1 or m2 != s2:
+            if raised:
+                # The world's samples carry cos(wi, ns) (sampled round ns), the other
+                # lights' the gate's: divided out, each lobe takes its own cosine.
+                if code == C_WORLD:
+                    cc = w0 * s0 + w1 * s1 + w2 * s2
+                else:
+                    cc = w0 * cs0 + w1 * cs1 + w2 * cs2
+                if not cc > 0.0:
+                    continue
+                e0, e1, e2 = e0 / cc, e1 / cc, e2 / cc
+                # Cycles' bsdf_eval per closure: the diffuse lobe on ns (light above ns,
+                # bump shadowing against the smooth normal), the glossy lobes on the
+                # raised normal (light above it; light from below the smooth surface
+                # refused: bump_shadowing_term with sc->N the raised normal).
+                cn = w0 * s0 + w1 * s1 + w2 * s2
+                rn0, rn1, rn2 = gn[h, 0], gn[h, 1], gn[h, 2]
+                dpass = cn > 0.0 and bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2,
+                                                         False) != 0.0
+                gpass = (w0 * rn0 + w1 * rn1 + w2 * rn2 > 0.0
+                         and bump_shadowing_term(m0, m1, m2, rn0, rn1, rn2, w0, w1, w2,
+                                                 False) != 0.0)
+                if not (dpass or gpass):
+                    continue
+                bd = 0.0
+                if dpass:
+                    bd = cn * bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2, True)
+                    if has_shade and shade_off[h] > 0:
+                        bd = bd * _shift_cos_in(cn, shade_off[h])
+                if not gpass:
+                    bd = -1.0 - bd
+            elif m0 != s0 or m1 != s1 or m2 != s2:
                 # A bent normal: no light from below the smooth surface for any lobe,
                 # the diffuse lobe dimmed towards grazing light (Cycles' bsdf_eval).
                 if bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2, False) == 0.0:
@@ -786,7 +834,12 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
     cut (R,) int64 per traced ray: the lobes whose light it carries past the Light Paths
     limits (flat glass passages beyond their caps, direct_light): CUT_DIFFUSE the diffuse
     f and sheen (Cycles counts a sheen bounce as diffuse), CUT_GLOSSY the other rough
-    reflective lobes; (0,): none."""
+    reflective lobes; (0,): none.
+    A hit with a raised glossy normal (prm's P_GN columns not zero) has entries as
+    sample_lights writes them with its gn: contrib without a cosine, bump the diffuse
+    lobe's cosine x bump term (-1 - it: the glossy lobes get none of the light), and its
+    lobes are evaluated wherever wi lies above their own normal (eval_reflection's
+    values carry their cosine)."""
     has_bump = bump.shape[0] > 0
     indexed = hrow.shape[0] > 0
     has_cut = cut.shape[0] > 0
@@ -799,6 +852,12 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
         i = row[j]
         h = hrow[i] if indexed else i
         bd = bump[j] if has_bump else 1.0
+        raised = (prm[h, pr.P_GN] != 0.0 or prm[h, pr.P_GN + 1] != 0.0
+                  or prm[h, pr.P_GN + 2] != 0.0)
+        glossy_lit = True
+        if raised and bd < 0.0:
+            bd = -1.0 - bd
+            glossy_lit = False
         f0, f1, f2 = fd[i, 0] * bd, fd[i, 1] * bd, fd[i, 2] * bd
         kc = cut[r] if has_cut and r >= 0 else 0
         if kc & CUT_DIFFUSE:
@@ -809,10 +868,10 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
             # light with a size (lpdf > 0: its pdf x the tree's choice) by MIS, a
             # constant-colour world left to the continuation (integrator.light_modes).
             mode = 1 if lpdf[j] == np.inf else (2 if lpdf[j] > 0.0 else 0)
-        if mode != 0:
+        if mode != 0 and glossy_lit:
             n0, n1, n2 = ns[h, 0], ns[h, 1], ns[h, 2]
             ix, iy, iz = pr.frame_local(n0, n1, n2, wdir[j, 0], wdir[j, 1], wdir[j, 2])
-            if iz > 0.0:
+            if iz > 0.0 or raised:
                 ox, oy, oz = pr.frame_local(n0, n1, n2, wo[h, 0], wo[h, 1], wo[h, 2])
                 if kc == 0:
                     g0, g1, g2 = pr.eval_reflection(prm, h, ox, oy, oz, ix, iy, iz)
@@ -829,12 +888,34 @@ def accumulate_bsdf(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir, 
                     pb = pr.bsdf_pdf(prm, sel, h, ox, oy, oz, ix, iy, iz)
                     pl = s * lpdf[j]
                     mis = pl * pl / (pl * pl + pb * pb) if pl > 0.0 else 0.0
-                f0 += g0 / iz * mis
-                f1 += g1 / iz * mis
-                f2 += g2 / iz * mis
+                # (contrib holds cos(wi, ns), or for a raised hit no cosine)
+                cdiv = 1.0 if raised else iz
+                f0 += g0 / cdiv * mis
+                f1 += g1 / cdiv * mis
+                f2 += g2 / cdiv * mis
         L[i, 0] = L[i, 0] + contrib[j, 0] * f0 / s
         L[i, 1] = L[i, 1] + contrib[j, 1] * f1 / s
         L[i, 2] = L[i, 2] + contrib[j, 2] * f2 / s
+
+
+@kernel
+def raised_glossy_normals(prm, ns, gn):
+    """gn (N,3) <- the glossy lobes' raised normal in world space of each hit whose
+    closure set-up raised it (prm's P_GN columns: principled.glossy_normals, in the
+    frame of the shading normal ns (N,3)); a zero row where none is raised. Returns how
+    many are raised."""
+    m = 0
+    for i in range(ns.shape[0]):
+        if i >= prm.shape[0]:
+            gn[i, 0] = gn[i, 1] = gn[i, 2] = 0.0
+            continue
+        l0, l1, l2 = prm[i, pr.P_GN], prm[i, pr.P_GN + 1], prm[i, pr.P_GN + 2]
+        if l0 == 0.0 and l1 == 0.0 and l2 == 0.0:
+            gn[i, 0] = gn[i, 1] = gn[i, 2] = 0.0
+            continue
+        gn[i, 0], gn[i, 1], gn[i, 2] = pr.frame_world(ns[i, 0], ns[i, 1], ns[i, 2], l0, l1, l2)
+        m += 1
+    return m
 
 
 # sample_lights' optional arrays, empty: no per-hit row to read, no entry field to write.
@@ -955,6 +1036,15 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     if lobe_caps and bsdf is None:
         raise ValueError("direct_light: per-lobe passages (n,2) need bsdf")
     per_call = max(1, MAX_ENTRIES // n)
+    # Hits whose glossy lobes work on a raised normal (Cycles' valid_reflection_N): their
+    # light samples serve each lobe on its own side (sample_lights' gn).
+    gn = NO_ROWS3
+    if bsdf is not None:
+        ns_all = hit_arrays[1]
+        g = np.empty((len(ns_all), 3))
+        if raised_glossy_normals(np.ascontiguousarray(bsdf[1], np.float64), ns_all, g) > 0:
+            gn = g
+            bent = True  # (the entries' bump column carries the lobes' split)
     rays = 0
     zeros = None
     for a in range(0, len(samples), per_call):
@@ -983,7 +1073,8 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                                       ktrace, U1, U2, SEL, buf.contrib, buf.row, buf.kidx,
                                       buf.ray, buf.o32, buf.d32, buf.t32,
                                       NO_ROWS3 if lobes is None else buf.wdir,
-                                      NO_ROWS if lobes is None else buf.lpdf, bump, hrow)
+                                      NO_ROWS if lobes is None else buf.lpdf, bump, hrow,
+                                      gn)
         blocked = buf.blocked[:m_rays]
         cut = NO_CUT
         if m_rays:
@@ -1100,6 +1191,12 @@ def _warm_up():
     prm, _ = pr.setup_np(closure_params([Material("w", specular=1.0, roughness=0.5)]),
                          np.zeros(1, np.int64), np.full((1, 3), 0.5), np.ones(1),
                          np.ones(1, np.bool_))
+    direct_light(packed, hit, samples, _NoOcclusion(), None, 1,
+                 bsdf=(np.ones((1, 3)), prm, nrm, np.full(len(lights), 2, np.int64),
+                       np.full((1, pr.N_LOBES), 0.2)))
+    # A raised glossy normal (raised_glossy_normals, sample_lights' gn rows).
+    prm = prm.copy()
+    prm[0, pr.P_GN:pr.P_GN + 3] = (0.6, 0.0, 0.8)
     direct_light(packed, hit, samples, _NoOcclusion(), None, 1,
                  bsdf=(np.ones((1, 3)), prm, nrm, np.full(len(lights), 2, np.int64),
                        np.full((1, pr.N_LOBES), 0.2)))

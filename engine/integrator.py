@@ -649,7 +649,7 @@ def light_shadow_rays(ctx, hit, light_index, rng):
                                   u1[None], u2[None],
                                   np.zeros((1, 1)) if sel is None else sel[None],
                                   buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
-                                  buf.t32, buf.wdir, buf.lpdf, buf.bump, NO_HROWS)
+                                  buf.t32, buf.wdir, buf.lpdf, buf.bump, NO_HROWS, NO_ROWS3)
     return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.o32[:m_rays].copy(),
             buf.d32[:m_rays].copy(), buf.t32[:m_rays].copy())
 

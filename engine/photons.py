@@ -104,6 +104,30 @@ class Photons:
         return pk.bounce_usable(self.bounces, limits, camera)
 
 
+def bent_arrival(n_smooth, ns, ng, wi) -> np.ndarray:
+    """(N,) the factor on a photon's power where it arrives at a hit whose normal a Normal
+    Map / Bump node bent (stored for the diffuse lobe, and carried by its diffuse bounce):
+    Cycles' bump shadowing term (normalmap.bump_shadowing) times |wi.ns| / |wi.ng|.
+    n_smooth, ns, ng (N,3): the smooth, shading (bent) and geometric normals on the
+    arriving side; wi (N,3) unit directions back towards where the photon came from.
+    Why the cosine ratio: photons arrive by the surface's true area, so their density
+    is the irradiance about ng, integral L |wi.ng|, while the camera side (and Cycles)
+    lights the diffuse lobe by integral L |wi.ns| (Veach 1997, sec. 5.3, the adjoint
+    BSDF with shading normals; engine/photonkernels.py applies it to the glossy lobes'
+    reflections). Without it a normal map's patches turned away from the light read
+    1.13x Cycles where their light came from photons (docs/accuracy.md, nmap37). The
+    diffuse bounce needs no outgoing |wo.ng| / |wo.ns| beside it: over the cosine
+    lobe about ns cut off below ng both leave the same power (the lune is symmetric in
+    ns and ng). Rows whose normal is not bent (ns equal to n_smooth) keep 1."""
+    out = bump_shadowing(n_smooth, ns, wi)
+    bent = np.any(n_smooth != ns, axis=1)
+    if bent.any():
+        cs = np.maximum(np.einsum("ij,ij->i", wi[bent], ns[bent]), 0.0)
+        cg = np.einsum("ij,ij->i", wi[bent], ng[bent])
+        out[bent] *= np.where(cg > 0.0, cs / np.maximum(cg, 1e-300), 0.0)
+    return out
+
+
 def concat_surfaces(*parts: Photons) -> np.ndarray | None:
     """The parts' Photons.surface concatenated in order, or None where a part has none
     (a map of photons with and without surfaces: none is known)."""
@@ -330,8 +354,9 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                 dst[rows] = src
             if hit.n_smooth is not None:
                 # Bent normals (Normal Map / Bump): the diffuse lobe takes Cycles' bump
-                # shadowing term for the arriving direction, stored and bounced alike.
-                bump[rows] = bump_shadowing(hit.n_smooth, hit.ns, -d[rows])
+                # shadowing term for the arriving direction, stored and bounced alike,
+                # and the adjoint's |wi.Ns| / |wi.Ng| (bent_arrival).
+                bump[rows] = bent_arrival(hit.n_smooth, hit.ns, hit.ng, -d[rows])
             if hit.params is not None:
                 # Texture-driven scalar inputs: the scatter kernel reads one parameter row
                 # per photon (its "material" index is its own row).

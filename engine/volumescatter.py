@@ -347,7 +347,7 @@ def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None) -> np
     m_all, m_rays = sample_lights(*hit_arrays, codes, params, *mesh, *tree, klight, ktrace,
                                   U1, U2, SEL, buf.contrib, buf.row, buf.kidx, buf.ray,
                                   buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf, NO_ROWS,
-                                  NO_HROWS)
+                                  NO_HROWS, NO_ROWS3)
     blocked = buf.blocked[:m_rays]
     t_keep = buf.t32[:m_rays].copy()  # (Embree overwrites the distances)
     clear = np.zeros(m_rays, np.bool_)

@@ -143,7 +143,8 @@ def test_empty_offset_rows_and_unread_directions_change_no_bit():
                              np.ones(L, np.bool_), np.arange(L), np.ones(L, np.bool_),
                              U1, U2, SEL, b.contrib, b.row, b.kidx, b.ray, b.o32, b.d32,
                              b.t32, b.wdir if want_dir else dl.NO_ROWS3,
-                             b.lpdf if want_dir else dl.NO_ROWS, b.bump, dl.NO_HROWS)
+                             b.lpdf if want_dir else dl.NO_ROWS, b.bump, dl.NO_HROWS,
+                             dl.NO_ROWS3)
         out.append((m, b))
     (m0, a), (m1, b) = out
     assert m0 == m1 and m0[1] > n  # every light lit some of the floor

@@ -138,7 +138,8 @@ def test_no_bump_terms_when_no_normal_is_bent():
                                          np.ones(L, np.bool_), U1, U2, SEL, b.contrib,
                                          b.row, b.kidx, b.ray, b.o32, b.d32, b.t32,
                                          dl.NO_ROWS3, dl.NO_ROWS,
-                                         b.bump if bump_out else dl.NO_ROWS, dl.NO_HROWS)
+                                         b.bump if bump_out else dl.NO_ROWS, dl.NO_HROWS,
+                                         dl.NO_ROWS3)
         if bump_out:
             assert np.all(b.bump[:m_all] == 1.0)
         else:
@@ -194,7 +195,7 @@ def test_lit_side_chosen_in_the_kernel_equals_the_numpy_gate(terminator):
         m = dl.sample_lights(*hit_arrays, codes, params, *mesh, *empty_tree(),
                              np.ones(L, np.bool_), np.arange(L), np.ones(L, np.bool_),
                              U1, U2, SEL, b.contrib, b.row, b.kidx, b.ray, b.o32, b.d32,
-                             b.t32, b.wdir, b.lpdf, dl.NO_ROWS, dl.NO_HROWS)
+                             b.t32, b.wdir, b.lpdf, dl.NO_ROWS, dl.NO_HROWS, dl.NO_ROWS3)
         out.append((m, b))
     (m0, a), (m1, b) = out
     assert m0 == m1 and m0[1] > n

@@ -12,7 +12,7 @@ import pytest
 from engine import Environment, RenderSettings
 from engine.geometry import prepare
 from engine.integrator import _hit_arrays
-from engine.directlight import DirectLightBuffers, NO_HROWS, sample_lights
+from engine.directlight import DirectLightBuffers, NO_HROWS, NO_ROWS3, sample_lights
 from engine.lights import WorldLight, prepare_lights
 from engine.lights.environment import (N_OCT, SPREAD_SHARE, build_cosine_distributions,
                                        octahedral_centre, octahedral_spread,
@@ -187,7 +187,7 @@ def _world_light_samples(env, normals, n=20000, seed=4):
                              np.ones(len(codes), np.bool_), np.array([li], np.int64),
                              np.ones(1, np.bool_), u1[None], u2[None], sel[None], buf.contrib,
                              buf.row, buf.kidx, buf.ray, buf.o32, buf.d32, buf.t32, buf.wdir,
-                             buf.lpdf, buf.bump, NO_HROWS)
+                             buf.lpdf, buf.bump, NO_HROWS, NO_ROWS3)
     return (buf.row[:m_all].copy(), buf.contrib[:m_all].copy(), buf.wdir[:m_all].copy(),
             buf.lpdf[:m_all].copy(), lights[li])
 

@@ -18,7 +18,7 @@ from engine import RenderSettings
 from engine.bsdf import surface_hit
 from engine.directlight import DirectLightBuffers, sample_lights
 from engine.geometry import SHADOW
-from engine.integrator import NO_HROWS, _hit_arrays, light_shadow_rays
+from engine.integrator import NO_HROWS, NO_ROWS3, _hit_arrays, light_shadow_rays
 from engine.lights.packing import pack_lights
 from engine.lights.selection import empty_tree
 from engine.render import prepare_context
@@ -150,7 +150,7 @@ def _sample_with_pdfs(ctx, li, hit, rng):
                              np.array([li], np.int64), np.ones(1, np.bool_), u1[None],
                              u2[None], sel[None], buf.contrib, buf.row, buf.kidx, buf.ray,
                              buf.o32, buf.d32, buf.t32, buf.wdir, buf.lpdf, buf.bump,
-                             NO_HROWS)
+                             NO_HROWS, NO_ROWS3)
     return buf.row[:m_all].copy(), buf.wdir[:m_all].copy(), buf.lpdf[:m_all].copy()
 
 
@@ -290,7 +290,7 @@ def test_the_light_tree_picks_the_world_with_its_portal_unbiased(monkeypatch):
                                   *chosen[1], np.array([-1], np.int64),
                                   np.ones(1, np.bool_), u1[None], u2[None], sel[None],
                                   buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
-                                  buf.t32, buf.wdir, buf.lpdf, buf.bump, NO_HROWS)
+                                  buf.t32, buf.wdir, buf.lpdf, buf.bump, NO_HROWS, NO_ROWS3)
     ray = buf.ray[:m_all]
     traced = ray >= 0
     blocked = np.empty(m_rays, np.bool_)

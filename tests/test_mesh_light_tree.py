@@ -130,7 +130,7 @@ def test_mis_pdf_of_a_bsdf_ray_matches_the_shadow_ray_pdf(ctx):
     d^2 / |cos|) is the pdf integrator._mesh_mis_weight gives a BSDF ray leaving the same
     point in the same direction and meeting the same triangle: with the BSDF pdf set to
     it, the power heuristic's weight is exactly 1/2."""
-    from engine.directlight import NO_HROWS, DirectLightBuffers, sample_lights
+    from engine.directlight import NO_HROWS, NO_ROWS3, DirectLightBuffers, sample_lights
     from engine.integrator import MODE_MIS, _hit_arrays, _mesh_mis_weight
     from engine.lights.packing import pack_lights
     from engine.lights.selection import empty_tree
@@ -145,7 +145,7 @@ def test_mis_pdf_of_a_bsdf_ray_matches_the_shadow_ray_pdf(ctx):
                              np.ones(len(codes), np.bool_), np.zeros(1, np.int64),
                              np.ones(1, np.bool_), u1[None], u2[None], sel[None],
                              buf.contrib, buf.row, buf.kidx, buf.ray, buf.o32, buf.d32,
-                             buf.t32, buf.wdir, buf.lpdf, buf.bump, NO_HROWS)
+                             buf.t32, buf.wdir, buf.lpdf, buf.bump, NO_HROWS, NO_ROWS3)
     assert m_all > 0.5 * n
     rows = buf.row[:m_all]
     p, ns = hit.p[rows], hit.ns[rows]
