@@ -1777,8 +1777,11 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
 def _camera_pass_dimensions(ctx) -> SampleDimensions:
     """The camera pass's sampler dimensions (camera_dimensions) for ctx's lights."""
     s = ctx.settings
-    # The lens last: a depth-of-field camera adds a dimension, moving no other.
+    # The lens last: a depth-of-field camera adds a dimension, moving no other; then the
+    # camera segments' distances in a scattering medium (volumescatter, fog37).
     lens = [("lens",)] if ctx.scene.camera.has_dof else []
+    if volumescatter.scattering_tables(ctx.table) is not None:
+        lens = lens + [("volume",)]
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
@@ -2091,6 +2094,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     buffers = buffers or BounceBuffers()
     s = ctx.settings
     depth_limit = ctx.plan.specular_depth
+    # The camera sampler as it came (the scattering media's distances take its
+    # ("volume",) dimension at every bounce, by each path's pixel and sample index).
+    sampler0 = sampler
+    pix_shift = (int(sampler.pix[0]) - int(pix[0])) if sampler is not None and len(pix) else 0
     # A pixel's radius on the surface it sees: half a pixel's width at the distance the
     # path has travelled (orthographic: the pixel's half width).
     cam = ctx.scene.camera
@@ -2291,6 +2298,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if feat is not None:
                 feat, ftp = feat[kept], ftp[kept]
             single, first = single[kept], first[kept]
+        if sampler is not None and bounce == 0 and kept is not None:
+            sampler = sampler.subset(kept)
         if medium is not None:
             # A path that travelled inside an absorbing object's medium keeps
             # exp(-sigma_a s) of its throughput over the segment, before this hit is
@@ -2306,8 +2315,21 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # A child of bsdf_rng's stream (left as it was), as glass_rng.
                     vol_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
                                else np.random.default_rng(rng.integers(1 << 62)))
+                # The camera segments' distances (and strategy choices) stratified over
+                # the pixel's samples (the ("volume",) dimension), as Cycles' QMC
+                # numbers: fog37, the god ray's noise.
+                vol_uv = None
+                if (sampler0 is not None and sample_id is not None
+                        and volumescatter.STRATIFIED):
+                    # (a transparent surface's continuation, the fog box's invisible
+                    # front face, makes its segments bounce 1: the sampler's rows are
+                    # rebuilt from the paths' own sample indices and pixels)
+                    strat_v = sampler0.subset(slice(0, 0))
+                    strat_v.sub = np.asarray(sample_id)
+                    strat_v.pix = np.asarray(pix) + pix_shift
+                    vol_uv = strat_v.uv(("volume",), rng=vol_rng)
                 scatter.add(acc, "direct" if bounce == 0 else "specular", pix, prim, o, d, t,
-                            medium, tp_seg, vol_rng, counters)
+                            medium, tp_seg, vol_rng, counters, uv=vol_uv)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -2319,8 +2341,6 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         footprint = None
         if s.photon_mapping:
             footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
-        if sampler is not None and bounce == 0 and kept is not None:
-            sampler = sampler.subset(kept)
         n = len(prim)
         # The lobes, the continuation's choice, the glossy rows and the rows to shade
         # (camerakernels.shade_lobes: rows nothing reads stay unwritten); without per-hit
