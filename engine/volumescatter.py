@@ -17,11 +17,15 @@ arriving from wi (g > 0: forward scattering, the glow around a light seen throug
 
 One distance a segment (sample_segments): s drawn from the exponential of the channels'
 mean extinction truncated to [0, S] (pbrt-v4's ratio-free homogeneous sampling, its pdf
-exact) or, for half the segments when the scene has point or spot lights, equiangularly
-towards one of them (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path
-Tracing in Participating Media": the 1 / r^2 near a lamp sampled where it peaks) over the
-part of the segment it can light (a spot's cone: lit_interval, as Cycles'
-spot_light_valid_ray_segment), the pdf the strategies' mixture; the estimate T(s) sigma_s / pdf(s) per channel. At that point the lights are
+exact) or, for a share of the segments set by their optical depth against the lamps'
+peaks (adaptive_share) when point, spot or area lights light part of them,
+equiangularly towards one of them (Kulla & Fajardo 2012, "Importance Sampling
+Techniques for Path Tracing in Participating Media": the 1 / r^2 near a lamp sampled
+where it peaks, widened by a lamp's radius or an area light's size) over the part of
+the segment it can light (a spot's cone, an area light's front side and spread:
+lit_interval, as Cycles' spot_light_valid_ray_segment and area_light_valid_ray_segment),
+the pdf the strategies' mixture; the estimate T(s) sigma_s / pdf(s) per channel. The
+camera segments' numbers are stratified over the pixel's samples. At that point the lights are
 sampled as at a surface (engine/directlight.py sample_lights, every light kind, the light
 tree), with the point's "normal" the ray's direction and its opposite in two halves
 (the surface's cosine, which sample_lights folds into its irradiance, divided out again;
@@ -57,26 +61,35 @@ from .lights.packing import pack_lights
 from .lights.selection import empty_tree
 
 FOUR_PI = 4.0 * math.pi
-# Equiangular sampling towards point and spot lights, half the segments' distances
-# (sample_segments); False: the exponential alone (docs/accuracy.md, volscatter36).
+# Equiangular sampling towards point, spot and area lights for part of the segments'
+# distances (sample_segments); False: the exponential alone (docs/accuracy.md,
+# volscatter36). The module switches below are read at each render / call (none is
+# compiled into the kernels): bench/bench_fog_area_cycles.py measures each against
+# Cycles (docs/accuracy.md, fog37).
 EQUIANGULAR = True
 EQUIANGULAR_AREA = True  # area lights among them (fog37; False: point / spot only)
 MAX_EQUIANGULAR = 8  # the strongest point / spot / area lights it aims at
 # The exponential strategy's share of a segment's distances when equiangular lights light
-# part of it (exponential_share, read at each call): EXP_SHARE_THICK from an optical
-# depth of about 1 on, falling to EXP_SHARE_THIN on an optically thin segment, where the
-# exponential is all but uniform and lands mostly where the lamps contribute little
-# (docs/accuracy.md, fog37). It never reaches 0: it is the only strategy for the sun, the
-# world, mesh lights and the lamps beyond MAX_EQUIANGULAR, and it covers what the lit
-# intervals clip away.
-EXP_SHARE_THICK = 0.5
-EXP_SHARE_THIN = 0.5
-SHARE_ADAPTIVE = False  # (bench switch) adaptive_share with bounds THIN..THICK
-AREA_AIM_RANDOM = True  # (bench switch) aim at a random point on an area light
-AREA_WIDEN = 0.0  # (bench switch) an area light's widening: x sqrt(A / pi)
-EQ_RADIUS = True  # (bench switch) a lamp's radius widens its equiangular peak
-# The camera segments' distance numbers stratified over a pixel's samples (the camera
-# pass's ("volume",) dimension, integrator._trace_paths); False: drawn at random (bench).
+# part of it. SHARE_ADAPTIVE: adaptive_share, the optical depth tau against rho, how far
+# the equiangular pdf departs from uniform over the segment (equiangular_gain), clamped
+# to [EXP_SHARE_THIN, EXP_SHARE_THICK]; else exponential_share, EXP_SHARE_THICK from an
+# optical depth of about 1 on, falling to EXP_SHARE_THIN on a thin segment (s36: 1/2,
+# 1/2). It never reaches 0: the exponential is the only strategy for the sun, the world,
+# mesh lights and the lamps beyond MAX_EQUIANGULAR, and it covers what the lit intervals
+# clip away.
+SHARE_ADAPTIVE = True
+EXP_SHARE_THIN = 0.1
+EXP_SHARE_THICK = 0.9
+# An area light is aimed at its centre with its peak widened by AREA_WIDEN x sqrt(A / pi)
+# (a Lambertian disk of radius R gives a point on its axis at distance z light in
+# proportion to R^2 / (z^2 + R^2)); AREA_AIM_RANDOM: at a point drawn uniformly on it
+# instead, as Cycles aims at its light sample (eq_target; measured noisier, fog37).
+AREA_AIM_RANDOM = False
+AREA_WIDEN = 1.0
+EQ_RADIUS = True  # a lamp's radius widens its equiangular peak (_equiangular)
+# The camera segments' distance numbers (the strategy's choice and the distance)
+# stratified over a pixel's samples (the camera pass's ("volume",) dimension,
+# integrator._trace_paths); False: drawn at random.
 STRATIFIED = True
 
 

@@ -397,6 +397,7 @@ def _area_row(pos, axis, u, v, size=(1.0, 1.0), disk=False, spread=math.pi):
     q[0, pk.POS:pk.POS + 3], q[0, pk.DIR:pk.DIR + 3] = pos, axis
     q[0, pk.U:pk.U + 3], q[0, pk.V:pk.V + 3] = u, v
     q[0, pk.SIZE_X], q[0, pk.SIZE_Y], q[0, pk.IS_DISK] = size[0], size[1], disk
+    q[0, pk.AREA_] = size[0] * size[1] * (math.pi / 4 if disk else 1.0)
 
     class L:
         pass
@@ -427,6 +428,7 @@ def test_lit_interval_of_an_area_light_is_its_front_side_and_spread():
     half = math.radians(30.0) + 1e-3
     apex = 0.5 * math.sqrt(2.0) / math.tan(half)
     assert row[0, 6] == pytest.approx(math.cos(half)) and row[0, 7] == pytest.approx(apex)
+    assert row[0, 16] == pytest.approx(math.sqrt(1.0 / math.pi))  # the widened peak
     # A horizontal ray 2 m under the light: inside the cone over |x| <= (2 + apex) tan.
     r = (2.0 + apex) * math.tan(half)
     a, b = lit_interval(-5.0, 0.0, -2.0, 1.0, 0.0, 0.0, 10.0, row, 0)
