@@ -22,6 +22,7 @@ VARIANTS below; FOG37_VARIANTS picks some, separated by ";", FOG37_SCENES by ","
   centre widened, adaptive, stratified
   stratified alone      s36's sampling with stratified numbers
   area, stratified      area lights (random point), share 1/2, stratified
+  after (the defaults)  the module's defaults (centre widened, adaptive, stratified)
   area, stratified, centre widened
   cycles                Cycles itself at the same samples (seeds 1..SEEDS)
 
@@ -105,6 +106,9 @@ def rel_mse(x, r):
     return float(np.mean((x - r) ** 2 / (r * r + 0.01)))
 
 
+DEFAULTS = {k: getattr(vs, k) for k in ("EQUIANGULAR_AREA", "EXP_SHARE_THIN", "EXP_SHARE_THICK",
+                                        "SHARE_ADAPTIVE", "AREA_AIM_RANDOM", "AREA_WIDEN",
+                                        "EQ_RADIUS", "STRATIFIED")}
 BASE = dict(EQUIANGULAR_AREA=True, EXP_SHARE_THIN=0.5, EXP_SHARE_THICK=0.5,
             SHARE_ADAPTIVE=False, AREA_AIM_RANDOM=True, AREA_WIDEN=0.0, EQ_RADIUS=True,
             STRATIFIED=False)
@@ -119,6 +123,7 @@ VARIANTS = {
                                                  AREA_AIM_RANDOM=False, AREA_WIDEN=1.0),
     "stratified alone": dict(EQUIANGULAR_AREA=False, EQ_RADIUS=False, STRATIFIED=True),
     "area, stratified": dict(STRATIFIED=True),
+    "after (the defaults)": DEFAULTS,
     "area, stratified, centre widened": dict(STRATIFIED=True, AREA_AIM_RANDOM=False,
                                              AREA_WIDEN=1.0),
 }

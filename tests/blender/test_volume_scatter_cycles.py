@@ -206,9 +206,10 @@ def test_fog_box_around_an_area_light_matches_cycles(bpy_addon, tmp_path, spread
     Spread 180 or 50 degrees (fog37: equiangular sampling aims at it over the part of
     each camera segment in front of it and inside its spread; half the fog lies behind
     its plane). Direct light, ours 256 spp, Cycles 1024: 5 x 5 blocks in the beam under
-    the light, beside the light (behind its plane: only the floor's light would reach
-    it, none at direct light) and on the lit floor, and the image's sum (measured
-    RESULTS)."""
+    the light, low in the beam and on the lit floor within 3 %, the image's sum within
+    1.5 % (measured: Spread 180 0.998 / 1.002 / 1.001, sum 1.0015; Spread 50 1.000 /
+    0.992 / 0.997, sum 0.9975; docs/accuracy.md, fog37); the fog above the light's
+    plane, which only the floor's light would reach (none at direct light), dark."""
     import math
     import os
     import sys
@@ -235,10 +236,13 @@ def test_fog_box_around_an_area_light_matches_cycles(bpy_addon, tmp_path, spread
         rc = project(bpy, scene, point)
         a, b = _block(ours, rc), _block(ref, rc)
         print(spread, where, a.round(4), b.round(4), (a / b).round(3))
-        np.testing.assert_allclose(a, b, rtol=0.04, err_msg=where)
+        np.testing.assert_allclose(a, b, rtol=0.03, err_msg=where)
+        if where == "beam":
+            beam = a
     above = project(bpy, scene, (0.9, 0.0, 2.5))
     print("above the light's plane", _block(ours, above, 1).round(5),
           _block(ref, above, 1).round(5))
+    assert _block(ours, above, 1).max() < 1e-3 * beam.max()
     ratio = ours.reshape(-1, 3).sum(axis=0) / ref.reshape(-1, 3).sum(axis=0)
     print("image sum ratio", ratio.round(4))
     np.testing.assert_allclose(ratio, 1.0, rtol=0.015)
