@@ -7,6 +7,7 @@ x 1.2 m over a white floor, Color 0.8 / 0.7 / 0.6, Anisotropy 0.3):
   soft box    an area light of Spread 40 degrees inside a taller thin box (Density 0.15)
   spot thin   a 30-degree spot above the thin box (Density 0.15)
   lamp in fog a point light of radius 0.1 inside that box
+  world       the Density 0.6 box under a white world (strength 1), no lamp
 Per scene and variant: relMSE ((x - r)^2 / (r^2 + 0.01), RGB, mean over seeds) of the
 image and of the fog's 9 x 9 block against Cycles at REF_SPP, the image mean over the
 reference's, seconds a render. Variants (engine/volumescatter.py module switches,
@@ -73,6 +74,8 @@ def build(kind):
         mb.box("Fog", 2.4, 2.4, 2.6, fog("fog", 0.15), location=(0.0, 0.0, 1.4))
         light = mb.light("Area", "AREA", (0.2, 0.1, 2.4), 300.0, look_at=(0, 0, 0), size=0.5)
         light.data.spread = math.radians(40.0)
+    elif kind == "world":
+        mb.box("Fog", 2.4, 2.4, 1.2, fog("fog", 0.6), location=(0.0, 0.0, 1.0))
     elif kind == "lamp in fog":
         mb.box("Fog", 2.4, 2.4, 1.2, fog("fog", 0.15), location=(0.0, 0.0, 1.0))
         mb.light("Point", "POINT", (0.3, 0.2, 1.1), 60.0, shadow_soft_size=0.1)
@@ -81,7 +84,7 @@ def build(kind):
         mb.light("Spot", "SPOT", (0.0, 0.0, 3.0), 400.0, look_at=(0, 0, 0),
                  spot_size=math.radians(30.0), spot_blend=0.3, shadow_soft_size=0.0)
     mb.camera((0.0, -5.0, 1.2), (0.0, 0.0, 0.8), fov_deg=45.0)
-    black_world(bpy, scene)
+    black_world(bpy, scene, strength=1.0 if kind == "world" else 0.0)
     scene.render.resolution_x, scene.render.resolution_y = 64, 48
     scene.render.resolution_percentage = 100
     scene.cycles.pixel_filter_type, scene.cycles.filter_width = "BOX", 1.0
@@ -131,7 +134,7 @@ if os.environ.get("FOG37_VARIANTS"):
     VARIANTS = {k: v for k, v in VARIANTS.items() if k in os.environ["FOG37_VARIANTS"].split(";")}
 print(f"| scene | variant | spp | relMSE image | relMSE fog block | mean / ref | s |")
 print("|---|---|---|---|---|---|---|")
-for kind in ("area", "area thin", "soft box", "spot thin", "lamp in fog"):
+for kind in ("area", "area thin", "soft box", "spot thin", "lamp in fog", "world"):
     if ONLY and kind not in ONLY.split(","):
         continue
     scene = build(kind)
