@@ -891,7 +891,17 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if scatter is not None:
                     # The lamps' light a scattering medium sends along the ray (single
                     # scattering, engine/volumescatter.py): the fog's glow on the surface.
-                    src, Ls = scatter.radiance(prim, o, d, t, medium_h[idx], rng, counters)
+                    # (at the first hit: the distances' numbers stratified over the
+                    # pixel's samples, one dimension per gather ray, as the camera's)
+                    g_uv = None
+                    if (sampler is not None and volumescatter.STRATIFIED
+                            and GATHER_VOLUME_STRATIFIED):
+                        try:
+                            g_uv = sampler.subset(np.asarray(idx)).uv(("gather-volume", g))
+                        except KeyError:
+                            g_uv = None
+                    src, Ls = scatter.radiance(prim, o, d, t, medium_h[idx], rng, counters,
+                                               g_uv)
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
@@ -1375,6 +1385,9 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
 # Camera paths sample the lights through rough glass (engine/glasslight.py; False: the
 # refraction's continuation alone finds them, as before: a sun behind a rough glass ball
 # made fireflies and a dark median, issue 14).
+# The final-gather rays' fog segments take stratified distance numbers at the first hit
+# (("gather-volume", g), fog37); False: random (measured in docs/accuracy.md, fog37).
+GATHER_VOLUME_STRATIFIED = True
 GLASS_LIGHT_SAMPLING = True
 _NO_ROWS = np.zeros(0, np.int64)
 
@@ -1781,7 +1794,7 @@ def _camera_pass_dimensions(ctx) -> SampleDimensions:
     # camera segments' distances in a scattering medium (volumescatter, fog37).
     lens = [("lens",)] if ctx.scene.camera.has_dof else []
     if volumescatter.scattering_tables(ctx.table) is not None:
-        lens = lens + [("volume",)]
+        lens = lens + [("volume",)] + [("gather-volume", g) for g in range(s.gather_rays)]
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
