@@ -640,3 +640,36 @@ def test_the_same_image_for_any_worker_count_with_an_area_light():
                for w, seed in ((1, 9), (2, 9), (1, 10)))
     np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
     assert not np.array_equal(np.asarray(a.combined), np.asarray(c.combined))
+
+
+def _fog_ceiling_scene():
+    """A grey floor seen directly (orthographic, from 1 m above it), a fog slab z 1.5..2
+    above the camera and a point light above the slab: the floor's final-gather rays
+    cross the fog (its glow on the floor)."""
+    s = PaperScene(48, 48)
+    s.add_material(Material("fog", volume_only=True, absorption=SIGMA_A, scattering=SIGMA_S,
+                            anisotropy=0.3))
+    s.add_box((0, 0, 1.75), (20.0, 20.0, 0.5), "fog", name="slab")
+    s.add_material(Material("grey", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 30.0, "grey", name="floor")
+    s.add_point_light((0.4, 0.2, 3.0), power=POWER)
+    s.set_camera((0, 0, 1.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    return s
+
+
+def test_the_same_image_for_any_worker_count_with_gather_rays_through_the_fog():
+    """The floor's final-gather rays take stratified distance numbers through the fog
+    above it (("gather-volume", g)): the same image on 1 and 2 workers (3 chunks), and
+    another with those numbers random (integrator.GATHER_VOLUME_STRATIFIED: the path is
+    taken)."""
+    from engine import integrator
+    settings = dict(spp=16, seed=3, photons=20_000)
+    a, b = (render(_fog_ceiling_scene(), RenderSettings(workers=w, **settings))
+            for w in (1, 2))
+    np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
+    integrator.GATHER_VOLUME_STRATIFIED = False
+    try:
+        c = render(_fog_ceiling_scene(), RenderSettings(workers=1, **settings))
+    finally:
+        integrator.GATHER_VOLUME_STRATIFIED = True
+    assert not np.array_equal(np.asarray(a.combined), np.asarray(c.combined))
