@@ -23,7 +23,10 @@ VARIANTS below; FOG37_VARIANTS picks some, separated by ";", FOG37_SCENES by ","
   centre widened, adaptive, stratified
   stratified alone      s36's sampling with stratified numbers
   area, stratified      area lights (random point), share 1/2, stratified
-  after (the defaults)  the module's defaults (centre widened, adaptive, stratified)
+  after (the defaults)  the module's defaults (centre widened, adaptive, stratified), and
+                        the surfaces seen through the fog box shaded with the stratified
+                        sampler (integrator.UNBENT_STRATIFIED; every variant but "before")
+  after, surfaces through the fog random   that last one off
   area, stratified, centre widened
   cycles                Cycles itself at the same samples (seeds 1..SEEDS)
 
@@ -42,7 +45,7 @@ if not hasattr(bpy.types.Scene, "photonmap"):
 from blender_helpers import (black_world, cheap, cycles_plain, default_photonmap, project,
                              read_rgba, render_exr)
 import make_blends as mb
-from engine import volumescatter as vs
+from engine import integrator as EI, volumescatter as vs
 
 SPP = int(sys.argv[1]) if len(sys.argv) > 1 else 16
 SEEDS = int(sys.argv[2]) if len(sys.argv) > 2 else 4
@@ -127,6 +130,7 @@ VARIANTS = {
     "stratified alone": dict(EQUIANGULAR_AREA=False, EQ_RADIUS=False, STRATIFIED=True),
     "area, stratified": dict(STRATIFIED=True),
     "after (the defaults)": DEFAULTS,
+    "after, surfaces through the fog random": dict(DEFAULTS, UNBENT=False),
     "area, stratified, centre widened": dict(STRATIFIED=True, AREA_AIM_RANDOM=False,
                                              AREA_WIDEN=1.0),
 }
@@ -152,7 +156,11 @@ for kind in ("area", "area thin", "soft box", "spot thin", "lamp in fog", "world
             if name == "cycles":
                 img, sec = render(scene, "CYCLES", SPP, seed)
             else:
-                for key, value in {**BASE, **VARIANTS[name]}.items():
+                settings = {**BASE, **VARIANTS[name]}
+                # integrator.UNBENT_STRATIFIED: hits reached through the fog box's
+                # invisible faces shaded with the stratified sampler (off in "before")
+                EI.UNBENT_STRATIFIED = settings.pop("UNBENT", name != "before")
+                for key, value in settings.items():
                     setattr(vs, key, value)
                 img, sec = render(scene, "PHOTONMAP", SPP, seed)
             errs.append(rel_mse(img, ref))

@@ -1388,6 +1388,10 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
 # The final-gather rays' fog segments take stratified distance numbers at the first hit
 # (("gather-volume", g), fog37); False: random (measured in docs/accuracy.md, fog37).
 GATHER_VOLUME_STRATIFIED = True
+# Hits reached only through transparent passes (no bent bounce yet: chain[:, 0] == 0 for
+# every shaded row) shade with the stratified sampler, as first hits (fog37: the floor
+# under a fog box); False: random numbers past bounce 0, as before.
+UNBENT_STRATIFIED = True
 GLASS_LIGHT_SAMPLING = True
 _NO_ROWS = np.zeros(0, np.int64)
 
@@ -2443,6 +2447,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = (None if sampler is None or bounce > 0 else
                      sampler if every else sampler.subset(dsel))
+            if (strat is None and bounce > 0 and UNBENT_STRATIFIED and sampler0 is not None
+                    and sample_id is not None and not chain[:, 0].any()):
+                # Every path here came straight through transparent surfaces (a fog
+                # box's invisible faces, alpha): this is their first hit that bends,
+                # stratified as at bounce 0 by each path's sample index and pixel.
+                strat = sampler0.subset(slice(0, 0))
+                strat.sub = np.asarray(sample_id if every else sample_id[dsel])
+                strat.pix = np.asarray(pix if every else pix[dsel]) + pix_shift
             g = glossy if every else glossy[dsel]
             # The shaded rows read in place (rows=dsel), or the batch itself: no copies of
             # their fields for the direct stage.
