@@ -891,7 +891,17 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 if scatter is not None:
                     # The lamps' light a scattering medium sends along the ray (single
                     # scattering, engine/volumescatter.py): the fog's glow on the surface.
-                    src, Ls = scatter.radiance(prim, o, d, t, medium_h[idx], rng, counters)
+                    # (at the first hit: the distances' numbers stratified over the
+                    # pixel's samples, one dimension per gather ray, as the camera's)
+                    g_uv = None
+                    if (sampler is not None and volumescatter.STRATIFIED
+                            and GATHER_VOLUME_STRATIFIED):
+                        try:
+                            g_uv = sampler.subset(np.asarray(idx)).uv(("gather-volume", g))
+                        except KeyError:
+                            g_uv = None
+                    src, Ls = scatter.radiance(prim, o, d, t, medium_h[idx], rng, counters,
+                                               g_uv)
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
@@ -1375,6 +1385,13 @@ def continue_specular(ctx, hit, tp, rng, ray_cls=CAMERA, choice=None, want_pdf=F
 # Camera paths sample the lights through rough glass (engine/glasslight.py; False: the
 # refraction's continuation alone finds them, as before: a sun behind a rough glass ball
 # made fireflies and a dark median, issue 14).
+# The final-gather rays' fog segments take stratified distance numbers at the first hit
+# (("gather-volume", g), fog37); False: random (measured in docs/accuracy.md, fog37).
+GATHER_VOLUME_STRATIFIED = True
+# Hits reached only through transparent passes (no bent bounce yet: chain[:, 0] == 0 for
+# every shaded row) shade with the stratified sampler, as first hits (fog37: the floor
+# under a fog box); False: random numbers past bounce 0, as before.
+UNBENT_STRATIFIED = True
 GLASS_LIGHT_SAMPLING = True
 _NO_ROWS = np.zeros(0, np.int64)
 
@@ -1827,8 +1844,11 @@ def render_camera(ctx, region, film, progress=None, should_cancel=None,
 def _camera_pass_dimensions(ctx) -> SampleDimensions:
     """The camera pass's sampler dimensions (camera_dimensions) for ctx's lights."""
     s = ctx.settings
-    # The lens last: a depth-of-field camera adds a dimension, moving no other.
+    # The lens last: a depth-of-field camera adds a dimension, moving no other; then the
+    # camera segments' distances in a scattering medium (volumescatter, fog37).
     lens = [("lens",)] if ctx.scene.camera.has_dof else []
+    if volumescatter.scattering_tables(ctx.table) is not None:
+        lens = lens + [("volume",)] + [("gather-volume", g) for g in range(s.gather_rays)]
     if selector_for(ctx) is not None:  # lights picked by the light tree: one stream
         S = selection_samples(s)
         return camera_dimensions(s.gather_rays, [S], [("light-select", si) for si in range(S)]
@@ -2150,6 +2170,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     buffers = buffers or BounceBuffers()
     s = ctx.settings
     depth_limit = ctx.plan.specular_depth
+    # The camera sampler as it came (the scattering media's distances take its
+    # ("volume",) dimension at every bounce, by each path's pixel and sample index).
+    sampler0 = sampler
+    pix_shift = (int(sampler.pix[0]) - int(pix[0])) if sampler is not None and len(pix) else 0
     # A pixel's radius on the surface it sees: half a pixel's width at the distance the
     # path has travelled (orthographic: the pixel's half width).
     cam = ctx.scene.camera
@@ -2385,6 +2409,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if feat is not None:
                 feat, ftp = feat[kept], ftp[kept]
             single, first = single[kept], first[kept]
+        if sampler is not None and bounce == 0 and kept is not None:
+            sampler = sampler.subset(kept)
         if medium is not None:
             # A path that travelled inside an absorbing object's medium keeps
             # exp(-sigma_a s) of its throughput over the segment, before this hit is
@@ -2400,8 +2426,21 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # A child of bsdf_rng's stream (left as it was), as glass_rng.
                     vol_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
                                else np.random.default_rng(rng.integers(1 << 62)))
+                # The camera segments' distances (and strategy choices) stratified over
+                # the pixel's samples (the ("volume",) dimension), as Cycles' QMC
+                # numbers: fog37, the god ray's noise.
+                vol_uv = None
+                if (sampler0 is not None and sample_id is not None
+                        and volumescatter.STRATIFIED):
+                    # (a transparent surface's continuation, the fog box's invisible
+                    # front face, makes its segments bounce 1: the sampler's rows are
+                    # rebuilt from the paths' own sample indices and pixels)
+                    strat_v = sampler0.subset(slice(0, 0))
+                    strat_v.sub = np.asarray(sample_id)
+                    strat_v.pix = np.asarray(pix) + pix_shift
+                    vol_uv = strat_v.uv(("volume",), rng=vol_rng)
                 scatter.add(acc, "direct" if bounce == 0 else "specular", pix, prim, o, d, t,
-                            medium, tp_seg, vol_rng, counters)
+                            medium, tp_seg, vol_rng, counters, uv=vol_uv)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
         # counts them as diffuse.)
         over = ((chain[:, 0] > limits[0]) | (chain[:, 1] > limits[2])
@@ -2413,8 +2452,6 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         footprint = None
         if s.photon_mapping:
             footprint = np.full(len(t), 0.5 * pixel) if ortho else 0.5 * pixel * travelled
-        if sampler is not None and bounce == 0 and kept is not None:
-            sampler = sampler.subset(kept)
         n = len(prim)
         # The lobes, the continuation's choice, the glossy rows and the rows to shade
         # (camerakernels.shade_lobes: rows nothing reads stay unwritten); without per-hit
@@ -2504,6 +2541,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # Stratification pays off at the first hit; deeper hits use plain random numbers.
             strat = (None if sampler is None or bounce > 0 else
                      sampler if every else sampler.subset(dsel))
+            if (strat is None and bounce > 0 and UNBENT_STRATIFIED and sampler0 is not None
+                    and sample_id is not None and not chain[:, 0].any()):
+                # Every path here came straight through transparent surfaces (a fog
+                # box's invisible faces, alpha): this is their first hit that bends,
+                # stratified as at bounce 0 by each path's sample index and pixel.
+                strat = sampler0.subset(slice(0, 0))
+                strat.sub = np.asarray(sample_id if every else sample_id[dsel])
+                strat.pix = np.asarray(pix if every else pix[dsel]) + pix_shift
             g = glossy if every else glossy[dsel]
             # The shaded rows read in place (rows=dsel), or the batch itself: no copies of
             # their fields for the direct stage.

@@ -17,11 +17,15 @@ arriving from wi (g > 0: forward scattering, the glow around a light seen throug
 
 One distance a segment (sample_segments): s drawn from the exponential of the channels'
 mean extinction truncated to [0, S] (pbrt-v4's ratio-free homogeneous sampling, its pdf
-exact) or, for half the segments when the scene has point or spot lights, equiangularly
-towards one of them (Kulla & Fajardo 2012, "Importance Sampling Techniques for Path
-Tracing in Participating Media": the 1 / r^2 near a lamp sampled where it peaks) over the
-part of the segment it can light (a spot's cone: lit_interval, as Cycles'
-spot_light_valid_ray_segment), the pdf the strategies' mixture; the estimate T(s) sigma_s / pdf(s) per channel. At that point the lights are
+exact) or, for a share of the segments set by their optical depth against the lamps'
+peaks (adaptive_share) when point, spot or area lights light part of them,
+equiangularly towards one of them (Kulla & Fajardo 2012, "Importance Sampling
+Techniques for Path Tracing in Participating Media": the 1 / r^2 near a lamp sampled
+where it peaks, widened by a lamp's radius or an area light's size) over the part of
+the segment it can light (a spot's cone, an area light's front side and spread:
+lit_interval, as Cycles' spot_light_valid_ray_segment and area_light_valid_ray_segment),
+the pdf the strategies' mixture; the estimate T(s) sigma_s / pdf(s) per channel. The
+camera segments' numbers are stratified over the pixel's samples. At that point the lights are
 sampled as at a surface (engine/directlight.py sample_lights, every light kind, the light
 tree), with the point's "normal" the ray's direction and its opposite in two halves
 (the surface's cosine, which sample_lights folds into its irradiance, divided out again;
@@ -57,11 +61,36 @@ from .lights.packing import pack_lights
 from .lights.selection import empty_tree
 
 FOUR_PI = 4.0 * math.pi
-# Equiangular sampling towards point and spot lights, half the segments' distances
-# (sample_segments); False: the exponential alone (docs/accuracy.md, volscatter36).
+# Equiangular sampling towards point, spot and area lights for part of the segments'
+# distances (sample_segments); False: the exponential alone (docs/accuracy.md,
+# volscatter36). The module switches below are read at each render / call (none is
+# compiled into the kernels): bench/bench_fog_area_cycles.py measures each against
+# Cycles (docs/accuracy.md, fog37).
 EQUIANGULAR = True
-MAX_EQUIANGULAR = 8  # the strongest point / spot lights it aims at
-NO_POINTS = np.zeros((0, 8))  # no equiangular lights (EQ_COLUMNS)
+EQUIANGULAR_AREA = True  # area lights among them (fog37; False: point / spot only)
+MAX_EQUIANGULAR = 8  # the strongest point / spot / area lights it aims at
+# The exponential strategy's share of a segment's distances when equiangular lights light
+# part of it. SHARE_ADAPTIVE: adaptive_share, the optical depth tau against rho, how far
+# the equiangular pdf departs from uniform over the segment (equiangular_gain), clamped
+# to [EXP_SHARE_THIN, EXP_SHARE_THICK]; else exponential_share, EXP_SHARE_THICK from an
+# optical depth of about 1 on, falling to EXP_SHARE_THIN on a thin segment (s36: 1/2,
+# 1/2). It never reaches 0: the exponential is the only strategy for the sun, the world,
+# mesh lights and the lamps beyond MAX_EQUIANGULAR, and it covers what the lit intervals
+# clip away.
+SHARE_ADAPTIVE = True
+EXP_SHARE_THIN = 0.1
+EXP_SHARE_THICK = 0.9
+# An area light is aimed at its centre with its peak widened by AREA_WIDEN x sqrt(A / pi)
+# (a Lambertian disk of radius R gives a point on its axis at distance z light in
+# proportion to R^2 / (z^2 + R^2)); AREA_AIM_RANDOM: at a point drawn uniformly on it
+# instead, as Cycles aims at its light sample (eq_target; measured noisier, fog37).
+AREA_AIM_RANDOM = False
+AREA_WIDEN = 1.0
+EQ_RADIUS = True  # a lamp's radius widens its equiangular peak (_equiangular)
+# The camera segments' distance numbers (the strategy's choice and the distance)
+# stratified over a pixel's samples (the camera pass's ("volume",) dimension,
+# integrator._trace_paths); False: drawn at random.
+STRATIFIED = True
 
 
 def scattering_tables(table):
@@ -88,32 +117,130 @@ def hg_phase(cos_theta, g):
 
 
 @kernel
-def _equiangular(ox, oy, oz, dx, dy, dz, S, cx, cy, cz):
+def _equiangular(ox, oy, oz, dx, dy, dz, S, cx, cy, cz, radius):
     """(t0, D, theta_a, theta_b) of equiangular sampling (Kulla & Fajardo 2012) on the
     segment o + s d, s in [0, S] (d unit), towards the point c: t0 the foot of c on the
-    line, D its distance (floored), theta_a, theta_b the angles of the segment's ends."""
+    line, D its distance (floored), theta_a, theta_b the angles of the segment's ends.
+    A lamp of radius r > 0 gives D = sqrt(dist^2 + r^2): the pdf 1 / (D^2 + x^2) then
+    follows a soft-falloff lamp's I / (d^2 + r^2) (engine/lights/point.py), which stays
+    finite where the ray passes within r of its centre; aimed at the centre alone, a ray
+    passing at distance D << r drew its distances in a peak of width D, the light's
+    spread over r, and the weights reached pi I / D (fog37: the rare bright samples of
+    the god ray's cone)."""
     t0 = (cx - ox) * dx + (cy - oy) * dy + (cz - oz) * dz
     qx, qy, qz = ox + t0 * dx - cx, oy + t0 * dy - cy, oz + t0 * dz - cz
-    D = max(math.sqrt(qx * qx + qy * qy + qz * qz), 1e-9)
+    D = max(math.sqrt(qx * qx + qy * qy + qz * qz + radius * radius), 1e-9)
     return t0, D, math.atan2(-t0, D), math.atan2(S - t0, D)
 
 
-# eq rows (equiangular lights): position 0-2, the spot's axis 3-5, the cosine of its
-# bounding cone 6 (<= 0: a point light, or a cone too wide to clip), the apex's pull-back
-# along the axis 7 (a spot of radius r emits from a disk: the cone through its rim).
-EQ_COLUMNS = 8
+# eq rows (equiangular lights): position 0-2 (an area light's centre), the spot's or
+# area light's axis 3-5 (the direction it emits along), the cosine of its bounding cone
+# 6 (<= 0: a point light, an area light of spread 180 degrees, or a cone too wide to
+# clip), the apex's pull-back along the axis 7 (a spot of radius r emits from a disk: the
+# cone through its rim; an area light of spread < 180: the cone through its outline),
+# 8: 1 for an area light (lit only in front of its plane; aimed at a point on it), its
+# edges 9-11 and 12-14 (size_x u, size_y v), 15: 1 for a disk / ellipse, 16: a point or
+# spot light's radius (_equiangular widens its peak by it).
+EQ_COLUMNS = 17
+NO_POINTS = np.zeros((0, EQ_COLUMNS))  # no equiangular lights
+
+
+@kernel
+def exponential_share(tau, n_lit, thin, thick):
+    """The exponential strategy's share of a segment's distance samples (the rest:
+    equiangular towards the n_lit lights that light part of it): 1 without such lights,
+    else thin + (thick - thin) (1 - e^-tau) for the segment's optical depth tau (the
+    channels' mean extinction x its length; EXP_SHARE_THIN, EXP_SHARE_THICK)."""
+    if n_lit == 0:
+        return 1.0
+    return thin + (thick - thin) * -math.expm1(-tau)
+
+
+@kernel
+def equiangular_gain(ox, oy, oz, ux, uy, uz, S, a, b, cx, cy, cz, radius):
+    """How far equiangular sampling towards c (radius: _equiangular's widening) over the
+    lit part [a, b] of the segment o + s u, s in [0, S], departs from uniform sampling of
+    the segment: the log-range of its pdf 1 / (D^2 + x^2) over [a, b] plus
+    log(S / (b - a)) (what clipping to the lit part gains). adaptive_share sets it
+    against the exponential's own log-range, the optical depth."""
+    ta, D, tha, thb = _equiangular(ox + ux * a, oy + uy * a, oz + uz * a, ux, uy, uz,
+                                   b - a, cx, cy, cz, radius)
+    xa, xb = -ta, (b - a) - ta
+    near = 0.0 if xa <= 0.0 <= xb else min(abs(xa), abs(xb))
+    far = max(abs(xa), abs(xb))
+    return math.log((D * D + far * far) / (D * D + near * near)) + math.log(S / (b - a))
+
+
+@kernel
+def adaptive_share(tau, rho, n_lit, lo, hi):
+    """The exponential's share when lights light part of the segment (n_lit > 0; else
+    1): tau / (tau + rho), the optical depth tau (the log-range of the exponential's
+    pdf) against rho (equiangular_gain's, the largest over the lights), clamped to
+    [lo, hi]; 1/2 when both are about 0 (both strategies all but uniform)."""
+    if n_lit == 0:
+        return 1.0
+    if not tau + rho > 1e-3:
+        return 0.5
+    return min(max(tau / (tau + rho), lo), hi)
+
+
+@kernel
+def eq_target(eq, j, v0, v1):
+    """(x, y, z) the point equiangular sampling aims at for light row j of eq: the light's
+    position, or for an area light (eq[j, 8] = 1) the point of its rectangle / ellipse
+    that v0, v1 (uniform) pick, uniform in area (Cycles aims at the point its
+    light_sample_from_volume_segment drew on the light). Every strategy's pdf is
+    conditioned on that point, drawn whichever strategy samples: the estimate stays
+    unbiased."""
+    x, y, z = eq[j, 0], eq[j, 1], eq[j, 2]
+    if not eq[j, 8] > 0.0:
+        return x, y, z
+    a, b = v0 - 0.5, v1 - 0.5
+    if eq[j, 15] > 0.0:
+        # Concentric map of the square onto the disk of radius 1/2 (Shirley & Chiu 1997).
+        sa, sb = 2.0 * a, 2.0 * b
+        if sa == 0.0 and sb == 0.0:
+            a = b = 0.0
+        elif abs(sa) > abs(sb):
+            phi = 0.25 * math.pi * (sb / sa)
+            a, b = 0.5 * sa * math.cos(phi), 0.5 * sa * math.sin(phi)
+        else:
+            phi = 0.5 * math.pi - 0.25 * math.pi * (sa / sb)
+            a, b = 0.5 * sb * math.cos(phi), 0.5 * sb * math.sin(phi)
+    return (x + a * eq[j, 9] + b * eq[j, 12], y + a * eq[j, 10] + b * eq[j, 13],
+            z + a * eq[j, 11] + b * eq[j, 14])
 
 
 @kernel
 def lit_interval(ox, oy, oz, ux, uy, uz, S, eq, j):
     """(a, b) the part of the segment o + s u, s in [0, S] (u unit), that light row j of
     eq (EQ_COLUMNS) can light: all of it for a point light, else where the segment is
-    inside the spot's bounding cone (apex pulled back by eq[j, 7]); a > b: none. As
-    Cycles clips a ray segment to the spot's cone before equiangular sampling
-    (kernel/light/spot.h spot_light_valid_ray_segment). The cone's forward nappe is
-    convex, so the inside of a line is one interval: the segment is cut at the roots of
-    the cone's quadric and the apex plane, and the pieces whose midpoints are inside
-    are joined."""
+    inside the spot's bounding cone (apex pulled back by eq[j, 7]); for an area light
+    (eq[j, 8] = 1) the part in front of its plane, inside the cone that bounds its
+    spread when it has one; a > b: none. As Cycles clips a ray segment before
+    equiangular sampling (kernel/light/spot.h spot_light_valid_ray_segment,
+    kernel/light/area.h area_light_valid_ray_segment)."""
+    a, b = _cone_interval(ox, oy, oz, ux, uy, uz, S, eq, j)
+    if eq[j, 8] > 0.0 and b > a:
+        # In front of the area light's plane: (x - pos) . axis > 0.
+        h0 = ((ox - eq[j, 0]) * eq[j, 3] + (oy - eq[j, 1]) * eq[j, 4]
+              + (oz - eq[j, 2]) * eq[j, 5])
+        hu = ux * eq[j, 3] + uy * eq[j, 4] + uz * eq[j, 5]
+        if hu > 0.0:
+            a = max(a, -h0 / hu)
+        elif hu < 0.0:
+            b = min(b, -h0 / hu)
+        elif not h0 > 0.0:
+            return S, 0.0
+    return a, b
+
+
+@kernel
+def _cone_interval(ox, oy, oz, ux, uy, uz, S, eq, j):
+    """lit_interval's cone part ((0, S) without a cone, eq[j, 6] <= 0). The cone's
+    forward nappe is convex, so the inside of a line is one interval: the segment is cut
+    at the roots of the cone's quadric and the apex plane, and the pieces whose
+    midpoints are inside are joined."""
     c = eq[j, 6]
     if not c > 0.0:
         return 0.0, S
@@ -164,26 +291,31 @@ def lit_interval(ox, oy, oz, ux, uy, uz, S, eq, j):
 
 @kernel
 def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u, u_pick,
-                    eq_pos, src, p, w, seg_m):
+                    u_y, eq_pos, share_thin, share_thick, share_adaptive, src, p, w,
+                    seg_m):
     """One in-scattering point per camera segment inside a scattering medium.
 
     rows (n,) int64 the triangle each ray met (< 0: none), material (T,) int32, e1, e2
     (T,3) edges; medium (n,) int64 each ray's medium (-1: not known: the segment was inside
     the medium of the object whose back face it ends on, media.leaving_transmittance's
     rule); o, d (n,3) the rays, t (n,) their hit distances in units of |d|; u, u_pick (n,)
-    uniform numbers. The distance s: from the exponential of the channels' mean
-    extinction truncated to the segment, or (eq_pos (K,EQ_COLUMNS), K > 0: the point and
-    spot lights) with probability 1/2 equiangular towards one of the lights that can
-    light part of the segment (lit_interval: a spot's cone), picked uniformly, over that
-    part only (Kulla & Fajardo 2012), its pdf the mixture of the exponential and those
-    lights' (one-sample MIS, balance heuristic: each light's 1 / r^2 peak is sampled
-    where it is; no such light: the exponential alone). Writes,
+    uniform numbers, u_y (n,2) uniform numbers placing the point an area light is aimed
+    at (eq_target; (n,2) zeros when no area light is among eq_pos). The distance s: from
+    the exponential of the channels' mean extinction truncated to the segment, or
+    (eq_pos (K,EQ_COLUMNS), K > 0: the point, spot and area lights) with probability
+    1 - exponential_share(tau, lit, share_thin, share_thick) equiangular towards one of
+    the lights that can light part of the segment (lit_interval: a spot's cone, an area
+    light's front side and spread), picked uniformly, over that part only (Kulla &
+    Fajardo 2012), its pdf the mixture of the exponential and those lights' (one-sample
+    MIS, balance heuristic: each light's 1 / r^2 peak is sampled where it is; no such
+    light: the exponential alone). Writes,
     compacted over the segments in a medium with sigma_s > 0: src (K,) the ray, p (K,3)
     the point, w (K,3) T(s) sigma_s / pdf(s), seg_m (K,) the medium. Returns the count."""
     k = 0
     n_eq = eq_pos.shape[0]
     lo = np.empty(max(n_eq, 1))
     hi = np.empty(max(n_eq, 1))
+    aim = np.empty((max(n_eq, 1), 3))
     for i in range(rows.shape[0]):
         r = rows[i]
         if r < 0:
@@ -216,12 +348,22 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
         one_minus = 0.0 if thin else -math.expm1(-tau)
         # The lights that can light part of the segment, and those parts.
         n_lit = 0
+        rho = 0.0
         for j in range(n_eq):
             a, b = lit_interval(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S, eq_pos, j)
             lo[j], hi[j] = a, b
             if b > a:
                 n_lit += 1
-        share = 0.5 if n_lit > 0 else 1.0  # the exponential's share of the mixture
+                aim[j, 0], aim[j, 1], aim[j, 2] = eq_target(eq_pos, j, u_y[i, 0], u_y[i, 1])
+                if share_adaptive:
+                    rho = max(rho, equiangular_gain(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz,
+                                                    S, a, b, aim[j, 0], aim[j, 1],
+                                                    aim[j, 2], eq_pos[j, 16]))
+        # the exponential's share of the mixture
+        if share_adaptive:
+            share = adaptive_share(tau, rho, n_lit, share_thin, share_thick)
+        else:
+            share = exponential_share(tau, n_lit, share_thin, share_thick)
         up = u_pick[i]
         if up < share:
             # Exponential truncated to [0, S]: s = -ln(1 - u (1 - e^-tau)) / sb (an
@@ -239,7 +381,7 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
             a = lo[j]
             ta, D, tha, thb = _equiangular(o[i, 0] + ux * a, o[i, 1] + uy * a,
                                            o[i, 2] + uz * a, ux, uy, uz, hi[j] - a,
-                                           eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2])
+                                           aim[j, 0], aim[j, 1], aim[j, 2], eq_pos[j, 16])
             s = a + ta + D * math.tan(tha + u[i] * (thb - tha))
         s = min(max(s, 0.0), S)
         pdf = share * (1.0 / S if thin else sb * math.exp(-sb * s) / one_minus)
@@ -249,7 +391,7 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
                 continue
             ta, D, tha, thb = _equiangular(o[i, 0] + ux * a, o[i, 1] + uy * a,
                                            o[i, 2] + uz * a, ux, uy, uz, hi[j] - a,
-                                           eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2])
+                                           aim[j, 0], aim[j, 1], aim[j, 2], eq_pos[j, 16])
             if thb > tha:
                 x = s - a - ta
                 pdf += (1.0 - share) / n_lit * D / ((thb - tha) * (D * D + x * x))
@@ -392,15 +534,25 @@ def sample_hg(d, g, u1, u2) -> np.ndarray:
 
 def equiangular_rows(lights, codes, params, rows) -> np.ndarray:
     """(K, EQ_COLUMNS) float64 sample_segments' equiangular lights: the packed light
-    rows `rows` (point or spot; lights, codes, params as pack_lights gave them). A spot
-    carries its axis and bounding cone (SpotLight.spot_cos_bound, an elliptical cone's
-    circular bound) widened by 1e-3 rad, the apex pulled back by radius / sin(angle) so
-    the cone holds the light's disk; a point light, or a cone of 90 degrees or more,
-    cosine -1 (not clipped)."""
+    rows `rows` (point, spot or area; lights, codes, params as pack_lights gave them). A
+    spot carries its axis and bounding cone (SpotLight.spot_cos_bound, an elliptical
+    cone's circular bound) widened by 1e-3 rad, the apex pulled back by radius /
+    sin(angle) so the cone holds the light's disk; a point light, or a cone of 90 degrees
+    or more, cosine -1 (not clipped); both their radius (column 16: _equiangular's
+    widened peak). An area light carries its emitting axis, its edges
+    and shape (eq_target aims at a point on it) and, with a spread below 180 degrees,
+    the cone of half the spread (widened 1e-3 rad) whose apex lies behind the light by
+    its largest extent / tan(spread / 2): every ray leaving the light within the spread
+    stays inside it (Cycles' area_light_valid_ray_segment; its light's radiance at angle
+    a from the axis, spread_attenuation, is 0 from a = spread / 2 on)."""
     out = np.zeros((len(rows), EQ_COLUMNS))
     out[:, 6] = -1.0
     for k, r in enumerate(rows):
         out[k, 0:3] = params[r, pk.POS:pk.POS + 3]
+        if codes[r] == pk.CODE_AREA:
+            _area_row(out[k], lights[r], params[r])
+            continue
+        out[k, 16] = max(float(params[r, pk.RADIUS]), 0.0) if EQ_RADIUS else 0.0
         if codes[r] != pk.CODE_SPOT:
             continue
         light = lights[r]
@@ -416,6 +568,25 @@ def equiangular_rows(lights, codes, params, rows) -> np.ndarray:
     return np.ascontiguousarray(out)
 
 
+def _area_row(row, light, q):
+    """equiangular_rows' row (EQ_COLUMNS,) of an area light (packed row q)."""
+    axis = q[pk.DIR:pk.DIR + 3] / max(float(np.linalg.norm(q[pk.DIR:pk.DIR + 3])), 1e-300)
+    sx, sy = float(q[pk.SIZE_X]), float(q[pk.SIZE_Y])
+    disk = bool(q[pk.IS_DISK])
+    row[3:6] = axis
+    row[8] = 1.0
+    row[9:12] = sx * q[pk.U:pk.U + 3]
+    row[12:15] = sy * q[pk.V:pk.V + 3]
+    row[15] = 1.0 if disk else 0.0
+    row[16] = AREA_WIDEN * math.sqrt(max(float(q[pk.AREA_]), 0.0) / math.pi)
+    spread = float(getattr(light, "spread", math.pi))
+    half = 0.5 * spread + 1e-3
+    if spread < math.pi - 1e-6 and half < 0.5 * math.pi - 1e-3 and spread > 1e-5:
+        extent = 0.5 * (max(sx, sy) if disk else math.hypot(sx, sy))
+        row[6] = math.cos(half)
+        row[7] = extent / math.tan(half)
+
+
 class CameraScattering:
     """The camera paths' single scattering for one render context (None from
     for_context when no material scatters)."""
@@ -425,33 +596,40 @@ class CameraScattering:
         self.sigma_t, self.sigma_s, self.g = tables
         # Cycles' Light Paths > Volume bounces: the scatters after the first (walk).
         self.bounces = int(getattr(ctx.settings, "volume_bounces", 0) or 0)
-        # The point and spot lights' positions for equiangular sampling (sample_segments;
-        # the strongest MAX_EQUIANGULAR by power; none: exponential alone).
+        # The point, spot and area lights for equiangular sampling (sample_segments;
+        # the strongest MAX_EQUIANGULAR by emitted power; none: exponential alone).
         self.eq_pos = NO_POINTS
+        self.eq_area = False
         if EQUIANGULAR and ctx.lights:
             codes, params, _ = ctx.packed_lights or pack_lights(ctx.lights)
-            rows = np.flatnonzero((codes == pk.CODE_POINT) | (codes == pk.CODE_SPOT))
+            kinds = (codes == pk.CODE_POINT) | (codes == pk.CODE_SPOT)
+            if EQUIANGULAR_AREA:
+                kinds |= codes == pk.CODE_AREA
+            rows = np.flatnonzero(kinds)
             if len(rows):
-                power = params[rows, pk.RGB:pk.RGB + 3].sum(axis=1)
+                power = np.array([_power(ctx.lights[r], params[r]) for r in rows])
                 rows = rows[np.argsort(-power, kind="stable")[:MAX_EQUIANGULAR]]
                 self.eq_pos = equiangular_rows(ctx.lights, codes, params, rows)
+                self.eq_area = bool(np.any(codes[rows] == pk.CODE_AREA))
 
     @classmethod
     def for_context(cls, ctx):
         tables = scattering_tables(ctx.table)
         return None if tables is None else cls(ctx, tables)
 
-    def radiance(self, prim, o, d, t, medium, rng, counters=None):
+    def radiance(self, prim, o, d, t, medium, rng, counters=None, uv=None):
         """(src (K,) int64, L (K,3)): the radiance scattered towards the ray's origin
         along the segments of the rays src of o, d (n,3) (t (n,) in units of |d|, ending
         on triangles prim (n,), in media medium (n,) int64, -1: not known) that lie in a
         scattering medium, one distance sample each (sample_segments) and one sample of
         each light there (in_scattered); per unit of throughput at the segment's start.
-        rng: the numbers (n distances, then the light samples')."""
+        rng: the numbers (n distances, then the light samples'); uv: (u, u_pick) (n,)
+        each, the distances' numbers stratified over a pixel's samples (the camera
+        pass's ("volume",) dimension), None: drawn from rng."""
         n = len(prim)
         if n == 0:
             return np.zeros(0, np.int64), np.zeros((0, 3))
-        src, pts, w, seg_m = self._scatter_points(prim, o, d, t, medium, rng)
+        src, pts, w, seg_m = self._scatter_points(prim, o, d, t, medium, rng, uv)
         if len(src) == 0:
             return np.zeros(0, np.int64), np.zeros((0, 3))
         wo = np.take(np.asarray(d, np.float64), src, axis=0)
@@ -463,18 +641,24 @@ class CameraScattering:
             self.walk(L, pts, wo, w, seg_m, rng, counters)
         return src, L
 
-    def _scatter_points(self, prim, o, d, t, medium, rng):
+    def _scatter_points(self, prim, o, d, t, medium, rng, uv=None):
         """One distance sample on each ray's segment (sample_segments; rays src of o, d
         (n,3), t (n,) in units of |d|, ending on triangles prim (n,), in media medium
         (n,)): (src (K,) int64, points (K,3), weights (K,3), media (K,)) for the K that
-        scatter, in order. rng: n pairs of numbers."""
+        scatter, in order. rng: n pairs of numbers (and n more pairs with an area light
+        among the equiangular lights)."""
         rows, (material, e1, e2) = self.ctx.geo.hit_tables(prim, "material", "e1", "e2")
         n = len(prim)
         src = np.empty(n, np.int64)
         pts = np.empty((n, 3))
         w = np.empty((n, 3))
         seg_m = np.empty(n, np.int64)
-        u, u_pick = rng.random((2, n))
+        u, u_pick = rng.random((2, n)) if uv is None else (np.ascontiguousarray(uv[0]),
+                                                             np.ascontiguousarray(uv[1]))
+        # (numbers for the point on an area light only with one: point and spot scenes
+        # keep their streams)
+        u_y = (np.ascontiguousarray(rng.random((n, 2))) if self.eq_area and AREA_AIM_RANDOM
+               else np.full((n, 2), 0.5))
         k = sample_segments(np.ascontiguousarray(rows, np.int64),
                             np.ascontiguousarray(material, np.int32),
                             np.ascontiguousarray(e1, np.float64),
@@ -482,8 +666,9 @@ class CameraScattering:
                             np.ascontiguousarray(medium, np.int64),
                             np.ascontiguousarray(o, np.float64),
                             np.ascontiguousarray(d, np.float64),
-                            np.ascontiguousarray(t, np.float64), u, u_pick, self.eq_pos,
-                            src, pts, w, seg_m)
+                            np.ascontiguousarray(t, np.float64), u, u_pick, u_y,
+                            self.eq_pos, float(EXP_SHARE_THIN), float(EXP_SHARE_THICK),
+                            bool(SHARE_ADAPTIVE), src, pts, w, seg_m)
         return src[:k], pts[:k], w[:k], seg_m[:k]
 
     def walk(self, L, pts, wo, beta, seg_m, rng, counters=None):
@@ -510,14 +695,24 @@ class CameraScattering:
             Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters)
             L[idx] += beta * Lin
 
-    def add(self, acc, target, pix, prim, o, d, t, medium, tp, rng, counters=None):
+    def add(self, acc, target, pix, prim, o, d, t, medium, tp, rng, counters=None, uv=None):
         """radiance()'s light into pass `target` of the Accumulator acc at pixels pix (n,),
         weighted by the throughput tp (n,3) at the segment's start. Returns the segments
-        lit."""
-        src, L = self.radiance(prim, o, d, t, medium, rng, counters)
+        lit. uv: radiance's."""
+        src, L = self.radiance(prim, o, d, t, medium, rng, counters, uv)
         if len(src):
             acc.add(target, pix, L, np.ascontiguousarray(tp, np.float64), src)
         return len(src)
+
+
+def _power(light, q) -> float:
+    """A light's emitted power for ranking the equiangular lights (W, summed over RGB)."""
+    flux = getattr(light, "photon_flux", None)
+    if flux is None:
+        flux = getattr(light, "flux", None)
+    if flux is None:
+        return float(np.sum(q[pk.RGB:pk.RGB + 3]))
+    return float(np.sum(flux))
 
 
 @register_warm_up
@@ -529,12 +724,16 @@ def _warm_up():
     d = np.array([[0.0, 0.0, 1.0]])
     out = np.empty((1, 3))
     u2 = np.random.default_rng(0).random((2, 1))
-    spot = np.array([[0.5, 0.0, 0.5, 0.0, 0.0, -1.0, 0.7, 0.1]])
-    for eq in (NO_POINTS, spot):
+    spot = np.zeros((2, EQ_COLUMNS))
+    spot[0, :8] = [0.5, 0.0, 0.5, 0.0, 0.0, -1.0, 0.7, 0.1]
+    spot[1, :9] = [0.0, 0.0, 0.5, 0.0, 0.0, -1.0, -1.0, 0.0, 1.0]
+    spot[1, 9], spot[1, 13] = 0.5, 0.5
+    for eq, adaptive in ((NO_POINTS, False), (spot, False), (spot, True)):
         sample_segments(np.zeros(1, np.int64), np.zeros(1, np.int32), e1, e2, one, one,
                         np.full(1, -1, np.int64), np.zeros((1, 3)), d, np.ones(1), u2[0],
-                        u2[1], eq, np.empty(1, np.int64), out, np.empty((1, 3)),
-                        np.empty(1, np.int64))
+                        u2[1], np.full((1, 2), 0.5), eq, 0.5, 0.5, adaptive,
+                        np.empty(1, np.int64),
+                        out, np.empty((1, 3)), np.empty(1, np.int64))
     accumulate_phase(np.zeros((1, 3)), one, np.zeros(1, np.int64), np.zeros(1, np.int64),
                      np.zeros(1, np.int64), np.ones(1), np.zeros(1, np.bool_), 1, d,
                      np.concatenate([d, -d]), d, np.zeros(1), 1, np.ones(1, np.bool_),

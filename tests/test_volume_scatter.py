@@ -55,7 +55,7 @@ def test_phase_function_is_normalised_with_mean_cosine_g(g):
 def _slab_scene(g, width=8, behind=False, light=LIGHT):
     """Looking straight down (orthographic, 1 m wide) through a 20 x 20 m volume-only
     slab z 0..0.5 (sigma_a, sigma_s per channel, HG g), a point light of 200 W at LIGHT
-    above it, black world; behind=True puts an emissive floor (radiance 1) at z = -0.2."""
+    above it (None: no light), black world; behind=True puts an emissive floor (radiance 1) at z = -0.2."""
     s = PaperScene(width, width)
     s.add_material(Material("fog", volume_only=True, absorption=SIGMA_A, scattering=SIGMA_S,
                             anisotropy=g))
@@ -63,7 +63,8 @@ def _slab_scene(g, width=8, behind=False, light=LIGHT):
     if behind:
         s.add_material(Material("glow", (0.0, 0.0, 0.0), emission=(1.0, 1.0, 1.0)))
         s.add_plane((0, 0, -0.2), (0, 0, 1), 30.0, "glow", name="floor")
-    s.add_point_light(tuple(light), power=POWER)
+    if light is not None:
+        s.add_point_light(tuple(light), power=POWER)
     s.set_camera((0, 0, 3.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
     return s
 
@@ -374,7 +375,8 @@ def test_distances_clipped_to_a_spots_cone_stay_unbiased():
                         np.array([[0.0, 1.0, 0.0]]), np.full((1, 3), sigma),
                         np.full((1, 3), sigma), np.zeros(n, np.int64),
                         np.tile([-5.0, 0.0, -2.0], (n, 1)), np.tile([1.0, 0.0, 0.0], (n, 1)),
-                        np.full(n, 10.0), u, up, spot, src, p, w, m)
+                        np.full(n, 10.0), u, up, np.zeros((n, 2)), spot, 0.5, 0.5, False, src,
+                        p, w, m)
     assert k == n
     s = p[:, 0] + 5.0
     half = 2.0 * math.tan(math.acos(0.9))
@@ -384,3 +386,290 @@ def test_distances_clipped_to_a_spots_cone_stay_unbiased():
     assert (w[:, 0] * inside).mean() == pytest.approx(math.exp(-sigma * a)
                                                      - math.exp(-sigma * b), rel=0.01)
     assert inside.mean() > 0.55  # 0.5 + 0.5 x 0.19 aim at the cone (unclipped: ~0.29)
+
+
+# ---------------------------------------------------------------- fog37: area lights
+def _area_row(pos, axis, u, v, size=(1.0, 1.0), disk=False, spread=math.pi):
+    """equiangular_rows' row of an area light (a stand-in Light with the packed slots)."""
+    from engine.lights import packing as pk
+    from engine.volumescatter import equiangular_rows
+    q = np.zeros((1, pk.P))
+    q[0, pk.POS:pk.POS + 3], q[0, pk.DIR:pk.DIR + 3] = pos, axis
+    q[0, pk.U:pk.U + 3], q[0, pk.V:pk.V + 3] = u, v
+    q[0, pk.SIZE_X], q[0, pk.SIZE_Y], q[0, pk.IS_DISK] = size[0], size[1], disk
+    q[0, pk.AREA_] = size[0] * size[1] * (math.pi / 4 if disk else 1.0)
+
+    class L:
+        pass
+    light = L()
+    light.spread = spread
+    return equiangular_rows([light], np.array([pk.CODE_AREA]), q, [0])
+
+
+def test_lit_interval_of_an_area_light_is_its_front_side_and_spread():
+    """Cycles' area_light_valid_ray_segment: the part of a segment in front of the light's
+    plane; with a spread below 180 degrees, also inside the cone of half the spread whose
+    apex lies behind the light by its extent / tan(spread / 2)."""
+    from engine.volumescatter import lit_interval
+    down = ((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    row = _area_row(*down)
+    # A vertical ray from z = 2 down to z = -3: lit below the plane z = 0.
+    a, b = lit_interval(0.3, 0.0, 2.0, 0.0, 0.0, -1.0, 5.0, row, 0)
+    assert a == pytest.approx(2.0, abs=1e-12) and b == pytest.approx(5.0, abs=1e-12)
+    # Upwards from below: lit until it crosses the plane.
+    a, b = lit_interval(5.0, 0.0, -1.0, 0.0, 0.0, 1.0, 4.0, row, 0)
+    assert a == pytest.approx(0.0) and b == pytest.approx(1.0, abs=1e-12)
+    # Parallel to the plane: all of it under, none of it above.
+    assert lit_interval(-5.0, 0.0, -1.0, 1.0, 0.0, 0.0, 10.0, row, 0) == (0.0, 10.0)
+    a, b = lit_interval(-5.0, 0.0, 1.0, 1.0, 0.0, 0.0, 10.0, row, 0)
+    assert not b > a
+    # Spread 60 degrees, a 1 x 1 square: apex at z = extent / tan(30.06 deg) above it.
+    row = _area_row(*down, spread=math.radians(60.0))
+    half = math.radians(30.0) + 1e-3
+    apex = 0.5 * math.sqrt(2.0) / math.tan(half)
+    assert row[0, 6] == pytest.approx(math.cos(half)) and row[0, 7] == pytest.approx(apex)
+    assert row[0, 16] == pytest.approx(math.sqrt(1.0 / math.pi))  # the widened peak
+    # A horizontal ray 2 m under the light: inside the cone over |x| <= (2 + apex) tan.
+    r = (2.0 + apex) * math.tan(half)
+    a, b = lit_interval(-5.0, 0.0, -2.0, 1.0, 0.0, 0.0, 10.0, row, 0)
+    assert a == pytest.approx(5.0 - r, abs=1e-9) and b == pytest.approx(5.0 + r, abs=1e-9)
+    # Every ray leaving the light within the spread stays inside the cone.
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        x0, y0 = rng.random(2) - 0.5
+        ang, phi = rng.random() * math.radians(30.0), rng.random() * 2 * math.pi
+        w = np.array([math.sin(ang) * math.cos(phi), math.sin(ang) * math.sin(phi),
+                      -math.cos(ang)])
+        a, b = lit_interval(x0, y0, 0.0, *w, 20.0, row, 0)
+        assert a < 1e-9 and b == pytest.approx(20.0)
+
+
+def test_equiangular_aims_at_points_spread_over_the_area_light():
+    """eq_target: uniform over the rectangle (mean the centre, variance size^2 / 12 along
+    each edge) and over the ellipse (inside it, mean the centre, E r^2 = a^2 / 4 + ...)."""
+    from engine.volumescatter import eq_target
+    u, v = np.array([0.6, 0.8, 0.0]), np.array([-0.8, 0.6, 0.0])
+    rng = np.random.default_rng(2)
+    V = rng.random((20000, 2))
+    for disk in (False, True):
+        row = _area_row((1.0, 2.0, 3.0), (0.0, 0.0, -1.0), u, v, size=(2.0, 0.5), disk=disk)
+        pts = np.array([eq_target(row, 0, a, b) for a, b in V]) - [1.0, 2.0, 3.0]
+        x, y = pts @ u, pts @ v
+        assert np.abs(pts[:, 2]).max() < 1e-12
+        assert abs(x.mean()) < 0.02 and abs(y.mean()) < 0.005
+        if disk:
+            assert ((x / 1.0) ** 2 + (y / 0.25) ** 2).max() <= 1.0 + 1e-9
+            assert (x ** 2).mean() == pytest.approx(1.0 / 4.0, rel=0.03)  # a^2 / 4, a = 1
+        else:
+            assert np.abs(x).max() <= 1.0 and np.abs(y).max() <= 0.25
+            assert (x ** 2).mean() == pytest.approx(4.0 / 12.0, rel=0.03)
+
+
+@pytest.mark.parametrize("thin", [0.5, 0.2])
+def test_distances_aimed_at_an_area_light_stay_unbiased(thin):
+    """sample_segments with an area light (a 1 x 1 square at z = 0 facing down, the
+    segment crossing its plane) and the exponential share thin..0.5: the weights
+    T(s) sigma_s / pdf(s) integrate the whole segment (1 - e^-tau) and its part in front
+    of the light (the pdf: the mixture, equiangular conditioned on the point aimed at)."""
+    from engine.volumescatter import sample_segments
+    n = 200_000
+    sigma = 0.1
+    row = _area_row((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    rng = np.random.default_rng(7)
+    u, up, uy = rng.random(n), rng.random(n), rng.random((n, 2))
+    src, p, w, m = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)),
+                    np.empty(n, np.int64))
+    d = np.array([0.6, 0.0, -0.8])  # from (-3, 0, 4): crosses z = 0 at s = 5
+    k = sample_segments(np.zeros(n, np.int64), np.zeros(1, np.int32),
+                        np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]),
+                        np.full((1, 3), sigma), np.full((1, 3), sigma), np.zeros(n, np.int64),
+                        np.tile([-3.0, 0.0, 4.0], (n, 1)), np.tile(d, (n, 1)),
+                        np.full(n, 10.0), u, up, uy, row, thin, 0.5, False, src, p, w,
+                        m)
+    assert k == n
+    s = (4.0 - p[:, 2]) / 0.8
+    front = s >= 5.0
+    assert w[:, 0].mean() == pytest.approx(1.0 - math.exp(-1.0), rel=0.01)
+    assert (w[:, 0] * front).mean() == pytest.approx(math.exp(-0.5) - math.exp(-1.0), rel=0.01)
+    tau = 1.0
+    share = thin + (0.5 - thin) * (1.0 - math.exp(-tau))
+    # the equiangular share all lands in front: (1 - share) + share x the exponential's
+    expect = (1 - share) + share * (math.exp(-0.5) - math.exp(-1.0)) / (1.0 - math.exp(-1.0))
+    assert front.mean() == pytest.approx(expect, abs=0.005)
+
+
+def test_exponential_share_falls_with_the_optical_depth():
+    from engine.volumescatter import exponential_share
+    assert exponential_share(0.3, 0, 0.2, 0.5) == 1.0
+    assert exponential_share(0.0, 2, 0.2, 0.5) == pytest.approx(0.2)
+    assert exponential_share(1.0, 1, 0.2, 0.5) == pytest.approx(0.2 + 0.3 * (1 - math.exp(-1)))
+    assert exponential_share(50.0, 1, 0.2, 0.5) == pytest.approx(0.5)
+
+
+AREA = dict(center=(0.3, 0.1, 1.2), size=0.8, power=200.0)
+
+
+def _area_slab_scene(spread=math.pi, width=8):
+    s = _slab_scene(0.3, width=width, light=None)
+    light = s.add_rect_area_light(AREA["center"], AREA["size"], AREA["power"],
+                                  direction=(0.2, 0.0, -1.0))
+    light.spread = spread
+    return s
+
+
+def _area_single_scattering(g, spread=math.pi, n_xy=16, n_s=160, n_l=14):
+    """The image's mean by quadrature for _area_slab_scene: over the film (n_xy^2 pixel
+    centres), along each vertical ray through the slab (n_s midpoints) and over the light
+    (n_l^2 midpoints of its square, radiance P / (pi A) x spread_attenuation):
+    int int e^{-sigma_t (s + l)} sigma_s p(cos) L cos_l / r^2 dA ds."""
+    from engine.api import _frame
+    from engine.scene import spread_attenuation
+    axis = np.array([0.2, 0.0, -1.0])
+    axis /= np.linalg.norm(axis)
+    u, v, _ = _frame(axis)
+    size = AREA["size"]
+    L = AREA["power"] / (math.pi * size * size)
+    g1 = (np.arange(n_l) + 0.5) / n_l - 0.5
+    ly = (np.asarray(AREA["center"]) + size * g1[:, None, None] * u
+          + size * g1[None, :, None] * v).reshape(-1, 3)
+    dA = size * size / len(ly)
+    xs = (np.arange(n_xy) + 0.5) / n_xy - 0.5
+    S = SLAB[1] - SLAB[0]
+    ds = S / n_s
+    sg = (np.arange(n_s) + 0.5) * ds
+    sig_t = SIGMA_A + SIGMA_S
+    out = np.zeros(3)
+    for x in xs:
+        X, Y, Sg = np.meshgrid([x], xs, sg, indexing="ij")
+        P = np.stack([X, Y, SLAB[1] - Sg], axis=-1).reshape(-1, 1, 3)
+        vec = ly[None, :, :] - P
+        r = np.linalg.norm(vec, axis=-1)
+        wi = vec / r[..., None]
+        cos_l = -(wi @ axis)
+        att = np.where(cos_l > 0, spread_attenuation(cos_l, spread), 0.0)
+        cos = -wi[..., 2]
+        t = 1 + g * g - 2 * g * cos
+        phase = (1 - g * g) / (4 * math.pi * t ** 1.5)
+        l_in = (SLAB[1] - P[..., 2]) / wi[..., 2]  # the shadow ray's length in the slab
+        geo = phase * L * np.maximum(cos_l, 0) * att / r ** 2 * dA
+        Sv = Sg.reshape(-1, 1)
+        for c in range(3):
+            f = np.exp(-sig_t[c] * (Sv + l_in)) * SIGMA_S[c] * geo
+            out[c] += f.sum() * ds
+    return out / n_xy ** 2
+
+
+@pytest.mark.parametrize("spread", [180.0, 60.0], ids=["lambertian", "spread60"])
+def test_single_scattering_of_an_area_light_matches_quadrature(spread):
+    """A tilted 0.8 m square area light over the fog slab (its light aimed at by
+    equiangular sampling: a point on it, the segment's part in front of it and inside its
+    spread): the image's mean within 2 % of the quadrature (8 x 8, 256 spp)."""
+    film = render(_area_slab_scene(math.radians(spread)),
+                  RenderSettings(workers=1, spp=256, photon_mapping=False, seed=4))
+    img = np.asarray(film.combined, np.float64)[..., :3]
+    expect = _area_single_scattering(0.3, math.radians(spread))
+    print(img.reshape(-1, 3).mean(axis=0) / expect)
+    np.testing.assert_allclose(img.reshape(-1, 3).mean(axis=0), expect, rtol=0.02)
+
+
+def _segments_towards(row, o, d, S, sigma, n, seed, adaptive=False, lo=0.5, hi=0.5):
+    """sample_segments on n copies of one segment: (s (n,), weights (n,))."""
+    from engine.volumescatter import sample_segments
+    rng = np.random.default_rng(seed)
+    u, up, uy = rng.random(n), rng.random(n), rng.random((n, 2))
+    src, p, w, m = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)),
+                    np.empty(n, np.int64))
+    k = sample_segments(np.zeros(n, np.int64), np.zeros(1, np.int32),
+                        np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]),
+                        np.full((1, 3), sigma), np.full((1, 3), sigma), np.zeros(n, np.int64),
+                        np.tile(o, (n, 1)), np.tile(d, (n, 1)), np.full(n, S), u, up, uy, row,
+                        lo, hi, adaptive, src, p, w, m)
+    assert k == n
+    return ((p - o) @ d), w[:, 0]
+
+
+@pytest.mark.parametrize("radius", [0.0, 0.05])
+def test_a_ray_grazing_a_lamp_with_a_radius_is_sampled_where_its_light_is(radius):
+    """A ray passing 5 mm from a soft-falloff lamp of radius 5 cm, whose light along it
+    is I / (x^2 + D^2 + r^2) (engine/lights/point.py): equiangular sampling widened by the
+    radius (_equiangular) draws distances in proportion to it, so the estimate of
+    int T sigma_s / (x^2 + D^2 + r^2) ds is unbiased (either way) and, widened, its
+    samples' spread is a fraction of the mean (aimed at the centre alone, a peak 5 mm
+    wide: several times the mean; fog37, the god ray's rare bright samples)."""
+    from engine.volumescatter import EQ_COLUMNS
+    row = np.zeros((1, EQ_COLUMNS))
+    row[0, 6], row[0, 16] = -1.0, radius
+    D, r, sigma, S = 0.005, 0.05, 0.05, 4.0
+    o, d = np.array([-2.0, D, 0.0]), np.array([1.0, 0.0, 0.0])
+    s, w = _segments_towards(row, o, d, S, sigma, 400_000, 11, True, 0.1, 0.9)
+    est = w * 1.0 / ((s - 2.0) ** 2 + D * D + r * r)
+    x = (np.arange(400_000) + 0.5) / 400_000 * S
+    exact = np.mean(np.exp(-sigma * x) * sigma / ((x - 2.0) ** 2 + D * D + r * r)) * S
+    assert est.mean() == pytest.approx(exact, rel=0.01)
+    spread = est.std() / est.mean()
+    print(radius, spread)
+    assert (spread < 0.5) if radius > 0 else (spread > 1.2)
+
+
+def test_adaptive_share_sets_the_optical_depth_against_the_lamps_peak():
+    """adaptive_share: tau / (tau + rho) in [lo, hi], 1/2 when both strategies are all
+    but uniform, 1 without lit lights; equiangular_gain: 0 for a far lamp over its whole
+    segment, log(S / (b - a)) for a far lamp's clipped part, log(1 + L^2 / D^2)-like
+    near a lamp."""
+    from engine.volumescatter import adaptive_share, equiangular_gain
+    assert adaptive_share(0.3, 0.0, 0, 0.1, 0.9) == 1.0
+    assert adaptive_share(0.0, 0.0, 1, 0.1, 0.9) == 0.5
+    assert adaptive_share(1.0, 3.0, 1, 0.1, 0.9) == pytest.approx(0.25)
+    assert adaptive_share(1.0, 0.0, 1, 0.1, 0.9) == pytest.approx(0.9)
+    assert adaptive_share(0.01, 5.0, 2, 0.1, 0.9) == pytest.approx(0.1)
+    far = equiangular_gain(0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.5, 1e6, 0.0, 0.0)
+    assert far == pytest.approx(0.0, abs=1e-9)
+    clipped = equiangular_gain(0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 10.0, 2.0, 4.0, 3.0, 1e6, 0.0,
+                               0.0)
+    assert clipped == pytest.approx(math.log(5.0), abs=1e-9)
+    near = equiangular_gain(0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 2.0, 0.0, 2.0, 1.0, 0.1, 0.0, 0.0)
+    assert near == pytest.approx(math.log(1.01 / 0.01), rel=1e-9)
+
+
+def test_the_same_image_for_any_worker_count_with_an_area_light():
+    """The area light's equiangular sampling and the camera segments' stratified numbers
+    (the ("volume",) dimension by each path's pixel and sample index): the same image on
+    1 and 2 workers (64 x 64 x 16 samples: 4 chunks), another for another seed."""
+    a, b, c = (render(_area_slab_scene(width=64),
+                      RenderSettings(workers=w, spp=16, seed=seed, photon_mapping=False))
+               for w, seed in ((1, 9), (2, 9), (1, 10)))
+    np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
+    assert not np.array_equal(np.asarray(a.combined), np.asarray(c.combined))
+
+
+def _fog_ceiling_scene():
+    """A grey floor seen directly (orthographic, from 1 m above it), a fog slab z 1.5..2
+    above the camera and a point light above the slab: the floor's final-gather rays
+    cross the fog (its glow on the floor)."""
+    s = PaperScene(48, 48)
+    s.add_material(Material("fog", volume_only=True, absorption=SIGMA_A, scattering=SIGMA_S,
+                            anisotropy=0.3))
+    s.add_box((0, 0, 1.75), (20.0, 20.0, 0.5), "fog", name="slab")
+    s.add_material(Material("grey", (0.5, 0.5, 0.5)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 30.0, "grey", name="floor")
+    s.add_point_light((0.4, 0.2, 3.0), power=POWER)
+    s.set_camera((0, 0, 1.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=1.0)
+    return s
+
+
+def test_the_same_image_for_any_worker_count_with_gather_rays_through_the_fog():
+    """The floor's final-gather rays take stratified distance numbers through the fog
+    above it (("gather-volume", g)): the same image on 1 and 2 workers (3 chunks), and
+    another with those numbers random (integrator.GATHER_VOLUME_STRATIFIED: the path is
+    taken)."""
+    from engine import integrator
+    settings = dict(spp=16, seed=3, photons=20_000)
+    a, b = (render(_fog_ceiling_scene(), RenderSettings(workers=w, **settings))
+            for w in (1, 2))
+    np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
+    integrator.GATHER_VOLUME_STRATIFIED = False
+    try:
+        c = render(_fog_ceiling_scene(), RenderSettings(workers=1, **settings))
+    finally:
+        integrator.GATHER_VOLUME_STRATIFIED = True
+    assert not np.array_equal(np.asarray(a.combined), np.asarray(c.combined))
