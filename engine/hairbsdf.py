@@ -1,11 +1,12 @@
-"""Principled Hair BSDF as a Principled surface of the same albedo on the hair's tubes.
+"""Principled Hair BSDF on the hair's tubes: a partly transparent Principled surface.
 
 The engine has no fibre closure: hair renders as smooth triangle tubes (engine/hair.py).
 A Principled Hair BSDF (Chiang et al. 2016, "A Practical and Controllable Hair and Fur
 Model for Production Path Tracing"; Cycles' bsdf_principled_hair_chiang.h; pbrt-v3's
-HairBSDF derives the same model) renders on them as a Principled dielectric whose
-specular layer (IOR of the node, GGX) stands for the R lobe and whose diffuse base
-carries what the fibre's other lobes (TT, TRT and the TRRT+ residual) scatter.
+HairBSDF derives the same model) renders on them as a Principled dielectric (its
+specular layer stands for the R lobe) that lets part of the light pass straight
+through with a tint (a Transparent share), so that the tube's two walls scatter back to
+the lit side and pass on forward what the fibre does.
 
 The parameters become the absorption coefficient sigma_a (per unit fibre radius) as
 Cycles' svm_node_closure_bsdf (kernel/svm/closure.h, CLOSURE_BSDF_HAIR_CHIANG_ID) makes
@@ -28,15 +29,24 @@ bsdf_principled_hair_albedo comments the same sum), independent of the roughness
 fibre) and over directions of uniform incident radiance (sin theta uniform, weighted by
 the fibre's projected width cos theta): the fibre's white-furnace albedo.
 
-A tube with a Principled dielectric scatters E_spec + (1 - E_spec) rho of what it
-intercepts, E_spec averaging to the R lobe's Fresnel share over the tube (the smooth
-tube's normal meets a ray at the same gamma_i as the fibre), so the diffuse base takes
-rho = (A - A_R) / (1 - A_R) (`diffuse_color`): same total albedo, same highlight energy.
+Back and forward. TRT leaves near the incident side and TT near the straight-through
+direction (Chiang's N_p about delta_phi = 2 p gamma_t - 2 gamma_i + p pi, M_p about
+theta_o = -theta_i), the residual's N_p is uniform: the fibre scatters back
+A_R + A_TRT + A_TRRT+ / 2 and forward A_TT + A_TRRT+ / 2 (`back_and_forward`). A wall
+that reflects r and passes tau, twice in series, reflects r + tau^2 r / (1 - r^2) and
+passes tau^2 / (1 - r^2) (`wall` inverts this, r at least A_R: the front wall keeps the
+whole R lobe). The wall's material (`surface`): a Transparent share 1 - alpha of tint
+tau / (1 - alpha), alpha = 1 - max tau, over a Principled share alpha whose specular
+layer reflects A_R / alpha of uniform light (Specular IOR Level, `specular_level`) and
+whose diffuse base makes up the rest of r. A diffuse tube of the fibre's whole albedo
+instead sent back what the strand passes on: a sparse tuft 2.5x Cycles' brightness.
 
-What this leaves out (warned): TT sends light forward through the strand where a
-diffuse base sends it back to the lit side; the TRT highlight's colour and shift, the
-Offset tilt of the highlights, Radial Roughness' shape of the azimuthal lobes; the Huang
-model's elliptic cross-section (Aspect Ratio).
+What this leaves out (warned): TT passes straight through (not spread over Chiang's
+forward lobe), so light does not diffuse through a dense groom as it does in Cycles;
+the back wall's internal reflection stands for TRT without its second absorption (the
+lit side of dark hair is up to A_R (1 + T) / R too bright); the TRT highlight's colour
+and shift, the Offset tilt, Radial Roughness' azimuthal lobe shapes; the Huang model's
+elliptic cross-section (Aspect Ratio).
 """
 from __future__ import annotations
 
