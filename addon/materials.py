@@ -4,7 +4,7 @@ Supported: Principled BSDF (Cycles' v2 layers: sheen, coat, metallic with F82 ti
 transmission, specular IOR level and tint; subsurface as a diffuse base of Cycles'
 random-walk albedo, warned), Diffuse, Glossy (GGX or Multiscatter GGX), Glass, Refraction
 (refraction alone, no Fresnel, as Cycles), Translucent, Sheen (Microfiber), Emission,
-Transparent, Mix Shader and Add
+Transparent, Principled Hair (approximated, warned: engine/hairbsdf.py), Mix Shader and Add
 Shader of those (a Mix of two opaque surfaces whose parameters do not blend linearly, e.g.
 a dielectric and a metal, takes one side per hit with the factor's probability, as Cycles'
 closure sampling; Add sums the closures: their even mix at closure weight 2, exact for

@@ -22,6 +22,8 @@ MODES = {
     "brown": {"parametrization": "MELANIN", "Melanin": 0.6, "Melanin Redness": 0.4},
     "black": {"parametrization": "MELANIN", "Melanin": 0.95, "Melanin Redness": 0.1},
     "red": {"parametrization": "COLOR", "Color": (0.8, 0.1, 0.05, 1.0)},
+    "random": {"parametrization": "MELANIN", "Melanin": 0.5, "Melanin Redness": 0.3,
+               "Random Color": 0.8},
 }
 
 
@@ -105,10 +107,11 @@ def test_default_principled_hair_matches_cycles(bpy_addon, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("mode", ["blond", "brown", "black", "red"])
+@pytest.mark.parametrize("mode", ["blond", "brown", "black", "red", "random"])
 def test_principled_hair_modes_match_cycles(bpy_addon, tmp_path, mode):
-    """Blond, brown and black by Melanin, a red by Direct Coloring: the tuft's blocks on
-    average within 0.98-1.16 of Cycles (measured 1.033-1.120), each within 0.8-1.3."""
+    """Blond, brown and black by Melanin, a red by Direct Coloring, Melanin 0.5 with
+    Random Color 0.8 (each strand's melanin 0.1-0.9 by its Random): the tuft's blocks on
+    average within 0.98-1.16 of Cycles (measured 1.008-1.120), each within 0.8-1.3."""
     bpy = bpy_addon
     sc = _tuft(bpy, "RIBBONS")
     _hair_node(bpy, MODES[mode])
