@@ -92,6 +92,9 @@ def test_principled_hair_is_converted_and_warned(bpy_addon):
     assert isinstance(mat.texture, hb.HairColor) and isinstance(mat.alpha_texture,
                                                                  hb.HairColor)
     assert mat.alpha_texture.output == "ALPHA"
+    # ... which the export gives the hair for this node as for Curves Info.
+    tuft = next(m for m in scene.meshes if m.name == "Tuft")
+    assert "attr:curves_info" in (tuft.coordinates or {})
 
 
 def test_default_principled_hair_matches_cycles(bpy_addon, tmp_path):
