@@ -237,17 +237,24 @@ def specular_level(albedo, eta=DEFAULT_IOR):
     return 0.5 * f0 / (((eta - 1.0) / (eta + 1.0)) ** 2)
 
 
+# The share of a Gaussian's mass within its half width at half maximum (1.1774 sigma).
+_HWHM_SHARE = 0.7610
+
+
 def specular_roughness(roughness):
-    """The Principled (GGX) roughness whose reflected lobe has the half width at half
-    maximum of the Chiang R lobe's longitudinal spread at hair roughness beta: Cycles maps
-    beta to the lobe's standard deviation 0.726 beta + 0.812 beta^2 + 3.7 beta^20
-    (bsdf_hair_chiang_setup), a Gaussian's HWHM is 1.1774 of it; the reflected
-    direction's HWHM is twice the half vector's, and GGX's D(theta_h) falls to half at
-    tan theta_h = alpha sqrt(sqrt(2) - 1), alpha = roughness^2."""
+    """The Principled (GGX) roughness whose reflected lobe holds as much of its energy
+    within the Chiang R lobe's half width at half maximum as the R lobe does (76 %, a
+    Gaussian's): Cycles maps hair roughness beta to the lobe's standard deviation
+    0.726 beta + 0.812 beta^2 + 3.7 beta^20 (bsdf_hair_chiang_setup), HWHM = 1.1774 of
+    it; GGX puts t^2 / (alpha^2 + t^2) of its half vectors within tan theta_h = t
+    (alpha = roughness^2), the reflected direction turning twice as far. (Matching the
+    half widths instead leaves GGX's long tails twice as wide: a dense dark groom read
+    1.54 of Cycles against 1.33 with this.) Within 0.06 of beta for hair roughness
+    0.2-0.5."""
     b = np.clip(np.asarray(roughness, np.float64), 0.0, 1.0)
     std = 0.726 * b + 0.812 * b * b + 3.7 * b ** 20
     hwhm = np.minimum(1.1774 * std, 0.5 * np.pi - 1e-3)
-    alpha = np.tan(0.5 * hwhm) / np.sqrt(np.sqrt(2.0) - 1.0)
+    alpha = np.tan(0.5 * hwhm) * np.sqrt((1.0 - _HWHM_SHARE) / _HWHM_SHARE)
     return np.clip(np.sqrt(alpha), 0.0, 1.0)
 
 

@@ -214,14 +214,16 @@ def test_hair_material_per_hit_follows_the_strands_random():
         hb.HairColor("PIGMENT", None, 0, 0, 0, 0, 0, 0, 0, 0, 1.55)
 
 
-def test_specular_roughness_matches_the_r_lobe_half_width():
-    """GGX of the returned roughness has the R lobe's half width at half maximum: the
-    reflected lobe's HWHM = 2 atan(alpha sqrt(sqrt 2 - 1)) = 1.1774 x Cycles' longitudinal
+def test_specular_roughness_holds_the_r_lobes_share_within_its_half_width():
+    """GGX of the returned roughness puts 76 % of its half vectors (a Gaussian's share
+    within its HWHM) within half the R lobe's HWHM, 1.1774 x Cycles' longitudinal
     standard deviation; 0 stays a mirror, rougher hair a rougher layer."""
     beta = np.array([0.0, 0.1, 0.3, 0.5])
     r = hb.specular_roughness(beta)
     alpha = r * r
-    hwhm = 2 * np.arctan(alpha * math.sqrt(math.sqrt(2) - 1))
-    np.testing.assert_allclose(
-        hwhm, 1.1774 * (0.726 * beta + 0.812 * beta ** 2 + 3.7 * beta ** 20), atol=1e-9)
-    assert r[0] == 0.0 and np.all(np.diff(r) > 0) and hb.specular_roughness(1.0) == 1.0
+    t = np.tan(0.5 * 1.1774 * (0.726 * beta + 0.812 * beta ** 2 + 3.7 * beta ** 20))
+    share = t[1:] ** 2 / (alpha[1:] ** 2 + t[1:] ** 2)
+    np.testing.assert_allclose(share, math.erf(1.1774 / math.sqrt(2)), rtol=1e-3)
+    assert r[0] == 0.0 and np.all(np.diff(r) > 0) and hb.specular_roughness(1.0) < 1.0
+    np.testing.assert_allclose(hb.specular_roughness([0.2, 0.3, 0.5]), [0.2, 0.3, 0.5],
+                               atol=0.065)
