@@ -978,7 +978,8 @@ class MaterialConverter:
             weights = (max(self._float(node, "Reflection", 1.0), 0.0),
                        max(self._float(node, "Transmission", 1.0), 0.0),
                        max(self._float(node, "Secondary Reflection", 1.0), 0.0))
-        ior = self._float(node, "IOR", hb.DEFAULT_IOR)
+        # (An IOR at or below 1 has no Fresnel reflection to scale: kept just above 1.)
+        ior = max(self._float(node, "IOR", hb.DEFAULT_IOR), 1.001)
         args = (param, value("Color", np.zeros(3)), value("Melanin", 0.8),
                 value("Melanin Redness", 1.0), value("Tint", np.ones(3)),
                 value("Absorption Coefficient", np.zeros(3)), radial, random_roughness,
