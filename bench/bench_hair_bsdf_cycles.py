@@ -2,7 +2,7 @@
 hairbsdf37).
 
     .venv/bin/python bench/bench_hair_bsdf_cycles.py [--strands 400] [--modes a,b]
-        [--cycles-spp 256] [--spp 32] [--fallback]
+        [--cycles-spp 256] [--spp 32] [--shape RIBBONS|THICK] [--fallback]
 
 The lead's tuft (tests/blender/test_hair_cycles.py `_tuft`: a sun from the camera's side,
 a grey floor, 96 x 72, Ribbons), its material a Principled Hair BSDF of each mode; with
@@ -61,11 +61,11 @@ def groom(bpy, sc, n):
     bpy.data.objects.remove(old)
 
 
-def run(bpy, mode, strands, spp_cycles, spp, out_dir):
+def run(bpy, mode, strands, spp_cycles, spp, out_dir, shape="RIBBONS"):
     from blender_helpers import cycles_plain, read_rgba, render_exr
     from test_hair_bsdf_cycles import _hair_node
     from test_hair_cycles import _tuft
-    sc = _tuft(bpy, "RIBBONS")
+    sc = _tuft(bpy, shape)
     if strands != 400:
         groom(bpy, sc, strands)
     _hair_node(bpy, MODES[mode])
@@ -96,6 +96,8 @@ def main():
     ap.add_argument("--modes", default=",".join(MODES))
     ap.add_argument("--cycles-spp", type=int, default=256)
     ap.add_argument("--spp", type=int, default=32)
+    ap.add_argument("--shape", default="RIBBONS", choices=("RIBBONS", "THICK"),
+                    help="Cycles' curve shape (ours renders tubes for both)")
     ap.add_argument("--fallback", action="store_true")
     args = ap.parse_args()
     import tempfile
@@ -116,7 +118,7 @@ def main():
     print("|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory(prefix="hairbsdf-") as out_dir:
         for mode in args.modes.split(","):
-            run(bpy, mode, args.strands, args.cycles_spp, args.spp, out_dir)
+            run(bpy, mode, args.strands, args.cycles_spp, args.spp, out_dir, args.shape)
 
 
 if __name__ == "__main__":
