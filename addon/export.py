@@ -288,7 +288,10 @@ def extract_hair_geometry(pm, obj) -> LocalGeometry | None:
         radius = _foreach(rad.data, "value", n_points, 1, np.float32)
     else:
         radius = np.full(n_points, pm.hair.DEFAULT_RADIUS)
-    info = any(node.type == "HAIR_INFO" for node in _material_nodes(obj))
+    # Curves Info, and the Principled Hair BSDF's Random Color / Random Roughness (the
+    # strand's Random when its Random input is unlinked), read these attributes.
+    info = any(node.type in ("HAIR_INFO", "BSDF_HAIR_PRINCIPLED")
+               for node in _material_nodes(obj))
     verts, faces, normals, curve, *per_vertex = pm.hair.tube_mesh(points, radius, offsets,
                                                                  params=info)
     if len(faces) == 0:

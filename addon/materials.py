@@ -4,7 +4,7 @@ Supported: Principled BSDF (Cycles' v2 layers: sheen, coat, metallic with F82 ti
 transmission, specular IOR level and tint; subsurface as a diffuse base of Cycles'
 random-walk albedo, warned), Diffuse, Glossy (GGX or Multiscatter GGX), Glass, Refraction
 (refraction alone, no Fresnel, as Cycles), Translucent, Sheen (Microfiber), Emission,
-Transparent, Mix Shader and Add
+Transparent, Principled Hair (approximated, warned: engine/hairbsdf.py), Mix Shader and Add
 Shader of those (a Mix of two opaque surfaces whose parameters do not blend linearly, e.g.
 a dielectric and a metal, takes one side per hit with the factor's probability, as Cycles'
 closure sampling; Add sums the closures: their even mix at closure weight 2, exact for
@@ -929,6 +929,8 @@ class MaterialConverter:
                                                         "sheen_roughness", sc),
                            sheen_tint=self._const_color(node, "Color", (0.8, 0.8, 0.8)),
                            normal_map=self._normal(node), scalars=sc)
+        if t == "BSDF_HAIR_PRINCIPLED":
+            return self._principled_hair(node)
         if node.inputs.get("Color") is not None:
             # Toon, Subsurface Scattering, Hair ...: the node's own colour as a
             # Diffuse BSDF is nearer than the viewport colour (a new user's blue Toon ball
@@ -940,6 +942,97 @@ class MaterialConverter:
                            normal_map=self._normal(node))
         self._unsupported(node)
         return self._viewport(self._mat)
+
+    def _principled_hair(self, node) -> Closure:
+        """Principled Hair BSDF (Chiang, or Huang) as engine.hairbsdf renders it on the
+        hair's tubes: a Principled dielectric of the node's IOR, its specular layer the R
+        lobe (GGX of the same highlight width), partly transparent so that the tube's
+        two walls scatter back and pass on what the fibre does (engine.hairbsdf.surface),
+        from the node's sigma_a in each parametrization; the diffuse base per hit when
+        an input is linked or the strand's Random varies it. Warned: approximated, with
+        what is left out."""
+        hb = self.pm.hairbsdf
+        sn = self.pm.shadernodes
+        inp = node.inputs
+        name = self._mat.name
+        huang = getattr(node, "model", "CHIANG") == "HUANG"
+        param = getattr(node, "parametrization", "COLOR")
+
+        def value(key, default):
+            s = inp.get(key)
+            return default if s is None else self._input(node, s, 0)
+        roughness = self._float(node, "Roughness", 0.3)
+        coat = 0.0 if huang else min(max(self._float(node, "Coat", 0.0), 0.0), 1.0)
+        radial = value("Roughness" if huang else "Radial Roughness", 0.3)
+        random_s = inp.get("Random")
+        if random_s is not None and self._source(random_s) is not None:
+            random = self._input(node, random_s, 0)
+        else:
+            # Cycles reads the strand's Random attribute when the input is unlinked
+            # (svm_node_closure_bsdf: find_attribute of the node's random attribute).
+            random = sn.SeparateChannel(self._coordinates("attr:curves_info"), 2)
+        random_color = value("Random Color", 0.0) if param == "MELANIN" else 0.0
+        random_roughness = value("Random Roughness", 0.0)
+        weights = (1.0, 1.0, 1.0)  # Huang's R, TT, TRT factors (Chiang: 1)
+        if huang:
+            weights = (max(self._float(node, "Reflection", 1.0), 0.0),
+                       max(self._float(node, "Transmission", 1.0), 0.0),
+                       max(self._float(node, "Secondary Reflection", 1.0), 0.0))
+        # (An IOR at or below 1 has no Fresnel reflection to scale: kept just above 1.)
+        ior = max(self._float(node, "IOR", hb.DEFAULT_IOR), 1.001)
+        args = (param, value("Color", np.zeros(3)), value("Melanin", 0.8),
+                value("Melanin Redness", 1.0), value("Tint", np.ones(3)),
+                value("Absorption Coefficient", np.zeros(3)), radial, random_roughness,
+                random, random_color, ior)
+        # The straight-through share and its tint are one constant per material (the
+        # engine's Transparent tint): those of the inputs' own values at Random 0.5.
+        keys = (None, "Color", "Melanin", "Melanin Redness", "Tint",
+                "Absorption Coefficient", "Roughness" if huang else "Radial Roughness",
+                "Random Roughness", None, "Random Color")
+        const = list(args[:10])
+        const[8] = 0.5
+        for i, k in enumerate(keys):
+            if k is not None and hasattr(const[i], "evaluate"):
+                const[i] = self._default(inp[k])
+        mean = hb.HairColor(*const, ior).sigma(None, np.zeros(1, np.int64), np.zeros(1),
+                                                np.zeros(1))[0]
+        alpha, tint, rho, spec = hb.surface(mean, ior, *weights)
+        kw = dict(r_weight=weights[0], tt_weight=weights[1], trt_weight=weights[2])
+        colour = hb.HairColor(*args, **kw)
+        # Per hit when an input is linked, or when the strand's Random varies the
+        # colour (Random Color in Melanin mode; Random Roughness through the radial
+        # roughness in the Melanin tint and Direct Coloring); else one constant.
+        varies = (any(hasattr(x, "evaluate") for x in (
+            colour.color, colour.melanin, colour.redness, colour.tint, colour.absorption,
+            colour.radial_roughness, colour.random_color, colour.random_roughness))
+            or (param == "MELANIN" and float(random_color) != 0.0)
+            or (param != "ABSORPTION" and float(random_roughness) != 0.0))
+        c = Closure(base_color=rho, roughness=float(
+                        hb.specular_roughness(roughness * (1.0 - coat))),
+                    ior=ior, specular=1.0,
+                    specular_ior_level=float(hb.specular_level(spec, ior)),
+                    alpha=float(alpha), transparent_tint=tint)
+        if varies:
+            # The diffuse base, opaque share and specular level per hit; the tint of
+            # what passes is one colour (the engine's Transparent tint): the mean's.
+            c.base_color, c.texture = np.ones(3), colour
+            c.alpha, c.alpha_texture = 1.0, hb.HairColor(*args, **kw, output="ALPHA")
+            c.scalars["specular_ior_level"] = hb.HairColor(*args, **kw, output="LEVEL")
+        left = ("what the strand transmits passes straight through (not spread into "
+                "Chiang's forward lobe); the secondary highlight's colour and shift, "
+                "'Offset' and 'Radial Roughness' shape no lobe")
+        if varies:
+            left += ("; what passes a strand takes the tint of the inputs' own values at "
+                     "Random 0.5 (its share follows each strand)")
+        if huang:
+            left += "; Huang's elliptic cross-section ('Aspect Ratio') is round"
+        if hasattr(random_roughness, "evaluate") or float(random_roughness) != 0.0:
+            left += "; 'Random Roughness' varies the colour, not the highlight's width"
+        self._warn(f"material '{name}': Principled Hair BSDF '{node.name}' is approximated: "
+                   "a specular layer for its primary highlight over a diffuse base, partly "
+                   "transparent, that scatter back and pass on what the fibre does "
+                   "(its albedo in uniform light); " + left)
+        return c
 
     def _subsurface(self, node, c: Closure):
         """Principled Subsurface Weight > 0: the diffuse base takes the albedo Cycles'
