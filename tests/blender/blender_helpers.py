@@ -221,12 +221,20 @@ def convert_material(m):
 
 def black_world(bpy, scene, strength=0.0):
     """A new World of Background strength `strength` (0: black) on scene."""
+    return world_color(bpy, scene, None, strength)
+
+
+def world_color(bpy, scene, rgb, strength=1.0):
+    """A new World on scene whose Background has colour rgb (None: the node's default)
+    and `strength`. Returns the world."""
     world = bpy.data.worlds.new("World")
     scene.world = world
     if bpy.app.version < (5, 0, 0):
         world.use_nodes = True
-    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
-        "Strength"].default_value = strength
+    bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
+    bg.inputs["Strength"].default_value = strength
+    if rgb is not None:
+        bg.inputs["Color"].default_value = (*rgb, 1.0)
     return world
 
 

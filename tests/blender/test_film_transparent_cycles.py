@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from blender_helpers import (cheap, cycles_plain, looking_down_camera, read_layers,
-                             render_exr, sun_light)
+                             render_exr, sun_light, world_color)
 
 pytestmark = pytest.mark.blender
 
@@ -47,12 +47,7 @@ def renders(bpy_addon, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("film")
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    next(n for n in world.node_tree.nodes if n.type == "BACKGROUND").inputs[
-        "Color"].default_value = (*WORLD, 1.0)
+    world_color(bpy, scene, WORLD)
     _plane(bpy, "Card", (-1.0, 0.0, 1.0), (2.0, 4.0, 1.0),
            _principled(bpy, "card", (0.8, 0.1, 0.1), alpha=0.4))
     _plane(bpy, "Floor", (0.0, 1.0, 0.0), (4.0, 2.0, 1.0),

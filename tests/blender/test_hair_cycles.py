@@ -16,7 +16,7 @@ import sys
 import numpy as np
 import pytest
 
-from blender_helpers import ROOT, cycles_plain, read_rgba, render_exr
+from blender_helpers import ROOT, cycles_plain, read_rgba, render_exr, sun_light, world_color
 
 pytestmark = pytest.mark.blender
 
@@ -24,11 +24,7 @@ pytestmark = pytest.mark.blender
 def _tuft(bpy, shape):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
-    world = bpy.data.worlds.new("World")
-    sc.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.05, 0.05, 0.05, 1)
+    world_color(bpy, sc, (0.05, 0.05, 0.05))
     floor_mesh = bpy.data.meshes.new("Floor")
     floor_mesh.from_pydata([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], [], [(0, 1, 2, 3)])
     sc.collection.objects.link(bpy.data.objects.new("Floor", floor_mesh))
@@ -37,10 +33,7 @@ def _tuft(bpy, shape):
     import make_blends
     make_blends.tuft("Tuft", _principled(bpy, "Hair", (0.8, 0.3, 0.1), 0.6), count=400,
                      keys=5, spread=0.8, height=0.6, lean=0.15, radius=(0.012, 0.004), seed=3)
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy = 3.0
-    sun.rotation_euler = (math.radians(40), 0, math.radians(30))
-    sc.collection.objects.link(sun)
+    sun_light(bpy, sc, (math.radians(40), 0, math.radians(30)), energy=3.0)
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     cam.location, cam.rotation_euler = (0, -3.2, 1.6), (math.radians(65), 0, 0)
     sc.collection.objects.link(cam)

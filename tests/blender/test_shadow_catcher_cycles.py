@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from blender_helpers import cheap, cycles_plain, read_layers, render_exr, sun_light
+from blender_helpers import cheap, cycles_plain, read_layers, render_exr, sun_light, world_color
 
 WORLD = (0.2, 0.3, 0.5)
 
@@ -23,12 +23,7 @@ def _scene(bpy):
     the side (a long shadow), the camera looking down at an angle."""
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    bg = next(n for n in world.node_tree.nodes if n.type == "BACKGROUND")
-    bg.inputs["Color"].default_value = (*WORLD, 1.0)
+    world_color(bpy, scene, WORLD)
     bpy.ops.mesh.primitive_plane_add(size=6.0)
     floor = bpy.context.object
     floor.name = "Floor"
