@@ -18,7 +18,7 @@ import numpy as np
 from .materials import (CYCLES_STANDARD_ATTRIBUTES, MaterialConverter, object_attribute_key,
                         output_node)
 from .normals import shading_normals
-from .world import export_world, sky_sun_lights, world_mist
+from .world import export_world, sky_sun_lights, world_medium, world_mist
 
 
 
@@ -1444,7 +1444,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
                      background_is_light=True, environment=environment,
-                     mist=world_mist(pm, scene_eval.world), portals=portals)
+                     mist=world_mist(pm, scene_eval.world), portals=portals,
+                     world_medium=world_medium(pm, scene_eval.world, warnings))
     scene.warnings.extend(warnings)
     info["lights"] = len(lights)
     info["export_time"] = time.perf_counter() - t0
@@ -1641,7 +1642,8 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
                      background_is_light=True, environment=environment,
-                     mist=world_mist(pm, scene_eval.world), portals=portals)
+                     mist=world_mist(pm, scene_eval.world), portals=portals,
+                     world_medium=world_medium(pm, scene_eval.world, warnings))
     scene.warnings.extend(warnings)
     light_names = [li.name for li in lights]
     info.update(
