@@ -74,8 +74,11 @@ def test_world_volume_is_exported(bpy_addon):
 @pytest.mark.slow
 def test_world_fog_under_a_spot_matches_cycles(bpy_addon, tmp_path):
     """Ours 256 spp with 200k photons, Cycles 1024 spp, Max Bounces 4, Volume bounces 0:
-    the spot's cone in the fog, the lit floor, the box's top, the sky (only the fog's
-    glow: the world and the sun are off) and the image's sum."""
+    the spot's cone in the fog, the lit floor, the box's top, the sky through the cone
+    (only the fog's glow: the world and the sun are off) and the image's sum. Measured
+    at our seeds 0-2 against Cycles seed 0 (Cycles seed 1 / seed 0: 1.000, 0.998, 1.016,
+    1.000): the cone 0.986-1.007, the floor 0.992-0.993, the box top 1.019-1.025, the
+    sky 0.986-0.997, the sum 0.997-0.998; alpha 1 everywhere in both. ~40 s."""
     bpy = bpy_addon
     from addon import engine as addon_engine
     from blender_helpers import cheap, cycles_plain, project, read_rgba, render_exr
@@ -92,16 +95,21 @@ def test_world_fog_under_a_spot_matches_cycles(bpy_addon, tmp_path):
             effects = addon_engine.last_render.get("stats", {}).get("effects", [])
     ours, ref = imgs["PHOTONMAP"][..., :3], imgs["CYCLES"][..., :3]
     np.testing.assert_allclose(imgs["PHOTONMAP"][..., 3], imgs["CYCLES"][..., 3], atol=1e-3)
-    blocks = {"cone in the fog": ((0.25, 0.0, 1.6), 2, 0.05),
-              "lit floor": ((0.2, 0.0, 0.0), 2, 0.04),
-              "box top": ((-0.6, 0.3, 0.6), 1, 0.05),
-              "sky": ((0.0, 3.0, 4.0), 2, 0.08)}
-    for where, (point, r, tol) in blocks.items():
-        rc = project(bpy, scene, point)
+    blocks = {"cone in the fog": (project(bpy, scene, (0.25, 0.0, 1.6)), 2, 0.04),
+              "lit floor": (project(bpy, scene, (0.2, 0.0, 0.0)), 2, 0.03),
+              "box top": (project(bpy, scene, (-0.6, 0.3, 0.6)), 1, 0.05)}
+    for where, (rc, r, tol) in blocks.items():
         a, b = _block(ours, rc, r), _block(ref, rc, r)
         print(where, rc, a.round(4), b.round(4), (a / b).round(3))
         np.testing.assert_allclose(a, b, rtol=tol, err_msg=where)
+    # Rows 1-5 across the cone: above the horizon, rays that cross the cone and escape to
+    # infinity (the fog's glow alone; the world and the sun black).
+    a = ours[1:6, 30:45].reshape(-1, 3).mean(axis=0)
+    b = ref[1:6, 30:45].reshape(-1, 3).mean(axis=0)
+    print("sky through the cone", a.round(4), b.round(4), (a / b).round(3))
+    np.testing.assert_allclose(a, b, rtol=0.04)
+    assert ref[1:6, :8].max() < 1e-3 and ours[1:6, :8].max() < 1e-3  # no world, no sun
     ratio = ours.reshape(-1, 3).sum(axis=0) / ref.reshape(-1, 3).sum(axis=0)
     print("image sum ratio", ratio.round(4))
-    np.testing.assert_allclose(ratio, 1.0, rtol=0.03)
+    np.testing.assert_allclose(ratio, 1.0, rtol=0.02)
     assert any("world volume" in str(e) for e in effects), effects
