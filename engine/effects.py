@@ -349,7 +349,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = False, "no light emits power"
         elif not diff_tri.any():
             auto, why = False, "no diffuse surface with non-zero albedo"
-        elif _single_flat_surface(geo, diff_tri | spec_tri):
+        elif (_single_flat_surface(geo, diff_tri | spec_tri)
+              and not (worldmedium.active(scene)
+                       and np.any(scene.world_medium.scattering > 0))):
+            # (in a scattering world volume its final-gather rays find the fog's glow)
             auto, why = False, "a single flat surface cannot light itself"
         else:
             most = (" at most (fewer where the indirect light is a small share)"
