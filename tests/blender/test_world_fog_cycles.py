@@ -57,18 +57,25 @@ def _block(img, rc, r=2):
 
 def test_world_volume_is_exported(bpy_addon):
     """The World Output's Volume becomes Scene.world_medium (sigma_s = density x colour,
-    sigma_a = density x (1 - colour), g), with no warning about it."""
+    sigma_a = density x (1 - colour), g), with no warning about it; Light Paths > Volume
+    bounces above 0 is warned naming it (photons do not scatter in it)."""
     bpy = bpy_addon
     from addon import export
     from addon.core import load_engine
     _scene(bpy)
-    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
-                                 width=8, height=8)
+    out = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                              width=8, height=8)[0]
     wm = out.world_medium
     np.testing.assert_allclose(wm.scattering, DENSITY * np.array(COLOR), rtol=1e-6)
     np.testing.assert_allclose(wm.absorption, DENSITY * (1.0 - np.array(COLOR)), rtol=1e-6)
     assert wm.anisotropy == pytest.approx(ANISOTROPY)
     assert not [w for w in out.warnings if "Volume" in w], out.warnings
+    # (the rule on its own: Volume bounces 2 with no scattering material)
+    from types import SimpleNamespace
+    found = []
+    export.volume_bounces_warning(SimpleNamespace(cycles=SimpleNamespace(volume_bounces=2)),
+                                  {}, found, wm)
+    assert len(found) == 1 and "the World Volume" in found[0], found
 
 
 @pytest.mark.slow
