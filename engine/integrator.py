@@ -197,7 +197,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
-                           light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows))
+                           light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
+                           world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
+                           else None)
     counters.shadow_rays += rays
     if shade_glossy is not None:
         shade_glossy[:] = False
@@ -288,6 +290,21 @@ def _medium_sigma(ctx, hit, rows):
     sigma = media.absorption_table(ctx.table)
     out = np.zeros((len(med), 3))
     out[inside] = sigma[med[inside]]
+    return out
+
+
+def _world_sigma(ctx, hit, rows):
+    """(n,3) the world volume's extinction at the shaded hits (rows of hit, None: all)
+    that are in it (hit.medium its row: engine/worldmedium.py), 0 at the others, or None
+    without a world volume: shadow rays crossing transparent surfaces keep exp(-sigma_t
+    length) of it (directlight.direct_light)."""
+    row = worldmedium.medium_row(ctx)
+    med = getattr(hit, "medium", None)
+    if row < 0 or med is None:
+        return None
+    med = np.asarray(med if rows is None else np.take(med, rows), np.int64)
+    out = np.zeros((len(med), 3))
+    out[med == row] = ctx.scene.world_medium.extinction
     return out
 
 
