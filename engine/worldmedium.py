@@ -22,11 +22,11 @@ their whole length (escaping: a segment long enough that the rest is below 1e-13
 prepare_lights leaves out the world light and suns (lights/__init__.py), and
 the camera sees black where its rays escape (background).
 
-Shadow rays from surfaces that cross transparent surfaces keep exp(-sigma_t length) of it
-over their whole length (directlight.direct_light's world_sigma).
+Shadow rays (from surfaces and from points in the fog) that cross transparent surfaces keep
+exp(-sigma_t length) of it over their whole length (directlight.direct_light's and
+volumescatter.in_scattered's world_sigma).
 
-Limits: the part of such a ray inside a fog box on its way is counted in both media;
-shadow rays from points in the fog that cross surfaces keep only the objects' media; a
+Limits: the part of such a ray inside a fog box on its way is counted in both media; a
 channel with zero extinction still loses the world's light (Cycles keeps it there: a
 warning says so).
 """
