@@ -18,7 +18,7 @@ import numpy as np
 from .materials import (CYCLES_STANDARD_ATTRIBUTES, MaterialConverter, object_attribute_key,
                         output_node)
 from .normals import shading_normals
-from .world import export_world, sky_sun_lights, world_mist
+from .world import export_world, sky_sun_lights, world_medium, world_mist
 
 
 
@@ -906,7 +906,7 @@ def cycles_source(scene, props, names):
     return props
 
 
-def volume_bounces_warning(scene, materials, warnings) -> None:
+def volume_bounces_warning(scene, materials, warnings, world_medium=None) -> None:
     """Light Paths > Volume bounces above 0 (scene.cycles.volume_bounces; Cycles' default
     is 0) with a scattering medium in the scene: the camera paths scatter that many more
     times inside the medium, each scatter lit by the lamps (engine/volumescatter.py), but
@@ -918,8 +918,11 @@ def volume_bounces_warning(scene, materials, warnings) -> None:
         return
     names = sorted(name for name, m in materials.items()
                    if np.any(np.asarray(getattr(m, "scattering", 0.0)) > 0))
+    names = [f"'{n}'" for n in names]
+    if world_medium is not None and np.any(np.asarray(world_medium.scattering) > 0):
+        names.insert(0, "the World Volume")  # (engine/worldmedium.py)
     if names:
-        shown = ", ".join(f"'{n}'" for n in names[:3]) + (", ..." if len(names) > 3 else "")
+        shown = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
         warnings.append(f"Light Paths > Volume bounces is {bounces}: the media of {shown} "
                         "scatter the lamps' light up to that many more times along camera "
                         "paths, but their light reaching surfaces after a scatter in the "
@@ -1443,11 +1446,13 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     if render.use_motion_blur:
         warnings.append("motion blur is not supported and ignored")
-    volume_bounces_warning(scene_eval, materials, warnings)
+    fog = world_medium(pm, scene_eval.world, warnings)
+    volume_bounces_warning(scene_eval, materials, warnings, fog)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
                      width=width, height=height, background=background,
                      background_is_light=True, environment=environment,
-                     mist=world_mist(pm, scene_eval.world), portals=portals)
+                     mist=world_mist(pm, scene_eval.world), portals=portals,
+                     world_medium=fog)
     scene.warnings.extend(warnings)
     info["lights"] = len(lights)
     info["export_time"] = time.perf_counter() - t0
@@ -1644,7 +1649,8 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,
                      background_is_light=True, environment=environment,
-                     mist=world_mist(pm, scene_eval.world), portals=portals)
+                     mist=world_mist(pm, scene_eval.world), portals=portals,
+                     world_medium=world_medium(pm, scene_eval.world, warnings))
     scene.warnings.extend(warnings)
     light_names = [li.name for li in lights]
     info.update(

@@ -666,6 +666,21 @@ class MaterialConverter:
                    "and ignored")
         return zero
 
+    def world_volume(self, world, socket, warnings: list):
+        """(sigma_a (3,), sigma_s (3,), g) in 1/m of the World Output's Volume input
+        `socket` of Blender world `world`, read as a material's medium (_volume: Principled
+        Volume, Volume Scatter, Volume Absorption, Add / Mix of them); warnings get what it
+        drops, naming the world."""
+        self._mat, self._warnings, self._warned = world, [], set()
+        absorb, scatter, g_scatter = self._volume(self._source(socket), 0)
+        warnings.extend(w.replace(f"material '{world.name}'", f"world '{world.name}'", 1)
+                        for w in self._warnings)
+        sigma = np.clip(absorb, 0.0, None)
+        scatter = np.clip(scatter, 0.0, None)
+        # (one phase function: the scattering-weighted mean g, as a material's medium)
+        g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
+        return sigma, scatter, min(max(g, -G_LIMIT), G_LIMIT)
+
     def _anisotropy_g(self, node) -> float:
         """A volume node's Anisotropy as the Henyey-Greenstein g Cycles uses: clamped to
         +-(1 - 1e-3) (volume_henyey_greenstein_setup), warned outside (-1, 1)."""

@@ -17,7 +17,8 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from .materials import _pixels, _srgb_encoder, cycles_stores_srgb, output_node
+from .materials import (MaterialConverter, _pixels, _srgb_encoder, cycles_stores_srgb,
+                        output_node)
 
 
 def _from(socket):
@@ -41,6 +42,26 @@ def world_mist(pm, world) -> tuple:
             pm.scene.MIST_FALLOFF.get(mist.falloff, 2.0))
 
 
+def world_medium(pm, world, warnings: list):
+    """The engine WorldMedium of the World Output's Volume (Blender manual, World >
+    Volume: a homogeneous medium filling all space outside the objects; read as a
+    material's medium by MaterialConverter.world_volume), or None without one or when it
+    neither absorbs nor scatters. With one, Cycles' world surface and sun lamps light
+    nothing (engine/worldmedium.py; the effect report says so)."""
+    if world is None:
+        return None
+    use_nodes = bpy.app.version >= (5, 0, 0) or getattr(world, "use_nodes", True)
+    nt = world.node_tree if use_nodes else None
+    out = output_node(nt, "OUTPUT_WORLD") if nt is not None else None
+    if out is None or "Volume" not in out.inputs or not out.inputs["Volume"].is_linked:
+        return None
+    sigma_a, sigma_s, g = MaterialConverter(pm).world_volume(world, out.inputs["Volume"],
+                                                             warnings)
+    if not np.any(sigma_a + sigma_s > 0):
+        return None
+    return pm.WorldMedium(absorption=sigma_a, scattering=sigma_s, anisotropy=g)
+
+
 def export_world(pm, world, warnings: list):
     """(background RGB (3,), engine Environment or None) for a Blender world; warnings
     get one line per unsupported node (each naming the world and the node)."""
@@ -53,14 +74,8 @@ def export_world(pm, world, warnings: list):
         return viewport, None
     out = output_node(nt, "OUTPUT_WORLD")
     who = f"world '{world.name}'"
-    volume = _from(out.inputs["Volume"]) if out is not None and "Volume" in out.inputs \
-        else None
-    if volume is not None:
-        # It was dropped without a word (s37). In Cycles it fills all space, and the
-        # world's surface and sun lamps then light nothing (Blender manual, World).
-        warnings.append(f"{who}: the World Volume ('{volume.name}', {volume.type}) is not "
-                        "supported and is ignored; for fog, give a large cube round the "
-                        "scene a Principled Volume material")
+    # (the World Output's Volume: world_medium; with one the engine switches the world's
+    # light off, as Cycles does)
     if out is None or not out.inputs["Surface"].is_linked:
         return np.zeros(3), None
     node = _from(out.inputs["Surface"])

@@ -33,7 +33,8 @@ from .lights.environment import Environment  # noqa: E402
 from .progressive import Budget, render_progressive  # noqa: E402
 from .render import render  # noqa: E402
 from .resources import ResourceError  # noqa: E402
-from .scene import Camera, Light, LightPortal, Material, Mesh, Prototype, Scene, SceneError  # noqa: E402
+from .scene import (Camera, Light, LightPortal, Material, Mesh, Prototype, Scene,  # noqa: E402
+                    SceneError, WorldMedium)
 from .settings import RenderSettings  # noqa: E402
 from .normalmap import Bump, NormalMap  # noqa: E402
 from .textures import ColorAttribute, ImageTexture, TextureError  # noqa: E402
@@ -43,5 +44,5 @@ __all__ = ["render", "render_progressive", "Budget", "presets", "resources", "sh
            "RenderSettings",
            "Film", "Scene", "Mesh", "Prototype", "Material", "Light", "Camera", "SceneError", "ResourceError",
            "ImageTexture", "ColorAttribute", "TextureError", "NormalMap", "Bump",
-           "DECLARED_KINDS", "Environment"]
+           "DECLARED_KINDS", "Environment", "WorldMedium"]
 __version__ = "0.1.0"

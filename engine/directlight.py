@@ -986,7 +986,7 @@ class DirectLightBuffers:
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
                  bsdf=None, buffers=None, rows=None, transmission=None, passages=None,
-                 light_cut=None, medium_sigma=None):
+                 light_cut=None, medium_sigma=None, world_sigma=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -1016,6 +1016,10 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     0: none): a traced shadow ray that meets no surface on its way lies wholly in it and
     keeps exp(-sigma_t length) (a floor inside a fog cube lit by a lamp inside it; rays
     that cross surfaces take ShadowTransmittance's back-face rule); None: no medium.
+    world_sigma (n,3): the world volume's extinction at the hits in it (engine/
+    worldmedium.py; 0 elsewhere): a shadow ray that crossed transparent surfaces keeps
+    exp(-sigma_t length) of it too (over its whole length: the part inside an object's
+    medium on its way is counted twice, a thin world fog's small excess); None: none.
     light_cut (L,) int64, with bsdf: per light the lobes its samples may not light
     (CUT_DIFFUSE, CUT_GLOSSY as accumulate_bsdf's cut: Cycles' _shader_bsdf_exclude by
     the light's ray visibility); a light with a cut must be traced (its samples' traced
@@ -1086,6 +1090,8 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
             if medium_sigma is not None:
                 _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma)
             if shadow is not None:
+                # (the rays the first query found blocked: those crossing surfaces)
+                was_blocked = blocked.copy() if world_sigma is not None else None
                 ray_cap = crossed = None
                 if passages is not None:
                     # Each traced ray's cap, from its hit (entries j < m_all).
@@ -1104,6 +1110,9 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                         ray_cap[r[on]] = np.take(passages, hits)
                 shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                     buf.contrib, buf.ray, m_all, shadow_cls, ray_cap, crossed)
+                if was_blocked is not None:
+                    _dim_in_medium(buf, m_all, ~(was_blocked & ~blocked), t_keep,
+                                   world_sigma)
                 if crossed is not None:
                     over = crossed[:, None] > cap2
                     if over.any():

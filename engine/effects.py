@@ -17,7 +17,7 @@ from .geometry import PIECE_TRIANGLES, Geometry, MaterialTable
 from .lights import MESH, WORLD, PreparedLight
 from .lights.selection import selection_samples, tree_members
 from .panelight import find_panes
-from . import shadelight
+from . import shadelight, worldmedium
 from .shadelight import find_shades
 from .rayoffset import ulp32
 from .sampling import luminance
@@ -349,7 +349,10 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
             auto, why = False, "no light emits power"
         elif not diff_tri.any():
             auto, why = False, "no diffuse surface with non-zero albedo"
-        elif _single_flat_surface(geo, diff_tri | spec_tri):
+        elif (_single_flat_surface(geo, diff_tri | spec_tri)
+              and not (worldmedium.active(scene)
+                       and np.any(scene.world_medium.scattering > 0))):
+            # (in a scattering world volume its final-gather rays find the fog's glow)
             auto, why = False, "a single flat surface cannot light itself"
         else:
             most = (" at most (fewer where the indirect light is a small share)"
@@ -611,6 +614,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
 
     # --- lights: soft shadows, shadow rays ------------------------------------------------
     nothing_occludes = has_tris and _single_flat_surface(geo, np.ones(geo.count, bool))
+    if nothing_occludes and worldmedium.active(scene):
+        nothing_occludes = False  # the shadow rays' length in the world volume dims them
     if s.method == "local":
         nothing_occludes = False  # said once below instead
     for li in lights:
@@ -853,6 +858,9 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                        "Paths > Volume bounces)" if bounces > 0 else "")
                     + "; photons do not scatter in the medium" if scattering
                     else "volume scattering is not simulated"))
+    if worldmedium.active(scene):
+        # The world volume (engine/worldmedium.py): what it switched off, and why.
+        plan.add("world volume", True, worldmedium.effect_reason(scene))
     return plan
 
 

@@ -19,6 +19,7 @@ from .instancing import Instances
 from .sharedrows import RowColumn, SharedRows
 from .scene import Material, Scene, emission_sides
 from .resources import two_level_instances
+from .worldmedium import table_materials
 from .displacement import displace_meshes
 
 # Ray classes (Cycles' ray visibility): one bit each in Geometry.visibility.
@@ -523,9 +524,10 @@ def prepare(scene: Scene, should_cancel=None) -> tuple[Geometry, MaterialTable]:
     engine.parallel.Cancelled when it returns True)."""
     stop = should_cancel if should_cancel is not None else (lambda: False)
     mat_names = list(scene.materials.keys())
-    mats_list = [scene.materials[n] for n in mat_names]
     mat_index = {n: i for i, n in enumerate(mat_names)}
-    table = MaterialTable.build(mats_list)
+    # (the world volume's medium, when the scene has one, is the table's last row:
+    # engine/worldmedium.py; no triangle uses it)
+    table = MaterialTable.build(table_materials(scene))
     # Cycles' true displacement ("Displacement Only" / "Displacement and Bump") moves
     # the vertices before anything is merged (engine/displacement.py).
     meshes = displace_meshes(scene.meshes, scene.materials, should_cancel)

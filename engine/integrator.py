@@ -25,10 +25,10 @@ from .scene import DISK
 from .lights.area import MIN_SPHERICAL_SOLID_ANGLE, rect_solid_angles
 from .lights.point import sphere_light_pdf
 from .lights.selection import empty_tree, selection_samples, selector_for
-from .lights.world import WORLD, background_radiance
+from .lights.world import WORLD
 from .lights.packing import pack_lights
 from . import (adaptive, chaincounts, datapasses, media, photonvisibility, sampleclamp,
-               shadelight, volumescatter)
+               shadelight, volumescatter, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -197,7 +197,9 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            SHADOW, n, shadow=shadow,
                            tree=None if chosen is None else chosen[1],
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
-                           light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows))
+                           light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
+                           world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
+                           else None)
     counters.shadow_rays += rays
     if shade_glossy is not None:
         shade_glossy[:] = False
@@ -288,6 +290,21 @@ def _medium_sigma(ctx, hit, rows):
     sigma = media.absorption_table(ctx.table)
     out = np.zeros((len(med), 3))
     out[inside] = sigma[med[inside]]
+    return out
+
+
+def _world_sigma(ctx, hit, rows):
+    """(n,3) the world volume's extinction at the shaded hits (rows of hit, None: all)
+    that are in it (hit.medium its row: engine/worldmedium.py), 0 at the others, or None
+    without a world volume: shadow rays crossing transparent surfaces keep exp(-sigma_t
+    length) of it (directlight.direct_light)."""
+    row = worldmedium.medium_row(ctx)
+    med = getattr(hit, "medium", None)
+    if row < 0 or med is None:
+        return None
+    med = np.asarray(med if rows is None else np.take(med, rows), np.int64)
+    out = np.zeros((len(med), 3))
+    out[med == row] = ctx.scene.world_medium.extinction
     return out
 
 
@@ -783,6 +800,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Scattering media (engine/volumescatter.py; None: no material scatters).
     scatter = (volumescatter.CameraScattering.for_context(ctx) if medium_h is not None
                else None)
+    # A scattering world volume (engine/worldmedium.py): the rays' media outside the
+    # objects' are its row, and the rays that escape scatter the lamps' light along
+    # their whole length (their hits taken before the misses are compacted away).
+    # (the camera paths' media already are its row outside the objects': hit.medium)
+    world_row = worldmedium.medium_row(ctx)
+    fog_escapes = world_row >= 0 and scatter is not None
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -818,7 +841,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         if medium_h is not None:
             # From the gathering surface: the medium its camera path was in (a floor
             # inside a fog cube; not its own medium's surface), else not known.
-            medium_h[idx] = -1 if start_medium is None else np.take(start_medium, idx)
+            medium_h[idx] = (worldmedium.outside(np.full(len(idx), -1, np.int64), world_row)
+                             if start_medium is None else np.take(start_medium, idx))
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
         cnt = None if extra is None else np.array(extra, np.int64)
@@ -856,7 +880,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
                 coincident.meet(o, d, org_p, org_prim, t, prim, u, v)
                 m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
-            elif bvh is not None:
+            elif bvh is not None and not fog_escapes:
                 # Embree from a kernel into this thread's buffers (Accel.intersect_hits),
                 # the hits compacted from its answer (gatherkernels.keep_embree_hits):
                 # intersect's numbers without its conversions and fresh arrays.
@@ -869,6 +893,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 m = keep_embree_hits(*out, tf32, starts, o, d, tp, idx, cls, prim, u, v, t)
             else:
                 t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
+                if fog_escapes:
+                    _gather_escaping(ctx, scatter, world_row, prim, o, d, tp, idx,
+                                     medium_h, E, G, rng, counters)
                 # The hits, compacted in place (gatherkernels.keep_hits).
                 m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
             if m < len(idx):
@@ -976,14 +1003,33 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 near = coincident.near(org_p, org_prim)
                 inside = np.take(coincident.is_glass, org_prim)
             if medium_h is not None:
-                # Refracted or passed into a medium, or out of it.
-                medium_h[idx[keep]] = media.after_continuation(ctx.geo, sigma, prim, d_in,
-                                                               keep, d, medium_h[idx])
+                # Refracted or passed into a medium, or out of it (into the world
+                # volume's, if any).
+                medium_h[idx[keep]] = worldmedium.outside(
+                    media.after_continuation(ctx.geo, sigma, prim, d_in, keep, d,
+                                             medium_h[idx]), world_row)
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
         _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean)
     return E
+
+
+def _gather_escaping(ctx, scatter, world_row, prim, o, d, tp, idx, medium_h, E, G, rng,
+                     counters):
+    """E[idx] += the lamps' light the world volume scatters along the gather rays (o, d
+    (n,3), throughput tp (n,3), gathering hit rows idx (n,)) that escape the scene (prim
+    (n,) -1) in it (medium_h[idx] == world_row), x pi / G as a gather ray's radiance
+    (engine/worldmedium.py escaping: the whole length until the medium's transmittance
+    is 1e-13; engine/volumescatter.py radiance)."""
+    esc, esc_prim, esc_t = worldmedium.escaping(ctx, prim, d, medium_h[idx], world_row)
+    if len(esc) == 0:
+        return
+    src, Ls = scatter.radiance(esc_prim, np.take(o, esc, axis=0), np.take(d, esc, axis=0),
+                               esc_t, np.take(medium_h[idx], esc), rng, counters)
+    if len(src):
+        rows = esc[src]
+        E[np.take(idx, rows)] += np.take(tp, rows, axis=0) * math.pi * Ls / G
 
 
 def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
@@ -1673,7 +1719,7 @@ def _split_catcher_paths(ctx, acc, caught, miss, o, d, tmax, tp, pix, rng, count
     if not ctx.settings.film_transparent:
         seen = np.nonzero(caught | miss)[0]
         if len(seen):
-            acc.add("catcher_background", pix, background_radiance(
+            acc.add("catcher_background", pix, worldmedium.background(
                 ctx.scene, np.take(d, seen, axis=0)), tp, seen)
     if not len(rows):
         return
@@ -2214,11 +2260,15 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # the medium each path is in (-1: none known; a camera inside one: the local rule).
     sigma = media.absorption_table(ctx.table)
     medium = None
+    # The world volume's row (engine/worldmedium.py; -1: none): the medium outside every
+    # object's, where the paths start and where they return leaving an object's medium.
+    world_row = worldmedium.medium_row(ctx)
     if sigma.shape[0]:
         # A camera inside a medium object (a fog cube around the scene) starts its paths
         # in it (engine/mediumstart.py; an orthographic camera's rays start apart: -1).
-        medium = np.full(len(o), -1 if ortho else point_medium(ctx, cam_pos, sigma),
-                         np.int64)
+        medium = worldmedium.outside(
+            np.full(len(o), -1 if ortho else point_medium(ctx, cam_pos, sigma), np.int64),
+            world_row)
     # Light scattered towards the camera inside scattering media (engine/volumescatter.py;
     # None: no material scatters), from its own stream of numbers (made when first needed).
     scatter = volumescatter.CameraScattering.for_context(ctx) if medium is not None else None
@@ -2290,6 +2340,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 mask &= sees
                 rows = np.nonzero(mask)[0]
                 L = L[rows]
+                if world_row >= 0 and len(rows):
+                    # The lamp seen through the world volume (it lies in it): the
+                    # segment's exp(-sigma_t s). (Inside an object's medium: not yet.)
+                    in_world = np.take(medium, rows) == world_row
+                    seg = (np.take(tl, rows) * np.linalg.norm(np.take(d, rows, axis=0),
+                                                              axis=1))
+                    L = L * np.where(in_world[:, None],
+                                     np.exp(-sigma[world_row][None, :] * seg[:, None]), 1.0)
                 if bounce > 0 and modes[li] == MODE_MIS and len(rows):
                     # The rays that met the light only (with the light tree each takes
                     # a walk down the tree per light for its choice probability).
@@ -2310,6 +2368,28 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
+        if world_row >= 0 and scatter is not None and miss.any():
+            # Rays escaping into the world volume: the lamps' light it scatters along
+            # their whole (infinite) length, cut where its transmittance is 1e-13
+            # (engine/worldmedium.py); the world beyond sends nothing.
+            esc, esc_prim, esc_t = worldmedium.escaping(ctx, prim, d, medium, world_row)
+            if len(esc):
+                if vol_rng is None:
+                    vol_rng = (bsdf_rng.spawn(1)[0] if bsdf_rng is not None
+                               else np.random.default_rng(rng.integers(1 << 62)))
+                esc_uv = None
+                if (sampler0 is not None and sample_id is not None
+                        and volumescatter.STRATIFIED):
+                    strat_v = sampler0.subset(slice(0, 0))
+                    strat_v.sub = np.asarray(sample_id)[esc]
+                    strat_v.pix = np.asarray(pix)[esc] + pix_shift
+                    esc_uv = strat_v.uv(("volume",), rng=vol_rng)
+                src, Ls = scatter.radiance(esc_prim, np.take(o, esc, axis=0),
+                                           np.take(d, esc, axis=0), esc_t,
+                                           np.take(medium, esc), vol_rng, counters, esc_uv)
+                if len(src):
+                    rows = esc[src]
+                    acc.add("direct" if bounce == 0 else "specular", pix, Ls, tp, rows)
         if miss.any():
             drawn = miss
             if s.film_transparent:
@@ -2319,7 +2399,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 # first hit counted, by their throughput's mean (film_write_transparent:
                 # average(throughput)): an alpha-0.4 card over nothing has alpha 0.4.
                 through = miss & (ray_cls == CAMERA)
-                if bounce > 0 and through.any():
+                if bounce > 0 and through.any() and world_row < 0:
+                    # (in a world volume they reach the world with throughput 0)
                     rows = np.nonzero(through)[0]
                     acc.add_scalar(acc.alpha, np.take(pix, rows),
                                    -np.take(tp, rows, axis=0).mean(axis=1))
@@ -2328,7 +2409,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 # (The rows by np.take: a boolean mask gathers (N,3) rows ~2x slower.)
                 missed = np.nonzero(drawn)[0]
                 d_miss = np.take(d, missed, axis=0)
-                radiance = background_radiance(ctx.scene, d_miss)
+                # (black beyond a world volume: engine/worldmedium.py)
+                radiance = worldmedium.background(ctx.scene, d_miss)
                 if bounce > 0 and world:
                     li = world[0]
                     radiance = radiance * _mis_weight(ctx, li, ctx.lights[li],
@@ -2388,7 +2470,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 prim = np.where(caught, -3, prim)
                 hitm &= ~caught
         if bounce == 0:
-            acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2)).astype(float))
+            # (in a world volume every camera ray's throughput reaches 0 before the world:
+            # opaque, as Cycles' average(throughput) at the background)
+            acc.add_scalar(acc.alpha, pix, ((prim >= 0) | (prim == -2) | (world_row >= 0))
+                           .astype(float))
         if not hitm.any():
             return
         if hitm.all():  # every path met a surface (a closed room): nothing to compact
@@ -2647,8 +2732,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             if may_split is not None:
                 cont = cont[:6] + (cont[6][go],)
         if medium is not None:
-            # Refracted or passed into a medium, or out of it (engine/media.py).
-            medium = media.after_continuation(ctx.geo, sigma, prim, d_in, keep, d, medium)
+            # Refracted or passed into a medium, or out of it (engine/media.py): out of
+            # an object's medium into the world volume's, if any.
+            medium = worldmedium.outside(
+                media.after_continuation(ctx.geo, sigma, prim, d_in, keep, d, medium),
+                world_row)
         if may_split is not None:
             # A split path's two rays have one split less left.
             may_split = may_split[keep] - cont[6]

@@ -29,7 +29,7 @@ from .lights.base import emission_key
 from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
 from .parallel import Cancelled, chunk_length, ordered_map
-from . import media
+from . import media, worldmedium
 from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
@@ -282,12 +282,15 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
 def _light_medium(ctx, light) -> int:
     """The medium (a material row) a point, spot or area light's position is in
     (engine/mediumstart.py), -1: none, or another kind of light."""
+    # (outside every object's medium: the world volume's row, engine/worldmedium.py)
+    world_row = worldmedium.medium_row(ctx)
     if getattr(light, "kind", None) not in (POINT, SPOT, AREA) or not hasattr(light, "pos"):
-        return -1
+        return world_row
     sigma = media.absorption_table(ctx.table)
     if not sigma.shape[0]:
         return -1
-    return point_medium(ctx, np.asarray(light.pos, np.float64), sigma)
+    inside = point_medium(ctx, np.asarray(light.pos, np.float64), sigma)
+    return world_row if inside < 0 else inside
 
 
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
@@ -311,6 +314,7 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             if sigma.shape[0] else None)
     if pmed is not None and start_medium >= 0:
         pmed.medium[:] = start_medium  # a lamp inside a fog cube: its photons start in it
+    world_row = worldmedium.medium_row(ctx)
     limits = settings.bounce_limits
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
@@ -408,6 +412,9 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
         if pmed is not None:
             pmed.after_scatter(slot, d)  # refracted in or out of a medium
+            if world_row >= 0:
+                # out of an object's medium: into the world volume's (worldmedium.py)
+                pmed.medium[slot] = worldmedium.outside(pmed.medium[slot], world_row)
 
 
 class _Buffers:

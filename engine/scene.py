@@ -1182,6 +1182,40 @@ def _used_by(names, shown: int = 3) -> str:
 
 
 @dataclass
+class WorldMedium:
+    """Blender's World > Volume: a homogeneous medium filling all space outside the
+    objects' own media (Cycles: the world volume; Blender manual, World > Volume).
+    `absorption` sigma_a (3,) and `scattering` sigma_s (3,) in 1/m per channel, and the
+    Henyey-Greenstein `anisotropy` g in (-1, 1) of its scattering, as a material's medium
+    (Material.absorption / scattering / anisotropy; addon/materials.py _volume reads the
+    World Output's Volume as a Material Output's). The world lies infinitely far beyond
+    it: a ray escaping the scene keeps exp(-sigma_t x infinity) = 0 of the world's light,
+    so the world's surface (Background, HDRI) and sun lamps light nothing and the
+    background reads black (engine/worldmedium.py)."""
+
+    absorption: tuple | np.ndarray = (0.0, 0.0, 0.0)
+    scattering: tuple | np.ndarray = (0.0, 0.0, 0.0)
+    anisotropy: float = 0.0
+
+    def validate(self) -> None:
+        self.absorption = _vec3(self.absorption, "world_medium absorption")
+        self.scattering = _vec3(self.scattering, "world_medium scattering")
+        if np.any(self.absorption < 0) or np.any(self.scattering < 0):
+            raise SceneError("world_medium: absorption and scattering must be >= 0 (1/m), "
+                             f"got {self.absorption.tolist()}, {self.scattering.tolist()}")
+        self.anisotropy = float(self.anisotropy)
+        if not -1.0 < self.anisotropy < 1.0:
+            raise SceneError(f"world_medium anisotropy: must lie in (-1, 1), got "
+                             f"{self.anisotropy}")
+
+    @property
+    def extinction(self) -> np.ndarray:
+        """sigma_t = sigma_a + sigma_s (3,) 1/m."""
+        return (np.asarray(self.absorption, np.float64)
+                + np.asarray(self.scattering, np.float64))
+
+
+@dataclass
 class Scene:
     """All scene content. Build with the add_* methods (see engine.api for the paper's
     convenience calls) or assign lists directly; call validate() (render does)."""
@@ -1204,6 +1238,9 @@ class Scene:
     warnings: list = field(default_factory=list)
     # Cycles light portals (LightPortal): openings the world's light enters by.
     portals: list = field(default_factory=list)
+    # Blender's World > Volume (WorldMedium, None: vacuum): a homogeneous medium filling
+    # all space outside the objects' media (engine/worldmedium.py).
+    world_medium: "WorldMedium | None" = None
 
     def add_material(self, material: Material) -> Material:
         self.materials[material.name] = material
@@ -1267,9 +1304,20 @@ class Scene:
             if not isinstance(self.environment, Environment):
                 raise SceneError(f"environment: expected an engine Environment, got "
                                  f"{type(self.environment).__name__}")
+        if self.world_medium is not None:
+            if not isinstance(self.world_medium, WorldMedium):
+                raise SceneError(f"world_medium: expected an engine WorldMedium, got "
+                                 f"{type(self.world_medium).__name__}")
+            self.world_medium.validate()
+            from .worldmedium import warnings_for
+            for msg in warnings_for(self):
+                if msg not in self.warnings:
+                    self.warnings.append(msg)
         has_emitter = any(m.is_emissive for m in self.materials.values())
         world_lit = (not self.environment.is_black if self.environment is not None
                      else np.any(self.background > 0))
+        if self.world_medium is not None and np.all(self.world_medium.extinction > 0):
+            world_lit = False  # infinitely far beyond the world volume (worldmedium.py)
         if not self.lights and not has_emitter and not world_lit:
             msg = "scene has no lights, emissive materials or background light: image is black"
             if msg not in self.warnings:

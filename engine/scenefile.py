@@ -53,7 +53,7 @@ from .api import PaperScene
 from .lights import DECLARED_KINDS
 from .panorama import KINDS as PANORAMA_KINDS, Panorama
 from .scene import (EMISSION_SAMPLING, FLOAT32_MAX, MATERIAL_NODES, MIST_FALLOFF, Light,
-                    Material, Mesh, Prototype, SceneError, euler_rotation)
+                    Material, Mesh, Prototype, SceneError, WorldMedium, euler_rotation)
 from .settings import RenderSettings
 
 MAX_RESOLUTION = 65536    # pixels per side, as Blender
@@ -270,6 +270,11 @@ def _sections(key) -> dict:
 # (engine/datapasses.py; falloff by name, as Blender's enum).
 MIST_SCHEMA = _table({"start": _number(0.0), "depth": _number(0.0),
                       "falloff": _choice(*MIST_FALLOFF)})
+# Blender's World > Volume (engine.scene.WorldMedium): a homogeneous medium filling all
+# space outside the objects (engine/worldmedium.py), 1/m per channel.
+WORLD_MEDIUM_SCHEMA = _table({"absorption": _vec3(nonneg=True),
+                              "scattering": _vec3(nonneg=True),
+                              "anisotropy": _number(-1.0, 1.0, lo_open=True, hi_open=True)})
 
 
 def scene_schema() -> dict:
@@ -285,7 +290,8 @@ def scene_schema() -> dict:
         "objects": _sections("objects"), "lights": _sections("lights"),
         "instances": _sections("instances"),
         "background": _vec3(nonneg=True), "environment": ENVIRONMENT_SCHEMA,
-        "sky": SKY_SCHEMA, "mist": MIST_SCHEMA})
+        "sky": SKY_SCHEMA, "mist": MIST_SCHEMA,
+        "world_medium": WORLD_MEDIUM_SCHEMA})
 
 
 _VALIDATORS = {}
@@ -492,6 +498,11 @@ def _build(data: dict, base: str):
     scene = PaperScene(width=width, height=height, background=background)
     if "environment" in data:
         scene.environment = _environment(data["environment"], base)
+    if "world_medium" in data:
+        w = data["world_medium"]
+        scene.world_medium = WorldMedium(absorption=_vec(w.get("absorption", (0.0, 0.0, 0.0))),
+                                         scattering=_vec(w.get("scattering", (0.0, 0.0, 0.0))),
+                                         anisotropy=float(w.get("anisotropy", 0.0)))
     if "mist" in data:
         m = data["mist"]
         scene.mist = (float(m.get("start", 5.0)), float(m.get("depth", 25.0)),

@@ -60,6 +60,7 @@ from .resources import check_resources
 from .scene import Camera, Scene
 from .settings import RenderSettings
 from .visibility import VisibilityAccel
+from .worldmedium import table_materials
 
 PREVIEW_SCALES = (4, 2)        # reduced resolutions before the first full-size pass
 PHOTON_CACHE_BYTES = 256 << 20  # photon maps kept for view changes (per session)
@@ -332,7 +333,7 @@ class Session:
         empty = ctx is not None and ctx.geo.count == 0
         if self._scene_dirty or ctx is None or empty:
             self._photons.clear()
-            same_names = ctx is not None and list(scene.materials) == ctx.table.names
+            same_names = ctx is not None and [m.name for m in table_materials(scene)] == ctx.table.names
             if self._geometry_dirty or not same_names or ctx is None or empty:
                 geo, table = prepare(scene, self._cancel.is_set)
                 self.counters.geometry_builds += 1
@@ -349,7 +350,7 @@ class Session:
                     self._event("bvh", geo.count)
             else:
                 geo, accel = ctx.geo, ctx.accel
-                table = MaterialTable.build([scene.materials[n] for n in scene.materials])
+                table = MaterialTable.build(table_materials(scene))
             attach_tracer(geo, accel)  # (Ambient Occlusion nodes trace from their hits)
             lights = prepare_lights(scene, geo, table)
             self.counters.light_builds += 1

@@ -53,7 +53,7 @@ import math
 
 import numpy as np
 
-from . import media
+from . import media, worldmedium
 from .directlight import DirectLightBuffers, NO_HROWS, NO_ROWS, NO_ROWS3, sample_lights
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
@@ -446,13 +446,18 @@ def accumulate_phase(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir,
         L[h, 2] += contrib[j, 2] * f2
 
 
-def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None) -> np.ndarray:
+def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None,
+                 world_sigma=None) -> np.ndarray:
     """(n,3) the light L_in (W / m^2 sr, radiance units) the lamps scatter at points p
     (n,3) towards -wo (wo (n,3) unit: the camera ray's direction), through the phase
     function of anisotropy g (n,), from one sample of each light (light_sample_list's
     numbers, rng) with shadow rays (transparent surfaces and media crossed:
     ctx.shadow; inside the points' own medium, extinction sigma_t (n,3): a shadow ray
-    that meets no surface keeps exp(-sigma_t length), accumulate_phase)."""
+    that meets no surface keeps exp(-sigma_t length), accumulate_phase). world_sigma
+    (n,3): the world volume's extinction at the points in it (engine/worldmedium.py; 0
+    elsewhere): a shadow ray that crossed transparent surfaces keeps exp(-sigma_t length)
+    of it too (directlight.direct_light's world_sigma); None: none."""
+    from .directlight import _dim_in_medium
     from .integrator import SHADOW, light_sample_list, selector_for
     n = len(p)
     L = np.zeros((n, 3))
@@ -500,6 +505,11 @@ def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None) -> np
         if shadow is not None:
             shadow.pass_blocked(buf.o32[:m_rays], buf.d32[:m_rays], t_keep, blocked,
                                 buf.contrib, buf.ray, m_all, SHADOW)
+            if world_sigma is not None:
+                # (the rays that crossed surfaces: blocked by the first query, not now;
+                # the two halves' rows index the points twice)
+                _dim_in_medium(buf, m_all, clear | blocked, t_keep,
+                               np.concatenate([world_sigma, world_sigma]))
         if counters is not None:
             counters.shadow_rays += m_rays
     accumulate_phase(L, buf.contrib, buf.row, buf.kidx, buf.ray, ksamples, blocked, m_all,
@@ -596,6 +606,8 @@ class CameraScattering:
         self.sigma_t, self.sigma_s, self.g = tables
         # Cycles' Light Paths > Volume bounces: the scatters after the first (walk).
         self.bounces = int(getattr(ctx.settings, "volume_bounces", 0) or 0)
+        # The world volume's row (engine/worldmedium.py; -1: none).
+        self.world_row = worldmedium.medium_row(ctx)
         # The point, spot and area lights for equiangular sampling (sample_segments;
         # the strongest MAX_EQUIANGULAR by emitted power; none: exponential alone).
         self.eq_pos = NO_POINTS
@@ -611,6 +623,14 @@ class CameraScattering:
                 rows = rows[np.argsort(-power, kind="stable")[:MAX_EQUIANGULAR]]
                 self.eq_pos = equiangular_rows(ctx.lights, codes, params, rows)
                 self.eq_area = bool(np.any(codes[rows] == pk.CODE_AREA))
+
+    def _world_sigma(self, seg_m):
+        """(K,3) the world volume's extinction at the points in it (media seg_m (K,)),
+        0 at the others, or None without a world volume or transparent shadows."""
+        if self.world_row < 0 or getattr(self.ctx, "shadow", None) is None:
+            return None
+        return np.where((np.asarray(seg_m) == self.world_row)[:, None],
+                        self.sigma_t[self.world_row][None, :], 0.0)
 
     @classmethod
     def for_context(cls, ctx):
@@ -635,7 +655,7 @@ class CameraScattering:
         wo = np.take(np.asarray(d, np.float64), src, axis=0)
         wo = wo / np.linalg.norm(wo, axis=1, keepdims=True)
         Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
-                           counters)
+                           counters, world_sigma=self._world_sigma(seg_m))
         L = Lin * w
         if self.bounces > 0:
             self.walk(L, pts, wo, w, seg_m, rng, counters)
@@ -692,7 +712,8 @@ class CameraScattering:
             beta = beta[src] * w2
             if len(src) == 0:
                 return
-            Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters)
+            Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters,
+                               world_sigma=self._world_sigma(m))
             L[idx] += beta * Lin
 
     def add(self, acc, target, pix, prim, o, d, t, medium, tp, rng, counters=None, uv=None):

@@ -2273,14 +2273,30 @@ def warned_light_linking():
     sun.light_linking.blocker_collection = bpy.data.collections.new("Sun blockers")
 
 
-@case("warned", status="warned", how="a World Volume is ignored (in Cycles it fills all "
-      "space, and the world's surface and sun lamps then light nothing)",
-      warning="World Volume")
-def warned_world_volume():
-    _vis_scene()
-    nt = bpy.context.scene.world.node_tree
+@case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))
+def volume_world_fog():
+    """A thin World Volume (Principled Volume, Density 0.08, Color 0.8, Anisotropy 0.2) round
+    the stage, a red cube on the floor, a spot light above shining down past it, and a
+    sun and a grey world that, infinitely far beyond the fog, light nothing (Cycles: T = 0
+    at infinity; the background reads black): the spot's cone glowing in the fog, the
+    floor and the cube lit and seen through it (engine/worldmedium.py), at Cycles' default
+    Volume bounces 0."""
+    _stage()
+    mb.box("Cube", 0.7, 0.7, 0.7, _red(), (-0.6, 0.3, 0.35))
+    mb.light("Spot", "SPOT", (0.4, 0.0, 3.4), 800.0, look_at=(0.2, 0, 0),
+             spot_size=math.radians(40.0), spot_blend=0.2, shadow_soft_size=0.0)
+    _sun()
+    world = bpy.context.scene.world
+    nt = world.node_tree
     out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
+    bg = next((n for n in nt.nodes if n.type == "BACKGROUND"), None)
+    if bg is not None:
+        bg.inputs["Color"].default_value = (0.3, 0.3, 0.3, 1.0)
+        bg.inputs["Strength"].default_value = 1.0
     haze = nt.nodes.new("ShaderNodeVolumePrincipled")
+    haze.inputs["Density"].default_value = 0.08
+    haze.inputs["Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    haze.inputs["Anisotropy"].default_value = 0.2
     nt.links.new(haze.outputs[0], out.inputs["Volume"])
 
 

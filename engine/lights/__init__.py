@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import worldmedium
 from ..geometry import Geometry, MaterialTable
 from ..sampling import luminance
 from ..scene import AREA, POINT, SPOT, SUN, Scene
@@ -59,12 +60,17 @@ def prepare_lights(scene: Scene, geo: Geometry, table: MaterialTable,
     radius = max(geo.extent / 2.0, 1e-6) * 1.01
     common = dict(center=center, scene_radius=radius)
     out = []
+    # A world volume (engine/worldmedium.py): the world and suns, infinitely far beyond
+    # it, light nothing.
+    fog = worldmedium.active(scene)
     for light in scene.lights:
+        if fog and light.kind == "SUN":
+            continue
         prepared = LIGHT_KINDS[light.kind].from_scene(light, geo, common)
         if prepared is not None:
             out.append(prepared)
     for extra in (MeshLight.from_geometry(geo, table, common, gathered),
-                  WorldLight.from_background(scene, common)):
+                  None if fog else WorldLight.from_background(scene, common)):
         if extra is not None:
             out.append(extra)
     world = out[-1] if out and out[-1].kind == WORLD else None

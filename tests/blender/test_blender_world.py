@@ -87,22 +87,31 @@ def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):
     assert len(hits) == 1 and coord.name in hits[0]
 
 
-def test_a_world_volume_warns_naming_the_node(mb, bpy_addon):
-    """A World Volume was dropped without a word (s37): a warning names the world and
-    the node; the background stays."""
+def test_a_world_volume_is_exported_and_its_dropped_parts_warned(mb, bpy_addon):
+    """The World Output's Volume becomes Scene.world_medium (worldfog37; before: a
+    warning, before s37 dropped without a word); the background stays exported (the
+    engine switches it off); an emission in it is warned naming the world and node."""
     bpy = bpy_addon
     mb.set_world((0.2, 0.2, 0.2), 1.0)
     nt = bpy.context.scene.world.node_tree
-    assert not [w for w in _export(bpy).all_warnings() if "Volume" in w]
+    scene = _export(bpy)
+    assert scene.world_medium is None
+    assert not [w for w in scene.all_warnings() if "Volume" in w]
     out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
     fog = nt.nodes.new("ShaderNodeVolumePrincipled")
     fog.name = "Haze"
+    fog.inputs["Density"].default_value = 0.2
+    fog.inputs["Color"].default_value = (0.5, 0.5, 0.5, 1.0)
     nt.links.new(fog.outputs["Volume"], out.inputs["Volume"])
     scene = _export(bpy)
-    hits = [w for w in scene.all_warnings() if "World Volume" in w]
+    assert not [w for w in scene.all_warnings() if "Volume" in w]
+    np.testing.assert_allclose(scene.world_medium.scattering, 0.1, rtol=1e-6)
+    np.testing.assert_allclose(scene.world_medium.absorption, 0.1, rtol=1e-6)
+    np.testing.assert_allclose(scene.background, (0.2, 0.2, 0.2), rtol=1e-6)
+    fog.inputs["Emission Strength"].default_value = 1.0
+    hits = [w for w in _export(bpy).all_warnings() if "emission" in w]
     world = bpy.context.scene.world.name
     assert len(hits) == 1 and "'Haze'" in hits[0] and f"world '{world}'" in hits[0], hits
-    np.testing.assert_allclose(scene.background, (0.2, 0.2, 0.2), rtol=1e-6)
 
 
 @pytest.mark.slow
