@@ -307,6 +307,15 @@ def extract_hair_geometry(pm, obj) -> LocalGeometry | None:
                          attributes=attributes)
 
 
+def warn_empty_hair(obj, warnings: list) -> None:
+    """A Curves object with curves but nothing to render (every strand of radius 0, or of
+    fewer than 2 points): said, naming it (its radius-0 triangles read "mesh ...: dropped
+    zero-area faces", newuser37). One without curves (just added) is left alone."""
+    if len(obj.data.curves):
+        warnings.append(f"object '{obj.name}': its hair has no strand to render (every "
+                        "strand has radius 0 or fewer than 2 points), as in Cycles")
+
+
 def curves_info(points, offsets, faces, curve, intercept, radius) -> dict:
     """The Curves Info node's outputs per corner of a hair's tubes, as LocalGeometry
     attributes (read by addon/materials.py, HAIR_INFO): 'curves_info' = (Intercept,
@@ -1384,6 +1393,8 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
         if key not in cache:
             cache[key] = (extract_hair_geometry(pm, obj) if otype == "CURVES"
                           else extract_geometry(obj))
+            if cache[key] is None and otype == "CURVES":
+                warn_empty_hair(obj, warnings)
         geo = cache[key]
         if geo is None:
             continue

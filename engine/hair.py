@@ -116,7 +116,8 @@ def tube_mesh(points, radius, offsets, sides: int | None = None,
     length from its root, linear between keys (Cycles' Curves Info Intercept,
     ATTR_STD_CURVE_INTERCEPT) and the spline's radius at the vertex's ring.
     Curves of fewer than 2 points and non-finite points (the whole curve) are left out;
-    negative or non-finite radii read 0. Raises ValueError on inconsistent offsets."""
+    negative or non-finite radii read 0, and the triangles a ring of radius 0 makes lines
+    of are left out. Raises ValueError on inconsistent offsets."""
     points = np.asarray(points, np.float64).reshape(-1, 3)
     radius = np.asarray(radius, np.float64).reshape(-1)
     offsets = np.asarray(offsets, np.int64).reshape(-1)
@@ -175,8 +176,14 @@ def tube_mesh(points, radius, offsets, sides: int | None = None,
         d = (j + 1) * sides + k
         quad = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], 2).reshape(-1, 3)
         strand = (np.arange(m) * ns * sides)[:, None, None] + base
-        faces.append((quad[None] + strand).reshape(-1, 3))
-        curve_of.append(np.repeat(which, len(quad)))
+        tri = (quad[None] + strand).reshape(m, -1, 3)
+        # A ring of radius 0 (a tip tapered to a point) makes one triangle of each of its
+        # quads a line: (a, b, c) at ring j, (a, c, d) at ring j + 1; left out.
+        keep = np.stack([np.broadcast_to((r[:, :-1] > 0)[:, :, None], (m, ns - 1, sides)),
+                         np.broadcast_to((r[:, 1:] > 0)[:, :, None], (m, ns - 1, sides))],
+                        3).reshape(m, -1)
+        faces.append(tri[keep])
+        curve_of.append(np.repeat(which, keep.sum(axis=1)))
         base += m * ns * sides
     if not verts:
         empty = (np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 3)),

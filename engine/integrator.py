@@ -2455,6 +2455,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 acc.add_scalar(acc.holdout, pix[hole], held)
                 if bounce > 0:
                     acc.add_scalar(acc.alpha, pix[hole], -held)
+        if bounce > 0 and split_catchers and catchers is not None and hitm.any():
+            # A catcher met by a camera ray continued through a transparent surface is not
+            # split (Cycles splits it there too): counted for a warning (render_pass).
+            behind = np.take(catchers, np.take(ctx.geo.object_id, prim[hitm])) & (
+                ray_cls[hitm] == CAMERA)
+            if behind.any():
+                counters.count("catcher behind transparent", bounce, int(behind.sum()))
         if bounce == 0 and split_catchers and catchers is not None:
             # Camera rays meeting a shadow catcher first: Cycles' split (integrator/
             # shadow_catcher.h): their light is the catcher's "with the objects"

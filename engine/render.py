@@ -289,6 +289,11 @@ def _render_pass(ctx: Context, region, progress, should_cancel, shoot: bool,
                          gather_rays=counters.gather_rays,
                          specular_rays=counters.specular_rays,
                          ray_stages=counters.stage_table())
+            behind = sum(v for k, v in counters.stages.items()
+                         if k[0] == "catcher behind transparent")
+            if behind:
+                stats.setdefault("warnings", []).append(
+                    shadowcatcher.behind_transparent_warning(ctx, behind))
             view, shown, fraction = hits()
         finally:
             hits.join()

@@ -53,6 +53,19 @@ def catcher_objects(scene) -> np.ndarray | None:
     return flags if flags.any() else None
 
 
+def behind_transparent_warning(ctx, samples: int) -> str:
+    """The warning for `samples` camera samples that met a shadow catcher through a
+    transparent surface (an alpha cut-out, a Transparent BSDF card): there the catcher is
+    not split and renders as an ordinary surface, opaque in the matte, where Cycles keeps
+    it a catcher (newuser37: a card in front of the catcher gave a grey rectangle)."""
+    names = [n for n, c in zip(ctx.geo.object_names, ctx.catcher_objects) if c]
+    shown = ", ".join(f"'{n}'" for n in names[:3]) + (" ..." if len(names) > 3 else "")
+    return (f"shadow catcher {shown}: {samples:,} camera samples meet it through a "
+            "transparent surface (alpha or a Transparent BSDF); there it renders as an "
+            "ordinary, opaque surface, not as a shadow catcher (Cycles keeps it one): move "
+            "the transparent surface out of its view or make the matte without it")
+
+
 def alone_scene(scene):
     """The scene Cycles' catcher paths see: its shadow catcher meshes only (as ordinary
     surfaces), with its lights, world, camera and materials; no warnings (the whole

@@ -138,3 +138,15 @@ def test_strands_in_front_of_a_glowing_plane_cover_their_mean_width():
     covered = 1.0 - img.mean()
     expect = n * 2 * r * L / 4.0
     assert covered == pytest.approx(expect, rel=0.01), (covered, expect)
+
+
+def test_a_tip_tapered_to_a_point_makes_no_zero_area_faces():
+    """Radius 0 at the tip (a common groom): the last ring is a point, and the triangles
+    it makes lines of are left out (they read "dropped zero-area faces" for every tapered
+    groom, newuser37); all radii 0: no faces at all."""
+    pts, _ = _straight(3)
+    v, f, _, curve = tube_mesh(pts, np.array([0.1, 0.05, 0.0]), [0, 3], 4, 1)
+    area = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    assert len(f) == 2 * 4 + 4 and area.min() > 0 and len(curve) == len(f)
+    v, f, _, _ = tube_mesh(pts, np.zeros(3), [0, 3], 4, 1)
+    assert len(f) == 0

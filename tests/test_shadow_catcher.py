@@ -217,3 +217,21 @@ def test_instances_take_the_flag_from_their_object_or_their_own(tmp_path):
     alpha = combined_rgba(film, True)[..., 3]
     assert np.abs(alpha[8:, :4]).max() < 1e-6     # the catcher tile (left), lit
     assert np.allclose(alpha[8:, 12:], 1.0)       # the ordinary tile (right)
+
+
+def test_a_catcher_seen_through_a_transparent_card_is_warned():
+    """A half-transparent card between the camera and the catcher: camera rays through
+    it meet the catcher past the first hit, where it is not split (it renders as an
+    ordinary surface): one warning names the catcher and counts those samples
+    (newuser37: a grey rectangle in the matte, nothing said). Without the card: none."""
+    s = _scene()
+    s.add_material(Material("card", (0.5, 0.5, 0.5), alpha=0.5))
+    s.add_plane((0, 0, 2.0), (0, 0, 1), 1.0, "card", name="card")
+    film = s.render(_settings(film_transparent=True))
+    hits = [w for w in film.warnings if w.startswith("shadow catcher 'floor'")]
+    assert len(hits) == 1 and "transparent surface" in hits[0], film.warnings
+    samples = int(hits[0].split(": ")[1].split(" camera")[0].replace(",", ""))
+    # The card covers (1 / (2 x 3 tan 15 deg))^2 of the image: ~0.39 of 24 x 24 x 4.
+    assert 0.25 * 24 * 24 * 4 < samples < 0.55 * 24 * 24 * 4, samples
+    film = _scene().render(_settings(film_transparent=True))
+    assert not [w for w in film.warnings if "shadow catcher" in w]

@@ -129,6 +129,13 @@ def test_hair_exports_for_renders_and_the_viewport(bpy_addon):
         # The roots spread over x in -0.8..0.8 round the origin, moved by +1 m.
         assert abs(v[:, 0].mean() - 1.0) < 0.1 and 0.0 < v[:, 2].max() < 0.62
         assert not [w for w in out.all_warnings() if "hair" in w.lower()]
+    radius = tuft.data.attributes["radius"]
+    radius.data.foreach_set("value", np.zeros(len(radius.data), np.float32))
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    scene, _ = export.export_scene(pm, depsgraph, width=16, height=12)
+    assert not [m for m in scene.meshes if m.name == "Tuft"]
+    hits = [w for w in scene.all_warnings() if "Tuft" in w]
+    assert len(hits) == 1 and "no strand to render" in hits[0], hits  # no "zero-area"
     tuft.data.attributes.remove(tuft.data.attributes["radius"])
     depsgraph = bpy.context.evaluated_depsgraph_get()
     scene, _ = export.export_scene(pm, depsgraph, width=16, height=12)
