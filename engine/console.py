@@ -12,8 +12,9 @@ into the middle of the bar or of another line.
 In a file or a pipe every frame the bar draws stays in the text, so there each frame is a
 line of its own (tqdm's "\r" before a frame starts no line in a log viewer: a render's
 frames were one line of thousands of characters, s36), and a frame is drawn only when the
-stage changes (its text, counts aside), every LOG_FRAME_SECONDS otherwise, and at the
-close; never twice with the same text, its clock aside (a stage's text and then its first
+stage changes (its text, counts aside; the stage's last state first, when it was not
+drawn), every LOG_FRAME_SECONDS otherwise, and at the close; never twice with the same
+text, its clock aside (a stage's text and then its first
 progress step drew one state twice, and closing the bar drew its last state again, below
 the lines printed after it: "Cancelled" twice in a log, s30)."""
 from __future__ import annotations
@@ -77,9 +78,13 @@ class BarConsole:
                     # on (tqdm prints through sp, made from the file at __init__).
                     self.bar_file.open = True  # the frame tqdm drew when it was made
                     bar.fp, bar.sp = self.bar_file, bar.status_printer(self.bar_file)
+                # Whole blocks only: tqdm's partial blocks read as stray digits in a
+                # file ("2 |", "#3 |", newuser37).
+                bar.ascii = " #"
                 self._last_frame = _frame_state(bar)
                 self._last_stage = _stage(bar)
                 self._last_time = time.monotonic()
+                self._skipped = None  # the last frame not drawn, to end its stage with
                 self._draw_changes_only(bar)
 
     def _draw_changes_only(self, bar) -> None:
@@ -98,7 +103,15 @@ class BarConsole:
             if state == self._last_frame or (
                     stage == self._last_stage and not self._closing
                     and now - self._last_time < LOG_FRAME_SECONDS):
+                if state != self._last_frame:
+                    self._skipped = (state, str(bar))
                 return True
+            if self._skipped is not None and stage != self._last_stage and \
+                    self._skipped[0] != self._last_frame:
+                # A stage ends on its last state ("Tracing photons 400k/400k"), not on
+                # the first one drawn (it read as if the count never got there).
+                self.bar_file.write("\r" + self._skipped[1])
+            self._skipped = None
             self._last_frame, self._last_stage, self._last_time = state, stage, now
             return draw(msg, pos)
 

@@ -61,9 +61,10 @@ def test_lines_and_python_warnings_from_threads_stay_whole(monkeypatch):
 
 def test_a_bar_in_a_log_file_draws_a_line_per_stage_and_per_interval(monkeypatch):
     """In a file tqdm's "\\r" starts no line: a render's frames were one line of thousands
-    of characters (s36). Each frame is a line of its own, drawn at a new stage, every
-    LOG_FRAME_SECONDS within one, and at the close; a line printed between two frames
-    starts a line of its own too."""
+    of characters (s36). Each frame is a line of its own, drawn at a new stage (after the
+    last state of the one before, when that was not drawn), every LOG_FRAME_SECONDS
+    within one, and at the close; a line printed between two frames starts a line of its
+    own too; the bar is whole blocks ('#'), no partial-block digits (newuser37)."""
     from engine import console as console_module
     clock = [100.0]
     monkeypatch.setattr(console_module.time, "monotonic", lambda: clock[0])
@@ -72,7 +73,7 @@ def test_a_bar_in_a_log_file_draws_a_line_per_stage_and_per_interval(monkeypatch
     console.bar = tqdm(total=1000, file=console.bar_file, desc="Tracing photons 0k/400k",
                        bar_format="{desc:<26}|{bar}| {n}/{total}", mininterval=0,
                        miniters=1, ncols=60)
-    for k in range(1, 41):  # 40 chunks, one a second: a line every 10 s of them
+    for k in range(1, 44):  # 43 chunks, one a second: a line every 10 s of them
         clock[0] += 1.0
         with console.drawing() as bar:
             bar.set_description_str(f"Tracing photons {10 * k}k/400k", refresh=False)
@@ -94,11 +95,14 @@ def test_a_bar_in_a_log_file_draws_a_line_per_stage_and_per_interval(monkeypatch
     lines = text.rstrip("\n").split("\n")
     tracing = [line for line in lines if line.startswith("Tracing photons")]
     # The first frame (0k), then one per 10 s: 10k..400k at seconds 101..140.
+    # ... and the stage's last state (430k, not drawn in its last 3 s) before the next.
     assert [line.split()[2] for line in tracing] == ["0k/400k", "100k/400k", "200k/400k",
-                                                     "300k/400k", "400k/400k"], lines
+                                                     "300k/400k", "400k/400k",
+                                                     "430k/400k"], lines
+    assert "1" not in "".join(line.split("|")[1] for line in lines if "|" in line)
     assert "Warning: a scene warning" in lines
     assert [line.split("|")[-1].strip() for line in lines
             if line.startswith("Rendering")] == ["500/1000", "600/1000"], lines
     for line in lines:  # a whole bar or the warning, nothing glued together
         assert line == "Warning: a scene warning" or re.match(
-            r"^(Tracing photons|Rendering pixels) [0-9k/]+ +\|[^|]*\| *\d+/1000$", line), line
+            r"^(Tracing photons|Rendering pixels) [0-9k/]+ +\|[ #]*\| *\d+/1000$", line), line
