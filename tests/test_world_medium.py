@@ -126,22 +126,9 @@ def test_photons_are_dimmed_by_the_world_volume():
     """The point light's photons start in the world medium: their first hits on the
     floor under the lamp carry exp(-sigma r) of a clear world's (the same seed: the
     same paths), r ~ 1 m."""
-    from engine.photons import DIRECT, trace_photons
-    from engine.render import prepare_context
-    sigma = np.array([0.4, 0.2, 0.05])
-
-    def floor_power(sig):
-        ctx = prepare_context(_floor_scene(sig), RenderSettings(workers=1))
-        ph = trace_photons(ctx, ctx.lights, [40_000], caustic_only=False, stream=3)
-        pos = ph.position.astype(np.float64) + ctx.geo.offset
-        under = ((np.abs(pos[:, 2]) < 1e-3) & (np.hypot(pos[:, 0], pos[:, 1]) < 0.1)
-                 & (ph.kind == DIRECT))
-        return ph.power[under].astype(np.float64).sum(axis=0), pos[under]
-    fog, where = floor_power(sigma)
-    clear, _ = floor_power(np.full(3, 1e-9))
-    r = np.sqrt(1.0 + (where[:, 0] ** 2 + where[:, 1] ** 2))
-    expect = np.exp(-sigma[None, :] * r[:, None]).mean(axis=0)
-    np.testing.assert_allclose(fog / clear, expect, rtol=2e-3)
+    from test_volume_scatter import floor_photon_dimming
+    ratio, expect = floor_photon_dimming(_floor_scene, np.array([0.4, 0.2, 0.05]))
+    np.testing.assert_allclose(ratio, expect, rtol=2e-3)
 
 
 def test_the_world_light_and_suns_are_off_and_the_report_says_so():
