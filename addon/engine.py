@@ -114,21 +114,15 @@ CRYPTOMATTE_LAYERS = (("use_pass_cryptomatte_object", "object", "CryptoObject"),
 def cryptomatte_passes(view_layer) -> list[tuple[str, str]]:
     """(engine kind, pass name) of every Cryptomatte pass the view layer asks for:
     ceil(Levels / 2) RGBA passes a layer, "CryptoObject00", "CryptoObject01", ..."""
-    count = _cryptomatte().pass_count(cryptomatte_levels(view_layer))
+    count = _engine_module("cryptomatte").pass_count(cryptomatte_levels(view_layer))
     return [(kind, f"{prefix}{i:02d}") for switch, kind, prefix in CRYPTOMATTE_LAYERS
             if getattr(view_layer, switch, False) for i in range(count)]
 
 
-def _shadowcatcher():
-    """The engine's shadowcatcher module (no bpy, loaded with the engine)."""
+def _engine_module(name):
+    """The engine's module `name` (no bpy, loaded with the engine)."""
     import importlib
-    return importlib.import_module(load_engine().__name__ + ".shadowcatcher")
-
-
-def _cryptomatte():
-    """The engine's cryptomatte module (no bpy, loaded with the engine)."""
-    import importlib
-    return importlib.import_module(load_engine().__name__ + ".cryptomatte")
+    return importlib.import_module(load_engine().__name__ + "." + name)
 
 
 def cryptomatte_levels(view_layer) -> int:
@@ -643,7 +637,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             # Holdout surfaces make alpha 0 with or without a transparent film (Cycles).
             alpha = film.alpha if transparent else 1.0 - film.holdout
             rgba = np.concatenate([rgb, alpha[:, :, None]], axis=2)
-            catcher = _shadowcatcher()
+            catcher = _engine_module("shadowcatcher")
             with_pass = _shadow_catcher_pass(view_layer)
             if not film.show_photons:
                 # Shadow catchers: Combined as Cycles makes it (the shadow as alpha or over
@@ -676,7 +670,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                     # The compositor's Cryptomatte node finds the layer and its names in
                     # the whole render's metadata (get_result: a begin_result tile's own
                     # stamp data is not kept, as Cycles' stamp_view_layer_metadata).
-                    meta = _cryptomatte().metadata(
+                    meta = _engine_module("cryptomatte").metadata(
                         view_layer.name, kind, film.cryptomatte_names.get(kind, ()))
                     whole = self.get_result()
                     for key, value in meta.items():

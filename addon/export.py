@@ -330,10 +330,7 @@ def curves_info(points, offsets, faces, curve, intercept, radius) -> dict:
     run = np.concatenate([[0.0], np.cumsum(seg)])
     offsets = np.asarray(offsets, np.int64)
     length = run[offsets[1:] - 1] - run[offsets[:-1]]  # (C,), over each curve's keys
-    m = 0xFFFFFFFF
-    init = (0xDEADBEEF + (2 << 2) + 13) & m
-    k = np.arange(len(length), dtype=np.int64)
-    h = _lookup3_final((init + k) & m, np.full_like(k, init), np.full_like(k, init))
+    h = hash_uint2(np.arange(len(length), dtype=np.int64), 0)
     random = (h.astype(np.float32) / np.float32(4294967295.0)).astype(np.float64)
     per_face = np.stack([length[curve], random[curve]], 1)  # (F,2)
     vec = np.empty(faces.shape + (3,))
@@ -1181,9 +1178,17 @@ def cycles_name_random_id(name: str) -> int:
     for byte in name.encode("utf-8"):
         c = byte - 256 if byte >= 128 else byte  # a signed char, widened to uint
         h = (h * 37 + c) & 0xFFFFFFFF
+    return int(hash_uint2(h, 0))
+
+
+def hash_uint2(kx, ky):
+    """Cycles' hash_uint2 (util/hash.h) of uint32 kx, ky (Python ints or int64 arrays):
+    lookup3's final mix of a = kx, b = ky on the seed 0xdeadbeef + (2 << 2) + 13."""
     m = 0xFFFFFFFF
-    a = b = c = (0xDEADBEEF + (2 << 2) + 13) & m
-    return _lookup3_final((a + h) & m, (b + 0) & m, c)
+    init = (0xDEADBEEF + (2 << 2) + 13) & m
+    kx = np.asarray(kx, np.int64) & m
+    return _lookup3_final((init + kx) & m, (init + (np.int64(ky) & m)) & m,
+                          np.full_like(kx, init))
 
 
 def object_info(obj, inst, attribute_requests=()) -> dict:

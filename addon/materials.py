@@ -500,14 +500,9 @@ class MaterialConverter:
         if volume is not None and volume.is_linked:
             # The medium inside the object: its absorption (engine/media.py); a material
             # without a surface lets every ray through to it (Material.volume_only).
-            absorb, scatter, g_scatter = self._volume(self._source(volume), 0)
-            sigma = np.clip(absorb, 0.0, None)
-            scatter = np.clip(scatter, 0.0, None)
-            # One phase function for the medium: the scattering-weighted mean of its
-            # Henyey-Greenstein g (a single scatter node: its own g).
-            g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
+            sigma, scatter, g = self._medium_of(volume)
             only = out.inputs.get("Surface") is None or not out.inputs["Surface"].is_linked
-            self._medium = (sigma, only, scatter, min(max(g, -G_LIMIT), G_LIMIT))
+            self._medium = (sigma, only, scatter, g)
         surface = out.inputs.get("Surface")
         if surface is None or not surface.is_linked:
             # Cycles renders an unconnected surface black.
@@ -672,14 +667,20 @@ class MaterialConverter:
         Volume, Volume Scatter, Volume Absorption, Add / Mix of them); warnings get what it
         drops, naming the world."""
         self._mat, self._warnings, self._warned = world, [], set()
-        absorb, scatter, g_scatter = self._volume(self._source(socket), 0)
+        medium = self._medium_of(socket)
         warnings.extend(w.replace(f"material '{world.name}'", f"world '{world.name}'", 1)
                         for w in self._warnings)
-        sigma = np.clip(absorb, 0.0, None)
+        return medium
+
+    def _medium_of(self, socket):
+        """(sigma_a (3,), sigma_s (3,), g) in 1/m of the volume tree feeding `socket`
+        (_volume), the coefficients clipped at 0; one phase function for the medium: the
+        scattering-weighted mean of its Henyey-Greenstein g (a single scatter node: its
+        own g), within +-G_LIMIT."""
+        absorb, scatter, g_scatter = self._volume(self._source(socket), 0)
         scatter = np.clip(scatter, 0.0, None)
-        # (one phase function: the scattering-weighted mean g, as a material's medium)
         g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
-        return sigma, scatter, min(max(g, -G_LIMIT), G_LIMIT)
+        return np.clip(absorb, 0.0, None), scatter, min(max(g, -G_LIMIT), G_LIMIT)
 
     def _anisotropy_g(self, node) -> float:
         """A volume node's Anisotropy as the Henyey-Greenstein g Cycles uses: clamped to

@@ -24,14 +24,11 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))
 
+from test_hair_bsdf_cycles import MODES as TEST_MODES  # noqa: E402
+
+# The test's modes, and two the tests leave out.
 MODES = {
-    "default": {},
-    "blond": {"parametrization": "MELANIN", "Melanin": 0.2, "Melanin Redness": 0.4},
-    "brown": {"parametrization": "MELANIN", "Melanin": 0.6, "Melanin Redness": 0.4},
-    "black": {"parametrization": "MELANIN", "Melanin": 0.95, "Melanin Redness": 0.1},
-    "red": {"parametrization": "COLOR", "Color": (0.8, 0.1, 0.05, 1.0)},
-    "randomcol": {"parametrization": "MELANIN", "Melanin": 0.5, "Melanin Redness": 0.3,
-                  "Random Color": 0.8},
+    **TEST_MODES,
     "absorb": {"parametrization": "ABSORPTION", "Absorption Coefficient": (0.2, 0.6, 1.5)},
     "huang": {"model": "HUANG", "parametrization": "MELANIN", "Melanin": 0.4,
               "Melanin Redness": 0.4},
@@ -41,24 +38,11 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 def groom(bpy, sc, n):
     """Replace the tuft's strands by n thinner ones on the same patch (seeded)."""
-    old = bpy.data.objects["Tuft"]
-    rng = np.random.default_rng(5)
-    keys = 5
-    curves = bpy.data.hair_curves.new("Groom")
-    curves.add_curves([keys] * n)
-    root = rng.uniform(-0.8, 0.8, (n, 2))
-    lean = rng.normal(0.0, 0.15, (n, 2))
-    s = np.linspace(0.0, 1.0, keys)
-    pos = np.zeros((n, keys, 3))
-    pos[..., :2] = root[:, None] + lean[:, None] * (s * s)[None, :, None]
-    pos[..., 2] = 0.6 * s
-    curves.position_data.foreach_set("vector", pos.reshape(-1).astype(np.float32))
-    radius = curves.attributes.new("radius", "FLOAT", "POINT")
-    radius.data.foreach_set("value", np.tile(np.linspace(0.006, 0.002, keys), n)
-                            .astype(np.float32))
-    curves.materials.append(bpy.data.materials["Hair"])
-    sc.collection.objects.link(bpy.data.objects.new("Groom", curves))
-    bpy.data.objects.remove(old)
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends
+    make_blends.tuft("Groom", bpy.data.materials["Hair"], count=n, keys=5, spread=0.8,
+                     height=0.6, lean=0.15, radius=(0.006, 0.002), seed=5)
+    bpy.data.objects.remove(bpy.data.objects["Tuft"])
 
 
 def run(bpy, mode, strands, spp_cycles, spp, out_dir, shape="RIBBONS"):

@@ -14,9 +14,9 @@ line of its own (tqdm's "\r" before a frame starts no line in a log viewer: a re
 frames were one line of thousands of characters, s36), and a frame is drawn only when the
 stage changes (its text, counts aside; the stage's last state first, when it was not
 drawn), every LOG_FRAME_SECONDS otherwise, and at the close; never twice with the same
-text, its clock aside (a stage's text and then its first
-progress step drew one state twice, and closing the bar drew its last state again, below
-the lines printed after it: "Cancelled" twice in a log, s30)."""
+text, its clock aside (a stage's text and then its first progress step drew one state
+twice, and closing the bar drew its last state again, below the lines printed after it:
+"Cancelled" twice in a log, s30)."""
 from __future__ import annotations
 
 import re
@@ -104,13 +104,12 @@ class BarConsole:
                     stage == self._last_stage and not self._closing
                     and now - self._last_time < LOG_FRAME_SECONDS):
                 if state != self._last_frame:
-                    self._skipped = (state, str(bar))
+                    self._skipped = str(bar)
                 return True
-            if self._skipped is not None and stage != self._last_stage and \
-                    self._skipped[0] != self._last_frame:
+            if self._skipped is not None and stage != self._last_stage:
                 # A stage ends on its last state ("Tracing photons 400k/400k"), not on
                 # the first one drawn (it read as if the count never got there).
-                self.bar_file.write("\r" + self._skipped[1])
+                self.bar_file.write("\r" + self._skipped)
             self._skipped = None
             self._last_frame, self._last_stage, self._last_time = state, stage, now
             return draw(msg, pos)

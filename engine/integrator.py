@@ -299,12 +299,10 @@ def _world_sigma(ctx, hit, rows):
     without a world volume: shadow rays crossing transparent surfaces keep exp(-sigma_t
     length) of it (directlight.direct_light)."""
     row = worldmedium.medium_row(ctx)
-    med = getattr(hit, "medium", None)
-    if row < 0 or med is None:
-        return None
-    med = np.asarray(med if rows is None else np.take(med, rows), np.int64)
-    out = np.zeros((len(med), 3))
-    out[med == row] = ctx.scene.world_medium.extinction
+    out = _medium_sigma(ctx, hit, rows) if row >= 0 else None
+    if out is not None:
+        med = np.asarray(hit.medium if rows is None else np.take(hit.medium, rows))
+        out[med != row] = 0.0  # (the hits in an object's medium: not the world's)
     return out
 
 
@@ -841,7 +839,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         if medium_h is not None:
             # From the gathering surface: the medium its camera path was in (a floor
             # inside a fog cube; not its own medium's surface), else not known.
-            medium_h[idx] = (worldmedium.outside(np.full(len(idx), -1, np.int64), world_row)
+            medium_h[idx] = (np.full(len(idx), world_row, np.int64)  # (-1: none)
                              if start_medium is None else np.take(start_medium, idx))
         # The bounces beyond the level's own of each hit's ray (a hit has one ray a step:
         # indexed by idx through the compactions; None: none yet).
@@ -2380,10 +2378,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 esc_uv = None
                 if (sampler0 is not None and sample_id is not None
                         and volumescatter.STRATIFIED):
-                    strat_v = sampler0.subset(slice(0, 0))
-                    strat_v.sub = np.asarray(sample_id)[esc]
-                    strat_v.pix = np.asarray(pix)[esc] + pix_shift
-                    esc_uv = strat_v.uv(("volume",), rng=vol_rng)
+                    esc_uv = sampler0.for_samples(
+                        np.asarray(sample_id)[esc], np.asarray(pix)[esc] + pix_shift).uv(
+                        ("volume",), rng=vol_rng)
                 src, Ls = scatter.radiance(esc_prim, np.take(o, esc, axis=0),
                                            np.take(d, esc, axis=0), esc_t,
                                            np.take(medium, esc), vol_rng, counters, esc_uv)
@@ -2455,22 +2452,21 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 acc.add_scalar(acc.holdout, pix[hole], held)
                 if bounce > 0:
                     acc.add_scalar(acc.alpha, pix[hole], -held)
-        if bounce > 0 and split_catchers and catchers is not None and hitm.any():
-            # A catcher met by a camera ray continued through a transparent surface is not
-            # split (Cycles splits it there too): counted for a warning (render_pass).
-            behind = np.take(catchers, np.take(ctx.geo.object_id, prim[hitm])) & (
-                ray_cls[hitm] == CAMERA)
-            if behind.any():
-                counters.count("catcher behind transparent", bounce, int(behind.sum()))
-        if bounce == 0 and split_catchers and catchers is not None:
-            # Camera rays meeting a shadow catcher first: Cycles' split (integrator/
-            # shadow_catcher.h): their light is the catcher's "with the objects"
-            # radiance, kept apart (engine/shadowcatcher.py); they leave this batch.
+        if split_catchers and catchers is not None:
+            # Camera rays meeting a shadow catcher.
             caught = np.zeros(len(prim), bool)
             if hitm.any():
                 caught[hitm] = np.take(catchers, np.take(ctx.geo.object_id, prim[hitm])) & (
                     ray_cls[hitm] == CAMERA)
-            if caught.any() or not s.film_transparent:
+            if bounce > 0:
+                # Continued through a transparent surface: not split (Cycles splits it
+                # there too), counted for a warning (render_pass).
+                if caught.any():
+                    counters.count("catcher behind transparent", bounce, int(caught.sum()))
+            elif caught.any() or not s.film_transparent:
+                # First: Cycles' split (integrator/shadow_catcher.h): their light is the
+                # catcher's "with the objects" radiance, kept apart
+                # (engine/shadowcatcher.py); they leave this batch.
                 _split_catcher_paths(ctx, acc, caught, miss, o, d, tmax, tp, pix, rng,
                                      counters, cam_pos, forward, should_cancel, sampler,
                                      sample_id, bsdf_rng, buffers)
@@ -2527,10 +2523,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # (a transparent surface's continuation, the fog box's invisible
                     # front face, makes its segments bounce 1: the sampler's rows are
                     # rebuilt from the paths' own sample indices and pixels)
-                    strat_v = sampler0.subset(slice(0, 0))
-                    strat_v.sub = np.asarray(sample_id)
-                    strat_v.pix = np.asarray(pix) + pix_shift
-                    vol_uv = strat_v.uv(("volume",), rng=vol_rng)
+                    vol_uv = sampler0.for_samples(sample_id, np.asarray(pix) + pix_shift).uv(
+                        ("volume",), rng=vol_rng)
                 scatter.add(acc, "direct" if bounce == 0 else "specular", pix, prim, o, d, t,
                             medium, tp_seg, vol_rng, counters, uv=vol_uv)
         # (Sheen's bounces, continued as DIFFUSE rays, are the total's others: Cycles
@@ -2638,9 +2632,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 # Every path here came straight through transparent surfaces (a fog
                 # box's invisible faces, alpha): this is their first hit that bends,
                 # stratified as at bounce 0 by each path's sample index and pixel.
-                strat = sampler0.subset(slice(0, 0))
-                strat.sub = np.asarray(sample_id if every else sample_id[dsel])
-                strat.pix = np.asarray(pix if every else pix[dsel]) + pix_shift
+                strat = sampler0.for_samples(sample_id if every else sample_id[dsel],
+                                             np.asarray(pix if every else pix[dsel]) + pix_shift)
             g = glossy if every else glossy[dsel]
             # The shaded rows read in place (rows=dsel), or the batch itself: no copies of
             # their fields for the direct stage.

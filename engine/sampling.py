@@ -198,6 +198,14 @@ class StratifiedSampler:
         s.salt = self.salt
         return s
 
+    def for_samples(self, sub, pix) -> "StratifiedSampler":
+        """This sampler's stream and dimensions for other rows: sample indices sub (N,)
+        and (shifted) pixel ids pix (N,) (paths whose rows are rebuilt from their own
+        sample index and pixel)."""
+        s = self.subset(slice(0, 0))
+        s.sub, s.pix = np.asarray(sub), np.asarray(pix)
+        return s
+
     def uv(self, key, rng=None, scrambled=True) -> tuple[np.ndarray, np.ndarray]:
         """(u1, u2), each (N,) in [0, 1), for the dimension named key (SampleDimensions);
         rng: the generator of the jitter inside the cells (default: the sampler's);
