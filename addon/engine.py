@@ -225,6 +225,36 @@ def kernel_words(compiled: bool) -> str:
     return "compiling the kernels" if compiled else "loading the compiled kernels"
 
 
+MOTION_BLUR_PROGRESSIVE = ("motion blur is not rendered with progressive or distributed "
+                           "rendering (each pass is one moment); turn Progressive off to "
+                           "render it")
+
+
+def motion_blur_warnings(scene, depsgraph) -> list:
+    """What of Blender's motion blur settings the time steps do not follow, named:
+    Cycles' Rolling Shutter, a shaped Shutter Curve, objects with Object > Motion Blur
+    off (they blur like the others)."""
+    out = []
+    cycles = getattr(scene, "cycles", None)
+    if cycles is not None and getattr(cycles, "rolling_shutter_type", "NONE") != "NONE":
+        out.append("motion blur: Rolling Shutter is not simulated (a global shutter)")
+    curve = getattr(scene.render, "motion_blur_shutter_curve", None)
+    try:
+        points = [tuple(p.location) for p in curve.curves[0].points]
+    except (AttributeError, IndexError, TypeError):
+        points = []
+    if any(abs(y - 1.0) > 1e-6 for _, y in points):
+        out.append("motion blur: the Shutter Curve is not followed (the shutter is open "
+                   "fully for its whole time)")
+    off = sorted(o.name for o in scene.objects
+                 if not getattr(getattr(o, "cycles", None), "use_motion_blur", True))
+    if off:
+        names = ", ".join(f"'{n}'" for n in off[:3]) + (" ..." if len(off) > 3 else "")
+        out.append(f"motion blur: Object > Motion Blur off is not followed for {names}: "
+                   "they blur with their motion")
+    return out
+
+
 # The bar's share of the export (before the render's settings are known); the render's
 # stages share the rest in proportion to their work (engine/stagespans.py).
 EXPORT_SHARE = 0.02
@@ -497,8 +527,14 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
 
         t0 = time.perf_counter()
         if props.progressive or props.dask_scheduler.strip():  # a cluster renders passes
+            if render.use_motion_blur:
+                on_warning(MOTION_BLUR_PROGRESSIVE)
+                pm_scene.warnings.append(MOTION_BLUR_PROGRESSIVE)
             film = self._render_progressive(pm, pm_scene, settings, props, progress, region,
                                             view_layer, render.film_transparent, on_warning)
+        elif render.use_motion_blur:
+            film = self._render_motion_blur(pm, depsgraph, pm_scene, settings, props,
+                                            region, width, height, on_warning)
         else:
             film = pm.render(pm_scene, settings, progress=progress,
                              should_cancel=self._should_cancel, region=region,
@@ -555,6 +591,58 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         else:
             self._stats(f"Done: {summary}")
         self._emit("finished", "cancelled" if cancelled else "done")
+
+    def _render_motion_blur(self, pm, depsgraph, pm_scene, settings, props, region, width,
+                            height, on_warning):
+        """Render > Motion Blur: the scene exported at the middle of each of Motion Blur >
+        Steps slices of the shutter (RenderEngine.frame_set, as Cycles evaluates its
+        motion steps), each rendered whole and averaged (engine/motionblur.py). pm_scene,
+        exported at the frame, is the still if nothing moves. The frame is restored."""
+        scene = depsgraph.scene
+        render = scene.render
+        mb = pm.motionblur
+        frame, subframe = scene.frame_current, scene.frame_subframe
+        times = mb.shutter_times(frame + subframe,
+                                 float(render.motion_blur_shutter),
+                                 str(render.motion_blur_position), int(props.motion_blur_steps))
+        extra = motion_blur_warnings(scene, depsgraph)
+        for w in extra:
+            on_warning(w)
+        step = {"i": 0, "n": len(times), "spans": None}
+
+        def scene_at(t):
+            f, sub = mb.frame_and_subframe(t)
+            self.frame_set(f, subframe=sub)
+            out, _ = export.export_scene(pm, depsgraph, camera=self.camera_override,
+                                         width=width, height=height,
+                                         should_cancel=self._should_cancel)
+            out.warnings.extend(extra)
+            return out
+
+        def on_step(i, n):
+            step.update(i=i, n=n, spans=pm.stagespans.StageSpans(
+                settings.uses_photon_maps, settings.photons + settings.caustic_photons,
+                max(width * height, 1) * mb.step_settings(settings, i, n).spp))
+
+        def progress(stage, fraction, text):
+            spans = step["spans"]
+            whole = spans.whole(stage, fraction) if spans is not None else None
+            if whole is not None:
+                self._progress(EXPORT_SHARE + (1.0 - EXPORT_SHARE)
+                               * (step["i"] + whole) / step["n"])
+            self._throttled_stats(stage, fraction, text)
+
+        def plan(work):
+            if step["spans"] is not None:
+                step["spans"].plan(work)
+
+        try:
+            return mb.render_motion_blur(scene_at, times, settings, progress=progress,
+                                         should_cancel=self._should_cancel, region=region,
+                                         on_warning=on_warning, on_plan=plan,
+                                         on_step=on_step)
+        finally:
+            self.frame_set(frame, subframe=subframe)
 
     def _render_progressive(self, pm, pm_scene, settings, props, progress, region, view_layer,
                             transparent, on_warning=None):

@@ -1460,8 +1460,6 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
     background, environment = export_world(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
-    if render.use_motion_blur:
-        warnings.append("motion blur is not supported and ignored")
     fog = world_medium(pm, scene_eval.world, warnings)
     volume_bounces_warning(scene_eval, materials, warnings, fog)
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera_out,
@@ -1677,6 +1675,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         lights_changed=first or updates.lights or light_names != cache.light_names,
         world_changed=first or updates.world)
     cache.light_names = light_names
-    if render.use_motion_blur:
-        scene.warnings.append("motion blur is not supported and ignored")
+    if render.use_motion_blur:  # F12 renders it (engine/motionblur.py): time steps
+        scene.warnings.append("motion blur is not shown in the viewport (a still at the "
+                              "frame's time); the final render (F12) renders it")
     return scene, info

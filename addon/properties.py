@@ -87,6 +87,13 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
         name="Quality", items=_preset_items, update=_apply_preset, default=2,  # "high"
         description="Settings bundles; the label shows time and error measured on the "
                     "Figure 6 box (bench/bench_accuracy.py)")
+    # Render > Motion Blur (Blender's switch, Shutter and Position; engine/motionblur.py)
+    motion_blur_steps: IntProperty(
+        name="Steps", default=8, min=1, max=256, soft_max=64,
+        description="Motion blur: the shutter is cut into this many time slices, each "
+                    "rendered whole at its middle time (its own photons, a share of the "
+                    "samples) and averaged; more steps blur fast motion without ghost "
+                    "copies and cost one photon pass each")
     # Progressive rendering
     progressive: BoolProperty(
         name="Progressive", default=False,

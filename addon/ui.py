@@ -226,6 +226,26 @@ class PHOTONMAP_PT_display(PhotonMapButtonsPanel, bpy.types.Panel):
             col.prop(context.scene.render, "filter_size", text="Filter Size")
 
 
+class PHOTONMAP_PT_motion_blur(PhotonMapButtonsPanel, bpy.types.Panel):
+    """Blender's own motion blur settings (shared with Cycles and EEVEE) and our steps."""
+    bl_label = "Motion Blur"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.render, "use_motion_blur", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        render = context.scene.render
+        col = layout.column()
+        col.active = render.use_motion_blur
+        col.prop(render, "motion_blur_position", text="Position")
+        col.prop(render, "motion_blur_shutter")
+        col.prop(context.scene.photonmap, "motion_blur_steps")
+
+
 class PHOTONMAP_PT_performance(PhotonMapButtonsPanel, bpy.types.Panel):
     bl_label = "Performance"
     bl_options = {"DEFAULT_CLOSED"}
@@ -457,7 +477,8 @@ classes = (PHOTONMAP_PT_sampling, PHOTONMAP_PT_progressive, PHOTONMAP_PT_viewpor
            PHOTONMAP_PT_light_paths_clamping,
            PHOTONMAP_PT_effects,
            PHOTONMAP_PT_photons, PHOTONMAP_PT_estimate,
-           PHOTONMAP_PT_display, PHOTONMAP_PT_performance, PHOTONMAP_PT_distributed,
+           PHOTONMAP_PT_display, PHOTONMAP_PT_motion_blur, PHOTONMAP_PT_performance,
+           PHOTONMAP_PT_distributed,
            PHOTONMAP_PT_passes, PHOTONMAP_PT_teaching, PHOTONMAP_PT_material_settings,
            PHOTONMAP_PT_object_visibility)
 

@@ -49,6 +49,7 @@ def reset():
         pass
     r.resolution_x, r.resolution_y, r.resolution_percentage = WIDTH, HEIGHT, 100
     r.film_transparent = False
+    r.use_motion_blur = False  # a case that animates turns it on (tools/feature_matrix.py)
     settings = r.image_settings
     if hasattr(settings, "media_type"):  # Blender 5.0: an earlier multilayer EXR limits formats
         settings.media_type = "IMAGE"
