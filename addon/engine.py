@@ -1,6 +1,7 @@
 """The RenderEngine: depsgraph -> export -> engine.render -> Blender render result."""
 from __future__ import annotations
 
+import importlib
 import re
 import time
 import traceback
@@ -610,12 +611,17 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             on_warning(w)
         step = {"i": 0, "n": len(times), "spans": None}
 
+        cancelled_error = importlib.import_module(pm.__name__ + ".parallel").Cancelled
+
         def scene_at(t):
             f, sub = mb.frame_and_subframe(t)
             self.frame_set(f, subframe=sub)
-            out, _ = export.export_scene(pm, depsgraph, camera=self.camera_override,
-                                         width=width, height=height,
-                                         should_cancel=self._should_cancel)
+            try:
+                out, _ = export.export_scene(pm, depsgraph, camera=self.camera_override,
+                                             width=width, height=height,
+                                             should_cancel=self._should_cancel)
+            except export.ExportCancelled as exc:  # the engine keeps the steps done
+                raise cancelled_error(str(exc)) from exc
             out.warnings.extend(extra)
             return out
 
@@ -641,6 +647,12 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                                          should_cancel=self._should_cancel, region=region,
                                          on_warning=on_warning, on_plan=plan,
                                          on_step=on_step)
+        except cancelled_error:  # before the first step: an empty film, marked cancelled
+            x0, y0, x1, y1 = region if region is not None else (0, 0, width, height)
+            film = pm.Film(x1 - x0, y1 - y0)
+            film.stats.update(cancelled=True, motion_blur_steps=0)
+            film.warnings = list(pm_scene.all_warnings())
+            return film
         finally:
             self.frame_set(frame, subframe=subframe)
 

@@ -27,6 +27,7 @@ from typing import Callable
 import numpy as np
 
 from .film import Film
+from .parallel import Cancelled
 from .progressive import K_MIN, PassMerger
 from .render import render, warning_key, warning_teller
 from .scene import Scene
@@ -148,7 +149,8 @@ def render_motion_blur(scene_at: Callable[[float], Scene], times,
     renders, so a progress bar can place the steps' stages. film.stats: the first step's, with
     motion_blur_steps (1 when nothing moved), motion_blur_times, the times summed and
     the photons of every step; cancelling keeps the steps done (at least the first
-    step's partial film).
+    step's partial film). scene_at may raise parallel.Cancelled (a cancelled export):
+    after the first step the steps done are kept; before, it propagates.
     Raises what render raises (SceneError, ResourceError) and ValueError for no times."""
     settings = settings or RenderSettings()
     times = [float(t) for t in np.atleast_1d(np.asarray(times, np.float64))]
@@ -192,7 +194,11 @@ def render_motion_blur(scene_at: Callable[[float], Scene], times,
         if should_cancel is not None and should_cancel() and merger is not None:
             cancelled = True
             break
-        scene = scenes.pop(i) if i in scenes else scene_at(t)
+        try:
+            scene = scenes.pop(i) if i in scenes else scene_at(t)
+        except Cancelled:  # cancelled while the front end exported this step's scene
+            cancelled = True
+            break
 
         def step_progress(stage, fraction, text, _i=i):
             if progress is not None:

@@ -132,3 +132,26 @@ def test_a_cancel_keeps_the_steps_done():
     assert film.stats["cancelled"]
     assert 1 <= film.stats["motion_blur_steps"] < 8
     assert np.isfinite(np.asarray(film.combined)).all()
+
+
+def test_a_cancelled_export_keeps_the_steps_done():
+    """scene_at raising parallel.Cancelled (the add-on's export, cancelled): after the
+    first step the steps done make the film; on the first scene it propagates."""
+    from engine.parallel import Cancelled
+    asked = []
+
+    def scene_at(t):
+        asked.append(t)
+        if len(asked) > 3:  # the first, the last (compared), the second: then Esc
+            raise Cancelled("export cancelled")
+        return _glow_scene(t - 1.0, width=32, height=16)
+
+    settings = RenderSettings(spp=8, workers=1, seed=1, photon_mapping=False)
+    film = render_motion_blur(scene_at, shutter_times(1, 0.5, "CENTER", 8), settings)
+    assert film.stats["cancelled"] and film.stats["motion_blur_steps"] == 2
+
+    def refuse(t):
+        raise Cancelled("export cancelled")
+
+    with pytest.raises(Cancelled):
+        render_motion_blur(refuse, [1.0, 1.1], settings)

@@ -127,3 +127,30 @@ def test_motion_blur_says_what_it_does_not_follow(bpy_addon, tmp_path):
     render_exr(bpy, sc, str(tmp_path / "progressive.exr"))
     assert [w for w in engine.last_render["warnings"]
             if w.startswith("motion blur is not rendered with progressive")]
+
+
+@pytest.mark.parametrize("after", [1, 60])
+def test_a_cancel_during_motion_blur_restores_the_frame(bpy_addon, tmp_path, after):
+    """Esc during the time steps (the first poll: during the first export; later: a few
+    steps in): the render ends cancelled, nothing raised, the frame restored."""
+    bpy = bpy_addon
+    sc = _scene(bpy)
+    sc.render.engine = "PHOTONMAP"
+    sc.render.resolution_x, sc.render.resolution_y = 24, 12
+    sc.photonmap.spp = 8
+    sc.photonmap.photons = sc.photonmap.caustic_photons = 20_000
+    from addon import engine
+    polls = {"n": 0}
+
+    def hook():
+        polls["n"] += 1
+        return polls["n"] > after
+
+    engine.test_break_hook = hook
+    try:
+        render_exr(bpy, sc, str(tmp_path / "cancelled.exr"))
+    finally:
+        engine.test_break_hook = None
+    assert engine.last_render.get("cancelled"), engine.last_render.get("error")
+    assert not engine.last_render.get("error")
+    assert sc.frame_current == 1 and sc.frame_subframe == 0.0
