@@ -233,8 +233,7 @@ MOTION_BLUR_PROGRESSIVE = ("motion blur is not rendered with progressive or dist
 
 def motion_blur_warnings(scene, depsgraph) -> list:
     """What of Blender's motion blur settings the time steps do not follow, named:
-    Cycles' Rolling Shutter, a shaped Shutter Curve, objects with Object > Motion Blur
-    off (they blur like the others)."""
+    Cycles' Rolling Shutter, a shaped Shutter Curve."""
     out = []
     cycles = getattr(scene, "cycles", None)
     if cycles is not None and getattr(cycles, "rolling_shutter_type", "NONE") != "NONE":
@@ -247,13 +246,33 @@ def motion_blur_warnings(scene, depsgraph) -> list:
     if any(abs(y - 1.0) > 1e-6 for _, y in points):
         out.append("motion blur: the Shutter Curve is not followed (the shutter is open "
                    "fully for its whole time)")
-    off = sorted(o.name for o in scene.objects
-                 if not getattr(getattr(o, "cycles", None), "use_motion_blur", True))
-    if off:
-        names = ", ".join(f"'{n}'" for n in off[:3]) + (" ..." if len(off) > 3 else "")
-        out.append(f"motion blur: Object > Motion Blur off is not followed for {names}: "
-                   "they blur with their motion")
     return out
+
+
+def motion_blur_off(scene) -> set:
+    """Names of the objects whose Object > Motion Blur is off (Cycles' per-object
+    use_motion_blur): rendered at the frame's time in every step."""
+    return {o.name for o in scene.objects
+            if not getattr(getattr(o, "cycles", None), "use_motion_blur", True)}
+
+
+def hold_still(moved, still, names: set, camera_name: str | None):
+    """moved (the scene exported at a step's time) with the meshes, lights and camera of
+    the objects in `names` taken from still (the scene at the frame's time): Cycles
+    renders an object whose motion blur is off at the frame. Meshes are matched by their
+    object (Mesh.cryptomatte_object, else its name: instances of it included), lights by name."""
+    if not names:
+        return moved
+    def held(m):
+        return (m.cryptomatte_object or m.name) in names
+
+    moved.meshes = [m for m in moved.meshes if not held(m)] + [m for m in still.meshes
+                                                              if held(m)]
+    moved.lights = ([li for li in moved.lights if li.name not in names]
+                    + [li for li in still.lights if li.name in names])
+    if camera_name in names:
+        moved.camera = still.camera
+    return moved
 
 
 # The bar's share of the export (before the render's settings are known); the render's
@@ -598,7 +617,8 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         """Render > Motion Blur: the scene exported at the middle of each of Motion Blur >
         Steps slices of the shutter (RenderEngine.frame_set, as Cycles evaluates its
         motion steps), each rendered whole and averaged (engine/motionblur.py). pm_scene,
-        exported at the frame, is the still if nothing moves. The frame is restored."""
+        exported at the frame, gives the objects whose own Motion Blur is off
+        (hold_still). The frame is restored."""
         scene = depsgraph.scene
         render = scene.render
         mb = pm.motionblur
@@ -610,6 +630,9 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         for w in extra:
             on_warning(w)
         step = {"i": 0, "n": len(times), "spans": None}
+        still_names = motion_blur_off(scene)
+        cam = self.camera_override or scene.camera
+        camera_name = cam.name if cam is not None else None
 
         cancelled_error = importlib.import_module(pm.__name__ + ".parallel").Cancelled
 
@@ -623,7 +646,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             except export.ExportCancelled as exc:  # the engine keeps the steps done
                 raise cancelled_error(str(exc)) from exc
             out.warnings.extend(extra)
-            return out
+            return hold_still(out, pm_scene, still_names, camera_name)
 
         def on_step(i, n):
             step.update(i=i, n=n, spans=pm.stagespans.StageSpans(

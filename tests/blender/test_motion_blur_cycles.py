@@ -154,3 +154,23 @@ def test_a_cancel_during_motion_blur_restores_the_frame(bpy_addon, tmp_path, aft
     assert engine.last_render.get("cancelled"), engine.last_render.get("error")
     assert not engine.last_render.get("error")
     assert sc.frame_current == 1 and sc.frame_subframe == 0.0
+
+
+def test_an_object_with_its_motion_blur_off_stays_at_the_frame(bpy_addon, tmp_path):
+    """Object > Motion Blur off on the moving ball (Cycles' per-object use_motion_blur):
+    both engines render it sharp at the frame's position; nothing else moves, so ours
+    renders once."""
+    bpy = bpy_addon
+    sc = _scene(bpy)
+    bpy.data.objects["Ball"].cycles.use_motion_blur = False
+    sc.render.resolution_x, sc.render.resolution_y = 48, 24
+    sc.render.engine = "CYCLES"
+    cycles_plain(sc, 128, 12)
+    ref = _luminance(bpy, sc, tmp_path / "cycles.exr")
+    sc.render.engine = "PHOTONMAP"
+    sc.photonmap.spp = 16
+    from addon import engine
+    ours = _luminance(bpy, sc, tmp_path / "ours.exr")
+    assert engine.last_render["stats"]["motion_blur_steps"] == 1
+    po, pc = ours[10:14].mean(0), ref[10:14].mean(0)
+    assert np.abs(po - pc).max() < 0.04, np.round(np.c_[po, pc], 3)
