@@ -94,6 +94,9 @@ class Context:
     # are measured against (its settings set per pass by _render_pass).
     catcher_objects: np.ndarray | None = None
     catcher_alone: "Context | None" = None
+    # What catcher_alone was built from (shadowcatcher.alone_key): a viewport session keeps
+    # it through edits that leave it unchanged.
+    catcher_key: str | None = None
 
 
     def serial(self) -> "Context":
