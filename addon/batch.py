@@ -138,6 +138,7 @@ class _StatusPrinter:
         self.effects = []
         self.warnings = []
         self.done_line = None  # the engine's closing "Done: ..." in full, printed at close
+        self.stage = None  # the engine's stage of the progress to come ("stage" events)
         self._shown = []  # lines printed at a warning event, still to come from Blender
 
     @property
@@ -147,9 +148,9 @@ class _StatusPrinter:
     def _ensure_bar(self):
         if self.console.bar is None and not self.quiet:
             from engine.eta import Eta, progress_bar
-            # The time left from the rate after the kernel compile and the first chunk
-            # (engine/eta.py); tqdm's own {remaining} counted the compile in.
-            self.eta = Eta()
+            # The time left from the rate after the kernel compile and the first chunk, in
+            # the camera pass (engine/eta.py); tqdm's own {remaining} counted the compile in.
+            self.eta = Eta(final_stage="render")
             self.console.bar = progress_bar("Starting", "{desc:<46.46}{bar}| "
                                             "{percentage:3.0f}% [{elapsed}<{eta}]",
                                             self.console.bar_file, self.eta)
@@ -167,6 +168,8 @@ class _StatusPrinter:
             self.film = value
         elif event == "effects":
             self.effects = list(value)
+        elif event == "stage":
+            self.stage = str(value)
         elif event == "warning":
             self.warnings.append(str(value))
             if not self.quiet:
@@ -193,7 +196,7 @@ class _StatusPrinter:
                         self.done_line, text = text, "Done"
                     bar.set_description_str(text, refresh=True)
                 elif event == "progress":
-                    self.eta.update(float(value))
+                    self.eta.update(float(value), self.stage)
                     n = int(round(1000 * min(max(float(value), 0.0), 1.0)))
                     if n > bar.n:
                         bar.update(n - bar.n)

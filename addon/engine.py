@@ -177,7 +177,9 @@ last_render: dict = {}
 # Callables listener(event, value) told what Blender's stats line and progress bar show,
 # for scripts that run through the bpy module, which prints neither (addon/batch.py draws
 # its progress bar from them). Events: ("stats", text), ("progress", fraction 0..1 of the
-# whole render), ("effects", [lines]), ("warning", text), ("film", the engine's Film of
+# whole render), ("stage", the engine's stage name: "photons", "photon_map", "render",
+# told before its first progress, not by progressive renders: a pass is every stage),
+# ("effects", [lines]), ("warning", text), ("film", the engine's Film of
 # a finished render), ("warnings_repeated", how many of the previous frame's warnings this
 # frame had: not told again), ("finished", "done" | "cancelled" | "error: <message>"). Called
 # on Blender's main thread; a listener that raises is dropped from this render with a
@@ -292,6 +294,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         super().__init__(*args, **kwargs)
         self._last_stats = 0.0
         self._last_stage = None  # a new stage's first text is always shown (not throttled)
+        self._progress_stage = None  # the stage of the last progress told the listeners
         self._listeners = []
         self._viewport = None  # rendered viewport (addon/viewport.py)
 
@@ -352,8 +355,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
             self._last_stats = now
             self._stats(text)
 
-    def _progress(self, fraction):
+    def _progress(self, fraction, stage=None):
         self.update_progress(fraction)
+        if stage is not None and stage != self._progress_stage:
+            self._progress_stage = stage
+            self._emit("stage", stage)  # before its first progress (the batch's Eta)
         self._emit("progress", fraction)
 
     # --- passes ---------------------------------------------------------------------
@@ -542,7 +548,7 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         def progress(stage, fraction, text):
             whole = spans.whole(stage, fraction)
             if whole is not None:  # the kernel compile is outside the render's work
-                self._progress(whole)
+                self._progress(whole, stage)
             self._throttled_stats(stage, fraction, text)
 
         t0 = time.perf_counter()

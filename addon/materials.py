@@ -1032,8 +1032,9 @@ class MaterialConverter:
             # The diffuse base, opaque share and specular level per hit; the tint of
             # what passes is one colour (the engine's Transparent tint): the mean's.
             c.base_color, c.texture = np.ones(3), colour
-            c.alpha, c.alpha_texture = 1.0, hb.HairColor(*args, **kw, output="ALPHA")
-            c.scalars["specular_ior_level"] = hb.HairColor(*args, **kw, output="LEVEL")
+            # (One node: the shading of a batch evaluates it once for all three.)
+            c.alpha, c.alpha_texture = 1.0, colour.with_output("ALPHA")
+            c.scalars["specular_ior_level"] = colour.with_output("LEVEL")
         left = ("what the strand transmits passes straight through (not spread into "
                 "Chiang's forward lobe); the secondary highlight's colour and shift, "
                 "'Offset' and 'Radial Roughness' shape no lobe")

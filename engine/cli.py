@@ -588,10 +588,12 @@ def _render(args) -> int:
     spans = StageSpans(settings.uses_photon_maps, settings.photons + settings.caustic_photons,
                        scene.width * scene.height * settings.spp)
     # The bar shows the fraction of the whole render and the time left (engine/eta.py:
-    # measured after the kernel compile and the first chunk, not from the start).
+    # measured after the kernel compile and the first chunk, not from the start, and in
+    # one render from the camera pass' own rate: each pass of a progressive one has every
+    # stage, its rate over passes).
     passes = args.passes if progressive and not args.dask else None
     eta = (_TimeLeft(args.time_limit) if progressive and args.time_limit and not passes
-           else Eta())
+           else Eta(final_stage="render"))
     if not args.quiet:
         from .eta import progress_bar
         console.bar = progress_bar("Preparing", "{desc:<42.42}{bar}| {percentage:3.0f}% "
@@ -609,7 +611,7 @@ def _render(args) -> int:
         elif whole is not None and progressive:
             whole = (where["passes"] + whole) / passes if passes else None
         if whole is not None:
-            eta.update(whole)
+            eta.update(whole, None if progressive or args.dask else stage)
         with console.drawing() as bar:
             if bar is None:
                 return

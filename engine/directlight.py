@@ -30,7 +30,7 @@ from .lights.area import MIN_SPHERICAL_SOLID_ANGLE, spherical_rectangle
 from .lights.mesh import solid_angle_sampled, spherical_triangle_sample
 from .lights.selection import NINF, empty_tree, select_light
 from .lights.world import ENV_MAP_FRACTION, portal_choice, portal_density, portal_draw
-from .normalmap import bump_shadowing_term
+from .normalmap import bump_shadowing_term, bump_shadowing_terms
 from .rayoffset import G32_PLANE, G32_T, G64, TINY32, U32
 
 F32_MAX = float(np.finfo(np.float32).max)
@@ -702,8 +702,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                 # refused: bump_shadowing_term with sc->N the raised normal).
                 cn = w0 * s0 + w1 * s1 + w2 * s2
                 rn0, rn1, rn2 = gn[h, 0], gn[h, 1], gn[h, 2]
-                dpass = cn > 0.0 and bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2,
-                                                         False) != 0.0
+                dpass, dterm = False, 0.0
+                if cn > 0.0:  # (the side test and the diffuse factor: one evaluation)
+                    dside, dterm = bump_shadowing_terms(m0, m1, m2, s0, s1, s2, w0, w1, w2)
+                    dpass = dside != 0.0
                 gpass = (w0 * rn0 + w1 * rn1 + w2 * rn2 > 0.0
                          and bump_shadowing_term(m0, m1, m2, rn0, rn1, rn2, w0, w1, w2,
                                                  False) != 0.0)
@@ -711,7 +713,7 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     continue
                 bd = 0.0
                 if dpass:
-                    bd = cn * bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2, True)
+                    bd = cn * dterm
                     if has_shade and shade_off[h] > 0:
                         bd = bd * _shift_cos_in(cn, shade_off[h])
                 if not gpass:
@@ -719,9 +721,9 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
             elif m0 != s0 or m1 != s1 or m2 != s2:
                 # A bent normal: no light from below the smooth surface for any lobe,
                 # the diffuse lobe dimmed towards grazing light (Cycles' bsdf_eval).
-                if bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2, False) == 0.0:
+                side, bd = bump_shadowing_terms(m0, m1, m2, s0, s1, s2, w0, w1, w2)
+                if side == 0.0:
                     continue
-                bd = bump_shadowing_term(m0, m1, m2, s0, s1, s2, w0, w1, w2, True)
             if not ((e0 > 0 or e1 > 0 or e2 > 0) and e0 == e0 and e1 == e1 and e2 == e2):
                 continue
             j = m_all

@@ -119,6 +119,10 @@ class EffectPlan:
     caustics_from_global: bool = False  # caustic map from the global shot, no caustic shot
     caustics_glow_only: bool = False  # the caustic map holds only rough layers' / window glow
     glow_words: str = ""  # what that glow-only map holds, for the maps line (only what exists)
+    # What the surfaces the soft glow comes off are, in Blender's words ("glossy",
+    # "glass", "translucent", joined by "/"): the glow shot's progress line "Tracing
+    # glossy photons" and the maps line that explains it (render.py GLOW_SHOT).
+    glow_label: str = ""
     trapped: dict = field(default_factory=dict)  # light name -> closed mesh it is shut in
     decisions: list = field(default_factory=list)
     warnings: list = field(default_factory=list)  # students' mistakes, explained
@@ -410,6 +414,13 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         translucent = [n for n in plan.rough_specular
                        if specular_kind(geo, table, ids_of[n]) == "translucent"]
         glossy_rough = [n for n in plan.rough_specular if n not in translucent]
+        # The glow's sources by kind, named as a Blender user knows the surfaces: "glow
+        # photons" in the progress line said nothing (newuser37).
+        glassy = [n for n in glossy_rough if specular_kind(geo, table, ids_of[n]) == "glass"]
+        plan.glow_label = "/".join(
+            (["glossy"] if len(glassy) < len(glossy_rough) else [])
+            + (["glass"] if glassy or plan.window_glass or plan.pane_glass else [])
+            + (["translucent"] if translucent else []))
         reached = []
         if len(ids) and emitting and diff_tri.any():
             for oid, c, r, name in zip(ids, centers, radii, names):

@@ -50,11 +50,14 @@ elliptic cross-section (Aspect Ratio).
 """
 from __future__ import annotations
 
+import copy
 import functools
+import threading
+import weakref
 
 import numpy as np
 
-from .shadernodes import _eval, fresnel_dielectric_cos
+from .shadernodes import ShadingGeometry, _eval, fresnel_dielectric_cos
 
 # Cycles' bsdf_principled_hair_sigma_from_concentration absorption spectra (per unit
 # concentration, linear Rec.709 RGB; Bitterli's fit of d'Eon et al. 2011).
@@ -276,7 +279,13 @@ class HairColor:
     the strand's Curves Info Random or the node's Random input) to sigma_a by
     node_sigma, the radial roughness randomised by Random Roughness as Cycles does
     (x (1 + 2 (random - 0.5) Random Roughness)), then `surface`: output COLOR the diffuse
-    base (N, 3), ALPHA the opaque share (N,), LEVEL the Specular IOR Level (N,)."""
+    base (N, 3), ALPHA the opaque share (N,), LEVEL the Specular IOR Level (N,).
+
+    The three outputs are one node (addon/materials.py: the material's texture, alpha
+    texture and Specular IOR Level; `with_output` makes the others), which the shading
+    of a batch of hits asks in turn: they share one evaluation of `surface` for the
+    batch (_LastBatch), not three (sigma_a and the tube's walls took half a hair
+    render's time, s37)."""
 
     def __init__(self, parametrization, color, melanin, redness, tint, absorption,
                  radial_roughness, random_roughness, random, random_color, eta,
@@ -293,6 +302,15 @@ class HairColor:
             raise ValueError(f"hair output {output!r}: expected COLOR, ALPHA or LEVEL")
         self.eta, self.output = float(eta), output
         self.weights = (float(r_weight), float(tt_weight), float(trt_weight))
+        self._last = _LastBatch()  # shared by with_output's copies
+
+    def with_output(self, output) -> "HairColor":
+        """This node's `output` ('COLOR', 'ALPHA', 'LEVEL'), sharing its evaluations."""
+        if output not in ("COLOR", "ALPHA", "LEVEL"):
+            raise ValueError(f"hair output {output!r}: expected COLOR, ALPHA or LEVEL")
+        other = copy.copy(self)
+        other.output = output
+        return other
 
     def sigma(self, geo, prim, u, v):
         """sigma_a (N, 3) at the hits."""
@@ -313,9 +331,46 @@ class HairColor:
         return sigma
 
     def evaluate(self, geo, prim, u, v):
-        alpha, _, rho, spec = surface(self.sigma(geo, prim, u, v), self.eta, *self.weights)
+        alpha, _, rho, spec = self._last.get(
+            geo, prim, u, v,
+            lambda: surface(self.sigma(geo, prim, u, v), self.eta, *self.weights))
         if self.output == "ALPHA":
             return alpha
         if self.output == "LEVEL":
             return specular_level(spec, self.eta)
         return rho
+
+
+class _LastBatch:
+    """The last batch of hits one thread evaluated a HairColor node at, and the value:
+    get(geo, prim, u, v, compute) returns it again for the same hits (equal prim, u, v
+    and, seen from a ray, equal view: ShadingGeometry's n, wi, backfacing, over the same
+    Geometry), else compute() kept in its place. Per thread (engine/parallel.py's workers
+    shade their own batches at once); pickled and copied empty (a scene sent to a Dask
+    worker, the export's copies), shared where the node's outputs share it."""
+
+    def __init__(self):
+        self._local = threading.local()
+
+    def __getstate__(self):
+        return {}
+
+    def __setstate__(self, state):
+        self._local = threading.local()
+
+    def get(self, geo, prim, u, v, compute):
+        base = geo._geo if isinstance(geo, ShadingGeometry) else geo
+        key = [np.asarray(x) for x in (prim, u, v)]
+        if isinstance(geo, ShadingGeometry):
+            key += [np.asarray(x) for x in (geo.n, geo.wi, geo.backfacing)]
+        last = getattr(self._local, "last", None)
+        if (last is not None and last[0]() is base and len(last[1]) == len(key)
+                and all(np.array_equal(a, b) for a, b in zip(last[1], key))):
+            return last[2]
+        value = compute()
+        try:  # (held weakly: a render's Geometry is not kept alive by a worker thread)
+            ref = weakref.ref(base) if base is not None else (lambda: None)
+        except TypeError:
+            return value
+        self._local.last = (ref, [a.copy() for a in key], value)
+        return value

@@ -59,6 +59,28 @@ def bump_shadowing_term(m0, m1, m2, n0, n1, n2, i0, i1, i2, diffuse):
         return 0.0
     if not diffuse:
         return 1.0
+    return _diffuse_bump_shadowing(cos_mi, cos_mn)
+
+
+@kernel
+def bump_shadowing_terms(m0, m1, m2, n0, n1, n2, i0, i1, i2):
+    """(bump_shadowing_term(..., False), bump_shadowing_term(..., True)) from one
+    evaluation: the side test every closure takes and the diffuse closures' factor, for
+    a light sample that weighs both (engine/directlight.py)."""
+    if m0 == n0 and m1 == n1 and m2 == n2:
+        return 1.0, 1.0
+    cos_mi = m0 * i0 + m1 * i1 + m2 * i2
+    cos_mn = m0 * n0 + m1 * n1 + m2 * n2
+    cos_ni = n0 * i0 + n1 * i1 + n2 * i2
+    if cos_mi * cos_mn * cos_ni < 0.0:
+        return 0.0, 0.0
+    return 1.0, _diffuse_bump_shadowing(cos_mi, cos_mn)
+
+
+@kernel
+def _diffuse_bump_shadowing(cos_mi, cos_mn):
+    """bump_shadowing_term's diffuse factor past the side test: G1 of the smooth normal
+    (cos_mi: with the light direction, cos_mn: with the bent normal)."""
     cos_i = abs(cos_mi)
     cos_d = abs(cos_mn)
     if cos_d >= 1.0 or cos_i >= 1.0:

@@ -94,6 +94,9 @@ class Context:
     # are measured against (its settings set per pass by _render_pass).
     catcher_objects: np.ndarray | None = None
     catcher_alone: "Context | None" = None
+    # What catcher_alone was built from (shadowcatcher.alone_key): a viewport session keeps
+    # it through edits that leave it unchanged.
+    catcher_key: str | None = None
 
 
     def serial(self) -> "Context":
@@ -616,14 +619,20 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             # The glow's caustic paths (light off rough specular layers first, or window
             # glass: L S+ D, the first S not a caster) from a shot of their own whose
             # photons are lighter (GLOW_STREAM's comment).
-            # Named as the report names them: "Tracing caustic photons 2156k" beside
-            # "caustics: off - nothing focuses light" read as a contradiction (newuser33).
+            # Named by the surfaces the light comes off ("Tracing glossy photons"), as the
+            # maps line explains them (photon_map_report): "Tracing caustic photons 2156k"
+            # beside "caustics: off - nothing focuses light" read as a contradiction
+            # (newuser33), "Tracing glow photons" said nothing to a user (newuser37).
+            label = f"{plan.glow_label or 'soft glow'} photons"
             glow = trace_photons(ctx, g_emitters, g_counts, caustic_only=True,
                                  stream=GLOW_STREAM, progress=_shot_progress(progress, sizes, 1),
                                  should_cancel=should_cancel,
                                  first_hit=None if split is None else (split, False),
-                                 label="glow photons")
+                                 label=label)
             stats["glow_photons_emitted"] = glow.emitted
+            stats["glow_label"] = label
+            stats["glow_words"] = plan.glow_words or " and ".join(
+                GLOW_KIND_WORDS[k] for k in plan.glow_label.split("/") if k) or "soft glow"
     caustic = Photons.empty()
     if use_caustic_shot:
         if targets is None:
@@ -1050,6 +1059,13 @@ def photon_map_report(settings: RenderSettings, stats: dict, glow_only: bool = F
                      f"{stats['radius_global']:.4g} m")
     if stats.get("caustic_photons"):
         parts.append(_caustic_radius_words(settings, stats, held))
+    if stats.get("glow_photons_emitted"):
+        # What the progress line's "Tracing glossy photons" were (the glow shot).
+        parts.append(f"{stats.get('glow_label', 'soft glow photons')}: "
+                     f"{stats['glow_photons_emitted']:,} traced for the "
+                     f"{stats.get('glow_words', 'soft glow')} (the light those surfaces, "
+                     "which focus none, send onto diffuse ones; not aimed at), lighter "
+                     "photons of their own, stored in the Caustic pass")
     if stats.get("photon_importance"):
         parts.append(stats["photon_importance"])
     if stats.get("photon_portals"):
@@ -1175,6 +1191,10 @@ def global_emitters(ctx: Context, counts: list[int], stats: dict):
 # least GLOW_SPLIT x the natural count (glow_emitters): the same expected light from
 # lighter photons (Jensen's splitting by count), each traced only to its first diffuse
 # hit. Where the global shot is natural, its caustic photons are used as before.
+# The glow's sources (EffectPlan.glow_label's kinds) in the maps line's words.
+GLOW_KIND_WORDS = {"glossy": "soft glow off rough specular layers",
+                   "glass": "light off or through glass",
+                   "translucent": "light through translucent surfaces"}
 GLOW_SHOT = True  # False: the glow from the global shot's photons, as before (A/B benches)
 GLOW_STREAM = 3  # trace_photons' random stream of the glow shot (global 1, caustic 2)
 GLOW_SPLIT = 4.0  # glow photons per global photon, and outside per natural one (glow_emitters)

@@ -116,6 +116,7 @@ class SessionCounters:
     geometry_builds: int = 0    # engine.geometry.prepare (triangles merged)
     bvh_builds: int = 0         # Embree BVHs built
     light_builds: int = 0       # prepare_lights
+    catcher_builds: int = 0     # shadow catchers' catchers-alone contexts
     photon_shots: int = 0       # photon passes traced
     photon_reuses: int = 0      # photon passes taken from the cache
     previews: int = 0           # reduced-resolution camera passes
@@ -355,20 +356,33 @@ class Session:
             lights = prepare_lights(scene, geo, table)
             self.counters.light_builds += 1
             self._event("lights", len(lights))
-            if ctx is not None and ctx.catcher_alone is not None:
-                ctx.catcher_alone.accel.close(wait=True)
+            # The catchers-alone context of the last build, kept if its scene is the same.
+            alone, alone_key = None, None
+            if ctx is not None:
+                alone, alone_key = ctx.catcher_alone, ctx.catcher_key
                 ctx.catcher_alone = None
             self._ctx = ctx = Context(
                 scene, s, geo, table, accel, lights, packed_lights=packed_lights_for(lights, s),
                 shadow=ShadowTransmittance.for_scene(geo, table, s.transparent_max_bounces))
             # Shadow catchers: the catchers-alone scene the camera pass compares with
-            # (engine/shadowcatcher.py), rebuilt with the scene; it follows the view
+            # (engine/shadowcatcher.py), rebuilt when the catchers, their materials, the
+            # lights, the world or the settings changed (its digest: alone_key), kept
+            # through edits of the other objects; it follows the view
             # (render._render_alone).
             ctx.catcher_objects = shadowcatcher.catcher_objects(scene)
+            key = (shadowcatcher.alone_key(scene, s) if ctx.catcher_objects is not None
+                   else None)
+            if alone is not None and (key is None or key != alone_key):
+                alone.accel.close(wait=True)
+                alone = None
             if ctx.catcher_objects is not None:
-                ctx.catcher_alone = prepare_context(
-                    shadowcatcher.alone_scene(scene), shadowcatcher.alone_settings(s),
-                    _accel_class(), self._cancel.is_set)
+                if alone is None:
+                    alone = prepare_context(
+                        shadowcatcher.alone_scene(scene), shadowcatcher.alone_settings(s),
+                        _accel_class(), self._cancel.is_set)
+                    self.counters.catcher_builds += 1
+                    self._event("catchers alone", int(ctx.catcher_objects.sum()))
+                ctx.catcher_alone, ctx.catcher_key = alone, key
             self._scene_dirty = self._geometry_dirty = False
         else:
             ctx.scene = scene

@@ -81,6 +81,31 @@ def alone_scene(scene):
     return replace(scene, meshes=meshes, warnings=[])
 
 
+def alone_key(scene, settings) -> str | None:
+    """What the catchers-alone context (alone_scene, alone_settings) is built from, as a
+    digest: the catcher meshes (geometry, placement, visibility, attributes), the
+    materials they use, the material names' order, the lights, the world (colour,
+    environment, medium, portals) and the settings the build reads; not the camera and
+    image size (a render follows the view: render._render_alone) nor the other objects
+    and their materials. Equal digests: the context can be kept (a viewport edit of
+    another object, engine/session.py). None when the scene cannot be digested (an
+    object that does not pickle): build anew."""
+    import hashlib
+    import pickle
+
+    alone = alone_scene(scene)
+    used = {n for m in alone.meshes for n in m.materials}
+    content = (alone.meshes, {n: alone.materials[n] for n in sorted(used)
+                              if n in alone.materials},
+               list(alone.materials), replace(alone, meshes=[], materials={}, camera=None,
+                                              width=0, height=0),
+               alone_settings(settings))
+    try:
+        return hashlib.sha1(pickle.dumps(content, protocol=5)).hexdigest()
+    except Exception:  # noqa: BLE001 - any unpicklable member: no key, a rebuild
+        return None
+
+
 def alone_settings(settings):
     """The settings the catcher-only render takes: the film's, with the world not drawn
     (its camera rays that miss add nothing: the "without" is the catchers' light only),

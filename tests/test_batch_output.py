@@ -6,6 +6,8 @@ events and Blender's stdout print as the render operator makes them."""
 import io
 import sys
 
+import pytest
+
 from addon import batch
 
 WARNINGS = ["material 'toon': shader 'Toon BSDF' (BSDF_TOON) is not supported; "
@@ -221,3 +223,25 @@ def test_on_a_terminal_the_bar_still_redraws_an_unchanged_state():
     printer("finished", "cancelled")
     printer.close()
     assert shared.getvalue().count("Cancelled") >= 2  # its frame, then tqdm's closing one
+
+
+def test_the_time_left_waits_for_the_camera_pass_the_engine_names():
+    """The add-on tells each stage before its progress ("stage" events); the batch's bar
+    shows no time left before the camera pass (engine/eta.py: the photon stages' rate
+    promised 11:09 for 51 s, newuser37), then the pass' own rate."""
+    clock = [0.0]
+    printer = batch._StatusPrinter(stream=io.StringIO(), out=io.StringIO())
+    printer("stats", "Exporting 1/1 objects")
+    printer.eta.clock = lambda: clock[0]
+    printer("progress", 0.02)
+    for stage, t, f in (("photons", 1.0, 0.021), ("photons", 2.0, 0.022),
+                        ("photon_map", 3.0, 0.03), ("render", 4.0, 0.1),
+                        ("render", 6.0, 0.3), ("render", 8.0, 0.5)):
+        clock[0] = t
+        printer("stage", stage)
+        printer("progress", f)
+        assert (printer.eta.remaining() is None) == (t < 6.0), (stage, t)
+    assert printer.eta.remaining() == pytest.approx(0.5 / 0.1)  # 10 %/s in the pass
+    assert printer.eta.text() == "00:05"
+    printer("finished", "done")
+    printer.close()

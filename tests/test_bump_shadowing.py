@@ -107,3 +107,20 @@ def test_hits_without_normal_maps_carry_no_smooth_normal():
     hit, E = _floor_irradiance(s)
     assert hit.n_smooth is None
     np.testing.assert_allclose(E, 3.0 * math.cos(math.radians(70.0)), rtol=1e-6)  # the map stores the normal in float32
+
+
+def test_both_terms_from_one_evaluation_are_the_two_terms():
+    """bump_shadowing_terms (the direct-light kernel's one call per light sample) gives
+    bump_shadowing_term(..., False) and (..., True) bit for bit: unbent normals, light on
+    the far side of the smooth surface, grazing and ordinary light."""
+    from engine.normalmap import bump_shadowing_term, bump_shadowing_terms
+    rng = np.random.default_rng(5)
+    cases = [(_dir(0.0), _dir(0.0), _dir(30.0)), (_dir(0.0), _dir(35.0), _dir(95.0)),
+             (_dir(0.0), _dir(35.0), _dir(89.99999)), (_dir(0.0), _dir(80.0), _dir(60.0))]
+    for _ in range(200):
+        m, n, i = (v / np.linalg.norm(v) for v in rng.normal(size=(3, 3)))
+        cases.append((m, n, i))
+    for m, n, i in cases:
+        args = (*m, *n, *i)
+        assert bump_shadowing_terms(*args) == (bump_shadowing_term(*args, False),
+                                               bump_shadowing_term(*args, True))

@@ -627,6 +627,7 @@ def test_rough_layers_are_named_for_their_highlights_not_as_specular():
     assert "matte" not in spec and "its rough specular layer" not in spec, spec
     assert plan.specular_depth == RenderSettings().max_depth
     assert plan.glow_words == "soft glow off rough specular layers"
+    assert plan.glow_label == "glossy"  # the progress line's "Tracing glossy photons"
 
 
 def test_glow_words_name_only_what_the_scene_has():
@@ -642,6 +643,13 @@ def test_glow_words_name_only_what_the_scene_has():
                              glow_only=True, glow_words=plan.glow_words)[0]
     assert "10 photons of reflections of window glass (the Caustic pass) stored" in line, line
     assert "rough" not in line, line
+    # The progress line's name for a glow shot here, and the maps line's account of it.
+    assert plan.glow_label == "glass"
+    line = photon_map_report(RenderSettings(), dict(
+        global_photons=100, radius_global=0.2, caustic_photons=10, radius_caustic=0.2,
+        glow_photons_emitted=4000, glow_label="glass photons",
+        glow_words=plan.glow_words), glow_only=True, glow_words=plan.glow_words)[0]
+    assert "glass photons: 4,000 traced for the reflections of window glass (" in line, line
 
 
 def test_report_says_when_clamping_is_on():

@@ -115,3 +115,73 @@ def test_time_left_follows_the_rate_of_the_current_stage():
         truth = 2.0 * (65 - i)
         if clock.t > 40.0:  # once the recent window holds only the camera pass
             assert eta.remaining() == pytest.approx(truth, abs=1e-6), (i, eta.remaining())
+
+
+def _first_render(eta, clock, stages):
+    """The first make render of newuser37 (Figure 6, the kernels compiled), as the
+    add-on's bar reports it: the compile (5 min, no progress), the export to 2 % of the
+    bar, 0.8 s of set-up, the photon stages to 4.5 % in 2 s (the bar's share of them a
+    guess: engine/stagespans.py), then the camera pass to 100 % in 47 s at a steady rate.
+    Yields (stage, true seconds left, estimate) after each report; stages: tell them."""
+    def report(f, stage):
+        eta.update(f, stage if stages else None)
+    eta.restart()  # "Compiling render kernels" (the batch's printer)
+    clock.t = 300.0
+    for i in range(1, 10):  # "Exporting i/9 objects", no stage
+        clock.t += 0.05
+        report(0.02 * i / 9, None)
+    clock.t += 0.8
+    end = clock.t + 2.0 + 47.0
+    for i in range(1, 8):  # tracing photons
+        clock.t += 0.1
+        report(0.02 + 0.001 * i, "photons")
+        yield "photons", end - clock.t, eta.remaining()
+    clock.t += 1.3  # building the maps
+    report(0.045, "photon_map")
+    yield "photon_map", end - clock.t, eta.remaining()
+    start = clock.t
+    for i in range(1, 101):
+        clock.t = start + 0.47 * i
+        report(0.045 + 0.955 * i / 100, "render")
+        yield "render", end - clock.t, eta.remaining()
+
+
+def test_no_time_left_before_the_camera_pass_then_the_camera_passs_own_rate():
+    """The first make render said "Tracing photons 100k/400k 2% [05:13<11:09]" for 51 s
+    of work (newuser37): the rate was the set-up's and the photon stages', whose share of
+    the bar is a guess (engine/stagespans.py). Told the stages, the bar shows no time
+    left ('?') before the camera pass, then that pass' own rate: right from its second
+    report past min_seconds."""
+    clock = Clock()
+    told = list(_first_render(Eta(clock=clock, final_stage="render"), clock, stages=True))
+    assert all(estimate is None for stage, _, estimate in told if stage != "render"), told
+    camera = [(truth, estimate) for stage, truth, estimate in told if stage == "render"]
+    assert camera[0][1] is None  # its first report is the starting point
+    assert all(e is not None for _, e in camera[2:])
+    for truth, estimate in camera[2:]:
+        assert estimate == pytest.approx(truth, abs=1e-6)
+    # Untold (the bar's fraction alone): the photon stages promised up to 15 minutes for
+    # 49 s (the set-up and their slow share of the bar in the rate), 1.4x too long still
+    # as the camera pass began.
+    clock = Clock()
+    untold = list(_first_render(Eta(clock=clock, final_stage="render"), clock, stages=False))
+    ratios = [e / t for stage, t, e in untold[:9] if e is not None]
+    assert len(ratios) == 9 and min(ratios) > 1.3 and max(ratios) > 15, ratios
+
+
+def test_a_new_stage_starts_the_rate_anew_and_untold_stages_keep_the_window():
+    clock = Clock()
+    eta = Eta(clock=clock, final_stage="render")
+    eta.update(0.1, "render")
+    clock.t = 10.0
+    eta.update(0.5, "render")  # 0.4 in 10 s
+    assert eta.remaining() == pytest.approx(12.5)
+    clock.t = 12.0
+    eta.update(0.6, "shadow catcher")  # a stage before the final one's end: no estimate
+    assert eta.remaining() is None
+    clock.t = 13.0
+    eta.update(0.7, "render")  # back: its rate from this report
+    assert eta.remaining() is None
+    clock.t = 15.0
+    eta.update(0.8, "render")
+    assert eta.remaining() == pytest.approx(0.2 / (0.1 / 2.0))

@@ -227,3 +227,59 @@ def test_specular_roughness_holds_the_r_lobes_share_within_its_half_width():
     assert r[0] == 0.0 and np.all(np.diff(r) > 0) and hb.specular_roughness(1.0) < 1.0
     np.testing.assert_allclose(hb.specular_roughness([0.2, 0.3, 0.5]), [0.2, 0.3, 0.5],
                                atol=0.065)
+
+
+class _CountingRandom:
+    """A Random input that counts its evaluations (module level: pickled)."""
+    calls = 0
+
+    def evaluate(self, geo, prim, u, v):
+        _CountingRandom.calls += 1
+        return np.linspace(0.0, 1.0, len(prim))
+
+
+def test_the_nodes_three_outputs_share_one_evaluation_of_a_batch():
+    """The material's texture (COLOR), alpha texture (ALPHA) and Specular IOR Level
+    (LEVEL) are one node (HairColor.with_output): the shading of a batch of hits asks
+    each in turn, with fresh arrays of the same hits; sigma_a and `surface` run once for
+    the three (they were three: half a hair render's time), per thread, and the values
+    are those of separate nodes."""
+    import pickle
+    import threading
+
+    from engine.shadernodes import ShadingGeometry
+
+    Random = _CountingRandom
+    Random.calls = 0
+    args = ("MELANIN", None, 0.5, 0.3, np.ones(3), None, 0.3, 0.2, Random(), 0.6, 1.55)
+    colour = hb.HairColor(*args)
+    nodes = [colour, colour.with_output("ALPHA"), colour.with_output("LEVEL")]
+    prim, u, v = np.arange(5), np.linspace(0.1, 0.5, 5), np.full(5, 0.2)
+    n = np.tile([0.0, 0.0, 1.0], (5, 1))
+
+    def view(wi_z=1.0):  # a batch's view, built anew as the shading does (rows(sel))
+        return ShadingGeometry(None, n.copy(), np.tile([0.0, 0.6, wi_z], (5, 1)),
+                               np.zeros(5, bool))
+    got = [node.evaluate(view(), prim.copy(), u.copy(), v.copy()) for node in nodes]
+    assert Random.calls == 1
+    for node, value in zip(nodes, got):
+        alone = hb.HairColor(*args, output=node.output).evaluate(view(), prim, u, v)
+        np.testing.assert_array_equal(value, alone)
+    Random.calls = 0
+    nodes[1].evaluate(view(), prim, u + 0.1, v)  # other hits: evaluated
+    nodes[2].evaluate(view(0.8), prim, u + 0.1, v)  # seen from elsewhere: evaluated
+    nodes[0].evaluate(view(0.8), prim, u + 0.1, v)  # the same again: kept
+    assert Random.calls == 2
+    # Another thread shades its own batches: its first ask is its own evaluation.
+    thread = threading.Thread(target=nodes[0].evaluate, args=(view(0.8), prim, u + 0.1, v))
+    thread.start()
+    thread.join()
+    assert Random.calls == 3
+    # A scene sent to a worker (pickled): the outputs still share, nothing carried over.
+    copies = pickle.loads(pickle.dumps(nodes))
+    Random.calls = 0
+    for node in copies:
+        node.evaluate(view(), prim, u, v)
+    assert copies[0]._last is copies[1]._last and Random.calls == 1
+    with pytest.raises(ValueError):
+        colour.with_output("TINT")

@@ -1,8 +1,10 @@
 """The progress text names each photon shot as the effect report names what it holds: the
-glow shot (light off rough specular layers first, engine/render.py GLOW_SHOT) is "glow
-photons", not "caustic photons", which beside the report's "caustics: off - nothing
-focuses light" read as a contradiction (newuser33: a room lit by a lamp in a frosted
-shade showed "Tracing caustic photons 2156k/2156k")."""
+glow shot (light off rough specular layers first, engine/render.py GLOW_SHOT) is named by
+the surfaces the light comes off ("glossy photons"), not "caustic photons", which beside
+the report's "caustics: off - nothing focuses light" read as a contradiction (newuser33: a
+room lit by a lamp in a frosted shade showed "Tracing caustic photons 2156k/2156k"), nor
+"glow photons", which said nothing to a user (newuser37); the maps line says what they
+carry."""
 import pytest
 
 from engine import RenderSettings
@@ -20,8 +22,12 @@ def test_glow_shot_is_traced_as_glow_photons_when_caustics_are_off():
     assert "caustics: off" in report, report
     assert film.stats.get("glow_photons_emitted", 0) > 0, film.stats  # the shot ran
     tracing = [t for t in texts if t.startswith("Tracing")]
-    assert any(t.startswith("Tracing glow photons ") for t in tracing), tracing
+    assert any(t.startswith("Tracing glossy photons ") for t in tracing), tracing
     assert not any("caustic photons" in t for t in tracing), tracing
+    # The report says what they were: the soft glow of the rough metal shade and plaster.
+    maps = next(line for line in film.stats["effects"] if line.startswith("photon maps"))
+    assert (f"glossy photons: {film.stats['glow_photons_emitted']:,} traced for the soft "
+            "glow off rough specular layers (the light those surfaces") in maps, maps
     # The global shot keeps its name.
     assert any(t.startswith("Tracing photons ") for t in tracing), tracing
 
@@ -37,10 +43,10 @@ def test_photon_progress_moves_once_through_all_shots():
            progress=lambda stage, fraction, text: seen.append((stage, fraction, text)))
     photons = [(f, t) for stage, f, t in seen if stage == "photons"]
     fractions = [f for f, _ in photons]
-    assert any(t.startswith("Tracing glow photons") for _, t in photons)
+    assert any(t.startswith("Tracing glossy photons") for _, t in photons)
     assert all(b >= a for a, b in zip(fractions, fractions[1:])), fractions
     assert abs(fractions[-1] - 1.0) < 1e-9, fractions[-1]
-    first_glow = next(f for f, t in photons if t.startswith("Tracing glow photons"))
+    first_glow = next(f for f, t in photons if t.startswith("Tracing glossy photons"))
     assert 0.0 < first_glow < 1.0, first_glow
 
 

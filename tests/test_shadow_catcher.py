@@ -235,3 +235,59 @@ def test_a_catcher_seen_through_a_transparent_card_is_warned():
     assert 0.25 * 24 * 24 * 4 < samples < 0.55 * 24 * 24 * 4, samples
     film = _scene().render(_settings(film_transparent=True))
     assert not [w for w in film.warnings if "shadow catcher" in w]
+
+
+def test_viewport_edits_rebuild_the_catchers_alone_only_when_it_changes():
+    """A viewport session rebuilt the catchers-alone context (its geometry, BVH, lights)
+    on every edit of the scene; it is kept through edits of the other objects (their
+    materials, their place) and rebuilt when the catchers, their materials, the lights
+    or the world change (shadowcatcher.alone_key). A kept one renders the same bits as a
+    fresh render of the edited scene."""
+    from dataclasses import replace
+
+    from engine.session import Session, _scene_with
+    settings = _settings(film_transparent=True, spp=1)
+    scene = _scene(cube=True, world_light=True)
+
+    def reference(sc):
+        return combined_rgba(render_progressive(_scene_with(sc), settings,
+                                                Budget(passes=1)), True)
+
+    session = Session(scene, settings, passes=1).start()
+
+    def edit(sc, geometry):
+        before = session.counters.catcher_builds
+        session.update_scene(sc, geometry=geometry)
+        assert session.wait_idle(120) and session.error is None, session.error
+        return session.counters.catcher_builds - before
+
+    try:
+        assert session.wait_idle(120) and session.error is None, session.error
+        assert session.counters.catcher_builds == 1
+        # The cube's material, then the cube moved: kept, and the image a fresh render's.
+        materials = dict(scene.materials, red=Material("red", (0.1, 0.2, 0.8)))
+        scene = _scene_with(scene, materials=materials)
+        assert edit(scene, False) == 0
+        np.testing.assert_array_equal(session.frame.rgba, reference(scene))
+        cube = next(m for m in scene.meshes if m.name == "cube")
+        moved = replace(cube, vertices=cube.vertices + np.array([-0.3, 0.2, 0.0]))
+        scene = _scene_with(scene, meshes=[moved if m is cube else m for m in scene.meshes])
+        assert edit(scene, True) == 0
+        np.testing.assert_array_equal(session.frame.rgba, reference(scene))
+        # The catcher's material, the light, the world, the catcher moved: rebuilt.
+        materials = dict(scene.materials, grey=Material("grey", (0.3, 0.3, 0.3)))
+        scene = _scene_with(scene, materials=materials)
+        assert edit(scene, False) == 1
+        light = scene.lights[0]
+        scene = _scene_with(scene, lights=[replace(light, power=2.0 * light.power,
+                                                   warnings=[])])
+        assert edit(scene, False) == 1
+        scene = _scene_with(scene, background=(0.1, 0.1, 0.1))
+        assert edit(scene, False) == 1
+        floor = scene.meshes[0]
+        lowered = replace(floor, vertices=floor.vertices - np.array([0.0, 0.0, 0.1]))
+        scene = _scene_with(scene, meshes=[lowered] + list(scene.meshes[1:]))
+        assert edit(scene, True) == 1
+        np.testing.assert_array_equal(session.frame.rgba, reference(scene))
+    finally:
+        session.stop()

@@ -49,13 +49,20 @@ def test_a_render_reports_progress_that_never_goes_back(bpy_addon):
     cheap(scene, width=48, height=36, pct=100, spp=4, photons=20_000,
           caustic_photons=5_000)
     from addon import engine
-    values = []
-    listener = (lambda event, value: values.append(value) if event == "progress" else None)
+    events = []
+    listener = (lambda event, value: events.append((event, value))
+                if event in ("progress", "stage") else None)
     engine.status_listeners.append(listener)
     try:
         bpy.ops.render.render()
     finally:
         engine.status_listeners.remove(listener)
+    values = [v for e, v in events if e == "progress"]
+    # Each stage told once, before its first progress (the batch bar's time left is
+    # measured in the camera pass alone: engine/eta.py).
+    stages = [(i, v) for i, (e, v) in enumerate(events) if e == "stage"]
+    assert [v for _, v in stages] == ["photons", "photon_map", "render"], events
+    assert all(events[i + 1][0] == "progress" for i, _ in stages), events
     assert len(values) > 3
     assert all(b >= a - 1e-9 for a, b in zip(values, values[1:])), values
     assert values[-1] == pytest.approx(1.0, abs=0.02)

@@ -188,3 +188,63 @@ def test_curves_info_colours_the_strands_as_in_cycles(bpy_addon, tmp_path):
         b = img.reshape(6, 12, 8, 12).mean(axis=(1, 3))[:, 2:6]
         return b[1].mean() / b[3].mean()
     assert tips_over_roots(ours) == pytest.approx(tips_over_roots(ref), rel=0.05)
+
+
+def _scaled_strands(bpy, scale, engine, path):
+    """Five straight strands along x (radius 0.02 m) of an object scaled by `scale`,
+    their rows 0.2 m apart in world z, seen side on (orthographic, 100 px a metre,
+    along +y) against a transparent film: each strand's apparent height in pixels,
+    the image's alpha summed over the rows and averaged over the strands and columns."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    world_color(bpy, sc, (1.0, 1.0, 1.0))
+    curves = bpy.data.hair_curves.new("Scaled")
+    n = 5
+    curves.add_curves([4] * n)
+    pos = np.zeros((n, 4, 3))
+    pos[..., 0] = np.linspace(-0.6, 0.6, 4)[None] / scale[0]
+    pos[..., 2] = np.linspace(-0.4, 0.4, n)[:, None] / scale[2]
+    curves.position_data.foreach_set("vector", pos.reshape(-1).astype(np.float32))
+    r = curves.attributes.new("radius", "FLOAT", "POINT")
+    r.data.foreach_set("value", np.full(4 * n, 0.02, np.float32))
+    obj = bpy.data.objects.new("Scaled", curves)
+    sc.collection.objects.link(obj)
+    obj.scale = scale
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 1.0
+    cam.location, cam.rotation_euler = (0, -3, 0), (math.radians(90), 0, 0)
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    sc.render.resolution_x = sc.render.resolution_y = 100
+    sc.render.resolution_percentage = 100
+    sc.render.film_transparent = True
+    sc.render.engine = engine
+    if engine == "CYCLES":
+        cycles_plain(sc, 8, 2)
+    else:
+        sc.photonmap.spp = 8
+    render_exr(bpy, sc, path)
+    return read_rgba(bpy, path)[..., 3].sum() / (100 * n)
+
+
+def test_hair_under_a_non_uniform_scale_is_squashed_as_in_cycles(bpy_addon, tmp_path):
+    """Cycles 5.0 applies a curve object's matrix to its keys and scales the radius by
+    the cube root of |det| only under a uniform scale (scene/object.cpp
+    apply_static_transforms: "Can't apply non-uniform scale to curves"); otherwise it
+    keeps the strands in object space and transforms the rays, so a round strand's
+    cross-section is squashed with the matrix, as our tubes (built in object space, then
+    instanced). Scaled 4 across the strands they show 4 x 2 r, not 4^(1/3) x 2 r."""
+    bpy = bpy_addon
+    height = {(s, e): _scaled_strands(bpy, s, e, tmp_path / f"{e}_{s[2]:.2f}.exr")
+              for s in ((1, 1, 1), (1, 1, 4), (1, 1, 0.5), (4 ** (1 / 3),) * 3)
+              for e in ("CYCLES", "PHOTONMAP")}
+    for (s, e), h in height.items():
+        if e == "PHOTONMAP":
+            assert h == pytest.approx(height[s, "CYCLES"], rel=0.02), (s, height)
+    unscaled = height[(1, 1, 1), "CYCLES"]
+    assert unscaled == pytest.approx(4.0, rel=0.02)  # 2 r = 0.04 m at 100 px a metre
+    assert height[(1, 1, 4), "CYCLES"] == pytest.approx(4 * unscaled, rel=0.02)
+    assert height[(1, 1, 0.5), "CYCLES"] == pytest.approx(0.5 * unscaled, rel=0.03)
+    # Uniform: the cube root of |det| is the scale itself.
+    assert height[(4 ** (1 / 3),) * 3, "CYCLES"] == pytest.approx(4 ** (1 / 3) * unscaled,
+                                                                  rel=0.02)
