@@ -662,9 +662,10 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         def progress(stage, fraction, text):
             spans = step["spans"]
             whole = spans.whole(stage, fraction) if spans is not None else None
-            if whole is not None:
+            if whole is not None:  # (one stage for the time-left estimate: every step
+                # repeats the photon and camera stages, so the rate is the steps' own)
                 self._progress(EXPORT_SHARE + (1.0 - EXPORT_SHARE)
-                               * (step["i"] + whole) / step["n"])
+                               * (step["i"] + whole) / step["n"], "render")
             self._throttled_stats(stage, fraction, text)
 
         def plan(work):
