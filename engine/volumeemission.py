@@ -18,8 +18,14 @@ Cycles samples no light from volume emission: surfaces see it through their indi
 meets, escaping through the world volume: integrator._trace_paths), and so does every
 final-gather and regather ray's segment (integrator.gather_indirect): a floor under a
 glowing box is lit through the gather, which runs for that even without a photon map
-(glows). Photons are not emitted from media: the gather's own segments carry the glow's
-first diffuse bounce; its later bounces are missing (docs/accuracy.md, volemit38).
+(glows). In a medium that also scatters, the glow scattered once towards the ray is
+added too: from each segment's in-scattering point (engine/volumescatter.py) one
+direction drawn by the phase function and the glow along it to the next surface
+(CameraScattering.walk), as Cycles' path, which at its default Volume bounces 0 goes on
+from its scatter point along one more segment and collects that segment's emission
+(PATH_RAY_TERMINATE_AFTER_VOLUME). Photons are not emitted from media: the gather's own
+segments carry the glow's first diffuse bounce; its later bounces are missing
+(docs/accuracy.md, volemit38).
 """
 from __future__ import annotations
 
@@ -72,8 +78,8 @@ def segment_emission(rows, material, e1, e2, sigma, emit, medium, d, t, src, L):
     met (< 0: none: a lamp or the world, whose medium must be known), material (T,)
     int32, e1, e2 (T,3) the triangles' edges; medium (n,) int64 each ray's medium (-1:
     not known: media.segment_medium's back-face rule); d (n,3) the directions, t (n,)
-    the segment lengths in units of |d|; sigma (M,3) media.absorption_table, emit (M,3)
-    emission_table. Writes src (K,) the rays whose segment lay in an emitting medium and
+    the segment lengths in units of |d| (not finite: skipped); sigma (M,3)
+    media.absorption_table, emit (M,3) emission_table. Writes src (K,) the rays whose segment lay in an emitting medium and
     L (K,3) their emitted radiance per unit throughput; returns K."""
     k = 0
     for i in range(rows.shape[0]):
@@ -87,6 +93,8 @@ def segment_emission(rows, material, e1, e2, sigma, emit, medium, d, t, src, L):
             continue
         S = max(t[i], 0.0) * math.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1]
                                        + d[i, 2] * d[i, 2])
+        if not S < math.inf:
+            continue  # (a ray that met nothing in an object's medium: an open mesh)
         for c in range(3):
             L[k, c] = emission_integral(emit[m, c], sigma[m, c], S)
         src[k] = i

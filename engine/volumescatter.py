@@ -53,7 +53,7 @@ import math
 
 import numpy as np
 
-from . import media, worldmedium
+from . import media, volumeemission, worldmedium
 from .directlight import DirectLightBuffers, NO_HROWS, NO_ROWS, NO_ROWS3, sample_lights
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
@@ -608,6 +608,9 @@ class CameraScattering:
         self.bounces = int(getattr(ctx.settings, "volume_bounces", 0) or 0)
         # The world volume's row (engine/worldmedium.py; -1: none).
         self.world_row = worldmedium.medium_row(ctx)
+        # Emitting media (engine/volumeemission.py; None: none): their glow scattered
+        # towards the ray (walk).
+        self.glow = volumeemission.MediumEmission.for_context(ctx)
         # The point, spot and area lights for equiangular sampling (sample_segments;
         # the strongest MAX_EQUIANGULAR by emitted power; none: exponential alone).
         self.eq_pos = NO_POINTS
@@ -657,7 +660,7 @@ class CameraScattering:
         Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
                            counters, world_sigma=self._world_sigma(seg_m))
         L = Lin * w
-        if self.bounces > 0:
+        if self.bounces > 0 or self.glow is not None:
             self.walk(L, pts, wo, w, seg_m, rng, counters)
         return src, L
 
@@ -698,15 +701,29 @@ class CameraScattering:
         Henyey-Greenstein phase (sample_hg: its weight phase / pdf is 1), the segment to
         the next surface, a distance in it (sample_segments; a path whose distance falls
         beyond the medium's segment ends, its light there being the surface's, which is
-        not followed), the lamps' light there (in_scattered) added to L (K,3) in place."""
+        not followed), the lamps' light there (in_scattered) added to L (K,3) in place.
+        In emitting media (self.glow) each of those segments adds its glow, and so does
+        one more segment from the last scatter point (Cycles' path goes on from its last
+        volume bounce to collect that segment's emission: PATH_RAY_TERMINATE_AFTER_VOLUME;
+        at Volume bounces 0 that segment alone: the glow scattered once)."""
         idx = np.arange(len(pts))
         x, d_in, m, beta = pts, wo, seg_m, beta
-        for _ in range(self.bounces):
+        last = self.bounces if self.glow is not None else self.bounces - 1
+        for step in range(last + 1):
             if len(idx) == 0:
                 return
             u1, u2 = rng.random((2, len(idx)))
             d_new = sample_hg(d_in, self.g[m], u1, u2)
             t, prim, _, _ = self.ctx.accel.intersect(x, d_new)
+            if self.glow is not None:
+                # (an escape through the world volume: its length to 1e-13, d_new unit)
+                t_e = (t if self.world_row < 0 else
+                       np.where(np.asarray(prim) == -1, worldmedium.far_length(self.ctx), t))
+                s_e, Le = self.glow.along(prim, d_new, t_e, m)
+                if len(s_e):
+                    L[idx[s_e]] += beta[s_e] * Le
+            if step == self.bounces:
+                return  # the segment after the last bounce: its glow alone
             src, p2, w2, m2 = self._scatter_points(prim, x, d_new, t, m, rng)
             idx, x, d_in, m = idx[src], p2, d_new[src], m2
             beta = beta[src] * w2
