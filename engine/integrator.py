@@ -720,10 +720,16 @@ MAX_GATHER_LEVEL = 2
 # Guided gather directions (engine/guiding.py) at the regathers' levels too (True), or at
 # level 0 only
 GUIDE_REGATHERS = False
+# Emitting media send no photons (engine/volumeemission.py): the glow reaches a surface
+# through gather rays alone, so level 0's gather ends gather it once more (one ray each,
+# glow only), its second diffuse bounce; False: its first bounce alone (a box glowing in
+# a white corner: walls 0.64 of Cycles, docs/accuracy.md volemit38).
+GLOW_SECOND_BOUNCE = True
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
-                    level=0, should_cancel=None, lean=_UNSET, extra=None) -> np.ndarray:
+                    level=0, should_cancel=None, lean=_UNSET, extra=None,
+                    glow_only=False) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -741,7 +747,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     none). The gather rays' own continuations add theirs: a lookup past a limit adds
     nothing, and one whose counts drop more light than its level's map holds
     (chaincounts.GatherCounts.reroute) gathers again from its end (the last level reads
-    the map scaled by the share of its power the counts keep, last_level_scale)."""
+    the map scaled by the share of its power the counts keep, last_level_scale).
+    glow_only: the irradiance from emitting media alone (engine/volumeemission.py): no
+    lookup, no surface emission, no lamps' light scattered in fog; the glow's second
+    bounce (GLOW_SECOND_BOUNCE) gathers that way from level 0's gather ends."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -764,13 +773,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         lean = lean_materials(ctx.table)
     table_alpha = c(ctx.table.alpha, np.float64)
     # The map of this level's depth (bounce limits; None: no photon within them).
-    gmap = _deeper(ctx.gather_map, ctx.regather_maps, level)
+    gmap = None if glow_only else _deeper(ctx.gather_map, ctx.regather_maps, level)
     # This thread's arrays for this level's steps (a call of the next level, the
     # regathers', uses its own).
     buf = _gather_buffers(ctx, level)
     # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
     # every emitter it meets: its direct light skips the mesh lights).
-    unsampled = _unsampled_meshes(ctx) if level == 0 else []
+    unsampled = _unsampled_meshes(ctx) if level == 0 and not glow_only else []
     # Surfaces touching glass (engine/coincident.py; None: no glass touches anything):
     # per gathering hit, whether its rays may meet one where they leave (near) and
     # whether it is glass (its rays may be inside the glass), once for all G rays.
@@ -783,8 +792,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Photon-guided directions (engine/guiding.py; setting gather_guiding): level 0 (the
     # regathers keep the cosine lobe unless GUIDE_REGATHERS). Each hit's tables, once for
     # its G rays.
-    guide = (getattr(ctx.gather_map, "guide", None) if n and (level == 0 or GUIDE_REGATHERS)
-             else None)
+    guide = (getattr(ctx.gather_map, "guide", None) if n and not glow_only
+             and (level == 0 or GUIDE_REGATHERS) else None)
     if guide is not None:
         g_rows, g_cols = guide.tables(guide.points_for(p, ns))
     # The medium each ray is in, by hit row (a hit has one ray a step; -1: none known,
@@ -796,8 +805,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                 == np.asarray(hit.mat, np.int64), -1,
                                 np.asarray(hit.medium, np.int64))
     # Scattering media (engine/volumescatter.py; None: no material scatters).
-    scatter = (volumescatter.CameraScattering.for_context(ctx) if medium_h is not None
-               else None)
+    scatter = (volumescatter.CameraScattering.for_context(ctx)
+               if medium_h is not None and not glow_only else None)
     # A scattering world volume (engine/worldmedium.py): the rays' media outside the
     # objects' are its row, and the rays that escape scatter the lamps' light along
     # their whole length (their hits taken before the misses are compacted away).
@@ -809,6 +818,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     glow = (volumeemission.MediumEmission.for_context(ctx) if medium_h is not None
             else None)
     fog_escapes = world_row >= 0 and (scatter is not None or glow is not None)
+    # The glow's second bounce (GLOW_SECOND_BOUNCE): level 0's gather ends gather the
+    # glow that lights them (no photon carries it: engine/volumeemission.py).
+    second_glow = glow is not None and level == 0 and not glow_only and GLOW_SECOND_BOUNCE
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -941,7 +953,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
-            if level > 0 and depth == 0:
+            if level > 0 and depth == 0 and not glow_only:
                 Le = y.emission
                 if np.any(Le > 0):
                     E[idx] += tp * math.pi * Le / G
@@ -967,6 +979,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             dsel, lp, ln = buf.dsel[:m], buf.lp[:m], buf.ln[:m]
             loff, lt = buf.loff[:m], buf.lt[:m]
             nd = diffuse_lookups(wd, y.p, y.ng, y.offset, t, dsel, lp, ln, loff, lt)
+            ends = dsel[:nd].copy() if second_glow and nd else None
             if nd and gmap is not None:
                 dsel = dsel[:nd]
                 # The regathers add the secondary caustic back from the lookups' own
@@ -983,6 +996,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
                 if n_again:
+                    if ends is not None:
+                        # (regathered later with every light, the glow among them)
+                        ends = np.delete(ends, again[:n_again])
                     # Gathered again later, all in one batch (_regather).
                     rows = dsel[again[:n_again]]
                     pending.append((idx[rows], np.take(tp, rows, axis=0),
@@ -991,6 +1007,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                     None if cnt is None else cnt[idx[rows]],
                                     None if sec_E is None else
                                     _point_secondary(sec_E, got[2][again[:n_again]])))
+            if ends is not None and len(ends):
+                # The glow that lights the ends (one ray each: their irradiance from the
+                # emitting media, Eg), reflected by their diffuse lobe towards the
+                # gathering hit as a lookup's irradiance would be.
+                y_end = y.take(ends)
+                y_end.medium = (None if medium_h is None
+                                else np.take(medium_h[idx], ends))
+                Eg = gather_indirect(ctx, y_end, rng, counters, rays=1, level=level + 1,
+                                     should_cancel=should_cancel, lean=lean,
+                                     extra=None if cnt is None else cnt[idx[ends]],
+                                     glow_only=True)
+                add_gathered(E, idx, c(ends, np.int64), c(tp, np.float64),
+                             c(wd, np.float64), c(Eg, np.float64), G, _NO_FLAG,
+                             _NO_LENGTH, 0.0, False, _NO_ROWS)
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d

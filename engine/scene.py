@@ -1330,7 +1330,11 @@ class Scene:
             for msg in warnings_for(self):
                 if msg not in self.warnings:
                     self.warnings.append(msg)
-        has_emitter = any(m.is_emissive for m in self.materials.values())
+        # (emitting media glow too: engine/volumeemission.py)
+        has_emitter = any(m.is_emissive or np.any(m.volume_emission > 0)
+                          for m in self.materials.values())
+        if self.world_medium is not None and np.any(self.world_medium.emission > 0):
+            has_emitter = True
         world_lit = (not self.environment.is_black if self.environment is not None
                      else np.any(self.background > 0))
         if self.world_medium is not None and np.all(self.world_medium.extinction > 0):

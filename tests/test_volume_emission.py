@@ -198,12 +198,15 @@ def _floor_glow_quadrature(p, n=(40, 40, 20)):
     return (w * BOX_EMIT * np.exp(-np.outer(l_in, BOX_SIGMA))).sum(axis=0)
 
 
-def _glowing_box_scene():
+def _glowing_box_scene(wall=False):
     """A white floor (0.8) lit only by a glowing, absorbing volume-only box (1 x 1 x 0.5
     m, z 0.5 .. 1), seen beside the box by an orthographic camera (0.8 m square centred
-    at x = 1.3) looking straight down: no lamp, no photon."""
+    at x = 1.3) looking straight down: no lamp, no photon. wall: a white wall at x = 2
+    beside it (the floor's gather rays end there: the glow's second bounce)."""
     s = PaperScene(8, 8)
     s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "white_diffuse", name="floor")
+    if wall:
+        s.add_plane((2.0, 0, 1.0), (-1, 0, 0), 4.0, "white_diffuse", name="wall")
     s.add_box((BOX_LO + BOX_HI) / 2, BOX_HI - BOX_LO,
               Material("glow", volume_only=True, absorption=BOX_SIGMA,
                        volume_emission=BOX_EMIT), name="glow")
@@ -243,10 +246,16 @@ def test_the_world_volume_glows_on_a_floor_under_it():
 def test_the_same_image_for_any_worker_count_and_the_report():
     from engine.render import prepare_context
     settings = dict(spp=8, seed=3, photons=20_000)
-    a, b = (render(_glowing_box_scene(), RenderSettings(workers=w, **settings))
+    a, b = (render(_glowing_box_scene(wall=True), RenderSettings(workers=w, **settings))
             for w in (1, 2))
     np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
-    ctx = prepare_context(_glowing_box_scene(), RenderSettings(workers=1))
+    # The wall's light on the floor (the glow's second bounce, gathered from the
+    # floor's gather ends on the wall) brightens it.
+    c = render(_glowing_box_scene(), RenderSettings(workers=1, **settings))
+    assert np.all(_mean(a) > 1.02 * _mean(c))
+    scene = _glowing_box_scene()
+    ctx = prepare_context(scene, RenderSettings(workers=1))
+    assert not [w for w in scene.warnings if "black" in w]  # (no lamp, but a glow)
     lines = [x for x in ctx.plan.report() if "volume emission" in x]
     assert lines and "'glow'" in lines[0] and "gather" in lines[0]
 
