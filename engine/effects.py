@@ -867,7 +867,8 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
         plan.add("volume emission", True,
                  "the glow of " + _quoted(glowing, most=REPORT_NAMES_MAX) + " added along "
                  "camera paths and final-gather rays (surfaces see it through the gather "
-                 "alone: no light sampling and no photons from it, as Cycles samples none)"
+                 "alone, up to its second diffuse bounce: no light sampling, as Cycles "
+                 "samples none, and no photons from it)"
                  + ("" if s.photon_mapping else "; photon mapping off: no gather, so it "
                     "lights no surface"))
     return plan
