@@ -720,11 +720,6 @@ MAX_GATHER_LEVEL = 2
 # Guided gather directions (engine/guiding.py) at the regathers' levels too (True), or at
 # level 0 only
 GUIDE_REGATHERS = False
-# Emitting media send no photons (engine/volumeemission.py): the glow reaches a surface
-# through gather rays alone, so level 0's gather ends gather it once more (one ray each,
-# glow only), its second diffuse bounce; False: its first bounce alone (a box glowing in
-# a white corner: walls 0.64 of Cycles, docs/accuracy.md volemit38).
-GLOW_SECOND_BOUNCE = True
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
@@ -750,7 +745,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     the map scaled by the share of its power the counts keep, last_level_scale).
     glow_only: the irradiance from emitting media alone (engine/volumeemission.py): no
     lookup, no surface emission, no lamps' light scattered in fog; the glow's second
-    bounce (GLOW_SECOND_BOUNCE) gathers that way from level 0's gather ends."""
+    bounce gathers that way from level 0's gather ends."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -818,9 +813,11 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     glow = (volumeemission.MediumEmission.for_context(ctx) if medium_h is not None
             else None)
     fog_escapes = world_row >= 0 and (scatter is not None or glow is not None)
-    # The glow's second bounce (GLOW_SECOND_BOUNCE): level 0's gather ends gather the
-    # glow that lights them (no photon carries it: engine/volumeemission.py).
-    second_glow = glow is not None and level == 0 and not glow_only and GLOW_SECOND_BOUNCE
+    # The glow's second bounce: emitting media send no photons (engine/volumeemission.py),
+    # so level 0's gather ends gather the glow that lights them (one ray each, glow only;
+    # without it a box glowing in a white corner left the walls at 0.64 of Cycles, with
+    # it 0.85-0.89: docs/accuracy.md volemit38).
+    second_glow = glow is not None and level == 0 and not glow_only
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)

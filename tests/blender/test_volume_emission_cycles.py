@@ -135,3 +135,38 @@ def test_glowing_world_volume_matches_cycles(bpy_addon, tmp_path):
     sky = _block(ours, (5, 32)), _block(ref, (5, 32))
     print("world sky", sky[0].round(4), sky[1].round(4), (sky[0] / sky[1]).round(3))
     np.testing.assert_allclose(sky[0], sky[1], rtol=0.03)
+
+
+def test_mixed_glow_and_an_emitting_world_volume_without_density(bpy_addon):
+    """A Mix Shader of an Emission shader and a Volume Absorption weighs the emission by
+    its factor (Cycles' closure weights); a World Volume that emits but has Density 0
+    (an infinite glow that dims nothing) is warned and ignored, naming the world."""
+    bpy = bpy_addon
+    from blender_helpers import convert_material, export_warnings, node_material
+    scene, mb = _base_scene(bpy)
+    m, nt, out = node_material(bpy, "mixed glow")
+    e = nt.nodes.new("ShaderNodeEmission")
+    e.inputs["Color"].default_value = (*EMISSION_COLOR, 1.0)
+    e.inputs["Strength"].default_value = 2.0
+    a = nt.nodes.new("ShaderNodeVolumeAbsorption")
+    a.inputs["Density"].default_value = 1.0
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs[0].default_value = 0.25
+    nt.links.new(e.outputs[0], mix.inputs[1])
+    nt.links.new(a.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Volume"])
+    conv = convert_material(m)
+    np.testing.assert_allclose(conv.volume_emission, 0.75 * 2.0 * np.array(EMISSION_COLOR),
+                               rtol=1e-6)
+    world = scene.world
+    wout = next(n for n in world.node_tree.nodes if n.type == "OUTPUT_WORLD")
+    v = world.node_tree.nodes.new("ShaderNodeVolumePrincipled")
+    v.inputs["Density"].default_value = 0.0
+    v.inputs["Emission Strength"].default_value = 1.0
+    world.node_tree.links.new(v.outputs[0], wout.inputs["Volume"])
+    mb.camera((0.0, -5.0, 1.6), (0.0, 0.0, 0.5), fov_deg=45.0)
+    try:
+        warned = [w for w in export_warnings(bpy) if "World Volume" in w]
+    finally:
+        world.node_tree.nodes.remove(v)
+    assert warned and f"'{world.name}'" in warned[0], warned
