@@ -24,8 +24,9 @@ direction drawn by the phase function and the glow along it to the next surface
 (CameraScattering.walk), as Cycles' path, which at its default Volume bounces 0 goes on
 from its scatter point along one more segment and collects that segment's emission
 (PATH_RAY_TERMINATE_AFTER_VOLUME). Photons are not emitted from media: the gather's own
-segments carry the glow's first diffuse bounce; its later bounces are missing
-(docs/accuracy.md, volemit38).
+segments carry the glow's first diffuse bounce and level 0's gather ends gather it once
+more (its second: gather_indirect's glow_only); later bounces are missing (a white
+corner ~10 % dark, docs/accuracy.md volemit38).
 """
 from __future__ import annotations
 

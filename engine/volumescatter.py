@@ -40,8 +40,12 @@ point the path scatters on inside the medium that many more times (CameraScatter
 a Henyey-Greenstein direction, a distance in the segment to the next surface, the lamps'
 light at each point), the medium-only part of multiple scattering.
 
-Limits (docs/compatibility.md, Volume scattering): the lamps' light only, at points inside
-the medium. Photons and final-gather rays are dimmed by the extinction but do not scatter
+Emitting media (engine/volumeemission.py): the glow scattered towards the ray is the
+emission along one more phase-sampled segment from each scatter point (walk), as Cycles'
+path collects it after its last volume bounce.
+
+Limits (docs/compatibility.md, Volume scattering): the lamps' light only (and the
+glow's), at points inside the medium. Photons and final-gather rays are dimmed by the extinction but do not scatter
 in the medium (the fog's glow after a second scatter onto the surfaces, and the surfaces'
 light scattered in the fog, are missing: measured in docs/accuracy.md, volscatter36); a
 walk whose distance falls beyond its segment ends there. Seeded: the numbers come from the camera path's own
