@@ -394,7 +394,7 @@ class MaterialConverter:
             return self.cache[key]
         warnings: list[str] = []
         # (sigma_a (3,) 1/m, volume-only, sigma_s (3,) 1/m, HG g): _volume
-        self._medium = (np.zeros(3), False, np.zeros(3), 0.0)
+        self._medium = (np.zeros(3), False, np.zeros(3), 0.0, np.zeros(3))
         self._displace = (None, "BUMP")  # (vectors node, method): _displacement
         if mat is None:
             closure = Closure()
@@ -451,6 +451,7 @@ class MaterialConverter:
             # material has no surface (engine/media.py)
             absorption=self._medium[0], volume_only=self._medium[1],
             scattering=self._medium[2], anisotropy=self._medium[3],
+            volume_emission=self._medium[4],
             # true displacement (Displacement Only / and Bump): vertices moved at prepare
             displacement=self._displace[0], displacement_method=self._displace[1])
         m.warnings[:0] = warnings
@@ -500,9 +501,9 @@ class MaterialConverter:
         if volume is not None and volume.is_linked:
             # The medium inside the object: its absorption (engine/media.py); a material
             # without a surface lets every ray through to it (Material.volume_only).
-            sigma, scatter, g = self._medium_of(volume)
+            sigma, scatter, g, emit = self._medium_of(volume)
             only = out.inputs.get("Surface") is None or not out.inputs["Surface"].is_linked
-            self._medium = (sigma, only, scatter, g)
+            self._medium = (sigma, only, scatter, g, emit)
         surface = out.inputs.get("Surface")
         if surface is None or not surface.is_linked:
             # Cycles renders an unconnected surface black.
@@ -597,18 +598,21 @@ class MaterialConverter:
         return dp.VectorDisplacement(val, 0.0, 1.0, "WORLD") if moving else None
 
     def _volume(self, src, depth):
-        """(sigma_a, sigma_s, sigma_s x g), each (3,) in 1/m, of the volume shader tree src
-        feeding the Material Output's Volume, as Cycles builds its closures
-        (intern/cycles/kernel/svm/closure.h): Volume Absorption sigma_a = density x
-        (1 - Color) (svm_node_closure_volume); Volume Scatter sigma_s = density x Color
-        with a Henyey-Greenstein phase of its Anisotropy; Principled Volume sigma_s =
-        density x Color and sigma_a = density x max(1 - Color, 0) x max(1 - sqrt(Absorption
-        Color), 0) (svm_node_principled_volume: its extinction is their sum); Add Shader
-        sums, Mix Shader weighs by its factor (the mix weight scales the density). The
-        anisotropy g is clamped to +-0.999 as Cycles' volume_henyey_greenstein_setup does.
-        Emission, a phase function other than Henyey-Greenstein and a texture on an input
-        (the socket's own value used: a homogeneous medium) are warned."""
-        zero = (np.zeros(3), np.zeros(3), np.zeros(3))
+        """(sigma_a, sigma_s, sigma_s x g, emission), each (3,) (1/m; the emission in
+        W/m^2/sr per m), of the volume shader tree src feeding the Material Output's
+        Volume, as Cycles builds its closures (intern/cycles/kernel/svm/closure.h): Volume
+        Absorption sigma_a = density x (1 - Color) (svm_node_closure_volume); Volume
+        Scatter sigma_s = density x Color with a Henyey-Greenstein phase of its
+        Anisotropy; Principled Volume sigma_s = density x Color and sigma_a = density x
+        max(1 - Color, 0) x max(1 - sqrt(Absorption Color), 0) (svm_node_principled_volume:
+        its extinction is their sum), its emission Emission Strength x Emission Color
+        plus its blackbody (_blackbody); an Emission shader Color x Strength
+        (svm_node_closure_emission); Add Shader sums, Mix Shader weighs by its factor
+        (the mix weight scales the density and the emission). The anisotropy g is
+        clamped to +-0.999 as Cycles' volume_henyey_greenstein_setup does. A phase
+        function other than Henyey-Greenstein and a texture on an input (the socket's own
+        value used: a homogeneous medium) are warned."""
+        zero = (np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
         if src is None or depth > MAX_NODE_DEPTH:
             return zero
         node, _ = src
@@ -622,19 +626,20 @@ class MaterialConverter:
         if t == "VOLUME_ABSORPTION":
             color = self._volume_color(node, "Color")
             return (max(self._float(node, "Density", 1.0), 0.0) * (1.0 - color), np.zeros(3),
-                    np.zeros(3))
+                    np.zeros(3), np.zeros(3))
         if t == "PRINCIPLED_VOLUME":
             color = np.clip(self._volume_color(node, "Color"), 0.0, None)
             density = max(self._float(node, "Density", 1.0), 0.0)
             absorb = np.sqrt(np.clip(self._volume_color(node, "Absorption Color"), 0.0, None))
             g = self._anisotropy_g(node)
-            if (self._float(node, "Emission Strength", 0.0) > 0
-                    or self._float(node, "Blackbody Intensity", 0.0) > 0):
-                self._warn(f"material '{name}': the emission of Principled Volume "
-                           f"'{node.name}' is not supported and ignored")
+            emit = np.zeros(3)
+            strength = self._float(node, "Emission Strength", 0.0)
+            if strength > 0:
+                emit = emit + strength * self._volume_color(node, "Emission Color")
+            emit = emit + self._blackbody(node)
             scatter = density * color
             return (density * np.clip(1.0 - color, 0.0, None)
-                    * np.clip(1.0 - absorb, 0.0, None), scatter, scatter * g)
+                    * np.clip(1.0 - absorb, 0.0, None), scatter, scatter * g, emit)
         if t == "ADD_SHADER":
             a = self._volume(self._source(node.inputs[0]), depth + 1)
             b = self._volume(self._source(node.inputs[1]), depth + 1)
@@ -652,20 +657,38 @@ class MaterialConverter:
                            "with the Henyey-Greenstein phase of its Anisotropy")
             color = np.clip(self._volume_color(node, "Color"), 0.0, None)
             scatter = max(self._float(node, "Density", 1.0), 0.0) * color
-            return np.zeros(3), scatter, scatter * self._anisotropy_g(node)
-        if t == "EMISSION" or t == "VOLUME_EMISSION" or "EMISSION" in t:
-            self._warn(f"material '{name}': volume emission (node '{node.name}') is not "
-                       "supported and ignored")
-            return zero
+            return np.zeros(3), scatter, scatter * self._anisotropy_g(node), np.zeros(3)
+        if t == "EMISSION":
+            # Cycles' emission closure in a volume shader: radiance per metre of ray
+            # (svm_node_closure_emission x the object's volume density, 1 for a mesh).
+            emit = (self._float(node, "Strength", 1.0)
+                    * self._volume_color(node, "Color"))
+            return np.zeros(3), np.zeros(3), np.zeros(3), emit
         self._warn(f"material '{name}': volume node '{node.name}' ({t}) is not supported "
                    "and ignored")
         return zero
 
+    def _blackbody(self, node) -> np.ndarray:
+        """(3,) Principled Volume's blackbody emission (W/m^2/sr per m), as Cycles'
+        svm_node_principled_volume: with Blackbody Intensity b > 0 and the Temperature T
+        (K, at least 0), sigma_SB 1e-6 / pi x mix(1, T^4, b) x Blackbody Tint x the
+        blackbody colour of T (svm_math_blackbody_color_rec709, luminance about 1;
+        engine.shadernodes.blackbody_rec709), its negative channels (outside the gamut)
+        clipped to 0 as an emission."""
+        b = self._float(node, "Blackbody Intensity", 0.0)
+        if not b > 0:
+            return np.zeros(3)
+        T = max(self._float(node, "Temperature", 1000.0), 0.0)
+        intensity = 5.670373e-8 * 1e-6 / np.pi * ((1.0 - b) + b * T ** 4)
+        tint = self._volume_color(node, "Blackbody Tint")
+        rgb = self.pm.shadernodes.blackbody_rec709(np.array([T]))[0]
+        return np.clip(intensity * tint * rgb, 0.0, None)
+
     def world_volume(self, world, socket, warnings: list):
-        """(sigma_a (3,), sigma_s (3,), g) in 1/m of the World Output's Volume input
-        `socket` of Blender world `world`, read as a material's medium (_volume: Principled
-        Volume, Volume Scatter, Volume Absorption, Add / Mix of them); warnings get what it
-        drops, naming the world."""
+        """(sigma_a (3,), sigma_s (3,), g, emission (3,)) (1/m; W/m^2/sr per m) of the
+        World Output's Volume input `socket` of Blender world `world`, read as a
+        material's medium (_volume: Principled Volume, Volume Scatter, Volume Absorption,
+        Emission, Add / Mix of them); warnings get what it drops, naming the world."""
         self._mat, self._warnings, self._warned = world, [], set()
         medium = self._medium_of(socket)
         warnings.extend(w.replace(f"material '{world.name}'", f"world '{world.name}'", 1)
@@ -673,14 +696,15 @@ class MaterialConverter:
         return medium
 
     def _medium_of(self, socket):
-        """(sigma_a (3,), sigma_s (3,), g) in 1/m of the volume tree feeding `socket`
-        (_volume), the coefficients clipped at 0; one phase function for the medium: the
-        scattering-weighted mean of its Henyey-Greenstein g (a single scatter node: its
-        own g), within +-G_LIMIT."""
-        absorb, scatter, g_scatter = self._volume(self._source(socket), 0)
+        """(sigma_a (3,), sigma_s (3,), g, emission (3,)) of the volume tree feeding
+        `socket` (_volume; 1/m, the emission W/m^2/sr per m), the coefficients clipped at
+        0; one phase function for the medium: the scattering-weighted mean of its
+        Henyey-Greenstein g (a single scatter node: its own g), within +-G_LIMIT."""
+        absorb, scatter, g_scatter, emit = self._volume(self._source(socket), 0)
         scatter = np.clip(scatter, 0.0, None)
         g = float(g_scatter.sum() / scatter.sum()) if scatter.sum() > 0 else 0.0
-        return np.clip(absorb, 0.0, None), scatter, min(max(g, -G_LIMIT), G_LIMIT)
+        return (np.clip(absorb, 0.0, None), scatter, min(max(g, -G_LIMIT), G_LIMIT),
+                np.clip(emit, 0.0, None))
 
     def _anisotropy_g(self, node) -> float:
         """A volume node's Anisotropy as the Henyey-Greenstein g Cycles uses: clamped to

@@ -55,11 +55,17 @@ def world_medium(pm, world, warnings: list):
     out = output_node(nt, "OUTPUT_WORLD") if nt is not None else None
     if out is None or "Volume" not in out.inputs or not out.inputs["Volume"].is_linked:
         return None
-    sigma_a, sigma_s, g = MaterialConverter(pm).world_volume(world, out.inputs["Volume"],
-                                                             warnings)
+    sigma_a, sigma_s, g, emit = MaterialConverter(pm).world_volume(
+        world, out.inputs["Volume"], warnings)
     if not np.any(sigma_a + sigma_s > 0):
+        if np.any(emit > 0):
+            # An infinite glowing medium that dims nothing: every escaping ray would
+            # collect e x infinity.
+            warnings.append(f"world '{world.name}': a World Volume that emits but neither "
+                            "absorbs nor scatters (Density 0) is not supported and ignored")
         return None
-    return pm.WorldMedium(absorption=sigma_a, scattering=sigma_s, anisotropy=g)
+    return pm.WorldMedium(absorption=sigma_a, scattering=sigma_s, anisotropy=g,
+                          emission=emit)
 
 
 def export_world(pm, world, warnings: list):

@@ -14,21 +14,22 @@ reference's, seconds a render. Variants (engine/volumescatter.py module switches
 VARIANTS below; FOG37_VARIANTS picks some, separated by ";", FOG37_SCENES by ","):
   before                equiangular towards point / spot lights only (s36), share 1/2,
                         aimed at a lamp's centre, random numbers
-  area, random point    area lights aimed at too, at a random point on them; a lamp's
-                        peak widened by its radius
-  area, centre widened  at the area light's centre, its peak widened by sqrt(A / pi)
-  + adaptive share      (random point) the exponential's share tau / (tau + rho) in
-                        [0.1, 0.9] (adaptive_share)
+  area, centre          area lights aimed at too, at their centre; a lamp's peak
+                        widened by its radius
+  area, centre widened  an area light's peak widened by sqrt(A / pi) too
+  + adaptive share      the exponential's share tau / (tau + rho) in [0.1, 0.9]
+                        (adaptive_share; share 1/2 above: the bounds 0.5, 0.5)
   + stratified          and the distances' numbers stratified over the pixel's samples
-  centre widened, adaptive, stratified
   stratified alone      s36's sampling with stratified numbers
-  area, stratified      area lights (random point), share 1/2, stratified
+  area, stratified      area lights (centre), share 1/2, stratified
   after (the defaults)  the module's defaults (centre widened, adaptive, stratified), and
                         the surfaces seen through the fog box shaded with the stratified
                         sampler (integrator.UNBENT_STRATIFIED; every variant but "before")
   after, surfaces through the fog random   that last one off
-  area, stratified, centre widened
   cycles                Cycles itself at the same samples (seeds 1..SEEDS)
+fog37's variants that aimed at a random point on an area light (AREA_AIM_RANDOM) or set
+the share by the optical depth alone (SHARE_ADAPTIVE off) are gone with those switches
+(s38); their rows are in docs/accuracy.md, fog37.
 
     PYTHONPATH=$PWD .venv/bin/python bench/bench_fog_area_cycles.py [SPP [SEEDS [REF_SPP]]]
 
@@ -113,26 +114,20 @@ def rel_mse(x, r):
 
 
 DEFAULTS = {k: getattr(vs, k) for k in ("EQUIANGULAR_AREA", "EXP_SHARE_THIN", "EXP_SHARE_THICK",
-                                        "SHARE_ADAPTIVE", "AREA_AIM_RANDOM", "AREA_WIDEN",
-                                        "EQ_RADIUS", "STRATIFIED")}
-BASE = dict(EQUIANGULAR_AREA=True, EXP_SHARE_THIN=0.5, EXP_SHARE_THICK=0.5,
-            SHARE_ADAPTIVE=False, AREA_AIM_RANDOM=True, AREA_WIDEN=0.0, EQ_RADIUS=True,
-            STRATIFIED=False)
-ADAPT = dict(SHARE_ADAPTIVE=True, EXP_SHARE_THIN=0.1, EXP_SHARE_THICK=0.9)
+                                        "AREA_WIDEN", "EQ_RADIUS", "STRATIFIED")}
+BASE = dict(EQUIANGULAR_AREA=True, EXP_SHARE_THIN=0.5, EXP_SHARE_THICK=0.5, AREA_WIDEN=0.0,
+            EQ_RADIUS=True, STRATIFIED=False)
+ADAPT = dict(EXP_SHARE_THIN=0.1, EXP_SHARE_THICK=0.9)
 VARIANTS = {
     "before": dict(EQUIANGULAR_AREA=False, EQ_RADIUS=False),
-    "area, random point": dict(),
-    "area, centre widened": dict(AREA_AIM_RANDOM=False, AREA_WIDEN=1.0),
-    "+ adaptive share": dict(ADAPT),
-    "+ stratified": dict(ADAPT, STRATIFIED=True),
-    "centre widened, adaptive, stratified": dict(ADAPT, STRATIFIED=True,
-                                                 AREA_AIM_RANDOM=False, AREA_WIDEN=1.0),
+    "area, centre": dict(),
+    "area, centre widened": dict(AREA_WIDEN=1.0),
+    "+ adaptive share": dict(ADAPT, AREA_WIDEN=1.0),
+    "+ stratified": dict(ADAPT, AREA_WIDEN=1.0, STRATIFIED=True),
     "stratified alone": dict(EQUIANGULAR_AREA=False, EQ_RADIUS=False, STRATIFIED=True),
     "area, stratified": dict(STRATIFIED=True),
     "after (the defaults)": DEFAULTS,
     "after, surfaces through the fog random": dict(DEFAULTS, UNBENT=False),
-    "area, stratified, centre widened": dict(STRATIFIED=True, AREA_AIM_RANDOM=False,
-                                             AREA_WIDEN=1.0),
 }
 if os.environ.get("FOG37_VARIANTS"):
     VARIANTS = {k: v for k, v in VARIANTS.items() if k in os.environ["FOG37_VARIANTS"].split(";")}

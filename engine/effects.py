@@ -872,7 +872,31 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
     if worldmedium.active(scene):
         # The world volume (engine/worldmedium.py): what it switched off, and why.
         plan.add("world volume", True, worldmedium.effect_reason(scene))
+    glowing = _glowing_media(scene, geo, table, has_tris)
+    if glowing:
+        # Emitting media (engine/volumeemission.py): where their light comes from.
+        plan.add("volume emission", True,
+                 "the glow of " + _quoted(glowing, most=REPORT_NAMES_MAX) + " added along "
+                 "camera paths and final-gather rays (surfaces see it through the gather "
+                 "alone, up to its second diffuse bounce: no light sampling, as Cycles "
+                 "samples none, and no photons from it)"
+                 + ("" if s.photon_mapping else "; photon mapping off: no gather, so it "
+                    "lights no surface"))
     return plan
+
+
+def _glowing_media(scene, geo, table, has_tris) -> list:
+    """The names of the emitting media the scene uses (materials on its triangles, and
+    'the world volume')."""
+    emit = getattr(table, "volume_emission", None)
+    out = []
+    if emit is not None and has_tris and np.any(np.asarray(emit) > 0):
+        used = np.asarray(geo.used_materials(), np.int64)
+        out = sorted({table.names[m] for m in used if np.any(np.asarray(emit)[m] > 0)})
+    wm = getattr(scene, "world_medium", None)
+    if worldmedium.active(scene) and np.any(np.asarray(getattr(wm, "emission", 0.0)) > 0):
+        out.append("the world volume")
+    return out
 
 
 def _portal_leak_note(world) -> str:

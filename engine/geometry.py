@@ -61,6 +61,8 @@ class MaterialTable:
     anisotropy: np.ndarray = None      # (M,) float64 its Henyey-Greenstein g
                                        # (Material.scattering, .anisotropy;
                                        # engine/volumescatter.py)
+    volume_emission: np.ndarray = None  # (M,3) float64 its emission (W/m^2/sr per m;
+                                        # Material.volume_emission, engine/volumeemission.py)
     volume_only: np.ndarray = None     # (M,) bool a volume without a surface (its
                                        # surface a transparent pass: Material.volume_only)
 
@@ -91,6 +93,9 @@ class MaterialTable:
                                         for m in materials], np.float64).reshape(-1, 3),
                    anisotropy=np.array([getattr(m, "anisotropy", 0.0) for m in materials],
                                        np.float64),
+                   volume_emission=np.array([getattr(m, "volume_emission", (0.0, 0.0, 0.0))
+                                             for m in materials],
+                                            np.float64).reshape(-1, 3),
                    volume_only=np.array([bool(getattr(m, "volume_only", False))
                                          for m in materials], np.bool_),
                    **cols)

@@ -28,7 +28,7 @@ from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
 from . import (adaptive, chaincounts, datapasses, media, photonvisibility, sampleclamp,
-               shadelight, volumescatter, worldmedium)
+               shadelight, volumeemission, volumescatter, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -730,7 +730,8 @@ GUIDE_REGATHERS = False
 
 
 def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
-                    level=0, should_cancel=None, lean=_UNSET, extra=None) -> np.ndarray:
+                    level=0, should_cancel=None, lean=_UNSET, extra=None,
+                    glow_only=False) -> np.ndarray:
     """Indirect irradiance by final gathering: cosine-distributed rays; radiance where they
     (or their mirror / glass continuations) meet a diffuse surface comes from the
     precomputed photon irradiance. Mean radiance times pi = irradiance.
@@ -748,7 +749,10 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     none). The gather rays' own continuations add theirs: a lookup past a limit adds
     nothing, and one whose counts drop more light than its level's map holds
     (chaincounts.GatherCounts.reroute) gathers again from its end (the last level reads
-    the map scaled by the share of its power the counts keep, last_level_scale)."""
+    the map scaled by the share of its power the counts keep, last_level_scale).
+    glow_only: the irradiance from emitting media alone (engine/volumeemission.py): no
+    lookup, no surface emission, no lamps' light scattered in fog; the glow's second
+    bounce gathers that way from level 0's gather ends."""
     n = len(hit.p)
     E = np.zeros((n, 3))
     lim = ctx.settings.bounce_limits
@@ -771,13 +775,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
         lean = lean_materials(ctx.table)
     table_alpha = c(ctx.table.alpha, np.float64)
     # The map of this level's depth (bounce limits; None: no photon within them).
-    gmap = _deeper(ctx.gather_map, ctx.regather_maps, level)
+    gmap = None if glow_only else _deeper(ctx.gather_map, ctx.regather_maps, level)
     # This thread's arrays for this level's steps (a call of the next level, the
     # regathers', uses its own).
     buf = _gather_buffers(ctx, level)
     # Level 0: mesh lights whose unsampled sides its rays must count (level > 0 counts
     # every emitter it meets: its direct light skips the mesh lights).
-    unsampled = _unsampled_meshes(ctx) if level == 0 else []
+    unsampled = _unsampled_meshes(ctx) if level == 0 and not glow_only else []
     # Surfaces touching glass (engine/coincident.py; None: no glass touches anything):
     # per gathering hit, whether its rays may meet one where they leave (near) and
     # whether it is glass (its rays may be inside the glass), once for all G rays.
@@ -790,8 +794,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     # Photon-guided directions (engine/guiding.py; setting gather_guiding): level 0 (the
     # regathers keep the cosine lobe unless GUIDE_REGATHERS). Each hit's tables, once for
     # its G rays.
-    guide = (getattr(ctx.gather_map, "guide", None) if n and (level == 0 or GUIDE_REGATHERS)
-             else None)
+    guide = (getattr(ctx.gather_map, "guide", None) if n and not glow_only
+             and (level == 0 or GUIDE_REGATHERS) else None)
     if guide is not None:
         g_rows, g_cols = guide.tables(guide.points_for(p, ns))
     # The medium each ray is in, by hit row (a hit has one ray a step; -1: none known,
@@ -803,14 +807,24 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                 == np.asarray(hit.mat, np.int64), -1,
                                 np.asarray(hit.medium, np.int64))
     # Scattering media (engine/volumescatter.py; None: no material scatters).
-    scatter = (volumescatter.CameraScattering.for_context(ctx) if medium_h is not None
-               else None)
+    scatter = (volumescatter.CameraScattering.for_context(ctx)
+               if medium_h is not None and not glow_only else None)
     # A scattering world volume (engine/worldmedium.py): the rays' media outside the
     # objects' are its row, and the rays that escape scatter the lamps' light along
     # their whole length (their hits taken before the misses are compacted away).
     # (the camera paths' media already are its row outside the objects': hit.medium)
     world_row = worldmedium.medium_row(ctx)
-    fog_escapes = world_row >= 0 and scatter is not None
+    # Emitting media (engine/volumeemission.py; None: none emits): each ray's segment
+    # in one adds its glow (the only way a surface sees it: Cycles samples no light
+    # from volume emission either).
+    glow = (volumeemission.MediumEmission.for_context(ctx) if medium_h is not None
+            else None)
+    fog_escapes = world_row >= 0 and (scatter is not None or glow is not None)
+    # The glow's second bounce: emitting media send no photons (engine/volumeemission.py),
+    # so level 0's gather ends gather the glow that lights them (one ray each, glow only;
+    # without it a box glowing in a white corner left the walls at 0.64 of Cycles, with
+    # it 0.85-0.89: docs/accuracy.md volemit38).
+    second_glow = glow is not None and level == 0 and not glow_only
     for g in range(G):
         idx, o, d, tp = buf.rays(n)
         # (rng.random(out=) draws the numbers rng.random((2, n)) draws, in place)
@@ -899,7 +913,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             else:
                 t, prim, u, v = ctx.accel.intersect(o, d, cls=ray_cls)
                 if fog_escapes:
-                    _gather_escaping(ctx, scatter, world_row, prim, o, d, tp, idx,
+                    _gather_escaping(ctx, scatter, glow, world_row, prim, o, d, tp, idx,
                                      medium_h, E, G, rng, counters)
                 # The hits, compacted in place (gatherkernels.keep_hits).
                 m = keep_hits(prim, o, d, tp, idx, u, v, t, cls)
@@ -920,6 +934,12 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 # buffer's throughput rows stay ones.)
                 tp_seg = tp
                 tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium_h[idx])
+                if glow is not None:
+                    # The glow of an emitting medium along the ray (as a gather ray's
+                    # radiance: x pi / G).
+                    src, Le = glow.along(prim, d, t, medium_h[idx])
+                    if len(src):
+                        E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Le / G
                 if scatter is not None:
                     # The lamps' light a scattering medium sends along the ray (single
                     # scattering, engine/volumescatter.py): the fog's glow on the surface.
@@ -937,7 +957,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                     if len(src):
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
-            if level > 0 and depth == 0:
+            if level > 0 and depth == 0 and not glow_only:
                 Le = y.emission
                 if np.any(Le > 0):
                     E[idx] += tp * math.pi * Le / G
@@ -963,6 +983,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             dsel, lp, ln = buf.dsel[:m], buf.lp[:m], buf.ln[:m]
             loff, lt = buf.loff[:m], buf.lt[:m]
             nd = diffuse_lookups(wd, y.p, y.ng, y.offset, t, dsel, lp, ln, loff, lt)
+            ends = dsel[:nd].copy() if second_glow and nd else None
             if nd and gmap is not None:
                 dsel = dsel[:nd]
                 # The regathers add the secondary caustic back from the lookups' own
@@ -979,6 +1000,9 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                 n_again = add_gathered(E, idx, dsel, tp, wd, Ey, G, boundary, lt[:nd],
                                        float(ctx.gather_short), regather, again)
                 if n_again:
+                    if ends is not None:
+                        # (regathered later with every light, the glow among them)
+                        ends = np.delete(ends, again[:n_again])
                     # Gathered again later, all in one batch (_regather).
                     rows = dsel[again[:n_again]]
                     pending.append((idx[rows], np.take(tp, rows, axis=0),
@@ -988,6 +1012,20 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                     None if sec_E is None else
                                     _point_secondary(sec_E, got[2][again[:n_again]]),
                                     np.take(Ey, again[:n_again], axis=0)))
+            if ends is not None and len(ends):
+                # The glow that lights the ends (one ray each: their irradiance from the
+                # emitting media, Eg), reflected by their diffuse lobe towards the
+                # gathering hit as a lookup's irradiance would be.
+                y_end = y.take(ends)
+                y_end.medium = (None if medium_h is None
+                                else np.take(medium_h[idx], ends))
+                Eg = gather_indirect(ctx, y_end, rng, counters, rays=1, level=level + 1,
+                                     should_cancel=should_cancel, lean=lean,
+                                     extra=None if cnt is None else cnt[idx[ends]],
+                                     glow_only=True)
+                add_gathered(E, idx, c(ends, np.int64), c(tp, np.float64),
+                             c(wd, np.float64), c(Eg, np.float64), G, _NO_FLAG,
+                             _NO_LENGTH, 0.0, False, _NO_ROWS)
             if depth == ctx.settings.gather_depth:
                 break
             d_in = d
@@ -1011,9 +1049,8 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
             if medium_h is not None:
                 # Refracted or passed into a medium, or out of it (into the world
                 # volume's, if any).
-                medium_h[idx[keep]] = worldmedium.outside(
-                    media.after_continuation(ctx.geo, sigma, prim, d_in, keep, d,
-                                             medium_h[idx]), world_row)
+                medium_h[idx[keep]] = media.after_continuation(
+                    ctx.geo, sigma, prim, d_in, keep, d, medium_h[idx], outside=world_row)
             idx = idx[keep]
             cnt = _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls)
     if pending:
@@ -1021,21 +1058,50 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
     return E
 
 
-def _gather_escaping(ctx, scatter, world_row, prim, o, d, tp, idx, medium_h, E, G, rng,
-                     counters):
-    """E[idx] += the lamps' light the world volume scatters along the gather rays (o, d
-    (n,3), throughput tp (n,3), gathering hit rows idx (n,)) that escape the scene (prim
-    (n,) -1) in it (medium_h[idx] == world_row), x pi / G as a gather ray's radiance
+def _gather_escaping(ctx, scatter, glow, world_row, prim, o, d, tp, idx, medium_h, E, G,
+                     rng, counters):
+    """E[idx] += the lamps' light the world volume scatters (scatter: CameraScattering,
+    None: it does not scatter) and its own glow (glow: volumeemission.MediumEmission,
+    None: no medium emits) along the gather rays (o, d (n,3), throughput tp (n,3),
+    gathering hit rows idx (n,)) that escape the scene (prim (n,) -1) in it
+    (medium_h[idx] == world_row), x pi / G as a gather ray's radiance
     (engine/worldmedium.py escaping: the whole length until the medium's transmittance
     is 1e-13; engine/volumescatter.py radiance)."""
     esc, esc_prim, esc_t = worldmedium.escaping(ctx, prim, d, medium_h[idx], world_row)
     if len(esc) == 0:
         return
-    src, Ls = scatter.radiance(esc_prim, np.take(o, esc, axis=0), np.take(d, esc, axis=0),
-                               esc_t, np.take(medium_h[idx], esc), rng, counters)
+    esc_d = np.take(d, esc, axis=0)
+    esc_m = np.take(medium_h[idx], esc)
+    if scatter is not None:
+        src, Ls = scatter.radiance(esc_prim, np.take(o, esc, axis=0), esc_d, esc_t, esc_m,
+                                   rng, counters)
+        if len(src):
+            rows = esc[src]
+            E[np.take(idx, rows)] += np.take(tp, rows, axis=0) * math.pi * Ls / G
+    if glow is not None:
+        src, Le = glow.along(np.full(len(esc), -1, np.int64), esc_d, esc_t, esc_m)
+        if len(src):
+            rows = esc[src]
+            E[np.take(idx, rows)] += np.take(tp, rows, axis=0) * math.pi * Le / G
+
+
+def _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium, world_row):
+    """The camera paths' glow (glow: volumeemission.MediumEmission) along the segments
+    that meet no surface: those ending on a lamp (prim (n,) -2, t (n,) the lamp's
+    distance in units of |d| (n,3)) in a known medium (medium (n,) int64 >= 0), and those
+    escaping (prim -1) through the world volume (medium == world_row >= 0;
+    worldmedium.escaping's length); into pass `target` of acc at pixels pix (n,),
+    weighted by tp (n,3)."""
+    lamp = np.flatnonzero((prim == -2) & (np.asarray(medium) >= 0))
+    esc, _, esc_t = worldmedium.escaping(ctx, prim, d, medium, world_row)
+    rows = np.concatenate([lamp, esc])
+    if len(rows) == 0:
+        return
+    seg_t = np.concatenate([np.take(t, lamp), esc_t])
+    src, Le = glow.along(np.full(len(rows), -1, np.int64), np.take(d, rows, axis=0), seg_t,
+                         np.take(medium, rows))
     if len(src):
-        rows = esc[src]
-        E[np.take(idx, rows)] += np.take(tp, rows, axis=0) * math.pi * Ls / G
+        acc.add(target, pix, Le, tp, rows[src])
 
 
 def _count_continuations(cnt, n, idx, keep, d_in, d, ray_cls):
@@ -1732,6 +1798,16 @@ def _photon_terms(ctx, hit, f, rng, counters, sampler, sample_id, footprint, sho
             indirect = sampleclamp.clamp(indirect, clamp_tp, None, sampleclamp.limits(s)[1])
     else:
         indirect = np.zeros_like(f)
+    if ctx.gather_map is None and volumeemission.glows(ctx):
+        # Emitting media light surfaces through gather rays alone (no light sampling of
+        # volume emission, as in Cycles; no photons from them): the gather runs for their
+        # glow even without a photon map (it then looks nothing up: its rays add the
+        # glow along their segments, engine/volumeemission.py).
+        glow = f * gather_indirect(ctx, hit, rng, counters, sampler,
+                                   should_cancel=should_cancel, extra=extra)
+        if clamp_tp is not None:
+            glow = sampleclamp.clamp(glow, clamp_tp, None, sampleclamp.limits(s)[1])
+        indirect = indirect + glow
     return caustic, indirect
 
 
@@ -2297,12 +2373,14 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     if sigma.shape[0]:
         # A camera inside a medium object (a fog cube around the scene) starts its paths
         # in it (engine/mediumstart.py; an orthographic camera's rays start apart: -1).
-        medium = worldmedium.outside(
-            np.full(len(o), -1 if ortho else point_medium(ctx, cam_pos, sigma), np.int64),
-            world_row)
+        medium = np.full(len(o), world_row if ortho else
+                         point_medium(ctx, cam_pos, sigma, outside=world_row), np.int64)
     # Light scattered towards the camera inside scattering media (engine/volumescatter.py;
     # None: no material scatters), from its own stream of numbers (made when first needed).
     scatter = volumescatter.CameraScattering.for_context(ctx) if medium is not None else None
+    # Emitting media (engine/volumeemission.py; None: none emits): every segment in one
+    # adds its glow, weighted by the throughput at the segment's start.
+    glow = volumeemission.MediumEmission.for_context(ctx) if medium is not None else None
     vol_rng = None
     # Cycles' bounce limits on the camera chain (docs/design.md, Bounce limits): each
     # path's glossy / transmission bounces so far and their total; a path past a limit
@@ -2371,14 +2449,16 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 mask &= sees
                 rows = np.nonzero(mask)[0]
                 L = L[rows]
-                if world_row >= 0 and len(rows):
-                    # The lamp seen through the world volume (it lies in it): the
-                    # segment's exp(-sigma_t s). (Inside an object's medium: not yet.)
-                    in_world = np.take(medium, rows) == world_row
+                if medium is not None and len(rows):
+                    # The lamp seen through the medium the ray is in (an object's, the
+                    # world volume's): the segment's exp(-sigma_t s). (A medium not
+                    # known, -1: none on the way as far as the path knows.)
+                    m_rows = np.take(medium, rows)
                     seg = (np.take(tl, rows) * np.linalg.norm(np.take(d, rows, axis=0),
                                                               axis=1))
-                    L = L * np.where(in_world[:, None],
-                                     np.exp(-sigma[world_row][None, :] * seg[:, None]), 1.0)
+                    L = L * np.where((m_rows >= 0)[:, None],
+                                     np.exp(-np.take(sigma, np.maximum(m_rows, 0), axis=0)
+                                            * seg[:, None]), 1.0)
                 if bounce > 0 and modes[li] == MODE_MIS and len(rows):
                     # The rays that met the light only (with the light tree each takes
                     # a walk down the tree per light for its choice probability).
@@ -2399,6 +2479,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
+        if glow is not None:
+            # The glow along the segments that end on a lamp, or escape through the world
+            # volume (its length until the transmittance is 1e-13: e / sigma_t).
+            _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium,
+                              world_row)
         if world_row >= 0 and scatter is not None and miss.any():
             # Rays escaping into the world volume: the lamps' light it scatters along
             # their whole (infinite) length, cut where its transmittance is 1e-13
@@ -2540,6 +2625,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 medium = medium[kept]
             tp_seg = tp  # (attenuated returns a new array when it dims any row)
             tp = media.attenuated(ctx.geo, sigma, prim, d, t, tp, medium)
+            if glow is not None:
+                # The glow of an emitting medium along the segment (engine/volumeemission.py).
+                src, Le = glow.along(prim, d, t, medium)
+                if len(src):
+                    acc.add(target, pix, Le, tp_seg, src)
             if scatter is not None:
                 # The light the medium scatters into the segment (single scattering of
                 # the lamps' light, weighted by the throughput at its start).
@@ -2767,9 +2857,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         if medium is not None:
             # Refracted or passed into a medium, or out of it (engine/media.py): out of
             # an object's medium into the world volume's, if any.
-            medium = worldmedium.outside(
-                media.after_continuation(ctx.geo, sigma, prim, d_in, keep, d, medium),
-                world_row)
+            medium = media.after_continuation(ctx.geo, sigma, prim, d_in, keep, d, medium,
+                                              outside=world_row)
         if may_split is not None:
             # A split path's two rays have one split less left.
             may_split = may_split[keep] - cont[6]

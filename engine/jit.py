@@ -255,4 +255,5 @@ def _import_kernel_modules():
                    hashgrid, normalmap,
                    kdtree, media, panekernels, photonkernels, photonmap,  # (warm-ups)
                    photonvisibility,
-                   procedural, rayoffset, shadowtransmittance, toplevel, volumescatter)
+                   procedural, rayoffset, shadowtransmittance, toplevel, volumeemission,
+                   volumescatter)

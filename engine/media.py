@@ -39,6 +39,8 @@ import numpy as np
 from .jit import kernel, register_warm_up
 
 NO_SIGMA = np.zeros((0, 3))  # no absorbing material: nothing to do
+# The extinction of a medium that emits but neither absorbs nor scatters (absorption_table).
+EMISSION_ONLY_SIGMA = 1e-300
 
 
 def absorption_table(table) -> np.ndarray:
@@ -48,7 +50,14 @@ def absorption_table(table) -> np.ndarray:
     or NO_SIGMA (0 rows) when no material has a medium, which the kernels read as "no
     media" (they then touch nothing). Every segment inside a medium keeps
     exp(-sigma_t s): the light a scattering medium scatters out of a ray is what
-    engine/volumescatter.py adds back as in-scattering."""
+    engine/volumescatter.py adds back as in-scattering.
+
+    A row with extinction in some channel is a medium: the one rule every kernel here
+    (and shadowtransmittance, mediumstart) reads. A medium that only emits
+    (MaterialTable.volume_emission, engine/volumeemission.py) gets EMISSION_ONLY_SIGMA in
+    every channel so that the rule covers it: exp(-1e-300 s) is exactly 1 in float64 for
+    every s below 1e280 m, so it dims nothing, and its emission integral takes the
+    optical-depth expansion e s (volumeemission.emission_integral)."""
     sigma = getattr(table, "absorption", None)
     if sigma is None:
         return NO_SIGMA
@@ -56,9 +65,37 @@ def absorption_table(table) -> np.ndarray:
     scat = getattr(table, "scattering", None)
     if scat is not None:
         sigma = sigma + np.asarray(scat, np.float64).reshape(-1, 3)
+    emit = getattr(table, "volume_emission", None)
+    if emit is not None:
+        glow_only = (np.any(np.asarray(emit, np.float64).reshape(-1, 3) > 0, axis=1)
+                     & ~np.any(sigma > 0, axis=1))
+        if glow_only.any():
+            sigma = np.array(sigma, copy=True)
+            sigma[glow_only] = EMISSION_ONLY_SIGMA
     if not np.any(sigma > 0):
         return NO_SIGMA
     return np.ascontiguousarray(sigma)
+
+
+@kernel
+def segment_medium(e1, e2, row, m_hit, medium, sigma, dx, dy, dz):
+    """The material row of the medium a segment along d (dx, dy, dz) that ends on
+    triangle row `row` (material m_hit; row < 0: no surface, a lamp or the world) lay
+    in, or -1: none. A ray whose medium is known (medium >= 0) was in it; else the local
+    rule: inside m_hit's medium when the segment leaves through a back face of a medium
+    material (d . (e1 x e2) > 0)."""
+    if medium >= 0:
+        return medium
+    if row < 0:
+        return -1
+    if not (sigma[m_hit, 0] > 0.0 or sigma[m_hit, 1] > 0.0 or sigma[m_hit, 2] > 0.0):
+        return -1
+    nx = e1[row, 1] * e2[row, 2] - e1[row, 2] * e2[row, 1]
+    ny = e1[row, 2] * e2[row, 0] - e1[row, 0] * e2[row, 2]
+    nz = e1[row, 0] * e2[row, 1] - e1[row, 1] * e2[row, 0]
+    if dx * nx + dy * ny + dz * nz <= 0.0:
+        return -1  # entering (or grazing): the segment was outside
+    return m_hit
 
 
 @kernel
@@ -91,14 +128,18 @@ def leaving_transmittance(e1, e2, row, m, sigma, dx, dy, dz, t, out):
 def _segment(e1, e2, row, m_hit, medium, sigma, dx, dy, dz, t, out):
     """out (3,) the transmittance of a segment along d (dx, dy, dz) of t (units of |d|)
     that ends on triangle row `row` (material m_hit) for a ray in `medium` (a material
-    row; < 0: not known, then the local rule: leaving_transmittance). Returns True when a
+    row; < 0: not known, then the local rule: segment_medium). Returns True when a
     channel is below 1."""
-    if medium < 0:
-        return leaving_transmittance(e1, e2, row, m_hit, sigma, dx, dy, dz, t, out)
+    m = segment_medium(e1, e2, row, m_hit, medium, sigma, dx, dy, dz)
+    if m < 0:
+        out[0] = 1.0
+        out[1] = 1.0
+        out[2] = 1.0
+        return False
     s = max(t, 0.0) * math.sqrt(dx * dx + dy * dy + dz * dz)
-    out[0] = math.exp(-sigma[medium, 0] * s)
-    out[1] = math.exp(-sigma[medium, 1] * s)
-    out[2] = math.exp(-sigma[medium, 2] * s)
+    out[0] = math.exp(-sigma[m, 0] * s)
+    out[1] = math.exp(-sigma[m, 1] * s)
+    out[2] = math.exp(-sigma[m, 2] * s)
     return out[0] < 1.0 or out[1] < 1.0 or out[2] < 1.0
 
 
@@ -221,10 +262,13 @@ def attenuated(geo, sigma, prim, d, t, tp, medium) -> np.ndarray:
     return out if n else tp
 
 
-def after_continuation(geo, sigma, prim, d_in, keep, d_out, medium) -> np.ndarray:
+def after_continuation(geo, sigma, prim, d_in, keep, d_out, medium,
+                       outside: int = -1) -> np.ndarray:
     """(K,) int64 the media of the continued camera paths (media_after): prim (n,) the
     hits' triangles, d_in (n,3) the arriving directions, medium (n,) their media, keep
-    (K,) the continued rows, d_out (K,3) their new directions."""
+    (K,) the continued rows, d_out (K,3) their new directions. outside: the medium of a
+    path outside every object's medium (the world volume's row,
+    engine/worldmedium.medium_row; -1: none), read for "none" (-1)."""
     out = np.empty(len(keep), np.int64)
     if sigma.shape[0] == 0:
         out[:] = -1
@@ -233,7 +277,16 @@ def after_continuation(geo, sigma, prim, d_in, keep, d_out, medium) -> np.ndarra
     media_after(rows, _int32(material), _f64(e1), _f64(e2), sigma, _f64(d_in),
                 np.ascontiguousarray(keep, np.int64), _f64(d_out),
                 np.ascontiguousarray(medium, np.int64), out)
-    return out
+    return _outside(out, outside)
+
+
+def _outside(medium: np.ndarray, outside: int) -> np.ndarray:
+    """medium (n,) int64 with "none" (-1) read as `outside` (in place; outside < 0:
+    medium as it is): the one place that decides which medium lies outside every
+    object's."""
+    if outside >= 0:
+        medium[medium < 0] = outside
+    return medium
 
 
 class PhotonMedia:
@@ -259,12 +312,16 @@ class PhotonMedia:
                               power, np.ascontiguousarray(slot, np.int64), self.medium,
                               self.hit_row, self.hit_d)
 
-    def after_scatter(self, slot, d_out):
-        """The continued photons' (slot (K,), direction d_out (K,3)) media."""
+    def after_scatter(self, slot, d_out, outside: int = -1):
+        """The continued photons' (slot (K,), direction d_out (K,3)) media; outside:
+        after_continuation's."""
         if len(slot) == 0:
             return
-        photon_media_after(np.ascontiguousarray(slot, np.int64), _f64(d_out), *self.tables,
-                           self.sigma, self.medium, self.hit_row, self.hit_d)
+        slot = np.ascontiguousarray(slot, np.int64)
+        photon_media_after(slot, _f64(d_out), *self.tables, self.sigma, self.medium,
+                           self.hit_row, self.hit_d)
+        if outside >= 0:
+            self.medium[slot] = _outside(self.medium[slot], outside)
 
 
 def _int32(a):

@@ -22,10 +22,11 @@ WALK_DIRECTION = np.array([0.2897, 0.4511, 0.8440]) / np.linalg.norm([0.2897, 0.
 MAX_SURFACES = 256
 
 
-def point_medium(ctx, point, sigma) -> int:
+def point_medium(ctx, point, sigma, outside: int = -1) -> int:
     """The material row of the medium (sigma (M,3) media.absorption_table: rows with a
-    channel > 0) that contains `point` (3,) (the scene's re-centred frame), or -1: none,
-    or no media (sigma with 0 rows)."""
+    channel > 0) that contains `point` (3,) (the scene's re-centred frame), or `outside`
+    when it lies in none (the world volume's row, engine/worldmedium.medium_row; -1:
+    none), or -1 without media (sigma with 0 rows)."""
     if sigma.shape[0] == 0:
         return -1
     d = WALK_DIRECTION[None, :].copy()
@@ -34,7 +35,7 @@ def point_medium(ctx, point, sigma) -> int:
     for _ in range(MAX_SURFACES):
         t, prim, _, _ = ctx.accel.intersect(o, d)
         if prim[0] < 0 or not np.isfinite(t[0]):
-            return -1
+            return outside
         rows, (material, e1, e2) = ctx.geo.hit_tables(prim, "material", "e1", "e2")
         r = int(rows[0])
         m = int(material[r])
@@ -49,4 +50,4 @@ def point_medium(ctx, point, sigma) -> int:
         hit = o + d * t[0]
         # Past the surface: a step relative to the coordinates' size (float32 BVH).
         o = hit + d * (1e-4 * (1.0 + float(np.abs(hit).max())))
-    return -1
+    return outside

@@ -289,8 +289,7 @@ def _light_medium(ctx, light) -> int:
     sigma = media.absorption_table(ctx.table)
     if not sigma.shape[0]:
         return -1
-    inside = point_medium(ctx, np.asarray(light.pos, np.float64), sigma)
-    return world_row if inside < 0 else inside
+    return point_medium(ctx, np.asarray(light.pos, np.float64), sigma, outside=world_row)
 
 
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
@@ -411,10 +410,9 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         stored.count += n_st
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
         if pmed is not None:
-            pmed.after_scatter(slot, d)  # refracted in or out of a medium
-            if world_row >= 0:
-                # out of an object's medium: into the world volume's (worldmedium.py)
-                pmed.medium[slot] = worldmedium.outside(pmed.medium[slot], world_row)
+            # refracted in or out of a medium; out of an object's medium into the world
+            # volume's, if any (worldmedium.py)
+            pmed.after_scatter(slot, d, outside=world_row)
 
 
 class _Buffers:

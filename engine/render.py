@@ -41,6 +41,7 @@ from .settings import ESTIMATOR_LABELS, RenderSettings
 from .shadowtransmittance import ShadowTransmittance
 from .visibility import VisibilityAccel
 from .visualimportance import indirect_share
+from .volumeemission import glows
 
 
 @dataclass
@@ -692,9 +693,11 @@ def _photon_pass(ctx: Context, stats, progress, should_cancel, on_warning=None,
             on_warning(w)
     # (Emitters with unsampled sides (Emission Sampling) send direct light through the
     # gather rays too, which the photons' indirect share does not count: every ray.)
+    # (Nor does it count the glow of emitting media, which only gather rays bring:
+    # engine/volumeemission.py.)
     if ctx.gather_map is not None and s.gather_by_share and not any(
             light.kind == "MESH" and light.tri_sides is not None
-            and (light.sides() != 3).any() for light in ctx.lights):
+            and (light.sides() != 3).any() for light in ctx.lights) and not glows(ctx):
         share = indirect_share(ctx, shot, ctx.gather_short)
         ctx.gather_rays = gather_count(s.gather_rays, share)
         stats["indirect_share"] = share

@@ -147,6 +147,11 @@ class Material:
     svm_node_principled_volume); its extinction is sigma_a + sigma_s, and the light it
     scatters follows the Henyey-Greenstein phase function of `anisotropy` g in (-1, 1)
     (Cycles' volume_henyey_greenstein; engine/volumescatter.py).
+    `volume_emission` (3,) W m^-2 sr^-1 per metre: the radiance the medium emits per unit
+    length of a ray inside it (an Emission shader on the Material Output's Volume: Color
+    x Strength; Principled Volume: Emission Strength x Emission Color plus its
+    blackbody; Cycles' emission_setup in a volume shader); a segment of length S adds
+    e (1 - exp(-sigma_t S)) / sigma_t (engine/volumeemission.py).
     `volume_only`: the material has a volume but no surface (Surface unlinked): Cycles
     renders the surface invisible, rays pass it unbent and only the medium acts; here
     that is a transparent pass (alpha 0, white tint, no emission, black base).
@@ -197,6 +202,7 @@ class Material:
     absorption: tuple | np.ndarray = (0.0, 0.0, 0.0)
     scattering: tuple | np.ndarray = (0.0, 0.0, 0.0)
     anisotropy: float = 0.0
+    volume_emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
     volume_only: bool = False
     displacement: object | None = None
     displacement_method: str = "BUMP"
@@ -279,6 +285,10 @@ class Material:
         self.anisotropy = float(self.anisotropy)
         if not -1.0 < self.anisotropy < 1.0:
             raise SceneError(f"{who} anisotropy: must lie in (-1, 1), got {self.anisotropy}")
+        self.volume_emission = _vec3(self.volume_emission, f"{who} volume_emission")
+        if np.any(self.volume_emission < 0):
+            raise SceneError(f"{who} volume_emission: must be >= 0 (W/m^2/sr per m), got "
+                             f"{self.volume_emission.tolist()}")
         self.volume_only = bool(self.volume_only)
         if self.volume_only:
             # No surface: every ray passes it unbent and untinted (a transparent pass).
@@ -1191,11 +1201,14 @@ class WorldMedium:
     World Output's Volume as a Material Output's). The world lies infinitely far beyond
     it: a ray escaping the scene keeps exp(-sigma_t x infinity) = 0 of the world's light,
     so the world's surface (Background, HDRI) and sun lamps light nothing and the
-    background reads black (engine/worldmedium.py)."""
+    background reads black (engine/worldmedium.py). `emission` (3,) W m^-2 sr^-1 per
+    metre: the radiance it emits per unit length (Material.volume_emission; a ray
+    escaping through it collects e / sigma_t, engine/volumeemission.py)."""
 
     absorption: tuple | np.ndarray = (0.0, 0.0, 0.0)
     scattering: tuple | np.ndarray = (0.0, 0.0, 0.0)
     anisotropy: float = 0.0
+    emission: tuple | np.ndarray = (0.0, 0.0, 0.0)
 
     def validate(self) -> None:
         self.absorption = _vec3(self.absorption, "world_medium absorption")
@@ -1203,6 +1216,10 @@ class WorldMedium:
         if np.any(self.absorption < 0) or np.any(self.scattering < 0):
             raise SceneError("world_medium: absorption and scattering must be >= 0 (1/m), "
                              f"got {self.absorption.tolist()}, {self.scattering.tolist()}")
+        self.emission = _vec3(self.emission, "world_medium emission")
+        if np.any(self.emission < 0):
+            raise SceneError("world_medium: emission must be >= 0 (W/m^2/sr per m), got "
+                             f"{self.emission.tolist()}")
         self.anisotropy = float(self.anisotropy)
         if not -1.0 < self.anisotropy < 1.0:
             raise SceneError(f"world_medium anisotropy: must lie in (-1, 1), got "
@@ -1313,7 +1330,11 @@ class Scene:
             for msg in warnings_for(self):
                 if msg not in self.warnings:
                     self.warnings.append(msg)
-        has_emitter = any(m.is_emissive for m in self.materials.values())
+        # (emitting media glow too: engine/volumeemission.py)
+        has_emitter = any(m.is_emissive or np.any(m.volume_emission > 0)
+                          for m in self.materials.values())
+        if self.world_medium is not None and np.any(self.world_medium.emission > 0):
+            has_emitter = True
         world_lit = (not self.environment.is_black if self.environment is not None
                      else np.any(self.background > 0))
         if self.world_medium is not None and np.all(self.world_medium.extinction > 0):

@@ -177,7 +177,9 @@ MATERIAL_SCHEMA = _table({"base_color": _vec3(nonneg=True), "emission": _vec3(no
                           # its scattering sigma_s (1/m) and Henyey-Greenstein g
                           # (engine/volumescatter.py)
                           "scattering": _vec3(nonneg=True),
-                          "anisotropy": _number(-1.0, 1.0, lo_open=True, hi_open=True)})
+                          "anisotropy": _number(-1.0, 1.0, lo_open=True, hi_open=True),
+                          # its emission, W/m^2/sr per metre (engine/volumeemission.py)
+                          "volume_emission": _vec3(nonneg=True)})
 MATERIAL_KEYS = set(MATERIAL_SCHEMA["properties"])
 
 CAMERA_SCHEMA = _table({
@@ -274,7 +276,8 @@ MIST_SCHEMA = _table({"start": _number(0.0), "depth": _number(0.0),
 # space outside the objects (engine/worldmedium.py), 1/m per channel.
 WORLD_MEDIUM_SCHEMA = _table({"absorption": _vec3(nonneg=True),
                               "scattering": _vec3(nonneg=True),
-                              "anisotropy": _number(-1.0, 1.0, lo_open=True, hi_open=True)})
+                              "anisotropy": _number(-1.0, 1.0, lo_open=True, hi_open=True),
+                              "emission": _vec3(nonneg=True)})
 
 
 def scene_schema() -> dict:
@@ -502,7 +505,8 @@ def _build(data: dict, base: str):
         w = data["world_medium"]
         scene.world_medium = WorldMedium(absorption=_vec(w.get("absorption", (0.0, 0.0, 0.0))),
                                          scattering=_vec(w.get("scattering", (0.0, 0.0, 0.0))),
-                                         anisotropy=float(w.get("anisotropy", 0.0)))
+                                         anisotropy=float(w.get("anisotropy", 0.0)),
+                                         emission=_vec(w.get("emission", (0.0, 0.0, 0.0))))
     if "mist" in data:
         m = data["mist"]
         scene.mist = (float(m.get("start", 5.0)), float(m.get("depth", 25.0)),

@@ -40,8 +40,12 @@ point the path scatters on inside the medium that many more times (CameraScatter
 a Henyey-Greenstein direction, a distance in the segment to the next surface, the lamps'
 light at each point), the medium-only part of multiple scattering.
 
-Limits (docs/compatibility.md, Volume scattering): the lamps' light only, at points inside
-the medium. Photons and final-gather rays are dimmed by the extinction but do not scatter
+Emitting media (engine/volumeemission.py): the glow scattered towards the ray is the
+emission along one more phase-sampled segment from each scatter point (walk), as Cycles'
+path collects it after its last volume bounce.
+
+Limits (docs/compatibility.md, Volume scattering): the lamps' light only (and the
+glow's), at points inside the medium. Photons and final-gather rays are dimmed by the extinction but do not scatter
 in the medium (the fog's glow after a second scatter onto the surfaces, and the surfaces'
 light scattered in the fog, are missing: measured in docs/accuracy.md, volscatter36); a
 walk whose distance falls beyond its segment ends there. Seeded: the numbers come from the camera path's own
@@ -53,7 +57,8 @@ import math
 
 import numpy as np
 
-from . import media, worldmedium
+from . import media, volumeemission, worldmedium
+from .media import segment_medium
 from .directlight import DirectLightBuffers, NO_HROWS, NO_ROWS, NO_ROWS3, sample_lights
 from .jit import kernel, register_warm_up
 from .lights import packing as pk
@@ -70,21 +75,18 @@ EQUIANGULAR = True
 EQUIANGULAR_AREA = True  # area lights among them (fog37; False: point / spot only)
 MAX_EQUIANGULAR = 8  # the strongest point / spot / area lights it aims at
 # The exponential strategy's share of a segment's distances when equiangular lights light
-# part of it. SHARE_ADAPTIVE: adaptive_share, the optical depth tau against rho, how far
-# the equiangular pdf departs from uniform over the segment (equiangular_gain), clamped
-# to [EXP_SHARE_THIN, EXP_SHARE_THICK]; else exponential_share, EXP_SHARE_THICK from an
-# optical depth of about 1 on, falling to EXP_SHARE_THIN on a thin segment (s36: 1/2,
-# 1/2). It never reaches 0: the exponential is the only strategy for the sun, the world,
-# mesh lights and the lamps beyond MAX_EQUIANGULAR, and it covers what the lit intervals
-# clip away.
-SHARE_ADAPTIVE = True
+# part of it: adaptive_share, the optical depth tau against rho, how far the equiangular
+# pdf departs from uniform over the segment (equiangular_gain), clamped to
+# [EXP_SHARE_THIN, EXP_SHARE_THICK] (fog37 measured it against a share set by the optical
+# depth alone, s36's fixed 1/2, docs/accuracy.md; that switch is gone since s38). It never
+# reaches 0: the exponential is the only strategy for the sun, the world, mesh lights and
+# the lamps beyond MAX_EQUIANGULAR, and it covers what the lit intervals clip away.
 EXP_SHARE_THIN = 0.1
 EXP_SHARE_THICK = 0.9
 # An area light is aimed at its centre with its peak widened by AREA_WIDEN x sqrt(A / pi)
 # (a Lambertian disk of radius R gives a point on its axis at distance z light in
-# proportion to R^2 / (z^2 + R^2)); AREA_AIM_RANDOM: at a point drawn uniformly on it
-# instead, as Cycles aims at its light sample (eq_target; measured noisier, fog37).
-AREA_AIM_RANDOM = False
+# proportion to R^2 / (z^2 + R^2)); fog37 measured aiming at a point drawn uniformly on
+# it, as Cycles aims at its light sample, noisier (that switch is gone since s38).
 AREA_WIDEN = 1.0
 EQ_RADIUS = True  # a lamp's radius widens its equiangular peak (_equiangular)
 # The camera segments' distance numbers (the strategy's choice and the distance)
@@ -138,22 +140,11 @@ def _equiangular(ox, oy, oz, dx, dy, dz, S, cx, cy, cz, radius):
 # 6 (<= 0: a point light, an area light of spread 180 degrees, or a cone too wide to
 # clip), the apex's pull-back along the axis 7 (a spot of radius r emits from a disk: the
 # cone through its rim; an area light of spread < 180: the cone through its outline),
-# 8: 1 for an area light (lit only in front of its plane; aimed at a point on it), its
+# 8: 1 for an area light (lit only in front of its plane; aimed at its centre), its
 # edges 9-11 and 12-14 (size_x u, size_y v), 15: 1 for a disk / ellipse, 16: a point or
 # spot light's radius (_equiangular widens its peak by it).
 EQ_COLUMNS = 17
 NO_POINTS = np.zeros((0, EQ_COLUMNS))  # no equiangular lights
-
-
-@kernel
-def exponential_share(tau, n_lit, thin, thick):
-    """The exponential strategy's share of a segment's distance samples (the rest:
-    equiangular towards the n_lit lights that light part of it): 1 without such lights,
-    else thin + (thick - thin) (1 - e^-tau) for the segment's optical depth tau (the
-    channels' mean extinction x its length; EXP_SHARE_THIN, EXP_SHARE_THICK)."""
-    if n_lit == 0:
-        return 1.0
-    return thin + (thick - thin) * -math.expm1(-tau)
 
 
 @kernel
@@ -182,33 +173,6 @@ def adaptive_share(tau, rho, n_lit, lo, hi):
     if not tau + rho > 1e-3:
         return 0.5
     return min(max(tau / (tau + rho), lo), hi)
-
-
-@kernel
-def eq_target(eq, j, v0, v1):
-    """(x, y, z) the point equiangular sampling aims at for light row j of eq: the light's
-    position, or for an area light (eq[j, 8] = 1) the point of its rectangle / ellipse
-    that v0, v1 (uniform) pick, uniform in area (Cycles aims at the point its
-    light_sample_from_volume_segment drew on the light). Every strategy's pdf is
-    conditioned on that point, drawn whichever strategy samples: the estimate stays
-    unbiased."""
-    x, y, z = eq[j, 0], eq[j, 1], eq[j, 2]
-    if not eq[j, 8] > 0.0:
-        return x, y, z
-    a, b = v0 - 0.5, v1 - 0.5
-    if eq[j, 15] > 0.0:
-        # Concentric map of the square onto the disk of radius 1/2 (Shirley & Chiu 1997).
-        sa, sb = 2.0 * a, 2.0 * b
-        if sa == 0.0 and sb == 0.0:
-            a = b = 0.0
-        elif abs(sa) > abs(sb):
-            phi = 0.25 * math.pi * (sb / sa)
-            a, b = 0.5 * sa * math.cos(phi), 0.5 * sa * math.sin(phi)
-        else:
-            phi = 0.5 * math.pi - 0.25 * math.pi * (sa / sb)
-            a, b = 0.5 * sb * math.cos(phi), 0.5 * sb * math.sin(phi)
-    return (x + a * eq[j, 9] + b * eq[j, 12], y + a * eq[j, 10] + b * eq[j, 13],
-            z + a * eq[j, 11] + b * eq[j, 14])
 
 
 @kernel
@@ -291,19 +255,17 @@ def _cone_interval(ox, oy, oz, ux, uy, uz, S, eq, j):
 
 @kernel
 def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u, u_pick,
-                    u_y, eq_pos, share_thin, share_thick, share_adaptive, src, p, w,
-                    seg_m):
+                    eq_pos, share_thin, share_thick, src, p, w, seg_m):
     """One in-scattering point per camera segment inside a scattering medium.
 
     rows (n,) int64 the triangle each ray met (< 0: none), material (T,) int32, e1, e2
     (T,3) edges; medium (n,) int64 each ray's medium (-1: not known: the segment was inside
-    the medium of the object whose back face it ends on, media.leaving_transmittance's
-    rule); o, d (n,3) the rays, t (n,) their hit distances in units of |d|; u, u_pick (n,)
-    uniform numbers, u_y (n,2) uniform numbers placing the point an area light is aimed
-    at (eq_target; (n,2) zeros when no area light is among eq_pos). The distance s: from
-    the exponential of the channels' mean extinction truncated to the segment, or
-    (eq_pos (K,EQ_COLUMNS), K > 0: the point, spot and area lights) with probability
-    1 - exponential_share(tau, lit, share_thin, share_thick) equiangular towards one of
+    the medium of the object whose back face it ends on, media.segment_medium's rule); o,
+    d (n,3) the rays, t (n,) their hit distances in units of |d|; u, u_pick (n,) uniform
+    numbers. The distance s: from the exponential of the channels' mean extinction
+    truncated to the segment, or (eq_pos (K,EQ_COLUMNS), K > 0: the point, spot and area
+    lights, each aimed at its position, an area light's centre) with probability
+    1 - adaptive_share(tau, rho, lit, share_thin, share_thick) equiangular towards one of
     the lights that can light part of the segment (lit_interval: a spot's cone, an area
     light's front side and spread), picked uniformly, over that part only (Kulla &
     Fajardo 2012), its pdf the mixture of the exponential and those lights' (one-sample
@@ -315,20 +277,12 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
     n_eq = eq_pos.shape[0]
     lo = np.empty(max(n_eq, 1))
     hi = np.empty(max(n_eq, 1))
-    aim = np.empty((max(n_eq, 1), 3))
     for i in range(rows.shape[0]):
         r = rows[i]
         if r < 0:
             continue
         dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
-        m = medium[i]
-        if m < 0:
-            mh = material[r]
-            nx = e1[r, 1] * e2[r, 2] - e1[r, 2] * e2[r, 1]
-            ny = e1[r, 2] * e2[r, 0] - e1[r, 0] * e2[r, 2]
-            nz = e1[r, 0] * e2[r, 1] - e1[r, 1] * e2[r, 0]
-            if dx * nx + dy * ny + dz * nz > 0.0:
-                m = mh
+        m = segment_medium(e1, e2, r, material[r], medium[i], sigma_t, dx, dy, dz)
         if m < 0:
             continue
         s0, s1, s2 = sigma_s[m, 0], sigma_s[m, 1], sigma_s[m, 2]
@@ -354,16 +308,11 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
             lo[j], hi[j] = a, b
             if b > a:
                 n_lit += 1
-                aim[j, 0], aim[j, 1], aim[j, 2] = eq_target(eq_pos, j, u_y[i, 0], u_y[i, 1])
-                if share_adaptive:
-                    rho = max(rho, equiangular_gain(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz,
-                                                    S, a, b, aim[j, 0], aim[j, 1],
-                                                    aim[j, 2], eq_pos[j, 16]))
+                rho = max(rho, equiangular_gain(o[i, 0], o[i, 1], o[i, 2], ux, uy, uz, S, a,
+                                                b, eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2],
+                                                eq_pos[j, 16]))
         # the exponential's share of the mixture
-        if share_adaptive:
-            share = adaptive_share(tau, rho, n_lit, share_thin, share_thick)
-        else:
-            share = exponential_share(tau, n_lit, share_thin, share_thick)
+        share = adaptive_share(tau, rho, n_lit, share_thin, share_thick)
         up = u_pick[i]
         if up < share:
             # Exponential truncated to [0, S]: s = -ln(1 - u (1 - e^-tau)) / sb (an
@@ -381,7 +330,8 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
             a = lo[j]
             ta, D, tha, thb = _equiangular(o[i, 0] + ux * a, o[i, 1] + uy * a,
                                            o[i, 2] + uz * a, ux, uy, uz, hi[j] - a,
-                                           aim[j, 0], aim[j, 1], aim[j, 2], eq_pos[j, 16])
+                                           eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2],
+                                           eq_pos[j, 16])
             s = a + ta + D * math.tan(tha + u[i] * (thb - tha))
         s = min(max(s, 0.0), S)
         pdf = share * (1.0 / S if thin else sb * math.exp(-sb * s) / one_minus)
@@ -391,7 +341,8 @@ def sample_segments(rows, material, e1, e2, sigma_t, sigma_s, medium, o, d, t, u
                 continue
             ta, D, tha, thb = _equiangular(o[i, 0] + ux * a, o[i, 1] + uy * a,
                                            o[i, 2] + uz * a, ux, uy, uz, hi[j] - a,
-                                           aim[j, 0], aim[j, 1], aim[j, 2], eq_pos[j, 16])
+                                           eq_pos[j, 0], eq_pos[j, 1], eq_pos[j, 2],
+                                           eq_pos[j, 16])
             if thb > tha:
                 x = s - a - ta
                 pdf += (1.0 - share) / n_lit * D / ((thb - tha) * (D * D + x * x))
@@ -550,7 +501,7 @@ def equiangular_rows(lights, codes, params, rows) -> np.ndarray:
     sin(angle) so the cone holds the light's disk; a point light, or a cone of 90 degrees
     or more, cosine -1 (not clipped); both their radius (column 16: _equiangular's
     widened peak). An area light carries its emitting axis, its edges
-    and shape (eq_target aims at a point on it) and, with a spread below 180 degrees,
+    and shape and, with a spread below 180 degrees,
     the cone of half the spread (widened 1e-3 rad) whose apex lies behind the light by
     its largest extent / tan(spread / 2): every ray leaving the light within the spread
     stays inside it (Cycles' area_light_valid_ray_segment; its light's radiance at angle
@@ -608,10 +559,12 @@ class CameraScattering:
         self.bounces = int(getattr(ctx.settings, "volume_bounces", 0) or 0)
         # The world volume's row (engine/worldmedium.py; -1: none).
         self.world_row = worldmedium.medium_row(ctx)
+        # Emitting media (engine/volumeemission.py; None: none): their glow scattered
+        # towards the ray (walk).
+        self.glow = volumeemission.MediumEmission.for_context(ctx)
         # The point, spot and area lights for equiangular sampling (sample_segments;
         # the strongest MAX_EQUIANGULAR by emitted power; none: exponential alone).
         self.eq_pos = NO_POINTS
-        self.eq_area = False
         if EQUIANGULAR and ctx.lights:
             codes, params, _ = ctx.packed_lights or pack_lights(ctx.lights)
             kinds = (codes == pk.CODE_POINT) | (codes == pk.CODE_SPOT)
@@ -622,7 +575,6 @@ class CameraScattering:
                 power = np.array([_power(ctx.lights[r], params[r]) for r in rows])
                 rows = rows[np.argsort(-power, kind="stable")[:MAX_EQUIANGULAR]]
                 self.eq_pos = equiangular_rows(ctx.lights, codes, params, rows)
-                self.eq_area = bool(np.any(codes[rows] == pk.CODE_AREA))
 
     def _world_sigma(self, seg_m):
         """(K,3) the world volume's extinction at the points in it (media seg_m (K,)),
@@ -657,7 +609,7 @@ class CameraScattering:
         Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
                            counters, world_sigma=self._world_sigma(seg_m))
         L = Lin * w
-        if self.bounces > 0:
+        if self.bounces > 0 or self.glow is not None:
             self.walk(L, pts, wo, w, seg_m, rng, counters)
         return src, L
 
@@ -665,8 +617,7 @@ class CameraScattering:
         """One distance sample on each ray's segment (sample_segments; rays src of o, d
         (n,3), t (n,) in units of |d|, ending on triangles prim (n,), in media medium
         (n,)): (src (K,) int64, points (K,3), weights (K,3), media (K,)) for the K that
-        scatter, in order. rng: n pairs of numbers (and n more pairs with an area light
-        among the equiangular lights)."""
+        scatter, in order. rng: n pairs of numbers."""
         rows, (material, e1, e2) = self.ctx.geo.hit_tables(prim, "material", "e1", "e2")
         n = len(prim)
         src = np.empty(n, np.int64)
@@ -675,10 +626,6 @@ class CameraScattering:
         seg_m = np.empty(n, np.int64)
         u, u_pick = rng.random((2, n)) if uv is None else (np.ascontiguousarray(uv[0]),
                                                              np.ascontiguousarray(uv[1]))
-        # (numbers for the point on an area light only with one: point and spot scenes
-        # keep their streams)
-        u_y = (np.ascontiguousarray(rng.random((n, 2))) if self.eq_area and AREA_AIM_RANDOM
-               else np.full((n, 2), 0.5))
         k = sample_segments(np.ascontiguousarray(rows, np.int64),
                             np.ascontiguousarray(material, np.int32),
                             np.ascontiguousarray(e1, np.float64),
@@ -686,9 +633,9 @@ class CameraScattering:
                             np.ascontiguousarray(medium, np.int64),
                             np.ascontiguousarray(o, np.float64),
                             np.ascontiguousarray(d, np.float64),
-                            np.ascontiguousarray(t, np.float64), u, u_pick, u_y,
+                            np.ascontiguousarray(t, np.float64), u, u_pick,
                             self.eq_pos, float(EXP_SHARE_THIN), float(EXP_SHARE_THICK),
-                            bool(SHARE_ADAPTIVE), src, pts, w, seg_m)
+                            src, pts, w, seg_m)
         return src[:k], pts[:k], w[:k], seg_m[:k]
 
     def walk(self, L, pts, wo, beta, seg_m, rng, counters=None):
@@ -698,15 +645,29 @@ class CameraScattering:
         Henyey-Greenstein phase (sample_hg: its weight phase / pdf is 1), the segment to
         the next surface, a distance in it (sample_segments; a path whose distance falls
         beyond the medium's segment ends, its light there being the surface's, which is
-        not followed), the lamps' light there (in_scattered) added to L (K,3) in place."""
+        not followed), the lamps' light there (in_scattered) added to L (K,3) in place.
+        In emitting media (self.glow) each of those segments adds its glow, and so does
+        one more segment from the last scatter point (Cycles' path goes on from its last
+        volume bounce to collect that segment's emission: PATH_RAY_TERMINATE_AFTER_VOLUME;
+        at Volume bounces 0 that segment alone: the glow scattered once)."""
         idx = np.arange(len(pts))
         x, d_in, m, beta = pts, wo, seg_m, beta
-        for _ in range(self.bounces):
+        last = self.bounces if self.glow is not None else self.bounces - 1
+        for step in range(last + 1):
             if len(idx) == 0:
                 return
             u1, u2 = rng.random((2, len(idx)))
             d_new = sample_hg(d_in, self.g[m], u1, u2)
             t, prim, _, _ = self.ctx.accel.intersect(x, d_new)
+            if self.glow is not None:
+                # (an escape through the world volume: its length to 1e-13, d_new unit)
+                t_e = (t if self.world_row < 0 else
+                       np.where(np.asarray(prim) == -1, worldmedium.far_length(self.ctx), t))
+                s_e, Le = self.glow.along(prim, d_new, t_e, m)
+                if len(s_e):
+                    L[idx[s_e]] += beta[s_e] * Le
+            if step == self.bounces:
+                return  # the segment after the last bounce: its glow alone
             src, p2, w2, m2 = self._scatter_points(prim, x, d_new, t, m, rng)
             idx, x, d_in, m = idx[src], p2, d_new[src], m2
             beta = beta[src] * w2
@@ -749,12 +710,11 @@ def _warm_up():
     spot[0, :8] = [0.5, 0.0, 0.5, 0.0, 0.0, -1.0, 0.7, 0.1]
     spot[1, :9] = [0.0, 0.0, 0.5, 0.0, 0.0, -1.0, -1.0, 0.0, 1.0]
     spot[1, 9], spot[1, 13] = 0.5, 0.5
-    for eq, adaptive in ((NO_POINTS, False), (spot, False), (spot, True)):
+    for eq in (NO_POINTS, spot):
         sample_segments(np.zeros(1, np.int64), np.zeros(1, np.int32), e1, e2, one, one,
                         np.full(1, -1, np.int64), np.zeros((1, 3)), d, np.ones(1), u2[0],
-                        u2[1], np.full((1, 2), 0.5), eq, 0.5, 0.5, adaptive,
-                        np.empty(1, np.int64),
-                        out, np.empty((1, 3)), np.empty(1, np.int64))
+                        u2[1], eq, 0.5, 0.5, np.empty(1, np.int64), out, np.empty((1, 3)),
+                        np.empty(1, np.int64))
     accumulate_phase(np.zeros((1, 3)), one, np.zeros(1, np.int64), np.zeros(1, np.int64),
                      np.zeros(1, np.int64), np.ones(1), np.zeros(1, np.bool_), 1, d,
                      np.concatenate([d, -d]), d, np.zeros(1), 1, np.ones(1, np.bool_),

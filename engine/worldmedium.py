@@ -15,8 +15,9 @@ uses it), so engine/media.py's and engine/volumescatter.py's kernels read its ex
 scattering and phase as any object's medium: a path outside every object's medium is in
 that row (medium_row) instead of "none" (-1): camera paths start in it (unless the camera
 is inside an object's medium), and a path leaving an object's medium through its back face
-returns to it (outside). Segments in it are dimmed by exp(-sigma_t s) (camera paths,
-final-gather rays, photons); shadow rays that meet no surface lie wholly in it
+returns to it (media.after_continuation's, PhotonMedia.after_scatter's and
+mediumstart.point_medium's `outside`). Segments in it are dimmed by exp(-sigma_t s)
+(camera paths, final-gather rays, photons); shadow rays that meet no surface lie wholly in it
 (integrator._medium_sigma); rays escaping to infinity scatter the lamps' light along
 their whole length (escaping: a segment long enough that the rest is below 1e-13).
 prepare_lights leaves out the world light and suns (lights/__init__.py), and
@@ -60,7 +61,9 @@ def world_material(scene):
     row = Material(ROW_NAME, base_color=(0.0, 0.0, 0.0), alpha=0.0,
                    absorption=np.asarray(wm.absorption, np.float64),
                    scattering=np.asarray(wm.scattering, np.float64),
-                   anisotropy=float(wm.anisotropy), volume_only=True)
+                   anisotropy=float(wm.anisotropy),
+                   volume_emission=np.asarray(getattr(wm, "emission", np.zeros(3)), np.float64),
+                   volume_only=True)
     return row
 
 
@@ -87,14 +90,6 @@ def medium_row(ctx) -> int:
     if not active(ctx.scene):
         return -1
     return len(ctx.scene.materials)
-
-
-def outside(medium: np.ndarray, row: int) -> np.ndarray:
-    """medium (n,) int64 with "none" (-1: outside every object's medium) read as the
-    world medium's row (row < 0: medium itself)."""
-    if row < 0:
-        return medium
-    return np.where(np.asarray(medium, np.int64) < 0, row, medium)
 
 
 def far_length(ctx) -> float:

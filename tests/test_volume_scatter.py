@@ -381,8 +381,7 @@ def test_distances_clipped_to_a_spots_cone_stay_unbiased():
                         np.array([[0.0, 1.0, 0.0]]), np.full((1, 3), sigma),
                         np.full((1, 3), sigma), np.zeros(n, np.int64),
                         np.tile([-5.0, 0.0, -2.0], (n, 1)), np.tile([1.0, 0.0, 0.0], (n, 1)),
-                        np.full(n, 10.0), u, up, np.zeros((n, 2)), spot, 0.5, 0.5, False, src,
-                        p, w, m)
+                        np.full(n, 10.0), u, up, spot, 0.5, 0.5, src, p, w, m)
     assert k == n
     s = p[:, 0] + 5.0
     half = 2.0 * math.tan(math.acos(0.9))
@@ -450,39 +449,20 @@ def test_lit_interval_of_an_area_light_is_its_front_side_and_spread():
         assert a < 1e-9 and b == pytest.approx(20.0)
 
 
-def test_equiangular_aims_at_points_spread_over_the_area_light():
-    """eq_target: uniform over the rectangle (mean the centre, variance size^2 / 12 along
-    each edge) and over the ellipse (inside it, mean the centre, E r^2 = a^2 / 4 + ...)."""
-    from engine.volumescatter import eq_target
-    u, v = np.array([0.6, 0.8, 0.0]), np.array([-0.8, 0.6, 0.0])
-    rng = np.random.default_rng(2)
-    V = rng.random((20000, 2))
-    for disk in (False, True):
-        row = _area_row((1.0, 2.0, 3.0), (0.0, 0.0, -1.0), u, v, size=(2.0, 0.5), disk=disk)
-        pts = np.array([eq_target(row, 0, a, b) for a, b in V]) - [1.0, 2.0, 3.0]
-        x, y = pts @ u, pts @ v
-        assert np.abs(pts[:, 2]).max() < 1e-12
-        assert abs(x.mean()) < 0.02 and abs(y.mean()) < 0.005
-        if disk:
-            assert ((x / 1.0) ** 2 + (y / 0.25) ** 2).max() <= 1.0 + 1e-9
-            assert (x ** 2).mean() == pytest.approx(1.0 / 4.0, rel=0.03)  # a^2 / 4, a = 1
-        else:
-            assert np.abs(x).max() <= 1.0 and np.abs(y).max() <= 0.25
-            assert (x ** 2).mean() == pytest.approx(4.0 / 12.0, rel=0.03)
-
-
 @pytest.mark.parametrize("thin", [0.5, 0.2])
 def test_distances_aimed_at_an_area_light_stay_unbiased(thin):
     """sample_segments with an area light (a 1 x 1 square at z = 0 facing down, the
-    segment crossing its plane) and the exponential share thin..0.5: the weights
-    T(s) sigma_s / pdf(s) integrate the whole segment (1 - e^-tau) and its part in front
-    of the light (the pdf: the mixture, equiangular conditioned on the point aimed at)."""
-    from engine.volumescatter import sample_segments
+    segment crossing its plane, aimed at its centre) and the exponential share in
+    [thin, 0.5] (adaptive_share of the segment's optical depth against the light's
+    equiangular_gain): the weights T(s) sigma_s / pdf(s) integrate the whole segment
+    (1 - e^-tau) and its part in front of the light (the pdf: the mixture)."""
+    from engine.volumescatter import (adaptive_share, equiangular_gain, lit_interval,
+                                      sample_segments)
     n = 200_000
     sigma = 0.1
     row = _area_row((0.0, 0.0, 0.0), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
     rng = np.random.default_rng(7)
-    u, up, uy = rng.random(n), rng.random(n), rng.random((n, 2))
+    u, up = rng.random(n), rng.random(n)
     src, p, w, m = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)),
                     np.empty(n, np.int64))
     d = np.array([0.6, 0.0, -0.8])  # from (-3, 0, 4): crosses z = 0 at s = 5
@@ -490,26 +470,20 @@ def test_distances_aimed_at_an_area_light_stay_unbiased(thin):
                         np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]),
                         np.full((1, 3), sigma), np.full((1, 3), sigma), np.zeros(n, np.int64),
                         np.tile([-3.0, 0.0, 4.0], (n, 1)), np.tile(d, (n, 1)),
-                        np.full(n, 10.0), u, up, uy, row, thin, 0.5, False, src, p, w,
-                        m)
+                        np.full(n, 10.0), u, up, row, thin, 0.5, src, p, w, m)
     assert k == n
     s = (4.0 - p[:, 2]) / 0.8
     front = s >= 5.0
     assert w[:, 0].mean() == pytest.approx(1.0 - math.exp(-1.0), rel=0.01)
     assert (w[:, 0] * front).mean() == pytest.approx(math.exp(-0.5) - math.exp(-1.0), rel=0.01)
     tau = 1.0
-    share = thin + (0.5 - thin) * (1.0 - math.exp(-tau))
+    a, b = lit_interval(-3.0, 0.0, 4.0, *d, 10.0, row, 0)
+    assert a == pytest.approx(5.0) and b == pytest.approx(10.0)
+    rho = equiangular_gain(-3.0, 0.0, 4.0, *d, 10.0, a, b, 0.0, 0.0, 0.0, row[0, 16])
+    share = adaptive_share(tau, rho, 1, thin, 0.5)
     # the equiangular share all lands in front: (1 - share) + share x the exponential's
     expect = (1 - share) + share * (math.exp(-0.5) - math.exp(-1.0)) / (1.0 - math.exp(-1.0))
     assert front.mean() == pytest.approx(expect, abs=0.005)
-
-
-def test_exponential_share_falls_with_the_optical_depth():
-    from engine.volumescatter import exponential_share
-    assert exponential_share(0.3, 0, 0.2, 0.5) == 1.0
-    assert exponential_share(0.0, 2, 0.2, 0.5) == pytest.approx(0.2)
-    assert exponential_share(1.0, 1, 0.2, 0.5) == pytest.approx(0.2 + 0.3 * (1 - math.exp(-1)))
-    assert exponential_share(50.0, 1, 0.2, 0.5) == pytest.approx(0.5)
 
 
 AREA = dict(center=(0.3, 0.1, 1.2), size=0.8, power=200.0)
@@ -568,7 +542,7 @@ def _area_single_scattering(g, spread=math.pi, n_xy=16, n_s=160, n_l=14):
 @pytest.mark.parametrize("spread", [180.0, 60.0], ids=["lambertian", "spread60"])
 def test_single_scattering_of_an_area_light_matches_quadrature(spread):
     """A tilted 0.8 m square area light over the fog slab (its light aimed at by
-    equiangular sampling: a point on it, the segment's part in front of it and inside its
+    equiangular sampling: its centre, the segment's part in front of it and inside its
     spread): the image's mean within 2 % of the quadrature (8 x 8, 256 spp)."""
     film = render(_area_slab_scene(math.radians(spread)),
                   RenderSettings(workers=1, spp=256, photon_mapping=False, seed=4))
@@ -578,18 +552,19 @@ def test_single_scattering_of_an_area_light_matches_quadrature(spread):
     np.testing.assert_allclose(img.reshape(-1, 3).mean(axis=0), expect, rtol=0.02)
 
 
-def _segments_towards(row, o, d, S, sigma, n, seed, adaptive=False, lo=0.5, hi=0.5):
-    """sample_segments on n copies of one segment: (s (n,), weights (n,))."""
+def _segments_towards(row, o, d, S, sigma, n, seed, lo=0.5, hi=0.5):
+    """sample_segments on n copies of one segment: (s (n,), weights (n,)); the
+    exponential's share adaptive_share's in [lo, hi]."""
     from engine.volumescatter import sample_segments
     rng = np.random.default_rng(seed)
-    u, up, uy = rng.random(n), rng.random(n), rng.random((n, 2))
+    u, up = rng.random(n), rng.random(n)
     src, p, w, m = (np.empty(n, np.int64), np.empty((n, 3)), np.empty((n, 3)),
                     np.empty(n, np.int64))
     k = sample_segments(np.zeros(n, np.int64), np.zeros(1, np.int32),
                         np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]),
                         np.full((1, 3), sigma), np.full((1, 3), sigma), np.zeros(n, np.int64),
-                        np.tile(o, (n, 1)), np.tile(d, (n, 1)), np.full(n, S), u, up, uy, row,
-                        lo, hi, adaptive, src, p, w, m)
+                        np.tile(o, (n, 1)), np.tile(d, (n, 1)), np.full(n, S), u, up, row,
+                        lo, hi, src, p, w, m)
     assert k == n
     return ((p - o) @ d), w[:, 0]
 
@@ -607,7 +582,7 @@ def test_a_ray_grazing_a_lamp_with_a_radius_is_sampled_where_its_light_is(radius
     row[0, 6], row[0, 16] = -1.0, radius
     D, r, sigma, S = 0.005, 0.05, 0.05, 4.0
     o, d = np.array([-2.0, D, 0.0]), np.array([1.0, 0.0, 0.0])
-    s, w = _segments_towards(row, o, d, S, sigma, 400_000, 11, True, 0.1, 0.9)
+    s, w = _segments_towards(row, o, d, S, sigma, 400_000, 11, 0.1, 0.9)
     est = w * 1.0 / ((s - 2.0) ** 2 + D * D + r * r)
     x = (np.arange(400_000) + 0.5) / 400_000 * S
     exact = np.mean(np.exp(-sigma * x) * sigma / ((x - 2.0) ** 2 + D * D + r * r)) * S
