@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .lightlinking import receiver_link
 from .directlight import (CUT_DIFFUSE, CUT_GLOSSY, NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW,
                           DirectLightBuffers, direct_light, sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
@@ -199,7 +200,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
                            light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
                            world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
-                           else None)
+                           else None, link=receiver_link(ctx, hit, rows))
     counters.shadow_rays += rays
     if shade_glossy is not None:
         shade_glossy[:] = False
@@ -2294,6 +2295,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # before the glass, for MIS.)
     coincident = CoincidentSurfaces.for_context(ctx) if glass_mat.any() else None
     org_prim = np.full(len(o), -1, np.int64) if coincident is not None else None
+    # Light Linking (engine/lightlinking.py): the triangle each path last left (-1: the
+    # camera), whose object a lamp it meets must light (Cycles' mis_ray_object).
+    links = getattr(ctx, "links", None)
+    link_prim = np.full(len(o), -1, np.int64) if links is not None else None
     left_p = None  # the point each path left (its previous hit), while coincident
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
@@ -2336,6 +2341,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             mask, tl, L = light.intersect(o, d, t)
             if L is not None and mask.any():
                 mask &= sees
+                if link_prim is not None and bounce > 0:
+                    # Seen from a surface the lamp does not light: not its light
+                    # (camera rays and their transparent continuations see it).
+                    mask &= (ray_cls == CAMERA) | links.lights_hit(li, ctx.geo, link_prim)
                 rows = np.nonzero(mask)[0]
                 L = L[rows]
                 if world_row >= 0 and len(rows):
@@ -2422,6 +2431,11 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # 0 every disc is seen.
                     if bounce > 0 or light.ray_kinds & CAMERA:
                         sun = light.seen_at_infinity(d_miss)
+                        if sun is not None and link_prim is not None and bounce > 0:
+                            seen = (np.take(np.broadcast_to(ray_cls, (len(o),)), missed)
+                                    == CAMERA) | links.lights_hit(
+                                        li, ctx.geo, np.take(link_prim, missed))
+                            sun = sun * seen[:, None]
                         if sun is not None:
                             if bounce > 0 and modes[li] == MODE_MIS:
                                 sun = sun * _mis_weight(ctx, li, light,
@@ -2755,6 +2769,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         org_p_in = org_p if kept is None else np.take(org_p, kept, axis=0)
         org_ns = np.take(hit.ns, keep, axis=0)
         org_p = np.take(hit.p, keep, axis=0)
+        if link_prim is not None:
+            link_prim = np.take(np.asarray(hit.prim, np.int64), keep)
         if org_prim is not None:
             org_prim = np.take(np.asarray(hit.prim, np.int64), keep)
             # (passages.step rewrites org_p in place after a flat passage)

@@ -21,6 +21,7 @@ from .geometry import Geometry, MaterialTable, area_sum, prepare, set_camera_vie
 from . import integrator as _integrator
 from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
 from .jit import ensure_compiled
+from .lightlinking import LightLinks
 from .lights import allocate_photons, prepare_lights
 from .lights.base import InfiniteLight
 from .lights import packing as pk
@@ -94,6 +95,9 @@ class Context:
     # are measured against (its settings set per pass by _render_pass).
     catcher_objects: np.ndarray | None = None
     catcher_alone: "Context | None" = None
+    # Light Linking (engine/lightlinking.py): which light lights which object (None: every
+    # light lights every object).
+    links: object = None
 
 
     def serial(self) -> "Context":
@@ -143,6 +147,7 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
                             gathered=bool(settings.photon_mapping and settings.final_gather))
     ctx = Context(scene, settings, geo, table, accel, lights,
                   packed_lights=packed_lights_for(lights, settings), shadow=shadow)
+    ctx.links = LightLinks.for_scene(scene, lights)
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
     if geo.instances is not None:  # which way instancing went (engine/resources.py)
         from .resources import instance_choice

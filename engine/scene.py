@@ -79,6 +79,17 @@ def _finite(value, what: str) -> float:
     return v
 
 
+def _names(value, what: str) -> list:
+    """A list of object names (a single name is a list of one)."""
+    if isinstance(value, str):
+        return [value]
+    try:
+        names = [str(v) for v in value]
+    except TypeError:
+        raise SceneError(f"{what}: expected a list of object names, got {value!r}") from None
+    return names
+
+
 @dataclass
 class Material:
     """A Principled-v2 surface with Cycles' meaning (engine/closures/principled.py builds
@@ -785,6 +796,12 @@ class Light:
               and no photon continues from it through a mirror / glass at its first hit
     cast_shadow  Blender's light 'Cast Shadow' (use_shadow): off, no object blocks the
               light's shadow rays (its direct light); photons are still blocked
+    receivers  Light Linking (Blender 4.0+ Object > Shading > Light Linking, as Cycles
+              renders it): None, the light lights every object; a list of mesh names, it
+              lights only those (directly: shadow rays, the photons' first hit, its surface
+              seen in a mirror the path left); engine/lightlinking.py
+    non_receivers  mesh names the light does not light directly (the exclude form;
+              ignored for names also in receivers)
     spot_frame optional (3,3): rows map a world direction leaving a spot light into its
               cone space, where the cone is round: Cycles' scaled_axis_u, scaled_axis_v and
               dir * inv_len_z (the light object's X and Y axes divided by their squared
@@ -815,6 +832,8 @@ class Light:
     visible_glossy: bool = True
     visible_transmission: bool = True
     cast_shadow: bool = True
+    receivers: list | None = None
+    non_receivers: list = field(default_factory=list)
     spot_frame: np.ndarray | None = None
     skew_axis_v: tuple | np.ndarray | None = None
     warnings: list = field(default_factory=list, repr=False)
@@ -859,6 +878,9 @@ class Light:
             raise SceneError(f"{who} power: must be >= 0, got {self.power}")
         self.radius = max(self.radius, 0.0)
         self.soft_falloff = bool(self.soft_falloff)
+        if self.receivers is not None:
+            self.receivers = _names(self.receivers, f"{who} receivers")
+        self.non_receivers = _names(self.non_receivers, f"{who} non_receivers")
         self.size_x, self.size_y = abs(self.size_x), abs(self.size_y)
         self.spot_size = min(max(self.spot_size, 1e-4), math.pi)
         self.spot_blend = min(max(self.spot_blend, 0.0), 1.0)
@@ -1274,6 +1296,23 @@ class Scene:
                 unique.append(w)
         return unique
 
+    def _check_links(self) -> None:
+        """Light Linking names (Light.receivers / non_receivers) that name no mesh: a
+        warning each (a receivers list of none of the scene's objects lights nothing)."""
+        names = {m.name for m in self.meshes}
+        for light in self.lights:
+            if light.receivers is not None:
+                light.receivers = _names(light.receivers, f"light '{light.name}' receivers")
+            light.non_receivers = _names(light.non_receivers,
+                                         f"light '{light.name}' non_receivers")
+            for attr in ("receivers", "non_receivers"):
+                for name in getattr(light, attr) or ():
+                    if name not in names:
+                        msg = (f"light '{light.name}': {attr} names '{name}', which is no "
+                               "object of the scene; ignored")
+                        if msg not in self.warnings:
+                            self.warnings.append(msg)
+
     def _material_users(self) -> dict[str, list[str]]:
         """Material name -> names of the meshes whose slots hold it (scene order)."""
         users: dict[str, list[str]] = {}
@@ -1313,6 +1352,7 @@ class Scene:
             for msg in warnings_for(self):
                 if msg not in self.warnings:
                     self.warnings.append(msg)
+        self._check_links()
         has_emitter = any(m.is_emissive for m in self.materials.values())
         world_lit = (not self.environment.is_black if self.environment is not None
                      else np.any(self.background > 0))

@@ -236,6 +236,11 @@ INSTANCE_SCHEMA = _table({
     "rotate": _vec3(), "scale": _OBJECT_COMMON["scale"], "matrix": _MATRIX,
     **{key: _BOOL for key in VISIBILITY_KEYS}}, required=("object",))
 
+# Light Linking (engine/lightlinking.py): object names.
+_NAMES_TEXT = "a list of object names"
+_NAMES = {"type": "array", "items": {"type": "string", "what_type": _NAMES_TEXT},
+          "what": _NAMES_TEXT, "what_type": _NAMES_TEXT}
+
 LIGHT_SCHEMA = _table({
     "type": _STRING, "name": _STRING, "position": _vec3(), "direction": _vec3(nonzero=True),
     "look_at": _vec3(), "power": _number(0.0), "strength": _number(0.0),
@@ -244,7 +249,8 @@ LIGHT_SCHEMA = _table({
     "shape": _choice("rectangle", "square", "disk", "ellipse"),
     "angle": _number(0.0, 180.0), "spread": _number(0.0, 180.0), "visible": _BOOL,
     "visible_diffuse": _BOOL, "visible_glossy": _BOOL, "visible_transmission": _BOOL,
-    "cast_shadow": _BOOL, "soft_falloff": _BOOL})
+    "cast_shadow": _BOOL, "soft_falloff": _BOOL, "receivers": _NAMES,
+    "non_receivers": _NAMES})
 
 
 ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
@@ -929,4 +935,6 @@ def _light(scene, spec, i):
                           visible_diffuse=get("visible_diffuse", True),
                           visible_glossy=get("visible_glossy", True),
                           visible_transmission=get("visible_transmission", True),
-                          cast_shadow=get("cast_shadow", True)))
+                          cast_shadow=get("cast_shadow", True),
+                          receivers=get("receivers"),
+                          non_receivers=get("non_receivers", [])))

@@ -1,0 +1,186 @@
+"""Light Linking (engine/lightlinking.py) against closed-form values and invariants:
+a lamp linked to one of two patches lights that one only (shadow rays), its photons end
+at the first hit on an object it does not link, and a surface it does not link does not
+show it by BSDF-sampled rays either (mirror and rough gloss: MIS's both halves)."""
+import math
+
+import numpy as np
+
+from engine import RenderSettings
+from engine.api import PaperScene
+from engine.photons import trace_photons
+from engine.photonkernels import DIRECT
+from engine.render import close_context, prepare_context
+from engine.scene import Camera, Material
+from engine.scenefile import load_scene
+from helpers import pixel_to_world, rel_err
+
+DIRECT_ONLY = dict(photon_mapping=False, max_depth=0)
+H, P, E_SUN = 2.0, 1000.0, 0.5
+
+
+def two_patches(rho=0.5, res=48, view=4.0):
+    """Two diffuse patches side by side at z=0 (left x<0, right x>0) seen straight down."""
+    s = PaperScene(width=res, height=res)
+    s.add_material(Material("matte", (rho,) * 3))
+    s.add_plane((-1.0, 0, 0), (0, 0, 1), (2.0, 4.0), "matte", name="left", up=(0, 1, 0))
+    s.add_plane((1.0, 0, 0), (0, 0, 1), (2.0, 4.0), "matte", name="right", up=(0, 1, 0))
+    s.camera = Camera(position=(0, 0, 5), rotation=np.eye(3), kind="ORTHO", ortho_scale=view)
+    return s
+
+
+def _expected(s, rho, view, key_on_left, key_on_right):
+    x, y = pixel_to_world(s, view)
+    r2 = x * x + y * y + H * H
+    key = rho * (P / (4 * math.pi)) * (H / np.sqrt(r2)) / r2 / math.pi
+    sun = rho * E_SUN / math.pi
+    lit = np.where(x < 0, key_on_left, key_on_right)
+    return sun + key * lit, x
+
+
+def test_point_lamp_linked_to_one_patch_lights_only_that_one():
+    """The key lamp's receivers = ['left']: the right patch reads the sun alone, the left
+    one the sun plus the inverse-square law (direct light by shadow rays)."""
+    rho, view = 0.5, 4.0
+    s = two_patches(rho, view=view)
+    key = s.add_point_light((0, 0, H), power=P, name="key")
+    key.receivers = ["left"]
+    s.add_sun((0, 0, -1), strength=E_SUN, name="fill")
+    img = s.render(RenderSettings(spp=16, **DIRECT_ONLY)).combined[..., 1]
+    want, x = _expected(s, rho, view, 1.0, 0.0)
+    inner = np.abs(x) > 0.2  # away from the seam between the patches
+    err = np.abs(img - want) / want
+    assert err[inner].max() < 0.015, err[inner].max()
+    # The exclude form: non_receivers = ['left'] lights the right patch only.
+    s = two_patches(rho, view=view)
+    key = s.add_point_light((0, 0, H), power=P, name="key")
+    key.non_receivers = ["left"]
+    s.add_sun((0, 0, -1), strength=E_SUN, name="fill")
+    img = s.render(RenderSettings(spp=16, **DIRECT_ONLY)).combined[..., 1]
+    want, _ = _expected(s, rho, view, 0.0, 1.0)
+    err = np.abs(img - want) / want
+    assert err[inner].max() < 0.015, err[inner].max()
+
+
+def test_light_tree_picks_keep_the_links():
+    """Many lamps (the light tree picks one per hit): the unlinked patch's mean is the
+    other lamps' light alone, within the noise of 256 samples."""
+    rho, view = 0.5, 4.0
+    means = {}
+    for linked in (False, True):
+        s = two_patches(rho, res=16, view=view)
+        for i in range(12):
+            lamp = s.add_point_light((-1.5 + 0.25 * i, 0.3, H), power=P / 12,
+                                     name=f"lamp{i}")
+            if linked and i % 2 == 0:
+                lamp.receivers = ["left"]
+        img = s.render(RenderSettings(spp=256, seed=5, **DIRECT_ONLY)).combined[..., 1]
+        x, _ = pixel_to_world(s, view)
+        means[linked] = (img[x > 0.2].mean(), img[x < -0.2].mean())
+    # Unlinked: the even lamps no longer light the right patch.
+    s = two_patches(rho, res=16, view=view)
+    for i in range(1, 12, 2):
+        s.add_point_light((-1.5 + 0.25 * i, 0.3, H), power=P / 12, name=f"lamp{i}")
+    odd = s.render(RenderSettings(spp=4, **DIRECT_ONLY)).combined[..., 1]
+    x, _ = pixel_to_world(s, view)
+    assert rel_err(means[True][0], odd[x > 0.2].mean()) < 0.02, (means, odd[x > 0.2].mean())
+    # The linked patch keeps every lamp's light.
+    assert rel_err(means[True][1], means[False][1]) < 0.02, means
+
+
+def _photon_scene(linked: bool):
+    s = two_patches(0.5, res=8)
+    key = s.add_point_light((0, 0, H), power=P, name="key")
+    if linked:
+        key.receivers = ["left"]
+    return s
+
+
+def test_photons_end_at_a_first_hit_the_light_does_not_link():
+    """Photons of a lamp linked to the left patch: none stored directly on the right one,
+    and those on the left are the very photons of the unlinked lamp (same seed, same
+    paths: each photon's numbers are its slot's)."""
+    settings = RenderSettings(spp=1, photons=20000, seed=2)
+    stored = {}
+    for linked in (False, True):
+        ctx = prepare_context(_photon_scene(linked), settings)
+        try:
+            ph = trace_photons(ctx, ctx.lights, [20000], False, 0)
+        finally:
+            close_context(ctx)
+        x = ph.position[:, 0] + ctx.geo.offset[0]
+        direct = ph.kind == DIRECT
+        stored[linked] = (x[direct], ph.power[direct])
+    x_on, _ = stored[True]
+    assert len(x_on) > 1000
+    assert (x_on < 0).all(), (x_on > 0).sum()
+    x_off, _ = stored[False]
+    assert (x_off > 0).sum() > 1000  # without the link both patches take photons
+    np.testing.assert_array_equal(np.sort(x_on), np.sort(x_off[x_off < 0]))
+
+
+def _mirror_scene(roughness: float, linked: bool):
+    """A glossy floor under a downward area lamp, seen from above beside the lamp: the
+    camera sees the lamp only in the floor (BSDF rays, and with roughness light samples
+    too). Linked to nothing but a far card, the lamp is gone from the floor."""
+    s = PaperScene(width=24, height=24)
+    s.add_material(Material("gloss", (0.9, 0.9, 0.9), metallic=1.0, roughness=roughness))
+    s.add_material(Material("matte", (0.5,) * 3))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "gloss", name="floor")
+    s.add_plane((20, 0, 0), (0, 0, 1), 1.0, "matte", name="card")
+    # Turned towards the camera, which sees its face directly and in the floor.
+    lamp = s.add_rect_area_light((0, 0, 1.0), (1.0, 1.0), power=200.0, name="lamp",
+                                 direction=(0, -1.0, -0.3))
+    lamp.visible_camera = True
+    if linked:
+        lamp.receivers = ["card"]
+    s.camera = Camera.look_at((0.0, -3.0, 3.0), (0, 0.5, 0), fov_degrees=50)
+    return s
+
+
+def test_surface_the_lamp_does_not_link_does_not_show_it():
+    """Mirror (BSDF rays only) and rough metal (shadow rays and BSDF rays, MIS): with the
+    lamp linked to another object the floor reflects nothing of it, while the camera
+    still sees the lamp itself (Cycles: camera rays see every lamp)."""
+    for roughness in (0.0, 0.3):
+        settings = RenderSettings(spp=16, seed=1, photon_mapping=False, max_depth=2)
+        plain = _mirror_scene(roughness, False).render(settings).combined
+        linked = _mirror_scene(roughness, True).render(settings).combined
+        assert plain.sum() > 0
+        lamp_px = linked.max(axis=2) > 0
+        assert lamp_px.sum() > 5
+        # What is left is the lamp seen directly, the same pixels as without the link;
+        # its reflection (about a third of the image's light) is gone.
+        np.testing.assert_allclose(linked[lamp_px], plain[lamp_px], rtol=1e-6)
+        gone = plain.sum() - linked.sum()
+        assert gone > 0.3 * plain.sum(), (roughness, linked.sum(), plain.sum())
+        assert (plain.max(axis=2) > 0).sum() > lamp_px.sum() + 20
+
+
+def test_scene_file_reads_receivers(tmp_path):
+    path = tmp_path / "linked.toml"
+    path.write_text("""
+[camera]
+position = [0, -4, 2]
+look_at = [0, 0, 0]
+[[objects]]
+type = "plane"
+name = "floor"
+[[lights]]
+type = "point"
+position = [0, 0, 2]
+receivers = ["floor"]
+non_receivers = ["wall"]
+""")
+    scene, _ = load_scene(str(path))
+    assert scene.lights[0].receivers == ["floor"]
+    assert scene.lights[0].non_receivers == ["wall"]
+
+
+def test_unknown_receiver_names_warn():
+    s = two_patches(res=4)
+    key = s.add_point_light((0, 0, H), power=P, name="key")
+    key.receivers = ["left", "nowhere"]
+    s.validate()
+    assert ("light 'key': receivers names 'nowhere', which is no object of the scene; "
+            "ignored") in s.warnings
