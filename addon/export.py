@@ -596,19 +596,68 @@ def _particle_modifier_renders(obj, psys) -> bool:
     return True
 
 
-def warn_light_linking(obj, warnings: list, who=None):
+def warn_light_linking(obj, warnings: list, who=None, receivers=True):
     """Object > Shading > Light Linking / Shadow Linking (Blender 4.0+, on lights and
-    emitting objects): not simulated, said once per object (it was dropped silently,
-    s37): the light lights every object and every object shadows it."""
+    emitting objects) this engine does not simulate, said once per object (it was dropped
+    silently, s37): an emitting object's Light Linking (receivers=True; a lamp's is
+    rendered: light_link_objects) and every Shadow Linking, whose light then lights
+    every object / is blocked by every object."""
     linking = getattr(obj, "light_linking", None)
     who = who or f"object '{obj.name}'"
     for attr, what, effect in (
             ("receiver_collection", "Light Linking", "it lights every object"),
             ("blocker_collection", "Shadow Linking", "every object casts its shadows")):
+        if attr == "receiver_collection" and not receivers:
+            continue
         coll = getattr(linking, attr, None) if linking is not None else None
         if coll is not None:
             warnings.append(f"{who}: {what} (collection '{coll.name}') is not supported; "
                             f"{effect}")
+
+
+def light_link_objects(coll) -> tuple[list, list]:
+    """The objects a Light Linking collection includes and excludes: (include, exclude)
+    object names, as Blender's depsgraph resolves it (depsgraph_light_linking.cc,
+    foreach_light_collection_object): the collection's own objects with their link state,
+    and every object in a child collection (at any depth) with the state of the child
+    collection's entry at the first level; an object reached twice takes the last one
+    (children first, then the objects: link_object overwrites)."""
+    state: dict = {}
+
+    def inner(c, link_state):
+        for child in c.children:
+            inner(child, link_state)
+        for ob in c.objects:
+            state[ob.name] = link_state
+
+    # collection_children / collection_objects follow children / objects (one list).
+    for child, entry in zip(coll.children, coll.collection_children):
+        inner(child, entry.light_linking.link_state)
+    for ob, entry in zip(coll.objects, coll.collection_objects):
+        state[ob.name] = entry.light_linking.link_state
+    include = [n for n, st in state.items() if st == "INCLUDE"]
+    exclude = [n for n, st in state.items() if st == "EXCLUDE"]
+    return include, exclude
+
+
+def resolve_light_links(lights: list, meshes: list) -> None:
+    """Set the engine lights' receivers / non_receivers (engine mesh names) from the
+    Blender objects convert_light noted (light._link_objects): with any included object
+    the light lights only the included ones (Blender: EmitterSetMembership.get_mask, the
+    included sets alone), else every object but the excluded ones. Instances take the
+    links of the object they place (Cycles reads the instanced object's sets)."""
+    by_object: dict = {}
+    for mesh in meshes:
+        by_object.setdefault(mesh.cryptomatte_object or mesh.name, []).append(mesh.name)
+    for light in lights:
+        link = getattr(light, "_link_objects", None)
+        if link is None:
+            continue
+        include, exclude = link
+        if include:
+            light.receivers = [m for ob in include for m in by_object.get(ob, ())]
+        else:
+            light.non_receivers = [m for ob in exclude for m in by_object.get(ob, ())]
 
 
 # --- lights -------------------------------------------------------------------------
@@ -651,7 +700,7 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     (light_portal; export_scene parts them from the lights: split_portals)."""
     L = obj.data
     kind = L.type
-    warn_light_linking(obj, warnings, f"light '{name}'")
+    warn_light_linking(obj, warnings, f"light '{name}'", receivers=False)
     if kind == "AREA" and getattr(getattr(L, "cycles", None), "is_portal", False):
         return light_portal(pm, L, matrix, name, warnings)
     if kind not in pm.DECLARED_KINDS:  # the engine's light registry (engine/lights/)
@@ -730,7 +779,13 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
         kw["cast_shadow"] = False
         warnings.append(f"light '{name}': 'cast shadow' off: its direct light passes every "
                         "object, as in Cycles; its indirect light (photons) is still shadowed")
-    return pm.Light(**kw)
+    light = pm.Light(**kw)
+    receivers = getattr(getattr(obj, "light_linking", None), "receiver_collection", None)
+    if receivers is not None:
+        # Light Linking: resolved to engine meshes once they are known
+        # (resolve_light_links).
+        light._link_objects = light_link_objects(receivers)
+    return light
 
 
 def light_portal(pm, L, matrix: np.ndarray, name: str, warnings: list):
@@ -1459,6 +1514,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                                 scene_eval.objects)
     background, environment = export_world(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
+    resolve_light_links(lights, meshes)
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     if render.use_motion_blur:
         warnings.append("motion blur is not supported and ignored")
@@ -1661,6 +1717,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         cache.prototypes.pop(gkey, None)
     background, environment = export_world(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
+    resolve_light_links(lights, meshes)
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,

@@ -131,8 +131,16 @@ def link_row_of(ctx, emitter):
     if links is None:
         return None
     light = emitter.lights[0] if hasattr(emitter, "lights") else emitter
+    # Aimed photon emitters wrap the light (visualimportance.RegionEmitter,
+    # portal.PortalEmitter: .light); a declared light is known by its scene Light.
+    for _ in range(4):
+        inner = getattr(light, "light", None)
+        if inner is None:
+            break
+        light = inner
+    source = getattr(light, "source", None)
     for li, other in enumerate(ctx.lights):
-        if other is light:
+        if other is light or (source is not None and other.source is source):
             row = links.lit[li]
             return None if row.all() else row
     return None

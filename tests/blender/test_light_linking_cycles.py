@@ -1,0 +1,142 @@
+"""Light Linking (Object > Shading > Light Linking, Blender 4.0+) against live Cycles: three
+grey cubes in a row on a grey floor, a key lamp whose Light Linking collection holds the
+middle cube only (or excludes it), and a fill light that lights everything. Each region
+(the cubes' tops, the floor round them) reads Cycles' brightness within 3 % with direct
+light only, and within 5 % with the bounces (the photons of the key end at their first
+hit on anything but the middle cube: the floor round it is lit by what its sides throw).
+Before linking38 the key lit every object (a warning said so)."""
+import numpy as np
+import pytest
+
+from blender_helpers import (black_world, cheap, cycles_plain, export_warnings,
+                             glass_or_diffuse_material, looking_down_camera, read_rgba,
+                             render_exr)
+
+pytestmark = pytest.mark.blender
+
+RES, VIEW = 48, 8.0
+CUBES = {"CubeA": -2.5, "CubeB": 0.0, "CubeC": 2.5}
+
+
+def _scene(bpy):
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.resolution_x = scene.render.resolution_y = RES
+    scene.render.resolution_percentage = 100
+    grey = glass_or_diffuse_material(bpy, "Grey", "diffuse", (0.6, 0.6, 0.6))
+    bpy.ops.mesh.primitive_plane_add(size=12.0)
+    floor = bpy.context.active_object
+    floor.name = "Floor"
+    floor.data.materials.append(grey)
+    for name, x in CUBES.items():
+        bpy.ops.mesh.primitive_cube_add(size=1.0, location=(x, 0.0, 0.5))
+        cube = bpy.context.active_object
+        cube.name = name
+        cube.data.materials.append(grey)
+    black_world(bpy, scene)
+    looking_down_camera(bpy, scene, 10.0, ortho_scale=VIEW)
+    key = bpy.data.objects.new("Key", bpy.data.lights.new("Key", "POINT"))
+    key.data.energy, key.data.shadow_soft_size = 400.0, 0.0
+    key.location = (1.0, -1.0, 2.5)  # lights the middle cube's top and two of its sides
+    scene.collection.objects.link(key)
+    fill = bpy.data.objects.new("Fill", bpy.data.lights.new("Fill", "AREA"))
+    fill.data.energy, fill.data.size = 150.0, 3.0
+    fill.location = (0.0, 0.0, 5.0)
+    scene.collection.objects.link(fill)
+    return scene, key
+
+
+def _link(bpy, key, state):
+    """The key's Light Linking collection: the middle cube with link state `state`."""
+    coll = bpy.data.collections.new("KeyLinks")
+    coll.objects.link(bpy.data.objects["CubeB"])
+    coll.collection_objects[0].light_linking.link_state = state
+    key.light_linking.receiver_collection = coll
+
+
+def _regions():
+    """Pixel masks: each cube's top, and the floor strips beside the cubes (above and
+    below them in the image)."""
+    c = (np.arange(RES) + 0.5) / RES * VIEW - VIEW / 2
+    x = np.tile(c, (RES, 1))
+    y = np.tile(-c[:, None], (1, RES))
+    out = {f"{name} top": (np.abs(x - cx) < 0.35) & (np.abs(y) < 0.35)
+           for name, cx in CUBES.items()}
+    for name, cx in CUBES.items():
+        out[f"floor by {name}"] = (np.abs(x - cx) < 1.0) & (np.abs(y) > 0.7) & (np.abs(y) < 1.6)
+    return out
+
+
+def _render(bpy, scene, tmp_path, engine, tag, bounces):
+    scene.render.engine = engine
+    if engine == "CYCLES":
+        cycles_plain(scene, 512 if bounces else 256, bounces)
+    else:
+        cheap(scene, spp=64 if bounces else 32, photons=400_000, caustic_photons=0)
+        scene.photonmap.photon_mapping = bool(bounces)
+    img = read_rgba(bpy, render_exr(bpy, scene, tmp_path / f"{tag}_{engine}.exr"))
+    return img[..., :3].mean(axis=2)
+
+
+@pytest.mark.parametrize("state,bounces", [("INCLUDE", 0), ("EXCLUDE", 0),
+                                           pytest.param("INCLUDE", 4,
+                                                        marks=pytest.mark.slow)])
+def test_key_linked_to_one_cube_lights_as_in_cycles(bpy_addon, tmp_path, state, bounces):
+    bpy = bpy_addon
+    scene, key = _scene(bpy)
+    _link(bpy, key, state)
+    assert not [w for w in export_warnings(bpy) if "Light Linking" in w]
+    c = _render(bpy, scene, tmp_path, "CYCLES", state, bounces)
+    o = _render(bpy, scene, tmp_path, "PHOTONMAP", state, bounces)
+    regions = _regions()
+    cm = {k: float(c[m].mean()) for k, m in regions.items()}
+    om = {k: float(o[m].mean()) for k, m in regions.items()}
+    print(state, bounces, {k: (round(cm[k], 4), round(om[k] / cm[k], 4)) for k in cm})
+    # The link is real in Cycles: the middle cube's top is far brighter (INCLUDE) or
+    # darker (EXCLUDE) than the others'.
+    ratio = cm["CubeB top"] / cm["CubeC top"]  # (the cube nearest the key beside B)
+    assert (ratio > 1.5) if state == "INCLUDE" else (ratio < 0.8), cm
+    tol = 0.05 if bounces else 0.03
+    for k in regions:
+        assert om[k] == pytest.approx(cm[k], rel=tol), (k, om[k], cm[k])
+
+
+def test_shadow_linking_warns_naming_light_and_collection(bpy_addon):
+    """Shadow Linking (the blocker collection) is not rendered: the warning says so."""
+    bpy = bpy_addon
+    _, key = _scene(bpy)
+    blockers = bpy.data.collections.new("KeyBlockers")
+    blockers.objects.link(bpy.data.objects["CubeA"])
+    key.light_linking.blocker_collection = blockers
+    warnings = [w for w in export_warnings(bpy) if "Linking" in w]
+    assert warnings == ["light 'Key': Shadow Linking (collection 'KeyBlockers') is not "
+                        "supported; every object casts its shadows"], warnings
+
+
+def test_collections_resolve_to_engine_receivers(bpy_addon):
+    """Blender's resolution (depsgraph_light_linking.cc): objects of child collections
+    take the child entry's link state; with any INCLUDE the light lights the included
+    objects only, with only EXCLUDE entries every object but those."""
+    bpy = bpy_addon
+    from addon import export
+    from addon.core import load_engine
+    _, key = _scene(bpy)
+    coll = bpy.data.collections.new("KeyLinks")
+    child = bpy.data.collections.new("Sub")
+    coll.children.link(child)
+    child.objects.link(bpy.data.objects["CubeA"])
+    coll.objects.link(bpy.data.objects["CubeB"])
+    key.light_linking.receiver_collection = coll
+    assert export.light_link_objects(coll) == (["CubeA", "CubeB"], [])
+
+    def exported():
+        out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                     width=8, height=8)
+        light = next(li for li in out.lights if li.name == "Key")
+        return light.receivers, light.non_receivers
+
+    assert exported() == (["CubeA", "CubeB"], [])
+    coll.collection_children[0].light_linking.link_state = "EXCLUDE"
+    assert exported() == (["CubeB"], [])
+    coll.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    assert exported() == (None, ["CubeA", "CubeB"])
