@@ -2263,13 +2263,23 @@ def visibility_light_glossy_off():
     _lamp_over_mirror().visible_glossy = False
 
 
-@case("warned", status="warned", how="Light Linking and Shadow Linking (Blender 4.0+) "
-      "are ignored: the light lights every object, every object shadows it",
-      warning="Light Linking")
-def warned_light_linking():
+@case("lights")
+def light_linking():
+    """Light Linking (linking38): a key lamp whose Light Linking collection holds the red
+    cube only; the sun lights everything. The floor and the back wall take no key light
+    (nor its bounce off them), the cube does."""
+    _vis_scene()
+    key = mb.light("Key", "POINT", (-0.8, -1.0, 2.2), 400.0, shadow_soft_size=0.0)
+    lit = bpy.data.collections.new("Lit by the key")
+    lit.objects.link(bpy.data.objects["Cube"])
+    key.light_linking.receiver_collection = lit
+
+
+@case("warned", status="warned", how="Shadow Linking (Blender 4.0+) is ignored: every "
+      "object shadows the light", warning="Shadow Linking")
+def warned_shadow_linking():
     _vis_scene()
     sun = bpy.data.objects["Sun"]
-    sun.light_linking.receiver_collection = bpy.data.collections.new("Lit by the sun")
     sun.light_linking.blocker_collection = bpy.data.collections.new("Sun blockers")
 
 
