@@ -596,19 +596,16 @@ def _particle_modifier_renders(obj, psys) -> bool:
     return True
 
 
-def warn_light_linking(obj, warnings: list, who=None, receivers=True):
-    """Object > Shading > Light Linking / Shadow Linking (Blender 4.0+, on lights and
-    emitting objects) this engine does not simulate, said once per object (it was dropped
-    silently, s37): an emitting object's Light Linking (receivers=True; a lamp's is
-    rendered: light_link_objects) and every Shadow Linking, whose light then lights
-    every object / is blocked by every object."""
+def warn_light_linking(obj, warnings: list, who=None):
+    """Object > Shading > Light Linking / Shadow Linking (Blender 4.0+) of an emitting
+    mesh object, which this engine does not simulate (a lamp's are rendered:
+    light_link_objects, resolve_light_links), said once per object (it was dropped
+    silently, s37): its emission lights every object and every object blocks it."""
     linking = getattr(obj, "light_linking", None)
     who = who or f"object '{obj.name}'"
     for attr, what, effect in (
             ("receiver_collection", "Light Linking", "it lights every object"),
             ("blocker_collection", "Shadow Linking", "every object casts its shadows")):
-        if attr == "receiver_collection" and not receivers:
-            continue
         coll = getattr(linking, attr, None) if linking is not None else None
         if coll is not None:
             warnings.append(f"{who}: {what} (collection '{coll.name}') is not supported; "
@@ -640,24 +637,33 @@ def light_link_objects(coll) -> tuple[list, list]:
     return include, exclude
 
 
-def resolve_light_links(lights: list, meshes: list) -> None:
-    """Set the engine lights' receivers / non_receivers (engine mesh names) from the
-    Blender objects convert_light noted (light._link_objects): with any included object
-    the light lights only the included ones (Blender: EmitterSetMembership.get_mask, the
-    included sets alone), else every object but the excluded ones. Instances take the
-    links of the object they place (Cycles reads the instanced object's sets)."""
-    by_object: dict = {}
-    for mesh in meshes:
-        by_object.setdefault(mesh.cryptomatte_object or mesh.name, []).append(mesh.name)
-    for light in lights:
-        link = getattr(light, "_link_objects", None)
-        if link is None:
+def resolve_light_links(lights: list, meshes: list, owners: dict) -> None:
+    """Set the engine lights' receivers / non_receivers and blockers / non_blockers
+    (engine mesh names) from the Blender objects convert_light noted
+    (light._link_objects: the Light Linking and Shadow Linking collections'
+    light_link_objects, or None): with any included object only the included ones
+    (Blender: EmitterSetMembership.get_mask, the included sets alone), else every object
+    but the excluded ones. owners: mesh name -> (object name, instancer name or None)
+    (_instance_name): an instance takes its instancer's links when the instancer is in
+    any such collection, else its object's (Cycles' BlenderLightLink::
+    get_receiver_light_set / get_blocker_shadow_set)."""
+    for k, (kind, non) in enumerate((("receivers", "non_receivers"),
+                                     ("blockers", "non_blockers"))):
+        links = [(light, light._link_objects[k]) for light in lights
+                 if getattr(light, "_link_objects", None) is not None
+                 and light._link_objects[k] is not None]
+        if not links:
             continue
-        include, exclude = link
-        if include:
-            light.receivers = [m for ob in include for m in by_object.get(ob, ())]
-        else:
-            light.non_receivers = [m for ob in exclude for m in by_object.get(ob, ())]
+        named = {ob for _, (inc, exc) in links for ob in (*inc, *exc)}
+        by_owner: dict = {}
+        for mesh in meshes:
+            ob, parent = owners.get(mesh.name, (mesh.cryptomatte_object or mesh.name, None))
+            by_owner.setdefault(parent if parent in named else ob, []).append(mesh.name)
+        for light, (include, exclude) in links:
+            if include:
+                setattr(light, kind, [m for ob in include for m in by_owner.get(ob, ())])
+            else:
+                setattr(light, non, [m for ob in exclude for m in by_owner.get(ob, ())])
 
 
 # --- lights -------------------------------------------------------------------------
@@ -700,7 +706,6 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     (light_portal; export_scene parts them from the lights: split_portals)."""
     L = obj.data
     kind = L.type
-    warn_light_linking(obj, warnings, f"light '{name}'", receivers=False)
     if kind == "AREA" and getattr(getattr(L, "cycles", None), "is_portal", False):
         return light_portal(pm, L, matrix, name, warnings)
     if kind not in pm.DECLARED_KINDS:  # the engine's light registry (engine/lights/)
@@ -780,11 +785,13 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
         warnings.append(f"light '{name}': 'cast shadow' off: its direct light passes every "
                         "object, as in Cycles; its indirect light (photons) is still shadowed")
     light = pm.Light(**kw)
-    receivers = getattr(getattr(obj, "light_linking", None), "receiver_collection", None)
-    if receivers is not None:
-        # Light Linking: resolved to engine meshes once they are known
+    linking = getattr(obj, "light_linking", None)
+    colls = [getattr(linking, a, None) for a in ("receiver_collection", "blocker_collection")]
+    if any(c is not None for c in colls):
+        # Light / Shadow Linking: resolved to engine meshes once they are known
         # (resolve_light_links).
-        light._link_objects = light_link_objects(receivers)
+        light._link_objects = tuple(None if c is None else light_link_objects(c)
+                                    for c in colls)
     return light
 
 
@@ -1083,12 +1090,16 @@ def _geometry_key(obj):
 
 
 def _instance_name(inst, obj, info) -> str:
-    """The engine mesh name of a depsgraph instance (counts instances in info)."""
+    """The engine mesh name of a depsgraph instance (counts instances in info; notes
+    its object and instancer in info["owners"] for resolve_light_links)."""
+    owners = info.setdefault("owners", {})
     if not inst.is_instance:
+        owners[obj.name] = (obj.name, None)
         return obj.name
     parent = inst.parent.name if inst.parent is not None else "instance"
     name = f"{parent}/{obj.name}#{info['instances']}"
     info["instances"] += 1
+    owners[name] = (obj.name, inst.parent.name if inst.parent is not None else None)
     return name
 
 
@@ -1514,7 +1525,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                                 scene_eval.objects)
     background, environment = export_world(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
-    resolve_light_links(lights, meshes)
+    resolve_light_links(lights, meshes, info.pop("owners", {}))
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     if render.use_motion_blur:
         warnings.append("motion blur is not supported and ignored")
@@ -1717,7 +1728,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         cache.prototypes.pop(gkey, None)
     background, environment = export_world(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
-    resolve_light_links(lights, meshes)
+    resolve_light_links(lights, meshes, info.pop("owners", {}))
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,

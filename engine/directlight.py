@@ -1024,21 +1024,19 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     (CUT_DIFFUSE, CUT_GLOSSY as accumulate_bsdf's cut: Cycles' _shader_bsdf_exclude by
     the light's ray visibility); a light with a cut must be traced (its samples' traced
     flag True) and sampled by light index (not by the tree); None: every lobe.
-    link = (links, recv): Light Linking (engine/lightlinking.py LightLinks, recv (n,)
-    int64 each hit's receiver set, -1: none): a hit takes no light from the lights its
-    set is not linked to (their samples are zero, as Cycles' light_sample refuses them);
-    the hits of each set are summed with their own packing (LightLinks.packed_for).
-    None: every light lights every hit.
+    link = (links, recv): Light and Shadow Linking (engine/lightlinking.py LightLinks,
+    recv (n,) int64 each hit's receiver set, -1: none): a hit takes no light from the
+    lights its set is not linked to (their samples are zero, as Cycles' light_sample
+    refuses them), and a light's shadow rays meet only its blockers (LightLinks.direct).
+    None: every light lights every hit, every object blocks.
     Returns (E or radiance, number of shadow rays traced)."""
     if link is not None and n and samples:
         links, recv = link
-        sets = np.unique(recv)
-        if len(sets) > 1:
-            return _direct_by_set(packed, hit_arrays, samples, accel, shadow_cls, n, shadow,
-                                  tree, bsdf, buffers, rows, transmission, passages,
-                                  light_cut, medium_sigma, world_sigma, links, recv, sets)
-        if sets[0] >= 0:
-            packed = links.packed_for(packed, int(sets[0]))
+        return links.direct(direct_light, packed, hit_arrays, samples, accel, shadow_cls, n,
+                            recv, shadow=shadow, tree=tree, bsdf=bsdf, buffers=buffers,
+                            rows=rows, transmission=transmission, passages=passages,
+                            light_cut=light_cut, medium_sigma=medium_sigma,
+                            world_sigma=world_sigma)
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
     # No bent normal (nsm is ns): every bump term is 1, none is written or read.
@@ -1156,41 +1154,6 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
                             sel, bump, hrow, cut)
         rays += m_rays
     return E, rays
-
-
-def _direct_by_set(packed, hit_arrays, samples, accel, shadow_cls, n, shadow, tree, bsdf,
-                   buffers, rows, transmission, passages, light_cut, medium_sigma,
-                   world_sigma, links, recv, sets):
-    """direct_light for hits of several receiver sets (Light Linking): each set's hits
-    with its own packing, the per-hit inputs taken at its rows, the sums put back."""
-    out = np.zeros((n, 3))
-    rays = 0
-    hrow = np.arange(n, dtype=np.int64) if rows is None else np.asarray(rows, np.int64)
-
-    def pick(a, sel):
-        return None if a is None else np.ascontiguousarray(a[sel])
-
-    for s in sets:
-        sel = np.nonzero(recv == s)[0]
-        part = [(li, tr, cnt, pick(u1, sel), pick(u2, sel), pick(third, sel))
-                for li, tr, cnt, u1, u2, third in samples]
-        # bsdf's prm, wo and sel are read at the rows in place; fd counts the hits.
-        b = None if bsdf is None else (pick(bsdf[0], sel), *bsdf[1:])
-        # transmission's arrays count the hits (accumulate_transmission reads them by
-        # the entries' hit index), the hit arrays are read at the rows.
-        tr_ = None if transmission is None else (
-            pick(transmission[0], sel), pick(transmission[1], sel),
-            pick(transmission[2], sel), transmission[3], pick(transmission[4], sel))
-        E, r = direct_light(packed if s < 0 else links.packed_for(packed, int(s)),
-                            hit_arrays, part, accel, shadow_cls, len(sel), shadow=shadow,
-                            tree=tree, bsdf=b, buffers=buffers,
-                            rows=hrow[sel],
-                            transmission=tr_, passages=pick(passages, sel),
-                            light_cut=light_cut, medium_sigma=pick(medium_sigma, sel),
-                            world_sigma=pick(world_sigma, sel))
-        out[sel] = E
-        rays += r
-    return out, rays
 
 
 def _dim_in_medium(buf, m_all, blocked, t_keep, medium_sigma):

@@ -19,6 +19,16 @@ light), every emitter a membership mask of the sets it lights, and
 Here the sets are the distinct columns of the (lights x meshes) table "light i lights mesh
 m", so any number of them works (Cycles stops at 64). The emissive meshes and the world
 light every object (Blender links emitting objects too: the add-on warns).
+
+Shadow Linking (Light.blockers / non_blockers): a light's shadow rays pass the objects
+that are not its blockers (Cycles' shadow_linking_... filter: an intersection is skipped
+when the object's blocker_shadow_set is not in the ray's light's shadow_set_membership).
+Lights with the same blockers form a shadow group; each group other than "every object
+blocks" traces its shadow rays in its own BVH of its blockers' triangles (built once with
+the scene, ShadowGroup), and direct light is summed group by group, each pass with the
+other groups' lights zeroed. Photons are still stopped by every object (as for Cycles'
+light Cast Shadow off, which the engine treats alike), and a BSDF ray meeting the lamp is
+still stopped by what lies between (Cycles sends a dedicated ray past non-blockers).
 """
 from __future__ import annotations
 
@@ -34,46 +44,90 @@ class LightLinks:
     mesh_set (M,) int64: each mesh's receiver set, sets (S, L) bool: the lights of each
     set (rows of lit's transposed distinct columns; set 0 the first mesh's)."""
 
-    def __init__(self, lit: np.ndarray):
+    def __init__(self, lit: np.ndarray, blocks: np.ndarray | None = None):
         self.lit = np.ascontiguousarray(lit, np.bool_)
         cols = self.lit.T
         uniq, inverse = np.unique(cols, axis=0, return_inverse=True) if len(cols) else (
             np.ones((1, self.lit.shape[0]), np.bool_), np.zeros(0, np.int64))
         self.sets = np.ascontiguousarray(uniq, np.bool_)
         self.mesh_set = np.asarray(inverse, np.int64).reshape(-1)
+        # Shadow Linking: blocks (L, M) light i's shadow rays are stopped by mesh m; the
+        # shadow groups (ShadowGroup), made by build_shadow_groups.
+        self.blocks = (np.ones_like(self.lit) if blocks is None
+                       else np.ascontiguousarray(blocks, np.bool_))
+        self.shadow_groups = []
         self._packs = {}
+
+    @property
+    def has_receivers(self) -> bool:
+        return not self.lit.all()
+
+    @property
+    def has_blockers(self) -> bool:
+        return not self.blocks.all()
+
+    def build_shadow_groups(self, geo, accel_class, threads=1, should_cancel=None):
+        """The shadow groups: for each distinct blockers row (lights blocked alike) a
+        ShadowGroup; the lights blocked by every object trace in the scene's BVH
+        (accel None). Needs geo.vertices32 / faces32 (before release_build_arrays)."""
+        from .geometry import SHADOW
+        self.shadow_groups = []
+        if not self.has_blockers:
+            return
+        rows, inverse = np.unique(self.blocks, axis=0, return_inverse=True)
+        inverse = np.asarray(inverse).reshape(-1)
+        tri_object = np.asarray(geo.object_id, np.int64)
+        casts = (np.asarray(geo.visibility) & SHADOW) != 0
+        for g, row in enumerate(rows):
+            lights = inverse == g
+            if row.all():
+                self.shadow_groups.append(ShadowGroup(lights, None))
+                continue
+            idx = np.nonzero(casts & row[tri_object])[0]
+            self.shadow_groups.append(ShadowGroup(lights, _BlockerAccel(
+                geo.vertices32, geo.faces32, idx, accel_class, threads, should_cancel)))
+
+    def close(self, wait: bool = False):
+        for group in self.shadow_groups:
+            if group.accel is not None:
+                group.accel.close(wait)
 
     @classmethod
     def for_scene(cls, scene, lights) -> "LightLinks | None":
         """The links of the prepared lights (engine/lights/: a declared light's `source`,
-        its scene Light, holds receivers and non_receivers), or None when no light is
-        linked."""
+        its scene Light, holds receivers, non_receivers, blockers and non_blockers), or
+        None when no light is linked."""
         names = [m.name for m in scene.meshes]
         index = {}
         for m, name in enumerate(names):
             index.setdefault(name, []).append(m)
         M = len(names)
-        rows = []
-        linked = False
-        for light in lights:
-            row = np.ones(M, np.bool_)
-            source = getattr(light, "source", None)  # the scene Light (declared lights)
-            recv = getattr(source, "receivers", None)
-            excl = getattr(source, "non_receivers", None) or ()
-            if recv is not None:
-                row[:] = False
-                for name in recv:
-                    row[index.get(name, [])] = True
-                linked = True
-            for name in excl:
-                if recv is not None and name in recv:
-                    continue
-                row[index.get(name, [])] = False
-                linked = True
-            rows.append(row)
-        if not linked:
+
+        def table(attr):
+            rows, linked = [], False
+            for light in lights:
+                row = np.ones(M, np.bool_)
+                source = getattr(light, "source", None)  # the scene Light (declared)
+                only = getattr(source, attr, None)
+                excl = getattr(source, "non_" + attr, None) or ()
+                if only is not None:
+                    row[:] = False
+                    for name in only:
+                        row[index.get(name, [])] = True
+                    linked = True
+                for name in excl:
+                    if only is not None and name in only:
+                        continue
+                    row[index.get(name, [])] = False
+                    linked = True
+                rows.append(row)
+            return np.array(rows, np.bool_).reshape(len(lights), M), linked
+
+        lit, by_recv = table("receivers")
+        blocks, by_block = table("blockers")
+        if not (by_recv or by_block):
             return None
-        return cls(np.array(rows, np.bool_).reshape(len(lights), M))
+        return cls(lit, blocks)
 
     def receiver_set(self, geo, prim: np.ndarray) -> np.ndarray:
         """(n,) int64 receiver set of the objects hit at triangles prim (-1 or -2, a
@@ -95,22 +149,101 @@ class LightLinks:
             out[ok] = self.lit[li][object_of(geo, prim[ok])]
         return out
 
-    def packed_for(self, packed, s: int):
-        """The packed lights (lights.packing.pack_lights) as receiver set s sees them:
-        the lights it is not linked to with zero colour, so the shadow-ray kernel makes
-        no entry (and no ray) for their samples. Cached per packing."""
-        key = (id(packed), int(s))
+    def packed_for(self, packed, s: int, group: int = -1):
+        """The packed lights (lights.packing.pack_lights) as receiver set s (-1: every
+        light) sees them, of shadow group `group` only (-1: every group): the other lights
+        with zero colour, so the shadow-ray kernel makes no entry (and no ray) for their
+        samples. Cached per packing."""
+        key = (id(packed), int(s), int(group))
         hit = self._packs.get(key)
         if hit is not None and hit[0] is packed:
             return hit[1]
         codes, params, mesh = packed
-        off = ~self.sets[s]
+        off = np.zeros(len(codes), np.bool_)
+        if s >= 0:
+            off |= ~self.sets[s]
+        if group >= 0:
+            off |= ~self.shadow_groups[group].lights
         if off.any():
             params = params.copy()
             params[off, pk.RGB:pk.RGB + 3] = 0.0
         out = (codes, params, mesh)
         self._packs[key] = (packed, out)
         return out
+
+    def direct(self, direct_light, packed, hit_arrays, samples, accel, shadow_cls, n, recv,
+               rows=None, transmission=None, bsdf=None, passages=None, medium_sigma=None,
+               world_sigma=None, **kw):
+        """directlight.direct_light with Light and Shadow Linking (its `link`): the hits
+        of each receiver set (recv (n,) int64, -1: none) with their own packing, and each
+        shadow group's lights with its own BVH; the per-hit inputs taken at each set's
+        rows (bsdf's fd and transmission's arrays count the hits; bsdf's prm, wo and sel
+        are read at the rows), the sums put back. Returns (E (n,3), shadow rays)."""
+        sets = np.unique(recv)
+        groups = list(range(len(self.shadow_groups))) or [-1]
+        if len(sets) == 1 and len(groups) == 1:
+            return direct_light(self.packed_for(packed, int(sets[0])), hit_arrays, samples,
+                                accel, shadow_cls, n, rows=rows, transmission=transmission,
+                                bsdf=bsdf, passages=passages, medium_sigma=medium_sigma,
+                                world_sigma=world_sigma, **kw)
+        out = np.zeros((n, 3))
+        rays = 0
+        hrow = np.arange(n, dtype=np.int64) if rows is None else np.asarray(rows, np.int64)
+
+        def pick(a, sel):
+            return None if a is None else np.ascontiguousarray(a[sel])
+
+        for s in sets:
+            sel = np.nonzero(recv == s)[0]
+            part = [(li, tr, cnt, pick(u1, sel), pick(u2, sel), pick(third, sel))
+                    for li, tr, cnt, u1, u2, third in samples]
+            b = None if bsdf is None else (pick(bsdf[0], sel), *bsdf[1:])
+            # transmission's arrays count the hits (accumulate_transmission reads them by
+            # the entries' hit index); the hit arrays are read at the rows.
+            tr_ = None if transmission is None else (
+                pick(transmission[0], sel), pick(transmission[1], sel),
+                pick(transmission[2], sel), transmission[3], pick(transmission[4], sel))
+            for g in groups:
+                acc = accel if g < 0 or self.shadow_groups[g].accel is None \
+                    else self.shadow_groups[g].accel
+                E, r = direct_light(self.packed_for(packed, int(s), g), hit_arrays, part,
+                                    acc, shadow_cls, len(sel), rows=hrow[sel],
+                                    transmission=tr_, bsdf=b, passages=pick(passages, sel),
+                                    medium_sigma=pick(medium_sigma, sel),
+                                    world_sigma=pick(world_sigma, sel), **kw)
+                out[sel] += E
+                rays += r
+        return out, rays
+
+
+class ShadowGroup:
+    """Lights (L,) bool blocked by the same objects, and the BVH of those (a
+    _BlockerAccel; None: every object, the scene's own BVH)."""
+
+    def __init__(self, lights, accel):
+        self.lights = np.asarray(lights, np.bool_)
+        self.accel = accel
+
+
+class _BlockerAccel:
+    """The shadow-ray BVH of a shadow group: the blockers' triangles idx only (those
+    visible to shadow rays), answering occluded_into as VisibilityAccel does."""
+
+    def __init__(self, vertices32, faces32, idx, accel_class, threads, should_cancel):
+        self.empty = len(idx) == 0
+        self.accel = None if self.empty else accel_class(
+            vertices32, np.ascontiguousarray(faces32[idx]), threads=threads,
+            should_cancel=should_cancel)
+
+    def occluded_into(self, o32, d32, tmax32, blocked, cls=None):
+        if self.empty:
+            blocked[:] = False
+            return blocked
+        return self.accel.occluded_into(o32, d32, tmax32, blocked)
+
+    def close(self, wait: bool = False):
+        if self.accel is not None:
+            self.accel.close(wait)
 
 
 def receiver_link(ctx, hit, rows=None):

@@ -140,14 +140,25 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
                             instances=geo.instances)
     attach_tracer(geo, accel)  # (Ambient Occlusion nodes trace from their hits)
     shadow = ShadowTransmittance.for_scene(geo, table, settings.transparent_max_bounces)
+    lights = prepare_lights(scene, geo, table,
+                            gathered=bool(settings.photon_mapping and settings.final_gather))
+    # Light and Shadow Linking (engine/lightlinking.py): the shadow groups' BVHs are
+    # built from the build arrays, before they go.
+    links = LightLinks.for_scene(scene, lights)
+    if links is not None and links.has_blockers:
+        if accel.two_level:
+            scene.warnings.append(
+                "Shadow Linking is not supported with shared instances (two-level "
+                "instancing); every object casts the linked lights' shadows")
+            links.blocks[:] = True
+        else:
+            links.build_shadow_groups(geo, accel_class, settings.threads, should_cancel)
     if shadow is None:
         # Embree holds its own copy; transparent shadows build their BVHs from them lazily.
         geo.release_build_arrays()
-    lights = prepare_lights(scene, geo, table,
-                            gathered=bool(settings.photon_mapping and settings.final_gather))
     ctx = Context(scene, settings, geo, table, accel, lights,
                   packed_lights=packed_lights_for(lights, settings), shadow=shadow)
-    ctx.links = LightLinks.for_scene(scene, lights)
+    ctx.links = links
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
     if geo.instances is not None:  # which way instancing went (engine/resources.py)
         from .resources import instance_choice
@@ -175,6 +186,8 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
 def close_context(ctx: Context) -> None:
     """Release ctx's Embree scenes (and its catcher-only context's)."""
     ctx.accel.close()
+    if ctx.links is not None:
+        ctx.links.close()
     if ctx.catcher_alone is not None:
         ctx.catcher_alone.accel.close()
 

@@ -802,6 +802,11 @@ class Light:
               seen in a mirror the path left); engine/lightlinking.py
     non_receivers  mesh names the light does not light directly (the exclude form;
               ignored for names also in receivers)
+    blockers  Shadow Linking (Blender 4.0+, Object > Shading > Shadow Linking): None,
+              every object casts the light's shadows; a list of mesh names, only those do
+              (its shadow rays pass the others; its photons are still stopped by them, as
+              with cast_shadow off)
+    non_blockers  mesh names that cast none of the light's shadows (the exclude form)
     spot_frame optional (3,3): rows map a world direction leaving a spot light into its
               cone space, where the cone is round: Cycles' scaled_axis_u, scaled_axis_v and
               dir * inv_len_z (the light object's X and Y axes divided by their squared
@@ -834,6 +839,8 @@ class Light:
     cast_shadow: bool = True
     receivers: list | None = None
     non_receivers: list = field(default_factory=list)
+    blockers: list | None = None
+    non_blockers: list = field(default_factory=list)
     spot_frame: np.ndarray | None = None
     skew_axis_v: tuple | np.ndarray | None = None
     warnings: list = field(default_factory=list, repr=False)
@@ -878,9 +885,11 @@ class Light:
             raise SceneError(f"{who} power: must be >= 0, got {self.power}")
         self.radius = max(self.radius, 0.0)
         self.soft_falloff = bool(self.soft_falloff)
-        if self.receivers is not None:
-            self.receivers = _names(self.receivers, f"{who} receivers")
-        self.non_receivers = _names(self.non_receivers, f"{who} non_receivers")
+        for attr in ("receivers", "blockers"):
+            if getattr(self, attr) is not None:
+                setattr(self, attr, _names(getattr(self, attr), f"{who} {attr}"))
+            setattr(self, "non_" + attr, _names(getattr(self, "non_" + attr),
+                                                f"{who} non_{attr}"))
         self.size_x, self.size_y = abs(self.size_x), abs(self.size_y)
         self.spot_size = min(max(self.spot_size, 1e-4), math.pi)
         self.spot_blend = min(max(self.spot_blend, 0.0), 1.0)
@@ -1297,15 +1306,18 @@ class Scene:
         return unique
 
     def _check_links(self) -> None:
-        """Light Linking names (Light.receivers / non_receivers) that name no mesh: a
-        warning each (a receivers list of none of the scene's objects lights nothing)."""
+        """Light / Shadow Linking names (Light.receivers, non_receivers, blockers,
+        non_blockers) that name no mesh: a warning each (a receivers list of none of the
+        scene's objects lights nothing)."""
         names = {m.name for m in self.meshes}
         for light in self.lights:
-            if light.receivers is not None:
-                light.receivers = _names(light.receivers, f"light '{light.name}' receivers")
-            light.non_receivers = _names(light.non_receivers,
-                                         f"light '{light.name}' non_receivers")
-            for attr in ("receivers", "non_receivers"):
+            for attr in ("receivers", "blockers"):
+                if getattr(light, attr) is not None:
+                    setattr(light, attr, _names(getattr(light, attr),
+                                                f"light '{light.name}' {attr}"))
+                setattr(light, "non_" + attr, _names(getattr(light, "non_" + attr),
+                                                     f"light '{light.name}' non_{attr}"))
+            for attr in ("receivers", "non_receivers", "blockers", "non_blockers"):
                 for name in getattr(light, attr) or ():
                     if name not in names:
                         msg = (f"light '{light.name}': {attr} names '{name}', which is no "

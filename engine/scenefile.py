@@ -250,7 +250,7 @@ LIGHT_SCHEMA = _table({
     "angle": _number(0.0, 180.0), "spread": _number(0.0, 180.0), "visible": _BOOL,
     "visible_diffuse": _BOOL, "visible_glossy": _BOOL, "visible_transmission": _BOOL,
     "cast_shadow": _BOOL, "soft_falloff": _BOOL, "receivers": _NAMES,
-    "non_receivers": _NAMES})
+    "non_receivers": _NAMES, "blockers": _NAMES, "non_blockers": _NAMES})
 
 
 ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
@@ -937,4 +937,6 @@ def _light(scene, spec, i):
                           visible_transmission=get("visible_transmission", True),
                           cast_shadow=get("cast_shadow", True),
                           receivers=get("receivers"),
-                          non_receivers=get("non_receivers", [])))
+                          non_receivers=get("non_receivers", []),
+                          blockers=get("blockers"),
+                          non_blockers=get("non_blockers", [])))

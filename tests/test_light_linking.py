@@ -232,3 +232,40 @@ def test_aimed_photon_emitters_keep_their_lights_links():
         np.testing.assert_array_equal(link_row_of(ctx, wrapped), want)
     finally:
         close_context(ctx)
+
+
+def _card_over_left(key_links: dict):
+    """The two patches under a point key and a straight-down sun, with a camera-invisible
+    card at z = 1 over x in [-2, -0.5] (it shadows that part of the left patch)."""
+    s = two_patches(0.5, view=4.0)
+    card = s.add_plane((-1.25, 0, 1.0), (0, 0, 1), (1.5, 4.0), "matte", name="card",
+                       up=(0, 1, 0))
+    card.visible_camera = False
+    key = s.add_point_light((0, 0, H), power=P, name="key")
+    for attr, names in key_links.items():
+        setattr(key, attr, names)
+    s.add_sun((0, 0, -1), strength=E_SUN, name="fill")
+    return s
+
+
+def test_shadow_linking_lets_a_lamps_shadow_rays_pass_non_blockers():
+    """Shadow Linking: the key's shadow rays pass the card when the card is not among
+    its blockers (non_blockers = ['card'], or blockers naming other objects only), while
+    the sun, not linked, is still shadowed by it: under the card the patch reads the
+    key's inverse-square law alone, elsewhere key + sun."""
+    rho, view = 0.5, 4.0
+    for links in ({"non_blockers": ["card"]}, {"blockers": ["right"]}):
+        img = _card_over_left(links).render(
+            RenderSettings(spp=16, **DIRECT_ONLY)).combined[..., 1]
+        s = two_patches(rho, view=view)
+        want, x = _expected(s, rho, view, 1.0, 1.0)
+        under = x < -0.5  # (the card spans x in [-2, -0.5], as the patch)
+        want = np.where(under, want - rho * E_SUN / math.pi, want)
+        inner = (np.abs(x) > 0.2) & (np.abs(x + 0.5) > 0.15)  # off the seam, card edge
+        err = np.abs(img - want) / want
+        assert err[inner].max() < 0.015, (links, err[inner].max())
+    # Without the link the card shadows the key too: where it hides the key from the
+    # patch (x in [-2, -1]: the ray to the key crosses z = 1 at x / 2) the patch reads 0.
+    img = _card_over_left({}).render(RenderSettings(spp=4, **DIRECT_ONLY)).combined[..., 1]
+    x, _ = pixel_to_world(two_patches(view=view), view)
+    assert img[(x > -1.9) & (x < -1.1)].max() < 1e-6

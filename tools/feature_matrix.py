@@ -2275,12 +2275,28 @@ def light_linking():
     key.light_linking.receiver_collection = lit
 
 
-@case("warned", status="warned", how="Shadow Linking (Blender 4.0+) is ignored: every "
-      "object shadows the light", warning="Shadow Linking")
-def warned_shadow_linking():
+@case("lights")
+def light_shadow_linking():
+    """Shadow Linking (linking38): the red cube is left out of the sun's blockers (its
+    Shadow Linking collection excludes it): no sun shadow on the floor, while a key lamp
+    beside it keeps the cube's shadow."""
     _vis_scene()
-    sun = bpy.data.objects["Sun"]
-    sun.light_linking.blocker_collection = bpy.data.collections.new("Sun blockers")
+    mb.light("Key", "POINT", (1.6, -1.2, 1.8), 150.0, shadow_soft_size=0.0)
+    blockers = bpy.data.collections.new("Sun blockers")
+    blockers.objects.link(bpy.data.objects["Cube"])
+    blockers.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    bpy.data.objects["Sun"].light_linking.blocker_collection = blockers
+
+
+@case("warned", status="warned", how="Light Linking and Shadow Linking of an emitting "
+      "object (not a lamp) are ignored: its emission lights every object, every object "
+      "shadows it", warning="Light Linking")
+def warned_emitter_linking():
+    _vis_scene()
+    glow = _shader("glow", "ShaderNodeEmission", Color=(1.0, 0.9, 0.7), Strength=3.0)
+    mb.box("Glow", 0.3, 0.3, 0.3, glow, (-1.0, 0.8, 0.15))
+    bpy.data.objects["Glow"].light_linking.receiver_collection = \
+        bpy.data.collections.new("Lit by the glow")
 
 
 @case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))

@@ -4,7 +4,9 @@ middle cube only (or excludes it), and a fill light that lights everything. Each
 (the cubes' tops, the floor round them) reads Cycles' brightness within 3 % with direct
 light only, and within 5 % with the bounces (the photons of the key end at their first
 hit on anything but the middle cube: the floor round it is lit by what its sides throw).
-Before linking38 the key lit every object (a warning said so)."""
+Shadow Linking: the key's shadows cast only by its blockers, region by region within 3 %.
+Before linking38 the key lit every object and every object shadowed it (a warning said
+so)."""
 import numpy as np
 import pytest
 
@@ -101,16 +103,56 @@ def test_key_linked_to_one_cube_lights_as_in_cycles(bpy_addon, tmp_path, state, 
         assert om[k] == pytest.approx(cm[k], rel=tol), (k, om[k], cm[k])
 
 
-def test_shadow_linking_warns_naming_light_and_collection(bpy_addon):
-    """Shadow Linking (the blocker collection) is not rendered: the warning says so."""
+def _shadow_regions():
+    """The floor behind each cube as the key sees it (its shadow: the key is at (1, -1),
+    shadows fall towards -x, +y) and the cubes' tops."""
+    c = (np.arange(RES) + 0.5) / RES * VIEW - VIEW / 2
+    x = np.tile(c, (RES, 1))
+    y = np.tile(-c[:, None], (1, RES))
+    out = {f"{name} top": (np.abs(x - cx) < 0.35) & (np.abs(y) < 0.35)
+           for name, cx in CUBES.items()}
+    for name, cx in CUBES.items():
+        out[f"behind {name}"] = ((x > cx - 1.3) & (x < cx - 0.6) & (y > 0.6) & (y < 1.3))
+    return out
+
+
+@pytest.mark.parametrize("state", ["EXCLUDE", "INCLUDE"])
+def test_shadow_linking_as_in_cycles(bpy_addon, tmp_path, state):
+    """Shadow Linking: EXCLUDE the middle cube from the key's blockers (its key shadow
+    goes), or INCLUDE it alone (it keeps its key shadow; the floor and the other cubes
+    block nothing of the key); the fill's shadows stay. Direct light, within 3 % of
+    Cycles."""
     bpy = bpy_addon
-    _, key = _scene(bpy)
+    scene, key = _scene(bpy)
     blockers = bpy.data.collections.new("KeyBlockers")
-    blockers.objects.link(bpy.data.objects["CubeA"])
+    blockers.objects.link(bpy.data.objects["CubeB"])
+    blockers.collection_objects[0].light_linking.link_state = state
     key.light_linking.blocker_collection = blockers
+    assert not [w for w in export_warnings(bpy) if "Linking" in w]
+    c = _render(bpy, scene, tmp_path, "CYCLES", "shadow" + state, 0)
+    o = _render(bpy, scene, tmp_path, "PHOTONMAP", "shadow" + state, 0)
+    regions = _shadow_regions()
+    cm = {k: float(c[m].mean()) for k, m in regions.items()}
+    om = {k: float(o[m].mean()) for k, m in regions.items()}
+    print(state, {k: (round(cm[k], 4), round(om[k] / cm[k], 4)) for k in cm})
+    # Cycles: the middle cube's key shadow is gone (EXCLUDE: behind it nearly as bright
+    # as behind the right cube, in no key shadow) or kept (INCLUDE).
+    ratio = cm["behind CubeB"] / cm["behind CubeC"]
+    assert (ratio > 0.7) if state == "EXCLUDE" else (ratio < 0.5), cm
+    for k in regions:
+        assert om[k] == pytest.approx(cm[k], rel=0.03), (k, om[k], cm[k])
+
+
+def test_emitting_objects_links_warn(bpy_addon):
+    """Light / Shadow Linking of an emitting mesh object is not rendered (its emission
+    lights every object): the warning names the object and the collection."""
+    bpy = bpy_addon
+    _scene(bpy)
+    cube = bpy.data.objects["CubeA"]
+    cube.light_linking.receiver_collection = bpy.data.collections.new("GlowLinks")
     warnings = [w for w in export_warnings(bpy) if "Linking" in w]
-    assert warnings == ["light 'Key': Shadow Linking (collection 'KeyBlockers') is not "
-                        "supported; every object casts its shadows"], warnings
+    assert warnings == ["object 'CubeA': Light Linking (collection 'GlowLinks') is not "
+                        "supported; it lights every object"], warnings
 
 
 def test_collections_resolve_to_engine_receivers(bpy_addon):
@@ -140,3 +182,10 @@ def test_collections_resolve_to_engine_receivers(bpy_addon):
     assert exported() == (["CubeB"], [])
     coll.collection_objects[0].light_linking.link_state = "EXCLUDE"
     assert exported() == (None, ["CubeA", "CubeB"])
+    key.light_linking.receiver_collection = None
+    key.light_linking.blocker_collection = coll
+    out, _ = export.export_scene(load_engine(), bpy.context.evaluated_depsgraph_get(),
+                                 width=8, height=8)
+    light = next(li for li in out.lights if li.name == "Key")
+    assert (light.receivers, light.non_receivers) == (None, [])
+    assert (light.blockers, light.non_blockers) == (None, ["CubeA", "CubeB"])
