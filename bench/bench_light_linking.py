@@ -1,12 +1,12 @@
 """Noise cost of Light Linking's zeroed samples (engine/lightlinking.py).
 
 Cycles builds a light tree per receiver set, so a surface never picks a lamp that does not
-light it; here the tree is shared and such a pick gives a zero sample. This measures what
-that costs: two patches under LAMPS point lamps (the light tree picks one per sample),
-every other lamp linked to the left patch only. The right patch is lit by half the lamps;
-its pixel noise is compared with the same patch in a scene holding only those lamps (what
-a per-set tree would sample). Per-pixel standard deviation over SEEDS renders, and the
-render time, per configuration.
+light it; so does the engine (lightlinking.set_selector). With one shared tree such a pick
+gives a zero sample (lightlinking.PER_SET_TREES = False). This measures both: two patches
+under LAMPS point lamps (the light tree picks one per sample), every other lamp linked to
+the left patch only. The right patch is lit by half the lamps; its pixel noise is
+compared with the same patch in a scene holding only those lamps. Per-pixel standard
+deviation over SEEDS renders, and the render time, per configuration.
 
     PYTHONPATH=. .venv/bin/python bench/bench_light_linking.py
 """
@@ -18,11 +18,11 @@ import time
 
 import numpy as np
 
-from engine import RenderSettings
+from engine import RenderSettings, lightlinking
 from engine.api import PaperScene
 from engine.scene import Camera, Material
 
-LAMPS, SEEDS, SPP, RES = 24, 8, 4, 32
+LAMPS, SEEDS, SPP, RES = 48, 8, 4, 32  # 24 lamps left: still past SAMPLE_ALL_UP_TO (tree)
 
 
 def scene(mode: str) -> PaperScene:
@@ -64,13 +64,18 @@ def main() -> int:
     print(f"{'configuration':34s} {'mean':>8s} {'pixel std':>10s} {'std/mean':>9s} "
           f"{'s/render':>9s}")
     rows = {}
-    for mode, label in (("linked", "linked (zeroed samples, ours)"),
-                        ("subset", "only the right patch's lamps")):
-        rows[mode] = measure(mode)
-        m, sd, sec = rows[mode]
+    for key, mode, per_set, label in (
+            ("shared", "linked", False, "linked, one shared tree (zeroed)"),
+            ("per_set", "linked", True, "linked, a tree per set (ours)"),
+            ("subset", "subset", True, "only the right patch's lamps")):
+        lightlinking.PER_SET_TREES = per_set
+        rows[key] = measure(mode)
+        m, sd, sec = rows[key]
         print(f"{label:34s} {m:8.4f} {sd:10.4f} {sd / m:9.4f} {sec:9.3f}")
-    var_ratio = (rows["linked"][1] / rows["subset"][1]) ** 2
-    print(f"variance ratio (samples needed for equal noise): {var_ratio:.2f}")
+    lightlinking.PER_SET_TREES = True
+    for key in ("shared", "per_set"):
+        print(f"variance ratio {key} / subset (samples for equal noise): "
+              f"{(rows[key][1] / rows['subset'][1]) ** 2:.2f}")
     return 0
 
 

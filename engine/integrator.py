@@ -17,7 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .lightlinking import receiver_link
+from .lightlinking import receiver_link, tree_pmf
 from .directlight import (CUT_DIFFUSE, CUT_GLOSSY, NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW,
                           DirectLightBuffers, direct_light, sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
@@ -200,7 +200,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
                            light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
                            world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
-                           else None, link=receiver_link(ctx, hit, rows))
+                           else None, link=receiver_link(ctx, hit, rows, skip_mesh_lights))
     counters.shadow_rays += rays
     if shade_glossy is not None:
         shade_glossy[:] = False
@@ -556,7 +556,7 @@ def mis_light_pdf(light, o, d, t, ns=None, p=None):
     return by_area
 
 
-def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
+def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None, sets=None):
     """Power-heuristic weight (N,) of continuation rays that met emissive triangles prim
     (1 where the mesh light is not light-sampled with MIS or the lobe was mirror-like):
     the mesh light's shadow rays pick a triangle by its triangle tree's probability at the
@@ -565,7 +565,9 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
     direction uniform in its solid angle (pmf / omega): MeshLight.shadow_pdf, as
     directlight.sample_lights. With the light
     tree (p, ns (N,3): the points and shading normals the rays left) that pdf takes the
-    tree's probability of choosing the mesh light there (LightSelector.pmf)."""
+    tree's probability of choosing the mesh light there (LightSelector.pmf; sets (N,):
+    the receiver sets of the surfaces the rays left, whose own trees pick there:
+    lightlinking.tree_pmf)."""
     w = np.ones(len(prim))
     chosen = selector_for(ctx)
     for li, light in enumerate(ctx.lights):
@@ -579,7 +581,8 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
         cos_l = np.abs(dot(d[rows], ng[rows]))
         at = (o if p is None else p)[rows]
         if chosen is not None:
-            count = selection_samples(ctx.settings) * chosen[0].pmf(at, ns[rows], li)
+            count = selection_samples(ctx.settings) * tree_pmf(
+                ctx, chosen, at, ns[rows], li, None if sets is None else sets[rows])
         else:
             count = ctx.plan.light_samples.get(light.name, 1)
         pl = count * light.shadow_pdf(at, ns[rows], kk, t[rows], cos_l)
@@ -630,23 +633,33 @@ def unsampled_emission(ctx, meshes, prim, d, Le):
     return out
 
 
-def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None):
+def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
     """Power-heuristic weight of continuation rays (pdf pdf_b, inf = a mirror-like lobe)
     that met light li, against its light_samples shadow rays (ns: the shading normals at
     the rays' origins, for the world light). With the light tree (p, ns: the hit points
     and shading normals the rays left) the shadow rays' pdf includes the probability
-    that the tree picks light li there (LightSelector.pmf)."""
+    that the tree picks light li there (LightSelector.pmf; sets (N,): the receiver sets
+    of the surfaces the rays left, whose own trees pick there: lightlinking.tree_pmf)."""
     chosen = selector_for(ctx)
     with np.errstate(invalid="ignore", over="ignore"):  # rows that missed it: t = inf
         if chosen is not None:
             n = selection_samples(ctx.settings)
-            pl = n * mis_light_pdf(light, o, d, t, ns, p) * chosen[0].pmf(
-                o if p is None else p, ns, li)
+            pl = n * mis_light_pdf(light, o, d, t, ns, p) * tree_pmf(
+                ctx, chosen, o if p is None else p, ns, li, sets)
         else:
             n = ctx.plan.light_samples.get(light.name, 1)
             pl = n * mis_light_pdf(light, o, d, t, ns, p)
         w = pdf_b * pdf_b / (pdf_b * pdf_b + pl * pl)
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
+
+
+def _link_sets(ctx, link_prim, rows=None):
+    """Light Linking: the receiver sets (n,) of the surfaces the rays at rows (None: all)
+    last left (link_prim), for tree_pmf; None without linking."""
+    if link_prim is None:
+        return None
+    prim = link_prim if rows is None else np.take(link_prim, rows)
+    return ctx.links.receiver_set(ctx.geo, prim)
 
 
 def light_shadow_rays(ctx, hit, light_index, rng):
@@ -2362,7 +2375,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     if passages is not None:
                         om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
                     L = L * _mis_weight(ctx, li, light, om, d[rows], tm,
-                                        pdf_b[rows], org_ns[rows], org_p[rows])[:, None]
+                                        pdf_b[rows], org_ns[rows], org_p[rows],
+                                        _link_sets(ctx, link_prim, rows))[:, None]
                 if lamp_w is not None and len(rows):
                     # Its light through the shade the path left: shared with the shade
                     # samples of the glossy hit before (shadelight.shade_bsdf_weights).
@@ -2423,7 +2437,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                       np.take(o, missed, axis=0), d_miss,
                                                       None, pdf_b[missed],
                                                       np.take(org_ns, missed, axis=0),
-                                                      np.take(org_p, missed, axis=0))[:, None]
+                                                      np.take(org_p, missed, axis=0),
+                                                      _link_sets(ctx, link_prim,
+                                                                 missed))[:, None]
                 for li, light in enumerate(ctx.lights):
                     # A sun's disc is seen by camera rays only when its light is visible
                     # to them: a Sky Texture's disc (the background); the add-on exports
@@ -2442,7 +2458,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                         np.take(o, missed, axis=0), d_miss,
                                                         None, pdf_b[missed],
                                                         np.take(org_ns, missed, axis=0),
-                                                        np.take(org_p, missed, axis=0))[:, None]
+                                                        np.take(org_p, missed, axis=0),
+                                                        _link_sets(ctx, link_prim,
+                                                                   missed))[:, None]
                             radiance = radiance + sun
                 if clamping:
                     radiance = sampleclamp.clamp(radiance, tp, missed, sampleclamp.bounce_limits(
@@ -2595,7 +2613,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         om, tm = passages.mis_origin(np.arange(len(o)), o, d, t, op)
                     Le = Le * _mesh_mis_weight(
                         ctx, modes, prim, om, d, tm, hit.ng, pdf_b, op,
-                        org_ns if kept is None else org_ns[kept])[:, None]
+                        org_ns if kept is None else org_ns[kept],
+                        _link_sets(ctx, link_prim, kept))[:, None]
                 if clamping:
                     Le = sampleclamp.clamp(Le, tp, None,
                                            sampleclamp.bounce_limits(s, chain[:, 0] - 1))

@@ -173,19 +173,34 @@ class LightLinks:
 
     def direct(self, direct_light, packed, hit_arrays, samples, accel, shadow_cls, n, recv,
                rows=None, transmission=None, bsdf=None, passages=None, medium_sigma=None,
-               world_sigma=None, **kw):
+               world_sigma=None, tree=None, trees=None, **kw):
         """directlight.direct_light with Light and Shadow Linking (its `link`): the hits
-        of each receiver set (recv (n,) int64, -1: none) with their own packing, and each
-        shadow group's lights with its own BVH; the per-hit inputs taken at each set's
-        rows (bsdf's fd and transmission's arrays count the hits; bsdf's prm, wo and sel
-        are read at the rows), the sums put back. Returns (E (n,3), shadow rays)."""
+        of each receiver set (recv (n,) int64, -1: none) with their own packing (and,
+        when a light tree picks the lights, with trees(s): set_selector's tree of that
+        set), and each shadow group's lights with its own BVH; the per-hit inputs taken
+        at each set's rows (bsdf's fd and transmission's arrays count the hits; bsdf's
+        prm, wo and sel are read at the rows), the sums put back. Returns (E (n,3),
+        shadow rays)."""
         sets = np.unique(recv)
         groups = list(range(len(self.shadow_groups))) or [-1]
+
+        def tree_of(s):
+            """The set's tree arrays, or False: no light of the tree lights it."""
+            if tree is None or trees is None or s < 0:
+                return tree
+            ch = trees(int(s))
+            if ch is None:
+                return tree
+            return False if ch[0] is None else ch[1]
+
         if len(sets) == 1 and len(groups) == 1:
+            t = tree_of(sets[0])
+            if t is False:
+                return np.zeros((n, 3)), 0
             return direct_light(self.packed_for(packed, int(sets[0])), hit_arrays, samples,
                                 accel, shadow_cls, n, rows=rows, transmission=transmission,
                                 bsdf=bsdf, passages=passages, medium_sigma=medium_sigma,
-                                world_sigma=world_sigma, **kw)
+                                world_sigma=world_sigma, tree=t, **kw)
         out = np.zeros((n, 3))
         rays = 0
         hrow = np.arange(n, dtype=np.int64) if rows is None else np.asarray(rows, np.int64)
@@ -194,6 +209,9 @@ class LightLinks:
             return None if a is None else np.ascontiguousarray(a[sel])
 
         for s in sets:
+            t = tree_of(s)
+            if t is False:
+                continue
             sel = np.nonzero(recv == s)[0]
             part = [(li, tr, cnt, pick(u1, sel), pick(u2, sel), pick(third, sel))
                     for li, tr, cnt, u1, u2, third in samples]
@@ -210,7 +228,7 @@ class LightLinks:
                                     acc, shadow_cls, len(sel), rows=hrow[sel],
                                     transmission=tr_, bsdf=b, passages=pick(passages, sel),
                                     medium_sigma=pick(medium_sigma, sel),
-                                    world_sigma=pick(world_sigma, sel), **kw)
+                                    world_sigma=pick(world_sigma, sel), tree=t, **kw)
                 out[sel] += E
                 rays += r
         return out, rays
@@ -246,15 +264,82 @@ class _BlockerAccel:
             self.accel.close(wait)
 
 
-def receiver_link(ctx, hit, rows=None):
-    """directlight.direct_light's link for the hits (at rows; None: all): (ctx.links,
-    the receiver set (n,) of each hit's object), or None when no light is linked
-    (Cycles' light_link_receiver_nee: the shaded object)."""
+# set_selector's answer for a receiver set no light of the tree lights.
+NO_LIGHTS = (None, None)
+# One light tree per receiver set (Cycles' scheme); False: the scene's one tree, whose
+# picks of a lamp that does not light the surface give zero (bench/bench_light_linking.py
+# measures the difference).
+PER_SET_TREES = True
+
+
+def set_selector(ctx, s: int, skip_mesh_lights: bool = False):
+    """The light tree of receiver set s: lights.selection.selector_for's (LightSelector,
+    kernel arrays) over the members that light set s only, as Cycles builds a tree per
+    light set (light_tree_root_node_index), so a surface never picks a lamp that gives it
+    nothing (measured: bench/bench_light_linking.py); selector_for's own when every
+    member lights s (or s < 0, no object); NO_LIGHTS when none does; None without a
+    tree. Built once per context."""
+    from .lights.selection import LightSelector, selector_for
+    base = selector_for(ctx, skip_mesh_lights)
+    links = getattr(ctx, "links", None)
+    if base is None or links is None or s < 0 or not PER_SET_TREES:
+        return base
+    lit = links.sets[s]
+    members = [int(li) for li in base[0].members if lit[li]]
+    if len(members) == len(base[0].members):
+        return base
+    key = ("linked", bool(skip_mesh_lights), int(s))
+    cache = ctx.light_selectors
+    if key not in cache:
+        if not members:
+            cache[key] = NO_LIGHTS
+        else:
+            sel = LightSelector(ctx.lights, members)
+            cache[key] = (sel, (sel.tree_f, sel.tree_i, sel.infinite, sel.inf_f, base[1][4]))
+    return cache[key]
+
+
+def tree_pmf(ctx, chosen, p, ns, li: int, sets=None) -> np.ndarray:
+    """The light tree's probability (N,) of picking light li at points p (N,3) with
+    shading normals ns (N,3) (LightSelector.pmf), for multiple importance sampling: with
+    sets (N,) the receiver sets of the surfaces there (lightlinking), each set's own tree
+    (set_selector), as their shadow rays pick; chosen = selector_for(ctx)."""
+    if sets is None or getattr(ctx, "links", None) is None:
+        return chosen[0].pmf(p, ns, li)
+    p = np.asarray(p).reshape(-1, 3)
+    ns = np.asarray(ns).reshape(-1, 3)
+    out = np.zeros(len(p))
+    for s in np.unique(sets):
+        r = np.nonzero(sets == s)[0]
+        ch = set_selector(ctx, int(s))
+        if ch is not None and ch[0] is not None:
+            out[r] = ch[0].pmf(p[r], ns[r], li)
+    return out
+
+
+class _LinkCall:
+    """direct_light's `link` object for one call: LightLinks.direct with the light trees
+    of the call's receiver sets (set_selector with the caller's skip_mesh_lights)."""
+
+    def __init__(self, ctx, links, skip_mesh_lights):
+        self.ctx, self.links, self.skip = ctx, links, skip_mesh_lights
+
+    def direct(self, *args, **kw):
+        return self.links.direct(*args, trees=lambda s: set_selector(self.ctx, s, self.skip),
+                                 **kw)
+
+
+def receiver_link(ctx, hit, rows=None, skip_mesh_lights: bool = False):
+    """directlight.direct_light's link for the hits (at rows; None: all): (a call
+    object whose direct() is LightLinks.direct with the receiver sets' light trees, the
+    receiver set (n,) of each hit's object), or None when no light is linked (Cycles'
+    light_link_receiver_nee: the shaded object). skip_mesh_lights: the tree the caller
+    samples (lights.selection.selector_for's)."""
     links = getattr(ctx, "links", None)
     if links is None:
         return None
     prim = hit.prim if rows is None else np.take(hit.prim, rows)
-    return links, links.receiver_set(ctx.geo, prim)
+    return _LinkCall(ctx, links, skip_mesh_lights), links.receiver_set(ctx.geo, prim)
 
 
 def link_row_of(ctx, emitter):
