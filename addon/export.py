@@ -1585,6 +1585,10 @@ class ViewportUpdates:
                 self.all_materials = self.world = True
         elif kind in ("Image", "Texture"):
             self.all_materials = self.world = True
+        elif kind == "Collection":
+            # A Light / Shadow Linking collection's objects or link states changed: the
+            # lamps' receivers and blockers are resolved again (resolve_light_links).
+            self.lights = True
         elif kind.endswith("Light"):  # PointLight, SpotLight, SunLight, AreaLight
             self.lights = True
         elif kind == "World":

@@ -329,6 +329,23 @@ class _LinkCall:
                                  **kw)
 
 
+def links_for(scene, lights, geo, accel, accel_class, threads=1, should_cancel=None):
+    """The LightLinks of a prepared scene (None: no light linked), with its shadow
+    groups' BVHs built (needs geo's build arrays); Shadow Linking is dropped with a
+    scene warning where the scene's BVH is two-level (shared instances)."""
+    links = LightLinks.for_scene(scene, lights)
+    if links is not None and links.has_blockers:
+        if getattr(accel, "two_level", False):
+            msg = ("Shadow Linking is not supported with shared instances (two-level "
+                   "instancing); every object casts the linked lights' shadows")
+            if msg not in scene.warnings:
+                scene.warnings.append(msg)
+            links.blocks[:] = True
+        else:
+            links.build_shadow_groups(geo, accel_class, threads, should_cancel)
+    return links
+
+
 def receiver_link(ctx, hit, rows=None, skip_mesh_lights: bool = False):
     """directlight.direct_light's link for the hits (at rows; None: all): (a call
     object whose direct() is LightLinks.direct with the receiver sets' light trees, the

@@ -21,7 +21,7 @@ from .geometry import Geometry, MaterialTable, area_sum, prepare, set_camera_vie
 from . import integrator as _integrator
 from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
 from .jit import ensure_compiled
-from .lightlinking import LightLinks
+from .lightlinking import links_for
 from .lights import allocate_photons, prepare_lights
 from .lights.base import InfiniteLight
 from .lights import packing as pk
@@ -144,15 +144,7 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
                             gathered=bool(settings.photon_mapping and settings.final_gather))
     # Light and Shadow Linking (engine/lightlinking.py): the shadow groups' BVHs are
     # built from the build arrays, before they go.
-    links = LightLinks.for_scene(scene, lights)
-    if links is not None and links.has_blockers:
-        if accel.two_level:
-            scene.warnings.append(
-                "Shadow Linking is not supported with shared instances (two-level "
-                "instancing); every object casts the linked lights' shadows")
-            links.blocks[:] = True
-        else:
-            links.build_shadow_groups(geo, accel_class, settings.threads, should_cancel)
+    links = links_for(scene, lights, geo, accel, accel_class, settings.threads, should_cancel)
     if shadow is None:
         # Embree holds its own copy; transparent shadows build their BVHs from them lazily.
         geo.release_build_arrays()

@@ -303,3 +303,25 @@ def test_each_receiver_set_has_its_own_light_tree():
     subset = _glossy_lamps("subset").render(settings).combined
     assert subset.mean() > 0.05
     np.testing.assert_allclose(linked, subset, rtol=1e-5, atol=1e-6)
+
+
+def test_a_session_keeps_the_links():
+    """The progressive / viewport session (engine/session.py) builds its own context:
+    the links and the shadow groups come with it (its image is the render's)."""
+    from engine.session import Session
+    scene = _card_over_left({"non_blockers": ["card"]})
+    key = scene.lights[0]
+    key.receivers = ["left"]
+    settings = RenderSettings(spp=4, **DIRECT_ONLY)
+    want = _card_over_left({"non_blockers": ["card"], "receivers": ["left"]}).render(
+        settings).combined
+    session = Session(scene, settings, passes=1).start()
+    try:
+        assert session.wait_idle(timeout=120)
+        frame = session.frame
+    finally:
+        session.stop()
+    got = frame.rgba[..., :3]
+    x, _ = pixel_to_world(scene, 4.0)
+    inner = np.abs(x) > 0.2
+    assert rel_err(got[inner].mean(), want[inner].mean()) < 0.01
