@@ -597,15 +597,14 @@ def _particle_modifier_renders(obj, psys) -> bool:
 
 
 def warn_light_linking(obj, warnings: list, who=None):
-    """Object > Shading > Light Linking / Shadow Linking (Blender 4.0+) of an emitting
-    mesh object, which this engine does not simulate (a lamp's are rendered:
+    """Object > Shading > Shadow Linking (Blender 4.0+) of an emitting mesh object, which
+    this engine does not simulate (a lamp's is rendered, and an object's Light Linking:
     light_link_objects, resolve_light_links), said once per object (it was dropped
-    silently, s37): its emission lights every object and every object blocks it."""
+    silently, s37): every object blocks its emission."""
     linking = getattr(obj, "light_linking", None)
     who = who or f"object '{obj.name}'"
     for attr, what, effect in (
-            ("receiver_collection", "Light Linking", "it lights every object"),
-            ("blocker_collection", "Shadow Linking", "every object casts its shadows")):
+            ("blocker_collection", "Shadow Linking", "every object casts its shadows"),):
         coll = getattr(linking, attr, None) if linking is not None else None
         if coll is not None:
             warnings.append(f"{who}: {what} (collection '{coll.name}') is not supported; "
@@ -643,21 +642,34 @@ def resolve_light_links(lights: list, meshes: list, owners: dict) -> None:
     (light._link_objects: the Light Linking and Shadow Linking collections'
     light_link_objects, or None): with any included object only the included ones
     (Blender: EmitterSetMembership.get_mask, the included sets alone), else every object
-    but the excluded ones. owners: mesh name -> (object name, instancer name or None)
+    but the excluded ones. owners: mesh name -> (object name, instancer name or None,
+    the object's own Light Linking collection's light_link_objects or None)
     (_instance_name): an instance takes its instancer's links when the instancer is in
     any such collection, else its object's (Cycles' BlenderLightLink::
-    get_receiver_light_set / get_blocker_shadow_set)."""
+    get_receiver_light_set / get_blocker_shadow_set). An emitting object's own Light
+    Linking sets its meshes' receivers / non_receivers alike (the engine reads them
+    where the mesh emits)."""
+    for mesh in meshes:
+        # (cached viewport meshes keep their attributes: the links are set afresh)
+        mesh.receivers, mesh.non_receivers = None, []
+    emitters = [(mesh, owners[mesh.name][2]) for mesh in meshes
+                if mesh.name in owners and len(owners[mesh.name]) > 2
+                and owners[mesh.name][2] is not None]
     for k, (kind, non) in enumerate((("receivers", "non_receivers"),
                                      ("blockers", "non_blockers"))):
         links = [(light, light._link_objects[k]) for light in lights
                  if getattr(light, "_link_objects", None) is not None
                  and light._link_objects[k] is not None]
+        if k == 0:
+            # An emitting object's own Light Linking (engine Mesh.receivers).
+            links += emitters
         if not links:
             continue
         named = {ob for _, (inc, exc) in links for ob in (*inc, *exc)}
         by_owner: dict = {}
         for mesh in meshes:
-            ob, parent = owners.get(mesh.name, (mesh.cryptomatte_object or mesh.name, None))
+            ob, parent = owners.get(mesh.name, (mesh.cryptomatte_object or mesh.name,
+                                                None))[:2]
             by_owner.setdefault(parent if parent in named else ob, []).append(mesh.name)
         for light, (include, exclude) in links:
             if include:
@@ -1093,13 +1105,16 @@ def _instance_name(inst, obj, info) -> str:
     """The engine mesh name of a depsgraph instance (counts instances in info; notes
     its object and instancer in info["owners"] for resolve_light_links)."""
     owners = info.setdefault("owners", {})
+    # An emitting object's own Light Linking collection (resolve_light_links).
+    coll = getattr(getattr(obj, "light_linking", None), "receiver_collection", None)
+    own = None if coll is None else light_link_objects(coll)
     if not inst.is_instance:
-        owners[obj.name] = (obj.name, None)
+        owners[obj.name] = (obj.name, None, own)
         return obj.name
     parent = inst.parent.name if inst.parent is not None else "instance"
     name = f"{parent}/{obj.name}#{info['instances']}"
     info["instances"] += 1
-    owners[name] = (obj.name, inst.parent.name if inst.parent is not None else None)
+    owners[name] = (obj.name, inst.parent.name if inst.parent is not None else None, own)
     return name
 
 

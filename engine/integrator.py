@@ -653,6 +653,16 @@ def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
 
 
+def _linked_emission(ctx, Le, prim, from_prim, idx):
+    """Le (n,3) of the emitting triangles prim that gather rays met, without what an
+    emitting object with links of its own does not give the surfaces the rays left
+    (from_prim at idx; Light Linking, lightlinking.LightLinks.emission_lights)."""
+    links = getattr(ctx, "links", None)
+    if links is None or not links.has_emitters or not np.any(Le > 0):
+        return Le
+    return Le * links.emission_lights(ctx.geo, prim, np.take(from_prim, idx))[:, None]
+
+
 def _link_sets(ctx, link_prim, rows=None):
     """Light Linking: the receiver sets (n,) of the surfaces the rays at rows (None: all)
     last left (link_prim), for tree_pmf; None without linking."""
@@ -945,13 +955,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0:
-                Le = y.emission
+                Le = _linked_emission(ctx, y.emission, prim, hit.prim, idx)
                 if np.any(Le > 0):
                     E[idx] += tp * math.pi * Le / G
             elif depth == 0 and unsampled:
                 # The emission of sides no shadow ray samples (Emission Sampling): these
                 # rays are the only strategy that finds it (the shadow rays find the rest).
-                Le = y.emission
+                Le = _linked_emission(ctx, y.emission, prim, hit.prim, idx)
                 if np.any(Le > 0):
                     Le = unsampled_emission(ctx, unsampled, prim, d, Le)
                     E[idx] += tp * math.pi * Le / G
@@ -2605,6 +2615,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_first_normals(pix, hit.ns, hit.front)
         if emitters:
             Le = hit.emission
+            if np.any(Le > 0) and link_prim is not None and bounce > 0 \
+                    and ctx.links.has_emitters:
+                # An emitting object with links of its own, met from a surface it does not
+                # light (camera rays and their transparent continuations see it).
+                lp = link_prim if kept is None else link_prim[kept]
+                Le = Le * ((ray_cls == CAMERA)
+                           | ctx.links.emission_lights(ctx.geo, prim, lp))[:, None]
             if np.any(Le > 0):
                 if bounce > 0:
                     op = org_p if kept is None else org_p[kept]

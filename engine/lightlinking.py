@@ -16,9 +16,15 @@ light), every emitter a membership mask of the sets it lights, and
   photon there (not stored, not bounced), or the gather would carry light the object
   never received.
 
-Here the sets are the distinct columns of the (lights x meshes) table "light i lights mesh
-m", so any number of them works (Cycles stops at 64). The emissive meshes and the world
-light every object (Blender links emitting objects too: the add-on warns).
+Here the sets are the distinct columns of the (emitters x meshes) table "emitter i lights
+mesh m", so any number of them works (Cycles stops at 64). The emitters are the lamps and
+the emitting meshes with links of their own (Mesh.receivers / non_receivers: an emitting
+object's Light Linking); those meshes' triangles stay in the one mesh light, and their
+links act per triangle: a set's packing zeroes their radiance (the triangle tree may
+still pick them: a zero sample), a BSDF ray or a gather ray meeting one counts it only
+if it lights the object the ray left, and a photon from one (its triangle known from its
+emission number, photonkernels.uniform) ends at a first hit it does not light. The world
+lights every object.
 
 Shadow Linking (Light.blockers / non_blockers): a light's shadow rays pass the objects
 that are not its blockers (Cycles' shadow_linking_... filter: an intersection is skipped
@@ -44,13 +50,26 @@ class LightLinks:
     mesh_set (M,) int64: each mesh's receiver set, sets (S, L) bool: the lights of each
     set (rows of lit's transposed distinct columns; set 0 the first mesh's)."""
 
-    def __init__(self, lit: np.ndarray, blocks: np.ndarray | None = None):
+    def __init__(self, lit: np.ndarray, blocks: np.ndarray | None = None,
+                 emit_lit: np.ndarray | None = None, emitters: np.ndarray | None = None):
         self.lit = np.ascontiguousarray(lit, np.bool_)
-        cols = self.lit.T
+        L, M = self.lit.shape
+        # Emitting meshes with links: emit_lit (K, M) mesh emitters[k] lights mesh m;
+        # emit_row (M,) each mesh's row there (-1: no links of its own, lights every one).
+        self.emit_lit = (np.ones((0, M), np.bool_) if emit_lit is None
+                         else np.ascontiguousarray(emit_lit, np.bool_))
+        self.emit_row = np.full(M, -1, np.int64)
+        if emitters is not None:
+            self.emit_row[np.asarray(emitters, np.int64)] = np.arange(len(emitters))
+        table = np.concatenate([self.lit, self.emit_lit])
+        cols = table.T
         uniq, inverse = np.unique(cols, axis=0, return_inverse=True) if len(cols) else (
-            np.ones((1, self.lit.shape[0]), np.bool_), np.zeros(0, np.int64))
-        self.sets = np.ascontiguousarray(uniq, np.bool_)
+            np.ones((1, len(table)), np.bool_), np.zeros(0, np.int64))
+        self.sets = np.ascontiguousarray(uniq[:, :L], np.bool_)
+        self.emit_sets = np.ascontiguousarray(uniq[:, L:], np.bool_)  # (S, K)
         self.mesh_set = np.asarray(inverse, np.int64).reshape(-1)
+        # The mesh light's triangles' emitter rows (set by for_scene; None: none linked).
+        self.mesh_tri_row = None
         # Shadow Linking: blocks (L, M) light i's shadow rays are stopped by mesh m; the
         # shadow groups (ShadowGroup), made by build_shadow_groups.
         self.blocks = (np.ones_like(self.lit) if blocks is None
@@ -93,7 +112,7 @@ class LightLinks:
                 group.accel.close(wait)
 
     @classmethod
-    def for_scene(cls, scene, lights) -> "LightLinks | None":
+    def for_scene(cls, scene, lights, geo=None) -> "LightLinks | None":
         """The links of the prepared lights (engine/lights/: a declared light's `source`,
         its scene Light, holds receivers, non_receivers, blockers and non_blockers), or
         None when no light is linked."""
@@ -125,9 +144,58 @@ class LightLinks:
 
         lit, by_recv = table("receivers")
         blocks, by_block = table("blockers")
-        if not (by_recv or by_block):
+        # Emitting meshes' own Light Linking (Mesh.receivers / non_receivers).
+        emitters, rows = [], []
+        materials = getattr(scene, "materials", {})
+        for m, mesh in enumerate(scene.meshes):
+            only = getattr(mesh, "receivers", None)
+            excl = getattr(mesh, "non_receivers", None) or ()
+            if only is None and not excl:
+                continue
+            if not any(getattr(materials.get(name), "is_emissive", False)
+                       for name in mesh.materials):
+                continue  # (links of an object that emits nothing act on nothing)
+            row = np.zeros(M, np.bool_) if only is not None else np.ones(M, np.bool_)
+            for name in only or ():
+                row[index.get(name, [])] = True
+            for name in excl:
+                if only is None or name not in only:
+                    row[index.get(name, [])] = False
+            emitters.append(m)
+            rows.append(row)
+        if not (by_recv or by_block or emitters):
             return None
-        return cls(lit, blocks)
+        links = cls(lit, blocks, np.array(rows, np.bool_).reshape(len(rows), M),
+                    np.array(emitters, np.int64))
+        if emitters:
+            for light in lights:
+                tri = getattr(light, "tri_index", None)
+                if getattr(light, "kind", "") == "MESH" and tri is not None and geo is not None:
+                    links.mesh_tri_row = links.emit_row[object_of(geo, np.asarray(tri))]
+        return links
+
+    @property
+    def has_emitters(self) -> bool:
+        return len(self.emit_lit) > 0
+
+    def emission_lights(self, geo, emit_prim: np.ndarray, from_prim: np.ndarray) -> np.ndarray:
+        """(n,) bool: the emitting triangles emit_prim light the objects of triangles
+        from_prim the rays left (True where from_prim < 0: the camera, or the emitter has
+        no links of its own): Cycles' light_link_object_match for a BSDF or gather ray."""
+        out = np.ones(len(emit_prim), np.bool_)
+        if not self.has_emitters:
+            return out
+        emit_prim = np.asarray(emit_prim, np.int64)
+        from_prim = np.asarray(from_prim, np.int64)
+        ok = np.nonzero((emit_prim >= 0) & (from_prim >= 0))[0]
+        if not len(ok):
+            return out
+        row = self.emit_row[object_of(geo, emit_prim[ok])]
+        linked = row >= 0
+        if linked.any():
+            r = ok[linked]
+            out[r] = self.emit_lit[row[linked], object_of(geo, from_prim[r])]
+        return out
 
     def receiver_set(self, geo, prim: np.ndarray) -> np.ndarray:
         """(n,) int64 receiver set of the objects hit at triangles prim (-1 or -2, a
@@ -167,6 +235,15 @@ class LightLinks:
         if off.any():
             params = params.copy()
             params[off, pk.RGB:pk.RGB + 3] = 0.0
+        rows = self.mesh_tri_row
+        if s >= 0 and rows is not None and len(rows) == len(mesh[MESH_L]):
+            # Emitting meshes with links: their triangles' radiance, where they do not
+            # light set s, zeroed.
+            dark = (rows >= 0) & ~self.emit_sets[s][np.maximum(rows, 0)]
+            if dark.any():
+                m_L = mesh[MESH_L].copy()
+                m_L[dark] = 0.0
+                mesh = (*mesh[:MESH_L], m_L, *mesh[MESH_L + 1:])
         out = (codes, params, mesh)
         self._packs[key] = (packed, out)
         return out
@@ -232,6 +309,30 @@ class LightLinks:
                 out[sel] += E
                 rays += r
         return out, rays
+
+
+# The packed mesh arrays' radiance (lights.packing.pack_lights: v0, e1, e2, ng, L, ...).
+MESH_L = 4
+
+
+def mesh_photon_rows(links, light, key, slot: np.ndarray) -> np.ndarray:
+    """(m,) int64 emitter rows (LightLinks.emit_row; -1: no links) of the triangles the
+    mesh light's photons in `slot` left: the triangle its emission chose (emit_mesh: the
+    CDF at emit_uniform(key, slot, 0), recomputed here with the same SplitMix64 number,
+    photonkernels.uniform)."""
+    from .lights.emission import EMIT_BOUNCE
+    from .photonkernels import MAX_BOUNCES, N_DIMS
+    with np.errstate(over="ignore"):
+        counter = ((np.asarray(slot, np.int64) * MAX_BOUNCES + EMIT_BOUNCE) * N_DIMS
+                   ).astype(np.uint64)
+        z = np.uint64(key) + (counter + np.uint64(1)) * np.uint64(0x9E3779B97F4A7C15)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+    u = (z >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+    cdf = np.asarray(light.cdf)
+    tri = np.minimum(np.searchsorted(cdf, u, side="right"), len(cdf) - 1)
+    return links.mesh_tri_row[tri]
 
 
 class ShadowGroup:
@@ -333,7 +434,7 @@ def links_for(scene, lights, geo, accel, accel_class, threads=1, should_cancel=N
     """The LightLinks of a prepared scene (None: no light linked), with its shadow
     groups' BVHs built (needs geo's build arrays); Shadow Linking is dropped with a
     scene warning where the scene's BVH is two-level (shared instances)."""
-    links = LightLinks.for_scene(scene, lights)
+    links = LightLinks.for_scene(scene, lights, geo)
     if links is not None and links.has_blockers:
         if getattr(accel, "two_level", False):
             msg = ("Shadow Linking is not supported with shared instances (two-level "
@@ -365,14 +466,7 @@ def link_row_of(ctx, emitter):
     links = getattr(ctx, "links", None)
     if links is None:
         return None
-    light = emitter.lights[0] if hasattr(emitter, "lights") else emitter
-    # Aimed photon emitters wrap the light (visualimportance.RegionEmitter,
-    # portal.PortalEmitter: .light); a declared light is known by its scene Light.
-    for _ in range(4):
-        inner = getattr(light, "light", None)
-        if inner is None:
-            break
-        light = inner
+    light = unwrapped(emitter)
     source = getattr(light, "source", None)
     for li, other in enumerate(ctx.lights):
         if other is light or (source is not None and other.source is source):
@@ -381,15 +475,48 @@ def link_row_of(ctx, emitter):
     return None
 
 
-def unlinked_first_hits(geo, link_row, geom, prim32, starts) -> int:
+def unwrapped(emitter):
+    """The light a photon emitter stands for: a group's first member, an aimed wrapper's
+    light (visualimportance.RegionEmitter, portal.PortalEmitter: .light)."""
+    light = emitter.lights[0] if hasattr(emitter, "lights") else emitter
+    for _ in range(4):
+        inner = getattr(light, "light", None)
+        if inner is None:
+            break
+        light = inner
+    return light
+
+
+def mesh_photon_links(ctx, emitter):
+    """(links, the mesh light) when `emitter` is the mesh light and an emitting mesh has
+    links of its own (its photons end per triangle: unlinked_first_hits' rows); else
+    None."""
+    links = getattr(ctx, "links", None)
+    if links is None or links.mesh_tri_row is None or not (links.mesh_tri_row >= 0).any():
+        return None
+    light = unwrapped(emitter)
+    return (links, light) if getattr(light, "kind", "") == "MESH" else None
+
+
+def unlinked_first_hits(geo, link_row, geom, prim32, starts, emit_rows=None,
+                        emit_lit=None) -> int:
     """Turn the photons' first hits on objects their light does not light into misses:
-    geom (m,) int32 Embree geometry ids (-1: a miss) set to -1 there, in place. Returns
-    how many."""
+    geom (m,) int32 Embree geometry ids (-1: a miss) set to -1 there, in place. link_row
+    (M,) bool: the objects the light lights (None: every one); or per photon emit_rows
+    (m,) rows of emit_lit (K, M) (-1: every object). Returns how many."""
     ok = np.nonzero(geom >= 0)[0]
     if not len(ok):
         return 0
     prim = np.take(starts, geom[ok]).astype(np.int64) + prim32[ok]
-    cut = ok[~link_row[object_of(geo, prim)]]
+    obj = object_of(geo, prim)
+    if link_row is not None:
+        lit = link_row[obj]
+    else:
+        rows = emit_rows[ok]
+        lit = np.ones(len(ok), np.bool_)
+        on = rows >= 0
+        lit[on] = emit_lit[rows[on], obj[on]]
+    cut = ok[~lit]
     geom[cut] = -1
     return len(cut)
 

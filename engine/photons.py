@@ -28,7 +28,8 @@ from .anisotropy import triangle_tangents
 from .lights.base import emission_key
 from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
-from .lightlinking import link_row_of, unlinked_first_hits
+from .lightlinking import (link_row_of, mesh_photon_links, mesh_photon_rows,
+                           unlinked_first_hits)
 from .parallel import Cancelled, chunk_length, ordered_map
 from . import media, worldmedium
 from . import photonkernels as pk
@@ -174,7 +175,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
             shot.begin(n)
         stored = _trace_chunk(ctx, accel, emitter, n, count, rng, caustic_only, targets,
                               stop, first_hit, pool, shot if shot.direct else None, plain,
-                              link_row=link_row_of(ctx, emitter))
+                              link_row=link_row_of(ctx, emitter),
+                              mesh_links=mesh_photon_links(ctx, emitter))
         if shot.direct:
             shot.commit(stored, n)  # here, on the chunk's thread, before the next starts
         return stored
@@ -194,7 +196,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 
 
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
-                 first_hit=None, pool=None, shot=None, plain=None, link_row=None):
+                 first_hit=None, pool=None, shot=None, plain=None, link_row=None,
+                 mesh_links=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits (a
     _Stored). Between two Embree calls the work is one compiled kernel
     (photonkernels.scatter, which computes the surface data itself); bsdf.surface_hit
@@ -204,7 +207,9 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     one without). shot: a direct _Shot the photons are stored into after its rows (the
     caller commits them), or None: into blocks from the pool. plain: the table's
     photonkernels.lobe_classes (computed here without). link_row (M,) bool: the objects
-    the light lights (Light Linking, lightlinking.link_row_of; None: every one)."""
+    the light lights (Light Linking, lightlinking.link_row_of; None: every one);
+    mesh_links: (LightLinks, the mesh light) when emitting meshes have links of their own
+    (lightlinking.mesh_photon_links; each photon's by its triangle), else None."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
     pool = pool if pool is not None else _Buffers()
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
@@ -270,7 +275,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                  bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,
                  tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
                  coincident, make_next, pane_tri, soft_falloff_sources(light, n),
-                 start_medium=_light_medium(ctx, light), link_row=link_row)
+                 start_medium=_light_medium(ctx, light), link_row=link_row,
+                 mesh_links=mesh_links)
     except BaseException:
         stored.release()
         raise
@@ -299,15 +305,16 @@ def _light_medium(ctx, light) -> int:
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
              bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
              hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
-             make_next, pane_tri=None, soft=None, start_medium=-1, link_row=None):
+             make_next, pane_tri=None, soft=None, start_medium=-1, link_row=None,
+             mesh_links=None):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
     make_next); coincident: the scene's CoincidentSurfaces or None; pane_tri: the
     next-event panes' triangle table for this light's photons (panelight.Panes.photon_tri)
     or None; soft: soft_falloff_sources' (centre, r^2) per emission slot, or None;
-    start_medium: the medium the light is in (_light_medium; -1: none known); link_row:
-    _trace_chunk's."""
+    start_medium: the medium the light is in (_light_medium; -1: none known); link_row,
+    mesh_links: _trace_chunk's."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
@@ -346,6 +353,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             # Light Linking: a photon whose first hit is on an object its light does not
             # light ends there, as a miss (not stored, not bounced; engine/lightlinking.py).
             unlinked_first_hits(ctx.geo, link_row, geom, prim32, starts)
+        elif bounce == 0 and mesh_links is not None:
+            # ... and for the emitting meshes with links of their own, by the triangle
+            # each photon left.
+            links, mesh_light = mesh_links
+            unlinked_first_hits(ctx.geo, None, geom, prim32, starts,
+                                mesh_photon_rows(links, mesh_light, key, slot), links.emit_lit)
         if given:
             # Triangle rows and float64 barycentrics for numpy and instance paths (the
             # same values as Accel.intersect's).

@@ -446,6 +446,9 @@ class Mesh:
               give this mesh (engine/cryptomatte.py; None: `name`, and the asset the
               object's): Blender's object name, which instances of one object share, and
               its topmost parent's
+    receivers, non_receivers  Light Linking of an emitting mesh (its material emits):
+              as Light.receivers / non_receivers, the meshes its emission lights directly
+              (None / []: every one; engine/lightlinking.py)
     prototype, matrix  optional instance record: this mesh is `prototype` (object space)
               placed by the (4,4) or (3,4) object-to-world `matrix`; vertices and faces
               are then that placement (faces as the prototype's, corners 0, 2, 1 when the
@@ -492,6 +495,8 @@ class Mesh:
     shadow_terminator_shading_offset: float = 0.0
     cryptomatte_object: str | None = None
     cryptomatte_asset: str | None = None
+    receivers: list | None = None
+    non_receivers: list = field(default_factory=list)
     prototype: "Prototype | None" = None
     matrix: np.ndarray | None = None
     pass_index: int = 0
@@ -692,7 +697,7 @@ class Mesh:
             "visible_shadow", "holdout", "shadow_catcher", "shadow_terminator_offset",
             "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset",
             "pass_index", "random", "object_color", "location", "object_linear",
-            "object_attributes")}
+            "object_attributes", "receivers", "non_receivers")}
         return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
                     materials=list(self.materials), material_ids=P.material_ids,
                     prototype=P, matrix=M, **flags)
@@ -1324,6 +1329,11 @@ class Scene:
                                "object of the scene; ignored")
                         if msg not in self.warnings:
                             self.warnings.append(msg)
+        for mesh in self.meshes:
+            if mesh.receivers is not None:
+                mesh.receivers = _names(mesh.receivers, f"mesh '{mesh.name}' receivers")
+            mesh.non_receivers = _names(mesh.non_receivers,
+                                        f"mesh '{mesh.name}' non_receivers")
 
     def _material_users(self) -> dict[str, list[str]]:
         """Material name -> names of the meshes whose slots hold it (scene order)."""

@@ -2288,15 +2288,27 @@ def light_shadow_linking():
     bpy.data.objects["Sun"].light_linking.blocker_collection = blockers
 
 
-@case("warned", status="warned", how="Light Linking and Shadow Linking of an emitting "
-      "object (not a lamp) are ignored: its emission lights every object, every object "
-      "shadows it", warning="Light Linking")
-def warned_emitter_linking():
+def _glow_box():
+    glow = _shader("glow", "ShaderNodeEmission", Color=(1.0, 0.9, 0.7), Strength=30.0)
+    return mb.box("Glow", 0.3, 0.3, 0.3, glow, (-0.5, -0.6, 0.15))
+
+
+@case("lights")
+def light_emitter_linking():
+    """An emitting object's Light Linking (linking38): a bright glowing box whose Light
+    Linking collection holds the red cube only: the floor round it takes none of its
+    light (nor the photons' bounce of it), the cube does."""
     _vis_scene()
-    glow = _shader("glow", "ShaderNodeEmission", Color=(1.0, 0.9, 0.7), Strength=3.0)
-    mb.box("Glow", 0.3, 0.3, 0.3, glow, (-1.0, 0.8, 0.15))
-    bpy.data.objects["Glow"].light_linking.receiver_collection = \
-        bpy.data.collections.new("Lit by the glow")
+    lit = bpy.data.collections.new("Lit by the glow")
+    lit.objects.link(bpy.data.objects["Cube"])
+    _glow_box().light_linking.receiver_collection = lit
+
+
+@case("warned", status="warned", how="Shadow Linking of an emitting object (not a lamp) "
+      "is ignored: every object shadows its emission", warning="Shadow Linking")
+def warned_emitter_shadow_linking():
+    _vis_scene()
+    _glow_box().light_linking.blocker_collection = bpy.data.collections.new("Glow blockers")
 
 
 @case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))

@@ -143,16 +143,41 @@ def test_shadow_linking_as_in_cycles(bpy_addon, tmp_path, state):
         assert om[k] == pytest.approx(cm[k], rel=0.03), (k, om[k], cm[k])
 
 
-def test_emitting_objects_links_warn(bpy_addon):
-    """Light / Shadow Linking of an emitting mesh object is not rendered (its emission
-    lights every object): the warning names the object and the collection."""
+def test_an_emitting_objects_light_linking_as_in_cycles(bpy_addon, tmp_path):
+    """An emitting object's Light Linking: a glowing bar beside the middle cube whose
+    collection holds the middle cube only; the key lamp off. Direct light, each region
+    within 3 % of Cycles (the floor round the bar takes none of its light, the cube
+    does). Its Shadow Linking is not rendered: warned, naming object and collection."""
     bpy = bpy_addon
-    _scene(bpy)
-    cube = bpy.data.objects["CubeA"]
-    cube.light_linking.receiver_collection = bpy.data.collections.new("GlowLinks")
+    scene, key = _scene(bpy)
+    key.data.energy = 0.0
+    glow = glass_or_diffuse_material(bpy, "GlowMat", "diffuse", (0.0, 0.0, 0.0))
+    nt = glow.node_tree
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 20.0
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(1.0, -1.2, 0.2),
+                                    scale=(0.8, 0.2, 0.2))
+    bar = bpy.context.active_object
+    bar.name = "Bar"
+    bar.data.materials.append(glow)
+    coll = bpy.data.collections.new("BarLinks")
+    coll.objects.link(bpy.data.objects["CubeB"])
+    bar.light_linking.receiver_collection = coll
+    assert not [w for w in export_warnings(bpy) if "Linking" in w]
+    c = _render(bpy, scene, tmp_path, "CYCLES", "bar", 0)
+    o = _render(bpy, scene, tmp_path, "PHOTONMAP", "bar", 0)
+    regions = _regions()
+    cm = {k: float(c[m].mean()) for k, m in regions.items()}
+    om = {k: float(o[m].mean()) for k, m in regions.items()}
+    print("bar", {k: (round(cm[k], 4), round(om[k] / cm[k], 4)) for k in cm})
+    for k in regions:
+        assert om[k] == pytest.approx(cm[k], rel=0.03), (k, om[k], cm[k])
+    bar.light_linking.blocker_collection = bpy.data.collections.new("BarBlockers")
     warnings = [w for w in export_warnings(bpy) if "Linking" in w]
-    assert warnings == ["object 'CubeA': Light Linking (collection 'GlowLinks') is not "
-                        "supported; it lights every object"], warnings
+    assert warnings == ["object 'Bar': Shadow Linking (collection 'BarBlockers') is not "
+                        "supported; every object casts its shadows"], warnings
 
 
 def test_collections_resolve_to_engine_receivers(bpy_addon):
