@@ -198,6 +198,11 @@ CAMERA_SCHEMA = _table({
     "aperture_ratio": _number(0.0, lo_open=True)},
     required=("position", "look_at"))
 
+# Light Linking (engine/lightlinking.py): object names.
+_NAMES_TEXT = "a list of object names"
+_NAMES = {"type": "array", "items": {"type": "string", "what_type": _NAMES_TEXT},
+          "what": _NAMES_TEXT, "what_type": _NAMES_TEXT}
+
 _OBJECT_COMMON = {
     "type": _STRING, "name": _STRING, "material": _STRING, "translate": _vec3(),
     "rotate": _vec3(),
@@ -209,7 +214,9 @@ _OBJECT_COMMON = {
     # Blender's Object > Relations > Pass Index (the Object Index data pass)
     "pass_index": _number(0, 32767, integer=True),
     # A template is drawn only through its [[instances]] (not itself).
-    "template": _BOOL}
+    "template": _BOOL,
+    # An emitting object's Light Linking (engine/lightlinking.py): object names.
+    "receivers": _NAMES, "non_receivers": _NAMES}
 _INLINE = {"type": "array", "maxItems": MAX_INLINE_ELEMENTS,
            "what": f"a list of at most {MAX_INLINE_ELEMENTS:,} [a, b, c] rows"}
 OBJECT_SCHEMAS = {
@@ -235,11 +242,6 @@ INSTANCE_SCHEMA = _table({
     "object": _STRING, "name": _STRING, "material": _STRING, "translate": _vec3(),
     "rotate": _vec3(), "scale": _OBJECT_COMMON["scale"], "matrix": _MATRIX,
     **{key: _BOOL for key in VISIBILITY_KEYS}}, required=("object",))
-
-# Light Linking (engine/lightlinking.py): object names.
-_NAMES_TEXT = "a list of object names"
-_NAMES = {"type": "array", "items": {"type": "string", "what_type": _NAMES_TEXT},
-          "what": _NAMES_TEXT, "what_type": _NAMES_TEXT}
 
 LIGHT_SCHEMA = _table({
     "type": _STRING, "name": _STRING, "position": _vec3(), "direction": _vec3(nonzero=True),
@@ -810,7 +812,7 @@ def _object(scene, obj, i, base):
         path = os.path.join(base, obj["path"])
         mesh = scene.add_mesh(_load_mesh_file(path, name or os.path.basename(path),
                                               scene._material(mat)))
-    for key in VISIBILITY_KEYS + ("pass_index",):
+    for key in VISIBILITY_KEYS + ("pass_index", "receivers", "non_receivers"):
         if key in obj:
             setattr(mesh, key, obj[key])
     if any(k in obj for k in ("translate", "scale", "rotate")):

@@ -166,6 +166,7 @@ look_at = [0, 0, 0]
 [[objects]]
 type = "plane"
 name = "floor"
+receivers = ["floor"]
 [[lights]]
 type = "point"
 position = [0, 0, 2]
@@ -175,6 +176,7 @@ non_receivers = ["wall"]
     scene, _ = load_scene(str(path))
     assert scene.lights[0].receivers == ["floor"]
     assert scene.lights[0].non_receivers == ["wall"]
+    assert scene.meshes[0].receivers == ["floor"]
 
 
 def test_unknown_receiver_names_warn():
