@@ -7,11 +7,13 @@ sees it through other surfaces (indirect light is not linked). Cycles' scheme
 light), every emitter a membership mask of the sets it lights, and
 
 - next-event estimation at a surface lights it only from emitters whose mask holds the
-  surface object's set (light_link_receiver_nee: the shaded object; Cycles' light tree is
-  specialised per set and never picks the others; here their samples are zero);
+  surface object's set (light_link_receiver_nee: the shaded object); the light tree is
+  built per set (light_tree_root_node_index), so the others are never picked (here too:
+  set_selector; where every light is sampled, their samples are zero);
 - a BSDF-sampled ray that meets a lamp (MIS) takes its light only if the lamp lights the
-  object the ray left (light_link_receiver_forward: mis_ray_object); camera rays see
-  every lamp (PATH_RAY_CAMERA);
+  object the ray left (light_link_receiver_forward: mis_ray_object), with that set's
+  tree probability in its MIS weight (tree_pmf); camera rays see every lamp
+  (PATH_RAY_CAMERA);
 - the photon map: a photon's first hit on an object its light does not link ends the
   photon there (not stored, not bounced), or the gather would carry light the object
   never received.
@@ -27,8 +29,9 @@ emission number, photonkernels.uniform) ends at a first hit it does not light. T
 lights every object.
 
 Shadow Linking (Light.blockers / non_blockers): a light's shadow rays pass the objects
-that are not its blockers (Cycles' shadow_linking_... filter: an intersection is skipped
-when the object's blocker_shadow_set is not in the ray's light's shadow_set_membership).
+that are not its blockers (Cycles' intersection_skip_shadow_link, kernel/bvh/util.h: an
+intersection is skipped when the object's blocker_shadow_set is not in the ray's light's
+shadow_set_membership).
 Lights with the same blockers form a shadow group; each group other than "every object
 blocks" traces its shadow rays in its own BVH of its blockers' triangles (built once with
 the scene, ShadowGroup), and direct light is summed group by group, each pass with the
@@ -47,8 +50,9 @@ class LightLinks:
     """Which light lights which object, for a prepared scene.
 
     lit (L, M) bool: ctx.lights[i] lights scene.meshes[m] directly.
-    mesh_set (M,) int64: each mesh's receiver set, sets (S, L) bool: the lights of each
-    set (rows of lit's transposed distinct columns; set 0 the first mesh's)."""
+    mesh_set (M,) int64: each mesh's receiver set; sets (S, L) bool: the lights of each
+    set, emit_sets (S, K): its emitting meshes with links (the distinct columns of lit
+    stacked on emit_lit, in np.unique's order)."""
 
     def __init__(self, lit: np.ndarray, blocks: np.ndarray | None = None,
                  emit_lit: np.ndarray | None = None, emitters: np.ndarray | None = None):
@@ -262,18 +266,20 @@ class LightLinks:
         groups = list(range(len(self.shadow_groups))) or [-1]
 
         def tree_of(s):
-            """The set's tree arrays, or False: no light of the tree lights it."""
+            """The set's tree arrays (an empty tree where no member lights it: its picks
+            give nothing, samples by light index still count)."""
             if tree is None or trees is None or s < 0:
                 return tree
             ch = trees(int(s))
             if ch is None:
                 return tree
-            return False if ch[0] is None else ch[1]
+            if ch[0] is None:
+                from .lights.selection import empty_tree
+                return (*empty_tree(), tree[4])
+            return ch[1]
 
         if len(sets) == 1 and len(groups) == 1:
             t = tree_of(sets[0])
-            if t is False:
-                return np.zeros((n, 3)), 0
             return direct_light(self.packed_for(packed, int(sets[0])), hit_arrays, samples,
                                 accel, shadow_cls, n, rows=rows, transmission=transmission,
                                 bsdf=bsdf, passages=passages, medium_sigma=medium_sigma,
@@ -287,8 +293,6 @@ class LightLinks:
 
         for s in sets:
             t = tree_of(s)
-            if t is False:
-                continue
             sel = np.nonzero(recv == s)[0]
             part = [(li, tr, cnt, pick(u1, sel), pick(u2, sel), pick(third, sel))
                     for li, tr, cnt, u1, u2, third in samples]

@@ -384,3 +384,21 @@ def test_an_emitting_objects_links():
         means[key] = s.render(full).combined.mean()
     assert means["plain"] > 1.5 * means["dark"], means
     assert rel_err(means["nothing"], means["dark"]) < 0.03, means
+
+
+def test_a_set_no_lamp_of_the_tree_lights():
+    """Every lamp of the tree linked to the left patch: the right patch's set has an
+    empty tree (no pick, no light), the left patch keeps every lamp's light."""
+    imgs = {}
+    for linked in (False, True):
+        s = two_patches(0.5, res=16)
+        for i in range(20):
+            lamp = s.add_point_light((-1.5 + 0.15 * i, 0.3, H), power=P / 20,
+                                     name=f"lamp{i}")
+            if linked:
+                lamp.receivers = ["left"]
+        imgs[linked] = s.render(RenderSettings(spp=8, seed=1, **DIRECT_ONLY)).combined
+    x, _ = pixel_to_world(two_patches(res=16), 4.0)
+    assert imgs[False][x > 0.2].min() > 0
+    assert imgs[True][x > 0.2].max() == 0.0
+    np.testing.assert_allclose(imgs[True][x < -0.2], imgs[False][x < -0.2], rtol=1e-6)
