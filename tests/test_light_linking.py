@@ -402,3 +402,15 @@ def test_a_set_no_lamp_of_the_tree_lights():
     assert imgs[False][x > 0.2].min() > 0
     assert imgs[True][x > 0.2].max() == 0.0
     np.testing.assert_allclose(imgs[True][x < -0.2], imgs[False][x < -0.2], rtol=1e-6)
+
+
+def test_linked_renders_do_not_depend_on_the_worker_count():
+    """Same seed, same image for 1 and 2 workers, with receiver sets, a shadow group and
+    photons (the hits of each set split per chunk)."""
+    imgs = []
+    for workers in (1, 2):
+        s = _corner(["wall"])
+        s.lights[1].non_blockers = ["wall"]  # the key
+        imgs.append(s.render(RenderSettings(spp=4, photons=20_000, caustic_photons=0,
+                                            seed=7, workers=workers)).combined)
+    np.testing.assert_array_equal(imgs[0], imgs[1])
