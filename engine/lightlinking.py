@@ -35,9 +35,11 @@ shadow_set_membership).
 Lights with the same blockers form a shadow group; each group other than "every object
 blocks" traces its shadow rays in its own BVH of its blockers' triangles (built once with
 the scene, ShadowGroup), and direct light is summed group by group, each pass with the
-other groups' lights zeroed. Photons are still stopped by every object (as for Cycles'
-light Cast Shadow off, which the engine treats alike), and a BSDF ray meeting the lamp is
-still stopped by what lies between (Cycles sends a dedicated ray past non-blockers).
+other groups' lights zeroed. The light's photons are traced twice: as usual (a
+non-blocker in their way receives them), then again keeping only those whose first hit
+was a non-blocker, moved to the blocker behind it (past_non_blockers), so both are lit as
+in Cycles (a second non-blocker behind the first gets none). A BSDF ray meeting the lamp
+is still stopped by what lies between (Cycles sends a dedicated ray past non-blockers).
 """
 from __future__ import annotations
 
@@ -107,7 +109,7 @@ class LightLinks:
                 self.shadow_groups.append(ShadowGroup(lights, None))
                 continue
             idx = np.nonzero(casts & row[tri_object])[0]
-            self.shadow_groups.append(ShadowGroup(lights, _BlockerAccel(
+            self.shadow_groups.append(ShadowGroup(lights, BlockerAccel(
                 geo.vertices32, geo.faces32, idx, accel_class, threads, should_cancel)))
 
     def close(self, wait: bool = False):
@@ -341,22 +343,40 @@ def mesh_photon_rows(links, light, key, slot: np.ndarray) -> np.ndarray:
 
 class ShadowGroup:
     """Lights (L,) bool blocked by the same objects, and the BVH of those (a
-    _BlockerAccel; None: every object, the scene's own BVH)."""
+    BlockerAccel; None: every object, the scene's own BVH)."""
 
     def __init__(self, lights, accel):
         self.lights = np.asarray(lights, np.bool_)
         self.accel = accel
 
 
-class _BlockerAccel:
+class BlockerAccel:
     """The shadow-ray BVH of a shadow group: the blockers' triangles idx only (those
-    visible to shadow rays), answering occluded_into as VisibilityAccel does."""
+    visible to shadow rays), answering occluded_into as VisibilityAccel does, and the
+    closest blocker hit of photon rays (first_hits)."""
 
     def __init__(self, vertices32, faces32, idx, accel_class, threads, should_cancel):
         self.empty = len(idx) == 0
+        self.idx = np.asarray(idx, np.int64)
         self.accel = None if self.empty else accel_class(
             vertices32, np.ascontiguousarray(faces32[idx]), threads=threads,
             should_cancel=should_cancel)
+
+    def first_hits(self, o32, d32):
+        """(rows (N,) int64 scene triangle rows of the closest blocker hit, -1: none;
+        u, v (N,) float32; t (N,) float32 its distance) of float32 rays o32, d32."""
+        n = len(o32)
+        t = np.full(n, np.finfo(np.float32).max, np.float32)
+        if self.empty or n == 0:
+            return (np.full(n, -1, np.int64), np.zeros(n, np.float32),
+                    np.zeros(n, np.float32), t)
+        serial = self.accel.serial() if hasattr(self.accel, "serial") else self.accel
+        geom, prim, u, v, starts = serial.intersect_hits(
+            np.ascontiguousarray(o32, np.float32), np.ascontiguousarray(d32, np.float32), t)
+        rows = np.full(n, -1, np.int64)
+        ok = geom >= 0
+        rows[ok] = self.idx[np.take(starts, geom[ok]) + prim[ok]]
+        return rows, np.asarray(u, np.float32), np.asarray(v, np.float32), t
 
     def occluded_into(self, o32, d32, tmax32, blocked, cls=None):
         if self.empty:
@@ -489,6 +509,42 @@ def unwrapped(emitter):
             break
         light = inner
     return light
+
+
+def blocker_accel_of(ctx, emitter):
+    """The BlockerAccel of the shadow group of a photon emitter's light (Shadow Linking:
+    its photons are traced a second time past the non-blockers), or None (blocked by
+    every object, or no linking)."""
+    links = getattr(ctx, "links", None)
+    if links is None or not links.shadow_groups:
+        return None
+    light = unwrapped(emitter)
+    source = getattr(light, "source", None)
+    for li, other in enumerate(ctx.lights):
+        if other is light or (source is not None and other.source is source):
+            for group in links.shadow_groups:
+                if group.lights[li]:
+                    return group.accel
+    return None
+
+
+def past_non_blockers(past, o32, d32, geom, prim32, u, v, tfar32, starts):
+    """The second photon run of a shadow-linked light (photons.trace_photons): a photon
+    whose first hit is not one of the light's blockers (a non-blocker lies in front of
+    the blocker `past` finds) moves to that blocker hit: geom, prim32, u, v, tfar32 (m,)
+    rewritten in place in intersect_hits' layout with one geometry from row 0 (returned:
+    the new starts); every other photon becomes a miss (it is the first run's). So the
+    non-blocker gets its photons in the first run and what lies behind it gets them in
+    this one, as Cycles lights both."""
+    rows_b, u_b, v_b, t_b = past.first_hits(o32, d32)
+    full = np.where(geom >= 0, np.take(starts, np.maximum(geom, 0)) + prim32, -1)
+    passed = (rows_b >= 0) & (full != rows_b)
+    geom[:] = np.where(passed, 0, -1)
+    prim32[:] = np.where(passed, rows_b, 0)
+    u[:] = np.where(passed, u_b, u)
+    v[:] = np.where(passed, v_b, v)
+    tfar32[:] = np.where(passed, t_b, tfar32)
+    return np.zeros(1, np.int64)
 
 
 def mesh_photon_links(ctx, emitter):

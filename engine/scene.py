@@ -809,8 +809,8 @@ class Light:
               ignored for names also in receivers)
     blockers  Shadow Linking (Blender 4.0+, Object > Shading > Shadow Linking): None,
               every object casts the light's shadows; a list of mesh names, only those do
-              (its shadow rays pass the others; its photons are still stopped by them, as
-              with cast_shadow off)
+              (its shadow rays pass the others, and its photons reach what lies behind
+              them: engine/lightlinking.py)
     non_blockers  mesh names that cast none of the light's shadows (the exclude form)
     spot_frame optional (3,3): rows map a world direction leaving a spot light into its
               cone space, where the cone is round: Cycles' scaled_axis_u, scaled_axis_v and

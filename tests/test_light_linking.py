@@ -414,3 +414,34 @@ def test_linked_renders_do_not_depend_on_the_worker_count():
         imgs.append(s.render(RenderSettings(spp=4, photons=20_000, caustic_photons=0,
                                             seed=7, workers=workers)).combined)
     np.testing.assert_array_equal(imgs[0], imgs[1])
+
+
+def test_photons_pass_a_lamps_non_blockers():
+    """Shadow Linking and photons: a second run of the key's photons continues those
+    whose first hit is a non-blocker from the blocker behind it, so the patches under
+    the card receive exactly the direct photons they would without the card (same
+    numbers, same paths), and the card keeps its own."""
+    settings = RenderSettings(spp=1, photons=20000, seed=2)
+    stored = {}
+    for case in ("no card", "non-blocker", "blocker"):
+        s = _card_over_left({"non_blockers": ["card"]} if case == "non-blocker" else {})
+        s.lights[:] = [s.lights[0]]  # the key alone
+        if case == "no card":
+            s.meshes[:] = [m for m in s.meshes if m.name != "card"]
+        ctx = prepare_context(s, settings)
+        try:
+            ph = trace_photons(ctx, ctx.lights, [20000], False, 0)
+        finally:
+            close_context(ctx)
+        z = ph.position[:, 2] + ctx.geo.offset[2]
+        direct = ph.kind == DIRECT
+        pos = ph.position[direct] + ctx.geo.offset
+        stored[case] = (pos[np.abs(z[direct]) < 1e-3], (np.abs(z[direct] - 1.0) < 1e-3).sum())
+    floor_none, _ = stored["no card"]
+    floor_nb, on_card = stored["non-blocker"]
+    floor_b, on_card_b = stored["blocker"]
+    assert on_card > 500 and on_card == on_card_b
+    assert len(floor_b) < len(floor_none) - 500  # the card shadows the floor
+    order = np.lexsort(floor_none.T)
+    np.testing.assert_allclose(floor_nb[np.lexsort(floor_nb.T)], floor_none[order],
+                               atol=1e-5)

@@ -52,12 +52,14 @@ class LightGroup:
 
 
 def _receivers(light):
-    """A light's Light Linking (its scene Light's receivers and non_receivers)."""
+    """A light's Light and Shadow Linking (its scene Light's receivers, blockers and
+    their non_ lists)."""
     source = getattr(light, "source", None)
     if source is None:
         return None
-    recv = source.receivers
-    return (None if recv is None else tuple(recv), tuple(source.non_receivers))
+    recv, block = source.receivers, source.blockers
+    return (None if recv is None else tuple(recv), tuple(source.non_receivers),
+            None if block is None else tuple(block), tuple(source.non_blockers))
 
 
 def photon_emitters(lights, counts, chunk_size: int) -> list:

@@ -123,8 +123,8 @@ def test_shadow_linking_as_in_cycles(bpy_addon, tmp_path, state, bounces):
     """Shadow Linking: EXCLUDE the middle cube from the key's blockers (its key shadow
     goes), or INCLUDE it alone (it keeps its key shadow; the floor and the other cubes
     block nothing of the key); the fill's shadows stay. Direct light, within 3 % of
-    Cycles; with 4 bounces too (the key's photons are still stopped by the cube: the
-    floor behind it read 0.987)."""
+    Cycles; with 4 bounces too (the key's photons pass the cube: the floor behind it
+    0.992, 0.987 while they stopped there)."""
     bpy = bpy_addon
     scene, key = _scene(bpy)
     blockers = bpy.data.collections.new("KeyBlockers")
