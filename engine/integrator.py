@@ -653,6 +653,46 @@ def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
 
 
+def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b, org_ns,
+                        org_p, passages, lamp_w, clamping, tp, chain, acc, target, pix, ftp,
+                        feat, s):
+    """Shadow Linking: the light of lamp li (whose shadows only its blockers cast, past:
+    their lightlinking.BlockerAccel) that the rays o, d (left a surface; `sees` (n,) the
+    rows that may see it) meet wherever it lies, unless a blocker lies between (Cycles'
+    shadow_linking_intersect: such lamps are met by a dedicated ray, not the main path),
+    added as the ordinary lamp hits are (MIS when `mis`, shades, clamping); the paths
+    go on."""
+    mask, tl, L = light.intersect(o, d, np.full(len(o), np.inf))
+    if L is None or not mask.any():
+        return
+    mask &= sees & ctx.links.lights_hit(li, ctx.geo, link_prim)
+    rows = np.nonzero(mask)[0]
+    if not len(rows):
+        return
+    o32 = np.ascontiguousarray(o[rows], np.float32)
+    d32 = np.ascontiguousarray(d[rows], np.float32)
+    t32 = np.ascontiguousarray(tl[rows] * (1.0 - 1e-5), np.float32)
+    blocked = np.zeros(len(rows), np.bool_)
+    past.occluded_into(o32, d32, t32, blocked)
+    keep = ~blocked
+    rows, L = rows[keep], L[rows][keep]
+    if not len(rows):
+        return
+    if mis:
+        om, tm = o[rows], tl[rows]
+        if passages is not None:
+            om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
+        L = L * _mis_weight(ctx, li, light, om, d[rows], tm, pdf_b[rows], org_ns[rows],
+                            org_p[rows], _link_sets(ctx, link_prim, rows))[:, None]
+    if lamp_w is not None:
+        L = L * lamp_w[rows, li][:, None]
+    if clamping:
+        L = sampleclamp.clamp(L, tp, rows, sampleclamp.bounce_limits(
+            s, np.take(chain[:, 0], rows) - 1))
+    acc.add(target, pix, L, tp, rows)
+    datapasses.add_light(acc, pix, rows, tp, ftp, feat, L)
+
+
 def _linked_emission(ctx, Le, prim, from_prim, idx):
     """Le (n,3) of the emitting triangles prim that gather rays met, without what an
     emitting object with links of its own does not give the surfaces the rays left
@@ -2361,6 +2401,19 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             sees = (ray_cls & light.ray_kinds) != 0
             if not sees.any():
                 continue
+            past = (links.blocker_accel(li) if link_prim is not None and bounce > 0
+                    else None)
+            if past is not None:
+                # Shadow Linking: a ray that left a surface meets this lamp past its
+                # non-blockers (Cycles' dedicated shadow-linking ray): its light where
+                # no blocker lies between, the path going on to its own hit.
+                _shadow_linked_lamp(ctx, li, light, past, o, d, sees & (ray_cls != CAMERA),
+                                    link_prim, modes[li] == MODE_MIS, pdf_b, org_ns, org_p,
+                                    passages, lamp_w, clamping, tp, chain, acc, target, pix,
+                                    ftp, feat, s)
+                sees = sees & (ray_cls == CAMERA)
+                if not sees.any():
+                    continue
             mask, tl, L = light.intersect(o, d, t)
             if L is not None and mask.any():
                 mask &= sees

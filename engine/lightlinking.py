@@ -38,8 +38,9 @@ the scene, ShadowGroup), and direct light is summed group by group, each pass wi
 other groups' lights zeroed. The light's photons are traced twice: as usual (a
 non-blocker in their way receives them), then again keeping only those whose first hit
 was a non-blocker, moved to the blocker behind it (past_non_blockers), so both are lit as
-in Cycles (a second non-blocker behind the first gets none). A BSDF ray meeting the lamp
-is still stopped by what lies between (Cycles sends a dedicated ray past non-blockers).
+in Cycles (a second non-blocker behind the first gets none). A ray leaving a surface
+meets such a lamp wherever it lies unless a blocker is between (integrator.
+_shadow_linked_lamp; Cycles' dedicated shadow-linking ray), and goes on to its own hit.
 """
 from __future__ import annotations
 
@@ -111,6 +112,13 @@ class LightLinks:
             idx = np.nonzero(casts & row[tri_object])[0]
             self.shadow_groups.append(ShadowGroup(lights, BlockerAccel(
                 geo.vertices32, geo.faces32, idx, accel_class, threads, should_cancel)))
+
+    def blocker_accel(self, li: int):
+        """The BlockerAccel of light li's shadow group (None: every object blocks it)."""
+        for group in self.shadow_groups:
+            if group.lights[li]:
+                return group.accel
+        return None
 
     def close(self, wait: bool = False):
         for group in self.shadow_groups:

@@ -445,3 +445,33 @@ def test_photons_pass_a_lamps_non_blockers():
     order = np.lexsort(floor_none.T)
     np.testing.assert_allclose(floor_nb[np.lexsort(floor_nb.T)], floor_none[order],
                                atol=1e-5)
+
+
+def _mirror_card(non_blocker: bool, card=True):
+    """A mirror floor reflecting an area lamp past a black card (camera-invisible)
+    hanging under the lamp: the card a non-blocker of the lamp or not."""
+    s = PaperScene(width=24, height=24)
+    s.add_material(Material("mirror", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.0))
+    s.add_material(Material("black", (0.0, 0.0, 0.0)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 8.0, "mirror", name="floor")
+    if card:
+        c = s.add_plane((0, 0.3, 0.8), (0, 0, 1), 1.0, "black", name="card")
+        c.visible_camera = False
+    lamp = s.add_rect_area_light((0, 0.3, 1.0), (1.0, 1.0), power=200.0, name="lamp",
+                                 direction=(0, 0, -1))
+    if non_blocker:
+        lamp.non_blockers = ["card"]
+    s.camera = Camera.look_at((0.0, -3.0, 3.0), (0, 0.5, 0), fov_degrees=50)
+    return s
+
+
+def test_a_lamp_is_seen_past_its_non_blockers():
+    """Shadow Linking and rays that meet the lamp: the mirror shows the lamp through a
+    card that is not one of its blockers (Cycles' dedicated shadow-linking ray), as
+    without the card; a card that blocks hides it."""
+    settings = RenderSettings(spp=4, seed=1, photon_mapping=False, max_depth=2)
+    without = _mirror_card(False, card=False).render(settings).combined
+    past = _mirror_card(True).render(settings).combined
+    blocked = _mirror_card(False).render(settings).combined
+    assert without.sum() > 0 and blocked.sum() < 0.2 * without.sum()
+    np.testing.assert_allclose(past, without, rtol=1e-5, atol=1e-6)
