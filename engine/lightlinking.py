@@ -26,7 +26,9 @@ links act per triangle: a set's packing zeroes their radiance (the triangle tree
 still pick them: a zero sample), a BSDF ray or a gather ray meeting one counts it only
 if it lights the object the ray left, and a photon from one (its triangle known from its
 emission number, photonkernels.uniform) ends at a first hit it does not light. The world
-lights every object.
+lights every object. A point in a volume takes the volume's set (volume_sets: a fog box's
+object's; in the world volume, no object: Cycles' set 0, which an emitter with an include
+list does not light).
 
 Shadow Linking (Light.blockers / non_blockers): a light's shadow rays pass the objects
 that are not its blockers (Cycles' intersection_skip_shadow_link, kernel/bvh/util.h: an
@@ -77,6 +79,11 @@ class LightLinks:
         self.mesh_set = np.asarray(inverse, np.int64).reshape(-1)
         # The mesh light's triangles' emitter rows (set by for_scene; None: none linked).
         self.mesh_tri_row = None
+        # What lights a point in no object (the world volume: Cycles' OBJECT_NONE, set
+        # 0): every emitter without an include list (set by for_scene).
+        self.none_lit = np.ones(L, np.bool_)
+        self.emit_none_lit = np.ones(len(self.emit_lit), np.bool_)
+        self._material_set = None
         # Shadow Linking: blocks (L, M) light i's shadow rays are stopped by mesh m; the
         # shadow groups (ShadowGroup), made by build_shadow_groups.
         self.blocks = (np.ones_like(self.lit) if blocks is None
@@ -181,6 +188,10 @@ class LightLinks:
             return None
         links = cls(lit, blocks, np.array(rows, np.bool_).reshape(len(rows), M),
                     np.array(emitters, np.int64))
+        links.none_lit = np.array([getattr(getattr(light, "source", None), "receivers",
+                                           None) is None for light in lights], np.bool_)
+        links.emit_none_lit = np.array([scene.meshes[m].receivers is None
+                                        for m in emitters], np.bool_)
         if emitters:
             for light in lights:
                 tri = getattr(light, "tri_index", None)
@@ -231,9 +242,33 @@ class LightLinks:
             out[ok] = self.lit[li][object_of(geo, prim[ok])]
         return out
 
+    def volume_sets(self, geo, medium_rows, world_row: int) -> np.ndarray:
+        """(n,) int64 receiver sets of points in the media of material rows medium_rows
+        (engine/volumescatter.py; Cycles' volume light sampling takes the volume
+        object's set, light_link_receiver_nee): NO_OBJECT in the world volume
+        (world_row; Cycles' OBJECT_NONE), the set of the objects whose material it is
+        where they share one, else -1 (every light)."""
+        if self._material_set is None:
+            mat = np.asarray(geo.material, np.int64) if geo.shared is None else None
+            n_rows = int(mat.max()) + 1 if mat is not None and len(mat) else 0
+            table = np.full(max(n_rows, world_row + 1, 1), -1, np.int64)
+            if mat is not None:
+                obj_set = self.mesh_set[np.asarray(geo.object_id, np.int64)]
+                for r in np.unique(mat):
+                    sets = np.unique(obj_set[mat == r])
+                    table[r] = sets[0] if len(sets) == 1 else -1
+            self._material_set = table
+        rows = np.asarray(medium_rows, np.int64)
+        table = self._material_set
+        out = np.where((rows >= 0) & (rows < len(table)),
+                       table[np.clip(rows, 0, len(table) - 1)], -1)
+        if world_row >= 0:
+            out[rows == world_row] = NO_OBJECT
+        return out
+
     def packed_for(self, packed, s: int, group: int = -1):
         """The packed lights (lights.packing.pack_lights) as receiver set s (-1: every
-        light) sees them, of shadow group `group` only (-1: every group): the other lights
+        light; NO_OBJECT: a point in no object) sees them, of shadow group `group` only (-1: every group): the other lights
         with zero colour, so the shadow-ray kernel makes no entry (and no ray) for their
         samples. Cached per packing."""
         key = (id(packed), int(s), int(group))
@@ -244,16 +279,20 @@ class LightLinks:
         off = np.zeros(len(codes), np.bool_)
         if s >= 0:
             off |= ~self.sets[s]
+        elif s == NO_OBJECT:
+            off |= ~self.none_lit
         if group >= 0:
             off |= ~self.shadow_groups[group].lights
         if off.any():
             params = params.copy()
             params[off, pk.RGB:pk.RGB + 3] = 0.0
         rows = self.mesh_tri_row
-        if s >= 0 and rows is not None and len(rows) == len(mesh[MESH_L]):
+        if (s >= 0 or s == NO_OBJECT) and rows is not None and \
+                len(rows) == len(mesh[MESH_L]):
             # Emitting meshes with links: their triangles' radiance, where they do not
             # light set s, zeroed.
-            dark = (rows >= 0) & ~self.emit_sets[s][np.maximum(rows, 0)]
+            lit = self.emit_sets[s] if s >= 0 else self.emit_none_lit
+            dark = (rows >= 0) & ~lit[np.maximum(rows, 0)]
             if dark.any():
                 m_L = mesh[MESH_L].copy()
                 m_L[dark] = 0.0
@@ -327,6 +366,8 @@ class LightLinks:
 
 # The packed mesh arrays' radiance (lights.packing.pack_lights: v0, e1, e2, ng, L, ...).
 MESH_L = 4
+# The receiver "set" of a point in no object (the world volume).
+NO_OBJECT = -2
 
 
 def mesh_photon_rows(links, light, key, slot: np.ndarray) -> np.ndarray:

@@ -475,3 +475,40 @@ def test_a_lamp_is_seen_past_its_non_blockers():
     blocked = _mirror_card(False).render(settings).combined
     assert without.sum() > 0 and blocked.sum() < 0.2 * without.sum()
     np.testing.assert_allclose(past, without, rtol=1e-5, atol=1e-6)
+
+
+def _fog(receivers, world=True, glow=True):
+    """A white floor under a point lamp in fog: the world volume (world=True) or a
+    volume-only fog box round the lamp; glow=False: the same extinction, no scattering
+    (what the camera sees when the fog takes none of the lamp's light)."""
+    from engine import WorldMedium
+    sig_s = np.array([0.3, 0.3, 0.3]) if glow else np.zeros(3)
+    sig_a = np.array([0.1, 0.1, 0.1]) + (0 if glow else 0.3)
+    s = PaperScene(12, 12)
+    s.add_plane((0, 0, 0), (0, 0, 1), 4.0, "white_diffuse", name="floor")
+    lamp = s.add_point_light((0.0, 0.0, 1.0), power=100.0, name="lamp")
+    lamp.receivers = receivers
+    s.set_camera((0, -1.5, 1.5), (0, 0, 0.5), up=(0, 0, 1), view_angle=50.0)
+    if world:
+        s.world_medium = WorldMedium(absorption=sig_a, scattering=sig_s)
+    else:
+        s.add_material(Material("fog", volume_only=True, absorption=sig_a, scattering=sig_s))
+        s.add_box((0, 0, 0.6), (2.5, 2.5, 1.0), "fog", name="fogbox")
+    return s
+
+
+def test_volumes_take_the_lamps_of_their_set():
+    """Volume light sampling takes the volume's receiver set (Cycles'
+    light_link_receiver_nee at a volume point): the world volume is in no object (set 0),
+    so a lamp with receivers lights no world fog; a fog box is lit by a lamp linked to
+    it. Linked away, the fog reads as fog of the same extinction that scatters nothing."""
+    # (max_depth 2: camera rays pass the fog box's volume-only faces)
+    settings = RenderSettings(spp=16, seed=3, photon_mapping=False, max_depth=2)
+    for world in (True, False):
+        plain = _fog(None, world).render(settings).combined.mean()
+        linked = _fog(["floor"], world).render(settings).combined.mean()
+        dark = _fog(None, world, glow=False).render(settings).combined.mean()
+        assert plain > 1.3 * dark, (world, plain, dark)
+        assert rel_err(linked, dark) < 0.01, (world, linked, dark)
+    with_box = _fog(["floor", "fogbox"], False).render(settings).combined.mean()
+    assert rel_err(with_box, _fog(None, False).render(settings).combined.mean()) < 0.01
