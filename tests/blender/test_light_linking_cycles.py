@@ -217,3 +217,34 @@ def test_collections_resolve_to_engine_receivers(bpy_addon):
     light = next(li for li in out.lights if li.name == "Key")
     assert (light.receivers, light.non_receivers) == (None, [])
     assert (light.blockers, light.non_blockers) == (None, ["CubeA", "CubeB"])
+
+
+@pytest.mark.parametrize("linked", [False, True])
+def test_world_fog_and_a_linked_lamp_as_in_cycles(bpy_addon, tmp_path, linked):
+    """The world volume is in no object (Cycles' receiver set 0): a lamp whose Light
+    Linking collection includes the floor lights the floor and none of the fog; unlinked
+    it lights both. Image mean and the floor / fog regions within 3 % of Cycles (direct
+    light, Volume bounces 0)."""
+    bpy = bpy_addon
+    scene, key = _scene(bpy)
+    bpy.data.objects["Fill"].data.energy = 0.0
+    world = scene.world
+    nt = world.node_tree
+    out = next(n for n in nt.nodes if n.type == "OUTPUT_WORLD")
+    fog = nt.nodes.new("ShaderNodeVolumePrincipled")
+    fog.inputs["Density"].default_value = 0.15
+    nt.links.new(fog.outputs[0], out.inputs["Volume"])
+    if linked:
+        _link(bpy, key, "INCLUDE")
+        key.light_linking.receiver_collection.objects.link(bpy.data.objects["Floor"])
+    scene.cycles.volume_bounces = 0
+    c = _render(bpy, scene, tmp_path, "CYCLES", f"fog{linked}", 0)
+    o = _render(bpy, scene, tmp_path, "PHOTONMAP", f"fog{linked}", 0)
+    regions = _regions()
+    cm = {k: float(c[m].mean()) for k, m in regions.items()}
+    om = {k: float(o[m].mean()) for k, m in regions.items()}
+    print("fog", linked, float(c.mean()), float(o.mean() / c.mean()),
+          {k: (round(cm[k], 4), round(om[k] / max(cm[k], 1e-9), 4)) for k in cm})
+    assert float(o.mean()) == pytest.approx(float(c.mean()), rel=0.03)
+    for k in regions:
+        assert om[k] == pytest.approx(cm[k], rel=0.03, abs=2e-3), (k, om[k], cm[k])
