@@ -693,6 +693,44 @@ def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b,
     datapasses.add_light(acc, pix, rows, tp, ftp, feat, L)
 
 
+def _shadow_linked_suns(ctx, links, o, d, rows_mask, link_prim, modes, pdf_b, org_ns, org_p,
+                        clamping, tp, chain, acc, target, pix, ftp, feat, s):
+    """Shadow Linking for lights at infinity (suns): the rays rows_mask (n,) that met a
+    surface see a shadow-linked sun's disc when no blocker of it lies in that direction
+    (its BlockerAccel; Cycles' dedicated shadow-linking ray counts distant lights),
+    weighted as the discs the missing rays see (MIS, clamping)."""
+    for li, light in enumerate(ctx.lights):
+        past = links.blocker_accel(li)
+        if past is None or not hasattr(light, "seen_at_infinity"):
+            continue
+        rows = np.nonzero(rows_mask & links.lights_hit(li, ctx.geo, link_prim))[0]
+        if not len(rows):
+            continue
+        sun = light.seen_at_infinity(d[rows])
+        if sun is None:
+            continue
+        lit = np.any(sun > 0, axis=1)
+        rows, sun = rows[lit], sun[lit]
+        if not len(rows):
+            continue
+        blocked = np.zeros(len(rows), np.bool_)
+        past.occluded_into(np.ascontiguousarray(o[rows], np.float32),
+                           np.ascontiguousarray(d[rows], np.float32),
+                           np.full(len(rows), np.finfo(np.float32).max, np.float32), blocked)
+        rows, sun = rows[~blocked], sun[~blocked]
+        if not len(rows):
+            continue
+        if modes[li] == MODE_MIS:
+            sun = sun * _mis_weight(ctx, li, light, o[rows], d[rows], None, pdf_b[rows],
+                                    org_ns[rows], org_p[rows],
+                                    _link_sets(ctx, link_prim, rows))[:, None]
+        if clamping:
+            sun = sampleclamp.clamp(sun, tp, rows, sampleclamp.bounce_limits(
+                s, np.take(chain[:, 0], rows) - 1))
+        acc.add(target, pix, sun, tp, rows)
+        datapasses.add_light(acc, pix, rows, tp, ftp, feat, sun)
+
+
 def _linked_emission(ctx, Le, prim, from_prim, idx):
     """Le (n,3) of the emitting triangles prim that gather rays met, without what an
     emitting object with links of its own does not give the surfaces the rays left
@@ -2452,6 +2490,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                 t = np.where(mask, tl, t)
                 prim = np.where(mask, -2, prim)  # ends at the light
         miss = prim == -1
+        if link_prim is not None and bounce > 0 and links.shadow_groups:
+            # Shadow Linking: a shadow-linked sun seen past its non-blockers by the rays
+            # that left a surface and met one (the rays that missed see it below).
+            _shadow_linked_suns(ctx, links, o, d, ~miss & (ray_cls != CAMERA), link_prim,
+                                modes, pdf_b, org_ns, org_p, clamping, tp, chain, acc,
+                                target, pix, ftp, feat, s)
         if world_row >= 0 and scatter is not None and miss.any():
             # Rays escaping into the world volume: the lamps' light it scatters along
             # their whole (infinite) length, cut where its transmittance is 1e-13

@@ -512,3 +512,35 @@ def test_volumes_take_the_lamps_of_their_set():
         assert rel_err(linked, dark) < 0.01, (world, linked, dark)
     with_box = _fog(["floor", "fogbox"], False).render(settings).combined.mean()
     assert rel_err(with_box, _fog(None, False).render(settings).combined.mean()) < 0.01
+
+
+def _mirror_sun(non_blocker: bool, card=True):
+    """A mirror floor reflecting a 20-degree sun's disc to the camera past a black,
+    camera-invisible card across the reflected rays."""
+    s = PaperScene(width=24, height=24)
+    s.add_material(Material("mirror", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.0))
+    s.add_material(Material("black", (0.0, 0.0, 0.0)))
+    s.add_plane((0, 0, 0), (0, 0, 1), 20.0, "mirror", name="floor")
+    up = np.array([0.0, 0.76, 0.65]) / np.linalg.norm([0.0, 0.76, 0.65])
+    if card:
+        c = s.add_plane(tuple(np.array([0.0, 0.5, 0.0]) + 1.2 * up), tuple(up), 3.0,
+                        "black", name="card")
+        c.visible_camera = False
+    sun = s.add_sun(tuple(-up), strength=3.0, angle_degrees=20.0, name="sun")
+    if non_blocker:
+        sun.non_blockers = ["card"]
+    s.camera = Camera.look_at((0.0, -3.0, 3.0), (0, 0.5, 0), fov_degrees=50)
+    return s
+
+
+def test_a_sun_is_seen_past_its_non_blockers():
+    """Shadow Linking and the sun's disc: the mirror shows it past a non-blocking card
+    as without the card (Cycles' dedicated ray counts distant lights), a blocking card
+    hides it."""
+    settings = RenderSettings(spp=4, seed=1, photon_mapping=False, max_depth=2)
+    without = _mirror_sun(False, card=False).render(settings).combined
+    past = _mirror_sun(True).render(settings).combined
+    blocked = _mirror_sun(False).render(settings).combined
+    assert without.sum() > 0 and blocked.sum() < 0.2 * without.sum(), (without.sum(),
+                                                                         blocked.sum())
+    np.testing.assert_allclose(past, without, rtol=1e-5, atol=1e-6)
