@@ -819,13 +819,6 @@ _UNSET = object()  # gather_indirect's lean: not given
 # gather once more from their end, up to this many levels deep (Jensen's advice for
 # short gather rays). Deeper, the lookup is used as it is.
 MAX_GATHER_LEVEL = 2
-# The share of the ends a regather level gathers again, by the level gathering (0: the
-# camera hits' gather rays, whose ends regather at level 1; 1: those regathers' rays,
-# level 2). The others keep their lookup; the drawn ones add their correction over the
-# lookup divided by the share (Russian roulette on the correction: the same expectation).
-# Level 2 weighs little (two diffuse bounces past the camera's hit) but in dense
-# geometry (hair, foliage) nearly every level-1 ray is short and regathers again.
-REGATHER_SURVIVAL = (1.0, 0.25)
 # Guided gather directions (engine/guiding.py) at the regathers' levels too (True), or at
 # level 0 only
 GUIDE_REGATHERS = False
@@ -1112,8 +1105,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                     v[rows], np.take(d, rows, axis=0),
                                     None if cnt is None else cnt[idx[rows]],
                                     None if sec_E is None else
-                                    _point_secondary(sec_E, got[2][again[:n_again]]),
-                                    np.take(Ey, again[:n_again], axis=0)))
+                                    _point_secondary(sec_E, got[2][again[:n_again]])))
             if ends is not None and len(ends):
                 # The glow that lights the ends (one ray each: their irradiance from the
                 # emitting media, Eg), reflected by their diffuse lobe towards the
@@ -1377,30 +1369,9 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
     else:
         known = np.concatenate([np.full((len(p[0]), 3), np.nan) if p[8] is None else p[8]
                                 for p in pending])
-    target, tp, wd, prim, u, v, d, lookup = (
-        np.concatenate(a) if len(pending) > 1 else a[0]
-        for a in zip(*((*p[:7], p[9]) for p in pending)))
+    target, tp, wd, prim, u, v, d = (np.concatenate(a) if len(pending) > 1 else a[0]
+                                     for a in zip(*(p[:7] for p in pending)))
     rng = _spawn(rng)
-    survival = REGATHER_SURVIVAL[level] if level < len(REGATHER_SURVIVAL) else 1.0
-    if survival < 1.0:
-        # Russian roulette on the correction (regather - lookup): the ends not drawn
-        # keep their lookup, the drawn ones add lookup + (regather - lookup) / survival,
-        # so the expectation is the regather's (the lookup a control variate).
-        drawn = _spawn(rng).random(len(target)) < survival
-        kept = ~drawn
-        if np.any(kept):
-            c = np.ascontiguousarray
-            add_gathered(E, c(target[kept]), np.arange(int(kept.sum()), dtype=np.int64),
-                         c(tp[kept], np.float64), c(wd[kept], np.float64),
-                         c(lookup[kept], np.float64), G, _NO_FLAG, _NO_LENGTH, 0.0, False,
-                         _NO_ROWS)
-        target, tp, wd, prim, u, v, d, lookup = (a[drawn] for a in (target, tp, wd, prim, u,
-                                                                    v, d, lookup))
-        extra = None if extra is None else extra[drawn]
-        known = None if known is None else known[drawn]
-        counters.count("regather kept lookup", level + 1, int(kept.sum()))
-    else:
-        lookup = None
     # At most REGATHER_BATCH ends at a time (one stream, slice after slice): the level's
     # arrays stay bounded however many ends a chunk regathers.
     for a in range(0, len(target), REGATHER_BATCH):
@@ -1408,8 +1379,7 @@ def _regather(ctx, E, pending, G, rng, counters, level, should_cancel, lean):
         _regather_batch(ctx, E, target[a:b], tp[a:b], wd[a:b], prim[a:b], u[a:b], v[a:b],
                         d[a:b], G, rng, counters, level, should_cancel, lean,
                         None if extra is None else extra[a:b],
-                        None if known is None else known[a:b],
-                        None if lookup is None else (lookup[a:b], survival))
+                        None if known is None else known[a:b])
 
 
 # Ends a regather batch holds at most (its surface data, direct-light buffers and the next
@@ -1419,7 +1389,7 @@ REGATHER_BATCH = 1 << 15
 
 
 def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, level,
-                    should_cancel, lean, extra=None, known=None, roulette=None):
+                    should_cancel, lean, extra=None, known=None):
     """_regather for one slice of its ends (rng: the batch's spawned stream); extra: the
     ends' bounces beyond their level's (gather_indirect's; None: none); known: (K,3) the
     ends' secondary caustic from their lookups' points, NaN rows none (None: none)."""
@@ -1443,9 +1413,6 @@ def _regather_batch(ctx, E, target, tp, wd, prim, u, v, d, G, rng, counters, lev
             + gather_indirect(ctx, y, rng, counters, rays=1, level=level + 1,
                               should_cancel=should_cancel, lean=lean, extra=extra)
             + _secondary_irradiance(ctx, y, rng, level + 1, extra, known))
-    if roulette is not None:  # (the ends' lookups, their survival: _regather)
-        lookup, survival = roulette
-        Esub = lookup + (Esub - lookup) / survival
     c = np.ascontiguousarray
     add_gathered(E, target, np.arange(len(target), dtype=np.int64), c(tp, np.float64),
                  c(wd, np.float64), c(Esub, np.float64), G, _NO_FLAG, _NO_LENGTH, 0.0,

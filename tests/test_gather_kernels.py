@@ -136,14 +136,6 @@ def _gather_indirect_numpy(ctx, hit, rng, counters, rays=None, level=0, log=None
     return E
 
 
-@pytest.fixture(autouse=True)
-def _every_end_regathered(monkeypatch):
-    """The numpy stage regathers every end: no Russian roulette on the regathers here
-    (tests/test_regather_roulette.py checks that one's expectation)."""
-    import engine.integrator as integ
-    monkeypatch.setattr(integ, "REGATHER_SURVIVAL", (1.0, 1.0))
-
-
 @pytest.fixture(scope="module")
 def box():
     # Limits no path reaches: the numpy stage below predates the bounce counts of the

@@ -90,7 +90,8 @@ def test_texture_coordinates_other_than_the_direction_warn(mb, bpy_addon):
 def test_a_world_volume_is_exported_and_its_dropped_parts_warned(mb, bpy_addon):
     """The World Output's Volume becomes Scene.world_medium (worldfog37; before: a
     warning, before s37 dropped without a word); the background stays exported (the
-    engine switches it off); an emission in it is warned naming the world and node."""
+    engine switches it off); its emission glows, a texture on it is warned naming the world
+    and node."""
     bpy = bpy_addon
     mb.set_world((0.2, 0.2, 0.2), 1.0)
     nt = bpy.context.scene.world.node_tree
@@ -108,10 +109,17 @@ def test_a_world_volume_is_exported_and_its_dropped_parts_warned(mb, bpy_addon):
     np.testing.assert_allclose(scene.world_medium.scattering, 0.1, rtol=1e-6)
     np.testing.assert_allclose(scene.world_medium.absorption, 0.1, rtol=1e-6)
     np.testing.assert_allclose(scene.background, (0.2, 0.2, 0.2), rtol=1e-6)
+    # Its emission glows (volemit38: before, warned naming the world and the node).
     fog.inputs["Emission Strength"].default_value = 1.0
-    hits = [w for w in _export(bpy).all_warnings() if "emission" in w]
+    scene = _export(bpy)
+    assert not [w for w in scene.all_warnings() if "emission" in w]
+    assert np.all(scene.world_medium.emission > 0)
+    # A texture on it is still warned, naming the world and the node.
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs["Fac"], fog.inputs["Emission Strength"])
+    hits = [w for w in _export(bpy).all_warnings() if "'Haze'" in w]
     world = bpy.context.scene.world.name
-    assert len(hits) == 1 and "'Haze'" in hits[0] and f"world '{world}'" in hits[0], hits
+    assert len(hits) == 1 and f"world '{world}'" in hits[0], hits
 
 
 @pytest.mark.slow
