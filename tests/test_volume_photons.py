@@ -1,7 +1,8 @@
 """Photons that scatter in homogeneous media (engine/photonmedium.py, volphotons38):
 energy kept by an albedo-1 fog, the light a chromatic, anisotropic fog slab sends onto
 the floor under a lamp against an independent brute-force photon tracer in numpy, the
-Volume bounces limit, and the same photons for any worker count."""
+Volume bounces limit, the same photons for any worker count, and the camera walk's
+surface term (engine/volumewalk.py)."""
 import math
 
 import numpy as np
@@ -213,3 +214,39 @@ def test_the_same_photons_for_any_worker_count():
     again = photons(1)
     for a, b in zip(one, again):
         np.testing.assert_array_equal(a, b)
+
+
+def _lit_floor_under_fog():
+    """Looking down (orthographic) through a fog slab z 0.3..0.8 at a white floor lit by a
+    lamp between them (z 0.15): the fog above is lit by the lamp and by the bright floor,
+    whose light the camera walk takes at its segments' ends (engine/volumewalk.py)."""
+    s = PaperScene(16, 16)
+    s.add_material(Material("fog", volume_only=True, absorption=(0.05, 0.05, 0.05),
+                            scattering=(0.8, 1.0, 1.2), anisotropy=0.2))
+    s.add_box((0, 0, 0.55), (20.0, 20.0, 0.5), "fog", name="slab")
+    s.add_plane((0, 0, 0), (0, 0, 1), 30.0, "white_diffuse", name="floor")
+    s.add_point_light((0.0, 0.0, 0.15), power=50.0)
+    s.set_camera((0, 0, 2.0), (0, 0, 0), up=(0, 1, 0), kind="ORTHO", ortho_scale=2.0)
+    return s
+
+
+def test_walks_take_the_floor_light_and_the_image_is_the_same_for_any_worker_count():
+    """At Volume bounces 4 the camera walk's segments that end on the floor add its
+    light (the gather map's): the image is brighter than with that term switched off,
+    and the same on 1 and 2 workers."""
+    from engine import volumewalk
+    from engine.render import render
+    settings = dict(spp=4, seed=1, photons=20_000, volume_bounces=4)
+    a, b = (render(_lit_floor_under_fog(), RenderSettings(workers=w, **settings))
+            for w in (1, 2))
+    np.testing.assert_array_equal(np.asarray(a.combined), np.asarray(b.combined))
+    keep = volumewalk.WalkingScattering.surface_light
+    volumewalk.WalkingScattering.surface_light = (
+        lambda self, gmap, x, *rest: (np.zeros(0, np.int64), np.zeros((0, 3))))
+    try:
+        c = render(_lit_floor_under_fog(), RenderSettings(workers=1, **settings))
+    finally:
+        volumewalk.WalkingScattering.surface_light = keep
+    with_floor = np.asarray(a.combined, np.float64)[..., :3].mean()
+    without = np.asarray(c.combined, np.float64)[..., :3].mean()
+    assert with_floor > 1.05 * without, (with_floor, without)
