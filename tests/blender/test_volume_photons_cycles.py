@@ -6,8 +6,8 @@ Volume bounces 0, 4 and 32 for both engines: photons scatter in the fog at 4 and
 light the floor around the cone, the camera paths walk in it. Ours 256 spp with
 photons, Cycles 1024 spp; 5 x 5 block means (docs/accuracy.md, volphotons38). Measured
 (ours / Cycles; floor in the cone, beside it, god ray, image sum): bounces 0: 1.001,
-0.968, 0.999, 0.999; 4: 1.000, 1.008, 1.005, 0.999; 32: 1.000, 0.995, 1.005, 0.998.
-~30 s per case."""
+0.968, 0.999, 0.999; 4: 1.000, 1.008, 1.005, 0.999; 32: 1.000, 0.995, 1.005, 0.998;
+dense (Density 1, albedo 1) at 32: 0.996, 1.018, 1.008, 1.001. ~30-60 s per case."""
 import numpy as np
 import pytest
 
@@ -36,15 +36,24 @@ REGIONS = (("floor in the cone", (0.0, -0.3, 0.0)),
 TOL = {"floor in the cone": 0.05, "floor beside the cone": 0.05, "god ray": 0.05, "sum": 0.03}
 
 
-@pytest.mark.parametrize("bounces", [0, 4, 32])
-def test_fog_box_over_a_floor_at_volume_bounces_matches_cycles(bpy_addon, tmp_path, bounces):
+@pytest.mark.parametrize("bounces,dense", [(0, False), (4, False), (32, False), (32, True)])
+def test_fog_box_over_a_floor_at_volume_bounces_matches_cycles(bpy_addon, tmp_path, bounces,
+                                                              dense):
+    """dense: the same box at Density 1, Color 1 (albedo 1)."""
     bpy = bpy_addon
     import os
     import sys
     from blender_helpers import project
     sys.path.insert(0, os.path.dirname(__file__))
-    from test_volume_scatter_cycles import _block, _scene
-    scene = _scene(bpy)
+    import test_volume_scatter_cycles as fog_box
+    from test_volume_scatter_cycles import _block
+    kept = fog_box.DENSITY, fog_box.FOG_COLOR
+    if dense:
+        fog_box.DENSITY, fog_box.FOG_COLOR = 1.0, (1.0, 1.0, 1.0)
+    try:
+        scene = fog_box._scene(bpy)
+    finally:
+        fog_box.DENSITY, fog_box.FOG_COLOR = kept
     ours = _render(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 256, bounces)
     ref = _render(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 1024, bounces)
     for where, p in REGIONS:
