@@ -989,10 +989,12 @@ def cycles_source(scene, props, names):
 def volume_bounces_warning(scene, materials, warnings, world_medium=None) -> None:
     """Light Paths > Volume bounces above 0 (scene.cycles.volume_bounces; Cycles' default
     is 0) with a scattering medium in the scene: the camera paths scatter that many more
-    times inside the medium, each scatter lit by the lamps (engine/volumescatter.py), but
-    photons do not scatter in it and a path does not go on from the medium to a surface:
-    warned with the materials named, as that part of the extra bounces' light is
-    missing."""
+    times inside the medium, each scatter lit by the lamps (engine/volumescatter.py) and
+    by the diffuse surfaces at its walk segments' ends (engine/volumewalk.py, from the
+    gather map), and photons scatter in it onto the surfaces (engine/photonmedium.py);
+    a glossy surface's light scattered in the fog, and any surface's without photon
+    mapping, are not followed: warned with the materials named, as that part of the
+    extra bounces' light is missing."""
     bounces = int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0) or 0)
     if bounces <= 0:
         return
@@ -1004,12 +1006,12 @@ def volume_bounces_warning(scene, materials, warnings, world_medium=None) -> Non
     if names:
         shown = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
         warnings.append(f"Light Paths > Volume bounces is {bounces}: the media of {shown} "
-                        "scatter the lamps' light up to that many more times along camera "
-                        "paths, but their light reaching surfaces after a scatter in the "
-                        "medium (photons) and surfaces' light scattered in them are not "
-                        "simulated: dense fog and what it lights render darker than in "
-                        "Cycles (a fog-filled room at Volume bounces 4: 0.84 of Cycles; "
-                        "at 0, Cycles' default, they match)")
+                        "scatter light up to that many more times (camera paths, photons, "
+                        "the diffuse surfaces' light from the photon maps), but a glossy "
+                        "or mirror surface's light scattered in the medium is not "
+                        "followed, nor any surface's without photon mapping: such scenes "
+                        "render darker than in Cycles (at 0, Cycles' default, nothing is "
+                        "left out)")
 
 
 def light_path_source(scene, props):

@@ -866,8 +866,12 @@ def analyse(scene, geo: Geometry, table: MaterialTable, lights: list, accel, set
                  + ("the lamps' light scattered once towards the camera and along "
                     "final-gather rays (engine/volumescatter.py)"
                     + (f", then up to {bounces} more times along camera paths (Light "
-                       "Paths > Volume bounces)" if bounces > 0 else "")
-                    + "; photons do not scatter in the medium" if scattering
+                       "Paths > Volume bounces) with the diffuse surfaces' light at "
+                       "their segments' ends (engine/volumewalk.py), and photons scatter "
+                       "in the medium onto the surfaces (engine/photonmedium.py)"
+                       if bounces > 0
+                       else "; photons do not scatter in the medium (Volume bounces 0)")
+                    if scattering
                     else "volume scattering is not simulated"))
     if worldmedium.active(scene):
         # The world volume (engine/worldmedium.py): what it switched off, and why.

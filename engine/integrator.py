@@ -29,7 +29,7 @@ from .lights.selection import empty_tree, selection_samples, selector_for
 from .lights.world import WORLD
 from .lights.packing import pack_lights
 from . import (adaptive, chaincounts, datapasses, media, photonvisibility, sampleclamp,
-               shadelight, volumeemission, volumescatter, worldmedium)
+               shadelight, volumeemission, volumescatter, volumewalk, worldmedium)
 from .bsdf import (GLASS_R, GLASS_T, SPEC_LOBES, closures, lobe_weights, plain_surfaces,
                    surface_hit, surface_hit_lobes)
 from .camerakernels import (_PASS as PASS_LOBE, choose_lobes, continue_lobes, film_add,
@@ -902,7 +902,7 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                                 == np.asarray(hit.mat, np.int64), -1,
                                 np.asarray(hit.medium, np.int64))
     # Scattering media (engine/volumescatter.py; None: no material scatters).
-    scatter = (volumescatter.CameraScattering.for_context(ctx)
+    scatter = (volumewalk.WalkingScattering.for_context(ctx)
                if medium_h is not None and not glow_only else None)
     # A scattering world volume (engine/worldmedium.py): the rays' media outside the
     # objects' are its row, and the rays that escape scatter the lamps' light along
@@ -2446,7 +2446,7 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                          point_medium(ctx, cam_pos, sigma, outside=world_row), np.int64)
     # Light scattered towards the camera inside scattering media (engine/volumescatter.py;
     # None: no material scatters), from its own stream of numbers (made when first needed).
-    scatter = volumescatter.CameraScattering.for_context(ctx) if medium is not None else None
+    scatter = volumewalk.WalkingScattering.for_context(ctx) if medium is not None else None
     # Emitting media (engine/volumeemission.py; None: none emits): every segment in one
     # adds its glow, weighted by the throughput at the segment's start.
     glow = volumeemission.MediumEmission.for_context(ctx) if medium is not None else None

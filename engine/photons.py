@@ -31,7 +31,7 @@ from .lights.group import photon_emitters
 from .lightlinking import (blocker_accel_of, link_row_of, mesh_photon_links,
                            mesh_photon_rows, past_non_blockers, unlinked_first_hits)
 from .parallel import Cancelled, chunk_length, ordered_map
-from . import media, worldmedium
+from . import media, photonmedium, worldmedium
 from . import photonkernels as pk
 from .accel import rows_as_hits
 from .bsdf import LOBE_NAMES, surface_hit
@@ -336,6 +336,10 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
     if pmed is not None and start_medium >= 0:
         pmed.medium[:] = start_medium  # a lamp inside a fog cube: its photons start in it
     world_row = worldmedium.medium_row(ctx)
+    # Scattering media (engine/photonmedium.py; None: no photon scatters in a medium).
+    vol = (photonmedium.PhotonScattering.for_chunk(table, settings, len(pmed.medium),
+                                                   caustic_only)
+           if pmed is not None else None)
     limits = settings.bounce_limits
     for bounce in range(settings.max_photon_depth):
         if should_cancel is not None and should_cancel():
@@ -416,6 +420,12 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         if geo.shared is not None:
             # scatter reads the gathered rows: hit i is on row i (-1: a miss).
             geom, prim32, starts = rows_as_hits(rows)
+        scattered = None
+        if vol is not None:
+            # Free flights in scattering media: the photons that scatter before their
+            # surface go on from the medium point (after the surface scatter's own).
+            scattered = vol.flights(key, bounce, o, d, tfar[:m], geom, power, slot, bnc,
+                                    pmed.medium)
         if pmed is not None:
             # A photon that travelled inside an absorbing object's medium keeps
             # exp(-sigma_a s) of its power over the segment (Beer-Lambert), before the
@@ -444,6 +454,9 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
                                 may_diffuse=may_diffuse,
                                 **({} if pane_tri is None else {"pane_tri": pane_tri}))
         stored.count += n_st
+        if scattered is not None:
+            n_nx = photonmedium.continue_scattered(nxt_sets[k], n_nx, scattered, flags, kinds,
+                                                   bnc, slot)
         o, d32, d, power, flags, kinds, slot, bnc, frm, off = (a[:n_nx] for a in nxt_sets[k])
         if pmed is not None:
             # refracted in or out of a medium; out of an object's medium into the world

@@ -156,7 +156,8 @@ class RenderSettings:
     transmission_bounces: int = 12
     # Cycles' Light Paths > Volume bounces (default 0: single scattering): the scatters in
     # a medium a camera path takes after its first, each lit by the lamps
-    # (engine/volumescatter.py; photons do not scatter in media).
+    # (engine/volumescatter.py); above 0 photons scatter in media up to that + 1 times
+    # (engine/photonmedium.py).
     volume_bounces: int = 0
     # Modes
     photon_mapping: bool = True     # False = the paper's plain ray tracer (Fig. 5b)
