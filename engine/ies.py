@@ -9,12 +9,14 @@ where f is the profile's candela table times 4 pi / 177.83 (Cycles' util/ies.cpp
 IESFile::parse: candela -> W/sr with the luminous efficacy of D65, 177.83 lm/W, and the
 4 pi of a light's strength), times the file's candela multiplier, ballast factor and
 ballast-lamp photometric factor; no peak normalisation. The table is read as Cycles'
-IESFile::parse + process (type B and C photometry; the TILT block skipped; one quadrant,
-a half or the whole circle of horizontal angles mirrored to 0..360 degrees; vertical
-angles 90..180 flipped to start at 0) and interpolated as kernel/util/ies.h
-kernel_ies_interp (Catmull-Rom cubic in the vertical then the horizontal angle, wrapped
-round the poles and the horizontal circle, negative values cut to 0, 0 outside the
-tabulated vertical range). The direction convention is kernel/svm/ies.h svm_node_ies with
+(4.x / 5.0) IESFile::parse + process: photometric types A, B and C; the TILT block
+skipped; type C's one quadrant or half of horizontal angles mirrored to 0..360 degrees
+(and a missing 360 entry added), B and A turned into C's angles as Cycles does; other
+ranges kept, the lookup 0 outside them. It is interpolated as kernel/util/ies.h
+kernel_ies_interp: Catmull-Rom cubic in the vertical then the horizontal angle (at a
+table's ends the end value repeated, except round v = 0: Cycles' float32 wrap tests
+never wrap at 360 or 180 degrees, see ies_interp), negative values cut to 0, 0 outside
+the tabulated ranges. The direction convention is kernel/svm/ies.h svm_node_ies with
 the node's default Vector (the normal in object space: the direction from the lamp to
 the shaded point): v = acos(-z), h = atan2(x, y) + pi, so v = 0 is straight down the
 lamp's -Z (the way a Blender light points).
@@ -34,7 +36,7 @@ from .jit import kernel, register_warm_up
 
 # Cycles' candela -> W/sr x 4 pi conversion (util/ies.cpp: 4 pi / 177.83).
 CANDELA_TO_CYCLES = 0.0706650768394
-TYPE_C, TYPE_B = 1, 2  # LM-63 photometric types Cycles reads (type A is refused)
+TYPE_C, TYPE_B, TYPE_A = 1, 2, 3  # LM-63 photometric types
 HEADER = 9  # the matrix's slots before the table in a packed profile
 
 
@@ -144,10 +146,10 @@ def parse(text: str, name: str = "profile") -> IESProfile:
     n_v = int(number("the number of vertical angles"))
     n_h = int(number("the number of horizontal angles"))
     ptype = int(number("the photometric type"))
-    if ptype not in (TYPE_B, TYPE_C):
-        raise IESError(f"{name}: photometric type {ptype} is not supported (Cycles reads "
-                       f"types B (2) and C (1))")
+    if ptype not in (TYPE_A, TYPE_B, TYPE_C):
+        raise IESError(f"{name}: photometric type {ptype} is unknown (1: C, 2: B, 3: A)")
     if n_v < 2 or n_h < 1:
+        # (Cycles reads such a table, and its lookup then finds no interval: no light.)
         raise IESError(f"{name}: {n_v} vertical and {n_h} horizontal angles (at least 2 "
                        f"and 1 needed)")
     number("the units")
@@ -161,86 +163,77 @@ def parse(text: str, name: str = "profile") -> IESProfile:
     v = [number("the vertical angles") for _ in range(n_v)]
     h = [number("the horizontal angles") for _ in range(n_h)]
     cand = [[factor * number("the candela values") for _ in range(n_v)] for _ in range(n_h)]
-    if ptype == TYPE_B:
-        h, v, cand = _process_type_b(name, h, v, cand)
-    else:
-        h, v, cand = _process_type_c(name, h, v, cand)
+    process = {TYPE_A: _process_type_a, TYPE_B: _process_type_b, TYPE_C: _process_type_c}
+    h, v, cand = process[ptype](name, h, v, cand)
     if np.any(np.diff(h) <= 0) or np.any(np.diff(v) <= 0):
         raise IESError(f"{name}: the angles do not increase")
     return IESProfile(np.radians(h), np.radians(v), cand, name)
 
 
+def _close(a, b):
+    """Cycles' angle_close: within 1e-4 degrees."""
+    return abs(a - b) < 1e-4
+
+
 def _process_type_c(name, h, v, cand):
-    """IESFile::process_type_c: horizontal angles mirrored to 0 .. 360 degrees."""
+    """IESFile::process_type_c: horizontal angles mirrored to 0 .. 360 degrees (one
+    quadrant twice, a half once; a missing 360 entry added where the spacing shows it).
+    Other ranges stay as they are: the lookup is 0 outside them (ies_interp)."""
     h = list(h)
     cand = [list(c) for c in cand]
-    if h[0] == 90.0:  # stored 90..270: rotate to 0..180
+    if _close(h[0], 90.0):  # stored 90..270: rotate to 0..180
         h = [a - 90.0 for a in h]
-    if h[0] != 0.0:
-        raise IESError(f"{name}: horizontal angles start at {h[0]} (0 or 90 expected)")
     if len(h) == 1:
-        h.append(360.0)
+        h = [0.0, 360.0]
         cand.append(cand[0])
-    if h[-1] == 90.0:  # one quadrant: mirror to the half
+    if _close(h[-1], 90.0):  # one quadrant: mirror to the half
         for i in range(len(h) - 2, -1, -1):
             h.append(180.0 - h[i])
             cand.append(cand[i])
-    if h[-1] == 180.0:  # the half: mirror to the whole
+    if _close(h[-1], 180.0):  # the half: mirror to the whole
         for i in range(len(h) - 2, -1, -1):
             h.append(360.0 - h[i])
             cand.append(cand[i])
-    if h[-1] != 360.0:
+    if _close(h[0], 0.0) and not _close(h[-1], 360.0):
         last, first, gap = h[-1] - h[-2], h[1] - h[0], 360.0 - h[-1]
-        if last == gap or first == gap:
+        if _close(last, gap) or _close(first, gap):
             h.append(360.0)
             cand.append(cand[0])
-        else:
-            raise IESError(f"{name}: horizontal angles end at {h[-1]} (90, 180 or 360 "
-                           f"expected)")
-    v = list(v)
-    if v[0] == 90.0:
-        if v[-1] == 180.0:
-            v = [180.0 - a for a in v]
-            # Cycles flips the angles only; the values stay in their order. The angles
-            # then decrease: reversing both keeps each value at its angle.
-            v = v[::-1]
-            cand = [c[::-1] for c in cand]
-        else:
-            raise IESError(f"{name}: vertical angles 90 .. {v[-1]} (90 .. 180 expected)")
-    elif v[0] != 0.0:
-        raise IESError(f"{name}: vertical angles start at {v[0]} (0 or 90 expected)")
     return np.array(h), np.array(v), np.array(cand)
+
+
+def _mirror_about_90(angles):
+    """0 .. 90 mirrored to 0 .. 180 round 90 (90 - a reversed, then 90 + a), or
+    -90 .. 90 shifted by 90: (new angles, source index of each)."""
+    n = len(angles)
+    if _close(angles[0], 0.0):
+        idx = list(range(n - 1, 0, -1)) + list(range(n))
+        return [90.0 - angles[i] for i in range(n - 1, 0, -1)] + [90.0 + a for a in angles], idx
+    return [a + 90.0 for a in angles], list(range(n))
 
 
 def _process_type_b(name, h, v, cand):
-    """IESFile::process_type_b: the axes swapped, both mirrored to full coverage."""
-    cand = np.array(cand).T  # (V, H): the file's vertical angles become horizontal
+    """IESFile::process_type_b: the axes transposed (the polar axis taken as vertical:
+    turn the lamp for the standard's horizontal one), both mirrored about 90 degrees."""
+    cand = np.array(cand).T  # (file V, file H): the file's vertical angles become h
     h, v = list(v), list(h)
-    cand = [list(c) for c in cand]
-    if h[-1] != 90.0:
-        raise IESError(f"{name}: type B vertical angles end at {h[-1]} (90 expected)")
-    if h[0] == 0.0:
-        nh, nc = [], []
-        for i in range(len(h) - 1, 0, -1):
-            nh.append(90.0 - h[i])
-            nc.append(cand[i])
-        for i in range(len(h)):
-            nh.append(90.0 + h[i])
-            nc.append(cand[i])
-        h, cand = nh, nc
-    elif h[0] == -90.0:
-        h = [a + 90.0 for a in h]
-    h.append(360.0)
-    cand.append(cand[0])
-    if v[-1] != 90.0:
-        raise IESError(f"{name}: type B horizontal angles end at {v[-1]} (90 expected)")
-    if v[0] == 0.0:
-        nv = [90.0 - a for a in v[:0:-1]] + [90.0 + a for a in v]
-        cand = [c[:0:-1] + c for c in cand]
-        v = nv
-    elif v[0] == -90.0:
-        v = [a + 90.0 for a in v]
-    return np.array(h), np.array(v), np.array(cand)
+    h, hi = _mirror_about_90(h)
+    v, vi = _mirror_about_90(v)
+    return np.array(h), np.array(v), cand[np.ix_(hi, vi)]
+
+
+def _process_type_a(name, h, v, cand):
+    """IESFile::process_type_a: vertical angles + 90; horizontal -90 .. 90 mapped to 270
+    .. 90 (180 - a), a range from 0 mirrored (180 + a)."""
+    cand = np.array(cand)
+    v = [a + 90.0 for a in v]
+    n = len(h)
+    hh = [180.0 - h[i] for i in range(n - 1, -1, -1)]
+    idx = list(range(n - 1, -1, -1))
+    if _close(h[0], 0.0):
+        hh += [180.0 + h[i] for i in range(1, n)]
+        idx += list(range(1, n))
+    return np.array(hh), np.array(v), cand[idx]
 
 
 # ---------------------------------------------------------------------- evaluation
@@ -281,9 +274,15 @@ def ies_interp(tab, base, h_angle, v_angle):
     h_low, h_high = tab[oh], tab[oh + nh - 1]
     if v_angle < v_low or v_angle >= v_high or h_angle < h_low or h_angle >= h_high:
         return 0.0
-    wrap_h = h_low < 1e-7 and h_high > 2.0 * math.pi - 1e-7
+    # Cycles' tests in float32: M_2PI_F - 1e-7f and M_PI_F - 1e-7f round back to 2 pi
+    # and pi (1e-7 is below half their ulp), so a table that ends at exactly 360 (180)
+    # degrees does not wrap there (its ends fall back to the nearest value: measured
+    # against Cycles 5.0, tests/blender/test_ies_cycles.py; wrapping read up to 26 %
+    # off near the 0 / 360 degree seam).
+    wrap_h = (h_low < 1e-7 and np.float32(h_high)
+              > np.float32(np.float32(2.0 * math.pi) - np.float32(1e-7)))
     wrap_lo = v_low < 1e-7
-    wrap_hi = v_high > math.pi - 1e-7
+    wrap_hi = np.float32(v_high) > np.float32(np.float32(math.pi) - np.float32(1e-7))
     hi = 0
     while tab[oh + hi + 1] < h_angle:
         hi += 1

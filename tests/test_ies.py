@@ -81,11 +81,12 @@ def test_interpolation_at_the_nodes_and_between():
 
 @pytest.mark.parametrize("text, words", [
     ("no tilt line\n1 2 3\n", "TILT"),
-    (QUADRANT.replace("1 1000 2.0 4 2 1 2", "1 1000 2.0 4 2 3 2"), "photometric type 3"),
     (QUADRANT.replace("1000 600 200 0\n", "1000 600\n"), "ends before the candela"),
     (QUADRANT.replace("0 30 60 90", "0 30 sixty 90"), "'sixty' is not a number"),
-    (QUADRANT.replace("\n0 90\n", "\n45 90\n"), "horizontal angles start at 45"),
-    (QUADRANT.replace("0 30 60 90", "10 30 60 90"), "vertical angles start at 10"),
+    (QUADRANT.replace("1 1000 2.0 4 2 1 2", "1 1000 2.0 4 2 4 2"), "type 4 is unknown"),
+    (QUADRANT.replace("0 30 60 90", "0 60 30 90"), "do not increase"),
+    (QUADRANT.replace("1 1000 2.0 4 2", "1 1000 2.0 1 2"), "1 vertical"),
+    ("", "TILT"),
 ])
 def test_malformed_profiles_raise_clear_errors(text, words):
     with pytest.raises(ies.IESError, match=words):
@@ -205,3 +206,22 @@ def test_photons_follow_the_profile(tmp_path, kind):
     forward = power[np.abs(h - 90) < 45, 0].sum()
     back = power[np.abs(h - 270) < 45, 0].sum()
     assert forward > 2.0 * back
+
+
+def test_type_a_b_and_upward_layouts_as_cycles():
+    """Cycles 5.0's IESFile::process: a type C table of vertical angles 90 .. 180 kept
+    (lighting upwards, 0 below the horizon), type B transposed and mirrored about 90
+    degrees, type A's horizontal -90 .. 90 mapped to 270 .. 90 (tests/blender/
+    test_ies_cycles.py renders the first two against Cycles)."""
+    up = ies.parse(QUADRANT.replace("0 30 60 90", "90 120 150 180"), "up")
+    np.testing.assert_allclose(np.degrees(up.v_angles), [90, 120, 150, 180])
+    assert up.evaluate([[0.0, 0.0, -1.0]])[0] == 0.0  # straight down: below its range
+    assert up.evaluate([[0.0, 0.3, 1.0]])[0] > 0.0
+    b = ies.parse(QUADRANT.replace("1 1000 2.0 4 2 1 2", "1 1000 2.0 4 2 2 2")
+                  .replace("\n0 90\n", "\n-90 90\n"), "b")
+    np.testing.assert_allclose(np.degrees(b.h_angles), [0, 30, 60, 90, 120, 150, 180])
+    np.testing.assert_allclose(np.degrees(b.v_angles), [0, 180])
+    assert b.intensity.shape == (7, 2)
+    a = ies.parse(QUADRANT.replace("1 1000 2.0 4 2 1 2", "1 1000 2.0 4 2 3 2"), "a")
+    np.testing.assert_allclose(np.degrees(a.h_angles), [90, 180, 270])
+    np.testing.assert_allclose(np.degrees(a.v_angles), [90, 120, 150, 180])
