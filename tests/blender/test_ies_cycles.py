@@ -176,7 +176,6 @@ def test_broken_profile_is_warned_and_the_plain_light_renders(fresh_scene, bpy_a
     assert lamp.name == "Lamp"
 
 
-@pytest.mark.slow
 def test_room_lit_by_an_ies_lamp_indirect_light_matches_cycles(fresh_scene, bpy_addon,
                                                                 tmp_path):
     """A closed 3 x 3 x 2.4 m grey room (albedo 0.6) lit by the IES point lamp near its
