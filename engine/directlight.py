@@ -133,7 +133,9 @@ def _sphere_light_sample(p0, p1, p2, s0, s1, s2, g0, g1, g2, u1, u2, q, spot):
     if spot and outside:
         f = f * _spot_mask(-w0, -w1, -w2, q)
     if q.shape[0] > pk.IES and q[pk.IES + HEADER] > 0:
-        f = f * ies_factor(q, pk.IES, -w0, -w1, -w2)
+        # The IES profile along the sphere's normal at the sampled point (Cycles'
+        # ls->Ng = (P - co) / radius, the light shader's Normal): engine/ies.py.
+        f = f * ies_factor(q, pk.IES, y0 - q[POS], y1 - q[POS + 1], y2 - q[POS + 2])
     return y0, y1, y2, w0, w1, w2, q[RGB] * f, q[RGB + 1] * f, q[RGB + 2] * f, pdf
 
 
@@ -516,8 +518,10 @@ def sample_lights(p, ns, gate, ng, offset, shade_off, cutoff, lift, nsm,
                     m = _spot_mask(a0, a1, a2, q)
                     e0, e1, e2 = e0 * m, e1 * m, e2 * m
                 if q.shape[0] > pk.IES and q[pk.IES + HEADER] > 0:
-                    # The IES profile along the direction from the lamp (engine/ies.py).
-                    m = ies_factor(q, pk.IES, a0, a1, a2)
+                    # The IES profile along the direction from the light sample to the
+                    # shaded point (Cycles' ls->Ng = -ls->D, the light shader's Normal;
+                    # from the centre without a radius): engine/ies.py.
+                    m = ies_factor(q, pk.IES, -w0, -w1, -w2)
                     e0, e1, e2 = e0 * m, e1 * m, e2 * m
             else:
                 surface = True

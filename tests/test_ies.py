@@ -225,3 +225,54 @@ def test_type_a_b_and_upward_layouts_as_cycles():
     a = ies.parse(QUADRANT.replace("1 1000 2.0 4 2 1 2", "1 1000 2.0 4 2 3 2"), "a")
     np.testing.assert_allclose(np.degrees(a.h_angles), [90, 180, 270])
     np.testing.assert_allclose(np.degrees(a.v_angles), [90, 120, 150, 180])
+
+
+def test_sphere_lamp_shines_the_profile_along_its_normals(tmp_path):
+    """Soft Falloff off: a sphere of radius R whose every point has radiance
+    I / (pi R^2) x f(its normal) (Cycles' light shader Normal there). The floor's
+    irradiance is the integral over the sphere's visible half of that radiance x cos at
+    the floor x cos at the sphere / d^2 (a fine quadrature): the blurred profile, which
+    differs from I f(w) cos / r^2 here by far more than the tolerance."""
+    path = _write(tmp_path, FORWARD)
+    p = ies.load(path)
+    R, xy = 0.5, (0.9, -0.3)
+    light_pos = np.array([xy[0], xy[1], H])
+    # Quadrature over the sphere: uniform in (cos, phi) is uniform in area.
+    n = 800
+    cz = (np.arange(n) + 0.5) / n * 2 - 1
+    ph = (np.arange(2 * n) + 0.5) / (2 * n) * 2 * math.pi
+    C, P = np.meshgrid(cz, ph, indexing="ij")
+    s = np.sqrt(1 - C ** 2)
+    normal = np.stack([s * np.cos(P), s * np.sin(P), C], axis=-1).reshape(-1, 3)
+    dA = 4 * math.pi * R * R / len(normal)
+    to_p = -(light_pos + R * normal)  # from the sphere point to the floor's origin
+    d = np.linalg.norm(to_p, axis=1)
+    cos_l = np.einsum("ij,ij->i", normal, to_p) / d
+    cos_f = np.maximum(-to_p[:, 2] / d, 0.0)  # the floor's normal +Z; to_p points down
+    seen = cos_l > 0
+    L = POWER / (4 * math.pi) / (math.pi * R * R) * p.evaluate(normal)
+    E = float(np.sum((L * cos_f * cos_l * dA / d ** 2)[seen]))
+    want = ALBEDO / math.pi * E
+    s = PaperScene(width=4, height=4)
+    s.add_material(Material("grey", (ALBEDO,) * 3, specular=0.0))
+    s.add_plane((0, 0, 0), (0, 0, 1), 40.0, "grey", name="floor")
+    s.add_point_light(tuple(light_pos), POWER, radius=R, soft_falloff=False, ies=path)
+    s.set_camera((0, 0, 6.0), (0, 0, 0), up=(0, 1, 0), view_angle=0.02)
+    got = float(s.render(RenderSettings(spp=256, photon_mapping=False, seed=3,
+                                        workers=1)).combined.mean())
+    w = -light_pos
+    sharp = (ALBEDO / math.pi * POWER / (4 * math.pi) * p.evaluate(w[None])[0] * H
+             / np.linalg.norm(w) ** 3)
+    assert abs(sharp / want - 1) > 0.05
+    assert got == pytest.approx(want, rel=0.02)
+
+
+def test_scene_file_reads_a_profile_relative_to_itself(tmp_path):
+    from engine.scenefile import load_scene
+    _write(tmp_path, FORWARD, "lamp.ies")
+    (tmp_path / "s.toml").write_text(
+        'background = [0, 0, 0]\n[camera]\nposition = [0, -6, 2]\nlook_at = [0, 0, 0]\n'
+        '[[lights]]\ntype = "point"\nposition = [0, 0, 2]\npower = 100\nies = "lamp.ies"\n')
+    scene, _ = load_scene(str(tmp_path / "s.toml"))
+    light = scene.lights[0]
+    assert light.ies_profile is not None and light.ies_profile.name == "lamp.ies"

@@ -122,17 +122,6 @@ class PointLight(Light):
         the spot's mask for a spot."""
         return None
 
-    def _falloff(self, axis):
-        """Directional factor of the emitted intensity along unit directions axis (N,3)
-        leaving the light (the IES profile x a spot's mask); None: 1 everywhere."""
-        f = self._falloff_plain(axis)
-        if self.ies is None:
-            return f
-        from ..ies import ies_factors
-        g = np.empty(len(axis))
-        ies_factors(self.ies, 0, np.ascontiguousarray(axis, np.float64), g)
-        return g if f is None else f * g
-
     def _emit(self, aim, aimed, key, first, n, count, out, start):
         """Natural photons of an IES lamp are drawn from its profile (emit_ies); aimed
         ones as the plain light's, their power times the profile (_weigh_ies)."""
@@ -193,9 +182,18 @@ class PointLight(Light):
             intersect_disk(f64(o), f64(d), tm, f64(self.pos), float(self.radius ** 2), mask, t)
             inside = np.zeros(n, bool)
         L = np.broadcast_to(self.intensity / (math.pi * self.radius ** 2), (n, 3))
-        f = self._falloff(-d)
+        f = self._falloff_plain(-d)
         if f is not None:
             L = L * np.where(inside, 1.0, f)[:, None]
+        if self.ies is not None:
+            # The profile along the light shader's Normal: the sphere's at the hit
+            # (Cycles' point_light_sample_from_intersection), or -d for the disk.
+            ng = -d
+            if self.is_sphere:
+                ng = np.where(mask[:, None], rel + np.where(mask, t, 0.0)[:, None] * d, -d)
+            g = np.empty(n)
+            ies_factors_rows(self.ies, ng, g)
+            L = L * g[:, None]
         return mask, t, L
 
 

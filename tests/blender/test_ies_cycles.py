@@ -66,12 +66,13 @@ def _plane(bpy, scene, name, size, location, rotation, mat):
 
 
 def _ies_lamp(bpy, scene, tmp_path, kind, location, mode="EXTERNAL", multiply=None,
-              power=200.0, profile=PROFILE):
+              power=200.0, profile=PROFILE, radius=0.0, soft_falloff=True):
     """A light of `kind` at location pointing down, turned 30 degrees about Z (the
     profile's throw then points off the image axes), Emission Strength <- IES Texture."""
     ld = bpy.data.lights.new("Lamp", kind)
     ld.energy = power
-    ld.shadow_soft_size = 0.0
+    ld.shadow_soft_size = radius
+    ld.use_soft_falloff = soft_falloff
     if kind == "SPOT":
         ld.spot_size, ld.spot_blend = math.radians(150.0), 0.1
     obj = bpy.data.objects.new("Lamp", ld)
@@ -122,15 +123,16 @@ def _regions(img, n=4):
     return lum[: h // n * n, : w // n * n].reshape(n, h // n, n, w // n).mean(axis=(1, 3))
 
 
-def _compare(bpy, scene, tmp_path, name):
+def _compare(bpy, scene, tmp_path, name, spp=16, rtol=0.01):
     from blender_helpers import export_warnings, render_pixel_centres
     assert not [w for w in export_warnings(bpy) if "Lamp" in w], export_warnings(bpy)
-    ours = _regions(render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", 16))
-    ref = _regions(render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES", 64))
+    ours = _regions(render_pixel_centres(bpy, scene, tmp_path / "ours.exr", "PHOTONMAP", spp))
+    ref = _regions(render_pixel_centres(bpy, scene, tmp_path / "cycles.exr", "CYCLES",
+                                        max(64, 4 * spp)))
     print(f"{name}: Cycles\n{np.round(ref, 4)}\nours\n{np.round(ours, 4)}")
     lit = ref > 0.05 * ref.max()
     assert lit.sum() >= 3 and np.ptp(ref[lit]) > 0.3 * ref.max()  # the profile shows
-    np.testing.assert_allclose(ours[lit], ref[lit], rtol=0.01)  # measured: within 0.02 %
+    np.testing.assert_allclose(ours[lit], ref[lit], rtol=rtol)  # measured: within 0.02 %
     assert np.all(ours[~lit] <= 0.05 * ref.max() + 1e-4)
 
 
@@ -141,6 +143,20 @@ def test_ies_lamp_over_floor_and_wall_matches_cycles(fresh_scene, bpy_addon, tmp
     _floor_and_wall(bpy, scene)
     _ies_lamp(bpy, scene, tmp_path, kind, (0.0, 0.0, 1.2))
     _compare(bpy, scene, tmp_path, kind)
+
+
+@pytest.mark.parametrize("soft_falloff", [True, False])
+def test_ies_lamp_with_a_radius_matches_cycles(fresh_scene, bpy_addon, tmp_path,
+                                               soft_falloff):
+    """A radius of 0.3 m: with Soft Falloff the profile read along the direction from the
+    disk's sampled point (Cycles' Ng = -D); without, a sphere whose every point emits the
+    profile along its own normal (Ng = (P - centre) / r), a blurred profile."""
+    bpy = bpy_addon
+    scene = fresh_scene
+    _floor_and_wall(bpy, scene)
+    _ies_lamp(bpy, scene, tmp_path, "POINT", (0.0, 0.0, 1.2), radius=0.3,
+              soft_falloff=soft_falloff)
+    _compare(bpy, scene, tmp_path, f"radius 0.3, soft falloff {soft_falloff}", spp=256)
 
 
 @pytest.mark.parametrize("name", ["UPLIGHT", "TYPE_B"])
