@@ -133,9 +133,10 @@ def _sphere_light_sample(p0, p1, p2, s0, s1, s2, g0, g1, g2, u1, u2, q, spot):
     if spot and outside:
         f = f * _spot_mask(-w0, -w1, -w2, q)
     if q.shape[0] > pk.IES and q[pk.IES + HEADER] > 0:
-        # The IES profile along the sphere's normal at the sampled point (Cycles'
-        # ls->Ng = (P - co) / radius, the light shader's Normal): engine/ies.py.
-        f = f * ies_factor(q, pk.IES, y0 - q[POS], y1 - q[POS + 1], y2 - q[POS + 2])
+        # The IES profile along the ray, from the sampled point to the shaded point
+        # (measured against Cycles 5.0: not along the sphere's normal there, which
+        # read up to 56 % off; tests/blender/test_ies_cycles.py): engine/ies.py.
+        f = f * ies_factor(q, pk.IES, -w0, -w1, -w2)
     return y0, y1, y2, w0, w1, w2, q[RGB] * f, q[RGB + 1] * f, q[RGB + 2] * f, pdf
 
 

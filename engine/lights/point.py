@@ -186,13 +186,10 @@ class PointLight(Light):
         if f is not None:
             L = L * np.where(inside, 1.0, f)[:, None]
         if self.ies is not None:
-            # The profile along the light shader's Normal: the sphere's at the hit
-            # (Cycles' point_light_sample_from_intersection), or -d for the disk.
-            ng = -d
-            if self.is_sphere:
-                ng = np.where(mask[:, None], rel + np.where(mask, t, 0.0)[:, None] * d, -d)
+            # The profile along the ray (towards its origin: -d), the disk's and the
+            # sphere's alike, as the shadow rays read it (directlight.py).
             g = np.empty(n)
-            ies_factors_rows(self.ies, ng, g)
+            ies_factors_rows(self.ies, -d, g)
             L = L * g[:, None]
         return mask, t, L
 
