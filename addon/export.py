@@ -597,18 +597,85 @@ def _particle_modifier_renders(obj, psys) -> bool:
 
 
 def warn_light_linking(obj, warnings: list, who=None):
-    """Object > Shading > Light Linking / Shadow Linking (Blender 4.0+, on lights and
-    emitting objects): not simulated, said once per object (it was dropped silently,
-    s37): the light lights every object and every object shadows it."""
+    """Object > Shading > Shadow Linking (Blender 4.0+) of an emitting mesh object, which
+    this engine does not simulate (a lamp's is rendered, and an object's Light Linking:
+    light_link_objects, resolve_light_links), said once per object (it was dropped
+    silently, s37): every object blocks its emission."""
     linking = getattr(obj, "light_linking", None)
     who = who or f"object '{obj.name}'"
     for attr, what, effect in (
-            ("receiver_collection", "Light Linking", "it lights every object"),
-            ("blocker_collection", "Shadow Linking", "every object casts its shadows")):
+            ("blocker_collection", "Shadow Linking", "every object casts its shadows"),):
         coll = getattr(linking, attr, None) if linking is not None else None
         if coll is not None:
             warnings.append(f"{who}: {what} (collection '{coll.name}') is not supported; "
                             f"{effect}")
+
+
+def light_link_objects(coll) -> tuple[list, list]:
+    """The objects a Light Linking collection includes and excludes: (include, exclude)
+    object names, as Blender's depsgraph resolves it (depsgraph_light_linking.cc,
+    foreach_light_collection_object): the collection's own objects with their link state,
+    and every object in a child collection (at any depth) with the state of the child
+    collection's entry at the first level; an object reached twice takes the last one
+    (children first, then the objects: link_object overwrites)."""
+    state: dict = {}
+
+    def inner(c, link_state):
+        for child in c.children:
+            inner(child, link_state)
+        for ob in c.objects:
+            state[ob.name] = link_state
+
+    # collection_children / collection_objects follow children / objects (one list).
+    for child, entry in zip(coll.children, coll.collection_children):
+        inner(child, entry.light_linking.link_state)
+    for ob, entry in zip(coll.objects, coll.collection_objects):
+        state[ob.name] = entry.light_linking.link_state
+    include = [n for n, st in state.items() if st == "INCLUDE"]
+    exclude = [n for n, st in state.items() if st == "EXCLUDE"]
+    return include, exclude
+
+
+def resolve_light_links(lights: list, meshes: list, owners: dict) -> None:
+    """Set the engine lights' receivers / non_receivers and blockers / non_blockers
+    (engine mesh names) from the Blender objects convert_light noted
+    (light._link_objects: the Light Linking and Shadow Linking collections'
+    light_link_objects, or None): with any included object only the included ones
+    (Blender: EmitterSetMembership.get_mask, the included sets alone), else every object
+    but the excluded ones. owners: mesh name -> (object name, instancer name or None,
+    the object's own Light Linking collection's light_link_objects or None)
+    (_instance_name): an instance takes its instancer's links when the instancer is in
+    any such collection, else its object's (Cycles' BlenderLightLink::
+    get_receiver_light_set / get_blocker_shadow_set). An emitting object's own Light
+    Linking sets its meshes' receivers / non_receivers alike (the engine reads them
+    where the mesh emits)."""
+    for mesh in meshes:
+        # (cached viewport meshes keep their attributes: the links are set afresh)
+        mesh.receivers, mesh.non_receivers = None, []
+    emitters = [(mesh, owners[mesh.name][2]) for mesh in meshes
+                if mesh.name in owners and len(owners[mesh.name]) > 2
+                and owners[mesh.name][2] is not None]
+    for k, (kind, non) in enumerate((("receivers", "non_receivers"),
+                                     ("blockers", "non_blockers"))):
+        links = [(light, light._link_objects[k]) for light in lights
+                 if getattr(light, "_link_objects", None) is not None
+                 and light._link_objects[k] is not None]
+        if k == 0:
+            # An emitting object's own Light Linking (engine Mesh.receivers).
+            links += emitters
+        if not links:
+            continue
+        named = {ob for _, (inc, exc) in links for ob in (*inc, *exc)}
+        by_owner: dict = {}
+        for mesh in meshes:
+            ob, parent = owners.get(mesh.name, (mesh.cryptomatte_object or mesh.name,
+                                                None))[:2]
+            by_owner.setdefault(parent if parent in named else ob, []).append(mesh.name)
+        for light, (include, exclude) in links:
+            if include:
+                setattr(light, kind, [m for ob in include for m in by_owner.get(ob, ())])
+            else:
+                setattr(light, non, [m for ob in exclude for m in by_owner.get(ob, ())])
 
 
 # --- lights -------------------------------------------------------------------------
@@ -717,7 +784,6 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     (light_portal; export_scene parts them from the lights: split_portals)."""
     L = obj.data
     kind = L.type
-    warn_light_linking(obj, warnings, f"light '{name}'")
     if kind == "AREA" and getattr(getattr(L, "cycles", None), "is_portal", False):
         return light_portal(pm, L, matrix, name, warnings)
     if kind not in pm.DECLARED_KINDS:  # the engine's light registry (engine/lights/)
@@ -805,7 +871,15 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
         kw["cast_shadow"] = False
         warnings.append(f"light '{name}': 'cast shadow' off: its direct light passes every "
                         "object, as in Cycles; its indirect light (photons) is still shadowed")
-    return pm.Light(**kw)
+    light = pm.Light(**kw)
+    linking = getattr(obj, "light_linking", None)
+    colls = [getattr(linking, a, None) for a in ("receiver_collection", "blocker_collection")]
+    if any(c is not None for c in colls):
+        # Light / Shadow Linking: resolved to engine meshes once they are known
+        # (resolve_light_links).
+        light._link_objects = tuple(None if c is None else light_link_objects(c)
+                                    for c in colls)
+    return light
 
 
 def light_portal(pm, L, matrix: np.ndarray, name: str, warnings: list):
@@ -1103,12 +1177,19 @@ def _geometry_key(obj):
 
 
 def _instance_name(inst, obj, info) -> str:
-    """The engine mesh name of a depsgraph instance (counts instances in info)."""
+    """The engine mesh name of a depsgraph instance (counts instances in info; notes
+    its object and instancer in info["owners"] for resolve_light_links)."""
+    owners = info.setdefault("owners", {})
+    # An emitting object's own Light Linking collection (resolve_light_links).
+    coll = getattr(getattr(obj, "light_linking", None), "receiver_collection", None)
+    own = None if coll is None else light_link_objects(coll)
     if not inst.is_instance:
+        owners[obj.name] = (obj.name, None, own)
         return obj.name
     parent = inst.parent.name if inst.parent is not None else "instance"
     name = f"{parent}/{obj.name}#{info['instances']}"
     info["instances"] += 1
+    owners[name] = (obj.name, inst.parent.name if inst.parent is not None else None, own)
     return name
 
 
@@ -1534,6 +1615,7 @@ def export_scene(pm, depsgraph, camera=None, width=None, height=None, progress=N
                                 scene_eval.objects)
     background, environment = export_world(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
+    resolve_light_links(lights, meshes, info.pop("owners", {}))
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     fog = world_medium(pm, scene_eval.world, warnings)
     volume_bounces_warning(scene_eval, materials, warnings, fog)
@@ -1591,6 +1673,10 @@ class ViewportUpdates:
                 self.all_materials = self.world = True
         elif kind in ("Image", "Texture"):
             self.all_materials = self.world = True
+        elif kind == "Collection":
+            # A Light / Shadow Linking collection's objects or link states changed: the
+            # lamps' receivers and blockers are resolved again (resolve_light_links).
+            self.lights = True
         elif kind.endswith("Light"):  # PointLight, SpotLight, SunLight, AreaLight
             self.lights = True
         elif kind == "World":
@@ -1734,6 +1820,7 @@ def export_viewport(cache: ViewportExport, depsgraph, camera, width: int, height
         cache.prototypes.pop(gkey, None)
     background, environment = export_world(pm, scene_eval.world, warnings)
     lights, portals = split_portals(pm, lights)
+    resolve_light_links(lights, meshes, info.pop("owners", {}))
     lights = lights + sky_sun_lights(pm, environment)  # a Sky Texture's sun disc
     scene = pm.Scene(meshes=meshes, materials=materials, lights=lights, camera=camera,
                      width=int(width), height=int(height), background=background,

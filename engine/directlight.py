@@ -1000,7 +1000,7 @@ class DirectLightBuffers:
 
 def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None, tree=None,
                  bsdf=None, buffers=None, rows=None, transmission=None, passages=None,
-                 light_cut=None, medium_sigma=None, world_sigma=None):
+                 light_cut=None, medium_sigma=None, world_sigma=None, link=None):
     """Irradiance (N,3) at N hits from the light samples `samples`: a list of (light
     index, traced?, light's sample count, u1 (N,), u2 (N,), third choice (N,) or None),
     in the order they must be summed; light index -1: the light tree `tree` (tree_f,
@@ -1038,7 +1038,19 @@ def direct_light(packed, hit_arrays, samples, accel, shadow_cls, n, shadow=None,
     (CUT_DIFFUSE, CUT_GLOSSY as accumulate_bsdf's cut: Cycles' _shader_bsdf_exclude by
     the light's ray visibility); a light with a cut must be traced (its samples' traced
     flag True) and sampled by light index (not by the tree); None: every lobe.
+    link = (links, recv): Light and Shadow Linking (engine/lightlinking.py LightLinks,
+    recv (n,) int64 each hit's receiver set, -1: none): a hit takes no light from the
+    lights its set is not linked to (their samples are zero, as Cycles' light_sample
+    refuses them), and a light's shadow rays meet only its blockers (LightLinks.direct).
+    None: every light lights every hit, every object blocks.
     Returns (E or radiance, number of shadow rays traced)."""
+    if link is not None and n and samples:
+        links, recv = link
+        return links.direct(direct_light, packed, hit_arrays, samples, accel, shadow_cls, n,
+                            recv, shadow=shadow, tree=tree, bsdf=bsdf, buffers=buffers,
+                            rows=rows, transmission=transmission, passages=passages,
+                            light_cut=light_cut, medium_sigma=medium_sigma,
+                            world_sigma=world_sigma)
     codes, params, mesh = packed
     hrow = NO_HROWS if rows is None else rows
     # No bent normal (nsm is ns): every bump term is 1, none is written or read.

@@ -21,6 +21,7 @@ import numpy as np
 
 from . import chaincounts
 from .closures import principled as pr
+from .lightlinking import receiver_link
 from .directlight import NO_ROWS, NO_ROWS3, direct_light
 from .lights.packing import pack_lights
 from .lights.selection import selector_for
@@ -83,6 +84,7 @@ def transmitted_light(ctx, hit, rows, prm, sel, psum, modes, samples, counters,
     out, rays = direct_light(ctx.packed_lights or pack_lights(ctx.lights), arrays, samples,
                              ctx.accel, SHADOW, k_rows, shadow=shadow,
                              tree=None if chosen is None else chosen[1],
-                             transmission=transmission, passages=passages)
+                             transmission=transmission, passages=passages,
+                             link=receiver_link(ctx, hit, rows))
     counters.shadow_rays += rays
     return out

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .lightlinking import receiver_link, tree_pmf
 from .directlight import (CUT_DIFFUSE, CUT_GLOSSY, NO_HROWS, NO_ROWS, NO_ROWS3, ONE_BELOW,
                           DirectLightBuffers, direct_light, sample_lights, terminator_lift)
 from .normalmap import bump_shadowing
@@ -199,7 +200,7 @@ def direct_irradiance(ctx, hit, rng, counters: Counters, sampler=None,
                            bsdf=bsdf, buffers=buffers, rows=rows, passages=passages,
                            light_cut=light_cut, medium_sigma=_medium_sigma(ctx, hit, rows),
                            world_sigma=_world_sigma(ctx, hit, rows) if shadow is not None
-                           else None)
+                           else None, link=receiver_link(ctx, hit, rows, skip_mesh_lights))
     counters.shadow_rays += rays
     if shade_glossy is not None:
         shade_glossy[:] = False
@@ -555,7 +556,7 @@ def mis_light_pdf(light, o, d, t, ns=None, p=None):
     return by_area
 
 
-def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
+def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None, sets=None):
     """Power-heuristic weight (N,) of continuation rays that met emissive triangles prim
     (1 where the mesh light is not light-sampled with MIS or the lobe was mirror-like):
     the mesh light's shadow rays pick a triangle by its triangle tree's probability at the
@@ -564,7 +565,9 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
     direction uniform in its solid angle (pmf / omega): MeshLight.shadow_pdf, as
     directlight.sample_lights. With the light
     tree (p, ns (N,3): the points and shading normals the rays left) that pdf takes the
-    tree's probability of choosing the mesh light there (LightSelector.pmf)."""
+    tree's probability of choosing the mesh light there (LightSelector.pmf; sets (N,):
+    the receiver sets of the surfaces the rays left, whose own trees pick there:
+    lightlinking.tree_pmf)."""
     w = np.ones(len(prim))
     chosen = selector_for(ctx)
     for li, light in enumerate(ctx.lights):
@@ -578,7 +581,8 @@ def _mesh_mis_weight(ctx, modes, prim, o, d, t, ng, pdf_b, p=None, ns=None):
         cos_l = np.abs(dot(d[rows], ng[rows]))
         at = (o if p is None else p)[rows]
         if chosen is not None:
-            count = selection_samples(ctx.settings) * chosen[0].pmf(at, ns[rows], li)
+            count = selection_samples(ctx.settings) * tree_pmf(
+                ctx, chosen, at, ns[rows], li, None if sets is None else sets[rows])
         else:
             count = ctx.plan.light_samples.get(light.name, 1)
         pl = count * light.shadow_pdf(at, ns[rows], kk, t[rows], cos_l)
@@ -629,23 +633,121 @@ def unsampled_emission(ctx, meshes, prim, d, Le):
     return out
 
 
-def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None):
+def _mis_weight(ctx, li, light, o, d, t, pdf_b, ns=None, p=None, sets=None):
     """Power-heuristic weight of continuation rays (pdf pdf_b, inf = a mirror-like lobe)
     that met light li, against its light_samples shadow rays (ns: the shading normals at
     the rays' origins, for the world light). With the light tree (p, ns: the hit points
     and shading normals the rays left) the shadow rays' pdf includes the probability
-    that the tree picks light li there (LightSelector.pmf)."""
+    that the tree picks light li there (LightSelector.pmf; sets (N,): the receiver sets
+    of the surfaces the rays left, whose own trees pick there: lightlinking.tree_pmf)."""
     chosen = selector_for(ctx)
     with np.errstate(invalid="ignore", over="ignore"):  # rows that missed it: t = inf
         if chosen is not None:
             n = selection_samples(ctx.settings)
-            pl = n * mis_light_pdf(light, o, d, t, ns, p) * chosen[0].pmf(
-                o if p is None else p, ns, li)
+            pl = n * mis_light_pdf(light, o, d, t, ns, p) * tree_pmf(
+                ctx, chosen, o if p is None else p, ns, li, sets)
         else:
             n = ctx.plan.light_samples.get(light.name, 1)
             pl = n * mis_light_pdf(light, o, d, t, ns, p)
         w = pdf_b * pdf_b / (pdf_b * pdf_b + pl * pl)
     return np.where(np.isinf(pdf_b), 1.0, np.nan_to_num(w, nan=1.0))
+
+
+def _shadow_linked_lamp(ctx, li, light, past, o, d, sees, link_prim, mis, pdf_b, org_ns,
+                        org_p, passages, lamp_w, clamping, tp, chain, acc, target, pix, ftp,
+                        feat, s):
+    """Shadow Linking: the light of lamp li (whose shadows only its blockers cast, past:
+    their lightlinking.BlockerAccel) that the rays o, d (left a surface; `sees` (n,) the
+    rows that may see it) meet wherever it lies, unless a blocker lies between (Cycles'
+    shadow_linking_intersect: such lamps are met by a dedicated ray, not the main path),
+    added as the ordinary lamp hits are (MIS when `mis`, shades, clamping); the paths
+    go on."""
+    mask, tl, L = light.intersect(o, d, np.full(len(o), np.inf))
+    if L is None or not mask.any():
+        return
+    mask &= sees & ctx.links.lights_hit(li, ctx.geo, link_prim)
+    rows = np.nonzero(mask)[0]
+    if not len(rows):
+        return
+    o32 = np.ascontiguousarray(o[rows], np.float32)
+    d32 = np.ascontiguousarray(d[rows], np.float32)
+    t32 = np.ascontiguousarray(tl[rows] * (1.0 - 1e-5), np.float32)
+    blocked = np.zeros(len(rows), np.bool_)
+    past.occluded_into(o32, d32, t32, blocked)
+    keep = ~blocked
+    rows, L = rows[keep], L[rows][keep]
+    if not len(rows):
+        return
+    if mis:
+        om, tm = o[rows], tl[rows]
+        if passages is not None:
+            om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
+        L = L * _mis_weight(ctx, li, light, om, d[rows], tm, pdf_b[rows], org_ns[rows],
+                            org_p[rows], _link_sets(ctx, link_prim, rows))[:, None]
+    if lamp_w is not None:
+        L = L * lamp_w[rows, li][:, None]
+    if clamping:
+        L = sampleclamp.clamp(L, tp, rows, sampleclamp.bounce_limits(
+            s, np.take(chain[:, 0], rows) - 1))
+    acc.add(target, pix, L, tp, rows)
+    datapasses.add_light(acc, pix, rows, tp, ftp, feat, L)
+
+
+def _shadow_linked_suns(ctx, links, o, d, rows_mask, link_prim, modes, pdf_b, org_ns, org_p,
+                        clamping, tp, chain, acc, target, pix, ftp, feat, s):
+    """Shadow Linking for lights at infinity (suns): the rays rows_mask (n,) that met a
+    surface see a shadow-linked sun's disc when no blocker of it lies in that direction
+    (its BlockerAccel; Cycles' dedicated shadow-linking ray counts distant lights),
+    weighted as the discs the missing rays see (MIS, clamping)."""
+    for li, light in enumerate(ctx.lights):
+        past = links.blocker_accel(li)
+        if past is None or not hasattr(light, "seen_at_infinity"):
+            continue
+        rows = np.nonzero(rows_mask & links.lights_hit(li, ctx.geo, link_prim))[0]
+        if not len(rows):
+            continue
+        sun = light.seen_at_infinity(d[rows])
+        if sun is None:
+            continue
+        lit = np.any(sun > 0, axis=1)
+        rows, sun = rows[lit], sun[lit]
+        if not len(rows):
+            continue
+        blocked = np.zeros(len(rows), np.bool_)
+        past.occluded_into(np.ascontiguousarray(o[rows], np.float32),
+                           np.ascontiguousarray(d[rows], np.float32),
+                           np.full(len(rows), np.finfo(np.float32).max, np.float32), blocked)
+        rows, sun = rows[~blocked], sun[~blocked]
+        if not len(rows):
+            continue
+        if modes[li] == MODE_MIS:
+            sun = sun * _mis_weight(ctx, li, light, o[rows], d[rows], None, pdf_b[rows],
+                                    org_ns[rows], org_p[rows],
+                                    _link_sets(ctx, link_prim, rows))[:, None]
+        if clamping:
+            sun = sampleclamp.clamp(sun, tp, rows, sampleclamp.bounce_limits(
+                s, np.take(chain[:, 0], rows) - 1))
+        acc.add(target, pix, sun, tp, rows)
+        datapasses.add_light(acc, pix, rows, tp, ftp, feat, sun)
+
+
+def _linked_emission(ctx, Le, prim, from_prim, idx):
+    """Le (n,3) of the emitting triangles prim that gather rays met, without what an
+    emitting object with links of its own does not give the surfaces the rays left
+    (from_prim at idx; Light Linking, lightlinking.LightLinks.emission_lights)."""
+    links = getattr(ctx, "links", None)
+    if links is None or not links.has_emitters or not np.any(Le > 0):
+        return Le
+    return Le * links.emission_lights(ctx.geo, prim, np.take(from_prim, idx))[:, None]
+
+
+def _link_sets(ctx, link_prim, rows=None):
+    """Light Linking: the receiver sets (n,) of the surfaces the rays at rows (None: all)
+    last left (link_prim), for tree_pmf; None without linking."""
+    if link_prim is None:
+        return None
+    prim = link_prim if rows is None else np.take(link_prim, rows)
+    return ctx.links.receiver_set(ctx.geo, prim)
 
 
 def light_shadow_rays(ctx, hit, light_index, rng):
@@ -958,13 +1060,13 @@ def gather_indirect(ctx, hit, rng, counters: Counters, sampler=None, rays=None,
                         E[np.take(idx, src)] += np.take(tp_seg, src, axis=0) * math.pi * Ls / G
             y = surface_hit(ctx.geo, ctx.table, prim, u, v, d)
             if level > 0 and depth == 0 and not glow_only:
-                Le = y.emission
+                Le = _linked_emission(ctx, y.emission, prim, hit.prim, idx)
                 if np.any(Le > 0):
                     E[idx] += tp * math.pi * Le / G
             elif depth == 0 and unsampled:
                 # The emission of sides no shadow ray samples (Emission Sampling): these
                 # rays are the only strategy that finds it (the shadow rays find the rest).
-                Le = y.emission
+                Le = _linked_emission(ctx, y.emission, prim, hit.prim, idx)
                 if np.any(Le > 0):
                     Le = unsampled_emission(ctx, unsampled, prim, d, Le)
                     E[idx] += tp * math.pi * Le / G
@@ -2405,6 +2507,10 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
     # before the glass, for MIS.)
     coincident = CoincidentSurfaces.for_context(ctx) if glass_mat.any() else None
     org_prim = np.full(len(o), -1, np.int64) if coincident is not None else None
+    # Light Linking (engine/lightlinking.py): the triangle each path last left (-1: the
+    # camera), whose object a lamp it meets must light (Cycles' mis_ray_object).
+    links = getattr(ctx, "links", None)
+    link_prim = np.full(len(o), -1, np.int64) if links is not None else None
     left_p = None  # the point each path left (its previous hit), while coincident
     # Cycles' data passes (engine/datapasses.py): the paths still carrying denoising
     # features; the camera's axes as rows (Cycles' worldtocamera for directions).
@@ -2444,9 +2550,26 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             sees = (ray_cls & light.ray_kinds) != 0
             if not sees.any():
                 continue
+            past = (links.blocker_accel(li) if link_prim is not None and bounce > 0
+                    else None)
+            if past is not None:
+                # Shadow Linking: a ray that left a surface meets this lamp past its
+                # non-blockers (Cycles' dedicated shadow-linking ray): its light where
+                # no blocker lies between, the path going on to its own hit.
+                _shadow_linked_lamp(ctx, li, light, past, o, d, sees & (ray_cls != CAMERA),
+                                    link_prim, modes[li] == MODE_MIS, pdf_b, org_ns, org_p,
+                                    passages, lamp_w, clamping, tp, chain, acc, target, pix,
+                                    ftp, feat, s)
+                sees = sees & (ray_cls == CAMERA)
+                if not sees.any():
+                    continue
             mask, tl, L = light.intersect(o, d, t)
             if L is not None and mask.any():
                 mask &= sees
+                if link_prim is not None and bounce > 0:
+                    # Seen from a surface the lamp does not light: not its light
+                    # (camera rays and their transparent continuations see it).
+                    mask &= (ray_cls == CAMERA) | links.lights_hit(li, ctx.geo, link_prim)
                 rows = np.nonzero(mask)[0]
                 L = L[rows]
                 if medium is not None and len(rows):
@@ -2466,7 +2589,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     if passages is not None:
                         om, tm = passages.mis_origin(rows, om, d[rows], tm, org_p[rows])
                     L = L * _mis_weight(ctx, li, light, om, d[rows], tm,
-                                        pdf_b[rows], org_ns[rows], org_p[rows])[:, None]
+                                        pdf_b[rows], org_ns[rows], org_p[rows],
+                                        _link_sets(ctx, link_prim, rows))[:, None]
                 if lamp_w is not None and len(rows):
                     # Its light through the shade the path left: shared with the shade
                     # samples of the glossy hit before (shadelight.shade_bsdf_weights).
@@ -2484,6 +2608,12 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             # volume (its length until the transmittance is 1e-13: e / sigma_t).
             _glow_without_hit(ctx, glow, acc, target, pix, prim, d, t, tp, medium,
                               world_row)
+        if link_prim is not None and bounce > 0 and links.shadow_groups:
+            # Shadow Linking: a shadow-linked sun seen past its non-blockers by the rays
+            # that left a surface and met one (the rays that missed see it below).
+            _shadow_linked_suns(ctx, links, o, d, ~miss & (ray_cls != CAMERA), link_prim,
+                                modes, pdf_b, org_ns, org_p, clamping, tp, chain, acc,
+                                target, pix, ftp, feat, s)
         if world_row >= 0 and scatter is not None and miss.any():
             # Rays escaping into the world volume: the lamps' light it scatters along
             # their whole (infinite) length, cut where its transmittance is 1e-13
@@ -2532,7 +2662,9 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                                                       np.take(o, missed, axis=0), d_miss,
                                                       None, pdf_b[missed],
                                                       np.take(org_ns, missed, axis=0),
-                                                      np.take(org_p, missed, axis=0))[:, None]
+                                                      np.take(org_p, missed, axis=0),
+                                                      _link_sets(ctx, link_prim,
+                                                                 missed))[:, None]
                 for li, light in enumerate(ctx.lights):
                     # A sun's disc is seen by camera rays only when its light is visible
                     # to them: a Sky Texture's disc (the background); the add-on exports
@@ -2540,13 +2672,20 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                     # 0 every disc is seen.
                     if bounce > 0 or light.ray_kinds & CAMERA:
                         sun = light.seen_at_infinity(d_miss)
+                        if sun is not None and link_prim is not None and bounce > 0:
+                            seen = (np.take(np.broadcast_to(ray_cls, (len(o),)), missed)
+                                    == CAMERA) | links.lights_hit(
+                                        li, ctx.geo, np.take(link_prim, missed))
+                            sun = sun * seen[:, None]
                         if sun is not None:
                             if bounce > 0 and modes[li] == MODE_MIS:
                                 sun = sun * _mis_weight(ctx, li, light,
                                                         np.take(o, missed, axis=0), d_miss,
                                                         None, pdf_b[missed],
                                                         np.take(org_ns, missed, axis=0),
-                                                        np.take(org_p, missed, axis=0))[:, None]
+                                                        np.take(org_p, missed, axis=0),
+                                                        _link_sets(ctx, link_prim,
+                                                                   missed))[:, None]
                             radiance = radiance + sun
                 if clamping:
                     radiance = sampleclamp.clamp(radiance, tp, missed, sampleclamp.bounce_limits(
@@ -2696,6 +2835,13 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
             acc.add_first_normals(pix, hit.ns, hit.front)
         if emitters:
             Le = hit.emission
+            if np.any(Le > 0) and link_prim is not None and bounce > 0 \
+                    and ctx.links.has_emitters:
+                # An emitting object with links of its own, met from a surface it does not
+                # light (camera rays and their transparent continuations see it).
+                lp = link_prim if kept is None else link_prim[kept]
+                Le = Le * ((ray_cls == CAMERA)
+                           | ctx.links.emission_lights(ctx.geo, prim, lp))[:, None]
             if np.any(Le > 0):
                 if bounce > 0:
                     op = org_p if kept is None else org_p[kept]
@@ -2704,7 +2850,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
                         om, tm = passages.mis_origin(np.arange(len(o)), o, d, t, op)
                     Le = Le * _mesh_mis_weight(
                         ctx, modes, prim, om, d, tm, hit.ng, pdf_b, op,
-                        org_ns if kept is None else org_ns[kept])[:, None]
+                        org_ns if kept is None else org_ns[kept],
+                        _link_sets(ctx, link_prim, kept))[:, None]
                 if clamping:
                     Le = sampleclamp.clamp(Le, tp, None,
                                            sampleclamp.bounce_limits(s, chain[:, 0] - 1))
@@ -2877,6 +3024,8 @@ def _trace_paths(ctx, acc, o, d, tmax, tp, pix, rng, counters, cam_pos, forward,
         org_p_in = org_p if kept is None else np.take(org_p, kept, axis=0)
         org_ns = np.take(hit.ns, keep, axis=0)
         org_p = np.take(hit.p, keep, axis=0)
+        if link_prim is not None:
+            link_prim = np.take(np.asarray(hit.prim, np.int64), keep)
         if org_prim is not None:
             org_prim = np.take(np.asarray(hit.prim, np.int64), keep)
             # (passages.step rewrites org_p in place after a flat passage)

@@ -28,6 +28,8 @@ from .anisotropy import triangle_tangents
 from .lights.base import emission_key
 from .lights.emission import EmissionBuffers
 from .lights.group import photon_emitters
+from .lightlinking import (blocker_accel_of, link_row_of, mesh_photon_links,
+                           mesh_photon_rows, past_non_blockers, unlinked_first_hits)
 from .parallel import Cancelled, chunk_length, ordered_map
 from . import media, worldmedium
 from . import photonkernels as pk
@@ -154,8 +156,14 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     # Many lights with few photons each emit in groups (engine/lights/group.py).
     for li, emitter, count in photon_emitters(lights, counts, settings.chunk_size):
         chunk = chunk_length(count, settings.chunk_size)  # same for any thread count
-        jobs += [(li, ci, start, min(chunk, count - start), count, emitter)
+        jobs += [(li, ci, start, min(chunk, count - start), count, emitter, None)
                  for ci, start in enumerate(range(0, count, chunk))]
+        # Shadow Linking: the light's photons again, those that pass a non-blocker first
+        # continuing from the blocker behind it (lightlinking.blocker_accel_of).
+        past = blocker_accel_of(ctx, emitter)
+        if past is not None:
+            jobs += [(li, ci, start, min(chunk, count - start), count, emitter, past)
+                     for ci, start in enumerate(range(0, count, chunk))]
     threads = settings.threads
     accel = ctx.accel.serial() if threads > 1 and len(jobs) > 1 else ctx.accel
     pool = _Buffers()
@@ -167,19 +175,23 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
     plain = pk.lobe_classes(ctx.table.closure_params)  # once a trace, not a chunk
 
     def job(item, stop):
-        li, ci, start, n, count, emitter = item
+        li, ci, start, n, count, emitter, past = item
+        # (a chunk's second run past non-blockers: the same numbers, the same photons)
         rng = np.random.default_rng([settings.seed, stream, li, ci])
         if shot.direct:
             shot.begin(n)
         stored = _trace_chunk(ctx, accel, emitter, n, count, rng, caustic_only, targets,
-                              stop, first_hit, pool, shot if shot.direct else None, plain)
+                              stop, first_hit, pool, shot if shot.direct else None, plain,
+                              link_row=link_row_of(ctx, emitter),
+                              mesh_links=mesh_photon_links(ctx, emitter), past=past)
         if shot.direct:
-            shot.commit(stored, n)  # here, on the chunk's thread, before the next starts
+            # here, on the chunk's thread, before the next starts
+            shot.commit(stored, n if past is None else 0)
         return stored
 
     done = 0
     for item, stored in zip(jobs, ordered_map(job, jobs, threads, should_cancel)):
-        done += item[3]
+        done += item[3] if item[6] is None else 0
         shot.append(stored, done)
         stored.release()
         if progress is not None:
@@ -192,7 +204,8 @@ def trace_photons(ctx, lights, counts, caustic_only: bool, stream: int, progress
 
 
 def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should_cancel,
-                 first_hit=None, pool=None, shot=None, plain=None):
+                 first_hit=None, pool=None, shot=None, plain=None, link_row=None,
+                 mesh_links=None, past=None):
     """Emit n of the light's `count` photons and trace them; returns the stored hits (a
     _Stored). Between two Embree calls the work is one compiled kernel
     (photonkernels.scatter, which computes the surface data itself); bsdf.surface_hit
@@ -201,7 +214,13 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
     trace's _Buffers, which lends the stored-photon and continued-ray buffers (a new
     one without). shot: a direct _Shot the photons are stored into after its rows (the
     caller commits them), or None: into blocks from the pool. plain: the table's
-    photonkernels.lobe_classes (computed here without)."""
+    photonkernels.lobe_classes (computed here without). link_row (M,) bool: the objects
+    the light lights (Light Linking, lightlinking.link_row_of; None: every one);
+    mesh_links: (LightLinks, the mesh light) when emitting meshes have links of their own
+    (lightlinking.mesh_photon_links; each photon's by its triangle), else None. past:
+    Shadow Linking's blocker BVH of the light (lightlinking.BlockerAccel): only the
+    photons whose first hit is not one of its blockers are kept, continuing from the
+    blocker behind (lightlinking.past_non_blockers); None: an ordinary chunk."""
     geo, table, settings = ctx.geo, ctx.table, ctx.settings
     pool = pool if pool is not None else _Buffers()
     # Each photon keeps its slot in the chunk, and its random numbers are those of its
@@ -267,7 +286,8 @@ def _trace_chunk(ctx, accel, light, n, count, rng, caustic_only, targets, should
                  bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump,
                  tfar, hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel,
                  coincident, make_next, pane_tri, soft_falloff_sources(light, n),
-                 start_medium=_light_medium(ctx, light))
+                 start_medium=_light_medium(ctx, light), link_row=link_row,
+                 mesh_links=mesh_links, past=past)
     except BaseException:
         stored.release()
         raise
@@ -295,14 +315,16 @@ def _light_medium(ctx, light) -> int:
 def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flags, kinds,
              bnc, frm, off, vis_on, caster, mode, numpy_hits, given, plain, surf, bump, tfar,
              hit_rows, hits, stored, nxt_sets, pool, caustic_only, should_cancel, coincident,
-             make_next, pane_tri=None, soft=None, start_medium=-1):
+             make_next, pane_tri=None, soft=None, start_medium=-1, link_row=None,
+             mesh_links=None, past=None):
     """_trace_chunk's bounces: one Embree call and one scatter call each, until no photon
     is left or max_photon_depth; the stored photons go to `stored`, the continued rays
     alternate between the two buffer sets of nxt_sets (borrowed from pool, made by
     make_next); coincident: the scene's CoincidentSurfaces or None; pane_tri: the
     next-event panes' triangle table for this light's photons (panelight.Panes.photon_tri)
     or None; soft: soft_falloff_sources' (centre, r^2) per emission slot, or None;
-    start_medium: the medium the light is in (_light_medium; -1: none known)."""
+    start_medium: the medium the light is in (_light_medium; -1: none known); link_row,
+    mesh_links, past: _trace_chunk's."""
     # Flat passages through thin glass (docs/design.md, Transparent shadows).
     flat = pk.flat_tables(geo, table)
     aniso_tan = triangle_tangents(geo, table.closure_params)
@@ -329,6 +351,10 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
         # are (Accel.intersect_hits).
         geom, prim32, u, v, starts = _closest_hits(accel, o, d32, tfar[:m],
                                                    tuple(a[:m] for a in hits))
+        if bounce == 0 and past is not None:
+            # Shadow Linking's second run: the photons that passed a non-blocker first,
+            # at the blocker behind it (the others end).
+            starts = past_non_blockers(past, o, d32, geom, prim32, u, v, tfar[:m], starts)
         if bounce == 0 and soft is not None:
             _soft_falloff_at_first_hit(soft, o, d, tfar[:m], geom, slot, power)
         if coincident is not None:
@@ -337,6 +363,16 @@ def _bounces(ctx, accel, settings, geo, table, key, o, d32, d, power, slot, flag
             # meet the other one there; photons inside the glass reaching the floor
             # under it leave the glass first (engine/coincident.py).
             coincident.meet_hits(o, d, frm, off, geom, prim32, u, v, tfar[:m], starts)
+        if bounce == 0 and link_row is not None:
+            # Light Linking: a photon whose first hit is on an object its light does not
+            # light ends there, as a miss (not stored, not bounced; engine/lightlinking.py).
+            unlinked_first_hits(ctx.geo, link_row, geom, prim32, starts)
+        elif bounce == 0 and mesh_links is not None:
+            # ... and for the emitting meshes with links of their own, by the triangle
+            # each photon left.
+            links, mesh_light = mesh_links
+            unlinked_first_hits(ctx.geo, None, geom, prim32, starts,
+                                mesh_photon_rows(links, mesh_light, key, slot), links.emit_lit)
         if given:
             # Triangle rows and float64 barycentrics for numpy and instance paths (the
             # same values as Accel.intersect's).

@@ -21,6 +21,7 @@ from .geometry import Geometry, MaterialTable, area_sum, prepare, set_camera_vie
 from . import integrator as _integrator
 from .integrator import MAX_GATHER_LEVEL, render_camera, smooth_min_photons
 from .jit import ensure_compiled
+from .lightlinking import links_for
 from .lights import allocate_photons, prepare_lights
 from .lights.base import InfiniteLight
 from .lights import packing as pk
@@ -98,6 +99,9 @@ class Context:
     # What catcher_alone was built from (shadowcatcher.alone_key): a viewport session keeps
     # it through edits that leave it unchanged.
     catcher_key: str | None = None
+    # Light Linking (engine/lightlinking.py): which light lights which object (None: every
+    # light lights every object).
+    links: object = None
 
 
     def serial(self) -> "Context":
@@ -140,13 +144,17 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
                             instances=geo.instances)
     attach_tracer(geo, accel)  # (Ambient Occlusion nodes trace from their hits)
     shadow = ShadowTransmittance.for_scene(geo, table, settings.transparent_max_bounces)
+    lights = prepare_lights(scene, geo, table,
+                            gathered=bool(settings.photon_mapping and settings.final_gather))
+    # Light and Shadow Linking (engine/lightlinking.py): the shadow groups' BVHs are
+    # built from the build arrays, before they go.
+    links = links_for(scene, lights, geo, accel, accel_class, settings.threads, should_cancel)
     if shadow is None:
         # Embree holds its own copy; transparent shadows build their BVHs from them lazily.
         geo.release_build_arrays()
-    lights = prepare_lights(scene, geo, table,
-                            gathered=bool(settings.photon_mapping and settings.final_gather))
     ctx = Context(scene, settings, geo, table, accel, lights,
                   packed_lights=packed_lights_for(lights, settings), shadow=shadow)
+    ctx.links = links
     ctx.plan = analyse(scene, geo, table, lights, accel, settings)
     if geo.instances is not None:  # which way instancing went (engine/resources.py)
         from .resources import instance_choice
@@ -174,6 +182,8 @@ def prepare_context(scene: Scene, settings: RenderSettings, accel_class=Accel,
 def close_context(ctx: Context) -> None:
     """Release ctx's Embree scenes (and its catcher-only context's)."""
     ctx.accel.close()
+    if ctx.links is not None:
+        ctx.links.close()
     if ctx.catcher_alone is not None:
         ctx.catcher_alone.accel.close()
 

@@ -79,6 +79,17 @@ def _finite(value, what: str) -> float:
     return v
 
 
+def _names(value, what: str) -> list:
+    """A list of object names (a single name is a list of one)."""
+    if isinstance(value, str):
+        return [value]
+    try:
+        names = [str(v) for v in value]
+    except TypeError:
+        raise SceneError(f"{what}: expected a list of object names, got {value!r}") from None
+    return names
+
+
 @dataclass
 class Material:
     """A Principled-v2 surface with Cycles' meaning (engine/closures/principled.py builds
@@ -445,6 +456,9 @@ class Mesh:
               give this mesh (engine/cryptomatte.py; None: `name`, and the asset the
               object's): Blender's object name, which instances of one object share, and
               its topmost parent's
+    receivers, non_receivers  Light Linking of an emitting mesh (its material emits):
+              as Light.receivers / non_receivers, the meshes its emission lights directly
+              (None / []: every one; engine/lightlinking.py)
     prototype, matrix  optional instance record: this mesh is `prototype` (object space)
               placed by the (4,4) or (3,4) object-to-world `matrix`; vertices and faces
               are then that placement (faces as the prototype's, corners 0, 2, 1 when the
@@ -491,6 +505,8 @@ class Mesh:
     shadow_terminator_shading_offset: float = 0.0
     cryptomatte_object: str | None = None
     cryptomatte_asset: str | None = None
+    receivers: list | None = None
+    non_receivers: list = field(default_factory=list)
     prototype: "Prototype | None" = None
     matrix: np.ndarray | None = None
     pass_index: int = 0
@@ -691,7 +707,7 @@ class Mesh:
             "visible_shadow", "holdout", "shadow_catcher", "shadow_terminator_offset",
             "shadow_terminator_shading_offset", "cryptomatte_object", "cryptomatte_asset",
             "pass_index", "random", "object_color", "location", "object_linear",
-            "object_attributes")}
+            "object_attributes", "receivers", "non_receivers")}
         return Mesh(self.name, v, f, normals=normals, uvs=corners(P.uvs),
                     materials=list(self.materials), material_ids=P.material_ids,
                     prototype=P, matrix=M, **flags)
@@ -795,6 +811,17 @@ class Light:
               and no photon continues from it through a mirror / glass at its first hit
     cast_shadow  Blender's light 'Cast Shadow' (use_shadow): off, no object blocks the
               light's shadow rays (its direct light); photons are still blocked
+    receivers  Light Linking (Blender 4.0+ Object > Shading > Light Linking, as Cycles
+              renders it): None, the light lights every object; a list of mesh names, it
+              lights only those (directly: shadow rays, the photons' first hit, its surface
+              seen in a mirror the path left); engine/lightlinking.py
+    non_receivers  mesh names the light does not light directly (the exclude form;
+              ignored for names also in receivers)
+    blockers  Shadow Linking (Blender 4.0+, Object > Shading > Shadow Linking): None,
+              every object casts the light's shadows; a list of mesh names, only those do
+              (its shadow rays pass the others, and its photons reach what lies behind
+              them: engine/lightlinking.py)
+    non_blockers  mesh names that cast none of the light's shadows (the exclude form)
     ies_path  point/spot: an IES (LM-63) profile file read into ies_profile (engine/ies.py:
               the emitted intensity along w is power x color / (4 pi) x f(w) in the lamp's
               frame, as Cycles' IES Texture on the Emission Strength); ies_profile an
@@ -829,6 +856,10 @@ class Light:
     visible_glossy: bool = True
     visible_transmission: bool = True
     cast_shadow: bool = True
+    receivers: list | None = None
+    non_receivers: list = field(default_factory=list)
+    blockers: list | None = None
+    non_blockers: list = field(default_factory=list)
     spot_frame: np.ndarray | None = None
     skew_axis_v: tuple | np.ndarray | None = None
     ies_path: str | None = None
@@ -875,6 +906,11 @@ class Light:
             raise SceneError(f"{who} power: must be >= 0, got {self.power}")
         self.radius = max(self.radius, 0.0)
         self.soft_falloff = bool(self.soft_falloff)
+        for attr in ("receivers", "blockers"):
+            if getattr(self, attr) is not None:
+                setattr(self, attr, _names(getattr(self, attr), f"{who} {attr}"))
+            setattr(self, "non_" + attr, _names(getattr(self, "non_" + attr),
+                                                f"{who} non_{attr}"))
         self.size_x, self.size_y = abs(self.size_x), abs(self.size_y)
         self.spot_size = min(max(self.spot_size, 1e-4), math.pi)
         self.spot_blend = min(max(self.spot_blend, 0.0), 1.0)
@@ -1313,6 +1349,31 @@ class Scene:
                 unique.append(w)
         return unique
 
+    def _check_links(self) -> None:
+        """Light / Shadow Linking names (Light.receivers, non_receivers, blockers,
+        non_blockers) that name no mesh: a warning each (a receivers list of none of the
+        scene's objects lights nothing)."""
+        names = {m.name for m in self.meshes}
+        for light in self.lights:
+            for attr in ("receivers", "blockers"):
+                if getattr(light, attr) is not None:
+                    setattr(light, attr, _names(getattr(light, attr),
+                                                f"light '{light.name}' {attr}"))
+                setattr(light, "non_" + attr, _names(getattr(light, "non_" + attr),
+                                                     f"light '{light.name}' non_{attr}"))
+            for attr in ("receivers", "non_receivers", "blockers", "non_blockers"):
+                for name in getattr(light, attr) or ():
+                    if name not in names:
+                        msg = (f"light '{light.name}': {attr} names '{name}', which is no "
+                               "object of the scene; ignored")
+                        if msg not in self.warnings:
+                            self.warnings.append(msg)
+        for mesh in self.meshes:
+            if mesh.receivers is not None:
+                mesh.receivers = _names(mesh.receivers, f"mesh '{mesh.name}' receivers")
+            mesh.non_receivers = _names(mesh.non_receivers,
+                                        f"mesh '{mesh.name}' non_receivers")
+
     def _material_users(self) -> dict[str, list[str]]:
         """Material name -> names of the meshes whose slots hold it (scene order)."""
         users: dict[str, list[str]] = {}
@@ -1352,6 +1413,7 @@ class Scene:
             for msg in warnings_for(self):
                 if msg not in self.warnings:
                     self.warnings.append(msg)
+        self._check_links()
         # (emitting media glow too: engine/volumeemission.py)
         has_emitter = any(m.is_emissive or np.any(m.volume_emission > 0)
                           for m in self.materials.values())

@@ -200,6 +200,11 @@ CAMERA_SCHEMA = _table({
     "aperture_ratio": _number(0.0, lo_open=True)},
     required=("position", "look_at"))
 
+# Light Linking (engine/lightlinking.py): object names.
+_NAMES_TEXT = "a list of object names"
+_NAMES = {"type": "array", "items": {"type": "string", "what_type": _NAMES_TEXT},
+          "what": _NAMES_TEXT, "what_type": _NAMES_TEXT}
+
 _OBJECT_COMMON = {
     "type": _STRING, "name": _STRING, "material": _STRING, "translate": _vec3(),
     "rotate": _vec3(),
@@ -211,7 +216,9 @@ _OBJECT_COMMON = {
     # Blender's Object > Relations > Pass Index (the Object Index data pass)
     "pass_index": _number(0, 32767, integer=True),
     # A template is drawn only through its [[instances]] (not itself).
-    "template": _BOOL}
+    "template": _BOOL,
+    # An emitting object's Light Linking (engine/lightlinking.py): object names.
+    "receivers": _NAMES, "non_receivers": _NAMES}
 _INLINE = {"type": "array", "maxItems": MAX_INLINE_ELEMENTS,
            "what": f"a list of at most {MAX_INLINE_ELEMENTS:,} [a, b, c] rows"}
 OBJECT_SCHEMAS = {
@@ -246,7 +253,8 @@ LIGHT_SCHEMA = _table({
     "shape": _choice("rectangle", "square", "disk", "ellipse"),
     "angle": _number(0.0, 180.0), "spread": _number(0.0, 180.0), "visible": _BOOL,
     "visible_diffuse": _BOOL, "visible_glossy": _BOOL, "visible_transmission": _BOOL,
-    "cast_shadow": _BOOL, "soft_falloff": _BOOL, "ies": _STRING})
+    "cast_shadow": _BOOL, "soft_falloff": _BOOL, "receivers": _NAMES,
+    "non_receivers": _NAMES, "blockers": _NAMES, "non_blockers": _NAMES, "ies": _STRING})
 
 
 ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
@@ -808,7 +816,7 @@ def _object(scene, obj, i, base):
         path = os.path.join(base, obj["path"])
         mesh = scene.add_mesh(_load_mesh_file(path, name or os.path.basename(path),
                                               scene._material(mat)))
-    for key in VISIBILITY_KEYS + ("pass_index",):
+    for key in VISIBILITY_KEYS + ("pass_index", "receivers", "non_receivers"):
         if key in obj:
             setattr(mesh, key, obj[key])
     if any(k in obj for k in ("translate", "scale", "rotate")):
@@ -934,5 +942,9 @@ def _light(scene, spec, i, base=""):
                           visible_glossy=get("visible_glossy", True),
                           visible_transmission=get("visible_transmission", True),
                           cast_shadow=get("cast_shadow", True),
+                          receivers=get("receivers"),
+                          non_receivers=get("non_receivers", []),
+                          blockers=get("blockers"),
+                          non_blockers=get("non_blockers", []),
                           ies_path=(None if get("ies") is None else
                                     os.path.join(base, os.path.expanduser(get("ies"))))))

@@ -49,6 +49,7 @@ from .ambientocclusion import attach_tracer
 from .geometry import MaterialTable, prepare, set_camera_view
 from .jit import ensure_compiled
 from .lights import prepare_lights
+from .lightlinking import links_for
 from .displacement import moves_vertices
 from .shadowtransmittance import ShadowTransmittance
 from .parallel import Cancelled, StopFlag, drain, polled_by
@@ -299,6 +300,8 @@ class Session:
         finally:
             if self._ctx is not None:
                 self._ctx.accel.close(wait=True)  # no query thread outlives stop()
+                if self._ctx.links is not None:
+                    self._ctx.links.close(wait=True)
                 if self._ctx.catcher_alone is not None:
                     self._ctx.catcher_alone.accel.close(wait=True)
                 self._ctx = None
@@ -361,9 +364,14 @@ class Session:
             if ctx is not None:
                 alone, alone_key = ctx.catcher_alone, ctx.catcher_key
                 ctx.catcher_alone = None
+            if ctx is not None and ctx.links is not None:
+                ctx.links.close(wait=True)
             self._ctx = ctx = Context(
                 scene, s, geo, table, accel, lights, packed_lights=packed_lights_for(lights, s),
                 shadow=ShadowTransmittance.for_scene(geo, table, s.transparent_max_bounces))
+            # Light and Shadow Linking (engine/lightlinking.py), rebuilt with the lights.
+            ctx.links = links_for(scene, lights, geo, accel, _accel_class(), s.threads,
+                                  self._cancel.is_set)
             # Shadow catchers: the catchers-alone scene the camera pass compares with
             # (engine/shadowcatcher.py), rebuilt when the catchers, their materials, the
             # lights, the world or the settings changed (its digest: alone_key), kept

@@ -398,7 +398,7 @@ def accumulate_phase(L, contrib, row, kidx, ray, ksamples, blocked, m_all, wdir,
 
 
 def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None,
-                 world_sigma=None) -> np.ndarray:
+                 world_sigma=None, sets=None, packed=None) -> np.ndarray:
     """(n,3) the light L_in (W / m^2 sr, radiance units) the lamps scatter at points p
     (n,3) towards -wo (wo (n,3) unit: the camera ray's direction), through the phase
     function of anisotropy g (n,), from one sample of each light (light_sample_list's
@@ -407,8 +407,21 @@ def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None,
     that meets no surface keeps exp(-sigma_t length), accumulate_phase). world_sigma
     (n,3): the world volume's extinction at the points in it (engine/worldmedium.py; 0
     elsewhere): a shadow ray that crossed transparent surfaces keeps exp(-sigma_t length)
-    of it too (directlight.direct_light's world_sigma); None: none."""
+    of it too (directlight.direct_light's world_sigma); None: none. sets (n,): the
+    points' receiver sets (Light Linking, lightlinking.LightLinks.volume_sets), each
+    set's points lit by its own lamps (packed: the lights as one set sees them); None:
+    every lamp."""
     from .directlight import _dim_in_medium
+    links = getattr(ctx, "links", None)
+    if links is not None and sets is not None and len(p):
+        base = ctx.packed_lights or pack_lights(ctx.lights)
+        L = np.zeros((len(p), 3))
+        for s in np.unique(sets):
+            sel = np.nonzero(sets == s)[0]
+            L[sel] = in_scattered(ctx, p[sel], wo[sel], g[sel], sigma_t[sel], rng, counters,
+                                  buffers, None if world_sigma is None else world_sigma[sel],
+                                  packed=links.packed_for(base, int(s)))
+        return L
     from .integrator import SHADOW, light_sample_list, selector_for
     n = len(p)
     L = np.zeros((n, 3))
@@ -417,7 +430,7 @@ def in_scattered(ctx, p, wo, g, sigma_t, rng, counters=None, buffers=None,
     samples = light_sample_list(ctx, n, rng)
     if not samples:
         return L
-    packed = ctx.packed_lights or pack_lights(ctx.lights)
+    packed = packed or ctx.packed_lights or pack_lights(ctx.lights)
     codes, params, mesh = packed
     chosen = selector_for(ctx, False)
     tree = ((*empty_tree(), np.ones(len(codes), np.bool_)) if chosen is None else chosen[1])
@@ -584,6 +597,12 @@ class CameraScattering:
         return np.where((np.asarray(seg_m) == self.world_row)[:, None],
                         self.sigma_t[self.world_row][None, :], 0.0)
 
+    def _link_sets(self, seg_m):
+        """Light Linking: the receiver sets of points in media seg_m (None: no links)."""
+        links = getattr(self.ctx, "links", None)
+        return (None if links is None
+                else links.volume_sets(self.ctx.geo, seg_m, self.world_row))
+
     @classmethod
     def for_context(cls, ctx):
         tables = scattering_tables(ctx.table)
@@ -607,7 +626,8 @@ class CameraScattering:
         wo = np.take(np.asarray(d, np.float64), src, axis=0)
         wo = wo / np.linalg.norm(wo, axis=1, keepdims=True)
         Lin = in_scattered(self.ctx, pts, wo, self.g[seg_m], self.sigma_t[seg_m], rng,
-                           counters, world_sigma=self._world_sigma(seg_m))
+                           counters, world_sigma=self._world_sigma(seg_m),
+                           sets=self._link_sets(seg_m))
         L = Lin * w
         if self.bounces > 0 or self.glow is not None:
             self.walk(L, pts, wo, w, seg_m, rng, counters)
@@ -674,7 +694,7 @@ class CameraScattering:
             if len(src) == 0:
                 return
             Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters,
-                               world_sigma=self._world_sigma(m))
+                               world_sigma=self._world_sigma(m), sets=self._link_sets(m))
             L[idx] += beta * Lin
 
     def add(self, acc, target, pix, prim, o, d, t, medium, tp, rng, counters=None, uv=None):

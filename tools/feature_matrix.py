@@ -2307,14 +2307,52 @@ def visibility_light_glossy_off():
     _lamp_over_mirror().visible_glossy = False
 
 
-@case("warned", status="warned", how="Light Linking and Shadow Linking (Blender 4.0+) "
-      "are ignored: the light lights every object, every object shadows it",
-      warning="Light Linking")
-def warned_light_linking():
+@case("lights")
+def light_linking():
+    """Light Linking (linking38): a key lamp whose Light Linking collection holds the red
+    cube only; the sun lights everything. The floor and the back wall take no key light
+    (nor its bounce off them), the cube does."""
     _vis_scene()
-    sun = bpy.data.objects["Sun"]
-    sun.light_linking.receiver_collection = bpy.data.collections.new("Lit by the sun")
-    sun.light_linking.blocker_collection = bpy.data.collections.new("Sun blockers")
+    key = mb.light("Key", "POINT", (-0.8, -1.0, 2.2), 400.0, shadow_soft_size=0.0)
+    lit = bpy.data.collections.new("Lit by the key")
+    lit.objects.link(bpy.data.objects["Cube"])
+    key.light_linking.receiver_collection = lit
+
+
+@case("lights")
+def light_shadow_linking():
+    """Shadow Linking (linking38): the red cube is left out of the sun's blockers (its
+    Shadow Linking collection excludes it): no sun shadow on the floor, while a key lamp
+    beside it keeps the cube's shadow."""
+    _vis_scene()
+    mb.light("Key", "POINT", (1.6, -1.2, 1.8), 150.0, shadow_soft_size=0.0)
+    blockers = bpy.data.collections.new("Sun blockers")
+    blockers.objects.link(bpy.data.objects["Cube"])
+    blockers.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    bpy.data.objects["Sun"].light_linking.blocker_collection = blockers
+
+
+def _glow_box():
+    glow = _shader("glow", "ShaderNodeEmission", Color=(1.0, 0.9, 0.7), Strength=30.0)
+    return mb.box("Glow", 0.3, 0.3, 0.3, glow, (-0.5, -0.6, 0.15))
+
+
+@case("lights")
+def light_emitter_linking():
+    """An emitting object's Light Linking (linking38): a bright glowing box whose Light
+    Linking collection holds the red cube only: the floor round it takes none of its
+    light (nor the photons' bounce of it), the cube does."""
+    _vis_scene()
+    lit = bpy.data.collections.new("Lit by the glow")
+    lit.objects.link(bpy.data.objects["Cube"])
+    _glow_box().light_linking.receiver_collection = lit
+
+
+@case("warned", status="warned", how="Shadow Linking of an emitting object (not a lamp) "
+      "is ignored: every object shadows its emission", warning="Shadow Linking")
+def warned_emitter_shadow_linking():
+    _vis_scene()
+    _glow_box().light_linking.blocker_collection = bpy.data.collections.new("Glow blockers")
 
 
 @case("volumes", ours=dict(spp=256), cycles=dict(volume_bounces=0))

@@ -51,6 +51,17 @@ class LightGroup:
         return emit_arrays(self, n, rng, (centers, radii))
 
 
+def _receivers(light):
+    """A light's Light and Shadow Linking (its scene Light's receivers, blockers and
+    their non_ lists)."""
+    source = getattr(light, "source", None)
+    if source is None:
+        return None
+    recv, block = source.receivers, source.blockers
+    return (None if recv is None else tuple(recv), tuple(source.non_receivers),
+            None if block is None else tuple(block), tuple(source.non_blockers))
+
+
 def photon_emitters(lights, counts, chunk_size: int) -> list:
     """[(index of the first light, light or LightGroup, photon count)] for the photon
     pass: every light on its own for scenes with few lights; with many, lights of fewer
@@ -74,7 +85,10 @@ def photon_emitters(lights, counts, chunk_size: int) -> list:
             continue
         light = lights[li]
         small = c < limit
+        # (Light Linking: a group's photons end at their first hit by one rule,
+        # engine/lightlinking.py, so its members light the same objects.)
         fits = (members and light.ray_kinds == members[0].ray_kinds
+                and _receivers(light) == _receivers(members[0])
                 and sum(member_counts) + c <= limit)
         if small and fits:
             members.append(light)
