@@ -72,7 +72,8 @@ def _ies_lamp(bpy, scene, tmp_path, kind, location, mode="EXTERNAL", multiply=No
     ld = bpy.data.lights.new("Lamp", kind)
     ld.energy = power
     ld.shadow_soft_size = radius
-    ld.use_soft_falloff = soft_falloff
+    if kind in ("POINT", "SPOT"):
+        ld.use_soft_falloff = soft_falloff
     if kind == "SPOT":
         ld.spot_size, ld.spot_blend = math.radians(150.0), 0.1
     obj = bpy.data.objects.new("Lamp", ld)
@@ -227,3 +228,14 @@ def test_room_lit_by_an_ies_lamp_indirect_light_matches_cycles(fresh_scene, bpy_
     print(f"ceiling (indirect only): Cycles {ref:.4f}, ours {ours:.4f}, ratio {ours / ref:.3f}")
     assert ref > 0
     assert ours == pytest.approx(ref, rel=0.05)
+
+
+def test_ies_on_an_area_light_is_warned(fresh_scene, bpy_addon, tmp_path):
+    """Area and sun lights with an IES Texture: warned by name, the plain light exported."""
+    bpy = bpy_addon
+    scene = fresh_scene
+    _floor_and_wall(bpy, scene)
+    _ies_lamp(bpy, scene, tmp_path, "AREA", (0.0, 0.0, 1.2))
+    from blender_helpers import export_warnings
+    warnings = export_warnings(bpy)
+    assert any("Lamp" in w and "IES" in w and "area" in w for w in warnings), warnings
