@@ -25,7 +25,7 @@ from ..sampling import dot
 from .emission import (cosine_hemisphere, f64, emit_uniform, put, to_world, aim_direction,
                        uniform_sphere, pick, concentric_disk)
 from ..scene import POINT
-from ..ies import ies_factor, ies_factors
+from ..ies import direction_from_angles, ies_factor, ies_factors
 from . import packing as pk
 from .base import Light
 
@@ -70,7 +70,6 @@ class PointLight(Light):
         cz = (np.arange(2 * nc) + 0.5) / (2 * nc) * 2.0 - 1.0  # cos v in [-1, 1]
         h = (np.arange(2 * nh) + 0.5) / (2 * nh) * 2.0 * math.pi
         C, Hh = np.meshgrid(cz, h, indexing="ij")
-        from ..ies import direction_from_angles, ies_factors
         local = direction_from_angles(Hh.ravel(), np.arccos(np.clip(C.ravel(), -1.0, 1.0)))
         world = local @ self.ies_inverse.T
         world /= np.linalg.norm(world, axis=1)[:, None]

@@ -11,7 +11,7 @@ from .emission import (TWO_PI, Aim, f64, _cone_cos, concentric_disk, emit_unifor
                        to_world, uniform_cone)
 from ..scene import SPOT, spot_bounding_cos, spot_cone_cos, spot_mask
 from . import packing as pk
-from .point import PointLight, spot_mask_at  # noqa: F401 (spot_mask_at: kept importable here)
+from .point import PointLight, spot_mask_at
 
 
 class SpotLight(PointLight):
