@@ -685,15 +685,82 @@ def light_node_tint(pm, nt):
     light's strength times the shader's emission): Light Output <- Emission whose Color
     is a constant or a Blackbody node of a constant Temperature (a bulb's colour the
     way older tutorials set it) and whose Strength is a constant. RGB (3,) linear
-    Rec.709, or None for any other tree (textures, falloff nodes: not supported)."""
+    Rec.709, or None for any other tree (textures, falloff nodes: not supported; an IES
+    Texture: light_node_shading)."""
+    tint, ies = light_node_shading(pm, nt)
+    return tint if ies is None else None
+
+
+def ies_strength(socket):
+    """(factor, IES Texture node) of an Emission Strength socket linked from an IES
+    Texture's Fac, directly or through a Math Multiply by a constant (either input), the
+    IES node's own Strength and Vector unlinked (its Vector's default: the direction
+    from the lamp in its object space, as engine/ies.py evaluates); None otherwise."""
+    node, factor = socket.links[0].from_node, 1.0
+    if node.type == "MATH" and node.operation == "MULTIPLY" and not node.use_clamp:
+        a, b = node.inputs[0], node.inputs[1]
+        if a.is_linked == b.is_linked:
+            return None
+        linked, const = (a, b) if a.is_linked else (b, a)
+        factor = float(const.default_value)
+        node = linked.links[0].from_node
+    if node.type != "TEX_IES":
+        return None
+    if node.inputs["Strength"].is_linked or node.inputs["Vector"].is_linked:
+        return None
+    return factor * float(node.inputs["Strength"].default_value), node
+
+
+def light_node_shading(pm, nt):
+    """(tint, ies): light_node_tint's RGB (3,) factor and, where the Emission Strength is
+    an IES Texture's Fac (ies_strength), that IES node (its Strength and a Math
+    Multiply's constant are in the tint), else None. (None, None) for any other tree."""
     out = output_node(nt, "OUTPUT_LIGHT")
     surface = out.inputs.get("Surface") if out is not None else None
     if surface is None or not surface.is_linked:
-        return None
+        return None, None
     emit = surface.links[0].from_node
-    if emit.type != "EMISSION" or emit.inputs["Strength"].is_linked:
+    if emit.type != "EMISSION":
+        return None, None
+    ies = None
+    if emit.inputs["Strength"].is_linked:
+        found = ies_strength(emit.inputs["Strength"])
+        if found is None:
+            return None, None
+        strength, ies = found
+    else:
+        strength = float(emit.inputs["Strength"].default_value)
+    tint = _emission_colour(pm, emit)
+    if tint is None:
+        return None, None
+    tint = tint * strength
+    return (tint, ies) if np.all(np.isfinite(tint)) else (None, None)
+
+
+def ies_profile(pm, node, name: str, warnings: list):
+    """The engine IESProfile (engine/ies.py) of an IES Texture node: its file (External;
+    relative paths through bpy.path.abspath) or its text datablock (Internal); None with a
+    warning naming the light and the file when it cannot be read (the plain light
+    renders, as Cycles' unreadable profile leaves the node without a table)."""
+    iesmod = pm.ies
+    try:
+        if node.mode == "EXTERNAL":
+            import bpy
+            path = bpy.path.abspath(node.filepath)
+            return iesmod.load(path)
+        text = node.ies
+        if text is None:
+            raise iesmod.IESError("the IES Texture node has no text datablock")
+        return iesmod.parse(text.as_string(), name=text.name)
+    except iesmod.IESError as e:
+        warnings.append(f"light '{name}': IES profile not used, the plain light renders "
+                        f"({e})")
         return None
-    strength = float(emit.inputs["Strength"].default_value)
+
+
+def _emission_colour(pm, emit):
+    """RGB (3,) of an Emission's Color: a constant or a Blackbody of a constant
+    Temperature; None otherwise."""
     col = emit.inputs["Color"]
     if not col.is_linked:
         rgb = np.asarray(tuple(col.default_value)[:3], np.float64)
@@ -704,8 +771,7 @@ def light_node_tint(pm, nt):
         # Cycles' Blackbody node: its fit, negatives clamped (svm_node_blackbody).
         rgb = np.maximum(pm.shadernodes.blackbody_rec709(
             float(src.inputs["Temperature"].default_value))[0], 0.0)
-    tint = rgb * strength
-    return tint if np.all(np.isfinite(tint)) else None
+    return rgb
 
 
 def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
@@ -785,13 +851,22 @@ def convert_light(pm, obj, matrix: np.ndarray, name: str, warnings: list):
     if hasattr(L, "normalize"):
         kw["normalize"] = bool(L.normalize)
     if getattr(L, "use_nodes", False) and L.node_tree is not None:
-        tint = light_node_tint(pm, L.node_tree)
+        tint, ies = light_node_shading(pm, L.node_tree)
         if tint is None:
             warnings.append(f"light '{name}': light node trees other than an Emission "
-                            "of a constant colour or a Blackbody of a constant temperature "
-                            "are not supported; using the light's colour and power")
+                            "of a constant colour or a Blackbody of a constant temperature, "
+                            "its Strength a constant or an IES Texture's Fac (optionally "
+                            "times a constant) are not supported; using the light's colour "
+                            "and power")
+        elif ies is not None and kind not in ("POINT", "SPOT"):
+            warnings.append(f"light '{name}': an IES Texture on a {kind.lower()} light is "
+                            "not supported (point and spot lights only); using the light's "
+                            "colour and power")
         else:
-            kw["color"] = np.asarray(kw["color"], np.float64) * tint
+            profile = ies_profile(pm, ies, name, warnings) if ies is not None else None
+            if ies is None or profile is not None:
+                kw["color"] = np.asarray(kw["color"], np.float64) * tint
+                kw["ies_profile"] = profile
     if not getattr(L, "use_shadow", True):
         kw["cast_shadow"] = False
         warnings.append(f"light '{name}': 'cast shadow' off: its direct light passes every "

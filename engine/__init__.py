@@ -24,7 +24,7 @@ if (_sys.argv and _os.path.splitext(_os.path.basename(_sys.argv[0]))[0] == "phot
     for _sig in (_signal.SIGINT, _signal.SIGTERM):
         _signal.signal(_sig, _interrupted_while_loading)
 
-from . import (ambientocclusion, bevel, displacement, hair, hairbsdf, imageio,  # noqa: E402
+from . import (ambientocclusion, bevel, displacement, hair, hairbsdf, ies, imageio,  # noqa: E402
                motionblur, panorama, pointiness, presets, resources, shadernodes, stagespans,
                subsurface, teaching)
 from .film import Film  # noqa: E402
@@ -39,7 +39,7 @@ from .settings import RenderSettings  # noqa: E402
 from .normalmap import Bump, NormalMap  # noqa: E402
 from .textures import ColorAttribute, ImageTexture, TextureError  # noqa: E402
 
-__all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes",
+__all__ = ["render", "render_progressive", "Budget", "presets", "resources", "shadernodes", "ies",
            "teaching", "imageio",
            "RenderSettings",
            "Film", "Scene", "Mesh", "Prototype", "Material", "Light", "Camera", "SceneError", "ResourceError",

@@ -278,18 +278,23 @@ class PaperScene(Scene):
                                     shape="DISK" if disk else "RECTANGLE"))
 
     def add_point_light(self, position, power=100.0, color=(1, 1, 1), radius=0.0, name=None,
-                        soft_falloff=True):
+                        soft_falloff=True, ies=None, direction=(0, 0, -1)):
         """soft_falloff: Blender's Soft Falloff (a light with a radius is a disk facing the
-        lit point); False, a sphere (engine/lights/point.py)."""
+        lit point); False, a sphere (engine/lights/point.py). ies: an IES (LM-63) profile's
+        path (engine/ies.py; its 0 degrees along direction, the lamp's -Z)."""
         return self.add_light(PaperLight(name or f"point.{len(self.lights):03d}", POINT, power, color,
-                                    position, radius=radius, soft_falloff=soft_falloff))
+                                    position, direction, radius=radius,
+                                    soft_falloff=soft_falloff, ies_path=ies))
 
     def add_spot_light(self, position, look_at, power=100.0, color=(1, 1, 1),
                        spot_size_degrees=45.0, blend=0.15, radius=0.0, name=None,
-                       soft_falloff=True):
+                       soft_falloff=True, ies=None):
+        """ies: an IES (LM-63) profile's path (engine/ies.py; its 0 degrees along the
+        spot's axis)."""
         d = np.asarray(look_at, np.float64) - np.asarray(position, np.float64)
         return self.add_light(PaperLight(name or f"spot.{len(self.lights):03d}", SPOT, power, color,
                                     position, d, radius=radius, soft_falloff=soft_falloff,
+                                    ies_path=ies,
                                     spot_size=math.radians(spot_size_degrees), spot_blend=blend))
 
     def add_sun(self, direction=(0, 0, -1), strength=1.0, color=(1, 1, 1), angle_degrees=0.0,

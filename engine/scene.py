@@ -822,6 +822,10 @@ class Light:
               (its shadow rays pass the others, and its photons reach what lies behind
               them: engine/lightlinking.py)
     non_blockers  mesh names that cast none of the light's shadows (the exclude form)
+    ies_path  point/spot: an IES (LM-63) profile file read into ies_profile (engine/ies.py:
+              the emitted intensity along w is power x color / (4 pi) x f(w) in the lamp's
+              frame, as Cycles' IES Texture on the Emission Strength); ies_profile an
+              ies.IESProfile given directly (the add-on's text datablocks)
     spot_frame optional (3,3): rows map a world direction leaving a spot light into its
               cone space, where the cone is round: Cycles' scaled_axis_u, scaled_axis_v and
               dir * inv_len_z (the light object's X and Y axes divided by their squared
@@ -858,6 +862,8 @@ class Light:
     non_blockers: list = field(default_factory=list)
     spot_frame: np.ndarray | None = None
     skew_axis_v: tuple | np.ndarray | None = None
+    ies_path: str | None = None
+    ies_profile: object = None
     warnings: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
@@ -929,6 +935,22 @@ class Light:
             self.spot_frame = frame
         if self.kind == AREA and self.size_x * self.size_y <= 0:
             self.warnings.append(f"{who}: area light of zero size emits nothing")
+        self._load_ies(who)
+
+    def _load_ies(self, who):
+        """ies_profile from ies_path (engine/ies.py); a broken file or a light kind that
+        takes none: a warning, and the plain light renders."""
+        if self.ies_profile is None and self.ies_path:
+            from .ies import IESError, load
+            try:
+                self.ies_profile = load(str(self.ies_path))
+            except IESError as e:
+                self.warnings.append(f"{who}: IES profile not used, the plain light renders "
+                                     f"({e})")
+        if self.ies_profile is not None and self.kind not in (POINT, SPOT):
+            self.warnings.append(f"{who}: IES profiles apply to point and spot lights; "
+                                 f"ignored on a {self.kind.lower()} light")
+            self.ies_profile = None
 
     @property
     def cone_frame(self) -> np.ndarray:

@@ -254,7 +254,7 @@ LIGHT_SCHEMA = _table({
     "angle": _number(0.0, 180.0), "spread": _number(0.0, 180.0), "visible": _BOOL,
     "visible_diffuse": _BOOL, "visible_glossy": _BOOL, "visible_transmission": _BOOL,
     "cast_shadow": _BOOL, "soft_falloff": _BOOL, "receivers": _NAMES,
-    "non_receivers": _NAMES, "blockers": _NAMES, "non_blockers": _NAMES})
+    "non_receivers": _NAMES, "blockers": _NAMES, "non_blockers": _NAMES, "ies": _STRING})
 
 
 ENVIRONMENT_SCHEMA = _table({"image": _STRING, "strength": _number(0.0),
@@ -526,7 +526,7 @@ def _build(data: dict, base: str):
     for i, obj in enumerate(data.get("objects", [])):
         _object(scene, obj, i, base)
     for i, spec in enumerate(data.get("lights", [])):
-        _light(scene, spec, i)
+        _light(scene, spec, i, base)
     _instances(scene, data.get("objects", []), data.get("instances", []))
     if "sky" in data:
         _sky(scene, data["sky"])
@@ -914,7 +914,7 @@ def _light_problems(spec, i) -> list[str]:
     return problems
 
 
-def _light(scene, spec, i):
+def _light(scene, spec, i, base=""):
     kinds = {k.lower(): k for k in DECLARED_KINDS}
     kind = spec["type"].lower()
     position = _vec(spec.get("position", (0, 0, 0)))
@@ -945,4 +945,6 @@ def _light(scene, spec, i):
                           receivers=get("receivers"),
                           non_receivers=get("non_receivers", []),
                           blockers=get("blockers"),
-                          non_blockers=get("non_blockers", [])))
+                          non_blockers=get("non_blockers", []),
+                          ies_path=(None if get("ies") is None else
+                                    os.path.join(base, os.path.expanduser(get("ies"))))))

@@ -181,6 +181,41 @@ def light_spot_scaled():
     s.scale = (2.0, 0.5, 1.0)
 
 
+# A forward-throw batwing profile (type C, the whole circle; its throw towards the lamp's
+# local -X), as an IES Texture's text datablock (Internal): ies38.
+IES_FORWARD = """IESNA:LM-63-2002
+[TEST] forward throw, batwing
+TILT=NONE
+1 -1 1.0 7 5 1 2 0.3 0.3 0.1
+1.0 1.0 60
+0 20 40 60 80 85 180
+0 90 180 270 360
+400 500 600 300 100 0 0
+400 700 1200 900 300 0 0
+400 500 600 300 100 0 0
+400 300 200 100 50 0 0
+400 500 600 300 100 0 0
+"""
+
+
+@case("lights")
+def light_ies_point():
+    """A point light whose Emission Strength is an IES Texture's Fac (the profile a text
+    datablock), the lamp turned so its throw lands on the back wall's left."""
+    _stage()
+    lamp = mb.light("Lamp", "POINT", (0.0, 0.5, 1.6), 40.0, rotation=(0, 0, math.radians(-60)),
+                    shadow_soft_size=0.0)
+    ld = lamp.data
+    ld.use_nodes = True
+    nt = ld.node_tree
+    emit = next(n for n in nt.nodes if n.type == "EMISSION")
+    text = bpy.data.texts.new("forward.ies")
+    text.write(IES_FORWARD)
+    node = nt.nodes.new("ShaderNodeTexIES")
+    node.mode, node.ies = "INTERNAL", text
+    nt.links.new(node.outputs["Fac"], emit.inputs["Strength"])
+
+
 @case("lights")
 def light_area_square():
     _stage()

@@ -31,6 +31,11 @@ PORTAL_STRIDE = 13
 PORTAL_ROUND = 12  # (within a portal's slots)
 MAX_PORTALS = 4
 P = PORTAL0 + PORTAL_STRIDE * MAX_PORTALS
+# point / spot with an IES profile (ies38): the packed profile (engine/ies.py
+# IESProfile.packed: the world -> lamp matrix, then the table) from slot IES on; the rows
+# are that much wider only when a light has one (a row without one holds zeros there:
+# ies.HEADER + 0 horizontal angles, no profile).
+IES = P
 
 
 def pack_lights(lights):
@@ -47,7 +52,9 @@ def pack_lights(lights):
     world's light portal tables (lights/portalmap.py: f (K,N,N), sat (K,N+1,N+1) float64;
     (1,1,1) and (1,2,2) zeros without an environment map and portals)."""
     codes = np.zeros(len(lights), np.int64)
-    params = np.zeros((len(lights), P))
+    extra = max([len(light.ies) for light in lights if getattr(light, "ies", None) is not None],
+                default=0)
+    params = np.zeros((len(lights), P + extra))
     mesh = None
     env = None
     portal_tables = None

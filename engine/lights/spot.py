@@ -11,7 +11,7 @@ from .emission import (TWO_PI, Aim, f64, _cone_cos, concentric_disk, emit_unifor
                        to_world, uniform_cone)
 from ..scene import SPOT, spot_bounding_cos, spot_cone_cos, spot_mask
 from . import packing as pk
-from .point import PointLight
+from .point import PointLight, spot_mask_at
 
 
 class SpotLight(PointLight):
@@ -35,10 +35,14 @@ class SpotLight(PointLight):
         row[pk.SPOT_FRAME:pk.SPOT_FRAME + 9] = np.asarray(self.spot_frame, np.float64).ravel()
         return pk.CODE_SPOT
 
-    def _falloff(self, axis):
+    def _falloff_plain(self, axis):
         return self._spot(axis)
 
-    def _emit(self, aim, aimed, key, first, n, count, out, start):
+    def _spot_params(self):
+        cos_half = math.cos(self.spot_size / 2.0)
+        return f64(self.spot_frame), cos_half, (1.0 - cos_half) * self.spot_blend
+
+    def _emit_plain(self, aim, aimed, key, first, n, count, out, start):
         cos_half = math.cos(self.spot_size / 2.0)
         return emit_spot(f64(self.pos), f64(self.dir), float(self.radius), f64(self.intensity),
                          f64(self.spot_frame), cos_half,
@@ -57,20 +61,6 @@ class SpotLight(PointLight):
         # direction is drawn: aim at spheres grown by that radius, or the directions
         # that reach a caster only from the disk's rim are never drawn (caustic lost).
         return radii + self.radius if self.radius > 0 else radii
-
-
-@kernel
-def spot_mask_at(frame, cos_half, width, w0, w1, w2):
-    """scene.spot_mask(spot_cone_cos(w, frame), ...) for one direction w leaving the light:
-    Cycles' smoothstep of the cosine to the (scaled) cone's axis."""
-    l0 = frame[0, 0] * w0 + frame[0, 1] * w1 + frame[0, 2] * w2
-    l1 = frame[1, 0] * w0 + frame[1, 1] * w1 + frame[1, 2] * w2
-    l2 = frame[2, 0] * w0 + frame[2, 1] * w1 + frame[2, 2] * w2
-    x = l2 / max(math.sqrt(l0 * l0 + l1 * l1 + l2 * l2), 1e-300) - cos_half
-    if width <= 0:
-        return 1.0 if x > 0 else 0.0
-    f = min(max(x / width, 0.0), 1.0)
-    return f * f * (3.0 - 2.0 * f)
 
 
 def spot_aim(centers, radii, pos, axis, cos_bound) -> Aim:
