@@ -664,8 +664,9 @@ class CameraScattering:
         inside the medium up to self.bounces more times: a direction by the
         Henyey-Greenstein phase (sample_hg: its weight phase / pdf is 1), the segment to
         the next surface, a distance in it (sample_segments; a path whose distance falls
-        beyond the medium's segment ends, its light there being the surface's, which is
-        not followed), the lamps' light there (in_scattered) added to L (K,3) in place.
+        beyond the medium's segment ends), the lamps' light there (in_scattered) and the
+        light of the surface the segment ends on (segment_end_light) added to L (K,3) in
+        place.
         In emitting media (self.glow) each of those segments adds its glow, and so does
         one more segment from the last scatter point (Cycles' path goes on from its last
         volume bounce to collect that segment's emission: PATH_RAY_TERMINATE_AFTER_VOLUME;
@@ -678,7 +679,7 @@ class CameraScattering:
                 return
             u1, u2 = rng.random((2, len(idx)))
             d_new = sample_hg(d_in, self.g[m], u1, u2)
-            t, prim, _, _ = self.ctx.accel.intersect(x, d_new)
+            t, prim, u, v = self.ctx.accel.intersect(x, d_new)
             if self.glow is not None:
                 # (an escape through the world volume: its length to 1e-13, d_new unit)
                 t_e = (t if self.world_row < 0 else
@@ -688,6 +689,9 @@ class CameraScattering:
                     L[idx[s_e]] += beta[s_e] * Le
             if step == self.bounces:
                 return  # the segment after the last bounce: its glow alone
+            rows, Ls = self.segment_end_light(x, d_new, t, prim, u, v, m)
+            if len(rows):
+                L[idx[rows]] += beta[rows] * Ls
             src, p2, w2, m2 = self._scatter_points(prim, x, d_new, t, m, rng)
             idx, x, d_in, m = idx[src], p2, d_new[src], m2
             beta = beta[src] * w2
@@ -696,6 +700,13 @@ class CameraScattering:
             Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters,
                                world_sigma=self._world_sigma(m), sets=self._link_sets(m))
             L[idx] += beta * Lin
+
+    def segment_end_light(self, x, d, t, prim, u, v, m):
+        """(rows (K,), L (K,3)): the light a walk segment (from x (n,3) along d (n,3), hit
+        t, prim, u, v (n,), in media m (n,)) takes from the surface it ends on, for the
+        rows that take any: none here (engine/volumewalk.py's subclass adds the surfaces'
+        light)."""
+        return np.zeros(0, np.int64), np.zeros((0, 3))
 
     def add(self, acc, target, pix, prim, o, d, t, medium, tp, rng, counters=None, uv=None):
         """radiance()'s light into pass `target` of the Accumulator acc at pixels pix (n,),

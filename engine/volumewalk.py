@@ -30,49 +30,22 @@ import math
 import numpy as np
 
 from .bsdf import lobe_weights, surface_hit
-from .volumescatter import CameraScattering, in_scattered, sample_hg
-from . import worldmedium
+from .volumescatter import CameraScattering
 
 MAX_PASSES = 2  # volume-only faces passed on the way to a surface (leaving one fog box)
 
 
 class WalkingScattering(CameraScattering):
-    """CameraScattering whose walk adds the surface at each walk segment's end."""
+    """CameraScattering whose walk adds the surface at each walk segment's end (its
+    segment_end_light hook)."""
 
-    def walk(self, L, pts, wo, beta, seg_m, rng, counters=None):
-        """volumescatter.CameraScattering.walk (the same numbers, the same scatter
-        estimates) with the surface term of each segment from a scatter point that may go
-        on (surface_light)."""
+    def segment_end_light(self, x, d, t, prim, u, v, m):
+        """The walk's hook (volumescatter.CameraScattering.walk): surface_light with the
+        final-gather map (none without photon mapping)."""
         gmap = getattr(self.ctx, "gather_map", None)
-        idx = np.arange(len(pts))
-        x, d_in, m, beta = pts, wo, seg_m, beta
-        last = self.bounces if self.glow is not None else self.bounces - 1
-        for step in range(last + 1):
-            if len(idx) == 0:
-                return
-            u1, u2 = rng.random((2, len(idx)))
-            d_new = sample_hg(d_in, self.g[m], u1, u2)
-            t, prim, u, v = self.ctx.accel.intersect(x, d_new)
-            if self.glow is not None:
-                t_e = (t if self.world_row < 0 else
-                       np.where(np.asarray(prim) == -1, worldmedium.far_length(self.ctx), t))
-                s_e, Le = self.glow.along(prim, d_new, t_e, m)
-                if len(s_e):
-                    L[idx[s_e]] += beta[s_e] * Le
-            if step == self.bounces:
-                return  # the segment after the last bounce: its glow alone
-            if gmap is not None:
-                rows, Ls = self.surface_light(gmap, x, d_new, t, prim, u, v, m)
-                if len(rows):
-                    L[idx[rows]] += beta[rows] * Ls
-            src, p2, w2, m2 = self._scatter_points(prim, x, d_new, t, m, rng)
-            idx, x, d_in, m = idx[src], p2, d_new[src], m2
-            beta = beta[src] * w2
-            if len(src) == 0:
-                return
-            Lin = in_scattered(self.ctx, x, d_in, self.g[m], self.sigma_t[m], rng, counters,
-                               world_sigma=self._world_sigma(m), sets=self._link_sets(m))
-            L[idx] += beta * Lin
+        if gmap is None:
+            return np.zeros(0, np.int64), np.zeros((0, 3))
+        return self.surface_light(gmap, x, d, t, prim, u, v, m)
 
     def surface_light(self, gmap, x, d, t, prim, u, v, m):
         """(rows (K,), L (K,3)): T(S) x the diffuse radiance towards x of the surface each

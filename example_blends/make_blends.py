@@ -204,6 +204,20 @@ def plane(name, size_x, size_y, mat, location=(0, 0, 0), rotation=(0, 0, 0)):
     return add_object(name, me, mat, location, rotation)
 
 
+def linear_keys(obj):
+    """Linear interpolation on every key of obj's action (Blender 4.4+ layered actions
+    and the older fcurves alike): a constant speed between keys, for motion blur."""
+    action = obj.animation_data.action
+    curves = list(getattr(action, "fcurves", []) or [])
+    for layer in getattr(action, "layers", []):
+        for strip in layer.strips:
+            for bag in strip.channelbags:
+                curves.extend(bag.fcurves)
+    for fc in curves:
+        for k in fc.keyframe_points:
+            k.interpolation = "LINEAR"
+
+
 def box(name, sx, sy, sz, mat, location=(0, 0, 0), rotation=(0, 0, 0)):
     me = bpy.data.meshes.new(name)
     bm = bmesh.new()

@@ -25,6 +25,7 @@ import argparse
 import json
 import math
 import os
+import pathlib
 import sys
 from dataclasses import dataclass, field
 
@@ -183,19 +184,7 @@ def light_spot_scaled():
 
 # A forward-throw batwing profile (type C, the whole circle; its throw towards the lamp's
 # local -X), as an IES Texture's text datablock (Internal): ies38.
-IES_FORWARD = """IESNA:LM-63-2002
-[TEST] forward throw, batwing
-TILT=NONE
-1 -1 1.0 7 5 1 2 0.3 0.3 0.1
-1.0 1.0 60
-0 20 40 60 80 85 180
-0 90 180 270 360
-400 500 600 300 100 0 0
-400 700 1200 900 300 0 0
-400 500 600 300 100 0 0
-400 300 200 100 50 0 0
-400 500 600 300 100 0 0
-"""
+IES_FORWARD = pathlib.Path(ROOT, "tests", "references", "forward_batwing.ies").read_text()
 
 
 @case("lights")
@@ -2088,15 +2077,7 @@ def geometry_motion_blur():
     cube.keyframe_insert("location", frame=0)
     cube.location = (1.2, 0.0, 0.4)
     cube.keyframe_insert("location", frame=2)
-    action = cube.animation_data.action
-    curves = list(getattr(action, "fcurves", []) or [])
-    for layer in getattr(action, "layers", []):
-        for strip in layer.strips:
-            for bag in strip.channelbags:
-                curves.extend(bag.fcurves)
-    for fc in curves:
-        for k in fc.keyframe_points:
-            k.interpolation = "LINEAR"
+    mb.linear_keys(cube)
     scene = bpy.context.scene
     scene.frame_set(1)
     scene.render.use_motion_blur = True

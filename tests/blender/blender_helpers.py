@@ -183,6 +183,12 @@ def project(bpy, scene, point):
     return row, col
 
 
+def render_luminance(bpy, scene, path):
+    """Render scene to the EXR at path and return its Rec.709 luminance (H, W)."""
+    render_exr(bpy, scene, str(path))
+    return luminance(read_rgba(bpy, str(path))[..., :3])
+
+
 def luminance(rgb):
     rgb = np.asarray(rgb)
     return 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]

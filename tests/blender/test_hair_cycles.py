@@ -16,7 +16,8 @@ import sys
 import numpy as np
 import pytest
 
-from blender_helpers import ROOT, cycles_plain, read_rgba, render_exr, sun_light, world_color
+from blender_helpers import (ROOT, cycles_plain, read_rgba, render_exr, render_luminance,
+                             sun_light, world_color)
 
 pytestmark = pytest.mark.blender
 
@@ -53,11 +54,6 @@ def _principled(bpy, name, colour, roughness):
     return m
 
 
-def _luminance(bpy, sc, path):
-    render_exr(bpy, sc, path)
-    return read_rgba(bpy, path)[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
-
-
 @pytest.mark.parametrize("shape", ["RIBBONS", pytest.param("THICK", marks=pytest.mark.slow)])
 def test_a_tuft_of_hair_matches_cycles(bpy_addon, tmp_path, shape):
     bpy = bpy_addon
@@ -65,11 +61,11 @@ def test_a_tuft_of_hair_matches_cycles(bpy_addon, tmp_path, shape):
     sc.render.engine = "CYCLES"
     cycles_plain(sc, 256, 12)
     sc.cycles.sample_clamp_indirect = 10.0  # Cycles' default, which ours reads too
-    ref = _luminance(bpy, sc, tmp_path / "cycles.exr")
+    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
     sc.render.engine = "PHOTONMAP"
     sc.photonmap.spp = 32
     from addon import engine
-    ours = _luminance(bpy, sc, tmp_path / "ours.exr")
+    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     assert not [w for w in engine.last_render["warnings"] if "hair" in w.lower()]
     assert np.isfinite(ours).all()
     whole = ours.mean() / ref.mean()
@@ -173,11 +169,11 @@ def test_curves_info_colours_the_strands_as_in_cycles(bpy_addon, tmp_path):
     sc.render.engine = "CYCLES"
     cycles_plain(sc, 256, 12)
     sc.cycles.sample_clamp_indirect = 10.0
-    ref = _luminance(bpy, sc, tmp_path / "cycles.exr")
+    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
     sc.render.engine = "PHOTONMAP"
     sc.photonmap.spp = 32
     from addon import engine
-    ours = _luminance(bpy, sc, tmp_path / "ours.exr")
+    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     assert not [w for w in engine.last_render["warnings"] if "Curves Info" in w]
     ratio = (ours.reshape(6, 12, 8, 12).mean(axis=(1, 3))
              / ref.reshape(6, 12, 8, 12).mean(axis=(1, 3)))

@@ -4,27 +4,19 @@ a forward throw with a batwing), over a floor and a wall, per region of the imag
 profile as a text datablock (Internal) through a Math Multiply; the indirect light of a
 small closed room lit by the IES lamp (photons emitted by the profile)."""
 import math
+import os
+import pathlib
 
 import numpy as np
 import pytest
+
+from blender_helpers import ROOT
 
 pytestmark = pytest.mark.blender
 
 # Type C, whole circle: its brightest throw towards h = 90 degrees (the lamp's local -X),
 # a batwing (peak 40 degrees from straight down), nothing above 85 degrees.
-PROFILE = """IESNA:LM-63-2002
-[TEST] forward throw, batwing
-TILT=NONE
-1 -1 1.0 7 5 1 2 0.3 0.3 0.1
-1.0 1.0 60
-0 20 40 60 80 85 180
-0 90 180 270 360
-400 500 600 300 100 0 0
-400 700 1200 900 300 0 0
-400 500 600 300 100 0 0
-400 300 200 100 50 0 0
-400 500 600 300 100 0 0
-"""
+PROFILE = pathlib.Path(ROOT, "tests", "references", "forward_batwing.ies").read_text()
 # Type C lighting upwards only (vertical angles 90 .. 180, one horizontal angle).
 UPLIGHT = """IESNA:LM-63-2002
 TILT=NONE

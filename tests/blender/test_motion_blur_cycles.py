@@ -8,27 +8,19 @@ floor, 96 x 48. Measured: the brightness profile across the streak (8 rows throu
 ball) within 0.014 of Cycles 256 spp at every column (mean 0.003), the whole image 1.007;
 the camera panning past a still ball the same way."""
 import math
+import os
+import sys
 
 import numpy as np
 import pytest
 
-from blender_helpers import cycles_plain, read_rgba, render_exr, sun_light, world_color
+from blender_helpers import (ROOT, cycles_plain, render_luminance, render_exr, sun_light,
+                             world_color)
+
+sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+import make_blends as mb  # noqa: E402
 
 pytestmark = pytest.mark.blender
-
-
-def _linear_keys(obj):
-    """Linear interpolation on every key of obj's action (Blender 4.4+ layered actions
-    and the older fcurves alike)."""
-    action = obj.animation_data.action
-    curves = list(getattr(action, "fcurves", []) or [])
-    for layer in getattr(action, "layers", []):
-        for strip in layer.strips:
-            for bag in strip.channelbags:
-                curves.extend(bag.fcurves)
-    for fc in curves:
-        for k in fc.keyframe_points:
-            k.interpolation = "LINEAR"
 
 
 def _material(bpy, name, rgb):
@@ -64,7 +56,7 @@ def _scene(bpy, move="ball"):
     mover.keyframe_insert("location", frame=0)
     mover.location = axis_to
     mover.keyframe_insert("location", frame=2)
-    _linear_keys(mover)
+    mb.linear_keys(mover)
     sc.frame_set(1)
     sun_light(bpy, sc, (math.radians(30), math.radians(20), 0), energy=3.0)
     world_color(bpy, sc, (0.1, 0.1, 0.1))
@@ -73,22 +65,17 @@ def _scene(bpy, move="ball"):
     return sc
 
 
-def _luminance(bpy, sc, path):
-    render_exr(bpy, sc, path)
-    return read_rgba(bpy, path)[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
-
-
 @pytest.mark.parametrize("move", ["ball", pytest.param("camera", marks=pytest.mark.slow)])
 def test_a_moving_ball_streaks_as_in_cycles(bpy_addon, tmp_path, move):
     bpy = bpy_addon
     sc = _scene(bpy, move)
     sc.render.engine = "CYCLES"
     cycles_plain(sc, 256, 12)
-    ref = _luminance(bpy, sc, tmp_path / "cycles.exr")
+    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
     sc.render.engine = "PHOTONMAP"
     sc.photonmap.spp = 32
     from addon import engine
-    ours = _luminance(bpy, sc, tmp_path / "ours.exr")
+    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     st = engine.last_render["stats"]
     assert st["motion_blur_steps"] == 8
     np.testing.assert_allclose(st["motion_blur_times"], 0.75 + 0.5 * (np.arange(8) + 0.5) / 8)
@@ -101,7 +88,7 @@ def test_a_moving_ball_streaks_as_in_cycles(bpy_addon, tmp_path, move):
     assert 0.98 < ours.mean() / ref.mean() < 1.02
     # The streak is there: the still's ball is sharp, darker in its middle columns.
     sc.render.use_motion_blur = False
-    still = _luminance(bpy, sc, tmp_path / "still.exr")[band].mean(0)
+    still = render_luminance(bpy, sc, tmp_path / "still.exr")[band].mean(0)
     assert np.abs(still - pc).max() > 0.08
 
 
@@ -166,11 +153,11 @@ def test_an_object_with_its_motion_blur_off_stays_at_the_frame(bpy_addon, tmp_pa
     sc.render.resolution_x, sc.render.resolution_y = 48, 24
     sc.render.engine = "CYCLES"
     cycles_plain(sc, 128, 12)
-    ref = _luminance(bpy, sc, tmp_path / "cycles.exr")
+    ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
     sc.render.engine = "PHOTONMAP"
     sc.photonmap.spp = 16
     from addon import engine
-    ours = _luminance(bpy, sc, tmp_path / "ours.exr")
+    ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     assert engine.last_render["stats"]["motion_blur_steps"] == 1
     po, pc = ours[10:14].mean(0), ref[10:14].mean(0)
     assert np.abs(po - pc).max() < 0.04, np.round(np.c_[po, pc], 3)
