@@ -1067,9 +1067,9 @@ def volume_bounces_warning(scene, materials, warnings, world_medium=None) -> Non
     times inside the medium, each scatter lit by the lamps (engine/volumescatter.py) and
     by the diffuse surfaces at its walk segments' ends (engine/volumewalk.py, from the
     gather map), and photons scatter in it onto the surfaces (engine/photonmedium.py);
-    a glossy surface's light scattered in the fog, and any surface's without photon
-    mapping, are not followed: warned with the materials named, as that part of the
-    extra bounces' light is missing."""
+    a glossy surface's light scattered in the fog is not followed: warned, naming the
+    media and the sharp glossy, mirror or glass materials, only where the scene has such
+    a material."""
     bounces = int(getattr(getattr(scene, "cycles", None), "volume_bounces", 0) or 0)
     if bounces <= 0:
         return
@@ -1078,15 +1078,24 @@ def volume_bounces_warning(scene, materials, warnings, world_medium=None) -> Non
     names = [f"'{n}'" for n in names]
     if world_medium is not None and np.any(np.asarray(world_medium.scattering) > 0):
         names.insert(0, "the World Volume")  # (engine/worldmedium.py)
-    if names:
+    # Surfaces whose light the walks do not follow: mirrors, metals, glass, sharp
+    # specular layers (a rough one's glossy share is small, and newuser38 read the
+    # warning in every fog scene as a promise of darkness that did not come).
+    sharp = sorted(f"'{name}'" for name, m in materials.items()
+                   if (float(np.max(np.atleast_1d(getattr(m, "metallic", 0.0)))) > 0.5
+                       or float(np.max(np.atleast_1d(getattr(m, "transmission", 0.0)))) > 0.5
+                       or (float(np.max(np.atleast_1d(getattr(m, "specular", 0.0)))) > 0
+                           and float(np.min(np.atleast_1d(getattr(m, "roughness", 1.0))))
+                           < 0.3)))
+    if names and sharp:
         shown = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+        glossy = ", ".join(sharp[:3]) + (", ..." if len(sharp) > 3 else "")
         warnings.append(f"Light Paths > Volume bounces is {bounces}: the media of {shown} "
                         "scatter light up to that many more times (camera paths, photons, "
-                        "the diffuse surfaces' light from the photon maps), but a glossy "
-                        "or mirror surface's light scattered in the medium is not "
-                        "followed, nor any surface's without photon mapping: such scenes "
-                        "render darker than in Cycles (at 0, Cycles' default, nothing is "
-                        "left out)")
+                        "the diffuse surfaces' light from the photon maps), but the light "
+                        f"of the glossy, mirror or glass surfaces {glossy} scattered in "
+                        "the medium is not followed: it is missing where Cycles has it "
+                        "(at 0, Cycles' default, nothing is left out)")
 
 
 def light_path_source(scene, props):

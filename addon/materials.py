@@ -1438,10 +1438,11 @@ class MaterialConverter:
                 return (float(np.mean(val)) if getattr(out, "type", "") == "VECTOR"
                         else float(np.asarray(val, np.float64)[:3]
                                    @ np.array([0.2126, 0.7152, 0.0722])))
-            why = "not supported" if val is None else "varies per hit, which this input is not"
+            why = ("is not supported here" if val is None else
+                   "varies over the surface, but this input takes one value per material")
             self._warn(f"material '{self._mat.name}': {socket.name} of '{node.name}': node "
-                       f"'{n.name}' ({n.type}) {why}, using {_value_text(own)} (the "
-                       "socket's own value)")
+                       f"'{n.name}' ({n.type}) {why}; using {_value_text(own)}, the "
+                       "value typed in the socket (hidden while it is linked)")
         return own
 
     def _const_color(self, node, name, default):

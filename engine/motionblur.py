@@ -165,10 +165,11 @@ def render_motion_blur(scene_at: Callable[[float], Scene], times,
     steps = len(times)
     first = scene_at(times[0])
     scenes = {0: first}
+    still = False
     if steps > 1:
         last = scene_at(times[-1])
         if pose_signature(last) == pose_signature(first):
-            steps, times = 1, times[:1]
+            steps, times, still = 1, times[:1], True
         else:
             scenes[steps - 1] = last
     if steps == 1:
@@ -177,10 +178,12 @@ def render_motion_blur(scene_at: Callable[[float], Scene], times,
         film = render(first, settings, progress=progress, should_cancel=should_cancel,
                       region=region, on_warning=tell_once, on_plan=on_plan)
         film.stats.update(motion_blur_steps=1, motion_blur_times=times,
-                          motion_blur_still=True)
+                          motion_blur_still=still)
         film.stats["effects"] = list(film.stats.get("effects", [])) + [
             "motion blur: off - nothing moves while the shutter is open (meshes, lights "
-            "and camera the same at its start and end): rendered once"]
+            "and camera the same at its start and end): rendered once" if still else
+            f"motion blur: off - Motion Blur > Steps is 1: the scene at one time "
+            f"({times[0]:g}, the shutter's middle), no blur; raise Steps to blur"]
         return film
     own = [ADAPTIVE_WARNING] if settings.adaptive_threshold > 0 else []
     for w in own:

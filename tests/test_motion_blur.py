@@ -155,3 +155,20 @@ def test_a_cancelled_export_keeps_the_steps_done():
 
     with pytest.raises(Cancelled):
         render_motion_blur(refuse, [1.0, 1.1], settings)
+
+
+def test_one_step_says_so_and_renders_the_shutters_middle():
+    """Steps 1 (newuser38: read "nothing moves" where things did): one render at the
+    shutter's middle, the report says Steps is 1."""
+    asked = []
+
+    def scene_at(t):
+        asked.append(t)
+        return _glow_scene(t - 1.0, width=32, height=16)
+
+    settings = RenderSettings(spp=4, workers=1, seed=2, photon_mapping=False)
+    film = render_motion_blur(scene_at, shutter_times(1, 0.5, "CENTER", 1), settings)
+    assert asked == [1.0]
+    assert film.stats["motion_blur_steps"] == 1 and not film.stats["motion_blur_still"]
+    line = [e for e in film.stats["effects"] if e.startswith("motion blur")]
+    assert len(line) == 1 and "Steps is 1" in line[0], line

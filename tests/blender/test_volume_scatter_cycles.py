@@ -98,18 +98,31 @@ def test_fog_box_lit_by_a_spot_matches_cycles(bpy_addon, tmp_path):
 
 
 def test_volume_bounces_above_zero_are_warned(bpy_addon, tmp_path):
-    """Light Paths > Volume bounces 2 with a scattering fog: warned (the media scatter
-    once here, as Cycles at its default 0), naming the material; at 0 no warning."""
+    """Light Paths > Volume bounces 2 with a scattering fog and a mirror ball: warned
+    (a mirror's light scattered in the fog is not followed), naming the fog and the
+    mirror; with diffuse surfaces only, or at 0, no warning (newuser38 read it in every
+    fog scene)."""
     bpy = bpy_addon
+    import os
+    import sys
     from addon import engine
+    from blender_helpers import ROOT
+    sys.path.insert(0, os.path.join(ROOT, "example_blends"))
+    import make_blends as mb
     scene = _scene(bpy)
-    for bounces, warned in ((2, True), (0, False)):
+
+    def warned(bounces, name):
         scene.cycles.volume_bounces = bounces
-        _render(bpy, scene, tmp_path / f"vb{bounces}.exr", "PHOTONMAP", 1)
-        found = [w for w in engine.last_render.get("warnings", []) if "Volume bounces" in w]
-        assert bool(found) == warned, found
-        if warned:
-            assert "'fog'" in found[0] and "is 2" in found[0]
+        _render(bpy, scene, tmp_path / f"{name}.exr", "PHOTONMAP", 1)
+        return [w for w in engine.last_render.get("warnings", []) if "Volume bounces" in w]
+
+    assert not warned(2, "diffuse")
+    mb.sphere("Ball", 0.3, mb.material("mirror", "principled", (0.9, 0.9, 0.9), roughness=0.0, metallic=1.0),
+              (1.5, 0.0, 0.3), segments=16, rings=8)
+    found = warned(2, "mirror")
+    assert len(found) == 1 and "'fog'" in found[0] and "'mirror'" in found[0] \
+        and "is 2" in found[0], found
+    assert not warned(0, "zero")
 
 
 def test_fog_cube_around_the_scene_matches_cycles(bpy_addon, tmp_path):

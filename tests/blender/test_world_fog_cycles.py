@@ -58,7 +58,8 @@ def _block(img, rc, r=2):
 def test_world_volume_is_exported(bpy_addon):
     """The World Output's Volume becomes Scene.world_medium (sigma_s = density x colour,
     sigma_a = density x (1 - colour), g), with no warning about it; Light Paths > Volume
-    bounces above 0 is warned naming it (photons do not scatter in it)."""
+    bounces above 0 with a mirror in the scene is warned naming it (a mirror's light
+    scattered in the fog is not followed)."""
     bpy = bpy_addon
     from addon import export
     from addon.core import load_engine
@@ -73,8 +74,9 @@ def test_world_volume_is_exported(bpy_addon):
     # (the rule on its own: Volume bounces 2 with no scattering material)
     from types import SimpleNamespace
     found = []
+    mirror = SimpleNamespace(metallic=1.0, transmission=0.0, specular=0.5, roughness=0.0)
     export.volume_bounces_warning(SimpleNamespace(cycles=SimpleNamespace(volume_bounces=2)),
-                                  {}, found, wm)
+                                  {"mirror": mirror}, found, wm)
     assert len(found) == 1 and "the World Volume" in found[0], found
 
 
