@@ -629,13 +629,11 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
         render = scene.render
         mb = pm.motionblur
         frame, subframe = scene.frame_current, scene.frame_subframe
-        times = mb.shutter_times(frame + subframe,
-                                 float(render.motion_blur_shutter),
-                                 str(render.motion_blur_position), int(props.motion_blur_steps))
+        shutter, position = float(render.motion_blur_shutter), str(render.motion_blur_position)
         extra = motion_blur_warnings(scene, depsgraph)
         for w in extra:
             on_warning(w)
-        step = {"i": 0, "n": len(times), "spans": None}
+        step = {"i": 0, "n": 1, "spans": None}
         still_names = motion_blur_off(scene)
         cam = self.camera_override or scene.camera
         camera_name = cam.name if cam is not None else None
@@ -673,10 +671,18 @@ class PhotonMapRenderEngine(bpy.types.RenderEngine):
                 step["spans"].plan(work)
 
         try:
+            steps, why = int(props.motion_blur_steps), ""
+            if steps <= 0:  # Auto: from the vertices' motion in the image
+                self._stats("Motion blur: measuring the motion")
+                steps, path = mb.auto_steps(scene_at, *mb.shutter_span(
+                    frame + subframe, shutter, position))
+                why = (f"Steps Auto: the fastest vertex moves {path:.0f} pixels while the "
+                       "shutter is open")
+            times = mb.shutter_times(frame + subframe, shutter, position, steps)
             return mb.render_motion_blur(scene_at, times, settings, progress=progress,
                                          should_cancel=self._should_cancel, region=region,
                                          on_warning=on_warning, on_plan=plan,
-                                         on_step=on_step)
+                                         on_step=on_step, why=why)
         except cancelled_error:  # before the first step: an empty film, marked cancelled
             x0, y0, x1, y1 = region if region is not None else (0, 0, width, height)
             film = pm.Film(x1 - x0, y1 - y0)

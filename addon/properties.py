@@ -89,11 +89,12 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
                     "Figure 6 box (bench/bench_accuracy.py)")
     # Render > Motion Blur (Blender's switch, Shutter and Position; engine/motionblur.py)
     motion_blur_steps: IntProperty(
-        name="Steps", default=8, min=1, max=256, soft_max=64,
+        name="Steps", default=0, min=0, max=256, soft_max=64,
         description="Motion blur: the shutter is cut into this many time slices, each "
                     "rendered whole at its middle time (its own photons, a share of the "
                     "samples) and averaged; more steps blur fast motion without ghost "
-                    "copies and cost one photon pass each")
+                    "copies and cost one photon pass each. 0 = Auto: as many as keep the "
+                    "fastest vertex within 2 pixels a step (at most 64)")
     # Progressive rendering
     progressive: BoolProperty(
         name="Progressive", default=False,

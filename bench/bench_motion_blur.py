@@ -6,7 +6,7 @@
 
 The test's scene (tests/blender/test_motion_blur_cycles.py `_scene`: a red ball moving
 3 m over two frames, Shutter 0.5 centred on frame 1, a sun, a grey floor). Columns:
-steps (0: motion blur off, the still), our render seconds (wall, this process) and
+steps (0: motion blur off, the still; auto: Steps 0, its count printed below), our render seconds (wall, this process) and
 theirs, the whole image's luminance ratio, the streak's profile (8 rows through the
 ball) against Cycles': mean and largest |difference| per column, and relMSE over the
 image.
@@ -30,7 +30,8 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--steps", default="0,4,8,16")
+    ap.add_argument("--steps", default="0,4,8,16,auto",
+                    help="0: motion blur off (the still); auto: Steps 0")
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--cycles-spp", type=int, default=512)
     ap.add_argument("--size", default="128x64")
@@ -66,10 +67,14 @@ def main(argv=None):
     print(f"{'steps':>5} {'ours s':>7} {'whole':>6} {'profile mean':>12} "
           f"{'profile max':>11} {'relMSE':>8}")
     profiles = {}
-    for steps in (int(s) for s in a.steps.split(",")):
-        sc.render.use_motion_blur = steps > 0
-        sc.photonmap.motion_blur_steps = max(steps, 1)
-        ours, t = luminance(sc, f"ours{steps}.exr")
+    for token in a.steps.split(","):
+        auto = token == "auto"
+        steps = 0 if auto else int(token)
+        sc.render.use_motion_blur = auto or steps > 0
+        sc.photonmap.motion_blur_steps = 0 if auto else max(steps, 1)
+        ours, t = luminance(sc, f"ours{token}.exr")
+        if auto:
+            steps = engine.last_render["stats"].get("motion_blur_steps")
         po = ours[band].mean(0)
         profiles[steps] = po
         rel = float(np.mean((ours - ref) ** 2 / (ref ** 2 + 0.01)))
@@ -77,6 +82,8 @@ def main(argv=None):
               f"{np.abs(po - pc).mean():12.4f} {np.abs(po - pc).max():11.4f} {rel:8.5f}")
         got = engine.last_render["stats"].get("motion_blur_steps")
         assert steps == 0 or got == steps, (steps, got)
+        if auto:
+            print(f"      (auto: {got} steps)")
     if a.plot:
         import matplotlib
         matplotlib.use("Agg")

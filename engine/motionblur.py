@@ -58,6 +58,89 @@ def shutter_times(frame: float, shutter: float, position: str = "CENTER",
     return opens + shutter * (np.arange(steps) + 0.5) / steps
 
 
+# Motion Blur > Steps 0 (Auto): as many steps as keep the fastest vertex within this many
+# pixels a step (its path through the shutter's start, middle and end), at most
+# AUTO_MAX_STEPS (newuser38: 8 steps showed 8 copies of a spinner where Cycles gives a
+# smooth disc; 32 were smooth).
+AUTO_PIXELS_PER_STEP = 2.0
+AUTO_MAX_STEPS = 64
+# Vertices per mesh looked at for its motion (a stride through larger meshes).
+AUTO_MAX_VERTICES = 20_000
+
+
+def _world_vertices(mesh):
+    """(V,3) world-space vertices of an engine Mesh (a placement without a copy: its
+    prototype's placed by its matrix)."""
+    if mesh.vertices is not None:
+        return np.asarray(mesh.vertices, np.float64)
+    if mesh.prototype is None or mesh.matrix is None:
+        return np.zeros((0, 3))
+    M = np.asarray(mesh.matrix, np.float64)
+    return np.asarray(mesh.prototype.vertices, np.float64) @ M[:3, :3].T + M[:3, 3]
+
+
+def image_motion(a: Scene, b: Scene) -> float:
+    """The largest distance in pixels a mesh vertex moves in the image between scene a and
+    scene b (the same scene at two times: meshes matched by name and vertex count, each
+    seen by its scene's camera, so a moving camera counts too). Perspective: the angle
+    between the vertex's view directions over the pixel's angle (fov / the larger image
+    side); orthographic: the image-plane displacement over ortho_scale / the larger side;
+    panoramic: the angle over 2 pi / width. 0 without a camera."""
+    if a.camera is None or b.camera is None:
+        return 0.0
+    side = max(a.width, a.height, 1)
+    kind = a.camera.kind
+    unit = (float(a.camera.fov) / side if kind == "PERSP" else
+            float(a.camera.ortho_scale) / side if kind == "ORTHO" else 2.0 * math.pi / max(a.width, 1))
+    if not unit > 0.0:
+        return 0.0
+
+    def view(cam, v):
+        R = np.asarray(cam.rotation, np.float64)
+        return (v - np.asarray(cam.position, np.float64)) @ R
+
+    others = {m.name: m for m in b.meshes}
+    worst = 0.0
+    for m in a.meshes:
+        other = others.get(m.name)
+        if other is None:
+            continue
+        va, vb = _world_vertices(m), _world_vertices(other)
+        if va.shape != vb.shape or not len(va):
+            continue
+        step = max(1, len(va) // AUTO_MAX_VERTICES)
+        ca, cb = view(a.camera, va[::step]), view(b.camera, vb[::step])
+        if kind == "ORTHO":
+            moved = np.linalg.norm(ca[:, :2] - cb[:, :2], axis=1)
+        else:  # the angle between the view directions (atan2: exact for small angles)
+            moved = np.arctan2(np.linalg.norm(np.cross(ca, cb), axis=1),
+                               np.einsum("ij,ij->i", ca, cb))
+        moved = moved[np.isfinite(moved)]
+        if len(moved):
+            worst = max(worst, float(moved.max()) / unit)
+    return worst
+
+
+def auto_steps(scene_at: Callable[[float], Scene], opens: float, closes: float) -> tuple:
+    """Motion Blur > Steps 0 (Auto): (steps, path): ceil(path / AUTO_PIXELS_PER_STEP)
+    steps, 2 to AUTO_MAX_STEPS, path the largest image_motion
+    (pixels) from the shutter's opening (time opens, frames) through its middle to its
+    closing (three scene_at calls)."""
+    mid = 0.5 * (opens + closes)
+    a, m, b = scene_at(opens), scene_at(mid), scene_at(closes)
+    path = image_motion(a, m) + image_motion(m, b)
+    # (at least 2: render_motion_blur renders a still once if nothing moves at all, and
+    # a lamp's motion, which no vertex shows, still blurs its light)
+    steps = math.ceil(path / AUTO_PIXELS_PER_STEP - 1e-9) if path > 0.0 else 2
+    return int(min(AUTO_MAX_STEPS, max(2, steps))), path
+
+
+def shutter_span(frame: float, shutter: float, position: str = "CENTER") -> tuple:
+    """(opens, closes): the shutter's times in frames (see shutter_times)."""
+    opens = frame + POSITIONS[position] * shutter
+    return opens, opens + shutter
+
+
 def frame_and_subframe(t: float) -> tuple[int, float]:
     """(frame, subframe) with subframe in [0, 1): Blender's frame_set(frame, subframe)
     arguments for time t (frames)."""
@@ -137,7 +220,7 @@ ADAPTIVE_WARNING = ("motion blur: Noise Threshold (adaptive sampling) is not use
 def render_motion_blur(scene_at: Callable[[float], Scene], times,
                        settings: RenderSettings | None = None, progress=None,
                        should_cancel=None, region=None, on_warning=None, on_plan=None,
-                       on_step=None) -> Film:
+                       on_step=None, why: str = "") -> Film:
     """Render the average over the shutter of the scene at `times` (frames; see
     shutter_times): scene_at(t) returns the Scene at time t (the add-on exports
     Blender's depsgraph there). Each time is a whole render (render.render) with
@@ -146,7 +229,8 @@ def render_motion_blur(scene_at: Callable[[float], Scene], times,
     with the still's settings. progress(stage, fraction, text) as render's, the text
     prefixed with the step; should_cancel / region / on_warning / on_plan as render's
     (each warning told once over all steps); on_step(i, steps) before step i (0-based)
-    renders, so a progress bar can place the steps' stages. film.stats: the first step's, with
+    renders, so a progress bar can place the steps' stages; why: words on how the steps
+    were chosen, added to the effect report's line. film.stats: the first step's, with
     motion_blur_steps (1 when nothing moved), motion_blur_times, the times summed and
     the photons of every step; cancelling keeps the steps done (at least the first
     step's partial film). scene_at may raise parallel.Cancelled (a cancelled export):
@@ -245,6 +329,6 @@ def render_motion_blur(scene_at: Callable[[float], Scene], times,
         f"{step_settings(settings, 0, steps).k_nearest}) and "
         f"{step_settings(settings, 0, steps).spp} samples a pixel: the "
         "image is their mean (what moves further than its width in one step shows the "
-        "steps: raise Motion Blur > Steps)"]
+        "steps: raise Motion Blur > Steps)" + (f"; {why}" if why else "")]
     film.warnings = warnings
     return film

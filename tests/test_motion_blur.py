@@ -5,8 +5,9 @@ import pytest
 
 from engine import RenderSettings, render
 from engine.api import PaperScene
-from engine.motionblur import (K_MIN, frame_and_subframe, pose_signature,
-                               render_motion_blur, shutter_times, step_settings)
+from engine.motionblur import (AUTO_MAX_STEPS, K_MIN, auto_steps, frame_and_subframe,
+                               image_motion, pose_signature, render_motion_blur,
+                               shutter_span, shutter_times, step_settings)
 from engine.scene import Material
 
 
@@ -172,3 +173,29 @@ def test_one_step_says_so_and_renders_the_shutters_middle():
     assert film.stats["motion_blur_steps"] == 1 and not film.stats["motion_blur_still"]
     line = [e for e in film.stats["effects"] if e.startswith("motion blur")]
     assert len(line) == 1 and "Steps is 1" in line[0], line
+
+
+def test_auto_steps_follow_the_fastest_vertex_in_pixels():
+    """The square moving 1 m a frame under an orthographic camera of 2 m across 80
+    pixels (40 pixels a metre): over a 0.5-frame shutter it moves 20 pixels, 10 steps of
+    2 pixels; a camera moving with it sees no motion; a spinning square's path is the
+    sum over the shutter's halves."""
+    a, b = _glow_scene(-0.25), _glow_scene(0.25)
+    assert image_motion(a, b) == pytest.approx(20.0, rel=1e-6)
+    opens, closes = shutter_span(1.0, 0.5, "CENTER")
+    assert (opens, closes) == (0.75, 1.25)
+    steps, path = auto_steps(lambda t: _glow_scene(t - 1.0), opens, closes)
+    assert steps == 10 and path == pytest.approx(20.0, rel=1e-6)
+
+    def riding(t):
+        s = _glow_scene(t - 1.0)
+        s.set_camera((t - 1.0, 0, 2.0), (t - 1.0, 0, 0), up=(0, 1, 0), kind="ORTHO",
+                     ortho_scale=2.0)
+        return s
+
+    # (the glowing plane moves in the image then: the square's own motion is 0, the
+    # plane's 20 pixels)
+    assert auto_steps(riding, opens, closes)[1] == pytest.approx(20.0, rel=1e-6)
+    assert auto_steps(lambda t: _glow_scene(0.0), opens, closes) == (2, 0.0)
+    fast = auto_steps(lambda t: _glow_scene(100.0 * (t - 1.0)), opens, closes)
+    assert fast[0] == AUTO_MAX_STEPS

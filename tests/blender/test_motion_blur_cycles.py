@@ -74,6 +74,7 @@ def test_a_moving_ball_streaks_as_in_cycles(bpy_addon, tmp_path, move):
     ref = render_luminance(bpy, sc, tmp_path / "cycles.exr")
     sc.render.engine = "PHOTONMAP"
     sc.photonmap.spp = 32
+    sc.photonmap.motion_blur_steps = 8
     from addon import engine
     ours = render_luminance(bpy, sc, tmp_path / "ours.exr")
     st = engine.last_render["stats"]
@@ -126,6 +127,7 @@ def test_a_cancel_during_motion_blur_restores_the_frame(bpy_addon, tmp_path, aft
     sc.render.resolution_x, sc.render.resolution_y = 24, 12
     sc.photonmap.spp = 8
     sc.photonmap.photons = sc.photonmap.caustic_photons = 20_000
+    sc.photonmap.motion_blur_steps = 8
     from addon import engine
     polls = {"n": 0}
 
@@ -161,3 +163,26 @@ def test_an_object_with_its_motion_blur_off_stays_at_the_frame(bpy_addon, tmp_pa
     assert engine.last_render["stats"]["motion_blur_steps"] == 1
     po, pc = ours[10:14].mean(0), ref[10:14].mean(0)
     assert np.abs(po - pc).max() < 0.04, np.round(np.c_[po, pc], 3)
+
+
+def test_auto_steps_follow_the_streaks_length(bpy_addon, tmp_path):
+    """Steps 0 (Auto, the default): the ball sweeps 0.75 m at ~6 m, ~16 pixels of the
+    96-pixel image (39.6 degrees across): about 8 steps of 2 pixels; the report says so.
+    Twice as wide an image: about twice the steps."""
+    bpy = bpy_addon
+    sc = _scene(bpy)
+    sc.render.engine = "PHOTONMAP"
+    sc.photonmap.spp = 4
+    sc.photonmap.photons = sc.photonmap.caustic_photons = 20_000
+    assert sc.photonmap.motion_blur_steps == 0
+    from addon import engine
+    render_exr(bpy, sc, str(tmp_path / "auto.exr"))
+    st = engine.last_render["stats"]
+    line = [e for e in st["effects"] if e.startswith("motion blur: on")]
+    assert 6 <= st["motion_blur_steps"] <= 12, st["motion_blur_steps"]
+    assert len(line) == 1 and "Steps Auto" in line[0], line
+    n = st["motion_blur_steps"]
+    sc.render.resolution_x, sc.render.resolution_y = 192, 96
+    render_exr(bpy, sc, str(tmp_path / "auto2.exr"))
+    assert 1.7 * n <= engine.last_render["stats"]["motion_blur_steps"] <= 2.3 * n + 1
+    assert sc.frame_current == 1 and sc.frame_subframe == 0.0
