@@ -94,7 +94,7 @@ class PhotonMapRenderSettings(bpy.types.PropertyGroup):
                     "rendered whole at its middle time (its own photons, a share of the "
                     "samples) and averaged; more steps blur fast motion without ghost "
                     "copies and cost one photon pass each. 0 = Auto: as many as keep the "
-                    "fastest vertex within 2 pixels a step (at most 64)")
+                    "fastest vertex within 3 pixels a step (at most 64)")
     # Progressive rendering
     progressive: BoolProperty(
         name="Progressive", default=False,

@@ -61,8 +61,9 @@ def shutter_times(frame: float, shutter: float, position: str = "CENTER",
 # Motion Blur > Steps 0 (Auto): as many steps as keep the fastest vertex within this many
 # pixels a step (its path through the shutter's start, middle and end), at most
 # AUTO_MAX_STEPS (newuser38: 8 steps showed 8 copies of a spinner where Cycles gives a
-# smooth disc; 32 were smooth).
-AUTO_PIXELS_PER_STEP = 2.0
+# smooth disc; 32, ~2.5 pixels a step, were smooth; 2 pixels took that scene 40 steps and
+# 3.2x the time of 8).
+AUTO_PIXELS_PER_STEP = 3.0
 AUTO_MAX_STEPS = 64
 # Vertices per mesh looked at for its motion (a stride through larger meshes).
 AUTO_MAX_VERTICES = 20_000
