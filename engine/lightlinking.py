@@ -539,12 +539,21 @@ def link_row_of(ctx, emitter):
     links = getattr(ctx, "links", None)
     if links is None:
         return None
+    li = _light_index(ctx, emitter)
+    if li is None:
+        return None
+    row = links.lit[li]
+    return None if row.all() else row
+
+
+def _light_index(ctx, emitter):
+    """The index in ctx.lights of the light a photon emitter stands for (unwrapped; a
+    light prepared from the same source counts), or None."""
     light = unwrapped(emitter)
     source = getattr(light, "source", None)
     for li, other in enumerate(ctx.lights):
         if other is light or (source is not None and other.source is source):
-            row = links.lit[li]
-            return None if row.all() else row
+            return li
     return None
 
 
@@ -567,13 +576,12 @@ def blocker_accel_of(ctx, emitter):
     links = getattr(ctx, "links", None)
     if links is None or not links.shadow_groups:
         return None
-    light = unwrapped(emitter)
-    source = getattr(light, "source", None)
-    for li, other in enumerate(ctx.lights):
-        if other is light or (source is not None and other.source is source):
-            for group in links.shadow_groups:
-                if group.lights[li]:
-                    return group.accel
+    li = _light_index(ctx, emitter)
+    if li is None:
+        return None
+    for group in links.shadow_groups:
+        if group.lights[li]:
+            return group.accel
     return None
 
 

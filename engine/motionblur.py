@@ -30,7 +30,7 @@ from .film import Film
 from .parallel import Cancelled
 from .progressive import K_MIN, PassMerger
 from .render import render, warning_key, warning_teller
-from .scene import Scene
+from .scene import Scene, place
 from .settings import RenderSettings
 
 # Blender's Render > Motion Blur > Position (Cycles' motion_blur_position): where the
@@ -47,14 +47,9 @@ def shutter_times(frame: float, shutter: float, position: str = "CENTER",
     0.5); position: START (the shutter opens at the frame), CENTER (Cycles' default: the
     frame is the shutter's middle) or END. Raises ValueError on a bad position, shutter
     or step count."""
-    if position not in POSITIONS:
-        raise ValueError(f"motion blur position must be one of {', '.join(POSITIONS)}, "
-                         f"got {position!r}")
     if not (isinstance(steps, (int, np.integer)) and 1 <= steps <= MAX_STEPS):
         raise ValueError(f"motion blur steps must be an integer 1..{MAX_STEPS}, got {steps!r}")
-    if not (math.isfinite(shutter) and shutter > 0.0):
-        raise ValueError(f"motion blur shutter must be > 0 frames, got {shutter!r}")
-    opens = frame + POSITIONS[position] * shutter
+    opens, _ = shutter_span(frame, shutter, position)
     return opens + shutter * (np.arange(steps) + 0.5) / steps
 
 
@@ -71,13 +66,12 @@ AUTO_MAX_VERTICES = 20_000
 
 def _world_vertices(mesh):
     """(V,3) world-space vertices of an engine Mesh (a placement without a copy: its
-    prototype's placed by its matrix)."""
+    prototype's placed by its matrix, scene.place)."""
     if mesh.vertices is not None:
         return np.asarray(mesh.vertices, np.float64)
     if mesh.prototype is None or mesh.matrix is None:
         return np.zeros((0, 3))
-    M = np.asarray(mesh.matrix, np.float64)
-    return np.asarray(mesh.prototype.vertices, np.float64) @ M[:3, :3].T + M[:3, 3]
+    return place(mesh.prototype, mesh.matrix)[0]
 
 
 def image_motion(a: Scene, b: Scene) -> float:
@@ -137,7 +131,13 @@ def auto_steps(scene_at: Callable[[float], Scene], opens: float, closes: float) 
 
 
 def shutter_span(frame: float, shutter: float, position: str = "CENTER") -> tuple:
-    """(opens, closes): the shutter's times in frames (see shutter_times)."""
+    """(opens, closes): the shutter's times in frames (see shutter_times). Raises
+    ValueError on a bad position or shutter."""
+    if position not in POSITIONS:
+        raise ValueError(f"motion blur position must be one of {', '.join(POSITIONS)}, "
+                         f"got {position!r}")
+    if not (math.isfinite(shutter) and shutter > 0.0):
+        raise ValueError(f"motion blur shutter must be > 0 frames, got {shutter!r}")
     opens = frame + POSITIONS[position] * shutter
     return opens, opens + shutter
 
@@ -317,18 +317,18 @@ def render_motion_blur(scene_at: Callable[[float], Scene], times,
             cancelled = True
             break
     film = merger.film
+    slice_settings = step_settings(settings, 0, steps)  # (the slices differ by seed only)
     film.stats.update(stats0)
     film.stats.update(sums)
     film.stats.update(motion_blur_steps=done, motion_blur_times=times[:done],
                       motion_blur_still=False, cancelled=cancelled,
-                      spp=step_settings(settings, 0, steps).spp * done,
+                      spp=slice_settings.spp * done,
                       time_total=time.perf_counter() - t_start)
     film.stats["effects"] = list(stats0.get("effects", [])) + [
         f"motion blur: on - {steps} time steps over the shutter "
         f"({times[0]:g} to {times[-1]:g}, slice middles), each a whole render with its own "
-        f"{step_settings(settings, 0, steps).photons:,} photons (k-NN over "
-        f"{step_settings(settings, 0, steps).k_nearest}) and "
-        f"{step_settings(settings, 0, steps).spp} samples a pixel: the "
+        f"{slice_settings.photons:,} photons (k-NN over {slice_settings.k_nearest}) and "
+        f"{slice_settings.spp} samples a pixel: the "
         "image is their mean (what moves further than its width in one step shows the "
         "steps: raise Motion Blur > Steps)" + (f"; {why}" if why else "")]
     film.warnings = warnings
